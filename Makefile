@@ -1,0 +1,34 @@
+# Two entry points for a fresh machine (see README):
+#   make demo   set up .venv, preprocess a sample DEM, write a mesh and an offscreen view
+#   make test   set up .venv and run the whole test suite
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: demo test lint clean setup
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test,dev]'
+	touch $(STAMP)
+
+setup: $(STAMP)
+
+demo: $(STAMP)
+	mkdir -p out
+	$(BIN)/geoterrain preprocess sample_dems/fbm_513.tif -o out/fbm_513.geoterrain --overwrite
+	$(BIN)/geoterrain info out/fbm_513.geoterrain
+	$(BIN)/geoterrain mesh out/fbm_513.geoterrain -o out/fbm_513.ply --max-error 1
+	$(BIN)/geoterrain render out/fbm_513.geoterrain -o out/fbm_513.png
+	@echo "demo done: see out/"
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/ruff check geoterrain cli tests benchmarks
+
+clean:
+	rm -rf $(VENV) out .pytest_cache

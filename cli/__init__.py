@@ -1,0 +1,1 @@
+"""The `geoterrain` command line: Click commands, one module each, thin over the library."""

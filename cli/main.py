@@ -1,0 +1,89 @@
+"""The `geoterrain` Click group: shared flags, one-line errors and exit codes."""
+
+from __future__ import annotations
+
+import logging
+import sys
+import traceback
+
+import click
+
+from geoterrain import __version__
+from geoterrain.exceptions import GeoterrainError
+
+
+class Group(click.Group):
+    """Turns library errors into one line and an exit code (2 usage, 1 data)."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except GeoterrainError as exc:
+            click.echo(f"Error: {exc}", err=True)
+            ctx.exit(exc.exit_code)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+            raise
+        except KeyboardInterrupt:
+            click.echo("Interrupted; nothing was written.", err=True)
+            ctx.exit(130)
+        except MemoryError:
+            click.echo("Error: out of memory; use a smaller DEM or a larger machine", err=True)
+            ctx.exit(1)
+        except Exception as exc:  # noqa: BLE001 - the last line of defence: never a traceback
+            if (ctx.obj or {}).get("verbose", 0) > 1:
+                traceback.print_exc()
+            first = str(exc).splitlines()[0] if str(exc) else ""
+            click.echo(f"Error: internal error {type(exc).__name__}: {first} "
+                       "(re-run with -vv for the traceback and report it)", err=True)
+            ctx.exit(1)
+
+
+@click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="geoterrain")
+@click.option("-v", "--verbose", count=True, help="More output (-vv: tracebacks).")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bars or summaries.")
+@click.pass_context
+def cli(ctx, verbose, quiet):
+    """Turn real elevation data into fast, accurate 3-D terrain.
+
+    \b
+    Typical session:
+      geoterrain preprocess dem.tif           # → dem.geoterrain
+      geoterrain info dem.geoterrain
+      geoterrain mesh dem.geoterrain -o dem.ply --max-error 1
+      geoterrain render dem.geoterrain -o view.png
+
+    Run `geoterrain COMMAND --help` for each command's options.
+    """
+    ctx.ensure_object(dict)
+    ctx.obj["verbose"] = verbose
+    ctx.obj["quiet"] = quiet
+    logging.basicConfig(level=logging.DEBUG if verbose > 1 else
+                        logging.INFO if verbose else logging.WARNING,
+                        format="%(levelname)s: %(message)s")
+
+
+def _register() -> None:
+    from geoterrain.cli import info, preprocess, synth
+
+    for mod in (preprocess, info, synth):
+        cli.add_command(mod.command)
+    for name in ("mesh", "render", "view", "bench"):
+        try:
+            mod = __import__(f"geoterrain.cli.{name}", fromlist=["command"])
+        except ModuleNotFoundError as exc:
+            if exc.name != f"geoterrain.cli.{name}":
+                raise
+            continue
+        cli.add_command(mod.command)
+
+
+_register()
+
+
+def main() -> None:
+    cli(prog_name="geoterrain")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

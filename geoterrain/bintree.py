@@ -1,0 +1,191 @@
+"""Implicit, array-oriented geometry of the longest-edge bisection bintree.
+
+Conventions (docs/conventions.md, seed 002 §2.2): the grid has N = 2**n + 1 samples per
+side, indexed ``[i, j]``. A triangle ``(a, b, c)`` has hypotenuse a–b and right-angle
+apex c; its split vertex is ``m = (a + b) / 2`` and its children are ``(c, a, m)`` and
+``(b, c, m)``. The two base triangles (depth 0) split the square along the diagonal
+(0, 0)–(N−1, N−1).
+
+Every non-corner sample is the split vertex of exactly one bintree depth:
+
+* depth ``2k`` (``h = 2**(n-k-1)``): *centres* of the 2h × 2h blocks, ``[h::2h, h::2h]``;
+  their diamond is the whole block, split along the union-jack diagonal;
+* depth ``2k+1`` (same ``h``): *edge midpoints* of those blocks, ``[h::2h, ::2h]``
+  (hypotenuse along the rows) and ``[::2h, h::2h]`` (hypotenuse along the columns);
+  their diamond is the rotated square ``|di| + |dj| <= h`` clipped to the domain.
+
+Everything here is vectorised over arrays of (i, j) integer pairs; there are no node
+objects (the same implicit indexing as Martini).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "base_triangles",
+    "half_span",
+    "split_vertex",
+    "triangle_children",
+    "uniform_triangles",
+    "vertex_children",
+    "vertex_depth",
+    "vertex_parents",
+]
+
+
+def half_span(n: int, depth: int) -> int:
+    """Half-size ``h`` of the split vertices at bintree ``depth`` of a 2**n + 1 grid.
+
+    Examples
+    --------
+    >>> half_span(2, 0), half_span(2, 1), half_span(2, 2), half_span(2, 3)
+    (2, 2, 1, 1)
+    """
+    if not 0 <= depth < 2 * n:
+        raise ValueError(f"depth must be in [0, {2 * n}), got {depth}")
+    return 1 << (n - depth // 2 - 1)
+
+
+def base_triangles(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two depth-0 triangles ``(a, b, c)``, each an (2, 2) int64 array of (i, j).
+
+    Both are counter-clockwise seen from above with X east and Y north (rows grow
+    southwards), and so are all their descendants (bisection keeps the orientation).
+
+    Examples
+    --------
+    >>> a, b, c = base_triangles(1)
+    >>> a.tolist(), b.tolist(), c.tolist()
+    ([[0, 0], [2, 2]], [[2, 2], [0, 0]], [[0, 2], [2, 0]])
+    """
+    s = 1 << n
+    a = np.array([[0, 0], [s, s]], dtype=np.int64)
+    b = np.array([[s, s], [0, 0]], dtype=np.int64)
+    c = np.array([[0, s], [s, 0]], dtype=np.int64)
+    return a, b, c
+
+
+def split_vertex(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Split vertex (hypotenuse midpoint) of triangles with hypotenuse ``a``–``b``.
+
+    Examples
+    --------
+    >>> split_vertex(np.array([[0, 0]]), np.array([[4, 4]])).tolist()
+    [[2, 2]]
+    """
+    return (np.asarray(a) + np.asarray(b)) // 2
+
+
+def triangle_children(
+    a: np.ndarray, b: np.ndarray, c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Children of K triangles, stacked as 2K triangles: first all ``(c, a, m)``, then
+    all ``(b, c, m)``.
+
+    Examples
+    --------
+    >>> a, b, c = base_triangles(1)
+    >>> ca, cb, cc = triangle_children(a[:1], b[:1], c[:1])
+    >>> ca.tolist(), cb.tolist(), cc.tolist()
+    ([[0, 2], [2, 2]], [[0, 0], [0, 2]], [[1, 1], [1, 1]])
+    """
+    m = split_vertex(a, b)
+    return (np.concatenate([c, b]), np.concatenate([a, c]), np.concatenate([m, m]))
+
+
+def uniform_triangles(n: int, depth: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All triangles at bintree ``depth`` (the uniform cut), as (K, 2) int64 arrays.
+
+    Depth ``2(n - L)`` is the union-jack uniform surface of pyramid level L.
+
+    Examples
+    --------
+    >>> a, b, c = uniform_triangles(1, 2)
+    >>> len(a)
+    8
+    """
+    a, b, c = base_triangles(n)
+    for _ in range(depth):
+        a, b, c = triangle_children(a, b, c)
+    return a, b, c
+
+
+def _lowbit(i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    v = np.bitwise_or(i, j)
+    return v & -v
+
+
+def vertex_depth(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
+    """Bintree depth at which sample (i, j) is a split vertex; −1 for the 4 corners.
+
+    Examples
+    --------
+    >>> vertex_depth(np.array([2, 0, 2, 1, 1]), np.array([2, 2, 0, 1, 0]), 2).tolist()
+    [0, 1, 1, 2, 3]
+    """
+    i = np.asarray(i, dtype=np.int64)
+    j = np.asarray(j, dtype=np.int64)
+    s = 1 << n
+    g = _lowbit(i, j)
+    g = np.where(g == 0, s, g)  # (0, 0)
+    k = n - 1 - np.log2(g).astype(np.int64)  # h = g = 2**(n-k-1)
+    centre = ((i // g) % 2 == 1) & ((j // g) % 2 == 1)
+    d = np.where(centre, 2 * k, 2 * k + 1)
+    corner = ((i == 0) | (i == s)) & ((j == 0) | (j == s))
+    return np.where(corner, -1, d)
+
+
+def vertex_parents(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
+    """Parents (apexes of the diamond triangles) of non-corner samples.
+
+    Returns an (..., 2, 2) int64 array of two (i, j) pairs; a missing parent (boundary
+    edge midpoint) is (−1, −1).
+
+    Examples
+    --------
+    >>> vertex_parents(np.array([2]), np.array([2]), 2).tolist()
+    [[[0, 4], [4, 0]]]
+    """
+    i = np.asarray(i, dtype=np.int64)
+    j = np.asarray(j, dtype=np.int64)
+    s = 1 << n
+    h = _lowbit(i, j)
+    centre = ((i // h) % 2 == 1) & ((j // h) % 2 == 1)
+    # Centre: union-jack block parity (a + b) % 2 == 0 → split along the main diagonal,
+    # parents on the anti-diagonal (seed 002 §2.3 parity rule).
+    par = (((i - h) // (2 * h)) + ((j - h) // (2 * h))) % 2
+    sgn = np.where(par == 0, 1, -1)
+    c_p = np.stack([np.stack([i - h, j + sgn * h], -1), np.stack([i + h, j - sgn * h], -1)], -2)
+    # Edge midpoint: hypotenuse along rows if i is the odd multiple of h.
+    along_rows = (i // h) % 2 == 1
+    di = np.where(along_rows, 0, h)
+    dj = np.where(along_rows, h, 0)
+    e_p = np.stack([np.stack([i - di, j - dj], -1), np.stack([i + di, j + dj], -1)], -2)
+    out = np.where(centre[..., None, None], c_p, e_p)
+    bad = (out < 0) | (out > s)
+    bad = bad.any(-1, keepdims=True)
+    return np.where(bad, -1, out)
+
+
+def vertex_children(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
+    """Children of non-corner samples: (..., 4, 2) int64, missing ones (−1, −1).
+
+    Examples
+    --------
+    >>> vertex_children(np.array([2]), np.array([2]), 2).tolist()
+    [[[0, 2], [4, 2], [2, 0], [2, 4]]]
+    """
+    i = np.asarray(i, dtype=np.int64)
+    j = np.asarray(j, dtype=np.int64)
+    s = 1 << n
+    h = _lowbit(i, j)
+    centre = ((i // h) % 2 == 1) & ((j // h) % 2 == 1)
+    q = h // 2
+    c_off = np.stack([-h, 0 * h, h, 0 * h, 0 * h, -h, 0 * h, h], -1).reshape(*h.shape, 4, 2)
+    e_off = np.stack([-q, -q, -q, q, q, -q, q, q], -1).reshape(*h.shape, 4, 2)
+    off = np.where(centre[..., None, None], c_off, e_off)
+    out = np.stack([i, j], -1)[..., None, :] + off
+    bad = ((out < 0) | (out > s)).any(-1, keepdims=True)
+    bad = bad | ((~centre) & (h == 1))[..., None, None]  # finest edge midpoints: leaves
+    return np.where(bad, -1, out)

@@ -1,0 +1,173 @@
+"""The scene frame: metric 3-D positions of every sample, computed with pyproj.
+
+- Projected CRS: CRS coordinates of the pixel centres, converted to metres with
+  the CRS's own axis unit (US survey feet, feet, ...).
+- Geographic CRS: exact sample positions (lon, lat) projected by pyproj into an
+  azimuthal equidistant frame centred on the raster: true ground proportions,
+  no resampling of heights.
+- No CRS (PNG tiles): unit pixels, or a given pixel size.
+
+The scene origin is the raster's centre, so coordinates stay small (float32
+safe in the renderer) whatever the CRS coordinates are.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from functools import cached_property
+
+import numpy as np
+from pyproj import CRS, Transformer
+from pyproj.crs import ProjectedCRS
+from pyproj.crs.coordinate_operation import AzimuthalEquidistantConversion
+
+from geoterrain.exceptions import InputError, UsageError
+
+# Vertical units a user may state (metres per unit); pyproj supplies horizontal ones.
+Z_UNITS = {"m": 1.0, "ft": 0.3048, "us-ft": 1200.0 / 3937.0}
+
+
+@dataclass(frozen=True)
+class Frame:
+    """How grid indices (i, j) map to scene coordinates (metres).
+
+    Examples
+    --------
+    >>> f = Frame.pixel(rows=3, cols=3, pixel_size=2.0)
+    >>> X, Y = f.xy(np.array([0, 2]), np.array([0, 2]))
+    >>> X.tolist(), Y.tolist()
+    ([-2.0, 2.0], [2.0, -2.0])
+    """
+
+    kind: str  # "projected" | "geographic" | "pixel"
+    rows: int
+    cols: int
+    transform: tuple[float, ...]  # GDAL affine of the source grid (pixel corners)
+    crs_wkt: str | None = None
+    unit_to_m: float = 1.0  # horizontal CRS unit → metres
+    z_to_m: float = 1.0  # vertical unit → metres
+    z_scale: float = 1.0  # vertical exaggeration
+    origin_crs: tuple[float, float] = (0.0, 0.0)  # CRS coords of the scene origin
+    aeqd_wkt: str | None = None  # local metric frame of a geographic grid
+
+    # ----------------------------------------------------------------- builders
+    @staticmethod
+    def pixel(rows: int, cols: int, pixel_size: float = 1.0, **kw) -> Frame:
+        """A frame without georeference: ``pixel_size`` metres per sample."""
+        t = (pixel_size, 0.0, 0.0, 0.0, -pixel_size, 0.0)
+        fr = Frame("pixel", rows, cols, t, **kw)
+        return fr._with_origin()
+
+    @staticmethod
+    def from_raster(
+        transform: tuple[float, ...] | None,
+        crs_wkt: str | None,
+        rows: int,
+        cols: int,
+        pixel_size: float | None = None,
+        z_units: str = "m",
+        z_scale: float = 1.0,
+    ) -> Frame:
+        """Build the frame of a raster from its affine transform and CRS."""
+        if z_units not in Z_UNITS:
+            raise UsageError(f"unknown vertical unit {z_units!r}; use one of {', '.join(Z_UNITS)}")
+        if not np.isfinite(z_scale) or z_scale <= 0:
+            raise UsageError(f"--z-scale must be a positive number, got {z_scale}")
+        kw = dict(z_to_m=Z_UNITS[z_units], z_scale=float(z_scale))
+        if crs_wkt is None or pixel_size is not None:
+            return Frame.pixel(rows, cols, pixel_size or 1.0, **kw)
+        if transform is None:
+            raise InputError("the raster has a CRS but no geotransform; cannot place it")
+        if transform[1] != 0 or transform[3] != 0:
+            raise InputError("rotated geotransforms are not supported; warp the DEM north-up first")
+        crs = CRS.from_wkt(crs_wkt)
+        if crs.is_geographic:
+            return Frame("geographic", rows, cols, tuple(transform), crs_wkt, **kw)._with_origin()
+        if not crs.is_projected:
+            raise InputError(f"unsupported CRS kind for {crs.name!r}; reproject to a projected CRS")
+        unit = crs.axis_info[0].unit_conversion_factor if crs.axis_info else 1.0
+        return Frame("projected", rows, cols, tuple(transform), crs_wkt, unit_to_m=unit,
+                     **kw)._with_origin()
+
+    def _with_origin(self) -> Frame:
+        ox, oy = self._crs_xy(np.array([(self.rows - 1) / 2]), np.array([(self.cols - 1) / 2]))
+        origin = (float(ox[0]), float(oy[0]))
+        aeqd = None
+        if self.kind == "geographic":
+            geod = CRS.from_wkt(self.crs_wkt).geodetic_crs
+            conv = AzimuthalEquidistantConversion(latitude_natural_origin=origin[1],
+                                                  longitude_natural_origin=origin[0])
+            aeqd = ProjectedCRS(conversion=conv, geodetic_crs=geod).to_wkt()
+        return Frame(**{**asdict(self), "origin_crs": origin, "aeqd_wkt": aeqd})
+
+    # --------------------------------------------------------------- mapping
+    def _crs_xy(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """CRS coordinates of pixel centres (i, j) by the affine transform."""
+        a, b, c, d, e, f = self.transform
+        jj, ii = np.asarray(j, np.float64) + 0.5, np.asarray(i, np.float64) + 0.5
+        return a * jj + b * ii + c, d * jj + e * ii + f
+
+    @cached_property
+    def _to_scene(self) -> Transformer | None:
+        if self.kind != "geographic":
+            return None
+        return Transformer.from_crs(CRS.from_wkt(self.crs_wkt), CRS.from_wkt(self.aeqd_wkt),
+                                    always_xy=True)
+
+    def xy(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Scene X (east), Y (north) in metres of samples (i, j); any broadcastable shape."""
+        x, y = self._crs_xy(i, j)
+        if self.kind == "geographic":
+            # Padding rows may run past a pole: clamp so pyproj stays finite.
+            y = np.clip(y, -90.0, 90.0)
+            X, Y = self._to_scene.transform(x, y)
+            return np.asarray(X, np.float64), np.asarray(Y, np.float64)
+        return (x - self.origin_crs[0]) * self.unit_to_m, (y - self.origin_crs[1]) * self.unit_to_m
+
+    def z(self, heights: np.ndarray) -> np.ndarray:
+        """Scene Z (metres, exaggerated) of heights in source units."""
+        return np.asarray(heights, np.float64) * (self.z_to_m * self.z_scale)
+
+    def heights_from_z(self, Z: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`z`."""
+        return np.asarray(Z, np.float64) / (self.z_to_m * self.z_scale)
+
+    def grid_xy(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Scene X, Y of the whole padded n × n grid (float64)."""
+        if self.kind == "geographic":
+            i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+            return self.xy(i, j)
+        xs, _ = self.xy(np.zeros(n), np.arange(n))
+        _, ys = self.xy(np.arange(n), np.zeros(n))
+        return (np.broadcast_to(xs[None, :], (n, n)).copy(),
+                np.broadcast_to(ys[:, None], (n, n)).copy())
+
+    def crs_to_scene(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Scene X, Y of points given in the source CRS."""
+        x, y = np.asarray(x, np.float64), np.asarray(y, np.float64)
+        if self.kind == "geographic":
+            X, Y = self._to_scene.transform(x, y)
+            return np.asarray(X), np.asarray(Y)
+        return (x - self.origin_crs[0]) * self.unit_to_m, (y - self.origin_crs[1]) * self.unit_to_m
+
+    def scene_to_crs(self, X: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Source-CRS coordinates of scene points."""
+        X, Y = np.asarray(X, np.float64), np.asarray(Y, np.float64)
+        if self.kind == "geographic":
+            x, y = self._to_scene.transform(X, Y, direction="INVERSE")
+            return np.asarray(x), np.asarray(y)
+        return X / self.unit_to_m + self.origin_crs[0], Y / self.unit_to_m + self.origin_crs[1]
+
+    @property
+    def crs_name(self) -> str:
+        return CRS.from_wkt(self.crs_wkt).name if self.crs_wkt else "none (pixel units)"
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+    @staticmethod
+    def from_json(d: dict) -> Frame:
+        d = dict(d)
+        d["transform"] = tuple(d["transform"])
+        d["origin_crs"] = tuple(d["origin_crs"])
+        return Frame(**d)

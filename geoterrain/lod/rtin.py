@@ -1,0 +1,122 @@
+"""Strategy ``rtin``: Lindstrom & Pascucci longest-edge-bisection refinement (seed 002).
+
+Two phases, both on whole arrays:
+
+1. **Active vertices.** Level by level, from the top tile down, the tiles that
+   can hold an active vertex are found from per-tile bounds alone (max δ, max r
+   and the tile's box: no decoding). Only those tiles are decoded, and the
+   predicate is evaluated on all their samples at once:
+
+   - view-dependent: the sphere meets the frustum, δ > 0 and LP eq. 2,
+     ρ = λδ/(d − r) > τ, or the eye is inside the sphere (d ≤ r);
+   - static: δ > e.
+
+   Saturated δ and nested radii make the predicate monotone (a vertex's
+   parents are active whenever it is), so the active set is closed.
+2. **Bisection.** The bintree is refined level by level on arrays of
+   triangles: a triangle (a, b, c) splits at m = (a + b) / 2 when m is active.
+   The result conforms (no cracks, no T-junctions) across tile borders.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geoterrain.view import View
+
+
+def base_triangles(size: int) -> np.ndarray:
+    """The two base triangles (a, b, c) as (2, 3, 2) (i, j): hypotenuse (0,0)–(s,s)."""
+    s = size - 1
+    return np.array([[[0, 0], [s, s], [0, s]], [[s, s], [0, 0], [s, 0]]], np.int64)
+
+
+def bisect(active: np.ndarray) -> np.ndarray:
+    """Leaf triangles (F, 3, 2) of the bintree refined wherever ``active[m]`` is True."""
+    tris = base_triangles(active.shape[0])
+    leaves = []
+    while len(tris):
+        s = tris[:, 0] + tris[:, 1]
+        split = ((s & 1) == 0).all(1)  # the hypotenuse midpoint is a grid sample
+        m = s >> 1
+        go = split.copy()
+        go[split] = active[m[split, 0], m[split, 1]]
+        leaves.append(tris[~go])
+        a, b, c, m = tris[go, 0], tris[go, 1], tris[go, 2], m[go]
+        # LP bisection: children (c, a, m) and (b, c, m) keep the orientation
+        tris = np.concatenate([np.stack([c, a, m], 1), np.stack([b, c, m], 1)])
+    return np.concatenate(leaves)
+
+
+class ActiveSet:
+    """Dense per-sample flags filled tile by tile: ``active`` and ``mixed`` (δ = inf)."""
+
+    def __init__(self, terrain):
+        N = terrain.grid.size
+        self.terrain = terrain
+        self.active = np.zeros((N, N), bool)
+        self.mixed = np.zeros((N, N), bool)
+
+    def fill(self, rows: np.ndarray, predicate, index) -> int:
+        """Evaluate ``predicate(stack)`` on the candidate tiles ``rows``; return tiles read."""
+        t, g = self.terrain, self.terrain.grid
+        T = g.tile_samples
+        for row in rows.tolist():
+            L, x, y = (int(v) for v in index.keys[row])
+            s = 1 << L
+            i0, j0 = (y << g.t) << L, (x << g.t) << L
+            sl = (slice(i0, i0 + (T - 1) * s + 1, s), slice(j0, j0 + (T - 1) * s + 1, s))
+            delta = t.tile_delta(L, x, y)
+            self.mixed[sl] |= np.isinf(delta)
+            self.active[sl] |= predicate(L, x, y, delta)
+        return len(rows)
+
+    def mark_unknown_mixed(self, rows: np.ndarray, index) -> None:
+        """Tiles not read that may hold δ = inf: flag their samples as mixed (not drawn)."""
+        g = self.terrain.grid
+        T = g.tile_samples
+        for row in rows.tolist():
+            L, x, y = (int(v) for v in index.keys[row])
+            s = 1 << L
+            i0, j0 = (y << g.t) << L, (x << g.t) << L
+            self.mixed[i0:i0 + (T - 1) * s + 1, j0:j0 + (T - 1) * s + 1] = True
+
+
+def static_active(terrain, index, max_error: float) -> ActiveSet:
+    """Every vertex with δ > e (the RTIN/Martini semantics, with a true bound)."""
+    act = ActiveSet(terrain)
+    rows = np.flatnonzero(index.delta_max > max_error)
+    act.fill(rows, lambda L, x, y, d: d > max_error, index)
+    return act
+
+
+def view_active(terrain, index, view: View, tau: float) -> ActiveSet:
+    """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex."""
+    lam, eye = view.lam, view.eye
+    g = terrain.grid
+    # tile test, conservative: a vertex in the tile lies in its box, so d − r ≥ D_box − r_max
+    rmax = index.radius_max
+    dbox = view.box_distance(index.lo, index.hi)
+    with np.errstate(invalid="ignore", over="ignore"):
+        can = (index.delta_max > 0) & ((dbox <= rmax) | (lam * index.delta_max > tau * (dbox - rmax)))
+    pad = rmax[:, None]
+    visible = view.box_visibility(index.lo - pad, index.hi + pad) != 0
+    rows = np.flatnonzero(can & visible)
+    act = ActiveSet(terrain)
+
+    def predicate(L, x, y, delta):
+        X, Y = terrain.tile_xy(L, x, y)
+        Z = terrain.frame.z(terrain.tile(L, x, y).heights)
+        Z = np.where(np.isfinite(Z), Z, terrain.z_floor)  # invalid: any point; r still nests
+        r = terrain.tile_radius(L, x, y)
+        p = np.stack([X, Y, Z], -1).reshape(-1, 3)
+        d = np.linalg.norm(p - eye, axis=1).reshape(delta.shape)
+        vis = view.spheres_visible(p, r.ravel()).reshape(delta.shape)
+        with np.errstate(invalid="ignore", over="ignore"):
+            return vis & (delta > 0) & ((d <= r) | (lam * delta > tau * (d - r)))
+
+    act.fill(rows, predicate, index)
+    unread = np.flatnonzero(~(can & visible) & ~np.isfinite(index.delta_max))
+    act.mark_unknown_mixed(unread, index)
+    del g
+    return act

@@ -1,0 +1,215 @@
+"""The preprocess pipeline: DEM → padded pyramid → errors, normals, codec → store.
+
+Stages (timed; the times go into the store's metadata):
+read → pad → quantise → errors → radii → tile bounds → normals → compress → write.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import zstandard
+
+from geoterrain import __version__
+from geoterrain.codec import choose_quantizer, decoded_heights, encode_pyramid
+from geoterrain.errors import tile_errors, vertex_errors, vertex_radii
+from geoterrain.exceptions import InputError, UsageError
+from geoterrain.frame import Frame
+from geoterrain.grid import Grid
+from geoterrain.normals import encode_octahedral, level_normals, normal_map
+from geoterrain.raster import Raster, read_raster
+from geoterrain.store import StoreWriter, default_store_path
+
+log = logging.getLogger("geoterrain")
+Progress = Callable[[str, int, int], None]
+STAGES = ("read", "pad", "quantise", "errors", "radii", "tile bounds", "normals", "compress",
+          "write")
+ABSURD_HEIGHT = 1e5  # |h| beyond this is almost surely a unit or nodata problem
+NORMAL_BITS = 8
+
+
+def _tiles_of_level(a: np.ndarray, grid: Grid, level: int) -> np.ndarray:
+    """All tiles of one level as a (tiles, tiles, T, T, ...) view of a full-res array."""
+    lv = a[:: 1 << level, :: 1 << level]
+    T, step = grid.tile_samples, 1 << grid.t
+    win = np.lib.stride_tricks.sliding_window_view(lv, (T, T), axis=(0, 1))
+    win = win[::step, ::step]
+    # sliding_window_view puts the window axes last; move trailing channel axes after them
+    if a.ndim == 3:
+        win = np.moveaxis(win, 2, -1)
+    return win
+
+
+def _f32_blob(a: np.ndarray, cctx: zstandard.ZstdCompressor) -> bytes:
+    # Byte-shuffle float32 (4 planes) before zstd: exponents compress well together.
+    b = np.ascontiguousarray(a, dtype="<f4").view(np.uint8).reshape(-1, 4).T.copy()
+    return cctx.compress(b.tobytes())
+
+
+def validate(r: Raster, z_scale: float | None) -> None:
+    """Reject inputs that cannot give a correct store, with a one-line fix."""
+    h, w = r.shape
+    if h < 2 or w < 2:
+        raise InputError(f"{r.path}: grid is {h}×{w}; a DEM needs at least 2×2 samples")
+    nvalid = int(r.valid.sum())
+    if nvalid == 0:
+        raise InputError(f"{r.path}: every sample is nodata; check the nodata value or the band")
+    hv = r.heights[r.valid]
+    peak = float(np.abs(hv).max())
+    if peak > ABSURD_HEIGHT and z_scale is None:
+        raise InputError(
+            f"{r.path}: heights reach {peak:.3g}, beyond ±{ABSURD_HEIGHT:.0e}; if they are real "
+            "pass --z-scale (e.g. 1), else set the right nodata or unit")
+
+
+def preprocess(
+    src: str | Path,
+    dst: str | Path | None = None,
+    *,
+    tile_size: int = 64,
+    band: int | None = None,
+    encoding: str = "auto",
+    pixel_size: float | None = None,
+    z_scale: float | None = None,
+    z_units: str = "m",
+    max_error: float | None = None,
+    overwrite: bool = False,
+    zstd_level: int = 19,
+    progress: Progress | None = None,
+) -> Path:
+    """Preprocess a DEM into a store and return the store's path.
+
+    Parameters
+    ----------
+    src
+        A DEM GDAL reads, or a Terrain-RGB/Terrarium PNG tile.
+    dst
+        The store to write; default: ``src`` with the suffix ``.geoterrain``.
+    tile_size
+        Tile edge in samples, a power of two (tiles hold ``tile_size + 1``²).
+    band, encoding
+        See :func:`geoterrain.raster.read_raster`.
+    pixel_size
+        Metres per sample for rasters without a CRS (default 1, with a warning).
+    z_scale, z_units
+        Vertical exaggeration, and the unit of the heights (``m``, ``ft``, ``us-ft``).
+    max_error
+        Height codec bound ε in height units; default lossless.
+    overwrite
+        Replace an existing store.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> from geoterrain.synth import generate, write_geotiff
+    >>> d = tempfile.mkdtemp()
+    >>> dem = write_geotiff(os.path.join(d, "dem.tif"), generate("fbm", 33, seed=1))
+    >>> preprocess(dem).name
+    'dem.geoterrain'
+    """
+    t0 = time.perf_counter()
+    times: dict[str, float] = {}
+    done = [0]
+
+    def stage(name: str) -> None:
+        nonlocal t0
+        now = time.perf_counter()
+        times[name] = round(now - t0, 4)
+        t0 = now
+        done[0] += 1
+        if progress:
+            progress(name, done[0], len(STAGES))
+
+    if max_error is not None and not (np.isfinite(max_error) and max_error >= 0):
+        raise UsageError(f"--max-error must be ≥ 0, got {max_error}")
+    dst = Path(dst) if dst is not None else default_store_path(src)
+    if dst.exists() and not overwrite:
+        raise UsageError(f"{dst} exists; pass --overwrite or choose another -o path")
+    if Path(src).resolve() == dst.resolve():
+        raise UsageError(f"{dst}: the store would overwrite its own input; choose another -o")
+
+    r = read_raster(src, band=band, encoding=encoding)
+    validate(r, z_scale)
+    frame = Frame.from_raster(r.transform, r.crs_wkt, r.shape[0], r.shape[1],
+                              pixel_size=pixel_size, z_units=z_units,
+                              z_scale=1.0 if z_scale is None else z_scale)
+    if r.crs_wkt is None and pixel_size is None:
+        log.warning("%s has no CRS: using 1 m per pixel; pass --pixel-size to set it", src)
+    grid = Grid.for_shape(*r.shape, tile_size=tile_size)
+    stage("read")
+
+    valid = grid.pad(r.valid, False)
+    heights = grid.pad(r.heights, np.nan)
+    heights[~valid] = np.nan
+    X, Y = frame.grid_xy(grid.size)
+    stage("pad")
+
+    q = choose_quantizer(r.heights[r.valid], r.src_dtype, max_error=max_error,
+                         scale=r.scale, offset=r.offset)
+    hdec = decoded_heights(heights, valid, q)
+    Z = frame.z(hdec)
+    Z[~valid] = np.nan
+    stage("quantise")
+
+    delta = vertex_errors(Z, valid)
+    stage("errors")
+    radius = vertex_radii(X, Y, Z, valid)
+    stage("radii")
+    bounds = tile_errors(Z, valid, X, Y, grid.t)
+    stage("tile bounds")
+    nrm = normal_map(X, Y, Z, valid)
+    stage("normals")
+
+    height_blobs = encode_pyramid(heights, valid, grid.t, q, level=zstd_level)
+    cctx = zstandard.ZstdCompressor(level=min(zstd_level, 9))
+    extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}}
+    tile_rows: dict = {}
+    for L in grid.levels:
+        keys = [k for k in height_blobs if k[0] == L]
+        if not keys:
+            continue
+        tiles_d = _tiles_of_level(delta, grid, L)
+        tiles_r = _tiles_of_level(radius, grid, L)
+        tiles_n = _tiles_of_level(encode_octahedral(level_normals(nrm, L), NORMAL_BITS), grid, 0)
+        dmax, rmax = tiles_d.max(axis=(2, 3)), tiles_r.max(axis=(2, 3))
+        for key in keys:
+            _, x, y = key
+            # per-tile max δ and r let a view skip a tile without decoding it
+            tile_rows[key] = (*bounds[key], float(dmax[y, x]), float(rmax[y, x]))
+            extra["delta"][key] = _f32_blob(tiles_d[y, x], cctx)
+            extra["radius"][key] = _f32_blob(tiles_r[y, x], cctx)
+            extra["normals"][key] = cctx.compress(np.ascontiguousarray(tiles_n[y, x]).tobytes())
+    stage("compress")
+
+    with StoreWriter(dst, overwrite=overwrite) as w:
+        w.put_blobs("heights", height_blobs)
+        for kind, blobs in extra.items():
+            w.put_blobs(kind, blobs)
+        w.put_tiles(tile_rows)
+        hv = hdec[valid]
+        w.put_metadata({
+            "format": "geoterrain",
+            "generator": f"geoterrain {__version__}",
+            "source": str(Path(src).name),
+            "source_dtype": r.src_dtype,
+            "source_nodata": r.nodata,
+            "encoding": r.encoding,
+            "grid": grid.to_json(),
+            "frame": frame.to_json(),
+            "quantizer": dataclasses.asdict(q),
+            "normal_bits": NORMAL_BITS,
+            "valid_samples": int(r.valid.sum()),
+            "nodata_fraction": float(1.0 - r.valid.mean()),
+            "height_range": [float(hv.min()), float(hv.max())],
+            "delta_max_finite": float(np.max(delta[np.isfinite(delta)], initial=0.0)),
+            "preprocess_seconds": times,
+        })
+        stage("write")
+        times["write"] = times.get("write", 0.0)
+        w.commit()
+    return dst

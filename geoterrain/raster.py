@@ -1,0 +1,164 @@
+"""Ingest: read a DEM with rasterio into heights, a validity mask and its georeference.
+
+Any single-band raster GDAL reads (GeoTIFF/COG, SRTM ``.hgt``, Esri ASCII,
+USGS DEM, ...) and the Mapbox Terrain-RGB and Terrarium PNG encodings.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import rasterio
+from rasterio.errors import RasterioIOError
+
+from geoterrain.exceptions import InputError, UsageError
+
+ENCODINGS = ("auto", "raw", "terrain-rgb", "terrarium")
+
+# Terrain-RGB: h = -10000 + (R*65536 + G*256 + B) * 0.1  (../shared/dems/README.md)
+TERRAIN_RGB_SCALE, TERRAIN_RGB_OFFSET = 0.1, -10000.0
+# Terrarium: h = R*256 + G + B/256 - 32768, i.e. an integer code times 1/256
+TERRARIUM_SCALE, TERRARIUM_OFFSET = 1.0 / 256.0, -32768.0
+
+
+@dataclass
+class Raster:
+    """A DEM in memory: heights as float64 with a validity mask.
+
+    ``scale`` and ``offset`` are set when the heights are known to be
+    ``offset + k * scale`` for integers ``k`` (PNG encodings), which lets the
+    codec store them losslessly as integers.
+    """
+
+    heights: np.ndarray  # (H, W) float64; arbitrary where not valid
+    valid: np.ndarray  # (H, W) bool
+    transform: tuple[float, ...] | None  # GDAL affine (a, b, c, d, e, f), or None
+    crs_wkt: str | None
+    src_dtype: str
+    nodata: float | None
+    encoding: str
+    path: str
+    scale: float | None = None
+    offset: float | None = None
+    is_integer: bool = False
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.heights.shape  # type: ignore[return-value]
+
+
+def _decode_png(rgb: np.ndarray, encoding: str) -> tuple[np.ndarray, float, float]:
+    """Integer codes of a Terrain-RGB or Terrarium tile; heights = offset + code * scale."""
+    r, g, b = (rgb[k].astype(np.int64) for k in range(3))
+    if encoding == "terrain-rgb":
+        return r * 65536 + g * 256 + b, TERRAIN_RGB_SCALE, TERRAIN_RGB_OFFSET
+    return r * 65536 + g * 256 + b, TERRARIUM_SCALE, TERRARIUM_OFFSET
+
+
+def _guess_png_encoding(red: np.ndarray) -> str:
+    # Real heights (-500..9000 m) put Terrain-RGB's red byte near 1-2 and
+    # Terrarium's near 126-163, so the median red byte tells them apart.
+    return "terrarium" if float(np.median(red)) >= 64 else "terrain-rgb"
+
+
+def read_raster(
+    path: str | Path,
+    band: int | None = None,
+    encoding: str = "auto",
+) -> Raster:
+    """Read a DEM into a :class:`Raster`.
+
+    Parameters
+    ----------
+    path
+        Any raster GDAL reads, or a Terrain-RGB / Terrarium PNG tile.
+    band
+        1-based band for multi-band rasters that are not a known PNG encoding.
+    encoding
+        ``auto`` (PNG tiles with 3-4 uint8 bands are decoded as Terrain-RGB or
+        Terrarium, other rasters read raw), ``raw``, ``terrain-rgb`` or
+        ``terrarium``.
+
+    Examples
+    --------
+    >>> from geoterrain.synth import generate, write_geotiff
+    >>> import tempfile, os
+    >>> p = write_geotiff(os.path.join(tempfile.mkdtemp(), "d.tif"), generate("fbm", 9))
+    >>> read_raster(p).shape
+    (9, 9)
+    """
+    if encoding not in ENCODINGS:
+        raise UsageError(f"unknown encoding {encoding!r}; use one of {', '.join(ENCODINGS)}")
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{p}: no such file; check the path")
+    if p.is_dir():
+        raise InputError(f"{p}: is a directory, not a raster file")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            with rasterio.open(p) as src:
+                return _read_open(src, p, band, encoding)
+    except RasterioIOError as exc:
+        first = str(exc).splitlines()[0] if str(exc) else "unreadable"
+        raise InputError(f"{p}: not a raster GDAL can read ({first})") from None
+
+
+def _read_open(src, p: Path, band: int | None, encoding: str) -> Raster:
+    count, dtype = src.count, src.dtypes[0]
+    is_png_tile = src.driver == "PNG" and count in (3, 4) and dtype == "uint8"
+    if encoding == "auto":
+        encoding = "raw"
+        if is_png_tile and band is None:
+            encoding = _guess_png_encoding(src.read(1))
+    crs_wkt = src.crs.to_wkt() if src.crs else None
+    transform = tuple(src.transform)[:6] if (src.crs or not src.transform.is_identity) else None
+    if src.height < 2 or src.width < 2:
+        raise InputError(
+            f"{p}: grid is {src.height}×{src.width}; a DEM needs at least 2×2 samples"
+        )
+
+    if encoding in ("terrain-rgb", "terrarium"):
+        if count < 3 or dtype != "uint8":
+            raise InputError(
+                f"{p}: {encoding} needs 3 or 4 uint8 bands (RGB[A]), found {count} {dtype}"
+            )
+        rgba = src.read()
+        codes, scale, offset = _decode_png(rgba, encoding)
+        heights = offset + codes.astype(np.float64) * scale
+        valid = np.ones(heights.shape, bool)
+        if count == 4:
+            valid &= rgba[3] > 0  # transparent pixels are nodata
+        return Raster(heights, valid, transform, crs_wkt, dtype, None, encoding, str(p),
+                      scale=scale, offset=offset, is_integer=True)
+
+    if band is None:
+        if count > 1:
+            raise UsageError(
+                f"{p}: has {count} bands; choose one with --band N (1..{count})"
+            )
+        band = 1
+    if not 1 <= band <= count:
+        raise UsageError(f"{p}: --band {band} out of range; the raster has {count} band(s)")
+    data = src.read(band)
+    nodata = src.nodatavals[band - 1]
+    heights = data.astype(np.float64)
+    valid = np.isfinite(heights)
+    if nodata is not None and not np.isnan(nodata):
+        if np.issubdtype(data.dtype, np.floating):
+            # float nodata such as -3.4028235e38 is stored in float32: compare there
+            valid &= data != np.asarray(nodata, dtype=data.dtype)
+        else:
+            valid &= data != nodata
+    n_inf = int(np.isinf(heights).sum())
+    if n_inf:
+        raise InputError(
+            f"{p}: {n_inf} sample(s) are ±inf; declare them nodata (e.g. gdal_translate -a_nodata)"
+        )
+    is_integer = bool(np.issubdtype(data.dtype, np.integer))
+    return Raster(heights, valid, transform, crs_wkt, str(data.dtype),
+                  None if nodata is None else float(nodata), "raw", str(p),
+                  is_integer=is_integer)

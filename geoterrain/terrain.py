@@ -1,0 +1,331 @@
+"""Terrain: lazy, cached, checksum-verified access to a store."""
+
+from __future__ import annotations
+
+import os
+from collections import OrderedDict
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import zstandard
+
+from geoterrain.codec import Quantizer, codes_to_heights, decode_tile, tile_valid
+from geoterrain.exceptions import StoreCorruptError
+from geoterrain.frame import Frame
+from geoterrain.grid import Grid
+from geoterrain.normals import decode_octahedral
+from geoterrain.store import StoreReader
+
+TileKey = tuple[int, int, int]
+
+
+@dataclass
+class Tile:
+    """One decoded tile: level-L samples of its (T, T) window."""
+
+    key: TileKey
+    codes: np.ndarray  # (T, T) codes (int64) or raw floats, what children predict from
+    heights: np.ndarray  # (T, T) float64 source units, NaN where not valid
+    valid: np.ndarray  # (T, T) bool
+
+
+class Terrain:
+    """A preprocessed terrain, read lazily from its store.
+
+    Tiles are decoded on demand, with their ancestors (the codec predicts each
+    level from the decoded level above), and kept in an LRU cache.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> import geoterrain
+    >>> from geoterrain.synth import generate, write_geotiff
+    >>> d = tempfile.mkdtemp()
+    >>> dem = write_geotiff(os.path.join(d, "dem.tif"), generate("fbm", 33, seed=1))
+    >>> t = geoterrain.open(geoterrain.preprocess(dem))
+    >>> X, Y, Z = t.scene_xyz()
+    >>> Z.shape, t.tile(0, 0, 0).heights.shape
+    ((33, 33), (33, 33))
+    """
+
+    def __init__(self, path: str | Path, cache_tiles: int = 1024):
+        self.path = Path(path)
+        self.reader = StoreReader(path)
+        m = self.reader.metadata
+        self.meta = m
+        self.grid = Grid(**m["grid"])
+        self.frame = Frame.from_json(m["frame"])
+        self.quantizer = Quantizer(**m["quantizer"])
+        self.tile_info = self.reader.tiles()
+        self._cache: OrderedDict[tuple, object] = OrderedDict()
+        self._cache_size = cache_tiles
+        self._dctx = zstandard.ZstdDecompressor()
+        self.decoded_tiles = 0  # tiles whose heights were decoded (a view counts these)
+        self._selector = None
+        self.z_floor = 0.0
+
+    # ------------------------------------------------------------------ cache
+    def _cached(self, key: tuple, make):
+        c = self._cache
+        if key in c:
+            c.move_to_end(key)
+            return c[key]
+        val = make()
+        c[key] = val
+        if len(c) > self._cache_size:
+            c.popitem(last=False)
+        return val
+
+    def has_tile(self, level: int, x: int, y: int) -> bool:
+        return (level, x, y) in self.tile_info
+
+    def _blob(self, key: TileKey, kind: str) -> bytes:
+        b = self.reader.get_blob(key, kind)
+        if b is None:
+            raise KeyError(f"tile {key} is not stored (outside the data or all nodata)")
+        return b
+
+    # ------------------------------------------------------------------ tiles
+    def tile(self, level: int, x: int, y: int) -> Tile:
+        """Decode tile (level, x, y) and, as needed, its ancestors (never finer data)."""
+        key = (level, x, y)
+        return self._cached(("h", *key), lambda: self._decode(key))
+
+    def _decode(self, key: TileKey) -> Tile:
+        L, x, y = key
+        parent = self.tile(L + 1, x // 2, y // 2).codes if L < self.grid.top_level else None
+        blob = self._blob(key, "heights")
+        try:
+            codes = decode_tile(blob, parent, self.quantizer, (x % 2, y % 2))
+            valid = tile_valid(blob)
+        except (ValueError, zstandard.ZstdError):
+            raise StoreCorruptError(f"{self.path}: tile {key} heights cannot be decoded; "
+                                    "re-run `geoterrain preprocess`") from None
+        self.decoded_tiles += 1
+        h = codes_to_heights(codes, self.quantizer)
+        h = np.where(valid, h, np.nan)
+        return Tile(key, codes, h, valid)
+
+    def _f32(self, key: TileKey, kind: str) -> np.ndarray:
+        T = self.grid.tile_samples
+        raw = self._dctx.decompress(self._blob(key, kind))
+        try:
+            planes = np.frombuffer(raw, np.uint8).reshape(4, T * T)
+        except ValueError:
+            raise StoreCorruptError(f"{self.path}: tile {key} {kind} has the wrong size") from None
+        return planes.T.copy().view("<f4").reshape(T, T)
+
+    def tile_delta(self, level: int, x: int, y: int) -> np.ndarray:
+        """Per-vertex errors δ (scene units) of the tile's samples, float32 (T, T)."""
+        return self._cached(("d", level, x, y), lambda: self._f32((level, x, y), "delta"))
+
+    def tile_radius(self, level: int, x: int, y: int) -> np.ndarray:
+        """Nested bounding-sphere radii (scene units) of the tile's samples, float32 (T, T)."""
+        return self._cached(("r", level, x, y), lambda: self._f32((level, x, y), "radius"))
+
+    def tile_xy(self, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
+        """Scene X, Y (T, T) of the tile's samples (cached: geographic frames call pyproj)."""
+        def make():
+            g = self.grid
+            ii, jj = np.meshgrid(g.tile_rows(level, y), g.tile_cols(level, x), indexing="ij")
+            return self.frame.xy(ii, jj)
+        return self._cached(("xy", level, x, y), make)
+
+    def tile_normals(self, level: int, x: int, y: int) -> np.ndarray:
+        """Unit normals (T, T, 3) float32 of the level-L normal map at the tile's samples."""
+        def make():
+            T, bits = self.grid.tile_samples, self.meta["normal_bits"]
+            raw = self._dctx.decompress(self._blob((level, x, y), "normals"))
+            dt = np.uint8 if bits == 8 else np.uint16
+            return decode_octahedral(np.frombuffer(raw, dt).reshape(T, T, 2), bits)
+        return self._cached(("n", level, x, y), make)
+
+    # ------------------------------------------------------- per-vertex data
+    def vertex_level(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """The coarsest pyramid level holding samples (i, j) (trailing zero bits)."""
+        g = self.grid
+        low = np.bitwise_or(i, j)
+        low = np.where(low == 0, 1 << g.n, low & -low)
+        return np.minimum(np.log2(low).astype(np.int64), g.top_level)
+
+    def gather(self, i: np.ndarray, j: np.ndarray, kinds=("delta", "radius", "height")
+               ) -> dict[str, np.ndarray]:
+        """Per-vertex arrays at full-resolution samples (i, j), read from the coarsest tiles.
+
+        Only the tiles holding the requested vertices are decoded. Vertices in
+        tiles that are not stored (no valid data) get δ = r = 0 and height NaN.
+        """
+        g = self.grid
+        i, j = np.asarray(i, np.int64), np.asarray(j, np.int64)
+        out = {k: np.full(i.shape, np.nan if k == "height" else 0.0) for k in kinds}
+        if i.size == 0:
+            return out
+        L = self.vertex_level(i, j)
+        li, lj = i >> L, j >> L
+        tps = 1 << (g.top_level - L)
+        ty = np.minimum(li >> g.t, tps - 1)
+        tx = np.minimum(lj >> g.t, tps - 1)
+        a, b = li - (ty << g.t), lj - (tx << g.t)
+        # unique tiles without sorting: an occupancy grid over every level's tiles
+        base = np.concatenate([[0], np.cumsum(4 ** np.arange(g.top_level, -1, -1))])
+        slot = base[L] + ty * tps + tx
+        occ = np.zeros(int(base[-1]), bool)
+        occ[slot] = True
+        used = np.flatnonzero(occ)
+        remap = np.cumsum(occ) - 1
+        inv = remap[slot]
+        T = g.tile_samples
+        stacks = {k: np.zeros((len(used), T, T)) for k in kinds}
+        if "height" in kinds:
+            stacks["height"][:] = np.nan
+        for n, u in enumerate(used.tolist()):
+            lv = int(np.searchsorted(base, u, side="right") - 1)
+            r = u - int(base[lv])
+            side = 1 << (g.top_level - lv)
+            tk = (lv, r % side, r // side)
+            if tk not in self.tile_info:
+                continue
+            if "delta" in kinds:
+                stacks["delta"][n] = self.tile_delta(*tk)
+            if "radius" in kinds:
+                stacks["radius"][n] = self.tile_radius(*tk)
+            if "height" in kinds:
+                stacks["height"][n] = self.tile(*tk).heights
+        for k in kinds:
+            out[k] = stacks[k][inv, a, b]
+        return out
+
+    # ------------------------------------------------------------ whole grids
+    def level_heights(self, level: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Heights (source units, NaN = no data) and valid mask of a whole level, padded."""
+        g = self.grid
+        n = g.level_size(level)
+        h = np.full((n, n), np.nan)
+        v = np.zeros((n, n), bool)
+        step = 1 << g.t
+        for (L, x, y) in self.tile_info:
+            if L != level:
+                continue
+            tl = self.tile(L, x, y)
+            sl = (slice(y * step, y * step + g.tile_samples), slice(x * step, x * step + g.tile_samples))
+            h[sl] = tl.heights
+            v[sl] = tl.valid
+        return h, v
+
+    def scene_xyz(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """X, Y, Z (float64, source-grid shaped) in the scene frame; NaN where there is no data.
+
+        This is the frame of every mesh geoterrain makes, so external code can
+        measure a mesh's error against it directly.
+        """
+        h, v = self.level_heights(0)
+        H, W = self.grid.rows, self.grid.cols
+        i, j = np.meshgrid(np.arange(H), np.arange(W), indexing="ij")
+        X, Y = self.frame.xy(i, j)
+        Z = self.frame.z(h[:H, :W])
+        return X, Y, Z
+
+    # -------------------------------------------------------------------- LOD
+    @property
+    def selector(self):
+        """The LOD state of this terrain (tile index, cached tile meshes)."""
+        if self._selector is None:
+            from geoterrain.lod import Selector
+
+            self._selector = Selector(self)
+        return self._selector
+
+    def select(self, view, pixel_error: float = 1.0, strategy: str = "rtin"):
+        """The mesh for ``view`` whose projected error is ≤ ``pixel_error`` pixels.
+
+        Strategies: ``rtin`` (LP vertex refinement), ``chunked`` (tile quadtree
+        with skirts), ``bruteforce`` (full resolution, frustum-culled tiles).
+        Returns a :class:`geoterrain.lod.Selection` (``.mesh``, ``.stats``).
+
+        Examples
+        --------
+        >>> from geoterrain.view import View
+        >>> sel = t.select(View((0, -800, 400), (0, 0, 0)), pixel_error=1.0)  # doctest: +SKIP
+        >>> sel.stats["triangles"]  # doctest: +SKIP
+        """
+        return self.selector.select(view, pixel_error, strategy)
+
+    def mesh(self, max_error: float = 1.0):
+        """Static mesh keeping every vertex with δ > ``max_error``: vertical error ≤ max_error.
+
+        Returns a ``pyvista.PolyData`` in the scene frame (point data ``grid_ij``).
+        """
+        return self.static_selection(max_error).mesh
+
+    def static_selection(self, max_error: float = 1.0):
+        """Like :meth:`mesh` but returns the :class:`~geoterrain.lod.Selection` with stats."""
+        return self.selector.static(max_error)
+
+    # ------------------------------------------------------------------ info
+    def info(self) -> dict:
+        """A summary: size, CRS and frame, extent, grid, levels, tiles, nodata, codec, errors."""
+        m, g, f = self.meta, self.grid, self.frame
+        H, W = g.rows, g.cols
+        cx, cy = f.xy(np.array([0, 0, H - 1, H - 1]), np.array([0, W - 1, 0, W - 1]))
+        per_level: dict[int, int] = {}
+        for (L, _, _) in self.tile_info:
+            per_level[L] = per_level.get(L, 0) + 1
+        sizes = self.reader.blob_bytes_by_kind_level()
+        hbytes = {L: sizes.get(("heights", L), 0) for L in g.levels}
+        errs = [t["error"] for t in self.tile_info.values()
+                if t["error"] is not None and np.isfinite(t["error"])]
+        return {
+            "path": str(self.path),
+            "size_bytes": os.path.getsize(self.path),
+            "source": m["source"],
+            "source_dtype": m["source_dtype"],
+            "encoding": m["encoding"],
+            "crs": f.crs_name,
+            "frame": f.kind,
+            "horizontal_unit_to_m": f.unit_to_m,
+            "vertical_unit_to_m": f.z_to_m,
+            "z_scale": f.z_scale,
+            "origin_crs": list(f.origin_crs),
+            "extent_m": {"x": [float(cx.min()), float(cx.max())],
+                         "y": [float(cy.min()), float(cy.max())]},
+            "grid": [H, W],
+            "padded": [g.size, g.size],
+            "tile_samples": g.tile_samples,
+            "levels": g.top_level + 1,
+            "tiles_per_level": {str(k): per_level[k] for k in sorted(per_level)},
+            "nodata_fraction": m["nodata_fraction"],
+            "height_range": m["height_range"],
+            "codec": describe_codec(self.quantizer),
+            "max_error": self.quantizer.max_error,
+            "height_bytes_per_level": {str(k): v for k, v in hbytes.items()},
+            "height_bits_per_valid_sample": 8 * sum(hbytes.values()) / max(1, m["valid_samples"]),
+            "bytes_by_kind": {k: sum(v for (kk, _), v in sizes.items() if kk == k)
+                              for k in sorted({k for k, _ in sizes})},
+            "tile_error_range": [min(errs, default=0.0), max(errs, default=0.0)],
+            "vertex_error_max": m["delta_max_finite"],
+            "preprocess_seconds": m.get("preprocess_seconds", {}),
+        }
+
+    def close(self) -> None:
+        self.reader.close()
+
+    def __enter__(self) -> Terrain:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def describe_codec(q: Quantizer) -> str:
+    """One line saying how heights are coded."""
+    if q.mode == "float":
+        return f"lossless float{q.float_bits} (bit-exact), residuals + zstd"
+    if q.mode == "int":
+        return f"lossless integer codes × {q.step:g} + {q.offset:g}, residuals + zstd"
+    return f"quantised to ε = {q.max_error:g} (step {q.step:.6g}), residuals + zstd"
+
+
+def open(path: str | Path) -> Terrain:  # noqa: A001 - mirrors rasterio.open
+    """Open a store. See :class:`Terrain`."""
+    return Terrain(path)

@@ -1,0 +1,161 @@
+"""View: a pinhole camera in scene coordinates, its frustum and projection factor."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+OUTSIDE, INTERSECTS, INSIDE = 0, 1, 2
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v)
+    if not np.isfinite(n) or n == 0:
+        raise ValueError(f"degenerate direction {v}")
+    return v / n
+
+
+@dataclass(frozen=True)
+class View:
+    """A camera looking from ``look_from`` at ``look_at`` (scene coordinates, metres).
+
+    Parameters
+    ----------
+    look_from, look_at, up
+        Eye, target and up vector.
+    fov_y_deg
+        Vertical field of view in degrees (VTK's ``view_angle``).
+    size
+        Image (width, height) in pixels.
+    near, far
+        Clipping distances; ``None`` means no near plane (beyond the eye) or no far plane.
+
+    Examples
+    --------
+    >>> v = View((0, -1000, 500), (0, 0, 0), size=(1280, 720), fov_y_deg=30)
+    >>> round(v.lam, 2)  # pixels per unit of error at unit distance
+    1343.72
+    >>> v.planes.shape
+    (6, 4)
+    """
+
+    look_from: tuple[float, float, float]
+    look_at: tuple[float, float, float]
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    fov_y_deg: float = 30.0
+    size: tuple[int, int] = (1280, 720)
+    near: float | None = None
+    far: float | None = None
+    _cache: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.fov_y_deg < 180.0:
+            raise ValueError(f"fov_y_deg must be in (0, 180), got {self.fov_y_deg}")
+        if self.size[0] < 1 or self.size[1] < 1:
+            raise ValueError(f"size must be positive, got {self.size}")
+        object.__setattr__(self, "look_from", tuple(float(v) for v in self.look_from))
+        object.__setattr__(self, "look_at", tuple(float(v) for v in self.look_at))
+        object.__setattr__(self, "up", tuple(float(v) for v in self.up))
+
+    @staticmethod
+    def from_camera(camera, size: tuple[int, int]) -> View:
+        """The view of a ``pyvista.Camera`` (or VTK camera) rendering at ``size``."""
+        near, far = camera.clipping_range
+        return View(tuple(camera.position), tuple(camera.focal_point), tuple(camera.up),
+                    float(camera.view_angle), tuple(size), near, far)
+
+    # ------------------------------------------------------------------ basis
+    @property
+    def eye(self) -> np.ndarray:
+        return np.asarray(self.look_from, np.float64)
+
+    @property
+    def forward(self) -> np.ndarray:
+        return _unit(np.asarray(self.look_at) - self.eye)
+
+    def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Right, true-up and forward unit vectors."""
+        f = self.forward
+        up = np.asarray(self.up, np.float64)
+        r = np.cross(f, up)
+        if np.linalg.norm(r) < 1e-9:  # looking along "up" (straight down): pick any right
+            r = np.cross(f, [0.0, 1.0, 0.0] if abs(f[1]) < 0.9 else [1.0, 0.0, 0.0])
+        r = _unit(r)
+        return r, np.cross(r, f), f
+
+    @property
+    def lam(self) -> float:
+        """λ: projected pixels per unit of error at unit distance, (h/2)/tan(fov_y/2)."""
+        return (self.size[1] / 2.0) / np.tan(np.radians(self.fov_y_deg) / 2.0)
+
+    @property
+    def planes(self) -> np.ndarray:
+        """Six inward plane equations (a, b, c, d): a·x + b·y + c·z + d ≥ 0 inside.
+
+        Order: left, right, bottom, top, near, far. A missing near plane passes
+        through the eye; a missing far plane is (0, 0, 0, 1) (always inside).
+        """
+        if "planes" in self._cache:
+            return self._cache["planes"]
+        r, u, f = self.basis()
+        ty = np.tan(np.radians(self.fov_y_deg) / 2.0)
+        tx = ty * self.size[0] / self.size[1]
+        e = self.eye
+        normals = [f * tx + r, f * tx - r, f * ty + u, f * ty - u]
+        out = np.zeros((6, 4))
+        for k, nrm in enumerate(normals):
+            nrm = _unit(nrm)
+            out[k, :3], out[k, 3] = nrm, -nrm @ e
+        near = self.near or 0.0
+        out[4, :3], out[4, 3] = f, -(f @ e) - near
+        if self.far is None:
+            out[5] = (0.0, 0.0, 0.0, 1.0)
+        else:
+            out[5, :3], out[5, 3] = -f, f @ e + self.far
+        self._cache["planes"] = out
+        return out
+
+    # --------------------------------------------------------------- culling
+    def sphere_visibility(self, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """OUTSIDE (0), INTERSECTS (1) or INSIDE (2) for each sphere, vectorised."""
+        d = np.asarray(centers) @ self.planes[:, :3].T + self.planes[:, 3]
+        r = np.asarray(radii)[..., None]
+        out = np.full(d.shape[:-1], INTERSECTS, np.int8)
+        out[(d >= r).all(-1)] = INSIDE
+        out[(d < -r).any(-1)] = OUTSIDE
+        return out
+
+    def spheres_visible(self, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """True for each sphere that is not entirely outside one frustum plane."""
+        c = np.asarray(centers, np.float64).reshape(-1, 3)
+        r = np.asarray(radii, np.float64).ravel()
+        ok = np.ones(len(c), bool)
+        for a, b, cc, d in self.planes:  # broadcasting beats a tiny BLAS matmul here
+            ok &= a * c[:, 0] + b * c[:, 1] + cc * c[:, 2] + d + r >= 0
+        return ok
+
+    def box_visibility(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """OUTSIDE / INTERSECTS / INSIDE for axis-aligned boxes (lo, hi: (..., 3))."""
+        p = self.planes
+        lo, hi = np.asarray(lo), np.asarray(hi)
+        pos = (p[:, :3] >= 0)
+        # the box corner farthest along / against each plane normal
+        far = np.where(pos, hi[..., None, :], lo[..., None, :])
+        near = np.where(pos, lo[..., None, :], hi[..., None, :])
+        dmax = (far * p[:, :3]).sum(-1) + p[:, 3]
+        dmin = (near * p[:, :3]).sum(-1) + p[:, 3]
+        out = np.full(dmax.shape[:-1], INTERSECTS, np.int8)
+        out[(dmin >= 0).all(-1)] = INSIDE
+        out[(dmax < 0).any(-1)] = OUTSIDE
+        return out
+
+    def points_inside(self, pts: np.ndarray) -> np.ndarray:
+        """Boolean mask of points inside the frustum."""
+        return ((np.asarray(pts) @ self.planes[:, :3].T + self.planes[:, 3]) >= 0).all(-1)
+
+    def box_distance(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Euclidean distance from the eye to each axis-aligned box (0 inside)."""
+        e = self.eye
+        d = np.maximum(np.maximum(np.asarray(lo) - e, 0.0), e - np.asarray(hi))
+        return np.linalg.norm(d, axis=-1)

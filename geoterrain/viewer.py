@@ -1,0 +1,254 @@
+"""Interactive viewer: the LOD mesh follows the camera.
+
+The update logic lives in :class:`ViewerController`, which works on any
+PyVista plotter (an offscreen one in the tests): ``on_camera_changed()``
+re-selects the LOD for the plotter's camera (throttled) and updates the terrain
+actor in place; key handlers are plain methods.
+
+Keys: ``m`` strategy, ``+``/``-`` τ ×/÷ 2, ``x`` wireframe, ``c`` colour
+(shading / LOD level / tile), ``space`` freeze the LOD, ``h`` reset the view,
+``q`` quit.
+
+Examples
+--------
+>>> import geoterrain
+>>> from geoterrain.viewer import show
+>>> show(geoterrain.open("dem.geoterrain"))  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from geoterrain.lod import STRATEGIES
+from geoterrain.render import TerrainScene, default_view
+from geoterrain.view import View
+
+COLOR_MODES = ("shading", "level", "tile")
+HELP = "m strategy  +/- tau  x wireframe  c colour  space freeze  h home  q quit"
+
+
+class ViewerController:
+    """Re-selects the LOD when the camera moves and updates the scene in place.
+
+    Parameters
+    ----------
+    plotter : pyvista.Plotter (interactive or offscreen)
+    terrain : Terrain
+    strategy, pixel_error, shading, cmap : as in :func:`geoterrain.render.render`.
+    throttle_ms : minimum time between two selections; camera events in between
+        are coalesced and handled by :meth:`poll` (a repeating timer).
+
+    Examples
+    --------
+    >>> import pyvista as pv
+    >>> p = pv.Plotter(off_screen=True, window_size=(640, 360))  # doctest: +SKIP
+    >>> c = ViewerController(p, t)  # doctest: +SKIP
+    >>> p.camera.position = (0, -5000, 3000); c.on_camera_changed(force=True)  # doctest: +SKIP
+    >>> c.stats["triangles"]  # doctest: +SKIP
+    """
+
+    def __init__(self, plotter, terrain, strategy: str = "rtin", pixel_error: float = 1.0,
+                 shading: str = "normals", cmap: str = "gist_earth", throttle_ms: float = 100.0):
+        if strategy not in STRATEGIES:
+            raise ValueError(f"unknown strategy {strategy!r}; use one of {', '.join(STRATEGIES)}")
+        self.plotter, self.terrain = plotter, terrain
+        self.strategy, self.pixel_error = strategy, float(pixel_error)
+        self.throttle_ms = throttle_ms
+        self.scene = TerrainScene(plotter, terrain, shading, cmap)
+        self.frozen = False
+        self.wireframe = False
+        self.color_mode = "shading"
+        self.pending = False
+        self.stats: dict = {}
+        self.selections = 0
+        self.frame_ms = 0.0
+        self._busy = False
+        self._last_t = -1e9
+        self._last_key = None
+        self._hud = plotter.add_text("", position="upper_left", font_size=10, name="hud")
+        self.home = default_view(terrain, tuple(plotter.window_size))
+        self.scene.set_camera(self.home)
+        self.on_camera_changed(force=True)
+
+    # ----------------------------------------------------------------- views
+    def current_view(self) -> View:
+        """The :class:`View` of the plotter's camera."""
+        return View.from_camera(self.plotter.camera, tuple(self.plotter.window_size))
+
+    def _camera_key(self) -> tuple:
+        c = self.plotter.camera
+        return (tuple(c.position), tuple(c.focal_point), tuple(c.up), float(c.view_angle),
+                tuple(self.plotter.window_size), self.strategy, self.pixel_error)
+
+    def on_camera_changed(self, *_args, force: bool = False) -> bool:
+        """Re-select the LOD for the current camera (unless frozen, unchanged or throttled).
+
+        Returns True when a new selection was made.
+        """
+        if self._busy or (self.frozen and not force):
+            return False
+        key = self._camera_key()
+        if key == self._last_key and not force:
+            return False
+        now = time.perf_counter()
+        if not force and (now - self._last_t) * 1e3 < self.throttle_ms:
+            self.pending = True
+            return False
+        self._busy = True
+        try:
+            cam = self.plotter.camera
+            v = View(tuple(cam.position), tuple(cam.focal_point), tuple(cam.up),
+                     float(cam.view_angle), tuple(self.plotter.window_size))
+            sel = self.terrain.select(v, pixel_error=self.pixel_error, strategy=self.strategy)
+            self.scene.update(sel)
+            self._apply_style()
+            self.plotter.renderer.ResetCameraClippingRange()
+            self.stats = dict(sel.stats)
+            self.selections += 1
+            self._last_key = key
+            self._last_t = time.perf_counter()
+            self.pending = False
+            self.frame_ms = (self._last_t - now) * 1e3
+            self._update_hud()
+        finally:
+            self._busy = False
+        return True
+
+    def poll(self, *_args) -> None:
+        """Timer callback: handle a camera change that the throttle postponed."""
+        if self.pending and not self.frozen:
+            if self.on_camera_changed():
+                self.plotter.render()
+
+    # --------------------------------------------------------------- styling
+    def _apply_style(self) -> None:
+        actor = self.scene.actor
+        if actor is None:
+            return
+        prop = actor.GetProperty()
+        prop.SetRepresentationToWireframe() if self.wireframe else prop.SetRepresentationToSurface()
+        mesh, mapper = self.scene.mesh, actor.GetMapper()
+        if self.color_mode == "shading" or mesh.n_cells == 0:
+            mapper.ScalarVisibilityOff()
+            actor.SetTexture(self.scene.texture)
+            prop.SetLighting(self.scene.texture is None)
+            return
+        if self.color_mode == "level":
+            vals = np.asarray(mesh.cell_data["level"], np.float64)
+            rng = (0.0, float(self.terrain.grid.top_level))
+        else:
+            sel = self.scene.selection
+            ij = np.asarray(sel.mesh.point_data["grid_ij"]).astype(np.int64)
+            f = sel.faces
+            lvl = np.asarray(sel.mesh.cell_data["level"]).astype(np.int64)
+            shift = self.terrain.grid.t + lvl
+            i0, j0 = ij[f, 0].min(1) >> shift, ij[f, 1].min(1) >> shift
+            vals = ((i0 * 7919 + j0 * 104729 + lvl * 31) % 20).astype(np.float64)
+            rng = (0.0, 19.0)
+        mesh.cell_data["_color"] = vals
+        mesh.set_active_scalars("_color", preference="cell")
+        actor.SetTexture(None)
+        import matplotlib
+        import pyvista as pv
+
+        lut = pv.LookupTable(matplotlib.colormaps["tab10" if self.color_mode == "level"
+                                                  else "tab20"])
+        lut.scalar_range = rng
+        mapper.SetLookupTable(lut)
+        mapper.SetScalarModeToUseCellData()
+        mapper.SetScalarRange(*rng)
+        mapper.ScalarVisibilityOn()
+        prop.SetLighting(True)
+
+    def _update_hud(self) -> None:
+        s = self.stats
+        line = (f"{self.strategy}  tau {self.pixel_error:g} px  {s.get('triangles', 0):,} tris  "
+                f"select {s.get('select_ms', 0.0):.0f} ms  frame {self.frame_ms:.0f} ms"
+                + ("  [FROZEN]" if self.frozen else "") + f"  colour: {self.color_mode}")
+        self._hud.SetText(2, line + "\n" + HELP)
+
+    def _refresh(self) -> None:
+        self.on_camera_changed(force=True)
+        self.plotter.render()
+
+    # ------------------------------------------------------------------ keys
+    def next_strategy(self) -> None:
+        """Key ``m``: the next LOD strategy."""
+        self.strategy = STRATEGIES[(STRATEGIES.index(self.strategy) + 1) % len(STRATEGIES)]
+        self._refresh()
+
+    def tau_up(self) -> None:
+        """Key ``+``: τ × 2 (coarser)."""
+        self.pixel_error = min(self.pixel_error * 2, 256.0)
+        self._refresh()
+
+    def tau_down(self) -> None:
+        """Key ``-``: τ / 2 (finer)."""
+        self.pixel_error = max(self.pixel_error / 2, 0.125)
+        self._refresh()
+
+    def toggle_wireframe(self) -> None:
+        """Key ``x``: wireframe on/off."""
+        self.wireframe = not self.wireframe
+        self._apply_style()
+        self.plotter.render()
+
+    def next_color_mode(self) -> None:
+        """Key ``c``: colour by shading, LOD level or tile."""
+        self.color_mode = COLOR_MODES[(COLOR_MODES.index(self.color_mode) + 1) % len(COLOR_MODES)]
+        self._apply_style()
+        self._update_hud()
+        self.plotter.render()
+
+    def toggle_freeze(self) -> None:
+        """Key ``space``: keep the current selection while the camera moves."""
+        self.frozen = not self.frozen
+        if not self.frozen:
+            self.on_camera_changed(force=True)
+        self._update_hud()
+        self.plotter.render()
+
+    def reset_view(self) -> None:
+        """Key ``h``: back to the overview."""
+        self.scene.set_camera(self.home)
+        self._refresh()
+
+    def bind(self) -> None:
+        """Attach camera observers, a polling timer and the keys to the plotter."""
+        p = self.plotter
+        p.camera.AddObserver("ModifiedEvent", self.on_camera_changed)
+        keys = {"m": self.next_strategy, "plus": self.tau_up, "equal": self.tau_up,
+                "KP_Add": self.tau_up, "minus": self.tau_down, "KP_Subtract": self.tau_down,
+                "x": self.toggle_wireframe, "c": self.next_color_mode,
+                "space": self.toggle_freeze, "h": self.reset_view}
+        for k, fn in keys.items():
+            p.add_key_event(k, fn)
+        if p.iren is not None and not p.off_screen:
+            p.iren.add_observer("EndInteractionEvent", self.poll)
+            p.add_timer_event(max_steps=2**31 - 1, duration=int(max(self.throttle_ms, 30)),
+                              callback=lambda _step: self.poll())
+
+
+def show(terrain, strategy: str = "rtin", pixel_error: float = 1.0, *,
+         shading: str = "normals", cmap: str = "gist_earth", size: tuple[int, int] = (1280, 720),
+         title: str | None = None, throttle_ms: float = 100.0) -> ViewerController:
+    """Open an interactive window on the terrain; the LOD follows the camera.
+
+    Keys: ``m`` strategy, ``+``/``-`` τ, ``x`` wireframe, ``c`` colour by
+    shading / LOD level / tile, ``space`` freeze the LOD, ``h`` home, ``q`` quit.
+
+    Examples
+    --------
+    >>> import geoterrain
+    >>> show(geoterrain.open("dem.geoterrain"), strategy="chunked")  # doctest: +SKIP
+    """
+    import pyvista as pv
+
+    p = pv.Plotter(window_size=list(size), title=title or f"geoterrain — {terrain.path.name}")
+    ctl = ViewerController(p, terrain, strategy, pixel_error, shading, cmap, throttle_ms)
+    ctl.bind()
+    p.show()
+    return ctl

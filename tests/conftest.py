@@ -1,0 +1,56 @@
+"""Shared fixtures: real DEMs from ../shared/dems (skipped when absent) and synthetic ones."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import settings
+
+ROOT = Path(__file__).resolve().parents[1]
+DEMS = (ROOT / ".." / "shared" / "dems").resolve()
+REAL_DEMS = ["srtm3_pysheds.tif", "srtm1_japan.tif", "roi_epsg3089.tif",
+             "fuji_terrain_rgb.png", "st_helens_terrain_rgb.png", "terrarium.png"]
+
+settings.register_profile("ci", max_examples=30, deadline=None)
+settings.register_profile("dev", max_examples=60, deadline=None)
+settings.load_profile("ci" if os.environ.get("CI") else "dev")
+
+
+def real_dem(name: str) -> Path:
+    """Path of a real DEM, or skip the test when the shared folder is absent."""
+    p = DEMS / name
+    if not p.is_file():
+        pytest.skip(f"real DEM {name} not available (../shared/dems absent)")
+    return p
+
+
+@pytest.fixture(params=REAL_DEMS)
+def real_dem_path(request) -> Path:
+    return real_dem(request.param)
+
+
+def write_tif(path, z, crs="EPSG:32633", origin=(500000.0, 5000000.0), spacing=10.0,
+              nodata=None, dtype=None) -> Path:
+    """Write a north-up GeoTIFF of any dtype (for ingest tests)."""
+    import rasterio
+    from rasterio.transform import from_origin
+
+    z = np.asarray(z)
+    dtype = dtype or z.dtype
+    prof = dict(driver="GTiff", height=z.shape[0], width=z.shape[1], count=1, dtype=dtype,
+                crs=crs, transform=from_origin(origin[0], origin[1], spacing, spacing))
+    if nodata is not None:
+        prof["nodata"] = nodata
+    with rasterio.open(path, "w", **prof) as dst:
+        dst.write(z.astype(dtype), 1)
+    return Path(path)
+
+
+@pytest.fixture
+def fbm_tif(tmp_path) -> Path:
+    from geoterrain.synth import generate, write_geotiff
+
+    return write_geotiff(tmp_path / "fbm.tif", generate("fbm", 129, seed=3))

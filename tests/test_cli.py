@@ -1,0 +1,133 @@
+"""The command line: bad input gets one line and the right exit code, never a traceback."""
+
+import sqlite3
+
+import numpy as np
+import pytest
+import rasterio
+from click.testing import CliRunner
+
+import geoterrain.store
+from geoterrain.cli.main import cli
+from tests.conftest import write_tif
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
+
+
+def assert_one_line_error(res, code):
+    assert res.exit_code == code, res.output
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("Error:"), res.stderr
+    assert "Traceback" not in res.output
+
+
+def test_help_and_version():
+    res = run("--help")
+    assert res.exit_code == 0 and "preprocess" in res.output and "info" in res.output
+    assert run("--version").output.strip().endswith("0.1.0")
+    assert "Examples" in run("preprocess", "--help").output
+
+
+def test_preprocess_and_info(fbm_tif, tmp_path):
+    out = tmp_path / "a.geoterrain"
+    res = run("-q", "preprocess", fbm_tif, "-o", out)
+    assert res.exit_code == 0 and out.exists()
+    res = run("info", out)
+    assert res.exit_code == 0 and "EPSG" in res.output or "UTM" in res.output
+    res = run("info", out, "--json")
+    import json
+
+    assert json.loads(res.output)["grid"] == [129, 129]
+
+
+def test_default_output_name(tmp_path, fbm_tif):
+    res = run("-q", "preprocess", fbm_tif)
+    assert res.exit_code == 0
+    assert fbm_tif.with_suffix(".geoterrain").exists()
+
+
+@pytest.mark.parametrize("case,code", [
+    ("missing", 1), ("directory", 1), ("text", 1), ("multiband", 2), ("1x1", 1), ("1xN", 1),
+    ("all-nodata", 1), ("all-nan", 1), ("inf", 1), ("absurd", 1), ("exists", 2),
+    ("read-only", 1), ("bad-tile-size", 2), ("bad-band", 2), ("bad-max-error", 2),
+])
+def test_bad_input(case, code, tmp_path, fbm_tif):
+    src, extra = tmp_path / "in.tif", []
+    out = tmp_path / "out.geoterrain"
+    if case == "missing":
+        src = tmp_path / "nope.tif"
+    elif case == "directory":
+        src = tmp_path
+    elif case == "text":
+        src.write_text("not a raster\n")
+    elif case == "multiband":
+        with rasterio.open(src, "w", driver="GTiff", width=4, height=4, count=2,
+                           dtype="int16") as d:
+            d.write(np.zeros((2, 4, 4), np.int16))
+    elif case == "1x1":
+        write_tif(src, np.zeros((1, 1), np.int16))
+    elif case == "1xN":
+        write_tif(src, np.zeros((1, 50), np.int16))
+    elif case == "all-nodata":
+        write_tif(src, np.full((5, 5), -1, np.int16), nodata=-1)
+    elif case == "all-nan":
+        write_tif(src, np.full((5, 5), np.nan, np.float32))
+    elif case == "inf":
+        z = np.zeros((5, 5), np.float32)
+        z[1, 1] = np.inf
+        write_tif(src, z)
+    elif case == "absurd":
+        write_tif(src, np.full((5, 5), 3e5, np.float32))
+    elif case == "exists":
+        src = fbm_tif
+        out.write_text("x")
+    elif case == "read-only":
+        src, out = fbm_tif, "/proc/geoterrain-test.geoterrain"
+    elif case == "bad-tile-size":
+        src, extra = fbm_tif, ["--tile-size", "48"]
+    elif case == "bad-band":
+        src, extra = fbm_tif, ["--band", "3"]
+    elif case == "bad-max-error":
+        src, extra = fbm_tif, ["--max-error", "-1"]
+    res = run("-q", "preprocess", src, "-o", out, *extra)
+    if case in ("bad-tile-size",):
+        assert res.exit_code == 2 and "Traceback" not in res.output
+    else:
+        assert_one_line_error(res, code)
+    if case not in ("exists",):
+        assert not (tmp_path / "out.geoterrain").exists()
+
+
+def test_absurd_heights_pass_with_z_scale(tmp_path):
+    src = write_tif(tmp_path / "in.tif", np.full((5, 5), 3e5, np.float32))
+    assert run("-q", "preprocess", src, "--z-scale", "1").exit_code == 0
+
+
+def test_disk_full_is_one_line(tmp_path, fbm_tif, monkeypatch):
+    def full(self):
+        raise sqlite3.OperationalError("database or disk is full")
+
+    monkeypatch.setattr(geoterrain.store.StoreWriter, "_init", full)
+    res = run("-q", "preprocess", fbm_tif, "-o", tmp_path / "o.geoterrain")
+    assert_one_line_error(res, 1)
+    assert "disk full" in res.stderr
+    assert list(tmp_path.glob("*geoterrain*")) == []
+
+
+def test_info_on_damaged_or_missing_store(tmp_path):
+    assert_one_line_error(run("info", tmp_path / "none.geoterrain"), 1)
+    p = tmp_path / "x.geoterrain"
+    p.write_bytes(b"\0" * 100)
+    assert_one_line_error(run("info", p), 1)
+
+
+def test_synth_writes_deterministic_geotiff(tmp_path):
+    a, b = tmp_path / "a.tif", tmp_path / "b.tif"
+    assert run("synth", "ridged", "--size", "33", "--seed", "4", "-o", a).exit_code == 0
+    assert run("synth", "ridged", "--size", "33", "--seed", "4", "-o", b).exit_code == 0
+    with rasterio.open(a) as da, rasterio.open(b) as db:
+        assert da.crs is not None
+        np.testing.assert_array_equal(da.read(1), db.read(1))
+    assert_one_line_error(run("synth", "fbm", "--size", "9", "-o", a), 2)

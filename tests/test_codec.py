@@ -1,0 +1,376 @@
+"""Tests of the residual pyramid codec (geoterrain.codec)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from geoterrain.codec import (
+    _PACK_BITS,
+    BLOB_VERSION,
+    Quantizer,
+    _choose_stream,
+    _pack_symbols,
+    _read_stream,
+    _shuffle,
+    _width,
+    choose_quantizer,
+    codes_to_heights,
+    decode_tile,
+    decode_tile_at,
+    decoded_codes,
+    decoded_heights,
+    encode_pyramid,
+    heights_to_codes,
+    pyramid_shape,
+    tile_valid,
+)
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def decode_all(blobs, n_samples, t, qz):
+    """Decode every stored tile top-down; returns {level: (codes grid, covered mask)}."""
+    n, te = pyramid_shape(n_samples, t)
+    span = 1 << te
+    cache: dict = {}
+    out = {}
+    for lev in range(n - te + 1):
+        m = (1 << (n - lev)) + 1
+        out[lev] = (np.zeros((m, m), np.int64), np.zeros((m, m), bool))
+    for key in sorted(blobs, key=lambda k: -k[0]):
+        lev, x, y = key
+        codes = decode_tile_at(key, blobs.__getitem__, qz, cache)
+        g, cov = out[lev]
+        sl = (slice(y * span, y * span + span + 1), slice(x * span, x * span + span + 1))
+        # shared borders must agree between neighbouring tiles
+        assert np.array_equal(g[sl][cov[sl]], codes[cov[sl]])
+        g[sl] = codes
+        cov[sl] = True
+    return out
+
+
+def expected_keys(valid, t):
+    """Tiles whose footprint holds a valid sample, by brute force."""
+    n, te = pyramid_shape(valid.shape[0], t)
+    keys = set()
+    for lev in range(n - te + 1):
+        span = (1 << te) << lev
+        nt = 1 << (n - lev - te)
+        for y in range(nt):
+            for x in range(nt):
+                if valid[y * span : y * span + span + 1, x * span : x * span + span + 1].any():
+                    keys.add((lev, x, y))
+    return keys
+
+
+def check_pyramid(z, valid, t, qz, max_error=0.0, predictor="auto"):
+    """Encode, decode every tile and check against decoded_codes / decoded_heights / z."""
+    blobs = encode_pyramid(z, valid, t, qz, predictor=predictor)
+    assert set(blobs) == expected_keys(valid, t)
+    assert all(b[0] == BLOB_VERSION for b in blobs.values())
+    if not blobs:
+        return blobs
+    ref = decoded_codes(z, valid, t, qz, predictor)
+    levels = decode_all(blobs, z.shape[0], t, qz)
+    for lev, (g, cov) in levels.items():
+        s = 1 << lev
+        assert np.array_equal(g[cov], ref[::s, ::s][cov])
+    g0, cov0 = levels[0]
+    assert cov0[valid].all()
+    h = codes_to_heights(g0, qz)
+    hv = h[valid]
+    if qz.mode == "quantized":
+        assert np.all(np.abs(hv - z[valid]) <= max_error)
+    else:
+        assert np.array_equal(hv.view(np.int64), z[valid].view(np.int64))  # bit-exact
+    dh = decoded_heights(z, valid, qz)
+    assert np.array_equal(dh[valid], hv)
+    assert np.all(np.isnan(dh[~valid]))
+    dht = decoded_heights(z, valid, qz, t=t, predictor=predictor)
+    assert np.array_equal(dht[cov0], h[cov0], equal_nan=True)
+    return blobs
+
+
+def fractal(n_samples, seed=0, relief=1000.0):
+    rng = np.random.default_rng(seed)
+    k = np.fft.fftfreq(n_samples)[:, None]
+    f = np.sqrt(k**2 + np.fft.rfftfreq(n_samples)[None, :] ** 2)
+    f[0, 0] = 1.0
+    spec = (rng.normal(size=f.shape) + 1j * rng.normal(size=f.shape)) / f**1.2
+    z = np.fft.irfft2(spec, s=(n_samples, n_samples))
+    return (z - z.min()) / (z.max() - z.min()) * relief
+
+
+# ----------------------------------------------------------------------------- lossless
+
+
+@pytest.mark.parametrize(
+    "n_samples,t", [(3, 1), (3, 6), (5, 1), (5, 6), (17, 2), (65, 3), (129, 6)]
+)
+@pytest.mark.parametrize("predictor", ["linear", "cubic"])
+def test_int_roundtrip_exact(n_samples, t, predictor):
+    rng = np.random.default_rng(n_samples + t)
+    z = np.round(fractal(n_samples, n_samples) + rng.integers(-3, 4, (n_samples,) * 2))
+    valid = rng.random(z.shape) > 0.1
+    qz = choose_quantizer(z[valid], np.int16)
+    assert qz.mode == "int"
+    blobs = check_pyramid(z, valid, t, qz, predictor=predictor)
+    n, te = pyramid_shape(n_samples, t)
+    used_cubic = {bool(b[1] & 8) for b in blobs.values()}
+    assert used_cubic == {predictor == "cubic" and te >= 2 and n > te}
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_float_roundtrip_bit_exact(dtype):
+    rng = np.random.default_rng(3)
+    z = fractal(65, 1) - 300.0 + rng.normal(0, 1e-3, (65, 65))
+    z[0, 0], z[1, 1], z[2, 2] = -0.0, 1e-30, -1e-30
+    z = z.astype(dtype).astype(np.float64)
+    valid = np.ones(z.shape, bool)
+    valid[10:20, 30:33] = False
+    qz = choose_quantizer(z, dtype)
+    assert qz.mode == "float" and qz.float_bits == (32 if dtype == np.float32 else 64)
+    check_pyramid(z, valid, 3, qz)
+
+
+def test_known_scale_terrain_rgb_is_lossless_int():
+    rng = np.random.default_rng(4)
+    k = rng.integers(100000, 140000, (33, 33))
+    z = -10000 + k * 0.1  # Terrain-RGB decoding
+    qz = choose_quantizer(z, np.float64, scale=0.1, offset=-10000.0)
+    assert qz.mode == "int"
+    check_pyramid(z, np.ones(z.shape, bool), 2, qz)
+    # integer-valued floats are detected without a scale
+    assert choose_quantizer(np.round(z), np.float32).mode == "int"
+    # an inexact scale falls back to float
+    assert choose_quantizer(z + 0.01234, np.float64, scale=0.1).mode == "float"
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    n=st.integers(1, 5),
+    t=st.integers(1, 7),
+    seed=st.integers(0, 2**31),
+    hole_p=st.sampled_from([0.0, 0.3, 0.9, 1.0]),
+    amp=st.sampled_from([1, 100, 30000, 2**40]),
+    predictor=st.sampled_from(["linear", "cubic", "auto"]),
+)
+def test_int_roundtrip_hypothesis(n, t, seed, hole_p, amp, predictor):
+    rng = np.random.default_rng(seed)
+    size = (1 << n) + 1
+    z = rng.integers(-amp, amp + 1, (size, size)).astype(np.float64)
+    valid = rng.random(z.shape) >= hole_p
+    check_pyramid(z, valid, t, Quantizer("int"), predictor=predictor)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    n=st.integers(1, 5),
+    t=st.integers(1, 4),
+    seed=st.integers(0, 2**31),
+    predictor=st.sampled_from(["linear", "cubic"]),
+)
+def test_float64_roundtrip_hypothesis(n, t, seed, predictor):
+    rng = np.random.default_rng(seed)
+    size = (1 << n) + 1
+    z = rng.normal(0, 1, (size, size)) * 10.0 ** rng.integers(-30, 30, (size, size))
+    valid = rng.random(z.shape) > 0.2
+    check_pyramid(z, valid, t, choose_quantizer(z[valid], np.float64), predictor=predictor)
+
+
+# ----------------------------------------------------------------------------- quantized
+
+
+def _fields(size, seed):
+    rng = np.random.default_rng(seed)
+    spiky = fractal(size, seed, 50.0)
+    spikes = rng.random(spiky.shape) < 0.02
+    spiky[spikes] += rng.normal(0, 3000, int(spikes.sum()))
+    spiky.ravel()[rng.integers(0, spiky.size, 20)] = rng.normal(0, 5000, 20)
+    return {
+        "random": rng.normal(0, 500, (size, size)),
+        "fractal": fractal(size, seed, 3000.0),
+        "spiky": spiky,
+        "everest": 8848.0 + rng.normal(0, 3, (size, size)),
+        "trench": -11000.0 + rng.normal(0, 3, (size, size)),
+    }
+
+
+@pytest.mark.parametrize("eps", [0.01, 0.1, 0.5, 2.0])
+@pytest.mark.parametrize("kind", ["random", "fractal", "spiky", "everest", "trench"])
+@pytest.mark.parametrize("predictor", ["linear", "cubic"])
+def test_quantized_within_eps(eps, kind, predictor):
+    z = _fields(65, 7)[kind]
+    valid = np.ones(z.shape, bool)
+    valid[5:9, 40:60] = False
+    qz = choose_quantizer(z[valid], np.float32, max_error=eps)
+    assert qz.mode == "quantized" and qz.max_error == eps and qz.step <= 2 * eps
+    check_pyramid(z, valid, 3, qz, max_error=eps, predictor=predictor)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    base=st.sampled_from([0.0, 8848.0, -11000.0, 1e6, -3.7e5]),
+    eps=st.sampled_from([0.001, 0.01, 0.1, 0.5, 2.0]),
+    seed=st.integers(0, 2**31),
+)
+def test_quantized_bound_hypothesis(base, eps, seed):
+    rng = np.random.default_rng(seed)
+    z = base + rng.normal(0, 10, (17, 17)) * rng.choice([1e-3, 1.0, 100.0])
+    qz = choose_quantizer(z, np.float64, max_error=eps)
+    dec = codes_to_heights(heights_to_codes(z, qz), qz)
+    assert np.all(np.abs(dec - z) <= eps)
+    check_pyramid(z, np.ones(z.shape, bool), 2, qz, max_error=eps)
+
+
+def test_int_source_with_small_eps_stays_lossless():
+    z = np.arange(25.0).reshape(5, 5)
+    assert choose_quantizer(z, np.int16, max_error=0.4).mode == "int"
+    assert choose_quantizer(z, np.int16, max_error=2.0).mode == "quantized"
+
+
+# ----------------------------------------------------------------------------- access
+
+
+@pytest.mark.parametrize("predictor", ["linear", "cubic"])
+def test_coarse_tile_reads_only_ancestors(predictor):
+    size, t = 257, 3
+    z = np.round(fractal(size, 2))
+    valid = np.ones(z.shape, bool)
+    qz = Quantizer("int")
+    blobs = encode_pyramid(z, valid, t, qz, predictor=predictor)
+    key = (2, 3, 1)
+    read: list = []
+
+    def get(k):
+        read.append(k)
+        return blobs[k]
+
+    codes = decode_tile_at(key, get, qz)
+    lev, x, y = key
+    expected = []
+    while lev <= 5:  # Lmax = 8 - 3
+        expected.append((lev, x, y))
+        lev, x, y = lev + 1, x // 2, y // 2
+    assert sorted(read) == sorted(expected)
+    s = 1 << key[0]
+    ref = decoded_codes(z, valid, t, qz, predictor)[::s, ::s][8:17, 24:33]
+    assert np.array_equal(codes, ref)
+
+
+def test_decode_tile_direct_api_and_errors():
+    z = np.arange(81.0).reshape(9, 9)
+    qz = Quantizer("int")
+    blobs = encode_pyramid(z, np.ones(z.shape, bool), 2, qz)
+    top = decode_tile(blobs[(1, 0, 0)], None, qz)
+    assert np.array_equal(top, z[::2, ::2])
+    for x in (0, 1):
+        for y in (0, 1):
+            c = decode_tile(blobs[(0, x, y)], top, qz, (x % 2, y % 2))
+            assert np.array_equal(c, z[4 * y : 4 * y + 5, 4 * x : 4 * x + 5])
+    with pytest.raises(ValueError):
+        decode_tile(blobs[(0, 0, 0)], None, qz)
+    with pytest.raises(ValueError):
+        decode_tile(b"\x09" + blobs[(0, 0, 0)][1:], top, qz)
+
+
+# ----------------------------------------------------------------------------- invalid data
+
+
+def test_all_invalid_grid_and_tiles_absent():
+    z = np.zeros((33, 33))
+    assert encode_pyramid(z, np.zeros(z.shape, bool), 2, Quantizer("int")) == {}
+    valid = np.zeros(z.shape, bool)
+    valid[:9, :9] = True
+    blobs = check_pyramid(np.round(fractal(33)), valid, 2, Quantizer("int"))
+    assert (0, 3, 3) not in blobs and (0, 0, 0) in blobs and (0, 2, 0) in blobs  # shares col 8
+
+
+def test_one_sample_wide_strip_at_odd_column():
+    size, t = 65, 3
+    z = np.round(fractal(size, 5))
+    valid = np.zeros(z.shape, bool)
+    valid[:, 13] = True
+    blobs = check_pyramid(z, valid, t, Quantizer("int"))
+    # a level-1 tile holds column 13 only in its footprint (not among its own samples)
+    assert (1, 0, 0) in blobs
+    assert not tile_valid(blobs[(1, 0, 0)]).any()
+    assert tile_valid(blobs[(0, 1, 0)])[:, 13 - 8].all()
+    assert tile_valid(blobs[(0, 1, 0)]).sum() == 9
+
+
+def test_checkerboard_holes_cost_little():
+    size = 129
+    z = np.round(fractal(size, 6))
+    i, j = np.indices(z.shape)
+    valid = (i + j) % 2 == 0
+    qz = Quantizer("int")
+    blobs = check_pyramid(z, valid, 4, qz)
+    full = encode_pyramid(z, np.ones(z.shape, bool), 4, qz)
+    assert sum(map(len, blobs.values())) < 0.8 * sum(map(len, full.values()))
+    for key, blob in blobs.items():
+        s = 1 << key[0]
+        tv = tile_valid(blob)
+        sl = (slice(key[2] * 16 * s, (key[2] * 16 + 16) * s + 1, s),) + (
+            slice(key[1] * 16 * s, (key[1] * 16 + 16) * s + 1, s),
+        )
+        assert np.array_equal(tv, valid[sl])
+
+
+def test_invalid_values_are_ignored():
+    z = np.round(fractal(33, 8))
+    valid = np.ones(z.shape, bool)
+    valid[3:7, 10:25] = False
+    z2 = z.copy()
+    z2[~valid] = np.nan
+    z3 = z.copy()
+    z3[~valid] = 1e300
+    qz = Quantizer("int")
+    b2 = encode_pyramid(z2, valid, 2, qz)
+    assert b2 == encode_pyramid(z3, valid, 2, qz)
+    check_pyramid(z2, valid, 2, qz)
+
+
+def test_pyramid_shape_rejects_bad_sizes():
+    with pytest.raises(ValueError):
+        pyramid_shape(6, 3)
+    with pytest.raises(ValueError):
+        encode_pyramid(np.zeros((4, 4)), np.ones((4, 4), bool), 2, Quantizer("int"))
+    assert pyramid_shape(3, 9) == (1, 1)
+
+
+@pytest.mark.slow
+def test_4097_encode_speed():
+    import time
+
+    z = np.round(fractal(4097, 9))
+    valid = np.ones(z.shape, bool)
+    t0 = time.perf_counter()
+    blobs = encode_pyramid(z, valid, 6, Quantizer("int"), level=9)
+    assert time.perf_counter() - t0 < 10.0
+    assert len(blobs) == sum(4**k for k in range(7))
+
+
+@pytest.mark.parametrize("dist", ["zeros", "binary", "small", "outliers", "wide"])
+def test_residual_streams_roundtrip(dist):
+    rng = np.random.default_rng(11)
+    k = 3 * 32 * 32 + 2 * 32
+    zz = {
+        "zeros": np.zeros(k),
+        "binary": rng.random(k) < 0.1,
+        "small": rng.poisson(0.7, k),
+        "outliers": np.where(rng.random(k) < 0.01, rng.integers(0, 2**40, k), rng.poisson(1, k)),
+        "wide": rng.integers(0, 2**63, k, dtype=np.int64),
+    }[dist].astype(np.uint64)
+    packs = {b: _pack_symbols(zz, b) for b in _PACK_BITS}
+    code, stream = _choose_stream(zz, int(zz.max()), packs)
+    assert np.array_equal(_read_stream(stream, code, k), zz)
+    for b in _PACK_BITS:  # every packed form decodes, whichever was chosen
+        m = (1 << b) - 1
+        e = zz[zz >= m] - np.uint64(m)
+        w = _width(int(e.max()) if e.size else 0)
+        s = packs[b][0].tobytes() + _shuffle(e, w)
+        assert np.array_equal(_read_stream(s, (b << 4) | w, k), zz)

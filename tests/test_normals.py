@@ -1,0 +1,175 @@
+"""Tests of normal maps (geoterrain.normals)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geoterrain.normals import (
+    OCTAHEDRAL_MAX_ERROR_DEG,
+    decode_octahedral,
+    encode_octahedral,
+    level_normals,
+    normal_map,
+)
+
+KERNELS = ["central", "horn"]
+
+
+def plane_normal(a, b):
+    n = np.array([-a, -b, 1.0])
+    return n / np.linalg.norm(n)
+
+
+def check_unit(n):
+    assert n.dtype == np.float32
+    assert np.all(np.isfinite(n))
+    assert np.allclose(np.linalg.norm(n, axis=-1), 1.0, atol=1e-6)
+    assert np.all(n[..., 2] >= 0)
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_plane_regular_grid(kernel):
+    i, j = np.indices((33, 33), dtype=np.float64)
+    x, y = 5.5e5 + 30.0 * j - 4.1e5, 4.2e6 - 30.0 * i - 4.1e6  # north-up, scene frame
+    a, b = 0.3, -0.7
+    z = a * x + b * y + 12.0
+    n = normal_map(x, y, z, np.ones(x.shape, bool), kernel=kernel)
+    check_unit(n)
+    assert np.allclose(n, plane_normal(a, b), atol=1e-6)  # borders included
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_plane_curvilinear_grid(kernel):
+    pyproj = pytest.importorskip("pyproj")
+    lat, lon = np.meshgrid(np.linspace(60.5, 60.0, 41), np.linspace(10.0, 11.0, 41), indexing="ij")
+    aeqd = pyproj.Proj(proj="aeqd", lat_0=60.25, lon_0=10.5, datum="WGS84")
+    x, y = aeqd(lon, lat)
+    assert np.ptp(np.diff(x, axis=1)) > 1.0  # really curvilinear
+    a, b = 0.05, 0.12
+    z = a * x + b * y
+    holes = np.ones(x.shape, bool)
+    holes[10:13, 20] = False
+    n = normal_map(x, y, z, holes, kernel=kernel)
+    check_unit(n)
+    assert np.allclose(n[holes], plane_normal(a, b), atol=1e-6)
+
+
+def test_plane_synthetic_warp():
+    u, v = np.meshgrid(np.linspace(0, 1, 25), np.linspace(0, 1, 25))
+    x = 100 * u + 7 * np.sin(3 * v) + 3 * u * v
+    y = -100 * v + 5 * np.cos(2 * u) - 2 * u**2
+    a, b = -1.5, 0.4
+    n = normal_map(x, y, a * x + b * y, np.ones(x.shape, bool))
+    assert np.allclose(n, plane_normal(a, b), atol=1e-6)
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_cone_radially_symmetric(kernel):
+    m = 41
+    i, j = np.indices((m, m), dtype=np.float64)
+    x, y = j - 20.0, 20.0 - i
+    r = np.hypot(x, y)
+    z = 500.0 - 2.0 * r
+    n32 = normal_map(x, y, z, np.ones(x.shape, bool), kernel=kernel)
+    check_unit(n32)
+    n = n32.astype(np.float64)
+    # 90-degree rotation of the grid rotates the normals
+    rot = np.rot90(n, 1)
+    rot_xy = np.stack([-rot[..., 1], rot[..., 0]], axis=-1)  # undo the vector rotation
+    assert np.allclose(n[..., :2], rot_xy, atol=1e-6)
+    assert np.allclose(n[..., 2], rot[..., 2], atol=1e-6)
+    # horizontal part points outward along the radius, away from the apex
+    ring = (r > 3) & (r < 17)
+    radial = np.stack([x, y], axis=-1) / np.maximum(r, 1e-9)[..., None]
+    cross = n[..., 0] * radial[..., 1] - n[..., 1] * radial[..., 0]
+    assert np.all(np.abs(cross[ring]) < 0.02)
+    assert np.all(np.sum(n[..., :2] * radial, axis=-1)[ring] > 0)
+    # samples at the same radius agree (axis-aligned ones exactly)
+    assert np.isclose(n[20, 30, 2], n[30, 20, 2]) and np.isclose(n[20, 30, 2], n[20, 10, 2])
+    if kernel == "central":  # on an axis the central tangents are exact
+        assert np.isclose(n[20, 30, 2], plane_normal(2.0, 0.0)[2], atol=1e-6)
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_holes_borders_no_nan(kernel):
+    rng = np.random.default_rng(0)
+    i, j = np.indices((30, 30), dtype=np.float64)
+    z = rng.normal(0, 5, i.shape)
+    valid = rng.random(i.shape) > 0.4
+    valid[0, 0], valid[0, 1], valid[1, 0] = True, False, False  # isolated corner sample
+    z[~valid] = np.nan
+    n = normal_map(j, -i, z, valid, kernel=kernel)
+    check_unit(n)
+    assert np.array_equal(n[0, 0], [0, 0, 1])
+    assert np.all(n[~valid] == np.array([0, 0, 1], np.float32))
+    # a one-sample-wide valid row: slope along the row only
+    valid = np.zeros((9, 9), bool)
+    valid[4] = True
+    zz = 2.0 * j[:9, :9]
+    n = normal_map(j[:9, :9], -i[:9, :9], zz, valid, kernel=kernel)
+    assert np.allclose(n[4], plane_normal(2.0, 0.0), atol=1e-6)
+    # degenerate positions (coincident) do not give NaN
+    n = normal_map(np.zeros((4, 4)), np.zeros((4, 4)), np.zeros((4, 4)))
+    assert np.array_equal(n, np.broadcast_to(np.float32([0, 0, 1]), (4, 4, 3)))
+
+
+def test_level_normals_matches_brute_force():
+    rng = np.random.default_rng(1)
+    nf = rng.normal(0, 0.3, (17, 17, 3))
+    nf[..., 2] = 1.0
+    nf /= np.linalg.norm(nf, axis=-1, keepdims=True)
+    valid = rng.random((17, 17)) > 0.2
+    for level in range(5):
+        got = level_normals(nf, level, valid)
+        s = 1 << level
+        assert got.shape == ((16 >> level) + 1, (16 >> level) + 1, 3)
+        for a in range(got.shape[0]):
+            for b in range(got.shape[1]):
+                r0, r1 = max(a * s - s // 2, 0), min(a * s + s // 2, 16)
+                c0, c1 = max(b * s - s // 2, 0), min(b * s + s // 2, 16)
+                box = nf[r0 : r1 + 1, c0 : c1 + 1][valid[r0 : r1 + 1, c0 : c1 + 1]]
+                ref = box.sum(axis=0) if len(box) else np.array([0.0, 0, 1])
+                ref = ref / np.linalg.norm(ref)
+                assert np.allclose(got[a, b], ref, atol=1e-6)
+    assert np.allclose(level_normals(nf, 0), nf, atol=1e-6)
+
+
+def test_level_normals_of_plane_is_plane():
+    i, j = np.indices((65, 65), dtype=np.float64)
+    n = normal_map(j, -i, 0.2 * j - 0.1 * i)
+    for level in range(7):
+        assert np.allclose(level_normals(n, level), plane_normal(0.2, 0.1), atol=1e-6)
+
+
+@pytest.mark.parametrize("bits", [8, 16])
+def test_octahedral_roundtrip(bits):
+    rng = np.random.default_rng(2)
+    v = rng.normal(size=(200000, 3))
+    v = np.concatenate([v, np.eye(3), -np.eye(3), [[1, 1, 0], [0, -1, -1], [1, 1, 1]]])
+    v /= np.linalg.norm(v, axis=-1, keepdims=True)
+    e = encode_octahedral(v, bits)
+    assert e.dtype == (np.uint8 if bits == 8 else np.uint16) and e.shape == (len(v), 2)
+    d = decode_octahedral(e, bits).astype(np.float64)
+    assert d.dtype == np.float64 and d.shape == v.shape
+    ang = np.degrees(np.arctan2(np.linalg.norm(np.cross(d, v), axis=1), np.sum(d * v, axis=1)))
+    assert ang.max() <= OCTAHEDRAL_MAX_ERROR_DEG[bits]
+    assert np.allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-6)
+    # grid shapes pass through
+    grid = encode_octahedral(v[:12].reshape(3, 4, 3), bits)
+    assert grid.shape == (3, 4, 2)
+    with pytest.raises(ValueError):
+        encode_octahedral(v, 12)
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_row_blocks_are_exact(kernel, monkeypatch):
+    import geoterrain.normals as gn
+
+    rng = np.random.default_rng(5)
+    i, j = np.indices((40, 23), dtype=np.float64)
+    z = rng.normal(0, 3, i.shape)
+    valid = rng.random(i.shape) > 0.3
+    ref = normal_map(j, -i, z, valid, kernel=kernel)
+    monkeypatch.setattr(gn, "_BLOCK_ROWS", 7)
+    assert np.array_equal(gn.normal_map(j, -i, z, valid, kernel=kernel), ref)
