@@ -94,12 +94,12 @@ def _pair_slices(N: int, i0: int, j0: int, step: int, oi: int, oj: int):
     return (ri[0], rj[0]), (ri[1], rj[1])
 
 
-def _closed_blocks(a: np.ndarray, s: int, op) -> np.ndarray:
+def _closed_blocks(a: np.ndarray, s: int, op, dtype=None) -> np.ndarray:
     """``op``-reduction of ``a`` over the closed blocks ``[p*s : (p+1)*s + 1]`` (shared
     borders), separably: rows, then columns. Returns (nb, nb)."""
     N = a.shape[0]
     nb = (N - 1) // s
-    r = op.reduce(a[:-1].reshape(nb, s, N), axis=1)
+    r = op.reduce(a[:-1].reshape(nb, s, N), axis=1, dtype=dtype)
     r = op(r, a[s::s])
     c = op.reduce(r[:, :-1].reshape(nb, nb, s), axis=2)
     return op(c, r[:, s::s])
@@ -111,6 +111,9 @@ def _closed_blocks(a: np.ndarray, s: int, op) -> np.ndarray:
 # math, so they never see a non-finite value: invalid heights are zeroed beforehand).
 
 _FM = True
+# Threads hurt on small shared machines (a barrier per level waits for a descheduled
+# thread); the loops are written with prange so this switch is all it takes.
+_PARALLEL = False
 
 
 @njit(cache=True, fastmath=_FM)
@@ -243,7 +246,7 @@ def _edge_err(z, vb, ic, jc, h, rows, N, check):
     return m, 1
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=_PARALLEL)
 def _block_status_nb(vb):
     # bs[centre of a closed 2h block] = bit 1: holds a valid sample, bit 2: an invalid one;
     # built fine to coarse (a closed 2h block is the union of its four closed h blocks).
@@ -390,7 +393,7 @@ def _block_sweep(z, i0, j0, s, main):
     return mc, ml, mr, mt, mb
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=_PARALLEL)
 def _raw_delta_nb(z, vb, all_valid, hlo=1, hhi=1 << 62):
     """Raw exact δ, float32 rounded up (+inf for mixed diamonds)."""
     N = z.shape[0]
@@ -721,8 +724,8 @@ def _proxy_positions(x, y, z, valid):
                 coef = np.linalg.lstsq(A, c[ok], rcond=None)[0]
             else:
                 coef = np.zeros(3)
-            I, J = np.indices(c.shape)
-            c = np.where(ok, c, coef[0] * I + coef[1] * J + coef[2])
+            ii_, jj_ = np.indices(c.shape)
+            c = np.where(ok, c, coef[0] * ii_ + coef[1] * jj_ + coef[2])
         out.append(c)
     return out[1], out[2], out[0]
 
@@ -756,7 +759,7 @@ def _relax(x, y, z, r, i, j, oi, oj, best):
     return max(best, d)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=_PARALLEL)
 def _radii_nb(x, y, z):
     # LP §2.4 (L50–52): r(v) = max over children c of |p_v − p_c| + r(c), fine to coarse;
     # each level is rounded up to float32 before its parents read it.
@@ -812,59 +815,135 @@ class TileBounds(NamedTuple):
     ymax: float
 
 
-@njit(cache=True, parallel=True)
-def _level_field_nb(z, vf, s):
-    # |z − S_L| at valid samples (0 at invalid) for the union-jack surface of cell size s,
-    # and per cell whether one of its two closed triangles mixes valid and invalid samples.
+@njit(cache=True)
+def _level_field_nb(z, vf, s, E):
+    # E = max over the all-valid closed triangles containing a sample of |z − S_L| (0 if
+    # none), S_L the union-jack surface of cell size s; and per cell whether one of its
+    # two closed triangles mixes valid and invalid samples.
     N = z.shape[0]
     nb = (N - 1) // s
-    E = np.zeros((N, N))
+    E[:, :] = 0.0
     mixed = np.zeros((nb, nb), np.bool_)
     inv = 1.0 / s
-    for k in prange(nb * nb):
-        bi = k // nb
-        bj = k - bi * nb
-        i0 = bi * s
-        j0 = bj * s
-        main = (bi + bj) % 2 == 0
-        z00 = z[i0, j0]
-        z01 = z[i0, j0 + s]
-        z10 = z[i0 + s, j0]
-        z11 = z[i0 + s, j0 + s]
-        c1 = 0.0
-        c2 = 0.0
-        t1 = 0.0
-        t2 = 0.0
-        for di in range(s + 1):
-            i = i0 + di
-            for dj in range(s + 1):
-                j = j0 + dj
-                if main:
-                    first = dj >= di
-                    if first:
-                        S = z00 + (z01 - z00) * (dj * inv) + (z11 - z01) * (di * inv)
+    for bi in range(nb):
+        for bj in range(nb):
+            i0 = bi * s
+            j0 = bj * s
+            main = (bi + bj) % 2 == 0
+            tot = 0
+            for di in range(s + 1):
+                for dj in range(s + 1):
+                    tot += vf[i0 + di, j0 + dj]
+            if tot == 0:
+                continue
+            z00 = z[i0, j0]
+            z01 = z[i0, j0 + s]
+            z10 = z[i0 + s, j0]
+            z11 = z[i0 + s, j0 + s]
+            if tot == (s + 1) * (s + 1):  # all valid: split each row at the diagonal
+                for di in range(s + 1):
+                    i = i0 + di
+                    fi = di * inv
+                    if main:
+                        b1 = z00 + (z10 - z00) * fi
+                        g1 = (z11 - z10) * inv
+                        b2 = z00 + (z11 - z01) * fi
+                        g2 = (z01 - z00) * inv
+                        cut = di
                     else:
-                        S = z00 + (z10 - z00) * (di * inv) + (z11 - z10) * (dj * inv)
-                    both = dj == di
-                else:
-                    first = di + dj <= s
-                    if first:
-                        S = z00 + (z10 - z00) * (di * inv) + (z01 - z00) * (dj * inv)
+                        b1 = z00 + (z10 - z00) * fi
+                        g1 = (z01 - z00) * inv
+                        b2 = z11 + (z01 - z11) * (1.0 - fi) + (z10 - z11)
+                        g2 = -(z10 - z11) * inv
+                        cut = s - di + 1
+                    for dj in range(cut):
+                        e = abs(z[i, j0 + dj] - (b1 + g1 * dj))
+                        if e > E[i, j0 + dj]:
+                            E[i, j0 + dj] = e
+                    for dj in range(cut, s + 1):
+                        e = abs(z[i, j0 + dj] - (b2 + g2 * dj))
+                        if e > E[i, j0 + dj]:
+                            E[i, j0 + dj] = e
+                continue
+            c1 = 0.0
+            c2 = 0.0
+            t1 = 0.0
+            t2 = 0.0
+            for di in range(s + 1):
+                for dj in range(s + 1):
+                    first = dj >= di if main else di + dj <= s
+                    both = dj == di if main else di + dj == s
+                    v = np.float64(vf[i0 + di, j0 + dj])
+                    if first or both:
+                        c1 += v
+                        t1 += 1.0
+                    if (not first) or both:
+                        c2 += v
+                        t2 += 1.0
+            ok1 = c1 == t1
+            ok2 = c2 == t2
+            mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
+            if not (ok1 or ok2):
+                continue
+            for di in range(s + 1):
+                i = i0 + di
+                for dj in range(s + 1):
+                    j = j0 + dj
+                    if main:
+                        first = dj >= di
+                        both = dj == di
                     else:
-                        S = (z11 + (z01 - z11) * ((s - di) * inv)
-                             + (z10 - z11) * ((s - dj) * inv))
-                    both = di + dj == s
-                v = vf[i, j]
-                if first or both:
-                    c1 += v
-                    t1 += 1.0
-                if (not first) or both:
-                    c2 += v
-                    t2 += 1.0
-                if (di < s or bi == nb - 1) and (dj < s or bj == nb - 1):
-                    E[i, j] = abs(z[i, j] - S) * v
-        mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
-    return E, mixed
+                        first = di + dj <= s
+                        both = di + dj == s
+                    if both:
+                        first = ok1
+                    if not (ok1 if first else ok2):
+                        continue
+                    if main:
+                        if first:
+                            S = z00 + (z01 - z00) * (dj * inv) + (z11 - z01) * (di * inv)
+                        else:
+                            S = z00 + (z10 - z00) * (di * inv) + (z11 - z10) * (dj * inv)
+                    else:
+                        if first:
+                            S = z00 + (z10 - z00) * (di * inv) + (z01 - z00) * (dj * inv)
+                        else:
+                            S = (z11 + (z01 - z11) * ((s - di) * inv)
+                                 + (z10 - z11) * ((s - dj) * inv))
+                    e = abs(z[i, j] - S)
+                    if e > E[i, j]:
+                        E[i, j] = e
+    return mixed
+
+
+@njit(cache=True)
+def _tile_stats_nb(z, x, y, vb, S):
+    # Per closed tile footprint of span S: valid count and the box of the valid samples.
+    N = z.shape[0]
+    nt = (N - 1) // S
+    cnt = np.zeros((nt, nt), np.int64)
+    box = np.empty((6, nt, nt))
+    for k in range(3):
+        box[2 * k] = np.inf
+        box[2 * k + 1] = -np.inf
+    for i in range(N):
+        ty0 = min(i // S, nt - 1)
+        ty1 = i // S - 1 if (i % S == 0 and i > 0) else ty0  # border rows: two tiles
+        for j in range(N):
+            if not vb[i, j]:
+                continue
+            tx0 = min(j // S, nt - 1)
+            tx1 = j // S - 1 if (j % S == 0 and j > 0) else tx0
+            for ty in range(ty1, ty0 + 1):
+                for tx in range(tx1, tx0 + 1):
+                    cnt[ty, tx] += 1
+                    box[0, ty, tx] = min(box[0, ty, tx], z[i, j])
+                    box[1, ty, tx] = max(box[1, ty, tx], z[i, j])
+                    box[2, ty, tx] = min(box[2, ty, tx], x[i, j])
+                    box[3, ty, tx] = max(box[3, ty, tx], x[i, j])
+                    box[4, ty, tx] = min(box[4, ty, tx], y[i, j])
+                    box[5, ty, tx] = max(box[5, ty, tx], y[i, j])
+    return cnt, box
 
 
 def tile_errors(
@@ -899,20 +978,18 @@ def tile_errors(
     te = min(t, n)
     lmax = n - te
     cpt = 1 << te  # cells per tile side
-    vf = valid.astype(np.float64)
-    stats = {}
-    for name, arr in (("z", zf), ("x", x), ("y", y)):
-        stats[name + "min"] = np.where(valid, arr, np.inf)
-        stats[name + "max"] = np.where(valid, arr, -np.inf)
+    vb = valid.view(np.uint8)
+    xc = np.ascontiguousarray(x)
+    yc = np.ascontiguousarray(y)
+    E = np.zeros((N, N))
     per_level = []
     for L in range(lmax + 1):
         S = 1 << (te + L)  # tile span in full-resolution samples
         nt = (N - 1) // S
         if L == 0:
-            E = np.zeros((N, N))
             mixed = np.zeros((nt * cpt, nt * cpt), bool)
         else:
-            E, mixed = _level_field_nb(zf, vf, 1 << L)
+            mixed = _level_field_nb(zf, vb, 1 << L, E)
         err = _closed_blocks(E, S, np.maximum)
         m4 = mixed.reshape(nt, cpt, nt, cpt)
         err = np.where(m4.any(axis=(1, 3)), np.inf, err)
@@ -924,9 +1001,14 @@ def tile_errors(
         border = (m4[:, 0].any(axis=2) | m4[:, -1].any(axis=2)
                   | m4[:, :, :, 0].any(axis=1) | m4[:, :, :, -1].any(axis=1))
         bnd = np.where(border, np.inf, bnd)
-        box = {k: _closed_blocks(a, S, np.minimum if k.endswith("min") else np.maximum)
-               for k, a in stats.items()}
-        nval = np.rint(_closed_blocks(vf, S, np.add)).astype(np.int64)
+        nval = _closed_blocks(vb, S, np.add, dtype=np.int64)
+        if L == 0:
+            box = _tile_stats_nb(zf, xc, yc, vb, S)[1]
+        else:  # a parent's closed footprint is the union of its 4 children's
+            b4 = per_level[-1][2].reshape(6, nt, 2, nt, 2)
+            box = np.empty((6, nt, nt))
+            box[0::2] = b4[0::2].min(axis=(2, 4))
+            box[1::2] = b4[1::2].max(axis=(2, 4))
         per_level.append((err, bnd, box, nval))
     for L in range(1, lmax + 1):  # monotone up the quadtree
         child = per_level[L - 1][0]
@@ -937,10 +1019,9 @@ def tile_errors(
     for L, (err, bnd, box, nval) in enumerate(per_level):
         for ty, tx in zip(*np.nonzero(nval > 0), strict=True):
             out[(L, int(tx), int(ty))] = TileBounds(
-                int(nval[ty, tx]), float(box["zmin"][ty, tx]), float(box["zmax"][ty, tx]),
-                float(err[ty, tx]), float(bnd[ty, tx]), float(box["xmin"][ty, tx]),
-                float(box["xmax"][ty, tx]), float(box["ymin"][ty, tx]),
-                float(box["ymax"][ty, tx]))
+                int(nval[ty, tx]), float(box[0, ty, tx]), float(box[1, ty, tx]),
+                float(err[ty, tx]), float(bnd[ty, tx]), float(box[2, ty, tx]),
+                float(box[3, ty, tx]), float(box[4, ty, tx]), float(box[5, ty, tx]))
     return out
 
 

@@ -176,7 +176,11 @@ def preprocess(
         tiles_d = _tiles_of_level(delta, grid, L)
         tiles_r = _tiles_of_level(radius, grid, L)
         tiles_n = _tiles_of_level(encode_octahedral(level_normals(nrm, L), NORMAL_BITS), grid, 0)
-        dmax, rmax = tiles_d.max(axis=(2, 3)), tiles_r.max(axis=(2, 3))
+        # max δ and r over the vertices new at this level (the others belong to coarser tiles)
+        new = np.ones((grid.tile_samples,) * 2, bool)
+        if L < grid.top_level:
+            new[::2, ::2] = False
+        dmax, rmax = tiles_d[..., new].max(axis=-1), tiles_r[..., new].max(axis=-1)
         for key in keys:
             _, x, y = key
             # per-tile max δ and r let a view skip a tile without decoding it

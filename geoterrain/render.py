@@ -70,8 +70,8 @@ def terrain_bounds(terrain) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def default_view(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 200.0,
-                 elevation: float = 35.0, distance: float | None = None,
+def default_view(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 190.0,
+                 elevation: float = 40.0, distance: float | None = None,
                  fov_y_deg: float = 30.0, look_at: Sequence[float] | None = None) -> View:
     """An oblique overview of the whole terrain.
 
@@ -80,7 +80,7 @@ def default_view(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 
     terrain : Terrain
     size : (width, height) in pixels.
     azimuth : compass bearing of the camera *from* the target, degrees clockwise from
-        north (200: from the south-south-west, looking north-north-east).
+        north (190: from just west of south, looking north).
     elevation : angle of the camera above the horizon at the target, degrees.
     distance : eye–target distance in metres; default: the whole terrain fits the frame.
     fov_y_deg : vertical field of view.
@@ -132,7 +132,7 @@ def _coarse_points(terrain) -> np.ndarray:
 
 
 def orbit_views(terrain, n_frames: int, size: tuple[int, int] = (1280, 720),
-                azimuth: float = 200.0, elevation: float = 35.0,
+                azimuth: float = 190.0, elevation: float = 40.0,
                 distance: float | None = None, fov_y_deg: float = 30.0) -> list[View]:
     """``n_frames`` views evenly spaced on a full turn around the terrain centre.
 
@@ -626,7 +626,7 @@ def animate(terrain, views: Sequence[View], out: str | Path, *, pixel_error: flo
 
 
 def orbit(terrain, out: str | Path, n_frames: int = 36, *, size: tuple[int, int] = (1280, 720),
-          azimuth: float = 200.0, elevation: float = 35.0, distance: float | None = None,
+          azimuth: float = 190.0, elevation: float = 40.0, distance: float | None = None,
           fov_y_deg: float = 30.0, **kw) -> list[dict]:
     """A full turn around the terrain centre, ``n_frames`` frames, to a .gif/.mp4/folder.
 

@@ -20,6 +20,11 @@ from tests.conftest import real_dem, write_tif
 SLACK = 1 + 1e-9
 
 
+def bound(e, Z):
+    """e with 1e-9 relative slack, plus float64 round-off of interpolating heights Z."""
+    return e * SLACK + 1e-12 * float(np.nanmax(np.abs(Z)))
+
+
 def _store(tmp_path_factory, name, z, nodata=None, tile_size=16, **kw):
     d = tmp_path_factory.mktemp(name)
     src = write_tif(d / f"{name}.tif", z, nodata=nodata, **kw)
@@ -71,6 +76,8 @@ def valid_domain_area(valid: np.ndarray) -> float:
 
 def check_conforming(sel, valid):
     ij, f, _ = surface(sel)
+    if not len(f):
+        return 0.0
     p = ij[f]
     area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
                         - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1]))
@@ -119,7 +126,7 @@ def test_static_mesh_vertical_error_is_bounded(holey, truth_cache, e):
     sel = holey.static_selection(e)
     ij, f, z = surface(sel)
     err = vertical_error(ij, f, z, Z, valid)
-    assert err.max <= e * SLACK + 1e-12
+    assert err.max <= bound(e, Z)
     full = vertical_error(*surface(holey.static_selection(0.0)), Z, valid)
     assert err.n_uncovered_valid == full.n_uncovered_valid  # covers the whole valid domain
     area = check_conforming(sel, valid)
@@ -135,7 +142,7 @@ def test_static_mesh_on_real_dems(tmp_path, name):
     for e in (0.5, 1.0, 5.0, 20.0):
         sel = t.static_selection(e)
         err = vertical_error(*surface(sel), Z, valid)
-        assert err.max <= e * SLACK
+        assert err.max <= bound(e, Z)
         assert prev is None or sel.stats["triangles"] <= prev
         prev = sel.stats["triangles"]
 
@@ -161,7 +168,7 @@ def test_tiny_grids(tmp_path_factory, shape):
     valid = np.isfinite(Z)
     for e in (0.0, 1.0):
         sel = t.static_selection(e)
-        assert vertical_error(*surface(sel), Z, valid).max <= e * SLACK
+        assert vertical_error(*surface(sel), Z, valid).max <= bound(e, Z)
     sel = t.select(View((0, -100, 50), (0, 0, 0)), 1.0)
     for s in ("rtin", "chunked", "bruteforce"):
         sel = t.select(View((0, -100, 50), (0, 0, 0)), 1.0, s)
@@ -264,12 +271,12 @@ def test_corner_view_decodes_few_tiles_independent_of_store_size(tmp_path_factor
     for size in (257, 1025):
         t = _store(tmp_path_factory, f"corner{size}", big[:size, :size], tile_size=32,
                    origin=(500000.0, 5000000.0))
-        # a low view near the north-west corner, identical in CRS coordinates
-        x0, y0 = t.frame.crs_to_scene(np.array(500000.0 + 300), np.array(5000000.0 - 300))
-        x1, y1 = t.frame.crs_to_scene(np.array(500000.0 + 900), np.array(5000000.0 - 900))
+        # a steep view of the north-west corner, identical in CRS coordinates
+        x0, y0 = t.frame.crs_to_scene(np.array(500000.0 + 600), np.array(5000000.0 - 600))
+        x1, y1 = t.frame.crs_to_scene(np.array(500000.0 + 700), np.array(5000000.0 - 700))
         zc = float(np.mean(big[:100, :100]))
-        sel = t.select(View((float(x0), float(y0), zc + 400), (float(x1), float(y1), zc),
-                            fov_y_deg=40), 1.0, "rtin")
+        sel = t.select(View((float(x0), float(y0), zc + 1500), (float(x1), float(y1), zc),
+                            fov_y_deg=30), 1.0, "rtin")
         counts.append(sel.stats["tiles_decoded"])
         assert sel.stats["triangles"] > 0
     # two more levels in the large store add at most a few ancestor tiles

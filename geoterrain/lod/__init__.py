@@ -36,6 +36,8 @@ class Selection:
 
     @property
     def ij(self) -> np.ndarray:
+        if "grid_ij" not in self.mesh.point_data:
+            return np.zeros((0, 2))
         return np.asarray(self.mesh.point_data["grid_ij"])
 
     @property
@@ -193,7 +195,11 @@ class Selector:
             off += n
         if not ijs:
             return polydata(np.zeros((0, 3)), np.zeros((0, 3), np.int64)), stats
-        mesh = polydata(np.concatenate(xyzs), np.concatenate(faces), np.concatenate(ijs),
+        xyz, ij, faces = np.concatenate(xyzs), np.concatenate(ijs), np.concatenate(faces)
+        used = np.zeros(len(xyz), bool)  # drop the vertices no triangle uses (nodata)
+        used[faces] = True
+        faces = (np.cumsum(used) - 1)[faces]
+        mesh = polydata(xyz[used], faces, ij[used],
                         {"skirt": np.concatenate(skirt), "level": np.concatenate(level)})
         return mesh, stats
 

@@ -35,7 +35,7 @@ def polydata(xyz: np.ndarray, faces: np.ndarray, ij: np.ndarray | None = None,
         mesh = pv.PolyData()
         if len(xyz):
             mesh.points = np.ascontiguousarray(xyz, np.float64)
-    if ij is not None:
+    if ij is not None and len(ij):
         mesh.point_data["grid_ij"] = np.asarray(ij, np.float64)
     for k, v in (cell_arrays or {}).items():
         if len(faces):

@@ -1,0 +1,127 @@
+"""`geoterrain render`: offscreen views, orbits and fly-throughs of a store."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+from geoterrain.cli.options import StageBar, parse_size, parse_triple
+
+
+@click.command("render")
+@click.argument("store", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", "out", required=True, type=click.Path(),
+              help="Output .png (one view), .gif or .mp4 (--orbit / --path), or a directory "
+                   "of PNG frames.")
+@click.option("--look-from", callback=parse_triple, help="Eye X,Y,Z (scene metres).")
+@click.option("--look-at", callback=parse_triple, help="Target X,Y,Z (scene metres).")
+@click.option("--crs-coords", is_flag=True,
+              help="--look-from/--look-at are source-CRS x,y and height z in metres.")
+@click.option("--azimuth", type=float, default=190.0, show_default=True,
+              help="Camera bearing from the target, degrees clockwise from north.")
+@click.option("--elevation", type=float, default=40.0, show_default=True,
+              help="Camera angle above the horizon, degrees.")
+@click.option("--distance", type=float, help="Eye–target distance in metres (default: fit).")
+@click.option("--size", callback=parse_size, default="1280x720", show_default=True,
+              help="Image WIDTHxHEIGHT.")
+@click.option("--fov", type=float, default=30.0, show_default=True,
+              help="Vertical field of view, degrees.")
+@click.option("--pixel-error", type=float, default=1.0, show_default=True,
+              help="Screen-space error bound τ in pixels.")
+@click.option("--strategy", type=click.Choice(["rtin", "chunked", "bruteforce"]),
+              default="rtin", show_default=True)
+@click.option("--shading", type=click.Choice(["normals", "elevation", "plain"]),
+              default="normals", show_default=True,
+              help="normals: hillshade from full-resolution normal maps × elevation colours.")
+@click.option("--cmap", default="gist_earth", show_default=True, help="Matplotlib colormap.")
+@click.option("--title", help="Title drawn at the top.")
+@click.option("--no-overlays", is_flag=True,
+              help="No colour bar, scale bar or north arrow.")
+@click.option("--stats", "stats_path", type=click.Path(dir_okay=False),
+              help="Write the selection and frame stats as JSON.")
+@click.option("--orbit", type=int, help="Render an orbit of N frames around the terrain.")
+@click.option("--path", "cameras", type=click.Path(exists=True, dir_okay=False),
+              help="Fly through the cameras of a JSON file.")
+@click.option("--fps", type=float, default=10.0, show_default=True, help="Animation speed.")
+@click.pass_context
+def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
+            fov, pixel_error, strategy, shading, cmap, title, no_overlays, stats_path, orbit,
+            cameras, fps):
+    """Render STORE offscreen: each frame selects its own level of detail.
+
+    \b
+    Examples:
+      geoterrain render dem.geoterrain -o view.png
+      geoterrain render dem.geoterrain -o view.png --azimuth 135 --elevation 25 --title Fuji
+      geoterrain render dem.geoterrain -o view.png --look-from 0,-5000,3000 --look-at 0,0,500
+      geoterrain render dem.geoterrain -o view.png --crs-coords \\
+          --look-from 500000,4990000,3000 --look-at 505000,5000000,800
+      geoterrain render dem.geoterrain -o orbit.gif --orbit 36 --size 640x360
+      geoterrain render dem.geoterrain -o fly.mp4 --path cameras.json --stats fly.json
+
+    \b
+    A cameras JSON is a list of {"look_from": [x,y,z], "look_at": [x,y,z]} (scene
+    metres), or {"crs": true, "cameras": [...]} for source-CRS coordinates.
+    """
+    import geoterrain
+    from geoterrain import render as R
+    from geoterrain.exceptions import UsageError
+    from geoterrain.view import View
+
+    quiet = (ctx.obj or {}).get("quiet", False)
+    if (look_from is None) != (look_at is None):
+        raise UsageError("give both --look-from and --look-at, or neither")
+    if orbit is not None and cameras is not None:
+        raise UsageError("give --orbit or --path, not both")
+    if orbit is not None and orbit < 1:
+        raise UsageError(f"--orbit needs at least 1 frame, got {orbit}")
+    if pixel_error <= 0:
+        raise UsageError(f"--pixel-error must be > 0, got {pixel_error}")
+    if not 0 < fov < 180:
+        raise UsageError(f"--fov must be in (0, 180), got {fov}")
+    ext = Path(out).suffix.lower()
+    animated = orbit is not None or cameras is not None
+    if not animated and ext != ".png":
+        raise UsageError(f"{out}: a single view is written as .png (use --orbit or --path "
+                         "for .gif/.mp4)")
+    overlays = dict(colorbar=not no_overlays, north_arrow=not no_overlays)
+    with geoterrain.open(store) as t:
+        if animated:
+            bar = StageBar("rendering", quiet)
+            kw = dict(pixel_error=pixel_error, strategy=strategy, shading=shading, cmap=cmap,
+                      title=title, fps=fps, progress=lambda d, n: bar("frame", d, n),
+                      **overlays)
+            try:
+                if orbit is not None:
+                    frames = R.orbit(t, out, orbit, size=size, azimuth=azimuth,
+                                     elevation=elevation, distance=distance, fov_y_deg=fov, **kw)
+                else:
+                    frames = R.flythrough(t, cameras, out, size=size, fov_y_deg=fov, **kw)
+            finally:
+                bar.close()
+            if stats_path:
+                Path(stats_path).write_text(json.dumps(frames, indent=2, default=float))
+            if not quiet:
+                ms = sorted(f["frame_ms"] for f in frames)
+                click.echo(f"wrote {out}: {len(frames)} frames, median frame "
+                           f"{ms[len(ms) // 2]:.0f} ms", err=True)
+            return
+        if look_from is not None:
+            a, b = look_from, look_at
+            if crs_coords:
+                a, b = tuple(R.to_scene(t, a)), tuple(R.to_scene(t, b))
+            try:
+                view = View(a, b, fov_y_deg=fov, size=size)
+                view.basis()
+            except ValueError as exc:
+                raise UsageError(f"bad camera: {exc}") from None
+        else:
+            view = R.default_view(t, size, azimuth, elevation, distance, fov)
+        st = R.render(t, view, out, pixel_error=pixel_error, strategy=strategy,
+                      shading=shading, cmap=cmap, title=title, scale_bar=not no_overlays,
+                      stats_path=stats_path, **overlays)
+    if not quiet:
+        click.echo(f"wrote {out}: {st['triangles']:,} triangles ({strategy}, τ = "
+                   f"{pixel_error:g} px), select {st['select_ms']:.0f} ms, frame "
+                   f"{st['frame_ms']:.0f} ms", err=True)

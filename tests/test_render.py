@@ -1,0 +1,214 @@
+"""Rendering: PNGs of the right size, LOD fidelity vs bruteforce, large coordinates, the
+interactive controller without a display, and animations through the CLI."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+import numpy as np
+import pytest
+
+import geoterrain
+from geoterrain.render import (
+    TerrainScene,
+    _plotter,
+    default_view,
+    render,
+    render_array,
+)
+from geoterrain.synth import generate, write_geotiff
+from geoterrain.view import View
+from tests.conftest import REAL_DEMS, real_dem
+
+_STORES: dict = {}
+
+
+def psnr(a: np.ndarray, b: np.ndarray) -> float:
+    mse = np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2)
+    return float(10 * np.log10(255.0**2 / max(mse, 1e-12)))
+
+
+def off8(a: np.ndarray, b: np.ndarray) -> float:
+    """Fraction of pixels off by more than 8/255 in some channel."""
+    return float((np.abs(a.astype(np.int16) - b.astype(np.int16)).max(-1) > 8).mean())
+
+
+def synth_store(tmp_path_factory, name, size=257, origin=(500000.0, 5000000.0), spacing=10.0,
+                relief=600.0, seed=1):
+    key = (name, size, origin, spacing, relief, seed)
+    if key not in _STORES:
+        d = tmp_path_factory.mktemp(name)
+        dem = write_geotiff(d / f"{name}.tif", generate("fbm", size, seed=seed, relief=relief),
+                            crs="EPSG:32633", origin=origin, spacing=spacing)
+        _STORES[key] = geoterrain.preprocess(dem, d / f"{name}.geoterrain")
+    return geoterrain.open(_STORES[key])
+
+
+def real_store(tmp_path_factory, name):
+    path = real_dem(name)
+    if name not in _STORES:
+        d = tmp_path_factory.mktemp("real")
+        # PNG tiles have no georeference: give them a plausible 30 m spacing
+        kw = {"pixel_size": 30.0} if path.suffix == ".png" else {}
+        _STORES[name] = geoterrain.preprocess(path, d / f"{path.stem}.geoterrain", **kw)
+    return geoterrain.open(_STORES[name])
+
+
+def _png_size_and_fraction(path, stats, size):
+    import imageio.v3 as iio
+
+    img = iio.imread(path)
+    assert img.shape[:2] == (size[1], size[0])
+    assert stats["terrain_fraction"] > 0.30, stats["terrain_fraction"]
+    assert img.std() > 10  # not blank
+
+
+def test_render_png_synthetic(tmp_path_factory, tmp_path):
+    t = synth_store(tmp_path_factory, "fbm")
+    size = (480, 270)
+    out = tmp_path / "v.png"
+    st = render(t, default_view(t, size), out, title="fbm", stats_path=tmp_path / "s.json")
+    _png_size_and_fraction(out, st, size)
+    assert st["triangles"] > 0 and (tmp_path / "s.json").exists()
+    for shading in ("elevation", "plain"):
+        st = render(t, default_view(t, size, azimuth=90), tmp_path / f"{shading}.png",
+                    shading=shading, strategy="chunked")
+        _png_size_and_fraction(tmp_path / f"{shading}.png", st, size)
+
+
+@pytest.mark.parametrize("name", REAL_DEMS)
+def test_render_real_dems(tmp_path_factory, tmp_path, name):
+    t = real_store(tmp_path_factory, name)
+    size = (320, 200)
+    out = tmp_path / "real.png"
+    st = render(t, default_view(t, size), out)
+    _png_size_and_fraction(out, st, size)
+
+
+def _fidelity_terrain(tmp_path_factory):
+    try:
+        return real_store(tmp_path_factory, "srtm1_japan.tif")
+    except pytest.skip.Exception:  # no real DEMs: a realistic synthetic 1025² (30 m, 1500 m)
+        return synth_store(tmp_path_factory, "fbm1025", size=1025, spacing=30.0, relief=1500.0,
+                           seed=5)
+
+
+def test_lod_fidelity_vs_bruteforce(tmp_path_factory):
+    """τ = 1 px rtin ≈ bruteforce (≥ 35 dB or ≤ 1 % of pixels off); τ = 4 px ≥ 30 dB."""
+    t = _fidelity_terrain(tmp_path_factory)
+    size = (960, 540)
+    scene = TerrainScene(_plotter(size), t, "normals")
+    results = []
+    try:
+        for az, el in ((200, 35), (90, 20), (330, 55)):
+            v = default_view(t, size, az, el)
+            ref, _ = scene.frame(v, 1.0, "bruteforce")
+            img1, s1 = scene.frame(v, 1.0, "rtin")
+            img4, s4 = scene.frame(v, 4.0, "rtin")
+            results.append((az, psnr(img1, ref), off8(img1, ref), psnr(img4, ref),
+                            s1["triangles"], s4["triangles"]))
+    finally:
+        scene.plotter.close()
+    print("\n".join(f"az {a}: tau1 {p1:.2f} dB ({100 * o1:.2f} % off), tau4 {p4:.2f} dB, "
+                    f"tris {n1}/{n4}" for a, p1, o1, p4, n1, n4 in results))
+    for _, p1, o1, p4, _, _ in results:
+        assert p1 >= 35.0 or o1 <= 0.01
+        assert p4 >= 30.0
+
+
+def test_large_coordinates_render_identically(tmp_path_factory):
+    far = synth_store(tmp_path_factory, "utm", origin=(500000.0, 5000000.0))
+    near = synth_store(tmp_path_factory, "zero", origin=(0.0, 0.0))
+    assert far.frame.origin_crs[0] > 4e5 and abs(near.frame.origin_crs[0]) < 1e4
+    size = (320, 240)
+    v = default_view(far, size, 150, 30)
+    a, _ = render_array(far, v)
+    b, _ = render_array(near, v)
+    assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
+
+
+def test_controller_offscreen(tmp_path_factory):
+    from geoterrain.viewer import ViewerController
+
+    t = synth_store(tmp_path_factory, "fbm")
+    p = _plotter((320, 240))
+    try:
+        c = ViewerController(p, t, throttle_ms=0.0)
+        c.bind()  # the camera observer drives the selection
+        n0, tris0 = c.selections, c.stats["triangles"]
+        lo, hi = np.asarray(c.home.look_at), np.asarray(c.home.look_from)
+        p.camera.position = tuple(lo + 0.3 * (hi - lo))  # fly closer: a new selection
+        assert c.selections > n0 and c.stats["triangles"] != tris0
+        assert c.scene.mesh.n_cells == c.stats["triangles"]
+        c.toggle_freeze()
+        n1, mesh1 = c.selections, c.scene.mesh
+        p.camera.position = tuple(hi)
+        assert c.selections == n1 and c.scene.mesh is mesh1  # frozen: same selection
+        c.toggle_freeze()
+        assert c.selections == n1 + 1
+        c.next_strategy()
+        assert c.strategy == "chunked" and c.stats["strategy"] == "chunked"
+        tris = c.stats["triangles"]
+        c.tau_up()
+        assert c.pixel_error == 2.0 and c.stats["triangles"] <= tris
+        c.toggle_wireframe()
+        c.next_color_mode()
+        c.next_color_mode()
+        c.reset_view()
+        p.render()
+        assert "chunked" in c._hud.GetText(2)
+        # throttling: a change within the interval is postponed, then polled
+        c.throttle_ms = 1e6
+        p.camera.position = tuple(lo + 0.5 * (hi - lo))
+        assert c.pending
+        c.throttle_ms = 0.0
+        c.poll()
+        assert not c.pending
+    finally:
+        p.close()
+
+
+def _cli():
+    try:
+        return importlib.import_module("geoterrain.cli.main").cli
+    except ModuleNotFoundError:  # not installed: map the source folder cli/ to geoterrain.cli
+        sys.modules["geoterrain.cli"] = importlib.import_module("cli")
+        return importlib.import_module("geoterrain.cli.main").cli
+
+
+def test_cli_orbit_gif_and_png(tmp_path_factory, tmp_path):
+    import imageio.v3 as iio
+    from click.testing import CliRunner
+
+    t = synth_store(tmp_path_factory, "fbm")
+    cli = _cli()
+    run = CliRunner()
+    out = tmp_path / "o.gif"
+    res = run.invoke(cli, ["-q", "render", str(t.path), "--orbit", "4", "-o", str(out),
+                           "--size", "160x120"])
+    assert res.exit_code == 0, res.output
+    frames = iio.imread(out, index=None)
+    assert frames.shape[0] == 4 and frames.shape[1:3] == (120, 160)
+    png = tmp_path / "v.png"
+    res = run.invoke(cli, ["render", str(t.path), "-o", str(png), "--size", "200x150",
+                           "--crs-coords", "--look-from", "501280,4994000,3000",
+                           "--look-at", "501280,4998720,500", "--stats", str(tmp_path / "s.json")])
+    assert res.exit_code == 0, res.output
+    assert iio.imread(png).shape[:2] == (150, 200)
+    res = run.invoke(cli, ["render", str(t.path), "-o", str(tmp_path / "x.jpg")])
+    assert res.exit_code == 2
+    assert "Examples" in run.invoke(cli, ["render", "--help"]).output
+
+
+def test_view_from_camera_round_trip(tmp_path_factory):
+    t = synth_store(tmp_path_factory, "fbm")
+    v = default_view(t, (320, 240))
+    p = _plotter(v.size)
+    try:
+        scene = TerrainScene(p, t, "plain")
+        scene.set_camera(v)
+        w = View.from_camera(p.camera, v.size)
+        assert np.allclose(w.look_from, v.look_from) and np.isclose(w.lam, v.lam)
+    finally:
+        p.close()
