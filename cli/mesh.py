@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 
 import click
-
 from geoterrain.cli.options import parse_size, parse_triple
 
 FORMATS = (".ply", ".vtp", ".stl", ".obj", ".vtk")

@@ -12,7 +12,8 @@ KINDS = ("fbm", "ridged", "diamond-square", "fault")
 @click.option("--size", default=1025, show_default=True, type=click.IntRange(2, 32769),
               help="Samples per side (2^n+1 fits the pyramid without padding).")
 @click.option("--seed", default=0, show_default=True, type=int, help="Random seed.")
-@click.option("--spacing", default=10.0, show_default=True, type=click.FloatRange(min=0, min_open=True),
+@click.option("--spacing", default=10.0, show_default=True,
+              type=click.FloatRange(min=0, min_open=True),
               help="Metres between samples.")
 @click.option("--crs", default="EPSG:32633", show_default=True,
               help="Projected CRS of the output (default UTM 33N).")

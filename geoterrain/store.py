@@ -100,7 +100,8 @@ class StoreWriter:
                 self.tmp.unlink()
             self.con = sqlite3.connect(self.tmp, isolation_level=None)
         except (OSError, sqlite3.Error) as exc:
-            raise WriteError(f"cannot write in {parent}: {exc}; choose a writable -o path") from None
+            raise WriteError(
+                f"cannot write in {parent}: {exc}; choose a writable -o path") from None
         self._guard(self._init)
 
     def _init(self) -> None:
@@ -118,7 +119,8 @@ class StoreWriter:
             self.abort()
             msg = str(exc)
             if "full" in msg or getattr(exc, "errno", None) == 28:
-                raise WriteError(f"disk full while writing {self.dst}; free space and retry") from None
+                raise WriteError(
+                    f"disk full while writing {self.dst}; free space and retry") from None
             if "readonly" in msg or "read-only" in msg or "permission" in msg.lower():
                 raise WriteError(
                     f"cannot write {self.dst}: read-only location; choose another -o path"
@@ -196,10 +198,11 @@ class StoreReader:
 
     Examples
     --------
-    >>> StoreReader("missing.geoterrain")
-    Traceback (most recent call last):
-    ...
-    geoterrain.exceptions.StoreError: missing.geoterrain: no such store; run `geoterrain preprocess DEM` first
+    >>> try:
+    ...     StoreReader("missing.geoterrain")
+    ... except StoreError as e:
+    ...     print(str(e).split(";")[0])
+    missing.geoterrain: no such store
     """
 
     def __init__(self, path: str | Path):
@@ -216,7 +219,8 @@ class StoreReader:
         raw = dict(rows)
         crc = raw.pop("metadata_crc32", None)
         if raw.get("complete") != "true":
-            raise StoreError(f"{self.path}: incomplete store (interrupted write); re-run preprocess")
+            raise StoreError(
+                f"{self.path}: incomplete store (interrupted write); re-run preprocess")
         if crc is None or int(json.loads(crc)) != _meta_crc(raw):
             raise StoreCorruptError(f"{self.path}: metadata checksum mismatch: the file is "
                                     "damaged; re-run `geoterrain preprocess`")

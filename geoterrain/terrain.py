@@ -208,7 +208,8 @@ class Terrain:
             if L != level:
                 continue
             tl = self.tile(L, x, y)
-            sl = (slice(y * step, y * step + g.tile_samples), slice(x * step, x * step + g.tile_samples))
+            T = g.tile_samples
+            sl = (slice(y * step, y * step + T), slice(x * step, x * step + T))
             h[sl] = tl.heights
             v[sl] = tl.valid
         return h, v

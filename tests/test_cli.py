@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import rasterio
 from click.testing import CliRunner
+from geoterrain.cli.main import cli
 
 import geoterrain.store
-from geoterrain.cli.main import cli
 from tests.conftest import write_tif
 
 

@@ -14,8 +14,8 @@ import numpy as np
 import pyvista as pv
 
 from geoterrain.lod.chunked import TileIndex, select_tiles, union_jack_faces
-from geoterrain.lod.mesh import orient_ccw, polydata
 from geoterrain.lod.kernels import extract
+from geoterrain.lod.mesh import orient_ccw, polydata
 from geoterrain.lod.rtin import static_active, view_active
 from geoterrain.view import View
 

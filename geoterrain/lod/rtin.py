@@ -98,7 +98,8 @@ def view_active(terrain, index, view: View, tau: float) -> ActiveSet:
     rmax = index.radius_max
     dbox = view.box_distance(index.lo, index.hi)
     with np.errstate(invalid="ignore", over="ignore"):
-        can = (index.delta_max > 0) & ((dbox <= rmax) | (lam * index.delta_max > tau * (dbox - rmax)))
+        dm = index.delta_max
+        can = (dm > 0) & ((dbox <= rmax) | (lam * dm > tau * (dbox - rmax)))
     pad = rmax[:, None]
     visible = view.box_visibility(index.lo - pad, index.hi + pad) != 0
     rows = np.flatnonzero(can & visible)
