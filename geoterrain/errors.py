@@ -117,60 +117,6 @@ _PARALLEL = False
 
 
 @njit(cache=True, fastmath=_FM)
-def _centre_err(z, vb, i0, j0, s, main, check):
-    # Diamond of a block centre = the closed block, split along its union-jack diagonal.
-    inv = 1.0 / s
-    z00 = z[i0, j0]
-    z01 = z[i0, j0 + s]
-    z10 = z[i0 + s, j0]
-    z11 = z[i0 + s, j0 + s]
-    m = 0.0
-    cnt = 0
-    for di in range(s + 1):
-        i = i0 + di
-        if main:
-            # upper-right (dj >= di), apex (0, s); lower-left (dj < di), apex (s, 0)
-            b1 = z00 + (z10 - z00) * (di * inv)
-            g1 = (z11 - z10) * inv
-            b2 = z00 + (z11 - z01) * (di * inv)
-            g2 = (z01 - z00) * inv
-            cut = di
-        else:
-            # upper-left (di + dj <= s), apex (0, 0); lower-right, apex (s, s)
-            b1 = z00 + (z10 - z00) * (di * inv)
-            g1 = (z01 - z00) * inv
-            b2 = z11 + (z01 - z11) * ((s - di) * inv) + (z10 - z11)
-            g2 = -(z10 - z11) * inv
-            cut = s - di + 1
-        row = z[i, j0:j0 + s + 1]
-        if check:
-            vrow = vb[i, j0:j0 + s + 1]
-            for dj in range(cut):
-                v = vrow[dj]
-                if v:
-                    m = max(m, abs(row[dj] - (b1 + g1 * dj)))
-                    cnt += 1
-            for dj in range(cut, s + 1):
-                v = vrow[dj]
-                if v:
-                    m = max(m, abs(row[dj] - (b2 + g2 * dj)))
-                    cnt += 1
-        else:
-            for dj in range(cut):
-                m = max(m, abs(row[dj] - (b1 + g1 * dj)))
-            for dj in range(cut, s + 1):
-                m = max(m, abs(row[dj] - (b2 + g2 * dj)))
-    if not check:
-        return m, 1
-    tot = (s + 1) * (s + 1)
-    if cnt == 0:
-        return 0.0, 0
-    if cnt < tot:
-        return 0.0, 2
-    return m, 1
-
-
-@njit(cache=True, fastmath=_FM)
 def _edge_err(z, vb, ic, jc, h, rows, N, check):
     # Diamond of an edge midpoint = |di| + |dj| <= h, clipped to the grid; the hypotenuse
     # runs along the rows (rows=True: endpoints (ic ± h, jc)) or along the columns.
@@ -646,7 +592,7 @@ def saturate(delta: np.ndarray) -> np.ndarray:
     [3.0, 3.0]
     """
     N = delta.shape[0]
-    n = _grid_order(N)
+    _grid_order(N)
     h = 1
     while h < N - 1:
         s = 2 * h
@@ -671,7 +617,6 @@ def saturate(delta: np.ndarray) -> np.ndarray:
                         np.maximum(delta[p[1]], delta[p[0]], out=delta[p[1]])
         h *= 2
     delta[:: N - 1, :: N - 1] = 0.0
-    del n
     return delta
 
 

@@ -18,6 +18,7 @@ positions, so curvilinear (geographic) grids and vertical exaggeration are handl
 from __future__ import annotations
 
 import numpy as np
+from numba import njit, prange
 
 __all__ = ["normal_map", "level_normals", "encode_octahedral", "decode_octahedral"]
 
@@ -83,6 +84,12 @@ def normal_map(
     sample (no valid neighbour) or a degenerate one gets (0, 0, 1). Never NaN. Invalid
     samples get (0, 0, 1).
 
+    Computed by a parallel compiled kernel, one pass over the positions, all arithmetic
+    in float64 (only the result is rounded to float32, so the normal is within 1 float32
+    ulp per component, about 6e-8, of the exact normal of the float64 tangents; the
+    plane tests hold to 1e-6). :func:`_normal_map_numpy` is the vectorised reference
+    (same formulas) the tests compare against.
+
     Parameters
     ----------
     x, y, z : (N, N) float
@@ -102,6 +109,137 @@ def normal_map(
     >>> (np.round(n[1, 1].astype(float), 4) + 0.0).tolist()
     [-0.4472, 0.0, 0.8944]
     """
+    if kernel not in ("central", "horn"):
+        raise ValueError(f"unknown kernel {kernel!r}")
+    x, y, z = (np.ascontiguousarray(a, dtype=np.float64) for a in (x, y, z))
+    if not (x.shape == y.shape == z.shape) or x.ndim != 2:
+        raise ValueError("x, y and z must be 2-D arrays of the same shape")
+    v = (
+        np.ones(x.shape, np.bool_)
+        if valid is None
+        else np.ascontiguousarray(np.broadcast_to(np.asarray(valid, np.bool_), x.shape))
+    )
+    out = np.empty((*x.shape, 3), np.float32)
+    if x.size:
+        vv = _valid_finite_nb(x, y, z, v)
+        _normals_nb(x, y, z, vv, kernel == "horn", out)
+    return out
+
+
+@njit(cache=True, parallel=True)
+def _valid_finite_nb(x, y, z, valid):  # pragma: no cover - compiled
+    rows, cols = x.shape
+    out = np.empty((rows, cols), np.bool_)
+    for i in prange(rows):
+        for j in range(cols):
+            out[i, j] = (
+                valid[i, j]
+                and np.isfinite(x[i, j])
+                and np.isfinite(y[i, j])
+                and np.isfinite(z[i, j])
+            )
+    return out
+
+
+@njit(cache=True, inline="always")
+def _tangent_nb(x, y, z, v, i, j, axis):  # pragma: no cover - compiled
+    """Central / one-sided tangent at (i, j) along ``axis`` (0: rows i, 1: columns j)."""
+    rows, cols = v.shape
+    if not v[i, j]:
+        return 0.0, 0.0, 0.0, False
+    if axis == 0:
+        hb = i > 0 and v[i - 1, j]
+        hf = i + 1 < rows and v[i + 1, j]
+        ib, jb, i_f, jf = i - 1, j, i + 1, j
+    else:
+        hb = j > 0 and v[i, j - 1]
+        hf = j + 1 < cols and v[i, j + 1]
+        ib, jb, i_f, jf = i, j - 1, i, j + 1
+    if hf and hb:
+        return (
+            0.5 * ((x[i_f, jf] - x[i, j]) + (x[i, j] - x[ib, jb])),
+            0.5 * ((y[i_f, jf] - y[i, j]) + (y[i, j] - y[ib, jb])),
+            0.5 * ((z[i_f, jf] - z[i, j]) + (z[i, j] - z[ib, jb])),
+            True,
+        )
+    if hf:
+        return x[i_f, jf] - x[i, j], y[i_f, jf] - y[i, j], z[i_f, jf] - z[i, j], True
+    if hb:
+        return x[i, j] - x[ib, jb], y[i, j] - y[ib, jb], z[i, j] - z[ib, jb], True
+    return 0.0, 0.0, 0.0, False
+
+
+@njit(cache=True, inline="always")
+def _horn_nb(x, y, z, v, i, j, axis):  # pragma: no cover - compiled
+    """1-2-1 mean of the ``axis`` tangents of the lines across ``axis`` (Horn / Sobel)."""
+    rows, cols = v.shape
+    ax, ay, az, h = _tangent_nb(x, y, z, v, i, j, axis)
+    w = 2.0 if h else 0.0
+    ax, ay, az = w * ax, w * ay, w * az
+    for d in (-1, 1):
+        if axis == 1:
+            ii, jj = i + d, j
+            inside = 0 <= ii < rows
+        else:
+            ii, jj = i, j + d
+            inside = 0 <= jj < cols
+        if inside:
+            bx, by, bz, hh = _tangent_nb(x, y, z, v, ii, jj, axis)
+            if hh:
+                ax += bx
+                ay += by
+                az += bz
+                w += 1.0
+    if w > 0.0:
+        s = 1.0 / max(w, 1.0)
+        return ax * s, ay * s, az * s, True
+    return 0.0, 0.0, 0.0, False
+
+
+@njit(cache=True, parallel=True)
+def _normals_nb(x, y, z, v, horn, out):  # pragma: no cover - compiled
+    rows, cols = v.shape
+    for i in prange(rows):
+        for j in range(cols):
+            out[i, j, 0] = 0.0
+            out[i, j, 1] = 0.0
+            out[i, j, 2] = 1.0
+            if not v[i, j]:
+                continue
+            if horn:
+                jx, jy, jz, hj = _horn_nb(x, y, z, v, i, j, 1)
+                ix, iy, iz, hi = _horn_nb(x, y, z, v, i, j, 0)
+            else:
+                jx, jy, jz, hj = _tangent_nb(x, y, z, v, i, j, 1)
+                ix, iy, iz, hi = _tangent_nb(x, y, z, v, i, j, 0)
+            if not (hi or hj):
+                continue
+            if hj and not hi:  # missing tangent: horizontal, perpendicular to the other
+                ix, iy, iz = -jy, jx, 0.0
+            elif hi and not hj:
+                jx, jy, jz = iy, -ix, 0.0
+            nx = jy * iz - jz * iy
+            ny = jz * ix - jx * iz
+            nz = jx * iy - jy * ix
+            if nz < 0.0:
+                nx, ny, nz = -nx, -ny, -nz
+            length = np.sqrt(nx * nx + ny * ny + nz * nz)
+            scale = max(abs(jx), abs(jy), abs(jz), abs(ix), abs(iy), abs(iz), 1e-300)
+            if not length > 1e-12 * scale * scale:
+                continue
+            out[i, j, 0] = nx / length
+            out[i, j, 1] = ny / length
+            out[i, j, 2] = nz / length
+
+
+def _normal_map_numpy(
+    x: np.ndarray,
+    y: np.ndarray,
+    z: np.ndarray,
+    valid: np.ndarray | None = None,
+    kernel: str = "central",
+) -> np.ndarray:
+    """Vectorised reference of :func:`normal_map` (row blocks with a 1-row halo)."""
     if kernel not in ("central", "horn"):
         raise ValueError(f"unknown kernel {kernel!r}")
     x, y, z = (np.asarray(a, dtype=np.float64) for a in (x, y, z))

@@ -24,6 +24,7 @@ from geoterrain.grid import Grid
 from geoterrain.normals import encode_octahedral, level_normals, normal_map
 from geoterrain.raster import Raster, read_raster
 from geoterrain.store import StoreWriter, default_store_path
+from geoterrain.vertexdata import encode_bounds
 
 log = logging.getLogger("geoterrain")
 Progress = Callable[[str, int, int], None]
@@ -43,12 +44,6 @@ def _tiles_of_level(a: np.ndarray, grid: Grid, level: int) -> np.ndarray:
     if a.ndim == 3:
         win = np.moveaxis(win, 2, -1)
     return win
-
-
-def _f32_blob(a: np.ndarray, cctx: zstandard.ZstdCompressor) -> bytes:
-    # Byte-shuffle float32 (4 planes) before zstd: exponents compress well together.
-    b = np.ascontiguousarray(a, dtype="<f4").view(np.uint8).reshape(-1, 4).T.copy()
-    return cctx.compress(b.tobytes())
 
 
 def validate(r: Raster, z_scale: float | None) -> None:
@@ -166,7 +161,7 @@ def preprocess(
     stage("normals")
 
     height_blobs = encode_pyramid(heights, valid, grid.t, q, level=zstd_level)
-    cctx = zstandard.ZstdCompressor(level=min(zstd_level, 9))
+    cctx = zstandard.ZstdCompressor(level=3)
     extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}}
     tile_rows: dict = {}
     for L in grid.levels:
@@ -185,8 +180,8 @@ def preprocess(
             _, x, y = key
             # per-tile max δ and r let a view skip a tile without decoding it
             tile_rows[key] = (*bounds[key], float(dmax[y, x]), float(rmax[y, x]))
-            extra["delta"][key] = _f32_blob(tiles_d[y, x], cctx)
-            extra["radius"][key] = _f32_blob(tiles_r[y, x], cctx)
+            extra["delta"][key] = encode_bounds(tiles_d[y, x], cctx)
+            extra["radius"][key] = encode_bounds(tiles_r[y, x], cctx)
             extra["normals"][key] = cctx.compress(np.ascontiguousarray(tiles_n[y, x]).tobytes())
     stage("compress")
 

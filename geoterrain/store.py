@@ -78,7 +78,7 @@ class StoreWriter:
     >>> with StoreWriter(dst) as w:
     ...     w.put_metadata({"note": "hi"})
     ...     w.put_blob((0, 0, 0), "heights", b"x")
-    ...     w.commit()
+    ...     _ = w.commit()
     >>> StoreReader(dst).metadata["note"]
     'hi'
     """

@@ -16,6 +16,7 @@ from geoterrain.frame import Frame
 from geoterrain.grid import Grid
 from geoterrain.normals import decode_octahedral
 from geoterrain.store import StoreReader
+from geoterrain.vertexdata import decode_bounds
 
 TileKey = tuple[int, int, int]
 
@@ -107,22 +108,21 @@ class Terrain:
         h = np.where(valid, h, np.nan)
         return Tile(key, codes, h, valid)
 
-    def _f32(self, key: TileKey, kind: str) -> np.ndarray:
+    def _bounds(self, key: TileKey, kind: str) -> np.ndarray:
         T = self.grid.tile_samples
-        raw = self._dctx.decompress(self._blob(key, kind))
         try:
-            planes = np.frombuffer(raw, np.uint8).reshape(4, T * T)
-        except ValueError:
-            raise StoreCorruptError(f"{self.path}: tile {key} {kind} has the wrong size") from None
-        return planes.T.copy().view("<f4").reshape(T, T)
+            return decode_bounds(self._blob(key, kind), (T, T))
+        except (ValueError, zstandard.ZstdError):
+            raise StoreCorruptError(f"{self.path}: tile {key} {kind} cannot be decoded; "
+                                    "re-run `geoterrain preprocess`") from None
 
     def tile_delta(self, level: int, x: int, y: int) -> np.ndarray:
         """Per-vertex errors δ (scene units) of the tile's samples, float32 (T, T)."""
-        return self._cached(("d", level, x, y), lambda: self._f32((level, x, y), "delta"))
+        return self._cached(("d", level, x, y), lambda: self._bounds((level, x, y), "delta"))
 
     def tile_radius(self, level: int, x: int, y: int) -> np.ndarray:
         """Nested bounding-sphere radii (scene units) of the tile's samples, float32 (T, T)."""
-        return self._cached(("r", level, x, y), lambda: self._f32((level, x, y), "radius"))
+        return self._cached(("r", level, x, y), lambda: self._bounds((level, x, y), "radius"))
 
     def tile_xy(self, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
         """Scene X, Y (T, T) of the tile's samples (cached: geographic frames call pyproj)."""

@@ -34,8 +34,8 @@ class View:
     Examples
     --------
     >>> v = View((0, -1000, 500), (0, 0, 0), size=(1280, 720), fov_y_deg=30)
-    >>> round(v.lam, 2)  # pixels per unit of error at unit distance
-    1343.72
+    >>> round(float(v.lam), 2)  # pixels per unit of error at unit distance
+    1343.54
     >>> v.planes.shape
     (6, 4)
     """
@@ -87,7 +87,7 @@ class View:
     @property
     def lam(self) -> float:
         """λ: projected pixels per unit of error at unit distance, (h/2)/tan(fov_y/2)."""
-        return (self.size[1] / 2.0) / np.tan(np.radians(self.fov_y_deg) / 2.0)
+        return float((self.size[1] / 2.0) / np.tan(np.radians(self.fov_y_deg) / 2.0))
 
     @property
     def planes(self) -> np.ndarray:

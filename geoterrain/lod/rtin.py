@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from geoterrain.bintree import half_span, vertex_parents
 from geoterrain.view import View
 
 
@@ -46,6 +47,33 @@ def bisect(active: np.ndarray) -> np.ndarray:
         # LP bisection: children (c, a, m) and (b, c, m) keep the orientation
         tris = np.concatenate([np.stack([c, a, m], 1), np.stack([b, c, m], 1)])
     return np.concatenate(leaves)
+
+
+def close_upward(active: np.ndarray) -> None:
+    """Activate both parents of every active vertex, finest depth first, in place.
+
+    Saturated δ and nested r make LP's predicate monotone in exact arithmetic;
+    this pass makes the active set closed even where stored bounds were rounded
+    up independently or distances rounded in float64, so the bisection always
+    conforms. It only ever adds vertices (never coarsens: the error bound holds).
+    """
+    N = active.shape[0]
+    n = int(N - 1).bit_length() - 1
+    for depth in range(2 * n - 1, 0, -1):
+        h = half_span(n, depth)
+        if depth % 2 == 0:  # block centres
+            subs = [(slice(h, None, 2 * h), slice(h, None, 2 * h))]
+        else:  # edge midpoints, hypotenuse along rows or along columns
+            subs = [(slice(h, None, 2 * h), slice(0, None, 2 * h)),
+                    (slice(0, None, 2 * h), slice(h, None, 2 * h))]
+        for si, sj in subs:
+            a, b = np.nonzero(active[si, sj])
+            if not len(a):
+                continue
+            i, j = si.start + a * si.step, sj.start + b * sj.step
+            par = vertex_parents(i, j, n).reshape(-1, 2)
+            par = par[par[:, 0] >= 0]
+            active[par[:, 0], par[:, 1]] = True
 
 
 class ActiveSet:
@@ -87,6 +115,7 @@ def static_active(terrain, index, max_error: float) -> ActiveSet:
     act = ActiveSet(terrain)
     rows = np.flatnonzero(index.delta_max > max_error)
     act.fill(rows, lambda L, x, y, d: d > max_error, index)
+    close_upward(act.active)
     return act
 
 
@@ -117,6 +146,7 @@ def view_active(terrain, index, view: View, tau: float) -> ActiveSet:
             return vis & (delta > 0) & ((d <= r) | (lam * delta > tau * (d - r)))
 
     act.fill(rows, predicate, index)
+    close_upward(act.active)
     unread = np.flatnonzero(~(can & visible) & ~np.isfinite(index.delta_max))
     act.mark_unknown_mixed(unread, index)
     del g

@@ -1,0 +1,57 @@
+"""Compact, conservative storage of per-vertex bounds (δ and r) in tile blobs.
+
+Each value is stored as float16 times a per-tile power-of-two scale, rounded
+*up*, so a stored δ or r is never smaller than the computed one: every bound
+stays a bound (and δ = +inf, the mixed-diamond marker, stays +inf). float16
+keeps 11 significant bits, so a stored bound exceeds the exact one by at most
+2^-10 relative. Blob: version byte, int8 scale exponent, then the byte-shuffled
+float16 array compressed with zstd.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import zstandard
+
+VERSION = 1
+_F16_MAX = 32768.0  # keep the scaled maximum well inside float16's finite range
+
+
+def encode_bounds(a: np.ndarray, cctx: zstandard.ZstdCompressor) -> bytes:
+    """Encode a non-negative float array (+inf allowed) so decoding never under-estimates.
+
+    Examples
+    --------
+    >>> a = np.array([[0.0, 1e-3], [123.456, np.inf]], np.float32)
+    >>> b = decode_bounds(encode_bounds(a, zstandard.ZstdCompressor()), a.shape)
+    >>> bool((b >= a).all()), bool(np.isinf(b[1, 1])), float(b[1, 0]) <= 123.456 * (1 + 2**-10)
+    (True, True, True)
+    """
+    a = np.asarray(a, np.float64)
+    fin = a[np.isfinite(a)]
+    peak = float(fin.max()) if fin.size else 0.0
+    k = int(np.ceil(np.log2(peak / _F16_MAX))) if peak > 0 else 0
+    k = max(-100, min(100, k))
+    v = a / 2.0**k  # exact: a power-of-two scale
+    h = v.astype(np.float16)
+    low = h.astype(np.float64) < v  # rounding went down: step up one ulp
+    h[low] = np.nextafter(h[low], np.float16(np.inf))
+    planes = h.view(np.uint8).reshape(-1, 2).T.copy()  # byte-shuffle
+    return bytes([VERSION, k & 0xFF]) + cctx.compress(planes.tobytes())
+
+
+def decode_bounds(blob: bytes, shape: tuple[int, ...]) -> np.ndarray:
+    """Inverse of :func:`encode_bounds`: float32 values ≥ the encoded ones."""
+    if len(blob) < 2 or blob[0] != VERSION:
+        raise ValueError("not a bounds blob of a known version")
+    k = int(np.int8(np.uint8(blob[1])))
+    raw = zstandard.ZstdDecompressor().decompress(blob[2:])
+    n = int(np.prod(shape))
+    planes = np.frombuffer(raw, np.uint8).reshape(2, n)
+    h = planes.T.copy().view(np.float16).reshape(shape)
+    out = h.astype(np.float64) * 2.0**k
+    # float32 output: round up again so the bound survives the cast
+    o32 = out.astype(np.float32)
+    low = o32.astype(np.float64) < out
+    o32[low] = np.nextafter(o32[low], np.float32(np.inf))
+    return o32
