@@ -56,17 +56,20 @@ def main() -> None:
     ap.add_argument("--views", type=int, default=24)
     ap.add_argument("--pixel-error", type=float, default=1.0)
     ap.add_argument("--shading", default="normals")
+    ap.add_argument("--no-aa", action="store_true", help="Turn multisample anti-aliasing off.")
     ap.add_argument("--workdir", type=Path, default=Path(tempfile.gettempdir()) / "gt_bench")
     a = ap.parse_args()
     a.workdir.mkdir(parents=True, exist_ok=True)
     size = (1280, 720)
+    print(f"{a.views} views, 1280×720, τ = {a.pixel_error:g} px, shading {a.shading}, "
+          f"anti-aliasing {'off' if a.no_aa else 'on (MSAA)'}\n")
     print("| DEM | strategy | median frame ms | median select ms | median render ms | "
           "median triangles | frame ratio vs bruteforce |")
     print("|---|---|---:|---:|---:|---:|---:|")
     for n in a.sizes:
         t = geoterrain.open(store_for(n, a.workdir))
         views = flight(t, a.views, size)
-        scene = TerrainScene(_plotter(size), t, a.shading)
+        scene = TerrainScene(_plotter(size, not a.no_aa), t, a.shading)
         scene.frame(views[0], a.pixel_error, "bruteforce")  # warm caches and the texture
         rows = {}
         for strat in ("bruteforce", "chunked", "rtin"):

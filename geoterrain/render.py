@@ -373,11 +373,15 @@ class TerrainScene:
         return float(np.isfinite(depth).mean())
 
 
-def _plotter(size: tuple[int, int]):
+def _plotter(size: tuple[int, int], anti_aliasing: bool = True):
+    """An offscreen plotter (EGL when there is no display); MSAA unless turned off."""
     _prefer_egl()
     import pyvista as pv
 
-    return pv.Plotter(off_screen=True, window_size=list(size))
+    p = pv.Plotter(off_screen=True, window_size=list(size))
+    if not anti_aliasing:
+        p.disable_anti_aliasing()
+    return p
 
 
 # ---------------------------------------------------------------------- overlays

@@ -50,7 +50,7 @@ class Terrain:
     ((33, 33), (33, 33))
     """
 
-    def __init__(self, path: str | Path, cache_tiles: int = 1024):
+    def __init__(self, path: str | Path, cache_bytes: int = 1536 << 20):
         self.path = Path(path)
         self.reader = StoreReader(path)
         m = self.reader.metadata
@@ -59,8 +59,9 @@ class Terrain:
         self.frame = Frame.from_json(m["frame"])
         self.quantizer = Quantizer(**m["quantizer"])
         self.tile_info = self.reader.tiles()
-        self._cache: OrderedDict[tuple, object] = OrderedDict()
-        self._cache_size = cache_tiles
+        self._cache: OrderedDict[tuple, tuple[object, int]] = OrderedDict()
+        self._cache_budget = cache_bytes
+        self._cache_used = 0
         self._dctx = zstandard.ZstdDecompressor()
         self.decoded_tiles = 0  # tiles whose heights were decoded (a view counts these)
         self._selector = None
@@ -68,14 +69,18 @@ class Terrain:
 
     # ------------------------------------------------------------------ cache
     def _cached(self, key: tuple, make):
+        """LRU cache of decoded arrays, bounded in bytes (``cache_bytes``)."""
         c = self._cache
         if key in c:
             c.move_to_end(key)
-            return c[key]
+            return c[key][0]
         val = make()
-        c[key] = val
-        if len(c) > self._cache_size:
-            c.popitem(last=False)
+        size = _nbytes(val)
+        c[key] = (val, size)
+        self._cache_used += size
+        while self._cache_used > self._cache_budget and len(c) > 1:
+            _, (_, sz) = c.popitem(last=False)
+            self._cache_used -= sz
         return val
 
     def has_tile(self, level: int, x: int, y: int) -> bool:
@@ -318,6 +323,16 @@ class Terrain:
         self.close()
 
 
+def _nbytes(v) -> int:
+    if isinstance(v, np.ndarray):
+        return v.nbytes
+    if isinstance(v, Tile):
+        return v.codes.nbytes + v.heights.nbytes + v.valid.nbytes
+    if isinstance(v, tuple):
+        return sum(_nbytes(x) for x in v)
+    return 64
+
+
 def describe_codec(q: Quantizer) -> str:
     """One line saying how heights are coded."""
     if q.mode == "float":
@@ -327,6 +342,9 @@ def describe_codec(q: Quantizer) -> str:
     return f"quantised to ε = {q.max_error:g} (step {q.step:.6g}), residuals + zstd"
 
 
-def open(path: str | Path) -> Terrain:  # noqa: A001 - mirrors rasterio.open
-    """Open a store. See :class:`Terrain`."""
-    return Terrain(path)
+def open(path: str | Path, cache_bytes: int = 1536 << 20) -> Terrain:  # noqa: A001
+    """Open a store (like ``rasterio.open``); decoded tiles are cached up to ``cache_bytes``.
+
+    See :class:`Terrain`.
+    """
+    return Terrain(path, cache_bytes=cache_bytes)

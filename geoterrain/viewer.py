@@ -38,8 +38,10 @@ class ViewerController:
     plotter : pyvista.Plotter (interactive or offscreen)
     terrain : Terrain
     strategy, pixel_error, shading, cmap : as in :func:`geoterrain.render.render`.
-    throttle_ms : minimum time between two selections; camera events in between
-        are coalesced and handled by :meth:`poll` (a repeating timer).
+    throttle_ms : synchronous mode: minimum time between two selections; camera events
+        in between are coalesced and handled by :meth:`poll` (a repeating timer).
+    background : select in a worker thread so the window never waits for a selection
+        (the mesh is swapped in by :meth:`poll` when ready); the interactive default.
 
     Examples
     --------
@@ -51,7 +53,8 @@ class ViewerController:
     """
 
     def __init__(self, plotter, terrain, strategy: str = "rtin", pixel_error: float = 1.0,
-                 shading: str = "normals", cmap: str = "gist_earth", throttle_ms: float = 100.0):
+                 shading: str = "normals", cmap: str = "gist_earth", throttle_ms: float = 100.0,
+                 background: bool = False):
         if strategy not in STRATEGIES:
             raise ValueError(f"unknown strategy {strategy!r}; use one of {', '.join(STRATEGIES)}")
         self.plotter, self.terrain = plotter, terrain
@@ -67,11 +70,17 @@ class ViewerController:
         self.frame_ms = 0.0
         self._busy = False
         self._last_t = -1e9
-        self._last_key = None
+        self._last_key: tuple = ()
+        self._future = None
+        self._executor = None
         self._hud = plotter.add_text("", position="upper_left", font_size=10, name="hud")
         self.home = default_view(terrain, tuple(plotter.window_size))
         self.scene.set_camera(self.home)
-        self.on_camera_changed(force=True)
+        self.on_camera_changed(force=True)  # the first selection, synchronously
+        if background:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._executor = ThreadPoolExecutor(1, thread_name_prefix="geoterrain-lod")
 
     # ----------------------------------------------------------------- views
     def current_view(self) -> View:
@@ -83,26 +92,46 @@ class ViewerController:
         return (tuple(c.position), tuple(c.focal_point), tuple(c.up), float(c.view_angle),
                 tuple(self.plotter.window_size), self.strategy, self.pixel_error)
 
+    def _view(self) -> View:
+        cam = self.plotter.camera
+        return View(tuple(cam.position), tuple(cam.focal_point), tuple(cam.up),
+                    float(cam.view_angle), tuple(self.plotter.window_size))
+
     def on_camera_changed(self, *_args, force: bool = False) -> bool:
         """Re-select the LOD for the current camera (unless frozen, unchanged or throttled).
 
-        Returns True when a new selection was made.
+        Synchronous mode: selects and updates now; returns True when it did.
+        Background mode: starts the selection in a worker thread (returns True) unless
+        one is running (then it is queued); :meth:`poll` shows the result.
         """
         if self._busy or (self.frozen and not force):
             return False
         key = self._camera_key()
         if key == self._last_key and not force:
             return False
+        if self._executor is not None:
+            if self._future is not None and not self._future.done():
+                self.pending = True
+                return False
+            view, strategy, tau = self._view(), self.strategy, self.pixel_error
+            self.pending = False
+            self._future = self._executor.submit(
+                lambda: (key, self.terrain.select(view, pixel_error=tau, strategy=strategy)))
+            return True
         now = time.perf_counter()
         if not force and (now - self._last_t) * 1e3 < self.throttle_ms:
             self.pending = True
             return False
+        sel = self.terrain.select(self._view(), pixel_error=self.pixel_error,
+                                  strategy=self.strategy)
+        self._apply(key, sel)
+        return True
+
+    def _apply(self, key: tuple, sel) -> None:
+        """Show a finished selection (main thread: VTK calls)."""
         self._busy = True
         try:
-            cam = self.plotter.camera
-            v = View(tuple(cam.position), tuple(cam.focal_point), tuple(cam.up),
-                     float(cam.view_angle), tuple(self.plotter.window_size))
-            sel = self.terrain.select(v, pixel_error=self.pixel_error, strategy=self.strategy)
+            t0 = time.perf_counter()
             self.scene.update(sel)
             self._apply_style()
             self.plotter.renderer.ResetCameraClippingRange()
@@ -110,18 +139,49 @@ class ViewerController:
             self.selections += 1
             self._last_key = key
             self._last_t = time.perf_counter()
-            self.pending = False
-            self.frame_ms = (self._last_t - now) * 1e3
+            self.frame_ms = (self._last_t - t0) * 1e3
             self._update_hud()
         finally:
             self._busy = False
-        return True
 
-    def poll(self, *_args) -> None:
-        """Timer callback: handle a camera change that the throttle postponed."""
+    def poll(self, *_args) -> bool:
+        """Timer callback: show a finished background selection, start a queued one.
+
+        Returns True when the scene changed.
+        """
+        changed = False
+        f = self._future
+        if f is not None and f.done():
+            self._future = None
+            key, sel = f.result()
+            if not self.frozen or key[-2:] != self._last_key[-2:]:
+                self._apply(key, sel)
+                changed = True
         if self.pending and not self.frozen:
-            if self.on_camera_changed():
-                self.plotter.render()
+            self.pending = False
+            if self._executor is None:
+                changed |= self.on_camera_changed()
+            else:
+                self.on_camera_changed(force=True)
+        if changed:
+            t0 = time.perf_counter()
+            self.plotter.render()
+            self.frame_ms += (time.perf_counter() - t0) * 1e3
+            self._update_hud()
+        return changed
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until the running background selection is shown (for scripts and tests)."""
+        f = self._future
+        if f is None:
+            return False
+        f.result(timeout)
+        return self.poll()
+
+    def close(self) -> None:
+        """Stop the worker thread."""
+        if self._executor is not None:
+            self._executor.shutdown(wait=True, cancel_futures=True)
 
     # --------------------------------------------------------------- styling
     def _apply_style(self) -> None:
@@ -171,7 +231,8 @@ class ViewerController:
         self._hud.SetText(2, line + "\n" + HELP)
 
     def _refresh(self) -> None:
-        self.on_camera_changed(force=True)
+        if self.on_camera_changed(force=True) is False and self._executor is not None:
+            self.pending = True
         self.plotter.render()
 
     # ------------------------------------------------------------------ keys
@@ -248,7 +309,11 @@ def show(terrain, strategy: str = "rtin", pixel_error: float = 1.0, *,
     import pyvista as pv
 
     p = pv.Plotter(window_size=list(size), title=title or f"geoterrain — {terrain.path.name}")
-    ctl = ViewerController(p, terrain, strategy, pixel_error, shading, cmap, throttle_ms)
+    ctl = ViewerController(p, terrain, strategy, pixel_error, shading, cmap, throttle_ms,
+                           background=True)
     ctl.bind()
-    p.show()
+    try:
+        p.show()
+    finally:
+        ctl.close()
     return ctl

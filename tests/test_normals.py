@@ -7,10 +7,12 @@ import pytest
 
 from geoterrain.normals import (
     OCTAHEDRAL_MAX_ERROR_DEG,
+    OCTAHEDRAL_MAX_ERROR_DEG_PRECISE,
     decode_octahedral,
     encode_octahedral,
     level_normals,
     normal_map,
+    normal_pyramid,
 )
 
 KERNELS = ["central", "horn"]
@@ -142,18 +144,25 @@ def test_level_normals_of_plane_is_plane():
         assert np.allclose(level_normals(n, level), plane_normal(0.2, 0.1), atol=1e-6)
 
 
+@pytest.mark.parametrize("precise", [False, True])
 @pytest.mark.parametrize("bits", [8, 16])
-def test_octahedral_roundtrip(bits):
+def test_octahedral_roundtrip(bits, precise):
     rng = np.random.default_rng(2)
     v = rng.normal(size=(200000, 3))
     v = np.concatenate([v, np.eye(3), -np.eye(3), [[1, 1, 0], [0, -1, -1], [1, 1, 1]]])
     v /= np.linalg.norm(v, axis=-1, keepdims=True)
-    e = encode_octahedral(v, bits)
+    e = encode_octahedral(v, bits, precise=precise)
     assert e.dtype == (np.uint8 if bits == 8 else np.uint16) and e.shape == (len(v), 2)
     d = decode_octahedral(e, bits).astype(np.float64)
     assert d.dtype == np.float64 and d.shape == v.shape
     ang = np.degrees(np.arctan2(np.linalg.norm(np.cross(d, v), axis=1), np.sum(d * v, axis=1)))
-    assert ang.max() <= OCTAHEDRAL_MAX_ERROR_DEG[bits]
+    bound = (OCTAHEDRAL_MAX_ERROR_DEG_PRECISE if precise else OCTAHEDRAL_MAX_ERROR_DEG)[bits]
+    assert ang.max() <= bound
+    # float32 input (normal maps) within the same bound
+    e32 = encode_octahedral(v.astype(np.float32), bits, precise=precise)
+    d32 = decode_octahedral(e32, bits).astype(np.float64)
+    cos32 = np.sum(d32 * v, axis=1)
+    assert np.degrees(np.arctan2(np.linalg.norm(np.cross(d32, v), axis=1), cos32)).max() <= bound
     assert np.allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-6)
     # grid shapes pass through
     grid = encode_octahedral(v[:12].reshape(3, 4, 3), bits)
@@ -164,12 +173,86 @@ def test_octahedral_roundtrip(bits):
 
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_row_blocks_are_exact(kernel, monkeypatch):
+    """The compiled kernel matches the vectorised reference, itself exact by row blocks."""
     import geoterrain.normals as gn
 
     rng = np.random.default_rng(5)
     i, j = np.indices((40, 23), dtype=np.float64)
+    x = j + 0.2 * rng.normal(size=i.shape)
+    y = -i + 0.2 * rng.normal(size=i.shape)
     z = rng.normal(0, 3, i.shape)
     valid = rng.random(i.shape) > 0.3
-    ref = normal_map(j, -i, z, valid, kernel=kernel)
+    ref = gn._normal_map_numpy(x, y, z, valid, kernel=kernel)
+    got = normal_map(x, y, z, valid, kernel=kernel)
+    assert np.allclose(got, ref, atol=1e-6, rtol=0)
+    assert np.array_equal(got[~valid], np.broadcast_to(np.float32([0, 0, 1]), got[~valid].shape))
     monkeypatch.setattr(gn, "_BLOCK_ROWS", 7)
-    assert np.array_equal(gn.normal_map(j, -i, z, valid, kernel=kernel), ref)
+    assert np.array_equal(gn._normal_map_numpy(x, y, z, valid, kernel=kernel), ref)
+
+
+def test_normal_map_degenerate_shapes():
+    for shape in [(1, 1), (1, 6), (6, 1), (2, 2)]:
+        i, j = np.indices(shape, dtype=np.float64)
+        n = normal_map(j, -i, 0.5 * j)
+        check_unit(n)
+        assert np.allclose(n, normal_map(j, -i, 0.5 * j, kernel="horn"), atol=1e-6)
+
+
+def _pyramid_reference(nf, valid, levels):
+    """Brute force of the filter documented in normal_pyramid."""
+    k = (1.0, 2.0, 1.0)
+    cur = nf.astype(np.float64)
+    w = np.ones(nf.shape[:2]) if valid is None else valid.astype(np.float64)
+    out = [cur]
+    for _ in range(1, levels):
+        rows, cols = (cur.shape[0] + 1) // 2, (cur.shape[1] + 1) // 2
+        nxt, wn = np.zeros((rows, cols, 3)), np.zeros((rows, cols))
+        for a in range(rows):
+            for b in range(cols):
+                s, anyw = np.zeros(3), False
+                for di in (-1, 0, 1):
+                    for dj in (-1, 0, 1):
+                        i, j = 2 * a + di, 2 * b + dj
+                        if 0 <= i < cur.shape[0] and 0 <= j < cur.shape[1] and w[i, j]:
+                            s += k[di + 1] * k[dj + 1] * w[i, j] * cur[i, j]
+                            anyw = True
+                ln = np.linalg.norm(s)
+                nxt[a, b] = s / ln if ln > 1e-12 else (0.0, 0.0, 1.0)
+                wn[a, b] = float(anyw)
+        out.append(nxt)
+        cur, w = nxt, wn
+    return out
+
+
+@pytest.mark.parametrize("size", [17, 20])
+def test_normal_pyramid_matches_brute_force(size):
+    rng = np.random.default_rng(11)
+    nf = rng.normal(0, 0.4, (size, size, 3))
+    nf[..., 2] = 1.0
+    nf /= np.linalg.norm(nf, axis=-1, keepdims=True)
+    nf = nf.astype(np.float32)
+    valid = rng.random((size, size)) > 0.3
+    valid[:6, :6] = False  # a hole wider than one level-1 footprint
+    for v in (valid, None):
+        got = normal_pyramid(nf, v, 5)
+        ref = _pyramid_reference(nf, v, 5)
+        assert len(got) == 5
+        for g, r in zip(got, ref, strict=True):
+            assert g.dtype == np.float32 and g.shape == r.shape
+            check_unit(g)
+            assert np.allclose(g, r, atol=1e-6)
+    got = normal_pyramid(nf, valid, 3)
+    assert np.array_equal(got[1][:2, :2], np.broadcast_to(np.float32([0, 0, 1]), (2, 2, 3)))
+
+
+def test_normal_pyramid_of_plane_is_plane():
+    i, j = np.indices((65, 65), dtype=np.float64)
+    n = normal_map(j, -i, 0.2 * j - 0.1 * i)
+    valid = np.random.default_rng(3).random((65, 65)) > 0.2  # every 3x3 holds one
+    for v in (None, valid):
+        levels = normal_pyramid(n, v, 7)
+        assert [a.shape[0] for a in levels] == [65, 33, 17, 9, 5, 3, 2]
+        for a in levels:
+            assert np.allclose(a, plane_normal(0.2, 0.1), atol=1e-6)
+    with pytest.raises(ValueError):
+        normal_pyramid(n, None, 0)

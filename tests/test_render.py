@@ -169,6 +169,29 @@ def test_controller_offscreen(tmp_path_factory):
         p.close()
 
 
+def test_controller_background_selection(tmp_path_factory):
+    """Background mode: camera events never wait for a selection; poll() swaps it in."""
+    from geoterrain.viewer import ViewerController
+
+    t = synth_store(tmp_path_factory, "fbm")
+    p = _plotter((320, 240))
+    c = ViewerController(p, t, background=True)
+    try:
+        c.bind()
+        n0, tris0 = c.selections, c.stats["triangles"]
+        lo, hi = np.asarray(c.home.look_at), np.asarray(c.home.look_from)
+        p.camera.position = tuple(lo + 0.3 * (hi - lo))
+        p.camera.position = tuple(lo + 0.25 * (hi - lo))  # queued behind the first one
+        assert c.wait(timeout=60)
+        while c._future is not None:  # the queued request runs next
+            c.wait(timeout=60)
+        assert c.selections > n0 and c.stats["triangles"] != tris0
+        assert not c.pending and c._last_key[0] == tuple(p.camera.position)
+    finally:
+        c.close()
+        p.close()
+
+
 def _cli():
     try:
         return importlib.import_module("geoterrain.cli.main").cli

@@ -79,3 +79,52 @@ def extract(active: np.ndarray, mixed: np.ndarray, vid: np.ndarray
     verts = np.empty(3 * nf, np.int64)
     nf, nv = _walk(active, mixed, vid, tris, verts, True)
     return tris[:nf], verts[:nv]
+
+
+@njit(cache=True)
+def _set_parents(active, i, j, h, centre):
+    N = active.shape[0]
+    if centre:
+        # union-jack block parity decides the diagonal (seed 002 §2.3)
+        par = (((i - h) // (2 * h)) + ((j - h) // (2 * h))) % 2
+        sg = 1 if par == 0 else -1
+        p0i, p0j, p1i, p1j = i - h, j + sg * h, i + h, j - sg * h
+    else:
+        if (i // h) % 2 == 1:  # hypotenuse along the row
+            p0i, p0j, p1i, p1j = i, j - h, i, j + h
+        else:
+            p0i, p0j, p1i, p1j = i - h, j, i + h, j
+    if 0 <= p0i < N and 0 <= p0j < N:
+        active[p0i, p0j] = True
+    if 0 <= p1i < N and 0 <= p1j < N:
+        active[p1i, p1j] = True
+
+
+@njit(cache=True)
+def close_upward(active):
+    """Activate both parents of every active vertex, finest depth first, in place.
+
+    Depth order: for h = 1, 2, 4, ...: the edge midpoints of half-size h, then the
+    block centres of half-size h (the edges' parents), then the next h.
+
+    Examples
+    --------
+    >>> a = np.zeros((5, 5), bool); a[1, 0] = True
+    >>> close_upward(a); sorted(zip(*np.nonzero(a)))[:3]
+    [(np.int64(0), np.int64(0)), (np.int64(1), np.int64(0)), (np.int64(1), np.int64(1))]
+    """
+    N = active.shape[0]
+    h = 1
+    while h < N - 1:
+        # edge midpoints: (odd multiple of h, even multiple) and (even, odd)
+        for i in range(0, N, h):
+            oi = (i // h) % 2 == 1
+            start = 0 if oi else h
+            for j in range(start, N, 2 * h):
+                if active[i, j]:
+                    _set_parents(active, i, j, h, False)
+        for i in range(h, N, 2 * h):
+            for j in range(h, N, 2 * h):
+                if active[i, j]:
+                    _set_parents(active, i, j, h, True)
+        h *= 2

@@ -12,7 +12,10 @@ Two phases, both on whole arrays:
    - static: δ > e.
 
    Saturated δ and nested radii make the predicate monotone (a vertex's
-   parents are active whenever it is), so the active set is closed.
+   parents are active whenever it is). A closing pass still activates the
+   parents of every active vertex, so rounding (stored bounds are rounded up
+   independently, distances in float64) can never break conformity; it only
+   adds vertices, so the error bound holds.
 2. **Bisection.** The bintree is refined level by level on arrays of
    triangles: a triangle (a, b, c) splits at m = (a + b) / 2 when m is active.
    The result conforms (no cracks, no T-junctions) across tile borders.
@@ -22,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoterrain.bintree import half_span, vertex_parents
+from geoterrain.lod.kernels import close_upward
 from geoterrain.view import View
 
 
@@ -47,33 +50,6 @@ def bisect(active: np.ndarray) -> np.ndarray:
         # LP bisection: children (c, a, m) and (b, c, m) keep the orientation
         tris = np.concatenate([np.stack([c, a, m], 1), np.stack([b, c, m], 1)])
     return np.concatenate(leaves)
-
-
-def close_upward(active: np.ndarray) -> None:
-    """Activate both parents of every active vertex, finest depth first, in place.
-
-    Saturated δ and nested r make LP's predicate monotone in exact arithmetic;
-    this pass makes the active set closed even where stored bounds were rounded
-    up independently or distances rounded in float64, so the bisection always
-    conforms. It only ever adds vertices (never coarsens: the error bound holds).
-    """
-    N = active.shape[0]
-    n = int(N - 1).bit_length() - 1
-    for depth in range(2 * n - 1, 0, -1):
-        h = half_span(n, depth)
-        if depth % 2 == 0:  # block centres
-            subs = [(slice(h, None, 2 * h), slice(h, None, 2 * h))]
-        else:  # edge midpoints, hypotenuse along rows or along columns
-            subs = [(slice(h, None, 2 * h), slice(0, None, 2 * h)),
-                    (slice(0, None, 2 * h), slice(h, None, 2 * h))]
-        for si, sj in subs:
-            a, b = np.nonzero(active[si, sj])
-            if not len(a):
-                continue
-            i, j = si.start + a * si.step, sj.start + b * sj.step
-            par = vertex_parents(i, j, n).reshape(-1, 2)
-            par = par[par[:, 0] >= 0]
-            active[par[:, 0], par[:, 1]] = True
 
 
 class ActiveSet:

@@ -1,0 +1,95 @@
+"""Preprocess throughput, stage by stage, against pymartini in the same run.
+
+Usage:
+    python benchmarks/bench_preprocess.py [--size 4097] [--runs 3] [--max-error EPS]
+
+Each run is a fresh process (so peak memory is per run). Prints a markdown
+table of medians: per-stage seconds from the store's metadata, total wall
+time, peak RSS, and pymartini's Martini(N) + create_tile (which computes only
+the midpoint errors) with the ratio.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+PRE = """
+import json, sys, time
+import geoterrain
+t0 = time.perf_counter()
+p = geoterrain.preprocess(sys.argv[1], sys.argv[2], overwrite=True, max_error={eps})
+wall = time.perf_counter() - t0
+t = geoterrain.open(p)
+print(json.dumps({{"wall": wall, "stages": t.meta["preprocess_seconds"],
+                  "bytes": t.info()["size_bytes"]}}))
+"""
+
+MARTINI = """
+import json, sys, time
+import numpy as np, rasterio
+from pymartini import Martini
+with rasterio.open(sys.argv[1]) as s:
+    z = s.read(1).astype(np.float32)
+t0 = time.perf_counter()
+m = Martini(z.shape[0])
+tile = m.create_tile(z)
+print(json.dumps({"wall": time.perf_counter() - t0}))
+"""
+
+
+def child(code: str, *args: str) -> tuple[dict, float]:
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    out = subprocess.run([sys.executable, "-c", code, *args], check=True, capture_output=True,
+                         text=True).stdout
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    return json.loads(out.strip().splitlines()[-1]), max(peak, before) / 1024.0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=int, default=4097)
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--max-error", type=float, default=None)
+    a = ap.parse_args()
+    from geoterrain.synth import generate, write_geotiff
+
+    d = tempfile.mkdtemp()
+    src = os.path.join(d, "fbm.tif")
+    write_geotiff(src, generate("fbm", a.size, seed=7))
+    dst = os.path.join(d, "fbm.geoterrain")
+    ours, theirs, peaks = [], [], []
+    for _ in range(a.runs):  # alternate to share the machine's drift
+        r, peak = child(PRE.format(eps=a.max_error), src, dst)
+        ours.append(r)
+        peaks.append(peak)
+        m, _ = child(MARTINI, src)
+        theirs.append(m["wall"])
+        time.sleep(0.5)
+    stages = ours[0]["stages"].keys()
+    med = {s: statistics.median(r["stages"][s] for r in ours) for s in stages}
+    wall = statistics.median(r["wall"] for r in ours)
+    mart = statistics.median(theirs)
+    print(f"\n{a.size}² fBm, max_error={a.max_error}, {a.runs} runs, medians\n")
+    print("| stage | seconds |")
+    print("|---|---|")
+    for s in stages:
+        print(f"| {s} | {med[s]:.2f} |")
+    err_stage = med.get("errors", 0) + med.get("radii", 0)
+    print(f"| **preprocess total (wall)** | **{wall:.2f}** |")
+    print(f"| pymartini Martini({a.size}) + create_tile | {mart:.2f} |")
+    print(f"| ratio total / pymartini | {wall / mart:.2f} |")
+    print(f"| ratio (errors + radii) / pymartini | {err_stage / mart:.2f} |")
+    print(f"| peak RSS of a preprocess run (max) | {max(peaks):.0f} MB |")
+    print(f"| store size | {ours[0]['bytes'] / 1e6:.1f} MB |")
+
+
+if __name__ == "__main__":
+    main()
