@@ -110,8 +110,8 @@ def close_upward(active):
     Examples
     --------
     >>> a = np.zeros((5, 5), bool); a[1, 0] = True
-    >>> close_upward(a); sorted(zip(*np.nonzero(a)))[:3]
-    [(np.int64(0), np.int64(0)), (np.int64(1), np.int64(0)), (np.int64(1), np.int64(1))]
+    >>> close_upward(a); [tuple(map(int, p)) for p in np.argwhere(a)]
+    [(0, 2), (0, 4), (1, 0), (1, 1), (2, 0), (2, 2), (4, 0)]
     """
     N = active.shape[0]
     h = 1
