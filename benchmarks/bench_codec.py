@@ -13,6 +13,10 @@ vertical units), for:
 Run from the project root::
 
     /work/venv/bin/python benchmarks/bench_codec.py [--quick] [--level 19]
+
+``--level-table`` instead measures encode time (median of ``--repeat`` runs) and size
+per zstd level (3, 6, 9, 12, 19) on the 4097^2 fbm field of ``geoterrain.synth`` (seed
+7, float32 values), in lossless float mode and quantized mode at epsilon = 1.
 """
 
 from __future__ import annotations
@@ -171,11 +175,42 @@ def run_one(name, h, valid, native, scale, offset, eps, level, rows, lerc_ok):
     print(rows[-1], flush=True)
 
 
+def level_table(repeat: int) -> None:
+    """Encode time and size per zstd level, float mode and quantized eps = 1."""
+    from geoterrain.synth import generate
+
+    n = 4097
+    z = generate("fbm", n, seed=7).astype(np.float64)
+    v = np.ones(z.shape, bool)
+    modes = {
+        "float": choose_quantizer(z, np.float32),
+        "eps=1": choose_quantizer(z, np.float32, max_error=1.0),
+    }
+    print("| mode | zstd level | enc s (median) | runs | bytes | bits/sample |")
+    print("|---|---|---|---|---|---|")
+    for name, qz in modes.items():
+        for level in (3, 6, 9, 12, 19):
+            ts = []
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                blobs = encode_pyramid(z, v, 6, qz, level=level)
+                ts.append(time.perf_counter() - t0)
+            nb = sum(map(len, blobs.values()))
+            runs = " ".join(f"{t:.2f}" for t in ts)
+            bps = 8 * nb / n / n
+            print(f"| {name} | {level} | {np.median(ts):.2f} | {runs} | {nb} | {bps:.3f} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="skip the 4097^2 synthetic field")
     ap.add_argument("--level", type=int, default=19, help="zstd level of our tiles")
+    ap.add_argument("--level-table", action="store_true", help="time/size per zstd level")
+    ap.add_argument("--repeat", type=int, default=3, help="runs per level (--level-table)")
     args = ap.parse_args()
+    if args.level_table:
+        level_table(args.repeat)
+        return
     try:
         import lerc  # noqa: F401
 

@@ -353,8 +353,8 @@ def peers(terrain, errors: Sequence[float]) -> tuple[list[dict], list[str]]:
         else:
             for E in errors:
                 t0 = time.perf_counter()
-                # Martini indexes terrain[y * size + x], i.e. the row-major grid transposed
-                tile = pymartini.Martini(zp.shape[0]).create_tile(np.ascontiguousarray(z32.T))
+                # Martini reads terrain[y * size + x]: x is the column j, y the row i
+                tile = pymartini.Martini(zp.shape[0]).create_tile(np.ascontiguousarray(z32))
                 vxy, tri = tile.get_mesh(float(E))
                 ms = (time.perf_counter() - t0) * 1e3
                 ij = np.asarray(vxy, np.int64).reshape(-1, 2)[:, ::-1]
@@ -374,7 +374,8 @@ def peers(terrain, errors: Sequence[float]) -> tuple[list[dict], list[str]]:
                 d = Delatin(src, height=H, width=W, max_error=float(E))
                 vxy, tri = d.vertices, d.triangles
                 ms = (time.perf_counter() - t0) * 1e3
-                ij = np.asarray(vxy, np.float64).reshape(-1, 2)[:, ::-1]
+                vxy = np.asarray(vxy, np.float64)  # (x, y, z) with y counted from the last row
+                ij = np.stack([(H - 1) - vxy[:, 1], vxy[:, 0]], 1)
                 ii = np.clip(np.rint(ij).astype(np.int64), 0, [H - 1, W - 1])
                 add("pydelatin", E, ms, ij, np.asarray(tri, np.int64).reshape(-1, 3),
                     zp[ii[:, 0], ii[:, 1]])

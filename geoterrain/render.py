@@ -10,8 +10,12 @@ Shading (``shading=``):
   from the stored *full-resolution* normal maps (``Terrain.tile_normals``) and the
   level-0 heights, mapped by texture coordinates from each vertex's ``grid_ij``.
   A coarse LOD mesh therefore shows the same relief and colours as the full DEM;
-  only the silhouette moves. (Measured against per-vertex normals and plain
-  geometric lighting, see the tests and the report.)
+  only the silhouette moves. Chosen by measurement (rtin vs bruteforce render of
+  the same view, same shading): on srtm1_japan at 1280×720, τ = 1 px gives
+  40–46 dB with this texture vs 37–40 dB with geometric lighting; on a rough
+  1025² fbm at 640×360, 33–41 dB vs 30–39 dB, and 22–32 dB for per-vertex
+  colours from the same normal map (Gouraud loses the detail inside coarse
+  triangles).
 - ``"elevation"``: the elevation colours of the same texture, no shading.
 - ``"plain"``: one colour lit by the renderer from the mesh's own geometry:
   what a naive renderer shows (useful to look at the mesh itself).
@@ -287,6 +291,7 @@ class TerrainScene:
             raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
         self.plotter, self.terrain, self.shading, self.cmap = plotter, terrain, shading, cmap
         plotter.set_background(background)
+        plotter.theme.allow_empty_mesh = True  # a view may see no terrain at all
         self.level = texture_level(terrain)
         self.texture = None
         if shading != "plain":
@@ -331,8 +336,8 @@ class TerrainScene:
         if self.actor is None:
             kw: dict = {"name": "terrain", "show_scalar_bar": False, "reset_camera": False}
             if self.texture is not None:
-                self.actor = self.plotter.add_mesh(mesh, texture=self.texture, lighting=False,
-                                                   **kw)
+                self.actor = self.plotter.add_mesh(mesh, lighting=False, **kw)
+                self.actor.SetTexture(self.texture)
             else:
                 self.actor = self.plotter.add_mesh(mesh, color=PLAIN_COLOR, lighting=True,
                                                    smooth_shading=False, **kw)

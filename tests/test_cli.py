@@ -131,3 +131,25 @@ def test_synth_writes_deterministic_geotiff(tmp_path):
         assert da.crs is not None
         np.testing.assert_array_equal(da.read(1), db.read(1))
     assert_one_line_error(run("synth", "fbm", "--size", "9", "-o", a), 2)
+
+
+def test_mesh_command(tmp_path, fbm_tif):
+    import pyvista as pv
+
+    store = tmp_path / "s.geoterrain"
+    assert run("-q", "preprocess", fbm_tif, "-o", store).exit_code == 0
+    ply = tmp_path / "m.ply"
+    res = run("mesh", store, "-o", ply, "--max-error", "5")
+    assert res.exit_code == 0, res.output
+    assert '"triangles"' in res.output
+    assert pv.read(ply).n_cells > 2
+    vtp = tmp_path / "v.vtp"
+    res = run("mesh", store, "-o", vtp, "--look-from", "0,-1500,1500", "--look-at", "0,0,500",
+              "--pixel-error", "2", "--strategy", "chunked")
+    assert res.exit_code == 0, res.output
+    m = pv.read(vtp)
+    assert "grid_ij" in m.point_data and "skirt" in m.cell_data
+    assert_one_line_error(run("mesh", store, "-o", tmp_path / "x.abc"), 2)
+    assert_one_line_error(run("mesh", store, "-o", ply, "--max-error", "1"), 2)  # exists
+    assert_one_line_error(run("mesh", store, "-o", tmp_path / "y.ply", "--look-from", "1,2,3"), 2)
+    assert run("mesh", store, "-o", tmp_path / "z.ply", "--look-from", "1,2").exit_code == 2
