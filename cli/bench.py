@@ -48,7 +48,8 @@ def _names(ctx, param, value):
 @click.option("--peers", is_flag=True,
               help="Also compare static rtin with pymartini and pydelatin at matched error.")
 @click.option("--peer-errors", default=None, callback=_floats,
-              help="Vertical errors (m) for --peers; default: 0.5,1,2,4,8 × the height step.")
+              help="Vertical errors (m) for --peers; default: 0.5,1,2,4,8 × max(codec step, "
+                   "0.1 % of the height range).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), help="Tidy CSV of every frame.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Figure (PNG).")
 @click.option("--cache-dir", type=click.Path(file_okay=False),
@@ -141,9 +142,9 @@ def command(ctx, source, synthetic, seed, strategies, taus, n_views, cameras, si
             if peers:
                 errs = peer_errors
                 if errs is None:
-                    step = float(t.quantizer.step) if getattr(t.quantizer, "step", 0) else 0.0
-                    base = max(step, 0.01 * max(1e-9, float(
-                        t.meta["height_range"][1] - t.meta["height_range"][0])) / 10)
+                    step = float(getattr(t.quantizer, "step", 0.0) or 0.0)
+                    lo_h, hi_h = t.meta["height_range"]
+                    base = max(step, 1e-3 * float(hi_h - lo_h), 1e-6)
                     errs = tuple(base * k for k in (0.5, 1, 2, 4, 8))
                 if any(not (math.isfinite(e) and e >= 0) for e in errs):
                     raise UsageError("--peer-errors must be finite and ≥ 0")

@@ -374,6 +374,8 @@ class TerrainScene:
 
     def terrain_fraction(self) -> float:
         """Fraction of the last image's pixels covered by terrain (from the depth buffer)."""
+        if self.mesh.n_cells == 0:
+            return 0.0
         depth = self.plotter.get_image_depth(fill_value=np.nan)
         return float(np.isfinite(depth).mean())
 

@@ -158,6 +158,7 @@ class Terrain:
                ) -> dict[str, np.ndarray]:
         """Per-vertex arrays at full-resolution samples (i, j), read from the coarsest tiles.
 
+        ``kinds``: any of delta, radius, height (source units), x, y (scene).
         Only the tiles holding the requested vertices are decoded. Vertices in
         tiles that are not stored (no valid data) get δ = r = 0 and height NaN.
         """
@@ -197,6 +198,8 @@ class Terrain:
                 stacks["radius"][n] = self.tile_radius(*tk)
             if "height" in kinds:
                 stacks["height"][n] = self.tile(*tk).heights
+            if "x" in kinds:
+                stacks["x"][n], stacks["y"][n] = self.tile_xy(*tk)
         for k in kinds:
             out[k] = stacks[k][inv, a, b]
         return out

@@ -235,3 +235,29 @@ def test_view_from_camera_round_trip(tmp_path_factory):
         assert np.allclose(w.look_from, v.look_from) and np.isclose(w.lam, v.lam)
     finally:
         p.close()
+
+
+def test_view_without_terrain_and_errors(tmp_path_factory, tmp_path):
+    from geoterrain.exceptions import UsageError
+
+    t = synth_store(tmp_path_factory, "fbm")
+    sky = View((0, 0, 5000), (0, 1e5, 5e4), size=(64, 48))
+    img, st = render_array(t, sky)
+    assert st["triangles"] == 0 and st["terrain_fraction"] == 0.0 and img.shape == (48, 64, 3)
+    with pytest.raises(UsageError):
+        render(t, sky, tmp_path / "x.png", shading="phong")
+    with pytest.raises(UsageError):
+        render(t, sky, tmp_path / "x.png", strategy="nope")
+
+
+def test_view_cache_location(tmp_path, monkeypatch):
+    _cli()
+    from geoterrain.cli.view import cached_store, is_store
+
+    dem = tmp_path / "a.tif"
+    dem.write_bytes(b"")
+    assert cached_store(dem) == tmp_path / "a.geoterrain"
+    monkeypatch.setattr("os.access", lambda *a: False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    assert cached_store(dem).parent == tmp_path / "cache" / "geoterrain"
+    assert not is_store(dem)

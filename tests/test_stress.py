@@ -19,11 +19,11 @@ import math
 
 import numpy as np
 import pytest
-from conftest import write_tif
+from conftest import real_dem, write_tif
 
 import geoterrain
 from geoterrain.bench import flight
-from geoterrain.exceptions import GeoterrainError, InputError
+from geoterrain.exceptions import InputError
 from geoterrain.measure import (
     mesh_height_range_on_grid,
     mesh_heights_on_grid,
@@ -474,6 +474,20 @@ def test_render_empty_selection(tmp_path):
     away = View((0, -500, zmax + 10), (0, -1000, zmax + 10), size=(160, 120))
     assert t.select(away, 1.0, "rtin").mesh.n_points == 0
     _render(t, away)
+
+
+# ---------------------------------------------------------------- real DEMs
+@pytest.mark.parametrize("name", ["srtm3_pysheds.tif", "roi_epsg3089.tif", "terrarium.png"])
+def test_real_dems(tmp_path, name):
+    store = geoterrain.preprocess(real_dem(name), tmp_path / "r.geoterrain")
+    full_check(geoterrain.open(store), n_views=2, Es=(0.0, 1.0))
+
+
+@pytest.mark.parametrize("name", ["srtm1_japan.tif", "fuji_terrain_rgb.png"])
+@pytest.mark.slow
+def test_real_dems_large(tmp_path, name):
+    store = geoterrain.preprocess(real_dem(name), tmp_path / "r.geoterrain")
+    full_check(geoterrain.open(store), n_views=4, Es=(0.0, 1.0, 10.0))
 
 
 # ---------------------------------------------------------------- heavy cases

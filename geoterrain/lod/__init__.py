@@ -81,8 +81,8 @@ class Selector:
             self._vid = np.full(N * N, -1, np.int32)
         faces, flat = extract(active_set.active, active_set.mixed, self._vid)
         ij = np.stack([flat // N, flat % N], 1)
-        h = t.gather(ij[:, 0], ij[:, 1], ("height",))["height"]
-        X, Y = t.frame.xy(ij[:, 0], ij[:, 1])
+        g = t.gather(ij[:, 0], ij[:, 1], ("height", "x", "y"))
+        h, X, Y = g["height"], g["x"], g["y"]
         xyz = np.stack([X, Y, t.frame.z(h)], 1)
         # per-vertex bits: bit 6 = invalid, bits 0-5 = outside frustum plane k
         bits = np.where(np.isfinite(h), 0, 64).astype(np.uint8)

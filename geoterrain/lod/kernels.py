@@ -128,3 +128,37 @@ def close_upward(active):
                 if active[i, j]:
                     _set_parents(active, i, j, h, True)
         h *= 2
+
+
+@njit(cache=True)
+def lp_active(delta, radius, height, x, y, zfac, zfloor, eye, planes, lam, tau):
+    """LP eq. 2 with sphere culling for stacks of tile samples (all (K, T, T)).
+
+    Active iff the sphere (p, r) is not outside any frustum plane, δ > 0, and
+    λδ > τ(d − r) or the eye is inside the sphere (d ≤ r); d = ‖p − eye‖ and
+    p = (x, y, height · zfac), invalid heights (NaN) placed at ``zfloor``.
+    """
+    out = np.zeros(delta.shape, np.bool_)
+    K, A, B = delta.shape
+    for k in range(K):
+        for a in range(A):
+            for b in range(B):
+                dl = delta[k, a, b]
+                if not dl > 0.0:
+                    continue
+                r = radius[k, a, b]
+                px, py = x[k, a, b], y[k, a, b]
+                h = height[k, a, b]
+                pz = h * zfac if h == h else zfloor
+                vis = True
+                for q in range(planes.shape[0]):
+                    if planes[q, 0] * px + planes[q, 1] * py + planes[q, 2] * pz \
+                            + planes[q, 3] + r < 0.0:
+                        vis = False
+                        break
+                if not vis:
+                    continue
+                dx, dy, dz = px - eye[0], py - eye[1], pz - eye[2]
+                d = np.sqrt(dx * dx + dy * dy + dz * dz)
+                out[k, a, b] = d <= r or lam * dl > tau * (d - r)
+    return out

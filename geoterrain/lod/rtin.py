@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoterrain.lod.kernels import close_upward
+from geoterrain.lod.kernels import close_upward, lp_active
 from geoterrain.view import View
 
 
@@ -61,18 +61,34 @@ class ActiveSet:
         self.active = np.zeros((N, N), bool)
         self.mixed = np.zeros((N, N), bool)
 
-    def fill(self, rows: np.ndarray, predicate, index) -> int:
-        """Evaluate ``predicate(stack)`` on the candidate tiles ``rows``; return tiles read."""
+    def fill(self, rows: np.ndarray, predicate, index, kinds=("delta",)) -> int:
+        """Evaluate ``predicate(stacks)`` on all candidate tiles ``rows`` at once.
+
+        ``stacks`` maps each of ``kinds`` (delta, radius, height, x, y) to a
+        (K, T, T) array of the tiles' samples. Returns the number of tiles read.
+        """
         t, g = self.terrain, self.terrain.grid
         T = g.tile_samples
-        for row in rows.tolist():
-            L, x, y = (int(v) for v in index.keys[row])
+        if not len(rows):
+            return 0
+        keys = [tuple(int(v) for v in index.keys[r]) for r in rows.tolist()]
+        stacks = {k: np.empty((len(keys), T, T)) for k in kinds}
+        for n, key in enumerate(keys):
+            stacks["delta"][n] = t.tile_delta(*key)
+            if "radius" in kinds:
+                stacks["radius"][n] = t.tile_radius(*key)
+            if "height" in kinds:
+                stacks["height"][n] = t.tile(*key).heights
+            if "x" in kinds:
+                stacks["x"][n], stacks["y"][n] = t.tile_xy(*key)
+        act = predicate(stacks)
+        mixed = np.isinf(stacks["delta"])
+        for n, (L, x, y) in enumerate(keys):
             s = 1 << L
             i0, j0 = (y << g.t) << L, (x << g.t) << L
             sl = (slice(i0, i0 + (T - 1) * s + 1, s), slice(j0, j0 + (T - 1) * s + 1, s))
-            delta = t.tile_delta(L, x, y)
-            self.mixed[sl] |= np.isinf(delta)
-            self.active[sl] |= predicate(L, x, y, delta)
+            self.mixed[sl] |= mixed[n]
+            self.active[sl] |= act[n]
         return len(rows)
 
     def mark_unknown_mixed(self, rows: np.ndarray, index) -> None:
@@ -90,7 +106,7 @@ def static_active(terrain, index, max_error: float) -> ActiveSet:
     """Every vertex with δ > e (the RTIN/Martini semantics, with a true bound)."""
     act = ActiveSet(terrain)
     rows = np.flatnonzero(index.delta_max > max_error)
-    act.fill(rows, lambda L, x, y, d: d > max_error, index)
+    act.fill(rows, lambda st: st["delta"] > max_error, index)
     close_upward(act.active)
     return act
 
@@ -110,18 +126,13 @@ def view_active(terrain, index, view: View, tau: float) -> ActiveSet:
     rows = np.flatnonzero(can & visible)
     act = ActiveSet(terrain)
 
-    def predicate(L, x, y, delta):
-        X, Y = terrain.tile_xy(L, x, y)
-        Z = terrain.frame.z(terrain.tile(L, x, y).heights)
-        Z = np.where(np.isfinite(Z), Z, terrain.z_floor)  # invalid: any point; r still nests
-        r = terrain.tile_radius(L, x, y)
-        p = np.stack([X, Y, Z], -1).reshape(-1, 3)
-        d = np.linalg.norm(p - eye, axis=1).reshape(delta.shape)
-        vis = view.spheres_visible(p, r.ravel()).reshape(delta.shape)
-        with np.errstate(invalid="ignore", over="ignore"):
-            return vis & (delta > 0) & ((d <= r) | (lam * delta > tau * (d - r)))
+    zfac = terrain.frame.z_to_m * terrain.frame.z_scale
 
-    act.fill(rows, predicate, index)
+    def predicate(st):
+        return lp_active(st["delta"], st["radius"], st["height"], st["x"], st["y"], zfac,
+                         terrain.z_floor, eye, view.planes, lam, tau)
+
+    act.fill(rows, predicate, index, ("delta", "radius", "height", "x", "y"))
     close_upward(act.active)
     unread = np.flatnonzero(~(can & visible) & ~np.isfinite(index.delta_max))
     act.mark_unknown_mixed(unread, index)
