@@ -25,10 +25,12 @@ from geoterrain.raster import ENCODINGS
               help="Unit of the heights: metres, international feet or US survey feet.")
 @click.option("--max-error", type=float,
               help="Height codec bound ε (height units). Default: lossless.")
+@click.option("--zstd-level", default=9, show_default=True, type=click.IntRange(1, 22),
+              help="zstd level of the height residuals (19: ~2 % smaller, ~3× slower).")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units,
-            max_error, overwrite):
+            max_error, zstd_level, overwrite):
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
     DEM is any raster GDAL reads (GeoTIFF/COG, SRTM .hgt, Esri ASCII, ...) or a
@@ -54,7 +56,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
         out = geoterrain.preprocess(
             dem, output, tile_size=tile_size, band=band, encoding=encoding,
             pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, max_error=max_error,
-            overwrite=overwrite, progress=bar)
+            overwrite=overwrite, zstd_level=zstd_level, progress=bar)
     finally:
         bar.close()
     if not quiet:

@@ -8,8 +8,11 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
+import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -21,10 +24,10 @@ from geoterrain.errors import tile_errors, vertex_errors, vertex_radii
 from geoterrain.exceptions import InputError, UsageError
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
-from geoterrain.normals import encode_octahedral, level_normals, normal_map
+from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.raster import Raster, read_raster
 from geoterrain.store import StoreWriter, default_store_path
-from geoterrain.vertexdata import encode_bounds
+from geoterrain.vertexdata import pack_bounds, scale_bounds
 
 log = logging.getLogger("geoterrain")
 Progress = Callable[[str, int, int], None]
@@ -74,7 +77,7 @@ def preprocess(
     z_units: str = "m",
     max_error: float | None = None,
     overwrite: bool = False,
-    zstd_level: int = 19,
+    zstd_level: int = 9,
     progress: Progress | None = None,
 ) -> Path:
     """Preprocess a DEM into a store and return the store's path.
@@ -95,6 +98,9 @@ def preprocess(
         Vertical exaggeration, and the unit of the heights (``m``, ``ft``, ``us-ft``).
     max_error
         Height codec bound ε in height units; default lossless.
+    zstd_level
+        zstd level of the height residuals (9: within 1-2 % of level 19's size at a
+        third of its time; see docs/benchmarks.md).
     overwrite
         Replace an existing store.
 
@@ -158,11 +164,14 @@ def preprocess(
     bounds = tile_errors(Z, valid, X, Y, grid.t)
     stage("tile bounds")
     nrm = normal_map(X, Y, Z, valid)
+    # per-level maps filtered from full resolution (seed 000 normal-map lighting)
+    nrm_levels = [encode_octahedral(n, NORMAL_BITS)
+                  for n in normal_pyramid(nrm, valid, grid.top_level + 1)]
+    del nrm
     stage("normals")
 
     height_blobs = encode_pyramid(heights, valid, grid.t, q, level=zstd_level)
-    cctx = zstandard.ZstdCompressor(level=3)
-    extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}}
+    jobs = []  # (kind, key, payload-maker); zstd releases the GIL, so threads overlap
     tile_rows: dict = {}
     for L in grid.levels:
         keys = [k for k in height_blobs if k[0] == L]
@@ -170,19 +179,35 @@ def preprocess(
             continue
         tiles_d = _tiles_of_level(delta, grid, L)
         tiles_r = _tiles_of_level(radius, grid, L)
-        tiles_n = _tiles_of_level(encode_octahedral(level_normals(nrm, L), NORMAL_BITS), grid, 0)
+        tiles_n = _tiles_of_level(nrm_levels[L], grid, 0)
         # max δ and r over the vertices new at this level (the others belong to coarser tiles)
         new = np.ones((grid.tile_samples,) * 2, bool)
         if L < grid.top_level:
             new[::2, ::2] = False
         dmax, rmax = tiles_d[..., new].max(axis=-1), tiles_r[..., new].max(axis=-1)
+        d16, dk = scale_bounds(tiles_d)
+        r16, rk = scale_bounds(tiles_r)
         for key in keys:
             _, x, y = key
             # per-tile max δ and r let a view skip a tile without decoding it
             tile_rows[key] = (*bounds[key], float(dmax[y, x]), float(rmax[y, x]))
-            extra["delta"][key] = encode_bounds(tiles_d[y, x], cctx)
-            extra["radius"][key] = encode_bounds(tiles_r[y, x], cctx)
-            extra["normals"][key] = cctx.compress(np.ascontiguousarray(tiles_n[y, x]).tobytes())
+            jobs.append(("delta", key, d16[y, x], int(dk[y, x])))
+            jobs.append(("radius", key, r16[y, x], int(rk[y, x])))
+            jobs.append(("normals", key, tiles_n[y, x], None))
+    local = threading.local()
+
+    def pack(job):
+        kind, key, arr, k = job
+        if not hasattr(local, "cctx"):
+            local.cctx = zstandard.ZstdCompressor(level=3)
+        if kind == "normals":
+            return kind, key, local.cctx.compress(np.ascontiguousarray(arr).tobytes())
+        return kind, key, pack_bounds(arr, k, local.cctx)
+
+    extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}}
+    with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:
+        for kind, key, blob in pool.map(pack, jobs, chunksize=64):
+            extra[kind][key] = blob
     stage("compress")
 
     with StoreWriter(dst, overwrite=overwrite) as w:

@@ -336,15 +336,15 @@ class TerrainScene:
         if self.actor is None:
             kw: dict = {"name": "terrain", "show_scalar_bar": False, "reset_camera": False}
             if self.texture is not None:
-                self.actor = self.plotter.add_mesh(mesh, lighting=False, **kw)
+                self.actor = self.plotter.add_mesh(mesh, color="white", lighting=False, **kw)
                 self.actor.SetTexture(self.texture)
             else:
                 self.actor = self.plotter.add_mesh(mesh, color=PLAIN_COLOR, lighting=True,
                                                    smooth_shading=False, **kw)
-            self.mesh = mesh
+            self.actor.mapper.ScalarVisibilityOff()  # colours come from the texture
         else:
             self.actor.mapper.SetInputData(mesh)
-            self.mesh = mesh
+        self.mesh = mesh
 
     def set_camera(self, view: View) -> None:
         """Point the plotter's camera like ``view`` (and fit the clipping range)."""

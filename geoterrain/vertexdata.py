@@ -27,17 +27,33 @@ def encode_bounds(a: np.ndarray, cctx: zstandard.ZstdCompressor) -> bytes:
     >>> bool((b >= a).all()), bool(np.isinf(b[1, 1])), float(b[1, 0]) <= 123.456 * (1 + 2**-10)
     (True, True, True)
     """
-    a = np.asarray(a, np.float64)
-    fin = a[np.isfinite(a)]
-    peak = float(fin.max()) if fin.size else 0.0
-    k = int(np.ceil(np.log2(peak / _F16_MAX))) if peak > 0 else 0
-    k = max(-100, min(100, k))
-    v = a / 2.0**k  # exact: a power-of-two scale
+    h, k = scale_bounds(np.asarray(a)[None])
+    return pack_bounds(h[0], int(k[0]), cctx)
+
+
+def scale_bounds(tiles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorised first half of :func:`encode_bounds` for a stack of tiles (..., T, T).
+
+    Returns the rounded-up float16 values and the per-tile scale exponents; a
+    blob is then ``bytes([VERSION, k & 0xFF]) + zstd(byte-shuffled float16)``,
+    see :func:`pack_bounds`.
+    """
+    a = np.asarray(tiles, np.float64)
+    fin = np.where(np.isfinite(a), a, 0.0).max(axis=(-2, -1))
+    with np.errstate(divide="ignore"):
+        k = np.where(fin > 0, np.ceil(np.log2(fin / _F16_MAX)), 0.0)
+    k = np.clip(k, -100, 100).astype(np.int64)
+    v = a * np.exp2(-k.astype(np.float64))[..., None, None]  # exact: powers of two
     h = v.astype(np.float16)
     low = h.astype(np.float64) < v  # rounding went down: step up one ulp
     h[low] = np.nextafter(h[low], np.float16(np.inf))
-    planes = h.view(np.uint8).reshape(-1, 2).T.copy()  # byte-shuffle
-    return bytes([VERSION, k & 0xFF]) + cctx.compress(planes.tobytes())
+    return h, k
+
+
+def pack_bounds(h: np.ndarray, k: int, cctx: zstandard.ZstdCompressor) -> bytes:
+    """Second half of :func:`encode_bounds`: one tile's float16 values and exponent → blob."""
+    planes = np.ascontiguousarray(h).view(np.uint8).reshape(-1, 2).T.copy()
+    return bytes([VERSION, int(k) & 0xFF]) + cctx.compress(planes.tobytes())
 
 
 def decode_bounds(blob: bytes, shape: tuple[int, ...]) -> np.ndarray:
