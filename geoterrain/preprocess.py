@@ -27,7 +27,7 @@ from geoterrain.grid import Grid
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.raster import Raster, read_raster
 from geoterrain.store import StoreWriter, default_store_path
-from geoterrain.vertexdata import pack_bounds, scale_bounds
+from geoterrain.vertexdata import pack_bounds, scale_bounds, scale_exponent
 
 log = logging.getLogger("geoterrain")
 Progress = Callable[[str, int, int], None]
@@ -172,6 +172,7 @@ def preprocess(
 
     height_blobs = encode_pyramid(heights, valid, grid.t, q, level=zstd_level)
     jobs = []  # (kind, key, payload-maker); zstd releases the GIL, so threads overlap
+    kd, kr = scale_exponent(delta), scale_exponent(radius)  # one scale: monotone rounding
     tile_rows: dict = {}
     for L in grid.levels:
         keys = [k for k in height_blobs if k[0] == L]
@@ -185,8 +186,8 @@ def preprocess(
         if L < grid.top_level:
             new[::2, ::2] = False
         dmax, rmax = tiles_d[..., new].max(axis=-1), tiles_r[..., new].max(axis=-1)
-        d16, dk = scale_bounds(tiles_d)
-        r16, rk = scale_bounds(tiles_r)
+        d16, dk = scale_bounds(tiles_d, kd)
+        r16, rk = scale_bounds(tiles_r, kr)
         for key in keys:
             _, x, y = key
             # per-tile max δ and r let a view skip a tile without decoding it

@@ -4,7 +4,9 @@ Each value is stored as float16 times a per-tile power-of-two scale, rounded
 *up*, so a stored δ or r is never smaller than the computed one: every bound
 stays a bound (and δ = +inf, the mixed-diamond marker, stays +inf). float16
 keeps 11 significant bits, so a stored bound exceeds the exact one by at most
-2^-10 relative. Blob: version byte, int8 scale exponent, then the byte-shuffled
+2^-10 relative. The preprocess uses one scale per store and kind, so rounding
+is a single monotone map and saturation survives it; sphere nesting holds to
+2^-10 relative (the LOD's upward-closure pass keeps meshes conforming anyway). Blob: version byte, int8 scale exponent, then the byte-shuffled
 float16 array compressed with zstd.
 """
 
@@ -31,18 +33,30 @@ def encode_bounds(a: np.ndarray, cctx: zstandard.ZstdCompressor) -> bytes:
     return pack_bounds(h[0], int(k[0]), cctx)
 
 
-def scale_bounds(tiles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def scale_exponent(a: np.ndarray) -> int:
+    """The power-of-two scale exponent that fits the largest finite value of ``a``."""
+    fin = np.asarray(a)[np.isfinite(a)]
+    peak = float(fin.max()) if fin.size else 0.0
+    return int(np.clip(np.ceil(np.log2(peak / _F16_MAX)), -100, 100)) if peak > 0 else 0
+
+
+def scale_bounds(tiles: np.ndarray, k: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Vectorised first half of :func:`encode_bounds` for a stack of tiles (..., T, T).
 
-    Returns the rounded-up float16 values and the per-tile scale exponents; a
-    blob is then ``bytes([VERSION, k & 0xFF]) + zstd(byte-shuffled float16)``,
-    see :func:`pack_bounds`.
+    Returns the rounded-up float16 values and the scale exponents (one per tile).
+    With one exponent ``k`` for a whole store, rounding is one monotone function,
+    so orderings such as saturation (δ(parent) ≥ δ(child)) survive it exactly.
+    A blob is ``bytes([VERSION, k & 0xFF]) + zstd(byte-shuffled float16)``, see
+    :func:`pack_bounds`.
     """
     a = np.asarray(tiles, np.float64)
-    fin = np.where(np.isfinite(a), a, 0.0).max(axis=(-2, -1))
-    with np.errstate(divide="ignore"):
-        k = np.where(fin > 0, np.ceil(np.log2(fin / _F16_MAX)), 0.0)
-    k = np.clip(k, -100, 100).astype(np.int64)
+    if k is None:
+        fin = np.where(np.isfinite(a), a, 0.0).max(axis=(-2, -1))
+        with np.errstate(divide="ignore"):
+            kk = np.where(fin > 0, np.ceil(np.log2(fin / _F16_MAX)), 0.0)
+        k = np.clip(kk, -100, 100).astype(np.int64)
+    else:
+        k = np.full(a.shape[:-2], k, np.int64)
     v = a * np.exp2(-k.astype(np.float64))[..., None, None]  # exact: powers of two
     h = v.astype(np.float16)
     low = h.astype(np.float64) < v  # rounding went down: step up one ulp

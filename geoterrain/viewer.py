@@ -22,11 +22,11 @@ import time
 
 import numpy as np
 
-from geoterrain.lod import STRATEGIES
 from geoterrain.render import TerrainScene, default_view
 from geoterrain.view import View
 
 COLOR_MODES = ("shading", "level", "tile")
+STRATEGIES = ("rtin", "chunked", "bruteforce")  # geoterrain.lod.STRATEGIES, without importing VTK
 HELP = "m strategy  +/- tau  x wireframe  c colour  space freeze  h home  q quit"
 
 

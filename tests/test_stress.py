@@ -288,6 +288,24 @@ def test_nodata_patterns(tmp_path, name):
             assert np.isfinite(Z[ij[:, 0], ij[:, 1]]).all()
 
 
+def test_spike_among_nodata_seen_from_its_top(tmp_path):
+    """Regression: a visible valid spike whose surrounding diamonds are mixed (nodata
+    nearby) and whose neighbours' spheres are all outside the view was left undrawn by
+    rtin (every triangle around it was skipped as an unrefined mixed diamond)."""
+    z = np.zeros((17, 33), np.float32)
+    z[8, 16] = 3000.0
+    for ij in [(8, 14), (6, 17), (7, 18), (10, 13)]:
+        z[ij] = -9999.0
+    t = build(tmp_path, z, nodata=-9999.0, dtype="float32")
+    X, Y, Z = t.scene_xyz()
+    top = np.array([X[8, 16], Y[8, 16], 3000.0])
+    view = View(tuple(top + [0.5, 1.5, 0.003]), tuple(top + [-1.0, -2.8, 0.0]),
+                size=(320, 180))
+    check_view(t, view, taus=(1.0,))
+    sel = t.select(view, 1.0, "rtin")
+    assert [8, 16] in sel.ij.astype(int).tolist()
+
+
 def test_all_nodata_is_a_clear_input_error(tmp_path):
     z = np.full((9, 9), -9999.0, np.float32)
     with pytest.raises(InputError, match="nodata"):

@@ -129,8 +129,13 @@ def view_active(terrain, index, view: View, tau: float) -> ActiveSet:
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale
 
     def predicate(st):
-        return lp_active(st["delta"], st["radius"], st["height"], st["x"], st["y"], zfac,
-                         terrain.z_floor, eye, view.planes, lam, tau)
+        out = lp_active(st["delta"], st["radius"], st["height"], st["x"], st["y"], zfac,
+                        terrain.z_floor, eye, view.planes, lam, tau)
+        # A mixed diamond (δ = inf) is never drawn unrefined, so culling it by its own
+        # sphere (which bounds its descendants, not its corners) can drop every triangle
+        # around a visible corner: a hole in view. Refine it whenever its tile is read.
+        out |= np.isinf(st["delta"])
+        return out
 
     act.fill(rows, predicate, index, ("delta", "radius", "height", "x", "y"))
     close_upward(act.active)
