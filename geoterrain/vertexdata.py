@@ -6,8 +6,9 @@ stays a bound (and δ = +inf, the mixed-diamond marker, stays +inf). float16
 keeps 11 significant bits, so a stored bound exceeds the exact one by at most
 2^-10 relative. The preprocess uses one scale per store and kind, so rounding
 is a single monotone map and saturation survives it; sphere nesting holds to
-2^-10 relative (the LOD's upward-closure pass keeps meshes conforming anyway). Blob: version byte, int8 scale exponent, then the byte-shuffled
-float16 array compressed with zstd.
+2^-10 relative (the LOD's upward-closure pass keeps meshes conforming anyway).
+Blob: version byte, int8 scale exponent, then the byte-shuffled float16 array
+compressed with zstd.
 """
 
 from __future__ import annotations
