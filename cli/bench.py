@@ -117,7 +117,7 @@ def command(ctx, source, synthetic, seed, strategies, taus, n_views, cameras, si
             t0 = time.perf_counter()
             geoterrain.preprocess(source, store, overwrite=True)
             preprocess_s = round(time.perf_counter() - t0, 3)
-            store_bytes = os.path.getsize(store)
+        store_bytes = os.path.getsize(store)
         with geoterrain.open(store) as t:
             views = bench.load_path(cameras, size) if cameras else None
             n_frames = (len(views) if views else n_views) * len(strategies) * len(taus)
@@ -157,8 +157,8 @@ def command(ctx, source, synthetic, seed, strategies, taus, n_views, cameras, si
         wall = time.perf_counter() - t_wall
         click.echo(f"# {label}: {len(res.views)} views × {len(strategies)} strategies × "
                    f"{len(taus)} τ = {len(res.rows)} frames, {wall:.1f} s wall"
-                   + (f"; preprocess {preprocess_s:.2f} s, store {store_bytes / 2**20:.2f} MiB"
-                      if preprocess_s is not None else ""))
+                   + (f"; preprocess {preprocess_s:.2f} s" if preprocess_s is not None else "")
+                   + f"; store {store_bytes / 2**20:.2f} MiB")
         click.echo(bench.format_table(summ))
         if peer_rows:
             click.echo("\n# static meshes at matched vertical error (m)")

@@ -224,7 +224,11 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
     Returns
     -------
     BenchResult
-        ``rows`` with the columns of :data:`COLUMNS`.
+        ``rows`` with the columns of :data:`COLUMNS`. ``select_ms`` and
+        ``tiles_decoded`` come from the first (timed) selection of the frame, which
+        decodes what earlier frames and strategies have not; ``peak_mem_mb`` is the peak
+        allocated by a second, identical selection under ``tracemalloc`` (which slows
+        Python code, so it never runs during the timed one); ``err_*`` are in pixels.
 
     Examples
     --------

@@ -480,12 +480,9 @@ def test_render_hostile(tmp_path, name):
     _render(t, View((0, -2000, zmax + 2000), (0, 0, 0), size=(160, 120)))
 
 
-@pytest.mark.xfail(strict=True, raises=ValueError, reason=(
-    "render.py bug: TerrainScene.update passes an empty PolyData to plotter.add_mesh on the "
-    "first frame when the LOD mesh is empty (terrain behind the camera or culled), and "
-    "PyVista raises 'Empty meshes cannot be plotted'; an empty frame should render the "
-    "background"))
 def test_render_empty_selection(tmp_path):
+    """Regression: an empty LOD mesh (terrain behind the camera) used to make the first
+    frame raise PyVista's 'Empty meshes cannot be plotted'; it renders the background."""
     t = build(tmp_path, fbm(33))
     X, Y, Z = t.scene_xyz()
     zmax = float(np.nanmax(Z))
