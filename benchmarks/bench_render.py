@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 import geoterrain
-from geoterrain.render import TerrainScene, _plotter, default_view
+from geoterrain.rendering import TerrainScene, _plotter, default_view
 from geoterrain.synth import generate, write_geotiff
 from geoterrain.view import View
 

@@ -65,7 +65,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     metres), or {"crs": true, "cameras": [...]} for source-CRS coordinates.
     """
     import geoterrain
-    from geoterrain import render as R
+    import geoterrain.rendering as R
     from geoterrain.exceptions import UsageError
     from geoterrain.view import View
 

@@ -11,7 +11,7 @@ __version__ = "0.1.0"
 
 from geoterrain.exceptions import GeoterrainError  # noqa: E402
 from geoterrain.preprocess import preprocess  # noqa: E402
-from geoterrain.render import render  # noqa: E402
+from geoterrain.rendering import render  # noqa: E402
 from geoterrain.terrain import Terrain, open  # noqa: E402,A004
 from geoterrain.viewer import show  # noqa: E402
 

@@ -180,7 +180,7 @@ def _mesh_key(ij: np.ndarray, faces: np.ndarray, z: np.ndarray) -> str:
 def _renderer(size: tuple[int, int], terrain):
     """A render scene, or None when ``geoterrain.render`` is not available."""
     try:
-        from geoterrain import render as r
+        import geoterrain.rendering as r
     except ImportError:
         return None
     make = getattr(r, "_plotter", None)

@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from geoterrain.render import TerrainScene, default_view
+from geoterrain.rendering import TerrainScene, default_view
 from geoterrain.view import View
 
 COLOR_MODES = ("shading", "level", "tile")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import geoterrain
-from geoterrain.render import (
+from geoterrain.rendering import (
     TerrainScene,
     _plotter,
     default_view,

@@ -23,7 +23,7 @@ Shading (``shading=``):
 Examples
 --------
 >>> import geoterrain
->>> from geoterrain.render import render, default_view
+>>> from geoterrain.rendering import render, default_view
 >>> t = geoterrain.open("dem.geoterrain")  # doctest: +SKIP
 >>> stats = render(t, default_view(t), "view.png", title="My DEM")  # doctest: +SKIP
 """
