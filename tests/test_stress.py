@@ -465,7 +465,7 @@ def test_degenerate_camera_is_a_clear_error():
 
 # ---------------------------------------------------------------- render (cheap cases)
 def _render(t, view):
-    render = pytest.importorskip("geoterrain.render")
+    render = pytest.importorskip("geoterrain.rendering")
     img, stats = render.render_array(t, view, pixel_error=1.0)
     assert img.shape == (view.size[1], view.size[0], 3)
     check_finite_stats(stats)
