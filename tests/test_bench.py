@@ -89,3 +89,11 @@ def test_peers_match_rtin_static(tmp_path, fbm_tif):
         if ("pydelatin", E) in by:  # delatin's bound is a true maximum error too
             assert by[("pydelatin", E)]["err_max_m"] <= E + 1e-3 * E + 1e-4
         assert by[("pymartini", E)]["uncovered"] == 0
+
+
+def test_run_with_render_times_frames(tmp_path, fbm_tif):
+    pytest.importorskip("geoterrain.rendering")
+    t = geoterrain.open(geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain"))
+    res = bench.run(t, n_views=2, taus=(2.0,), strategies=("rtin",), render=True)
+    assert len(res.rows) == 2
+    assert all(math.isfinite(r["render_ms"]) and r["render_ms"] > 0 for r in res.rows)

@@ -1,0 +1,35 @@
+import numpy as np
+import pytest
+
+from geoterrain.view import INSIDE, OUTSIDE, View
+
+
+def test_lambda_and_from_camera():
+    import pyvista as pv
+
+    cam = pv.Camera()
+    cam.position, cam.focal_point, cam.up = (0, -100, 50), (0, 0, 0), (0, 0, 1)
+    cam.view_angle = 40.0
+    v = View.from_camera(cam, (800, 600))
+    assert v.fov_y_deg == 40.0 and v.size == (800, 600)
+    assert v.lam == pytest.approx(300 / np.tan(np.radians(20)))
+    np.testing.assert_allclose(v.eye, [0, -100, 50])
+
+
+def test_frustum_planes_classify_points_and_boxes():
+    v = View((0, 0, 0), (0, 1, 0), fov_y_deg=90, size=(100, 100), near=0.1, far=10)
+    assert v.points_inside(np.array([[0, 5, 0], [0, -5, 0], [0, 20, 0], [6, 5, 0]])).tolist() == [
+        True, False, False, False]
+    lo = np.array([[-1, 4, -1], [-1, -9, -1], [-100, 1, -100]])
+    hi = np.array([[1, 6, 1], [1, -8, 1], [100, 9, 100]])
+    vis = v.box_visibility(lo, hi)
+    assert vis[0] == INSIDE and vis[1] == OUTSIDE and vis[2] != OUTSIDE
+    assert v.spheres_visible(np.array([[0, 5, 0], [0, -5, 0]]), np.array([1.0, 4.0])).tolist() \
+        == [True, False]
+    assert v.box_distance(lo[:1], hi[:1])[0] == pytest.approx(4.0)  # nearest point (0, 4, 0)
+
+
+def test_straight_down_view_has_a_basis():
+    v = View((0, 0, 100), (0, 0, 0))
+    r, u, f = v.basis()
+    assert np.isfinite(v.planes).all() and abs(r @ f) < 1e-12 and abs(u @ f) < 1e-12
