@@ -56,6 +56,9 @@ def run_flight(t, views, taus, strategies, every):
     rows = []
     for tau in taus:
         for s in strategies:
+            if s == "bruteforce" and tau != taus[0]:  # τ-independent: measured once
+                rows.append({**next(r for r in rows if r["strategy"] == s), "tau": tau})
+                continue
             ms, tris, dec, rho_max, rho_p99, obl = [], [], [], [], [], []
             for k, (v, low) in enumerate(views):
                 sel = t.select(v, tau, s)
@@ -63,7 +66,7 @@ def run_flight(t, views, taus, strategies, every):
                 tris.append(sel.stats["triangles"])
                 dec.append(sel.stats["tiles_decoded"])
                 obl.append(low)
-                if every and k % every == 0:
+                if every and k % every == 0 and s != "bruteforce":  # full resolution: 0
                     e = screen_space_error(sel.ij, sel.surface_faces(),
                                            np.asarray(sel.mesh.points)[:, 2] if sel.mesh.n_points
                                            else np.zeros(0), X, Y, Z, valid, v.eye, v.planes,
@@ -73,8 +76,8 @@ def run_flight(t, views, taus, strategies, every):
             rows.append(dict(tau=tau, strategy=s, ms_med=statistics.median(ms), ms_p95=pct(ms, 95),
                              tris_med=statistics.median(tris), tris=np.array(tris),
                              oblique=np.array(obl), dec_med=statistics.median(dec),
-                             rho_max=max(rho_max, default=float("nan")),
-                             rho_p99=max(rho_p99, default=float("nan"))))
+                             rho_max=max(rho_max, default=0.0),
+                             rho_p99=max(rho_p99, default=0.0)))
     return rows
 
 

@@ -37,6 +37,7 @@ from geoterrain.measure import screen_space_error, vertical_error
 from geoterrain.view import View
 
 STRATEGIES = ("rtin", "chunked", "bruteforce")
+BRUTE_MEASURE_LIMIT = 4_000_000  # bruteforce meshes larger than this are not rasterised
 TAUS = (0.5, 1.0, 2.0, 4.0, 8.0)
 VIEW_KINDS = ("overview", "oblique", "grazing", "away")
 SIZE = (1280, 720)
@@ -260,7 +261,12 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
     try:
         for fi, (kind, view) in enumerate(views):
             for strategy in strategies:
-                for tau in taus:
+                for ti, tau in enumerate(taus):
+                    if strategy == "bruteforce" and ti > 0:  # τ-independent: select once
+                        res.rows.append({**res.rows[-1], "tau": float(tau)})
+                        if progress:
+                            progress(1)
+                        continue
                     terrain.selector._last = None  # time a real selection, never a reuse
                     sel = terrain.select(view, pixel_error=float(tau), strategy=strategy)
                     peak = _selection_peak(terrain, view, float(tau), strategy)
@@ -273,7 +279,11 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
                     ij = sel.ij
                     vz = pts[:, 2] if len(pts) else np.zeros(0)
                     key = _mesh_key(ij, faces, vz)
-                    if key not in cache:  # bruteforce draws the same mesh at every τ
+                    if strategy == "bruteforce" and len(faces) > BRUTE_MEASURE_LIMIT:
+                        # every full-resolution triangle: error 0 by construction
+                        # (tests/test_lod.py measures it); rasterising it costs GBs
+                        cache = {key: (0.0, 0.0, 0.0, -1, -1)}
+                    elif key not in cache:  # bruteforce draws the same mesh at every τ
                         e = screen_space_error(ij, faces, vz, X, Y, Zt, valid, view.eye,
                                                view.planes, view.lam)
                         cache = {key: (e.max, e.p99, e.mean, e.n_samples, e.n_uncovered)}
