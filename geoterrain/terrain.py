@@ -181,28 +181,39 @@ class Terrain:
         used = np.flatnonzero(occ)
         remap = np.cumsum(occ) - 1
         inv = remap[slot]
-        T = g.tile_samples
-        stacks = {k: np.zeros((len(used), T, T)) for k in kinds}
-        if "height" in kinds:
-            stacks["height"][:] = np.nan
-        for n, u in enumerate(used.tolist()):
+        keys = []
+        for u in used.tolist():
             lv = int(np.searchsorted(base, u, side="right") - 1)
             r = u - int(base[lv])
             side = 1 << (g.top_level - lv)
-            tk = (lv, r % side, r // side)
-            if tk not in self.tile_info:
-                continue
-            if "delta" in kinds:
-                stacks["delta"][n] = self.tile_delta(*tk)
-            if "radius" in kinds:
-                stacks["radius"][n] = self.tile_radius(*tk)
-            if "height" in kinds:
-                stacks["height"][n] = self.tile(*tk).heights
-            if "x" in kinds:
-                stacks["x"][n], stacks["y"][n] = self.tile_xy(*tk)
+            keys.append((lv, r % side, r // side))
+        stacks = self.tile_stacks(keys, kinds)
         for k in kinds:
             out[k] = stacks[k][inv, a, b]
         return out
+
+    def tile_stacks(self, keys: list[TileKey], kinds=("delta",)) -> dict[str, np.ndarray]:
+        """(K, T, T) float64 stacks of per-sample arrays for tiles ``keys``.
+
+        ``kinds``: delta, radius, height (source units, NaN = no data), x, y
+        (scene). Tiles that are not stored give δ = r = 0 and height NaN.
+        """
+        T = self.grid.tile_samples
+        stacks = {k: np.zeros((len(keys), T, T)) for k in kinds}
+        if "height" in kinds:
+            stacks["height"][:] = np.nan
+        for n, key in enumerate(keys):
+            if key not in self.tile_info:
+                continue
+            if "delta" in kinds:
+                stacks["delta"][n] = self.tile_delta(*key)
+            if "radius" in kinds:
+                stacks["radius"][n] = self.tile_radius(*key)
+            if "height" in kinds:
+                stacks["height"][n] = self.tile(*key).heights
+            if "x" in kinds:
+                stacks["x"][n], stacks["y"][n] = self.tile_xy(*key)
+        return stacks
 
     # ------------------------------------------------------------ whole grids
     def level_heights(self, level: int = 0) -> tuple[np.ndarray, np.ndarray]:

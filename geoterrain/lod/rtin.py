@@ -72,15 +72,7 @@ class ActiveSet:
         if not len(rows):
             return 0
         keys = [tuple(int(v) for v in index.keys[r]) for r in rows.tolist()]
-        stacks = {k: np.empty((len(keys), T, T)) for k in kinds}
-        for n, key in enumerate(keys):
-            stacks["delta"][n] = t.tile_delta(*key)
-            if "radius" in kinds:
-                stacks["radius"][n] = t.tile_radius(*key)
-            if "height" in kinds:
-                stacks["height"][n] = t.tile(*key).heights
-            if "x" in kinds:
-                stacks["x"][n], stacks["y"][n] = t.tile_xy(*key)
+        stacks = t.tile_stacks(keys, kinds)
         act = predicate(stacks)
         mixed = np.isinf(stacks["delta"])
         for n, (L, x, y) in enumerate(keys):
