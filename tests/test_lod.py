@@ -282,3 +282,28 @@ def test_corner_view_decodes_few_tiles_independent_of_store_size(tmp_path_factor
     # two more levels in the large store add at most a few ancestor tiles
     assert counts[1] <= counts[0] + 4 * 2
     assert counts[1] < 0.1 * (1024 // 32) ** 2
+
+
+@given(n=st.integers(1, 6), seed=st.integers(0, 10_000), frac=st.floats(0.01, 0.5))
+def test_upward_closure_is_closed_and_box_limited_scan_agrees(n, seed, frac):
+    from geoterrain.bintree import vertex_depth, vertex_parents
+    from geoterrain.lod.kernels import close_upward, close_upward_boxes
+
+    N = 2**n + 1
+    rng = np.random.default_rng(seed)
+    i0, j0 = (int(v) for v in rng.integers(0, N, 2))
+    i1, j1 = min(N - 1, i0 + int(rng.integers(0, N))), min(N - 1, j0 + int(rng.integers(0, N)))
+    a = np.zeros((N, N), bool)
+    a[i0:i1 + 1, j0:j1 + 1] = rng.random((i1 - i0 + 1, j1 - j0 + 1)) < frac
+    full, boxed = a.copy(), a.copy()
+    close_upward(full)
+    # all activity entered at the finest level inside one box; coarser levels empty
+    boxes = np.tile(np.array([N, -1, N, -1], np.int64), (n + 1, 1))
+    boxes[0] = (i0, i1, j0, j1)
+    close_upward_boxes(boxed, boxes)
+    assert (full == boxed).all() and (full >= a).all()
+    i, j = np.nonzero(full)
+    keep = vertex_depth(i, j, n) >= 0
+    par = vertex_parents(i[keep], j[keep], n).reshape(-1, 2)
+    par = par[par[:, 0] >= 0]
+    assert full[par[:, 0], par[:, 1]].all()  # every active vertex has both parents active

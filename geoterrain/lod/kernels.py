@@ -101,11 +101,46 @@ def _set_parents(active, i, j, h, centre):
 
 
 @njit(cache=True)
-def close_upward(active):
+def close_upward_boxes(active, boxes):
     """Activate both parents of every active vertex, finest depth first, in place.
 
     Depth order: for h = 1, 2, 4, ...: the edge midpoints of half-size h, then the
-    block centres of half-size h (the edges' parents), then the next h.
+    block centres of half-size h (the edges' parents), then the next h. Only a
+    box is scanned at each h: the union of ``boxes[L]`` (rows i0, i1, columns
+    j0, j1 of the tiles filled at pyramid level L = log2 h, capped at the last
+    row of ``boxes``) and the previous box grown by h (parents lie h away).
+    """
+    N = active.shape[0]
+    top = boxes.shape[0] - 1
+    i0, i1, j0, j1 = N, -1, N, -1
+    h, L = 1, 0
+    while h < N - 1:
+        b = boxes[min(L, top)]
+        i0, i1, j0, j1 = min(i0, b[0]), max(i1, b[1]), min(j0, b[2]), max(j1, b[3])
+        if i1 >= 0:
+            ia, ja = (i0 // h) * h, (j0 // h) * h
+            for i in range(ia, i1 + 1, h):  # edge midpoints: i/h + j/h odd
+                jb = ja if ((i // h) + (ja // h)) % 2 == 1 else ja + h
+                for j in range(jb, j1 + 1, 2 * h):
+                    if active[i, j]:
+                        _set_parents(active, i, j, h, False)
+            i0, j0 = max(0, i0 - h), max(0, j0 - h)  # their parents lie h away
+            i1, j1 = min(N - 1, i1 + h), min(N - 1, j1 + h)
+            ia, ja = (i0 // h) * h, (j0 // h) * h
+            ib = ia if (ia // h) % 2 == 1 else ia + h  # block centres: i/h, j/h odd
+            jb = ja if (ja // h) % 2 == 1 else ja + h
+            for i in range(ib, i1 + 1, 2 * h):
+                for j in range(jb, j1 + 1, 2 * h):
+                    if active[i, j]:
+                        _set_parents(active, i, j, h, True)
+            i0, j0 = max(0, i0 - h), max(0, j0 - h)
+            i1, j1 = min(N - 1, i1 + h), min(N - 1, j1 + h)
+        h *= 2
+        L += 1
+
+
+def close_upward(active: np.ndarray) -> None:
+    """:func:`close_upward_boxes` over the whole grid.
 
     Examples
     --------
@@ -114,20 +149,7 @@ def close_upward(active):
     [(0, 2), (0, 4), (1, 0), (1, 1), (2, 0), (2, 2), (4, 0)]
     """
     N = active.shape[0]
-    h = 1
-    while h < N - 1:
-        # edge midpoints: (odd multiple of h, even multiple) and (even, odd)
-        for i in range(0, N, h):
-            oi = (i // h) % 2 == 1
-            start = 0 if oi else h
-            for j in range(start, N, 2 * h):
-                if active[i, j]:
-                    _set_parents(active, i, j, h, False)
-        for i in range(h, N, 2 * h):
-            for j in range(h, N, 2 * h):
-                if active[i, j]:
-                    _set_parents(active, i, j, h, True)
-        h *= 2
+    close_upward_boxes(active, np.array([[0, N - 1, 0, N - 1]], np.int64))
 
 
 @njit(cache=True)

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoterrain.lod.kernels import close_upward, lp_active
+from geoterrain.lod.kernels import close_upward_boxes, lp_active
 from geoterrain.view import View
 
 
@@ -60,6 +60,8 @@ class ActiveSet:
         self.terrain = terrain
         self.active = np.zeros((N, N), bool)
         self.mixed = np.zeros((N, N), bool)
+        # per level: rows i0, i1 and columns j0, j1 covering the tiles filled
+        self.boxes = np.tile(np.array([N, -1, N, -1], np.int64), (terrain.grid.top_level + 1, 1))
 
     def fill(self, rows: np.ndarray, predicate, index, kinds=("delta",)) -> int:
         """Evaluate ``predicate(stacks)`` on all candidate tiles ``rows`` at once.
@@ -81,7 +83,13 @@ class ActiveSet:
             sl = (slice(i0, i0 + (T - 1) * s + 1, s), slice(j0, j0 + (T - 1) * s + 1, s))
             self.mixed[sl] |= mixed[n]
             self.active[sl] |= act[n]
+            b = self.boxes[L]
+            b[:] = min(b[0], i0), max(b[1], sl[0].stop - 1), min(b[2], j0), max(b[3], sl[1].stop - 1)
         return len(rows)
+
+    def close(self) -> None:
+        """Close the active set upward, scanning only where tiles were filled."""
+        close_upward_boxes(self.active, self.boxes)
 
     def mark_unknown_mixed(self, rows: np.ndarray, index) -> None:
         """Tiles not read that may hold δ = inf: flag their samples as mixed (not drawn)."""
@@ -99,7 +107,7 @@ def static_active(terrain, index, max_error: float) -> ActiveSet:
     act = ActiveSet(terrain)
     rows = np.flatnonzero(index.delta_max > max_error)
     act.fill(rows, lambda st: st["delta"] > max_error, index)
-    close_upward(act.active)
+    act.close()
     return act
 
 
@@ -130,7 +138,7 @@ def view_active(terrain, index, view: View, tau: float) -> ActiveSet:
         return out
 
     act.fill(rows, predicate, index, ("delta", "radius", "height", "x", "y"))
-    close_upward(act.active)
+    act.close()
     unread = np.flatnonzero(~(can & visible) & ~np.isfinite(index.delta_max))
     act.mark_unknown_mixed(unread, index)
     del g
