@@ -84,7 +84,8 @@ class ActiveSet:
             self.mixed[sl] |= mixed[n]
             self.active[sl] |= act[n]
             b = self.boxes[L]
-            b[:] = min(b[0], i0), max(b[1], sl[0].stop - 1), min(b[2], j0), max(b[3], sl[1].stop - 1)
+            i1, j1 = sl[0].stop - 1, sl[1].stop - 1
+            b[:] = min(b[0], i0), max(b[1], i1), min(b[2], j0), max(b[3], j1)
         return len(rows)
 
     def close(self) -> None:
