@@ -64,17 +64,9 @@ def cli(ctx, verbose, quiet):
 
 
 def _register() -> None:
-    from geoterrain.cli import info, preprocess, synth
+    from geoterrain.cli import bench, info, mesh, preprocess, render, synth, view
 
-    for mod in (preprocess, info, synth):
-        cli.add_command(mod.command)
-    for name in ("mesh", "render", "view", "bench"):
-        try:
-            mod = __import__(f"geoterrain.cli.{name}", fromlist=["command"])
-        except ModuleNotFoundError as exc:
-            if exc.name != f"geoterrain.cli.{name}":
-                raise
-            continue
+    for mod in (preprocess, info, mesh, render, view, bench, synth):
         cli.add_command(mod.command)
 
 
