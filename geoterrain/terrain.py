@@ -65,7 +65,7 @@ class Terrain:
         self._dctx = zstandard.ZstdDecompressor()
         self.decoded_tiles = 0  # tiles whose heights were decoded (a view counts these)
         self._selector = None
-        self.z_floor = 0.0
+        self.z_proxy = 0.0  # stand-in height of invalid samples (set by the LOD selector)
 
     # ------------------------------------------------------------------ cache
     def _cached(self, key: tuple, make):

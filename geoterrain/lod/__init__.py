@@ -64,8 +64,11 @@ class Selector:
         self._faces_template = union_jack_faces(terrain.grid.t)
         self._last: tuple | None = None
         self._vid: np.ndarray | None = None
-        z = [v["zmin"] for v in terrain.tile_info.values() if v["zmin"] is not None]
-        terrain.z_floor = float(min(z)) if z else 0.0
+        # invalid samples' stand-in height in the nested spheres: the middle of the valid
+        # range, as errors.vertex_radii uses, so a sphere centred there still nests
+        lo = [v["zmin"] for v in terrain.tile_info.values() if v["zmin"] is not None]
+        hi = [v["zmax"] for v in terrain.tile_info.values() if v["zmax"] is not None]
+        terrain.z_proxy = 0.5 * (min(lo) + max(hi)) if lo else 0.0
 
     @property
     def index(self) -> TileIndex:

@@ -153,12 +153,12 @@ def close_upward(active: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def lp_active(delta, radius, height, x, y, zfac, zfloor, eye, planes, lam, tau):
+def lp_active(delta, radius, height, x, y, zfac, zproxy, eye, planes, lam, tau):
     """LP eq. 2 with sphere culling for stacks of tile samples (all (K, T, T)).
 
     Active iff the sphere (p, r) is not outside any frustum plane, δ > 0, and
     λδ > τ(d − r) or the eye is inside the sphere (d ≤ r); d = ‖p − eye‖ and
-    p = (x, y, height · zfac), invalid heights (NaN) placed at ``zfloor``.
+    p = (x, y, height · zfac), invalid heights (NaN) placed at ``zproxy``.
     """
     out = np.zeros(delta.shape, np.bool_)
     K, A, B = delta.shape
@@ -171,7 +171,7 @@ def lp_active(delta, radius, height, x, y, zfac, zfloor, eye, planes, lam, tau):
                 r = radius[k, a, b]
                 px, py = x[k, a, b], y[k, a, b]
                 h = height[k, a, b]
-                pz = h * zfac if h == h else zfloor
+                pz = h * zfac if h == h else zproxy
                 vis = True
                 for q in range(planes.shape[0]):
                     if planes[q, 0] * px + planes[q, 1] * py + planes[q, 2] * pz \

@@ -17,14 +17,6 @@ def orient_ccw(ij: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return out
 
 
-def dedupe(tri_ij: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
-    """(F, 3, 2) triangle corners → unique vertices (V, 2) and faces (F, 3)."""
-    flat = tri_ij[..., 0].astype(np.int64) * size + tri_ij[..., 1]
-    uniq, inv = np.unique(flat.ravel(), return_inverse=True)
-    ij = np.stack([uniq // size, uniq % size], axis=1)
-    return ij, inv.reshape(-1, 3)
-
-
 def polydata(xyz: np.ndarray, faces: np.ndarray, ij: np.ndarray | None = None,
              cell_arrays: dict[str, np.ndarray] | None = None) -> pv.PolyData:
     """A triangle PolyData with float64 points, ``grid_ij`` point data and cell arrays."""

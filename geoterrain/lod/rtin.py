@@ -131,7 +131,7 @@ def view_active(terrain, index, view: View, tau: float) -> ActiveSet:
 
     def predicate(st):
         out = lp_active(st["delta"], st["radius"], st["height"], st["x"], st["y"], zfac,
-                        terrain.z_floor, eye, view.planes, lam, tau)
+                        terrain.z_proxy, eye, view.planes, lam, tau)
         # A mixed diamond (δ = inf) is never drawn unrefined, so culling it by its own
         # sphere (which bounds its descendants, not its corners) can drop every triangle
         # around a visible corner: a hole in view. Refine it whenever its tile is read.
