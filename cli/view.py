@@ -66,7 +66,7 @@ def command(ctx, source, strategy, pixel_error, shading, cmap, size, rebuild):
       geoterrain view srtm.tif --strategy chunked --pixel-error 2
     """
     import geoterrain
-    from geoterrain.exceptions import UsageError
+    from geoterrain.exceptions import GeoterrainError, UsageError
     from geoterrain.viewer import show
 
     if pixel_error <= 0:
@@ -88,5 +88,19 @@ def command(ctx, source, strategy, pixel_error, shading, cmap, size, rebuild):
                 bar.close()
         else:
             click.echo(f"using the cached store {store}", err=True)
+    if not has_display():
+        raise GeoterrainError(
+            "no display to open a window on (DISPLAY is not set); use `geoterrain render` "
+            "for pictures, or run under a desktop session or Xvfb")
     with geoterrain.open(store) as t:
         show(t, strategy, pixel_error, shading=shading, cmap=cmap, size=size)
+
+
+def has_display() -> bool:
+    """True where a window can open: any non-Linux desktop, or X11/Wayland on Linux."""
+    import os
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))

@@ -153,3 +153,13 @@ def test_mesh_command(tmp_path, fbm_tif):
     assert_one_line_error(run("mesh", store, "-o", ply, "--max-error", "1"), 2)  # exists
     assert_one_line_error(run("mesh", store, "-o", tmp_path / "y.ply", "--look-from", "1,2,3"), 2)
     assert run("mesh", store, "-o", tmp_path / "z.ply", "--look-from", "1,2").exit_code == 2
+
+
+def test_view_without_display_is_one_line(tmp_path, fbm_tif, monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    store = tmp_path / "s.geoterrain"
+    assert run("-q", "preprocess", fbm_tif, "-o", store).exit_code == 0
+    res = run("view", store)
+    assert_one_line_error(res, 1)
+    assert "geoterrain render" in res.stderr
