@@ -99,3 +99,31 @@ def test_8193_synthetic(tmp_path):
     src = write_geotiff(tmp_path / "big.tif", generate("fbm", 8193, seed=1))
     t, r = _roundtrip(src, tmp_path)
     assert t.grid.size == 8193
+
+
+@pytest.mark.parametrize("driver,ext", [("AAIGrid", "asc"), ("SRTMHGT", "hgt")])
+def test_other_gdal_formats(tmp_path, driver, ext):
+    """Esri ASCII grids and SRTM .hgt tiles read through GDAL like any GeoTIFF."""
+    from rasterio.transform import from_origin
+
+    if driver == "SRTMHGT":
+        n, name = 1201, "N35E139.hgt"  # SRTM3: 1201² samples, 3″, named by its corner
+        z = (np.arange(n * n) % 700).reshape(n, n).astype(np.int16)
+        t = from_origin(139 - 1.5 / 3600, 36 + 1.5 / 3600, 3 / 3600, 3 / 3600)
+        crs = "EPSG:4326"
+    else:
+        name = "d.asc"
+        z = np.arange(35, dtype=np.float32).reshape(5, 7)
+        z[2, 3] = -9999
+        t, crs = from_origin(500000, 5000000, 30, 30), "EPSG:32633"
+    src = tmp_path / name
+    tif = write_tif(tmp_path / "tmp.tif", z, nodata=-9999 if driver == "AAIGrid" else -32768)
+    with rasterio.open(tif) as s:
+        prof = s.profile
+    prof.update(driver=driver, transform=t, crs=crs)
+    for k in ("blockxsize", "blockysize", "tiled", "compress", "interleave"):
+        prof.pop(k, None)
+    with rasterio.open(src, "w", **prof) as d:
+        d.write(z, 1)
+    t_, r = _roundtrip(src, tmp_path)
+    assert t_.info()["grid"] == list(z.shape)
