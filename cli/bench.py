@@ -119,7 +119,7 @@ def command(ctx, source, synthetic, seed, strategies, taus, n_views, cameras, si
             preprocess_s = round(time.perf_counter() - t0, 3)
         store_bytes = os.path.getsize(store)
         with geoterrain.open(store) as t:
-            views = bench.load_path(cameras, size) if cameras else None
+            views = bench.load_path(cameras, size, frame=t.frame) if cameras else None
             n_frames = (len(views) if views else n_views) * len(strategies) * len(taus)
             bar = None
             if not quiet:

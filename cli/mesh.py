@@ -19,7 +19,7 @@ FORMATS = (".ply", ".vtp", ".stl", ".obj", ".vtk")
 @click.option("--look-from", callback=parse_triple, help="View-dependent mesh: eye X,Y,Z.")
 @click.option("--look-at", callback=parse_triple, help="View-dependent mesh: target X,Y,Z.")
 @click.option("--crs-coords", is_flag=True,
-              help="--look-from/--look-at X,Y are in the store's CRS, not scene metres.")
+              help="--look-from/--look-at are source-CRS x,y and height z in metres.")
 @click.option("--fov", default=30.0, show_default=True, type=click.FloatRange(0, 180, min_open=True,
               max_open=True), help="Vertical field of view, degrees.")
 @click.option("--size", default="1280x720", show_default=True, callback=parse_size,
@@ -66,7 +66,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     with geoterrain.open(store) as t:
         if view_mode:
             if crs_coords:
-                look_from, look_at = (_crs_point(t, p) for p in (look_from, look_at))
+                look_from, look_at = (t.frame.crs_point_to_scene(p) for p in (look_from, look_at))
             if look_from == look_at:
                 raise UsageError("--look-from and --look-at must differ")
             sel = t.select(View(look_from, look_at, fov_y_deg=fov, size=size), pixel_error,
@@ -86,7 +86,3 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     if not ctx.obj["quiet"]:
         click.echo(json.dumps({k: v for k, v in sel.stats.items()}, indent=None))
 
-
-def _crs_point(t, p):
-    X, Y = t.frame.crs_to_scene(p[0], p[1])
-    return (float(X), float(Y), float(t.frame.z(p[2])))

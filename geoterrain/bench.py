@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import csv
 import hashlib
-import json
 import math
 import time
 import tracemalloc
@@ -32,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from geoterrain.exceptions import InputError, UsageError
+from geoterrain.exceptions import UsageError
 from geoterrain.measure import screen_space_error, vertical_error
-from geoterrain.view import View
+from geoterrain.view import View, load_views
 
 STRATEGIES = ("rtin", "chunked", "bruteforce")
 BRUTE_MEASURE_LIMIT = 4_000_000  # bruteforce meshes larger than this are not rasterised
@@ -131,10 +130,8 @@ def flight(lo: Sequence[float], hi: Sequence[float], n_views: int = 8,
 
 
 def load_path(path: str | Path, size: tuple[int, int] = SIZE,
-              fov_y_deg: float = FOV) -> list[tuple[str, View]]:
-    """Views from a cameras JSON file: a list of ``{look_from, look_at, up?, fov?}``.
-
-    Coordinates are scene metres (see :meth:`geoterrain.Terrain.scene_xyz`).
+              fov_y_deg: float = FOV, frame=None) -> list[tuple[str, View]]:
+    """Views from a cameras JSON file (:func:`geoterrain.view.load_views`), labelled "path".
 
     Examples
     --------
@@ -144,30 +141,7 @@ def load_path(path: str | Path, size: tuple[int, int] = SIZE,
     >>> [(k, v.look_from) for k, v in load_path(p)]
     [('path', (0.0, -10.0, 5.0))]
     """
-    try:
-        doc = json.loads(Path(path).read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read the cameras JSON ({exc})") from None
-    if isinstance(doc, dict):
-        doc = doc.get("cameras")
-    if not isinstance(doc, list) or not doc:
-        raise InputError(f"{path}: expected a non-empty list of cameras")
-    out = []
-    for k, cam in enumerate(doc):
-        try:
-            a = np.asarray(cam["look_from"], np.float64)
-            b = np.asarray(cam["look_at"], np.float64)
-            if a.shape != (3,) or b.shape != (3,) or not (np.isfinite(a).all()
-                                                          and np.isfinite(b).all()):
-                raise ValueError
-            v = View(tuple(a), tuple(b), tuple(cam.get("up", (0.0, 0.0, 1.0))),
-                     float(cam.get("fov", fov_y_deg)), tuple(size))
-            v.basis()  # rejects look_from == look_at
-        except (KeyError, TypeError, ValueError):
-            raise InputError(f"{path}: camera {k} needs look_from and look_at as distinct, "
-                             "finite [x, y, z] (and fov in (0, 180))") from None
-        out.append(("path", v))
-    return out
+    return [("path", v) for v in load_views(path, size, fov_y_deg, frame)]
 
 
 # ----------------------------------------------------------------- measuring

@@ -150,6 +150,17 @@ class Frame:
             return np.asarray(X), np.asarray(Y)
         return (x - self.origin_crs[0]) * self.unit_to_m, (y - self.origin_crs[1]) * self.unit_to_m
 
+    def crs_point_to_scene(self, p) -> tuple[float, float, float]:
+        """A camera point given as source-CRS x, y and a height z in metres → scene frame.
+
+        Examples
+        --------
+        >>> Frame.pixel(3, 3, 2.0, z_scale=2.0).crs_point_to_scene((3.0, -3.0, 10.0))
+        (0.0, 0.0, 20.0)
+        """
+        X, Y = self.crs_to_scene(np.array([p[0]]), np.array([p[1]]))
+        return float(X[0]), float(Y[0]), float(p[2]) * self.z_scale
+
     def scene_to_crs(self, X: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Source-CRS coordinates of scene points."""
         X, Y = np.asarray(X, np.float64), np.asarray(Y, np.float64)

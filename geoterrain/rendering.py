@@ -40,8 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from geoterrain.exceptions import InputError, UsageError
-from geoterrain.view import View
+from geoterrain.exceptions import UsageError
+from geoterrain.view import View, load_views
 
 SHADINGS = ("normals", "elevation", "plain")
 BACKGROUND = (0.86, 0.90, 0.95)  # a pale sky
@@ -153,50 +153,20 @@ def orbit_views(terrain, n_frames: int, size: tuple[int, int] = (1280, 720),
 
 def load_cameras(terrain, path: str | Path, size: tuple[int, int] = (1280, 720),
                  fov_y_deg: float = 30.0) -> list[View]:
-    """Views from a cameras JSON file.
+    """Views from a cameras JSON file, CRS cameras placed in ``terrain``'s frame.
 
-    The file holds a list of cameras, or ``{"crs": true|false, "fov": deg,
-    "cameras": [...]}``. Each camera is ``{"look_from": [x, y, z], "look_at": [x, y, z]}``
-    (optional ``"up"``, ``"fov"``). Coordinates are scene metres, or source-CRS
-    x, y with height z in metres when ``"crs"`` is true.
+    See :func:`geoterrain.view.load_views` for the format.
 
     Examples
     --------
     >>> views = load_cameras(t, "cameras.json")  # doctest: +SKIP
     """
-    try:
-        doc = json.loads(Path(path).read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: cannot read the cameras JSON ({exc})") from None
-    crs = False
-    if isinstance(doc, dict):
-        crs = bool(doc.get("crs", False))
-        fov_y_deg = float(doc.get("fov", fov_y_deg))
-        doc = doc.get("cameras")
-    if not isinstance(doc, list) or not doc:
-        raise InputError(f"{path}: expected a non-empty list of cameras")
-    views = []
-    for k, cam in enumerate(doc):
-        try:
-            a = np.asarray(cam["look_from"], np.float64)
-            b = np.asarray(cam["look_at"], np.float64)
-            if a.shape != (3,) or b.shape != (3,):
-                raise ValueError
-            if crs:
-                a = to_scene(terrain, a)
-                b = to_scene(terrain, b)
-            views.append(View(tuple(a), tuple(b), tuple(cam.get("up", (0, 0, 1))),
-                              float(cam.get("fov", fov_y_deg)), tuple(size)))
-        except (KeyError, TypeError, ValueError):
-            raise InputError(f"{path}: camera {k} needs look_from and look_at as [x, y, z] "
-                             "with distinct points") from None
-    return views
+    return load_views(path, size, fov_y_deg, terrain.frame)
 
 
 def to_scene(terrain, p: Sequence[float]) -> np.ndarray:
     """Source-CRS (x, y, height in metres) → scene frame (z-scale applied)."""
-    X, Y = terrain.frame.crs_to_scene(np.array([p[0]]), np.array([p[1]]))
-    return np.array([float(X[0]), float(Y[0]), float(p[2]) * terrain.frame.z_scale])
+    return np.array(terrain.frame.crs_point_to_scene(p))
 
 
 def project(view: View, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
+
+from geoterrain.exceptions import InputError
 
 OUTSIDE, INTERSECTS, INSIDE = 0, 1, 2
 
@@ -159,3 +163,54 @@ class View:
         e = self.eye
         d = np.maximum(np.maximum(np.asarray(lo) - e, 0.0), e - np.asarray(hi))
         return np.linalg.norm(d, axis=-1)
+
+
+def load_views(path: str | Path, size: tuple[int, int] = (1280, 720), fov_y_deg: float = 30.0,
+               frame=None) -> list[View]:
+    """Views from a cameras JSON file.
+
+    The file holds a list of cameras, or ``{"crs": true|false, "fov": deg,
+    "cameras": [...]}``. Each camera is ``{"look_from": [x, y, z], "look_at":
+    [x, y, z]}`` with optional ``"up"`` and ``"fov"``. Coordinates are scene
+    metres, or source-CRS x, y with a height z in metres when ``"crs"`` is true
+    (which needs the store's ``frame``). A bad file is an ``InputError``.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> p = os.path.join(tempfile.mkdtemp(), "cams.json")
+    >>> _ = open(p, "w").write(json.dumps([{"look_from": [0, -10, 5], "look_at": [0, 0, 0]}]))
+    >>> [v.look_from for v in load_views(p)]
+    [(0.0, -10.0, 5.0)]
+    """
+    try:
+        doc = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: cannot read the cameras JSON ({exc})") from None
+    crs = False
+    if isinstance(doc, dict):
+        crs = bool(doc.get("crs", False))
+        fov_y_deg = float(doc.get("fov", fov_y_deg))
+        doc = doc.get("cameras")
+    if not isinstance(doc, list) or not doc:
+        raise InputError(f"{path}: expected a non-empty list of cameras")
+    if crs and frame is None:
+        raise InputError(f"{path}: CRS cameras need a store to place them; give scene metres")
+    views = []
+    for k, cam in enumerate(doc):
+        try:
+            a = np.asarray(cam["look_from"], np.float64)
+            b = np.asarray(cam["look_at"], np.float64)
+            if a.shape != (3,) or b.shape != (3,) or not (np.isfinite(a).all()
+                                                          and np.isfinite(b).all()):
+                raise ValueError
+            if crs:
+                a, b = frame.crs_point_to_scene(a), frame.crs_point_to_scene(b)
+            v = View(tuple(a), tuple(b), tuple(cam.get("up", (0.0, 0.0, 1.0))),
+                     float(cam.get("fov", fov_y_deg)), tuple(size))
+            v.basis()  # rejects look_from == look_at
+        except (KeyError, TypeError, ValueError):
+            raise InputError(f"{path}: camera {k} needs look_from and look_at as distinct, "
+                             "finite [x, y, z] (and fov in (0, 180))") from None
+        views.append(v)
+    return views

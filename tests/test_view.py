@@ -33,3 +33,25 @@ def test_straight_down_view_has_a_basis():
     v = View((0, 0, 100), (0, 0, 0))
     r, u, f = v.basis()
     assert np.isfinite(v.planes).all() and abs(r @ f) < 1e-12 and abs(u @ f) < 1e-12
+
+
+def test_cameras_json_in_scene_and_crs_coordinates(tmp_path):
+    import json
+
+    from geoterrain.exceptions import InputError
+    from geoterrain.frame import Frame
+    from geoterrain.view import load_views
+
+    p = tmp_path / "c.json"
+    p.write_text(json.dumps({"crs": True, "fov": 40,
+                             "cameras": [{"look_from": [3, -3, 10], "look_at": [5, -3, 0]}]}))
+    with pytest.raises(InputError, match="need a store"):
+        load_views(p)
+    (v,) = load_views(p, (640, 360), frame=Frame.pixel(3, 3, 2.0, z_scale=2.0))
+    assert v.look_from == (0.0, 0.0, 20.0) and v.look_at == (2.0, 0.0, 0.0)
+    assert v.fov_y_deg == 40 and v.size == (640, 360)
+    for bad in ([], [{"look_from": [0, 0, 0]}], [{"look_from": [1, 1, 1], "look_at": [1, 1, 1]}],
+                [{"look_from": [0, 0, float("inf")], "look_at": [1, 1, 1]}]):
+        p.write_text(json.dumps(bad))
+        with pytest.raises(InputError):
+            load_views(p)
