@@ -223,6 +223,20 @@ def _block_status_nb(vb):
     return bs
 
 
+@njit(cache=True, inline="always")
+def _cell_rows(z00, z01, z10, z11, fi, inv, main):
+    """Row fi of a union-jack cell's two planes: z = b1 + g1·dj left of the diagonal,
+    z = b2 + g2·dj right of it (dj in samples, inv = 1/side).
+
+    ``main``: the diagonal joins (0, 0)–(1, 1); otherwise (0, 1)–(1, 0).
+    """
+    if main:
+        return (z00 + (z10 - z00) * fi, (z11 - z10) * inv,
+                z00 + (z11 - z01) * fi, (z01 - z00) * inv)
+    return (z00 + (z10 - z00) * fi, (z01 - z00) * inv,
+            z11 + (z01 - z11) * (1.0 - fi) + (z10 - z11), -(z10 - z11) * inv)
+
+
 @njit(cache=True)
 def _up32(a):
     # float64 → float32 rounded up (the stored value still bounds the exact one)
@@ -285,16 +299,7 @@ def _block_sweep(z, i0, j0, s, main):
         row = z[i0 + di, j0:j0 + s + 1]
         fi = di * inv
         # centre surface: P1 left of the union-jack diagonal, P2 right of it
-        if main:
-            b1 = z00 + (z10 - z00) * fi
-            g1 = (z11 - z10) * inv
-            b2 = z00 + (z11 - z01) * fi
-            g2 = (z01 - z00) * inv
-        else:
-            b1 = z00 + (z10 - z00) * fi
-            g1 = (z01 - z00) * inv
-            b2 = z11 + (z01 - z11) * (1.0 - fi) + (z10 - z11)
-            g2 = -(z10 - z11) * inv
+        b1, g1, b2, g2 = _cell_rows(z00, z01, z10, z11, fi, inv, main)
         upper = di <= h
         lo = di if upper else s - di
         hi = s - di if upper else di
@@ -789,18 +794,8 @@ def _level_field_nb(z, vf, s, E):
                 for di in range(s + 1):
                     i = i0 + di
                     fi = di * inv
-                    if main:
-                        b1 = z00 + (z10 - z00) * fi
-                        g1 = (z11 - z10) * inv
-                        b2 = z00 + (z11 - z01) * fi
-                        g2 = (z01 - z00) * inv
-                        cut = di
-                    else:
-                        b1 = z00 + (z10 - z00) * fi
-                        g1 = (z01 - z00) * inv
-                        b2 = z11 + (z01 - z11) * (1.0 - fi) + (z10 - z11)
-                        g2 = -(z10 - z11) * inv
-                        cut = s - di + 1
+                    b1, g1, b2, g2 = _cell_rows(z00, z01, z10, z11, fi, inv, main)
+                    cut = di if main else s - di + 1
                     for dj in range(cut):
                         e = abs(z[i, j0 + dj] - (b1 + g1 * dj))
                         if e > E[i, j0 + dj]:
