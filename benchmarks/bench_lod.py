@@ -23,13 +23,14 @@ import time
 import numpy as np
 
 import geoterrain
+from geoterrain.lod import STRATEGIES
 from geoterrain.measure import screen_space_error, vertical_error
 from geoterrain.view import View
 
 
-def flight(t, n: int) -> list[tuple[View, bool]]:
+def flight(truth, n: int) -> list[tuple[View, bool]]:
     """n views circling the terrain: half low oblique (8–25°), half high (45–70°)."""
-    X, Y, Z = t._truth[:3]
+    X, Y, Z = truth[:3]
     ext = float(np.nanmax(np.abs(np.stack([X, Y]))))
     zc = float(np.nanmedian(Z))
     zmax = float(np.nanmax(Z))
@@ -51,8 +52,8 @@ def pct(a, q):
     return float(np.percentile(a, q)) if len(a) else float("nan")
 
 
-def run_flight(t, views, taus, strategies, every):
-    X, Y, Z, valid = t._truth
+def run_flight(t, truth, views, taus, strategies, every):
+    X, Y, Z, valid = truth
     rows = []
     for tau in taus:
         for s in strategies:
@@ -81,10 +82,10 @@ def run_flight(t, views, taus, strategies, every):
     return rows
 
 
-def static_vs_pymartini(t, errors=(1.0, 5.0, 20.0), runs=3):
+def static_vs_pymartini(t, truth, errors=(1.0, 5.0, 20.0), runs=3):
     from pymartini import Martini
 
-    X, Y, Z, valid = t._truth
+    X, Y, Z, valid = truth
     N = t.grid.size
     if t.grid.rows != N or t.grid.cols != N:
         print("(static comparison needs a 2^k+1 square DEM; skipped)")
@@ -123,7 +124,7 @@ def main() -> None:
     ap.add_argument("--views", type=int, default=100)
     ap.add_argument("--measure-every", type=int, default=10)
     ap.add_argument("--taus", default="0.5,1,2,4,8")
-    ap.add_argument("--strategies", default="rtin,chunked,bruteforce")
+    ap.add_argument("--strategies", default=",".join(STRATEGIES))
     ap.add_argument("--static", action="store_true")
     a = ap.parse_args()
     d = tempfile.mkdtemp()
@@ -136,13 +137,13 @@ def main() -> None:
         name = f"fbm {a.size}²"
     t = geoterrain.open(geoterrain.preprocess(src, os.path.join(d, "s.geoterrain")))
     X, Y, Z = t.scene_xyz()
-    t._truth = (X, Y, Z, np.isfinite(Z))
-    views = flight(t, a.views)
+    truth = (X, Y, Z, np.isfinite(Z))
+    views = flight(truth, a.views)
     taus = [float(v) for v in a.taus.split(",")]
     strategies = a.strategies.split(",")
     for s in strategies:  # warm-up: compile kernels, decode and cache tiles
         t.select(views[0][0], 1.0, s)
-    rows = run_flight(t, views, taus, strategies, a.measure_every)
+    rows = run_flight(t, truth, views, taus, strategies, a.measure_every)
     brute = {r["tau"]: r for r in rows if r["strategy"] == "bruteforce"}
     print(f"\n{name}: {a.views} views at 1280×720 (ρ measured on every "
           f"{a.measure_every}th view)\n")
@@ -159,7 +160,7 @@ def main() -> None:
               f"{r['tris_med']:.0f} | {ratio:.3f} | {r['dec_med']:.0f} | {r['rho_max']:.3f} | "
               f"{r['rho_p99']:.3f} |")
     if a.static:
-        static_vs_pymartini(t)
+        static_vs_pymartini(t, truth)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Preprocess throughput, stage by stage, against pymartini in the same run.
 
 Usage:
-    python benchmarks/bench_preprocess.py [--size 4097] [--runs 3] [--max-error EPS]
+    python benchmarks/bench_preprocess.py [--size 4097] [--runs 3] [--codec-error EPS]
 
 Each run is a fresh process (so peak memory is per run). Prints a markdown
 table of medians: per-stage seconds from the store's metadata, total wall
@@ -25,7 +25,7 @@ PRE = """
 import json, sys, time
 import geoterrain
 t0 = time.perf_counter()
-p = geoterrain.preprocess(sys.argv[1], sys.argv[2], overwrite=True, max_error={eps})
+p = geoterrain.preprocess(sys.argv[1], sys.argv[2], overwrite=True, codec_error={eps})
 wall = time.perf_counter() - t0
 t = geoterrain.open(p)
 print(json.dumps({{"wall": wall, "stages": t.meta["preprocess_seconds"],
@@ -57,7 +57,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=4097)
     ap.add_argument("--runs", type=int, default=3)
-    ap.add_argument("--max-error", type=float, default=None)
+    ap.add_argument("--codec-error", type=float, default=None)
     a = ap.parse_args()
     from geoterrain.synth import generate, write_geotiff
 
@@ -67,7 +67,7 @@ def main() -> None:
     dst = os.path.join(d, "fbm.geoterrain")
     ours, theirs, peaks = [], [], []
     for _ in range(a.runs):  # alternate to share the machine's drift
-        r, peak = child(PRE.format(eps=a.max_error), src, dst)
+        r, peak = child(PRE.format(eps=a.codec_error), src, dst)
         ours.append(r)
         peaks.append(peak)
         m, _ = child(MARTINI, src)
@@ -77,7 +77,7 @@ def main() -> None:
     med = {s: statistics.median(r["stages"][s] for r in ours) for s in stages}
     wall = statistics.median(r["wall"] for r in ours)
     mart = statistics.median(theirs)
-    print(f"\n{a.size}² fBm, max_error={a.max_error}, {a.runs} runs, medians\n")
+    print(f"\n{a.size}² fBm, codec_error={a.codec_error}, {a.runs} runs, medians\n")
     print("| stage | seconds |")
     print("|---|---|")
     for s in stages:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 
 import click
-from geoterrain.cli.options import parse_size
+from geoterrain.cli.options import parse_size, pixel_errors_option, strategies_option
 
 
 def _floats(ctx, param, value):
@@ -20,24 +20,13 @@ def _floats(ctx, param, value):
     return out
 
 
-def _names(ctx, param, value):
-    out = tuple(v.strip() for v in value.split(",") if v.strip())
-    bad = [v for v in out if v not in ("rtin", "chunked", "bruteforce")]
-    if bad or not out:
-        raise click.BadParameter(f"unknown strategy {', '.join(bad) or value!r}; "
-                                 "use rtin, chunked, bruteforce")
-    return out
-
-
 @click.command("bench")
 @click.argument("source", required=False, type=click.Path(dir_okay=False))
 @click.option("--synthetic", type=click.IntRange(3, 16385), metavar="N",
               help="Benchmark a synthetic N×N fbm DEM instead of SOURCE.")
 @click.option("--seed", default=1, show_default=True, help="Seed of the synthetic DEM.")
-@click.option("--strategies", default="rtin,chunked,bruteforce", show_default=True,
-              callback=_names, help="Comma-separated strategies.")
-@click.option("--tau", "taus", default="0.5,1,2,4,8", show_default=True, callback=_floats,
-              help="Comma-separated pixel tolerances τ.")
+@strategies_option
+@pixel_errors_option
 @click.option("--views", "n_views", default=8, show_default=True, type=click.IntRange(1, 1000),
               help="Length of the built-in flight.")
 @click.option("--path", "cameras", type=click.Path(dir_okay=False),
@@ -55,8 +44,8 @@ def _names(ctx, param, value):
 @click.option("--cache-dir", type=click.Path(file_okay=False),
               help="Where a DEM's store is written (default: a temporary directory).")
 @click.pass_context
-def command(ctx, source, synthetic, seed, strategies, taus, n_views, cameras, size, render,
-            peers, peer_errors, output, plot_path, cache_dir):
+def command(ctx, source, synthetic, seed, strategies, pixel_errors, n_views, cameras, size,
+            render, peers, peer_errors, output, plot_path, cache_dir):
     """Benchmark the LOD strategies on SOURCE (a store or a DEM) or a synthetic DEM.
 
     Runs every strategy at every τ over a camera path (a built-in flight of
@@ -69,23 +58,17 @@ def command(ctx, source, synthetic, seed, strategies, taus, n_views, cameras, si
     \b
     Examples:
       geoterrain bench --synthetic 1025 --plot b.png -o b.csv
-      geoterrain bench dem.geoterrain --tau 1,2 --strategies rtin,chunked
+      geoterrain bench dem.geoterrain --pixel-error 1,2 --strategies rtin,chunked
       geoterrain bench dem.tif --path cameras.json --render --peers -o dem.csv
     """
     import json
-    import math
-    import os
-    import tempfile
-    import time
     from pathlib import Path
 
-    import geoterrain
     from geoterrain import bench
+    from geoterrain.bench_report import format_table, plot, summarise, write_csv
     from geoterrain.exceptions import UsageError
 
     quiet = bool((ctx.obj or {}).get("quiet"))
-    if (source is None) == (synthetic is None):
-        raise UsageError("give SOURCE (a store or a DEM) or --synthetic N, not both or neither")
     if cameras is not None and n_views != 8:
         raise UsageError("--views applies to the built-in flight; not with --path")
     for p in (output, plot_path):
@@ -93,95 +76,42 @@ def command(ctx, source, synthetic, seed, strategies, taus, n_views, cameras, si
             raise UsageError(f"{p}: the directory does not exist")
     if plot_path is not None and Path(plot_path).suffix.lower() not in (".png", ".svg", ".pdf"):
         raise UsageError(f"{plot_path}: the plot must be .png, .svg or .pdf")
-    if synthetic is not None and synthetic < 3:
-        raise UsageError("--synthetic needs N ≥ 3")
-    t_wall = time.perf_counter()
-    tmp = tempfile.TemporaryDirectory(prefix="geoterrain-bench-")
-    work = Path(cache_dir) if cache_dir else Path(tmp.name)
-    work.mkdir(parents=True, exist_ok=True)
-    preprocess_s = store_bytes = None
-    try:
-        if synthetic is not None:
-            from geoterrain.synth import generate, write_geotiff
+    bar = None
 
-            source = str(write_geotiff(Path(tmp.name) / f"fbm_{synthetic}.tif",
-                                       generate("fbm", synthetic, seed=seed)))
-            label = f"synthetic fbm {synthetic}² (seed {seed})"
-        else:
-            label = Path(source).name
-            if not Path(source).is_file():
-                raise UsageError(f"{source}: no such file")
-        store = Path(source)
-        if not _is_store(store):
-            store = work / (Path(source).stem + ".geoterrain")
-            t0 = time.perf_counter()
-            geoterrain.preprocess(source, store, overwrite=True)
-            preprocess_s = round(time.perf_counter() - t0, 3)
-        store_bytes = os.path.getsize(store)
-        with geoterrain.open(store) as t:
-            views = bench.load_path(cameras, size, frame=t.frame) if cameras else None
-            n_frames = (len(views) if views else n_views) * len(strategies) * len(taus)
-            bar = None
-            if not quiet:
-                bar = click.progressbar(length=n_frames, label="bench", file=sys.stderr,
-                                        show_eta=True)
-                bar.__enter__()
-            try:
-                if views is None:
-                    X, Y, Z = t.scene_xyz()
-                    views = bench.flight(*bench._extent(X, Y, Z), n_views=n_views, size=size)
-                    del X, Y, Z
-                res = bench.run(t, views, strategies=strategies, taus=taus, render=render,
-                                source=label, preprocess_s=preprocess_s,
-                                store_bytes=store_bytes,
-                                progress=bar.update if bar is not None else None)
-            finally:
-                if bar is not None:
-                    bar.__exit__(None, None, None)
-            peer_rows, peer_notes = [], []
-            if peers:
-                errs = peer_errors
-                if errs is None:
-                    step = float(getattr(t.quantizer, "step", 0.0) or 0.0)
-                    lo_h, hi_h = t.meta["height_range"]
-                    base = max(step, 1e-3 * float(hi_h - lo_h), 1e-6)
-                    errs = tuple(base * k for k in (0.5, 1, 2, 4, 8))
-                if any(not (math.isfinite(e) and e >= 0) for e in errs):
-                    raise UsageError("--peer-errors must be finite and ≥ 0")
-                peer_rows, peer_notes = bench.peers(t, errs)
-        if output:
-            bench.write_csv(res.rows, output)
-        if plot_path:
-            bench.plot(res.rows, plot_path, title=f"geoterrain bench: {label}")
-        summ = bench.summarise(res.rows)
-        wall = time.perf_counter() - t_wall
-        click.echo(f"# {label}: {len(res.views)} views × {len(strategies)} strategies × "
-                   f"{len(taus)} τ = {len(res.rows)} frames, {wall:.1f} s wall"
-                   + (f"; preprocess {preprocess_s:.2f} s" if preprocess_s is not None else "")
-                   + f"; store {store_bytes / 2**20:.2f} MiB")
-        click.echo(bench.format_table(summ))
-        if peer_rows:
-            click.echo("\n# static meshes at matched vertical error (m)")
-            click.echo(bench.format_table(peer_rows))
-        for n in res.notes + peer_notes:
-            click.echo(f"note: {n}", err=True)
-        if output and not quiet:
-            click.echo(f"wrote {output}", err=True)
-        if plot_path and not quiet:
-            click.echo(f"wrote {plot_path}", err=True)
-        if (ctx.obj or {}).get("verbose"):
-            click.echo(json.dumps({"wall_s": round(wall, 2)}), err=True)
+    def progress(n: int, total: int) -> None:
+        nonlocal bar
+        if quiet:
+            return
+        if bar is None:
+            bar = click.progressbar(length=total, label="bench", file=sys.stderr, show_eta=True)
+            bar.__enter__()
+        bar.update(n)
+
+    try:
+        res = bench.benchmark(source, synthetic=synthetic, seed=seed, strategies=strategies,
+                              taus=pixel_errors, n_views=n_views, cameras=cameras, size=size,
+                              render=render, peer_errors=(peer_errors or True) if peers
+                              else False, work_dir=cache_dir, progress=progress)
     finally:
-        tmp.cleanup()
-
-
-def _is_store(path) -> bool:
-    """True when ``path`` is a geoterrain store (by suffix, or by its first bytes)."""
-    if str(path).endswith(".geoterrain"):
-        return True
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(16)
-    except OSError:
-        return False
-    return head.startswith(b"SQLite format 3")
+        if bar is not None:
+            bar.__exit__(None, None, None)
+    if output:
+        write_csv(res.rows, output)
+    if plot_path:
+        plot(res.rows, plot_path, title=f"geoterrain bench: {res.label}")
+    click.echo(f"# {res.label}: {len(res.views)} views × {len(strategies)} strategies × "
+               f"{len(pixel_errors)} τ = {len(res.rows)} frames, {res.wall_s:.1f} s wall"
+               + (f"; preprocess {res.preprocess_s:.2f} s" if res.preprocess_s is not None
+                  else "") + f"; store {res.store_bytes / 2**20:.2f} MiB")
+    click.echo(format_table(summarise(res.rows)))
+    if res.peers:
+        click.echo("\n# static meshes at matched vertical error (m)")
+        click.echo(format_table(res.peers))
+    for n in res.notes:
+        click.echo(f"note: {n}", err=True)
+    if output and not quiet:
+        click.echo(f"wrote {output}", err=True)
+    if plot_path and not quiet:
+        click.echo(f"wrote {plot_path}", err=True)
+    if (ctx.obj or {}).get("verbose"):
+        click.echo(json.dumps({"wall_s": round(res.wall_s, 2)}), err=True)

@@ -8,7 +8,7 @@ import traceback
 
 import click
 
-from geoterrain import __version__
+from geoterrain._version import __version__
 from geoterrain.exceptions import GeoterrainError
 
 
@@ -19,7 +19,7 @@ class Group(click.Group):
         try:
             return super().invoke(ctx)
         except GeoterrainError as exc:
-            click.echo(f"Error: {exc}", err=True)
+            click.echo(f"Error: {exc.cli or exc}", err=True)
             ctx.exit(exc.exit_code)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise

@@ -5,29 +5,18 @@ from __future__ import annotations
 import json
 
 import click
-from geoterrain.cli.options import parse_size, parse_triple
-
-FORMATS = (".ply", ".vtp", ".stl", ".obj", ".vtk")
+from geoterrain.cli.options import camera_options, pixel_error_option, strategy_option
 
 
 @click.command("mesh")
 @click.argument("store", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Mesh file: .ply, .vtp, .stl, .obj or .vtk.")
-@click.option("--max-error", type=float,
-              help="Static mesh: vertical error bound e in metres (scene units).")
-@click.option("--look-from", callback=parse_triple, help="View-dependent mesh: eye X,Y,Z.")
-@click.option("--look-at", callback=parse_triple, help="View-dependent mesh: target X,Y,Z.")
-@click.option("--crs-coords", is_flag=True,
-              help="--look-from/--look-at are source-CRS x,y and height z in metres.")
-@click.option("--fov", default=30.0, show_default=True, type=click.FloatRange(0, 180, min_open=True,
-              max_open=True), help="Vertical field of view, degrees.")
-@click.option("--size", default="1280x720", show_default=True, callback=parse_size,
-              help="Image size WxH the pixel error refers to.")
-@click.option("--pixel-error", default=1.0, show_default=True,
-              type=click.FloatRange(0, min_open=True), help="Screen-space tolerance τ (pixels).")
-@click.option("--strategy", type=click.Choice(["rtin", "chunked", "bruteforce"]), default="rtin",
-              show_default=True, help="LOD strategy for a view-dependent mesh.")
+@click.option("--max-error", type=float, metavar="E",
+              help="Static mesh: vertical error bound e in metres (scene units); default 1.")
+@camera_options
+@pixel_error_option
+@strategy_option
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, size,
@@ -47,11 +36,11 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
 
     import geoterrain
     from geoterrain.exceptions import UsageError
-    from geoterrain.view import View
+    from geoterrain.export import MESH_FORMATS, write_mesh
 
     out = Path(output)
-    if out.suffix.lower() not in FORMATS:
-        raise UsageError(f"{out}: unknown mesh format; use one of {', '.join(FORMATS)}")
+    if out.suffix.lower() not in MESH_FORMATS:
+        raise UsageError(f"{out}: unknown mesh format; use one of {', '.join(MESH_FORMATS)}")
     if out.exists() and not overwrite:
         raise UsageError(f"{out} exists; pass --overwrite or choose another -o path")
     view_mode = look_from is not None or look_at is not None
@@ -69,20 +58,10 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
                 look_from, look_at = (t.frame.crs_point_to_scene(p) for p in (look_from, look_at))
             if look_from == look_at:
                 raise UsageError("--look-from and --look-at must differ")
-            sel = t.select(View(look_from, look_at, fov_y_deg=fov, size=size), pixel_error,
-                           strategy)
+            sel = t.select(geoterrain.View(look_from, look_at, fov_y_deg=fov, size=size),
+                           pixel_error, strategy)
         else:
             sel = t.static_selection(max_error)
-        mesh = sel.mesh
-        if out.suffix.lower() in (".stl", ".obj"):
-            mesh = mesh.copy()
-            mesh.clear_data()
-        tmp = out.with_name(f".{out.name}.partial{out.suffix}")
-        try:
-            mesh.save(str(tmp))
-            tmp.replace(out)
-        finally:
-            tmp.unlink(missing_ok=True)
+        write_mesh(sel.mesh, out, overwrite=overwrite)
     if not ctx.obj["quiet"]:
-        click.echo(json.dumps({k: v for k, v in sel.stats.items()}, indent=None))
-
+        click.echo(json.dumps(sel.stats))

@@ -1,10 +1,17 @@
-"""Options shared between commands, and the progress bar."""
+"""Options shared between commands, and the progress bar.
+
+The strategy names come from the LOD registry (:mod:`geoterrain.lod.registry`),
+so a new strategy appears in every command and its ``--help`` by itself.
+"""
 
 from __future__ import annotations
 
+import math
 import sys
 
 import click
+
+from geoterrain.lod.registry import DEFAULT, STRATEGIES, describe
 
 
 def parse_triple(ctx, param, value):
@@ -54,3 +61,70 @@ class StageBar:
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
             self.bar = None
+
+
+def _strategy_help(prefix: str) -> str:
+    return prefix + " " + "; ".join(describe().splitlines()) + "."
+
+
+strategy_option = click.option(
+    "--strategy", type=click.Choice(STRATEGIES), default=DEFAULT, show_default=True,
+    help=_strategy_help("LOD strategy:"))
+
+
+def _parse_strategies(ctx, param, value):
+    out = tuple(v.strip() for v in value.split(",") if v.strip())
+    bad = [v for v in out if v not in STRATEGIES]
+    if bad or not out:
+        raise click.BadParameter(f"unknown strategy {', '.join(bad) or repr(value)}; "
+                                 f"use {', '.join(STRATEGIES)}")
+    return out
+
+
+strategies_option = click.option(
+    "--strategies", default=",".join(STRATEGIES), show_default=True, callback=_parse_strategies,
+    help=_strategy_help("Comma-separated LOD strategies:"))
+
+
+def _positive(ctx, param, value):
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise click.BadParameter(f"expected a finite number > 0, got {value}")
+    return value
+
+
+pixel_error_option = click.option(
+    "--pixel-error", type=float, default=1.0, show_default=True, callback=_positive,
+    metavar="TAU", help="Screen-space error bound τ in pixels.")
+
+
+def _parse_pixel_errors(ctx, param, value):
+    try:
+        out = tuple(float(v) for v in value.split(",") if v.strip())
+    except ValueError:
+        raise click.BadParameter(f"expected comma-separated numbers, got {value!r}") from None
+    if not out or any(not (math.isfinite(v) and v > 0) for v in out):
+        raise click.BadParameter(f"expected finite numbers > 0, got {value!r}")
+    return out
+
+
+pixel_errors_option = click.option(
+    "--pixel-error", "pixel_errors", default="0.5,1,2,4,8", show_default=True,
+    callback=_parse_pixel_errors, metavar="TAU[,TAU...]",
+    help="Comma-separated screen-space error bounds τ in pixels.")
+
+
+def camera_options(f):
+    """--look-from, --look-at, --crs-coords, --fov and --size, shared by mesh and render."""
+    for opt in reversed([
+        click.option("--look-from", callback=parse_triple, help="Eye X,Y,Z (scene metres)."),
+        click.option("--look-at", callback=parse_triple, help="Target X,Y,Z (scene metres)."),
+        click.option("--crs-coords", is_flag=True,
+                     help="--look-from/--look-at are source-CRS x,y and height z in metres."),
+        click.option("--fov", default=30.0, show_default=True,
+                     type=click.FloatRange(0, 180, min_open=True, max_open=True),
+                     help="Vertical field of view, degrees."),
+        click.option("--size", default="1280x720", show_default=True, callback=parse_size,
+                     help="Image WIDTHxHEIGHT (the pixel error refers to it)."),
+    ]):
+        f = opt(f)
+    return f

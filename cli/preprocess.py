@@ -23,14 +23,16 @@ from geoterrain.raster import ENCODINGS
 @click.option("--z-scale", type=float, help="Vertical exaggeration (default 1).")
 @click.option("--z-units", type=click.Choice(list(Z_UNITS)), default="m", show_default=True,
               help="Unit of the heights: metres, international feet or US survey feet.")
-@click.option("--max-error", type=float,
-              help="Height codec bound ε (height units). Default: lossless.")
+@click.option("--codec-error", type=float, metavar="EPS",
+              help="Height codec bound ε: every stored height is within EPS (height units) "
+                   "of the source. Default: lossless.")
+@click.option("--max-error", "old_max_error", type=float, hidden=True)
 @click.option("--zstd-level", default=9, show_default=True, type=click.IntRange(1, 22),
               help="zstd level of the height residuals (19: ~2 % smaller, ~3× slower).")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units,
-            max_error, zstd_level, overwrite):
+            codec_error, old_max_error, zstd_level, overwrite):
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
     DEM is any raster GDAL reads (GeoTIFF/COG, SRTM .hgt, Esri ASCII, ...) or a
@@ -43,10 +45,14 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
     Examples:
       geoterrain preprocess dem.tif
       geoterrain preprocess tile.png --pixel-size 30 -o tile.geoterrain
-      geoterrain preprocess lidar.tif --max-error 0.05 --z-scale 2
+      geoterrain preprocess lidar.tif --codec-error 0.05 --z-scale 2
     """
     import geoterrain
+    from geoterrain.exceptions import UsageError
 
+    if old_max_error is not None:
+        raise UsageError("preprocess --max-error is now --codec-error (the codec's ε); "
+                         "--max-error belongs to `geoterrain mesh` (the static mesh's bound)")
     if tile_size < 2 or tile_size & (tile_size - 1):
         raise click.BadParameter(f"expected a power of two ≥ 2, got {tile_size}",
                                  param_hint="--tile-size")
@@ -55,7 +61,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
     try:
         out = geoterrain.preprocess(
             dem, output, tile_size=tile_size, band=band, encoding=encoding,
-            pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, max_error=max_error,
+            pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, codec_error=codec_error,
             overwrite=overwrite, zstd_level=zstd_level, progress=bar)
     finally:
         bar.close()

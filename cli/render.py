@@ -6,7 +6,12 @@ import json
 from pathlib import Path
 
 import click
-from geoterrain.cli.options import StageBar, parse_size, parse_triple
+from geoterrain.cli.options import (
+    StageBar,
+    camera_options,
+    pixel_error_option,
+    strategy_option,
+)
 
 
 @click.command("render")
@@ -14,23 +19,14 @@ from geoterrain.cli.options import StageBar, parse_size, parse_triple
 @click.option("-o", "--output", "out", required=True, type=click.Path(),
               help="Output .png (one view), .gif or .mp4 (--orbit / --path), or a directory "
                    "of PNG frames.")
-@click.option("--look-from", callback=parse_triple, help="Eye X,Y,Z (scene metres).")
-@click.option("--look-at", callback=parse_triple, help="Target X,Y,Z (scene metres).")
-@click.option("--crs-coords", is_flag=True,
-              help="--look-from/--look-at are source-CRS x,y and height z in metres.")
+@camera_options
 @click.option("--azimuth", type=float, default=190.0, show_default=True,
               help="Camera bearing from the target, degrees clockwise from north.")
 @click.option("--elevation", type=float, default=40.0, show_default=True,
               help="Camera angle above the horizon, degrees.")
 @click.option("--distance", type=float, help="Eye–target distance in metres (default: fit).")
-@click.option("--size", callback=parse_size, default="1280x720", show_default=True,
-              help="Image WIDTHxHEIGHT.")
-@click.option("--fov", type=float, default=30.0, show_default=True,
-              help="Vertical field of view, degrees.")
-@click.option("--pixel-error", type=float, default=1.0, show_default=True,
-              help="Screen-space error bound τ in pixels.")
-@click.option("--strategy", type=click.Choice(["rtin", "chunked", "bruteforce"]),
-              default="rtin", show_default=True)
+@pixel_error_option
+@strategy_option
 @click.option("--shading", type=click.Choice(["normals", "elevation", "plain"]),
               default="normals", show_default=True,
               help="normals: hillshade from full-resolution normal maps × elevation colours.")
@@ -76,10 +72,6 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
         raise UsageError("give --orbit or --path, not both")
     if orbit is not None and orbit < 1:
         raise UsageError(f"--orbit needs at least 1 frame, got {orbit}")
-    if pixel_error <= 0:
-        raise UsageError(f"--pixel-error must be > 0, got {pixel_error}")
-    if not 0 < fov < 180:
-        raise UsageError(f"--fov must be in (0, 180), got {fov}")
     ext = Path(out).suffix.lower()
     animated = orbit is not None or cameras is not None
     if not animated and ext != ".png":

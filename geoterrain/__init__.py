@@ -1,18 +1,54 @@
 """geoterrain: turn real elevation data into fast, accurate 3-D terrain.
 
+The top level is light: names are imported on first use, so ``import geoterrain``
+(and ``geoterrain --help``) pays for neither numba nor VTK.
+
 Examples
 --------
 >>> import geoterrain
 >>> geoterrain.__version__
 '0.1.0'
+>>> geoterrain.View((0, -1000, 500), (0, 0, 0)).size
+(1280, 720)
 """
 
-__version__ = "0.1.0"
+from __future__ import annotations
 
-from geoterrain.exceptions import GeoterrainError  # noqa: E402
-from geoterrain.preprocess import preprocess  # noqa: E402
-from geoterrain.rendering import render  # noqa: E402
-from geoterrain.terrain import Terrain, open  # noqa: E402,A004
-from geoterrain.viewer import show  # noqa: E402
+import importlib
+from typing import TYPE_CHECKING
 
-__all__ = ["GeoterrainError", "Terrain", "__version__", "open", "preprocess", "render", "show"]
+from geoterrain._version import __version__
+from geoterrain.exceptions import GeoterrainError
+
+if TYPE_CHECKING:
+    from geoterrain.preprocessing import preprocess
+    from geoterrain.rendering import default_view, render
+    from geoterrain.terrain import Terrain, open  # noqa: A004
+    from geoterrain.view import View
+    from geoterrain.viewer import show
+
+# public name → the module that defines it
+_LAZY = {
+    "preprocess": "geoterrain.preprocessing",
+    "open": "geoterrain.terrain",
+    "Terrain": "geoterrain.terrain",
+    "View": "geoterrain.view",
+    "render": "geoterrain.rendering",
+    "default_view": "geoterrain.rendering",
+    "show": "geoterrain.viewer",
+}
+
+__all__ = ["GeoterrainError", "Terrain", "View", "__version__", "default_view", "open",
+           "preprocess", "render", "show"]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'geoterrain' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -1,28 +1,33 @@
 """Benchmark harness: runtime against measured error across LOD strategies.
 
-Every strategy (``rtin``, ``chunked``, ``bruteforce``) is run at every pixel
+Every registered strategy (:data:`geoterrain.lod.STRATEGIES`) is run at every pixel
 tolerance τ over one camera path. Each frame records the selection time, the
 optional render time, the mesh size, the tiles decoded, the peak memory the
 selection allocated and the *measured* screen-space error of the mesh against
 the full-resolution heights (:func:`geoterrain.measure.screen_space_error`).
 
 The result is a list of tidy rows (one per frame × strategy × τ) that
-:func:`write_csv`, :func:`summarise` and :func:`plot` turn into a CSV file, a
-table and a figure.
+:mod:`geoterrain.bench_report` turns into a CSV file, a table and a figure.
+:func:`benchmark` is the whole job behind ``geoterrain bench``: preprocess a DEM
+(or a synthetic one) when needed, run the flight, and compare static meshes with
+the peers.
 
 Examples
 --------
->>> import geoterrain  # doctest: +SKIP
->>> from geoterrain.bench import run, summarise, format_table
->>> res = run(geoterrain.open("dem.geoterrain"), n_views=8)  # doctest: +SKIP
->>> print(format_table(summarise(res.rows)))  # doctest: +SKIP
+>>> from geoterrain.bench_report import format_table, summarise
+>>> res = run(t, n_views=4, taus=(1.0,), strategies=("rtin",))
+>>> [r["view"] for r in res.rows]
+['overview', 'oblique', 'grazing', 'away']
+>>> all(r["err_max"] <= 1.0 + 1e-6 for r in res.rows)
+True
 """
 
 from __future__ import annotations
 
-import csv
 import hashlib
 import math
+import os
+import tempfile
 import time
 import tracemalloc
 from collections.abc import Callable, Sequence
@@ -31,20 +36,18 @@ from pathlib import Path
 
 import numpy as np
 
+from geoterrain import lod
 from geoterrain.exceptions import UsageError
+from geoterrain.lod.registry import STRATEGIES, strategy_info
 from geoterrain.measure import screen_space_error, vertical_error
+from geoterrain.store import is_store
 from geoterrain.view import View, load_views
 
-STRATEGIES = ("rtin", "chunked", "bruteforce")
 BRUTE_MEASURE_LIMIT = 4_000_000  # bruteforce meshes larger than this are not rasterised
 TAUS = (0.5, 1.0, 2.0, 4.0, 8.0)
 VIEW_KINDS = ("overview", "oblique", "grazing", "away")
 SIZE = (1280, 720)
 FOV = 30.0
-COLUMNS = ("source", "frame", "view", "strategy", "tau", "select_ms", "render_ms", "triangles",
-           "skirt_triangles", "vertices", "tiles_decoded", "peak_mem_mb", "err_max", "err_p99",
-           "err_mean", "samples_in_view", "uncovered_in_view", "preprocess_s", "store_bytes")
-
 Progress = Callable[[int], None]
 
 
@@ -57,10 +60,13 @@ class BenchResult:
     notes: list[str] = field(default_factory=list)
     views: list[tuple[str, View]] = field(default_factory=list)
     wall_s: float = 0.0
+    label: str = ""
+    preprocess_s: float | None = None
+    store_bytes: int | None = None
 
 
 # ----------------------------------------------------------------- cameras
-def _extent(X: np.ndarray, Y: np.ndarray, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def extent(X: np.ndarray, Y: np.ndarray, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ok = np.isfinite(Z)
     lo = np.array([X[ok].min(), Y[ok].min(), Z[ok].min()], np.float64)
     hi = np.array([X[ok].max(), Y[ok].max(), Z[ok].max()], np.float64)
@@ -94,7 +100,8 @@ def flight(lo: Sequence[float], hi: Sequence[float], n_views: int = 8,
     ['overview', 'oblique', 'grazing', 'away']
     """
     if n_views < 1:
-        raise UsageError(f"--views must be ≥ 1, got {n_views}")
+        raise UsageError(f"n_views must be ≥ 1, got {n_views}",
+                         cli=f"--views must be ≥ 1, got {n_views}")
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
     c = 0.5 * (lo + hi)
     half = max(float(np.hypot(*(hi[:2] - lo[:2]))) / 2, 1e-3)
@@ -170,10 +177,9 @@ def _renderer(size: tuple[int, int], terrain):
 def _selection_peak(terrain, view: View, tau: float, strategy: str) -> int:
     """Peak bytes allocated while selecting again (tracemalloc slows Python code, so the
     timed selection runs without it; this second run finds the tiles already decoded)."""
-    terrain.selector._last = None
     tracemalloc.start()
     try:
-        terrain.select(view, pixel_error=tau, strategy=strategy)
+        lod.select(terrain, view, pixel_error=tau, strategy=strategy, reuse=False)
         return tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
@@ -207,15 +213,11 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
 
     Examples
     --------
-    >>> res = run(t, n_views=4, taus=(1.0,))  # doctest: +SKIP
-    >>> sorted({r["strategy"] for r in res.rows})  # doctest: +SKIP
+    >>> res = run(t, n_views=1, taus=(1.0,))
+    >>> sorted({r["strategy"] for r in res.rows})
     ['bruteforce', 'chunked', 'rtin']
     """
-    from geoterrain.lod import STRATEGIES as known
-
-    for s in strategies:
-        if s not in known:
-            raise UsageError(f"unknown strategy {s!r}; use one of {', '.join(known)}")
+    once = {s: strategy_info(s).tau_independent for s in strategies}
     for tau in taus:
         if not (math.isfinite(tau) and tau > 0):
             raise UsageError(f"every τ must be a finite number > 0, got {tau}")
@@ -224,7 +226,7 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
     valid = np.isfinite(Z)
     Zt = np.where(valid, Z, 0.0)
     if views is None:
-        views = flight(*_extent(X, Y, Z), n_views=n_views)
+        views = flight(*extent(X, Y, Z), n_views=n_views)
     res = BenchResult(views=list(views))
     scene = None
     if render:
@@ -236,13 +238,14 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
         for fi, (kind, view) in enumerate(views):
             for strategy in strategies:
                 for ti, tau in enumerate(taus):
-                    if strategy == "bruteforce" and ti > 0:  # τ-independent: select once
+                    if once[strategy] and ti > 0:  # τ-independent: select once
                         res.rows.append({**res.rows[-1], "tau": float(tau)})
                         if progress:
                             progress(1)
                         continue
-                    terrain.selector._last = None  # time a real selection, never a reuse
-                    sel = terrain.select(view, pixel_error=float(tau), strategy=strategy)
+                    # time a real selection, never a reuse of the last one
+                    sel = lod.select(terrain, view, pixel_error=float(tau), strategy=strategy,
+                                         reuse=False)
                     peak = _selection_peak(terrain, view, float(tau), strategy)
                     render_ms = float("nan")
                     if scene is not None:
@@ -257,7 +260,7 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
                         # every full-resolution triangle: error 0 by construction
                         # (tests/test_lod.py measures it); rasterising it costs GBs
                         cache = {key: (0.0, 0.0, 0.0, -1, -1)}
-                    elif key not in cache:  # bruteforce draws the same mesh at every τ
+                    elif key not in cache:  # a τ-independent mesh is measured once
                         e = screen_space_error(ij, faces, vz, X, Y, Zt, valid, view.eye,
                                                view.planes, view.lam)
                         cache = {key: (e.max, e.p99, e.mean, e.n_samples, e.n_uncovered)}
@@ -325,7 +328,7 @@ def peers(terrain, errors: Sequence[float]) -> tuple[list[dict], list[str]]:
 
     for E in errors:
         t0 = time.perf_counter()
-        sel = terrain.static_selection(E)
+        sel = lod.static(terrain, E)
         ms = (time.perf_counter() - t0) * 1e3
         pts = np.asarray(sel.mesh.points)
         add("rtin-static", E, ms, sel.ij, sel.surface_faces(), pts[:, 2] if len(pts) else [])
@@ -372,196 +375,102 @@ def peers(terrain, errors: Sequence[float]) -> tuple[list[dict], list[str]]:
     return rows, notes
 
 
-# ----------------------------------------------------------------- outputs
-def write_csv(rows: Sequence[dict], path: str | Path, columns: Sequence[str] = COLUMNS) -> Path:
-    """Write tidy rows to a CSV file (one row per frame × strategy × τ).
+
+
+# ----------------------------------------------------------------- the whole job
+def default_peer_errors(terrain) -> tuple[float, ...]:
+    """Vertical errors for :func:`peers`: 0.5, 1, 2, 4, 8 × max(codec step, 0.1 % of relief).
 
     Examples
     --------
-    >>> import tempfile, os
-    >>> p = write_csv([{"frame": 0, "tau": 1.0}], os.path.join(tempfile.mkdtemp(), "b.csv"),
-    ...               columns=("frame", "tau"))
-    >>> open(p).read().splitlines()
-    ['frame,tau', '0,1.0']
+    >>> len(default_peer_errors(t))
+    5
     """
-    path = Path(path)
-    with path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(columns), extrasaction="ignore")
-        w.writeheader()
-        w.writerows(rows)
-    return path
+    step = float(getattr(terrain.quantizer, "step", 0.0) or 0.0)
+    lo_h, hi_h = terrain.meta["height_range"]
+    base = max(step, 1e-3 * float(hi_h - lo_h), 1e-6)
+    return tuple(base * k for k in (0.5, 1, 2, 4, 8))
 
 
-def _p95(a: np.ndarray) -> float:
-    a = a[np.isfinite(a)]
-    return float(np.percentile(a, 95)) if a.size else float("nan")
+ProgressTotal = Callable[[int, int], None]
 
 
-def _med(a: np.ndarray) -> float:
-    a = a[np.isfinite(a)]
-    return float(np.median(a)) if a.size else float("nan")
+def benchmark(source: str | Path | None = None, *, synthetic: int | None = None, seed: int = 1,
+              strategies: Sequence[str] = STRATEGIES, taus: Sequence[float] = TAUS,
+              n_views: int = 8, cameras: str | Path | None = None,
+              size: tuple[int, int] = SIZE, render: bool = False, peer_errors:
+              Sequence[float] | bool = False, work_dir: str | Path | None = None,
+              progress: ProgressTotal | None = None) -> BenchResult:
+    """The whole benchmark of ``geoterrain bench``: store, flight, strategies, peers.
 
-
-def summarise(rows: Sequence[dict]) -> list[dict]:
-    """One summary row per (strategy, τ): medians, p95 and the worst measured error.
+    Parameters
+    ----------
+    source : a store, or a DEM (preprocessed first into ``work_dir``, timed).
+    synthetic : instead of ``source``, an N×N fBm DEM with ``seed``.
+    strategies, taus, n_views, size, render : see :func:`run` and :func:`flight`.
+    cameras : a cameras JSON (:func:`load_path`) instead of the built-in flight.
+    peer_errors : vertical errors for :func:`peers`; True for
+        :func:`default_peer_errors`; False for no peers.
+    work_dir : where a DEM's store is written (default: a temporary directory,
+        removed afterwards).
+    progress : called with (frames done since the last call, total frames).
 
     Examples
     --------
-    >>> rows = [{"strategy": "rtin", "tau": 1.0, "select_ms": 2.0, "render_ms": float("nan"),
-    ...          "triangles": 10, "tiles_decoded": 1, "peak_mem_mb": 1.0, "err_max": 0.9,
-    ...          "err_p99": 0.5}]
-    >>> s = summarise(rows)[0]
-    >>> s["strategy"], s["select_ms_med"], s["err_max_worst"]
-    ('rtin', 2.0, 0.9)
+    >>> res = benchmark(synthetic=65, strategies=("rtin",), taus=(2.0,), n_views=2)
+    >>> res.label, len(res.rows), res.preprocess_s > 0
+    ('synthetic fbm 65² (seed 1)', 2, True)
     """
-    groups: dict[tuple, list[dict]] = {}
-    for r in rows:
-        groups.setdefault((r["strategy"], float(r["tau"])), []).append(r)
-    out = []
-    for (s, tau), g in groups.items():
-        col = {k: np.array([float(r[k]) for r in g]) for k in
-               ("select_ms", "render_ms", "triangles", "tiles_decoded", "peak_mem_mb",
-                "err_max", "err_p99")}
-        out.append({
-            "strategy": s, "tau": tau, "frames": len(g),
-            "select_ms_med": _med(col["select_ms"]), "select_ms_p95": _p95(col["select_ms"]),
-            "render_ms_med": _med(col["render_ms"]), "render_ms_p95": _p95(col["render_ms"]),
-            "triangles_med": _med(col["triangles"]), "tiles_decoded_med":
-                _med(col["tiles_decoded"]), "peak_mem_mb_med": _med(col["peak_mem_mb"]),
-            "err_max_worst": float(np.max(col["err_max"])),
-            "err_p99_med": _med(col["err_p99"]),
-        })
-    order = {s: k for k, s in enumerate(STRATEGIES)}
-    out.sort(key=lambda r: (order.get(r["strategy"], 99), r["tau"]))
-    return out
+    from geoterrain.preprocessing import preprocess
+    from geoterrain.synth import generate, write_geotiff
+    from geoterrain.terrain import open as open_terrain
 
-
-def _fmt(v) -> str:
-    if isinstance(v, str):
-        return v
-    if isinstance(v, int):
-        return str(v)
-    v = float(v)
-    if not math.isfinite(v):
-        return "–"
-    if v == 0:
-        return "0"
-    if abs(v) >= 1e5:
-        return f"{v:.3g}"
-    if abs(v) >= 100:
-        return f"{v:.0f}"
-    return f"{v:.3g}"
-
-
-def format_table(summary: Sequence[dict], markdown: bool = True) -> str:
-    """The summary as a (markdown) table.
-
-    Examples
-    --------
-    >>> print(format_table([{"strategy": "rtin", "tau": 1.0, "frames": 3}]))
-    | strategy | tau | frames |
-    |---|---|---|
-    | rtin | 1 | 3 |
-    """
-    if not summary:
-        return "(no rows)"
-    cols = list(summary[0].keys())
-    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    for r in summary:
-        lines.append("| " + " | ".join(_fmt(r[c]) for c in cols) + " |")
-    return "\n".join(lines)
-
-
-def plot(rows: Sequence[dict], path: str | Path, title: str = "") -> Path:
-    """Write a figure: runtime against measured error, triangles against τ, a timeline.
-
-    Examples
-    --------
-    >>> plot(res.rows, "bench.png")  # doctest: +SKIP
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    summ = summarise(rows)
-    strategies = [s for s in STRATEGIES if any(r["strategy"] == s for r in summ)]
-    colors = {"rtin": "tab:blue", "chunked": "tab:orange", "bruteforce": "tab:gray"}
-    fig, axes = plt.subplots(2, 2, figsize=(13, 9), layout="constrained")
-    ax = axes[0, 0]
+    if (source is None) == (synthetic is None):
+        raise UsageError("give a source (a store or a DEM) or synthetic=N, not both or neither",
+                         cli="give SOURCE (a store or a DEM) or --synthetic N, not both or "
+                             "neither")
+    if synthetic is not None and synthetic < 3:
+        raise UsageError(f"synthetic needs N ≥ 3, got {synthetic}",
+                         cli=f"--synthetic needs N ≥ 3, got {synthetic}")
     for s in strategies:
-        g = [r for r in summ if r["strategy"] == s]
-        x = np.array([r["err_max_worst"] for r in g])
-        y = np.array([r["select_ms_med"] for r in g])
-        ax.plot(np.maximum(x, 1e-3), y, "o-", color=colors.get(s), label=s)
-        flat = len({round(v, 9) for v in x}) == 1  # τ-independent (bruteforce): one label
-        for r, xi, yi in zip(g, x, y, strict=True):
-            if flat and r is not g[-1]:
-                continue
-            ax.annotate("all τ" if flat else f"τ={r['tau']:g}", (max(xi, 1e-3), yi), fontsize=7,
-                        textcoords="offset points", xytext=(4, 3), color=colors.get(s))
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("worst measured screen-space error over the flight (px; 0 drawn at 1e-3)")
-    ax.set_ylabel("median selection time (ms)")
-    ax.set_title("Runtime against measured error (lower left is better)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
-
-    ax = axes[0, 1]
-    for s in strategies:
-        g = [r for r in summ if r["strategy"] == s]
-        ax.plot([r["tau"] for r in g], [max(r["triangles_med"], 1) for r in g], "o-",
-                color=colors.get(s), label=s)
-    taus = sorted({r["tau"] for r in summ})
-    ax.set_xscale("log", base=2)
-    ax.set_yscale("log")
-    ax.set_xticks(taus)
-    ax.set_xticklabels([f"{t:g}" for t in taus])
-    ax.set_xlabel("pixel tolerance τ")
-    ax.set_ylabel("median triangles per frame")
-    ax.set_title("Mesh size against τ")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
-
-    ax = axes[1, 0]
-    tau_mid = min(taus, key=lambda t: abs(math.log(t)))  # τ closest to 1
-    for s in strategies:
-        g = sorted((r for r in rows if r["strategy"] == s and float(r["tau"]) == tau_mid),
-                   key=lambda r: r["frame"])
-        ax.plot([r["frame"] for r in g], [max(float(r["select_ms"]), 1e-2) for r in g], "o-",
-                color=colors.get(s), label=f"{s} select")
-        rms = [float(r["render_ms"]) for r in g]
-        if any(math.isfinite(v) for v in rms):
-            ax.plot([r["frame"] for r in g], rms, "x--", color=colors.get(s),
-                    label=f"{s} render")
-    frames = sorted({(r["frame"], r["view"]) for r in rows})
-    ax.set_xticks([f for f, _ in frames])
-    ax.set_xticklabels([f"{f}\n{v}" for f, v in frames], fontsize=7)
-    ax.set_yscale("log")
-    ax.set_ylabel("ms")
-    ax.set_title(f"Per-frame timeline at τ = {tau_mid:g}")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-
-    ax = axes[1, 1]
-    for s in strategies:
-        g = sorted((r for r in rows if r["strategy"] == s and float(r["tau"]) == tau_mid),
-                   key=lambda r: r["frame"])
-        ax.plot([r["frame"] for r in g], [float(r["err_max"]) for r in g], "o-",
-                color=colors.get(s), label=f"{s} max")
-        ax.plot([r["frame"] for r in g], [float(r["err_p99"]) for r in g], ".:",
-                color=colors.get(s), label=f"{s} p99")
-    ax.axhline(tau_mid, color="red", lw=1, ls="--", label=f"τ = {tau_mid:g}")
-    ax.set_xticks([f for f, _ in frames])
-    ax.set_xticklabels([f"{f}\n{v}" for f, v in frames], fontsize=7)
-    ax.set_ylabel("measured screen-space error (px)")
-    ax.set_title(f"Per-frame measured error at τ = {tau_mid:g}")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-    if title:
-        fig.suptitle(title)
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+        strategy_info(s)
+    t_wall = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="geoterrain-bench-") as tmp:
+        work = Path(work_dir) if work_dir else Path(tmp)
+        work.mkdir(parents=True, exist_ok=True)
+        if synthetic is not None:
+            source = write_geotiff(Path(tmp) / f"fbm_{synthetic}.tif",
+                                   generate("fbm", synthetic, seed=seed))
+            label = f"synthetic fbm {synthetic}² (seed {seed})"
+        else:
+            label = Path(source).name
+            if not Path(source).is_file():
+                raise UsageError(f"{source}: no such file")
+        store, preprocess_s = Path(source), None
+        if not is_store(store):
+            store = work / (Path(source).stem + ".geoterrain")
+            t0 = time.perf_counter()
+            preprocess(source, store, overwrite=True)
+            preprocess_s = round(time.perf_counter() - t0, 3)
+        store_bytes = os.path.getsize(store)
+        with open_terrain(store) as t:
+            if cameras is not None:
+                views = load_path(cameras, size, frame=t.frame)
+            else:
+                X, Y, Z = t.scene_xyz()
+                views = flight(*extent(X, Y, Z), n_views=n_views, size=size)
+                del X, Y, Z
+            total = len(views) * len(strategies) * len(taus)
+            res = run(t, views, strategies=strategies, taus=taus, render=render, source=label,
+                      preprocess_s=preprocess_s, store_bytes=store_bytes,
+                      progress=(lambda n: progress(n, total)) if progress else None)
+            if peer_errors is not False:
+                errs = default_peer_errors(t) if peer_errors is True else tuple(peer_errors)
+                if any(not (math.isfinite(e) and e >= 0) for e in errs):
+                    raise UsageError("peer errors must be finite and ≥ 0",
+                                     cli="--peer-errors must be finite and ≥ 0")
+                res.peers, notes = peers(t, errs)
+                res.notes += notes
+    res.label, res.preprocess_s, res.store_bytes = label, preprocess_s, store_bytes
+    res.wall_s = time.perf_counter() - t_wall
+    return res

@@ -72,7 +72,8 @@ class Frame:
         if z_units not in Z_UNITS:
             raise UsageError(f"unknown vertical unit {z_units!r}; use one of {', '.join(Z_UNITS)}")
         if not np.isfinite(z_scale) or z_scale <= 0:
-            raise UsageError(f"--z-scale must be a positive number, got {z_scale}")
+            raise UsageError(f"z_scale must be a positive number, got {z_scale}",
+                             cli=f"--z-scale must be a positive number, got {z_scale}")
         kw = dict(z_to_m=Z_UNITS[z_units], z_scale=float(z_scale))
         if crs_wkt is None or pixel_size is not None:
             return Frame.pixel(rows, cols, pixel_size or 1.0, **kw)

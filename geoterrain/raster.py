@@ -137,12 +137,12 @@ def _read_open(src, p: Path, band: int | None, encoding: str) -> Raster:
 
     if band is None:
         if count > 1:
-            raise UsageError(
-                f"{p}: has {count} bands; choose one with --band N (1..{count})"
-            )
+            raise UsageError(f"{p}: has {count} bands; choose one with band=N (1..{count})",
+                             cli=f"{p}: has {count} bands; choose one with --band N (1..{count})")
         band = 1
     if not 1 <= band <= count:
-        raise UsageError(f"{p}: --band {band} out of range; the raster has {count} band(s)")
+        raise UsageError(f"{p}: band {band} out of range; the raster has {count} band(s)",
+                         cli=f"{p}: --band {band} out of range; the raster has {count} band(s)")
     data = src.read(band)
     nodata = src.nodatavals[band - 1]
     heights = data.astype(np.float64)

@@ -25,7 +25,13 @@ import struct
 import zlib
 from pathlib import Path
 
-from geoterrain.exceptions import StoreCorruptError, StoreError, UsageError, WriteError
+from geoterrain.exceptions import (
+    StoreCorruptError,
+    StoreError,
+    UsageError,
+    WriteError,
+    exists_error,
+)
 
 SCHEMA_VERSION = 1
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
@@ -68,6 +74,23 @@ def default_store_path(src: str | Path) -> Path:
     return Path(src).with_suffix(".geoterrain")
 
 
+def is_store(path: str | Path) -> bool:
+    """True when ``path`` is a geoterrain store (by suffix, or by its first bytes).
+
+    Examples
+    --------
+    >>> is_store("dem.geoterrain"), is_store("no-such.tif")
+    (True, False)
+    """
+    if str(path).endswith(".geoterrain"):
+        return True
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(16).startswith(b"SQLite format 3")
+    except OSError:
+        return False
+
+
 class StoreWriter:
     """Write a store atomically: use as a context manager, then :meth:`commit`.
 
@@ -86,9 +109,10 @@ class StoreWriter:
     def __init__(self, dst: str | Path, overwrite: bool = False):
         self.dst = Path(dst)
         if self.dst.exists() and not overwrite:
-            raise UsageError(f"{self.dst} exists; pass --overwrite or choose another -o path")
+            raise exists_error(self.dst)
         if self.dst.is_dir():
-            raise UsageError(f"{self.dst} is a directory; give a file path with -o")
+            raise UsageError(f"{self.dst} is a directory; give a file path",
+                             cli=f"{self.dst} is a directory; give a file path with -o")
         parent = self.dst.parent if str(self.dst.parent) else Path(".")
         if not parent.is_dir():
             raise UsageError(f"{parent}: no such directory for the store; create it first")

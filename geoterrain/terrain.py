@@ -6,17 +6,24 @@ import os
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import zstandard
 
 from geoterrain.codec import Quantizer, codes_to_heights, decode_tile, tile_valid
-from geoterrain.exceptions import StoreCorruptError
+from geoterrain.exceptions import StoreCorruptError, StoreError
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
 from geoterrain.normals import decode_octahedral
 from geoterrain.store import StoreReader
 from geoterrain.vertexdata import decode_bounds
+
+if TYPE_CHECKING:
+    import pyvista as pv
+
+    from geoterrain.lod import Selection
+    from geoterrain.view import View
 
 TileKey = tuple[int, int, int]
 
@@ -64,8 +71,6 @@ class Terrain:
         self._cache_used = 0
         self._dctx = zstandard.ZstdDecompressor()
         self.decoded_tiles = 0  # tiles whose heights were decoded (a view counts these)
-        self._selector = None
-        self.z_proxy = 0.0  # stand-in height of invalid samples (set by the LOD selector)
 
     # ------------------------------------------------------------------ cache
     def _cached(self, key: tuple, make):
@@ -83,16 +88,61 @@ class Terrain:
             self._cache_used -= sz
         return val
 
-    def has_tile(self, level: int, x: int, y: int) -> bool:
-        return (level, x, y) in self.tile_info
+    @property
+    def stand_in_z(self) -> float:
+        """The scene height that stands in for nodata samples in the nested spheres.
+
+        The middle of the valid height range (scene units), as the preprocess's
+        radii used it, so a sphere centred there still nests. Read from the store's
+        metadata; stores written before it was recorded derive it from the tile bounds.
+        """
+        v = self.meta.get("stand_in_z")
+        if v is None:
+            lo = [t["zmin"] for t in self.tile_info.values() if t["zmin"] is not None]
+            hi = [t["zmax"] for t in self.tile_info.values() if t["zmax"] is not None]
+            v = 0.5 * (min(lo) + max(hi)) if lo else 0.0
+        return float(v)
 
     def _blob(self, key: TileKey, kind: str) -> bytes:
+        if key not in self.tile_info:
+            raise StoreError(f"{self.path}: tile {key} is not stored: it lies outside the "
+                             "data or holds only nodata")
         b = self.reader.get_blob(key, kind)
         if b is None:
-            raise KeyError(f"tile {key} is not stored (outside the data or all nodata)")
+            raise StoreCorruptError(f"{self.path}: the {kind} of tile {key} are missing; the "
+                                    "file is damaged, re-run `geoterrain preprocess`")
         return b
 
     # ------------------------------------------------------------------ tiles
+    def tile_keys(self, level: int | None = None) -> list[TileKey]:
+        """The stored tiles' keys (level, x, y), sorted; those of ``level`` only if given.
+
+        Tiles are stored where their footprint holds valid data.
+
+        Examples
+        --------
+        >>> t.tile_keys(t.grid.top_level)
+        [(2, 0, 0)]
+        """
+        return sorted(k for k in self.tile_info if level is None or k[0] == level)
+
+    def scene_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """Scene-frame box (lo, hi), each (3,) float64, of the valid data (top tile bounds).
+
+        Examples
+        --------
+        >>> lo, hi = t.scene_box()
+        >>> bool((lo < hi).all())
+        True
+        """
+        info = self.tile_info[(self.grid.top_level, 0, 0)]
+        z0, z1 = info["zmin"], info["zmax"]
+        z0 = 0.0 if z0 is None or not np.isfinite(z0) else z0
+        z1 = z0 if z1 is None or not np.isfinite(z1) else z1
+        lo = np.array([info["xmin"], info["ymin"], z0], np.float64)
+        hi = np.array([info["xmax"], info["ymax"], z1], np.float64)
+        return lo, hi
+
     def tile(self, level: int, x: int, y: int) -> Tile:
         """Decode tile (level, x, y) and, as needed, its ancestors (never finer data)."""
         key = (level, x, y)
@@ -247,40 +297,43 @@ class Terrain:
         return X, Y, Z
 
     # -------------------------------------------------------------------- LOD
-    @property
-    def selector(self):
-        """The LOD state of this terrain (tile index, cached tile meshes)."""
-        if self._selector is None:
-            from geoterrain.lod import Selector
+    def select(self, view: View, pixel_error: float = 1.0, strategy: str = "rtin", *,
+               reuse: bool = True) -> Selection:
+        """The mesh for ``view`` with projected error ≤ ``pixel_error`` pixels.
 
-            self._selector = Selector(self)
-        return self._selector
-
-    def select(self, view, pixel_error: float = 1.0, strategy: str = "rtin"):
-        """The mesh for ``view`` whose projected error is ≤ ``pixel_error`` pixels.
-
-        Strategies: ``rtin`` (LP vertex refinement), ``chunked`` (tile quadtree
-        with skirts), ``bruteforce`` (full resolution, frustum-culled tiles).
-        Returns a :class:`geoterrain.lod.Selection` (``.mesh``, ``.stats``).
+        A forward to :func:`geoterrain.lod.select` (strategies, stats, reuse).
 
         Examples
         --------
         >>> from geoterrain.view import View
-        >>> sel = t.select(View((0, -800, 400), (0, 0, 0)), pixel_error=1.0)  # doctest: +SKIP
-        >>> sel.stats["triangles"]  # doctest: +SKIP
+        >>> sel = t.select(View((0, -800, 400), (0, 0, 0)), pixel_error=1.0)
+        >>> sel.stats["triangles"] > 0
+        True
         """
-        return self.selector.select(view, pixel_error, strategy)
+        from geoterrain import lod
 
-    def mesh(self, max_error: float = 1.0):
+        return lod.select(self, view, pixel_error, strategy, reuse=reuse)
+
+    def mesh(self, max_error: float = 1.0) -> pv.PolyData:
         """Static mesh keeping every vertex with δ > ``max_error``: vertical error ≤ max_error.
 
         Returns a ``pyvista.PolyData`` in the scene frame (point data ``grid_ij``).
+
+        Examples
+        --------
+        >>> t.mesh(max_error=5.0).n_cells > 0
+        True
         """
         return self.static_selection(max_error).mesh
 
-    def static_selection(self, max_error: float = 1.0):
-        """Like :meth:`mesh` but returns the :class:`~geoterrain.lod.Selection` with stats."""
-        return self.selector.static(max_error)
+    def static_selection(self, max_error: float = 1.0) -> Selection:
+        """Like :meth:`mesh` but returns the :class:`~geoterrain.lod.Selection` with stats.
+
+        A forward to :func:`geoterrain.lod.static`.
+        """
+        from geoterrain import lod
+
+        return lod.static(self, max_error)
 
     # ------------------------------------------------------------------ info
     def info(self) -> dict:

@@ -22,11 +22,13 @@ import time
 
 import numpy as np
 
-from geoterrain.rendering import TerrainScene, default_view
+from geoterrain import lod
+from geoterrain.cameras import default_view
+from geoterrain.lod.registry import DEFAULT, STRATEGIES, strategy_info
+from geoterrain.rendering import TerrainScene
 from geoterrain.view import View
 
 COLOR_MODES = ("shading", "level", "tile")
-STRATEGIES = ("rtin", "chunked", "bruteforce")  # geoterrain.lod.STRATEGIES, without importing VTK
 HELP = "m strategy  +/- tau  x wireframe  c colour  space freeze  h home  q quit"
 
 
@@ -52,11 +54,10 @@ class ViewerController:
     >>> c.stats["triangles"]  # doctest: +SKIP
     """
 
-    def __init__(self, plotter, terrain, strategy: str = "rtin", pixel_error: float = 1.0,
+    def __init__(self, plotter, terrain, strategy: str = DEFAULT, pixel_error: float = 1.0,
                  shading: str = "normals", cmap: str = "gist_earth", throttle_ms: float = 100.0,
                  background: bool = False):
-        if strategy not in STRATEGIES:
-            raise ValueError(f"unknown strategy {strategy!r}; use one of {', '.join(STRATEGIES)}")
+        strategy_info(strategy)
         self.plotter, self.terrain = plotter, terrain
         self.strategy, self.pixel_error = strategy, float(pixel_error)
         self.throttle_ms = throttle_ms
@@ -116,13 +117,13 @@ class ViewerController:
             view, strategy, tau = self._view(), self.strategy, self.pixel_error
             self.pending = False
             self._future = self._executor.submit(
-                lambda: (key, self.terrain.select(view, pixel_error=tau, strategy=strategy)))
+                lambda: (key, lod.select(self.terrain, view, pixel_error=tau, strategy=strategy)))
             return True
         now = time.perf_counter()
         if not force and (now - self._last_t) * 1e3 < self.throttle_ms:
             self.pending = True
             return False
-        sel = self.terrain.select(self._view(), pixel_error=self.pixel_error,
+        sel = lod.select(self.terrain, self._view(), pixel_error=self.pixel_error,
                                   strategy=self.strategy)
         self._apply(key, sel)
         return True
@@ -293,7 +294,7 @@ class ViewerController:
                               callback=lambda _step: self.poll())
 
 
-def show(terrain, strategy: str = "rtin", pixel_error: float = 1.0, *,
+def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,
          shading: str = "normals", cmap: str = "gist_earth", size: tuple[int, int] = (1280, 720),
          title: str | None = None, throttle_ms: float = 100.0) -> ViewerController:
     """Open an interactive window on the terrain; the LOD follows the camera.

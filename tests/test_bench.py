@@ -13,17 +13,19 @@ from geoterrain.cli.main import cli
 
 import geoterrain
 from geoterrain import bench
+from geoterrain.bench_report import COLUMNS
 from geoterrain.exceptions import InputError, UsageError
+from geoterrain.lod import STRATEGIES
 
 
 def test_cli_synthetic_csv_plot_table(tmp_path):
     out, png = tmp_path / "b.csv", tmp_path / "b.png"
     r = CliRunner().invoke(cli, ["-q", "bench", "--synthetic", "65", "--views", "4",
-                                 "--tau", "1,4", "-o", str(out), "--plot", str(png)])
+                                 "--pixel-error", "1,4", "-o", str(out), "--plot", str(png)])
     assert r.exit_code == 0, r.output
     rows = list(csv.DictReader(out.open()))
-    assert len(rows) == 4 * 3 * 2
-    assert set(rows[0]) == set(bench.COLUMNS)
+    assert len(rows) == 4 * len(STRATEGIES) * 2
+    assert set(rows[0]) == set(COLUMNS)
     for row in rows:
         assert float(row["err_max"]) <= float(row["tau"]) * (1 + 1e-9) + 1e-9
         assert math.isfinite(float(row["select_ms"]))
@@ -37,8 +39,9 @@ def test_cli_store_and_path(tmp_path, fbm_tif):
     cams = tmp_path / "cams.json"
     cams.write_text(json.dumps([{"look_from": [0, -2000, 1500], "look_at": [0, 0, 0]},
                                 {"look_from": [500, 0, 300], "look_at": [0, 0, 0], "fov": 60}]))
-    r = CliRunner().invoke(cli, ["-q", "bench", str(store), "--path", str(cams), "--tau", "2",
-                                 "--strategies", "rtin", "-o", str(tmp_path / "p.csv")])
+    r = CliRunner().invoke(cli, ["-q", "bench", str(store), "--path", str(cams),
+                                 "--pixel-error", "2", "--strategies", "rtin",
+                                 "-o", str(tmp_path / "p.csv")])
     assert r.exit_code == 0, r.output
     rows = list(csv.DictReader((tmp_path / "p.csv").open()))
     assert [row["view"] for row in rows] == ["path", "path"]
@@ -48,7 +51,7 @@ def test_cli_store_and_path(tmp_path, fbm_tif):
 @pytest.mark.parametrize("args,code", [
     ([], 2),
     (["--synthetic", "65", "x.tif"], 2),
-    (["--synthetic", "65", "--tau", "0"], 2),
+    (["--synthetic", "65", "--pixel-error", "0"], 2),
     (["--synthetic", "65", "--strategies", "quadtree"], 2),
     (["missing.tif"], 2),
     (["--synthetic", "65", "--plot", "b.jpg"], 2),

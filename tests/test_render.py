@@ -252,7 +252,8 @@ def test_view_without_terrain_and_errors(tmp_path_factory, tmp_path):
 
 def test_view_cache_location(tmp_path, monkeypatch):
     _cli()
-    from geoterrain.cli.view import cached_store, is_store
+    from geoterrain.preprocessing import cached_store_path as cached_store
+    from geoterrain.store import is_store
 
     dem = tmp_path / "a.tif"
     dem.write_bytes(b"")

@@ -202,7 +202,7 @@ def test_ecef_scale_heights(tmp_path):
     """Heights of 6.4e6 m (geocentric radius): an absurd-height input error unless the user
     confirms them with z_scale, and then the pipeline must hold at that magnitude."""
     z = 6.4e6 + fbm(65)
-    with pytest.raises(InputError, match="z-scale"):
+    with pytest.raises(InputError, match="z_scale"):
         build(tmp_path, z, name="refused")
     full_check(build(tmp_path, z, pre={"z_scale": 1.0}), Es=(0.0, 0.5, 5.0))
 
@@ -359,7 +359,7 @@ def test_dtypes(tmp_path, dtype):
 @pytest.mark.parametrize("eps", [0.01, 0.5, 3.0])
 def test_codec_within_max_error(tmp_path, eps):
     z = fbm(129, amp=2000.0) + 8000.0
-    t = build(tmp_path, z, pre={"max_error": eps})
+    t = build(tmp_path, z, pre={"codec_error": eps})
     h, v = t.level_heights(0)
     d = np.abs(h[:129, :129] - z)
     assert d.max() <= eps * (1 + REL) + z_roundoff(z), d.max()

@@ -33,3 +33,14 @@ def polydata(xyz: np.ndarray, faces: np.ndarray, ij: np.ndarray | None = None,
         if len(faces):
             mesh.cell_data[k] = v
     return mesh
+
+
+def empty_polydata() -> pv.PolyData:
+    """The mesh of a view that draws nothing.
+
+    Examples
+    --------
+    >>> empty_polydata().n_cells
+    0
+    """
+    return polydata(np.zeros((0, 3)), np.zeros((0, 3), np.int64))

@@ -19,37 +19,22 @@ Two phases, both on whole arrays:
 2. **Bisection.** The bintree is refined level by level on arrays of
    triangles: a triangle (a, b, c) splits at m = (a + b) / 2 when m is active.
    The result conforms (no cracks, no T-junctions) across tile borders.
+
+The same module gives the static mesh (:func:`static`): every vertex with δ > e.
 """
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
-from geoterrain.lod.kernels import close_upward_boxes, lp_active
+from geoterrain.lod.kernels import close_upward_boxes, extract, lp_active
+from geoterrain.lod.mesh import empty_polydata, polydata
+from geoterrain.lod.tiles import TileIndex, tile_index
 from geoterrain.view import View
 
-
-def base_triangles(size: int) -> np.ndarray:
-    """The two base triangles (a, b, c) as (2, 3, 2) (i, j): hypotenuse (0,0)–(s,s)."""
-    s = size - 1
-    return np.array([[[0, 0], [s, s], [0, s]], [[s, s], [0, 0], [s, 0]]], np.int64)
-
-
-def bisect(active: np.ndarray) -> np.ndarray:
-    """Leaf triangles (F, 3, 2) of the bintree refined wherever ``active[m]`` is True."""
-    tris = base_triangles(active.shape[0])
-    leaves = []
-    while len(tris):
-        s = tris[:, 0] + tris[:, 1]
-        split = ((s & 1) == 0).all(1)  # the hypotenuse midpoint is a grid sample
-        m = s >> 1
-        go = split.copy()
-        go[split] = active[m[split, 0], m[split, 1]]
-        leaves.append(tris[~go])
-        a, b, c, m = tris[go, 0], tris[go, 1], tris[go, 2], m[go]
-        # LP bisection: children (c, a, m) and (b, c, m) keep the orientation
-        tris = np.concatenate([np.stack([c, a, m], 1), np.stack([b, c, m], 1)])
-    return np.concatenate(leaves)
+_SCRATCH: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 class ActiveSet:
@@ -103,7 +88,7 @@ class ActiveSet:
             self.mixed[i0:i0 + (T - 1) * s + 1, j0:j0 + (T - 1) * s + 1] = True
 
 
-def static_active(terrain, index, max_error: float) -> ActiveSet:
+def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
     """Every vertex with δ > e (the RTIN/Martini semantics, with a true bound)."""
     act = ActiveSet(terrain)
     rows = np.flatnonzero(index.delta_max > max_error)
@@ -112,7 +97,7 @@ def static_active(terrain, index, max_error: float) -> ActiveSet:
     return act
 
 
-def view_active(terrain, index, view: View, tau: float) -> ActiveSet:
+def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex."""
     lam, eye = view.lam, view.eye
     g = terrain.grid
@@ -131,7 +116,7 @@ def view_active(terrain, index, view: View, tau: float) -> ActiveSet:
 
     def predicate(st):
         out = lp_active(st["delta"], st["radius"], st["height"], st["x"], st["y"], zfac,
-                        terrain.z_proxy, eye, view.planes, lam, tau)
+                        terrain.stand_in_z, eye, view.planes, lam, tau)
         # A mixed diamond (δ = inf) is never drawn unrefined, so culling it by its own
         # sphere (which bounds its descendants, not its corners) can drop every triangle
         # around a visible corner: a hole in view. Refine it whenever its tile is read.
@@ -144,3 +129,63 @@ def view_active(terrain, index, view: View, tau: float) -> ActiveSet:
     act.mark_unknown_mixed(unread, index)
     del g
     return act
+
+
+def active_mesh(terrain, act: ActiveSet, view: View | None = None):
+    """The conforming mesh of an active set: bisect, gather positions, cull, wind.
+
+    Triangles with an invalid corner are dropped, and with ``view`` those entirely
+    outside one frustum plane. Cell data ``skirt`` (all 0) and ``level``.
+    """
+    N = terrain.grid.size
+    vid = _SCRATCH.get(terrain)
+    if vid is None:
+        vid = _SCRATCH[terrain] = np.full(N * N, -1, np.int32)
+    faces, flat = extract(act.active, act.mixed, vid)
+    ij = np.stack([flat // N, flat % N], 1)
+    g = terrain.gather(ij[:, 0], ij[:, 1], ("height", "x", "y"))
+    h, X, Y = g["height"], g["x"], g["y"]
+    xyz = np.stack([X, Y, terrain.frame.z(h)], 1)
+    # per-vertex bits: bit 6 = invalid, bits 0-5 = outside frustum plane k
+    bits = np.where(np.isfinite(h), 0, 64).astype(np.uint8)
+    if view is not None:
+        P = view.planes
+        Zf = np.nan_to_num(xyz[:, 2])
+        for k in range(6):  # broadcasting beats a tiny BLAS matmul here
+            a, b, c, e = P[k]
+            bits |= ((a * X + b * Y + c * Zf + e) < 0).astype(np.uint8) << k
+    f0, f1, f2 = bits[faces[:, 0]], bits[faces[:, 1]], bits[faces[:, 2]]
+    # drop triangles with an invalid corner, or entirely outside one plane
+    ok = (((f0 | f1 | f2) & 64) == 0) & ((f0 & f1 & f2 & 63) == 0)
+    faces = faces[ok]
+    used = np.zeros(len(ij), bool)
+    used[faces] = True
+    remap = np.cumsum(used) - 1
+    faces = remap[faces]  # both base triangles are counter-clockwise, and bisection
+    ij, xyz = ij[used], xyz[used]  # keeps the orientation: no re-winding needed
+    lvl = terrain.vertex_level(ij[:, 0], ij[:, 1])
+    level = np.minimum(np.minimum(lvl[faces[:, 0]], lvl[faces[:, 1]]), lvl[faces[:, 2]])
+    return polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8),
+                                     "level": level.astype(np.int16)})
+
+
+def select(terrain, view: View, tau: float):
+    """The LP-refined mesh of ``view`` at pixel tolerance ``tau`` (LP eq. 2), and stats.
+
+    Examples
+    --------
+    >>> mesh, stats = select(t, View((0, -800, 400), (0, 0, 0)), 1.0)  # doctest: +SKIP
+    """
+    index = tile_index(terrain)
+    if index.outside(view):
+        return empty_polydata(), {}
+    return active_mesh(terrain, view_active(terrain, index, view, tau), view), {}
+
+
+def static(terrain, max_error: float):
+    """The static mesh keeping every vertex with δ > ``max_error``, and stats.
+
+    Its vertical error is ≤ ``max_error`` at every valid full-resolution sample.
+    """
+    index = tile_index(terrain)
+    return active_mesh(terrain, static_active(terrain, index, max_error)), {}

@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 import zstandard
 
-from geoterrain import __version__
+from geoterrain._version import __version__
 from geoterrain.codec import choose_quantizer, decoded_heights, encode_pyramid
 from geoterrain.errors import tile_errors, vertex_errors, vertex_radii
-from geoterrain.exceptions import InputError, UsageError
+from geoterrain.exceptions import InputError, UsageError, exists_error
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
@@ -49,6 +49,12 @@ def _tiles_of_level(a: np.ndarray, grid: Grid, level: int) -> np.ndarray:
     return win
 
 
+def stand_in_z(Z: np.ndarray, valid: np.ndarray) -> float:
+    """The scene height standing in for nodata in the nested spheres: mid valid range."""
+    zv = Z[valid & np.isfinite(Z)]
+    return float(0.5 * (zv.min() + zv.max())) if zv.size else 0.0
+
+
 def validate(r: Raster, z_scale: float | None) -> None:
     """Reject inputs that cannot give a correct store, with a one-line fix."""
     h, w = r.shape
@@ -60,9 +66,9 @@ def validate(r: Raster, z_scale: float | None) -> None:
     hv = r.heights[r.valid]
     peak = float(np.abs(hv).max())
     if peak > ABSURD_HEIGHT and z_scale is None:
-        raise InputError(
-            f"{r.path}: heights reach {peak:.3g}, beyond ±{ABSURD_HEIGHT:.0e}; if they are real "
-            "pass --z-scale (e.g. 1), else set the right nodata or unit")
+        why = f"{r.path}: heights reach {peak:.3g}, beyond ±{ABSURD_HEIGHT:.0e}; if they are real "
+        raise InputError(why + "pass z_scale (e.g. 1), else set the right nodata or unit",
+                         cli=why + "pass --z-scale (e.g. 1), else set the right nodata or unit")
 
 
 def preprocess(
@@ -75,7 +81,7 @@ def preprocess(
     pixel_size: float | None = None,
     z_scale: float | None = None,
     z_units: str = "m",
-    max_error: float | None = None,
+    codec_error: float | None = None,
     overwrite: bool = False,
     zstd_level: int = 9,
     progress: Progress | None = None,
@@ -96,8 +102,9 @@ def preprocess(
         Metres per sample for rasters without a CRS (default 1, with a warning).
     z_scale, z_units
         Vertical exaggeration, and the unit of the heights (``m``, ``ft``, ``us-ft``).
-    max_error
-        Height codec bound ε in height units; default lossless.
+    codec_error
+        The height codec's bound ε, in height units: every stored height is within ε
+        of the source; default lossless. (Not the static mesh's ``max_error``.)
     zstd_level
         zstd level of the height residuals (9: within 1-2 % of level 19's size at a
         third of its time; see docs/benchmarks.md).
@@ -126,13 +133,15 @@ def preprocess(
         if progress:
             progress(name, done[0], len(STAGES))
 
-    if max_error is not None and not (np.isfinite(max_error) and max_error >= 0):
-        raise UsageError(f"--max-error must be ≥ 0, got {max_error}")
+    if codec_error is not None and not (np.isfinite(codec_error) and codec_error >= 0):
+        raise UsageError(f"codec_error must be a finite number ≥ 0, got {codec_error}",
+                         cli=f"--codec-error must be a finite number ≥ 0, got {codec_error}")
     dst = Path(dst) if dst is not None else default_store_path(src)
     if dst.exists() and not overwrite:
-        raise UsageError(f"{dst} exists; pass --overwrite or choose another -o path")
+        raise exists_error(dst)
     if Path(src).resolve() == dst.resolve():
-        raise UsageError(f"{dst}: the store would overwrite its own input; choose another -o")
+        raise UsageError(f"{dst}: the store would overwrite its own input; choose another dst",
+                         cli=f"{dst}: the store would overwrite its own input; choose another -o")
 
     r = read_raster(src, band=band, encoding=encoding)
     validate(r, z_scale)
@@ -140,7 +149,7 @@ def preprocess(
                               pixel_size=pixel_size, z_units=z_units,
                               z_scale=1.0 if z_scale is None else z_scale)
     if r.crs_wkt is None and pixel_size is None:
-        log.warning("%s has no CRS: using 1 m per pixel; pass --pixel-size to set it", src)
+        log.warning("%s has no CRS: using 1 m per pixel; set pixel_size (--pixel-size)", src)
     grid = Grid.for_shape(*r.shape, tile_size=tile_size)
     stage("read")
 
@@ -150,7 +159,7 @@ def preprocess(
     X, Y = frame.grid_xy(grid.size)
     stage("pad")
 
-    q = choose_quantizer(r.heights[r.valid], r.src_dtype, max_error=max_error,
+    q = choose_quantizer(r.heights[r.valid], r.src_dtype, max_error=codec_error,
                          scale=r.scale, offset=r.offset)
     hdec = decoded_heights(heights, valid, q)
     Z = frame.z(hdec)
@@ -232,9 +241,53 @@ def preprocess(
             "nodata_fraction": float(1.0 - r.valid.mean()),
             "height_range": [float(hv.min()), float(hv.max())],
             "delta_max_finite": float(np.max(delta[np.isfinite(delta)], initial=0.0)),
+            "stand_in_z": stand_in_z(Z, valid),
             "preprocess_seconds": times,
         })
         stage("write")
         times["write"] = times.get("write", 0.0)
         w.commit()
     return dst
+
+
+def cached_store_path(dem: str | Path) -> Path:
+    """Where :func:`ensure_store` keeps a DEM's store: next to it when that folder is
+    writable (or the store is already there), else in ``$XDG_CACHE_HOME/geoterrain``.
+
+    Examples
+    --------
+    >>> cached_store_path("/tmp/dem.tif").name
+    'dem.geoterrain'
+    """
+    import hashlib
+
+    dem = Path(dem)
+    beside = dem.with_suffix(".geoterrain")
+    if beside.exists() or os.access(dem.parent, os.W_OK):
+        return beside
+    digest = hashlib.sha1(str(dem.resolve()).encode()).hexdigest()[:10]
+    cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "geoterrain"
+    return cache / f"{dem.stem}-{digest}.geoterrain"
+
+
+def ensure_store(dem: str | Path, *, rebuild: bool = False,
+                 progress: Progress | None = None) -> tuple[Path, bool]:
+    """The store of ``dem``, preprocessed now if it is missing, older than the DEM, or
+    ``rebuild``; returns (path, whether it was built).
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> from geoterrain.synth import generate, write_geotiff
+    >>> dem = write_geotiff(os.path.join(tempfile.mkdtemp(), "d.tif"), generate("fbm", 17))
+    >>> [built for _, built in (ensure_store(dem), ensure_store(dem))]
+    [True, False]
+    """
+    src = Path(dem)
+    store = cached_store_path(src)
+    stale = not store.exists() or store.stat().st_mtime < src.stat().st_mtime
+    if rebuild or stale:
+        store.parent.mkdir(parents=True, exist_ok=True)
+        preprocess(src, store, overwrite=True, progress=progress)
+        return store, True
+    return store, False

@@ -1,0 +1,48 @@
+"""Write meshes to files: the last stage of the pipeline, for other tools to read.
+
+Examples
+--------
+>>> import tempfile, os, pyvista as pv
+>>> p = write_mesh(pv.Plane(), os.path.join(tempfile.mkdtemp(), "plane.ply"))
+>>> p.name, pv.read(p).n_cells > 0
+('plane.ply', True)
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from geoterrain.exceptions import UsageError, WriteError, exists_error
+
+if TYPE_CHECKING:
+    import pyvista as pv
+
+MESH_FORMATS = (".ply", ".vtp", ".stl", ".obj", ".vtk")
+_BARE = (".stl", ".obj")  # formats that carry no point or cell arrays
+
+
+def write_mesh(mesh: pv.PolyData, path: str | Path, *, overwrite: bool = False) -> Path:
+    """Write ``mesh`` to ``path`` (.ply, .vtp, .stl, .obj or .vtk) atomically.
+
+    The file is written beside the destination under a hidden name and renamed
+    into place only once complete, so a failed write leaves nothing behind.
+    STL and OBJ get the geometry alone.
+    """
+    out = Path(path)
+    if out.suffix.lower() not in MESH_FORMATS:
+        raise UsageError(f"{out}: unknown mesh format; use one of {', '.join(MESH_FORMATS)}")
+    if out.exists() and not overwrite:
+        raise exists_error(out)
+    if out.suffix.lower() in _BARE:
+        mesh = mesh.copy()
+        mesh.clear_data()
+    tmp = out.with_name(f".{out.name}.partial{out.suffix}")
+    try:
+        mesh.save(str(tmp))
+        tmp.replace(out)
+    except OSError as exc:
+        raise WriteError(f"{out}: cannot write the mesh ({exc.strerror or exc})") from None
+    finally:
+        tmp.unlink(missing_ok=True)
+    return out

@@ -1,0 +1,87 @@
+"""The LOD strategies, by name: one line each.
+
+This module is light to import (no numba, no VTK): the command line's choices,
+its ``--help`` and the viewer's strategy key all read the names from here, and
+a strategy's module is imported only when it first selects a mesh.
+
+Adding a strategy means writing one module ``geoterrain/lod/NAME.py`` with a
+function ``select(terrain, view, tau) -> (pyvista.PolyData, dict)`` and adding
+one :class:`StrategyInfo` line to ``_ENTRIES`` below.
+
+Examples
+--------
+>>> STRATEGIES
+('rtin', 'chunked', 'bruteforce')
+>>> strategy_info("chunked").bounded
+True
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from geoterrain.exceptions import UsageError
+
+__all__ = ["DEFAULT", "REGISTRY", "STRATEGIES", "StrategyInfo", "strategy_info", "describe"]
+
+
+@dataclass(frozen=True)
+class StrategyInfo:
+    """One LOD strategy: its name, the module holding its ``select``, and what it promises.
+
+    ``bounded``: the measured screen-space error ρ of its meshes is ≤ τ (tested);
+    ``tau_independent``: the mesh does not depend on τ (a benchmark selects it once).
+    """
+
+    name: str
+    module: str
+    summary: str
+    bounded: bool
+    tau_independent: bool = False
+
+    def load(self) -> Callable:
+        """The strategy's ``select(terrain, view, tau) -> (mesh, stats)`` (imports it)."""
+        return importlib.import_module(self.module).select
+
+
+_ENTRIES = (
+    StrategyInfo("rtin", "geoterrain.lod.rtin",
+                 "Lindstrom–Pascucci vertex refinement with nested spheres (seed 002)", True),
+    StrategyInfo("chunked", "geoterrain.lod.chunked",
+                 "stored tile quadtree with skirts (seed 000 chunked LOD)", True),
+    StrategyInfo("bruteforce", "geoterrain.lod.bruteforce",
+                 "every full-resolution tile in the frustum (the zero-error baseline)", True,
+                 tau_independent=True),
+)
+
+REGISTRY: dict[str, StrategyInfo] = {e.name: e for e in _ENTRIES}
+STRATEGIES: tuple[str, ...] = tuple(REGISTRY)
+DEFAULT = "rtin"
+
+
+def strategy_info(name: str) -> StrategyInfo:
+    """The registered strategy ``name``; a :class:`UsageError` naming the choices otherwise.
+
+    Examples
+    --------
+    >>> strategy_info("rtin").module
+    'geoterrain.lod.rtin'
+    """
+    try:
+        return REGISTRY[name]
+    except (KeyError, TypeError):
+        raise UsageError(f"unknown strategy {name!r}; use one of {', '.join(STRATEGIES)}"
+                         ) from None
+
+
+def describe() -> str:
+    """One line per strategy, ``name: summary``, for help texts.
+
+    Examples
+    --------
+    >>> describe().splitlines()[0].startswith("rtin: ")
+    True
+    """
+    return "\n".join(f"{e.name}: {e.summary}" for e in _ENTRIES)

@@ -1,0 +1,235 @@
+"""The stored tiles as arrays, shared by every strategy.
+
+- :class:`TileIndex`: the stored tiles' keys and bounds (box, tile error, skirt
+  error, max δ and r of the vertices new at the tile's level) as arrays, for
+  vectorised tests before any decoding.
+- :func:`quadtree_leaves`: the tile quadtree walked level by level on arrays of
+  nodes, with frustum culling; the caller's rule says which nodes to refine.
+- :func:`tile_geometry` / :func:`assemble`: a stored tile's uniform surface
+  (union-jack triangulation, cached per terrain), and many of them, with optional
+  skirts, joined into one mesh.
+
+Derived data is cached per terrain here (weakly: it goes with the terrain); the
+terrain itself is only read.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Callable
+
+import numpy as np
+
+from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
+from geoterrain.view import INSIDE, OUTSIDE, View
+
+_INDEX: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_GEOMETRY: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+class TileIndex:
+    """The stored tiles' numbers as arrays, per level, for vectorised tests.
+
+    Rows are the tile keys ``(L, x, y)`` in sorted order; ``lo``/``hi`` (R, 3)
+    are scene-frame boxes, ``error`` the tile's uniform-surface error,
+    ``boundary`` its skirt error, ``delta_max``/``radius_max`` the largest δ and
+    r of the vertices new at its level.
+    """
+
+    def __init__(self, terrain):
+        info = terrain.tile_info
+        keys = np.array(sorted(info), np.int64).reshape(-1, 3)
+        self.keys = keys
+        self.row = {tuple(k): n for n, k in enumerate(keys.tolist())}
+        self.top_level = terrain.grid.top_level
+        col = lambda name: np.array([info[tuple(k)][name] for k in keys.tolist()], np.float64)  # noqa: E731
+        zmin = np.nan_to_num(col("zmin"), nan=0.0)
+        zmax = np.nan_to_num(col("zmax"), nan=0.0)
+        self.lo = np.stack([col("xmin"), col("ymin"), np.minimum(zmin, zmax)], 1)
+        self.hi = np.stack([col("xmax"), col("ymax"), np.maximum(zmin, zmax)], 1)
+        self.error = col("error")
+        self.boundary = col("boundary_error")
+        self.delta_max = col("delta_max")
+        self.radius_max = col("radius_max")
+
+    def rows_of(self, keys: np.ndarray) -> np.ndarray:
+        """Row numbers of (L, x, y) keys; -1 where the tile is not stored."""
+        return np.array([self.row.get(tuple(k), -1) for k in keys.tolist()], np.int64)
+
+    def outside(self, view: View) -> bool:
+        """True when the whole terrain's box is outside the frustum (nothing to decode)."""
+        top = self.rows_of(np.array([[self.top_level, 0, 0]]))
+        if top[0] < 0:
+            return True
+        return bool(view.box_visibility(self.lo[top], self.hi[top])[0] == 0)
+
+
+def tile_index(terrain) -> TileIndex:
+    """The :class:`TileIndex` of ``terrain``, built once and cached with the terrain."""
+    ix = _INDEX.get(terrain)
+    if ix is None:
+        ix = _INDEX[terrain] = TileIndex(terrain)
+    return ix
+
+
+def union_jack_faces(t: int) -> np.ndarray:
+    """Local faces (F, 3) of a (2^t+1)² tile's uniform surface (conventions: union jack).
+
+    Tiles start at even cell indices, so one template serves every tile.
+
+    Examples
+    --------
+    >>> union_jack_faces(1).shape
+    (8, 3)
+    """
+    T = (1 << t) + 1
+    a, b = np.meshgrid(np.arange(T - 1), np.arange(T - 1), indexing="ij")
+    a, b = a.ravel(), b.ravel()
+    v00, v01 = a * T + b, a * T + b + 1
+    v10, v11 = (a + 1) * T + b, (a + 1) * T + b + 1
+    # the diagonal joins the cell corner whose row and column are both odd to its opposite
+    ci = np.where(a % 2 == 1, a, a + 1)
+    cj = np.where(b % 2 == 1, b, b + 1)
+    diag_main = (ci - a) == (cj - b)  # that corner is (a, b) or (a+1, b+1): diagonal 00–11
+    f1 = np.where(diag_main[:, None], np.stack([v00, v11, v01], 1), np.stack([v01, v10, v00], 1))
+    f2 = np.where(diag_main[:, None], np.stack([v00, v10, v11], 1), np.stack([v01, v11, v10], 1))
+    return np.concatenate([f1, f2])
+
+
+Refine = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def quadtree_leaves(terrain, index: TileIndex, view: View, refine: Refine
+                    ) -> tuple[np.ndarray, dict]:
+    """Leaf tiles (rows into ``index``) to draw, walking the tile quadtree top-down.
+
+    ``refine(nodes, L)`` gets the visible nodes' rows and levels and returns which
+    to replace by their stored children (level 0 is never refined). A node fully
+    inside the frustum passes that to its children, which are not tested again.
+    Returns the leaves and ``tiles_visited`` / ``tiles_culled`` counts.
+    """
+    g = terrain.grid
+    top = np.array([[g.top_level, 0, 0]])
+    nodes = index.rows_of(top)
+    nodes = nodes[nodes >= 0]
+    inside = np.zeros(len(nodes), bool)
+    leaves, visited, culled = [], 0, 0
+    while len(nodes):
+        visited += len(nodes)
+        lo, hi = index.lo[nodes], index.hi[nodes]
+        vis = np.where(inside, INSIDE, view.box_visibility(lo, hi))
+        keep = vis != OUTSIDE
+        culled += int((~keep).sum())
+        nodes, vis = nodes[keep], vis[keep]
+        L = index.keys[nodes, 0]
+        split = (L > 0) & refine(nodes, L)
+        leaves.append(nodes[~split])
+        par = index.keys[nodes[split]]
+        par_inside = vis[split] == INSIDE
+        if not len(par):
+            break
+        kids = np.repeat(par, 4, axis=0)
+        kids[:, 0] -= 1
+        kids[:, 1] = kids[:, 1] * 2 + np.tile([0, 1, 0, 1], len(par))
+        kids[:, 2] = kids[:, 2] * 2 + np.tile([0, 0, 1, 1], len(par))
+        rows = index.rows_of(kids)
+        ok = rows >= 0
+        nodes, inside = rows[ok], np.repeat(par_inside, 4)[ok]
+    leaves = np.concatenate(leaves) if leaves else np.zeros(0, np.int64)
+    return leaves, {"tiles_visited": visited, "tiles_culled": culled}
+
+
+def tile_geometry(terrain, index: TileIndex, row: int
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Cached geometry of one stored tile: ij (V, 2), xyz (V, 3), valid (V,), faces.
+
+    Faces are the union-jack triangles whose three corners are valid, wound
+    counter-clockwise seen from above.
+    """
+    cache = _GEOMETRY.get(terrain)
+    if cache is None:
+        cache = _GEOMETRY[terrain] = {"faces": union_jack_faces(terrain.grid.t)}
+    if row in cache:
+        return cache[row]
+    g = terrain.grid
+    L, x, y = (int(v) for v in index.keys[row])
+    tile = terrain.tile(L, x, y)
+    ii, jj = np.meshgrid(g.tile_rows(L, y), g.tile_cols(L, x), indexing="ij")
+    ij = np.stack([ii.ravel(), jj.ravel()], 1)
+    X, Y = terrain.frame.xy(ij[:, 0], ij[:, 1])
+    xyz = np.stack([X, Y, terrain.frame.z(tile.heights.ravel())], 1)
+    valid = tile.valid.ravel()
+    f = cache["faces"]
+    faces = orient_ccw(ij, f[valid[f].all(1)])
+    out = cache[row] = (ij, xyz, valid, faces)
+    return out
+
+
+def _skirts(terrain, index: TileIndex, row: int, xyz: np.ndarray, valid: np.ndarray,
+            depth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Skirt vertices, faces (local indices ≥ len(xyz)) and the edge sample of each
+    skirt vertex, hanging ``depth`` below the tile's inner edges (seed 000 §skirts)."""
+    g = terrain.grid
+    T = g.tile_samples
+    L, x, y = (int(v) for v in index.keys[row])
+    n_side = g.tiles_per_side(L)
+    idx = np.arange(T * T).reshape(T, T)
+    edges = []
+    if y > 0:
+        edges.append(idx[0])
+    if y < n_side - 1:
+        edges.append(idx[-1])
+    if x > 0:
+        edges.append(idx[:, 0])
+    if x < n_side - 1:
+        edges.append(idx[:, -1])
+    if not edges:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+    e = np.stack(edges)  # (E, T) edge vertex indices
+    base = len(xyz)
+    sk_xyz = xyz[e.ravel()].copy()
+    sk_xyz[:, 2] -= depth
+    sk = base + np.arange(e.size).reshape(e.shape)
+    a, b = e[:, :-1].ravel(), e[:, 1:].ravel()
+    sa, sb = sk[:, :-1].ravel(), sk[:, 1:].ravel()
+    ok = valid[a] & valid[b]
+    faces = np.concatenate([np.stack([a, sb, b], 1)[ok], np.stack([a, sa, sb], 1)[ok]])
+    return sk_xyz, faces, e.ravel()
+
+
+def assemble(terrain, index: TileIndex, leaves: np.ndarray,
+             skirt_depth: np.ndarray | None = None):
+    """One mesh of the stored tiles ``leaves``, each with skirts ``skirt_depth[k]`` deep
+    (none where the depth is 0, or when ``skirt_depth`` is None).
+
+    Cell data ``skirt`` (1 on skirt triangles) and ``level``; vertices that no
+    triangle uses (nodata) are dropped.
+    """
+    ijs, xyzs, faces, skirt, level = [], [], [], [], []
+    off = 0
+    for k, row in enumerate(leaves.tolist()):
+        ij, xyz, valid, f = tile_geometry(terrain, index, row)
+        L = int(index.keys[row, 0])
+        ijs.append(ij)
+        xyzs.append(xyz)
+        faces.append(f + off)
+        skirt.append(np.zeros(len(f), np.uint8))
+        level.append(np.full(len(f), L, np.int16))
+        n = len(xyz)
+        if skirt_depth is not None and skirt_depth[k] > 0:
+            sxyz, sf, src = _skirts(terrain, index, row, xyz, valid, skirt_depth[k])
+            ijs.append(ij[src])
+            xyzs.append(sxyz)
+            faces.append(sf + off)
+            skirt.append(np.ones(len(sf), np.uint8))
+            level.append(np.full(len(sf), L, np.int16))
+            n += len(sxyz)
+        off += n
+    if not ijs:
+        return empty_polydata()
+    xyz, ij, faces = np.concatenate(xyzs), np.concatenate(ijs), np.concatenate(faces)
+    used = np.zeros(len(xyz), bool)  # drop the vertices no triangle uses (nodata)
+    used[faces] = True
+    faces = (np.cumsum(used) - 1)[faces]
+    return polydata(xyz[used], faces, ij[used],
+                    {"skirt": np.concatenate(skirt), "level": np.concatenate(level)})
