@@ -19,14 +19,15 @@ import numpy as np
 import zstandard
 
 from geoterrain import __version__
+from geoterrain.bounds import vertex_errors, vertex_radii
 from geoterrain.codec import choose_quantizer, decoded_heights, encode_pyramid
-from geoterrain.errors import tile_errors, vertex_errors, vertex_radii
 from geoterrain.exceptions import InputError, UsageError
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.raster import Raster, read_raster
 from geoterrain.store import StoreWriter, default_store_path
+from geoterrain.tilebounds import tile_errors
 from geoterrain.vertexdata import pack_bounds, scale_bounds, scale_exponent
 
 log = logging.getLogger("geoterrain")
