@@ -10,11 +10,12 @@ from pathlib import Path
 import numpy as np
 import zstandard
 
-from geoterrain.codec import Quantizer, codes_to_heights, decode_tile, tile_valid
+from geoterrain.codec import decode_tile, tile_valid
 from geoterrain.exceptions import StoreCorruptError
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
 from geoterrain.normals import decode_octahedral
+from geoterrain.quantize import Quantizer, codes_to_heights
 from geoterrain.store import StoreReader
 from geoterrain.vertexdata import decode_bounds
 
