@@ -31,11 +31,10 @@ import zstandard
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from geoterrain.codec import (  # noqa: E402
+from geoterrain.codec import decode_tile, encode_pyramid  # noqa: E402
+from geoterrain.quantize import (  # noqa: E402
     choose_quantizer,
     codes_to_heights,
-    decode_tile_at,
-    encode_pyramid,
     heights_to_codes,
 )
 
@@ -131,8 +130,10 @@ def run_one(name, h, valid, native, scale, offset, eps, level, rows, lerc_ok):
     t0 = time.perf_counter()
     cache: dict = {}
     worst = 0.0
-    for key in sorted(blobs, key=lambda k: -k[0]):
-        decode_tile_at(key, blobs.__getitem__, qz, cache)
+    for key in sorted(blobs, key=lambda k: -k[0]):  # parents first
+        lev, x, y = key
+        parent = cache.get((lev + 1, x // 2, y // 2))  # None for the top tile
+        cache[key] = decode_tile(blobs[key], parent, qz, (x % 2, y % 2))
     t_dec = time.perf_counter() - t0
     span = 1 << min(6, int(np.log2(z.shape[0] - 1)))
     for (lev, x, y), codes in cache.items():

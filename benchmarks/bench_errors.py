@@ -1,4 +1,5 @@
-"""Benchmark of geoterrain.errors (a script, not a test).
+"""Benchmark of the bound kernels, geoterrain.bounds and geoterrain.tilebounds (a script,
+not a test).
 
 1. Timing on a seeded 4097² spectral fBm DEM: the pure-numpy δ reference vs. the compiled
    kernel (after a warm-up compile), radii, tile errors, and pymartini
@@ -19,14 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from geoterrain.errors import (
-    saturate,
-    static_mesh,
-    tile_errors,
-    vertex_errors,
-    vertex_errors_reference,
-    vertex_radii,
-)
+from geoterrain.bounds import vertex_errors, vertex_radii
+from geoterrain.reference import saturate, static_mesh, vertex_errors_reference
+from geoterrain.tilebounds import tile_errors
 
 FUJI = Path("/work/shared/dems/fuji_terrain_rgb.png")
 

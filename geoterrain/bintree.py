@@ -15,21 +15,28 @@ Every non-corner sample is the split vertex of exactly one bintree depth:
   their diamond is the rotated square ``|di| + |dj| <= h`` clipped to the domain.
 
 Everything here is vectorised over arrays of (i, j) integer pairs; there are no node
-objects (the same implicit indexing as Martini).
+objects (the same implicit indexing as Martini). The ``*_nb`` helpers are the same rules
+for one vertex, compiled and inlined into the numba kernels (δ, saturation, radii, LOD),
+so each rule has one owner.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 __all__ = [
     "base_triangles",
+    "child_nb",
     "half_span",
+    "main_diagonal_nb",
+    "parents_nb",
     "split_vertex",
     "triangle_children",
     "uniform_triangles",
     "vertex_children",
     "vertex_depth",
+    "vertex_level",
     "vertex_parents",
 ]
 
@@ -114,6 +121,87 @@ def uniform_triangles(n: int, depth: int) -> tuple[np.ndarray, np.ndarray, np.nd
 def _lowbit(i: np.ndarray, j: np.ndarray) -> np.ndarray:
     v = np.bitwise_or(i, j)
     return v & -v
+
+
+def vertex_level(i: np.ndarray, j: np.ndarray, top_level: int) -> np.ndarray:
+    """The coarsest pyramid level holding sample (i, j): trailing zero bits of ``i | j``,
+    capped at ``top_level``; (0, 0) is on every level, so it gets ``top_level``.
+
+    Level L keeps the samples ``[::2**L, ::2**L]`` (docs/conventions.md).
+
+    Examples
+    --------
+    >>> vertex_level(np.array([0, 4, 2, 1, 8]), np.array([0, 0, 4, 2, 8]), 2).tolist()
+    [2, 2, 1, 0, 2]
+    """
+    i = np.asarray(i, dtype=np.int64)
+    j = np.asarray(j, dtype=np.int64)
+    low = np.bitwise_or(i, j)
+    low = np.where(low == 0, np.int64(1) << top_level, low & -low)
+    return np.minimum(np.log2(low).astype(np.int64), top_level)
+
+
+@njit(cache=True, inline="always")
+def main_diagonal_nb(bi, bj):
+    """Union-jack parity: True when block (bi, bj) of a uniform cut (blocks of any side,
+    counted from the grid origin) is split along its main diagonal (0, 0)–(1, 1), False
+    for the anti-diagonal (0, 1)–(1, 0). Seed 002 §2.3 parity rule; compiled, inlined.
+
+    Examples
+    --------
+    >>> main_diagonal_nb(0, 0), main_diagonal_nb(0, 1), main_diagonal_nb(3, 1)
+    (True, False, True)
+    """
+    return (bi + bj) % 2 == 0
+
+
+@njit(cache=True, inline="always")
+def parents_nb(i, j, h):
+    """The two parents ``(i0, j0, i1, j1)`` of vertex (i, j) of half-span ``h``
+    (``h`` = the lowest set bit of ``i | j``); compiled, inlined.
+
+    A block centre (i/h and j/h odd) has the two corners of its 2h block that are off
+    the split diagonal (:func:`main_diagonal_nb`); an edge midpoint has the two ends of
+    the perpendicular through it: (i, j ± h) if its hypotenuse runs along the rows
+    (i/h odd), else (i ± h, j). Same rule as :func:`vertex_parents`, but a parent outside
+    the grid (boundary edge midpoints) is returned as is: callers check ``0 <= . < N``.
+
+    Examples
+    --------
+    >>> parents_nb(2, 2, 2), parents_nb(2, 0, 2), parents_nb(0, 1, 1)
+    ((0, 4, 4, 0), (2, -2, 2, 2), (-1, 1, 1, 1))
+    """
+    if (i // h) % 2 == 1:
+        if (j // h) % 2 == 1:  # centre: the corners off the split diagonal
+            sg = 1 if main_diagonal_nb((i - h) // (2 * h), (j - h) // (2 * h)) else -1
+            return i - h, j + sg * h, i + h, j - sg * h
+        return i, j - h, i, j + h  # edge midpoint, hypotenuse along the rows
+    return i - h, j, i + h, j  # edge midpoint, hypotenuse along the columns
+
+
+@njit(cache=True, inline="always")
+def child_nb(i, j, h, k):
+    """Child ``k`` (0..3) ``(ci, cj)`` of vertex (i, j) of half-span ``h``; compiled, inlined.
+
+    A block centre's children are its 4 edge midpoints (i ∓ h, j), (i, j ∓ h) in the
+    order up, down, left, right; an edge midpoint's are the centres of the (up to) four
+    h/2 blocks around it, (i ∓ h/2, j ∓ h/2) in raster order. Same order as
+    :func:`vertex_children`. Edge midpoints with h = 1 are leaves (no children) and
+    children outside the grid are returned as is: callers skip both.
+
+    Examples
+    --------
+    >>> [child_nb(2, 2, 2, k) for k in range(4)]
+    [(0, 2), (4, 2), (2, 0), (2, 4)]
+    >>> [child_nb(2, 0, 2, k) for k in range(4)]
+    [(1, -1), (1, 1), (3, -1), (3, 1)]
+    """
+    if (i // h) % 2 == 1 and (j // h) % 2 == 1:  # centre → its 4 edge midpoints
+        if k < 2:
+            return i + (2 * k - 1) * h, j
+        return i, j + (2 * k - 5) * h
+    q = h // 2  # edge midpoint → centres of the h/2 blocks around it
+    return i + (2 * (k // 2) - 1) * q, j + (2 * (k % 2) - 1) * q
 
 
 def vertex_depth(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:

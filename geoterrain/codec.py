@@ -6,7 +6,7 @@ Here the pyramid is the vertex-aligned one of ``docs/conventions.md`` (level L k
 ``[::2**L, ::2**L]``, tiles of ``T = 2**t + 1`` samples sharing borders) and the coding
 is *closed loop* on integer codes, so errors never accumulate down the pyramid:
 
-1. every height becomes an int64 code ``q`` (see :class:`Quantizer`);
+1. every height becomes an int64 code ``q`` (:class:`geoterrain.quantize.Quantizer`);
 2. the top tile ``(Lmax, 0, 0)`` stores its codes directly (raster-order delta);
 3. every finer tile stores only the samples that are new at its level (those not on the
    parent level's grid), as residuals ``q - pred``; ``pred`` is the floor-mean of the 2
@@ -45,20 +45,17 @@ import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 
 import numpy as np
 import zstandard
 
+from geoterrain.grid import footprint_counts, level_tiles
+from geoterrain.quantize import Quantizer, codes_to_heights, heights_to_codes
+
 __all__ = [
     "BLOB_VERSION",
-    "Quantizer",
-    "choose_quantizer",
-    "heights_to_codes",
-    "codes_to_heights",
     "encode_pyramid",
     "decode_tile",
-    "decode_tile_at",
     "tile_valid",
     "decoded_codes",
     "decoded_heights",
@@ -68,185 +65,6 @@ __all__ = [
 BLOB_VERSION = 1
 _HEADER = 4
 _MASK_ALL_VALID, _MASK_ALL_INVALID, _MASK_STORED = 0, 1, 2
-_I64_MAX = np.int64(np.iinfo(np.int64).max)
-_I32_MAX = np.int64(np.iinfo(np.int32).max)
-
-
-# --------------------------------------------------------------------------- quantizer
-
-
-@dataclass(frozen=True)
-class Quantizer:
-    """How heights map to int64 codes.
-
-    Attributes
-    ----------
-    mode : {"int", "quantized", "float"}
-        ``"int"``: lossless, heights are exactly ``offset + q * step`` (integer DEMs,
-        Terrain-RGB's 0.1 m). ``"quantized"``: ``q = round((z - offset) / step)`` with
-        ``step`` slightly below ``2 * max_error`` so ``|decoded - z| <= max_error``.
-        ``"float"``: lossless bit-exact floats; codes are the float bit patterns mapped to
-        order-preserving integers (``float_bits`` = 32 or 64).
-    step, offset : float
-        Code spacing and origin (unused in ``"float"`` mode).
-    max_error : float
-        Guaranteed bound on ``|decoded - z|`` (0 for lossless modes).
-    float_bits : int
-        Width of the source float in ``"float"`` mode.
-
-    Examples
-    --------
-    >>> Quantizer("int", 1.0, 0.0, 0.0).mode
-    'int'
-    """
-
-    mode: str
-    step: float = 1.0
-    offset: float = 0.0
-    max_error: float = 0.0
-    float_bits: int = 64
-
-    def __post_init__(self) -> None:
-        if self.mode not in ("int", "quantized", "float"):
-            raise ValueError(f"unknown quantizer mode {self.mode!r}")
-        if self.mode != "float" and not self.step > 0:
-            raise ValueError("quantizer step must be > 0")
-        if self.float_bits not in (32, 64):
-            raise ValueError("float_bits must be 32 or 64")
-
-
-def _is_on_grid(v: np.ndarray, step: float, offset: float) -> bool:
-    """True when every value is exactly ``offset + round((v - offset)/step) * step``."""
-    if v.size == 0:
-        return True
-    k = np.rint((v - offset) / step)
-    if not np.all(np.abs(k) < 2.0**52):
-        return False
-    return bool(np.array_equal(offset + k * step, v))
-
-
-def choose_quantizer(
-    values: np.ndarray,
-    src_dtype: np.dtype | type | str,
-    max_error: float | None = None,
-    scale: float | None = None,
-    offset: float | None = None,
-) -> Quantizer:
-    """Pick the quantizer for a DEM.
-
-    Integer sources, and float sources whose values are all exactly ``k * scale + offset``
-    (``scale`` defaults to 1, i.e. integer-valued floats are detected), are coded
-    losslessly as integers. Other floats are coded **bit-exactly at the source float
-    precision** (``"float"`` mode: lossless, but measured at 14-21 bits per sample on
-    float32 DEMs, about 2.5x a 0.1-unit quantized code, because the low mantissa bits are
-    incompressible noise) unless ``max_error`` is given, in which case they are quantized
-    with ``|decoded - z| <= max_error``.
-    Lossless integer coding is kept when ``2 * max_error <= scale``.
-
-    Parameters
-    ----------
-    values : array
-        The valid heights (any shape; non-finite values are ignored).
-    src_dtype : dtype
-        The source raster's dtype.
-    max_error : float, optional
-        Vertical error bound epsilon (source units). ``None`` or 0 means lossless.
-    scale, offset : float, optional
-        A known code spacing and origin (e.g. Terrain-RGB: 0.1 and -10000).
-
-    Returns
-    -------
-    Quantizer
-
-    Examples
-    --------
-    >>> choose_quantizer(np.array([1.0, 5.0]), np.int16).mode
-    'int'
-    >>> choose_quantizer(np.array([1.25, 5.5]), np.float32).mode
-    'float'
-    >>> q = choose_quantizer(np.array([1.25, 5.5]), np.float32, max_error=0.5)
-    >>> q.mode, q.step < 1.0
-    ('quantized', True)
-    """
-    dt = np.dtype(src_dtype)
-    v = np.asarray(values, dtype=np.float64).ravel()
-    v = v[np.isfinite(v)]
-    sc = 1.0 if scale is None else float(scale)
-    off = 0.0 if offset is None else float(offset)
-    exact = _is_on_grid(v, sc, off)
-    lossy = max_error is not None and max_error > 0
-    if exact and (not lossy or 2.0 * float(max_error) <= sc):
-        return Quantizer("int", sc, off, 0.0)
-    if lossy:
-        eps = float(max_error)
-        if offset is None:
-            off = float(np.round(np.median(v))) if v.size else 0.0
-        vmax = float(np.max(np.abs(v))) if v.size else 0.0
-        # float64 rounding of (z - off)/step, q*step and off + q*step: a few ulps of the
-        # magnitudes involved; shrink the step by that margin (seed 000 has no formula).
-        margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))
-        step = 2.0 * (eps - margin)
-        if step <= 0:
-            raise ValueError(f"max_error {eps} is below the float64 resolution of the data")
-        for _ in range(8):
-            qz = Quantizer("quantized", step, off, eps)
-            if v.size == 0:
-                break
-            dec = codes_to_heights(heights_to_codes(v, qz), qz)
-            if float(np.max(np.abs(dec - v))) <= eps:
-                break
-            step *= 1.0 - 1e-9
-        return Quantizer("quantized", step, off, eps)
-    bits = 64
-    if dt == np.float32 or dt.kind in "iub" or dt.itemsize <= 4:
-        if np.array_equal(v.astype(np.float32).astype(np.float64), v):
-            bits = 32
-    return Quantizer("float", 1.0, 0.0, 0.0, bits)
-
-
-def heights_to_codes(z: np.ndarray, quantizer: Quantizer) -> np.ndarray:
-    """Map heights to int64 codes (non-finite inputs give arbitrary codes).
-
-    Examples
-    --------
-    >>> heights_to_codes(np.array([1.0, -2.0]), Quantizer("int")).tolist()
-    [1, -2]
-    """
-    z = np.asarray(z, dtype=np.float64)
-    if quantizer.mode == "float":
-        if quantizer.float_bits == 32:
-            b = z.astype(np.float32).view(np.int32).astype(np.int64)
-            return np.where(b < 0, b ^ _I32_MAX, b)
-        b = np.ascontiguousarray(z).view(np.int64)
-        # order-preserving map of the IEEE bit pattern (sign-magnitude -> two's complement)
-        return np.where(b < 0, b ^ _I64_MAX, b)
-    with np.errstate(invalid="ignore"):
-        r = np.rint((z - quantizer.offset) / quantizer.step)
-        r = np.where(np.isfinite(r), r, 0.0)
-    if r.size and float(np.max(np.abs(r))) >= 2.0**62:
-        raise ValueError("heights out of range for the quantizer step")
-    return r.astype(np.int64)
-
-
-def codes_to_heights(codes: np.ndarray, quantizer: Quantizer) -> np.ndarray:
-    """Map int64 codes back to float64 heights (``offset + q * step``).
-
-    Examples
-    --------
-    >>> qz = Quantizer("int", 0.1, -10000.0)
-    >>> float(codes_to_heights(np.array([100000]), qz)[0])
-    0.0
-    """
-    codes = np.asarray(codes, dtype=np.int64)
-    if quantizer.mode == "float":
-        if quantizer.float_bits == 32:
-            c = codes.astype(np.int32)
-            b = np.where(c < 0, c ^ np.int32(_I32_MAX), c).astype(np.int32)
-            return b.view(np.float32).astype(np.float64)
-        b = np.ascontiguousarray(np.where(codes < 0, codes ^ _I64_MAX, codes))
-        return b.view(np.float64).copy()
-    return quantizer.offset + codes * quantizer.step
-
 
 # --------------------------------------------------------------------------- helpers
 
@@ -469,22 +287,6 @@ def decoded_heights(
 # --------------------------------------------------------------------------- encoding
 
 
-def _footprint_counts(cs: np.ndarray, span: int, ntiles: int) -> np.ndarray:
-    """Valid-sample counts in closed boxes [k*span, (k+1)*span]^2, shape (ny, nx).
-
-    ``cs`` is the (N + 1, N + 1) summed-area table of ``valid``.
-    """
-    lo = np.arange(ntiles) * span
-    hi = lo + span + 1
-    return cs[hi][:, hi] - cs[lo][:, hi] - cs[hi][:, lo] + cs[lo][:, lo]
-
-
-def _windows(a: np.ndarray, step: int, size: int, ntiles: int) -> np.ndarray:
-    """Overlapping (ny, nx, size, size) windows starting every ``step`` samples."""
-    idx = (np.arange(ntiles) * step)[:, None] + np.arange(size)
-    return a[idx[:, None, :, None], idx[None, :, None, :]]
-
-
 def encode_pyramid(
     z: np.ndarray,
     valid: np.ndarray,
@@ -556,14 +358,12 @@ def _encode_levels(pool, out, d, valid, n, te, lmax, cubic, level, progress) -> 
     if progress is not None:
         progress(1, lmax + 1)
 
-    cs = np.zeros((valid.shape[0] + 1, valid.shape[1] + 1), np.int32)
-    np.cumsum(np.cumsum(valid, axis=0, dtype=np.int32), axis=1, out=cs[1:, 1:])
+    counts = footprint_counts(valid, te)
     h = 1 << (te - 1)
     for lev in range(lmax - 1, -1, -1):
         s = 1 << lev
         nt = 1 << (n - lev - te)
-        counts = _footprint_counts(cs, (1 << te) * s, nt)
-        g, vg = d[::s, ::s], valid[::s, ::s]
+        g = d[::s, ::s]
         pa, pb, pc = _predict(g[::2, ::2], period)
         ra = g[::2, 1::2] - pa  # decoded = q where valid, = pred where invalid (-> 0)
         rb = g[1::2, ::2] - pb
@@ -579,7 +379,7 @@ def _encode_levels(pool, out, d, valid, n, te, lmax, cubic, level, progress) -> 
         del res
         zmax = zz.max(axis=2)
         packs = {k: _pack_symbols(zz, k) for k in _PACK_BITS}
-        vt = _windows(vg, 1 << te, tt, nt)
+        vt = level_tiles(valid, te, lev)
         nvalid = vt.sum(axis=(2, 3))
 
         def tile_job(yx, lev=lev, zz=zz, zmax=zmax, packs=packs, vt=vt, nvalid=nvalid):
@@ -599,7 +399,7 @@ def _encode_levels(pool, out, d, valid, n, te, lmax, cubic, level, progress) -> 
             return (lev, int(x), int(y)), head + _compressor(level).compress(mask + stream)
 
         # per-tile stream choice and zstd on every core (zstd and numpy release the GIL)
-        out.update(pool.map(tile_job, zip(*np.nonzero(counts), strict=True)))
+        out.update(pool.map(tile_job, zip(*np.nonzero(counts[lev]), strict=True)))
         del zz, packs, vt
         if progress is not None:
             progress(lmax - lev + 1, lmax + 1)
@@ -805,34 +605,3 @@ def decode_tile(
     out[1::2, ::2] = pb + r[na : na + nb].reshape(h, h + 1)
     out[1::2, 1::2] = pc + r[na + nb :].reshape(h, h)
     return out
-
-
-def decode_tile_at(
-    key: tuple[int, int, int],
-    get_blob: Callable[[tuple[int, int, int]], bytes],
-    quantizer: Quantizer,
-    cache: dict[tuple[int, int, int], np.ndarray] | None = None,
-) -> np.ndarray:
-    """Decode tile ``key = (L, x, y)`` from the top down, reading only it and its ancestors.
-
-    ``get_blob(key)`` returns a tile's blob; ``cache`` (optional) keeps decoded codes.
-
-    Examples
-    --------
-    >>> z = np.arange(25.0).reshape(5, 5); v = np.ones((5, 5), bool)
-    >>> blobs = encode_pyramid(z, v, 1, Quantizer("int"))
-    >>> decode_tile_at((0, 1, 1), blobs.__getitem__, Quantizer("int")).tolist()
-    [[12, 13, 14], [17, 18, 19], [22, 23, 24]]
-    """
-    if cache is not None and key in cache:
-        return cache[key]
-    lev, x, y = key
-    blob = get_blob(key)
-    if blob[1] & 1:
-        codes = decode_tile(blob, None, quantizer)
-    else:
-        parent = decode_tile_at((lev + 1, x // 2, y // 2), get_blob, quantizer, cache)
-        codes = decode_tile(blob, parent, quantizer, (x % 2, y % 2))
-    if cache is not None:
-        cache[key] = codes
-    return codes

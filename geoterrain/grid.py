@@ -87,20 +87,9 @@ class Grid:
         return out
 
     def footprint_counts(self, valid: np.ndarray) -> dict[int, np.ndarray]:
-        """Per level, (tiles_per_side, tiles_per_side) counts of valid samples in each footprint.
-
-        The footprint is closed (it includes shared border samples). Computed
-        from one integral image, so every level costs O(tiles).
-        """
-        ii = np.zeros((self.size + 1, self.size + 1), np.int64)
-        ii[1:, 1:] = valid.astype(np.int64).cumsum(0).cumsum(1)
-        out = {}
-        for L in self.levels:
-            s = self.tile_span(L)
-            lo = np.arange(self.tiles_per_side(L)) * s
-            hi = lo + s + 1
-            out[L] = ii[hi][:, hi] - ii[lo][:, hi] - ii[hi][:, lo] + ii[lo][:, lo]
-        return out
+        """Per level, (tiles_per_side, tiles_per_side) counts of valid samples in each
+        footprint: :func:`footprint_counts` keyed by level."""
+        return dict(enumerate(footprint_counts(valid, self.t)))
 
     def stored_tiles(self, valid: np.ndarray) -> Iterator[tuple[int, int, int]]:
         """Every (L, x, y) whose footprint holds a valid sample, coarsest level first."""
@@ -111,3 +100,57 @@ class Grid:
 
     def to_json(self) -> dict:
         return asdict(self)
+
+
+def footprint_counts(valid: np.ndarray, t: int) -> list[np.ndarray]:
+    """Valid full-resolution samples in each tile footprint, for every pyramid level.
+
+    ``valid`` is the (N, N) mask, N = 2**n + 1, and tiles have 2**t + 1 samples a side.
+    Entry L is the (ny, nx) int64 count of level L (tile span S = 2**(t + L)); the
+    footprint of tile (x, y) is the closed box ``[y S, (y + 1) S] × [x S, (x + 1) S]``,
+    shared borders included. A tile is stored when its count is > 0. Computed from one
+    integral image, so every level costs O(tiles).
+
+    Examples
+    --------
+    >>> v = np.zeros((5, 5), bool); v[2, 2] = True
+    >>> [c.tolist() for c in footprint_counts(v, 1)]
+    [[[1, 1], [1, 1]], [[1]]]
+    """
+    valid = np.asarray(valid, dtype=bool)
+    N = valid.shape[0]
+    n = int(N - 1).bit_length() - 1
+    dt = np.int32 if valid.size < 2**31 else np.int64
+    ii = np.zeros((N + 1, N + 1), dt)
+    np.cumsum(np.cumsum(valid, axis=0, dtype=dt), axis=1, out=ii[1:, 1:])
+    out = []
+    for L in range(n - t + 1):
+        s = 1 << (t + L)
+        lo = np.arange((N - 1) // s) * s
+        hi = lo + s + 1
+        c = ii[hi][:, hi] - ii[lo][:, hi] - ii[hi][:, lo] + ii[lo][:, lo]
+        out.append(c.astype(np.int64))
+    return out
+
+
+def level_tiles(a: np.ndarray, t: int, level: int) -> np.ndarray:
+    """Every tile of pyramid level L as a read-only (ny, nx, T, T, ...) view of a
+    full-resolution array ``a`` (N, N, ...) (T = 2**t + 1; trailing axes kept last).
+
+    Level L keeps ``a[::2**L, ::2**L]``; tile (x, y) is its T × T window starting at
+    sample (y 2**t, x 2**t), so neighbouring tiles share their border samples.
+
+    Examples
+    --------
+    >>> a = np.arange(25).reshape(5, 5)
+    >>> w = level_tiles(a, 1, 0)
+    >>> w.shape, w[1, 0].tolist()
+    ((2, 2, 3, 3), [[10, 11, 12], [15, 16, 17], [20, 21, 22]])
+    """
+    lv = a[:: 1 << level, :: 1 << level]
+    T, step = (1 << t) + 1, 1 << t
+    win = np.lib.stride_tricks.sliding_window_view(lv, (T, T), axis=(0, 1))[::step, ::step]
+    # sliding_window_view puts the window axes last; move trailing channel axes after them
+    for _ in range(a.ndim - 2):
+        win = np.moveaxis(win, 2, -1)
+    return win

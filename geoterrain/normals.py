@@ -40,45 +40,6 @@ OCTAHEDRAL_MAX_ERROR_DEG = {8: 0.94, 16: 0.0037}
 OCTAHEDRAL_MAX_ERROR_DEG_PRECISE = {8: 0.64, 16: 0.0025}
 
 
-def _axis_tangent(p: np.ndarray, v: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per-index tangent dP/d(index) along ``axis`` and whether one exists.
-
-    Central difference (P[k+1] - P[k-1]) / 2 where both neighbours are valid, one-sided
-    difference where only one is, none (zero, flag False) where neither is.
-    """
-    n = p.shape[axis]
-    pp = np.moveaxis(p, axis, 0)
-    vv = np.moveaxis(v, axis, 0)
-    fwd = np.zeros_like(pp)
-    bwd = np.zeros_like(pp)
-    hf = np.zeros(vv.shape, bool)
-    hb = np.zeros(vv.shape, bool)
-    if n > 1:
-        fwd[:-1] = pp[1:] - pp[:-1]
-        hf[:-1] = vv[1:] & vv[:-1]
-        bwd[1:] = fwd[:-1]
-        hb[1:] = hf[:-1]
-    both = hf & hb
-    tan = np.where(both[..., None], 0.5 * (fwd + bwd), np.where(hf[..., None], fwd, bwd))
-    has = hf | hb
-    tan = np.where(has[..., None], tan, 0.0)
-    return np.moveaxis(tan, 0, axis), np.moveaxis(has, 0, axis)
-
-
-def _horn_smooth(tan: np.ndarray, has: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
-    """Horn / Sobel: 1-2-1 weighted mean of the tangents of the neighbouring lines."""
-    tt = np.moveaxis(tan, axis, 0)
-    hh = np.moveaxis(has, axis, 0).astype(np.float64)
-    acc = 2.0 * tt * hh[..., None]
-    wsum = 2.0 * hh
-    acc[1:] += tt[:-1] * hh[:-1, ..., None]
-    wsum[1:] += hh[:-1]
-    acc[:-1] += tt[1:] * hh[1:, ..., None]
-    wsum[:-1] += hh[1:]
-    out = np.where(wsum[..., None] > 0, acc / np.maximum(wsum, 1.0)[..., None], 0.0)
-    return np.moveaxis(out, 0, axis), np.moveaxis(wsum > 0, 0, axis)
-
-
 def normal_map(
     x: np.ndarray,
     y: np.ndarray,
@@ -101,8 +62,8 @@ def normal_map(
     Computed by a parallel compiled kernel, one pass over the positions, all arithmetic
     in float64 (only the result is rounded to float32, so the normal is within 1 float32
     ulp per component, about 6e-8, of the exact normal of the float64 tangents; the
-    plane tests hold to 1e-6). :func:`_normal_map_numpy` is the vectorised reference
-    (same formulas) the tests compare against.
+    plane tests hold to 1e-6). :func:`geoterrain.reference.normal_map_reference` is the
+    vectorised numpy oracle (same formulas) the tests compare against.
 
     Parameters
     ----------
@@ -244,58 +205,6 @@ def _normals_nb(x, y, z, v, horn, out):  # pragma: no cover - compiled
             out[i, j, 0] = nx / length
             out[i, j, 1] = ny / length
             out[i, j, 2] = nz / length
-
-
-def _normal_map_numpy(
-    x: np.ndarray,
-    y: np.ndarray,
-    z: np.ndarray,
-    valid: np.ndarray | None = None,
-    kernel: str = "central",
-) -> np.ndarray:
-    """Vectorised reference of :func:`normal_map` (row blocks with a 1-row halo)."""
-    if kernel not in ("central", "horn"):
-        raise ValueError(f"unknown kernel {kernel!r}")
-    x, y, z = (np.asarray(a, dtype=np.float64) for a in (x, y, z))
-    v = np.isfinite(x) & np.isfinite(y) & np.isfinite(z)
-    if valid is not None:
-        v &= np.asarray(valid, bool)
-    out = np.empty((*v.shape, 3), np.float32)
-    rows = v.shape[0]
-    for r0 in range(0, rows, _BLOCK_ROWS):  # row blocks with a 1-row halo: exact, bounded memory
-        r1 = min(r0 + _BLOCK_ROWS, rows)
-        a, b = max(r0 - 1, 0), min(r1 + 1, rows)
-        blk = _normal_block(x[a:b], y[a:b], z[a:b], v[a:b], kernel)
-        out[r0:r1] = blk[r0 - a : r0 - a + (r1 - r0)]
-    return out
-
-
-_BLOCK_ROWS = 256
-
-
-def _normal_block(
-    x: np.ndarray, y: np.ndarray, z: np.ndarray, v: np.ndarray, kernel: str
-) -> np.ndarray:
-    p = np.stack([x, y, z], axis=-1)
-    p = np.where(v[..., None], p, 0.0)
-    tj, hj = _axis_tangent(p, v, 1)  # along a row (column index j)
-    ti, hi = _axis_tangent(p, v, 0)  # along a column (row index i)
-    if kernel == "horn":
-        tj, hj = _horn_smooth(tj, hj, 0)
-        ti, hi = _horn_smooth(ti, hi, 1)
-    # a missing tangent: horizontal and perpendicular to the other one
-    perp_j = np.stack([-tj[..., 1], tj[..., 0], np.zeros_like(tj[..., 0])], axis=-1)
-    perp_i = np.stack([ti[..., 1], -ti[..., 0], np.zeros_like(ti[..., 0])], axis=-1)
-    ti = np.where((hj & ~hi)[..., None], perp_j, ti)
-    tj = np.where((hi & ~hj)[..., None], perp_i, tj)
-    nrm = np.cross(tj, ti)
-    nrm = np.where(nrm[..., 2:3] < 0, -nrm, nrm)
-    length = np.linalg.norm(nrm, axis=-1, keepdims=True)
-    scale = np.max(np.abs(np.concatenate([tj, ti], axis=-1)), axis=-1, keepdims=True)
-    ok = v[..., None] & (length > 1e-12 * np.maximum(scale, 1e-300) ** 2) & (hi | hj)[..., None]
-    up = np.array([0.0, 0.0, 1.0])
-    out = np.where(ok, nrm / np.where(ok, length, 1.0), up)
-    return out.astype(np.float32)
 
 
 def _box_sum(a: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

@@ -19,14 +19,16 @@ import numpy as np
 import zstandard
 
 from geoterrain._version import __version__
-from geoterrain.codec import choose_quantizer, decoded_heights, encode_pyramid
-from geoterrain.errors import tile_errors, vertex_errors, vertex_radii
+from geoterrain.bounds import stand_in_z, vertex_errors, vertex_radii
+from geoterrain.codec import decoded_heights, encode_pyramid
 from geoterrain.exceptions import InputError, UsageError, exists_error
 from geoterrain.frame import Frame
-from geoterrain.grid import Grid
+from geoterrain.grid import Grid, level_tiles
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
+from geoterrain.quantize import choose_quantizer
 from geoterrain.raster import Raster, read_raster
 from geoterrain.store import StoreWriter, default_store_path
+from geoterrain.tilebounds import tile_errors
 from geoterrain.vertexdata import pack_bounds, scale_bounds, scale_exponent
 
 log = logging.getLogger("geoterrain")
@@ -35,24 +37,6 @@ STAGES = ("read", "pad", "quantise", "errors", "radii", "tile bounds", "normals"
           "write")
 ABSURD_HEIGHT = 1e5  # |h| beyond this is almost surely a unit or nodata problem
 NORMAL_BITS = 8
-
-
-def _tiles_of_level(a: np.ndarray, grid: Grid, level: int) -> np.ndarray:
-    """All tiles of one level as a (tiles, tiles, T, T, ...) view of a full-res array."""
-    lv = a[:: 1 << level, :: 1 << level]
-    T, step = grid.tile_samples, 1 << grid.t
-    win = np.lib.stride_tricks.sliding_window_view(lv, (T, T), axis=(0, 1))
-    win = win[::step, ::step]
-    # sliding_window_view puts the window axes last; move trailing channel axes after them
-    if a.ndim == 3:
-        win = np.moveaxis(win, 2, -1)
-    return win
-
-
-def stand_in_z(Z: np.ndarray, valid: np.ndarray) -> float:
-    """The scene height standing in for nodata in the nested spheres: mid valid range."""
-    zv = Z[valid & np.isfinite(Z)]
-    return float(0.5 * (zv.min() + zv.max())) if zv.size else 0.0
 
 
 def validate(r: Raster, z_scale: float | None) -> None:
@@ -187,9 +171,9 @@ def preprocess(
         keys = [k for k in height_blobs if k[0] == L]
         if not keys:
             continue
-        tiles_d = _tiles_of_level(delta, grid, L)
-        tiles_r = _tiles_of_level(radius, grid, L)
-        tiles_n = _tiles_of_level(nrm_levels[L], grid, 0)
+        tiles_d = level_tiles(delta, grid.t, L)
+        tiles_r = level_tiles(radius, grid.t, L)
+        tiles_n = level_tiles(nrm_levels[L], grid.t, 0)
         # max δ and r over the vertices new at this level (the others belong to coarser tiles)
         new = np.ones((grid.tile_samples,) * 2, bool)
         if L < grid.top_level:

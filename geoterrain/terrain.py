@@ -11,11 +11,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 import zstandard
 
-from geoterrain.codec import Quantizer, codes_to_heights, decode_tile, tile_valid
+from geoterrain.bintree import vertex_level
+from geoterrain.codec import decode_tile, tile_valid
 from geoterrain.exceptions import StoreCorruptError, StoreError
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
 from geoterrain.normals import decode_octahedral
+from geoterrain.quantize import Quantizer, codes_to_heights
 from geoterrain.store import StoreReader
 from geoterrain.vertexdata import decode_bounds
 
@@ -198,11 +200,8 @@ class Terrain:
 
     # ------------------------------------------------------- per-vertex data
     def vertex_level(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
-        """The coarsest pyramid level holding samples (i, j) (trailing zero bits)."""
-        g = self.grid
-        low = np.bitwise_or(i, j)
-        low = np.where(low == 0, 1 << g.n, low & -low)
-        return np.minimum(np.log2(low).astype(np.int64), g.top_level)
+        """The coarsest pyramid level holding samples (i, j) (:func:`bintree.vertex_level`)."""
+        return vertex_level(i, j, self.grid.top_level)
 
     def gather(self, i: np.ndarray, j: np.ndarray, kinds=("delta", "radius", "height")
                ) -> dict[str, np.ndarray]:

@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 import zstandard
 
+from geoterrain.rounding import round_up
+
 VERSION = 1
 _F16_MAX = 32768.0  # keep the scaled maximum well inside float16's finite range
 
@@ -59,10 +61,7 @@ def scale_bounds(tiles: np.ndarray, k: int | None = None) -> tuple[np.ndarray, n
     else:
         k = np.full(a.shape[:-2], k, np.int64)
     v = a * np.exp2(-k.astype(np.float64))[..., None, None]  # exact: powers of two
-    h = v.astype(np.float16)
-    low = h.astype(np.float64) < v  # rounding went down: step up one ulp
-    h[low] = np.nextafter(h[low], np.float16(np.inf))
-    return h, k
+    return round_up(v, np.float16), k
 
 
 def pack_bounds(h: np.ndarray, k: int, cctx: zstandard.ZstdCompressor) -> bytes:
@@ -80,9 +79,5 @@ def decode_bounds(blob: bytes, shape: tuple[int, ...]) -> np.ndarray:
     n = int(np.prod(shape))
     planes = np.frombuffer(raw, np.uint8).reshape(2, n)
     h = planes.T.copy().view(np.float16).reshape(shape)
-    out = h.astype(np.float64) * 2.0**k
     # float32 output: round up again so the bound survives the cast
-    o32 = out.astype(np.float32)
-    low = o32.astype(np.float64) < out
-    o32[low] = np.nextafter(o32[low], np.float32(np.inf))
-    return o32
+    return round_up(h.astype(np.float64) * 2.0**k, np.float32)

@@ -10,23 +10,19 @@ from hypothesis import strategies as st
 from geoterrain.codec import (
     _PACK_BITS,
     BLOB_VERSION,
-    Quantizer,
     _choose_stream,
     _pack_symbols,
     _read_stream,
     _shuffle,
     _width,
-    choose_quantizer,
-    codes_to_heights,
     decode_tile,
-    decode_tile_at,
     decoded_codes,
     decoded_heights,
     encode_pyramid,
-    heights_to_codes,
     pyramid_shape,
     tile_valid,
 )
+from geoterrain.quantize import Quantizer, choose_quantizer, codes_to_heights, heights_to_codes
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -40,9 +36,10 @@ def decode_all(blobs, n_samples, t, qz):
     for lev in range(n - te + 1):
         m = (1 << (n - lev)) + 1
         out[lev] = (np.zeros((m, m), np.int64), np.zeros((m, m), bool))
-    for key in sorted(blobs, key=lambda k: -k[0]):
+    for key in sorted(blobs, key=lambda k: -k[0]):  # parents first
         lev, x, y = key
-        codes = decode_tile_at(key, blobs.__getitem__, qz, cache)
+        parent = cache.get((lev + 1, x // 2, y // 2))  # None for the top tile
+        codes = cache[key] = decode_tile(blobs[key], parent, qz, (x % 2, y % 2))
         g, cov = out[lev]
         sl = (slice(y * span, y * span + span + 1), slice(x * span, x * span + span + 1))
         # shared borders must agree between neighbouring tiles
@@ -233,32 +230,6 @@ def test_int_source_with_small_eps_stays_lossless():
 
 
 # ----------------------------------------------------------------------------- access
-
-
-@pytest.mark.parametrize("predictor", ["linear", "cubic"])
-def test_coarse_tile_reads_only_ancestors(predictor):
-    size, t = 257, 3
-    z = np.round(fractal(size, 2))
-    valid = np.ones(z.shape, bool)
-    qz = Quantizer("int")
-    blobs = encode_pyramid(z, valid, t, qz, predictor=predictor)
-    key = (2, 3, 1)
-    read: list = []
-
-    def get(k):
-        read.append(k)
-        return blobs[k]
-
-    codes = decode_tile_at(key, get, qz)
-    lev, x, y = key
-    expected = []
-    while lev <= 5:  # Lmax = 8 - 3
-        expected.append((lev, x, y))
-        lev, x, y = lev + 1, x // 2, y // 2
-    assert sorted(read) == sorted(expected)
-    s = 1 << key[0]
-    ref = decoded_codes(z, valid, t, qz, predictor)[::s, ::s][8:17, 24:33]
-    assert np.array_equal(codes, ref)
 
 
 def test_decode_tile_direct_api_and_errors():

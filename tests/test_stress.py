@@ -19,9 +19,9 @@ import math
 
 import numpy as np
 import pytest
-from conftest import real_dem, write_tif
 
 import geoterrain
+from conftest import real_dem, write_tif
 from geoterrain.bench import flight
 from geoterrain.exceptions import InputError
 from geoterrain.measure import (

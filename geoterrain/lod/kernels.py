@@ -8,6 +8,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from geoterrain.bintree import parents_nb
+
 
 @njit(cache=True)
 def _walk(active, mixed, vid, tris, verts, fill):
@@ -82,18 +84,9 @@ def extract(active: np.ndarray, mixed: np.ndarray, vid: np.ndarray
 
 
 @njit(cache=True)
-def _set_parents(active, i, j, h, centre):
+def _set_parents(active, i, j, h):
     N = active.shape[0]
-    if centre:
-        # union-jack block parity decides the diagonal (seed 002 §2.3)
-        par = (((i - h) // (2 * h)) + ((j - h) // (2 * h))) % 2
-        sg = 1 if par == 0 else -1
-        p0i, p0j, p1i, p1j = i - h, j + sg * h, i + h, j - sg * h
-    else:
-        if (i // h) % 2 == 1:  # hypotenuse along the row
-            p0i, p0j, p1i, p1j = i, j - h, i, j + h
-        else:
-            p0i, p0j, p1i, p1j = i - h, j, i + h, j
+    p0i, p0j, p1i, p1j = parents_nb(i, j, h)  # the bintree's rule (seed 002 §2.3)
     if 0 <= p0i < N and 0 <= p0j < N:
         active[p0i, p0j] = True
     if 0 <= p1i < N and 0 <= p1j < N:
@@ -123,7 +116,7 @@ def close_upward_boxes(active, boxes):
                 jb = ja if ((i // h) + (ja // h)) % 2 == 1 else ja + h
                 for j in range(jb, j1 + 1, 2 * h):
                     if active[i, j]:
-                        _set_parents(active, i, j, h, False)
+                        _set_parents(active, i, j, h)
             i0, j0 = max(0, i0 - h), max(0, j0 - h)  # their parents lie h away
             i1, j1 = min(N - 1, i1 + h), min(N - 1, j1 + h)
             ia, ja = (i0 // h) * h, (j0 // h) * h
@@ -132,7 +125,7 @@ def close_upward_boxes(active, boxes):
             for i in range(ib, i1 + 1, 2 * h):
                 for j in range(jb, j1 + 1, 2 * h):
                     if active[i, j]:
-                        _set_parents(active, i, j, h, True)
+                        _set_parents(active, i, j, h)
             i0, j0 = max(0, i0 - h), max(0, j0 - h)
             i1, j1 = min(N - 1, i1 + h), min(N - 1, j1 + h)
         h *= 2

@@ -1,13 +1,14 @@
-"""Tests of geoterrain.errors: exact δ, saturation, nested radii, tile bounds, static mesh.
+"""Tests of geoterrain.bounds and geoterrain.tilebounds: exact δ, saturation, nested radii,
+tile bounds; and of the numpy oracles of geoterrain.reference (δ, static mesh), which the
+compiled kernels are re-checked against.
 
 Every error measurement here uses brute-force routines written in this file (barycentric
-interpolation triangle by triangle), never code from geoterrain.errors.
+interpolation triangle by triangle), never code from geoterrain.
 """
 
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,17 +16,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from geoterrain.bintree import vertex_children, vertex_depth, vertex_parents
-from geoterrain.errors import (
-    _raw_delta,
-    _round_up_f32,
-    static_mesh,
-    tile_errors,
-    vertex_errors,
-    vertex_errors_reference,
-    vertex_radii,
-)
+from geoterrain.bounds import _raw_delta, vertex_errors, vertex_radii
+from geoterrain.reference import static_mesh, vertex_errors_reference
+from geoterrain.rounding import round_up
+from geoterrain.tilebounds import tile_errors
+from tests.conftest import real_dem
 
-FUJI = Path("/work/shared/dems/fuji_terrain_rgb.png")
 EPS = np.finfo(np.float64).eps
 
 # ------------------------------------------------------------------ brute-force helpers
@@ -205,7 +201,7 @@ def test_kernel_matches_reference(data, N):
     zz = np.where(valid, z, 0.0)
     vv = valid.copy()
     a = _raw_delta(zz, vv)
-    b = _round_up_f32(vertex_errors_reference(z, valid))
+    b = round_up(vertex_errors_reference(z, valid))
     np.testing.assert_array_equal(np.isinf(a), np.isinf(b))
     np.testing.assert_array_equal(a == 0, b == 0)
     fin = np.isfinite(a)
@@ -371,7 +367,7 @@ def test_tile_errors_brute(seed):
 
 def read_fuji():
     iio = pytest.importorskip("imageio.v3")
-    rgb = iio.imread(FUJI)[..., :3].astype(np.float64)
+    rgb = iio.imread(real_dem("fuji_terrain_rgb.png"))[..., :3].astype(np.float64)
     h = -10000 + (rgb[..., 0] * 65536 + rgb[..., 1] * 256 + rgb[..., 2]) * 0.1
     H, W = h.shape
     N = 513
@@ -427,7 +423,6 @@ def test_mesh_deviation_np_agrees_with_loops():
         mesh_deviation(v, f, z, valid)[0], abs=1e-12)
 
 
-@pytest.mark.skipif(not FUJI.exists(), reason="Fuji DEM absent")
 def test_fuji_static_mesh_bound():
     z, valid = read_fuji()
     d = vertex_errors(z, valid)

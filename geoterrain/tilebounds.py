@@ -1,0 +1,245 @@
+"""Per-tile error bounds and boxes of the stored pyramid (the store's tile table).
+
+For every stored tile ``(L, x, y)`` (docs/conventions.md): the max vertical error of the
+level-L union-jack surface over the tile's footprint, the same on its border lines (what
+a skirt must cover), and the box of its valid samples. Invalid samples are handled as in
+:mod:`geoterrain.bounds`: never read, and a triangle mixing valid and invalid samples
+makes the bound +inf.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from geoterrain.bintree import main_diagonal_nb
+from geoterrain.bounds import cell_rows_nb, check_grid
+from geoterrain.grid import footprint_counts
+
+__all__ = ["TileBounds", "tile_errors"]
+
+
+def closed_blocks(a: np.ndarray, s: int, op, dtype=None) -> np.ndarray:
+    """``op``-reduction of ``a`` over the closed blocks ``[p*s : (p+1)*s + 1]`` (shared
+    borders), separably: rows, then columns. Returns (nb, nb)."""
+    N = a.shape[0]
+    nb = (N - 1) // s
+    r = op.reduce(a[:-1].reshape(nb, s, N), axis=1, dtype=dtype)
+    r = op(r, a[s::s])
+    c = op.reduce(r[:, :-1].reshape(nb, nb, s), axis=2)
+    return op(c, r[:, s::s])
+
+
+class TileBounds(NamedTuple):
+    """Bounds of one stored tile, in the column order of the store's tile table."""
+
+    nvalid: int
+    zmin: float
+    zmax: float
+    error: float
+    boundary_error: float
+    xmin: float
+    xmax: float
+    ymin: float
+    ymax: float
+
+
+@njit(cache=True)
+def _level_field_nb(z, vf, s, E):
+    # E = max over the all-valid closed triangles containing a sample of |z − S_L| (0 if
+    # none), S_L the union-jack surface of cell size s; and per cell whether one of its
+    # two closed triangles mixes valid and invalid samples.
+    N = z.shape[0]
+    nb = (N - 1) // s
+    E[:, :] = 0.0
+    mixed = np.zeros((nb, nb), np.bool_)
+    inv = 1.0 / s
+    for bi in range(nb):
+        for bj in range(nb):
+            i0 = bi * s
+            j0 = bj * s
+            main = main_diagonal_nb(bi, bj)
+            tot = 0
+            for di in range(s + 1):
+                for dj in range(s + 1):
+                    tot += vf[i0 + di, j0 + dj]
+            if tot == 0:
+                continue
+            z00 = z[i0, j0]
+            z01 = z[i0, j0 + s]
+            z10 = z[i0 + s, j0]
+            z11 = z[i0 + s, j0 + s]
+            if tot == (s + 1) * (s + 1):  # all valid: split each row at the diagonal
+                for di in range(s + 1):
+                    i = i0 + di
+                    fi = di * inv
+                    b1, g1, b2, g2 = cell_rows_nb(z00, z01, z10, z11, fi, inv, main)
+                    cut = di if main else s - di + 1
+                    for dj in range(cut):
+                        e = abs(z[i, j0 + dj] - (b1 + g1 * dj))
+                        if e > E[i, j0 + dj]:
+                            E[i, j0 + dj] = e
+                    for dj in range(cut, s + 1):
+                        e = abs(z[i, j0 + dj] - (b2 + g2 * dj))
+                        if e > E[i, j0 + dj]:
+                            E[i, j0 + dj] = e
+                continue
+            c1 = 0.0
+            c2 = 0.0
+            t1 = 0.0
+            t2 = 0.0
+            for di in range(s + 1):
+                for dj in range(s + 1):
+                    first = dj >= di if main else di + dj <= s
+                    both = dj == di if main else di + dj == s
+                    v = np.float64(vf[i0 + di, j0 + dj])
+                    if first or both:
+                        c1 += v
+                        t1 += 1.0
+                    if (not first) or both:
+                        c2 += v
+                        t2 += 1.0
+            ok1 = c1 == t1
+            ok2 = c2 == t2
+            mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
+            if not (ok1 or ok2):
+                continue
+            for di in range(s + 1):
+                i = i0 + di
+                for dj in range(s + 1):
+                    j = j0 + dj
+                    if main:
+                        first = dj >= di
+                        both = dj == di
+                    else:
+                        first = di + dj <= s
+                        both = di + dj == s
+                    if both:
+                        first = ok1
+                    if not (ok1 if first else ok2):
+                        continue
+                    if main:
+                        if first:
+                            S = z00 + (z01 - z00) * (dj * inv) + (z11 - z01) * (di * inv)
+                        else:
+                            S = z00 + (z10 - z00) * (di * inv) + (z11 - z10) * (dj * inv)
+                    else:
+                        if first:
+                            S = z00 + (z10 - z00) * (di * inv) + (z01 - z00) * (dj * inv)
+                        else:
+                            S = (z11 + (z01 - z11) * ((s - di) * inv)
+                                 + (z10 - z11) * ((s - dj) * inv))
+                    e = abs(z[i, j] - S)
+                    if e > E[i, j]:
+                        E[i, j] = e
+    return mixed
+
+
+@njit(cache=True)
+def _tile_boxes_nb(z, x, y, vb, S):
+    # Per closed tile footprint of span S: the box of the valid samples.
+    N = z.shape[0]
+    nt = (N - 1) // S
+    box = np.empty((6, nt, nt))
+    for k in range(3):
+        box[2 * k] = np.inf
+        box[2 * k + 1] = -np.inf
+    for i in range(N):
+        ty0 = min(i // S, nt - 1)
+        ty1 = i // S - 1 if (i % S == 0 and i > 0) else ty0  # border rows: two tiles
+        for j in range(N):
+            if not vb[i, j]:
+                continue
+            tx0 = min(j // S, nt - 1)
+            tx1 = j // S - 1 if (j % S == 0 and j > 0) else tx0
+            for ty in range(ty1, ty0 + 1):
+                for tx in range(tx1, tx0 + 1):
+                    box[0, ty, tx] = min(box[0, ty, tx], z[i, j])
+                    box[1, ty, tx] = max(box[1, ty, tx], z[i, j])
+                    box[2, ty, tx] = min(box[2, ty, tx], x[i, j])
+                    box[3, ty, tx] = max(box[3, ty, tx], x[i, j])
+                    box[4, ty, tx] = min(box[4, ty, tx], y[i, j])
+                    box[5, ty, tx] = max(box[5, ty, tx], y[i, j])
+    return box
+
+
+def tile_errors(
+    z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray, t: int = 6
+) -> dict[tuple[int, int, int], TileBounds]:
+    """Error bounds of every stored tile ``(L, x, y)`` of the pyramid (docs/conventions.md).
+
+    Returns a dict keyed by ``(L, x, y)`` (x counts columns, y rows) of :class:`TileBounds`
+    (a NamedTuple ordered like the store's tile columns) for every tile whose footprint
+    holds a valid sample:
+
+    * ``error``: max over the valid footprint samples of |z − S_L|, S_L the union-jack
+      uniform surface of level L; +inf if a level-L triangle of the tile (closed, drawn or
+      not) mixes valid and invalid samples (level 0 is the data itself: always 0); then
+      made monotone up the quadtree (parent ≥ its children).
+    * ``boundary_error``: the same max over the samples on the tile's four border lines
+      (what a skirt must cover); +inf if a mixed triangle lies in a border cell.
+    * ``zmin, zmax, xmin, xmax, ymin, ymax``: box of the valid footprint samples in scene
+      coordinates; ``nvalid``: number of valid footprint samples (borders included).
+
+    Examples
+    --------
+    >>> I, J = np.indices((5, 5)).astype(float)
+    >>> tb = tile_errors(I * J, np.ones((5, 5), bool), J, -I, t=1)
+    >>> sorted(tb), tb[(1, 0, 0)].error, tb[(1, 0, 0)].nvalid
+    ([(0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1), (1, 0, 0)], 1.0, 25)
+    """
+    zf, valid, n = check_grid(z, valid)
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    N = zf.shape[0]
+    te = min(t, n)
+    lmax = n - te
+    cpt = 1 << te  # cells per tile side
+    vb = valid.view(np.uint8)
+    xc = np.ascontiguousarray(x)
+    yc = np.ascontiguousarray(y)
+    E = np.zeros((N, N))
+    nvalid = footprint_counts(valid, te)
+    per_level = []
+    for L in range(lmax + 1):
+        S = 1 << (te + L)  # tile span in full-resolution samples
+        nt = (N - 1) // S
+        if L == 0:
+            mixed = np.zeros((nt * cpt, nt * cpt), bool)
+        else:
+            mixed = _level_field_nb(zf, vb, 1 << L, E)
+        err = closed_blocks(E, S, np.maximum)
+        m4 = mixed.reshape(nt, cpt, nt, cpt)
+        err = np.where(m4.any(axis=(1, 3)), np.inf, err)
+        rows = np.maximum.reduce(E[::S, :-1].reshape(nt + 1, nt, S), axis=2)
+        rows = np.maximum(rows, E[::S, S::S])
+        cols = np.maximum.reduce(E[:-1, ::S].reshape(nt, S, nt + 1), axis=1)
+        cols = np.maximum(cols, E[S::S, ::S])
+        bnd = np.maximum(np.maximum(rows[:-1], rows[1:]), np.maximum(cols[:, :-1], cols[:, 1:]))
+        border = (m4[:, 0].any(axis=2) | m4[:, -1].any(axis=2)
+                  | m4[:, :, :, 0].any(axis=1) | m4[:, :, :, -1].any(axis=1))
+        bnd = np.where(border, np.inf, bnd)
+        nval = nvalid[L]
+        if L == 0:
+            box = _tile_boxes_nb(zf, xc, yc, vb, S)
+        else:  # a parent's closed footprint is the union of its 4 children's
+            b4 = per_level[-1][2].reshape(6, nt, 2, nt, 2)
+            box = np.empty((6, nt, nt))
+            box[0::2] = b4[0::2].min(axis=(2, 4))
+            box[1::2] = b4[1::2].max(axis=(2, 4))
+        per_level.append((err, bnd, box, nval))
+    for L in range(1, lmax + 1):  # monotone up the quadtree
+        child = per_level[L - 1][0]
+        nt = child.shape[0] // 2
+        cmax = child.reshape(nt, 2, nt, 2).max(axis=(1, 3))
+        np.maximum(per_level[L][0], cmax, out=per_level[L][0])
+    out: dict[tuple[int, int, int], TileBounds] = {}
+    for L, (err, bnd, box, nval) in enumerate(per_level):
+        for ty, tx in zip(*np.nonzero(nval > 0), strict=True):
+            out[(L, int(tx), int(ty))] = TileBounds(
+                int(nval[ty, tx]), float(box[0, ty, tx]), float(box[1, ty, tx]),
+                float(err[ty, tx]), float(bnd[ty, tx]), float(box[2, ty, tx]),
+                float(box[3, ty, tx]), float(box[4, ty, tx]), float(box[5, ty, tx]))
+    return out
