@@ -1,4 +1,10 @@
-"""Shared fixtures: real DEMs from ../shared/dems (skipped when absent) and synthetic ones."""
+"""Shared fixtures: real DEMs from ../shared/dems (skipped when absent) and synthetic ones.
+
+The real-DEM folder defaults to ``../shared/dems`` next to the project root; the
+environment variable ``GEOTERRAIN_TEST_DEMS`` points the tests at another folder
+(give a missing one, e.g. ``GEOTERRAIN_TEST_DEMS=/nonexistent``, to check that the
+suite still runs, on synthetic terrains, on a machine without the real DEMs).
+"""
 
 from __future__ import annotations
 
@@ -10,7 +16,7 @@ import pytest
 from hypothesis import settings
 
 ROOT = Path(__file__).resolve().parents[1]
-DEMS = (ROOT / ".." / "shared" / "dems").resolve()
+DEMS = Path(os.environ.get("GEOTERRAIN_TEST_DEMS") or ROOT / ".." / "shared" / "dems").resolve()
 REAL_DEMS = ["srtm3_pysheds.tif", "srtm1_japan.tif", "roi_epsg3089.tif",
              "fuji_terrain_rgb.png", "st_helens_terrain_rgb.png", "terrarium.png"]
 
@@ -19,11 +25,16 @@ settings.register_profile("dev", max_examples=60, deadline=None)
 settings.load_profile("ci" if os.environ.get("CI") else "dev")
 
 
+def has_real_dem(name: str) -> bool:
+    """Whether a real DEM is available (for fixtures that add cases rather than skip)."""
+    return (DEMS / name).is_file()
+
+
 def real_dem(name: str) -> Path:
     """Path of a real DEM, or skip the test when the shared folder is absent."""
     p = DEMS / name
     if not p.is_file():
-        pytest.skip(f"real DEM {name} not available (../shared/dems absent)")
+        pytest.skip(f"real DEM {name} not available ({DEMS} absent)")
     return p
 
 

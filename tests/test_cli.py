@@ -1,18 +1,23 @@
 """The command line: bad input gets one line and the right exit code, never a traceback."""
 
+import os
 import sqlite3
+from pathlib import Path
 
 import numpy as np
 import pytest
 import rasterio
 from click.testing import CliRunner
-from geoterrain.cli.main import cli
 
 import geoterrain.store
 from tests.conftest import write_tif
 
 
 def run(*args):
+    # imported here: geoterrain.cli is the top-level cli/ folder, mapped into the package
+    # on install, so import sorters disagree on where it belongs among the imports
+    from geoterrain.cli.main import cli
+
     return CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
 
 
@@ -35,10 +40,12 @@ def test_preprocess_and_info(fbm_tif, tmp_path):
     res = run("-q", "preprocess", fbm_tif, "-o", out)
     assert res.exit_code == 0 and out.exists()
     res = run("info", out)
-    assert res.exit_code == 0 and "EPSG" in res.output or "UTM" in res.output
+    assert res.exit_code == 0, res.output
+    assert "EPSG" in res.output or "UTM" in res.output
     res = run("info", out, "--json")
     import json
 
+    assert res.exit_code == 0, res.output
     assert json.loads(res.output)["grid"] == [129, 129]
 
 
@@ -84,7 +91,13 @@ def test_bad_input(case, code, tmp_path, fbm_tif):
         src = fbm_tif
         out.write_text("x")
     elif case == "read-only":
-        src, out = fbm_tif, "/proc/geoterrain-test.geoterrain"
+        src = fbm_tif
+        ro = tmp_path / "ro"
+        ro.mkdir()
+        ro.chmod(0o555)
+        # a read-only directory, or /proc where permissions do not bind (root)
+        out = ro / "out.geoterrain" if not os.access(ro, os.W_OK) else \
+            Path("/proc/geoterrain-test.geoterrain")
     elif case == "bad-tile-size":
         src, extra = fbm_tif, ["--tile-size", "48"]
     elif case == "bad-band":
@@ -96,8 +109,15 @@ def test_bad_input(case, code, tmp_path, fbm_tif):
         assert res.exit_code == 2 and "Traceback" not in res.output
     else:
         assert_one_line_error(res, code)
-    if case not in ("exists",):
-        assert not (tmp_path / "out.geoterrain").exists()
+    out = Path(out)
+    if case == "exists":
+        assert out.read_text() == "x"  # left as it was
+    else:
+        assert not out.exists()
+    # and nothing else was left behind: no partial store next to the output, no store
+    # (partial or not) anywhere else, e.g. at the default path next to the DEM
+    assert not [p.name for p in out.parent.iterdir() if p.name.startswith(f".{out.name}")]
+    assert not [p.name for p in tmp_path.rglob("*") if p != out and "geoterrain" in p.name]
 
 
 def test_absurd_heights_pass_with_z_scale(tmp_path):

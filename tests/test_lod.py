@@ -15,7 +15,7 @@ import geoterrain
 from geoterrain.measure import screen_space_error, vertical_error
 from geoterrain.synth import generate
 from geoterrain.view import View
-from tests.conftest import real_dem, write_tif
+from tests.conftest import has_real_dem, real_dem, write_tif
 
 SLACK = 1 + 1e-9
 
@@ -59,11 +59,11 @@ def surface(sel):
     return sel.ij, f, np.asarray(sel.mesh.points)[:, 2]
 
 
-def valid_domain_area(valid: np.ndarray) -> float:
-    """Area (in cells) of the full-resolution triangles with three valid corners.
-
-    Written independently of the library: in each unit cell the diagonal joins
-    the corner whose row and column are both odd to the opposite corner.
+def _valid_triangles(valid: np.ndarray):
+    """Full-resolution triangles with three valid corners, written independently of the
+    library: in each unit cell the diagonal joins the corner whose row and column are both
+    odd to the opposite corner. Returns (main, t1, t2), (H-1, W-1) masks: where ``main``,
+    t1 = (00, 01, 11) and t2 = (00, 10, 11); elsewhere t1 = (00, 01, 10), t2 = (01, 10, 11).
     """
     H, W = valid.shape
     a, b = np.mgrid[: H - 1, : W - 1]
@@ -71,7 +71,25 @@ def valid_domain_area(valid: np.ndarray) -> float:
     v00, v01, v10, v11 = valid[:-1, :-1], valid[:-1, 1:], valid[1:, :-1], valid[1:, 1:]
     t1 = np.where(main, v00 & v11 & v01, v01 & v10 & v00)
     t2 = np.where(main, v00 & v10 & v11, v01 & v11 & v10)
+    return main, t1, t2
+
+
+def valid_domain_area(valid: np.ndarray) -> float:
+    """Area (in cells) of the full-resolution triangles with three valid corners."""
+    _, t1, t2 = _valid_triangles(valid)
     return 0.5 * float(t1.sum() + t2.sum())
+
+
+def coverable(valid: np.ndarray) -> np.ndarray:
+    """Valid samples that are a corner of a full-resolution triangle with three valid
+    corners: the samples a mesh of exactly the valid domain covers."""
+    main, t1, t2 = _valid_triangles(valid)
+    out = np.zeros(valid.shape, bool)
+    out[:-1, :-1] |= t1 | (t2 & main)
+    out[:-1, 1:] |= t1 | (t2 & ~main)
+    out[1:, :-1] |= t2 | (t1 & ~main)
+    out[1:, 1:] |= t2 | (t1 & main)
+    return out
 
 
 def check_conforming(sel, valid):
@@ -97,8 +115,41 @@ def check_conforming(sel, valid):
     return float(area.sum())
 
 
-def random_view(t, az, el, dist_frac, tx, ty, fov=30.0):
-    X, Y, Z, v = t._truth
+class Case:
+    """A terrain and its full-resolution truth: scene X, Y, Z and the valid mask."""
+
+    def __init__(self, name: str, t):
+        self.name, self.t = name, t
+        self.X, self.Y, self.Z = t.scene_xyz()
+        self.valid = np.isfinite(self.Z)
+        v = self.valid
+        self.lo = np.array([self.X[v].min(), self.Y[v].min(), self.Z[v].min()])
+        self.hi = np.array([self.X[v].max(), self.Y[v].max(), self.Z[v].max()])
+
+    def points(self) -> np.ndarray:
+        """(n, 3) scene positions of the valid samples."""
+        v = self.valid
+        return np.stack([self.X[v], self.Y[v], self.Z[v]], 1)
+
+    def corners(self) -> np.ndarray:
+        """The eight corners of the valid data's bounding box."""
+        return np.array([[x, y, z] for x in (self.lo[0], self.hi[0])
+                         for y in (self.lo[1], self.hi[1]) for z in (self.lo[2], self.hi[2])])
+
+    def xyz(self, i: int, j: int) -> np.ndarray:
+        return np.array([self.X[i, j], self.Y[i, j], self.Z[i, j]])
+
+    def nearest_valid(self, i: int, j: int) -> tuple[int, int]:
+        vi, vj = np.nonzero(self.valid)
+        k = int(np.argmin((vi - i) ** 2 + (vj - j) ** 2))
+        return int(vi[k]), int(vj[k])
+
+    def __repr__(self) -> str:  # hypothesis prints drawn cases
+        return f"Case({self.name!r})"
+
+
+def random_view(c: Case, az, el, dist_frac, tx, ty, fov=30.0):
+    X, Y, Z = c.X, c.Y, c.Z
     ext = float(np.nanmax(np.abs(np.stack([X, Y]))))
     zc = float(np.nanmean(Z))
     target = np.array([tx * ext, ty * ext, zc])
@@ -107,16 +158,47 @@ def random_view(t, az, el, dist_frac, tx, ty, fov=30.0):
     return View(tuple(eye), tuple(target), fov_y_deg=fov, size=(640, 360))
 
 
+def view_of_all_data(c: Case, fov=60.0) -> View:
+    """A view from above whose frustum holds the whole valid data.
+
+    The frustum is convex, so it holds every valid sample once it holds the eight corners
+    of their bounding box; the eye backs off until it does.
+    """
+    ctr = 0.5 * (c.lo + c.hi)
+    D = float(np.linalg.norm(c.hi - c.lo))
+    corners = c.corners()
+    for _ in range(40):
+        view = View(tuple(ctr + np.array([0.0, -1e-3 * D, D])), tuple(ctr), fov_y_deg=fov,
+                    size=(640, 360))
+        if view.points_inside(corners).all():
+            return view
+        D *= 1.5
+    raise AssertionError(f"no view from above holds all of {c}")
+
+
+def n_in_view(c: Case, view: View) -> int:
+    return int(view.points_inside(c.points()).sum())
+
+
 @pytest.fixture(scope="module")
 def terrains(holey, tmp_path_factory):
-    out = [holey]
-    p = real_dem("srtm3_pysheds.tif") if (tmp_path_factory and True) else None
-    d = tmp_path_factory.mktemp("real")
-    out.append(geoterrain.open(geoterrain.preprocess(p, d / "s.geoterrain", tile_size=32)))
-    for t in out:
-        X, Y, Z = t.scene_xyz()
-        t._truth = (X, Y, Z, np.isfinite(Z))
+    """Synthetic terrains, always; real DEMs add cases when ../shared/dems is present."""
+    yy, xx = np.mgrid[:97, :161]
+    ridged = generate("ridged", (97, 161), seed=11).astype(np.float32)
+    ridged[(yy < 20) & (xx > 140)] = np.nan  # a nodata corner
+    out = [Case("holey", holey),
+           Case("ridged", _store(tmp_path_factory, "ridged", ridged, tile_size=32))]
+    if has_real_dem("srtm3_pysheds.tif"):
+        d = tmp_path_factory.mktemp("real")
+        p = real_dem("srtm3_pysheds.tif")
+        out.append(Case("srtm3", geoterrain.open(geoterrain.preprocess(
+            p, d / "s.geoterrain", tile_size=32))))
     return out
+
+
+def test_synthetic_terrains_do_not_need_real_dems(terrains):
+    assert [c.name for c in terrains[:2]] == ["holey", "ridged"]
+    assert all(c.valid.any() and not c.valid.all() for c in terrains[:2])
 
 
 # ------------------------------------------------------------------ static mesh
@@ -160,78 +242,106 @@ def test_affine_terrain_gives_two_triangles(tmp_path_factory):
     assert t.static_selection(0.0).stats["triangles"] == 2
 
 
-@pytest.mark.parametrize("shape", [(2, 2), (3, 3), (2, 9), (17, 5)])
+@pytest.mark.parametrize("shape", [(2, 2), (3, 3), (2, 9), (17, 5), (9, 6)])
 def test_tiny_grids(tmp_path_factory, shape):
     z = np.random.default_rng(1).random(shape) * 50
+    if shape == (9, 6):
+        z[4, 2:] = np.nan  # a nodata band: a valid domain in two pieces
     t = _store(tmp_path_factory, f"tiny{shape[0]}x{shape[1]}", z, tile_size=4)
-    X, Y, Z = t.scene_xyz()
-    valid = np.isfinite(Z)
-    for e in (0.0, 1.0):
+    c = Case(f"tiny{shape}", t)
+    Z, valid = c.Z, c.valid
+    assert Z.shape == shape
+    area, cover = valid_domain_area(valid), int(coverable(valid).sum())
+    assert area > 0
+    for e in (0.0, 1.0, 5.0):
         sel = t.static_selection(e)
-        assert vertical_error(*surface(sel), Z, valid).max <= bound(e, Z)
-    sel = t.select(View((0, -100, 50), (0, 0, 0)), 1.0)
-    for s in ("rtin", "chunked", "bruteforce"):
-        sel = t.select(View((0, -100, 50), (0, 0, 0)), 1.0, s)
-        assert np.isfinite(np.asarray(sel.mesh.points)).all()
+        err = vertical_error(*surface(sel), Z, valid)
+        assert err.max <= bound(e, Z), (e, err)
+        assert err.n_samples == cover and err.n_uncovered_valid == valid.sum() - cover
+        assert check_conforming(sel, valid) == pytest.approx(area)
+    view = view_of_all_data(c)
+    for tau in (0.5, 8.0):
+        for s in ("rtin", "chunked", "bruteforce"):
+            sel = t.select(view, tau, s)
+            err = screen_error(c, sel, view)
+            assert err.max <= tau * SLACK, (s, tau, err)
+            assert err.n_samples == cover, (s, tau, err)  # all the data is in view
+            if s == "rtin":
+                assert check_conforming(sel, valid) == pytest.approx(area)
 
 
 # --------------------------------------------------------- view-dependent LOD
-@given(az=st.floats(0, 2 * np.pi), el=st.floats(0.05, 1.5), dist=st.floats(0.05, 3.0),
-       tx=st.floats(-1, 1), ty=st.floats(-1, 1), tau=st.sampled_from([0.5, 1.0, 4.0]),
-       which=st.integers(0, 1), strategy=st.sampled_from(["rtin", "chunked"]))
-def test_screen_space_error_is_at_most_tau(terrains, az, el, dist, tx, ty, tau, which,
-                                           strategy):
-    t = terrains[which]
-    X, Y, Z, valid = t._truth
-    view = random_view(t, az, el, dist, tx, ty)
-    sel = t.select(view, tau, strategy)
+def screen_error(c: Case, sel, view: View):
     ij, f, z = surface(sel)
-    err = screen_space_error(ij, f, z, X, Y, Z, valid, view.eye, view.planes, view.lam)
+    return screen_space_error(ij, f, z, c.X, c.Y, c.Z, c.valid, view.eye, view.planes,
+                              view.lam)
+
+
+@given(data=st.data(), az=st.floats(0, 2 * np.pi), el=st.floats(0.05, 1.5),
+       dist=st.floats(0.05, 3.0), tx=st.floats(-1, 1), ty=st.floats(-1, 1),
+       tau=st.sampled_from([0.5, 1.0, 4.0]), strategy=st.sampled_from(["rtin", "chunked"]))
+def test_screen_space_error_is_at_most_tau(terrains, data, az, el, dist, tx, ty, tau,
+                                           strategy):
+    c = data.draw(st.sampled_from(terrains), label="terrain")
+    view = random_view(c, az, el, dist, tx, ty)
+    sel = c.t.select(view, tau, strategy)
+    err = screen_error(c, sel, view)
     assert err.max <= tau * SLACK, (err, sel.stats)
     assert np.isfinite(np.asarray(sel.mesh.points)).all()
     if strategy == "rtin":
-        area = check_conforming(sel, valid)
-        assert area <= valid_domain_area(valid) + 1e-9
+        area = check_conforming(sel, c.valid)
+        assert area <= valid_domain_area(c.valid) + 1e-9
+    else:  # whole tiles whose boxes meet the frustum: every valid sample in view is drawn
+        assert err.n_uncovered == 0, (err, sel.stats)
 
 
 def test_rtin_full_view_covers_exact_valid_domain(terrains):
-    for t in terrains:
-        X, Y, Z, valid = t._truth
-        view = random_view(t, 0.3, 1.2, 2.5, 0, 0, fov=60)
-        sel = t.select(view, 1.0, "rtin")
-        if not view.points_inside(np.stack([X[valid], Y[valid], Z[valid]], 1)).all():
-            continue
-        assert check_conforming(sel, valid) == pytest.approx(valid_domain_area(valid))
+    checked = []
+    for c in terrains:
+        view = view_of_all_data(c)
+        assert view.points_inside(c.points()).all()  # the whole valid data is in view
+        sel = c.t.select(view, 1.0, "rtin")
+        assert check_conforming(sel, c.valid) == pytest.approx(valid_domain_area(c.valid)), c
+        err = screen_error(c, sel, view)
+        assert err.max <= SLACK, (c, err)
+        assert err.n_samples == int(coverable(c.valid).sum()), (c, err)
+        checked.append(c.name)
+    assert checked[:2] == ["holey", "ridged"] and len(checked) == len(terrains)
 
 
 @given(az=st.floats(0, 2 * np.pi), el=st.floats(0.05, 1.5), dist=st.floats(0.1, 2.0))
 def test_smaller_tau_never_removes_a_vertex(terrains, az, el, dist):
-    t = terrains[0]
-    view = random_view(t, az, el, dist, 0.1, -0.2)
+    c = terrains[0]
+    view = random_view(c, az, el, dist, 0.1, -0.2)
     sets = []
     for tau in (8.0, 4.0, 1.0, 0.5):
-        sel = t.select(view, tau, "rtin")
+        sel = c.t.select(view, tau, "rtin")
         inside = view.points_inside(np.asarray(sel.mesh.points))
         ij = sel.ij.astype(np.int64)
         sets.append((set(map(tuple, ij[inside].tolist())), set(map(tuple, ij.tolist()))))
+    if n_in_view(c, view):
+        assert sets[-1][1], "terrain in view but the finest selection is empty"
     # every in-view vertex of a coarser selection is kept by every finer one
     for (coarse_in, _), (_, fine_all) in zip(sets, sets[1:], strict=False):
         assert coarse_in <= fine_all
 
+
 @given(az=st.floats(0, 2 * np.pi), el=st.floats(0.05, 1.5), dist=st.floats(0.05, 1.0),
        strategy=st.sampled_from(["rtin", "chunked", "bruteforce"]))
 def test_culling_keeps_triangles_near_the_frustum(terrains, az, el, dist, strategy):
-    t = terrains[0]
-    view = random_view(t, az, el, dist, 0.5, 0.5, fov=20)
+    c = terrains[0]
+    t = c.t
+    view = random_view(c, az, el, dist, 0.5, 0.5, fov=20)
     sel = t.select(view, 1.0, strategy)
     pts = np.asarray(sel.mesh.points)
     f = sel.faces
     if not len(f):
+        assert n_in_view(c, view) == 0, "terrain in view but nothing selected"
         return
     P = view.planes
     d = pts @ P[:, :3].T + P[:, 3]  # (V, 6) signed distances
     out_by = -d[f].max(axis=1)  # (F, 6): > 0 means the whole triangle is outside that plane
-    X, Y, Z, _ = t._truth
+    X, Y, Z = c.X, c.Y, c.Z
     spacing = float(np.nanmax(np.hypot(np.diff(X, axis=1), np.diff(Y, axis=1))))
     zr = float(np.nanmax(Z) - np.nanmin(Z))
     lvl = np.asarray(sel.mesh.cell_data["level"])
@@ -243,23 +353,49 @@ def test_view_looking_away_is_empty_and_decodes_nothing(tmp_path_factory):
     z = generate("fbm", 129, seed=2)
     t = _store(tmp_path_factory, "away", z)
     for s in ("rtin", "chunked", "bruteforce"):
-        t.decoded_tiles = 0
         sel = t.select(View((0, 0, 5000), (0, 0, 10000)), 1.0, s)
         assert sel.stats["triangles"] == 0 and sel.stats["tiles_decoded"] == 0
 
 
-def test_eye_below_terrain_and_inside_spheres(terrains):
-    t = terrains[0]
-    X, Y, Z, v = t._truth
-    for eye_z in (float(np.nanmin(Z)) - 100, float(np.nanmean(Z))):
-        for s in ("rtin", "chunked", "bruteforce"):
-            sel = t.select(View((1.0, 2.0, eye_z), (50.0, 60.0, eye_z + 1)), 1.0, s)
-            assert np.isfinite(np.asarray(sel.mesh.points)).all()
+def eye_cases(c: Case):
+    """(label, eye, target): eyes below all the terrain, inside the data's box (so inside
+    every bounding sphere that holds all the data) and a hair above and below the surface,
+    all looking at a sample a quarter of the way across the grid."""
+    H, W = c.Z.shape
+    i, j = c.nearest_valid(H // 2, W // 2)
+    j2 = j + 1 if j + 1 < W and c.valid[i, j + 1] else j - 1
+    mid = 0.5 * (c.xyz(i, j) + c.xyz(i, j2))  # on the segment between two samples
+    target = c.xyz(*c.nearest_valid(H // 4, W // 4))
+    yield "below", np.array([mid[0], mid[1], c.lo[2] - 100.0]), target
+    yield "inside", np.array([mid[0], mid[1], 0.5 * (c.lo[2] + c.hi[2])]), target
+    for dz in (0.5, 1e-3, -1e-3, -0.5):
+        yield f"surface{dz:+g}", mid + np.array([0.0, 0.0, dz]), target + [0.0, 0.0, dz]
+
+
+@pytest.mark.parametrize("strategy", ["rtin", "chunked", "bruteforce"])
+def test_eye_below_terrain_and_inside_spheres(terrains, strategy):
+    tau = 1.0
+    for c in terrains:
+        for label, eye, target in eye_cases(c):
+            view = View(tuple(eye), tuple(target), fov_y_deg=45, size=(640, 360))
+            if label == "inside":
+                assert ((c.lo < eye) & (eye < c.hi)).all()
+            seen = n_in_view(c, view)
+            assert seen > 100, (c, label, seen)  # the view does look at terrain
+            sel = c.t.select(view, tau, strategy)
+            err = screen_error(c, sel, view)
+            what = (c, label, err, sel.stats)
+            assert np.isfinite(np.asarray(sel.mesh.points)).all(), what
+            assert sel.stats["triangles"] > 0 and err.n_samples > 0, what
+            assert err.max <= tau * SLACK, what
+            # the terrain in view is drawn: tiles whole, rtin all but what its error bound
+            # lets slip out of the frustum at the frustum's sides
+            assert err.n_uncovered <= (0.01 * seen if strategy == "rtin" else 0), what
 
 
 def test_unchanged_camera_reuses_selection(terrains):
-    t = terrains[0]
-    v = random_view(t, 1.0, 0.5, 1.0, 0, 0)
+    t = terrains[0].t
+    v = random_view(terrains[0], 1.0, 0.5, 1.0, 0, 0)
     a = t.select(v, 1.0)
     b = t.select(v, 1.0)
     assert b.stats["reused"] and b.stats["triangles"] == a.stats["triangles"]
