@@ -58,7 +58,8 @@ def test_default_output_name(tmp_path, fbm_tif):
 @pytest.mark.parametrize("case,code", [
     ("missing", 1), ("directory", 1), ("text", 1), ("multiband", 2), ("1x1", 1), ("1xN", 1),
     ("all-nodata", 1), ("all-nan", 1), ("inf", 1), ("absurd", 1), ("exists", 2),
-    ("read-only", 1), ("bad-tile-size", 2), ("bad-band", 2), ("bad-max-error", 2),
+    ("read-only", 1), ("bad-tile-size", 2), ("bad-band", 2), ("bad-codec-error", 2),
+    ("old-max-error", 2),
 ])
 def test_bad_input(case, code, tmp_path, fbm_tif):
     src, extra = tmp_path / "in.tif", []
@@ -102,13 +103,17 @@ def test_bad_input(case, code, tmp_path, fbm_tif):
         src, extra = fbm_tif, ["--tile-size", "48"]
     elif case == "bad-band":
         src, extra = fbm_tif, ["--band", "3"]
-    elif case == "bad-max-error":
-        src, extra = fbm_tif, ["--max-error", "-1"]
+    elif case == "bad-codec-error":
+        src, extra = fbm_tif, ["--codec-error", "-1"]
+    elif case == "old-max-error":  # renamed: the message says so
+        src, extra = fbm_tif, ["--max-error", "0.5"]
     res = run("-q", "preprocess", src, "-o", out, *extra)
     if case in ("bad-tile-size",):
         assert res.exit_code == 2 and "Traceback" not in res.output
     else:
         assert_one_line_error(res, code)
+    if case == "old-max-error":
+        assert "--codec-error" in res.output
     out = Path(out)
     if case == "exists":
         assert out.read_text() == "x"  # left as it was
