@@ -120,7 +120,7 @@ def narrow(a: np.ndarray) -> np.ndarray:
 def run_one(name, h, valid, native, scale, offset, eps, level, rows, lerc_ok):
     nvalid = int(valid.sum())
     src_dtype = native.dtype
-    qz = choose_quantizer(h[valid], src_dtype, max_error=eps or None, scale=scale, offset=offset)
+    qz = choose_quantizer(h[valid], src_dtype, codec_error=eps or None, scale=scale, offset=offset)
     z, v = pad(h, valid)
     t0 = time.perf_counter()
     blobs = encode_pyramid(z, v, 6, qz, level=level)
@@ -185,7 +185,7 @@ def level_table(repeat: int) -> None:
     v = np.ones(z.shape, bool)
     modes = {
         "float": choose_quantizer(z, np.float32),
-        "eps=1": choose_quantizer(z, np.float32, max_error=1.0),
+        "eps=1": choose_quantizer(z, np.float32, codec_error=1.0),
     }
     print("| mode | zstd level | enc s (median) | runs | bytes | bits/sample |")
     print("|---|---|---|---|---|---|")

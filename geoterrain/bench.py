@@ -160,18 +160,10 @@ def _mesh_key(ij: np.ndarray, faces: np.ndarray, z: np.ndarray) -> str:
 
 
 def _renderer(size: tuple[int, int], terrain):
-    """A render scene, or None when ``geoterrain.render`` is not available."""
-    try:
-        import geoterrain.rendering as r
-    except ImportError:
-        return None
-    make = getattr(r, "_plotter", None)
-    if make is None:
-        import pyvista as pv
+    """An offscreen render scene of ``size`` for ``terrain``."""
+    from geoterrain.rendering import TerrainScene, _plotter
 
-        def make(s):
-            return pv.Plotter(off_screen=True, window_size=s)
-    return r.TerrainScene(make(size), terrain)
+    return TerrainScene(_plotter(size), terrain)
 
 
 def _selection_peak(terrain, view: View, tau: float, strategy: str) -> int:
@@ -198,7 +190,7 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
     views : (kind, View) pairs; default :func:`flight` over the terrain's extent.
     strategies, taus : what to run (every combination).
     n_views : length of the default flight.
-    render : also render each frame offscreen (needs ``geoterrain.render``).
+    render : also render each frame offscreen and time it.
     source, preprocess_s, store_bytes : recorded in every row.
     progress : called with the number of frames done since the last call.
 
@@ -231,8 +223,6 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
     scene = None
     if render:
         scene = _renderer(views[0][1].size, terrain)
-        if scene is None:
-            res.notes.append("--render: geoterrain.render is not available; render_ms left empty")
     cache: dict[str, tuple] = {}
     try:
         for fi, (kind, view) in enumerate(views):

@@ -143,7 +143,7 @@ def preprocess(
     X, Y = frame.grid_xy(grid.size)
     stage("pad")
 
-    q = choose_quantizer(r.heights[r.valid], r.src_dtype, max_error=codec_error,
+    q = choose_quantizer(r.heights[r.valid], r.src_dtype, codec_error=codec_error,
                          scale=r.scale, offset=r.offset)
     hdec = decoded_heights(heights, valid, q)
     Z = frame.z(hdec)

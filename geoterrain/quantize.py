@@ -26,12 +26,12 @@ class Quantizer:
     mode : {"int", "quantized", "float"}
         ``"int"``: lossless, heights are exactly ``offset + q * step`` (integer DEMs,
         Terrain-RGB's 0.1 m). ``"quantized"``: ``q = round((z - offset) / step)`` with
-        ``step`` slightly below ``2 * max_error`` so ``|decoded - z| <= max_error``.
+        ``step`` slightly below ``2 * codec_error`` so ``|decoded - z| <= codec_error``.
         ``"float"``: lossless bit-exact floats; codes are the float bit patterns mapped to
         order-preserving integers (``float_bits`` = 32 or 64).
     step, offset : float
         Code spacing and origin (unused in ``"float"`` mode).
-    max_error : float
+    codec_error : float
         Guaranteed bound on ``|decoded - z|`` (0 for lossless modes).
     float_bits : int
         Width of the source float in ``"float"`` mode.
@@ -45,8 +45,22 @@ class Quantizer:
     mode: str
     step: float = 1.0
     offset: float = 0.0
-    max_error: float = 0.0
+    codec_error: float = 0.0
     float_bits: int = 64
+
+    @classmethod
+    def from_json(cls, d: dict) -> Quantizer:
+        """From a store's metadata (older stores call ε ``max_error``).
+
+        Examples
+        --------
+        >>> Quantizer.from_json({"mode": "quantized", "step": 0.9, "max_error": 0.5}).codec_error
+        0.5
+        """
+        d = dict(d)
+        if "max_error" in d:
+            d.setdefault("codec_error", d.pop("max_error"))
+        return cls(**d)
 
     def __post_init__(self) -> None:
         if self.mode not in ("int", "quantized", "float"):
@@ -70,7 +84,7 @@ def _is_on_grid(v: np.ndarray, step: float, offset: float) -> bool:
 def choose_quantizer(
     values: np.ndarray,
     src_dtype: np.dtype | type | str,
-    max_error: float | None = None,
+    codec_error: float | None = None,
     scale: float | None = None,
     offset: float | None = None,
 ) -> Quantizer:
@@ -81,9 +95,9 @@ def choose_quantizer(
     losslessly as integers. Other floats are coded **bit-exactly at the source float
     precision** (``"float"`` mode: lossless, but measured at 14-21 bits per sample on
     float32 DEMs, about 2.5x a 0.1-unit quantized code, because the low mantissa bits are
-    incompressible noise) unless ``max_error`` is given, in which case they are quantized
-    with ``|decoded - z| <= max_error``.
-    Lossless integer coding is kept when ``2 * max_error <= scale``.
+    incompressible noise) unless ``codec_error`` is given, in which case they are quantized
+    with ``|decoded - z| <= codec_error``.
+    Lossless integer coding is kept when ``2 * codec_error <= scale``.
 
     Parameters
     ----------
@@ -91,7 +105,7 @@ def choose_quantizer(
         The valid heights (any shape; non-finite values are ignored).
     src_dtype : dtype
         The source raster's dtype.
-    max_error : float, optional
+    codec_error : float, optional
         Vertical error bound epsilon (source units). ``None`` or 0 means lossless.
     scale, offset : float, optional
         A known code spacing and origin (e.g. Terrain-RGB: 0.1 and -10000).
@@ -106,7 +120,7 @@ def choose_quantizer(
     'int'
     >>> choose_quantizer(np.array([1.25, 5.5]), np.float32).mode
     'float'
-    >>> q = choose_quantizer(np.array([1.25, 5.5]), np.float32, max_error=0.5)
+    >>> q = choose_quantizer(np.array([1.25, 5.5]), np.float32, codec_error=0.5)
     >>> q.mode, q.step < 1.0
     ('quantized', True)
     """
@@ -116,11 +130,11 @@ def choose_quantizer(
     sc = 1.0 if scale is None else float(scale)
     off = 0.0 if offset is None else float(offset)
     exact = _is_on_grid(v, sc, off)
-    lossy = max_error is not None and max_error > 0
-    if exact and (not lossy or 2.0 * float(max_error) <= sc):
+    lossy = codec_error is not None and codec_error > 0
+    if exact and (not lossy or 2.0 * float(codec_error) <= sc):
         return Quantizer("int", sc, off, 0.0)
     if lossy:
-        eps = float(max_error)
+        eps = float(codec_error)
         if offset is None:
             off = float(np.round(np.median(v))) if v.size else 0.0
         vmax = float(np.max(np.abs(v))) if v.size else 0.0
@@ -129,7 +143,7 @@ def choose_quantizer(
         margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))
         step = 2.0 * (eps - margin)
         if step <= 0:
-            raise ValueError(f"max_error {eps} is below the float64 resolution of the data")
+            raise ValueError(f"codec_error {eps} is below the float64 resolution of the data")
         for _ in range(8):
             qz = Quantizer("quantized", step, off, eps)
             if v.size == 0:

@@ -66,7 +66,7 @@ class Terrain:
         self.meta = m
         self.grid = Grid(**m["grid"])
         self.frame = Frame.from_json(m["frame"])
-        self.quantizer = Quantizer(**m["quantizer"])
+        self.quantizer = Quantizer.from_json(m["quantizer"])
         self.tile_info = self.reader.tiles()
         self._cache: OrderedDict[tuple, tuple[object, int]] = OrderedDict()
         self._cache_budget = cache_bytes
@@ -369,7 +369,7 @@ class Terrain:
             "nodata_fraction": m["nodata_fraction"],
             "height_range": m["height_range"],
             "codec": describe_codec(self.quantizer),
-            "max_error": self.quantizer.max_error,
+            "codec_error": self.quantizer.codec_error,
             "height_bytes_per_level": {str(k): v for k, v in hbytes.items()},
             "height_bits_per_valid_sample": 8 * sum(hbytes.values()) / max(1, m["valid_samples"]),
             "bytes_by_kind": {k: sum(v for (kk, _), v in sizes.items() if kk == k)
@@ -405,7 +405,7 @@ def describe_codec(q: Quantizer) -> str:
         return f"lossless float{q.float_bits} (bit-exact), residuals + zstd"
     if q.mode == "int":
         return f"lossless integer codes × {q.step:g} + {q.offset:g}, residuals + zstd"
-    return f"quantised to ε = {q.max_error:g} (step {q.step:.6g}), residuals + zstd"
+    return f"quantised to ε = {q.codec_error:g} (step {q.step:.6g}), residuals + zstd"
 
 
 def open(path: str | Path, cache_bytes: int = 1536 << 20) -> Terrain:  # noqa: A001

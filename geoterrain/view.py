@@ -121,15 +121,6 @@ class View:
         return out
 
     # --------------------------------------------------------------- culling
-    def sphere_visibility(self, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """OUTSIDE (0), INTERSECTS (1) or INSIDE (2) for each sphere, vectorised."""
-        d = np.asarray(centers) @ self.planes[:, :3].T + self.planes[:, 3]
-        r = np.asarray(radii)[..., None]
-        out = np.full(d.shape[:-1], INTERSECTS, np.int8)
-        out[(d >= r).all(-1)] = INSIDE
-        out[(d < -r).any(-1)] = OUTSIDE
-        return out
-
     def spheres_visible(self, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
         """True for each sphere that is not entirely outside one frustum plane."""
         c = np.asarray(centers, np.float64).reshape(-1, 3)

@@ -203,8 +203,8 @@ def test_quantized_within_eps(eps, kind, predictor):
     z = _fields(65, 7)[kind]
     valid = np.ones(z.shape, bool)
     valid[5:9, 40:60] = False
-    qz = choose_quantizer(z[valid], np.float32, max_error=eps)
-    assert qz.mode == "quantized" and qz.max_error == eps and qz.step <= 2 * eps
+    qz = choose_quantizer(z[valid], np.float32, codec_error=eps)
+    assert qz.mode == "quantized" and qz.codec_error == eps and qz.step <= 2 * eps
     check_pyramid(z, valid, 3, qz, max_error=eps, predictor=predictor)
 
 
@@ -217,16 +217,16 @@ def test_quantized_within_eps(eps, kind, predictor):
 def test_quantized_bound_hypothesis(base, eps, seed):
     rng = np.random.default_rng(seed)
     z = base + rng.normal(0, 10, (17, 17)) * rng.choice([1e-3, 1.0, 100.0])
-    qz = choose_quantizer(z, np.float64, max_error=eps)
+    qz = choose_quantizer(z, np.float64, codec_error=eps)
     dec = codes_to_heights(heights_to_codes(z, qz), qz)
     assert np.all(np.abs(dec - z) <= eps)
-    check_pyramid(z, np.ones(z.shape, bool), 2, qz, max_error=eps)
+    check_pyramid(z, np.ones(z.shape, bool), 2, qz, codec_error=eps)
 
 
 def test_int_source_with_small_eps_stays_lossless():
     z = np.arange(25.0).reshape(5, 5)
-    assert choose_quantizer(z, np.int16, max_error=0.4).mode == "int"
-    assert choose_quantizer(z, np.int16, max_error=2.0).mode == "quantized"
+    assert choose_quantizer(z, np.int16, codec_error=0.4).mode == "int"
+    assert choose_quantizer(z, np.int16, codec_error=2.0).mode == "quantized"
 
 
 # ----------------------------------------------------------------------------- access
