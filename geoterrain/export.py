@@ -22,6 +22,22 @@ MESH_FORMATS = (".ply", ".vtp", ".stl", ".obj", ".vtk")
 _BARE = (".stl", ".obj")  # formats that carry no point or cell arrays
 
 
+def check_mesh_path(path: str | Path, overwrite: bool = False) -> Path:
+    """``path`` as a Path if a mesh can be written there; a :class:`UsageError` otherwise.
+
+    Examples
+    --------
+    >>> check_mesh_path("out.ply").suffix
+    '.ply'
+    """
+    out = Path(path)
+    if out.suffix.lower() not in MESH_FORMATS:
+        raise UsageError(f"{out}: unknown mesh format; use one of {', '.join(MESH_FORMATS)}")
+    if out.exists() and not overwrite:
+        raise exists_error(out)
+    return out
+
+
 def write_mesh(mesh: pv.PolyData, path: str | Path, *, overwrite: bool = False) -> Path:
     """Write ``mesh`` to ``path`` (.ply, .vtp, .stl, .obj or .vtk) atomically.
 
@@ -29,11 +45,7 @@ def write_mesh(mesh: pv.PolyData, path: str | Path, *, overwrite: bool = False) 
     into place only once complete, so a failed write leaves nothing behind.
     STL and OBJ get the geometry alone.
     """
-    out = Path(path)
-    if out.suffix.lower() not in MESH_FORMATS:
-        raise UsageError(f"{out}: unknown mesh format; use one of {', '.join(MESH_FORMATS)}")
-    if out.exists() and not overwrite:
-        raise exists_error(out)
+    out = check_mesh_path(path, overwrite)
     if out.suffix.lower() in _BARE:
         mesh = mesh.copy()
         mesh.clear_data()

@@ -63,7 +63,7 @@ def expected_keys(valid, t):
     return keys
 
 
-def check_pyramid(z, valid, t, qz, max_error=0.0, predictor="auto"):
+def check_pyramid(z, valid, t, qz, codec_error=0.0, predictor="auto"):
     """Encode, decode every tile and check against decoded_codes / decoded_heights / z."""
     blobs = encode_pyramid(z, valid, t, qz, predictor=predictor)
     assert set(blobs) == expected_keys(valid, t)
@@ -80,7 +80,7 @@ def check_pyramid(z, valid, t, qz, max_error=0.0, predictor="auto"):
     h = codes_to_heights(g0, qz)
     hv = h[valid]
     if qz.mode == "quantized":
-        assert np.all(np.abs(hv - z[valid]) <= max_error)
+        assert np.all(np.abs(hv - z[valid]) <= codec_error)
     else:
         assert np.array_equal(hv.view(np.int64), z[valid].view(np.int64))  # bit-exact
     dh = decoded_heights(z, valid, qz)
@@ -205,7 +205,7 @@ def test_quantized_within_eps(eps, kind, predictor):
     valid[5:9, 40:60] = False
     qz = choose_quantizer(z[valid], np.float32, codec_error=eps)
     assert qz.mode == "quantized" and qz.codec_error == eps and qz.step <= 2 * eps
-    check_pyramid(z, valid, 3, qz, max_error=eps, predictor=predictor)
+    check_pyramid(z, valid, 3, qz, codec_error=eps, predictor=predictor)
 
 
 @settings(max_examples=40, deadline=None)

@@ -115,3 +115,17 @@ def test_not_a_store(tmp_path):
     p.write_text("hello")
     with pytest.raises(StoreError, match="not a geoterrain store"):
         StoreReader(p)
+
+
+def test_missing_tile_is_a_clear_store_error(tmp_path, fbm_tif):
+    store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
+    with geoterrain.open(store) as t:
+        with pytest.raises(StoreError, match="not stored"):
+            t.tile(0, 999, 999)
+        key = t.tile_keys(0)[0]
+    con = sqlite3.connect(store)  # a blob row lost from a store that lists the tile
+    con.execute("DELETE FROM blobs WHERE level=? AND x=? AND y=? AND kind='heights'", key)
+    con.commit()
+    con.close()
+    with geoterrain.open(store) as t, pytest.raises(StoreCorruptError, match="missing"):
+        t.tile(*key)
