@@ -12,6 +12,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import geoterrain
+from geoterrain.lod import STRATEGIES
 from geoterrain.measure import screen_space_error, vertical_error
 from geoterrain.synth import generate
 from geoterrain.view import View
@@ -261,7 +262,7 @@ def test_tiny_grids(tmp_path_factory, shape):
         assert check_conforming(sel, valid) == pytest.approx(area)
     view = view_of_all_data(c)
     for tau in (0.5, 8.0):
-        for s in ("rtin", "chunked", "bruteforce"):
+        for s in STRATEGIES:
             sel = t.select(view, tau, s)
             err = screen_error(c, sel, view)
             assert err.max <= tau * SLACK, (s, tau, err)
@@ -327,7 +328,7 @@ def test_smaller_tau_never_removes_a_vertex(terrains, az, el, dist):
 
 
 @given(az=st.floats(0, 2 * np.pi), el=st.floats(0.05, 1.5), dist=st.floats(0.05, 1.0),
-       strategy=st.sampled_from(["rtin", "chunked", "bruteforce"]))
+       strategy=st.sampled_from(STRATEGIES))
 def test_culling_keeps_triangles_near_the_frustum(terrains, az, el, dist, strategy):
     c = terrains[0]
     t = c.t
@@ -352,7 +353,7 @@ def test_culling_keeps_triangles_near_the_frustum(terrains, az, el, dist, strate
 def test_view_looking_away_is_empty_and_decodes_nothing(tmp_path_factory):
     z = generate("fbm", 129, seed=2)
     t = _store(tmp_path_factory, "away", z)
-    for s in ("rtin", "chunked", "bruteforce"):
+    for s in STRATEGIES:
         sel = t.select(View((0, 0, 5000), (0, 0, 10000)), 1.0, s)
         assert sel.stats["triangles"] == 0 and sel.stats["tiles_decoded"] == 0
 
@@ -372,7 +373,7 @@ def eye_cases(c: Case):
         yield f"surface{dz:+g}", mid + np.array([0.0, 0.0, dz]), target + [0.0, 0.0, dz]
 
 
-@pytest.mark.parametrize("strategy", ["rtin", "chunked", "bruteforce"])
+@pytest.mark.parametrize("strategy", STRATEGIES)
 def test_eye_below_terrain_and_inside_spheres(terrains, strategy):
     tau = 1.0
     for c in terrains:

@@ -24,6 +24,7 @@ import geoterrain
 from conftest import real_dem, write_tif
 from geoterrain.bench import flight
 from geoterrain.exceptions import InputError
+from geoterrain.lod import STRATEGIES
 from geoterrain.measure import (
     mesh_height_range_on_grid,
     mesh_heights_on_grid,
@@ -34,7 +35,6 @@ from geoterrain.view import View
 
 pytestmark = pytest.mark.stress
 
-STRATEGIES = ("rtin", "chunked", "bruteforce")
 TAUS = (1.0, 4.0)
 STATIC_E = (0.0, 0.5, 5.0)
 EPS64 = np.finfo(np.float64).eps
