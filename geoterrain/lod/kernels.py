@@ -146,24 +146,54 @@ def close_upward(active: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def lp_active(delta, radius, height, x, y, zfac, zproxy, eye, planes, lam, tau):
-    """LP eq. 2 with sphere culling for stacks of tile samples (all (K, T, T)).
+def fill_static(slots, i0, j0, step, D, e, active, mixed):
+    """Static predicate δ > e on pooled tiles, scattered into the dense flags in place.
 
-    Active iff the sphere (p, r) is not outside any frustum plane, δ > 0, and
-    λδ > τ(d − r) or the eye is inside the sphere (d ≤ r); d = ‖p − eye‖ and
-    p = (x, y, height · zfac), invalid heights (NaN) placed at ``zproxy``.
+    ``slots``: pool slot of each tile; ``i0, j0, step``: grid row/column of its first
+    sample and its sample spacing. δ = inf (mixed diamond) is active and mixed.
     """
-    out = np.zeros(delta.shape, np.bool_)
-    K, A, B = delta.shape
-    for k in range(K):
-        for a in range(A):
-            for b in range(B):
-                dl = delta[k, a, b]
+    T = D.shape[1]
+    for k in range(slots.shape[0]):
+        s = slots[k]
+        for a in range(T):
+            i = i0[k] + a * step[k]
+            for b in range(T):
+                j = j0[k] + b * step[k]
+                dl = np.float64(D[s, a, b])
+                if dl > e:
+                    active[i, j] = True
+                if dl == np.inf:
+                    mixed[i, j] = True
+
+
+@njit(cache=True)
+def fill_lp(slots, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, planes, lam, tau,
+            active, mixed):
+    """LP eq. 2 with sphere culling on pooled tiles, scattered into the dense flags.
+
+    A vertex is active iff its sphere (p, r) is not outside any frustum plane, δ > 0,
+    and λδ > τ(d − r) or the eye is inside the sphere (d ≤ r); d = ‖p − eye‖ and
+    p = (x, y, height · zfac), invalid heights (NaN) placed at ``zproxy``. A mixed
+    diamond (δ = inf) is always active (and mixed): culling it by its own sphere
+    (which bounds its descendants, not its corners) could drop every triangle around
+    a visible corner."""
+    T = D.shape[1]
+    for k in range(slots.shape[0]):
+        s = slots[k]
+        for a in range(T):
+            i = i0[k] + a * step[k]
+            for b in range(T):
+                j = j0[k] + b * step[k]
+                dl = np.float64(D[s, a, b])
+                if dl == np.inf:
+                    active[i, j] = True
+                    mixed[i, j] = True
+                    continue
                 if not dl > 0.0:
                     continue
-                r = radius[k, a, b]
-                px, py = x[k, a, b], y[k, a, b]
-                h = height[k, a, b]
+                r = np.float64(R[s, a, b])
+                px, py = X[s, a, b], Y[s, a, b]
+                h = H[s, a, b]
                 pz = h * zfac if h == h else zproxy
                 vis = True
                 for q in range(planes.shape[0]):
@@ -175,5 +205,93 @@ def lp_active(delta, radius, height, x, y, zfac, zproxy, eye, planes, lam, tau):
                     continue
                 dx, dy, dz = px - eye[0], py - eye[1], pz - eye[2]
                 d = np.sqrt(dx * dx + dy * dy + dz * dz)
-                out[k, a, b] = d <= r or lam * dl > tau * (d - r)
-    return out
+                if d <= r or lam * dl > tau * (d - r):
+                    active[i, j] = True
+
+
+@njit(cache=True)
+def gather_pooled(flat, N, top, t, base, slot_of, H, X, Y, h, x, y, level):
+    """Height, scene x, y and pyramid level of full-resolution samples ``flat`` (i·N + j),
+    read from the coarsest tile holding each (unstored tiles: NaN, 0, 0)."""
+    for k in range(flat.shape[0]):
+        L, idx, a, b = _coarsest_tile(flat[k] // N, flat[k] % N, top, t, base)
+        s = slot_of[idx]
+        level[k] = L
+        if s < 0:
+            h[k], x[k], y[k] = np.nan, 0.0, 0.0
+        else:
+            h[k], x[k], y[k] = H[s, a, b], X[s, a, b], Y[s, a, b]
+
+
+@njit(cache=True)
+def _coarsest_tile(i, j, top, t, base):
+    low = i | j
+    L = top
+    if low != 0:
+        L = 0
+        while (low & 1) == 0 and L < top:
+            low >>= 1
+            L += 1
+    li, lj = i >> L, j >> L
+    tps = 1 << (top - L)
+    ty = min(li >> t, tps - 1)
+    tx = min(lj >> t, tps - 1)
+    return L, base[L] + ty * tps + tx, li - (ty << t), lj - (tx << t)
+
+
+@njit(cache=True)
+def mark_tiles(flat, N, top, t, base, occ):
+    """Flag in ``occ`` (the pool's slot-table layout) the coarsest tile of each sample."""
+    for k in range(flat.shape[0]):
+        occ[_coarsest_tile(flat[k] // N, flat[k] % N, top, t, base)[1]] = True
+
+
+@njit(cache=True)
+def cull_compact(faces, X, Y, Z, planes, lvl):
+    """Drop triangles with an invalid corner (Z NaN) or entirely outside one frustum
+    plane (``planes`` (P, 4), P = 0 for none); renumber the vertices left in order.
+
+    Returns the kept faces (renumbered), the kept vertices' indices and each kept
+    triangle's level (the coarsest level shared by its corners: min of ``lvl``).
+    """
+    V, F, P = X.shape[0], faces.shape[0], planes.shape[0]
+    bits = np.zeros(V, np.uint8)  # bit 6 = invalid, bits 0-5 = outside plane k
+    for v in range(V):
+        z = Z[v]
+        if not np.isfinite(z):
+            bits[v] = 64
+            z = 0.0
+        for k in range(P):
+            if planes[k, 0] * X[v] + planes[k, 1] * Y[v] + planes[k, 2] * z + planes[k, 3] < 0:
+                bits[v] |= np.uint8(1 << k)
+    keep = np.zeros(F, np.bool_)
+    used = np.zeros(V, np.bool_)
+    nf = 0
+    for f in range(F):
+        b0, b1, b2 = bits[faces[f, 0]], bits[faces[f, 1]], bits[faces[f, 2]]
+        if ((b0 | b1 | b2) & 64) == 0 and (b0 & b1 & b2 & 63) == 0:
+            keep[f] = True
+            nf += 1
+            used[faces[f, 0]] = True
+            used[faces[f, 1]] = True
+            used[faces[f, 2]] = True
+    remap = np.full(V, -1, np.int64)
+    nv = 0
+    for v in range(V):
+        if used[v]:
+            remap[v] = nv
+            nv += 1
+    vid = np.empty(nv, np.int64)
+    for v in range(V):
+        if used[v]:
+            vid[remap[v]] = v
+    out = np.empty((nf, 3), np.int64)
+    level = np.empty(nf, np.int16)
+    n = 0
+    for f in range(F):
+        if keep[f]:
+            a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            out[n, 0], out[n, 1], out[n, 2] = remap[a], remap[b], remap[c]
+            level[n] = min(lvl[a], lvl[b], lvl[c])
+            n += 1
+    return out, vid, level

@@ -29,8 +29,17 @@ import weakref
 
 import numpy as np
 
-from geoterrain.lod.kernels import close_upward_boxes, extract, lp_active
+from geoterrain.lod.kernels import (
+    close_upward_boxes,
+    cull_compact,
+    extract,
+    fill_lp,
+    fill_static,
+    gather_pooled,
+    mark_tiles,
+)
 from geoterrain.lod.mesh import empty_polydata, polydata
+from geoterrain.lod.pool import tile_pool
 from geoterrain.lod.tiles import TileIndex, tile_index
 from geoterrain.view import View
 
@@ -48,30 +57,22 @@ class ActiveSet:
         # per level: rows i0, i1 and columns j0, j1 covering the tiles filled
         self.boxes = np.tile(np.array([N, -1, N, -1], np.int64), (terrain.grid.top_level + 1, 1))
 
-    def fill(self, rows: np.ndarray, predicate, index, kinds=("delta",)) -> int:
-        """Evaluate ``predicate(stacks)`` on all candidate tiles ``rows`` at once.
-
-        ``stacks`` maps each of ``kinds`` (delta, radius, height, x, y) to a
-        (K, T, T) array of the tiles' samples. Returns the number of tiles read.
-        """
-        t, g = self.terrain, self.terrain.grid
-        T = g.tile_samples
-        if not len(rows):
-            return 0
-        keys = [tuple(int(v) for v in index.keys[r]) for r in rows.tolist()]
-        stacks = t.tile_stacks(keys, kinds)
-        act = predicate(stacks)
-        mixed = np.isinf(stacks["delta"])
-        for n, (L, x, y) in enumerate(keys):
-            s = 1 << L
-            i0, j0 = (y << g.t) << L, (x << g.t) << L
-            sl = (slice(i0, i0 + (T - 1) * s + 1, s), slice(j0, j0 + (T - 1) * s + 1, s))
-            self.mixed[sl] |= mixed[n]
-            self.active[sl] |= act[n]
-            b = self.boxes[L]
-            i1, j1 = sl[0].stop - 1, sl[1].stop - 1
-            b[:] = min(b[0], i0), max(b[1], i1), min(b[2], j0), max(b[3], j1)
-        return len(rows)
+    def tiles(self, rows: np.ndarray, index: TileIndex
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Slot-table index, first grid row and column, and sample spacing of the tiles
+        ``rows``; the tiles are added to the per-level boxes the closure scans."""
+        g = self.terrain.grid
+        keys = index.keys[rows]
+        L, x, y = keys[:, 0], keys[:, 1], keys[:, 2]
+        step = np.int64(1) << L
+        i0, j0 = (y << g.t) << L, (x << g.t) << L
+        i1, j1 = i0 + (g.tile_samples - 1) * step, j0 + (g.tile_samples - 1) * step
+        for lv in np.unique(L).tolist():
+            m = L == lv
+            b = self.boxes[lv]
+            b[:] = (min(b[0], i0[m].min()), max(b[1], i1[m].max()),
+                    min(b[2], j0[m].min()), max(b[3], j1[m].max()))
+        return tile_pool(self.terrain).table_index(keys), i0, j0, step
 
     def close(self) -> None:
         """Close the active set upward, scanning only where tiles were filled."""
@@ -92,7 +93,11 @@ def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
     """Every vertex with δ > e (the RTIN/Martini semantics, with a true bound)."""
     act = ActiveSet(terrain)
     rows = np.flatnonzero(index.delta_max > max_error)
-    act.fill(rows, lambda st: st["delta"] > max_error, index)
+    if len(rows):
+        pool = tile_pool(terrain)
+        idx, i0, j0, step = act.tiles(rows, index)
+        slots = pool.slots(idx, ("delta",))
+        fill_static(slots, i0, j0, step, pool.D, float(max_error), act.active, act.mixed)
     act.close()
     return act
 
@@ -100,7 +105,6 @@ def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
 def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex."""
     lam, eye = view.lam, view.eye
-    g = terrain.grid
     # tile test, conservative: a vertex in the tile lies in its box, so d − r ≥ D_box − r_max
     rmax = index.radius_max
     dbox = view.box_distance(index.lo, index.hi)
@@ -111,24 +115,30 @@ def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     visible = view.box_visibility(index.lo - pad, index.hi + pad) != 0
     rows = np.flatnonzero(can & visible)
     act = ActiveSet(terrain)
-
-    zfac = terrain.frame.z_to_m * terrain.frame.z_scale
-
-    def predicate(st):
-        out = lp_active(st["delta"], st["radius"], st["height"], st["x"], st["y"], zfac,
-                        terrain.stand_in_z, eye, view.planes, lam, tau)
-        # A mixed diamond (δ = inf) is never drawn unrefined, so culling it by its own
-        # sphere (which bounds its descendants, not its corners) can drop every triangle
-        # around a visible corner: a hole in view. Refine it whenever its tile is read.
-        out |= np.isinf(st["delta"])
-        return out
-
-    act.fill(rows, predicate, index, ("delta", "radius", "height", "x", "y"))
+    if len(rows):
+        pool = tile_pool(terrain)
+        idx, i0, j0, step = act.tiles(rows, index)
+        slots = pool.slots(idx, ("delta", "radius", "height", "xy"))
+        zfac = terrain.frame.z_to_m * terrain.frame.z_scale
+        fill_lp(slots, i0, j0, step, pool.D, pool.R, pool.H, pool.X, pool.Y, zfac,
+                terrain.stand_in_z, eye, view.planes, lam, tau, act.active, act.mixed)
     act.close()
     unread = np.flatnonzero(~(can & visible) & ~np.isfinite(index.delta_max))
     act.mark_unknown_mixed(unread, index)
-    del g
     return act
+
+
+def _gather(terrain, flat: np.ndarray):
+    """Heights, scene x, y and pyramid levels of samples ``flat`` from the pooled tiles."""
+    pool = tile_pool(terrain)
+    occ = np.zeros(len(pool.slot_of), bool)
+    mark_tiles(flat, pool.N, pool.top, pool.t, pool.base, occ)
+    pool.slots(np.flatnonzero(occ), ("height", "xy"))
+    n = len(flat)
+    h, X, Y, lvl = np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.int64)
+    gather_pooled(flat, pool.N, pool.top, pool.t, pool.base, pool.slot_of, pool.H, pool.X,
+                  pool.Y, h, X, Y, lvl)
+    return h, X, Y, lvl
 
 
 def active_mesh(terrain, act: ActiveSet, view: View | None = None):
@@ -142,31 +152,15 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None):
     if vid is None:
         vid = _SCRATCH[terrain] = np.full(N * N, -1, np.int32)
     faces, flat = extract(act.active, act.mixed, vid)
-    ij = np.stack([flat // N, flat % N], 1)
-    g = terrain.gather(ij[:, 0], ij[:, 1], ("height", "x", "y"))
-    h, X, Y = g["height"], g["x"], g["y"]
-    xyz = np.stack([X, Y, terrain.frame.z(h)], 1)
-    # per-vertex bits: bit 6 = invalid, bits 0-5 = outside frustum plane k
-    bits = np.where(np.isfinite(h), 0, 64).astype(np.uint8)
-    if view is not None:
-        P = view.planes
-        Zf = np.nan_to_num(xyz[:, 2])
-        for k in range(6):  # broadcasting beats a tiny BLAS matmul here
-            a, b, c, e = P[k]
-            bits |= ((a * X + b * Y + c * Zf + e) < 0).astype(np.uint8) << k
-    f0, f1, f2 = bits[faces[:, 0]], bits[faces[:, 1]], bits[faces[:, 2]]
-    # drop triangles with an invalid corner, or entirely outside one plane
-    ok = (((f0 | f1 | f2) & 64) == 0) & ((f0 & f1 & f2 & 63) == 0)
-    faces = faces[ok]
-    used = np.zeros(len(ij), bool)
-    used[faces] = True
-    remap = np.cumsum(used) - 1
-    faces = remap[faces]  # both base triangles are counter-clockwise, and bisection
-    ij, xyz = ij[used], xyz[used]  # keeps the orientation: no re-winding needed
-    lvl = terrain.vertex_level(ij[:, 0], ij[:, 1])
-    level = np.minimum(np.minimum(lvl[faces[:, 0]], lvl[faces[:, 1]]), lvl[faces[:, 2]])
+    h, X, Y, lvl = _gather(terrain, flat)
+    Z = terrain.frame.z(h)
+    planes = view.planes if view is not None else np.zeros((0, 4))
+    faces, keep, level = cull_compact(faces, X, Y, Z, planes, lvl)
+    # both base triangles are counter-clockwise and bisection keeps the orientation
+    xyz = np.stack([X[keep], Y[keep], Z[keep]], 1)
+    ij = np.stack([flat[keep] // N, flat[keep] % N], 1)
     return polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8),
-                                     "level": level.astype(np.int16)})
+                                     "level": level})
 
 
 def select(terrain, view: View, tau: float):

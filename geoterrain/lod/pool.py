@@ -1,0 +1,148 @@
+"""Per-tile arrays in contiguous slabs, loaded once per tile and read by compiled kernels.
+
+A view touches ~100 candidate tiles per frame. Stacking their δ, r, heights and
+positions into fresh arrays every frame cost more than the refinement itself;
+here each tile's arrays are copied once into a slot of a per-terrain slab
+(``D``, ``R`` float32; ``H``, ``X``, ``Y`` float64, all (slots, T, T)), and the
+kernels index the slabs by slot. A flat table maps (level, x, y) to its slot.
+
+The slabs have a byte budget: when a request needs more slots than are free,
+the least recently used slots that the request does not need are reused.
+A single request larger than the budget grows the slabs (correctness first).
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+
+_POOLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+KINDS = ("delta", "radius", "height", "xy")
+_BYTES = {"delta": 4, "radius": 4, "height": 8, "xy": 16}
+BUDGET_BYTES = 384 << 20
+
+
+class TilePool:
+    """The slabs of one terrain. Use :func:`tile_pool` to get the terrain's pool."""
+
+    def __init__(self, terrain, budget_bytes: int = BUDGET_BYTES):
+        g = terrain.grid
+        self.terrain = weakref.proxy(terrain)
+        self.top, self.t, self.N = g.top_level, g.t, g.size
+        self.T = g.tile_samples
+        # slot table: level L holds 4^(top-L) tiles, row-major (ty, tx), from base[L]
+        self.base = np.concatenate([[0], np.cumsum(4 ** np.arange(self.top, -1, -1))]
+                                   ).astype(np.int64)
+        self.slot_of = np.full(int(self.base[-1]), -1, np.int32)
+        per_slot = self.T * self.T * sum(_BYTES.values())
+        self.capacity = 0
+        self.budget_slots = max(16, budget_bytes // per_slot)
+        self.key_of = np.zeros((0,), np.int64)  # table index of each slot, -1 if free
+        self.stamp = np.zeros((0,), np.int64)
+        self.have = {k: np.zeros((0,), bool) for k in KINDS}
+        self.D = np.zeros((0, self.T, self.T), np.float32)
+        self.R = np.zeros((0, self.T, self.T), np.float32)
+        self.H = np.zeros((0, self.T, self.T), np.float64)
+        self.X = np.zeros((0, self.T, self.T), np.float64)
+        self.Y = np.zeros((0, self.T, self.T), np.float64)
+        self.clock = 0
+        self.stored = np.zeros(int(self.base[-1]), bool)
+        for (L, x, y) in terrain.tile_info:
+            self.stored[self.base[L] + y * (1 << (self.top - L)) + x] = True
+
+    def table_index(self, keys: np.ndarray) -> np.ndarray:
+        """Index into the slot table of (L, x, y) keys (K, 3)."""
+        L = keys[:, 0]
+        return self.base[L] + keys[:, 2] * (np.int64(1) << (self.top - L)) + keys[:, 1]
+
+    def _grow(self, n: int) -> None:
+        new = max(n, min(2 * self.capacity, max(self.budget_slots, n)), 16)
+        extra = new - self.capacity
+        if extra <= 0:
+            return
+        T = self.T
+        self.D = np.concatenate([self.D, np.zeros((extra, T, T), np.float32)])
+        self.R = np.concatenate([self.R, np.zeros((extra, T, T), np.float32)])
+        self.H = np.concatenate([self.H, np.full((extra, T, T), np.nan)])
+        self.X = np.concatenate([self.X, np.zeros((extra, T, T))])
+        self.Y = np.concatenate([self.Y, np.zeros((extra, T, T))])
+        self.key_of = np.concatenate([self.key_of, np.full(extra, -1, np.int64)])
+        self.stamp = np.concatenate([self.stamp, np.zeros(extra, np.int64)])
+        for k in KINDS:
+            self.have[k] = np.concatenate([self.have[k], np.zeros(extra, bool)])
+        self.capacity = new
+
+    def slots(self, idx: np.ndarray, kinds: tuple[str, ...]) -> np.ndarray:
+        """Slots of the stored tiles with table indices ``idx``, their ``kinds`` loaded.
+
+        Tiles that are not stored get slot −1 (the kernels read δ = r = 0, height NaN).
+        """
+        self.clock += 1
+        idx = np.asarray(idx, np.int64)
+        out = np.full(len(idx), -1, np.int32)
+        ok = self.stored[idx]
+        sl = self.slot_of[idx]
+        missing = np.unique(idx[ok & (sl < 0)])
+        if len(missing):
+            self._assign(missing, np.unique(idx[ok]))
+            sl = self.slot_of[idx]
+        out[ok] = sl[ok]
+        used = np.unique(out[ok])
+        self.stamp[used] = self.clock
+        for kind in kinds:
+            need = used[~self.have[kind][used]]
+            for s in need.tolist():
+                self._load(s, kind)
+        return out
+
+    def _assign(self, missing: np.ndarray, wanted: np.ndarray) -> None:
+        free = np.flatnonzero(self.key_of < 0)
+        if len(free) < len(missing) and self.capacity < self.budget_slots:
+            self._grow(min(self.budget_slots, self.capacity + len(missing) - len(free)))
+            free = np.flatnonzero(self.key_of < 0)
+        if len(free) < len(missing):  # evict the least recently used, never a wanted one
+            busy = np.zeros(self.capacity, bool)
+            held = self.slot_of[wanted]
+            busy[held[held >= 0]] = True
+            cand = np.flatnonzero((self.key_of >= 0) & ~busy)
+            cand = cand[np.argsort(self.stamp[cand], kind="stable")]
+            drop = cand[:len(missing) - len(free)]
+            self.slot_of[self.key_of[drop]] = -1
+            self.key_of[drop] = -1
+            for k in KINDS:
+                self.have[k][drop] = False
+            free = np.flatnonzero(self.key_of < 0)
+        if len(free) < len(missing):
+            self._grow(self.capacity + len(missing) - len(free))
+            free = np.flatnonzero(self.key_of < 0)
+        use = free[:len(missing)]
+        self.key_of[use] = missing
+        self.slot_of[missing] = use.astype(np.int32)
+
+    def _key(self, s: int) -> tuple[int, int, int]:
+        i = int(self.key_of[s])
+        L = int(np.searchsorted(self.base, i, side="right") - 1)
+        r = i - int(self.base[L])
+        side = 1 << (self.top - L)
+        return L, r % side, r // side
+
+    def _load(self, s: int, kind: str) -> None:
+        t, key = self.terrain, self._key(s)
+        if kind == "delta":
+            self.D[s] = t.tile_delta(*key)
+        elif kind == "radius":
+            self.R[s] = t.tile_radius(*key)
+        elif kind == "height":
+            self.H[s] = t.tile(*key).heights
+        else:
+            self.X[s], self.Y[s] = t.tile_xy(*key)
+        self.have[kind][s] = True
+
+
+def tile_pool(terrain) -> TilePool:
+    """The :class:`TilePool` of ``terrain`` (made on first use, kept with the terrain)."""
+    p = _POOLS.get(terrain)
+    if p is None:
+        p = _POOLS[terrain] = TilePool(terrain)
+    return p
