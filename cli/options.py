@@ -179,3 +179,10 @@ def palette(cmap, clim, water_level):
     from geoterrain.colours import Palette
 
     return Palette(cmap, clim, water_level)
+
+
+vertical_exaggeration_option = click.option(
+    "-z", "--vertical-exaggeration", "vertical_exaggeration", type=float, default=1.0,
+    show_default=True, callback=_positive, metavar="N",
+    help="Draw heights × N (view time; the store's --z-scale is kept). The LOD error bound "
+         "holds for the exaggerated surface; pictures say VE ×N.")

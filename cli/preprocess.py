@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import click
-from geoterrain.cli.options import StageBar
 
+from geoterrain.cli.options import StageBar
 from geoterrain.frame import Z_UNITS
 from geoterrain.raster import ENCODINGS
 

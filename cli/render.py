@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import click
+
 from geoterrain.cli.options import (
     StageBar,
     camera_options,
@@ -13,6 +14,7 @@ from geoterrain.cli.options import (
     palette,
     pixel_error_option,
     strategy_option,
+    vertical_exaggeration_option,
 )
 
 
@@ -31,6 +33,7 @@ from geoterrain.cli.options import (
 @click.option("--distance", type=float, help="Eye–target distance in metres (default: fit).")
 @pixel_error_option
 @strategy_option
+@vertical_exaggeration_option
 @click.option("--shading", type=click.Choice(["normals", "elevation", "plain"]),
               default="normals", show_default=True,
               help="normals: hillshade from full-resolution normal maps × elevation colours.")
@@ -48,7 +51,7 @@ from geoterrain.cli.options import (
 @click.option("--fps", type=float, default=10.0, show_default=True, help="Animation speed.")
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
-            fov, pixel_error, strategy, shading, cmap, clim, water_level, title, no_overlays,
+            fov, pixel_error, strategy, vertical_exaggeration, shading, cmap, clim, water_level, title, no_overlays,
             stats_path, orbit, cameras, frames_between, fps):
     """Render STORE offscreen: each frame selects its own level of detail.
 
@@ -60,6 +63,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
       geoterrain render dem.geoterrain -o view.png --crs-coords \\
           --look-from 500000,4990000,3000 --look-at 505000,5000000,800
       geoterrain render dem.geoterrain -o top.png --elevation 90
+      geoterrain render dem.geoterrain -o relief.png -z 3
       geoterrain render dem.geoterrain -o sea.png --water-level 2 --clim -50,1500
       geoterrain render dem.geoterrain -o orbit.gif --orbit 36 --size 640x360
       geoterrain render dem.geoterrain -o fly.mp4 --path cameras.json --stats fly.json
@@ -70,10 +74,9 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     """
     import geoterrain
     import geoterrain.rendering as R
+    from geoterrain.cameras import check_elevation
     from geoterrain.exceptions import UsageError
     from geoterrain.view import View
-
-    from geoterrain.cameras import check_elevation
 
     quiet = (ctx.obj or {}).get("quiet", False)
     try:
@@ -101,7 +104,10 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     overlays = dict(colorbar=not no_overlays, north_arrow=not no_overlays)
     if animated:
         overlays["scale_bar"] = not no_overlays
-    with geoterrain.open(store) as t:
+    from geoterrain.exaggerate import exaggerated
+
+    with geoterrain.open(store) as base:
+        t = exaggerated(base, vertical_exaggeration)
         if animated:
             bar = StageBar("rendering", quiet)
             kw = dict(pixel_error=pixel_error, strategy=strategy, shading=shading, cmap=cmap,

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
+
 from geoterrain.cli.options import (
     StageBar,
     colour_options,
@@ -12,6 +13,7 @@ from geoterrain.cli.options import (
     parse_size,
     pixel_error_option,
     strategy_option,
+    vertical_exaggeration_option,
 )
 
 
@@ -19,6 +21,7 @@ from geoterrain.cli.options import (
 @click.argument("source", type=click.Path(exists=True, dir_okay=False))
 @strategy_option
 @pixel_error_option
+@vertical_exaggeration_option
 @click.option("--shading", type=click.Choice(["normals", "elevation", "plain"]),
               default="normals", show_default=True)
 @colour_options
@@ -26,7 +29,7 @@ from geoterrain.cli.options import (
               help="Window WIDTHxHEIGHT.")
 @click.option("--rebuild", is_flag=True, help="Preprocess the DEM again even if cached.")
 @click.pass_context
-def command(ctx, source, strategy, pixel_error, shading, cmap, clim, water_level, size, rebuild):
+def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, cmap, clim, water_level, size, rebuild):
     """Open SOURCE (a store or a DEM) in an interactive 3-D window.
 
     A DEM is preprocessed first into a store next to it (or in
@@ -70,7 +73,10 @@ def command(ctx, source, strategy, pixel_error, shading, cmap, clim, water_level
         raise GeoterrainError(
             "no display to open a window on (DISPLAY is not set); use `geoterrain render` "
             "for pictures, or run under a desktop session or Xvfb")
-    with geoterrain.open(store) as t:
+    from geoterrain.exaggerate import exaggerated
+
+    with geoterrain.open(store) as base:
+        t = exaggerated(base, vertical_exaggeration)
         show(t, strategy, pixel_error, shading=shading, cmap=palette(cmap, clim, water_level),
              size=size)
 

@@ -140,6 +140,7 @@ def layout_for(terrain, size: tuple[int, int], *, shading: str = "normals",
                cmap: str | Palette = "auto", title: str | None = None, colorbar: bool = True,
                scale_bar: bool = True, north_arrow: bool = True, ve: float = 1.0) -> Layout:
     """:func:`plan` with the colour bar's range taken from ``terrain`` and the palette."""
+    ve = getattr(terrain, "vertical_exaggeration", 1.0) if ve == 1.0 else ve
     limits = None
     if colorbar and shading != "plain":
         _, limits = colorbar_map(as_palette(cmap), elevation_range(terrain))
@@ -164,7 +165,8 @@ def compose(img: np.ndarray, view: View, terrain, *, shading: str = "normals",
             layout: Layout | None = None, extents: dict | None = None) -> np.ndarray:
     """Draw the title, colour bar, scale bar and north arrow over a rendered image.
 
-    Each sits on an opaque box of :func:`layout_for`. ``extents``, when given, is
+    Each sits on an opaque box of :func:`layout_for`. The scale bar's box says
+    "VE ×N" when the terrain is drawn exaggerated (:func:`geoterrain.exaggerate.exaggerated`). ``extents``, when given, is
     filled with the drawn text's pixel boxes per overlay (for tests).
 
     Examples
@@ -172,6 +174,7 @@ def compose(img: np.ndarray, view: View, terrain, *, shading: str = "normals",
     >>> out = compose(img, view, t, title="Fuji")  # doctest: +SKIP
     """
     H, W = img.shape[:2]
+    ve = getattr(terrain, "vertical_exaggeration", 1.0) if ve == 1.0 else ve
     if layout is None:
         layout = layout_for(terrain, (W, H), shading=shading, cmap=cmap, title=title,
                             colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow,

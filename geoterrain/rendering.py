@@ -49,9 +49,10 @@ from geoterrain.cameras import (  # noqa: F401 - the camera helpers are part of 
     terrain_bounds,
     to_scene,
 )
+from geoterrain.colours import Palette
+from geoterrain.exaggerate import exaggerated
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.registry import DEFAULT, strategy_info
-from geoterrain.colours import Palette
 from geoterrain.overlays import compose, layout_for
 from geoterrain.textures import SHADINGS, texture_image, texture_level
 from geoterrain.view import View
@@ -84,8 +85,10 @@ class TerrainScene:
     """
 
     def __init__(self, plotter, terrain, shading: str = "normals", cmap: str | Palette = "auto",
-                 background: Sequence[float] = BACKGROUND):
+                 background: Sequence[float] = BACKGROUND, vertical_exaggeration: float = 1.0):
         import pyvista as pv
+
+        terrain = exaggerated(terrain, vertical_exaggeration)
 
         if shading not in SHADINGS:
             raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
@@ -205,8 +208,10 @@ def overview(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 190.
              elevation: float = 40.0, distance: float | None = None, fov_y_deg: float = 30.0,
              *, shading: str = "normals", cmap: str | Palette = "auto",
              title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
-             north_arrow: bool = True) -> View:
+             north_arrow: bool = True, vertical_exaggeration: float = 1.0) -> View:
     """:func:`default_view` framed into the rectangle the overlays leave free.
+
+    The framing is of the terrain drawn with ``vertical_exaggeration``.
 
     Examples
     --------
@@ -214,6 +219,7 @@ def overview(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 190.
     >>> v.size
     (640, 480)
     """
+    terrain = exaggerated(terrain, vertical_exaggeration)
     lay = layout_for(terrain, size, shading=shading, cmap=cmap, title=title,
                      colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
     return default_view(terrain, size, azimuth, elevation, distance, fov_y_deg,
@@ -221,8 +227,8 @@ def overview(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 190.
 
 
 def render_array(terrain, view: View, *, pixel_error: float = 1.0, strategy: str = DEFAULT,
-                 shading: str = "normals", cmap: str | Palette = "auto", scene=None
-                 ) -> tuple[np.ndarray, dict]:
+                 shading: str = "normals", cmap: str | Palette = "auto", scene=None,
+                 vertical_exaggeration: float = 1.0) -> tuple[np.ndarray, dict]:
     """The rendered image (H, W, 3) uint8 of ``view`` without overlays, and its stats.
 
     Examples
@@ -234,7 +240,8 @@ def render_array(terrain, view: View, *, pixel_error: float = 1.0, strategy: str
     strategy_info(strategy)
     own = scene is None
     if own:
-        scene = TerrainScene(_plotter(view.size), terrain, shading, cmap)
+        scene = TerrainScene(_plotter(view.size), terrain, shading, cmap,
+                             vertical_exaggeration=vertical_exaggeration)
     try:
         img, stats = scene.frame(view, pixel_error, strategy)
         stats["terrain_fraction"] = round(scene.terrain_fraction(), 4)
@@ -247,7 +254,8 @@ def render_array(terrain, view: View, *, pixel_error: float = 1.0, strategy: str
 def render(terrain, view: View | None, path: str | Path, *, pixel_error: float = 1.0,
            strategy: str = DEFAULT, shading: str = "normals", cmap: str | Palette = "auto",
            title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
-           north_arrow: bool = True, stats_path: str | Path | None = None) -> dict:
+           north_arrow: bool = True, stats_path: str | Path | None = None,
+           vertical_exaggeration: float = 1.0) -> dict:
     """Render one view of the terrain to a PNG, with its own level of detail.
 
     Parameters
@@ -262,6 +270,8 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
     cmap : matplotlib colormap of elevations.
     title, colorbar, scale_bar, north_arrow : overlays.
     stats_path : also write the stats as JSON there.
+    vertical_exaggeration : heights × N at view time (the stored ``z_scale`` is kept);
+        the LOD bounds scale with it, and the scale bar's box says "VE ×N".
 
     Returns
     -------
@@ -276,6 +286,7 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
     >>> stats["triangles"] > 0  # doctest: +SKIP
     True
     """
+    terrain = exaggerated(terrain, vertical_exaggeration)
     if view is None:
         view = overview(terrain, shading=shading, cmap=cmap, title=title, colorbar=colorbar,
                         scale_bar=scale_bar, north_arrow=north_arrow)
@@ -324,8 +335,8 @@ def _animation_writer(out: str | Path, fps: float):
 def animate(terrain, views: Sequence[View], out: str | Path, *, pixel_error: float = 1.0,
             strategy: str = DEFAULT, shading: str = "normals", cmap: str | Palette = "auto",
             title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
-            north_arrow: bool = True, fps: float = 10.0, progress: Progress | None = None
-            ) -> list[dict]:
+            north_arrow: bool = True, fps: float = 10.0, progress: Progress | None = None,
+            vertical_exaggeration: float = 1.0) -> list[dict]:
     """Render each view (each with its own LOD selection) into a GIF, MP4 or PNG folder.
 
     Returns the per-frame stats.
@@ -340,6 +351,7 @@ def animate(terrain, views: Sequence[View], out: str | Path, *, pixel_error: flo
     size = views[0].size
     if any(v.size != size for v in views):
         raise UsageError("every frame of an animation must have the same size")
+    terrain = exaggerated(terrain, vertical_exaggeration)
     append, close = _animation_writer(out, fps)
     scene = TerrainScene(_plotter(size), terrain, shading, cmap)
     all_stats = []
@@ -372,6 +384,7 @@ def orbit(terrain, out: str | Path, n_frames: int = 36, *, size: tuple[int, int]
     >>> len(stats)  # doctest: +SKIP
     24
     """
+    terrain = exaggerated(terrain, kw.pop("vertical_exaggeration", 1.0))
     lay = layout_for(terrain, size, shading=kw.get("shading", "normals"),
                      cmap=kw.get("cmap", "auto"), title=kw.get("title"),
                      colorbar=kw.get("colorbar", True), scale_bar=kw.get("scale_bar", True),
@@ -394,6 +407,7 @@ def flythrough(terrain, cameras_json: str | Path, out: str | Path, *,
     --------
     >>> stats = flythrough(t, "cameras.json", "fly.gif", progress=print)  # doctest: +SKIP
     """
+    terrain = exaggerated(terrain, kw.pop("vertical_exaggeration", 1.0))
     views = interpolate_views(load_cameras(terrain, cameras_json, size, fov_y_deg),
                               frames_between)
     return animate(terrain, views, out, **kw)

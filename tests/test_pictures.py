@@ -16,7 +16,7 @@ from geoterrain.exceptions import UsageError
 from geoterrain.overlays import compose, layout_for, north_direction
 from geoterrain.rendering import TerrainScene, _plotter, overview
 from geoterrain.synth import generate, write_geotiff
-from geoterrain.textures import elevation_range, texture_image
+from geoterrain.textures import texture_image
 from geoterrain.view import View
 from tests.test_render import _cli, real_store, synth_store
 
