@@ -51,7 +51,8 @@ from geoterrain.cli.options import (
 @click.option("--fps", type=float, default=10.0, show_default=True, help="Animation speed.")
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
-            fov, pixel_error, strategy, vertical_exaggeration, shading, cmap, clim, water_level, title, no_overlays,
+            fov, pixel_error, strategy, vertical_exaggeration, shading, cmap, clim, water_level,
+            title, no_overlays,
             stats_path, orbit, cameras, frames_between, fps):
     """Render STORE offscreen: each frame selects its own level of detail.
 

@@ -29,7 +29,8 @@ from geoterrain.cli.options import (
               help="Window WIDTHxHEIGHT.")
 @click.option("--rebuild", is_flag=True, help="Preprocess the DEM again even if cached.")
 @click.pass_context
-def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, cmap, clim, water_level, size, rebuild):
+def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, cmap, clim,
+            water_level, size, rebuild):
     """Open SOURCE (a store or a DEM) in an interactive 3-D window.
 
     A DEM is preprocessed first into a store next to it (or in

@@ -83,8 +83,8 @@ def _ticks(lo: float, hi: float) -> list[tuple[float, str]]:
 
     vals = [v for v in MaxNLocator(nbins=5).tick_values(lo, hi) if lo <= v <= hi]
     step = vals[1] - vals[0] if len(vals) > 1 else 1.0
-    fmt = "{:,.0f}" if step >= 1 else "{:,.%df}" % max(0, -math.floor(math.log10(step)))
-    return [(v, fmt.format(v)) for v in vals]
+    digits = 0 if step >= 1 else max(0, -math.floor(math.log10(step)))
+    return [(v, f"{v:,.{digits}f}") for v in vals]
 
 
 def plan(size: tuple[int, int], *, title: str | None = None,
@@ -166,7 +166,8 @@ def compose(img: np.ndarray, view: View, terrain, *, shading: str = "normals",
     """Draw the title, colour bar, scale bar and north arrow over a rendered image.
 
     Each sits on an opaque box of :func:`layout_for`. The scale bar's box says
-    "VE ×N" when the terrain is drawn exaggerated (:func:`geoterrain.exaggerate.exaggerated`). ``extents``, when given, is
+    "VE ×N" when the terrain is drawn exaggerated
+    (:func:`geoterrain.exaggerate.exaggerated`). ``extents``, when given, is
     filled with the drawn text's pixel boxes per overlay (for tests).
 
     Examples

@@ -10,14 +10,10 @@ from hypothesis import strategies as st
 
 from geoterrain.exaggerate import exaggerated
 from geoterrain.exceptions import UsageError
-from tests.test_lod import (  # noqa: F401 - fixtures
-    SLACK,
-    Case,
-    holey,
-    random_view,
-    screen_error,
-    terrains,
-)
+from tests import test_lod
+from tests.test_lod import SLACK, Case, random_view, screen_error
+
+holey, terrains = test_lod.holey, test_lod.terrains  # the LOD tests' terrains (fixtures)
 
 _CASES: dict = {}
 
