@@ -55,7 +55,7 @@ def check_elevation(elevation: float) -> None:
 def default_view(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 190.0,
                  elevation: float = 40.0, distance: float | None = None,
                  fov_y_deg: float = 30.0, look_at: Sequence[float] | None = None,
-                 fit_rect: Sequence[float] | None = None, fill: float = 0.97,
+                 fit_rect: Sequence[float] | None = None, fill: float | None = None,
                  centred: bool = False) -> View:
     """An oblique overview of the whole terrain.
 
@@ -72,7 +72,9 @@ def default_view(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 
     fit_rect : pixel rectangle (x0, y0, x1, y1) the terrain is fitted into (default: the
         whole frame); the camera slides sideways so the terrain's projection is centred
         in it unless ``centred``.
-    fill : the share of ``fit_rect`` the terrain's projected box spans.
+    fill : the share of ``fit_rect`` the terrain's projected box spans (default 0.97;
+        0.94 of the whole frame, centred, without ``fit_rect``: the framing of earlier
+        versions, which the LOD fidelity figures were measured with).
 
     Returns
     -------
@@ -94,6 +96,11 @@ def default_view(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 
     up = tuple(camera_up(azimuth, elevation))
     W, H = size
     x0, y0, x1, y1 = (0.0, 0.0, float(W), float(H)) if fit_rect is None else fit_rect
+    iterations = 12
+    if fit_rect is None:
+        centred, iterations = True, 4
+    if fill is None:
+        fill = 0.94 if fit_rect is None else 0.97
     if distance is None:
         radius = max(float(np.linalg.norm(0.5 * (hi - lo))), 1e-6)
         ty = math.tan(math.radians(fov_y_deg) / 2)
@@ -101,7 +108,7 @@ def default_view(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 
         # fit the projected box of the data into the rectangle (perspective iterations:
         # scale the distance by the box's overshoot, slide the camera by its offset)
         corners = _coarse_points(terrain)
-        for _ in range(12):
+        for _ in range(iterations):
             v = View(tuple(c + distance * d), tuple(c), up, fov_y_deg, tuple(size))
             px, depth = project(v, corners)
             if np.any(depth <= 0):
