@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 import click
+
 from geoterrain.cli.options import parse_size, pixel_errors_option, strategies_option
 
 

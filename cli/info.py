@@ -25,22 +25,27 @@ def command(store, as_json):
         click.echo(json.dumps(i, indent=2))
         return
     ex = i["extent_m"]
+    hu, vu = i["horizontal_unit"], i["vertical_unit"]
+    lo, hi = i["height_range"]
+    zm = i["vertical_unit_to_m"]
+    in_m = f" ({lo * zm:.6g} … {hi * zm:.6g} m)" if vu != "m" else ""
     lines = [
         f"store        {i['path']} ({i['size_bytes'] / 1e6:.2f} MB)",
         f"source       {i['source']} ({i['source_dtype']}, encoding {i['encoding']})",
         f"crs          {i['crs']}",
         f"frame        {i['frame']}; origin {i['origin_crs'][0]:.6g}, {i['origin_crs'][1]:.6g} "
-        f"(CRS units); z × {i['vertical_unit_to_m']:g} m/unit × {i['z_scale']:g}",
+        f"({hu}); heights in {vu} × {zm:g} m/{vu} × z-scale {i['z_scale']:g}",
         f"extent       {ex['x'][1] - ex['x'][0]:.1f} m × {ex['y'][1] - ex['y'][0]:.1f} m",
         f"grid         {i['grid'][0]} × {i['grid'][1]} samples, padded to "
         f"{i['padded'][0]} × {i['padded'][1]}",
         f"tiles        {i['tile_samples']}² samples, {i['levels']} levels; stored per level "
         + ", ".join(f"L{k}:{v}" for k, v in i["tiles_per_level"].items()),
-        f"heights      {i['height_range'][0]:.6g} … {i['height_range'][1]:.6g}; "
+        f"heights      {lo:.6g} … {hi:.6g} {vu}{in_m}; "
         f"nodata {100 * i['nodata_fraction']:.2f} %",
-        f"codec        {i['codec']}; {i['height_bits_per_valid_sample']:.3f} bits per valid sample",
+        f"codec        {i['codec']} (ε in {vu}); "
+        f"{i['height_bits_per_valid_sample']:.3f} bits per valid sample",
         "bytes/level  " + ", ".join(f"L{k}:{v}" for k, v in i["height_bytes_per_level"].items()),
         f"errors       tile error {i['tile_error_range'][0]:.4g} … {i['tile_error_range'][1]:.4g}"
-        f" m; max vertex δ {i['vertex_error_max']:.4g} m",
+        f" m (scene); max vertex δ {i['vertex_error_max']:.4g} m (scene)",
     ]
     click.echo("\n".join(lines))

@@ -5,7 +5,13 @@ from __future__ import annotations
 import json
 
 import click
-from geoterrain.cli.options import camera_options, pixel_error_option, strategy_option
+
+from geoterrain.cli.options import (
+    camera_options,
+    pixel_error_option,
+    strategy_option,
+    vertical_exaggeration_option,
+)
 
 
 @click.command("mesh")
@@ -17,10 +23,11 @@ from geoterrain.cli.options import camera_options, pixel_error_option, strategy_
 @camera_options
 @pixel_error_option
 @strategy_option
+@vertical_exaggeration_option
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, size,
-            pixel_error, strategy, overwrite):
+            pixel_error, strategy, vertical_exaggeration, overwrite):
     """Write a mesh of STORE: static (--max-error) or for a view (--look-from/--look-at).
 
     A static mesh keeps every vertex whose error bound δ exceeds --max-error, so
@@ -31,6 +38,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     Examples:
       geoterrain mesh dem.geoterrain -o dem.ply --max-error 1
       geoterrain mesh dem.geoterrain -o v.vtp --look-from 0,-5000,2000 --look-at 0,0,0
+      geoterrain mesh dem.geoterrain -o relief.ply --max-error 2 -z 3
     """
     from pathlib import Path
 
@@ -52,7 +60,10 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
         max_error = 1.0
     if max_error is not None and max_error < 0:
         raise UsageError(f"--max-error must be ≥ 0, got {max_error}")
-    with geoterrain.open(store) as t:
+    from geoterrain.exaggerate import exaggerated
+
+    with geoterrain.open(store) as base:
+        t = exaggerated(base, vertical_exaggeration)
         if view_mode:
             if crs_coords:
                 look_from, look_at = (t.frame.crs_point_to_scene(p) for p in (look_from, look_at))

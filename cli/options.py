@@ -128,3 +128,61 @@ def camera_options(f):
     ]):
         f = opt(f)
     return f
+
+
+def _check_cmap(ctx, param, value):
+    from geoterrain.colours import check_cmap
+    from geoterrain.exceptions import UsageError
+
+    try:
+        check_cmap(value)
+    except UsageError as exc:
+        raise click.BadParameter(str(exc)) from None
+    return value
+
+
+def _parse_clim(ctx, param, value):
+    if value is None:
+        return None
+    try:
+        lo, hi = (float(v) for v in value.split(","))
+    except ValueError:
+        raise click.BadParameter(f"expected MIN,MAX in metres, got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+        raise click.BadParameter(f"expected finite MIN < MAX, got {value!r}")
+    return lo, hi
+
+
+def _finite(ctx, param, value):
+    if value is not None and not math.isfinite(value):
+        raise click.BadParameter(f"expected a finite number, got {value}")
+    return value
+
+
+def colour_options(f):
+    """--cmap, --clim and --water-level, shared by render and view."""
+    for opt in reversed([
+        click.option("--cmap", default="auto", show_default=True, callback=_check_cmap,
+                     help="auto (land tints; water in blue at or below 0 m when the data "
+                          "reaches the sea) or any matplotlib colormap name."),
+        click.option("--clim", callback=_parse_clim, metavar="MIN,MAX",
+                     help="Heights (m) the colour map spans (default: the data's range)."),
+        click.option("--water-level", type=float, callback=_finite, metavar="H",
+                     help="Colour everything at or below H metres as water."),
+    ]):
+        f = opt(f)
+    return f
+
+
+def palette(cmap, clim, water_level):
+    """The :class:`geoterrain.colours.Palette` of the colour options."""
+    from geoterrain.colours import Palette
+
+    return Palette(cmap, clim, water_level)
+
+
+vertical_exaggeration_option = click.option(
+    "-z", "--vertical-exaggeration", "vertical_exaggeration", type=float, default=1.0,
+    show_default=True, callback=_positive, metavar="N",
+    help="Draw heights × N (view time; the store's --z-scale is kept). The LOD error bound "
+         "holds for the exaggerated surface; pictures say VE ×N.")

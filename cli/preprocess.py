@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import click
-from geoterrain.cli.options import StageBar
 
+from geoterrain.cli.options import StageBar
 from geoterrain.frame import Z_UNITS
 from geoterrain.raster import ENCODINGS
 
@@ -21,8 +21,14 @@ from geoterrain.raster import ENCODINGS
 @click.option("--pixel-size", type=float,
               help="Metres per sample for rasters without a CRS (PNG tiles); default 1.")
 @click.option("--z-scale", type=float, help="Vertical exaggeration (default 1).")
-@click.option("--z-units", type=click.Choice(list(Z_UNITS)), default="m", show_default=True,
-              help="Unit of the heights: metres, international feet or US survey feet.")
+@click.option("--z-units", type=click.Choice(["auto", *Z_UNITS]), default="auto",
+              show_default=True,
+              help="Unit of the heights: metres, international feet or US survey feet; auto "
+                   "follows the CRS (its vertical unit, else its horizontal one) and warns "
+                   "when they disagree.")
+@click.option("--tile", metavar="Z/X/Y",
+              help="A web-map PNG tile's z/x/y: placed in Web Mercator at its true pixel size "
+                   "(recognised by itself when the path ends in z/x/y.png).")
 @click.option("--codec-error", type=float, metavar="EPS",
               help="Height codec bound ε: every stored height is within EPS (height units) "
                    "of the source. Default: lossless.")
@@ -31,7 +37,7 @@ from geoterrain.raster import ENCODINGS
               help="zstd level of the height residuals (19: ~2 % smaller, ~3× slower).")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
-def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units,
+def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,
             codec_error, old_max_error, zstd_level, overwrite):
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
@@ -44,6 +50,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
     \b
     Examples:
       geoterrain preprocess dem.tif
+      geoterrain preprocess fuji.png --tile 12/3637/1612
       geoterrain preprocess tile.png --pixel-size 30 -o tile.geoterrain
       geoterrain preprocess lidar.tif --codec-error 0.05 --z-scale 2
     """
@@ -61,7 +68,8 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
     try:
         out = geoterrain.preprocess(
             dem, output, tile_size=tile_size, band=band, encoding=encoding,
-            pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, codec_error=codec_error,
+            pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, tile=tile,
+            codec_error=codec_error,
             overwrite=overwrite, zstd_level=zstd_level, progress=bar)
     finally:
         bar.close()

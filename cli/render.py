@@ -6,11 +6,15 @@ import json
 from pathlib import Path
 
 import click
+
 from geoterrain.cli.options import (
     StageBar,
     camera_options,
+    colour_options,
+    palette,
     pixel_error_option,
     strategy_option,
+    vertical_exaggeration_option,
 )
 
 
@@ -20,17 +24,20 @@ from geoterrain.cli.options import (
               help="Output .png (one view), .gif or .mp4 (--orbit / --path), or a directory "
                    "of PNG frames.")
 @camera_options
-@click.option("--azimuth", type=float, default=190.0, show_default=True,
-              help="Camera bearing from the target, degrees clockwise from north.")
+@click.option("--azimuth", type=float,
+              help="Camera bearing from the target, degrees clockwise from north "
+                   "[default: 190; 180 with --elevation 90, so north is up].")
 @click.option("--elevation", type=float, default=40.0, show_default=True,
-              help="Camera angle above the horizon, degrees.")
+              help="Camera angle above the horizon, degrees in (0, 90]; 90 looks straight "
+                   "down.")
 @click.option("--distance", type=float, help="Eye–target distance in metres (default: fit).")
 @pixel_error_option
 @strategy_option
+@vertical_exaggeration_option
 @click.option("--shading", type=click.Choice(["normals", "elevation", "plain"]),
               default="normals", show_default=True,
               help="normals: hillshade from full-resolution normal maps × elevation colours.")
-@click.option("--cmap", default="gist_earth", show_default=True, help="Matplotlib colormap.")
+@colour_options
 @click.option("--title", help="Title drawn at the top.")
 @click.option("--no-overlays", is_flag=True,
               help="No colour bar, scale bar or north arrow.")
@@ -39,11 +46,14 @@ from geoterrain.cli.options import (
 @click.option("--orbit", type=int, help="Render an orbit of N frames around the terrain.")
 @click.option("--path", "cameras", type=click.Path(exists=True, dir_okay=False),
               help="Fly through the cameras of a JSON file.")
+@click.option("--frames-between", type=click.IntRange(0, 1000), default=0, show_default=True,
+              help="With --path: eased frames on a smooth spline between each pair of cameras.")
 @click.option("--fps", type=float, default=10.0, show_default=True, help="Animation speed.")
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
-            fov, pixel_error, strategy, shading, cmap, title, no_overlays, stats_path, orbit,
-            cameras, fps):
+            fov, pixel_error, strategy, vertical_exaggeration, shading, cmap, clim, water_level,
+            title, no_overlays,
+            stats_path, orbit, cameras, frames_between, fps):
     """Render STORE offscreen: each frame selects its own level of detail.
 
     \b
@@ -53,6 +63,9 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
       geoterrain render dem.geoterrain -o view.png --look-from 0,-5000,3000 --look-at 0,0,500
       geoterrain render dem.geoterrain -o view.png --crs-coords \\
           --look-from 500000,4990000,3000 --look-at 505000,5000000,800
+      geoterrain render dem.geoterrain -o top.png --elevation 90
+      geoterrain render dem.geoterrain -o relief.png -z 3
+      geoterrain render dem.geoterrain -o sea.png --water-level 2 --clim -50,1500
       geoterrain render dem.geoterrain -o orbit.gif --orbit 36 --size 640x360
       geoterrain render dem.geoterrain -o fly.mp4 --path cameras.json --stats fly.json
 
@@ -62,10 +75,22 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     """
     import geoterrain
     import geoterrain.rendering as R
+    from geoterrain.cameras import check_elevation
     from geoterrain.exceptions import UsageError
     from geoterrain.view import View
 
     quiet = (ctx.obj or {}).get("quiet", False)
+    try:
+        check_elevation(elevation)
+    except UsageError:
+        raise UsageError(f"--elevation must be in (0, 90] degrees above the horizon (90: "
+                         f"straight down), got {elevation:g}; to look from below, give "
+                         "--look-from and --look-at") from None
+    if azimuth is None:
+        azimuth = 180.0 if elevation == 90 else 190.0
+    cmap = palette(cmap, clim, water_level)
+    if frames_between and cameras is None:
+        raise UsageError("--frames-between goes with --path")
     if (look_from is None) != (look_at is None):
         raise UsageError("give both --look-from and --look-at, or neither")
     if orbit is not None and cameras is not None:
@@ -78,7 +103,12 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
         raise UsageError(f"{out}: a single view is written as .png (use --orbit or --path "
                          "for .gif/.mp4)")
     overlays = dict(colorbar=not no_overlays, north_arrow=not no_overlays)
-    with geoterrain.open(store) as t:
+    if animated:
+        overlays["scale_bar"] = not no_overlays
+    from geoterrain.exaggerate import exaggerated
+
+    with geoterrain.open(store) as base:
+        t = exaggerated(base, vertical_exaggeration)
         if animated:
             bar = StageBar("rendering", quiet)
             kw = dict(pixel_error=pixel_error, strategy=strategy, shading=shading, cmap=cmap,
@@ -89,7 +119,8 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
                     frames = R.orbit(t, out, orbit, size=size, azimuth=azimuth,
                                      elevation=elevation, distance=distance, fov_y_deg=fov, **kw)
                 else:
-                    frames = R.flythrough(t, cameras, out, size=size, fov_y_deg=fov, **kw)
+                    frames = R.flythrough(t, cameras, out, size=size, fov_y_deg=fov,
+                                          frames_between=frames_between, **kw)
             finally:
                 bar.close()
             if stats_path:
@@ -109,7 +140,9 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             except ValueError as exc:
                 raise UsageError(f"bad camera: {exc}") from None
         else:
-            view = R.default_view(t, size, azimuth, elevation, distance, fov)
+            view = R.overview(t, size, azimuth, elevation, distance, fov, shading=shading,
+                              cmap=cmap, title=title, colorbar=not no_overlays,
+                              scale_bar=not no_overlays, north_arrow=not no_overlays)
         st = R.render(t, view, out, pixel_error=pixel_error, strategy=strategy,
                       shading=shading, cmap=cmap, title=title, scale_bar=not no_overlays,
                       stats_path=stats_path, **overlays)

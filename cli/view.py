@@ -5,21 +5,32 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-from geoterrain.cli.options import StageBar, parse_size, pixel_error_option, strategy_option
+
+from geoterrain.cli.options import (
+    StageBar,
+    colour_options,
+    palette,
+    parse_size,
+    pixel_error_option,
+    strategy_option,
+    vertical_exaggeration_option,
+)
 
 
 @click.command("view")
 @click.argument("source", type=click.Path(exists=True, dir_okay=False))
 @strategy_option
 @pixel_error_option
+@vertical_exaggeration_option
 @click.option("--shading", type=click.Choice(["normals", "elevation", "plain"]),
               default="normals", show_default=True)
-@click.option("--cmap", default="gist_earth", show_default=True, help="Matplotlib colormap.")
+@colour_options
 @click.option("--size", callback=parse_size, default="1280x720", show_default=True,
               help="Window WIDTHxHEIGHT.")
 @click.option("--rebuild", is_flag=True, help="Preprocess the DEM again even if cached.")
 @click.pass_context
-def command(ctx, source, strategy, pixel_error, shading, cmap, size, rebuild):
+def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, cmap, clim,
+            water_level, size, rebuild):
     """Open SOURCE (a store or a DEM) in an interactive 3-D window.
 
     A DEM is preprocessed first into a store next to it (or in
@@ -63,8 +74,12 @@ def command(ctx, source, strategy, pixel_error, shading, cmap, size, rebuild):
         raise GeoterrainError(
             "no display to open a window on (DISPLAY is not set); use `geoterrain render` "
             "for pictures, or run under a desktop session or Xvfb")
-    with geoterrain.open(store) as t:
-        show(t, strategy, pixel_error, shading=shading, cmap=cmap, size=size)
+    from geoterrain.exaggerate import exaggerated
+
+    with geoterrain.open(store) as base:
+        t = exaggerated(base, vertical_exaggeration)
+        show(t, strategy, pixel_error, shading=shading, cmap=palette(cmap, clim, water_level),
+             size=size)
 
 
 def has_display() -> bool:

@@ -87,6 +87,7 @@ class Frame:
         if not crs.is_projected:
             raise InputError(f"unsupported CRS kind for {crs.name!r}; reproject to a projected CRS")
         unit = crs.axis_info[0].unit_conversion_factor if crs.axis_info else 1.0
+        unit /= _scale_factor(crs, transform, rows, cols)
         return Frame("projected", rows, cols, tuple(transform), crs_wkt, unit_to_m=unit,
                      **kw)._with_origin()
 
@@ -183,3 +184,19 @@ class Frame:
         d["transform"] = tuple(d["transform"])
         d["origin_crs"] = tuple(d["origin_crs"])
         return Frame(**d)
+
+
+def _scale_factor(crs: CRS, transform, rows: int, cols: int) -> float:
+    """The projection's point scale factor at the grid centre, where it departs from 1 by
+    more than 1 % (Web Mercator: 1/cos φ); else 1, so conformal grids such as UTM keep
+    their CRS metres. Scene distances near the centre are then true ground metres."""
+    from pyproj import Proj, Transformer
+
+    a, _, c, _, e, f = transform
+    x, y = c + a * cols / 2, f + e * rows / 2
+    try:
+        lon, lat = Transformer.from_crs(crs, crs.geodetic_crs, always_xy=True).transform(x, y)
+        k = float(Proj(crs).get_factors(lon, lat).parallel_scale)
+    except Exception:  # noqa: BLE001 - projections without factors keep their units
+        return 1.0
+    return k if np.isfinite(k) and k > 0 and abs(k - 1) > 0.01 else 1.0

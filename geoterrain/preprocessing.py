@@ -29,6 +29,7 @@ from geoterrain.quantize import choose_quantizer
 from geoterrain.raster import Raster, read_raster
 from geoterrain.store import StoreWriter, default_store_path
 from geoterrain.tilebounds import tile_errors
+from geoterrain.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
 from geoterrain.vertexdata import pack_bounds, scale_bounds, scale_exponent
 
 log = logging.getLogger("geoterrain")
@@ -64,7 +65,8 @@ def preprocess(
     encoding: str = "auto",
     pixel_size: float | None = None,
     z_scale: float | None = None,
-    z_units: str = "m",
+    z_units: str = "auto",
+    tile: str | None = None,
     codec_error: float | None = None,
     overwrite: bool = False,
     zstd_level: int = 9,
@@ -85,7 +87,12 @@ def preprocess(
     pixel_size
         Metres per sample for rasters without a CRS (default 1, with a warning).
     z_scale, z_units
-        Vertical exaggeration, and the unit of the heights (``m``, ``ft``, ``us-ft``).
+        Vertical exaggeration, and the unit of the heights (``m``, ``ft``, ``us-ft``, or
+        ``auto``: the CRS's vertical unit, else its horizontal one, else metres; a warning
+        names the fix when the CRS and a given unit disagree).
+    tile
+        ``"z/x/y"`` of a web-map PNG tile: placed in Web Mercator at its true pixel size.
+        A tile whose path ends in z/x/y.png is recognised by itself.
     codec_error
         The height codec's bound ε, in height units: every stored height is within ε
         of the source; default lossless. (Not the static mesh's ``max_error``.)
@@ -129,6 +136,16 @@ def preprocess(
 
     r = read_raster(src, band=band, encoding=encoding)
     validate(r, z_scale)
+    zxy = parse_tile(tile) if tile is not None else None
+    if zxy is not None and (pixel_size is not None or r.crs_wkt is not None):
+        raise UsageError("a web-map tile is placed by its z/x/y; give tile or pixel_size, not "
+                         "both", cli="give --tile or --pixel-size, not both")
+    if zxy is None and r.crs_wkt is None and pixel_size is None:
+        zxy = tile_from_path(src)
+    if zxy is not None:
+        r.transform, r.crs_wkt = tile_georeference(*zxy, r.shape[1], r.shape[0])
+        log.info("%s: web-map tile %d/%d/%d in EPSG:3857", src, *zxy)
+    z_units = resolve_z_units(z_units, r.crs_wkt, str(src))
     frame = Frame.from_raster(r.transform, r.crs_wkt, r.shape[0], r.shape[1],
                               pixel_size=pixel_size, z_units=z_units,
                               z_scale=1.0 if z_scale is None else z_scale)

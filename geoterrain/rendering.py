@@ -42,15 +42,18 @@ import numpy as np
 from geoterrain import lod
 from geoterrain.cameras import (  # noqa: F401 - the camera helpers are part of this API
     default_view,
+    interpolate_views,
     load_cameras,
     orbit_views,
     project,
     terrain_bounds,
     to_scene,
 )
+from geoterrain.colours import Palette
+from geoterrain.exaggerate import exaggerated
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.registry import DEFAULT, strategy_info
-from geoterrain.overlays import compose
+from geoterrain.overlays import compose, layout_for
 from geoterrain.textures import SHADINGS, texture_image, texture_level
 from geoterrain.view import View
 
@@ -81,9 +84,11 @@ class TerrainScene:
     >>> img, stats = scene.frame(default_view(t, (640, 480)))  # doctest: +SKIP
     """
 
-    def __init__(self, plotter, terrain, shading: str = "normals", cmap: str = "gist_earth",
-                 background: Sequence[float] = BACKGROUND):
+    def __init__(self, plotter, terrain, shading: str = "normals", cmap: str | Palette = "auto",
+                 background: Sequence[float] = BACKGROUND, vertical_exaggeration: float = 1.0):
         import pyvista as pv
+
+        terrain = exaggerated(terrain, vertical_exaggeration)
 
         if shading not in SHADINGS:
             raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
@@ -141,9 +146,15 @@ class TerrainScene:
         self.mesh = mesh
 
     def set_camera(self, view: View) -> None:
-        """Point the plotter's camera like ``view`` (and fit the clipping range)."""
+        """Point the plotter's camera like ``view`` (and fit the clipping range).
+
+        VTK gets the view's own orthonormal up (``View.basis``), never a view-up it
+        would have to re-orthogonalise: the picture, the frustum the LOD culls with
+        and :func:`project` are one camera, straight down included.
+        """
         cam = self.plotter.camera
-        cam.position, cam.focal_point, cam.up = view.look_from, view.look_at, view.up
+        _, u, _ = view.basis()
+        cam.position, cam.focal_point, cam.up = view.look_from, view.look_at, tuple(u)
         cam.view_angle = view.fov_y_deg
         self.plotter.renderer.ResetCameraClippingRange()
         if view.near is not None and view.far is not None:
@@ -193,9 +204,31 @@ def _write_png(path: str | Path, img: np.ndarray) -> None:
     iio.imwrite(path, img)
 
 
+def overview(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 190.0,
+             elevation: float = 40.0, distance: float | None = None, fov_y_deg: float = 30.0,
+             *, shading: str = "normals", cmap: str | Palette = "auto",
+             title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
+             north_arrow: bool = True, vertical_exaggeration: float = 1.0) -> View:
+    """:func:`default_view` framed into the rectangle the overlays leave free.
+
+    The framing is of the terrain drawn with ``vertical_exaggeration``.
+
+    Examples
+    --------
+    >>> v = overview(t, (640, 480), title="demo")
+    >>> v.size
+    (640, 480)
+    """
+    terrain = exaggerated(terrain, vertical_exaggeration)
+    lay = layout_for(terrain, size, shading=shading, cmap=cmap, title=title,
+                     colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
+    return default_view(terrain, size, azimuth, elevation, distance, fov_y_deg,
+                        fit_rect=lay.free)
+
+
 def render_array(terrain, view: View, *, pixel_error: float = 1.0, strategy: str = DEFAULT,
-                 shading: str = "normals", cmap: str = "gist_earth", scene=None
-                 ) -> tuple[np.ndarray, dict]:
+                 shading: str = "normals", cmap: str | Palette = "auto", scene=None,
+                 vertical_exaggeration: float = 1.0) -> tuple[np.ndarray, dict]:
     """The rendered image (H, W, 3) uint8 of ``view`` without overlays, and its stats.
 
     Examples
@@ -207,7 +240,8 @@ def render_array(terrain, view: View, *, pixel_error: float = 1.0, strategy: str
     strategy_info(strategy)
     own = scene is None
     if own:
-        scene = TerrainScene(_plotter(view.size), terrain, shading, cmap)
+        scene = TerrainScene(_plotter(view.size), terrain, shading, cmap,
+                             vertical_exaggeration=vertical_exaggeration)
     try:
         img, stats = scene.frame(view, pixel_error, strategy)
         stats["terrain_fraction"] = round(scene.terrain_fraction(), 4)
@@ -218,15 +252,16 @@ def render_array(terrain, view: View, *, pixel_error: float = 1.0, strategy: str
 
 
 def render(terrain, view: View | None, path: str | Path, *, pixel_error: float = 1.0,
-           strategy: str = DEFAULT, shading: str = "normals", cmap: str = "gist_earth",
+           strategy: str = DEFAULT, shading: str = "normals", cmap: str | Palette = "auto",
            title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
-           north_arrow: bool = True, stats_path: str | Path | None = None) -> dict:
+           north_arrow: bool = True, stats_path: str | Path | None = None,
+           vertical_exaggeration: float = 1.0) -> dict:
     """Render one view of the terrain to a PNG, with its own level of detail.
 
     Parameters
     ----------
     terrain : Terrain
-    view : View, or None for :func:`default_view` at 1280×720.
+    view : View, or None for :func:`overview` at 1280×720.
     path : PNG file to write.
     pixel_error : τ, the screen-space error bound in pixels.
     strategy : a name from :data:`geoterrain.lod.STRATEGIES` (default ``rtin``).
@@ -235,6 +270,8 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
     cmap : matplotlib colormap of elevations.
     title, colorbar, scale_bar, north_arrow : overlays.
     stats_path : also write the stats as JSON there.
+    vertical_exaggeration : heights × N at view time (the stored ``z_scale`` is kept);
+        the LOD bounds scale with it, and the scale bar's box says "VE ×N".
 
     Returns
     -------
@@ -249,8 +286,10 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
     >>> stats["triangles"] > 0  # doctest: +SKIP
     True
     """
+    terrain = exaggerated(terrain, vertical_exaggeration)
     if view is None:
-        view = default_view(terrain)
+        view = overview(terrain, shading=shading, cmap=cmap, title=title, colorbar=colorbar,
+                        scale_bar=scale_bar, north_arrow=north_arrow)
     if shading not in SHADINGS:
         raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
     img, stats = render_array(terrain, view, pixel_error=pixel_error, strategy=strategy,
@@ -294,10 +333,10 @@ def _animation_writer(out: str | Path, fps: float):
 
 
 def animate(terrain, views: Sequence[View], out: str | Path, *, pixel_error: float = 1.0,
-            strategy: str = DEFAULT, shading: str = "normals", cmap: str = "gist_earth",
-            title: str | None = None, colorbar: bool = True, scale_bar: bool = False,
-            north_arrow: bool = True, fps: float = 10.0, progress: Progress | None = None
-            ) -> list[dict]:
+            strategy: str = DEFAULT, shading: str = "normals", cmap: str | Palette = "auto",
+            title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
+            north_arrow: bool = True, fps: float = 10.0, progress: Progress | None = None,
+            vertical_exaggeration: float = 1.0) -> list[dict]:
     """Render each view (each with its own LOD selection) into a GIF, MP4 or PNG folder.
 
     Returns the per-frame stats.
@@ -312,6 +351,7 @@ def animate(terrain, views: Sequence[View], out: str | Path, *, pixel_error: flo
     size = views[0].size
     if any(v.size != size for v in views):
         raise UsageError("every frame of an animation must have the same size")
+    terrain = exaggerated(terrain, vertical_exaggeration)
     append, close = _animation_writer(out, fps)
     scene = TerrainScene(_plotter(size), terrain, shading, cmap)
     all_stats = []
@@ -344,21 +384,30 @@ def orbit(terrain, out: str | Path, n_frames: int = 36, *, size: tuple[int, int]
     >>> len(stats)  # doctest: +SKIP
     24
     """
-    views = orbit_views(terrain, n_frames, size, azimuth, elevation, distance, fov_y_deg)
+    terrain = exaggerated(terrain, kw.pop("vertical_exaggeration", 1.0))
+    lay = layout_for(terrain, size, shading=kw.get("shading", "normals"),
+                     cmap=kw.get("cmap", "auto"), title=kw.get("title"),
+                     colorbar=kw.get("colorbar", True), scale_bar=kw.get("scale_bar", True),
+                     north_arrow=kw.get("north_arrow", True))
+    views = orbit_views(terrain, n_frames, size, azimuth, elevation, distance, fov_y_deg,
+                        fit_rect=lay.free)
     return animate(terrain, views, out, **kw)
 
 
 def flythrough(terrain, cameras_json: str | Path, out: str | Path, *,
-               size: tuple[int, int] = (1280, 720), fov_y_deg: float = 30.0, **kw
-               ) -> list[dict]:
-    """Fly along the cameras of a JSON file (see :func:`load_cameras`), one frame each.
+               size: tuple[int, int] = (1280, 720), fov_y_deg: float = 30.0,
+               frames_between: int = 0, **kw) -> list[dict]:
+    """Fly along the cameras of a JSON file (see :func:`load_cameras`).
 
-    Every frame selects the LOD for its own camera. Keyword arguments go to
-    :func:`animate`.
+    The cameras are keyframes: ``frames_between`` eased frames on a smooth spline
+    go between each pair (:func:`interpolate_views`). Every frame selects the LOD
+    for its own camera. Keyword arguments go to :func:`animate`.
 
     Examples
     --------
     >>> stats = flythrough(t, "cameras.json", "fly.gif", progress=print)  # doctest: +SKIP
     """
-    views = load_cameras(terrain, cameras_json, size, fov_y_deg)
+    terrain = exaggerated(terrain, kw.pop("vertical_exaggeration", 1.0))
+    views = interpolate_views(load_cameras(terrain, cameras_json, size, fov_y_deg),
+                              frames_between)
     return animate(terrain, views, out, **kw)

@@ -357,6 +357,9 @@ class Terrain:
             "frame": f.kind,
             "horizontal_unit_to_m": f.unit_to_m,
             "vertical_unit_to_m": f.z_to_m,
+            "horizontal_unit": _unit_name(f.unit_to_m) if f.kind == "projected" else
+            ("degrees" if f.kind == "geographic" else "pixels"),
+            "vertical_unit": _unit_name(f.z_to_m),
             "z_scale": f.z_scale,
             "origin_crs": list(f.origin_crs),
             "extent_m": {"x": [float(cx.min()), float(cx.max())],
@@ -414,3 +417,11 @@ def open(path: str | Path, cache_bytes: int = 1536 << 20) -> Terrain:  # noqa: A
     See :class:`Terrain`.
     """
     return Terrain(path, cache_bytes=cache_bytes)
+
+
+def _unit_name(factor: float) -> str:
+    """'m', 'ft' or 'us-ft' for a metres-per-unit factor, else 'units of N m'."""
+    from geoterrain.units import unit_of_factor
+
+    u = unit_of_factor(factor)
+    return u if u is not None else f"units of {factor:.6g} m"

@@ -18,6 +18,8 @@ import weakref
 
 import numpy as np
 
+from geoterrain.colours import Palette, as_palette, colorize
+
 SHADINGS = ("normals", "elevation", "plain")
 SUN_AZIMUTH = 315.0  # degrees clockwise from north: light from the north-west (cartography)
 SUN_ALTITUDE = 45.0
@@ -52,7 +54,7 @@ def elevation_range(terrain) -> tuple[float, float]:
     return (a, b) if b > a else (a - 0.5, a + 0.5)
 
 
-def build_texture_image(terrain, shading: str, cmap: str = "gist_earth",
+def build_texture_image(terrain, shading: str, cmap: str | Palette = "auto",
                         level: int | None = None) -> np.ndarray:
     """RGB uint8 image (S, S, 3) of the level-L grid: elevation colour × hillshade.
 
@@ -63,8 +65,6 @@ def build_texture_image(terrain, shading: str, cmap: str = "gist_earth",
     --------
     >>> img = build_texture_image(t, "normals")  # doctest: +SKIP
     """
-    import matplotlib
-
     g = terrain.grid
     L = texture_level(terrain) if level is None else level
     S, T, step = g.level_size(L), g.tile_samples, 1 << g.t
@@ -77,18 +77,17 @@ def build_texture_image(terrain, shading: str, cmap: str = "gist_earth",
         h[sl] = np.nan_to_num(terrain.tile(lv, x, y).heights, nan=0.0)
     z0, z1 = elevation_range(terrain)
     zm = terrain.frame.z_to_m
-    rgb = matplotlib.colormaps[cmap](np.clip((h * zm - z0) / (z1 - z0), 0, 1),
-                                     bytes=False)[..., :3].astype(np.float32)
+    rgb = colorize(h * zm, as_palette(cmap), (z0, z1))
     rgb *= shade[..., None]
     return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
 
 
-def texture_image(terrain, shading: str, cmap: str = "gist_earth",
+def texture_image(terrain, shading: str, cmap: str | Palette = "auto",
                   level: int | None = None) -> np.ndarray:
     """:func:`build_texture_image`, cached per terrain, shading, colour map and level."""
     L = texture_level(terrain) if level is None else level
     cache = _CACHE.setdefault(terrain, {})
-    key = (shading, cmap, L)
+    key = (shading, as_palette(cmap), L)
     if key not in cache:
         cache[key] = build_texture_image(terrain, shading, cmap, L)
     return cache[key]

@@ -24,6 +24,7 @@ import numpy as np
 
 from geoterrain import lod
 from geoterrain.cameras import default_view
+from geoterrain.colours import Palette
 from geoterrain.lod.registry import DEFAULT, STRATEGIES, strategy_info
 from geoterrain.rendering import TerrainScene
 from geoterrain.view import View
@@ -55,7 +56,8 @@ class ViewerController:
     """
 
     def __init__(self, plotter, terrain, strategy: str = DEFAULT, pixel_error: float = 1.0,
-                 shading: str = "normals", cmap: str = "gist_earth", throttle_ms: float = 100.0,
+                 shading: str = "normals", cmap: str | Palette = "auto",
+                 throttle_ms: float = 100.0,
                  background: bool = False):
         strategy_info(strategy)
         self.plotter, self.terrain = plotter, terrain
@@ -295,7 +297,8 @@ class ViewerController:
 
 
 def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,
-         shading: str = "normals", cmap: str = "gist_earth", size: tuple[int, int] = (1280, 720),
+         shading: str = "normals", cmap: str | Palette = "auto",
+         size: tuple[int, int] = (1280, 720),
          title: str | None = None, throttle_ms: float = 100.0) -> ViewerController:
     """Open an interactive window on the terrain; the LOD follows the camera.
 

@@ -9,11 +9,11 @@ import math
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from geoterrain.cli.main import cli
 
 import geoterrain
 from geoterrain import bench
 from geoterrain.bench_report import COLUMNS
+from geoterrain.cli.main import cli
 from geoterrain.exceptions import InputError, UsageError
 from geoterrain.lod import STRATEGIES
 

@@ -95,10 +95,17 @@ def _fidelity_terrain(tmp_path_factory):
 
 
 def test_lod_fidelity_vs_bruteforce(tmp_path_factory):
-    """τ = 1 px rtin ≈ bruteforce (≥ 35 dB or ≤ 1 % of pixels off); τ = 4 px ≥ 30 dB."""
+    """τ = 1 px rtin ≈ bruteforce (≥ 35 dB or ≤ 1 % of pixels off); τ = 4 px ≥ 30 dB.
+
+    The bounds were set with the gist_earth palette and are still checked with it; the
+    default palette (more contrast: green lowland, blue sea, so the same geometric
+    error costs more dB: τ = 4 measures 29.7-35.3 dB on srtm1_japan where gist_earth
+    gives 31.3-37.3) is checked at τ = 1, the bound the pictures are published at.
+    """
     t = _fidelity_terrain(tmp_path_factory)
     size = (960, 540)
-    scene = TerrainScene(_plotter(size), t, "normals")
+    scene = TerrainScene(_plotter(size), t, "normals", "gist_earth")
+    default = TerrainScene(_plotter(size), t, "normals")
     results = []
     try:
         for az, el in ((200, 35), (90, 20), (330, 55)):
@@ -106,15 +113,20 @@ def test_lod_fidelity_vs_bruteforce(tmp_path_factory):
             ref, _ = scene.frame(v, 1.0, "bruteforce")
             img1, s1 = scene.frame(v, 1.0, "rtin")
             img4, s4 = scene.frame(v, 4.0, "rtin")
+            dref, _ = default.frame(v, 1.0, "bruteforce")
+            d1, _ = default.frame(v, 1.0, "rtin")
             results.append((az, psnr(img1, ref), off8(img1, ref), psnr(img4, ref),
-                            s1["triangles"], s4["triangles"]))
+                            s1["triangles"], s4["triangles"], psnr(d1, dref), off8(d1, dref)))
     finally:
         scene.plotter.close()
+        default.plotter.close()
     print("\n".join(f"az {a}: tau1 {p1:.2f} dB ({100 * o1:.2f} % off), tau4 {p4:.2f} dB, "
-                    f"tris {n1}/{n4}" for a, p1, o1, p4, n1, n4 in results))
-    for _, p1, o1, p4, _, _ in results:
+                    f"tris {n1}/{n4}; default palette tau1 {pd:.2f} dB ({100 * od:.2f} % off)"
+                    for a, p1, o1, p4, n1, n4, pd, od in results))
+    for _, p1, o1, p4, _, _, pd, od in results:
         assert p1 >= 35.0 or o1 <= 0.01
         assert p4 >= 30.0
+        assert pd >= 35.0 or od <= 0.01
 
 
 def test_large_coordinates_render_identically(tmp_path_factory):

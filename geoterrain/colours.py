@@ -1,0 +1,131 @@
+"""Elevation colours: a hypsometric land map, water below a level, any matplotlib map.
+
+A :class:`Palette` says how heights (metres, no exaggeration) become colours:
+
+- ``cmap="auto"`` (default): hypsometric land tints (green → tan → brown → white,
+  no black anywhere); where the data reaches 0 m or below, everything at or
+  below sea level is water in blues (a topo-bathymetric map split at sea level).
+- any matplotlib colormap name: that map over ``clim``; with ``water_level``
+  the heights at or below it are still water.
+- ``water_level=H``: heights at or below H are water.
+- ``clim=(lo, hi)``: the heights the map spans (default: the data's range).
+
+Examples
+--------
+>>> p = Palette("auto", water_level=0.0)
+>>> rgb = colorize(np.array([-50.0, 0.0, 10.0, 3000.0]), p, (-100.0, 3000.0))
+>>> bool(rgb[1, 2] > rgb[1, 0]), bool(rgb[2, 1] > rgb[2, 2])  # sea blue, lowland green
+(True, True)
+>>> bool(rgb.sum(-1).min() > 0.5)  # no black
+True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from geoterrain.exceptions import UsageError
+
+# hypsometric tints (heights as a fraction of the land range): lowland green to snow
+LAND = [(0.00, (0.34, 0.58, 0.36)), (0.15, (0.55, 0.70, 0.42)), (0.35, (0.83, 0.80, 0.55)),
+        (0.60, (0.72, 0.56, 0.38)), (0.82, (0.60, 0.50, 0.44)), (1.00, (0.96, 0.96, 0.96))]
+# water from the deepest (0) to the surface (1)
+WATER = [(0.00, (0.08, 0.22, 0.48)), (0.70, (0.25, 0.50, 0.78)), (1.00, (0.50, 0.72, 0.90))]
+SEA_SPAN = 0.25  # the share of the colour bar given to water when water has no depth range
+
+
+@dataclass(frozen=True)
+class Palette:
+    """How heights become colours (see the module docs)."""
+
+    cmap: str = "auto"
+    clim: tuple[float, float] | None = None
+    water_level: float | None = None
+
+    def __post_init__(self) -> None:
+        check_cmap(self.cmap)
+        if self.clim is not None:
+            lo, hi = (float(v) for v in self.clim)
+            if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
+                raise UsageError(f"clim must be two finite numbers MIN < MAX, got {self.clim}")
+            object.__setattr__(self, "clim", (lo, hi))
+        if self.water_level is not None and not np.isfinite(self.water_level):
+            raise UsageError(f"water_level must be finite, got {self.water_level}")
+
+
+def as_palette(cmap: str | Palette | None) -> Palette:
+    """A :class:`Palette` from a colormap name (or the palette itself)."""
+    if isinstance(cmap, Palette):
+        return cmap
+    return Palette("auto" if cmap is None else cmap)
+
+
+def check_cmap(name: str) -> None:
+    """Raise UsageError (listing a few names) unless ``name`` is "auto" or a matplotlib map."""
+    if name == "auto":
+        return
+    import matplotlib
+
+    if name not in matplotlib.colormaps:
+        raise UsageError(f"unknown colormap {name!r}; use auto or a matplotlib name such as "
+                         "terrain, viridis, cividis, gist_earth, Greys_r")
+
+
+def _ramp(stops, x: np.ndarray) -> np.ndarray:
+    xs = np.array([s for s, _ in stops])
+    cs = np.array([c for _, c in stops])
+    return np.stack([np.interp(x, xs, cs[:, k]) for k in range(3)], -1)
+
+
+def water_level(palette: Palette, data_range: tuple[float, float]) -> float | None:
+    """The level at or below which heights are water (None: no water)."""
+    if palette.water_level is not None:
+        return float(palette.water_level)
+    if palette.cmap == "auto" and data_range[0] <= 0.0:
+        return 0.0
+    return None
+
+
+def colorize(h: np.ndarray, palette: Palette, data_range: tuple[float, float]) -> np.ndarray:
+    """RGB float32 in [0, 1] (shape h.shape + (3,)) for heights ``h`` in metres.
+
+    ``data_range`` is the data's (min, max); ``palette.clim`` overrides it for the map.
+    """
+    h = np.asarray(h, np.float64)
+    lo, hi = palette.clim if palette.clim is not None else data_range
+    if hi <= lo:
+        lo, hi = lo - 0.5, lo + 0.5
+    wl = water_level(palette, data_range)
+    if palette.cmap == "auto":
+        base = max(lo, wl) if wl is not None else lo
+        rgb = _ramp(LAND, np.clip((h - base) / max(hi - base, 1e-9), 0, 1))
+    else:
+        import matplotlib
+
+        cm = matplotlib.colormaps[palette.cmap]
+        rgb = cm(np.clip((h - lo) / (hi - lo), 0, 1))[..., :3]
+    if wl is not None:
+        wet = h <= wl
+        if wet.any():
+            depth_lo = min(lo, wl)
+            span = max(wl - depth_lo, 1e-9)
+            frac = np.clip((h[wet] - depth_lo) / span, 0, 1) if wl > depth_lo else 1.0
+            rgb[wet] = _ramp(WATER, np.broadcast_to(frac, h[wet].shape))
+    return rgb.astype(np.float32)
+
+
+def colorbar_map(palette: Palette, data_range: tuple[float, float], n: int = 256):
+    """(matplotlib ListedColormap, (lo, hi)) that draws exactly the colours of :func:`colorize`."""
+    import matplotlib
+
+    lo, hi = palette.clim if palette.clim is not None else data_range
+    if hi <= lo:
+        lo, hi = lo - 0.5, lo + 0.5
+    wl = water_level(palette, data_range)
+    if wl is not None and wl <= lo:  # water without depth: give it a band below the land
+        lo = wl - SEA_SPAN * (hi - wl)
+    z = np.linspace(lo, hi, n)
+    rgb = colorize(z, palette, data_range)
+    return matplotlib.colors.ListedColormap(rgb), (lo, hi)

@@ -1,0 +1,76 @@
+"""View-time vertical exaggeration: measured ρ ≤ τ on the exaggerated surface, N = 1 is
+the terrain itself, and the rendering API draws the exaggerated relief."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from geoterrain.exaggerate import exaggerated
+from geoterrain.exceptions import UsageError
+from tests import test_lod
+from tests.test_lod import SLACK, Case, random_view, screen_error
+
+holey, terrains = test_lod.holey, test_lod.terrains  # the LOD tests' terrains (fixtures)
+
+_CASES: dict = {}
+
+
+def _case(c: Case, n: float) -> Case:
+    key = (c.name, n)
+    if key not in _CASES:
+        _CASES[key] = Case(f"{c.name}×{n:g}", exaggerated(c.t, n))
+    return _CASES[key]
+
+
+@given(data=st.data(), n=st.sampled_from([0.5, 3.0, 10.0]), az=st.floats(0, 2 * np.pi),
+       el=st.floats(0.05, 1.5), dist=st.floats(0.05, 3.0), tx=st.floats(-1, 1),
+       ty=st.floats(-1, 1), tau=st.sampled_from([0.5, 1.0, 4.0]),
+       strategy=st.sampled_from(["rtin", "chunked"]))
+def test_exaggerated_screen_error_is_at_most_tau(terrains, data, n, az, el, dist, tx, ty,
+                                                 tau, strategy):
+    base = data.draw(st.sampled_from(terrains), label="terrain")
+    c = _case(base, n)
+    assert np.allclose(c.Z[c.valid], n * base.Z[base.valid])
+    view = random_view(c, az, el, dist, tx, ty)
+    sel = c.t.select(view, tau, strategy)
+    err = screen_error(c, sel, view)  # measured against the exaggerated full-res surface
+    assert err.max <= tau * SLACK, (n, err, sel.stats)
+
+
+def test_exaggeration_one_is_the_terrain_and_bad_values_refused(terrains):
+    t = terrains[0].t
+    assert exaggerated(t, 1.0) is t
+    assert exaggerated(exaggerated(t, 2.0), 1.5) is exaggerated(t, 3.0)
+    for bad in (0.0, -2.0, float("nan"), "x"):
+        with pytest.raises(UsageError):
+            exaggerated(t, bad)
+
+
+def test_rendered_exaggeration_is_labelled_and_steeper(tmp_path_factory, tmp_path):
+    from click.testing import CliRunner
+
+    from geoterrain.overlays import compose
+    from geoterrain.rendering import overview, render_array
+    from tests.test_render import _cli, synth_store
+
+    t = synth_store(tmp_path_factory, "fbm")
+    e = exaggerated(t, 3.0)
+    v = overview(e, (480, 320))
+    img, st = render_array(t, v, vertical_exaggeration=3.0)
+    assert st["terrain_fraction"] > 0.3
+    ext: dict = {}
+    compose(img, v, e, extents=ext)
+    plain: dict = {}
+    compose(img, v, t, extents=plain)
+    # the VE line makes the scale-bar text taller
+    assert (ext["scale_bar"][3] - ext["scale_bar"][1]) > (plain["scale_bar"][3]
+                                                          - plain["scale_bar"][1])
+    r = CliRunner().invoke(_cli(), ["render", str(t.path), "-o", str(tmp_path / "a.png"),
+                                    "-z", "0"])
+    assert r.exit_code == 2 and "vertical-exaggeration" in r.output
+    r = CliRunner().invoke(_cli(), ["-q", "mesh", str(t.path), "-o", str(tmp_path / "m.ply"),
+                                    "-z", "2", "--max-error", "2"])
+    assert r.exit_code == 0, r.output
