@@ -217,7 +217,6 @@ def select(terrain, view: View, tau: float, rule: str = "error"):
     if not len(leaves):
         return empty_polydata(), stats
     tb = tables(terrain, index)
-    g = terrain.grid
     delta = tb.delta[tb.pos[leaves]]
     xy = index.keys[leaves, 1:]  # (x, y)
     n, dmin = choose_levels(view, tau, delta, index.lo[leaves], index.hi[leaves], rule)
