@@ -11,7 +11,7 @@ one :class:`StrategyInfo` line to ``_ENTRIES`` below.
 Examples
 --------
 >>> STRATEGIES
-('rtin', 'chunked', 'bruteforce', 'geomipmap', 'geomipmap_distance')
+('rtin', 'chunked', 'bruteforce', 'geomipmap', 'geomipmap_distance', 'quadtree')
 >>> strategy_info("chunked").bounded
 True
 """
@@ -63,6 +63,9 @@ _ENTRIES = (
     StrategyInfo("geomipmap_distance", "geoterrain.lod.geomipmap_distance",
                  "GeoMipMapping with the thesis's switch distances D_n = δ·C (unbounded)",
                  False, conforming=True),
+    StrategyInfo("quadtree", "geoterrain.lod.quadtree",
+                 "restricted quadtree, Manhattan-distance LOD (seed 003; unbounded)", False,
+                 conforming=True),
 )
 
 REGISTRY: dict[str, StrategyInfo] = {e.name: e for e in _ENTRIES}
