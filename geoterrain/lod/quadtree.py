@@ -47,8 +47,13 @@ class Tables:
         L = index.keys[:, 0]
         e = index.error
         ok = (L > 0) & np.isfinite(e)
-        # error per sample of stride (ĝ): the median over the stored tiles above level 0
-        self.g = float(np.median(e[ok] / (1 << L[ok]))) if ok.any() else 0.0
+        # error per sample of stride (ĝ): the median over the stored tiles above level 0;
+        # a one-level store has none: then the largest δ over the whole tile's span
+        if ok.any():
+            self.g = float(np.median(e[ok] / (1 << L[ok])))
+        else:
+            dm = index.delta_max[np.isfinite(index.delta_max)]
+            self.g = float(dm.max(initial=0.0)) / (1 << g.t)
 
 
 def _tables(terrain, index):
@@ -135,7 +140,8 @@ def _restrict(leaves):
         lv = [(k, *by[k]) for k in sorted(by) if len(by[k][0])]
         D = _paint(lv, dmax)
         P = np.pad(D, 1, constant_values=-1)
-        nb = np.maximum(np.maximum(P[:-2, 1:-1], P[2:, 1:-1]), np.maximum(P[1:-1, :-2], P[1:-1, 2:]))
+        nb = np.maximum(np.maximum(P[:-2, 1:-1], P[2:, 1:-1]),
+                        np.maximum(P[1:-1, :-2], P[1:-1, 2:]))
         changed = False
         for k in sorted(by):
             x, y = by[k]
