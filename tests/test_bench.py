@@ -53,7 +53,7 @@ def test_cli_store_and_path(tmp_path, fbm_tif):
     ([], 2),
     (["--synthetic", "65", "x.tif"], 2),
     (["--synthetic", "65", "--pixel-error", "0"], 2),
-    (["--synthetic", "65", "--strategies", "quadtree"], 2),
+    (["--synthetic", "65", "--strategies", "nosuchstrategy"], 2),
     (["missing.tif"], 2),
     (["--synthetic", "65", "--plot", "b.jpg"], 2),
 ])
