@@ -172,8 +172,9 @@ def _assemble(terrain, leaves, D, dmax):
         c = 1 << (dmax - k)
         e = N1 >> k
         r0, c0 = y * c + 1, x * c + 1  # padded cell of the leaf's first cell
-        coarser = np.stack([P[r0 + (dy if dy < 0 else dy * c), c0 + (dx if dx < 0 else dx * c)]
-                            == k - 1 for dx, dy in _NEIGHBOUR], 1)
+        nbr = np.stack([P[r0 + (dy if dy < 0 else dy * c), c0 + (dx if dx < 0 else dx * c)]
+                        for dx, dy in _NEIGHBOUR], 1)
+        coarser = (nbr == k - 1) & (nbr >= 0)  # −1: no leaf drawn there
         code = coarser @ (1 << np.arange(4))
         i = (y[:, None] * e) + (a.ravel() * (e // 2))[None]
         j = (x[:, None] * e) + (b.ravel() * (e // 2))[None]
