@@ -10,6 +10,8 @@
   tile error per sample of stride (so ĝ·e/2 estimates the node's error): the constant
   follows from τ and λ. It is a distance rule, not an error bound: ρ is measured, not
   promised (the registry says ``bounded=False``).
+- Near no-data (a stored tile whose footprint is not all valid) nodes are split down to
+  s_m, where triangles with an invalid corner are dropped: valid data is never hidden.
 - **Frustum culling** top-down against the stored tile boxes (a node below tile size
   uses its level-0 tile's box).
 - **Restricted quadtree**: neighbouring leaves differ by at most one level, enforced by
@@ -45,6 +47,11 @@ class Tables:
             a[index.keys[k, 2], index.keys[k, 1]] = k
             self.rows.append(a)
         L = index.keys[:, 0]
+        info = terrain.tile_info
+        nval = np.array([info[tuple(k)]["nvalid"] for k in index.keys.tolist()], np.int64)
+        # a tile whose footprint is not all valid: its nodes are split down to s_m, where
+        # triangles with a no-data corner are dropped (a coarse one would hide valid data)
+        self.partial = nval < ((1 << (g.t + L)) + 1) ** 2
         e = index.error
         ok = (L > 0) & np.isfinite(e)
         # error per sample of stride (ĝ): the median over the stored tiles above level 0;
@@ -98,13 +105,14 @@ def select(terrain, view: View, tau: float):
         lo, hi = index.lo[rows], index.hi[rows]
         vis = view.box_visibility(lo, hi) != OUTSIDE
         culled += int((~vis).sum())
-        x, y, lo, hi = x[vis], y[vis], lo[vis], hi[vis]
+        x, y, rows, lo, hi = x[vis], y[vis], rows[vis], lo[vis], hi[vis]
         e = N1 >> k
         ctr = np.stack([(x + 0.5) * e, (y + 0.5) * e], 1)  # node centre, grid units
         cx, cy = terrain.frame.xy(ctr[:, 1], ctr[:, 0])
         cz = 0.5 * (lo[:, 2] + hi[:, 2])
         manhattan = np.abs(cx - eye[0]) + np.abs(cy - eye[1]) + np.abs(cz - eye[2])
-        split = (lam * tb.g * (e / 2) > tau * manhattan) if k < sd else np.zeros(len(x), bool)
+        split = (lam * tb.g * (e / 2) > tau * manhattan) | tb.partial[rows]
+        split &= k < sd
         leaves.append((k, x[~split], y[~split]))
         x = (np.repeat(x[split], 4) << 1) + np.tile([0, 1, 0, 1], int(split.sum()))
         y = (np.repeat(y[split], 4) << 1) + np.tile([0, 0, 1, 1], int(split.sum()))
