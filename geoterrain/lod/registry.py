@@ -11,7 +11,7 @@ one :class:`StrategyInfo` line to ``_ENTRIES`` below.
 Examples
 --------
 >>> STRATEGIES
-('rtin', 'chunked', 'bruteforce')
+('rtin', 'chunked', 'bruteforce', 'geomipmap', 'geomipmap_distance', 'quadtree')
 >>> strategy_info("chunked").bounded
 True
 """
@@ -32,7 +32,8 @@ class StrategyInfo:
     """One LOD strategy: its name, the module holding its ``select``, and what it promises.
 
     ``bounded``: the measured screen-space error ρ of its meshes is ≤ τ (tested);
-    ``tau_independent``: the mesh does not depend on τ (a benchmark selects it once).
+    ``tau_independent``: the mesh does not depend on τ (a benchmark selects it once);
+    ``conforming``: no T-junction and no edge used by more than two triangles (tested).
     """
 
     name: str
@@ -40,6 +41,7 @@ class StrategyInfo:
     summary: str
     bounded: bool
     tau_independent: bool = False
+    conforming: bool = False
 
     def load(self) -> Callable:
         """The strategy's ``select(terrain, view, tau) -> (mesh, stats)`` (imports it)."""
@@ -48,12 +50,22 @@ class StrategyInfo:
 
 _ENTRIES = (
     StrategyInfo("rtin", "geoterrain.lod.rtin",
-                 "Lindstrom–Pascucci vertex refinement with nested spheres (seed 002)", True),
+                 "Lindstrom–Pascucci vertex refinement with nested spheres (seed 002)", True,
+                 conforming=True),
     StrategyInfo("chunked", "geoterrain.lod.chunked",
                  "stored tile quadtree with skirts (seed 000 chunked LOD)", True),
     StrategyInfo("bruteforce", "geoterrain.lod.bruteforce",
                  "every full-resolution tile in the frustum (the zero-error baseline)", True,
-                 tau_independent=True),
+                 tau_independent=True, conforming=True),
+    StrategyInfo("geomipmap", "geoterrain.lod.geomipmap",
+                 "GeoMipMapping: level-0 tile blocks, stitched edges (seed 000 §2.4)", True,
+                 conforming=True),
+    StrategyInfo("geomipmap_distance", "geoterrain.lod.geomipmap_distance",
+                 "GeoMipMapping with the thesis's switch distances D_n = δ·C (unbounded)",
+                 False, conforming=True),
+    StrategyInfo("quadtree", "geoterrain.lod.quadtree",
+                 "restricted quadtree, Manhattan-distance LOD (seed 003; unbounded)", False,
+                 conforming=True),
 )
 
 REGISTRY: dict[str, StrategyInfo] = {e.name: e for e in _ENTRIES}

@@ -1,0 +1,303 @@
+"""Strategy ``geomipmap``: de Boer's GeoMipMapping (seed 000 §2.4), crack-free by stitching.
+
+- **Blocks** are the stored level-0 tiles; a block's **geomipmap n** is its footprint
+  sampled every 2ⁿ samples (the stored level-n samples), n = 0 … min(t, top level),
+  the coarsest being 2×2 vertices. A quadtree is used only for frustum culling.
+- **δ_n** (seed 000 §2.4: the height change of the vanishing vertices) is taken from
+  the store: the stored error of tile (n, x ≫ n, y ≫ n), the level-n tile covering the
+  block, bounds |z − S_n| at every full-resolution sample of its footprint, S_n the
+  union-jack surface a block draws at level n. It is an upper bound of the exact
+  per-block δ_n (it may be larger, never smaller) and is monotone in n, so it needs no
+  extra preprocessing and keeps the guarantee.
+- **Selection** (``rule="error"``, the default): a block takes the coarsest n with
+  λ·δ_n / D_min ≤ τ, D_min the distance from the eye to the block's box, so the
+  measured error ρ ≤ τ. ``rule="distance"`` is the thesis's precomputed switch
+  distance (eq. 4-8 … 4-11): n is the coarsest with d_centre ≥ D_n = δ_n·C,
+  C = V_res / (2τ·tan(fov_y/2)) = λ/τ; it assumes a horizontal view, so it gives no
+  bound (strategy ``geomipmap_distance``).
+- **Cracks** (fig. 4-21): on an edge whose neighbour is coarser by a factor r, the
+  finer block omits its extra edge vertices (keeps every r-th) and re-links the
+  triangles of that edge's border strip as fans onto the kept vertices. Every other
+  triangle is the union-jack surface, so the mesh is conforming (no T-junction, no
+  edge used more than twice). A fan changes the surface only inside its strip
+  (between the edge and the first inner row, over the r cells of a kept segment),
+  where the fan and S_n both interpolate level-n samples of that strip segment: the
+  change is at most the segment's height range B. When λ·(δ_n + B)/D_min > τ the
+  coarser neighbour is refined until it holds (at ratio 1 there is no fan), so the
+  bound survives stitching.
+
+Every block's triangles come from index templates cached per (size, the four
+neighbour ratios); the blocks are assembled on whole arrays.
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+
+from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
+from geoterrain.lod.tiles import TileIndex, quadtree_leaves, tile_index, union_jack_faces
+from geoterrain.view import View
+
+_TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_TEMPLATES: dict[tuple, np.ndarray] = {}
+
+# edge order: top (row 0), bottom (row K), left (column 0), right (column K)
+EDGES = ("top", "bottom", "left", "right")
+_NEIGHBOUR = np.array([[0, -1], [0, 1], [-1, 0], [1, 0]])  # (dx, dy) per edge
+
+
+def _edge_local(e: int, v: np.ndarray, u: np.ndarray, K: int) -> tuple[np.ndarray, np.ndarray]:
+    """Block-local (row, col) of edge-local (v = depth inward, u = along the edge)."""
+    if e == 0:
+        return v, u
+    if e == 1:
+        return K - v, u
+    if e == 2:
+        return u, v
+    return u, K - v
+
+
+def _fan(K: int, r: int) -> list[tuple[tuple[int, int], ...]]:
+    """Edge-local triangles of a border strip stitched to a neighbour r times coarser:
+    per kept segment [u0, u0 + r], a fan from each kept vertex to the inner row, and the
+    triangle (u0, u0 + r, middle inner vertex) (seed 000 fig. 4-21)."""
+    tris = []
+    for a in range(K // r):
+        u0, u1 = a * r, (a + 1) * r
+        mid = u0 + r // 2
+        tris.append(((0, u0), (0, u1), (1, mid)))
+        tris += [((0, u0), (1, c), (1, c + 1)) for c in range(max(u0, 1), mid)]
+        tris += [((0, u1), (1, c), (1, c + 1)) for c in range(mid, min(u1, K - 1))]
+    return tris
+
+
+def template(K: int, ratios: tuple[int, int, int, int], parity: int = 0) -> np.ndarray:
+    """Local faces (F, 3) into a block's (K+1)² level grid, counter-clockwise from above.
+
+    ``ratios[e]`` is 1 for a plain edge or r > 1 for an edge stitched to a neighbour r
+    times coarser; ``parity`` (K = 1 only) is 1 when the cell's diagonal is the
+    anti-diagonal of the union-jack rule (block x and y of different parity).
+
+    Examples
+    --------
+    >>> len(template(4, (1, 1, 1, 1))), len(template(4, (4, 1, 1, 1)))
+    (32, 29)
+    """
+    key = (K, ratios, parity)
+    if key in _TEMPLATES:
+        return _TEMPLATES[key]
+    a, b = np.meshgrid(np.arange(K + 1), np.arange(K + 1), indexing="ij")
+    local = np.stack([a.ravel(), b.ravel()], 1)
+    if K == 1:
+        faces = np.array([[0, 3, 1], [0, 2, 3]] if not parity else [[1, 2, 0], [1, 3, 2]])
+    else:
+        faces = union_jack_faces(int(K).bit_length() - 1)
+        c = local[faces].mean(axis=1)  # centroids: which border strip holds each triangle
+        dist = np.stack([c[:, 0], K - c[:, 0], c[:, 1], K - c[:, 1]], 1)
+        strip = np.where(dist.min(1) < 1, dist.argmin(1), -1)
+        keep = np.ones(len(faces), bool)
+        extra = []
+        for e, r in enumerate(ratios):
+            if r <= 1:
+                continue
+            keep &= strip != e
+            t = np.array(_fan(K, r)).reshape(-1, 2)
+            i, j = _edge_local(e, t[:, 0], t[:, 1], K)
+            extra.append((i * (K + 1) + j).reshape(-1, 3))
+        faces = np.concatenate([faces[keep], *extra])
+    out = _TEMPLATES[key] = orient_ccw(local, faces)
+    return out
+
+
+class Tables:
+    """Per-terrain block tables: the level-0 tiles, their δ_n and neighbours."""
+
+    def __init__(self, terrain, index: TileIndex):
+        g = terrain.grid
+        self.nmax = min(g.t, g.top_level)
+        blocks = np.flatnonzero(index.keys[:, 0] == 0)
+        self.pos = np.full(len(index.keys), -1, np.int64)
+        self.pos[blocks] = np.arange(len(blocks))
+        xy = index.keys[blocks, 1:]
+        delta = np.empty((len(blocks), self.nmax + 1))
+        for n in range(self.nmax + 1):
+            k = np.column_stack([np.full(len(blocks), n), xy >> n])
+            delta[:, n] = index.error[index.rows_of(k)]
+        delta[:, 0] = 0.0  # level 0 is the data itself
+        self.delta = np.maximum.accumulate(delta, axis=1)  # already monotone; made sure
+
+
+def tables(terrain, index: TileIndex) -> Tables:
+    tb = _TABLES.get(terrain)
+    if tb is None:
+        tb = _TABLES[terrain] = Tables(terrain, index)
+    return tb
+
+
+def _block_grids(terrain, xy: np.ndarray, n: int, kinds=("height",)) -> tuple[np.ndarray, dict]:
+    """ij (B, (K+1)², 2) and gathered arrays (B, (K+1)²) of blocks ``xy`` at level n."""
+    g = terrain.grid
+    K = 1 << (g.t - n)
+    a, b = np.meshgrid(np.arange(K + 1), np.arange(K + 1), indexing="ij")
+    i = (xy[:, 1, None] << g.t) + (a.ravel() << n)[None]
+    j = (xy[:, 0, None] << g.t) + (b.ravel() << n)[None]
+    got = terrain.gather(i.ravel(), j.ravel(), kinds)
+    return np.stack([i, j], -1), {k: v.reshape(i.shape) for k, v in got.items()}
+
+
+def strip_ranges(Z: np.ndarray, nlev: int) -> np.ndarray:
+    """B (Nb, 4, nlev): per block, edge and k = log₂ r, the largest height range of the
+    level samples of one border-strip segment (rows 0–1 over r + 1 columns); inf where
+    a segment holds no-data (never stitched), 0 for k = 0 and NaN where r > K.
+
+    Examples
+    --------
+    >>> Z = np.arange(9.0).reshape(1, 3, 3)
+    >>> strip_ranges(Z, 2)[0, 0].tolist()  # top strip: rows 0-1, columns 0-2
+    [0.0, 5.0]
+    """
+    Nb, K1, _ = Z.shape
+    K = K1 - 1
+    out = np.full((Nb, 4, nlev), np.nan)
+    out[:, :, 0] = 0.0
+    strips = (Z[:, 0:2, :], Z[:, [K, K - 1], :], Z[:, :, 0:2].transpose(0, 2, 1),
+              Z[:, :, [K, K - 1]].transpose(0, 2, 1))
+    for e, s in enumerate(strips):
+        hi, lo = s.max(axis=1), s.min(axis=1)  # (Nb, K+1), NaN where no data
+        for k in range(1, nlev):
+            r = 1 << k
+            if r > K:
+                break
+            shi = np.maximum(hi[:, :K].reshape(Nb, K // r, r).max(-1), hi[:, r::r])
+            slo = np.minimum(lo[:, :K].reshape(Nb, K // r, r).min(-1), lo[:, r::r])
+            out[:, e, k] = np.nan_to_num((shi - slo).max(-1), nan=np.inf)
+    return out
+
+
+def choose_levels(view: View, tau: float, delta: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                  rule: str = "error") -> tuple[np.ndarray, np.ndarray]:
+    """Each block's level and D_min: the coarsest n with λ·δ_n/D_min ≤ τ (``error``) or
+    d_centre ≥ D_n = δ_n·λ/τ (``distance``, seed 000 eq. 4-8 … 4-11).
+
+    Examples
+    --------
+    >>> v = View((0, 0, 100), (0, 1, 0))
+    >>> n, _ = choose_levels(v, 1.0, np.array([[0, 0.01, 1.0]]), np.zeros((1, 3)), np.ones((1, 3)))
+    >>> n.tolist()
+    [1]
+    """
+    lam = view.lam
+    dmin = view.box_distance(lo, hi)
+    with np.errstate(invalid="ignore", over="ignore"):
+        if rule == "distance":
+            dc = np.linalg.norm(0.5 * (lo + hi) - view.eye, axis=1)
+            ok = dc[:, None] >= delta * (lam / tau)
+        else:
+            ok = lam * delta <= tau * dmin[:, None]
+    ok[:, 0] = True
+    return np.cumprod(ok, axis=1).sum(1) - 1, dmin
+
+
+def select(terrain, view: View, tau: float, rule: str = "error"):
+    """The GeoMipMapping mesh of ``view`` at pixel tolerance ``tau``, and its stats.
+
+    Examples
+    --------
+    >>> mesh, stats = select(t, View((0, -800, 400), (0, 0, 0)), 1.0)
+    >>> stats["blocks"] > 0 and mesh.n_cells > 0
+    True
+    """
+    index = tile_index(terrain)
+    if index.outside(view):
+        return empty_polydata(), {}
+    leaves, stats = quadtree_leaves(terrain, index, view,
+                                    lambda nodes, L: np.ones(len(nodes), bool))
+    if not len(leaves):
+        return empty_polydata(), stats
+    tb = tables(terrain, index)
+    delta = tb.delta[tb.pos[leaves]]
+    xy = index.keys[leaves, 1:]  # (x, y)
+    n, dmin = choose_levels(view, tau, delta, index.lo[leaves], index.hi[leaves], rule)
+    ratios, stitched = _stitch(terrain, view, tau, xy, n, delta, dmin, tb.nmax,
+                               bounded=(rule != "distance"))
+    mesh = _assemble(terrain, xy, n, ratios)
+    stats.update(blocks=len(leaves), stitched_edges=stitched,
+                 mean_level=float(n.mean()))
+    return mesh, stats
+
+
+def _stitch(terrain, view, tau, xy, n, delta, dmin, nmax, bounded=True):
+    """Neighbour ratios (B, 4) after refining coarser neighbours whose stitching would
+    break λ·(δ_n + B)/D_min ≤ τ. ``n`` is updated in place."""
+    nt = terrain.grid.tiles_per_side(0)
+    lam = view.lam
+    G = np.full((nt + 2, nt + 2), -1, np.int64)  # drawn blocks' levels, −1 elsewhere
+    bx, by = xy[:, 0] + 1, xy[:, 1] + 1
+    G[by, bx] = n
+    rng = np.full((len(n), nmax + 1, 4, nmax + 1), np.nan)  # [block, level, edge, log2 r]
+    rows = np.arange(len(n))
+    while True:
+        n[:] = G[by, bx]
+        m = np.stack([G[by + dy, bx + dx] for dx, dy in _NEIGHBOUR], 1)
+        k = np.where(m > n[:, None], m - n[:, None], 0)
+        if not bounded or not k.any():
+            break
+        todo = (k > 0).any(1) & np.isnan(rng[rows, n, 0, 0])
+        for lv in np.unique(n[todo]).tolist():
+            sel = np.flatnonzero(todo & (n == lv))
+            _, got = _block_grids(terrain, xy[sel], lv)
+            K = 1 << (terrain.grid.t - lv)
+            Z = terrain.frame.z(got["height"]).reshape(len(sel), K + 1, K + 1)
+            rng[sel, lv] = strip_ranges(Z, nmax + 1)
+        R = rng[rows, n]  # (B, 4, nmax+1)
+        with np.errstate(invalid="ignore", over="ignore"):
+            fits = lam * (delta[rows, n][:, None, None] + R) <= tau * dmin[:, None, None]
+        fits[:, :, 0] = True
+        cur = np.take_along_axis(fits, k[:, :, None], 2)[:, :, 0]
+        bad = ~cur
+        if not bad.any():
+            break
+        # the largest ratio below the current one that fits
+        kk = np.arange(nmax + 1)
+        best = np.where(fits & (kk[None, None] < k[:, :, None]), kk[None, None], 0).max(-1)
+        b, e = np.nonzero(bad)
+        dx, dy = _NEIGHBOUR[e, 0], _NEIGHBOUR[e, 1]
+        np.minimum.at(G, (by[b] + dy, bx[b] + dx), n[b] + best[b, e])
+    return np.where(k > 0, 1 << k, 1), int((k > 0).sum())
+
+
+def _assemble(terrain, xy, n, ratios):
+    """One mesh of every block at its level with its stitching template (whole arrays
+    per (level, template) group)."""
+    g = terrain.grid
+    ijs, xyzs, faces, level = [], [], [], []
+    off = 0
+    parity = (xy[:, 0] ^ xy[:, 1]) & 1
+    key = np.column_stack([n, ratios, np.where(n == g.t, parity, 0)])
+    groups, inv = np.unique(key, axis=0, return_inverse=True)
+    for gi, kv in enumerate(groups.tolist()):
+        sel = np.flatnonzero(inv.ravel() == gi)
+        lv = kv[0]
+        K = 1 << (g.t - lv)
+        f = template(K, tuple(kv[1:5]), kv[5])
+        ij, got = _block_grids(terrain, xy[sel], lv, ("height", "x", "y"))
+        V = (K + 1) ** 2
+        xyz = np.stack([got["x"], got["y"], terrain.frame.z(got["height"])], -1)
+        ijs.append(ij.reshape(-1, 2))
+        xyzs.append(xyz.reshape(-1, 3))
+        faces.append((f[None] + (off + V * np.arange(len(sel)))[:, None, None]).reshape(-1, 3))
+        level.append(np.full(len(sel) * len(f), lv, np.int16))
+        off += V * len(sel)
+    xyz, ij, faces = np.concatenate(xyzs), np.concatenate(ijs), np.concatenate(faces)
+    level = np.concatenate(level)
+    ok = np.isfinite(xyz[:, 2])[faces].all(1)  # a triangle needs three valid corners
+    faces, level = faces[ok], level[ok]
+    # one vertex per sample (blocks share their edges): unused (nodata) vertices drop out
+    key = ij[:, 0] * g.size + ij[:, 1]
+    uniq, first, inv = np.unique(key[faces.ravel()], return_index=True, return_inverse=True)
+    src = faces.ravel()[first]
+    faces = inv.reshape(-1, 3)
+    return polydata(xyz[src], faces, ij[src],
+                    {"skirt": np.zeros(len(faces), np.uint8), "level": level})
