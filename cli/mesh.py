@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import click
 from geoterrain.cli.options import camera_options, pixel_error_option, strategy_option
@@ -50,8 +51,8 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
         raise UsageError("give either --max-error (static) or a view (--look-from/--look-at)")
     if not view_mode and max_error is None:
         max_error = 1.0
-    if max_error is not None and max_error < 0:
-        raise UsageError(f"--max-error must be ≥ 0, got {max_error}")
+    if max_error is not None and not (math.isfinite(max_error) and max_error >= 0):
+        raise UsageError(f"--max-error must be a finite number ≥ 0, got {max_error}")
     with geoterrain.open(store) as t:
         if view_mode:
             if crs_coords:

@@ -40,10 +40,11 @@ from geoterrain.cli.options import (
 @click.option("--path", "cameras", type=click.Path(exists=True, dir_okay=False),
               help="Fly through the cameras of a JSON file.")
 @click.option("--fps", type=float, default=10.0, show_default=True, help="Animation speed.")
+@click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
             fov, pixel_error, strategy, shading, cmap, title, no_overlays, stats_path, orbit,
-            cameras, fps):
+            cameras, fps, overwrite):
     """Render STORE offscreen: each frame selects its own level of detail.
 
     \b
@@ -78,12 +79,16 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
         raise UsageError(f"{out}: a single view is written as .png (use --orbit or --path "
                          "for .gif/.mp4)")
     overlays = dict(colorbar=not no_overlays, north_arrow=not no_overlays)
+    if animated:  # a bad target or --fps fails now, before the store is even opened
+        R.check_animation_output(out, fps, overwrite)
+    elif Path(out).exists() and not overwrite:
+        raise UsageError(f"{out} exists; pass --overwrite or choose another -o path")
     with geoterrain.open(store) as t:
         if animated:
             bar = StageBar("rendering", quiet)
             kw = dict(pixel_error=pixel_error, strategy=strategy, shading=shading, cmap=cmap,
                       title=title, fps=fps, progress=lambda d, n: bar("frame", d, n),
-                      **overlays)
+                      overwrite=overwrite, **overlays)
             try:
                 if orbit is not None:
                     frames = R.orbit(t, out, orbit, size=size, azimuth=azimuth,
@@ -112,7 +117,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             view = R.default_view(t, size, azimuth, elevation, distance, fov)
         st = R.render(t, view, out, pixel_error=pixel_error, strategy=strategy,
                       shading=shading, cmap=cmap, title=title, scale_bar=not no_overlays,
-                      stats_path=stats_path, **overlays)
+                      stats_path=stats_path, overwrite=overwrite, **overlays)
     if not quiet:
         click.echo(f"wrote {out}: {st['triangles']:,} triangles ({strategy}, τ = "
                    f"{pixel_error:g} px), select {st['select_ms']:.0f} ms, frame "

@@ -119,7 +119,53 @@ def _meta_crc(items: dict[str, str]) -> int:
     return zlib.crc32(json.dumps(items, sort_keys=True).encode())
 
 
-_PARTIAL = re.compile(r"^\..+\.partial-(\d+)$")
+_PARTIAL = re.compile(r"^\..+\.partial-(\d+)(\.[A-Za-z0-9]{1,8})?$")
+
+
+def publish(tmp: str | Path, dst: str | Path, overwrite: bool) -> None:
+    """Move a finished partial file (or folder) ``tmp`` to ``dst`` in one step.
+
+    With ``overwrite`` a rename replaces ``dst``; without, the publish is a
+    create-if-absent (a hard link, then the partial is unlinked), so of two
+    racing writers exactly one wins and the other gets "exists".
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> d = Path(tempfile.mkdtemp()); (d / ".a.partial-1").write_text("x")
+    1
+    >>> publish(d / ".a.partial-1", d / "a", overwrite=False); (d / "a").read_text()
+    'x'
+    """
+    tmp, dst = Path(tmp), Path(dst)
+    if overwrite:
+        if tmp.is_dir() and dst.is_dir():  # a folder of frames: swap, then drop the old one
+            import shutil
+
+            old = dst.parent / f".{dst.name}.old.partial-{os.getpid()}"
+            os.rename(dst, old)
+            os.rename(tmp, dst)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, dst)
+        return
+    if tmp.is_dir():
+        if dst.exists():
+            raise exists_error(dst)
+        os.rename(tmp, dst)  # renaming a folder onto a non-empty folder fails
+        return
+    try:
+        os.link(tmp, dst)
+    except FileExistsError:
+        os.unlink(tmp)
+        raise exists_error(dst) from None
+    except OSError:  # a file system without hard links
+        if dst.exists():
+            os.unlink(tmp)
+            raise exists_error(dst) from None
+        os.replace(tmp, dst)
+    else:
+        os.unlink(tmp)
 
 
 def _alive(pid: int) -> bool:
@@ -312,19 +358,7 @@ class StoreWriter:
                 os.fsync(fd)
             finally:
                 os.close(fd)
-            if self.overwrite:
-                os.replace(self.tmp, self.dst)
-            else:  # create-if-absent: a hard link fails when another writer got there first
-                try:
-                    os.link(self.tmp, self.dst)
-                except FileExistsError:
-                    raise exists_error(self.dst) from None
-                except OSError:  # a file system without hard links
-                    if self.dst.exists():
-                        raise exists_error(self.dst) from None
-                    os.replace(self.tmp, self.dst)
-                else:
-                    os.unlink(self.tmp)
+            publish(self.tmp, self.dst, self.overwrite)
             dfd = os.open(self.dst.parent if str(self.dst.parent) else ".", os.O_RDONLY)
             try:
                 os.fsync(dfd)

@@ -9,12 +9,12 @@ before anything is sized from it. See docs/store.md, "Threat model".
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 
 from geoterrain.exceptions import StoreError
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
+from geoterrain.memory import available_memory
 from geoterrain.quantize import Quantizer
 
 __all__ = ["check_store", "available_memory"]
@@ -22,27 +22,6 @@ __all__ = ["check_store", "available_memory"]
 MAX_N = 24  # 2**24 + 1 samples per side: far beyond any DEM a machine can hold
 _FRAME_KINDS = ("projected", "geographic", "pixel")
 _BYTES_PER_SAMPLE = 8  # the dense per-sample flags and vertex ids a mesh selection keeps
-
-
-def available_memory() -> int:
-    """Bytes of memory available now (``MemAvailable``; physical memory elsewhere).
-
-    Examples
-    --------
-    >>> available_memory() > 0
-    True
-    """
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        return 1 << 62
 
 
 class _Bad(Exception):
@@ -184,8 +163,8 @@ def check_store(path: str | Path, m: dict, tiles: dict) -> tuple[Grid, Frame, Qu
     >>> try:
     ...     check_store("x.geoterrain", bad, t.tile_info)
     ... except StoreError as e:
-    ...     print(e)
-    x.geoterrain: invalid metadata (quantizer.mode is unknown): the file is damaged or not from geoterrain; re-run `geoterrain preprocess`
+    ...     print(str(e).split(":")[1])
+     invalid metadata (quantizer.mode is unknown)
     """
     try:
         g = _grid(m)
