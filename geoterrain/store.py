@@ -73,6 +73,8 @@ _TABLES = {
 _INDEXES = {f"sqlite_autoindex_{t}_1": t for t in _TABLES}
 BLOB_KINDS = ("heights", "delta", "radius", "normals")
 _META_MAX_BYTES = 1 << 20  # metadata is a few kB; more is not a store of ours
+# a damaged schema's SQLite error message may not even decode as UTF-8
+_DB_ERRORS = (sqlite3.DatabaseError, UnicodeDecodeError)
 REBUILD = "rebuild it with `geoterrain preprocess DEM --overwrite`"
 
 
@@ -414,6 +416,8 @@ class StoreReader:
         except sqlite3.Error:
             raise StoreError(f"{self.path}: cannot open the store read-only") from None
         try:
+            # damaged text never raises: it decodes with U+FFFD and then fails its checksum
+            self.con.text_factory = lambda b: b.decode("utf-8", "replace")
             self.con.execute("PRAGMA trusted_schema=OFF")
             self.con.execute("PRAGMA query_only=ON")
             self._check_schema()
@@ -422,7 +426,7 @@ class StoreReader:
             if n > 256 or (size or 0) > _META_MAX_BYTES:
                 raise self._foreign("its metadata table is far too large")
             rows = self.con.execute("SELECT name, value FROM metadata").fetchall()
-        except sqlite3.DatabaseError:
+        except _DB_ERRORS:
             self.con.close()
             raise StoreError(f"{self.path}: not a geoterrain store (or damaged); "
                              "re-run `geoterrain preprocess`") from None
@@ -483,7 +487,7 @@ class StoreReader:
             row = self.con.execute(
                 "SELECT data, crc32 FROM blobs WHERE level=? AND x=? AND y=? AND kind=?",
                 (*key, kind)).fetchone()
-        except sqlite3.DatabaseError:
+        except _DB_ERRORS:
             raise self._damaged(f"tile {key} {kind}") from None
         if row is None:
             return None
@@ -502,7 +506,7 @@ class StoreReader:
             rows = self.con.execute(
                 f"SELECT level, x, y, {', '.join(TILE_COLUMNS)}, crc32 FROM tiles").fetchall()
             blob_keys = self.con.execute("SELECT level, x, y, kind FROM blobs").fetchall()
-        except sqlite3.DatabaseError:
+        except _DB_ERRORS:
             raise self._damaged("the tile table") from None
         out = {}
         for r in rows:
@@ -528,7 +532,7 @@ class StoreReader:
         try:
             rows = self.con.execute(
                 "SELECT kind, level, SUM(LENGTH(data)) FROM blobs GROUP BY kind, level").fetchall()
-        except sqlite3.DatabaseError:
+        except _DB_ERRORS:
             raise self._damaged("the blob table") from None
         return {(k, lv): int(s) for k, lv, s in rows}
 
