@@ -42,6 +42,9 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     out = Path(output)
     if out.suffix.lower() not in MESH_FORMATS:
         raise UsageError(f"{out}: unknown mesh format; use one of {', '.join(MESH_FORMATS)}")
+    if not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise UsageError(f"{out.parent}: no such directory; create it first or choose another "
+                         "-o path")
     if out.exists() and not overwrite:
         raise UsageError(f"{out} exists; pass --overwrite or choose another -o path")
     view_mode = look_from is not None or look_at is not None

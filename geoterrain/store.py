@@ -534,7 +534,9 @@ class StoreReader:
                 "SELECT kind, level, SUM(LENGTH(data)) FROM blobs GROUP BY kind, level").fetchall()
         except _DB_ERRORS:
             raise self._damaged("the blob table") from None
-        return {(k, lv): int(s) for k, lv, s in rows}
+        if not all(isinstance(k, str) and type(lv) is int and type(s) is int for k, lv, s in rows):
+            raise self._damaged("the blob table")
+        return {(k, lv): s for k, lv, s in rows}
 
     def close(self) -> None:
         self.con.close()

@@ -115,6 +115,8 @@ def _quantizer(m: dict) -> Quantizer:
         raise _Bad("quantizer.step does not match its codec_error")
     if d["mode"] != "quantized" and eps != 0:
         raise _Bad("a lossless quantizer has codec_error 0")
+    if d["mode"] == "float" and (step, d.get("offset", 0.0)) != (1.0, 0.0):
+        raise _Bad("a float quantizer has step 1 and offset 0")
     return Quantizer.from_json(d)
 
 
