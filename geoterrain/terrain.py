@@ -357,7 +357,11 @@ class Terrain:
         """A summary: size, CRS and frame, extent, grid, levels, tiles, nodata, codec, errors."""
         m, g, f = self.meta, self.grid, self.frame
         H, W = g.rows, g.cols
-        cx, cy = f.xy(np.array([0, 0, H - 1, H - 1]), np.array([0, W - 1, 0, W - 1]))
+        # the extent over the whole boundary, not 4 corners (a geographic grid's edges bow)
+        k = np.linspace(0.0, 1.0, 129)
+        ei = np.concatenate([0 * k, 0 * k + H - 1, k * (H - 1), k * (H - 1)]).round()
+        ej = np.concatenate([k * (W - 1), k * (W - 1), 0 * k, 0 * k + W - 1]).round()
+        cx, cy = f.xy(ei.astype(np.int64), ej.astype(np.int64))
         per_level: dict[int, int] = {}
         for (L, _, _) in self.tile_info:
             per_level[L] = per_level.get(L, 0) + 1

@@ -14,7 +14,9 @@ import geoterrain
 from geoterrain.exceptions import UsageError
 from geoterrain.synth import generate, write_geotiff
 
-_ctx = mp.get_context("fork")
+# forkserver: a fork of the test process (numba and thread pools started) could deadlock
+_ctx = mp.get_context("forkserver")
+_ctx.set_forkserver_preload(["geoterrain.preprocessing", "geoterrain.cli.main"])
 
 
 def _preprocess(dem, dst, q, term=False):
