@@ -214,3 +214,14 @@ def test_undeclared_voids_become_nodata(tmp_path, caplog):
     t2 = geoterrain.open(geoterrain.preprocess(p, tmp_path / "keep.geoterrain", nodata=float("nan"),
                                                z_scale=1.0))
     assert t2.meta["valid_samples"] == 33 * 33  # --nodata nan keeps them as heights
+
+
+def test_latitudes_beyond_90_are_refused(tmp_path):
+    import rasterio
+    from rasterio.transform import from_origin
+
+    p = tmp_path / "geo.tif"
+    with rasterio.open(p, "w", driver="GTiff", height=33, width=33, count=1, dtype="float32",
+                       crs="EPSG:4326", transform=from_origin(10, 95, 0.01, 0.01)) as f:
+        f.write(generate("fbm", 33, seed=1).astype(np.float32), 1)
+    _run(["preprocess", str(p), "-o", str(tmp_path / "g.geoterrain")], tmp_path, 1)
