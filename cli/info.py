@@ -48,4 +48,5 @@ def command(store, as_json):
         f"errors       tile error {i['tile_error_range'][0]:.4g} … {i['tile_error_range'][1]:.4g}"
         f" m (scene); max vertex δ {i['vertex_error_max']:.4g} m (scene)",
     ]
-    click.echo("\n".join(lines))
+    # values come from the file: never let its control characters reach the terminal
+    click.echo("\n".join("".join(c if c.isprintable() else "?" for c in ln) for ln in lines))

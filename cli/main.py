@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import signal
 import sys
 import traceback
 
@@ -23,9 +24,9 @@ class Group(click.Group):
             ctx.exit(exc.exit_code)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:
             click.echo("Interrupted; nothing was written.", err=True)
-            ctx.exit(130)
+            ctx.exit(128 + getattr(exc, "signum", signal.SIGINT))
         except MemoryError:
             click.echo("Error: out of memory; use a smaller DEM or a larger machine", err=True)
             ctx.exit(1)
@@ -63,6 +64,27 @@ def cli(ctx, verbose, quiet):
                         format="%(levelname)s: %(message)s")
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP: unwinds like Ctrl-C, so partial files are removed."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _on_signal(signum, frame) -> None:
+    raise Terminated(signum)
+
+
+def _catch_signals() -> None:
+    for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        if sig is not None:
+            try:
+                signal.signal(sig, _on_signal)
+            except (ValueError, OSError):  # not the main thread
+                pass
+
+
 def _register() -> None:
     from geoterrain.cli import bench, info, mesh, preprocess, render, synth, view
 
@@ -74,6 +96,7 @@ _register()
 
 
 def main() -> None:
+    _catch_signals()
     cli(prog_name="geoterrain")
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import click
 
@@ -49,6 +50,9 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     out = Path(output)
     if out.suffix.lower() not in MESH_FORMATS:
         raise UsageError(f"{out}: unknown mesh format; use one of {', '.join(MESH_FORMATS)}")
+    if not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise UsageError(f"{out.parent}: no such directory; create it first or choose another "
+                         "-o path")
     if out.exists() and not overwrite:
         raise UsageError(f"{out} exists; pass --overwrite or choose another -o path")
     view_mode = look_from is not None or look_at is not None
@@ -58,8 +62,8 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
         raise UsageError("give either --max-error (static) or a view (--look-from/--look-at)")
     if not view_mode and max_error is None:
         max_error = 1.0
-    if max_error is not None and max_error < 0:
-        raise UsageError(f"--max-error must be ≥ 0, got {max_error}")
+    if max_error is not None and not (math.isfinite(max_error) and max_error >= 0):
+        raise UsageError(f"--max-error must be a finite number ≥ 0, got {max_error}")
     from geoterrain.exaggerate import exaggerated
 
     with geoterrain.open(store) as base:

@@ -35,10 +35,12 @@ from geoterrain.raster import ENCODINGS
 @click.option("--max-error", "old_max_error", type=float, hidden=True)
 @click.option("--zstd-level", default=9, show_default=True, type=click.IntRange(1, 22),
               help="zstd level of the height residuals (19: ~2 % smaller, ~3× slower).")
+@click.option("--nodata", type=float, help="The value of voids, overriding the file's "
+              "(nan: only NaN). Undeclared -32768/-9999/float32-min runs are voids by default.")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,
-            codec_error, old_max_error, zstd_level, overwrite):
+            codec_error, old_max_error, zstd_level, nodata, overwrite):
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
     DEM is any raster GDAL reads (GeoTIFF/COG, SRTM .hgt, Esri ASCII, ...) or a
@@ -69,8 +71,8 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
         out = geoterrain.preprocess(
             dem, output, tile_size=tile_size, band=band, encoding=encoding,
             pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, tile=tile,
-            codec_error=codec_error,
-            overwrite=overwrite, zstd_level=zstd_level, progress=bar)
+            codec_error=codec_error, overwrite=overwrite, zstd_level=zstd_level, nodata=nodata,
+            progress=bar)
     finally:
         bar.close()
     if not quiet:

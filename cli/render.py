@@ -49,11 +49,11 @@ from geoterrain.cli.options import (
 @click.option("--frames-between", type=click.IntRange(0, 1000), default=0, show_default=True,
               help="With --path: eased frames on a smooth spline between each pair of cameras.")
 @click.option("--fps", type=float, default=10.0, show_default=True, help="Animation speed.")
+@click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
             fov, pixel_error, strategy, vertical_exaggeration, shading, cmap, clim, water_level,
-            title, no_overlays,
-            stats_path, orbit, cameras, frames_between, fps):
+            title, no_overlays, stats_path, orbit, cameras, frames_between, fps, overwrite):
     """Render STORE offscreen: each frame selects its own level of detail.
 
     \b
@@ -105,6 +105,9 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     overlays = dict(colorbar=not no_overlays, north_arrow=not no_overlays)
     if animated:
         overlays["scale_bar"] = not no_overlays
+        R.check_animation_output(out, fps, overwrite)  # a bad target or --fps fails now
+    elif Path(out).exists() and not overwrite:
+        raise UsageError(f"{out} exists; pass --overwrite or choose another -o path")
     from geoterrain.exaggerate import exaggerated
 
     with geoterrain.open(store) as base:
@@ -113,7 +116,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             bar = StageBar("rendering", quiet)
             kw = dict(pixel_error=pixel_error, strategy=strategy, shading=shading, cmap=cmap,
                       title=title, fps=fps, progress=lambda d, n: bar("frame", d, n),
-                      **overlays)
+                      overwrite=overwrite, **overlays)
             try:
                 if orbit is not None:
                     frames = R.orbit(t, out, orbit, size=size, azimuth=azimuth,
@@ -145,7 +148,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
                               scale_bar=not no_overlays, north_arrow=not no_overlays)
         st = R.render(t, view, out, pixel_error=pixel_error, strategy=strategy,
                       shading=shading, cmap=cmap, title=title, scale_bar=not no_overlays,
-                      stats_path=stats_path, **overlays)
+                      stats_path=stats_path, overwrite=overwrite, **overlays)
     if not quiet:
         click.echo(f"wrote {out}: {st['triangles']:,} triangles ({strategy}, τ = "
                    f"{pixel_error:g} px), select {st['select_ms']:.0f} ms, frame "

@@ -49,6 +49,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import zstandard
 
+from geoterrain import zstdsafe
 from geoterrain.grid import footprint_counts, level_tiles
 from geoterrain.quantize import Quantizer, codes_to_heights, heights_to_codes
 
@@ -513,15 +514,27 @@ def _read_stream(body: bytes, code: int, count: int) -> np.ndarray:
 # --------------------------------------------------------------------------- decoding
 
 
-def _parse(blob: bytes) -> tuple[bool, int, int, int, bytes]:
+def _parse(blob: bytes, t: int | None = None) -> tuple[bool, int, int, int, bytes]:
+    """Header fields and the decompressed payload, refusing anything malformed.
+
+    The payload's size is bounded before it is allocated (mask bytes + at most 9
+    bytes per residual), and ``t``, when given, must match the blob's tile size.
+    """
     if len(blob) < _HEADER or blob[0] != BLOB_VERSION:
         raise ValueError(f"not a version-{BLOB_VERSION} tile blob")
     top, kind, te, w = bool(blob[1] & 1), (blob[1] >> 1) & 3, blob[2], blob[3]
-    payload = zstandard.ZstdDecompressor().decompress(blob[_HEADER:])
+    if blob[1] & ~0b1111 or kind > _MASK_STORED or not 1 <= te <= 15 or (t is not None and te != t):
+        raise ValueError("tile blob header does not match the store's grid")
+    if (w & 15) not in _UINTS and (w & 15) != 0 or (w >> 4) not in (0, *_PACK_BITS):
+        raise ValueError("tile blob names an unknown residual stream")
+    tt = (1 << te) + 1
+    # the largest payload: the mask, k-bit symbols and 8-byte escapes for every residual
+    limit = (tt * tt + 7) // 8 + tt * tt + 8 * tt * tt
+    payload = zstdsafe.decompress(blob[_HEADER:], limit)
     return top, kind, te, w, payload
 
 
-def tile_valid(blob: bytes) -> np.ndarray:
+def tile_valid(blob: bytes, t: int | None = None) -> np.ndarray:
     """The tile's (T, T) valid mask stored in its blob.
 
     Examples
@@ -531,7 +544,7 @@ def tile_valid(blob: bytes) -> np.ndarray:
     >>> tile_valid(blob).sum()
     np.int64(8)
     """
-    _, kind, te, _, payload = _parse(blob)
+    _, kind, te, _, payload = _parse(blob, t)
     tt = (1 << te) + 1
     if kind == _MASK_ALL_VALID:
         return np.ones((tt, tt), bool)
@@ -547,6 +560,7 @@ def decode_tile(
     parent_codes: np.ndarray | None,
     quantizer: Quantizer,
     tile_xy_parity: tuple[int, int] = (0, 0),
+    t: int | None = None,
 ) -> np.ndarray:
     """Decode one tile's (T, T) int64 codes.
 
@@ -561,6 +575,8 @@ def decode_tile(
         Same as for encoding (codes are quantizer-independent, kept for symmetry).
     tile_xy_parity : (int, int)
         ``(x % 2, y % 2)`` of the tile: which quadrant of the parent it covers.
+    t : int or None
+        The store's tile exponent; a blob of another tile size is refused.
 
     Returns
     -------
@@ -575,7 +591,7 @@ def decode_tile(
     [[2, 3, 4], [7, 8, 9], [12, 13, 14]]
     """
     del quantizer
-    top, kind, te, w, payload = _parse(blob)
+    top, kind, te, w, payload = _parse(blob, t)
     tt = (1 << te) + 1
     off = ((tt * tt + 7) // 8) if kind == _MASK_STORED else 0
     body = payload[off:]

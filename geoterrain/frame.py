@@ -83,6 +83,12 @@ class Frame:
             raise InputError("rotated geotransforms are not supported; warp the DEM north-up first")
         crs = CRS.from_wkt(crs_wkt)
         if crs.is_geographic:
+            a, _, c, _, e, f = transform
+            lat = (f + 0.5 * e, f + (rows - 0.5) * e)  # pixel-centre latitudes
+            if not all(np.isfinite(transform)) or max(abs(v) for v in lat) > 90:
+                raise InputError(f"latitudes reach {max(abs(v) for v in lat):.6g}°, beyond ±90°: "
+                                 "the geotransform or the CRS is wrong; fix it (gdal_edit.py "
+                                 "-a_ullr / -a_srs) first")
             return Frame("geographic", rows, cols, tuple(transform), crs_wkt, **kw)._with_origin()
         if not crs.is_projected:
             raise InputError(f"unsupported CRS kind for {crs.name!r}; reproject to a projected CRS")

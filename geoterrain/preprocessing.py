@@ -27,7 +27,7 @@ from geoterrain.grid import Grid, level_tiles
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.quantize import choose_quantizer
 from geoterrain.raster import Raster, read_raster
-from geoterrain.store import StoreWriter, default_store_path
+from geoterrain.store import StoreWriter, default_store_path, remove_stale_partials
 from geoterrain.tilebounds import tile_errors
 from geoterrain.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
 from geoterrain.vertexdata import pack_bounds, scale_bounds, scale_exponent
@@ -38,6 +38,7 @@ STAGES = ("read", "pad", "quantise", "errors", "radii", "tile bounds", "normals"
           "write")
 ABSURD_HEIGHT = 1e5  # |h| beyond this is almost surely a unit or nodata problem
 NORMAL_BITS = 8
+MAX_TILE_SIZE = 4096
 
 
 def validate(r: Raster, z_scale: float | None) -> None:
@@ -70,6 +71,7 @@ def preprocess(
     codec_error: float | None = None,
     overwrite: bool = False,
     zstd_level: int = 9,
+    nodata: float | None = None,
     progress: Progress | None = None,
 ) -> Path:
     """Preprocess a DEM into a store and return the store's path.
@@ -100,7 +102,11 @@ def preprocess(
         zstd level of the height residuals (9: within 1-2 % of level 19's size at a
         third of its time; see docs/benchmarks.md).
     overwrite
-        Replace an existing store.
+        Replace an existing store. Without it the store is published only if
+        ``dst`` is still absent (of two racing runs, one gets "exists").
+    nodata
+        The value of voids, overriding the file's (NaN: none but NaN); see
+        :func:`geoterrain.raster.read_raster` for undeclared voids.
 
     Examples
     --------
@@ -127,14 +133,23 @@ def preprocess(
     if codec_error is not None and not (np.isfinite(codec_error) and codec_error >= 0):
         raise UsageError(f"codec_error must be a finite number ≥ 0, got {codec_error}",
                          cli=f"--codec-error must be a finite number ≥ 0, got {codec_error}")
+    if pixel_size is not None and not (np.isfinite(pixel_size) and pixel_size > 0):
+        raise UsageError(f"pixel_size must be a finite number > 0, got {pixel_size}",
+                         cli=f"--pixel-size must be a finite number > 0, got {pixel_size}")
+    if not (isinstance(tile_size, int) and 2 <= tile_size <= MAX_TILE_SIZE
+            and tile_size & (tile_size - 1) == 0):
+        raise UsageError(f"tile_size must be a power of two in [2, {MAX_TILE_SIZE}], "
+                         f"got {tile_size}", cli=f"--tile-size must be a power of two in "
+                         f"[2, {MAX_TILE_SIZE}], got {tile_size}")
     dst = Path(dst) if dst is not None else default_store_path(src)
+    remove_stale_partials(dst.parent if str(dst.parent) else Path("."))
     if dst.exists() and not overwrite:
         raise exists_error(dst)
     if Path(src).resolve() == dst.resolve():
         raise UsageError(f"{dst}: the store would overwrite its own input; choose another dst",
                          cli=f"{dst}: the store would overwrite its own input; choose another -o")
 
-    r = read_raster(src, band=band, encoding=encoding)
+    r = read_raster(src, band=band, encoding=encoding, nodata=nodata)
     validate(r, z_scale)
     zxy = parse_tile(tile) if tile is not None else None
     if zxy is not None and (pixel_size is not None or r.crs_wkt is not None):
@@ -252,42 +267,45 @@ def preprocess(
 
 
 def cached_store_path(dem: str | Path) -> Path:
-    """Where :func:`ensure_store` keeps a DEM's store: next to it when that folder is
-    writable (or the store is already there), else in ``$XDG_CACHE_HOME/geoterrain``.
+    """Where :func:`ensure_store` keeps a DEM's store: ``$XDG_CACHE_HOME/geoterrain``
+    (default ``~/.cache/geoterrain``), keyed by the DEM's absolute path, size and
+    mtime. Never beside the DEM: that folder may be shared or read-only.
 
     Examples
     --------
-    >>> cached_store_path("/tmp/dem.tif").name
-    'dem.geoterrain'
+    >>> cached_store_path(__file__).parent.name
+    'geoterrain'
     """
     import hashlib
 
-    dem = Path(dem)
-    beside = dem.with_suffix(".geoterrain")
-    if beside.exists() or os.access(dem.parent, os.W_OK):
-        return beside
-    digest = hashlib.sha1(str(dem.resolve()).encode()).hexdigest()[:10]
-    cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "geoterrain"
+    dem = Path(dem).resolve()
+    st = dem.stat()
+    key = f"{dem}\0{st.st_size}\0{st.st_mtime_ns}".encode()
+    digest = hashlib.sha256(key).hexdigest()[:16]
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "geoterrain"
     return cache / f"{dem.stem}-{digest}.geoterrain"
 
 
 def ensure_store(dem: str | Path, *, rebuild: bool = False,
                  progress: Progress | None = None) -> tuple[Path, bool]:
-    """The store of ``dem``, preprocessed now if it is missing, older than the DEM, or
-    ``rebuild``; returns (path, whether it was built).
+    """The cached store of ``dem`` (:func:`cached_store_path`), preprocessed now if it is
+    missing (the key changes with the DEM's size and mtime) or ``rebuild``; returns
+    (path, whether it was built).
 
     Examples
     --------
     >>> import tempfile, os
     >>> from geoterrain.synth import generate, write_geotiff
+    >>> os.environ["XDG_CACHE_HOME"] = tempfile.mkdtemp()
     >>> dem = write_geotiff(os.path.join(tempfile.mkdtemp(), "d.tif"), generate("fbm", 17))
     >>> [built for _, built in (ensure_store(dem), ensure_store(dem))]
     [True, False]
     """
     src = Path(dem)
+    if not src.is_file():
+        raise InputError(f"{src}: no such file; check the path")
     store = cached_store_path(src)
-    stale = not store.exists() or store.stat().st_mtime < src.stat().st_mtime
-    if rebuild or stale:
+    if rebuild or not store.exists():
         store.parent.mkdir(parents=True, exist_ok=True)
         preprocess(src, store, overwrite=True, progress=progress)
         return store, True

@@ -6,6 +6,7 @@ USGS DEM, ...) and the Mapbox Terrain-RGB and Terrarium PNG encodings.
 
 from __future__ import annotations
 
+import logging
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,6 +16,9 @@ import rasterio
 from rasterio.errors import RasterioIOError
 
 from geoterrain.exceptions import InputError, UsageError
+from geoterrain.memory import available_memory
+
+log = logging.getLogger("geoterrain")
 
 ENCODINGS = ("auto", "raw", "terrain-rgb", "terrarium")
 
@@ -58,6 +62,34 @@ def _decode_png(rgb: np.ndarray, encoding: str) -> tuple[np.ndarray, float, floa
     return r * 65536 + g * 256 + b, TERRARIUM_SCALE, TERRARIUM_OFFSET
 
 
+# Values some tools write for voids without declaring them nodata (SRTM, ArcGRID, float32 min)
+VOID_SENTINELS = (-32768.0, -32767.0, -9999.0, float(np.finfo(np.float32).min))
+ROUGH_PNG_STEP = 1000.0  # metres: a median neighbour step beyond this is not terrain
+PREPROCESS_BYTES_PER_SAMPLE = 96  # the preprocess's float64 working arrays, per sample
+
+
+def _undeclared_voids(data: np.ndarray, valid: np.ndarray) -> float | None:
+    """A sentinel value that stands for voids (far below every other height), or None."""
+    v = data[valid]
+    if v.size == 0:
+        return None
+    lo = float(v.min())
+    for s in VOID_SENTINELS:
+        if lo == s:
+            rest = v[v != lo]
+            if rest.size and float(rest.min()) - lo > 1000.0:
+                return s
+    return None
+
+
+def _too_rough(h: np.ndarray, valid: np.ndarray) -> float:
+    """The median |difference| between valid neighbouring heights (metres)."""
+    d = [np.abs(np.diff(h, axis=a))[(valid[1:] & valid[:-1]) if a == 0 else
+                                     (valid[:, 1:] & valid[:, :-1])] for a in (0, 1)]
+    d = np.concatenate(d)
+    return float(np.median(d)) if d.size else 0.0
+
+
 def _guess_png_encoding(red: np.ndarray) -> str:
     # Real heights (-500..9000 m) put Terrain-RGB's red byte near 1-2 and
     # Terrarium's near 126-163, so the median red byte tells them apart.
@@ -68,6 +100,7 @@ def read_raster(
     path: str | Path,
     band: int | None = None,
     encoding: str = "auto",
+    nodata: float | None = None,
 ) -> Raster:
     """Read a DEM into a :class:`Raster`.
 
@@ -80,7 +113,14 @@ def read_raster(
     encoding
         ``auto`` (PNG tiles with 3-4 uint8 bands are decoded as Terrain-RGB or
         Terrarium, other rasters read raw), ``raw``, ``terrain-rgb`` or
-        ``terrarium``.
+        ``terrarium``. An auto-detected PNG whose heights are implausibly rough
+        is refused: name its encoding.
+    nodata
+        The value of voids, overriding the file's; NaN: only NaN is a void. When
+        neither is given, an undeclared -32768, -32767, -9999 or float32-min run
+        far below the other heights is taken as voids, with a warning.
+
+    A south-up raster (positive row step) is flipped to north-up.
 
     Examples
     --------
@@ -101,19 +141,28 @@ def read_raster(
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
             with rasterio.open(p) as src:
-                return _read_open(src, p, band, encoding)
+                need = src.height * src.width * PREPROCESS_BYTES_PER_SAMPLE
+                if need > available_memory():
+                    raise InputError(
+                        f"{p}: {src.height}×{src.width} samples need about {need / 2**30:.1f} "
+                        f"GiB to preprocess, {available_memory() / 2**30:.1f} GiB is available; "
+                        "crop or downsample it (gdal_translate -srcwin / -outsize) first")
+                return _read_open(src, p, band, encoding, nodata)
     except RasterioIOError as exc:
         first = str(exc).splitlines()[0] if str(exc) else "unreadable"
         raise InputError(f"{p}: not a raster GDAL can read ({first})") from None
 
 
-def _read_open(src, p: Path, band: int | None, encoding: str) -> Raster:
+def _read_open(src, p: Path, band: int | None, encoding: str, nodata_arg: float | None
+               ) -> Raster:
     count, dtype = src.count, src.dtypes[0]
     is_png_tile = src.driver == "PNG" and count in (3, 4) and dtype == "uint8"
+    guessed = False
     if encoding == "auto":
         encoding = "raw"
         if is_png_tile and band is None:
             encoding = _guess_png_encoding(src.read(1))
+            guessed = True
     crs_wkt = src.crs.to_wkt() if src.crs else None
     transform = tuple(src.transform)[:6] if (src.crs or not src.transform.is_identity) else None
     if src.height < 2 or src.width < 2:
@@ -132,6 +181,14 @@ def _read_open(src, p: Path, band: int | None, encoding: str) -> Raster:
         valid = np.ones(heights.shape, bool)
         if count == 4:
             valid &= rgba[3] > 0  # transparent pixels are nodata
+        step = _too_rough(heights, valid)
+        if guessed and step > ROUGH_PNG_STEP:
+            raise InputError(
+                f"{p}: decoded as {encoding}, neighbouring heights differ by {step:.0f} m (median)"
+                ": not an elevation tile of that encoding; pass encoding='terrain-rgb', "
+                "'terrarium' or 'raw'", cli=f"{p}: decoded as {encoding}, neighbouring heights "
+                f"differ by {step:.0f} m (median): not an elevation tile of that encoding; pass "
+                "--encoding terrain-rgb, terrarium or raw")
         return Raster(heights, valid, transform, crs_wkt, dtype, None, encoding, str(p),
                       scale=scale, offset=offset, is_integer=True)
 
@@ -144,9 +201,20 @@ def _read_open(src, p: Path, band: int | None, encoding: str) -> Raster:
         raise UsageError(f"{p}: band {band} out of range; the raster has {count} band(s)",
                          cli=f"{p}: --band {band} out of range; the raster has {count} band(s)")
     data = src.read(band)
-    nodata = src.nodatavals[band - 1]
+    nodata = src.nodatavals[band - 1] if nodata_arg is None else float(nodata_arg)
+    if transform is not None and transform[4] > 0:  # south-up: flip the rows to north-up
+        a, b, c, d, e, f = transform
+        data = data[::-1]
+        transform = (a, b, c, d, -e, f + e * src.height)
     heights = data.astype(np.float64)
     valid = np.isfinite(heights)
+    if nodata is None:
+        void = _undeclared_voids(data, valid)
+        if void is not None:
+            n = int((data == np.asarray(void, data.dtype)).sum())
+            log.warning("%s: %d samples are %g, far below the other heights: taken as nodata "
+                        "(undeclared voids); pass --nodata to say otherwise", p, n, void)
+            nodata = void
     if nodata is not None and not np.isnan(nodata):
         if np.issubdtype(data.dtype, np.floating):
             # float nodata such as -3.4028235e38 is stored in float32: compare there

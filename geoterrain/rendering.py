@@ -31,7 +31,9 @@ Examples
 from __future__ import annotations
 
 import json
+import math
 import os
+import shutil
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -51,9 +53,10 @@ from geoterrain.cameras import (  # noqa: F401 - the camera helpers are part of 
 )
 from geoterrain.colours import Palette
 from geoterrain.exaggerate import exaggerated
-from geoterrain.exceptions import UsageError
+from geoterrain.exceptions import UsageError, WriteError, exists_error
 from geoterrain.lod.registry import DEFAULT, strategy_info
 from geoterrain.overlays import compose, layout_for
+from geoterrain.store import partial_path, publish, remove_stale_partials
 from geoterrain.textures import SHADINGS, texture_image, texture_level
 from geoterrain.view import View
 
@@ -197,11 +200,38 @@ def _plotter(size: tuple[int, int], anti_aliasing: bool = True):
 
 
 # ---------------------------------------------------------------------- top level
-def _write_png(path: str | Path, img: np.ndarray) -> None:
+MAX_FRAMES = 100_000  # an animation longer than this is a mistake (about 3 h at 10 fps)
+ANIMATION_SUFFIXES = (".gif", ".mp4")
+
+
+def _writable_target(path: Path, overwrite: bool) -> None:
+    """Refuse an existing ``path`` without ``overwrite``, or a missing parent folder."""
+    if path.exists() and not overwrite:
+        raise exists_error(path)
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise UsageError(f"{parent}: no such directory; create it first or choose another "
+                         "output path", cli=f"{parent}: no such directory; create it first or "
+                         "choose another -o path")
+
+
+def _write_png(path: str | Path, img: np.ndarray, overwrite: bool = True) -> None:
+    """Write a PNG to a hidden partial file, then publish it (never a half-written PNG)."""
     import imageio.v3 as iio
 
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    iio.imwrite(path, img)
+    path = Path(path)
+    _writable_target(path, overwrite)
+    remove_stale_partials(path.parent)
+    tmp = partial_path(path)
+    try:
+        iio.imwrite(tmp, img, extension=".png")
+        publish(tmp, path, overwrite)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise WriteError(f"cannot write {path}: {exc.strerror or exc}") from None
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def overview(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 190.0,
@@ -255,8 +285,10 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
            strategy: str = DEFAULT, shading: str = "normals", cmap: str | Palette = "auto",
            title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
            north_arrow: bool = True, stats_path: str | Path | None = None,
-           vertical_exaggeration: float = 1.0) -> dict:
+           vertical_exaggeration: float = 1.0, overwrite: bool = True) -> dict:
     """Render one view of the terrain to a PNG, with its own level of detail.
+
+    ``overwrite=False`` refuses an existing ``path`` (checked before rendering).
 
     Parameters
     ----------
@@ -286,6 +318,7 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
     >>> stats["triangles"] > 0  # doctest: +SKIP
     True
     """
+    _writable_target(Path(path), overwrite)
     terrain = exaggerated(terrain, vertical_exaggeration)
     if view is None:
         view = overview(terrain, shading=shading, cmap=cmap, title=title, colorbar=colorbar,
@@ -296,7 +329,7 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
                               shading=shading, cmap=cmap)
     img = compose(img, view, terrain, shading=shading, cmap=cmap, title=title,
                   colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
-    _write_png(path, img)
+    _write_png(path, img, overwrite)
     stats.update(size=[int(view.size[0]), int(view.size[1])], path=str(path),
                  shading=shading, look_from=list(view.look_from), look_at=list(view.look_at))
     if stats_path is not None:
@@ -304,42 +337,75 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
     return stats
 
 
-def _animation_writer(out: str | Path, fps: float):
-    """(append(frame), close()) for a .gif, .mp4 or a directory of PNG frames."""
+def check_animation_output(out: str | Path, fps: float, overwrite: bool = True) -> None:
+    """Refuse a bad animation target before any frame is rendered.
+
+    ``out`` is a .gif, a .mp4, or a folder (no suffix) of PNG frames; ``fps``
+    a finite number in (0, 1000].
+
+    Examples
+    --------
+    >>> try:
+    ...     check_animation_output("fly.webm", 10)
+    ... except UsageError as e:
+    ...     print(str(e).split(";")[0])
+    fly.webm: unknown animation format '.webm'
+    """
     out = Path(out)
     ext = out.suffix.lower()
-    if ext in (".gif", ".mp4"):
+    if ext and ext not in ANIMATION_SUFFIXES and not out.is_dir():
+        raise UsageError(f"{out}: unknown animation format {ext!r}; use .gif, .mp4 or a folder "
+                         "name without a suffix (PNG frames)")
+    if not (isinstance(fps, int | float) and math.isfinite(fps) and 0 < fps <= 1000):
+        raise UsageError(f"fps must be a number in (0, 1000], got {fps}",
+                         cli=f"--fps must be a number in (0, 1000], got {fps}")
+    _writable_target(out, overwrite)
+
+
+def _animation_writer(out: str | Path, fps: float, overwrite: bool = True):
+    """(append(frame), close(), publish()) writing a .gif, .mp4 or PNG folder to a partial.
+
+    ``close`` finishes the partial; ``publish`` then moves it into place. Until
+    then nothing appears at ``out``, and an error leaves nothing behind.
+    """
+    out = Path(out)
+    check_animation_output(out, fps, overwrite)
+    ext = out.suffix.lower()
+    remove_stale_partials(out.parent if str(out.parent) else Path("."))
+    tmp = partial_path(out)
+    if ext in ANIMATION_SUFFIXES:
         import imageio.v2 as iio2
 
+        tmp = tmp.with_name(tmp.name + ext)  # the writer picks its format by suffix
         if ext == ".mp4":
             try:
                 import imageio_ffmpeg  # noqa: F401
             except ImportError:
                 raise UsageError("writing .mp4 needs the imageio-ffmpeg package "
                                  "(pip install imageio-ffmpeg); or use -o frames.gif") from None
-            w = iio2.get_writer(out, fps=fps, macro_block_size=1)
+            w = iio2.get_writer(tmp, fps=fps, macro_block_size=1)
         else:
-            w = iio2.get_writer(out, mode="I", duration=1000.0 / fps, loop=0)
-        return w.append_data, w.close
-    if ext == ".png":
-        raise UsageError(f"{out}: an animation goes to a .gif, a .mp4 or a directory")
-    out.mkdir(parents=True, exist_ok=True)
-    counter = iter(range(10**9))
+            w = iio2.get_writer(tmp, mode="I", duration=1000.0 / fps, loop=0)
+        return w.append_data, w.close, lambda: publish(tmp, out, overwrite), tmp
+    tmp.mkdir()
+    counter = iter(range(MAX_FRAMES))
 
     def append(img):
-        _write_png(out / f"frame_{next(counter):05d}.png", img)
+        _write_png(tmp / f"frame_{next(counter):05d}.png", img)
 
-    return append, lambda: None
+    return append, lambda: None, lambda: publish(tmp, out, overwrite), tmp
 
 
 def animate(terrain, views: Sequence[View], out: str | Path, *, pixel_error: float = 1.0,
             strategy: str = DEFAULT, shading: str = "normals", cmap: str | Palette = "auto",
             title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
             north_arrow: bool = True, fps: float = 10.0, progress: Progress | None = None,
-            vertical_exaggeration: float = 1.0) -> list[dict]:
+            vertical_exaggeration: float = 1.0, overwrite: bool = True) -> list[dict]:
     """Render each view (each with its own LOD selection) into a GIF, MP4 or PNG folder.
 
-    Returns the per-frame stats.
+    Returns the per-frame stats. The output is written to a hidden partial and
+    moved into place only when every frame is done; ``overwrite=False`` refuses
+    an existing ``out``.
 
     Examples
     --------
@@ -348,25 +414,42 @@ def animate(terrain, views: Sequence[View], out: str | Path, *, pixel_error: flo
     strategy_info(strategy)
     if not views:
         raise UsageError("no views to render")
+    if len(views) > MAX_FRAMES:
+        raise UsageError(f"{len(views)} frames is more than the {MAX_FRAMES} an animation may "
+                         "have; use fewer cameras or orbit frames")
     size = views[0].size
     if any(v.size != size for v in views):
         raise UsageError("every frame of an animation must have the same size")
     terrain = exaggerated(terrain, vertical_exaggeration)
-    append, close = _animation_writer(out, fps)
-    scene = TerrainScene(_plotter(size), terrain, shading, cmap)
+    append, close, done, tmp = _animation_writer(out, fps, overwrite)
     all_stats = []
+    ok = False
     try:
-        for k, v in enumerate(views):
-            img, st = scene.frame(v, pixel_error, strategy)
-            img = compose(img, v, terrain, shading=shading, cmap=cmap, title=title,
-                          colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
-            append(img)
-            all_stats.append(st)
-            if progress is not None:
-                progress(k + 1, len(views))
-    finally:
+        scene = TerrainScene(_plotter(size), terrain, shading, cmap)
+        try:
+            for k, v in enumerate(views):
+                img, st = scene.frame(v, pixel_error, strategy)
+                img = compose(img, v, terrain, shading=shading, cmap=cmap, title=title,
+                              colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
+                append(img)
+                all_stats.append(st)
+                if progress is not None:
+                    progress(k + 1, len(views))
+        finally:
+            scene.plotter.close()
         close()
-        scene.plotter.close()
+        done()
+        ok = True
+    finally:
+        if not ok:  # an error at any frame leaves nothing that looks like a result
+            try:
+                close()
+            except Exception:  # noqa: BLE001 - the writer of a failed run
+                pass
+            if tmp.is_dir():
+                shutil.rmtree(tmp, ignore_errors=True)
+            else:
+                tmp.unlink(missing_ok=True)
     return all_stats
 
 

@@ -12,14 +12,23 @@ Schema (version :data:`SCHEMA_VERSION`), in the spirit of MBTiles/GeoPackage::
 ``normals`` (octahedral normal map). See docs/store.md.
 
 A store is written to a hidden temporary file in the destination folder and
-renamed into place only after the ``complete`` flag is committed, so an
-interrupted write never leaves a file that opens as a valid store.
+published only after the ``complete`` flag is committed, so an interrupted write
+never leaves a file that opens as a valid store. Without ``overwrite`` the publish
+is a create-if-absent (a hard link), so of two racing writers exactly one wins.
+
+A store may come from a stranger: :class:`StoreReader` opens it read-only with
+SQLite's ``trusted_schema`` off and refuses any schema object but the three
+plain tables (no views, triggers or virtual tables), so reading runs no SQL of
+the file's. Checksums bind each blob and row to its (level, x, y, kind), and
+the metadata records each level's tile count and key digest.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import re
 import sqlite3
 import struct
 import zlib
@@ -33,7 +42,7 @@ from geoterrain.exceptions import (
     exists_error,
 )
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: checksums bound to their tile and kind; per-level key digests
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
 TILE_COLUMNS = ("nvalid", "zmin", "zmax", "error", "boundary_error",
                 "xmin", "xmax", "ymin", "ymax", "delta_max", "radius_max")
@@ -53,6 +62,55 @@ CREATE TABLE blobs (
 """
 
 
+# The only schema objects a store may hold, and each table's columns (name, type).
+_TABLES = {
+    "metadata": (("name", "TEXT"), ("value", "TEXT")),
+    "tiles": (("level", "INTEGER"), ("x", "INTEGER"), ("y", "INTEGER"), ("nvalid", "INTEGER"),
+              *((c, "REAL") for c in TILE_COLUMNS[1:]), ("crc32", "INTEGER")),
+    "blobs": (("level", "INTEGER"), ("x", "INTEGER"), ("y", "INTEGER"), ("kind", "TEXT"),
+              ("data", "BLOB"), ("crc32", "INTEGER")),
+}
+_INDEXES = {f"sqlite_autoindex_{t}_1": t for t in _TABLES}
+BLOB_KINDS = ("heights", "delta", "radius", "normals")
+_META_MAX_BYTES = 1 << 20  # metadata is a few kB; more is not a store of ours
+# a damaged schema's SQLite error message may not even decode as UTF-8
+_DB_ERRORS = (sqlite3.DatabaseError, UnicodeDecodeError)
+REBUILD = "rebuild it with `geoterrain preprocess DEM --overwrite`"
+
+
+def blob_crc(key: tuple[int, int, int], kind: str, data: bytes) -> int:
+    """CRC-32 of a blob bound to its place: (level, x, y, kind) then the bytes.
+
+    Examples
+    --------
+    >>> blob_crc((0, 0, 0), "delta", b"x") != blob_crc((0, 1, 0), "delta", b"x")
+    True
+    """
+    return zlib.crc32(data, zlib.crc32(struct.pack("<3q", *key) + kind.encode()))
+
+
+def keys_digest(keys) -> str:
+    """SHA-256 (hex) of sorted tile keys: a missing or extra row changes it.
+
+    Examples
+    --------
+    >>> keys_digest([(0, 1, 0), (0, 0, 0)]) == keys_digest([(0, 0, 0), (0, 1, 0)])
+    True
+    """
+    h = hashlib.sha256()
+    for k in sorted(keys):
+        h.update(struct.pack("<3q", *k))
+    return h.hexdigest()
+
+
+def level_digests(keys) -> dict[str, list]:
+    """Per level: [tile count, :func:`keys_digest`] (what the metadata records)."""
+    by: dict[int, list] = {}
+    for k in keys:
+        by.setdefault(int(k[0]), []).append(tuple(int(v) for v in k))
+    return {str(L): [len(ks), keys_digest(ks)] for L, ks in sorted(by.items())}
+
+
 def _row_crc(key: tuple[int, int, int], values: tuple) -> int:
     # Pack numbers canonically so a flipped bit in any column is detected.
     nums = [float("nan") if v is None else float(v) for v in values]
@@ -61,6 +119,113 @@ def _row_crc(key: tuple[int, int, int], values: tuple) -> int:
 
 def _meta_crc(items: dict[str, str]) -> int:
     return zlib.crc32(json.dumps(items, sort_keys=True).encode())
+
+
+_PARTIAL = re.compile(r"^\..+\.partial-(\d+)(\.[A-Za-z0-9]{1,8})?$")
+
+
+def publish(tmp: str | Path, dst: str | Path, overwrite: bool) -> None:
+    """Move a finished partial file (or folder) ``tmp`` to ``dst`` in one step.
+
+    With ``overwrite`` a rename replaces ``dst``; without, the publish is a
+    create-if-absent (a hard link, then the partial is unlinked), so of two
+    racing writers exactly one wins and the other gets "exists".
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> d = Path(tempfile.mkdtemp()); (d / ".a.partial-1").write_text("x")
+    1
+    >>> publish(d / ".a.partial-1", d / "a", overwrite=False); (d / "a").read_text()
+    'x'
+    """
+    tmp, dst = Path(tmp), Path(dst)
+    if overwrite:
+        if tmp.is_dir() and dst.is_dir():  # a folder of frames: swap, then drop the old one
+            import shutil
+
+            old = dst.parent / f".{dst.name}.old.partial-{os.getpid()}"
+            os.rename(dst, old)
+            os.rename(tmp, dst)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, dst)
+        return
+    if tmp.is_dir():
+        if dst.exists():
+            raise exists_error(dst)
+        os.rename(tmp, dst)  # renaming a folder onto a non-empty folder fails
+        return
+    try:
+        os.link(tmp, dst)
+    except FileExistsError:
+        os.unlink(tmp)
+        raise exists_error(dst) from None
+    except OSError:  # a file system without hard links
+        if dst.exists():
+            os.unlink(tmp)
+            raise exists_error(dst) from None
+        os.replace(tmp, dst)
+    else:
+        os.unlink(tmp)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def partial_path(dst: str | Path) -> Path:
+    """The hidden partial file this process writes before publishing ``dst``.
+
+    Examples
+    --------
+    >>> partial_path("out/a.png").name.startswith(".a.png.partial-")
+    True
+    """
+    dst = Path(dst)
+    return dst.parent / f".{dst.name}.partial-{os.getpid()}"
+
+
+def remove_stale_partials(folder: str | Path) -> list[Path]:
+    """Delete ``.NAME.partial-PID`` files (or folders) left in ``folder`` by dead processes.
+
+    A killed writer (SIGKILL cannot be caught) leaves its partial file; the next
+    run in the same folder removes it. Partials of live processes are kept.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> d = Path(tempfile.mkdtemp()); (d / ".a.geoterrain.partial-999999999").write_bytes(b"")
+    0
+    >>> [p.name for p in remove_stale_partials(d)]
+    ['.a.geoterrain.partial-999999999']
+    """
+    import shutil
+
+    gone = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return gone
+    for e in entries:
+        m = _PARTIAL.match(e.name)
+        if not m or int(m.group(1)) == os.getpid() or _alive(int(m.group(1))):
+            continue
+        try:
+            if e.is_dir(follow_symlinks=False):
+                shutil.rmtree(e.path)
+            else:
+                os.unlink(e.path)
+            gone.append(Path(e.path))
+        except OSError:
+            pass
+    return gone
 
 
 def default_store_path(src: str | Path) -> Path:
@@ -116,7 +281,10 @@ class StoreWriter:
         parent = self.dst.parent if str(self.dst.parent) else Path(".")
         if not parent.is_dir():
             raise UsageError(f"{parent}: no such directory for the store; create it first")
+        remove_stale_partials(parent)
         self.tmp = parent / f".{self.dst.name}.partial-{os.getpid()}"
+        self.overwrite = overwrite
+        self._keys: list[tuple[int, int, int]] = []
         self._meta: dict[str, str] = {}
         self._committed = False
         try:
@@ -139,6 +307,9 @@ class StoreWriter:
     def _guard(self, fn, *args):
         try:
             return fn(*args)
+        except UsageError:
+            self.abort()
+            raise
         except (OSError, sqlite3.Error) as exc:
             self.abort()
             msg = str(exc)
@@ -158,14 +329,15 @@ class StoreWriter:
 
     def put_blob(self, key: tuple[int, int, int], kind: str, data: bytes) -> None:
         self._guard(self.con.execute, "INSERT INTO blobs VALUES (?,?,?,?,?,?)",
-                    (*key, kind, data, zlib.crc32(data)))
+                    (*key, kind, data, blob_crc(key, kind, data)))
 
     def put_blobs(self, kind: str, blobs: dict[tuple[int, int, int], bytes]) -> None:
-        rows = ((*k, kind, d, zlib.crc32(d)) for k, d in blobs.items())
+        rows = ((*k, kind, d, blob_crc(k, kind, d)) for k, d in blobs.items())
         self._guard(self.con.executemany, "INSERT INTO blobs VALUES (?,?,?,?,?,?)", rows)
 
     def put_tiles(self, rows: dict[tuple[int, int, int], tuple]) -> None:
         """Per-tile numbers, in the order of :data:`TILE_COLUMNS`."""
+        self._keys.extend(rows)
         data = ((*k, *v, _row_crc(k, v)) for k, v in rows.items())
         self._guard(self.con.executemany,
                     f"INSERT INTO tiles VALUES ({', '.join('?' * (len(TILE_COLUMNS) + 4))})", data)
@@ -174,6 +346,7 @@ class StoreWriter:
         """Finish: write metadata and the complete flag, fsync, rename into place."""
         meta = dict(self._meta)
         meta["schema_version"] = json.dumps(SCHEMA_VERSION)
+        meta["tile_keys"] = json.dumps(level_digests(self._keys))
         meta["complete"] = json.dumps(True)
 
         def _finish():
@@ -187,7 +360,7 @@ class StoreWriter:
                 os.fsync(fd)
             finally:
                 os.close(fd)
-            os.replace(self.tmp, self.dst)
+            publish(self.tmp, self.dst, self.overwrite)
             dfd = os.open(self.dst.parent if str(self.dst.parent) else ".", os.O_RDONLY)
             try:
                 os.fsync(dfd)
@@ -220,6 +393,10 @@ class StoreWriter:
 class StoreReader:
     """Read a store, verifying schema, completeness and checksums.
 
+    The file is untrusted input: it is opened read-only with ``trusted_schema``
+    off, and refused unless its schema holds exactly the three plain tables with
+    their columns (so no view, trigger or virtual table can run while reading).
+
     Examples
     --------
     >>> try:
@@ -236,64 +413,136 @@ class StoreReader:
         try:
             self.con = sqlite3.connect(self.path.resolve().as_uri() + "?mode=ro", uri=True,
                                        check_same_thread=False)
+        except sqlite3.Error:
+            raise StoreError(f"{self.path}: cannot open the store read-only") from None
+        try:
+            # damaged text never raises: it decodes with U+FFFD and then fails its checksum
+            self.con.text_factory = lambda b: b.decode("utf-8", "replace")
+            self.con.execute("PRAGMA trusted_schema=OFF")
+            self.con.execute("PRAGMA query_only=ON")
+            self._check_schema()
+            n, size = self.con.execute(
+                "SELECT COUNT(*), SUM(LENGTH(name) + LENGTH(value)) FROM metadata").fetchone()
+            if n > 256 or (size or 0) > _META_MAX_BYTES:
+                raise self._foreign("its metadata table is far too large")
             rows = self.con.execute("SELECT name, value FROM metadata").fetchall()
-        except sqlite3.DatabaseError:
+        except _DB_ERRORS:
+            self.con.close()
             raise StoreError(f"{self.path}: not a geoterrain store (or damaged); "
                              "re-run `geoterrain preprocess`") from None
+        except StoreError:
+            self.con.close()
+            raise
+        if not all(isinstance(k, str) and isinstance(v, str) for k, v in rows):
+            raise self._foreign("its metadata holds values that are not text")
         raw = dict(rows)
         crc = raw.pop("metadata_crc32", None)
         if raw.get("complete") != "true":
             raise StoreError(
                 f"{self.path}: incomplete store (interrupted write); re-run preprocess")
-        if crc is None or int(json.loads(crc)) != _meta_crc(raw):
+        try:
+            ok = crc is not None and int(json.loads(crc)) == _meta_crc(raw)
+            self.metadata = {k: json.loads(v) for k, v in raw.items()} if ok else {}
+        except (ValueError, TypeError, RecursionError):
+            ok = False
+        if not ok:
             raise StoreCorruptError(f"{self.path}: metadata checksum mismatch: the file is "
                                     "damaged; re-run `geoterrain preprocess`")
-        self.metadata = {k: json.loads(v) for k, v in raw.items()}
         version = self.metadata.get("schema_version")
         if version != SCHEMA_VERSION:
-            raise StoreError(f"{self.path}: schema version {version}, this geoterrain reads "
-                             f"{SCHEMA_VERSION}; re-run `geoterrain preprocess`")
+            raise StoreError(f"{self.path}: store schema version {_show(version)}, this "
+                             f"geoterrain reads version {SCHEMA_VERSION}; {REBUILD}")
         self.blob_reads = 0  # how many blobs were read (tests count them)
+
+    def _foreign(self, why: str) -> StoreError:
+        return StoreError(f"{self.path}: not a geoterrain store ({why}); refusing to read it")
+
+    def _check_schema(self) -> None:
+        """Exactly the three plain tables (and their primary-key indexes), nothing else."""
+        seen = self.con.execute("SELECT type, name, tbl_name, sql FROM sqlite_master").fetchall()
+        tables = set()
+        for typ, name, tbl, sql in seen:
+            if typ == "table" and name in _TABLES and str(sql).startswith(f"CREATE TABLE {name}"):
+                tables.add(name)
+            elif typ == "index" and _INDEXES.get(name) == tbl and sql is None:
+                pass
+            else:
+                raise self._foreign(f"it holds a {typ} {_show(name)}: views, triggers and "
+                                    "other objects are refused")
+        if tables != set(_TABLES):
+            raise self._foreign(f"tables {', '.join(sorted(set(_TABLES) - tables))} missing")
+        for name, cols in _TABLES.items():
+            info = self.con.execute(f"PRAGMA table_xinfo({name})").fetchall()
+            got = tuple((r[1], str(r[2]).upper()) for r in info)
+            if got != cols or any(r[6] for r in info):
+                raise self._foreign(f"table {name} has other columns")
 
     def _damaged(self, what: str) -> StoreCorruptError:
         return StoreCorruptError(f"{self.path}: checksum mismatch in {what}: the file is damaged; "
                                  "re-run `geoterrain preprocess`")
 
     def get_blob(self, key: tuple[int, int, int], kind: str) -> bytes | None:
-        """A tile's blob, checksum-verified, or None when the tile is not stored."""
+        """A tile's blob, checksum-verified (bound to key and kind), or None when not stored."""
         try:
             row = self.con.execute(
                 "SELECT data, crc32 FROM blobs WHERE level=? AND x=? AND y=? AND kind=?",
                 (*key, kind)).fetchone()
-        except sqlite3.DatabaseError:
+        except _DB_ERRORS:
             raise self._damaged(f"tile {key} {kind}") from None
         if row is None:
             return None
         self.blob_reads += 1
         data, crc = row
-        if zlib.crc32(data) != crc:
+        if not isinstance(data, bytes) or blob_crc(key, kind, data) != crc:
             raise self._damaged(f"tile {key} {kind}")
         return data
 
     def tiles(self) -> dict[tuple[int, int, int], dict]:
-        """Every stored tile's numbers, checksum-verified."""
+        """Every stored tile's numbers, checksum-verified, checked against the key digests.
+
+        Every tile must hold one blob of each kind, and no blob may lack its tile.
+        """
         try:
             rows = self.con.execute(
                 f"SELECT level, x, y, {', '.join(TILE_COLUMNS)}, crc32 FROM tiles").fetchall()
-        except sqlite3.DatabaseError:
+            blob_keys = self.con.execute("SELECT level, x, y, kind FROM blobs").fetchall()
+        except _DB_ERRORS:
             raise self._damaged("the tile table") from None
         out = {}
         for r in rows:
             key, vals, crc = tuple(r[:3]), tuple(r[3:-1]), r[-1]
+            if not all(type(v) is int for v in (*key, vals[0])) or not all(
+                    v is None or type(v) in (int, float) for v in vals):
+                raise self._damaged(f"tile {_show(key)} bounds")
             if _row_crc(key, vals) != crc:
                 raise self._damaged(f"tile {key} bounds")
             out[key] = dict(zip(TILE_COLUMNS, vals, strict=True))
+        if level_digests(out) != self.metadata.get("tile_keys"):
+            raise StoreCorruptError(f"{self.path}: the tile table does not match the recorded "
+                                    "tile keys (rows missing or added): the file is damaged; "
+                                    "re-run `geoterrain preprocess`")
+        want = {(*k, kind) for k in out for kind in BLOB_KINDS}
+        if len(blob_keys) != len(want) or set(blob_keys) != want:
+            raise StoreCorruptError(f"{self.path}: the blobs do not match the tile table "
+                                    "(blobs missing or added): the file is damaged; "
+                                    "re-run `geoterrain preprocess`")
         return out
 
     def blob_bytes_by_kind_level(self) -> dict[tuple[str, int], int]:
-        rows = self.con.execute(
-            "SELECT kind, level, SUM(LENGTH(data)) FROM blobs GROUP BY kind, level").fetchall()
-        return {(k, lv): int(s) for k, lv, s in rows}
+        try:
+            rows = self.con.execute(
+                "SELECT kind, level, SUM(LENGTH(data)) FROM blobs GROUP BY kind, level").fetchall()
+        except _DB_ERRORS:
+            raise self._damaged("the blob table") from None
+        if not all(isinstance(k, str) and type(lv) is int and type(s) is int for k, lv, s in rows):
+            raise self._damaged("the blob table")
+        return {(k, lv): s for k, lv, s in rows}
 
     def close(self) -> None:
         self.con.close()
+
+
+def _show(v: object) -> str:
+    """A value from a store, printable: repr, no control characters, at most 40 chars."""
+    r = "".join(c if c.isprintable() else "?" for c in repr(v))
+    return r if len(r) <= 40 else r[:37] + "..."

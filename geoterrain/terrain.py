@@ -11,20 +11,21 @@ from typing import TYPE_CHECKING
 import numpy as np
 import zstandard
 
+from geoterrain import zstdsafe
 from geoterrain.bintree import vertex_level
 from geoterrain.codec import decode_tile, tile_valid
 from geoterrain.exceptions import StoreCorruptError, StoreError
-from geoterrain.frame import Frame
-from geoterrain.grid import Grid
 from geoterrain.normals import decode_octahedral
-from geoterrain.quantize import Quantizer, codes_to_heights
+from geoterrain.quantize import codes_to_heights
 from geoterrain.store import StoreReader
+from geoterrain.storecheck import check_store
 from geoterrain.vertexdata import decode_bounds
 
 if TYPE_CHECKING:
     import pyvista as pv
 
     from geoterrain.lod import Selection
+    from geoterrain.quantize import Quantizer
     from geoterrain.view import View
 
 TileKey = tuple[int, int, int]
@@ -62,16 +63,18 @@ class Terrain:
     def __init__(self, path: str | Path, cache_bytes: int = 1536 << 20):
         self.path = Path(path)
         self.reader = StoreReader(path)
-        m = self.reader.metadata
-        self.meta = m
-        self.grid = Grid(**m["grid"])
-        self.frame = Frame.from_json(m["frame"])
-        self.quantizer = Quantizer.from_json(m["quantizer"])
-        self.tile_info = self.reader.tiles()
+        try:
+            m = self.reader.metadata
+            self.meta = m
+            self.tile_info = self.reader.tiles()
+            # an untrusted file: every field is checked before anything is sized from it
+            self.grid, self.frame, self.quantizer = check_store(self.path, m, self.tile_info)
+        except BaseException:
+            self.reader.close()
+            raise
         self._cache: OrderedDict[tuple, tuple[object, int]] = OrderedDict()
         self._cache_budget = cache_bytes
         self._cache_used = 0
-        self._dctx = zstandard.ZstdDecompressor()
         self.decoded_tiles = 0  # tiles whose heights were decoded (a view counts these)
 
     # ------------------------------------------------------------------ cache
@@ -155,14 +158,24 @@ class Terrain:
         parent = self.tile(L + 1, x // 2, y // 2).codes if L < self.grid.top_level else None
         blob = self._blob(key, "heights")
         try:
-            codes = decode_tile(blob, parent, self.quantizer, (x % 2, y % 2))
-            valid = tile_valid(blob)
+            codes = decode_tile(blob, parent, self.quantizer, (x % 2, y % 2), t=self.grid.t)
+            valid = tile_valid(blob, t=self.grid.t)
         except (ValueError, zstandard.ZstdError):
             raise StoreCorruptError(f"{self.path}: tile {key} heights cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
         self.decoded_tiles += 1
         h = codes_to_heights(codes, self.quantizer)
         h = np.where(valid, h, np.nan)
+        # the decoded heights must lie in the tile row's box (a bound checksum on its own
+        # cannot tell an edited quantizer or frame from the truth)
+        info = self.tile_info[key]
+        z = self.frame.z(h[valid])
+        tol = 1e-9 * max(1.0, abs(info["zmin"]), abs(info["zmax"]))
+        if int(valid.sum()) != 0 and not (z.min() >= info["zmin"] - tol
+                                          and z.max() <= info["zmax"] + tol):
+            raise StoreCorruptError(f"{self.path}: tile {key} heights lie outside the tile's "
+                                    "recorded bounds: the file is damaged; re-run "
+                                    "`geoterrain preprocess`")
         return Tile(key, codes, h, valid)
 
     def _bounds(self, key: TileKey, kind: str) -> np.ndarray:
@@ -193,7 +206,12 @@ class Terrain:
         """Unit normals (T, T, 3) float32 of the level-L normal map at the tile's samples."""
         def make():
             T, bits = self.grid.tile_samples, self.meta["normal_bits"]
-            raw = self._dctx.decompress(self._blob((level, x, y), "normals"))
+            try:  # bounded: exactly T × T × 2 components, never a decompression bomb
+                raw = zstdsafe.decompress(self._blob((level, x, y), "normals"),
+                                          T * T * 2 * (bits // 8), exact=True)
+            except ValueError:
+                raise StoreCorruptError(f"{self.path}: tile {(level, x, y)} normals cannot be "
+                                        "decoded; re-run `geoterrain preprocess`") from None
             dt = np.uint8 if bits == 8 else np.uint16
             return decode_octahedral(np.frombuffer(raw, dt).reshape(T, T, 2), bits)
         return self._cached(("n", level, x, y), make)
@@ -339,7 +357,11 @@ class Terrain:
         """A summary: size, CRS and frame, extent, grid, levels, tiles, nodata, codec, errors."""
         m, g, f = self.meta, self.grid, self.frame
         H, W = g.rows, g.cols
-        cx, cy = f.xy(np.array([0, 0, H - 1, H - 1]), np.array([0, W - 1, 0, W - 1]))
+        # the extent over the whole boundary, not 4 corners (a geographic grid's edges bow)
+        k = np.linspace(0.0, 1.0, 129)
+        ei = np.concatenate([0 * k, 0 * k + H - 1, k * (H - 1), k * (H - 1)]).round()
+        ej = np.concatenate([k * (W - 1), k * (W - 1), 0 * k, 0 * k + W - 1]).round()
+        cx, cy = f.xy(ei.astype(np.int64), ej.astype(np.int64))
         per_level: dict[int, int] = {}
         for (L, _, _) in self.tile_info:
             per_level[L] = per_level.get(L, 0) + 1

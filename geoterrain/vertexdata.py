@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 import zstandard
 
+from geoterrain import zstdsafe
 from geoterrain.rounding import round_up
 
 VERSION = 1
@@ -75,8 +76,8 @@ def decode_bounds(blob: bytes, shape: tuple[int, ...]) -> np.ndarray:
     if len(blob) < 2 or blob[0] != VERSION:
         raise ValueError("not a bounds blob of a known version")
     k = int(np.int8(np.uint8(blob[1])))
-    raw = zstandard.ZstdDecompressor().decompress(blob[2:])
     n = int(np.prod(shape))
+    raw = zstdsafe.decompress(blob[2:], 2 * n, exact=True)  # bounded: never a bomb
     planes = np.frombuffer(raw, np.uint8).reshape(2, n)
     h = planes.T.copy().view(np.float16).reshape(shape)
     # float32 output: round up again so the bound survives the cast

@@ -181,7 +181,7 @@ def load_views(path: str | Path, size: tuple[int, int] = (1280, 720), fov_y_deg:
     crs = False
     if isinstance(doc, dict):
         crs = bool(doc.get("crs", False))
-        fov_y_deg = float(doc.get("fov", fov_y_deg))
+        fov_y_deg = doc.get("fov", fov_y_deg)
         doc = doc.get("cameras")
     if not isinstance(doc, list) or not doc:
         raise InputError(f"{path}: expected a non-empty list of cameras")
@@ -197,11 +197,15 @@ def load_views(path: str | Path, size: tuple[int, int] = (1280, 720), fov_y_deg:
                 raise ValueError
             if crs:
                 a, b = frame.crs_point_to_scene(a), frame.crs_point_to_scene(b)
-            v = View(tuple(a), tuple(b), tuple(cam.get("up", (0.0, 0.0, 1.0))),
-                     float(cam.get("fov", fov_y_deg)), tuple(size))
+            up = np.asarray(cam.get("up", (0.0, 0.0, 1.0)), np.float64)
+            fov = float(cam.get("fov", fov_y_deg))
+            if up.shape != (3,) or not np.isfinite(up).all() or not up.any() or \
+                    not 0 < fov < 180:
+                raise ValueError
+            v = View(tuple(a), tuple(b), tuple(up), fov, tuple(size))
             v.basis()  # rejects look_from == look_at
         except (KeyError, TypeError, ValueError):
             raise InputError(f"{path}: camera {k} needs look_from and look_at as distinct, "
-                             "finite [x, y, z] (and fov in (0, 180))") from None
+                             "finite [x, y, z], a non-zero up and fov in (0, 180)") from None
         views.append(v)
     return views

@@ -269,8 +269,9 @@ def test_view_cache_location(tmp_path, monkeypatch):
 
     dem = tmp_path / "a.tif"
     dem.write_bytes(b"")
-    assert cached_store(dem) == tmp_path / "a.geoterrain"
-    monkeypatch.setattr("os.access", lambda *a: False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    assert cached_store(dem).parent == tmp_path / "cache" / "geoterrain"
-    assert not is_store(dem)
+    first = cached_store(dem)
+    assert first.parent == tmp_path / "cache" / "geoterrain"  # never beside the data
+    assert first.name.startswith("a-") and not is_store(dem)
+    dem.write_bytes(b"changed")  # size (and mtime) change: another key, a fresh store
+    assert cached_store(dem) != first
