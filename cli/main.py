@@ -64,9 +64,9 @@ def cli(ctx, verbose, quiet):
 
 
 def _register() -> None:
-    from geoterrain.cli import bench, info, mesh, preprocess, render, synth, view
+    from geoterrain.cli import bench, export, info, mesh, preprocess, render, synth, view
 
-    for mod in (preprocess, info, mesh, render, view, bench, synth):
+    for mod in (preprocess, info, mesh, export, render, view, bench, synth):
         cli.add_command(mod.command)
 
 
