@@ -64,9 +64,19 @@ def cli(ctx, verbose, quiet):
 
 
 def _register() -> None:
-    from geoterrain.cli import bench, export, info, mesh, preprocess, render, synth, view
+    from geoterrain.cli import (
+        bench,
+        export,
+        export_raster,
+        info,
+        mesh,
+        preprocess,
+        render,
+        synth,
+        view,
+    )
 
-    for mod in (preprocess, info, mesh, export, render, view, bench, synth):
+    for mod in (preprocess, info, mesh, export, export_raster, render, view, bench, synth):
         cli.add_command(mod.command)
 
 
