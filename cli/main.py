@@ -73,10 +73,12 @@ def _register() -> None:
         preprocess,
         render,
         synth,
+        tiles,
         view,
     )
 
-    for mod in (preprocess, info, mesh, export, export_raster, render, view, bench, synth):
+    for mod in (preprocess, info, mesh, export, export_raster, tiles, render, view, bench,
+                synth):
         cli.add_command(mod.command)
 
 
