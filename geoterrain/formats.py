@@ -429,11 +429,12 @@ def printable_solid(terrain, m: MeshArrays, base_height: float | None = None,
     a = faces.ravel()
     b = faces[:, [1, 2, 0]].ravel()
     fwd, rev = a * V + b, b * V + a
-    if len(np.unique(fwd)) != len(fwd):
+    fs = np.sort(fwd)  # sorting, not np.unique/np.isin: several times faster here
+    if (fs[1:] == fs[:-1]).any():
         raise UsageError("the mesh is not a manifold surface; cannot close it into a solid")
-    boundary = ~np.isin(fwd, rev)
+    boundary = ~_contains(fs, rev)
     ea, eb = a[boundary], b[boundary]
-    if not np.isin(eb, ea).all() or not np.isin(ea, eb).all():
+    if not _contains(np.sort(ea), eb).all() or not _contains(np.sort(eb), ea).all():
         raise UsageError("the mesh is not conforming (T-junctions); a printable solid needs a "
                          "static or rtin mesh")
     walls = np.concatenate([np.column_stack([ea, eb + V, eb]),
@@ -445,12 +446,20 @@ def printable_solid(terrain, m: MeshArrays, base_height: float | None = None,
     fb = out_faces[:, [1, 2, 0]].ravel()
     P = len(pts)
     f2, r2 = np.sort(fa * P + fb), np.sort(fb * P + fa)
-    if not np.array_equal(f2, r2) or len(np.unique(f2)) != len(f2):
+    if not np.array_equal(f2, r2) or (f2[1:] == f2[:-1]).any():
         raise UsageError("the mesh is not conforming (T-junctions); a printable solid needs a "
                          "static or rtin mesh")
     geo = georeference(terrain, scale, offset)
     geo["base_height"] = float(base_height)
     return pts, out_faces, geo
+
+
+def _contains(sorted_keys: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Whether each of ``q`` is in ``sorted_keys`` (binary search)."""
+    if len(sorted_keys) == 0:
+        return np.zeros(len(q), bool)
+    k = np.minimum(np.searchsorted(sorted_keys, q), len(sorted_keys) - 1)
+    return sorted_keys[k] == q
 
 
 def stl_bytes(xyz: np.ndarray, faces: np.ndarray) -> bytes:

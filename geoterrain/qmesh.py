@@ -319,9 +319,9 @@ def _measure(dem: _Dem, rect, lon, lat, hgt, faces) -> float:
 
 # ------------------------------------------------------------------------ tile set
 def max_zoom_for(dem: _Dem, lattice: int) -> int:
-    """The first level whose lattice spacing is at most 1.25 DEM samples."""
+    """The first level whose lattice spacing is at most the DEM's sample spacing."""
     for z in range(0, 24):
-        if 180.0 / (1 << z) / (lattice - 1) <= 1.25 * dem.pixel_deg:
+        if 180.0 / (1 << z) / (lattice - 1) <= dem.pixel_deg * (1 + 1e-9):
             return z
     return 23
 

@@ -9,6 +9,7 @@ layer.json that lists exactly the tiles written.
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import matplotlib.tri as mtri
 import numpy as np
@@ -18,9 +19,38 @@ from click.testing import CliRunner
 
 import geoterrain
 from geoterrain.qmesh import tile_rect
-from tests.conftest import write_tif
+from tests.conftest import real_dem, write_tif
 
 qmt = pytest.importorskip("quantized_mesh_tile")
+
+
+def _read_tileset(out: Path, dem: Path):
+    tiles = {}
+    for p in sorted(out.glob("*/*/*.terrain")):
+        z_, x, y = int(p.parent.parent.name), int(p.parent.name), int(p.stem)
+        w, s, e, n = tile_rect(z_, x, y)
+        t = qmt.TerrainTile(west=w, south=s, east=e, north=n)
+        t.fromFile(str(p), hasLighting=True, hasWatermask=True, gzipped=True)
+        tiles[(z_, x, y)] = t
+    with rasterio.open(dem) as src:
+        h = src.read(1, masked=True)
+        transform = src.transform
+    return out, tiles, h, transform
+
+
+@pytest.fixture(scope="module")
+def japan(tmp_path_factory):
+    """srtm1_japan (slow: about 90 s to tile, more to decode in pure Python)."""
+    from geoterrain.qmesh import write_tileset
+
+    dem = real_dem("srtm1_japan.tif")
+    d = tmp_path_factory.mktemp("qmesh_japan")
+    with geoterrain.open(geoterrain.preprocess(dem, d / "j.geoterrain")) as t:
+        write_tileset(t, d / "tiles")
+    return _read_tileset(d / "tiles", dem)
+
+
+SETS = ["tileset", pytest.param("japan", marks=pytest.mark.slow)]
 
 
 @pytest.fixture(scope="module")
@@ -42,17 +72,7 @@ def tileset(tmp_path_factory):
                                    "--format", "quantized-mesh", "--max-error", "2"],
                            catch_exceptions=False)
     assert res.exit_code == 0, res.output
-    tiles = {}
-    for p in sorted(out.glob("*/*/*.terrain")):
-        z_, x, y = int(p.parent.parent.name), int(p.parent.name), int(p.stem)
-        w, s, e, n = tile_rect(z_, x, y)
-        t = qmt.TerrainTile(west=w, south=s, east=e, north=n)
-        t.fromFile(str(p), hasLighting=True, hasWatermask=True, gzipped=True)
-        tiles[(z_, x, y)] = t
-    with rasterio.open(dem) as src:
-        h = src.read(1, masked=True)
-        transform = src.transform
-    return out, tiles, h, transform
+    return _read_tileset(out, dem)
 
 
 def _coords(t):
@@ -60,7 +80,9 @@ def _coords(t):
     return v[:, 0], v[:, 1], v[:, 2]
 
 
-def test_every_tile_decodes_with_its_extensions(tileset):
+@pytest.mark.parametrize("which", SETS)
+def test_every_tile_decodes_with_its_extensions(which, request):
+    tileset = request.getfixturevalue(which)
     out, tiles, _, _ = tileset
     layer = json.loads((out / "layer.json").read_text())
     assert layer["format"] == "quantized-mesh-1.0" and layer["scheme"] == "tms"
@@ -78,7 +100,9 @@ def test_every_tile_decodes_with_its_extensions(tileset):
         assert len(t.watermask) == 1
 
 
-def test_heights_within_the_declared_error_of_the_dem(tileset):
+@pytest.mark.parametrize("which", SETS)
+def test_heights_within_the_declared_error_of_the_dem(which, request):
+    tileset = request.getfixturevalue(which)
     out, tiles, h, transform = tileset
     declared = json.loads((out / "geoterrain.json").read_text())["declared_error"]
     rows, cols = np.mgrid[0:h.shape[0], 0:h.shape[1]]
@@ -102,7 +126,9 @@ def test_heights_within_the_declared_error_of_the_dem(tileset):
     assert checked > 10000
 
 
-def test_neighbours_share_their_edge_vertices_exactly(tileset):
+@pytest.mark.parametrize("which", SETS)
+def test_neighbours_share_their_edge_vertices_exactly(which, request):
+    tileset = request.getfixturevalue(which)
     _, tiles, _, _ = tileset
     pairs = set()
     for (z, x, y), t in tiles.items():
@@ -121,7 +147,9 @@ def test_neighbours_share_their_edge_vertices_exactly(tileset):
     assert {(10, 1), (10, 0), (11, 1), (11, 0)} <= pairs  # east and north edges, two levels
 
 
-def test_no_vertex_at_a_nodata_sample(tileset):
+@pytest.mark.parametrize("which", SETS)
+def test_no_vertex_at_a_nodata_sample(which, request):
+    tileset = request.getfixturevalue(which)
     _, tiles, h, transform = tileset
     bad = np.ma.getmaskarray(h)
     inv = ~transform
