@@ -6,7 +6,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint clean setup
+.PHONY: demo test lint clean setup browser test-browser
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +26,16 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# The browser test (tests/test_cesium.py): Debian's chromium, Node/npm and the npm
+# package cesium in .browser/ (needs root for apt-get, network for apt and npm).
+browser:
+	command -v chromium >/dev/null || apt-get install -y --no-install-recommends chromium
+	command -v npm >/dev/null || apt-get install -y --no-install-recommends nodejs npm
+	mkdir -p .browser && cd .browser && npm install --no-audit --no-fund cesium@1
+
+test-browser: $(STAMP) browser
+	$(BIN)/python -m pytest -q -m browser
 
 lint: $(STAMP)
 	$(BIN)/ruff check geoterrain cli tests benchmarks

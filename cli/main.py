@@ -86,9 +86,21 @@ def _catch_signals() -> None:
 
 
 def _register() -> None:
-    from geoterrain.cli import bench, info, mesh, preprocess, render, synth, view
+    from geoterrain.cli import (
+        bench,
+        export,
+        export_raster,
+        info,
+        mesh,
+        preprocess,
+        render,
+        synth,
+        tiles,
+        view,
+    )
 
-    for mod in (preprocess, info, mesh, render, view, bench, synth):
+    for mod in (preprocess, info, mesh, export, export_raster, tiles, render, view, bench,
+                synth):
         cli.add_command(mod.command)
 
 

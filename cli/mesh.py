@@ -46,6 +46,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     import geoterrain
     from geoterrain.exceptions import UsageError
     from geoterrain.export import MESH_FORMATS, write_mesh
+    from geoterrain.formats import with_elevation
 
     out = Path(output)
     if out.suffix.lower() not in MESH_FORMATS:
@@ -77,6 +78,6 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
                            pixel_error, strategy)
         else:
             sel = t.static_selection(max_error)
-        write_mesh(sel.mesh, out, overwrite=overwrite)
+        write_mesh(with_elevation(t, sel.mesh), out, overwrite=overwrite)
     if not ctx.obj["quiet"]:
         click.echo(json.dumps(sel.stats))

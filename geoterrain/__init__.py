@@ -22,7 +22,7 @@ from geoterrain.exceptions import GeoterrainError
 
 if TYPE_CHECKING:
     from geoterrain.preprocessing import preprocess
-    from geoterrain.rendering import default_view, render
+    from geoterrain.rendering import default_view, orbit, render
     from geoterrain.terrain import Terrain, open  # noqa: A004
     from geoterrain.view import View
     from geoterrain.viewer import show
@@ -35,11 +35,12 @@ _LAZY = {
     "View": "geoterrain.view",
     "render": "geoterrain.rendering",
     "default_view": "geoterrain.rendering",
+    "orbit": "geoterrain.rendering",
     "show": "geoterrain.viewer",
 }
 
 __all__ = ["GeoterrainError", "Terrain", "View", "__version__", "default_view", "open",
-           "preprocess", "render", "show"]
+           "orbit", "preprocess", "render", "show"]
 
 
 def __getattr__(name: str):

@@ -115,6 +115,16 @@ class Frame:
         jj, ii = np.asarray(j, np.float64) + 0.5, np.asarray(i, np.float64) + 0.5
         return a * jj + b * ii + c, d * jj + e * ii + f
 
+    def crs_xy(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Source-CRS coordinates (float64) of the centres of samples (i, j).
+
+        Examples
+        --------
+        >>> Frame.pixel(3, 3, 2.0).crs_xy(np.array([0]), np.array([2]))
+        (array([5.]), array([-1.]))
+        """
+        return self._crs_xy(i, j)
+
     @cached_property
     def _to_scene(self) -> Transformer | None:
         if self.kind != "geographic":

@@ -404,6 +404,23 @@ class Terrain:
             "preprocess_seconds": m.get("preprocess_seconds", {}),
         }
 
+    # -------------------------------------------------------------- notebooks
+    def _repr_html_(self) -> str:
+        """A notebook's summary: extent, CRS, size, levels, codec and a shaded thumbnail."""
+        from geoterrain.notebook import repr_html  # upper layer, loaded on first display
+
+        return repr_html(self)
+
+    def plot(self, view: View | None = None, **kwargs):
+        """Show the terrain: PyVista's notebook backend, or an offscreen image (PIL).
+
+        Keywords: ``shading``, ``pixel_error``, ``strategy``, ``size``, ``cmap``; the
+        rest go to ``Plotter.show``. See :func:`geoterrain.notebook.plot`.
+        """
+        from geoterrain.notebook import plot  # upper layer, loaded on first use
+
+        return plot(self, view, **kwargs)
+
     def close(self) -> None:
         self.reader.close()
 
