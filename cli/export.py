@@ -6,7 +6,13 @@ import json
 
 import click
 
-from geoterrain.cli.options import camera_options, pixel_error_option, strategy_option
+from geoterrain.cli.options import (
+    camera_options,
+    mesh_request,
+    pixel_error_option,
+    select_mesh,
+    strategy_option,
+)
 
 
 @click.command("export")
@@ -20,7 +26,8 @@ from geoterrain.cli.options import camera_options, pixel_error_option, strategy_
 @strategy_option
 @click.option("--shading", type=click.Choice(["normals", "elevation"]), default="normals",
               show_default=True, help="glTF/OBJ texture: colours × hillshade, or colours only.")
-@click.option("--cmap", default="gist_earth", show_default=True, help="Matplotlib colour map.")
+@click.option("--cmap", default="auto", show_default=True,
+              help="auto (land tints, sea in blue) or a matplotlib colour map.")
 @click.option("--texture-size", type=click.IntRange(2, 16385), default=4097, show_default=True,
               help="Largest texture side; a coarser pyramid level is used beyond it.")
 @click.option("--base-height", type=float, metavar="H",
@@ -62,25 +69,10 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     out = check_export_path(output, overwrite)
     if crs_coords and look_from is None and look_at is None and out.suffix.lower() != ".ply":
         raise UsageError("--crs-coords applies to --look-from/--look-at or to .ply output")
-    view_mode = look_from is not None or look_at is not None
-    if view_mode and (look_from is None or look_at is None):
-        raise UsageError("a view needs both --look-from and --look-at")
-    if view_mode and max_error is not None:
-        raise UsageError("give either --max-error (static) or a view (--look-from/--look-at)")
-    if not view_mode and max_error is None:
-        max_error = 1.0
-    if max_error is not None and not max_error >= 0:
-        raise UsageError(f"--max-error must be ≥ 0, got {max_error}")
+    max_error = mesh_request(max_error, look_from, look_at)
     with geoterrain.open(store) as t:
-        if view_mode:
-            if crs_coords:
-                look_from, look_at = (t.frame.crs_point_to_scene(p) for p in (look_from, look_at))
-            if look_from == look_at:
-                raise UsageError("--look-from and --look-at must differ")
-            sel = t.select(geoterrain.View(look_from, look_at, fov_y_deg=fov, size=size),
-                           pixel_error, strategy)
-        else:
-            sel = t.static_selection(max_error)
+        sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error,
+                          strategy)
         export_mesh(t, sel, out, overwrite=overwrite, shading=shading, cmap=cmap,
                     texture_size=texture_size, base_height=base_height, print_size=print_size,
                     crs_coords=crs_coords and out.suffix.lower() == ".ply")

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import json
-import math
 
 import click
 
 from geoterrain.cli.options import (
     camera_options,
+    mesh_request,
     pixel_error_option,
+    select_mesh,
     strategy_option,
     vertical_exaggeration_option,
 )
@@ -56,28 +57,13 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
                          "-o path")
     if out.exists() and not overwrite:
         raise UsageError(f"{out} exists; pass --overwrite or choose another -o path")
-    view_mode = look_from is not None or look_at is not None
-    if view_mode and (look_from is None or look_at is None):
-        raise UsageError("a view needs both --look-from and --look-at")
-    if view_mode and max_error is not None:
-        raise UsageError("give either --max-error (static) or a view (--look-from/--look-at)")
-    if not view_mode and max_error is None:
-        max_error = 1.0
-    if max_error is not None and not (math.isfinite(max_error) and max_error >= 0):
-        raise UsageError(f"--max-error must be a finite number ≥ 0, got {max_error}")
+    max_error = mesh_request(max_error, look_from, look_at)
     from geoterrain.exaggerate import exaggerated
 
     with geoterrain.open(store) as base:
         t = exaggerated(base, vertical_exaggeration)
-        if view_mode:
-            if crs_coords:
-                look_from, look_at = (t.frame.crs_point_to_scene(p) for p in (look_from, look_at))
-            if look_from == look_at:
-                raise UsageError("--look-from and --look-at must differ")
-            sel = t.select(geoterrain.View(look_from, look_at, fov_y_deg=fov, size=size),
-                           pixel_error, strategy)
-        else:
-            sel = t.static_selection(max_error)
+        sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error,
+                          strategy)
         write_mesh(with_elevation(t, sel.mesh), out, overwrite=overwrite)
     if not ctx.obj["quiet"]:
         click.echo(json.dumps(sel.stats))

@@ -186,3 +186,37 @@ vertical_exaggeration_option = click.option(
     show_default=True, callback=_positive, metavar="N",
     help="Draw heights × N (view time; the store's --z-scale is kept). The LOD error bound "
          "holds for the exaggerated surface; pictures say VE ×N.")
+
+
+def mesh_request(max_error, look_from, look_at) -> float | None:
+    """Check a static (--max-error) or view (--look-from/--look-at) request, as `mesh` and
+    `export` take it; the static bound e (default 1), or None for a view."""
+    from geoterrain.exceptions import UsageError
+
+    view_mode = look_from is not None or look_at is not None
+    if view_mode and (look_from is None or look_at is None):
+        raise UsageError("a view needs both --look-from and --look-at")
+    if view_mode and max_error is not None:
+        raise UsageError("give either --max-error (static) or a view (--look-from/--look-at)")
+    if view_mode:
+        return None
+    e = 1.0 if max_error is None else max_error
+    if not (math.isfinite(e) and e >= 0):
+        raise UsageError(f"--max-error must be a finite number ≥ 0, got {e}")
+    return e
+
+
+def select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error, strategy):
+    """The static selection of bound ``max_error``, or the view's (source-CRS camera points
+    with ``crs_coords``), after :func:`mesh_request`."""
+    import geoterrain
+    from geoterrain.exceptions import UsageError
+
+    if max_error is not None:
+        return t.static_selection(max_error)
+    if crs_coords:
+        look_from, look_at = (t.frame.crs_point_to_scene(p) for p in (look_from, look_at))
+    if look_from == look_at:
+        raise UsageError("--look-from and --look-at must differ")
+    return t.select(geoterrain.View(look_from, look_at, fov_y_deg=fov, size=size), pixel_error,
+                    strategy)

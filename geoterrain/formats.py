@@ -219,7 +219,7 @@ def check_export_path(path: str | Path, overwrite: bool = False) -> Path:
 
 
 def export_mesh(terrain, selection, path: str | Path, *, overwrite: bool = False,
-                shading: str = "normals", cmap: str = "gist_earth",
+                shading: str = "normals", cmap: str = "auto",
                 texture_size: int = TEXTURE_SIZE, crs_coords: bool = False,
                 base_height: float | None = None, print_size: float | None = None) -> Path:
     """Write ``selection`` of ``terrain`` to ``path`` (.glb, .gltf, .obj, .stl or .ply).

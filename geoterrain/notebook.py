@@ -100,7 +100,7 @@ def notebook_backend() -> str | None:
 
 def plot(terrain, view=None, *, shading: str = "normals", pixel_error: float = 1.0,
          strategy: str | None = None, size: tuple[int, int] = (960, 540),
-         cmap: str = "gist_earth", **kwargs):
+         cmap: str = "auto", **kwargs):
     """Show the terrain: PyVista's notebook backend if usable, else an offscreen image.
 
     ``view`` defaults to :func:`geoterrain.default_view`; ``kwargs`` go to

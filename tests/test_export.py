@@ -221,7 +221,7 @@ def test_hillshade_is_the_renders_shading(terr, tmp_path):
     export_raster(t, "hillshade", tmp_path / "h.tif", level=L)
     with rasterio.open(tmp_path / "h.tif") as r:
         shade = r.read(1)
-    img = build_texture_image(t, "normals", level=L).astype(np.float64)  # what render draws
+    img = build_texture_image(t, "normals", "gist_earth", level=L).astype(np.float64)
     h, v = t.level_heights(L)
     H, W = shade.shape
     z0, z1 = elevation_range(t)
