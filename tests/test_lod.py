@@ -109,7 +109,7 @@ def check_conforming(sel, valid):
     for u, w in np.unique(e, axis=0).tolist():
         a, b = ij[u].astype(np.int64), ij[w].astype(np.int64)
         d = b - a
-        k = int(np.abs(d).max())
+        k = int(np.gcd(abs(int(d[0])), abs(int(d[1]))))  # lattice points on the edge
         step = d // k
         for s in range(1, k):
             assert tuple((a + s * step).tolist()) not in verts, "T-junction"
