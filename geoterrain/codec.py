@@ -52,6 +52,15 @@ import zstandard
 from geoterrain import zstdsafe
 from geoterrain.grid import footprint_counts, level_tiles
 from geoterrain.quantize import Quantizer, codes_to_heights, heights_to_codes
+from geoterrain.symbols import (
+    PACK_BITS,
+    UINTS,
+    choose_stream,
+    pack_symbols,
+    read_stream,
+    unzigzag,
+    zigzag,
+)
 
 __all__ = [
     "BLOB_VERSION",
@@ -114,42 +123,6 @@ def _interp16(c: np.ndarray, axis: int, period: int) -> np.ndarray:
     return np.moveaxis(out, -1, axis)
 
 
-def _zigzag(r: np.ndarray) -> np.ndarray:
-    return ((r << 1) ^ (r >> 63)).view(np.uint64)
-
-
-def _unzigzag(u: np.ndarray) -> np.ndarray:
-    u = u.astype(np.uint64)
-    return ((u >> np.uint64(1)) ^ (np.uint64(0) - (u & np.uint64(1)))).view(np.int64)
-
-
-def _width(maxval: int) -> int:
-    if maxval == 0:
-        return 0
-    for w in (1, 2, 4):
-        if maxval < 1 << (8 * w):
-            return w
-    return 8
-
-
-_UINTS = {1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}
-
-
-def _shuffle(u: np.ndarray, w: int) -> bytes:
-    """Byte-shuffle (all byte 0s, then all byte 1s, ...) little-endian values of width w."""
-    if w == 0:
-        return b""
-    a = u.astype(np.dtype(_UINTS[w]).newbyteorder("<"))
-    return np.ascontiguousarray(a.view(np.uint8).reshape(-1, w).T).tobytes()
-
-
-def _unshuffle(buf: bytes, w: int, count: int) -> np.ndarray:
-    if w == 0:
-        return np.zeros(count, np.uint64)
-    a = np.frombuffer(buf, np.uint8, count * w).reshape(w, count).T
-    return np.ascontiguousarray(a).view(np.dtype(_UINTS[w]).newbyteorder("<")).ravel()
-
-
 def _forward_fill(codes: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """Invalid entries (raster order) repeat the previous valid code; leading ones the first."""
     flat, v = codes.ravel(), valid.ravel()
@@ -203,7 +176,7 @@ def _resolve_predictor(
         preds = _predict(qq[::2, ::2], period)
         h = 0.0
         for sl, p in zip(_CLASSES, preds, strict=True):
-            zz = _zigzag(np.ascontiguousarray(qq[sl] - p)[vv[sl]])
+            zz = zigzag(np.ascontiguousarray(qq[sl] - p)[vv[sl]])
             cnt = np.bincount(np.minimum(zz, 1 << 16).astype(np.int64))
             pr = cnt[cnt > 0] / zz.size
             h += float(-(cnt[cnt > 0] * np.log2(pr)).sum())
@@ -376,10 +349,10 @@ def _encode_levels(pool, out, d, valid, n, te, lmax, cubic, level, progress) -> 
         tc = rc.reshape(nt, h, nt, h).transpose(0, 2, 1, 3).reshape(nt, nt, -1)
         res = np.concatenate([ta, tb, tc], axis=2)
         del ta, tb, tc, ra, rb, rc
-        zz = _zigzag(res)
+        zz = zigzag(res)
         del res
         zmax = zz.max(axis=2)
-        packs = {k: _pack_symbols(zz, k) for k in _PACK_BITS}
+        packs = {k: pack_symbols(zz, k) for k in PACK_BITS}
         vt = level_tiles(valid, te, lev)
         nvalid = vt.sum(axis=(2, 3))
 
@@ -392,7 +365,7 @@ def _encode_levels(pool, out, d, valid, n, te, lmax, cubic, level, progress) -> 
                 if nvalid[y, x] == 0
                 else _MASK_STORED
             )
-            code, stream = _choose_stream(
+            code, stream = choose_stream(
                 zz[y, x], int(zmax[y, x]), {k: (p[0][y, x], p[1][y, x]) for k, p in packs.items()}
             )
             mask = np.packbits(vt[y, x]).tobytes() if kind == _MASK_STORED else b""
@@ -430,85 +403,11 @@ def _workers() -> int:
 def _pack(r: np.ndarray, vt: np.ndarray, top: bool, te: int, cubic: bool) -> tuple[bytes, bytes]:
     nv = int(vt.sum())
     kind = _MASK_ALL_VALID if nv == vt.size else _MASK_ALL_INVALID if nv == 0 else _MASK_STORED
-    zz = _zigzag(np.ascontiguousarray(r.ravel()))
-    packs = {k: _pack_symbols(zz, k) for k in _PACK_BITS}
-    code, stream = _choose_stream(zz, int(zz.max()) if zz.size else 0, packs)
+    zz = zigzag(np.ascontiguousarray(r.ravel()))
+    packs = {k: pack_symbols(zz, k) for k in PACK_BITS}
+    code, stream = choose_stream(zz, int(zz.max()) if zz.size else 0, packs, _compressor(3))
     payload = (np.packbits(vt).tobytes() if kind == _MASK_STORED else b"") + stream
     return _header(top, kind, te, code, cubic), payload
-
-
-def _pack_symbols(zz: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """k-bit symbols min(zz, 2**k - 1) packed 8 // k per byte (little-endian bit order)
-    along the last axis, and the escape counts (symbols equal to 2**k - 1)."""
-    m = (1 << k) - 1
-    sym = np.minimum(zz, np.uint64(m)).astype(np.uint8)
-    per = 8 // k
-    padn = (-sym.shape[-1]) % per
-    if padn:
-        sym = np.concatenate([sym, np.zeros((*sym.shape[:-1], padn), np.uint8)], axis=-1)
-    sym = sym.reshape(*sym.shape[:-1], -1, per)
-    packed = np.zeros(sym.shape[:-1], np.uint8)
-    for i in range(per):
-        packed |= sym[..., i] << np.uint8(i * k)
-    return packed, (zz >= m).sum(axis=-1)
-
-
-def _unpack_symbols(buf: bytes, k: int, count: int) -> np.ndarray:
-    per = 8 // k
-    nbytes = -(-count // per)
-    packed = np.frombuffer(buf, np.uint8, nbytes)
-    shifts = (np.arange(per) * k).astype(np.uint8)
-    sym = (packed[:, None] >> shifts) & np.uint8((1 << k) - 1)
-    return sym.ravel()[:count].astype(np.uint64)
-
-
-_PACK_BITS = (1, 2, 4)
-
-
-def _choose_stream(zz: np.ndarray, zmax: int, packs: dict) -> tuple[int, bytes]:
-    """Pick the residual stream: byte-shuffled zigzag values, or k-bit packed symbols
-    with escapes (several samples per byte let zstd's byte-wise literal coder go below
-    one bit per sample on flat data). Candidates are compared with a fast zstd probe.
-
-    Returns the header byte (low nibble: byte width of the shuffled stream, high nibble:
-    k, 0 = unpacked) and the stream.
-    """
-    w = _width(zmax)
-    best = (w, _shuffle(zz, w))
-    if w == 0:
-        return best
-    probe = _compressor(3)
-    best_len = len(probe.compress(best[1]))
-    for k, (packed, nesc) in packs.items():
-        if int(nesc) * 4 > zz.size:
-            continue
-        m = (1 << k) - 1
-        if zmax < m:  # no escapes: the packed symbols say everything
-            ew, exc = 0, b""
-        else:
-            e = zz[zz >= np.uint64(m)] - np.uint64(m)
-            ew = _width(int(e.max()))
-            exc = _shuffle(e, ew)
-        cand = np.ascontiguousarray(packed).tobytes() + exc
-        n = len(probe.compress(cand))
-        if n < best_len:
-            best, best_len = ((k << 4) | ew, cand), n
-    return best
-
-
-def _read_stream(body: bytes, code: int, count: int) -> np.ndarray:
-    """Inverse of :func:`_choose_stream`: the ``count`` zigzag values (uint64)."""
-    w, k = code & 15, code >> 4
-    if k == 0:
-        return _unshuffle(body, w, count)
-    m = (1 << k) - 1
-    zz = _unpack_symbols(body, k, count)
-    esc = zz == m
-    nesc = int(esc.sum())
-    if nesc:
-        off = -(-count // (8 // k))
-        zz[esc] += _unshuffle(body[off:], w, nesc)
-    return zz
 
 
 # --------------------------------------------------------------------------- decoding
@@ -525,7 +424,7 @@ def _parse(blob: bytes, t: int | None = None) -> tuple[bool, int, int, int, byte
     top, kind, te, w = bool(blob[1] & 1), (blob[1] >> 1) & 3, blob[2], blob[3]
     if blob[1] & ~0b1111 or kind > _MASK_STORED or not 1 <= te <= 15 or (t is not None and te != t):
         raise ValueError("tile blob header does not match the store's grid")
-    if (w & 15) not in _UINTS and (w & 15) != 0 or (w >> 4) not in (0, *_PACK_BITS):
+    if (w & 15) not in UINTS and (w & 15) != 0 or (w >> 4) not in (0, *PACK_BITS):
         raise ValueError("tile blob names an unknown residual stream")
     tt = (1 << te) + 1
     # the largest payload: the mask, k-bit symbols and 8-byte escapes for every residual
@@ -596,7 +495,7 @@ def decode_tile(
     off = ((tt * tt + 7) // 8) if kind == _MASK_STORED else 0
     body = payload[off:]
     if top:
-        r = _unzigzag(_read_stream(body, w, tt * tt))
+        r = unzigzag(read_stream(body, w, tt * tt))
         return np.cumsum(r).reshape(tt, tt)
     if parent_codes is None:
         raise ValueError("a non-top tile needs its parent's decoded codes")
@@ -613,7 +512,7 @@ def decode_tile(
         pa, pb, pc = fa[ry, mx], fb[my, rx], fc[my, mx]
     else:
         pa, pb, pc = _predict(c)
-    r = _unzigzag(_read_stream(body, w, 3 * h * h + 2 * h))
+    r = unzigzag(read_stream(body, w, 3 * h * h + 2 * h))
     na, nb = (h + 1) * h, h * (h + 1)
     out = np.empty((tt, tt), np.int64)
     out[::2, ::2] = c

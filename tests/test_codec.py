@@ -8,13 +8,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from geoterrain.codec import (
-    _PACK_BITS,
     BLOB_VERSION,
-    _choose_stream,
-    _pack_symbols,
-    _read_stream,
-    _shuffle,
-    _width,
     decode_tile,
     decoded_codes,
     decoded_heights,
@@ -23,6 +17,12 @@ from geoterrain.codec import (
     tile_valid,
 )
 from geoterrain.quantize import Quantizer, choose_quantizer, codes_to_heights, heights_to_codes
+from geoterrain.symbols import PACK_BITS as _PACK_BITS
+from geoterrain.symbols import byte_width as _width
+from geoterrain.symbols import choose_stream as _choose_stream
+from geoterrain.symbols import pack_symbols as _pack_symbols
+from geoterrain.symbols import read_stream as _read_stream
+from geoterrain.symbols import shuffle as _shuffle
 
 # ----------------------------------------------------------------------------- helpers
 
