@@ -42,21 +42,12 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
       geoterrain mesh dem.geoterrain -o v.vtp --look-from 0,-5000,2000 --look-at 0,0,0
       geoterrain mesh dem.geoterrain -o relief.ply --max-error 2 -z 3
     """
-    from pathlib import Path
 
     import geoterrain
-    from geoterrain.exceptions import UsageError
-    from geoterrain.export import MESH_FORMATS, write_mesh
+    from geoterrain.export import check_mesh_path, write_mesh
     from geoterrain.formats import with_elevation
 
-    out = Path(output)
-    if out.suffix.lower() not in MESH_FORMATS:
-        raise UsageError(f"{out}: unknown mesh format; use one of {', '.join(MESH_FORMATS)}")
-    if not (out.parent if str(out.parent) else Path(".")).is_dir():
-        raise UsageError(f"{out.parent}: no such directory; create it first or choose another "
-                         "-o path")
-    if out.exists() and not overwrite:
-        raise UsageError(f"{out} exists; pass --overwrite or choose another -o path")
+    out = check_mesh_path(output, overwrite)  # before any work
     max_error = mesh_request(max_error, look_from, look_at)
     from geoterrain.exaggerate import exaggerated
 

@@ -22,20 +22,39 @@ MESH_FORMATS = (".ply", ".vtp", ".stl", ".obj", ".vtk")
 _BARE = (".stl", ".obj")  # formats that carry no point or cell arrays
 
 
+def check_output_path(path: str | Path, formats: tuple[str, ...], overwrite: bool = False,
+                      what: str = "mesh") -> Path:
+    """``path`` as a Path if a file of one of ``formats`` can be written there: a known
+    suffix, an existing folder, and no existing file unless ``overwrite``; a
+    :class:`UsageError` otherwise (checked before any work is done).
+
+    Examples
+    --------
+    >>> check_output_path("out.ply", MESH_FORMATS).suffix
+    '.ply'
+    """
+    out = Path(path)
+    if out.suffix.lower() not in formats:
+        raise UsageError(f"{out}: unknown {what} format; use one of {', '.join(formats)}")
+    parent = out.parent if str(out.parent) else Path(".")
+    if not parent.is_dir():
+        raise UsageError(f"{parent}: no such directory; create it first or choose another path",
+                         cli=f"{parent}: no such directory; create it first or choose another "
+                             "-o path")
+    if out.exists() and not overwrite:
+        raise exists_error(out)
+    return out
+
+
 def check_mesh_path(path: str | Path, overwrite: bool = False) -> Path:
-    """``path`` as a Path if a mesh can be written there; a :class:`UsageError` otherwise.
+    """:func:`check_output_path` for :data:`MESH_FORMATS`.
 
     Examples
     --------
     >>> check_mesh_path("out.ply").suffix
     '.ply'
     """
-    out = Path(path)
-    if out.suffix.lower() not in MESH_FORMATS:
-        raise UsageError(f"{out}: unknown mesh format; use one of {', '.join(MESH_FORMATS)}")
-    if out.exists() and not overwrite:
-        raise exists_error(out)
-    return out
+    return check_output_path(path, MESH_FORMATS, overwrite)
 
 
 def write_mesh(mesh: pv.PolyData, path: str | Path, *, overwrite: bool = False) -> Path:

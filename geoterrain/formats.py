@@ -40,6 +40,7 @@ import numpy as np
 
 from geoterrain._version import __version__
 from geoterrain.exceptions import UsageError, WriteError, exists_error
+from geoterrain.export import check_output_path
 from geoterrain.textures import SHADINGS, texture_image, texture_level
 
 EXPORT_FORMATS = (".glb", ".gltf", ".obj", ".stl", ".ply")
@@ -203,19 +204,14 @@ class _Files:
 
 
 def check_export_path(path: str | Path, overwrite: bool = False) -> Path:
-    """``path`` as a Path if an export can be written there; a :class:`UsageError` otherwise.
+    """:func:`geoterrain.export.check_output_path` for :data:`EXPORT_FORMATS`.
 
     Examples
     --------
     >>> check_export_path("out.glb").suffix
     '.glb'
     """
-    out = Path(path)
-    if out.suffix.lower() not in EXPORT_FORMATS:
-        raise UsageError(f"{out}: unknown export format; use one of {', '.join(EXPORT_FORMATS)}")
-    if out.exists() and not overwrite:
-        raise exists_error(out)
-    return out
+    return check_output_path(path, EXPORT_FORMATS, overwrite, "export")
 
 
 def export_mesh(terrain, selection, path: str | Path, *, overwrite: bool = False,
