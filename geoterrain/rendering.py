@@ -159,7 +159,7 @@ class TerrainScene:
             mesh.faces = np.hstack([np.full((len(vtex.faces), 1), 3, np.int64),
                                     vtex.faces]).ravel()
             mesh.active_texture_coordinates = vtex.tcoords
-            self.texture.SetInputDataObject(pv.Texture(vtex.image).GetInput())
+            self.texture.SetInputDataObject(_image_data(vtex.image))
             self.texture_stats = dict(vtex.stats)
             for k in ("level", "skirt"):  # faces keep their order: cell data carries over
                 if k in src.cell_data:
@@ -254,6 +254,20 @@ class TerrainScene:
         f.Update()
         z = vtk_to_numpy(f.GetOutput().GetPointData().GetScalars())
         return float((z < 1.0).mean())
+
+
+def _image_data(img: np.ndarray):
+    """A vtkImageData of an (H, W, 3) uint8 image whose row 0 is the top (v = 1)."""
+    from vtkmodules.util.numpy_support import numpy_to_vtk
+    from vtkmodules.vtkCommonDataModel import vtkImageData
+
+    h, w = img.shape[:2]
+    out = vtkImageData()
+    out.SetDimensions(w, h, 1)
+    arr = numpy_to_vtk(np.ascontiguousarray(img[::-1]).reshape(-1, 3), deep=True)
+    arr.SetName("atlas")
+    out.GetPointData().SetScalars(arr)
+    return out
 
 
 def io_counters(terrain) -> dict:

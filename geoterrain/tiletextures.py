@@ -172,71 +172,89 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     pts = np.asarray(mesh.points, np.float64)
     ij = np.asarray(mesh.point_data["grid_ij"]).astype(np.int64)
     faces = mesh.faces.reshape(-1, 4)[:, 1:].astype(np.int64)
+    # a footprint's page: the level-Lt tiles under it that its faces touch (k = L - Lt
+    # levels finer than the footprint, 0 when a far footprint takes its ancestor's tile)
     L, X, Y = footprints(ij, faces, g)
     n_lv = g.top_level + 1
-    fkey = (L * (1 << (2 * n_lv)) + Y) * (1 << n_lv) + X
-    keys, face_group = np.unique(fkey, return_inverse=True)
+    sh = 2 * n_lv + 1
+
+    def groups(L, X, Y, extra=None):
+        key = (L << sh | Y) << sh | X
+        if extra is not None:
+            key = key << 5 | extra
+        return np.unique(key, return_inverse=True)
+
+    # 1. the texel level each footprint wants, from its drawn vertices' box
+    keys, fg = groups(L, X, Y)
     G = len(keys)
-    gL = keys >> (3 * n_lv)
-    rest = keys & ((1 << (3 * n_lv)) - 1)
-    gY, gX = rest >> n_lv, rest & ((1 << n_lv) - 1)
-    # box of each footprint's drawn vertices (scene) and (i, j), for the texel level
     corner = faces.reshape(-1)
-    cg = np.repeat(face_group, 3)
-    lo = np.full((G, 3), np.inf)
-    hi = np.full((G, 3), -np.inf)
-    for a in range(3):
-        np.minimum.at(lo[:, a], cg, pts[corner, a])
-        np.maximum.at(hi[:, a], cg, pts[corner, a])
-    ilo = np.full(G, np.iinfo(np.int64).max)
-    ihi = np.full(G, -1)
-    jlo, jhi = ilo.copy(), ihi.copy()
-    np.minimum.at(ilo, cg, ij[corner, 0])
-    np.maximum.at(ihi, cg, ij[corner, 0])
-    np.minimum.at(jlo, cg, ij[corner, 1])
-    np.maximum.at(jhi, cg, ij[corner, 1])
+    cg = np.repeat(fg, 3)
+    order = np.argsort(cg, kind="stable")
+    starts = np.searchsorted(cg[order], np.arange(G))
+    cp = pts[corner[order]]
+    lo = np.minimum.reduceat(cp, starts, axis=0)
+    hi = np.maximum.reduceat(cp, starts, axis=0)
     eye = np.asarray(view.eye, np.float64)
     d = np.linalg.norm(np.maximum(0.0, np.maximum(lo - eye, eye - hi)), axis=1)
     f = 0.5 * view.size[1] / math.tan(math.radians(view.fov_y_deg) / 2)
     s0 = _spacing(terrain)
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore"):
         want = np.floor(np.log2(np.maximum(d, 1e-30) * texel_px / (s0 * f)))
-    want = np.nan_to_num(want, nan=0.0, posinf=g.top_level, neginf=0.0)
-    Lt = np.clip(want.astype(np.int64), 0, gL)
-    Lt = np.maximum(Lt, gL - MAX_PAGE_LEVELS)
+    want = np.clip(np.nan_to_num(want, nan=0.0, posinf=g.top_level, neginf=0.0), 0,
+                   g.top_level).astype(np.int64)
+    fL = keys >> (2 * sh)
+    fLt = np.maximum(want, fL - MAX_PAGE_LEVELS)[fg]  # per face
+    # 2. a footprint that wants a coarser texel than its own level is drawn from its
+    #    ancestor tile at that level (one tile page), so far footprints share pages
+    up = np.maximum(fLt - L, 0)
+    L2, X2, Y2 = np.maximum(L, fLt), X >> up, Y >> up
     step = 1 << g.t
     while True:
+        keys, face_group = groups(L2, X2, Y2, fLt)
+        G = len(keys)
+        Lt = keys & 31
+        rest = keys >> 5
+        gL = rest >> (2 * sh)
+        gY, gX = (rest >> sh) & ((1 << sh) - 1), rest & ((1 << sh) - 1)
         k = gL - Lt
         sizes = (step << k) + 1 + 2 * GUTTER
         ax, ay, AW, AH = _pack(sizes)
-        if max(AW, AH) <= MAX_ATLAS or (Lt >= gL).all():
+        if max(AW, AH) <= MAX_ATLAS or (fLt >= L2).all():
             break
-        Lt = np.minimum(Lt + 1, gL)
+        fLt = np.minimum(fLt + 1, L2)  # too many texels: every page one level coarser
+    cg = np.repeat(face_group, 3)
+    order = np.argsort(cg, kind="stable")
+    starts = np.searchsorted(cg[order], np.arange(G))
+    cij = ij[corner[order]]
+    ilo, jlo = np.minimum.reduceat(cij, starts, axis=0).T
+    ihi, jhi = np.maximum.reduceat(cij, starts, axis=0).T
     atlas = np.empty((AH, AW, 3), np.uint8)
     atlas[:] = MISSING_RGB
     n_tiles = 0
     stored = terrain.tile_info
     for gi in range(G):  # one step per page; the texels are whole-array copies
-        lt, kk = int(Lt[gi]), int(gL[gi] - Lt[gi])
+        lt, kk = int(Lt[gi]), int(k[gi])
         span = step << gL[gi]  # the footprint's width in full-resolution samples
         bi, bj = int(gY[gi]) * span, int(gX[gi]) * span
-        page = np.empty(((step << kk) + 1, (step << kk) + 1, 3), np.uint8)
-        page[:] = MISSING_RGB
+        y0, x0 = int(ay[gi]) + GUTTER, int(ax[gi]) + GUTTER
         wt = step << lt  # a level-lt tile's width in full-resolution samples
-        for ty in range(int((ilo[gi] - bi) // wt), min((1 << kk) - 1, int((ihi[gi] - bi - 1)
-                                                                          // wt)) + 1):
-            for tx in range(int((jlo[gi] - bj) // wt),
-                            min((1 << kk) - 1, int((jhi[gi] - bj - 1) // wt)) + 1):
+        last = (1 << kk) - 1
+        for ty in range(min(last, int((ilo[gi] - bi) // wt)),
+                        min(last, int((ihi[gi] - bi - 1) // wt)) + 1):
+            for tx in range(min(last, int((jlo[gi] - bj) // wt)),
+                            min(last, int((jhi[gi] - bj - 1) // wt)) + 1):
                 key = (lt, (int(gX[gi]) << kk) + tx, (int(gY[gi]) << kk) + ty)
                 if key not in stored:
                     continue
-                page[ty * step:ty * step + step + 1, tx * step:tx * step + step + 1] = \
-                    tile_rgb(terrain, *key, shading, cmap, counter)
+                r, c = y0 + ty * step, x0 + tx * step
+                atlas[r:r + step + 1, c:c + step + 1] = tile_rgb(terrain, *key, shading,
+                                                                 cmap, counter)
                 n_tiles += 1
-        y0, x0 = int(ay[gi]), int(ax[gi])
-        s = page.shape[0]
-        atlas[y0:y0 + s + 2 * GUTTER, x0:x0 + s + 2 * GUTTER] = np.pad(
-            page, ((GUTTER, GUTTER), (GUTTER, GUTTER), (0, 0)), mode="edge")
+        s = (step << kk) + 1  # gutters: the page's edge texels, replicated
+        atlas[y0 - 1, x0:x0 + s] = atlas[y0, x0:x0 + s]
+        atlas[y0 + s, x0:x0 + s] = atlas[y0 + s - 1, x0:x0 + s]
+        atlas[y0 - 1:y0 + s + 1, x0 - 1] = atlas[y0 - 1:y0 + s + 1, x0]
+        atlas[y0 - 1:y0 + s + 1, x0 + s] = atlas[y0 - 1:y0 + s + 1, x0 + s - 1]
     # one point per (footprint, vertex): a vertex shared by two footprints is duplicated
     V = len(pts)
     pk = cg.astype(np.int64) * V + corner
