@@ -3,8 +3,9 @@
 Each configuration (strategy × texture mode) gets its own offscreen scene and a
 freshly opened store (an empty cache), and draws every view of the built-in
 flight (an approach from the overview down to a low oblique pass, planned from
-the stored tile bounds: nothing is decoded to plan it). ``frame_ms`` is what :meth:`TerrainScene.frame` measures:
-selection, texture (per-view atlas or the whole-DEM texture) and the draw with
+the stored tile bounds: nothing is decoded to plan it). ``frame_ms`` is what
+:meth:`TerrainScene.frame` measures: selection, texture (per-view atlas or the
+whole-DEM texture) and the draw with
 read-back. The first frame of a configuration is reported apart (cold); the
 medians are over the other, warm, frames. Bruteforce is drawn on every
 ``--brute-every``-th view only (each of its frames draws every level-0 tile), and
@@ -21,10 +22,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 import time
-
-import math
 
 import numpy as np
 
