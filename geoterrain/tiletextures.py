@@ -19,8 +19,11 @@ byte-bounded tile cache; a tile no drawn triangle touches is never decoded or
 shaded. Chosen by measurement on srtm1_japan at 640×360, rtin τ = 1 against the
 bruteforce render with the mipmapped whole-DEM level-0 texture: texels ≤ 0.5 / 1 /
 1.5 / 2 px gave 34.7 / 36.9 / 37.8 / 37.7 dB (view 1) and 33.6 / 35.0 / 35.3 / 35.2 dB
-(view 2); finer texels alias, as there are no mipmaps across atlas pages. The pages are packed into one atlas texture (one actor, per-vertex
-texture coordinates; vertices are duplicated per footprint).
+(view 2); finer texels alias, as there are no mipmaps across atlas pages.
+
+The pages are packed into one atlas texture (one actor, per-vertex texture
+coordinates; vertices are duplicated per footprint). An atlas rather than one
+actor per tile: a frame has hundreds of pages, and VTK draws one actor per call.
 
 Examples
 --------
