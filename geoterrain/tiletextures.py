@@ -27,8 +27,8 @@ actor per tile: a frame has hundreds of pages, and VTK draws one actor per call.
 
 Examples
 --------
->>> import geoterrain
->>> sel = geoterrain.lod.select(t, View((0, -900, 500), (0, 0, 0), size=(320, 240)))
+>>> from geoterrain import lod
+>>> sel = lod.select(t, View((0, -900, 500), (0, 0, 0), size=(320, 240)))
 >>> tex = build_view_texture(t, sel, View((0, -900, 500), (0, 0, 0), size=(320, 240)))
 >>> tex.image.dtype.name, tex.tcoords.shape[1], tex.stats["textures_built"] > 0
 ('uint8', 2, True)
@@ -164,7 +164,8 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     Examples
     --------
     >>> v = View((0, -900, 500), (0, 0, 0), size=(320, 240))
-    >>> tex = build_view_texture(t, geoterrain.lod.select(t, v), v, "elevation")
+    >>> from geoterrain import lod
+    >>> tex = build_view_texture(t, lod.select(t, v), v, "elevation")
     >>> bool((tex.tcoords >= 0).all() and (tex.tcoords <= 1).all())
     True
     """
