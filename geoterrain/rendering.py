@@ -56,7 +56,7 @@ from geoterrain.exaggerate import exaggerated
 from geoterrain.exceptions import UsageError, WriteError, exists_error
 from geoterrain.lod.registry import DEFAULT, strategy_info
 from geoterrain.overlays import compose, layout_for
-from geoterrain.store import partial_path, publish, remove_stale_partials
+from geoterrain.store import partial_path, publish, remove_stale_partials, write_atomic
 from geoterrain.textures import SHADINGS, texture_image, texture_level
 from geoterrain.view import View
 
@@ -333,7 +333,7 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
     stats.update(size=[int(view.size[0]), int(view.size[1])], path=str(path),
                  shading=shading, look_from=list(view.look_from), look_at=list(view.look_at))
     if stats_path is not None:
-        Path(stats_path).write_text(json.dumps(stats, indent=2, default=float))
+        write_atomic(stats_path, json.dumps(stats, indent=2, default=float))  # never half
     return stats
 
 

@@ -48,7 +48,7 @@ def _chunked(t, e, chunk):
     return ij, faces, np.concatenate([c.xyz for c in cs])
 
 
-@settings(max_examples=25, deadline=None,
+@settings(max_examples=15, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(which=st.integers(0, 1), e=st.floats(0, 60, allow_nan=False),
        chunk=st.integers(1, 3000))
