@@ -384,9 +384,11 @@ def _animation_writer(out: str | Path, fps: float, overwrite: bool = True):
                 raise UsageError("writing .mp4 needs the imageio-ffmpeg package "
                                  "(pip install imageio-ffmpeg); or use -o frames.gif") from None
             w = iio2.get_writer(tmp, fps=fps, macro_block_size=1)
-        else:
-            w = iio2.get_writer(tmp, mode="I", duration=1000.0 / fps, loop=0)
-        return w.append_data, w.close, lambda: publish(tmp, out, overwrite), tmp
+            return w.append_data, w.close, lambda: publish(tmp, out, overwrite), tmp
+        from geoterrain.gifstream import GifStream  # frame by frame: memory flat in frames
+
+        g = GifStream(tmp, fps)
+        return g.append, g.close, lambda: publish(tmp, out, overwrite), tmp
     tmp.mkdir()
     counter = iter(range(MAX_FRAMES))
 
