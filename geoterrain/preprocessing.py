@@ -24,6 +24,7 @@ from geoterrain.codec import decoded_heights, encode_pyramid
 from geoterrain.exceptions import InputError, UsageError, exists_error
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid, level_tiles
+from geoterrain.mosaic import is_glob, mosaic_name, source_files
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.quantize import choose_quantizer
 from geoterrain.raster import Raster, read_raster
@@ -58,7 +59,7 @@ def validate(r: Raster, z_scale: float | None) -> None:
 
 
 def preprocess(
-    src: str | Path,
+    src: str | Path | list,
     dst: str | Path | None = None,
     *,
     tile_size: int = 64,
@@ -79,9 +80,12 @@ def preprocess(
     Parameters
     ----------
     src
-        A DEM GDAL reads, or a Terrain-RGB/Terrarium PNG tile.
+        A DEM GDAL reads (a ``.vrt`` too), or a Terrain-RGB/Terrarium PNG tile; or a
+        mosaic: a list of files or a glob such as ``"srtm/*.hgt"`` (one CRS, one pixel
+        size, one band count; see :mod:`geoterrain.mosaic`).
     dst
-        The store to write; default: ``src`` with the suffix ``.geoterrain``.
+        The store to write; default: ``src`` with the suffix ``.geoterrain`` (a list
+        or glob must name it).
     tile_size
         Tile edge in samples, a power of two (tiles hold ``tile_size + 1``²).
     band, encoding
@@ -141,26 +145,32 @@ def preprocess(
         raise UsageError(f"tile_size must be a power of two in [2, {MAX_TILE_SIZE}], "
                          f"got {tile_size}", cli=f"--tile-size must be a power of two in "
                          f"[2, {MAX_TILE_SIZE}], got {tile_size}")
+    files = source_files(src)
+    mosaic = isinstance(src, (list, tuple)) or is_glob(src)
+    if dst is None and mosaic:
+        raise UsageError("a mosaic (list of files or glob) has no default store name; "
+                         "pass dst", cli="a mosaic (several files or a glob) has no default "
+                         "store name; pass -o STORE")
     dst = Path(dst) if dst is not None else default_store_path(src)
     remove_stale_partials(dst.parent if str(dst.parent) else Path("."))
     if dst.exists() and not overwrite:
         raise exists_error(dst)
-    if Path(src).resolve() == dst.resolve():
+    if any(f.resolve() == dst.resolve() for f in files):
         raise UsageError(f"{dst}: the store would overwrite its own input; choose another dst",
                          cli=f"{dst}: the store would overwrite its own input; choose another -o")
 
-    r = read_raster(src, band=band, encoding=encoding, nodata=nodata)
+    r = read_raster(files if mosaic else src, band=band, encoding=encoding, nodata=nodata)
     validate(r, z_scale)
     zxy = parse_tile(tile) if tile is not None else None
     if zxy is not None and (pixel_size is not None or r.crs_wkt is not None):
         raise UsageError("a web-map tile is placed by its z/x/y; give tile or pixel_size, not "
                          "both", cli="give --tile or --pixel-size, not both")
-    if zxy is None and r.crs_wkt is None and pixel_size is None:
+    if zxy is None and r.crs_wkt is None and pixel_size is None and not mosaic:
         zxy = tile_from_path(src)
     if zxy is not None:
         r.transform, r.crs_wkt = tile_georeference(*zxy, r.shape[1], r.shape[0])
         log.info("%s: web-map tile %d/%d/%d in EPSG:3857", src, *zxy)
-    z_units = resolve_z_units(z_units, r.crs_wkt, str(src))
+    z_units = resolve_z_units(z_units, r.crs_wkt, r.path)
     frame = Frame.from_raster(r.transform, r.crs_wkt, r.shape[0], r.shape[1],
                               pixel_size=pixel_size, z_units=z_units,
                               z_scale=1.0 if z_scale is None else z_scale)
@@ -245,7 +255,7 @@ def preprocess(
         w.put_metadata({
             "format": "geoterrain",
             "generator": f"geoterrain {__version__}",
-            "source": str(Path(src).name),
+            "source": mosaic_name(files),
             "source_dtype": r.src_dtype,
             "source_nodata": r.nodata,
             "encoding": r.encoding,
