@@ -28,10 +28,18 @@ from geoterrain.mosaic import is_glob, mosaic_name, source_files
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.quantize import choose_quantizer
 from geoterrain.raster import Raster, read_raster
+from geoterrain.rounding import round_up
 from geoterrain.store import StoreWriter, default_store_path, remove_stale_partials
 from geoterrain.tilebounds import tile_errors
 from geoterrain.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
-from geoterrain.vertexdata import pack_bounds, scale_bounds, scale_exponent
+from geoterrain.vertexdata import (
+    log8_codes,
+    log8_exponent,
+    log8_table,
+    pack_bounds_v2,
+    scale_bounds,
+    scale_exponent,
+)
 
 log = logging.getLogger("geoterrain")
 Progress = Callable[[str, int, int], None]
@@ -207,7 +215,11 @@ def preprocess(
 
     height_blobs = encode_pyramid(heights, valid, grid.t, q, level=zstd_level)
     jobs = []  # (kind, key, payload-maker); zstd releases the GIL, so threads overlap
-    kd, kr = scale_exponent(delta), scale_exponent(radius)  # one scale: monotone rounding
+    # δ: 8-bit log codes rounded up (saturation survives: one monotone map per store);
+    # r: float16 rounded up (nesting holds to 2^-10). Below the top level only the
+    # vertices new at the level are stored; the others are the parent's (vertexdata.py).
+    ed, kr = log8_exponent(delta), scale_exponent(radius)
+    d_table = log8_table(ed)
     tile_rows: dict = {}
     for L in grid.levels:
         keys = [k for k in height_blobs if k[0] == L]
@@ -216,19 +228,22 @@ def preprocess(
         tiles_d = level_tiles(delta, grid.t, L)
         tiles_r = level_tiles(radius, grid.t, L)
         tiles_n = level_tiles(nrm_levels[L], grid.t, 0)
-        # max δ and r over the vertices new at this level (the others belong to coarser tiles)
+        dc = log8_codes(tiles_d, ed)
+        r16, _ = scale_bounds(tiles_r, kr)
+        # max δ and r over the vertices new at this level (the others belong to coarser
+        # tiles), of the values as stored: a tile skipped by them skips no stored vertex
         new = np.ones((grid.tile_samples,) * 2, bool)
-        if L < grid.top_level:
+        new_only = L < grid.top_level
+        if new_only:
             new[::2, ::2] = False
-        dmax, rmax = tiles_d[..., new].max(axis=-1), tiles_r[..., new].max(axis=-1)
-        d16, dk = scale_bounds(tiles_d, kd)
-        r16, rk = scale_bounds(tiles_r, kr)
+        dmax = d_table[dc[..., new]].max(axis=-1)
+        rmax = round_up(r16[..., new].astype(np.float64) * 2.0**kr, np.float32).max(axis=-1)
         for key in keys:
             _, x, y = key
             # per-tile max δ and r let a view skip a tile without decoding it
             tile_rows[key] = (*bounds[key], float(dmax[y, x]), float(rmax[y, x]))
-            jobs.append(("delta", key, d16[y, x], int(dk[y, x])))
-            jobs.append(("radius", key, r16[y, x], int(rk[y, x])))
+            jobs.append(("delta", key, dc[y, x], (ed, True, new_only)))
+            jobs.append(("radius", key, r16[y, x], (kr, False, new_only)))
             jobs.append(("normals", key, tiles_n[y, x], None))
     local = threading.local()
 
@@ -238,7 +253,7 @@ def preprocess(
             local.cctx = zstandard.ZstdCompressor(level=3)
         if kind == "normals":
             return kind, key, local.cctx.compress(np.ascontiguousarray(arr).tobytes())
-        return kind, key, pack_bounds(arr, k, local.cctx)
+        return kind, key, pack_bounds_v2(arr, *k, local.cctx)
 
     extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}}
     with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:

@@ -60,3 +60,86 @@ def test_info_prints_the_size_line(tmp_path):
     res = CliRunner().invoke(cli, ["info", str(store), "--json", "--no-reference"])
     i = json.loads(res.output)
     assert "ratio" not in i["size"] and sum(i["size"]["components"].values()) == i["size_bytes"]
+
+
+def _rewrite_bounds_v1(store, tmp_path):
+    """A copy of ``store`` whose δ and r blobs use version 1 (all samples, float16):
+    the layout stores written before the size levers hold."""
+    import shutil
+    import sqlite3
+
+    import zstandard
+
+    from geoterrain.store import blob_crc
+    from geoterrain.vertexdata import encode_bounds
+
+    old = tmp_path / "old.geoterrain"
+    shutil.copy(store, old)
+    with geoterrain.open(store) as t:
+        vals = {(k, kind): (t.tile_delta if kind == "delta" else t.tile_radius)(*k)
+                for k in t.tile_info for kind in ("delta", "radius")}
+    cctx = zstandard.ZstdCompressor(level=3)
+    con = sqlite3.connect(old)
+    for (k, kind), a in vals.items():
+        blob = encode_bounds(a, cctx)
+        con.execute("UPDATE blobs SET data=?, crc32=? WHERE level=? AND x=? AND y=? AND kind=?",
+                    (blob, blob_crc(k, kind, blob), *k, kind))
+    con.commit()
+    con.close()
+    return old, vals
+
+
+def test_stores_with_version_1_bounds_stay_readable(tmp_path):
+    from geoterrain.view import View
+
+    store = preprocess(_int_dem(tmp_path), tmp_path / "d.geoterrain")
+    old, vals = _rewrite_bounds_v1(store, tmp_path)
+    with geoterrain.open(old) as t:
+        for (k, kind), a in vals.items():
+            b = (t.tile_delta if kind == "delta" else t.tile_radius)(*k)
+            assert (b >= a).all() and (b <= a * (1 + 2.0**-10) + 1e-30).all()
+        lo, hi = t.scene_box()
+        view = View(tuple(hi + (hi - lo)), tuple((lo + hi) / 2), size=(640, 360))
+        assert t.select(view, 1.0).stats["triangles"] > 0
+
+
+def test_new_vertices_only_blobs_are_smaller_and_exact(tmp_path):
+    store = preprocess(_int_dem(tmp_path), tmp_path / "d.geoterrain")
+    old, vals = _rewrite_bounds_v1(store, tmp_path)
+    with geoterrain.open(store) as t, geoterrain.open(old) as o:
+        new, before = component_bytes(t), component_bytes(o)
+        # a level's shared vertices read from the parent equal the parent's own values
+        g = t.grid
+        for (L, x, y) in t.tile_info:
+            if L < g.top_level:
+                p = t.tile_delta(L + 1, x // 2, y // 2)
+                h = (g.tile_samples - 1) // 2
+                sub = p[(y % 2) * h:(y % 2) * h + h + 1, (x % 2) * h:(x % 2) * h + h + 1]
+                assert np.array_equal(t.tile_delta(L, x, y)[::2, ::2], sub)
+    assert new["delta"] < 0.75 * before["delta"] and new["radius"] < before["radius"]
+
+
+def test_stored_bounds_are_never_below_the_exact_ones(tmp_path):
+    from geoterrain.bounds import vertex_errors, vertex_radii
+    from geoterrain.vertexdata import LOG_STEPS
+
+    store = preprocess(_int_dem(tmp_path), tmp_path / "d.geoterrain", tile_size=16)
+    with geoterrain.open(store) as t:
+        g = t.grid
+        X, Y = t.frame.grid_xy(g.size)
+        h, v = t.level_heights(0)
+        Z = np.where(v, t.frame.z(h), np.nan)
+        D, R = vertex_errors(Z, v), vertex_radii(X, Y, Z, v)
+        for (L, x, y) in t.tile_info:
+            ix = np.ix_(g.tile_rows(L, y), g.tile_cols(L, x))
+            d, r = t.tile_delta(L, x, y), t.tile_radius(L, x, y)
+            assert (d >= D[ix]).all() and (r >= R[ix]).all(), (L, x, y)
+            fin = np.isfinite(D[ix])
+            # 8-bit log codes: at most one step (2^(1/16)) above, plus the smallest code
+            assert (d[fin] <= D[ix][fin] * 2 ** (1 / LOG_STEPS) * (1 + 1e-6) + 2e-4).all()
+            assert (r <= R[ix] * (1 + 2.0**-10) + 1e-30).all()
+            info = t.tile_info[(L, x, y)]
+            new = np.ones(d.shape, bool)
+            if L < g.top_level:
+                new[::2, ::2] = False
+            assert info["delta_max"] == d[new].max() and info["radius_max"] == r[new].max()
