@@ -33,9 +33,11 @@ from geoterrain.store import StoreWriter, default_store_path, remove_stale_parti
 from geoterrain.tilebounds import tile_errors
 from geoterrain.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
 from geoterrain.vertexdata import (
+    NORMALS_PLANAR_DXDY,
     log8_codes,
     log8_exponent,
     log8_table,
+    normals_to_bytes,
     pack_bounds_v2,
     scale_bounds,
     scale_exponent,
@@ -251,8 +253,8 @@ def preprocess(
         kind, key, arr, k = job
         if not hasattr(local, "cctx"):
             local.cctx = zstandard.ZstdCompressor(level=3)
-        if kind == "normals":
-            return kind, key, local.cctx.compress(np.ascontiguousarray(arr).tobytes())
+        if kind == "normals":  # planar 2-D differences (vertexdata.normals_to_bytes)
+            return kind, key, local.cctx.compress(normals_to_bytes(arr))
         return kind, key, pack_bounds_v2(arr, *k, local.cctx)
 
     extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}}
@@ -278,6 +280,7 @@ def preprocess(
             "frame": frame.to_json(),
             "quantizer": dataclasses.asdict(q),
             "normal_bits": NORMAL_BITS,
+            "normals_layout": NORMALS_PLANAR_DXDY,
             "valid_samples": int(r.valid.sum()),
             "nodata_fraction": float(1.0 - r.valid.mean()),
             "height_range": [float(hv.min()), float(hv.max())],

@@ -19,7 +19,13 @@ from geoterrain.normals import decode_octahedral
 from geoterrain.quantize import codes_to_heights
 from geoterrain.store import StoreReader
 from geoterrain.storecheck import check_store
-from geoterrain.vertexdata import NEW_ONLY, VERSION_2, decode_bounds
+from geoterrain.vertexdata import (
+    NEW_ONLY,
+    NORMALS_PLANAR_DXDY,
+    VERSION_2,
+    decode_bounds,
+    normals_from_bytes,
+)
 
 if TYPE_CHECKING:
     import pyvista as pv
@@ -223,6 +229,8 @@ class Terrain:
                 raise StoreCorruptError(f"{self.path}: tile {(level, x, y)} normals cannot be "
                                         "decoded; re-run `geoterrain preprocess`") from None
             dt = np.uint8 if bits == 8 else np.uint16
+            if bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY:
+                return decode_octahedral(normals_from_bytes(raw, T), bits)
             return decode_octahedral(np.frombuffer(raw, dt).reshape(T, T, 2), bits)
         return self._cached(("n", level, x, y), make)
 

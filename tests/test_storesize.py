@@ -143,3 +143,21 @@ def test_stored_bounds_are_never_below_the_exact_ones(tmp_path):
             if L < g.top_level:
                 new[::2, ::2] = False
             assert info["delta_max"] == d[new].max() and info["radius_max"] == r[new].max()
+
+
+def test_stored_normals_are_the_filtered_normal_maps(tmp_path):
+    """Normals read back through the store's layout equal the preprocess's octahedral maps."""
+    from geoterrain.grid import level_tiles
+    from geoterrain.normals import decode_octahedral, encode_octahedral, normal_map, normal_pyramid
+
+    store = preprocess(_int_dem(tmp_path), tmp_path / "d.geoterrain", tile_size=16)
+    with geoterrain.open(store) as t:
+        g = t.grid
+        assert t.meta["normals_layout"] == 2
+        X, Y = t.frame.grid_xy(g.size)
+        h, v = t.level_heights(0)
+        Z = np.where(v, t.frame.z(h), np.nan)
+        levels = normal_pyramid(normal_map(X, Y, Z, v), v, g.top_level + 1)
+        for (L, x, y) in t.tile_info:
+            want = level_tiles(encode_octahedral(levels[L], 8), g.t, 0)[y, x]
+            assert np.array_equal(t.tile_normals(L, x, y), decode_octahedral(want, 8))
