@@ -27,7 +27,13 @@ def command(ctx, store, output, fmt, max_zoom, min_zoom, max_error, overwrite):
     Tiles are gzip-compressed (serve them with `Content-Encoding: gzip`), carry
     oct-encoded normals and a water mask, and share their edge vertices exactly
     with their neighbours; nodata is left out (a hole), never a spike. Each
-    tile's measured error against the DEM is in OUTPUT/geoterrain.json.
+    tile's declared error (a bound on |mesh − DEM| at every DEM sample: the
+    lattice's resampling error + the vertices left out + quantisation) is in
+    OUTPUT/geoterrain.json; below --max-zoom it is within Cesium's level error.
+
+    Heights are written as the DEM holds them (e.g. EGM96 orthometric heights
+    for SRTM); CesiumJS assumes ellipsoidal heights, so the terrain sits off by
+    the geoid undulation (−107 to +85 m) unless the DEM is converted first.
 
     \b
     Examples:

@@ -75,6 +75,22 @@ def tileset(tmp_path_factory):
     return _read_tileset(out, dem)
 
 
+@pytest.fixture(scope="module")
+def steep(tmp_path_factory):
+    """Rough relief at 1" (0–200 m over 2 km): the resampling error is a large share of
+    the fine levels' geometric error, so the per-tile threshold has to leave room for it."""
+    from geoterrain.qmesh import write_tileset
+    from geoterrain.synth import generate
+
+    d = tmp_path_factory.mktemp("qmesh_steep")
+    z = generate("fbm", 65, seed=9).astype(np.float32) * 0.1
+    dem = write_tif(d / "steep.tif", z, crs="EPSG:4326", origin=(138.71, 35.37),
+                    spacing=1 / 3600, nodata=-9999)
+    with geoterrain.open(geoterrain.preprocess(dem, tile_size=32)) as t:
+        write_tileset(t, d / "tiles", max_error=2.0)
+    return _read_tileset(d / "tiles", dem)
+
+
 def _coords(t):
     v = np.array(t.getVerticesCoordinates(), np.float64)
     return v[:, 0], v[:, 1], v[:, 2]
@@ -100,7 +116,7 @@ def test_every_tile_decodes_with_its_extensions(which, request):
         assert len(t.watermask) == 1
 
 
-@pytest.mark.parametrize("which", SETS)
+@pytest.mark.parametrize("which", [*SETS, "steep"])
 def test_heights_within_the_declared_error_of_the_dem(which, request):
     tileset = request.getfixturevalue(which)
     out, tiles, h, transform = tileset
@@ -124,6 +140,24 @@ def test_heights_within_the_declared_error_of_the_dem(which, request):
         checked += len(diff)
         assert diff.max(initial=0) <= declared[f"{z}/{x}/{y}"] + 1e-3, (z, x, y)
     assert checked > 10000
+
+
+@pytest.mark.parametrize("which", [*SETS, "steep"])
+def test_declared_errors_fit_cesiums_level_error(which, request):
+    """Below max zoom each tile's declared error (an a-priori bound: resampling error +
+    largest left-out δ + quantisation) is ≤ Cesium's levelMaximumGeometricError."""
+    from geoterrain.qmesh import cesium_level_error
+
+    out, tiles, _, _ = request.getfixturevalue(which)
+    info = json.loads((out / "geoterrain.json").read_text())
+    zmax = info["max_zoom"]
+    below = [(k, v) for k, v in info["declared_error"].items() if int(k.split("/")[0]) < zmax]
+    assert len(below) > 5
+    for k, v in below:
+        assert v <= cesium_level_error(int(k.split("/")[0])) + 1e-4, k
+    assert info["over_level_error"] == sum(
+        v > info["levels"][k.split("/")[0]]["level_error"] + 1e-4
+        for k, v in info["declared_error"].items())
 
 
 @pytest.mark.parametrize("which", SETS)
