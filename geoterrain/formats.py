@@ -7,8 +7,8 @@ view-dependent LOD mesh) and says where it is on Earth:
   raster centre), glTF's Y-up axes (x = east, y = up, z = −north), normals, an
   ``_ELEVATION`` attribute (metres), the shading texture (elevation colours ×
   hillshade, :mod:`geoterrain.textures`; or an image draped by :mod:`geoterrain.drape`)
-  embedded in an unlit material, and the georeference (:func:`georeference`) in ``asset.extras.geoterrain`` and a sidecar
-  ``<file>.json``.
+  embedded in an unlit material, and the georeference (:func:`georeference`) in
+  ``asset.extras.geoterrain`` and a sidecar ``<file>.json``.
 - **OBJ** with an MTL and a PNG texture beside it (and the sidecar).
 - **PLY** (binary): x, y, z (float64), normals, ``elevation``; the CRS and the origin
   offset in header comments. ``crs_coords=True`` writes source-CRS x, y of each

@@ -29,9 +29,9 @@ rebuilt on a lattice twice as fine (257², when its tiles stay within 16-bit
 indices). At max zoom the threshold is ``max_error`` and the bound is what it is
 (Cesium refines no further there); ``geoterrain.json`` lists it per tile and per level.
 
-Heights are the DEM's own (e.g. EGM96 orthometric heights for SRTM), not the
-ellipsoidal heights CesiumJS assumes: without a geoid correction the terrain sits
-lower or higher than the ellipsoid by the geoid undulation (−107 to +85 m).
+Heights are the DEM's own unless ``geoid="egm96"`` converts EGM96 orthometric heights
+(SRTM's) to the WGS 84 ellipsoidal heights CesiumJS assumes (pyproj, PROJ's EGM96
+grid); without it the terrain sits off by the geoid undulation (−107 to +85 m).
 
 Why our own writer: quantized-mesh-encoder casts positions to float32 (about
 1 m of longitude) and quantises heights per tile, so neighbouring tiles' edge
@@ -81,10 +81,51 @@ def tile_rect(z: int, x: int, y: int) -> tuple[float, float, float, float]:
 
 
 # ------------------------------------------------------------------------ sampling
-class _Dem:
-    """The store's full-resolution heights (metres) and where lon/lat fall on them."""
+GEOIDS = ("egm96",)
 
-    def __init__(self, terrain):
+
+def geoid_transformer(geoid: str = "egm96") -> Transformer:
+    """pyproj's vertical transform from EGM96 heights to WGS 84 ellipsoidal heights.
+
+    Needs PROJ's EGM96 grid (``us_nga_egm96_15.tif``, or ``egm96_15.gtx`` from
+    Debian's ``proj-data`` package in /usr/share/proj); never a ballpark no-op.
+
+    Examples
+    --------
+    >>> try:
+    ...     n = geoid_transformer().transform(0.0, 0.0, 0.0)[2]  # N at (0°, 0°)
+    ... except UsageError:
+    ...     n = 17.16  # the grid is not installed here
+    >>> round(n, 2)
+    17.16
+    """
+    import pyproj
+
+    if geoid not in GEOIDS:
+        raise UsageError(f"unknown geoid {geoid!r}; use one of {', '.join(GEOIDS)}")
+
+    def make() -> Transformer:
+        return Transformer.from_crs("EPSG:4326+5773", "EPSG:4979", always_xy=True,
+                                    allow_ballpark=False, only_best=True)
+    try:
+        return make()
+    except pyproj.exceptions.ProjError:
+        if not Path("/usr/share/proj/egm96_15.gtx").exists():
+            raise UsageError("the EGM96 geoid grid is not installed: apt-get install proj-data "
+                             "(Debian/Ubuntu), or put us_nga_egm96_15.tif in PROJ's data folder "
+                             f"({pyproj.datadir.get_user_data_dir()})") from None
+    pyproj.datadir.append_data_dir("/usr/share/proj")  # Debian's proj-data
+    return make()
+
+
+class _Dem:
+    """The store's full-resolution heights (metres) and where lon/lat fall on them.
+
+    ``geoid``: the heights are EGM96 orthometric heights; convert them to WGS 84
+    ellipsoidal heights (what CesiumJS assumes) at every sample, through pyproj.
+    """
+
+    def __init__(self, terrain, geoid: str | None = None):
         f = terrain.frame
         if f.kind == "pixel" or f.crs_wkt is None:
             raise UsageError("quantized-mesh tiles need a georeferenced DEM; this one has no CRS")
@@ -99,6 +140,12 @@ class _Dem:
         self.to_src = Transformer.from_crs("EPSG:4326", crs, always_xy=True)
         self.to_geo = Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
         self.pixel_deg = self._pixel_degrees(f)
+        if geoid is not None:
+            tr = geoid_transformer(geoid)
+            ii, jj = np.nonzero(self.valid)
+            lon, lat = self.lonlat(ii, jj)
+            _, _, hz = tr.transform(lon, lat, self.h[ii, jj])
+            self.h[ii, jj] = np.asarray(hz, np.float64)
 
     def _pixel_degrees(self, f) -> float:
         i, j = np.array([self.H / 2, self.H / 2 + 1.0]), np.array([self.W / 2, self.W / 2 + 1.0])
@@ -449,11 +496,14 @@ def max_zoom_for(dem: _Dem, lattice: int) -> int:
 
 def write_tileset(terrain, out_dir: str | Path, *, max_zoom: int | None = None,
                   min_zoom: int = 0, lattice: int = 129, max_error: float = 1.0,
-                  overwrite: bool = False,
+                  overwrite: bool = False, geoid: str | None = None,
                   progress: Callable[[str, int, int], None] | None = None) -> dict:
     """Write a quantized-mesh tile set of ``terrain`` into ``out_dir``; returns its figures.
 
     ``lattice`` (2^k + 1 samples a side) ≤ 129 keeps tiles within 16-bit indices.
+    ``geoid="egm96"``: the DEM holds EGM96 heights (SRTM does); the tiles get WGS 84
+    ellipsoidal heights (:func:`geoid_transformer`), and the declared errors are against
+    those.
     """
     out = Path(out_dir)
     if (out / "layer.json").exists() and not overwrite:
@@ -461,7 +511,7 @@ def write_tileset(terrain, out_dir: str | Path, *, max_zoom: int | None = None,
     if lattice < 3 or (lattice - 1) & (lattice - 2) or lattice > 129:
         raise UsageError(f"lattice must be 2^k + 1 in 3..129, got {lattice}")
     t0 = time.perf_counter()
-    dem = _Dem(terrain)
+    dem = _Dem(terrain, geoid)
     zmax = max_zoom_for(dem, lattice) if max_zoom is None else int(max_zoom)
     if not 0 <= min_zoom <= zmax <= 22:
         raise UsageError(f"zoom range {min_zoom}..{zmax} is not within 0..22")
@@ -536,6 +586,7 @@ def write_tileset(terrain, out_dir: str | Path, *, max_zoom: int | None = None,
     stats = {"tiles": len(errors), "bytes": nbytes, "seconds": round(seconds, 2),
              "triangles": triangles, "min_zoom": min_zoom, "max_zoom": zmax,
              "lattice": lattice, "max_error": max_error, "height_range": list(hrange),
+             "heights": f"WGS 84 ellipsoidal (from {geoid.upper()})" if geoid else "as stored",
              "over_level_error": sum(v["over_level_error"] for v in levels.values()),
              "levels": levels, "declared_error": errors}
     (out / "layer.json").write_text(json.dumps(layer, indent=1))

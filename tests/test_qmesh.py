@@ -211,3 +211,50 @@ def test_tiles_refuses_to_overwrite_a_layer(tileset):
     store = next(out.parent.glob("*.geoterrain"))
     res = CliRunner().invoke(cli, ["tiles", str(store), "-o", str(out)])
     assert res.exit_code == 2 and "exists" in res.stderr
+
+
+def test_geoid_gives_ellipsoidal_heights_within_the_declared_error(tmp_path):
+    """--geoid egm96: decoded heights are the DEM's + the EGM96 undulation N (pyproj here,
+    straight from the grid), within each tile's declared error; without the grid, a
+    one-line error."""
+    from pyproj import Transformer
+
+    from geoterrain.cli.main import cli
+    from geoterrain.exceptions import UsageError
+    from geoterrain.qmesh import geoid_transformer
+    from geoterrain.synth import generate
+
+    z = generate("fbm", 65, seed=2).astype(np.float32) * 0.1
+    dem = write_tif(tmp_path / "g.tif", z, crs="EPSG:4326", origin=(138.71, 35.37),
+                    spacing=1 / 3600, nodata=-9999)
+    store = geoterrain.preprocess(dem, tile_size=32)
+    try:
+        geoid_transformer()
+    except UsageError as exc:
+        res = CliRunner().invoke(cli, ["tiles", str(store), "-o", str(tmp_path / "t"),
+                                       "--geoid", "egm96"])
+        assert res.exit_code == 2 and "proj-data" in res.stderr
+        pytest.skip(f"no EGM96 grid: {exc}")
+    res = CliRunner().invoke(cli, ["-q", "tiles", str(store), "-o", str(tmp_path / "t"),
+                                   "--geoid", "egm96"], catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    out, tiles, h, transform = _read_tileset(tmp_path / "t", dem)
+    info = json.loads((out / "geoterrain.json").read_text())
+    assert info["heights"].startswith("WGS 84 ellipsoidal")
+    rows, cols = np.mgrid[0:h.shape[0], 0:h.shape[1]]
+    slon, slat = (np.asarray(a) for a in rasterio.transform.xy(transform, rows.ravel(),
+                                                                   cols.ravel()))
+    tr = Transformer.from_crs("EPSG:4326+5773", "EPSG:4979", always_xy=True)
+    ell = np.asarray(tr.transform(slon, slat, h.filled(np.nan).ravel())[2])
+    assert 35 < np.nanmean(ell - h.filled(np.nan).ravel()) < 45  # N ≈ +40 m at Fuji
+    zmax = info["max_zoom"]
+    t = tiles[max(k for k in tiles if k[0] == zmax)]
+    lon, lat, hgt = _coords(t)
+    w, s, e, n = tile_rect(*max(k for k in tiles if k[0] == zmax))
+    inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)
+    surf = mtri.LinearTriInterpolator(mtri.Triangulation(lon, lat, np.array(t.indices)
+                                                         .reshape(-1, 3)), hgt)
+    diff = np.abs(np.ma.filled(surf(slon[inside], slat[inside]), np.nan) - ell[inside])
+    key = "/".join(map(str, max(k for k in tiles if k[0] == zmax)))
+    assert np.nanmax(diff) <= info["declared_error"][key] + 1e-3
+    assert np.isfinite(diff).sum() > 100
