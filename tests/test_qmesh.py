@@ -258,3 +258,49 @@ def test_geoid_gives_ellipsoidal_heights_within_the_declared_error(tmp_path):
     key = "/".join(map(str, max(k for k in tiles if k[0] == zmax)))
     assert np.nanmax(diff) <= info["declared_error"][key] + 1e-3
     assert np.isfinite(diff).sum() > 100
+
+
+def test_rough_levels_are_rebuilt_on_a_finer_lattice(tmp_path):
+    """Where the resampling error leaves no room under the level error, the whole level is
+    rebuilt on a 257² lattice: its tiles still hold their declared bound at every DEM
+    sample and still share edge vertices; tiles over the level error are counted."""
+    from geoterrain.qmesh import write_tileset
+    from geoterrain.synth import generate
+
+    z = generate("fbm", 65, seed=9).astype(np.float32)  # 0–2000 m over 2 km
+    dem = write_tif(tmp_path / "rough.tif", z, crs="EPSG:4326", origin=(138.71, 35.37),
+                    spacing=1 / 3600, nodata=-9999)
+    with geoterrain.open(geoterrain.preprocess(dem, tile_size=32)) as t:
+        write_tileset(t, tmp_path / "tiles", max_error=2.0)
+    out, tiles, h, transform = _read_tileset(tmp_path / "tiles", dem)
+    info = json.loads((out / "geoterrain.json").read_text())
+    fine = [int(z) for z, v in info["levels"].items() if v["lattice"] == 257]
+    assert fine and max(fine) < info["max_zoom"]
+    rows, cols = np.mgrid[0:h.shape[0], 0:h.shape[1]]
+    slon, slat = (np.asarray(a) for a in rasterio.transform.xy(transform, rows.ravel(),
+                                                                   cols.ravel()))
+    dem_h = h.filled(np.nan).ravel()
+    checked = 0
+    for (zz, x, y), tile in tiles.items():
+        if zz not in fine:
+            continue
+        lon, lat, hgt = _coords(tile)
+        w, s, e, n = tile_rect(zz, x, y)
+        step = np.diff(np.unique(lon)).min() / (e - w)  # 1/256 on a 257² lattice
+        assert abs(step * 256 - 1) < 0.01, (zz, step)
+        checked += 1
+        inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)
+        tri = mtri.Triangulation(lon, lat, np.array(tile.indices).reshape(-1, 3))
+        surf = np.ma.filled(mtri.LinearTriInterpolator(tri, hgt)(slon[inside], slat[inside]),
+                            np.nan)
+        diff = np.abs(surf - dem_h[inside])
+        assert np.nanmax(diff) <= info["declared_error"][f"{zz}/{x}/{y}"] + 1e-3
+        o = tiles.get((zz, x + 1, y))
+        if o is not None:
+            a = np.array(_coords(tile)).T[tile.eastI]
+            b = np.array(_coords(o)).T[o.westI]
+            assert np.array_equal(np.sort(a[:, 2]), np.sort(b[:, 2]))
+    assert checked >= len(fine)
+    over = sum(v > info["levels"][k.split("/")[0]]["level_error"] + 1e-4
+               for k, v in info["declared_error"].items())
+    assert info["over_level_error"] == over
