@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from geoterrain.curvature import BORDER_FRACTION
@@ -177,3 +177,68 @@ def test_projected_and_pixel_paths_never_call_it(tmp_path, monkeypatch):
                pixel_size=2.0)
     with pytest.raises(AssertionError, match="affine"):
         preprocess(_geo_tif(tmp_path / "g.tif", z, 10.0, 61.0, 2.0), tmp_path / "c.geoterrain")
+
+
+def _vertex_triangles(N):
+    """(v, a, b, c) of every bintree triangle, by its split vertex v, written out here."""
+    out = []
+    h = 1
+    while h < N - 1:
+        s = 2 * h
+        for i0 in range(0, N - 1, s):
+            for j0 in range(0, N - 1, s):
+                v = (i0 + h, j0 + h)
+                if ((i0 // s) + (j0 // s)) % 2 == 0:  # union jack: main diagonal
+                    a, b, apex = (i0, j0), (i0 + s, j0 + s), [(i0, j0 + s), (i0 + s, j0)]
+                else:
+                    a, b, apex = (i0, j0 + s), (i0 + s, j0), [(i0, j0), (i0 + s, j0 + s)]
+                out += [(v, a, b, c) for c in apex]
+        for i in range(0, N, h):
+            for j in range(0, N, h):
+                if (i // h) % 2 + (j // h) % 2 != 1:
+                    continue
+                if (i // h) % 2:  # hypotenuse along the rows
+                    ends, apex = [(i - h, j), (i + h, j)], [(i, j - h), (i, j + h)]
+                else:
+                    ends, apex = [(i, j - h), (i, j + h)], [(i - h, j), (i + h, j)]
+                out += [((i, j), *ends, c) for c in apex
+                        if 0 <= c[0] < N and 0 <= c[1] < N]
+        h *= 2
+    return out
+
+
+@settings(max_examples=8)
+@given(seed=st.integers(0, 2**16), lat=st.floats(-80, 80), rough=st.floats(0, 400))
+def test_each_triangle_is_within_its_vertex_bounds(seed, lat, rough):
+    """Oracle per bintree triangle T of split vertex v: every valid sample whose scene x/y
+    lies in T (measured by metricmeasure) is within δ(v) of T and within r(v) of p_v."""
+    from geoterrain.bounds import vertex_errors, vertex_radii
+    from geoterrain.curvature import metric_bounds
+    from pyproj import CRS
+
+    from geoterrain.frame import Frame
+
+    N = 17
+    fr = Frame.from_raster((0.6, 0, 10.0, 0, -0.3, lat + 2.4), CRS.from_epsg(4326).to_wkt(), N, N)
+    X, Y = fr.grid_xy(N)
+    rng = np.random.default_rng(seed)
+    Z = rough * rng.random((N, N)) + 30.0 * np.indices((N, N))[1]
+    valid = rng.random((N, N)) > 0.05
+    d, r = metric_bounds(vertex_errors(Z, valid), vertex_radii(X, Y, Z, valid), X, Y, Z, valid)
+    tol = BORDER_FRACTION * min(np.hypot(np.diff(X, axis=a), np.diff(Y, axis=a)).min()
+                                for a in (0, 1))
+    for v, a, b, c in _vertex_triangles(N):
+        if not (valid[a] and valid[b] and valid[c]):
+            continue
+        corners = np.array([a, b, c])
+        vx, vy, vz = (X[tuple(corners.T)], Y[tuple(corners.T)],
+                      Z[tuple(corners.T)])
+        keep = valid.copy()
+        keep[tuple(corners.T)] = False  # corners are mesh vertices
+        err, _ = metric_errors(np.array([[0, 1, 2]]), vx, vy, vz, X, Y, Z, keep, tol)
+        held = np.isfinite(err)
+        if not held.any():
+            continue
+        assert err[held].max() <= d[v], (v, a, b, c, err[held].max(), d[v])
+        dist = np.sqrt((X - X[v]) ** 2 + (Y - Y[v]) ** 2 + (Z - Z[v]) ** 2)
+        assert dist[held].max() <= r[v], (v, dist[held].max(), r[v])
