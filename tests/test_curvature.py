@@ -20,7 +20,6 @@ from geoterrain.metricmeasure import metric_errors, metric_screen_error
 from geoterrain.preprocessing import preprocess
 from geoterrain.terrain import Terrain
 from geoterrain.view import View
-
 from tests.conftest import real_dem, write_tif
 
 ES = (1.0, 5.0, 20.0)
@@ -212,10 +211,10 @@ def _vertex_triangles(N):
 def test_each_triangle_is_within_its_vertex_bounds(seed, lat, rough):
     """Oracle per bintree triangle T of split vertex v: every valid sample whose scene x/y
     lies in T (measured by metricmeasure) is within δ(v) of T and within r(v) of p_v."""
-    from geoterrain.bounds import vertex_errors, vertex_radii
-    from geoterrain.curvature import metric_bounds
     from pyproj import CRS
 
+    from geoterrain.bounds import vertex_errors, vertex_radii
+    from geoterrain.curvature import metric_bounds
     from geoterrain.frame import Frame
 
     N = 17
