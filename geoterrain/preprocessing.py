@@ -21,6 +21,7 @@ import zstandard
 from geoterrain._version import __version__
 from geoterrain.bounds import stand_in_z, vertex_errors, vertex_radii
 from geoterrain.codec import decoded_heights, encode_pyramid
+from geoterrain.curvature import metric_bounds
 from geoterrain.exceptions import InputError, UsageError, exists_error
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid, level_tiles
@@ -205,6 +206,8 @@ def preprocess(
     delta = vertex_errors(Z, valid)
     stage("errors")
     radius = vertex_radii(X, Y, Z, valid)
+    if frame.kind == "geographic":  # curvilinear grid: δ and r that hold in scene x/y
+        delta, radius = metric_bounds(delta, radius, X, Y, Z, valid)
     stage("radii")
     bounds = tile_errors(Z, valid, X, Y, grid.t)
     stage("tile bounds")
