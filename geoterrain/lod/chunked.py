@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoterrain.lod.tiles import assemble, quadtree_leaves, tile_index
+from geoterrain.lod.chunks import assemble_chunks, chunk_error
+from geoterrain.lod.tiles import quadtree_leaves, tile_index
 from geoterrain.view import View
 
 
@@ -28,17 +29,20 @@ def select(terrain, view: View, tau: float):
     """
     index = tile_index(terrain)
     lam = view.lam
+    error = chunk_error(terrain, index)
 
     def refine(nodes: np.ndarray, L: np.ndarray) -> np.ndarray:
         dmin = view.box_distance(index.lo[nodes], index.hi[nodes])
-        err = index.error[nodes]
+        err = error[nodes]
         with np.errstate(invalid="ignore"):
             return (lam * err > tau * dmin) | ((dmin == 0) & (err > 0))
 
     leaves, stats = quadtree_leaves(terrain, index, view, refine)
     depth = None
     if len(leaves):
-        be = index.boundary[leaves]
+        # a chunk's edge lies within ε_chunk of the samples (its uniform edge within
+        # the stored boundary error), so two drawn edges are at most the sum apart
+        be = np.maximum(index.boundary[leaves], error[leaves])
         depth_all = float(np.max(be[np.isfinite(be)], initial=0.0))
         depth = np.where(np.isfinite(be), be, 0.0) + depth_all
-    return assemble(terrain, index, leaves, depth), stats
+    return assemble_chunks(terrain, index, leaves, depth), stats

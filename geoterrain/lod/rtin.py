@@ -41,19 +41,65 @@ from geoterrain.lod.kernels import (
 from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.pool import tile_pool
 from geoterrain.lod.tiles import TileIndex, tile_index
-from geoterrain.view import View
+from geoterrain.view import INSIDE, OUTSIDE, View
 
 _SCRATCH: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-class ActiveSet:
-    """Dense per-sample flags filled tile by tile: ``active`` and ``mixed`` (δ = inf)."""
+class _Scratch:
+    """Per-terrain buffers reused by every view-dependent selection.
 
-    def __init__(self, terrain):
+    ``active``/``mixed`` hold generation stamps (uint8): a flag is set in this
+    frame when it equals ``gen``. A new frame takes the next stamp instead of
+    clearing N² flags, so a frame costs what it touches, not the grid's size;
+    the arrays are cleared once every 255 frames. ``vid`` maps samples to mesh
+    vertex ids (kept at -1 between frames); ``last_faces`` sizes the next output.
+    """
+
+    def __init__(self, N: int):
+        self.N = N
+        self.active = self.mixed = None  # allocated by the first view-dependent frame
+        self.gen = 0
+        self.vid = np.full(N * N, -1, np.int32)
+        self.last_faces = 0
+
+    def next_gen(self) -> np.uint8:
+        if self.active is None:
+            self.active = np.zeros((self.N, self.N), np.uint8)
+            self.mixed = np.zeros((self.N, self.N), np.uint8)
+        if self.gen == 255:
+            self.active.fill(0)
+            self.mixed.fill(0)
+            self.gen = 0
+        self.gen += 1
+        return np.uint8(self.gen)
+
+
+def _scratch(terrain) -> _Scratch:
+    sc = _SCRATCH.get(terrain)
+    if sc is None:
+        sc = _SCRATCH[terrain] = _Scratch(terrain.grid.size)
+    return sc
+
+
+class ActiveSet:
+    """Per-sample flags filled tile by tile: ``active`` and ``mixed`` (δ = inf).
+
+    With ``stamped`` the flags are the terrain's reused stamp arrays and a flag is
+    set when it equals ``gen``; otherwise they are fresh bool arrays (``gen`` True).
+    """
+
+    def __init__(self, terrain, stamped: bool = False):
         N = terrain.grid.size
         self.terrain = terrain
-        self.active = np.zeros((N, N), bool)
-        self.mixed = np.zeros((N, N), bool)
+        if stamped:
+            sc = _scratch(terrain)
+            self.gen = sc.next_gen()
+            self.active, self.mixed = sc.active, sc.mixed
+        else:
+            self.gen = True
+            self.active = np.zeros((N, N), bool)
+            self.mixed = np.zeros((N, N), bool)
         # per level: rows i0, i1 and columns j0, j1 covering the tiles filled
         self.boxes = np.tile(np.array([N, -1, N, -1], np.int64), (terrain.grid.top_level + 1, 1))
 
@@ -76,7 +122,7 @@ class ActiveSet:
 
     def close(self) -> None:
         """Close the active set upward, scanning only where tiles were filled."""
-        close_upward_boxes(self.active, self.boxes)
+        close_upward_boxes(self.active, self.boxes, self.gen)
 
     def mark_unknown_mixed(self, rows: np.ndarray, index) -> None:
         """Tiles not read that may hold δ = inf: flag their samples as mixed (not drawn)."""
@@ -86,7 +132,7 @@ class ActiveSet:
             L, x, y = (int(v) for v in index.keys[row])
             s = 1 << L
             i0, j0 = (y << g.t) << L, (x << g.t) << L
-            self.mixed[i0:i0 + (T - 1) * s + 1, j0:j0 + (T - 1) * s + 1] = True
+            self.mixed[i0:i0 + (T - 1) * s + 1, j0:j0 + (T - 1) * s + 1] = self.gen
 
 
 def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
@@ -97,7 +143,8 @@ def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
         pool = tile_pool(terrain)
         idx, i0, j0, step = act.tiles(rows, index)
         slots = pool.slots(idx, ("delta",))
-        fill_static(slots, i0, j0, step, pool.D, float(max_error), act.active, act.mixed)
+        fill_static(slots, i0, j0, step, pool.D, float(max_error), act.active, act.mixed,
+                    act.gen, 1 << terrain.grid.top_level)
     act.close()
     return act
 
@@ -111,19 +158,23 @@ def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     with np.errstate(invalid="ignore", over="ignore"):
         dm = index.delta_max
         can = (dm > 0) & ((dbox <= rmax) | (lam * dm > tau * (dbox - rmax)))
-    pad = rmax[:, None]
-    visible = view.box_visibility(index.lo - pad, index.hi + pad) != 0
-    rows = np.flatnonzero(can & visible)
-    act = ActiveSet(terrain)
+    cand = np.flatnonzero(can)
+    pad = index.radius_max[cand, None]
+    vis = view.box_visibility(index.lo[cand] - pad, index.hi[cand] + pad)
+    rows, inside = cand[vis != OUTSIDE], vis[vis != OUTSIDE] == INSIDE
+    act = ActiveSet(terrain, stamped=True)
     if len(rows):
         pool = tile_pool(terrain)
         idx, i0, j0, step = act.tiles(rows, index)
         slots = pool.slots(idx, ("delta", "radius", "height", "xy"))
         zfac = terrain.frame.z_to_m * terrain.frame.z_scale
-        fill_lp(slots, i0, j0, step, pool.D, pool.R, pool.H, pool.X, pool.Y, zfac,
-                terrain.stand_in_z, eye, view.planes, lam, tau, act.active, act.mixed)
+        fill_lp(slots, inside, i0, j0, step, pool.D, pool.R, pool.H, pool.X, pool.Y, zfac,
+                terrain.stand_in_z, eye, view.planes, lam, tau, act.active, act.mixed, act.gen,
+                1 << terrain.grid.top_level)
     act.close()
-    unread = np.flatnonzero(~(can & visible) & ~np.isfinite(index.delta_max))
+    drawn = np.zeros(len(dm), bool)
+    drawn[rows] = True
+    unread = np.flatnonzero(~drawn & ~np.isfinite(dm))
     act.mark_unknown_mixed(unread, index)
     return act
 
@@ -148,10 +199,10 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None):
     outside one frustum plane. Cell data ``skirt`` (all 0) and ``level``.
     """
     N = terrain.grid.size
-    vid = _SCRATCH.get(terrain)
-    if vid is None:
-        vid = _SCRATCH[terrain] = np.full(N * N, -1, np.int32)
-    faces, flat = extract(act.active, act.mixed, vid)
+    sc = _scratch(terrain)
+    guess = 2 * sc.last_faces + 65536  # np.empty: untouched capacity costs nothing
+    faces, flat = extract(act.active, act.mixed, sc.vid, act.gen, guess)
+    sc.last_faces = len(faces)
     h, X, Y, lvl = _gather(terrain, flat)
     Z = terrain.frame.z(h)
     planes = view.planes if view is not None else np.zeros((0, 4))
