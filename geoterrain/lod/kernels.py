@@ -235,17 +235,20 @@ def fill_lp(slots, inside, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, plane
 
 
 @njit(cache=True, parallel=True)
-def gather_pooled(flat, N, top, t, base, slot_of, H, X, Y, h, x, y, level):
-    """Height, scene x, y and pyramid level of full-resolution samples ``flat`` (i·N + j),
-    read from the coarsest tile holding each (unstored tiles: NaN, 0, 0)."""
+def gather_pooled(flat, N, top, t, base, slot_of, H, X, Y, zfac, xyz, ij, level):
+    """Scene positions ``xyz`` (x, y, height · zfac), grid ``ij`` and pyramid level of
+    full-resolution samples ``flat`` (i·N + j), read from the coarsest tile holding
+    each (unstored tiles: NaN height, x = y = 0)."""
     for k in prange(flat.shape[0]):
-        L, idx, a, b = _coarsest_tile(flat[k] // N, flat[k] % N, top, t, base)
+        i, j = flat[k] // N, flat[k] % N
+        L, idx, a, b = _coarsest_tile(i, j, top, t, base)
         s = slot_of[idx]
         level[k] = L
+        ij[k, 0], ij[k, 1] = i, j
         if s < 0:
-            h[k], x[k], y[k] = np.nan, 0.0, 0.0
+            xyz[k, 0], xyz[k, 1], xyz[k, 2] = 0.0, 0.0, np.nan
         else:
-            h[k], x[k], y[k] = H[s, a, b], X[s, a, b], Y[s, a, b]
+            xyz[k, 0], xyz[k, 1], xyz[k, 2] = X[s, a, b], Y[s, a, b], H[s, a, b] * zfac
 
 
 @njit(cache=True)
@@ -272,33 +275,52 @@ def mark_tiles(flat, N, top, t, base, occ):
 
 
 @njit(cache=True, parallel=True)
-def _corner_bits(X, Y, Z, planes):
-    """Per vertex: bit 6 = invalid (Z not finite), bit k = outside plane k."""
-    V, P = X.shape[0], planes.shape[0]
+def _corner_bits(xyz, planes):
+    """Per vertex: bit 6 = invalid (z not finite), bit k = outside plane k."""
+    V, P = xyz.shape[0], planes.shape[0]
     bits = np.zeros(V, np.uint8)
     for v in prange(V):
-        z = Z[v]
+        x, y, z = xyz[v, 0], xyz[v, 1], xyz[v, 2]
         b = 0
         if not np.isfinite(z):
             b = 64
             z = 0.0
         for k in range(P):
-            if planes[k, 0] * X[v] + planes[k, 1] * Y[v] + planes[k, 2] * z + planes[k, 3] < 0:
+            if planes[k, 0] * x + planes[k, 1] * y + planes[k, 2] * z + planes[k, 3] < 0:
                 b |= 1 << k
         bits[v] = b
     return bits
 
 
+@njit(cache=True, parallel=True)
+def _face_levels(faces, lvl):
+    out = np.empty(faces.shape[0], np.int16)
+    for f in prange(faces.shape[0]):
+        out[f] = min(lvl[faces[f, 0]], lvl[faces[f, 1]], lvl[faces[f, 2]])
+    return out
+
+
 @njit(cache=True)
-def cull_compact(faces, X, Y, Z, planes, lvl):
-    """Drop triangles with an invalid corner (Z NaN) or entirely outside one frustum
+def _any(bits):
+    for v in range(bits.shape[0]):
+        if bits[v] != 0:
+            return True
+    return False
+
+
+@njit(cache=True)
+def cull_compact(faces, xyz, planes, lvl):
+    """Drop triangles with an invalid corner (z NaN) or entirely outside one frustum
     plane (``planes`` (P, 4), P = 0 for none); renumber the vertices left in order.
 
-    Returns the kept faces (renumbered), the kept vertices' indices and each kept
-    triangle's level (the coarsest level shared by its corners: min of ``lvl``).
+    Returns the kept faces (renumbered), the kept vertices' indices (None when every
+    vertex is kept: nothing was dropped) and each kept triangle's level (the
+    coarsest level shared by its corners: min of ``lvl``).
     """
-    V, F = X.shape[0], faces.shape[0]
-    bits = _corner_bits(X, Y, Z, planes)
+    V, F = xyz.shape[0], faces.shape[0]
+    bits = _corner_bits(xyz, planes)
+    if not _any(bits):
+        return faces, None, _face_levels(faces, lvl)
     keep = np.zeros(F, np.bool_)
     used = np.zeros(V, np.bool_)
     nf = 0
@@ -310,7 +332,7 @@ def cull_compact(faces, X, Y, Z, planes, lvl):
             used[faces[f, 0]] = True
             used[faces[f, 1]] = True
             used[faces[f, 2]] = True
-    remap = np.full(V, -1, np.int64)
+    remap = np.full(V, -1, np.int32)
     nv = 0
     for v in range(V):
         if used[v]:
@@ -320,7 +342,7 @@ def cull_compact(faces, X, Y, Z, planes, lvl):
     for v in range(V):
         if used[v]:
             vid[remap[v]] = v
-    out = np.empty((nf, 3), np.int64)
+    out = np.empty((nf, 3), np.int32)
     level = np.empty(nf, np.int16)
     n = 0
     for f in range(F):

@@ -180,16 +180,18 @@ def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
 
 
 def _gather(terrain, flat: np.ndarray):
-    """Heights, scene x, y and pyramid levels of samples ``flat`` from the pooled tiles."""
+    """Scene positions, grid indices and pyramid levels of samples ``flat``, read from
+    the pooled tiles."""
     pool = tile_pool(terrain)
     occ = np.zeros(len(pool.slot_of), bool)
     mark_tiles(flat, pool.N, pool.top, pool.t, pool.base, occ)
     pool.slots(np.flatnonzero(occ), ("height", "xy"))
     n = len(flat)
-    h, X, Y, lvl = np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.int64)
+    xyz, ij, lvl = np.empty((n, 3)), np.empty((n, 2), np.int64), np.empty(n, np.int64)
+    zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
     gather_pooled(flat, pool.N, pool.top, pool.t, pool.base, pool.slot_of, pool.H, pool.X,
-                  pool.Y, h, X, Y, lvl)
-    return h, X, Y, lvl
+                  pool.Y, zfac, xyz, ij, lvl)
+    return xyz, ij, lvl
 
 
 def active_mesh(terrain, act: ActiveSet, view: View | None = None):
@@ -198,18 +200,16 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None):
     Triangles with an invalid corner are dropped, and with ``view`` those entirely
     outside one frustum plane. Cell data ``skirt`` (all 0) and ``level``.
     """
-    N = terrain.grid.size
     sc = _scratch(terrain)
     guess = 2 * sc.last_faces + 65536  # np.empty: untouched capacity costs nothing
     faces, flat = extract(act.active, act.mixed, sc.vid, act.gen, guess)
     sc.last_faces = len(faces)
-    h, X, Y, lvl = _gather(terrain, flat)
-    Z = terrain.frame.z(h)
+    xyz, ij, lvl = _gather(terrain, flat)
     planes = view.planes if view is not None else np.zeros((0, 4))
-    faces, keep, level = cull_compact(faces, X, Y, Z, planes, lvl)
+    faces, keep, level = cull_compact(faces, xyz, planes, lvl)
+    if keep is not None:
+        xyz, ij = xyz[keep], ij[keep]
     # both base triangles are counter-clockwise and bisection keeps the orientation
-    xyz = np.stack([X[keep], Y[keep], Z[keep]], 1)
-    ij = np.stack([flat[keep] // N, flat[keep] % N], 1)
     return polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8),
                                      "level": level})
 
