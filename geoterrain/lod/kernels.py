@@ -6,7 +6,7 @@ Benchmarked against the level-by-level numpy bisection in docs/benchmarks.md.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from geoterrain.bintree import parents_nb
 
@@ -155,7 +155,7 @@ def close_upward(active: np.ndarray) -> None:
     close_upward_boxes(active, np.array([[0, N - 1, 0, N - 1]], np.int64))
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def fill_static(slots, i0, j0, step, D, e, active, mixed, gen=True, top_step=0):
     """Static predicate δ > e on pooled tiles, scattered into the dense flags in place.
 
@@ -166,7 +166,7 @@ def fill_static(slots, i0, j0, step, D, e, active, mixed, gen=True, top_step=0):
     ``top_step`` or ``top_step`` is 0.
     """
     T = D.shape[1]
-    for k in prange(slots.shape[0]):
+    for k in range(slots.shape[0]):
         s = slots[k]
         coarse = top_step > 0 and step[k] < top_step
         for a in range(T):
@@ -182,7 +182,7 @@ def fill_static(slots, i0, j0, step, D, e, active, mixed, gen=True, top_step=0):
                     mixed[i, j] = gen
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def fill_lp(slots, inside, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, planes, lam, tau,
             active, mixed, gen, top_step):
     """LP eq. 2 with sphere culling on pooled tiles, scattered into the dense flags.
@@ -196,10 +196,10 @@ def fill_lp(slots, inside, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, plane
     frustum) skip the plane tests. Flags are set to the stamp ``gen``. Only the
     samples new at a tile's level are evaluated (see :func:`fill_static`): the tile
     holding a coarser vertex passes the tile test whenever that vertex can be active.
-    Tiles are shared out over threads; tiles of one level overlap only on their
-    borders, where both write the same stamp."""
+    Serial on purpose: on a shared 2-core machine, a parallel region waiting on a
+    descheduled thread made frames 3× slower than one thread."""
     T = D.shape[1]
-    for k in prange(slots.shape[0]):
+    for k in range(slots.shape[0]):
         s = slots[k]
         P = 0 if inside[k] else planes.shape[0]
         coarse = step[k] < top_step
@@ -234,12 +234,63 @@ def fill_lp(slots, inside, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, plane
                     active[i, j] = gen
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
+def lp_tiles(lo, hi, dmax, rmax, eye, planes, lam, tau):
+    """The tiles that can hold an LP-active vertex (seed 002 eq. 2, tested with tile
+    bounds only), as a status per tile: 0 no, 1 yes, 2 yes and inside the frustum.
+
+    Conservative: a vertex of the tile lies in its box, so d − r ≥ D_box − r_max; its
+    sphere lies in the box grown by r_max, tested against each plane as a box.
+    """
+    n = lo.shape[0]
+    out = np.zeros(n, np.uint8)
+    for k in range(n):
+        dm = dmax[k]
+        if not dm > 0.0:
+            continue
+        r = rmax[k]
+        dx = max(lo[k, 0] - eye[0], 0.0, eye[0] - hi[k, 0])
+        dy = max(lo[k, 1] - eye[1], 0.0, eye[1] - hi[k, 1])
+        dz = max(lo[k, 2] - eye[2], 0.0, eye[2] - hi[k, 2])
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if not (d <= r or lam * dm > tau * (d - r)):
+            continue
+        status = 2
+        for q in range(planes.shape[0]):
+            a, b, c, w = planes[q, 0], planes[q, 1], planes[q, 2], planes[q, 3]
+            # the box corner farthest along / against the plane normal
+            fx = hi[k, 0] + r if a >= 0 else lo[k, 0] - r
+            fy = hi[k, 1] + r if b >= 0 else lo[k, 1] - r
+            fz = hi[k, 2] + r if c >= 0 else lo[k, 2] - r
+            if a * fx + b * fy + c * fz + w < 0:
+                status = 0
+                break
+            nx = lo[k, 0] - r if a >= 0 else hi[k, 0] + r
+            ny = lo[k, 1] - r if b >= 0 else hi[k, 1] + r
+            nz = lo[k, 2] - r if c >= 0 else hi[k, 2] + r
+            if a * nx + b * ny + c * nz + w < 0:
+                status = 1
+        out[k] = status
+    return out
+
+
+@njit(cache=True)
+def level_boxes(L, i0, i1, j0, j1, boxes):
+    """Grow ``boxes[L]`` (rows i0, i1, columns j0, j1) to hold each tile's samples."""
+    for k in range(L.shape[0]):
+        b = boxes[L[k]]
+        b[0] = min(b[0], i0[k])
+        b[1] = max(b[1], i1[k])
+        b[2] = min(b[2], j0[k])
+        b[3] = max(b[3], j1[k])
+
+
+@njit(cache=True)
 def gather_pooled(flat, N, top, t, base, slot_of, H, X, Y, zfac, xyz, ij, level):
     """Scene positions ``xyz`` (x, y, height · zfac), grid ``ij`` and pyramid level of
     full-resolution samples ``flat`` (i·N + j), read from the coarsest tile holding
     each (unstored tiles: NaN height, x = y = 0)."""
-    for k in prange(flat.shape[0]):
+    for k in range(flat.shape[0]):
         i, j = flat[k] // N, flat[k] % N
         L, idx, a, b = _coarsest_tile(i, j, top, t, base)
         s = slot_of[idx]
@@ -274,12 +325,12 @@ def mark_tiles(flat, N, top, t, base, occ):
         occ[_coarsest_tile(flat[k] // N, flat[k] % N, top, t, base)[1]] = True
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _corner_bits(xyz, planes):
     """Per vertex: bit 6 = invalid (z not finite), bit k = outside plane k."""
     V, P = xyz.shape[0], planes.shape[0]
     bits = np.zeros(V, np.uint8)
-    for v in prange(V):
+    for v in range(V):
         x, y, z = xyz[v, 0], xyz[v, 1], xyz[v, 2]
         b = 0
         if not np.isfinite(z):
@@ -292,10 +343,10 @@ def _corner_bits(xyz, planes):
     return bits
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _face_levels(faces, lvl):
     out = np.empty(faces.shape[0], np.int16)
-    for f in prange(faces.shape[0]):
+    for f in range(faces.shape[0]):
         out[f] = min(lvl[faces[f, 0]], lvl[faces[f, 1]], lvl[faces[f, 2]])
     return out
 

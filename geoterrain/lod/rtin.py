@@ -36,12 +36,14 @@ from geoterrain.lod.kernels import (
     fill_lp,
     fill_static,
     gather_pooled,
+    level_boxes,
+    lp_tiles,
     mark_tiles,
 )
 from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.pool import tile_pool
 from geoterrain.lod.tiles import TileIndex, tile_index
-from geoterrain.view import INSIDE, OUTSIDE, View
+from geoterrain.view import View
 
 _SCRATCH: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -113,11 +115,7 @@ class ActiveSet:
         step = np.int64(1) << L
         i0, j0 = (y << g.t) << L, (x << g.t) << L
         i1, j1 = i0 + (g.tile_samples - 1) * step, j0 + (g.tile_samples - 1) * step
-        for lv in np.unique(L).tolist():
-            m = L == lv
-            b = self.boxes[lv]
-            b[:] = (min(b[0], i0[m].min()), max(b[1], i1[m].max()),
-                    min(b[2], j0[m].min()), max(b[3], j1[m].max()))
+        level_boxes(L, i0, i1, j0, j1, self.boxes)
         return tile_pool(self.terrain).table_index(keys), i0, j0, step
 
     def close(self) -> None:
@@ -152,16 +150,10 @@ def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
 def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex."""
     lam, eye = view.lam, view.eye
-    # tile test, conservative: a vertex in the tile lies in its box, so d − r ≥ D_box − r_max
-    rmax = index.radius_max
-    dbox = view.box_distance(index.lo, index.hi)
-    with np.errstate(invalid="ignore", over="ignore"):
-        dm = index.delta_max
-        can = (dm > 0) & ((dbox <= rmax) | (lam * dm > tau * (dbox - rmax)))
-    cand = np.flatnonzero(can)
-    pad = index.radius_max[cand, None]
-    vis = view.box_visibility(index.lo[cand] - pad, index.hi[cand] + pad)
-    rows, inside = cand[vis != OUTSIDE], vis[vis != OUTSIDE] == INSIDE
+    dm = index.delta_max
+    status = lp_tiles(index.lo, index.hi, dm, index.radius_max, eye, view.planes, lam, tau)
+    rows = np.flatnonzero(status)
+    inside = status[rows] == 2
     act = ActiveSet(terrain, stamped=True)
     if len(rows):
         pool = tile_pool(terrain)
