@@ -33,6 +33,7 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from geoterrain.lod.kernels import close_upward, extract
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
@@ -103,6 +104,84 @@ def chunk(terrain, index: TileIndex, row: int) -> Chunk:
     if ch is None:
         ch = cache[row] = _build(terrain, index, row, cache)
     return ch
+
+
+def chunk_leaves(terrain, index: TileIndex, view, tau: float) -> tuple[np.ndarray, dict]:
+    """The chunks to draw: the tile quadtree walked top-down, a node refined while
+    λ·ε_chunk > τ·D_min (D_min: eye to the node's box; seed 000 §2.5), nodes outside
+    the frustum culled, a node inside it passing that to its children.
+
+    A compiled stack walk over a dense (level, y, x) → row table: the work follows
+    the nodes visited, not the number of stored tiles.
+
+    Examples
+    --------
+    >>> from geoterrain.lod.tiles import tile_index
+    >>> leaves, st = chunk_leaves(t, tile_index(t), View((0, -800, 400), (0, 0, 0)), 1.0)
+    >>> st["tiles_visited"] >= len(leaves) > 0
+    True
+    """
+    cache = _cache(terrain, index)
+    table = cache.get("table")
+    if table is None:
+        top = terrain.grid.top_level
+        base = np.concatenate([[0], np.cumsum(4 ** np.arange(top, -1, -1))]).astype(np.int64)
+        table = np.full(int(base[-1]), -1, np.int64)
+        k = index.keys
+        table[base[k[:, 0]] + k[:, 2] * (np.int64(1) << (top - k[:, 0])) + k[:, 1]] = \
+            np.arange(len(k))
+        table = cache["table"] = (table, base, top)
+    rows = np.empty(len(index.keys), np.int64)
+    n, visited, culled = _walk_chunks(table[0], table[1], table[2], index.lo, index.hi,
+                                      cache["error"], view.eye, view.planes, view.lam,
+                                      float(tau), rows)
+    return rows[:n], {"tiles_visited": int(visited), "tiles_culled": int(culled)}
+
+
+@njit(cache=True)
+def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, out):
+    stack = np.empty((4 * (top + 1) + 4, 4), np.int64)  # (L, x, y, inside)
+    stack[0] = (top, 0, 0, 0)
+    sp, n, visited, culled = 1, 0, 0, 0
+    while sp > 0:
+        sp -= 1
+        L, x, y, inside = stack[sp]
+        row = table[base[L] + y * (np.int64(1) << (top - L)) + x]
+        if row < 0:
+            continue
+        visited += 1
+        if inside == 0:
+            inside = 1
+            for q in range(planes.shape[0]):
+                a, b, c, w = planes[q, 0], planes[q, 1], planes[q, 2], planes[q, 3]
+                fx = hi[row, 0] if a >= 0 else lo[row, 0]
+                fy = hi[row, 1] if b >= 0 else lo[row, 1]
+                fz = hi[row, 2] if c >= 0 else lo[row, 2]
+                if a * fx + b * fy + c * fz + w < 0:
+                    inside = -1
+                    break
+                nx = lo[row, 0] if a >= 0 else hi[row, 0]
+                ny = lo[row, 1] if b >= 0 else hi[row, 1]
+                nz = lo[row, 2] if c >= 0 else hi[row, 2]
+                if a * nx + b * ny + c * nz + w < 0:
+                    inside = 0
+            if inside < 0:
+                culled += 1
+                continue
+        dx = max(lo[row, 0] - eye[0], 0.0, eye[0] - hi[row, 0])
+        dy = max(lo[row, 1] - eye[1], 0.0, eye[1] - hi[row, 1])
+        dz = max(lo[row, 2] - eye[2], 0.0, eye[2] - hi[row, 2])
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        e = err[row]
+        if L > 0 and (lam * e > tau * d or (d == 0.0 and e > 0.0)):
+            for k in range(4):
+                stack[sp, 0], stack[sp, 1] = L - 1, 2 * x + (k & 1)
+                stack[sp, 2], stack[sp, 3] = 2 * y + (k >> 1), inside
+                sp += 1
+        else:
+            out[n] = row
+            n += 1
+    return n, visited, culled
 
 
 def _build(terrain, index: TileIndex, row: int, cache: dict) -> Chunk:
