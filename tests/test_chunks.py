@@ -29,7 +29,8 @@ def _store(tmp_path, seed: int, tile: int, hole: bool):
     return geoterrain.open(geoterrain.preprocess(dem, tile_size=tile))
 
 
-@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=6, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(seed=st.integers(0, 10_000), tile=st.sampled_from([16, 32]), hole=st.booleans())
 def test_every_chunk_is_within_its_error(tmp_path, seed, tile, hole):
     t = _store(tmp_path, seed, tile, hole)
