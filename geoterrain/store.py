@@ -43,6 +43,7 @@ from geoterrain.exceptions import (
 )
 
 SCHEMA_VERSION = 2  # 2: checksums bound to their tile and kind; per-level key digests
+PAGE_SIZE = 1024  # bytes per SQLite page of a written store
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
 TILE_COLUMNS = ("nvalid", "zmin", "zmax", "error", "boundary_error",
                 "xmin", "xmax", "ymin", "ymax", "delta_max", "radius_max")
@@ -321,6 +322,9 @@ class StoreWriter:
 
     def _init(self) -> None:
         # The temporary file is not the store; durability comes from fsync + rename.
+        # Small pages: a tile blob of a few kB overflows into whole pages, and 4 kB pages
+        # left ~30 % of a store as slack (docs/benchmarks.md §7); readers take any size.
+        self.con.execute(f"PRAGMA page_size={PAGE_SIZE}")
         self.con.execute("PRAGMA journal_mode=OFF")
         self.con.execute("PRAGMA synchronous=OFF")
         self.con.execute(f"PRAGMA application_id={APPLICATION_ID}")

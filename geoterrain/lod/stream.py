@@ -196,16 +196,17 @@ def static_flags(terrain, max_error: float, pool: TilePool) -> ActiveSet:
     return act
 
 
-def _gather(pool: TilePool, flat: np.ndarray):
-    """Heights, scene x, y of samples ``flat`` through ``pool`` (the chunk's tiles only)."""
+def _gather(pool: TilePool, flat: np.ndarray, zfac: float):
+    """Scene positions and grid indices of samples ``flat`` through ``pool`` (the
+    chunk's tiles only); invalid samples have z NaN."""
     occ = np.zeros(len(pool.slot_of), bool)
     mark_tiles(flat, pool.N, pool.top, pool.t, pool.base, occ)
     pool.slots(np.flatnonzero(occ), ("height", "xy"))
     n = len(flat)
-    h, X, Y, lvl = np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.int64)
+    xyz, ij, lvl = np.empty((n, 3)), np.empty((n, 2), np.int64), np.empty(n, np.int64)
     gather_pooled(flat, pool.N, pool.top, pool.t, pool.base, pool.slot_of, pool.H, pool.X,
-                  pool.Y, h, X, Y, lvl)
-    return h, X, Y
+                  pool.Y, zfac, xyz, ij, lvl)
+    return xyz, ij
 
 
 def static_chunks(terrain, max_error: float, *, chunk: int = CHUNK,
@@ -234,7 +235,7 @@ def static_chunks(terrain, max_error: float, *, chunk: int = CHUNK,
     cand = np.empty(3 * chunk, np.int64)
     faces = np.empty((chunk, 3), np.int64)
     order = np.empty(3 * chunk, np.int64)
-    zof = terrain.frame.z
+    zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
     nv, done = 0, 0
     while True:
         n = _walk_chunk(active, mixed, stack, state, tris)
@@ -243,12 +244,9 @@ def static_chunks(terrain, max_error: float, *, chunk: int = CHUNK,
         done += n
         k = _new_samples(tris[:n], vid, cand)
         new = cand[:k]
-        h, X, Y = _gather(pool, new)
-        Z = zof(h)
-        valid = np.isfinite(Z)
+        pos, gij = _gather(pool, new, zfac)
+        valid = np.isfinite(pos[:, 2])
         nf, nn = _number(tris[:n], vid, valid, new, nv, faces, order)
         pick = order[:nn]
-        xyz = np.stack([X[pick], Y[pick], Z[pick]], 1)
-        ij = np.stack([new[pick] // N, new[pick] % N], 1)
-        yield MeshChunk(nv, xyz, ij, faces[:nf].copy(), done, max(total, done))
+        yield MeshChunk(nv, pos[pick], gij[pick], faces[:nf].copy(), done, max(total, done))
         nv += nn
