@@ -23,8 +23,8 @@ global one restricted to the tile: squares whose row + column index is odd
 have the anti-diagonal, so their columns are mirrored first). Its border
 chain, in order along each inner edge, gives the skirts.
 
-:func:`assemble_chunks` joins many chunks and their skirts with array
-operations over the cached chunks, no per-tile Python work.
+:func:`assemble_chunks` joins many chunks and their skirts in one compiled pass
+over the cached chunks packed end to end: no per-tile Python work per frame.
 """
 
 from __future__ import annotations
@@ -228,6 +228,104 @@ def _build(terrain, index: TileIndex, row: int, cache: dict) -> Chunk:
     return Chunk(ij, xyz, faces, skirt_ab, L)
 
 
+class _Packed:
+    """Every built chunk's arrays packed end to end (grown on demand), with per-row
+    offsets, so a frame's mesh is gathered by one compiled pass."""
+
+    def __init__(self, n_rows: int):
+        self.vo = np.full(n_rows + 1, -1, np.int64)  # per row: first vertex, face, segment
+        self.fo = np.full(n_rows + 1, -1, np.int64)
+        self.so = np.full(n_rows + 1, -1, np.int64)
+        self.nv = np.zeros(n_rows, np.int64)
+        self.nf = np.zeros(n_rows, np.int64)
+        self.ns = np.zeros(n_rows, np.int64)
+        self.lvl = np.zeros(n_rows, np.int16)
+        self.xyz, self.ij = np.zeros((0, 3)), np.zeros((0, 2), np.int64)
+        self.faces, self.seg = np.zeros((0, 3), np.int64), np.zeros((0, 2), np.int64)
+        self.V = self.F = self.S = 0
+
+    @staticmethod
+    def _put(a: np.ndarray, at: int, b: np.ndarray) -> np.ndarray:
+        if at + len(b) > len(a):
+            a = np.concatenate([a[:at], np.zeros((max(2 * len(a), at + len(b)),) + a.shape[1:],
+                                                 a.dtype)])
+        a[at:at + len(b)] = b
+        return a
+
+    def add(self, row: int, ch: Chunk) -> None:
+        self.vo[row], self.fo[row], self.so[row] = self.V, self.F, self.S
+        self.nv[row], self.nf[row], self.ns[row] = len(ch.xyz), len(ch.faces), len(ch.skirt_ab)
+        self.lvl[row] = ch.level
+        self.xyz = self._put(self.xyz, self.V, ch.xyz)
+        self.ij = self._put(self.ij, self.V, ch.ij)
+        self.faces = self._put(self.faces, self.F, ch.faces)
+        self.seg = self._put(self.seg, self.S, ch.skirt_ab)
+        self.V += len(ch.xyz)
+        self.F += len(ch.faces)
+        self.S += len(ch.skirt_ab)
+
+
+def _packed(terrain, index: TileIndex, leaves: np.ndarray) -> _Packed:
+    cache = _cache(terrain, index)
+    pk = cache.get("packed")
+    if pk is None:
+        pk = cache["packed"] = _Packed(len(index.keys))
+    for r in leaves[pk.vo[leaves] < 0].tolist():  # chunks not built yet
+        pk.add(r, chunk(terrain, index, r))
+    return pk
+
+
+@njit(cache=True)
+def _gather_chunks(leaves, depth, vo, fo, so, nv, nf, ns, lvl, XYZ, IJ, FACES, SEG,
+                   xyz, ij, faces, level, skirt):
+    """Copy the chunks of ``leaves`` into the output arrays: surfaces first, then two
+    hanging vertices per skirt segment (a, b) and triangles (a, b', b), (a, a', b')."""
+    V = 0
+    F = 0
+    for k in range(leaves.shape[0]):
+        r = leaves[k]
+        o = vo[r]
+        for v in range(nv[r]):
+            xyz[V + v, 0] = XYZ[o + v, 0]
+            xyz[V + v, 1] = XYZ[o + v, 1]
+            xyz[V + v, 2] = XYZ[o + v, 2]
+            ij[V + v, 0] = IJ[o + v, 0]
+            ij[V + v, 1] = IJ[o + v, 1]
+        o = fo[r]
+        for f in range(nf[r]):
+            faces[F + f, 0] = FACES[o + f, 0] + V
+            faces[F + f, 1] = FACES[o + f, 1] + V
+            faces[F + f, 2] = FACES[o + f, 2] + V
+            level[F + f] = lvl[r]
+            skirt[F + f] = 0
+        V += nv[r]
+        F += nf[r]
+    base = 0
+    for k in range(leaves.shape[0]):  # skirts after every surface vertex
+        r = leaves[k]
+        m = ns[r] if depth[k] > 0 else 0
+        for q in range(m):
+            a = base + SEG[so[r] + q, 0]
+            b = base + SEG[so[r] + q, 1]
+            sa, sb = V, V + 1
+            for c in range(2):
+                xyz[sa, c] = xyz[a, c]
+                xyz[sb, c] = xyz[b, c]
+                ij[sa, c] = ij[a, c]
+                ij[sb, c] = ij[b, c]
+            xyz[sa, 2] = xyz[a, 2] - depth[k]
+            xyz[sb, 2] = xyz[b, 2] - depth[k]
+            faces[F, 0], faces[F, 1], faces[F, 2] = a, sb, b
+            faces[F + 1, 0], faces[F + 1, 1], faces[F + 1, 2] = a, sa, sb
+            level[F] = lvl[r]
+            level[F + 1] = lvl[r]
+            skirt[F] = 1
+            skirt[F + 1] = 1
+            V += 2
+            F += 2
+        base += nv[r]
+
+
 def assemble_chunks(terrain, index: TileIndex, leaves: np.ndarray,
                     skirt_depth: np.ndarray | None = None):
     """One mesh of the chunks of ``leaves`` with skirts ``skirt_depth[k]`` deep (seed 000
@@ -240,42 +338,16 @@ def assemble_chunks(terrain, index: TileIndex, leaves: np.ndarray,
     >>> assemble_chunks(t, ix, ix.rows_of(np.array([[t.grid.top_level, 0, 0]]))).n_cells > 0
     True
     """
-    chunks = [chunk(terrain, index, r) for r in leaves.tolist()]
-    if not chunks:
+    leaves = np.asarray(leaves, np.int64)
+    if not len(leaves):
         return empty_polydata()
-    nv = np.array([len(c.xyz) for c in chunks])
-    nf = np.array([len(c.faces) for c in chunks])
-    ns = np.array([len(c.skirt_ab) for c in chunks])
-    if skirt_depth is None:
-        skirt_depth = np.zeros(len(chunks))
-    ns = np.where(skirt_depth > 0, ns, 0)
-    voff = np.concatenate([[0], np.cumsum(nv)[:-1]])
-    V = int(nv.sum())
-    xyz = np.concatenate([c.xyz for c in chunks])
-    ij = np.concatenate([c.ij for c in chunks])
-    faces = np.concatenate([c.faces for c in chunks]) + np.repeat(voff, nf)[:, None]
-    level = np.repeat(np.array([c.level for c in chunks], np.int16), nf)
-    parts_xyz, parts_ij, parts_f = [xyz], [ij], [faces]
-    n_skirt = int(ns.sum())
-    if n_skirt:
-        # each segment (a, b) gets two hanging vertices a', b' and triangles
-        # (a, b', b), (a, a', b') — as in tiles._skirts
-        has = np.flatnonzero(ns > 0)
-        ab = np.concatenate([chunks[k].skirt_ab for k in has.tolist()]) \
-            + np.repeat(voff[has], ns[has])[:, None]
-        depth = np.repeat(skirt_depth[has], ns[has])
-        low = xyz[ab.ravel()].copy()
-        low[:, 2] -= np.repeat(depth, 2)
-        s0 = V + 2 * np.arange(n_skirt)
-        sa, sb = s0, s0 + 1
-        a, b = ab[:, 0], ab[:, 1]
-        sk = np.concatenate([np.stack([a, sb, b], 1), np.stack([a, sa, sb], 1)])
-        parts_xyz.append(low)
-        parts_ij.append(ij[ab.ravel()])
-        parts_f.append(sk)
-        lv = np.array([chunks[k].level for k in has.tolist()], np.int16)
-        level = np.concatenate([level, np.tile(np.repeat(lv, ns[has]), 2)])
-    skirt = np.zeros(len(level), np.uint8)
-    skirt[len(faces):] = 1
-    return polydata(np.concatenate(parts_xyz), np.concatenate(parts_f),
-                    np.concatenate(parts_ij), {"skirt": skirt, "level": level})
+    depth = np.zeros(len(leaves)) if skirt_depth is None else np.asarray(skirt_depth, float)
+    pk = _packed(terrain, index, leaves)
+    ns = np.where(depth > 0, pk.ns[leaves], 0)
+    V = int(pk.nv[leaves].sum()) + 2 * int(ns.sum())
+    F = int(pk.nf[leaves].sum()) + 2 * int(ns.sum())
+    xyz, ij = np.empty((V, 3)), np.empty((V, 2), np.int64)
+    faces, level, skirt = np.empty((F, 3), np.int64), np.empty(F, np.int16), np.empty(F, np.uint8)
+    _gather_chunks(leaves, depth, pk.vo, pk.fo, pk.so, pk.nv, pk.nf, pk.ns, pk.lvl, pk.xyz,
+                   pk.ij, pk.faces, pk.seg, xyz, ij, faces, level, skirt)
+    return polydata(xyz, faces, ij, {"skirt": skirt, "level": level})
