@@ -6,7 +6,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint clean setup browser test-browser
+.PHONY: demo test lint clean setup browser test-browser geoid
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,10 @@ browser:
 	command -v chromium >/dev/null || apt-get install -y --no-install-recommends chromium
 	command -v npm >/dev/null || apt-get install -y --no-install-recommends nodejs npm
 	mkdir -p .browser && cd .browser && npm install --no-audit --no-fund cesium@1
+
+# PROJ's EGM96 geoid grid (Debian's proj-data) for `geoterrain tiles --geoid egm96`.
+geoid:
+	test -e /usr/share/proj/egm96_15.gtx || apt-get install -y --no-install-recommends proj-data
 
 test-browser: $(STAMP) browser
 	$(BIN)/python -m pytest -q -m browser

@@ -8,11 +8,15 @@ vertical units), for:
 - zstd-raw: zstd-19 of the raw source array (native dtype, lossless);
 - q+delta: the same codes as ours (quantised to ~2 eps, or lossless), row delta,
   narrowest int, zstd-19;
-- LERC at the same eps (lossless on the native array for eps = 0).
+- LERC at the same eps (lossless on the native array for eps = 0);
+- SZ3 (``pysz``, ABS error bound = eps, float64 heights; eps > 0 only), the error-bounded
+  compressor of the scientific-data field: one whole array, no single-tile decoding and
+  no mask (voids are filled with the lowest valid height), decoded and checked within
+  eps on the valid samples like ours.
 
 Run from the project root::
 
-    /work/venv/bin/python benchmarks/bench_codec.py [--quick] [--level 19]
+    python benchmarks/bench_codec.py [--quick] [--dems-only] [--eps 0.5 1 2] [--level 19]
 
 ``--level-table`` instead measures encode time (median of ``--repeat`` runs) and size
 per zstd level (3, 6, 9, 12, 19) on the 4097^2 fbm field of ``geoterrain.synth`` (seed
@@ -117,6 +121,26 @@ def narrow(a: np.ndarray) -> np.ndarray:
     return a.astype(np.int64)
 
 
+def sz3_bytes(h: np.ndarray, valid: np.ndarray, eps: float) -> int | None:
+    """SZ3 (ABS mode) of the heights, checked within eps on the valid samples; None when
+    pysz is absent or eps = 0."""
+    try:
+        from pysz import sz, szConfig, szErrorBoundMode
+    except ImportError:
+        return None
+    if eps <= 0:
+        return None
+    a = np.ascontiguousarray(np.where(valid, h, h[valid].min()), dtype=np.float64)
+    cfg = szConfig()
+    cfg.errorBoundMode = szErrorBoundMode.ABS
+    cfg.absErrorBound = eps
+    comp, _ = sz.compress(a, cfg)
+    dec, _ = sz.decompress(comp, np.float64, a.shape)
+    worst = float(np.max(np.abs(dec[valid] - h[valid])))
+    assert worst <= eps, ("SZ3", eps, worst)
+    return int(comp.nbytes)
+
+
 def run_one(name, h, valid, native, scale, offset, eps, level, rows, lerc_ok):
     nvalid = int(valid.sum())
     src_dtype = native.dtype
@@ -165,13 +189,15 @@ def run_one(name, h, valid, native, scale, offset, eps, level, rows, lerc_ok):
         t_lerc = time.perf_counter() - t0
         lerc_bytes = int(nbytes) if res == 0 else None
     best = min(b for b in (raw, qd, lerc_bytes) if b)
+    sz3 = sz3_bytes(h, valid, eps)
     bps = 8.0 / nvalid
     rows.append(
         f"| {name} | {eps:g} | {qz.mode} | {ours * bps:.3f} | {raw * bps:.3f} | {qd * bps:.3f} | "
         + (f"{lerc_bytes * bps:.3f}" if lerc_bytes else "n/a")
         + f" | {ours / best:.3f} | {t_enc:.2f} | {t_dec:.2f} | "
         + (f"{t_lerc:.2f}" if t_lerc is not None else "n/a")
-        + f" | {len(blobs)} |"
+        + f" | {len(blobs)} | "
+        + (f"{sz3 * bps:.3f} | {ours / sz3:.3f} |" if sz3 else "n/a | n/a |")
     )
     print(rows[-1], flush=True)
 
@@ -208,6 +234,8 @@ def main() -> None:
     ap.add_argument("--level", type=int, default=19, help="zstd level of our tiles")
     ap.add_argument("--level-table", action="store_true", help="time/size per zstd level")
     ap.add_argument("--repeat", type=int, default=3, help="runs per level (--level-table)")
+    ap.add_argument("--dems-only", action="store_true", help="skip the synthetic fields")
+    ap.add_argument("--eps", type=float, nargs="+", default=EPSILONS, help="codec bounds")
     args = ap.parse_args()
     if args.level_table:
         level_table(args.repeat)
@@ -219,7 +247,7 @@ def main() -> None:
     except ImportError:
         lerc_ok = False
     data = load_dems()
-    sizes = [1025] if args.quick else [1025, 4097]
+    sizes = [] if args.dems_only else [1025] if args.quick else [1025, 4097]
     for size in sizes:
         h = fractal(size, 42)
         data.append(
@@ -234,13 +262,13 @@ def main() -> None:
         )
     header = (
         "| data | eps | mode | ours b/s | zstd-raw b/s | q+delta+zstd b/s | LERC b/s | "
-        "ours/best | ours enc s | ours dec s | LERC enc s | tiles |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "ours/best | ours enc s | ours dec s | LERC enc s | tiles | SZ3 b/s | ours/SZ3 |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     )
     print(header, flush=True)
     rows: list[str] = []
     for name, h, valid, native, scale, offset in data:
-        for eps in EPSILONS:
+        for eps in args.eps:
             run_one(name, h, valid, native, scale, offset, eps, args.level, rows, lerc_ok)
 
 

@@ -126,16 +126,19 @@ def main() -> None:
     ap.add_argument("--taus", default="0.5,1,2,4,8")
     ap.add_argument("--strategies", default=",".join(STRATEGIES))
     ap.add_argument("--static", action="store_true")
+    ap.add_argument("--store", help="an existing store to fly over (skips preprocessing)")
     a = ap.parse_args()
     d = tempfile.mkdtemp()
-    if a.dem:
+    if a.store:
+        src, name = None, os.path.basename(a.store)
+    elif a.dem:
         src, name = a.dem, os.path.basename(a.dem)
     else:
         from geoterrain.synth import generate, write_geotiff
 
         src = write_geotiff(os.path.join(d, "fbm.tif"), generate("fbm", a.size, seed=7))
         name = f"fbm {a.size}²"
-    t = geoterrain.open(geoterrain.preprocess(src, os.path.join(d, "s.geoterrain")))
+    t = geoterrain.open(a.store or geoterrain.preprocess(src, os.path.join(d, "s.geoterrain")))
     X, Y, Z = t.scene_xyz()
     truth = (X, Y, Z, np.isfinite(Z))
     views = flight(truth, a.views)

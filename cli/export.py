@@ -30,6 +30,9 @@ from geoterrain.cli.options import (
               help="auto (land tints, sea in blue) or a matplotlib colour map.")
 @click.option("--texture-size", type=click.IntRange(2, 16385), default=4097, show_default=True,
               help="Largest texture side; a coarser pyramid level is used beyond it.")
+@click.option("--drape", type=click.Path(dir_okay=False), metavar="IMAGE",
+              help="glTF/OBJ texture: a georeferenced image (orthophoto GeoTIFF, RGB or one "
+                   "band, any CRS) reprojected onto the DEM instead of the shading.")
 @click.option("--base-height", type=float, metavar="H",
               help="STL: base thickness under the lowest point (mm with --print-size, else m).")
 @click.option("--print-size", type=float, metavar="MM",
@@ -37,7 +40,7 @@ from geoterrain.cli.options import (
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, size,
-            pixel_error, strategy, shading, cmap, texture_size, base_height,
+            pixel_error, strategy, shading, cmap, texture_size, drape, base_height,
             print_size, overwrite):
     """Export STORE's mesh for other tools: static (--max-error) or for a view.
 
@@ -60,6 +63,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
       geoterrain export dem.geoterrain -o dem.glb --max-error 2
       geoterrain export dem.geoterrain -o dem.ply --max-error 1 --crs-coords
       geoterrain export dem.geoterrain -o dem.stl --max-error 5 --print-size 150
+      geoterrain export dem.geoterrain -o dem.glb --max-error 2 --drape ortho.tif
       geoterrain export dem.geoterrain -o v.glb --look-from 0,-5000,2000 --look-at 0,0,0
     """
     import geoterrain
@@ -74,7 +78,8 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
         sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error,
                           strategy)
         export_mesh(t, sel, out, overwrite=overwrite, shading=shading, cmap=cmap,
-                    texture_size=texture_size, base_height=base_height, print_size=print_size,
+                    texture_size=texture_size, drape=drape, base_height=base_height,
+                    print_size=print_size,
                     crs_coords=crs_coords and out.suffix.lower() == ".ply")
     if not ctx.obj["quiet"]:
         click.echo(json.dumps({**sel.stats, "output": str(out)}))

@@ -10,7 +10,10 @@ import click
 @click.command("info")
 @click.argument("store", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print machine-readable JSON.")
-def command(store, as_json):
+@click.option("--no-reference", is_flag=True,
+              help="Skip the DEFLATE GeoTIFF size comparison (it decodes every full-resolution "
+                   "tile: seconds on a large store).")
+def command(store, as_json, no_reference):
     """Describe STORE: size, CRS and frame, extent, grid, levels, tiles, codec and errors.
 
     \b
@@ -18,9 +21,11 @@ def command(store, as_json):
       geoterrain info dem.geoterrain --json
     """
     import geoterrain
+    from geoterrain.storesize import component_bytes, size_report
 
     with geoterrain.open(store) as t:
         i = t.info()
+        i["size"] = ({"components": component_bytes(t)} if no_reference else size_report(t))
     if as_json:
         click.echo(json.dumps(i, indent=2))
         return
@@ -45,8 +50,20 @@ def command(store, as_json):
         f"codec        {i['codec']} (ε in {vu}); "
         f"{i['height_bits_per_valid_sample']:.3f} bits per valid sample",
         "bytes/level  " + ", ".join(f"L{k}:{v}" for k, v in i["height_bytes_per_level"].items()),
+        _size_line(i["size"]),
         f"errors       tile error {i['tile_error_range'][0]:.4g} … {i['tile_error_range'][1]:.4g}"
         f" m (scene); max vertex δ {i['vertex_error_max']:.4g} m (scene)",
     ]
     # values come from the file: never let its control characters reach the terminal
     click.echo("\n".join("".join(c if c.isprintable() else "?" for c in ln) for ln in lines))
+
+
+def _size_line(s: dict) -> str:
+    c = s["components"]
+    total = sum(c.values())
+    parts = ", ".join(f"{k} {v / 1e3:.1f} kB ({100 * v / total:.0f} %)" for k, v in c.items())
+    line = f"size         {parts}"
+    if "ratio" in s:
+        line += (f"; {s['ratio']:.2f}× the DEFLATE+predictor GeoTIFF of the same heights "
+                 f"({s['geotiff_deflate_bytes'] / 1e3:.1f} kB, {s['geotiff_dtype']})")
+    return line

@@ -46,15 +46,37 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     import geoterrain
     from geoterrain.export import check_mesh_path, write_mesh
     from geoterrain.formats import with_elevation
+    from geoterrain.meshstream import STREAM_CACHE_BYTES, STREAM_FORMATS, check_in_memory
 
     out = check_mesh_path(output, overwrite)  # before any work
     max_error = mesh_request(max_error, look_from, look_at)
     from geoterrain.exaggerate import exaggerated
 
-    with geoterrain.open(store) as base:
+    # a static mesh to .ply/.obj/.stl streams to disk in bounded memory
+    stream = max_error is not None and out.suffix.lower() in STREAM_FORMATS
+    with geoterrain.open(store, **({"cache_bytes": STREAM_CACHE_BYTES} if stream else {})
+                         ) as base:
         t = exaggerated(base, vertical_exaggeration)
-        sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error,
-                          strategy)
-        write_mesh(with_elevation(t, sel.mesh), out, overwrite=overwrite)
+        if stream:
+            stats = _stream(ctx, t, max_error, out, overwrite)
+        else:
+            if max_error is not None:
+                check_in_memory(t, max_error, out)
+            sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size,
+                              pixel_error, strategy)
+            write_mesh(with_elevation(t, sel.mesh), out, overwrite=overwrite)
+            stats = sel.stats
     if not ctx.obj["quiet"]:
-        click.echo(json.dumps(sel.stats))
+        click.echo(json.dumps(stats))
+
+
+def _stream(ctx, t, max_error, out, overwrite) -> dict:
+    from geoterrain.cli.options import StageBar
+    from geoterrain.meshstream import write_static_mesh
+
+    bar = StageBar("mesh", ctx.obj["quiet"])
+    try:
+        return write_static_mesh(t, max_error, out, overwrite=overwrite,
+                                 progress=lambda d, n: bar("triangles", d, n))
+    finally:
+        bar.close()

@@ -10,7 +10,7 @@ from geoterrain.raster import ENCODINGS
 
 
 @click.command("preprocess")
-@click.argument("dem")
+@click.argument("dem", nargs=-1, required=True)
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="Store to write. Default: the DEM's path with the suffix .geoterrain.")
 @click.option("--tile-size", default=64, show_default=True, type=int,
@@ -43,11 +43,12 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
             codec_error, old_max_error, zstd_level, nodata, overwrite):
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
-    DEM is any raster GDAL reads (GeoTIFF/COG, SRTM .hgt, Esri ASCII, ...) or a
-    Terrain-RGB / Terrarium PNG tile. The store holds a padded power-of-two
-    pyramid of tiles with per-vertex and per-tile error bounds, residual-coded
-    heights and normal maps. It is written atomically: an interrupted run
-    leaves no store behind.
+    DEM is any raster GDAL reads (GeoTIFF/COG, SRTM .hgt, Esri ASCII, a .vrt,
+    ...) or a Terrain-RGB / Terrarium PNG tile. Several files, or a quoted glob,
+    are read as one mosaic (one CRS, one pixel size, one band count; -o needed).
+    The store holds a padded power-of-two pyramid of tiles with per-vertex and
+    per-tile error bounds, residual-coded heights and normal maps. It is written
+    atomically: an interrupted run leaves no store behind.
 
     \b
     Examples:
@@ -55,6 +56,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
       geoterrain preprocess fuji.png --tile 12/3637/1612
       geoterrain preprocess tile.png --pixel-size 30 -o tile.geoterrain
       geoterrain preprocess lidar.tif --codec-error 0.05 --z-scale 2
+      geoterrain preprocess 'srtm/*.hgt' -o srtm.geoterrain
     """
     import geoterrain
     from geoterrain.exceptions import UsageError
@@ -65,6 +67,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
     if tile_size < 2 or tile_size & (tile_size - 1):
         raise click.BadParameter(f"expected a power of two ≥ 2, got {tile_size}",
                                  param_hint="--tile-size")
+    dem = dem[0] if len(dem) == 1 else list(dem)
     quiet = ctx.obj["quiet"]
     bar = StageBar("preprocess", quiet)
     try:

@@ -127,7 +127,9 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             finally:
                 bar.close()
             if stats_path:
-                Path(stats_path).write_text(json.dumps(frames, indent=2, default=float))
+                from geoterrain.store import write_atomic
+
+                write_atomic(stats_path, json.dumps(frames, indent=2, default=float))
             if not quiet:
                 ms = sorted(f["frame_ms"] for f in frames)
                 click.echo(f"wrote {out}: {len(frames)} frames, median frame "

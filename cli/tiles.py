@@ -19,20 +19,30 @@ import click
 @click.option("--max-error", type=float, default=1.0, show_default=True, metavar="E",
               help="Vertex selection threshold at the finest level, metres (coarser "
                    "levels use Cesium's level error).")
+@click.option("--geoid", type=click.Choice(["egm96"]),
+              help="The DEM holds EGM96 heights (SRTM): write WGS 84 ellipsoidal heights, "
+                   "as CesiumJS expects (needs PROJ's EGM96 grid: apt-get install proj-data).")
 @click.option("--overwrite", is_flag=True, help="Write into OUTPUT even if it holds a layer.json.")
 @click.pass_context
-def command(ctx, store, output, fmt, max_zoom, min_zoom, max_error, overwrite):
+def command(ctx, store, output, fmt, max_zoom, min_zoom, max_error, geoid, overwrite):
     """Write a quantized-mesh-1.0 tile set (geographic tiling) of STORE for CesiumJS.
 
     Tiles are gzip-compressed (serve them with `Content-Encoding: gzip`), carry
     oct-encoded normals and a water mask, and share their edge vertices exactly
     with their neighbours; nodata is left out (a hole), never a spike. Each
-    tile's measured error against the DEM is in OUTPUT/geoterrain.json.
+    tile's declared error (a bound on |mesh − DEM| at every DEM sample: the
+    lattice's resampling error + the vertices left out + quantisation) is in
+    OUTPUT/geoterrain.json; below --max-zoom it is within Cesium's level error.
+
+    Heights are written as the DEM holds them (e.g. EGM96 orthometric heights
+    for SRTM); CesiumJS assumes ellipsoidal heights, so the terrain sits off by
+    the geoid undulation (−107 to +85 m) unless --geoid egm96 converts them.
 
     \b
     Examples:
       geoterrain tiles dem.geoterrain -o tiles/
       geoterrain tiles dem.geoterrain -o tiles/ --max-zoom 12 --max-error 2
+      geoterrain tiles srtm.geoterrain -o tiles/ --geoid egm96
     """
     import geoterrain
     from geoterrain.cli.options import StageBar
@@ -45,7 +55,8 @@ def command(ctx, store, output, fmt, max_zoom, min_zoom, max_error, overwrite):
     try:
         with geoterrain.open(store) as t:
             stats = write_tileset(t, output, max_zoom=max_zoom, min_zoom=min_zoom,
-                                  max_error=max_error, overwrite=overwrite, progress=bar)
+                                  max_error=max_error, overwrite=overwrite, geoid=geoid,
+                                  progress=bar)
     finally:
         bar.close()
     if not ctx.obj["quiet"]:

@@ -6,9 +6,9 @@ view-dependent LOD mesh) and says where it is on Earth:
 - **glTF / GLB** (pygltflib): float32 positions relative to the scene origin (the
   raster centre), glTF's Y-up axes (x = east, y = up, z = −north), normals, an
   ``_ELEVATION`` attribute (metres), the shading texture (elevation colours ×
-  hillshade, :mod:`geoterrain.textures`) embedded in an unlit material, and the
-  georeference (:func:`georeference`) in ``asset.extras.geoterrain`` and a sidecar
-  ``<file>.json``.
+  hillshade, :mod:`geoterrain.textures`; or an image draped by :mod:`geoterrain.drape`)
+  embedded in an unlit material, and the georeference (:func:`georeference`) in
+  ``asset.extras.geoterrain`` and a sidecar ``<file>.json``.
 - **OBJ** with an MTL and a PNG texture beside it (and the sidecar).
 - **PLY** (binary): x, y, z (float64), normals, ``elevation``; the CRS and the origin
   offset in header comments. ``crs_coords=True`` writes source-CRS x, y of each
@@ -167,13 +167,19 @@ def _png(img: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def _texture(terrain, shading: str, cmap: str, texture_size: int) -> tuple[np.ndarray, int]:
+def _texture(terrain, shading: str, cmap: str, texture_size: int,
+             drape: str | Path | None = None) -> tuple[np.ndarray, int]:
     if shading not in SHADINGS or shading == "plain":
         raise UsageError(f"unknown texture shading {shading!r}; use normals or elevation")
     if texture_size < 2:
         raise UsageError(f"texture_size must be ≥ 2, got {texture_size}")
     L = texture_level(terrain, texture_size)
-    return texture_image(terrain, shading, cmap, L), L
+    img = texture_image(terrain, shading, cmap, L)
+    if drape is not None:
+        from geoterrain.drape import drape_image
+
+        img = drape_image(terrain, drape, L, base=img)
+    return img, L
 
 
 class _Files:
@@ -217,12 +223,15 @@ def check_export_path(path: str | Path, overwrite: bool = False) -> Path:
 def export_mesh(terrain, selection, path: str | Path, *, overwrite: bool = False,
                 shading: str = "normals", cmap: str = "auto",
                 texture_size: int = TEXTURE_SIZE, crs_coords: bool = False,
-                base_height: float | None = None, print_size: float | None = None) -> Path:
+                base_height: float | None = None, print_size: float | None = None,
+                drape: str | Path | None = None) -> Path:
     """Write ``selection`` of ``terrain`` to ``path`` (.glb, .gltf, .obj, .stl or .ply).
 
     Parameters
     ----------
     shading, cmap, texture_size : the texture of glTF and OBJ (:mod:`geoterrain.textures`).
+    drape : glTF and OBJ: a georeferenced image (orthophoto, map) reprojected onto the
+        DEM's grid as the texture (:mod:`geoterrain.drape`) instead of the shading.
     crs_coords : PLY only: float64 source-CRS x, y and elevation z instead of scene metres.
     base_height, print_size : STL only (:func:`printable_solid`).
 
@@ -232,6 +241,9 @@ def export_mesh(terrain, selection, path: str | Path, *, overwrite: bool = False
     ext = out.suffix.lower()
     if crs_coords and ext != ".ply":
         raise UsageError("crs_coords applies to PLY only", cli="--crs-coords applies to .ply only")
+    if drape is not None and ext not in (".glb", ".gltf", ".obj"):
+        raise UsageError("drape applies to glTF and OBJ only (they carry a texture)",
+                         cli="--drape applies to .glb, .gltf and .obj only")
     if (base_height is not None or print_size is not None) and ext != ".stl":
         raise UsageError("base_height and print_size apply to STL only",
                          cli="--base-height and --print-size apply to .stl only")
@@ -245,14 +257,14 @@ def export_mesh(terrain, selection, path: str | Path, *, overwrite: bool = False
     files = _Files(overwrite)
     try:
         if ext in (".glb", ".gltf"):
-            img, L = _texture(terrain, shading, cmap, texture_size)
+            img, L = _texture(terrain, shading, cmap, texture_size, drape)
             geo = georeference(terrain)
             data = gltf_document(m, _tcoords(terrain, m.ij, L, flip=False), _png(img), geo,
                                  binary=ext == ".glb")
             files.write(out, data)
             files.write(out.with_name(out.name + ".json"), json.dumps(geo, indent=1))
         elif ext == ".obj":
-            img, L = _texture(terrain, shading, cmap, texture_size)
+            img, L = _texture(terrain, shading, cmap, texture_size, drape)
             uv = _tcoords(terrain, m.ij, L, flip=True)
             mtl, png = out.with_suffix(".mtl"), out.with_suffix(".png")
             files.write(out, obj_text(m, uv, mtl.name))

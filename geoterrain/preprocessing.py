@@ -21,16 +21,28 @@ import zstandard
 from geoterrain._version import __version__
 from geoterrain.bounds import stand_in_z, vertex_errors, vertex_radii
 from geoterrain.codec import decoded_heights, encode_pyramid
+from geoterrain.curvature import metric_bounds
 from geoterrain.exceptions import InputError, UsageError, exists_error
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid, level_tiles
+from geoterrain.mosaic import is_glob, mosaic_name, source_files
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.quantize import choose_quantizer
 from geoterrain.raster import Raster, read_raster
+from geoterrain.rounding import round_up
 from geoterrain.store import StoreWriter, default_store_path, remove_stale_partials
 from geoterrain.tilebounds import tile_errors
 from geoterrain.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
-from geoterrain.vertexdata import pack_bounds, scale_bounds, scale_exponent
+from geoterrain.vertexdata import (
+    NORMALS_PLANAR_DXDY,
+    log8_codes,
+    log8_exponent,
+    log8_table,
+    normals_to_bytes,
+    pack_bounds_v2,
+    scale_bounds,
+    scale_exponent,
+)
 
 log = logging.getLogger("geoterrain")
 Progress = Callable[[str, int, int], None]
@@ -58,7 +70,7 @@ def validate(r: Raster, z_scale: float | None) -> None:
 
 
 def preprocess(
-    src: str | Path,
+    src: str | Path | list,
     dst: str | Path | None = None,
     *,
     tile_size: int = 64,
@@ -79,9 +91,12 @@ def preprocess(
     Parameters
     ----------
     src
-        A DEM GDAL reads, or a Terrain-RGB/Terrarium PNG tile.
+        A DEM GDAL reads (a ``.vrt`` too), or a Terrain-RGB/Terrarium PNG tile; or a
+        mosaic: a list of files or a glob such as ``"srtm/*.hgt"`` (one CRS, one pixel
+        size, one band count; see :mod:`geoterrain.mosaic`).
     dst
-        The store to write; default: ``src`` with the suffix ``.geoterrain``.
+        The store to write; default: ``src`` with the suffix ``.geoterrain`` (a list
+        or glob must name it).
     tile_size
         Tile edge in samples, a power of two (tiles hold ``tile_size + 1``²).
     band, encoding
@@ -141,26 +156,32 @@ def preprocess(
         raise UsageError(f"tile_size must be a power of two in [2, {MAX_TILE_SIZE}], "
                          f"got {tile_size}", cli=f"--tile-size must be a power of two in "
                          f"[2, {MAX_TILE_SIZE}], got {tile_size}")
+    files = source_files(src)
+    mosaic = isinstance(src, (list, tuple)) or is_glob(src)
+    if dst is None and mosaic:
+        raise UsageError("a mosaic (list of files or glob) has no default store name; "
+                         "pass dst", cli="a mosaic (several files or a glob) has no default "
+                         "store name; pass -o STORE")
     dst = Path(dst) if dst is not None else default_store_path(src)
     remove_stale_partials(dst.parent if str(dst.parent) else Path("."))
     if dst.exists() and not overwrite:
         raise exists_error(dst)
-    if Path(src).resolve() == dst.resolve():
+    if any(f.resolve() == dst.resolve() for f in files):
         raise UsageError(f"{dst}: the store would overwrite its own input; choose another dst",
                          cli=f"{dst}: the store would overwrite its own input; choose another -o")
 
-    r = read_raster(src, band=band, encoding=encoding, nodata=nodata)
+    r = read_raster(files if mosaic else src, band=band, encoding=encoding, nodata=nodata)
     validate(r, z_scale)
     zxy = parse_tile(tile) if tile is not None else None
     if zxy is not None and (pixel_size is not None or r.crs_wkt is not None):
         raise UsageError("a web-map tile is placed by its z/x/y; give tile or pixel_size, not "
                          "both", cli="give --tile or --pixel-size, not both")
-    if zxy is None and r.crs_wkt is None and pixel_size is None:
+    if zxy is None and r.crs_wkt is None and pixel_size is None and not mosaic:
         zxy = tile_from_path(src)
     if zxy is not None:
         r.transform, r.crs_wkt = tile_georeference(*zxy, r.shape[1], r.shape[0])
         log.info("%s: web-map tile %d/%d/%d in EPSG:3857", src, *zxy)
-    z_units = resolve_z_units(z_units, r.crs_wkt, str(src))
+    z_units = resolve_z_units(z_units, r.crs_wkt, r.path)
     frame = Frame.from_raster(r.transform, r.crs_wkt, r.shape[0], r.shape[1],
                               pixel_size=pixel_size, z_units=z_units,
                               z_scale=1.0 if z_scale is None else z_scale)
@@ -185,6 +206,8 @@ def preprocess(
     delta = vertex_errors(Z, valid)
     stage("errors")
     radius = vertex_radii(X, Y, Z, valid)
+    if frame.kind == "geographic":  # curvilinear grid: δ and r that hold in scene x/y
+        delta, radius = metric_bounds(delta, radius, X, Y, Z, valid)
     stage("radii")
     bounds = tile_errors(Z, valid, X, Y, grid.t)
     stage("tile bounds")
@@ -197,7 +220,11 @@ def preprocess(
 
     height_blobs = encode_pyramid(heights, valid, grid.t, q, level=zstd_level)
     jobs = []  # (kind, key, payload-maker); zstd releases the GIL, so threads overlap
-    kd, kr = scale_exponent(delta), scale_exponent(radius)  # one scale: monotone rounding
+    # δ: 8-bit log codes rounded up (saturation survives: one monotone map per store);
+    # r: float16 rounded up (nesting holds to 2^-10). Below the top level only the
+    # vertices new at the level are stored; the others are the parent's (vertexdata.py).
+    ed, kr = log8_exponent(delta), scale_exponent(radius)
+    d_table = log8_table(ed)
     tile_rows: dict = {}
     for L in grid.levels:
         keys = [k for k in height_blobs if k[0] == L]
@@ -206,19 +233,22 @@ def preprocess(
         tiles_d = level_tiles(delta, grid.t, L)
         tiles_r = level_tiles(radius, grid.t, L)
         tiles_n = level_tiles(nrm_levels[L], grid.t, 0)
-        # max δ and r over the vertices new at this level (the others belong to coarser tiles)
+        dc = log8_codes(tiles_d, ed)
+        r16, _ = scale_bounds(tiles_r, kr)
+        # max δ and r over the vertices new at this level (the others belong to coarser
+        # tiles), of the values as stored: a tile skipped by them skips no stored vertex
         new = np.ones((grid.tile_samples,) * 2, bool)
-        if L < grid.top_level:
+        new_only = L < grid.top_level
+        if new_only:
             new[::2, ::2] = False
-        dmax, rmax = tiles_d[..., new].max(axis=-1), tiles_r[..., new].max(axis=-1)
-        d16, dk = scale_bounds(tiles_d, kd)
-        r16, rk = scale_bounds(tiles_r, kr)
+        dmax = d_table[dc[..., new]].max(axis=-1)
+        rmax = round_up(r16[..., new].astype(np.float64) * 2.0**kr, np.float32).max(axis=-1)
         for key in keys:
             _, x, y = key
             # per-tile max δ and r let a view skip a tile without decoding it
             tile_rows[key] = (*bounds[key], float(dmax[y, x]), float(rmax[y, x]))
-            jobs.append(("delta", key, d16[y, x], int(dk[y, x])))
-            jobs.append(("radius", key, r16[y, x], int(rk[y, x])))
+            jobs.append(("delta", key, dc[y, x], (ed, True, new_only)))
+            jobs.append(("radius", key, r16[y, x], (kr, False, new_only)))
             jobs.append(("normals", key, tiles_n[y, x], None))
     local = threading.local()
 
@@ -226,9 +256,9 @@ def preprocess(
         kind, key, arr, k = job
         if not hasattr(local, "cctx"):
             local.cctx = zstandard.ZstdCompressor(level=3)
-        if kind == "normals":
-            return kind, key, local.cctx.compress(np.ascontiguousarray(arr).tobytes())
-        return kind, key, pack_bounds(arr, k, local.cctx)
+        if kind == "normals":  # planar 2-D differences (vertexdata.normals_to_bytes)
+            return kind, key, local.cctx.compress(normals_to_bytes(arr))
+        return kind, key, pack_bounds_v2(arr, *k, local.cctx)
 
     extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}}
     with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:
@@ -245,7 +275,7 @@ def preprocess(
         w.put_metadata({
             "format": "geoterrain",
             "generator": f"geoterrain {__version__}",
-            "source": str(Path(src).name),
+            "source": mosaic_name(files),
             "source_dtype": r.src_dtype,
             "source_nodata": r.nodata,
             "encoding": r.encoding,
@@ -253,6 +283,7 @@ def preprocess(
             "frame": frame.to_json(),
             "quantizer": dataclasses.asdict(q),
             "normal_bits": NORMAL_BITS,
+            "normals_layout": NORMALS_PLANAR_DXDY,
             "valid_samples": int(r.valid.sum()),
             "nodata_fraction": float(1.0 - r.valid.mean()),
             "height_range": [float(hv.min()), float(hv.max())],

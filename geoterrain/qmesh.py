@@ -12,15 +12,26 @@ Layout (what CesiumJS's ``CesiumTerrainProvider`` reads):
 A tile's mesh: the DEM is sampled bilinearly on a (2^k+1)² lattice aligned with
 the tile's edges (pyproj maps lon/lat to the source CRS); the per-vertex errors δ
 of that lattice (:func:`geoterrain.bounds.vertex_errors`, seed 002) pick the
-vertices (δ > the level's error: Cesium's ``levelMaximumGeometricError`` for
-z < max zoom, ``max_error`` at max zoom); every lattice sample on the tile's
-border is kept, so neighbouring tiles share their edge vertices exactly (same
-lon/lat, same height, one height quantisation range for the whole set). Lattice
-samples with an invalid DEM neighbour are invalid and no triangle touches them:
-nodata becomes a hole, never a spike. The declared error of a tile is the largest
-|mesh − DEM| measured on the decoded (quantised) mesh at every valid DEM sample
-inside the tile. Normals (oct-encoded, ECEF) come from central differences of the
-lattice with a one-sample margin, so they agree across tile edges too.
+vertices. Every lattice sample on the tile's border is kept, so neighbouring tiles
+share their edge vertices exactly (same lon/lat, same height, one height
+quantisation range for the whole set). Lattice samples with an invalid DEM
+neighbour are invalid and no triangle touches them: nodata becomes a hole, never a
+spike. Normals (oct-encoded, ECEF) come from central differences of the lattice
+with a one-sample margin, so they agree across tile edges too.
+
+Each tile's declared error is an a-priori bound on |mesh − DEM| at every DEM sample
+it covers (:func:`build_tile`): the resampling error of the full lattice (measured
+at the DEM samples before any vertex is chosen) + the largest δ left out + the
+quantisation of heights and of u, v. Below max zoom the vertex threshold is the
+level's Cesium ``levelMaximumGeometricError`` minus the other terms, so the bound
+fits the error Cesium refines by; a level whose resampling error leaves no room is
+rebuilt on a lattice twice as fine (257², when its tiles stay within 16-bit
+indices). At max zoom the threshold is ``max_error`` and the bound is what it is
+(Cesium refines no further there); ``geoterrain.json`` lists it per tile and per level.
+
+Heights are the DEM's own unless ``geoid="egm96"`` converts EGM96 orthometric heights
+(SRTM's) to the WGS 84 ellipsoidal heights CesiumJS assumes (pyproj, PROJ's EGM96
+grid); without it the terrain sits off by the geoid undulation (−107 to +85 m).
 
 Why our own writer: quantized-mesh-encoder casts positions to float32 (about
 1 m of longitude) and quantises heights per tile, so neighbouring tiles' edge
@@ -36,6 +47,7 @@ True
 
 from __future__ import annotations
 
+import functools
 import gzip
 import json
 import math
@@ -69,10 +81,51 @@ def tile_rect(z: int, x: int, y: int) -> tuple[float, float, float, float]:
 
 
 # ------------------------------------------------------------------------ sampling
-class _Dem:
-    """The store's full-resolution heights (metres) and where lon/lat fall on them."""
+GEOIDS = ("egm96",)
 
-    def __init__(self, terrain):
+
+def geoid_transformer(geoid: str = "egm96") -> Transformer:
+    """pyproj's vertical transform from EGM96 heights to WGS 84 ellipsoidal heights.
+
+    Needs PROJ's EGM96 grid (``us_nga_egm96_15.tif``, or ``egm96_15.gtx`` from
+    Debian's ``proj-data`` package in /usr/share/proj); never a ballpark no-op.
+
+    Examples
+    --------
+    >>> try:
+    ...     n = geoid_transformer().transform(0.0, 0.0, 0.0)[2]  # N at (0°, 0°)
+    ... except UsageError:
+    ...     n = 17.16  # the grid is not installed here
+    >>> round(n, 2)
+    17.16
+    """
+    import pyproj
+
+    if geoid not in GEOIDS:
+        raise UsageError(f"unknown geoid {geoid!r}; use one of {', '.join(GEOIDS)}")
+
+    def make() -> Transformer:
+        return Transformer.from_crs("EPSG:4326+5773", "EPSG:4979", always_xy=True,
+                                    allow_ballpark=False, only_best=True)
+    try:
+        return make()
+    except pyproj.exceptions.ProjError:
+        if not Path("/usr/share/proj/egm96_15.gtx").exists():
+            raise UsageError("the EGM96 geoid grid is not installed: apt-get install proj-data "
+                             "(Debian/Ubuntu), or put us_nga_egm96_15.tif in PROJ's data folder "
+                             f"({pyproj.datadir.get_user_data_dir()})") from None
+    pyproj.datadir.append_data_dir("/usr/share/proj")  # Debian's proj-data
+    return make()
+
+
+class _Dem:
+    """The store's full-resolution heights (metres) and where lon/lat fall on them.
+
+    ``geoid``: the heights are EGM96 orthometric heights; convert them to WGS 84
+    ellipsoidal heights (what CesiumJS assumes) at every sample, through pyproj.
+    """
+
+    def __init__(self, terrain, geoid: str | None = None):
         f = terrain.frame
         if f.kind == "pixel" or f.crs_wkt is None:
             raise UsageError("quantized-mesh tiles need a georeferenced DEM; this one has no CRS")
@@ -87,6 +140,12 @@ class _Dem:
         self.to_src = Transformer.from_crs("EPSG:4326", crs, always_xy=True)
         self.to_geo = Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
         self.pixel_deg = self._pixel_degrees(f)
+        if geoid is not None:
+            tr = geoid_transformer(geoid)
+            ii, jj = np.nonzero(self.valid)
+            lon, lat = self.lonlat(ii, jj)
+            _, _, hz = tr.transform(lon, lat, self.h[ii, jj])
+            self.h[ii, jj] = np.asarray(hz, np.float64)
 
     def _pixel_degrees(self, f) -> float:
         i, j = np.array([self.H / 2, self.H / 2 + 1.0]), np.array([self.W / 2, self.W / 2 + 1.0])
@@ -232,16 +291,56 @@ def encode_tile(lon, lat, hq, faces, hrange, rect, normals) -> bytes:
     return b"".join(body)
 
 
-def build_tile(dem: _Dem, z: int, x: int, y: int, M: int, threshold: float,
-               hrange: tuple[float, float], flat: bool = False
-               ) -> tuple[bytes, float, int] | None:
-    """One tile's bytes, declared error (metres) and triangle count; None if no data.
+class _TooManyVertices(UsageError):
+    """A tile's mesh needs more vertices than quantized-mesh's 16-bit indices hold."""
 
+
+@functools.lru_cache(maxsize=8)
+def _fine_faces(M: int) -> tuple[np.ndarray, np.ndarray]:
+    """Faces and (row, col) of the full-resolution RTIN triangulation of an M × M lattice."""
+    act = np.ones((M, M), bool)
+    faces, fidx = extract(act, np.zeros_like(act), np.full(M * M, -1, np.int32))
+    faces = faces.astype(np.int64)
+    faces.flags.writeable = fidx.flags.writeable = False  # cached: shared by every tile
+    return faces, fidx
+
+
+def _slope_bound(lon, lat, hgt, faces, dlon: float, dlat: float) -> float:
+    """max over triangles of |∂h/∂lon|·dlon + |∂h/∂lat|·dlat: how far a vertex shift of
+    at most (dlon, dlat) moves the surface (the map T → T_q is affine per triangle)."""
+    if len(faces) == 0:
+        return 0.0
+    p = np.stack([lon, lat, hgt], 1)[faces]
+    a, b = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    n = np.cross(a, b)
+    ok = np.abs(n[:, 2]) > 0
+    g = -n[ok, :2] / n[ok, 2:3]  # (∂h/∂lon, ∂h/∂lat)
+    return float((np.abs(g[:, 0]) * dlon + np.abs(g[:, 1]) * dlat).max(initial=0.0))
+
+
+def build_tile(dem: _Dem, z: int, x: int, y: int, M: int, target: float,
+               hrange: tuple[float, float], flat: bool = False, *,
+               fixed_threshold: float | None = None) -> tuple[bytes, float, int, dict] | None:
+    """One tile's bytes, declared error bound (metres), triangle count and the terms of
+    the bound; None if no data.
+
+    The bound, for every DEM sample p the tile covers (seed 002's δ for the middle term):
+    |mesh_q(p) − DEM(p)| ≤ e_r + δ_max + e_h + e_uv, where
+
+    - e_r  = max |L(p) − DEM(p)| over the DEM samples, L the full-resolution lattice
+      surface (the resampling error, measured before any vertex is chosen);
+    - δ_max = the largest δ of a left-out vertex: |mesh − L| ≤ δ_max everywhere;
+    - e_h  = half a height quantisation step;
+    - e_uv = the slope bound of :func:`_slope_bound` for u, v rounded to 1/32767.
+
+    The vertex threshold is ``target − e_r − e_h − e_uv`` (``fixed_threshold`` when
+    given), so the bound is ≤ ``target`` whenever ``e_r + e_h + e_uv`` leaves room
+    (``info["fits"]``).
     ``flat``: a tile too coarse to hold a DEM sample on its lattice gets the two
-    triangles of its rectangle at the lowest height (its error, measured against
-    the DEM, is declared like any other).
+    triangles of its rectangle at the lowest height (its error is measured).
     """
     rect = tile_rect(z, x, y)
+    w, s_, e, n = rect
     if flat:
         M = 3
     lon, lat = _lattice(rect, M)
@@ -249,11 +348,44 @@ def build_tile(dem: _Dem, z: int, x: int, y: int, M: int, threshold: float,
     valid = np.isfinite(h)
     if valid.sum() < 3:
         return None
+    h0, h1 = hrange
+    e_h = 0.5 * (h1 - h0) / QMAX * (1 + 1e-9)
+    dlon, dlat = 0.5 * (e - w) / QMAX, 0.5 * (n - s_) / QMAX
+    e_r = _resampling_error(dem, rect, h, valid)
+    if flat:
+        e_uv = 0.0
+    else:
+        fine, fidx = _fine_faces(M)
+        fine = fine[valid.ravel()[fidx][fine].all(1)]
+        e_uv = _slope_bound(lon.ravel()[fidx], lat.ravel()[fidx],
+                            np.nan_to_num(h.ravel()[fidx], nan=0.0), fine, dlon, dlat)
+    rest = e_r + e_h + e_uv
+    thr = fixed_threshold if fixed_threshold is not None else max(target - rest, 0.0)
     delta = vertex_errors(np.nan_to_num(h, nan=0.0), valid)
-    active = delta > threshold
+    for _ in range(4):  # the mesh's own slope term may exceed the lattice's: lower thr
+        res = _select(dem, rect, M, lon, lat, h, valid, delta, thr, hrange, flat)
+        if res is None:
+            return None
+        data, faces, d_max, e_uv = res
+        bound = e_r + d_max + e_h + e_uv
+        if fixed_threshold is not None or bound <= target or thr == 0.0:
+            break
+        thr = max(thr - (bound - target), 0.0)
+    info = {"M": M, "e_r": e_r, "delta": d_max, "e_h": e_h, "e_uv": e_uv, "threshold": thr,
+            "fits": bound <= target}
+    return data, bound, len(faces), info
+
+
+def _select(dem: _Dem, rect, M: int, lon, lat, h, valid, delta, thr: float, hrange,
+            flat: bool):
+    """The tile's bytes, faces, largest left-out δ and slope term at threshold ``thr``."""
+    w, s_, e, n = rect
+    dlon, dlat = 0.5 * (e - w) / QMAX, 0.5 * (n - s_) / QMAX
+    h0, h1 = hrange
+    active = delta > thr
     if flat:
         active[:] = False
-    if not flat:
+    else:
         active[0, :] = active[-1, :] = active[:, 0] = active[:, -1] = True  # shared borders
     close_upward(active)
     faces, fidx = extract(active, np.zeros_like(active), np.full(M * M, -1, np.int32))
@@ -271,27 +403,46 @@ def build_tile(dem: _Dem, z: int, x: int, y: int, M: int, threshold: float,
     remap[order] = np.arange(len(order))
     faces, ij = remap[faces], ij[order]
     vlon, vlat = lon[ij[:, 0], ij[:, 1]], lat[ij[:, 0], ij[:, 1]]
-    h0, h1 = hrange
-    hq = np.clip(np.round((h[ij[:, 0], ij[:, 1]] - h0) / (h1 - h0) * QMAX), 0, QMAX)
-    hq = hq.astype(np.int64)
+    vh = h[ij[:, 0], ij[:, 1]]
+    hq = np.clip(np.round((vh - h0) / (h1 - h0) * QMAX), 0, QMAX).astype(np.int64)
     if flat:
         nrm = _ecef(vlon, vlat, np.ones(len(vlon))) - _ecef(vlon, vlat, np.zeros(len(vlon)))
         nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
     else:
         nrm = _normals(dem, rect, M)[ij[:, 0], ij[:, 1]]
+    if len(order) > 65536:
+        raise _TooManyVertices(f"a tile has {len(order)} vertices, more than 16-bit indices hold")
     data = encode_tile(vlon, vlat, hq, faces, hrange, rect, nrm)
-    # measured on the mesh as decoders see it: quantised u, v and heights
-    w, s_, e, n = rect
-    qlon = w + (e - w) * np.round((vlon - w) / (e - w) * QMAX) / QMAX
-    qlat = s_ + (n - s_) * np.round((vlat - s_) / (n - s_) * QMAX) / QMAX
-    err = _measure(dem, rect, qlon, qlat, h0 + (h1 - h0) * hq / QMAX, faces)
-    return data, err, len(faces)
+    if flat:  # two triangles (L is the mesh itself): the measured error is exact
+        d_max, e_uv = 0.0, 0.0
+    else:
+        left_out = valid & ~active & np.isfinite(delta)
+        d_max = float(delta[left_out].max(initial=0.0))
+        e_uv = _slope_bound(vlon, vlat, vh, faces, dlon, dlat)
+    return data, faces, d_max, e_uv
 
 
-def _measure(dem: _Dem, rect, lon, lat, hgt, faces) -> float:
-    """Largest |mesh − DEM| at every valid DEM sample inside ``rect``."""
-    import matplotlib.tri as mtri
+@functools.lru_cache(maxsize=8)
+def _diagonals(M: int) -> np.ndarray:
+    """(M−1, M−1) bool: True where the full-resolution RTIN triangulation splits cell
+    (r, c) along (r, c)–(r+1, c+1), False along (r, c+1)–(r+1, c)."""
+    faces, fidx = _fine_faces(M)
+    r, c = fidx[faces] // M, fidx[faces] % M
+    r0, c0 = r.min(1), c.min(1)
+    main = np.zeros((M - 1, M - 1), bool)
+    has = ((r == r0[:, None]) & (c == c0[:, None])).any(1)  # the cell's (r, c) corner
+    has &= ((r == r0[:, None] + 1) & (c == c0[:, None] + 1)).any(1)
+    main[r0[has], c0[has]] = True
+    main.flags.writeable = False
+    return main
 
+
+def _resampling_error(dem: _Dem, rect, h: np.ndarray, valid: np.ndarray) -> float:
+    """Largest |L − DEM| at the valid DEM samples inside ``rect``, L being the lattice
+    heights ``h`` on the full-resolution RTIN triangulation (triangles with an invalid
+    corner are holes: their samples are skipped). Vectorised: cell, side of the
+    diagonal, then the triangle's linear interpolation."""
+    M = h.shape[0]
     w, s, e, n = rect
     bl, bt = np.linspace(w, e, 17), np.linspace(s, n, 17)
     bi, bj = dem.pixel(np.concatenate([bl, bl, bl * 0 + w, bl * 0 + e]),
@@ -300,7 +451,7 @@ def _measure(dem: _Dem, rect, lon, lat, hgt, faces) -> float:
     j0, j1 = max(0, int(np.floor(bj.min())) - 1), min(dem.W - 1, int(np.ceil(bj.max())) + 1)
     if i1 < i0 or j1 < j0:
         return 0.0
-    interp = None
+    main = _diagonals(M)
     worst = 0.0
     rows = max(1, MEASURE_SAMPLES // (j1 - j0 + 1))
     for r0 in range(i0, i1 + 1, rows):  # every sample, a block of rows at a time
@@ -312,11 +463,24 @@ def _measure(dem: _Dem, rect, lon, lat, hgt, faces) -> float:
         inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)
         if not inside.any():
             continue
-        if interp is None:
-            interp = mtri.LinearTriInterpolator(mtri.Triangulation(lon, lat, faces), hgt)
-        surf = np.ma.filled(interp(slon[inside], slat[inside]), np.nan)
-        diff = np.abs(surf - dem.h[ii[inside], jj[inside]])
-        diff = diff[np.isfinite(diff)]  # samples in a hole (next to nodata) have no surface
+        ii, jj = ii[inside], jj[inside]
+        x = (slon[inside] - w) / (e - w) * (M - 1)  # lattice column
+        y = (n - slat[inside]) / (n - s) * (M - 1)  # lattice row
+        c = np.clip(np.floor(x).astype(np.int64), 0, M - 2)
+        r = np.clip(np.floor(y).astype(np.int64), 0, M - 2)
+        u, v = x - c, y - r
+        h00, h01, h10, h11 = h[r, c], h[r, c + 1], h[r + 1, c], h[r + 1, c + 1]
+        k00, k01, k10, k11 = valid[r, c], valid[r, c + 1], valid[r + 1, c], valid[r + 1, c + 1]
+        m = main[r, c]
+        up = u >= v  # main diagonal: (00, 01, 11) above it, (00, 10, 11) below
+        lo = u + v <= 1  # other diagonal: (00, 01, 10) before it, (01, 10, 11) after
+        surf = np.where(m, np.where(up, h00 + u * (h01 - h00) + v * (h11 - h01),
+                                    h00 + v * (h10 - h00) + u * (h11 - h10)),
+                        np.where(lo, h00 + u * (h01 - h00) + v * (h10 - h00),
+                                 h11 + (1 - u) * (h10 - h11) + (1 - v) * (h01 - h11)))
+        ok = np.where(m, k00 & k11 & np.where(up, k01, k10),
+                      k01 & k10 & np.where(lo, k00, k11))
+        diff = np.abs(surf - dem.h[ii, jj])[ok]
         worst = max(worst, float(diff.max(initial=0.0)))
     return worst
 
@@ -332,11 +496,14 @@ def max_zoom_for(dem: _Dem, lattice: int) -> int:
 
 def write_tileset(terrain, out_dir: str | Path, *, max_zoom: int | None = None,
                   min_zoom: int = 0, lattice: int = 129, max_error: float = 1.0,
-                  overwrite: bool = False,
+                  overwrite: bool = False, geoid: str | None = None,
                   progress: Callable[[str, int, int], None] | None = None) -> dict:
     """Write a quantized-mesh tile set of ``terrain`` into ``out_dir``; returns its figures.
 
     ``lattice`` (2^k + 1 samples a side) ≤ 129 keeps tiles within 16-bit indices.
+    ``geoid="egm96"``: the DEM holds EGM96 heights (SRTM does); the tiles get WGS 84
+    ellipsoidal heights (:func:`geoid_transformer`), and the declared errors are against
+    those.
     """
     out = Path(out_dir)
     if (out / "layer.json").exists() and not overwrite:
@@ -344,7 +511,7 @@ def write_tileset(terrain, out_dir: str | Path, *, max_zoom: int | None = None,
     if lattice < 3 or (lattice - 1) & (lattice - 2) or lattice > 129:
         raise UsageError(f"lattice must be 2^k + 1 in 3..129, got {lattice}")
     t0 = time.perf_counter()
-    dem = _Dem(terrain)
+    dem = _Dem(terrain, geoid)
     zmax = max_zoom_for(dem, lattice) if max_zoom is None else int(max_zoom)
     if not 0 <= min_zoom <= zmax <= 22:
         raise UsageError(f"zoom range {min_zoom}..{zmax} is not within 0..22")
@@ -361,31 +528,49 @@ def write_tileset(terrain, out_dir: str | Path, *, max_zoom: int | None = None,
         jobs += [(z, x, y) for y in ys for x in xs]
     if min_zoom == 0:  # Cesium starts from both level-0 tiles
         jobs = [(0, x, 0) for x in (0, 1)] + [j for j in jobs if j[0] > 0]
-    errors, available = {}, {}
+    errors, available, levels = {}, {}, {}
     nbytes = triangles = 0
     data_from = zmax  # levels coarser than the first with lattice data get flat tiles
+    by_level: dict[int, list[tuple[int, int]]] = {}
+    for z, x, y in jobs:
+        by_level.setdefault(z, []).append((x, y))
+    done = 0
     try:
         out.mkdir(parents=True, exist_ok=True)
-        for k, (z, x, y) in enumerate(jobs):
-            thr = max_error if z == zmax else cesium_level_error(z)
-            res = build_tile(dem, z, x, y, lattice, thr, hrange)
-            if res is not None:
-                data_from = min(data_from, z)
-            elif z < data_from:
-                res = build_tile(dem, z, x, y, lattice, thr, hrange, flat=True)
+        for z, xys in by_level.items():
+            # below max zoom: the bound must fit Cesium's level error; a level where the
+            # resampling error leaves no room is rebuilt on a lattice twice as fine
+            target = max_error if z == zmax else cesium_level_error(z)
+            fixed = max_error if z == zmax else None
+            sizes = [lattice] + ([2 * lattice - 1] if z < zmax and lattice < 257 else [])
+            for M in sizes:
+                try:
+                    built = _build_level(dem, z, xys, M, target, hrange, fixed, data_from)
+                except _TooManyVertices:
+                    break  # keep the coarser lattice's tiles
+                tiles, data_from = built
+                if all(r[3]["fits"] for r in tiles.values()):
+                    break
+            nb = nt = 0
+            for (x, y), (data, bound, ntri, _) in tiles.items():
+                p = out / str(z) / str(x) / f"{y}.terrain"
+                p.parent.mkdir(parents=True, exist_ok=True)
+                blob = gzip.compress(data, compresslevel=6, mtime=0)
+                p.write_bytes(blob)
+                nb, nt = nb + len(blob), nt + ntri
+                errors[f"{z}/{x}/{y}"] = math.ceil(bound * 1e4) / 1e4  # rounded up
+                available.setdefault(z, []).append((x, y))
+            nbytes, triangles = nbytes + nb, triangles + nt
+            if tiles:
+                bounds = [r[1] for r in tiles.values()]
+                levels[z] = {"lattice": max(r[3]["M"] for r in tiles.values()),
+                             "tiles": len(tiles), "bytes": nb, "triangles": nt,
+                             "level_error": target, "max_declared": max(bounds),
+                             "max_resampling": max(r[3]["e_r"] for r in tiles.values()),
+                             "over_level_error": sum(b > target for b in bounds)}
+            done += len(xys)
             if progress:
-                progress(f"z{z}", k + 1, len(jobs))
-            if res is None:
-                continue
-            data, err, nt = res
-            p = out / str(z) / str(x) / f"{y}.terrain"
-            p.parent.mkdir(parents=True, exist_ok=True)
-            blob = gzip.compress(data, compresslevel=6, mtime=0)
-            p.write_bytes(blob)
-            nbytes += len(blob)
-            triangles += nt
-            errors[f"{z}/{x}/{y}"] = math.ceil(err * 1e4) / 1e4  # rounded up
-            available.setdefault(z, []).append((x, y))
+                progress(f"z{z}", done, len(jobs))
     except OSError as exc:
         raise WriteError(f"{out}: cannot write the tile set ({exc.strerror or exc})") from None
     seconds = time.perf_counter() - t0
@@ -401,12 +586,26 @@ def write_tileset(terrain, out_dir: str | Path, *, max_zoom: int | None = None,
     stats = {"tiles": len(errors), "bytes": nbytes, "seconds": round(seconds, 2),
              "triangles": triangles, "min_zoom": min_zoom, "max_zoom": zmax,
              "lattice": lattice, "max_error": max_error, "height_range": list(hrange),
-             "level_error": {z: (max_error if z == zmax else cesium_level_error(z))
-                             for z in range(min_zoom, zmax + 1)},
-             "declared_error": errors}
+             "heights": f"WGS 84 ellipsoidal (from {geoid.upper()})" if geoid else "as stored",
+             "over_level_error": sum(v["over_level_error"] for v in levels.values()),
+             "levels": levels, "declared_error": errors}
     (out / "layer.json").write_text(json.dumps(layer, indent=1))
     (out / "geoterrain.json").write_text(json.dumps(stats, indent=1))
-    return {k: v for k, v in stats.items() if k != "declared_error"}
+    return {k: v for k, v in stats.items() if k not in ("declared_error", "levels")}
+
+
+def _build_level(dem: _Dem, z: int, xys, M: int, target: float, hrange, fixed, data_from: int):
+    """Every tile of level ``z`` on an M-lattice: {(x, y): build_tile's result}."""
+    tiles = {}
+    for x, y in xys:
+        res = build_tile(dem, z, x, y, M, target, hrange, fixed_threshold=fixed)
+        if res is not None:
+            data_from = min(data_from, z)
+        elif z < data_from:
+            res = build_tile(dem, z, x, y, M, target, hrange, flat=True, fixed_threshold=fixed)
+        if res is not None:
+            tiles[(x, y)] = res
+    return tiles, data_from
 
 
 def _ranges(tiles: list[tuple[int, int]]) -> list[dict]:

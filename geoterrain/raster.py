@@ -17,6 +17,7 @@ from rasterio.errors import RasterioIOError
 
 from geoterrain.exceptions import InputError, UsageError
 from geoterrain.memory import available_memory
+from geoterrain.mosaic import mosaic_name, open_mosaic, source_files
 
 log = logging.getLogger("geoterrain")
 
@@ -97,7 +98,7 @@ def _guess_png_encoding(red: np.ndarray) -> str:
 
 
 def read_raster(
-    path: str | Path,
+    path: str | Path | list,
     band: int | None = None,
     encoding: str = "auto",
     nodata: float | None = None,
@@ -107,7 +108,9 @@ def read_raster(
     Parameters
     ----------
     path
-        Any raster GDAL reads, or a Terrain-RGB / Terrarium PNG tile.
+        Any raster GDAL reads (a ``.vrt`` too), or a Terrain-RGB / Terrarium PNG tile;
+        or a list of files or a glob (``tiles/*.hgt``): a mosaic read as one raster
+        (see :mod:`geoterrain.mosaic`).
     band
         1-based band for multi-band rasters that are not a known PNG encoding.
     encoding
@@ -132,7 +135,10 @@ def read_raster(
     """
     if encoding not in ENCODINGS:
         raise UsageError(f"unknown encoding {encoding!r}; use one of {', '.join(ENCODINGS)}")
-    p = Path(path)
+    files = source_files(path)
+    if len(files) > 1:
+        return _read_mosaic(files, band, encoding, nodata)
+    p = files[0]
     if not p.exists():
         raise InputError(f"{p}: no such file; check the path")
     if p.is_dir():
@@ -141,16 +147,35 @@ def read_raster(
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
             with rasterio.open(p) as src:
-                need = src.height * src.width * PREPROCESS_BYTES_PER_SAMPLE
-                if need > available_memory():
-                    raise InputError(
-                        f"{p}: {src.height}×{src.width} samples need about {need / 2**30:.1f} "
-                        f"GiB to preprocess, {available_memory() / 2**30:.1f} GiB is available; "
-                        "crop or downsample it (gdal_translate -srcwin / -outsize) first")
+                _check_memory(src, p)
                 return _read_open(src, p, band, encoding, nodata)
     except RasterioIOError as exc:
         first = str(exc).splitlines()[0] if str(exc) else "unreadable"
         raise InputError(f"{p}: not a raster GDAL can read ({first})") from None
+
+
+def _check_memory(src, p) -> None:
+    need = src.height * src.width * PREPROCESS_BYTES_PER_SAMPLE
+    if need > available_memory():
+        raise InputError(
+            f"{p}: {src.height}×{src.width} samples need about {need / 2**30:.1f} "
+            f"GiB to preprocess, {available_memory() / 2**30:.1f} GiB is available; "
+            "crop or downsample it (gdal_translate -srcwin / -outsize) first")
+
+
+def _read_mosaic(files: list[Path], band: int | None, encoding: str,
+                 nodata: float | None) -> Raster:
+    """Several tiles as one raster through an in-memory VRT (:mod:`geoterrain.mosaic`)."""
+    label = mosaic_name(files)
+    mem, src = open_mosaic(files)
+    try:
+        with mem, src:
+            _check_memory(src, label)
+            r = _read_open(src, Path(label), band, encoding, nodata)
+    except RasterioIOError as exc:
+        first = str(exc).splitlines()[0] if str(exc) else "unreadable"
+        raise InputError(f"{label}: a tile cannot be read ({first})") from None
+    return r
 
 
 def _read_open(src, p: Path, band: int | None, encoding: str, nodata_arg: float | None

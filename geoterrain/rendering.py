@@ -57,7 +57,7 @@ from geoterrain.exaggerate import exaggerated
 from geoterrain.exceptions import UsageError, WriteError, exists_error
 from geoterrain.lod.registry import DEFAULT, strategy_info
 from geoterrain.overlays import compose, layout_for
-from geoterrain.store import partial_path, publish, remove_stale_partials
+from geoterrain.store import partial_path, publish, remove_stale_partials, write_atomic
 from geoterrain.textures import SHADINGS, texture_image, texture_level
 from geoterrain.tiletextures import build_view_texture
 from geoterrain.view import View
@@ -436,7 +436,7 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
     stats.update(size=[int(view.size[0]), int(view.size[1])], path=str(path),
                  shading=shading, look_from=list(view.look_from), look_at=list(view.look_at))
     if stats_path is not None:
-        Path(stats_path).write_text(json.dumps(stats, indent=2, default=float))
+        write_atomic(stats_path, json.dumps(stats, indent=2, default=float))  # never half
     return stats
 
 
@@ -487,9 +487,11 @@ def _animation_writer(out: str | Path, fps: float, overwrite: bool = True):
                 raise UsageError("writing .mp4 needs the imageio-ffmpeg package "
                                  "(pip install imageio-ffmpeg); or use -o frames.gif") from None
             w = iio2.get_writer(tmp, fps=fps, macro_block_size=1)
-        else:
-            w = iio2.get_writer(tmp, mode="I", duration=1000.0 / fps, loop=0)
-        return w.append_data, w.close, lambda: publish(tmp, out, overwrite), tmp
+            return w.append_data, w.close, lambda: publish(tmp, out, overwrite), tmp
+        from geoterrain.gifstream import GifStream  # frame by frame: memory flat in frames
+
+        g = GifStream(tmp, fps)
+        return g.append, g.close, lambda: publish(tmp, out, overwrite), tmp
     tmp.mkdir()
     counter = iter(range(MAX_FRAMES))
 

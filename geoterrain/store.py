@@ -43,6 +43,7 @@ from geoterrain.exceptions import (
 )
 
 SCHEMA_VERSION = 2  # 2: checksums bound to their tile and kind; per-level key digests
+PAGE_SIZE = 1024  # bytes per SQLite page of a written store
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
 TILE_COLUMNS = ("nvalid", "zmin", "zmax", "error", "boundary_error",
                 "xmin", "xmax", "ymin", "ymax", "delta_max", "radius_max")
@@ -168,6 +169,29 @@ def publish(tmp: str | Path, dst: str | Path, overwrite: bool) -> None:
         os.replace(tmp, dst)
     else:
         os.unlink(tmp)
+
+
+def write_atomic(path: str | Path, data: str | bytes, overwrite: bool = True) -> Path:
+    """Write ``data`` to a hidden partial beside ``path``, then :func:`publish` it: a failed
+    or interrupted write never leaves a half-written file (JSON stats, sidecars).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> p = write_atomic(Path(tempfile.mkdtemp()) / "s.json", '{"a": 1}'); p.read_text()
+    '{"a": 1}'
+    """
+    path = Path(path)
+    tmp = partial_path(path)
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data.encode() if isinstance(data, str) else data)
+        publish(tmp, path, overwrite)
+    except OSError as exc:
+        raise WriteError(f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
 
 
 def _alive(pid: int) -> bool:
@@ -298,6 +322,9 @@ class StoreWriter:
 
     def _init(self) -> None:
         # The temporary file is not the store; durability comes from fsync + rename.
+        # Small pages: a tile blob of a few kB overflows into whole pages, and 4 kB pages
+        # left ~30 % of a store as slack (docs/benchmarks.md §7); readers take any size.
+        self.con.execute(f"PRAGMA page_size={PAGE_SIZE}")
         self.con.execute("PRAGMA journal_mode=OFF")
         self.con.execute("PRAGMA synchronous=OFF")
         self.con.execute(f"PRAGMA application_id={APPLICATION_ID}")

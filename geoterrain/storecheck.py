@@ -174,6 +174,8 @@ def check_store(path: str | Path, m: dict, tiles: dict) -> tuple[Grid, Frame, Qu
         q = _quantizer(m)
         if m.get("normal_bits") not in (8, 16):
             raise _Bad("normal_bits must be 8 or 16")
+        if m.get("normals_layout", 1) not in (1, 2):
+            raise _Bad("normals_layout must be 1 or 2")
         nv = _int(m.get("valid_samples"), 1, g.rows * g.cols, "valid_samples")
         frac = _num(m.get("nodata_fraction"), "nodata_fraction", 0.0, 1.0)
         if abs(frac - (1.0 - nv / (g.rows * g.cols))) > 1e-9:

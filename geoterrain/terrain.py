@@ -19,7 +19,13 @@ from geoterrain.normals import decode_octahedral
 from geoterrain.quantize import codes_to_heights
 from geoterrain.store import StoreReader
 from geoterrain.storecheck import check_store
-from geoterrain.vertexdata import decode_bounds
+from geoterrain.vertexdata import (
+    NEW_ONLY,
+    NORMALS_PLANAR_DXDY,
+    VERSION_2,
+    decode_bounds,
+    normals_from_bytes,
+)
 
 if TYPE_CHECKING:
     import pyvista as pv
@@ -185,8 +191,18 @@ class Terrain:
     def _bounds(self, key: TileKey, kind: str) -> np.ndarray:
         T = self.grid.tile_samples
         self.decoded_bounds += 1
+        L, x, y = key
+        blob = self._blob(key, kind)
+        parent = None
+        if blob[:1] == bytes([VERSION_2]) and blob[1:2] and blob[1] & NEW_ONLY:
+            if L >= self.grid.top_level:
+                raise StoreCorruptError(f"{self.path}: tile {key} {kind} has no parent to "
+                                        "read; re-run `geoterrain preprocess`")
+            # the vertices shared with the parent are stored once, in the parent
+            parent = (self.tile_delta if kind == "delta" else self.tile_radius)(
+                L + 1, x // 2, y // 2)
         try:
-            return decode_bounds(self._blob(key, kind), (T, T))
+            return decode_bounds(blob, (T, T), parent, (x % 2, y % 2))
         except (ValueError, zstandard.ZstdError):
             raise StoreCorruptError(f"{self.path}: tile {key} {kind} cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
@@ -219,6 +235,8 @@ class Terrain:
                                         "decoded; re-run `geoterrain preprocess`") from None
             dt = np.uint8 if bits == 8 else np.uint16
             self.decoded_normals += 1
+            if bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY:
+                return decode_octahedral(normals_from_bytes(raw, T), bits)
             return decode_octahedral(np.frombuffer(raw, dt).reshape(T, T, 2), bits)
         return self._cached(("n", level, x, y), make)
 

@@ -7,8 +7,17 @@ keeps 11 significant bits, so a stored bound exceeds the exact one by at most
 2^-10 relative. The preprocess uses one scale per store and kind, so rounding
 is a single monotone map and saturation survives it; sphere nesting holds to
 2^-10 relative (the LOD's upward-closure pass keeps meshes conforming anyway).
-Blob: version byte, int8 scale exponent, then the byte-shuffled float16 array
-compressed with zstd.
+Blob version 1: version byte, int8 scale exponent, then the byte-shuffled float16
+array compressed with zstd.
+
+Blob version 2 (:func:`pack_bounds_v2`, issue 12's size levers): version byte, flags,
+int8 exponent, then zstd of the samples kept. Flag ``NEW_ONLY``: the samples shared
+with the parent tile (every other row and column) are left out and read back from
+the parent's decoded values, which are the same vertices' bounds, so decoding is
+exact. Flag ``LOG8``: 8-bit logarithmic codes, ``LOG_STEPS`` per octave from
+``2^e``, rounded *up* (code 0 is 0, code 255 is +inf): a stored value exceeds the
+exact one by less than ``2^(1/LOG_STEPS) - 1`` relative, and with one ``e`` per store
+and kind the map is monotone, so saturation survives it.
 """
 
 from __future__ import annotations
@@ -20,6 +29,9 @@ from geoterrain import zstdsafe
 from geoterrain.rounding import round_up
 
 VERSION = 1
+VERSION_2 = 2
+NEW_ONLY, LOG8 = 1, 2  # version-2 flags
+LOG_STEPS = 16  # codes per octave: at most 2^(1/16) - 1 = 4.4 % above the exact value
 _F16_MAX = 32768.0  # keep the scaled maximum well inside float16's finite range
 
 
@@ -71,8 +83,13 @@ def pack_bounds(h: np.ndarray, k: int, cctx: zstandard.ZstdCompressor) -> bytes:
     return bytes([VERSION, int(k) & 0xFF]) + cctx.compress(planes.tobytes())
 
 
-def decode_bounds(blob: bytes, shape: tuple[int, ...]) -> np.ndarray:
-    """Inverse of :func:`encode_bounds`: float32 values ≥ the encoded ones."""
+def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None = None,
+                  parity: tuple[int, int] = (0, 0)) -> np.ndarray:
+    """Inverse of :func:`encode_bounds` and :func:`pack_bounds_v2`: float32 values ≥ the
+    encoded ones. A version-2 new-vertices-only blob needs the parent tile's decoded
+    values and the tile's ``(x % 2, y % 2)``."""
+    if len(blob) >= 1 and blob[0] == VERSION_2:
+        return _decode_v2(blob, shape, parent, parity)
     if len(blob) < 2 or blob[0] != VERSION:
         raise ValueError("not a bounds blob of a known version")
     k = int(np.int8(np.uint8(blob[1])))
@@ -82,3 +99,131 @@ def decode_bounds(blob: bytes, shape: tuple[int, ...]) -> np.ndarray:
     h = planes.T.copy().view(np.float16).reshape(shape)
     # float32 output: round up again so the bound survives the cast
     return round_up(h.astype(np.float64) * 2.0**k, np.float32)
+
+
+def log8_table(e: int) -> np.ndarray:
+    """The 256 float32 values of the 8-bit log codes from ``2^e`` (0, then increasing, +inf).
+
+    Examples
+    --------
+    >>> v = log8_table(-3)
+    >>> float(v[0]), float(v[1]), bool(np.isinf(v[255])), bool((np.diff(v) > 0).all())
+    (0.0, 0.125, True, True)
+    """
+    c = np.arange(1, 255, dtype=np.float64)
+    v = np.empty(256, np.float32)
+    v[0], v[255] = 0.0, np.inf
+    v[1:255] = round_up(np.exp2(e + (c - 1) / LOG_STEPS), np.float32)
+    return v
+
+
+def log8_exponent(a: np.ndarray) -> int:
+    """The exponent ``e`` whose top finite code (254) covers the largest finite value."""
+    fin = np.asarray(a)[np.isfinite(a)]
+    peak = float(fin.max()) if fin.size else 0.0
+    if peak <= 0:
+        return 0
+    return int(np.clip(np.ceil(np.log2(peak) - 253 / LOG_STEPS), -128, 127))
+
+
+def log8_codes(a: np.ndarray, e: int) -> np.ndarray:
+    """The smallest code whose value is ≥ each value of ``a`` (non-negative, +inf allowed).
+
+    Examples
+    --------
+    >>> a = np.array([0.0, 1e-9, 0.3, 7.0, np.inf])
+    >>> e = log8_exponent(a)
+    >>> b = log8_table(e)[log8_codes(a, e)]
+    >>> bool((b >= a).all()), bool((b[1:4] <= a[1:4] * 2 ** (1 / 16) + 2.0 ** e).all())
+    (True, True)
+    """
+    table = log8_table(e).astype(np.float64)
+    a = np.asarray(a, np.float64)
+    a = np.where(np.isnan(a), np.inf, a)  # never a bound smaller than unknown
+    # the first table entry ≥ a: monotone in a, so orderings (saturation) survive
+    return np.searchsorted(table, a, side="left").astype(np.uint8)
+
+
+def new_mask(T: int) -> np.ndarray:
+    """(T, T) True where a sample is new at its level (not on the parent's even grid)."""
+    m = np.ones((T, T), bool)
+    m[::2, ::2] = False
+    return m
+
+
+def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
+                   cctx: zstandard.ZstdCompressor) -> bytes:
+    """A version-2 blob of one tile: ``values`` are log8 codes (uint8) or scaled float16.
+
+    Examples
+    --------
+    >>> a = np.abs(np.random.default_rng(0).normal(size=(5, 5)))
+    >>> e = log8_exponent(a)
+    >>> blob = pack_bounds_v2(log8_codes(a, e), e, True, False, zstandard.ZstdCompressor())
+    >>> bool((decode_bounds(blob, (5, 5)) >= a).all())
+    True
+    """
+    v = np.asarray(values)
+    if new_only:
+        v = v[new_mask(v.shape[0])]
+    if log8:
+        payload = np.ascontiguousarray(v, np.uint8).tobytes()
+    else:
+        payload = np.ascontiguousarray(v, np.float16).view(np.uint8).reshape(-1, 2).T.tobytes()
+    flags = (NEW_ONLY if new_only else 0) | (LOG8 if log8 else 0)
+    return bytes([VERSION_2, flags, int(e) & 0xFF]) + cctx.compress(payload)
+
+
+def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
+               parity: tuple[int, int]) -> np.ndarray:
+    if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8):
+        raise ValueError("not a bounds blob of a known version")
+    flags, e = blob[1], int(np.int8(np.uint8(blob[2])))
+    T = shape[0]
+    keep = new_mask(T) if flags & NEW_ONLY else np.ones(shape, bool)
+    n = int(keep.sum())
+    width = 1 if flags & LOG8 else 2
+    raw = zstdsafe.decompress(blob[3:], width * n, exact=True)  # bounded: never a bomb
+    if flags & LOG8:
+        vals = log8_table(e)[np.frombuffer(raw, np.uint8)]
+    else:
+        h = np.frombuffer(raw, np.uint8).reshape(2, n).T.copy().view(np.float16).ravel()
+        vals = round_up(h.astype(np.float64) * 2.0**e, np.float32)
+    out = np.empty(shape, np.float32)
+    out[keep] = vals
+    if flags & NEW_ONLY:
+        if parent is None or parent.shape != tuple(shape):
+            raise ValueError("a new-vertices-only bounds blob needs its parent's values")
+        half = (T - 1) // 2
+        px, py = int(parity[0]) & 1, int(parity[1]) & 1
+        out[::2, ::2] = parent[py * half: py * half + half + 1, px * half: px * half + half + 1]
+    return out
+
+
+NORMALS_PLANAR_DXDY = 2  # metadata ``normals_layout``; absent or 1: raw interleaved bytes
+
+
+def normals_to_bytes(oct8: np.ndarray) -> bytes:
+    """A tile's 8-bit octahedral normals (T, T, 2) as two planes of 2-D differences
+    (mod 256): neighbouring normals agree, so zstd finds ~15 % fewer bytes than in the
+    raw interleaved pairs (docs/benchmarks.md §7).
+
+    Examples
+    --------
+    >>> a = np.random.default_rng(1).integers(0, 256, (5, 5, 2)).astype(np.uint8)
+    >>> bool((normals_from_bytes(normals_to_bytes(a), 5) == a).all())
+    True
+    """
+    p = np.ascontiguousarray(np.moveaxis(np.asarray(oct8, np.uint8), -1, 0))
+    d = p.copy()
+    d[:, 1:, :] = p[:, 1:, :] - p[:, :-1, :]  # uint8: wraps mod 256, exactly invertible
+    e = d.copy()
+    e[:, :, 1:] = d[:, :, 1:] - d[:, :, :-1]
+    return e.tobytes()
+
+
+def normals_from_bytes(raw: bytes, T: int) -> np.ndarray:
+    """Inverse of :func:`normals_to_bytes`: (T, T, 2) uint8."""
+    e = np.frombuffer(raw, np.uint8).reshape(2, T, T)
+    p = np.cumsum(np.cumsum(e, axis=2, dtype=np.uint8), axis=1, dtype=np.uint8)
+    return np.ascontiguousarray(np.moveaxis(p, 0, -1))

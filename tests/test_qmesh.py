@@ -75,6 +75,22 @@ def tileset(tmp_path_factory):
     return _read_tileset(out, dem)
 
 
+@pytest.fixture(scope="module")
+def steep(tmp_path_factory):
+    """Rough relief at 1" (0–200 m over 2 km): the resampling error is a large share of
+    the fine levels' geometric error, so the per-tile threshold has to leave room for it."""
+    from geoterrain.qmesh import write_tileset
+    from geoterrain.synth import generate
+
+    d = tmp_path_factory.mktemp("qmesh_steep")
+    z = generate("fbm", 65, seed=9).astype(np.float32) * 0.1
+    dem = write_tif(d / "steep.tif", z, crs="EPSG:4326", origin=(138.71, 35.37),
+                    spacing=1 / 3600, nodata=-9999)
+    with geoterrain.open(geoterrain.preprocess(dem, tile_size=32)) as t:
+        write_tileset(t, d / "tiles", max_error=2.0)
+    return _read_tileset(d / "tiles", dem)
+
+
 def _coords(t):
     v = np.array(t.getVerticesCoordinates(), np.float64)
     return v[:, 0], v[:, 1], v[:, 2]
@@ -100,7 +116,7 @@ def test_every_tile_decodes_with_its_extensions(which, request):
         assert len(t.watermask) == 1
 
 
-@pytest.mark.parametrize("which", SETS)
+@pytest.mark.parametrize("which", [*SETS, "steep"])
 def test_heights_within_the_declared_error_of_the_dem(which, request):
     tileset = request.getfixturevalue(which)
     out, tiles, h, transform = tileset
@@ -124,6 +140,24 @@ def test_heights_within_the_declared_error_of_the_dem(which, request):
         checked += len(diff)
         assert diff.max(initial=0) <= declared[f"{z}/{x}/{y}"] + 1e-3, (z, x, y)
     assert checked > 10000
+
+
+@pytest.mark.parametrize("which", [*SETS, "steep"])
+def test_declared_errors_fit_cesiums_level_error(which, request):
+    """Below max zoom each tile's declared error (an a-priori bound: resampling error +
+    largest left-out δ + quantisation) is ≤ Cesium's levelMaximumGeometricError."""
+    from geoterrain.qmesh import cesium_level_error
+
+    out, tiles, _, _ = request.getfixturevalue(which)
+    info = json.loads((out / "geoterrain.json").read_text())
+    zmax = info["max_zoom"]
+    below = [(k, v) for k, v in info["declared_error"].items() if int(k.split("/")[0]) < zmax]
+    assert len(below) > 5
+    for k, v in below:
+        assert v <= cesium_level_error(int(k.split("/")[0])) + 1e-4, k
+    assert info["over_level_error"] == sum(
+        v > info["levels"][k.split("/")[0]]["level_error"] + 1e-4
+        for k, v in info["declared_error"].items())
 
 
 @pytest.mark.parametrize("which", SETS)
@@ -177,3 +211,96 @@ def test_tiles_refuses_to_overwrite_a_layer(tileset):
     store = next(out.parent.glob("*.geoterrain"))
     res = CliRunner().invoke(cli, ["tiles", str(store), "-o", str(out)])
     assert res.exit_code == 2 and "exists" in res.stderr
+
+
+def test_geoid_gives_ellipsoidal_heights_within_the_declared_error(tmp_path):
+    """--geoid egm96: decoded heights are the DEM's + the EGM96 undulation N (pyproj here,
+    straight from the grid), within each tile's declared error; without the grid, a
+    one-line error."""
+    from pyproj import Transformer
+
+    from geoterrain.cli.main import cli
+    from geoterrain.exceptions import UsageError
+    from geoterrain.qmesh import geoid_transformer
+    from geoterrain.synth import generate
+
+    z = generate("fbm", 65, seed=2).astype(np.float32) * 0.1
+    dem = write_tif(tmp_path / "g.tif", z, crs="EPSG:4326", origin=(138.71, 35.37),
+                    spacing=1 / 3600, nodata=-9999)
+    store = geoterrain.preprocess(dem, tile_size=32)
+    try:
+        geoid_transformer()
+    except UsageError as exc:
+        res = CliRunner().invoke(cli, ["tiles", str(store), "-o", str(tmp_path / "t"),
+                                       "--geoid", "egm96"])
+        assert res.exit_code == 2 and "proj-data" in res.stderr
+        pytest.skip(f"no EGM96 grid: {exc}")
+    res = CliRunner().invoke(cli, ["-q", "tiles", str(store), "-o", str(tmp_path / "t"),
+                                   "--geoid", "egm96"], catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    out, tiles, h, transform = _read_tileset(tmp_path / "t", dem)
+    info = json.loads((out / "geoterrain.json").read_text())
+    assert info["heights"].startswith("WGS 84 ellipsoidal")
+    rows, cols = np.mgrid[0:h.shape[0], 0:h.shape[1]]
+    slon, slat = (np.asarray(a) for a in rasterio.transform.xy(transform, rows.ravel(),
+                                                                   cols.ravel()))
+    tr = Transformer.from_crs("EPSG:4326+5773", "EPSG:4979", always_xy=True)
+    ell = np.asarray(tr.transform(slon, slat, h.filled(np.nan).ravel())[2])
+    assert 35 < np.nanmean(ell - h.filled(np.nan).ravel()) < 45  # N ≈ +40 m at Fuji
+    zmax = info["max_zoom"]
+    t = tiles[max(k for k in tiles if k[0] == zmax)]
+    lon, lat, hgt = _coords(t)
+    w, s, e, n = tile_rect(*max(k for k in tiles if k[0] == zmax))
+    inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)
+    surf = mtri.LinearTriInterpolator(mtri.Triangulation(lon, lat, np.array(t.indices)
+                                                         .reshape(-1, 3)), hgt)
+    diff = np.abs(np.ma.filled(surf(slon[inside], slat[inside]), np.nan) - ell[inside])
+    key = "/".join(map(str, max(k for k in tiles if k[0] == zmax)))
+    assert np.nanmax(diff) <= info["declared_error"][key] + 1e-3
+    assert np.isfinite(diff).sum() > 100
+
+
+def test_rough_levels_are_rebuilt_on_a_finer_lattice(tmp_path):
+    """Where the resampling error leaves no room under the level error, the whole level is
+    rebuilt on a 257² lattice: its tiles still hold their declared bound at every DEM
+    sample and still share edge vertices; tiles over the level error are counted."""
+    from geoterrain.qmesh import write_tileset
+    from geoterrain.synth import generate
+
+    z = generate("fbm", 65, seed=9).astype(np.float32)  # 0–2000 m over 2 km
+    dem = write_tif(tmp_path / "rough.tif", z, crs="EPSG:4326", origin=(138.71, 35.37),
+                    spacing=1 / 3600, nodata=-9999)
+    with geoterrain.open(geoterrain.preprocess(dem, tile_size=32)) as t:
+        write_tileset(t, tmp_path / "tiles", max_error=2.0)
+    out, tiles, h, transform = _read_tileset(tmp_path / "tiles", dem)
+    info = json.loads((out / "geoterrain.json").read_text())
+    fine = [int(z) for z, v in info["levels"].items() if v["lattice"] == 257]
+    assert fine and max(fine) < info["max_zoom"]
+    rows, cols = np.mgrid[0:h.shape[0], 0:h.shape[1]]
+    slon, slat = (np.asarray(a) for a in rasterio.transform.xy(transform, rows.ravel(),
+                                                                   cols.ravel()))
+    dem_h = h.filled(np.nan).ravel()
+    checked = 0
+    for (zz, x, y), tile in tiles.items():
+        if zz not in fine:
+            continue
+        lon, lat, hgt = _coords(tile)
+        w, s, e, n = tile_rect(zz, x, y)
+        step = np.diff(np.unique(lon)).min() / (e - w)  # 1/256 on a 257² lattice
+        assert abs(step * 256 - 1) < 0.01, (zz, step)
+        checked += 1
+        inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)
+        tri = mtri.Triangulation(lon, lat, np.array(tile.indices).reshape(-1, 3))
+        surf = np.ma.filled(mtri.LinearTriInterpolator(tri, hgt)(slon[inside], slat[inside]),
+                            np.nan)
+        diff = np.abs(surf - dem_h[inside])
+        assert np.nanmax(diff) <= info["declared_error"][f"{zz}/{x}/{y}"] + 1e-3
+        o = tiles.get((zz, x + 1, y))
+        if o is not None:
+            a = np.array(_coords(tile)).T[tile.eastI]
+            b = np.array(_coords(o)).T[o.westI]
+            assert np.array_equal(np.sort(a[:, 2]), np.sort(b[:, 2]))
+    assert checked >= len(fine)
+    over = sum(v > info["levels"][k.split("/")[0]]["level_error"] + 1e-4
+               for k, v in info["declared_error"].items())
+    assert info["over_level_error"] == over

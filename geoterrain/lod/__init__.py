@@ -56,7 +56,8 @@ class Selection:
     """A selected mesh and what it cost.
 
     ``mesh`` has float64 points in the scene frame of ``Terrain.scene_xyz()``,
-    point data ``grid_ij`` (row, column of each vertex's sample) and cell data
+    point data ``grid_ij`` (row, column of each vertex's sample) and ``elevation``
+    (metres, without vertical exaggeration; the active scalars) and cell data
     ``skirt`` (1 on skirt triangles) and ``level`` (pyramid level).
     ``stats`` holds ``strategy``, ``triangles`` (skirts excluded),
     ``skirt_triangles``, ``vertices``, ``tiles_visited``, ``tiles_culled``,
@@ -158,6 +159,9 @@ def static(terrain, max_error: float = 1.0) -> Selection:
 
 
 def _finish(terrain, mesh, stats: dict, strategy: str, t0: float, dec0: int) -> Selection:
+    from geoterrain.lod.mesh import add_elevation  # (pyvista: loaded with the first mesh)
+
+    add_elevation(mesh, terrain.frame.z_scale)  # every strategy's mesh, skirts included
     ms = (time.perf_counter() - t0) * 1e3
     skirt = np.asarray(mesh.cell_data["skirt"]) if mesh.n_cells else np.zeros(0)
     stats = {"strategy": strategy, "triangles": int((skirt == 0).sum()),

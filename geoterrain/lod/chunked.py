@@ -1,21 +1,22 @@
 """Strategy ``chunked``: the stored tile quadtree with skirts (seed 000, GPU Terrain
 Rendering / Ulrich's chunked LOD).
 
-The tile quadtree is walked level by level on arrays of nodes
-(:func:`geoterrain.lod.tiles.quadtree_leaves`). A node is refined while
-λ·ε_tile / D_min > τ, with ε_tile the stored error of the tile's uniform surface
-against every full-resolution sample of its footprint and D_min the distance
-from the eye to the tile's 3-D box, so the measured error of a drawn tile stays
-≤ τ. Cracks between tiles of different levels are closed with skirts (seed 000
-§skirts) hanging below the tile's edges, as deep as the tile's skirt error plus
-the largest skirt error of the drawn tiles.
+The tile quadtree is walked top-down by a compiled pass
+(:func:`geoterrain.lod.chunks.chunk_leaves`). A node is refined while
+λ·ε_chunk / D_min > τ, with ε_chunk the error of the tile's simplified chunk
+against every full-resolution sample of its footprint (:mod:`geoterrain.lod.chunks`)
+and D_min the distance from the eye to the tile's 3-D box, so the measured error
+of a drawn chunk stays ≤ τ. Cracks between chunks of different levels are
+closed with skirts (seed 000 §skirts) hanging below the chunk's edges, as deep
+as its edge error plus the largest edge error of the drawn chunks.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from geoterrain.lod.tiles import assemble, quadtree_leaves, tile_index
+from geoterrain.lod.chunks import assemble_chunks, chunk_error, chunk_leaves
+from geoterrain.lod.tiles import tile_index
 from geoterrain.view import View
 
 
@@ -27,18 +28,13 @@ def select(terrain, view: View, tau: float):
     >>> mesh, stats = select(t, View((0, -800, 400), (0, 0, 0)), 1.0)  # doctest: +SKIP
     """
     index = tile_index(terrain)
-    lam = view.lam
-
-    def refine(nodes: np.ndarray, L: np.ndarray) -> np.ndarray:
-        dmin = view.box_distance(index.lo[nodes], index.hi[nodes])
-        err = index.error[nodes]
-        with np.errstate(invalid="ignore"):
-            return (lam * err > tau * dmin) | ((dmin == 0) & (err > 0))
-
-    leaves, stats = quadtree_leaves(terrain, index, view, refine)
+    error = chunk_error(terrain, index)
+    leaves, stats = chunk_leaves(terrain, index, view, tau)
     depth = None
     if len(leaves):
-        be = index.boundary[leaves]
+        # a chunk's edge lies within ε_chunk of the samples (its uniform edge within
+        # the stored boundary error), so two drawn edges are at most the sum apart
+        be = np.maximum(index.boundary[leaves], error[leaves])
         depth_all = float(np.max(be[np.isfinite(be)], initial=0.0))
         depth = np.where(np.isfinite(be), be, 0.0) + depth_all
-    return assemble(terrain, index, leaves, depth), stats
+    return assemble_chunks(terrain, index, leaves, depth), stats

@@ -12,14 +12,17 @@ from geoterrain.bintree import parents_nb
 
 
 @njit(cache=True)
-def _walk(active, mixed, vid, tris, verts, fill):
+def _walk(active, mixed, gen, vid, tris, verts):
     """Depth-first longest-edge bisection from the two base triangles.
 
-    A triangle (a, b, c) splits at m = (a + b) / 2 when ``active[m]``; leaves over
-    a mixed diamond (``mixed[m]``) are skipped. With ``fill`` False only counts.
+    A triangle (a, b, c) splits at m = (a + b) / 2 when ``active[m] == gen``; leaves
+    over a mixed diamond (``mixed[m] == gen``) are skipped. Faces go to ``tris``
+    and first-seen sample indices to ``verts``; when ``tris`` is too small the walk
+    stops and returns -1 triangles (``vid`` is reset either way).
     """
     N = active.shape[0]
     s = N - 1
+    cap = tris.shape[0]
     stack = np.empty((256, 6), np.int64)
     stack[0] = (0, 0, s, s, 0, s)
     stack[1] = (s, s, 0, 0, s, 0)
@@ -30,7 +33,7 @@ def _walk(active, mixed, vid, tris, verts, fill):
         si, sj = ai + bi, aj + bj
         if (si & 1) == 0 and (sj & 1) == 0:
             mi, mj = si >> 1, sj >> 1
-            if active[mi, mj]:
+            if active[mi, mj] == gen:
                 # LP bisection: children (c, a, m) and (b, c, m)
                 stack[sp, 0], stack[sp, 1], stack[sp, 2], stack[sp, 3] = ci, cj, ai, aj
                 stack[sp, 4], stack[sp, 5] = mi, mj
@@ -39,35 +42,38 @@ def _walk(active, mixed, vid, tris, verts, fill):
                 stack[sp, 4], stack[sp, 5] = mi, mj
                 sp += 1
                 continue
-            if mixed[mi, mj]:
+            if mixed[mi, mj] == gen:
                 continue
-        if fill:
-            for k in range(3):
-                if k == 0:
-                    idx = ai * N + aj
-                elif k == 1:
-                    idx = bi * N + bj
-                else:
-                    idx = ci * N + cj
-                v = vid[idx]
-                if v < 0:
-                    v = nv
-                    vid[idx] = nv
-                    verts[nv] = idx
-                    nv += 1
-                tris[nf, k] = v
+        if nf == cap:
+            nf = -1
+            break
+        for k in range(3):
+            if k == 0:
+                idx = ai * N + aj
+            elif k == 1:
+                idx = bi * N + bj
+            else:
+                idx = ci * N + cj
+            v = vid[idx]
+            if v < 0:
+                v = nv
+                vid[idx] = nv
+                verts[nv] = idx
+                nv += 1
+            tris[nf, k] = v
         nf += 1
-    if fill:
-        for k in range(nv):
-            vid[verts[k]] = -1
+    for k in range(nv):
+        vid[verts[k]] = -1
     return nf, nv
 
 
-def extract(active: np.ndarray, mixed: np.ndarray, vid: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray]:
+def extract(active: np.ndarray, mixed: np.ndarray, vid: np.ndarray, gen=True,
+            capacity: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Leaf triangles of the refinement: faces (F, 3) and flat sample indices (V,).
 
+    ``active``/``mixed`` are bool flags, or generation stamps compared with ``gen``.
     ``vid`` is a scratch (N*N,) int32 array filled with -1; it is left that way.
+    ``capacity`` is a first guess of the triangle count (grown on demand).
 
     Examples
     --------
@@ -76,25 +82,28 @@ def extract(active: np.ndarray, mixed: np.ndarray, vid: np.ndarray
     >>> f.shape, sorted(v.tolist())
     ((2, 3), [0, 2, 6, 8])
     """
-    nf, _ = _walk(active, mixed, vid, np.empty((0, 3), np.int32), np.empty(0, np.int64), False)
-    tris = np.empty((nf, 3), np.int32)
-    verts = np.empty(3 * nf, np.int64)
-    nf, nv = _walk(active, mixed, vid, tris, verts, True)
-    return tris[:nf], verts[:nv]
+    cap = max(int(capacity), 1024)
+    while True:
+        tris = np.empty((cap, 3), np.int32)
+        verts = np.empty(3 * cap, np.int64)
+        nf, nv = _walk(active, mixed, gen, vid, tris, verts)
+        if nf >= 0:
+            return tris[:nf], verts[:nv]
+        cap *= 4
 
 
 @njit(cache=True)
-def _set_parents(active, i, j, h):
+def _set_parents(active, i, j, h, gen):
     N = active.shape[0]
     p0i, p0j, p1i, p1j = parents_nb(i, j, h)  # the bintree's rule (seed 002 §2.3)
     if 0 <= p0i < N and 0 <= p0j < N:
-        active[p0i, p0j] = True
+        active[p0i, p0j] = gen
     if 0 <= p1i < N and 0 <= p1j < N:
-        active[p1i, p1j] = True
+        active[p1i, p1j] = gen
 
 
 @njit(cache=True)
-def close_upward_boxes(active, boxes):
+def close_upward_boxes(active, boxes, gen=True):
     """Activate both parents of every active vertex, finest depth first, in place.
 
     Depth order: for h = 1, 2, 4, ...: the edge midpoints of half-size h, then the
@@ -102,6 +111,7 @@ def close_upward_boxes(active, boxes):
     box is scanned at each h: the union of ``boxes[L]`` (rows i0, i1, columns
     j0, j1 of the tiles filled at pyramid level L = log2 h, capped at the last
     row of ``boxes``) and the previous box grown by h (parents lie h away).
+    ``active`` holds bools, or generation stamps where ``== gen`` means active.
     """
     N = active.shape[0]
     top = boxes.shape[0] - 1
@@ -115,8 +125,8 @@ def close_upward_boxes(active, boxes):
             for i in range(ia, i1 + 1, h):  # edge midpoints: i/h + j/h odd
                 jb = ja if ((i // h) + (ja // h)) % 2 == 1 else ja + h
                 for j in range(jb, j1 + 1, 2 * h):
-                    if active[i, j]:
-                        _set_parents(active, i, j, h)
+                    if active[i, j] == gen:
+                        _set_parents(active, i, j, h, gen)
             i0, j0 = max(0, i0 - h), max(0, j0 - h)  # their parents lie h away
             i1, j1 = min(N - 1, i1 + h), min(N - 1, j1 + h)
             ia, ja = (i0 // h) * h, (j0 // h) * h
@@ -124,8 +134,8 @@ def close_upward_boxes(active, boxes):
             jb = ja if (ja // h) % 2 == 1 else ja + h
             for i in range(ib, i1 + 1, 2 * h):
                 for j in range(jb, j1 + 1, 2 * h):
-                    if active[i, j]:
-                        _set_parents(active, i, j, h)
+                    if active[i, j] == gen:
+                        _set_parents(active, i, j, h, gen)
             i0, j0 = max(0, i0 - h), max(0, j0 - h)
             i1, j1 = min(N - 1, i1 + h), min(N - 1, j1 + h)
         h *= 2
@@ -146,29 +156,35 @@ def close_upward(active: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def fill_static(slots, i0, j0, step, D, e, active, mixed):
+def fill_static(slots, i0, j0, step, D, e, active, mixed, gen=True, top_step=0):
     """Static predicate δ > e on pooled tiles, scattered into the dense flags in place.
 
     ``slots``: pool slot of each tile; ``i0, j0, step``: grid row/column of its first
     sample and its sample spacing. δ = inf (mixed diamond) is active and mixed.
+    Only the samples new at a tile's level are read (both local indices even means
+    a coarser level's vertex, read in that level's tile) unless ``step`` is
+    ``top_step`` or ``top_step`` is 0.
     """
     T = D.shape[1]
     for k in range(slots.shape[0]):
         s = slots[k]
+        coarse = top_step > 0 and step[k] < top_step
         for a in range(T):
             i = i0[k] + a * step[k]
             for b in range(T):
+                if coarse and (a & 1) == 0 and (b & 1) == 0:
+                    continue
                 j = j0[k] + b * step[k]
                 dl = np.float64(D[s, a, b])
                 if dl > e:
-                    active[i, j] = True
+                    active[i, j] = gen
                 if dl == np.inf:
-                    mixed[i, j] = True
+                    mixed[i, j] = gen
 
 
 @njit(cache=True)
-def fill_lp(slots, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, planes, lam, tau,
-            active, mixed):
+def fill_lp(slots, inside, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, planes, lam, tau,
+            active, mixed, gen, top_step):
     """LP eq. 2 with sphere culling on pooled tiles, scattered into the dense flags.
 
     A vertex is active iff its sphere (p, r) is not outside any frustum plane, δ > 0,
@@ -176,18 +192,27 @@ def fill_lp(slots, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, planes, lam, 
     p = (x, y, height · zfac), invalid heights (NaN) placed at ``zproxy``. A mixed
     diamond (δ = inf) is always active (and mixed): culling it by its own sphere
     (which bounds its descendants, not its corners) could drop every triangle around
-    a visible corner."""
+    a visible corner. Tiles flagged ``inside`` (their padded box is inside the
+    frustum) skip the plane tests. Flags are set to the stamp ``gen``. Only the
+    samples new at a tile's level are evaluated (see :func:`fill_static`): the tile
+    holding a coarser vertex passes the tile test whenever that vertex can be active.
+    Serial on purpose: on a shared 2-core machine, a parallel region waiting on a
+    descheduled thread made frames 3× slower than one thread."""
     T = D.shape[1]
     for k in range(slots.shape[0]):
         s = slots[k]
+        P = 0 if inside[k] else planes.shape[0]
+        coarse = step[k] < top_step
         for a in range(T):
             i = i0[k] + a * step[k]
             for b in range(T):
+                if coarse and (a & 1) == 0 and (b & 1) == 0:
+                    continue
                 j = j0[k] + b * step[k]
                 dl = np.float64(D[s, a, b])
                 if dl == np.inf:
-                    active[i, j] = True
-                    mixed[i, j] = True
+                    active[i, j] = gen
+                    mixed[i, j] = gen
                     continue
                 if not dl > 0.0:
                     continue
@@ -196,7 +221,7 @@ def fill_lp(slots, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, planes, lam, 
                 h = H[s, a, b]
                 pz = h * zfac if h == h else zproxy
                 vis = True
-                for q in range(planes.shape[0]):
+                for q in range(P):
                     if planes[q, 0] * px + planes[q, 1] * py + planes[q, 2] * pz \
                             + planes[q, 3] + r < 0.0:
                         vis = False
@@ -206,21 +231,75 @@ def fill_lp(slots, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, planes, lam, 
                 dx, dy, dz = px - eye[0], py - eye[1], pz - eye[2]
                 d = np.sqrt(dx * dx + dy * dy + dz * dz)
                 if d <= r or lam * dl > tau * (d - r):
-                    active[i, j] = True
+                    active[i, j] = gen
 
 
 @njit(cache=True)
-def gather_pooled(flat, N, top, t, base, slot_of, H, X, Y, h, x, y, level):
-    """Height, scene x, y and pyramid level of full-resolution samples ``flat`` (i·N + j),
-    read from the coarsest tile holding each (unstored tiles: NaN, 0, 0)."""
+def lp_tiles(lo, hi, dmax, rmax, eye, planes, lam, tau):
+    """The tiles that can hold an LP-active vertex (seed 002 eq. 2, tested with tile
+    bounds only), as a status per tile: 0 no, 1 yes, 2 yes and inside the frustum.
+
+    Conservative: a vertex of the tile lies in its box, so d − r ≥ D_box − r_max; its
+    sphere lies in the box grown by r_max, tested against each plane as a box.
+    """
+    n = lo.shape[0]
+    out = np.zeros(n, np.uint8)
+    for k in range(n):
+        dm = dmax[k]
+        if not dm > 0.0:
+            continue
+        r = rmax[k]
+        dx = max(lo[k, 0] - eye[0], 0.0, eye[0] - hi[k, 0])
+        dy = max(lo[k, 1] - eye[1], 0.0, eye[1] - hi[k, 1])
+        dz = max(lo[k, 2] - eye[2], 0.0, eye[2] - hi[k, 2])
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if not (d <= r or lam * dm > tau * (d - r)):
+            continue
+        status = 2
+        for q in range(planes.shape[0]):
+            a, b, c, w = planes[q, 0], planes[q, 1], planes[q, 2], planes[q, 3]
+            # the box corner farthest along / against the plane normal
+            fx = hi[k, 0] + r if a >= 0 else lo[k, 0] - r
+            fy = hi[k, 1] + r if b >= 0 else lo[k, 1] - r
+            fz = hi[k, 2] + r if c >= 0 else lo[k, 2] - r
+            if a * fx + b * fy + c * fz + w < 0:
+                status = 0
+                break
+            nx = lo[k, 0] - r if a >= 0 else hi[k, 0] + r
+            ny = lo[k, 1] - r if b >= 0 else hi[k, 1] + r
+            nz = lo[k, 2] - r if c >= 0 else hi[k, 2] + r
+            if a * nx + b * ny + c * nz + w < 0:
+                status = 1
+        out[k] = status
+    return out
+
+
+@njit(cache=True)
+def level_boxes(L, i0, i1, j0, j1, boxes):
+    """Grow ``boxes[L]`` (rows i0, i1, columns j0, j1) to hold each tile's samples."""
+    for k in range(L.shape[0]):
+        b = boxes[L[k]]
+        b[0] = min(b[0], i0[k])
+        b[1] = max(b[1], i1[k])
+        b[2] = min(b[2], j0[k])
+        b[3] = max(b[3], j1[k])
+
+
+@njit(cache=True)
+def gather_pooled(flat, N, top, t, base, slot_of, H, X, Y, zfac, xyz, ij, level):
+    """Scene positions ``xyz`` (x, y, height · zfac), grid ``ij`` and pyramid level of
+    full-resolution samples ``flat`` (i·N + j), read from the coarsest tile holding
+    each (unstored tiles: NaN height, x = y = 0)."""
     for k in range(flat.shape[0]):
-        L, idx, a, b = _coarsest_tile(flat[k] // N, flat[k] % N, top, t, base)
+        i, j = flat[k] // N, flat[k] % N
+        L, idx, a, b = _coarsest_tile(i, j, top, t, base)
         s = slot_of[idx]
         level[k] = L
+        ij[k, 0], ij[k, 1] = i, j
         if s < 0:
-            h[k], x[k], y[k] = np.nan, 0.0, 0.0
+            xyz[k, 0], xyz[k, 1], xyz[k, 2] = 0.0, 0.0, np.nan
         else:
-            h[k], x[k], y[k] = H[s, a, b], X[s, a, b], Y[s, a, b]
+            xyz[k, 0], xyz[k, 1], xyz[k, 2] = X[s, a, b], Y[s, a, b], H[s, a, b] * zfac
 
 
 @njit(cache=True)
@@ -247,23 +326,52 @@ def mark_tiles(flat, N, top, t, base, occ):
 
 
 @njit(cache=True)
-def cull_compact(faces, X, Y, Z, planes, lvl):
-    """Drop triangles with an invalid corner (Z NaN) or entirely outside one frustum
-    plane (``planes`` (P, 4), P = 0 for none); renumber the vertices left in order.
-
-    Returns the kept faces (renumbered), the kept vertices' indices and each kept
-    triangle's level (the coarsest level shared by its corners: min of ``lvl``).
-    """
-    V, F, P = X.shape[0], faces.shape[0], planes.shape[0]
-    bits = np.zeros(V, np.uint8)  # bit 6 = invalid, bits 0-5 = outside plane k
+def _corner_bits(xyz, planes):
+    """Per vertex: bit 6 = invalid (z not finite), bit k = outside plane k."""
+    V, P = xyz.shape[0], planes.shape[0]
+    bits = np.zeros(V, np.uint8)
     for v in range(V):
-        z = Z[v]
+        x, y, z = xyz[v, 0], xyz[v, 1], xyz[v, 2]
+        b = 0
         if not np.isfinite(z):
-            bits[v] = 64
+            b = 64
             z = 0.0
         for k in range(P):
-            if planes[k, 0] * X[v] + planes[k, 1] * Y[v] + planes[k, 2] * z + planes[k, 3] < 0:
-                bits[v] |= np.uint8(1 << k)
+            if planes[k, 0] * x + planes[k, 1] * y + planes[k, 2] * z + planes[k, 3] < 0:
+                b |= 1 << k
+        bits[v] = b
+    return bits
+
+
+@njit(cache=True)
+def _face_levels(faces, lvl):
+    out = np.empty(faces.shape[0], np.int16)
+    for f in range(faces.shape[0]):
+        out[f] = min(lvl[faces[f, 0]], lvl[faces[f, 1]], lvl[faces[f, 2]])
+    return out
+
+
+@njit(cache=True)
+def _any(bits):
+    for v in range(bits.shape[0]):
+        if bits[v] != 0:
+            return True
+    return False
+
+
+@njit(cache=True)
+def cull_compact(faces, xyz, planes, lvl):
+    """Drop triangles with an invalid corner (z NaN) or entirely outside one frustum
+    plane (``planes`` (P, 4), P = 0 for none); renumber the vertices left in order.
+
+    Returns the kept faces (renumbered), the kept vertices' indices (None when every
+    vertex is kept: nothing was dropped) and each kept triangle's level (the
+    coarsest level shared by its corners: min of ``lvl``).
+    """
+    V, F = xyz.shape[0], faces.shape[0]
+    bits = _corner_bits(xyz, planes)
+    if not _any(bits):
+        return faces, None, _face_levels(faces, lvl)
     keep = np.zeros(F, np.bool_)
     used = np.zeros(V, np.bool_)
     nf = 0
@@ -275,7 +383,7 @@ def cull_compact(faces, X, Y, Z, planes, lvl):
             used[faces[f, 0]] = True
             used[faces[f, 1]] = True
             used[faces[f, 2]] = True
-    remap = np.full(V, -1, np.int64)
+    remap = np.full(V, -1, np.int32)
     nv = 0
     for v in range(V):
         if used[v]:
@@ -285,7 +393,7 @@ def cull_compact(faces, X, Y, Z, planes, lvl):
     for v in range(V):
         if used[v]:
             vid[remap[v]] = v
-    out = np.empty((nf, 3), np.int64)
+    out = np.empty((nf, 3), np.int32)
     level = np.empty(nf, np.int16)
     n = 0
     for f in range(F):

@@ -1,4 +1,9 @@
-"""Turn grid-indexed triangles into a ``pyvista.PolyData`` in the scene frame."""
+"""Turn grid-indexed triangles into a ``pyvista.PolyData`` in the scene frame.
+
+Every mesh a strategy hands back through :mod:`geoterrain.lod` carries the point
+arrays ``grid_ij`` (the sample of each vertex) and ``elevation`` (metres, added
+once at the seam by :func:`add_elevation`, so every strategy gets it).
+"""
 
 from __future__ import annotations
 
@@ -32,6 +37,30 @@ def polydata(xyz: np.ndarray, faces: np.ndarray, ij: np.ndarray | None = None,
     for k, v in (cell_arrays or {}).items():
         if len(faces):
             mesh.cell_data[k] = v
+    return mesh
+
+
+def add_elevation(mesh: pv.PolyData, z_scale: float) -> pv.PolyData:
+    """Add the point array ``elevation`` (metres) to ``mesh`` in place and make it active.
+
+    Scene Z is the height in metres × the vertical exaggeration (``Frame.z``:
+    height × z_to_m × z_scale), so elevation = Z / z_scale: the unexaggerated height
+    in metres, whatever the DEM's vertical unit. Skirt vertices get the height of
+    where they hang (their own Z), like every other point.
+
+    Examples
+    --------
+    >>> m = add_elevation(polydata(np.array([[0, 0, 4.0], [1, 0, 6], [0, 1, 8]]),
+    ...                            np.array([[0, 1, 2]])), z_scale=2.0)
+    >>> m.active_scalars_name, m.point_data["elevation"].tolist()
+    ('elevation', [2.0, 3.0, 4.0])
+    """
+    if mesh.n_points:
+        z = np.asarray(mesh.points)[:, 2]
+        e = np.empty(len(z), np.float32)  # one pass, no float64 temporary
+        np.multiply(z, 1.0 / float(z_scale), out=e, casting="unsafe")
+        mesh.point_data["elevation"] = e
+        mesh.set_active_scalars("elevation")
     return mesh
 
 

@@ -57,16 +57,23 @@ class TilePool:
         return self.base[L] + keys[:, 2] * (np.int64(1) << (self.top - L)) + keys[:, 1]
 
     def _grow(self, n: int) -> None:
-        new = max(n, min(2 * self.capacity, max(self.budget_slots, n)), 16)
+        # The first growth reserves the whole budget: np.zeros pages are only
+        # committed when a slot is written, so untouched slots cost no memory, and
+        # later requests need no copy of the slabs (a copy stalled frames for 0.1 s).
+        new = max(n, self.budget_slots, 16) if self.capacity == 0 else n
         extra = new - self.capacity
         if extra <= 0:
             return
         T = self.T
-        self.D = np.concatenate([self.D, np.zeros((extra, T, T), np.float32)])
-        self.R = np.concatenate([self.R, np.zeros((extra, T, T), np.float32)])
-        self.H = np.concatenate([self.H, np.full((extra, T, T), np.nan)])
-        self.X = np.concatenate([self.X, np.zeros((extra, T, T))])
-        self.Y = np.concatenate([self.Y, np.zeros((extra, T, T))])
+
+        def more(a, dtype):
+            if self.capacity == 0:
+                return np.zeros((new, T, T), dtype)
+            return np.concatenate([a, np.zeros((extra, T, T), dtype)])
+
+        self.D, self.R = more(self.D, np.float32), more(self.R, np.float32)
+        self.H, self.X, self.Y = more(self.H, np.float64), more(self.X, np.float64), \
+            more(self.Y, np.float64)
         self.key_of = np.concatenate([self.key_of, np.full(extra, -1, np.int64)])
         self.stamp = np.concatenate([self.stamp, np.zeros(extra, np.int64)])
         for k in KINDS:

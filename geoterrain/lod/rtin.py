@@ -36,6 +36,8 @@ from geoterrain.lod.kernels import (
     fill_lp,
     fill_static,
     gather_pooled,
+    level_boxes,
+    lp_tiles,
     mark_tiles,
 )
 from geoterrain.lod.mesh import empty_polydata, polydata
@@ -46,14 +48,60 @@ from geoterrain.view import View
 _SCRATCH: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-class ActiveSet:
-    """Dense per-sample flags filled tile by tile: ``active`` and ``mixed`` (δ = inf)."""
+class _Scratch:
+    """Per-terrain buffers reused by every view-dependent selection.
 
-    def __init__(self, terrain):
+    ``active``/``mixed`` hold generation stamps (uint8): a flag is set in this
+    frame when it equals ``gen``. A new frame takes the next stamp instead of
+    clearing N² flags, so a frame costs what it touches, not the grid's size;
+    the arrays are cleared once every 255 frames. ``vid`` maps samples to mesh
+    vertex ids (kept at -1 between frames); ``last_faces`` sizes the next output.
+    """
+
+    def __init__(self, N: int):
+        self.N = N
+        self.active = self.mixed = None  # allocated by the first view-dependent frame
+        self.gen = 0
+        self.vid = np.full(N * N, -1, np.int32)
+        self.last_faces = 0
+
+    def next_gen(self) -> np.uint8:
+        if self.active is None:
+            self.active = np.zeros((self.N, self.N), np.uint8)
+            self.mixed = np.zeros((self.N, self.N), np.uint8)
+        if self.gen == 255:
+            self.active.fill(0)
+            self.mixed.fill(0)
+            self.gen = 0
+        self.gen += 1
+        return np.uint8(self.gen)
+
+
+def _scratch(terrain) -> _Scratch:
+    sc = _SCRATCH.get(terrain)
+    if sc is None:
+        sc = _SCRATCH[terrain] = _Scratch(terrain.grid.size)
+    return sc
+
+
+class ActiveSet:
+    """Per-sample flags filled tile by tile: ``active`` and ``mixed`` (δ = inf).
+
+    With ``stamped`` the flags are the terrain's reused stamp arrays and a flag is
+    set when it equals ``gen``; otherwise they are fresh bool arrays (``gen`` True).
+    """
+
+    def __init__(self, terrain, stamped: bool = False):
         N = terrain.grid.size
         self.terrain = terrain
-        self.active = np.zeros((N, N), bool)
-        self.mixed = np.zeros((N, N), bool)
+        if stamped:
+            sc = _scratch(terrain)
+            self.gen = sc.next_gen()
+            self.active, self.mixed = sc.active, sc.mixed
+        else:
+            self.gen = True
+            self.active = np.zeros((N, N), bool)
+            self.mixed = np.zeros((N, N), bool)
         # per level: rows i0, i1 and columns j0, j1 covering the tiles filled
         self.boxes = np.tile(np.array([N, -1, N, -1], np.int64), (terrain.grid.top_level + 1, 1))
 
@@ -67,16 +115,12 @@ class ActiveSet:
         step = np.int64(1) << L
         i0, j0 = (y << g.t) << L, (x << g.t) << L
         i1, j1 = i0 + (g.tile_samples - 1) * step, j0 + (g.tile_samples - 1) * step
-        for lv in np.unique(L).tolist():
-            m = L == lv
-            b = self.boxes[lv]
-            b[:] = (min(b[0], i0[m].min()), max(b[1], i1[m].max()),
-                    min(b[2], j0[m].min()), max(b[3], j1[m].max()))
+        level_boxes(L, i0, i1, j0, j1, self.boxes)
         return tile_pool(self.terrain).table_index(keys), i0, j0, step
 
     def close(self) -> None:
         """Close the active set upward, scanning only where tiles were filled."""
-        close_upward_boxes(self.active, self.boxes)
+        close_upward_boxes(self.active, self.boxes, self.gen)
 
     def mark_unknown_mixed(self, rows: np.ndarray, index) -> None:
         """Tiles not read that may hold δ = inf: flag their samples as mixed (not drawn)."""
@@ -86,7 +130,7 @@ class ActiveSet:
             L, x, y = (int(v) for v in index.keys[row])
             s = 1 << L
             i0, j0 = (y << g.t) << L, (x << g.t) << L
-            self.mixed[i0:i0 + (T - 1) * s + 1, j0:j0 + (T - 1) * s + 1] = True
+            self.mixed[i0:i0 + (T - 1) * s + 1, j0:j0 + (T - 1) * s + 1] = self.gen
 
 
 def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
@@ -97,7 +141,8 @@ def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
         pool = tile_pool(terrain)
         idx, i0, j0, step = act.tiles(rows, index)
         slots = pool.slots(idx, ("delta",))
-        fill_static(slots, i0, j0, step, pool.D, float(max_error), act.active, act.mixed)
+        fill_static(slots, i0, j0, step, pool.D, float(max_error), act.active, act.mixed,
+                    act.gen, 1 << terrain.grid.top_level)
     act.close()
     return act
 
@@ -105,40 +150,40 @@ def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
 def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex."""
     lam, eye = view.lam, view.eye
-    # tile test, conservative: a vertex in the tile lies in its box, so d − r ≥ D_box − r_max
-    rmax = index.radius_max
-    dbox = view.box_distance(index.lo, index.hi)
-    with np.errstate(invalid="ignore", over="ignore"):
-        dm = index.delta_max
-        can = (dm > 0) & ((dbox <= rmax) | (lam * dm > tau * (dbox - rmax)))
-    pad = rmax[:, None]
-    visible = view.box_visibility(index.lo - pad, index.hi + pad) != 0
-    rows = np.flatnonzero(can & visible)
-    act = ActiveSet(terrain)
+    dm = index.delta_max
+    status = lp_tiles(index.lo, index.hi, dm, index.radius_max, eye, view.planes, lam, tau)
+    rows = np.flatnonzero(status)
+    inside = status[rows] == 2
+    act = ActiveSet(terrain, stamped=True)
     if len(rows):
         pool = tile_pool(terrain)
         idx, i0, j0, step = act.tiles(rows, index)
         slots = pool.slots(idx, ("delta", "radius", "height", "xy"))
         zfac = terrain.frame.z_to_m * terrain.frame.z_scale
-        fill_lp(slots, i0, j0, step, pool.D, pool.R, pool.H, pool.X, pool.Y, zfac,
-                terrain.stand_in_z, eye, view.planes, lam, tau, act.active, act.mixed)
+        fill_lp(slots, inside, i0, j0, step, pool.D, pool.R, pool.H, pool.X, pool.Y, zfac,
+                terrain.stand_in_z, eye, view.planes, lam, tau, act.active, act.mixed, act.gen,
+                1 << terrain.grid.top_level)
     act.close()
-    unread = np.flatnonzero(~(can & visible) & ~np.isfinite(index.delta_max))
+    drawn = np.zeros(len(dm), bool)
+    drawn[rows] = True
+    unread = np.flatnonzero(~drawn & ~np.isfinite(dm))
     act.mark_unknown_mixed(unread, index)
     return act
 
 
 def _gather(terrain, flat: np.ndarray):
-    """Heights, scene x, y and pyramid levels of samples ``flat`` from the pooled tiles."""
+    """Scene positions, grid indices and pyramid levels of samples ``flat``, read from
+    the pooled tiles."""
     pool = tile_pool(terrain)
     occ = np.zeros(len(pool.slot_of), bool)
     mark_tiles(flat, pool.N, pool.top, pool.t, pool.base, occ)
     pool.slots(np.flatnonzero(occ), ("height", "xy"))
     n = len(flat)
-    h, X, Y, lvl = np.empty(n), np.empty(n), np.empty(n), np.empty(n, np.int64)
+    xyz, ij, lvl = np.empty((n, 3)), np.empty((n, 2), np.int64), np.empty(n, np.int64)
+    zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
     gather_pooled(flat, pool.N, pool.top, pool.t, pool.base, pool.slot_of, pool.H, pool.X,
-                  pool.Y, h, X, Y, lvl)
-    return h, X, Y, lvl
+                  pool.Y, zfac, xyz, ij, lvl)
+    return xyz, ij, lvl
 
 
 def active_mesh(terrain, act: ActiveSet, view: View | None = None):
@@ -147,18 +192,16 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None):
     Triangles with an invalid corner are dropped, and with ``view`` those entirely
     outside one frustum plane. Cell data ``skirt`` (all 0) and ``level``.
     """
-    N = terrain.grid.size
-    vid = _SCRATCH.get(terrain)
-    if vid is None:
-        vid = _SCRATCH[terrain] = np.full(N * N, -1, np.int32)
-    faces, flat = extract(act.active, act.mixed, vid)
-    h, X, Y, lvl = _gather(terrain, flat)
-    Z = terrain.frame.z(h)
+    sc = _scratch(terrain)
+    guess = 2 * sc.last_faces + 65536  # np.empty: untouched capacity costs nothing
+    faces, flat = extract(act.active, act.mixed, sc.vid, act.gen, guess)
+    sc.last_faces = len(faces)
+    xyz, ij, lvl = _gather(terrain, flat)
     planes = view.planes if view is not None else np.zeros((0, 4))
-    faces, keep, level = cull_compact(faces, X, Y, Z, planes, lvl)
+    faces, keep, level = cull_compact(faces, xyz, planes, lvl)
+    if keep is not None:
+        xyz, ij = xyz[keep], ij[keep]
     # both base triangles are counter-clockwise and bisection keeps the orientation
-    xyz = np.stack([X[keep], Y[keep], Z[keep]], 1)
-    ij = np.stack([flat[keep] // N, flat[keep] % N], 1)
     return polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8),
                                      "level": level})
 

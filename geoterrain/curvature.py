@@ -1,0 +1,246 @@
+"""δ and r that hold in the scene's metric x/y on curvilinear (geographic) grids.
+
+:func:`geoterrain.bounds.vertex_errors` bounds the vertical error of a mesh interpolated in
+grid-index space. A geographic grid maps to the scene curvilinearly (pyproj, see
+:mod:`geoterrain.frame`), while the mesh is drawn with straight edges between its
+vertices' metric positions. A sample's metric position then differs from the barycentric
+position its grid indices imply (by about the sagitta of the triangle's curved edges), so
+a sample is interpolated by the triangle that holds it *in metres*, which may be a
+neighbour, and a curved domain border may bulge outside a coarse triangle's chord.
+
+This module makes δ bound the error as seen in metres, with the same argument as the
+index-space δ (seed 002 §2.3): a drawn triangle T is a leaf whose split vertex v is
+inactive, so every sample that T holds must be within δ(v) of T's plane. Per vertex v and
+each of the (up to) two triangles drawn while v is absent:
+
+- δ_m(v) = max |z_s − S_T(X_s, Y_s)| over the valid samples s whose scene (X, Y) lies in
+  T's metric triangle, widened by a band of ``2 · frac`` sample spacings (S_T: T's plane,
+  extended). Samples are searched in T's index box widened by the largest displacement
+  |P_s − A_T(s)| of T's own samples (A_T: the affine map of T's corners), in samples,
+  plus two.
+- If a valid sample of T lies beyond a chord of T on the domain border by more than
+  ``frac / 2`` of a sample spacing, δ(v) = +inf: the border is refined until its chords
+  follow the curve to within that fraction, so no valid sample is left outside the mesh.
+- r_m(v) = max |p_v − p_s| over the same samples, so the nested spheres (LP §2.4) still
+  hold every sample v's triangles can be measured at.
+
+Then δ = saturate(max(δ, δ_m)) and r = nest(max(r, r_m)), both float32 rounded up.
+The extra term is computed only for geographic frames: projected and pixel grids are
+affine, their δ and r are left bit-identical.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from geoterrain.bintree import child_nb, main_diagonal_nb
+from geoterrain.bounds import _proxy_positions, _saturate_nb
+from geoterrain.rounding import round_up32
+
+__all__ = ["BORDER_FRACTION", "metric_bounds"]
+
+#: Chords on the domain border follow the curved border to this fraction of a spacing.
+BORDER_FRACTION = 0.01
+
+
+@njit(cache=True)
+def _tri_term(X, Y, Z, vb, vi, vj, ai, aj, bi, bj, ci, cj, frac, N, border):
+    """(max error, max distance to p_v, border bulge) for triangle (a, b, c) of vertex v."""
+    if not (vb[ai, aj] and vb[bi, bj] and vb[ci, cj]):
+        return 0.0, 0.0, False
+    ax, ay, az = X[ai, aj], Y[ai, aj], Z[ai, aj]
+    bx, by, bz = X[bi, bj], Y[bi, bj], Z[bi, bj]
+    cx, cy, cz = X[ci, cj], Y[ci, cj], Z[ci, cj]
+    det = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
+    # index-space map: (i, j) = a + u (b − a) + w (c − a); metric A_T the same with X, Y
+    dbi, dbj, dci, dcj = bi - ai, bj - aj, ci - ai, cj - aj
+    idet = dbi * dcj - dci * dbj
+    if det == 0.0 or idet == 0:
+        return 0.0, 0.0, False
+    # linear part of A_T: columns = metric images of the unit index steps di, dj
+    m11 = ((bx - ax) * dcj - (cx - ax) * dbj) / idet  # dX/di
+    m12 = ((cx - ax) * dbi - (bx - ax) * dci) / idet  # dX/dj
+    m21 = ((by - ay) * dcj - (cy - ay) * dbj) / idet
+    m22 = ((cy - ay) * dbi - (by - ay) * dci) / idet
+    # smallest singular value: metres per index step, the local sample spacing
+    p = m11 * m11 + m12 * m12 + m21 * m21 + m22 * m22
+    q = abs(m11 * m22 - m12 * m21)
+    smin = q / np.sqrt(0.5 * (p + np.sqrt(max(p * p - 4 * q * q, 0.0))))
+    tol = 2.0 * frac * smin
+    la = np.hypot(cx - bx, cy - by)
+    lb = np.hypot(ax - cx, ay - cy)
+    lc = np.hypot(bx - ax, by - ay)
+    area2 = abs(det)
+    ta, tb, tc = tol * la / area2, tol * lb / area2, tol * lc / area2
+    inv = 1.0 / det
+    i0, i1 = min(ai, bi, ci), max(ai, bi, ci)
+    j0, j1 = min(aj, bj, cj), max(aj, bj, cj)
+    # pass 1: largest displacement |P_s − A_T(s)| of T's own samples (index box)
+    disp = 0.0
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            ex = ax + m11 * (i - ai) + m12 * (j - aj) - X[i, j]
+            ey = ay + m21 * (i - ai) + m22 * (j - aj) - Y[i, j]
+            disp = max(disp, np.hypot(ex, ey))
+    m = int(np.ceil(disp / smin)) + 2
+    # border chords of T: edges whose two ends lie on one side of the domain
+    bulge = False
+    vx, vy, vz = X[vi, vj], Y[vi, vj], Z[vi, vj]
+    emax = 0.0
+    rmax = 0.0
+    for i in range(max(i0 - m, 0), min(i1 + m, N - 1) + 1):
+        for j in range(max(j0 - m, 0), min(j1 + m, N - 1) + 1):
+            if not vb[i, j]:
+                continue
+            px = X[i, j] - ax
+            py = Y[i, j] - ay
+            l1 = (px * (cy - ay) - py * (cx - ax)) * inv
+            l2 = ((bx - ax) * py - (by - ay) * px) * inv
+            l0 = 1.0 - l1 - l2
+            own = i0 <= i <= i1 and j0 <= j <= j1
+            if border and own:
+                # signed distance beyond each border edge (opposite a: b–c, etc.)
+                if _on_border(bi, bj, ci, cj, N) and -l0 * area2 / la > 0.5 * frac * smin:
+                    bulge = True
+                if _on_border(ai, aj, ci, cj, N) and -l1 * area2 / lb > 0.5 * frac * smin:
+                    bulge = True
+                if _on_border(ai, aj, bi, bj, N) and -l2 * area2 / lc > 0.5 * frac * smin:
+                    bulge = True
+            if l0 < -ta or l1 < -tb or l2 < -tc:
+                continue
+            zs = Z[i, j]
+            if (i == ai and j == aj) or (i == bi and j == bj) or (i == ci and j == cj):
+                continue  # the corners are mesh vertices (and v's ancestors)
+            emax = max(emax, abs(az * l0 + bz * l1 + cz * l2 - zs))
+            rmax = max(rmax, np.sqrt((X[i, j] - vx) ** 2 + (Y[i, j] - vy) ** 2
+                                     + (zs - vz) ** 2))
+    return emax, rmax, bulge
+
+
+@njit(cache=True, inline="always")
+def _on_border(ai, aj, bi, bj, N):
+    return ((ai == bi and (ai == 0 or ai == N - 1))
+            or (aj == bj and (aj == 0 or aj == N - 1)))
+
+
+@njit(cache=True)
+def _vertex_terms(X, Y, Z, vb, frac):
+    """Raw per-vertex (δ_m, r_m, bulge) over the triangles drawn while each vertex is absent."""
+    N = Z.shape[0]
+    dm = np.zeros((N, N))
+    rm = np.zeros((N, N))
+    bulge = np.zeros((N, N), np.bool_)
+    h = 1
+    while h < N - 1:
+        s = 2 * h
+        nb = (N - 1) // s
+        for a in range(nb):  # block centres: the two halves of the block
+            for b in range(nb):
+                i, j = h + a * s, h + b * s
+                i0, j0 = i - h, j - h
+                main = main_diagonal_nb(a, b)
+                for k in range(2):
+                    if main:  # diagonal (i0, j0)–(i0+s, j0+s), apex (i0, j0+s) / (i0+s, j0)
+                        t = _tri_term(X, Y, Z, vb, i, j, i0, j0, i0 + s, j0 + s,
+                                      i0 + k * s, j0 + (1 - k) * s, frac, N, True)
+                    else:
+                        t = _tri_term(X, Y, Z, vb, i, j, i0, j0 + s, i0 + s, j0,
+                                      i0 + k * s, j0 + k * s, frac, N, True)
+                    dm[i, j] = max(dm[i, j], t[0])
+                    rm[i, j] = max(rm[i, j], t[1])
+                    bulge[i, j] |= t[2]
+        for typ in range(2):  # edge midpoints: the two triangles on their hypotenuse
+            rows = typ == 0
+            na = nb if rows else nb + 1
+            nc = nb + 1 if rows else nb
+            for a in range(na):
+                for b in range(nc):
+                    i = h + a * s if rows else a * s
+                    j = b * s if rows else h + b * s
+                    for k in range(2):
+                        if rows:  # hypotenuse (i ± h, j), apex (i, j ± h)
+                            ci, cj = i, j + (2 * k - 1) * h
+                            ea, eb, fa, fb = i - h, j, i + h, j
+                        else:
+                            ci, cj = i + (2 * k - 1) * h, j
+                            ea, eb, fa, fb = i, j - h, i, j + h
+                        if not (0 <= ci < N and 0 <= cj < N):
+                            continue
+                        t = _tri_term(X, Y, Z, vb, i, j, ea, eb, fa, fb, ci, cj, frac, N, True)
+                        dm[i, j] = max(dm[i, j], t[0])
+                        rm[i, j] = max(rm[i, j], t[1])
+                        bulge[i, j] |= t[2]
+        h *= 2
+    return dm, rm, bulge
+
+
+@njit(cache=True)
+def _renest_nb(X, Y, Z, r):
+    # LP §2.4 (L50–52) again, fine to coarse, on radii already raised: r(v) ≥ |p_v − p_c| + r(c)
+    N = Z.shape[0]
+    h = 1
+    while h < N - 1:
+        for pass_ in range(2):
+            for i in range(0, N, h):
+                for j in range(0, N, h):
+                    centre = (i // h) % 2 == 1 and (j // h) % 2 == 1
+                    edge = ((i // h) % 2 == 1) != ((j // h) % 2 == 1)
+                    if (pass_ == 0 and not edge) or (pass_ == 1 and not centre):
+                        continue
+                    best = np.float64(r[i, j])
+                    for k in range(4):
+                        ci, cj = child_nb(i, j, h, k)
+                        if 0 <= ci < N and 0 <= cj < N:
+                            d = np.sqrt((X[i, j] - X[ci, cj]) ** 2 + (Y[i, j] - Y[ci, cj]) ** 2
+                                        + (Z[i, j] - Z[ci, cj]) ** 2) + np.float64(r[ci, cj])
+                            best = max(best, d)
+                    r[i, j] = round_up32(best)
+        h *= 2
+    return r
+
+
+def metric_bounds(delta: np.ndarray, radius: np.ndarray, X: np.ndarray, Y: np.ndarray,
+                  Z: np.ndarray, valid: np.ndarray, frac: float = BORDER_FRACTION
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """δ and r raised so they hold in scene x/y on a curvilinear grid (module docstring).
+
+    Parameters
+    ----------
+    delta, radius : float32 (N, N), from :func:`geoterrain.bounds.vertex_errors` and
+        :func:`geoterrain.bounds.vertex_radii` (not modified).
+    X, Y, Z : float64 (N, N) scene positions (Z NaN or anything where invalid).
+    valid : bool (N, N).
+    frac : border chords follow the curved border to within ``frac / 2`` of a sample
+        spacing; samples within ``2 frac`` spacings of a triangle count as in it.
+
+    Examples
+    --------
+    >>> from geoterrain.bounds import vertex_errors, vertex_radii
+    >>> I, J = np.indices((5, 5)).astype(float)
+    >>> X, Y = 100 * J + (I - 2) ** 2, -100 * I  # rows bowed by 4 m: a curved grid
+    >>> Z, ok = 0.5 * X, np.ones((5, 5), bool)
+    >>> d, r = vertex_errors(Z, ok), vertex_radii(X, Y, Z, ok)
+    >>> d2, r2 = metric_bounds(d, r, X, Y, Z, ok)
+    >>> float(d.max()), float(d2[2, 2]) > 0, bool((d2 >= d).all() and (r2 >= r).all())
+    (2.0, True, True)
+    """
+    vb = np.ascontiguousarray(np.asarray(valid, bool) & np.isfinite(Z))
+    Zf = np.ascontiguousarray(np.where(vb, Z, 0.0), np.float64)
+    X = np.ascontiguousarray(X, np.float64)
+    Y = np.ascontiguousarray(Y, np.float64)
+    dm, rm, bulge = _vertex_terms(X, Y, Zf, vb, float(frac))
+    d = np.maximum(delta.astype(np.float64), dm)
+    d[bulge] = np.inf
+    d32 = _saturate_nb(_round_up(d))
+    r = np.maximum(radius.astype(np.float64), rm)
+    xp, yp, zp = _proxy_positions(X, Y, np.where(vb, Z, np.nan), vb)
+    return d32, _renest_nb(xp, yp, zp, _round_up(r))
+
+
+def _round_up(a: np.ndarray) -> np.ndarray:
+    """float64 → float32, never rounding down."""
+    f = a.astype(np.float32)
+    low = f.astype(np.float64) < a
+    f[low] = np.nextafter(f[low], np.float32(np.inf))
+    return f

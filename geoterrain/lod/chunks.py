@@ -1,0 +1,353 @@
+"""Simplified chunk meshes for chunked LOD, cached per tile and joined without a loop.
+
+Seed 000 §2.5 (Ulrich's chunked LOD) draws, for each quadtree node, a chunk: a
+mesh of the node's footprint simplified to the node's geometric error, built
+once and reused every frame. Here a stored tile (L, x, y) is a node, and its
+chunk is the longest-edge-bisection mesh (seed 002) of the tile's level-L
+samples that keeps every vertex with δ > θ, θ being the chunk's error:
+
+- ``ε_chunk = max(E, δ_sub)``, with E the tile's stored error (of its uniform
+  level-L surface against every full-resolution sample of its footprint) and
+  δ_sub the largest δ of the finer vertices in the footprint (from the finer
+  tiles' stored max δ). Saturated δ bounds a triangle's error by the δ of its
+  split vertex (LP eq. 1), so dropping level-L vertices with δ ≤ δ_sub keeps
+  the chunk within δ_sub of the samples. On this project's pyramids δ_sub
+  equals E up to float rounding, so the chunk's error is the tile's error and
+  the quadtree selects the same tiles; the chunk has ~3.5× fewer triangles.
+- Where δ_sub is not finite (a footprint with nodata, whose mixed diamonds
+  carry δ = inf), θ = 0: the chunk keeps every level-L vertex with δ > 0 and
+  its error stays E (a dropped vertex has δ = 0: it lies on the surface).
+
+A chunk is built from its tile's δ and heights only (the local bintree is the
+global one restricted to the tile: squares whose row + column index is odd
+have the anti-diagonal, so their columns are mirrored first). Its border
+chain, in order along each inner edge, gives the skirts.
+
+:func:`assemble_chunks` joins many chunks and their skirts in one compiled pass
+over the cached chunks packed end to end: no per-tile Python work per frame.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from geoterrain.lod.kernels import close_upward, extract
+from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
+from geoterrain.lod.tiles import TileIndex
+
+_CHUNKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+@dataclass
+class Chunk:
+    """One tile's simplified mesh: global sample indices ``ij`` (V, 2), scene
+    ``xyz`` (V, 3), ``faces`` (F, 3, counter-clockwise from above), the vertices on
+    its inner edges as skirt segments ``skirt_ab`` (S, 2) of local vertex ids,
+    and ``level``."""
+
+    ij: np.ndarray
+    xyz: np.ndarray
+    faces: np.ndarray
+    skirt_ab: np.ndarray
+    level: int
+
+
+def chunk_errors(index: TileIndex) -> tuple[np.ndarray, np.ndarray]:
+    """ε_chunk and the simplification threshold θ per index row.
+
+    ε_chunk = θ = max(stored tile error, δ of the finer vertices); where the finer δ
+    is not finite (nodata) ε_chunk is the stored error and θ = 0.
+
+    Examples
+    --------
+    >>> from geoterrain.lod.tiles import tile_index
+    >>> e, theta = chunk_errors(tile_index(t)); bool((e >= tile_index(t).error).all())
+    True
+    """
+    keys = index.keys
+    sub = np.zeros(len(keys))
+    top = int(keys[:, 0].max()) if len(keys) else 0
+    for L in range(1, top + 1):  # finer level first: δ_sub(L) = max over the children
+        kids = np.flatnonzero(keys[:, 0] == L - 1)
+        par = index.rows_of(np.stack([np.full(len(kids), L), keys[kids, 1] // 2,
+                                      keys[kids, 2] // 2], 1))
+        ok = par >= 0
+        np.maximum.at(sub, par[ok], np.maximum(index.delta_max[kids[ok]], sub[kids[ok]]))
+    fin = np.isfinite(sub)
+    err = np.where(fin, np.maximum(index.error, sub), index.error)
+    return err, np.where(fin, err, 0.0)
+
+
+def _cache(terrain, index: TileIndex) -> dict:
+    c = _CHUNKS.get(terrain)
+    if c is None or c["index"] is not index:
+        T = terrain.grid.tile_samples
+        err, theta = chunk_errors(index)
+        c = _CHUNKS[terrain] = {"index": index, "error": err, "theta": theta,
+                                "vid": np.full(T * T, -1, np.int32)}
+    return c
+
+
+def chunk_error(terrain, index: TileIndex) -> np.ndarray:
+    """The cached :func:`chunk_errors` of ``terrain``."""
+    return _cache(terrain, index)["error"]
+
+
+def chunk(terrain, index: TileIndex, row: int) -> Chunk:
+    """The cached chunk of index row ``row`` (built on first use)."""
+    cache = _cache(terrain, index)
+    ch = cache.get(row)
+    if ch is None:
+        ch = cache[row] = _build(terrain, index, row, cache)
+    return ch
+
+
+def chunk_leaves(terrain, index: TileIndex, view, tau: float) -> tuple[np.ndarray, dict]:
+    """The chunks to draw: the tile quadtree walked top-down, a node refined while
+    λ·ε_chunk > τ·D_min (D_min: eye to the node's box; seed 000 §2.5), nodes outside
+    the frustum culled, a node inside it passing that to its children.
+
+    A compiled stack walk over a dense (level, y, x) → row table: the work follows
+    the nodes visited, not the number of stored tiles.
+
+    Examples
+    --------
+    >>> from geoterrain.lod.tiles import tile_index
+    >>> leaves, st = chunk_leaves(t, tile_index(t), View((0, -800, 400), (0, 0, 0)), 1.0)
+    >>> st["tiles_visited"] >= len(leaves) > 0
+    True
+    """
+    cache = _cache(terrain, index)
+    table = cache.get("table")
+    if table is None:
+        top = terrain.grid.top_level
+        base = np.concatenate([[0], np.cumsum(4 ** np.arange(top, -1, -1))]).astype(np.int64)
+        table = np.full(int(base[-1]), -1, np.int64)
+        k = index.keys
+        table[base[k[:, 0]] + k[:, 2] * (np.int64(1) << (top - k[:, 0])) + k[:, 1]] = \
+            np.arange(len(k))
+        table = cache["table"] = (table, base, top)
+    rows = np.empty(len(index.keys), np.int64)
+    n, visited, culled = _walk_chunks(table[0], table[1], table[2], index.lo, index.hi,
+                                      cache["error"], view.eye, view.planes, view.lam,
+                                      float(tau), rows)
+    return rows[:n], {"tiles_visited": int(visited), "tiles_culled": int(culled)}
+
+
+@njit(cache=True)
+def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, out):
+    stack = np.empty((4 * (top + 1) + 4, 4), np.int64)  # (L, x, y, inside)
+    stack[0] = (top, 0, 0, 0)
+    sp, n, visited, culled = 1, 0, 0, 0
+    while sp > 0:
+        sp -= 1
+        L, x, y, inside = stack[sp]
+        row = table[base[L] + y * (np.int64(1) << (top - L)) + x]
+        if row < 0:
+            continue
+        visited += 1
+        if inside == 0:
+            inside = 1
+            for q in range(planes.shape[0]):
+                a, b, c, w = planes[q, 0], planes[q, 1], planes[q, 2], planes[q, 3]
+                fx = hi[row, 0] if a >= 0 else lo[row, 0]
+                fy = hi[row, 1] if b >= 0 else lo[row, 1]
+                fz = hi[row, 2] if c >= 0 else lo[row, 2]
+                if a * fx + b * fy + c * fz + w < 0:
+                    inside = -1
+                    break
+                nx = lo[row, 0] if a >= 0 else hi[row, 0]
+                ny = lo[row, 1] if b >= 0 else hi[row, 1]
+                nz = lo[row, 2] if c >= 0 else hi[row, 2]
+                if a * nx + b * ny + c * nz + w < 0:
+                    inside = 0
+            if inside < 0:
+                culled += 1
+                continue
+        dx = max(lo[row, 0] - eye[0], 0.0, eye[0] - hi[row, 0])
+        dy = max(lo[row, 1] - eye[1], 0.0, eye[1] - hi[row, 1])
+        dz = max(lo[row, 2] - eye[2], 0.0, eye[2] - hi[row, 2])
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        e = err[row]
+        if L > 0 and (lam * e > tau * d or (d == 0.0 and e > 0.0)):
+            for k in range(4):
+                stack[sp, 0], stack[sp, 1] = L - 1, 2 * x + (k & 1)
+                stack[sp, 2], stack[sp, 3] = 2 * y + (k >> 1), inside
+                sp += 1
+        else:
+            out[n] = row
+            n += 1
+    return n, visited, culled
+
+
+def _build(terrain, index: TileIndex, row: int, cache: dict) -> Chunk:
+    g = terrain.grid
+    T = g.tile_samples
+    L, x, y = (int(v) for v in index.keys[row])
+    theta = float(cache["theta"][row])
+    D = terrain.tile_delta(L, x, y).astype(np.float64)
+    heights = terrain.tile(L, x, y).heights
+    flip = (x + y) % 2 == 1  # anti-diagonal square: mirror the columns
+    Dl = D[:, ::-1] if flip else D
+    active = Dl > theta
+    mixed = ~np.isfinite(Dl)
+    active |= mixed
+    close_upward(active)
+    faces, flat = extract(active, mixed, cache["vid"])
+    a, b = flat // T, flat % T
+    if flip:
+        b = T - 1 - b
+    z = heights[a, b]
+    valid = np.isfinite(z)
+    faces = faces[valid[faces].all(1)]
+    used = np.zeros(len(flat), bool)
+    used[faces] = True
+    remap = np.cumsum(used) - 1
+    faces, a, b, z = remap[faces], a[used], b[used], z[used]
+    step = 1 << L
+    ij = np.stack([(y * (T - 1) + a) * step, (x * (T - 1) + b) * step], 1).astype(np.int64)
+    X, Y = terrain.frame.xy(ij[:, 0], ij[:, 1])
+    xyz = np.stack([X, Y, terrain.frame.z(z)], 1)
+    faces = orient_ccw(ij, faces.astype(np.int64))
+    # skirt segments: consecutive chunk vertices along each inner edge
+    n_side = g.tiles_per_side(L)
+    segs = []
+    for on_edge, along, inner in ((a == 0, b, y > 0), (a == T - 1, b, y < n_side - 1),
+                                  (b == 0, a, x > 0), (b == T - 1, a, x < n_side - 1)):
+        if not inner:
+            continue
+        v = np.flatnonzero(on_edge)
+        v = v[np.argsort(along[v])]
+        if len(v) > 1:
+            segs.append(np.stack([v[:-1], v[1:]], 1))
+    skirt_ab = np.concatenate(segs) if segs else np.zeros((0, 2), np.int64)
+    return Chunk(ij, xyz, faces, skirt_ab, L)
+
+
+class _Packed:
+    """Every built chunk's arrays packed end to end (grown on demand), with per-row
+    offsets, so a frame's mesh is gathered by one compiled pass."""
+
+    def __init__(self, n_rows: int):
+        self.vo = np.full(n_rows + 1, -1, np.int64)  # per row: first vertex, face, segment
+        self.fo = np.full(n_rows + 1, -1, np.int64)
+        self.so = np.full(n_rows + 1, -1, np.int64)
+        self.nv = np.zeros(n_rows, np.int64)
+        self.nf = np.zeros(n_rows, np.int64)
+        self.ns = np.zeros(n_rows, np.int64)
+        self.lvl = np.zeros(n_rows, np.int16)
+        self.xyz, self.ij = np.zeros((0, 3)), np.zeros((0, 2), np.int64)
+        self.faces, self.seg = np.zeros((0, 3), np.int64), np.zeros((0, 2), np.int64)
+        self.V = self.F = self.S = 0
+
+    @staticmethod
+    def _put(a: np.ndarray, at: int, b: np.ndarray) -> np.ndarray:
+        if at + len(b) > len(a):
+            a = np.concatenate([a[:at], np.zeros((max(2 * len(a), at + len(b)),) + a.shape[1:],
+                                                 a.dtype)])
+        a[at:at + len(b)] = b
+        return a
+
+    def add(self, row: int, ch: Chunk) -> None:
+        self.vo[row], self.fo[row], self.so[row] = self.V, self.F, self.S
+        self.nv[row], self.nf[row], self.ns[row] = len(ch.xyz), len(ch.faces), len(ch.skirt_ab)
+        self.lvl[row] = ch.level
+        self.xyz = self._put(self.xyz, self.V, ch.xyz)
+        self.ij = self._put(self.ij, self.V, ch.ij)
+        self.faces = self._put(self.faces, self.F, ch.faces)
+        self.seg = self._put(self.seg, self.S, ch.skirt_ab)
+        self.V += len(ch.xyz)
+        self.F += len(ch.faces)
+        self.S += len(ch.skirt_ab)
+
+
+def _packed(terrain, index: TileIndex, leaves: np.ndarray) -> _Packed:
+    cache = _cache(terrain, index)
+    pk = cache.get("packed")
+    if pk is None:
+        pk = cache["packed"] = _Packed(len(index.keys))
+    for r in leaves[pk.vo[leaves] < 0].tolist():  # chunks not built yet
+        pk.add(r, chunk(terrain, index, r))
+    return pk
+
+
+@njit(cache=True)
+def _gather_chunks(leaves, depth, vo, fo, so, nv, nf, ns, lvl, XYZ, IJ, FACES, SEG,
+                   xyz, ij, faces, level, skirt):
+    """Copy the chunks of ``leaves`` into the output arrays: surfaces first, then two
+    hanging vertices per skirt segment (a, b) and triangles (a, b', b), (a, a', b')."""
+    V = 0
+    F = 0
+    for k in range(leaves.shape[0]):
+        r = leaves[k]
+        o = vo[r]
+        for v in range(nv[r]):
+            xyz[V + v, 0] = XYZ[o + v, 0]
+            xyz[V + v, 1] = XYZ[o + v, 1]
+            xyz[V + v, 2] = XYZ[o + v, 2]
+            ij[V + v, 0] = IJ[o + v, 0]
+            ij[V + v, 1] = IJ[o + v, 1]
+        o = fo[r]
+        for f in range(nf[r]):
+            faces[F + f, 0] = FACES[o + f, 0] + V
+            faces[F + f, 1] = FACES[o + f, 1] + V
+            faces[F + f, 2] = FACES[o + f, 2] + V
+            level[F + f] = lvl[r]
+            skirt[F + f] = 0
+        V += nv[r]
+        F += nf[r]
+    base = 0
+    for k in range(leaves.shape[0]):  # skirts after every surface vertex
+        r = leaves[k]
+        m = ns[r] if depth[k] > 0 else 0
+        for q in range(m):
+            a = base + SEG[so[r] + q, 0]
+            b = base + SEG[so[r] + q, 1]
+            sa, sb = V, V + 1
+            for c in range(2):
+                xyz[sa, c] = xyz[a, c]
+                xyz[sb, c] = xyz[b, c]
+                ij[sa, c] = ij[a, c]
+                ij[sb, c] = ij[b, c]
+            xyz[sa, 2] = xyz[a, 2] - depth[k]
+            xyz[sb, 2] = xyz[b, 2] - depth[k]
+            faces[F, 0], faces[F, 1], faces[F, 2] = a, sb, b
+            faces[F + 1, 0], faces[F + 1, 1], faces[F + 1, 2] = a, sa, sb
+            level[F] = lvl[r]
+            level[F + 1] = lvl[r]
+            skirt[F] = 1
+            skirt[F + 1] = 1
+            V += 2
+            F += 2
+        base += nv[r]
+
+
+def assemble_chunks(terrain, index: TileIndex, leaves: np.ndarray,
+                    skirt_depth: np.ndarray | None = None):
+    """One mesh of the chunks of ``leaves`` with skirts ``skirt_depth[k]`` deep (seed 000
+    §skirts; none where 0 or None). Cell data ``skirt`` and ``level``.
+
+    Examples
+    --------
+    >>> from geoterrain.lod.tiles import tile_index
+    >>> ix = tile_index(t)
+    >>> assemble_chunks(t, ix, ix.rows_of(np.array([[t.grid.top_level, 0, 0]]))).n_cells > 0
+    True
+    """
+    leaves = np.asarray(leaves, np.int64)
+    if not len(leaves):
+        return empty_polydata()
+    depth = np.zeros(len(leaves)) if skirt_depth is None else np.asarray(skirt_depth, float)
+    pk = _packed(terrain, index, leaves)
+    ns = np.where(depth > 0, pk.ns[leaves], 0)
+    V = int(pk.nv[leaves].sum()) + 2 * int(ns.sum())
+    F = int(pk.nf[leaves].sum()) + 2 * int(ns.sum())
+    xyz, ij = np.empty((V, 3)), np.empty((V, 2), np.int64)
+    faces, level, skirt = np.empty((F, 3), np.int64), np.empty(F, np.int16), np.empty(F, np.uint8)
+    _gather_chunks(leaves, depth, pk.vo, pk.fo, pk.so, pk.nv, pk.nf, pk.ns, pk.lvl, pk.xyz,
+                   pk.ij, pk.faces, pk.seg, xyz, ij, faces, level, skirt)
+    return polydata(xyz, faces, ij, {"skirt": skirt, "level": level})
