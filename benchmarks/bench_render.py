@@ -1,29 +1,41 @@
-"""Frame time (LOD selection + mesh update + render) per strategy over one flight.
+"""Frame time: selection + texture + draw over a flight, LOD against bruteforce, same run.
 
-Synthetic fbm DEMs (2049², 4097²), 1280×720, the same ≥ 20-view flight for every
-strategy; medians and ratios to bruteforce, printed as markdown.
+Each configuration (strategy × texture mode) gets its own offscreen scene and a
+freshly opened store (an empty cache), and draws every view of the built-in
+flight (an approach from the overview down to a low oblique pass, planned from
+the stored tile bounds: nothing is decoded to plan it). ``frame_ms`` is what
+:meth:`TerrainScene.frame` measures: selection, texture (per-view atlas or the
+whole-DEM texture) and the draw with
+read-back. The first frame of a configuration is reported apart (cold); the
+medians are over the other, warm, frames. Bruteforce is drawn on every
+``--brute-every``-th view only (each of its frames draws every level-0 tile), and
+the LOD/bruteforce ratio is taken over those same views.
 
-    python benchmarks/bench_render.py --sizes 2049 4097 --views 24
+    PYTHONPATH=. python benchmarks/bench_render.py STORE [--views 24] [--size 1280x720]
+        [--tau 1] [--strategies rtin] [--brute-every 4] [--global] [--json out.json]
+
+``--global`` adds the previous whole-DEM texture (``textures="global"``) as a
+baseline measured in the same run.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
-import tempfile
+import statistics
 import time
-from pathlib import Path
 
 import numpy as np
 
 import geoterrain
 from geoterrain.rendering import TerrainScene, _plotter, default_view
-from geoterrain.synth import generate, write_geotiff
 from geoterrain.view import View
 
 
-def flight(t, n: int, size: tuple[int, int]) -> list[View]:
-    """Approach from an overview, then a low pass across the terrain."""
+def flight(t, n: int, size: tuple[int, int]) -> list[tuple[str, View]]:
+    """Approach from an overview, then a low pass across the terrain (the flight of the
+    earlier version of this script, so figures stay comparable)."""
     home = default_view(t, size, 190.0, 40.0)
     c, e = np.asarray(home.look_at), np.asarray(home.look_from)
     views = []
@@ -35,57 +47,82 @@ def flight(t, n: int, size: tuple[int, int]) -> list[View]:
         el = math.radians(40.0 - 25.0 * s)
         eye = c + r * np.array([math.sin(az) * math.cos(el), math.cos(az) * math.cos(el),
                                 math.sin(el)])
-        views.append(View(tuple(eye), tuple(c), fov_y_deg=30.0, size=size))
+        views.append((f"approach {k}", View(tuple(eye), tuple(c), fov_y_deg=30.0, size=size)))
     return views
 
 
-def store_for(n: int, workdir: Path) -> Path:
-    store = workdir / f"fbm{n}.geoterrain"
-    if not store.exists():
-        dem = write_geotiff(workdir / f"fbm{n}.tif", generate("fbm", n, seed=2, relief=1500.0),
-                            spacing=30.0)
-        t0 = time.perf_counter()
-        geoterrain.preprocess(dem, store)
-        print(f"<!-- preprocess {n}²: {time.perf_counter() - t0:.1f} s -->")
-    return store
+def run_config(store: str, views, strategy: str, textures: str, tau: float, pick=None) -> dict:
+    """Frame stats of one configuration over ``views`` (indices ``pick``), cold store."""
+    t0 = time.perf_counter()
+    with geoterrain.open(store) as t:
+        scene = TerrainScene(_plotter(views[0][1].size), t, textures=textures)
+        setup_ms = (time.perf_counter() - t0) * 1e3
+        frames = []
+        try:
+            for k, (kind, v) in enumerate(views):
+                if pick is not None and k not in pick:
+                    continue
+                _, st = scene.frame(v, tau, strategy)
+                frames.append({"view": k, "kind": kind, **{key: st[key] for key in (
+                    "frame_ms", "select_ms", "texture_ms", "render_ms", "triangles",
+                    "tiles_decoded", "normals_decoded", "textures_built", "bytes_read",
+                    "peak_rss_mb")}})
+        finally:
+            scene.plotter.close()
+    return {"strategy": strategy, "textures": textures, "setup_ms": round(setup_ms, 1),
+            "frames": frames}
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=[2049, 4097])
+def _med(frames, key="frame_ms", views=None) -> float:
+    vals = [f[key] for f in frames if views is None or f["view"] in views]
+    return statistics.median(vals) if vals else float("nan")
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("store")
     ap.add_argument("--views", type=int, default=24)
-    ap.add_argument("--pixel-error", type=float, default=1.0)
-    ap.add_argument("--shading", default="normals")
-    ap.add_argument("--no-aa", action="store_true", help="Turn multisample anti-aliasing off.")
-    ap.add_argument("--workdir", type=Path, default=Path(tempfile.gettempdir()) / "gt_bench")
-    a = ap.parse_args()
-    a.workdir.mkdir(parents=True, exist_ok=True)
-    size = (1280, 720)
-    print(f"{a.views} views, 1280×720, τ = {a.pixel_error:g} px, shading {a.shading}, "
-          f"anti-aliasing {'off' if a.no_aa else 'on (MSAA)'}\n")
-    print("| DEM | strategy | median frame ms | median select ms | median render ms | "
-          "median triangles | frame ratio vs bruteforce |")
-    print("|---|---|---:|---:|---:|---:|---:|")
-    for n in a.sizes:
-        t = geoterrain.open(store_for(n, a.workdir))
+    ap.add_argument("--size", default="1280x720")
+    ap.add_argument("--tau", type=float, default=1.0)
+    ap.add_argument("--strategies", default="rtin")
+    ap.add_argument("--brute-every", type=int, default=4)
+    ap.add_argument("--global", dest="glob", action="store_true")
+    ap.add_argument("--json")
+    a = ap.parse_args(argv)
+    size = tuple(int(s) for s in a.size.split("x"))
+    with geoterrain.open(a.store) as t:
         views = flight(t, a.views, size)
-        scene = TerrainScene(_plotter(size, not a.no_aa), t, a.shading)
-        scene.frame(views[0], a.pixel_error, "bruteforce")  # warm caches and the texture
-        rows = {}
-        for strat in ("bruteforce", "chunked", "rtin"):
-            fr, se, re_, tr = [], [], [], []
-            for v in views:
-                _, st = scene.frame(v, a.pixel_error, strat)
-                fr.append(st["frame_ms"])
-                se.append(st["select_ms"])
-                re_.append(st["render_ms"])
-                tr.append(st["triangles"])
-            rows[strat] = [float(np.median(x)) for x in (fr, se, re_, tr)]
-        scene.plotter.close()
-        base = rows["bruteforce"][0]
-        for strat, (f, s, r, tri) in rows.items():
-            print(f"| {n}² | {strat} | {f:.0f} | {s:.0f} | {r:.0f} | {tri:,.0f} | "
-                  f"{f / base:.2f} |", flush=True)
+    brute_views = set(range(0, len(views), max(1, a.brute_every)))
+    runs = []
+    for s in a.strategies.split(","):
+        runs.append(run_config(a.store, views, s, "view", a.tau))
+        if a.glob:
+            runs.append(run_config(a.store, views, s, "global", a.tau))
+    brute = run_config(a.store, views, "bruteforce", "view", a.tau, brute_views)
+    runs.append(brute)
+    bmed = _med(brute["frames"])
+    print(f"{len(views)} views, {size[0]}×{size[1]}, τ = {a.tau:g}; bruteforce on "
+          f"{len(brute_views)} of them")
+    print("| strategy | textures | setup ms | cold frame ms | warm frame ms (median) | "
+          "select | texture | draw | ratio to bruteforce (same views) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for r in runs:
+        fr = r["frames"]
+        warm = fr[1:] if len(fr) > 1 else fr
+        ratio = bmed / _med(fr, views=brute_views) if r is not brute else 1.0
+        r["summary"] = {"cold_frame_ms": fr[0]["frame_ms"], "warm_frame_ms": _med(warm),
+                        "select_ms": _med(warm, "select_ms"),
+                        "texture_ms": _med(warm, "texture_ms"),
+                        "render_ms": _med(warm, "render_ms"), "ratio_to_bruteforce": ratio}
+        sm = r["summary"]
+        print(f"| {r['strategy']} | {r['textures']} | {r['setup_ms']:.0f} | "
+              f"{sm['cold_frame_ms']:.0f} | {sm['warm_frame_ms']:.0f} | {sm['select_ms']:.0f} | "
+              f"{sm['texture_ms']:.0f} | {sm['render_ms']:.0f} | {ratio:.1f}× |")
+    out = {"views": len(views), "size": list(size), "tau": a.tau, "runs": runs}
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump(out, fh, indent=1)
+    return out
 
 
 if __name__ == "__main__":

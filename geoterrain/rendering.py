@@ -6,16 +6,17 @@ origin at the DEM centre, so large CRS coordinates never reach the GPU).
 
 Shading (``shading=``):
 
-- ``"normals"`` (default): elevation colours × a hillshade baked into a texture
-  from the stored *full-resolution* normal maps (``Terrain.tile_normals``) and the
-  level-0 heights, mapped by texture coordinates from each vertex's ``grid_ij``.
-  A coarse LOD mesh therefore shows the same relief and colours as the full DEM;
-  only the silhouette moves. Chosen by measurement (rtin vs bruteforce render of
-  the same view, same shading): on srtm1_japan at 1280×720, τ = 1 px gives
-  40–46 dB with this texture vs 37–40 dB with geometric lighting; on a rough
-  1025² fbm at 640×360, 33–41 dB vs 30–39 dB, and 22–32 dB for per-vertex
-  colours from the same normal map (Gouraud loses the detail inside coarse
-  triangles).
+- ``"normals"`` (default): elevation colours × a hillshade from the stored normal
+  maps, as a view-dependent texture (:mod:`geoterrain.tiletextures`, seed 000 §2.5):
+  each drawn footprint is shaded from the pyramid level whose texel projects to
+  at most one pixel, built on demand for drawn tiles only and cached in the
+  terrain's tile cache; one atlas per frame, mapped by texture coordinates. A
+  coarse LOD mesh therefore shows the relief and colours of the data at screen
+  resolution; only the silhouette moves. Against the bruteforce render of the
+  same view with the whole-DEM level-0 texture (``textures="global"``), rtin at
+  τ = 1 px on srtm1_japan at 1280×720 gives 37–43 dB. Texture vs geometric
+  lighting was chosen by measurement: 40–46 dB vs 37–40 dB on srtm1_japan, and
+  22–32 dB for per-vertex colours (Gouraud loses the detail inside coarse triangles).
 - ``"elevation"``: the elevation colours of the same texture, no shading.
 - ``"plain"``: one colour lit by the renderer from the mesh's own geometry:
   what a naive renderer shows (useful to look at the mesh itself).
@@ -58,6 +59,7 @@ from geoterrain.lod.registry import DEFAULT, strategy_info
 from geoterrain.overlays import compose, layout_for
 from geoterrain.store import partial_path, publish, remove_stale_partials, write_atomic
 from geoterrain.textures import SHADINGS, texture_image, texture_level
+from geoterrain.tiletextures import build_view_texture
 from geoterrain.view import View
 
 BACKGROUND = (0.86, 0.90, 0.95)  # a pale sky
@@ -88,7 +90,8 @@ class TerrainScene:
     """
 
     def __init__(self, plotter, terrain, shading: str = "normals", cmap: str | Palette = "auto",
-                 background: Sequence[float] = BACKGROUND, vertical_exaggeration: float = 1.0):
+                 background: Sequence[float] = BACKGROUND, vertical_exaggeration: float = 1.0,
+                 textures: str = "view"):
         import pyvista as pv
 
         terrain = exaggerated(terrain, vertical_exaggeration)
@@ -98,17 +101,25 @@ class TerrainScene:
         self.plotter, self.terrain, self.shading, self.cmap = plotter, terrain, shading, cmap
         plotter.set_background(background)
         plotter.theme.allow_empty_mesh = True  # a view may see no terrain at all
-        self.level = texture_level(terrain)
+        self.textures = textures
+        if textures not in ("view", "global"):
+            raise UsageError(f"unknown textures {textures!r}; use 'view' or 'global'")
+        self.level = texture_level(terrain) if textures == "global" else 0
         self.texture = None
-        if shading != "plain":
+        if shading != "plain" and textures == "global":
             tex = pv.Texture(texture_image(terrain, shading, cmap, self.level))
             tex.interpolate = True
             tex.mipmap = True
             tex.repeat = False
             self.texture = tex
+        elif shading != "plain":  # the per-view atlas replaces its image each frame
+            self.texture = pv.Texture(np.zeros((1, 1, 3), np.uint8))
+            self.texture.interpolate = True
+            self.texture.repeat = False
         self.mesh = pv.PolyData()
         self.actor = None
         self.selection = None
+        self.texture_stats: dict = {}
 
     def _tcoords(self, ij: np.ndarray) -> np.ndarray:
         S = self.terrain.grid.level_size(self.level)
@@ -118,22 +129,54 @@ class TerrainScene:
         tc[:, 1] = 1.0 - (ij[:, 0] / s + 0.5) / S
         return tc
 
-    def update(self, selection) -> None:
-        """Show ``selection.mesh`` (the actor and its texture are reused)."""
+    def view_texture(self, selection, view: View):
+        """The per-view atlas of ``selection`` (:mod:`geoterrain.tiletextures`), or None.
+
+        Thread-safe to call off the UI thread (it touches no VTK object); pass the
+        result to :meth:`update`.
+        """
+        if self.shading == "plain" or self.textures != "view":
+            return None
+        return build_view_texture(self.terrain, selection, view, self.shading, self.cmap)
+
+    def update(self, selection, view: View | None = None, vtex=None) -> None:
+        """Show ``selection.mesh`` (the actor is reused).
+
+        With per-view textures (the default), ``view`` (or a ready ``vtex`` from
+        :meth:`view_texture`) chooses each footprint's texture level; without either
+        the camera's current view is used.
+        """
         import pyvista as pv
 
         src = selection.mesh
         mesh = pv.PolyData()
-        if src.n_points:
+        if self.texture is not None and self.textures == "view" and src.n_cells:
+            if vtex is None:
+                vtex = self.view_texture(selection, view if view is not None else
+                                         View.from_camera(self.plotter.camera,
+                                                          tuple(self.plotter.window_size)))
+            mesh.points = vtex.points
+            mesh.faces = np.hstack([np.full((len(vtex.faces), 1), 3, np.int64),
+                                    vtex.faces]).ravel()
+            mesh.active_texture_coordinates = vtex.tcoords
+            self.texture.SetInputDataObject(_image_data(vtex.image))
+            self.texture_stats = dict(vtex.stats)
+            for k in ("level", "skirt"):  # faces keep their order: cell data carries over
+                if k in src.cell_data:
+                    mesh.cell_data[k] = src.cell_data[k]
+        elif src.n_points:
+            self.texture_stats = {"textures_built": 0, "texture_tiles": 0}
             mesh.points = src.points
             if src.n_cells:
                 mesh.faces = src.faces
-            if self.texture is not None:
+            if self.texture is not None and self.textures == "global":
                 mesh.active_texture_coordinates = self._tcoords(
                     np.asarray(src.point_data["grid_ij"]))
             for k in ("level", "skirt"):
                 if k in src.cell_data:
                     mesh.cell_data[k] = src.cell_data[k]
+        else:
+            self.texture_stats = {"textures_built": 0, "texture_tiles": 0}
         self.selection = selection
         if self.actor is None:
             kw: dict = {"name": "terrain", "show_scalar_bar": False, "reset_camera": False}
@@ -165,27 +208,87 @@ class TerrainScene:
 
     def frame(self, view: View, pixel_error: float = 1.0, strategy: str = DEFAULT,
               ) -> tuple[np.ndarray, dict]:
-        """Select the LOD for ``view``, draw it and return the image (H, W, 3) uint8 and stats."""
+        """Select the LOD for ``view``, draw it and return the image (H, W, 3) uint8 and stats.
+
+        The stats count what the whole frame did (selection and texture):
+        ``tiles_decoded`` (heights), ``normals_decoded``, ``bounds_decoded`` (δ, r),
+        ``textures_built``, ``bytes_read`` and ``peak_rss_mb`` (the process's peak
+        resident memory so far), besides the selection's own stats.
+        """
+        t = self.terrain
+        c0 = io_counters(t)
         t0 = time.perf_counter()
-        sel = lod.select(self.terrain, view, pixel_error=pixel_error, strategy=strategy)
+        sel = lod.select(t, view, pixel_error=pixel_error, strategy=strategy)
         t1 = time.perf_counter()
-        self.update(sel)
+        self.update(sel, view)
         self.set_camera(view)
         t2 = time.perf_counter()
         self.plotter.render()
-        img = np.asarray(self.plotter.screenshot(return_img=True))[..., :3]
+        img = _grab(self.plotter)
         t3 = time.perf_counter()
-        stats = {**sel.stats, "update_ms": round((t2 - t1) * 1e3, 3),
+        c1 = io_counters(t)
+        stats = {**sel.stats, "select_tiles_decoded": sel.stats.get("tiles_decoded", 0),
+                 **{k: c1[k] - c0[k] for k in c0},
+                 "textures_built": int(self.texture_stats.get("textures_built", 0)),
+                 "texture_tiles": int(self.texture_stats.get("texture_tiles", 0)),
+                 "texture_ms": float(self.texture_stats.get("texture_ms", 0.0)),
+                 "peak_rss_mb": round(peak_rss() / 2**20, 1),
+                 "update_ms": round((t2 - t1) * 1e3, 3),
                  "render_ms": round((t3 - t2) * 1e3, 3),
                  "frame_ms": round((t3 - t0) * 1e3, 3)}
         return img, stats
 
     def terrain_fraction(self) -> float:
-        """Fraction of the last image's pixels covered by terrain (from the depth buffer)."""
+        """Fraction of the last image's pixels covered by terrain (its depth buffer, read
+        without rendering again)."""
         if self.mesh.n_cells == 0:
             return 0.0
-        depth = self.plotter.get_image_depth(fill_value=np.nan)
-        return float(np.isfinite(depth).mean())
+        from vtkmodules.util.numpy_support import vtk_to_numpy
+        from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter
+
+        f = vtkWindowToImageFilter()
+        f.SetInput(self.plotter.render_window)
+        f.ShouldRerenderOff()
+        f.ReadFrontBufferOff()
+        f.SetInputBufferTypeToZBuffer()
+        f.Update()
+        z = vtk_to_numpy(f.GetOutput().GetPointData().GetScalars())
+        return float((z < 1.0).mean())
+
+
+def _image_data(img: np.ndarray):
+    """A vtkImageData of an (H, W, 3) uint8 image whose row 0 is the top (v = 1)."""
+    from vtkmodules.util.numpy_support import numpy_to_vtk
+    from vtkmodules.vtkCommonDataModel import vtkImageData
+
+    h, w = img.shape[:2]
+    out = vtkImageData()
+    out.SetDimensions(w, h, 1)
+    arr = numpy_to_vtk(np.ascontiguousarray(img[::-1]).reshape(-1, 3), deep=True)
+    arr.SetName("atlas")
+    out.GetPointData().SetScalars(arr)
+    return out
+
+
+def io_counters(terrain) -> dict:
+    """The terrain's running counts of decoded tiles (by kind) and store bytes read."""
+    return {"tiles_decoded": int(terrain.decoded_tiles),
+            "normals_decoded": int(getattr(terrain, "decoded_normals", 0)),
+            "bounds_decoded": int(getattr(terrain, "decoded_bounds", 0)),
+            "bytes_read": int(getattr(terrain, "bytes_read", 0))}
+
+
+def peak_rss() -> int:
+    """Peak resident memory of this process in bytes (``ru_maxrss``)."""
+    import resource
+
+    r = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return int(r if sys.platform == "darwin" else r * 1024)
+
+
+def _grab(plotter) -> np.ndarray:
+    """The last rendered image (H, W, 3) uint8, read back without rendering again."""
+    return np.asarray(plotter.screenshot(return_img=True))[..., :3]
 
 
 def _plotter(size: tuple[int, int], anti_aliasing: bool = True):

@@ -82,6 +82,9 @@ class Terrain:
         self._cache_budget = cache_bytes
         self._cache_used = 0
         self.decoded_tiles = 0  # tiles whose heights were decoded (a view counts these)
+        self.decoded_normals = 0  # tiles whose normal maps were decoded
+        self.decoded_bounds = 0  # δ or r arrays decoded
+        self.bytes_read = 0  # blob bytes read from the store
 
     # ------------------------------------------------------------------ cache
     def _cached(self, key: tuple, make):
@@ -122,6 +125,7 @@ class Terrain:
         if b is None:
             raise StoreCorruptError(f"{self.path}: the {kind} of tile {key} are missing; the "
                                     "file is damaged, re-run `geoterrain preprocess`")
+        self.bytes_read += len(b)
         return b
 
     # ------------------------------------------------------------------ tiles
@@ -186,6 +190,7 @@ class Terrain:
 
     def _bounds(self, key: TileKey, kind: str) -> np.ndarray:
         T = self.grid.tile_samples
+        self.decoded_bounds += 1
         L, x, y = key
         blob = self._blob(key, kind)
         parent = None
@@ -229,6 +234,7 @@ class Terrain:
                 raise StoreCorruptError(f"{self.path}: tile {(level, x, y)} normals cannot be "
                                         "decoded; re-run `geoterrain preprocess`") from None
             dt = np.uint8 if bits == 8 else np.uint16
+            self.decoded_normals += 1
             if bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY:
                 return decode_octahedral(normals_from_bytes(raw, T), bits)
             return decode_octahedral(np.frombuffer(raw, dt).reshape(T, T, 2), bits)

@@ -1,0 +1,281 @@
+"""View-dependent terrain textures: a texture quadtree beside the geometry quadtree.
+
+Seed 000 §2.5 (chunked LOD keeps a texture quadtree beside the geometry one):
+each triangle a selection draws lies in one stored tile footprint (the smallest
+quadtree tile (L, x, y) that holds it; RTIN, chunked, GeoMipMapping, quadtree and
+bruteforce triangles all do, skirts included). The footprint's shading
+(elevation colours × hillshade from the stored normal maps, :mod:`textures`)
+comes from the coarsest pyramid level ``Lt`` whose texel projects to at most
+``TEXEL_PX`` = 1.5 pixels (so 0.75–1.5 px: about one) at the footprint's nearest
+point to the eye::
+
+    texel_px(Lt) = 2^Lt · s0 · f / d ≤ TEXEL_PX,   f = (H / 2) / tan(fov_y / 2)
+
+(``s0`` the finest sample spacing, ``d`` the distance from the eye to the box of
+the footprint's drawn vertices), clamped to ``L - MAX_PAGE_LEVELS ≤ Lt ≤ L``.
+Only the level-``Lt`` tiles under a footprint that its triangles touch are
+shaded, each once per (level, x, y, shading, palette) and kept in the terrain's
+byte-bounded tile cache; a tile no drawn triangle touches is never decoded or
+shaded. Chosen by measurement on srtm1_japan at 640×360, rtin τ = 1 against the
+bruteforce render with the mipmapped whole-DEM level-0 texture: texels ≤ 0.5 / 1 /
+1.5 / 2 px gave 34.7 / 36.9 / 37.8 / 37.7 dB (view 1) and 33.6 / 35.0 / 35.3 / 35.2 dB
+(view 2); finer texels alias, as there are no mipmaps across atlas pages.
+
+The pages are packed into one atlas texture (one actor, per-vertex texture
+coordinates; vertices are duplicated per footprint). An atlas rather than one
+actor per tile: a frame has hundreds of pages, and VTK draws one actor per call.
+
+Examples
+--------
+>>> from geoterrain import lod
+>>> sel = lod.select(t, View((0, -900, 500), (0, 0, 0), size=(320, 240)))
+>>> tex = build_view_texture(t, sel, View((0, -900, 500), (0, 0, 0), size=(320, 240)))
+>>> tex.image.dtype.name, tex.tcoords.shape[1], tex.stats["textures_built"] > 0
+('uint8', 2, True)
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from geoterrain.colours import Palette, as_palette, colorize
+from geoterrain.textures import _hillshade, elevation_range
+
+TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
+MAX_PAGE_LEVELS = 3  # a footprint's page is at most 2^3 × 2^3 tiles (513² texels at t = 6)
+MAX_ATLAS = 8192  # texels per side; beyond it every page is coarsened one level
+GUTTER = 1  # replicated border texels around each page (no bleeding between pages)
+MISSING_RGB = (128, 128, 128)  # a tile that is not stored (all nodata): never visible
+
+
+@dataclass
+class ViewTexture:
+    """An atlas and the mesh arrays that map onto it.
+
+    ``points`` (V', 3), ``faces`` (F, 3) into them, ``tcoords`` (V', 2) float32,
+    ``source`` (V',) the selection vertex each point copies, ``image`` (H, W, 3) uint8
+    (row 0 at the top, VTK's v = 1), ``stats`` (textures_built, texture_tiles, pages,
+    atlas, texture_ms).
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    tcoords: np.ndarray
+    source: np.ndarray
+    image: np.ndarray
+    stats: dict = field(default_factory=dict)
+
+
+def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Palette = "auto",
+             counter: dict | None = None) -> np.ndarray:
+    """RGB uint8 (T, T, 3) shading of stored tile (level, x, y), cached in the terrain.
+
+    The cache is the terrain's tile cache (same byte budget), keyed by
+    (level, x, y, shading, palette). ``counter["textures_built"]`` counts builds.
+
+    Examples
+    --------
+    >>> tile_rgb(t, t.grid.top_level, 0, 0, "normals").shape
+    (33, 33, 3)
+    """
+    pal = as_palette(cmap)
+
+    def make():
+        if counter is not None:
+            counter["textures_built"] = counter.get("textures_built", 0) + 1
+        h = np.nan_to_num(terrain.tile(level, x, y).heights, nan=0.0)
+        z0, z1 = elevation_range(terrain)
+        rgb = colorize(h * terrain.frame.z_to_m, pal, (z0, z1))
+        if shading == "normals":
+            rgb *= _hillshade(terrain.tile_normals(level, x, y))[..., None]
+        return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
+
+    return terrain._cached(("rgb", shading, pal, level, x, y), make)
+
+
+def footprints(ij: np.ndarray, faces: np.ndarray, grid) -> tuple[np.ndarray, ...]:
+    """(L, x, y) of the smallest stored-tile footprint holding each face, all arrays (F,).
+
+    Examples
+    --------
+    >>> L, x, y = footprints(np.array([[0, 0], [0, 32], [32, 0]]), np.array([[0, 1, 2]]),
+    ...                      t.grid)
+    >>> int(L[0]), int(x[0]), int(y[0])
+    (0, 0, 0)
+    """
+    i, j = ij[:, 0].astype(np.int64), ij[:, 1].astype(np.int64)
+    fi, fj = i[faces], j[faces]
+    i0, i1, j0, j1 = fi.min(1), fi.max(1), fj.min(1), fj.max(1)
+    L = np.full(len(faces), grid.top_level, np.int64)
+    X = np.zeros(len(faces), np.int64)
+    Y = np.zeros(len(faces), np.int64)
+    todo = np.ones(len(faces), bool)
+    for lv in grid.levels:  # finest first: the first footprint that holds a face is its own
+        w = (1 << grid.t) << lv
+        xs = np.minimum(j0 // w, grid.tiles_per_side(lv) - 1)
+        ys = np.minimum(i0 // w, grid.tiles_per_side(lv) - 1)
+        fits = todo & (j1 <= (xs + 1) * w) & (i1 <= (ys + 1) * w)
+        L[fits], X[fits], Y[fits] = lv, xs[fits], ys[fits]
+        todo &= ~fits
+        if not todo.any():
+            break
+    return L, X, Y
+
+
+def _spacing(terrain) -> float:
+    """The finest sample spacing (scene units) near the grid centre and corners."""
+    g = terrain.grid
+    pts = []
+    for c in ((g.rows // 2, g.cols // 2), (0, 0), (max(g.rows - 2, 0), max(g.cols - 2, 0))):
+        ii = np.array([c[0], c[0], c[0] + 1])
+        jj = np.array([c[1], c[1] + 1, c[1]])
+        X, Y = terrain.frame.xy(ii, jj)
+        pts.append(min(math.hypot(X[1] - X[0], Y[1] - Y[0]), math.hypot(X[2] - X[0],
+                                                                          Y[2] - Y[0])))
+    return max(min(pts), 1e-12)
+
+
+def _pack(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Shelf packing of square pages (largest first): (x0, y0, width, height)."""
+    order = np.argsort(-sizes, kind="stable")
+    W = max(int(sizes.max()), int(math.ceil(math.sqrt(float((sizes.astype(np.float64) ** 2)
+                                                              .sum())) * 1.1)))
+    x0 = np.zeros(len(sizes), np.int64)
+    y0 = np.zeros(len(sizes), np.int64)
+    cx = cy = shelf = 0
+    for k in order:  # one step per page (tens to hundreds), never per texel
+        s = int(sizes[k])
+        if cx + s > W:
+            cy, cx, shelf = cy + shelf, 0, 0
+        x0[k], y0[k] = cx, cy
+        cx += s
+        shelf = max(shelf, s)
+    return x0, y0, W, cy + shelf
+
+
+def build_view_texture(terrain, selection, view, shading: str = "normals",
+                       cmap: str | Palette = "auto", texel_px: float = TEXEL_PX) -> ViewTexture:
+    """The atlas of what ``selection`` draws in ``view`` at about ``texel_px`` px per texel.
+
+    Examples
+    --------
+    >>> v = View((0, -900, 500), (0, 0, 0), size=(320, 240))
+    >>> from geoterrain import lod
+    >>> tex = build_view_texture(t, lod.select(t, v), v, "elevation")
+    >>> bool((tex.tcoords >= 0).all() and (tex.tcoords <= 1).all())
+    True
+    """
+    t0 = time.perf_counter()
+    g = terrain.grid
+    mesh = selection.mesh
+    counter = {"textures_built": 0}
+    if mesh.n_cells == 0 or mesh.n_points == 0:
+        return ViewTexture(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 2),
+                           np.float32), np.zeros(0, np.int64), np.zeros((1, 1, 3), np.uint8),
+                           {**counter, "texture_tiles": 0, "pages": 0, "atlas": [0, 0],
+                            "texture_ms": 0.0})
+    pts = np.asarray(mesh.points, np.float64)
+    ij = np.asarray(mesh.point_data["grid_ij"]).astype(np.int64)
+    faces = mesh.faces.reshape(-1, 4)[:, 1:].astype(np.int64)
+    # a footprint's page: the level-Lt tiles under it that its faces touch (k = L - Lt
+    # levels finer than the footprint, 0 when a far footprint takes its ancestor's tile)
+    L, X, Y = footprints(ij, faces, g)
+    n_lv = g.top_level + 1
+    sh = 2 * n_lv + 1
+
+    def groups(L, X, Y, extra=None):
+        key = (L << sh | Y) << sh | X
+        if extra is not None:
+            key = key << 5 | extra
+        return np.unique(key, return_inverse=True)
+
+    # 1. the texel level each footprint wants, from its drawn vertices' box
+    keys, fg = groups(L, X, Y)
+    G = len(keys)
+    corner = faces.reshape(-1)
+    cg = np.repeat(fg, 3)
+    order = np.argsort(cg, kind="stable")
+    starts = np.searchsorted(cg[order], np.arange(G))
+    cp = pts[corner[order]]
+    lo = np.minimum.reduceat(cp, starts, axis=0)
+    hi = np.maximum.reduceat(cp, starts, axis=0)
+    eye = np.asarray(view.eye, np.float64)
+    d = np.linalg.norm(np.maximum(0.0, np.maximum(lo - eye, eye - hi)), axis=1)
+    f = 0.5 * view.size[1] / math.tan(math.radians(view.fov_y_deg) / 2)
+    s0 = _spacing(terrain)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        want = np.floor(np.log2(np.maximum(d, 1e-30) * texel_px / (s0 * f)))
+    want = np.clip(np.nan_to_num(want, nan=0.0, posinf=g.top_level, neginf=0.0), 0,
+                   g.top_level).astype(np.int64)
+    fL = keys >> (2 * sh)
+    fLt = np.maximum(want, fL - MAX_PAGE_LEVELS)[fg]  # per face
+    # 2. a footprint that wants a coarser texel than its own level is drawn from its
+    #    ancestor tile at that level (one tile page), so far footprints share pages
+    up = np.maximum(fLt - L, 0)
+    L2, X2, Y2 = np.maximum(L, fLt), X >> up, Y >> up
+    step = 1 << g.t
+    while True:
+        keys, face_group = groups(L2, X2, Y2, fLt)
+        G = len(keys)
+        Lt = keys & 31
+        rest = keys >> 5
+        gL = rest >> (2 * sh)
+        gY, gX = (rest >> sh) & ((1 << sh) - 1), rest & ((1 << sh) - 1)
+        k = gL - Lt
+        sizes = (step << k) + 1 + 2 * GUTTER
+        ax, ay, AW, AH = _pack(sizes)
+        if max(AW, AH) <= MAX_ATLAS or (fLt >= L2).all():
+            break
+        fLt = np.minimum(fLt + 1, L2)  # too many texels: every page one level coarser
+    cg = np.repeat(face_group, 3)
+    order = np.argsort(cg, kind="stable")
+    starts = np.searchsorted(cg[order], np.arange(G))
+    cij = ij[corner[order]]
+    ilo, jlo = np.minimum.reduceat(cij, starts, axis=0).T
+    ihi, jhi = np.maximum.reduceat(cij, starts, axis=0).T
+    atlas = np.empty((AH, AW, 3), np.uint8)
+    atlas[:] = MISSING_RGB
+    n_tiles = 0
+    stored = terrain.tile_info
+    for gi in range(G):  # one step per page; the texels are whole-array copies
+        lt, kk = int(Lt[gi]), int(k[gi])
+        span = step << gL[gi]  # the footprint's width in full-resolution samples
+        bi, bj = int(gY[gi]) * span, int(gX[gi]) * span
+        y0, x0 = int(ay[gi]) + GUTTER, int(ax[gi]) + GUTTER
+        wt = step << lt  # a level-lt tile's width in full-resolution samples
+        last = (1 << kk) - 1
+        for ty in range(min(last, int((ilo[gi] - bi) // wt)),
+                        min(last, int((ihi[gi] - bi - 1) // wt)) + 1):
+            for tx in range(min(last, int((jlo[gi] - bj) // wt)),
+                            min(last, int((jhi[gi] - bj - 1) // wt)) + 1):
+                key = (lt, (int(gX[gi]) << kk) + tx, (int(gY[gi]) << kk) + ty)
+                if key not in stored:
+                    continue
+                r, c = y0 + ty * step, x0 + tx * step
+                atlas[r:r + step + 1, c:c + step + 1] = tile_rgb(terrain, *key, shading,
+                                                                 cmap, counter)
+                n_tiles += 1
+        s = (step << kk) + 1  # gutters: the page's edge texels, replicated
+        atlas[y0 - 1, x0:x0 + s] = atlas[y0, x0:x0 + s]
+        atlas[y0 + s, x0:x0 + s] = atlas[y0 + s - 1, x0:x0 + s]
+        atlas[y0 - 1:y0 + s + 1, x0 - 1] = atlas[y0 - 1:y0 + s + 1, x0]
+        atlas[y0 - 1:y0 + s + 1, x0 + s] = atlas[y0 - 1:y0 + s + 1, x0 + s - 1]
+    # one point per (footprint, vertex): a vertex shared by two footprints is duplicated
+    V = len(pts)
+    pk = cg.astype(np.int64) * V + corner
+    upk, inv = np.unique(pk, return_inverse=True)
+    pg, src = upk // V, upk % V
+    scale = np.left_shift(1, Lt[pg]).astype(np.float64)
+    span = (step << gL[pg]).astype(np.float64)
+    col = ax[pg] + GUTTER + (ij[src, 1] - gX[pg] * span) / scale
+    row = ay[pg] + GUTTER + (ij[src, 0] - gY[pg] * span) / scale
+    tc = np.empty((len(upk), 2), np.float32)
+    tc[:, 0] = (col + 0.5) / AW
+    tc[:, 1] = 1.0 - (row + 0.5) / AH
+    st = {**counter, "texture_tiles": n_tiles, "pages": G, "atlas": [int(AW), int(AH)],
+          "texture_ms": round((time.perf_counter() - t0) * 1e3, 3)}
+    return ViewTexture(pts[src], inv.reshape(-1, 3), tc, src, atlas, st)

@@ -1,0 +1,137 @@
+"""View-dependent textures and truthful frame statistics.
+
+- a view looking away from the terrain reads nothing: 0 tiles of any kind, 0 textures,
+  0 bytes, and its stats say so;
+- textures are built only for tiles under drawn faces, at a texel of about ≤ 1 px;
+- every face lies in its footprint tile, which is the smallest one holding it;
+- a picture is rendered once (no second render for a statistic);
+- the picture stays within 35 dB of the bruteforce render with the whole-DEM
+  level-0 texture (the previous renderer) on a real DEM.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import geoterrain
+from geoterrain import lod
+from geoterrain.grid import Grid
+from geoterrain.rendering import TerrainScene, _plotter, default_view, render, render_array
+from geoterrain.tiletextures import build_view_texture, footprints
+from geoterrain.view import View
+from tests.test_render import _fidelity_terrain, psnr, synth_store
+
+ZERO = ("tiles_decoded", "normals_decoded", "bounds_decoded", "textures_built", "bytes_read",
+        "texture_tiles")
+
+
+def _fresh(tmp_path_factory, size=257, **kw):
+    t = synth_store(tmp_path_factory, f"vtex{size}", size=size, **kw)
+    return geoterrain.open(t.path)  # a new handle: an empty cache
+
+
+def test_away_render_reads_nothing(tmp_path_factory, tmp_path):
+    t = _fresh(tmp_path_factory)
+    lo, hi = t.scene_box()
+    eye = (float(hi[0]) + 50.0, 0.0, float(hi[2]) + 100.0)
+    away = View(eye, (eye[0] + 1000.0, 0.0, eye[2] + 200.0), size=(320, 200))
+    st_ = render(t, away, tmp_path / "away.png", colorbar=False, scale_bar=False,
+                 north_arrow=False)
+    assert {k: st_[k] for k in ZERO} == dict.fromkeys(ZERO, 0), st_
+    assert st_["triangles"] == 0 and st_["terrain_fraction"] == 0.0
+    assert (t.decoded_tiles, t.decoded_normals, t.decoded_bounds, t.bytes_read) == (0, 0, 0, 0)
+    # and a view of the terrain does read, and says so
+    st2 = render(t, default_view(t, (320, 200)), tmp_path / "home.png")
+    assert st2["tiles_decoded"] > 0 and st2["normals_decoded"] > 0
+    assert st2["textures_built"] > 0 and st2["bytes_read"] > 0 and st2["peak_rss_mb"] > 0
+
+
+def test_textures_only_under_drawn_faces(tmp_path_factory):
+    t = _fresh(tmp_path_factory, size=1025)
+    g = t.grid
+    lo, hi = t.scene_box()
+    c = 0.5 * (lo + hi)
+    # a low view of one corner: most of the terrain is not drawn
+    v = View((float(lo[0]) - 200.0, float(lo[1]) - 200.0, float(hi[2]) + 150.0),
+             (float(lo[0]) + 300.0, float(lo[1]) + 300.0, float(c[2])), size=(320, 200))
+    sel = lod.select(t, v, 1.0)
+    tex = build_view_texture(t, sel, v)
+    built = [k[3:] for k in t._cache if k[0] == "rgb"]
+    assert len(built) == tex.stats["textures_built"] > 0
+    ij = sel.ij.astype(np.int64)
+    f = sel.faces
+    i0, i1 = ij[f, 0].min(1), ij[f, 0].max(1)
+    j0, j1 = ij[f, 1].min(1), ij[f, 1].max(1)
+    step = 1 << g.t
+    level0 = t.tile_keys(0)
+    for (L, x, y) in built:
+        w = step << L
+        touches = ((j1 >= x * w) & (j0 <= (x + 1) * w) & (i1 >= y * w) & (i0 <= (y + 1) * w))
+        assert touches.any(), (L, x, y)
+    assert len([k for k in built if k[0] == 0]) < len(level0) / 4
+    # texels of about a pixel: the atlas is a few times the picture, not the DEM
+    assert tex.image.shape[0] * tex.image.shape[1] < 16 * v.size[0] * v.size[1]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(3, 9), st.data())
+def test_footprint_is_the_smallest_tile_holding_a_face(n, data):
+    g = Grid(2 ** n + 1, 2 ** n + 1, n, min(3, n))
+    S = g.size
+    pts = data.draw(st.lists(st.tuples(st.integers(0, S - 1), st.integers(0, S - 1)),
+                             min_size=3, max_size=3))
+    ij = np.array(pts, np.int64)
+    L, X, Y = footprints(ij, np.array([[0, 1, 2]]), g)
+    w = (1 << g.t) << int(L[0])
+    assert ij[:, 1].min() >= X[0] * w and ij[:, 1].max() <= (X[0] + 1) * w
+    assert ij[:, 0].min() >= Y[0] * w and ij[:, 0].max() <= (Y[0] + 1) * w
+    if L[0] > 0:  # no tile one level finer holds it
+        w2 = w // 2
+        xs, ys = ij[:, 1].min() // w2, ij[:, 0].min() // w2
+        assert not (ij[:, 1].max() <= (xs + 1) * w2 and ij[:, 0].max() <= (ys + 1) * w2)
+
+
+def test_a_picture_is_rendered_once(tmp_path_factory):
+    t = _fresh(tmp_path_factory)
+    size = (320, 200)
+    scene = TerrainScene(_plotter(size), t)
+    count = []
+    scene.plotter.render_window.AddObserver("StartEvent", lambda *_: count.append(1))
+    try:
+        render_array(t, default_view(t, size), scene=scene)
+        n = len(count)
+        img, st_ = render_array(t, default_view(t, size, azimuth=40.0), scene=scene)
+    finally:
+        scene.plotter.close()
+    assert len(count) - n == 1, len(count) - n
+    assert 0.2 < st_["terrain_fraction"] <= 1.0
+
+
+def test_view_textures_match_the_full_resolution_texture(tmp_path_factory):
+    """rtin + per-view textures vs bruteforce + the whole-DEM level-0 texture ≥ 35 dB."""
+    t = _fidelity_terrain(tmp_path_factory)
+    size = (640, 360)
+    ref = TerrainScene(_plotter(size), t, textures="global")
+    new = TerrainScene(_plotter(size), t)
+    out = []
+    try:
+        for az, el in ((200, 35), (90, 20)):
+            v = default_view(t, size, az, el)
+            a, _ = ref.frame(v, 1.0, "bruteforce")
+            b, sb = new.frame(v, 1.0, "rtin")
+            out.append(psnr(a, b))
+            assert sb["textures_built"] + sb["texture_tiles"] > 0
+    finally:
+        ref.plotter.close()
+        new.plotter.close()
+    print("PSNR", [f"{p:.2f}" for p in out])
+    assert min(out) >= 35.0, out
+
+
+def test_unknown_texture_mode(tmp_path_factory):
+    t = _fresh(tmp_path_factory)
+    with pytest.raises(geoterrain.exceptions.UsageError):
+        TerrainScene(_plotter((64, 64)), t, textures="atlas")
