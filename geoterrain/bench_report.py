@@ -24,7 +24,8 @@ from geoterrain.lod.registry import STRATEGIES
 
 COLUMNS = ("source", "frame", "view", "strategy", "tau", "select_ms", "render_ms", "triangles",
            "skirt_triangles", "vertices", "tiles_decoded", "peak_mem_mb", "err_max", "err_p99",
-           "err_mean", "samples_in_view", "uncovered_in_view", "preprocess_s", "store_bytes")
+           "err_mean", "pop_px", "samples_in_view", "uncovered_in_view", "preprocess_s",
+           "store_bytes")
 
 
 def _colors(strategies: Sequence[str]) -> dict[str, str]:

@@ -27,9 +27,9 @@
 - **Ranges** (the seed leaves them open; Strugar doubles them). Chosen per call from the
   stored tile numbers and λ, τ so that measured ρ ≤ τ holds with morphing on. Per
   level L: e_L = the largest stored tile error (a region drawn at L is at distance
-  ≥ r_{L−1}, so r_{L−1} ≥ λ·e_L/τ); M_L = the largest morph displacement, bounded per
-  tile by min(max δ of the samples new at L, the parent tile's error, the tile's height
-  range); a sample of a
+  ≥ r_{L−1}, so r_{L−1} ≥ λ·e_L/τ); M_L = e_{L+1} bounds the morph displacement (a
+  sample moves only inside a level-(L+1) tile of finite error, which bounds
+  |z − S_{L+1}| at the sample); a sample of a
   level-L triangle is off by at most e_L + M_L once a corner morphs, which happens only
   at distance ≥ m_L − c_L (c_L: the largest 3-D distance between two samples of one
   level-L cell), so m_L − c_L ≥ λ·(e_L + M_L)/τ; and seed 001's crack-free range
@@ -39,7 +39,10 @@
   meeting all three, level by level upward.
 - **No data**: a tile whose stored error is infinite (a triangle that mixes valid and
   no-data samples) is never drawn; it is split to its children. Triangles with a
-  no-data corner are dropped; a sample with a no-data neighbour does not morph.
+  no-data corner are dropped; a sample with a no-data neighbour, or in no level-(h+1)
+  tile of finite error, does not morph. No gap follows: a sample on the edge of a
+  drawn coarser region lies in that region's tile, of finite error (errors grow up
+  the quadtree, so its finer tiles are finite too).
 """
 
 from __future__ import annotations
@@ -69,18 +72,7 @@ class LevelTables:
         top = g.top_level
         L = index.keys[:, 0]
         err = index.error
-        # the parent's stored error bounds |z − S_{L+1}| at every sample of its footprint,
-        # so it bounds the move of every odd sample of the tile
-        par = index.keys.copy()
-        par[:, 0] += 1
-        par[:, 1:] >>= 1
-        prow = index.rows_of(par)
-        perr = np.where(prow >= 0, err[np.maximum(prow, 0)], np.inf)
         ext = index.hi - index.lo
-        # an odd sample and its two neighbours are samples of the tile, so their height
-        # range bounds the move too (finite where δ and the parent's error are not: no data)
-        move = np.minimum(np.minimum(index.delta_max, perr), ext[:, 2])
-        move[L == top] = 0.0
         diag = np.linalg.norm(ext, axis=1)
         cell = np.hypot(np.hypot(ext[:, 0], ext[:, 1]) / (1 << g.t), ext[:, 2])
         self.drawable = np.isfinite(err) | (L == 0)
@@ -92,7 +84,16 @@ class LevelTables:
             return out
 
         self.e = level_max(np.where(L == 0, 0.0, err))
-        self.m = level_max(move)
+        # a sample of home level h moves only inside a level-(h+1) tile of finite error,
+        # which bounds |z − S_{h+1}| there, so the move: M_h = e_{h+1}
+        self.m = np.r_[self.e[1:], 0.0]
+        self.finite = []  # per level: (rows, cols) of tiles → finite stored error
+        for lv in range(top + 1):
+            a = np.zeros((g.tiles_per_side(lv),) * 2, bool)
+            k = np.flatnonzero((L == lv) & np.isfinite(err))
+            a[index.keys[k, 2], index.keys[k, 1]] = True
+            self.finite.append(a)
+        self.span = [1 << (g.t + lv) for lv in range(top + 1)]
         self.c = level_max(cell)
         self.diag = level_max(diag)
         self.top = top
@@ -247,13 +248,33 @@ def _targets(key: np.ndarray, h: np.ndarray, N: int) -> tuple[np.ndarray, np.nda
     return (i - di) * N + (j - dj), (i + di) * N + (j + dj)
 
 
+def _bounded(tb: LevelTables, key: np.ndarray, h: int, N: int) -> np.ndarray:
+    """True for samples of home level h inside a level-(h+1) tile of finite stored error
+    (a sample on a tile edge lies in both tiles)."""
+    fin = tb.finite[h + 1]
+    S = tb.span[h + 1]
+    n = fin.shape[0] - 1
+    i, j = key // N, key % N
+    out = np.zeros(len(key), bool)
+    for di in (0, 1):
+        ti = np.clip(i // S - di, 0, n) if di else np.minimum(i // S, n)
+        oki = (i % S == 0) & (i > 0) if di else np.ones(len(key), bool)
+        for dj in (0, 1):
+            tj = np.clip(j // S - dj, 0, n) if dj else np.minimum(j // S, n)
+            okj = (j % S == 0) & (j > 0) if dj else np.ones(len(key), bool)
+            out |= oki & okj & fin[ti, tj]
+    return out
+
+
 def morph_positions(terrain, key: np.ndarray, xyz: np.ndarray, eye: np.ndarray,
-                    r: np.ndarray, m: np.ndarray) -> tuple[np.ndarray, int]:
+                    r: np.ndarray, m: np.ndarray, tb: LevelTables | None = None
+                    ) -> tuple[np.ndarray, int]:
     """Morphed scene positions of the samples ``key`` (global i·N + j) at unmorphed
     positions ``xyz``; and how many of them morph (0 < k).
 
     Each odd sample moves toward the midpoint of its two neighbours' *morphed*
     positions; the neighbours missing from ``key`` are read with ``terrain.gather``.
+    With ``tb``, only samples inside a level-(h+1) tile of finite error move.
     """
     g = terrain.grid
     N, top = g.size, g.top_level
@@ -266,6 +287,8 @@ def morph_positions(terrain, key: np.ndarray, xyz: np.ndarray, eye: np.ndarray,
         sel = np.flatnonzero((home == h) & ok)
         if not len(sel) or not np.isfinite(r[h]):
             continue
+        if tb is not None:
+            sel = sel[_bounded(tb, keys[sel], h, N)]
         d = np.linalg.norm(P[sel] - eye, axis=1)
         span = r[h] * _END - m[h]
         k = np.clip((d - m[h]) / span, 0.0, 1.0) if span > 0 else (d >= m[h]).astype(float)
@@ -344,7 +367,7 @@ def select(terrain, view: View, tau: float, *, morph: bool = True,
     used[faces.ravel()] = True
     faces = (np.cumsum(used) - 1)[faces]
     uk, src = uk[used], first[used]
-    P, moved = morph_positions(terrain, uk, xyz[src], view.eye, r, m)
+    P, moved = morph_positions(terrain, uk, xyz[src], view.eye, r, m, tb)
     N = terrain.grid.size
     ij = np.stack([uk // N, uk % N], 1).astype(np.float64)
     stats.update(morphing_vertices=moved, range_0=float(r[0]))
