@@ -370,6 +370,6 @@ def select(terrain, view: View, tau: float, *, morph: bool = True,
     P, moved = morph_positions(terrain, uk, xyz[src], view.eye, r, m, tb)
     N = terrain.grid.size
     ij = np.stack([uk // N, uk % N], 1).astype(np.float64)
-    stats.update(morphing_vertices=moved, range_0=float(r[0]))
+    stats.update(morphing_vertices=moved)
     return polydata(P, faces, ij,
                     {"skirt": np.zeros(len(faces), np.uint8), "level": level}), stats
