@@ -53,6 +53,7 @@ import weakref
 import numpy as np
 
 from geoterrain.bintree import vertex_level
+from geoterrain.exceptions import UsageError
 from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.tiles import TileIndex, tile_geometry, tile_index
 from geoterrain.view import INSIDE, OUTSIDE, View
@@ -335,7 +336,7 @@ def select(terrain, view: View, tau: float, *, morph: bool = True,
     """
     f = float(morph_fraction) if morph else 0.0
     if not 0.0 <= f < 1.0:
-        raise ValueError(f"morph_fraction must be in [0, 1), got {morph_fraction}")
+        raise UsageError(f"morph_fraction must be in [0, 1), got {morph_fraction}")
     index = tile_index(terrain)
     if index.outside(view):
         return empty_polydata(), {}
