@@ -23,16 +23,19 @@
   selection, crack-free, but vertices pop.
 - **No skirts, no gap**: the samples on the edge between a level-L region and a coarser
   one are at distance ≥ r_L (the coarser region's box misses the sphere r_L), so
-  k = 1 there and the finer side's odd edge vertices lie on the coarser side's edges.
+  k = 1 there and the finer side's odd edge vertices lie on the coarser side's edges,
+  whose end points both sides place at the same (morphed) positions. The error bound
+  assumes the restricted quadtree the ranges give; where no-data forces splits beyond
+  a range, coarser samples may be mid-morph too (measured, not proven, there).
 - **Ranges** (the seed leaves them open; Strugar doubles them). Chosen per call from the
   stored tile numbers and λ, τ so that measured ρ ≤ τ holds with morphing on. Per
   level L: e_L = the largest stored tile error (a region drawn at L is at distance
   ≥ r_{L−1}, so r_{L−1} ≥ λ·e_L/τ); M_L = e_{L+1} bounds the morph displacement (a
   sample moves only inside a level-(L+1) tile of finite error, which bounds
-  |z − S_{L+1}| at the sample); a sample of a
-  level-L triangle is off by at most e_L + M_L once a corner morphs, which happens only
-  at distance ≥ m_L − c_L (c_L: the largest 3-D distance between two samples of one
-  level-L cell), so m_L − c_L ≥ λ·(e_L + M_L)/τ; and seed 001's crack-free range
+  |z − S_{L+1}| at the sample); a sample of a level-L triangle is off by at most
+  e_L + M_L once a corner morphs, which happens only at distance ≥ m_L − c_L (c_L: the
+  largest 3-D distance between two samples of one level-L cell), so
+  m_L − c_L ≥ λ·(e_L + M_L)/τ; and seed 001's crack-free range
   constraint (L407), (1 − f)·(r_{L+1} − r_L) ≥ diag_L, the largest level-L tile box
   diagonal, heights included, so that a level-L node's samples never reach the
   morph zone of level L+1 (they keep k = 0 there). Each r_L is the smallest value
