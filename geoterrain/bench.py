@@ -39,7 +39,7 @@ import numpy as np
 from geoterrain import lod
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.registry import STRATEGIES, strategy_info
-from geoterrain.measure import screen_space_error, vertical_error
+from geoterrain.measure import screen_space_change, screen_space_error, vertical_error
 from geoterrain.store import is_store
 from geoterrain.view import View, load_views
 
@@ -136,6 +136,38 @@ def flight(lo: Sequence[float], hi: Sequence[float], n_views: int = 8,
     return views
 
 
+def glide(lo: Sequence[float], hi: Sequence[float], n_frames: int = 60, step: float = 0.01,
+          size: tuple[int, int] = SIZE, fov_y_deg: float = FOV) -> list[tuple[str, View]]:
+    """A smooth flight for the popping metric: a straight low pass across the terrain.
+
+    The eye starts over one edge, 0.15 × the half-diagonal above the highest point,
+    and flies towards the far side looking ahead and down; each frame it moves by
+    ``step`` × its height above the highest point (so at most ``step`` of its height
+    above the terrain below it: the issue's 1 % per frame).
+
+    Examples
+    --------
+    >>> v = glide((-500, -500, 0), (500, 500, 100), n_frames=3)
+    >>> [k for k, _ in v], round(float(np.linalg.norm(v[1][1].eye - v[0][1].eye)), 3)
+    (['glide', 'glide', 'glide'], 1.061)
+    """
+    if n_frames < 1:
+        raise UsageError(f"n_frames must be ≥ 1, got {n_frames}")
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    c = 0.5 * (lo + hi)
+    half = max(float(np.hypot(*(hi[:2] - lo[:2]))) / 2, 1e-3)
+    d = np.array([0.6, 0.8, 0.0])  # horizontal heading
+    eye = c - 0.7 * half * d
+    eye[2] = hi[2] + 0.15 * half
+    views = []
+    for _ in range(n_frames):
+        at = eye + half * d
+        at[2] = lo[2]
+        views.append(("glide", View(tuple(eye), tuple(at), (0.0, 0.0, 1.0), fov_y_deg, size)))
+        eye = eye + step * (eye[2] - hi[2]) * d
+    return views
+
+
 def load_path(path: str | Path, size: tuple[int, int] = SIZE,
               fov_y_deg: float = FOV, frame=None) -> list[tuple[str, View]]:
     """Views from a cameras JSON file (:func:`geoterrain.view.load_views`), labelled "path".
@@ -201,7 +233,7 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
         strategies: Sequence[str] = STRATEGIES, taus: Sequence[float] = TAUS,
         n_views: int = 8, render: bool = False, source: str = "",
         preprocess_s: float | None = None, store_bytes: int | None = None,
-        progress: Progress | None = None) -> BenchResult:
+        progress: Progress | None = None, pop: bool = True) -> BenchResult:
     """Run every strategy at every τ over ``views`` and measure each frame.
 
     Parameters
@@ -213,6 +245,9 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
     render : also render each frame offscreen and time it.
     source, preprocess_s, store_bytes : recorded in every row.
     progress : called with the number of frames done since the last call.
+    pop : measure ``pop_px``, the largest jump of the drawn surface since the previous
+        frame of the same strategy and τ (:func:`geoterrain.measure.screen_space_change`;
+        meaningful on a smooth path such as :func:`glide`; NaN on the first frame).
 
     Returns
     -------
@@ -248,6 +283,7 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
     if render:
         scene = _renderer(views[0][1].size, terrain)
     cache: dict[str, tuple] = {}
+    previous: dict[tuple, tuple] = {}  # (strategy, τ) → last frame's surface, for pop_px
     try:
         for fi, (kind, view) in enumerate(views):
             for strategy in strategies:
@@ -286,6 +322,14 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
                                                view.planes, view.lam)
                         cache = {key: (e.max, e.p99, e.mean, e.n_samples, e.n_uncovered)}
                     emax, ep99, emean, ns, nu = cache[key]
+                    pop_px = float("nan")
+                    if pop and len(faces) <= BRUTE_MEASURE_LIMIT:
+                        before = previous.get((strategy, float(tau)))
+                        if before is not None:
+                            pop_px = screen_space_change(before, (ij, faces, vz), X, Y, Zt,
+                                                         valid, view.eye, view.planes,
+                                                         view.lam).max
+                        previous[(strategy, float(tau))] = (ij, faces, vz)
                     st = sel.stats
                     res.rows.append({
                         "source": source, "frame": fi, "view": kind, "strategy": strategy,
@@ -298,7 +342,8 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
                         "bounds_decoded": c1[2] - c0[2], "bytes_read": c1[3] - c0[3],
                         "textures_built": textures_built,
                         "peak_mem_mb": round(peak / 2**20, 3), "err_max": emax,
-                        "err_p99": ep99, "err_mean": emean, "samples_in_view": ns,
+                        "err_p99": ep99, "err_mean": emean, "pop_px": pop_px,
+                        "samples_in_view": ns,
                         "uncovered_in_view": nu,
                         "preprocess_s": preprocess_s if preprocess_s is not None else "",
                         "store_bytes": store_bytes if store_bytes is not None else "",

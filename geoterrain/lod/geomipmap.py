@@ -37,7 +37,13 @@ import weakref
 import numpy as np
 
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
-from geoterrain.lod.tiles import TileIndex, quadtree_leaves, tile_index, union_jack_faces
+from geoterrain.lod.tiles import (
+    TileIndex,
+    quadtree_leaves,
+    tile_geometry,
+    tile_index,
+    union_jack_faces,
+)
 from geoterrain.view import View
 
 _TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -136,15 +142,28 @@ def tables(terrain, index: TileIndex) -> Tables:
     return tb
 
 
-def _block_grids(terrain, xy: np.ndarray, n: int, kinds=("height",)) -> tuple[np.ndarray, dict]:
-    """ij (B, (K+1)², 2) and gathered arrays (B, (K+1)²) of blocks ``xy`` at level n."""
+def _block_grids(terrain, index: TileIndex, xy: np.ndarray, n: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """ij (B, (K+1)², 2) and scene xyz (B, (K+1)², 3) of blocks ``xy`` at level n (z NaN
+    where no data): slices of the cached geometry of the level-n tiles covering them."""
     g = terrain.grid
     K = 1 << (g.t - n)
     a, b = np.meshgrid(np.arange(K + 1), np.arange(K + 1), indexing="ij")
-    i = (xy[:, 1, None] << g.t) + (a.ravel() << n)[None]
-    j = (xy[:, 0, None] << g.t) + (b.ravel() << n)[None]
-    got = terrain.gather(i.ravel(), j.ravel(), kinds)
-    return np.stack([i, j], -1), {k: v.reshape(i.shape) for k, v in got.items()}
+    a, b = a.ravel(), b.ravel()
+    i = (xy[:, 1, None] << g.t) + (a << n)[None]
+    j = (xy[:, 0, None] << g.t) + (b << n)[None]
+    cover = np.column_stack([np.full(len(xy), n), xy >> n])
+    rows, u = np.unique(index.rows_of(cover), return_inverse=True)
+    T = g.tile_samples
+    stack = np.full((len(rows), T, T, 3), np.nan)
+    for k, row in enumerate(rows.tolist()):
+        if row >= 0:  # a tile that is not stored holds no data
+            stack[k] = tile_geometry(terrain, index, row)[1].reshape(T, T, 3)
+    m = (1 << n) - 1  # the block's place inside its covering tile, in blocks
+    oi = ((xy[:, 1] & m) * K)[:, None] + a[None]
+    oj = ((xy[:, 0] & m) * K)[:, None] + b[None]
+    xyz = stack[u.ravel()[:, None], oi, oj]
+    return np.stack([i, j], -1), xyz
 
 
 def strip_ranges(Z: np.ndarray, nlev: int) -> np.ndarray:
@@ -220,15 +239,15 @@ def select(terrain, view: View, tau: float, rule: str = "error"):
     delta = tb.delta[tb.pos[leaves]]
     xy = index.keys[leaves, 1:]  # (x, y)
     n, dmin = choose_levels(view, tau, delta, index.lo[leaves], index.hi[leaves], rule)
-    ratios, stitched = _stitch(terrain, view, tau, xy, n, delta, dmin, tb.nmax,
+    ratios, stitched = _stitch(terrain, index, view, tau, xy, n, delta, dmin, tb.nmax,
                                bounded=(rule != "distance"))
-    mesh = _assemble(terrain, xy, n, ratios)
+    mesh = _assemble(terrain, index, xy, n, ratios)
     stats.update(blocks=len(leaves), stitched_edges=stitched,
                  mean_level=float(n.mean()))
     return mesh, stats
 
 
-def _stitch(terrain, view, tau, xy, n, delta, dmin, nmax, bounded=True):
+def _stitch(terrain, index, view, tau, xy, n, delta, dmin, nmax, bounded=True):
     """Neighbour ratios (B, 4) after refining coarser neighbours whose stitching would
     break λ·(δ_n + B)/D_min ≤ τ. ``n`` is updated in place."""
     nt = terrain.grid.tiles_per_side(0)
@@ -247,9 +266,9 @@ def _stitch(terrain, view, tau, xy, n, delta, dmin, nmax, bounded=True):
         todo = (k > 0).any(1) & np.isnan(rng[rows, n, 0, 0])
         for lv in np.unique(n[todo]).tolist():
             sel = np.flatnonzero(todo & (n == lv))
-            _, got = _block_grids(terrain, xy[sel], lv)
+            _, xyz = _block_grids(terrain, index, xy[sel], lv)
             K = 1 << (terrain.grid.t - lv)
-            Z = terrain.frame.z(got["height"]).reshape(len(sel), K + 1, K + 1)
+            Z = xyz[..., 2].reshape(len(sel), K + 1, K + 1)
             rng[sel, lv] = strip_ranges(Z, nmax + 1)
         R = rng[rows, n]  # (B, 4, nmax+1)
         with np.errstate(invalid="ignore", over="ignore"):
@@ -268,7 +287,7 @@ def _stitch(terrain, view, tau, xy, n, delta, dmin, nmax, bounded=True):
     return np.where(k > 0, 1 << k, 1), int((k > 0).sum())
 
 
-def _assemble(terrain, xy, n, ratios):
+def _assemble(terrain, index, xy, n, ratios):
     """One mesh of every block at its level with its stitching template (whole arrays
     per (level, template) group)."""
     g = terrain.grid
@@ -282,9 +301,8 @@ def _assemble(terrain, xy, n, ratios):
         lv = kv[0]
         K = 1 << (g.t - lv)
         f = template(K, tuple(kv[1:5]), kv[5])
-        ij, got = _block_grids(terrain, xy[sel], lv, ("height", "x", "y"))
+        ij, xyz = _block_grids(terrain, index, xy[sel], lv)
         V = (K + 1) ** 2
-        xyz = np.stack([got["x"], got["y"], terrain.frame.z(got["height"])], -1)
         ijs.append(ij.reshape(-1, 2))
         xyzs.append(xyz.reshape(-1, 3))
         faces.append((f[None] + (off + V * np.arange(len(sel)))[:, None, None]).reshape(-1, 3))
@@ -292,12 +310,25 @@ def _assemble(terrain, xy, n, ratios):
         off += V * len(sel)
     xyz, ij, faces = np.concatenate(xyzs), np.concatenate(ijs), np.concatenate(faces)
     level = np.concatenate(level)
-    ok = np.isfinite(xyz[:, 2])[faces].all(1)  # a triangle needs three valid corners
-    faces, level = faces[ok], level[ok]
-    # one vertex per sample (blocks share their edges): unused (nodata) vertices drop out
+    fin = np.isfinite(xyz[:, 2])
+    if not fin.all():  # a triangle needs three valid corners
+        ok = fin[faces].all(1)
+        faces, level = faces[ok], level[ok]
+    # one vertex per sample (blocks share their edges): unused (nodata) vertices drop out;
+    # a sort of the vertex keys (numpy's hashing unique is slow on millions of int64)
     key = ij[:, 0] * g.size + ij[:, 1]
-    uniq, first, inv = np.unique(key[faces.ravel()], return_index=True, return_inverse=True)
-    src = faces.ravel()[first]
-    faces = inv.reshape(-1, 3)
+    order = np.argsort(key, kind="stable")
+    sk = key[order]
+    head = np.r_[True, sk[1:] != sk[:-1]]
+    inv = np.empty(len(key), np.int64)
+    inv[order] = np.cumsum(head) - 1
+    first = order[head]
+    faces = inv[faces]
+    used = np.zeros(len(first), bool)
+    used[faces.ravel()] = True
+    src = first
+    if not used.all():
+        faces = (np.cumsum(used) - 1)[faces]
+        src = first[used]
     return polydata(xyz[src], faces, ij[src],
                     {"skirt": np.zeros(len(faces), np.uint8), "level": level})

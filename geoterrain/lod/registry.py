@@ -11,7 +11,7 @@ one :class:`StrategyInfo` line to ``_ENTRIES`` below.
 Examples
 --------
 >>> STRATEGIES
-('rtin', 'chunked', 'bruteforce', 'geomipmap', 'geomipmap_distance', 'quadtree')
+('rtin', 'chunked', 'bruteforce', 'geomipmap', 'geomipmap_distance', 'quadtree', 'cdlod')
 >>> strategy_info("chunked").bounded
 True
 """
@@ -66,6 +66,9 @@ _ENTRIES = (
     StrategyInfo("quadtree", "geoterrain.lod.quadtree",
                  "restricted quadtree, Manhattan-distance LOD (seed 003; unbounded)", False,
                  conforming=True),
+    StrategyInfo("cdlod", "geoterrain.lod.cdlod",
+                 "CDLOD: tile quadtree, one range per level, morphed, no skirts (seed 001)",
+                 True),
 )
 
 REGISTRY: dict[str, StrategyInfo] = {e.name: e for e in _ENTRIES}
