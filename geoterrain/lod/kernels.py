@@ -1,4 +1,4 @@
-"""Compiled bintree extraction (numba): one stack-based pass, Martini-style count + fill.
+"""Compiled bintree extraction (numba): one resumable stack-based walk, vertices numbered in order.
 
 Benchmarked against the level-by-level numpy bisection in docs/benchmarks.md.
 """
@@ -11,23 +11,30 @@ from numba import njit
 from geoterrain.bintree import parents_nb
 
 
-@njit(cache=True)
-def _walk(active, mixed, gen, vid, tris, verts):
-    """Depth-first longest-edge bisection from the two base triangles.
-
-    A triangle (a, b, c) splits at m = (a + b) / 2 when ``active[m] == gen``; leaves
-    over a mixed diamond (``mixed[m] == gen``) are skipped. Faces go to ``tris``
-    and first-seen sample indices to ``verts``; when ``tris`` is too small the walk
-    stops and returns -1 triangles (``vid`` is reset either way).
-    """
-    N = active.shape[0]
+def walk_start(N: int) -> tuple[np.ndarray, np.ndarray]:
+    """The stack and state (stack pointer) of a walk over an N × N grid: the two
+    base triangles, both counter-clockwise."""
     s = N - 1
-    cap = tris.shape[0]
     stack = np.empty((256, 6), np.int64)
     stack[0] = (0, 0, s, s, 0, s)
     stack[1] = (s, s, 0, 0, s, 0)
-    sp, nf, nv = 2, 0, 0
-    while sp > 0:
+    return stack, np.array([2], np.int64)
+
+
+@njit(cache=True)
+def walk_leaves(active, mixed, gen, stack, state, out):
+    """Resumable depth-first longest-edge bisection (seed 002): up to ``len(out)`` leaf
+    triangles as flat sample indices (i·N + j); returns how many, 0 once done.
+
+    A triangle (a, b, c) splits at m = (a + b) / 2 when ``active[m] == gen``; leaves
+    over a mixed diamond (``mixed[m] == gen``) are skipped. ``stack``/``state`` (from
+    :func:`walk_start`) carry the walk between calls.
+    """
+    N = active.shape[0]
+    sp = state[0]
+    nf = 0
+    cap = out.shape[0]
+    while sp > 0 and nf < cap:
         sp -= 1
         ai, aj, bi, bj, ci, cj = stack[sp]
         si, sj = ai + bi, aj + bj
@@ -44,24 +51,40 @@ def _walk(active, mixed, gen, vid, tris, verts):
                 continue
             if mixed[mi, mj] == gen:
                 continue
-        if nf == cap:
+        out[nf, 0] = ai * N + aj
+        out[nf, 1] = bi * N + bj
+        out[nf, 2] = ci * N + cj
+        nf += 1
+    state[0] = sp
+    return nf
+
+
+@njit(cache=True)
+def _walk(active, mixed, gen, stack, state, vid, tris, verts):
+    """The whole walk, numbering vertices in order of first use: faces go to ``tris``
+    and first-seen sample indices to ``verts``; when ``tris`` is too small the walk
+    stops and returns -1 triangles (``vid`` is reset either way)."""
+    cap = tris.shape[0]
+    buf = np.empty((4096, 3), np.int64)  # leaves pass through a cache-sized buffer
+    nf, nv = 0, 0
+    while True:
+        n = walk_leaves(active, mixed, gen, stack, state, buf)
+        if n == 0:
+            break
+        if nf + n > cap:
             nf = -1
             break
-        for k in range(3):
-            if k == 0:
-                idx = ai * N + aj
-            elif k == 1:
-                idx = bi * N + bj
-            else:
-                idx = ci * N + cj
-            v = vid[idx]
-            if v < 0:
-                v = nv
-                vid[idx] = nv
-                verts[nv] = idx
-                nv += 1
-            tris[nf, k] = v
-        nf += 1
+        for f in range(n):
+            for k in range(3):
+                idx = buf[f, k]
+                v = vid[idx]
+                if v < 0:
+                    v = nv
+                    vid[idx] = nv
+                    verts[nv] = idx
+                    nv += 1
+                tris[nf + f, k] = v
+        nf += n
     for k in range(nv):
         vid[verts[k]] = -1
     return nf, nv
@@ -86,7 +109,8 @@ def extract(active: np.ndarray, mixed: np.ndarray, vid: np.ndarray, gen=True,
     while True:
         tris = np.empty((cap, 3), np.int32)
         verts = np.empty(3 * cap, np.int64)
-        nf, nv = _walk(active, mixed, gen, vid, tris, verts)
+        stack, state = walk_start(active.shape[0])
+        nf, nv = _walk(active, mixed, gen, stack, state, vid, tris, verts)
         if nf >= 0:
             return tris[:nf], verts[:nv]
         cap *= 4

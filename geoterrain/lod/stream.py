@@ -10,7 +10,7 @@ several GB. Here the same mesh comes out chunk by chunk (:func:`static_chunks`):
    byte budget, a batch of tiles at a time, so the whole pyramid's δ never sits
    in memory at once.
 2. **Bisection, resumable.** The depth-first longest-edge bisection of
-   :func:`geoterrain.lod.kernels.extract` (the same stack, the same order, seed 002)
+   :func:`geoterrain.lod.kernels.walk_leaves` (the walk `extract` uses, seed 002)
    stops after ``chunk`` leaf triangles and resumes where it stopped.
 3. **Numbering.** A triangle with an invalid corner (no height) is dropped, as
    :func:`geoterrain.lod.kernels.cull_compact` does; the corners of the triangles
@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from geoterrain.lod.kernels import fill_static, gather_pooled, mark_tiles
+from geoterrain.lod.kernels import fill_static, gather_pooled, mark_tiles, walk_leaves, walk_start
 from geoterrain.lod.pool import TilePool
 from geoterrain.lod.rtin import ActiveSet
 from geoterrain.lod.tiles import tile_index
@@ -67,55 +67,13 @@ class MeshChunk:
     total: int
 
 
-@njit(cache=True)
-def _walk_chunk(active, mixed, stack, state, out):
-    """Resume :func:`geoterrain.lod.kernels._walk`'s depth-first bisection.
-
-    ``stack`` (256, 6) and ``state`` ([stack pointer]) carry the walk between calls;
-    up to ``len(out)`` leaf triangles are written to ``out`` as flat sample indices
-    (i·N + j). Returns how many; 0 once the walk is over.
-    """
-    N = active.shape[0]
-    sp = state[0]
-    nf = 0
-    cap = out.shape[0]
-    while sp > 0 and nf < cap:
-        sp -= 1
-        ai, aj, bi, bj, ci, cj = stack[sp]
-        si, sj = ai + bi, aj + bj
-        if (si & 1) == 0 and (sj & 1) == 0:
-            mi, mj = si >> 1, sj >> 1
-            if active[mi, mj]:
-                # LP bisection: children (c, a, m) and (b, c, m)
-                stack[sp, 0], stack[sp, 1], stack[sp, 2], stack[sp, 3] = ci, cj, ai, aj
-                stack[sp, 4], stack[sp, 5] = mi, mj
-                sp += 1
-                stack[sp, 0], stack[sp, 1], stack[sp, 2], stack[sp, 3] = bi, bj, ci, cj
-                stack[sp, 4], stack[sp, 5] = mi, mj
-                sp += 1
-                continue
-            if mixed[mi, mj]:
-                continue
-        out[nf, 0] = ai * N + aj
-        out[nf, 1] = bi * N + bj
-        out[nf, 2] = ci * N + cj
-        nf += 1
-    state[0] = sp
-    return nf
-
-
-@njit(cache=True)
-def _count_leaves(active, mixed):
+def _count_leaves(active, mixed) -> int:
     """Leaf triangles of the whole walk (for progress), without storing them."""
-    stack = np.empty((256, 6), np.int64)
-    s = active.shape[0] - 1
-    stack[0] = (0, 0, s, s, 0, s)
-    stack[1] = (s, s, 0, 0, s, 0)
-    state = np.array([2], np.int64)
+    stack, state = walk_start(active.shape[0])
     buf = np.empty((4096, 3), np.int64)
     n = 0
     while True:
-        k = _walk_chunk(active, mixed, stack, state, buf)
+        k = walk_leaves(active, mixed, True, stack, state, buf)
         if k == 0:
             return n
         n += k
@@ -226,11 +184,7 @@ def static_chunks(terrain, max_error: float, *, chunk: int = CHUNK,
     N = active.shape[0]
     total = int(_count_leaves(active, mixed)) if count else 0
     vid = np.full(N * N, -1, np.int32)
-    stack = np.empty((256, 6), np.int64)
-    s = N - 1
-    stack[0] = (0, 0, s, s, 0, s)
-    stack[1] = (s, s, 0, 0, s, 0)
-    state = np.array([2], np.int64)
+    stack, state = walk_start(N)
     tris = np.empty((chunk, 3), np.int64)
     cand = np.empty(3 * chunk, np.int64)
     faces = np.empty((chunk, 3), np.int64)
@@ -238,7 +192,7 @@ def static_chunks(terrain, max_error: float, *, chunk: int = CHUNK,
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
     nv, done = 0, 0
     while True:
-        n = _walk_chunk(active, mixed, stack, state, tris)
+        n = walk_leaves(active, mixed, True, stack, state, tris)
         if n == 0:
             return
         done += n
