@@ -428,6 +428,16 @@ def screen_space_error(
     >>> round(e.max, 6), e.n_samples
     (10.0, 9)
     """
+    X, Y, Z, eye, inside = _in_frustum(X, Y, Z, valid, planes, eye)
+    err, covered = _worst_abs_error(vertices_ij, faces, vertex_z, Z)
+    sel = inside & covered
+    rho = _projected(lam, err[sel], X[sel], Y[sel], Z[sel], eye)
+    mx, p99, mean = _stats(rho)
+    return ScreenError(mx, p99, mean, int(rho.size), int(np.count_nonzero(inside & ~covered)))
+
+
+def _in_frustum(X, Y, Z, valid, planes, eye):
+    """float64 X, Y, Z and eye, and the valid samples inside every frustum plane."""
     Z = np.asarray(Z, dtype=np.float64)
     X = np.asarray(X, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64)
@@ -440,14 +450,14 @@ def screen_space_error(
     with np.errstate(invalid="ignore"):
         for a, b, c, d in planes:  # six planes, each vectorised over the grid
             inside &= (a * X + b * Y + c * Z + d) >= 0.0
-    err, covered = _worst_abs_error(vertices_ij, faces, vertex_z, Z)
-    sel = inside & covered
-    dist = np.sqrt((X[sel] - eye[0]) ** 2 + (Y[sel] - eye[1]) ** 2 + (Z[sel] - eye[2]) ** 2)
+    return X, Y, Z, eye, inside
+
+
+def _projected(lam, dz, X, Y, Z, eye):
+    """λ·dz / d (seed 002 eq. 2's ρ) at samples X, Y, Z; inf where d = 0 < dz."""
+    dist = np.sqrt((X - eye[0]) ** 2 + (Y - eye[1]) ** 2 + (Z - eye[2]) ** 2)
     with np.errstate(divide="ignore", invalid="ignore"):
-        rho = float(lam) * err[sel] / dist
-    rho = np.where(dist > 0, rho, np.where(err[sel] > 0, np.inf, 0.0))
-    mx, p99, mean = _stats(rho)
-    return ScreenError(mx, p99, mean, int(rho.size), int(np.count_nonzero(inside & ~covered)))
+        return np.where(dist > 0, float(lam) * dz / dist, np.where(dz > 0, np.inf, 0.0))
 
 
 def screen_space_change(
@@ -482,26 +492,14 @@ def screen_space_change(
     >>> round(c.max, 6), c.n_samples
     (10.0, 9)
     """
-    Z = np.asarray(Z, dtype=np.float64)
-    X = np.asarray(X, dtype=np.float64)
-    Y = np.asarray(Y, dtype=np.float64)
-    valid = np.ones(Z.shape, bool) if valid is None else np.asarray(valid, dtype=bool)
-    planes = np.asarray(planes, dtype=np.float64).reshape(-1, 4)
-    eye = np.asarray(eye, dtype=np.float64).reshape(3)
-    inside = valid.copy()
-    with np.errstate(invalid="ignore"):
-        for a, b, c, d in planes:
-            inside &= (a * X + b * Y + c * Z + d) >= 0.0
+    X, Y, Z, eye, inside = _in_frustum(X, Y, Z, valid, planes, eye)
     z = []
     for ij, faces, vz in (before, after):
         lo, hi = mesh_height_range_on_grid(ij, faces, vz, Z.shape)
         z.append(0.5 * (lo + hi))
     both = inside & np.isfinite(z[0]) & np.isfinite(z[1])
     one = inside & (np.isfinite(z[0]) != np.isfinite(z[1]))
-    dist = np.sqrt((X[both] - eye[0]) ** 2 + (Y[both] - eye[1]) ** 2 + (Z[both] - eye[2]) ** 2)
-    dz = np.abs(z[1][both] - z[0][both])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        pop = np.where(dist > 0, float(lam) * dz / dist, np.where(dz > 0, np.inf, 0.0))
+    pop = _projected(lam, np.abs(z[1][both] - z[0][both]), X[both], Y[both], Z[both], eye)
     mx, p99, mean = _stats(pop)
     return ScreenError(mx, p99, mean, int(pop.size), int(np.count_nonzero(one)))
 
