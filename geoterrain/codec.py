@@ -48,6 +48,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import zstandard
+from numba import njit
 
 from geoterrain import zstdsafe
 from geoterrain.grid import footprint_counts, level_tiles
@@ -121,6 +122,79 @@ def _interp16(c: np.ndarray, axis: int, period: int) -> np.ndarray:
         cub = 9 * (c[..., 1:-2] + c[..., 2:-1]) - c[..., :-3] - c[..., 3:]
         out[..., 1:-1] = np.where(ok, cub, out[..., 1:-1])
     return np.moveaxis(out, -1, axis)
+
+
+@njit(cache=True)
+def _mid16(p, i0, j0, di, dj, k, m):
+    """16 × the midpoint between samples k and k + 1 of the line (i0 + di·s, j0 + dj·s) of
+    ``p``: cubic (−1, 9, 9, −1) where k − 1 and k + 2 exist in the tile, else linear."""
+    a = p[i0 + di * k, j0 + dj * k]
+    b = p[i0 + di * (k + 1), j0 + dj * (k + 1)]
+    if 1 <= k <= m - 3:
+        return 9 * (a + b) - p[i0 + di * (k - 1), j0 + dj * (k - 1)] \
+            - p[i0 + di * (k + 2), j0 + dj * (k + 2)]
+    return 8 * (a + b)
+
+
+@njit(cache=True)
+def _cubic_child(parent, oy, ox, h, r, out):
+    """One child quadrant (rows oy.., columns ox.. of ``parent``) from the cubic
+    predictions of :func:`_predict` (``period`` = the parent's intervals) plus the
+    residuals ``r`` (classes A, B, C in raster order), computed only where needed."""
+    m = parent.shape[0]
+    for a in range(h + 1):
+        for b in range(h + 1):
+            out[2 * a, 2 * b] = parent[oy + a, ox + b]
+    n = 0
+    for a in range(h + 1):  # A: row midpoints
+        for b in range(h):
+            out[2 * a, 2 * b + 1] = ((_mid16(parent, oy + a, 0, 0, 1, ox + b, m) + 8) >> 4) + r[n]
+            n += 1
+    for a in range(h):  # B: column midpoints
+        for b in range(h + 1):
+            out[2 * a + 1, 2 * b] = ((_mid16(parent, 0, ox + b, 1, 0, oy + a, m) + 8) >> 4) + r[n]
+            n += 1
+    for a in range(h):  # C: the column interpolation of the row midpoints, unrounded
+        k = oy + a
+        for b in range(h):
+            q = ox + b
+            n1 = _mid16(parent, k, 0, 0, 1, q, m)
+            n2 = _mid16(parent, k + 1, 0, 0, 1, q, m)
+            if 1 <= k <= m - 3:
+                v = 9 * (n1 + n2) - _mid16(parent, k - 1, 0, 0, 1, q, m) \
+                    - _mid16(parent, k + 2, 0, 0, 1, q, m)
+            else:
+                v = 8 * (n1 + n2)
+            out[2 * a + 1, 2 * b + 1] = ((v + 128) >> 8) + r[n]
+            n += 1
+
+
+@njit(cache=True, inline="always")
+def _fmean(a, b):
+    return (a >> 1) + (b >> 1) + (a & b & 1)  # floor((a + b) / 2), as _mean2
+
+
+@njit(cache=True)
+def _linear_child(c, h, r, out):
+    """:func:`_cubic_child` for the linear predictions of :func:`_predict` on the
+    quadrant ``c`` ((h + 1)², the parent's samples the child holds)."""
+    for a in range(h + 1):
+        for b in range(h + 1):
+            out[2 * a, 2 * b] = c[a, b]
+    n = 0
+    for a in range(h + 1):
+        for b in range(h):
+            out[2 * a, 2 * b + 1] = _fmean(c[a, b], c[a, b + 1]) + r[n]
+            n += 1
+    for a in range(h):
+        for b in range(h + 1):
+            out[2 * a + 1, 2 * b] = _fmean(c[a, b], c[a + 1, b]) + r[n]
+            n += 1
+    for a in range(h):
+        for b in range(h):
+            out[2 * a + 1, 2 * b + 1] = _fmean(_fmean(c[a, b], c[a + 1, b + 1]),
+                                               _fmean(c[a, b + 1], c[a + 1, b])) + r[n]
+            n += 1
 
 
 def _forward_fill(codes: np.ndarray, valid: np.ndarray) -> np.ndarray:
@@ -504,19 +578,11 @@ def decode_tile(
     parent = np.asarray(parent_codes, np.int64)
     if parent.shape != (tt, tt):
         raise ValueError(f"parent codes must be ({tt}, {tt})")
-    ry, rx = slice(py * h, py * h + h + 1), slice(px * h, px * h + h + 1)
-    c = parent[ry, rx]
-    if blob[1] & 8:  # cubic: predict on the whole parent tile (its own edge fallbacks)
-        fa, fb, fc = _predict(parent, tt - 1)
-        my, mx = slice(py * h, py * h + h), slice(px * h, px * h + h)
-        pa, pb, pc = fa[ry, mx], fb[my, rx], fc[my, mx]
-    else:
-        pa, pb, pc = _predict(c)
     r = unzigzag(read_stream(body, w, 3 * h * h + 2 * h))
-    na, nb = (h + 1) * h, h * (h + 1)
     out = np.empty((tt, tt), np.int64)
-    out[::2, ::2] = c
-    out[::2, 1::2] = pa + r[:na].reshape(h + 1, h)
-    out[1::2, ::2] = pb + r[na : na + nb].reshape(h, h + 1)
-    out[1::2, 1::2] = pc + r[na + nb :].reshape(h, h)
+    if blob[1] & 8:  # cubic: the parent tile's own predictions (with its edge fallbacks)
+        _cubic_child(np.ascontiguousarray(parent), py * h, px * h, h, r, out)
+        return out
+    c = np.ascontiguousarray(parent[py * h: py * h + h + 1, px * h: px * h + h + 1])
+    _linear_child(c, h, r, out)
     return out

@@ -22,6 +22,8 @@ and kind the map is monotone, so saturation survives it.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 import zstandard
 
@@ -99,6 +101,21 @@ def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None
     h = planes.T.copy().view(np.float16).reshape(shape)
     # float32 output: round up again so the bound survives the cast
     return round_up(h.astype(np.float64) * 2.0**k, np.float32)
+
+
+@lru_cache(maxsize=256)
+def _log8_table_ro(e: int) -> np.ndarray:
+    v = log8_table(e)
+    v.flags.writeable = False
+    return v
+
+
+@lru_cache(maxsize=8)
+def _new_flat(T: int) -> np.ndarray:
+    """Flat indices of :func:`new_mask` (T), in row-major order (read-only, cached)."""
+    f = np.flatnonzero(new_mask(T))
+    f.flags.writeable = False
+    return f
 
 
 def log8_table(e: int) -> np.ndarray:
@@ -180,17 +197,21 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         raise ValueError("not a bounds blob of a known version")
     flags, e = blob[1], int(np.int8(np.uint8(blob[2])))
     T = shape[0]
-    keep = new_mask(T) if flags & NEW_ONLY else np.ones(shape, bool)
-    n = int(keep.sum())
+    keep = _new_flat(T) if flags & NEW_ONLY and len(shape) == 2 and shape[0] == shape[1] \
+        else None
+    n = len(keep) if keep is not None else int(np.prod(shape))
     width = 1 if flags & LOG8 else 2
     raw = zstdsafe.decompress(blob[3:], width * n, exact=True)  # bounded: never a bomb
     if flags & LOG8:
-        vals = log8_table(e)[np.frombuffer(raw, np.uint8)]
+        vals = _log8_table_ro(e)[np.frombuffer(raw, np.uint8)]
     else:
         h = np.frombuffer(raw, np.uint8).reshape(2, n).T.copy().view(np.float16).ravel()
         vals = round_up(h.astype(np.float64) * 2.0**e, np.float32)
     out = np.empty(shape, np.float32)
-    out[keep] = vals
+    if keep is None:
+        out.ravel()[:] = vals
+    else:
+        out.ravel()[keep] = vals
     if flags & NEW_ONLY:
         if parent is None or parent.shape != tuple(shape):
             raise ValueError("a new-vertices-only bounds blob needs its parent's values")

@@ -79,7 +79,7 @@ class Selection:
         """(F, 3) vertex indices of every triangle, skirts included."""
         if self.mesh.n_cells == 0:
             return np.zeros((0, 3), np.int64)
-        return self.mesh.faces.reshape(-1, 4)[:, 1:]
+        return np.asarray(self.mesh.regular_faces)  # every LOD mesh is all triangles
 
     def surface_faces(self) -> np.ndarray:
         """Faces of the terrain surface (skirts removed)."""

@@ -346,8 +346,9 @@ def assemble_chunks(terrain, index: TileIndex, leaves: np.ndarray,
     ns = np.where(depth > 0, pk.ns[leaves], 0)
     V = int(pk.nv[leaves].sum()) + 2 * int(ns.sum())
     F = int(pk.nf[leaves].sum()) + 2 * int(ns.sum())
-    xyz, ij = np.empty((V, 3)), np.empty((V, 2), np.int64)
-    faces, level, skirt = np.empty((F, 3), np.int64), np.empty(F, np.int16), np.empty(F, np.uint8)
+    # the layouts the PolyData wraps without a copy: float64 grid_ij, int32 faces
+    xyz, ij = np.empty((V, 3)), np.empty((V, 2))
+    faces, level, skirt = np.empty((F, 3), np.int32), np.empty(F, np.int16), np.empty(F, np.uint8)
     _gather_chunks(leaves, depth, pk.vo, pk.fo, pk.so, pk.nv, pk.nf, pk.ns, pk.lvl, pk.xyz,
                    pk.ij, pk.faces, pk.seg, xyz, ij, faces, level, skirt)
     return polydata(xyz, faces, ij, {"skirt": skirt, "level": level})

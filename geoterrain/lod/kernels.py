@@ -11,6 +11,19 @@ from numba import njit
 from geoterrain.bintree import parents_nb
 
 
+@njit(cache=True, inline="always")
+def sample_xy(X, Y, aff, s, a, b, i, j):
+    """Scene x, y of sample (i, j), sample (a, b) of pool slot ``s``: from the slabs
+    ``X``, ``Y``, or for an affine frame (``aff`` = a, b, c, d, e, f of the geotransform,
+    the origin x, y and the unit in metres) by ``Frame.xy``'s formula, in its order."""
+    if aff.shape[0] == 0:
+        return X[s, a, b], Y[s, a, b]
+    jj, ii = j + 0.5, i + 0.5
+    x = aff[0] * jj + aff[1] * ii + aff[2]
+    y = aff[3] * jj + aff[4] * ii + aff[5]
+    return (x - aff[6]) * aff[8], (y - aff[7]) * aff[8]
+
+
 def walk_start(N: int) -> tuple[np.ndarray, np.ndarray]:
     """The stack and state (stack pointer) of a walk over an N × N grid: the two
     base triangles, both counter-clockwise."""
@@ -207,8 +220,8 @@ def fill_static(slots, i0, j0, step, D, e, active, mixed, gen=True, top_step=0):
 
 
 @njit(cache=True)
-def fill_lp(slots, inside, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, planes, lam, tau,
-            active, mixed, gen, top_step):
+def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy, eye, planes,
+            lam, tau, active, mixed, gen, top_step):
     """LP eq. 2 with sphere culling on pooled tiles, scattered into the dense flags.
 
     A vertex is active iff its sphere (p, r) is not outside any frustum plane, δ > 0,
@@ -220,12 +233,16 @@ def fill_lp(slots, inside, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, plane
     frustum) skip the plane tests. Flags are set to the stamp ``gen``. Only the
     samples new at a tile's level are evaluated (see :func:`fill_static`): the tile
     holding a coarser vertex passes the tile test whenever that vertex can be active.
+    A vertex with λδ ≤ ``floor[k]`` (τ times the tile's least d − r, from
+    :func:`lp_tiles`) is inactive and skipped before its sphere is read: d and r are
+    computed by the same monotone float operations, so the result is unchanged.
     Serial on purpose: on a shared 2-core machine, a parallel region waiting on a
     descheduled thread made frames 3× slower than one thread."""
     T = D.shape[1]
     for k in range(slots.shape[0]):
         s = slots[k]
         P = 0 if inside[k] else planes.shape[0]
+        fl = floor[k]
         coarse = step[k] < top_step
         for a in range(T):
             i = i0[k] + a * step[k]
@@ -238,10 +255,10 @@ def fill_lp(slots, inside, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, plane
                     active[i, j] = gen
                     mixed[i, j] = gen
                     continue
-                if not dl > 0.0:
+                if not dl > 0.0 or lam * dl <= fl:
                     continue
                 r = np.float64(R[s, a, b])
-                px, py = X[s, a, b], Y[s, a, b]
+                px, py = sample_xy(X, Y, aff, s, a, b, i, j)
                 h = H[s, a, b]
                 pz = h * zfac if h == h else zproxy
                 vis = True
@@ -259,16 +276,19 @@ def fill_lp(slots, inside, i0, j0, step, D, R, H, X, Y, zfac, zproxy, eye, plane
 
 
 @njit(cache=True)
-def lp_tiles(lo, hi, dmax, rmax, eye, planes, lam, tau):
+def lp_tiles(lo, hi, dmax, rmax, eye, planes, lam, tau, floor):
     """The tiles that can hold an LP-active vertex (seed 002 eq. 2, tested with tile
     bounds only), as a status per tile: 0 no, 1 yes, 2 yes and inside the frustum.
 
     Conservative: a vertex of the tile lies in its box, so d − r ≥ D_box − r_max; its
     sphere lies in the box grown by r_max, tested against each plane as a box.
+    ``floor[k]`` receives τ·(D_box − r_max): a vertex with λδ ≤ it is not active
+    (:func:`fill_lp` skips it without reading its sphere).
     """
     n = lo.shape[0]
     out = np.zeros(n, np.uint8)
     for k in range(n):
+        floor[k] = -1.0
         dm = dmax[k]
         if not dm > 0.0:
             continue
@@ -279,6 +299,8 @@ def lp_tiles(lo, hi, dmax, rmax, eye, planes, lam, tau):
         d = np.sqrt(dx * dx + dy * dy + dz * dz)
         if not (d <= r or lam * dm > tau * (d - r)):
             continue
+        if d > r:
+            floor[k] = tau * (d - r)
         status = 2
         for q in range(planes.shape[0]):
             a, b, c, w = planes[q, 0], planes[q, 1], planes[q, 2], planes[q, 3]
@@ -310,7 +332,7 @@ def level_boxes(L, i0, i1, j0, j1, boxes):
 
 
 @njit(cache=True)
-def gather_pooled(flat, N, top, t, base, slot_of, H, X, Y, zfac, xyz, ij, level):
+def gather_pooled(flat, N, top, t, base, slot_of, H, X, Y, aff, zfac, xyz, ij, level):
     """Scene positions ``xyz`` (x, y, height · zfac), grid ``ij`` and pyramid level of
     full-resolution samples ``flat`` (i·N + j), read from the coarsest tile holding
     each (unstored tiles: NaN height, x = y = 0)."""
@@ -323,7 +345,8 @@ def gather_pooled(flat, N, top, t, base, slot_of, H, X, Y, zfac, xyz, ij, level)
         if s < 0:
             xyz[k, 0], xyz[k, 1], xyz[k, 2] = 0.0, 0.0, np.nan
         else:
-            xyz[k, 0], xyz[k, 1], xyz[k, 2] = X[s, a, b], Y[s, a, b], H[s, a, b] * zfac
+            x, y = sample_xy(X, Y, aff, s, a, b, i, j)
+            xyz[k, 0], xyz[k, 1], xyz[k, 2] = x, y, H[s, a, b] * zfac
 
 
 @njit(cache=True)
@@ -417,7 +440,7 @@ def cull_compact(faces, xyz, planes, lvl):
     for v in range(V):
         if used[v]:
             vid[remap[v]] = v
-    out = np.empty((nf, 3), np.int32)
+    out = np.empty((nf, 3), faces.dtype)
     level = np.empty(nf, np.int16)
     n = 0
     for f in range(F):
@@ -427,3 +450,121 @@ def cull_compact(faces, xyz, planes, lvl):
             level[n] = min(lvl[a], lvl[b], lvl[c])
             n += 1
     return out, vid, level
+
+
+
+_HASH_MUL = np.uint64(0x9E3779B97F4A7C15)  # Fibonacci hashing of sample indices
+
+
+@njit(cache=True, inline="always")
+def _slot(keys, idx):
+    """Open-addressing slot of ``idx`` in the power-of-two table ``keys`` (−1: empty)."""
+    M = keys.shape[0]
+    h = np.int64((np.uint64(idx) * _HASH_MUL) >> np.uint64(40)) & (M - 1)
+    while keys[h] != -1 and keys[h] != idx:
+        h = (h + 1) & (M - 1)
+    return h
+
+
+@njit(cache=True)
+def walk_gather(active, mixed, gen, stack, state, vid, keys, top, t, base, slot_of, H, X, Y,
+                aff, zfac, faces, verts, xyz, ij, lvl):
+    """:func:`_walk` with the gather of :func:`gather_pooled` done as each vertex is
+    first numbered, so the mesh is emitted in one pass: faces to ``faces``, and
+    per vertex its sample index, position (x, y, height · zfac), grid indices (float64)
+    and pyramid level.
+
+    Vertex numbers live in the dense scratch ``vid`` (N², −1 = none; reset on return)
+    or, when ``keys`` is not empty, in a hash table (``keys`` all −1, power-of-two
+    length, numbers in ``vid[:len(keys)]``): a view's few thousand vertices then stay in
+    cache instead of being spread over the N² scratch.
+    Returns (faces, vertices, status): status 0 done, 1 an output array or the table is
+    full, 2 a vertex lies in a tile that is not pooled."""
+    cap, capv = faces.shape[0], xyz.shape[0]
+    hashed = keys.shape[0] > 0
+    if hashed:
+        capv = min(capv, keys.shape[0] // 2)  # keep probes short: at most half full
+    N = active.shape[0]
+    buf = np.empty((4096, 3), np.int64)  # leaves pass through a cache-sized buffer
+    nf, nv, status = 0, 0, 0
+    while status == 0:
+        n = walk_leaves(active, mixed, gen, stack, state, buf)
+        if n == 0:
+            break
+        if nf + n > cap:
+            status = 1
+            break
+        for f in range(n):
+            for k in range(3):
+                idx = buf[f, k]
+                if hashed:
+                    h = _slot(keys, idx)
+                    v = vid[h] if keys[h] == idx else -1
+                else:
+                    v = vid[idx]
+                if v < 0:
+                    if nv >= capv:
+                        status = 1
+                        break
+                    i, j = idx // N, idx % N
+                    L, ti, a, b = _coarsest_tile(i, j, top, t, base)
+                    s = slot_of[ti]
+                    if s < 0:
+                        status = 2
+                        break
+                    v = nv
+                    if hashed:
+                        keys[h] = idx
+                        vid[h] = nv
+                    else:
+                        vid[idx] = nv
+                    verts[nv] = idx
+                    x, y = sample_xy(X, Y, aff, s, a, b, i, j)
+                    xyz[v, 0], xyz[v, 1], xyz[v, 2] = x, y, H[s, a, b] * zfac
+                    ij[v, 0], ij[v, 1] = i, j
+                    lvl[v] = L
+                    nv += 1
+                faces[nf + f, k] = v
+            if status != 0:
+                break
+        nf += n
+    if not hashed:
+        for k in range(nv):
+            vid[verts[k]] = -1
+    return nf, nv, status
+
+
+@njit(cache=True)
+def cull_in_place(faces, xyz, ij, planes, lvl):
+    """:func:`cull_compact` without copies: the kept faces (renumbered) and vertices
+    move to the front of ``faces``, ``xyz`` and ``ij`` (a kept item never moves back,
+    so one forward pass is safe). Returns (faces kept, vertices kept, face levels)."""
+    V, F = xyz.shape[0], faces.shape[0]
+    bits = _corner_bits(xyz, planes)
+    if not _any(bits):
+        return F, V, _face_levels(faces, lvl)
+    remap = np.full(V, -1, np.int32)
+    level = np.empty(F, np.int16)
+    nf = 0
+    for f in range(F):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        b0, b1, b2 = bits[a], bits[b], bits[c]
+        if ((b0 | b1 | b2) & 64) == 0 and (b0 & b1 & b2 & 63) == 0:
+            remap[a] = 0
+            remap[b] = 0
+            remap[c] = 0
+            faces[nf, 0], faces[nf, 1], faces[nf, 2] = a, b, c
+            level[nf] = min(lvl[a], lvl[b], lvl[c])
+            nf += 1
+    nv = 0
+    for v in range(V):
+        if remap[v] == 0:
+            remap[v] = nv
+            xyz[nv, 0], xyz[nv, 1], xyz[nv, 2] = xyz[v, 0], xyz[v, 1], xyz[v, 2]
+            ij[nv, 0], ij[nv, 1] = ij[v, 0], ij[v, 1]
+            nv += 1
+    for f in range(nf):
+        faces[f, 0] = remap[faces[f, 0]]
+        faces[f, 1] = remap[faces[f, 1]]
+        faces[f, 2] = remap[faces[f, 2]]
+    return nf, nv, level[:nf]

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 import pyvista as pv
+from vtkmodules.util.numpy_support import numpy_to_vtk
+from vtkmodules.vtkCommonCore import vtkPoints
+from vtkmodules.vtkCommonDataModel import vtkCellArray
 
 
 def orient_ccw(ij: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -24,20 +27,45 @@ def orient_ccw(ij: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 def polydata(xyz: np.ndarray, faces: np.ndarray, ij: np.ndarray | None = None,
              cell_arrays: dict[str, np.ndarray] | None = None) -> pv.PolyData:
-    """A triangle PolyData with float64 points, ``grid_ij`` point data and cell arrays."""
+    """A triangle PolyData with float64 points, ``grid_ij`` point data and cell arrays.
+
+    The arrays are wrapped, not copied, where they already have VTK's layout (C order,
+    float64 points and ``grid_ij``, int32 or int64 faces): a frame's mesh costs no copy.
+    """
+    xyz = np.ascontiguousarray(xyz, np.float64)
+    faces = np.asarray(faces)
+    if faces.dtype not in (np.int32, np.int64):
+        faces = faces.astype(np.int64)
     if len(faces):
-        mesh = pv.PolyData.from_regular_faces(np.ascontiguousarray(xyz, np.float64),
-                                              np.asarray(faces, np.int64))
+        mesh = pv.PolyData()
+        pts = vtkPoints()
+        pts.SetData(numpy_to_vtk(xyz, deep=False))
+        mesh.SetPoints(pts)
+        cells = vtkCellArray()
+        if faces.dtype == np.int32:  # fixed-size cells: no offsets array at all
+            cells.SetData(3, numpy_to_vtk(np.ascontiguousarray(faces).ravel(), deep=False))
+        else:
+            cells = pv.CellArray.from_regular_cells(np.ascontiguousarray(faces))
+        mesh.SetPolys(cells)
     else:
         mesh = pv.PolyData()
         if len(xyz):
-            mesh.points = np.ascontiguousarray(xyz, np.float64)
+            mesh.points = xyz
     if ij is not None and len(ij):
-        mesh.point_data["grid_ij"] = np.asarray(ij, np.float64)
+        _add(mesh.GetPointData(), "grid_ij", np.ascontiguousarray(ij, np.float64))
     for k, v in (cell_arrays or {}).items():
         if len(faces):
-            mesh.cell_data[k] = v
+            _add(mesh.GetCellData(), k, np.ascontiguousarray(v))
     return mesh
+
+
+def _add(data, name: str, values: np.ndarray) -> None:
+    # numpy_to_vtk(deep=False) keeps a reference to ``values`` on the VTK array
+    if values.dtype == np.bool_:
+        values = values.astype(np.uint8)
+    arr = numpy_to_vtk(values, deep=False)
+    arr.SetName(name)
+    data.AddArray(arr)
 
 
 def add_elevation(mesh: pv.PolyData, z_scale: float) -> pv.PolyData:

@@ -5,6 +5,8 @@ positions into fresh arrays every frame cost more than the refinement itself;
 here each tile's arrays are copied once into a slot of a per-terrain slab
 (``D``, ``R`` float32; ``H``, ``X``, ``Y`` float64, all (slots, T, T)), and the
 kernels index the slabs by slot. A flat table maps (level, x, y) to its slot.
+Where the frame is affine (projected and pixel grids) x and y are not stored: the
+kernels compute them from ``aff`` (:func:`~geoterrain.lod.kernels.sample_xy`).
 
 The slabs have a byte budget: when a request needs more slots than are free,
 the least recently used slots that the request does not need are reused.
@@ -35,7 +37,12 @@ class TilePool:
         self.base = np.concatenate([[0], np.cumsum(4 ** np.arange(self.top, -1, -1))]
                                    ).astype(np.int64)
         self.slot_of = np.full(int(self.base[-1]), -1, np.int32)
-        per_slot = self.T * self.T * sum(_BYTES.values())
+        f = terrain.frame
+        self.aff = np.zeros(0)  # geographic: x, y from the slabs (pyproj, cached per tile)
+        if f.kind != "geographic":
+            self.aff = np.array([*f.transform[:6], *f.origin_crs, f.unit_to_m], np.float64)
+        kinds = KINDS if len(self.aff) == 0 else KINDS[:-1]
+        per_slot = self.T * self.T * sum(_BYTES[k] for k in kinds)
         self.capacity = 0
         self.budget_slots = max(16, budget_bytes // per_slot)
         self.key_of = np.zeros((0,), np.int64)  # table index of each slot, -1 if free
@@ -72,8 +79,9 @@ class TilePool:
             return np.concatenate([a, np.zeros((extra, T, T), dtype)])
 
         self.D, self.R = more(self.D, np.float32), more(self.R, np.float32)
-        self.H, self.X, self.Y = more(self.H, np.float64), more(self.X, np.float64), \
-            more(self.Y, np.float64)
+        self.H = more(self.H, np.float64)
+        if len(self.aff) == 0:
+            self.X, self.Y = more(self.X, np.float64), more(self.Y, np.float64)
         self.key_of = np.concatenate([self.key_of, np.full(extra, -1, np.int64)])
         self.stamp = np.concatenate([self.stamp, np.zeros(extra, np.int64)])
         for k in KINDS:
@@ -142,7 +150,7 @@ class TilePool:
             self.R[s] = t.tile_radius(*key)
         elif kind == "height":
             self.H[s] = t.tile(*key).heights
-        else:
+        elif len(self.aff) == 0:  # affine frames: x, y computed in the kernels
             self.X[s], self.Y[s] = t.tile_xy(*key)
         self.have[kind][s] = True
 

@@ -32,6 +32,7 @@ import numpy as np
 from geoterrain.lod.kernels import (
     close_upward_boxes,
     cull_compact,
+    cull_in_place,
     extract,
     fill_lp,
     fill_static,
@@ -39,12 +40,15 @@ from geoterrain.lod.kernels import (
     level_boxes,
     lp_tiles,
     mark_tiles,
+    walk_gather,
+    walk_start,
 )
 from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.pool import tile_pool
 from geoterrain.lod.tiles import TileIndex, tile_index
 from geoterrain.view import View
 
+_HASHED_UP_TO = 1 << 22  # vertex numbers in a hash table below this capacity (48 MB at most)
 _SCRATCH: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -140,10 +144,11 @@ def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
     if len(rows):
         pool = tile_pool(terrain)
         idx, i0, j0, step = act.tiles(rows, index)
-        slots = pool.slots(idx, ("delta",))
+        slots = pool.slots(idx, ("delta", "height", "xy"))  # the mesh's vertices lie here
         fill_static(slots, i0, j0, step, pool.D, float(max_error), act.active, act.mixed,
                     act.gen, 1 << terrain.grid.top_level)
-    act.close()
+    # no closure: δ is saturated (δ(parent) ≥ δ(child), LP §2.4, and its stored codes are
+    # rounded up monotonically), so δ > e already holds on every parent of an active vertex
     return act
 
 
@@ -151,18 +156,20 @@ def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex."""
     lam, eye = view.lam, view.eye
     dm = index.delta_max
-    status = lp_tiles(index.lo, index.hi, dm, index.radius_max, eye, view.planes, lam, tau)
+    floor = np.empty(len(dm))
+    status = lp_tiles(index.lo, index.hi, dm, index.radius_max, eye, view.planes, lam, tau,
+                      floor)
     rows = np.flatnonzero(status)
-    inside = status[rows] == 2
+    inside, floor = status[rows] == 2, floor[rows]
     act = ActiveSet(terrain, stamped=True)
     if len(rows):
         pool = tile_pool(terrain)
         idx, i0, j0, step = act.tiles(rows, index)
         slots = pool.slots(idx, ("delta", "radius", "height", "xy"))
         zfac = terrain.frame.z_to_m * terrain.frame.z_scale
-        fill_lp(slots, inside, i0, j0, step, pool.D, pool.R, pool.H, pool.X, pool.Y, zfac,
-                terrain.stand_in_z, eye, view.planes, lam, tau, act.active, act.mixed, act.gen,
-                1 << terrain.grid.top_level)
+        fill_lp(slots, inside, floor, i0, j0, step, pool.D, pool.R, pool.H, pool.X, pool.Y,
+                pool.aff, zfac, terrain.stand_in_z, eye, view.planes, lam, tau, act.active,
+                act.mixed, act.gen, 1 << terrain.grid.top_level)
     act.close()
     drawn = np.zeros(len(dm), bool)
     drawn[rows] = True
@@ -182,7 +189,7 @@ def _gather(terrain, flat: np.ndarray):
     xyz, ij, lvl = np.empty((n, 3)), np.empty((n, 2), np.int64), np.empty(n, np.int64)
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
     gather_pooled(flat, pool.N, pool.top, pool.t, pool.base, pool.slot_of, pool.H, pool.X,
-                  pool.Y, zfac, xyz, ij, lvl)
+                  pool.Y, pool.aff, zfac, xyz, ij, lvl)
     return xyz, ij, lvl
 
 
@@ -191,17 +198,55 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None):
 
     Triangles with an invalid corner are dropped, and with ``view`` those entirely
     outside one frustum plane. Cell data ``skirt`` (all 0) and ``level``.
+
+    One compiled walk (:func:`~geoterrain.lod.kernels.walk_gather`) numbers the
+    vertices and reads each one's position from its pooled tile as it is first met;
+    culling then keeps the arrays as they are when it drops nothing. If a vertex's tile
+    is not pooled, it falls back to walking, gathering and culling in three passes
+    (:func:`_mesh_in_passes`).
     """
+    pool = tile_pool(terrain)
     sc = _scratch(terrain)
-    guess = 2 * sc.last_faces + 65536  # np.empty: untouched capacity costs nothing
+    planes = view.planes if view is not None else np.zeros((0, 4))
+    zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
+    pool.slots(np.array([pool.base[pool.top]]), ("height", "xy"))  # the domain corners
+    cap = 2 * sc.last_faces + 65536  # np.empty: untouched capacity costs nothing
+    # a hash table of vertex numbers while the mesh is small enough for it to stay in cache
+    M = 1 << max(12, int(2 * sc.last_faces + 4096).bit_length()) if cap < _HASHED_UP_TO else 0
+    while True:
+        faces = np.empty((cap, 3), np.int32)  # VTK keeps int32 connectivity as is
+        verts = np.empty(cap, np.int64)
+        xyz, ij, lvl = np.empty((cap, 3)), np.empty((cap, 2)), np.empty(cap, np.int64)
+        stack, state = walk_start(act.active.shape[0])
+        keys = np.full(M, -1, np.int64)
+        vid = sc.vid if M == 0 else np.empty(M, np.int32)
+        nf, nv, status = walk_gather(act.active, act.mixed, act.gen, stack, state, vid, keys,
+                                     pool.top, pool.t, pool.base, pool.slot_of, pool.H,
+                                     pool.X, pool.Y, pool.aff, zfac, faces, verts, xyz, ij,
+                                     lvl)
+        if status == 0:
+            break
+        if status == 2:
+            return _mesh_in_passes(terrain, act, planes)
+        cap *= 4
+        M = 4 * M if 4 * M <= _HASHED_UP_TO else 0
+    sc.last_faces = nf
+    nf, nv, level = cull_in_place(faces[:nf], xyz[:nv], ij[:nv], planes, lvl[:nv])
+    # both base triangles are counter-clockwise and bisection keeps the orientation
+    return polydata(xyz[:nv], faces[:nf], ij[:nv], {"skirt": np.zeros(nf, np.uint8),
+                                                    "level": level})
+
+
+def _mesh_in_passes(terrain, act: ActiveSet, planes: np.ndarray):
+    """:func:`active_mesh` in three passes: walk, gather from the pool, cull."""
+    sc = _scratch(terrain)
+    guess = 2 * sc.last_faces + 65536
     faces, flat = extract(act.active, act.mixed, sc.vid, act.gen, guess)
     sc.last_faces = len(faces)
     xyz, ij, lvl = _gather(terrain, flat)
-    planes = view.planes if view is not None else np.zeros((0, 4))
     faces, keep, level = cull_compact(faces, xyz, planes, lvl)
     if keep is not None:
         xyz, ij = xyz[keep], ij[keep]
-    # both base triangles are counter-clockwise and bisection keeps the orientation
     return polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8),
                                      "level": level})
 

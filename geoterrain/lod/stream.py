@@ -163,7 +163,7 @@ def _gather(pool: TilePool, flat: np.ndarray, zfac: float):
     n = len(flat)
     xyz, ij, lvl = np.empty((n, 3)), np.empty((n, 2), np.int64), np.empty(n, np.int64)
     gather_pooled(flat, pool.N, pool.top, pool.t, pool.base, pool.slot_of, pool.H, pool.X,
-                  pool.Y, zfac, xyz, ij, lvl)
+                  pool.Y, pool.aff, zfac, xyz, ij, lvl)
     return xyz, ij
 
 

@@ -1,0 +1,133 @@
+"""The one-pass mesh kernels give exactly what the earlier passes gave.
+
+``rtin.active_mesh`` emits a mesh in one walk (vertex numbers in a hash table or the
+dense scratch, positions read as each vertex is first met, culling in place), skips
+vertices whose δ is below a per-tile floor before reading their sphere, and computes
+x, y on affine frames instead of storing them. Each shortcut is checked here against
+the plain path it replaces: walk, gather, cull in three passes; the LP test on every
+sample; the stored per-tile x, y.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import geoterrain
+from geoterrain.lod import kernels, rtin
+from geoterrain.lod.pool import tile_pool
+from geoterrain.lod.tiles import tile_index
+from geoterrain.synth import generate, write_geotiff
+
+_T: dict = {}
+
+
+def _terrain(tmp_path_factory, holes: bool):
+    if holes not in _T:
+        z = generate("fbm", 257, seed=5)
+        if holes:
+            z[40:90, 100:170] = np.nan  # nodata: triangles with an invalid corner are dropped
+        d = tmp_path_factory.mktemp("k")
+        dem = write_geotiff(d / "d.tif", z)
+        _T[holes] = geoterrain.open(geoterrain.preprocess(dem, d / "d.geoterrain",
+                                                          tile_size=16))
+    return _T[holes]
+
+
+def _view(t, az: float, el: float, dist: float) -> geoterrain.View:
+    lo, hi = t.scene_box()
+    c = 0.5 * (lo + hi)
+    r = float(np.linalg.norm(hi[:2] - lo[:2])) * dist
+    eye = c + r * np.array([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)])
+    return geoterrain.View(tuple(eye), tuple(c), size=(320, 180))
+
+
+def _same(a, b) -> None:
+    np.testing.assert_array_equal(np.asarray(a.points), np.asarray(b.points))
+    np.testing.assert_array_equal(np.asarray(a.regular_faces, np.int64),
+                                  np.asarray(b.regular_faces, np.int64))
+    np.testing.assert_array_equal(np.asarray(a.point_data["grid_ij"]),
+                                  np.asarray(b.point_data["grid_ij"]))
+    np.testing.assert_array_equal(np.asarray(a.cell_data["level"]),
+                                  np.asarray(b.cell_data["level"]))
+
+
+@settings(max_examples=12, deadline=None)
+@given(az=st.floats(0, 6.28), el=st.floats(0.1, 1.4), dist=st.floats(0.05, 1.5),
+       holes=st.booleans(), hashed=st.booleans())
+def test_one_pass_mesh_equals_three_passes(tmp_path_factory, az, el, dist, holes, hashed):
+    t = _terrain(tmp_path_factory, holes)
+    v = _view(t, az, el, dist)
+    act = rtin.view_active(t, tile_index(t), v, 1.0)
+    keep = rtin._HASHED_UP_TO
+    rtin._HASHED_UP_TO = keep if hashed else 0
+    try:
+        one = rtin.active_mesh(t, act, v)
+    finally:
+        rtin._HASHED_UP_TO = keep
+    three = rtin._mesh_in_passes(t, act, v.planes)
+    _same(one, three)
+
+
+@settings(max_examples=12, deadline=None)
+@given(az=st.floats(0, 6.28), el=st.floats(0.05, 1.4), dist=st.floats(0.02, 1.5),
+       tau=st.sampled_from([0.5, 1.0, 4.0]))
+def test_the_lp_floor_changes_no_flag(tmp_path_factory, az, el, dist, tau):
+    """Skipping λδ ≤ τ(D_box − r_max) gives the same active set as testing every vertex."""
+    t = _terrain(tmp_path_factory, True)
+    v = _view(t, az, el, dist)
+    index = tile_index(t)
+    with_floor = rtin.view_active(t, index, v, tau)
+    a = with_floor.active == with_floor.gen
+    m = with_floor.mixed == with_floor.gen
+    real = kernels.lp_tiles
+
+    def no_floor(*args):
+        out = real(*args)
+        args[-1][:] = -1.0  # floor −1: every vertex takes the full LP test
+        return out
+
+    rtin.lp_tiles = no_floor
+    try:
+        plain = rtin.view_active(t, index, v, tau)
+    finally:
+        rtin.lp_tiles = real
+    np.testing.assert_array_equal(a, plain.active == plain.gen)
+    np.testing.assert_array_equal(m, plain.mixed == plain.gen)
+
+
+def test_affine_xy_equals_the_stored_tile_xy(tmp_path_factory):
+    t = _terrain(tmp_path_factory, False)
+    pool = tile_pool(t)
+    assert len(pool.aff) == 9  # a projected frame: x, y are not pooled
+    g = t.grid
+    for L, x, y in [(0, 0, 0), (0, 15, 15), (1, 3, 5), (g.top_level, 0, 0)]:
+        X, Y = t.tile_xy(L, x, y)
+        rows, cols = g.tile_rows(L, y), g.tile_cols(L, x)
+        for a in (0, 3, len(rows) - 1):
+            for b in (0, 7, len(cols) - 1):
+                got = kernels.sample_xy(pool.X, pool.Y, pool.aff, 0, a, b, int(rows[a]),
+                                        int(cols[b]))
+                assert got == (X[a, b], Y[a, b])  # bit for bit
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), nplanes=st.integers(0, 4))
+def test_cull_in_place_equals_cull_compact(seed, nplanes):
+    rng = np.random.default_rng(seed)
+    V, F = 60, 90
+    xyz = rng.normal(size=(V, 3))
+    xyz[rng.random(V) < 0.1, 2] = np.nan
+    faces = rng.integers(0, V, (F, 3)).astype(np.int32)
+    lvl = rng.integers(0, 5, V)
+    planes = rng.normal(size=(nplanes, 4))
+    ref_f, keep, ref_l = kernels.cull_compact(faces.copy(), xyz.copy(), planes, lvl)
+    ij = rng.random((V, 2))
+    f2, x2, ij2 = faces.copy(), xyz.copy(), ij.copy()
+    nf, nv, lev = kernels.cull_in_place(f2, x2, ij2, planes, lvl)
+    keep = np.arange(V) if keep is None else keep
+    np.testing.assert_array_equal(f2[:nf], ref_f)
+    np.testing.assert_array_equal(lev, ref_l)
+    np.testing.assert_array_equal(x2[:nv], xyz[keep])
+    np.testing.assert_array_equal(ij2[:nv], ij[keep])
