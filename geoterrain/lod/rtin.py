@@ -58,24 +58,29 @@ class _Scratch:
     ``active``/``mixed`` hold generation stamps (uint8): a flag is set in this
     frame when it equals ``gen``. A new frame takes the next stamp instead of
     clearing N² flags, so a frame costs what it touches, not the grid's size;
-    the arrays are cleared once every 255 frames. ``vid`` maps samples to mesh
-    vertex ids (kept at -1 between frames); ``last_faces`` sizes the next output.
+    the arrays are renewed once every 255 frames (fresh zero pages: memory stays what
+    the frames touch). ``vid`` maps samples to mesh vertex ids (kept at -1 between
+    frames), made on first use: small meshes number their vertices in a hash table
+    instead; ``last_faces`` sizes the next output.
     """
 
     def __init__(self, N: int):
         self.N = N
         self.active = self.mixed = None  # allocated by the first view-dependent frame
         self.gen = 0
-        self.vid = np.full(N * N, -1, np.int32)
+        self._vid = None
         self.last_faces = 0
 
+    @property
+    def vid(self) -> np.ndarray:
+        if self._vid is None:
+            self._vid = np.full(self.N * self.N, -1, np.int32)
+        return self._vid
+
     def next_gen(self) -> np.uint8:
-        if self.active is None:
+        if self.active is None or self.gen == 255:
             self.active = np.zeros((self.N, self.N), np.uint8)
             self.mixed = np.zeros((self.N, self.N), np.uint8)
-        if self.gen == 255:
-            self.active.fill(0)
-            self.mixed.fill(0)
             self.gen = 0
         self.gen += 1
         return np.uint8(self.gen)

@@ -150,8 +150,7 @@ def static_flags(terrain, max_error: float, pool: TilePool) -> ActiveSet:
         idx, i0, j0, step = act.tiles(rows[k:k + batch], index)
         slots = pool.slots(idx, ("delta",))
         fill_static(slots, i0, j0, step, pool.D, float(max_error), act.active, act.mixed)
-    act.close()
-    return act
+    return act  # closed already: δ is saturated (see static_active)
 
 
 def _gather(pool: TilePool, flat: np.ndarray, zfac: float):
