@@ -181,6 +181,47 @@ def palette(cmap, clim, water_level):
     return Palette(cmap, clim, water_level)
 
 
+def _parse_sun(ctx, param, value):
+    if value is None:
+        return None
+    from geoterrain.exceptions import UsageError
+    from geoterrain.shading import parse_sun
+
+    try:
+        return parse_sun(value)
+    except UsageError as exc:
+        raise click.BadParameter(str(exc.cli or exc)) from None
+
+
+def light_options(f):
+    """--sun, --hillshade, --shadows and --ambient-occlusion, shared by render and view."""
+    for opt in reversed([
+        click.option("--sun", callback=_parse_sun, metavar="AZ,EL",
+                     help="Sun azimuth (degrees clockwise from north) and elevation above "
+                          "the horizon  [default: 315,45, the cartographic north-west sun]."),
+        click.option("--hillshade", type=click.Choice(["single", "multi"]), default="single",
+                     show_default=True,
+                     help="multi: four suns 45° apart around --sun, so slopes facing every "
+                          "way show relief."),
+        click.option("--shadows/--no-shadows", default=False, show_default=True,
+                     help="Cast shadows from the terrain toward the sun."),
+        click.option("--ambient-occlusion/--no-ambient-occlusion", "ambient_occlusion",
+                     default=False, show_default=True,
+                     help="Darken valleys by the sky they see (sky-view factor)."),
+    ]):
+        f = opt(f)
+    return f
+
+
+def light(sun, hillshade, shadows, ambient_occlusion):
+    """The :class:`geoterrain.shading.Light` of the light options (None: the default)."""
+    from geoterrain.shading import SUN_AZIMUTH, SUN_ELEVATION, Light
+
+    az, el = sun if sun is not None else (SUN_AZIMUTH, SUN_ELEVATION)
+    out = Light(az, el, hillshade == "multi", bool(shadows), bool(ambient_occlusion))
+    return None if out.is_default else out
+
+
 vertical_exaggeration_option = click.option(
     "-z", "--vertical-exaggeration", "vertical_exaggeration", type=float, default=1.0,
     show_default=True, callback=_positive, metavar="N",

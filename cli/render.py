@@ -11,6 +11,8 @@ from geoterrain.cli.options import (
     StageBar,
     camera_options,
     colour_options,
+    light,
+    light_options,
     palette,
     pixel_error_option,
     strategy_option,
@@ -38,6 +40,7 @@ from geoterrain.cli.options import (
               default="normals", show_default=True,
               help="normals: hillshade from full-resolution normal maps × elevation colours.")
 @colour_options
+@light_options
 @click.option("--title", help="Title drawn at the top.")
 @click.option("--no-overlays", is_flag=True,
               help="No colour bar, scale bar or north arrow.")
@@ -53,7 +56,8 @@ from geoterrain.cli.options import (
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
             fov, pixel_error, strategy, vertical_exaggeration, shading, cmap, clim, water_level,
-            title, no_overlays, stats_path, orbit, cameras, frames_between, fps, overwrite):
+            sun, hillshade, shadows, ambient_occlusion, title, no_overlays, stats_path, orbit,
+            cameras, frames_between, fps, overwrite):
     """Render STORE offscreen: each frame selects its own level of detail.
 
     \b
@@ -66,6 +70,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
       geoterrain render dem.geoterrain -o top.png --elevation 90
       geoterrain render dem.geoterrain -o relief.png -z 3
       geoterrain render dem.geoterrain -o sea.png --water-level 2 --clim -50,1500
+      geoterrain render dem.geoterrain -o dusk.png --sun 250,15 --shadows --ambient-occlusion
       geoterrain render dem.geoterrain -o orbit.gif --orbit 36 --size 640x360
       geoterrain render dem.geoterrain -o fly.mp4 --path cameras.json --stats fly.json
 
@@ -89,6 +94,10 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     if azimuth is None:
         azimuth = 180.0 if elevation == 90 else 190.0
     cmap = palette(cmap, clim, water_level)
+    lit = light(sun, hillshade, shadows, ambient_occlusion)
+    if lit is not None and shading != "normals":
+        raise UsageError("--sun, --hillshade multi, --shadows and --ambient-occlusion light "
+                         "the hillshade: use them with --shading normals")
     if frames_between and cameras is None:
         raise UsageError("--frames-between goes with --path")
     if (look_from is None) != (look_at is None):
@@ -116,7 +125,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             bar = StageBar("rendering", quiet)
             kw = dict(pixel_error=pixel_error, strategy=strategy, shading=shading, cmap=cmap,
                       title=title, fps=fps, progress=lambda d, n: bar("frame", d, n),
-                      overwrite=overwrite, **overlays)
+                      overwrite=overwrite, light=lit, **overlays)
             try:
                 if orbit is not None:
                     frames = R.orbit(t, out, orbit, size=size, azimuth=azimuth,
@@ -150,7 +159,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
                               scale_bar=not no_overlays, north_arrow=not no_overlays)
         st = R.render(t, view, out, pixel_error=pixel_error, strategy=strategy,
                       shading=shading, cmap=cmap, title=title, scale_bar=not no_overlays,
-                      stats_path=stats_path, overwrite=overwrite, **overlays)
+                      stats_path=stats_path, overwrite=overwrite, light=lit, **overlays)
     if not quiet:
         click.echo(f"wrote {out}: {st['triangles']:,} triangles ({strategy}, τ = "
                    f"{pixel_error:g} px), select {st['select_ms']:.0f} ms, frame "

@@ -321,3 +321,45 @@ def _normal_block(
     up = np.array([0.0, 0.0, 1.0])
     out = np.where(ok, nrm / np.where(ok, length, 1.0), up)
     return out.astype(np.float32)
+
+
+def shadow_reference(z: np.ndarray, valid: np.ndarray, spacing: float, azimuth: float,
+                     elevation: float, step: float = 0.25) -> np.ndarray:
+    """Cast shadows by a plain ray march per sample (the oracle of
+    :func:`geoterrain.shading.shadow_mask`; it shares no code with it).
+
+    From each valid sample, walk toward the sun in steps of ``step`` samples; the
+    sample is in shadow if the bilinearly interpolated terrain (valid cells only)
+    rises above the ray anywhere before the ray clears the highest sample.
+    """
+    z = np.asarray(z, np.float64)
+    R, C = z.shape
+    az, el = np.radians(azimuth), np.radians(elevation)
+    di, dj = -np.cos(az), np.sin(az)  # toward the sun: north is −row, east is +column
+    rise = np.tan(el) * spacing * step
+    zmax = np.nanmax(np.where(valid, z, np.nan))
+    ii, jj = np.nonzero(valid)
+    h0 = z[ii, jj]
+    out = np.zeros(len(ii), bool)
+    alive = np.ones(len(ii), bool)
+    k = 0
+    zz = np.where(valid, z, np.nan)
+    while alive.any():
+        k += 1
+        pi, pj = ii + di * step * k, jj + dj * step * k
+        ray = h0 + rise * k
+        inside = (pi >= 0) & (pi <= R - 1) & (pj >= 0) & (pj <= C - 1)
+        alive &= inside & (ray <= zmax)
+        if not alive.any():
+            break
+        i0 = np.clip(np.floor(pi).astype(np.int64), 0, R - 2) if R > 1 else np.zeros_like(ii)
+        j0 = np.clip(np.floor(pj).astype(np.int64), 0, C - 2) if C > 1 else np.zeros_like(jj)
+        wi, wj = pi - i0, pj - j0
+        t = ((1 - wi) * (1 - wj) * zz[i0, j0] + (1 - wi) * wj * zz[i0, j0 + 1]
+             + wi * (1 - wj) * zz[i0 + 1, j0] + wi * wj * zz[i0 + 1, j0 + 1])
+        hit = alive & (t > ray)  # NaN (a cell touching nodata) never hits
+        out |= hit
+        alive &= ~hit
+    mask = np.zeros((R, C), bool)
+    mask[ii, jj] = out
+    return mask

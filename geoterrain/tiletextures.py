@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoterrain.colours import Palette, as_palette, colorize
+from geoterrain.shading import Light, tile_shade
 from geoterrain.textures import _hillshade, elevation_range
 
 TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
@@ -71,7 +72,7 @@ class ViewTexture:
 
 
 def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Palette = "auto",
-             counter: dict | None = None) -> np.ndarray:
+             counter: dict | None = None, light: Light | None = None) -> np.ndarray:
     """RGB uint8 (T, T, 3) shading of stored tile (level, x, y), cached in the terrain.
 
     The cache is the terrain's tile cache (same byte budget), keyed by
@@ -90,11 +91,14 @@ def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Pale
         h = np.nan_to_num(terrain.tile(level, x, y).heights, nan=0.0)
         z0, z1 = elevation_range(terrain)
         rgb = colorize(h * terrain.frame.z_to_m, pal, (z0, z1))
-        if shading == "normals":
+        if shading == "normals" and (light is None or light.is_default):
             rgb *= _hillshade(terrain.tile_normals(level, x, y))[..., None]
+        elif shading == "normals":  # sun, shadows, ambient occlusion (geoterrain.shading)
+            rgb *= tile_shade(terrain, level, x, y, light, _spacing(terrain))[..., None]
         return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
 
-    return terrain._cached(("rgb", shading, pal, level, x, y), make)
+    lk = None if light is None or light.is_default else light
+    return terrain._cached(("rgb", shading, pal, lk, level, x, y), make)
 
 
 def footprints(ij: np.ndarray, faces: np.ndarray, grid) -> tuple[np.ndarray, ...]:
@@ -158,7 +162,8 @@ def _pack(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
 
 
 def build_view_texture(terrain, selection, view, shading: str = "normals",
-                       cmap: str | Palette = "auto", texel_px: float = TEXEL_PX) -> ViewTexture:
+                       cmap: str | Palette = "auto", texel_px: float = TEXEL_PX,
+                       light: Light | None = None) -> ViewTexture:
     """The atlas of what ``selection`` draws in ``view`` at about ``texel_px`` px per texel.
 
     Examples
@@ -257,7 +262,7 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
                     continue
                 r, c = y0 + ty * step, x0 + tx * step
                 atlas[r:r + step + 1, c:c + step + 1] = tile_rgb(terrain, *key, shading,
-                                                                 cmap, counter)
+                                                                 cmap, counter, light)
                 n_tiles += 1
         s = (step << kk) + 1  # gutters: the page's edge texels, replicated
         atlas[y0 - 1, x0:x0 + s] = atlas[y0, x0:x0 + s]
