@@ -198,7 +198,7 @@ def light_options(f):
     for opt in reversed([
         click.option("--sun", callback=_parse_sun, metavar="AZ,EL",
                      help="Sun azimuth (degrees clockwise from north) and elevation above "
-                          "the horizon  [default: 315,45, the cartographic north-west sun]."),
+                          "the horizon [default: 315,45: the cartographic north-west sun]."),
         click.option("--hillshade", type=click.Choice(["single", "multi"]), default="single",
                      show_default=True,
                      help="multi: four suns 45° apart around --sun, so slopes facing every "

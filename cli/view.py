@@ -9,6 +9,8 @@ import click
 from geoterrain.cli.options import (
     StageBar,
     colour_options,
+    light,
+    light_options,
     palette,
     parse_size,
     pixel_error_option,
@@ -25,12 +27,13 @@ from geoterrain.cli.options import (
 @click.option("--shading", type=click.Choice(["normals", "elevation", "plain"]),
               default="normals", show_default=True)
 @colour_options
+@light_options
 @click.option("--size", callback=parse_size, default="1280x720", show_default=True,
               help="Window WIDTHxHEIGHT.")
 @click.option("--rebuild", is_flag=True, help="Preprocess the DEM again even if cached.")
 @click.pass_context
 def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, cmap, clim,
-            water_level, size, rebuild):
+            water_level, sun, hillshade, shadows, ambient_occlusion, size, rebuild):
     """Open SOURCE (a store or a DEM) in an interactive 3-D window.
 
     A DEM is preprocessed first into a store next to it (or in
@@ -50,6 +53,7 @@ def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, 
     Examples:
       geoterrain view dem.geoterrain
       geoterrain view srtm.tif --strategy chunked --pixel-error 2
+      geoterrain view dem.geoterrain --sun 250,20 --shadows
     """
     import geoterrain
     from geoterrain.exceptions import GeoterrainError
@@ -58,6 +62,12 @@ def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, 
     from geoterrain.viewer import show
 
     quiet = (ctx.obj or {}).get("quiet", False)
+    lit = light(sun, hillshade, shadows, ambient_occlusion)  # bad values fail before any work
+    if lit is not None and shading != "normals":
+        from geoterrain.exceptions import UsageError
+
+        raise UsageError("--sun, --hillshade multi, --shadows and --ambient-occlusion light "
+                         "the hillshade: use them with --shading normals")
     src = Path(source)
     if is_store(src):
         store = src
@@ -79,7 +89,7 @@ def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, 
     with geoterrain.open(store) as base:
         t = exaggerated(base, vertical_exaggeration)
         show(t, strategy, pixel_error, shading=shading, cmap=palette(cmap, clim, water_level),
-             size=size)
+             size=size, light=lit)
 
 
 def has_display() -> bool:

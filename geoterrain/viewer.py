@@ -27,6 +27,7 @@ from geoterrain.cameras import default_view
 from geoterrain.colours import Palette
 from geoterrain.lod.registry import DEFAULT, STRATEGIES, strategy_info
 from geoterrain.rendering import TerrainScene
+from geoterrain.shading import Light
 from geoterrain.view import View
 
 COLOR_MODES = ("shading", "level", "tile")
@@ -58,12 +59,12 @@ class ViewerController:
     def __init__(self, plotter, terrain, strategy: str = DEFAULT, pixel_error: float = 1.0,
                  shading: str = "normals", cmap: str | Palette = "auto",
                  throttle_ms: float = 100.0,
-                 background: bool = False):
+                 background: bool = False, light: Light | None = None):
         strategy_info(strategy)
         self.plotter, self.terrain = plotter, terrain
         self.strategy, self.pixel_error = strategy, float(pixel_error)
         self.throttle_ms = throttle_ms
-        self.scene = TerrainScene(plotter, terrain, shading, cmap)
+        self.scene = TerrainScene(plotter, terrain, shading, cmap, light=light)
         self.frozen = False
         self.wireframe = False
         self.color_mode = "shading"
@@ -299,7 +300,8 @@ class ViewerController:
 def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,
          shading: str = "normals", cmap: str | Palette = "auto",
          size: tuple[int, int] = (1280, 720),
-         title: str | None = None, throttle_ms: float = 100.0) -> ViewerController:
+         title: str | None = None, throttle_ms: float = 100.0,
+         light: Light | None = None) -> ViewerController:
     """Open an interactive window on the terrain; the LOD follows the camera.
 
     Keys: ``m`` strategy, ``+``/``-`` τ, ``x`` wireframe, ``c`` colour by
@@ -314,7 +316,7 @@ def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,
 
     p = pv.Plotter(window_size=list(size), title=title or f"geoterrain — {terrain.path.name}")
     ctl = ViewerController(p, terrain, strategy, pixel_error, shading, cmap, throttle_ms,
-                           background=True)
+                           background=True, light=light)
     ctl.bind()
     try:
         p.show()
