@@ -213,6 +213,28 @@ def light_options(f):
     return f
 
 
+def drape_options(f):
+    """--drape and --drape-opacity, shared by render and view."""
+    for opt in reversed([
+        click.option("--drape", "drape_path", type=click.Path(exists=True, dir_okay=False),
+                     metavar="IMAGE",
+                     help="A georeferenced image (an orthophoto, land cover; any CRS, "
+                          "reprojected) drawn over the colour map; its nodata shows the map."),
+        click.option("--drape-opacity", type=click.FloatRange(0.0, 1.0), default=1.0,
+                     show_default=True, metavar="A",
+                     help="1: the drape in place of the colour map; below 1: blended."),
+    ]):
+        f = opt(f)
+    return f
+
+
+def drape(path, opacity):
+    """The :class:`geoterrain.drape.Drape` of the drape options (None without --drape)."""
+    from geoterrain.drape import Drape
+
+    return None if path is None else Drape(str(path), float(opacity))
+
+
 def light(sun, hillshade, shadows, ambient_occlusion):
     """The :class:`geoterrain.shading.Light` of the light options (None: the default)."""
     from geoterrain.shading import SUN_AZIMUTH, SUN_ELEVATION, Light

@@ -11,6 +11,8 @@ from geoterrain.cli.options import (
     StageBar,
     camera_options,
     colour_options,
+    drape,
+    drape_options,
     light,
     light_options,
     palette,
@@ -41,6 +43,7 @@ from geoterrain.cli.options import (
               help="normals: hillshade from full-resolution normal maps × elevation colours.")
 @colour_options
 @light_options
+@drape_options
 @click.option("--title", help="Title drawn at the top.")
 @click.option("--no-overlays", is_flag=True,
               help="No colour bar, scale bar or north arrow.")
@@ -56,8 +59,8 @@ from geoterrain.cli.options import (
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
             fov, pixel_error, strategy, vertical_exaggeration, shading, cmap, clim, water_level,
-            sun, hillshade, shadows, ambient_occlusion, title, no_overlays, stats_path, orbit,
-            cameras, frames_between, fps, overwrite):
+            sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity, title,
+            no_overlays, stats_path, orbit, cameras, frames_between, fps, overwrite):
     """Render STORE offscreen: each frame selects its own level of detail.
 
     \b
@@ -98,6 +101,10 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     if lit is not None and shading != "normals":
         raise UsageError("--sun, --hillshade multi, --shadows and --ambient-occlusion light "
                          "the hillshade: use them with --shading normals")
+    dr = drape(drape_path, drape_opacity)
+    if dr is not None and shading == "plain":
+        raise UsageError("--drape colours the texture: use it with --shading normals or "
+                         "elevation")
     if frames_between and cameras is None:
         raise UsageError("--frames-between goes with --path")
     if (look_from is None) != (look_at is None):
@@ -125,7 +132,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             bar = StageBar("rendering", quiet)
             kw = dict(pixel_error=pixel_error, strategy=strategy, shading=shading, cmap=cmap,
                       title=title, fps=fps, progress=lambda d, n: bar("frame", d, n),
-                      overwrite=overwrite, light=lit, **overlays)
+                      overwrite=overwrite, light=lit, drape=dr, **overlays)
             try:
                 if orbit is not None:
                     frames = R.orbit(t, out, orbit, size=size, azimuth=azimuth,
@@ -159,7 +166,8 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
                               scale_bar=not no_overlays, north_arrow=not no_overlays)
         st = R.render(t, view, out, pixel_error=pixel_error, strategy=strategy,
                       shading=shading, cmap=cmap, title=title, scale_bar=not no_overlays,
-                      stats_path=stats_path, overwrite=overwrite, light=lit, **overlays)
+                      stats_path=stats_path, overwrite=overwrite, light=lit, drape=dr,
+                      **overlays)
     if not quiet:
         click.echo(f"wrote {out}: {st['triangles']:,} triangles ({strategy}, τ = "
                    f"{pixel_error:g} px), select {st['select_ms']:.0f} ms, frame "

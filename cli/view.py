@@ -9,6 +9,8 @@ import click
 from geoterrain.cli.options import (
     StageBar,
     colour_options,
+    drape,
+    drape_options,
     light,
     light_options,
     palette,
@@ -28,12 +30,14 @@ from geoterrain.cli.options import (
               default="normals", show_default=True)
 @colour_options
 @light_options
+@drape_options
 @click.option("--size", callback=parse_size, default="1280x720", show_default=True,
               help="Window WIDTHxHEIGHT.")
 @click.option("--rebuild", is_flag=True, help="Preprocess the DEM again even if cached.")
 @click.pass_context
 def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, cmap, clim,
-            water_level, sun, hillshade, shadows, ambient_occlusion, size, rebuild):
+            water_level, sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity,
+            size, rebuild):
     """Open SOURCE (a store or a DEM) in an interactive 3-D window.
 
     A DEM is preprocessed first into a store next to it (or in
@@ -68,6 +72,12 @@ def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, 
 
         raise UsageError("--sun, --hillshade multi, --shadows and --ambient-occlusion light "
                          "the hillshade: use them with --shading normals")
+    dr = drape(drape_path, drape_opacity)
+    if dr is not None and shading == "plain":
+        from geoterrain.exceptions import UsageError
+
+        raise UsageError("--drape colours the texture: use it with --shading normals or "
+                         "elevation")
     src = Path(source)
     if is_store(src):
         store = src
@@ -89,7 +99,7 @@ def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, 
     with geoterrain.open(store) as base:
         t = exaggerated(base, vertical_exaggeration)
         show(t, strategy, pixel_error, shading=shading, cmap=palette(cmap, clim, water_level),
-             size=size, light=lit)
+             size=size, light=lit, drape=dr)
 
 
 def has_display() -> bool:

@@ -27,6 +27,7 @@ Examples
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -114,3 +115,88 @@ def drape_image(terrain, path: str | Path, level: int,
     on = cover > 0.5
     img[on] = np.clip(np.moveaxis(out, 0, -1)[on] + 0.5, 0, 255).astype(np.uint8)
     return img
+
+
+@dataclass(frozen=True)
+class Drape:
+    """A drape for the view-dependent textures: the image ``path`` over the colour map
+    with ``opacity`` (1: in place of it; below 1: blended with it). Where the image has
+    no data, the colour map shows."""
+
+    path: str
+    opacity: float = 1.0
+
+    def __post_init__(self):
+        if not (0.0 <= self.opacity <= 1.0):
+            raise UsageError(f"the drape opacity must be in [0, 1], got {self.opacity:g}",
+                             cli=f"--drape-opacity must be in [0, 1], got {self.opacity:g}")
+
+
+_SOURCES: dict = {}
+
+
+def _source(path: str):
+    """The drape image's bands, valid mask, CRS and transform, read once per file."""
+    import rasterio
+
+    p = Path(path)
+    key = (str(p.resolve()), p.stat().st_mtime_ns if p.exists() else 0)
+    if key not in _SOURCES:
+        try:
+            with rasterio.open(p) as src:
+                if src.crs is None or src.transform.is_identity:
+                    raise InputError(f"{p}: the drape image is not georeferenced (no CRS or "
+                                     "no geotransform); georeference it first "
+                                     "(gdal_translate -a_srs -a_ullr)")
+                rgb, mask = _read_rgb(src)
+                _SOURCES.clear()  # one image at a time: it may be large
+                _SOURCES[key] = (rgb, mask, src.crs, src.transform)
+        except rasterio.errors.RasterioIOError as exc:
+            raise InputError(f"{p}: cannot read the drape image "
+                             f"({str(exc).splitlines()[0]})") from None
+    return _SOURCES[key]
+
+
+def drape_tile(terrain, drape: Drape, level: int, x: int, y: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """The drape over stored tile (level, x, y): RGB float32 (T, T, 3) in 0..1 and the
+    (T, T) mask of the samples it covers. Only the tile's window is reprojected.
+
+    Examples
+    --------
+    >>> import tempfile, os, rasterio
+    >>> from rasterio.transform import from_bounds
+    >>> f = t.frame; a, _, c, _, e, top = f.transform
+    >>> box = (c, top + e * t.grid.rows, c + a * t.grid.cols, top)
+    >>> p = os.path.join(tempfile.mkdtemp(), "ortho.tif")
+    >>> with rasterio.open(p, "w", driver="GTiff", width=32, height=32, count=3,
+    ...                    dtype="uint8", crs=f.crs_wkt, transform=from_bounds(*box, 32, 32)
+    ...                    ) as dst:
+    ...     dst.write(np.full((3, 32, 32), 51, np.uint8))
+    >>> rgb, on = drape_tile(t, Drape(p), t.grid.top_level, 0, 0)
+    >>> round(float(rgb[2, 2, 0]), 3), bool(on[2, 2])
+    (0.2, True)
+    """
+    from rasterio.crs import CRS
+    from rasterio.enums import Resampling
+    from rasterio.transform import Affine
+    from rasterio.warp import reproject
+
+    from geoterrain.rasters import level_transform
+
+    f = terrain.frame
+    if f.kind == "pixel" or not f.crs_wkt:
+        raise UsageError("the DEM has no CRS: an image can be draped over georeferenced DEMs "
+                         "only")
+    rgb, mask, src_crs, src_tr = _source(drape.path)
+    T = terrain.grid.tile_samples
+    n = T - 1
+    dst_tr = level_transform(f.transform, level) @ Affine.translation(x * n, y * n)
+    kw = dict(src_transform=src_tr, src_crs=src_crs, dst_transform=dst_tr,
+              dst_crs=CRS.from_wkt(f.crs_wkt))
+    out = np.zeros((3, T, T), np.float32)
+    cover = np.zeros((T, T), np.float32)
+    reproject(rgb, out, resampling=Resampling.bilinear, src_nodata=None, dst_nodata=0, **kw)
+    reproject((~mask).astype(np.float32), cover, resampling=Resampling.nearest, dst_nodata=0,
+              **kw)
+    return np.moveaxis(out, 0, -1) / 255.0, cover > 0.5

@@ -53,6 +53,7 @@ from geoterrain.cameras import (  # noqa: F401 - the camera helpers are part of 
     to_scene,
 )
 from geoterrain.colours import Palette
+from geoterrain.drape import Drape
 from geoterrain.exaggerate import exaggerated
 from geoterrain.exceptions import UsageError, WriteError, exists_error
 from geoterrain.lod.registry import DEFAULT, strategy_info
@@ -92,7 +93,8 @@ class TerrainScene:
 
     def __init__(self, plotter, terrain, shading: str = "normals", cmap: str | Palette = "auto",
                  background: Sequence[float] = BACKGROUND, vertical_exaggeration: float = 1.0,
-                 textures: str = "view", light: Light | None = None):
+                 textures: str = "view", light: Light | None = None,
+                 drape: Drape | None = None):
         import pyvista as pv
 
         terrain = exaggerated(terrain, vertical_exaggeration)
@@ -100,9 +102,11 @@ class TerrainScene:
         if shading not in SHADINGS:
             raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
         self.plotter, self.terrain, self.shading, self.cmap = plotter, terrain, shading, cmap
-        self.light = light
-        if light is not None and not light.is_default and textures == "global":
-            raise UsageError("sun, shadows and ambient occlusion need the per-view textures")
+        self.light, self.drape = light, drape
+        if ((light is not None and not light.is_default) or drape is not None) \
+                and textures == "global":
+            raise UsageError("sun, shadows, ambient occlusion and drapes need the per-view "
+                             "textures")
         plotter.set_background(background)
         plotter.theme.allow_empty_mesh = True  # a view may see no terrain at all
         self.textures = textures
@@ -142,7 +146,7 @@ class TerrainScene:
         if self.shading == "plain" or self.textures != "view":
             return None
         return build_view_texture(self.terrain, selection, view, self.shading, self.cmap,
-                                  light=self.light)
+                                  light=self.light, drape=self.drape)
 
     def update(self, selection, view: View | None = None, vtex=None) -> None:
         """Show ``selection.mesh`` (the actor is reused).
@@ -366,8 +370,8 @@ def overview(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 190.
 
 def render_array(terrain, view: View, *, pixel_error: float = 1.0, strategy: str = DEFAULT,
                  shading: str = "normals", cmap: str | Palette = "auto", scene=None,
-                 vertical_exaggeration: float = 1.0, light: Light | None = None
-                 ) -> tuple[np.ndarray, dict]:
+                 vertical_exaggeration: float = 1.0, light: Light | None = None,
+                 drape: Drape | None = None) -> tuple[np.ndarray, dict]:
     """The rendered image (H, W, 3) uint8 of ``view`` without overlays, and its stats.
 
     Examples
@@ -380,7 +384,8 @@ def render_array(terrain, view: View, *, pixel_error: float = 1.0, strategy: str
     own = scene is None
     if own:
         scene = TerrainScene(_plotter(view.size), terrain, shading, cmap,
-                             vertical_exaggeration=vertical_exaggeration, light=light)
+                             vertical_exaggeration=vertical_exaggeration, light=light,
+                             drape=drape)
     try:
         img, stats = scene.frame(view, pixel_error, strategy)
         stats["terrain_fraction"] = round(scene.terrain_fraction(), 4)
@@ -395,7 +400,7 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
            title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
            north_arrow: bool = True, stats_path: str | Path | None = None,
            vertical_exaggeration: float = 1.0, overwrite: bool = True,
-           light: Light | None = None) -> dict:
+           light: Light | None = None, drape: Drape | None = None) -> dict:
     """Render one view of the terrain to a PNG, with its own level of detail.
 
     ``overwrite=False`` refuses an existing ``path`` (checked before rendering).
@@ -417,6 +422,8 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
     light : a :class:`~geoterrain.shading.Light`: the sun's direction, a
         multidirectional hillshade, cast shadows and ambient occlusion (``"normals"``
         shading); None is the classic north-west sun at 45°.
+    drape : a :class:`~geoterrain.drape.Drape`: a georeferenced image (any CRS) over
+        the colour map, or blended with it; its nodata shows the colour map.
 
     Returns
     -------
@@ -439,7 +446,7 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
     if shading not in SHADINGS:
         raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
     img, stats = render_array(terrain, view, pixel_error=pixel_error, strategy=strategy,
-                              shading=shading, cmap=cmap, light=light)
+                              shading=shading, cmap=cmap, light=light, drape=drape)
     img = compose(img, view, terrain, shading=shading, cmap=cmap, title=title,
                   colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
     _write_png(path, img, overwrite)
@@ -516,7 +523,7 @@ def animate(terrain, views: Sequence[View], out: str | Path, *, pixel_error: flo
             title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
             north_arrow: bool = True, fps: float = 10.0, progress: Progress | None = None,
             vertical_exaggeration: float = 1.0, overwrite: bool = True,
-            light: Light | None = None) -> list[dict]:
+            light: Light | None = None, drape: Drape | None = None) -> list[dict]:
     """Render each view (each with its own LOD selection) into a GIF, MP4 or PNG folder.
 
     Returns the per-frame stats. The output is written to a hidden partial and
@@ -541,7 +548,7 @@ def animate(terrain, views: Sequence[View], out: str | Path, *, pixel_error: flo
     all_stats = []
     ok = False
     try:
-        scene = TerrainScene(_plotter(size), terrain, shading, cmap, light=light)
+        scene = TerrainScene(_plotter(size), terrain, shading, cmap, light=light, drape=drape)
         try:
             for k, v in enumerate(views):
                 img, st = scene.frame(v, pixel_error, strategy)

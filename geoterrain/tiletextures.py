@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoterrain.colours import Palette, as_palette, colorize
+from geoterrain.drape import Drape, drape_tile
 from geoterrain.shading import Light, tile_shade
 from geoterrain.textures import _hillshade, elevation_range
 
@@ -72,7 +73,8 @@ class ViewTexture:
 
 
 def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Palette = "auto",
-             counter: dict | None = None, light: Light | None = None) -> np.ndarray:
+             counter: dict | None = None, light: Light | None = None,
+             drape: Drape | None = None) -> np.ndarray:
     """RGB uint8 (T, T, 3) shading of stored tile (level, x, y), cached in the terrain.
 
     The cache is the terrain's tile cache (same byte budget), keyed by
@@ -91,6 +93,10 @@ def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Pale
         h = np.nan_to_num(terrain.tile(level, x, y).heights, nan=0.0)
         z0, z1 = elevation_range(terrain)
         rgb = colorize(h * terrain.frame.z_to_m, pal, (z0, z1))
+        if drape is not None:  # the image over the colours; its nodata shows them
+            img, on = drape_tile(terrain, drape, level, x, y)
+            a = float(drape.opacity)
+            rgb[on] = a * img[on] + (1.0 - a) * rgb[on]
         if shading == "normals" and (light is None or light.is_default):
             rgb *= _hillshade(terrain.tile_normals(level, x, y))[..., None]
         elif shading == "normals":  # sun, shadows, ambient occlusion (geoterrain.shading)
@@ -98,7 +104,7 @@ def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Pale
         return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
 
     lk = None if light is None or light.is_default else light
-    return terrain._cached(("rgb", shading, pal, lk, level, x, y), make)
+    return terrain._cached(("rgb", shading, pal, lk, drape, level, x, y), make)
 
 
 def footprints(ij: np.ndarray, faces: np.ndarray, grid) -> tuple[np.ndarray, ...]:
@@ -163,7 +169,8 @@ def _pack(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
 
 def build_view_texture(terrain, selection, view, shading: str = "normals",
                        cmap: str | Palette = "auto", texel_px: float = TEXEL_PX,
-                       light: Light | None = None) -> ViewTexture:
+                       light: Light | None = None, drape: Drape | None = None
+                       ) -> ViewTexture:
     """The atlas of what ``selection`` draws in ``view`` at about ``texel_px`` px per texel.
 
     Examples
@@ -262,7 +269,8 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
                     continue
                 r, c = y0 + ty * step, x0 + tx * step
                 atlas[r:r + step + 1, c:c + step + 1] = tile_rgb(terrain, *key, shading,
-                                                                 cmap, counter, light)
+                                                                 cmap, counter, light,
+                                                                 drape)
                 n_tiles += 1
         s = (step << kk) + 1  # gutters: the page's edge texels, replicated
         atlas[y0 - 1, x0:x0 + s] = atlas[y0, x0:x0 + s]

@@ -25,6 +25,7 @@ import numpy as np
 from geoterrain import lod
 from geoterrain.cameras import default_view
 from geoterrain.colours import Palette
+from geoterrain.drape import Drape
 from geoterrain.lod.registry import DEFAULT, STRATEGIES, strategy_info
 from geoterrain.rendering import TerrainScene
 from geoterrain.shading import Light
@@ -59,12 +60,13 @@ class ViewerController:
     def __init__(self, plotter, terrain, strategy: str = DEFAULT, pixel_error: float = 1.0,
                  shading: str = "normals", cmap: str | Palette = "auto",
                  throttle_ms: float = 100.0,
-                 background: bool = False, light: Light | None = None):
+                 background: bool = False, light: Light | None = None,
+                 drape: Drape | None = None):
         strategy_info(strategy)
         self.plotter, self.terrain = plotter, terrain
         self.strategy, self.pixel_error = strategy, float(pixel_error)
         self.throttle_ms = throttle_ms
-        self.scene = TerrainScene(plotter, terrain, shading, cmap, light=light)
+        self.scene = TerrainScene(plotter, terrain, shading, cmap, light=light, drape=drape)
         self.frozen = False
         self.wireframe = False
         self.color_mode = "shading"
@@ -301,7 +303,7 @@ def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,
          shading: str = "normals", cmap: str | Palette = "auto",
          size: tuple[int, int] = (1280, 720),
          title: str | None = None, throttle_ms: float = 100.0,
-         light: Light | None = None) -> ViewerController:
+         light: Light | None = None, drape: Drape | None = None) -> ViewerController:
     """Open an interactive window on the terrain; the LOD follows the camera.
 
     Keys: ``m`` strategy, ``+``/``-`` τ, ``x`` wireframe, ``c`` colour by
@@ -316,7 +318,7 @@ def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,
 
     p = pv.Plotter(window_size=list(size), title=title or f"geoterrain — {terrain.path.name}")
     ctl = ViewerController(p, terrain, strategy, pixel_error, shading, cmap, throttle_ms,
-                           background=True, light=light)
+                           background=True, light=light, drape=drape)
     ctl.bind()
     try:
         p.show()

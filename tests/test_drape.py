@@ -210,3 +210,52 @@ def test_drape_errors_are_one_line(dem, tmp_path):
         pix = geoterrain.open(geoterrain.preprocess(
             write_geotiff(tmp_path / "p.tif", generate("fbm", 33, seed=1)), pixel_size=1.0))
         drape_image(pix, far, 0)
+
+
+def test_view_textures_take_the_drape_per_tile(dem, tmp_path):
+    """render/view drape: each texture tile's texels carry the image reprojected from
+    another CRS (its own window only), blended by the opacity; nodata shows the map."""
+    from geoterrain.drape import Drape
+    from geoterrain.tiletextures import tile_rgb
+
+    d, _, _, t = dem
+    # a 4326 image over the western half only; its eastern half is nodata (alpha 0)
+    tr = Transformer.from_crs(DEM_CRS, "EPSG:4326", always_xy=True)
+    lon0, lat1 = tr.transform(X0 - 100, Y0 + 100)
+    lon1, lat0 = tr.transform(X0 + SP * N + 100, Y0 - SP * N - 100)
+    size = 64
+    res = (lon1 - lon0) / size
+    rgba = np.zeros((4, size, size), np.uint8)
+    rgba[0], rgba[1], rgba[2] = 200, 30, 40
+    rgba[3, :, : size // 2] = 255
+    img = d / "half.tif"
+    with rasterio.open(img, "w", driver="GTiff", width=size, height=size, count=4,
+                       dtype="uint8", crs="EPSG:4326", photometric="RGB", alpha="YES",
+                       transform=from_origin(lon0, lat1, res, (lat1 - lat0) / size)) as dst:
+        dst.write(rgba)
+    L = t.grid.top_level
+    plain = tile_rgb(t, L, 0, 0, "elevation").astype(int)
+    full = tile_rgb(t, L, 0, 0, "elevation", drape=Drape(str(img))).astype(int)
+    half = tile_rgb(t, L, 0, 0, "elevation", drape=Drape(str(img), 0.5)).astype(int)
+    T = t.grid.tile_samples
+    west, east = (slice(2, T - 2), slice(2, T // 4)), (slice(2, T - 2), slice(3 * T // 4, T - 2))
+    assert (np.abs(full[west] - [200, 30, 40]) <= 2).all()  # the image, in place
+    assert (full[east] == plain[east]).all()  # its nodata: the colour map
+    assert (np.abs(half[west] - (plain[west] + [200, 30, 40]) / 2) <= 2).all()
+
+
+def test_render_drape_cli(dem, tmp_path):
+    from geoterrain.cli.main import cli
+
+    d, _, store, _ = dem
+    img = _gradient_image(tmp_path / "g.tif", DEM_CRS, X0, Y0, SP, N, (X0, X0 + SP * N),
+                          (Y0 - SP * N, Y0))
+    out = tmp_path / "d.png"
+    r = CliRunner().invoke(cli, ["-q", "render", str(store), "-o", str(out), "--size",
+                                 "240x180", "--drape", str(img), "--drape-opacity", "0.7",
+                                 "--shadows"])
+    assert r.exit_code == 0, r.output
+    assert out.exists()
+    bad = CliRunner().invoke(cli, ["render", str(store), "-o", str(tmp_path / "x.png"),
+                                   "--drape", str(img), "--drape-opacity", "2"])
+    assert bad.exit_code == 2

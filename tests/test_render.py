@@ -129,10 +129,37 @@ def test_lod_fidelity_vs_bruteforce(tmp_path_factory):
         assert pd >= 35.0 or od <= 0.01
 
 
+def _drape_over(t, path):
+    """A 256² EPSG:4326 image over the terrain (colours: a lon/lat gradient with 16 px
+    blocks of ±20), blended at 0.6: the drape of the fidelity test."""
+    import rasterio
+    from pyproj import Transformer
+    from rasterio.transform import from_bounds
+
+    from geoterrain.drape import Drape
+
+    f = t.frame
+    a, _, c, _, e, top = f.transform
+    x0, x1, y0, y1 = c, c + a * t.grid.cols, top + e * t.grid.rows, top
+    tr = Transformer.from_crs(f.crs_wkt, "EPSG:4326", always_xy=True)
+    lons, lats = tr.transform([x0, x1, x0, x1], [y0, y0, y1, y1])
+    n = 256
+    g = np.linspace(60, 200, n)
+    rng = np.random.default_rng(1)
+    blocks = np.kron(rng.integers(-20, 21, (n // 16, n // 16)), np.ones((16, 16)))
+    rgb = np.stack([g[None, :] + blocks, g[:, None] + blocks, 120 + blocks + 0 * g[None, :]])
+    with rasterio.open(path, "w", driver="GTiff", width=n, height=n, count=3, dtype="uint8",
+                       crs="EPSG:4326",
+                       transform=from_bounds(min(lons), min(lats), max(lons), max(lats), n, n)
+                       ) as dst:
+        dst.write(np.clip(rgb, 0, 255).astype(np.uint8))
+    return Drape(str(path), 0.6)
+
+
 def test_lod_fidelity_with_sun_shadows_and_occlusion(tmp_path_factory):
     """τ = 1 px rtin against bruteforce, both lit with cast shadows and ambient
-    occlusion: still ≥ 35 dB (the shade comes from the pyramid's texture tiles, not from
-    the mesh). On srtm1_japan: 38.1 dB (sun 315°/45°) and 39.0 dB (200°/35°) at the
+    occlusion, the second sun also with a drape: still ≥ 35 dB (the shade and the drape
+    come from the pyramid's texture tiles, not from the mesh). On srtm1_japan: 38.1 dB (sun 315°/45°) and 39.0 dB (200°/35°) at the
     az 90 / el 20 view. A low sun raises the hillshade's contrast, and with it the cost
     of the same one-pixel LOD error: at 250°/25° the view measures 33.2 dB with or
     without shadows (docs/benchmarks.md)."""
@@ -141,8 +168,9 @@ def test_lod_fidelity_with_sun_shadows_and_occlusion(tmp_path_factory):
     t = _fidelity_terrain(tmp_path_factory)
     size = (960, 540)
     out = []
-    for sun in ((315, 45), (200, 35)):
-        scene = TerrainScene(_plotter(size), t, "normals",
+    drape = _drape_over(t, tmp_path_factory.mktemp("drape") / "d.tif")
+    for sun, dr in (((315, 45), None), ((200, 35), drape)):
+        scene = TerrainScene(_plotter(size), t, "normals", drape=dr,
                              light=Light(*sun, shadows=True, ambient_occlusion=True))
         try:
             for az, el in ((200, 35), (90, 20)):
