@@ -159,10 +159,11 @@ def _drape_over(t, path):
 def test_lod_fidelity_with_sun_shadows_and_occlusion(tmp_path_factory):
     """τ = 1 px rtin against bruteforce, both lit with cast shadows and ambient
     occlusion, the second sun also with a drape: still ≥ 35 dB (the shade and the drape
-    come from the pyramid's texture tiles, not from the mesh). On srtm1_japan: 38.1 dB (sun 315°/45°) and 39.0 dB (200°/35°) at the
-    az 90 / el 20 view. A low sun raises the hillshade's contrast, and with it the cost
-    of the same one-pixel LOD error: at 250°/25° the view measures 33.2 dB with or
-    without shadows (docs/benchmarks.md)."""
+    come from the pyramid's texture tiles, not from the mesh). On srtm1_japan at the
+    az 90 / el 20 view: 38.1 dB (sun 315°/45°) and 39.6 dB (200°/35° with the drape). A
+    low sun raises the hillshade's contrast, and with it the cost of the same one-pixel
+    LOD error: at 250°/25° that view measures 33.2 dB with or without shadows
+    (docs/benchmarks.md)."""
     from geoterrain.shading import Light
 
     t = _fidelity_terrain(tmp_path_factory)
