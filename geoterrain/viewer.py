@@ -7,7 +7,13 @@ actor in place; key handlers are plain methods.
 
 Keys: ``m`` strategy, ``+``/``-`` τ ×/÷ 2, ``x`` wireframe, ``c`` colour
 (shading / LOD level / tile), ``space`` freeze the LOD, ``h`` reset the view,
-``q`` quit.
+``s`` save a screenshot (overlays included), ``q`` quit.
+
+The camera moves as on a terrain (VTK's terrain interactor style): dragging turns
+around the vertical and tilts, and never rolls, so the horizon stays level. The
+status line sits on an opaque box and says when a selection is running; a colour
+bar (metres) and an east/north/up compass stay on screen. With ``background`` the
+worker thread also builds the frame's textures, so the window only swaps them in.
 
 Examples
 --------
@@ -32,7 +38,21 @@ from geoterrain.shading import Light
 from geoterrain.view import View
 
 COLOR_MODES = ("shading", "level", "tile")
-HELP = "m strategy  +/- tau  x wireframe  c colour  space freeze  h home  q quit"
+HELP = "m strategy  +/- tau  x wireframe  c colour  space freeze  h home  s screenshot  q quit"
+
+
+def terrain_style():
+    """The interactor style of the viewer: VTK's terrain style (azimuth about the
+    vertical, elevation, no roll), so the horizon stays level.
+
+    Examples
+    --------
+    >>> terrain_style().GetClassName()
+    'vtkInteractorStyleTerrain'
+    """
+    from vtkmodules.vtkInteractionStyle import vtkInteractorStyleTerrain
+
+    return vtkInteractorStyleTerrain()
 
 
 class ViewerController:
@@ -80,8 +100,17 @@ class ViewerController:
         self._future = None
         self._executor = None
         self._hud = plotter.add_text("", position="upper_left", font_size=10, name="hud")
+        tp = self._hud.GetTextProperty()  # an opaque box: readable over any terrain
+        tp.SetColor(0.1, 0.1, 0.1)
+        tp.SetBackgroundColor(1.0, 1.0, 1.0)
+        tp.SetBackgroundOpacity(0.85)
+        tp.SetFrame(True)
+        tp.SetFrameColor(0.6, 0.6, 0.6)
+        self.message = ""
+        self.screenshots = 0
+        self._legend(cmap)
         self.home = default_view(terrain, tuple(plotter.window_size))
-        self.scene.set_camera(self.home)
+        self._go_home()
         self.on_camera_changed(force=True)  # the first selection, synchronously
         if background:
             from concurrent.futures import ThreadPoolExecutor
@@ -121,8 +150,8 @@ class ViewerController:
                 return False
             view, strategy, tau = self._view(), self.strategy, self.pixel_error
             self.pending = False
-            self._future = self._executor.submit(
-                lambda: (key, lod.select(self.terrain, view, pixel_error=tau, strategy=strategy)))
+            self._future = self._executor.submit(self._work, key, view, strategy, tau)
+            self._update_hud()  # the busy sign
             return True
         now = time.perf_counter()
         if not force and (now - self._last_t) * 1e3 < self.throttle_ms:
@@ -133,12 +162,18 @@ class ViewerController:
         self._apply(key, sel)
         return True
 
-    def _apply(self, key: tuple, sel) -> None:
+    def _work(self, key: tuple, view: View, strategy: str, tau: float):
+        """Worker thread: the selection and its textures (no VTK call)."""
+        sel = lod.select(self.terrain, view, pixel_error=tau, strategy=strategy)
+        return key, sel, self.scene.view_texture(sel, view)
+
+    def _apply(self, key: tuple, sel, vtex=None) -> None:
         """Show a finished selection (main thread: VTK calls)."""
         self._busy = True
         try:
             t0 = time.perf_counter()
-            self.scene.update(sel)
+            self.ui_ms = 0.0
+            self.scene.update(sel, vtex=vtex)
             self._apply_style()
             self.plotter.renderer.ResetCameraClippingRange()
             self.stats = dict(sel.stats)
@@ -146,6 +181,7 @@ class ViewerController:
             self._last_key = key
             self._last_t = time.perf_counter()
             self.frame_ms = (self._last_t - t0) * 1e3
+            self.ui_ms = self.frame_ms  # main-thread time of this swap
             self._update_hud()
         finally:
             self._busy = False
@@ -159,10 +195,12 @@ class ViewerController:
         f = self._future
         if f is not None and f.done():
             self._future = None
-            key, sel = f.result()
+            key, sel, vtex = f.result()
             if not self.frozen or key[-2:] != self._last_key[-2:]:
-                self._apply(key, sel)
+                self._apply(key, sel, vtex)
                 changed = True
+            else:
+                self._update_hud()  # no longer busy
         if self.pending and not self.frozen:
             self.pending = False
             if self._executor is None:
@@ -229,12 +267,81 @@ class ViewerController:
         mapper.ScalarVisibilityOn()
         prop.SetLighting(True)
 
+    @property
+    def busy(self) -> bool:
+        """A selection is running in the worker thread."""
+        return self._future is not None and not self._future.done()
+
     def _update_hud(self) -> None:
         s = self.stats
         line = (f"{self.strategy}  tau {self.pixel_error:g} px  {s.get('triangles', 0):,} tris  "
                 f"select {s.get('select_ms', 0.0):.0f} ms  frame {self.frame_ms:.0f} ms"
-                + ("  [FROZEN]" if self.frozen else "") + f"  colour: {self.color_mode}")
-        self._hud.SetText(2, line + "\n" + HELP)
+                + ("  [FROZEN]" if self.frozen else "") + f"  colour: {self.color_mode}"
+                + ("  ... selecting" if self.busy else ""))
+        scale = self._metres_per_pixel()
+        extra = f"1 px = {scale:,.1f} m at the view centre" if scale else ""
+        if self.message:
+            extra = (extra + "   " if extra else "") + self.message
+        self._hud.SetText(2, line + "\n" + (extra + "\n" if extra else "") + HELP)
+
+    def _metres_per_pixel(self) -> float:
+        c = self.plotter.camera
+        d = float(np.linalg.norm(np.subtract(c.position, c.focal_point)))
+        H = float(self.plotter.window_size[1]) or 1.0
+        return 2.0 * d * np.tan(np.radians(float(c.view_angle)) / 2.0) / H
+
+    def _legend(self, cmap) -> None:
+        """The colour bar (metres, the texture's own colours) and the compass."""
+        from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
+
+        from geoterrain.colours import as_palette, colorbar_map
+        from geoterrain.textures import elevation_range
+
+        try:
+            self.plotter.add_axes(xlabel="E", ylabel="N", zlabel="Up", line_width=2)
+        except Exception:  # noqa: BLE001 - a plotter without an orientation widget
+            pass
+        if self.scene.shading == "plain":
+            return
+        import pyvista as pv
+
+        z0, z1 = elevation_range(self.terrain)
+        cm, (lo, hi) = colorbar_map(as_palette(cmap), (z0, z1))
+        lut = pv.LookupTable(cm)
+        lut.scalar_range = (lo, hi)
+        bar = vtkScalarBarActor()
+        bar.SetLookupTable(lut)
+        bar.SetTitle("elevation (m)")
+        bar.SetLabelFormat("%.0f")
+        bar.SetNumberOfLabels(5)
+        bar.UnconstrainedFontSizeOn()
+        bar.DrawBackgroundOn()
+        bar.GetBackgroundProperty().SetColor(1.0, 1.0, 1.0)
+        bar.GetBackgroundProperty().SetOpacity(0.85)
+        for tp, size in ((bar.GetLabelTextProperty(), 11), (bar.GetTitleTextProperty(), 12)):
+            tp.SetColor(0.1, 0.1, 0.1)
+            tp.SetFontSize(size)
+            tp.ShadowOff()
+            tp.BoldOff()
+            tp.ItalicOff()
+        bar.SetPosition(0.90, 0.25)
+        bar.SetWidth(0.08)
+        bar.SetHeight(0.5)
+        self.plotter.add_actor(bar, name="colour-bar", reset_camera=False)
+
+    def screenshot(self, path=None) -> str:
+        """Key ``s``: save the window, overlays included, as a PNG (a new name each time:
+        ``geoterrain-<time>-<n>.png`` in the working folder); the status line says where."""
+        from pathlib import Path
+
+        self.screenshots += 1
+        if path is None:
+            path = Path.cwd() / time.strftime(f"geoterrain-%Y%m%d-%H%M%S-{self.screenshots}.png")
+        self.plotter.screenshot(str(path))
+        self.message = f"saved {path}"
+        self._update_hud()
+        self.plotter.render()
+        return str(path)
 
     def _refresh(self) -> None:
         if self.on_camera_changed(force=True) is False and self._executor is not None:
@@ -278,9 +385,18 @@ class ViewerController:
         self._update_hud()
         self.plotter.render()
 
+    def _go_home(self) -> None:
+        self.scene.set_camera(self.home)
+        # the terrain style turns about the camera's view-up: make it the vertical, so
+        # drags never roll (the same camera: VTK orthogonalises it as View.basis does)
+        cam = self.plotter.camera
+        d = np.subtract(cam.focal_point, cam.position)
+        if np.linalg.norm(d[:2]) > 1e-9 * np.linalg.norm(d):
+            cam.up = (0.0, 0.0, 1.0)
+
     def reset_view(self) -> None:
         """Key ``h``: back to the overview."""
-        self.scene.set_camera(self.home)
+        self._go_home()
         self._refresh()
 
     def bind(self) -> None:
@@ -290,9 +406,11 @@ class ViewerController:
         keys = {"m": self.next_strategy, "plus": self.tau_up, "equal": self.tau_up,
                 "KP_Add": self.tau_up, "minus": self.tau_down, "KP_Subtract": self.tau_down,
                 "x": self.toggle_wireframe, "c": self.next_color_mode,
-                "space": self.toggle_freeze, "h": self.reset_view}
+                "space": self.toggle_freeze, "h": self.reset_view, "s": self.screenshot}
         for k, fn in keys.items():
             p.add_key_event(k, fn)
+        if p.iren is not None:
+            p.enable_terrain_style(mouse_wheel_zooms=True)  # no roll: the horizon stays level
         if p.iren is not None and not p.off_screen:
             p.iren.add_observer("EndInteractionEvent", self.poll)
             p.add_timer_event(max_steps=2**31 - 1, duration=int(max(self.throttle_ms, 30)),
@@ -307,7 +425,8 @@ def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,
     """Open an interactive window on the terrain; the LOD follows the camera.
 
     Keys: ``m`` strategy, ``+``/``-`` τ, ``x`` wireframe, ``c`` colour by
-    shading / LOD level / tile, ``space`` freeze the LOD, ``h`` home, ``q`` quit.
+    shading / LOD level / tile, ``space`` freeze the LOD, ``h`` home, ``s`` screenshot,
+    ``q`` quit.
 
     Examples
     --------

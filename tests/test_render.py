@@ -261,6 +261,90 @@ def test_controller_background_selection(tmp_path_factory):
         p.close()
 
 
+def _drag(iren, path) -> None:
+    """A scripted left-button drag through window pixels ``path``."""
+    x, y = path[0]
+    iren.SetEventInformation(x, y)
+    iren.InvokeEvent("LeftButtonPressEvent")
+    for x, y in path[1:]:
+        iren.SetEventInformation(x, y)
+        iren.InvokeEvent("MouseMoveEvent")
+    iren.InvokeEvent("LeftButtonReleaseEvent")
+
+
+def _roll(camera) -> float:
+    """|z| of the camera's right vector: 0 while the horizon is level."""
+    d = np.subtract(camera.focal_point, camera.position)
+    right = np.cross(d / np.linalg.norm(d), camera.up)
+    return abs(float(right[2] / np.linalg.norm(right)))
+
+
+def test_viewer_interactor_keeps_the_horizon_level(tmp_path_factory):
+    """Scripted drags through the viewer's interactor style: the camera turns and tilts
+    but never rolls, and every move re-selects the LOD. The trackball style (the old
+    viewer's) rolls on the same drags, so the check can fail."""
+    import vtk
+
+    from geoterrain.viewer import ViewerController, terrain_style
+
+    t = synth_store(tmp_path_factory, "fbm")
+    p = _plotter((320, 240))
+    try:
+        c = ViewerController(p, t, throttle_ms=0.0)
+        c.bind()
+        iren = vtk.vtkRenderWindowInteractor()
+        iren.SetRenderWindow(p.ren_win)
+        path = [(160, 120), (220, 160), (280, 90), (110, 40), (60, 200), (300, 220)]
+        rolls = {}
+        for name, style in (("terrain", terrain_style()),
+                            ("trackball", vtk.vtkInteractorStyleTrackballCamera())):
+            c.reset_view()
+            iren.SetInteractorStyle(style)
+            style.SetCurrentRenderer(p.renderer)
+            n0, pos0 = c.selections, tuple(p.camera.position)
+            _drag(iren, path)
+            rolls[name] = _roll(p.camera)
+            assert tuple(p.camera.position) != pos0 and c.selections > n0
+        assert rolls["terrain"] < 1e-9, rolls
+        assert rolls["trackball"] > 0.1, rolls
+    finally:
+        p.close()
+
+
+def test_viewer_status_box_screenshot_and_ui_time(tmp_path_factory, tmp_path):
+    """The status line is on an opaque box and shows the busy sign while a background
+    selection runs; ``s`` saves a PNG with the overlays; in background mode the UI
+    thread only swaps the finished mesh and textures in."""
+    import imageio.v3 as iio
+
+    from geoterrain.viewer import ViewerController
+
+    t = synth_store(tmp_path_factory, "fbm")
+    p = _plotter((320, 240))
+    c = ViewerController(p, t, background=True)
+    try:
+        c.bind()
+        tp = c._hud.GetTextProperty()
+        assert tp.GetBackgroundOpacity() > 0.5
+        lo, hi = np.asarray(c.home.look_at), np.asarray(c.home.look_from)
+        p.camera.position = tuple(lo + 0.3 * (hi - lo))
+        assert "selecting" in c._hud.GetText(2) or not c.busy
+        c.wait(timeout=60)
+        while c._future is not None:
+            c.wait(timeout=60)
+        assert "selecting" not in c._hud.GetText(2)
+        assert c.ui_ms < 1000.0  # the swap, not the selection or the texture work
+        shot = c.screenshot(tmp_path / "shot.png")
+        img = iio.imread(shot)
+        assert img.shape[:2] == (240, 320)
+        assert "saved" in c._hud.GetText(2)
+        # the opaque status box: the top-left corner is not the sky's colour
+        assert np.abs(img[5:15, 5:45].astype(int) - img[5:15, 250:290].astype(int)).mean() > 5
+    finally:
+        c.close()
+        p.close()
+
+
 def _cli():
     try:
         return importlib.import_module("geoterrain.cli.main").cli
