@@ -84,18 +84,18 @@ def test_the_lp_floor_changes_no_flag(tmp_path_factory, az, el, dist, tau):
     with_floor = rtin.view_active(t, index, v, tau)
     a = with_floor.active == with_floor.gen
     m = with_floor.mixed == with_floor.gen
-    real = kernels.lp_tiles
+    real = kernels.lp_tiles_walk
 
     def no_floor(*args):
         out = real(*args)
-        args[-1][:] = -1.0  # floor −1: every vertex takes the full LP test
+        args[-2][:] = -1.0  # floor −1: every vertex takes the full LP test
         return out
 
-    rtin.lp_tiles = no_floor
+    rtin.lp_tiles_walk = no_floor
     try:
         plain = rtin.view_active(t, index, v, tau)
     finally:
-        rtin.lp_tiles = real
+        rtin.lp_tiles_walk = real
     np.testing.assert_array_equal(a, plain.active == plain.gen)
     np.testing.assert_array_equal(m, plain.mixed == plain.gen)
 
@@ -134,3 +134,27 @@ def test_cull_in_place_equals_cull_compact(seed, nplanes):
     np.testing.assert_array_equal(lev, ref_l)
     np.testing.assert_array_equal(x2[:nv], xyz[keep])
     np.testing.assert_array_equal(ij2[:nv], ij[keep])
+
+
+@settings(max_examples=15, deadline=None)
+@given(az=st.floats(0, 6.28), el=st.floats(0.02, 1.5), dist=st.floats(0.01, 2.0),
+       tau=st.sampled_from([0.5, 1.0, 4.0]), holes=st.booleans())
+def test_the_tile_walk_equals_testing_every_tile(tmp_path_factory, az, el, dist, tau, holes):
+    """Entering only subtrees whose box (grown by their largest radius) meets the frustum
+    gives the status and floor lp_tiles gives every tile."""
+    t = _terrain(tmp_path_factory, holes)
+    v = _view(t, az, el, dist)
+    index = tile_index(t)
+    n = len(index.keys)
+    f1, f2 = np.empty(n), np.empty(n)
+    ref = kernels.lp_tiles(index.lo, index.hi, index.delta_max, index.radius_max, v.eye,
+                           v.planes, v.lam, tau, f1)
+    got = np.zeros(n, np.uint8)
+    table, base, rsub = rtin._tile_tree(t, index)
+    visited = kernels.lp_tiles_walk(table, base, t.grid.top_level, index.lo, index.hi,
+                                    index.delta_max, index.radius_max, rsub, v.eye, v.planes,
+                                    v.lam, tau, f2, got)
+    np.testing.assert_array_equal(got, ref)
+    on = ref > 0
+    np.testing.assert_array_equal(f2[on], f1[on])
+    assert visited <= n

@@ -568,3 +568,51 @@ def cull_in_place(faces, xyz, ij, planes, lvl):
         faces[f, 1] = remap[faces[f, 1]]
         faces[f, 2] = remap[faces[f, 2]]
     return nf, nv, level[:nf]
+
+
+@njit(cache=True)
+def lp_tiles_walk(table, base, top, lo, hi, dmax, rmax, rsub, eye, planes, lam, tau, floor,
+                  out):
+    """:func:`lp_tiles` for the tiles the quadtree reaches from the top: a subtree whose
+    box grown by its largest radius (``rsub``: the tile's and every descendant's) lies
+    outside a frustum plane is not entered. A descendant's box lies in its ancestor's
+    and its radius is at most ``rsub``, so :func:`lp_tiles` gives those tiles status 0
+    too: the result is the same, at a cost that follows the tiles near the frustum.
+    ``table``/``base``: the dense (level, y, x) → row table; ``out``/``floor`` are
+    filled for the visited rows (``out`` must start at 0). Returns tiles visited."""
+    P = planes.shape[0]
+    stack = np.empty((4 * (top + 2), 3), np.int64)
+    stack[0, 0], stack[0, 1], stack[0, 2] = top, 0, 0
+    sp, visited = 1, 0
+    for k in range(floor.shape[0]):
+        floor[k] = -1.0
+    fl = np.empty(1)
+    while sp > 0:
+        sp -= 1
+        L, x, y = stack[sp, 0], stack[sp, 1], stack[sp, 2]
+        row = table[base[L] + y * (np.int64(1) << (top - L)) + x]
+        if row < 0:
+            continue
+        visited += 1
+        r = rsub[row]
+        skip = False
+        for q in range(P):
+            a, b, c, w = planes[q, 0], planes[q, 1], planes[q, 2], planes[q, 3]
+            fx = hi[row, 0] + r if a >= 0 else lo[row, 0] - r
+            fy = hi[row, 1] + r if b >= 0 else lo[row, 1] - r
+            fz = hi[row, 2] + r if c >= 0 else lo[row, 2] - r
+            if a * fx + b * fy + c * fz + w < 0:
+                skip = True
+                break
+        if skip:
+            continue
+        st = lp_tiles(lo[row:row + 1], hi[row:row + 1], dmax[row:row + 1],
+                      rmax[row:row + 1], eye, planes, lam, tau, fl)
+        out[row] = st[0]
+        floor[row] = fl[0]
+        if L > 0:
+            for dy in range(2):
+                for dx in range(2):
+                    stack[sp, 0], stack[sp, 1], stack[sp, 2] = L - 1, 2 * x + dx, 2 * y + dy
+                    sp += 1
+    return visited

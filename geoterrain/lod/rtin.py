@@ -38,7 +38,7 @@ from geoterrain.lod.kernels import (
     fill_static,
     gather_pooled,
     level_boxes,
-    lp_tiles,
+    lp_tiles_walk,
     mark_tiles,
     walk_gather,
     walk_start,
@@ -157,13 +157,42 @@ def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
     return act
 
 
+_TREES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _tile_tree(terrain, index: TileIndex):
+    """The dense (level, y, x) → row table of the stored tiles and, per row, the largest
+    radius of the tile and its descendants (cached per terrain)."""
+    tree = _TREES.get(terrain)
+    if tree is None or tree[0] is not index:
+        top = terrain.grid.top_level
+        base = np.concatenate([[0], np.cumsum(4 ** np.arange(top, -1, -1))]).astype(np.int64)
+        table = np.full(int(base[-1]), -1, np.int64)
+        k = index.keys
+        table[base[k[:, 0]] + k[:, 2] * (np.int64(1) << (top - k[:, 0])) + k[:, 1]] = \
+            np.arange(len(k))
+        rsub = np.asarray(index.radius_max, np.float64).copy()
+        for L in range(1, top + 1):  # children before parents: levels upward
+            rows = np.flatnonzero(k[:, 0] == L)
+            for dy in range(2):
+                for dx in range(2):
+                    cx, cy = 2 * k[rows, 1] + dx, 2 * k[rows, 2] + dy
+                    child = table[base[L - 1] + cy * (np.int64(1) << (top - L + 1)) + cx]
+                    ok = child >= 0
+                    rsub[rows[ok]] = np.maximum(rsub[rows[ok]], rsub[child[ok]])
+        tree = _TREES[terrain] = (index, table, base, rsub)
+    return tree[1], tree[2], tree[3]
+
+
 def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex."""
     lam, eye = view.lam, view.eye
     dm = index.delta_max
     floor = np.empty(len(dm))
-    status = lp_tiles(index.lo, index.hi, dm, index.radius_max, eye, view.planes, lam, tau,
-                      floor)
+    status = np.zeros(len(dm), np.uint8)
+    table, base, rsub = _tile_tree(terrain, index)
+    lp_tiles_walk(table, base, terrain.grid.top_level, index.lo, index.hi, dm,
+                  index.radius_max, rsub, eye, view.planes, lam, tau, floor, status)
     rows = np.flatnonzero(status)
     inside, floor = status[rows] == 2, floor[rows]
     act = ActiveSet(terrain, stamped=True)
