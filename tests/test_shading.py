@@ -125,3 +125,33 @@ def test_render_with_sun_shadows_and_occlusion(tmp_path):
     low = runner.invoke(cli, ["render", str(store), "-o", str(tmp_path / "x.png"),
                               "--sun", "100,-5"])
     assert low.exit_code == 2 and "(0, 90]" in low.output
+
+
+def test_tile_windows_cast_the_shadows_of_the_whole_dem(tmp_path):
+    """The textures shade each level-0 tile from a window of its neighbours: where the
+    shadows are shorter than a tile, the tiles' shadows are the whole DEM's."""
+    import geoterrain
+    from geoterrain.shading import _level_window, shadow_reach
+    from geoterrain.synth import write_geotiff
+    from geoterrain.tiletextures import _spacing
+
+    z = _synthetic("fbm")
+    dem = write_geotiff(tmp_path / "d.tif", z, spacing=30.0)
+    t = geoterrain.open(geoterrain.preprocess(dem, tmp_path / "d.geoterrain", tile_size=32))
+    X, Y, Z = t.scene_xyz()
+    valid = np.isfinite(Z)
+    s = _spacing(t)
+    T = t.grid.tile_samples
+    for az, el in ((300, 50), (120, 40)):
+        reach = shadow_reach(float(np.nanmax(Z)), float(np.nanmin(Z)), s, el)
+        assert reach < T - 1  # shadows shorter than a tile: the window holds them
+        whole = shadow_mask(np.where(valid, Z, 0), valid, s, az, el)
+        agree = []
+        for (_, x, y) in t.tile_keys(0):
+            w, v = _level_window(t, 0, x, y, T - 1)
+            tile = shadow_mask(w, v, s, az, el)[T - 1:2 * T - 1, T - 1:2 * T - 1]
+            r0, c0 = y * (T - 1), x * (T - 1)
+            ref, ok = whole[r0:r0 + T, c0:c0 + T], valid[r0:r0 + T, c0:c0 + T]
+            tile = tile[:ref.shape[0], :ref.shape[1]]
+            agree.append((tile == ref)[ok].mean())
+        assert min(agree) >= 0.99, (az, el, min(agree))
