@@ -159,13 +159,17 @@ def static(terrain, max_error: float = 1.0) -> Selection:
 
 
 def _finish(terrain, mesh, stats: dict, strategy: str, t0: float, dec0: int) -> Selection:
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
     from geoterrain.lod.mesh import add_elevation  # (pyvista: loaded with the first mesh)
 
     add_elevation(mesh, terrain.frame.z_scale)  # every strategy's mesh, skirts included
     ms = (time.perf_counter() - t0) * 1e3
-    skirt = np.asarray(mesh.cell_data["skirt"]) if mesh.n_cells else np.zeros(0)
+    n = mesh.GetNumberOfCells()
+    arr = mesh.GetCellData().GetArray("skirt") if n else None  # VTK calls: no wrapper cost
+    skirt = vtk_to_numpy(arr) if arr is not None else np.zeros(n, np.uint8)
     stats = {"strategy": strategy, "triangles": int((skirt == 0).sum()),
-             "skirt_triangles": int((skirt == 1).sum()), "vertices": int(mesh.n_points),
+             "skirt_triangles": int((skirt == 1).sum()), "vertices": int(mesh.GetNumberOfPoints()),
              "tiles_visited": 0, "tiles_culled": 0, **stats,
              "tiles_decoded": int(terrain.decoded_tiles - dec0),
              "select_ms": round(ms, 3), "reused": False}

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pyvista as pv
-from vtkmodules.util.numpy_support import numpy_to_vtk
+from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkCellArray
 
@@ -84,11 +84,13 @@ def add_elevation(mesh: pv.PolyData, z_scale: float) -> pv.PolyData:
     ('elevation', [2.0, 3.0, 4.0])
     """
     if mesh.n_points:
-        z = np.asarray(mesh.points)[:, 2]
+        z = vtk_to_numpy(mesh.GetPoints().GetData())[:, 2]
         e = np.empty(len(z), np.float32)  # one pass, no float64 temporary
         np.multiply(z, 1.0 / float(z_scale), out=e, casting="unsafe")
-        mesh.point_data["elevation"] = e
-        mesh.set_active_scalars("elevation")
+        pd = mesh.GetPointData()  # VTK calls: a frame pays no wrapper overhead here
+        pd.RemoveArray("elevation")
+        _add(pd, "elevation", e)
+        pd.SetActiveScalars("elevation")
     return mesh
 
 
