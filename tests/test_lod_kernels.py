@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import geoterrain
-from geoterrain.lod import kernels, rtin
+from geoterrain.lod import emit, kernels, rtin
 from geoterrain.lod.pool import tile_pool
 from geoterrain.lod.tiles import tile_index
 from geoterrain.synth import generate, write_geotiff
@@ -125,10 +125,10 @@ def test_cull_in_place_equals_cull_compact(seed, nplanes):
     faces = rng.integers(0, V, (F, 3)).astype(np.int32)
     lvl = rng.integers(0, 5, V)
     planes = rng.normal(size=(nplanes, 4))
-    ref_f, keep, ref_l = kernels.cull_compact(faces.copy(), xyz.copy(), planes, lvl)
+    ref_f, keep, ref_l = emit.cull_compact(faces.copy(), xyz.copy(), planes, lvl)
     ij = rng.random((V, 2))
     f2, x2, ij2 = faces.copy(), xyz.copy(), ij.copy()
-    nf, nv, lev = kernels.cull_in_place(f2, x2, ij2, planes, lvl)
+    nf, nv, lev = emit.cull_in_place(f2, x2, ij2, planes, lvl)
     keep = np.arange(V) if keep is None else keep
     np.testing.assert_array_equal(f2[:nf], ref_f)
     np.testing.assert_array_equal(lev, ref_l)

@@ -29,10 +29,9 @@ import weakref
 
 import numpy as np
 
+from geoterrain.lod.emit import cull_compact, cull_in_place, walk_gather
 from geoterrain.lod.kernels import (
     close_upward_boxes,
-    cull_compact,
-    cull_in_place,
     extract,
     fill_lp,
     fill_static,
@@ -40,7 +39,6 @@ from geoterrain.lod.kernels import (
     level_boxes,
     lp_tiles_walk,
     mark_tiles,
-    walk_gather,
     walk_start,
 )
 from geoterrain.lod.mesh import empty_polydata, polydata
@@ -233,7 +231,7 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None):
     Triangles with an invalid corner are dropped, and with ``view`` those entirely
     outside one frustum plane. Cell data ``skirt`` (all 0) and ``level``.
 
-    One compiled walk (:func:`~geoterrain.lod.kernels.walk_gather`) numbers the
+    One compiled walk (:func:`~geoterrain.lod.emit.walk_gather`) numbers the
     vertices and reads each one's position from its pooled tile as it is first met;
     culling then keeps the arrays as they are when it drops nothing. If a vertex's tile
     is not pooled, it falls back to walking, gathering and culling in three passes

@@ -13,7 +13,7 @@ several GB. Here the same mesh comes out chunk by chunk (:func:`static_chunks`):
    :func:`geoterrain.lod.kernels.walk_leaves` (the walk `extract` uses, seed 002)
    stops after ``chunk`` leaf triangles and resumes where it stopped.
 3. **Numbering.** A triangle with an invalid corner (no height) is dropped, as
-   :func:`geoterrain.lod.kernels.cull_compact` does; the corners of the triangles
+   :func:`geoterrain.lod.emit.cull_compact` does; the corners of the triangles
    kept get global vertex ids in order of first appearance (one int32 map over the
    N² samples). Each chunk hands back its new vertices (positions gathered through
    the pool) and its faces in global ids, so a writer can stream both to disk.
