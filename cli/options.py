@@ -228,20 +228,26 @@ def drape_options(f):
     return f
 
 
-def drape(path, opacity):
-    """The :class:`geoterrain.drape.Drape` of the drape options (None without --drape)."""
+def light_and_drape(shading, sun, hillshade, shadows, ambient_occlusion, drape_path,
+                    drape_opacity):
+    """The :class:`geoterrain.shading.Light` (None: the default light) and the
+    :class:`geoterrain.drape.Drape` (None without --drape) of the light and drape
+    options, checked against --shading."""
     from geoterrain.drape import Drape
-
-    return None if path is None else Drape(str(path), float(opacity))
-
-
-def light(sun, hillshade, shadows, ambient_occlusion):
-    """The :class:`geoterrain.shading.Light` of the light options (None: the default)."""
+    from geoterrain.exceptions import UsageError
     from geoterrain.shading import SUN_AZIMUTH, SUN_ELEVATION, Light
 
     az, el = sun if sun is not None else (SUN_AZIMUTH, SUN_ELEVATION)
-    out = Light(az, el, hillshade == "multi", bool(shadows), bool(ambient_occlusion))
-    return None if out.is_default else out
+    lit = Light(az, el, hillshade == "multi", bool(shadows), bool(ambient_occlusion))
+    lit = None if lit.is_default else lit
+    if lit is not None and shading != "normals":
+        raise UsageError("--sun, --hillshade multi, --shadows and --ambient-occlusion light "
+                         "the hillshade: use them with --shading normals")
+    dr = None if drape_path is None else Drape(str(drape_path), float(drape_opacity))
+    if dr is not None and shading == "plain":
+        raise UsageError("--drape colours the texture: use it with --shading normals or "
+                         "elevation")
+    return lit, dr
 
 
 vertical_exaggeration_option = click.option(

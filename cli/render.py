@@ -11,9 +11,8 @@ from geoterrain.cli.options import (
     StageBar,
     camera_options,
     colour_options,
-    drape,
     drape_options,
-    light,
+    light_and_drape,
     light_options,
     palette,
     pixel_error_option,
@@ -97,14 +96,8 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     if azimuth is None:
         azimuth = 180.0 if elevation == 90 else 190.0
     cmap = palette(cmap, clim, water_level)
-    lit = light(sun, hillshade, shadows, ambient_occlusion)
-    if lit is not None and shading != "normals":
-        raise UsageError("--sun, --hillshade multi, --shadows and --ambient-occlusion light "
-                         "the hillshade: use them with --shading normals")
-    dr = drape(drape_path, drape_opacity)
-    if dr is not None and shading == "plain":
-        raise UsageError("--drape colours the texture: use it with --shading normals or "
-                         "elevation")
+    lit, dr = light_and_drape(shading, sun, hillshade, shadows, ambient_occlusion,
+                              drape_path, drape_opacity)
     if frames_between and cameras is None:
         raise UsageError("--frames-between goes with --path")
     if (look_from is None) != (look_at is None):

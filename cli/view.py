@@ -9,9 +9,8 @@ import click
 from geoterrain.cli.options import (
     StageBar,
     colour_options,
-    drape,
     drape_options,
-    light,
+    light_and_drape,
     light_options,
     palette,
     parse_size,
@@ -66,18 +65,8 @@ def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, 
     from geoterrain.viewer import show
 
     quiet = (ctx.obj or {}).get("quiet", False)
-    lit = light(sun, hillshade, shadows, ambient_occlusion)  # bad values fail before any work
-    if lit is not None and shading != "normals":
-        from geoterrain.exceptions import UsageError
-
-        raise UsageError("--sun, --hillshade multi, --shadows and --ambient-occlusion light "
-                         "the hillshade: use them with --shading normals")
-    dr = drape(drape_path, drape_opacity)
-    if dr is not None and shading == "plain":
-        from geoterrain.exceptions import UsageError
-
-        raise UsageError("--drape colours the texture: use it with --shading normals or "
-                         "elevation")
+    lit, dr = light_and_drape(shading, sun, hillshade, shadows, ambient_occlusion,
+                              drape_path, drape_opacity)  # bad values fail before any work
     src = Path(source)
     if is_store(src):
         store = src

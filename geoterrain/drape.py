@@ -74,29 +74,15 @@ def drape_image(terrain, path: str | Path, level: int,
     Errors (one line each): the DEM or the image is not georeferenced, the image is
     unreadable, or it does not overlap the DEM.
     """
-    import rasterio
     from rasterio.crs import CRS
     from rasterio.enums import Resampling
     from rasterio.warp import reproject
 
     from geoterrain.rasters import level_transform
 
-    f = terrain.frame
-    if f.kind == "pixel" or not f.crs_wkt:
-        raise UsageError("the DEM has no CRS: an image can be draped over georeferenced DEMs "
-                         "only")
+    f = _georeferenced(terrain)
     p = Path(path)
-    try:
-        with rasterio.open(p) as src:
-            if src.crs is None or src.transform.is_identity:
-                raise InputError(f"{p}: the drape image is not georeferenced (no CRS or no "
-                                 "geotransform); georeference it first (gdal_translate -a_srs "
-                                 "-a_ullr)")
-            rgb, mask = _read_rgb(src)
-            src_crs, src_tr = src.crs, src.transform
-    except rasterio.errors.RasterioIOError as exc:
-        raise InputError(f"{p}: cannot read the drape image ({str(exc).splitlines()[0]})"
-                         ) from None
+    rgb, mask, src_crs, src_tr = _source(str(p))
     S = terrain.grid.level_size(level)
     dst_tr, dst_crs = level_transform(f.transform, level), CRS.from_wkt(f.crs_wkt)
     out = np.zeros((3, S, S), np.float32)
@@ -133,6 +119,15 @@ class Drape:
 
 
 _SOURCES: dict = {}
+
+
+def _georeferenced(terrain):
+    """The terrain's frame; a UsageError when the DEM has no CRS to drape in."""
+    f = terrain.frame
+    if f.kind == "pixel" or not f.crs_wkt:
+        raise UsageError("the DEM has no CRS: an image can be draped over georeferenced DEMs "
+                         "only")
+    return f
 
 
 def _source(path: str):
@@ -184,10 +179,7 @@ def drape_tile(terrain, drape: Drape, level: int, x: int, y: int
 
     from geoterrain.rasters import level_transform
 
-    f = terrain.frame
-    if f.kind == "pixel" or not f.crs_wkt:
-        raise UsageError("the DEM has no CRS: an image can be draped over georeferenced DEMs "
-                         "only")
+    f = _georeferenced(terrain)
     rgb, mask, src_crs, src_tr = _source(drape.path)
     T = terrain.grid.tile_samples
     n = T - 1

@@ -37,7 +37,7 @@ from numba import njit
 
 from geoterrain.lod.kernels import close_upward, extract
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
-from geoterrain.lod.tiles import TileIndex
+from geoterrain.lod.tiles import TileIndex, tile_table
 
 _CHUNKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -125,12 +125,7 @@ def chunk_leaves(terrain, index: TileIndex, view, tau: float) -> tuple[np.ndarra
     table = cache.get("table")
     if table is None:
         top = terrain.grid.top_level
-        base = np.concatenate([[0], np.cumsum(4 ** np.arange(top, -1, -1))]).astype(np.int64)
-        table = np.full(int(base[-1]), -1, np.int64)
-        k = index.keys
-        table[base[k[:, 0]] + k[:, 2] * (np.int64(1) << (top - k[:, 0])) + k[:, 1]] = \
-            np.arange(len(k))
-        table = cache["table"] = (table, base, top)
+        table = cache["table"] = (*tile_table(index, top), top)
     rows = np.empty(len(index.keys), np.int64)
     n, visited, culled = _walk_chunks(table[0], table[1], table[2], index.lo, index.hi,
                                       cache["error"], view.eye, view.planes, view.lam,

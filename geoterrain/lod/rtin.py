@@ -43,7 +43,7 @@ from geoterrain.lod.kernels import (
 )
 from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.pool import tile_pool
-from geoterrain.lod.tiles import TileIndex, tile_index
+from geoterrain.lod.tiles import TileIndex, tile_index, tile_table
 from geoterrain.view import View
 
 _HASHED_UP_TO = 1 << 22  # vertex numbers in a hash table below this capacity (48 MB at most)
@@ -164,11 +164,8 @@ def _tile_tree(terrain, index: TileIndex):
     tree = _TREES.get(terrain)
     if tree is None or tree[0] is not index:
         top = terrain.grid.top_level
-        base = np.concatenate([[0], np.cumsum(4 ** np.arange(top, -1, -1))]).astype(np.int64)
-        table = np.full(int(base[-1]), -1, np.int64)
+        table, base = tile_table(index, top)
         k = index.keys
-        table[base[k[:, 0]] + k[:, 2] * (np.int64(1) << (top - k[:, 0])) + k[:, 1]] = \
-            np.arange(len(k))
         rsub = np.asarray(index.radius_max, np.float64).copy()
         for L in range(1, top + 1):  # children before parents: levels upward
             rows = np.flatnonzero(k[:, 0] == L)

@@ -64,6 +64,25 @@ class TileIndex:
         return bool(view.box_visibility(self.lo[top], self.hi[top])[0] == 0)
 
 
+def tile_table(index: TileIndex, top: int) -> tuple[np.ndarray, np.ndarray]:
+    """A dense (level, y, x) → row table of the stored tiles (−1: not stored) and the
+    offset of each level in it: row = table[base[L] + y · 2^(top − L) + x].
+
+    Examples
+    --------
+    >>> ix = tile_index(t)
+    >>> table, base = tile_table(ix, t.grid.top_level)
+    >>> int(table[base[t.grid.top_level]]) == ix.row[(t.grid.top_level, 0, 0)]
+    True
+    """
+    base = np.concatenate([[0], np.cumsum(4 ** np.arange(top, -1, -1))]).astype(np.int64)
+    table = np.full(int(base[-1]), -1, np.int64)
+    k = index.keys
+    table[base[k[:, 0]] + k[:, 2] * (np.int64(1) << (top - k[:, 0])) + k[:, 1]] = \
+        np.arange(len(k))
+    return table, base
+
+
 def tile_index(terrain) -> TileIndex:
     """The :class:`TileIndex` of ``terrain``, built once and cached with the terrain."""
     ix = _INDEX.get(terrain)
