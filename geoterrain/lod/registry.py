@@ -69,6 +69,9 @@ _ENTRIES = (
     StrategyInfo("cdlod", "geoterrain.lod.cdlod",
                  "CDLOD: tile quadtree, one range per level, morphed, no skirts (seed 001)",
                  True),
+    StrategyInfo("tessellation", "geoterrain.lod.tessellation",
+                 "HAM-driven quad-domain tessellation, factors 1-64 (seed 004; unbounded)",
+                 False, conforming=True),
 )
 
 REGISTRY: dict[str, StrategyInfo] = {e.name: e for e in _ENTRIES}

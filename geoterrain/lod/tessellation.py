@@ -1,0 +1,202 @@
+"""Strategy ``tessellation``: seed 004's tessellation driven by a height acceleration
+map (HAM), the GPU quad-domain tessellator emulated on the CPU, on arrays.
+
+- **Patches** are the stored level-0 tiles (2^t sample intervals a side; t = 6 gives the
+  seed's 64-texel patches, one quad per texel at T = 64).
+- **HAM** = |Sobel |Sobel h|| (eq. 5-8): the unnormalised 3×3 Sobel magnitude of the
+  heights, applied twice, edge-replicate padding, unit spacing, heights in metres. On a
+  plane it is 0, on a·x² it is 128·a, and a step of height h peaks at 16·h (tested).
+  HAM_max per patch is computed from the patch's full-resolution heights the first time
+  the patch is in view, then cached.
+- **T_max = g(HAM_max)** (eq. 5-2), g = ``HAM_SCALE``·√HAM_max, clipped to [1, 64]. The
+  seed leaves g open ("a reasonable proportion"); the square root keeps a cliff from
+  saturating every patch.
+- **T_min** (eq. 5-3/5-4, sign-corrected as the seed's notes say): ĥ/ε with ĥ the
+  patch's height range projected at its nearest point (λ·Δh / D_min, pixels) and ε = τ,
+  clipped to [1, T_max].
+- **Distance law** (eq. 5-5…5-7): T = T_max below d_max, T_max·d_max²/d² beyond, and
+  never below T_min (d_min = √(T_max/T_min)·d_max). Here d_max = λ·w/(T_max·τ), w the
+  patch width: closer than that, a T_max quad spans more than τ pixels.
+- **Edge factors** use the larger T_max and T_min of the two patches and the distance
+  to the edge's midpoint, so both patches compute the same value (L104); the centre
+  factor uses the patch's own. The patch takes the largest of its five factors.
+- **Partitioning: powers of two.** A factor is rounded up to 1, 2, 4 … 64, so every
+  vertex falls on a stored sample (heights come from the pyramid) and a patch at factor
+  T is exactly GeoMipMapping's level t − log₂T. Integer or fractional partitioning
+  would place vertices between samples.
+- **Cracks:** where two patches differ, the finer one keeps only the coarser one's edge
+  vertices and re-links its border strip (GeoMipMapping's stitching,
+  :mod:`geoterrain.lod.geomipmap`), so the mesh is conforming.
+
+HAM gives no error bound: ρ is measured (``bounded=False`` in the registry).
+
+Examples
+--------
+>>> from geoterrain.view import View
+>>> mesh, stats = select(t, View((0, -800, 400), (0, 0, 0)), 1.0)
+>>> stats["patches"] > 0 and 1 <= stats["mean_factor"] <= 64
+True
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+from numba import njit
+
+from geoterrain.lod.geomipmap import _NEIGHBOUR, _assemble, _stitch, tables
+from geoterrain.lod.mesh import empty_polydata
+from geoterrain.lod.tiles import quadtree_leaves, tile_index
+from geoterrain.view import View
+
+T_LIMIT = 64  # the tessellator's largest factor (Fig. 5.3)
+HAM_SCALE = 1.0  # g(HAM) = HAM_SCALE · √HAM (eq. 5-2)
+
+_HAM: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+@njit(cache=True)
+def _sobel_magnitude(h):
+    R, C = h.shape
+    out = np.empty((R, C))
+    for i in range(R):
+        for j in range(C):
+            # edge-replicate padding: clamp the neighbours' indices
+            im, ip = max(i - 1, 0), min(i + 1, R - 1)
+            jm, jp = max(j - 1, 0), min(j + 1, C - 1)
+            dx = (h[ip, jm] + 2.0 * h[ip, j] + h[ip, jp]) - (h[im, jm] + 2.0 * h[im, j]
+                                                              + h[im, jp])
+            dy = (h[im, jp] + 2.0 * h[i, jp] + h[ip, jp]) - (h[im, jm] + 2.0 * h[i, jm]
+                                                              + h[ip, jm])
+            out[i, j] = np.sqrt(dx * dx + dy * dy)  # eq. 5-8
+    return out
+
+
+def sobel_magnitude(h: np.ndarray) -> np.ndarray:
+    """√(D_x² + D_y²) of the unnormalised 3×3 Sobel kernels (eq. 5-8), edge-replicate
+    padding, unit spacing.
+
+    Examples
+    --------
+    >>> i, j = np.indices((5, 5)).astype(float)
+    >>> round(float(sobel_magnitude(0.3 * j + 0.7 * i)[2, 2]), 4)  # 8·|∇h|
+    6.0926
+    """
+    return _sobel_magnitude(np.asarray(h, np.float64))
+
+
+def ham(h: np.ndarray) -> np.ndarray:
+    """The height acceleration map |Sobel |Sobel h|| (seed 004 §5.6.1).
+
+    Examples
+    --------
+    >>> x = np.tile(np.arange(9.0), (9, 1))
+    >>> round(float(ham(0.01 * x * x)[4, 4]), 6)  # 128·a
+    1.28
+    """
+    return sobel_magnitude(sobel_magnitude(h))
+
+
+def tess_factor(d: np.ndarray, t_max: np.ndarray, t_min: np.ndarray,
+                d_max: np.ndarray) -> np.ndarray:
+    """The camera-distance law (eq. 5-5…5-7): T_max below ``d_max``, T_max·d_max²/d²
+    beyond, never below T_min (reached at d_min = √(T_max/T_min)·d_max).
+
+    Examples
+    --------
+    >>> tess_factor(np.array([50.0, 200.0, 400.0, 900.0]), 64.0, 4.0, 100.0).tolist()
+    [64.0, 16.0, 4.0, 4.0]
+    """
+    d = np.maximum(np.asarray(d, np.float64), 1e-300)
+    t = np.asarray(t_max, np.float64) * (np.asarray(d_max, np.float64) / d) ** 2
+    return np.clip(t, t_min, t_max)
+
+
+def _power_of_two(t: np.ndarray) -> np.ndarray:
+    return np.exp2(np.ceil(np.log2(np.clip(t, 1.0, T_LIMIT) - 1e-9))).clip(1, T_LIMIT)
+
+
+def ham_max(terrain, index, rows: np.ndarray) -> np.ndarray:
+    """HAM_max of the level-0 patches ``rows`` (cached per terrain; a patch is decoded
+    the first time it is asked for)."""
+    cache = _HAM.get(terrain)
+    if cache is None or cache[0] is not index:
+        cache = _HAM[terrain] = (index, np.full(len(index.keys), np.nan))
+    out = cache[1]
+    z_to_m = terrain.frame.z_to_m
+    for r in rows[np.isnan(out[rows])].tolist():
+        L, x, y = (int(v) for v in index.keys[r])
+        h = terrain.tile(L, x, y).heights * z_to_m
+        ok = np.isfinite(h)
+        if not ok.any():
+            out[r] = 0.0
+            continue
+        if not ok.all():  # nodata: stand in the patch's mean so no false cliff appears
+            h = np.where(ok, h, float(h[ok].mean()))
+        out[r] = float(ham(h).max())
+    return out[rows]
+
+
+def factors(terrain, index, leaves: np.ndarray, view: View, tau: float) -> np.ndarray:
+    """The tessellation factor (a power of two in [1, 64]) of each visible patch."""
+    g = terrain.grid
+    lo, hi = index.lo[leaves], index.hi[leaves]
+    lam = view.lam
+    eye = np.asarray(view.eye, np.float64)
+    # eq. 5-2: the upper bound from the height acceleration
+    tmax = np.clip(HAM_SCALE * np.sqrt(ham_max(terrain, index, leaves)), 1.0, T_LIMIT)
+    # eq. 5-3/5-4 (sign-corrected): the projected height range against ε = τ
+    dbox = np.linalg.norm(np.maximum(np.maximum(lo - eye, 0.0), eye - hi), axis=1)
+    dh = hi[:, 2] - lo[:, 2]
+    tmin = np.clip(lam * dh / (np.maximum(dbox, 1e-9) * tau), 1.0, tmax)
+    width = np.maximum(hi[:, 0] - lo[:, 0], hi[:, 1] - lo[:, 1])
+    # neighbours across the four edges (−1: none drawn), on the level-0 patch grid
+    nt = g.tiles_per_side(0)
+    G = np.full((nt + 2, nt + 2), -1, np.int64)
+    xy = index.keys[leaves, 1:]
+    G[xy[:, 1] + 1, xy[:, 0] + 1] = np.arange(len(leaves))
+    mid = 0.5 * (lo + hi)
+    out = tess_factor(np.linalg.norm(mid - eye, axis=1), tmax, tmin,
+                      lam * width / (tmax * tau))  # T_5: the centre (L66)
+    S = 1 << g.t
+    for dx, dy in _NEIGHBOUR:
+        nb = G[xy[:, 1] + 1 + dy, xy[:, 0] + 1 + dx]
+        has = nb >= 0
+        q = np.where(has, nb, np.arange(len(leaves)))
+        TM = np.maximum(tmax, tmax[q])  # L104: the larger of the two patches' values
+        Tm = np.maximum(tmin, tmin[q])
+        wd = np.maximum(width, width[q])
+        # the edge's middle sample and a height both patches agree on: one distance
+        i = xy[:, 1] * S + (S // 2 if dx else (S if dy > 0 else 0))
+        j = xy[:, 0] * S + (S // 2 if dy else (S if dx > 0 else 0))
+        ex, ey = terrain.frame.xy(i, j)
+        ez = 0.5 * (np.minimum(lo[:, 2], lo[q, 2]) + np.maximum(hi[:, 2], hi[q, 2]))
+        d = np.linalg.norm(np.stack([ex, ey, ez], 1) - eye, axis=1)
+        out = np.maximum(out, tess_factor(d, TM, Tm, lam * wd / (TM * tau)))
+    return _power_of_two(out)
+
+
+def select(terrain, view: View, tau: float):
+    """The HAM-driven tessellation of ``view`` at pixel tolerance ``tau``, and its stats.
+
+    Unbounded (seed 004 gives no error bound): ``geoterrain bench`` measures ρ.
+    """
+    index = tile_index(terrain)
+    if index.outside(view):
+        return empty_polydata(), {}
+    leaves, stats = quadtree_leaves(terrain, index, view,
+                                    lambda nodes, L: np.ones(len(nodes), bool))
+    if not len(leaves):
+        return empty_polydata(), stats
+    g = terrain.grid
+    T = factors(terrain, index, leaves, view, tau)
+    n = (g.t - np.log2(T).astype(np.int64)).clip(0, tables(terrain, index).nmax)
+    xy = index.keys[leaves, 1:]
+    delta = np.zeros((len(leaves), g.t + 1))
+    ratios, stitched = _stitch(terrain, index, view, tau, xy, n, delta,
+                               np.ones(len(leaves)), g.t, bounded=False)
+    mesh = _assemble(terrain, index, xy, n, ratios)
+    stats.update(patches=len(leaves), stitched_edges=stitched,
+                 mean_factor=float((1 << (g.t - n)).mean()))
+    return mesh, stats
