@@ -24,6 +24,8 @@ map (HAM), the GPU quad-domain tessellator emulated on the CPU, on arrays.
   vertex falls on a stored sample (heights come from the pyramid) and a patch at factor
   T is exactly GeoMipMapping's level t − log₂T. Integer or fractional partitioning
   would place vertices between samples.
+- **Nodata:** a patch never goes coarser than its coarsest level whose stored error is
+  finite (no cell mixing data and nodata), so valid samples in view are always drawn.
 - **Cracks:** where two patches differ, the finer one keeps only the coarser one's edge
   vertices and re-links its border strip (GeoMipMapping's stitching,
   :mod:`geoterrain.lod.geomipmap`), so the mesh is conforming.
@@ -191,7 +193,12 @@ def select(terrain, view: View, tau: float):
         return empty_polydata(), stats
     g = terrain.grid
     T = factors(terrain, index, leaves, view, tau)
-    n = (g.t - np.log2(T).astype(np.int64)).clip(0, tables(terrain, index).nmax)
+    tb = tables(terrain, index)
+    n = (g.t - np.log2(T).astype(np.int64)).clip(0, tb.nmax)
+    # near nodata a coarse patch would drop triangles over valid samples (a triangle needs
+    # three valid corners): keep the levels whose stored error is finite (no mixed cell)
+    finite = np.isfinite(tb.delta[tb.pos[leaves]]).sum(1) - 1
+    n = np.minimum(n, finite)
     xy = index.keys[leaves, 1:]
     delta = np.zeros((len(leaves), g.t + 1))
     ratios, stitched = _stitch(terrain, index, view, tau, xy, n, delta,
