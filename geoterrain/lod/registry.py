@@ -10,8 +10,9 @@ one :class:`StrategyInfo` line to ``_ENTRIES`` below.
 
 Examples
 --------
->>> STRATEGIES
-('rtin', 'chunked', 'bruteforce', 'geomipmap', 'geomipmap_distance', 'quadtree', 'cdlod')
+>>> STRATEGIES  # doctest: +NORMALIZE_WHITESPACE
+('rtin', 'chunked', 'bruteforce', 'geomipmap', 'geomipmap_distance', 'quadtree', 'cdlod',
+ 'tessellation')
 >>> strategy_info("chunked").bounded
 True
 """
