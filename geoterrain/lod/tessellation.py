@@ -111,7 +111,8 @@ def tess_factor(d: np.ndarray, t_max: np.ndarray, t_min: np.ndarray,
     [64.0, 16.0, 4.0, 4.0]
     """
     d = np.maximum(np.asarray(d, np.float64), 1e-300)
-    t = np.asarray(t_max, np.float64) * (np.asarray(d_max, np.float64) / d) ** 2
+    with np.errstate(over="ignore"):  # the eye on a reference point: T_max, by the clip
+        t = np.asarray(t_max, np.float64) * (np.asarray(d_max, np.float64) / d) ** 2
     return np.clip(t, t_min, t_max)
 
 
