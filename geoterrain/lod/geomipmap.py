@@ -219,6 +219,24 @@ def choose_levels(view: View, tau: float, delta: np.ndarray, lo: np.ndarray, hi:
     return np.cumprod(ok, axis=1).sum(1) - 1, dmin
 
 
+def visible_blocks(terrain, view: View) -> tuple:
+    """The tile index, the level-0 tiles (blocks) whose boxes meet the frustum, found
+    top-down through the tile quadtree, and the walk's stats.
+
+    Examples
+    --------
+    >>> index, blocks, stats = visible_blocks(t, View((0, -800, 400), (0, 0, 0)))
+    >>> bool((index.keys[blocks, 0] == 0).all()) and len(blocks) > 0
+    True
+    """
+    index = tile_index(terrain)
+    if index.outside(view):
+        return index, np.zeros(0, np.int64), {}
+    leaves, stats = quadtree_leaves(terrain, index, view,
+                                    lambda nodes, L: np.ones(len(nodes), bool))
+    return index, leaves, stats
+
+
 def select(terrain, view: View, tau: float, rule: str = "error"):
     """The GeoMipMapping mesh of ``view`` at pixel tolerance ``tau``, and its stats.
 
@@ -228,11 +246,7 @@ def select(terrain, view: View, tau: float, rule: str = "error"):
     >>> stats["blocks"] > 0 and mesh.n_cells > 0
     True
     """
-    index = tile_index(terrain)
-    if index.outside(view):
-        return empty_polydata(), {}
-    leaves, stats = quadtree_leaves(terrain, index, view,
-                                    lambda nodes, L: np.ones(len(nodes), bool))
+    index, leaves, stats = visible_blocks(terrain, view)
     if not len(leaves):
         return empty_polydata(), stats
     tb = tables(terrain, index)

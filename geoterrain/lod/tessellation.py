@@ -47,9 +47,8 @@ import weakref
 import numpy as np
 from numba import njit
 
-from geoterrain.lod.geomipmap import _NEIGHBOUR, _assemble, _stitch, tables
+from geoterrain.lod.geomipmap import _NEIGHBOUR, _assemble, _stitch, tables, visible_blocks
 from geoterrain.lod.mesh import empty_polydata
-from geoterrain.lod.tiles import quadtree_leaves, tile_index
 from geoterrain.view import View
 
 T_LIMIT = 64  # the tessellator's largest factor (Fig. 5.3)
@@ -185,11 +184,7 @@ def select(terrain, view: View, tau: float):
 
     Unbounded (seed 004 gives no error bound): ``geoterrain bench`` measures ρ.
     """
-    index = tile_index(terrain)
-    if index.outside(view):
-        return empty_polydata(), {}
-    leaves, stats = quadtree_leaves(terrain, index, view,
-                                    lambda nodes, L: np.ones(len(nodes), bool))
+    index, leaves, stats = visible_blocks(terrain, view)
     if not len(leaves):
         return empty_polydata(), stats
     g = terrain.grid
