@@ -6,7 +6,12 @@ import sys
 
 import click
 
-from geoterrain.cli.options import parse_size, pixel_errors_option, strategies_option
+from geoterrain.cli.options import (
+    occlusion_option,
+    parse_size,
+    pixel_errors_option,
+    strategies_option,
+)
 
 
 def _floats(ctx, param, value):
@@ -27,6 +32,7 @@ def _floats(ctx, param, value):
               help="Benchmark a synthetic N×N fbm DEM instead of SOURCE.")
 @click.option("--seed", default=1, show_default=True, help="Seed of the synthetic DEM.")
 @strategies_option
+@occlusion_option
 @pixel_errors_option
 @click.option("--views", "n_views", default=8, show_default=True, type=click.IntRange(1, 1000),
               help="Length of the built-in flight.")

@@ -9,6 +9,7 @@ import click
 from geoterrain.cli.options import (
     camera_options,
     mesh_request,
+    occlusion_option,
     pixel_error_option,
     select_mesh,
     strategy_option,
@@ -24,6 +25,7 @@ from geoterrain.cli.options import (
 @camera_options
 @pixel_error_option
 @strategy_option
+@occlusion_option
 @click.option("--shading", type=click.Choice(["normals", "elevation"]), default="normals",
               show_default=True, help="glTF/OBJ texture: colours × hillshade, or colours only.")
 @click.option("--cmap", default="auto", show_default=True,

@@ -9,6 +9,7 @@ import click
 from geoterrain.cli.options import (
     camera_options,
     mesh_request,
+    occlusion_option,
     pixel_error_option,
     select_mesh,
     strategy_option,
@@ -25,6 +26,7 @@ from geoterrain.cli.options import (
 @camera_options
 @pixel_error_option
 @strategy_option
+@occlusion_option
 @vertical_exaggeration_option
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context

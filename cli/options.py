@@ -92,6 +92,20 @@ def _positive(ctx, param, value):
     return value
 
 
+def _set_occlusion(ctx, param, value):
+    from geoterrain.lod.switches import set_occlusion
+
+    set_occlusion(value)
+    return value
+
+
+occlusion_option = click.option(
+    "--occlusion/--no-occlusion", default=True, show_default=True, expose_value=False,
+    callback=_set_occlusion,
+    help="Skip tiles hidden behind nearer terrain before reading them (horizon culling; "
+         "conservative: nothing visible is lost). --no-occlusion draws them too.")
+
+
 pixel_error_option = click.option(
     "--pixel-error", type=float, default=1.0, show_default=True, callback=_positive,
     metavar="TAU", help="Screen-space error bound τ in pixels.")

@@ -14,6 +14,7 @@ from geoterrain.cli.options import (
     drape_options,
     light_and_drape,
     light_options,
+    occlusion_option,
     palette,
     pixel_error_option,
     strategy_option,
@@ -36,6 +37,7 @@ from geoterrain.cli.options import (
 @click.option("--distance", type=float, help="Eye–target distance in metres (default: fit).")
 @pixel_error_option
 @strategy_option
+@occlusion_option
 @vertical_exaggeration_option
 @click.option("--shading", type=click.Choice(["normals", "elevation", "plain"]),
               default="normals", show_default=True,

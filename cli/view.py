@@ -12,6 +12,7 @@ from geoterrain.cli.options import (
     drape_options,
     light_and_drape,
     light_options,
+    occlusion_option,
     palette,
     parse_size,
     pixel_error_option,
@@ -23,6 +24,7 @@ from geoterrain.cli.options import (
 @click.command("view")
 @click.argument("source", type=click.Path(exists=True, dir_okay=False))
 @strategy_option
+@occlusion_option
 @pixel_error_option
 @vertical_exaggeration_option
 @click.option("--shading", type=click.Choice(["normals", "elevation", "plain"]),

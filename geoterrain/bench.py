@@ -168,6 +168,43 @@ def glide(lo: Sequence[float], hi: Sequence[float], n_frames: int = 60, step: fl
     return views
 
 
+def ground_views(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, n: int, seed: int = 0,
+                 size: tuple[int, int] = (320, 180), fov_y_deg: float = 45.0
+                 ) -> list[tuple[View, tuple[int, int]]]:
+    """``n`` low views from just above random valid samples (rows/columns 1 … −2),
+    looking across the terrain 8° down to 3° up: where nearer terrain hides farther.
+
+    The eye stands (0.5, 3 or 20) × (std(Z)/50 + 0.1) above its sample (the sample's
+    (row, column) comes with each view), and looks half the data's extent away.
+
+    Examples
+    --------
+    >>> I, J = np.indices((9, 9)).astype(float)
+    >>> v, (i, j) = ground_views(J, -I, np.zeros((9, 9)), 1)[0]
+    >>> bool(1 <= i <= 7 and v.eye[2] > 0)
+    True
+    """
+    ok = np.isfinite(Z)
+    H, W = Z.shape
+    if H < 3 or W < 3 or not ok[1:-1, 1:-1].any():
+        raise UsageError("ground views need valid samples off the border")
+    rng = np.random.default_rng(seed)
+    ext = float(max(np.ptp(X[ok]), np.ptp(Y[ok])))
+    std = float(np.nanstd(np.where(ok, Z, np.nan)))
+    out = []
+    while len(out) < n:
+        i, j = int(rng.integers(1, H - 1)), int(rng.integers(1, W - 1))
+        if not ok[i, j]:
+            continue
+        h = float(rng.choice([0.5, 3.0, 20.0])) * (std / 50 + 0.1)
+        az, pitch = rng.uniform(0, 2 * np.pi), np.radians(rng.uniform(-8, 3))
+        eye = np.array([X[i, j], Y[i, j], Z[i, j] + h])
+        at = eye + 0.5 * ext * np.array([np.cos(az) * np.cos(pitch),
+                                         np.sin(az) * np.cos(pitch), np.sin(pitch)])
+        out.append((View(tuple(eye), tuple(at), size=size, fov_y_deg=fov_y_deg), (i, j)))
+    return out
+
+
 def load_path(path: str | Path, size: tuple[int, int] = SIZE,
               fov_y_deg: float = FOV, frame=None) -> list[tuple[str, View]]:
     """Views from a cameras JSON file (:func:`geoterrain.view.load_views`), labelled "path".

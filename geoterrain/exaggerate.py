@@ -142,10 +142,10 @@ class Exaggerated:
         return X, Y, Z * self.n
 
     def select(self, view, pixel_error: float = 1.0, strategy: str = "rtin", *,
-               reuse: bool = True):
+               reuse: bool = True, occlusion: bool | None = None):
         from geoterrain import lod
 
-        return lod.select(self, view, pixel_error, strategy, reuse=reuse)
+        return lod.select(self, view, pixel_error, strategy, reuse=reuse, occlusion=occlusion)
 
     def static_selection(self, max_error: float = 1.0):
         from geoterrain import lod

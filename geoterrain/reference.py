@@ -19,7 +19,8 @@ from geoterrain.bintree import base_triangles, triangle_children
 from geoterrain.bounds import check_grid, grid_order
 from geoterrain.tilebounds import closed_blocks
 
-__all__ = ["normal_map_reference", "saturate", "static_mesh", "vertex_errors_reference"]
+__all__ = ["normal_map_reference", "saturate", "static_mesh", "vertex_errors_reference",
+           "visible_samples"]
 
 
 # ------------------------------------------------------------------------------ δ
@@ -363,3 +364,79 @@ def shadow_reference(z: np.ndarray, valid: np.ndarray, spacing: float, azimuth: 
     mask = np.zeros((R, C), bool)
     mask[ii, jj] = out
     return mask
+
+
+# ------------------------------------------------------------------------ visibility
+def _uj_height(z: np.ndarray, valid: np.ndarray, pi: np.ndarray, pj: np.ndarray) -> np.ndarray:
+    """The full-resolution surface (union-jack triangles, as drawn) at fractional
+    indices; NaN over a cell with an invalid corner or outside the grid."""
+    R, C = z.shape
+    a = np.clip(np.floor(pi).astype(np.int64), 0, R - 2)
+    b = np.clip(np.floor(pj).astype(np.int64), 0, C - 2)
+    wi, wj = pi - a, pj - b
+    z00, z01, z10, z11 = z[a, b], z[a, b + 1], z[a + 1, b], z[a + 1, b + 1]
+    ok = (valid[a, b] & valid[a, b + 1] & valid[a + 1, b] & valid[a + 1, b + 1]
+          & (pi >= 0) & (pi <= R - 1) & (pj >= 0) & (pj <= C - 1))
+    # the diagonal joins the cell corner whose row and column are both odd to its opposite
+    main = ((a % 2 == 1) == (b % 2 == 1))
+    up = wj >= wi  # diagonal 00–11: triangles (00, 01, 11) and (00, 10, 11)
+    h_main = np.where(up, z00 + wj * (z01 - z00) + wi * (z11 - z01),
+                      z00 + wi * (z10 - z00) + wj * (z11 - z10))
+    lower = wi + wj <= 1  # diagonal 01–10: triangles (00, 01, 10) and (11, 01, 10)
+    h_anti = np.where(lower, z00 + wj * (z01 - z00) + wi * (z10 - z00),
+                      z11 + (1 - wj) * (z10 - z11) + (1 - wi) * (z01 - z11))
+    return np.where(ok, np.where(main, h_main, h_anti), np.nan)
+
+
+def visible_samples(z: np.ndarray, valid: np.ndarray, eye_ij: tuple[float, float],
+                    eye_z: float, candidates: np.ndarray, step: float = 0.5) -> np.ndarray:
+    """Which ``candidates`` (a boolean mask of samples) the eye sees, by a plain ray
+    march per sample over the drawn full-resolution surface (the oracle of horizon
+    culling, :mod:`geoterrain.lod.occlusion`; it shares no code with it).
+
+    ``z`` are scene heights on the grid and ``eye_ij`` the eye's fractional (row,
+    column) indices; the ray runs straight in index space (exact on affine frames).
+    From each sample, walk toward the eye in steps of ``step`` cells. The sample is
+    hidden if the ray crosses the surface on the way: the ray's side of the surface
+    (above or below) changes between two steps with surface under both and no hole
+    between, as a depth render sees it (a ray may pass under a sheet of terrain through
+    a gap in the data, and a sample on a cliff's edge may be seen from below). The walk
+    ends at the eye, or when the ray is above every sample.
+
+    Examples
+    --------
+    >>> z = np.zeros((5, 9)); z[:, 4] = 10.0  # a wall across the middle
+    >>> vis = visible_samples(z, np.ones_like(z, bool), (2.0, 0.0), 1.0, np.ones_like(z, bool))
+    >>> bool(vis[2, 2]), bool(vis[2, 7])
+    (True, False)
+    """
+    z = np.asarray(z, np.float64)
+    ii, jj = np.nonzero(candidates & valid)
+    zz = np.where(valid, z, np.nan)
+    zmax = float(np.nanmax(zz)) if valid.any() else 0.0
+    di, dj = eye_ij[0] - ii, eye_ij[1] - jj
+    n = np.maximum(np.ceil(np.maximum(np.abs(di), np.abs(dj)) / step), 1).astype(np.int64)
+    h0 = z[ii, jj]
+    dz = eye_z - h0
+    hidden = np.zeros(len(ii), bool)
+    alive = np.ones(len(ii), bool)
+    side = np.zeros(len(ii), np.int8)  # +1 above, −1 below the surface, 0 unknown (a hole)
+    k = 0
+    while alive.any():
+        k += 1
+        alive &= k <= n  # the eye itself is reached at k = n (a last crossing just there)
+        s = k / n
+        ray = h0 + s * dz
+        alive &= (ray <= zmax) | (side < 0)  # above every sample: nothing left to cross
+        if not alive.any():
+            break
+        idx = np.flatnonzero(alive)
+        t = _uj_height(zz, valid, ii[idx] + s[idx] * di[idx], jj[idx] + s[idx] * dj[idx])
+        now = np.where(np.isnan(t), 0, np.sign(ray[idx] - t)).astype(np.int8)
+        cross = (now != 0) & (side[idx] != 0) & (now != side[idx])
+        hidden[idx[cross]] = True
+        alive[idx[cross]] = False
+        side[idx] = np.where(now == 0, np.where(np.isnan(t), 0, side[idx]), now)
+    out = np.zeros(z.shape, bool)
+    out[ii[~hidden], jj[~hidden]] = True
+    return out

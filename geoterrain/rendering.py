@@ -225,6 +225,8 @@ class TerrainScene:
         resident memory so far), besides the selection's own stats.
         """
         t = self.terrain
+        if view.near is None or view.far is None:  # the picture's own clipping planes
+            view = view.clipped_to(*t.scene_box())
         c0 = io_counters(t)
         t0 = time.perf_counter()
         sel = lod.select(t, view, pixel_error=pixel_error, strategy=strategy)

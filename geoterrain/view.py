@@ -11,6 +11,7 @@ import numpy as np
 from geoterrain.exceptions import InputError
 
 OUTSIDE, INTERSECTS, INSIDE = 0, 1, 2
+NEAR_FLOOR = 1e-3  # near ≥ this × far, as VTK's own clipping range keeps it (24-bit depth)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -154,6 +155,29 @@ class View:
         e = self.eye
         d = np.maximum(np.maximum(np.asarray(lo) - e, 0.0), e - np.asarray(hi))
         return np.linalg.norm(d, axis=-1)
+
+    def clipped_to(self, lo: np.ndarray, hi: np.ndarray, floor: float = NEAR_FLOOR) -> View:
+        """This view with near and far planes around the scene box (``lo``, ``hi``), as a
+        renderer sets them: far just beyond the box's deepest corner, near at its
+        shallowest but not under ``floor`` × far (depth-buffer precision). The LOD
+        selection and the picture then share one frustum, near plane included.
+
+        Examples
+        --------
+        >>> v = View((0, -1000, 500), (0, 0, 0)).clipped_to([-100, -100, 0], [100, 100, 50])
+        >>> 0 < v.near < v.far
+        True
+        """
+        _, _, f = self.basis()
+        lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                            for z in (lo[2], hi[2])])
+        depth = (corners - self.eye) @ f
+        span = max(float(np.ptp(corners, axis=0).max()), 1e-9)
+        far = max(float(depth.max()), 0.0) * 1.01 + 0.01 * span  # skirts hang a little lower
+        near = max(float(depth.min()) * 0.99, floor * far)
+        return View(self.look_from, self.look_at, self.up, self.fov_y_deg, self.size,
+                    near, far)
 
 
 def load_views(path: str | Path, size: tuple[int, int] = (1280, 720), fov_y_deg: float = 30.0,

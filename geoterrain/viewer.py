@@ -33,6 +33,7 @@ from geoterrain.cameras import default_view
 from geoterrain.colours import Palette
 from geoterrain.drape import Drape
 from geoterrain.lod.registry import DEFAULT, STRATEGIES, strategy_info
+from geoterrain.lod.switches import occlusion_enabled
 from geoterrain.rendering import TerrainScene
 from geoterrain.shading import Light
 from geoterrain.view import View
@@ -109,6 +110,8 @@ class ViewerController:
         self.message = ""
         self.screenshots = 0
         self._legend(cmap)
+        self.occlusion = occlusion_enabled()  # the worker thread takes the setting along
+        plotter.renderer.AddObserver("StartEvent", self._clip)
         self.home = default_view(terrain, tuple(plotter.window_size))
         self._go_home()
         self.on_camera_changed(force=True)  # the first selection, synchronously
@@ -128,9 +131,17 @@ class ViewerController:
                 tuple(self.plotter.window_size), self.strategy, self.pixel_error)
 
     def _view(self) -> View:
+        """The camera's view, clipped to the terrain's box as :meth:`_clip` draws it."""
         cam = self.plotter.camera
         return View(tuple(cam.position), tuple(cam.focal_point), tuple(cam.up),
-                    float(cam.view_angle), tuple(self.plotter.window_size))
+                    float(cam.view_angle), tuple(self.plotter.window_size)
+                    ).clipped_to(*self.terrain.scene_box())
+
+    def _clip(self, *_args) -> None:
+        """Before each draw: the clipping range the selection assumed (VTK would fit it
+        to the mesh drawn, and a nearer near plane could show what culling left out)."""
+        v = self._view()
+        self.plotter.camera.clipping_range = (v.near, v.far)
 
     def on_camera_changed(self, *_args, force: bool = False) -> bool:
         """Re-select the LOD for the current camera (unless frozen, unchanged or throttled).
@@ -164,7 +175,8 @@ class ViewerController:
 
     def _work(self, key: tuple, view: View, strategy: str, tau: float):
         """Worker thread: the selection and its textures (no VTK call)."""
-        sel = lod.select(self.terrain, view, pixel_error=tau, strategy=strategy)
+        sel = lod.select(self.terrain, view, pixel_error=tau, strategy=strategy,
+                         occlusion=self.occlusion)
         return key, sel, self.scene.view_texture(sel, view)
 
     def _apply(self, key: tuple, sel, vtex=None) -> None:

@@ -40,13 +40,14 @@ import numpy as np
 
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.registry import DEFAULT, REGISTRY, STRATEGIES, StrategyInfo, strategy_info
+from geoterrain.lod.switches import occlusion_culling, occlusion_enabled
 from geoterrain.view import View
 
 if TYPE_CHECKING:
     import pyvista as pv
 
-__all__ = ["DEFAULT", "REGISTRY", "STRATEGIES", "Selection", "StrategyInfo", "select", "static",
-           "strategy_info"]
+__all__ = ["DEFAULT", "REGISTRY", "STRATEGIES", "Selection", "StrategyInfo",
+           "occlusion_culling", "occlusion_enabled", "select", "static", "strategy_info"]
 
 _LAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -91,11 +92,11 @@ class Selection:
 
 def _view_key(view: View, tau: float, strategy: str) -> tuple:
     return (view.look_from, view.look_at, view.up, view.fov_y_deg, view.size, view.near,
-            view.far, tau, strategy)
+            view.far, tau, strategy, occlusion_enabled())
 
 
 def select(terrain, view: View, pixel_error: float = 1.0, strategy: str = DEFAULT, *,
-           reuse: bool = True) -> Selection:
+           reuse: bool = True, occlusion: bool | None = None) -> Selection:
     """The mesh of ``terrain`` for ``view`` with projected error ≤ ``pixel_error`` pixels.
 
     Parameters
@@ -107,11 +108,17 @@ def select(terrain, view: View, pixel_error: float = 1.0, strategy: str = DEFAUL
     reuse : hand back the previous selection of this terrain when the camera, τ and
         strategy are unchanged (its stats say ``reused: True``, ``select_ms: 0``);
         False always selects anew (benchmarks time real selections).
+    occlusion : cull tiles hidden behind nearer terrain
+        (:mod:`geoterrain.lod.occlusion`); None keeps the current setting (on unless
+        switched off with :func:`occlusion_culling`).
 
     Examples
     --------
     >>> sel = select(t, View((0, -800, 400), (0, 0, 0)), 2.0, "chunked")  # doctest: +SKIP
     """
+    if occlusion is not None:
+        with occlusion_culling(bool(occlusion)):
+            return select(terrain, view, pixel_error, strategy, reuse=reuse)
     info = strategy_info(strategy)
     if not isinstance(view, View):
         raise UsageError(f"view must be a geoterrain.View, got {type(view).__name__}")

@@ -58,6 +58,7 @@ import numpy as np
 from geoterrain.bintree import vertex_level
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.mesh import empty_polydata, polydata
+from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import TileIndex, tile_geometry, tile_index
 from geoterrain.view import INSIDE, OUTSIDE, View
 
@@ -167,11 +168,12 @@ def _select_regions(terrain, index: TileIndex, tb: LevelTables, view: View, r: n
     nodes = index.rows_of(np.array([[g.top_level, 0, 0]]))
     nodes = nodes[nodes >= 0]
     inside = np.zeros(len(nodes), bool)
+    hidden = hidden_rows(terrain, view)
     rows, masks, visited, culled = [], [], 0, 0
     while len(nodes):
         visited += len(nodes)
         vis = np.where(inside, INSIDE, view.box_visibility(index.lo[nodes], index.hi[nodes]))
-        keep = vis != OUTSIDE
+        keep = (vis != OUTSIDE) & ~hidden[nodes]
         culled += int((~keep).sum())
         nodes, vis = nodes[keep], vis[keep]
         if not len(nodes):
@@ -200,7 +202,7 @@ def _select_regions(terrain, index: TileIndex, tb: LevelTables, view: View, r: n
         krow, q = krow[ok], q[ok]
         kin = par_in[owner]
         kvis = np.where(kin, INSIDE, view.box_visibility(index.lo[krow], index.hi[krow]))
-        seen = kvis != OUTSIDE
+        seen = (kvis != OUTSIDE) & ~hidden[krow]
         culled += int((~seen).sum())
         kdist = view.box_distance(index.lo[krow], index.hi[krow])
         partial = seen & par_draw[owner] & (kdist >= near)

@@ -37,6 +37,7 @@ from numba import njit
 
 from geoterrain.lod.kernels import close_upward, extract
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
+from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import TileIndex, tile_table
 
 _CHUNKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -109,7 +110,8 @@ def chunk(terrain, index: TileIndex, row: int) -> Chunk:
 def chunk_leaves(terrain, index: TileIndex, view, tau: float) -> tuple[np.ndarray, dict]:
     """The chunks to draw: the tile quadtree walked top-down, a node refined while
     λ·ε_chunk > τ·D_min (D_min: eye to the node's box; seed 000 §2.5), nodes outside
-    the frustum culled, a node inside it passing that to its children.
+    the frustum or hidden behind nearer terrain culled, a node inside the frustum
+    passing that to its children.
 
     A compiled stack walk over a dense (level, y, x) → row table: the work follows
     the nodes visited, not the number of stored tiles.
@@ -127,17 +129,20 @@ def chunk_leaves(terrain, index: TileIndex, view, tau: float) -> tuple[np.ndarra
         top = terrain.grid.top_level
         table = cache["table"] = (*tile_table(index, top), top)
     rows = np.empty(len(index.keys), np.int64)
-    n, visited, culled = _walk_chunks(table[0], table[1], table[2], index.lo, index.hi,
-                                      cache["error"], view.eye, view.planes, view.lam,
-                                      float(tau), rows)
-    return rows[:n], {"tiles_visited": int(visited), "tiles_culled": int(culled)}
+    hidden = hidden_rows(terrain, view)
+    n, visited, culled, n_hidden = _walk_chunks(table[0], table[1], table[2], index.lo,
+                                                index.hi, cache["error"], view.eye,
+                                                view.planes, view.lam, float(tau), hidden,
+                                                rows)
+    return rows[:n], {"tiles_visited": int(visited), "tiles_culled": int(culled),
+                      "tiles_hidden": int(n_hidden)}
 
 
 @njit(cache=True)
-def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, out):
+def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, hidden, out):
     stack = np.empty((4 * (top + 1) + 4, 4), np.int64)  # (L, x, y, inside)
     stack[0] = (top, 0, 0, 0)
-    sp, n, visited, culled = 1, 0, 0, 0
+    sp, n, visited, culled, n_hidden = 1, 0, 0, 0, 0
     while sp > 0:
         sp -= 1
         L, x, y, inside = stack[sp]
@@ -163,6 +168,9 @@ def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, out):
             if inside < 0:
                 culled += 1
                 continue
+        if hidden[row]:  # behind nearer terrain: neither drawn nor refined
+            n_hidden += 1
+            continue
         dx = max(lo[row, 0] - eye[0], 0.0, eye[0] - hi[row, 0])
         dy = max(lo[row, 1] - eye[1], 0.0, eye[1] - hi[row, 1])
         dz = max(lo[row, 2] - eye[2], 0.0, eye[2] - hi[row, 2])
@@ -176,7 +184,7 @@ def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, out):
         else:
             out[n] = row
             n += 1
-    return n, visited, culled
+    return n, visited, culled, n_hidden
 
 
 def _build(terrain, index: TileIndex, row: int, cache: dict) -> Chunk:

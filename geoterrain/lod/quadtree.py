@@ -28,6 +28,7 @@ import numpy as np
 
 from geoterrain.lod.geomipmap import _NEIGHBOUR, template
 from geoterrain.lod.mesh import empty_polydata, polydata
+from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import TileIndex, tile_index
 from geoterrain.view import OUTSIDE, View
 
@@ -96,6 +97,7 @@ def select(terrain, view: View, tau: float):
     sd = max(int(N1 // S_MIN).bit_length() - 1, 0)  # sd = log₂(s / s_m)
     lam, eye = view.lam, view.eye
     x = y = np.zeros(1, np.int64)
+    hidden = hidden_rows(terrain, view)
     leaves, visited, culled = [], 0, 0
     for k in range(sd + 1):
         rows = _node_rows(tb, top, k, x, y)
@@ -103,7 +105,7 @@ def select(terrain, view: View, tau: float):
         visited += len(x)
         x, y, rows = x[keep], y[keep], rows[keep]
         lo, hi = index.lo[rows], index.hi[rows]
-        vis = view.box_visibility(lo, hi) != OUTSIDE
+        vis = (view.box_visibility(lo, hi) != OUTSIDE) & ~hidden[rows]
         culled += int((~vis).sum())
         x, y, rows, lo, hi = x[vis], y[vis], rows[vis], lo[vis], hi[vis]
         e = N1 >> k

@@ -42,6 +42,7 @@ from geoterrain.lod.kernels import (
     walk_start,
 )
 from geoterrain.lod.mesh import empty_polydata, polydata
+from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.pool import tile_pool
 from geoterrain.lod.tiles import TileIndex, tile_index, tile_table
 from geoterrain.view import View
@@ -188,9 +189,13 @@ def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     table, base, rsub = _tile_tree(terrain, index)
     lp_tiles_walk(table, base, terrain.grid.top_level, index.lo, index.hi, dm,
                   index.radius_max, rsub, eye, view.planes, lam, tau, floor, status)
+    # a tile whose spheres all lie behind nearer terrain refines nothing (nor is read)
+    hidden = hidden_rows(terrain, view, index.radius_max) & (status > 0)
+    status[hidden] = 0
     rows = np.flatnonzero(status)
     inside, floor = status[rows] == 2, floor[rows]
     act = ActiveSet(terrain, stamped=True)
+    act.tiles_hidden = int(hidden.sum())
     if len(rows):
         pool = tile_pool(terrain)
         idx, i0, j0, step = act.tiles(rows, index)
@@ -290,7 +295,8 @@ def select(terrain, view: View, tau: float):
     index = tile_index(terrain)
     if index.outside(view):
         return empty_polydata(), {}
-    return active_mesh(terrain, view_active(terrain, index, view, tau), view), {}
+    act = view_active(terrain, index, view, tau)
+    return active_mesh(terrain, act, view), {"tiles_hidden": act.tiles_hidden}
 
 
 def static(terrain, max_error: float):

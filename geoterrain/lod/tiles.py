@@ -33,24 +33,27 @@ class TileIndex:
     Rows are the tile keys ``(L, x, y)`` in sorted order; ``lo``/``hi`` (R, 3)
     are scene-frame boxes, ``error`` the tile's uniform-surface error,
     ``boundary`` its skirt error, ``delta_max``/``radius_max`` the largest δ and
-    r of the vertices new at its level.
+    r of the vertices new at its level, ``nvalid`` its valid samples and ``zrange``
+    its recorded (zmin, zmax).
     """
 
     def __init__(self, terrain):
         info = terrain.tile_info
-        keys = np.array(sorted(info), np.int64).reshape(-1, 3)
-        self.keys = keys
-        self.row = {tuple(k): n for n, k in enumerate(keys.tolist())}
+        keys = sorted(info)
+        self.row = {k: n for n, k in enumerate(keys)}
+        self.keys = np.array(keys, np.int64).reshape(-1, 3)
         self.top_level = terrain.grid.top_level
-        col = lambda name: np.array([info[tuple(k)][name] for k in keys.tolist()], np.float64)  # noqa: E731
-        zmin = np.nan_to_num(col("zmin"), nan=0.0)
-        zmax = np.nan_to_num(col("zmax"), nan=0.0)
-        self.lo = np.stack([col("xmin"), col("ymin"), np.minimum(zmin, zmax)], 1)
-        self.hi = np.stack([col("xmax"), col("ymax"), np.maximum(zmin, zmax)], 1)
-        self.error = col("error")
-        self.boundary = col("boundary_error")
-        self.delta_max = col("delta_max")
-        self.radius_max = col("radius_max")
+        names = ("zmin", "zmax", "xmin", "ymin", "xmax", "ymax", "error", "boundary_error",
+                 "delta_max", "radius_max", "nvalid")
+        a = np.array([[info[k][c] for c in names] for k in keys], np.float64
+                     ).reshape(-1, len(names))  # one pass over the table (None → NaN)
+        zmin, zmax = np.nan_to_num(a[:, 0], nan=0.0), np.nan_to_num(a[:, 1], nan=0.0)
+        self.lo = np.stack([a[:, 2], a[:, 3], np.minimum(zmin, zmax)], 1)
+        self.hi = np.stack([a[:, 4], a[:, 5], np.maximum(zmin, zmax)], 1)
+        self.error, self.boundary = a[:, 6].copy(), a[:, 7].copy()
+        self.delta_max, self.radius_max = a[:, 8].copy(), a[:, 9].copy()
+        self.nvalid = a[:, 10].astype(np.int64)
+        self.zrange = a[:, :2].copy()  # recorded zmin, zmax (NaN where none)
 
     def rows_of(self, keys: np.ndarray) -> np.ndarray:
         """Row numbers of (L, x, y) keys; -1 where the tile is not stored."""
@@ -124,21 +127,28 @@ def quadtree_leaves(terrain, index: TileIndex, view: View, refine: Refine
 
     ``refine(nodes, L)`` gets the visible nodes' rows and levels and returns which
     to replace by their stored children (level 0 is never refined). A node fully
-    inside the frustum passes that to its children, which are not tested again.
-    Returns the leaves and ``tiles_visited`` / ``tiles_culled`` counts.
+    inside the frustum passes that to its children, which are not tested again; a
+    node hidden behind nearer terrain (:func:`~geoterrain.lod.occlusion.hidden_rows`)
+    is dropped with its subtree. Returns the leaves and ``tiles_visited`` /
+    ``tiles_culled`` / ``tiles_hidden`` counts.
     """
     g = terrain.grid
     top = np.array([[g.top_level, 0, 0]])
     nodes = index.rows_of(top)
     nodes = nodes[nodes >= 0]
+    from geoterrain.lod.occlusion import hidden_rows  # (occlusion reads this module's index)
+
     inside = np.zeros(len(nodes), bool)
-    leaves, visited, culled = [], 0, 0
+    hidden = hidden_rows(terrain, view)
+    leaves, visited, culled, n_hidden = [], 0, 0, 0
     while len(nodes):
         visited += len(nodes)
         lo, hi = index.lo[nodes], index.hi[nodes]
         vis = np.where(inside, INSIDE, view.box_visibility(lo, hi))
         keep = vis != OUTSIDE
         culled += int((~keep).sum())
+        n_hidden += int((keep & hidden[nodes]).sum())
+        keep &= ~hidden[nodes]
         nodes, vis = nodes[keep], vis[keep]
         L = index.keys[nodes, 0]
         split = (L > 0) & refine(nodes, L)
@@ -155,7 +165,7 @@ def quadtree_leaves(terrain, index: TileIndex, view: View, refine: Refine
         ok = rows >= 0
         nodes, inside = rows[ok], np.repeat(par_inside, 4)[ok]
     leaves = np.concatenate(leaves) if leaves else np.zeros(0, np.int64)
-    return leaves, {"tiles_visited": visited, "tiles_culled": culled}
+    return leaves, {"tiles_visited": visited, "tiles_culled": culled, "tiles_hidden": n_hidden}
 
 
 def tile_geometry(terrain, index: TileIndex, row: int

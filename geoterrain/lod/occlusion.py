@@ -1,0 +1,529 @@
+"""Horizon culling from the stored tile bounds, before any decoding (seed 000 §2.6).
+
+Seed 000 culls with Fiedler's horizon: front to back, a block whose top lies under the
+horizon that nearer terrain draws is hidden; "test with the max, add with the min"
+keeps it conservative. Two choices differ from the thesis's screen-column buffer of
+least-squares planes: the horizon is kept per azimuth bin (2048 over the turn) as the
+steepest blocked elevation, so it holds for any camera pitch and roll; and it is built
+from the level-0 tiles' lowest heights (tile-table columns: nothing decoded), refined to
+16 × 16 blocks over the 32 nearest tiles in view (which the view draws at full
+resolution anyway). Every stored tile's box (a strategy may grow it, e.g. by its error
+spheres) is tested against it.
+
+Why it is conservative (never hides a point the full-resolution surface shows):
+
+- The drawn surface over a level-0 tile whose samples are all valid is continuous and
+  lies at or above the tile's ``zmin``.
+- The eye is above the surface: every level-0 footprint within the near-plane distance
+  of the eye is all valid and below the eye by more than that distance. A ray therefore
+  starts above the surface and, until the near plane, cannot meet it.
+- A ray at azimuth φ that passes under a valid tile's ``zmin`` at horizontal distance d,
+  having run over valid footprints only from the eye to there, crossed the surface at
+  distance ≤ d. So a point farther than d on that ray is hidden. Occluders therefore
+  count in an azimuth bin only out to the nearest footprint that is not all valid
+  (``reach``), and only for occludees wholly farther than the occluder.
+- A bin is blocked for rays with tan(elevation) < (zmin − z_eye)/d at every d of the
+  occluder's footprint (the farthest d when zmin ≥ z_eye, the nearest otherwise); an
+  occluder counts only in bins its footprint spans completely.
+- An occludee's rays rise at most (ztop − z_eye)/d over its box (nearest d when
+  ztop ≥ z_eye, the farthest otherwise): a lower point of the box is reached along
+  the same azimuth by a lower ray. It is hidden when that bound is under the
+  horizon in every bin its box touches.
+
+On a geographic source the footprints are curved: corners are mapped by
+:meth:`Frame.xy` and each footprint is shrunk (as occluder) or grown (as a hole) by the
+largest measured deviation of a tile edge from its chord.
+
+Examples
+--------
+>>> hidden = hidden_rows(t, View((0, -800, 60), (0, 800, 0)))
+>>> hidden.dtype, hidden.shape == (len(t.tile_keys()),)
+(dtype('bool'), True)
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+
+import numpy as np
+from numba import njit
+
+from geoterrain.lod.switches import occlusion_enabled
+from geoterrain.lod.tiles import tile_index
+from geoterrain.view import View
+
+__all__ = ["BINS", "eye_above_surface", "hidden_rows", "occluder_rows"]
+
+BINS = 2048  # azimuth bins over the full turn
+NEAR_TILES = 32  # level-0 tiles nearest the eye that also occlude block by block
+BLOCKS = 16  # blocks per side of such a tile
+_FOOT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+class _Footprints:
+    """Level-0 tile footprints (corner x, y), with a ring of empty ones around the grid,
+    whether each is all valid, its zmin/zmax, and the curved-edge margin."""
+
+    def __init__(self, terrain):
+        g, f = terrain.grid, terrain.frame
+        S, T = 1 << g.t, g.tile_samples
+        n = g.tiles_per_side(0)
+        # positions −1 … n (a ring of "no data" footprints around the grid)
+        k = np.arange(-1, n + 1)
+        ty, tx = np.meshgrid(k, k, indexing="ij")
+        ty, tx = ty.ravel(), tx.ravel()
+        ci = np.stack([ty, ty, ty + 1, ty + 1], 1) * S  # corners (rows)
+        cj = np.stack([tx, tx + 1, tx + 1, tx], 1) * S  # corners (columns): a closed loop
+        x, y = f.xy(ci.astype(np.float64), cj.astype(np.float64))
+        self.corners = np.stack([x, y], 2)  # (P, 4, 2)
+        ix = tile_index(terrain)
+        L0 = np.flatnonzero(ix.keys[:, 0] == 0)
+        p0 = (ix.keys[L0, 2] + 1) * (n + 2) + (ix.keys[L0, 1] + 1)
+        self.position = np.full(len(ix.keys), -1, np.int64)  # index row → footprint
+        self.position[L0] = p0
+        z0, z1 = ix.zrange[L0, 0], ix.zrange[L0, 1]
+        ok = (ix.nvalid[L0] == T * T) & np.isfinite(z0)
+        good = np.zeros(len(ty), bool)
+        zmin, zmax = np.zeros(len(ty)), np.zeros(len(ty))
+        good[p0[ok]] = True
+        # decoded heights may sit 1e-9 relative under the recorded zmin
+        zmin[p0[ok]] = z0[ok] - 1e-7 * np.maximum(1.0, np.abs(z0[ok]))
+        zmax[p0[ok]] = z1[ok] + 1e-7 * np.maximum(1.0, np.abs(z1[ok]))
+        self.good, self.zmin, self.zmax = good, zmin, zmax
+        self.level0 = L0[ix.nvalid[L0] > 0]
+        inner = (ty >= 0) & (ty < n) & (tx >= 0) & (tx < n)
+        edges = np.hypot(*np.moveaxis(np.roll(self.corners, -1, 1) - self.corners, 2, 0))
+        self.cell = 0.9 * float(edges[inner].min()) / S  # ≤ any cell's side, metres
+        self.centres = _centres(self.corners)
+        self.margin = 0.0
+        self.blocks: dict = {}
+        if f.kind == "geographic":  # largest deviation of a tile edge from its chord
+            u = np.linspace(0.0, 1.0, 9)[1:-1]
+            dev = 0.0
+            for a in range(4):
+                b = (a + 1) % 4
+                ii = ci[:, a, None] + (ci[:, b] - ci[:, a])[:, None] * u
+                jj = cj[:, a, None] + (cj[:, b] - cj[:, a])[:, None] * u
+                ex, ey = f.xy(ii, jj)
+                px = x[:, a, None] + (x[:, b] - x[:, a])[:, None] * u
+                py = y[:, a, None] + (y[:, b] - y[:, a])[:, None] * u
+                dev = max(dev, float(np.nanmax(np.hypot(ex - px, ey - py))))
+            self.margin = 2.0 * dev + 1e-6 * float(np.nanmax(np.abs(self.corners)))
+
+
+def _footprints(terrain) -> _Footprints:
+    fp = _FOOT.get(terrain)
+    if fp is None:
+        fp = _FOOT[terrain] = _Footprints(terrain)
+    return fp
+
+
+@njit(cache=True)
+def _poly_span(ex, ey, c):
+    """Azimuth span (start, width) of a convex polygon ``c`` (K, 2) seen from (ex, ey),
+    and its nearest and farthest horizontal distance; width < 0 if the eye is inside."""
+    K = c.shape[0]
+    cx, cy = 0.0, 0.0
+    for k in range(K):
+        cx += c[k, 0]
+        cy += c[k, 1]
+    ref = math.atan2(cy / K - ey, cx / K - ex)
+    lo, hi, far = 1e300, -1e300, 0.0
+    for k in range(K):
+        dx, dy = c[k, 0] - ex, c[k, 1] - ey
+        a = math.atan2(dy, dx) - ref
+        a = (a + math.pi) % (2 * math.pi) - math.pi
+        lo, hi = min(lo, a), max(hi, a)
+        far = max(far, math.hypot(dx, dy))
+    # nearest distance: to the edges (the eye is outside when every cross product of
+    # the edges with the eye has one sign)
+    near, sgn, inside = 1e300, 0, True
+    for k in range(K):
+        ax, ay = c[k, 0], c[k, 1]
+        bx, by = c[(k + 1) % K, 0], c[(k + 1) % K, 1]
+        ux, uy = bx - ax, by - ay
+        cr = ux * (ey - ay) - uy * (ex - ax)
+        s = 1 if cr > 0 else (-1 if cr < 0 else 0)
+        if s != 0:
+            if sgn == 0:
+                sgn = s
+            elif s != sgn:
+                inside = False
+        L2 = ux * ux + uy * uy
+        w = 0.0 if L2 == 0 else min(1.0, max(0.0, ((ex - ax) * ux + (ey - ay) * uy) / L2))
+        near = min(near, math.hypot(ex - ax - w * ux, ey - ay - w * uy))
+    if inside or hi - lo >= math.pi:
+        return ref, -1.0, 0.0, far
+    return ref + lo, hi - lo, near, far
+
+
+@njit(cache=True)
+def _near_footprints(ex, ey, corners, cen, reach_to):
+    """Footprints within ``reach_to`` of the eye (or holding it)."""
+    out = np.zeros(corners.shape[0], np.bool_)
+    for p in range(corners.shape[0]):
+        if math.hypot(cen[p, 0] - ex, cen[p, 1] - ey) > cen[p, 2] + reach_to:
+            continue
+        s, w, dn, df = _poly_span(ex, ey, corners[p])
+        out[p] = w < 0 or dn <= reach_to
+    return out
+
+
+@njit(cache=True, inline="always")
+def _in_sector(ex, ey, cen, sec0, secw):
+    """Whether a footprint (centre x, y and radius ``cen``) may meet the sector of
+    azimuths [sec0, sec0 + secw] (a cheap test before :func:`_poly_span`)."""
+    if secw >= 2 * math.pi:
+        return True
+    dx, dy = cen[0] - ex, cen[1] - ey
+    d = math.hypot(dx, dy)
+    if d <= cen[2]:
+        return True
+    half = math.asin(cen[2] / d)
+    a = (math.atan2(dy, dx) - half - sec0) % (2 * math.pi)
+    return a <= secw or a + 2 * half >= 2 * math.pi
+
+
+@njit(cache=True)
+def _horizon_cull(ex, ey, ez, corners, cen, state, zmin, margin, sec0, secw, lo, hi, out):
+    """``out[row] = True`` for each box (``lo``, ``hi``) hidden behind the horizon of
+    the footprints ``corners`` (the eye already known to be above the surface).
+
+    ``state`` per footprint: 1 all valid (an occluder), 0 a hole (nodata or outside the
+    grid), −1 ignored (replaced by finer footprints); ``cen`` its centre and radius.
+    Only rays in the sector of azimuths [sec0, sec0 + secw] (the frustum's) matter."""
+    P = corners.shape[0]
+    B = 2048
+    dphi = 2 * math.pi / B
+    reach = np.full(B, 1e300)  # per bin: distance to the nearest footprint with a hole
+    # 1. holes: a ray counts as blocked only until it may have passed over one
+    for p in range(P):
+        if state[p] != 0 or not _in_sector(ex, ey, cen[p], sec0, secw):
+            continue
+        s, w, dn, df = _poly_span(ex, ey, corners[p])
+        if w < 0:
+            return
+        m = math.asin(min(1.0, margin / dn)) if dn > 0 else math.pi
+        b0 = int(math.floor((s - m) / dphi))
+        b1 = int(math.floor((s + w + m) / dphi))
+        d = dn - margin
+        for b in range(b0, b1 + 1):
+            k = b % B
+            if d < reach[k]:
+                reach[k] = d
+    # 2. occluders: valid footprints, ordered by their farthest distance
+    occ_far = np.empty(P)
+    occ_tan = np.empty(P)
+    occ_b0 = np.empty(P, np.int64)
+    occ_b1 = np.empty(P, np.int64)
+    n_occ = 0
+    for p in range(P):
+        if state[p] != 1 or not _in_sector(ex, ey, cen[p], sec0, secw):
+            continue
+        s, w, dn, df = _poly_span(ex, ey, corners[p])
+        if w < 0 or dn <= margin:
+            continue
+        m = math.asin(min(1.0, margin / dn))
+        b0 = int(math.ceil((s + m) / dphi))
+        b1 = int(math.floor((s + w - m) / dphi)) - 1  # bins wholly inside the span
+        if b1 < b0:
+            continue
+        dn, df = dn - margin, df + margin
+        dz = zmin[p] - ez
+        occ_tan[n_occ] = dz / df if dz >= 0 else dz / dn
+        occ_far[n_occ] = df
+        occ_b0[n_occ], occ_b1[n_occ] = b0, b1
+        n_occ += 1
+    order = np.argsort(occ_far[:n_occ])
+    # 3. occludees by their nearest distance; the horizon grows as occluders fall behind
+    R = lo.shape[0]
+    dnear = np.empty(R)
+    for r in range(R):
+        dx = max(lo[r, 0] - ex, 0.0, ex - hi[r, 0])
+        dy = max(lo[r, 1] - ey, 0.0, ey - hi[r, 1])
+        dnear[r] = math.hypot(dx, dy)
+    rorder = np.argsort(dnear)
+    horizon = np.full(B, -1e300)
+    box = np.empty((4, 2))
+    bc = np.empty(3)
+    q = 0
+    for rr in range(R):
+        r = rorder[rr]
+        dn = dnear[r]
+        if dn <= 0:
+            continue
+        while q < n_occ and occ_far[order[q]] < dn:
+            o = order[q]
+            q += 1
+            for b in range(occ_b0[o], occ_b1[o] + 1):
+                k = b % B
+                if occ_far[o] < reach[k] and occ_tan[o] > horizon[k]:
+                    horizon[k] = occ_tan[o]
+        if q == 0:
+            continue
+        box[0, 0], box[0, 1] = lo[r, 0], lo[r, 1]
+        box[1, 0], box[1, 1] = hi[r, 0], lo[r, 1]
+        box[2, 0], box[2, 1] = hi[r, 0], hi[r, 1]
+        box[3, 0], box[3, 1] = lo[r, 0], hi[r, 1]
+        bc[0], bc[1] = 0.5 * (lo[r, 0] + hi[r, 0]), 0.5 * (lo[r, 1] + hi[r, 1])
+        bc[2] = 0.5 * math.hypot(hi[r, 0] - lo[r, 0], hi[r, 1] - lo[r, 1])
+        if not _in_sector(ex, ey, bc, sec0, secw):
+            continue
+        s, w, _, df = _poly_span(ex, ey, box)
+        if w < 0:
+            continue
+        dz = hi[r, 2] - ez
+        top = dz / dn if dz >= 0 else dz / df
+        b0 = int(math.floor(s / dphi))
+        b1 = int(math.floor((s + w) / dphi))
+        hid = True
+        for b in range(b0, b1 + 1):
+            if not top < horizon[b % B]:
+                hid = False
+                break
+        out[r] = hid
+
+
+def _block_corners(terrain, x: int, y: int, b: int) -> np.ndarray:
+    """Corner x, y (nb², 4, 2) of the b × b-cell blocks of level-0 tile (x, y)."""
+    S = 1 << terrain.grid.t
+    k = np.arange(0, S, b)
+    bi, bj = np.meshgrid(y * S + k, x * S + k, indexing="ij")
+    bi, bj = bi.ravel(), bj.ravel()
+    ci = np.stack([bi, bi, bi + b, bi + b], 1).astype(np.float64)
+    cj = np.stack([bj, bj + b, bj + b, bj], 1).astype(np.float64)
+    return np.stack(terrain.frame.xy(ci, cj), 2)
+
+
+def _near_blocks(terrain, index, view: View, tiles: int = NEAR_TILES):
+    """Finer footprints for the level-0 tiles nearest the eye in the frustum that the
+    tile bounds alone do not show hidden, and for the eye's own: each tile's b × b-cell
+    blocks, with their lowest sample (state 1) or, if one of their samples is nodata,
+    as holes (state 0). These tiles are the ones a view draws at full resolution, so
+    decoding them here usually costs the selection nothing more. (One of them may
+    still turn out hidden behind a nearer one: it is culled, though it was read.)
+
+    Returns the tiles (index rows), the replaced footprints (their numbers in
+    :class:`_Footprints`), and the blocks' corners, centres, states and lowest samples."""
+    fp = _footprints(terrain)
+    rows = fp.level0
+    none = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 4, 2)),
+            np.zeros((0, 3)), np.zeros(0, np.int8), np.zeros(0))
+    if not len(rows):
+        return none
+    lo, hi = index.lo[rows], index.hi[rows]
+    e = view.eye
+    under = ((lo[:, 0] <= e[0]) & (e[0] <= hi[:, 0]) & (lo[:, 1] <= e[1])
+             & (e[1] <= hi[:, 1]))  # the eye's own tiles (by their boxes), with nodata:
+    under &= ~fp.good[fp.position[rows]]  # finer, so that their holes do not block all
+    d = view.box_distance(lo, hi)
+    pick = np.arange(len(rows))
+    if len(pick) > 8 * tiles:  # the frustum test for the nearest few only
+        pick = np.argpartition(d, 8 * tiles)[:8 * tiles]
+    pick = pick[view.box_visibility(lo[pick], hi[pick]) != 0]
+    pick = pick[np.argsort(d[pick], kind="stable")]
+    # not those the tile bounds already show hidden: a culled tile is never decoded
+    hid = np.zeros(len(pick), bool)
+    sec0, secw = _sector(view)
+    _horizon_cull(float(e[0]), float(e[1]), float(e[2]), fp.corners, fp.centres,
+                  fp.good.astype(np.int8), fp.zmin, fp.margin, sec0, secw, lo[pick], hi[pick],
+                  hid)
+    pick = np.union1d(pick[~hid][:tiles], np.flatnonzero(under))
+    if not len(pick):
+        return none
+    rows = rows[pick]
+    S, n = 1 << terrain.grid.t, terrain.grid.tiles_per_side(0)
+    b = max(1, S // BLOCKS)
+    replaced, corners, cens, states, zmin = [], [], [], [], []
+    for r in rows:
+        _, x, y = (int(v) for v in index.keys[r])
+        replaced.append((y + 1) * (n + 2) + (x + 1))
+        got = fp.blocks.get((x, y, b))
+        if got is None:
+            got = fp.blocks[(x, y, b)] = _blocks(terrain, x, y, b)
+        corners.append(got[0])
+        cens.append(got[1])
+        states.append(got[2])
+        zmin.append(got[3])
+    return (rows, np.array(replaced, np.int64), np.concatenate(corners),
+            np.concatenate(cens), np.concatenate(states), np.concatenate(zmin))
+
+
+def _blocks(terrain, x: int, y: int, b: int):
+    """Corners, centres, states and lowest samples of level-0 tile (x, y)'s blocks."""
+    S = 1 << terrain.grid.t
+    nb = S // b
+    tile = terrain.tile(0, x, y)
+    z = np.where(tile.valid, terrain.frame.z(np.nan_to_num(tile.heights)), np.inf)
+    # lowest sample of each block, borders included: the block's own b × b samples,
+    # then its last row and column (the next block's first) — inf marks nodata
+    bad = np.where(tile.valid, 0.0, np.inf)
+
+    def closed_min(a):
+        rows = np.minimum(a[:S].reshape(nb, b, -1).min(1), a[b::b])  # (nb, T)
+        return np.minimum(rows[:, :S].reshape(nb, nb, b).min(2), rows[:, b::b])
+
+    lows = closed_min(z)
+    ok = closed_min(bad) == 0.0  # no nodata sample in the block
+    lows = np.where(ok, lows, 0.0).ravel()
+    corners = _block_corners(terrain, x, y, b)
+    return (corners, _centres(corners), ok.ravel().astype(np.int8),
+            lows - 1e-7 * np.maximum(1.0, np.abs(lows)))
+
+
+def _centres(corners: np.ndarray) -> np.ndarray:
+    """Per footprint: its corners' mean x, y and the largest corner distance from it."""
+    c = corners.mean(axis=1)
+    r = np.sqrt(((corners - c[:, None, :]) ** 2).sum(-1)).max(axis=1)
+    return np.concatenate([c, r[:, None] * (1 + 1e-9)], 1)
+
+
+def _sector(view: View) -> tuple[float, float]:
+    """The azimuths of the frustum's rays: (start, width); width 2π when they include
+    straight down or up."""
+    r, u, f = view.basis()
+    ty = math.tan(math.radians(view.fov_y_deg) / 2)
+    tx = ty * view.size[0] / view.size[1]
+    rays = np.array([f + sx * tx * r + sy * ty * u for sx in (-1, 1) for sy in (-1, 1)])
+    hor = np.hypot(rays[:, 0], rays[:, 1])
+    if hor.min() <= 1e-6 * np.linalg.norm(rays, axis=1).max():
+        return 0.0, 4 * math.pi
+    az = np.arctan2(rays[:, 1], rays[:, 0])
+    # the cone holds neither vertical, so its azimuths form one arc under π wide... or not:
+    ref = math.atan2(f[1], f[0]) if math.hypot(f[0], f[1]) > 0 else float(az[0])
+    rel = (az - ref + math.pi) % (2 * math.pi) - math.pi
+    lo_, hi_ = float(rel.min()), float(rel.max())
+    if hi_ - lo_ >= math.pi - 1e-3:
+        return 0.0, 4 * math.pi
+    pad = 1e-6
+    return ref + lo_ - pad, hi_ - lo_ + 2 * pad
+
+
+def _near_distance(view: View) -> float:
+    """The near plane's distance along the frustum's corner rays (0 without one)."""
+    ty = math.tan(math.radians(view.fov_y_deg) / 2)
+    tx = ty * view.size[0] / view.size[1]
+    return (view.near or 0.0) * math.sqrt(1 + tx * tx + ty * ty)
+
+
+def eye_above_surface(terrain, view: View) -> bool:
+    """Whether no ray from the eye meets the surface before the near plane: the
+    footprints within that distance are all valid and below the eye by more than it.
+
+    The tile bounds answer first; when they cannot (a hill in the eye's tile rises
+    above the eye), the full-resolution samples around the eye are read.
+    """
+    fp = _footprints(terrain)
+    e = view.eye
+    r_near = _near_distance(view)
+    near = _near_footprints(float(e[0]), float(e[1]), fp.corners, fp.centres,
+                            r_near + fp.margin)
+    if not near.any():
+        return False
+    top = float(e[2]) - r_near
+    if fp.good[near].all() and (fp.zmax[near] < top).all():
+        return True
+    # the samples of the cells within reach of the eye
+    f, g = terrain.frame, terrain.grid
+    cx, cy = f.scene_to_crs(np.array([e[0]]), np.array([e[1]]))
+    a, b, c, d, ee, ff = f.transform
+    det = a * ee - b * d
+    if det == 0:
+        return False
+    jj = (ee * (cx[0] - c) - b * (cy[0] - ff)) / det - 0.5  # inverse geotransform,
+    ii = (a * (cy[0] - ff) - d * (cx[0] - c)) / det - 0.5   # pixel centres
+    rc = (r_near + fp.margin) / max(fp.cell, 1e-300)  # the reach, in cells (an upper bound)
+    if rc > 64 or not np.isfinite(ii + jj):
+        return False
+    i0, i1 = int(math.floor(ii - rc)), max(int(math.ceil(ii + rc)), int(math.floor(ii)) + 1)
+    j0, j1 = int(math.floor(jj - rc)), max(int(math.ceil(jj + rc)), int(math.floor(jj)) + 1)
+    N, S = g.size, 1 << g.t
+    if i0 < 0 or j0 < 0 or i1 > N - 1 or j1 > N - 1:
+        return False
+    z = np.empty((i1 - i0 + 1, j1 - j0 + 1))
+    for ty in range(i0 // S, min((i1 - 1) // S, N // S - 1) + 1):
+        for tx in range(j0 // S, min((j1 - 1) // S, N // S - 1) + 1):
+            if (0, tx, ty) not in terrain.tile_info:
+                return False
+            tile = terrain.tile(0, tx, ty)
+            r0, c0 = max(i0 - ty * S, 0), max(j0 - tx * S, 0)
+            r1, c1 = min(i1 - ty * S, S), min(j1 - tx * S, S)
+            if not tile.valid[r0:r1 + 1, c0:c1 + 1].all():
+                return False
+            z[ty * S + r0 - i0:ty * S + r1 - i0 + 1, tx * S + c0 - j0:tx * S + c1 - j0 + 1] = \
+                f.z(tile.heights[r0:r1 + 1, c0:c1 + 1])
+    return _surface_max_near(z, i0, j0, ii, jj, rc) < top
+
+
+def _surface_max_near(z: np.ndarray, i0: int, j0: int, ii: float, jj: float, rc: float) -> float:
+    """An upper bound of the drawn surface (union-jack triangles over the samples ``z``,
+    whose first is sample (i0, j0)) within ``rc`` cells of the point (ii, jj): per
+    triangle, its plane at the point plus its slope times ``rc``."""
+    a, b = np.meshgrid(np.arange(z.shape[0] - 1), np.arange(z.shape[1] - 1), indexing="ij")
+    z00, z01, z10, z11 = z[a, b], z[a, b + 1], z[a + 1, b], z[a + 1, b + 1]
+    di, dj = ii - (i0 + a), jj - (j0 + b)  # the point from each cell's first corner
+    main = ((i0 + a) % 2 == 1) == ((j0 + b) % 2 == 1)  # diagonal 00–11, else 01–10
+    # planes z = c + gi·di + gj·dj of the cell's two triangles
+    gi1, gj1, c1 = np.where(main, z11 - z01, z10 - z00), z01 - z00, z00
+    gi2 = np.where(main, z10 - z00, z11 - z01)
+    gj2 = np.where(main, z11 - z10, z11 - z10)
+    c2 = np.where(main, z00, z01 + z10 - z11)
+    # (anti-diagonal second triangle: z = z11 + (1−dj)(z10−z11) + (1−di)(z01−z11))
+    best = -math.inf
+    for gi, gj, c in ((gi1, gj1, c1), (gi2, gj2, c2)):
+        best = max(best, float(np.max(c + gi * di + gj * dj + np.hypot(gi, gj) * rc)))
+    return best
+
+
+def occluder_rows(terrain, view: View) -> np.ndarray:
+    """The level-0 tiles (index rows) that culling for ``view`` read to occlude with
+    (empty before :func:`hidden_rows` ran for it, or when it culled nothing)."""
+    return view._cache.get(("occluders", id(terrain)), np.zeros(0, np.int64))
+
+
+def hidden_rows(terrain, view: View, grow: np.ndarray | None = None) -> np.ndarray:
+    """Which rows of the tile index are hidden from ``view`` by nearer terrain.
+
+    ``grow`` (per row, scene units) widens each tile's box first, e.g. by the radius of
+    the error spheres a strategy refines with. All False when culling is switched off
+    (:func:`occlusion`) or the eye is not safely above the terrain (see the module
+    docstring).
+
+    Examples
+    --------
+    >>> h = hidden_rows(t, View((0, -800, 400), (0, 0, 0)))
+    >>> h.shape == (len(tile_index(t).keys),)
+    True
+    """
+    index = tile_index(terrain)
+    out = np.zeros(len(index.keys), bool)
+    if not occlusion_enabled() or not len(out) or index.outside(view):
+        return out  # (nothing in view: nothing to read either)
+    key = ("hidden", id(terrain), None if grow is None else id(grow))
+    got = view._cache.get(key)
+    if got is not None:
+        return got
+    fp = _footprints(terrain)
+    lo, hi = index.lo, index.hi
+    if grow is not None:
+        g = np.asarray(grow, np.float64)[:, None]
+        g = np.where(np.isfinite(g), g, np.inf)
+        lo, hi = lo - g, hi + g
+    if eye_above_surface(terrain, view):
+        e = view.eye
+        state = fp.good.astype(np.int8)
+        corners, cen, zmin = fp.corners, fp.centres, fp.zmin
+        occluders, replaced, bc, bcen, bs, bz = _near_blocks(terrain, index, view)
+        view._cache[("occluders", id(terrain))] = occluders
+        if len(bz):
+            state[replaced] = -1
+            corners = np.concatenate([corners, bc])
+            cen = np.concatenate([cen, bcen])
+            state = np.concatenate([state, bs])
+            zmin = np.concatenate([zmin, bz])
+        sec0, secw = _sector(view)
+        _horizon_cull(float(e[0]), float(e[1]), float(e[2]), corners, cen, state, zmin,
+                      fp.margin, sec0, secw, lo, hi, out)
+    view._cache[key] = out
+    return out
