@@ -1,4 +1,4 @@
-"""Popping along a smooth flight: cdlod with and without morphing against rtin and chunked.
+"""Popping along a smooth flight: cdlod and rtin with and without morphing, and chunked.
 
 The flight is :func:`geoterrain.bench.glide` (the eye moves 1 % of its height above the
 terrain per frame). Per frame and strategy, ``pop`` is the largest jump of the drawn
@@ -6,7 +6,9 @@ surface since the previous frame, in pixels
 (:func:`geoterrain.measure.screen_space_change`, which rasterises both meshes and knows
 nothing of the selection); ``rho`` the measured screen-space error; both use the
 full-resolution heights. ``cdlod-nomorph`` is cdlod's selection with k snapped from 0 to
-1 at each range (``morph=False``): the same ranges, no slide.
+1 at each range (``morph=False``): the same ranges, no slide. ``rtin-morph`` is rtin with
+seed 002's geomorphing (``morph=True``). Pop is counted at the samples in view in both
+frames, and horizon culling is off (a hidden sample's surface may change unseen).
 
 Run from the project root::
 
@@ -31,6 +33,7 @@ import geoterrain  # noqa: E402
 from geoterrain import lod  # noqa: E402
 from geoterrain.bench import extent, glide  # noqa: E402
 from geoterrain.lod import cdlod  # noqa: E402
+from geoterrain.lod.switches import set_occlusion  # noqa: E402
 from geoterrain.measure import screen_space_change, screen_space_error  # noqa: E402
 
 
@@ -47,6 +50,8 @@ def select(t, view, tau, name):
     t0 = time.perf_counter()
     if name == "cdlod-nomorph":
         mesh, _ = cdlod.select(t, view, tau, morph=False)
+    elif name == "rtin-morph":
+        mesh = lod.select(t, view, tau, "rtin", reuse=False, morph=True).mesh
     else:
         mesh = lod.select(t, view, tau, name, reuse=False).mesh
     return mesh, (time.perf_counter() - t0) * 1e3
@@ -58,8 +63,10 @@ def main() -> None:
     ap.add_argument("--tau", type=float, default=1.0)
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--size", default="1280x720")
-    ap.add_argument("--strategies", default="cdlod,cdlod-nomorph,rtin,chunked")
+    ap.add_argument("--strategies", default="cdlod,cdlod-nomorph,rtin,rtin-morph,chunked")
     a = ap.parse_args()
+    # every sample in view counts, hidden ones too: the LOD's own popping, no culling
+    set_occlusion(False)
     size = tuple(int(v) for v in a.size.split("x"))
     t = geoterrain.open(a.store)
     X, Y, Z = t.scene_xyz()
@@ -70,15 +77,16 @@ def main() -> None:
     print(f"{'strategy':15s} {'pop max':>8s} {'pop p99':>8s} {'pop/τ':>6s} {'ρ max':>6s} "
           f"{'tri med':>9s} {'ms med':>7s}")
     for name in a.strategies.split(","):
-        pops, rhos, tris, ms, prev = [], [], [], [], None
+        pops, rhos, tris, ms, prev, prev_planes = [], [], [], [], None, None
         for v in views:
             mesh, dt = select(t, v, a.tau, name)
             s = surface_of(mesh)
             rhos.append(screen_space_error(*s, X, Y, Zt, valid, v.eye, v.planes, v.lam).max)
             if prev is not None:
-                c = screen_space_change(prev, s, X, Y, Zt, valid, v.eye, v.planes, v.lam)
+                c = screen_space_change(prev, s, X, Y, Zt, valid, v.eye, v.planes, v.lam,
+                                        prev_planes)
                 pops.append(c.max)
-            prev = s
+            prev, prev_planes = s, v.planes
             tris.append(len(s[1]))
             ms.append(dt)
         pops = np.array(pops)

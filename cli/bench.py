@@ -7,6 +7,7 @@ import sys
 import click
 
 from geoterrain.cli.options import (
+    morph_option,
     occlusion_option,
     parse_size,
     pixel_errors_option,
@@ -33,6 +34,7 @@ def _floats(ctx, param, value):
 @click.option("--seed", default=1, show_default=True, help="Seed of the synthetic DEM.")
 @strategies_option
 @occlusion_option
+@morph_option
 @pixel_errors_option
 @click.option("--views", "n_views", default=8, show_default=True, type=click.IntRange(1, 1000),
               help="Length of the built-in flight.")

@@ -106,6 +106,21 @@ occlusion_option = click.option(
          "conservative: nothing visible is lost). --no-occlusion draws them too.")
 
 
+def _set_morphing(ctx, param, value):
+    from geoterrain.lod.switches import set_morphing
+
+    if value is not None:
+        set_morphing(value)
+    return value
+
+
+morph_option = click.option(
+    "--morph/--no-morph", default=None, expose_value=False, callback=_set_morphing,
+    help="Geomorph: a vertex slides into place instead of popping as the camera moves "
+         "(rtin: it appears at 0.75 τ, costing triangles; cdlod: its own ranges). "
+         "Default: rtin off, cdlod on.")
+
+
 pixel_error_option = click.option(
     "--pixel-error", type=float, default=1.0, show_default=True, callback=_positive,
     metavar="TAU", help="Screen-space error bound τ in pixels.")

@@ -14,6 +14,7 @@ from geoterrain.cli.options import (
     drape_options,
     light_and_drape,
     light_options,
+    morph_option,
     occlusion_option,
     palette,
     pixel_error_option,
@@ -38,6 +39,7 @@ from geoterrain.cli.options import (
 @pixel_error_option
 @strategy_option
 @occlusion_option
+@morph_option
 @vertical_exaggeration_option
 @click.option("--shading", type=click.Choice(["normals", "elevation", "plain"]),
               default="normals", show_default=True,

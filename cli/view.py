@@ -12,6 +12,7 @@ from geoterrain.cli.options import (
     drape_options,
     light_and_drape,
     light_options,
+    morph_option,
     occlusion_option,
     palette,
     parse_size,
@@ -25,6 +26,7 @@ from geoterrain.cli.options import (
 @click.argument("source", type=click.Path(exists=True, dir_okay=False))
 @strategy_option
 @occlusion_option
+@morph_option
 @pixel_error_option
 @vertical_exaggeration_option
 @click.option("--shading", type=click.Choice(["normals", "elevation", "plain"]),

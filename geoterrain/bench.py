@@ -363,10 +363,10 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
                     if pop and len(faces) <= BRUTE_MEASURE_LIMIT:
                         before = previous.get((strategy, float(tau)))
                         if before is not None:
-                            pop_px = screen_space_change(before, (ij, faces, vz), X, Y, Zt,
+                            pop_px = screen_space_change(before[0], (ij, faces, vz), X, Y, Zt,
                                                          valid, view.eye, view.planes,
-                                                         view.lam).max
-                        previous[(strategy, float(tau))] = (ij, faces, vz)
+                                                         view.lam, before[1]).max
+                        previous[(strategy, float(tau))] = ((ij, faces, vz), view.planes)
                     st = sel.stats
                     res.rows.append({
                         "source": source, "frame": fi, "view": kind, "strategy": strategy,

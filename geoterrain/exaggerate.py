@@ -142,10 +142,11 @@ class Exaggerated:
         return X, Y, Z * self.n
 
     def select(self, view, pixel_error: float = 1.0, strategy: str = "rtin", *,
-               reuse: bool = True, occlusion: bool | None = None):
+               reuse: bool = True, occlusion: bool | None = None, morph: bool | None = None):
         from geoterrain import lod
 
-        return lod.select(self, view, pixel_error, strategy, reuse=reuse, occlusion=occlusion)
+        return lod.select(self, view, pixel_error, strategy, reuse=reuse, occlusion=occlusion,
+                          morph=morph)
 
     def static_selection(self, max_error: float = 1.0):
         from geoterrain import lod

@@ -470,13 +470,16 @@ def screen_space_change(
     eye: np.ndarray,
     planes: np.ndarray,
     lam: float,
+    planes_before: np.ndarray | None = None,
 ) -> ScreenError:
     """How far the drawn surface jumps between two frames, in pixels (the popping metric).
 
     Both meshes (``(vertices_ij, faces, vertex_z)`` each) are rasterised onto the grid
     samples; at every valid sample inside the frustum ``planes`` of the second frame
-    that both cover, the change is lam·|z_after − z_before| / ‖(X, Y, Z) − eye‖, with
-    ``eye`` and ``lam`` those of the second frame. Where triangles overlap with
+    (and inside ``planes_before``, the first frame's, when given: a sample that comes
+    into view was not drawn before, so it cannot pop) that both cover, the change is
+    lam·|z_after − z_before| / ‖(X, Y, Z) − eye‖, with ``eye`` and ``lam`` those of
+    the second frame. Where triangles overlap with
     different heights (skirts, cracks) the middle of their range is taken, so a
     crack that stays put is not a jump. ``n_uncovered`` counts valid in-frustum samples
     covered by one frame only (drawn or hidden anew: not measured).
@@ -493,6 +496,8 @@ def screen_space_change(
     (10.0, 9)
     """
     X, Y, Z, eye, inside = _in_frustum(X, Y, Z, valid, planes, eye)
+    if planes_before is not None:
+        inside &= _in_frustum(X, Y, Z, valid, planes_before, eye)[4]
     z = []
     for ij, faces, vz in (before, after):
         lo, hi = mesh_height_range_on_grid(ij, faces, vz, Z.shape)

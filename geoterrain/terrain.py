@@ -339,11 +339,12 @@ class Terrain:
 
     # -------------------------------------------------------------------- LOD
     def select(self, view: View, pixel_error: float = 1.0, strategy: str = "rtin", *,
-               reuse: bool = True, occlusion: bool | None = None) -> Selection:
+               reuse: bool = True, occlusion: bool | None = None,
+               morph: bool | None = None) -> Selection:
         """The mesh for ``view`` with projected error ≤ ``pixel_error`` pixels.
 
         A forward to :func:`geoterrain.lod.select` (strategies, stats, reuse, horizon
-        culling).
+        culling, geomorphing).
 
         Examples
         --------
@@ -354,7 +355,8 @@ class Terrain:
         """
         from geoterrain import lod
 
-        return lod.select(self, view, pixel_error, strategy, reuse=reuse, occlusion=occlusion)
+        return lod.select(self, view, pixel_error, strategy, reuse=reuse, occlusion=occlusion,
+                          morph=morph)
 
     def mesh(self, max_error: float = 1.0) -> pv.PolyData:
         """Static mesh keeping every vertex with δ > ``max_error``: vertical error ≤ max_error.

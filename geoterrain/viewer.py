@@ -33,7 +33,7 @@ from geoterrain.cameras import default_view
 from geoterrain.colours import Palette
 from geoterrain.drape import Drape
 from geoterrain.lod.registry import DEFAULT, STRATEGIES, strategy_info
-from geoterrain.lod.switches import occlusion_enabled
+from geoterrain.lod.switches import morphing_choice, occlusion_enabled
 from geoterrain.rendering import TerrainScene
 from geoterrain.shading import Light
 from geoterrain.view import View
@@ -110,7 +110,8 @@ class ViewerController:
         self.message = ""
         self.screenshots = 0
         self._legend(cmap)
-        self.occlusion = occlusion_enabled()  # the worker thread takes the setting along
+        # the worker thread takes the command's settings along
+        self.occlusion, self.morph = occlusion_enabled(), morphing_choice()
         plotter.renderer.AddObserver("StartEvent", self._clip)
         self.home = default_view(terrain, tuple(plotter.window_size))
         self._go_home()
@@ -176,7 +177,7 @@ class ViewerController:
     def _work(self, key: tuple, view: View, strategy: str, tau: float):
         """Worker thread: the selection and its textures (no VTK call)."""
         sel = lod.select(self.terrain, view, pixel_error=tau, strategy=strategy,
-                         occlusion=self.occlusion)
+                         occlusion=self.occlusion, morph=self.morph)
         return key, sel, self.scene.view_texture(sel, view)
 
     def _apply(self, key: tuple, sel, vtex=None) -> None:

@@ -40,14 +40,21 @@ import numpy as np
 
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.registry import DEFAULT, REGISTRY, STRATEGIES, StrategyInfo, strategy_info
-from geoterrain.lod.switches import occlusion_culling, occlusion_enabled
+from geoterrain.lod.switches import (
+    geomorphing,
+    morphing_choice,
+    morphing_enabled,
+    occlusion_culling,
+    occlusion_enabled,
+)
 from geoterrain.view import View
 
 if TYPE_CHECKING:
     import pyvista as pv
 
 __all__ = ["DEFAULT", "REGISTRY", "STRATEGIES", "Selection", "StrategyInfo",
-           "occlusion_culling", "occlusion_enabled", "select", "static", "strategy_info"]
+           "geomorphing", "morphing_enabled", "occlusion_culling", "occlusion_enabled",
+           "select", "static", "strategy_info"]
 
 _LAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -92,11 +99,12 @@ class Selection:
 
 def _view_key(view: View, tau: float, strategy: str) -> tuple:
     return (view.look_from, view.look_at, view.up, view.fov_y_deg, view.size, view.near,
-            view.far, tau, strategy, occlusion_enabled())
+            view.far, tau, strategy, occlusion_enabled(), morphing_choice())
 
 
 def select(terrain, view: View, pixel_error: float = 1.0, strategy: str = DEFAULT, *,
-           reuse: bool = True, occlusion: bool | None = None) -> Selection:
+           reuse: bool = True, occlusion: bool | None = None,
+           morph: bool | None = None) -> Selection:
     """The mesh of ``terrain`` for ``view`` with projected error ≤ ``pixel_error`` pixels.
 
     Parameters
@@ -111,6 +119,9 @@ def select(terrain, view: View, pixel_error: float = 1.0, strategy: str = DEFAUL
     occlusion : cull tiles hidden behind nearer terrain
         (:mod:`geoterrain.lod.occlusion`); None keeps the current setting (on unless
         switched off with :func:`occlusion_culling`).
+    morph : geomorph, for the strategies that can (rtin: seed 002's band 0.75 τ … τ;
+        cdlod: seed 001's ranges); None keeps the current setting (each strategy's
+        default, rtin off and cdlod on, unless :func:`geomorphing` chose).
 
     Examples
     --------
@@ -118,6 +129,9 @@ def select(terrain, view: View, pixel_error: float = 1.0, strategy: str = DEFAUL
     """
     if occlusion is not None:
         with occlusion_culling(bool(occlusion)):
+            return select(terrain, view, pixel_error, strategy, reuse=reuse, morph=morph)
+    if morph is not None:
+        with geomorphing(bool(morph)):
             return select(terrain, view, pixel_error, strategy, reuse=reuse)
     info = strategy_info(strategy)
     if not isinstance(view, View):

@@ -59,6 +59,7 @@ from geoterrain.bintree import vertex_level
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.occlusion import hidden_rows
+from geoterrain.lod.switches import morphing_choice
 from geoterrain.lod.tiles import TileIndex, tile_geometry, tile_index
 from geoterrain.view import INSIDE, OUTSIDE, View
 
@@ -326,12 +327,13 @@ def morph_positions(terrain, key: np.ndarray, xyz: np.ndarray, eye: np.ndarray,
     return P[: len(key)], moved
 
 
-def select(terrain, view: View, tau: float, *, morph: bool = True,
+def select(terrain, view: View, tau: float, *, morph: bool | None = None,
            morph_fraction: float = MORPH_FRACTION):
     """The CDLOD mesh of ``view`` at pixel tolerance ``tau``, morphed, and its stats.
 
     ``morph=False`` (or ``morph_fraction=0``) keeps the selection but snaps each odd
-    vertex to its parent's surface at r_h instead of sliding it there.
+    vertex to its parent's surface at r_h instead of sliding it there; None follows
+    :func:`geoterrain.lod.switches.morphing_choice` (morphing unless switched off).
 
     Examples
     --------
@@ -339,6 +341,8 @@ def select(terrain, view: View, tau: float, *, morph: bool = True,
     >>> stats["nodes"] > 0 and mesh.n_cells > 0
     True
     """
+    if morph is None:
+        morph = morphing_choice() is not False
     f = float(morph_fraction) if morph else 0.0
     if not 0.0 <= f < 1.0:
         raise UsageError(f"morph_fraction must be in [0, 1), got {morph_fraction}")

@@ -42,8 +42,10 @@ from geoterrain.lod.kernels import (
     walk_start,
 )
 from geoterrain.lod.mesh import empty_polydata, polydata
+from geoterrain.lod.morph import MORPH_START, morph_mesh
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.pool import tile_pool
+from geoterrain.lod.switches import morphing_enabled
 from geoterrain.lod.tiles import TileIndex, tile_index, tile_table
 from geoterrain.view import View
 
@@ -227,7 +229,8 @@ def _gather(terrain, flat: np.ndarray):
     return xyz, ij, lvl
 
 
-def active_mesh(terrain, act: ActiveSet, view: View | None = None):
+def active_mesh(terrain, act: ActiveSet, view: View | None = None,
+                band: tuple[float, float] | None = None):
     """The conforming mesh of an active set: bisect, gather positions, cull, wind.
 
     Triangles with an invalid corner are dropped, and with ``view`` those entirely
@@ -237,7 +240,8 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None):
     vertices and reads each one's position from its pooled tile as it is first met;
     culling then keeps the arrays as they are when it drops nothing. If a vertex's tile
     is not pooled, it falls back to walking, gathering and culling in three passes
-    (:func:`_mesh_in_passes`).
+    (:func:`_mesh_in_passes`). With a band (τ_min, τ_max) the heights are geomorphed
+    (:mod:`geoterrain.lod.morph`) before culling, while every split edge's ends are there.
     """
     pool = tile_pool(terrain)
     sc = _scratch(terrain)
@@ -261,23 +265,27 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None):
         if status == 0:
             break
         if status == 2:
-            return _mesh_in_passes(terrain, act, planes)
+            return _mesh_in_passes(terrain, act, planes, view, band)
         cap *= 4
         M = 4 * M if 4 * M <= _HASHED_UP_TO else 0
     sc.last_faces = nf
+    if band is not None:
+        morph_mesh(terrain, verts[:nv], xyz[:nv], view, *band)
     nf, nv, level = cull_in_place(faces[:nf], xyz[:nv], ij[:nv], planes, lvl[:nv])
     # both base triangles are counter-clockwise and bisection keeps the orientation
     return polydata(xyz[:nv], faces[:nf], ij[:nv], {"skirt": np.zeros(nf, np.uint8),
                                                     "level": level})
 
 
-def _mesh_in_passes(terrain, act: ActiveSet, planes: np.ndarray):
+def _mesh_in_passes(terrain, act: ActiveSet, planes: np.ndarray, view=None, band=None):
     """:func:`active_mesh` in three passes: walk, gather from the pool, cull."""
     sc = _scratch(terrain)
     guess = 2 * sc.last_faces + 65536
     faces, flat = extract(act.active, act.mixed, sc.vid, act.gen, guess)
     sc.last_faces = len(faces)
     xyz, ij, lvl = _gather(terrain, flat)
+    if band is not None:
+        morph_mesh(terrain, flat, xyz, view, *band)
     faces, keep, level = cull_compact(faces, xyz, planes, lvl)
     if keep is not None:
         xyz, ij = xyz[keep], ij[keep]
@@ -295,6 +303,11 @@ def select(terrain, view: View, tau: float):
     index = tile_index(terrain)
     if index.outside(view):
         return empty_polydata(), {}
+    if morphing_enabled():  # seed 002 §2.10: vertices appear at τ_min, true at τ_max = τ
+        tmin = MORPH_START * tau
+        act = view_active(terrain, index, view, tmin)
+        return (active_mesh(terrain, act, view, (tmin, tau)),
+                {"tiles_hidden": act.tiles_hidden, "morph_band": (tmin, tau)})
     act = view_active(terrain, index, view, tau)
     return active_mesh(terrain, act, view), {"tiles_hidden": act.tiles_hidden}
 

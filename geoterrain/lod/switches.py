@@ -1,8 +1,11 @@
 """Per-call switches of the LOD selection, light to import (no numba, no VTK).
 
-:func:`occlusion_culling` scopes horizon culling (:mod:`geoterrain.lod.occlusion`):
-on by default; a command's ``--no-occlusion`` or ``select(..., occlusion=False)``
-switches it off for the selections made inside.
+- :func:`occlusion_culling` scopes horizon culling (:mod:`geoterrain.lod.occlusion`):
+  on by default; a command's ``--no-occlusion`` or ``select(..., occlusion=False)``
+  switches it off for the selections made inside.
+- :func:`geomorphing` scopes geomorphing (rtin: :mod:`geoterrain.lod.morph`, off by
+  default as it costs triangles; cdlod: on by default); ``--morph/--no-morph`` or
+  ``select(..., morph=...)`` chooses for every strategy that can.
 """
 
 from __future__ import annotations
@@ -11,7 +14,8 @@ import contextlib
 import contextvars
 from collections.abc import Iterator
 
-__all__ = ["occlusion_culling", "occlusion_enabled", "set_occlusion"]
+__all__ = ["geomorphing", "morphing_choice", "morphing_enabled", "occlusion_culling",
+           "occlusion_enabled", "set_morphing", "set_occlusion"]
 
 _OCCLUSION: contextvars.ContextVar[bool] = contextvars.ContextVar("geoterrain_occlusion",
                                                                  default=True)
@@ -51,3 +55,53 @@ def occlusion_culling(enabled: bool) -> Iterator[None]:
 def set_occlusion(enabled: bool) -> None:
     """Set horizon culling for the rest of this context (a command's whole run)."""
     _OCCLUSION.set(bool(enabled))
+
+
+_MORPH: contextvars.ContextVar[bool | None] = contextvars.ContextVar("geoterrain_morph",
+                                                                    default=None)
+
+
+def morphing_enabled() -> bool:
+    """Whether selections in this context geomorph where it is optional (rtin: off
+    unless switched on; see :func:`morphing_choice`).
+
+    Examples
+    --------
+    >>> morphing_enabled()
+    False
+    """
+    return bool(_MORPH.get())
+
+
+def morphing_choice() -> bool | None:
+    """The explicit choice (True/False), or None: each strategy's own default (rtin
+    does not morph, cdlod does).
+
+    Examples
+    --------
+    >>> morphing_choice() is None
+    True
+    """
+    return _MORPH.get()
+
+
+@contextlib.contextmanager
+def geomorphing(enabled: bool) -> Iterator[None]:
+    """Switch geomorphing on or off for the selections made inside the block.
+
+    Examples
+    --------
+    >>> with geomorphing(True):
+    ...     morphing_enabled()
+    True
+    """
+    tok = _MORPH.set(bool(enabled))
+    try:
+        yield
+    finally:
+        _MORPH.reset(tok)
+
+
+def set_morphing(enabled: bool) -> None:
+    """Set geomorphing for the rest of this context (a command's whole run)."""
+    _MORPH.set(bool(enabled))
