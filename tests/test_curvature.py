@@ -107,7 +107,7 @@ def test_rtin_metric_screen_error(geo, az, el, dist, tx, ty, tau):
     eye = target + dist * span * np.array([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el),
                                            np.sin(el)])
     view = View(tuple(eye), tuple(target), size=(640, 360))
-    sel = t.select(view, tau, "rtin")
+    sel = t.select(view, tau, "rtin", occlusion=False)  # ρ at every sample in the frustum
     ij, f, vz, vx, vy = _measure(geo, sel)
     e = metric_screen_error(f, vx, vy, vz, X, Y, Z, valid, view.eye, view.planes, view.lam,
                             tol)

@@ -184,7 +184,7 @@ def test_morphing_does_not_pop_along_a_glide(rough):
     for morph in (True, False):
         prev, out = None, []
         for v in views:
-            sel = rough.select(v, 1.0, "rtin", reuse=False, morph=morph)
+            sel = rough.select(v, 1.0, "rtin", reuse=False, morph=morph, occlusion=False)
             f = sel.surface_faces()
             s = (sel.ij, f, np.asarray(sel.mesh.points)[:, 2] if len(f) else np.zeros(0))
             if prev is not None:
