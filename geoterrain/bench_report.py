@@ -89,17 +89,23 @@ def summarise(rows: Sequence[dict]) -> list[dict]:
         groups.setdefault((r["strategy"], float(r["tau"])), []).append(r)
     out = []
     for (s, tau), g in groups.items():
-        col = {k: np.array([float(r[k]) for r in g]) for k in
-               ("select_ms", "render_ms", "triangles", "tiles_decoded", "peak_mem_mb",
-                "err_max", "err_p99")}
+        col = {k: np.array([float(r.get(k, math.nan)) for r in g]) for k in
+               ("select_ms", "select_cold_ms", "render_ms", "triangles", "tiles_decoded",
+                "peak_mem_mb", "err_max", "err_p99", "pop_px")}
+        # frames per second of a warm frame: selection and render, nothing else
+        fps = 1000.0 / (col["select_ms"] + col["render_ms"])
+        pop = col["pop_px"][np.isfinite(col["pop_px"])]
         out.append({
             "strategy": s, "tau": tau, "frames": len(g),
             "select_ms_med": _med(col["select_ms"]), "select_ms_p95": _p95(col["select_ms"]),
+            "select_cold_ms_med": _med(col["select_cold_ms"]),
             "render_ms_med": _med(col["render_ms"]), "render_ms_p95": _p95(col["render_ms"]),
+            "fps_med": _med(fps),
             "triangles_med": _med(col["triangles"]), "tiles_decoded_med":
                 _med(col["tiles_decoded"]), "peak_mem_mb_med": _med(col["peak_mem_mb"]),
             "err_max_worst": float(np.max(col["err_max"])),
             "err_p99_med": _med(col["err_p99"]),
+            "pop_px_max": float(pop.max()) if pop.size else math.nan,
         })
     order = {s: k for k, s in enumerate(STRATEGIES)}
     out.sort(key=lambda r: (order.get(r["strategy"], 99), r["tau"]))

@@ -8,6 +8,8 @@ keep ρ ≤ τ there; hidden tiles must not be decoded.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -324,3 +326,156 @@ def test_the_horizon_kernel_hides_only_what_an_occluder_covers(seed):
             first_hole = np.argmax(hole) if hole.any() else len(s)
             under = (state[cell] == 1) & inside & (p[:, 2] < zmin[cell])
             assert under[:first_hole].any(), f"box {r} hidden, but a ray to {q} is not blocked"
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 10**6))
+def test_the_kernel_geometry_matches_plain_trigonometry(seed):
+    """``_poly_span`` (extremes by pseudo-angle, two atan2) and ``_in_sector`` (a wedge
+    test without angles) against the same quantities taken with atan2 everywhere."""
+    from geoterrain.lod.occlusion import _in_sector, _poly_span, _wedge
+
+    rng = np.random.default_rng(seed)
+    ex, ey = rng.uniform(-50, 50, 2)
+    c = rng.uniform(-40, 40, 2) + np.array([ex, ey]) * rng.choice([0.0, 1.0])
+    w_, h_ = rng.uniform(0.5, 30, 2)
+    quad = c + np.array([[0, 0], [w_, 0], [w_, h_], [0, h_]], float)
+    if rng.uniform() < 0.5:  # the eye just outside an edge: corners behind it too
+        side = rng.integers(4)
+        t_ = rng.uniform(-0.2, 1.2)
+        off = rng.uniform(1e-3, 3.0)
+        ex, ey = {0: (c[0] + t_ * w_, c[1] - off), 1: (c[0] + w_ + off, c[1] + t_ * h_),
+                  2: (c[0] + t_ * w_, c[1] + h_ + off), 3: (c[0] - off, c[1] + t_ * h_)}[side]
+    s, w, dn, df = _poly_span(ex, ey, quad)
+    d = quad - [ex, ey]
+    inside = (quad[0, 0] < ex < quad[1, 0]) and (quad[0, 1] < ey < quad[2, 1])
+    assert np.isclose(df, np.hypot(d[:, 0], d[:, 1]).max(), rtol=1e-12)
+    if inside:
+        assert w < 0
+        return
+    ref = np.arctan2(d[:, 1].mean(), d[:, 0].mean())
+    a = (np.arctan2(d[:, 1], d[:, 0]) - ref + np.pi) % (2 * np.pi) - np.pi
+    if a.max() - a.min() >= np.pi - 1e-9:
+        return
+    assert w >= 0
+    assert np.isclose(w, a.max() - a.min(), atol=1e-12)
+    assert np.isclose((s - (ref + a.min()) + np.pi) % (2 * np.pi) - np.pi, 0.0, atol=1e-12)
+    near = np.hypot(max(quad[0, 0] - ex, 0, ex - quad[1, 0]),
+                    max(quad[0, 1] - ey, 0, ey - quad[2, 1]))
+    assert np.isclose(dn, near, rtol=1e-12, atol=1e-12)
+    # the wedge test: may the footprint's circle meet the sector?
+    sec0, secw = rng.uniform(-np.pi, np.pi), rng.uniform(0.01, np.pi - 0.01)
+    cen = np.array([*quad.mean(0), np.hypot(w_, h_) / 2])
+    dc = np.hypot(cen[0] - ex, cen[1] - ey)
+    if dc <= cen[2] * (1 + 1e-6):
+        return
+    half = np.arcsin(cen[2] / dc)
+    lo_ = (np.arctan2(cen[1] - ey, cen[0] - ex) - half - sec0) % (2 * np.pi)
+    want = lo_ <= secw or lo_ + 2 * half >= 2 * np.pi
+    if min(abs(lo_ - secw), abs(lo_ + 2 * half - 2 * np.pi)) < 1e-9:
+        return  # on the sector's edge: either answer is within rounding
+    assert _in_sector(ex, ey, cen, _wedge(sec0, secw)) == want
+
+
+def _hidden_in_one_pass(t, view):
+    """Culling without the upper-bound pass: the near tiles refined into blocks always,
+    every row tested against that horizon."""
+    from geoterrain.lod import occlusion as oc
+
+    index = tile_index(t)
+    out = np.zeros(len(index.keys), bool)
+    if index.outside(view) or not eye_above_surface(t, view):
+        return out
+    fp = oc._footprints(t)
+    rows, replaced = oc._near_tiles(t, index, view)
+    state, corners, cen, zmin = fp.state.copy(), fp.corners, fp.centres, fp.zmin
+    if len(rows):
+        bc, bcen, bs, bz = oc._near_blocks(t, index, rows)
+        state[replaced] = -1
+        corners, cen = np.concatenate([corners, bc]), np.concatenate([cen, bcen])
+        state, zmin = np.concatenate([state, bs]), np.concatenate([zmin, bz])
+    e = view.eye
+    oc._horizon_cull(float(e[0]), float(e[1]), float(e[2]), corners, cen, state, zmin,
+                     fp.margin, *oc._sector(view), index.lo, index.hi, out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def rough_store(tmp_path_factory):
+    d = tmp_path_factory.mktemp("rough")
+    return _store(d, _fbm(129, 5, 60.0), tile_size=16)
+
+
+@settings(max_examples=40, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.integers(0, 10**6), st.booleans())
+def test_the_upper_bound_pass_changes_nothing(rough_store, seed, low):
+    """``hidden_rows`` first bounds the near tiles' blocks by their highest sample and
+    refines only when that bound hides something: it must give exactly what one pass
+    with the blocks always refined gives."""
+    t = rough_store
+    rng = np.random.default_rng(seed)
+    if low:
+        view = _low_view(t, rng)[0]
+    else:
+        X, Y, Z = t.scene_xyz()
+        ext = float(np.nanmax(np.abs(X)))
+        az, el = rng.uniform(0, 2 * np.pi), np.radians(rng.uniform(3, 40))
+        dist = ext * rng.uniform(0.3, 2.0)
+        target = np.array([*rng.uniform(-0.5 * ext, 0.5 * ext, 2), float(np.nanmedian(Z))])
+        eye = target + dist * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az),
+                                        np.sin(el)])
+        eye[2] = max(eye[2], float(np.nanmax(Z)) + rng.uniform(-30, 30))
+        view = View(tuple(eye), tuple(target), size=(320, 180))
+    got = hidden_rows(t, view)
+    want = _hidden_in_one_pass(t, dataclasses.replace(view, _cache={}))
+    assert np.array_equal(got, want)
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.integers(0, 10**6))
+def test_a_standing_in_footprint_bounds_its_blocks(seed):
+    """The kernel's state 2: a footprint standing in for its 4 × 4 blocks at their
+    highest sample hides at least every box those blocks hide (the upper-bound pass of
+    :func:`hidden_rows` relies on it)."""
+    from geoterrain.lod.occlusion import _centres, _horizon_cull
+
+    rng = np.random.default_rng(seed)
+    n, k = 8, 4
+    ty, tx = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    x0, y0 = tx.ravel() * 100.0, ty.ravel() * 100.0
+
+    def squares(x, y, w):
+        return np.stack([np.stack([x, y], 1), np.stack([x + w, y], 1),
+                         np.stack([x + w, y + w], 1), np.stack([x, y + w], 1)], 1)
+
+    corners = squares(x0, y0, 100.0)
+    state = (rng.uniform(size=n * n) > 0.1).astype(np.int8)
+    zmin = rng.uniform(0, 100, n * n)
+    eye = np.array([rng.uniform(0, 800), rng.uniform(0, 800), 0.0])
+    p_eye = int(eye[1] // 100) * n + int(eye[0] // 100)
+    state[p_eye] = 1
+    eye[2] = zmin[p_eye] + rng.uniform(1, 60)
+    # some valid footprints (not the eye's) split into blocks of random heights
+    split = [p for p in np.flatnonzero(state == 1) if p != p_eye and rng.uniform() < 0.4]
+    by, bx = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
+    bc = np.concatenate([squares(x0[p] + bx.ravel() * 25.0, y0[p] + by.ravel() * 25.0, 25.0)
+                         for p in split]) if split else np.zeros((0, 4, 2))
+    bz = rng.uniform(0, 200, len(bc))
+    top = np.array([bz[i * k * k:(i + 1) * k * k].max() for i in range(len(split))])
+    lo = np.stack([rng.uniform(0, 750, 60), rng.uniform(0, 750, 60), np.zeros(60)], 1)
+    hi = lo + np.stack([rng.uniform(5, 50, 60), rng.uniform(5, 50, 60),
+                        rng.uniform(0, 150, 60)], 1)
+    fine_state = state.copy()
+    fine_state[split] = -1
+    fine = np.zeros(60, bool)
+    _horizon_cull(eye[0], eye[1], eye[2], np.concatenate([corners, bc]),
+                  _centres(np.concatenate([corners, bc])),
+                  np.concatenate([fine_state, np.ones(len(bc), np.int8)]),
+                  np.concatenate([zmin, bz]), 0.0, 0.0, 4 * np.pi, lo, hi, fine)
+    up_state, up_z = state.copy(), zmin.copy()
+    up_state[split], up_z[split] = 2, top
+    upper = np.zeros(60, bool)
+    if _horizon_cull(eye[0], eye[1], eye[2], corners, _centres(corners), up_state, up_z, 0.0,
+                     0.0, 4 * np.pi, lo, hi, upper) == 0:
+        assert not (fine & ~upper).any(), "a box the blocks hide is not hidden by the bound"

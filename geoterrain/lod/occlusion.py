@@ -30,6 +30,15 @@ Why it is conservative (never hides a point the full-resolution surface shows):
   the same azimuth by a lower ray. It is hidden when that bound is under the
   horizon in every bin its box touches.
 
+What it costs is kept small: an occluder whose best possible horizon, (zmin − z_eye) over
+its centre's distance, is above every farther occludee's top is skipped without any
+trigonometry; corners are ordered by pseudo-angle, so a footprint's span takes two
+atan2; and before any tile is decoded for its blocks, a first pass lets each near tile
+stand in for its blocks at its highest sample (an upper bound of their horizon). When
+that pass hides nothing, nothing is decoded; otherwise only what it hides is tested
+again with the blocks. Bins a rounding error could move (``EPS``) count against
+culling.
+
 On a geographic source the footprints are curved: corners are mapped by
 :meth:`Frame.xy` and each footprint is shrunk (as occluder) or grown (as a hole) by the
 largest measured deviation of a tile edge from its chord.
@@ -58,6 +67,7 @@ __all__ = ["BINS", "eye_above_surface", "hidden_rows", "occluder_rows"]
 BINS = 2048  # azimuth bins over the full turn
 NEAR_TILES = 32  # level-0 tiles nearest the eye that also occlude block by block
 BLOCKS = 16  # blocks per side of such a tile
+EPS = 1e-12  # radians: a bin that rounding could move is counted against culling
 _FOOT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -91,6 +101,7 @@ class _Footprints:
         zmin[p0[ok]] = z0[ok] - 1e-7 * np.maximum(1.0, np.abs(z0[ok]))
         zmax[p0[ok]] = z1[ok] + 1e-7 * np.maximum(1.0, np.abs(z1[ok]))
         self.good, self.zmin, self.zmax = good, zmin, zmax
+        self.state = good.astype(np.int8)  # 1 an occluder, 0 a hole
         self.level0 = L0[ix.nvalid[L0] > 0]
         inner = (ty >= 0) & (ty < n) & (tx >= 0) & (tx < n)
         edges = np.hypot(*np.moveaxis(np.roll(self.corners, -1, 1) - self.corners, 2, 0))
@@ -119,26 +130,44 @@ def _footprints(terrain) -> _Footprints:
     return fp
 
 
+@njit(cache=True, inline="always")
+def _pseudo_angle(c, d):
+    """A number that grows with atan2(c, d) over (−π, π] (the "diamond angle"), so the
+    extreme corners are found without trigonometry."""
+    s = abs(c) + abs(d)
+    if s == 0.0:
+        return 0.0
+    if d >= 0.0:
+        return c / s
+    return (2.0 if c >= 0.0 else -2.0) - c / s
+
+
 @njit(cache=True)
 def _poly_span(ex, ey, c):
     """Azimuth span (start, width) of a convex polygon ``c`` (K, 2) seen from (ex, ey),
     and its nearest and farthest horizontal distance; width < 0 if the eye is inside."""
     K = c.shape[0]
-    cx, cy = 0.0, 0.0
+    rx, ry = -K * ex, -K * ey  # the direction to the centroid (times K)
     for k in range(K):
-        cx += c[k, 0]
-        cy += c[k, 1]
-    ref = math.atan2(cy / K - ey, cx / K - ex)
-    lo, hi, far = 1e300, -1e300, 0.0
+        rx += c[k, 0]
+        ry += c[k, 1]
+    # the corners' angles about that direction: extremes by pseudo-angle, then atan2 twice
+    plo, phi, klo, khi, far2 = 1e300, -1e300, 0, 0, 0.0
     for k in range(K):
         dx, dy = c[k, 0] - ex, c[k, 1] - ey
-        a = math.atan2(dy, dx) - ref
-        a = (a + math.pi) % (2 * math.pi) - math.pi
-        lo, hi = min(lo, a), max(hi, a)
-        far = max(far, math.hypot(dx, dy))
+        pa = _pseudo_angle(rx * dy - ry * dx, rx * dx + ry * dy)
+        if pa < plo:
+            plo, klo = pa, k
+        if pa > phi:
+            phi, khi = pa, k
+        far2 = max(far2, dx * dx + dy * dy)
+    dlx, dly = c[klo, 0] - ex, c[klo, 1] - ey
+    dhx, dhy = c[khi, 0] - ex, c[khi, 1] - ey
+    lo = math.atan2(rx * dly - ry * dlx, rx * dlx + ry * dly)
+    hi = math.atan2(rx * dhy - ry * dhx, rx * dhx + ry * dhy)
     # nearest distance: to the edges (the eye is outside when every cross product of
     # the edges with the eye has one sign)
-    near, sgn, inside = 1e300, 0, True
+    near2, sgn, inside = 1e300, 0, True
     for k in range(K):
         ax, ay = c[k, 0], c[k, 1]
         bx, by = c[(k + 1) % K, 0], c[(k + 1) % K, 1]
@@ -152,10 +181,12 @@ def _poly_span(ex, ey, c):
                 inside = False
         L2 = ux * ux + uy * uy
         w = 0.0 if L2 == 0 else min(1.0, max(0.0, ((ex - ax) * ux + (ey - ay) * uy) / L2))
-        near = min(near, math.hypot(ex - ax - w * ux, ey - ay - w * uy))
+        qx, qy = ex - ax - w * ux, ey - ay - w * uy
+        near2 = min(near2, qx * qx + qy * qy)
+    far = math.sqrt(far2)
     if inside or hi - lo >= math.pi:
-        return ref, -1.0, 0.0, far
-    return ref + lo, hi - lo, near, far
+        return 0.0, -1.0, 0.0, far
+    return math.atan2(dly, dlx), hi - lo, math.sqrt(near2), far
 
 
 @njit(cache=True)
@@ -170,19 +201,33 @@ def _near_footprints(ex, ey, corners, cen, reach_to):
     return out
 
 
+@njit(cache=True)
+def _wedge(sec0, secw):
+    """The sector [sec0, sec0 + secw] as its two unit rays, and whether it is the full
+    turn (:func:`_sector` gives a width of 4π for any sector π or more wide)."""
+    if secw >= math.pi:
+        return np.array([1.0, 0.0, 1.0, 0.0, 1.0])
+    return np.array([math.cos(sec0), math.sin(sec0), math.cos(sec0 + secw),
+                     math.sin(sec0 + secw), 0.0])
+
+
 @njit(cache=True, inline="always")
-def _in_sector(ex, ey, cen, sec0, secw):
+def _in_sector(ex, ey, cen, wedge):
     """Whether a footprint (centre x, y and radius ``cen``) may meet the sector of
-    azimuths [sec0, sec0 + secw] (a cheap test before :func:`_poly_span`)."""
-    if secw >= 2 * math.pi:
+    azimuths ``wedge`` (:func:`_wedge`; a cheap test before :func:`_poly_span`): its
+    centre lies in the wedge, or its circle reaches one of the wedge's two rays."""
+    if wedge[4] != 0.0:  # the sector is the full turn
         return True
-    dx, dy = cen[0] - ex, cen[1] - ey
-    d = math.hypot(dx, dy)
-    if d <= cen[2]:
-        return True
-    half = math.asin(cen[2] / d)
-    a = (math.atan2(dy, dx) - half - sec0) % (2 * math.pi)
-    return a <= secw or a + 2 * half >= 2 * math.pi
+    cx, cy, R = cen[0] - ex, cen[1] - ey, cen[2] * (1 + 1e-9) + 1e-300
+    ax, ay, bx, by = wedge[0], wedge[1], wedge[2], wedge[3]
+    if ax * cy - ay * cx >= 0.0 and cx * by - cy * bx >= 0.0:
+        return True  # the centre is inside the wedge (narrower than π)
+    for ux, uy in ((ax, ay), (bx, by)):
+        t = ux * cx + uy * cy
+        d2 = cx * cx + cy * cy - t * t if t > 0.0 else cx * cx + cy * cy
+        if d2 <= R * R:
+            return True
+    return False
 
 
 @njit(cache=True)
@@ -191,20 +236,26 @@ def _horizon_cull(ex, ey, ez, corners, cen, state, zmin, margin, sec0, secw, lo,
     the footprints ``corners`` (the eye already known to be above the surface).
 
     ``state`` per footprint: 1 all valid (an occluder), 0 a hole (nodata or outside the
-    grid), −1 ignored (replaced by finer footprints); ``cen`` its centre and radius.
-    Only rays in the sector of azimuths [sec0, sec0 + secw] (the frustum's) matter."""
+    grid), −1 ignored (replaced by finer footprints), 2 standing in for finer
+    footprints inside it, with ``zmin`` their highest sample (an upper bound of their
+    horizon, so the boxes it hides are a superset); ``cen`` its centre and radius.
+    Only rays in the sector of azimuths [sec0, sec0 + secw] (the frustum's) matter.
+
+    Returns 1 (``out`` left as is) when a state-2 footprint holds the eye or lies within
+    ``margin`` of it, where it gives no upper bound; else 0."""
     P = corners.shape[0]
     B = 2048
     dphi = 2 * math.pi / B
+    wedge = _wedge(sec0, secw)
     reach = np.full(B, 1e300)  # per bin: distance to the nearest footprint with a hole
     # 1. holes: a ray counts as blocked only until it may have passed over one
     for p in range(P):
-        if state[p] != 0 or not _in_sector(ex, ey, cen[p], sec0, secw):
+        if state[p] != 0 or not _in_sector(ex, ey, cen[p], wedge):
             continue
         s, w, dn, df = _poly_span(ex, ey, corners[p])
-        if w < 0:
-            return
-        m = math.asin(min(1.0, margin / dn)) if dn > 0 else math.pi
+        if w < 0:  # the eye is over a hole: nothing is hidden
+            return 0
+        m = (math.asin(min(1.0, margin / dn)) if dn > 0 else math.pi) + EPS
         b0 = int(math.floor((s - m) / dphi))
         b1 = int(math.floor((s + w + m) / dphi))
         d = dn - margin
@@ -212,6 +263,28 @@ def _horizon_cull(ex, ey, ez, corners, cen, state, zmin, margin, sec0, secw, lo,
             k = b % B
             if d < reach[k]:
                 reach[k] = d
+    # the occludees by their nearest distance, with the height their rays rise to at
+    # least (over the box: from its nearest point if above the eye, else its farthest)
+    R = lo.shape[0]
+    dnear = np.empty(R)
+    tops = np.empty(R)
+    for r in range(R):
+        dx = max(lo[r, 0] - ex, 0.0, ex - hi[r, 0])
+        dy = max(lo[r, 1] - ey, 0.0, ey - hi[r, 1])
+        dnear[r] = math.hypot(dx, dy)
+        dz = hi[r, 2] - ez
+        if dz >= 0:
+            tops[r] = dz / dnear[r] if dnear[r] > 0 else 1e300
+        else:
+            fx = max(abs(lo[r, 0] - ex), abs(hi[r, 0] - ex))
+            fy = max(abs(lo[r, 1] - ey), abs(hi[r, 1] - ey))
+            tops[r] = dz / math.sqrt(fx * fx + fy * fy)
+    rorder = np.argsort(dnear)
+    sd = dnear[rorder]
+    lowest = np.empty(R + 1)  # lowest[i]: the lowest top of the occludees i … R−1 (sorted)
+    lowest[R] = 1e300
+    for i in range(R - 1, -1, -1):
+        lowest[i] = min(lowest[i + 1], tops[rorder[i]])
     # 2. occluders: valid footprints, ordered by their farthest distance
     occ_far = np.empty(P)
     occ_tan = np.empty(P)
@@ -219,32 +292,44 @@ def _horizon_cull(ex, ey, ez, corners, cen, state, zmin, margin, sec0, secw, lo,
     occ_b1 = np.empty(P, np.int64)
     n_occ = 0
     for p in range(P):
-        if state[p] != 1 or not _in_sector(ex, ey, cen[p], sec0, secw):
+        st = state[p]
+        if st == 1:
+            # its horizon is at most (zmin − z_eye)/d_centre (d_near ≤ d_centre ≤ d_far),
+            # and it blocks only occludees nearest-farther than d_centre: skip it if none
+            # of those reaches below that (no trigonometry spent on it)
+            dc = math.hypot(cen[p, 0] - ex, cen[p, 1] - ey)
+            if dc > 0 and (zmin[p] - ez) / dc <= lowest[np.searchsorted(sd, dc, "right")]:
+                continue
+        elif st != 2:
+            continue
+        if not _in_sector(ex, ey, cen[p], wedge):
             continue
         s, w, dn, df = _poly_span(ex, ey, corners[p])
         if w < 0 or dn <= margin:
+            if st == 2:  # its blocks may surround the eye: no upper bound from it
+                return 1
             continue
-        m = math.asin(min(1.0, margin / dn))
-        b0 = int(math.ceil((s + m) / dphi))
-        b1 = int(math.floor((s + w - m) / dphi)) - 1  # bins wholly inside the span
-        if b1 < b0:
-            continue
+        m = math.asin(min(1.0, margin / dn)) + EPS
         dn, df = dn - margin, df + margin
         dz = zmin[p] - ez
-        occ_tan[n_occ] = dz / df if dz >= 0 else dz / dn
-        occ_far[n_occ] = df
+        if st == 1:
+            b0 = int(math.ceil((s + m) / dphi))
+            b1 = int(math.floor((s + w - m) / dphi)) - 1  # bins wholly inside the span
+            if b1 < b0:
+                continue
+            occ_tan[n_occ] = dz / df if dz >= 0 else dz / dn
+            occ_far[n_occ] = df
+        else:  # an upper bound of any footprint inside it, ``zmin`` its highest sample
+            b0 = int(math.floor((s - m) / dphi))
+            b1 = int(math.floor((s + w + m) / dphi))  # every bin it touches
+            occ_tan[n_occ] = dz / dn if dz >= 0 else dz / df
+            occ_far[n_occ] = dn  # (any of them falls behind no sooner)
         occ_b0[n_occ], occ_b1[n_occ] = b0, b1
         n_occ += 1
     order = np.argsort(occ_far[:n_occ])
     # 3. occludees by their nearest distance; the horizon grows as occluders fall behind
-    R = lo.shape[0]
-    dnear = np.empty(R)
-    for r in range(R):
-        dx = max(lo[r, 0] - ex, 0.0, ex - hi[r, 0])
-        dy = max(lo[r, 1] - ey, 0.0, ey - hi[r, 1])
-        dnear[r] = math.hypot(dx, dy)
-    rorder = np.argsort(dnear)
     horizon = np.full(B, -1e300)
+    hmax = -1e300  # the highest horizon in any bin so far
     box = np.empty((4, 2))
     bc = np.empty(3)
     q = 0
@@ -260,7 +345,9 @@ def _horizon_cull(ex, ey, ez, corners, cen, state, zmin, margin, sec0, secw, lo,
                 k = b % B
                 if occ_far[o] < reach[k] and occ_tan[o] > horizon[k]:
                     horizon[k] = occ_tan[o]
-        if q == 0:
+                    hmax = max(hmax, occ_tan[o])
+        top = tops[r]
+        if not top < hmax:  # over the horizon in every bin: seen, whatever its span
             continue
         box[0, 0], box[0, 1] = lo[r, 0], lo[r, 1]
         box[1, 0], box[1, 1] = hi[r, 0], lo[r, 1]
@@ -268,48 +355,30 @@ def _horizon_cull(ex, ey, ez, corners, cen, state, zmin, margin, sec0, secw, lo,
         box[3, 0], box[3, 1] = lo[r, 0], hi[r, 1]
         bc[0], bc[1] = 0.5 * (lo[r, 0] + hi[r, 0]), 0.5 * (lo[r, 1] + hi[r, 1])
         bc[2] = 0.5 * math.hypot(hi[r, 0] - lo[r, 0], hi[r, 1] - lo[r, 1])
-        if not _in_sector(ex, ey, bc, sec0, secw):
+        if not _in_sector(ex, ey, bc, wedge):
             continue
         s, w, _, df = _poly_span(ex, ey, box)
         if w < 0:
             continue
-        dz = hi[r, 2] - ez
-        top = dz / dn if dz >= 0 else dz / df
-        b0 = int(math.floor(s / dphi))
-        b1 = int(math.floor((s + w) / dphi))
+        b0 = int(math.floor((s - EPS) / dphi))
+        b1 = int(math.floor((s + w + EPS) / dphi))
         hid = True
         for b in range(b0, b1 + 1):
             if not top < horizon[b % B]:
                 hid = False
                 break
         out[r] = hid
+    return 0
 
 
-def _block_corners(terrain, x: int, y: int, b: int) -> np.ndarray:
-    """Corner x, y (nb², 4, 2) of the b × b-cell blocks of level-0 tile (x, y)."""
-    S = 1 << terrain.grid.t
-    k = np.arange(0, S, b)
-    bi, bj = np.meshgrid(y * S + k, x * S + k, indexing="ij")
-    bi, bj = bi.ravel(), bj.ravel()
-    ci = np.stack([bi, bi, bi + b, bi + b], 1).astype(np.float64)
-    cj = np.stack([bj, bj + b, bj + b, bj], 1).astype(np.float64)
-    return np.stack(terrain.frame.xy(ci, cj), 2)
+def _near_tiles(terrain, index, view: View, tiles: int = NEAR_TILES):
+    """The level-0 tiles nearest the eye in the frustum that the tile bounds alone do not
+    show hidden, and the eye's own: those :func:`_near_blocks` refines.
 
-
-def _near_blocks(terrain, index, view: View, tiles: int = NEAR_TILES):
-    """Finer footprints for the level-0 tiles nearest the eye in the frustum that the
-    tile bounds alone do not show hidden, and for the eye's own: each tile's b × b-cell
-    blocks, with their lowest sample (state 1) or, if one of their samples is nodata,
-    as holes (state 0). These tiles are the ones a view draws at full resolution, so
-    decoding them here usually costs the selection nothing more. (One of them may
-    still turn out hidden behind a nearer one: it is culled, though it was read.)
-
-    Returns the tiles (index rows), the replaced footprints (their numbers in
-    :class:`_Footprints`), and the blocks' corners, centres, states and lowest samples."""
+    Returns them (index rows) and their footprints (numbers in :class:`_Footprints`)."""
     fp = _footprints(terrain)
     rows = fp.level0
-    none = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 4, 2)),
-            np.zeros((0, 3)), np.zeros(0, np.int8), np.zeros(0))
+    none = (np.zeros(0, np.int64), np.zeros(0, np.int64))
     if not len(rows):
         return none
     lo, hi = index.lo[rows], index.hi[rows]
@@ -325,51 +394,73 @@ def _near_blocks(terrain, index, view: View, tiles: int = NEAR_TILES):
     pick = pick[np.argsort(d[pick], kind="stable")]
     # not those the tile bounds already show hidden: a culled tile is never decoded
     hid = np.zeros(len(pick), bool)
-    sec0, secw = _sector(view)
-    _horizon_cull(float(e[0]), float(e[1]), float(e[2]), fp.corners, fp.centres,
-                  fp.good.astype(np.int8), fp.zmin, fp.margin, sec0, secw, lo[pick], hi[pick],
-                  hid)
+    if len(pick):  # only footprints nearer than the farthest of these can occlude them
+        c = fp.centres
+        near = np.hypot(c[:, 0] - e[0], c[:, 1] - e[1]) - c[:, 2] - fp.margin
+        keep = np.flatnonzero(near < d[pick].max())
+        sec0, secw = _sector(view)
+        _horizon_cull(float(e[0]), float(e[1]), float(e[2]), fp.corners[keep],
+                      fp.centres[keep], fp.state[keep], fp.zmin[keep], fp.margin, sec0, secw,
+                      lo[pick], hi[pick], hid)
     pick = np.union1d(pick[~hid][:tiles], np.flatnonzero(under))
-    if not len(pick):
-        return none
     rows = rows[pick]
-    S, n = 1 << terrain.grid.t, terrain.grid.tiles_per_side(0)
-    b = max(1, S // BLOCKS)
-    replaced, corners, cens, states, zmin = [], [], [], [], []
-    for r in rows:
-        _, x, y = (int(v) for v in index.keys[r])
-        replaced.append((y + 1) * (n + 2) + (x + 1))
-        got = fp.blocks.get((x, y, b))
-        if got is None:
-            got = fp.blocks[(x, y, b)] = _blocks(terrain, x, y, b)
-        corners.append(got[0])
-        cens.append(got[1])
-        states.append(got[2])
-        zmin.append(got[3])
-    return (rows, np.array(replaced, np.int64), np.concatenate(corners),
-            np.concatenate(cens), np.concatenate(states), np.concatenate(zmin))
+    return rows, fp.position[rows]
 
 
-def _blocks(terrain, x: int, y: int, b: int):
-    """Corners, centres, states and lowest samples of level-0 tile (x, y)'s blocks."""
+def _near_blocks(terrain, index, rows: np.ndarray):
+    """Finer footprints for the level-0 tiles ``rows`` (:func:`_near_tiles`): each tile's
+    b × b-cell blocks, with their lowest sample (state 1) or, if one of their samples is
+    nodata, as holes (state 0). These tiles are the ones a view draws at full
+    resolution, so decoding them here usually costs the selection nothing more. (One of
+    them may still turn out hidden behind a nearer one: it is culled, though it was
+    read.)
+
+    Returns the blocks' corners, centres, states and lowest samples."""
+    fp = _footprints(terrain)
     S = 1 << terrain.grid.t
-    nb = S // b
-    tile = terrain.tile(0, x, y)
-    z = np.where(tile.valid, terrain.frame.z(np.nan_to_num(tile.heights)), np.inf)
+    b = max(1, S // BLOCKS)
+    keys = [(int(index.keys[r, 1]), int(index.keys[r, 2]), b) for r in rows]
+    new = [k for k in dict.fromkeys(keys) if k not in fp.blocks]
+    if new:
+        _blocks(terrain, new, b, fp.blocks)
+    got = [fp.blocks[k] for k in keys]
+    return tuple(np.concatenate([g[i] for g in got]) for i in range(4))
+
+
+def _blocks(terrain, keys: list, b: int, into: dict) -> None:
+    """Corners, centres, states and lowest samples of the blocks of the level-0 tiles
+    ``keys`` ((x, y, b) each), all tiles at once, stored per tile in ``into``."""
+    S = 1 << terrain.grid.t
+    nb, n = S // b, len(keys)
+    tiles = [terrain.tile(0, x, y) for x, y, _ in keys]
+    valid = np.stack([t.valid for t in tiles])
+    z = np.where(valid, terrain.frame.z(np.nan_to_num(np.stack([t.heights for t in tiles]))),
+                 np.inf)
     # lowest sample of each block, borders included: the block's own b × b samples,
     # then its last row and column (the next block's first) — inf marks nodata
-    bad = np.where(tile.valid, 0.0, np.inf)
+    bad = np.where(valid, 0.0, np.inf)
 
-    def closed_min(a):
-        rows = np.minimum(a[:S].reshape(nb, b, -1).min(1), a[b::b])  # (nb, T)
-        return np.minimum(rows[:, :S].reshape(nb, nb, b).min(2), rows[:, b::b])
+    def closed_min(a):  # (n, T, T) → (n, nb, nb)
+        rows = np.minimum(a[:, :S].reshape(n, nb, b, -1).min(2), a[:, b::b])  # (n, nb, T)
+        return np.minimum(rows[:, :, :S].reshape(n, nb, nb, b).min(3), rows[:, :, b::b])
 
     lows = closed_min(z)
     ok = closed_min(bad) == 0.0  # no nodata sample in the block
-    lows = np.where(ok, lows, 0.0).ravel()
-    corners = _block_corners(terrain, x, y, b)
-    return (corners, _centres(corners), ok.ravel().astype(np.int8),
-            lows - 1e-7 * np.maximum(1.0, np.abs(lows)))
+    lows = np.where(ok, lows, 0.0).reshape(n, -1)
+    lows = lows - 1e-7 * np.maximum(1.0, np.abs(lows))
+    ok = ok.reshape(n, -1).astype(np.int8)
+    # the blocks' corners (rows, columns of the grid; a closed loop), then x, y
+    k = np.arange(0, S, b)
+    xs = np.array([x for x, _, _ in keys])[:, None, None]
+    ys = np.array([y for _, y, _ in keys])[:, None, None]
+    bi = np.broadcast_to(ys * S + k[None, :, None], (n, nb, nb)).reshape(-1)
+    bj = np.broadcast_to(xs * S + k[None, None, :], (n, nb, nb)).reshape(-1)
+    ci = np.stack([bi, bi, bi + b, bi + b], 1).astype(np.float64)
+    cj = np.stack([bj, bj + b, bj + b, bj], 1).astype(np.float64)
+    corners = np.stack(terrain.frame.xy(ci, cj), 2).reshape(n, nb * nb, 4, 2)
+    cens = _centres(corners.reshape(-1, 4, 2)).reshape(n, nb * nb, 3)
+    for m, key in enumerate(keys):
+        into[key] = (corners[m], cens[m], ok[m], lows[m])
 
 
 def _centres(corners: np.ndarray) -> np.ndarray:
@@ -380,8 +471,15 @@ def _centres(corners: np.ndarray) -> np.ndarray:
 
 
 def _sector(view: View) -> tuple[float, float]:
-    """The azimuths of the frustum's rays: (start, width); width 2π when they include
-    straight down or up."""
+    """The azimuths of the frustum's rays: (start, width); width 4π when they include
+    straight down or up, or span π or more."""
+    got = view._cache.get("azimuths")
+    if got is None:
+        got = view._cache["azimuths"] = _sector_of(view)
+    return got
+
+
+def _sector_of(view: View) -> tuple[float, float]:
     r, u, f = view.basis()
     ty = math.tan(math.radians(view.fov_y_deg) / 2)
     tx = ty * view.size[0] / view.size[1]
@@ -512,18 +610,36 @@ def hidden_rows(terrain, view: View, grow: np.ndarray | None = None) -> np.ndarr
         lo, hi = lo - g, hi + g
     if eye_above_surface(terrain, view):
         e = view.eye
-        state = fp.good.astype(np.int8)
+        ex, ey, ez = float(e[0]), float(e[1]), float(e[2])
+        sec0, secw = _sector(view)
+        occluders, replaced = _near_tiles(terrain, index, view)
+        state = fp.state.copy()
         corners, cen, zmin = fp.corners, fp.centres, fp.zmin
-        occluders, replaced, bc, bcen, bs, bz = _near_blocks(terrain, index, view)
-        view._cache[("occluders", id(terrain))] = occluders
-        if len(bz):
+        rows = np.arange(len(out))
+        if len(occluders) and fp.good[replaced].all():
+            # first with each near tile standing in for its blocks at its highest
+            # sample (an upper bound of their horizon): nothing decoded when that hides
+            # nothing, and only what it hides is tested again
+            state[replaced] = 2
+            zup = zmin.copy()
+            zup[replaced] = fp.zmax[replaced]
+            upper = np.zeros(len(out), bool)
+            if _horizon_cull(ex, ey, ez, corners, cen, state, zup, fp.margin, sec0, secw,
+                             lo, hi, upper) == 0:
+                rows = np.flatnonzero(upper)
+                occluders = occluders[:0] if not len(rows) else occluders
+        if len(rows) and len(occluders):
+            bc, bcen, bs, bz = _near_blocks(terrain, index, occluders)
             state[replaced] = -1
             corners = np.concatenate([corners, bc])
             cen = np.concatenate([cen, bcen])
             state = np.concatenate([state, bs])
             zmin = np.concatenate([zmin, bz])
-        sec0, secw = _sector(view)
-        _horizon_cull(float(e[0]), float(e[1]), float(e[2]), corners, cen, state, zmin,
-                      fp.margin, sec0, secw, lo, hi, out)
+        view._cache[("occluders", id(terrain))] = occluders
+        if len(rows):
+            got = np.zeros(len(rows), bool)
+            _horizon_cull(ex, ey, ez, corners, cen, state, zmin, fp.margin, sec0, secw,
+                          lo[rows], hi[rows], got)
+            out[rows] = got
     view._cache[key] = out
     return out
