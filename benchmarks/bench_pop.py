@@ -7,7 +7,8 @@ surface since the previous frame, in pixels
 nothing of the selection); ``rho`` the measured screen-space error; both use the
 full-resolution heights. ``cdlod-nomorph`` is cdlod's selection with k snapped from 0 to
 1 at each range (``morph=False``): the same ranges, no slide. ``rtin-morph`` is rtin with
-seed 002's geomorphing (``morph=True``). Pop is counted at the samples in view in both
+seed 002's geomorphing (``morph=True``), ``chunked-morph`` chunked LOD morphing each chunk
+to its parent. Pop is counted at the samples in view in both
 frames, and horizon culling is off (a hidden sample's surface may change unseen).
 
 Run from the project root::
@@ -50,8 +51,8 @@ def select(t, view, tau, name):
     t0 = time.perf_counter()
     if name == "cdlod-nomorph":
         mesh, _ = cdlod.select(t, view, tau, morph=False)
-    elif name == "rtin-morph":
-        mesh = lod.select(t, view, tau, "rtin", reuse=False, morph=True).mesh
+    elif name.endswith("-morph"):  # rtin-morph, chunked-morph
+        mesh = lod.select(t, view, tau, name[:-len("-morph")], reuse=False, morph=True).mesh
     else:
         mesh = lod.select(t, view, tau, name, reuse=False).mesh
     return mesh, (time.perf_counter() - t0) * 1e3
@@ -63,7 +64,8 @@ def main() -> None:
     ap.add_argument("--tau", type=float, default=1.0)
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--size", default="1280x720")
-    ap.add_argument("--strategies", default="cdlod,cdlod-nomorph,rtin,rtin-morph,chunked")
+    ap.add_argument("--strategies",
+                    default="cdlod,cdlod-nomorph,rtin,rtin-morph,chunked,chunked-morph")
     a = ap.parse_args()
     # every sample in view counts, hidden ones too: the LOD's own popping, no culling
     set_occlusion(False)

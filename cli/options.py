@@ -117,8 +117,9 @@ def _set_morphing(ctx, param, value):
 morph_option = click.option(
     "--morph/--no-morph", default=None, expose_value=False, callback=_set_morphing,
     help="Geomorph: a vertex slides into place instead of popping as the camera moves "
-         "(rtin: it appears at 0.75 τ, costing triangles; cdlod: its own ranges). "
-         "Default: rtin off, cdlod on.")
+         "(rtin: it appears at 0.75 τ, costing triangles; chunked: a chunk slides from "
+         "its parent's surface; cdlod: its own ranges). "
+         "Default: rtin and chunked off, cdlod on.")
 
 
 pixel_error_option = click.option(

@@ -9,13 +9,22 @@ and D_min the distance from the eye to the tile's 3-D box, so the measured error
 of a drawn chunk stays ≤ τ. Cracks between chunks of different levels are
 closed with skirts (seed 000 §skirts) hanging below the chunk's edges, as deep
 as its edge error plus the largest edge error of the drawn chunks.
+
+Geomorphing (``morph=True``, off by default): the walk refines at τ_min = 0.75 τ and a
+chunk slides from its parent's surface to its own as its parent's ρ goes from τ_min to τ
+(:func:`geoterrain.lod.chunks.morph_heights`; each chunk refines its parent's mesh, so
+at t = 0 it draws exactly what its parent drew). Choice: one t per chunk, from the
+parent's ρ, as Ulrich's chunked LOD morphs a whole chunk; the skirts, deepened to the
+morphing ancestors' errors, cover the steps between neighbours of different t.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from geoterrain.lod.chunks import assemble_chunks, chunk_error, chunk_leaves
+from geoterrain.lod.chunks import assemble_chunks, chunk_error, chunk_leaves, morph_heights
+from geoterrain.lod.morph import MORPH_START
+from geoterrain.lod.switches import morphing_enabled
 from geoterrain.lod.tiles import tile_index
 from geoterrain.view import View
 
@@ -29,12 +38,20 @@ def select(terrain, view: View, tau: float):
     """
     index = tile_index(terrain)
     error = chunk_error(terrain, index)
-    leaves, stats = chunk_leaves(terrain, index, view, tau)
-    depth = None
+    morph = morphing_enabled()
+    tau_min = MORPH_START * tau if morph else tau
+    leaves, stats = chunk_leaves(terrain, index, view, tau_min)
+    depth = zm = None
     if len(leaves):
         # a chunk's edge lies within ε_chunk of the samples (its uniform edge within
         # the stored boundary error), so two drawn edges are at most the sum apart
         be = np.maximum(index.boundary[leaves], error[leaves])
+        if morph:
+            zm, t, bound = morph_heights(terrain, index, leaves, view.eye, view.lam, tau,
+                                         tau_min)
+            be = np.maximum(be, bound)  # a morphing edge: within its ancestors' errors
+            stats["morphing_chunks"] = int((t < 1.0).sum())
+            stats["morph_band"] = (tau_min, tau)
         depth_all = float(np.max(be[np.isfinite(be)], initial=0.0))
         depth = np.where(np.isfinite(be), be, 0.0) + depth_all
-    return assemble_chunks(terrain, index, leaves, depth), stats
+    return assemble_chunks(terrain, index, leaves, depth, zm), stats
