@@ -86,17 +86,24 @@ def _t_of(t, ij, view, tau):
     return out, zt
 
 
+def _morphed_rho(t, strategy, seed, tau):
+    """A morphed selection of a random view, its surface, and its measured ρ."""
+    X, Y, Z = t.scene_xyz()
+    valid = np.isfinite(Z)
+    view = _views(t, 1, seed)[0]
+    sel = t.select(view, tau, strategy, reuse=False, morph=True, occlusion=False)
+    f = sel.surface_faces()
+    z = np.asarray(sel.mesh.points)[:, 2] if len(f) else np.zeros(0)
+    e = screen_space_error(sel.ij, f, z, X, Y, np.where(valid, Z, 0.0), valid, view.eye,
+                           view.planes, view.lam)
+    return sel, f, z, e
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.integers(0, 10**6), st.sampled_from([0.5, 1.0, 4.0]))
 def test_morphed_mesh_keeps_rho_within_tau_and_has_no_crack(rough, seed, tau):
-    X, Y, Z = rough.scene_xyz()
-    valid = np.isfinite(Z)
-    Zt = np.where(valid, Z, 0.0)
-    view = _views(rough, 1, seed)[0]
-    sel = rough.select(view, tau, "rtin", reuse=False, morph=True, occlusion=False)
-    f = sel.surface_faces()
-    z = np.asarray(sel.mesh.points)[:, 2] if len(f) else np.zeros(0)
-    e = screen_space_error(sel.ij, f, z, X, Y, Zt, valid, view.eye, view.planes, view.lam)
+    Z = rough.scene_xyz()[2]
+    sel, f, z, e = _morphed_rho(rough, "rtin", seed, tau)
     assert e.max <= tau * (1 + 1e-9), e
     if len(f):  # one height per grid point wherever triangles meet: no crack, no T-junction
         lo, hi = mesh_height_range_on_grid(sel.ij, f, z, Z.shape)
@@ -173,10 +180,9 @@ def test_static_meshes_hold_every_split_edge_end(rough):
     assert n > 1000
 
 
-def test_morphing_does_not_pop_along_a_glide(rough):
-    """The issue's flight (1 % of the height per frame): pop ≤ 0.25 τ with morphing,
-    and up to τ without it (the figure reported beside it)."""
-    X, Y, Z = rough.scene_xyz()
+def _glide_pops(t, strategy, tau):
+    """The largest pop (px) along the issue's glide, with and without morphing."""
+    X, Y, Z = t.scene_xyz()
     valid = np.isfinite(Z)
     Zt = np.where(valid, Z, 0.0)
     views = [v for _, v in glide(*extent(X, Y, Z), n_frames=25, size=(480, 270))]
@@ -184,7 +190,7 @@ def test_morphing_does_not_pop_along_a_glide(rough):
     for morph in (True, False):
         prev, out = None, []
         for v in views:
-            sel = rough.select(v, 1.0, "rtin", reuse=False, morph=morph, occlusion=False)
+            sel = t.select(v, tau, strategy, reuse=False, morph=morph, occlusion=False)
             f = sel.surface_faces()
             s = (sel.ij, f, np.asarray(sel.mesh.points)[:, 2] if len(f) else np.zeros(0))
             if prev is not None:
@@ -192,6 +198,13 @@ def test_morphing_does_not_pop_along_a_glide(rough):
                                                v.lam, prev[1]).max)
             prev = (s, v.planes)
         pops[morph] = max(out)
+    return pops
+
+
+def test_morphing_does_not_pop_along_a_glide(rough):
+    """The issue's flight (1 % of the height per frame): pop ≤ 0.25 τ with morphing,
+    and up to τ without it (the figure reported beside it)."""
+    pops = _glide_pops(rough, "rtin", 1.0)
     assert pops[True] <= 0.25
     assert pops[False] > pops[True]
 
@@ -202,14 +215,7 @@ def test_morphing_does_not_pop_along_a_glide(rough):
 def test_morphing_chunks_keep_rho_within_tau(rough, seed, tau):
     """chunked with morphing: every chunk mid-slide still keeps measured ρ ≤ τ at every
     valid sample in view (the surface, skirts left out), nodata hole included."""
-    X, Y, Z = rough.scene_xyz()
-    valid = np.isfinite(Z)
-    Zt = np.where(valid, Z, 0.0)
-    view = _views(rough, 1, seed)[0]
-    sel = rough.select(view, tau, "chunked", reuse=False, morph=True, occlusion=False)
-    f = sel.surface_faces()
-    z = np.asarray(sel.mesh.points)[:, 2] if len(f) else np.zeros(0)
-    e = screen_space_error(sel.ij, f, z, X, Y, Zt, valid, view.eye, view.planes, view.lam)
+    e = _morphed_rho(rough, "chunked", seed, tau)[3]
     assert e.max <= tau * (1 + 1e-9), e
 
 
@@ -251,22 +257,7 @@ def test_morphing_chunks_do_not_pop_along_a_glide(rough):
     switch on this small, rough grid); morphing each chunk to its parent keeps the surface's
     jump ≤ 0.25 τ a frame."""
     tau = 16.0
-    X, Y, Z = rough.scene_xyz()
-    valid = np.isfinite(Z)
-    Zt = np.where(valid, Z, 0.0)
-    views = [v for _, v in glide(*extent(X, Y, Z), n_frames=25, size=(480, 270))]
-    pops = {}
-    for morph in (True, False):
-        prev, out = None, []
-        for v in views:
-            sel = rough.select(v, tau, "chunked", reuse=False, morph=morph, occlusion=False)
-            f = sel.surface_faces()
-            s = (sel.ij, f, np.asarray(sel.mesh.points)[:, 2] if len(f) else np.zeros(0))
-            if prev is not None:
-                out.append(screen_space_change(prev[0], s, X, Y, Zt, valid, v.eye, v.planes,
-                                               v.lam, prev[1]).max)
-            prev = (s, v.planes)
-        pops[morph] = max(out)
+    pops = _glide_pops(rough, "chunked", tau)
     assert pops[True] <= 0.25 * tau, pops
     assert pops[False] > 0.25 * tau, pops  # (or the flight tests nothing)
 

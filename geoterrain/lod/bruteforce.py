@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import assemble, quadtree_leaves, tile_index
 from geoterrain.view import View
 
@@ -21,5 +22,6 @@ def select(terrain, view: View, tau: float):
     """
     index = tile_index(terrain)
     leaves, stats = quadtree_leaves(terrain, index, view,
-                                    lambda nodes, L: np.ones(len(nodes), bool))
+                                    lambda nodes, L: np.ones(len(nodes), bool),
+                                    hidden_rows(terrain, view))
     return assemble(terrain, index, leaves), stats

@@ -37,6 +37,7 @@ import weakref
 import numpy as np
 
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
+from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import (
     TileIndex,
     quadtree_leaves,
@@ -233,7 +234,8 @@ def visible_blocks(terrain, view: View) -> tuple:
     if index.outside(view):
         return index, np.zeros(0, np.int64), {}
     leaves, stats = quadtree_leaves(terrain, index, view,
-                                    lambda nodes, L: np.ones(len(nodes), bool))
+                                    lambda nodes, L: np.ones(len(nodes), bool),
+                                    hidden_rows(terrain, view))
     return index, leaves, stats
 
 

@@ -121,25 +121,25 @@ def union_jack_faces(t: int) -> np.ndarray:
 Refine = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def quadtree_leaves(terrain, index: TileIndex, view: View, refine: Refine
-                    ) -> tuple[np.ndarray, dict]:
+def quadtree_leaves(terrain, index: TileIndex, view: View, refine: Refine,
+                    hidden: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """Leaf tiles (rows into ``index``) to draw, walking the tile quadtree top-down.
 
     ``refine(nodes, L)`` gets the visible nodes' rows and levels and returns which
     to replace by their stored children (level 0 is never refined). A node fully
     inside the frustum passes that to its children, which are not tested again; a
-    node hidden behind nearer terrain (:func:`~geoterrain.lod.occlusion.hidden_rows`)
-    is dropped with its subtree. Returns the leaves and ``tiles_visited`` /
-    ``tiles_culled`` / ``tiles_hidden`` counts.
+    node ``hidden`` behind nearer terrain (per index row, e.g.
+    :func:`~geoterrain.lod.occlusion.hidden_rows`) is dropped with its subtree.
+    Returns the leaves and ``tiles_visited`` / ``tiles_culled`` / ``tiles_hidden``
+    counts.
     """
     g = terrain.grid
     top = np.array([[g.top_level, 0, 0]])
     nodes = index.rows_of(top)
     nodes = nodes[nodes >= 0]
-    from geoterrain.lod.occlusion import hidden_rows  # (occlusion reads this module's index)
-
     inside = np.zeros(len(nodes), bool)
-    hidden = hidden_rows(terrain, view)
+    if hidden is None:
+        hidden = np.zeros(len(index.keys), bool)
     leaves, visited, culled, n_hidden = [], 0, 0, 0
     while len(nodes):
         visited += len(nodes)
