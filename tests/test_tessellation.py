@@ -75,3 +75,30 @@ def test_factors_grow_as_the_camera_nears_and_are_powers_of_two(tmp_path_factory
     sel = flat.select(geoterrain.View(tuple(c + [0, -2000.0, 800]), tuple(c), size=(320, 240)),
                       1.0, "tessellation")
     assert sel.stats["triangles"] == 2 * sel.stats["patches"]
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 100), k=st.floats(0.1, 3.0), az=st.floats(0, 2 * np.pi),
+       tau=st.sampled_from([0.5, 1.0, 4.0]))
+def test_the_ham_only_lowers_factors(tmp_path_factory, seed, k, az, tau):
+    # seed 004 H13: triangles(HAM) ≤ triangles(straight view-dependent LOD) ≤ T = 64
+    # everywhere, patch by patch: the HAM caps T_max and leaves the distance law's d_max
+    d = tmp_path_factory.mktemp("h13")
+    z = generate("fbm", 257, seed=seed)
+    z[:, :128] = 20.0  # a flat half, where the HAM is 0
+    t = geoterrain.open(geoterrain.preprocess(
+        write_geotiff(d / "d.tif", z, spacing=30.0), d / "d.geoterrain", tile_size=32))
+    lo, hi = t.scene_box()
+    c = 0.5 * (lo + hi)
+    eye = c + k * (hi - lo) * np.array([np.cos(az), np.sin(az), 0.5])
+    v = geoterrain.View(tuple(eye), tuple(c), size=(320, 240))
+    index = tile_index(t)
+    patches = np.flatnonzero(index.keys[:, 0] == 0)
+    ours = factors(t, index, patches, v, tau)
+    straight = factors(t, index, patches, v, tau, ham=False)
+    assert (ours <= straight).all() and (straight <= 64).all()
+    # patches and their edge neighbours all flat: T_max = 1
+    assert (ours[index.keys[patches, 1] <= 1] == 1).all()
+    from geoterrain.lod import tessellation
+    tri = [tessellation.select(t, v, tau, ham=h)[0].n_cells for h in (True, False)]
+    assert tri[0] <= tri[1] <= 2 * 32 * 32 * len(patches)

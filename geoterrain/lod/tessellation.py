@@ -15,8 +15,12 @@ map (HAM), the GPU quad-domain tessellator emulated on the CPU, on arrays.
   patch's height range projected at its nearest point (λ·Δh / D_min, pixels) and ε = τ,
   clipped to [1, T_max].
 - **Distance law** (eq. 5-5…5-7): T = T_max below d_max, T_max·d_max²/d² beyond, and
-  never below T_min (d_min = √(T_max/T_min)·d_max). Here d_max = λ·w/(T_max·τ), w the
-  patch width: closer than that, a T_max quad spans more than τ pixels.
+  never below T_min (d_min = √(T_max/T_min)·d_max). The seed leaves d_max open; here
+  d_max = λ·w/(64·τ), w the patch width: closer than that, a full-resolution quad spans
+  more than τ pixels. It is the same for every patch whatever its HAM, so the HAM only
+  ever lowers a factor: T ≤ the straight view-dependent law's (T_max = 64), seed 004's
+  H13 ordering, tested. (An earlier d_max = λ·w/(T_max·τ) made a smoother patch finer
+  far away: 2.9× the straight law's triangles at τ = 4 on a 2049² fBm.)
 - **Edge factors** use the larger T_max and T_min of the two patches and the distance
   to the edge's midpoint, so both patches compute the same value (L104); the centre
   factor uses the patch's own. The patch takes the largest of its five factors.
@@ -140,14 +144,21 @@ def ham_max(terrain, index, rows: np.ndarray) -> np.ndarray:
     return out[rows]
 
 
-def factors(terrain, index, leaves: np.ndarray, view: View, tau: float) -> np.ndarray:
-    """The tessellation factor (a power of two in [1, 64]) of each visible patch."""
+def factors(terrain, index, leaves: np.ndarray, view: View, tau: float, *,
+            ham: bool = True) -> np.ndarray:
+    """The tessellation factor (a power of two in [1, 64]) of each visible patch.
+
+    ``ham=False`` is seed 004's "straight view-dependent LOD" (Fig. 5.8's middle
+    curve): T_max = 64 for every patch, so only the distance law and T_min act."""
     g = terrain.grid
     lo, hi = index.lo[leaves], index.hi[leaves]
     lam = view.lam
     eye = np.asarray(view.eye, np.float64)
     # eq. 5-2: the upper bound from the height acceleration
-    tmax = np.clip(HAM_SCALE * np.sqrt(ham_max(terrain, index, leaves)), 1.0, T_LIMIT)
+    if ham:
+        tmax = np.clip(HAM_SCALE * np.sqrt(ham_max(terrain, index, leaves)), 1.0, T_LIMIT)
+    else:
+        tmax = np.full(len(leaves), float(T_LIMIT))
     # eq. 5-3/5-4 (sign-corrected): the projected height range against ε = τ
     dbox = np.linalg.norm(np.maximum(np.maximum(lo - eye, 0.0), eye - hi), axis=1)
     dh = hi[:, 2] - lo[:, 2]
@@ -160,7 +171,7 @@ def factors(terrain, index, leaves: np.ndarray, view: View, tau: float) -> np.nd
     G[xy[:, 1] + 1, xy[:, 0] + 1] = np.arange(len(leaves))
     mid = 0.5 * (lo + hi)
     out = tess_factor(np.linalg.norm(mid - eye, axis=1), tmax, tmin,
-                      lam * width / (tmax * tau))  # T_5: the centre (L66)
+                      lam * width / (T_LIMIT * tau))  # T_5: the centre (L66)
     S = 1 << g.t
     for dx, dy in _NEIGHBOUR:
         nb = G[xy[:, 1] + 1 + dy, xy[:, 0] + 1 + dx]
@@ -175,20 +186,22 @@ def factors(terrain, index, leaves: np.ndarray, view: View, tau: float) -> np.nd
         ex, ey = terrain.frame.xy(i, j)
         ez = 0.5 * (np.minimum(lo[:, 2], lo[q, 2]) + np.maximum(hi[:, 2], hi[q, 2]))
         d = np.linalg.norm(np.stack([ex, ey, ez], 1) - eye, axis=1)
-        out = np.maximum(out, tess_factor(d, TM, Tm, lam * wd / (TM * tau)))
+        out = np.maximum(out, tess_factor(d, TM, Tm, lam * wd / (T_LIMIT * tau)))
     return _power_of_two(out)
 
 
-def select(terrain, view: View, tau: float):
+def select(terrain, view: View, tau: float, *, ham: bool = True):
     """The HAM-driven tessellation of ``view`` at pixel tolerance ``tau``, and its stats.
 
     Unbounded (seed 004 gives no error bound): ``geoterrain bench`` measures ρ.
+    ``stats["factor_counts"]`` counts the drawn patches per factor 1, 2, 4 … 64 (seed
+    004's factor histogram); ``ham=False`` drops the HAM cap (see :func:`factors`).
     """
     index, leaves, stats = visible_blocks(terrain, view)
     if not len(leaves):
         return empty_polydata(), stats
     g = terrain.grid
-    T = factors(terrain, index, leaves, view, tau)
+    T = factors(terrain, index, leaves, view, tau, ham=ham)
     tb = tables(terrain, index)
     n = (g.t - np.log2(T).astype(np.int64)).clip(0, tb.nmax)
     # near nodata a coarse patch would drop triangles over valid samples (a triangle needs
@@ -200,6 +213,9 @@ def select(terrain, view: View, tau: float):
     ratios, stitched = _stitch(terrain, index, view, tau, xy, n, delta,
                                np.ones(len(leaves)), g.t, bounded=False)
     mesh = _assemble(terrain, index, xy, n, ratios)
+    drawn = 1 << (g.t - n)
     stats.update(patches=len(leaves), stitched_edges=stitched,
-                 mean_factor=float((1 << (g.t - n)).mean()))
+                 mean_factor=float(drawn.mean()),
+                 factor_counts=np.bincount(np.log2(drawn).astype(np.int64),
+                                           minlength=7)[:7].tolist())
     return mesh, stats
