@@ -44,6 +44,7 @@ from numba import njit
 from geoterrain.lod.kernels import close_upward, extract
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
 from geoterrain.lod.occlusion import hidden_rows
+from geoterrain.lod.switches import occlusion_enabled
 from geoterrain.lod.tiles import TileIndex, tile_table
 
 _CHUNKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -135,20 +136,25 @@ def chunk_leaves(terrain, index: TileIndex, view, tau: float) -> tuple[np.ndarra
         top = terrain.grid.top_level
         table = cache["table"] = (*tile_table(index, top), top)
     rows = np.empty(len(index.keys), np.int64)
-    hidden = hidden_rows(terrain, view)
-    n, visited, culled, n_hidden = _walk_chunks(table[0], table[1], table[2], index.lo,
-                                                index.hi, cache["error"], view.eye,
-                                                view.planes, view.lam, float(tau), hidden,
-                                                rows)
+    seen = np.empty(len(index.keys), np.int64)
+    args = (table[0], table[1], table[2], index.lo, index.hi, cache["error"], view.eye,
+            view.planes, view.lam, float(tau))
+    hidden = np.zeros(len(index.keys), bool)
+    if occlusion_enabled():
+        # the walk without culling first: the horizon is asked only about the nodes it
+        # reaches (a few hundred), not every stored tile; culling only prunes that walk
+        n, _, _, _, n_seen = _walk_chunks(*args, hidden, rows, seen)
+        hidden = hidden_rows(terrain, view, rows=seen[:n_seen])
+    n, visited, culled, n_hidden, _ = _walk_chunks(*args, hidden, rows, seen)
     return rows[:n], {"tiles_visited": int(visited), "tiles_culled": int(culled),
                       "tiles_hidden": int(n_hidden)}
 
 
 @njit(cache=True)
-def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, hidden, out):
+def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, hidden, out, seen):
     stack = np.empty((4 * (top + 1) + 4, 4), np.int64)  # (L, x, y, inside)
     stack[0] = (top, 0, 0, 0)
-    sp, n, visited, culled, n_hidden = 1, 0, 0, 0, 0
+    sp, n, visited, culled, n_hidden, n_seen = 1, 0, 0, 0, 0, 0
     while sp > 0:
         sp -= 1
         L, x, y, inside = stack[sp]
@@ -174,6 +180,8 @@ def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, hidden, o
             if inside < 0:
                 culled += 1
                 continue
+        seen[n_seen] = row  # in the frustum: a node the horizon may be asked about
+        n_seen += 1
         if hidden[row]:  # behind nearer terrain: neither drawn nor refined
             n_hidden += 1
             continue
@@ -190,7 +198,7 @@ def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, hidden, o
         else:
             out[n] = row
             n += 1
-    return n, visited, culled, n_hidden
+    return n, visited, culled, n_hidden, n_seen
 
 
 def _active(terrain, index: TileIndex, row: int, cache: dict) -> np.ndarray:

@@ -580,12 +580,16 @@ def occluder_rows(terrain, view: View) -> np.ndarray:
     return view._cache.get(("occluders", id(terrain)), np.zeros(0, np.int64))
 
 
-def hidden_rows(terrain, view: View, grow: np.ndarray | None = None) -> np.ndarray:
+def hidden_rows(terrain, view: View, grow: np.ndarray | None = None,
+                rows: np.ndarray | None = None) -> np.ndarray:
     """Which rows of the tile index are hidden from ``view`` by nearer terrain.
 
     ``grow`` (per row, scene units) widens each tile's box first, e.g. by the radius of
-    the error spheres a strategy refines with. All False when culling is switched off
-    (:func:`occlusion`) or the eye is not safely above the terrain (see the module
+    the error spheres a strategy refines with. ``rows`` (index rows) limits the test to
+    the rows a strategy may read, such as those its walk reaches: the others come back
+    False (not hidden), and the work follows the rows asked for, not the store's size
+    (the occluders are still every level-0 footprint in view). All False when culling
+    is switched off (:func:`occlusion`) or the eye is not safely above the terrain (see the module
     docstring).
 
     Examples
@@ -598,14 +602,16 @@ def hidden_rows(terrain, view: View, grow: np.ndarray | None = None) -> np.ndarr
     out = np.zeros(len(index.keys), bool)
     if not occlusion_enabled() or not len(out) or index.outside(view):
         return out  # (nothing in view: nothing to read either)
-    key = ("hidden", id(terrain), None if grow is None else id(grow))
+    key = ("hidden", id(terrain), None if grow is None else id(grow),
+           None if rows is None else hash(np.asarray(rows, np.int64).tobytes()))
     got = view._cache.get(key)
     if got is not None:
         return got
     fp = _footprints(terrain)
-    lo, hi = index.lo, index.hi
+    rows = np.arange(len(out)) if rows is None else np.unique(np.asarray(rows, np.int64))
+    lo, hi = index.lo[rows], index.hi[rows]
     if grow is not None:
-        g = np.asarray(grow, np.float64)[:, None]
+        g = np.asarray(grow, np.float64)[rows, None]
         g = np.where(np.isfinite(g), g, np.inf)
         lo, hi = lo - g, hi + g
     if eye_above_surface(terrain, view):
@@ -615,7 +621,6 @@ def hidden_rows(terrain, view: View, grow: np.ndarray | None = None) -> np.ndarr
         occluders, replaced = _near_tiles(terrain, index, view)
         state = fp.state.copy()
         corners, cen, zmin = fp.corners, fp.centres, fp.zmin
-        rows = np.arange(len(out))
         if len(occluders) and fp.good[replaced].all():
             # first with each near tile standing in for its blocks at its highest
             # sample (an upper bound of their horizon): nothing decoded when that hides
@@ -623,10 +628,10 @@ def hidden_rows(terrain, view: View, grow: np.ndarray | None = None) -> np.ndarr
             state[replaced] = 2
             zup = zmin.copy()
             zup[replaced] = fp.zmax[replaced]
-            upper = np.zeros(len(out), bool)
+            upper = np.zeros(len(rows), bool)
             if _horizon_cull(ex, ey, ez, corners, cen, state, zup, fp.margin, sec0, secw,
                              lo, hi, upper) == 0:
-                rows = np.flatnonzero(upper)
+                rows, lo, hi = rows[upper], lo[upper], hi[upper]
                 occluders = occluders[:0] if not len(rows) else occluders
         if len(rows) and len(occluders):
             bc, bcen, bs, bz = _near_blocks(terrain, index, occluders)
@@ -639,7 +644,7 @@ def hidden_rows(terrain, view: View, grow: np.ndarray | None = None) -> np.ndarr
         if len(rows):
             got = np.zeros(len(rows), bool)
             _horizon_cull(ex, ey, ez, corners, cen, state, zmin, fp.margin, sec0, secw,
-                          lo[rows], hi[rows], got)
+                          lo, hi, got)
             out[rows] = got
     view._cache[key] = out
     return out

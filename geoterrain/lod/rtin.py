@@ -192,7 +192,7 @@ def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     lp_tiles_walk(table, base, terrain.grid.top_level, index.lo, index.hi, dm,
                   index.radius_max, rsub, eye, view.planes, lam, tau, floor, status)
     # a tile whose spheres all lie behind nearer terrain refines nothing (nor is read)
-    hidden = hidden_rows(terrain, view, index.radius_max) & (status > 0)
+    hidden = hidden_rows(terrain, view, index.radius_max, rows=np.flatnonzero(status))
     status[hidden] = 0
     rows = np.flatnonzero(status)
     inside, floor = status[rows] == 2, floor[rows]
