@@ -285,6 +285,9 @@ class _Packed:
         self.lvl = np.zeros(n_rows, np.int16)
         self.xyz, self.ij = np.zeros((0, 3)), np.zeros((0, 2), np.int64)
         self.faces, self.seg = np.zeros((0, 3), np.int64), np.zeros((0, 2), np.int64)
+        # per vertex: where it lies on the parent chunk (morphing), filled on demand
+        self.pid, self.pw = np.zeros((0, 3), np.int64), np.zeros((0, 3))
+        self.weighed = np.zeros(n_rows, bool)
         self.V = self.F = self.S = 0
 
     @staticmethod
@@ -303,6 +306,8 @@ class _Packed:
         self.ij = self._put(self.ij, self.V, ch.ij)
         self.faces = self._put(self.faces, self.F, ch.faces)
         self.seg = self._put(self.seg, self.S, ch.skirt_ab)
+        self.pid = self._put(self.pid, self.V, np.full((len(ch.xyz), 3), -1, np.int64))
+        self.pw = self._put(self.pw, self.V, np.zeros((len(ch.xyz), 3)))
         self.V += len(ch.xyz)
         self.F += len(ch.faces)
         self.S += len(ch.skirt_ab)
@@ -467,6 +472,47 @@ def parent_weights(terrain, index: TileIndex, row: int) -> tuple[np.ndarray, np.
     return got
 
 
+@njit(cache=True)
+def _morph_rows(order, t, par, vo, nv, XYZ, PID, PW, err, MZ, bound, done):
+    """Heights of the chunks ``order`` (coarse first, each one's t) into ``MZ`` (laid out
+    as the packed vertices): z = t·z_own + (1 − t)·(the parent's morphed surface at the
+    vertex, by its barycentric weights); a chunk whose parent is not morphing (or that
+    has none) draws its own heights. ``bound``: the largest chunk error along each row's
+    morphing ancestors."""
+    for k in range(order.shape[0]):
+        r = order[k]
+        p = par[r]
+        o = vo[r]
+        tk = t[k]
+        if tk >= 1.0 or p < 0 or not done[p]:
+            for v in range(nv[r]):
+                MZ[o + v] = XYZ[o + v, 2]
+            bound[r] = err[r]
+        else:
+            po = vo[p]
+            for v in range(nv[r]):
+                z = XYZ[o + v, 2]
+                a = PID[o + v, 0]
+                if a >= 0:
+                    zp = (PW[o + v, 0] * MZ[po + a] + PW[o + v, 1] * MZ[po + PID[o + v, 1]]
+                          + PW[o + v, 2] * MZ[po + PID[o + v, 2]])
+                    MZ[o + v] = tk * z + (1.0 - tk) * zp
+                else:
+                    MZ[o + v] = z
+            bound[r] = max(err[r], bound[p])
+        done[r] = True
+
+
+@njit(cache=True)
+def _leaf_heights(leaves, vo, nv, MZ, out):
+    V = 0
+    for k in range(leaves.shape[0]):
+        r = leaves[k]
+        for v in range(nv[r]):
+            out[V + v] = MZ[vo[r] + v]
+        V += nv[r]
+
+
 def morph_heights(terrain, index: TileIndex, leaves: np.ndarray, eye, lam: float,
                   tau: float, tau_min: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Chunked LOD's morph to the parent, cascaded (seed 000 §2.5; the band of seed 002
@@ -477,10 +523,12 @@ def morph_heights(terrain, index: TileIndex, leaves: np.ndarray, eye, lam: float
 
     Returns the heights of the leaves' vertices in order, each leaf's t, and each
     leaf's error bound while it morphs (the largest chunk error along its morphing
-    ancestors), for the skirts."""
+    ancestors), for the skirts. Array work per level of the tree and one compiled pass
+    over the vertices: no Python loop per chunk once the chunks are built."""
     cache = _cache(terrain, index)
     err, par = cache["error"], parents(terrain, index)
     lo, hi = index.lo, index.hi
+    leaves = np.asarray(leaves, np.int64)
 
     def t_of(rows):
         p = par[rows]
@@ -493,29 +541,33 @@ def morph_heights(terrain, index: TileIndex, leaves: np.ndarray, eye, lam: float
         return np.where(p < 0, 1.0, np.nan_to_num(t, nan=1.0))
 
     t_leaf = t_of(leaves)
-    t_row = dict(zip(leaves.tolist(), t_leaf.tolist(), strict=True))
-    todo = [int(r) for r, t in zip(leaves, t_leaf, strict=True) if t < 1.0]
-    while todo:  # the ancestors whose surfaces a morphing chunk leans on
-        up = [int(par[r]) for r in todo if int(par[r]) not in t_row]
-        up = np.unique(np.array(up, np.int64))
+    known = np.zeros(len(index.keys), bool)
+    known[leaves] = True
+    rows, ts = [leaves], [t_leaf]
+    todo = leaves[t_leaf < 1.0]
+    while len(todo):  # the ancestors whose surfaces a morphing chunk leans on, a level a pass
+        up = np.unique(par[todo])
+        up = up[(up >= 0) & ~known[np.maximum(up, 0)]]
         if not len(up):
             break
+        known[up] = True
         tu = t_of(up)
-        t_row.update(zip(up.tolist(), tu.tolist(), strict=True))
-        todo = [int(r) for r, t in zip(up, tu, strict=True) if t < 1.0]
-    order = sorted(t_row, key=lambda r: -int(index.keys[r, 0]))  # coarse first
-    mz, bound = {}, {}
-    for r in order:
-        ch = chunk(terrain, index, r)
-        t = t_row[r]
-        p = int(par[r])
-        if t >= 1.0 or p < 0 or p not in mz:
-            mz[r], bound[r] = ch.xyz[:, 2], float(err[r])
-            continue
+        rows.append(up)
+        ts.append(tu)
+        todo = up[tu < 1.0]
+    rows, ts = np.concatenate(rows), np.concatenate(ts)
+    order = np.argsort(-index.keys[rows, 0], kind="stable")  # coarse first
+    rows, ts = rows[order], ts[order]
+    pk = _packed(terrain, index, rows)
+    for r in rows[(ts < 1.0) & ~pk.weighed[rows]].tolist():  # new morphing chunks only
         ids, w = parent_weights(terrain, index, r)
-        zp = (w * mz[p][np.maximum(ids, 0)]).sum(1)
-        z = ch.xyz[:, 2]
-        mz[r] = np.where(ids[:, 0] >= 0, t * z + (1.0 - t) * zp, z)
-        bound[r] = max(float(err[r]), bound[p])
-    z = np.concatenate([mz[int(r)] for r in leaves]) if len(leaves) else np.zeros(0)
-    return z, t_leaf, np.array([bound[int(r)] for r in leaves])
+        o = pk.vo[r]
+        pk.pid[o:o + len(ids)], pk.pw[o:o + len(ids)] = ids, w
+        pk.weighed[r] = True
+    MZ = np.empty(pk.V)
+    bound = np.zeros(len(index.keys))
+    _morph_rows(rows, ts, par, pk.vo, pk.nv, pk.xyz, pk.pid, pk.pw, err, MZ, bound,
+                np.zeros(len(index.keys), np.bool_))
+    z = np.empty(int(pk.nv[leaves].sum()))
+    _leaf_heights(leaves, pk.vo, pk.nv, MZ, z)
+    return z, t_leaf, bound[leaves]
