@@ -219,9 +219,21 @@ def fill_static(slots, i0, j0, step, D, e, active, mixed, gen=True, top_step=0):
                     mixed[i, j] = gen
 
 
+@njit(cache=True, inline="always")
+def _grow_box(boxes, lv, i, j):
+    if i < boxes[lv, 0]:
+        boxes[lv, 0] = i
+    if i > boxes[lv, 1]:
+        boxes[lv, 1] = i
+    if j < boxes[lv, 2]:
+        boxes[lv, 2] = j
+    if j > boxes[lv, 3]:
+        boxes[lv, 3] = j
+
+
 @njit(cache=True)
 def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy, eye, planes,
-            lam, tau, active, mixed, gen, top_step):
+            lam, tau, active, mixed, gen, top_step, boxes, level):
     """LP eq. 2 with sphere culling on pooled tiles, scattered into the dense flags.
 
     A vertex is active iff its sphere (p, r) is not outside any frustum plane, δ > 0,
@@ -236,6 +248,9 @@ def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy
     A vertex with λδ ≤ ``floor[k]`` (τ times the tile's least d − r, from
     :func:`lp_tiles`) is inactive and skipped before its sphere is read: d and r are
     computed by the same monotone float operations, so the result is unchanged.
+    Each vertex made active grows ``boxes[level[k]]`` (rows i0, i1, columns j0, j1 of
+    the active vertices per pyramid level), so the closure scans where vertices are
+    active, not the whole of a coarse tile that only a corner of the view touches.
     Serial on purpose: on a shared 2-core machine, a parallel region waiting on a
     descheduled thread made frames 3× slower than one thread."""
     T = D.shape[1]
@@ -243,6 +258,7 @@ def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy
         s = slots[k]
         P = 0 if inside[k] else planes.shape[0]
         fl = floor[k]
+        lv = level[k]
         coarse = step[k] < top_step
         for a in range(T):
             i = i0[k] + a * step[k]
@@ -254,6 +270,7 @@ def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy
                 if dl == np.inf:
                     active[i, j] = gen
                     mixed[i, j] = gen
+                    _grow_box(boxes, lv, i, j)
                     continue
                 if not dl > 0.0 or lam * dl <= fl:
                     continue
@@ -273,6 +290,7 @@ def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy
                 d = np.sqrt(dx * dx + dy * dy + dz * dz)
                 if d <= r or lam * dl > tau * (d - r):
                     active[i, j] = gen
+                    _grow_box(boxes, lv, i, j)
 
 
 @njit(cache=True)

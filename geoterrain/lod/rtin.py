@@ -115,17 +115,19 @@ class ActiveSet:
         # per level: rows i0, i1 and columns j0, j1 covering the tiles filled
         self.boxes = np.tile(np.array([N, -1, N, -1], np.int64), (terrain.grid.top_level + 1, 1))
 
-    def tiles(self, rows: np.ndarray, index: TileIndex
+    def tiles(self, rows: np.ndarray, index: TileIndex, boxes: bool = True
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Slot-table index, first grid row and column, and sample spacing of the tiles
-        ``rows``; the tiles are added to the per-level boxes the closure scans."""
+        ``rows``; with ``boxes`` the tiles are added to the per-level boxes the closure
+        scans (else the caller grows those boxes by the vertices it activates)."""
         g = self.terrain.grid
         keys = index.keys[rows]
         L, x, y = keys[:, 0], keys[:, 1], keys[:, 2]
         step = np.int64(1) << L
         i0, j0 = (y << g.t) << L, (x << g.t) << L
-        i1, j1 = i0 + (g.tile_samples - 1) * step, j0 + (g.tile_samples - 1) * step
-        level_boxes(L, i0, i1, j0, j1, self.boxes)
+        if boxes:
+            i1, j1 = i0 + (g.tile_samples - 1) * step, j0 + (g.tile_samples - 1) * step
+            level_boxes(L, i0, i1, j0, j1, self.boxes)
         return tile_pool(self.terrain).table_index(keys), i0, j0, step
 
     def close(self) -> None:
@@ -192,25 +194,26 @@ def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     lp_tiles_walk(table, base, terrain.grid.top_level, index.lo, index.hi, dm,
                   index.radius_max, rsub, eye, view.planes, lam, tau, floor, status)
     # a tile whose spheres all lie behind nearer terrain refines nothing (nor is read)
-    hidden = hidden_rows(terrain, view, index.radius_max, rows=np.flatnonzero(status))
-    status[hidden] = 0
     rows = np.flatnonzero(status)
+    hidden = hidden_rows(terrain, view, index.radius_max, rows=rows)
+    hid = hidden[rows]
+    status[rows[hid]] = 0
+    rows = rows[~hid]
     inside, floor = status[rows] == 2, floor[rows]
     act = ActiveSet(terrain, stamped=True)
-    act.tiles_hidden = int(hidden.sum())
+    act.tiles_hidden = int(hid.sum())
     if len(rows):
         pool = tile_pool(terrain)
-        idx, i0, j0, step = act.tiles(rows, index)
+        idx, i0, j0, step = act.tiles(rows, index, boxes=False)
         slots = pool.slots(idx, ("delta", "radius", "height", "xy"))
         zfac = terrain.frame.z_to_m * terrain.frame.z_scale
         fill_lp(slots, inside, floor, i0, j0, step, pool.D, pool.R, pool.H, pool.X, pool.Y,
                 pool.aff, zfac, terrain.stand_in_z, eye, view.planes, lam, tau, act.active,
-                act.mixed, act.gen, 1 << terrain.grid.top_level)
+                act.mixed, act.gen, 1 << terrain.grid.top_level, act.boxes,
+                index.keys[rows, 0])
     act.close()
-    drawn = np.zeros(len(dm), bool)
-    drawn[rows] = True
-    unread = np.flatnonzero(~drawn & ~np.isfinite(dm))
-    act.mark_unknown_mixed(unread, index)
+    mixed = index.mixed_rows
+    act.mark_unknown_mixed(mixed[status[mixed] == 0], index)  # not read this frame
     return act
 
 

@@ -34,7 +34,8 @@ class TileIndex:
     are scene-frame boxes, ``error`` the tile's uniform-surface error,
     ``boundary`` its skirt error, ``delta_max``/``radius_max`` the largest δ and
     r of the vertices new at its level, ``nvalid`` its valid samples and ``zrange``
-    its recorded (zmin, zmax).
+    its recorded (zmin, zmax); ``mixed_rows`` the rows whose δ_max is inf (a diamond
+    mixing data and nodata).
     """
 
     def __init__(self, terrain):
@@ -52,6 +53,7 @@ class TileIndex:
         self.hi = np.stack([a[:, 4], a[:, 5], np.maximum(zmin, zmax)], 1)
         self.error, self.boundary = a[:, 6].copy(), a[:, 7].copy()
         self.delta_max, self.radius_max = a[:, 8].copy(), a[:, 9].copy()
+        self.mixed_rows = np.flatnonzero(~np.isfinite(self.delta_max))  # δ = inf inside
         self.nvalid = a[:, 10].astype(np.int64)
         self.zrange = a[:, :2].copy()  # recorded zmin, zmax (NaN where none)
 
