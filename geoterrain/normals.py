@@ -450,6 +450,28 @@ def decode_octahedral(e: np.ndarray, bits: int = 8) -> np.ndarray:
     """
     if bits not in (8, 16):
         raise ValueError("bits must be 8 or 16")
-    m = (1 << bits) - 1
-    e = np.asarray(e, dtype=np.float64)
-    return _oct_unpack(e[..., 0] / m * 2 - 1, e[..., 1] / m * 2 - 1).astype(np.float32)
+    e = np.asarray(e)
+    out = np.empty(e.shape[:-1] + (3,), np.float32)
+    _decode_oct_nb(np.ascontiguousarray(e.reshape(-1, 2)), float((1 << bits) - 1),
+                   out.reshape(-1, 3))
+    return out
+
+
+@njit(cache=True)
+def _decode_oct_nb(e, m, out):  # pragma: no cover - compiled
+    """:func:`_oct_unpack` of codes ``e`` (n, 2) over ``m``, compiled: the same float64
+    operations in the same order, one pass, no temporaries (a tile's texture decodes
+    its normals; numpy spent 0.24 ms a 65² tile on temporaries)."""
+    for k in range(e.shape[0]):
+        u = e[k, 0] / m * 2.0 - 1.0
+        v = e[k, 1] / m * 2.0 - 1.0
+        zz = 1.0 - abs(u) - abs(v)
+        if zz < 0.0:
+            x = (1.0 - abs(v)) * (1.0 if u >= 0.0 else -1.0)
+            y = (1.0 - abs(u)) * (1.0 if v >= 0.0 else -1.0)
+        else:
+            x, y = u, v
+        n = np.sqrt(x * x + y * y + zz * zz)
+        out[k, 0] = x / n
+        out[k, 1] = y / n
+        out[k, 2] = zz / n

@@ -256,3 +256,18 @@ def test_normal_pyramid_of_plane_is_plane():
             assert np.allclose(a, plane_normal(0.2, 0.1), atol=1e-6)
     with pytest.raises(ValueError):
         normal_pyramid(n, None, 0)
+
+
+@pytest.mark.parametrize("bits", [8, 16])
+def test_compiled_octahedral_decode_equals_the_array_formula(bits):
+    """The compiled decode does the array formula's float64 operations in its order."""
+    from geoterrain.normals import _oct_unpack
+
+    m = (1 << bits) - 1
+    e = np.random.default_rng(bits).integers(0, m + 1, (3, 4096, 2))
+    e[0, :4] = [[0, 0], [m, m], [m // 2, m // 2], [0, m]]  # poles, the fold's edges
+    e = e.astype(np.uint8 if bits == 8 else np.uint16)
+    f = e.astype(np.float64)
+    want = _oct_unpack(f[..., 0] / m * 2 - 1, f[..., 1] / m * 2 - 1).astype(np.float32)
+    got = decode_octahedral(e, bits)
+    assert got.shape == (3, 4096, 3) and np.array_equal(got, want)
