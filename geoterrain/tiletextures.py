@@ -209,10 +209,9 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     keys, fg = groups(L, X, Y)
     G = len(keys)
     corner = faces.reshape(-1)
-    cg = np.repeat(fg, 3)
-    order = np.argsort(cg, kind="stable")
-    starts = np.searchsorted(cg[order], np.arange(G))
-    cp = pts[corner[order]]
+    of = np.argsort(fg, kind="stable")  # faces by footprint: their corners in that order
+    starts = 3 * np.searchsorted(fg[of], np.arange(G))
+    cp = pts[faces[of].reshape(-1)]
     lo = np.minimum.reduceat(cp, starts, axis=0)
     hi = np.maximum.reduceat(cp, starts, axis=0)
     eye = np.asarray(view.eye, np.float64)
@@ -244,9 +243,9 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
             break
         fLt = np.minimum(fLt + 1, L2)  # too many texels: every page one level coarser
     cg = np.repeat(face_group, 3)
-    order = np.argsort(cg, kind="stable")
-    starts = np.searchsorted(cg[order], np.arange(G))
-    cij = ij[corner[order]]
+    of = np.argsort(face_group, kind="stable")
+    starts = 3 * np.searchsorted(face_group[of], np.arange(G))
+    cij = ij[faces[of].reshape(-1)]
     ilo, jlo = np.minimum.reduceat(cij, starts, axis=0).T
     ihi, jhi = np.maximum.reduceat(cij, starts, axis=0).T
     atlas = np.empty((AH, AW, 3), np.uint8)
