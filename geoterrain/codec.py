@@ -124,7 +124,7 @@ def _interp16(c: np.ndarray, axis: int, period: int) -> np.ndarray:
     return np.moveaxis(out, -1, axis)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _mid16(p, i0, j0, di, dj, k, m):
     """16 × the midpoint between samples k and k + 1 of the line (i0 + di·s, j0 + dj·s) of
     ``p``: cubic (−1, 9, 9, −1) where k − 1 and k + 2 exist in the tile, else linear."""
@@ -136,7 +136,7 @@ def _mid16(p, i0, j0, di, dj, k, m):
     return 8 * (a + b)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _cubic_child(parent, oy, ox, h, r, out):
     """One child quadrant (rows oy.., columns ox.. of ``parent``) from the cubic
     predictions of :func:`_predict` (``period`` = the parent's intervals) plus the
@@ -169,12 +169,12 @@ def _cubic_child(parent, oy, ox, h, r, out):
             n += 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _fmean(a, b):
     return (a >> 1) + (b >> 1) + (a & b & 1)  # floor((a + b) / 2), as _mean2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _linear_child(c, h, r, out):
     """:func:`_cubic_child` for the linear predictions of :func:`_predict` on the
     quadrant ``c`` ((h + 1)², the parent's samples the child holds)."""

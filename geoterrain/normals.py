@@ -101,7 +101,7 @@ def normal_map(
     return out
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _valid_finite_nb(x, y, z, valid):  # pragma: no cover - compiled
     rows, cols = x.shape
     out = np.empty((rows, cols), np.bool_)
@@ -116,7 +116,7 @@ def _valid_finite_nb(x, y, z, valid):  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _tangent_nb(x, y, z, v, i, j, axis):  # pragma: no cover - compiled
     """Central / one-sided tangent at (i, j) along ``axis`` (0: rows i, 1: columns j)."""
     rows, cols = v.shape
@@ -144,7 +144,7 @@ def _tangent_nb(x, y, z, v, i, j, axis):  # pragma: no cover - compiled
     return 0.0, 0.0, 0.0, False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _horn_nb(x, y, z, v, i, j, axis):  # pragma: no cover - compiled
     """1-2-1 mean of the ``axis`` tangents of the lines across ``axis`` (Horn / Sobel)."""
     rows, cols = v.shape
@@ -171,7 +171,7 @@ def _horn_nb(x, y, z, v, i, j, axis):  # pragma: no cover - compiled
     return 0.0, 0.0, 0.0, False
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _normals_nb(x, y, z, v, horn, out):  # pragma: no cover - compiled
     rows, cols = v.shape
     for i in prange(rows):
@@ -309,7 +309,7 @@ def normal_pyramid(n_full: np.ndarray, valid: np.ndarray | None, levels: int) ->
     return out
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _reduce_nb(n, w, out, wout):  # pragma: no cover - compiled
     rows, cols = n.shape[0], n.shape[1]
     k = (1.0, 2.0, 1.0)
@@ -388,7 +388,7 @@ def encode_octahedral(n: np.ndarray, bits: int = 8, precise: bool = False) -> np
     return out.reshape(*n.shape[:-1], 2)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _oct_dot_nb(cu, cv, m, ux, uy, uz):  # pragma: no cover - compiled
     """Cosine between the decoded code (cu, cv) and the unit vector u."""
     u = cu / m * 2.0 - 1.0
@@ -402,7 +402,7 @@ def _oct_dot_nb(cu, cv, m, ux, uy, uz):  # pragma: no cover - compiled
     return (x * ux + y * uy + zz * uz) / np.sqrt(x * x + y * y + zz * zz)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _encode_oct_nb(n, m, precise, out):  # pragma: no cover - compiled
     fm = float(m)
     for k in prange(n.shape[0]):
@@ -457,7 +457,7 @@ def decode_octahedral(e: np.ndarray, bits: int = 8) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _decode_oct_nb(e, m, out):  # pragma: no cover - compiled
     """:func:`_oct_unpack` of codes ``e`` (n, 2) over ``m``, compiled: the same float64
     operations in the same order, one pass, no temporaries (a tile's texture decodes

@@ -24,6 +24,7 @@ Examples
 
 from __future__ import annotations
 
+import gc
 import time
 
 import numpy as np
@@ -96,6 +97,7 @@ class ViewerController:
         self.selections = 0
         self.frame_ms = 0.0
         self._busy = False
+        self._gc_frozen = False
         self._last_t = -1e9
         self._last_key: tuple = ()
         self._future = None
@@ -205,6 +207,12 @@ class ViewerController:
         Returns True when the scene changed.
         """
         changed = False
+        if not self._gc_frozen:
+            # the window is up: what the imports, VTK and the first frame made is kept
+            # for good, so a full garbage collection (the GIL held, the window frozen)
+            # no longer walks it: 88 → 5 ms (docs/benchmarks.md §6d)
+            gc.freeze()
+            self._gc_frozen = True
         f = self._future
         if f is not None and f.done():
             self._future = None

@@ -150,7 +150,7 @@ def chunk_leaves(terrain, index: TileIndex, view, tau: float) -> tuple[np.ndarra
                       "tiles_hidden": int(n_hidden)}
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, hidden, out, seen):
     stack = np.empty((4 * (top + 1) + 4, 4), np.int64)  # (L, x, y, inside)
     stack[0] = (top, 0, 0, 0)
@@ -323,7 +323,7 @@ def _packed(terrain, index: TileIndex, leaves: np.ndarray) -> _Packed:
     return pk
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _gather_chunks(leaves, depth, vo, fo, so, nv, nf, ns, lvl, XYZ, IJ, FACES, SEG,
                    xyz, ij, faces, level, skirt, zmorph):
     """Copy the chunks of ``leaves`` into the output arrays: surfaces first (heights from
@@ -418,7 +418,7 @@ def parents(terrain, index: TileIndex) -> np.ndarray:
     return got
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _locate(pij, pfaces, cij, T, ids, w):
     """For each vertex ``cij`` (the child's local sample, rows/columns in [0, T)), the
     parent triangle holding it (``pfaces`` into ``pij``, the parent's vertices in the
@@ -472,7 +472,7 @@ def parent_weights(terrain, index: TileIndex, row: int) -> tuple[np.ndarray, np.
     return got
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _morph_rows(order, t, par, vo, nv, XYZ, PID, PW, err, MZ, bound, done):
     """Heights of the chunks ``order`` (coarse first, each one's t) into ``MZ`` (laid out
     as the packed vertices): z = t·z_own + (1 − t)·(the parent's morphed surface at the
@@ -503,7 +503,7 @@ def _morph_rows(order, t, par, vo, nv, XYZ, PID, PW, err, MZ, bound, done):
         done[r] = True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _leaf_heights(leaves, vo, nv, MZ, out):
     V = 0
     for k in range(leaves.shape[0]):

@@ -15,7 +15,7 @@ from numba import njit
 from geoterrain.lod.kernels import _coarsest_tile, sample_xy, walk_leaves
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _corner_bits(xyz, planes):
     """Per vertex: bit 6 = invalid (z not finite), bit k = outside plane k."""
     V, P = xyz.shape[0], planes.shape[0]
@@ -33,7 +33,7 @@ def _corner_bits(xyz, planes):
     return bits
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _face_levels(faces, lvl):
     out = np.empty(faces.shape[0], np.int16)
     for f in range(faces.shape[0]):
@@ -41,7 +41,7 @@ def _face_levels(faces, lvl):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _any(bits):
     for v in range(bits.shape[0]):
         if bits[v] != 0:
@@ -49,7 +49,7 @@ def _any(bits):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def cull_compact(faces, xyz, planes, lvl):
     """Drop triangles with an invalid corner (z NaN) or entirely outside one frustum
     plane (``planes`` (P, 4), P = 0 for none); renumber the vertices left in order.
@@ -99,7 +99,7 @@ def cull_compact(faces, xyz, planes, lvl):
 _HASH_MUL = np.uint64(0x9E3779B97F4A7C15)  # Fibonacci hashing of sample indices
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _slot(keys, idx):
     """Open-addressing slot of ``idx`` in the power-of-two table ``keys`` (−1: empty)."""
     M = keys.shape[0]
@@ -109,7 +109,7 @@ def _slot(keys, idx):
     return h
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def walk_gather(active, mixed, gen, stack, state, vid, keys, top, t, base, slot_of, H, X, Y,
                 aff, zfac, faces, verts, xyz, ij, lvl):
     """:func:`_walk` with the gather of :func:`gather_pooled` done as each vertex is
@@ -177,7 +177,7 @@ def walk_gather(active, mixed, gen, stack, state, vid, keys, top, t, base, slot_
     return nf, nv, status
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def cull_in_place(faces, xyz, ij, planes, lvl):
     """:func:`cull_compact` without copies: the kept faces (renumbered) and vertices
     move to the front of ``faces``, ``xyz`` and ``ij`` (a kept item never moves back,

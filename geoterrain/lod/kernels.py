@@ -11,7 +11,7 @@ from numba import njit
 from geoterrain.bintree import parents_nb
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def sample_xy(X, Y, aff, s, a, b, i, j):
     """Scene x, y of sample (i, j), sample (a, b) of pool slot ``s``: from the slabs
     ``X``, ``Y``, or for an affine frame (``aff`` = a, b, c, d, e, f of the geotransform,
@@ -34,7 +34,7 @@ def walk_start(N: int) -> tuple[np.ndarray, np.ndarray]:
     return stack, np.array([2], np.int64)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def walk_leaves(active, mixed, gen, stack, state, out):
     """Resumable depth-first longest-edge bisection (seed 002): up to ``len(out)`` leaf
     triangles as flat sample indices (i·N + j); returns how many, 0 once done.
@@ -72,7 +72,7 @@ def walk_leaves(active, mixed, gen, stack, state, out):
     return nf
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _walk(active, mixed, gen, stack, state, vid, tris, verts):
     """The whole walk, numbering vertices in order of first use: faces go to ``tris``
     and first-seen sample indices to ``verts``; when ``tris`` is too small the walk
@@ -129,7 +129,7 @@ def extract(active: np.ndarray, mixed: np.ndarray, vid: np.ndarray, gen=True,
         cap *= 4
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _set_parents(active, i, j, h, gen):
     N = active.shape[0]
     p0i, p0j, p1i, p1j = parents_nb(i, j, h)  # the bintree's rule (seed 002 §2.3)
@@ -139,7 +139,7 @@ def _set_parents(active, i, j, h, gen):
         active[p1i, p1j] = gen
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def close_upward_boxes(active, boxes, gen=True):
     """Activate both parents of every active vertex, finest depth first, in place.
 
@@ -192,7 +192,7 @@ def close_upward(active: np.ndarray) -> None:
     close_upward_boxes(active, np.array([[0, N - 1, 0, N - 1]], np.int64))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def fill_static(slots, i0, j0, step, D, e, active, mixed, gen=True, top_step=0):
     """Static predicate δ > e on pooled tiles, scattered into the dense flags in place.
 
@@ -219,7 +219,7 @@ def fill_static(slots, i0, j0, step, D, e, active, mixed, gen=True, top_step=0):
                     mixed[i, j] = gen
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _grow_box(boxes, lv, i, j):
     if i < boxes[lv, 0]:
         boxes[lv, 0] = i
@@ -231,7 +231,7 @@ def _grow_box(boxes, lv, i, j):
         boxes[lv, 3] = j
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy, eye, planes,
             lam, tau, active, mixed, gen, top_step, boxes, level):
     """LP eq. 2 with sphere culling on pooled tiles, scattered into the dense flags.
@@ -293,7 +293,7 @@ def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy
                     _grow_box(boxes, lv, i, j)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def lp_tiles(lo, hi, dmax, rmax, eye, planes, lam, tau, floor):
     """The tiles that can hold an LP-active vertex (seed 002 eq. 2, tested with tile
     bounds only), as a status per tile: 0 no, 1 yes, 2 yes and inside the frustum.
@@ -338,7 +338,7 @@ def lp_tiles(lo, hi, dmax, rmax, eye, planes, lam, tau, floor):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def level_boxes(L, i0, i1, j0, j1, boxes):
     """Grow ``boxes[L]`` (rows i0, i1, columns j0, j1) to hold each tile's samples."""
     for k in range(L.shape[0]):
@@ -349,7 +349,7 @@ def level_boxes(L, i0, i1, j0, j1, boxes):
         b[3] = max(b[3], j1[k])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def gather_pooled(flat, N, top, t, base, slot_of, H, X, Y, aff, zfac, xyz, ij, level):
     """Scene positions ``xyz`` (x, y, height · zfac), grid ``ij`` and pyramid level of
     full-resolution samples ``flat`` (i·N + j), read from the coarsest tile holding
@@ -367,7 +367,7 @@ def gather_pooled(flat, N, top, t, base, slot_of, H, X, Y, aff, zfac, xyz, ij, l
             xyz[k, 0], xyz[k, 1], xyz[k, 2] = x, y, H[s, a, b] * zfac
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _coarsest_tile(i, j, top, t, base):
     low = i | j
     L = top
@@ -383,14 +383,14 @@ def _coarsest_tile(i, j, top, t, base):
     return L, base[L] + ty * tps + tx, li - (ty << t), lj - (tx << t)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def mark_tiles(flat, N, top, t, base, occ):
     """Flag in ``occ`` (the pool's slot-table layout) the coarsest tile of each sample."""
     for k in range(flat.shape[0]):
         occ[_coarsest_tile(flat[k] // N, flat[k] % N, top, t, base)[1]] = True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def lp_tiles_walk(table, base, top, lo, hi, dmax, rmax, rsub, eye, planes, lam, tau, floor,
                   out):
     """:func:`lp_tiles` for the tiles the quadtree reaches from the top: a subtree whose

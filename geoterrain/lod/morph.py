@@ -41,7 +41,7 @@ _MUL = np.uint64(0x9E3779B97F4A7C15)
 MORPH_START = 0.75  # τ_min = MORPH_START · τ: vertices appear at 3/4 of the tolerance
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _ends(i, j, N):
     """The bintree edge sample (i, j) splits: its two end points, or (−1, …) for a
     domain corner (which splits nothing)."""
@@ -70,7 +70,7 @@ def edge_ends(i: int, j: int, N: int) -> tuple[tuple[int, int], tuple[int, int]]
     return None if a < 0 else ((a, b), (c, d))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _depth_k(i, j):
     low = i | j
     if low == 0:
@@ -82,7 +82,7 @@ def _depth_k(i, j):
     return k
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _lookup(keys, vals, key, shift, M):
     h = np.int64((np.uint64(key) * _MUL) >> shift)
     while keys[h] != -1 and keys[h] != key:
@@ -90,14 +90,14 @@ def _lookup(keys, vals, key, shift, M):
     return vals[h] if keys[h] == key else -1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _true_z(key, N, top, t, base, slot_of, H, zfac):
     L, ti, a, b = _coarsest_tile(key // N, key % N, top, t, base)
     s = slot_of[ti]
     return H[s, a, b] * zfac if s >= 0 else np.nan
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def morph_heights(verts, xyz, N, top, t, base, slot_of, D, R, H, zfac, eye, lam, tmin, tmax,
                   tout):
     """Morph ``xyz[:, 2]`` in place (eq. 3–4) for mesh vertices ``verts`` (flat i·N + j);

@@ -130,7 +130,7 @@ def _footprints(terrain) -> _Footprints:
     return fp
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _pseudo_angle(c, d):
     """A number that grows with atan2(c, d) over (−π, π] (the "diamond angle"), so the
     extreme corners are found without trigonometry."""
@@ -142,7 +142,7 @@ def _pseudo_angle(c, d):
     return (2.0 if c >= 0.0 else -2.0) - c / s
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _poly_span(ex, ey, c):
     """Azimuth span (start, width) of a convex polygon ``c`` (K, 2) seen from (ex, ey),
     and its nearest and farthest horizontal distance; width < 0 if the eye is inside."""
@@ -189,7 +189,7 @@ def _poly_span(ex, ey, c):
     return math.atan2(dly, dlx), hi - lo, math.sqrt(near2), far
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _near_footprints(ex, ey, corners, cen, reach_to):
     """Footprints within ``reach_to`` of the eye (or holding it)."""
     out = np.zeros(corners.shape[0], np.bool_)
@@ -201,7 +201,7 @@ def _near_footprints(ex, ey, corners, cen, reach_to):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _wedge(sec0, secw):
     """The sector [sec0, sec0 + secw] as its two unit rays, and whether it is the full
     turn (:func:`_sector` gives a width of 4π for any sector π or more wide)."""
@@ -211,7 +211,7 @@ def _wedge(sec0, secw):
                      math.sin(sec0 + secw), 0.0])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _in_sector(ex, ey, cen, wedge):
     """Whether a footprint (centre x, y and radius ``cen``) may meet the sector of
     azimuths ``wedge`` (:func:`_wedge`; a cheap test before :func:`_poly_span`): its
@@ -230,7 +230,7 @@ def _in_sector(ex, ey, cen, wedge):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _horizon_cull(ex, ey, ez, corners, cen, state, zmin, margin, sec0, secw, lo, hi, out):
     """``out[row] = True`` for each box (``lo``, ``hi``) hidden behind the horizon of
     the footprints ``corners`` (the eye already known to be above the surface).

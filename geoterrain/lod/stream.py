@@ -79,7 +79,7 @@ def _count_leaves(active, mixed) -> int:
         n += k
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _new_samples(tris, vid, cand):
     """Samples of ``tris`` never seen before (vid = −1), in order of first appearance:
     written to ``cand``, and marked in ``vid`` with −2 − (their index in ``cand``)."""
@@ -94,7 +94,7 @@ def _new_samples(tris, vid, cand):
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _number(tris, vid, valid, cand, nv, faces, order):
     """Keep the triangles whose corners all have a height; give their new corners global
     ids from ``nv`` on, in order of first appearance.

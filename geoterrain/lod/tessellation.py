@@ -61,7 +61,7 @@ HAM_SCALE = 1.0  # g(HAM) = HAM_SCALE · √HAM (eq. 5-2)
 _HAM: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _sobel_magnitude(h):
     R, C = h.shape
     out = np.empty((R, C))
