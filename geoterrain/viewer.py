@@ -13,7 +13,13 @@ The camera moves as on a terrain (VTK's terrain interactor style): dragging turn
 around the vertical and tilts, and never rolls, so the horizon stays level. The
 status line sits on an opaque box and says when a selection is running; a colour
 bar (metres) and an east/north/up compass stay on screen. With ``background`` the
-worker thread also builds the frame's textures, so the window only swaps them in.
+worker thread also builds the frame's textures, so the window only swaps them in;
+while the camera moves frames are drawn without multisampling, and once it has rested
+``REST_MS`` the view is drawn again with it (screenshots always are). Once the window
+is up, the objects of the imports and the first frame are frozen out of the garbage
+collector (``gc.freeze``): a full collection over them held the GIL, and so the
+window, for 80 ms. ``benchmarks/bench_viewer.py`` measures all of this through the
+controller.
 
 Examples
 --------
@@ -41,6 +47,10 @@ from geoterrain.view import View
 
 COLOR_MODES = ("shading", "level", "tile")
 HELP = "m strategy  +/- tau  x wireframe  c colour  space freeze  h home  s screenshot  q quit"
+
+
+POLL_MS = 16.0  # background mode: how often the window looks for a finished frame
+REST_MS = 250.0  # the camera still this long: drawn again with anti-aliasing
 
 
 def terrain_style():
@@ -98,6 +108,11 @@ class ViewerController:
         self.frame_ms = 0.0
         self._busy = False
         self._gc_frozen = False
+        # anti-aliasing (MSAA) off while the camera moves, back on once it rests; the
+        # window's own setting is read at the first move (the window is up by then)
+        self._msaa: int | None = None
+        self._moving = False
+        self._moved_t = 0.0
         self._last_t = -1e9
         self._last_key: tuple = ()
         self._future = None
@@ -164,6 +179,7 @@ class ViewerController:
                 return False
             view, strategy, tau = self._view(), self.strategy, self.pixel_error
             self.pending = False
+            self._motion()
             self._future = self._executor.submit(self._work, key, view, strategy, tau)
             self._update_hud()  # the busy sign
             return True
@@ -233,7 +249,35 @@ class ViewerController:
             self.plotter.render()
             self.frame_ms += (time.perf_counter() - t0) * 1e3
             self._update_hud()
+        elif self._moving and self._future is None and not self.pending and \
+                (time.perf_counter() - self._moved_t) * 1e3 >= REST_MS:
+            self.settle()
         return changed
+
+    def _motion(self) -> None:
+        """The camera moves: draw without multisampling (about half the software
+        renderer's draw time at 1280×720) until it rests."""
+        rw = self.plotter.render_window
+        if self._executor is not None and rw is not None and not self._moving:
+            if self._msaa is None:
+                self._msaa = int(rw.GetMultiSamples())
+            if self._msaa:
+                rw.SetMultiSamples(0)
+                self._moving = True
+        self._moved_t = time.perf_counter()
+
+    def settle(self) -> bool:
+        """The camera rests: draw once more with the window's anti-aliasing (called by
+        :meth:`poll` ``REST_MS`` after the last move, and before a screenshot).
+        Returns True when it drew."""
+        if not self._moving:
+            return False
+        self._moving = False
+        self.plotter.render_window.SetMultiSamples(self._msaa)
+        t0 = time.perf_counter()
+        self.plotter.render()
+        self.still_ms = (time.perf_counter() - t0) * 1e3
+        return True
 
     def wait(self, timeout: float | None = None) -> bool:
         """Block until the running background selection is shown (for scripts and tests)."""
@@ -355,6 +399,7 @@ class ViewerController:
         ``geoterrain-<time>-<n>.png`` in the working folder); the status line says where."""
         from pathlib import Path
 
+        self.settle()  # the saved picture is the anti-aliased one
         self.screenshots += 1
         if path is None:
             path = Path.cwd() / time.strftime(f"geoterrain-%Y%m%d-%H%M%S-{self.screenshots}.png")
@@ -434,8 +479,14 @@ class ViewerController:
             p.enable_terrain_style(mouse_wheel_zooms=True)  # no roll: the horizon stays level
         if p.iren is not None and not p.off_screen:
             p.iren.add_observer("EndInteractionEvent", self.poll)
-            p.add_timer_event(max_steps=2**31 - 1, duration=int(max(self.throttle_ms, 30)),
+            p.add_timer_event(max_steps=2**31 - 1, duration=int(self.poll_ms),
                               callback=lambda _step: self.poll())
+
+    @property
+    def poll_ms(self) -> float:
+        """The polling timer's period: a finished background frame waits at most this
+        long to be shown; synchronous mode polls at the throttle."""
+        return POLL_MS if self._executor is not None else max(self.throttle_ms, 30.0)
 
 
 def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,

@@ -311,6 +311,44 @@ def test_viewer_interactor_keeps_the_horizon_level(tmp_path_factory):
         p.close()
 
 
+def test_viewer_draws_moves_without_multisampling_and_the_rest_with_it(tmp_path_factory,
+                                                                        tmp_path):
+    """Background mode: while the camera moves the window draws without MSAA; once it
+    rests (or before a screenshot) it draws again with the window's own setting; the
+    first poll freezes the startup objects out of the garbage collector."""
+    import gc
+    import time
+
+    from geoterrain.viewer import REST_MS, ViewerController
+
+    t = synth_store(tmp_path_factory, "fbm")
+    p = _plotter((320, 240))
+    c = ViewerController(p, t, background=True)
+    try:
+        p.show(auto_close=False)
+        rw = p.render_window
+        msaa = rw.GetMultiSamples()
+        lo, hi = np.asarray(c.home.look_at), np.asarray(c.home.look_from)
+        p.camera.position = tuple(lo + 0.4 * (hi - lo))
+        assert c.on_camera_changed()
+        assert rw.GetMultiSamples() == (0 if msaa else msaa)
+        c.wait(timeout=60)
+        assert gc.get_freeze_count() > 0
+        assert rw.GetMultiSamples() == (0 if msaa else msaa)  # just shown: still moving
+        time.sleep(REST_MS / 1e3)
+        c.poll()
+        assert rw.GetMultiSamples() == msaa and not c._moving
+        p.camera.position = tuple(lo + 0.5 * (hi - lo))
+        c.on_camera_changed()
+        c.wait(timeout=60)
+        c.screenshot(tmp_path / "s.png")  # a screenshot is the anti-aliased picture
+        assert rw.GetMultiSamples() == msaa
+    finally:
+        c.close()
+        p.close()
+        gc.unfreeze()
+
+
 def test_viewer_status_box_screenshot_and_ui_time(tmp_path_factory, tmp_path):
     """The status line is on an opaque box and shows the busy sign while a background
     selection runs; ``s`` saves a PNG with the overlays; in background mode the UI
