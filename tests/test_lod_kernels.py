@@ -125,10 +125,12 @@ def test_cull_in_place_equals_cull_compact(seed, nplanes):
     faces = rng.integers(0, V, (F, 3)).astype(np.int32)
     lvl = rng.integers(0, 5, V)
     planes = rng.normal(size=(nplanes, 4))
-    ref_f, keep, ref_l = emit.cull_compact(faces.copy(), xyz.copy(), planes, lvl)
+    eye, slack = rng.normal(size=3), float(rng.choice([0.0, 0.05]))
+    ref_f, keep, ref_l = emit.cull_compact(faces.copy(), xyz.copy(), planes, lvl, eye,
+                                           slack)
     ij = rng.random((V, 2))
     f2, x2, ij2 = faces.copy(), xyz.copy(), ij.copy()
-    nf, nv, lev = emit.cull_in_place(f2, x2, ij2, planes, lvl)
+    nf, nv, lev = emit.cull_in_place(f2, x2, ij2, planes, lvl, eye, slack)
     keep = np.arange(V) if keep is None else keep
     np.testing.assert_array_equal(f2[:nf], ref_f)
     np.testing.assert_array_equal(lev, ref_l)
@@ -158,3 +160,25 @@ def test_the_tile_walk_equals_testing_every_tile(tmp_path_factory, az, el, dist,
     on = ref > 0
     np.testing.assert_array_equal(f2[on], f1[on])
     assert visited <= n
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), t=st.floats(1e-4, 0.05), u=st.floats(0.05, 0.99))
+def test_culling_keeps_every_triangle_over_a_sample_in_the_frustum(seed, t, u):
+    """A triangle outside a plane is dropped only if no sample within (τ/λ)·d of its
+    surface, vertically (ρ ≤ τ), can be inside (`_corner_bits`, slack 2τ/λ); and one
+    outside by more than that margin is dropped."""
+    rng = np.random.default_rng(seed)
+    eye = rng.normal(size=3) * 10
+    tri = eye + rng.normal(size=(3, 3)) * 30
+    n = rng.normal(size=3)
+    d = np.linalg.norm(tri - eye, axis=1)
+    faces = np.array([[0, 1, 2]], np.int32)
+    lvl = np.zeros(3, np.int64)
+    for margin, drawn in ((u, True), (2.5, False)):
+        # the plane's offset puts the corners outside by at least margin·|c|·(τ/λ)·d, one
+        # of them by exactly that: lifted or lowered by (τ/λ)·d it is inside when margin < 1
+        w = -np.max(tri @ n + margin * abs(n[2]) * t * d)
+        plane = np.append(n, w)[None]
+        kept, _, _ = emit.cull_compact(faces, tri, plane, lvl, eye, 2 * t)
+        assert len(kept) == (1 if drawn else 0)

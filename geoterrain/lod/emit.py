@@ -16,8 +16,16 @@ from geoterrain.lod.kernels import _coarsest_tile, sample_xy, walk_leaves
 
 
 @njit(cache=True, nogil=True)
-def _corner_bits(xyz, planes):
-    """Per vertex: bit 6 = invalid (z not finite), bit k = outside plane k."""
+def _corner_bits(xyz, planes, eye, slack):
+    """Per vertex: bit 6 = invalid (z not finite), bit k = outside plane k by more than
+    ``slack``·|c_k|·d (d the vertex's distance to ``eye``).
+
+    A triangle is dropped when its three corners are outside one plane. The samples
+    under it lie within |Δz| ≤ (τ/λ)·d of its surface (ρ ≤ τ), and the plane value moves
+    by at most |c_k|·|Δz| for a vertical shift, while d is convex (a point of the
+    triangle is no farther than its farthest corner). So with ``slack`` ≥ τ/(λ − τ) no
+    sample inside the frustum lies under a dropped triangle. ``slack`` = 0: the plain
+    test."""
     V, P = xyz.shape[0], planes.shape[0]
     bits = np.zeros(V, np.uint8)
     for v in range(V):
@@ -26,8 +34,13 @@ def _corner_bits(xyz, planes):
         if not np.isfinite(z):
             b = 64
             z = 0.0
+        m = 0.0
+        if slack > 0.0 and P > 0:
+            dx, dy, dz = x - eye[0], y - eye[1], z - eye[2]
+            m = slack * np.sqrt(dx * dx + dy * dy + dz * dz)
         for k in range(P):
-            if planes[k, 0] * x + planes[k, 1] * y + planes[k, 2] * z + planes[k, 3] < 0:
+            if planes[k, 0] * x + planes[k, 1] * y + planes[k, 2] * z + planes[k, 3] \
+                    < -m * abs(planes[k, 2]):
                 b |= 1 << k
         bits[v] = b
     return bits
@@ -50,16 +63,17 @@ def _any(bits):
 
 
 @njit(cache=True, nogil=True)
-def cull_compact(faces, xyz, planes, lvl):
+def cull_compact(faces, xyz, planes, lvl, eye, slack):
     """Drop triangles with an invalid corner (z NaN) or entirely outside one frustum
-    plane (``planes`` (P, 4), P = 0 for none); renumber the vertices left in order.
+    plane (``planes`` (P, 4), P = 0 for none; by the margin of :func:`_corner_bits`);
+    renumber the vertices left in order.
 
     Returns the kept faces (renumbered), the kept vertices' indices (None when every
     vertex is kept: nothing was dropped) and each kept triangle's level (the
     coarsest level shared by its corners: min of ``lvl``).
     """
     V, F = xyz.shape[0], faces.shape[0]
-    bits = _corner_bits(xyz, planes)
+    bits = _corner_bits(xyz, planes, eye, slack)
     if not _any(bits):
         return faces, None, _face_levels(faces, lvl)
     keep = np.zeros(F, np.bool_)
@@ -178,12 +192,12 @@ def walk_gather(active, mixed, gen, stack, state, vid, keys, top, t, base, slot_
 
 
 @njit(cache=True, nogil=True)
-def cull_in_place(faces, xyz, ij, planes, lvl):
+def cull_in_place(faces, xyz, ij, planes, lvl, eye, slack):
     """:func:`cull_compact` without copies: the kept faces (renumbered) and vertices
     move to the front of ``faces``, ``xyz`` and ``ij`` (a kept item never moves back,
     so one forward pass is safe). Returns (faces kept, vertices kept, face levels)."""
     V, F = xyz.shape[0], faces.shape[0]
-    bits = _corner_bits(xyz, planes)
+    bits = _corner_bits(xyz, planes, eye, slack)
     if not _any(bits):
         return F, V, _face_levels(faces, lvl)
     remap = np.full(V, -1, np.int32)

@@ -233,11 +233,14 @@ def _gather(terrain, flat: np.ndarray):
 
 
 def active_mesh(terrain, act: ActiveSet, view: View | None = None,
-                band: tuple[float, float] | None = None):
+                band: tuple[float, float] | None = None, tau: float = 0.0):
     """The conforming mesh of an active set: bisect, gather positions, cull, wind.
 
     Triangles with an invalid corner are dropped, and with ``view`` those entirely
-    outside one frustum plane. Cell data ``skirt`` (all 0) and ``level``.
+    outside one frustum plane, by a margin that keeps every sample inside the frustum
+    under a drawn triangle when the mesh holds ρ ≤ ``tau``
+    (:func:`~geoterrain.lod.emit.cull_in_place`). Cell data ``skirt`` (all 0) and
+    ``level``.
 
     One compiled walk (:func:`~geoterrain.lod.emit.walk_gather`) numbers the
     vertices and reads each one's position from its pooled tile as it is first met;
@@ -249,6 +252,9 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None,
     pool = tile_pool(terrain)
     sc = _scratch(terrain)
     planes = view.planes if view is not None else np.zeros((0, 4))
+    eye = np.asarray(view.eye, np.float64) if view is not None else np.zeros(3)
+    # the samples under a triangle lie within (τ/λ)·d of it: τ/(λ − τ) ≤ 2τ/λ
+    slack = 2.0 * tau / view.lam if view is not None and tau > 0 else 0.0
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
     pool.slots(np.array([pool.base[pool.top]]), ("height", "xy"))  # the domain corners
     cap = 2 * sc.last_faces + 65536  # np.empty: untouched capacity costs nothing
@@ -268,19 +274,21 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None,
         if status == 0:
             break
         if status == 2:
-            return _mesh_in_passes(terrain, act, planes, view, band)
+            return _mesh_in_passes(terrain, act, planes, view, band, eye, slack)
         cap *= 4
         M = 4 * M if 4 * M <= _HASHED_UP_TO else 0
     sc.last_faces = nf
     if band is not None:
         morph_mesh(terrain, verts[:nv], xyz[:nv], view, *band)
-    nf, nv, level = cull_in_place(faces[:nf], xyz[:nv], ij[:nv], planes, lvl[:nv])
+    nf, nv, level = cull_in_place(faces[:nf], xyz[:nv], ij[:nv], planes, lvl[:nv], eye,
+                                  slack)
     # both base triangles are counter-clockwise and bisection keeps the orientation
     return polydata(xyz[:nv], faces[:nf], ij[:nv], {"skirt": np.zeros(nf, np.uint8),
                                                     "level": level})
 
 
-def _mesh_in_passes(terrain, act: ActiveSet, planes: np.ndarray, view=None, band=None):
+def _mesh_in_passes(terrain, act: ActiveSet, planes: np.ndarray, view=None, band=None,
+                    eye=None, slack: float = 0.0):
     """:func:`active_mesh` in three passes: walk, gather from the pool, cull."""
     sc = _scratch(terrain)
     guess = 2 * sc.last_faces + 65536
@@ -289,7 +297,8 @@ def _mesh_in_passes(terrain, act: ActiveSet, planes: np.ndarray, view=None, band
     xyz, ij, lvl = _gather(terrain, flat)
     if band is not None:
         morph_mesh(terrain, flat, xyz, view, *band)
-    faces, keep, level = cull_compact(faces, xyz, planes, lvl)
+    faces, keep, level = cull_compact(faces, xyz, planes, lvl,
+                                      np.zeros(3) if eye is None else eye, slack)
     if keep is not None:
         xyz, ij = xyz[keep], ij[keep]
     return polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8),
@@ -309,10 +318,10 @@ def select(terrain, view: View, tau: float):
     if morphing_enabled():  # seed 002 §2.10: vertices appear at τ_min, true at τ_max = τ
         tmin = MORPH_START * tau
         act = view_active(terrain, index, view, tmin)
-        return (active_mesh(terrain, act, view, (tmin, tau)),
+        return (active_mesh(terrain, act, view, (tmin, tau), tau),
                 {"tiles_hidden": act.tiles_hidden, "morph_band": (tmin, tau)})
     act = view_active(terrain, index, view, tau)
-    return active_mesh(terrain, act, view), {"tiles_hidden": act.tiles_hidden}
+    return active_mesh(terrain, act, view, tau=tau), {"tiles_hidden": act.tiles_hidden}
 
 
 def static(terrain, max_error: float):
