@@ -293,7 +293,8 @@ def test_the_horizon_kernel_hides_only_what_an_occluder_covers(seed):
     box it hides, each sampled ray to the box's top passes under an occluder's lowest
     height inside that occluder's footprint, nearer than the box, having crossed no hole
     on the way there (the geometric claim the culling rests on)."""
-    from geoterrain.lod.occlusion import _centres, _horizon_cull
+    from geoterrain.lod.horizon import _horizon_cull
+    from geoterrain.lod.occlusion import _centres
 
     rng = np.random.default_rng(seed)
     n = 8
@@ -333,7 +334,7 @@ def test_the_horizon_kernel_hides_only_what_an_occluder_covers(seed):
 def test_the_kernel_geometry_matches_plain_trigonometry(seed):
     """``_poly_span`` (extremes by pseudo-angle, two atan2) and ``_in_sector`` (a wedge
     test without angles) against the same quantities taken with atan2 everywhere."""
-    from geoterrain.lod.occlusion import _in_sector, _poly_span, _wedge
+    from geoterrain.lod.horizon import _in_sector, _poly_span, _wedge
 
     rng = np.random.default_rng(seed)
     ex, ey = rng.uniform(-50, 50, 2)
@@ -444,7 +445,8 @@ def test_a_standing_in_footprint_bounds_its_blocks(seed):
     """The kernel's state 2: a footprint standing in for its 4 × 4 blocks at their
     highest sample hides at least every box those blocks hide (the upper-bound pass of
     :func:`hidden_rows` relies on it)."""
-    from geoterrain.lod.occlusion import _centres, _horizon_cull
+    from geoterrain.lod.horizon import _horizon_cull
+    from geoterrain.lod.occlusion import _centres
 
     rng = np.random.default_rng(seed)
     n, k = 8, 4
