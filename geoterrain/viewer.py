@@ -113,6 +113,7 @@ class ViewerController:
         self._msaa: int | None = None
         self._moving = False
         self._moved_t = 0.0
+        self.still_ms = 0.0  # the last anti-aliased redraw at rest
         self._last_t = -1e9
         self._last_key: tuple = ()
         self._future = None
@@ -226,7 +227,7 @@ class ViewerController:
         if not self._gc_frozen:
             # the window is up: what the imports, VTK and the first frame made is kept
             # for good, so a full garbage collection (the GIL held, the window frozen)
-            # no longer walks it: 88 → 5 ms (docs/benchmarks.md §6d)
+            # no longer walks it (the longest UI block 81.7 → 4 ms, docs/benchmarks.md §6d)
             gc.freeze()
             self._gc_frozen = True
         f = self._future
