@@ -346,21 +346,6 @@ def _reduce_nb(n, w, out, wout):  # pragma: no cover - compiled
             wout[a, b] = 1.0 if anyw else 0.0
 
 
-def _oct_fold(x: np.ndarray, y: np.ndarray, neg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    sx = np.where(x >= 0, 1.0, -1.0)
-    sy = np.where(y >= 0, 1.0, -1.0)
-    fx = np.where(neg, (1.0 - np.abs(y)) * sx, x)
-    fy = np.where(neg, (1.0 - np.abs(x)) * sy, y)
-    return fx, fy
-
-
-def _oct_unpack(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    zz = 1.0 - np.abs(u) - np.abs(v)
-    x, y = _oct_fold(u, v, zz < 0)
-    n = np.stack([x, y, zz], axis=-1)
-    return n / np.linalg.norm(n, axis=-1, keepdims=True)
-
-
 def encode_octahedral(n: np.ndarray, bits: int = 8, precise: bool = False) -> np.ndarray:
     """Pack unit vectors (..., 3) into octahedral codes (..., 2) uint8 or uint16.
 
@@ -390,8 +375,8 @@ def encode_octahedral(n: np.ndarray, bits: int = 8, precise: bool = False) -> np
 
 @njit(cache=True, nogil=True, inline="always")
 def _oct_point(cu, cv, m):  # pragma: no cover - compiled
-    """The unnormalised point of code (cu, cv) over ``m`` (:func:`_oct_unpack`'s float64
-    operations in its order)."""
+    """The unnormalised point of code (cu, cv) over ``m``: u, v = 2·code/m − 1, z =
+    1 − |u| − |v|, and the lower half folded over (float64)."""
     u = cu / m * 2.0 - 1.0
     v = cv / m * 2.0 - 1.0
     zz = 1.0 - abs(u) - abs(v)
@@ -467,9 +452,9 @@ def decode_octahedral(e: np.ndarray, bits: int = 8) -> np.ndarray:
 
 @njit(cache=True, nogil=True)
 def _decode_oct_nb(e, m, out):  # pragma: no cover - compiled
-    """:func:`_oct_unpack` of codes ``e`` (n, 2) over ``m``, compiled: the same float64
-    operations in the same order, one pass, no temporaries (a tile's texture decodes
-    its normals; numpy spent 0.24 ms a 65² tile on temporaries)."""
+    """Unit normals of codes ``e`` (n, 2) over ``m`` (:func:`_oct_point`, normalised), one
+    compiled pass without temporaries (a tile's texture decodes its normals; the array
+    version spent 0.24 ms a 65² tile on temporaries)."""
     for k in range(e.shape[0]):
         x, y, zz = _oct_point(e[k, 0], e[k, 1], m)
         n = np.sqrt(x * x + y * y + zz * zz)

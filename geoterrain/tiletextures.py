@@ -51,7 +51,7 @@ TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measu
 MAX_PAGE_LEVELS = 3  # a footprint's page is at most 2^3 × 2^3 tiles (513² texels at t = 6)
 MAX_ATLAS = 8192  # texels per side; beyond it every page is coarsened one level
 GUTTER = 1  # replicated border texels around each page (no bleeding between pages)
-MISSING_RGB = (128, 128, 128)  # a tile that is not stored (all nodata): never visible
+MISSING_GREY = 128  # a tile that is not stored (all nodata): never visible
 
 
 @dataclass
@@ -249,10 +249,7 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     ilo, jlo = np.minimum.reduceat(cij, starts, axis=0).T
     ihi, jhi = np.maximum.reduceat(cij, starts, axis=0).T
     atlas = np.empty((AH, AW, 3), np.uint8)
-    if len(set(MISSING_RGB)) == 1:
-        atlas.fill(MISSING_RGB[0])  # one memset; broadcasting the triple took 8 ms a frame
-    else:
-        atlas[:] = MISSING_RGB
+    atlas.fill(MISSING_GREY)  # one memset (broadcasting an RGB triple took 8 ms a frame)
     n_tiles = 0
     stored = terrain.tile_info
     for gi in range(G):  # one step per page; the texels are whole-array copies

@@ -69,7 +69,7 @@ def test_one_pass_mesh_equals_three_passes(tmp_path_factory, az, el, dist, holes
         one = rtin.active_mesh(t, act, v)
     finally:
         rtin._HASHED_UP_TO = keep
-    three = rtin._mesh_in_passes(t, act, v.planes)
+    three = rtin._mesh_in_passes(t, act, v.planes, np.asarray(v.eye, float), 0.0)
     _same(one, three)
 
 

@@ -285,7 +285,8 @@ class _Packed:
         self.lvl = np.zeros(n_rows, np.int16)
         self.xyz, self.ij = np.zeros((0, 3)), np.zeros((0, 2), np.int64)
         self.faces, self.seg = np.zeros((0, 3), np.int64), np.zeros((0, 2), np.int64)
-        # per vertex: where it lies on the parent chunk (morphing), filled on demand
+        # per vertex: where it lies on the parent chunk (morphing only), laid out as the
+        # vertices and filled for the rows ``weighed``
         self.pid, self.pw = np.zeros((0, 3), np.int64), np.zeros((0, 3))
         self.weighed = np.zeros(n_rows, bool)
         self.V = self.F = self.S = 0
@@ -306,8 +307,6 @@ class _Packed:
         self.ij = self._put(self.ij, self.V, ch.ij)
         self.faces = self._put(self.faces, self.F, ch.faces)
         self.seg = self._put(self.seg, self.S, ch.skirt_ab)
-        self.pid = self._put(self.pid, self.V, np.full((len(ch.xyz), 3), -1, np.int64))
-        self.pw = self._put(self.pw, self.V, np.zeros((len(ch.xyz), 3)))
         self.V += len(ch.xyz)
         self.F += len(ch.faces)
         self.S += len(ch.skirt_ab)
@@ -559,6 +558,10 @@ def morph_heights(terrain, index: TileIndex, leaves: np.ndarray, eye, lam: float
     order = np.argsort(-index.keys[rows, 0], kind="stable")  # coarse first
     rows, ts = rows[order], ts[order]
     pk = _packed(terrain, index, rows)
+    if len(pk.pid) < pk.V:  # room for every packed vertex's weights (read only if weighed)
+        grow = max(pk.V, 2 * len(pk.pid)) - len(pk.pid)
+        pk.pid = np.concatenate([pk.pid, np.empty((grow, 3), np.int64)])
+        pk.pw = np.concatenate([pk.pw, np.empty((grow, 3))])
     for r in rows[(ts < 1.0) & ~pk.weighed[rows]].tolist():  # new morphing chunks only
         ids, w = parent_weights(terrain, index, r)
         o = pk.vo[r]

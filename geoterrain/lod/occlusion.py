@@ -352,8 +352,8 @@ def hidden_rows(terrain, view: View, grow: np.ndarray | None = None,
     the rows a strategy may read, such as those its walk reaches: the others come back
     False (not hidden), and the work follows the rows asked for, not the store's size
     (the occluders are still every level-0 footprint in view). All False when culling
-    is switched off (:func:`occlusion`) or the eye is not safely above the terrain (see the module
-    docstring).
+    is switched off (:func:`occlusion`) or the eye is not safely above the terrain (see
+    the module docstring).
 
     Examples
     --------
@@ -366,7 +366,7 @@ def hidden_rows(terrain, view: View, grow: np.ndarray | None = None,
     if not occlusion_enabled() or not len(out) or index.outside(view):
         return out  # (nothing in view: nothing to read either)
     key = ("hidden", id(terrain), None if grow is None else id(grow),
-           None if rows is None else hash(np.asarray(rows, np.int64).tobytes()))
+           None if rows is None else np.asarray(rows, np.int64).tobytes())
     got = view._cache.get(key)
     if got is not None:
         return got

@@ -274,7 +274,7 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None,
         if status == 0:
             break
         if status == 2:
-            return _mesh_in_passes(terrain, act, planes, view, band, eye, slack)
+            return _mesh_in_passes(terrain, act, planes, eye, slack, view, band)
         cap *= 4
         M = 4 * M if 4 * M <= _HASHED_UP_TO else 0
     sc.last_faces = nf
@@ -287,8 +287,8 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None,
                                                     "level": level})
 
 
-def _mesh_in_passes(terrain, act: ActiveSet, planes: np.ndarray, view=None, band=None,
-                    eye=None, slack: float = 0.0):
+def _mesh_in_passes(terrain, act: ActiveSet, planes: np.ndarray, eye: np.ndarray,
+                    slack: float, view=None, band=None):
     """:func:`active_mesh` in three passes: walk, gather from the pool, cull."""
     sc = _scratch(terrain)
     guess = 2 * sc.last_faces + 65536
@@ -297,8 +297,7 @@ def _mesh_in_passes(terrain, act: ActiveSet, planes: np.ndarray, view=None, band
     xyz, ij, lvl = _gather(terrain, flat)
     if band is not None:
         morph_mesh(terrain, flat, xyz, view, *band)
-    faces, keep, level = cull_compact(faces, xyz, planes, lvl,
-                                      np.zeros(3) if eye is None else eye, slack)
+    faces, keep, level = cull_compact(faces, xyz, planes, lvl, eye, slack)
     if keep is not None:
         xyz, ij = xyz[keep], ij[keep]
     return polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8),
