@@ -52,7 +52,7 @@ from numba import njit
 
 from geoterrain import zstdsafe
 from geoterrain.grid import footprint_counts, level_tiles
-from geoterrain.quantize import Quantizer, codes_to_heights, heights_to_codes
+from geoterrain.quantize import Quantizer, codes_to_heights, heights_to_codes, roundtrip
 from geoterrain.symbols import (
     PACK_BITS,
     UINTS,
@@ -328,8 +328,7 @@ def decoded_heights(
     if t is not None:
         d = decoded_codes(z, valid, t, quantizer, predictor)
         return codes_to_heights(d, quantizer)
-    h = codes_to_heights(heights_to_codes(np.where(valid, z, 0.0), quantizer), quantizer)
-    return np.where(valid, h, np.nan)
+    return roundtrip(z, valid, quantizer)  # the same values, in one compiled pass
 
 
 # --------------------------------------------------------------------------- encoding

@@ -9,14 +9,11 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
-import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
-import zstandard
 
 from geoterrain._version import __version__
 from geoterrain.bounds import stand_in_z, vertex_errors, vertex_radii
@@ -24,25 +21,16 @@ from geoterrain.codec import decoded_heights, encode_pyramid
 from geoterrain.curvature import metric_bounds
 from geoterrain.exceptions import InputError, UsageError, exists_error
 from geoterrain.frame import Frame
-from geoterrain.grid import Grid, level_tiles
+from geoterrain.grid import Grid
 from geoterrain.mosaic import is_glob, mosaic_name, source_files
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.quantize import choose_quantizer
 from geoterrain.raster import Raster, read_raster
-from geoterrain.rounding import round_up
 from geoterrain.store import StoreWriter, default_store_path, remove_stale_partials
+from geoterrain.tileblobs import BoundsCoding, level_blobs
 from geoterrain.tilebounds import tile_errors
 from geoterrain.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
-from geoterrain.vertexdata import (
-    NORMALS_PLANAR_DXDY,
-    log8_codes,
-    log8_exponent,
-    log8_table,
-    normals_to_bytes,
-    pack_bounds_v2,
-    scale_bounds,
-    scale_exponent,
-)
+from geoterrain.vertexdata import NORMALS_PLANAR_DXDY
 
 log = logging.getLogger("geoterrain")
 Progress = Callable[[str, int, int], None]
@@ -219,51 +207,26 @@ def preprocess(
     stage("normals")
 
     height_blobs = encode_pyramid(heights, valid, grid.t, q, level=zstd_level)
-    jobs = []  # (kind, key, payload-maker); zstd releases the GIL, so threads overlap
     # δ: 8-bit log codes rounded up (saturation survives: one monotone map per store);
     # r: float16 rounded up (nesting holds to 2^-10). Below the top level only the
     # vertices new at the level are stored; the others are the parent's (vertexdata.py).
-    ed, kr = log8_exponent(delta), scale_exponent(radius)
-    d_table = log8_table(ed)
+    coding = BoundsCoding(delta, radius)
+    del radius
     tile_rows: dict = {}
+    extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}}
     for L in grid.levels:
         keys = [k for k in height_blobs if k[0] == L]
         if not keys:
             continue
-        tiles_d = level_tiles(delta, grid.t, L)
-        tiles_r = level_tiles(radius, grid.t, L)
-        tiles_n = level_tiles(nrm_levels[L], grid.t, 0)
-        dc = log8_codes(tiles_d, ed)
-        r16, _ = scale_bounds(tiles_r, kr)
-        # max δ and r over the vertices new at this level (the others belong to coarser
-        # tiles), of the values as stored: a tile skipped by them skips no stored vertex
-        new = np.ones((grid.tile_samples,) * 2, bool)
-        new_only = L < grid.top_level
-        if new_only:
-            new[::2, ::2] = False
-        dmax = d_table[dc[..., new]].max(axis=-1)
-        rmax = round_up(r16[..., new].astype(np.float64) * 2.0**kr, np.float32).max(axis=-1)
-        for key in keys:
-            _, x, y = key
-            # per-tile max δ and r let a view skip a tile without decoding it
-            tile_rows[key] = (*bounds[key], float(dmax[y, x]), float(rmax[y, x]))
-            jobs.append(("delta", key, dc[y, x], (ed, True, new_only)))
-            jobs.append(("radius", key, r16[y, x], (kr, False, new_only)))
-            jobs.append(("normals", key, tiles_n[y, x], None))
-    local = threading.local()
-
-    def pack(job):
-        kind, key, arr, k = job
-        if not hasattr(local, "cctx"):
-            local.cctx = zstandard.ZstdCompressor(level=3)
-        if kind == "normals":  # planar 2-D differences (vertexdata.normals_to_bytes)
-            return kind, key, local.cctx.compress(normals_to_bytes(arr))
-        return kind, key, pack_bounds_v2(arr, *k, local.cctx)
-
-    extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}}
-    with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:
-        for kind, key, blob in pool.map(pack, jobs, chunksize=64):
-            extra[kind][key] = blob
+        blobs, dmax, rmax = level_blobs(coding, nrm_levels[L], grid.t, L, grid.top_level,
+                                        [(x, y) for _, x, y in keys])
+        for kind, b in blobs.items():
+            extra[kind].update(b)
+        # per-tile max δ and r (of the values as stored, over the vertices new at this
+        # level) let a view skip a tile without decoding it
+        for key, dm, rm in zip(keys, dmax.tolist(), rmax.tolist(), strict=True):
+            tile_rows[key] = (*bounds[key], dm, rm)
+    del coding, nrm_levels
     stage("compress")
 
     with StoreWriter(dst, overwrite=overwrite) as w:

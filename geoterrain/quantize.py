@@ -10,8 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
-__all__ = ["Quantizer", "choose_quantizer", "codes_to_heights", "heights_to_codes"]
+__all__ = ["Quantizer", "choose_quantizer", "codes_to_heights", "heights_to_codes", "roundtrip"]
 
 _I64_MAX = np.int64(np.iinfo(np.int64).max)
 _I32_MAX = np.int64(np.iinfo(np.int32).max)
@@ -71,14 +72,23 @@ class Quantizer:
             raise ValueError("float_bits must be 32 or 64")
 
 
-def _is_on_grid(v: np.ndarray, step: float, offset: float) -> bool:
-    """True when every value is exactly ``offset + round((v - offset)/step) * step``."""
-    if v.size == 0:
-        return True
-    k = np.rint((v - offset) / step)
-    if not np.all(np.abs(k) < 2.0**52):
-        return False
-    return bool(np.array_equal(offset + k * step, v))
+@njit(cache=True, nogil=True)
+def _grid_checks(v, step, offset):
+    """One pass over the finite values of ``v`` (1-D float64): (all on the grid
+    ``offset + k step`` with |k| < 2^52, all exactly float32-representable)."""
+    on_grid, f32 = True, True
+    for x in v:
+        if not np.isfinite(x):
+            continue
+        if on_grid:
+            k = np.rint((x - offset) / step)
+            if not (abs(k) < 2.0**52) or offset + k * step != x:
+                on_grid = False
+        if f32 and np.float64(np.float32(x)) != x:
+            f32 = False
+        if not (on_grid or f32):
+            break
+    return on_grid, f32
 
 
 def choose_quantizer(
@@ -125,15 +135,15 @@ def choose_quantizer(
     ('quantized', True)
     """
     dt = np.dtype(src_dtype)
-    v = np.asarray(values, dtype=np.float64).ravel()
-    v = v[np.isfinite(v)]
+    v = np.ascontiguousarray(values, dtype=np.float64).ravel()
     sc = 1.0 if scale is None else float(scale)
     off = 0.0 if offset is None else float(offset)
-    exact = _is_on_grid(v, sc, off)
+    exact, f32 = _grid_checks(v, sc, off)  # over the finite values (compiled, one pass)
     lossy = codec_error is not None and codec_error > 0
     if exact and (not lossy or 2.0 * float(codec_error) <= sc):
         return Quantizer("int", sc, off, 0.0)
     if lossy:
+        v = v[np.isfinite(v)]
         eps = float(codec_error)
         if offset is None:
             off = float(np.round(np.median(v))) if v.size else 0.0
@@ -154,9 +164,8 @@ def choose_quantizer(
             step *= 1.0 - 1e-9
         return Quantizer("quantized", step, off, eps)
     bits = 64
-    if dt == np.float32 or dt.kind in "iub" or dt.itemsize <= 4:
-        if np.array_equal(v.astype(np.float32).astype(np.float64), v):
-            bits = 32
+    if (dt == np.float32 or dt.kind in "iub" or dt.itemsize <= 4) and f32:
+        bits = 32
     return Quantizer("float", 1.0, 0.0, 0.0, bits)
 
 
@@ -202,3 +211,51 @@ def codes_to_heights(codes: np.ndarray, quantizer: Quantizer) -> np.ndarray:
         b = np.ascontiguousarray(np.where(codes < 0, codes ^ _I64_MAX, codes))
         return b.view(np.float64).copy()
     return quantizer.offset + codes * quantizer.step
+
+
+@njit(cache=True, nogil=True)
+def _roundtrip_nb(z, valid, mode, step, offset, out):
+    """``codes_to_heights(heights_to_codes(z))`` where valid, NaN elsewhere, in one pass
+    (mode 0: int/quantized, 1: float32, 2: float64). Returns the largest |code| seen
+    (invalid samples count as height 0, as :func:`heights_to_codes` sees them)."""
+    peak = 0.0
+    for i in range(z.shape[0]):
+        for j in range(z.shape[1]):
+            ok = valid[i, j]
+            x = z[i, j] if ok else 0.0
+            if mode == 1:
+                h = np.float64(np.float32(x))
+            elif mode == 2:
+                h = x
+            else:
+                r = np.rint((x - offset) / step)
+                if not np.isfinite(r):
+                    r = 0.0
+                peak = max(peak, abs(r))
+                h = offset + np.float64(np.int64(r)) * step
+            out[i, j] = h if ok else np.nan
+    return peak
+
+
+def roundtrip(z: np.ndarray, valid: np.ndarray, quantizer: Quantizer) -> np.ndarray:
+    """Heights as decoding gives them: ``codes_to_heights(heights_to_codes(z))`` where
+    ``valid``, NaN elsewhere (compiled, no temporaries).
+
+    Examples
+    --------
+    >>> qz = Quantizer("quantized", 0.2, 0.0, 0.1)
+    >>> roundtrip(np.array([[0.33, 1.0]]), np.array([[True, False]]), qz).round(6).tolist()
+    [[0.4, nan]]
+    """
+    z = np.asarray(z, np.float64)
+    valid = np.asarray(valid, bool)
+    out = np.empty(z.shape, np.float64)
+    if quantizer.mode == "float":
+        mode = 1 if quantizer.float_bits == 32 else 2
+    else:
+        mode = 0
+    z2, v2, o2 = (a.reshape(1, -1) if a.ndim != 2 else a for a in (z, valid, out))
+    peak = _roundtrip_nb(z2, v2, mode, float(quantizer.step), float(quantizer.offset), o2)
+    if peak >= 2.0**62:
+        raise ValueError("heights out of range for the quantizer step")
+    return out

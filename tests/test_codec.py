@@ -16,7 +16,13 @@ from geoterrain.codec import (
     pyramid_shape,
     tile_valid,
 )
-from geoterrain.quantize import Quantizer, choose_quantizer, codes_to_heights, heights_to_codes
+from geoterrain.quantize import (
+    Quantizer,
+    choose_quantizer,
+    codes_to_heights,
+    heights_to_codes,
+    roundtrip,
+)
 from geoterrain.symbols import PACK_BITS as _PACK_BITS
 from geoterrain.symbols import byte_width as _width
 from geoterrain.symbols import choose_stream as _choose_stream
@@ -345,3 +351,49 @@ def test_residual_streams_roundtrip(dist):
         w = _width(int(e.max()) if e.size else 0)
         s = packs[b][0].tobytes() + _shuffle(e, w)
         assert np.array_equal(_read_stream(s, (b << 4) | w, k), zz)
+
+
+_QUANTIZERS = [Quantizer("int", 1.0, 0.0), Quantizer("int", 0.1, -10000.0),
+               Quantizer("quantized", 0.37, 12.5, 0.2), Quantizer("float", float_bits=32),
+               Quantizer("float", float_bits=64)]
+
+
+@settings(max_examples=60, deadline=None)
+@given(q=st.sampled_from(_QUANTIZERS), seed=st.integers(0, 2**31),
+       mag=st.sampled_from([1.0, 1e3, 1e6]))
+def test_the_compiled_roundtrip_is_the_codes_roundtrip(q, seed, mag):
+    rng = np.random.default_rng(seed)
+    z = rng.normal(0, mag, (9, 13))
+    if q.mode == "float" and q.float_bits == 32:
+        z = z.astype(np.float32).astype(np.float64)
+    elif q.mode == "int":
+        z = q.offset + np.rint((z - q.offset) / q.step) * q.step
+    z[0, :3] = [0.0, -0.0, np.nan]
+    valid = rng.random(z.shape) < 0.8
+    valid[0, 2] = False
+    want = np.where(valid, codes_to_heights(heights_to_codes(np.where(valid, z, 0.0), q), q),
+                    np.nan)
+    got = roundtrip(z, valid, q)
+    assert got.tobytes() == want.tobytes()  # bit for bit, signed zeros and NaN included
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31), kind=st.sampled_from(["int", "tenths", "f32", "f64"]),
+       dtype=st.sampled_from([np.int16, np.float32, np.float64]))
+def test_choose_quantizer_sees_the_grid_and_the_float_width(seed, kind, dtype):
+    rng = np.random.default_rng(seed)
+    v = rng.normal(500, 300, 200)
+    v = {"int": np.rint(v), "tenths": -10000 + np.rint((v + 10000) / 0.1) * 0.1,
+         "f32": v.astype(np.float32).astype(np.float64), "f64": v}[kind]
+    v[:2] = [np.nan, np.inf]  # non-finite values are ignored
+    sc, off = (0.1, -10000.0) if kind == "tenths" else (None, None)
+    q = choose_quantizer(v, dtype, scale=sc, offset=off)
+    fin = v[np.isfinite(v)]
+    s, o = (sc or 1.0), (off or 0.0)
+    k = np.rint((fin - o) / s)
+    on_grid = bool(np.all(np.abs(k) < 2.0**52) and np.array_equal(o + k * s, fin))
+    assert (q.mode == "int") == on_grid
+    if not on_grid:
+        f32 = np.array_equal(fin.astype(np.float32).astype(np.float64), fin)
+        small = np.dtype(dtype) == np.float32 or np.dtype(dtype).itemsize <= 4
+        assert q.float_bits == (32 if f32 and small else 64)

@@ -1,0 +1,84 @@
+"""The level-at-once blob builder gives the bytes the per-tile packers give."""
+
+from __future__ import annotations
+
+import numpy as np
+import zstandard
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from geoterrain.grid import level_tiles
+from geoterrain.rounding import round_up
+from geoterrain.tileblobs import BoundsCoding, compress_rows, level_blobs
+from geoterrain.vertexdata import (
+    decode_bounds,
+    log8_codes,
+    log8_exponent,
+    log8_table,
+    normals_to_bytes,
+    pack_bounds_v2,
+    scale_bounds,
+    scale_exponent,
+)
+
+
+def per_tile(delta, radius, nrm, t, L, top, tiles):
+    """The blobs and maxima as each tile's own packers make them (the reference)."""
+    cctx = zstandard.ZstdCompressor(level=3)
+    ed, kr = log8_exponent(delta), scale_exponent(radius)
+    dc = log8_codes(level_tiles(delta, t, L), ed)
+    r16, _ = scale_bounds(level_tiles(radius, t, L), kr)
+    tn = level_tiles(nrm, t, 0)
+    new_only = L < top
+    new = np.ones(((1 << t) + 1,) * 2, bool)
+    if new_only:
+        new[::2, ::2] = False
+    out = {"delta": {}, "radius": {}, "normals": {}}
+    dmax, rmax = [], []
+    for x, y in tiles:
+        key = (L, x, y)
+        out["delta"][key] = pack_bounds_v2(dc[y, x], ed, True, new_only, cctx)
+        out["radius"][key] = pack_bounds_v2(r16[y, x], kr, False, new_only, cctx)
+        out["normals"][key] = cctx.compress(normals_to_bytes(tn[y, x]))
+        dmax.append(log8_table(ed)[dc[y, x][new]].max())
+        rmax.append(round_up(r16[y, x][new].astype(np.float64) * 2.0**kr, np.float32).max())
+    return out, np.array(dmax, np.float32), np.array(rmax, np.float32)
+
+
+@settings(max_examples=40, deadline=None)
+@given(t=st.integers(1, 3), levels=st.integers(0, 2), seed=st.integers(0, 2**31),
+       scale=st.sampled_from([1e-6, 1.0, 3e4]), holes=st.booleans())
+def test_level_blobs_match_the_per_tile_packers(t, levels, seed, scale, holes):
+    rng = np.random.default_rng(seed)
+    n = (1 << (t + levels)) + 1
+    delta = np.abs(rng.normal(0, scale, (n, n)))
+    radius = np.abs(rng.normal(0, scale, (n, n))) + delta
+    if holes:  # +inf marks mixed diamonds; exact zeros are common on flat ground
+        delta[rng.random((n, n)) < 0.1] = np.inf
+        delta[rng.random((n, n)) < 0.1] = 0.0
+    coding = BoundsCoding(delta, radius)
+    for L in range(levels + 1):
+        nt = 1 << (levels - L)
+        nrm = rng.integers(0, 256, ((n - 1) // (1 << L) + 1,) * 2 + (2,)).astype(np.uint8)
+        tiles = [(x, y) for y in range(nt) for x in range(nt) if rng.random() < 0.8]
+        got, dmax, rmax = level_blobs(coding, nrm, t, L, levels, tiles)
+        want, wd, wr = per_tile(delta, radius, nrm, t, L, levels, tiles)
+        assert got == want
+        np.testing.assert_array_equal(dmax, wd)
+        np.testing.assert_array_equal(rmax, wr)
+
+
+def test_stored_maxima_bound_every_decoded_value():
+    rng = np.random.default_rng(5)
+    delta = np.abs(rng.normal(0, 7, (17, 17)))
+    coding = BoundsCoding(delta, delta + 1)
+    blobs, dmax, _ = level_blobs(coding, np.zeros((17, 17, 2), np.uint8), 4, 0, 0, [(0, 0)])
+    dec = decode_bounds(blobs["delta"][(0, 0, 0)], (17, 17))
+    assert (dec >= delta).all() and dmax[0] == dec.max()
+
+
+def test_compress_rows_is_one_compress_per_row():
+    rows = np.random.default_rng(0).integers(0, 4, (50, 300)).astype(np.uint8)
+    cctx = zstandard.ZstdCompressor(level=3)
+    assert compress_rows(rows, b"\x02") == [b"\x02" + cctx.compress(r.tobytes()) for r in rows]
+    assert compress_rows(rows[:0]) == []
