@@ -41,10 +41,8 @@ then class B (odd rows, even columns, (h, h+1)), then class C (odd rows, odd col
 
 from __future__ import annotations
 
-import os
 import threading
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import zstandard
@@ -52,7 +50,7 @@ from numba import njit
 
 from geoterrain import zstdsafe
 from geoterrain.grid import footprint_counts, level_tiles
-from geoterrain.quantize import Quantizer, codes_to_heights, heights_to_codes, roundtrip
+from geoterrain.quantize import Quantizer, codes_to_heights, roundtrip, valid_codes
 from geoterrain.symbols import (
     PACK_BITS,
     UINTS,
@@ -62,6 +60,7 @@ from geoterrain.symbols import (
     unzigzag,
     zigzag,
 )
+from geoterrain.zstdsafe import compress_many
 
 __all__ = [
     "BLOB_VERSION",
@@ -197,6 +196,89 @@ def _linear_child(c, h, r, out):
             n += 1
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _c16(d, s2, i0, j0, di, dj, k, mc, P):
+    """16 × the midpoint of coarse samples k, k + 1 on the coarse line (i0 + di·k,
+    j0 + dj·k) of the level whose coarse samples are ``d[::s2, ::s2]`` (``mc`` a side):
+    the rule of :func:`_interp16` (cubic away from parent-tile borders, else linear)."""
+    a = d[(i0 + di * k) * s2, (j0 + dj * k) * s2]
+    b = d[(i0 + di * (k + 1)) * s2, (j0 + dj * (k + 1)) * s2]
+    if mc >= 4 and 1 <= k <= mc - 3 and k % P != 0 and (k + 1) % P != 0:
+        return 9 * (a + b) - d[(i0 + di * (k - 1)) * s2, (j0 + dj * (k - 1)) * s2] \
+            - d[(i0 + di * (k + 2)) * s2, (j0 + dj * (k + 2)) * s2]
+    return 8 * (a + b)
+
+
+@njit(cache=True, nogil=True)
+def _pred(d, s, i, j, P):
+    """The prediction U(.) of :func:`_predict` at sample (i, j) (one of i, j odd) of the
+    level ``d[::s, ::s]`` from its coarse samples; ``P`` = 0: linear floor-means, else
+    cubic with period ``P`` (seed 000 §2.9)."""
+    s2 = 2 * s
+    ci, cj = i >> 1, j >> 1
+    if P == 0:
+        if i & 1 == 0:  # A: row midpoint
+            return _fmean(d[ci * s2, cj * s2], d[ci * s2, (cj + 1) * s2])
+        if j & 1 == 0:  # B: column midpoint
+            return _fmean(d[ci * s2, cj * s2], d[(ci + 1) * s2, cj * s2])
+        return _fmean(_fmean(d[ci * s2, cj * s2], d[(ci + 1) * s2, (cj + 1) * s2]),
+                      _fmean(d[ci * s2, (cj + 1) * s2], d[(ci + 1) * s2, cj * s2]))
+    mc = (d.shape[0] - 1) // s2 + 1
+    if i & 1 == 0:
+        return (_c16(d, s2, ci, 0, 0, 1, cj, mc, P) + 8) >> 4
+    if j & 1 == 0:
+        return (_c16(d, s2, 0, cj, 1, 0, ci, mc, P) + 8) >> 4
+    k = ci  # C: the row interpolation of the column-direction midpoints, unrounded
+    n1 = _c16(d, s2, k, 0, 0, 1, cj, mc, P)
+    n2 = _c16(d, s2, k + 1, 0, 0, 1, cj, mc, P)
+    if mc >= 4 and 1 <= k <= mc - 3 and k % P != 0 and (k + 1) % P != 0:
+        v = 9 * (n1 + n2) - _c16(d, s2, k - 1, 0, 0, 1, cj, mc, P) \
+            - _c16(d, s2, k + 2, 0, 0, 1, cj, mc, P)
+    else:
+        v = 8 * (n1 + n2)
+    return (v + 128) >> 8
+
+
+@njit(cache=True, nogil=True)
+def _fill_level(d, valid, s, P):
+    """In place: invalid new samples of level ``d[::s, ::s]`` take their prediction."""
+    m = (d.shape[0] - 1) // s + 1
+    for i in range(m):
+        for j in range(m):
+            if (i & 1 or j & 1) and not valid[i * s, j * s]:
+                d[i * s, j * s] = _pred(d, s, i, j, P)
+
+
+@njit(cache=True, nogil=True)
+def _tile_zigzag(d, s, h, P, zz):
+    """Zigzagged residuals of every tile of level ``d[::s, ::s]`` into ``zz`` (nt, nt,
+    L): per tile, classes A ((h + 1) × h), B (h × (h + 1)) and C (h × h) in raster
+    order, as the decoder reads them (:func:`_cubic_child`, :func:`_linear_child`)."""
+    nt = zz.shape[0]
+    for ty in range(nt):
+        for tx in range(nt):
+            n = 0
+            i0, j0 = ty * 2 * h, tx * 2 * h
+            for a in range(h + 1):
+                for b in range(h):
+                    i, j = i0 + 2 * a, j0 + 2 * b + 1
+                    r = d[i * s, j * s] - _pred(d, s, i, j, P)
+                    zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
+                    n += 1
+            for a in range(h):
+                for b in range(h + 1):
+                    i, j = i0 + 2 * a + 1, j0 + 2 * b
+                    r = d[i * s, j * s] - _pred(d, s, i, j, P)
+                    zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
+                    n += 1
+            for a in range(h):
+                for b in range(h):
+                    i, j = i0 + 2 * a + 1, j0 + 2 * b + 1
+                    r = d[i * s, j * s] - _pred(d, s, i, j, P)
+                    zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
+                    n += 1
+
+
 def _forward_fill(codes: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """Invalid entries (raster order) repeat the previous valid code; leading ones the first."""
     flat, v = codes.ravel(), valid.ravel()
@@ -287,7 +369,7 @@ def decoded_codes(
     valid = np.asarray(valid, dtype=bool)
     n, te = pyramid_shape(valid.shape[0], t)
     lmax = n - te
-    d = heights_to_codes(np.where(valid, z, 0.0), quantizer)
+    d = valid_codes(z, valid, quantizer)  # heights_to_codes(where(valid, z, 0))
     return _decoded_codes(d, valid, te, lmax, _resolve_predictor(predictor, d, valid, te, lmax))
 
 
@@ -295,12 +377,8 @@ def _decoded_codes(d: np.ndarray, valid: np.ndarray, te: int, lmax: int, cubic: 
     """In place on the codes ``d``: what tile decoding gives at invalid samples."""
     s = 1 << lmax
     d[::s, ::s] = _forward_fill(d[::s, ::s], valid[::s, ::s])
-    period = (1 << te) if cubic else None
-    for lev in range(lmax - 1, -1, -1):
-        s = 1 << lev
-        g, vg = d[::s, ::s], valid[::s, ::s]
-        for sl, p in zip(_CLASSES, _predict(g[::2, ::2], period), strict=True):
-            g[sl] = np.where(vg[sl], g[sl], p)
+    for lev in range(lmax - 1, -1, -1):  # compiled: the rule of _predict, in place
+        _fill_level(d, valid, 1 << lev, (1 << te) if cubic else 0)
     return d
 
 
@@ -355,7 +433,7 @@ def encode_pyramid(
     quantizer : Quantizer
     level : int
         zstd level (19 for preprocessing; 3-9 are 5-10x faster for ~2 % more bytes).
-        Every tile's stream choice and compression run on a thread pool (all cores).
+        Each level's tiles are compressed in one zstd call on every core.
     progress : callable, optional
         ``progress(done_levels, total_levels)`` after each level.
     predictor : {"auto", "linear", "cubic"}
@@ -383,7 +461,7 @@ def encode_pyramid(
     out: dict[tuple[int, int, int], bytes] = {}
     if not valid.any():
         return out
-    d = heights_to_codes(np.where(valid, z, 0.0), quantizer)
+    d = valid_codes(z, valid, quantizer)  # heights_to_codes(where(valid, z, 0))
     cubic = _resolve_predictor(predictor, d, valid, te, lmax)
     d = _decoded_codes(d, valid, te, lmax, cubic)
 
@@ -393,13 +471,13 @@ def encode_pyramid(
     r = np.diff(top.ravel(), prepend=np.int64(0))
     head, payload = _pack(r, vtop, True, te, cubic)
     out[(lmax, 0, 0)] = head + _compressor(level).compress(payload)
-    with ThreadPoolExecutor(_workers()) as pool:
-        _encode_levels(pool, out, d, valid, n, te, lmax, cubic, level, progress)
+    _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress)
     return out
 
 
-def _encode_levels(pool, out, d, valid, n, te, lmax, cubic, level, progress) -> None:
-    """Blobs of every non-top stored tile into ``out`` (stream choice + zstd on ``pool``)."""
+def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress) -> None:
+    """Blobs of every non-top stored tile into ``out`` (stream choice per tile, then zstd
+    of the whole level on every core)."""
     tt = (1 << te) + 1
     period = (1 << te) if cubic else None
     if progress is not None:
@@ -410,27 +488,15 @@ def _encode_levels(pool, out, d, valid, n, te, lmax, cubic, level, progress) -> 
     for lev in range(lmax - 1, -1, -1):
         s = 1 << lev
         nt = 1 << (n - lev - te)
-        g = d[::s, ::s]
-        pa, pb, pc = _predict(g[::2, ::2], period)
-        ra = g[::2, 1::2] - pa  # decoded = q where valid, = pred where invalid (-> 0)
-        rb = g[1::2, ::2] - pb
-        rc = g[1::2, 1::2] - pc
-        # per-tile slices (ny, nx, ...) of each class, see the module docstring
-        ridx = (np.arange(nt) * h)[:, None] + np.arange(h + 1)
-        ta = ra[ridx].reshape(nt, h + 1, nt, h).transpose(0, 2, 1, 3).reshape(nt, nt, -1)
-        tb = rb.reshape(nt, h, -1)[:, :, ridx].transpose(0, 2, 1, 3).reshape(nt, nt, -1)
-        tc = rc.reshape(nt, h, nt, h).transpose(0, 2, 1, 3).reshape(nt, nt, -1)
-        res = np.concatenate([ta, tb, tc], axis=2)
-        del ta, tb, tc, ra, rb, rc
-        zz = zigzag(res)
-        del res
+        zz = np.empty((nt, nt, 2 * h * (h + 1) + h * h), np.uint64)
+        _tile_zigzag(d, s, h, period or 0, zz)  # compiled: the residuals of _predict
         zmax = zz.max(axis=2)
         packs = {k: pack_symbols(zz, k) for k in PACK_BITS}
         vt = level_tiles(valid, te, lev)
         nvalid = vt.sum(axis=(2, 3))
 
-        def tile_job(yx, lev=lev, zz=zz, zmax=zmax, packs=packs, vt=vt, nvalid=nvalid):
-            y, x = yx
+        keys, heads, payloads = [], [], []
+        for y, x in zip(*np.nonzero(counts[lev]), strict=True):
             kind = (
                 _MASK_ALL_VALID
                 if nvalid[y, x] == tt * tt
@@ -442,11 +508,12 @@ def _encode_levels(pool, out, d, valid, n, te, lmax, cubic, level, progress) -> 
                 zz[y, x], int(zmax[y, x]), {k: (p[0][y, x], p[1][y, x]) for k, p in packs.items()}
             )
             mask = np.packbits(vt[y, x]).tobytes() if kind == _MASK_STORED else b""
-            head = _header(False, kind, te, code, cubic)
-            return (lev, int(x), int(y)), head + _compressor(level).compress(mask + stream)
-
-        # per-tile stream choice and zstd on every core (zstd and numpy release the GIL)
-        out.update(pool.map(tile_job, zip(*np.nonzero(counts[lev]), strict=True)))
+            keys.append((lev, int(x), int(y)))
+            heads.append(_header(False, kind, te, code, cubic))
+            payloads.append(mask + stream)
+        # zstd of the whole level in one call, on every core (identical to one by one)
+        frames = compress_many(payloads, level)
+        out.update((k, h + f) for k, h, f in zip(keys, heads, frames, strict=True))
         del zz, packs, vt
         if progress is not None:
             progress(lmax - lev + 1, lmax + 1)
@@ -464,13 +531,6 @@ def _compressor(level: int) -> zstandard.ZstdCompressor:
     if c is None:
         c = cache[level] = zstandard.ZstdCompressor(level=level)
     return c
-
-
-def _workers() -> int:
-    """Threads for the per-tile work: the usable cores (at most 32)."""
-    if hasattr(os, "sched_getaffinity"):
-        return max(1, min(32, len(os.sched_getaffinity(0))))
-    return max(1, min(32, os.cpu_count() or 1))
 
 
 def _pack(r: np.ndarray, vt: np.ndarray, top: bool, te: int, cubic: bool) -> tuple[bytes, bytes]:

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-__all__ = ["Quantizer", "choose_quantizer", "codes_to_heights", "heights_to_codes", "roundtrip"]
+__all__ = ["Quantizer", "choose_quantizer", "codes_to_heights", "heights_to_codes", "roundtrip",
+           "valid_codes"]
 
 _I64_MAX = np.int64(np.iinfo(np.int64).max)
 _I32_MAX = np.int64(np.iinfo(np.int32).max)
@@ -256,6 +257,54 @@ def roundtrip(z: np.ndarray, valid: np.ndarray, quantizer: Quantizer) -> np.ndar
         mode = 0
     z2, v2, o2 = (a.reshape(1, -1) if a.ndim != 2 else a for a in (z, valid, out))
     peak = _roundtrip_nb(z2, v2, mode, float(quantizer.step), float(quantizer.offset), o2)
+    if peak >= 2.0**62:
+        raise ValueError("heights out of range for the quantizer step")
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _codes_nb(z, valid, mode, step, offset, out):
+    """:func:`heights_to_codes` of ``where(valid, z, 0)`` in one pass (modes as in
+    :func:`_roundtrip_nb`); returns the largest |rounded code| of modes int/quantized."""
+    f32 = np.empty(1, np.float32)
+    i32 = f32.view(np.int32)
+    f64 = np.empty(1, np.float64)
+    i64 = f64.view(np.int64)
+    peak = 0.0
+    for i in range(z.shape[0]):
+        for j in range(z.shape[1]):
+            x = z[i, j] if valid[i, j] else 0.0
+            if mode == 1:
+                f32[0] = np.float32(x)
+                b = np.int64(i32[0])
+                out[i, j] = b ^ 0x7FFFFFFF if b < 0 else b
+            elif mode == 2:
+                f64[0] = x
+                b = i64[0]
+                out[i, j] = b ^ 0x7FFFFFFFFFFFFFFF if b < 0 else b
+            else:
+                r = np.rint((x - offset) / step)
+                if not np.isfinite(r):
+                    r = 0.0
+                peak = max(peak, abs(r))
+                out[i, j] = np.int64(r) if abs(r) < 2.0**62 else 0
+    return peak
+
+
+def valid_codes(z: np.ndarray, valid: np.ndarray, quantizer: Quantizer) -> np.ndarray:
+    """``heights_to_codes(where(valid, z, 0), quantizer)`` (compiled, no temporaries).
+
+    Examples
+    --------
+    >>> valid_codes(np.array([[1.0, 7.0]]), np.array([[True, False]]), Quantizer("int")).tolist()
+    [[1, 0]]
+    """
+    z = np.asarray(z, np.float64)
+    valid = np.asarray(valid, bool)
+    out = np.empty(z.shape, np.int64)
+    mode = (1 if quantizer.float_bits == 32 else 2) if quantizer.mode == "float" else 0
+    z2, v2, o2 = (a.reshape(1, -1) if a.ndim != 2 else a for a in (z, valid, out))
+    peak = _codes_nb(z2, v2, mode, float(quantizer.step), float(quantizer.offset), o2)
     if peak >= 2.0**62:
         raise ValueError("heights out of range for the quantizer step")
     return out

@@ -95,11 +95,13 @@ def choose_stream(zz: np.ndarray, zmax: int, packs: dict,
     best = (w, shuffle(zz, w))
     if w == 0:
         return best
+    # packed candidates with at most one escape per 4 samples (else never smaller)
+    cands = [(k, p, n) for k, (p, n) in packs.items() if int(n) * 4 <= zz.size]
+    if not cands:
+        return best  # nothing to compare: no probe
     probe = probe or zstandard.ZstdCompressor(level=3)
     best_len = len(probe.compress(best[1]))
-    for k, (packed, nesc) in packs.items():
-        if int(nesc) * 4 > zz.size:
-            continue
+    for k, packed, _ in cands:
         m = (1 << k) - 1
         if zmax < m:  # no escapes: the packed symbols say everything
             ew, exc = 0, b""

@@ -12,23 +12,23 @@ with the per-tile functions (tested).
 
 from __future__ import annotations
 
-import os
+import math
 from collections.abc import Iterable
 
 import numpy as np
-import zstandard
-from numba import njit
+from numba import njit, prange
 
-from geoterrain.rounding import round_up
+from geoterrain.rounding import round_up, round_up32
 from geoterrain.vertexdata import (
     LOG8,
+    LOG_STEPS,
     NEW_ONLY,
     VERSION_2,
-    log8_codes,
     log8_exponent,
     log8_table,
     scale_exponent,
 )
+from geoterrain.zstdsafe import compress_many
 
 __all__ = ["BoundsCoding", "level_blobs", "compress_rows"]
 
@@ -52,12 +52,101 @@ class BoundsCoding:
 
     def __init__(self, delta: np.ndarray, radius: np.ndarray) -> None:
         self.ed, self.kr = log8_exponent(delta), scale_exponent(radius)
-        self.dc = log8_codes(delta, self.ed)
-        self.d_stored = log8_table(self.ed)[self.dc]
-        r = np.asarray(radius, np.float64) * 2.0 ** -self.kr  # exact: a power of two
-        self.r16 = round_up(r, np.float16)
-        del r
-        self.r_stored = round_up(self.r16.astype(np.float64) * 2.0 ** self.kr, np.float32)
+        t8 = log8_table(self.ed)
+        shape = np.shape(delta)
+        self.dc = np.empty(shape, np.uint8)
+        self.d_stored = np.empty(shape, np.float32)
+        bits = np.empty(shape, np.uint16)
+        self.r_stored = np.empty(shape, np.float32)
+        d2, r2 = (np.asarray(a).reshape(-1, shape[-1]) for a in (delta, radius))
+        odd = _code_bounds(d2, r2, t8.astype(np.float64), t8, self.ed, 2.0 ** -self.kr,
+                           2.0 ** self.kr, self.dc.reshape(d2.shape),
+                           self.d_stored.reshape(d2.shape), bits.reshape(d2.shape),
+                           self.r_stored.reshape(d2.shape))
+        self.r16 = bits.view(np.float16)
+        if odd:  # NaN, negative or -0.0 radii (none in practice): numpy's exact rule
+            m = ~(np.asarray(radius) > 0) & ~(np.asarray(radius) == 0) | np.signbit(radius)
+            r = np.asarray(radius, np.float64)[m] * 2.0 ** -self.kr
+            self.r16[m] = round_up(r, np.float16)
+            self.r_stored[m] = round_up(self.r16[m].astype(np.float64) * 2.0 ** self.kr,
+                                        np.float32)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _first_ge(table, x, c):
+    """The first index i with table[i] >= x (numpy's searchsorted, side="left"), walked
+    from the guess ``c`` (the table is increasing and ends with +inf ≥ x)."""
+    c = min(max(c, 0), table.shape[0] - 1)
+    while c > 0 and table[c - 1] >= x:
+        c -= 1
+    while table[c] < x:
+        c += 1
+    return c
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _f16_up_bits(x, bits):
+    """The bit pattern of the smallest float16 ≥ x (x ≥ +0.0 or +inf; ``bits``: x's
+    float64 bit pattern): float16 patterns of non-negative values increase with the
+    value, so rounding the mantissa up may carry into the next binade (and past 65504
+    onto +inf, 0x7C00)."""
+    if x > 65504.0:
+        return 0x7C00
+    if x < 2.0 ** -14:  # subnormal float16: multiples of 2^-24 (exact scaling)
+        return int(math.ceil(x * 2.0 ** 24))
+    e = ((bits >> 52) & 0x7FF) - 1023  # x in [2^e, 2^(e+1)), e in [-14, 15]
+    b = ((e + 15) << 10) | ((bits >> 42) & 0x3FF)
+    if bits & ((1 << 42) - 1):
+        b += 1
+    return b
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _f16_value(b):
+    """The value of a non-negative float16 bit pattern (0x7C00: +inf)."""
+    if b >= 0x7C00:
+        return np.inf
+    if b < 1024:
+        return b * 2.0 ** -24
+    return ((b & 1023) + 1024) * 2.0 ** ((b >> 10) - 25)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _code_bounds(delta, radius, t8, t8_32, e8, down, up, dc, d_st, r16, r_st):
+    """One pass (rows on every core): δ's log8 codes (:func:`log8_codes`: NaN as +inf)
+    and stored values; r scaled by ``down`` and rounded up to float16 (bit patterns),
+    and the stored float32 (exact: a float16 times a power of two). Returns the count of
+    radii that are NaN, negative or -0.0, left for numpy."""
+    odd = 0
+    lo8 = t8[1]
+    for i in prange(delta.shape[0]):
+        buf = np.empty(1, np.float64)
+        ibuf = buf.view(np.int64)  # float64 bit patterns (exponent and mantissa)
+        for j in range(delta.shape[1]):
+            x = np.float64(delta[i, j])
+            if x != x:
+                x = np.inf
+            if x <= lo8:
+                g = 0
+            elif x == np.inf:
+                g = 255
+            else:  # log2(x) ≈ exponent + mantissa fraction (within 0.09)
+                buf[0] = x
+                b = ibuf[0]
+                f = ((b >> 52) & 0x7FF) - 1023 + (b & ((1 << 52) - 1)) * 2.0 ** -52
+                g = int(LOG_STEPS * (f - e8)) + 1
+            c = _first_ge(t8, x, g)  # the guess is off by at most two codes
+            dc[i, j] = c
+            d_st[i, j] = t8_32[c]
+            r = np.float64(radius[i, j])
+            if r > 0 or (r == 0 and math.copysign(1.0, r) > 0):
+                buf[0] = r * down
+                b = _f16_up_bits(buf[0], ibuf[0])
+                r16[i, j] = b
+                r_st[i, j] = round_up32(_f16_value(b) * up)
+            else:
+                odd += 1
+    return odd
 
 
 @njit(cache=True, nogil=True)
@@ -117,32 +206,20 @@ def _level_payloads(dc, r16, d_st, r_st, nrm, ys, xs, t, level, new_only, pd, pr
                     pn[k, base + i * T + j] = np.uint8(v & 0xFF)
 
 
-def compress_rows(rows: np.ndarray, prefix: bytes = b"", level: int = _ZSTD_LEVEL,
-                  threads: int | None = None) -> list[bytes]:
-    """``prefix + zstd(row)`` of every row of a 2-D uint8 array, compressed in one call on
-    ``threads`` cores (default: all); identical to compressing each row alone.
+def compress_rows(rows: np.ndarray, prefix: bytes = b"", level: int = _ZSTD_LEVEL
+                  ) -> list[bytes]:
+    """``prefix + zstd(row)`` of every row of a 2-D uint8 array, in one call on every core.
 
     Examples
     --------
     >>> rows = np.arange(12, dtype=np.uint8).reshape(3, 4)
+    >>> import zstandard
     >>> d = zstandard.ZstdDecompressor()
     >>> [d.decompress(b[1:]) == r.tobytes() for b, r in zip(compress_rows(rows, b"v"), rows)]
     [True, True, True]
     """
     rows = np.ascontiguousarray(rows, np.uint8)
-    n, w = rows.shape
-    if n == 0:
-        return []
-    cctx = zstandard.ZstdCompressor(level=level)
-    threads = threads or os.cpu_count() or 1
-    if hasattr(cctx, "multi_compress_to_buffer") and w > 0:
-        seg = np.empty((n, 2), np.uint64)
-        seg[:, 0] = np.arange(n, dtype=np.uint64) * np.uint64(w)
-        seg[:, 1] = w
-        buf = zstandard.BufferWithSegments(rows.tobytes(), seg.tobytes())
-        out = cctx.multi_compress_to_buffer(buf, threads=threads)
-        return [prefix + out[i].tobytes() for i in range(n)]
-    return [prefix + cctx.compress(r.tobytes()) for r in rows]  # backends without it
+    return [prefix + f for f in compress_many([r.tobytes() for r in rows], level)]
 
 
 def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_level: int,

@@ -82,3 +82,22 @@ def test_compress_rows_is_one_compress_per_row():
     cctx = zstandard.ZstdCompressor(level=3)
     assert compress_rows(rows, b"\x02") == [b"\x02" + cctx.compress(r.tobytes()) for r in rows]
     assert compress_rows(rows[:0]) == []
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31), scale=st.sampled_from([1e-30, 1e-6, 1.0, 1e4, 1e30]))
+def test_the_compiled_coding_is_numpys(seed, scale):
+    rng = np.random.default_rng(seed)
+    delta = np.abs(rng.normal(0, scale, (7, 9))).astype(np.float32)
+    radius = np.abs(rng.normal(0, scale, (7, 9))).astype(np.float32)
+    delta.ravel()[:3] = [np.nan, np.inf, 0.0]
+    radius.ravel()[:5] = [np.inf, 0.0, -0.0, np.nan, 1e-45]  # -0.0 and NaN: numpy's path
+    c = BoundsCoding(delta, radius)
+    ed, kr = log8_exponent(delta), scale_exponent(radius)
+    assert (c.ed, c.kr) == (ed, kr)
+    np.testing.assert_array_equal(c.dc, log8_codes(delta, ed))
+    np.testing.assert_array_equal(c.d_stored, log8_table(ed)[c.dc])
+    r16 = round_up(radius.astype(np.float64) * 2.0**-kr, np.float16)
+    assert c.r16.tobytes() == r16.tobytes()  # bit for bit: signed zero, NaN
+    want = round_up(r16.astype(np.float64) * 2.0**kr, np.float32)
+    assert c.r_stored.tobytes() == want.tobytes()
