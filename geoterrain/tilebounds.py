@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from geoterrain.bintree import main_diagonal_nb
 from geoterrain.bounds import cell_rows_nb, check_grid
@@ -46,122 +46,128 @@ class TileBounds(NamedTuple):
     ymax: float
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _level_field_nb(z, vf, s, E):
     # E = max over the all-valid closed triangles containing a sample of |z − S_L| (0 if
     # none), S_L the union-jack surface of cell size s; and per cell whether one of its
-    # two closed triangles mixes valid and invalid samples.
+    # two closed triangles mixes valid and invalid samples. Rows of cells run on every
+    # core, even rows then odd ones, so no two threads share a row of E (a max: the
+    # order does not change it).
     N = z.shape[0]
     nb = (N - 1) // s
     E[:, :] = 0.0
     mixed = np.zeros((nb, nb), np.bool_)
-    inv = 1.0 / s
-    for bi in range(nb):
-        for bj in range(nb):
-            i0 = bi * s
-            j0 = bj * s
-            main = main_diagonal_nb(bi, bj)
-            tot = 0
-            for di in range(s + 1):
-                for dj in range(s + 1):
-                    tot += vf[i0 + di, j0 + dj]
-            if tot == 0:
-                continue
-            z00 = z[i0, j0]
-            z01 = z[i0, j0 + s]
-            z10 = z[i0 + s, j0]
-            z11 = z[i0 + s, j0 + s]
-            if tot == (s + 1) * (s + 1):  # all valid: split each row at the diagonal
-                for di in range(s + 1):
-                    i = i0 + di
-                    fi = di * inv
-                    b1, g1, b2, g2 = cell_rows_nb(z00, z01, z10, z11, fi, inv, main)
-                    cut = di if main else s - di + 1
-                    for dj in range(cut):
-                        e = abs(z[i, j0 + dj] - (b1 + g1 * dj))
-                        if e > E[i, j0 + dj]:
-                            E[i, j0 + dj] = e
-                    for dj in range(cut, s + 1):
-                        e = abs(z[i, j0 + dj] - (b2 + g2 * dj))
-                        if e > E[i, j0 + dj]:
-                            E[i, j0 + dj] = e
-                continue
-            c1 = 0.0
-            c2 = 0.0
-            t1 = 0.0
-            t2 = 0.0
-            for di in range(s + 1):
-                for dj in range(s + 1):
-                    first = dj >= di if main else di + dj <= s
-                    both = dj == di if main else di + dj == s
-                    v = np.float64(vf[i0 + di, j0 + dj])
-                    if first or both:
-                        c1 += v
-                        t1 += 1.0
-                    if (not first) or both:
-                        c2 += v
-                        t2 += 1.0
-            ok1 = c1 == t1
-            ok2 = c2 == t2
-            mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
-            if not (ok1 or ok2):
-                continue
-            for di in range(s + 1):
-                i = i0 + di
-                for dj in range(s + 1):
-                    j = j0 + dj
-                    if main:
-                        first = dj >= di
-                        both = dj == di
-                    else:
-                        first = di + dj <= s
-                        both = di + dj == s
-                    if both:
-                        first = ok1
-                    if not (ok1 if first else ok2):
-                        continue
-                    if main:
-                        if first:
-                            S = z00 + (z01 - z00) * (dj * inv) + (z11 - z01) * (di * inv)
-                        else:
-                            S = z00 + (z10 - z00) * (di * inv) + (z11 - z10) * (dj * inv)
-                    else:
-                        if first:
-                            S = z00 + (z10 - z00) * (di * inv) + (z01 - z00) * (dj * inv)
-                        else:
-                            S = (z11 + (z01 - z11) * ((s - di) * inv)
-                                 + (z10 - z11) * ((s - dj) * inv))
-                    e = abs(z[i, j] - S)
-                    if e > E[i, j]:
-                        E[i, j] = e
+    for parity in range(2):
+        for k in prange((nb - parity + 1) // 2):
+            _level_field_row(z, vf, s, E, mixed, 2 * k + parity)
     return mixed
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _level_field_row(z, vf, s, E, mixed, bi):
+    # one row bi of cells of _level_field_nb
+    nb = (z.shape[0] - 1) // s
+    inv = 1.0 / s
+    for bj in range(nb):
+        i0 = bi * s
+        j0 = bj * s
+        main = main_diagonal_nb(bi, bj)
+        tot = 0
+        for di in range(s + 1):
+            for dj in range(s + 1):
+                tot += vf[i0 + di, j0 + dj]
+        if tot == 0:
+            continue
+        z00 = z[i0, j0]
+        z01 = z[i0, j0 + s]
+        z10 = z[i0 + s, j0]
+        z11 = z[i0 + s, j0 + s]
+        if tot == (s + 1) * (s + 1):  # all valid: split each row at the diagonal
+            for di in range(s + 1):
+                i = i0 + di
+                fi = di * inv
+                b1, g1, b2, g2 = cell_rows_nb(z00, z01, z10, z11, fi, inv, main)
+                cut = di if main else s - di + 1
+                for dj in range(cut):
+                    e = abs(z[i, j0 + dj] - (b1 + g1 * dj))
+                    if e > E[i, j0 + dj]:
+                        E[i, j0 + dj] = e
+                for dj in range(cut, s + 1):
+                    e = abs(z[i, j0 + dj] - (b2 + g2 * dj))
+                    if e > E[i, j0 + dj]:
+                        E[i, j0 + dj] = e
+            continue
+        c1 = 0.0
+        c2 = 0.0
+        t1 = 0.0
+        t2 = 0.0
+        for di in range(s + 1):
+            for dj in range(s + 1):
+                first = dj >= di if main else di + dj <= s
+                both = dj == di if main else di + dj == s
+                v = np.float64(vf[i0 + di, j0 + dj])
+                if first or both:
+                    c1 += v
+                    t1 += 1.0
+                if (not first) or both:
+                    c2 += v
+                    t2 += 1.0
+        ok1 = c1 == t1
+        ok2 = c2 == t2
+        mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
+        if not (ok1 or ok2):
+            continue
+        for di in range(s + 1):
+            i = i0 + di
+            for dj in range(s + 1):
+                j = j0 + dj
+                if main:
+                    first = dj >= di
+                    both = dj == di
+                else:
+                    first = di + dj <= s
+                    both = di + dj == s
+                if both:
+                    first = ok1
+                if not (ok1 if first else ok2):
+                    continue
+                if main:
+                    if first:
+                        S = z00 + (z01 - z00) * (dj * inv) + (z11 - z01) * (di * inv)
+                    else:
+                        S = z00 + (z10 - z00) * (di * inv) + (z11 - z10) * (dj * inv)
+                else:
+                    if first:
+                        S = z00 + (z10 - z00) * (di * inv) + (z01 - z00) * (dj * inv)
+                    else:
+                        S = (z11 + (z01 - z11) * ((s - di) * inv)
+                             + (z10 - z11) * ((s - dj) * inv))
+                e = abs(z[i, j] - S)
+                if e > E[i, j]:
+                    E[i, j] = e
+
+
+@njit(cache=True, parallel=True)
 def _tile_boxes_nb(z, x, y, vb, S):
-    # Per closed tile footprint of span S: the box of the valid samples.
+    # Per closed tile footprint of span S: the box of the valid samples (each tile reads
+    # its own footprint in raster order: the same min/max sequence as a raster sweep).
     N = z.shape[0]
     nt = (N - 1) // S
     box = np.empty((6, nt, nt))
-    for k in range(3):
-        box[2 * k] = np.inf
-        box[2 * k + 1] = -np.inf
-    for i in range(N):
-        ty0 = min(i // S, nt - 1)
-        ty1 = i // S - 1 if (i % S == 0 and i > 0) else ty0  # border rows: two tiles
-        for j in range(N):
-            if not vb[i, j]:
-                continue
-            tx0 = min(j // S, nt - 1)
-            tx1 = j // S - 1 if (j % S == 0 and j > 0) else tx0
-            for ty in range(ty1, ty0 + 1):
-                for tx in range(tx1, tx0 + 1):
-                    box[0, ty, tx] = min(box[0, ty, tx], z[i, j])
-                    box[1, ty, tx] = max(box[1, ty, tx], z[i, j])
-                    box[2, ty, tx] = min(box[2, ty, tx], x[i, j])
-                    box[3, ty, tx] = max(box[3, ty, tx], x[i, j])
-                    box[4, ty, tx] = min(box[4, ty, tx], y[i, j])
-                    box[5, ty, tx] = max(box[5, ty, tx], y[i, j])
+    for ty in prange(nt):
+        for tx in range(nt):
+            z0, z1, x0, x1, y0, y1 = np.inf, -np.inf, np.inf, -np.inf, np.inf, -np.inf
+            for i in range(ty * S, ty * S + S + 1):
+                for j in range(tx * S, tx * S + S + 1):
+                    if vb[i, j]:
+                        z0 = min(z0, z[i, j])
+                        z1 = max(z1, z[i, j])
+                        x0 = min(x0, x[i, j])
+                        x1 = max(x1, x[i, j])
+                        y0 = min(y0, y[i, j])
+                        y1 = max(y1, y[i, j])
+            box[0, ty, tx], box[1, ty, tx], box[2, ty, tx] = z0, z1, x0
+            box[3, ty, tx], box[4, ty, tx], box[5, ty, tx] = x1, y0, y1
     return box
 
 
