@@ -72,7 +72,7 @@ def check_grid(z: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray
 _FM = True
 # Threads hurt on small shared machines (a barrier per level waits for a descheduled
 # thread); the loops are written with prange so this switch is all it takes.
-_PARALLEL = False
+_PARALLEL = True
 
 
 @njit(cache=True, fastmath=_FM)

@@ -142,9 +142,11 @@ class Frame:
             return np.asarray(X, np.float64), np.asarray(Y, np.float64)
         return (x - self.origin_crs[0]) * self.unit_to_m, (y - self.origin_crs[1]) * self.unit_to_m
 
-    def z(self, heights: np.ndarray) -> np.ndarray:
-        """Scene Z (metres, exaggerated) of heights in source units."""
-        return np.asarray(heights, np.float64) * (self.z_to_m * self.z_scale)
+    def z(self, heights: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Scene Z (metres, exaggerated) of heights in source units (into ``out``, which
+        may be ``heights`` itself)."""
+        return np.multiply(np.asarray(heights, np.float64), self.z_to_m * self.z_scale,
+                           out=out)
 
     def heights_from_z(self, Z: np.ndarray) -> np.ndarray:
         """Inverse of :meth:`z`."""

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from geoterrain._version import __version__
 from geoterrain.bounds import stand_in_z, vertex_errors, vertex_radii
@@ -41,6 +42,17 @@ NORMAL_BITS = 8
 MAX_TILE_SIZE = 4096
 
 
+@njit(cache=True, nogil=True)
+def _peak_abs(h, valid):
+    """max |h| over the valid samples (no copy of them)."""
+    peak = 0.0
+    for i in range(h.shape[0]):
+        for j in range(h.shape[1]):
+            if valid[i, j]:
+                peak = max(peak, abs(h[i, j]))
+    return peak
+
+
 def validate(r: Raster, z_scale: float | None) -> None:
     """Reject inputs that cannot give a correct store, with a one-line fix."""
     h, w = r.shape
@@ -49,8 +61,7 @@ def validate(r: Raster, z_scale: float | None) -> None:
     nvalid = int(r.valid.sum())
     if nvalid == 0:
         raise InputError(f"{r.path}: every sample is nodata; check the nodata value or the band")
-    hv = r.heights[r.valid]
-    peak = float(np.abs(hv).max())
+    peak = _peak_abs(r.heights, r.valid)
     if peak > ABSURD_HEIGHT and z_scale is None:
         why = f"{r.path}: heights reach {peak:.3g}, beyond ±{ABSURD_HEIGHT:.0e}; if they are real "
         raise InputError(why + "pass z_scale (e.g. 1), else set the right nodata or unit",
@@ -181,14 +192,18 @@ def preprocess(
     valid = grid.pad(r.valid, False)
     heights = grid.pad(r.heights, np.nan)
     heights[~valid] = np.nan
+    r.heights = None  # the padded copy holds them now (memory: issue 12)
     X, Y = frame.grid_xy(grid.size)
     stage("pad")
 
-    q = choose_quantizer(r.heights[r.valid], r.src_dtype, codec_error=codec_error,
-                         scale=r.scale, offset=r.offset)
-    hdec = decoded_heights(heights, valid, q)
-    Z = frame.z(hdec)
-    Z[~valid] = np.nan
+    # the valid heights: NaN elsewhere, which the quantiser ignores
+    q = choose_quantizer(heights, r.src_dtype, codec_error=codec_error, scale=r.scale,
+                         offset=r.offset)
+    Z = decoded_heights(heights, valid, q)  # NaN where invalid
+    hv = Z[valid]
+    height_range = [float(hv.min()), float(hv.max())]
+    del hv
+    Z = frame.z(Z, out=Z)  # scene metres, in place
     stage("quantise")
 
     delta = vertex_errors(Z, valid)
@@ -234,7 +249,6 @@ def preprocess(
         for kind, blobs in extra.items():
             w.put_blobs(kind, blobs)
         w.put_tiles(tile_rows)
-        hv = hdec[valid]
         w.put_metadata({
             "format": "geoterrain",
             "generator": f"geoterrain {__version__}",
@@ -249,7 +263,7 @@ def preprocess(
             "normals_layout": NORMALS_PLANAR_DXDY,
             "valid_samples": int(r.valid.sum()),
             "nodata_fraction": float(1.0 - r.valid.mean()),
-            "height_range": [float(hv.min()), float(hv.max())],
+            "height_range": height_range,
             "delta_max_finite": float(np.max(delta[np.isfinite(delta)], initial=0.0)),
             "stand_in_z": stand_in_z(Z, valid),
             "preprocess_seconds": times,
