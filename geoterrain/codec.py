@@ -250,33 +250,50 @@ def _fill_level(d, valid, s, P):
 
 
 @njit(cache=True, nogil=True)
-def _tile_zigzag(d, s, h, P, zz):
+def _tile_zigzag(d, s, h, P, zz, zmax, esc):
     """Zigzagged residuals of every tile of level ``d[::s, ::s]`` into ``zz`` (nt, nt,
     L): per tile, classes A ((h + 1) × h), B (h × (h + 1)) and C (h × h) in raster
-    order, as the decoder reads them (:func:`_cubic_child`, :func:`_linear_child`)."""
+    order, as the decoder reads them (:func:`_cubic_child`, :func:`_linear_child`).
+    Per tile also the largest value and, for each k of ``PACK_BITS`` (1, 2, 4), the
+    count of values ≥ 2^k − 1 (the escapes of :func:`pack_symbols`)."""
     nt = zz.shape[0]
     for ty in range(nt):
         for tx in range(nt):
-            n = 0
-            i0, j0 = ty * 2 * h, tx * 2 * h
-            for a in range(h + 1):
-                for b in range(h):
-                    i, j = i0 + 2 * a, j0 + 2 * b + 1
-                    r = d[i * s, j * s] - _pred(d, s, i, j, P)
-                    zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
-                    n += 1
-            for a in range(h):
-                for b in range(h + 1):
-                    i, j = i0 + 2 * a + 1, j0 + 2 * b
-                    r = d[i * s, j * s] - _pred(d, s, i, j, P)
-                    zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
-                    n += 1
-            for a in range(h):
-                for b in range(h):
-                    i, j = i0 + 2 * a + 1, j0 + 2 * b + 1
-                    r = d[i * s, j * s] - _pred(d, s, i, j, P)
-                    zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
-                    n += 1
+            _one_tile_zigzag(d, s, h, P, zz, ty, tx)
+            zm = np.uint64(0)
+            e1, e3, e15 = 0, 0, 0
+            for u in zz[ty, tx]:
+                zm = max(zm, u)
+                e1 += u >= 1
+                e3 += u >= 3
+                e15 += u >= 15
+            zmax[ty, tx] = zm
+            esc[ty, tx, 0], esc[ty, tx, 1], esc[ty, tx, 2] = e1, e3, e15
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _one_tile_zigzag(d, s, h, P, zz, ty, tx):
+    # one tile of _tile_zigzag
+    n = 0
+    i0, j0 = ty * 2 * h, tx * 2 * h
+    for a in range(h + 1):
+        for b in range(h):
+            i, j = i0 + 2 * a, j0 + 2 * b + 1
+            r = d[i * s, j * s] - _pred(d, s, i, j, P)
+            zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
+            n += 1
+    for a in range(h):
+        for b in range(h + 1):
+            i, j = i0 + 2 * a + 1, j0 + 2 * b
+            r = d[i * s, j * s] - _pred(d, s, i, j, P)
+            zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
+            n += 1
+    for a in range(h):
+        for b in range(h):
+            i, j = i0 + 2 * a + 1, j0 + 2 * b + 1
+            r = d[i * s, j * s] - _pred(d, s, i, j, P)
+            zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
+            n += 1
 
 
 def _forward_fill(codes: np.ndarray, valid: np.ndarray) -> np.ndarray:
@@ -489,9 +506,19 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress) -> None:
         s = 1 << lev
         nt = 1 << (n - lev - te)
         zz = np.empty((nt, nt, 2 * h * (h + 1) + h * h), np.uint64)
-        _tile_zigzag(d, s, h, period or 0, zz)  # compiled: the residuals of _predict
-        zmax = zz.max(axis=2)
-        packs = {k: pack_symbols(zz, k) for k in PACK_BITS}
+        zmax = np.empty((nt, nt), np.uint64)
+        esc = np.empty((nt, nt, len(PACK_BITS)), np.int64)
+        _tile_zigzag(d, s, h, period or 0, zz, zmax, esc)  # the residuals of _predict
+        # k-bit packs only for the tiles where choose_stream would try them
+        packs = {}
+        for c, k in enumerate(PACK_BITS):
+            ys, xs = np.nonzero(esc[..., c] * 4 <= zz.shape[2])
+            rows = {}
+            if len(ys):
+                packed, _ = pack_symbols(zz[ys, xs], k)
+                rows = dict(zip(zip(ys.tolist(), xs.tolist(), strict=True), packed,
+                                strict=True))
+            packs[k] = (rows, esc[..., c])
         vt = level_tiles(valid, te, lev)
         nvalid = vt.sum(axis=(2, 3))
 
@@ -504,8 +531,10 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress) -> None:
                 if nvalid[y, x] == 0
                 else _MASK_STORED
             )
+            yx = (int(y), int(x))
             code, stream = choose_stream(
-                zz[y, x], int(zmax[y, x]), {k: (p[0][y, x], p[1][y, x]) for k, p in packs.items()}
+                zz[y, x], int(zmax[y, x]),
+                {k: (p[0].get(yx), p[1][y, x]) for k, p in packs.items()},
             )
             mask = np.packbits(vt[y, x]).tobytes() if kind == _MASK_STORED else b""
             keys.append((lev, int(x), int(y)))
