@@ -465,7 +465,7 @@ def _proxy_positions(x, y, z, valid):
         zp = np.where(valid & np.isfinite(z), z, stand_in_z(z, valid))
     out = [zp]
     for c in (x, y):
-        c = np.ascontiguousarray(c, dtype=np.float64)
+        c = np.asarray(c, dtype=np.float64)  # no copy of a broadcast view (grid_xy)
         if not np.isfinite(c).all():
             ok = np.isfinite(c)
             ii, jj = np.nonzero(ok)

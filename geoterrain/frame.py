@@ -153,14 +153,15 @@ class Frame:
         return np.asarray(Z, np.float64) / (self.z_to_m * self.z_scale)
 
     def grid_xy(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """Scene X, Y of the whole padded n × n grid (float64)."""
+        """Scene X, Y of the whole padded n × n grid (float64). In a projected frame X
+        depends on the column only and Y on the row only: they are read-only broadcast
+        views of one row and one column (no n² copies)."""
         if self.kind == "geographic":
             i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
             return self.xy(i, j)
         xs, _ = self.xy(np.zeros(n), np.arange(n))
         _, ys = self.xy(np.arange(n), np.zeros(n))
-        return (np.broadcast_to(xs[None, :], (n, n)).copy(),
-                np.broadcast_to(ys[:, None], (n, n)).copy())
+        return np.broadcast_to(xs[None, :], (n, n)), np.broadcast_to(ys[:, None], (n, n))
 
     def crs_to_scene(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Scene X, Y of points given in the source CRS."""

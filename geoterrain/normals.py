@@ -86,7 +86,8 @@ def normal_map(
     """
     if kernel not in ("central", "horn"):
         raise ValueError(f"unknown kernel {kernel!r}")
-    x, y, z = (np.ascontiguousarray(a, dtype=np.float64) for a in (x, y, z))
+    # no copy: x and y may be broadcast views (Frame.grid_xy)
+    x, y, z = (np.asarray(a, dtype=np.float64) for a in (x, y, z))
     if not (x.shape == y.shape == z.shape) or x.ndim != 2:
         raise ValueError("x, y and z must be 2-D arrays of the same shape")
     v = (

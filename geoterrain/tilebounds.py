@@ -204,8 +204,7 @@ def tile_errors(
     lmax = n - te
     cpt = 1 << te  # cells per tile side
     vb = valid.view(np.uint8)
-    xc = np.ascontiguousarray(x)
-    yc = np.ascontiguousarray(y)
+    xc, yc = x, y  # no copy: x and y may be broadcast views (Frame.grid_xy)
     E = np.zeros((N, N))
     nvalid = footprint_counts(valid, te)
     per_level = []
