@@ -452,8 +452,22 @@ def stand_in_z(z: np.ndarray, valid: np.ndarray) -> float:
     >>> stand_in_z(np.array([[1.0, np.nan], [5.0, 100.0]]), np.array([[1, 0], [1, 0]], bool))
     3.0
     """
-    zv = np.asarray(z, dtype=np.float64)[np.asarray(valid, dtype=bool) & np.isfinite(z)]
-    return float(0.5 * (zv.min() + zv.max())) if zv.size else 0.0
+    lo, hi, n = _valid_range_nb(np.asarray(z, dtype=np.float64), np.asarray(valid, bool))
+    return float(0.5 * (lo + hi)) if n else 0.0
+
+
+@njit(cache=True, nogil=True)
+def _valid_range_nb(z, valid):
+    # min, max and count of the finite valid samples, one pass, no copy
+    lo, hi, n = np.inf, -np.inf, 0
+    for i in range(z.shape[0]):
+        for j in range(z.shape[1]):
+            v = z[i, j]
+            if valid[i, j] and np.isfinite(v):
+                lo = min(lo, v)
+                hi = max(hi, v)
+                n += 1
+    return lo, hi, n
 
 
 def _proxy_positions(x, y, z, valid):

@@ -43,6 +43,20 @@ MAX_TILE_SIZE = 4096
 
 
 @njit(cache=True, nogil=True)
+def _finite_max_nb(a):
+    m = 0.0
+    for v in a.ravel():
+        if np.isfinite(v) and v > m:
+            m = v
+    return m
+
+
+def _finite_max(a: np.ndarray) -> float:
+    """max(0, the largest finite value of ``a``) without copying the finite values."""
+    return float(_finite_max_nb(a))  # a float32 value is exact in float64
+
+
+@njit(cache=True, nogil=True)
 def _peak_abs(h, valid):
     """max |h| over the valid samples (no copy of them)."""
     peak = 0.0
@@ -193,6 +207,7 @@ def preprocess(
     heights = grid.pad(r.heights, np.nan)
     heights[~valid] = np.nan
     r.heights = None  # the padded copy holds them now (memory: issue 12)
+    nvalid = int(np.count_nonzero(r.valid))
     X, Y = frame.grid_xy(grid.size)
     stage("pad")
 
@@ -261,10 +276,10 @@ def preprocess(
             "quantizer": dataclasses.asdict(q),
             "normal_bits": NORMAL_BITS,
             "normals_layout": NORMALS_PLANAR_DXDY,
-            "valid_samples": int(r.valid.sum()),
-            "nodata_fraction": float(1.0 - r.valid.mean()),
+            "valid_samples": nvalid,
+            "nodata_fraction": float(1.0 - nvalid / r.valid.size),  # = 1 - mean
             "height_range": height_range,
-            "delta_max_finite": float(np.max(delta[np.isfinite(delta)], initial=0.0)),
+            "delta_max_finite": _finite_max(delta),
             "stand_in_z": stand_in_z(Z, valid),
             "preprocess_seconds": times,
         })
