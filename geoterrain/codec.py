@@ -46,7 +46,7 @@ from collections.abc import Callable
 
 import numpy as np
 import zstandard
-from numba import njit
+from numba import njit, prange
 
 from geoterrain import zstdsafe
 from geoterrain.grid import footprint_counts, level_tiles
@@ -249,7 +249,7 @@ def _fill_level(d, valid, s, P):
                 d[i * s, j * s] = _pred(d, s, i, j, P)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _tile_zigzag(d, s, h, P, zz, zmax, esc):
     """Zigzagged residuals of every tile of level ``d[::s, ::s]`` into ``zz`` (nt, nt,
     L): per tile, classes A ((h + 1) × h), B (h × (h + 1)) and C (h × h) in raster
@@ -257,7 +257,7 @@ def _tile_zigzag(d, s, h, P, zz, zmax, esc):
     Per tile also the largest value and, for each k of ``PACK_BITS`` (1, 2, 4), the
     count of values ≥ 2^k − 1 (the escapes of :func:`pack_symbols`)."""
     nt = zz.shape[0]
-    for ty in range(nt):
+    for ty in prange(nt):  # rows of tiles on every core: each writes its own tiles
         for tx in range(nt):
             _one_tile_zigzag(d, s, h, P, zz, ty, tx)
             zm = np.uint64(0)

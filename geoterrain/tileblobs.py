@@ -149,7 +149,7 @@ def _code_bounds(delta, radius, t8, t8_32, e8, down, up, dc, d_st, r16, r_st):
     return odd
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _level_payloads(dc, r16, d_st, r_st, nrm, ys, xs, t, level, new_only, pd, pr, pn, dmax,
                     rmax):
     """Row k of ``pd``/``pr``/``pn``: tile (level, xs[k], ys[k])'s δ codes, r float16
@@ -160,7 +160,7 @@ def _level_payloads(dc, r16, d_st, r_st, nrm, ys, xs, t, level, new_only, pd, pr
     s = 1 << level
     step = (1 << t) * s
     nnew = pd.shape[1]
-    for k in range(ys.shape[0]):
+    for k in prange(ys.shape[0]):  # tiles on every core: each writes its own rows
         y0, x0 = ys[k] * step, xs[k] * step
         m = 0
         dm = np.float32(-np.inf)
