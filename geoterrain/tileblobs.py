@@ -18,7 +18,7 @@ from collections.abc import Iterable
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.rounding import round_up, round_up32
+from geoterrain.rounding import round_up
 from geoterrain.vertexdata import (
     LOG8,
     LOG_STEPS,
@@ -39,9 +39,9 @@ class BoundsCoding:
     """δ and r of a whole pyramid, coded once at full resolution.
 
     ``dc``: δ's 8-bit log codes; ``r16``: r scaled by ``2^-kr`` and rounded up to
-    float16; ``d_stored`` and ``r_stored``: the float32 values a reader decodes (the
-    per-tile maxima in the tile rows are maxima of these, so a tile skipped by them skips
-    no stored vertex).
+    float16. ``d_stored`` and ``r_stored`` (computed on demand): the float32 values a
+    reader decodes; the per-tile maxima in the tile rows are maxima of these, so a tile
+    skipped by them skips no stored vertex.
 
     Examples
     --------
@@ -54,22 +54,25 @@ class BoundsCoding:
         self.ed, self.kr = log8_exponent(delta), scale_exponent(radius)
         t8 = log8_table(self.ed)
         shape = np.shape(delta)
+        self.table = t8
         self.dc = np.empty(shape, np.uint8)
-        self.d_stored = np.empty(shape, np.float32)
         bits = np.empty(shape, np.uint16)
-        self.r_stored = np.empty(shape, np.float32)
         d2, r2 = (np.asarray(a).reshape(-1, shape[-1]) for a in (delta, radius))
-        odd = _code_bounds(d2, r2, t8.astype(np.float64), t8, self.ed, 2.0 ** -self.kr,
-                           2.0 ** self.kr, self.dc.reshape(d2.shape),
-                           self.d_stored.reshape(d2.shape), bits.reshape(d2.shape),
-                           self.r_stored.reshape(d2.shape))
+        odd = _code_bounds(d2, r2, t8.astype(np.float64), self.ed, 2.0 ** -self.kr,
+                           self.dc.reshape(d2.shape), bits.reshape(d2.shape))
         self.r16 = bits.view(np.float16)
         if odd:  # NaN, negative or -0.0 radii (none in practice): numpy's exact rule
             m = ~(np.asarray(radius) > 0) & ~(np.asarray(radius) == 0) | np.signbit(radius)
             r = np.asarray(radius, np.float64)[m] * 2.0 ** -self.kr
             self.r16[m] = round_up(r, np.float16)
-            self.r_stored[m] = round_up(self.r16[m].astype(np.float64) * 2.0 ** self.kr,
-                                        np.float32)
+
+    @property
+    def d_stored(self) -> np.ndarray:
+        return self.table[self.dc]
+
+    @property
+    def r_stored(self) -> np.ndarray:
+        return round_up(self.r16.astype(np.float64) * 2.0 ** self.kr, np.float32)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -103,19 +106,21 @@ def _f16_up_bits(x, bits):
 
 @njit(cache=True, nogil=True, inline="always")
 def _f16_value(b):
-    """The value of a non-negative float16 bit pattern (0x7C00: +inf)."""
-    if b >= 0x7C00:
-        return np.inf
-    if b < 1024:
-        return b * 2.0 ** -24
-    return ((b & 1023) + 1024) * 2.0 ** ((b >> 10) - 25)
+    """The value of any float16 bit pattern, as float64 (exact)."""
+    e, m = (b >> 10) & 0x1F, b & 0x3FF
+    if e == 31:
+        v = np.inf if m == 0 else np.nan
+    elif e == 0:
+        v = m * 2.0 ** -24
+    else:
+        v = (m + 1024) * 2.0 ** (e - 25)
+    return -v if b & 0x8000 else v
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _code_bounds(delta, radius, t8, t8_32, e8, down, up, dc, d_st, r16, r_st):
-    """One pass (rows on every core): δ's log8 codes (:func:`log8_codes`: NaN as +inf)
-    and stored values; r scaled by ``down`` and rounded up to float16 (bit patterns),
-    and the stored float32 (exact: a float16 times a power of two). Returns the count of
+def _code_bounds(delta, radius, t8, e8, down, dc, r16):
+    """One pass (rows on every core): δ's log8 codes (:func:`log8_codes`: NaN as +inf);
+    r scaled by ``down`` and rounded up to float16 (bit patterns). Returns the count of
     radii that are NaN, negative or -0.0, left for numpy."""
     odd = 0
     lo8 = t8[1]
@@ -137,25 +142,24 @@ def _code_bounds(delta, radius, t8, t8_32, e8, down, up, dc, d_st, r16, r_st):
                 g = int(LOG_STEPS * (f - e8)) + 1
             c = _first_ge(t8, x, g)  # the guess is off by at most two codes
             dc[i, j] = c
-            d_st[i, j] = t8_32[c]
             r = np.float64(radius[i, j])
             if r > 0 or (r == 0 and math.copysign(1.0, r) > 0):
                 buf[0] = r * down
                 b = _f16_up_bits(buf[0], ibuf[0])
                 r16[i, j] = b
-                r_st[i, j] = round_up32(_f16_value(b) * up)
             else:
                 odd += 1
     return odd
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _level_payloads(dc, r16, d_st, r_st, nrm, ys, xs, t, level, new_only, pd, pr, pn, dmax,
+def _level_payloads(dc, r16, t8, up, nrm, ys, xs, t, level, new_only, pd, pr, pn, dmax,
                     rmax):
     """Row k of ``pd``/``pr``/``pn``: tile (level, xs[k], ys[k])'s δ codes, r float16
     planes (low bytes, then high bytes) and normal planes of 2-D differences (mod 256);
-    ``dmax``/``rmax``: the maxima of the stored δ and r over the same vertices (NaN
-    propagates as numpy's max does)."""
+    ``dmax``/``rmax``: the maxima of the stored δ and r over the same vertices, the
+    values a reader decodes: ``t8[code]`` and the float16 times ``up`` (exact in
+    float32: 11 bits, exponent in range); NaN propagates as numpy's max does."""
     T = (1 << t) + 1
     s = 1 << level
     step = (1 << t) * s
@@ -177,8 +181,8 @@ def _level_payloads(dc, r16, d_st, r_st, nrm, ys, xs, t, level, new_only, pd, pr
                 b = r16[yi, xj]
                 pr[k, m] = np.uint8(b & 0xFF)
                 pr[k, nnew + m] = np.uint8(b >> 8)
-                dv = d_st[yi, xj]
-                rv = r_st[yi, xj]
+                dv = t8[dc[yi, xj]]
+                rv = np.float32(_f16_value(b) * up)
                 if dv != dv:
                     dnan = True
                 elif dv > dm:
@@ -248,7 +252,7 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     pn = np.empty((k, 2 * T * T), np.uint8)
     dmax = np.empty(k, np.float32)
     rmax = np.empty(k, np.float32)
-    _level_payloads(coding.dc, coding.r16.view(np.uint16), coding.d_stored, coding.r_stored,
+    _level_payloads(coding.dc, coding.r16.view(np.uint16), coding.table, 2.0 ** coding.kr,
                     np.ascontiguousarray(nrm, np.uint8), np.ascontiguousarray(xy[:, 1]),
                     np.ascontiguousarray(xy[:, 0]), t, level, new_only, pd, pr, pn, dmax, rmax)
     flags = NEW_ONLY if new_only else 0
