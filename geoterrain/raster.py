@@ -69,7 +69,10 @@ ROUGH_PNG_STEP = 1000.0  # metres: a median neighbour step beyond this is not te
 # GDAL decodes the blocks of a compressed raster on every core (4097² DEFLATE GeoTIFF:
 # 0.27 → 0.13 s on 2 cores, docs/benchmarks.md §3); the bytes read are the same
 GDAL_READ_OPTIONS = {"GDAL_NUM_THREADS": "ALL_CPUS"}
-PREPROCESS_BYTES_PER_SAMPLE = 96  # the preprocess's float64 working arrays, per sample
+# peak RSS of the preprocess per source sample, measured (docs/benchmarks.md §3): 62 at
+# 4097² and 52 at 8193² in a projected CRS, 116 at 4097² in a geographic one (full X, Y
+# and the curvilinear terms); with a margin
+PREPROCESS_BYTES_PER_SAMPLE = {"projected": 72, "geographic": 128}
 
 
 def _undeclared_voids(data: np.ndarray, valid: np.ndarray) -> float | None:
@@ -158,7 +161,8 @@ def read_raster(
 
 
 def _check_memory(src, p) -> None:
-    need = src.height * src.width * PREPROCESS_BYTES_PER_SAMPLE
+    kind = "geographic" if src.crs is not None and src.crs.is_geographic else "projected"
+    need = src.height * src.width * PREPROCESS_BYTES_PER_SAMPLE[kind]
     if need > available_memory():
         raise InputError(
             f"{p}: {src.height}×{src.width} samples need about {need / 2**30:.1f} "
