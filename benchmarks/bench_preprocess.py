@@ -27,7 +27,7 @@ import time
 # its clock too); the import of the preprocess stack (numba, rasterio, pyproj) is
 # reported on its own row.
 PRE = """
-import json, sys, time
+import json, resource, sys, time
 t0 = time.perf_counter()
 import geoterrain
 from geoterrain.preprocessing import preprocess
@@ -35,8 +35,9 @@ t1 = time.perf_counter()
 p = preprocess(sys.argv[1], sys.argv[2], overwrite=True, codec_error={eps})
 wall = time.perf_counter() - t1
 t = geoterrain.open(p)
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 print(json.dumps({{"wall": wall, "import": t1 - t0, "stages": t.meta["preprocess_seconds"],
-                  "bytes": t.info()["size_bytes"]}}))
+                  "bytes": t.info()["size_bytes"], "peak_mb": peak}}))
 """
 
 MARTINI = """
@@ -65,25 +66,29 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=4097)
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--codec-error", type=float, default=None)
+    ap.add_argument("--skip-pymartini", action="store_true",
+                    help="time ours only (Martini(16385) alone needs several GB)")
     a = ap.parse_args()
     from geoterrain.synth import generate, write_geotiff
 
-    d = tempfile.mkdtemp()
+    tmp = tempfile.TemporaryDirectory()  # removed at exit (a 16385² source is 1 GB)
+    d = tmp.name
     src = os.path.join(d, "fbm.tif")
     write_geotiff(src, generate("fbm", a.size, seed=7))
     dst = os.path.join(d, "fbm.geoterrain")
     ours, theirs, peaks = [], [], []
     for _ in range(a.runs):  # alternate to share the machine's drift
-        r, peak = child(PRE.format(eps=a.codec_error), src, dst)
+        r, _ = child(PRE.format(eps=a.codec_error), src, dst)
         ours.append(r)
-        peaks.append(peak)
-        m, _ = child(MARTINI, src)
-        theirs.append(m["wall"])
+        peaks.append(r["peak_mb"])  # this process's own peak
+        if not a.skip_pymartini:
+            m, _ = child(MARTINI, src)
+            theirs.append(m["wall"])
         time.sleep(0.5)
     stages = ours[0]["stages"].keys()
     med = {s: statistics.median(r["stages"][s] for r in ours) for s in stages}
     wall = statistics.median(r["wall"] for r in ours)
-    mart = statistics.median(theirs)
+    mart = statistics.median(theirs) if theirs else float("nan")
     print(f"\n{a.size}² fBm, codec_error={a.codec_error}, {a.runs} runs, medians\n")
     print("| stage | seconds |")
     print("|---|---|")
@@ -96,7 +101,10 @@ def main() -> None:
     print(f"| pymartini Martini({a.size}) + create_tile | {mart:.2f} |")
     print(f"| ratio total / pymartini | {wall / mart:.2f} |")
     print(f"| ratio (errors + radii) / pymartini | {err_stage / mart:.2f} |")
-    print(f"| peak RSS of a preprocess run (max) | {max(peaks):.0f} MB |")
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    print(f"| throughput | {a.size ** 2 / wall / 1e6:.2f} M samples/s, "
+          f"{a.size ** 2 / wall / cores / 1e6:.2f} M samples/s per core ({cores} cores) |")
+    print(f"| peak RSS of a preprocess run (max over the runs) | {max(peaks):.0f} MB |")
     print(f"| store size | {ours[0]['bytes'] / 1e6:.1f} MB |")
 
 
