@@ -56,7 +56,9 @@ from geoterrain.symbols import (
     UINTS,
     choose_stream,
     pack_symbols,
+    pick_stream,
     read_stream,
+    stream_candidates,
     unzigzag,
     zigzag,
 )
@@ -523,7 +525,7 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress) -> None:
         nvalid = vt.sum(axis=(2, 3))
         bulk = _shuffled_streams(zz, zmax, esc, (counts[lev] > 0) & (nvalid == tt * tt))
 
-        keys, heads, payloads = [], [], []
+        keys, heads, payloads, pending = [], [], [], []
         for y, x in zip(*np.nonzero(counts[lev]), strict=True):
             yx = (int(y), int(x))
             if yx in bulk:  # all valid, nothing to compare: the shuffled stream
@@ -539,14 +541,21 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress) -> None:
                 if nvalid[y, x] == 0
                 else _MASK_STORED
             )
-            code, stream = choose_stream(
-                zz[y, x], int(zmax[y, x]),
-                {k: (p[0].get(yx), p[1][y, x]) for k, p in packs.items()},
-            )
+            cands = stream_candidates(zz[y, x], int(zmax[y, x]),
+                                      {k: (p[0].get(yx), p[1][y, x]) for k, p in packs.items()})
             mask = np.packbits(vt[y, x]).tobytes() if kind == _MASK_STORED else b""
+            pending.append((len(keys), kind, mask, cands))
             keys.append((lev, int(x), int(y)))
-            heads.append(_header(False, kind, te, code, cubic))
-            payloads.append(mask + stream)
+            heads.append(b"")
+            payloads.append(b"")
+        # choose_stream's probes (zstd level 3) of the whole level in one call, every core
+        probes = iter(len(f) for f in compress_many(
+            [c[1] for *_, cands in pending if len(cands) > 1 for c in cands], 3))
+        for pos, kind, mask, cands in pending:
+            code, stream = cands[0] if len(cands) == 1 else \
+                pick_stream(cands, [next(probes) for _ in cands])
+            heads[pos] = _header(False, kind, te, code, cubic)
+            payloads[pos] = mask + stream
         # zstd of the whole level in one call, on every core (identical to one by one)
         frames = compress_many(payloads, level)
         out.update((k, h + f) for k, h, f in zip(keys, heads, frames, strict=True))

@@ -91,17 +91,23 @@ def choose_stream(zz: np.ndarray, zmax: int, packs: dict,
     Returns the header byte (low nibble: byte width of the shuffled stream, high nibble:
     k, 0 = unpacked) and the stream.
     """
-    w = byte_width(zmax)
-    best = (w, shuffle(zz, w))
-    if w == 0:
-        return best
-    # packed candidates with at most one escape per 4 samples (else never smaller)
-    cands = [(k, p, n) for k, (p, n) in packs.items() if int(n) * 4 <= zz.size]
-    if not cands:
-        return best  # nothing to compare: no probe
+    cands = stream_candidates(zz, zmax, packs)
+    if len(cands) == 1:
+        return cands[0]  # nothing to compare: no probe
     probe = probe or zstandard.ZstdCompressor(level=3)
-    best_len = len(probe.compress(best[1]))
-    for k, packed, _ in cands:
+    return pick_stream(cands, [len(probe.compress(c[1])) for c in cands])
+
+
+def stream_candidates(zz: np.ndarray, zmax: int, packs: dict) -> list[tuple[int, bytes]]:
+    """The streams :func:`choose_stream` compares, the shuffled one first: (code, bytes)."""
+    w = byte_width(zmax)
+    out = [(w, shuffle(zz, w))]
+    if w == 0:
+        return out
+    # packed candidates with at most one escape per 4 samples (else never smaller)
+    for k, (packed, n) in packs.items():
+        if int(n) * 4 > zz.size:
+            continue
         m = (1 << k) - 1
         if zmax < m:  # no escapes: the packed symbols say everything
             ew, exc = 0, b""
@@ -109,10 +115,16 @@ def choose_stream(zz: np.ndarray, zmax: int, packs: dict,
             e = zz[zz >= np.uint64(m)] - np.uint64(m)
             ew = byte_width(int(e.max()))
             exc = shuffle(e, ew)
-        cand = np.ascontiguousarray(packed).tobytes() + exc
-        n = len(probe.compress(cand))
+        out.append(((k << 4) | ew, np.ascontiguousarray(packed).tobytes() + exc))
+    return out
+
+
+def pick_stream(cands: list[tuple[int, bytes]], probed: list[int]) -> tuple[int, bytes]:
+    """The candidate with the shortest probe (the first of equals), as choose_stream."""
+    best, best_len = cands[0], probed[0]
+    for c, n in zip(cands[1:], probed[1:], strict=True):
         if n < best_len:
-            best, best_len = ((k << 4) | ew, cand), n
+            best, best_len = c, n
     return best
 
 
