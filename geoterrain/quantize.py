@@ -147,7 +147,7 @@ def choose_quantizer(
         v = v[np.isfinite(v)]
         eps = float(codec_error)
         if offset is None:
-            off = float(np.round(np.median(v))) if v.size else 0.0
+            off = float(np.round(_median_in_place(v))) if v.size else 0.0
         vmax = float(np.max(np.abs(v))) if v.size else 0.0
         # float64 rounding of (z - off)/step, q*step and off + q*step: a few ulps of the
         # magnitudes involved; shrink the step by that margin (seed 000 has no formula).
@@ -156,11 +156,12 @@ def choose_quantizer(
         if step <= 0:
             raise ValueError(f"codec_error {eps} is below the float64 resolution of the data")
         for _ in range(8):
-            qz = Quantizer("quantized", step, off, eps)
             if v.size == 0:
                 break
-            dec = codes_to_heights(heights_to_codes(v, qz), qz)
-            if float(np.max(np.abs(dec - v))) <= eps:
+            err, peak = _roundtrip_error(v, step, off)  # of codes_to_heights(heights_to_codes)
+            if peak >= 2.0**62:
+                raise ValueError("heights out of range for the quantizer step")
+            if err <= eps:
                 break
             step *= 1.0 - 1e-9
         return Quantizer("quantized", step, off, eps)
@@ -168,6 +169,32 @@ def choose_quantizer(
     if (dt == np.float32 or dt.kind in "iub" or dt.itemsize <= 4) and f32:
         bits = 32
     return Quantizer("float", 1.0, 0.0, 0.0, bits)
+
+
+def _median_in_place(v: np.ndarray) -> float:
+    """``np.median(v)`` (the same value), partitioning ``v`` in place instead of a copy."""
+    n = v.size
+    k = n // 2
+    if n % 2:
+        v.partition(k)
+        return float(v[k])
+    v.partition([k - 1, k])
+    return float((v[k - 1] + v[k]) / 2.0)  # np.median: the mean of the two middle values
+
+
+@njit(cache=True, nogil=True)
+def _roundtrip_error(v, step, offset):
+    """max |offset + rint((x - offset)/step)·step − x| over ``v`` (the codes' decode, as
+    :func:`codes_to_heights` of :func:`heights_to_codes`), and the largest |code|."""
+    err, peak = 0.0, 0.0
+    for x in v:
+        r = np.rint((x - offset) / step)
+        if not np.isfinite(r):
+            r = 0.0
+        peak = max(peak, abs(r))
+        if abs(r) < 2.0**62:
+            err = max(err, abs(offset + np.float64(np.int64(r)) * step - x))
+    return err, peak
 
 
 def heights_to_codes(z: np.ndarray, quantizer: Quantizer) -> np.ndarray:

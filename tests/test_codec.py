@@ -397,3 +397,23 @@ def test_choose_quantizer_sees_the_grid_and_the_float_width(seed, kind, dtype):
         f32 = np.array_equal(fin.astype(np.float32).astype(np.float64), fin)
         small = np.dtype(dtype) == np.float32 or np.dtype(dtype).itemsize <= 4
         assert q.float_bits == (32 if f32 and small else 64)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31), n=st.integers(1, 60), eps=st.sampled_from([0.01, 0.5, 3.0]),
+       mag=st.sampled_from([1.0, 1e3, 1e7]))
+def test_the_lossy_quantiser_is_the_numpy_one(seed, n, eps, mag):
+    """The in-place median and the compiled roundtrip check choose what numpy's would."""
+    rng = np.random.default_rng(seed)
+    v = rng.normal(0, mag, n)
+    q = choose_quantizer(v.copy(), np.float64, codec_error=eps)
+    off = float(np.round(np.median(v)))
+    vmax = float(np.max(np.abs(v)))
+    margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))
+    step = 2.0 * (eps - margin)
+    for _ in range(8):
+        qz = Quantizer("quantized", step, off, eps)
+        if float(np.max(np.abs(codes_to_heights(heights_to_codes(v, qz), qz) - v))) <= eps:
+            break
+        step *= 1.0 - 1e-9
+    assert (q.mode, q.step, q.offset) == ("quantized", step, off)
