@@ -144,11 +144,10 @@ def choose_quantizer(
     if exact and (not lossy or 2.0 * float(codec_error) <= sc):
         return Quantizer("int", sc, off, 0.0)
     if lossy:
-        v = v[np.isfinite(v)]
+        v, vmax = _finite_copy(v)  # the finite values (a copy) and max |v|, one pass
         eps = float(codec_error)
         if offset is None:
             off = float(np.round(_median_in_place(v))) if v.size else 0.0
-        vmax = float(np.max(np.abs(v))) if v.size else 0.0
         # float64 rounding of (z - off)/step, q*step and off + q*step: a few ulps of the
         # magnitudes involved; shrink the step by that margin (seed 000 has no formula).
         margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))
@@ -169,6 +168,22 @@ def choose_quantizer(
     if (dt == np.float32 or dt.kind in "iub" or dt.itemsize <= 4) and f32:
         bits = 32
     return Quantizer("float", 1.0, 0.0, 0.0, bits)
+
+
+@njit(cache=True, nogil=True)
+def _finite_copy(v):
+    n = 0
+    for x in v:
+        n += np.isfinite(x)
+    out = np.empty(n, np.float64)
+    peak = 0.0
+    k = 0
+    for x in v:
+        if np.isfinite(x):
+            out[k] = x
+            peak = max(peak, abs(x))
+            k += 1
+    return out, peak
 
 
 def _median_in_place(v: np.ndarray) -> float:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 import zstandard
+from numba import njit
 
 
 def zigzag(r: np.ndarray) -> np.ndarray:
@@ -57,17 +58,34 @@ def unshuffle(buf: bytes, w: int, count: int) -> np.ndarray:
 def pack_symbols(zz: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """k-bit symbols min(zz, 2**k - 1) packed 8 // k per byte (little-endian bit order)
     along the last axis, and the escape counts (symbols equal to 2**k - 1)."""
-    m = (1 << k) - 1
-    sym = np.minimum(zz, np.uint64(m)).astype(np.uint8)
+    zz = np.asarray(zz, np.uint64)
+    lead, n = zz.shape[:-1], zz.shape[-1]
     per = 8 // k
-    padn = (-sym.shape[-1]) % per
-    if padn:
-        sym = np.concatenate([sym, np.zeros((*sym.shape[:-1], padn), np.uint8)], axis=-1)
-    sym = sym.reshape(*sym.shape[:-1], -1, per)
-    packed = np.zeros(sym.shape[:-1], np.uint8)
-    for i in range(per):
-        packed |= sym[..., i] << np.uint8(i * k)
-    return packed, (zz >= m).sum(axis=-1)
+    rows = np.ascontiguousarray(zz).reshape(-1, n)
+    packed = np.empty((rows.shape[0], -(-n // per)), np.uint8)
+    esc = np.empty(rows.shape[0], np.int64)
+    _pack_nb(rows, k, packed, esc)  # compiled, one pass (padding symbols are 0)
+    return packed.reshape(*lead, -1), esc.reshape(lead)
+
+
+@njit(cache=True, nogil=True)
+def _pack_nb(rows, k, packed, esc):
+    m = np.uint64((1 << k) - 1)
+    per = 8 // k
+    for r in range(rows.shape[0]):
+        e = 0
+        for b in range(packed.shape[1]):
+            byte = 0
+            for i in range(per):
+                c = b * per + i
+                if c < rows.shape[1]:
+                    u = rows[r, c]
+                    if u >= m:
+                        e += 1
+                        u = m
+                    byte |= np.int64(u) << (i * k)
+            packed[r, b] = byte
+        esc[r] = e
 
 
 def unpack_symbols(buf: bytes, k: int, count: int) -> np.ndarray:

@@ -417,3 +417,21 @@ def test_the_lossy_quantiser_is_the_numpy_one(seed, n, eps, mag):
             break
         step *= 1.0 - 1e-9
     assert (q.mode, q.step, q.offset) == ("quantized", step, off)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31), n=st.integers(1, 70), k=st.sampled_from(_PACK_BITS),
+       lead=st.sampled_from([(), (3,), (2, 3)]))
+def test_pack_symbols_is_the_numpy_packing(seed, n, k, lead):
+    zz = np.random.default_rng(seed).integers(0, 40, (*lead, n)).astype(np.uint64)
+    m = (1 << k) - 1
+    sym = np.minimum(zz, np.uint64(m)).astype(np.uint8)
+    per = 8 // k
+    sym = np.concatenate([sym, np.zeros((*lead, (-n) % per), np.uint8)], axis=-1)
+    sym = sym.reshape(*lead, -1, per)
+    want = np.zeros(sym.shape[:-1], np.uint8)
+    for i in range(per):
+        want |= sym[..., i] << np.uint8(i * k)
+    packed, esc = _pack_symbols(zz, k)
+    assert packed.tobytes() == want.tobytes() and packed.shape == want.shape
+    np.testing.assert_array_equal(esc, (zz >= m).sum(axis=-1))
