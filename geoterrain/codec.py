@@ -359,6 +359,8 @@ def _resolve_predictor(
     return bits[1] < bits[0]
 
 
+assert PACK_BITS == (1, 2, 4), "_tile_zigzag counts the escapes of k = 1, 2 and 4"
+
 _CLASSES = (
     (slice(0, None, 2), slice(1, None, 2)),
     (slice(1, None, 2), slice(0, None, 2)),
@@ -509,7 +511,7 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress) -> None:
         nt = 1 << (n - lev - te)
         zz = np.empty((nt, nt, 2 * h * (h + 1) + h * h), np.uint64)
         zmax = np.empty((nt, nt), np.uint64)
-        esc = np.empty((nt, nt, len(PACK_BITS)), np.int64)
+        esc = np.empty((nt, nt, len(PACK_BITS)), np.int64)  # the kernel counts k = 1, 2, 4
         _tile_zigzag(d, s, h, period or 0, zz, zmax, esc)  # the residuals of _predict
         # k-bit packs only for the tiles where choose_stream would try them
         packs = {}
