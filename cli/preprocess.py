@@ -34,7 +34,7 @@ from geoterrain.raster import ENCODINGS
                    "of the source. Default: lossless.")
 @click.option("--max-error", "old_max_error", type=float, hidden=True)
 @click.option("--zstd-level", default=6, show_default=True, type=click.IntRange(1, 22),
-              help="zstd level of the height residuals (9: ≤ 0.3 % smaller; 19: ~2 % "
+              help="zstd level of the height residuals (9: ≤ 0.5 % smaller; 19: ~2 % "
               "smaller, several times slower).")
 @click.option("--nodata", type=float, help="The value of voids, overriding the file's "
               "(nan: only NaN). Undeclared -32768/-9999/float32-min runs are voids by default.")
