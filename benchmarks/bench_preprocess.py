@@ -2,6 +2,7 @@
 
 Usage:
     python benchmarks/bench_preprocess.py [--size 4097] [--runs 5] [--codec-error EPS]
+        [--geographic] [--skip-pymartini]
 
 Each run is a fresh process (so peak memory is per run), ours and pymartini's
 alternating. Prints a markdown table of medians: per-stage seconds from the store's
@@ -66,6 +67,8 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=4097)
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--codec-error", type=float, default=None)
+    ap.add_argument("--geographic", action="store_true",
+                    help="the fBm in EPSG:4326 at 1 arc-second (the curvilinear path)")
     ap.add_argument("--skip-pymartini", action="store_true",
                     help="time ours only (Martini(16385) alone needs several GB)")
     a = ap.parse_args()
@@ -74,7 +77,9 @@ def main() -> None:
     tmp = tempfile.TemporaryDirectory()  # removed at exit (a 16385² source is 1 GB)
     d = tmp.name
     src = os.path.join(d, "fbm.tif")
-    write_geotiff(src, generate("fbm", a.size, seed=7))
+    geo = {"crs": "EPSG:4326", "origin": (10.0, 47.0), "spacing": 1 / 3600} \
+        if a.geographic else {}
+    write_geotiff(src, generate("fbm", a.size, seed=7), **geo)
     dst = os.path.join(d, "fbm.geoterrain")
     ours, theirs, peaks = [], [], []
     for _ in range(a.runs):  # alternate to share the machine's drift
@@ -89,7 +94,8 @@ def main() -> None:
     med = {s: statistics.median(r["stages"][s] for r in ours) for s in stages}
     wall = statistics.median(r["wall"] for r in ours)
     mart = statistics.median(theirs) if theirs else float("nan")
-    print(f"\n{a.size}² fBm, codec_error={a.codec_error}, {a.runs} runs, medians\n")
+    where = "EPSG:4326, 1″" if a.geographic else "UTM, 10 m"
+    print(f"\n{a.size}² fBm ({where}), codec_error={a.codec_error}, {a.runs} runs, medians\n")
     print("| stage | seconds |")
     print("|---|---|")
     for s in stages:
