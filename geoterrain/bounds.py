@@ -33,6 +33,7 @@ from numba import njit, prange
 
 from geoterrain.bintree import child_nb, main_diagonal_nb, parents_nb
 from geoterrain.rounding import round_up32
+from geoterrain.threads import cores_for
 
 __all__ = ["vertex_errors", "vertex_radii"]
 
@@ -70,8 +71,10 @@ def check_grid(z: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray
 # math, so they never see a non-finite value: invalid heights are zeroed beforehand).
 
 _FM = True
-# Threads hurt on small shared machines (a barrier per level waits for a descheduled
-# thread); the loops are written with prange so this switch is all it takes.
+# Rows on every core for large grids (errors 0.54 → 0.34 s, radii 0.32 → 0.20 s on the
+# quiet 4097² fBm, docs/benchmarks.md §3); small ones run on one thread, where a busy
+# core made the barriers cost more than the work (geoterrain/threads.py: cores_for).
+# Each output is written by one iteration, so the values do not depend on the threads.
 _PARALLEL = True
 
 
@@ -436,7 +439,8 @@ def vertex_errors(z: np.ndarray, valid: np.ndarray) -> np.ndarray:
     (dtype('float32'), 2.0, 0.0)
     """
     zf, valid, _ = check_grid(z, valid)
-    return _saturate_nb(_raw_delta(zf, valid))
+    with cores_for(zf.size):  # small grids on one thread (geoterrain/threads.py)
+        return _saturate_nb(_raw_delta(zf, valid))
 
 
 # ---------------------------------------------------------------------------- radii
@@ -513,7 +517,8 @@ def vertex_radii(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray)
     """
     x, y, z = _proxy_positions(x, y, z, valid)
     grid_order(z.shape[0])
-    return _radii_nb(x, y, z)
+    with cores_for(z.size):
+        return _radii_nb(x, y, z)
 
 
 @njit(cache=True, inline="always")

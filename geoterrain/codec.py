@@ -62,6 +62,7 @@ from geoterrain.symbols import (
     unzigzag,
     zigzag,
 )
+from geoterrain.threads import cores_for
 from geoterrain.zstdsafe import compress_many
 
 __all__ = [
@@ -492,7 +493,8 @@ def encode_pyramid(
     r = np.diff(top.ravel(), prepend=np.int64(0))
     head, payload = _pack(r, vtop, True, te, cubic)
     out[(lmax, 0, 0)] = head + _compressor(level).compress(payload)
-    _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress)
+    with cores_for(d.size):  # small grids on one thread (geoterrain/threads.py)
+        _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress)
     return out
 
 

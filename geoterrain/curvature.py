@@ -37,6 +37,7 @@ from numba import njit, prange
 from geoterrain.bintree import child_nb, main_diagonal_nb
 from geoterrain.bounds import _proxy_positions, _saturate_nb
 from geoterrain.rounding import round_up32
+from geoterrain.threads import cores_for
 
 __all__ = ["BORDER_FRACTION", "metric_bounds"]
 
@@ -230,7 +231,8 @@ def metric_bounds(delta: np.ndarray, radius: np.ndarray, X: np.ndarray, Y: np.nd
     Zf = np.ascontiguousarray(np.where(vb, Z, 0.0), np.float64)
     X = np.ascontiguousarray(X, np.float64)
     Y = np.ascontiguousarray(Y, np.float64)
-    dm, rm, bulge = _vertex_terms(X, Y, Zf, vb, float(frac))
+    with cores_for(Zf.size):  # small grids on one thread (geoterrain/threads.py)
+        dm, rm, bulge = _vertex_terms(X, Y, Zf, vb, float(frac))
     d = np.maximum(delta.astype(np.float64), dm)
     d[bulge] = np.inf
     d32 = _saturate_nb(_round_up(d))

@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit, prange
 
 from geoterrain.rounding import round_up
+from geoterrain.threads import cores_for
 from geoterrain.vertexdata import (
     LOG8,
     LOG_STEPS,
@@ -58,8 +59,9 @@ class BoundsCoding:
         self.dc = np.empty(shape, np.uint8)
         bits = np.empty(shape, np.uint16)
         d2, r2 = (np.asarray(a).reshape(-1, shape[-1]) for a in (delta, radius))
-        odd = _code_bounds(d2, r2, t8.astype(np.float64), self.ed, 2.0 ** -self.kr,
-                           self.dc.reshape(d2.shape), bits.reshape(d2.shape))
+        with cores_for(d2.size):  # small grids on one thread (geoterrain/threads.py)
+            odd = _code_bounds(d2, r2, t8.astype(np.float64), self.ed, 2.0 ** -self.kr,
+                               self.dc.reshape(d2.shape), bits.reshape(d2.shape))
         self.r16 = bits.view(np.float16)
         if odd:  # NaN, negative or -0.0 radii (none in practice): numpy's exact rule
             m = ~(np.asarray(radius) > 0) & ~(np.asarray(radius) == 0) | np.signbit(radius)
@@ -252,9 +254,10 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     pn = np.empty((k, 2 * T * T), np.uint8)
     dmax = np.empty(k, np.float32)
     rmax = np.empty(k, np.float32)
-    _level_payloads(coding.dc, coding.r16.view(np.uint16), coding.table, 2.0 ** coding.kr,
-                    np.ascontiguousarray(nrm, np.uint8), np.ascontiguousarray(xy[:, 1]),
-                    np.ascontiguousarray(xy[:, 0]), t, level, new_only, pd, pr, pn, dmax, rmax)
+    with cores_for(coding.dc.size):
+        _level_payloads(coding.dc, coding.r16.view(np.uint16), coding.table, 2.0 ** coding.kr,
+                        np.ascontiguousarray(nrm, np.uint8), np.ascontiguousarray(xy[:, 1]),
+                        np.ascontiguousarray(xy[:, 0]), t, level, new_only, pd, pr, pn, dmax, rmax)
     flags = NEW_ONLY if new_only else 0
     head_d = bytes([VERSION_2, flags | LOG8, int(coding.ed) & 0xFF])
     head_r = bytes([VERSION_2, flags, int(coding.kr) & 0xFF])

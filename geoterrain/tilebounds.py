@@ -17,6 +17,7 @@ from numba import njit, prange
 from geoterrain.bintree import main_diagonal_nb
 from geoterrain.bounds import cell_rows_nb, check_grid
 from geoterrain.grid import footprint_counts
+from geoterrain.threads import cores_for
 
 __all__ = ["TileBounds", "tile_errors"]
 
@@ -214,7 +215,8 @@ def tile_errors(
         if L == 0:
             mixed = np.zeros((nt * cpt, nt * cpt), bool)
         else:
-            mixed = _level_field_nb(zf, vb, 1 << L, E)
+            with cores_for(zf.size):  # small grids on one thread (threads.py)
+                mixed = _level_field_nb(zf, vb, 1 << L, E)
         err = closed_blocks(E, S, np.maximum)
         m4 = mixed.reshape(nt, cpt, nt, cpt)
         err = np.where(m4.any(axis=(1, 3)), np.inf, err)
@@ -228,7 +230,8 @@ def tile_errors(
         bnd = np.where(border, np.inf, bnd)
         nval = nvalid[L]
         if L == 0:
-            box = _tile_boxes_nb(zf, xc, yc, vb, S)
+            with cores_for(zf.size):
+                box = _tile_boxes_nb(zf, xc, yc, vb, S)
         else:  # a parent's closed footprint is the union of its 4 children's
             b4 = per_level[-1][2].reshape(6, nt, 2, nt, 2)
             box = np.empty((6, nt, nt))

@@ -1,0 +1,45 @@
+"""How many cores the compiled (numba ``prange``) kernels use for a piece of work.
+
+Measured on this 2-core machine (``vertex_errors``, ms, 2 threads / 1 thread): quiet,
+threads win at every size (65²: 0.08 / 0.10, 1025²: 20 / 33, 2049²: 92 / 153); with
+another process busy on one core they lose, most on small grids where each parallel
+region is short and its barrier waits for a descheduled thread (65²: 0.42 / 0.08,
+1025²: 80 / 34, 2049²: 222 / 159). Small pieces of work (a quantized-mesh tile, a small
+DEM: below ``PARALLEL_MIN_SAMPLES``, about 724²) run on one thread, where threads gain
+little and can lose 5×; larger ones on every core, which wins 1.6× on an idle machine
+and loses 1.4–2.4× on one with a core taken.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numba
+
+__all__ = ["PARALLEL_MIN_SAMPLES", "cores_for"]
+
+PARALLEL_MIN_SAMPLES = 1 << 19  # about 724²: below it, one thread
+
+
+@contextmanager
+def cores_for(samples: int) -> Iterator[None]:
+    """Run the compiled kernels called inside on one thread when ``samples`` is below
+    :data:`PARALLEL_MIN_SAMPLES`, else on numba's threads (the setting is per thread,
+    restored on exit; results never depend on it).
+
+    Examples
+    --------
+    >>> with cores_for(100):
+    ...     numba.get_num_threads()
+    1
+    """
+    if samples >= PARALLEL_MIN_SAMPLES:
+        yield
+        return
+    n = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(n)
