@@ -46,10 +46,10 @@ from collections.abc import Callable
 
 import numpy as np
 import zstandard
-from numba import njit, prange
 
 from geoterrain import zstdsafe
 from geoterrain.grid import footprint_counts, level_tiles
+from geoterrain.predict import cubic_child, fill_level, linear_child, predict, tile_zigzag
 from geoterrain.quantize import Quantizer, codes_to_heights, roundtrip, valid_codes
 from geoterrain.symbols import (
     PACK_BITS,
@@ -78,226 +78,6 @@ __all__ = [
 BLOB_VERSION = 1
 _HEADER = 4
 _MASK_ALL_VALID, _MASK_ALL_INVALID, _MASK_STORED = 0, 1, 2
-
-# --------------------------------------------------------------------------- helpers
-
-
-def _mean2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """floor((a + b) / 2) for int64 without overflow."""
-    return (a >> 1) + (b >> 1) + (a & b & 1)
-
-
-def _predict(c: np.ndarray, period: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Predictions of the new samples from coarse codes ``c`` (last two axes = grid).
-
-    Returns class A (row midpoints, (M, M-1)), B (column midpoints, (M-1, M)) and C (cell
-    centres, (M-1, M-1)) - the U(.) operator of seed 000 section 2.9.
-
-    ``period=None``: linear, floor-means of the 2 axis neighbours; for C the mean of the
-    two diagonal means. ``period=P``: 4-point interpolatory (Kobbelt / Dyn-Levin-Gregory)
-    weights (-1, 9, 9, -1)/16 per axis, separable for C, rounded; a midpoint between
-    coarse k and k+1 falls back to linear (0, 8, 8, 0)/16 when k-1 or k+2 lies outside the
-    parent tile, i.e. when k % P == 0 or (k + 1) % P == 0 (P = parent tile intervals).
-    """
-    if period is None:
-        pa = _mean2(c[..., :, :-1], c[..., :, 1:])
-        pb = _mean2(c[..., :-1, :], c[..., 1:, :])
-        pc = _mean2(
-            _mean2(c[..., :-1, :-1], c[..., 1:, 1:]), _mean2(c[..., :-1, 1:], c[..., 1:, :-1])
-        )
-        return pa, pb, pc
-    na = _interp16(c, -1, period)
-    pa = (na + 8) >> 4
-    pb = (_interp16(c, -2, period) + 8) >> 4
-    pc = (_interp16(na, -2, period) + 128) >> 8
-    return pa, pb, pc
-
-
-def _interp16(c: np.ndarray, axis: int, period: int) -> np.ndarray:
-    """16 x the midpoint interpolation along ``axis`` (cubic inside tiles, else linear)."""
-    c = np.moveaxis(c, axis, -1)
-    m = c.shape[-1]
-    out = 8 * (c[..., :-1] + c[..., 1:])
-    if m >= 4:
-        k = np.arange(1, m - 2)
-        ok = (k % period != 0) & ((k + 1) % period != 0)
-        cub = 9 * (c[..., 1:-2] + c[..., 2:-1]) - c[..., :-3] - c[..., 3:]
-        out[..., 1:-1] = np.where(ok, cub, out[..., 1:-1])
-    return np.moveaxis(out, -1, axis)
-
-
-@njit(cache=True, nogil=True)
-def _mid16(p, i0, j0, di, dj, k, m):
-    """16 × the midpoint between samples k and k + 1 of the line (i0 + di·s, j0 + dj·s) of
-    ``p``: cubic (−1, 9, 9, −1) where k − 1 and k + 2 exist in the tile, else linear."""
-    a = p[i0 + di * k, j0 + dj * k]
-    b = p[i0 + di * (k + 1), j0 + dj * (k + 1)]
-    if 1 <= k <= m - 3:
-        return 9 * (a + b) - p[i0 + di * (k - 1), j0 + dj * (k - 1)] \
-            - p[i0 + di * (k + 2), j0 + dj * (k + 2)]
-    return 8 * (a + b)
-
-
-@njit(cache=True, nogil=True)
-def _cubic_child(parent, oy, ox, h, r, out):
-    """One child quadrant (rows oy.., columns ox.. of ``parent``) from the cubic
-    predictions of :func:`_predict` (``period`` = the parent's intervals) plus the
-    residuals ``r`` (classes A, B, C in raster order), computed only where needed."""
-    m = parent.shape[0]
-    for a in range(h + 1):
-        for b in range(h + 1):
-            out[2 * a, 2 * b] = parent[oy + a, ox + b]
-    n = 0
-    for a in range(h + 1):  # A: row midpoints
-        for b in range(h):
-            out[2 * a, 2 * b + 1] = ((_mid16(parent, oy + a, 0, 0, 1, ox + b, m) + 8) >> 4) + r[n]
-            n += 1
-    for a in range(h):  # B: column midpoints
-        for b in range(h + 1):
-            out[2 * a + 1, 2 * b] = ((_mid16(parent, 0, ox + b, 1, 0, oy + a, m) + 8) >> 4) + r[n]
-            n += 1
-    for a in range(h):  # C: the column interpolation of the row midpoints, unrounded
-        k = oy + a
-        for b in range(h):
-            q = ox + b
-            n1 = _mid16(parent, k, 0, 0, 1, q, m)
-            n2 = _mid16(parent, k + 1, 0, 0, 1, q, m)
-            if 1 <= k <= m - 3:
-                v = 9 * (n1 + n2) - _mid16(parent, k - 1, 0, 0, 1, q, m) \
-                    - _mid16(parent, k + 2, 0, 0, 1, q, m)
-            else:
-                v = 8 * (n1 + n2)
-            out[2 * a + 1, 2 * b + 1] = ((v + 128) >> 8) + r[n]
-            n += 1
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _fmean(a, b):
-    return (a >> 1) + (b >> 1) + (a & b & 1)  # floor((a + b) / 2), as _mean2
-
-
-@njit(cache=True, nogil=True)
-def _linear_child(c, h, r, out):
-    """:func:`_cubic_child` for the linear predictions of :func:`_predict` on the
-    quadrant ``c`` ((h + 1)², the parent's samples the child holds)."""
-    for a in range(h + 1):
-        for b in range(h + 1):
-            out[2 * a, 2 * b] = c[a, b]
-    n = 0
-    for a in range(h + 1):
-        for b in range(h):
-            out[2 * a, 2 * b + 1] = _fmean(c[a, b], c[a, b + 1]) + r[n]
-            n += 1
-    for a in range(h):
-        for b in range(h + 1):
-            out[2 * a + 1, 2 * b] = _fmean(c[a, b], c[a + 1, b]) + r[n]
-            n += 1
-    for a in range(h):
-        for b in range(h):
-            out[2 * a + 1, 2 * b + 1] = _fmean(_fmean(c[a, b], c[a + 1, b + 1]),
-                                               _fmean(c[a, b + 1], c[a + 1, b])) + r[n]
-            n += 1
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _c16(d, s2, i0, j0, di, dj, k, mc, P):
-    """16 × the midpoint of coarse samples k, k + 1 on the coarse line (i0 + di·k,
-    j0 + dj·k) of the level whose coarse samples are ``d[::s2, ::s2]`` (``mc`` a side):
-    the rule of :func:`_interp16` (cubic away from parent-tile borders, else linear)."""
-    a = d[(i0 + di * k) * s2, (j0 + dj * k) * s2]
-    b = d[(i0 + di * (k + 1)) * s2, (j0 + dj * (k + 1)) * s2]
-    if mc >= 4 and 1 <= k <= mc - 3 and k % P != 0 and (k + 1) % P != 0:
-        return 9 * (a + b) - d[(i0 + di * (k - 1)) * s2, (j0 + dj * (k - 1)) * s2] \
-            - d[(i0 + di * (k + 2)) * s2, (j0 + dj * (k + 2)) * s2]
-    return 8 * (a + b)
-
-
-@njit(cache=True, nogil=True)
-def _pred(d, s, i, j, P):
-    """The prediction U(.) of :func:`_predict` at sample (i, j) (one of i, j odd) of the
-    level ``d[::s, ::s]`` from its coarse samples; ``P`` = 0: linear floor-means, else
-    cubic with period ``P`` (seed 000 §2.9)."""
-    s2 = 2 * s
-    ci, cj = i >> 1, j >> 1
-    if P == 0:
-        if i & 1 == 0:  # A: row midpoint
-            return _fmean(d[ci * s2, cj * s2], d[ci * s2, (cj + 1) * s2])
-        if j & 1 == 0:  # B: column midpoint
-            return _fmean(d[ci * s2, cj * s2], d[(ci + 1) * s2, cj * s2])
-        return _fmean(_fmean(d[ci * s2, cj * s2], d[(ci + 1) * s2, (cj + 1) * s2]),
-                      _fmean(d[ci * s2, (cj + 1) * s2], d[(ci + 1) * s2, cj * s2]))
-    mc = (d.shape[0] - 1) // s2 + 1
-    if i & 1 == 0:
-        return (_c16(d, s2, ci, 0, 0, 1, cj, mc, P) + 8) >> 4
-    if j & 1 == 0:
-        return (_c16(d, s2, 0, cj, 1, 0, ci, mc, P) + 8) >> 4
-    k = ci  # C: the row interpolation of the column-direction midpoints, unrounded
-    n1 = _c16(d, s2, k, 0, 0, 1, cj, mc, P)
-    n2 = _c16(d, s2, k + 1, 0, 0, 1, cj, mc, P)
-    if mc >= 4 and 1 <= k <= mc - 3 and k % P != 0 and (k + 1) % P != 0:
-        v = 9 * (n1 + n2) - _c16(d, s2, k - 1, 0, 0, 1, cj, mc, P) \
-            - _c16(d, s2, k + 2, 0, 0, 1, cj, mc, P)
-    else:
-        v = 8 * (n1 + n2)
-    return (v + 128) >> 8
-
-
-@njit(cache=True, nogil=True)
-def _fill_level(d, valid, s, P):
-    """In place: invalid new samples of level ``d[::s, ::s]`` take their prediction."""
-    m = (d.shape[0] - 1) // s + 1
-    for i in range(m):
-        for j in range(m):
-            if (i & 1 or j & 1) and not valid[i * s, j * s]:
-                d[i * s, j * s] = _pred(d, s, i, j, P)
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def _tile_zigzag(d, s, h, P, zz, zmax, esc):
-    """Zigzagged residuals of every tile of level ``d[::s, ::s]`` into ``zz`` (nt, nt,
-    L): per tile, classes A ((h + 1) × h), B (h × (h + 1)) and C (h × h) in raster
-    order, as the decoder reads them (:func:`_cubic_child`, :func:`_linear_child`).
-    Per tile also the largest value and, for each k of ``PACK_BITS`` (1, 2, 4), the
-    count of values ≥ 2^k − 1 (the escapes of :func:`pack_symbols`)."""
-    nt = zz.shape[0]
-    for ty in prange(nt):  # rows of tiles on every core: each writes its own tiles
-        for tx in range(nt):
-            _one_tile_zigzag(d, s, h, P, zz, ty, tx)
-            zm = np.uint64(0)
-            e1, e3, e15 = 0, 0, 0
-            for u in zz[ty, tx]:
-                zm = max(zm, u)
-                e1 += u >= 1
-                e3 += u >= 3
-                e15 += u >= 15
-            zmax[ty, tx] = zm
-            esc[ty, tx, 0], esc[ty, tx, 1], esc[ty, tx, 2] = e1, e3, e15
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _one_tile_zigzag(d, s, h, P, zz, ty, tx):
-    # one tile of _tile_zigzag
-    n = 0
-    i0, j0 = ty * 2 * h, tx * 2 * h
-    for a in range(h + 1):
-        for b in range(h):
-            i, j = i0 + 2 * a, j0 + 2 * b + 1
-            r = d[i * s, j * s] - _pred(d, s, i, j, P)
-            zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
-            n += 1
-    for a in range(h):
-        for b in range(h + 1):
-            i, j = i0 + 2 * a + 1, j0 + 2 * b
-            r = d[i * s, j * s] - _pred(d, s, i, j, P)
-            zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
-            n += 1
-    for a in range(h):
-        for b in range(h):
-            i, j = i0 + 2 * a + 1, j0 + 2 * b + 1
-            r = d[i * s, j * s] - _pred(d, s, i, j, P)
-            zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
-            n += 1
-
 
 def _forward_fill(codes: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """Invalid entries (raster order) repeat the previous valid code; leading ones the first."""
@@ -349,7 +129,7 @@ def _resolve_predictor(
     qq, vv = q[a : a + crop, a : a + crop], valid[a : a + crop, a : a + crop]
     bits = []
     for period in (None, 1 << te):
-        preds = _predict(qq[::2, ::2], period)
+        preds = predict(qq[::2, ::2], period)
         h = 0.0
         for sl, p in zip(_CLASSES, preds, strict=True):
             zz = zigzag(np.ascontiguousarray(qq[sl] - p)[vv[sl]])
@@ -359,8 +139,6 @@ def _resolve_predictor(
         bits.append(h)
     return bits[1] < bits[0]
 
-
-assert PACK_BITS == (1, 2, 4), "_tile_zigzag counts the escapes of k = 1, 2 and 4"
 
 _CLASSES = (
     (slice(0, None, 2), slice(1, None, 2)),
@@ -399,8 +177,8 @@ def _decoded_codes(d: np.ndarray, valid: np.ndarray, te: int, lmax: int, cubic: 
     """In place on the codes ``d``: what tile decoding gives at invalid samples."""
     s = 1 << lmax
     d[::s, ::s] = _forward_fill(d[::s, ::s], valid[::s, ::s])
-    for lev in range(lmax - 1, -1, -1):  # compiled: the rule of _predict, in place
-        _fill_level(d, valid, 1 << lev, (1 << te) if cubic else 0)
+    for lev in range(lmax - 1, -1, -1):  # compiled: the rule of predict, in place
+        fill_level(d, valid, 1 << lev, (1 << te) if cubic else 0)
     return d
 
 
@@ -459,7 +237,7 @@ def encode_pyramid(
     progress : callable, optional
         ``progress(done_levels, total_levels)`` after each level.
     predictor : {"auto", "linear", "cubic"}
-        U(.) of the residuals (see :func:`_predict`): linear floor-means, or 4-point
+        U(.) of the residuals (:mod:`geoterrain.predict`): linear floor-means, or 4-point
         interpolatory weights (better on rough, high-entropy data); ``"auto"`` picks the
         one with the smaller estimated residual entropy. Recorded in every blob.
 
@@ -514,7 +292,7 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress) -> None:
         zz = np.empty((nt, nt, 2 * h * (h + 1) + h * h), np.uint64)
         zmax = np.empty((nt, nt), np.uint64)
         esc = np.empty((nt, nt, len(PACK_BITS)), np.int64)  # the kernel counts k = 1, 2, 4
-        _tile_zigzag(d, s, h, period or 0, zz, zmax, esc)  # the residuals of _predict
+        tile_zigzag(d, s, h, period or 0, zz, zmax, esc)  # the residuals of predict
         # k-bit packs only for the tiles where choose_stream would try them
         packs = {}
         for c, k in enumerate(PACK_BITS):
@@ -714,8 +492,8 @@ def decode_tile(
     r = unzigzag(read_stream(body, w, 3 * h * h + 2 * h))
     out = np.empty((tt, tt), np.int64)
     if blob[1] & 8:  # cubic: the parent tile's own predictions (with its edge fallbacks)
-        _cubic_child(np.ascontiguousarray(parent), py * h, px * h, h, r, out)
+        cubic_child(np.ascontiguousarray(parent), py * h, px * h, h, r, out)
         return out
     c = np.ascontiguousarray(parent[py * h: py * h + h + 1, px * h: px * h + h + 1])
-    _linear_child(c, h, r, out)
+    linear_child(c, h, r, out)
     return out

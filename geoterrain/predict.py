@@ -1,0 +1,285 @@
+"""The prediction U(.) of the height codec (seed 000 §2.9, Losasso & Hoppe): the new
+samples of a level from the coarser level's decoded codes.
+
+One rule, three forms that give the same integers:
+
+- :func:`predict`: numpy on a whole coarse grid (the codec's choice of predictor);
+- :func:`fill_level` and :func:`tile_zigzag`: compiled, a whole level at a time (the
+  encoder's void fill and residuals);
+- :func:`cubic_child` and :func:`linear_child`: compiled, one child tile from its parent
+  tile (the decoder).
+
+Linear: floor-means of the 2 axis neighbours (row and column midpoints) or of the two
+diagonal means (cell centres). Cubic: 4-point interpolatory weights (−1, 9, 9, −1)/16 per
+axis, separable for the centres, rounded, falling back to linear next to a parent-tile
+border (so a tile never reads outside its parent). Arithmetic is int64 modulo 2**64.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from geoterrain.symbols import PACK_BITS
+
+__all__ = ["cubic_child", "fill_level", "linear_child", "predict", "tile_zigzag"]
+
+assert PACK_BITS == (1, 2, 4), "tile_zigzag counts the escapes of k = 1, 2 and 4"
+
+
+def _mean2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """floor((a + b) / 2) for int64 without overflow."""
+    return (a >> 1) + (b >> 1) + (a & b & 1)
+
+
+def predict(c: np.ndarray, period: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Predictions of the new samples from coarse codes ``c`` (last two axes = grid).
+
+    Returns class A (row midpoints, (M, M-1)), B (column midpoints, (M-1, M)) and C (cell
+    centres, (M-1, M-1)) - the U(.) operator of seed 000 section 2.9.
+
+    ``period=None``: linear, floor-means of the 2 axis neighbours; for C the mean of the
+    two diagonal means. ``period=P``: 4-point interpolatory (Kobbelt / Dyn-Levin-Gregory)
+    weights (-1, 9, 9, -1)/16 per axis, separable for C, rounded; a midpoint between
+    coarse k and k+1 falls back to linear (0, 8, 8, 0)/16 when k-1 or k+2 lies outside the
+    parent tile, i.e. when k % P == 0 or (k + 1) % P == 0 (P = parent tile intervals).
+
+    Examples
+    --------
+    >>> pa, pb, pc = predict(np.array([[0, 4], [8, 13]], np.int64))
+    >>> pa.tolist(), pb.tolist(), pc.tolist()
+    ([[2], [10]], [[4, 8]], [[6]])
+    """
+    if period is None:
+        pa = _mean2(c[..., :, :-1], c[..., :, 1:])
+        pb = _mean2(c[..., :-1, :], c[..., 1:, :])
+        pc = _mean2(
+            _mean2(c[..., :-1, :-1], c[..., 1:, 1:]), _mean2(c[..., :-1, 1:], c[..., 1:, :-1])
+        )
+        return pa, pb, pc
+    na = _interp16(c, -1, period)
+    pa = (na + 8) >> 4
+    pb = (_interp16(c, -2, period) + 8) >> 4
+    pc = (_interp16(na, -2, period) + 128) >> 8
+    return pa, pb, pc
+
+
+def _interp16(c: np.ndarray, axis: int, period: int) -> np.ndarray:
+    """16 x the midpoint interpolation along ``axis`` (cubic inside tiles, else linear)."""
+    c = np.moveaxis(c, axis, -1)
+    m = c.shape[-1]
+    out = 8 * (c[..., :-1] + c[..., 1:])
+    if m >= 4:
+        k = np.arange(1, m - 2)
+        ok = (k % period != 0) & ((k + 1) % period != 0)
+        cub = 9 * (c[..., 1:-2] + c[..., 2:-1]) - c[..., :-3] - c[..., 3:]
+        out[..., 1:-1] = np.where(ok, cub, out[..., 1:-1])
+    return np.moveaxis(out, -1, axis)
+
+
+@njit(cache=True, nogil=True)
+def _mid16(p, i0, j0, di, dj, k, m):
+    """16 × the midpoint between samples k and k + 1 of the line (i0 + di·s, j0 + dj·s) of
+    ``p``: cubic (−1, 9, 9, −1) where k − 1 and k + 2 exist in the tile, else linear."""
+    a = p[i0 + di * k, j0 + dj * k]
+    b = p[i0 + di * (k + 1), j0 + dj * (k + 1)]
+    if 1 <= k <= m - 3:
+        return 9 * (a + b) - p[i0 + di * (k - 1), j0 + dj * (k - 1)] \
+            - p[i0 + di * (k + 2), j0 + dj * (k + 2)]
+    return 8 * (a + b)
+
+
+@njit(cache=True, nogil=True)
+def cubic_child(parent, oy, ox, h, r, out):
+    """One child quadrant (rows oy.., columns ox.. of ``parent``) from the cubic
+    predictions of :func:`predict` (``period`` = the parent's intervals) plus the
+    residuals ``r`` (classes A, B, C in raster order), computed only where needed.
+
+    Examples
+    --------
+    >>> parent = np.arange(25, dtype=np.int64).reshape(5, 5) * 16  # a plane
+    >>> out = np.empty((5, 5), np.int64)
+    >>> cubic_child(parent, 0, 0, 2, np.zeros(16, np.int64), out)
+    >>> out[1].tolist()  # midway between rows 0 and 1 of the parent
+    [40, 48, 56, 64, 72]
+    """
+    m = parent.shape[0]
+    for a in range(h + 1):
+        for b in range(h + 1):
+            out[2 * a, 2 * b] = parent[oy + a, ox + b]
+    n = 0
+    for a in range(h + 1):  # A: row midpoints
+        for b in range(h):
+            out[2 * a, 2 * b + 1] = ((_mid16(parent, oy + a, 0, 0, 1, ox + b, m) + 8) >> 4) + r[n]
+            n += 1
+    for a in range(h):  # B: column midpoints
+        for b in range(h + 1):
+            out[2 * a + 1, 2 * b] = ((_mid16(parent, 0, ox + b, 1, 0, oy + a, m) + 8) >> 4) + r[n]
+            n += 1
+    for a in range(h):  # C: the column interpolation of the row midpoints, unrounded
+        k = oy + a
+        for b in range(h):
+            q = ox + b
+            n1 = _mid16(parent, k, 0, 0, 1, q, m)
+            n2 = _mid16(parent, k + 1, 0, 0, 1, q, m)
+            if 1 <= k <= m - 3:
+                v = 9 * (n1 + n2) - _mid16(parent, k - 1, 0, 0, 1, q, m) \
+                    - _mid16(parent, k + 2, 0, 0, 1, q, m)
+            else:
+                v = 8 * (n1 + n2)
+            out[2 * a + 1, 2 * b + 1] = ((v + 128) >> 8) + r[n]
+            n += 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _fmean(a, b):
+    return (a >> 1) + (b >> 1) + (a & b & 1)  # floor((a + b) / 2), as _mean2
+
+
+@njit(cache=True, nogil=True)
+def linear_child(c, h, r, out):
+    """:func:`cubic_child` for the linear predictions of :func:`predict` on the
+    quadrant ``c`` ((h + 1)², the parent's samples the child holds).
+
+    Examples
+    --------
+    >>> out = np.empty((3, 3), np.int64)
+    >>> linear_child(np.array([[0, 4], [8, 13]], np.int64), 1, np.zeros(5, np.int64), out)
+    >>> out.tolist()
+    [[0, 2, 4], [4, 6, 8], [8, 10, 13]]
+    """
+    for a in range(h + 1):
+        for b in range(h + 1):
+            out[2 * a, 2 * b] = c[a, b]
+    n = 0
+    for a in range(h + 1):
+        for b in range(h):
+            out[2 * a, 2 * b + 1] = _fmean(c[a, b], c[a, b + 1]) + r[n]
+            n += 1
+    for a in range(h):
+        for b in range(h + 1):
+            out[2 * a + 1, 2 * b] = _fmean(c[a, b], c[a + 1, b]) + r[n]
+            n += 1
+    for a in range(h):
+        for b in range(h):
+            out[2 * a + 1, 2 * b + 1] = _fmean(_fmean(c[a, b], c[a + 1, b + 1]),
+                                               _fmean(c[a, b + 1], c[a + 1, b])) + r[n]
+            n += 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _c16(d, s2, i0, j0, di, dj, k, mc, P):
+    """16 × the midpoint of coarse samples k, k + 1 on the coarse line (i0 + di·k,
+    j0 + dj·k) of the level whose coarse samples are ``d[::s2, ::s2]`` (``mc`` a side):
+    the rule of :func:`_interp16` (cubic away from parent-tile borders, else linear)."""
+    a = d[(i0 + di * k) * s2, (j0 + dj * k) * s2]
+    b = d[(i0 + di * (k + 1)) * s2, (j0 + dj * (k + 1)) * s2]
+    if mc >= 4 and 1 <= k <= mc - 3 and k % P != 0 and (k + 1) % P != 0:
+        return 9 * (a + b) - d[(i0 + di * (k - 1)) * s2, (j0 + dj * (k - 1)) * s2] \
+            - d[(i0 + di * (k + 2)) * s2, (j0 + dj * (k + 2)) * s2]
+    return 8 * (a + b)
+
+
+@njit(cache=True, nogil=True)
+def _pred(d, s, i, j, P):
+    """The prediction U(.) of :func:`predict` at sample (i, j) (one of i, j odd) of the
+    level ``d[::s, ::s]`` from its coarse samples; ``P`` = 0: linear floor-means, else
+    cubic with period ``P`` (seed 000 §2.9)."""
+    s2 = 2 * s
+    ci, cj = i >> 1, j >> 1
+    if P == 0:
+        if i & 1 == 0:  # A: row midpoint
+            return _fmean(d[ci * s2, cj * s2], d[ci * s2, (cj + 1) * s2])
+        if j & 1 == 0:  # B: column midpoint
+            return _fmean(d[ci * s2, cj * s2], d[(ci + 1) * s2, cj * s2])
+        return _fmean(_fmean(d[ci * s2, cj * s2], d[(ci + 1) * s2, (cj + 1) * s2]),
+                      _fmean(d[ci * s2, (cj + 1) * s2], d[(ci + 1) * s2, cj * s2]))
+    mc = (d.shape[0] - 1) // s2 + 1
+    if i & 1 == 0:
+        return (_c16(d, s2, ci, 0, 0, 1, cj, mc, P) + 8) >> 4
+    if j & 1 == 0:
+        return (_c16(d, s2, 0, cj, 1, 0, ci, mc, P) + 8) >> 4
+    k = ci  # C: the row interpolation of the column-direction midpoints, unrounded
+    n1 = _c16(d, s2, k, 0, 0, 1, cj, mc, P)
+    n2 = _c16(d, s2, k + 1, 0, 0, 1, cj, mc, P)
+    if mc >= 4 and 1 <= k <= mc - 3 and k % P != 0 and (k + 1) % P != 0:
+        v = 9 * (n1 + n2) - _c16(d, s2, k - 1, 0, 0, 1, cj, mc, P) \
+            - _c16(d, s2, k + 2, 0, 0, 1, cj, mc, P)
+    else:
+        v = 8 * (n1 + n2)
+    return (v + 128) >> 8
+
+
+@njit(cache=True, nogil=True)
+def fill_level(d, valid, s, P):
+    """In place: invalid new samples of level ``d[::s, ::s]`` take their prediction
+    (``P`` = 0: linear, else cubic with period ``P``).
+
+    Examples
+    --------
+    >>> d = np.array([[0, 9, 4], [9, 9, 9], [8, 9, 13]], np.int64)
+    >>> fill_level(d, np.eye(3, dtype=bool) | np.eye(3, dtype=bool)[::-1], 1, 0)
+    >>> d.tolist()
+    [[0, 2, 4], [4, 9, 8], [8, 10, 13]]
+    """
+    m = (d.shape[0] - 1) // s + 1
+    for i in range(m):
+        for j in range(m):
+            if (i & 1 or j & 1) and not valid[i * s, j * s]:
+                d[i * s, j * s] = _pred(d, s, i, j, P)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def tile_zigzag(d, s, h, P, zz, zmax, esc):
+    """Zigzagged residuals of every tile of level ``d[::s, ::s]`` into ``zz`` (nt, nt,
+    L): per tile, classes A ((h + 1) × h), B (h × (h + 1)) and C (h × h) in raster
+    order, as the decoder reads them (:func:`cubic_child`, :func:`linear_child`).
+    Per tile also the largest value and, for each k of ``PACK_BITS`` (1, 2, 4), the
+    count of values ≥ 2^k − 1 (the escapes of :func:`pack_symbols`).
+
+    Examples
+    --------
+    >>> d = np.array([[0, 2, 4], [4, 7, 8], [8, 10, 13]], np.int64)
+    >>> zz, zmax = np.empty((1, 1, 5), np.uint64), np.empty((1, 1), np.uint64)
+    >>> tile_zigzag(d, 1, 1, 0, zz, zmax, np.empty((1, 1, 3), np.int64))
+    >>> zz[0, 0].tolist(), int(zmax[0, 0])  # residual +1 at the centre: zigzag 2
+    ([0, 0, 0, 0, 2], 2)
+    """
+    nt = zz.shape[0]
+    for ty in prange(nt):  # rows of tiles on every core: each writes its own tiles
+        for tx in range(nt):
+            _one_tile_zigzag(d, s, h, P, zz, ty, tx)
+            zm = np.uint64(0)
+            e1, e3, e15 = 0, 0, 0
+            for u in zz[ty, tx]:
+                zm = max(zm, u)
+                e1 += u >= 1
+                e3 += u >= 3
+                e15 += u >= 15
+            zmax[ty, tx] = zm
+            esc[ty, tx, 0], esc[ty, tx, 1], esc[ty, tx, 2] = e1, e3, e15
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _one_tile_zigzag(d, s, h, P, zz, ty, tx):
+    # one tile of tile_zigzag
+    n = 0
+    i0, j0 = ty * 2 * h, tx * 2 * h
+    for a in range(h + 1):
+        for b in range(h):
+            i, j = i0 + 2 * a, j0 + 2 * b + 1
+            r = d[i * s, j * s] - _pred(d, s, i, j, P)
+            zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
+            n += 1
+    for a in range(h):
+        for b in range(h + 1):
+            i, j = i0 + 2 * a + 1, j0 + 2 * b
+            r = d[i * s, j * s] - _pred(d, s, i, j, P)
+            zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
+            n += 1
+    for a in range(h):
+        for b in range(h):
+            i, j = i0 + 2 * a + 1, j0 + 2 * b + 1
+            r = d[i * s, j * s] - _pred(d, s, i, j, P)
+            zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
+            n += 1
