@@ -456,8 +456,21 @@ def stand_in_z(z: np.ndarray, valid: np.ndarray) -> float:
     >>> stand_in_z(np.array([[1.0, np.nan], [5.0, 100.0]]), np.array([[1, 0], [1, 0]], bool))
     3.0
     """
-    lo, hi, n = _valid_range_nb(np.asarray(z, dtype=np.float64), np.asarray(valid, bool))
+    lo, hi, n = valid_range(z, valid)
     return float(0.5 * (lo + hi)) if n else 0.0
+
+
+def valid_range(z: np.ndarray, valid: np.ndarray) -> tuple[float, float, int]:
+    """(min, max, count) of the finite valid samples of a 2-D grid, one compiled pass
+    without copying them ((inf, -inf, 0) when there are none).
+
+    Examples
+    --------
+    >>> valid_range(np.array([[1.0, np.nan], [5.0, -2.0]]), np.array([[1, 1], [1, 0]], bool))
+    (1.0, 5.0, 2)
+    """
+    lo, hi, n = _valid_range_nb(np.asarray(z, dtype=np.float64), np.asarray(valid, bool))
+    return float(lo), float(hi), int(n)
 
 
 @njit(cache=True, nogil=True)

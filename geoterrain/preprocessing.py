@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from geoterrain._version import __version__
-from geoterrain.bounds import stand_in_z, vertex_errors, vertex_radii
+from geoterrain.bounds import stand_in_z, valid_range, vertex_errors, vertex_radii
 from geoterrain.codec import decoded_heights, encode_pyramid
 from geoterrain.curvature import metric_bounds
 from geoterrain.exceptions import InputError, UsageError, exists_error
@@ -56,17 +56,6 @@ def _finite_max(a: np.ndarray) -> float:
     return float(_finite_max_nb(a))  # a float32 value is exact in float64
 
 
-@njit(cache=True, nogil=True)
-def _peak_abs(h, valid):
-    """max |h| over the valid samples (no copy of them)."""
-    peak = 0.0
-    for i in range(h.shape[0]):
-        for j in range(h.shape[1]):
-            if valid[i, j]:
-                peak = max(peak, abs(h[i, j]))
-    return peak
-
-
 def validate(r: Raster, z_scale: float | None) -> None:
     """Reject inputs that cannot give a correct store, with a one-line fix."""
     h, w = r.shape
@@ -75,7 +64,8 @@ def validate(r: Raster, z_scale: float | None) -> None:
     nvalid = int(r.valid.sum())
     if nvalid == 0:
         raise InputError(f"{r.path}: every sample is nodata; check the nodata value or the band")
-    peak = _peak_abs(r.heights, r.valid)
+    lo, hi, _ = valid_range(r.heights, r.valid)  # valid samples are finite (raster.py)
+    peak = max(abs(lo), abs(hi))
     if peak > ABSURD_HEIGHT and z_scale is None:
         why = f"{r.path}: heights reach {peak:.3g}, beyond ±{ABSURD_HEIGHT:.0e}; if they are real "
         raise InputError(why + "pass z_scale (e.g. 1), else set the right nodata or unit",

@@ -197,15 +197,20 @@ def _median_in_place(v: np.ndarray) -> float:
     return float((v[k - 1] + v[k]) / 2.0)  # np.median: the mean of the two middle values
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _rounded(x, step, offset):
+    """rint((x − offset) / step), 0 where that is not finite (:func:`heights_to_codes`)."""
+    r = np.rint((x - offset) / step)
+    return r if np.isfinite(r) else 0.0
+
+
 @njit(cache=True, nogil=True)
 def _roundtrip_error(v, step, offset):
     """max |offset + rint((x - offset)/step)·step − x| over ``v`` (the codes' decode, as
     :func:`codes_to_heights` of :func:`heights_to_codes`), and the largest |code|."""
     err, peak = 0.0, 0.0
     for x in v:
-        r = np.rint((x - offset) / step)
-        if not np.isfinite(r):
-            r = 0.0
+        r = _rounded(x, step, offset)
         peak = max(peak, abs(r))
         if abs(r) < 2.0**62:
             err = max(err, abs(offset + np.float64(np.int64(r)) * step - x))
@@ -271,9 +276,7 @@ def _roundtrip_nb(z, valid, mode, step, offset, out):
             elif mode == 2:
                 h = x
             else:
-                r = np.rint((x - offset) / step)
-                if not np.isfinite(r):
-                    r = 0.0
+                r = _rounded(x, step, offset)
                 peak = max(peak, abs(r))
                 h = offset + np.float64(np.int64(r)) * step
             out[i, j] = h if ok else np.nan
@@ -290,15 +293,18 @@ def roundtrip(z: np.ndarray, valid: np.ndarray, quantizer: Quantizer) -> np.ndar
     >>> roundtrip(np.array([[0.33, 1.0]]), np.array([[True, False]]), qz).round(6).tolist()
     [[0.4, nan]]
     """
+    return _whole_grid(_roundtrip_nb, np.float64, z, valid, quantizer)
+
+
+def _whole_grid(kernel, dtype, z, valid, quantizer: Quantizer) -> np.ndarray:
+    """Run ``kernel`` (:func:`_roundtrip_nb` or :func:`_codes_nb`) over ``z`` of any shape;
+    raise as :func:`heights_to_codes` does when a code is out of range."""
     z = np.asarray(z, np.float64)
     valid = np.asarray(valid, bool)
-    out = np.empty(z.shape, np.float64)
-    if quantizer.mode == "float":
-        mode = 1 if quantizer.float_bits == 32 else 2
-    else:
-        mode = 0
+    out = np.empty(z.shape, dtype)
+    mode = (1 if quantizer.float_bits == 32 else 2) if quantizer.mode == "float" else 0
     z2, v2, o2 = (a.reshape(1, -1) if a.ndim != 2 else a for a in (z, valid, out))
-    peak = _roundtrip_nb(z2, v2, mode, float(quantizer.step), float(quantizer.offset), o2)
+    peak = kernel(z2, v2, mode, float(quantizer.step), float(quantizer.offset), o2)
     if peak >= 2.0**62:
         raise ValueError("heights out of range for the quantizer step")
     return out
@@ -325,9 +331,7 @@ def _codes_nb(z, valid, mode, step, offset, out):
                 b = i64[0]
                 out[i, j] = b ^ 0x7FFFFFFFFFFFFFFF if b < 0 else b
             else:
-                r = np.rint((x - offset) / step)
-                if not np.isfinite(r):
-                    r = 0.0
+                r = _rounded(x, step, offset)
                 peak = max(peak, abs(r))
                 out[i, j] = np.int64(r) if abs(r) < 2.0**62 else 0
     return peak
@@ -341,12 +345,4 @@ def valid_codes(z: np.ndarray, valid: np.ndarray, quantizer: Quantizer) -> np.nd
     >>> valid_codes(np.array([[1.0, 7.0]]), np.array([[True, False]]), Quantizer("int")).tolist()
     [[1, 0]]
     """
-    z = np.asarray(z, np.float64)
-    valid = np.asarray(valid, bool)
-    out = np.empty(z.shape, np.int64)
-    mode = (1 if quantizer.float_bits == 32 else 2) if quantizer.mode == "float" else 0
-    z2, v2, o2 = (a.reshape(1, -1) if a.ndim != 2 else a for a in (z, valid, out))
-    peak = _codes_nb(z2, v2, mode, float(quantizer.step), float(quantizer.offset), o2)
-    if peak >= 2.0**62:
-        raise ValueError("heights out of range for the quantizer step")
-    return out
+    return _whole_grid(_codes_nb, np.int64, z, valid, quantizer)
