@@ -127,3 +127,24 @@ def test_other_gdal_formats(tmp_path, driver, ext):
         d.write(z, 1)
     t_, r = _roundtrip(src, tmp_path)
     assert t_.info()["grid"] == list(z.shape)
+
+
+def test_a_dem_too_big_for_memory_is_refused_in_one_line_by_its_frame(tmp_path, monkeypatch):
+    """The memory check counts the measured bytes per sample of the DEM's frame kind: a
+    geographic DEM needs more than a projected one of the same size, and the refusal is
+    one line that names the fix, with no store written."""
+    import geoterrain.raster as R
+    from geoterrain.exceptions import InputError
+
+    z = np.arange(64 * 64, dtype=np.float32).reshape(64, 64)
+    proj = write_tif(tmp_path / "utm.tif", z)
+    geo = write_tif(tmp_path / "geo.tif", z, crs="EPSG:4326", origin=(10.0, 47.0),
+                    spacing=1 / 3600)
+    need = {k: 64 * 64 * b for k, b in R.PREPROCESS_BYTES_PER_SAMPLE.items()}
+    assert need["geographic"] > need["projected"]
+    monkeypatch.setattr(R, "available_memory", lambda: need["projected"])
+    R.read_raster(proj)  # fits exactly
+    with pytest.raises(InputError) as e:
+        geoterrain.preprocess(geo, tmp_path / "geo.geoterrain")
+    assert "GiB to preprocess" in str(e.value) and "\n" not in str(e.value)
+    assert not list(tmp_path.glob("*.geoterrain")) and not list(tmp_path.glob(".*partial*"))
