@@ -56,8 +56,10 @@ from geoterrain.symbols import (
     UINTS,
     choose_stream,
     pack_symbols,
+    packed_is_tried,
     pick_stream,
     read_stream,
+    shuffled_streams,
     stream_candidates,
     unzigzag,
     zigzag,
@@ -296,7 +298,7 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress) -> None:
         # k-bit packs only for the tiles where choose_stream would try them
         packs = {}
         for c, k in enumerate(PACK_BITS):
-            ys, xs = np.nonzero(esc[..., c] * 4 <= zz.shape[2])
+            ys, xs = np.nonzero(packed_is_tried(esc[..., c], zz.shape[2]))
             rows = {}
             if len(ys):
                 packed, _ = pack_symbols(zz[ys, xs], k)
@@ -305,7 +307,7 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress) -> None:
             packs[k] = (rows, esc[..., c])
         vt = level_tiles(valid, te, lev)
         nvalid = vt.sum(axis=(2, 3))
-        bulk = _shuffled_streams(zz, zmax, esc, (counts[lev] > 0) & (nvalid == tt * tt))
+        bulk = shuffled_streams(zz, zmax, esc, (counts[lev] > 0) & (nvalid == tt * tt))
 
         keys, heads, payloads, pending = [], [], [], []
         for y, x in zip(*np.nonzero(counts[lev]), strict=True):
@@ -344,31 +346,6 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress) -> None:
         del zz, packs, vt
         if progress is not None:
             progress(lmax - lev + 1, lmax + 1)
-
-
-def _shuffled_streams(zz, zmax, esc, where) -> dict:
-    """The streams :func:`choose_stream` returns without comparing anything, built for
-    many tiles at once: tiles of ``where`` whose values are all 0 (width 0) or where no
-    k-bit pack is tried (more than one escape per 4 samples): the byte-shuffled values
-    at their width. Returns {(y, x): (code, stream)}."""
-    zmax = zmax.astype(np.uint64)
-    width = np.select([zmax == 0, zmax < 2**8, zmax < 2**16, zmax < 2**32], [0, 1, 2, 4], 8)
-    none = ~(esc * 4 <= zz.shape[2]).any(axis=2)
-    out: dict = {}
-    for w in (0, 1, 2, 4, 8):
-        ys, xs = np.nonzero(where & (width == w) & (none | (w == 0)))
-        if not len(ys):
-            continue
-        if w == 0:
-            rows = [b""] * len(ys)
-        else:  # all byte 0s, then all byte 1s, ... (symbols.shuffle), row by row
-            a = zz[ys, xs].astype(np.dtype(UINTS[w]).newbyteorder("<"))
-            a = np.ascontiguousarray(a.view(np.uint8).reshape(len(ys), -1, w)
-                                     .transpose(0, 2, 1)).reshape(len(ys), -1)
-            rows = [r.tobytes() for r in a]
-        out.update(zip(zip(ys.tolist(), xs.tolist(), strict=True),
-                       ((w, r) for r in rows), strict=True))
-    return out
 
 
 _TLS = threading.local()

@@ -116,15 +116,72 @@ def choose_stream(zz: np.ndarray, zmax: int, packs: dict,
     return pick_stream(cands, [len(probe.compress(c[1])) for c in cands])
 
 
+def packed_is_tried(escapes, count):
+    """Whether a k-bit packed stream is a candidate: at most one escape per 4 samples,
+    else it is never smaller (numbers or arrays).
+
+    Examples
+    --------
+    >>> packed_is_tried(3, 12), packed_is_tried(4, 12)
+    (True, False)
+    """
+    return escapes * 4 <= count
+
+
+def byte_widths(zmax: np.ndarray) -> np.ndarray:
+    """:func:`byte_width` of every value of an array of maxima.
+
+    Examples
+    --------
+    >>> byte_widths(np.array([0, 255, 256, 2**40], np.uint64)).tolist()
+    [0, 1, 2, 8]
+    """
+    zmax = np.asarray(zmax, np.uint64)
+    return np.select([zmax == 0, zmax < 2**8, zmax < 2**16, zmax < 2**32], [0, 1, 2, 4], 8)
+
+
+def shuffled_streams(zz: np.ndarray, zmax: np.ndarray, esc: np.ndarray,
+                     where: np.ndarray) -> dict:
+    """What :func:`choose_stream` returns without comparing anything, for many tiles at
+    once: tiles of ``where`` whose values are all 0, or for which no packed stream is
+    tried (``esc[..., c]``: the escapes of ``PACK_BITS[c]``), get their byte-shuffled
+    values at their width. ``zz`` (ny, nx, K). Returns {(y, x): (code, stream)}.
+
+    Examples
+    --------
+    >>> zz = np.array([[[0, 0], [300, 1]]], np.uint64)  # (1, 2, 2)
+    >>> esc = np.array([[[0, 0, 0], [2, 1, 1]]])
+    >>> s = shuffled_streams(zz, zz.max(axis=2), esc, np.ones((1, 2), bool))
+    >>> s[(0, 0)], s[(0, 1)][0]
+    ((0, b''), 2)
+    """
+    width = byte_widths(zmax)
+    none = ~packed_is_tried(esc, zz.shape[2]).any(axis=2)
+    out: dict = {}
+    for w in (0, 1, 2, 4, 8):
+        ys, xs = np.nonzero(where & (width == w) & (none | (w == 0)))
+        if not len(ys):
+            continue
+        if w == 0:
+            rows = [b""] * len(ys)
+        else:  # all byte 0s, then all byte 1s, ... (:func:`shuffle`), row by row
+            a = zz[ys, xs].astype(np.dtype(UINTS[w]).newbyteorder("<"))
+            a = np.ascontiguousarray(a.view(np.uint8).reshape(len(ys), -1, w)
+                                     .transpose(0, 2, 1)).reshape(len(ys), -1)
+            rows = [r.tobytes() for r in a]
+        out.update(zip(zip(ys.tolist(), xs.tolist(), strict=True),
+                       ((w, r) for r in rows), strict=True))
+    return out
+
+
 def stream_candidates(zz: np.ndarray, zmax: int, packs: dict) -> list[tuple[int, bytes]]:
     """The streams :func:`choose_stream` compares, the shuffled one first: (code, bytes)."""
     w = byte_width(zmax)
     out = [(w, shuffle(zz, w))]
     if w == 0:
         return out
-    # packed candidates with at most one escape per 4 samples (else never smaller)
     for k, (packed, n) in packs.items():
-        if int(n) * 4 > zz.size:
+        if not packed_is_tried(int(n), zz.size):
             continue
         m = (1 << k) - 1
         if zmax < m:  # no escapes: the packed symbols say everything
