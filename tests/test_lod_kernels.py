@@ -182,3 +182,45 @@ def test_culling_keeps_every_triangle_over_a_sample_in_the_frustum(seed, t, u):
         plane = np.append(n, w)[None]
         kept, _, _ = emit.cull_compact(faces, tri, plane, lvl, eye, 2 * t)
         assert len(kept) == (1 if drawn else 0)
+
+
+def _oriented(mesh) -> dict:
+    """Each triangle as its three grid samples, rotated to start at the smallest (the
+    winding kept), mapped to its level."""
+    if mesh.n_cells == 0:
+        return {}
+    ij = np.asarray(mesh.point_data["grid_ij"]).astype(np.int64)
+    k = (ij[:, 0] << 32) + ij[:, 1]
+    f = k[np.asarray(mesh.regular_faces, np.int64)]
+    r = np.argmin(f, 1)
+    f = np.stack([f[np.arange(len(f)), (r + q) % 3] for q in range(3)], 1)
+    lvl = np.asarray(mesh.cell_data["level"]).tolist()
+    return dict(zip(map(tuple, f.tolist()), lvl, strict=True))
+
+
+def _uneven(tmp_path_factory):
+    if "uneven" not in _T:  # 200 × 300 in a 513² grid: padding along two edges
+        z = generate("fbm", 300, seed=9)[:200]
+        z[120:150, 30:60] = np.nan
+        d = tmp_path_factory.mktemp("u")
+        dem = write_geotiff(d / "d.tif", z)
+        _T["uneven"] = geoterrain.open(geoterrain.preprocess(dem, d / "d.geoterrain",
+                                                             tile_size=32))
+    return _T["uneven"]
+
+
+@settings(max_examples=25, deadline=None)
+@given(e=st.one_of(st.just(0.0), st.floats(0.0, 60.0), st.just(1e12)),
+       which=st.sampled_from(["plain", "holes", "uneven"]))
+def test_static_leaves_equal_the_walk(tmp_path_factory, e, which):
+    """The static mesh made from its active vertices alone (``leaves.static_leaves``)
+    has exactly the walk's triangles: the same samples, winding, levels and positions."""
+    t = _uneven(tmp_path_factory) if which == "uneven" else _terrain(tmp_path_factory,
+                                                                     which == "holes")
+    walk = rtin.active_mesh(t, rtin.static_active(t, tile_index(t), e))
+    flat = geoterrain.lod.static(t, e).mesh
+    assert flat.n_cells == walk.n_cells and flat.n_points == walk.n_points
+    assert _oriented(flat) == _oriented(walk)
+    by_sample = [np.asarray(m.points)[np.lexsort(np.asarray(m.point_data["grid_ij"]).T[::-1])]
+                 for m in (walk, flat)]  # each sample at one position
+    np.testing.assert_array_equal(*by_sample)

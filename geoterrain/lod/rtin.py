@@ -41,6 +41,7 @@ from geoterrain.lod.kernels import (
     mark_tiles,
     walk_start,
 )
+from geoterrain.lod.leaves import static_leaves
 from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.morph import MORPH_START, morph_mesh
 from geoterrain.lod.occlusion import hidden_rows
@@ -71,6 +72,7 @@ class _Scratch:
         self.gen = 0
         self._vid = None
         self.last_faces = 0
+        self.leaves: dict = {}  # static_leaves' working arrays
 
     @property
     def vid(self) -> np.ndarray:
@@ -327,6 +329,27 @@ def static(terrain, max_error: float):
     """The static mesh keeping every vertex with δ > ``max_error``, and stats.
 
     Its vertical error is ≤ ``max_error`` at every valid full-resolution sample.
+    The leaves come straight from the active vertices
+    (:func:`~geoterrain.lod.leaves.static_leaves`): the same triangles as
+    :func:`active_mesh` of :func:`static_active`, without the walk.
     """
     index = tile_index(terrain)
-    return active_mesh(terrain, static_active(terrain, index, max_error)), {}
+    pool = tile_pool(terrain)
+    e = float(max_error)
+    rows = np.flatnonzero(index.delta_max > e)
+    g = terrain.grid
+    keys = index.keys[rows]
+    L = keys[:, 0]
+    step = np.int64(1) << L
+    i0, j0 = (keys[:, 2] << g.t) << L, (keys[:, 1] << g.t) << L
+    slots = pool.slots(pool.table_index(keys), ("delta", "height", "xy"))
+    pool.slots(np.array([pool.base[pool.top]]), ("height", "xy"))  # the grid's corners
+    zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
+    sc = _scratch(terrain)
+    faces, level, xyz, ij, lvl, bad = static_leaves(slots, i0, j0, step, keys, pool, zfac, e,
+                                                    sc.vid, sc.leaves)
+    if bad:  # drop the triangles with an invalid corner
+        nf, nv, level = cull_in_place(faces, xyz, ij, np.zeros((0, 4)), lvl, np.zeros(3), 0.0)
+        faces, xyz, ij = faces[:nf], xyz[:nv], ij[:nv]
+    return polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8),
+                                     "level": level}), {}

@@ -1,0 +1,320 @@
+"""The static mesh straight from its active vertices: no walk (seed 002, bisection).
+
+In a closed active set (every active vertex's two diamond parents are active, which
+saturated δ gives for δ > e, LP §2.4) every active vertex m is split, so both
+triangles of its diamond exist and each splits into two children at m. A child is a
+leaf exactly when the midpoint of its own hypotenuse is not active (or is not a sample:
+the finest level). Every leaf has one parent split, so
+
+    leaves = {children of active vertices whose midpoint is inactive}
+             ∪ {the two base triangles, when the grid's centre is inactive},
+
+each met once. That turns the depth-first walk of :func:`~geoterrain.lod.emit.walk_gather`
+into two flat passes over the active vertices, in parallel:
+
+1. per tile, the active vertices it owns (a sample shared by two tiles belongs to the
+   one :func:`~geoterrain.lod.kernels._coarsest_tile` names), numbered tile by tile,
+   with their positions read from the pooled tile;
+2. per block of vertices, its leaves, written with room for four per vertex (the most
+   a vertex has), then gathered to their final rows.
+
+The children of a sample (i, j) follow from the lowest set bit h of i | j. When i/h and
+j/h are both odd, (i, j) is the centre of a square of half-size h, and its children are
+the four triangles it makes with the square's sides, whichever diagonal was the
+hypotenuse. Otherwise its hypotenuse runs h either way along the axis in which i/h or
+j/h is odd, its apexes lie h away across it (one of them outside the grid on the
+domain's edge), and its children are the four triangles of that diamond's halves.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from geoterrain.lod.kernels import _coarsest_tile, sample_xy
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _owned(a, b, T, ty, tx, tps):
+    # the tile owns its last row (column) only on the level's last tile row (column)
+    return (a < T - 1 or ty == tps - 1) and (b < T - 1 or tx == tps - 1)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _find_active(slots, i0, j0, step, ty, tx, tps, D, e, top_step, s, cnt, loc):
+    """Per tile k: the active vertices (δ > e) it owns, not counting the grid's corners:
+    how many in ``cnt[k]``, their local indices (a << 16 | b) in ``loc[k]``."""
+    T = D.shape[1]
+    for k in prange(slots.shape[0]):
+        sl = slots[k]
+        coarse = step[k] < top_step
+        c = 0
+        for a in range(T):
+            i = i0[k] + a * step[k]
+            for b in range(T):
+                if coarse and (a & 1) == 0 and (b & 1) == 0:
+                    continue  # a coarser level's vertex, owned by that level's tile
+                if not _owned(a, b, T, ty[k], tx[k], tps[k]):
+                    continue
+                if np.float64(D[sl, a, b]) > e:
+                    j = j0[k] + b * step[k]
+                    if (i == 0 or i == s) and (j == 0 or j == s):
+                        continue
+                    loc[k, c] = (a << 16) | b
+                    c += 1
+        cnt[k] = c
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _number_active(slots, i0, j0, step, H, X, Y, aff, zfac, level, s, cnt, loc, first,
+                   vid, xyz, ij, lvl, invalid):
+    """Per tile, the vertices :func:`_find_active` listed: number them from ``first[k]``
+    into the dense ``vid`` (N², −1 = none) and write each one's position (x, y,
+    height · zfac), grid indices and pyramid level; ``invalid[k]``: how many have no
+    valid height."""
+    N = s + 1
+    for k in prange(slots.shape[0]):
+        sl = slots[k]
+        v = first[k]
+        bad = 0
+        for r in range(cnt[k]):
+            a, b = loc[k, r] >> 16, loc[k, r] & 0xFFFF
+            i, j = i0[k] + a * step[k], j0[k] + b * step[k]
+            vid[i * N + j] = v
+            x, y = sample_xy(X, Y, aff, sl, a, b, i, j)
+            z = H[sl, a, b] * zfac
+            xyz[v, 0], xyz[v, 1], xyz[v, 2] = x, y, z
+            if not np.isfinite(z):
+                bad += 1
+            ij[v, 0], ij[v, 1] = i, j
+            lvl[v] = level[k]
+            v += 1
+        invalid[k] = bad
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _leaf(faces, level, f, va, vb, vc, lv, split):
+    """Write face (a, b, c) and its level at row f; keep it (return f + 1) unless the
+    child is ``split``: no branch on the data."""
+    faces[f, 0], faces[f, 1], faces[f, 2] = va, vb, vc
+    level[f] = lv
+    return f + 1 - split
+
+@njit(cache=True, nogil=True, parallel=True)
+def _emit_leaves(ij, lvl, vid, s, per, cnt, faces, level):
+    """The leaves of each block of ``per`` vertices, from row 4·per·block (a vertex has
+    at most 4 children), how many in ``cnt[block]``; with their level: that of their
+    split vertex m, the finest of their corners (the others lie on multiples of 2h).
+
+    A child is a leaf when the midpoint of its hypotenuse is not active: a square
+    centre's children always have one (their hypotenuses are 2h long), an edge
+    midpoint's only when h ≥ 2 (at (i ± h/2, j ± h/2)). Every face is wound like the
+    walk's base triangles: positive cross (b − a) × (c − a) in (i, j), which bisection
+    keeps."""
+    N = s + 1
+    V = ij.shape[0]
+    for c in prange(cnt.shape[0]):
+        f = 4 * per * c
+        for v in range(c * per, min(V, (c + 1) * per)):
+            i, j = np.int64(ij[v, 0]), np.int64(ij[v, 1])
+            low = i | j
+            h = low & -low
+            vm, lv = v + 4, lvl[v]
+            m = i * N + j
+            if (i & h) != 0 and (j & h) != 0:
+                # a square's centre: its four children have the square's sides as
+                # hypotenuses, split at the sides' midpoints m ± h (row), m ± hN (column)
+                a00 = vid[m - h * N - h]
+                a01 = vid[m - h * N + h]
+                a10 = vid[m + h * N - h]
+                a11 = vid[m + h * N + h]
+                sn = vid[m - h * N] >= 0
+                ss = vid[m + h * N] >= 0
+                sw = vid[m - h] >= 0
+                se = vid[m + h] >= 0
+                f = _leaf(faces, level, f, a00, vm, a01, lv, sn)  # north side (i - h)
+                f = _leaf(faces, level, f, a01, vm, a11, lv, se)  # east side (j + h)
+                f = _leaf(faces, level, f, a11, vm, a10, lv, ss)
+                f = _leaf(faces, level, f, a10, vm, a00, lv, sw)
+            elif (j & h) != 0:
+                # hypotenuse along the row: ends (i, j ∓ h), apexes (i ∓ h, j)
+                vp, vq = vid[m - h], vid[m + h]
+                deep = h >= 2
+                g = h >> 1
+                if i - h >= 0:
+                    vc = vid[m - h * N]
+                    s1 = deep and vid[m - g * N - g] >= 0
+                    s2 = deep and vid[m - g * N + g] >= 0
+                    f = _leaf(faces, level, f, vc, vp, vm, lv, s1)
+                    f = _leaf(faces, level, f, vq, vc, vm, lv, s2)
+                if i + h <= s:
+                    vc = vid[m + h * N]
+                    s1 = deep and vid[m + g * N - g] >= 0
+                    s2 = deep and vid[m + g * N + g] >= 0
+                    f = _leaf(faces, level, f, vc, vm, vp, lv, s1)
+                    f = _leaf(faces, level, f, vq, vm, vc, lv, s2)
+            else:
+                # hypotenuse along the column: ends (i ∓ h, j), apexes (i, j ∓ h)
+                vp, vq = vid[m - h * N], vid[m + h * N]
+                deep = h >= 2
+                g = h >> 1
+                if j - h >= 0:
+                    vc = vid[m - h]
+                    s1 = deep and vid[m - g * N - g] >= 0
+                    s2 = deep and vid[m + g * N - g] >= 0
+                    f = _leaf(faces, level, f, vc, vm, vp, lv, s1)
+                    f = _leaf(faces, level, f, vq, vm, vc, lv, s2)
+                if j + h <= s:
+                    vc = vid[m + h]
+                    s1 = deep and vid[m - g * N + g] >= 0
+                    s2 = deep and vid[m + g * N + g] >= 0
+                    f = _leaf(faces, level, f, vc, vp, vm, lv, s1)
+                    f = _leaf(faces, level, f, vq, vc, vm, lv, s2)
+        cnt[c] = f - 4 * per * c
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _gather_blocks(ef, el, per, cnt, first, faces, level):
+    """Each block's leaves, from row 4·per·block of ``ef``/``el``, to row ``first[block]``
+    of ``faces``/``level``."""
+    for c in prange(cnt.shape[0]):
+        src, dst = 4 * per * c, first[c]
+        for f in range(cnt[c]):
+            faces[dst + f, 0] = ef[src + f, 0]
+            faces[dst + f, 1] = ef[src + f, 1]
+            faces[dst + f, 2] = ef[src + f, 2]
+            level[dst + f] = el[src + f]
+
+
+@njit(cache=True, nogil=True)
+def _compact(faces, level, per, cnt):
+    """:func:`_gather_blocks` in place: each block's leaves move down after the previous
+    block's, in order (rows only move down, so none is overwritten before it moves);
+    returns the total."""
+    n = 0
+    for c in range(cnt.shape[0]):
+        src = 4 * per * c
+        if src != n:
+            for f in range(cnt[c]):
+                faces[n + f, 0] = faces[src + f, 0]
+                faces[n + f, 1] = faces[src + f, 1]
+                faces[n + f, 2] = faces[src + f, 2]
+                level[n + f] = level[src + f]
+        n += cnt[c]
+    return n
+
+
+@njit(cache=True, nogil=True)
+def _corners(s, top, t, base, slot_of, H, X, Y, aff, zfac, vid, xyz, ij, lvl):
+    """Vertices 0–3: the grid's corners, read from the top tile (``slot_of`` ≥ 0);
+    returns how many have no valid height."""
+    N = s + 1
+    bad = 0
+    for v in range(4):
+        i = s if v >= 2 else 0
+        j = s if v % 2 == 1 else 0
+        L, ti, a, b = _coarsest_tile(i, j, top, t, base)
+        sl = slot_of[ti]
+        vid[i * N + j] = v
+        x, y = sample_xy(X, Y, aff, sl, a, b, i, j)
+        xyz[v, 0], xyz[v, 1], xyz[v, 2] = x, y, H[sl, a, b] * zfac
+        if not np.isfinite(xyz[v, 2]):
+            bad += 1
+        ij[v, 0], ij[v, 1] = i, j
+        lvl[v] = L
+    return bad
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _reset(vid, ij, N):
+    for v in prange(ij.shape[0]):
+        vid[np.int64(ij[v, 0]) * N + np.int64(ij[v, 1])] = -1
+
+
+#: Scratch arrays up to this size are kept between calls (fresh pages cost their zeroing).
+KEEP_BYTES = 64 << 20
+
+
+def _buffer(scratch: dict, name: str, shape: tuple, dtype) -> np.ndarray:
+    """An uninitialised array of ``shape``, from ``scratch[name]`` when that is large
+    enough, else new (and kept there when at most :data:`KEEP_BYTES`)."""
+    n = int(np.prod(shape))
+    have = scratch.get(name)
+    if have is not None and have.size >= n and have.dtype == dtype:
+        return have[:n].reshape(shape)
+    out = np.empty(n, dtype)
+    if out.nbytes <= KEEP_BYTES:
+        scratch[name] = out
+    return out.reshape(shape)
+
+
+def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.ndarray,
+                  keys: np.ndarray, pool, zfac: float, e: float, vid: np.ndarray,
+                  scratch: dict | None = None):
+    """The leaf triangles and vertices of the static mesh δ > ``e`` over the tiles
+    ``keys`` (level, x, y) with pool ``slots`` (every tile holding a vertex with δ > e;
+    their δ, heights and positions pooled, and the top tile's too).
+
+    ``vid`` is the dense N² vertex-number scratch, all −1; it is left all −1.
+    ``scratch``: a dict that keeps the working arrays from one call to the next.
+    Returns faces (F, 3) int32 and their levels (int16), and per vertex: position
+    (x, y, z), grid indices (float64) and pyramid level (int8), and how many vertices
+    have no valid height (0: no face needs culling).
+
+    Examples
+    --------
+    >>> out = static_leaves(*tiles, pool, 1.0, 5.0, vid)  # doctest: +SKIP
+    >>> faces, level, xyz, ij, lvl, bad = out  # doctest: +SKIP
+    """
+    s, top = pool.N - 1, pool.top
+    L = keys[:, 0].astype(np.int64)
+    tps = np.int64(1) << (top - L)
+    ty, tx = keys[:, 2].astype(np.int64), keys[:, 1].astype(np.int64)
+    cnt = np.zeros(len(slots), np.int64)
+    top_step = np.int64(1) << top
+    T = pool.T
+    scratch = {} if scratch is None else scratch
+    loc = _buffer(scratch, "loc", (len(slots), T * T), np.uint32)
+    _find_active(slots, i0, j0, step, ty, tx, tps, pool.D, float(e), top_step, s, cnt, loc)
+    first = np.empty(len(slots), np.int64)
+    if len(cnt):
+        first[0] = 4
+        np.cumsum(cnt[:-1], out=first[1:])
+        first[1:] += 4
+    V = 4 + int(cnt.sum())
+    xyz, ij, lvl = np.empty((V, 3)), np.empty((V, 2)), np.empty(V, np.int8)
+    bad = _corners(s, top, pool.t, pool.base, pool.slot_of, pool.H, pool.X, pool.Y,
+                   pool.aff, zfac, vid, xyz, ij, lvl)
+    invalid = np.zeros(len(slots), np.int64)
+    _number_active(slots, i0, j0, step, pool.H, pool.X, pool.Y, pool.aff, zfac, L, s, cnt,
+                   loc, first, vid, xyz, ij, lvl, invalid)
+    m = (s // 2) * (s + 1) + s // 2
+    root = bool(vid[m] < 0)  # the centre inactive: the two base triangles are leaves
+    per = 4096
+    nb = -(-(V - 4) // per)
+    lcnt = np.zeros(nb, np.int64)
+    rows = 4 * per * nb  # room for 4 leaves per vertex, the most it can have
+    if rows * 14 <= KEEP_BYTES:  # emit into kept scratch, gather to the exact size
+        ef = _buffer(scratch, "faces", (rows, 3), np.int32)
+        el = _buffer(scratch, "level", (rows,), np.int16)
+        _emit_leaves(ij[4:], lvl[4:], vid, s, per, lcnt, ef, el)
+        lfirst = np.zeros(nb, np.int64)
+        if nb:
+            np.cumsum(lcnt[:-1], out=lfirst[1:])
+        F = int(lcnt.sum())
+        faces = np.empty((F + 2, 3), np.int32)
+        level = np.empty(F + 2, np.int16)
+        _gather_blocks(ef, el, per, lcnt, lfirst, faces, level)
+    else:  # a large mesh: emit in place and compact (no second copy of the faces)
+        faces = np.empty((rows + 2, 3), np.int32)
+        level = np.empty(rows + 2, np.int16)
+        _emit_leaves(ij[4:], lvl[4:], vid, s, per, lcnt, faces, level)
+        F = _compact(faces, level, per, lcnt)
+    if root:  # the base triangles (0, 0), (s, s), (0, s) and (s, s), (0, 0), (s, 0)
+        faces[F] = (0, 3, 1)
+        faces[F + 1] = (3, 0, 2)
+        level[F:F + 2] = top
+        F += 2
+    faces, level = faces[:F], level[:F]
+    _reset(vid, ij, s + 1)
+    return faces, level, xyz, ij, lvl, bad + int(invalid.sum())
