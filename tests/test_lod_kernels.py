@@ -224,3 +224,25 @@ def test_static_leaves_equal_the_walk(tmp_path_factory, e, which):
     by_sample = [np.asarray(m.points)[np.lexsort(np.asarray(m.point_data["grid_ij"]).T[::-1])]
                  for m in (walk, flat)]  # each sample at one position
     np.testing.assert_array_equal(*by_sample)
+
+
+@settings(max_examples=15, deadline=None)
+@given(az=st.floats(0, 6.28), el=st.floats(0.02, 1.4), dist=st.floats(0.02, 1.5),
+       tau=st.sampled_from([0.5, 1.0, 4.0]), holes=st.booleans())
+def test_skipping_blocks_by_their_bounds_changes_no_flag(tmp_path_factory, az, el, dist, tau,
+                                                          holes):
+    """Testing each block's bounds before its samples (``rtin.BLOCKS``) gives the same
+    active and mixed flags as testing every sample of every candidate tile."""
+    t = _terrain(tmp_path_factory, holes)
+    v = _view(t, az, el, dist)
+    index = tile_index(t)
+    out = {}
+    for blocks in (True, False):
+        rtin.BLOCKS = blocks
+        try:
+            act = rtin.view_active(t, index, v, tau)
+        finally:
+            rtin.BLOCKS = True
+        out[blocks] = (act.active == act.gen, act.mixed == act.gen)
+    np.testing.assert_array_equal(out[True][0], out[False][0])
+    np.testing.assert_array_equal(out[True][1], out[False][1])

@@ -231,9 +231,80 @@ def _grow_box(boxes, lv, i, j):
         boxes[lv, 3] = j
 
 
+#: Samples per side of the blocks whose bounds :func:`fill_lp` tests before their samples.
+BLOCK = 8
+
+
+@njit(cache=True, nogil=True)
+def block_bounds(D, R, H, X, Y, aff, s, i0, j0, step, coarse, out):
+    """Per block of ``BLOCK``² samples of pool slot ``s`` (the last block of a row or
+    column also holds the tile's last sample), over the samples new at the tile's level
+    (all of them unless ``coarse``): largest δ and r, the x, y box (as
+    :func:`sample_xy` computes them), the height range (NaN left out) and whether a
+    height is NaN. ``out`` (nb, nb, 9); an empty block gets δ = r = 0."""
+    T = D.shape[1]
+    nb = out.shape[0]
+    for p in range(nb):
+        a1 = T if p == nb - 1 else (p + 1) * BLOCK
+        for q in range(nb):
+            b1 = T if q == nb - 1 else (q + 1) * BLOCK
+            dm, rm = 0.0, 0.0
+            xl, yl, hl = np.inf, np.inf, np.inf
+            xh, yh, hh = -np.inf, -np.inf, -np.inf
+            nan = 0.0
+            for a in range(p * BLOCK, a1):
+                i = i0 + a * step
+                for b in range(q * BLOCK, b1):
+                    if coarse and (a & 1) == 0 and (b & 1) == 0:
+                        continue
+                    j = j0 + b * step
+                    dm = max(dm, np.float64(D[s, a, b]))
+                    rm = max(rm, np.float64(R[s, a, b]))
+                    x, y = sample_xy(X, Y, aff, s, a, b, i, j)
+                    xl, xh, yl, yh = min(xl, x), max(xh, x), min(yl, y), max(yh, y)
+                    h = H[s, a, b]
+                    if h == h:
+                        hl, hh = min(hl, h), max(hh, h)
+                    else:
+                        nan = 1.0
+            o = out[p, q]
+            o[0], o[1], o[2], o[3], o[4] = dm, rm, xl, yl, hl
+            o[5], o[6], o[7], o[8] = xh, yh, hh, nan
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _block_floor(bk, zfac, zproxy, eye, planes, P, lam, tau):
+    """LP eq. 2 on a block's bounds, as :func:`lp_tiles` on a tile's: −2 when no vertex
+    of the block can be active, else a floor τ(D_box − r_max) (−1: none)."""
+    dm, rm = bk[0], bk[1]
+    if dm == np.inf:
+        return -1.0  # a mixed vertex is always active (see fill_lp)
+    if not dm > 0.0:
+        return -2.0
+    zl, zh = bk[4] * zfac, bk[7] * zfac
+    if zl > zh:
+        zl, zh = zh, zl
+    if bk[8] > 0.0:
+        zl, zh = min(zl, zproxy), max(zh, zproxy)
+    dx = max(bk[2] - eye[0], 0.0, eye[0] - bk[5])
+    dy = max(bk[3] - eye[1], 0.0, eye[1] - bk[6])
+    dz = max(zl - eye[2], 0.0, eye[2] - zh)
+    d = np.sqrt(dx * dx + dy * dy + dz * dz)
+    if not (d <= rm or lam * dm > tau * (d - rm)):
+        return -2.0
+    for q in range(P):
+        a, b, c, w = planes[q, 0], planes[q, 1], planes[q, 2], planes[q, 3]
+        fx = bk[5] + rm if a >= 0 else bk[2] - rm
+        fy = bk[6] + rm if b >= 0 else bk[3] - rm
+        fz = zh + rm if c >= 0 else zl - rm
+        if a * fx + b * fy + c * fz + w < 0:
+            return -2.0
+    return tau * (d - rm) if d > rm else -1.0
+
+
 @njit(cache=True, nogil=True)
 def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy, eye, planes,
-            lam, tau, active, mixed, gen, top_step, boxes, level):
+            lam, tau, active, mixed, gen, top_step, boxes, level, BK, blocks=True):
     """LP eq. 2 with sphere culling on pooled tiles, scattered into the dense flags.
 
     A vertex is active iff its sphere (p, r) is not outside any frustum plane, δ > 0,
@@ -251,46 +322,71 @@ def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy
     Each vertex made active grows ``boxes[level[k]]`` (rows i0, i1, columns j0, j1 of
     the active vertices per pyramid level), so the closure scans where vertices are
     active, not the whole of a coarse tile that only a corner of the view touches.
+    With ``blocks``, each ``BLOCK``² block's bounds (``BK[slot]``, from
+    :func:`block_bounds`) are tested first, as the tiles' are, and a block that can
+    hold no active vertex is skipped (a mixed vertex makes its block's δ infinite, so
+    it is never skipped); a block's floor replaces the tile's where it is higher. The
+    flags are the same as without blocks: the tests are conservative, with the same
+    monotone float operations.
     Serial on purpose: on a shared 2-core machine, a parallel region waiting on a
     descheduled thread made frames 3× slower than one thread."""
     T = D.shape[1]
+    nb = BK.shape[1] if blocks else 1
     for k in range(slots.shape[0]):
         s = slots[k]
         P = 0 if inside[k] else planes.shape[0]
-        fl = floor[k]
         lv = level[k]
         coarse = step[k] < top_step
-        for a in range(T):
-            i = i0[k] + a * step[k]
-            for b in range(T):
-                if coarse and (a & 1) == 0 and (b & 1) == 0:
-                    continue
-                j = j0[k] + b * step[k]
-                dl = np.float64(D[s, a, b])
-                if dl == np.inf:
-                    active[i, j] = gen
-                    mixed[i, j] = gen
-                    _grow_box(boxes, lv, i, j)
-                    continue
-                if not dl > 0.0 or lam * dl <= fl:
-                    continue
-                r = np.float64(R[s, a, b])
-                px, py = sample_xy(X, Y, aff, s, a, b, i, j)
-                h = H[s, a, b]
-                pz = h * zfac if h == h else zproxy
-                vis = True
-                for q in range(P):
-                    if planes[q, 0] * px + planes[q, 1] * py + planes[q, 2] * pz \
-                            + planes[q, 3] + r < 0.0:
-                        vis = False
-                        break
-                if not vis:
-                    continue
-                dx, dy, dz = px - eye[0], py - eye[1], pz - eye[2]
-                d = np.sqrt(dx * dx + dy * dy + dz * dz)
-                if d <= r or lam * dl > tau * (d - r):
-                    active[i, j] = gen
-                    _grow_box(boxes, lv, i, j)
+        for p in range(nb):
+            a0, a1 = (p * BLOCK, T if p == nb - 1 else (p + 1) * BLOCK) if blocks else (0, T)
+            for q in range(nb):
+                b0, b1 = (q * BLOCK, T if q == nb - 1 else (q + 1) * BLOCK) if blocks else (0, T)
+                fl = floor[k]
+                if blocks:
+                    fb = _block_floor(BK[s, p, q], zfac, zproxy, eye, planes, P, lam, tau)
+                    if fb == -2.0:
+                        continue
+                    fl = max(fl, fb)
+                _fill_block(s, a0, a1, b0, b1, coarse, fl, P, i0[k], j0[k], step[k], D, R, H,
+                            X, Y, aff, zfac, zproxy, eye, planes, lam, tau, active, mixed,
+                            gen, boxes, lv)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _fill_block(s, a0, a1, b0, b1, coarse, fl, P, i0, j0, step, D, R, H, X, Y, aff, zfac,
+                zproxy, eye, planes, lam, tau, active, mixed, gen, boxes, lv):
+    """:func:`fill_lp`'s test on the samples [a0, a1) × [b0, b1) of pool slot ``s``."""
+    for a in range(a0, a1):
+        i = i0 + a * step
+        for b in range(b0, b1):
+            if coarse and (a & 1) == 0 and (b & 1) == 0:
+                continue
+            j = j0 + b * step
+            dl = np.float64(D[s, a, b])
+            if dl == np.inf:
+                active[i, j] = gen
+                mixed[i, j] = gen
+                _grow_box(boxes, lv, i, j)
+                continue
+            if not dl > 0.0 or lam * dl <= fl:
+                continue
+            r = np.float64(R[s, a, b])
+            px, py = sample_xy(X, Y, aff, s, a, b, i, j)
+            h = H[s, a, b]
+            pz = h * zfac if h == h else zproxy
+            vis = True
+            for q in range(P):
+                if planes[q, 0] * px + planes[q, 1] * py + planes[q, 2] * pz \
+                        + planes[q, 3] + r < 0.0:
+                    vis = False
+                    break
+            if not vis:
+                continue
+            dx, dy, dz = px - eye[0], py - eye[1], pz - eye[2]
+            d = np.sqrt(dx * dx + dy * dy + dz * dz)
+            if d <= r or lam * dl > tau * (d - r):
+                active[i, j] = gen
+                _grow_box(boxes, lv, i, j)
 
 
 @njit(cache=True, nogil=True)

@@ -19,9 +19,11 @@ import weakref
 
 import numpy as np
 
+from geoterrain.lod.kernels import BLOCK, block_bounds
+
 _POOLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-KINDS = ("delta", "radius", "height", "xy")
-_BYTES = {"delta": 4, "radius": 4, "height": 8, "xy": 16}
+KINDS = ("delta", "radius", "height", "xy", "blocks")
+_BYTES = {"delta": 4, "radius": 4, "height": 8, "xy": 16, "blocks": 0}
 BUDGET_BYTES = 384 << 20
 
 
@@ -33,6 +35,8 @@ class TilePool:
         self.terrain = weakref.proxy(terrain)
         self.top, self.t, self.N = g.top_level, g.t, g.size
         self.T = g.tile_samples
+        # per BLOCK² block of a tile: its bounds for fill_lp (kernels.block_bounds)
+        self.nb = max(1, (self.T - 1) // BLOCK)
         # slot table: level L holds 4^(top-L) tiles, row-major (ty, tx), from base[L]
         self.base = np.concatenate([[0], np.cumsum(4 ** np.arange(self.top, -1, -1))]
                                    ).astype(np.int64)
@@ -41,8 +45,8 @@ class TilePool:
         self.aff = np.zeros(0)  # geographic: x, y from the slabs (pyproj, cached per tile)
         if f.kind != "geographic":
             self.aff = np.array([*f.transform[:6], *f.origin_crs, f.unit_to_m], np.float64)
-        kinds = KINDS if len(self.aff) == 0 else KINDS[:-1]
-        per_slot = self.T * self.T * sum(_BYTES[k] for k in kinds)
+        kinds = KINDS if len(self.aff) == 0 else [k for k in KINDS if k != "xy"]
+        per_slot = self.T * self.T * sum(_BYTES[k] for k in kinds) + self.nb ** 2 * 72
         self.capacity = 0
         self.budget_slots = max(16, budget_bytes // per_slot)
         self.key_of = np.zeros((0,), np.int64)  # table index of each slot, -1 if free
@@ -53,6 +57,7 @@ class TilePool:
         self.H = np.zeros((0, self.T, self.T), np.float64)
         self.X = np.zeros((0, self.T, self.T), np.float64)
         self.Y = np.zeros((0, self.T, self.T), np.float64)
+        self.BK = np.zeros((0, self.nb, self.nb, 9), np.float64)
         self.clock = 0
         self.stored = np.zeros(int(self.base[-1]), bool)
         for (L, x, y) in terrain.tile_info:
@@ -80,6 +85,8 @@ class TilePool:
 
         self.D, self.R = more(self.D, np.float32), more(self.R, np.float32)
         self.H = more(self.H, np.float64)
+        self.BK = (np.zeros((new, self.nb, self.nb, 9)) if self.capacity == 0 else
+                   np.concatenate([self.BK, np.zeros((extra, self.nb, self.nb, 9))]))
         if len(self.aff) == 0:
             self.X, self.Y = more(self.X, np.float64), more(self.Y, np.float64)
         self.key_of = np.concatenate([self.key_of, np.full(extra, -1, np.int64)])
@@ -89,7 +96,8 @@ class TilePool:
         self.capacity = new
 
     def slots(self, idx: np.ndarray, kinds: tuple[str, ...]) -> np.ndarray:
-        """Slots of the stored tiles with table indices ``idx``, their ``kinds`` loaded.
+        """Slots of the stored tiles with table indices ``idx``, their ``kinds`` loaded,
+        in order (``"blocks"`` needs the other four loaded before it).
 
         Tiles that are not stored get slot −1 (the kernels read δ = r = 0, height NaN).
         """
@@ -150,6 +158,11 @@ class TilePool:
             self.R[s] = t.tile_radius(*key)
         elif kind == "height":
             self.H[s] = t.tile(*key).heights
+        elif kind == "blocks":  # after delta, radius, height and xy (see slots)
+            L, x, y = key
+            i0, j0 = (y << (self.t + L)), (x << (self.t + L))
+            block_bounds(self.D, self.R, self.H, self.X, self.Y, self.aff, s, i0, j0, 1 << L,
+                         L < self.top, self.BK[s])
         elif len(self.aff) == 0:  # affine frames: x, y computed in the kernels
             self.X[s], self.Y[s] = t.tile_xy(*key)
         self.have[kind][s] = True

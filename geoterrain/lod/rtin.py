@@ -50,6 +50,7 @@ from geoterrain.lod.switches import morphing_enabled
 from geoterrain.lod.tiles import TileIndex, tile_index, tile_table
 from geoterrain.view import View
 
+BLOCKS = True  # fill_lp tests each tile's blocks' bounds before their samples
 _HASHED_UP_TO = 1 << 22  # vertex numbers in a hash table below this capacity (48 MB at most)
 _SCRATCH: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -207,12 +208,12 @@ def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     if len(rows):
         pool = tile_pool(terrain)
         idx, i0, j0, step = act.tiles(rows, index, boxes=False)
-        slots = pool.slots(idx, ("delta", "radius", "height", "xy"))
+        slots = pool.slots(idx, ("delta", "radius", "height", "xy", "blocks"))
         zfac = terrain.frame.z_to_m * terrain.frame.z_scale
         fill_lp(slots, inside, floor, i0, j0, step, pool.D, pool.R, pool.H, pool.X, pool.Y,
                 pool.aff, zfac, terrain.stand_in_z, eye, view.planes, lam, tau, act.active,
                 act.mixed, act.gen, 1 << terrain.grid.top_level, act.boxes,
-                index.keys[rows, 0])
+                index.keys[rows, 0], pool.BK, BLOCKS)
     act.close()
     mixed = index.mixed_rows
     act.mark_unknown_mixed(mixed[status[mixed] == 0], index)  # not read this frame
