@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import geoterrain
-from geoterrain.lod import emit, kernels, rtin
+from geoterrain.lod import emit, kernels, leaves, rtin
 from geoterrain.lod.pool import tile_pool
 from geoterrain.lod.tiles import tile_index
 from geoterrain.synth import generate, write_geotiff
@@ -211,14 +211,21 @@ def _uneven(tmp_path_factory):
 
 @settings(max_examples=25, deadline=None)
 @given(e=st.one_of(st.just(0.0), st.floats(0.0, 60.0), st.just(1e12)),
-       which=st.sampled_from(["plain", "holes", "uneven"]))
-def test_static_leaves_equal_the_walk(tmp_path_factory, e, which):
+       which=st.sampled_from(["plain", "holes", "uneven"]), counted=st.booleans())
+def test_static_leaves_equal_the_walk(tmp_path_factory, e, which, counted):
     """The static mesh made from its active vertices alone (``leaves.static_leaves``)
-    has exactly the walk's triangles: the same samples, winding, levels and positions."""
+    has exactly the walk's triangles: the same samples, winding, levels and positions;
+    whether the leaves are emitted with room to spare and gathered, or counted first
+    (``counted``: what a mesh too large for the kept scratch does)."""
     t = _uneven(tmp_path_factory) if which == "uneven" else _terrain(tmp_path_factory,
                                                                      which == "holes")
     walk = rtin.active_mesh(t, rtin.static_active(t, tile_index(t), e))
-    flat = geoterrain.lod.static(t, e).mesh
+    keep = leaves.KEEP_BYTES
+    leaves.KEEP_BYTES = 0 if counted else keep
+    try:
+        flat = geoterrain.lod.static(t, e).mesh
+    finally:
+        leaves.KEEP_BYTES = keep
     assert flat.n_cells == walk.n_cells and flat.n_points == walk.n_points
     assert _oriented(flat) == _oriented(walk)
     by_sample = [np.asarray(m.points)[np.lexsort(np.asarray(m.point_data["grid_ij"]).T[::-1])]

@@ -93,18 +93,21 @@ def _number_active(slots, i0, j0, step, H, X, Y, aff, zfac, level, s, cnt, loc, 
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _leaf(faces, level, f, va, vb, vc, lv, split):
-    """Write face (a, b, c) and its level at row f; keep it (return f + 1) unless the
-    child is ``split``: no branch on the data."""
-    faces[f, 0], faces[f, 1], faces[f, 2] = va, vb, vc
-    level[f] = lv
+def _leaf(faces, level, f, stop, va, vb, vc, lv, split):
+    """Write face (a, b, c) and its level at row f (below ``stop``, the block's end) and
+    keep it (return f + 1) unless the child is ``split``: no branch on the data (a
+    split child's row is written over by the next leaf)."""
+    if f < stop:
+        faces[f, 0], faces[f, 1], faces[f, 2] = va, vb, vc
+        level[f] = lv
     return f + 1 - split
 
+
 @njit(cache=True, nogil=True, parallel=True)
-def _emit_leaves(ij, lvl, vid, s, per, cnt, faces, level):
-    """The leaves of each block of ``per`` vertices, from row 4·per·block (a vertex has
-    at most 4 children), how many in ``cnt[block]``; with their level: that of their
-    split vertex m, the finest of their corners (the others lie on multiples of 2h).
+def _emit_leaves(ij, lvl, vid, s, per, start, stop, cnt, faces, level):
+    """The leaves of each block of ``per`` vertices, in rows ``start[block]`` to
+    ``stop[block]``, how many in ``cnt[block]``; with their level: that of their split
+    vertex m, the finest of their corners (the others lie on multiples of 2h).
 
     A child is a leaf when the midpoint of its hypotenuse is not active: a square
     centre's children always have one (their hypotenuses are 2h long), an edge
@@ -114,7 +117,7 @@ def _emit_leaves(ij, lvl, vid, s, per, cnt, faces, level):
     N = s + 1
     V = ij.shape[0]
     for c in prange(cnt.shape[0]):
-        f = 4 * per * c
+        f, e = start[c], stop[c]
         for v in range(c * per, min(V, (c + 1) * per)):
             i, j = np.int64(ij[v, 0]), np.int64(ij[v, 1])
             low = i | j
@@ -132,10 +135,10 @@ def _emit_leaves(ij, lvl, vid, s, per, cnt, faces, level):
                 ss = vid[m + h * N] >= 0
                 sw = vid[m - h] >= 0
                 se = vid[m + h] >= 0
-                f = _leaf(faces, level, f, a00, vm, a01, lv, sn)  # north side (i - h)
-                f = _leaf(faces, level, f, a01, vm, a11, lv, se)  # east side (j + h)
-                f = _leaf(faces, level, f, a11, vm, a10, lv, ss)
-                f = _leaf(faces, level, f, a10, vm, a00, lv, sw)
+                f = _leaf(faces, level, f, e, a00, vm, a01, lv, sn)  # north side (i - h)
+                f = _leaf(faces, level, f, e, a01, vm, a11, lv, se)  # east side (j + h)
+                f = _leaf(faces, level, f, e, a11, vm, a10, lv, ss)
+                f = _leaf(faces, level, f, e, a10, vm, a00, lv, sw)
             elif (j & h) != 0:
                 # hypotenuse along the row: ends (i, j ∓ h), apexes (i ∓ h, j)
                 vp, vq = vid[m - h], vid[m + h]
@@ -145,14 +148,14 @@ def _emit_leaves(ij, lvl, vid, s, per, cnt, faces, level):
                     vc = vid[m - h * N]
                     s1 = deep and vid[m - g * N - g] >= 0
                     s2 = deep and vid[m - g * N + g] >= 0
-                    f = _leaf(faces, level, f, vc, vp, vm, lv, s1)
-                    f = _leaf(faces, level, f, vq, vc, vm, lv, s2)
+                    f = _leaf(faces, level, f, e, vc, vp, vm, lv, s1)
+                    f = _leaf(faces, level, f, e, vq, vc, vm, lv, s2)
                 if i + h <= s:
                     vc = vid[m + h * N]
                     s1 = deep and vid[m + g * N - g] >= 0
                     s2 = deep and vid[m + g * N + g] >= 0
-                    f = _leaf(faces, level, f, vc, vm, vp, lv, s1)
-                    f = _leaf(faces, level, f, vq, vm, vc, lv, s2)
+                    f = _leaf(faces, level, f, e, vc, vm, vp, lv, s1)
+                    f = _leaf(faces, level, f, e, vq, vm, vc, lv, s2)
             else:
                 # hypotenuse along the column: ends (i ∓ h, j), apexes (i, j ∓ h)
                 vp, vq = vid[m - h * N], vid[m + h * N]
@@ -162,15 +165,46 @@ def _emit_leaves(ij, lvl, vid, s, per, cnt, faces, level):
                     vc = vid[m - h]
                     s1 = deep and vid[m - g * N - g] >= 0
                     s2 = deep and vid[m + g * N - g] >= 0
-                    f = _leaf(faces, level, f, vc, vm, vp, lv, s1)
-                    f = _leaf(faces, level, f, vq, vm, vc, lv, s2)
+                    f = _leaf(faces, level, f, e, vc, vm, vp, lv, s1)
+                    f = _leaf(faces, level, f, e, vq, vm, vc, lv, s2)
                 if j + h <= s:
                     vc = vid[m + h]
                     s1 = deep and vid[m - g * N + g] >= 0
                     s2 = deep and vid[m + g * N + g] >= 0
-                    f = _leaf(faces, level, f, vc, vp, vm, lv, s1)
-                    f = _leaf(faces, level, f, vq, vc, vm, lv, s2)
-        cnt[c] = f - 4 * per * c
+                    f = _leaf(faces, level, f, e, vc, vp, vm, lv, s1)
+                    f = _leaf(faces, level, f, e, vq, vc, vm, lv, s2)
+        cnt[c] = f - start[c]
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _count_leaves(ij, vid, s, per, cnt):
+    """How many leaves :func:`_emit_leaves` writes for each block of ``per`` vertices."""
+    N = s + 1
+    V = ij.shape[0]
+    for c in prange(cnt.shape[0]):
+        n = 0
+        for v in range(c * per, min(V, (c + 1) * per)):
+            i, j = np.int64(ij[v, 0]), np.int64(ij[v, 1])
+            low = i | j
+            h = low & -low
+            m = i * N + j
+            if (i & h) != 0 and (j & h) != 0:
+                n += 4 - (vid[m - h * N] >= 0) - (vid[m + h * N] >= 0) \
+                    - (vid[m - h] >= 0) - (vid[m + h] >= 0)
+                continue
+            g = h >> 1
+            row = (j & h) != 0
+            di, dj = (h, 0) if row else (0, h)  # towards the apexes
+            gi, gj = (g * N, g) if row else (g, g * N)  # to the children's midpoints
+            for side in (-1, 1):
+                if row and (i + side * h < 0 or i + side * h > s):
+                    continue
+                if not row and (j + side * h < 0 or j + side * h > s):
+                    continue
+                n += 2
+                if h >= 2:
+                    n -= (vid[m + side * gi - gj] >= 0) + (vid[m + side * gi + gj] >= 0)
+        cnt[c] = n
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -184,24 +218,6 @@ def _gather_blocks(ef, el, per, cnt, first, faces, level):
             faces[dst + f, 1] = ef[src + f, 1]
             faces[dst + f, 2] = ef[src + f, 2]
             level[dst + f] = el[src + f]
-
-
-@njit(cache=True, nogil=True)
-def _compact(faces, level, per, cnt):
-    """:func:`_gather_blocks` in place: each block's leaves move down after the previous
-    block's, in order (rows only move down, so none is overwritten before it moves);
-    returns the total."""
-    n = 0
-    for c in range(cnt.shape[0]):
-        src = 4 * per * c
-        if src != n:
-            for f in range(cnt[c]):
-                faces[n + f, 0] = faces[src + f, 0]
-                faces[n + f, 1] = faces[src + f, 1]
-                faces[n + f, 2] = faces[src + f, 2]
-                level[n + f] = level[src + f]
-        n += cnt[c]
-    return n
 
 
 @njit(cache=True, nogil=True)
@@ -294,22 +310,24 @@ def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.nd
     nb = -(-(V - 4) // per)
     lcnt = np.zeros(nb, np.int64)
     rows = 4 * per * nb  # room for 4 leaves per vertex, the most it can have
+    lfirst = np.zeros(nb, np.int64)
     if rows * 14 <= KEEP_BYTES:  # emit into kept scratch, gather to the exact size
         ef = _buffer(scratch, "faces", (rows, 3), np.int32)
         el = _buffer(scratch, "level", (rows,), np.int16)
-        _emit_leaves(ij[4:], lvl[4:], vid, s, per, lcnt, ef, el)
-        lfirst = np.zeros(nb, np.int64)
-        if nb:
-            np.cumsum(lcnt[:-1], out=lfirst[1:])
+        at = np.arange(nb) * (4 * per)
+        _emit_leaves(ij[4:], lvl[4:], vid, s, per, at, at + 4 * per, lcnt, ef, el)
+        np.cumsum(lcnt[:-1], out=lfirst[1:])
         F = int(lcnt.sum())
         faces = np.empty((F + 2, 3), np.int32)
         level = np.empty(F + 2, np.int16)
         _gather_blocks(ef, el, per, lcnt, lfirst, faces, level)
-    else:  # a large mesh: emit in place and compact (no second copy of the faces)
-        faces = np.empty((rows + 2, 3), np.int32)
-        level = np.empty(rows + 2, np.int16)
-        _emit_leaves(ij[4:], lvl[4:], vid, s, per, lcnt, faces, level)
-        F = _compact(faces, level, per, lcnt)
+    else:  # a large mesh: count, then emit to the exact rows (no room to spare)
+        _count_leaves(ij[4:], vid, s, per, lcnt)
+        np.cumsum(lcnt[:-1], out=lfirst[1:])
+        F = int(lcnt.sum())
+        faces = np.empty((F + 2, 3), np.int32)
+        level = np.empty(F + 2, np.int16)
+        _emit_leaves(ij[4:], lvl[4:], vid, s, per, lfirst, lfirst + lcnt, lcnt, faces, level)
     if root:  # the base triangles (0, 0), (s, s), (0, s) and (s, s), (0, 0), (s, 0)
         faces[F] = (0, 3, 1)
         faces[F + 1] = (3, 0, 2)
