@@ -253,3 +253,20 @@ def test_skipping_blocks_by_their_bounds_changes_no_flag(tmp_path_factory, az, e
         out[blocks] = (act.active == act.gen, act.mixed == act.gen)
     np.testing.assert_array_equal(out[True][0], out[False][0])
     np.testing.assert_array_equal(out[True][1], out[False][1])
+
+
+def test_the_static_elevation_is_the_seams_formula(tmp_path_factory):
+    """The static mesh computes ``elevation`` with its positions; it equals what
+    ``mesh.add_elevation`` computes from Z, bit for bit, with and without culled
+    vertices (nodata) and with an exaggeration."""
+    from geoterrain.exaggerate import exaggerated
+    from geoterrain.lod.mesh import add_elevation
+
+    for t in (_terrain(tmp_path_factory, False), _uneven(tmp_path_factory),
+              exaggerated(_terrain(tmp_path_factory, True), 3.0)):
+        for e in (0.0, 2.0, 30.0):
+            m = geoterrain.lod.static(t, e).mesh
+            got = np.asarray(m.point_data["elevation"]).copy()
+            add_elevation(m, t.frame.z_scale)
+            assert got.dtype == np.float32
+            np.testing.assert_array_equal(got, np.asarray(m.point_data["elevation"]))

@@ -175,23 +175,27 @@ def static(terrain, max_error: float = 1.0) -> Selection:
         raise UsageError(f"max_error must be ≥ 0, got {max_error}")
     t0, dec0 = time.perf_counter(), terrain.decoded_tiles
     mesh, stats = rtin.static(terrain, e)
-    sel = _finish(terrain, mesh, stats, "static", t0, dec0)
+    sel = _finish(terrain, mesh, stats, "static", t0, dec0, elevated=True)
     sel.stats["max_error"] = e
     return sel
 
 
-def _finish(terrain, mesh, stats: dict, strategy: str, t0: float, dec0: int) -> Selection:
+def _finish(terrain, mesh, stats: dict, strategy: str, t0: float, dec0: int,
+            elevated: bool = False) -> Selection:
     from vtkmodules.util.numpy_support import vtk_to_numpy
 
     from geoterrain.lod.mesh import add_elevation  # (pyvista: loaded with the first mesh)
 
-    add_elevation(mesh, terrain.frame.z_scale)  # every strategy's mesh, skirts included
+    if not elevated:  # (the static mesh computes it with its positions)
+        add_elevation(mesh, terrain.frame.z_scale)  # every strategy's mesh, skirts included
     ms = (time.perf_counter() - t0) * 1e3
     n = mesh.GetNumberOfCells()
     arr = mesh.GetCellData().GetArray("skirt") if n else None  # VTK calls: no wrapper cost
-    skirt = vtk_to_numpy(arr) if arr is not None else np.zeros(n, np.uint8)
-    stats = {"strategy": strategy, "triangles": int((skirt == 0).sum()),
-             "skirt_triangles": int((skirt == 1).sum()), "vertices": int(mesh.GetNumberOfPoints()),
+    skirt = vtk_to_numpy(arr) if arr is not None else np.zeros(0, np.uint8)
+    none = not np.count_nonzero(skirt)  # one pass; most meshes have no skirt
+    stats = {"strategy": strategy, "triangles": n if none else int((skirt == 0).sum()),
+             "skirt_triangles": 0 if none else int((skirt == 1).sum()),
+             "vertices": int(mesh.GetNumberOfPoints()),
              "tiles_visited": 0, "tiles_culled": 0, **stats,
              "tiles_decoded": int(terrain.decoded_tiles - dec0),
              "select_ms": round(ms, 3), "reused": False}

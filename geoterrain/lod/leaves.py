@@ -66,12 +66,13 @@ def _find_active(slots, i0, j0, step, ty, tx, tps, D, e, top_step, s, cnt, loc):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _number_active(slots, i0, j0, step, H, X, Y, aff, zfac, level, s, cnt, loc, first,
-                   vid, xyz, ij, lvl, invalid):
+def _number_active(slots, i0, j0, step, H, X, Y, aff, zfac, inv_scale, level, s, cnt, loc,
+                   first, vid, xyz, ij, lvl, elev, invalid):
     """Per tile, the vertices :func:`_find_active` listed: number them from ``first[k]``
     into the dense ``vid`` (N², −1 = none) and write each one's position (x, y,
-    height · zfac), grid indices and pyramid level; ``invalid[k]``: how many have no
-    valid height."""
+    height · zfac), grid indices, pyramid level and elevation (z · ``inv_scale`` as
+    float32, :func:`~geoterrain.lod.mesh.add_elevation`'s formula); ``invalid[k]``: how
+    many have no valid height."""
     N = s + 1
     for k in prange(slots.shape[0]):
         sl = slots[k]
@@ -84,6 +85,7 @@ def _number_active(slots, i0, j0, step, H, X, Y, aff, zfac, level, s, cnt, loc, 
             x, y = sample_xy(X, Y, aff, sl, a, b, i, j)
             z = H[sl, a, b] * zfac
             xyz[v, 0], xyz[v, 1], xyz[v, 2] = x, y, z
+            elev[v] = np.float32(z * inv_scale)
             if not np.isfinite(z):
                 bad += 1
             ij[v, 0], ij[v, 1] = i, j
@@ -208,9 +210,11 @@ def _count_leaves(ij, vid, s, per, cnt):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _gather_blocks(ef, el, per, cnt, first, faces, level):
+def _gather_blocks(ef, el, per, cnt, first, faces, level, vid, ij, N):
     """Each block's leaves, from row 4·per·block of ``ef``/``el``, to row ``first[block]``
-    of ``faces``/``level``."""
+    of ``faces``/``level``; and the block's vertices' numbers in ``vid`` back to −1
+    (``ij``: their grid indices)."""
+    V = ij.shape[0]
     for c in prange(cnt.shape[0]):
         src, dst = 4 * per * c, first[c]
         for f in range(cnt[c]):
@@ -218,10 +222,13 @@ def _gather_blocks(ef, el, per, cnt, first, faces, level):
             faces[dst + f, 1] = ef[src + f, 1]
             faces[dst + f, 2] = ef[src + f, 2]
             level[dst + f] = el[src + f]
+        for v in range(c * per, min(V, (c + 1) * per)):
+            vid[np.int64(ij[v, 0]) * N + np.int64(ij[v, 1])] = -1
 
 
 @njit(cache=True, nogil=True)
-def _corners(s, top, t, base, slot_of, H, X, Y, aff, zfac, vid, xyz, ij, lvl):
+def _corners(s, top, t, base, slot_of, H, X, Y, aff, zfac, inv_scale, vid, xyz, ij, lvl,
+             elev):
     """Vertices 0–3: the grid's corners, read from the top tile (``slot_of`` ≥ 0);
     returns how many have no valid height."""
     N = s + 1
@@ -234,6 +241,7 @@ def _corners(s, top, t, base, slot_of, H, X, Y, aff, zfac, vid, xyz, ij, lvl):
         vid[i * N + j] = v
         x, y = sample_xy(X, Y, aff, sl, a, b, i, j)
         xyz[v, 0], xyz[v, 1], xyz[v, 2] = x, y, H[sl, a, b] * zfac
+        elev[v] = np.float32(xyz[v, 2] * inv_scale)
         if not np.isfinite(xyz[v, 2]):
             bad += 1
         ij[v, 0], ij[v, 1] = i, j
@@ -266,7 +274,7 @@ def _buffer(scratch: dict, name: str, shape: tuple, dtype) -> np.ndarray:
 
 def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.ndarray,
                   keys: np.ndarray, pool, zfac: float, e: float, vid: np.ndarray,
-                  scratch: dict | None = None):
+                  scratch: dict | None = None, z_scale: float = 1.0):
     """The leaf triangles and vertices of the static mesh δ > ``e`` over the tiles
     ``keys`` (level, x, y) with pool ``slots`` (every tile holding a vertex with δ > e;
     their δ, heights and positions pooled, and the top tile's too).
@@ -274,13 +282,14 @@ def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.nd
     ``vid`` is the dense N² vertex-number scratch, all −1; it is left all −1.
     ``scratch``: a dict that keeps the working arrays from one call to the next.
     Returns faces (F, 3) int32 and their levels (int16), and per vertex: position
-    (x, y, z), grid indices (float64) and pyramid level (int8), and how many vertices
-    have no valid height (0: no face needs culling).
+    (x, y, z), grid indices (float64), pyramid level (int8) and elevation (float32,
+    z / ``z_scale``), and how many vertices have no valid height (0: no face needs
+    culling).
 
     Examples
     --------
     >>> out = static_leaves(*tiles, pool, 1.0, 5.0, vid)  # doctest: +SKIP
-    >>> faces, level, xyz, ij, lvl, bad = out  # doctest: +SKIP
+    >>> faces, level, xyz, ij, lvl, elevation, bad = out  # doctest: +SKIP
     """
     s, top = pool.N - 1, pool.top
     L = keys[:, 0].astype(np.int64)
@@ -299,11 +308,13 @@ def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.nd
         first[1:] += 4
     V = 4 + int(cnt.sum())
     xyz, ij, lvl = np.empty((V, 3)), np.empty((V, 2)), np.empty(V, np.int8)
+    elev = np.empty(V, np.float32)
+    inv = 1.0 / float(z_scale)
     bad = _corners(s, top, pool.t, pool.base, pool.slot_of, pool.H, pool.X, pool.Y,
-                   pool.aff, zfac, vid, xyz, ij, lvl)
+                   pool.aff, zfac, inv, vid, xyz, ij, lvl, elev)
     invalid = np.zeros(len(slots), np.int64)
-    _number_active(slots, i0, j0, step, pool.H, pool.X, pool.Y, pool.aff, zfac, L, s, cnt,
-                   loc, first, vid, xyz, ij, lvl, invalid)
+    _number_active(slots, i0, j0, step, pool.H, pool.X, pool.Y, pool.aff, zfac, inv, L, s,
+                   cnt, loc, first, vid, xyz, ij, lvl, elev, invalid)
     m = (s // 2) * (s + 1) + s // 2
     root = bool(vid[m] < 0)  # the centre inactive: the two base triangles are leaves
     per = 4096
@@ -320,7 +331,8 @@ def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.nd
         F = int(lcnt.sum())
         faces = np.empty((F + 2, 3), np.int32)
         level = np.empty(F + 2, np.int16)
-        _gather_blocks(ef, el, per, lcnt, lfirst, faces, level)
+        _gather_blocks(ef, el, per, lcnt, lfirst, faces, level, vid, ij[4:], s + 1)
+        _reset(vid, ij[:4], s + 1)
     else:  # a large mesh: count, then emit to the exact rows (no room to spare)
         _count_leaves(ij[4:], vid, s, per, lcnt)
         np.cumsum(lcnt[:-1], out=lfirst[1:])
@@ -328,11 +340,10 @@ def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.nd
         faces = np.empty((F + 2, 3), np.int32)
         level = np.empty(F + 2, np.int16)
         _emit_leaves(ij[4:], lvl[4:], vid, s, per, lfirst, lfirst + lcnt, lcnt, faces, level)
+        _reset(vid, ij, s + 1)
     if root:  # the base triangles (0, 0), (s, s), (0, s) and (s, s), (0, 0), (s, 0)
         faces[F] = (0, 3, 1)
         faces[F + 1] = (3, 0, 2)
         level[F:F + 2] = top
         F += 2
-    faces, level = faces[:F], level[:F]
-    _reset(vid, ij, s + 1)
-    return faces, level, xyz, ij, lvl, bad + int(invalid.sum())
+    return faces[:F], level[:F], xyz, ij, lvl, elev, bad + int(invalid.sum())

@@ -68,13 +68,16 @@ def _add(data, name: str, values: np.ndarray) -> None:
     data.AddArray(arr)
 
 
-def add_elevation(mesh: pv.PolyData, z_scale: float) -> pv.PolyData:
+def add_elevation(mesh: pv.PolyData, z_scale: float,
+                  elevation: np.ndarray | None = None) -> pv.PolyData:
     """Add the point array ``elevation`` (metres) to ``mesh`` in place and make it active.
 
     Scene Z is the height in metres × the vertical exaggeration (``Frame.z``:
     height × z_to_m × z_scale), so elevation = Z / z_scale: the unexaggerated height
     in metres, whatever the DEM's vertical unit. Skirt vertices get the height of
-    where they hang (their own Z), like every other point.
+    where they hang (their own Z), like every other point. ``elevation``: the array,
+    already computed by this formula (float32 of Z · (1 / z_scale)) where the mesh was
+    made; it is then added as it is.
 
     Examples
     --------
@@ -84,9 +87,11 @@ def add_elevation(mesh: pv.PolyData, z_scale: float) -> pv.PolyData:
     ('elevation', [2.0, 3.0, 4.0])
     """
     if mesh.n_points:
-        z = vtk_to_numpy(mesh.GetPoints().GetData())[:, 2]
-        e = np.empty(len(z), np.float32)  # one pass, no float64 temporary
-        np.multiply(z, 1.0 / float(z_scale), out=e, casting="unsafe")
+        e = elevation
+        if e is None:
+            z = vtk_to_numpy(mesh.GetPoints().GetData())[:, 2]
+            e = np.empty(len(z), np.float32)  # one pass, no float64 temporary
+            np.multiply(z, 1.0 / float(z_scale), out=e, casting="unsafe")
         pd = mesh.GetPointData()  # VTK calls: a frame pays no wrapper overhead here
         pd.RemoveArray("elevation")
         _add(pd, "elevation", e)

@@ -42,7 +42,7 @@ from geoterrain.lod.kernels import (
     walk_start,
 )
 from geoterrain.lod.leaves import static_leaves
-from geoterrain.lod.mesh import empty_polydata, polydata
+from geoterrain.lod.mesh import add_elevation, empty_polydata, polydata
 from geoterrain.lod.morph import MORPH_START, morph_mesh
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.pool import tile_pool
@@ -332,7 +332,8 @@ def static(terrain, max_error: float):
     Its vertical error is ≤ ``max_error`` at every valid full-resolution sample.
     The leaves come straight from the active vertices
     (:func:`~geoterrain.lod.leaves.static_leaves`): the same triangles as
-    :func:`active_mesh` of :func:`static_active`, without the walk.
+    :func:`active_mesh` of :func:`static_active`, without the walk. The mesh carries
+    its ``elevation`` already (computed with the positions).
     """
     index = tile_index(terrain)
     pool = tile_pool(terrain)
@@ -347,10 +348,10 @@ def static(terrain, max_error: float):
     pool.slots(np.array([pool.base[pool.top]]), ("height", "xy"))  # the grid's corners
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
     sc = _scratch(terrain)
-    faces, level, xyz, ij, lvl, bad = static_leaves(slots, i0, j0, step, keys, pool, zfac, e,
-                                                    sc.vid, sc.leaves)
-    if bad:  # drop the triangles with an invalid corner
+    faces, level, xyz, ij, lvl, elev, bad = static_leaves(
+        slots, i0, j0, step, keys, pool, zfac, e, sc.vid, sc.leaves, terrain.frame.z_scale)
+    if bad:  # drop the triangles with an invalid corner (and the elevations of the vertices)
         nf, nv, level = cull_in_place(faces, xyz, ij, np.zeros((0, 4)), lvl, np.zeros(3), 0.0)
-        faces, xyz, ij = faces[:nf], xyz[:nv], ij[:nv]
-    return polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8),
-                                     "level": level}), {}
+        faces, xyz, ij, elev = faces[:nf], xyz[:nv], ij[:nv], None
+    mesh = polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8), "level": level})
+    return add_elevation(mesh, terrain.frame.z_scale, elev), {}
