@@ -270,3 +270,26 @@ def test_the_static_elevation_is_the_seams_formula(tmp_path_factory):
             add_elevation(m, t.frame.z_scale)
             assert got.dtype == np.float32
             np.testing.assert_array_equal(got, np.asarray(m.point_data["elevation"]))
+
+
+def test_a_forked_child_extracts_the_same_static_mesh(tmp_path_factory):
+    """After the parent has run the parallel kernels, a child made by fork() (GNU
+    OpenMP aborts such a child at its first parallel launch) extracts the same static
+    mesh, with the serial twins."""
+    import os
+
+    t = _terrain(tmp_path_factory, True)
+    want = _oriented(geoterrain.lod.static(t, 3.0).mesh)  # the parent uses the threads
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: report through the pipe, never return into pytest
+        try:
+            ok = _oriented(geoterrain.lod.static(t, 3.0).mesh) == want and leaves._FORKED
+            os.write(w, b"same" if ok else b"different")
+        finally:
+            os._exit(0)
+    os.close(w)
+    got = os.read(r, 64)
+    os.close(r)
+    _, status = os.waitpid(pid, 0)
+    assert got == b"same", (got, status)

@@ -28,10 +28,40 @@ domain's edge), and its children are the four triangles of that diamond's halves
 
 from __future__ import annotations
 
+import os
+import types
+
 import numpy as np
 from numba import njit, prange
 
 from geoterrain.lod.kernels import _coarsest_tile, sample_xy
+
+_FORKED = False  # set in a child process made by fork()
+_SERIAL: dict = {}
+
+
+def _forked() -> None:
+    global _FORKED
+    _FORKED = True
+
+
+os.register_at_fork(after_in_child=_forked)
+
+
+def _parallel(f):
+    """``f`` compiled with its ``prange`` loops run in parallel, and a serial twin (in
+    :data:`_SERIAL`) for forked children: numba's GNU OpenMP layer aborts a process
+    forked from one that used it at its first parallel launch."""
+    twin = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial",
+                              f.__defaults__, f.__closure__)
+    twin.__qualname__ = f.__qualname__ + "_serial"  # its own cache entry
+    _SERIAL[f.__name__] = njit(cache=True, nogil=True)(twin)
+    return njit(cache=True, nogil=True, parallel=True)(f)
+
+
+def _kernel(name: str):
+    """The parallel kernel ``name``, or its serial twin in a forked child."""
+    return _SERIAL[name] if _FORKED else globals()[name]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -40,7 +70,7 @@ def _owned(a, b, T, ty, tx, tps):
     return (a < T - 1 or ty == tps - 1) and (b < T - 1 or tx == tps - 1)
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_parallel
 def _find_active(slots, i0, j0, step, ty, tx, tps, D, e, top_step, s, cnt, loc):
     """Per tile k: the active vertices (δ > e) it owns, not counting the grid's corners:
     how many in ``cnt[k]``, their local indices (a << 16 | b) in ``loc[k]``."""
@@ -65,7 +95,7 @@ def _find_active(slots, i0, j0, step, ty, tx, tps, D, e, top_step, s, cnt, loc):
         cnt[k] = c
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_parallel
 def _number_active(slots, i0, j0, step, H, X, Y, aff, zfac, inv_scale, level, s, cnt, loc,
                    first, vid, xyz, ij, lvl, elev, invalid):
     """Per tile, the vertices :func:`_find_active` listed: number them from ``first[k]``
@@ -105,7 +135,7 @@ def _leaf(faces, level, f, stop, va, vb, vc, lv, split):
     return f + 1 - split
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_parallel
 def _emit_leaves(ij, lvl, vid, s, per, start, stop, cnt, faces, level):
     """The leaves of each block of ``per`` vertices, in rows ``start[block]`` to
     ``stop[block]``, how many in ``cnt[block]``; with their level: that of their split
@@ -178,7 +208,7 @@ def _emit_leaves(ij, lvl, vid, s, per, start, stop, cnt, faces, level):
         cnt[c] = f - start[c]
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_parallel
 def _count_leaves(ij, vid, s, per, cnt):
     """How many leaves :func:`_emit_leaves` writes for each block of ``per`` vertices."""
     N = s + 1
@@ -209,7 +239,7 @@ def _count_leaves(ij, vid, s, per, cnt):
         cnt[c] = n
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_parallel
 def _gather_blocks(ef, el, per, cnt, first, faces, level, vid, ij, N):
     """Each block's leaves, from row 4·per·block of ``ef``/``el``, to row ``first[block]``
     of ``faces``/``level``; and the block's vertices' numbers in ``vid`` back to −1
@@ -249,7 +279,7 @@ def _corners(s, top, t, base, slot_of, H, X, Y, aff, zfac, inv_scale, vid, xyz, 
     return bad
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@_parallel
 def _reset(vid, ij, N):
     for v in prange(ij.shape[0]):
         vid[np.int64(ij[v, 0]) * N + np.int64(ij[v, 1])] = -1
@@ -298,9 +328,12 @@ def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.nd
     cnt = np.zeros(len(slots), np.int64)
     top_step = np.int64(1) << top
     T = pool.T
+    find, number, emit, count, gather, reset = (_kernel(n) for n in (
+        "_find_active", "_number_active", "_emit_leaves", "_count_leaves", "_gather_blocks",
+        "_reset"))
     scratch = {} if scratch is None else scratch
     loc = _buffer(scratch, "loc", (len(slots), T * T), np.uint32)
-    _find_active(slots, i0, j0, step, ty, tx, tps, pool.D, float(e), top_step, s, cnt, loc)
+    find(slots, i0, j0, step, ty, tx, tps, pool.D, float(e), top_step, s, cnt, loc)
     first = np.empty(len(slots), np.int64)
     if len(cnt):
         first[0] = 4
@@ -313,7 +346,7 @@ def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.nd
     bad = _corners(s, top, pool.t, pool.base, pool.slot_of, pool.H, pool.X, pool.Y,
                    pool.aff, zfac, inv, vid, xyz, ij, lvl, elev)
     invalid = np.zeros(len(slots), np.int64)
-    _number_active(slots, i0, j0, step, pool.H, pool.X, pool.Y, pool.aff, zfac, inv, L, s,
+    number(slots, i0, j0, step, pool.H, pool.X, pool.Y, pool.aff, zfac, inv, L, s,
                    cnt, loc, first, vid, xyz, ij, lvl, elev, invalid)
     m = (s // 2) * (s + 1) + s // 2
     root = bool(vid[m] < 0)  # the centre inactive: the two base triangles are leaves
@@ -326,21 +359,21 @@ def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.nd
         ef = _buffer(scratch, "faces", (rows, 3), np.int32)
         el = _buffer(scratch, "level", (rows,), np.int16)
         at = np.arange(nb) * (4 * per)
-        _emit_leaves(ij[4:], lvl[4:], vid, s, per, at, at + 4 * per, lcnt, ef, el)
+        emit(ij[4:], lvl[4:], vid, s, per, at, at + 4 * per, lcnt, ef, el)
         np.cumsum(lcnt[:-1], out=lfirst[1:])
         F = int(lcnt.sum())
         faces = np.empty((F + 2, 3), np.int32)
         level = np.empty(F + 2, np.int16)
-        _gather_blocks(ef, el, per, lcnt, lfirst, faces, level, vid, ij[4:], s + 1)
-        _reset(vid, ij[:4], s + 1)
+        gather(ef, el, per, lcnt, lfirst, faces, level, vid, ij[4:], s + 1)
+        reset(vid, ij[:4], s + 1)
     else:  # a large mesh: count, then emit to the exact rows (no room to spare)
-        _count_leaves(ij[4:], vid, s, per, lcnt)
+        count(ij[4:], vid, s, per, lcnt)
         np.cumsum(lcnt[:-1], out=lfirst[1:])
         F = int(lcnt.sum())
         faces = np.empty((F + 2, 3), np.int32)
         level = np.empty(F + 2, np.int16)
-        _emit_leaves(ij[4:], lvl[4:], vid, s, per, lfirst, lfirst + lcnt, lcnt, faces, level)
-        _reset(vid, ij, s + 1)
+        emit(ij[4:], lvl[4:], vid, s, per, lfirst, lfirst + lcnt, lcnt, faces, level)
+        reset(vid, ij, s + 1)
     if root:  # the base triangles (0, 0), (s, s), (0, s) and (s, s), (0, 0), (s, 0)
         faces[F] = (0, 3, 1)
         faces[F + 1] = (3, 0, 2)
