@@ -10,13 +10,14 @@ the finest level). Every leaf has one parent split, so
              ∪ {the two base triangles, when the grid's centre is inactive},
 
 each met once. That turns the depth-first walk of :func:`~geoterrain.lod.emit.walk_gather`
-into two flat passes over the active vertices, in parallel:
+into flat passes over the tiles and the active vertices, in parallel:
 
 1. per tile, the active vertices it owns (a sample shared by two tiles belongs to the
-   one :func:`~geoterrain.lod.kernels._coarsest_tile` names), numbered tile by tile,
-   with their positions read from the pooled tile;
-2. per block of vertices, its leaves, written with room for four per vertex (the most
-   a vertex has), then gathered to their final rows.
+   one :func:`~geoterrain.lod.kernels._coarsest_tile` names), listed, then numbered
+   tile by tile with their positions and elevations read from the pooled tile;
+2. per block of vertices, its leaves: written with room for four per vertex (the most a
+   vertex has) into kept scratch and gathered to their final rows, or, for a mesh too
+   large for the scratch, counted first and written to their final rows.
 
 The children of a sample (i, j) follow from the lowest set bit h of i | j. When i/h and
 j/h are both odd, (i, j) is the centre of a square of half-size h, and its children are
