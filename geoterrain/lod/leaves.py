@@ -286,7 +286,9 @@ def _reset(vid, ij, N):
         vid[np.int64(ij[v, 0]) * N + np.int64(ij[v, 1])] = -1
 
 
-#: Scratch arrays up to this size are kept between calls (fresh pages cost their zeroing).
+#: Scratch arrays up to this size are kept between calls (fresh pages cost their zeroing):
+#: the per-tile lists, and the spare-room faces and levels together, so a terrain keeps at
+#: most twice this (128 MB) after a static mesh.
 KEEP_BYTES = 64 << 20
 
 
