@@ -66,16 +66,26 @@ def _kernel(name: str):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _owned(a, b, T, ty, tx, tps):
-    # the tile owns its last row (column) only on the level's last tile row (column)
-    return (a < T - 1 or ty == tps - 1) and (b < T - 1 or tx == tps - 1)
+def _listed(D, sl, a, b, T, coarse, ty, tx, tps, e, i, j, s):
+    """Whether sample (a, b) of the tile in slot ``sl`` is an active vertex (δ > e) that
+    the tile owns: new at its level (unless ``coarse`` is False), not on the tile's last
+    row (column) unless the tile is the level's last in that direction, and not a grid
+    corner."""
+    if coarse and (a & 1) == 0 and (b & 1) == 0:
+        return False  # a coarser level's vertex, owned by that level's tile
+    if (a == T - 1 and ty != tps - 1) or (b == T - 1 and tx != tps - 1):
+        return False
+    if not np.float64(D[sl, a, b]) > e:
+        return False
+    return not ((i == 0 or i == s) and (j == 0 or j == s))
 
 
 @_parallel
 def _find_active(slots, i0, j0, step, ty, tx, tps, D, e, top_step, s, cnt, loc):
-    """Per tile k: the active vertices (δ > e) it owns, not counting the grid's corners:
-    how many in ``cnt[k]``, their local indices (a << 16 | b) in ``loc[k]``."""
+    """Per tile k: how many vertices :func:`_listed` names, in ``cnt[k]``, and (unless
+    ``loc`` has no columns) their local indices (a << 16 | b) in ``loc[k]``."""
     T = D.shape[1]
+    keep = loc.shape[1] > 0
     for k in prange(slots.shape[0]):
         sl = slots[k]
         coarse = step[k] < top_step
@@ -83,45 +93,58 @@ def _find_active(slots, i0, j0, step, ty, tx, tps, D, e, top_step, s, cnt, loc):
         for a in range(T):
             i = i0[k] + a * step[k]
             for b in range(T):
-                if coarse and (a & 1) == 0 and (b & 1) == 0:
-                    continue  # a coarser level's vertex, owned by that level's tile
-                if not _owned(a, b, T, ty[k], tx[k], tps[k]):
-                    continue
-                if np.float64(D[sl, a, b]) > e:
-                    j = j0[k] + b * step[k]
-                    if (i == 0 or i == s) and (j == 0 or j == s):
-                        continue
-                    loc[k, c] = (a << 16) | b
+                if _listed(D, sl, a, b, T, coarse, ty[k], tx[k], tps[k], e, i,
+                           j0[k] + b * step[k], s):
+                    if keep:
+                        loc[k, c] = (a << 16) | b
                     c += 1
         cnt[k] = c
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _vertex(v, sl, a, b, i, j, H, X, Y, aff, zfac, inv_scale, L, N, vid, xyz, ij, lvl,
+            elev):
+    """Number sample (i, j) (sample (a, b) of slot ``sl``) v and write its position
+    (x, y, height · zfac), grid indices, level and elevation (z · ``inv_scale`` as
+    float32, :func:`~geoterrain.lod.mesh.add_elevation`'s formula); returns whether
+    its height is invalid."""
+    vid[i * N + j] = v
+    x, y = sample_xy(X, Y, aff, sl, a, b, i, j)
+    z = H[sl, a, b] * zfac
+    xyz[v, 0], xyz[v, 1], xyz[v, 2] = x, y, z
+    elev[v] = np.float32(z * inv_scale)
+    ij[v, 0], ij[v, 1] = i, j
+    lvl[v] = L
+    return not np.isfinite(z)
+
+
 @_parallel
-def _number_active(slots, i0, j0, step, H, X, Y, aff, zfac, inv_scale, level, s, cnt, loc,
-                   first, vid, xyz, ij, lvl, elev, invalid):
-    """Per tile, the vertices :func:`_find_active` listed: number them from ``first[k]``
-    into the dense ``vid`` (N², −1 = none) and write each one's position (x, y,
-    height · zfac), grid indices, pyramid level and elevation (z · ``inv_scale`` as
-    float32, :func:`~geoterrain.lod.mesh.add_elevation`'s formula); ``invalid[k]``: how
+def _number_active(slots, i0, j0, step, ty, tx, tps, D, e, top_step, H, X, Y, aff, zfac,
+                   inv_scale, level, s, cnt, loc, first, vid, xyz, ij, lvl, elev, invalid):
+    """Per tile, the vertices :func:`_find_active` counted (read from ``loc``, or found
+    again when it has no columns): number them from ``first[k]`` into the dense ``vid``
+    (N², −1 = none) and write each one's data (:func:`_vertex`); ``invalid[k]``: how
     many have no valid height."""
     N = s + 1
+    T = D.shape[1]
     for k in prange(slots.shape[0]):
-        sl = slots[k]
-        v = first[k]
-        bad = 0
-        for r in range(cnt[k]):
-            a, b = loc[k, r] >> 16, loc[k, r] & 0xFFFF
-            i, j = i0[k] + a * step[k], j0[k] + b * step[k]
-            vid[i * N + j] = v
-            x, y = sample_xy(X, Y, aff, sl, a, b, i, j)
-            z = H[sl, a, b] * zfac
-            xyz[v, 0], xyz[v, 1], xyz[v, 2] = x, y, z
-            elev[v] = np.float32(z * inv_scale)
-            if not np.isfinite(z):
-                bad += 1
-            ij[v, 0], ij[v, 1] = i, j
-            lvl[v] = level[k]
-            v += 1
+        sl, v, bad = slots[k], first[k], 0
+        if loc.shape[1] > 0:
+            for r in range(cnt[k]):
+                a, b = loc[k, r] >> 16, loc[k, r] & 0xFFFF
+                bad += _vertex(v, sl, a, b, i0[k] + a * step[k], j0[k] + b * step[k], H, X,
+                               Y, aff, zfac, inv_scale, level[k], N, vid, xyz, ij, lvl, elev)
+                v += 1
+        else:
+            coarse = step[k] < top_step
+            for a in range(T):
+                i = i0[k] + a * step[k]
+                for b in range(T):
+                    j = j0[k] + b * step[k]
+                    if _listed(D, sl, a, b, T, coarse, ty[k], tx[k], tps[k], e, i, j, s):
+                        bad += _vertex(v, sl, a, b, i, j, H, X, Y, aff, zfac, inv_scale,
+                                       level[k], N, vid, xyz, ij, lvl, elev)
+                        v += 1
         invalid[k] = bad
 
 
@@ -335,7 +358,8 @@ def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.nd
         "_find_active", "_number_active", "_emit_leaves", "_count_leaves", "_gather_blocks",
         "_reset"))
     scratch = {} if scratch is None else scratch
-    loc = _buffer(scratch, "loc", (len(slots), T * T), np.uint32)
+    listed = len(slots) * T * T * 4 <= KEEP_BYTES  # else found again: no fresh lists
+    loc = _buffer(scratch, "loc", (len(slots), T * T if listed else 0), np.uint32)
     find(slots, i0, j0, step, ty, tx, tps, pool.D, float(e), top_step, s, cnt, loc)
     first = np.empty(len(slots), np.int64)
     if len(cnt):
@@ -349,8 +373,9 @@ def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.nd
     bad = _corners(s, top, pool.t, pool.base, pool.slot_of, pool.H, pool.X, pool.Y,
                    pool.aff, zfac, inv, vid, xyz, ij, lvl, elev)
     invalid = np.zeros(len(slots), np.int64)
-    number(slots, i0, j0, step, pool.H, pool.X, pool.Y, pool.aff, zfac, inv, L, s,
-                   cnt, loc, first, vid, xyz, ij, lvl, elev, invalid)
+    number(slots, i0, j0, step, ty, tx, tps, pool.D, float(e), top_step, pool.H, pool.X,
+           pool.Y, pool.aff, zfac, inv, L, s, cnt, loc, first, vid, xyz, ij, lvl, elev,
+           invalid)
     m = (s // 2) * (s + 1) + s // 2
     root = bool(vid[m] < 0)  # the centre inactive: the two base triangles are leaves
     per = 4096
