@@ -283,23 +283,15 @@ def _gather_blocks(ef, el, per, cnt, first, faces, level, vid, ij, N):
 @njit(cache=True, nogil=True)
 def _corners(s, top, t, base, slot_of, H, X, Y, aff, zfac, inv_scale, vid, xyz, ij, lvl,
              elev):
-    """Vertices 0–3: the grid's corners, read from the top tile (``slot_of`` ≥ 0);
-    returns how many have no valid height."""
-    N = s + 1
+    """Vertices 0–3: the grid's corners, read from the top tile (``slot_of`` ≥ 0)
+    by :func:`_vertex`; returns how many have no valid height."""
     bad = 0
     for v in range(4):
         i = s if v >= 2 else 0
         j = s if v % 2 == 1 else 0
         L, ti, a, b = _coarsest_tile(i, j, top, t, base)
-        sl = slot_of[ti]
-        vid[i * N + j] = v
-        x, y = sample_xy(X, Y, aff, sl, a, b, i, j)
-        xyz[v, 0], xyz[v, 1], xyz[v, 2] = x, y, H[sl, a, b] * zfac
-        elev[v] = np.float32(xyz[v, 2] * inv_scale)
-        if not np.isfinite(xyz[v, 2]):
-            bad += 1
-        ij[v, 0], ij[v, 1] = i, j
-        lvl[v] = L
+        bad += _vertex(v, slot_of[ti], a, b, i, j, H, X, Y, aff, zfac, inv_scale, L, s + 1,
+                       vid, xyz, ij, lvl, elev)
     return bad
 
 
@@ -328,9 +320,8 @@ def _buffer(scratch: dict, name: str, shape: tuple, dtype) -> np.ndarray:
     return out.reshape(shape)
 
 
-def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.ndarray,
-                  keys: np.ndarray, pool, zfac: float, e: float, vid: np.ndarray,
-                  scratch: dict | None = None, z_scale: float = 1.0):
+def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: float,
+                  vid: np.ndarray, scratch: dict | None = None, z_scale: float = 1.0):
     """The leaf triangles and vertices of the static mesh δ > ``e`` over the tiles
     ``keys`` (level, x, y) with pool ``slots`` (every tile holding a vertex with δ > e;
     their δ, heights and positions pooled, and the top tile's too).
@@ -344,10 +335,11 @@ def static_leaves(slots: np.ndarray, i0: np.ndarray, j0: np.ndarray, step: np.nd
 
     Examples
     --------
-    >>> out = static_leaves(*tiles, pool, 1.0, 5.0, vid)  # doctest: +SKIP
+    >>> out = static_leaves(keys, slots, pool, 1.0, 5.0, vid)  # doctest: +SKIP
     >>> faces, level, xyz, ij, lvl, elevation, bad = out  # doctest: +SKIP
     """
     s, top = pool.N - 1, pool.top
+    i0, j0, step = pool.origins(keys)
     L = keys[:, 0].astype(np.int64)
     tps = np.int64(1) << (top - L)
     ty, tx = keys[:, 2].astype(np.int64), keys[:, 1].astype(np.int64)

@@ -23,7 +23,7 @@ from geoterrain.lod.kernels import BLOCK, block_bounds
 
 _POOLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 KINDS = ("delta", "radius", "height", "xy", "blocks")
-_BYTES = {"delta": 4, "radius": 4, "height": 8, "xy": 16, "blocks": 0}
+_BYTES = {"delta": 4, "radius": 4, "height": 8, "xy": 16, "blocks": 0}  # per sample
 BUDGET_BYTES = 384 << 20
 
 
@@ -46,7 +46,8 @@ class TilePool:
         if f.kind != "geographic":
             self.aff = np.array([*f.transform[:6], *f.origin_crs, f.unit_to_m], np.float64)
         kinds = KINDS if len(self.aff) == 0 else [k for k in KINDS if k != "xy"]
-        per_slot = self.T * self.T * sum(_BYTES[k] for k in kinds) + self.nb ** 2 * 72
+        per_slot = (self.T * self.T * sum(_BYTES[k] for k in kinds)
+                    + self.nb ** 2 * 9 * 8)  # + each block's nine float64 bounds
         self.capacity = 0
         self.budget_slots = max(16, budget_bytes // per_slot)
         self.key_of = np.zeros((0,), np.int64)  # table index of each slot, -1 if free
@@ -62,6 +63,12 @@ class TilePool:
         self.stored = np.zeros(int(self.base[-1]), bool)
         for (L, x, y) in terrain.tile_info:
             self.stored[self.base[L] + y * (1 << (self.top - L)) + x] = True
+
+    def origins(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Grid row and column of the first sample of the (L, x, y) tiles ``keys`` (K, 3),
+        and their sample spacing 2^L."""
+        L = keys[:, 0]
+        return (keys[:, 2] << self.t) << L, (keys[:, 1] << self.t) << L, np.int64(1) << L
 
     def table_index(self, keys: np.ndarray) -> np.ndarray:
         """Index into the slot table of (L, x, y) keys (K, 3)."""
@@ -159,10 +166,9 @@ class TilePool:
         elif kind == "height":
             self.H[s] = t.tile(*key).heights
         elif kind == "blocks":  # after delta, radius, height and xy (see slots)
-            L, x, y = key
-            i0, j0 = (y << (self.t + L)), (x << (self.t + L))
-            block_bounds(self.D, self.R, self.H, self.X, self.Y, self.aff, s, i0, j0, 1 << L,
-                         L < self.top, self.BK[s])
+            i0, j0, step = (int(v[0]) for v in self.origins(np.array([key], np.int64)))
+            block_bounds(self.D, self.R, self.H, self.X, self.Y, self.aff, s, i0, j0, step,
+                         key[0] < self.top, self.BK[s])
         elif len(self.aff) == 0:  # affine frames: x, y computed in the kernels
             self.X[s], self.Y[s] = t.tile_xy(*key)
         self.have[kind][s] = True

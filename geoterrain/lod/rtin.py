@@ -123,15 +123,13 @@ class ActiveSet:
         """Slot-table index, first grid row and column, and sample spacing of the tiles
         ``rows``; with ``boxes`` the tiles are added to the per-level boxes the closure
         scans (else the caller grows those boxes by the vertices it activates)."""
-        g = self.terrain.grid
+        g, pool = self.terrain.grid, tile_pool(self.terrain)
         keys = index.keys[rows]
-        L, x, y = keys[:, 0], keys[:, 1], keys[:, 2]
-        step = np.int64(1) << L
-        i0, j0 = (y << g.t) << L, (x << g.t) << L
+        i0, j0, step = pool.origins(keys)
         if boxes:
             i1, j1 = i0 + (g.tile_samples - 1) * step, j0 + (g.tile_samples - 1) * step
-            level_boxes(L, i0, i1, j0, j1, self.boxes)
-        return tile_pool(self.terrain).table_index(keys), i0, j0, step
+            level_boxes(keys[:, 0], i0, i1, j0, j1, self.boxes)
+        return pool.table_index(keys), i0, j0, step
 
     def close(self) -> None:
         """Close the active set upward, scanning only where tiles were filled."""
@@ -139,13 +137,10 @@ class ActiveSet:
 
     def mark_unknown_mixed(self, rows: np.ndarray, index) -> None:
         """Tiles not read that may hold δ = inf: flag their samples as mixed (not drawn)."""
-        g = self.terrain.grid
-        T = g.tile_samples
-        for row in rows.tolist():
-            L, x, y = (int(v) for v in index.keys[row])
-            s = 1 << L
-            i0, j0 = (y << g.t) << L, (x << g.t) << L
-            self.mixed[i0:i0 + (T - 1) * s + 1, j0:j0 + (T - 1) * s + 1] = self.gen
+        T = self.terrain.grid.tile_samples
+        i0, j0, step = tile_pool(self.terrain).origins(index.keys[rows])
+        for a, b, s in zip(i0.tolist(), j0.tolist(), step.tolist(), strict=True):
+            self.mixed[a:a + (T - 1) * s + 1, b:b + (T - 1) * s + 1] = self.gen
 
 
 def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
@@ -338,18 +333,13 @@ def static(terrain, max_error: float):
     index = tile_index(terrain)
     pool = tile_pool(terrain)
     e = float(max_error)
-    rows = np.flatnonzero(index.delta_max > e)
-    g = terrain.grid
-    keys = index.keys[rows]
-    L = keys[:, 0]
-    step = np.int64(1) << L
-    i0, j0 = (keys[:, 2] << g.t) << L, (keys[:, 1] << g.t) << L
+    keys = index.keys[index.delta_max > e]
     slots = pool.slots(pool.table_index(keys), ("delta", "height", "xy"))
     pool.slots(np.array([pool.base[pool.top]]), ("height", "xy"))  # the grid's corners
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
     sc = _scratch(terrain)
     faces, level, xyz, ij, lvl, elev, bad = static_leaves(
-        slots, i0, j0, step, keys, pool, zfac, e, sc.vid, sc.leaves, terrain.frame.z_scale)
+        keys, slots, pool, zfac, e, sc.vid, sc.leaves, terrain.frame.z_scale)
     if bad:  # drop the triangles with an invalid corner (and the elevations of the vertices)
         nf, nv, level = cull_in_place(faces, xyz, ij, np.zeros((0, 4)), lvl, np.zeros(3), 0.0)
         faces, xyz, ij, elev = faces[:nf], xyz[:nv], ij[:nv], None
