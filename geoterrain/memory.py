@@ -1,8 +1,12 @@
-"""How much memory is available (to check a job's need before it allocates)."""
+"""Memory: how much is available (to check a job's need before it allocates), and
+zeroed arrays that stay sparse in memory."""
 
 from __future__ import annotations
 
+import mmap
 import os
+
+import numpy as np
 
 
 def available_memory() -> int:
@@ -24,3 +28,29 @@ def available_memory() -> int:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):
         return 1 << 62
+
+
+def sparse_zeros(shape: tuple[int, ...], dtype=np.uint8) -> np.ndarray:
+    """A zeroed array whose memory is committed 4 KiB page by page as it is written.
+
+    numpy asks Linux for transparent huge pages on large allocations, so one write
+    commits 2 MiB. For per-sample flags over a whole grid, written at a few thousand
+    scattered samples a frame, that makes memory follow the grid's size: a 16385²
+    flag array written at 5 000 coarse vertices committed 180 MB. Here the pages are
+    an anonymous mapping advised against huge pages, and memory follows the writes.
+
+    Examples
+    --------
+    >>> a = sparse_zeros((1000, 1000))
+    >>> a[500, 500] = 7
+    >>> int(a.sum()), a.dtype.name, a.shape
+    (7, 'uint8', (1000, 1000))
+    """
+    dt = np.dtype(dtype)
+    if not hasattr(mmap, "MAP_ANONYMOUS"):  # not a POSIX system: numpy's own zeros
+        return np.zeros(shape, dt)
+    n = max(1, int(np.prod(shape, dtype=np.int64)) * dt.itemsize)
+    buf = mmap.mmap(-1, n, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
+    if hasattr(mmap, "MADV_NOHUGEPAGE"):
+        buf.madvise(mmap.MADV_NOHUGEPAGE)
+    return np.frombuffer(buf, dt, count=int(np.prod(shape, dtype=np.int64))).reshape(shape)

@@ -48,6 +48,7 @@ from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.pool import tile_pool
 from geoterrain.lod.switches import morphing_enabled
 from geoterrain.lod.tiles import TileIndex, tile_index, tile_table
+from geoterrain.memory import sparse_zeros
 from geoterrain.view import View
 
 BLOCKS = True  # fill_lp tests each tile's blocks' bounds before their samples
@@ -83,8 +84,9 @@ class _Scratch:
 
     def next_gen(self) -> np.uint8:
         if self.active is None or self.gen == 255:
-            self.active = np.zeros((self.N, self.N), np.uint8)
-            self.mixed = np.zeros((self.N, self.N), np.uint8)
+            # pages committed as written: a frame's scattered flags, not the grid
+            self.active = sparse_zeros((self.N, self.N), np.uint8)
+            self.mixed = sparse_zeros((self.N, self.N), np.uint8)
             self.gen = 0
         self.gen += 1
         return np.uint8(self.gen)
