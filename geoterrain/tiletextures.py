@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from geoterrain.atlaskernels import face_footprints, group_boxes, number_pages
 from geoterrain.colours import Palette, as_palette, colorize
 from geoterrain.drape import Drape, drape_tile
 from geoterrain.shading import Light, tile_shade
@@ -117,23 +118,24 @@ def footprints(ij: np.ndarray, faces: np.ndarray, grid) -> tuple[np.ndarray, ...
     >>> int(L[0]), int(x[0]), int(y[0])
     (0, 0, 0)
     """
-    i, j = ij[:, 0].astype(np.int64), ij[:, 1].astype(np.int64)
-    fi, fj = i[faces], j[faces]
-    i0, i1, j0, j1 = fi.min(1), fi.max(1), fj.min(1), fj.max(1)
-    L = np.full(len(faces), grid.top_level, np.int64)
-    X = np.zeros(len(faces), np.int64)
-    Y = np.zeros(len(faces), np.int64)
-    todo = np.ones(len(faces), bool)
-    for lv in grid.levels:  # finest first: the first footprint that holds a face is its own
-        w = (1 << grid.t) << lv
-        xs = np.minimum(j0 // w, grid.tiles_per_side(lv) - 1)
-        ys = np.minimum(i0 // w, grid.tiles_per_side(lv) - 1)
-        fits = todo & (j1 <= (xs + 1) * w) & (i1 <= (ys + 1) * w)
-        L[fits], X[fits], Y[fits] = lv, xs[fits], ys[fits]
-        todo &= ~fits
-        if not todo.any():
-            break
-    return L, X, Y
+    top = grid.top_level
+    base = _table_base(top)
+    faces = np.asarray(faces, np.int64)
+    cells = np.concatenate([np.full((len(faces), 1), 3, np.int64), faces], 1).ravel()
+    return _table_keys(face_footprints(ij, cells, grid.t, base), base)
+
+
+def _table_base(top: int) -> np.ndarray:
+    """Offsets of each level in the dense (level, y, x) tile table (4^(top−L) tiles each)."""
+    return np.concatenate([[0], np.cumsum(4 ** np.arange(top, -1, -1))]).astype(np.int64)
+
+
+def _table_keys(e: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(L, x, y) of dense tile-table indices ``e``."""
+    top = len(base) - 2
+    L = np.searchsorted(base, e, side="right") - 1
+    rem = e - base[L]
+    return L, rem & ((np.int64(1) << (top - L)) - 1), rem >> (top - L)
 
 
 def _spacing(terrain) -> float:
@@ -191,46 +193,34 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
                            {**counter, "texture_tiles": 0, "pages": 0, "atlas": [0, 0],
                             "texture_ms": 0.0})
     pts = np.asarray(mesh.points, np.float64)
-    ij = np.asarray(mesh.point_data["grid_ij"]).astype(np.int64)
-    faces = mesh.faces.reshape(-1, 4)[:, 1:].astype(np.int64)
-    # a footprint's page: the level-Lt tiles under it that its faces touch (k = L - Lt
-    # levels finer than the footprint, 0 when a far footprint takes its ancestor's tile)
-    L, X, Y = footprints(ij, faces, g)
-    n_lv = g.top_level + 1
-    sh = 2 * n_lv + 1
-
-    def groups(L, X, Y, extra=None):
-        key = (L << sh | Y) << sh | X
-        if extra is not None:
-            key = key << 5 | extra
-        return np.unique(key, return_inverse=True)
-
+    ij = np.asarray(mesh.point_data["grid_ij"])
+    cells = np.asarray(mesh.faces)  # VTK's flat triangles: 3, a, b, c, ...
+    top = g.top_level
+    # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
+    base = _table_base(top)
+    fkey = face_footprints(ij, cells, g.t, base)
+    lo, hi, ilo_e, ihi_e = group_boxes(cells, fkey, pts, ij, int(base[-1]))
+    E = np.flatnonzero(np.isfinite(lo[:, 0]))  # the footprints some face lies in
+    eL, eX, eY = _table_keys(E, base)
+    sh = 2 * (top + 1) + 1
     # 1. the texel level each footprint wants, from its drawn vertices' box
-    keys, fg = groups(L, X, Y)
-    G = len(keys)
-    corner = faces.reshape(-1)
-    of = np.argsort(fg, kind="stable")  # faces by footprint: their corners in that order
-    starts = 3 * np.searchsorted(fg[of], np.arange(G))
-    cp = pts[faces[of].reshape(-1)]
-    lo = np.minimum.reduceat(cp, starts, axis=0)
-    hi = np.maximum.reduceat(cp, starts, axis=0)
     eye = np.asarray(view.eye, np.float64)
-    d = np.linalg.norm(np.maximum(0.0, np.maximum(lo - eye, eye - hi)), axis=1)
+    d = np.linalg.norm(np.maximum(0.0, np.maximum(lo[E] - eye, eye - hi[E])), axis=1)
     f = 0.5 * view.size[1] / math.tan(math.radians(view.fov_y_deg) / 2)
     s0 = _spacing(terrain)
     with np.errstate(divide="ignore", invalid="ignore"):
         want = np.floor(np.log2(np.maximum(d, 1e-30) * texel_px / (s0 * f)))
-    want = np.clip(np.nan_to_num(want, nan=0.0, posinf=g.top_level, neginf=0.0), 0,
-                   g.top_level).astype(np.int64)
-    fL = keys >> (2 * sh)
-    fLt = np.maximum(want, fL - MAX_PAGE_LEVELS)[fg]  # per face
+    want = np.clip(np.nan_to_num(want, nan=0.0, posinf=top, neginf=0.0), 0,
+                   top).astype(np.int64)
+    fLt = np.maximum(want, eL - MAX_PAGE_LEVELS)
     # 2. a footprint that wants a coarser texel than its own level is drawn from its
     #    ancestor tile at that level (one tile page), so far footprints share pages
-    up = np.maximum(fLt - L, 0)
-    L2, X2, Y2 = np.maximum(L, fLt), X >> up, Y >> up
+    up = np.maximum(fLt - eL, 0)
+    L2, X2, Y2 = np.maximum(eL, fLt), eX >> up, eY >> up
     step = 1 << g.t
     while True:
-        keys, face_group = groups(L2, X2, Y2, fLt)
+        keys, e_group = np.unique(((L2 << sh | Y2) << sh | X2) << 5 | fLt,
+                                  return_inverse=True)
         G = len(keys)
         Lt = keys & 31
         rest = keys >> 5
@@ -242,12 +232,15 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
         if max(AW, AH) <= MAX_ATLAS or (fLt >= L2).all():
             break
         fLt = np.minimum(fLt + 1, L2)  # too many texels: every page one level coarser
-    cg = np.repeat(face_group, 3)
-    of = np.argsort(face_group, kind="stable")
-    starts = 3 * np.searchsorted(face_group[of], np.arange(G))
-    cij = ij[faces[of].reshape(-1)]
-    ilo, jlo = np.minimum.reduceat(cij, starts, axis=0).T
-    ihi, jhi = np.maximum.reduceat(cij, starts, axis=0).T
+    big = np.iinfo(np.int64)
+    ilo, jlo = np.full(G, big.max), np.full(G, big.max)
+    ihi, jhi = np.full(G, big.min), np.full(G, big.min)
+    np.minimum.at(ilo, e_group, ilo_e[E, 0])
+    np.minimum.at(jlo, e_group, ilo_e[E, 1])
+    np.maximum.at(ihi, e_group, ihi_e[E, 0])
+    np.maximum.at(jhi, e_group, ihi_e[E, 1])
+    group_of = np.zeros(len(lo), np.int64)
+    group_of[E] = e_group
     atlas = np.empty((AH, AW, 3), np.uint8)
     atlas.fill(MISSING_GREY)  # one memset (broadcasting an RGB triple took 8 ms a frame)
     n_tiles = 0
@@ -276,18 +269,15 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
         atlas[y0 + s, x0:x0 + s] = atlas[y0 + s - 1, x0:x0 + s]
         atlas[y0 - 1:y0 + s + 1, x0 - 1] = atlas[y0 - 1:y0 + s + 1, x0]
         atlas[y0 - 1:y0 + s + 1, x0 + s] = atlas[y0 - 1:y0 + s + 1, x0 + s - 1]
-    # one point per (footprint, vertex): a vertex shared by two footprints is duplicated
-    V = len(pts)
-    pk = cg.astype(np.int64) * V + corner
-    upk, inv = np.unique(pk, return_inverse=True)
-    pg, src = upk // V, upk % V
+    # one point per (page, vertex): a vertex shared by two pages is duplicated
+    src, pg, faces = number_pages(cells, group_of[fkey], G, len(pts))
     scale = np.left_shift(1, Lt[pg]).astype(np.float64)
     span = (step << gL[pg]).astype(np.float64)
     col = ax[pg] + GUTTER + (ij[src, 1] - gX[pg] * span) / scale
     row = ay[pg] + GUTTER + (ij[src, 0] - gY[pg] * span) / scale
-    tc = np.empty((len(upk), 2), np.float32)
+    tc = np.empty((len(src), 2), np.float32)
     tc[:, 0] = (col + 0.5) / AW
     tc[:, 1] = 1.0 - (row + 0.5) / AH
     st = {**counter, "texture_tiles": n_tiles, "pages": G, "atlas": [int(AW), int(AH)],
           "texture_ms": round((time.perf_counter() - t0) * 1e3, 3)}
-    return ViewTexture(pts[src], inv.reshape(-1, 3), tc, src, atlas, st)
+    return ViewTexture(pts[src], faces, tc, src, atlas, st)

@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 import geoterrain
 from geoterrain import lod
+from geoterrain.atlaskernels import group_boxes, number_pages
 from geoterrain.grid import Grid
 from geoterrain.rendering import TerrainScene, _plotter, default_view, render, render_array
 from geoterrain.tiletextures import build_view_texture, footprints
@@ -80,10 +81,11 @@ def test_textures_only_under_drawn_faces(tmp_path_factory):
 @given(st.integers(3, 9), st.data())
 def test_footprint_is_the_smallest_tile_holding_a_face(n, data):
     g = Grid(2 ** n + 1, 2 ** n + 1, n, min(3, n))
-    S = g.size
+    k = data.draw(st.integers(0, n))  # corners on a 2^k lattice, like a mesh's vertices:
+    S = ((g.size - 1) >> k) + 1  # faces often end exactly on a tile's edge
     pts = data.draw(st.lists(st.tuples(st.integers(0, S - 1), st.integers(0, S - 1)),
                              min_size=3, max_size=3))
-    ij = np.array(pts, np.int64)
+    ij = np.array(pts, np.int64) << k
     L, X, Y = footprints(ij, np.array([[0, 1, 2]]), g)
     w = (1 << g.t) << int(L[0])
     assert ij[:, 1].min() >= X[0] * w and ij[:, 1].max() <= (X[0] + 1) * w
@@ -92,6 +94,41 @@ def test_footprint_is_the_smallest_tile_holding_a_face(n, data):
         w2 = w // 2
         xs, ys = ij[:, 1].min() // w2, ij[:, 0].min() // w2
         assert not (ij[:, 1].max() <= (xs + 1) * w2 and ij[:, 0].max() <= (ys + 1) * w2)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 400), st.integers(1, 30), st.integers(1, 12), st.data())
+def test_pages_number_each_vertex_once_per_page(F, V, G, data):
+    """The counting-sort numbering equals np.unique over (page, vertex), faces in order."""
+    rng = np.random.default_rng(data.draw(st.integers(0, 2 ** 32 - 1)))
+    faces = rng.integers(0, V, (F, 3))
+    group = rng.integers(0, G, F)
+    cells = np.concatenate([np.full((F, 1), 3), faces], 1).ravel()
+    src, page, out = number_pages(cells, group, G, V)
+    upk, inv = np.unique(np.repeat(group, 3) * V + faces.ravel(), return_inverse=True)
+    np.testing.assert_array_equal(src, upk % V)
+    np.testing.assert_array_equal(page, upk // V)
+    np.testing.assert_array_equal(out, inv.reshape(-1, 3))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 300), st.integers(1, 20), st.integers(1, 9), st.data())
+def test_page_boxes_hold_their_faces_corners(F, V, G, data):
+    rng = np.random.default_rng(data.draw(st.integers(0, 2 ** 32 - 1)))
+    faces = rng.integers(0, V, (F, 3))
+    key = rng.integers(0, G, F)
+    pts, ij = rng.normal(size=(V, 3)), rng.integers(-50, 50, (V, 2))
+    cells = np.concatenate([np.full((F, 1), 3), faces], 1).ravel()
+    lo, hi, ilo, ihi = group_boxes(cells, key, pts, ij, G)
+    for g in range(G):
+        c = faces[key == g].ravel()
+        if len(c) == 0:
+            assert np.isinf(lo[g]).all() and np.isinf(hi[g]).all()
+            continue
+        np.testing.assert_array_equal(lo[g], pts[c].min(0))
+        np.testing.assert_array_equal(hi[g], pts[c].max(0))
+        np.testing.assert_array_equal(ilo[g], ij[c].min(0))
+        np.testing.assert_array_equal(ihi[g], ij[c].max(0))
 
 
 def test_a_picture_is_rendered_once(tmp_path_factory):
