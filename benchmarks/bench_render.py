@@ -13,6 +13,7 @@ the LOD/bruteforce ratio is taken over those same views.
 
     PYTHONPATH=. python benchmarks/bench_render.py STORE [--views 24] [--size 1280x720]
         [--tau 1] [--strategies rtin] [--brute-every 4] [--global] [--json out.json]
+        [--anti-aliasing msaa|fxaa|none] [--skip-bruteforce]
 
 ``--global`` adds the previous whole-DEM texture (``textures="global"``) as a
 baseline measured in the same run.
@@ -29,7 +30,7 @@ import time
 import numpy as np
 
 import geoterrain
-from geoterrain.rendering import TerrainScene, _plotter, default_view
+from geoterrain.rendering import ANTI_ALIASING, TerrainScene, _plotter, default_view
 from geoterrain.view import View
 
 
@@ -51,11 +52,12 @@ def flight(t, n: int, size: tuple[int, int]) -> list[tuple[str, View]]:
     return views
 
 
-def run_config(store: str, views, strategy: str, textures: str, tau: float, pick=None) -> dict:
+def run_config(store: str, views, strategy: str, textures: str, tau: float, pick=None,
+               anti_aliasing: str = "msaa") -> dict:
     """Frame stats of one configuration over ``views`` (indices ``pick``), cold store."""
     t0 = time.perf_counter()
     with geoterrain.open(store) as t:
-        scene = TerrainScene(_plotter(views[0][1].size), t, textures=textures)
+        scene = TerrainScene(_plotter(views[0][1].size, anti_aliasing), t, textures=textures)
         setup_ms = (time.perf_counter() - t0) * 1e3
         frames = []
         try:
@@ -69,7 +71,8 @@ def run_config(store: str, views, strategy: str, textures: str, tau: float, pick
                     "peak_rss_mb")}})
         finally:
             scene.plotter.close()
-    return {"strategy": strategy, "textures": textures, "setup_ms": round(setup_ms, 1),
+    return {"strategy": strategy, "textures": textures, "anti_aliasing": anti_aliasing,
+            "setup_ms": round(setup_ms, 1),
             "frames": frames}
 
 
@@ -87,6 +90,10 @@ def main(argv=None) -> dict:
     ap.add_argument("--strategies", default="rtin")
     ap.add_argument("--brute-every", type=int, default=4)
     ap.add_argument("--global", dest="glob", action="store_true")
+    ap.add_argument("--anti-aliasing", default="msaa", choices=ANTI_ALIASING,
+                    help="msaa: the renderer's multisampling; fxaa: the CPU pass over the "
+                    "read-back picture (geoterrain.antialias); none")
+    ap.add_argument("--skip-bruteforce", action="store_true")
     ap.add_argument("--json")
     a = ap.parse_args(argv)
     size = tuple(int(s) for s in a.size.split("x"))
@@ -95,14 +102,18 @@ def main(argv=None) -> dict:
     brute_views = set(range(0, len(views), max(1, a.brute_every)))
     runs = []
     for s in a.strategies.split(","):
-        runs.append(run_config(a.store, views, s, "view", a.tau))
+        runs.append(run_config(a.store, views, s, "view", a.tau, None, a.anti_aliasing))
         if a.glob:
-            runs.append(run_config(a.store, views, s, "global", a.tau))
-    brute = run_config(a.store, views, "bruteforce", "view", a.tau, brute_views)
-    runs.append(brute)
-    bmed = _med(brute["frames"])
-    print(f"{len(views)} views, {size[0]}×{size[1]}, τ = {a.tau:g}; bruteforce on "
-          f"{len(brute_views)} of them")
+            runs.append(run_config(a.store, views, s, "global", a.tau, None, a.anti_aliasing))
+    brute = None
+    bmed = float("nan")
+    if not a.skip_bruteforce:
+        brute = run_config(a.store, views, "bruteforce", "view", a.tau, brute_views,
+                           a.anti_aliasing)
+        runs.append(brute)
+        bmed = _med(brute["frames"])
+    print(f"{len(views)} views, {size[0]}×{size[1]}, τ = {a.tau:g}, anti-aliasing "
+          f"{a.anti_aliasing}; bruteforce on {0 if brute is None else len(brute_views)} of them")
     print("| strategy | textures | setup ms | cold frame ms | warm frame ms (median) | "
           "select | texture | draw | ratio to bruteforce (same views) |")
     print("|---|---|---|---|---|---|---|---|---|")

@@ -7,6 +7,7 @@ import sys
 import click
 
 from geoterrain.cli.options import (
+    anti_aliasing_option,
     morph_option,
     occlusion_option,
     parse_size,
@@ -35,6 +36,7 @@ def _floats(ctx, param, value):
 @strategies_option
 @occlusion_option
 @morph_option
+@anti_aliasing_option
 @pixel_errors_option
 @click.option("--views", "n_views", default=8, show_default=True, type=click.IntRange(1, 1000),
               help="Length of the built-in flight.")

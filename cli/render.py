@@ -9,6 +9,7 @@ import click
 
 from geoterrain.cli.options import (
     StageBar,
+    anti_aliasing_option,
     camera_options,
     colour_options,
     drape_options,
@@ -40,6 +41,7 @@ from geoterrain.cli.options import (
 @strategy_option
 @occlusion_option
 @morph_option
+@anti_aliasing_option
 @vertical_exaggeration_option
 @click.option("--shading", type=click.Choice(["normals", "elevation", "plain"]),
               default="normals", show_default=True,

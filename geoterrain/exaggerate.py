@@ -83,6 +83,8 @@ class Exaggerated:
             self.tile_info[k] = d
         self._own: dict = {}
 
+    stored_normals = False  # tile_normals are rescaled, not the stored codes' normals
+
     def __getattr__(self, name):
         return getattr(self.base, name)
 

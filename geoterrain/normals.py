@@ -31,6 +31,7 @@ __all__ = [
     "normal_pyramid",
     "encode_octahedral",
     "decode_octahedral",
+    "hillshade_codes",
 ]
 
 #: measured bounds (degrees) for :func:`encode_octahedral` (default: rounding), see the
@@ -462,3 +463,40 @@ def _decode_oct_nb(e, m, out):  # pragma: no cover - compiled
         out[k, 0] = x / n
         out[k, 1] = y / n
         out[k, 2] = zz / n
+
+
+def hillshade_codes(codes: np.ndarray, bits: int, light: np.ndarray, ambient: float,
+                    ceiling: float) -> np.ndarray:
+    """Hillshade (H, W) float32 straight from octahedral codes (H, W, 2), in one compiled
+    pass: ``min(ambient + (1 − ambient)·clip(n·l, 0, 1) / l_z, ceiling)`` with ``n`` the
+    decoded unit normal (:func:`decode_octahedral`, float32) and ``l`` the unit ``light``.
+
+    A tile's texture needs only this shade: decoding its normals to float32 first
+    (and keeping them) cost 0.14 ms a 65² tile and 50 kB of cache.
+
+    Examples
+    --------
+    >>> e = encode_octahedral(np.array([[0.0, 0.0, 1.0]]), 8)
+    >>> s = hillshade_codes(e, 8, np.array([0.0, 0.0, 1.0], np.float32), 0.35, 1.25)
+    >>> round(float(s[0]), 3)  # the sun overhead lights flat ground fully
+    1.0
+    """
+    if bits not in (8, 16):
+        raise ValueError("bits must be 8 or 16")
+    e = np.asarray(codes)
+    out = np.empty(e.shape[:-1], np.float32)
+    lt = np.asarray(light, np.float32)
+    _shade_oct_nb(np.ascontiguousarray(e.reshape(-1, 2)), float((1 << bits) - 1), lt[0],
+                  lt[1], lt[2], np.float32(ambient), np.float32(ceiling), out.reshape(-1))
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _shade_oct_nb(e, m, lx, ly, lz, amb, ceil, out):  # pragma: no cover - compiled
+    one = np.float32(1.0)
+    for k in range(e.shape[0]):
+        x, y, zz = _oct_point(e[k, 0], e[k, 1], m)
+        n = np.sqrt(x * x + y * y + zz * zz)
+        d = np.float32(x / n) * lx + np.float32(y / n) * ly + np.float32(zz / n) * lz
+        lam = min(max(d, np.float32(0.0)), one) / lz
+        out[k] = min(amb + (one - amb) * lam, ceil)

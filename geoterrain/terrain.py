@@ -225,20 +225,26 @@ class Terrain:
 
     def tile_normals(self, level: int, x: int, y: int) -> np.ndarray:
         """Unit normals (T, T, 3) float32 of the level-L normal map at the tile's samples."""
-        def make():
-            T, bits = self.grid.tile_samples, self.meta["normal_bits"]
-            try:  # bounded: exactly T × T × 2 components, never a decompression bomb
-                raw = zstdsafe.decompress(self._blob((level, x, y), "normals"),
-                                          T * T * 2 * (bits // 8), exact=True)
-            except ValueError:
-                raise StoreCorruptError(f"{self.path}: tile {(level, x, y)} normals cannot be "
-                                        "decoded; re-run `geoterrain preprocess`") from None
-            dt = np.uint8 if bits == 8 else np.uint16
-            self.decoded_normals += 1
-            if bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY:
-                return decode_octahedral(normals_from_bytes(raw, T), bits)
-            return decode_octahedral(np.frombuffer(raw, dt).reshape(T, T, 2), bits)
-        return self._cached(("n", level, x, y), make)
+        return self._cached(("n", level, x, y), lambda: decode_octahedral(
+            self.tile_normal_codes(level, x, y), self.meta["normal_bits"]))
+
+    stored_normals = True  # tile_normals decode tile_normal_codes (a view may rescale them)
+
+    def tile_normal_codes(self, level: int, x: int, y: int) -> np.ndarray:
+        """The stored octahedral codes (T, T, 2) of the tile's normals (``normal_bits``
+        bits each; :func:`~geoterrain.normals.decode_octahedral` unpacks them). Not
+        cached: each call reads and counts a decode."""
+        T, bits = self.grid.tile_samples, self.meta["normal_bits"]
+        try:  # bounded: exactly T × T × 2 components, never a decompression bomb
+            raw = zstdsafe.decompress(self._blob((level, x, y), "normals"),
+                                      T * T * 2 * (bits // 8), exact=True)
+        except ValueError:
+            raise StoreCorruptError(f"{self.path}: tile {(level, x, y)} normals cannot be "
+                                    "decoded; re-run `geoterrain preprocess`") from None
+        self.decoded_normals += 1
+        if bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY:
+            return normals_from_bytes(raw, T)
+        return np.frombuffer(raw, np.uint8 if bits == 8 else np.uint16).reshape(T, T, 2)
 
     # ------------------------------------------------------- per-vertex data
     def vertex_level(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:

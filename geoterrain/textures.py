@@ -19,6 +19,7 @@ import weakref
 import numpy as np
 
 from geoterrain.colours import Palette, as_palette, colorize
+from geoterrain.normals import hillshade_codes
 
 SHADINGS = ("normals", "elevation", "plain")
 SUN_AZIMUTH = 315.0  # degrees clockwise from north: light from the north-west (cartography)
@@ -29,12 +30,36 @@ MAX_TEXTURE = 8193  # samples per side; a larger DEM's texture comes from a coar
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _hillshade(normals: np.ndarray) -> np.ndarray:
+SHADE_CEILING = 1.25  # the brightest a slope facing the sun gets (flat ground: 1)
+
+
+def _sun() -> np.ndarray:
     az, alt = math.radians(SUN_AZIMUTH), math.radians(SUN_ALTITUDE)
-    light = np.array([math.sin(az) * math.cos(alt), math.cos(az) * math.cos(alt),
-                      math.sin(alt)], np.float32)
+    return np.array([math.sin(az) * math.cos(alt), math.cos(az) * math.cos(alt),
+                     math.sin(alt)], np.float32)
+
+
+def _hillshade(normals: np.ndarray) -> np.ndarray:
+    light = _sun()
     lam = np.clip(normals @ light, 0.0, 1.0) / light[2]  # flat ground: 1
-    return np.minimum(AMBIENT + (1.0 - AMBIENT) * lam, 1.25)
+    return np.minimum(AMBIENT + (1.0 - AMBIENT) * lam, SHADE_CEILING)
+
+
+def tile_hillshade(terrain, level: int, x: int, y: int) -> np.ndarray:
+    """:func:`_hillshade` of a stored tile's normal map (T, T) float32, computed from the
+    stored codes in one compiled pass (:func:`~geoterrain.normals.hillshade_codes`)
+    unless the terrain's normals are not the stored ones (vertical exaggeration).
+
+    Examples
+    --------
+    >>> s = tile_hillshade(t, t.grid.top_level, 0, 0)
+    >>> s.shape, bool(((s >= AMBIENT - 1e-6) & (s <= SHADE_CEILING)).all())
+    ((33, 33), True)
+    """
+    if not getattr(terrain, "stored_normals", False):  # e.g. vertically exaggerated
+        return _hillshade(terrain.tile_normals(level, x, y))
+    return hillshade_codes(terrain.tile_normal_codes(level, x, y), terrain.meta["normal_bits"],
+                           _sun(), AMBIENT, SHADE_CEILING)
 
 
 def texture_level(terrain, max_size: int = MAX_TEXTURE) -> int:

@@ -46,7 +46,7 @@ from geoterrain.atlaskernels import face_footprints, group_boxes, number_pages
 from geoterrain.colours import Palette, as_palette, colorize
 from geoterrain.drape import Drape, drape_tile
 from geoterrain.shading import Light, tile_shade
-from geoterrain.textures import _hillshade, elevation_range
+from geoterrain.textures import elevation_range, tile_hillshade
 
 TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
 MAX_PAGE_LEVELS = 3  # a footprint's page is at most 2^3 × 2^3 tiles (513² texels at t = 6)
@@ -99,7 +99,7 @@ def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Pale
             a = float(drape.opacity)
             rgb[on] = a * img[on] + (1.0 - a) * rgb[on]
         if shading == "normals" and (light is None or light.is_default):
-            rgb *= _hillshade(terrain.tile_normals(level, x, y))[..., None]
+            rgb *= tile_hillshade(terrain, level, x, y)[..., None]
         elif shading == "normals":  # sun, shadows, ambient occlusion (geoterrain.shading)
             rgb *= tile_shade(terrain, level, x, y, light, _spacing(terrain))[..., None]
         return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)

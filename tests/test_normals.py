@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from geoterrain.normals import (
     OCTAHEDRAL_MAX_ERROR_DEG,
@@ -278,3 +280,21 @@ def test_compiled_octahedral_decode_equals_the_array_formula(bits):
     want = _oct_unpack(f[..., 0] / m * 2 - 1, f[..., 1] / m * 2 - 1).astype(np.float32)
     got = decode_octahedral(e, bits)
     assert got.shape == (3, 4096, 3) and np.array_equal(got, want)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.sampled_from([8, 16]), st.integers(0, 2 ** 32 - 1),
+       st.floats(0.0, 360.0), st.floats(5.0, 90.0))
+def test_hillshade_from_codes_is_the_array_formula(bits, seed, az, alt):
+    """The compiled shade of stored codes equals decode-then-shade (float32 rounding)."""
+    from geoterrain.normals import hillshade_codes
+
+    rng = np.random.default_rng(seed)
+    codes = rng.integers(0, 1 << bits, (17, 19, 2)).astype(np.uint8 if bits == 8 else np.uint16)
+    a, b = np.radians(az), np.radians(alt)
+    light = np.array([np.sin(a) * np.cos(b), np.cos(a) * np.cos(b), np.sin(b)], np.float32)
+    n = decode_octahedral(codes, bits)
+    want = np.minimum(0.35 + 0.65 * (np.clip(n @ light, 0, 1) / light[2]), 1.25)
+    got = hillshade_codes(codes, bits, light, 0.35, 1.25)
+    assert got.dtype == np.float32 and got.shape == (17, 19)
+    np.testing.assert_allclose(got, want, rtol=2e-6, atol=2e-6)

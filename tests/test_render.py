@@ -129,6 +129,43 @@ def test_lod_fidelity_vs_bruteforce(tmp_path_factory):
         assert pd >= 35.0 or od <= 0.01
 
 
+def test_fxaa_pictures_stay_with_msaa_and_bruteforce(tmp_path_factory):
+    """The CPU anti-aliasing (``fxaa``): rtin at τ = 1 against the MSAA bruteforce render
+    keeps the fidelity bound (≥ 35 dB or ≤ 1 % of pixels off), and against the MSAA
+    render of the same selection it is closer than no anti-aliasing is."""
+    t = _fidelity_terrain(tmp_path_factory)
+    size = (960, 540)
+    scenes = {m: TerrainScene(_plotter(size, m), t, "normals") for m in ("msaa", "fxaa", "none")}
+    try:
+        for az, el in ((200, 35), (90, 20)):
+            v = default_view(t, size, az, el)
+            ref, _ = scenes["msaa"].frame(v, 1.0, "bruteforce")
+            ms, _ = scenes["msaa"].frame(v, 1.0, "rtin")
+            fx, _ = scenes["fxaa"].frame(v, 1.0, "rtin")
+            no, _ = scenes["none"].frame(v, 1.0, "rtin")
+            assert psnr(fx, ref) >= 35.0 or off8(fx, ref) <= 0.01
+            assert psnr(fx, ms) > psnr(no, ms) + 0.3, (psnr(fx, ms), psnr(no, ms))
+            assert (fx != no).any(axis=2).mean() < 0.1  # only edges change
+    finally:
+        for s in scenes.values():
+            s.plotter.close()
+
+
+def test_anti_aliasing_scope_and_errors():
+    from geoterrain.exceptions import UsageError
+    from geoterrain.rendering import anti_aliasing
+
+    with anti_aliasing("fxaa"):
+        p = _plotter((32, 24))
+        assert p._geoterrain_aa == "fxaa" and p.render_window.GetMultiSamples() == 0
+        p.close()
+    p = _plotter((32, 24))
+    assert p._geoterrain_aa == "msaa"
+    p.close()
+    with pytest.raises(UsageError, match="unknown anti-aliasing"):
+        _plotter((32, 24), "ssaa")
+
+
 def _drape_over(t, path):
     """A 256² EPSG:4326 image over the terrain (colours: a lon/lat gradient with 16 px
     blocks of ±20), blended at 0.6: the drape of the fidelity test."""
