@@ -140,16 +140,18 @@ class TerrainScene:
         tc[:, 1] = 1.0 - (ij[:, 0] / s + 0.5) / S
         return tc
 
-    def view_texture(self, selection, view: View):
+    def view_texture(self, selection, view: View, max_builds: int | None = None):
         """The per-view atlas of ``selection`` (:mod:`geoterrain.tiletextures`), or None.
 
         Thread-safe to call off the UI thread (it touches no VTK object); pass the
-        result to :meth:`update`.
+        result to :meth:`update`. ``max_builds``: at most this many tiles shaded anew,
+        the rest magnified from cached ancestors
+        (:func:`~geoterrain.tiletextures.build_view_texture`).
         """
         if self.shading == "plain" or self.textures != "view":
             return None
         return build_view_texture(self.terrain, selection, view, self.shading, self.cmap,
-                                  light=self.light, drape=self.drape)
+                                  light=self.light, drape=self.drape, max_builds=max_builds)
 
     def update(self, selection, view: View | None = None, vtex=None) -> None:
         """Show ``selection.mesh`` (the actor is reused).

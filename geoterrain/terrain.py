@@ -102,6 +102,12 @@ class Terrain:
             self._cache_used -= sz
         return val
 
+    def peek(self, key: tuple):
+        """The cached value of ``key`` (as :meth:`_cached` keys it), or None; the cache's
+        order is left as it is."""
+        hit = self._cache.get(key)
+        return None if hit is None else hit[0]
+
     @property
     def stand_in_z(self) -> float:
         """The scene height that stands in for nodata samples in the nested spheres.

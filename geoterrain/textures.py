@@ -19,7 +19,6 @@ import weakref
 import numpy as np
 
 from geoterrain.colours import Palette, as_palette, colorize
-from geoterrain.normals import hillshade_codes
 
 SHADINGS = ("normals", "elevation", "plain")
 SUN_AZIMUTH = 315.0  # degrees clockwise from north: light from the north-west (cartography)
@@ -56,6 +55,8 @@ def tile_hillshade(terrain, level: int, x: int, y: int) -> np.ndarray:
     >>> s.shape, bool(((s >= AMBIENT - 1e-6) & (s <= SHADE_CEILING)).all())
     ((33, 33), True)
     """
+    from geoterrain.normals import hillshade_codes  # compiled: not at import (--help)
+
     if not getattr(terrain, "stored_normals", False):  # e.g. vertically exaggerated
         return _hillshade(terrain.tile_normals(level, x, y))
     return hillshade_codes(terrain.tile_normal_codes(level, x, y), terrain.meta["normal_bits"],

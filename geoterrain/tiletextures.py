@@ -104,8 +104,33 @@ def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Pale
             rgb *= tile_shade(terrain, level, x, y, light, _spacing(terrain))[..., None]
         return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
 
+    return terrain._cached(_rgb_key(terrain, shading, pal, light, drape, level, x, y), make)
+
+
+def _rgb_key(terrain, shading: str, pal: Palette, light: Light | None, drape: Drape | None,
+             level: int, x: int, y: int) -> tuple:
+    """The cache key of :func:`tile_rgb`. A vertically exaggerated view shares its base
+    terrain's cache but not its shading (its normals are steeper)."""
     lk = None if light is None or light.is_default else light
-    return terrain._cached(("rgb", shading, pal, lk, drape, level, x, y), make)
+    ve = float(getattr(terrain, "vertical_exaggeration", 1.0))
+    return ("rgb", shading, pal, lk, drape, ve, level, x, y)
+
+
+def _stand_in(terrain, key: tuple, step: int, rgb_key) -> np.ndarray | None:
+    """Tile ``key``'s texels (step + 1)² cut from the nearest ancestor whose shading is
+    already cached, each ancestor texel repeated 2^d × 2^d; None if none is cached."""
+    L, x, y = key
+    for d in range(1, terrain.grid.top_level - L + 1):
+        if step >> d < 1:
+            break
+        anc = terrain.peek(rgb_key(L + d, x >> d, y >> d))
+        if anc is None:
+            continue
+        n = step >> d  # the tile's width in ancestor texels
+        oy, ox = (y - (y >> d << d)) * n, (x - (x >> d << d)) * n
+        idx = np.arange(step + 1) >> d
+        return anc[oy + idx][:, ox + idx]
+    return None
 
 
 def footprints(ij: np.ndarray, faces: np.ndarray, grid) -> tuple[np.ndarray, ...]:
@@ -171,9 +196,14 @@ def _pack(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
 
 def build_view_texture(terrain, selection, view, shading: str = "normals",
                        cmap: str | Palette = "auto", texel_px: float = TEXEL_PX,
-                       light: Light | None = None, drape: Drape | None = None
-                       ) -> ViewTexture:
+                       light: Light | None = None, drape: Drape | None = None,
+                       max_builds: int | None = None) -> ViewTexture:
     """The atlas of what ``selection`` draws in ``view`` at about ``texel_px`` px per texel.
+
+    ``max_builds`` caps the tiles shaded anew by this call (an interactive frame's
+    budget): past it, a tile whose shading is not cached is cut from its nearest cached
+    ancestor's, magnified (``stats["textures_deferred"]`` counts them; a later call
+    with the same selection shades the next ones). None: every tile at its own level.
 
     Examples
     --------
@@ -190,8 +220,8 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     if mesh.n_cells == 0 or mesh.n_points == 0:
         return ViewTexture(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 2),
                            np.float32), np.zeros(0, np.int64), np.zeros((1, 1, 3), np.uint8),
-                           {**counter, "texture_tiles": 0, "pages": 0, "atlas": [0, 0],
-                            "texture_ms": 0.0})
+                           {**counter, "texture_tiles": 0, "textures_deferred": 0,
+                            "pages": 0, "atlas": [0, 0], "texture_ms": 0.0})
     pts = np.asarray(mesh.points, np.float64)
     ij = np.asarray(mesh.point_data["grid_ij"])
     cells = np.asarray(mesh.faces)  # VTK's flat triangles: 3, a, b, c, ...
@@ -243,8 +273,13 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     group_of[E] = e_group
     atlas = np.empty((AH, AW, 3), np.uint8)
     atlas.fill(MISSING_GREY)  # one memset (broadcasting an RGB triple took 8 ms a frame)
-    n_tiles = 0
+    n_tiles = deferred = 0
     stored = terrain.tile_info
+    pal = as_palette(cmap)
+
+    def rgb_key(L, x, y):
+        return _rgb_key(terrain, shading, pal, light, drape, L, x, y)
+
     for gi in range(G):  # one step per page; the texels are whole-array copies
         lt, kk = int(Lt[gi]), int(k[gi])
         span = step << gL[gi]  # the footprint's width in full-resolution samples
@@ -260,10 +295,17 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
                 if key not in stored:
                     continue
                 r, c = y0 + ty * step, x0 + tx * step
+                n_tiles += 1
+                if max_builds is not None and counter["textures_built"] >= max_builds \
+                        and terrain.peek(rgb_key(*key)) is None:
+                    block = _stand_in(terrain, key, step, rgb_key)
+                    if block is not None:
+                        atlas[r:r + step + 1, c:c + step + 1] = block
+                        deferred += 1
+                        continue
                 atlas[r:r + step + 1, c:c + step + 1] = tile_rgb(terrain, *key, shading,
                                                                  cmap, counter, light,
                                                                  drape)
-                n_tiles += 1
         s = (step << kk) + 1  # gutters: the page's edge texels, replicated
         atlas[y0 - 1, x0:x0 + s] = atlas[y0, x0:x0 + s]
         atlas[y0 + s, x0:x0 + s] = atlas[y0 + s - 1, x0:x0 + s]
@@ -278,6 +320,7 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     tc = np.empty((len(src), 2), np.float32)
     tc[:, 0] = (col + 0.5) / AW
     tc[:, 1] = 1.0 - (row + 0.5) / AH
-    st = {**counter, "texture_tiles": n_tiles, "pages": G, "atlas": [int(AW), int(AH)],
+    st = {**counter, "texture_tiles": n_tiles, "textures_deferred": deferred, "pages": G,
+          "atlas": [int(AW), int(AH)],
           "texture_ms": round((time.perf_counter() - t0) * 1e3, 3)}
     return ViewTexture(pts[src], faces, tc, src, atlas, st)

@@ -51,6 +51,9 @@ HELP = "m strategy  +/- tau  x wireframe  c colour  space freeze  h home  s scre
 
 POLL_MS = 16.0  # background mode: how often the window looks for a finished frame
 REST_MS = 250.0  # the camera still this long: drawn again with anti-aliasing
+# texture tiles a camera move may shade before its picture is shown (~0.5 ms each);
+# the rest are magnified from cached coarser tiles and shaded by the passes that follow
+TEXTURE_BUILDS = 24
 
 
 def terrain_style():
@@ -118,6 +121,7 @@ class ViewerController:
         self._last_key: tuple = ()
         self._future = None
         self._executor = None
+        self._deferred = 0  # stand-in texture tiles in the picture shown
         self._hud = plotter.add_text("", position="upper_left", font_size=10, name="hud")
         tp = self._hud.GetTextProperty()  # an opaque box: readable over any terrain
         tp.SetColor(0.1, 0.1, 0.1)
@@ -197,7 +201,17 @@ class ViewerController:
         """Worker thread: the selection and its textures (no VTK call)."""
         sel = lod.select(self.terrain, view, pixel_error=tau, strategy=strategy,
                          occlusion=self.occlusion, morph=self.morph)
-        return key, sel, self.scene.view_texture(sel, view)
+        return self._retexture(key, sel, view)
+
+    def _retexture(self, key: tuple, sel, view: View):
+        """Worker thread: the textures of ``sel``, at most ``TEXTURE_BUILDS`` tiles shaded
+        anew (the rest stand in from coarser tiles until a later pass)."""
+        return key, sel, self.scene.view_texture(sel, view, TEXTURE_BUILDS), view
+
+    @property
+    def refining(self) -> bool:
+        """Whether the picture shown still has magnified stand-in textures."""
+        return self._deferred > 0
 
     def _apply(self, key: tuple, sel, vtex=None) -> None:
         """Show a finished selection (main thread: VTK calls)."""
@@ -231,12 +245,16 @@ class ViewerController:
             gc.freeze()
             self._gc_frozen = True
         f = self._future
+        refine = None
         if f is not None and f.done():
             self._future = None
-            key, sel, vtex = f.result()
+            key, sel, vtex, view = f.result()
             if not self.frozen or key[-2:] != self._last_key[-2:]:
                 self._apply(key, sel, vtex)
                 changed = True
+                self._deferred = 0 if vtex is None else vtex.stats.get("textures_deferred", 0)
+                if self._deferred:
+                    refine = (key, sel, view)
             else:
                 self._update_hud()  # no longer busy
         if self.pending and not self.frozen:
@@ -245,6 +263,8 @@ class ViewerController:
                 changed |= self.on_camera_changed()
             else:
                 self.on_camera_changed(force=True)
+        elif refine is not None:  # the camera is still: shade the next stand-in tiles
+            self._future = self._executor.submit(self._retexture, *refine)
         if changed:
             t0 = time.perf_counter()
             self.plotter.render()
@@ -281,12 +301,13 @@ class ViewerController:
         return True
 
     def wait(self, timeout: float | None = None) -> bool:
-        """Block until the running background selection is shown (for scripts and tests)."""
-        f = self._future
-        if f is None:
-            return False
-        f.result(timeout)
-        return self.poll()
+        """Block until the running background selection is shown with all its textures
+        (its refinement passes included; for scripts and tests). ``timeout`` is per pass."""
+        changed = False
+        while self._future is not None:
+            self._future.result(timeout)
+            changed |= self.poll()
+        return changed
 
     def close(self) -> None:
         """Stop the worker thread."""

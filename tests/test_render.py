@@ -316,6 +316,37 @@ def _roll(camera) -> float:
     return abs(float(right[2] / np.linalg.norm(right)))
 
 
+def test_viewer_shows_a_move_within_its_texture_budget_then_refines(tmp_path_factory,
+                                                                     monkeypatch):
+    """A move shades at most TEXTURE_BUILDS new texture tiles before it is shown; the
+    picture is then refined pass by pass while the camera rests, to the full textures."""
+    import geoterrain.viewer as viewer
+    from geoterrain.tiletextures import build_view_texture
+
+    monkeypatch.setattr(viewer, "TEXTURE_BUILDS", 2)
+    t = synth_store(tmp_path_factory, "vtex1025", size=1025)  # a new handle: empty cache
+    p = _plotter((320, 240))
+    c = viewer.ViewerController(p, t, background=True)
+    try:
+        c.bind()
+        c.wait(timeout=60)
+        lo, hi = np.asarray(c.home.look_at), np.asarray(c.home.look_from)
+        p.camera.position = tuple(lo + 0.05 * (hi - lo))
+        while not c.poll():  # the first picture of the move
+            c._future.result(60)
+        first = c.scene.texture_stats
+        assert first["textures_built"] <= 2 and first["textures_deferred"] > 0 and c.refining
+        c.wait(timeout=60)  # the refinement passes
+        assert not c.refining and c._future is None
+        last = c.scene.texture_stats
+        assert last["textures_deferred"] == 0
+        full = build_view_texture(t, c.scene.selection, c._view())
+        assert full.stats["textures_built"] == 0  # everything it needs is shaded
+    finally:
+        c.close()
+        p.close()
+
+
 def test_viewer_interactor_keeps_the_horizon_level(tmp_path_factory):
     """Scripted drags through the viewer's interactor style: the camera turns and tilts
     but never rolls, and every move re-selects the LOD. The trackball style (the old

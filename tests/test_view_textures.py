@@ -77,6 +77,69 @@ def test_textures_only_under_drawn_faces(tmp_path_factory):
     assert tex.image.shape[0] * tex.image.shape[1] < 16 * v.size[0] * v.size[1]
 
 
+def test_a_frame_budget_shows_magnified_ancestors_then_the_same_atlas(tmp_path_factory):
+    """With ``max_builds`` a frame shades at most that many new tiles (where a cached
+    ancestor can stand in); each stand-in is its ancestor's texels repeated; repeating
+    the call shades the rest and ends with the atlas of an unbudgeted build."""
+    from geoterrain.colours import as_palette
+    from geoterrain.tiletextures import _rgb_key, _stand_in
+
+    t = _fresh(tmp_path_factory, size=1025)
+    lo, hi = t.scene_box()
+    c = 0.5 * (lo + hi)
+    far = default_view(t, (320, 200))
+    near = View((float(lo[0]) - 100.0, float(lo[1]) - 100.0, float(hi[2]) + 80.0),
+                (float(c[0]), float(c[1]), float(c[2])), size=(320, 200))
+    build_view_texture(t, lod.select(t, far, 1.0), far)  # the coarse tiles, cached
+    sel = lod.select(t, near, 1.0)
+    passes = []
+    while True:
+        tex = build_view_texture(t, sel, near, max_builds=3)
+        passes.append(tex)
+        if tex.stats["textures_deferred"] == 0:
+            break
+        assert tex.stats["textures_built"] == 3
+        assert len(passes) < 200
+    assert len(passes) > 2 and passes[0].stats["textures_deferred"] > 0
+    assert not np.array_equal(passes[0].image, passes[-1].image)
+    ref = build_view_texture(_fresh(tmp_path_factory, size=1025), sel, near)
+    np.testing.assert_array_equal(passes[-1].image, ref.image)
+    np.testing.assert_array_equal(passes[-1].tcoords, ref.tcoords)
+    # a stand-in is its ancestor's texels, each repeated 2^d × 2^d
+    pal = as_palette("auto")
+
+    def key(L, x, y):
+        return _rgb_key(t, "normals", pal, None, None, L, x, y)
+
+    step = 1 << t.grid.t
+    L, x, y = 0, 5, 6
+    anc = t.peek(key(2, 1, 1))
+    assert anc is not None
+    blk = _stand_in(t, (L, x, y), step, key)  # level 1 or 2 is cached: d = 1 or 2
+    d = 1 if t.peek(key(1, 2, 3)) is not None else 2
+    src = t.peek(key(L + d, x >> d, y >> d))
+    n = step >> d
+    oy, ox = (y % (1 << d)) * n, (x % (1 << d)) * n
+    for r in (0, 7, step):
+        for q in (0, 9, step):
+            assert (blk[r, q] == src[oy + (r >> d), ox + (q >> d)]).all()
+
+
+def test_exaggerated_textures_are_not_the_base_terrains(tmp_path_factory):
+    """A vertically exaggerated view shares the tile cache: its steeper shading must
+    not be served the base terrain's (or the reverse)."""
+    from geoterrain.exaggerate import exaggerated
+    from geoterrain.tiletextures import tile_rgb
+
+    t = _fresh(tmp_path_factory)
+    L = t.grid.top_level
+    a = tile_rgb(t, L, 0, 0, "normals")
+    b = tile_rgb(exaggerated(t, 4.0), L, 0, 0, "normals")
+    fresh = tile_rgb(exaggerated(_fresh(tmp_path_factory), 4.0), L, 0, 0, "normals")
+    assert not np.array_equal(a, b)
+    np.testing.assert_array_equal(b, fresh)
+
+
 @settings(max_examples=60, deadline=None)
 @given(st.integers(3, 9), st.data())
 def test_footprint_is_the_smallest_tile_holding_a_face(n, data):
