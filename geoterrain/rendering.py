@@ -60,6 +60,7 @@ from geoterrain.drape import Drape
 from geoterrain.exaggerate import exaggerated
 from geoterrain.exceptions import UsageError, WriteError, exists_error
 from geoterrain.lod.registry import DEFAULT, strategy_info
+from geoterrain.memory import peak_rss as _peak_rss
 from geoterrain.overlays import compose, layout_for
 from geoterrain.shading import Light
 from geoterrain.store import partial_path, publish, remove_stale_partials, write_atomic
@@ -295,11 +296,8 @@ def io_counters(terrain) -> dict:
 
 
 def peak_rss() -> int:
-    """Peak resident memory of this process in bytes (``ru_maxrss``)."""
-    import resource
-
-    r = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return int(r if sys.platform == "darwin" else r * 1024)
+    """Peak resident memory of this process in bytes (:func:`geoterrain.memory.peak_rss`)."""
+    return _peak_rss()
 
 
 def _grab(plotter) -> np.ndarray:
