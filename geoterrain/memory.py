@@ -10,6 +10,18 @@ import sys
 import numpy as np
 
 
+def _proc_kib(path: str, field: str) -> int | None:
+    """The kB figure of ``field`` in a /proc file, or None (not Linux, or absent)."""
+    try:
+        with open(path) as fh:
+            for line in fh:
+                if line.startswith(field):
+                    return int(line.split()[1])
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
 def available_memory() -> int:
     """Bytes of memory available now (``MemAvailable``; physical memory elsewhere).
 
@@ -18,13 +30,9 @@ def available_memory() -> int:
     >>> available_memory() > 0
     True
     """
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
+    v = _proc_kib("/proc/meminfo", "MemAvailable:")
+    if v is not None:
+        return v * 1024
     try:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):
@@ -44,13 +52,9 @@ def peak_rss() -> int:
     >>> peak_rss() > 0
     True
     """
-    try:
-        with open("/proc/self/status") as fh:
-            for line in fh:
-                if line.startswith("VmHWM:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
+    v = _proc_kib("/proc/self/status", "VmHWM:")
+    if v is not None:
+        return v * 1024
     import resource
 
     r = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss

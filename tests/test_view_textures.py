@@ -159,14 +159,19 @@ def test_footprint_is_the_smallest_tile_holding_a_face(n, data):
         assert not (ij[:, 1].max() <= (xs + 1) * w2 and ij[:, 0].max() <= (ys + 1) * w2)
 
 
+def _random_faces(F: int, V: int, G: int, data):
+    """F random triangles over V vertices, each in one of G groups, and VTK's flat cells."""
+    rng = np.random.default_rng(data.draw(st.integers(0, 2 ** 32 - 1)))
+    faces = rng.integers(0, V, (F, 3))
+    cells = np.concatenate([np.full((F, 1), 3), faces], 1).ravel()
+    return rng, faces, rng.integers(0, G, F), cells
+
+
 @settings(max_examples=60, deadline=None)
 @given(st.integers(1, 400), st.integers(1, 30), st.integers(1, 12), st.data())
 def test_pages_number_each_vertex_once_per_page(F, V, G, data):
     """The counting-sort numbering equals np.unique over (page, vertex), faces in order."""
-    rng = np.random.default_rng(data.draw(st.integers(0, 2 ** 32 - 1)))
-    faces = rng.integers(0, V, (F, 3))
-    group = rng.integers(0, G, F)
-    cells = np.concatenate([np.full((F, 1), 3), faces], 1).ravel()
+    _, faces, group, cells = _random_faces(F, V, G, data)
     src, page, out = number_pages(cells, group, G, V)
     upk, inv = np.unique(np.repeat(group, 3) * V + faces.ravel(), return_inverse=True)
     np.testing.assert_array_equal(src, upk % V)
@@ -177,11 +182,8 @@ def test_pages_number_each_vertex_once_per_page(F, V, G, data):
 @settings(max_examples=40, deadline=None)
 @given(st.integers(1, 300), st.integers(1, 20), st.integers(1, 9), st.data())
 def test_page_boxes_hold_their_faces_corners(F, V, G, data):
-    rng = np.random.default_rng(data.draw(st.integers(0, 2 ** 32 - 1)))
-    faces = rng.integers(0, V, (F, 3))
-    key = rng.integers(0, G, F)
+    rng, faces, key, cells = _random_faces(F, V, G, data)
     pts, ij = rng.normal(size=(V, 3)), rng.integers(-50, 50, (V, 2))
-    cells = np.concatenate([np.full((F, 1), 3), faces], 1).ravel()
     lo, hi, ilo, ihi = group_boxes(cells, key, pts, ij, G)
     for g in range(G):
         c = faces[key == g].ravel()
