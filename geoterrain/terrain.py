@@ -240,6 +240,17 @@ class Terrain:
         """The stored octahedral codes (T, T, 2) of the tile's normals (``normal_bits``
         bits each; :func:`~geoterrain.normals.decode_octahedral` unpacks them). Not
         cached: each call reads and counts a decode."""
+        raw, planar = self.tile_normal_bytes(level, x, y)
+        T = self.grid.tile_samples
+        if planar:
+            return normals_from_bytes(raw, T)
+        dt = np.uint8 if self.meta["normal_bits"] == 8 else np.uint16
+        return np.frombuffer(raw, dt).reshape(T, T, 2)
+
+    def tile_normal_bytes(self, level: int, x: int, y: int) -> tuple[bytes, bool]:
+        """The tile's normal codes as stored, decompressed: T·T·2 components, and whether
+        they are two planes of 2-D differences (8-bit ``normals_layout`` 2,
+        :func:`~geoterrain.vertexdata.normals_to_bytes`) rather than (u, v) pairs."""
         T, bits = self.grid.tile_samples, self.meta["normal_bits"]
         try:  # bounded: exactly T × T × 2 components, never a decompression bomb
             raw = zstdsafe.decompress(self._blob((level, x, y), "normals"),
@@ -248,9 +259,7 @@ class Terrain:
             raise StoreCorruptError(f"{self.path}: tile {(level, x, y)} normals cannot be "
                                     "decoded; re-run `geoterrain preprocess`") from None
         self.decoded_normals += 1
-        if bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY:
-            return normals_from_bytes(raw, T)
-        return np.frombuffer(raw, np.uint8 if bits == 8 else np.uint16).reshape(T, T, 2)
+        return raw, bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY
 
     # ------------------------------------------------------- per-vertex data
     def vertex_level(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:

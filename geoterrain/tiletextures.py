@@ -43,10 +43,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoterrain.atlaskernels import face_footprints, group_boxes, number_pages
-from geoterrain.colours import Palette, as_palette, colorize
+from geoterrain.colours import LAND, WATER, Palette, as_palette, colorize, water_level
 from geoterrain.drape import Drape, drape_tile
 from geoterrain.shading import Light, tile_shade
-from geoterrain.textures import elevation_range, tile_hillshade
+from geoterrain.textures import (
+    AMBIENT,
+    SHADE_CEILING,
+    _sun,
+    elevation_range,
+    tile_hillshade,
+)
+from geoterrain.tileshade import shade_tile
 
 TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
 MAX_PAGE_LEVELS = 3  # a footprint's page is at most 2^3 × 2^3 tiles (513² texels at t = 6)
@@ -91,8 +98,16 @@ def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Pale
     def make():
         if counter is not None:
             counter["textures_built"] = counter.get("textures_built", 0) + 1
-        h = np.nan_to_num(terrain.tile(level, x, y).heights, nan=0.0)
         z0, z1 = elevation_range(terrain)
+        if shading == "normals" and (light is None or light.is_default) and drape is None \
+                and pal.cmap == "auto" and getattr(terrain, "stored_normals", False) \
+                and terrain.meta["normal_bits"] == 8:  # the default: one compiled pass
+            raw, planar = terrain.tile_normal_bytes(level, x, y)
+            return shade_tile(terrain.tile(level, x, y).heights * terrain.frame.z_to_m,
+                              np.frombuffer(raw, np.uint8), planar, 8, _sun(), AMBIENT,
+                              SHADE_CEILING, pal.clim if pal.clim is not None else (z0, z1),
+                              water_level(pal, (z0, z1)), LAND, WATER)
+        h = np.nan_to_num(terrain.tile(level, x, y).heights, nan=0.0)
         rgb = colorize(h * terrain.frame.z_to_m, pal, (z0, z1))
         if drape is not None:  # the image over the colours; its nodata shows them
             img, on = drape_tile(terrain, drape, level, x, y)
