@@ -16,6 +16,12 @@ from geoterrain.cli.options import (
 )
 
 
+def _aa() -> str:
+    from geoterrain.rendering import _AA
+
+    return _AA.get()
+
+
 def _floats(ctx, param, value):
     if value is None:
         return None
@@ -113,7 +119,8 @@ def command(ctx, source, synthetic, seed, strategies, pixel_errors, n_views, cam
     click.echo(f"# {res.label}: {len(res.views)} views × {len(strategies)} strategies × "
                f"{len(pixel_errors)} τ = {len(res.rows)} frames, {res.wall_s:.1f} s wall"
                + (f"; preprocess {res.preprocess_s:.2f} s" if res.preprocess_s is not None
-                  else "") + f"; store {res.store_bytes / 2**20:.2f} MiB")
+                  else "") + f"; store {res.store_bytes / 2**20:.2f} MiB"
+               + (f"; rendered with {_aa()} anti-aliasing" if render else ""))
     click.echo(format_table(summarise(res.rows)))
     if res.peers:
         click.echo("\n# static meshes at matched vertical error (m)")
