@@ -107,9 +107,9 @@ occlusion_option = click.option(
 
 
 def _set_anti_aliasing(ctx, param, value):
-    from geoterrain.rendering import _AA
+    from geoterrain.rendering import anti_aliasing
 
-    _AA.set(value)
+    ctx.with_resource(anti_aliasing(value))  # for this command's run only
     return value
 
 

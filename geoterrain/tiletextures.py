@@ -59,6 +59,9 @@ TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measu
 MAX_PAGE_LEVELS = 3  # a footprint's page is at most 2^3 × 2^3 tiles (513² texels at t = 6)
 MAX_ATLAS = 8192  # texels per side; beyond it every page is coarsened one level
 GUTTER = 1  # replicated border texels around each page (no bleeding between pages)
+# footprints are grouped through the whole (level, y, x) tile table up to this many
+# tiles, or this many per face; beyond, through a sort of the ones used
+DENSE_TABLE, DENSE_PER_FACE = 1 << 16, 2
 MISSING_GREY = 128  # a tile that is not stored (all nodata): never visible
 
 
@@ -244,13 +247,22 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
     base = _table_base(top)
     fkey = face_footprints(ij, cells, g.t, base)
-    lo, hi, ilo_e, ihi_e = group_boxes(cells, fkey, pts, ij, int(base[-1]))
-    E = np.flatnonzero(np.isfinite(lo[:, 0]))  # the footprints some face lies in
+    ntab = int(base[-1])
+    if ntab <= max(DENSE_TABLE, DENSE_PER_FACE * len(fkey)):  # a scatter into the table
+        lo, hi, ilo_e, ihi_e = group_boxes(cells, fkey, pts, ij, ntab)
+        E = np.flatnonzero(np.isfinite(lo[:, 0]))  # the footprints some face lies in
+        lo, hi, ilo_e, ihi_e = lo[E], hi[E], ilo_e[E], ihi_e[E]
+        pos = np.empty(ntab, np.int64)
+        pos[E] = np.arange(len(E))
+        fe = pos[fkey]  # each face's footprint, numbered 0 … len(E) − 1
+    else:  # far more tiles than faces (small tiles, a huge grid): number the used ones
+        E, fe = np.unique(fkey, return_inverse=True)
+        lo, hi, ilo_e, ihi_e = group_boxes(cells, fe, pts, ij, len(E))
     eL, eX, eY = _table_keys(E, base)
     sh = 2 * (top + 1) + 1
     # 1. the texel level each footprint wants, from its drawn vertices' box
     eye = np.asarray(view.eye, np.float64)
-    d = np.linalg.norm(np.maximum(0.0, np.maximum(lo[E] - eye, eye - hi[E])), axis=1)
+    d = np.linalg.norm(np.maximum(0.0, np.maximum(lo - eye, eye - hi)), axis=1)
     f = 0.5 * view.size[1] / math.tan(math.radians(view.fov_y_deg) / 2)
     s0 = _spacing(terrain)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -280,12 +292,10 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     big = np.iinfo(np.int64)
     ilo, jlo = np.full(G, big.max), np.full(G, big.max)
     ihi, jhi = np.full(G, big.min), np.full(G, big.min)
-    np.minimum.at(ilo, e_group, ilo_e[E, 0])
-    np.minimum.at(jlo, e_group, ilo_e[E, 1])
-    np.maximum.at(ihi, e_group, ihi_e[E, 0])
-    np.maximum.at(jhi, e_group, ihi_e[E, 1])
-    group_of = np.zeros(len(lo), np.int64)
-    group_of[E] = e_group
+    np.minimum.at(ilo, e_group, ilo_e[:, 0])
+    np.minimum.at(jlo, e_group, ilo_e[:, 1])
+    np.maximum.at(ihi, e_group, ihi_e[:, 0])
+    np.maximum.at(jhi, e_group, ihi_e[:, 1])
     atlas = np.empty((AH, AW, 3), np.uint8)
     atlas.fill(MISSING_GREY)  # one memset (broadcasting an RGB triple took 8 ms a frame)
     n_tiles = deferred = 0
@@ -327,7 +337,7 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
         atlas[y0 - 1:y0 + s + 1, x0 - 1] = atlas[y0 - 1:y0 + s + 1, x0]
         atlas[y0 - 1:y0 + s + 1, x0 + s] = atlas[y0 - 1:y0 + s + 1, x0 + s - 1]
     # one point per (page, vertex): a vertex shared by two pages is duplicated
-    src, pg, faces = number_pages(cells, group_of[fkey], G, len(pts))
+    src, pg, faces = number_pages(cells, e_group[fe], G, len(pts))
     scale = np.left_shift(1, Lt[pg]).astype(np.float64)
     span = (step << gL[pg]).astype(np.float64)
     col = ax[pg] + GUTTER + (ij[src, 1] - gX[pg] * span) / scale

@@ -122,6 +122,8 @@ class ViewerController:
         self._future = None
         self._executor = None
         self._deferred = 0  # stand-in texture tiles in the picture shown
+        self._shown_view: View | None = None  # the view the shown textures were made for
+        self._closed = False
         self._hud = plotter.add_text("", position="upper_left", font_size=10, name="hud")
         tp = self._hud.GetTextProperty()  # an opaque box: readable over any terrain
         tp.SetColor(0.1, 0.1, 0.1)
@@ -173,7 +175,7 @@ class ViewerController:
         Background mode: starts the selection in a worker thread (returns True) unless
         one is running (then it is queued); :meth:`poll` shows the result.
         """
-        if self._busy or (self.frozen and not force):
+        if self._busy or self._closed or (self.frozen and not force):
             return False
         key = self._camera_key()
         if key == self._last_key and not force:
@@ -213,8 +215,9 @@ class ViewerController:
         """Whether the picture shown still has magnified stand-in textures."""
         return self._deferred > 0
 
-    def _apply(self, key: tuple, sel, vtex=None) -> None:
-        """Show a finished selection (main thread: VTK calls)."""
+    def _apply(self, key: tuple, sel, vtex=None, refined: bool = False) -> None:
+        """Show a finished selection, or (``refined``) the same one with more of its
+        textures shaded (main thread: VTK calls)."""
         self._busy = True
         try:
             t0 = time.perf_counter()
@@ -223,7 +226,7 @@ class ViewerController:
             self._apply_style()
             self.plotter.renderer.ResetCameraClippingRange()
             self.stats = dict(sel.stats)
-            self.selections += 1
+            self.selections += 0 if refined else 1
             self._last_key = key
             self._last_t = time.perf_counter()
             self.frame_ms = (self._last_t - t0) * 1e3
@@ -246,16 +249,26 @@ class ViewerController:
             self._gc_frozen = True
         f = self._future
         refine = None
+        if f is not None and f.done() and f.cancelled():  # close() dropped it unstarted
+            self._future = f = None
         if f is not None and f.done():
             self._future = None
             key, sel, vtex, view = f.result()
-            if not self.frozen or key[-2:] != self._last_key[-2:]:
-                self._apply(key, sel, vtex)
+            refined = sel is self.scene.selection  # a texture pass over the shown selection
+            if refined or not self.frozen or key[-2:] != self._last_key[-2:]:
+                self._apply(key, sel, vtex, refined)
+                self._shown_view = view
                 changed = True
+                before = self._deferred if refined else None
                 self._deferred = 0 if vtex is None else vtex.stats.get("textures_deferred", 0)
-                if self._deferred:
+                # another pass only while passes make progress (an LRU cache too small
+                # for the view's textures, or a zero budget, would never finish)
+                if self._deferred and TEXTURE_BUILDS >= 1 and \
+                        (before is None or self._deferred < before):
                     refine = (key, sel, view)
-            else:
+            else:  # frozen: the shown selection stays, and so do its texture passes
+                if self._deferred:
+                    refine = (self._last_key, self.scene.selection, self._shown_view)
                 self._update_hud()  # no longer busy
         if self.pending and not self.frozen:
             self.pending = False
@@ -263,8 +276,8 @@ class ViewerController:
                 changed |= self.on_camera_changed()
             else:
                 self.on_camera_changed(force=True)
-        elif refine is not None:  # the camera is still: shade the next stand-in tiles
-            self._future = self._executor.submit(self._retexture, *refine)
+        elif refine is not None and not self._closed:  # the camera is still: shade the
+            self._future = self._executor.submit(self._retexture, *refine)  # next stand-ins
         if changed:
             t0 = time.perf_counter()
             self.plotter.render()
@@ -305,12 +318,14 @@ class ViewerController:
         (its refinement passes included; for scripts and tests). ``timeout`` is per pass."""
         changed = False
         while self._future is not None:
-            self._future.result(timeout)
+            if not self._future.cancelled():
+                self._future.result(timeout)
             changed |= self.poll()
         return changed
 
     def close(self) -> None:
         """Stop the worker thread."""
+        self._closed = True
         if self._executor is not None:
             self._executor.shutdown(wait=True, cancel_futures=True)
 
@@ -364,7 +379,8 @@ class ViewerController:
         line = (f"{self.strategy}  tau {self.pixel_error:g} px  {s.get('triangles', 0):,} tris  "
                 f"select {s.get('select_ms', 0.0):.0f} ms  frame {self.frame_ms:.0f} ms"
                 + ("  [FROZEN]" if self.frozen else "") + f"  colour: {self.color_mode}"
-                + ("  ... selecting" if self.busy else ""))
+                + ("  ... selecting" if self.busy and not self.refining else "")
+                + ("  ... shading textures" if self.refining else ""))
         scale = self._metres_per_pixel()
         extra = f"1 px = {scale:,.1f} m at the view centre" if scale else ""
         if self.message:

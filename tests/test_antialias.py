@@ -73,3 +73,17 @@ def test_each_pixel_blends_with_a_neighbour_only(h, w, seed):
             lo, hi = np.minimum(i[y, x], q), np.maximum(i[y, x], q)
             ok |= bool(((out[y, x] >= lo - 1) & (out[y, x] <= hi + 1)).all())
         assert ok, (y, x)
+
+
+def test_a_depth_buffer_of_another_shape_is_refused():
+    import pytest
+
+    img = np.zeros((20, 30, 3), np.uint8)
+    for bad in (np.zeros((20, 1), np.float32), np.zeros((19, 30), np.float32)):
+        with pytest.raises(ValueError, match="depth buffer"):
+            fxaa(img, bad)
+    with pytest.raises(ValueError, match="picture"):
+        fxaa(np.zeros((20, 30), np.uint8))
+    for h, w in ((1, 1), (2, 5), (5, 2)):  # too small to have an inside: kept as drawn
+        tiny = np.random.default_rng(h * w).integers(0, 256, (h, w, 3)).astype(np.uint8)
+        np.testing.assert_array_equal(fxaa(tiny), tiny)

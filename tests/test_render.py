@@ -166,6 +166,37 @@ def test_anti_aliasing_scope_and_errors():
         _plotter((32, 24), "ssaa")
 
 
+def test_the_anti_aliasing_option_lasts_one_command(tmp_path_factory, tmp_path):
+    """`render --anti-aliasing fxaa` renders with it, and a later picture in the same
+    process is back to the default."""
+    from click.testing import CliRunner
+
+    from geoterrain.cli.main import cli
+
+    t = synth_store(tmp_path_factory, "fbm")
+    seen = []
+    import geoterrain.rendering as R
+
+    real = R._plotter
+
+    def spy(size, anti_aliasing=None):
+        p = real(size, anti_aliasing)
+        seen.append(p._geoterrain_aa)
+        return p
+
+    R._plotter = spy
+    try:
+        r = CliRunner().invoke(cli, ["-q", "render", str(t.path), "-o", str(tmp_path / "a.png"),
+                                     "--size", "160x120", "--anti-aliasing", "fxaa"])
+        assert r.exit_code == 0, r.output
+        r = CliRunner().invoke(cli, ["-q", "render", str(t.path), "-o", str(tmp_path / "b.png"),
+                                     "--size", "160x120"])
+        assert r.exit_code == 0, r.output
+    finally:
+        R._plotter = real
+    assert seen == ["fxaa", "msaa"]
+
+
 def _drape_over(t, path):
     """A 256² EPSG:4326 image over the terrain (colours: a lon/lat gradient with 16 px
     blocks of ±20), blended at 0.6: the drape of the fidelity test."""
@@ -336,12 +367,20 @@ def test_viewer_shows_a_move_within_its_texture_budget_then_refines(tmp_path_fac
             c._future.result(60)
         first = c.scene.texture_stats
         assert first["textures_built"] <= 2 and first["textures_deferred"] > 0 and c.refining
+        n = c.selections
+        c.toggle_freeze()  # a frozen view still gets its textures refined
         c.wait(timeout=60)  # the refinement passes
         assert not c.refining and c._future is None
+        assert c.selections == n  # texture passes are not selections
+        c.toggle_freeze()
         last = c.scene.texture_stats
         assert last["textures_deferred"] == 0
         full = build_view_texture(t, c.scene.selection, c._view())
         assert full.stats["textures_built"] == 0  # everything it needs is shaded
+        p.camera.position = tuple(lo + 0.02 * (hi - lo))  # a move in flight when closed
+        c.close()
+        c.poll()  # shows it, and starts no texture pass on the stopped worker
+        assert c._future is None
     finally:
         c.close()
         p.close()

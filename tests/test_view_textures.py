@@ -125,6 +125,23 @@ def test_a_frame_budget_shows_magnified_ancestors_then_the_same_atlas(tmp_path_f
             assert (blk[r, q] == src[oy + (r >> d), ox + (q >> d)]).all()
 
 
+def test_footprints_grouped_by_sort_equal_the_dense_table(tmp_path_factory, monkeypatch):
+    """A pyramid with far more tiles than drawn faces groups its footprints through a
+    sort instead of the dense tile table: the same atlas and mesh arrays."""
+    import geoterrain.tiletextures as tt
+
+    t = _fresh(tmp_path_factory, size=1025)
+    for v in (default_view(t, (320, 200)), default_view(t, (320, 200), 80.0, 15.0)):
+        sel = lod.select(t, v, 1.0)
+        dense = build_view_texture(t, sel, v)
+        monkeypatch.setattr(tt, "DENSE_TABLE", 0)
+        monkeypatch.setattr(tt, "DENSE_PER_FACE", 0)
+        sparse = build_view_texture(t, sel, v)
+        monkeypatch.undo()
+        for f in ("points", "faces", "tcoords", "source", "image"):
+            np.testing.assert_array_equal(getattr(dense, f), getattr(sparse, f))
+
+
 def test_exaggerated_textures_are_not_the_base_terrains(tmp_path_factory):
     """A vertically exaggerated view shares the tile cache: its steeper shading must
     not be served the base terrain's (or the reverse)."""
