@@ -30,7 +30,8 @@ import time
 import numpy as np
 
 import geoterrain
-from geoterrain.rendering import ANTI_ALIASING, TerrainScene, _plotter, default_view
+from geoterrain.antialias import ANTI_ALIASING
+from geoterrain.rendering import TerrainScene, _plotter, default_view
 from geoterrain.view import View
 
 

@@ -17,7 +17,7 @@ from geoterrain.cli.options import (
 
 
 def _aa() -> str:
-    from geoterrain.rendering import _AA
+    from geoterrain.antialias import _AA
 
     return _AA.get()
 

@@ -107,7 +107,7 @@ occlusion_option = click.option(
 
 
 def _set_anti_aliasing(ctx, param, value):
-    from geoterrain.rendering import anti_aliasing
+    from geoterrain.antialias import anti_aliasing
 
     ctx.with_resource(anti_aliasing(value))  # for this command's run only
     return value

@@ -26,8 +26,14 @@ True
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+from collections.abc import Iterator
+
 import numpy as np
 from numba import njit, prange
+
+from geoterrain.exceptions import UsageError
 
 EDGE_THRESHOLD = 1.0 / 8.0  # a pixel is on an edge when its local luma range exceeds
 EDGE_THRESHOLD_MIN = 1.0 / 16.0  # this share of its brightest neighbour, and this
@@ -187,3 +193,44 @@ def fxaa(img: np.ndarray, depth: np.ndarray | None = None, subpix: float = SUBPI
     _fxaa(img, lu, z, np.array(_STEPS), EDGE_THRESHOLD,
           EDGE_THRESHOLD_MIN, float(subpix), out)
     return out
+
+
+ANTI_ALIASING = ("msaa", "fxaa", "none")
+_AA: contextvars.ContextVar[str] = contextvars.ContextVar("geoterrain_anti_aliasing",
+                                                         default="msaa")
+
+
+@contextlib.contextmanager
+def anti_aliasing(mode: str) -> Iterator[None]:
+    """Scope the anti-aliasing of the offscreen pictures rendered inside (``msaa``, the
+    renderer's multisampling; ``fxaa``, :func:`fxaa` on each read-back picture; ``none``);
+    a command's ``--anti-aliasing`` sets it for its whole run
+    (:func:`geoterrain.rendering._plotter` reads it).
+
+    Examples
+    --------
+    >>> with anti_aliasing("fxaa"):
+    ...     _AA.get()
+    'fxaa'
+    >>> _AA.get()
+    'msaa'
+    """
+    if mode not in ANTI_ALIASING:
+        raise UsageError(f"unknown anti-aliasing {mode!r}; use {', '.join(ANTI_ALIASING)}")
+    tok = _AA.set(mode)
+    try:
+        yield
+    finally:
+        _AA.reset(tok)
+
+
+def depth_buffer(plotter) -> np.ndarray:
+    """The plotter's last rendered depth buffer (H, W) float32, row 0 at the top
+    (1 = background): the gate :func:`fxaa` takes."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkCommonCore import vtkFloatArray
+
+    w, h = plotter.render_window.GetSize()
+    arr = vtkFloatArray()
+    plotter.render_window.GetZbufferData(0, 0, w - 1, h - 1, arr)
+    return vtk_to_numpy(arr).reshape(h, w)[::-1]

@@ -9,6 +9,19 @@ import numpy as np
 from numba import njit
 
 
+def level_offsets(top: int) -> np.ndarray:
+    """Where each level starts in the dense (level, y, x) table of every tile of a
+    pyramid with levels 0 … ``top`` (4^(top−L) tiles at level L): tile (L, x, y) is entry
+    ``offsets[L] + y·2^(top−L) + x``; ``offsets[-1]`` is the table's size.
+
+    Examples
+    --------
+    >>> level_offsets(2).tolist()
+    [0, 16, 20, 21]
+    """
+    return np.concatenate([[0], np.cumsum(4 ** np.arange(top, -1, -1))]).astype(np.int64)
+
+
 @dataclass(frozen=True)
 class Grid:
     """Index arithmetic of the padded domain, levels and tiles.

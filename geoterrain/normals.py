@@ -493,10 +493,19 @@ def hillshade_codes(codes: np.ndarray, bits: int, light: np.ndarray, ambient: fl
 
 @njit(cache=True, nogil=True)
 def _shade_oct_nb(e, m, lx, ly, lz, amb, ceil, out):  # pragma: no cover - compiled
-    one = np.float32(1.0)
     for k in range(e.shape[0]):
-        x, y, zz = _oct_point(e[k, 0], e[k, 1], m)
-        n = np.sqrt(x * x + y * y + zz * zz)
-        d = np.float32(x / n) * lx + np.float32(y / n) * ly + np.float32(zz / n) * lz
-        lam = min(max(d, np.float32(0.0)), one) / lz
-        out[k] = min(amb + (one - amb) * lam, ceil)
+        out[k] = oct_shade(e[k, 0], e[k, 1], m, lx, ly, lz, amb, ceil)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def oct_shade(cu, cv, m, lx, ly, lz, amb, ceil):  # pragma: no cover - compiled
+    """The hillshade (float32) of one code (cu, cv) over ``m``, unit light (lx, ly, lz):
+    min(amb + (1 − amb)·clip(n·l, 0, 1) / l_z, ceil), n decoded as float32
+    (:func:`decode_octahedral`). Shared by :func:`hillshade_codes` and the fused tile
+    shading (:mod:`geoterrain.tileshade`)."""
+    one = np.float32(1.0)
+    x, y, zz = _oct_point(cu, cv, m)
+    n = np.sqrt(x * x + y * y + zz * zz)
+    d = np.float32(x / n) * lx + np.float32(y / n) * ly + np.float32(zz / n) * lz
+    lam = min(max(d, np.float32(0.0)), one) / lz
+    return min(amb + (one - amb) * lam, ceil)

@@ -31,21 +31,19 @@ Examples
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
 import json
 import math
 import os
 import shutil
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from geoterrain import lod
-from geoterrain.antialias import fxaa
+from geoterrain.antialias import _AA, ANTI_ALIASING, depth_buffer, fxaa
 from geoterrain.cameras import (  # noqa: F401 - the camera helpers are part of this API
     default_view,
     interpolate_views,
@@ -305,43 +303,8 @@ def _grab(plotter) -> np.ndarray:
     the plotter's ``fxaa`` anti-aliasing, filtered on the CPU along its depth edges."""
     img = np.asarray(plotter.screenshot(return_img=True))[..., :3]
     if getattr(plotter, "_geoterrain_aa", "msaa") == "fxaa":
-        img = fxaa(img, _depth(plotter))
+        img = fxaa(img, depth_buffer(plotter))
     return img
-
-
-def _depth(plotter) -> np.ndarray:
-    """The last rendered depth buffer (H, W) float32, row 0 at the top (1 = background)."""
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-    from vtkmodules.vtkCommonCore import vtkFloatArray
-
-    w, h = plotter.render_window.GetSize()
-    arr = vtkFloatArray()
-    plotter.render_window.GetZbufferData(0, 0, w - 1, h - 1, arr)
-    return vtk_to_numpy(arr).reshape(h, w)[::-1]
-
-
-ANTI_ALIASING = ("msaa", "fxaa", "none")
-_AA: contextvars.ContextVar[str] = contextvars.ContextVar("geoterrain_anti_aliasing",
-                                                         default="msaa")
-
-
-@contextlib.contextmanager
-def anti_aliasing(mode: str) -> Iterator[None]:
-    """Scope the anti-aliasing of the offscreen pictures rendered inside (see
-    :func:`_plotter`); a command's ``--anti-aliasing`` sets it for its whole run.
-
-    Examples
-    --------
-    >>> with anti_aliasing("fxaa"):
-    ...     img, stats = render_array(t, default_view(t, (320, 240)))  # doctest: +SKIP
-    """
-    if mode not in ANTI_ALIASING:
-        raise UsageError(f"unknown anti-aliasing {mode!r}; use {', '.join(ANTI_ALIASING)}")
-    tok = _AA.set(mode)
-    try:
-        yield
-    finally:
-        _AA.reset(tok)
 
 
 def _plotter(size: tuple[int, int], anti_aliasing: bool | str | None = None):
@@ -350,8 +313,8 @@ def _plotter(size: tuple[int, int], anti_aliasing: bool | str | None = None):
     ``anti_aliasing``: ``"msaa"`` (or True; the renderer's multisampling), ``"fxaa"``
     (a CPU pass over each read-back picture along its depth edges,
     :mod:`geoterrain.antialias`: 3–5 ms where a software renderer's MSAA costs 30–60 ms
-    at 1280×720), ``"none"`` (or False); None: the scope's (:func:`anti_aliasing`,
-    MSAA by default).
+    at 1280×720), ``"none"`` (or False); None: the scope's
+    (:func:`geoterrain.antialias.anti_aliasing`, MSAA by default).
     """
     if anti_aliasing is None:
         anti_aliasing = _AA.get()

@@ -15,6 +15,7 @@ from geoterrain import zstdsafe
 from geoterrain.bintree import vertex_level
 from geoterrain.codec import decode_tile, tile_valid
 from geoterrain.exceptions import StoreCorruptError, StoreError
+from geoterrain.grid import level_offsets
 from geoterrain.normals import decode_octahedral
 from geoterrain.quantize import codes_to_heights
 from geoterrain.store import StoreReader
@@ -286,7 +287,7 @@ class Terrain:
         tx = np.minimum(lj >> g.t, tps - 1)
         a, b = li - (ty << g.t), lj - (tx << g.t)
         # unique tiles without sorting: an occupancy grid over every level's tiles
-        base = np.concatenate([[0], np.cumsum(4 ** np.arange(g.top_level, -1, -1))])
+        base = level_offsets(g.top_level)
         slot = base[L] + ty * tps + tx
         occ = np.zeros(int(base[-1]), bool)
         occ[slot] = True

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from geoterrain.normals import _oct_point
+from geoterrain.normals import oct_shade
 
 
 def _stops(ramp) -> tuple[np.ndarray, np.ndarray]:
@@ -79,11 +79,7 @@ def _shade_tile(h, codes, planar, m, lx, ly, lz, amb, ceil, base, span, wet_leve
             if z != z:
                 z = 0.0  # nodata: the colour of 0 (nan_to_num)
             wet = has_water and z <= wet_level
-            x, y, zz = _oct_point(float(u[i, j]), float(v[i, j]), m)
-            n = np.sqrt(x * x + y * y + zz * zz)
-            d = np.float32(x / n) * lx + np.float32(y / n) * ly + np.float32(zz / n) * lz
-            lam = min(max(d, zero), one) / lz
-            s = min(amb + (one - amb) * lam, ceil)
+            s = oct_shade(float(u[i, j]), float(v[i, j]), m, lx, ly, lz, amb, ceil)
             if wet:
                 f = 1.0
                 if depth_ramp:

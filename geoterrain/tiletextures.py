@@ -45,6 +45,7 @@ import numpy as np
 from geoterrain.atlaskernels import face_footprints, group_boxes, number_pages
 from geoterrain.colours import LAND, WATER, Palette, as_palette, colorize, water_level
 from geoterrain.drape import Drape, drape_tile
+from geoterrain.grid import level_offsets
 from geoterrain.shading import Light, tile_shade
 from geoterrain.textures import (
     AMBIENT,
@@ -162,15 +163,10 @@ def footprints(ij: np.ndarray, faces: np.ndarray, grid) -> tuple[np.ndarray, ...
     (0, 0, 0)
     """
     top = grid.top_level
-    base = _table_base(top)
+    base = level_offsets(top)
     faces = np.asarray(faces, np.int64)
     cells = np.concatenate([np.full((len(faces), 1), 3, np.int64), faces], 1).ravel()
     return _table_keys(face_footprints(ij, cells, grid.t, base), base)
-
-
-def _table_base(top: int) -> np.ndarray:
-    """Offsets of each level in the dense (level, y, x) tile table (4^(top−L) tiles each)."""
-    return np.concatenate([[0], np.cumsum(4 ** np.arange(top, -1, -1))]).astype(np.int64)
 
 
 def _table_keys(e: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -245,7 +241,7 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     cells = np.asarray(mesh.faces)  # VTK's flat triangles: 3, a, b, c, ...
     top = g.top_level
     # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
-    base = _table_base(top)
+    base = level_offsets(top)
     fkey = face_footprints(ij, cells, g.t, base)
     ntab = int(base[-1])
     if ntab <= max(DENSE_TABLE, DENSE_PER_FACE * len(fkey)):  # a scatter into the table

@@ -152,8 +152,8 @@ def test_fxaa_pictures_stay_with_msaa_and_bruteforce(tmp_path_factory):
 
 
 def test_anti_aliasing_scope_and_errors():
+    from geoterrain.antialias import anti_aliasing
     from geoterrain.exceptions import UsageError
-    from geoterrain.rendering import anti_aliasing
 
     with anti_aliasing("fxaa"):
         p = _plotter((32, 24))

@@ -19,6 +19,7 @@ import weakref
 
 import numpy as np
 
+from geoterrain.grid import level_offsets
 from geoterrain.lod.kernels import BLOCK, block_bounds
 
 _POOLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -38,8 +39,7 @@ class TilePool:
         # per BLOCK² block of a tile: its bounds for fill_lp (kernels.block_bounds)
         self.nb = max(1, (self.T - 1) // BLOCK)
         # slot table: level L holds 4^(top-L) tiles, row-major (ty, tx), from base[L]
-        self.base = np.concatenate([[0], np.cumsum(4 ** np.arange(self.top, -1, -1))]
-                                   ).astype(np.int64)
+        self.base = level_offsets(self.top)
         self.slot_of = np.full(int(self.base[-1]), -1, np.int32)
         f = terrain.frame
         self.aff = np.zeros(0)  # geographic: x, y from the slabs (pyproj, cached per tile)

@@ -20,6 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from geoterrain.grid import level_offsets
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
 from geoterrain.view import INSIDE, OUTSIDE, View
 
@@ -80,7 +81,7 @@ def tile_table(index: TileIndex, top: int) -> tuple[np.ndarray, np.ndarray]:
     >>> int(table[base[t.grid.top_level]]) == ix.row[(t.grid.top_level, 0, 0)]
     True
     """
-    base = np.concatenate([[0], np.cumsum(4 ** np.arange(top, -1, -1))]).astype(np.int64)
+    base = level_offsets(top)
     table = np.full(int(base[-1]), -1, np.int64)
     k = index.keys
     table[base[k[:, 0]] + k[:, 2] * (np.int64(1) << (top - k[:, 0])) + k[:, 1]] = \
