@@ -195,6 +195,10 @@ def test_the_anti_aliasing_option_lasts_one_command(tmp_path_factory, tmp_path):
     finally:
         R._plotter = real
     assert seen == ["fxaa", "msaa"]
+    r = CliRunner().invoke(cli, ["render", str(t.path), "-o", str(tmp_path / "c.png"),
+                                 "--anti-aliasing", "ssaa"])
+    assert r.exit_code == 2 and "'ssaa' is not one of" in r.output
+    assert not (tmp_path / "c.png").exists()
 
 
 def _drape_over(t, path):
