@@ -36,6 +36,7 @@ from numba import njit, prange
 
 from geoterrain.bintree import child_nb, main_diagonal_nb
 from geoterrain.bounds import _proxy_positions, _saturate_nb
+from geoterrain.edgepad import zero_beyond_data
 from geoterrain.rounding import round_up32
 from geoterrain.threads import cores_for
 
@@ -46,8 +47,13 @@ BORDER_FRACTION = 0.01
 
 
 @njit(cache=True)
-def _tri_term(X, Y, Z, vb, vi, vj, ai, aj, bi, bj, ci, cj, frac, N, border):
-    """(max error, max distance to p_v, border bulge) for triangle (a, b, c) of vertex v."""
+def _tri_term(X, Y, Z, vb, vi, vj, ai, aj, bi, bj, ci, cj, frac, N, border, wi, wj):
+    """(max error, max distance to p_v, border bulge) for triangle (a, b, c) of vertex v.
+
+    ``wi × wj``: the data window a static mesh is clipped to (N × N: none). A triangle
+    that crosses its last row or column bulges when a sample of T on that row or column
+    is displaced from its place in T (|P_s − A_T(s)|) by more than ``frac / 2`` spacings:
+    the clipped edge is T's chord of the curved data border there."""
     if not (vb[ai, aj] and vb[bi, bj] and vb[ci, cj]):
         return 0.0, 0.0, False
     ax, ay, az = X[ai, aj], Y[ai, aj], Z[ai, aj]
@@ -79,14 +85,19 @@ def _tri_term(X, Y, Z, vb, vi, vj, ai, aj, bi, bj, ci, cj, frac, N, border):
     j0, j1 = min(aj, bj, cj), max(aj, bj, cj)
     # pass 1: largest displacement |P_s − A_T(s)| of T's own samples (index box)
     disp = 0.0
+    dwin = 0.0  # the same, over T's samples on the data window's last row or column
+    cross = i1 > wi - 1 or j1 > wj - 1
     for i in range(i0, i1 + 1):
         for j in range(j0, j1 + 1):
             ex = ax + m11 * (i - ai) + m12 * (j - aj) - X[i, j]
             ey = ay + m21 * (i - ai) + m22 * (j - aj) - Y[i, j]
-            disp = max(disp, np.hypot(ex, ey))
+            dd = np.hypot(ex, ey)
+            disp = max(disp, dd)
+            if cross and ((i == wi - 1 and j <= wj - 1) or (j == wj - 1 and i <= wi - 1)):
+                dwin = max(dwin, dd)
     m = int(np.ceil(disp / smin)) + 2
     # border chords of T: edges whose two ends lie on one side of the domain
-    bulge = False
+    bulge = dwin > 0.5 * frac * smin
     vx, vy, vz = X[vi, vj], Y[vi, vj], Z[vi, vj]
     emax = 0.0
     rmax = 0.0
@@ -126,7 +137,7 @@ def _on_border(ai, aj, bi, bj, N):
 
 
 @njit(cache=True, parallel=True)
-def _vertex_terms(X, Y, Z, vb, frac):
+def _vertex_terms(X, Y, Z, vb, frac, wi, wj):
     """Raw per-vertex (δ_m, r_m, bulge) over the triangles drawn while each vertex is absent
     (rows of blocks on every core: each vertex is written by its own iteration only)."""
     N = Z.shape[0]
@@ -145,10 +156,10 @@ def _vertex_terms(X, Y, Z, vb, frac):
                 for k in range(2):
                     if main:  # diagonal (i0, j0)–(i0+s, j0+s), apex (i0, j0+s) / (i0+s, j0)
                         t = _tri_term(X, Y, Z, vb, i, j, i0, j0, i0 + s, j0 + s,
-                                      i0 + k * s, j0 + (1 - k) * s, frac, N, True)
+                                      i0 + k * s, j0 + (1 - k) * s, frac, N, True, wi, wj)
                     else:
                         t = _tri_term(X, Y, Z, vb, i, j, i0, j0 + s, i0 + s, j0,
-                                      i0 + k * s, j0 + k * s, frac, N, True)
+                                      i0 + k * s, j0 + k * s, frac, N, True, wi, wj)
                     dm[i, j] = max(dm[i, j], t[0])
                     rm[i, j] = max(rm[i, j], t[1])
                     bulge[i, j] |= t[2]
@@ -169,7 +180,8 @@ def _vertex_terms(X, Y, Z, vb, frac):
                             ea, eb, fa, fb = i, j - h, i, j + h
                         if not (0 <= ci < N and 0 <= cj < N):
                             continue
-                        t = _tri_term(X, Y, Z, vb, i, j, ea, eb, fa, fb, ci, cj, frac, N, True)
+                        t = _tri_term(X, Y, Z, vb, i, j, ea, eb, fa, fb, ci, cj, frac, N, True, wi,
+                                     wj)
                         dm[i, j] = max(dm[i, j], t[0])
                         rm[i, j] = max(rm[i, j], t[1])
                         bulge[i, j] |= t[2]
@@ -203,8 +215,8 @@ def _renest_nb(X, Y, Z, r):
 
 
 def metric_bounds(delta: np.ndarray, radius: np.ndarray, X: np.ndarray, Y: np.ndarray,
-                  Z: np.ndarray, valid: np.ndarray, frac: float = BORDER_FRACTION
-                  ) -> tuple[np.ndarray, np.ndarray]:
+                  Z: np.ndarray, valid: np.ndarray, frac: float = BORDER_FRACTION,
+                  window: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """δ and r raised so they hold in scene x/y on a curvilinear grid (module docstring).
 
     Parameters
@@ -215,6 +227,9 @@ def metric_bounds(delta: np.ndarray, radius: np.ndarray, X: np.ndarray, Y: np.nd
     valid : bool (N, N).
     frac : border chords follow the curved border to within ``frac / 2`` of a sample
         spacing; samples within ``2 frac`` spacings of a triangle count as in it.
+    window : (rows, cols) of the data when the mesh is clipped to it
+        (:mod:`geoterrain.edgepad`): the clipped edges on its last row and column follow
+        the curved border to within the same ``frac / 2`` (see :func:`_tri_term`).
 
     Examples
     --------
@@ -232,7 +247,11 @@ def metric_bounds(delta: np.ndarray, radius: np.ndarray, X: np.ndarray, Y: np.nd
     X = np.ascontiguousarray(X, np.float64)
     Y = np.ascontiguousarray(Y, np.float64)
     with cores_for(Zf.size):  # small grids on one thread (geoterrain/threads.py)
-        dm, rm, bulge = _vertex_terms(X, Y, Zf, vb, float(frac))
+        wi, wj = window if window is not None else Zf.shape
+        dm, rm, bulge = _vertex_terms(X, Y, Zf, vb, float(frac), int(wi), int(wj))
+    if window is not None:  # δ_edge: no term where a diamond misses the data (edgepad.py)
+        zero_beyond_data(dm, int(wi), int(wj))
+        zero_beyond_data(bulge, int(wi), int(wj))
     d = np.maximum(delta.astype(np.float64), dm)
     d[bulge] = np.inf
     d32 = _saturate_nb(_round_up(d))

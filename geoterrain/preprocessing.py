@@ -20,6 +20,13 @@ from geoterrain._version import __version__
 from geoterrain.bounds import stand_in_z, valid_range, vertex_errors, vertex_radii
 from geoterrain.codec import decoded_heights, encode_pyramid
 from geoterrain.curvature import metric_bounds
+from geoterrain.edgepad import (
+    edge_deltas,
+    edge_only_tiles,
+    edge_support,
+    edge_tiles,
+    has_padding,
+)
 from geoterrain.exceptions import InputError, UsageError, exists_error
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
@@ -31,7 +38,7 @@ from geoterrain.store import StoreWriter, default_store_path, remove_stale_parti
 from geoterrain.tileblobs import BoundsCoding, level_blobs
 from geoterrain.tilebounds import tile_errors
 from geoterrain.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
-from geoterrain.vertexdata import NORMALS_PLANAR_DXDY
+from geoterrain.vertexdata import NORMALS_PLANAR_DXDY, log8_exponent
 
 log = logging.getLogger("geoterrain")
 Progress = Callable[[str, int, int], None]
@@ -230,10 +237,28 @@ def preprocess(
     # δ: 8-bit log codes rounded up (saturation survives: one monotone map per store);
     # r: float16 rounded up (nesting holds to 2^-10). Below the top level only the
     # vertices new at the level are stored; the others are the parent's (vertexdata.py).
-    coding = BoundsCoding(delta, radius)
+    # padding by edge replication: a second δ for the static mesh (geoterrain/edgepad.py),
+    # coded with the same table as δ, so the two agree wherever their raw values do
+    edge = d_edge = None
+    if has_padding(grid):
+        Zr, ok = edge_support(Z, valid, grid)
+        d_edge = edge_deltas(Zr, ok, grid)
+        if frame.kind == "geographic":
+            d_edge, _ = metric_bounds(d_edge, radius, X, Y, Zr, ok,
+                                      window=(grid.rows, grid.cols))
+        del Zr, ok
+    ed = None if d_edge is None else max(log8_exponent(delta), log8_exponent(d_edge))
+    coding = BoundsCoding(delta, radius, ed)
+    if d_edge is not None:
+        edge = BoundsCoding(d_edge, radius, ed)
+        del d_edge
+        edge_keys = edge_tiles(coding.d_stored, edge.d_stored, grid, sorted(height_blobs))
+        # unstored tiles holding a vertex the static mesh may need: a whole δ_edge tile
+        edge_only = edge_only_tiles(edge.d_stored, grid, set(height_blobs))
     del radius
     tile_rows: dict = {}
-    extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}}
+    extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}, "delta_edge": {}}
+    edge_max: list = []
     for L in grid.levels:
         keys = [k for k in height_blobs if k[0] == L]
         if not keys:
@@ -246,7 +271,18 @@ def preprocess(
         # level) let a view skip a tile without decoding it
         for key, dm, rm in zip(keys, dmax.tolist(), rmax.tolist(), strict=True):
             tile_rows[key] = (*bounds[key], dm, rm)
-    del coding, nrm_levels
+        # the second δ: new vertices over the parent's on stored tiles, whole tiles on
+        # the unstored ones (nothing else there to read a parent from)
+        for keys_e, top in ([] if edge is None else
+                            [(edge_keys, grid.top_level), (edge_only, L)]):
+            ekeys = [(x, y) for L2, x, y in keys_e if L2 == L]
+            if not ekeys:
+                continue
+            eb, emax, _ = level_blobs(edge, nrm_levels[L], grid.t, L, top, ekeys)
+            extra["delta_edge"].update(eb["delta"])
+            edge_max += [[L, x, y, m if np.isfinite(m) else None]
+                         for (x, y), m in zip(ekeys, emax.tolist(), strict=True)]
+    del coding, nrm_levels, edge
     stage("compress")
 
     with StoreWriter(dst, overwrite=overwrite) as w:
@@ -270,6 +306,9 @@ def preprocess(
             "nodata_fraction": float(1.0 - nvalid / r.valid.size),  # = 1 - mean
             "height_range": height_range,
             "delta_max_finite": _finite_max(delta),
+            # per tile with a second δ (padding replicated, edgepad.py): [L, x, y, max of
+            # its new vertices' stored δ_edge (None: +inf)]; absent without padding
+            **({"delta_edge": edge_max} if has_padding(grid) else {}),
             "stand_in_z": stand_in_z(Z, valid),
             "preprocess_seconds": times,
         })

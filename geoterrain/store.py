@@ -73,6 +73,9 @@ _TABLES = {
 }
 _INDEXES = {f"sqlite_autoindex_{t}_1": t for t in _TABLES}
 BLOB_KINDS = ("heights", "delta", "radius", "normals")
+# optional: a second δ (padding replicated, geoterrain/edgepad.py) on the tiles that the
+# metadata's "delta_edge" list names, and on no other
+EDGE_KIND = "delta_edge"
 _META_MAX_BYTES = 1 << 20  # metadata is a few kB; more is not a store of ours
 # a damaged schema's SQLite error message may not even decode as UTF-8
 _DB_ERRORS = (sqlite3.DatabaseError, UnicodeDecodeError)
@@ -549,10 +552,30 @@ class StoreReader:
                                     "tile keys (rows missing or added): the file is damaged; "
                                     "re-run `geoterrain preprocess`")
         want = {(*k, kind) for k in out for kind in BLOB_KINDS}
+        want |= {(*k, EDGE_KIND) for k in self.edge_keys(out)}
         if len(blob_keys) != len(want) or set(blob_keys) != want:
             raise StoreCorruptError(f"{self.path}: the blobs do not match the tile table "
                                     "(blobs missing or added): the file is damaged; "
                                     "re-run `geoterrain preprocess`")
+        return out
+
+    def edge_keys(self, tiles: dict) -> dict[tuple[int, int, int], float]:
+        """The tiles with a ``delta_edge`` blob and the largest δ_edge of their stored
+        vertices (+inf where stored as None), from the metadata; {} when it has none. A
+        key may name a tile that is not stored (then the blob is all it has); the
+        terrain checks it lies in the grid."""
+        rows = self.metadata.get("delta_edge", [])
+        out = {}
+        if not isinstance(rows, list):
+            raise self._damaged("the delta_edge list")
+        for r in rows:
+            if not (isinstance(r, list) and len(r) == 4 and all(type(v) is int for v in r[:3])
+                    and (r[3] is None or (type(r[3]) in (int, float) and r[3] >= 0))):
+                raise self._damaged("the delta_edge list")
+            key = tuple(r[:3])
+            if min(key) < 0 or key in out:
+                raise self._damaged("the delta_edge list")
+            out[key] = float("inf") if r[3] is None else float(r[3])
         return out
 
     def blob_bytes_by_kind_level(self) -> dict[tuple[str, int], int]:

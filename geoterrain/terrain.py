@@ -76,6 +76,15 @@ class Terrain:
             self.tile_info = self.reader.tiles()
             # an untrusted file: every field is checked before anything is sized from it
             self.grid, self.frame, self.quantizer = check_store(self.path, m, self.tile_info)
+            # tiles with a second δ (padding replicated: geoterrain/edgepad.py) → the
+            # largest δ_edge of their new vertices; None: the store predates it
+            self.edge_max = (self.reader.edge_keys(self.tile_info) if "delta_edge" in m
+                             else None)
+            if self.edge_max and any(L > self.grid.top_level or max(x, y) >=
+                                     self.grid.tiles_per_side(L) for L, x, y in self.edge_max):
+                raise StoreCorruptError(f"{self.path}: the delta_edge list names a tile "
+                                        "outside the grid: the file is damaged; re-run "
+                                        "`geoterrain preprocess`")
         except BaseException:
             self.reader.close()
             raise
@@ -125,7 +134,8 @@ class Terrain:
         return float(v)
 
     def _blob(self, key: TileKey, kind: str) -> bytes:
-        if key not in self.tile_info:
+        if key not in self.tile_info and not (kind == "delta_edge" and self.edge_max
+                                              and key in self.edge_max):
             raise StoreError(f"{self.path}: tile {key} is not stored: it lies outside the "
                              "data or holds only nodata")
         b = self.reader.get_blob(key, kind)
@@ -199,15 +209,17 @@ class Terrain:
         T = self.grid.tile_samples
         self.decoded_bounds += 1
         L, x, y = key
-        blob = self._blob(key, kind)
+        # δ_edge: a tile without its own second δ has the same new vertices as in δ
+        stored = "delta" if kind == "delta_edge" and key not in self.edge_max else kind
+        blob = self._blob(key, stored)
         parent = None
         if blob[:1] == bytes([VERSION_2]) and blob[1:2] and blob[1] & NEW_ONLY:
             if L >= self.grid.top_level:
                 raise StoreCorruptError(f"{self.path}: tile {key} {kind} has no parent to "
                                         "read; re-run `geoterrain preprocess`")
             # the vertices shared with the parent are stored once, in the parent
-            parent = (self.tile_delta if kind == "delta" else self.tile_radius)(
-                L + 1, x // 2, y // 2)
+            parent = {"delta": self.tile_delta, "radius": self.tile_radius,
+                      "delta_edge": self.tile_delta_edge}[kind](L + 1, x // 2, y // 2)
         try:
             return decode_bounds(blob, (T, T), parent, (x % 2, y % 2))
         except (ValueError, zstandard.ZstdError):
@@ -217,6 +229,15 @@ class Terrain:
     def tile_delta(self, level: int, x: int, y: int) -> np.ndarray:
         """Per-vertex errors δ (scene units) of the tile's samples, float32 (T, T)."""
         return self._cached(("d", level, x, y), lambda: self._bounds((level, x, y), "delta"))
+
+    def tile_delta_edge(self, level: int, x: int, y: int) -> np.ndarray:
+        """δ with the padding replicated from the data's edge (:mod:`geoterrain.edgepad`),
+        float32 (T, T): the tile's second δ blob where it has one, else its δ blob (the
+        same new vertices), over its parent's δ_edge."""
+        if not self.edge_max:
+            return self.tile_delta(level, x, y)
+        return self._cached(("de", level, x, y),
+                            lambda: self._bounds((level, x, y), "delta_edge"))
 
     def tile_radius(self, level: int, x: int, y: int) -> np.ndarray:
         """Nested bounding-sphere radii (scene units) of the tile's samples, float32 (T, T)."""

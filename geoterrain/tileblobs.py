@@ -51,8 +51,11 @@ class BoundsCoding:
     (True, 'float16')
     """
 
-    def __init__(self, delta: np.ndarray, radius: np.ndarray) -> None:
-        self.ed, self.kr = log8_exponent(delta), scale_exponent(radius)
+    def __init__(self, delta: np.ndarray, radius: np.ndarray, ed: int | None = None) -> None:
+        # ed: δ's code exponent (default: the smallest that covers its largest finite
+        # value; a larger one is allowed, codes then step more coarsely)
+        self.ed = log8_exponent(delta) if ed is None else max(int(ed), log8_exponent(delta))
+        self.kr = scale_exponent(radius)
         t8 = log8_table(self.ed)
         shape = np.shape(delta)
         self.table = t8

@@ -53,6 +53,12 @@ DEMS = {
     # a 2° × 2° grid at 60° N: parallels bow by ~400 m over its width
     "lat60_rough": lambda d: _geo_tif(d / "a.tif", _rough(129), 10.0, 61.0, 2.0),
     "lat60_smooth": lambda d: _geo_tif(d / "b.tif", _smooth(129), 10.0, 61.0, 2.0),
+    # the same, 100 × 117 samples: padded, so the static mesh is clipped to the data and
+    # its cut southern and eastern borders are chords of curved ones (curvature.py window)
+    "lat60_uneven": lambda d: _geo_tif(d / "e.tif", _rough(129)[:100, :117], 10.0, 61.0,
+                                       2.0),
+    "lat60_smooth_uneven": lambda d: _geo_tif(d / "f.tif", _smooth(129)[:100, :117], 10.0,
+                                              61.0, 2.0),
     # 1° × 1° tiles across the antimeridian, written east and west of it
     "antimeridian_east": lambda d: _geo_tif(d / "c.tif", _rough(129, 8), 179.5, 40.5, 1.0),
     "antimeridian_west": lambda d: _geo_tif(d / "d.tif", _smooth(129), -180.5, -39.5, 1.0),
@@ -77,8 +83,14 @@ def _measure(case, sel):
     t, X, Y, Z, valid, tol = case
     ij = sel.ij.astype(np.int64)
     f = sel.surface_faces()
-    vz = np.asarray(sel.mesh.points, np.float64)[:, 2]
-    return ij, f, vz, X[ij[:, 0], ij[:, 1]], Y[ij[:, 0], ij[:, 1]]
+    p = np.asarray(sel.mesh.points, np.float64)
+    at = np.all(sel.ij == ij, axis=1)  # vertices at samples (a clipped static mesh also
+    # has points cut on the data's border, which are where the mesh puts them)
+    vx = np.where(at, X[ij[:, 0].clip(0, X.shape[0] - 1), ij[:, 1].clip(0, X.shape[1] - 1)],
+                  p[:, 0])
+    vy = np.where(at, Y[ij[:, 0].clip(0, X.shape[0] - 1), ij[:, 1].clip(0, X.shape[1] - 1)],
+                  p[:, 1])
+    return ij, f, p[:, 2], vx, vy
 
 
 def test_antimeridian_frame_is_continuous(geo):

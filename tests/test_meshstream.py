@@ -32,10 +32,17 @@ def stores(tmp_path_factory):
         t.close()
 
 
+def _keys(ij: np.ndarray, N: int) -> np.ndarray:
+    """One integer per place: grid indices in 2^-20 steps (cut points are fractional)."""
+    q = np.round(np.asarray(ij, np.float64) * 2.0 ** 20).astype(np.int64)
+    return q[:, 0] * (N << 20) + q[:, 1]
+
+
 def _triangles(ij: np.ndarray, faces: np.ndarray, N: int) -> np.ndarray:
-    """Each triangle as its sorted sample indices, rows sorted: the mesh up to vertex order."""
-    flat = ij[:, 0].astype(np.int64) * N + ij[:, 1].astype(np.int64)
-    tri = np.sort(flat[faces], axis=1)
+    """Each triangle as its sorted corner places, rows sorted: the mesh up to vertex order
+    (a corner is a sample, or a cut point of the clip to the data: grid indices in
+    2^-20 steps)."""
+    tri = np.sort(_keys(ij, N)[faces], axis=1)
     return tri[np.lexsort(tri.T[::-1])]
 
 
@@ -58,17 +65,16 @@ def test_chunks_are_the_in_memory_static_mesh(stores, which, e, chunk):
     sel = t.static_selection(e)
     ij, faces, xyz = _chunked(t, e, chunk)
     # every vertex used, numbered once, in order of first use
-    assert len(np.unique(ij[:, 0] * N + ij[:, 1])) == len(ij)
+    assert len(np.unique(_keys(ij, N))) == len(ij)
     first_use = np.unique(faces.ravel(), return_index=True)[1]
     assert np.array_equal(np.unique(faces.ravel()), np.arange(len(ij)))
     assert np.all(np.diff(first_use) > 0)
     assert np.array_equal(_triangles(ij, faces, N),
-                          _triangles(sel.ij.astype(np.int64), sel.surface_faces(), N))
-    # positions and winding: those of the in-memory mesh at the same samples
-    rij = sel.ij.astype(np.int64)
-    at = np.full(N * N, -1)
-    at[rij[:, 0] * N + rij[:, 1]] = np.arange(len(rij))
-    got = np.asarray(sel.mesh.points)[at[ij[:, 0] * N + ij[:, 1]]]
+                          _triangles(sel.ij, sel.surface_faces(), N))
+    # positions and winding: those of the in-memory mesh at the same places
+    rk = _keys(sel.ij, N)
+    o = np.argsort(rk)
+    got = np.asarray(sel.mesh.points)[o[np.searchsorted(rk[o], _keys(ij, N))]]
     assert np.array_equal(got, xyz)
     assert np.all(np.isfinite(xyz))
     p = xyz[faces]

@@ -118,6 +118,26 @@ def _vertex(v, sl, a, b, i, j, H, X, Y, aff, zfac, inv_scale, L, N, vid, xyz, ij
     return not np.isfinite(z)
 
 
+@njit(cache=True, nogil=True)
+def _replicate(pad, ij, rows, cols, N, top, t, base, slot_of, H, zfac, inv_scale, xyz,
+               elev):
+    """Vertices ``pad`` (beyond the data's rows × cols) take the height of the nearest
+    sample of the data's last row or column (replicated padding, edgepad.py); returns
+    how many now have one."""
+    fixed = 0
+    for k in range(pad.shape[0]):
+        v = pad[k]
+        i = min(np.int64(ij[v, 0]), rows - 1)
+        j = min(np.int64(ij[v, 1]), cols - 1)
+        _, ti, a, b = _coarsest_tile(i, j, top, t, base)
+        s = slot_of[ti]
+        z = H[s, a, b] * zfac if s >= 0 else np.nan
+        xyz[v, 2] = z
+        elev[v] = np.float32(z * inv_scale)
+        fixed += np.isfinite(z)
+    return fixed
+
+
 @_parallel
 def _number_active(slots, i0, j0, step, ty, tx, tps, D, e, top_step, H, X, Y, aff, zfac,
                    inv_scale, level, s, cnt, loc, first, vid, xyz, ij, lvl, elev, invalid):
@@ -321,13 +341,21 @@ def _buffer(scratch: dict, name: str, shape: tuple, dtype) -> np.ndarray:
 
 
 def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: float,
-                  vid: np.ndarray, scratch: dict | None = None, z_scale: float = 1.0):
+                  vid: np.ndarray, scratch: dict | None = None, z_scale: float = 1.0,
+                  D: np.ndarray | None = None, window: tuple[int, int] | None = None,
+                  room: tuple[int, int] = (0, 0)):
     """The leaf triangles and vertices of the static mesh δ > ``e`` over the tiles
     ``keys`` (level, x, y) with pool ``slots`` (every tile holding a vertex with δ > e;
     their δ, heights and positions pooled, and the top tile's too).
 
     ``vid`` is the dense N² vertex-number scratch, all −1; it is left all −1.
     ``scratch``: a dict that keeps the working arrays from one call to the next.
+    ``D``: the pooled δ to read (default ``pool.D``; ``pool.DE`` for δ_edge).
+    ``window``: (rows, cols) of the data when the padding is replicated
+    (:mod:`geoterrain.edgepad`): a vertex beyond it takes the height of the nearest
+    sample of the data's last row or column, whose tile must be pooled too.
+    ``room``: spare rows after the vertices and after the faces (the returned arrays are
+    views of larger ones, for :func:`geoterrain.lod.clip.clip_in_place`).
     Returns faces (F, 3) int32 and their levels (int16), and per vertex: position
     (x, y, z), grid indices (float64), pyramid level (int8) and elevation (float32,
     z / ``z_scale``), and how many vertices have no valid height (0: no face needs
@@ -346,28 +374,35 @@ def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: flo
     cnt = np.zeros(len(slots), np.int64)
     top_step = np.int64(1) << top
     T = pool.T
+    D = pool.D if D is None else D
     find, number, emit, count, gather, reset = (_kernel(n) for n in (
         "_find_active", "_number_active", "_emit_leaves", "_count_leaves", "_gather_blocks",
         "_reset"))
     scratch = {} if scratch is None else scratch
     listed = len(slots) * T * T * 4 <= KEEP_BYTES  # else found again: no fresh lists
     loc = _buffer(scratch, "loc", (len(slots), T * T if listed else 0), np.uint32)
-    find(slots, i0, j0, step, ty, tx, tps, pool.D, float(e), top_step, s, cnt, loc)
+    find(slots, i0, j0, step, ty, tx, tps, D, float(e), top_step, s, cnt, loc)
     first = np.empty(len(slots), np.int64)
     if len(cnt):
         first[0] = 4
         np.cumsum(cnt[:-1], out=first[1:])
         first[1:] += 4
     V = 4 + int(cnt.sum())
-    xyz, ij, lvl = np.empty((V, 3)), np.empty((V, 2)), np.empty(V, np.int8)
-    elev = np.empty(V, np.float32)
+    rv, rf = room  # views of larger arrays: their .base has the room
+    xyz, ij = np.empty((V + rv, 3))[:V], np.empty((V + rv, 2))[:V]
+    lvl, elev = np.empty(V + rv, np.int8)[:V], np.empty(V + rv, np.float32)[:V]
     inv = 1.0 / float(z_scale)
     bad = _corners(s, top, pool.t, pool.base, pool.slot_of, pool.H, pool.X, pool.Y,
                    pool.aff, zfac, inv, vid, xyz, ij, lvl, elev)
     invalid = np.zeros(len(slots), np.int64)
-    number(slots, i0, j0, step, ty, tx, tps, pool.D, float(e), top_step, pool.H, pool.X,
+    number(slots, i0, j0, step, ty, tx, tps, D, float(e), top_step, pool.H, pool.X,
            pool.Y, pool.aff, zfac, inv, L, s, cnt, loc, first, vid, xyz, ij, lvl, elev,
            invalid)
+    bad += int(invalid.sum())
+    if window is not None:  # padding vertices: their replicated heights
+        pad = np.flatnonzero((ij[:, 0] >= window[0]) | (ij[:, 1] >= window[1]))
+        bad -= _replicate(pad, ij, window[0], window[1], s + 1, top, pool.t, pool.base,
+                          pool.slot_of, pool.H, zfac, inv, xyz, elev)
     m = (s // 2) * (s + 1) + s // 2
     root = bool(vid[m] < 0)  # the centre inactive: the two base triangles are leaves
     per = 4096
@@ -382,16 +417,16 @@ def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: flo
         emit(ij[4:], lvl[4:], vid, s, per, at, at + 4 * per, lcnt, ef, el)
         np.cumsum(lcnt[:-1], out=lfirst[1:])
         F = int(lcnt.sum())
-        faces = np.empty((F + 2, 3), np.int32)
-        level = np.empty(F + 2, np.int16)
+        faces = np.empty((F + 2 + rf, 3), np.int32)[:F + 2]
+        level = np.empty(F + 2 + rf, np.int16)[:F + 2]
         gather(ef, el, per, lcnt, lfirst, faces, level, vid, ij[4:], s + 1)
         reset(vid, ij[:4], s + 1)
     else:  # a large mesh: count, then emit to the exact rows (no room to spare)
         count(ij[4:], vid, s, per, lcnt)
         np.cumsum(lcnt[:-1], out=lfirst[1:])
         F = int(lcnt.sum())
-        faces = np.empty((F + 2, 3), np.int32)
-        level = np.empty(F + 2, np.int16)
+        faces = np.empty((F + 2 + rf, 3), np.int32)[:F + 2]
+        level = np.empty(F + 2 + rf, np.int16)[:F + 2]
         emit(ij[4:], lvl[4:], vid, s, per, lfirst, lfirst + lcnt, lcnt, faces, level)
         reset(vid, ij, s + 1)
     if root:  # the base triangles (0, 0), (s, s), (0, s) and (s, s), (0, 0), (s, 0)
@@ -399,4 +434,4 @@ def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: flo
         faces[F + 1] = (3, 0, 2)
         level[F:F + 2] = top
         F += 2
-    return faces[:F], level[:F], xyz, ij, lvl, elev, bad + int(invalid.sum())
+    return faces[:F], level[:F], xyz, ij, lvl, elev, bad

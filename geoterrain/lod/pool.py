@@ -23,8 +23,10 @@ from geoterrain.grid import level_offsets
 from geoterrain.lod.kernels import BLOCK, block_bounds
 
 _POOLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-KINDS = ("delta", "radius", "height", "xy", "blocks")
-_BYTES = {"delta": 4, "radius": 4, "height": 8, "xy": 16, "blocks": 0}  # per sample
+KINDS = ("delta", "radius", "height", "xy", "blocks", "delta_edge")
+# per sample; "delta_edge" (the static mesh of a padded store, edgepad.py) is not
+# budgeted: its pages are committed only on the few slots it is loaded into
+_BYTES = {"delta": 4, "radius": 4, "height": 8, "xy": 16, "blocks": 0, "delta_edge": 0}
 BUDGET_BYTES = 384 << 20
 
 
@@ -54,6 +56,7 @@ class TilePool:
         self.stamp = np.zeros((0,), np.int64)
         self.have = {k: np.zeros((0,), bool) for k in KINDS}
         self.D = np.zeros((0, self.T, self.T), np.float32)
+        self.DE = np.zeros((0, self.T, self.T), np.float32)
         self.R = np.zeros((0, self.T, self.T), np.float32)
         self.H = np.zeros((0, self.T, self.T), np.float64)
         self.X = np.zeros((0, self.T, self.T), np.float64)
@@ -63,6 +66,12 @@ class TilePool:
         self.stored = np.zeros(int(self.base[-1]), bool)
         for (L, x, y) in terrain.tile_info:
             self.stored[self.base[L] + y * (1 << (self.top - L)) + x] = True
+        # unstored tiles with a second δ (edgepad.py): served only with "delta_edge",
+        # their heights NaN (the static mesh replicates the padding's)
+        self.edge_only = np.zeros(int(self.base[-1]), bool)
+        for (L, x, y) in (terrain.edge_max or {}):
+            if (L, x, y) not in terrain.tile_info:
+                self.edge_only[self.base[L] + y * (1 << (self.top - L)) + x] = True
 
     def origins(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Grid row and column of the first sample of the (L, x, y) tiles ``keys`` (K, 3),
@@ -91,6 +100,7 @@ class TilePool:
             return np.concatenate([a, np.zeros((extra, T, T), dtype)])
 
         self.D, self.R = more(self.D, np.float32), more(self.R, np.float32)
+        self.DE = more(self.DE, np.float32)
         self.H = more(self.H, np.float64)
         self.BK = (np.zeros((new, self.nb, self.nb, 9)) if self.capacity == 0 else
                    np.concatenate([self.BK, np.zeros((extra, self.nb, self.nb, 9))]))
@@ -112,6 +122,8 @@ class TilePool:
         idx = np.asarray(idx, np.int64)
         out = np.full(len(idx), -1, np.int32)
         ok = self.stored[idx]
+        if "delta_edge" in kinds:
+            ok = ok | self.edge_only[idx]
         sl = self.slot_of[idx]
         missing = np.unique(idx[ok & (sl < 0)])
         if len(missing):
@@ -161,10 +173,12 @@ class TilePool:
         t, key = self.terrain, self._key(s)
         if kind == "delta":
             self.D[s] = t.tile_delta(*key)
+        elif kind == "delta_edge":
+            self.DE[s] = t.tile_delta_edge(*key)
         elif kind == "radius":
             self.R[s] = t.tile_radius(*key)
         elif kind == "height":
-            self.H[s] = t.tile(*key).heights
+            self.H[s] = (t.tile(*key).heights if key in t.tile_info else np.nan)
         elif kind == "blocks":  # after delta, radius, height and xy (see slots)
             i0, j0, step = (int(v[0]) for v in self.origins(np.array([key], np.int64)))
             block_bounds(self.D, self.R, self.H, self.X, self.Y, self.aff, s, i0, j0, step,

@@ -29,6 +29,8 @@ import weakref
 
 import numpy as np
 
+from geoterrain.edgepad import has_padding
+from geoterrain.lod.clip import clip_in_place
 from geoterrain.lod.emit import cull_compact, cull_in_place, walk_gather
 from geoterrain.lod.kernels import (
     close_upward_boxes,
@@ -323,6 +325,11 @@ def select(terrain, view: View, tau: float):
     return active_mesh(terrain, act, view, tau=tau), {"tiles_hidden": act.tiles_hidden}
 
 
+#: The static mesh of a padded store replicates the padding (edgepad.py); False: the
+#: nodata rule of every other selection (tests compare the two).
+EDGE_PADDING = True
+
+
 def static(terrain, max_error: float):
     """The static mesh keeping every vertex with δ > ``max_error``, and stats.
 
@@ -331,19 +338,82 @@ def static(terrain, max_error: float):
     (:func:`~geoterrain.lod.leaves.static_leaves`): the same triangles as
     :func:`active_mesh` of :func:`static_active`, without the walk. The mesh carries
     its ``elevation`` already (computed with the positions).
+
+    On a store with padding (a DEM that is not (2^n+1)²), the padding is replicated from
+    the data's edge instead (Martini's padding, :mod:`geoterrain.edgepad`): δ_edge
+    selects the vertices, a vertex in the padding takes its replicated height, and the
+    mesh is clipped to the data (:mod:`geoterrain.lod.clip`). The bound is the same, and
+    the DEM's edge no longer needs full resolution.
     """
     index = tile_index(terrain)
     pool = tile_pool(terrain)
     e = float(max_error)
-    keys = index.keys[index.delta_max > e]
-    slots = pool.slots(pool.table_index(keys), ("delta", "height", "xy"))
-    pool.slots(np.array([pool.base[pool.top]]), ("height", "xy"))  # the grid's corners
+    g = terrain.grid
+    edge = edge_padding(terrain)
+    keys = static_keys(terrain, index, pool, e, edge)
+    want = [pool.table_index(keys), np.array([pool.base[pool.top]])]  # + the grid's corners
+    if edge:  # the tiles of the data's last row and column: the padding's heights
+        want.append(_border_tiles(g, pool))
+    kinds = ("delta_edge" if edge else "delta", "height", "xy")
+    slots = pool.slots(np.concatenate(want), kinds)[:len(keys)]  # one call: none evicted
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
     sc = _scratch(terrain)
+    # room for the clip: cut points lie on whole samples of the last row and column,
+    # and only faces that hold a piece of them make extra pieces (2 at most each)
+    room = (g.rows + g.cols + 1, 2 * (g.rows + g.cols + 4)) if edge else (0, 0)
     faces, level, xyz, ij, lvl, elev, bad = static_leaves(
-        keys, slots, pool, zfac, e, sc.vid, sc.leaves, terrain.frame.z_scale)
+        keys, slots, pool, zfac, e, sc.vid, sc.leaves, terrain.frame.z_scale,
+        D=pool.DE if edge else None, window=(g.rows, g.cols) if edge else None, room=room)
     if bad:  # drop the triangles with an invalid corner (and the elevations of the vertices)
         nf, nv, level = cull_in_place(faces, xyz, ij, np.zeros((0, 4)), lvl, np.zeros(3), 0.0)
         faces, xyz, ij, elev = faces[:nf], xyz[:nv], ij[:nv], None
+        if edge:
+            lv = np.empty(nf + room[1], level.dtype)
+            lv[:nf] = level[:nf]
+            level = lv[:nf]
+    if edge:  # cut to the data's rectangle, in place (lod/clip.py)
+        fb, lb, ib, xb = (a.base if a.base is not None else a for a in (faces, level, ij, xyz))
+        nf, nv = clip_in_place(fb, lb, len(faces), ib, xb, len(ij), float(g.rows - 1),
+                               float(g.cols - 1), np.int64(g.size))
+        faces, level, ij, xyz, elev = fb[:nf], lb[:nf], ib[:nv], xb[:nv], None
     mesh = polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8), "level": level})
     return add_elevation(mesh, terrain.frame.z_scale, elev), {}
+
+
+def edge_padding(terrain) -> bool:
+    """Whether the static mesh of ``terrain`` replicates its padding (edgepad.py)."""
+    return bool(EDGE_PADDING and terrain.edge_max is not None and has_padding(terrain.grid))
+
+
+def static_keys(terrain, index: TileIndex, pool, e: float, edge: bool) -> np.ndarray:
+    """(K, 3) keys of the tiles holding a vertex of the static mesh δ > e (δ_edge with
+    ``edge``, and then also the unstored tiles that hold only a second δ)."""
+    dmax = _edge_delta_max(terrain, index, pool) if edge else index.delta_max
+    keys = np.asarray(index.keys[dmax > e], np.int64)
+    if edge:
+        more = [k for k, m in terrain.edge_max.items() if k not in terrain.tile_info and m > e]
+        keys = np.concatenate([keys, np.array(more, np.int64).reshape(-1, 3)])
+    return keys
+
+
+def _edge_delta_max(terrain, index: TileIndex, pool) -> np.ndarray:
+    """Per index row, the largest δ_edge of the tile's new vertices (its δ's elsewhere)."""
+    dmax = np.array(index.delta_max, np.float64)
+    if terrain.edge_max:
+        row = np.full(int(pool.base[-1]), -1, np.int64)
+        row[pool.table_index(index.keys)] = np.arange(len(index.keys))
+        ek = [k for k in terrain.edge_max if k in terrain.tile_info]
+        rows = row[pool.table_index(np.array(ek, np.int64).reshape(-1, 3))]
+        dmax[rows] = [terrain.edge_max[k] for k in ek]
+    return dmax
+
+
+def _border_tiles(g, pool) -> np.ndarray:
+    """Table indices of the tiles the samples of the data's last row and column are read
+    from (their coarsest tiles)."""
+    N = g.size
+    last_row = (g.rows - 1) * N + np.arange(g.cols, dtype=np.int64)
+    last_col = np.arange(g.rows, dtype=np.int64) * N + (g.cols - 1)
+    occ = np.zeros(int(pool.base[-1]), bool)
+    mark_tiles(np.concatenate([last_row, last_col]), N, g.top_level, g.t, pool.base, occ)
+    return np.flatnonzero(occ)

@@ -38,6 +38,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from geoterrain.lod import rtin
+from geoterrain.lod.clip import clip_kernel, new_cuts
 from geoterrain.lod.kernels import fill_static, gather_pooled, mark_tiles, walk_leaves, walk_start
 from geoterrain.lod.pool import TilePool
 from geoterrain.lod.rtin import ActiveSet
@@ -130,9 +132,122 @@ def _number(tris, vid, valid, cand, nv, faces, order):
     return nf, nn
 
 
-def static_flags(terrain, max_error: float, pool: TilePool) -> ActiveSet:
+_PROV = np.int64(1) << 50  # provisional ids of a chunk's new cut points
+
+
+@njit(cache=True, nogil=True)
+def _new_samples_codes(codes, vid, cand):
+    """:func:`_new_samples` over corner codes (a sample ≥ 0, a cut point < 0: skipped)."""
+    k = 0
+    for f in range(codes.shape[0]):
+        for c in range(3):
+            s = codes[f, c]
+            if s >= 0 and vid[s] == -1:
+                vid[s] = -2 - k
+                cand[k] = s
+                k += 1
+    return k
+
+
+@njit(cache=True, nogil=True)
+def _number_codes(codes, vid, valid, cand, nv, faces, order, okey, cuts):
+    """:func:`_number` over corner codes in the order the walk met the faces: a sample
+    (≥ 0) as there; a cut point (−1 − id) keeps its id, or, new in this chunk (id ≥
+    ``_PROV``: provisional, key ``okey[id − _PROV]``), gets the next id at its first
+    use (``order``: −1 − its provisional index) and ``cuts`` learns it."""
+    nf, nn = 0, 0
+    final = np.full(okey.shape[0], -1, np.int64)
+    for f in range(codes.shape[0]):
+        ok = True
+        for c in range(3):
+            s = codes[f, c]
+            if s >= 0:
+                v = vid[s]
+                if v == _INVALID or (v <= -2 and not valid[-2 - v]):
+                    ok = False
+        if not ok:
+            continue
+        for c in range(3):
+            s = codes[f, c]
+            if s >= 0:
+                v = vid[s]
+                if v <= -2 and v != _INVALID:
+                    order[nn] = -2 - v
+                    v = nv + nn
+                    vid[s] = v
+                    nn += 1
+            else:
+                g = -1 - s
+                if g >= _PROV:
+                    n = g - _PROV
+                    if final[n] < 0:
+                        final[n] = nv + nn
+                        order[nn] = -1 - n
+                        nn += 1
+                    v = final[n]
+                else:
+                    v = g
+            faces[nf, c] = v
+        nf += 1
+    for k in range(cand.shape[0]):
+        s = cand[k]
+        if vid[s] <= -2 and vid[s] != _INVALID:
+            vid[s] = -1 if valid[k] else _INVALID
+    for n in range(okey.shape[0]):
+        if final[n] >= 0:
+            cuts[okey[n]] = final[n]
+        else:  # unused (its pieces had no area): made again where a later face needs it
+            cuts.pop(okey[n])
+    return nf, nn
+
+
+def _edge_chunk(tris, pool, zfac, g, vid, nv, cuts):
+    """A chunk of a padded store's static mesh (replicated padding, clipped to the data
+    as :func:`geoterrain.lod.static` clips it), faces in the walk's order: faces (global
+    ids), new vertices' positions and grid indices (ids from ``nv`` on)."""
+    N = pool.N
+    i, j = tris // N, tris % N
+    ni, nj = (i > g.rows - 1).sum(1), (j > g.cols - 1).sum(1)
+    inside = (ni == 0) & (nj == 0)
+    cross = np.flatnonzero(~inside & (ni < 3) & (nj < 3))
+    codes, okey, oi, oxyz = tris[inside], np.zeros(0, np.int64), np.zeros((0, 2)), None
+    where = np.flatnonzero(inside)  # each piece's face in the walk's order
+    if len(cross):
+        flat = np.ascontiguousarray(tris[cross].ravel())
+        P, IJ = _gather(pool, flat, zfac, (g.rows, g.cols))
+        ok = np.isfinite(P[:, 2]).reshape(-1, 3).all(1)  # a corner without height: dropped
+        local = np.arange(len(flat), dtype=np.int64).reshape(-1, 3)[ok]
+        out, src, oi, oxyz, okey = clip_kernel(
+            local, IJ.astype(np.float64), P, float(g.rows - 1), float(g.cols - 1),
+            np.int64(N), cuts, _PROV)
+        pieces = np.where(out >= 0, flat[np.maximum(out, 0)], out)  # samples, cut points
+        codes = np.concatenate([codes, pieces])
+        where = np.concatenate([where, cross[ok][src]])
+        # a cut point in ``cuts`` from an earlier chunk keeps its id; one new here has a
+        # provisional id until its first use below
+    codes = np.ascontiguousarray(codes[np.argsort(where, kind="stable")])
+    cand = np.empty(3 * len(codes) + 1, np.int64)
+    k = _new_samples_codes(codes, vid, cand)
+    new = cand[:k]
+    pos, gij = _gather(pool, new, zfac)
+    valid = np.isfinite(pos[:, 2])
+    faces = np.empty((len(codes), 3), np.int64)
+    order = np.empty(3 * len(codes) + 1, np.int64)
+    nf, nn = _number_codes(codes, vid, valid, new, nv, faces, order, okey, cuts)
+    order = order[:nn]
+    corner = order >= 0
+    xyz, ij = np.empty((nn, 3)), np.empty((nn, 2))
+    xyz[corner], ij[corner] = pos[order[corner]], gij[order[corner]]
+    if oxyz is not None:
+        xyz[~corner], ij[~corner] = oxyz[-1 - order[~corner]], oi[-1 - order[~corner]]
+    return faces[:nf], xyz, ij
+
+
+def static_flags(terrain, max_error: float, pool: TilePool, edge: bool = False) -> ActiveSet:
     """:func:`geoterrain.lod.rtin.static_active` with δ read through ``pool`` in batches
-    that fit its budget (the same flags, bounded memory).
+    that fit its budget (the same flags, bounded memory); ``edge``: δ_edge, the second δ
+    of a padded store (:mod:`geoterrain.edgepad`), as :func:`geoterrain.lod.static` reads
+    it.
 
     Examples
     --------
@@ -144,25 +259,44 @@ def static_flags(terrain, max_error: float, pool: TilePool) -> ActiveSet:
     """
     index = tile_index(terrain)
     act = ActiveSet(terrain)
-    rows = np.flatnonzero(index.delta_max > max_error)
+    keys = rtin.static_keys(terrain, index, pool, float(max_error), edge)
     batch = max(1, pool.budget_slots // 2)
-    for k in range(0, len(rows), batch):
-        idx, i0, j0, step = act.tiles(rows[k:k + batch], index)
-        slots = pool.slots(idx, ("delta",))
-        fill_static(slots, i0, j0, step, pool.D, float(max_error), act.active, act.mixed)
+    kind = "delta_edge" if edge else "delta"
+    for k in range(0, len(keys), batch):
+        some = keys[k:k + batch]
+        i0, j0, step = pool.origins(some)
+        slots = pool.slots(pool.table_index(some), (kind,))  # may grow the slabs: then read
+        fill_static(slots, i0, j0, step, pool.DE if edge else pool.D, float(max_error),
+                    act.active, act.mixed)
     return act  # closed already: δ is saturated (see static_active)
 
 
-def _gather(pool: TilePool, flat: np.ndarray, zfac: float):
+def _gather(pool: TilePool, flat: np.ndarray, zfac: float, window=None):
     """Scene positions and grid indices of samples ``flat`` through ``pool`` (the
-    chunk's tiles only); invalid samples have z NaN."""
+    chunk's tiles only); invalid samples have z NaN. ``window`` (rows, cols): a sample
+    beyond it takes the height of the nearest sample of the data's last row or column
+    (replicated padding, :mod:`geoterrain.edgepad`)."""
+    N = pool.N
+    more = np.zeros(0, np.int64)
+    if window is not None:
+        i, j = flat // N, flat % N
+        pad = (i >= window[0]) | (j >= window[1])
+        more = np.minimum(i[pad], window[0] - 1) * N + np.minimum(j[pad], window[1] - 1)
     occ = np.zeros(len(pool.slot_of), bool)
-    mark_tiles(flat, pool.N, pool.top, pool.t, pool.base, occ)
-    pool.slots(np.flatnonzero(occ), ("height", "xy"))
+    mark_tiles(np.concatenate([flat, more]), N, pool.top, pool.t, pool.base, occ)
+    # with "delta_edge", the unstored tiles holding a second δ are served too
+    pool.slots(np.flatnonzero(occ), ("height", "xy") if window is None else
+               ("delta_edge", "height", "xy"))
     n = len(flat)
     xyz, ij, lvl = np.empty((n, 3)), np.empty((n, 2), np.int64), np.empty(n, np.int64)
-    gather_pooled(flat, pool.N, pool.top, pool.t, pool.base, pool.slot_of, pool.H, pool.X,
+    gather_pooled(flat, N, pool.top, pool.t, pool.base, pool.slot_of, pool.H, pool.X,
                   pool.Y, pool.aff, zfac, xyz, ij, lvl)
+    if len(more):
+        rep = np.empty((len(more), 3))
+        gather_pooled(more, N, pool.top, pool.t, pool.base, pool.slot_of, pool.H, pool.X,
+                      pool.Y, pool.aff, zfac, rep, np.empty((len(more), 2), np.int64),
+                      np.empty(len(more), np.int64))
+        xyz[pad, 2] = rep[:, 2]
     return xyz, ij
 
 
@@ -178,7 +312,10 @@ def static_chunks(terrain, max_error: float, *, chunk: int = CHUNK,
     if chunk < 1:
         raise ValueError(f"chunk must be ≥ 1, got {chunk}")
     pool = TilePool(terrain, pool_bytes)
-    act = static_flags(terrain, float(max_error), pool)
+    g = terrain.grid
+    edge = rtin.edge_padding(terrain)  # replicated padding, clipped (geoterrain.edgepad)
+    cuts = new_cuts()
+    act = static_flags(terrain, float(max_error), pool, edge)
     active, mixed = act.active, act.mixed
     N = active.shape[0]
     total = int(_count_leaves(active, mixed)) if count else 0
@@ -195,6 +332,11 @@ def static_chunks(terrain, max_error: float, *, chunk: int = CHUNK,
         if n == 0:
             return
         done += n
+        if edge:  # faces past the data's last row or column: clipped, or dropped
+            f, xyz, ij = _edge_chunk(tris[:n], pool, zfac, g, vid, nv, cuts)
+            yield MeshChunk(nv, xyz, ij, f, done, max(total, done))
+            nv += len(xyz)
+            continue
         k = _new_samples(tris[:n], vid, cand)
         new = cand[:k]
         pos, gij = _gather(pool, new, zfac)
