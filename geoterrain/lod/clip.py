@@ -165,6 +165,15 @@ def _piece(n, cur, pc, k0, k):
 
 
 @njit(cache=True, nogil=True)
+def _room(ncut):
+    """Cut points (grid indices, positions, keys: up to 5 a face, 1 spare) and the two
+    polygons of :func:`_polygon` (ids, edge ends, grid indices)."""
+    return (np.empty((5 * ncut + 1, 2)), np.empty((5 * ncut + 1, 3)),
+            np.empty(5 * ncut + 1, np.int64), np.empty((2, 6), np.int64),
+            np.empty((2, 6), np.int64), np.empty((2, 6), np.int64), np.empty((2, 6, 2)))
+
+
+@njit(cache=True, nogil=True)
 def clip_kernel(faces, ij, xyz, li, lj, M, made, next_id):
     """Clip ``faces`` (vertex ids into ``ij``, ``xyz``; grid vertices of a grid with
     row length ``M``) to i ≤ li, j ≤ lj.
@@ -178,13 +187,7 @@ def clip_kernel(faces, ij, xyz, li, lj, M, made, next_id):
     ncut = _classify(faces, F, ij, li, lj, cls)
     out = np.empty((F + 2 * ncut, 3), np.int64)
     src = np.empty(F + 2 * ncut, np.int64)  # the face each output face comes from
-    oi = np.empty((5 * ncut + 1, 2))
-    oxyz = np.empty((5 * ncut + 1, 3))
-    okey = np.empty(5 * ncut + 1, np.int64)
-    pid = np.empty((2, 6), np.int64)
-    pu = np.empty((2, 6), np.int64)
-    pw = np.empty((2, 6), np.int64)
-    pc = np.empty((2, 6, 2))
+    oi, oxyz, okey, pid, pu, pw, pc = _room(ncut)
     nnew = 0
     nf = 0
     for f in range(F):
@@ -219,13 +222,7 @@ def clip_in_place(faces, level, F, ij, xyz, V, li, lj, M):
     if ncut == 0 and not (cls == 1).any():
         return F, V
     made = Dict.empty(key_type=types.int64, value_type=types.int64)
-    oi = np.empty((5 * ncut + 1, 2))
-    oxyz = np.empty((5 * ncut + 1, 3))
-    okey = np.empty(5 * ncut + 1, np.int64)
-    pid = np.empty((2, 6), np.int64)
-    pu = np.empty((2, 6), np.int64)
-    pw = np.empty((2, 6), np.int64)
-    pc = np.empty((2, 6, 2))
+    oi, oxyz, okey, pid, pu, pw, pc = _room(ncut)
     extra = np.empty((2 * ncut + 1, 3), np.int64)
     extra_lv = np.empty(2 * ncut + 1, level.dtype)
     holes = np.empty(F, np.int64)  # face rows to fill (only the first few are used)
@@ -274,6 +271,12 @@ def clip_in_place(faces, level, F, ij, xyz, V, li, lj, M):
         for k in range(3):
             if extra[e, k] < 0:
                 used[-1 - extra[e, k] - V] = True
+    nuse = 0
+    for n in range(nnew):
+        nuse += used[n]
+    if (V + max(0, nuse - no) > min(ij.shape[0], xyz.shape[0])
+            or F + ne - nh > min(faces.shape[0], level.shape[0])):
+        raise ValueError("clip_in_place: no room for the cut points or pieces")
     slot = np.empty(nnew, np.int64)  # cut point (V + n) → its row
     nu = 0
     for n in range(nnew):

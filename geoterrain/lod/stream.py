@@ -81,63 +81,15 @@ def _count_leaves(active, mixed) -> int:
         n += k
 
 
-@njit(cache=True, nogil=True)
-def _new_samples(tris, vid, cand):
-    """Samples of ``tris`` never seen before (vid = −1), in order of first appearance:
-    written to ``cand``, and marked in ``vid`` with −2 − (their index in ``cand``)."""
-    k = 0
-    for f in range(tris.shape[0]):
-        for c in range(3):
-            s = tris[f, c]
-            if vid[s] == -1:
-                vid[s] = -2 - k
-                cand[k] = s
-                k += 1
-    return k
-
-
-@njit(cache=True, nogil=True)
-def _number(tris, vid, valid, cand, nv, faces, order):
-    """Keep the triangles whose corners all have a height; give their new corners global
-    ids from ``nv`` on, in order of first appearance.
-
-    ``valid[k]``: candidate k (``vid`` = −2 − k) has a height. Kept faces go to
-    ``faces`` (global ids), the candidate index of each new vertex to ``order``.
-    Candidates left unused get back −1 (valid: a later chunk may use them) or the
-    invalid mark. Returns (faces kept, vertices new).
-    """
-    nf, nn = 0, 0
-    for f in range(tris.shape[0]):
-        ok = True
-        for c in range(3):
-            v = vid[tris[f, c]]
-            if v == _INVALID or (v <= -2 and not valid[-2 - v]):
-                ok = False
-        if not ok:
-            continue
-        for c in range(3):
-            s = tris[f, c]
-            v = vid[s]
-            if v <= -2 and v != _INVALID:
-                order[nn] = -2 - v
-                v = nv + nn
-                vid[s] = v
-                nn += 1
-            faces[nf, c] = v
-        nf += 1
-    for k in range(cand.shape[0]):
-        s = cand[k]
-        if vid[s] <= -2 and vid[s] != _INVALID:
-            vid[s] = -1 if valid[k] else _INVALID
-    return nf, nn
-
-
 _PROV = np.int64(1) << 50  # provisional ids of a chunk's new cut points
+_NO_KEYS = np.zeros(0, np.int64)
 
 
 @njit(cache=True, nogil=True)
-def _new_samples_codes(codes, vid, cand):
-    """:func:`_new_samples` over corner codes (a sample ≥ 0, a cut point < 0: skipped)."""
+def _new_samples(codes, vid, cand):
+    """Samples of ``codes`` (faces' corners: a sample's flat index ≥ 0, or a cut point
+    < 0, skipped) never seen before (vid = −1), in order of first appearance: written to
+    ``cand``, and marked in ``vid`` with −2 − (their index in ``cand``)."""
     k = 0
     for f in range(codes.shape[0]):
         for c in range(3):
@@ -150,11 +102,18 @@ def _new_samples_codes(codes, vid, cand):
 
 
 @njit(cache=True, nogil=True)
-def _number_codes(codes, vid, valid, cand, nv, faces, order, okey, cuts):
-    """:func:`_number` over corner codes in the order the walk met the faces: a sample
-    (≥ 0) as there; a cut point (−1 − id) keeps its id, or, new in this chunk (id ≥
-    ``_PROV``: provisional, key ``okey[id − _PROV]``), gets the next id at its first
-    use (``order``: −1 − its provisional index) and ``cuts`` learns it."""
+def _number(codes, vid, valid, cand, nv, faces, order, okey, cuts):
+    """Keep the faces whose corners all have a height; give their new corners global
+    ids from ``nv`` on, in order of first appearance (the walk's order).
+
+    A corner is a sample (≥ 0): ``valid[k]`` says whether candidate k (``vid`` = −2 − k)
+    has a height; its candidate index goes to ``order``. Or it is a cut point (−1 − id,
+    :mod:`geoterrain.lod.clip`): it keeps its id, or, new in this chunk (id ≥ ``_PROV``,
+    provisional, key ``okey[id − _PROV]``), gets the next id at its first use
+    (``order``: −1 − its provisional index) and ``cuts`` learns it. Kept faces go to
+    ``faces`` (global ids). Candidates left unused get back −1 (valid: a later chunk may
+    use them) or the invalid mark. Returns (faces kept, vertices new).
+    """
     nf, nn = 0, 0
     final = np.full(okey.shape[0], -1, np.int64)
     for f in range(codes.shape[0]):
@@ -227,13 +186,13 @@ def _edge_chunk(tris, pool, zfac, g, vid, nv, cuts):
         # provisional id until its first use below
     codes = np.ascontiguousarray(codes[np.argsort(where, kind="stable")])
     cand = np.empty(3 * len(codes) + 1, np.int64)
-    k = _new_samples_codes(codes, vid, cand)
+    k = _new_samples(codes, vid, cand)
     new = cand[:k]
     pos, gij = _gather(pool, new, zfac)
     valid = np.isfinite(pos[:, 2])
     faces = np.empty((len(codes), 3), np.int64)
     order = np.empty(3 * len(codes) + 1, np.int64)
-    nf, nn = _number_codes(codes, vid, valid, new, nv, faces, order, okey, cuts)
+    nf, nn = _number(codes, vid, valid, new, nv, faces, order, okey, cuts)
     order = order[:nn]
     corner = order >= 0
     xyz, ij = np.empty((nn, 3)), np.empty((nn, 2))
@@ -341,7 +300,7 @@ def static_chunks(terrain, max_error: float, *, chunk: int = CHUNK,
         new = cand[:k]
         pos, gij = _gather(pool, new, zfac)
         valid = np.isfinite(pos[:, 2])
-        nf, nn = _number(tris[:n], vid, valid, new, nv, faces, order)
+        nf, nn = _number(tris[:n], vid, valid, new, nv, faces, order, _NO_KEYS, cuts)
         pick = order[:nn]
         yield MeshChunk(nv, pos[pick], gij[pick], faces[:nf].copy(), done, max(total, done))
         nv += nn
