@@ -36,11 +36,11 @@ from numba import njit, prange
 
 from geoterrain.bintree import child_nb, main_diagonal_nb
 from geoterrain.bounds import _proxy_positions, _saturate_nb
-from geoterrain.edgepad import zero_beyond_data
+from geoterrain.edgepad import _reaches_data, zero_beyond_data
 from geoterrain.rounding import round_up32
 from geoterrain.threads import cores_for
 
-__all__ = ["BORDER_FRACTION", "metric_bounds"]
+__all__ = ["BORDER_FRACTION", "metric_bounds", "metric_terms"]
 
 #: Chords on the domain border follow the curved border to this fraction of a spacing.
 BORDER_FRACTION = 0.01
@@ -48,14 +48,15 @@ BORDER_FRACTION = 0.01
 
 @njit(cache=True)
 def _tri_term(X, Y, Z, vb, vi, vj, ai, aj, bi, bj, ci, cj, frac, N, border, wi, wj):
-    """(max error, max distance to p_v, border bulge) for triangle (a, b, c) of vertex v.
+    """(max error, max distance to p_v, border bulge, search margin m in samples) for
+    triangle (a, b, c) of vertex v.
 
     ``wi × wj``: the data window a static mesh is clipped to (N × N: none). A triangle
     that crosses its last row or column bulges when a sample of T on that row or column
     is displaced from its place in T (|P_s − A_T(s)|) by more than ``frac / 2`` spacings:
     the clipped edge is T's chord of the curved data border there."""
     if not (vb[ai, aj] and vb[bi, bj] and vb[ci, cj]):
-        return 0.0, 0.0, False
+        return 0.0, 0.0, False, 0
     ax, ay, az = X[ai, aj], Y[ai, aj], Z[ai, aj]
     bx, by, bz = X[bi, bj], Y[bi, bj], Z[bi, bj]
     cx, cy, cz = X[ci, cj], Y[ci, cj], Z[ci, cj]
@@ -64,7 +65,7 @@ def _tri_term(X, Y, Z, vb, vi, vj, ai, aj, bi, bj, ci, cj, frac, N, border, wi, 
     dbi, dbj, dci, dcj = bi - ai, bj - aj, ci - ai, cj - aj
     idet = dbi * dcj - dci * dbj
     if det == 0.0 or idet == 0:
-        return 0.0, 0.0, False
+        return 0.0, 0.0, False, 0
     # linear part of A_T: columns = metric images of the unit index steps di, dj
     m11 = ((bx - ax) * dcj - (cx - ax) * dbj) / idet  # dX/di
     m12 = ((cx - ax) * dbi - (bx - ax) * dci) / idet  # dX/dj
@@ -127,7 +128,7 @@ def _tri_term(X, Y, Z, vb, vi, vj, ai, aj, bi, bj, ci, cj, frac, N, border, wi, 
             emax = max(emax, abs(az * l0 + bz * l1 + cz * l2 - zs))
             rmax = max(rmax, np.sqrt((X[i, j] - vx) ** 2 + (Y[i, j] - vy) ** 2
                                      + (zs - vz) ** 2))
-    return emax, rmax, bulge
+    return emax, rmax, bulge, m
 
 
 @njit(cache=True, inline="always")
@@ -136,10 +137,23 @@ def _on_border(ai, aj, bi, bj, N):
             or (aj == bj and (aj == 0 or aj == N - 1)))
 
 
+@njit(cache=True, inline="always")
+def _same_as_base(i, j, h, M, wi, wj):
+    """Whether every sample vertex (i, j)'s triangles read, their index box ± ``M``, lies
+    in the data's wi × wj, where the replicated grid equals the original one."""
+    return M >= 0 and i + h + M <= wi - 1 and j + h + M <= wj - 1
+
+
 @njit(cache=True, parallel=True)
-def _vertex_terms(X, Y, Z, vb, frac, wi, wj):
+def _vertex_terms(X, Y, Z, vb, frac, wi, wj, M, dm0, bulge0, mrow):
     """Raw per-vertex (δ_m, r_m, bulge) over the triangles drawn while each vertex is absent
-    (rows of blocks on every core: each vertex is written by its own iteration only)."""
+    (rows of blocks on every core: each vertex is written by its own iteration only), and
+    in ``mrow[i]`` the largest search margin of row i's triangles.
+
+    ``M`` ≥ 0 (δ_edge over the replicated grid, :mod:`geoterrain.edgepad`): a vertex whose
+    diamond misses the data gets nothing, and one that reads only data samples (box ± M,
+    M the original grid's largest margin) takes ``dm0`` and ``bulge0`` from the original
+    grid's run (r_m is not computed then)."""
     N = Z.shape[0]
     dm = np.zeros((N, N))
     rm = np.zeros((N, N))
@@ -151,6 +165,11 @@ def _vertex_terms(X, Y, Z, vb, frac, wi, wj):
         for a in prange(nb):  # block centres: the two halves of the block
             for b in range(nb):
                 i, j = h + a * s, h + b * s
+                if M >= 0 and not _reaches_data(i, j, wi, wj):
+                    continue
+                if _same_as_base(i, j, h, M, wi, wj):
+                    dm[i, j], bulge[i, j] = dm0[i, j], bulge0[i, j]
+                    continue
                 i0, j0 = i - h, j - h
                 main = main_diagonal_nb(a, b)
                 for k in range(2):
@@ -163,6 +182,7 @@ def _vertex_terms(X, Y, Z, vb, frac, wi, wj):
                     dm[i, j] = max(dm[i, j], t[0])
                     rm[i, j] = max(rm[i, j], t[1])
                     bulge[i, j] |= t[2]
+                    mrow[i] = max(mrow[i], t[3])
         for typ in range(2):  # edge midpoints: the two triangles on their hypotenuse
             rows = typ == 0
             na = nb if rows else nb + 1
@@ -171,6 +191,11 @@ def _vertex_terms(X, Y, Z, vb, frac, wi, wj):
                 for b in range(nc):
                     i = h + a * s if rows else a * s
                     j = b * s if rows else h + b * s
+                    if M >= 0 and not _reaches_data(i, j, wi, wj):
+                        continue
+                    if _same_as_base(i, j, h, M, wi, wj):
+                        dm[i, j], bulge[i, j] = dm0[i, j], bulge0[i, j]
+                        continue
                     for k in range(2):
                         if rows:  # hypotenuse (i ± h, j), apex (i, j ± h)
                             ci, cj = i, j + (2 * k - 1) * h
@@ -181,12 +206,40 @@ def _vertex_terms(X, Y, Z, vb, frac, wi, wj):
                         if not (0 <= ci < N and 0 <= cj < N):
                             continue
                         t = _tri_term(X, Y, Z, vb, i, j, ea, eb, fa, fb, ci, cj, frac, N, True, wi,
-                                     wj)
+                                      wj)
                         dm[i, j] = max(dm[i, j], t[0])
                         rm[i, j] = max(rm[i, j], t[1])
                         bulge[i, j] |= t[2]
+                        mrow[i] = max(mrow[i], t[3])
         h *= 2
     return dm, rm, bulge
+
+
+def metric_terms(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, valid: np.ndarray,
+                 frac: float = BORDER_FRACTION, window: tuple[int, int] | None = None,
+                 base: tuple | None = None) -> tuple:
+    """The raw per-vertex terms (δ_m, r_m, bulge) of :func:`metric_bounds` and the largest
+    search margin M, in samples.
+
+    ``window`` and ``base`` (the terms of the original grid): the terms of δ_edge over
+    the replicated grid (:mod:`geoterrain.edgepad`), computed only for the vertices that
+    reach the data and read a padding sample; the others are 0 or the base's.
+    """
+    vb = np.ascontiguousarray(np.asarray(valid, bool) & np.isfinite(Z))
+    Zf = np.ascontiguousarray(np.where(vb, Z, 0.0), np.float64)
+    X = np.ascontiguousarray(X, np.float64)
+    Y = np.ascontiguousarray(Y, np.float64)
+    N = Zf.shape[0]
+    wi, wj = window if window is not None else Zf.shape
+    if base is not None:
+        dm0, _, bulge0, M = base
+    else:
+        dm0, bulge0, M = np.zeros((1, 1)), np.zeros((1, 1), np.bool_), -1
+    mrow = np.zeros(N, np.int64)
+    with cores_for(Zf.size):  # small grids on one thread (geoterrain/threads.py)
+        dm, rm, bulge = _vertex_terms(X, Y, Zf, vb, float(frac), int(wi), int(wj), int(M),
+                                      dm0, bulge0, mrow)
+    return dm, rm, bulge, int(mrow.max()) if N else 0
 
 
 @njit(cache=True)
@@ -214,15 +267,17 @@ def _renest_nb(X, Y, Z, r):
     return r
 
 
-def metric_bounds(delta: np.ndarray, radius: np.ndarray, X: np.ndarray, Y: np.ndarray,
-                  Z: np.ndarray, valid: np.ndarray, frac: float = BORDER_FRACTION,
-                  window: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+def metric_bounds(delta: np.ndarray, radius: np.ndarray | None, X: np.ndarray,
+                  Y: np.ndarray, Z: np.ndarray, valid: np.ndarray,
+                  frac: float = BORDER_FRACTION, window: tuple[int, int] | None = None,
+                  terms: tuple | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """δ and r raised so they hold in scene x/y on a curvilinear grid (module docstring).
 
     Parameters
     ----------
     delta, radius : float32 (N, N), from :func:`geoterrain.bounds.vertex_errors` and
-        :func:`geoterrain.bounds.vertex_radii` (not modified).
+        :func:`geoterrain.bounds.vertex_radii` (not modified). ``radius`` None: r is
+        neither raised nor returned (None).
     X, Y, Z : float64 (N, N) scene positions (Z NaN or anything where invalid).
     valid : bool (N, N).
     frac : border chords follow the curved border to within ``frac / 2`` of a sample
@@ -230,6 +285,7 @@ def metric_bounds(delta: np.ndarray, radius: np.ndarray, X: np.ndarray, Y: np.nd
     window : (rows, cols) of the data when the mesh is clipped to it
         (:mod:`geoterrain.edgepad`): the clipped edges on its last row and column follow
         the curved border to within the same ``frac / 2`` (see :func:`_tri_term`).
+    terms : the raw terms from :func:`metric_terms` (default: computed here).
 
     Examples
     --------
@@ -242,21 +298,23 @@ def metric_bounds(delta: np.ndarray, radius: np.ndarray, X: np.ndarray, Y: np.nd
     >>> float(d.max()), float(d2[2, 2]) > 0, bool((d2 >= d).all() and (r2 >= r).all())
     (2.0, True, True)
     """
-    vb = np.ascontiguousarray(np.asarray(valid, bool) & np.isfinite(Z))
-    Zf = np.ascontiguousarray(np.where(vb, Z, 0.0), np.float64)
-    X = np.ascontiguousarray(X, np.float64)
-    Y = np.ascontiguousarray(Y, np.float64)
-    with cores_for(Zf.size):  # small grids on one thread (geoterrain/threads.py)
-        wi, wj = window if window is not None else Zf.shape
-        dm, rm, bulge = _vertex_terms(X, Y, Zf, vb, float(frac), int(wi), int(wj))
+    if terms is None:
+        terms = metric_terms(X, Y, Z, valid, frac, window)
+    dm, rm, bulge, _ = terms
     if window is not None:  # δ_edge: no term where a diamond misses the data (edgepad.py)
-        zero_beyond_data(dm, int(wi), int(wj))
-        zero_beyond_data(bulge, int(wi), int(wj))
+        dm, bulge = dm.copy(), bulge.copy()
+        zero_beyond_data(dm, int(window[0]), int(window[1]))
+        zero_beyond_data(bulge, int(window[0]), int(window[1]))
     d = np.maximum(delta.astype(np.float64), dm)
     d[bulge] = np.inf
     d32 = _saturate_nb(_round_up(d))
+    if radius is None:
+        return d32, None
+    vb = np.asarray(valid, bool) & np.isfinite(Z)
     r = np.maximum(radius.astype(np.float64), rm)
-    xp, yp, zp = _proxy_positions(X, Y, np.where(vb, Z, np.nan), vb)
+    xp, yp, zp = _proxy_positions(np.ascontiguousarray(X, np.float64),
+                                  np.ascontiguousarray(Y, np.float64),
+                                  np.where(vb, Z, np.nan), vb)
     return d32, _renest_nb(xp, yp, zp, _round_up(r))
 
 

@@ -19,7 +19,7 @@ from numba import njit
 from geoterrain._version import __version__
 from geoterrain.bounds import stand_in_z, valid_range, vertex_errors, vertex_radii
 from geoterrain.codec import decoded_heights, encode_pyramid
-from geoterrain.curvature import metric_bounds
+from geoterrain.curvature import metric_bounds, metric_terms
 from geoterrain.edgepad import (
     edge_deltas,
     edge_only_tiles,
@@ -221,8 +221,10 @@ def preprocess(
     delta = vertex_errors(Z, valid)
     stage("errors")
     radius = vertex_radii(X, Y, Z, valid)
+    terms = None
     if frame.kind == "geographic":  # curvilinear grid: δ and r that hold in scene x/y
-        delta, radius = metric_bounds(delta, radius, X, Y, Z, valid)
+        terms = metric_terms(X, Y, Z, valid)
+        delta, radius = metric_bounds(delta, radius, X, Y, Z, valid, terms=terms)
     stage("radii")
     bounds = tile_errors(Z, valid, X, Y, grid.t)
     stage("tile bounds")
@@ -243,10 +245,13 @@ def preprocess(
     if has_padding(grid):
         Zr, ok = edge_support(Z, valid, grid)
         d_edge = edge_deltas(Zr, ok, grid)
-        if frame.kind == "geographic":
-            d_edge, _ = metric_bounds(d_edge, radius, X, Y, Zr, ok,
-                                      window=(grid.rows, grid.cols))
+        if frame.kind == "geographic":  # only where a padding sample is read: the rest
+            win = (grid.rows, grid.cols)  # is the original grid's terms
+            et = metric_terms(X, Y, Zr, ok, window=win, base=terms)
+            d_edge, _ = metric_bounds(d_edge, None, X, Y, Zr, ok, window=win, terms=et)
+            del et
         del Zr, ok
+    del terms
     ed = None if d_edge is None else max(log8_exponent(delta), log8_exponent(d_edge))
     coding = BoundsCoding(delta, radius, ed)
     if d_edge is not None:

@@ -253,3 +253,29 @@ def test_each_triangle_is_within_its_vertex_bounds(seed, lat, rough):
         assert err[held].max() <= d[v], (v, a, b, c, err[held].max(), d[v])
         dist = np.sqrt((X - X[v]) ** 2 + (Y - Y[v]) ** 2 + (Z - Z[v]) ** 2)
         assert dist[held].max() <= r[v], (v, dist[held].max(), r[v])
+
+
+@pytest.mark.parametrize("shape", [(100, 117), (129, 70), (65, 128)])
+def test_edge_terms_reuse_the_original_grid(tmp_path, shape):
+    """δ_edge's metric terms (edgepad.py) computed only where a padding sample is read,
+    the rest taken from the original grid's run, equal the terms computed everywhere."""
+    from geoterrain.curvature import metric_terms
+    from geoterrain.edgepad import edge_support, zero_beyond_data
+
+    store = preprocess(_geo_tif(tmp_path / "g.tif", _rough(129)[:shape[0], :shape[1]], 10.0,
+                                61.0, 2.0), tmp_path / "g.geoterrain")
+    t = Terrain(store)
+    g = t.grid
+    X, Y = t.frame.grid_xy(g.size)
+    Z = g.pad(t.scene_xyz()[2], np.nan)
+    valid = np.isfinite(Z)
+    Zr, ok = edge_support(Z, valid, g)
+    win = (g.rows, g.cols)
+    base = metric_terms(X, Y, Z, valid)
+    full = metric_terms(X, Y, Zr, ok, window=win)
+    fast = metric_terms(X, Y, Zr, ok, window=win, base=base)
+    for k in (0, 2):  # δ_m and the bulge flags (r_m is not used for δ_edge)
+        a, b = full[k].copy(), fast[k].copy()
+        zero_beyond_data(a, *win)
+        zero_beyond_data(b, *win)
+        np.testing.assert_array_equal(a, b)
