@@ -93,9 +93,9 @@ def _positive(ctx, param, value):
 
 
 def _set_occlusion(ctx, param, value):
-    from geoterrain.lod.switches import set_occlusion
+    from geoterrain.lod.switches import occlusion_culling
 
-    set_occlusion(value)
+    ctx.with_resource(occlusion_culling(value))  # for this command's run only
     return value
 
 
@@ -122,10 +122,10 @@ anti_aliasing_option = click.option(
 
 
 def _set_morphing(ctx, param, value):
-    from geoterrain.lod.switches import set_morphing
+    from geoterrain.lod.switches import geomorphing
 
     if value is not None:
-        set_morphing(value)
+        ctx.with_resource(geomorphing(value))  # for this command's run only
     return value
 
 

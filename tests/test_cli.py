@@ -188,3 +188,27 @@ def test_view_without_display_is_one_line(tmp_path, fbm_tif, monkeypatch):
     res = run("view", store)
     assert_one_line_error(res, 1)
     assert "geoterrain render" in res.stderr
+
+
+def test_the_occlusion_option_lasts_one_command(tmp_path, fbm_tif, monkeypatch):
+    """`mesh --no-occlusion` selects without horizon culling, and the switch is gone
+    when the command ends (a later selection in the same process culls again)."""
+    from geoterrain.lod import rtin
+    from geoterrain.lod.switches import morphing_choice, occlusion_enabled
+
+    store = tmp_path / "s.geoterrain"
+    assert run("-q", "preprocess", fbm_tif, "-o", store).exit_code == 0
+    seen = []
+    real = rtin.select
+
+    def spy(*a, **k):
+        seen.append(occlusion_enabled())
+        return real(*a, **k)
+
+    monkeypatch.setattr(rtin, "select", spy)
+    look = ["--look-from", "0,-1500,1500", "--look-at", "0,0,500", "--pixel-error", "2"]
+    for k, flag in enumerate(("--no-occlusion", "--occlusion")):
+        res = run("mesh", store, "-o", tmp_path / f"{k}.vtp", *look, flag)
+        assert res.exit_code == 0, res.output
+        assert occlusion_enabled() and morphing_choice() is None
+    assert seen == [False, True]

@@ -16,7 +16,7 @@ import contextvars
 from collections.abc import Iterator
 
 __all__ = ["geomorphing", "morphing_choice", "morphing_enabled", "occlusion_culling",
-           "occlusion_enabled", "set_morphing", "set_occlusion"]
+           "occlusion_enabled"]
 
 _OCCLUSION: contextvars.ContextVar[bool] = contextvars.ContextVar("geoterrain_occlusion",
                                                                  default=True)
@@ -51,11 +51,6 @@ def occlusion_culling(enabled: bool) -> Iterator[None]:
         yield
     finally:
         _OCCLUSION.reset(tok)
-
-
-def set_occlusion(enabled: bool) -> None:
-    """Set horizon culling for the rest of this context (a command's whole run)."""
-    _OCCLUSION.set(bool(enabled))
 
 
 _MORPH: contextvars.ContextVar[bool | None] = contextvars.ContextVar("geoterrain_morph",
@@ -102,7 +97,3 @@ def geomorphing(enabled: bool) -> Iterator[None]:
     finally:
         _MORPH.reset(tok)
 
-
-def set_morphing(enabled: bool) -> None:
-    """Set geomorphing for the rest of this context (a command's whole run)."""
-    _MORPH.set(bool(enabled))
