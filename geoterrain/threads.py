@@ -17,9 +17,26 @@ from contextlib import contextmanager
 
 import numba
 
-__all__ = ["PARALLEL_MIN_SAMPLES", "cores_for"]
+__all__ = ["PARALLEL_MIN_SAMPLES", "cores_for", "forked"]
 
 PARALLEL_MIN_SAMPLES = 1 << 19  # about 724²: below it, one thread
+
+# numba's GNU OpenMP layer aborts a process forked from one that ran a parallel region,
+# at the child's first parallel launch; the package registers the fork hook on import
+# (geoterrain/__init__.py), before any such region can run, whatever a child imports.
+
+
+def forked() -> bool:
+    """Whether this process is a fork() child (then parallel kernels must not launch).
+
+    Examples
+    --------
+    >>> forked()
+    False
+    """
+    import geoterrain
+
+    return geoterrain._FORKED[0]
 
 
 @contextmanager

@@ -72,6 +72,8 @@ _BAD_META = [
     (None, "height_range", [5, 1]), (None, "height_range", "x"),
     (None, "nodata_fraction", 2.0), (None, "tile_keys", {}), (None, "schema_version", 1),
     (None, "grid", None), (None, "frame", []), (None, "quantizer", "int"),
+    (None, "delta_edge", "x"), (None, "delta_edge", [[0, 0]]),
+    (None, "delta_edge", [[0, 0, 0, -1.0]]), (None, "delta_edge", [[99, 0, 0, 1.0]]),
 ]
 
 
@@ -95,8 +97,10 @@ def mutate(path: Path, rng: random.Random) -> str:
     try:
         keys = con.execute("SELECT level, x, y, kind FROM blobs").fetchall()
         if kind in ("swap", "swapcrc"):
-            bk = rng.choice(["heights", "delta", "radius", "normals"])
+            bk = rng.choice(sorted({k[3] for k in keys}))  # delta_edge on padded stores
             same = [k for k in keys if k[3] == bk]
+            if len(same) < 2:
+                same = [k for k in keys if k[3] == "heights"]
             a, b = rng.sample(same, 2)
             cols = "data, crc32" if kind == "swapcrc" else "data"
             ra = con.execute(f"SELECT {cols} FROM blobs WHERE level=? AND x=? AND y=? AND kind=?",
@@ -159,7 +163,7 @@ def mutate(path: Path, rng: random.Random) -> str:
             frame = zstd_bomb(declared, rng.choice([2, 64, 512]))
             old = con.execute("SELECT data FROM blobs WHERE level=? AND x=? AND y=? AND kind=?",
                               k).fetchone()[0]
-            prefix = {"heights": 4, "delta": 2, "radius": 2, "normals": 0}[bk]
+            prefix = {"heights": 4, "delta": 2, "radius": 2, "normals": 0, "delta_edge": 2}[bk]
             data = old[:prefix] + frame
             con.execute("UPDATE blobs SET data=?, crc32=? WHERE level=? AND x=? AND y=? AND "
                         "kind=?", (data, _blob_crc(k[:3], bk, data), *k))

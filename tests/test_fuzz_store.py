@@ -38,6 +38,18 @@ def test_fuzz_short(pristine):
     _check(res)
 
 
+def test_fuzz_short_padded(tmp_path_factory):
+    """The same on a DEM that leaves padding: its second δ (delta_edge blobs, some on
+    unstored tiles, and their metadata list) is mutated too."""
+    d = tmp_path_factory.mktemp("fuzzpad")
+    dem = write_geotiff(d / "dem.tif", generate("fbm", 65, seed=6)[:40, :50])
+    store = geoterrain.preprocess(dem, d / "s.geoterrain", tile_size=8)
+    assert geoterrain.open(store).edge_max
+    res = run_cases(store, 200, seed=3, workdir=d)
+    assert res.get("cases") == 200, res
+    _check(res)
+
+
 @pytest.mark.slow
 def test_fuzz_long(pristine):
     store, d = pristine

@@ -280,13 +280,15 @@ def test_a_forked_child_extracts_the_same_static_mesh(tmp_path_factory):
     mesh, with the serial twins."""
     import os
 
+    from geoterrain.threads import forked
+
     t = _terrain(tmp_path_factory, True)
     want = _oriented(geoterrain.lod.static(t, 3.0).mesh)  # the parent uses the threads
     r, w = os.pipe()
     pid = os.fork()
     if pid == 0:  # the child: report through the pipe, never return into pytest
         try:
-            ok = _oriented(geoterrain.lod.static(t, 3.0).mesh) == want and leaves._FORKED
+            ok = _oriented(geoterrain.lod.static(t, 3.0).mesh) == want and forked()
             os.write(w, b"same" if ok else b"different")
         finally:
             os._exit(0)

@@ -29,24 +29,15 @@ domain's edge), and its children are the four triangles of that diamond's halves
 
 from __future__ import annotations
 
-import os
 import types
 
 import numpy as np
 from numba import njit, prange
 
 from geoterrain.lod.kernels import _coarsest_tile, sample_xy
+from geoterrain.threads import forked
 
-_FORKED = False  # set in a child process made by fork()
 _SERIAL: dict = {}
-
-
-def _forked() -> None:
-    global _FORKED
-    _FORKED = True
-
-
-os.register_at_fork(after_in_child=_forked)
 
 
 def _parallel(f):
@@ -62,7 +53,7 @@ def _parallel(f):
 
 def _kernel(name: str):
     """The parallel kernel ``name``, or its serial twin in a forked child."""
-    return _SERIAL[name] if _FORKED else globals()[name]
+    return _SERIAL[name] if forked() else globals()[name]
 
 
 @njit(cache=True, nogil=True, inline="always")
