@@ -15,16 +15,11 @@ Examples
 from __future__ import annotations
 
 import importlib
-import os
 from typing import TYPE_CHECKING
 
+from geoterrain import _fork  # noqa: F401  (the fork hook, before any kernel runs)
 from geoterrain._version import __version__
 from geoterrain.exceptions import GeoterrainError
-
-# Whether this process is a fork() child (geoterrain.threads.forked): registered here,
-# on the package's import, so before any parallel kernel can run in the parent.
-_FORKED = [False]
-os.register_at_fork(after_in_child=lambda: _FORKED.__setitem__(0, True))
 
 if TYPE_CHECKING:
     from geoterrain.preprocessing import preprocess

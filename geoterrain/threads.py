@@ -17,13 +17,15 @@ from contextlib import contextmanager
 
 import numba
 
+from geoterrain._fork import FORKED
+
 __all__ = ["PARALLEL_MIN_SAMPLES", "cores_for", "forked"]
 
 PARALLEL_MIN_SAMPLES = 1 << 19  # about 724²: below it, one thread
 
 # numba's GNU OpenMP layer aborts a process forked from one that ran a parallel region,
 # at the child's first parallel launch; the package registers the fork hook on import
-# (geoterrain/__init__.py), before any such region can run, whatever a child imports.
+# (geoterrain/_fork.py), before any such region can run, whatever a child imports.
 
 
 def forked() -> bool:
@@ -34,9 +36,7 @@ def forked() -> bool:
     >>> forked()
     False
     """
-    import geoterrain
-
-    return geoterrain._FORKED[0]
+    return FORKED[0]
 
 
 @contextmanager
