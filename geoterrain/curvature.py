@@ -36,7 +36,7 @@ from numba import njit, prange
 
 from geoterrain.bintree import child_nb, main_diagonal_nb
 from geoterrain.bounds import _proxy_positions, _saturate_nb
-from geoterrain.edgepad import _reaches_data, zero_beyond_data
+from geoterrain.edgepad import _reaches_data
 from geoterrain.rounding import round_up32
 from geoterrain.threads import cores_for
 
@@ -150,10 +150,11 @@ def _vertex_terms(X, Y, Z, vb, frac, wi, wj, M, dm0, bulge0, mrow):
     (rows of blocks on every core: each vertex is written by its own iteration only), and
     in ``mrow[i]`` the largest search margin of row i's triangles.
 
-    ``M`` ≥ 0 (δ_edge over the replicated grid, :mod:`geoterrain.edgepad`): a vertex whose
-    diamond misses the data gets nothing, and one that reads only data samples (box ± M,
-    M the original grid's largest margin) takes ``dm0`` and ``bulge0`` from the original
-    grid's run (r_m is not computed then)."""
+    A vertex whose diamond misses the data's wi × wj gets nothing (with a data window,
+    :mod:`geoterrain.edgepad`: its error is clipped away; without one, wi = wj = N, every
+    vertex reaches it). ``M`` ≥ 0 (δ_edge over the replicated grid): a vertex that reads
+    only data samples (box ± M, M the original grid's largest margin) takes ``dm0`` and
+    ``bulge0`` from the original grid's run (r_m is not computed then)."""
     N = Z.shape[0]
     dm = np.zeros((N, N))
     rm = np.zeros((N, N))
@@ -165,7 +166,7 @@ def _vertex_terms(X, Y, Z, vb, frac, wi, wj, M, dm0, bulge0, mrow):
         for a in prange(nb):  # block centres: the two halves of the block
             for b in range(nb):
                 i, j = h + a * s, h + b * s
-                if M >= 0 and not _reaches_data(i, j, wi, wj):
+                if not _reaches_data(i, j, wi, wj):
                     continue
                 if _same_as_base(i, j, h, M, wi, wj):
                     dm[i, j], bulge[i, j] = dm0[i, j], bulge0[i, j]
@@ -191,7 +192,7 @@ def _vertex_terms(X, Y, Z, vb, frac, wi, wj, M, dm0, bulge0, mrow):
                 for b in range(nc):
                     i = h + a * s if rows else a * s
                     j = b * s if rows else h + b * s
-                    if M >= 0 and not _reaches_data(i, j, wi, wj):
+                    if not _reaches_data(i, j, wi, wj):
                         continue
                     if _same_as_base(i, j, h, M, wi, wj):
                         dm[i, j], bulge[i, j] = dm0[i, j], bulge0[i, j]
@@ -300,11 +301,7 @@ def metric_bounds(delta: np.ndarray, radius: np.ndarray | None, X: np.ndarray,
     """
     if terms is None:
         terms = metric_terms(X, Y, Z, valid, frac, window)
-    dm, rm, bulge, _ = terms
-    if window is not None:  # δ_edge: no term where a diamond misses the data (edgepad.py)
-        dm, bulge = dm.copy(), bulge.copy()
-        zero_beyond_data(dm, int(window[0]), int(window[1]))
-        zero_beyond_data(bulge, int(window[0]), int(window[1]))
+    dm, rm, bulge, _ = terms  # 0 where a diamond misses the data window (_vertex_terms)
     d = np.maximum(delta.astype(np.float64), dm)
     d[bulge] = np.inf
     d32 = _saturate_nb(_round_up(d))

@@ -128,64 +128,60 @@ def edge_support(Z: np.ndarray, valid: np.ndarray, grid: Grid
     return Zr, ok
 
 
-def edge_tiles(d_stored: np.ndarray, de_stored: np.ndarray, grid: Grid,
+def _holding(mark: np.ndarray, grid: Grid) -> list[np.ndarray]:
+    """Per level L, the (tiles, tiles) bool of the tiles whose stored vertices (below the
+    top level, those new at L; the others are the parent's) include a marked sample of
+    the (N, N) ``mark``: block ``any`` over each tile's closed footprint on level L's
+    lattice."""
+    T1 = grid.tile_samples - 1
+    out = []
+    for L in grid.levels:
+        s, n = 1 << L, grid.tiles_per_side(L)
+        lat = mark[::s, ::s]
+        if L < grid.top_level:
+            lat = lat.copy()
+            lat[::2, ::2] = False
+        held = lat[:-1, :-1].reshape(n, T1, n, T1).any(axis=(1, 3))
+        held |= lat[T1::T1, :-1].reshape(n, n, T1).any(axis=2)  # each tile's last row
+        held |= lat[:-1, T1::T1].reshape(n, T1, n).any(axis=1)  # and last column
+        held |= lat[T1::T1, T1::T1]
+        out.append(held)
+    return out
+
+
+def edge_tiles(d_codes: np.ndarray, de_codes: np.ndarray, grid: Grid,
                keys: list[tuple[int, int, int]]) -> list[tuple[int, int, int]]:
     """The tiles ``keys`` (L, x, y) whose stored vertices (below the top level, those new
-    at the level) have a stored δ_edge that differs from their stored δ.
+    at the level) have a δ_edge that differs from their δ, as stored (codes of one
+    table, or values).
 
     Examples
     --------
     >>> g = Grid.for_shape(5, 5, tile_size=2)
-    >>> d = np.zeros((5, 5), np.float32); de = d.copy(); de[4, 4] = 1
+    >>> d = np.zeros((5, 5), np.uint8); de = d.copy(); de[4, 4] = 1
     >>> edge_tiles(d, de, g, [(0, 0, 0), (0, 1, 1), (1, 0, 0)])
     [(1, 0, 0)]
     >>> de[3, 4] = 1
     >>> edge_tiles(d, de, g, [(0, 0, 0), (0, 1, 1), (1, 0, 0)])
     [(0, 1, 1), (1, 0, 0)]
     """
-    diff = d_stored != de_stored
-    out = []
-    T1 = grid.tile_samples - 1
-    top = grid.top_level
-    for L, x, y in keys:
-        s = 1 << L
-        i0, j0 = (y * T1) << L, (x * T1) << L
-        sub = diff[i0:i0 + T1 * s + 1:s, j0:j0 + T1 * s + 1:s]
-        if L < top:  # the parent's vertices are read from the parent
-            sub = sub.copy()
-            sub[::2, ::2] = False
-        if sub.any():
-            out.append((L, x, y))
-    return out
+    held = _holding(d_codes != de_codes, grid)
+    return [(L, x, y) for L, x, y in keys if held[L][y, x]]
 
 
-def edge_only_tiles(de_stored: np.ndarray, grid: Grid,
+def edge_only_tiles(de_codes: np.ndarray, grid: Grid,
                     stored: set) -> list[tuple[int, int, int]]:
-    """The tiles (L, x, y) not in ``stored`` that hold a vertex new at their level (any
-    vertex at the top level) with stored δ_edge > 0: the static mesh may need it.
+    """The tiles (L, x, y) not in ``stored`` whose stored vertices hold a δ_edge > 0
+    (codes or values): the static mesh may need them.
 
     Examples
     --------
     >>> g = Grid.for_shape(5, 5, tile_size=2)
-    >>> de = np.zeros((5, 5), np.float32); de[3, 3] = 1
+    >>> de = np.zeros((5, 5), np.uint8); de[3, 3] = 1
     >>> edge_only_tiles(de, g, {(1, 0, 0)})
     [(0, 1, 1)]
     """
     out = []
-    T1 = grid.tile_samples - 1
-    top = grid.top_level
-    for L in grid.levels:
-        s = 1 << L
-        lat = de_stored[::s, ::s] > 0
-        if L < top:
-            lat = lat.copy()
-            lat[::2, ::2] = False  # the parent's vertices
-        n = grid.tiles_per_side(L)
-        for y in range(n):
-            rows = lat[y * T1:y * T1 + T1 + 1]
-            if not rows.any():
-                continue
-            for x in range(n):
-                if (L, x, y) not in stored and rows[:, x * T1:x * T1 + T1 + 1].any():
-                    out.append((L, x, y))
+    for L, held in enumerate(_holding(de_codes > 0, grid)):
+        out += [(L, int(x), int(y)) for y, x in np.argwhere(held) if (L, x, y) not in stored]
     return out

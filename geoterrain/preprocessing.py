@@ -257,9 +257,10 @@ def preprocess(
     if d_edge is not None:
         edge = BoundsCoding(d_edge, radius, ed)
         del d_edge
-        edge_keys = edge_tiles(coding.d_stored, edge.d_stored, grid, sorted(height_blobs))
+        # one table, so comparing codes compares the stored values
+        edge_keys = edge_tiles(coding.dc, edge.dc, grid, sorted(height_blobs))
         # unstored tiles holding a vertex the static mesh may need: a whole δ_edge tile
-        edge_only = edge_only_tiles(edge.d_stored, grid, set(height_blobs))
+        edge_only = edge_only_tiles(edge.dc, grid, set(height_blobs))
     del radius
     tile_rows: dict = {}
     extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}, "delta_edge": {}}

@@ -53,8 +53,8 @@ class BoundsCoding:
 
     def __init__(self, delta: np.ndarray, radius: np.ndarray, ed: int | None = None) -> None:
         # ed: δ's code exponent (default: the smallest that covers its largest finite
-        # value; a larger one is allowed, codes then step more coarsely)
-        self.ed = log8_exponent(delta) if ed is None else max(int(ed), log8_exponent(delta))
+        # value); a given one must cover it too (a larger one steps more coarsely)
+        self.ed = log8_exponent(delta) if ed is None else int(ed)
         self.kr = scale_exponent(radius)
         t8 = log8_table(self.ed)
         shape = np.shape(delta)

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit, types
 from numba.typed import Dict
 
-__all__ = ["clip_in_place", "clip_kernel", "clip_to_window", "new_cuts"]
+__all__ = ["clip_in_place", "clip_kernel", "new_cuts"]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -216,7 +216,17 @@ def clip_in_place(faces, level, F, ij, xyz, V, li, lj, M):
     grid line at whole samples) and the extra pieces. A cut face keeps its first piece
     in its row; rows left empty take the extra pieces, then the last faces; vertex rows
     beyond the rectangle (used by no piece) take the cut points, then the last vertices.
-    Returns the new F and V."""
+    Returns the new F and V.
+
+    Examples
+    --------
+    >>> faces = np.zeros((6, 3), np.int32); faces[0] = (0, 2, 1)  # room for 5 more
+    >>> ij = np.zeros((8, 2)); ij[:3] = [[0, 0], [0, 2], [2, 0]]
+    >>> xyz = np.zeros((8, 3)); xyz[:3] = np.c_[ij[:3], ij[:3, 0]]
+    >>> F, V = clip_in_place(faces, np.zeros(6, np.int16), 1, ij, xyz, 3, 1.0, 1.0, 3)
+    >>> F, sorted(map(tuple, ij[:V].tolist()))  # the unit square's two halves
+    (2, [(0.0, 0.0), (0.0, 1.0), (1.0, 0.0), (1.0, 1.0)])
+    """
     cls = np.empty(F, np.uint8)
     ncut = _classify(faces, F, ij, li, lj, cls)
     if ncut == 0 and not (cls == 1).any():
@@ -349,34 +359,3 @@ def clip_in_place(faces, level, F, ij, xyz, V, li, lj, M):
 def new_cuts():
     """An empty cut-point table for :func:`clip_kernel` (key → vertex id)."""
     return Dict.empty(key_type=types.int64, value_type=types.int64)
-
-
-def clip_to_window(faces: np.ndarray, ij: np.ndarray, xyz: np.ndarray, rows: int,
-                   cols: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The mesh cut to 0 ≤ i ≤ rows − 1, 0 ≤ j ≤ cols − 1 (grid indices), without the
-    vertices no face uses.
-
-    Returns faces (F', 3) int32, the source face of each (int64, to carry face data),
-    and the vertices' grid indices (V', 2) and positions (V', 3), float64.
-
-    Examples
-    --------
-    >>> ij = np.array([[0, 0], [0, 2], [2, 0]], float)
-    >>> f, src, ij2, xyz2 = clip_to_window(np.array([[0, 2, 1]]), ij, np.c_[ij, ij[:, 0]],
-    ...                                    2, 2)
-    >>> len(f), sorted(map(tuple, ij2.tolist()))  # the square's two halves
-    (2, [(0.0, 0.0), (0.0, 1.0), (1.0, 0.0), (1.0, 1.0)])
-    """
-    ij = np.ascontiguousarray(ij, np.float64)
-    xyz = np.ascontiguousarray(xyz, np.float64)
-    V = len(ij)
-    M = int(max(ij[:, 0].max(), ij[:, 1].max())) + 1 if V else 1  # the grid's side
-    out, src, oi, oxyz, _ = clip_kernel(np.ascontiguousarray(faces, np.int64), ij, xyz,
-                                        float(rows - 1), float(cols - 1), M, new_cuts(), V)
-    out = np.where(out >= 0, out, -1 - out)  # cut points: ids V … (all new here)
-    allij = np.concatenate([ij, oi])
-    allxyz = np.concatenate([xyz, oxyz])
-    used = np.zeros(len(allij), bool)
-    used[out.ravel()] = True
-    remap = np.cumsum(used) - 1
-    return (remap[out].astype(np.int32), src, allij[used], allxyz[used])
