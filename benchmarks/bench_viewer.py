@@ -5,9 +5,10 @@ default: selection and textures in a worker thread) on an offscreen window, over
 ``bench_render.flight`` (an approach from the overview to a low pass). Per camera move:
 
 - **UI block**: while the worker selects and builds textures, the main thread ticks
-  at the viewer's polling period (``ViewerController.poll_ms``, calling ``poll`` as the
-  window's timer does); the largest gap between two ticks beyond that period is the
-  longest the window could not answer (the GIL held by the worker).
+  at the viewer's polling period (``ViewerController.poll_ms``, 4 ms while a frame is
+  in flight, calling ``poll`` as the window's timers do); the largest gap between two
+  ticks beyond that period is the longest the window could not answer (the GIL held by
+  the worker).
 - **swap**: the main thread's time to swap the finished mesh and textures into VTK
   (``ViewerController.ui_ms``).
 - **draw**: the render that shows it (without multisampling while the camera moves).
@@ -55,9 +56,9 @@ def move(c: ViewerController, view) -> dict:
     cam.position, cam.focal_point, cam.up = view.look_from, view.look_at, view.up
     cam.view_angle = view.fov_y_deg
     c.on_camera_changed(force=True)
-    tick = c.poll_ms / 1e3
     gaps, last, t_done = [], time.perf_counter(), None
     while True:
+        tick = c.poll_ms / 1e3
         time.sleep(tick)
         now = time.perf_counter()
         gaps.append(now - last - tick)
@@ -73,6 +74,7 @@ def move(c: ViewerController, view) -> dict:
     # the textures' refinement passes (stand-in tiles shaded), still ticking the UI
     passes, t2, last = 0, t1, t1
     while c._future is not None:
+        tick = c.poll_ms / 1e3
         time.sleep(tick)
         now = time.perf_counter()
         gaps.append(now - last - tick)

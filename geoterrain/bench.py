@@ -317,8 +317,10 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
         views = flight(*extent(X, Y, Z), n_views=n_views)
     res = BenchResult(views=list(views))
     scene = None
+    aa = ""  # the pictures' anti-aliasing (msaa, fxaa or none) when they are drawn
     if render:
         scene = _renderer(views[0][1].size, terrain)
+        aa = str(getattr(scene.plotter, "_geoterrain_aa", ""))
     cache: dict[str, tuple] = {}
     previous: dict[tuple, tuple] = {}  # (strategy, τ) → last frame's surface, for pop_px
     try:
@@ -371,7 +373,8 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
                     res.rows.append({
                         "source": source, "frame": fi, "view": kind, "strategy": strategy,
                         "tau": float(tau), "select_ms": float(st["select_ms"]),
-                        "render_ms": render_ms, "triangles": int(st["triangles"]),
+                        "render_ms": render_ms, "anti_aliasing": aa,
+                        "triangles": int(st["triangles"]),
                         "skirt_triangles": int(st.get("skirt_triangles", 0)),
                         "vertices": int(st["vertices"]),
                         "select_cold_ms": float(cold.stats["select_ms"]),

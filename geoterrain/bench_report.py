@@ -23,8 +23,9 @@ import numpy as np
 from geoterrain.lod.registry import STRATEGIES
 
 COLUMNS = ("source", "frame", "view", "strategy", "tau", "select_ms", "select_cold_ms",
-           "render_ms", "triangles", "skirt_triangles", "vertices", "tiles_decoded",
-           "normals_decoded", "bounds_decoded", "bytes_read", "textures_built", "peak_mem_mb",
+           "render_ms", "anti_aliasing", "triangles", "skirt_triangles", "vertices",
+           "tiles_decoded", "normals_decoded", "bounds_decoded", "bytes_read", "textures_built",
+           "peak_mem_mb",
            "err_max", "err_p99", "err_mean", "pop_px", "samples_in_view", "uncovered_in_view",
            "preprocess_s", "store_bytes")
 

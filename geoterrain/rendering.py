@@ -171,7 +171,11 @@ class TerrainScene:
             mesh.points = vtex.points
             mesh.faces = np.hstack([np.full((len(vtex.faces), 1), 3, np.int64),
                                     vtex.faces]).ravel()
-            mesh.active_texture_coordinates = vtex.tcoords
+            # VTK's row 0 is the bottom (v = 0): the atlas goes in as it is, top row
+            # first, without a copy, and the texture coordinates are flipped instead
+            tc = vtex.tcoords.copy()
+            tc[:, 1] = 1.0 - tc[:, 1]
+            mesh.active_texture_coordinates = tc
             self.texture.SetInputDataObject(_image_data(vtex.image))
             self.texture_stats = dict(vtex.stats)
             for k in ("level", "skirt"):  # faces keep their order: cell data carries over
@@ -272,14 +276,19 @@ class TerrainScene:
 
 
 def _image_data(img: np.ndarray):
-    """A vtkImageData of an (H, W, 3) uint8 image whose row 0 is the top (v = 1)."""
+    """A vtkImageData sharing (not copying) a C-contiguous (H, W, 3) uint8 ``img``.
+
+    VTK puts row 0 at v = 0, the bottom: a caller whose row 0 is the top flips its v
+    texture coordinates instead of the image, and leaves ``img`` unchanged while it
+    is shown.
+    """
     from vtkmodules.util.numpy_support import numpy_to_vtk
     from vtkmodules.vtkCommonDataModel import vtkImageData
 
     h, w = img.shape[:2]
     out = vtkImageData()
     out.SetDimensions(w, h, 1)
-    arr = numpy_to_vtk(np.ascontiguousarray(img[::-1]).reshape(-1, 3), deep=True)
+    arr = numpy_to_vtk(np.ascontiguousarray(img).reshape(-1, 3), deep=False)
     arr.SetName("atlas")
     out.GetPointData().SetScalars(arr)
     return out

@@ -49,7 +49,10 @@ COLOR_MODES = ("shading", "level", "tile")
 HELP = "m strategy  +/- tau  x wireframe  c colour  space freeze  h home  s screenshot  q quit"
 
 
-POLL_MS = 16.0  # background mode: how often the window looks for a finished frame
+POLL_MS = 16.0  # background mode, idle: how often the window looks for a finished frame
+# background mode, a frame in flight: looked for this often (a chain of one-shot timers),
+# so a finished frame waits ≤ 4 ms for the window, not up to a whole idle period
+BUSY_POLL_MS = 4.0
 REST_MS = 250.0  # the camera still this long: drawn again with anti-aliasing
 # texture tiles a camera move may shade before its picture is shown (~0.5 ms each);
 # the rest are magnified from cached coarser tiles and shaded by the passes that follow
@@ -124,6 +127,8 @@ class ViewerController:
         self._deferred = 0  # stand-in texture tiles in the picture shown
         self._shown_view: View | None = None  # the view the shown textures were made for
         self._closed = False
+        self._iren = None  # the window's interactor, once bound (its timers)
+        self._busy_timer: int | None = None  # the armed one-shot busy-poll timer
         self._hud = plotter.add_text("", position="upper_left", font_size=10, name="hud")
         tp = self._hud.GetTextProperty()  # an opaque box: readable over any terrain
         tp.SetColor(0.1, 0.1, 0.1)
@@ -188,6 +193,7 @@ class ViewerController:
             self.pending = False
             self._motion()
             self._future = self._executor.submit(self._work, key, view, strategy, tau)
+            self._arm()
             self._update_hud()  # the busy sign
             return True
         now = time.perf_counter()
@@ -278,6 +284,7 @@ class ViewerController:
                 self.on_camera_changed(force=True)
         elif refine is not None and not self._closed:  # the camera is still: shade the
             self._future = self._executor.submit(self._retexture, *refine)  # next stand-ins
+        self._arm()
         if changed:
             t0 = time.perf_counter()
             self.plotter.render()
@@ -287,6 +294,20 @@ class ViewerController:
                 (time.perf_counter() - self._moved_t) * 1e3 >= REST_MS:
             self.settle()
         return changed
+
+    def _arm(self) -> None:
+        """While a background frame is in flight, have the window poll again in
+        ``BUSY_POLL_MS`` (one one-shot timer at a time; idle, the ``POLL_MS`` timer)."""
+        if self._iren is not None and self._future is not None and not self._closed \
+                and self._busy_timer is None:
+            self._busy_timer = self._iren.create_timer(int(BUSY_POLL_MS), repeating=False)
+
+    def _on_timer(self, *_args) -> None:
+        """The window's timer event: the idle repeating timer or the busy one-shot."""
+        if self._busy_timer is not None and \
+                self._iren.interactor.GetTimerEventId() == self._busy_timer:
+            self._busy_timer = None  # it fired (a one-shot timer is gone once it fires)
+        self.poll()
 
     def _motion(self) -> None:
         """The camera moves: draw without multisampling (about half the software
@@ -517,14 +538,19 @@ class ViewerController:
             p.enable_terrain_style(mouse_wheel_zooms=True)  # no roll: the horizon stays level
         if p.iren is not None and not p.off_screen:
             p.iren.add_observer("EndInteractionEvent", self.poll)
-            p.add_timer_event(max_steps=2**31 - 1, duration=int(self.poll_ms),
-                              callback=lambda _step: self.poll())
+            self._iren = p.iren
+            p.iren.add_observer("TimerEvent", self._on_timer)
+            idle = POLL_MS if self._executor is not None else self.poll_ms
+            p.iren.create_timer(int(idle), repeating=True)
 
     @property
     def poll_ms(self) -> float:
-        """The polling timer's period: a finished background frame waits at most this
-        long to be shown; synchronous mode polls at the throttle."""
-        return POLL_MS if self._executor is not None else max(self.throttle_ms, 30.0)
+        """The polling period now: a finished background frame waits at most this long
+        to be shown (``BUSY_POLL_MS`` while one is in flight, else ``POLL_MS``);
+        synchronous mode polls at the throttle."""
+        if self._executor is None:
+            return max(self.throttle_ms, 30.0)
+        return BUSY_POLL_MS if self._future is not None else POLL_MS
 
 
 def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,

@@ -47,6 +47,22 @@ def test_cli_store_and_path(tmp_path, fbm_tif):
     rows = list(csv.DictReader((tmp_path / "p.csv").open()))
     assert [row["view"] for row in rows] == ["path", "path"]
     assert rows[0]["preprocess_s"] == ""  # a store is not preprocessed again
+    assert {row["anti_aliasing"] for row in rows} == {""}  # nothing drawn
+
+
+def test_cli_render_csv_names_the_anti_aliasing(tmp_path, fbm_tif):
+    """The CSV says how each frame's picture was anti-aliased (its render_ms depends on it)."""
+    pytest.importorskip("geoterrain.rendering")
+    store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
+    for aa in ("fxaa", "msaa"):
+        out = tmp_path / f"{aa}.csv"
+        r = CliRunner().invoke(cli, ["-q", "bench", str(store), "--views", "2", "--render",
+                                     "--anti-aliasing", aa, "--pixel-error", "2",
+                                     "--strategies", "rtin", "-o", str(out)])
+        assert r.exit_code == 0, r.output
+        rows = list(csv.DictReader(out.open()))
+        assert len(rows) == 2 and {row["anti_aliasing"] for row in rows} == {aa}
+        assert all(float(row["render_ms"]) > 0 for row in rows)
 
 
 @pytest.mark.parametrize("args,code", [

@@ -333,6 +333,58 @@ def test_controller_background_selection(tmp_path_factory):
         p.close()
 
 
+class _TimerLog:
+    """A stand-in interactor recording the timers a controller asks for."""
+
+    def __init__(self):
+        self.timers: list[tuple[int, bool]] = []
+        self.fired = -1
+        self.interactor = self
+
+    def create_timer(self, duration, repeating=True):
+        self.timers.append((duration, repeating))
+        return len(self.timers) - 1
+
+    def GetTimerEventId(self):  # noqa: N802 (VTK's name)
+        return self.fired
+
+
+def test_a_frame_in_flight_is_polled_every_busy_period(tmp_path_factory):
+    """While a background frame is in flight the window looks for it every BUSY_POLL_MS
+    (one one-shot timer at a time, re-armed until the frame is shown); idle, no timer
+    beyond the repeating POLL_MS one is asked for."""
+    from geoterrain import viewer
+
+    t = synth_store(tmp_path_factory, "fbm")
+    p = _plotter((320, 240))
+    c = viewer.ViewerController(p, t, background=True)
+    log = _TimerLog()
+    try:
+        c.bind()  # the camera observer (offscreen: no window timers of its own)
+        c._iren = log
+        assert c.poll_ms == viewer.POLL_MS  # idle
+        lo, hi = np.asarray(c.home.look_at), np.asarray(c.home.look_from)
+        p.camera.position = tuple(lo + 0.3 * (hi - lo))
+        assert c._future is not None and c.poll_ms == viewer.BUSY_POLL_MS
+        assert log.timers == [(int(viewer.BUSY_POLL_MS), False)]
+        c._arm()  # armed already: no second timer
+        assert len(log.timers) == 1
+        while c._future is not None:  # the timer fires; re-armed while still in flight
+            log.fired = len(log.timers) - 1
+            c._future.result(60)
+            c._on_timer()
+            if c._future is not None:  # a texture pass follows: a fresh timer for it
+                assert len(log.timers) - 1 > log.fired
+        assert len(log.timers) >= 1 and all(tm == (4, False) for tm in log.timers)
+        n = len(log.timers)
+        log.fired = -1
+        c._on_timer()  # the idle timer: nothing in flight, nothing armed
+        assert len(log.timers) == n and c.poll_ms == viewer.POLL_MS
+    finally:
+        c.close()
+        p.close()
+
+
 def _drag(iren, path) -> None:
     """A scripted left-button drag through window pixels ``path``."""
     x, y = path[0]
