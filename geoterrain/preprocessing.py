@@ -36,9 +36,9 @@ from geoterrain.quantize import choose_quantizer
 from geoterrain.raster import Raster, read_raster
 from geoterrain.store import StoreWriter, default_store_path, remove_stale_partials
 from geoterrain.tileblobs import BoundsCoding, level_blobs
-from geoterrain.tilebounds import tile_errors
+from geoterrain.tilebounds import tile_and_block_errors
 from geoterrain.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
-from geoterrain.vertexdata import NORMALS_PLANAR_DXDY, log8_exponent
+from geoterrain.vertexdata import NORMALS_PLANAR_DXDY, log8_exponent, pack_block_errors
 
 log = logging.getLogger("geoterrain")
 Progress = Callable[[str, int, int], None]
@@ -226,7 +226,8 @@ def preprocess(
         terms = metric_terms(X, Y, Z, valid)
         delta, radius = metric_bounds(delta, radius, X, Y, Z, valid, terms=terms)
     stage("radii")
-    bounds = tile_errors(Z, valid, X, Y, grid.t)
+    # per-tile bounds, and every GeoMipMapping block's exact δ_n (seed 000 §2.4)
+    bounds, blocks = tile_and_block_errors(Z, valid, X, Y, grid.t)
     stage("tile bounds")
     nrm = normal_map(X, Y, Z, valid)
     # per-level maps filtered from full resolution (seed 000 normal-map lighting)
@@ -295,6 +296,7 @@ def preprocess(
         w.put_blobs("heights", height_blobs)
         for kind, blobs in extra.items():
             w.put_blobs(kind, blobs)
+        w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
         w.put_tiles(tile_rows)
         w.put_metadata({
             "format": "geoterrain",
@@ -316,6 +318,8 @@ def preprocess(
             # its new vertices' stored δ_edge (None: +inf)]; absent without padding
             **({"delta_edge": edge_max} if has_padding(grid) else {}),
             "stand_in_z": stand_in_z(Z, valid),
+            # the root tile's block_delta blob: each block's δ_n, n = 0 … this − 1
+            "block_delta_levels": int(blocks.shape[2]),
             "preprocess_seconds": times,
         })
         stage("write")

@@ -9,7 +9,9 @@ Schema (version :data:`SCHEMA_VERSION`), in the spirit of MBTiles/GeoPackage::
 
 ``kind`` is one of ``heights`` (residual-coded heights and valid mask),
 ``delta`` (per-vertex errors δ), ``radius`` (nested sphere radii) and
-``normals`` (octahedral normal map). See docs/store.md.
+``normals`` (octahedral normal map); optionally ``delta_edge`` (a second δ, on the
+tiles the metadata lists) and ``block_delta`` (every GeoMipMapping block's δ_n, one
+table on the root tile). See docs/store.md.
 
 A store is written to a hidden temporary file in the destination folder and
 published only after the ``complete`` flag is committed, so an interrupted write
@@ -76,6 +78,9 @@ BLOB_KINDS = ("heights", "delta", "radius", "normals")
 # optional: a second δ (padding replicated, geoterrain/edgepad.py) on the tiles that the
 # metadata's "delta_edge" list names, and on no other
 EDGE_KIND = "delta_edge"
+# optional: every GeoMipMapping block's exact δ_n (geoterrain/tilebounds.py), one table
+# for the whole grid, on the root tile, when the metadata has "block_delta_levels"
+BLOCK_KIND = "block_delta"
 _META_MAX_BYTES = 1 << 20  # metadata is a few kB; more is not a store of ours
 # a damaged schema's SQLite error message may not even decode as UTF-8
 _DB_ERRORS = (sqlite3.DatabaseError, UnicodeDecodeError)
@@ -553,6 +558,8 @@ class StoreReader:
                                     "re-run `geoterrain preprocess`")
         want = {(*k, kind) for k in out for kind in BLOB_KINDS}
         want |= {(*k, EDGE_KIND) for k in self.edge_keys(out)}
+        if "block_delta_levels" in self.metadata and out:
+            want.add((max(k[0] for k in out), 0, 0, BLOCK_KIND))  # the root tile
         if len(blob_keys) != len(want) or set(blob_keys) != want:
             raise StoreCorruptError(f"{self.path}: the blobs do not match the tile table "
                                     "(blobs missing or added): the file is damaged; "

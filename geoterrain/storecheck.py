@@ -188,6 +188,9 @@ def check_store(path: str | Path, m: dict, tiles: dict) -> tuple[Grid, Frame, Qu
         _num(m.get("delta_max_finite"), "delta_max_finite", lo=0.0)
         if "stand_in_z" in m:
             _num(m["stand_in_z"], "stand_in_z")
+        if "block_delta_levels" in m:  # the block table's levels: n = 0 … min(t, top)
+            _int(m["block_delta_levels"], min(g.t, g.top_level) + 1,
+                 min(g.t, g.top_level) + 1, "block_delta_levels")
         for k in ("source", "source_dtype", "encoding"):
             if not isinstance(m.get(k), str):
                 raise _Bad(f"{k} must be text")

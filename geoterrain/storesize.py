@@ -22,8 +22,9 @@ COMPONENTS = ("heights", "delta", "radius", "normals")
 
 
 def component_bytes(t: Terrain) -> dict[str, int]:
-    """Bytes per component: the blob kinds, and ``index/other`` (SQLite pages, tile
-    rows, metadata: the file size less the blobs).
+    """Bytes per component: the blob kinds (``delta`` with the optional second δ and
+    block δ_n table), and ``index/other`` (SQLite pages, tile rows, metadata: the file
+    size less the blobs).
 
     Examples
     --------
@@ -33,6 +34,7 @@ def component_bytes(t: Terrain) -> dict[str, int]:
     """
     kinds = t.info()["bytes_by_kind"]
     out = {k: int(kinds.get(k, 0)) for k in COMPONENTS}
+    out["delta"] += int(kinds.get("delta_edge", 0)) + int(kinds.get("block_delta", 0))
     out["index/other"] = os.path.getsize(t.path) - sum(out.values())
     return out
 

@@ -26,6 +26,7 @@ from geoterrain.vertexdata import (
     VERSION_2,
     decode_bounds,
     normals_from_bytes,
+    unpack_block_errors,
 )
 
 if TYPE_CHECKING:
@@ -225,6 +226,32 @@ class Terrain:
         except (ValueError, zstandard.ZstdError):
             raise StoreCorruptError(f"{self.path}: tile {key} {kind} cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
+
+    def block_errors(self) -> np.ndarray | None:
+        """Every GeoMipMapping block's exact δ_n (seed 000 §2.4), (nb, nb, levels) indexed
+        [y, x, n], nb the level-0 tiles per side, n = 0 … min(t, top level) (see
+        :func:`geoterrain.tilebounds.tile_and_block_errors`); None for a store written
+        before the table was.
+
+        Examples
+        --------
+        >>> t.block_errors().shape[:2] == (t.grid.tiles_per_side(0),) * 2
+        True
+        """
+        levels = self.meta.get("block_delta_levels")
+        if levels is None:
+            return None
+
+        def make():
+            nb = self.grid.tiles_per_side(0)
+            key = (self.grid.top_level, 0, 0)
+            try:
+                return unpack_block_errors(self._blob(key, "block_delta"), nb, levels)
+            except ValueError as exc:
+                raise StoreCorruptError(f"{self.path}: the block δ_n table is damaged "
+                                        f"({exc}); re-run `geoterrain preprocess`") from None
+
+        return self._cached(("block_delta",), make)
 
     def tile_delta(self, level: int, x: int, y: int) -> np.ndarray:
         """Per-vertex errors δ (scene units) of the tile's samples, float32 (T, T)."""

@@ -19,7 +19,7 @@ from geoterrain.bounds import cell_rows_nb, check_grid
 from geoterrain.grid import footprint_counts
 from geoterrain.threads import cores_for
 
-__all__ = ["TileBounds", "tile_errors"]
+__all__ = ["TileBounds", "tile_and_block_errors", "tile_errors"]
 
 
 def closed_blocks(a: np.ndarray, s: int, op, dtype=None) -> np.ndarray:
@@ -175,7 +175,24 @@ def _tile_boxes_nb(z, x, y, vb, S):
 def tile_errors(
     z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray, t: int = 6
 ) -> dict[tuple[int, int, int], TileBounds]:
-    """Error bounds of every stored tile ``(L, x, y)`` of the pyramid (docs/conventions.md).
+    """Error bounds of every stored tile ``(L, x, y)`` of the pyramid (docs/conventions.md):
+    the first half of :func:`tile_and_block_errors`.
+
+    Examples
+    --------
+    >>> I, J = np.indices((5, 5)).astype(float)
+    >>> tb = tile_errors(I * J, np.ones((5, 5), bool), J, -I, t=1)
+    >>> sorted(tb), tb[(1, 0, 0)].error, tb[(1, 0, 0)].nvalid
+    ([(0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1), (1, 0, 0)], 1.0, 25)
+    """
+    return tile_and_block_errors(z, valid, x, y, t)[0]
+
+
+def tile_and_block_errors(
+    z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray, t: int = 6
+) -> tuple[dict[tuple[int, int, int], TileBounds], np.ndarray]:
+    """Error bounds of every stored tile ``(L, x, y)`` of the pyramid (docs/conventions.md),
+    and every GeoMipMapping block's exact δ_n.
 
     Returns a dict keyed by ``(L, x, y)`` (x counts columns, y rows) of :class:`TileBounds`
     (a NamedTuple ordered like the store's tile columns) for every tile whose footprint
@@ -190,12 +207,21 @@ def tile_errors(
     * ``zmin, zmax, xmin, xmax, ymin, ymax``: box of the valid footprint samples in scene
       coordinates; ``nvalid``: number of valid footprint samples (borders included).
 
+    The second result, ``blocks`` (nb, nb, n_max + 1) indexed [y, x, n], is seed 000
+    §2.4's δ_n for every level-0 tile (a GeoMipMapping block) drawn at its geomipmap n
+    (the level-n union-jack surface over the block, n = 0 … min(t, top level)): the max
+    over the block's valid closed-footprint samples of |z − S_n|, not made monotone, and
+    +inf where a level-n triangle in the block mixes valid and invalid samples. It is the
+    same field as ``error``, pooled over one block instead of a level-n tile, so it is
+    exact where ``error`` of the covering tile is only an upper bound. A block without
+    valid samples has 0.
+
     Examples
     --------
     >>> I, J = np.indices((5, 5)).astype(float)
-    >>> tb = tile_errors(I * J, np.ones((5, 5), bool), J, -I, t=1)
-    >>> sorted(tb), tb[(1, 0, 0)].error, tb[(1, 0, 0)].nvalid
-    ([(0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1), (1, 0, 0)], 1.0, 25)
+    >>> tb, blocks = tile_and_block_errors(I * J, np.ones((5, 5), bool), J, -I, t=1)
+    >>> blocks.shape, blocks[..., 1].tolist()  # 2×2 blocks, each a 3×3 sample square
+    ((2, 2, 2), [[1.0, 1.0], [1.0, 1.0]])
     """
     zf, valid, n = check_grid(z, valid)
     x = np.asarray(x, dtype=np.float64)
@@ -209,6 +235,8 @@ def tile_errors(
     E = np.zeros((N, N))
     nvalid = footprint_counts(valid, te)
     per_level = []
+    nb0 = (N - 1) // cpt  # blocks (level-0 tiles) per side
+    blocks = np.zeros((nb0, nb0, min(te, lmax) + 1))
     for L in range(lmax + 1):
         S = 1 << (te + L)  # tile span in full-resolution samples
         nt = (N - 1) // S
@@ -220,6 +248,10 @@ def tile_errors(
         err = closed_blocks(E, S, np.maximum)
         m4 = mixed.reshape(nt, cpt, nt, cpt)
         err = np.where(m4.any(axis=(1, 3)), np.inf, err)
+        if 0 < L < blocks.shape[2]:  # the same field over each block (seed 000 §2.4 δ_n)
+            c = 1 << (te - L)  # level-L cells per block side
+            mb = mixed.reshape(nb0, c, nb0, c).any(axis=(1, 3))
+            blocks[..., L] = np.where(mb, np.inf, closed_blocks(E, cpt, np.maximum))
         rows = np.maximum.reduce(E[::S, :-1].reshape(nt + 1, nt, S), axis=2)
         rows = np.maximum(rows, E[::S, S::S])
         cols = np.maximum.reduce(E[:-1, ::S].reshape(nt, S, nt + 1), axis=1)
@@ -250,4 +282,4 @@ def tile_errors(
                 int(nval[ty, tx]), float(box[0, ty, tx]), float(box[1, ty, tx]),
                 float(err[ty, tx]), float(bnd[ty, tx]), float(box[2, ty, tx]),
                 float(box[3, ty, tx]), float(box[4, ty, tx]), float(box[5, ty, tx]))
-    return out
+    return out, blocks

@@ -248,3 +248,29 @@ def normals_from_bytes(raw: bytes, T: int) -> np.ndarray:
     e = np.frombuffer(raw, np.uint8).reshape(2, T, T)
     p = np.cumsum(np.cumsum(e, axis=2, dtype=np.uint8), axis=1, dtype=np.uint8)
     return np.ascontiguousarray(np.moveaxis(p, 0, -1))
+
+
+def pack_block_errors(blocks: np.ndarray) -> bytes:
+    """Every GeoMipMapping block's δ_n (nb, nb, levels), as little-endian float32
+    rounded *up* (a stored δ_n is never below the exact one; +inf stays +inf), zstd.
+
+    Examples
+    --------
+    >>> b = np.array([[[0.0, 0.1, np.inf]]])
+    >>> back = unpack_block_errors(pack_block_errors(b), 1, 3)
+    >>> bool((back >= b).all()), back[0, 0, 2]
+    (True, np.float64(inf))
+    """
+    a = round_up(np.asarray(blocks, np.float64), np.float32).astype("<f4")
+    return zstandard.ZstdCompressor(level=6).compress(np.ascontiguousarray(a).tobytes())
+
+
+def unpack_block_errors(blob: bytes, nb: int, levels: int) -> np.ndarray:
+    """Inverse of :func:`pack_block_errors`: (nb, nb, levels) float64. A store may come
+    from a stranger: ``ValueError`` unless the blob decodes to exactly that many values,
+    each ≥ 0 (+inf allowed, NaN not)."""
+    raw = zstdsafe.decompress(blob, nb * nb * levels * 4, exact=True)
+    a = np.frombuffer(raw, "<f4").astype(np.float64).reshape(nb, nb, levels)
+    if not (a >= 0).all():  # NaN fails too
+        raise ValueError("a block δ_n is negative or NaN")
+    return a

@@ -74,6 +74,8 @@ _BAD_META = [
     (None, "grid", None), (None, "frame", []), (None, "quantizer", "int"),
     (None, "delta_edge", "x"), (None, "delta_edge", [[0, 0]]),
     (None, "delta_edge", [[0, 0, 0, -1.0]]), (None, "delta_edge", [[99, 0, 0, 1.0]]),
+    (None, "block_delta_levels", 0), (None, "block_delta_levels", 99),
+    (None, "block_delta_levels", "x"), (None, "block_delta_levels", 2**40),
 ]
 
 
@@ -163,7 +165,8 @@ def mutate(path: Path, rng: random.Random) -> str:
             frame = zstd_bomb(declared, rng.choice([2, 64, 512]))
             old = con.execute("SELECT data FROM blobs WHERE level=? AND x=? AND y=? AND kind=?",
                               k).fetchone()[0]
-            prefix = {"heights": 4, "delta": 2, "radius": 2, "normals": 0, "delta_edge": 2}[bk]
+            prefix = {"heights": 4, "delta": 2, "radius": 2, "normals": 0, "delta_edge": 2,
+                      "block_delta": 0}[bk]
             data = old[:prefix] + frame
             con.execute("UPDATE blobs SET data=?, crc32=? WHERE level=? AND x=? AND y=? AND "
                         "kind=?", (data, _blob_crc(k[:3], bk, data), *k))
@@ -189,13 +192,14 @@ def outcome(path: Path, view) -> tuple[str, object]:
         with geoterrain.open(path) as t:
             m = t.mesh(max_error=0.5)
             sel = t.select(view, pixel_error=2.0)
+            gmm = t.select(view, pixel_error=2.0, strategy="geomipmap")  # the block table
             info = t.info()
             for k in ("path", "size_bytes", "bytes_by_kind", "height_bytes_per_level",
                       "height_bits_per_valid_sample"):  # file sizes, not content
                 info.pop(k)
             d = (np.asarray(m.points).tobytes(), np.asarray(m.faces).tobytes(),
-                 np.asarray(sel.mesh.points).tobytes(), json.dumps(info, sort_keys=True,
-                                                                   default=str))
+                 np.asarray(sel.mesh.points).tobytes(), np.asarray(gmm.mesh.faces).tobytes(),
+                 json.dumps(info, sort_keys=True, default=str))
             return "output", hash(d)
     except GeoterrainError as exc:
         msg = str(exc)

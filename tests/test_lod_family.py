@@ -9,7 +9,8 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-from hypothesis import given
+import pytest
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from geoterrain.lod.geomipmap import strip_ranges, template
@@ -72,3 +73,98 @@ def test_restricted_quadtree_levels_differ_by_at_most_one(points):
     assert np.abs(np.diff(D, axis=0)).max(initial=0) <= 1
     assert np.abs(np.diff(D, axis=1)).max(initial=0) <= 1
     assert (D >= _paint(lv, dmax)).all()  # only ever refined
+
+
+@settings(max_examples=12, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(seed=st.integers(0, 10_000), size=st.sampled_from([33, 65, 50]),
+       tile=st.sampled_from([4, 8, 16]), holes=st.booleans())
+def test_stored_block_delta_is_each_blocks_exact_error(tmp_path, seed, size, tile, holes):
+    """Seed 000 §2.4's δ_n, stored per block at preprocess: for every block and level n,
+    the table holds the largest |z − mesh| over the block's samples of the block drawn
+    alone at geomipmap n (rasterised by geoterrain.measure, not by the selection code),
+    rounded up to float32; +inf exactly where a level-n triangle of the block mixes data
+    and nodata (then some of its samples are nodata)."""
+    import geoterrain
+    from geoterrain.lod.geomipmap import _assemble
+    from geoterrain.lod.tiles import tile_index
+    from geoterrain.measure import mesh_heights_on_grid
+    from geoterrain.synth import generate
+    from tests.conftest import write_tif
+
+    z = generate("fbm", size, seed=seed).astype(np.float32)
+    if holes:
+        rng = np.random.default_rng(seed)
+        for _ in range(3):
+            i, j = rng.integers(0, size, 2)
+            z[i:i + rng.integers(1, 9), j:j + rng.integers(1, 9)] = -9999.0
+    src = write_tif(tmp_path / f"d{seed}_{size}_{tile}_{holes}.tif", z, nodata=-9999.0)
+    with geoterrain.open(geoterrain.preprocess(src, tmp_path / f"s{seed}_{size}_{tile}"
+                                               f"_{holes}.geoterrain", tile_size=tile,
+                                               overwrite=True)) as t:
+        table = t.block_errors()
+        g = t.grid
+        assert table is not None and table.shape[2] == min(g.t, g.top_level) + 1
+        _, _, Z0 = t.scene_xyz()
+        Z = np.full((g.size, g.size), np.nan)  # the padding (past the DEM) is nodata
+        Z[:Z0.shape[0], :Z0.shape[1]] = Z0
+        index = tile_index(t)
+        blocks = np.flatnonzero(index.keys[:, 0] == 0)
+        xy = index.keys[blocks, 1:]
+        s = 1 << g.t
+        tol = 1e-9 * (1.0 + np.nanmax(np.abs(Z)))
+        for n in range(table.shape[2]):
+            mesh = _assemble(t, index, xy, np.full(len(xy), n), np.ones((len(xy), 4), int))
+            zm, cov = mesh_heights_on_grid(np.asarray(mesh.point_data["grid_ij"]),
+                                           mesh.regular_faces, np.asarray(mesh.points)[:, 2],
+                                           Z.shape)
+            for (bx, by) in xy.tolist():
+                win = np.s_[by * s: by * s + s + 1, bx * s: bx * s + s + 1]
+                zb, cb = Z[win], cov[win]
+                stored = table[by, bx, n]
+                if n == 0:
+                    assert stored == 0.0
+                    continue
+                if np.isinf(stored):  # a triangle mixing data and nodata
+                    assert np.isnan(zb).any() and np.isfinite(zb).any()
+                    continue
+                ok = np.isfinite(zb)
+                assert cb[ok].all()  # every sample of data lies on a drawn triangle
+                err = float(np.abs(zb[ok] - zm[win][ok]).max()) if ok.any() else 0.0
+                assert err - tol <= stored <= err * (1 + 2.0 ** -22) + tol
+
+
+def test_a_damaged_block_table_is_refused_in_one_line(tmp_path):
+    """The block δ_n table comes from a file that may come from a stranger: a table
+    that decodes to NaN (under a valid checksum) or to too few values is refused in one
+    line when geomipmap reads it, and a store without one uses the covering tiles."""
+    import sqlite3
+
+    import zstandard
+
+    import geoterrain
+    from geoterrain.exceptions import StoreCorruptError
+    from geoterrain.store import blob_crc
+    from geoterrain.synth import generate, write_geotiff
+    from geoterrain.view import View
+
+    dem = write_geotiff(tmp_path / "d.tif", generate("fbm", 65, seed=4))
+    p = geoterrain.preprocess(dem, tmp_path / "d.geoterrain", tile_size=16)
+    view = View((0, -900, 500), (0, 0, 0))
+    with geoterrain.open(p) as t:
+        key = (t.grid.top_level, 0, 0)
+        shape = t.block_errors().shape
+        good = t.select(view, 2.0, strategy="geomipmap").mesh.n_cells
+    for bad in (np.full(shape, np.nan, "<f4"), np.zeros(shape[0], "<f4")):
+        data = zstandard.ZstdCompressor().compress(bad.tobytes())
+        con = sqlite3.connect(p)
+        con.execute("UPDATE blobs SET data=?, crc32=? WHERE level=? AND x=? AND y=? AND "
+                    "kind='block_delta'", (data, blob_crc(key, "block_delta", data), *key))
+        con.commit()
+        con.close()
+        with geoterrain.open(p) as t, pytest.raises(StoreCorruptError, match="block") as ex:
+            t.select(view, 2.0, strategy="geomipmap")
+        assert "\n" not in str(ex.value)
+    with geoterrain.open(p) as t:  # an older store: no table, the covering tiles' bound
+        t.block_errors = lambda: None
+        assert t.select(view, 2.0, strategy="geomipmap").mesh.n_cells >= good

@@ -3,12 +3,14 @@
 - **Blocks** are the stored level-0 tiles; a block's **geomipmap n** is its footprint
   sampled every 2ⁿ samples (the stored level-n samples), n = 0 … min(t, top level),
   the coarsest being 2×2 vertices. A quadtree is used only for frustum culling.
-- **δ_n** (seed 000 §2.4: the height change of the vanishing vertices) is taken from
-  the store: the stored error of tile (n, x ≫ n, y ≫ n), the level-n tile covering the
-  block, bounds |z − S_n| at every full-resolution sample of its footprint, S_n the
-  union-jack surface a block draws at level n. It is an upper bound of the exact
-  per-block δ_n (it may be larger, never smaller) and is monotone in n, so it needs no
-  extra preprocessing and keeps the guarantee.
+- **δ_n** (seed 000 §2.4: the height change of the vanishing vertices) is the block's
+  exact value, computed at preprocess (:func:`geoterrain.tilebounds.tile_and_block_errors`)
+  and stored per block and level (:meth:`geoterrain.terrain.Terrain.block_errors`): the
+  max over the block's full-resolution samples of |z − S_n|, S_n the union-jack surface
+  the block draws at level n, rounded up to float32; then δ = max{δ_0 … δ_n} as the
+  seed takes it. A store written before the table falls back to the stored error of
+  tile (n, x ≫ n, y ≫ n), the level-n tile covering the block: an upper bound of the
+  same quantity over a larger footprint (it may be larger, never smaller).
 - **Selection** (``rule="error"``, the default): a block takes the coarsest n with
   λ·δ_n / D_min ≤ τ, D_min the distance from the eye to the block's box, so the
   measured error ρ ≤ τ. ``rule="distance"`` is the thesis's precomputed switch
@@ -128,12 +130,17 @@ class Tables:
         self.pos = np.full(len(index.keys), -1, np.int64)
         self.pos[blocks] = np.arange(len(blocks))
         xy = index.keys[blocks, 1:]
-        delta = np.empty((len(blocks), self.nmax + 1))
-        for n in range(self.nmax + 1):
-            k = np.column_stack([np.full(len(blocks), n), xy >> n])
-            delta[:, n] = index.error[index.rows_of(k)]
+        table = terrain.block_errors()  # exact per-block δ_n; None: an older store
+        if table is not None:
+            delta = table[xy[:, 1], xy[:, 0], : self.nmax + 1].copy()
+        else:  # the covering level-n tile's error: an upper bound of the block's δ_n
+            delta = np.empty((len(blocks), self.nmax + 1))
+            for n in range(self.nmax + 1):
+                k = np.column_stack([np.full(len(blocks), n), xy >> n])
+                delta[:, n] = index.error[index.rows_of(k)]
         delta[:, 0] = 0.0  # level 0 is the data itself
-        self.delta = np.maximum.accumulate(delta, axis=1)  # already monotone; made sure
+        # seed 000 §2.4: a switch to n is refused past τ for δ = max{δ_0 … δ_n}
+        self.delta = np.maximum.accumulate(delta, axis=1)
 
 
 def tables(terrain, index: TileIndex) -> Tables:

@@ -1,0 +1,64 @@
+"""GeoMipMapping's δ_n: each block's exact value (the store's block table) against the
+covering level-n tile's error (the bound stores without the table fall back to), on the
+same views in the same run, with chunked beside them (a script, not a test).
+
+Each configuration runs ``geoterrain.bench.run`` over its built-in 6-view flight on a
+freshly opened store; "tile bound" hides the table (``Terrain.block_errors`` → None), so
+``geomipmap`` takes the covering tiles' errors as it does on an older store. ρ is
+measured by :func:`geoterrain.measure.screen_space_error`, independently of the
+selection. The two δ_n modes alternate, ``--runs`` times each; triangle counts are
+exact, select times are medians over every run and view.
+
+Usage: ``PYTHONPATH=. python benchmarks/bench_geomipmap.py STORE [STORE ...]
+[--taus 1,2,4] [--views 6] [--runs 2]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+from pathlib import Path
+
+import geoterrain
+from geoterrain import bench
+from geoterrain.lod import geomipmap
+
+
+def run(store: str, mode: str, taus: tuple[float, ...], views: int) -> list[dict]:
+    """bench rows of one configuration: ``exact``, ``tile bound`` or ``chunked``."""
+    with geoterrain.open(store) as t:
+        if mode == "tile bound":
+            t.block_errors = lambda: None  # as a store written before the table
+        geomipmap._TABLES.clear()
+        strategy = "chunked" if mode == "chunked" else "geomipmap"
+        return bench.run(t, n_views=views, taus=taus, strategies=(strategy,)).rows
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("stores", nargs="+")
+    ap.add_argument("--taus", default="1,2,4")
+    ap.add_argument("--views", type=int, default=6)
+    ap.add_argument("--runs", type=int, default=2)
+    a = ap.parse_args(argv)
+    taus = tuple(float(x) for x in a.taus.split(","))
+    print("| store | τ | δ_n | triangles (median) | select ms (median) | ρ max px |")
+    print("|---|---|---|---|---|---|")
+    for store in a.stores:
+        rows: dict[str, list[dict]] = {}
+        for _ in range(a.runs):
+            for mode in ("tile bound", "exact"):
+                rows.setdefault(mode, []).extend(run(store, mode, taus, a.views))
+        rows["chunked"] = run(store, "chunked", taus, a.views)
+        for tau in taus:
+            for mode in ("tile bound", "exact", "chunked"):
+                rs = [r for r in rows[mode] if r["tau"] == tau]
+                name = "(chunked)" if mode == "chunked" else mode
+                print(f"| {Path(store).name} | {tau:g} | {name} | "
+                      f"{statistics.median(r['triangles'] for r in rs):,.0f} | "
+                      f"{statistics.median(r['select_ms'] for r in rs):.1f} | "
+                      f"{max(r['err_max'] for r in rs):.3f} |")
+
+
+if __name__ == "__main__":
+    main()
