@@ -2,8 +2,9 @@
 
 Each run is a fresh process that writes ``n`` synthetic 1280×720 frames (a smooth
 picture with a moving band, so each frame differs) and reports its peak resident set
-(``ru_maxrss``) and wall time. A writer that streams keeps a flat peak as ``n``
-grows; one that holds the frames grows by about 1280·720·3 B = 2.8 MB per frame.
+(``VmHWM``, :func:`geoterrain.memory.peak_rss`; ``ru_maxrss`` would count the parent's
+peak at exec) and wall time. A writer that streams keeps a flat peak as ``n`` grows;
+one that holds the frames grows by about 1280·720·3 B = 2.8 MB per frame.
 
 Run from the project root::
 
@@ -22,7 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 _RUN = """
-import json, resource, sys, time
+import json, sys, time
 import numpy as np
 sys.path.insert(0, {root!r})
 W, H, n = 1280, 720, {n}
@@ -42,8 +43,9 @@ for k in range(n):
     f[:, (k * 16) % W:(k * 16) % W + 40] = 255
     add(f)
 close()
+from geoterrain.memory import peak_rss  # VmHWM: not the parent's peak at exec
 print(json.dumps({{"wall_s": time.perf_counter() - t0,
-                  "max_rss_kb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}}))
+                  "max_rss_kb": peak_rss() // 1024}}))
 """
 
 

@@ -8,8 +8,10 @@ bound ``--max-error`` to a binary PLY twice, each in a fresh process:
 - ``in-memory``: the whole mesh as one PolyData, then ``export.write_mesh`` (what the
   CLI did before, and still does for .vtp/.vtk).
 
-Each process reports its own peak resident set (``ru_maxrss``); with ``--check`` the two
-files are compared (same points, same triangles up to vertex order, normals ≤ 1e-5).
+Each process reports its own peak resident set (``VmHWM``,
+:func:`geoterrain.memory.peak_rss`; ``ru_maxrss`` would count the parent's peak at exec);
+with ``--check`` the two files are compared (same points, same triangles up to vertex
+order, normals ≤ 1e-5).
 
 Run from the project root::
 
@@ -32,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 _RUN = """
-import json, resource, sys, time
+import json, sys, time
 sys.path.insert(0, {root!r})
 t0 = time.perf_counter()
 if {mode!r} == "streamed":
@@ -49,8 +51,9 @@ else:
     with geoterrain.open({store!r}) as t:
         write_mesh(with_elevation(t, t.static_selection(float({e!r})).mesh), {out!r},
                    overwrite=True)
+from geoterrain.memory import peak_rss  # VmHWM: not the parent's peak at exec
 print(json.dumps({{"wall_s": time.perf_counter() - t0,
-                  "max_rss_kb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}}))
+                  "max_rss_kb": peak_rss() // 1024}}))
 """
 
 
