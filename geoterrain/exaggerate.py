@@ -115,6 +115,25 @@ class Exaggerated:
         return self._scaled("d", (level, x, y), lambda: (self.base.tile_delta(level, x, y)
                                                          * np.float32(self.n)))
 
+    def tile_delta_edge(self, level: int, x: int, y: int) -> np.ndarray:
+        return self._scaled("de", (level, x, y), lambda: (
+            self.base.tile_delta_edge(level, x, y) * np.float32(self.n)))
+
+    @property
+    def edge_max(self) -> dict | None:
+        """The base's tiles with a second δ (edgepad.py), their maxima × n."""
+        em = self.base.edge_max
+        if em is None:
+            return None
+        return self._scaled("em", (), lambda: {k: v * self.n for k, v in em.items()})
+
+    def block_errors(self) -> np.ndarray | None:
+        """The base's GeoMipMapping δ_n table × n (None for an older store)."""
+        b = self.base.block_errors()
+        if b is None:
+            return None
+        return self._scaled("be", (), lambda: b * self.n)
+
     def tile_radius(self, level: int, x: int, y: int) -> np.ndarray:
         return self._scaled("r", (level, x, y), lambda: (self.base.tile_radius(level, x, y)
                                                          * np.float32(self.r_scale)))

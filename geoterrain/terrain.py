@@ -246,7 +246,9 @@ class Terrain:
             nb = self.grid.tiles_per_side(0)
             key = (self.grid.top_level, 0, 0)
             try:
-                return unpack_block_errors(self._blob(key, "block_delta"), nb, levels)
+                table = unpack_block_errors(self._blob(key, "block_delta"), nb, levels)
+                table.setflags(write=False)  # shared through the cache
+                return table
             except ValueError as exc:
                 raise StoreCorruptError(f"{self.path}: the block δ_n table is damaged "
                                         f"({exc}); re-run `geoterrain preprocess`") from None

@@ -344,6 +344,7 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     tc = np.empty((len(src), 2), np.float32)
     tc[:, 0] = (col + 0.5) / AW
     tc[:, 1] = 1.0 - (row + 0.5) / AH
+    atlas.setflags(write=False)  # shown by VTK without a copy (rendering._image_data)
     st = {**counter, "texture_tiles": n_tiles, "textures_deferred": deferred, "pages": G,
           "atlas": [int(AW), int(AH)],
           "texture_ms": round((time.perf_counter() - t0) * 1e3, 3)}

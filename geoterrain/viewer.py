@@ -50,8 +50,9 @@ HELP = "m strategy  +/- tau  x wireframe  c colour  space freeze  h home  s scre
 
 
 POLL_MS = 16.0  # background mode, idle: how often the window looks for a finished frame
-# background mode, a frame in flight: looked for this often (a chain of one-shot timers),
-# so a finished frame waits ≤ 4 ms for the window, not up to a whole idle period
+# background mode, a frame in flight: looked for this often (a second, repeating timer,
+# made when the frame is submitted and destroyed once nothing is in flight), so a
+# finished frame waits ≤ 4 ms for the window, not up to a whole idle period
 BUSY_POLL_MS = 4.0
 REST_MS = 250.0  # the camera still this long: drawn again with anti-aliasing
 # texture tiles a camera move may shade before its picture is shown (~0.5 ms each);
@@ -128,7 +129,7 @@ class ViewerController:
         self._shown_view: View | None = None  # the view the shown textures were made for
         self._closed = False
         self._iren = None  # the window's interactor, once bound (its timers)
-        self._busy_timer: int | None = None  # the armed one-shot busy-poll timer
+        self._busy_timer: int | None = None  # the busy-poll timer's id while it runs
         self._hud = plotter.add_text("", position="upper_left", font_size=10, name="hud")
         tp = self._hud.GetTextProperty()  # an opaque box: readable over any terrain
         tp.SetColor(0.1, 0.1, 0.1)
@@ -284,7 +285,7 @@ class ViewerController:
                 self.on_camera_changed(force=True)
         elif refine is not None and not self._closed:  # the camera is still: shade the
             self._future = self._executor.submit(self._retexture, *refine)  # next stand-ins
-        self._arm()
+        self._arm()  # polled every BUSY_POLL_MS while a frame is in flight, else not
         if changed:
             t0 = time.perf_counter()
             self.plotter.render()
@@ -296,17 +297,21 @@ class ViewerController:
         return changed
 
     def _arm(self) -> None:
-        """While a background frame is in flight, have the window poll again in
-        ``BUSY_POLL_MS`` (one one-shot timer at a time; idle, the ``POLL_MS`` timer)."""
-        if self._iren is not None and self._future is not None and not self._closed \
-                and self._busy_timer is None:
-            self._busy_timer = self._iren.create_timer(int(BUSY_POLL_MS), repeating=False)
+        """While a background frame is in flight, have the window poll every
+        ``BUSY_POLL_MS`` (one repeating timer); once nothing is, destroy that timer (the
+        idle ``POLL_MS`` timer goes on)."""
+        if self._iren is None:
+            return
+        busy = self._future is not None and not self._closed
+        if busy and self._busy_timer is None:
+            tid = self._iren.create_timer(int(BUSY_POLL_MS), repeating=True)
+            self._busy_timer = tid or None  # 0: VTK made no timer
+        elif not busy and self._busy_timer is not None:
+            self._iren.interactor.DestroyTimer(self._busy_timer)
+            self._busy_timer = None
 
     def _on_timer(self, *_args) -> None:
-        """The window's timer event: the idle repeating timer or the busy one-shot."""
-        if self._busy_timer is not None and \
-                self._iren.interactor.GetTimerEventId() == self._busy_timer:
-            self._busy_timer = None  # it fired (a one-shot timer is gone once it fires)
+        """The window's timer event (the idle timer or the busy one)."""
         self.poll()
 
     def _motion(self) -> None:
@@ -345,8 +350,9 @@ class ViewerController:
         return changed
 
     def close(self) -> None:
-        """Stop the worker thread."""
+        """Stop the worker thread (and the busy-poll timer)."""
         self._closed = True
+        self._arm()
         if self._executor is not None:
             self._executor.shutdown(wait=True, cancel_futures=True)
 
@@ -536,6 +542,7 @@ class ViewerController:
             p.add_key_event(k, fn)
         if p.iren is not None:
             p.enable_terrain_style(mouse_wheel_zooms=True)  # no roll: the horizon stays level
+            mute_style_timers(p.iren.interactor.GetInteractorStyle())
         if p.iren is not None and not p.off_screen:
             p.iren.add_observer("EndInteractionEvent", self.poll)
             self._iren = p.iren
@@ -551,6 +558,19 @@ class ViewerController:
         if self._executor is None:
             return max(self.throttle_ms, 30.0)
         return BUSY_POLL_MS if self._future is not None else POLL_MS
+
+
+def mute_style_timers(style) -> None:
+    """Keep the window's timers from steering the camera.
+
+    A VTK interactor style answers a timer event by repeating its current interaction:
+    mid-drag, with the mouse still, ``vtkInteractorStyleTerrain`` rotates by the last
+    mouse step again on every tick, so the viewer's polling timers would spin the view.
+    An observer of the style's own ``TimerEvent`` takes the event instead (the style then
+    skips ``OnTimer``); mouse moves still steer as before.
+    """
+    if style is not None:
+        style.AddObserver("TimerEvent", lambda *_args: None)
 
 
 def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,

@@ -75,6 +75,21 @@ def test_restricted_quadtree_levels_differ_by_at_most_one(points):
     assert (D >= _paint(lv, dmax)).all()  # only ever refined
 
 
+def _mixes(faces: np.ndarray, K: int, step: int, ok: np.ndarray) -> bool:
+    """Whether a triangle of ``faces`` (indices into a (K+1)² vertex grid of spacing
+    ``step`` samples) holds, in its closed area, both samples where ``ok`` and not."""
+    a, b = np.divmod(faces, K + 1)  # vertex (row, col) on the block's level grid
+    ii, jj = np.indices(ok.shape)
+    for (a0, a1, a2), (b0, b1, b2) in zip(a * step, b * step, strict=True):
+        det = (a1 - a0) * (b2 - b0) - (a2 - a0) * (b1 - b0)
+        u = ((ii - a0) * (b2 - b0) - (a2 - a0) * (jj - b0)) / det
+        v = ((a1 - a0) * (jj - b0) - (ii - a0) * (b1 - b0)) / det
+        inside = (u >= -1e-9) & (v >= -1e-9) & (u + v <= 1 + 1e-9)
+        if ok[inside].any() and not ok[inside].all():
+            return True
+    return False
+
+
 @settings(max_examples=12, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(seed=st.integers(0, 10_000), size=st.sampled_from([33, 65, 50]),
@@ -125,8 +140,13 @@ def test_stored_block_delta_is_each_blocks_exact_error(tmp_path, seed, size, til
                 if n == 0:
                     assert stored == 0.0
                     continue
-                if np.isinf(stored):  # a triangle mixing data and nodata
-                    assert np.isnan(zb).any() and np.isfinite(zb).any()
+                # +inf exactly where a closed level-n triangle of the block mixes data
+                # and nodata (the block's own template, rasterised here)
+                K = 1 << (g.t - n)
+                par = ((bx ^ by) & 1) if n == g.t else 0
+                assert np.isinf(stored) == _mixes(template(K, (1, 1, 1, 1), par), K, 1 << n,
+                                                  np.isfinite(zb))
+                if np.isinf(stored):
                     continue
                 ok = np.isfinite(zb)
                 assert cb[ok].all()  # every sample of data lies on a drawn triangle
@@ -138,13 +158,14 @@ def test_a_damaged_block_table_is_refused_in_one_line(tmp_path):
     """The block δ_n table comes from a file that may come from a stranger: a table
     that decodes to NaN (under a valid checksum) or to too few values is refused in one
     line when geomipmap reads it, and a store without one uses the covering tiles."""
+    import json
     import sqlite3
 
     import zstandard
 
     import geoterrain
     from geoterrain.exceptions import StoreCorruptError
-    from geoterrain.store import blob_crc
+    from geoterrain.store import _meta_crc, blob_crc
     from geoterrain.synth import generate, write_geotiff
     from geoterrain.view import View
 
@@ -165,6 +186,16 @@ def test_a_damaged_block_table_is_refused_in_one_line(tmp_path):
         with geoterrain.open(p) as t, pytest.raises(StoreCorruptError, match="block") as ex:
             t.select(view, 2.0, strategy="geomipmap")
         assert "\n" not in str(ex.value)
-    with geoterrain.open(p) as t:  # an older store: no table, the covering tiles' bound
-        t.block_errors = lambda: None
+    # an older store: no table (its blob and metadata key gone, the metadata checksum
+    # made consistent): it opens, and geomipmap takes the covering tiles' bound
+    con = sqlite3.connect(p)
+    con.execute("DELETE FROM blobs WHERE kind='block_delta'")
+    con.execute("DELETE FROM metadata WHERE name='block_delta_levels'")
+    meta = dict(con.execute("SELECT name, value FROM metadata WHERE name != 'metadata_crc32'"))
+    con.execute("UPDATE metadata SET value=? WHERE name='metadata_crc32'",
+                (json.dumps(_meta_crc(meta)),))
+    con.commit()
+    con.close()
+    with geoterrain.open(p) as t:
+        assert t.block_errors() is None
         assert t.select(view, 2.0, strategy="geomipmap").mesh.n_cells >= good

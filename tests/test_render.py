@@ -334,27 +334,29 @@ def test_controller_background_selection(tmp_path_factory):
 
 
 class _TimerLog:
-    """A stand-in interactor recording the timers a controller asks for."""
+    """A stand-in interactor recording the timers a controller makes and destroys."""
 
     def __init__(self):
-        self.timers: list[tuple[int, bool]] = []
-        self.fired = -1
+        self.made: list[tuple[int, bool]] = []
+        self.live: set[int] = set()
         self.interactor = self
 
     def create_timer(self, duration, repeating=True):
-        self.timers.append((duration, repeating))
-        return len(self.timers) - 1
+        self.made.append((duration, repeating))
+        self.live.add(len(self.made))  # VTK's ids start above 0
+        return len(self.made)
 
-    def GetTimerEventId(self):  # noqa: N802 (VTK's name)
-        return self.fired
+    def DestroyTimer(self, tid):  # noqa: N802 (VTK's name)
+        self.live.remove(tid)
 
 
-def test_a_frame_in_flight_is_polled_every_busy_period(tmp_path_factory):
-    """While a background frame is in flight the window looks for it every BUSY_POLL_MS
-    (one one-shot timer at a time, re-armed until the frame is shown); idle, no timer
-    beyond the repeating POLL_MS one is asked for."""
+def test_a_frame_in_flight_is_polled_every_busy_period(tmp_path_factory, monkeypatch):
+    """While a background frame (a selection, then its texture passes) is in flight the
+    window has one repeating BUSY_POLL_MS timer; once nothing is, it is destroyed (the
+    idle POLL_MS timer goes on), and close() destroys it too."""
     from geoterrain import viewer
 
+    monkeypatch.setattr(viewer, "TEXTURE_BUILDS", 2)  # several texture passes per move
     t = synth_store(tmp_path_factory, "fbm")
     p = _plotter((320, 240))
     c = viewer.ViewerController(p, t, background=True)
@@ -366,23 +368,58 @@ def test_a_frame_in_flight_is_polled_every_busy_period(tmp_path_factory):
         lo, hi = np.asarray(c.home.look_at), np.asarray(c.home.look_from)
         p.camera.position = tuple(lo + 0.3 * (hi - lo))
         assert c._future is not None and c.poll_ms == viewer.BUSY_POLL_MS
-        assert log.timers == [(int(viewer.BUSY_POLL_MS), False)]
-        c._arm()  # armed already: no second timer
-        assert len(log.timers) == 1
-        while c._future is not None:  # the timer fires; re-armed while still in flight
-            log.fired = len(log.timers) - 1
+        assert log.made == [(int(viewer.BUSY_POLL_MS), True)] and len(log.live) == 1
+        passes = 0
+        while c._future is not None:  # the busy timer fires until nothing is in flight
             c._future.result(60)
             c._on_timer()
-            if c._future is not None:  # a texture pass follows: a fresh timer for it
-                assert len(log.timers) - 1 > log.fired
-        assert len(log.timers) >= 1 and all(tm == (4, False) for tm in log.timers)
-        n = len(log.timers)
-        log.fired = -1
-        c._on_timer()  # the idle timer: nothing in flight, nothing armed
-        assert len(log.timers) == n and c.poll_ms == viewer.POLL_MS
+            passes += 1
+            assert len(log.live) == (1 if c._future is not None else 0)
+        assert passes >= 2  # a selection and at least one texture pass: one timer for all
+        assert len(log.made) == 1 and not log.live and c.poll_ms == viewer.POLL_MS
+        p.camera.position = tuple(lo + 0.25 * (hi - lo))  # a new move: a new busy timer
+        assert len(log.live) == 1
+        c.close()
+        assert not log.live
     finally:
         c.close()
         p.close()
+
+
+def test_timer_events_do_not_steer_the_camera():
+    """VTK's interactor styles repeat the current drag on every timer event; muted, the
+    viewer's polling timers leave the camera where the mouse put it."""
+    import pyvista as pv
+    from vtkmodules.vtkInteractionStyle import vtkInteractorStyleTerrain
+    from vtkmodules.vtkRenderingUI import vtkGenericRenderWindowInteractor
+
+    from geoterrain.viewer import mute_style_timers
+
+    moved = {}
+    for mute in (False, True):
+        p = _plotter((200, 150))
+        try:
+            p.add_mesh(pv.Sphere())
+            p.render()
+            iren = vtkGenericRenderWindowInteractor()
+            iren.SetRenderWindow(p.render_window)
+            style = vtkInteractorStyleTerrain()
+            iren.SetInteractorStyle(style)
+            if mute:
+                mute_style_timers(style)
+            iren.SetEventInformation(100, 75)
+            iren.InvokeEvent("LeftButtonPressEvent")
+            iren.SetEventInformation(110, 75)
+            iren.InvokeEvent("MouseMoveEvent")  # one drag step
+            before = np.array(p.camera.position)
+            for _ in range(5):
+                iren.InvokeEvent("TimerEvent")
+            moved[mute] = float(np.linalg.norm(np.array(p.camera.position) - before))
+            iren.InvokeEvent("LeftButtonReleaseEvent")
+        finally:
+            p.close()
+    assert moved[False] > 0  # unmuted, the style kept rotating on the ticks
+    assert moved[True] == 0.0
 
 
 def _drag(iren, path) -> None:
