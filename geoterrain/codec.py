@@ -16,16 +16,6 @@ is *closed loop* on integer codes, so errors never accumulate down the pyramid:
 Invalid samples get residual 0 (their decoded code is the prediction; in the top tile
 they repeat the previous code), so they cost almost nothing.
 
-**Residual bins** (a lossy store, ``Quantizer.bins`` = W > 1; SZ3's error-bounded
-quantisation of the prediction residual): the coding is still closed loop, coarse to
-fine, but a valid sample's decoded code is its prediction from the decoded coarser
-codes plus the multiple of W nearest its own code, and the blob stores that multiple's
-factor. So a decoded code lies within W // 2 of the code, and where the prediction is
-already that close the stored value is 0: a smooth surface costs next to nothing, where
-quantising the heights first (to a step of 2ε) left a ±1 residual at every step of the
-staircase. W = 1 is the lossless scheme, byte for byte. The top tile's raster-order
-deltas are binned the same way.
-
 Blob format (version 1), one blob per stored tile::
 
     byte 0   version (1)
@@ -59,14 +49,7 @@ import zstandard
 
 from geoterrain import zstdsafe
 from geoterrain.grid import footprint_counts, level_tiles
-from geoterrain.predict import (
-    cubic_child,
-    fill_level,
-    linear_child,
-    predict,
-    tile_zigzag,
-    top_bins,
-)
+from geoterrain.predict import cubic_child, fill_level, linear_child, predict, tile_zigzag
 from geoterrain.quantize import Quantizer, codes_to_heights, roundtrip, valid_codes
 from geoterrain.symbols import (
     PACK_BITS,
@@ -189,22 +172,15 @@ def decoded_codes(
     n, te = pyramid_shape(valid.shape[0], t)
     lmax = n - te
     d = valid_codes(z, valid, quantizer)  # heights_to_codes(where(valid, z, 0))
-    return _decoded_codes(d, valid, te, lmax, _resolve_predictor(predictor, d, valid, te, lmax),
-                          quantizer.bins)
+    return _decoded_codes(d, valid, te, lmax, _resolve_predictor(predictor, d, valid, te, lmax))
 
 
-def _decoded_codes(d: np.ndarray, valid: np.ndarray, te: int, lmax: int, cubic: bool,
-                   W: int = 1):
-    """In place on the codes ``d``: what tile decoding gives, at invalid samples and,
-    with residual bins ``W`` > 1, at valid ones too (closed loop, coarse to fine)."""
+def _decoded_codes(d: np.ndarray, valid: np.ndarray, te: int, lmax: int, cubic: bool):
+    """In place on the codes ``d``: what tile decoding gives at invalid samples."""
     s = 1 << lmax
     d[::s, ::s] = _forward_fill(d[::s, ::s], valid[::s, ::s])
-    if W > 1:
-        top = np.ascontiguousarray(d[::s, ::s])
-        top_bins(top.ravel(), W)
-        d[::s, ::s] = top
     for lev in range(lmax - 1, -1, -1):  # compiled: the rule of predict, in place
-        fill_level(d, valid, 1 << lev, (1 << te) if cubic else 0, W)
+        fill_level(d, valid, 1 << lev, (1 << te) if cubic else 0)
     return d
 
 
@@ -218,10 +194,9 @@ def decoded_heights(
     """Heights (N, N) float64 exactly as decoding every tile gives them.
 
     Valid samples decode to ``codes_to_heights(heights_to_codes(z))`` whatever the
-    pyramid (closed-loop coding), unless the quantizer has residual bins (``bins`` > 1:
-    then what the pyramid decodes, within ``codec_error`` of z, needs ``t``). Invalid
-    samples are NaN, unless ``t`` is given: then they hold exactly the (meaningless)
-    values tile decoding produces (with the same ``predictor`` as the encoding).
+    pyramid (closed-loop coding). Invalid samples are NaN, unless ``t`` is given: then
+    they hold exactly the (meaningless) values tile decoding produces (with the same
+    ``predictor`` as the encoding).
 
     Examples
     --------
@@ -233,9 +208,6 @@ def decoded_heights(
     if t is not None:
         d = decoded_codes(z, valid, t, quantizer, predictor)
         return codes_to_heights(d, quantizer)
-    if quantizer.bins > 1:
-        raise ValueError("heights coded with residual bins decode through the pyramid: "
-                         "give t")
     return roundtrip(z, valid, quantizer)  # the same values, in one compiled pass
 
 
@@ -293,21 +265,20 @@ def encode_pyramid(
         return out
     d = valid_codes(z, valid, quantizer)  # heights_to_codes(where(valid, z, 0))
     cubic = _resolve_predictor(predictor, d, valid, te, lmax)
-    W = quantizer.bins
-    d = _decoded_codes(d, valid, te, lmax, cubic, W)
+    d = _decoded_codes(d, valid, te, lmax, cubic)
 
-    # top tile: raster-order delta of the (forward-filled) codes, in bins of W
+    # top tile: raster-order delta of the (forward-filled) codes
     s = 1 << lmax
     top, vtop = d[::s, ::s], valid[::s, ::s]
-    r = np.diff(top.ravel(), prepend=np.int64(0)) // W
+    r = np.diff(top.ravel(), prepend=np.int64(0))
     head, payload = _pack(r, vtop, True, te, cubic)
     out[(lmax, 0, 0)] = head + _compressor(level).compress(payload)
     with cores_for(d.size):  # small grids on one thread (geoterrain/threads.py)
-        _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress, W)
+        _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress)
     return out
 
 
-def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress, W=1) -> None:
+def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress) -> None:
     """Blobs of every non-top stored tile into ``out`` (stream choice per tile, then zstd
     of the whole level on every core)."""
     tt = (1 << te) + 1
@@ -323,7 +294,7 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress, W=1) -> N
         zz = np.empty((nt, nt, 2 * h * (h + 1) + h * h), np.uint64)
         zmax = np.empty((nt, nt), np.uint64)
         esc = np.empty((nt, nt, len(PACK_BITS)), np.int64)  # the kernel counts k = 1, 2, 4
-        tile_zigzag(d, s, h, period or 0, zz, zmax, esc, W)  # the residuals of predict
+        tile_zigzag(d, s, h, period or 0, zz, zmax, esc)  # the residuals of predict
         # k-bit packs only for the tiles where choose_stream would try them
         packs = {}
         for c, k in enumerate(PACK_BITS):
@@ -462,7 +433,7 @@ def decode_tile(
         The parent tile's decoded codes (the whole tile: the cubic predictor reads one
         sample beyond the child's quadrant); None for the top tile.
     quantizer : Quantizer
-        Same as for encoding (its ``bins``: the residuals' bin width).
+        Same as for encoding (codes are quantizer-independent, kept for symmetry).
     tile_xy_parity : (int, int)
         ``(x % 2, y % 2)`` of the tile: which quadrant of the parent it covers.
     t : int or None
@@ -480,14 +451,14 @@ def decode_tile(
     >>> decode_tile(blobs[(0, 1, 0)], top, Quantizer("int"), (1, 0)).tolist()
     [[2, 3, 4], [7, 8, 9], [12, 13, 14]]
     """
-    W = quantizer.bins  # the residuals' bin width (1: the residuals themselves)
+    del quantizer
     top, kind, te, w, payload = _parse(blob, t)
     tt = (1 << te) + 1
     off = ((tt * tt + 7) // 8) if kind == _MASK_STORED else 0
     body = payload[off:]
     if top:
         r = unzigzag(read_stream(body, w, tt * tt))
-        return (np.cumsum(r) * W).reshape(tt, tt)
+        return np.cumsum(r).reshape(tt, tt)
     if parent_codes is None:
         raise ValueError("a non-top tile needs its parent's decoded codes")
     h = 1 << (te - 1)
@@ -498,8 +469,8 @@ def decode_tile(
     r = unzigzag(read_stream(body, w, 3 * h * h + 2 * h))
     out = np.empty((tt, tt), np.int64)
     if blob[1] & 8:  # cubic: the parent tile's own predictions (with its edge fallbacks)
-        cubic_child(np.ascontiguousarray(parent), py * h, px * h, h, r, out, W)
+        cubic_child(np.ascontiguousarray(parent), py * h, px * h, h, r, out)
         return out
     c = np.ascontiguousarray(parent[py * h: py * h + h + 1, px * h: px * h + h + 1])
-    linear_child(c, h, r, out, W)
+    linear_child(c, h, r, out)
     return out

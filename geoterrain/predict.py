@@ -22,7 +22,7 @@ from numba import njit, prange
 
 from geoterrain.symbols import PACK_BITS
 
-__all__ = ["cubic_child", "fill_level", "linear_child", "predict", "tile_zigzag", "top_bins"]
+__all__ = ["cubic_child", "fill_level", "linear_child", "predict", "tile_zigzag"]
 
 assert PACK_BITS == (1, 2, 4), "tile_zigzag counts the escapes of k = 1, 2 and 4"
 
@@ -90,11 +90,10 @@ def _mid16(p, i0, j0, di, dj, k, m):
 
 
 @njit(cache=True, nogil=True)
-def cubic_child(parent, oy, ox, h, r, out, W=1):
+def cubic_child(parent, oy, ox, h, r, out):
     """One child quadrant (rows oy.., columns ox.. of ``parent``) from the cubic
-    predictions of :func:`predict` (``period`` = the parent's intervals) plus ``W`` times
-    the residual bins ``r`` (classes A, B, C in raster order; ``W`` = 1: the residuals
-    themselves), computed only where needed.
+    predictions of :func:`predict` (``period`` = the parent's intervals) plus the
+    residuals ``r`` (classes A, B, C in raster order), computed only where needed.
 
     Examples
     --------
@@ -111,13 +110,11 @@ def cubic_child(parent, oy, ox, h, r, out, W=1):
     n = 0
     for a in range(h + 1):  # A: row midpoints
         for b in range(h):
-            out[2 * a, 2 * b + 1] = ((_mid16(parent, oy + a, 0, 0, 1, ox + b, m) + 8) >> 4) \
-                + W * r[n]
+            out[2 * a, 2 * b + 1] = ((_mid16(parent, oy + a, 0, 0, 1, ox + b, m) + 8) >> 4) + r[n]
             n += 1
     for a in range(h):  # B: column midpoints
         for b in range(h + 1):
-            out[2 * a + 1, 2 * b] = ((_mid16(parent, 0, ox + b, 1, 0, oy + a, m) + 8) >> 4) \
-                + W * r[n]
+            out[2 * a + 1, 2 * b] = ((_mid16(parent, 0, ox + b, 1, 0, oy + a, m) + 8) >> 4) + r[n]
             n += 1
     for a in range(h):  # C: the column interpolation of the row midpoints, unrounded
         k = oy + a
@@ -130,7 +127,7 @@ def cubic_child(parent, oy, ox, h, r, out, W=1):
                     - _mid16(parent, k + 2, 0, 0, 1, q, m)
             else:
                 v = 8 * (n1 + n2)
-            out[2 * a + 1, 2 * b + 1] = ((v + 128) >> 8) + W * r[n]
+            out[2 * a + 1, 2 * b + 1] = ((v + 128) >> 8) + r[n]
             n += 1
 
 
@@ -140,7 +137,7 @@ def _fmean(a, b):
 
 
 @njit(cache=True, nogil=True)
-def linear_child(c, h, r, out, W=1):
+def linear_child(c, h, r, out):
     """:func:`cubic_child` for the linear predictions of :func:`predict` on the
     quadrant ``c`` ((h + 1)², the parent's samples the child holds).
 
@@ -157,16 +154,16 @@ def linear_child(c, h, r, out, W=1):
     n = 0
     for a in range(h + 1):
         for b in range(h):
-            out[2 * a, 2 * b + 1] = _fmean(c[a, b], c[a, b + 1]) + W * r[n]
+            out[2 * a, 2 * b + 1] = _fmean(c[a, b], c[a, b + 1]) + r[n]
             n += 1
     for a in range(h):
         for b in range(h + 1):
-            out[2 * a + 1, 2 * b] = _fmean(c[a, b], c[a + 1, b]) + W * r[n]
+            out[2 * a + 1, 2 * b] = _fmean(c[a, b], c[a + 1, b]) + r[n]
             n += 1
     for a in range(h):
         for b in range(h):
             out[2 * a + 1, 2 * b + 1] = _fmean(_fmean(c[a, b], c[a + 1, b + 1]),
-                                               _fmean(c[a, b + 1], c[a + 1, b])) + W * r[n]
+                                               _fmean(c[a, b + 1], c[a + 1, b])) + r[n]
             n += 1
 
 
@@ -214,12 +211,9 @@ def _pred(d, s, i, j, P):
 
 
 @njit(cache=True, nogil=True)
-def fill_level(d, valid, s, P, W=1):
+def fill_level(d, valid, s, P):
     """In place: invalid new samples of level ``d[::s, ::s]`` take their prediction
-    (``P`` = 0: linear, else cubic with period ``P``); with residual bins ``W`` > 1, a
-    valid one takes the prediction plus the multiple of ``W`` nearest its code (SZ3's
-    error-bounded quantisation of the prediction residual, |change| ≤ W // 2). The
-    coarser level ``d[::2s, ::2s]`` must be final: the predictions read only it.
+    (``P`` = 0: linear, else cubic with period ``P``).
 
     Examples
     --------
@@ -231,23 +225,17 @@ def fill_level(d, valid, s, P, W=1):
     m = (d.shape[0] - 1) // s + 1
     for i in range(m):
         for j in range(m):
-            if i & 1 or j & 1:
-                if not valid[i * s, j * s]:
-                    d[i * s, j * s] = _pred(d, s, i, j, P)
-                elif W > 1:
-                    p = _pred(d, s, i, j, P)
-                    d[i * s, j * s] = p + W * ((d[i * s, j * s] - p + W // 2) // W)
+            if (i & 1 or j & 1) and not valid[i * s, j * s]:
+                d[i * s, j * s] = _pred(d, s, i, j, P)
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def tile_zigzag(d, s, h, P, zz, zmax, esc, W=1):
+def tile_zigzag(d, s, h, P, zz, zmax, esc):
     """Zigzagged residuals of every tile of level ``d[::s, ::s]`` into ``zz`` (nt, nt,
     L): per tile, classes A ((h + 1) × h), B (h × (h + 1)) and C (h × h) in raster
     order, as the decoder reads them (:func:`cubic_child`, :func:`linear_child`).
     Per tile also the largest value and, for each k of ``PACK_BITS`` (1, 2, 4), the
-    count of values ≥ 2^k − 1 (the escapes of :func:`pack_symbols`). With residual bins
-    ``W`` > 1 (:func:`fill_level`) the residuals are multiples of ``W``: their bins are
-    stored.
+    count of values ≥ 2^k − 1 (the escapes of :func:`pack_symbols`).
 
     Examples
     --------
@@ -260,7 +248,7 @@ def tile_zigzag(d, s, h, P, zz, zmax, esc, W=1):
     nt = zz.shape[0]
     for ty in prange(nt):  # rows of tiles on every core: each writes its own tiles
         for tx in range(nt):
-            _one_tile_zigzag(d, s, h, P, zz, ty, tx, W)
+            _one_tile_zigzag(d, s, h, P, zz, ty, tx)
             zm = np.uint64(0)
             e1, e3, e15 = 0, 0, 0
             for u in zz[ty, tx]:
@@ -273,44 +261,25 @@ def tile_zigzag(d, s, h, P, zz, zmax, esc, W=1):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _one_tile_zigzag(d, s, h, P, zz, ty, tx, W):
+def _one_tile_zigzag(d, s, h, P, zz, ty, tx):
     # one tile of tile_zigzag
     n = 0
     i0, j0 = ty * 2 * h, tx * 2 * h
     for a in range(h + 1):
         for b in range(h):
             i, j = i0 + 2 * a, j0 + 2 * b + 1
-            r = (d[i * s, j * s] - _pred(d, s, i, j, P)) // W
+            r = d[i * s, j * s] - _pred(d, s, i, j, P)
             zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
             n += 1
     for a in range(h):
         for b in range(h + 1):
             i, j = i0 + 2 * a + 1, j0 + 2 * b
-            r = (d[i * s, j * s] - _pred(d, s, i, j, P)) // W
+            r = d[i * s, j * s] - _pred(d, s, i, j, P)
             zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
             n += 1
     for a in range(h):
         for b in range(h):
             i, j = i0 + 2 * a + 1, j0 + 2 * b + 1
-            r = (d[i * s, j * s] - _pred(d, s, i, j, P)) // W
+            r = d[i * s, j * s] - _pred(d, s, i, j, P)
             zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
             n += 1
-
-
-@njit(cache=True, nogil=True)
-def top_bins(c, W):
-    """In place on the top tile's codes ``c`` (raster order, flattened): each becomes
-    the previous decoded code plus the multiple of ``W`` nearest its own (the top tile's
-    delta coding with residual bins, as :func:`fill_level`); the first is taken from 0.
-
-    Examples
-    --------
-    >>> c = np.array([5, 6, 9, 9], np.int64)
-    >>> top_bins(c, 3)
-    >>> c.tolist()  # each within 3 // 2 of its code, every step a multiple of 3
-    [6, 6, 9, 9]
-    """
-    prev = 0
-    for k in range(c.size):
-        prev = prev + W * ((c[k] - prev + W // 2) // W)
-        c[k] = prev

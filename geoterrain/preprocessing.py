@@ -211,11 +211,7 @@ def preprocess(
     # the valid heights: NaN elsewhere, which the quantiser ignores
     q = choose_quantizer(heights, r.src_dtype, codec_error=codec_error, scale=r.scale,
                          offset=r.offset)
-    if q.bins > 1:  # residual bins: the heights the pyramid decodes (closed loop)
-        Z = decoded_heights(heights, valid, q, t=grid.t)
-        Z[~valid] = np.nan
-    else:
-        Z = decoded_heights(heights, valid, q)  # NaN where invalid
+    Z = decoded_heights(heights, valid, q)  # NaN where invalid
     hv = Z[valid]
     height_range = [float(hv.min()), float(hv.max())]
     del hv

@@ -12,9 +12,6 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-MAX_BINS = 1 << 20  # the widest residual bin a store may declare
-FINE_STEPS = 16  # a lossy float grid has 16 steps per 2ε; its residual bins are 15 steps
-
 __all__ = ["Quantizer", "choose_quantizer", "codes_to_heights", "heights_to_codes", "roundtrip",
            "valid_codes"]
 
@@ -40,13 +37,6 @@ class Quantizer:
         Guaranteed bound on ``|decoded - z|`` (0 for lossless modes).
     float_bits : int
         Width of the source float in ``"float"`` mode.
-    bins : int
-        Width ``W`` of the codec's residual bins (:mod:`geoterrain.codec`): each decoded
-        code is its prediction plus the multiple of ``W`` nearest the code (SZ3's
-        error-bounded quantisation of the prediction residual), so a decoded code lies
-        within ``W // 2`` of the code. 1 (every lossless store, and stores written
-        before bins): the residuals themselves. ``codec_error`` bounds the sum of that
-        and the code's own rounding.
 
     Examples
     --------
@@ -59,7 +49,6 @@ class Quantizer:
     offset: float = 0.0
     codec_error: float = 0.0
     float_bits: int = 64
-    bins: int = 1
 
     @classmethod
     def from_json(cls, d: dict) -> Quantizer:
@@ -82,10 +71,6 @@ class Quantizer:
             raise ValueError("quantizer step must be > 0")
         if self.float_bits not in (32, 64):
             raise ValueError("float_bits must be 32 or 64")
-        if type(self.bins) is not int or not 1 <= self.bins <= MAX_BINS or (
-                self.mode == "float" and self.bins != 1):
-            raise ValueError(f"quantizer bins must be an integer in [1, {MAX_BINS}] (1 for "
-                             "float mode)")
 
 
 @njit(cache=True, nogil=True)
@@ -161,27 +146,12 @@ def choose_quantizer(
     if lossy:
         v, vmax = _finite_copy(v)  # the finite values (a copy) and max |v|, one pass
         eps = float(codec_error)
-        # float64 rounding of (z - off)/step, q*step and off + q*step: a few ulps of the
-        # magnitudes involved; keep that margin inside ε (seed 000 has no formula).
-        margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))
-        if exact:  # codes stay on the source's own grid; residual bins of W grid steps
-            # the widest W whose decoded heights, offset + (code ± W // 2)·sc in float64,
-            # all stay within ε (a check over the values, not a margin: Terrain-RGB's 0.1 m
-            # grid at ε = 0.5 keeps W = 10)
-            W = min(int(np.floor(2.0 * eps / sc * (1.0 + 1e-9))), MAX_BINS)  # 1.0 // 0.1 = 9
-            while W > 1 and _bins_error(v, sc, off, W // 2) > eps:
-                W -= 1
-            if W > 1:
-                return Quantizer("int", sc, off, eps, bins=W)
-            return Quantizer("int", sc, off, 0.0)
         if offset is None:
             off = float(np.round(_median_in_place(v))) if v.size else 0.0
-            margin = 8.0 * float(np.finfo(np.float64).eps
-                                 * (2.0 * vmax + 2.0 * abs(off) + eps))
-        # a fine grid of FINE_STEPS steps per 2ε, residual bins of FINE_STEPS − 1 steps:
-        # the code's rounding (≤ step/2) and the bin's (≤ (W // 2)·step) stay within ε
-        W = FINE_STEPS - 1
-        step = 2.0 * (eps - margin) / FINE_STEPS
+        # float64 rounding of (z - off)/step, q*step and off + q*step: a few ulps of the
+        # magnitudes involved; shrink the step by that margin (seed 000 has no formula).
+        margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))
+        step = 2.0 * (eps - margin)
         if step <= 0:
             raise ValueError(f"codec_error {eps} is below the float64 resolution of the data")
         for _ in range(8):
@@ -190,10 +160,10 @@ def choose_quantizer(
             err, peak = _roundtrip_error(v, step, off)  # of codes_to_heights(heights_to_codes)
             if peak >= 2.0**62:
                 raise ValueError("heights out of range for the quantizer step")
-            if err + (W // 2) * step <= eps - margin:
+            if err <= eps:
                 break
             step *= 1.0 - 1e-9
-        return Quantizer("quantized", step, off, eps, bins=W)
+        return Quantizer("quantized", step, off, eps)
     bits = 64
     if (dt == np.float32 or dt.kind in "iub" or dt.itemsize <= 4) and f32:
         bits = 32
@@ -245,18 +215,6 @@ def _roundtrip_error(v, step, offset):
         if abs(r) < 2.0**62:
             err = max(err, abs(offset + np.float64(np.int64(r)) * step - x))
     return err, peak
-
-
-@njit(cache=True, nogil=True)
-def _bins_error(v, step, offset, j):
-    """max over ``v`` of |offset + (rint((x − offset)/step) ± j)·step − x|: the worst
-    decoded height of a code moved by up to ``j`` steps (:func:`codes_to_heights`)."""
-    err = 0.0
-    for x in v:
-        k = np.rint((x - offset) / step)
-        for d in (k - j, k + j):
-            err = max(err, abs(offset + np.float64(np.int64(d)) * step - x))
-    return err
 
 
 def heights_to_codes(z: np.ndarray, quantizer: Quantizer) -> np.ndarray:

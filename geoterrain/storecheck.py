@@ -15,7 +15,7 @@ from geoterrain.exceptions import StoreError
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
 from geoterrain.memory import available_memory
-from geoterrain.quantize import MAX_BINS, Quantizer
+from geoterrain.quantize import Quantizer
 
 __all__ = ["check_store", "available_memory"]
 
@@ -102,7 +102,7 @@ def _frame(m: dict, g: Grid) -> Frame:
 
 
 def _quantizer(m: dict) -> Quantizer:
-    fields = {"mode", "step", "offset", "codec_error", "float_bits", "bins"}
+    fields = {"mode", "step", "offset", "codec_error", "float_bits"}
     d = _keys(m.get("quantizer"), fields, {"mode"}, "quantizer")
     if d["mode"] not in ("int", "quantized", "float"):
         raise _Bad("quantizer.mode is unknown")
@@ -111,17 +111,9 @@ def _quantizer(m: dict) -> Quantizer:
     eps = _num(d.get("codec_error", 0.0), "quantizer.codec_error", lo=0.0)
     if d.get("float_bits", 64) not in (32, 64):
         raise _Bad("quantizer.float_bits must be 32 or 64")
-    W = _int(d.get("bins", 1), 1, MAX_BINS, "quantizer.bins")
-    # the bound ε covers the code's rounding (quantized: ≤ step/2) and the residual bin's
-    # (≤ (W // 2)·step), and the bins reach ε (a wider ε would be a different store)
-    rounding = 0.5 if d["mode"] == "quantized" else 0.0
-    if d["mode"] == "float" and W != 1:
-        raise _Bad("a float quantizer has bins 1")
-    if (d["mode"] == "quantized" or W > 1) and not (
-            (rounding + W // 2) * step <= eps * (1 + 1e-9)
-            and eps <= (W // 2 + 1) * step * (1 + 1e-6)):
-        raise _Bad("quantizer.step and bins do not match its codec_error")
-    if d["mode"] != "quantized" and W == 1 and eps != 0:
+    if d["mode"] == "quantized" and not eps < step <= 2 * eps:
+        raise _Bad("quantizer.step does not match its codec_error")
+    if d["mode"] != "quantized" and eps != 0:
         raise _Bad("a lossless quantizer has codec_error 0")
     if d["mode"] == "float" and (step, d.get("offset", 0.0)) != (1.0, 0.0):
         raise _Bad("a float quantizer has step 1 and offset 0")

@@ -544,14 +544,8 @@ def describe_codec(q: Quantizer) -> str:
     """One line saying how heights are coded."""
     if q.mode == "float":
         return f"lossless float{q.float_bits} (bit-exact), residuals + zstd"
-    if q.mode == "int" and q.bins == 1:
-        return f"lossless integer codes × {q.step:g} + {q.offset:g}, residuals + zstd"
     if q.mode == "int":
-        return (f"within ε = {q.codec_error:g}: integer codes × {q.step:g} + {q.offset:g}, "
-                f"residual bins of {q.bins} + zstd")
-    if q.bins > 1:
-        return (f"within ε = {q.codec_error:g}: step {q.step:.6g}, residual bins of "
-                f"{q.bins} + zstd")
+        return f"lossless integer codes × {q.step:g} + {q.offset:g}, residuals + zstd"
     return f"quantised to ε = {q.codec_error:g} (step {q.step:.6g}), residuals + zstd"
 
 

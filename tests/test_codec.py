@@ -17,7 +17,6 @@ from geoterrain.codec import (
     tile_valid,
 )
 from geoterrain.quantize import (
-    FINE_STEPS,
     Quantizer,
     choose_quantizer,
     codes_to_heights,
@@ -86,17 +85,13 @@ def check_pyramid(z, valid, t, qz, codec_error=0.0, predictor="auto"):
     assert cov0[valid].all()
     h = codes_to_heights(g0, qz)
     hv = h[valid]
-    if qz.mode == "quantized" or qz.bins > 1:  # lossy: within ε of the source
+    if qz.mode == "quantized":
         assert np.all(np.abs(hv - z[valid]) <= codec_error)
     else:
         assert np.array_equal(hv.view(np.int64), z[valid].view(np.int64))  # bit-exact
-    if qz.bins == 1:  # valid samples decode whatever the pyramid
-        dh = decoded_heights(z, valid, qz)
-        assert np.array_equal(dh[valid], hv)
-        assert np.all(np.isnan(dh[~valid]))
-    else:  # residual bins: through the pyramid only
-        with pytest.raises(ValueError, match="give t"):
-            decoded_heights(z, valid, qz)
+    dh = decoded_heights(z, valid, qz)
+    assert np.array_equal(dh[valid], hv)
+    assert np.all(np.isnan(dh[~valid]))
     dht = decoded_heights(z, valid, qz, t=t, predictor=predictor)
     assert np.array_equal(dht[cov0], h[cov0], equal_nan=True)
     return blobs
@@ -236,18 +231,8 @@ def test_quantized_bound_hypothesis(base, eps, seed):
 
 def test_int_source_with_small_eps_stays_lossless():
     z = np.arange(25.0).reshape(5, 5)
-    assert choose_quantizer(z, np.int16, codec_error=0.4) == Quantizer("int")
-    # a larger ε keeps the integer codes and widens the residual bins (W // 2 ≤ ε)
-    assert choose_quantizer(z, np.int16, codec_error=2.0) == Quantizer("int", 1.0, 0.0, 2.0,
-                                                                        bins=4)
-    # Terrain-RGB's 0.1 m grid at ε = 1: bins of 20 steps unless a float64 decode of a
-    # code moved by 10 steps lands an ulp past ε (then 19); every decode within ε
-    zt = z * 0.1 - 10000
-    q = choose_quantizer(zt, np.float64, codec_error=1.0, scale=0.1, offset=-10000.0)
-    assert q.mode == "int" and q.bins in (19, 20)
-    k = heights_to_codes(zt, q)
-    for j in (-(q.bins // 2), q.bins // 2):
-        assert np.all(np.abs(codes_to_heights(k + j, q) - zt) <= 1.0)
+    assert choose_quantizer(z, np.int16, codec_error=0.4).mode == "int"
+    assert choose_quantizer(z, np.int16, codec_error=2.0).mode == "quantized"
 
 
 # ----------------------------------------------------------------------------- access
@@ -425,15 +410,13 @@ def test_the_lossy_quantiser_is_the_numpy_one(seed, n, eps, mag):
     off = float(np.round(np.median(v)))
     vmax = float(np.max(np.abs(v)))
     margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))
-    W = FINE_STEPS - 1  # a fine grid, residual bins of W steps: both roundings within ε
-    step = 2.0 * (eps - margin) / FINE_STEPS
+    step = 2.0 * (eps - margin)
     for _ in range(8):
-        qz = Quantizer("quantized", step, off, eps, bins=W)
-        err = float(np.max(np.abs(codes_to_heights(heights_to_codes(v, qz), qz) - v)))
-        if err + (W // 2) * step <= eps - margin:
+        qz = Quantizer("quantized", step, off, eps)
+        if float(np.max(np.abs(codes_to_heights(heights_to_codes(v, qz), qz) - v))) <= eps:
             break
         step *= 1.0 - 1e-9
-    assert (q.mode, q.step, q.offset, q.bins) == ("quantized", step, off, W)
+    assert (q.mode, q.step, q.offset) == ("quantized", step, off)
 
 
 @settings(max_examples=60, deadline=None)
@@ -452,23 +435,3 @@ def test_pack_symbols_is_the_numpy_packing(seed, n, k, lead):
     packed, esc = _pack_symbols(zz, k)
     assert packed.tobytes() == want.tobytes() and packed.shape == want.shape
     np.testing.assert_array_equal(esc, (zz >= m).sum(axis=-1))
-
-
-@settings(max_examples=30, deadline=None)
-@given(seed=st.integers(0, 2**31), eps=st.sampled_from([0.5, 1.0, 2.0, 5.0]),
-       grid=st.sampled_from(["int16", "tenths"]), t=st.integers(1, 3),
-       predictor=st.sampled_from(["linear", "cubic"]), smooth=st.booleans())
-def test_residual_bins_on_an_integer_grid(seed, eps, grid, t, predictor, smooth):
-    """Codes on the source's own grid, residual bins of W steps (SZ3's error-bounded
-    quantisation of the prediction residual): every tile decodes alone to the closed
-    loop's codes, each within ε of its source height, with nodata holes."""
-    z = fractal(33, seed, 300.0 if smooth else 3000.0)
-    if grid == "int16":
-        z, sc, off, dtype = np.round(z), None, None, np.int16
-    else:  # Terrain-RGB's 0.1 m grid
-        z, sc, off, dtype = np.round(z * 10) / 10 - 10000.0, 0.1, -10000.0, np.float64
-        z = -10000.0 + np.round((z + 10000.0) / 0.1) * 0.1
-    valid = np.random.default_rng(seed).random(z.shape) > 0.05
-    qz = choose_quantizer(z[valid], dtype, codec_error=eps, scale=sc, offset=off)
-    assert qz.mode == "int" and qz.bins * (sc or 1.0) <= 2 * eps * (1 + 1e-9)
-    check_pyramid(z, valid, t, qz, codec_error=eps, predictor=predictor)
