@@ -171,12 +171,8 @@ class TerrainScene:
             mesh.points = vtex.points
             mesh.faces = np.hstack([np.full((len(vtex.faces), 1), 3, np.int64),
                                     vtex.faces]).ravel()
-            # VTK's row 0 is the bottom (v = 0): the atlas goes in as it is, top row
-            # first, without a copy, and the texture coordinates are flipped instead
-            tc = vtex.tcoords.copy()
-            tc[:, 1] = 1.0 - tc[:, 1]
-            mesh.active_texture_coordinates = tc
-            self.texture.SetInputDataObject(_image_data(vtex.image))
+            mesh.active_texture_coordinates = vtex.tcoords  # VTK's v (ViewTexture)
+            self.texture.SetInputDataObject(_image_data(vtex.image))  # shared, not copied
             self.texture_stats = dict(vtex.stats)
             for k in ("level", "skirt"):  # faces keep their order: cell data carries over
                 if k in src.cell_data:
@@ -276,12 +272,9 @@ class TerrainScene:
 
 
 def _image_data(img: np.ndarray):
-    """A vtkImageData sharing (not copying) a C-contiguous (H, W, 3) uint8 ``img``.
-
-    VTK puts row 0 at v = 0, the bottom: a caller whose row 0 is the top flips its v
-    texture coordinates instead of the image, and leaves ``img`` unchanged while it
-    is shown.
-    """
+    """A vtkImageData sharing (not copying) a C-contiguous (H, W, 3) uint8 ``img``, its
+    row 0 at v = 0 (as :class:`geoterrain.tiletextures.ViewTexture` maps it); ``img``
+    must stay unchanged while it is shown."""
     from vtkmodules.util.numpy_support import numpy_to_vtk
     from vtkmodules.vtkCommonDataModel import vtkImageData
 

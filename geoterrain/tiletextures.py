@@ -73,8 +73,9 @@ class ViewTexture:
 
     ``points`` (V', 3), ``faces`` (F, 3) into them, ``tcoords`` (V', 2) float32,
     ``source`` (V',) the selection vertex each point copies, ``image`` (H, W, 3) uint8
-    (row 0 at the top, VTK's v = 1), ``stats`` (textures_built, texture_tiles, pages,
-    atlas, texture_ms).
+    (read-only; row r of the image at v = (r + 0.5) / H, so VTK, whose row 0 is v = 0,
+    shows it as it is, without a flipped copy), ``stats`` (textures_built,
+    texture_tiles, pages, atlas, texture_ms).
     """
 
     points: np.ndarray
@@ -343,7 +344,7 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     row = ay[pg] + GUTTER + (ij[src, 0] - gY[pg] * span) / scale
     tc = np.empty((len(src), 2), np.float32)
     tc[:, 0] = (col + 0.5) / AW
-    tc[:, 1] = 1.0 - (row + 0.5) / AH
+    tc[:, 1] = (row + 0.5) / AH  # VTK's v: the image's row 0 at v = 0 (see ViewTexture)
     atlas.setflags(write=False)  # shown by VTK without a copy (rendering._image_data)
     st = {**counter, "texture_tiles": n_tiles, "textures_deferred": deferred, "pages": G,
           "atlas": [int(AW), int(AH)],

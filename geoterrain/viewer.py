@@ -310,10 +310,6 @@ class ViewerController:
             self._iren.interactor.DestroyTimer(self._busy_timer)
             self._busy_timer = None
 
-    def _on_timer(self, *_args) -> None:
-        """The window's timer event (the idle timer or the busy one)."""
-        self.poll()
-
     def _motion(self) -> None:
         """The camera moves: draw without multisampling (about half the software
         renderer's draw time at 1280×720) until it rests."""
@@ -546,7 +542,7 @@ class ViewerController:
         if p.iren is not None and not p.off_screen:
             p.iren.add_observer("EndInteractionEvent", self.poll)
             self._iren = p.iren
-            p.iren.add_observer("TimerEvent", self._on_timer)
+            p.iren.add_observer("TimerEvent", self.poll)  # the idle timer or the busy one
             idle = POLL_MS if self._executor is not None else self.poll_ms
             p.iren.create_timer(int(idle), repeating=True)
 
