@@ -1,13 +1,14 @@
 """GeoMipMapping's δ_n: each block's exact value (the store's block table) against the
 covering level-n tile's error (the bound stores without the table fall back to), on the
-same views in the same run, with chunked beside them (a script, not a test).
+same views in the same run, and with morphing on (continuous block levels), with chunked
+beside them (a script, not a test).
 
 Each configuration runs ``geoterrain.bench.run`` over its built-in 6-view flight on a
 freshly opened store; "tile bound" hides the table (``Terrain.block_errors`` → None), so
 ``geomipmap`` takes the covering tiles' errors as it does on an older store. ρ is
 measured by :func:`geoterrain.measure.screen_space_error`, independently of the
-selection. The two δ_n modes alternate (each first in every other run), ``--runs``
-times each; triangle counts are exact, select times are medians over every run and view.
+selection. The three geomipmap modes rotate (each first in turn), ``--runs`` times each;
+triangle counts are exact, select times are medians over every run and view.
 
 Usage: ``PYTHONPATH=. python benchmarks/bench_geomipmap.py STORE [STORE ...]
 [--taus 1,2,4] [--views 6] [--runs 2]``
@@ -22,11 +23,14 @@ from pathlib import Path
 import geoterrain
 from geoterrain import bench
 from geoterrain.lod import geomipmap
+from geoterrain.lod.switches import geomorphing
+
+MODES = ("tile bound", "exact", "exact, morph")
 
 
 def run(store: str, mode: str, taus: tuple[float, ...], views: int) -> list[dict]:
-    """bench rows of one configuration: ``exact``, ``tile bound`` or ``chunked``."""
-    with geoterrain.open(store) as t:
+    """bench rows of one configuration: one of ``MODES`` or ``chunked``."""
+    with geoterrain.open(store) as t, geomorphing(mode.endswith("morph")):
         if mode == "tile bound":
             t.block_errors = lambda: None  # as a store written before the table
         geomipmap._TABLES.clear()
@@ -46,12 +50,12 @@ def main(argv=None) -> None:
     print("|---|---|---|---|---|---|")
     for store in a.stores:
         rows: dict[str, list[dict]] = {}
-        for k in range(a.runs):  # alternating, each mode first in every other run
-            for mode in (("tile bound", "exact"), ("exact", "tile bound"))[k % 2]:
+        for k in range(a.runs):  # rotating, each mode first in turn
+            for mode in MODES[k % 3:] + MODES[:k % 3]:
                 rows.setdefault(mode, []).extend(run(store, mode, taus, a.views))
         rows["chunked"] = run(store, "chunked", taus, a.views)
         for tau in taus:
-            for mode in ("tile bound", "exact", "chunked"):
+            for mode in (*MODES, "chunked"):
                 rs = [r for r in rows[mode] if r["tau"] == tau]
                 name = "(chunked)" if mode == "chunked" else mode
                 print(f"| {Path(store).name} | {tau:g} | {name} | "

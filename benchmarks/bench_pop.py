@@ -8,8 +8,9 @@ nothing of the selection); ``rho`` the measured screen-space error; both use the
 full-resolution heights. ``cdlod-nomorph`` is cdlod's selection with k snapped from 0 to
 1 at each range (``morph=False``): the same ranges, no slide. ``rtin-morph`` is rtin with
 seed 002's geomorphing (``morph=True``), ``chunked-morph`` chunked LOD morphing each chunk
-to its parent. Pop is counted at the samples in view in both
-frames, and horizon culling is off (a hidden sample's surface may change unseen).
+to its parent, ``geomipmap-morph`` trilinear geomipmapping with continuous block levels.
+Pop is counted at the samples in view in both frames, and horizon culling is off (a
+hidden sample's surface may change unseen).
 
 Run from the project root::
 
@@ -34,7 +35,7 @@ import geoterrain  # noqa: E402
 from geoterrain import lod  # noqa: E402
 from geoterrain.bench import extent, glide  # noqa: E402
 from geoterrain.lod import cdlod  # noqa: E402
-from geoterrain.lod.switches import set_occlusion  # noqa: E402
+from geoterrain.lod.switches import occlusion_culling  # noqa: E402
 from geoterrain.measure import screen_space_change, screen_space_error  # noqa: E402
 
 
@@ -51,7 +52,7 @@ def select(t, view, tau, name):
     t0 = time.perf_counter()
     if name == "cdlod-nomorph":
         mesh, _ = cdlod.select(t, view, tau, morph=False)
-    elif name.endswith("-morph"):  # rtin-morph, chunked-morph
+    elif name.endswith("-morph"):  # rtin-morph, chunked-morph, geomipmap-morph
         mesh = lod.select(t, view, tau, name[:-len("-morph")], reuse=False, morph=True).mesh
     else:
         mesh = lod.select(t, view, tau, name, reuse=False).mesh
@@ -65,10 +66,15 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--strategies",
-                    default="cdlod,cdlod-nomorph,rtin,rtin-morph,chunked,chunked-morph")
+                    default="cdlod,cdlod-nomorph,rtin,rtin-morph,chunked,chunked-morph,"
+                            "geomipmap,geomipmap-morph")
     a = ap.parse_args()
     # every sample in view counts, hidden ones too: the LOD's own popping, no culling
-    set_occlusion(False)
+    with occlusion_culling(False):
+        run(a)
+
+
+def run(a) -> None:
     size = tuple(int(v) for v in a.size.split("x"))
     t = geoterrain.open(a.store)
     X, Y, Z = t.scene_xyz()

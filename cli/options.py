@@ -133,8 +133,8 @@ morph_option = click.option(
     "--morph/--no-morph", default=None, expose_value=False, callback=_set_morphing,
     help="Geomorph: a vertex slides into place instead of popping as the camera moves "
          "(rtin: it appears at 0.75 τ, costing triangles; chunked: a chunk slides from "
-         "its parent's surface; cdlod: its own ranges). "
-         "Default: rtin and chunked off, cdlod on.")
+         "its parent's surface; geomipmap: each block slides between its levels; "
+         "cdlod: its own ranges). Default: rtin, chunked and geomipmap off, cdlod on.")
 
 
 pixel_error_option = click.option(

@@ -280,14 +280,16 @@ def screen_error(c: Case, sel, view: View):
 
 @given(data=st.data(), az=st.floats(0, 2 * np.pi), el=st.floats(0.05, 1.5),
        dist=st.floats(0.05, 3.0), tx=st.floats(-1, 1), ty=st.floats(-1, 1),
-       tau=st.sampled_from([0.5, 1.0, 4.0]), strategy=st.sampled_from(STRATEGIES))
+       tau=st.sampled_from([0.5, 1.0, 4.0]), strategy=st.sampled_from(STRATEGIES),
+       morph=st.booleans())
 def test_screen_space_error_is_at_most_tau(terrains, data, az, el, dist, tx, ty, tau,
-                                           strategy):
+                                           strategy, morph):
     c = data.draw(st.sampled_from(terrains), label="terrain")
     view = random_view(c, az, el, dist, tx, ty)
     # the strategy's own bound, at every sample in the frustum: no horizon culling
-    # (tests/test_occlusion.py checks ρ ≤ τ at the visible samples with it)
-    sel = c.t.select(view, tau, strategy, occlusion=False)
+    # (tests/test_occlusion.py checks ρ ≤ τ at the visible samples with it); morphing on
+    # and off for the strategies that morph (the others ignore it)
+    sel = c.t.select(view, tau, strategy, occlusion=False, morph=morph)
     err = screen_error(c, sel, view)
     info = strategy_info(strategy)
     assert not info.bounded or err.max <= tau * SLACK, (err, sel.stats)

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from geoterrain.lod.geomipmap import strip_ranges, template
+from geoterrain.lod.geomipmap import strip_bounds, template
 from geoterrain.lod.quadtree import _paint, _restrict
 
 
@@ -43,15 +43,46 @@ def test_stitch_templates_tile_the_block_and_keep_only_coarse_edge_vertices():
                 assert (on == (along % ratios[q] == 0)).all(), (K, ratios, q)
 
 
-def test_strip_ranges_bound_each_segment():
+def test_strip_bounds_bound_each_segment():
+    """r ≥ 4: the segment's height range (rows 0–1 over r + 1 columns); r = 2: the
+    largest distance of an omitted edge vertex from its neighbours' midpoint; inf where a
+    segment holds no-data."""
     rng = np.random.default_rng(0)
     Z = rng.random((3, 9, 9))
-    B = strip_ranges(Z, 4)
-    for r, k in ((2, 1), (4, 2), (8, 3)):
+    B = strip_bounds(Z, 4)
+    for r, k in ((4, 2), (8, 3)):
         want = max(np.ptp(Z[:, 0:2, u:u + r + 1], axis=(1, 2)).max() for u in range(0, 8, r))
         assert B[:, 0, k].max() == want
+    want = np.abs(Z[:, 0, 1::2] - 0.5 * (Z[:, 0, 0:-1:2] + Z[:, 0, 2::2])).max(1)
+    assert np.allclose(B[:, 0, 1], want)
     Z[1, 0, 3] = np.nan
-    assert np.isinf(strip_ranges(Z, 4)[1, 0, 1]) and np.isfinite(strip_ranges(Z, 4)[0, 0, 1])
+    assert np.isinf(strip_bounds(Z, 4)[1, 0, 1]) and np.isfinite(strip_bounds(Z, 4)[0, 0, 1])
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10**6), st.sampled_from([2, 4, 8, 16]), st.integers(0, 3),
+       st.sampled_from([2, 4]))
+def test_a_stitched_strip_moves_the_surface_by_at_most_its_bound(seed, K, e, r):
+    """Rasterised on a 4× finer lattice, the block stitched at ratio r on edge e differs
+    from its plain union-jack surface by at most strip_bounds' B (and at r = 2 by exactly
+    B: the bound is attained at the omitted vertex)."""
+    from geoterrain.measure import mesh_heights_on_grid
+
+    if r > K:
+        return
+    Z = np.random.default_rng(seed).normal(0, 10, (1, K + 1, K + 1))
+    a, b = np.meshgrid(np.arange(K + 1), np.arange(K + 1), indexing="ij")
+    ij = np.stack([a.ravel() * 4, b.ravel() * 4], 1)
+    shape = (4 * K + 1, 4 * K + 1)
+    ratios = tuple(r if q == e else 1 for q in range(4))
+    h0, ok0 = mesh_heights_on_grid(ij, template(K, (1, 1, 1, 1)), Z.ravel(), shape)
+    h1, ok1 = mesh_heights_on_grid(ij, template(K, ratios), Z.ravel(), shape)
+    assert ok0.all() and ok1.all()
+    B = strip_bounds(Z, int(K).bit_length())[0, e, r.bit_length() - 1]
+    diff = np.abs(h1 - h0).max()
+    assert diff <= B * (1 + 1e-9) + 1e-9
+    if r == 2:
+        assert diff >= B * (1 - 1e-9) - 1e-9
 
 
 @given(st.lists(st.tuples(st.integers(0, 4), st.floats(0, 1), st.floats(0, 1)), max_size=6))

@@ -122,23 +122,25 @@ def check_view(t, view: View, strategies=STRATEGIES, taus=TAUS, conforming=True)
     d = np.sqrt((X - view.eye[0]) ** 2 + (Y - view.eye[1]) ** 2 + (Zt - view.eye[2]) ** 2)
     dmin = float(d[inside].min()) if inside.any() else 1.0
     slack_px = view.lam * z_roundoff(Z) / max(dmin, 1e-300)
-    for strategy in strategies:
-        for tau in taus:
-            # ρ ≤ τ at every sample in the frustum: no horizon culling here (with it, at
-            # the visible samples: tests/test_occlusion.py)
-            sel = t.select(view, pixel_error=tau, strategy=strategy, occlusion=False)
-            check_finite_stats(sel.stats)
-            ij, faces, vz = mesh_parts(sel)
-            e = screen_space_error(ij, faces, vz, X, Y, Zt, valid, view.eye, view.planes,
-                                   view.lam)
-            assert math.isfinite(e.max), f"{strategy} τ={tau}: error {e.max}"
-            info = strategy_info(strategy)
-            assert not info.bounded or e.max <= tau * (1 + REL) + slack_px, (
-                f"{strategy} τ={tau}: measured {e.max} px > τ (view {view})")
-            if e.n_uncovered:
-                check_holes(view, tau, ij, faces, vz, X, Y, Zt, valid, strategy)
-            if info.conforming and conforming:
-                check_conforming(t, ij, faces, vz)
+    runs = [(s, tau, m) for s in strategies for tau in taus
+            for m in ((False, True) if strategy_info(s).morphs else (None,))]
+    for strategy, tau, morph in runs:
+        # ρ ≤ τ at every sample in the frustum: no horizon culling here (with it, at
+        # the visible samples: tests/test_occlusion.py); morphing off and on
+        sel = t.select(view, pixel_error=tau, strategy=strategy, occlusion=False,
+                       morph=morph)
+        check_finite_stats(sel.stats)
+        ij, faces, vz = mesh_parts(sel)
+        e = screen_space_error(ij, faces, vz, X, Y, Zt, valid, view.eye, view.planes,
+                               view.lam)
+        assert math.isfinite(e.max), f"{strategy} τ={tau} morph={morph}: error {e.max}"
+        info = strategy_info(strategy)
+        assert not info.bounded or e.max <= tau * (1 + REL) + slack_px, (
+            f"{strategy} τ={tau} morph={morph}: measured {e.max} px > τ (view {view})")
+        if e.n_uncovered:
+            check_holes(view, tau, ij, faces, vz, X, Y, Zt, valid, strategy)
+        if info.conforming and conforming:
+            check_conforming(t, ij, faces, vz)
 
 
 def check_holes(view, tau, ij, faces, vz, X, Y, Z, valid, strategy) -> None:

@@ -120,9 +120,10 @@ def select(terrain, view: View, pixel_error: float = 1.0, strategy: str = DEFAUL
         (:mod:`geoterrain.lod.occlusion`); None keeps the current setting (on unless
         switched off with :func:`occlusion_culling`).
     morph : geomorph, for the strategies that can (rtin: seed 002's band 0.75 τ … τ;
-        chunked: each chunk to its parent over the same band; cdlod: seed 001's ranges);
-        None keeps the current setting (each strategy's default, rtin and chunked off,
-        cdlod on, unless :func:`geomorphing` chose).
+        chunked: each chunk to its parent over the same band; geomipmap: continuous
+        block levels, seed 000's trilinear geomipmapping; cdlod: seed 001's ranges);
+        None keeps the current setting (each strategy's default, rtin, chunked and
+        geomipmap off, cdlod on, unless :func:`geomorphing` chose).
 
     Examples
     --------

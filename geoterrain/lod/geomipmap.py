@@ -22,11 +22,16 @@
   triangles of that edge's border strip as fans onto the kept vertices. Every other
   triangle is the union-jack surface, so the mesh is conforming (no T-junction, no
   edge used more than twice). A fan changes the surface only inside its strip
-  (between the edge and the first inner row, over the r cells of a kept segment),
-  where the fan and S_n both interpolate level-n samples of that strip segment: the
-  change is at most the segment's height range B. When λ·(δ_n + B)/D_min > τ the
+  (between the edge and the first inner row, over the r cells of a kept segment), by at
+  most B (:func:`strip_bounds`: at r = 2 the largest distance of an omitted edge vertex
+  from its neighbours' midpoint, as the fan is S_n with those vertices snapped onto the
+  edge; at r ≥ 4 the segment's height range). When λ·(δ_n + B)/D_min > τ the
   coarser neighbour is refined until it holds (at ratio 1 there is no fan), so the
   bound survives stitching.
+
+- **Geomorphing** (``morph=True``, off by default): trilinear geomipmapping with
+  continuous block levels, :mod:`geoterrain.lod.geomipmap_morph`; the same templates,
+  ratio 2 at most, each block's vanishing vertices slid towards its next level.
 
 Every block's triangles come from index templates cached per (size, the four
 neighbour ratios); the blocks are assembled on whole arrays.
@@ -38,8 +43,11 @@ import weakref
 
 import numpy as np
 
+from geoterrain.lod import geomipmap_morph as gm
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
+from geoterrain.lod.morph import MORPH_START
 from geoterrain.lod.occlusion import hidden_rows
+from geoterrain.lod.switches import morphing_enabled
 from geoterrain.lod.tiles import (
     TileIndex,
     quadtree_leaves,
@@ -141,6 +149,18 @@ class Tables:
         delta[:, 0] = 0.0  # level 0 is the data itself
         # seed 000 §2.4: a switch to n is refused past τ for δ = max{δ_0 … δ_n}
         self.delta = np.maximum.accumulate(delta, axis=1)
+        self.rows, self.xy = blocks, xy
+        # each block's neighbour across each edge (−1: none stored), and the δ that bounds
+        # an edge vertex's move per level: the smaller of the two blocks' (both hold it)
+        nt = g.tiles_per_side(0)
+        grid = np.full((nt + 2, nt + 2), -1, np.int64)
+        grid[xy[:, 1] + 1, xy[:, 0] + 1] = np.arange(len(blocks))
+        self.neighbour = np.stack([grid[xy[:, 1] + 1 + dy, xy[:, 0] + 1 + dx]
+                                   for dx, dy in _NEIGHBOUR], 1)
+        other = self.delta[np.maximum(self.neighbour, 0)]
+        self.edge_delta = np.where((self.neighbour >= 0)[..., None],
+                                   np.minimum(self.delta[:, None, :], other),
+                                   self.delta[:, None, :])
 
 
 def tables(terrain, index: TileIndex) -> Tables:
@@ -174,16 +194,25 @@ def _block_grids(terrain, index: TileIndex, xy: np.ndarray, n: int
     return np.stack([i, j], -1), xyz
 
 
-def strip_ranges(Z: np.ndarray, nlev: int) -> np.ndarray:
-    """B (Nb, 4, nlev): per block, edge and k = log₂ r, the largest height range of the
-    level samples of one border-strip segment (rows 0–1 over r + 1 columns); inf where
-    a segment holds no-data (never stitched), 0 for k = 0 and NaN where r > K.
+def strip_bounds(Z: np.ndarray, nlev: int) -> np.ndarray:
+    """B (Nb, 4, nlev): per block, edge and k = log₂ r, a bound of how far stitching the
+    border strip at ratio r moves the block's surface S_n; inf where a segment holds
+    no-data (never stitched), 0 for k = 0 and NaN where r > K.
+
+    - r = 2: a fan is S_n with each omitted edge vertex moved onto the segment between
+      its neighbours (the two union-jack triangles at it are then coplanar with the
+      fan's), so the change is at most max |z_v − (z_{v−1} + z_{v+1})/2| (a hat
+      function is ≤ 1): second order in the heights;
+    - r ≥ 4: the fan and S_n both interpolate the segment's level samples (rows 0–1 over
+      r + 1 columns), so the change is at most their height range.
 
     Examples
     --------
-    >>> Z = np.arange(9.0).reshape(1, 3, 3)
-    >>> strip_ranges(Z, 2)[0, 0].tolist()  # top strip: rows 0-1, columns 0-2
-    [0.0, 5.0]
+    >>> Z = np.arange(9.0).reshape(1, 3, 3)  # a plane: stitching at r = 2 changes nothing
+    >>> strip_bounds(Z, 2)[0, 0].tolist()
+    [0.0, 0.0]
+    >>> strip_bounds(Z * Z, 2)[0, 0].tolist()  # z = (3i + j)²: row 0 is 0, 1, 4
+    [0.0, 1.0]
     """
     Nb, K1, _ = Z.shape
     K = K1 - 1
@@ -199,7 +228,12 @@ def strip_ranges(Z: np.ndarray, nlev: int) -> np.ndarray:
                 break
             shi = np.maximum(hi[:, :K].reshape(Nb, K // r, r).max(-1), hi[:, r::r])
             slo = np.minimum(lo[:, :K].reshape(Nb, K // r, r).min(-1), lo[:, r::r])
-            out[:, e, k] = np.nan_to_num((shi - slo).max(-1), nan=np.inf)
+            seg = shi - slo  # per segment, NaN where it holds no-data
+            if k == 1:
+                z = s[:, 0, :]
+                seg = np.where(np.isnan(seg), np.nan,
+                               np.abs(z[:, 1::2] - 0.5 * (z[:, 0:-1:2] + z[:, 2::2])))
+            out[:, e, k] = np.nan_to_num(seg.max(-1), nan=np.inf)
     return out
 
 
@@ -247,7 +281,9 @@ def visible_blocks(terrain, view: View) -> tuple:
 
 
 def select(terrain, view: View, tau: float, rule: str = "error"):
-    """The GeoMipMapping mesh of ``view`` at pixel tolerance ``tau``, and its stats.
+    """The GeoMipMapping mesh of ``view`` at pixel tolerance ``tau``, and its stats;
+    geomorphed (:mod:`geoterrain.lod.geomipmap_morph`) when morphing is on and the rule
+    is ``error`` (the distance rule gives no bound to morph within, so it never morphs).
 
     Examples
     --------
@@ -259,6 +295,8 @@ def select(terrain, view: View, tau: float, rule: str = "error"):
     if not len(leaves):
         return empty_polydata(), stats
     tb = tables(terrain, index)
+    if rule == "error" and morphing_enabled():
+        return _select_morphed(terrain, index, tb, view, tau, leaves, stats)
     delta = tb.delta[tb.pos[leaves]]
     xy = index.keys[leaves, 1:]  # (x, y)
     n, dmin = choose_levels(view, tau, delta, index.lo[leaves], index.hi[leaves], rule)
@@ -292,7 +330,7 @@ def _stitch(terrain, index, view, tau, xy, n, delta, dmin, nmax, bounded=True):
             _, xyz = _block_grids(terrain, index, xy[sel], lv)
             K = 1 << (terrain.grid.t - lv)
             Z = xyz[..., 2].reshape(len(sel), K + 1, K + 1)
-            rng[sel, lv] = strip_ranges(Z, nmax + 1)
+            rng[sel, lv] = strip_bounds(Z, nmax + 1)
         R = rng[rows, n]  # (B, 4, nmax+1)
         with np.errstate(invalid="ignore", over="ignore"):
             fits = lam * (delta[rows, n][:, None, None] + R) <= tau * dmin[:, None, None]
@@ -310,9 +348,63 @@ def _stitch(terrain, index, view, tau, xy, n, delta, dmin, nmax, bounded=True):
     return np.where(k > 0, 1 << k, 1), int((k > 0).sum())
 
 
-def _assemble(terrain, index, xy, n, ratios):
+def _select_morphed(terrain, index, tb, view, tau, leaves, stats):
+    """The geomorphed mesh: continuous levels for every stored block, restricted so
+    that neighbours' stitching keeps the bound, drawn blocks morphed at their level."""
+    g = terrain.grid
+    M, lam = tb.nmax, view.lam
+    dmin = view.box_distance(index.lo[tb.rows], index.hi[tb.rows])
+    ell = gm.continuous_levels(tb.delta, dmin, lam, tau)
+    slack = tau * dmin / lam - gm.blend_error(tb.delta, ell)
+    kappa = (gm.neighbour_allowance(tb.delta, tb.edge_delta, ell, slack) if M
+             else np.ones((len(ell), 4)))
+    nt = g.tiles_per_side(0)
+    x, y = tb.xy[:, 0], tb.xy[:, 1]
+    present = np.zeros((nt, nt), bool)
+    present[y, x] = True
+    E, Kp = np.full((nt, nt), np.inf), np.zeros((nt, nt, 4))
+    E[y, x], Kp[y, x] = ell, kappa
+    L = gm.restrict(E, Kp, present)[y, x]
+    # grid levels, restricted as integers too (L differs by ≤ 1 between neighbours, but
+    # floor(L + 1) can round to one more); t then takes up the difference
+    nb = tb.neighbour
+    n = np.clip(np.floor(L).astype(np.int64), 0, M)
+    for _ in range(M + 1):
+        up = np.where(nb >= 0, n[np.maximum(nb, 0)] + 1, M).min(1)
+        if (up >= n).all():
+            break
+        n = np.minimum(n, up)
+    t = np.where(n >= M, 0.0, np.clip(L - n, 0.0, 1.0))
+    bi = tb.pos[leaves]
+    xy, nd, td = tb.xy[bi], n[bi], t[bi]
+    nbd = nb[bi]
+    has = nbd >= 0
+    Lnb = np.where(has, L[np.maximum(nbd, 0)], -np.inf)
+    nn = np.where(has, n[np.maximum(nbd, 0)], -1)
+    coarser = nn > nd[:, None]  # a ratio-2 stitch (never more: restricted)
+    ratios = np.where(coarser, 2, 1)
+    # each edge at the larger of its blocks' levels (Wagner: the neighbours' factors)
+    rel = np.maximum(L[bi][:, None], Lnb) - nd[:, None]
+    rel = np.clip(rel, 0.0, np.where(coarser, 2.0, 1.0))
+
+    def heights(sel, lv, K, Z):
+        if K < 2:
+            return Z
+        return gm.morph_block_heights(Z, td[sel], rel[sel],
+                                      gm.next_level_diagonals(xy[sel], K))
+
+    mesh = _assemble(terrain, index, xy, nd, ratios, heights)
+    stats.update(blocks=len(leaves), stitched_edges=int(coarser.sum()),
+                 mean_level=float(nd.mean()), morphing_blocks=int((td > 0).sum()),
+                 morph_band=(MORPH_START * tau, tau),
+                 refined_by_neighbours=int((L[bi] < ell[bi] - 1e-12).sum()))
+    return mesh, stats
+
+
+def _assemble(terrain, index, xy, n, ratios, heights=None):
     """One mesh of every block at its level with its stitching template (whole arrays
-    per (level, template) group)."""
+    per (level, template) group); ``heights(sel, level, K, Z)`` may reshape the heights
+    Z (B, K+1, K+1) of the group's blocks ``sel`` (geomorphing)."""
     g = terrain.grid
     ijs, xyzs, faces, level = [], [], [], []
     off = 0
@@ -325,6 +417,9 @@ def _assemble(terrain, index, xy, n, ratios):
         K = 1 << (g.t - lv)
         f = template(K, tuple(kv[1:5]), kv[5])
         ij, xyz = _block_grids(terrain, index, xy[sel], lv)
+        if heights is not None:
+            z = heights(sel, lv, K, xyz[..., 2].reshape(len(sel), K + 1, K + 1))
+            xyz[..., 2] = z.reshape(len(sel), -1)
         V = (K + 1) ** 2
         ijs.append(ij.reshape(-1, 2))
         xyzs.append(xyz.reshape(-1, 3))

@@ -34,7 +34,8 @@ class StrategyInfo:
 
     ``bounded``: the measured screen-space error ρ of its meshes is ≤ τ (tested);
     ``tau_independent``: the mesh does not depend on τ (a benchmark selects it once);
-    ``conforming``: no T-junction and no edge used by more than two triangles (tested).
+    ``conforming``: no T-junction and no edge used by more than two triangles (tested);
+    ``morphs``: it geomorphs when morphing is on (``--morph``), keeping its bound.
     """
 
     name: str
@@ -43,6 +44,7 @@ class StrategyInfo:
     bounded: bool
     tau_independent: bool = False
     conforming: bool = False
+    morphs: bool = False
 
     def load(self) -> Callable:
         """The strategy's ``select(terrain, view, tau) -> (mesh, stats)`` (imports it)."""
@@ -52,15 +54,16 @@ class StrategyInfo:
 _ENTRIES = (
     StrategyInfo("rtin", "geoterrain.lod.rtin",
                  "Lindstrom–Pascucci vertex refinement with nested spheres (seed 002)", True,
-                 conforming=True),
+                 conforming=True, morphs=True),
     StrategyInfo("chunked", "geoterrain.lod.chunked",
-                 "stored tile quadtree with skirts (seed 000 chunked LOD)", True),
+                 "stored tile quadtree with skirts (seed 000 chunked LOD)", True,
+                 morphs=True),
     StrategyInfo("bruteforce", "geoterrain.lod.bruteforce",
                  "every full-resolution tile in the frustum (the zero-error baseline)", True,
                  tau_independent=True, conforming=True),
     StrategyInfo("geomipmap", "geoterrain.lod.geomipmap",
                  "GeoMipMapping: level-0 tile blocks, stitched edges (seed 000 §2.4)", True,
-                 conforming=True),
+                 conforming=True, morphs=True),
     StrategyInfo("geomipmap_distance", "geoterrain.lod.geomipmap_distance",
                  "GeoMipMapping with the thesis's switch distances D_n = δ·C (unbounded)",
                  False, conforming=True),
@@ -69,7 +72,7 @@ _ENTRIES = (
                  conforming=True),
     StrategyInfo("cdlod", "geoterrain.lod.cdlod",
                  "CDLOD: tile quadtree, one range per level, morphed, no skirts (seed 001)",
-                 True),
+                 True, morphs=True),
     StrategyInfo("tessellation", "geoterrain.lod.tessellation",
                  "HAM-driven quad-domain tessellation, factors 1-64 (seed 004; unbounded)",
                  False, conforming=True),

@@ -3,10 +3,11 @@
 - :func:`occlusion_culling` scopes horizon culling (:mod:`geoterrain.lod.occlusion`):
   on by default; a command's ``--no-occlusion`` or ``select(..., occlusion=False)``
   switches it off for the selections made inside.
-- :func:`geomorphing` scopes geomorphing (rtin: :mod:`geoterrain.lod.morph`, and
-  chunked: :func:`geoterrain.lod.chunks.morph_heights`, off by default as they cost
-  triangles; cdlod: on by default); ``--morph/--no-morph`` or
-  ``select(..., morph=...)`` chooses for every strategy that can.
+- :func:`geomorphing` scopes geomorphing (rtin: :mod:`geoterrain.lod.morph`,
+  chunked: :func:`geoterrain.lod.chunks.morph_heights` and geomipmap:
+  :mod:`geoterrain.lod.geomipmap_morph`, off by default; cdlod: on by default);
+  ``--morph/--no-morph`` or ``select(..., morph=...)`` chooses for every strategy that
+  can.
 """
 
 from __future__ import annotations
