@@ -51,6 +51,7 @@ def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, 
     Keys:
       m      next LOD strategy
       + / -  τ × 2 / ÷ 2
+      g      geomorphing on/off (rtin, chunked, geomipmap, cdlod)
       x      wireframe
       c      colour by shading / LOD level / tile
       space  freeze the LOD (fly around to inspect culling and refinement)

@@ -5,8 +5,8 @@ PyVista plotter (an offscreen one in the tests): ``on_camera_changed()``
 re-selects the LOD for the plotter's camera (throttled) and updates the terrain
 actor in place; key handlers are plain methods.
 
-Keys: ``m`` strategy, ``+``/``-`` τ ×/÷ 2, ``x`` wireframe, ``c`` colour
-(shading / LOD level / tile), ``space`` freeze the LOD, ``h`` reset the view,
+Keys: ``m`` strategy, ``+``/``-`` τ ×/÷ 2, ``g`` geomorphing on/off, ``x`` wireframe,
+``c`` colour (shading / LOD level / tile), ``space`` freeze the LOD, ``h`` reset the view,
 ``s`` save a screenshot (overlays included), ``q`` quit.
 
 The camera moves as on a terrain (VTK's terrain interactor style): dragging turns
@@ -46,7 +46,8 @@ from geoterrain.shading import Light
 from geoterrain.view import View
 
 COLOR_MODES = ("shading", "level", "tile")
-HELP = "m strategy  +/- tau  x wireframe  c colour  space freeze  h home  s screenshot  q quit"
+HELP = ("m strategy  +/- tau  g morph  x wireframe  c colour  space freeze  h home  "
+        "s screenshot  q quit")
 
 
 POLL_MS = 16.0  # background mode, idle: how often the window looks for a finished frame
@@ -202,7 +203,7 @@ class ViewerController:
             self.pending = True
             return False
         sel = lod.select(self.terrain, self._view(), pixel_error=self.pixel_error,
-                                  strategy=self.strategy)
+                         strategy=self.strategy, occlusion=self.occlusion, morph=self.morph)
         self._apply(key, sel)
         return True
 
@@ -399,7 +400,9 @@ class ViewerController:
 
     def _update_hud(self) -> None:
         s = self.stats
-        line = (f"{self.strategy}  tau {self.pixel_error:g} px  {s.get('triangles', 0):,} tris  "
+        morph = " morph" if self._morphing() and strategy_info(self.strategy).morphs else ""
+        line = (f"{self.strategy}{morph}  tau {self.pixel_error:g} px  "
+                f"{s.get('triangles', 0):,} tris  "
                 f"select {s.get('select_ms', 0.0):.0f} ms  frame {self.frame_ms:.0f} ms"
                 + ("  [FROZEN]" if self.frozen else "") + f"  colour: {self.color_mode}"
                 + ("  ... selecting" if self.busy and not self.refining else "")
@@ -504,6 +507,17 @@ class ViewerController:
         self._update_hud()
         self.plotter.render()
 
+    def toggle_morph(self) -> None:
+        """Key ``g``: geomorphing on/off, for the strategies that morph (its default:
+        off for rtin, chunked and geomipmap, on for cdlod)."""
+        self.morph = not self._morphing()
+        self._refresh()
+
+    def _morphing(self) -> bool:
+        """Whether the current strategy morphs now (the choice, else its default)."""
+        return (self.morph if self.morph is not None
+                else strategy_info(self.strategy).morph_default)
+
     def toggle_freeze(self) -> None:
         """Key ``space``: keep the current selection while the camera moves."""
         self.frozen = not self.frozen
@@ -530,7 +544,8 @@ class ViewerController:
         """Attach camera observers, a polling timer and the keys to the plotter."""
         p = self.plotter
         p.camera.AddObserver("ModifiedEvent", self.on_camera_changed)
-        keys = {"m": self.next_strategy, "plus": self.tau_up, "equal": self.tau_up,
+        keys = {"m": self.next_strategy, "g": self.toggle_morph,
+                "plus": self.tau_up, "equal": self.tau_up,
                 "KP_Add": self.tau_up, "minus": self.tau_down, "KP_Subtract": self.tau_down,
                 "x": self.toggle_wireframe, "c": self.next_color_mode,
                 "space": self.toggle_freeze, "h": self.reset_view, "s": self.screenshot}
@@ -576,7 +591,7 @@ def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,
          light: Light | None = None, drape: Drape | None = None) -> ViewerController:
     """Open an interactive window on the terrain; the LOD follows the camera.
 
-    Keys: ``m`` strategy, ``+``/``-`` τ, ``x`` wireframe, ``c`` colour by
+    Keys: ``m`` strategy, ``+``/``-`` τ, ``g`` morph, ``x`` wireframe, ``c`` colour by
     shading / LOD level / tile, ``space`` freeze the LOD, ``h`` home, ``s`` screenshot,
     ``q`` quit.
 

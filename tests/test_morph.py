@@ -292,7 +292,9 @@ def test_skirts_reach_below_every_morphing_neighbour(rough, seed, tau):
 def test_morphing_geomipmap_keeps_rho_within_tau_conforming_and_crack_free(rough, seed, tau):
     """Continuous block levels, neighbours' edges at the larger level: measured ρ ≤ τ at
     every sample in view, one height per grid point, and the mesh conforming (no
-    T-junction, no edge used more than twice), nodata hole included."""
+    T-junction, no edge used more than twice), nodata hole included. (The mesh keeps
+    one vertex per sample, so whether the blocks agree on it is checked before the
+    merge, below.)"""
     Z = rough.scene_xyz()[2]
     sel, f, z, e = _morphed_rho(rough, "geomipmap", seed, tau)
     assert e.max <= tau * (1 + 1e-9), (e, sel.stats)
@@ -370,20 +372,11 @@ def test_neighbour_allowance_is_the_largest_excess_within_the_slack(steps, level
         assert integral(level, level + min(1.0, k[0] + 0.01)) >= slack - 1e-3 * (1 + slack)
 
 
-@settings(max_examples=40, deadline=None)
-@given(st.integers(1, 5), st.integers(1, 5), st.integers(0, 10**6))
-def test_restricted_levels_are_the_largest_field_within_the_allowances(ny, nx, seed):
-    """L ≤ ℓ, L_B ≤ L_A + κ_A across every edge, and L is the largest such field: each
-    block's L is ℓ of some block plus the cheapest κ path to it (Dijkstra, written here)."""
+def _dijkstra(ell, kap, present):
+    """The largest field ≤ ℓ under L_B ≤ L_A + κ_A: shortest paths, written here."""
     import heapq
 
-    from geoterrain.lod.geomipmap_morph import restrict
-
-    rng = np.random.default_rng(seed)
-    ell = rng.uniform(0, 4, (ny, nx))
-    kap = rng.uniform(0, 1, (ny, nx, 4))
-    present = rng.random((ny, nx)) > 0.2
-    L = restrict(ell, kap, present)
+    ny, nx = ell.shape
     steps = ((0, -1), (0, 1), (-1, 0), (1, 0))
     best = np.where(present, ell, np.inf)
     heap = [(best[y, x], y, x) for y in range(ny) for x in range(nx) if present[y, x]]
@@ -397,8 +390,87 @@ def test_restricted_levels_are_the_largest_field_within_the_allowances(ny, nx, s
             if 0 <= v < ny and 0 <= u < nx and present[v, u] and d + kap[y, x, e] < best[v, u]:
                 best[v, u] = d + kap[y, x, e]
                 heapq.heappush(heap, (best[v, u], v, u))
+    return best
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 5), st.integers(1, 5), st.integers(0, 10**6))
+def test_restricted_levels_are_the_largest_field_within_the_allowances(ny, nx, seed):
+    """L ≤ ℓ, L_B ≤ L_A + κ_A across every edge, and L is the largest such field: each
+    block's L is ℓ of some block plus the cheapest κ path to it (Dijkstra)."""
+    from geoterrain.lod.geomipmap_morph import restrict
+
+    rng = np.random.default_rng(seed)
+    ell = rng.uniform(0, 4, (ny, nx))
+    kap = rng.uniform(0, 1, (ny, nx, 4))
+    present = rng.random((ny, nx)) > 0.2
+    L = restrict(ell, kap, present)
+    best = _dijkstra(ell, kap, present)
     assert np.allclose(L[present], best[present])
     assert np.isinf(L[~present]).all()
+
+
+@pytest.mark.parametrize("n", [9, 21, 31])
+def test_restricted_levels_follow_a_winding_path_to_its_end(n):
+    """Stored blocks in a serpentine between no-data rows: the shortest path from the one
+    fine block runs hundreds of hops (more than any pass count set by the grid's sides)
+    and must still reach every block."""
+    from geoterrain.lod.geomipmap_morph import restrict
+
+    present = np.zeros((n, n), bool)
+    present[0::2] = True
+    for r in range(1, n, 2):
+        present[r, n - 1 if (r // 2) % 2 == 0 else 0] = True
+    ell = np.full((n, n), 5.0)
+    ell[0, 0] = 0.0
+    kap = np.full((n, n, 4), 0.01)
+    L = restrict(ell, kap, present)
+    assert np.allclose(L[present], _dijkstra(ell, kap, present)[present])
+
+
+def test_blocks_agree_on_every_shared_vertex_before_the_merge(rough, monkeypatch):
+    """Each block's morphed heights, recorded before ``_assemble`` keeps one vertex per
+    sample: every sample two drawn blocks both use gets the same height from both (so
+    the merge hides no disagreement), for views where blocks morph and stitch."""
+    from geoterrain.lod import geomipmap
+
+    seen: list[tuple[np.ndarray, np.ndarray]] = []
+    orig = geomipmap._assemble
+
+    def recording(terrain, index, xy, n, ratios, heights=None):
+        g = terrain.grid
+
+        def rec(sel, lv, K, Z):
+            out = heights(sel, lv, K, Z)
+            a, b = np.meshgrid(np.arange(K + 1), np.arange(K + 1), indexing="ij")
+            for q, blk in enumerate(sel.tolist()):
+                par = (int(xy[blk, 0]) ^ int(xy[blk, 1])) & 1 if lv == g.t else 0
+                used = np.unique(geomipmap.template(K, tuple(ratios[blk].tolist()), par))
+                i = (int(xy[blk, 1]) << g.t) + (a.ravel() << lv)
+                j = (int(xy[blk, 0]) << g.t) + (b.ravel() << lv)
+                seen.append((i[used] * g.size + j[used], out[q].ravel()[used]))
+            return out
+
+        return orig(terrain, index, xy, n, ratios, rec if heights is not None else None)
+
+    monkeypatch.setattr(geomipmap, "_assemble", recording)
+    shared = 0
+    for view in _views(rough, 8, 3):
+        for tau in (1.0, 4.0, 16.0):
+            seen.clear()
+            sel = rough.select(view, tau, "geomipmap", reuse=False, morph=True,
+                               occlusion=False)
+            if not seen:
+                continue
+            key = np.concatenate([k for k, _ in seen])
+            z = np.concatenate([v for _, v in seen])
+            ok = np.isfinite(z)
+            key, z = key[ok], z[ok]
+            o = np.argsort(key, kind="stable")
+            same = key[o][1:] == key[o][:-1]
+            shared += int(same.sum()) if sel.stats["morphing_blocks"] else 0
+            assert (z[o][1:][same] == z[o][:-1][same]).all()
+    assert shared > 100
 
 
 def test_morphing_geomipmap_does_not_pop_along_a_glide(rough):

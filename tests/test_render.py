@@ -293,6 +293,12 @@ def test_controller_offscreen(tmp_path_factory):
         tris = c.stats["triangles"]
         c.tau_up()
         assert c.pixel_error == 2.0 and c.stats["triangles"] <= tris
+        assert "morph" not in c._hud.GetText(2).splitlines()[0]
+        c.toggle_morph()  # key g: chunked geomorphs (its band refines from 0.75 τ)
+        assert c.morph is True and "chunked morph" in c._hud.GetText(2).splitlines()[0]
+        assert c.stats.get("morph_band") == (0.75 * 2.0, 2.0)
+        c.toggle_morph()
+        assert c.morph is False and "morph_band" not in c.stats
         c.toggle_wireframe()
         c.next_color_mode()
         c.next_color_mode()

@@ -126,20 +126,29 @@ _NEIGHBOUR = ((0, -1), (0, 1), (-1, 0), (1, 0))
 def restrict(ell: np.ndarray, kappa: np.ndarray, present: np.ndarray) -> np.ndarray:
     """L on the block grid (ny, nx): the largest field ≤ ℓ with L_B ≤ L_A + κ_A[e] for
     every block A and its neighbour B across edge e (κ (ny, nx, 4)); absent blocks
-    neither constrain nor get constrained (L = +inf there)."""
+    neither constrain nor get constrained (L = +inf there). Relaxed on whole arrays
+    until nothing changes (Bellman-Ford: a shortest path has fewer hops than there are
+    blocks, so at most that many passes; a few on real views).
+
+    Examples
+    --------
+    >>> ell = np.array([[0.0, 3.0, 3.0]])
+    >>> restrict(ell, np.full((1, 3, 4), 0.5), np.ones((1, 3), bool)).tolist()
+    [[0.0, 0.5, 1.0]]
+    """
     ny, nx = ell.shape
     big = np.inf
     L = np.where(present, ell, big)
     P = np.full((ny + 2, nx + 2), big)
-    for _ in range(4 * (nx + ny) + 8):
+    kap = np.zeros((ny + 2, nx + 2, 4))
+    kap[1:-1, 1:-1] = kappa
+    for _ in range(int(present.sum()) + 1):
         P[1:-1, 1:-1] = L
         new = L.copy()
         for e, (dx, dy) in enumerate(_NEIGHBOUR):
             # block B at (y, x) receives from A at (y − dy, x − dx), across A's edge e
             src = P[1 - dy: 1 - dy + ny, 1 - dx: 1 - dx + nx]
-            kap = np.full((ny + 2, nx + 2), 0.0)
-            kap[1:-1, 1:-1] = kappa[..., e]
-            k = kap[1 - dy: 1 - dy + ny, 1 - dx: 1 - dx + nx]
+            k = kap[1 - dy: 1 - dy + ny, 1 - dx: 1 - dx + nx, e]
             new = np.minimum(new, src + k)
         new = np.where(present, new, big)
         if np.array_equal(new, L):

@@ -35,7 +35,8 @@ class StrategyInfo:
     ``bounded``: the measured screen-space error ρ of its meshes is ≤ τ (tested);
     ``tau_independent``: the mesh does not depend on τ (a benchmark selects it once);
     ``conforming``: no T-junction and no edge used by more than two triangles (tested);
-    ``morphs``: it geomorphs when morphing is on (``--morph``), keeping its bound.
+    ``morphs``: it geomorphs when morphing is on (``--morph``), keeping its bound;
+    ``morph_default``: it morphs unless switched off (``--no-morph``).
     """
 
     name: str
@@ -45,6 +46,7 @@ class StrategyInfo:
     tau_independent: bool = False
     conforming: bool = False
     morphs: bool = False
+    morph_default: bool = False
 
     def load(self) -> Callable:
         """The strategy's ``select(terrain, view, tau) -> (mesh, stats)`` (imports it)."""
@@ -72,7 +74,7 @@ _ENTRIES = (
                  conforming=True),
     StrategyInfo("cdlod", "geoterrain.lod.cdlod",
                  "CDLOD: tile quadtree, one range per level, morphed, no skirts (seed 001)",
-                 True, morphs=True),
+                 True, morphs=True, morph_default=True),
     StrategyInfo("tessellation", "geoterrain.lod.tessellation",
                  "HAM-driven quad-domain tessellation, factors 1-64 (seed 004; unbounded)",
                  False, conforming=True),
