@@ -38,7 +38,7 @@ from bench_lod import flight  # noqa: E402
 import geoterrain  # noqa: E402
 from geoterrain.bench import extent, glide  # noqa: E402
 from geoterrain.lod import tessellation  # noqa: E402
-from geoterrain.lod.switches import set_occlusion  # noqa: E402
+from geoterrain.lod.switches import occlusion_culling  # noqa: E402
 from geoterrain.measure import screen_space_error  # noqa: E402
 
 
@@ -151,8 +151,8 @@ def main() -> None:
     valid = np.isfinite(Z)
     scene = (X, Y, np.where(valid, Z, 0.0), valid)
     if a.figure:
-        set_occlusion(False)  # every patch in view counts, as on seed 004's GPU
-        figure(t, scene, a.frames, a.tau, a.figure, a.step)
+        with occlusion_culling(False):  # every patch in view counts, as on seed 004's GPU
+            figure(t, scene, a.frames, a.tau, a.figure, a.step)
     else:
         table(t, scene, a.views, a.tau)
 
