@@ -16,16 +16,20 @@ from geoterrain.bintree import vertex_level
 from geoterrain.codec import decode_tile, tile_valid
 from geoterrain.exceptions import StoreCorruptError, StoreError
 from geoterrain.grid import level_offsets
-from geoterrain.normals import decode_octahedral
+from geoterrain.normals import decode_octahedral, encode_octahedral, normal_map
 from geoterrain.quantize import codes_to_heights
 from geoterrain.store import StoreReader
 from geoterrain.storecheck import check_store
+from geoterrain.threads import cores_for
 from geoterrain.vertexdata import (
     NEW_ONLY,
     NORMALS_PLANAR_DXDY,
     VERSION_2,
     decode_bounds,
     normals_from_bytes,
+    normals_to_bytes,
+    ring_from_bytes,
+    ring_index,
     unpack_block_errors,
 )
 
@@ -291,6 +295,8 @@ class Terrain:
         """The stored octahedral codes (T, T, 2) of the tile's normals (``normal_bits``
         bits each; :func:`~geoterrain.normals.decode_octahedral` unpacks them). Not
         cached: each call reads and counts a decode."""
+        if level in self._derived_normal_levels:
+            return self._derived_normal_codes(level, x, y)
         raw, planar = self.tile_normal_bytes(level, x, y)
         T = self.grid.tile_samples
         if planar:
@@ -302,6 +308,8 @@ class Terrain:
         """The tile's normal codes as stored, decompressed: T·T·2 components, and whether
         they are two planes of 2-D differences (8-bit ``normals_layout`` 2,
         :func:`~geoterrain.vertexdata.normals_to_bytes`) rather than (u, v) pairs."""
+        if level in self._derived_normal_levels:
+            return normals_to_bytes(self._derived_normal_codes(level, x, y)), True
         T, bits = self.grid.tile_samples, self.meta["normal_bits"]
         try:  # bounded: exactly T × T × 2 components, never a decompression bomb
             raw = zstdsafe.decompress(self._blob((level, x, y), "normals"),
@@ -311,6 +319,32 @@ class Terrain:
                                     "decoded; re-run `geoterrain preprocess`") from None
         self.decoded_normals += 1
         return raw, bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY
+
+    @property
+    def _derived_normal_levels(self) -> tuple[int, ...]:
+        return tuple(self.meta.get("normals_derived", ()))
+
+    def _derived_normal_codes(self, level: int, x: int, y: int) -> np.ndarray:
+        """A tile whose normals blob is its border ring: the interior is the normal map
+        of its decoded heights (the preprocess's central differences, seed 000's
+        full-resolution normal map: they read no sample outside the tile there), encoded
+        as the preprocess encodes; the ring is the stored codes."""
+        T = self.grid.tile_samples
+        rr, cc = ring_index(T)
+        try:  # bounded: exactly the ring's 4T − 4 pairs
+            ring = ring_from_bytes(zstdsafe.decompress(self._blob((level, x, y), "normals"),
+                                                       2 * len(rr), exact=True))
+        except ValueError:
+            raise StoreCorruptError(f"{self.path}: tile {(level, x, y)} normals cannot be "
+                                    "decoded; re-run `geoterrain preprocess`") from None
+        tile = self.tile(level, x, y)
+        X, Y = self.tile_xy(level, x, y)
+        with cores_for(T * T):  # one tile: no thread pool for 65² samples
+            codes = encode_octahedral(normal_map(X, Y, self.frame.z(tile.heights), tile.valid),
+                                      self.meta["normal_bits"])
+        codes[rr, cc] = ring
+        self.decoded_normals += 1
+        return codes
 
     # ------------------------------------------------------- per-vertex data
     def vertex_level(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:

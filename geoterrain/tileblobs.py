@@ -27,6 +27,7 @@ from geoterrain.vertexdata import (
     VERSION_2,
     log8_exponent,
     log8_table,
+    ring_index,
     scale_exponent,
 )
 from geoterrain.zstdsafe import compress_many
@@ -271,3 +272,25 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         "normals": dict(zip(keys, compress_rows(pn), strict=True)),
     }
     return blobs, dmax, rmax
+
+
+def ring_blobs(nrm: np.ndarray, t: int, tiles: Iterable[tuple[int, int]]) -> dict:
+    """Level-0 normals blobs that hold only each tile's border ring (4T − 4 samples, as
+    :func:`geoterrain.vertexdata.ring_to_bytes`, zstd): a reader derives the interior
+    from the tile's own heights (:meth:`geoterrain.terrain.Terrain.tile_normal_codes`),
+    as the central differences there read no sample outside the tile.
+
+    Examples
+    --------
+    >>> nrm = np.arange(5 * 5 * 2, dtype=np.uint8).reshape(5, 5, 2)
+    >>> sorted(ring_blobs(nrm, 2, [(0, 0)]))
+    [(0, 0, 0)]
+    """
+    xy = np.asarray(list(tiles), np.int64).reshape(-1, 2)
+    rr, cc = ring_index((1 << t) + 1)
+    rings = nrm[(xy[:, 1, None] << t) + rr[None], (xy[:, 0, None] << t) + cc[None]]
+    p = np.ascontiguousarray(rings.transpose(0, 2, 1))  # (k, 2, R): two planes per tile
+    d = p.copy()
+    d[:, :, 1:] = p[:, :, 1:] - p[:, :, :-1]  # first differences mod 256 (ring_to_bytes)
+    keys = [(0, int(x), int(y)) for x, y in xy]
+    return dict(zip(keys, compress_rows(d.reshape(len(xy), -1)), strict=True))

@@ -243,6 +243,44 @@ def normals_to_bytes(oct8: np.ndarray) -> bytes:
     return e.tobytes()
 
 
+def ring_index(T: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of a T × T tile's border ring, 4T − 4 samples: the top row, the
+    bottom row, then the left and the right column without their corners.
+
+    Examples
+    --------
+    >>> r, c = ring_index(3)
+    >>> list(zip(r.tolist(), c.tolist()))
+    [(0, 0), (0, 1), (0, 2), (2, 0), (2, 1), (2, 2), (1, 0), (1, 2)]
+    """
+    a = np.arange(T)
+    m = np.arange(1, T - 1)
+    rows = np.concatenate([np.zeros(T, np.int64), np.full(T, T - 1), m, m])
+    cols = np.concatenate([a, a, np.zeros(T - 2, np.int64), np.full(T - 2, T - 1)])
+    return rows, cols
+
+
+def ring_to_bytes(ring: np.ndarray) -> bytes:
+    """The ring's 8-bit codes (4T − 4, 2) as two planes of first differences (mod 256).
+
+    Examples
+    --------
+    >>> a = np.random.default_rng(2).integers(0, 256, (8, 2)).astype(np.uint8)
+    >>> bool((ring_from_bytes(ring_to_bytes(a)) == a).all())
+    True
+    """
+    p = np.ascontiguousarray(np.asarray(ring, np.uint8).T)
+    d = p.copy()
+    d[:, 1:] = p[:, 1:] - p[:, :-1]  # uint8: wraps mod 256, exactly invertible
+    return d.tobytes()
+
+
+def ring_from_bytes(raw: bytes) -> np.ndarray:
+    """Inverse of :func:`ring_to_bytes`: (R, 2) uint8."""
+    d = np.frombuffer(raw, np.uint8).reshape(2, -1)
+    return np.ascontiguousarray(np.cumsum(d, axis=1, dtype=np.uint8).T)
+
+
 def normals_from_bytes(raw: bytes, T: int) -> np.ndarray:
     """Inverse of :func:`normals_to_bytes`: (T, T, 2) uint8."""
     e = np.frombuffer(raw, np.uint8).reshape(2, T, T)

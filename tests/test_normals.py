@@ -298,3 +298,65 @@ def test_hillshade_from_codes_is_the_array_formula(bits, seed, az, alt):
     got = hillshade_codes(codes, bits, light, 0.35, 1.25)
     assert got.dtype == np.float32 and got.shape == (17, 19)
     np.testing.assert_allclose(got, want, rtol=2e-6, atol=2e-6)
+
+
+# ------------------------------------------ level-0 normals derived from the heights
+def _pair(tmp_path, z, nodata=None, tile_size=16, codec_error=None, **kw):
+    """The same DEM preprocessed with every normal stored and with level 0's derived."""
+    import geoterrain
+    from tests.conftest import write_tif
+
+    src = write_tif(tmp_path / "d.tif", z, nodata=nodata, **kw)
+    out = []
+    for derive in (False, True):
+        p = geoterrain.preprocess(src, tmp_path / f"d{int(derive)}.geoterrain",
+                                  tile_size=tile_size, codec_error=codec_error,
+                                  derive_normals=derive)
+        out.append(geoterrain.open(p))
+    return out
+
+
+@settings(max_examples=12, deadline=None)
+@given(seed=st.integers(0, 10_000), shape=st.sampled_from([(33, 33), (50, 37), (20, 65)]),
+       tile=st.sampled_from([2, 4, 16]), holes=st.booleans(), lossy=st.booleans())
+def test_derived_level0_normals_are_the_stored_ones(tmp_path_factory, seed, shape, tile,
+                                                    holes, lossy):
+    """A store whose level-0 normals blobs hold only the border ring decodes every
+    tile's normal codes (and the shading bytes) exactly as the store that keeps them
+    all: random rough DEMs, nodata holes, padded shapes, lossless and ε = 2."""
+    tmp = tmp_path_factory.mktemp("nd")
+    rng = np.random.default_rng(seed)
+    z = rng.normal(0, 20, shape).cumsum(0).cumsum(1) / 5 + rng.normal(0, 3, shape)
+    if holes:
+        z[rng.random(shape) < 0.08] = -9999.0
+    full, ring = _pair(tmp, z.astype(np.float32), nodata=-9999.0, tile_size=tile,
+                       codec_error=2.0 if lossy else None)
+    assert "normals_derived" not in full.meta
+    assert ring.meta["normals_derived"] == [0]
+    for L, x, y in full.tile_info:
+        assert np.array_equal(full.tile_normal_codes(L, x, y), ring.tile_normal_codes(L, x, y))
+        assert full.tile_normal_bytes(L, x, y) == ring.tile_normal_bytes(L, x, y)
+    assert ring.path.stat().st_size <= full.path.stat().st_size  # (pages: tiny DEMs tie)
+
+
+def test_geographic_stores_keep_every_normal(tmp_path):
+    """On a geographic frame a tile's scene x, y need pyproj (ms per tile): no ring."""
+    z = np.random.default_rng(1).normal(0, 5, (33, 33)).cumsum(0)
+    full, ring = _pair(tmp_path, z, crs="EPSG:4326", spacing=1 / 3600,
+                       origin=(139.0, 35.0))
+    assert ring.frame.kind == "geographic" and "normals_derived" not in ring.meta
+
+
+def test_a_damaged_ring_is_refused_in_one_line(tmp_path):
+    """A ring blob of the wrong length (a stranger's store) is a one-line error."""
+    import zstandard
+
+    from geoterrain.exceptions import StoreCorruptError
+
+    z = np.random.default_rng(2).normal(0, 5, (33, 33)).cumsum(1)
+    _, ring = _pair(tmp_path, z)
+    blob = ring._blob
+    bad = zstandard.ZstdCompressor().compress(bytes(10))
+    ring._blob = lambda key, kind: bad if kind == "normals" else blob(key, kind)
+    with pytest.raises(StoreCorruptError, match="normals cannot be decoded"):
+        ring.tile_normal_codes(0, 0, 0)
