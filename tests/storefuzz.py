@@ -76,6 +76,8 @@ _BAD_META = [
     (None, "delta_edge", [[0, 0, 0, -1.0]]), (None, "delta_edge", [[99, 0, 0, 1.0]]),
     (None, "block_delta_levels", 0), (None, "block_delta_levels", 99),
     (None, "block_delta_levels", "x"), (None, "block_delta_levels", 2**40),
+    (None, "normals_derived", [1]), (None, "normals_derived", "x"),
+    (None, "normals_derived", [0, 0]),
 ]
 
 
