@@ -22,6 +22,8 @@ positions, so curvilinear (geographic) grids and vertical exaggeration are handl
 
 from __future__ import annotations
 
+import types
+
 import numpy as np
 from numba import njit, prange
 
@@ -47,6 +49,8 @@ def normal_map(
     z: np.ndarray,
     valid: np.ndarray | None = None,
     kernel: str = "central",
+    *,
+    serial: bool = False,
 ) -> np.ndarray:
     """Unit normals (N, N, 3) float32 from full-resolution scene positions.
 
@@ -98,8 +102,12 @@ def normal_map(
     )
     out = np.empty((*x.shape, 3), np.float32)
     if x.size:
-        vv = _valid_finite_nb(x, y, z, v)
-        _normals_nb(x, y, z, vv, kernel == "horn", out)
+        if serial:  # the same code without threads (a tile; a fork() child)
+            vv = _SERIAL["_valid_finite_nb"](x, y, z, v)
+            _SERIAL["_normals_nb"](x, y, z, vv, kernel == "horn", out)
+        else:
+            vv = _valid_finite_nb(x, y, z, v)
+            _normals_nb(x, y, z, vv, kernel == "horn", out)
     return out
 
 
@@ -348,13 +356,16 @@ def _reduce_nb(n, w, out, wout):  # pragma: no cover - compiled
             wout[a, b] = 1.0 if anyw else 0.0
 
 
-def encode_octahedral(n: np.ndarray, bits: int = 8, precise: bool = False) -> np.ndarray:
+def encode_octahedral(n: np.ndarray, bits: int = 8, precise: bool = False, *,
+                      serial: bool = False) -> np.ndarray:
     """Pack unit vectors (..., 3) into octahedral codes (..., 2) uint8 or uint16.
 
     Default: the projected point rounded to the nearest code. ``precise=True``: of the 4
     codes around the projected point, keeps the one that decodes closest to ``n``. Max
     angular errors: see :data:`OCTAHEDRAL_MAX_ERROR_DEG` (rounding) and
     :data:`OCTAHEDRAL_MAX_ERROR_DEG_PRECISE`. Zero vectors encode (0, 0, 1).
+    ``serial``: on the calling thread only (the same code compiled without threads: one
+    tile, or a fork() child, where GNU OpenMP aborts a parallel launch).
 
     Examples
     --------
@@ -371,7 +382,8 @@ def encode_octahedral(n: np.ndarray, bits: int = 8, precise: bool = False) -> np
         n = n.astype(np.float64)
     flat = np.ascontiguousarray(n.reshape(-1, 3))
     out = np.empty((flat.shape[0], 2), np.uint8 if bits == 8 else np.uint16)
-    _encode_oct_nb(flat, (1 << bits) - 1, bool(precise), out)
+    (_SERIAL["_encode_oct_nb"] if serial else _encode_oct_nb)(flat, (1 << bits) - 1,
+                                                              bool(precise), out)
     return out.reshape(*n.shape[:-1], 2)
 
 
@@ -509,3 +521,20 @@ def oct_shade(cu, cv, m, lx, ly, lz, amb, ceil):  # pragma: no cover - compiled
     d = np.float32(x / n) * lx + np.float32(y / n) * ly + np.float32(zz / n) * lz
     lam = min(max(d, np.float32(0.0)), one) / lz
     return min(amb + (one - amb) * lam, ceil)
+
+
+_SERIAL: dict = {}
+
+
+def _serial_twin(kernel) -> None:
+    """``kernel``'s Python function compiled again without threads (its ``prange`` loops
+    run as ``range``: the same arithmetic), kept in :data:`_SERIAL` under its name."""
+    f = kernel.py_func
+    twin = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial",
+                              f.__defaults__, f.__closure__)
+    twin.__qualname__ = f.__qualname__ + "_serial"  # its own cache entry
+    _SERIAL[f.__name__] = njit(cache=True, nogil=True)(twin)
+
+
+for _k in (_valid_finite_nb, _normals_nb, _encode_oct_nb):
+    _serial_twin(_k)

@@ -20,7 +20,6 @@ from geoterrain.normals import decode_octahedral, encode_octahedral, normal_map
 from geoterrain.quantize import codes_to_heights
 from geoterrain.store import StoreReader
 from geoterrain.storecheck import check_store
-from geoterrain.threads import cores_for
 from geoterrain.vertexdata import (
     NEW_ONLY,
     NORMALS_PLANAR_DXDY,
@@ -339,9 +338,11 @@ class Terrain:
                                     "decoded; re-run `geoterrain preprocess`") from None
         tile = self.tile(level, x, y)
         X, Y = self.tile_xy(level, x, y)
-        with cores_for(T * T):  # one tile: no thread pool for 65² samples
-            codes = encode_octahedral(normal_map(X, Y, self.frame.z(tile.heights), tile.valid),
-                                      self.meta["normal_bits"])
+        # one tile on this thread (serial kernels: no thread pool for 65² samples, and
+        # safe in a fork() child, where GNU OpenMP aborts a parallel launch)
+        codes = encode_octahedral(normal_map(X, Y, self.frame.z(tile.heights), tile.valid,
+                                             serial=True),
+                                  self.meta["normal_bits"], serial=True)
         codes[rr, cc] = ring
         self.decoded_normals += 1
         return codes

@@ -195,13 +195,15 @@ def outcome(path: Path, view) -> tuple[str, object]:
             m = t.mesh(max_error=0.5)
             sel = t.select(view, pixel_error=2.0)
             gmm = t.select(view, pixel_error=2.0, strategy="geomipmap")  # the block table
+            nrm = [t.tile_normal_codes(*k).tobytes() for k in sorted(t.tile_info)
+                   if k[0] == 0][:4]  # level 0's normals: derived from a ring, or stored
             info = t.info()
             for k in ("path", "size_bytes", "bytes_by_kind", "height_bytes_per_level",
                       "height_bits_per_valid_sample"):  # file sizes, not content
                 info.pop(k)
             d = (np.asarray(m.points).tobytes(), np.asarray(m.faces).tobytes(),
                  np.asarray(sel.mesh.points).tobytes(), np.asarray(gmm.mesh.faces).tobytes(),
-                 json.dumps(info, sort_keys=True, default=str))
+                 b"".join(nrm), json.dumps(info, sort_keys=True, default=str))
             return "output", hash(d)
     except GeoterrainError as exc:
         msg = str(exc)

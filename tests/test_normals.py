@@ -301,7 +301,7 @@ def test_hillshade_from_codes_is_the_array_formula(bits, seed, az, alt):
 
 
 # ------------------------------------------ level-0 normals derived from the heights
-def _pair(tmp_path, z, nodata=None, tile_size=16, codec_error=None, **kw):
+def _pair(tmp_path, z, nodata=None, tile_size=16, codec_error=None, pre=None, **kw):
     """The same DEM preprocessed with every normal stored and with level 0's derived."""
     import geoterrain
     from tests.conftest import write_tif
@@ -311,26 +311,29 @@ def _pair(tmp_path, z, nodata=None, tile_size=16, codec_error=None, **kw):
     for derive in (False, True):
         p = geoterrain.preprocess(src, tmp_path / f"d{int(derive)}.geoterrain",
                                   tile_size=tile_size, codec_error=codec_error,
-                                  derive_normals=derive)
+                                  derive_normals=derive, **(pre or {}))
         out.append(geoterrain.open(p))
     return out
 
 
 @settings(max_examples=12, deadline=None)
 @given(seed=st.integers(0, 10_000), shape=st.sampled_from([(33, 33), (50, 37), (20, 65)]),
-       tile=st.sampled_from([2, 4, 16]), holes=st.booleans(), lossy=st.booleans())
+       tile=st.sampled_from([2, 4, 16]), holes=st.booleans(), lossy=st.booleans(),
+       z_scale=st.sampled_from([1.0, 3.0]), z_units=st.sampled_from(["m", "ft"]))
 def test_derived_level0_normals_are_the_stored_ones(tmp_path_factory, seed, shape, tile,
-                                                    holes, lossy):
+                                                    holes, lossy, z_scale, z_units):
     """A store whose level-0 normals blobs hold only the border ring decodes every
     tile's normal codes (and the shading bytes) exactly as the store that keeps them
-    all: random rough DEMs, nodata holes, padded shapes, lossless and ε = 2."""
+    all: random rough DEMs, nodata holes, padded shapes, lossless and ε = 2, heights
+    exaggerated and in feet (the scene z the reader must rebuild)."""
     tmp = tmp_path_factory.mktemp("nd")
     rng = np.random.default_rng(seed)
     z = rng.normal(0, 20, shape).cumsum(0).cumsum(1) / 5 + rng.normal(0, 3, shape)
     if holes:
         z[rng.random(shape) < 0.08] = -9999.0
     full, ring = _pair(tmp, z.astype(np.float32), nodata=-9999.0, tile_size=tile,
-                       codec_error=2.0 if lossy else None)
+                       codec_error=2.0 if lossy else None,
+                       pre={"z_scale": z_scale, "z_units": z_units})
     assert "normals_derived" not in full.meta
     assert ring.meta["normals_derived"] == [0]
     for L, x, y in full.tile_info:
@@ -360,3 +363,28 @@ def test_a_damaged_ring_is_refused_in_one_line(tmp_path):
     ring._blob = lambda key, kind: bad if kind == "normals" else blob(key, kind)
     with pytest.raises(StoreCorruptError, match="normals cannot be decoded"):
         ring.tile_normal_codes(0, 0, 0)
+
+
+def test_a_forked_child_derives_the_same_normals(tmp_path):
+    """After the parent has run the parallel kernels (the preprocess, a derived read), a
+    child made by fork() reads derived normals with the serial kernels: GNU OpenMP would
+    abort it at a parallel launch."""
+    import os
+
+    z = np.random.default_rng(3).normal(0, 5, (65, 65)).cumsum(0)
+    full, ring = _pair(tmp_path, z)
+    want = full.tile_normal_codes(0, 1, 1).tobytes()
+    ring.tile_normal_codes(0, 0, 0)
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: report through the pipe, never return into pytest
+        try:
+            os.write(w, b"same" if ring.tile_normal_codes(0, 1, 1).tobytes() == want
+                     else b"different")
+        finally:
+            os._exit(0)
+    os.close(w)
+    got = os.read(r, 64)
+    os.close(r)
+    _, status = os.waitpid(pid, 0)
+    assert got == b"same", (got, status)
