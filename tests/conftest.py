@@ -43,6 +43,24 @@ def real_dem_path(request) -> Path:
     return real_dem(request.param)
 
 
+def in_fork(check) -> tuple[bytes, int]:
+    """Run ``check()`` (→ bool) in a child made by fork() and return what it reported
+    (b"same" or b"different"; nothing if it died) and its wait status. The child never
+    returns into pytest."""
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        try:
+            os.write(w, b"same" if check() else b"different")
+        finally:
+            os._exit(0)
+    os.close(w)
+    got = os.read(r, 64)
+    os.close(r)
+    _, status = os.waitpid(pid, 0)
+    return got, status
+
+
 def write_tif(path, z, crs="EPSG:32633", origin=(500000.0, 5000000.0), spacing=10.0,
               nodata=None, dtype=None) -> Path:
     """Write a north-up GeoTIFF of any dtype (for ingest tests)."""

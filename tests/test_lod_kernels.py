@@ -278,22 +278,11 @@ def test_a_forked_child_extracts_the_same_static_mesh(tmp_path_factory):
     """After the parent has run the parallel kernels, a child made by fork() (GNU
     OpenMP aborts such a child at its first parallel launch) extracts the same static
     mesh, with the serial twins."""
-    import os
-
     from geoterrain.threads import forked
+    from tests.conftest import in_fork
 
     t = _terrain(tmp_path_factory, True)
     want = _oriented(geoterrain.lod.static(t, 3.0).mesh)  # the parent uses the threads
-    r, w = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # the child: report through the pipe, never return into pytest
-        try:
-            ok = _oriented(geoterrain.lod.static(t, 3.0).mesh) == want and forked()
-            os.write(w, b"same" if ok else b"different")
-        finally:
-            os._exit(0)
-    os.close(w)
-    got = os.read(r, 64)
-    os.close(r)
-    _, status = os.waitpid(pid, 0)
+    got, status = in_fork(lambda: _oriented(geoterrain.lod.static(t, 3.0).mesh) == want
+                          and forked())
     assert got == b"same", (got, status)

@@ -369,22 +369,11 @@ def test_a_forked_child_derives_the_same_normals(tmp_path):
     """After the parent has run the parallel kernels (the preprocess, a derived read), a
     child made by fork() reads derived normals with the serial kernels: GNU OpenMP would
     abort it at a parallel launch."""
-    import os
+    from tests.conftest import in_fork
 
     z = np.random.default_rng(3).normal(0, 5, (65, 65)).cumsum(0)
     full, ring = _pair(tmp_path, z)
     want = full.tile_normal_codes(0, 1, 1).tobytes()
     ring.tile_normal_codes(0, 0, 0)
-    r, w = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # the child: report through the pipe, never return into pytest
-        try:
-            os.write(w, b"same" if ring.tile_normal_codes(0, 1, 1).tobytes() == want
-                     else b"different")
-        finally:
-            os._exit(0)
-    os.close(w)
-    got = os.read(r, 64)
-    os.close(r)
-    _, status = os.waitpid(pid, 0)
+    got, status = in_fork(lambda: ring.tile_normal_codes(0, 1, 1).tobytes() == want)
     assert got == b"same", (got, status)
