@@ -358,7 +358,7 @@ def test_neighbour_allowance_is_the_largest_excess_within_the_slack(steps, level
     eps = np.concatenate([[0.0], np.cumsum(steps)])  # saturated: nondecreasing
     M = len(eps) - 1
     level = min(level, M)
-    k = neighbour_allowance(eps[None], np.repeat(eps[None, None], 4, 1),
+    k = neighbour_allowance(np.repeat(eps[None, None], 4, 1),
                             np.array([level]), np.array([slack]))[0]
     assert np.allclose(k, k[0]) and 0 <= k[0] <= 1
 

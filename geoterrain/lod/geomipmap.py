@@ -356,7 +356,7 @@ def _select_morphed(terrain, index, tb, view, tau, leaves, stats):
     dmin = view.box_distance(index.lo[tb.rows], index.hi[tb.rows])
     ell = gm.continuous_levels(tb.delta, dmin, lam, tau)
     slack = tau * dmin / lam - gm.blend_error(tb.delta, ell)
-    kappa = (gm.neighbour_allowance(tb.delta, tb.edge_delta, ell, slack) if M
+    kappa = (gm.neighbour_allowance(tb.edge_delta, ell, slack) if M
              else np.ones((len(ell), 4)))
     nt = g.tiles_per_side(0)
     x, y = tb.xy[:, 0], tb.xy[:, 1]

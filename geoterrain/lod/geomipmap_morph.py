@@ -80,8 +80,8 @@ def blend_error(delta: np.ndarray, level: np.ndarray) -> np.ndarray:
     return _at(delta, level)
 
 
-def neighbour_allowance(delta: np.ndarray, edge_delta: np.ndarray, level: np.ndarray,
-                        slack: np.ndarray) -> np.ndarray:
+def neighbour_allowance(edge_delta: np.ndarray, level: np.ndarray, slack: np.ndarray
+                        ) -> np.ndarray:
     """κ (B, 4): the largest x ∈ [0, 1] with ∫_ℓ^{ℓ+x} ε(s) ds ≤ slack, where
     ε(s) = ``edge_delta``[⌊s⌋ + 1] (B, 4, M+1) bounds how far an edge vertex moves per
     level of the edge above the block, extended past M with ε_M (so κ is continuous in
@@ -90,10 +90,10 @@ def neighbour_allowance(delta: np.ndarray, edge_delta: np.ndarray, level: np.nda
 
     Examples
     --------
-    >>> e = np.array([[[0.0, 1.0, 2.0]] * 4])  # ε = 1 on [0, 1], 2 on [1, 2] and on
-    >>> neighbour_allowance(e[:, 0], e, np.array([0.5]), np.array([1.5]))[0].tolist()
+    >>> e = np.array([[[0.0, 1.0, 2.0]] * 4])  # ε = 1 on [0, 1], then 2 from level 1 on
+    >>> neighbour_allowance(e, np.array([0.5]), np.array([1.5]))[0].tolist()
     [1.0, 1.0, 1.0, 1.0]
-    >>> neighbour_allowance(e[:, 0], e, np.array([0.5]), np.array([1.0]))[0].tolist()
+    >>> neighbour_allowance(e, np.array([0.5]), np.array([1.0]))[0].tolist()
     [0.75, 0.75, 0.75, 0.75]
     """
     B, _, M1 = edge_delta.shape
