@@ -281,9 +281,12 @@ def preprocess(
         keys = [k for k in height_blobs if k[0] == L]
         if not keys:
             continue
+        ring = L == 0 and derive_normals  # the interior is derived from the heights on read
         blobs, dmax, rmax = level_blobs(coding, nrm_levels[L], grid.t, L, grid.top_level,
-                                        [(x, y) for _, x, y in keys])
-        if L == 0 and derive_normals:  # the interior is derived from the heights on read
+                                        [(x, y) for _, x, y in keys],
+                                        ("delta", "radius") if ring else
+                                        ("delta", "radius", "normals"))
+        if ring:
             blobs["normals"] = ring_blobs(nrm_levels[0], grid.t, [(x, y) for _, x, y in keys])
         for kind, b in blobs.items():
             extra[kind].update(b)
@@ -298,7 +301,7 @@ def preprocess(
             ekeys = [(x, y) for L2, x, y in keys_e if L2 == L]
             if not ekeys:
                 continue
-            eb, emax, _ = level_blobs(edge, nrm_levels[L], grid.t, L, top, ekeys)
+            eb, emax, _ = level_blobs(edge, nrm_levels[L], grid.t, L, top, ekeys, ("delta",))
             extra["delta_edge"].update(eb["delta"])
             edge_max += [[L, x, y, m if np.isfinite(m) else None]
                          for (x, y), m in zip(ekeys, emax.tolist(), strict=True)]

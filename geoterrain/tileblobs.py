@@ -233,12 +233,14 @@ def compress_rows(rows: np.ndarray, prefix: bytes = b"", level: int = _ZSTD_LEVE
 
 
 def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_level: int,
-                tiles: Iterable[tuple[int, int]]) -> tuple[dict, np.ndarray, np.ndarray]:
+                tiles: Iterable[tuple[int, int]], kinds=("delta", "radius", "normals")
+                ) -> tuple[dict, np.ndarray, np.ndarray]:
     """The δ, r and normals blobs of the stored tiles ``(x, y)`` of one level.
 
     ``nrm`` is the level's octahedral normal map (n, n, 2) uint8. Returns
     ``({"delta": {...}, "radius": {...}, "normals": {...}}, dmax, rmax)`` with blobs
-    keyed ``(level, x, y)`` and the per-tile maxima in the order of ``tiles``.
+    keyed ``(level, x, y)`` and the per-tile maxima in the order of ``tiles``; only the
+    ``kinds`` asked for are compressed.
 
     Examples
     --------
@@ -266,11 +268,8 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     head_d = bytes([VERSION_2, flags | LOG8, int(coding.ed) & 0xFF])
     head_r = bytes([VERSION_2, flags, int(coding.kr) & 0xFF])
     keys = [(level, int(x), int(y)) for x, y in xy]
-    blobs = {
-        "delta": dict(zip(keys, compress_rows(pd, head_d), strict=True)),
-        "radius": dict(zip(keys, compress_rows(pr, head_r), strict=True)),
-        "normals": dict(zip(keys, compress_rows(pn), strict=True)),
-    }
+    rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
+    blobs = {kind: dict(zip(keys, compress_rows(*rows[kind]), strict=True)) for kind in kinds}
     return blobs, dmax, rmax
 
 
