@@ -44,6 +44,7 @@ from geoterrain.lod.switches import morphing_choice, occlusion_enabled
 from geoterrain.rendering import TerrainScene
 from geoterrain.shading import Light
 from geoterrain.view import View
+from geoterrain.viewer_style import cell_colours, colour_bar, mute_style_timers
 
 COLOR_MODES = ("shading", "level", "tile")
 HELP = ("m strategy  +/- tau  g morph  x wireframe  c colour  space freeze  h home  "
@@ -59,20 +60,6 @@ REST_MS = 250.0  # the camera still this long: drawn again with anti-aliasing
 # texture tiles a camera move may shade before its picture is shown (~0.5 ms each);
 # the rest are magnified from cached coarser tiles and shaded by the passes that follow
 TEXTURE_BUILDS = 24
-
-
-def terrain_style():
-    """The interactor style of the viewer: VTK's terrain style (azimuth about the
-    vertical, elevation, no roll), so the horizon stays level.
-
-    Examples
-    --------
-    >>> terrain_style().GetClassName()
-    'vtkInteractorStyleTerrain'
-    """
-    from vtkmodules.vtkInteractionStyle import vtkInteractorStyleTerrain
-
-    return vtkInteractorStyleTerrain()
 
 
 class ViewerController:
@@ -366,27 +353,11 @@ class ViewerController:
             actor.SetTexture(self.scene.texture)
             prop.SetLighting(self.scene.texture is None)
             return
-        if self.color_mode == "level":
-            vals = np.asarray(mesh.cell_data["level"], np.float64)
-            rng = (0.0, float(self.terrain.grid.top_level))
-        else:
-            sel = self.scene.selection
-            ij = np.asarray(sel.mesh.point_data["grid_ij"]).astype(np.int64)
-            f = sel.faces
-            lvl = np.asarray(sel.mesh.cell_data["level"]).astype(np.int64)
-            shift = self.terrain.grid.t + lvl
-            i0, j0 = ij[f, 0].min(1) >> shift, ij[f, 1].min(1) >> shift
-            vals = ((i0 * 7919 + j0 * 104729 + lvl * 31) % 20).astype(np.float64)
-            rng = (0.0, 19.0)
+        vals, lut = cell_colours(self.scene.selection, self.color_mode, self.terrain.grid)
         mesh.cell_data["_color"] = vals
         mesh.set_active_scalars("_color", preference="cell")
         actor.SetTexture(None)
-        import matplotlib
-        import pyvista as pv
-
-        lut = pv.LookupTable(matplotlib.colormaps["tab10" if self.color_mode == "level"
-                                                  else "tab20"])
-        lut.scalar_range = rng
+        rng = lut.scalar_range
         mapper.SetLookupTable(lut)
         mapper.SetScalarModeToUseCellData()
         mapper.SetScalarRange(*rng)
@@ -421,42 +392,13 @@ class ViewerController:
 
     def _legend(self, cmap) -> None:
         """The colour bar (metres, the texture's own colours) and the compass."""
-        from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
-
-        from geoterrain.colours import as_palette, colorbar_map
-        from geoterrain.textures import elevation_range
-
         try:
             self.plotter.add_axes(xlabel="E", ylabel="N", zlabel="Up", line_width=2)
         except Exception:  # noqa: BLE001 - a plotter without an orientation widget
             pass
-        if self.scene.shading == "plain":
-            return
-        import pyvista as pv
-
-        z0, z1 = elevation_range(self.terrain)
-        cm, (lo, hi) = colorbar_map(as_palette(cmap), (z0, z1))
-        lut = pv.LookupTable(cm)
-        lut.scalar_range = (lo, hi)
-        bar = vtkScalarBarActor()
-        bar.SetLookupTable(lut)
-        bar.SetTitle("elevation (m)")
-        bar.SetLabelFormat("%.0f")
-        bar.SetNumberOfLabels(5)
-        bar.UnconstrainedFontSizeOn()
-        bar.DrawBackgroundOn()
-        bar.GetBackgroundProperty().SetColor(1.0, 1.0, 1.0)
-        bar.GetBackgroundProperty().SetOpacity(0.85)
-        for tp, size in ((bar.GetLabelTextProperty(), 11), (bar.GetTitleTextProperty(), 12)):
-            tp.SetColor(0.1, 0.1, 0.1)
-            tp.SetFontSize(size)
-            tp.ShadowOff()
-            tp.BoldOff()
-            tp.ItalicOff()
-        bar.SetPosition(0.90, 0.25)
-        bar.SetWidth(0.08)
-        bar.SetHeight(0.5)
-        self.plotter.add_actor(bar, name="colour-bar", reset_camera=False)
+        if self.scene.shading != "plain":
+            self.plotter.add_actor(colour_bar(self.terrain, cmap), name="colour-bar",
+                                   reset_camera=False)
 
     def screenshot(self, path=None) -> str:
         """Key ``s``: save the window, overlays included, as a PNG (a new name each time:
@@ -569,19 +511,6 @@ class ViewerController:
         if self._executor is None:
             return max(self.throttle_ms, 30.0)
         return BUSY_POLL_MS if self._future is not None else POLL_MS
-
-
-def mute_style_timers(style) -> None:
-    """Keep the window's timers from steering the camera.
-
-    A VTK interactor style answers a timer event by repeating its current interaction:
-    mid-drag, with the mouse still, ``vtkInteractorStyleTerrain`` rotates by the last
-    mouse step again on every tick, so the viewer's polling timers would spin the view.
-    An observer of the style's own ``TimerEvent`` takes the event instead (the style then
-    skips ``OnTimer``); mouse moves still steer as before.
-    """
-    if style is not None:
-        style.AddObserver("TimerEvent", lambda *_args: None)
 
 
 def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,

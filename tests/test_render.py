@@ -399,7 +399,7 @@ def test_timer_events_do_not_steer_the_camera():
     from vtkmodules.vtkInteractionStyle import vtkInteractorStyleTerrain
     from vtkmodules.vtkRenderingUI import vtkGenericRenderWindowInteractor
 
-    from geoterrain.viewer import mute_style_timers
+    from geoterrain.viewer_style import mute_style_timers
 
     moved = {}
     for mute in (False, True):
@@ -491,7 +491,8 @@ def test_viewer_interactor_keeps_the_horizon_level(tmp_path_factory):
     viewer's) rolls on the same drags, so the check can fail."""
     import vtk
 
-    from geoterrain.viewer import ViewerController, terrain_style
+    from geoterrain.viewer import ViewerController
+    from geoterrain.viewer_style import terrain_style
 
     t = synth_store(tmp_path_factory, "fbm")
     p = _plotter((320, 240))
