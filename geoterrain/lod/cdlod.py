@@ -59,6 +59,7 @@ from geoterrain.bintree import vertex_level
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.occlusion import hidden_rows
+from geoterrain.lod.registry import strategy_info
 from geoterrain.lod.switches import morphing_choice
 from geoterrain.lod.tiles import TileIndex, tile_geometry, tile_index
 from geoterrain.view import INSIDE, OUTSIDE, View
@@ -341,8 +342,9 @@ def select(terrain, view: View, tau: float, *, morph: bool | None = None,
     >>> stats["nodes"] > 0 and mesh.n_cells > 0
     True
     """
-    if morph is None:
-        morph = morphing_choice() is not False
+    if morph is None:  # the choice in scope, else the registry's default (on)
+        morph = morphing_choice()
+        morph = strategy_info("cdlod").morph_default if morph is None else morph
     f = float(morph_fraction) if morph else 0.0
     if not 0.0 <= f < 1.0:
         raise UsageError(f"morph_fraction must be in [0, 1), got {morph_fraction}")
