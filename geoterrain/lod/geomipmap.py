@@ -62,7 +62,7 @@ _TEMPLATES: dict[tuple, np.ndarray] = {}
 
 # edge order: top (row 0), bottom (row K), left (column 0), right (column K)
 EDGES = ("top", "bottom", "left", "right")
-_NEIGHBOUR = np.array([[0, -1], [0, 1], [-1, 0], [1, 0]])  # (dx, dy) per edge
+_NEIGHBOUR = gm.NEIGHBOUR  # (dx, dy) per edge
 
 
 def _edge_local(e: int, v: np.ndarray, u: np.ndarray, K: int) -> tuple[np.ndarray, np.ndarray]:

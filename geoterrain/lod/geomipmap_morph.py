@@ -43,7 +43,7 @@ import numpy as np
 
 from geoterrain.lod.morph import MORPH_START
 
-__all__ = ["continuous_levels", "blend_error", "neighbour_allowance", "restrict",
+__all__ = ["NEIGHBOUR", "continuous_levels", "blend_error", "neighbour_allowance", "restrict",
            "next_level_diagonals", "morph_block_heights"]
 
 
@@ -63,21 +63,16 @@ def continuous_levels(delta: np.ndarray, dmin: np.ndarray, lam: float, tau: floa
     return np.nan_to_num(t, nan=0.0).sum(1)
 
 
-def _at(table: np.ndarray, level: np.ndarray) -> np.ndarray:
-    """``table`` (B, M+1) read at continuous levels (B,): linear between levels."""
-    M = table.shape[1] - 1
+def blend_error(delta: np.ndarray, level: np.ndarray) -> np.ndarray:
+    """The bound (1 − t)·δ_n + t·δ_{n+1} of |z − drawn| inside a block at level n + t:
+    ``delta`` (B, M+1) read at the continuous levels (B,), linear between levels."""
+    M = delta.shape[1] - 1
     n = np.clip(np.floor(level).astype(np.int64), 0, M)
     t = level - n
-    nxt = np.minimum(n + 1, M)
     r = np.arange(len(n))
-    lo, hi = table[r, n], table[r, nxt]
+    lo, hi = delta[r, n], delta[r, np.minimum(n + 1, M)]
     with np.errstate(invalid="ignore"):
         return np.where(t > 0, (1 - t) * lo + t * hi, lo)
-
-
-def blend_error(delta: np.ndarray, level: np.ndarray) -> np.ndarray:
-    """The bound (1 − t)·δ_n + t·δ_{n+1} of |z − drawn| inside a block at level n + t."""
-    return _at(delta, level)
 
 
 def neighbour_allowance(edge_delta: np.ndarray, level: np.ndarray, slack: np.ndarray
@@ -119,8 +114,8 @@ def neighbour_allowance(edge_delta: np.ndarray, level: np.ndarray, slack: np.nda
     return np.clip(x, 0.0, 1.0)
 
 
-# (dx, dy) of each edge's neighbour: top, bottom, left, right (as geomipmap.EDGES)
-_NEIGHBOUR = ((0, -1), (0, 1), (-1, 0), (1, 0))
+# (dx, dy) of each block edge's neighbour: top, bottom, left, right (geomipmap.EDGES)
+NEIGHBOUR = np.array([[0, -1], [0, 1], [-1, 0], [1, 0]])
 
 
 def restrict(ell: np.ndarray, kappa: np.ndarray, present: np.ndarray) -> np.ndarray:
@@ -145,7 +140,7 @@ def restrict(ell: np.ndarray, kappa: np.ndarray, present: np.ndarray) -> np.ndar
     for _ in range(int(present.sum()) + 1):
         P[1:-1, 1:-1] = L
         new = L.copy()
-        for e, (dx, dy) in enumerate(_NEIGHBOUR):
+        for e, (dx, dy) in enumerate(NEIGHBOUR.tolist()):
             # block B at (y, x) receives from A at (y − dy, x − dx), across A's edge e
             src = P[1 - dy: 1 - dy + ny, 1 - dx: 1 - dx + nx]
             k = kap[1 - dy: 1 - dy + ny, 1 - dx: 1 - dx + nx, e]
