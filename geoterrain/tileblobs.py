@@ -28,6 +28,7 @@ from geoterrain.vertexdata import (
     log8_exponent,
     log8_table,
     ring_index,
+    ring_planes,
     scale_exponent,
 )
 from geoterrain.zstdsafe import compress_many
@@ -275,7 +276,7 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
 
 def ring_blobs(nrm: np.ndarray, t: int, tiles: Iterable[tuple[int, int]]) -> dict:
     """Level-0 normals blobs that hold only each tile's border ring (4T − 4 samples, as
-    :func:`geoterrain.vertexdata.ring_to_bytes`, zstd): a reader derives the interior
+    :func:`geoterrain.vertexdata.ring_planes`, zstd): a reader derives the interior
     from the tile's own heights (:meth:`geoterrain.terrain.Terrain.tile_normal_codes`),
     as the central differences there read no sample outside the tile.
 
@@ -288,8 +289,5 @@ def ring_blobs(nrm: np.ndarray, t: int, tiles: Iterable[tuple[int, int]]) -> dic
     xy = np.asarray(list(tiles), np.int64).reshape(-1, 2)
     rr, cc = ring_index((1 << t) + 1)
     rings = nrm[(xy[:, 1, None] << t) + rr[None], (xy[:, 0, None] << t) + cc[None]]
-    p = np.ascontiguousarray(rings.transpose(0, 2, 1))  # (k, 2, R): two planes per tile
-    d = p.copy()
-    d[:, :, 1:] = p[:, :, 1:] - p[:, :, :-1]  # first differences mod 256 (ring_to_bytes)
     keys = [(0, int(x), int(y)) for x, y in xy]
-    return dict(zip(keys, compress_rows(d.reshape(len(xy), -1)), strict=True))
+    return dict(zip(keys, compress_rows(ring_planes(rings)), strict=True))

@@ -260,23 +260,24 @@ def ring_index(T: int) -> tuple[np.ndarray, np.ndarray]:
     return rows, cols
 
 
-def ring_to_bytes(ring: np.ndarray) -> bytes:
-    """The ring's 8-bit codes (4T − 4, 2) as two planes of first differences (mod 256).
+def ring_planes(rings: np.ndarray) -> np.ndarray:
+    """Rings' 8-bit codes (k, R, 2), each as two planes of first differences (mod 256):
+    (k, 2R) uint8, one stored blob's bytes per row (:func:`ring_from_bytes` inverts one).
 
     Examples
     --------
-    >>> a = np.random.default_rng(2).integers(0, 256, (8, 2)).astype(np.uint8)
-    >>> bool((ring_from_bytes(ring_to_bytes(a)) == a).all())
+    >>> a = np.random.default_rng(2).integers(0, 256, (3, 8, 2)).astype(np.uint8)
+    >>> all((ring_from_bytes(r.tobytes()) == a[k]).all() for k, r in enumerate(ring_planes(a)))
     True
     """
-    p = np.ascontiguousarray(np.asarray(ring, np.uint8).T)
+    p = np.ascontiguousarray(np.asarray(rings, np.uint8).transpose(0, 2, 1))  # (k, 2, R)
     d = p.copy()
-    d[:, 1:] = p[:, 1:] - p[:, :-1]  # uint8: wraps mod 256, exactly invertible
-    return d.tobytes()
+    d[:, :, 1:] = p[:, :, 1:] - p[:, :, :-1]  # uint8: wraps mod 256, exactly invertible
+    return d.reshape(len(d), -1)
 
 
 def ring_from_bytes(raw: bytes) -> np.ndarray:
-    """Inverse of :func:`ring_to_bytes`: (R, 2) uint8."""
+    """One row of :func:`ring_planes` back to the ring's codes: (R, 2) uint8."""
     d = np.frombuffer(raw, np.uint8).reshape(2, -1)
     return np.ascontiguousarray(np.cumsum(d, axis=1, dtype=np.uint8).T)
 
