@@ -96,6 +96,7 @@ def preprocess(
     nodata: float | None = None,
     progress: Progress | None = None,
     derive_normals: bool = True,
+    derive_bounds: bool = True,
 ) -> Path:
     """Preprocess a DEM into a store and return the store's path.
 
@@ -139,6 +140,12 @@ def preprocess(
         central differences read nothing outside the tile there). Not on geographic
         frames, whose scene x, y cost a pyproj call per sample. False stores every
         normal, as stores before this option did.
+    derive_bounds
+        Store δ and r of each level-0 tile's new vertices only on its border ring: a
+        reader derives the rest from the tile's decoded heights, to the same values
+        (they are the bintree's finest vertices, whose diamonds lie in the tile;
+        :mod:`geoterrain.leafbounds`). Not on geographic frames (δ and r there carry
+        curvilinear terms of the scene x, y). False stores them all.
 
     Examples
     --------
@@ -223,6 +230,8 @@ def preprocess(
     # geographic one calls pyproj, about 2.6 ms a 65² tile, 20× the stored read)
     derive_normals = (bool(derive_normals) and grid.tile_samples >= 3
                       and frame.kind != "geographic")
+    derive_bounds = (bool(derive_bounds) and grid.tile_samples >= 3 and grid.top_level > 0
+                     and frame.kind != "geographic")
     hv = Z[valid]
     height_range = [float(hv.min()), float(hv.max())]
     del hv
@@ -285,7 +294,8 @@ def preprocess(
         blobs, dmax, rmax = level_blobs(coding, nrm_levels[L], grid.t, L, grid.top_level,
                                         [(x, y) for _, x, y in keys],
                                         ("delta", "radius") if ring else
-                                        ("delta", "radius", "normals"))
+                                        ("delta", "radius", "normals"),
+                                        ring=L == 0 and derive_bounds)
         if ring:
             blobs["normals"] = ring_blobs(nrm_levels[0], grid.t, [(x, y) for _, x, y in keys])
         for kind, b in blobs.items():

@@ -16,6 +16,7 @@ from geoterrain.bintree import vertex_level
 from geoterrain.codec import decode_tile, tile_valid
 from geoterrain.exceptions import StoreCorruptError, StoreError
 from geoterrain.grid import level_offsets
+from geoterrain.leafbounds import leaf_delta, leaf_radius
 from geoterrain.normals import decode_octahedral, encode_octahedral, normal_map
 from geoterrain.quantize import codes_to_heights
 from geoterrain.store import StoreReader
@@ -224,11 +225,31 @@ class Terrain:
             # the vertices shared with the parent are stored once, in the parent
             parent = {"delta": self.tile_delta, "radius": self.tile_radius,
                       "delta_edge": self.tile_delta_edge}[kind](L + 1, x // 2, y // 2)
+        derive = None
+        if L == 0 and stored in ("delta", "radius") and self.frame.kind != "geographic":
+            def derive(rows, cols, ring, log8, e):  # a RING blob: the rest from the heights
+                return self._leaf_bounds(key, stored, log8, e, rows, cols, ring)
         try:
-            return decode_bounds(blob, (T, T), parent, (x % 2, y % 2))
+            return decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive)
         except (ValueError, zstandard.ZstdError):
             raise StoreCorruptError(f"{self.path}: tile {key} {kind} cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
+
+    def _leaf_bounds(self, key: TileKey, kind: str, log8: bool, e: int, rows: np.ndarray,
+                     cols: np.ndarray, ring: np.ndarray) -> np.ndarray:
+        """The stored δ or r of a level-0 tile's new vertices, derived from its decoded
+        heights; the border ring's as stored (:mod:`geoterrain.leafbounds`)."""
+        if log8 != (kind == "delta"):  # δ in log8 codes, r in float16: as written
+            raise ValueError(f"a ring {kind} blob with the other kind's code")
+        tile = self.tile(*key)
+        z = self.frame.z(tile.heights)
+        if kind == "delta":
+            t = self.grid.t
+            return leaf_delta(z, tile.valid, (key[2] << t, key[1] << t), rows, cols, ring, e)
+        X, Y = self.tile_xy(*key)
+        r = leaf_radius(X, Y, z, tile.valid, self.stand_in_z, e)
+        r[rows, cols] = ring
+        return r
 
     def block_errors(self) -> np.ndarray | None:
         """Every GeoMipMapping block's exact δ_n (seed 000 §2.4), (nb, nb, levels) indexed

@@ -24,10 +24,13 @@ from geoterrain.vertexdata import (
     LOG8,
     LOG_STEPS,
     NEW_ONLY,
+    RING,
     VERSION_2,
     log8_exponent,
     log8_table,
+    new_mask,
     ring_index,
+    ring_new_index,
     ring_planes,
     scale_exponent,
 )
@@ -234,14 +237,16 @@ def compress_rows(rows: np.ndarray, prefix: bytes = b"", level: int = _ZSTD_LEVE
 
 
 def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_level: int,
-                tiles: Iterable[tuple[int, int]], kinds=("delta", "radius", "normals")
-                ) -> tuple[dict, np.ndarray, np.ndarray]:
+                tiles: Iterable[tuple[int, int]], kinds=("delta", "radius", "normals"),
+                ring: bool = False) -> tuple[dict, np.ndarray, np.ndarray]:
     """The δ, r and normals blobs of the stored tiles ``(x, y)`` of one level.
 
     ``nrm`` is the level's octahedral normal map (n, n, 2) uint8. Returns
     ``({"delta": {...}, "radius": {...}, "normals": {...}}, dmax, rmax)`` with blobs
     keyed ``(level, x, y)`` and the per-tile maxima in the order of ``tiles``; only the
-    ``kinds`` asked for are compressed.
+    ``kinds`` asked for are compressed. ``ring`` (level 0 below the top): the δ and r
+    blobs hold only the border's new vertices (flag ``RING``; a reader derives the rest,
+    :mod:`geoterrain.leafbounds`); the maxima still cover every new vertex.
 
     Examples
     --------
@@ -266,6 +271,14 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
                         np.ascontiguousarray(nrm, np.uint8), np.ascontiguousarray(xy[:, 1]),
                         np.ascontiguousarray(xy[:, 0]), t, level, new_only, pd, pr, pn, dmax, rmax)
     flags = NEW_ONLY if new_only else 0
+    if ring:
+        if level != 0 or not new_only or T < 3:
+            raise ValueError("ring bounds blobs are for level 0 below the top level")
+        rr, rc = ring_new_index(T)
+        pos = np.searchsorted(np.flatnonzero(new_mask(T)), rr * T + rc)
+        pd = pd[:, pos]
+        pr = np.concatenate([pr[:, pos], pr[:, nnew + pos]], axis=1)
+        flags |= RING
     head_d = bytes([VERSION_2, flags | LOG8, int(coding.ed) & 0xFF])
     head_r = bytes([VERSION_2, flags, int(coding.kr) & 0xFF])
     keys = [(level, int(x), int(y)) for x, y in xy]

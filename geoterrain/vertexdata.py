@@ -17,7 +17,10 @@ the parent's decoded values, which are the same vertices' bounds, so decoding is
 exact. Flag ``LOG8``: 8-bit logarithmic codes, ``LOG_STEPS`` per octave from
 ``2^e``, rounded *up* (code 0 is 0, code 255 is +inf): a stored value exceeds the
 exact one by less than ``2^(1/LOG_STEPS) - 1`` relative, and with one ``e`` per store
-and kind the map is monotone, so saturation survives it.
+and kind the map is monotone, so saturation survives it. Flag ``RING`` (level 0, with
+``NEW_ONLY``): only the new vertices of the tile's border ring are stored
+(:func:`ring_new_index`); a reader derives the others from the tile's decoded heights
+and codes them as the preprocess did (:mod:`geoterrain.leafbounds`).
 """
 
 from __future__ import annotations
@@ -32,7 +35,7 @@ from geoterrain.rounding import round_up
 
 VERSION = 1
 VERSION_2 = 2
-NEW_ONLY, LOG8 = 1, 2  # version-2 flags
+NEW_ONLY, LOG8, RING = 1, 2, 4  # version-2 flags
 LOG_STEPS = 16  # codes per octave: at most 2^(1/16) - 1 = 4.4 % above the exact value
 _F16_MAX = 32768.0  # keep the scaled maximum well inside float16's finite range
 
@@ -86,12 +89,15 @@ def pack_bounds(h: np.ndarray, k: int, cctx: zstandard.ZstdCompressor) -> bytes:
 
 
 def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None = None,
-                  parity: tuple[int, int] = (0, 0)) -> np.ndarray:
+                  parity: tuple[int, int] = (0, 0), derive=None) -> np.ndarray:
     """Inverse of :func:`encode_bounds` and :func:`pack_bounds_v2`: float32 values ≥ the
     encoded ones. A version-2 new-vertices-only blob needs the parent tile's decoded
-    values and the tile's ``(x % 2, y % 2)``."""
+    values and the tile's ``(x % 2, y % 2)``; a ``RING`` blob also needs ``derive(rows,
+    cols, ring_values, log8, e)``: the stored values (T, T) of the tile's new vertices,
+    computed from its heights with the ring's (:mod:`geoterrain.leafbounds`) and coded
+    with the blob's code (log8 or float16) and exponent."""
     if len(blob) >= 1 and blob[0] == VERSION_2:
-        return _decode_v2(blob, shape, parent, parity)
+        return _decode_v2(blob, shape, parent, parity, derive)
     if len(blob) < 2 or blob[0] != VERSION:
         raise ValueError("not a bounds blob of a known version")
     k = int(np.int8(np.uint8(blob[1])))
@@ -161,6 +167,26 @@ def log8_codes(a: np.ndarray, e: int) -> np.ndarray:
     return np.searchsorted(table, a, side="left").astype(np.uint8)
 
 
+@lru_cache(maxsize=8)
+def ring_new_index(T: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the new vertices on a T × T tile's border (an odd column on
+    the top and bottom rows, an odd row on the left and right columns; T odd): 2(T − 1)
+    samples, the top row, the bottom row, then the left and the right column.
+
+    Examples
+    --------
+    >>> r, c = ring_new_index(5)
+    >>> list(zip(r.tolist(), c.tolist()))
+    [(0, 1), (0, 3), (4, 1), (4, 3), (1, 0), (3, 0), (1, 4), (3, 4)]
+    """
+    odd = np.arange(1, T, 2)
+    k = len(odd)
+    rows = np.concatenate([np.zeros(k, np.int64), np.full(k, T - 1), odd, odd])
+    cols = np.concatenate([odd, odd, np.zeros(k, np.int64), np.full(k, T - 1)])
+    rows.flags.writeable = cols.flags.writeable = False
+    return rows, cols
+
+
 def new_mask(T: int) -> np.ndarray:
     """(T, T) True where a sample is new at its level (not on the parent's even grid)."""
     m = np.ones((T, T), bool)
@@ -192,14 +218,20 @@ def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
 
 
 def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
-               parity: tuple[int, int]) -> np.ndarray:
-    if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8):
+               parity: tuple[int, int], derive) -> np.ndarray:
+    if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING):
         raise ValueError("not a bounds blob of a known version")
     flags, e = blob[1], int(np.int8(np.uint8(blob[2])))
     T = shape[0]
-    keep = _new_flat(T) if flags & NEW_ONLY and len(shape) == 2 and shape[0] == shape[1] \
-        else None
-    n = len(keep) if keep is not None else int(np.prod(shape))
+    square = len(shape) == 2 and shape[0] == shape[1]
+    if flags & RING and not (flags & NEW_ONLY and square and T >= 3 and derive is not None):
+        raise ValueError("a ring bounds blob needs a level-0 tile's heights")
+    keep = _new_flat(T) if flags & NEW_ONLY and square else None
+    if flags & RING:
+        rr, rc = ring_new_index(T)
+        n = len(rr)
+    else:
+        n = len(keep) if keep is not None else int(np.prod(shape))
     width = 1 if flags & LOG8 else 2
     raw = zstdsafe.decompress(blob[3:], width * n, exact=True)  # bounded: never a bomb
     if flags & LOG8:
@@ -208,7 +240,9 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         h = np.frombuffer(raw, np.uint8).reshape(2, n).T.copy().view(np.float16).ravel()
         vals = round_up(h.astype(np.float64) * 2.0**e, np.float32)
     out = np.empty(shape, np.float32)
-    if keep is None:
+    if flags & RING:  # the ring as stored, the rest derived and coded as stored
+        out.ravel()[keep] = derive(rr, rc, vals, bool(flags & LOG8), e).ravel()[keep]
+    elif keep is None:
         out.ravel()[:] = vals
     else:
         out.ravel()[keep] = vals

@@ -1,0 +1,177 @@
+"""δ and r of a level-0 tile's new vertices, derived from the tile's decoded heights.
+
+Below the top level a tile stores only the vertices new at its level (the others are
+its parent's, :mod:`geoterrain.vertexdata`). At level 0 those are the samples with an
+odd row or column: the bintree's finest vertices, of half-span h = 1 (seed 002 §2.3):
+
+- a block centre (odd row and column): its diamond is its own closed 2 × 2 cell, so its
+  exact δ (:func:`geoterrain.bounds.vertex_errors`) is the h = 1 closed form over those
+  9 samples, saturated with its 4 edge midpoints (§2.4, L46: they are its children and
+  have none), and its sphere radius is the largest distance to them (L50–52: they are
+  leaves, r = 0);
+- an edge midpoint: a leaf (r = 0); its diamond is the two cells beside it, both inside
+  the tile unless it lies on the tile's border.
+
+So every new vertex's δ and r is a function of the tile's own samples, except the δ of
+the edge midpoints on the border ring, whose second cell lies in the next tile (its
+validity decides between the closed form, a partial sweep and +inf). A store keeps only
+those ring values (:data:`geoterrain.vertexdata.RING`); a reader rebuilds the rest here,
+with the same arithmetic as the whole-grid kernels (the same compiled helpers, no fast
+math), and codes them as the preprocess codes them, so it decodes the same values.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from numba import njit
+
+from geoterrain.bintree import main_diagonal_nb
+from geoterrain.bounds import _centre1, _edge_err, _mid1, _nest
+from geoterrain.rounding import round_up32
+from geoterrain.tileblobs import _f16_up_bits, _f16_value
+from geoterrain.vertexdata import log8_table
+
+__all__ = ["leaf_delta", "leaf_radius"]
+
+
+@njit(cache=True, nogil=True)
+def _status(vb, ci, cj):
+    # the closed 2 × 2 cell centred at (ci, cj): bit 1 holds a valid sample, bit 2 an
+    # invalid one (bounds._block_status_nb at h = 1)
+    f = 0
+    for di in range(-1, 2):
+        for dj in range(-1, 2):
+            f |= 1 if vb[ci + di, cj + dj] else 2
+    return f
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _code_up(table, x):
+    # the smallest log8 code whose value is ≥ x (log8_codes; the table ends with +inf)
+    lo, hi = 0, table.shape[0] - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if table[mid] >= x:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@njit(cache=True, nogil=True)
+def _leaf_delta_nb(z, vb, all_valid, i0, j0, rr, rc, rv, table, out):
+    # bounds._raw_delta_nb's h = 1 pass on the tile's interior, then its saturation
+    # (bounds._saturate_nb: centre = max(centre, its 4 edge midpoints)), then the codes'
+    # values (the code map is monotone: coding after the max = the max of the codes)
+    T = z.shape[0]
+    for ci in range(1, T - 1, 2):
+        for cj in range(1, T - 1, 2):
+            f = 1 if all_valid else _status(vb, ci, cj)
+            if f == 1:
+                out[ci, cj] = round_up32(_centre1(z, ci, cj,
+                                                  main_diagonal_nb((i0 + ci) // 2,
+                                                                   (j0 + cj) // 2)))
+            elif f == 3:
+                out[ci, cj] = np.inf
+            else:
+                out[ci, cj] = 0.0
+    for i in range(1, T - 1):
+        for j in range(1 + (i & 1), T - 1, 2):  # (odd, even) and (even, odd), off the ring
+            rows = (i & 1) == 1  # hypotenuse along the rows: ends (i ± 1, j)
+            if all_valid:
+                f = 1
+            elif rows:
+                f = _status(vb, i, j - 1) | _status(vb, i, j + 1)
+            else:
+                f = _status(vb, i - 1, j) | _status(vb, i + 1, j)
+            v = np.float32(0.0)
+            if f == 1:
+                v = round_up32(_mid1(z, i, j, rows))
+            elif f != 2:
+                m, c = _edge_err(z, vb, i, j, 1, rows, T)
+                if c == 2:
+                    v = np.float32(np.inf)
+                elif c == 1:
+                    v = round_up32(m)
+            out[i, j] = v
+    for k in range(rr.shape[0]):  # the border's edge midpoints, as stored
+        out[rr[k], rc[k]] = rv[k]
+    for ci in range(1, T - 1, 2):
+        for cj in range(1, T - 1, 2):
+            out[ci, cj] = max(out[ci, cj], out[ci - 1, cj], out[ci + 1, cj],
+                              out[ci, cj - 1], out[ci, cj + 1])
+    for i in range(T):
+        for j in range(1 - (i & 1), T, 2 - (i & 1)):  # the new vertices
+            out[i, j] = table[_code_up(table, np.float64(out[i, j]))]
+
+
+def leaf_delta(z: np.ndarray, valid: np.ndarray, origin: tuple[int, int],
+               ring_rows: np.ndarray, ring_cols: np.ndarray, ring_values: np.ndarray,
+               e: int) -> np.ndarray:
+    """The stored δ (float32) of a level-0 tile's new vertices: saturated exact δ, coded
+    as 8-bit log codes from ``2^e`` (:func:`geoterrain.vertexdata.log8_codes`).
+
+    ``z``: the tile's (T, T) scene heights (invalid samples ignored); ``valid``: its
+    mask; ``origin``: the (row, column) of its first sample in the full grid (the
+    cells' diagonals alternate with the global cell index, seed 002's union jack);
+    ``ring_*``: the border's new vertices and their stored δ. The other samples of the
+    result (the parent's vertices) are 0. Equal to the code values of
+    :func:`~geoterrain.bounds.vertex_errors` of the whole grid there (tested).
+
+    Examples
+    --------
+    >>> z = np.zeros((3, 3)); z[1, 1] = 2.0
+    >>> r, c = np.array([0, 2, 1, 1]), np.array([1, 1, 0, 2])
+    >>> float(leaf_delta(z, np.ones((3, 3), bool), (0, 0), r, c, np.zeros(4), -3)[1, 1])
+    2.0
+    """
+    valid = np.asarray(valid, bool) & np.isfinite(z)
+    zf = np.where(valid, z, 0.0)  # invalid heights are never read
+    out = np.zeros(zf.shape, np.float32)
+    _leaf_delta_nb(zf, valid.view(np.uint8), bool(valid.all()), int(origin[0]), int(origin[1]),
+                   np.asarray(ring_rows, np.int64), np.asarray(ring_cols, np.int64),
+                   np.asarray(ring_values, np.float32), _table(e), out)
+    return out
+
+
+@lru_cache(maxsize=64)
+def _table(e: int) -> np.ndarray:
+    return log8_table(e).astype(np.float64)
+
+
+@njit(cache=True, nogil=True)
+def _leaf_radius_nb(x, y, z, up, out):
+    T = z.shape[0]
+    r = np.zeros((T, T), np.float32)  # the edge midpoints: leaves
+    buf = np.empty(1, np.float64)
+    bits = buf.view(np.int64)
+    for ci in range(1, T - 1, 2):
+        for cj in range(1, T - 1, 2):
+            # float32 rounded up (bounds._radii_nb), then the stored float16 rounded up
+            buf[0] = np.float64(round_up32(_nest(x, y, z, r, ci, cj, 1))) / up
+            out[ci, cj] = round_up32(_f16_value(_f16_up_bits(buf[0], bits[0])) * up)
+
+
+def leaf_radius(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
+                stand_in_z: float, e: int) -> np.ndarray:
+    """The stored r (float32) of a level-0 tile's new vertices: nested sphere radii,
+    scaled by ``2^-e`` and rounded up to float16, as the preprocess stores them.
+
+    ``x, y, z``: the tile's (T, T) scene positions; invalid heights are replaced by
+    ``stand_in_z``, as :func:`geoterrain.bounds.vertex_radii` does. The edge midpoints
+    (leaves) and the parent's vertices are 0.
+
+    Examples
+    --------
+    >>> I, J = np.indices((3, 3)).astype(float)
+    >>> float(leaf_radius(J, -I, np.zeros((3, 3)), np.ones((3, 3), bool), 0.0, 0)[1, 1])
+    1.0
+    """
+    ok = np.asarray(valid, bool) & np.isfinite(z)
+    zp = np.where(ok, z, stand_in_z)
+    out = np.zeros(zp.shape, np.float32)
+    _leaf_radius_nb(np.ascontiguousarray(x, np.float64), np.ascontiguousarray(y, np.float64),
+                    zp, 2.0 ** e, out)
+    return out

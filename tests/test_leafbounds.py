@@ -1,0 +1,155 @@
+"""Level-0 δ and r derived on read from a tile's heights (geoterrain.leafbounds).
+
+A store written with ``derive_bounds`` keeps only the border ring's new vertices of each
+level-0 δ and r blob; the reader must rebuild every other value exactly as the whole-grid
+kernels computed and coded it. The oracle is the same DEM written with every value
+stored, whose δ and r come from :func:`geoterrain.bounds.vertex_errors` and
+:func:`~geoterrain.bounds.vertex_radii` over the whole grid.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import geoterrain
+from geoterrain.exceptions import StoreCorruptError
+from geoterrain.leafbounds import leaf_delta, leaf_radius
+from geoterrain.vertexdata import NEW_ONLY, RING, VERSION_2, ring_new_index
+from tests.conftest import real_dem, write_tif
+
+
+def _pair(tmp_path, z, nodata=None, tile_size=16, codec_error=None, pre=None, **kw):
+    """The same DEM preprocessed with every level-0 δ and r stored, and with the ring only."""
+    src = write_tif(tmp_path / "d.tif", z, nodata=nodata, **kw)
+    out = []
+    for derive in (False, True):
+        p = geoterrain.preprocess(src, tmp_path / f"d{int(derive)}.geoterrain",
+                                  tile_size=tile_size, codec_error=codec_error,
+                                  derive_bounds=derive, **(pre or {}))
+        out.append(geoterrain.open(p))
+    return out
+
+
+def _ring_flags(t) -> set:
+    return {t._blob(k, kind)[1] & RING for k in t.tile_info for kind in ("delta", "radius")}
+
+
+def _assert_same_bounds(full, ring):
+    for key in full.tile_info:
+        for get in ("tile_delta", "tile_radius", "tile_delta_edge"):
+            a, b = getattr(full, get)(*key), getattr(ring, get)(*key)
+            assert np.array_equal(a, b), (key, get, np.argwhere(a != b)[:5].tolist())
+
+
+@settings(max_examples=14, deadline=None)
+@given(seed=st.integers(0, 10_000), shape=st.sampled_from([(33, 33), (50, 37), (20, 65)]),
+       tile=st.sampled_from([2, 4, 16]), holes=st.sampled_from([0.0, 0.03, 0.3]),
+       lossy=st.booleans(), z_scale=st.sampled_from([1.0, 3.0]),
+       z_units=st.sampled_from(["m", "ft"]))
+def test_derived_level0_bounds_are_the_stored_ones(tmp_path_factory, seed, shape, tile, holes,
+                                                   lossy, z_scale, z_units):
+    """Every tile's δ, r and δ_edge decode to the same float32 values from a store that
+    keeps only level 0's border rings as from one that keeps them all: rough random
+    DEMs, sparse and dense nodata (mixed diamonds, +inf), padded shapes (δ_edge read
+    through the δ blob), tiles of 3–17 samples (T = 3: the cells' diagonals alternate
+    from tile to tile), lossless and ε = 2, heights exaggerated and in feet."""
+    tmp = tmp_path_factory.mktemp("lb")
+    rng = np.random.default_rng(seed)
+    z = rng.normal(0, 20, shape).cumsum(0).cumsum(1) / 5 + rng.normal(0, 3, shape)
+    if holes:
+        z[rng.random(shape) < holes] = -9999.0
+    full, ring = _pair(tmp, z.astype(np.float32), nodata=-9999.0, tile_size=tile,
+                       codec_error=2.0 if lossy else None,
+                       pre={"z_scale": z_scale, "z_units": z_units})
+    assert _ring_flags(full) == {0}
+    assert ring.grid.top_level == 0 or RING in _ring_flags(ring)
+    _assert_same_bounds(full, ring)
+    assert ring.path.stat().st_size <= full.path.stat().st_size  # (pages: tiny DEMs tie)
+
+
+def test_only_level0_blobs_are_rings(tmp_path):
+    """Coarser tiles' new vertices have diamonds beyond the tile: they stay stored."""
+    z = np.random.default_rng(4).normal(0, 5, (65, 65)).cumsum(0)
+    _, ring = _pair(tmp_path, z)
+    for key in ring.tile_info:
+        for kind in ("delta", "radius"):
+            flags = ring._blob(key, kind)[1]
+            assert bool(flags & RING) == (key[0] == 0), (key, kind)
+
+
+@pytest.mark.parametrize("name", ["fuji_terrain_rgb.png", "st_helens_terrain_rgb.png",
+                                  "terrarium.png", "roi_epsg3089.tif"])
+def test_real_dem_bounds_are_derived_exactly(tmp_path, name):
+    """The shared DEMs in projected or pixel frames (padded grids: δ_edge too; roi in US
+    feet with voids)."""
+    p = real_dem(name)
+    out = []
+    for derive in (False, True):
+        out.append(geoterrain.open(geoterrain.preprocess(
+            p, tmp_path / f"s{int(derive)}.geoterrain", derive_bounds=derive)))
+    _assert_same_bounds(*out)
+
+
+def test_geographic_stores_keep_every_bound(tmp_path):
+    """δ and r carry curvilinear terms of the scene x, y on a geographic frame: no ring."""
+    z = np.random.default_rng(1).normal(0, 5, (33, 33)).cumsum(0)
+    _, ring = _pair(tmp_path, z, crs="EPSG:4326", spacing=1 / 3600, origin=(139.0, 35.0))
+    assert ring.frame.kind == "geographic" and _ring_flags(ring) == {0}
+
+
+def test_a_damaged_or_misplaced_ring_is_refused_in_one_line(tmp_path):
+    """A stranger's store: a ring of the wrong length, a ring at level 1, a ring δ coded
+    as float16: each is a one-line StoreCorruptError, never a wrong bound."""
+    import zstandard
+
+    z = np.random.default_rng(2).normal(0, 5, (65, 65)).cumsum(1)
+    _, ring = _pair(tmp_path, z)
+    blob = ring._blob
+    short = bytes([VERSION_2, NEW_ONLY | RING | 2, 0]) + zstandard.ZstdCompressor().compress(
+        bytes(10))
+    # (level 1 first: a level-0 read caches its parent)
+    for key, bad in [((1, 0, 0), blob((0, 0, 0), "delta")), ((0, 0, 0), short),
+                     ((0, 1, 1), blob((0, 1, 1), "radius"))]:
+        ring._blob = lambda k, kind, key=key, bad=bad: (bad if (k, kind) == (key, "delta")
+                                                        else blob(k, kind))
+        with pytest.raises(StoreCorruptError, match="delta cannot be decoded"):
+            ring.tile_delta(*key)
+
+
+def test_a_forked_child_derives_the_same_bounds(tmp_path):
+    """The derivation kernels are serial: a fork() child of a parent that ran the
+    parallel preprocess kernels reads derived bounds (GNU OpenMP would abort a parallel
+    launch there)."""
+    from tests.conftest import in_fork
+
+    z = np.random.default_rng(3).normal(0, 5, (65, 65)).cumsum(0)
+    full, ring = _pair(tmp_path, z)
+    want = full.tile_delta(0, 1, 1).tobytes() + full.tile_radius(0, 1, 1).tobytes()
+    ring.tile_delta(0, 0, 0)
+    got, status = in_fork(lambda: ring.tile_delta(0, 1, 1).tobytes()
+                          + ring.tile_radius(0, 1, 1).tobytes() == want)
+    assert got == b"same", (got, status)
+
+
+def test_leaf_kernels_by_hand():
+    """Closed forms on one cell: the centre's δ is its distance to the midpoint of the
+    cell's split diagonal (which flips with the cell's global parity), saturated with its
+    edge midpoints; its radius is the farthest edge midpoint; edge midpoints are leaves."""
+    from geoterrain.vertexdata import log8_codes, log8_table
+
+    z = np.array([[2.0, 1, 0], [1, 3, 1], [0, 1, 2]])  # the edge samples lie on the legs
+    ok = np.ones((3, 3), bool)
+    rr, rc = ring_new_index(3)
+    ring = np.zeros(len(rr), np.float32)
+    e = -4  # codes 2^-4 · 2^((k − 1)/16): powers of two are exact
+    assert leaf_delta(z, ok, (0, 0), rr, rc, ring, e)[1, 1] == 1.0  # main: |3 − 2|
+    three = log8_table(e)[log8_codes(np.array([3.0]), e)][0]  # anti: |3 − 0|, coded up
+    assert leaf_delta(z, ok, (0, 2), rr, rc, ring, e)[1, 1] == three >= 3.0
+    ring[0] = 2.0  # the ring's (0, 1), as stored, saturates the centre
+    assert leaf_delta(z, ok, (0, 0), rr, rc, ring, e)[1, 1] == 2.0
+    ii, jj = np.indices((3, 3)).astype(float)
+    r = leaf_radius(jj * 3.0, -ii * 4.0, np.zeros((3, 3)), ok, 0.0, 0)
+    assert r[1, 1] == 4.0 and (r[0, 1], r[1, 0]) == (0.0, 0.0)
