@@ -195,8 +195,10 @@ def outcome(path: Path, view) -> tuple[str, object]:
             m = t.mesh(max_error=0.5)
             sel = t.select(view, pixel_error=2.0)
             gmm = t.select(view, pixel_error=2.0, strategy="geomipmap")  # the block table
-            nrm = [t.tile_normal_codes(*k).tobytes() for k in sorted(t.tile_info)
-                   if k[0] == 0][:4]  # level 0's normals: derived from a ring, or stored
+            lv0 = [k for k in sorted(t.tile_info) if k[0] == 0][:4]
+            # level 0's normals, δ and r: derived from a ring, or stored
+            nrm = [t.tile_normal_codes(*k).tobytes() + t.tile_delta(*k).tobytes()
+                   + t.tile_radius(*k).tobytes() for k in lv0]
             info = t.info()
             for k in ("path", "size_bytes", "bytes_by_kind", "height_bytes_per_level",
                       "height_bits_per_valid_sample"):  # file sizes, not content
