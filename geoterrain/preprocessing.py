@@ -306,12 +306,14 @@ def preprocess(
             tile_rows[key] = (*bounds[key], dm, rm)
         # the second δ: new vertices over the parent's on stored tiles, whole tiles on
         # the unstored ones (nothing else there to read a parent from)
-        for keys_e, top in ([] if edge is None else
-                            [(edge_keys, grid.top_level), (edge_only, L)]):
+        # (the stored tiles' as differences from their δ codes: zero but near the padding)
+        for keys_e, top, base in ([] if edge is None else
+                                  [(edge_keys, grid.top_level, coding), (edge_only, L, None)]):
             ekeys = [(x, y) for L2, x, y in keys_e if L2 == L]
             if not ekeys:
                 continue
-            eb, emax, _ = level_blobs(edge, nrm_levels[L], grid.t, L, top, ekeys, ("delta",))
+            eb, emax, _ = level_blobs(edge, nrm_levels[L], grid.t, L, top, ekeys, ("delta",),
+                                      base=base)
             extra["delta_edge"].update(eb["delta"])
             edge_max += [[L, x, y, m if np.isfinite(m) else None]
                          for (x, y), m in zip(ekeys, emax.tolist(), strict=True)]

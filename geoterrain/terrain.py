@@ -22,6 +22,7 @@ from geoterrain.quantize import codes_to_heights
 from geoterrain.store import StoreReader
 from geoterrain.storecheck import check_store
 from geoterrain.vertexdata import (
+    DIFF,
     NEW_ONLY,
     NORMALS_PLANAR_DXDY,
     VERSION_2,
@@ -229,8 +230,11 @@ class Terrain:
         if L == 0 and stored in ("delta", "radius") and self.frame.kind != "geographic":
             def derive(rows, cols, ring, log8, e):  # a RING blob: the rest from the heights
                 return self._leaf_bounds(key, stored, log8, e, rows, cols, ring)
+        # a stored tile's own δ_edge blob may hold differences from its δ codes
+        base = (self.tile_delta(*key) if stored == "delta_edge" and len(blob) > 1
+                and blob[1] & DIFF and key in self.tile_info else None)
         try:
-            return decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive)
+            return decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base)
         except (ValueError, zstandard.ZstdError):
             raise StoreCorruptError(f"{self.path}: tile {key} {kind} cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None

@@ -21,6 +21,7 @@ from numba import njit, prange
 from geoterrain.rounding import round_up
 from geoterrain.threads import cores_for
 from geoterrain.vertexdata import (
+    DIFF,
     LOG8,
     LOG_STEPS,
     NEW_ONLY,
@@ -238,7 +239,8 @@ def compress_rows(rows: np.ndarray, prefix: bytes = b"", level: int = _ZSTD_LEVE
 
 def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_level: int,
                 tiles: Iterable[tuple[int, int]], kinds=("delta", "radius", "normals"),
-                ring: bool = False) -> tuple[dict, np.ndarray, np.ndarray]:
+                ring: bool = False, base: BoundsCoding | None = None
+                ) -> tuple[dict, np.ndarray, np.ndarray]:
     """The δ, r and normals blobs of the stored tiles ``(x, y)`` of one level.
 
     ``nrm`` is the level's octahedral normal map (n, n, 2) uint8. Returns
@@ -246,7 +248,9 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     keyed ``(level, x, y)`` and the per-tile maxima in the order of ``tiles``; only the
     ``kinds`` asked for are compressed. ``ring`` (level 0 below the top): the δ and r
     blobs hold only the border's new vertices (flag ``RING``; a reader derives the rest,
-    :mod:`geoterrain.leafbounds`); the maxima still cover every new vertex.
+    :mod:`geoterrain.leafbounds`); the maxima still cover every new vertex. ``base``
+    (a δ_edge's δ, coded with the same table): the δ blobs hold each code's difference
+    from ``base``'s mod 256 (flag ``DIFF``); the maxima are still of ``coding``'s values.
 
     Examples
     --------
@@ -271,6 +275,15 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
                         np.ascontiguousarray(nrm, np.uint8), np.ascontiguousarray(xy[:, 1]),
                         np.ascontiguousarray(xy[:, 0]), t, level, new_only, pd, pr, pn, dmax, rmax)
     flags = NEW_ONLY if new_only else 0
+    if base is not None:
+        if base.ed != coding.ed or ring:
+            raise ValueError("a difference δ blob needs one code table and no ring")
+        s = 1 << level
+        ii, jj = np.nonzero(new_mask(T) if new_only else np.ones((T, T), bool))
+        rows = (xy[:, 1, None] << (t + level)) + ii[None] * s
+        cols = (xy[:, 0, None] << (t + level)) + jj[None] * s
+        pd = pd - base.dc[rows, cols]  # uint8: wraps mod 256, exactly invertible
+        flags |= DIFF
     if ring:
         if level != 0 or not new_only or T < 3:
             raise ValueError("ring bounds blobs are for level 0 below the top level")
@@ -280,7 +293,7 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         pr = np.concatenate([pr[:, pos], pr[:, nnew + pos]], axis=1)
         flags |= RING
     head_d = bytes([VERSION_2, flags | LOG8, int(coding.ed) & 0xFF])
-    head_r = bytes([VERSION_2, flags, int(coding.kr) & 0xFF])
+    head_r = bytes([VERSION_2, flags & ~DIFF, int(coding.kr) & 0xFF])
     keys = [(level, int(x), int(y)) for x, y in xy]
     rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
     blobs = {kind: dict(zip(keys, compress_rows(*rows[kind]), strict=True)) for kind in kinds}

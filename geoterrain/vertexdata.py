@@ -20,7 +20,10 @@ exact one by less than ``2^(1/LOG_STEPS) - 1`` relative, and with one ``e`` per 
 and kind the map is monotone, so saturation survives it. Flag ``RING`` (level 0, with
 ``NEW_ONLY``): only the new vertices of the tile's border ring are stored
 (:func:`ring_new_index`); a reader derives the others from the tile's decoded heights
-and codes them as the preprocess did (:mod:`geoterrain.leafbounds`).
+and codes them as the preprocess did (:mod:`geoterrain.leafbounds`). Flag ``DIFF`` (log8
+only; a stored tile's ``delta_edge``): each code is stored as its difference mod 256
+from the same vertex's code in the tile's ``delta`` blob (same ``e``): δ_edge differs
+from δ only near the padding, so the payload is mostly zeros.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from geoterrain.rounding import round_up
 
 VERSION = 1
 VERSION_2 = 2
-NEW_ONLY, LOG8, RING = 1, 2, 4  # version-2 flags
+NEW_ONLY, LOG8, RING, DIFF = 1, 2, 4, 8  # version-2 flags
 LOG_STEPS = 16  # codes per octave: at most 2^(1/16) - 1 = 4.4 % above the exact value
 _F16_MAX = 32768.0  # keep the scaled maximum well inside float16's finite range
 
@@ -89,15 +92,17 @@ def pack_bounds(h: np.ndarray, k: int, cctx: zstandard.ZstdCompressor) -> bytes:
 
 
 def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None = None,
-                  parity: tuple[int, int] = (0, 0), derive=None) -> np.ndarray:
+                  parity: tuple[int, int] = (0, 0), derive=None,
+                  base: np.ndarray | None = None) -> np.ndarray:
     """Inverse of :func:`encode_bounds` and :func:`pack_bounds_v2`: float32 values ≥ the
     encoded ones. A version-2 new-vertices-only blob needs the parent tile's decoded
     values and the tile's ``(x % 2, y % 2)``; a ``RING`` blob also needs ``derive(rows,
     cols, ring_values, log8, e)``: the stored values (T, T) of the tile's new vertices,
     computed from its heights with the ring's (:mod:`geoterrain.leafbounds`) and coded
-    with the blob's code (log8 or float16) and exponent."""
+    with the blob's code (log8 or float16) and exponent. A ``DIFF`` blob needs ``base``:
+    the tile's decoded δ, whose codes its payload is added to."""
     if len(blob) >= 1 and blob[0] == VERSION_2:
-        return _decode_v2(blob, shape, parent, parity, derive)
+        return _decode_v2(blob, shape, parent, parity, derive, base)
     if len(blob) < 2 or blob[0] != VERSION:
         raise ValueError("not a bounds blob of a known version")
     k = int(np.int8(np.uint8(blob[1])))
@@ -218,10 +223,13 @@ def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
 
 
 def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
-               parity: tuple[int, int], derive) -> np.ndarray:
-    if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING):
+               parity: tuple[int, int], derive, base) -> np.ndarray:
+    if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING | DIFF):
         raise ValueError("not a bounds blob of a known version")
     flags, e = blob[1], int(np.int8(np.uint8(blob[2])))
+    if flags & DIFF and (flags & RING or not flags & LOG8 or base is None
+                         or np.shape(base) != tuple(shape)):
+        raise ValueError("a difference bounds blob needs log8 codes and the tile's δ")
     T = shape[0]
     square = len(shape) == 2 and shape[0] == shape[1]
     if flags & RING and not (flags & NEW_ONLY and square and T >= 3 and derive is not None):
@@ -234,7 +242,11 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         n = len(keep) if keep is not None else int(np.prod(shape))
     width = 1 if flags & LOG8 else 2
     raw = zstdsafe.decompress(blob[3:], width * n, exact=True)  # bounded: never a bomb
-    if flags & LOG8:
+    if flags & DIFF:  # + the codes of the tile's δ at the same vertices, mod 256
+        b = log8_codes(np.asarray(base).ravel() if keep is None
+                       else np.asarray(base).ravel()[keep], e)
+        vals = _log8_table_ro(e)[b + np.frombuffer(raw, np.uint8)]
+    elif flags & LOG8:
         vals = _log8_table_ro(e)[np.frombuffer(raw, np.uint8)]
     else:
         h = np.frombuffer(raw, np.uint8).reshape(2, n).T.copy().view(np.float16).ravel()

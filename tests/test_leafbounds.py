@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 import geoterrain
 from geoterrain.exceptions import StoreCorruptError
 from geoterrain.leafbounds import leaf_delta, leaf_radius
-from geoterrain.vertexdata import NEW_ONLY, RING, VERSION_2, ring_new_index
+from geoterrain.vertexdata import DIFF, NEW_ONLY, RING, VERSION_2, ring_new_index
 from tests.conftest import real_dem, write_tif
 
 
@@ -101,8 +101,8 @@ def test_geographic_stores_keep_every_bound(tmp_path):
 
 
 def test_a_damaged_or_misplaced_ring_is_refused_in_one_line(tmp_path):
-    """A stranger's store: a ring of the wrong length, a ring at level 1, a ring δ coded
-    as float16: each is a one-line StoreCorruptError, never a wrong bound."""
+    """A stranger's store: a ring at level 1, a δ blob flagged as differences, a ring of
+    the wrong length, a ring δ coded as float16: each is a one-line StoreCorruptError."""
     import zstandard
 
     z = np.random.default_rng(2).normal(0, 5, (65, 65)).cumsum(1)
@@ -111,7 +111,10 @@ def test_a_damaged_or_misplaced_ring_is_refused_in_one_line(tmp_path):
     short = bytes([VERSION_2, NEW_ONLY | RING | 2, 0]) + zstandard.ZstdCompressor().compress(
         bytes(10))
     # (level 1 first: a level-0 read caches its parent)
-    for key, bad in [((1, 0, 0), blob((0, 0, 0), "delta")), ((0, 0, 0), short),
+    d110 = blob((1, 1, 0), "delta")
+    diff = d110[:1] + bytes([d110[1] | DIFF]) + d110[2:]  # a δ "over" a δ it does not have
+    for key, bad in [((1, 0, 0), blob((0, 0, 0), "delta")), ((1, 1, 0), diff),
+                     ((0, 0, 0), short),
                      ((0, 1, 1), blob((0, 1, 1), "radius"))]:
         ring._blob = lambda k, kind, key=key, bad=bad: (bad if (k, kind) == (key, "delta")
                                                         else blob(k, kind))
@@ -153,3 +156,38 @@ def test_leaf_kernels_by_hand():
     ii, jj = np.indices((3, 3)).astype(float)
     r = leaf_radius(jj * 3.0, -ii * 4.0, np.zeros((3, 3)), ok, 0.0, 0)
     assert r[1, 1] == 4.0 and (r[0, 1], r[1, 0]) == (0.0, 0.0)
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 10_000), shape=st.sampled_from([(40, 33), (50, 37), (20, 65)]),
+       tile=st.sampled_from([2, 4, 8]), holes=st.booleans())
+def test_delta_edge_decodes_to_the_replicated_grids_delta(tmp_path_factory, seed, shape, tile,
+                                                          holes):
+    """Every stored tile's δ_edge (its own blob, stored as differences from its δ codes,
+    or its δ blob over its parent's δ_edge) decodes to the δ of the grid whose padding
+    replicates the data's edge, computed here from the decoded heights by
+    :mod:`geoterrain.edgepad` and coded with the store's table."""
+    from geoterrain.edgepad import edge_deltas, edge_support
+    from geoterrain.vertexdata import DIFF, log8_codes, log8_table
+
+    tmp = tmp_path_factory.mktemp("de")
+    rng = np.random.default_rng(seed)
+    z = rng.normal(0, 20, shape).cumsum(0).cumsum(1) / 5
+    if holes:
+        z[rng.random(shape) < 0.05] = -9999.0
+    src = write_tif(tmp / "d.tif", z.astype(np.float32), nodata=-9999.0)
+    t = geoterrain.open(geoterrain.preprocess(src, tmp / "d.geoterrain", tile_size=tile))
+    g = t.grid
+    h, v = t.level_heights(0)
+    Zr, ok = edge_support(t.frame.z(np.where(v, h, np.nan)), v, g)
+    e = np.int8(np.uint8(t._blob((g.top_level, 0, 0), "delta")[2]))
+    want = log8_table(int(e))[log8_codes(edge_deltas(Zr, ok, g), int(e))]
+    diffs = 0
+    for L, x, y in t.tile_info:
+        s = 1 << L
+        rows = y * (g.tile_samples - 1) * s + np.arange(g.tile_samples) * s
+        cols = x * (g.tile_samples - 1) * s + np.arange(g.tile_samples) * s
+        got = t.tile_delta_edge(L, x, y)
+        assert np.array_equal(got, want[np.ix_(rows, cols)]), (L, x, y)
+        diffs += (L, x, y) in t.edge_max and bool(t._blob((L, x, y), "delta_edge")[1] & DIFF)
+    assert diffs or not t.edge_max  # the difference blobs were exercised
