@@ -30,7 +30,7 @@ from numba import njit
 from geoterrain.bintree import main_diagonal_nb
 from geoterrain.bounds import _centre1, _edge_err, _mid1, _nest
 from geoterrain.rounding import round_up32
-from geoterrain.tileblobs import _f16_up_bits, _f16_value
+from geoterrain.tileblobs import _f16_up_bits, _f16_value, code_up_nb
 from geoterrain.vertexdata import log8_table
 
 __all__ = ["leaf_delta", "leaf_radius"]
@@ -45,19 +45,6 @@ def _status(vb, ci, cj):
         for dj in range(-1, 2):
             f |= 1 if vb[ci + di, cj + dj] else 2
     return f
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _code_up(table, x):
-    # the smallest log8 code whose value is ≥ x (log8_codes; the table ends with +inf)
-    lo, hi = 0, table.shape[0] - 1
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if table[mid] >= x:
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
 
 
 @njit(cache=True, nogil=True)
@@ -104,7 +91,7 @@ def _leaf_delta_nb(z, vb, all_valid, i0, j0, rr, rc, rv, table, out):
                               out[ci, cj - 1], out[ci, cj + 1])
     for i in range(T):
         for j in range(1 - (i & 1), T, 2 - (i & 1)):  # the new vertices
-            out[i, j] = table[_code_up(table, np.float64(out[i, j]))]
+            out[i, j] = table[code_up_nb(table, np.float64(out[i, j]))]
 
 
 def leaf_delta(z: np.ndarray, valid: np.ndarray, origin: tuple[int, int],
@@ -142,22 +129,29 @@ def _table(e: int) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _leaf_radius_nb(x, y, z, up, out):
+def _leaf_radius_nb(x, y, z, up, table, out):
     T = z.shape[0]
     r = np.zeros((T, T), np.float32)  # the edge midpoints: leaves
     buf = np.empty(1, np.float64)
     bits = buf.view(np.int64)
     for ci in range(1, T - 1, 2):
         for cj in range(1, T - 1, 2):
-            # float32 rounded up (bounds._radii_nb), then the stored float16 rounded up
-            buf[0] = np.float64(round_up32(_nest(x, y, z, r, ci, cj, 1))) / up
-            out[ci, cj] = round_up32(_f16_value(_f16_up_bits(buf[0], bits[0])) * up)
+            # float32 rounded up (bounds._radii_nb), then coded up as stored: the log8
+            # code (its children are leaves, code 0: tileblobs.radius_codes), or float16
+            r32 = round_up32(_nest(x, y, z, r, ci, cj, 1))
+            if table.shape[0]:
+                out[ci, cj] = table[code_up_nb(table, np.float64(r32))]
+            else:
+                buf[0] = np.float64(r32) / up
+                out[ci, cj] = round_up32(_f16_value(_f16_up_bits(buf[0], bits[0])) * up)
 
 
 def leaf_radius(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
-                stand_in_z: float, e: int) -> np.ndarray:
-    """The stored r (float32) of a level-0 tile's new vertices: nested sphere radii,
-    scaled by ``2^-e`` and rounded up to float16, as the preprocess stores them.
+                stand_in_z: float, e: int, log8: bool = True) -> np.ndarray:
+    """The stored r (float32) of a level-0 tile's new vertices: nested sphere radii coded
+    as the preprocess codes them, 8-bit log codes from ``2^e``
+    (:func:`geoterrain.tileblobs.radius_codes`) or, with ``log8`` False (stores before
+    it), scaled by ``2^-e`` and rounded up to float16.
 
     ``x, y, z``: the tile's (T, T) scene positions; invalid heights are replaced by
     ``stand_in_z``, as :func:`geoterrain.bounds.vertex_radii` does. The edge midpoints
@@ -165,13 +159,13 @@ def leaf_radius(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
 
     Examples
     --------
-    >>> I, J = np.indices((3, 3)).astype(float)
-    >>> float(leaf_radius(J, -I, np.zeros((3, 3)), np.ones((3, 3), bool), 0.0, 0)[1, 1])
+    >>> ii, jj = np.indices((3, 3)).astype(float)
+    >>> float(leaf_radius(jj, -ii, np.zeros((3, 3)), np.ones((3, 3), bool), 0.0, 0)[1, 1])
     1.0
     """
     ok = np.asarray(valid, bool) & np.isfinite(z)
     zp = np.where(ok, z, stand_in_z)
     out = np.zeros(zp.shape, np.float32)
     _leaf_radius_nb(np.ascontiguousarray(x, np.float64), np.ascontiguousarray(y, np.float64),
-                    zp, 2.0 ** e, out)
+                    zp, 2.0 ** e, _table(e) if log8 else np.empty(0), out)
     return out

@@ -35,7 +35,7 @@ from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.quantize import choose_quantizer
 from geoterrain.raster import Raster, read_raster
 from geoterrain.store import StoreWriter, default_store_path, remove_stale_partials
-from geoterrain.tileblobs import BoundsCoding, level_blobs, ring_blobs
+from geoterrain.tileblobs import BoundsCoding, level_blobs, radius_codes, ring_blobs
 from geoterrain.tilebounds import tile_and_block_errors
 from geoterrain.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
 from geoterrain.vertexdata import NORMALS_PLANAR_DXDY, log8_exponent, pack_block_errors
@@ -258,7 +258,7 @@ def preprocess(
 
     height_blobs = encode_pyramid(heights, valid, grid.t, q, level=zstd_level)
     # δ: 8-bit log codes rounded up (saturation survives: one monotone map per store);
-    # r: float16 rounded up (nesting holds to 2^-10). Below the top level only the
+    # r: 8-bit log codes rounded up, nested on the codes. Below the top level only the
     # vertices new at the level are stored; the others are the parent's (vertexdata.py).
     # padding by edge replication: a second δ for the static mesh (geoterrain/edgepad.py),
     # coded with the same table as δ, so the two agree wherever their raw values do
@@ -274,7 +274,8 @@ def preprocess(
         del Zr, ok
     del terms
     ed = None if d_edge is None else max(log8_exponent(delta), log8_exponent(d_edge))
-    coding = BoundsCoding(delta, radius, ed)
+    # r as nested 8-bit log codes: one byte a vertex, nesting exact on the stored values
+    coding = BoundsCoding(delta, radius, ed, r_codes=radius_codes(X, Y, Z, valid, radius))
     if d_edge is not None:
         edge = BoundsCoding(d_edge, radius, ed)
         del d_edge

@@ -1,7 +1,8 @@
 """Every stored tile's δ, r and normal-map blobs, built level by level on whole arrays.
 
 The per-vertex bounds are coded once at full resolution (the codes are elementwise:
-:func:`geoterrain.vertexdata.log8_codes` for δ, rounded-up float16 for r), then one
+:func:`geoterrain.vertexdata.log8_codes` for δ; for r nested log8 codes,
+:func:`radius_codes`, or rounded-up float16), then one
 compiled pass per pyramid level gathers each stored tile's payload (only the vertices
 new at the level, as :func:`geoterrain.vertexdata.pack_bounds_v2` stores them; the
 normals as planar 2-D differences, :func:`geoterrain.vertexdata.normals_to_bytes`) and
@@ -18,6 +19,8 @@ from collections.abc import Iterable
 import numpy as np
 from numba import njit, prange
 
+from geoterrain.bintree import child_nb
+from geoterrain.bounds import _proxy_positions
 from geoterrain.rounding import round_up
 from geoterrain.threads import cores_for
 from geoterrain.vertexdata import (
@@ -37,7 +40,7 @@ from geoterrain.vertexdata import (
 )
 from geoterrain.zstdsafe import compress_many
 
-__all__ = ["BoundsCoding", "level_blobs", "compress_rows"]
+__all__ = ["BoundsCoding", "level_blobs", "compress_rows", "radius_codes"]
 
 _ZSTD_LEVEL = 3  # δ, r and normals: level 19 saves 3 % at many times the time (§7)
 
@@ -57,10 +60,14 @@ class BoundsCoding:
     (True, 'float16')
     """
 
-    def __init__(self, delta: np.ndarray, radius: np.ndarray, ed: int | None = None) -> None:
+    def __init__(self, delta: np.ndarray, radius: np.ndarray, ed: int | None = None,
+                 r_codes: tuple[np.ndarray, int] | None = None) -> None:
         # ed: δ's code exponent (default: the smallest that covers its largest finite
-        # value); a given one must cover it too (a larger one steps more coarsely)
+        # value); a given one must cover it too (a larger one steps more coarsely).
+        # r_codes: (codes, e) of :func:`radius_codes`: r stored as nested log8 codes
         self.ed = log8_exponent(delta) if ed is None else int(ed)
+        self.rc = None if r_codes is None else np.ascontiguousarray(r_codes[0], np.uint8)
+        self.er = None if r_codes is None else int(r_codes[1])
         self.kr = scale_exponent(radius)
         t8 = log8_table(self.ed)
         shape = np.shape(delta)
@@ -83,6 +90,8 @@ class BoundsCoding:
 
     @property
     def r_stored(self) -> np.ndarray:
+        if self.rc is not None:
+            return log8_table(self.er)[self.rc]
         return round_up(self.r16.astype(np.float64) * 2.0 ** self.kr, np.float32)
 
 
@@ -128,6 +137,101 @@ def _f16_value(b):
     return -v if b & 0x8000 else v
 
 
+@njit(cache=True, nogil=True, inline="always")
+def code_up_nb(table, x):
+    """The smallest log8 code whose value is ≥ x (:func:`log8_codes`; ``table`` float64,
+    increasing, ending with +inf): a binary search, compiled, inlined."""
+    lo, hi = 0, table.shape[0] - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if table[mid] >= x:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@njit(cache=True, nogil=True, inline="always")
+def nest_code_nb(x, y, z, r, codes, table, i, j, h):
+    """The code of vertex (i, j) of half-span h with the nesting of seed 002 §2.4
+    (L50–52) on the coded values: the smallest code ≥ its radius and ≥ |p_v − p_c| +
+    table[code(c)] for each child c (children outside the grid: none)."""
+    N = z.shape[0]
+    best = np.float64(r[i, j])
+    for k in range(4):
+        ci, cj = child_nb(i, j, h, k)
+        if 0 <= ci < N and 0 <= cj < N:
+            d = np.sqrt((x[i, j] - x[ci, cj]) ** 2 + (y[i, j] - y[ci, cj]) ** 2
+                        + (z[i, j] - z[ci, cj]) ** 2) + table[codes[ci, cj]]
+            best = max(best, d)
+    return code_up_nb(table, best)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _nest_codes_nb(x, y, z, r, table, codes):
+    # fine to coarse, as bounds._radii_nb: at each h the edge midpoints (their children
+    # are the centres of h/2), then the centres (their children: the edge midpoints of h)
+    N = z.shape[0]
+    for i in prange(N):
+        for j in range(N):
+            codes[i, j] = code_up_nb(table, np.float64(r[i, j]))  # leaves keep theirs
+    h = 1
+    while h < N - 1:
+        s = 2 * h
+        nb = (N - 1) // s
+        if h >= 2:
+            for typ in range(2):
+                rows = typ == 0
+                na = nb if rows else nb + 1
+                nc = nb + 1 if rows else nb
+                for a in prange(na):
+                    for b in range(nc):
+                        i = h + a * s if rows else a * s
+                        j = b * s if rows else h + b * s
+                        codes[i, j] = nest_code_nb(x, y, z, r, codes, table, i, j, h)
+        for a in prange(nb):
+            for b in range(nb):
+                i = h + a * s
+                j = h + b * s
+                codes[i, j] = nest_code_nb(x, y, z, r, codes, table, i, j, h)
+        h *= 2
+
+
+def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
+                 radius: np.ndarray) -> tuple[np.ndarray, int]:
+    """Nested radii as 8-bit log codes rounded up, the nesting re-established on the
+    coded values: ``(codes, e)``, with table[code(v)] ≥ r(v) and ≥ |p_v − p_c| +
+    table[code(c)] on every DAG edge (seed 002 §2.4, L50–52), positions as
+    :func:`geoterrain.bounds.vertex_radii` takes them (invalid ones by its proxies).
+
+    Each vertex's rounding (< 4.4 %) passes to its parents, but damped: a child's sphere
+    is a fraction of its parent's. ``e`` leaves two octaves above the largest radius for
+    that growth, and doubles its headroom in the rare case a code still overflows.
+
+    Examples
+    --------
+    >>> from geoterrain.bounds import vertex_radii
+    >>> I, J = np.indices((5, 5)).astype(float)
+    >>> ok = np.ones((5, 5), bool)
+    >>> r = vertex_radii(J, -I, np.zeros((5, 5)), ok)
+    >>> codes, e = radius_codes(J, -I, np.zeros((5, 5)), ok, r)
+    >>> v = log8_table(e)[codes]
+    >>> bool((v >= r).all()), bool(v[2, 2] >= 2 ** 0.5 + v[1, 1])
+    (True, True)
+    """
+    xp, yp, zp = _proxy_positions(x, y, z, valid)
+    r = np.ascontiguousarray(radius, np.float32)
+    codes = np.empty(r.shape, np.uint8)
+    e = log8_exponent(r) + 2
+    while True:
+        table = log8_table(e).astype(np.float64)
+        with cores_for(r.size):
+            _nest_codes_nb(xp, yp, zp, r, table, codes)
+        if not ((codes == 255) & np.isfinite(r)).any() or e >= 127:
+            return codes, e
+        e = min(e + 4, 127)
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def _code_bounds(delta, radius, t8, e8, down, dc, r16):
     """One pass (rows on every core): δ's log8 codes (:func:`log8_codes`: NaN as +inf);
@@ -164,13 +268,16 @@ def _code_bounds(delta, radius, t8, e8, down, dc, r16):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _level_payloads(dc, r16, t8, up, nrm, ys, xs, t, level, new_only, pd, pr, pn, dmax,
-                    rmax):
+def _level_payloads(dc, r16, t8, up, rc, rt, nrm, ys, xs, t, level, new_only, pd, pr, pn,
+                    dmax, rmax):
     """Row k of ``pd``/``pr``/``pn``: tile (level, xs[k], ys[k])'s δ codes, r float16
     planes (low bytes, then high bytes) and normal planes of 2-D differences (mod 256);
     ``dmax``/``rmax``: the maxima of the stored δ and r over the same vertices, the
     values a reader decodes: ``t8[code]`` and the float16 times ``up`` (exact in
-    float32: 11 bits, exponent in range); NaN propagates as numpy's max does."""
+    float32: 11 bits, exponent in range); NaN propagates as numpy's max does. With r's
+    log8 codes ``rc`` (``rt`` their table; empty when r is float16), ``pr`` holds the
+    codes, one byte each."""
+    rlog = rc.shape[0] > 0
     T = (1 << t) + 1
     s = 1 << level
     step = (1 << t) * s
@@ -189,11 +296,15 @@ def _level_payloads(dc, r16, t8, up, nrm, ys, xs, t, level, new_only, pd, pr, pn
                     continue
                 xj = x0 + j * s
                 pd[k, m] = dc[yi, xj]
-                b = r16[yi, xj]
-                pr[k, m] = np.uint8(b & 0xFF)
-                pr[k, nnew + m] = np.uint8(b >> 8)
+                if rlog:
+                    pr[k, m] = rc[yi, xj]
+                    rv = rt[rc[yi, xj]]
+                else:
+                    b = r16[yi, xj]
+                    pr[k, m] = np.uint8(b & 0xFF)
+                    pr[k, nnew + m] = np.uint8(b >> 8)
+                    rv = np.float32(_f16_value(b) * up)
                 dv = t8[dc[yi, xj]]
-                rv = np.float32(_f16_value(b) * up)
                 if dv != dv:
                     dnan = True
                 elif dv > dm:
@@ -266,12 +377,15 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     nnew = T * T - (((T + 1) // 2) ** 2 if new_only else 0)
     k = len(xy)
     pd = np.empty((k, nnew), np.uint8)
-    pr = np.empty((k, 2 * nnew), np.uint8)
+    rlog = coding.rc is not None
+    pr = np.empty((k, nnew if rlog else 2 * nnew), np.uint8)
     pn = np.empty((k, 2 * T * T), np.uint8)
     dmax = np.empty(k, np.float32)
     rmax = np.empty(k, np.float32)
     with cores_for(coding.dc.size):
         _level_payloads(coding.dc, coding.r16.view(np.uint16), coding.table, 2.0 ** coding.kr,
+                        coding.rc if rlog else np.empty((0, 0), np.uint8),
+                        log8_table(coding.er) if rlog else np.empty(0, np.float32),
                         np.ascontiguousarray(nrm, np.uint8), np.ascontiguousarray(xy[:, 1]),
                         np.ascontiguousarray(xy[:, 0]), t, level, new_only, pd, pr, pn, dmax, rmax)
     flags = NEW_ONLY if new_only else 0
@@ -290,10 +404,11 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         rr, rc = ring_new_index(T)
         pos = np.searchsorted(np.flatnonzero(new_mask(T)), rr * T + rc)
         pd = pd[:, pos]
-        pr = np.concatenate([pr[:, pos], pr[:, nnew + pos]], axis=1)
+        pr = pr[:, pos] if rlog else np.concatenate([pr[:, pos], pr[:, nnew + pos]], axis=1)
         flags |= RING
     head_d = bytes([VERSION_2, flags | LOG8, int(coding.ed) & 0xFF])
-    head_r = bytes([VERSION_2, flags & ~DIFF, int(coding.kr) & 0xFF])
+    head_r = bytes([VERSION_2, flags & ~DIFF | (LOG8 if rlog else 0),
+                    int(coding.er if rlog else coding.kr) & 0xFF])
     keys = [(level, int(x), int(y)) for x, y in xy]
     rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
     blobs = {kind: dict(zip(keys, compress_rows(*rows[kind]), strict=True)) for kind in kinds}

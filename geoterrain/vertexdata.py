@@ -1,14 +1,11 @@
 """Compact, conservative storage of per-vertex bounds (δ and r) in tile blobs.
 
-Each value is stored as float16 times a per-tile power-of-two scale, rounded
-*up*, so a stored δ or r is never smaller than the computed one: every bound
-stays a bound (and δ = +inf, the mixed-diamond marker, stays +inf). float16
-keeps 11 significant bits, so a stored bound exceeds the exact one by at most
-2^-10 relative. The preprocess uses one scale per store and kind, so rounding
-is a single monotone map and saturation survives it; sphere nesting holds to
-2^-10 relative (the LOD's upward-closure pass keeps meshes conforming anyway).
-Blob version 1: version byte, int8 scale exponent, then the byte-shuffled float16
-array compressed with zstd.
+Every value is rounded *up*, so a stored δ or r is never smaller than the computed
+one: every bound stays a bound (and δ = +inf, the mixed-diamond marker, stays +inf).
+Blob version 1 (older stores, still read): version byte, int8 scale exponent, then
+float16 times that power of two, byte-shuffled, zstd (at most 2^-10 relative above
+the exact value). The preprocess uses one exponent per store and kind, so rounding is
+a single monotone map and saturation survives it.
 
 Blob version 2 (:func:`pack_bounds_v2`, issue 12's size levers): version byte, flags,
 int8 exponent, then zstd of the samples kept. Flag ``NEW_ONLY``: the samples shared
@@ -17,7 +14,10 @@ the parent's decoded values, which are the same vertices' bounds, so decoding is
 exact. Flag ``LOG8``: 8-bit logarithmic codes, ``LOG_STEPS`` per octave from
 ``2^e``, rounded *up* (code 0 is 0, code 255 is +inf): a stored value exceeds the
 exact one by less than ``2^(1/LOG_STEPS) - 1`` relative, and with one ``e`` per store
-and kind the map is monotone, so saturation survives it. Flag ``RING`` (level 0, with
+and kind the map is monotone, so saturation survives it. δ is always coded so; r is
+too in stores written now, its codes nested again on the coded values
+(:func:`geoterrain.tileblobs.radius_codes`), and as float16 times ``2^e`` (no ``LOG8``)
+in stores before. Flag ``RING`` (level 0, with
 ``NEW_ONLY``): only the new vertices of the tile's border ring are stored
 (:func:`ring_new_index`); a reader derives the others from the tile's decoded heights
 and codes them as the preprocess did (:mod:`geoterrain.leafbounds`). Flag ``DIFF`` (log8

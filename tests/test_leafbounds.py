@@ -111,11 +111,14 @@ def test_a_damaged_or_misplaced_ring_is_refused_in_one_line(tmp_path):
     short = bytes([VERSION_2, NEW_ONLY | RING | 2, 0]) + zstandard.ZstdCompressor().compress(
         bytes(10))
     # (level 1 first: a level-0 read caches its parent)
+    T = ring.grid.tile_samples  # a ring δ of float16 values: δ is only ever log8 codes
+    f16 = bytes([VERSION_2, NEW_ONLY | RING, 0]) + zstandard.ZstdCompressor().compress(
+        bytes(4 * (T - 1)))
     d110 = blob((1, 1, 0), "delta")
     diff = d110[:1] + bytes([d110[1] | DIFF]) + d110[2:]  # a δ "over" a δ it does not have
     for key, bad in [((1, 0, 0), blob((0, 0, 0), "delta")), ((1, 1, 0), diff),
                      ((0, 0, 0), short),
-                     ((0, 1, 1), blob((0, 1, 1), "radius"))]:
+                     ((0, 1, 1), f16)]:
         ring._blob = lambda k, kind, key=key, bad=bad: (bad if (k, kind) == (key, "delta")
                                                         else blob(k, kind))
         with pytest.raises(StoreCorruptError, match="delta cannot be decoded"):

@@ -137,12 +137,51 @@ def test_stored_bounds_are_never_below_the_exact_ones(tmp_path):
             fin = np.isfinite(D[ix])
             # 8-bit log codes: at most one step (2^(1/16)) above, plus the smallest code
             assert (d[fin] <= D[ix][fin] * 2 ** (1 / LOG_STEPS) * (1 + 1e-6) + 2e-4).all()
-            assert (r <= R[ix] * (1 + 2.0**-10) + 1e-30).all()
             info = t.tile_info[(L, x, y)]
             new = np.ones(d.shape, bool)
             if L < g.top_level:
                 new[::2, ::2] = False
             assert info["delta_max"] == d[new].max() and info["radius_max"] == r[new].max()
+        # r's codes are the smallest that hold both bounds: r ≥ the exact radius, and
+        # nesting on the coded values, r(v) ≥ |p_v − p_c| + r(c)
+        _assert_minimal_radius_codes(t, X, Y, Z, v, R)
+
+
+def _assert_minimal_radius_codes(t, X, Y, Z, valid, R):
+    """The stored r of every tile against the coded nesting recomputed here in numpy,
+    group by group fine to coarse: code(v) = the smallest code ≥ R(v) and ≥
+    |p_v − p_c| + table[code(c)] for each child c (positions as vertex_radii's)."""
+    from geoterrain.bintree import vertex_children, vertex_depth
+    from geoterrain.bounds import _proxy_positions
+    from geoterrain.vertexdata import log8_codes, log8_table
+
+    g = t.grid
+    e = int(np.int8(np.uint8(t._blob((g.top_level, 0, 0), "radius")[2])))
+    table = log8_table(e).astype(np.float64)
+    xp, yp, zp = _proxy_positions(np.asarray(X, float), np.asarray(Y, float), Z, valid)
+    code = log8_codes(R, e)  # leaves and corners: their own radius
+    i, j = (a.ravel() for a in np.indices((g.size, g.size)))
+    keep = vertex_depth(i, j, g.n) >= 0
+    i, j = i[keep], j[keep]
+    h = np.bitwise_and(i | j, -(i | j))
+    centre = ((i // h) % 2 == 1) & ((j // h) % 2 == 1)
+    for hh in 1 << np.arange(g.n):
+        for grp in (~centre, centre):  # edge midpoints of h first, then its centres
+            m = grp & (h == hh)
+            vi, vj = i[m], j[m]
+            need = R[vi, vj].astype(np.float64)
+            ch = vertex_children(vi, vj, g.n)
+            for c in range(4):
+                ci, cj = ch[:, c, 0], ch[:, c, 1]
+                ok = ci >= 0
+                a, b = (vi[ok], vj[ok]), (ci[ok], cj[ok])
+                d = np.sqrt((xp[a] - xp[b]) ** 2 + (yp[a] - yp[b]) ** 2 + (zp[a] - zp[b]) ** 2)
+                need[ok] = np.maximum(need[ok], d + table[code[b]])
+            code[vi, vj] = log8_codes(need, e)
+    want = log8_table(e)[code]
+    for L, x, y in t.tile_info:
+        ix = np.ix_(g.tile_rows(L, y), g.tile_cols(L, x))
+        assert np.array_equal(t.tile_radius(L, x, y), want[ix]), (L, x, y)
 
 
 def test_stored_normals_are_the_filtered_normal_maps(tmp_path):
