@@ -136,13 +136,13 @@ def _leaf_radius_nb(x, y, z, up, table, out):
     bits = buf.view(np.int64)
     for ci in range(1, T - 1, 2):
         for cj in range(1, T - 1, 2):
-            # float32 rounded up (bounds._radii_nb), then coded up as stored: the log8
-            # code (its children are leaves, code 0: tileblobs.radius_codes), or float16
-            r32 = round_up32(_nest(x, y, z, r, ci, cj, 1))
+            # coded up as stored: the log8 code of the nesting over its children, leaves
+            # of code 0 (tileblobs.radius_codes); or (older stores) the float32 rounded up
+            # (bounds._radii_nb), then float16 rounded up
             if table.shape[0]:
-                out[ci, cj] = table[code_up_nb(table, np.float64(r32))]
+                out[ci, cj] = table[code_up_nb(table, _nest(x, y, z, r, ci, cj, 1))]
             else:
-                buf[0] = np.float64(r32) / up
+                buf[0] = np.float64(round_up32(_nest(x, y, z, r, ci, cj, 1))) / up
                 out[ci, cj] = round_up32(_f16_value(_f16_up_bits(buf[0], bits[0])) * up)
 
 

@@ -240,11 +240,15 @@ def preprocess(
 
     delta = vertex_errors(Z, valid)
     stage("errors")
-    radius = vertex_radii(X, Y, Z, valid)
-    terms = None
+    terms = radius = None
     if frame.kind == "geographic":  # curvilinear grid: δ and r that hold in scene x/y
+        radius = vertex_radii(X, Y, Z, valid)
         terms = metric_terms(X, Y, Z, valid)
         delta, radius = metric_bounds(delta, radius, X, Y, Z, valid, terms=terms)
+    # nested radii (seed 002 §2.4, L50–52) as the 8-bit log codes they are stored as,
+    # nested on the coded values (a projected frame needs no radii before: r = nesting)
+    r_codes = radius_codes(X, Y, Z, valid, radius)
+    del radius
     stage("radii")
     # per-tile bounds, and every GeoMipMapping block's exact δ_n (seed 000 §2.4)
     bounds, blocks = tile_and_block_errors(Z, valid, X, Y, grid.t)
@@ -274,16 +278,15 @@ def preprocess(
         del Zr, ok
     del terms
     ed = None if d_edge is None else max(log8_exponent(delta), log8_exponent(d_edge))
-    # r as nested 8-bit log codes: one byte a vertex, nesting exact on the stored values
-    coding = BoundsCoding(delta, radius, ed, r_codes=radius_codes(X, Y, Z, valid, radius))
+    coding = BoundsCoding(delta, None, ed, r_codes=r_codes)
     if d_edge is not None:
-        edge = BoundsCoding(d_edge, radius, ed)
+        edge = BoundsCoding(d_edge, None, ed, r_codes=r_codes)
         del d_edge
         # one table, so comparing codes compares the stored values
         edge_keys = edge_tiles(coding.dc, edge.dc, grid, sorted(height_blobs))
         # unstored tiles holding a vertex the static mesh may need: a whole δ_edge tile
         edge_only = edge_only_tiles(edge.dc, grid, set(height_blobs))
-    del radius
+    del r_codes
     tile_rows: dict = {}
     extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}, "delta_edge": {}}
     edge_max: list = []

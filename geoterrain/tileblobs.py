@@ -60,24 +60,29 @@ class BoundsCoding:
     (True, 'float16')
     """
 
-    def __init__(self, delta: np.ndarray, radius: np.ndarray, ed: int | None = None,
+    def __init__(self, delta: np.ndarray, radius: np.ndarray | None, ed: int | None = None,
                  r_codes: tuple[np.ndarray, int] | None = None) -> None:
         # ed: δ's code exponent (default: the smallest that covers its largest finite
         # value); a given one must cover it too (a larger one steps more coarsely).
-        # r_codes: (codes, e) of :func:`radius_codes`: r stored as nested log8 codes
+        # r_codes: (codes, e) of :func:`radius_codes`: r stored as nested log8 codes,
+        # and ``radius`` (float16 otherwise) is not coded (None allowed)
         self.ed = log8_exponent(delta) if ed is None else int(ed)
         self.rc = None if r_codes is None else np.ascontiguousarray(r_codes[0], np.uint8)
         self.er = None if r_codes is None else int(r_codes[1])
-        self.kr = scale_exponent(radius)
+        if radius is None and r_codes is None:
+            raise ValueError("r needs its radii or its codes")
+        code_r = r_codes is None
+        self.kr = scale_exponent(radius) if code_r else 0
         t8 = log8_table(self.ed)
         shape = np.shape(delta)
         self.table = t8
         self.dc = np.empty(shape, np.uint8)
-        bits = np.empty(shape, np.uint16)
-        d2, r2 = (np.asarray(a).reshape(-1, shape[-1]) for a in (delta, radius))
+        bits = np.empty(shape if code_r else (0, 0), np.uint16)
+        d2 = np.asarray(delta).reshape(-1, shape[-1])
+        r2 = np.asarray(radius).reshape(d2.shape) if code_r else np.empty((0, 0), np.float32)
         with cores_for(d2.size):  # small grids on one thread (geoterrain/threads.py)
             odd = _code_bounds(d2, r2, t8.astype(np.float64), self.ed, 2.0 ** -self.kr,
-                               self.dc.reshape(d2.shape), bits.reshape(d2.shape))
+                               self.dc.reshape(d2.shape), bits.reshape(r2.shape))
         self.r16 = bits.view(np.float16)
         if odd:  # NaN, negative or -0.0 radii (none in practice): numpy's exact rule
             m = ~(np.asarray(radius) > 0) & ~(np.asarray(radius) == 0) | np.signbit(radius)
@@ -157,7 +162,7 @@ def nest_code_nb(x, y, z, r, codes, table, i, j, h):
     (L50–52) on the coded values: the smallest code ≥ its radius and ≥ |p_v − p_c| +
     table[code(c)] for each child c (children outside the grid: none)."""
     N = z.shape[0]
-    best = np.float64(r[i, j])
+    best = np.float64(r[i, j]) if r.shape[0] else 0.0
     for k in range(4):
         ci, cj = child_nb(i, j, h, k)
         if 0 <= ci < N and 0 <= cj < N:
@@ -173,8 +178,8 @@ def _nest_codes_nb(x, y, z, r, table, codes):
     # are the centres of h/2), then the centres (their children: the edge midpoints of h)
     N = z.shape[0]
     for i in prange(N):
-        for j in range(N):
-            codes[i, j] = code_up_nb(table, np.float64(r[i, j]))  # leaves keep theirs
+        for j in range(N):  # leaves keep their own (0 without radii)
+            codes[i, j] = code_up_nb(table, np.float64(r[i, j])) if r.shape[0] else 0
     h = 1
     while h < N - 1:
         s = 2 * h
@@ -198,11 +203,15 @@ def _nest_codes_nb(x, y, z, r, table, codes):
 
 
 def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
-                 radius: np.ndarray) -> tuple[np.ndarray, int]:
+                 radius: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """Nested radii as 8-bit log codes rounded up, the nesting re-established on the
     coded values: ``(codes, e)``, with table[code(v)] ≥ r(v) and ≥ |p_v − p_c| +
     table[code(c)] on every DAG edge (seed 002 §2.4, L50–52), positions as
     :func:`geoterrain.bounds.vertex_radii` takes them (invalid ones by its proxies).
+    ``radius`` None: the nesting alone, from leaves of radius 0 (what
+    :func:`~geoterrain.bounds.vertex_radii` computes, without its float32 roundings:
+    the codes are ≥ its radii all the same); given (radii raised beyond the nesting, as
+    :func:`geoterrain.curvature.metric_bounds` raises them), each code also covers them.
 
     Each vertex's rounding (< 4.4 %) passes to its parents, but damped: a child's sphere
     is a fraction of its parent's. ``e`` leaves two octaves above the largest radius for
@@ -220,14 +229,21 @@ def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
     (True, True)
     """
     xp, yp, zp = _proxy_positions(x, y, z, valid)
-    r = np.ascontiguousarray(radius, np.float32)
-    codes = np.empty(r.shape, np.uint8)
-    e = log8_exponent(r) + 2
+    codes = np.empty(zp.shape, np.uint8)
+    if radius is None:  # the largest radius is at most the root's: the grid's diagonal
+        r = np.empty((0, 0), np.float32)
+        span = [np.nanmax(c) - np.nanmin(c) for c in (xp[[0, -1]][:, [0, -1]],
+                                                      yp[[0, -1]][:, [0, -1]])]
+        peak = float(np.hypot(*span) + np.nanmax(zp) - np.nanmin(zp))
+        e = log8_exponent(np.array([peak])) + 2
+    else:
+        r = np.ascontiguousarray(radius, np.float32)
+        e = log8_exponent(r) + 2
     while True:
         table = log8_table(e).astype(np.float64)
         with cores_for(r.size):
             _nest_codes_nb(xp, yp, zp, r, table, codes)
-        if not ((codes == 255) & np.isfinite(r)).any() or e >= 127:
+        if not (codes == 255).any() or e >= 127:
             return codes, e
         e = min(e + 4, 127)
 
@@ -257,6 +273,8 @@ def _code_bounds(delta, radius, t8, e8, down, dc, r16):
                 g = int(LOG_STEPS * (f - e8)) + 1
             c = _first_ge(t8, x, g)  # the guess is off by at most two codes
             dc[i, j] = c
+            if radius.shape[0] == 0:  # r coded elsewhere (radius_codes)
+                continue
             r = np.float64(radius[i, j])
             if r > 0 or (r == 0 and math.copysign(1.0, r) > 0):
                 buf[0] = r * down
