@@ -164,3 +164,58 @@ def number_pages(cells: np.ndarray, group: np.ndarray, n_groups: int, n_vertices
     n = _number(np.ascontiguousarray(cells, np.int64), np.ascontiguousarray(group, np.int64),
                 n_groups, n_vertices, src, pg, faces)
     return src[:n].copy(), pg[:n].copy(), faces
+
+
+@njit(cache=True, nogil=True)
+def _magnify(atlas, r, c, anc, oy, ox, d, n):
+    for i in range(n):
+        si = oy + (i >> d)
+        for j in range(n):
+            sj = ox + (j >> d)
+            for k in range(3):
+                atlas[r + i, c + j, k] = anc[si, sj, k]
+
+
+def magnify_into(atlas: np.ndarray, r: int, c: int, anc: np.ndarray, oy: int, ox: int,
+                 d: int, n: int) -> None:
+    """Write ``anc``'s texels from (oy, ox), each repeated 2^d × 2^d, into the n × n block
+    of ``atlas`` at (r, c): a stand-in tile magnified from a cached ancestor, with no
+    index arrays (a numpy fancy-index copy took 31 µs a 65² tile).
+
+    Examples
+    --------
+    >>> a = np.zeros((4, 4, 3), np.uint8)
+    >>> magnify_into(a, 0, 0, np.arange(12, dtype=np.uint8).reshape(2, 2, 3), 0, 0, 1, 4)
+    >>> a[:, :, 0].tolist()
+    [[0, 0, 3, 3], [0, 0, 3, 3], [6, 6, 9, 9], [6, 6, 9, 9]]
+    """
+    _magnify(atlas, int(r), int(c), anc, int(oy), int(ox), int(d), int(n))
+
+
+@njit(cache=True, nogil=True)
+def _gutters(atlas, y0, x0, s):
+    for g in range(y0.shape[0]):
+        a, b, n = y0[g], x0[g], s[g]
+        for j in range(b, b + n):
+            for k in range(3):
+                atlas[a - 1, j, k] = atlas[a, j, k]
+                atlas[a + n, j, k] = atlas[a + n - 1, j, k]
+        for i in range(a - 1, a + n + 1):
+            for k in range(3):
+                atlas[i, b - 1, k] = atlas[i, b, k]
+                atlas[i, b + n, k] = atlas[i, b + n - 1, k]
+
+
+def fill_gutters(atlas: np.ndarray, y0: np.ndarray, x0: np.ndarray, s: np.ndarray) -> None:
+    """Each page's one-texel gutter: its edge texels replicated outwards, rows first,
+    then columns (corners included). Page g's texels are ``atlas[y0:y0+s, x0:x0+s]``.
+
+    Examples
+    --------
+    >>> a = np.zeros((4, 4, 3), np.uint8); a[1:3, 1:3] = [[[1] * 3, [2] * 3], [[3] * 3, [4] * 3]]
+    >>> fill_gutters(a, np.array([1]), np.array([1]), np.array([2]))
+    >>> a[:, :, 0].tolist()
+    [[1, 1, 2, 2], [1, 1, 2, 2], [3, 3, 4, 4], [3, 3, 4, 4]]
+    """
+    _gutters(atlas, np.asarray(y0, np.int64), np.asarray(x0, np.int64),
+             np.asarray(s, np.int64))

@@ -115,7 +115,10 @@ def test_a_frame_budget_shows_magnified_ancestors_then_the_same_atlas(tmp_path_f
     L, x, y = 0, 5, 6
     anc = t.peek(key(2, 1, 1))
     assert anc is not None
-    blk = _stand_in(t, (L, x, y), step, key)  # level 1 or 2 is cached: d = 1 or 2
+    blk = np.zeros((step + 3, step + 3, 3), np.uint8)  # level 1 or 2 is cached: d = 1 or 2
+    assert _stand_in(t, (L, x, y), step, key, blk, 1, 2)
+    assert not blk[0].any() and not blk[:, :2].any()  # written at (1, 2) only
+    blk = blk[1:, 2:]
     d = 1 if t.peek(key(1, 2, 3)) is not None else 2
     src = t.peek(key(L + d, x >> d, y >> d))
     n = step >> d
