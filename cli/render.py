@@ -87,6 +87,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     metres), or {"crs": true, "cameras": [...]} for source-CRS coordinates.
     """
     import geoterrain
+    import geoterrain.animation as A
     import geoterrain.rendering as R
     from geoterrain.cameras import check_elevation
     from geoterrain.exceptions import UsageError
@@ -120,7 +121,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     overlays = dict(colorbar=not no_overlays, north_arrow=not no_overlays)
     if animated:
         overlays["scale_bar"] = not no_overlays
-        R.check_animation_output(out, fps, overwrite)  # a bad target or --fps fails now
+        A.check_animation_output(out, fps, overwrite)  # a bad target or --fps fails now
     elif Path(out).exists() and not overwrite:
         raise UsageError(f"{out} exists; pass --overwrite or choose another -o path")
     from geoterrain.exaggerate import exaggerated
@@ -134,10 +135,10 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
                       overwrite=overwrite, light=lit, drape=dr, **overlays)
             try:
                 if orbit is not None:
-                    frames = R.orbit(t, out, orbit, size=size, azimuth=azimuth,
+                    frames = A.orbit(t, out, orbit, size=size, azimuth=azimuth,
                                      elevation=elevation, distance=distance, fov_y_deg=fov, **kw)
                 else:
-                    frames = R.flythrough(t, cameras, out, size=size, fov_y_deg=fov,
+                    frames = A.flythrough(t, cameras, out, size=size, fov_y_deg=fov,
                                           frames_between=frames_between, **kw)
             finally:
                 bar.close()

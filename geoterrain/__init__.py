@@ -22,8 +22,9 @@ from geoterrain._version import __version__
 from geoterrain.exceptions import GeoterrainError
 
 if TYPE_CHECKING:
+    from geoterrain.animation import orbit
     from geoterrain.preprocessing import preprocess
-    from geoterrain.rendering import default_view, orbit, render
+    from geoterrain.rendering import default_view, render
     from geoterrain.terrain import Terrain, open  # noqa: A004
     from geoterrain.view import View
     from geoterrain.viewer import show
@@ -36,7 +37,7 @@ _LAZY = {
     "View": "geoterrain.view",
     "render": "geoterrain.rendering",
     "default_view": "geoterrain.rendering",
-    "orbit": "geoterrain.rendering",
+    "orbit": "geoterrain.animation",
     "show": "geoterrain.viewer",
 }
 

@@ -13,10 +13,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_top_level_names():
-    from geoterrain import cameras, rendering
+    from geoterrain import animation, cameras
 
     assert geoterrain.default_view is cameras.default_view
-    assert geoterrain.orbit is rendering.orbit
+    assert geoterrain.orbit is animation.orbit
     assert {"default_view", "orbit"} <= set(dir(geoterrain))
 
 
