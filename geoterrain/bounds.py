@@ -537,8 +537,9 @@ def vertex_radii(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray)
     """
     x, y, z = _proxy_positions(x, y, z, valid)
     grid_order(z.shape[0])
+    none = np.empty((0, 0), np.float32)
     with cores_for(z.size):
-        return _radii_nb(x, y, z)
+        return _radii_nb(x, y, z, none, np.empty(0), np.empty((0, 0), np.uint8))
 
 
 @njit(cache=True, inline="always")
@@ -555,12 +556,58 @@ def _nest(x, y, z, r, i, j, h):
     return best
 
 
-@njit(cache=True, parallel=_PARALLEL)
-def _radii_nb(x, y, z):
-    # LP §2.4 (L50–52): r(v) = max over children c of |p_v − p_c| + r(c), fine to coarse;
-    # each level is rounded up to float32 before its parents read it.
+@njit(cache=True, nogil=True, inline="always")
+def code_up_nb(table, x):
+    """The smallest log8 code whose value is ≥ x (:func:`log8_codes`; ``table`` float64,
+    increasing, ending with +inf): a binary search, compiled, inlined."""
+    lo, hi = 0, table.shape[0] - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if table[mid] >= x:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@njit(cache=True, nogil=True, inline="always")
+def nest_code_nb(x, y, z, r, codes, table, i, j, h):
+    """The code of vertex (i, j) of half-span h with the nesting of seed 002 §2.4
+    (L50–52) on the coded values: the smallest code ≥ its radius and ≥ |p_v − p_c| +
+    table[code(c)] for each child c (children outside the grid: none)."""
     N = z.shape[0]
-    r = np.zeros((N, N), np.float32)
+    best = np.float64(r[i, j]) if r.shape[0] else 0.0
+    for k in range(4):
+        ci, cj = child_nb(i, j, h, k)
+        if 0 <= ci < N and 0 <= cj < N:
+            d = np.sqrt((x[i, j] - x[ci, cj]) ** 2 + (y[i, j] - y[ci, cj]) ** 2
+                        + (z[i, j] - z[ci, cj]) ** 2) + table[codes[ci, cj]]
+            best = max(best, d)
+    return code_up_nb(table, best)
+
+
+@njit(cache=True, inline="always")
+def _visit(x, y, z, r, rin, table, codes, i, j, h):
+    # one vertex of _radii_nb: its float32 radius, or its code nested on the codes
+    if table.shape[0] == 0:
+        r[i, j] = round_up32(_nest(x, y, z, r, i, j, h))
+    else:
+        codes[i, j] = nest_code_nb(x, y, z, rin, codes, table, i, j, h)
+
+
+@njit(cache=True, parallel=_PARALLEL)
+def _radii_nb(x, y, z, rin, table, codes):
+    # LP §2.4 (L50–52): r(v) = max over children c of |p_v − p_c| + r(c), fine to coarse;
+    # each level is rounded up to float32 before its parents read it. With a log8
+    # ``table``: ``codes`` instead, nested on the coded values (tileblobs.radius_codes),
+    # covering ``rin`` too where given; the float radii are then not made.
+    N = z.shape[0]
+    coded = table.shape[0] > 0
+    r = np.zeros((0, 0) if coded else (N, N), np.float32)
+    if coded:
+        for i in prange(N):
+            for j in range(N):  # leaves keep their own (0 without radii)
+                codes[i, j] = code_up_nb(table, np.float64(rin[i, j])) if rin.shape[0] else 0
     h = 1
     while h < N - 1:
         s = 2 * h
@@ -574,11 +621,11 @@ def _radii_nb(x, y, z):
                     for b in range(nc):
                         i = h + a * s if rows else a * s
                         j = b * s if rows else h + b * s
-                        r[i, j] = round_up32(_nest(x, y, z, r, i, j, h))
+                        _visit(x, y, z, r, rin, table, codes, i, j, h)
         for a in prange(nb):  # centres
             for b in range(nb):
                 i = h + a * s
                 j = h + b * s
-                r[i, j] = round_up32(_nest(x, y, z, r, i, j, h))
+                _visit(x, y, z, r, rin, table, codes, i, j, h)
         h *= 2
     return r

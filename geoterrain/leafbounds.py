@@ -28,9 +28,9 @@ import numpy as np
 from numba import njit
 
 from geoterrain.bintree import main_diagonal_nb
-from geoterrain.bounds import _centre1, _edge_err, _mid1, _nest
+from geoterrain.bounds import _centre1, _edge_err, _mid1, _nest, code_up_nb
 from geoterrain.rounding import round_up32
-from geoterrain.tileblobs import _f16_up_bits, _f16_value, code_up_nb
+from geoterrain.tileblobs import _f16_up_bits, _f16_value
 from geoterrain.vertexdata import log8_table
 
 __all__ = ["leaf_delta", "leaf_radius"]

@@ -19,8 +19,7 @@ from collections.abc import Iterable
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.bintree import child_nb
-from geoterrain.bounds import _proxy_positions
+from geoterrain.bounds import _proxy_positions, _radii_nb
 from geoterrain.rounding import round_up
 from geoterrain.threads import cores_for
 from geoterrain.vertexdata import (
@@ -142,66 +141,6 @@ def _f16_value(b):
     return -v if b & 0x8000 else v
 
 
-@njit(cache=True, nogil=True, inline="always")
-def code_up_nb(table, x):
-    """The smallest log8 code whose value is ≥ x (:func:`log8_codes`; ``table`` float64,
-    increasing, ending with +inf): a binary search, compiled, inlined."""
-    lo, hi = 0, table.shape[0] - 1
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if table[mid] >= x:
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
-
-
-@njit(cache=True, nogil=True, inline="always")
-def nest_code_nb(x, y, z, r, codes, table, i, j, h):
-    """The code of vertex (i, j) of half-span h with the nesting of seed 002 §2.4
-    (L50–52) on the coded values: the smallest code ≥ its radius and ≥ |p_v − p_c| +
-    table[code(c)] for each child c (children outside the grid: none)."""
-    N = z.shape[0]
-    best = np.float64(r[i, j]) if r.shape[0] else 0.0
-    for k in range(4):
-        ci, cj = child_nb(i, j, h, k)
-        if 0 <= ci < N and 0 <= cj < N:
-            d = np.sqrt((x[i, j] - x[ci, cj]) ** 2 + (y[i, j] - y[ci, cj]) ** 2
-                        + (z[i, j] - z[ci, cj]) ** 2) + table[codes[ci, cj]]
-            best = max(best, d)
-    return code_up_nb(table, best)
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def _nest_codes_nb(x, y, z, r, table, codes):
-    # fine to coarse, as bounds._radii_nb: at each h the edge midpoints (their children
-    # are the centres of h/2), then the centres (their children: the edge midpoints of h)
-    N = z.shape[0]
-    for i in prange(N):
-        for j in range(N):  # leaves keep their own (0 without radii)
-            codes[i, j] = code_up_nb(table, np.float64(r[i, j])) if r.shape[0] else 0
-    h = 1
-    while h < N - 1:
-        s = 2 * h
-        nb = (N - 1) // s
-        if h >= 2:
-            for typ in range(2):
-                rows = typ == 0
-                na = nb if rows else nb + 1
-                nc = nb + 1 if rows else nb
-                for a in prange(na):
-                    for b in range(nc):
-                        i = h + a * s if rows else a * s
-                        j = b * s if rows else h + b * s
-                        codes[i, j] = nest_code_nb(x, y, z, r, codes, table, i, j, h)
-        for a in prange(nb):
-            for b in range(nb):
-                i = h + a * s
-                j = h + b * s
-                codes[i, j] = nest_code_nb(x, y, z, r, codes, table, i, j, h)
-        h *= 2
-
-
 def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
                  radius: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """Nested radii as 8-bit log codes rounded up, the nesting re-established on the
@@ -241,8 +180,8 @@ def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
         e = log8_exponent(r) + 2
     while True:
         table = log8_table(e).astype(np.float64)
-        with cores_for(r.size):
-            _nest_codes_nb(xp, yp, zp, r, table, codes)
+        with cores_for(codes.size):
+            _radii_nb(xp, yp, zp, r, table, codes)
         if not (codes == 255).any() or e >= 127:
             return codes, e
         e = min(e + 4, 127)

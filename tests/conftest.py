@@ -83,3 +83,18 @@ def fbm_tif(tmp_path) -> Path:
     from geoterrain.synth import generate, write_geotiff
 
     return write_geotiff(tmp_path / "fbm.tif", generate("fbm", 129, seed=3))
+
+
+def store_pair(tmp_path, z, option: str, nodata=None, tile_size=16, codec_error=None,
+               pre=None, **kw):
+    """The same DEM (written by :func:`write_tif` with ``kw``) preprocessed with the
+    boolean preprocess ``option`` off, then on: two open terrains."""
+    import geoterrain
+
+    src = write_tif(tmp_path / "d.tif", z, nodata=nodata, **kw)
+    out = []
+    for on in (False, True):
+        p = geoterrain.preprocess(src, tmp_path / f"d{int(on)}.geoterrain", tile_size=tile_size,
+                                  codec_error=codec_error, **{option: on}, **(pre or {}))
+        out.append(geoterrain.open(p))
+    return out

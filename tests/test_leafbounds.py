@@ -18,19 +18,12 @@ import geoterrain
 from geoterrain.exceptions import StoreCorruptError
 from geoterrain.leafbounds import leaf_delta, leaf_radius
 from geoterrain.vertexdata import DIFF, NEW_ONLY, RING, VERSION_2, ring_new_index
-from tests.conftest import real_dem, write_tif
+from tests.conftest import real_dem, store_pair, write_tif
 
 
-def _pair(tmp_path, z, nodata=None, tile_size=16, codec_error=None, pre=None, **kw):
+def _pair(tmp_path, z, **kw):
     """The same DEM preprocessed with every level-0 δ and r stored, and with the ring only."""
-    src = write_tif(tmp_path / "d.tif", z, nodata=nodata, **kw)
-    out = []
-    for derive in (False, True):
-        p = geoterrain.preprocess(src, tmp_path / f"d{int(derive)}.geoterrain",
-                                  tile_size=tile_size, codec_error=codec_error,
-                                  derive_bounds=derive, **(pre or {}))
-        out.append(geoterrain.open(p))
-    return out
+    return store_pair(tmp_path, z, "derive_bounds", **kw)
 
 
 def _ring_flags(t) -> set:

@@ -301,19 +301,11 @@ def test_hillshade_from_codes_is_the_array_formula(bits, seed, az, alt):
 
 
 # ------------------------------------------ level-0 normals derived from the heights
-def _pair(tmp_path, z, nodata=None, tile_size=16, codec_error=None, pre=None, **kw):
+def _pair(tmp_path, z, **kw):
     """The same DEM preprocessed with every normal stored and with level 0's derived."""
-    import geoterrain
-    from tests.conftest import write_tif
+    from tests.conftest import store_pair
 
-    src = write_tif(tmp_path / "d.tif", z, nodata=nodata, **kw)
-    out = []
-    for derive in (False, True):
-        p = geoterrain.preprocess(src, tmp_path / f"d{int(derive)}.geoterrain",
-                                  tile_size=tile_size, codec_error=codec_error,
-                                  derive_normals=derive, **(pre or {}))
-        out.append(geoterrain.open(p))
-    return out
+    return store_pair(tmp_path, z, "derive_normals", **kw)
 
 
 @settings(max_examples=12, deadline=None)
