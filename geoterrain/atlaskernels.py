@@ -189,33 +189,48 @@ def magnify_into(atlas: np.ndarray, r: int, c: int, anc: np.ndarray, oy: int, ox
     >>> a[:, :, 0].tolist()
     [[0, 0, 3, 3], [0, 0, 3, 3], [6, 6, 9, 9], [6, 6, 9, 9]]
     """
+    last = (n - 1) >> d  # the last ancestor texel read, from (oy, ox)
+    if not (0 <= r and 0 <= c and r + n <= atlas.shape[0] and c + n <= atlas.shape[1]
+            and 0 <= oy and 0 <= ox and oy + last < anc.shape[0] and ox + last < anc.shape[1]
+            and atlas.shape[2:] == anc.shape[2:] == (3,)):
+        raise ValueError("a stand-in block reads or writes outside its arrays")
     _magnify(atlas, int(r), int(c), anc, int(oy), int(ox), int(d), int(n))
 
 
 @njit(cache=True, nogil=True)
-def _gutters(atlas, y0, x0, s):
-    for g in range(y0.shape[0]):
-        a, b, n = y0[g], x0[g], s[g]
-        for j in range(b, b + n):
-            for k in range(3):
-                atlas[a - 1, j, k] = atlas[a, j, k]
-                atlas[a + n, j, k] = atlas[a + n - 1, j, k]
-        for i in range(a - 1, a + n + 1):
-            for k in range(3):
-                atlas[i, b - 1, k] = atlas[i, b, k]
-                atlas[i, b + n, k] = atlas[i, b + n - 1, k]
+def _clamp_fill(atlas, rect, box):
+    for g in range(rect.shape[0]):
+        a, b, h, w = rect[g, 0], rect[g, 1], rect[g, 2], rect[g, 3]
+        for i in range(box[g, 0], box[g, 0] + box[g, 2]):
+            si = min(max(i, a), a + h - 1)
+            inside = a <= i < a + h
+            for j in range(box[g, 1], box[g, 1] + box[g, 3]):
+                if inside and b <= j < b + w:
+                    continue  # written: the rectangle itself
+                sj = min(max(j, b), b + w - 1)
+                for k in range(3):
+                    atlas[i, j, k] = atlas[si, sj, k]
 
 
-def fill_gutters(atlas: np.ndarray, y0: np.ndarray, x0: np.ndarray, s: np.ndarray) -> None:
-    """Each page's one-texel gutter: its edge texels replicated outwards, rows first,
-    then columns (corners included). Page g's texels are ``atlas[y0:y0+s, x0:x0+s]``.
+def clamp_fill(atlas: np.ndarray, rect: np.ndarray, box: np.ndarray) -> None:
+    """Every texel of ``box[g]`` outside ``rect[g]`` (rows (row, column, height, width))
+    set to the nearest texel of ``rect[g]``: a page's written tiles clamped to its edge,
+    as GL's clamp-to-edge would, out to the page's gutter. A multisampled pixel is shaded
+    at its centre, which at a seam may lie past the face, by more than a texel on an
+    oblique page; it then reads the page's own edge, not unwritten memory.
 
     Examples
     --------
-    >>> a = np.zeros((4, 4, 3), np.uint8); a[1:3, 1:3] = [[[1] * 3, [2] * 3], [[3] * 3, [4] * 3]]
-    >>> fill_gutters(a, np.array([1]), np.array([1]), np.array([2]))
+    >>> a = np.zeros((4, 5, 3), np.uint8); a[1:3, 1:4, 0] = [[1, 2, 3], [4, 5, 6]]
+    >>> clamp_fill(a, np.array([[1, 1, 2, 3]]), np.array([[0, 0, 4, 5]]))
     >>> a[:, :, 0].tolist()
-    [[1, 1, 2, 2], [1, 1, 2, 2], [3, 3, 4, 4], [3, 3, 4, 4]]
+    [[1, 1, 2, 3, 3], [1, 1, 2, 3, 3], [4, 4, 5, 6, 6], [4, 4, 5, 6, 6]]
     """
-    _gutters(atlas, np.asarray(y0, np.int64), np.asarray(x0, np.int64),
-             np.asarray(s, np.int64))
+    rect, box = np.asarray(rect, np.int64).reshape(-1, 4), np.asarray(box, np.int64).reshape(-1, 4)
+    H, W = atlas.shape[:2]
+    if len(rect) and ((rect[:, 2:] < 1).any() or (box[:, :2] < 0).any()
+                      or (box[:, 0] + box[:, 2] > H).any() or (box[:, 1] + box[:, 3] > W).any()
+                      or (rect[:, :2] < box[:, :2]).any()
+                      or (rect[:, :2] + rect[:, 2:] > box[:, :2] + box[:, 2:]).any()):
+        raise ValueError("a page's rectangle or box lies outside the atlas")
+    _clamp_fill(atlas, rect, box)

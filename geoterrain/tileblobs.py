@@ -178,6 +178,7 @@ def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
     else:
         r = np.ascontiguousarray(radius, np.float32)
         e = log8_exponent(r) + 2
+    e = min(e, 127)  # the blob header's int8 (a larger one would wrap to a tiny scale)
     while True:
         table = log8_table(e).astype(np.float64)
         with cores_for(codes.size):

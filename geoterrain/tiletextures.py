@@ -43,8 +43,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geoterrain.atlaskernels import (
+    clamp_fill,
     face_footprints,
-    fill_gutters,
     group_boxes,
     magnify_into,
     number_pages,
@@ -303,11 +303,15 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     np.maximum.at(ihi, e_group, ihi_e[:, 0])
     np.maximum.at(jhi, e_group, ihi_e[:, 1])
     # on 4 KiB pages: a fresh atlas on huge pages stalled on their first touch (the
-    # kernel compacting memory for them), 11 ms of an 8 MB atlas's fill. Only the tiles
-    # written below are ever sampled (the pages' faces lie in them; the shelves' slack is
-    # never read), so the atlas is not filled first (2.6 ms a frame at 1839 × 1608)
+    # kernel compacting memory for them), 11 ms of an 8 MB atlas's fill. The pages are
+    # filled below (their tiles, then clamped to those over the rest of the page and its
+    # gutter), so the atlas is not filled first (2.6 ms a frame at 1839 × 1608): only a
+    # multisampled pixel shaded more than a texel past a face, at a grazing seam, reads
+    # the shelves' slack (3 pixels of 256 k, by up to 15 levels, in a review's view;
+    # they read grey before, as wrong)
     atlas = sparse_zeros((AH, AW, 3), np.uint8)
     n_tiles = deferred = 0
+    rect = np.empty((G, 4), np.int64)  # per page: row, column, height, width written
     stored = terrain.tile_info
     pal = as_palette(cmap)
 
@@ -321,10 +325,13 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
         y0, x0 = int(ay[gi]) + GUTTER, int(ax[gi]) + GUTTER
         wt = step << lt  # a level-lt tile's width in full-resolution samples
         last = (1 << kk) - 1
-        for ty in range(min(last, int((ilo[gi] - bi) // wt)),
-                        min(last, int((ihi[gi] - bi - 1) // wt)) + 1):
-            for tx in range(min(last, int((jlo[gi] - bj) // wt)),
-                            min(last, int((jhi[gi] - bj - 1) // wt)) + 1):
+        ty0, ty1 = min(last, int((ilo[gi] - bi) // wt)), min(last, int((ihi[gi] - bi - 1) // wt))
+        tx0, tx1 = min(last, int((jlo[gi] - bj) // wt)), min(last, int((jhi[gi] - bj - 1) // wt))
+        # the texels written: these tiles' rectangle, whose border gets a gutter below
+        rect[gi] = (y0 + ty0 * step, x0 + tx0 * step, (ty1 - ty0 + 1) * step + 1,
+                    (tx1 - tx0 + 1) * step + 1)
+        for ty in range(ty0, ty1 + 1):
+            for tx in range(tx0, tx1 + 1):
                 key = (lt, (int(gX[gi]) << kk) + tx, (int(gY[gi]) << kk) + ty)
                 r, c = y0 + ty * step, x0 + tx * step
                 if key not in stored:
@@ -339,9 +346,10 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
                 atlas[r:r + step + 1, c:c + step + 1] = tile_rgb(terrain, *key, shading,
                                                                  cmap, counter, light,
                                                                  drape)
-    # gutters: each page's edge texels, replicated (one texel: fill_gutters)
-    assert GUTTER == 1
-    fill_gutters(atlas, ay + GUTTER, ax + GUTTER, (step << k) + 1)
+    # each page's written tiles clamped to their edge over the rest of the page and its
+    # gutter (a multisampled pixel centre may fall past a face at a page's seam)
+    page = (step << k) + 1 + 2 * GUTTER  # a page's allocation: its texels and gutter
+    clamp_fill(atlas, rect, np.stack([ay, ax, page, page], 1))
     # one point per (page, vertex): a vertex shared by two pages is duplicated
     src, pg, faces = number_pages(cells, e_group[fe], G, len(pts))
     scale = np.left_shift(1, Lt[pg]).astype(np.float64)

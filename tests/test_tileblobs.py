@@ -102,3 +102,24 @@ def test_the_compiled_coding_is_numpys(seed, scale):
     assert c.r16.tobytes() == r16.tobytes()  # bit for bit: signed zero, NaN
     want = round_up(r16.astype(np.float64) * 2.0**kr, np.float32)
     assert c.r_stored.tobytes() == want.tobytes()
+
+
+def test_radius_codes_keep_their_exponent_in_the_header_range():
+    """Coordinates so large that the radii's exponent would pass int8's 127 (the blob
+    header's byte): e stays 127 and the codes still bound the radii (+inf at worst),
+    never a wrapped, tiny scale."""
+    import warnings
+
+    from geoterrain.bounds import vertex_radii
+    from geoterrain.tileblobs import radius_codes
+    from geoterrain.vertexdata import log8_table
+
+    ii, jj = np.indices((9, 9)).astype(np.float64)
+    x, y, z = jj * 1e42, -ii * 1e42, np.zeros((9, 9))
+    ok = np.ones((9, 9), bool)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # float32 overflow: +inf radii
+        r = vertex_radii(x, y, z, ok)
+        codes, e = radius_codes(x, y, z, ok)
+    assert e == 127
+    assert (log8_table(e)[codes] >= r).all()
