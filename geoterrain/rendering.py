@@ -471,12 +471,3 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
     if stats_path is not None:
         write_atomic(stats_path, json.dumps(stats, indent=2, default=float))  # never half
     return stats
-
-
-def __getattr__(name: str):
-    """The animation functions, which lived here before :mod:`geoterrain.animation`."""
-    if name in ("animate", "orbit", "flythrough", "check_animation_output"):
-        from geoterrain import animation
-
-        return getattr(animation, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
