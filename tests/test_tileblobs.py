@@ -123,3 +123,33 @@ def test_radius_codes_keep_their_exponent_in_the_header_range():
         codes, e = radius_codes(x, y, z, ok)
     assert e == 127
     assert (log8_table(e)[codes] >= r).all()
+
+
+@settings(max_examples=25, deadline=None)
+@given(t=st.integers(1, 3), levels=st.integers(0, 2), seed=st.integers(0, 2**31))
+def test_level_blobs_with_log8_radii_match_the_per_tile_packers(t, levels, seed):
+    """r given as log8 codes (radius_codes): each tile's r blob is that tile's codes in a
+    log8 version-2 blob (new vertices only below the top), its maxima the codes' values."""
+    rng = np.random.default_rng(seed)
+    n = (1 << (t + levels)) + 1
+    delta = np.abs(rng.normal(0, 5, (n, n)))
+    rc = rng.integers(0, 255, (n, n)).astype(np.uint8)
+    er = int(rng.integers(-20, 20))
+    coding = BoundsCoding(delta, None, r_codes=(rc, er))
+    cctx = zstandard.ZstdCompressor(level=3)
+    for L in range(levels + 1):
+        nt = 1 << (levels - L)
+        nrm = np.zeros(((n - 1) // (1 << L) + 1,) * 2 + (2,), np.uint8)
+        tiles = [(x, y) for y in range(nt) for x in range(nt)]
+        got, _, rmax = level_blobs(coding, nrm, t, L, levels, tiles, ("radius",))
+        codes = level_tiles(rc, t, L)
+        new = np.ones(((1 << t) + 1,) * 2, bool)
+        if L < levels:
+            new[::2, ::2] = False
+        for k, (x, y) in enumerate(tiles):
+            want = pack_bounds_v2(codes[y, x], er, True, L < levels, cctx)
+            assert got["radius"][(L, x, y)] == want
+            assert rmax[k] == log8_table(er)[codes[y, x][new]].max()
+            dec = decode_bounds(want, codes[y, x].shape, None if L == levels else
+                                np.zeros_like(codes[y, x], np.float32), (x % 2, y % 2))
+            assert (dec[new] == log8_table(er)[codes[y, x][new]]).all()
