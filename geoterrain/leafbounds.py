@@ -30,7 +30,6 @@ from numba import njit
 from geoterrain.bintree import main_diagonal_nb
 from geoterrain.bounds import _centre1, _edge_err, _mid1, _nest, code_up_nb
 from geoterrain.rounding import round_up32
-from geoterrain.tileblobs import _f16_up_bits, _f16_value
 from geoterrain.vertexdata import log8_table
 
 __all__ = ["leaf_delta", "leaf_radius"]
@@ -129,29 +128,20 @@ def _table(e: int) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _leaf_radius_nb(x, y, z, up, table, out):
+def _leaf_radius_nb(x, y, z, table, out):
     T = z.shape[0]
-    r = np.zeros((T, T), np.float32)  # the edge midpoints: leaves
-    buf = np.empty(1, np.float64)
-    bits = buf.view(np.int64)
+    r = np.zeros((T, T), np.float32)  # the edge midpoints: leaves of code 0
     for ci in range(1, T - 1, 2):
         for cj in range(1, T - 1, 2):
-            # coded up as stored: the log8 code of the nesting over its children, leaves
-            # of code 0 (tileblobs.radius_codes); or (older stores) the float32 rounded up
-            # (bounds._radii_nb), then float16 rounded up
-            if table.shape[0]:
-                out[ci, cj] = table[code_up_nb(table, _nest(x, y, z, r, ci, cj, 1))]
-            else:
-                buf[0] = np.float64(round_up32(_nest(x, y, z, r, ci, cj, 1))) / up
-                out[ci, cj] = round_up32(_f16_value(_f16_up_bits(buf[0], bits[0])) * up)
+            # the log8 code of the nesting over its children (tileblobs.radius_codes)
+            out[ci, cj] = table[code_up_nb(table, _nest(x, y, z, r, ci, cj, 1))]
 
 
 def leaf_radius(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
-                stand_in_z: float, e: int, log8: bool = True) -> np.ndarray:
+                stand_in_z: float, e: int) -> np.ndarray:
     """The stored r (float32) of a level-0 tile's new vertices: nested sphere radii coded
     as the preprocess codes them, 8-bit log codes from ``2^e``
-    (:func:`geoterrain.tileblobs.radius_codes`) or, with ``log8`` False (stores before
-    it), scaled by ``2^-e`` and rounded up to float16.
+    (:func:`geoterrain.tileblobs.radius_codes`).
 
     ``x, y, z``: the tile's (T, T) scene positions; invalid heights are replaced by
     ``stand_in_z``, as :func:`geoterrain.bounds.vertex_radii` does. The edge midpoints
@@ -167,5 +157,5 @@ def leaf_radius(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
     zp = np.where(ok, z, stand_in_z)
     out = np.zeros(zp.shape, np.float32)
     _leaf_radius_nb(np.ascontiguousarray(x, np.float64), np.ascontiguousarray(y, np.float64),
-                    zp, 2.0 ** e, _table(e) if log8 else np.empty(0), out)
+                    zp, _table(e), out)
     return out

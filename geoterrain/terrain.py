@@ -243,15 +243,15 @@ class Terrain:
                      cols: np.ndarray, ring: np.ndarray) -> np.ndarray:
         """The stored δ or r of a level-0 tile's new vertices, derived from its decoded
         heights; the border ring's as stored (:mod:`geoterrain.leafbounds`)."""
-        if kind == "delta" and not log8:  # δ only in log8 codes (r: log8 or float16)
-            raise ValueError("a ring delta blob not in log8 codes")
+        if not log8:  # ring blobs are only ever written in log8 codes
+            raise ValueError(f"a ring {kind} blob not in log8 codes")
         tile = self.tile(*key)
         z = self.frame.z(tile.heights)
         if kind == "delta":
             t = self.grid.t
             return leaf_delta(z, tile.valid, (key[2] << t, key[1] << t), rows, cols, ring, e)
         X, Y = self.tile_xy(*key)
-        r = leaf_radius(X, Y, z, tile.valid, self.stand_in_z, e, log8)
+        r = leaf_radius(X, Y, z, tile.valid, self.stand_in_z, e)
         r[rows, cols] = ring
         return r
 
