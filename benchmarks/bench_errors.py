@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from geoterrain.bounds import vertex_errors, vertex_radii
+from geoterrain.bounds import vertex_errors
+from geoterrain.radii import vertex_radii
 from geoterrain.reference import saturate, static_mesh, vertex_errors_reference
 from geoterrain.tilebounds import tile_errors
 

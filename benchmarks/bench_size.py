@@ -43,7 +43,8 @@ def exact_v1_copy(store: Path, dst: Path) -> Path:
     """``store`` with δ and r as version-1 blobs of the exact values (float16, rounded up)."""
     import zstandard
 
-    from geoterrain.bounds import vertex_errors, vertex_radii
+    from geoterrain.bounds import vertex_errors
+    from geoterrain.radii import vertex_radii
     from geoterrain.store import blob_crc
     from geoterrain.vertexdata import encode_bounds
 

@@ -35,8 +35,9 @@ import numpy as np
 from numba import njit, prange
 
 from geoterrain.bintree import child_nb, main_diagonal_nb
-from geoterrain.bounds import _proxy_positions, _saturate_nb
+from geoterrain.bounds import _saturate_nb
 from geoterrain.edgepad import _reaches_data
+from geoterrain.radii import _proxy_positions
 from geoterrain.rounding import round_up32
 from geoterrain.threads import cores_for
 
@@ -277,7 +278,7 @@ def metric_bounds(delta: np.ndarray, radius: np.ndarray | None, X: np.ndarray,
     Parameters
     ----------
     delta, radius : float32 (N, N), from :func:`geoterrain.bounds.vertex_errors` and
-        :func:`geoterrain.bounds.vertex_radii` (not modified). ``radius`` None: r is
+        :func:`geoterrain.radii.vertex_radii` (not modified). ``radius`` None: r is
         neither raised nor returned (None).
     X, Y, Z : float64 (N, N) scene positions (Z NaN or anything where invalid).
     valid : bool (N, N).
@@ -290,7 +291,8 @@ def metric_bounds(delta: np.ndarray, radius: np.ndarray | None, X: np.ndarray,
 
     Examples
     --------
-    >>> from geoterrain.bounds import vertex_errors, vertex_radii
+    >>> from geoterrain.bounds import vertex_errors
+    >>> from geoterrain.radii import vertex_radii
     >>> I, J = np.indices((5, 5)).astype(float)
     >>> X, Y = 100 * J + (I - 2) ** 2, -100 * I  # rows bowed by 4 m: a curved grid
     >>> Z, ok = 0.5 * X, np.ones((5, 5), bool)

@@ -28,7 +28,8 @@ import numpy as np
 from numba import njit
 
 from geoterrain.bintree import main_diagonal_nb
-from geoterrain.bounds import _centre1, _edge_err, _mid1, _nest, code_up_nb
+from geoterrain.bounds import _centre1, _edge_err, _mid1
+from geoterrain.radii import _nest, code_up_nb
 from geoterrain.rounding import round_up32
 from geoterrain.vertexdata import log8_table
 
@@ -144,7 +145,7 @@ def leaf_radius(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
     (:func:`geoterrain.tileblobs.radius_codes`).
 
     ``x, y, z``: the tile's (T, T) scene positions; invalid heights are replaced by
-    ``stand_in_z``, as :func:`geoterrain.bounds.vertex_radii` does. The edge midpoints
+    ``stand_in_z``, as :func:`geoterrain.radii.vertex_radii` does. The edge midpoints
     (leaves) and the parent's vertices are 0.
 
     Examples

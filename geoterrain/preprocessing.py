@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from geoterrain._version import __version__
-from geoterrain.bounds import stand_in_z, valid_range, vertex_errors, vertex_radii
+from geoterrain.bounds import vertex_errors
 from geoterrain.codec import decoded_heights, encode_pyramid
 from geoterrain.curvature import metric_bounds, metric_terms
 from geoterrain.edgepad import (
@@ -33,6 +33,7 @@ from geoterrain.grid import Grid
 from geoterrain.mosaic import is_glob, mosaic_name, source_files
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.quantize import choose_quantizer
+from geoterrain.radii import stand_in_z, valid_range, vertex_radii
 from geoterrain.raster import Raster, read_raster
 from geoterrain.store import StoreWriter, default_store_path, remove_stale_partials
 from geoterrain.tileblobs import BoundsCoding, level_blobs, radius_codes, ring_blobs

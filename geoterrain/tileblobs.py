@@ -19,7 +19,7 @@ from collections.abc import Iterable
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.bounds import _proxy_positions, _radii_nb
+from geoterrain.radii import _proxy_positions, _radii_nb
 from geoterrain.rounding import round_up
 from geoterrain.threads import cores_for
 from geoterrain.vertexdata import (
@@ -146,9 +146,9 @@ def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
     """Nested radii as 8-bit log codes rounded up, the nesting re-established on the
     coded values: ``(codes, e)``, with table[code(v)] ≥ r(v) and ≥ |p_v − p_c| +
     table[code(c)] on every DAG edge (seed 002 §2.4, L50–52), positions as
-    :func:`geoterrain.bounds.vertex_radii` takes them (invalid ones by its proxies).
+    :func:`geoterrain.radii.vertex_radii` takes them (invalid ones by its proxies).
     ``radius`` None: the nesting alone, from leaves of radius 0 (what
-    :func:`~geoterrain.bounds.vertex_radii` computes, without its float32 roundings:
+    :func:`~geoterrain.radii.vertex_radii` computes, without its float32 roundings:
     the codes are ≥ its radii all the same); given (radii raised beyond the nesting, as
     :func:`geoterrain.curvature.metric_bounds` raises them), each code also covers them.
 
@@ -158,7 +158,7 @@ def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
 
     Examples
     --------
-    >>> from geoterrain.bounds import vertex_radii
+    >>> from geoterrain.radii import vertex_radii
     >>> I, J = np.indices((5, 5)).astype(float)
     >>> ok = np.ones((5, 5), bool)
     >>> r = vertex_radii(J, -I, np.zeros((5, 5)), ok)

@@ -16,7 +16,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from geoterrain.bintree import vertex_children, vertex_depth, vertex_parents
-from geoterrain.bounds import _raw_delta, vertex_errors, vertex_radii
+from geoterrain.bounds import _raw_delta, vertex_errors
+from geoterrain.radii import vertex_radii
 from geoterrain.reference import static_mesh, vertex_errors_reference
 from geoterrain.rounding import round_up
 from geoterrain.tilebounds import tile_errors

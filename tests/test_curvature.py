@@ -225,9 +225,10 @@ def test_each_triangle_is_within_its_vertex_bounds(seed, lat, rough):
     lies in T (measured by metricmeasure) is within δ(v) of T and within r(v) of p_v."""
     from pyproj import CRS
 
-    from geoterrain.bounds import vertex_errors, vertex_radii
+    from geoterrain.bounds import vertex_errors
     from geoterrain.curvature import metric_bounds
     from geoterrain.frame import Frame
+    from geoterrain.radii import vertex_radii
 
     N = 17
     fr = Frame.from_raster((0.6, 0, 10.0, 0, -0.3, lat + 2.4), CRS.from_epsg(4326).to_wkt(), N, N)

@@ -4,7 +4,7 @@ A store written with ``derive_bounds`` keeps only the border ring's new vertices
 level-0 δ and r blob; the reader must rebuild every other value exactly as the whole-grid
 kernels computed and coded it. The oracle is the same DEM written with every value
 stored, whose δ and r come from :func:`geoterrain.bounds.vertex_errors` and
-:func:`~geoterrain.bounds.vertex_radii` over the whole grid.
+:func:`~geoterrain.radii.vertex_radii` over the whole grid.
 """
 
 from __future__ import annotations

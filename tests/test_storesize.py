@@ -120,7 +120,8 @@ def test_new_vertices_only_blobs_are_smaller_and_exact(tmp_path):
 
 
 def test_stored_bounds_are_never_below_the_exact_ones(tmp_path):
-    from geoterrain.bounds import vertex_errors, vertex_radii
+    from geoterrain.bounds import vertex_errors
+    from geoterrain.radii import vertex_radii
     from geoterrain.vertexdata import LOG_STEPS
 
     store = preprocess(_int_dem(tmp_path), tmp_path / "d.geoterrain", tile_size=16)
@@ -152,7 +153,7 @@ def _assert_minimal_radius_codes(t, X, Y, Z, valid, R):
     group by group fine to coarse: code(v) = the smallest code ≥ |p_v − p_c| +
     table[code(c)] for each child c (positions as vertex_radii's)."""
     from geoterrain.bintree import vertex_children, vertex_depth
-    from geoterrain.bounds import _proxy_positions
+    from geoterrain.radii import _proxy_positions
     from geoterrain.vertexdata import log8_codes, log8_table
 
     g = t.grid

@@ -110,7 +110,7 @@ def test_radius_codes_keep_their_exponent_in_the_header_range():
     never a wrapped, tiny scale."""
     import warnings
 
-    from geoterrain.bounds import vertex_radii
+    from geoterrain.radii import vertex_radii
     from geoterrain.tileblobs import radius_codes
     from geoterrain.vertexdata import log8_table
 
