@@ -1,4 +1,7 @@
-"""δ and r of a level-0 tile's new vertices, derived from the tile's decoded heights.
+"""A level-0 tile's δ, r and normals, derived on read from the tile's decoded heights.
+
+(:func:`tile_leaf_bounds` and :func:`derived_normal_codes` are what ``Terrain`` calls
+for a ring blob; the normals' rule is in the last function's docstring.)
 
 Below the top level a tile stores only the vertices new at its level (the others are
 its parent's, :mod:`geoterrain.vertexdata`). At level 0 those are the samples with an
@@ -27,13 +30,16 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
+from geoterrain import zstdsafe
 from geoterrain.bintree import main_diagonal_nb
 from geoterrain.bounds import _centre1, _edge_err, _mid1
+from geoterrain.exceptions import StoreCorruptError
+from geoterrain.normals import encode_octahedral, normal_map
 from geoterrain.radii import _nest, code_up_nb
 from geoterrain.rounding import round_up32
-from geoterrain.vertexdata import log8_table
+from geoterrain.vertexdata import log8_table, ring_from_bytes, ring_index
 
-__all__ = ["leaf_delta", "leaf_radius"]
+__all__ = ["derived_normal_codes", "leaf_delta", "leaf_radius", "tile_leaf_bounds"]
 
 
 @njit(cache=True, nogil=True)
@@ -160,3 +166,61 @@ def leaf_radius(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
     _leaf_radius_nb(np.ascontiguousarray(x, np.float64), np.ascontiguousarray(y, np.float64),
                     zp, _table(e), out)
     return out
+
+
+# ------------------------------------------------ a store's level-0 tiles, derived on read
+def tile_leaf_bounds(terrain, key: tuple[int, int, int], kind: str, log8: bool, e: int,
+                     rows: np.ndarray, cols: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """The stored δ or r of a level-0 tile's new vertices, derived from its decoded
+    heights; the border ring's as stored (``Terrain``'s reader of a ``RING`` blob).
+
+    Examples
+    --------
+    >>> from geoterrain.vertexdata import ring_new_index
+    >>> r, c = ring_new_index(t.grid.tile_samples)
+    >>> d = tile_leaf_bounds(t, (0, 0, 0), "delta", True, 0, r, c, np.zeros(len(r)))
+    >>> d.shape == (t.grid.tile_samples,) * 2 and bool((d >= 0).all())
+    True
+    """
+    if not log8:  # ring blobs are only ever written in log8 codes
+        raise ValueError(f"a ring {kind} blob not in log8 codes")
+    tile = terrain.tile(*key)
+    z = terrain.frame.z(tile.heights)
+    if kind == "delta":
+        t = terrain.grid.t
+        return leaf_delta(z, tile.valid, (key[2] << t, key[1] << t), rows, cols, ring, e)
+    X, Y = terrain.tile_xy(*key)
+    r = leaf_radius(X, Y, z, tile.valid, terrain.stand_in_z, e)
+    r[rows, cols] = ring
+    return r
+
+
+def derived_normal_codes(terrain, level: int, x: int, y: int) -> np.ndarray:
+    """A tile whose normals blob is its border ring: the interior is the normal map of
+    its decoded heights (the preprocess's central differences, seed 000's
+    full-resolution normal map: they read no sample outside the tile there), encoded as
+    the preprocess encodes; the ring is the stored codes.
+
+    Examples
+    --------
+    >>> derived_normal_codes(t, 0, 0, 0).shape[2]  # doctest: +SKIP
+    2
+    """
+    T = terrain.grid.tile_samples
+    rr, cc = ring_index(T)
+    try:  # bounded: exactly the ring's 4T − 4 pairs
+        ring = ring_from_bytes(zstdsafe.decompress(terrain._blob((level, x, y), "normals"),
+                                                   2 * len(rr), exact=True))
+    except ValueError:
+        raise StoreCorruptError(f"{terrain.path}: tile {(level, x, y)} normals cannot be "
+                                "decoded; re-run `geoterrain preprocess`") from None
+    tile = terrain.tile(level, x, y)
+    X, Y = terrain.tile_xy(level, x, y)
+    # one tile on this thread (serial kernels: no thread pool for 65² samples, and safe in
+    # a fork() child, where GNU OpenMP aborts a parallel launch)
+    codes = encode_octahedral(normal_map(X, Y, terrain.frame.z(tile.heights), tile.valid,
+                                         serial=True),
+                              terrain.meta["normal_bits"], serial=True)
+    codes[rr, cc] = ring
+    terrain.decoded_normals += 1
+    return codes

@@ -16,8 +16,8 @@ from geoterrain.bintree import vertex_level
 from geoterrain.codec import decode_tile, tile_valid
 from geoterrain.exceptions import StoreCorruptError, StoreError
 from geoterrain.grid import level_offsets
-from geoterrain.leafbounds import leaf_delta, leaf_radius
-from geoterrain.normals import decode_octahedral, encode_octahedral, normal_map
+from geoterrain.leafbounds import derived_normal_codes, tile_leaf_bounds
+from geoterrain.normals import decode_octahedral
 from geoterrain.quantize import codes_to_heights
 from geoterrain.store import StoreReader
 from geoterrain.storecheck import check_store
@@ -29,8 +29,6 @@ from geoterrain.vertexdata import (
     decode_bounds,
     normals_from_bytes,
     normals_to_bytes,
-    ring_from_bytes,
-    ring_index,
     unpack_block_errors,
 )
 
@@ -229,7 +227,7 @@ class Terrain:
         derive = None
         if L == 0 and stored in ("delta", "radius") and self.frame.kind != "geographic":
             def derive(rows, cols, ring, log8, e):  # a RING blob: the rest from the heights
-                return self._leaf_bounds(key, stored, log8, e, rows, cols, ring)
+                return tile_leaf_bounds(self, key, stored, log8, e, rows, cols, ring)
         # a stored tile's own δ_edge blob may hold differences from its δ codes
         base = (self.tile_delta(*key) if stored == "delta_edge" and len(blob) > 1
                 and blob[1] & DIFF and key in self.tile_info else None)
@@ -238,22 +236,6 @@ class Terrain:
         except (ValueError, zstandard.ZstdError):
             raise StoreCorruptError(f"{self.path}: tile {key} {kind} cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
-
-    def _leaf_bounds(self, key: TileKey, kind: str, log8: bool, e: int, rows: np.ndarray,
-                     cols: np.ndarray, ring: np.ndarray) -> np.ndarray:
-        """The stored δ or r of a level-0 tile's new vertices, derived from its decoded
-        heights; the border ring's as stored (:mod:`geoterrain.leafbounds`)."""
-        if not log8:  # ring blobs are only ever written in log8 codes
-            raise ValueError(f"a ring {kind} blob not in log8 codes")
-        tile = self.tile(*key)
-        z = self.frame.z(tile.heights)
-        if kind == "delta":
-            t = self.grid.t
-            return leaf_delta(z, tile.valid, (key[2] << t, key[1] << t), rows, cols, ring, e)
-        X, Y = self.tile_xy(*key)
-        r = leaf_radius(X, Y, z, tile.valid, self.stand_in_z, e)
-        r[rows, cols] = ring
-        return r
 
     def block_errors(self) -> np.ndarray | None:
         """Every GeoMipMapping block's exact δ_n (seed 000 §2.4), (nb, nb, levels) indexed
@@ -320,7 +302,7 @@ class Terrain:
         bits each; :func:`~geoterrain.normals.decode_octahedral` unpacks them). Not
         cached: each call reads and counts a decode."""
         if level in self._derived_normal_levels:
-            return self._derived_normal_codes(level, x, y)
+            return derived_normal_codes(self, level, x, y)
         raw, planar = self.tile_normal_bytes(level, x, y)
         T = self.grid.tile_samples
         if planar:
@@ -333,7 +315,7 @@ class Terrain:
         they are two planes of 2-D differences (8-bit ``normals_layout`` 2,
         :func:`~geoterrain.vertexdata.normals_to_bytes`) rather than (u, v) pairs."""
         if level in self._derived_normal_levels:
-            return normals_to_bytes(self._derived_normal_codes(level, x, y)), True
+            return normals_to_bytes(derived_normal_codes(self, level, x, y)), True
         T, bits = self.grid.tile_samples, self.meta["normal_bits"]
         try:  # bounded: exactly T × T × 2 components, never a decompression bomb
             raw = zstdsafe.decompress(self._blob((level, x, y), "normals"),
@@ -347,30 +329,6 @@ class Terrain:
     @property
     def _derived_normal_levels(self) -> tuple[int, ...]:
         return tuple(self.meta.get("normals_derived", ()))
-
-    def _derived_normal_codes(self, level: int, x: int, y: int) -> np.ndarray:
-        """A tile whose normals blob is its border ring: the interior is the normal map
-        of its decoded heights (the preprocess's central differences, seed 000's
-        full-resolution normal map: they read no sample outside the tile there), encoded
-        as the preprocess encodes; the ring is the stored codes."""
-        T = self.grid.tile_samples
-        rr, cc = ring_index(T)
-        try:  # bounded: exactly the ring's 4T − 4 pairs
-            ring = ring_from_bytes(zstdsafe.decompress(self._blob((level, x, y), "normals"),
-                                                       2 * len(rr), exact=True))
-        except ValueError:
-            raise StoreCorruptError(f"{self.path}: tile {(level, x, y)} normals cannot be "
-                                    "decoded; re-run `geoterrain preprocess`") from None
-        tile = self.tile(level, x, y)
-        X, Y = self.tile_xy(level, x, y)
-        # one tile on this thread (serial kernels: no thread pool for 65² samples, and
-        # safe in a fork() child, where GNU OpenMP aborts a parallel launch)
-        codes = encode_octahedral(normal_map(X, Y, self.frame.z(tile.heights), tile.valid,
-                                             serial=True),
-                                  self.meta["normal_bits"], serial=True)
-        codes[rr, cc] = ring
-        self.decoded_normals += 1
-        return codes
 
     # ------------------------------------------------------- per-vertex data
     def vertex_level(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
