@@ -295,13 +295,14 @@ def preprocess(
         keys = [k for k in height_blobs if k[0] == L]
         if not keys:
             continue
-        ring = L == 0 and derive_normals  # the interior is derived from the heights on read
+        # level 0's rings: the rest is derived from the heights on read
+        normals_ring = L == 0 and derive_normals
         blobs, dmax, rmax = level_blobs(coding, nrm_levels[L], grid.t, L, grid.top_level,
                                         [(x, y) for _, x, y in keys],
-                                        ("delta", "radius") if ring else
+                                        ("delta", "radius") if normals_ring else
                                         ("delta", "radius", "normals"),
                                         ring=L == 0 and derive_bounds)
-        if ring:
+        if normals_ring:
             blobs["normals"] = ring_blobs(nrm_levels[0], grid.t, [(x, y) for _, x, y in keys])
         for kind, b in blobs.items():
             extra[kind].update(b)
