@@ -85,39 +85,24 @@ def _mid1(z, ic, jc, rows):
 # no fast math here: a reader repeats these for level 0's vertices (geoterrain/leafbounds.py)
 # and must get the same bits on any machine (fast math may fuse a multiply-add)
 @njit(cache=True)
-def _edge_err(z, vb, ic, jc, h, rows, N):
-    # Diamond of an edge midpoint = |di| + |dj| <= h, clipped to the grid; the hypotenuse
-    # runs along the rows (rows=True: endpoints (ic ± h, jc)) or along the columns.
+def _edge_err_part(z, vb, ic, jc, h, rows, lo_ok, hi_ok, za, zb, z_lo, z_hi, d0, d1, r0):
+    """Rows ``ic + d`` (d in [d0, d1]) of an edge midpoint's diamond sweep: (max, valid
+    count, sample count). ``z``/``vb`` hold grid rows from ``r0`` on (a band, or the
+    grid with r0 = 0); ``za``, ``zb`` are the hypotenuse's ends, ``z_lo``, ``z_hi`` the
+    other two diamond corners (read only if ``lo_ok``/``hi_ok``). Max and counts are
+    exact, so sweeping the rows in any split gives the bits of one sweep."""
     invh = 1.0 / h
-    if rows:
-        za = z[ic - h, jc]
-        zb = z[ic + h, jc]
-    else:
-        za = z[ic, jc - h]
-        zb = z[ic, jc + h]
     zm = 0.5 * (za + zb)
     g = 0.5 * (zb - za) * invh
-    lo_ok = (jc - h >= 0) if rows else (ic - h >= 0)
-    hi_ok = (jc + h <= N - 1) if rows else (ic + h <= N - 1)
-    k_lo = 0.0
-    k_hi = 0.0
-    if rows:
-        if lo_ok:
-            k_lo = (z[ic, jc - h] - zm) * invh
-        if hi_ok:
-            k_hi = (z[ic, jc + h] - zm) * invh
-    else:
-        if lo_ok:
-            k_lo = (z[ic - h, jc] - zm) * invh
-        if hi_ok:
-            k_hi = (z[ic + h, jc] - zm) * invh
+    k_lo = (z_lo - zm) * invh if lo_ok else 0.0
+    k_hi = (z_hi - zm) * invh if hi_ok else 0.0
     m = 0.0
     cnt = 0
     tot = 0
     if rows:
-        for di in range(-h, h + 1):
+        for di in range(max(-h, d0), min(h, d1) + 1):
             w = h - abs(di)
-            i = ic + di
+            i = ic + di - r0
             line = zm + g * di
             jlo = -w if lo_ok else 0
             jhi = w if hi_ok else 0
@@ -135,9 +120,9 @@ def _edge_err(z, vb, ic, jc, h, rows, N):
     else:
         dlo = -h if lo_ok else 0
         dhi = h if hi_ok else 0
-        for di in range(dlo, dhi + 1):
+        for di in range(max(dlo, d0), min(dhi, d1) + 1):
             w = h - abs(di)
-            i = ic + di
+            i = ic + di - r0
             k = -k_lo * di if di < 0 else k_hi * di
             base = zm + k
             row = z[i, jc - w:jc + w + 1]
@@ -147,11 +132,40 @@ def _edge_err(z, vb, ic, jc, h, rows, N):
                     m = max(m, abs(row[dj] - (base + g * (dj - w))))
                     cnt += 1
             tot += 2 * w + 1
+    return m, cnt, tot
+
+
+@njit(cache=True, inline="always")
+def edge_status_nb(m, cnt, tot):
+    """(δ, status) of a swept diamond: status 0 = all invalid, 1 = all valid, 2 = mixed."""
     if cnt == 0:
         return 0.0, 0
     if cnt < tot:
         return 0.0, 2
     return m, 1
+
+
+@njit(cache=True)
+def _edge_err(z, vb, ic, jc, h, rows, N):
+    # Diamond of an edge midpoint = |di| + |dj| <= h, clipped to the grid; the hypotenuse
+    # runs along the rows (rows=True: endpoints (ic ± h, jc)) or along the columns.
+    if rows:
+        lo_ok = jc - h >= 0
+        hi_ok = jc + h <= N - 1
+        za = z[ic - h, jc]
+        zb = z[ic + h, jc]
+        z_lo = z[ic, jc - h] if lo_ok else 0.0
+        z_hi = z[ic, jc + h] if hi_ok else 0.0
+    else:
+        lo_ok = ic - h >= 0
+        hi_ok = ic + h <= N - 1
+        za = z[ic, jc - h]
+        zb = z[ic, jc + h]
+        z_lo = z[ic - h, jc] if lo_ok else 0.0
+        z_hi = z[ic + h, jc] if hi_ok else 0.0
+    m, cnt, tot = _edge_err_part(z, vb, ic, jc, h, rows, lo_ok, hi_ok, za, zb, z_lo, z_hi,
+                                 -h, h, 0)
+    return edge_status_nb(m, cnt, tot)
 
 
 @njit(cache=True, parallel=_PARALLEL)
@@ -217,19 +231,13 @@ def _centre1(z, ci, cj, main):
 
 
 @njit(cache=True, fastmath=_FM)
-def _block_sweep(z, i0, j0, s, main):
-    """One pass over an all-valid closed block of side s = 2h: the exact max error of its
-    centre (surface = the 2 union-jack halves) and of its 4 quarter triangles (surface of
-    the next depth: each quarter's diamond is one quarter of each adjacent block).
-    Returns (centre, left, right, top, bottom); quarters are closed (diagonals in both)."""
+def _block_sweep_part(z, i0, j0, s, main, z00, z01, z10, z11, zc, d0, d1, r0):
+    """Rows ``d0 … d1`` (block-relative, inclusive) of :func:`_block_sweep`'s pass, the
+    corners and centre given; ``z`` holds grid rows from ``r0`` on. Maxima are exact,
+    so sweeping a block's rows in any split gives the bits of one sweep."""
     h = s // 2
     inv = 1.0 / s
     invh = 1.0 / h
-    z00 = z[i0, j0]
-    z01 = z[i0, j0 + s]
-    z10 = z[i0 + s, j0]
-    z11 = z[i0 + s, j0 + s]
-    zc = z[i0 + h, j0 + h]
     kl = (zc - 0.5 * (z00 + z10)) * invh
     kr = (zc - 0.5 * (z01 + z11)) * invh
     kt = (zc - 0.5 * (z00 + z01)) * invh
@@ -239,8 +247,8 @@ def _block_sweep(z, i0, j0, s, main):
     mr = 0.0
     mt = 0.0
     mb = 0.0
-    for di in range(s + 1):
-        row = z[i0 + di, j0:j0 + s + 1]
+    for di in range(d0, d1 + 1):
+        row = z[i0 + di - r0, j0:j0 + s + 1]
         fi = di * inv
         # centre surface: P1 left of the union-jack diagonal, P2 right of it
         b1, g1, b2, g2 = cell_rows_nb(z00, z01, z10, z11, fi, inv, main)
@@ -286,6 +294,17 @@ def _block_sweep(z, i0, j0, s, main):
         ml = max(ml, abs(row[lo] - (bl + kl * lo)))
         mr = max(mr, abs(row[hi] - (br - kr * hi)))
     return mc, ml, mr, mt, mb
+
+
+@njit(cache=True)
+def _block_sweep(z, i0, j0, s, main):
+    """One pass over an all-valid closed block of side s = 2h: the exact max error of its
+    centre (surface = the 2 union-jack halves) and of its 4 quarter triangles (surface of
+    the next depth: each quarter's diamond is one quarter of each adjacent block).
+    Returns (centre, left, right, top, bottom); quarters are closed (diagonals in both)."""
+    h = s // 2
+    return _block_sweep_part(z, i0, j0, s, main, z[i0, j0], z[i0, j0 + s], z[i0 + s, j0],
+                             z[i0 + s, j0 + s], z[i0 + h, j0 + h], 0, s, 0)
 
 
 @njit(cache=True, parallel=_PARALLEL)

@@ -61,6 +61,19 @@ def peak_rss() -> int:
     return int(r if sys.platform == "darwin" else r * 1024)
 
 
+def current_rss() -> int:
+    """Resident memory of this process now, in bytes (Linux's ``VmRSS``; else
+    :func:`peak_rss`).
+
+    Examples
+    --------
+    >>> 0 < current_rss() <= peak_rss()
+    True
+    """
+    v = _proc_kib("/proc/self/status", "VmRSS:")
+    return v * 1024 if v is not None else peak_rss()
+
+
 def sparse_zeros(shape: tuple[int, ...], dtype=np.uint8) -> np.ndarray:
     """A zeroed array whose memory is committed 4 KiB page by page as it is written.
 

@@ -1,0 +1,100 @@
+"""Row-addressed 2-D arrays in memory or in scratch files: what a streaming stage carries
+from one pass to the next (issue 12: "carry only what the next level needs, in scratch
+space on disk").
+
+A file-backed array is read and written by row ranges with ``os.pread``/``os.pwrite``,
+never mapped, so what it holds does not count against the process's resident memory
+(a mapped file's pages would). Small grids keep the same interface in memory.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["ScratchArrays"]
+
+
+class ScratchArrays:
+    """Named 2-D arrays, created zeroed, read and written by rows.
+
+    ``folder=None`` keeps them in memory; otherwise each is a file in a fresh temporary
+    folder under ``folder``, removed by :meth:`close` (or at exit of a ``with`` block).
+
+    Examples
+    --------
+    >>> with ScratchArrays(tempfile.gettempdir()) as s:
+    ...     s.create("a", (4, 3), np.float32)
+    ...     s.write("a", 1, np.ones((2, 3), np.float32))
+    ...     s.read("a", 0, 4).sum(axis=1).tolist()
+    [0.0, 3.0, 3.0, 0.0]
+    """
+
+    def __init__(self, folder: str | Path | None = None) -> None:
+        self._mem: dict[str, np.ndarray] = {}
+        self._fd: dict[str, int] = {}
+        self._meta: dict[str, tuple[tuple[int, int], np.dtype]] = {}
+        self._dir = (None if folder is None else
+                     tempfile.TemporaryDirectory(prefix="geoterrain-", dir=folder))
+
+    def __enter__(self) -> ScratchArrays:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def on_disk(self) -> bool:
+        return self._dir is not None
+
+    def create(self, name: str, shape: tuple[int, int], dtype: type) -> None:
+        dt = np.dtype(dtype)
+        self._meta[name] = ((int(shape[0]), int(shape[1])), dt)
+        if self._dir is None:
+            self._mem[name] = np.zeros(shape, dt)
+            return
+        path = os.path.join(self._dir.name, name)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o600)
+        os.ftruncate(fd, shape[0] * shape[1] * dt.itemsize)  # sparse zeros
+        self._fd[name] = fd
+
+    def shape(self, name: str) -> tuple[int, int]:
+        return self._meta[name][0]
+
+    def read(self, name: str, r0: int, r1: int) -> np.ndarray:
+        """Rows ``r0 … r1 − 1`` (clipped to the array), a copy."""
+        (nr, nc), dt = self._meta[name]
+        r0, r1 = max(r0, 0), min(r1, nr)
+        if self._dir is None:
+            return self._mem[name][r0:r1].copy()
+        nbytes = max(r1 - r0, 0) * nc * dt.itemsize
+        buf = bytearray(nbytes)
+        got = os.preadv(self._fd[name], [buf], r0 * nc * dt.itemsize) if nbytes else 0
+        if got != nbytes:
+            raise OSError(f"scratch array {name}: short read ({got} of {nbytes} bytes)")
+        return np.frombuffer(buf, dt).reshape(r1 - r0, nc)
+
+    def write(self, name: str, r0: int, rows: np.ndarray) -> None:
+        """Rows ``r0 …`` from ``rows`` (same column count and dtype)."""
+        (nr, nc), dt = self._meta[name]
+        rows = np.ascontiguousarray(rows, dtype=dt)
+        if rows.ndim != 2 or rows.shape[1] != nc or r0 < 0 or r0 + rows.shape[0] > nr:
+            raise ValueError(f"scratch array {name} {nr}×{nc}: cannot write "
+                             f"{rows.shape} at row {r0}")
+        if self._dir is None:
+            self._mem[name][r0:r0 + rows.shape[0]] = rows
+            return
+        data = rows.tobytes()
+        if os.pwrite(self._fd[name], data, r0 * nc * dt.itemsize) != len(data):
+            raise OSError(f"scratch array {name}: short write")
+
+    def close(self) -> None:
+        for fd in self._fd.values():
+            os.close(fd)
+        self._fd.clear()
+        self._mem.clear()
+        if self._dir is not None:
+            self._dir.cleanup()
