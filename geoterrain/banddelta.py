@@ -48,6 +48,7 @@ from geoterrain.bounds import (
     edge_status_nb,
     grid_order,
 )
+from geoterrain.radii import valid_range
 from geoterrain.rounding import round_up32
 from geoterrain.scratch import ScratchArrays
 
@@ -63,6 +64,10 @@ class LevelDelta:
 
     N: int
     arrays: ScratchArrays
+    valid_range: tuple[float, float, int] = (np.inf, -np.inf, 0)
+    """(min, max, count) of the valid heights, from the first pass."""
+    stand_in: float | None = None
+    """The height of invalid vertices in ``Z*`` arrays (None: not kept)."""
 
     @property
     def n(self) -> int:
@@ -405,8 +410,26 @@ def _saturate(sa: ScratchArrays, n: int, budget: int) -> None:
             sa.write(f"K{k}", a_lo, K)
 
 
+def _keep_heights(sa: ScratchArrays, z: np.ndarray, v: np.ndarray, w0: int, r0: int,
+                  r_end: int, N: int, n: int, stand_in: float) -> None:
+    # the heights of every level's vertices on grid rows r0 … r_end, invalid ones by the
+    # stand-in (radii._proxy_positions): ZC{k}, ZR{k}, ZK{k}, for the nested radii
+    zp = np.where(v, z, stand_in)
+    for k in range(n):
+        h = 1 << k
+        s = 2 * h
+        for x, off, cols in (("C", h, slice(h, None, s)), ("R", h, slice(0, None, s)),
+                             ("K", 0, slice(h, None, s))):
+            a_lo = max(-(-(r0 - off) // s), 0)
+            a_hi = (r_end - off) // s
+            if a_hi >= a_lo:
+                idx = np.arange(a_lo, a_hi + 1) * s + off - w0
+                sa.write(f"Z{x}{k}", a_lo, zp[idx][:, cols])
+
+
 def band_vertex_errors(rows: Rows, N: int, band: int = 256,
-                       scratch: ScratchArrays | None = None) -> LevelDelta:
+                       scratch: ScratchArrays | None = None,
+                       heights: bool = False) -> LevelDelta:
     """Exact, saturated δ of an (N, N) grid read ``band`` rows at a time; the values of
     :func:`geoterrain.bounds.vertex_errors`, bit for bit, for any band.
 
@@ -423,6 +446,11 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
     scratch
         Where the per-level arrays go (:class:`ScratchArrays`; default in memory). With
         a scratch folder, memory is the band's window and a few rows of each level.
+    heights
+        Also keep every level's vertex heights (``ZC{k}``, ``ZR{k}``, ``ZK{k}``,
+        float64), invalid ones replaced by the middle of the valid range
+        (:func:`geoterrain.radii.stand_in_z`): what
+        :func:`geoterrain.bandradii.band_radius_codes` nests.
 
     Examples
     --------
@@ -441,6 +469,7 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
     # first pass: every B block's status, and the grid every B samples (coarse corners)
     stB = np.zeros((nB, nB), np.uint8)
     zd = np.zeros((nB + 1, nB + 1))
+    lo, hi, count = np.inf, -np.inf, 0
     for k in range(nbands):
         r0 = k * B
         z, v = _window(rows, r0, r0 + B + 1, N)
@@ -448,6 +477,9 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
         zd[k] = z[0, ::B]
         if k == nbands - 1:
             zd[k + 1] = z[B, ::B]
+        a, b, c = valid_range(z[:B + (k == nbands - 1)], v[:B + (k == nbands - 1)])
+        lo, hi, count = min(lo, a), max(hi, b), count + c
+    stand_in = (0.5 * (lo + hi) if count else 0.0) if heights else None  # radii.stand_in_z
     coarse = []  # per coarse level: (h, status, accumulators, mixed edges and sweeps)
     st = stB
     h = B
@@ -467,6 +499,10 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
         sa.create(f"C{k}", (nb, nb), np.float32)
         sa.create(f"R{k}", (nb, nb + 1), np.float32)
         sa.create(f"K{k}", (nb + 1, nb), np.float32)
+        if heights:
+            sa.create(f"ZC{k}", (nb, nb), np.float64)
+            sa.create(f"ZR{k}", (nb, nb + 1), np.float64)
+            sa.create(f"ZK{k}", (nb + 1, nb), np.float64)
     carry = [(np.zeros((N - 1) // (2 << k), np.uint8), np.zeros((N - 1) // (2 << k)))
              for k in range(nfine)]
     for k in range(nbands):
@@ -498,6 +534,8 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
             carry[lk] = (sts[lk][-1].copy(), QB[-1].copy())
         # coarse levels: this band's core rows (and the grid's last row, last)
         r_hi = r0 + B if last else r0 + B - 1
+        if stand_in is not None:
+            _keep_heights(sa, z, v, w0, r0, r_hi, N, n, stand_in)
         for hc, stc, acc, todo, sw in coarse:
             _coarse_rows_nb(z, w0, hc, stc, zd, B, r0, r_hi, *acc)
             for rows_type, t, (em, ec, et) in zip((True, False), todo, sw, strict=True):
@@ -513,5 +551,5 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
         for x, a in zip("CRK", (C, R, K), strict=True):
             sa.write(f"{x}{k}", 0, a)
     _saturate(sa, n, budget=max(B, 64) * N * 16)
-    return LevelDelta(N, sa)
+    return LevelDelta(N, sa, (lo, hi, count), stand_in)
 

@@ -125,10 +125,18 @@ def _resolve_predictor(
         raise ValueError(f"unknown predictor {predictor!r}")
     if predictor != "auto" or lmax == 0 or te < 2:
         return predictor == "cubic" and te >= 2 and lmax > 0
-    size = q.shape[0]
+    a, crop = _predictor_crop(q.shape[0], te)
+    return _predictor_bits(q[a : a + crop, a : a + crop], valid[a : a + crop, a : a + crop], te)
+
+
+def _predictor_crop(size: int, te: int) -> tuple[int, int]:
+    # the central crop of at most 1025² samples "auto" compares the predictors on
     crop = min(size, 1025)
-    a = ((size - crop) // 2) & ~((1 << te) - 1)  # tile-aligned crop keeps the fallbacks
-    qq, vv = q[a : a + crop, a : a + crop], valid[a : a + crop, a : a + crop]
+    return ((size - crop) // 2) & ~((1 << te) - 1), crop  # tile-aligned: keeps fallbacks
+
+
+def _predictor_bits(qq: np.ndarray, vv: np.ndarray, te: int) -> bool:
+    # True when the cubic predictor's finest residuals have the smaller zero-order entropy
     bits = []
     for period in (None, 1 << te):
         preds = predict(qq[::2, ::2], period)
@@ -267,26 +275,31 @@ def encode_pyramid(
     cubic = _resolve_predictor(predictor, d, valid, te, lmax)
     d = _decoded_codes(d, valid, te, lmax, cubic)
 
-    # top tile: raster-order delta of the (forward-filled) codes
-    s = 1 << lmax
-    top, vtop = d[::s, ::s], valid[::s, ::s]
-    r = np.diff(top.ravel(), prepend=np.int64(0))
-    head, payload = _pack(r, vtop, True, te, cubic)
-    out[(lmax, 0, 0)] = head + _compressor(level).compress(payload)
+    out[(lmax, 0, 0)] = _encode_top(d, valid, te, lmax, cubic, level)
     with cores_for(d.size):  # small grids on one thread (geoterrain/threads.py)
         _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress)
     return out
 
 
-def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress) -> None:
+def _encode_top(d, valid, te, lmax, cubic, level) -> bytes:
+    # the top tile: raster-order delta of the (forward-filled) decoded codes
+    s = 1 << lmax
+    r = np.diff(d[::s, ::s].ravel(), prepend=np.int64(0))
+    head, payload = _pack(r, valid[::s, ::s], True, te, cubic)
+    return head + _compressor(level).compress(payload)
+
+
+def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress, counts=None) -> None:
     """Blobs of every non-top stored tile into ``out`` (stream choice per tile, then zstd
-    of the whole level on every core)."""
+    of the whole level on every core). ``counts``: which tiles are stored (> 0), per
+    level (default :func:`footprint_counts` of ``valid``)."""
     tt = (1 << te) + 1
     period = (1 << te) if cubic else None
     if progress is not None:
         progress(1, lmax + 1)
 
-    counts = footprint_counts(valid, te)
+    if counts is None:
+        counts = footprint_counts(valid, te)
     h = 1 << (te - 1)
     for lev in range(lmax - 1, -1, -1):
         s = 1 << lev

@@ -77,6 +77,15 @@ class ScratchArrays:
             raise OSError(f"scratch array {name}: short read ({got} of {nbytes} bytes)")
         return np.frombuffer(buf, dt).reshape(r1 - r0, nc)
 
+    def read_padded(self, name: str, r0: int, r1: int, fill: float = 0) -> np.ndarray:
+        """Rows ``r0 … r1 − 1``, those outside the array filled with ``fill``."""
+        (nr, nc), dt = self._meta[name]
+        out = np.full((r1 - r0, nc), fill, dt)
+        a, b = max(r0, 0), min(r1, nr)
+        if b > a:
+            out[a - r0:b - r0] = self.read(name, a, b)
+        return out
+
     def write(self, name: str, r0: int, rows: np.ndarray) -> None:
         """Rows ``r0 …`` from ``rows`` (same column count and dtype)."""
         (nr, nc), dt = self._meta[name]

@@ -1,6 +1,11 @@
-"""δ read in row bands (geoterrain.banddelta) against the whole-grid kernel.
+"""The streaming preprocess's stages against their whole-grid twins: δ read in row bands
+(geoterrain.banddelta), the radius codes nested on per-level arrays
+(geoterrain.bandradii), and the height blobs coded a super-tile at a time
+(geoterrain.bandcodec).
 
-The oracle is :func:`geoterrain.bounds.vertex_errors` on the whole grid in memory; the
+The oracles are :func:`geoterrain.bounds.vertex_errors`,
+:func:`geoterrain.tileblobs.radius_codes` and :func:`geoterrain.codec.encode_pyramid` on
+the whole grid in memory; the
 banded values must be the same float32 bits for every band size, with the per-level
 arrays in memory or in scratch files. That equality is what makes a streaming
 preprocess give the same store whatever its block size.
@@ -15,9 +20,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from geoterrain.bandcodec import band_encode_pyramid, super_level, window_of
 from geoterrain.banddelta import band_vertex_errors, rows_of
+from geoterrain.bandradii import band_radius_codes
 from geoterrain.bounds import vertex_errors
+from geoterrain.codec import encode_pyramid
+from geoterrain.quantize import Quantizer
+from geoterrain.radii import stand_in_z, valid_range
 from geoterrain.scratch import ScratchArrays
+from geoterrain.tileblobs import radius_codes
 from tests.conftest import real_dem
 
 
@@ -35,6 +46,9 @@ def _grid(seed: int, n: int, holes: str) -> tuple[np.ndarray, np.ndarray]:
     elif holes == "blocks":  # a void straddling band rows and coarse blocks
         i, j = rng.integers(0, N, 2)
         v[max(i - N // 3, 0):i + N // 4, max(j - N // 5, 0):j + N // 3] = False
+    elif holes == "islands":  # mostly void, a few lone valid samples (tiles stored for them)
+        v = rng.random((N, N)) < 0.004
+        v[rng.integers(0, N), rng.integers(0, N)] = True
     elif holes == "nan":  # valid but not finite: treated as invalid
         z[rng.random((N, N)) < 0.05] = np.nan
     return z, v
@@ -42,7 +56,7 @@ def _grid(seed: int, n: int, holes: str) -> tuple[np.ndarray, np.ndarray]:
 
 @settings(deadline=None)
 @given(seed=st.integers(0, 100_000), n=st.integers(1, 7),
-       holes=st.sampled_from(["none", "sparse", "dense", "blocks", "nan"]),
+       holes=st.sampled_from(["none", "sparse", "dense", "blocks", "islands", "nan"]),
        band=st.sampled_from([2, 4, 8, 16, 64, 256]), on_disk=st.booleans())
 def test_banded_delta_is_the_whole_grid_delta(tmp_path_factory, seed, n, holes, band, on_disk):
     """Same bits as vertex_errors for every band (fine levels in a band, coarse levels
@@ -110,3 +124,66 @@ def test_scratch_arrays_round_trip_and_clean_up(tmp_path):
             sa.write("a", 4, np.zeros((2, 3), np.float32))
         assert len(os.listdir(tmp_path)) == 1
     assert os.listdir(tmp_path) == []
+
+
+@settings(deadline=None)
+@given(seed=st.integers(0, 100_000), n=st.integers(1, 7),
+       holes=st.sampled_from(["none", "sparse", "blocks"]),
+       band=st.sampled_from([2, 4, 16, 64]), budget=st.sampled_from([200, 5000, 1 << 20]),
+       scale=st.sampled_from([0.01, 1.0, 300.0]))
+def test_banded_radius_codes_are_the_whole_grid_codes(seed, n, holes, band, budget, scale):
+    """The nested radius codes pulled level by level, a few rows at a time, are
+    radius_codes' (radius=None) on the whole grid, exponent included."""
+    z, v = _grid(seed, n, holes)
+    z = z * scale
+    z[~v] = np.nan
+    N = z.shape[0]
+    rng = np.random.default_rng(seed)
+    xs = np.arange(N) * rng.uniform(0.1, 30) + rng.uniform(-1e6, 1e6)
+    ys = -np.arange(N) * rng.uniform(0.1, 30) + rng.uniform(-1e6, 1e6)
+    codes, e = radius_codes(np.broadcast_to(xs[None, :], (N, N)),
+                            np.broadcast_to(ys[:, None], (N, N)), z, v, None)
+    d = band_vertex_errors(rows_of(z, v), N, band=band, heights=True)
+    assert d.valid_range == valid_range(z, v)
+    assert d.stand_in == stand_in_z(z, v)
+    sa = d.arrays
+    assert band_radius_codes(sa, N, xs, ys, *d.valid_range[:2], budget=budget) == e
+    g = np.zeros((N, N), np.uint8)
+    for k in range(n):
+        h, s = 1 << k, 2 << k
+        g[h::s, h::s] = sa.read(f"rC{k}", 0, N)
+        g[h::s, 0::s] = sa.read(f"rR{k}", 0, N)
+        g[0::s, h::s] = sa.read(f"rK{k}", 0, N)
+    assert np.array_equal(g, codes), np.argwhere(g != codes)[:4].tolist()
+
+
+@settings(deadline=None)
+@given(seed=st.integers(0, 100_000), n=st.integers(2, 8), t=st.integers(1, 4),
+       holes=st.sampled_from(["none", "sparse", "dense", "blocks", "islands"]),
+       mode=st.sampled_from(["int", "float", "quantized"]),
+       predictor=st.sampled_from(["auto", "linear", "cubic"]), coarse=st.integers(0, 8))
+def test_windowed_height_blobs_are_encode_pyramids(seed, n, t, holes, mode, predictor, coarse):
+    """Every tile blob from super-tile windows (coarse grid first, then each super-tile
+    under its decoded codes) is encode_pyramid's, byte for byte, and the same tiles are
+    stored: integer, float and ε-quantised codes, voids (filled from the coarse levels),
+    all three predictor settings, every super-tile level."""
+    z, v = _grid(seed, n, holes)
+    N = z.shape[0]
+    q = {"int": Quantizer("int"), "float": Quantizer("float", 1.0, 0.0, 0.0, 32),
+         "quantized": Quantizer("quantized", 0.7, 3.0, 0.35)}[mode]
+    if mode == "float":
+        z = z.astype(np.float32).astype(np.float64)
+    elif mode == "int":
+        z = np.round(z)
+    k_max = super_level(N, t, 3)  # the deepest super-tile level there is
+    cmax = ((N - 1) >> min(coarse, k_max)) + 1
+    ref = encode_pyramid(z, v, t, q, level=3, predictor=predictor)
+    got = band_encode_pyramid(window_of(z, v), N, t, q, level=3, predictor=predictor,
+                              coarse_max=cmax)
+    assert got.keys() == ref.keys()
+    assert [k for k in ref if got[k] != ref[k]] == []
+    parts: list[dict] = []  # handed out as made, none kept
+    assert band_encode_pyramid(window_of(z, v), N, t, q, level=3, predictor=predictor,
+                               coarse_max=cmax, sink=parts.append) == {}
+    assert {k: b for p in parts for k, b in p.items()} == ref
+    assert sum(map(len, parts)) == len(ref)  # each tile once
