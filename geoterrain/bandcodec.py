@@ -98,7 +98,11 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
     k = super_level(N, t, coarse_max)
     if k == 0:
         z, v = window(0, N, 0, N)
-        return encode_pyramid(z, v, t, quantizer, level=level, predictor=predictor)
+        out = encode_pyramid(z, v, t, quantizer, level=level, predictor=predictor)
+        if sink is None:
+            return out
+        sink(out)
+        return {}
     if predictor not in ("linear", "cubic", "auto"):
         raise ValueError(f"unknown predictor {predictor!r}")
     cubic = predictor == "cubic" and te >= 2
