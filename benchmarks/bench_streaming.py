@@ -4,6 +4,7 @@ whole grid in memory: time, peak memory, and the same bits.
 Usage:
     python benchmarks/bench_streaming.py DEM.tif [DEM.tif ...] [--stage bounds|heights]
         [--band 256] [--runs 3] [--skip-whole]
+    (--stage normals: every level's normal codes)
 
 ``--stage bounds`` (default): δ and the radius codes.
 Each run is a fresh process; the banded and whole-grid runs alternate. "banded" reads
@@ -20,6 +21,11 @@ heights, zstd level 6 as the preprocess writes them); "banded" reads super-tile 
 ``geoterrain.codec.encode_pyramid``; both print a SHA-256 of the sum of every
 (key, blob)'s digest. The banded run hands each super-tile's blobs to a sink that keeps
 none, as a store writer would.
+
+``--stage normals``: every level's octahedral normal codes (8 bits, the preprocess's
+levels for 65² tiles); "banded" runs ``geoterrain.bandnormals`` on row bands, "whole"
+``normal_map``, ``normal_pyramid`` and ``encode_octahedral``; both print a SHA-256 of the
+levels' codes.
 
 Peak memory is the process's VmHWM; "imports" is the VmRSS after the imports, before
 any data.
@@ -56,7 +62,26 @@ with rasterio.Env(GDAL_CACHEMAX=64 * 2**20), rasterio.open(path) as ds:
     def rows(i0, i1):
         z = ds.read(1, window=Window(0, i0, N, i1 - i0)).astype(np.float64)
         return z, (np.isfinite(z) if nd is None else z != nd)
-    if stage == "heights":
+    if stage == "normals":
+        from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
+        levels = (N - 1).bit_length() - 1 - 6 + 1
+        if mode == "banded":
+            from geoterrain.bandnormals import band_normal_codes
+            with ScratchArrays("/tmp") as sa:
+                band_normal_codes(rows, N, xs, ys, levels, sa, band=band)
+                for L in range(levels):
+                    m = sa.shape(f"n{L}")[0]
+                    for r0 in range(0, m, 256):
+                        h.update(sa.read(f"n{L}", r0, r0 + 256).tobytes())
+        else:
+            z, v = rows(0, N)
+            X = np.broadcast_to(xs[None, :], (N, N))
+            Y = np.broadcast_to(ys[:, None], (N, N))
+            for a in normal_pyramid(normal_map(X, Y, z, v), v, levels):
+                h.update(encode_octahedral(a, 8).tobytes())
+            del z, v
+        e = levels
+    elif stage == "heights":
         from geoterrain.bandcodec import band_encode_pyramid
         from geoterrain.codec import encode_pyramid
         from geoterrain.quantize import Quantizer
@@ -126,7 +151,7 @@ def run(path: str, mode: str, band: int, stage: str) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dems", nargs="+")
-    ap.add_argument("--stage", choices=("bounds", "heights"), default="bounds")
+    ap.add_argument("--stage", choices=("bounds", "heights", "normals"), default="bounds")
     ap.add_argument("--band", type=int, default=256)
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--skip-whole", action="store_true")
@@ -144,8 +169,8 @@ def main() -> None:
         for mode, rs in res.items():
             if not rs:
                 continue
-            label = ("whole grid" if mode == "whole" else f"banded, {a.band} rows"
-                     if a.stage == "bounds" else "super-tiles")
+            label = ("whole grid" if mode == "whole" else "super-tiles"
+                     if a.stage == "heights" else f"banded, {a.band} rows")
             print(f"| {path.rsplit('/', 1)[-1]} | {rs[0]['N']} | {label} | "
                   f"{statistics.median(r['wall'] for r in rs):.2f} | "
                   f"{statistics.median(r['peak_mb'] for r in rs):.0f} | "

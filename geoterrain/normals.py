@@ -320,10 +320,12 @@ def normal_pyramid(n_full: np.ndarray, valid: np.ndarray | None, levels: int) ->
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _reduce_nb(n, w, out, wout):  # pragma: no cover - compiled
-    rows, cols = n.shape[0], n.shape[1]
+def _reduce_part_nb(n, w, i0, rows, out, wout, a0):  # pragma: no cover - compiled
+    # rows a0 … of the next level from ``n``, ``w``: this level's rows i0 … of ``rows``
+    cols = n.shape[1]
     k = (1.0, 2.0, 1.0)
-    for a in prange(out.shape[0]):
+    for ao in prange(out.shape[0]):
+        a = a0 + ao
         for b in range(out.shape[1]):
             sx = 0.0
             sy = 0.0
@@ -337,23 +339,27 @@ def _reduce_nb(n, w, out, wout):  # pragma: no cover - compiled
                     j = 2 * b + dj - 1
                     if j < 0 or j >= cols:
                         continue
-                    wt = w[i, j]
+                    wt = w[i - i0, j]
                     if wt != 0.0:
                         anyw = True
                         f = k[di] * k[dj] * wt
-                        sx += f * n[i, j, 0]
-                        sy += f * n[i, j, 1]
-                        sz += f * n[i, j, 2]
+                        sx += f * n[i - i0, j, 0]
+                        sy += f * n[i - i0, j, 1]
+                        sz += f * n[i - i0, j, 2]
             length = np.sqrt(sx * sx + sy * sy + sz * sz)
             if length > 1e-12:
-                out[a, b, 0] = sx / length
-                out[a, b, 1] = sy / length
-                out[a, b, 2] = sz / length
+                out[ao, b, 0] = sx / length
+                out[ao, b, 1] = sy / length
+                out[ao, b, 2] = sz / length
             else:
-                out[a, b, 0] = 0.0
-                out[a, b, 1] = 0.0
-                out[a, b, 2] = 1.0
-            wout[a, b] = 1.0 if anyw else 0.0
+                out[ao, b, 0] = 0.0
+                out[ao, b, 1] = 0.0
+                out[ao, b, 2] = 1.0
+            wout[ao, b] = 1.0 if anyw else 0.0
+
+
+def _reduce_nb(n, w, out, wout):
+    _reduce_part_nb(n, w, 0, n.shape[0], out, wout, 0)
 
 
 def encode_octahedral(n: np.ndarray, bits: int = 8, precise: bool = False, *,

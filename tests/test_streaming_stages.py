@@ -1,12 +1,13 @@
 """The streaming preprocess's stages against their whole-grid twins: δ read in row bands
 (geoterrain.banddelta), the radius codes nested on per-level arrays
-(geoterrain.bandradii), and the height blobs coded a super-tile at a time
-(geoterrain.bandcodec).
+(geoterrain.bandradii), the height blobs coded a super-tile at a time
+(geoterrain.bandcodec), and every level's normal codes from a row-band cascade
+(geoterrain.bandnormals).
 
 The oracles are :func:`geoterrain.bounds.vertex_errors`,
-:func:`geoterrain.tileblobs.radius_codes` and :func:`geoterrain.codec.encode_pyramid` on
-the whole grid in memory; the
-banded values must be the same float32 bits for every band size, with the per-level
+:func:`geoterrain.tileblobs.radius_codes`, :func:`geoterrain.codec.encode_pyramid` and
+:func:`geoterrain.normals.normal_pyramid` on the whole grid in memory; the streamed
+values must be the same bits for every band or super-tile size, with the per-level
 arrays in memory or in scratch files. That equality is what makes a streaming
 preprocess give the same store whatever its block size.
 """
@@ -22,9 +23,11 @@ from hypothesis import strategies as st
 
 from geoterrain.bandcodec import band_encode_pyramid, super_level, window_of
 from geoterrain.banddelta import band_vertex_errors, rows_of
+from geoterrain.bandnormals import band_normal_codes
 from geoterrain.bandradii import band_radius_codes
 from geoterrain.bounds import vertex_errors
 from geoterrain.codec import encode_pyramid
+from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.quantize import Quantizer
 from geoterrain.radii import stand_in_z, valid_range
 from geoterrain.scratch import ScratchArrays
@@ -187,3 +190,26 @@ def test_windowed_height_blobs_are_encode_pyramids(seed, n, t, holes, mode, pred
                                coarse_max=cmax, sink=parts.append) == {}
     assert {k: b for p in parts for k, b in p.items()} == ref
     assert sum(map(len, parts)) == len(ref)  # each tile once
+
+
+@settings(deadline=None)
+@given(seed=st.integers(0, 100_000), n=st.integers(1, 7),
+       holes=st.sampled_from(["none", "sparse", "dense", "islands"]),
+       band=st.sampled_from([1, 2, 3, 7, 16, 256]), data=st.data())
+def test_banded_normal_codes_are_the_whole_grid_maps(seed, n, holes, band, data):
+    """Every level's octahedral codes from the row-band cascade are those of the
+    whole-grid normal map and pyramid, for any band (odd ones too)."""
+    z, v = _grid(seed, n, holes)
+    z[~v] = np.nan
+    N = z.shape[0]
+    levels = data.draw(st.integers(1, n + 1))
+    rng = np.random.default_rng(seed)
+    xs = np.arange(N) * rng.uniform(0.1, 30)
+    ys = -np.arange(N) * rng.uniform(0.1, 30)
+    X, Y = np.broadcast_to(xs[None, :], (N, N)), np.broadcast_to(ys[:, None], (N, N))
+    ref = [encode_octahedral(a, 8) for a in normal_pyramid(normal_map(X, Y, z, v), v, levels)]
+    sa = ScratchArrays()
+    band_normal_codes(rows_of(z, v), N, xs, ys, levels, sa, band=band)
+    for L, r in enumerate(ref):
+        m = r.shape[0]
+        assert np.array_equal(sa.read(f"n{L}", 0, m).reshape(m, m, 2), r), L
