@@ -1,12 +1,14 @@
 """The streaming preprocess's stages against their whole-grid twins: δ read in row bands
 (geoterrain.banddelta), the radius codes nested on per-level arrays
 (geoterrain.bandradii), the height blobs coded a super-tile at a time
-(geoterrain.bandcodec), and every level's normal codes from a row-band cascade
-(geoterrain.bandnormals).
+(geoterrain.bandcodec), every level's normal codes from a row-band cascade
+(geoterrain.bandnormals), and the quantizer from band statistics
+(geoterrain.bandquantize).
 
 The oracles are :func:`geoterrain.bounds.vertex_errors`,
 :func:`geoterrain.tileblobs.radius_codes`, :func:`geoterrain.codec.encode_pyramid` and
-:func:`geoterrain.normals.normal_pyramid` on the whole grid in memory; the streamed
+:func:`geoterrain.normals.normal_pyramid` and
+:func:`geoterrain.quantize.choose_quantizer` on the whole grid in memory; the streamed
 values must be the same bits for every band or super-tile size, with the per-level
 arrays in memory or in scratch files. That equality is what makes a streaming
 preprocess give the same store whatever its block size.
@@ -28,7 +30,7 @@ from geoterrain.bandradii import band_radius_codes
 from geoterrain.bounds import vertex_errors
 from geoterrain.codec import encode_pyramid
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
-from geoterrain.quantize import Quantizer
+from geoterrain.quantize import Quantizer, choose_quantizer
 from geoterrain.radii import stand_in_z, valid_range
 from geoterrain.scratch import ScratchArrays
 from geoterrain.tileblobs import radius_codes
@@ -213,3 +215,43 @@ def test_banded_normal_codes_are_the_whole_grid_maps(seed, n, holes, band, data)
     for L, r in enumerate(ref):
         m = r.shape[0]
         assert np.array_equal(sa.read(f"n{L}", 0, m).reshape(m, m, 2), r), L
+
+
+@settings(deadline=None)
+@given(seed=st.integers(0, 100_000), rows=st.integers(1, 200),
+       kind=st.sampled_from(["normal", "integers", "flat", "tiny", "few"]),
+       eps=st.sampled_from([None, 0.3, 0.5, 2.0]), terrain_rgb=st.booleans(),
+       dtype=st.sampled_from(["float32", "float64", "int16"]), band=st.integers(1, 40),
+       sort_max=st.sampled_from([1, 5, 1 << 22]), bins=st.sampled_from([2, 16, 1 << 16]))
+def test_banded_quantizer_is_choose_quantizer(seed, rows, kind, eps, terrain_rgb, dtype,
+                                             band, sort_max, bins):
+    """The quantizer from statistics gathered over bands (the exact median by narrowing
+    histograms, forced through many rounds by a small sort limit and few bins) is
+    choose_quantizer's on the whole array, errors included."""
+    import geoterrain.bandquantize as bq
+
+    rng = np.random.default_rng(seed)
+    shape = (rows, 7)
+    z = {"normal": lambda: rng.normal(100, 30, shape),
+         "integers": lambda: np.round(rng.normal(100, 30, shape)),
+         "flat": lambda: np.where(rng.random(shape) < 0.8, 5.25, rng.normal(size=shape)),
+         "tiny": lambda: rng.normal(0, 1e-3, shape).astype(np.float32).astype(float),
+         "few": lambda: rng.choice([1.0, 2.0, 2.5, 1e6], shape)}[kind]()
+    z[rng.random(shape) < 0.2] = np.nan
+    sc, off = (0.1, -10000.0) if terrain_rgb else (None, None)
+
+    def outcome(f):
+        try:
+            return f()
+        except ValueError as e:
+            return str(e)
+
+    ref = outcome(lambda: choose_quantizer(z, dtype, eps, sc, off))
+    saved = bq.SORT_MAX, bq.BINS
+    bq.SORT_MAX, bq.BINS = sort_max, bins
+    try:
+        got = outcome(lambda: bq.band_quantizer(
+            lambda: (z[i:i + band] for i in range(0, rows, band)), dtype, eps, sc, off))
+    finally:
+        bq.SORT_MAX, bq.BINS = saved
+    assert got == ref
