@@ -4,7 +4,7 @@ whole grid in memory: time, peak memory, and the same bits.
 Usage:
     python benchmarks/bench_streaming.py DEM.tif [DEM.tif ...] [--stage bounds|heights]
         [--band 256] [--runs 3] [--skip-whole]
-    (--stage normals: every level's normal codes)
+    (--stage normals: every level's normal codes; --stage tiles: the tile table)
 
 ``--stage bounds`` (default): δ and the radius codes.
 Each run is a fresh process; the banded and whole-grid runs alternate. "banded" reads
@@ -26,6 +26,10 @@ none, as a store writer would.
 levels for 65² tiles); "banded" runs ``geoterrain.bandnormals`` on row bands, "whole"
 ``normal_map``, ``normal_pyramid`` and ``encode_octahedral``; both print a SHA-256 of the
 levels' codes.
+
+``--stage tiles``: the tile table's bounds and every block's δ_n (65² tiles); "banded"
+runs ``geoterrain.bandtiles``, "whole" ``tilebounds.tile_and_block_errors``; both print
+a SHA-256 of the sorted table and the blocks.
 
 Peak memory is the process's VmHWM; "imports" is the VmRSS after the imports, before
 any data.
@@ -62,7 +66,20 @@ with rasterio.Env(GDAL_CACHEMAX=64 * 2**20), rasterio.open(path) as ds:
     def rows(i0, i1):
         z = ds.read(1, window=Window(0, i0, N, i1 - i0)).astype(np.float64)
         return z, (np.isfinite(z) if nd is None else z != nd)
-    if stage == "normals":
+    if stage == "tiles":
+        if mode == "banded":
+            from geoterrain.bandtiles import band_tile_bounds
+            tb, blocks = band_tile_bounds(rows, N, 6, xs, ys, band=band)
+        else:
+            from geoterrain.tilebounds import tile_and_block_errors
+            z, v = rows(0, N)
+            X = np.broadcast_to(xs[None, :], (N, N))
+            Y = np.broadcast_to(ys[:, None], (N, N))
+            tb, blocks = tile_and_block_errors(z, v, X, Y, 6)
+            del z, v
+        h.update(repr(sorted(tb.items())).encode() + blocks.tobytes())
+        e = len(tb)
+    elif stage == "normals":
         from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
         levels = (N - 1).bit_length() - 1 - 6 + 1
         if mode == "banded":
@@ -151,7 +168,8 @@ def run(path: str, mode: str, band: int, stage: str) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dems", nargs="+")
-    ap.add_argument("--stage", choices=("bounds", "heights", "normals"), default="bounds")
+    ap.add_argument("--stage", choices=("bounds", "heights", "normals", "tiles"),
+                    default="bounds")
     ap.add_argument("--band", type=int, default=256)
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--skip-whole", action="store_true")

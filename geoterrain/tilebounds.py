@@ -67,85 +67,98 @@ def _level_field_nb(z, vf, s, E):
 @njit(cache=True, nogil=True)
 def _level_field_row(z, vf, s, E, mixed, bi):
     # one row bi of cells of _level_field_nb
-    nb = (z.shape[0] - 1) // s
-    inv = 1.0 / s
+    nb = (z.shape[1] - 1) // s
     for bj in range(nb):
         i0 = bi * s
         j0 = bj * s
         main = main_diagonal_nb(bi, bj)
-        tot = 0
-        for di in range(s + 1):
-            for dj in range(s + 1):
-                tot += vf[i0 + di, j0 + dj]
+        tot, c1, t1, c2, t2 = cell_counts_nb(vf, i0, j0, s, main)
         if tot == 0:
             continue
-        z00 = z[i0, j0]
-        z01 = z[i0, j0 + s]
-        z10 = z[i0 + s, j0]
-        z11 = z[i0 + s, j0 + s]
-        if tot == (s + 1) * (s + 1):  # all valid: split each row at the diagonal
-            for di in range(s + 1):
-                i = i0 + di
-                fi = di * inv
-                b1, g1, b2, g2 = cell_rows_nb(z00, z01, z10, z11, fi, inv, main)
-                cut = di if main else s - di + 1
-                for dj in range(cut):
-                    e = abs(z[i, j0 + dj] - (b1 + g1 * dj))
-                    if e > E[i, j0 + dj]:
-                        E[i, j0 + dj] = e
-                for dj in range(cut, s + 1):
-                    e = abs(z[i, j0 + dj] - (b2 + g2 * dj))
-                    if e > E[i, j0 + dj]:
-                        E[i, j0 + dj] = e
-            continue
-        c1 = 0.0
-        c2 = 0.0
-        t1 = 0.0
-        t2 = 0.0
-        for di in range(s + 1):
-            for dj in range(s + 1):
-                first = dj >= di if main else di + dj <= s
-                both = dj == di if main else di + dj == s
-                v = np.float64(vf[i0 + di, j0 + dj])
-                if first or both:
-                    c1 += v
-                    t1 += 1.0
-                if (not first) or both:
-                    c2 += v
-                    t2 += 1.0
+        whole = tot == (s + 1) * (s + 1)
         ok1 = c1 == t1
         ok2 = c2 == t2
-        mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
-        if not (ok1 or ok2):
-            continue
-        for di in range(s + 1):
+        if not whole:
+            mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
+            if not (ok1 or ok2):
+                continue
+        cell_field_rows_nb(z, i0, j0, s, main, z[i0, j0], z[i0, j0 + s], z[i0 + s, j0],
+                           z[i0 + s, j0 + s], whole, ok1, ok2, 0, s, E)
+
+
+@njit(cache=True, nogil=True)
+def cell_counts_nb(vf, i0, j0, s, main):
+    """(valid samples, then valid and total samples of each closed triangle) of the closed
+    cell of side s at (i0, j0) of ``vf`` (the first triangle holds the diagonal too)."""
+    tot = 0
+    c1 = 0.0
+    c2 = 0.0
+    t1 = 0.0
+    t2 = 0.0
+    for di in range(s + 1):
+        for dj in range(s + 1):
+            tot += vf[i0 + di, j0 + dj]
+            first = dj >= di if main else di + dj <= s
+            both = dj == di if main else di + dj == s
+            v = np.float64(vf[i0 + di, j0 + dj])
+            if first or both:
+                c1 += v
+                t1 += 1.0
+            if (not first) or both:
+                c2 += v
+                t2 += 1.0
+    return tot, c1, t1, c2, t2
+
+
+@njit(cache=True, nogil=True)
+def cell_field_rows_nb(z, i0, j0, s, main, z00, z01, z10, z11, whole, ok1, ok2, d0, d1, E):
+    """Rows d0 … d1 (cell-relative) of one cell's part of _level_field_nb's E: |z − S_L|
+    on the samples of its all-valid triangles (every sample if ``whole``), maxed into E
+    (E and z share their row numbering; the corners are given)."""
+    inv = 1.0 / s
+    if whole:  # all valid: split each row at the diagonal
+        for di in range(d0, d1 + 1):
             i = i0 + di
-            for dj in range(s + 1):
-                j = j0 + dj
-                if main:
-                    first = dj >= di
-                    both = dj == di
+            fi = di * inv
+            b1, g1, b2, g2 = cell_rows_nb(z00, z01, z10, z11, fi, inv, main)
+            cut = di if main else s - di + 1
+            for dj in range(cut):
+                e = abs(z[i, j0 + dj] - (b1 + g1 * dj))
+                if e > E[i, j0 + dj]:
+                    E[i, j0 + dj] = e
+            for dj in range(cut, s + 1):
+                e = abs(z[i, j0 + dj] - (b2 + g2 * dj))
+                if e > E[i, j0 + dj]:
+                    E[i, j0 + dj] = e
+        return
+    for di in range(d0, d1 + 1):
+        i = i0 + di
+        for dj in range(s + 1):
+            j = j0 + dj
+            if main:
+                first = dj >= di
+                both = dj == di
+            else:
+                first = di + dj <= s
+                both = di + dj == s
+            if both:
+                first = ok1
+            if not (ok1 if first else ok2):
+                continue
+            if main:
+                if first:
+                    S = z00 + (z01 - z00) * (dj * inv) + (z11 - z01) * (di * inv)
                 else:
-                    first = di + dj <= s
-                    both = di + dj == s
-                if both:
-                    first = ok1
-                if not (ok1 if first else ok2):
-                    continue
-                if main:
-                    if first:
-                        S = z00 + (z01 - z00) * (dj * inv) + (z11 - z01) * (di * inv)
-                    else:
-                        S = z00 + (z10 - z00) * (di * inv) + (z11 - z10) * (dj * inv)
+                    S = z00 + (z10 - z00) * (di * inv) + (z11 - z10) * (dj * inv)
+            else:
+                if first:
+                    S = z00 + (z10 - z00) * (di * inv) + (z01 - z00) * (dj * inv)
                 else:
-                    if first:
-                        S = z00 + (z10 - z00) * (di * inv) + (z01 - z00) * (dj * inv)
-                    else:
-                        S = (z11 + (z01 - z11) * ((s - di) * inv)
-                             + (z10 - z11) * ((s - dj) * inv))
-                e = abs(z[i, j] - S)
-                if e > E[i, j]:
-                    E[i, j] = e
+                    S = (z11 + (z01 - z11) * ((s - di) * inv)
+                         + (z10 - z11) * ((s - dj) * inv))
+            e = abs(z[i, j] - S)
+            if e > E[i, j]:
+                E[i, j] = e
 
 
 @njit(cache=True, parallel=True)
@@ -170,6 +183,36 @@ def _tile_boxes_nb(z, x, y, vb, S):
             box[0, ty, tx], box[1, ty, tx], box[2, ty, tx] = z0, z1, x0
             box[3, ty, tx], box[4, ty, tx], box[5, ty, tx] = x1, y0, y1
     return box
+
+
+def tile_rows(per_level: list, box0: np.ndarray, nvalid: list
+              ) -> dict[tuple[int, int, int], TileBounds]:
+    """The stored tiles' :class:`TileBounds` from each level's (error, boundary error)
+    arrays, level 0's boxes (6, nt, nt) and the footprint counts: boxes pooled up the
+    levels (a parent's closed footprint is the union of its children's), errors made
+    monotone up the quadtree."""
+    boxes = [box0]
+    for err, _ in per_level[1:]:
+        nt = err.shape[0]
+        b4 = boxes[-1].reshape(6, nt, 2, nt, 2)
+        box = np.empty((6, nt, nt))
+        box[0::2] = b4[0::2].min(axis=(2, 4))
+        box[1::2] = b4[1::2].max(axis=(2, 4))
+        boxes.append(box)
+    for L in range(1, len(per_level)):  # monotone up the quadtree
+        child = per_level[L - 1][0]
+        nt = child.shape[0] // 2
+        cmax = child.reshape(nt, 2, nt, 2).max(axis=(1, 3))
+        np.maximum(per_level[L][0], cmax, out=per_level[L][0])
+    out: dict[tuple[int, int, int], TileBounds] = {}
+    for L, ((err, bnd), box) in enumerate(zip(per_level, boxes, strict=True)):
+        nval = nvalid[L]
+        for ty, tx in zip(*np.nonzero(nval > 0), strict=True):
+            out[(L, int(tx), int(ty))] = TileBounds(
+                int(nval[ty, tx]), float(box[0, ty, tx]), float(box[1, ty, tx]),
+                float(err[ty, tx]), float(bnd[ty, tx]), float(box[2, ty, tx]),
+                float(box[3, ty, tx]), float(box[4, ty, tx]), float(box[5, ty, tx]))
+    return out
 
 
 def tile_errors(
@@ -260,26 +303,9 @@ def tile_and_block_errors(
         border = (m4[:, 0].any(axis=2) | m4[:, -1].any(axis=2)
                   | m4[:, :, :, 0].any(axis=1) | m4[:, :, :, -1].any(axis=1))
         bnd = np.where(border, np.inf, bnd)
-        nval = nvalid[L]
         if L == 0:
             with cores_for(zf.size):
-                box = _tile_boxes_nb(zf, xc, yc, vb, S)
-        else:  # a parent's closed footprint is the union of its 4 children's
-            b4 = per_level[-1][2].reshape(6, nt, 2, nt, 2)
-            box = np.empty((6, nt, nt))
-            box[0::2] = b4[0::2].min(axis=(2, 4))
-            box[1::2] = b4[1::2].max(axis=(2, 4))
-        per_level.append((err, bnd, box, nval))
-    for L in range(1, lmax + 1):  # monotone up the quadtree
-        child = per_level[L - 1][0]
-        nt = child.shape[0] // 2
-        cmax = child.reshape(nt, 2, nt, 2).max(axis=(1, 3))
-        np.maximum(per_level[L][0], cmax, out=per_level[L][0])
-    out: dict[tuple[int, int, int], TileBounds] = {}
-    for L, (err, bnd, box, nval) in enumerate(per_level):
-        for ty, tx in zip(*np.nonzero(nval > 0), strict=True):
-            out[(L, int(tx), int(ty))] = TileBounds(
-                int(nval[ty, tx]), float(box[0, ty, tx]), float(box[1, ty, tx]),
-                float(err[ty, tx]), float(bnd[ty, tx]), float(box[2, ty, tx]),
-                float(box[3, ty, tx]), float(box[4, ty, tx]), float(box[5, ty, tx]))
+                box0 = _tile_boxes_nb(zf, xc, yc, vb, S)
+        per_level.append((err, bnd))
+    out = tile_rows(per_level, box0, nvalid)
     return out, blocks

@@ -2,16 +2,17 @@
 (geoterrain.banddelta), the radius codes nested on per-level arrays
 (geoterrain.bandradii), the height blobs coded a super-tile at a time
 (geoterrain.bandcodec), every level's normal codes from a row-band cascade
-(geoterrain.bandnormals), and the quantizer from band statistics
-(geoterrain.bandquantize).
+(geoterrain.bandnormals), the quantizer from band statistics
+(geoterrain.bandquantize), and the tile table's bounds (geoterrain.bandtiles).
 
-The oracles are :func:`geoterrain.bounds.vertex_errors`,
-:func:`geoterrain.tileblobs.radius_codes`, :func:`geoterrain.codec.encode_pyramid` and
-:func:`geoterrain.normals.normal_pyramid` and
-:func:`geoterrain.quantize.choose_quantizer` on the whole grid in memory; the streamed
-values must be the same bits for every band or super-tile size, with the per-level
-arrays in memory or in scratch files. That equality is what makes a streaming
-preprocess give the same store whatever its block size.
+The oracles are the whole-grid functions in memory:
+:func:`geoterrain.bounds.vertex_errors`, :func:`geoterrain.tileblobs.radius_codes`,
+:func:`geoterrain.codec.encode_pyramid`, :func:`geoterrain.normals.normal_pyramid`,
+:func:`geoterrain.quantize.choose_quantizer` and
+:func:`geoterrain.tilebounds.tile_and_block_errors`. The streamed values must be the
+same bits for every band or super-tile size, with the per-level arrays in memory or in
+scratch files. That equality is what makes a streaming preprocess give the same store
+whatever its block size.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from geoterrain.bandcodec import band_encode_pyramid, super_level, window_of
 from geoterrain.banddelta import band_vertex_errors, rows_of
 from geoterrain.bandnormals import band_normal_codes
 from geoterrain.bandradii import band_radius_codes
+from geoterrain.bandtiles import band_tile_bounds
 from geoterrain.bounds import vertex_errors
 from geoterrain.codec import encode_pyramid
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
@@ -34,6 +36,7 @@ from geoterrain.quantize import Quantizer, choose_quantizer
 from geoterrain.radii import stand_in_z, valid_range
 from geoterrain.scratch import ScratchArrays
 from geoterrain.tileblobs import radius_codes
+from geoterrain.tilebounds import tile_and_block_errors
 from tests.conftest import real_dem
 
 
@@ -255,3 +258,24 @@ def test_banded_quantizer_is_choose_quantizer(seed, rows, kind, eps, terrain_rgb
     finally:
         bq.SORT_MAX, bq.BINS = saved
     assert got == ref
+
+
+@settings(deadline=None)
+@given(seed=st.integers(0, 100_000), n=st.integers(1, 7), t=st.integers(1, 4),
+       holes=st.sampled_from(["none", "sparse", "dense", "blocks", "islands", "nan"]),
+       band=st.sampled_from([2, 4, 8, 32, 256]))
+def test_banded_tile_bounds_are_the_whole_grid_table(seed, n, t, holes, band):
+    """The tile table (counts, boxes, errors, border errors, monotone up the quadtree)
+    and every block's δ_n, from row bands, are tile_and_block_errors' on the whole grid:
+    fine levels counted in the band's window, coarse ones from the first pass."""
+    z, v = _grid(seed, n, holes)
+    N = z.shape[0]
+    rng = np.random.default_rng(seed)
+    xs = np.arange(N) * rng.uniform(0.1, 30) + rng.uniform(-1e6, 1e6)
+    ys = -np.arange(N) * rng.uniform(0.1, 30) + rng.uniform(-1e6, 1e6)
+    X, Y = np.broadcast_to(xs[None, :], (N, N)), np.broadcast_to(ys[:, None], (N, N))
+    ref, ref_blocks = tile_and_block_errors(z, v, X, Y, t)
+    got, blocks = band_tile_bounds(rows_of(z, v), N, t, xs, ys, band=band)
+    assert got.keys() == ref.keys()
+    assert [k for k in ref if got[k] != ref[k]] == []
+    assert np.array_equal(blocks, ref_blocks)
