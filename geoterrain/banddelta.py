@@ -52,7 +52,7 @@ from geoterrain.radii import valid_range
 from geoterrain.rounding import round_up32
 from geoterrain.scratch import ScratchArrays
 
-__all__ = ["LevelDelta", "band_vertex_errors", "rows_of"]
+__all__ = ["LevelDelta", "band_vertex_errors", "edge_rows", "rows_of"]
 
 Rows = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
 
@@ -110,6 +110,34 @@ def rows_of(z: np.ndarray, valid: np.ndarray) -> Rows:
     (2, 3)
     """
     return lambda i0, i1: (z[i0:i1], valid[i0:i1])
+
+
+def edge_rows(rows: Rows, data: tuple[int, int]) -> Rows:
+    """The rows of :func:`geoterrain.edgepad.edge_support`'s grid: the padding of a grid
+    whose data is its top-left ``data = (rows, cols)`` replicated from the data's last
+    column and row (a nodata sample there makes its copies nodata).
+
+    Examples
+    --------
+    >>> z = np.array([[1.0, 2.0, 0.0], [3.0, 4.0, 0.0], [0.0, 0.0, 0.0]])
+    >>> v = np.array([[1, 1, 0], [1, 1, 0], [0, 0, 0]], bool)
+    >>> edge_rows(rows_of(z, v), (2, 2))(1, 3)[0].tolist()
+    [[3.0, 4.0, 4.0], [3.0, 4.0, 4.0]]
+    """
+    H, W = data
+
+    def replicated(i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
+        src = np.minimum(np.arange(i0, i1), H - 1)  # rows past the data: its last one
+        lo, hi = int(src.min()), int(src.max()) + 1
+        z, v = rows(lo, hi)
+        z = np.array(np.asarray(z, np.float64)[src - lo])
+        v = np.array(np.asarray(v, bool)[src - lo])
+        z[:, W:] = z[:, W - 1:W]
+        v[:, W:] = v[:, W - 1:W]
+        z[~v] = np.nan
+        return z, v
+
+    return replicated
 
 
 def _window(rows: Rows, i0: int, i1: int, N: int) -> tuple[np.ndarray, np.ndarray]:
@@ -380,11 +408,25 @@ def _mixed_edges(st: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.argwhere(fr == 3).astype(np.int64), np.argwhere(fk == 3).astype(np.int64))
 
 
-def _saturate(sa: ScratchArrays, n: int, budget: int) -> None:
+def _zero_beyond(a: np.ndarray, a_lo: int, s: int, di: int, dj: int,
+                 data: tuple[int, int]) -> None:
+    # edgepad.zero_beyond_data on rows a_lo … of one kind of level array: vertex
+    # (a·s + di, b·s + dj) of half-span h keeps its value only if its diamond reaches the
+    # data's rows × cols, i.e. a·s + di − h ≤ rows − 1 and b·s + dj − h ≤ cols − 1
+    h = s // 2
+    rows, cols = data
+    a_idx = a_lo + np.arange(a.shape[0])
+    a[a_idx * s + di - h > rows - 1] = 0
+    a[:, np.arange(a.shape[1]) * s + dj - h > cols - 1] = 0
+
+
+def _saturate(sa: ScratchArrays, n: int, budget: int,
+              data: tuple[int, int] | None = None) -> None:
     # LP §2.4 (L46) as a pull, fine to coarse and ``budget`` bytes of rows at a time: an
     # edge midpoint at h takes its four children centres at h/2 (R[a, b]: centre rows
     # 2a, 2a+1 and columns 2b−1, 2b of level h/2; K[a, b]: rows 2a−1, 2a and columns
-    # 2b, 2b+1), then a centre takes its block's four edge midpoints
+    # 2b, 2b+1), then a centre takes its block's four edge midpoints. ``data``: first
+    # zero the raw δ of the vertices whose diamond misses the data's rows × cols
     for k in range(n):
         nb = sa.shape(f"C{k}")[0]
         step = max(1, budget // (16 * (nb + 1) * 4))
@@ -393,6 +435,10 @@ def _saturate(sa: ScratchArrays, n: int, budget: int) -> None:
             C = sa.read(f"C{k}", a_lo, a_hi)
             R = sa.read(f"R{k}", a_lo, a_hi)
             K = sa.read(f"K{k}", a_lo, a_hi + 1)
+            if data is not None:
+                s = 2 << k
+                for arr, di, dj in ((C, s // 2, s // 2), (R, s // 2, 0), (K, 0, s // 2)):
+                    _zero_beyond(arr, a_lo, s, di, dj, data)
             if k:
                 # the finer level's centre rows 2a_lo − 1 … 2a_hi, zero outside the grid
                 P = np.zeros((2 * (a_hi - a_lo) + 2, 2 * nb + 2), np.float32)
@@ -429,7 +475,8 @@ def _keep_heights(sa: ScratchArrays, z: np.ndarray, v: np.ndarray, w0: int, r0: 
 
 def band_vertex_errors(rows: Rows, N: int, band: int = 256,
                        scratch: ScratchArrays | None = None,
-                       heights: bool = False) -> LevelDelta:
+                       heights: bool = False,
+                       data: tuple[int, int] | None = None) -> LevelDelta:
     """Exact, saturated δ of an (N, N) grid read ``band`` rows at a time; the values of
     :func:`geoterrain.bounds.vertex_errors`, bit for bit, for any band.
 
@@ -451,6 +498,11 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
         float64), invalid ones replaced by the middle of the valid range
         (:func:`geoterrain.radii.stand_in_z`): what
         :func:`geoterrain.bandradii.band_radius_codes` nests.
+    data
+        ``(rows, cols)`` of the data in a padded grid: the raw δ of every vertex whose
+        diamond misses them is 0 before saturation. With ``rows`` replicating the data's
+        edge into the padding (:func:`edge_rows`), that is
+        :func:`geoterrain.edgepad.edge_deltas` (δ_edge).
 
     Examples
     --------
@@ -550,6 +602,6 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
         _coarse_finish_nb(stc, *acc, rt, sw[0], kt, sw[1], C, R, K)
         for x, a in zip("CRK", (C, R, K), strict=True):
             sa.write(f"{x}{k}", 0, a)
-    _saturate(sa, n, budget=max(B, 64) * N * 16)
+    _saturate(sa, n, budget=max(B, 64) * N * 16, data=data)
     return LevelDelta(N, sa, (lo, hi, count), stand_in)
 

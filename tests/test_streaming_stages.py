@@ -1,12 +1,13 @@
-"""The streaming preprocess's stages against their whole-grid twins: δ read in row bands
-(geoterrain.banddelta), the radius codes nested on per-level arrays
+"""The streaming preprocess's stages against their whole-grid twins: δ and δ_edge read in
+row bands (geoterrain.banddelta), the radius codes nested on per-level arrays
 (geoterrain.bandradii), the height blobs coded a super-tile at a time
 (geoterrain.bandcodec), every level's normal codes from a row-band cascade
 (geoterrain.bandnormals), the quantizer from band statistics
 (geoterrain.bandquantize), and the tile table's bounds (geoterrain.bandtiles).
 
 The oracles are the whole-grid functions in memory:
-:func:`geoterrain.bounds.vertex_errors`, :func:`geoterrain.tileblobs.radius_codes`,
+:func:`geoterrain.bounds.vertex_errors`, :func:`geoterrain.edgepad.edge_deltas`,
+:func:`geoterrain.tileblobs.radius_codes`,
 :func:`geoterrain.codec.encode_pyramid`, :func:`geoterrain.normals.normal_pyramid`,
 :func:`geoterrain.quantize.choose_quantizer` and
 :func:`geoterrain.tilebounds.tile_and_block_errors`. The streamed values must be the
@@ -25,12 +26,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from geoterrain.bandcodec import band_encode_pyramid, super_level, window_of
-from geoterrain.banddelta import band_vertex_errors, rows_of
+from geoterrain.banddelta import band_vertex_errors, edge_rows, rows_of
 from geoterrain.bandnormals import band_normal_codes
 from geoterrain.bandradii import band_radius_codes
 from geoterrain.bandtiles import band_tile_bounds
 from geoterrain.bounds import vertex_errors
 from geoterrain.codec import encode_pyramid
+from geoterrain.edgepad import edge_deltas, edge_support
+from geoterrain.grid import Grid
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.quantize import Quantizer, choose_quantizer
 from geoterrain.radii import stand_in_z, valid_range
@@ -279,3 +282,20 @@ def test_banded_tile_bounds_are_the_whole_grid_table(seed, n, t, holes, band):
     assert got.keys() == ref.keys()
     assert [k for k in ref if got[k] != ref[k]] == []
     assert np.array_equal(blocks, ref_blocks)
+
+
+@settings(deadline=None)
+@given(seed=st.integers(0, 100_000), rows=st.integers(2, 90), cols=st.integers(2, 90),
+       tile=st.sampled_from([2, 4, 16]), holes=st.sampled_from(["none", "sparse", "islands"]),
+       band=st.sampled_from([2, 4, 16, 64]))
+def test_banded_edge_delta_is_edge_deltas(seed, rows, cols, tile, holes, band):
+    """δ_edge (the padding replicated from the data's last row and column, vertices whose
+    diamond misses the data zeroed before saturation) from row bands is edge_deltas'."""
+    g = Grid.for_shape(rows, cols, tile_size=tile)
+    z, v = _grid(seed, 7, holes)
+    z, v = z[:rows, :cols], v[:rows, :cols]
+    Z, V = g.pad(np.where(v, z, np.nan), np.nan), g.pad(v, False)
+    ref = edge_deltas(*edge_support(Z, V, g), g)
+    d = band_vertex_errors(edge_rows(rows_of(Z, V), (g.rows, g.cols)), g.size, band=band,
+                           data=(g.rows, g.cols))
+    assert np.array_equal(d.grid(), ref)
