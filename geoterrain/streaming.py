@@ -1,0 +1,401 @@
+"""The preprocess job for a DEM larger than memory: the store of
+:func:`geoterrain.preprocessing.preprocess`, from a raster read a window at a time
+(issue 12).
+
+Each stage is its whole-grid twin's streaming form, the same bits
+(``tests/test_streaming_stages.py``):
+
+- the quantizer from band statistics (:mod:`geoterrain.bandquantize`);
+- δ, δ_edge and the per-level heights in row bands (:mod:`geoterrain.banddelta`), the
+  radius codes nested on them (:mod:`geoterrain.bandradii`);
+- the tile table (:mod:`geoterrain.bandtiles`) and every level's normals
+  (:mod:`geoterrain.bandnormals`) in row bands;
+- the height blobs a super-tile at a time (:mod:`geoterrain.bandcodec`);
+- the δ, r and normals blobs a tile row at a time, from each level's lattice rebuilt
+  from the per-level arrays (:func:`geoterrain.tileblobs.level_blobs` on that window).
+
+Per-level arrays live in scratch files (:mod:`geoterrain.scratch`); blobs go to the
+store writer as they are made. Memory is set by ``band``: the rows of a band's window
+and of one tile row of each level, not the raster. Projected and pixel frames; a
+single-band raster GDAL reads (not a web-map PNG encoding or a mosaic).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+import numpy as np
+import rasterio
+from rasterio.windows import Window
+
+from geoterrain._version import __version__
+from geoterrain.bandcodec import band_encode_pyramid
+from geoterrain.banddelta import band_vertex_errors, edge_rows
+from geoterrain.bandnormals import band_normal_codes
+from geoterrain.bandquantize import band_quantizer
+from geoterrain.bandradii import band_radius_codes
+from geoterrain.bandtiles import band_tile_bounds
+from geoterrain.edgepad import has_padding
+from geoterrain.exceptions import InputError, UsageError, exists_error
+from geoterrain.frame import Frame
+from geoterrain.grid import Grid
+from geoterrain.preprocessing import ABSURD_HEIGHT, NORMAL_BITS, Progress
+from geoterrain.quantize import roundtrip
+from geoterrain.raster import GDAL_READ_OPTIONS, VOID_SENTINELS
+from geoterrain.scratch import ScratchArrays
+from geoterrain.store import StoreWriter
+from geoterrain.tileblobs import BoundsCoding, level_blobs, ring_blobs
+from geoterrain.units import resolve_z_units
+from geoterrain.vertexdata import NORMALS_PLANAR_DXDY, log8_exponent, pack_block_errors
+
+__all__ = ["preprocess_streaming"]
+
+STAGES = ("scan", "quantise", "errors", "radii", "tile bounds", "normals", "heights",
+          "blobs", "write")
+
+
+class _Source:
+    """Rows of the padded (N, N) grid from a raster file: source heights (float64, NaN
+    where invalid) and validity, north up, the padding invalid."""
+
+    def __init__(self, ds, grid: Grid, nodata: float | None, flip: bool) -> None:
+        self.ds, self.grid, self.nodata, self.flip = ds, grid, nodata, flip
+        self.H, self.W, self.N = grid.rows, grid.cols, grid.size
+
+    def file_rows(self, i0: int, i1: int) -> np.ndarray:
+        """The raw band rows i0 … i1 − 1 (north up), the file's dtype."""
+        if self.flip:
+            a = self.ds.read(1, window=Window(0, self.H - i1, self.W, i1 - i0))
+            return a[::-1]
+        return self.ds.read(1, window=Window(0, i0, self.W, i1 - i0))
+
+    def rows(self, i0: int, i1: int, j0: int = 0, j1: int | None = None
+             ) -> tuple[np.ndarray, np.ndarray]:
+        j1 = self.N if j1 is None else j1
+        z = np.full((i1 - i0, j1 - j0), np.nan)
+        v = np.zeros(z.shape, bool)
+        r1 = min(i1, self.H)
+        c1 = min(j1, self.W)
+        if r1 > i0 and c1 > j0:
+            data = self.file_rows(i0, r1)[:, j0:c1]
+            h = data.astype(np.float64)
+            ok = np.isfinite(h)
+            if self.nodata is not None and not np.isnan(self.nodata):
+                nd = np.asarray(self.nodata, dtype=data.dtype) if \
+                    np.issubdtype(data.dtype, np.floating) else self.nodata
+                ok &= data != nd
+            z[:r1 - i0, :c1 - j0] = np.where(ok, h, np.nan)
+            v[:r1 - i0, :c1 - j0] = ok
+        return z, v
+
+    def bands(self, band: int):
+        return (self.rows(i, min(i + band, self.N))[0] for i in range(0, self.N, band))
+
+
+def _scan(src: _Source, band: int) -> tuple[float | None, int]:
+    # raster.py's rules over the file's rows: an undeclared void sentinel (the minimum,
+    # one of VOID_SENTINELS, more than 1000 below every other height) and ±inf samples
+    m1 = m2 = np.inf  # the smallest finite height, and the smallest above it
+    n_inf = 0
+    for i in range(0, src.H, band):
+        h = src.file_rows(i, min(i + band, src.H)).astype(np.float64)
+        n_inf += int(np.isinf(h).sum())
+        f = h[np.isfinite(h)]
+        if not f.size:
+            continue
+        b1 = float(f.min())
+        above = f[f > b1]
+        cands = [m1, m2, b1, float(above.min()) if above.size else np.inf]
+        m1 = min(cands)
+        m2 = min((c for c in cands if c > m1), default=np.inf)
+    void = None
+    if np.isfinite(m1) and m1 in VOID_SENTINELS and np.isfinite(m2) and m2 - m1 > 1000.0:
+        void = m1
+    return void, n_inf
+
+
+def _lattice(sa: ScratchArrays, pre: str, L: int, n: int, p0: int, p1: int, m: int,
+             top: bool, dtype) -> np.ndarray:
+    """Rows p0 … p1 − 1 of level L's lattice (m a side, sample (p, q) = grid sample
+    (p 2^L, q 2^L)) of the per-level arrays ``{pre}C{k}``…: level L's new vertices, and
+    at the top level every coarser one too (0 elsewhere)."""
+    out = np.zeros((p1 - p0, m), dtype)
+    for k in range(L, n if top else L + 1):
+        u = 1 << (k - L)
+        for x, ro, co in (("C", u, u), ("R", u, 0), ("K", 0, u)):
+            a_lo = max(-(-(p0 - ro) // (2 * u)), 0)
+            a_hi = (p1 - 1 - ro) // (2 * u)
+            if a_hi < a_lo:
+                continue
+            rows = sa.read(f"{pre}{x}{k}", a_lo, a_hi + 1)
+            a_hi = a_lo + len(rows) - 1
+            out[ro + 2 * u * a_lo - p0:ro + 2 * u * a_hi - p0 + 1:2 * u, co::2 * u] = rows
+    return out
+
+
+def preprocess_streaming(
+    src: str | Path,
+    dst: str | Path | None = None,
+    *,
+    tile_size: int = 64,
+    z_scale: float | None = None,
+    z_units: str = "auto",
+    codec_error: float | None = None,
+    overwrite: bool = False,
+    zstd_level: int = 6,
+    nodata: float | None = None,
+    band: int = 256,
+    scratch: str | Path | None = None,
+    derive_normals: bool = True,
+    derive_bounds: bool = True,
+    progress: Progress | None = None,
+) -> Path:
+    """Preprocess a DEM a window at a time into the store
+    :func:`~geoterrain.preprocessing.preprocess` writes (the same tiles, blobs and
+    metadata but the timings); memory is set by ``band`` rows, not the raster.
+
+    Parameters are :func:`~geoterrain.preprocessing.preprocess`'s, and
+    ``band`` (rows per band, a power of two) and ``scratch`` (the folder of the scratch
+    files; default the store's folder).
+
+    Examples
+    --------
+    >>> import tempfile, os, geoterrain
+    >>> from geoterrain.synth import generate, write_geotiff
+    >>> d = tempfile.mkdtemp()
+    >>> dem = write_geotiff(os.path.join(d, "dem.tif"), generate("fbm", 33, seed=1))
+    >>> p = preprocess_streaming(dem, os.path.join(d, "s.geoterrain"), band=8)
+    >>> geoterrain.open(p).grid.size
+    33
+    """
+    t0 = time.perf_counter()
+    times: dict[str, float] = {}
+    done = [0]
+
+    def stage(name: str) -> None:
+        nonlocal t0
+        now = time.perf_counter()
+        times[name] = round(now - t0, 4)
+        t0 = now
+        done[0] += 1
+        if progress:
+            progress(name, done[0], len(STAGES))
+
+    if band < 2 or band & (band - 1):
+        raise UsageError(f"band must be a power of two ≥ 2, got {band}")
+    src = Path(src)
+    dst = Path(dst) if dst is not None else src.with_suffix(".geoterrain")
+    if dst.exists() and not overwrite:
+        raise exists_error(dst)
+    if not src.is_file():
+        raise InputError(f"{src}: no such file; check the path")
+    with rasterio.Env(**GDAL_READ_OPTIONS), rasterio.open(src) as ds:
+        if ds.count != 1:
+            raise UsageError(f"{src}: has {ds.count} bands; the streaming preprocess reads "
+                             "single-band rasters")
+        if ds.height < 2 or ds.width < 2:
+            raise InputError(f"{src}: grid is {ds.height}×{ds.width}; a DEM needs at least "
+                             "2×2 samples")
+        dtype = ds.dtypes[0]
+        crs_wkt = ds.crs.to_wkt() if ds.crs else None
+        transform = tuple(ds.transform)[:6] if (ds.crs or not ds.transform.is_identity) \
+            else None
+        flip = transform is not None and transform[4] > 0
+        if flip:  # south-up: rows flipped to north-up (raster.py)
+            a, b, c, d_, e, f = transform
+            transform = (a, b, c, d_, -e, f + e * ds.height)
+        grid = Grid.for_shape(ds.height, ds.width, tile_size=tile_size)
+        zu = resolve_z_units(z_units, crs_wkt, str(src))
+        frame = Frame.from_raster(transform, crs_wkt, ds.height, ds.width, z_units=zu,
+                                  z_scale=1.0 if z_scale is None else z_scale)
+        if frame.kind == "geographic":
+            raise UsageError(f"{src}: geographic coordinates; the streaming preprocess "
+                             "takes projected or pixel grids (use preprocess)")
+        declared = ds.nodatavals[0] if nodata is None else float(nodata)
+        probe = _Source(ds, grid, None, flip)
+        void, n_inf = _scan(probe, band)
+        if n_inf:
+            raise InputError(f"{src}: {n_inf} sample(s) are ±inf; declare them nodata (e.g. "
+                             "gdal_translate -a_nodata)")
+        nd = declared if declared is not None else void
+        source = _Source(ds, grid, nd, flip)
+        N, t = grid.size, grid.t
+        stage("scan")
+
+        q = band_quantizer(lambda: source.bands(band), dtype, codec_error)
+        X, Y = frame.grid_xy(N)
+        xs, ys = np.ascontiguousarray(X[0]), np.ascontiguousarray(Y[:, 0])
+
+        def scene(i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
+            z, v = source.rows(i0, i1)
+            return frame.z(roundtrip(z, v, q)), v  # decoded heights, scene metres
+
+        hv = [np.inf, -np.inf]  # decoded heights
+        raw = [np.inf, -np.inf]  # source heights
+        nvalid = 0
+        for i in range(0, N, band):
+            z, v = source.rows(i, min(i + band, N))
+            dz = roundtrip(z, v, q)[v]
+            nvalid += int(v.sum())
+            if dz.size:
+                hv = [min(hv[0], float(dz.min())), max(hv[1], float(dz.max()))]
+                raw = [min(raw[0], float(z[v].min())), max(raw[1], float(z[v].max()))]
+        if nvalid == 0:
+            raise InputError(f"{src}: every sample is nodata; check the nodata value or the band")
+        if max(abs(raw[0]), abs(raw[1])) > ABSURD_HEIGHT and z_scale is None:
+            raise InputError(f"{src}: heights reach {max(map(abs, raw)):.3g}, beyond "
+                             f"±{ABSURD_HEIGHT:.0e}; if they are real pass --z-scale (e.g. 1), "
+                             "else set the right nodata or unit")
+        stage("quantise")
+
+        folder = Path(scratch) if scratch is not None else (dst.parent if str(dst.parent) else
+                                                            Path("."))
+        with ScratchArrays(folder) as sa, ScratchArrays(folder) as se:
+            lvl = band_vertex_errors(scene, N, band=band, scratch=sa, heights=True)
+            lo, hi, _ = lvl.valid_range
+            pad = has_padding(grid)
+            if pad:
+                band_vertex_errors(edge_rows(scene, (grid.rows, grid.cols)), N, band=band,
+                                   scratch=se, data=(grid.rows, grid.cols))
+            stage("errors")
+            er = band_radius_codes(sa, N, xs, ys, lo, hi)
+            stage("radii")
+            bounds, blocks = band_tile_bounds(scene, N, t, xs, ys, band=band)
+            stage("tile bounds")
+            band_normal_codes(scene, N, xs, ys, grid.top_level + 1, sa, band=band,
+                              bits=NORMAL_BITS)
+            stage("normals")
+            with StoreWriter(dst, overwrite=overwrite) as w:
+                band_encode_pyramid(source.rows, N, t, q, level=zstd_level,
+                                    sink=lambda part: w.put_blobs("heights", part))
+                stored = set(bounds)  # the tiles whose footprint holds a valid sample
+                stage("heights")
+                meta = _level_blobs(w, sa, se if pad else None, grid, bounds, stored, er,
+                                    derive_normals, derive_bounds)
+                stage("blobs")
+                w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
+                w.put_metadata({
+                    "format": "geoterrain",
+                    "generator": f"geoterrain {__version__}",
+                    "source": src.name,
+                    "source_dtype": dtype,
+                    "source_nodata": None if nd is None else float(nd),
+                    "encoding": "raw",
+                    "grid": grid.to_json(),
+                    "frame": frame.to_json(),
+                    "quantizer": dataclasses.asdict(q),
+                    "normal_bits": NORMAL_BITS,
+                    "normals_layout": NORMALS_PLANAR_DXDY,
+                    **({"normals_derived": [0]} if meta["derive_normals"] else {}),
+                    "valid_samples": nvalid,
+                    "nodata_fraction": float(1.0 - nvalid / (grid.rows * grid.cols)),
+                    "height_range": hv,
+                    "delta_max_finite": meta["delta_max"],
+                    **({"delta_edge": meta["edge_max"]} if pad else {}),
+                    "stand_in_z": lvl.stand_in,
+                    "block_delta_levels": int(blocks.shape[2]),
+                    "preprocess_seconds": times,
+                })
+                stage("write")
+                w.commit()
+    return dst
+
+
+def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None, grid: Grid,
+                 bounds: dict, stored: set, er: int, derive_normals: bool,
+                 derive_bounds: bool) -> dict:
+    """The δ, r, normals and δ_edge blobs and the tile rows, a tile row of each level at a
+    time (preprocessing.preprocess's compress stage on each level's lattice window)."""
+    n, t, top = grid.n, grid.t, grid.top_level
+    T, T1 = grid.tile_samples, grid.tile_samples - 1
+    derive_normals = derive_normals and T >= 3
+    derive_bounds = derive_bounds and T >= 3 and top > 0
+    # δ's code exponent: the largest finite δ (and δ_edge) over every level
+    dmax = emax = 0.0
+    for k in range(n):
+        for x in "CRK":
+            for arrs, acc in ((sa, "d"), (se, "e")):
+                if arrs is None:
+                    continue
+                nr = arrs.shape(f"{x}{k}")[0]
+                for r0 in range(0, nr, 4096):
+                    a = arrs.read(f"{x}{k}", r0, r0 + 4096)
+                    f = a[np.isfinite(a)]
+                    if f.size:
+                        if acc == "d":
+                            dmax = max(dmax, float(f.max()))
+                        else:
+                            emax = max(emax, float(f.max()))
+    ed = log8_exponent(np.array([dmax]))
+    if se is not None:
+        ed = max(ed, log8_exponent(np.array([emax])))
+    tile_rows: dict = {}
+    edge_max: list = []
+    e_stored: list = []
+    e_only: list = []
+    for L in grid.levels:
+        m = grid.tiles_per_side(L) * T1 + 1
+        is_top = L == top
+        for y in range(grid.tiles_per_side(L)):
+            keys = sorted(x for (L2, x, y2) in stored if L2 == L and y2 == y)
+            p0, p1 = y * T1, y * T1 + T
+            d = _lattice(sa, "", L, n, p0, p1, m, is_top, np.float32)
+            rc = _lattice(sa, "r", L, n, p0, p1, m, is_top, np.uint8)
+            nrm = sa.read(f"n{L}", p0, p1).reshape(T, m, 2)
+            coding = BoundsCoding(d, None, ed, r_codes=(rc, er))
+            edge = None
+            if se is not None:
+                # every vertex of the lattice: an unstored tile's δ_edge blob is whole
+                edge = BoundsCoding(_lattice(se, "", L, n, p0, p1, m, True, np.float32),
+                                    None, ed, r_codes=(rc, er))
+            top_w = 0 if is_top else 1  # the window's level 0 is level L
+            if keys:
+                ring = L == 0 and derive_normals
+                blobs, dm, rm = level_blobs(
+                    coding, nrm, t, 0, top_w, [(x, 0) for x in keys],
+                    ("delta", "radius") if ring else ("delta", "radius", "normals"),
+                    ring=L == 0 and derive_bounds)
+                if ring:
+                    blobs["normals"] = ring_blobs(nrm, t, [(x, 0) for x in keys])
+                for kind, b in blobs.items():
+                    w.put_blobs(kind, {(L, x, y): v for (_, x, _), v in b.items()})
+                for x, a, b in zip(keys, dm.tolist(), rm.tolist(), strict=True):
+                    tile_rows[(L, x, y)] = (*bounds[(L, x, y)], a, b)
+            if edge is None:
+                continue
+            # edgepad.edge_tiles / edge_only_tiles on this tile row's window
+            held_diff = _held(coding.dc != edge.dc, T1, is_top)
+            held_pos = _held(edge.dc > 0, T1, is_top)
+            # stored tiles: new vertices as differences from δ; unstored ones: whole
+            for keys_e, base, into in (([x for x in keys if held_diff[x]], coding, e_stored),
+                                       ([x for x in range(len(held_pos)) if held_pos[x]
+                                         and (L, x, y) not in stored], None, e_only)):
+                if not keys_e:
+                    continue
+                eb, emx, _ = level_blobs(edge, nrm, t, 0, top_w if base is not None else 0,
+                                         [(x, 0) for x in keys_e], ("delta",), base=base)
+                w.put_blobs("delta_edge", {(L, x, y): v for (_, x, _), v in eb["delta"].items()})
+                into += [[L, x, y, v if np.isfinite(v) else None]
+                         for x, v in zip(keys_e, emx.tolist(), strict=True)]
+        # the metadata's order (preprocessing.preprocess): a level's stored tiles by
+        # (x, y), then its unstored ones by (y, x)
+        edge_max += sorted(e_stored, key=lambda e: (e[1], e[2])) + e_only
+        e_stored, e_only = [], []
+    w.put_tiles(tile_rows)
+    return {"delta_max": dmax, "edge_max": edge_max, "derive_normals": derive_normals}
+
+
+def _held(mark: np.ndarray, T1: int, top: bool) -> np.ndarray:
+    # edgepad._holding on one tile row's lattice window (T rows): per tile, whether its
+    # stored vertices (below the top, those new at the level) include a marked one
+    lat = mark.copy()
+    if not top:
+        lat[::2, ::2] = False
+    n = (lat.shape[1] - 1) // T1
+    held = lat[:-1, :-1].reshape(T1, n, T1).any(axis=(0, 2))
+    held |= lat[T1, :-1].reshape(n, T1).any(axis=1)
+    held |= lat[:-1, T1::T1].any(axis=0)
+    held |= lat[T1, T1::T1]
+    return held
