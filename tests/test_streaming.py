@@ -1,0 +1,118 @@
+"""The streaming preprocess (geoterrain.streaming) writes the store preprocess writes.
+
+The oracle is :func:`geoterrain.preprocessing.preprocess` on the same GeoTIFF: every
+blob (kind, tile, bytes), every tile row and every metadata entry but the timings must
+be equal, whatever the band. The stages' own equalities are in test_streaming_stages.py.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+
+import numpy as np
+import pytest
+import rasterio
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import geoterrain
+from geoterrain.exceptions import InputError, UsageError
+from geoterrain.preprocessing import preprocess
+from geoterrain.streaming import preprocess_streaming
+from tests.conftest import real_dem
+
+
+def _content(path) -> tuple[dict, dict, dict]:
+    con = sqlite3.connect(path)
+    try:
+        blobs = {tuple(r[:4]): bytes(r[4]) for r in con.execute("SELECT * FROM blobs")}
+        tiles = {tuple(r[:3]): tuple(r[3:]) for r in con.execute("SELECT * FROM tiles")}
+        meta = {k: json.loads(v) for k, v in con.execute("SELECT * FROM metadata")}
+    finally:
+        con.close()
+    for k in ("preprocess_seconds", "metadata_crc32"):  # timings differ, and so their crc
+        meta.pop(k)
+    return blobs, tiles, meta
+
+
+def _assert_same_store(a, b) -> None:
+    (ba, ta, ma), (bb, tb, mb) = _content(a), _content(b)
+    assert ba.keys() == bb.keys()
+    assert sorted(k for k in ba if ba[k] != bb[k]) == []
+    assert ta == tb
+    assert ma == mb
+
+
+def _tif(path, z, nodata=None, crs="EPSG:32633", south_up=False) -> str:
+    H, W = z.shape
+    tr = (rasterio.transform.from_origin(10, 50, 0.001, 0.001) if crs == "EPSG:4326" else
+          rasterio.transform.from_origin(500000, 5000000, 10, 10))
+    if south_up:
+        tr = rasterio.Affine(10, 0, 500000, 0, 10, 5000000 - 10 * H)
+        z = z[::-1]
+    with rasterio.open(path, "w", driver="GTiff", height=H, width=W, count=1,
+                       dtype=z.dtype, crs=crs, transform=tr, nodata=nodata) as ds:
+        ds.write(z, 1)
+    return str(path)
+
+
+@settings(max_examples=12, deadline=None)
+@given(seed=st.integers(0, 10_000), rows=st.integers(5, 150), cols=st.integers(5, 150),
+       tile=st.sampled_from([2, 4, 16, 64]), holes=st.sampled_from([0.0, 0.05, 0.6]),
+       dtype=st.sampled_from(["float32", "int16"]), eps=st.sampled_from([None, 0.5, 2.0]),
+       band=st.sampled_from([2, 8, 64]), south_up=st.booleans())
+def test_streamed_store_is_the_preprocessed_one(tmp_path_factory, seed, rows, cols, tile,
+                                                holes, dtype, eps, band, south_up):
+    """Padded shapes, voids (declared nodata), integer and float sources, lossless and ε,
+    tiles of 3 to 65 samples, south-up files, bands of 2 to 64 rows."""
+    tmp = tmp_path_factory.mktemp("st")
+    rng = np.random.default_rng(seed)
+    z = rng.normal(0, 20, (rows, cols)).cumsum(0).cumsum(1) / 5 + rng.normal(0, 3, (rows, cols))
+    z = z.astype(dtype)
+    nodata = None
+    if holes:
+        z[rng.random(z.shape) < holes] = -9999
+        nodata = -9999
+    src = _tif(tmp / "dem.tif", z, nodata, south_up=south_up)
+    a = preprocess(src, tmp / "a.geoterrain", tile_size=tile, codec_error=eps)
+    b = preprocess_streaming(src, tmp / "b.geoterrain", tile_size=tile, codec_error=eps,
+                             band=band)
+    _assert_same_store(a, b)
+
+
+def test_streamed_store_of_a_real_dem(tmp_path):
+    """A projected SRTM DEM in US feet (z units from the CRS, padding, voids)."""
+    src = real_dem("roi_epsg3089.tif")
+    a = preprocess(src, tmp_path / "a.geoterrain")
+    b = preprocess_streaming(src, tmp_path / "b.geoterrain", band=16)
+    _assert_same_store(a, b)
+    assert geoterrain.open(b).tile(0, 0, 0).heights.shape == (65, 65)
+
+
+def test_streamed_store_of_an_undeclared_void_sentinel(tmp_path):
+    """Voids written as -32768 without a declared nodata are found by the first pass,
+    as the whole-raster reader finds them."""
+    z = np.random.default_rng(1).normal(100, 5, (40, 30)).astype(np.float32)
+    z[3:9, 4:12] = -32768
+    src = _tif(tmp_path / "v.tif", z)
+    a = preprocess(src, tmp_path / "a.geoterrain", tile_size=8)
+    b = preprocess_streaming(src, tmp_path / "b.geoterrain", tile_size=8, band=4)
+    _assert_same_store(a, b)
+    assert _content(b)[2]["source_nodata"] == -32768.0
+
+
+def test_streaming_refuses_what_it_does_not_take(tmp_path):
+    z = np.zeros((9, 9), np.float32)
+    with pytest.raises(UsageError, match="geographic"):
+        preprocess_streaming(_tif(tmp_path / "g.tif", z, crs="EPSG:4326"), tmp_path / "g.gt")
+    with pytest.raises(UsageError, match="power of two"):
+        preprocess_streaming(_tif(tmp_path / "b.tif", z), tmp_path / "b.gt", band=3)
+    nd = np.full((9, 9), -1, np.float32)
+    with pytest.raises(InputError, match="nodata"):
+        preprocess_streaming(_tif(tmp_path / "n.tif", nd, nodata=-1), tmp_path / "n.gt")
+    inf = z.copy()
+    inf[2, 2] = np.inf
+    with pytest.raises(InputError, match="inf"):
+        preprocess_streaming(_tif(tmp_path / "i.tif", inf), tmp_path / "i.gt")
+    assert not list(tmp_path.glob("*.gt")) and not list(tmp_path.glob(".*partial*"))
