@@ -40,6 +40,21 @@ def parse_size(ctx, param, value):
     return w, h
 
 
+def parse_bytes(ctx, param, value):
+    """Parse a memory size: ``1.5G``, ``800M``, ``2GB``, ``512MiB`` or bytes."""
+    if value is None:
+        return None
+    import re
+
+    m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([kmgt]?)(i?b)?\s*", value.lower())
+    if not m:
+        raise click.BadParameter(f"expected a size such as 1.5G or 800M, got {value!r}")
+    n = float(m.group(1)) * 1024 ** " kmgt".index(m.group(2) or " ")
+    if n < 64 * 2**20:
+        raise click.BadParameter(f"{value} is below the 64M the job needs at least")
+    return int(n)
+
+
 class StageBar:
     """A progress bar over named stages, on stderr; silent with -q."""
 

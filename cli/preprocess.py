@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from geoterrain.cli.options import StageBar
+from geoterrain.cli.options import StageBar, parse_bytes
 from geoterrain.frame import Z_UNITS
 from geoterrain.raster import ENCODINGS
 
@@ -38,10 +38,14 @@ from geoterrain.raster import ENCODINGS
               "smaller, several times slower).")
 @click.option("--nodata", type=float, help="The value of voids, overriding the file's "
               "(nan: only NaN). Undeclared -32768/-9999/float32-min runs are voids by default.")
+@click.option("--memory-limit", callback=parse_bytes, metavar="SIZE",
+              help="Memory the job may use, e.g. 2G or 800M (default: half of what is "
+                   "available). A single-band projected raster too large for it is read "
+                   "a window at a time, into the same store.")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,
-            codec_error, old_max_error, zstd_level, nodata, overwrite):
+            codec_error, old_max_error, zstd_level, nodata, memory_limit, overwrite):
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
     DEM is any raster GDAL reads (GeoTIFF/COG, SRTM .hgt, Esri ASCII, a .vrt,
@@ -58,6 +62,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
       geoterrain preprocess tile.png --pixel-size 30 -o tile.geoterrain
       geoterrain preprocess lidar.tif --codec-error 0.05 --z-scale 2
       geoterrain preprocess 'srtm/*.hgt' -o srtm.geoterrain
+      geoterrain preprocess lidar_county.tif --memory-limit 2G
     """
     import geoterrain
     from geoterrain.exceptions import UsageError
@@ -76,7 +81,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
             dem, output, tile_size=tile_size, band=band, encoding=encoding,
             pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, tile=tile,
             codec_error=codec_error, overwrite=overwrite, zstd_level=zstd_level, nodata=nodata,
-            progress=bar)
+            memory_limit=memory_limit, progress=bar)
     finally:
         bar.close()
     if not quiet:

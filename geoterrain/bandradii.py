@@ -102,7 +102,7 @@ def _nest_levels(sa: ScratchArrays, n: int, xs: np.ndarray, ys: np.ndarray,
 
 
 def band_radius_codes(sa: ScratchArrays, N: int, xs: np.ndarray, ys: np.ndarray,
-                      lo: float, hi: float, budget: int = 64 << 20) -> int:
+                      lo: float, hi: float, budget: int = 16 << 20) -> int:
     """Nest the radius codes of an (N, N) grid on its per-level arrays in ``sa`` and
     return their exponent ``e`` (log8 table, :func:`geoterrain.vertexdata.log8_table`).
 

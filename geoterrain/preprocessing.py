@@ -10,7 +10,6 @@ import dataclasses
 import logging
 import os
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -30,23 +29,27 @@ from geoterrain.edgepad import (
 from geoterrain.exceptions import InputError, UsageError, exists_error
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
+from geoterrain.memory import available_memory
 from geoterrain.mosaic import is_glob, mosaic_name, source_files
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
 from geoterrain.quantize import choose_quantizer
 from geoterrain.radii import stand_in_z, valid_range, vertex_radii
-from geoterrain.raster import Raster, read_raster
+from geoterrain.raster import ABSURD_HEIGHT, Progress, Raster, read_raster
 from geoterrain.store import StoreWriter, default_store_path, remove_stale_partials
+from geoterrain.streaming import preprocess_streaming, streaming_band
 from geoterrain.tileblobs import BoundsCoding, level_blobs, radius_codes, ring_blobs
 from geoterrain.tilebounds import tile_and_block_errors
 from geoterrain.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
-from geoterrain.vertexdata import NORMALS_PLANAR_DXDY, log8_exponent, pack_block_errors
+from geoterrain.vertexdata import (
+    NORMAL_BITS,
+    NORMALS_PLANAR_DXDY,
+    log8_exponent,
+    pack_block_errors,
+)
 
 log = logging.getLogger("geoterrain")
-Progress = Callable[[str, int, int], None]
 STAGES = ("read", "pad", "quantise", "errors", "radii", "tile bounds", "normals", "compress",
           "write")
-ABSURD_HEIGHT = 1e5  # |h| beyond this is almost surely a unit or nodata problem
-NORMAL_BITS = 8
 MAX_TILE_SIZE = 4096
 
 
@@ -98,6 +101,7 @@ def preprocess(
     progress: Progress | None = None,
     derive_normals: bool = True,
     derive_bounds: bool = True,
+    memory_limit: int | None = None,
 ) -> Path:
     """Preprocess a DEM into a store and return the store's path.
 
@@ -147,6 +151,12 @@ def preprocess(
         (they are the bintree's finest vertices, whose diamonds lie in the tile;
         :mod:`geoterrain.leafbounds`). Not on geographic frames (δ and r there carry
         curvilinear terms of the scene x, y). False stores them all.
+    memory_limit
+        Bytes the job may hold (default: half the memory available now). A raster whose
+        whole-grid preprocess would need more is read a window at a time
+        (:func:`geoterrain.streaming.preprocess_streaming`, the same store), with bands
+        sized to the limit: a single-band raster in a projected or pixel frame. Others
+        are refused in one line when they do not fit.
 
     Examples
     --------
@@ -195,6 +205,16 @@ def preprocess(
         raise UsageError(f"{dst}: the store would overwrite its own input; choose another dst",
                          cli=f"{dst}: the store would overwrite its own input; choose another -o")
 
+    if (not mosaic and tile is None and pixel_size is None and encoding in ("auto", "raw")
+            and band in (None, 1)):
+        limit = available_memory() // 2 if memory_limit is None else int(memory_limit)
+        rows = streaming_band(files[0], limit)
+        if rows is not None:  # too large for the whole grid: a window at a time
+            return preprocess_streaming(
+                files[0], dst, tile_size=tile_size, z_scale=z_scale, z_units=z_units,
+                codec_error=codec_error, overwrite=overwrite, zstd_level=zstd_level,
+                nodata=nodata, band=rows, derive_normals=derive_normals,
+                derive_bounds=derive_bounds, progress=progress)
     r = read_raster(files if mosaic else src, band=band, encoding=encoding, nodata=nodata)
     validate(r, z_scale)
     zxy = parse_tile(tile) if tile is not None else None

@@ -41,19 +41,60 @@ from geoterrain.edgepad import has_padding
 from geoterrain.exceptions import InputError, UsageError, exists_error
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
-from geoterrain.preprocessing import ABSURD_HEIGHT, NORMAL_BITS, Progress
 from geoterrain.quantize import roundtrip
-from geoterrain.raster import GDAL_READ_OPTIONS, VOID_SENTINELS
+from geoterrain.raster import ABSURD_HEIGHT, GDAL_READ_OPTIONS, VOID_SENTINELS, Progress
 from geoterrain.scratch import ScratchArrays
 from geoterrain.store import StoreWriter
 from geoterrain.tileblobs import BoundsCoding, level_blobs, ring_blobs
 from geoterrain.units import resolve_z_units
-from geoterrain.vertexdata import NORMALS_PLANAR_DXDY, log8_exponent, pack_block_errors
+from geoterrain.vertexdata import (
+    NORMAL_BITS,
+    NORMALS_PLANAR_DXDY,
+    log8_exponent,
+    pack_block_errors,
+)
 
 __all__ = ["preprocess_streaming"]
 
+# Bytes per sample of a band's rows, over every stage's windows and their copies, and
+# what the process holds besides (imports, compiled kernels, tile tables): measured on
+# the 16385² fBm (docs/benchmarks.md §3b), with a margin
+BAND_BYTES_PER_SAMPLE = 200
+FIXED_BYTES = 400 << 20
+# in-memory preprocess bytes per sample (raster.PREPROCESS_BYTES_PER_SAMPLE, projected)
 STAGES = ("scan", "quantise", "errors", "radii", "tile bounds", "normals", "heights",
           "blobs", "write")
+
+
+def streaming_band(path: str | Path, memory_limit: int) -> int | None:
+    """The band (rows, a power of two) to preprocess ``path`` a window at a time within
+    ``memory_limit`` bytes; None when the whole raster fits (or when the streaming
+    preprocess does not take the file: several bands, a PNG tile, geographic
+    coordinates, which then go whole).
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> from geoterrain.synth import generate, write_geotiff
+    >>> dem = write_geotiff(os.path.join(tempfile.mkdtemp(), "d.tif"), generate("fbm", 65))
+    >>> streaming_band(dem, 1 << 40), streaming_band(dem, 1 << 18)
+    (None, 2)
+    """
+    from geoterrain.raster import PREPROCESS_BYTES_PER_SAMPLE
+
+    try:
+        with rasterio.open(path) as ds:
+            if ds.count != 1 or ds.driver == "PNG" or (ds.crs is not None
+                                                     and ds.crs.is_geographic):
+                return None
+            H, W = ds.height, ds.width
+    except rasterio.errors.RasterioIOError:
+        return None
+    if H * W * PREPROCESS_BYTES_PER_SAMPLE["projected"] <= memory_limit:
+        return None
+    N = Grid.for_shape(H, W).size
+    rows = max(memory_limit - FIXED_BYTES, 0) // (N * BAND_BYTES_PER_SAMPLE)
+    return int(min(max(1 << max(int(rows).bit_length() - 1, 0), 2), 1024))
 
 
 class _Source:
@@ -64,12 +105,14 @@ class _Source:
         self.ds, self.grid, self.nodata, self.flip = ds, grid, nodata, flip
         self.H, self.W, self.N = grid.rows, grid.cols, grid.size
 
-    def file_rows(self, i0: int, i1: int) -> np.ndarray:
-        """The raw band rows i0 … i1 − 1 (north up), the file's dtype."""
+    def file_rows(self, i0: int, i1: int, j0: int = 0, j1: int | None = None) -> np.ndarray:
+        """The raw band's rows i0 … i1 − 1 and columns j0 … j1 − 1 (north up), the
+        file's dtype."""
+        j1 = self.W if j1 is None else j1
         if self.flip:
-            a = self.ds.read(1, window=Window(0, self.H - i1, self.W, i1 - i0))
+            a = self.ds.read(1, window=Window(j0, self.H - i1, j1 - j0, i1 - i0))
             return a[::-1]
-        return self.ds.read(1, window=Window(0, i0, self.W, i1 - i0))
+        return self.ds.read(1, window=Window(j0, i0, j1 - j0, i1 - i0))
 
     def rows(self, i0: int, i1: int, j0: int = 0, j1: int | None = None
              ) -> tuple[np.ndarray, np.ndarray]:
@@ -79,7 +122,7 @@ class _Source:
         r1 = min(i1, self.H)
         c1 = min(j1, self.W)
         if r1 > i0 and c1 > j0:
-            data = self.file_rows(i0, r1)[:, j0:c1]
+            data = self.file_rows(i0, r1, j0, c1)
             h = data.astype(np.float64)
             ok = np.isfinite(h)
             if self.nodata is not None and not np.isnan(self.nodata):
@@ -314,20 +357,20 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None, gr
     derive_bounds = derive_bounds and T >= 3 and top > 0
     # δ's code exponent: the largest finite δ (and δ_edge) over every level
     dmax = emax = 0.0
-    for k in range(n):
-        for x in "CRK":
-            for arrs, acc in ((sa, "d"), (se, "e")):
-                if arrs is None:
-                    continue
-                nr = arrs.shape(f"{x}{k}")[0]
-                for r0 in range(0, nr, 4096):
-                    a = arrs.read(f"{x}{k}", r0, r0 + 4096)
-                    f = a[np.isfinite(a)]
-                    if f.size:
-                        if acc == "d":
-                            dmax = max(dmax, float(f.max()))
-                        else:
-                            emax = max(emax, float(f.max()))
+    for arrs, which in ((sa, "d"), (se, "e")):
+        if arrs is None:
+            continue
+        for k in range(n):
+            for x in "CRK":
+                nr, nc = arrs.shape(f"{x}{k}")
+                step = max(1, (16 << 20) // (4 * nc))  # 16 MB of rows at a time
+                for r0 in range(0, nr, step):
+                    a = arrs.read(f"{x}{k}", r0, r0 + step)
+                    m = float(np.max(a, where=np.isfinite(a), initial=0.0))
+                    if which == "d":
+                        dmax = max(dmax, m)
+                    else:
+                        emax = max(emax, m)
     ed = log8_exponent(np.array([dmax]))
     if se is not None:
         ed = max(ed, log8_exponent(np.array([emax])))

@@ -268,6 +268,7 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
 
 
 NORMALS_PLANAR_DXDY = 2  # metadata ``normals_layout``; absent or 1: raw interleaved bytes
+NORMAL_BITS = 8  # bits per octahedral normal component the preprocess stores
 
 
 def normals_to_bytes(oct8: np.ndarray) -> bytes:

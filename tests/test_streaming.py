@@ -116,3 +116,21 @@ def test_streaming_refuses_what_it_does_not_take(tmp_path):
     with pytest.raises(InputError, match="inf"):
         preprocess_streaming(_tif(tmp_path / "i.tif", inf), tmp_path / "i.gt")
     assert not list(tmp_path.glob("*.gt")) and not list(tmp_path.glob(".*partial*"))
+
+
+def test_the_cli_streams_a_raster_over_its_memory_limit(tmp_path):
+    """`preprocess --memory-limit` sends a raster whose whole-grid preprocess would need
+    more (1025² × 72 bytes: 76 MB > 64M) through the streaming preprocess, to the store
+    the whole-grid one writes."""
+    from click.testing import CliRunner
+
+    from geoterrain.cli.main import cli
+    from geoterrain.streaming import streaming_band
+    from geoterrain.synth import generate, write_geotiff
+
+    dem = str(write_geotiff(str(tmp_path / "d.tif"), generate("fbm", 1025, seed=3)))
+    assert streaming_band(dem, 64 << 20) is not None
+    run = CliRunner().invoke(cli, ["-q", "preprocess", dem, "-o", str(tmp_path / "s.gt"),
+                                   "--memory-limit", "64M"])
+    assert run.exit_code == 0, run.output
+    _assert_same_store(tmp_path / "s.gt", preprocess(dem, tmp_path / "w.gt"))
