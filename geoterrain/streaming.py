@@ -94,7 +94,9 @@ def streaming_band(path: str | Path, memory_limit: int) -> int | None:
         return None
     N = Grid.for_shape(H, W).size
     rows = max(memory_limit - FIXED_BYTES, 0) // (N * BAND_BYTES_PER_SAMPLE)
-    return int(min(max(1 << max(int(rows).bit_length() - 1, 0), 2), 1024))
+    # at most 256 rows: wider bands cost memory and gain no time (16385²: 108 s with
+    # 128 rows, 115 s with 256; docs/benchmarks.md §3b)
+    return int(min(max(1 << max(int(rows).bit_length() - 1, 0), 2), 256))
 
 
 class _Source:
