@@ -45,6 +45,7 @@ from geoterrain.bounds import (
     _centre1,
     _edge_err_part,
     _mid1,
+    edge_err_window,
     edge_status_nb,
     grid_order,
 )
@@ -174,29 +175,6 @@ def _pool(st: np.ndarray) -> np.ndarray:
     return st[0::2, 0::2] | st[0::2, 1::2] | st[1::2, 0::2] | st[1::2, 1::2]
 
 
-@njit(cache=True)
-def _edge_err_win(z, vb, ic, jc, h, rows, N, w0):
-    # bounds._edge_err on a window of rows from w0 on (ic global, the diamond inside it)
-    il = ic - w0
-    if rows:
-        lo_ok = jc - h >= 0
-        hi_ok = jc + h <= N - 1
-        za = z[il - h, jc]
-        zb = z[il + h, jc]
-        z_lo = z[il, jc - h] if lo_ok else 0.0
-        z_hi = z[il, jc + h] if hi_ok else 0.0
-    else:
-        lo_ok = ic - h >= 0
-        hi_ok = ic + h <= N - 1
-        za = z[il, jc - h]
-        zb = z[il, jc + h]
-        z_lo = z[il - h, jc] if lo_ok else 0.0
-        z_hi = z[il + h, jc] if hi_ok else 0.0
-    m, cnt, tot = _edge_err_part(z, vb, ic, jc, h, rows, lo_ok, hi_ok, za, zb, z_lo, z_hi,
-                                 -h, h, w0)
-    return edge_status_nb(m, cnt, tot)
-
-
 @njit(cache=True, parallel=True)
 def _fine_level_nb(z, vb, w0, r0, B, N, h, st, st_prev, qb_prev, last, C, R, K, QB):
     """One fine level (2h ≤ B) of the band whose core rows start at r0: raw δ of its
@@ -247,7 +225,7 @@ def _fine_level_nb(z, vb, w0, r0, B, N, h, st, st_prev, qb_prev, last, C, R, K, 
                         m = max(m, QL[ar, b])
                 R[ar, b] = round_up32(m)
                 continue
-            m, c = _edge_err_win(z, vb, ic, jc, h, True, N, w0)
+            m, c = edge_err_window(z, vb, ic, jc, h, True, N, w0)
             if c == 2:
                 R[ar, b] = np.inf
             elif c == 1:
@@ -282,7 +260,7 @@ def _fine_level_nb(z, vb, w0, r0, B, N, h, st, st_prev, qb_prev, last, C, R, K, 
                         m = max(m, QT[ak, b])
                 K[ak, b] = round_up32(m)
                 continue
-            m, c = _edge_err_win(z, vb, ic, jc, h, False, N, w0)
+            m, c = edge_err_window(z, vb, ic, jc, h, False, N, w0)
             if c == 2:
                 K[ak, b] = np.inf
             elif c == 1:

@@ -15,7 +15,13 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from geoterrain.quantize import Quantizer, _grid_checks, _roundtrip_error
+from geoterrain.quantize import (
+    Quantizer,
+    _grid_checks,
+    _roundtrip_error,
+    float_quantizer,
+    lossy_quantizer,
+)
 
 __all__ = ["band_quantizer"]
 
@@ -110,24 +116,13 @@ def band_quantizer(bands: Bands, src_dtype: np.dtype | type | str,
             off = float(np.round(med))
         elif offset is None:
             off = 0.0
-        margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))
-        step = 2.0 * (eps - margin)
-        if step <= 0:
-            raise ValueError(f"codec_error {eps} is below the float64 resolution of the data")
-        for _ in range(8):
-            if n == 0:
-                break
+
+        def roundtrip_error(step: float) -> tuple[float, float]:
             err, peak = 0.0, 0.0
             for v in bands():
                 e, p = _roundtrip_error(_finite(v), step, off)
                 err, peak = max(err, e), max(peak, p)
-            if peak >= 2.0**62:
-                raise ValueError("heights out of range for the quantizer step")
-            if err <= eps:
-                break
-            step *= 1.0 - 1e-9
-        return Quantizer("quantized", step, off, eps)
-    bits = 64
-    if (dt == np.float32 or dt.kind in "iub" or dt.itemsize <= 4) and f32:
-        bits = 32
-    return Quantizer("float", 1.0, 0.0, 0.0, bits)
+            return err, peak
+
+        return lossy_quantizer(eps, off, vmax, n > 0, roundtrip_error)
+    return float_quantizer(dt, f32)

@@ -149,22 +149,30 @@ def edge_status_nb(m, cnt, tot):
 def _edge_err(z, vb, ic, jc, h, rows, N):
     # Diamond of an edge midpoint = |di| + |dj| <= h, clipped to the grid; the hypotenuse
     # runs along the rows (rows=True: endpoints (ic ± h, jc)) or along the columns.
+    return edge_err_window(z, vb, ic, jc, h, rows, N, 0)
+
+
+@njit(cache=True)
+def edge_err_window(z, vb, ic, jc, h, rows, N, w0):
+    """:func:`_edge_err` of grid vertex (ic, jc) on ``z``/``vb`` holding the (N, N) grid's
+    rows from ``w0`` on (a band whose rows hold the whole diamond)."""
+    il = ic - w0
     if rows:
         lo_ok = jc - h >= 0
         hi_ok = jc + h <= N - 1
-        za = z[ic - h, jc]
-        zb = z[ic + h, jc]
-        z_lo = z[ic, jc - h] if lo_ok else 0.0
-        z_hi = z[ic, jc + h] if hi_ok else 0.0
+        za = z[il - h, jc]
+        zb = z[il + h, jc]
+        z_lo = z[il, jc - h] if lo_ok else 0.0
+        z_hi = z[il, jc + h] if hi_ok else 0.0
     else:
         lo_ok = ic - h >= 0
         hi_ok = ic + h <= N - 1
-        za = z[ic, jc - h]
-        zb = z[ic, jc + h]
-        z_lo = z[ic - h, jc] if lo_ok else 0.0
-        z_hi = z[ic + h, jc] if hi_ok else 0.0
+        za = z[il, jc - h]
+        zb = z[il, jc + h]
+        z_lo = z[il - h, jc] if lo_ok else 0.0
+        z_hi = z[il + h, jc] if hi_ok else 0.0
     m, cnt, tot = _edge_err_part(z, vb, ic, jc, h, rows, lo_ok, hi_ok, za, zb, z_lo, z_hi,
-                                 -h, h, 0)
+                                 -h, h, w0)
     return edge_status_nb(m, cnt, tot)
 
 

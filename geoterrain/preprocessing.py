@@ -9,13 +9,11 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
-import time
 from pathlib import Path
 
 import numpy as np
 from numba import njit
 
-from geoterrain._version import __version__
 from geoterrain.bounds import vertex_errors
 from geoterrain.codec import decoded_heights, encode_pyramid
 from geoterrain.curvature import metric_bounds, metric_terms
@@ -32,9 +30,10 @@ from geoterrain.grid import Grid
 from geoterrain.memory import available_memory
 from geoterrain.mosaic import is_glob, mosaic_name, source_files
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
+from geoterrain.progress import Progress, StageClock
 from geoterrain.quantize import choose_quantizer
 from geoterrain.radii import stand_in_z, valid_range, vertex_radii
-from geoterrain.raster import ABSURD_HEIGHT, Progress, Raster, read_raster
+from geoterrain.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.store import StoreWriter, default_store_path, remove_stale_partials
 from geoterrain.streaming import preprocess_streaming, streaming_band
 from geoterrain.tileblobs import BoundsCoding, level_blobs, radius_codes, ring_blobs
@@ -42,9 +41,9 @@ from geoterrain.tilebounds import tile_and_block_errors
 from geoterrain.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
 from geoterrain.vertexdata import (
     NORMAL_BITS,
-    NORMALS_PLANAR_DXDY,
     log8_exponent,
     pack_block_errors,
+    store_metadata,
 )
 
 log = logging.getLogger("geoterrain")
@@ -167,18 +166,8 @@ def preprocess(
     >>> preprocess(dem).name
     'dem.geoterrain'
     """
-    t0 = time.perf_counter()
-    times: dict[str, float] = {}
-    done = [0]
-
-    def stage(name: str) -> None:
-        nonlocal t0
-        now = time.perf_counter()
-        times[name] = round(now - t0, 4)
-        t0 = now
-        done[0] += 1
-        if progress:
-            progress(name, done[0], len(STAGES))
+    stage = StageClock(STAGES, progress)
+    times = stage.times
 
     if codec_error is not None and not (np.isfinite(codec_error) and codec_error >= 0):
         raise UsageError(f"codec_error must be a finite number ≥ 0, got {codec_error}",
@@ -352,33 +341,14 @@ def preprocess(
             w.put_blobs(kind, blobs)
         w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
         w.put_tiles(tile_rows)
-        w.put_metadata({
-            "format": "geoterrain",
-            "generator": f"geoterrain {__version__}",
-            "source": mosaic_name(files),
-            "source_dtype": r.src_dtype,
-            "source_nodata": r.nodata,
-            "encoding": r.encoding,
-            "grid": grid.to_json(),
-            "frame": frame.to_json(),
-            "quantizer": dataclasses.asdict(q),
-            "normal_bits": NORMAL_BITS,
-            "normals_layout": NORMALS_PLANAR_DXDY,
-            # levels whose normals blobs hold only the tile's border ring (the interior
-            # is the central differences of the decoded heights, computed on read)
-            **({"normals_derived": [0]} if derive_normals else {}),
-            "valid_samples": nvalid,
-            "nodata_fraction": float(1.0 - nvalid / r.valid.size),  # = 1 - mean
-            "height_range": height_range,
-            "delta_max_finite": _finite_max(delta),
-            # per tile with a second δ (padding replicated, edgepad.py): [L, x, y, max of
-            # its new vertices' stored δ_edge (None: +inf)]; absent without padding
-            **({"delta_edge": edge_max} if has_padding(grid) else {}),
-            "stand_in_z": stand_in_z(Z, valid),
-            # the root tile's block_delta blob: each block's δ_n, n = 0 … this − 1
-            "block_delta_levels": int(blocks.shape[2]),
-            "preprocess_seconds": times,
-        })
+        w.put_metadata(store_metadata(
+            source=mosaic_name(files), source_dtype=r.src_dtype, source_nodata=r.nodata,
+            encoding=r.encoding, grid=grid.to_json(), frame=frame.to_json(),
+            quantizer=dataclasses.asdict(q), normals_derived=derive_normals,
+            valid_samples=nvalid, samples=r.valid.size, height_range=height_range,
+            delta_max_finite=_finite_max(delta),
+            edge_max=edge_max if has_padding(grid) else None, stand_in_z=stand_in_z(Z, valid),
+            block_delta_levels=int(blocks.shape[2]), times=times))
         stage("write")
         times["write"] = times.get("write", 0.0)
         w.commit()

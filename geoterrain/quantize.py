@@ -7,6 +7,7 @@ within a chosen bound ε (``|decoded - z| <= ε``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -148,26 +149,41 @@ def choose_quantizer(
         eps = float(codec_error)
         if offset is None:
             off = float(np.round(_median_in_place(v))) if v.size else 0.0
-        # float64 rounding of (z - off)/step, q*step and off + q*step: a few ulps of the
-        # magnitudes involved; shrink the step by that margin (seed 000 has no formula).
-        margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))
-        step = 2.0 * (eps - margin)
-        if step <= 0:
-            raise ValueError(f"codec_error {eps} is below the float64 resolution of the data")
-        for _ in range(8):
-            if v.size == 0:
-                break
-            err, peak = _roundtrip_error(v, step, off)  # of codes_to_heights(heights_to_codes)
-            if peak >= 2.0**62:
-                raise ValueError("heights out of range for the quantizer step")
-            if err <= eps:
-                break
-            step *= 1.0 - 1e-9
-        return Quantizer("quantized", step, off, eps)
+        return lossy_quantizer(eps, off, vmax, v.size > 0,
+                               lambda step: _roundtrip_error(v, step, off))
+    return float_quantizer(dt, f32)
+
+
+def float_quantizer(dt: np.dtype, f32: bool) -> Quantizer:
+    """The bit-exact float quantizer: 32 bits when every height is a float32 of a source
+    of at most 4 bytes, else 64."""
     bits = 64
     if (dt == np.float32 or dt.kind in "iub" or dt.itemsize <= 4) and f32:
         bits = 32
     return Quantizer("float", 1.0, 0.0, 0.0, bits)
+
+
+def lossy_quantizer(eps: float, off: float, vmax: float, any_values: bool,
+                    roundtrip_error: Callable[[float], tuple[float, float]]) -> Quantizer:
+    """The ε quantizer of heights within ±``vmax`` around the offset ``off``: step 2ε
+    less the float64 rounding margin, shrunk until ``roundtrip_error(step)`` → (the
+    largest |decoded − height|, the largest |code|) is within ε (8 tries)."""
+    # float64 rounding of (z - off)/step, q*step and off + q*step: a few ulps of the
+    # magnitudes involved; shrink the step by that margin (seed 000 has no formula).
+    margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))
+    step = 2.0 * (eps - margin)
+    if step <= 0:
+        raise ValueError(f"codec_error {eps} is below the float64 resolution of the data")
+    for _ in range(8):
+        if not any_values:
+            break
+        err, peak = roundtrip_error(step)  # of codes_to_heights(heights_to_codes)
+        if peak >= 2.0**62:
+            raise ValueError("heights out of range for the quantizer step")
+        if err <= eps:
+            break
+        step *= 1.0 - 1e-9
+    return Quantizer("quantized", step, off, eps)
 
 
 @njit(cache=True, nogil=True)

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import logging
 import warnings
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,8 +64,6 @@ def _decode_png(rgb: np.ndarray, encoding: str) -> tuple[np.ndarray, float, floa
 
 
 ABSURD_HEIGHT = 1e5  # |h| beyond this is almost surely a unit or nodata problem
-# the callback of a long job: progress(stage name, stages done, stages in all)
-Progress = Callable[[str, int, int], None]
 # Values some tools write for voids without declaring them nodata (SRTM, ArcGRID, float32 min)
 VOID_SENTINELS = (-32768.0, -32767.0, -9999.0, float(np.finfo(np.float32).min))
 ROUGH_PNG_STEP = 1000.0  # metres: a median neighbour step beyond this is not terrain

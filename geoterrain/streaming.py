@@ -23,14 +23,12 @@ single-band raster GDAL reads (not a web-map PNG encoding or a mosaic).
 from __future__ import annotations
 
 import dataclasses
-import time
 from pathlib import Path
 
 import numpy as np
 import rasterio
 from rasterio.windows import Window
 
-from geoterrain._version import __version__
 from geoterrain.bandcodec import band_encode_pyramid
 from geoterrain.banddelta import band_vertex_errors, edge_rows
 from geoterrain.bandnormals import band_normal_codes
@@ -41,17 +39,18 @@ from geoterrain.edgepad import has_padding
 from geoterrain.exceptions import InputError, UsageError, exists_error
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
+from geoterrain.progress import Progress, StageClock
 from geoterrain.quantize import roundtrip
-from geoterrain.raster import ABSURD_HEIGHT, GDAL_READ_OPTIONS, VOID_SENTINELS, Progress
+from geoterrain.raster import ABSURD_HEIGHT, GDAL_READ_OPTIONS, VOID_SENTINELS
 from geoterrain.scratch import ScratchArrays
 from geoterrain.store import StoreWriter
 from geoterrain.tileblobs import BoundsCoding, level_blobs, ring_blobs
 from geoterrain.units import resolve_z_units
 from geoterrain.vertexdata import (
     NORMAL_BITS,
-    NORMALS_PLANAR_DXDY,
     log8_exponent,
     pack_block_errors,
+    store_metadata,
 )
 
 __all__ = ["preprocess_streaming"]
@@ -215,18 +214,8 @@ def preprocess_streaming(
     >>> geoterrain.open(p).grid.size
     33
     """
-    t0 = time.perf_counter()
-    times: dict[str, float] = {}
-    done = [0]
-
-    def stage(name: str) -> None:
-        nonlocal t0
-        now = time.perf_counter()
-        times[name] = round(now - t0, 4)
-        t0 = now
-        done[0] += 1
-        if progress:
-            progress(name, done[0], len(STAGES))
+    stage = StageClock(STAGES, progress)
+    times = stage.times
 
     if band < 2 or band & (band - 1):
         raise UsageError(f"band must be a power of two ≥ 2, got {band}")
@@ -321,28 +310,15 @@ def preprocess_streaming(
                                     derive_normals, derive_bounds)
                 stage("blobs")
                 w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
-                w.put_metadata({
-                    "format": "geoterrain",
-                    "generator": f"geoterrain {__version__}",
-                    "source": src.name,
-                    "source_dtype": dtype,
-                    "source_nodata": None if nd is None else float(nd),
-                    "encoding": "raw",
-                    "grid": grid.to_json(),
-                    "frame": frame.to_json(),
-                    "quantizer": dataclasses.asdict(q),
-                    "normal_bits": NORMAL_BITS,
-                    "normals_layout": NORMALS_PLANAR_DXDY,
-                    **({"normals_derived": [0]} if meta["derive_normals"] else {}),
-                    "valid_samples": nvalid,
-                    "nodata_fraction": float(1.0 - nvalid / (grid.rows * grid.cols)),
-                    "height_range": hv,
-                    "delta_max_finite": meta["delta_max"],
-                    **({"delta_edge": meta["edge_max"]} if pad else {}),
-                    "stand_in_z": lvl.stand_in,
-                    "block_delta_levels": int(blocks.shape[2]),
-                    "preprocess_seconds": times,
-                })
+                w.put_metadata(store_metadata(
+                    source=src.name, source_dtype=dtype,
+                    source_nodata=None if nd is None else float(nd), encoding="raw",
+                    grid=grid.to_json(), frame=frame.to_json(), quantizer=dataclasses.asdict(q),
+                    normals_derived=meta["derive_normals"], valid_samples=nvalid,
+                    samples=grid.rows * grid.cols, height_range=hv,
+                    delta_max_finite=meta["delta_max"],
+                    edge_max=meta["edge_max"] if pad else None, stand_in_z=lvl.stand_in,
+                    block_delta_levels=int(blocks.shape[2]), times=times))
                 stage("write")
                 w.commit()
     return dst

@@ -271,6 +271,53 @@ NORMALS_PLANAR_DXDY = 2  # metadata ``normals_layout``; absent or 1: raw interle
 NORMAL_BITS = 8  # bits per octahedral normal component the preprocess stores
 
 
+def store_metadata(*, source: str, source_dtype: str, source_nodata: float | None,
+                   encoding: str, grid: dict, frame: dict, quantizer: dict,
+                   normals_derived: bool, valid_samples: int, samples: int,
+                   height_range: list, delta_max_finite: float, edge_max: list | None,
+                   stand_in_z: float, block_delta_levels: int, times: dict) -> dict:
+    """The metadata a preprocess writes (the whole-grid one and the streaming one).
+
+    Examples
+    --------
+    >>> m = store_metadata(source="d.tif", source_dtype="int16", source_nodata=None,
+    ...     encoding="raw", grid={}, frame={}, quantizer={}, normals_derived=True,
+    ...     valid_samples=3, samples=4, height_range=[0, 1], delta_max_finite=0.0,
+    ...     edge_max=None, stand_in_z=0.5, block_delta_levels=1, times={})
+    >>> m["nodata_fraction"], m["normals_derived"], "delta_edge" in m
+    (0.25, [0], False)
+    """
+    from geoterrain._version import __version__
+
+    return {
+        "format": "geoterrain",
+        "generator": f"geoterrain {__version__}",
+        "source": source,
+        "source_dtype": source_dtype,
+        "source_nodata": source_nodata,
+        "encoding": encoding,
+        "grid": grid,
+        "frame": frame,
+        "quantizer": quantizer,
+        "normal_bits": NORMAL_BITS,
+        "normals_layout": NORMALS_PLANAR_DXDY,
+        # levels whose normals blobs hold only the tile's border ring (the interior is
+        # the central differences of the decoded heights, computed on read)
+        **({"normals_derived": [0]} if normals_derived else {}),
+        "valid_samples": valid_samples,
+        "nodata_fraction": float(1.0 - valid_samples / samples),
+        "height_range": height_range,
+        "delta_max_finite": delta_max_finite,
+        # per tile with a second δ (padding replicated, edgepad.py): [L, x, y, max of its
+        # new vertices' stored δ_edge (None: +inf)]; absent without padding
+        **({"delta_edge": edge_max} if edge_max is not None else {}),
+        "stand_in_z": stand_in_z,
+        # the root tile's block_delta blob: each block's δ_n, n = 0 … this − 1
+        "block_delta_levels": block_delta_levels,
+        "preprocess_seconds": times,
+    }
+
+
 def normals_to_bytes(oct8: np.ndarray) -> bytes:
     """A tile's 8-bit octahedral normals (T, T, 2) as two planes of 2-D differences
     (mod 256): neighbouring normals agree, so zstd finds ~15 % fewer bytes than in the
