@@ -42,10 +42,15 @@ from geoterrain.raster import ENCODINGS
               help="Memory the job may use, e.g. 2G or 800M (default: half of what is "
                    "available). A single-band projected raster too large for it is read "
                    "a window at a time, into the same store.")
+@click.option("--scheduler", default="sync", show_default=True, metavar="SPEC",
+              help="Where a streamed preprocess's passes run: sync, threads:N, "
+                   "processes:N, dask:ADDRESS (a running dask scheduler) or dask:local:N "
+                   "(N local worker processes). The store is the same on each.")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,
-            codec_error, old_max_error, zstd_level, nodata, memory_limit, overwrite):
+            codec_error, old_max_error, zstd_level, nodata, memory_limit, scheduler,
+            overwrite):
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
     DEM is any raster GDAL reads (GeoTIFF/COG, SRTM .hgt, Esri ASCII, a .vrt,
@@ -63,6 +68,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
       geoterrain preprocess lidar.tif --codec-error 0.05 --z-scale 2
       geoterrain preprocess 'srtm/*.hgt' -o srtm.geoterrain
       geoterrain preprocess lidar_county.tif --memory-limit 2G
+      geoterrain preprocess lidar_county.tif --memory-limit 2G --scheduler processes:4
     """
     import geoterrain
     from geoterrain.exceptions import UsageError
@@ -81,7 +87,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
             dem, output, tile_size=tile_size, band=band, encoding=encoding,
             pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, tile=tile,
             codec_error=codec_error, overwrite=overwrite, zstd_level=zstd_level, nodata=nodata,
-            memory_limit=memory_limit, progress=bar)
+            memory_limit=memory_limit, scheduler=scheduler, progress=bar)
     finally:
         bar.close()
     if not quiet:

@@ -34,6 +34,7 @@ from geoterrain.progress import Progress, StageClock
 from geoterrain.quantize import choose_quantizer
 from geoterrain.radii import stand_in_z, valid_range, vertex_radii
 from geoterrain.raster import ABSURD_HEIGHT, Raster, read_raster
+from geoterrain.schedulers import parse_scheduler
 from geoterrain.store import StoreWriter, default_store_path, remove_stale_partials
 from geoterrain.streaming import preprocess_streaming, streaming_band
 from geoterrain.tileblobs import BoundsCoding, level_blobs, radius_codes, ring_blobs
@@ -101,6 +102,7 @@ def preprocess(
     derive_normals: bool = True,
     derive_bounds: bool = True,
     memory_limit: int | None = None,
+    scheduler: str = "sync",
 ) -> Path:
     """Preprocess a DEM into a store and return the store's path.
 
@@ -156,6 +158,13 @@ def preprocess(
         (:func:`geoterrain.streaming.preprocess_streaming`, the same store), with bands
         sized to the limit: a single-band raster in a projected or pixel frame. Others
         are refused in one line when they do not fit.
+    scheduler
+        Where the streaming preprocess's four independent passes run
+        (:mod:`geoterrain.schedulers`: ``sync``, ``threads:N``, ``processes:N``,
+        ``dask:ADDRESS``, ``dask:local:N``); the store is the same on each. The
+        whole-grid preprocess runs here. ``processes`` and ``dask:local`` start fresh
+        Python processes, so a script that calls this with them needs Python's
+        ``if __name__ == "__main__":`` guard.
 
     Examples
     --------
@@ -180,6 +189,7 @@ def preprocess(
         raise UsageError(f"tile_size must be a power of two in [2, {MAX_TILE_SIZE}], "
                          f"got {tile_size}", cli=f"--tile-size must be a power of two in "
                          f"[2, {MAX_TILE_SIZE}], got {tile_size}")
+    parse_scheduler(scheduler)  # a bad spec is a usage error before any work
     files = source_files(src)
     mosaic = isinstance(src, (list, tuple)) or is_glob(src)
     if dst is None and mosaic:
@@ -203,7 +213,7 @@ def preprocess(
                 files[0], dst, tile_size=tile_size, z_scale=z_scale, z_units=z_units,
                 codec_error=codec_error, overwrite=overwrite, zstd_level=zstd_level,
                 nodata=nodata, band=rows, derive_normals=derive_normals,
-                derive_bounds=derive_bounds, progress=progress)
+                derive_bounds=derive_bounds, scheduler=scheduler, progress=progress)
     r = read_raster(files if mosaic else src, band=band, encoding=encoding, nodata=nodata)
     validate(r, z_scale)
     zxy = parse_tile(tile) if tile is not None else None

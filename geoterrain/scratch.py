@@ -9,6 +9,7 @@ never mapped, so what it holds does not count against the process's resident mem
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -39,6 +40,33 @@ class ScratchArrays:
         self._meta: dict[str, tuple[tuple[int, int], np.dtype]] = {}
         self._dir = (None if folder is None else
                      tempfile.TemporaryDirectory(prefix="geoterrain-", dir=folder))
+        self._path = None if self._dir is None else self._dir.name
+
+    @classmethod
+    def shared(cls, path: str | Path) -> ScratchArrays:
+        """Arrays in the folder ``path`` (created if needed) that other processes open
+        too: an index file names each array's shape and dtype, and :meth:`close` keeps
+        the files (the folder's owner removes it). Each array has one writer; a reader
+        attaches once its writer is done.
+
+        Examples
+        --------
+        >>> d = tempfile.mkdtemp()
+        >>> a = ScratchArrays.shared(d); a.create("x", (2, 2), np.uint8)
+        >>> a.write("x", 1, np.full((1, 2), 7, np.uint8)); a.close()
+        >>> ScratchArrays.shared(d).read("x", 0, 2).tolist()
+        [[0, 0], [7, 7]]
+        """
+        self = cls()
+        self._path = str(path)
+        os.makedirs(self._path, exist_ok=True)
+        index = os.path.join(self._path, "index.json")
+        if os.path.exists(index):
+            with open(index) as fh:
+                for name, (r, c, dt) in json.load(fh).items():
+                    self._meta[name] = ((r, c), np.dtype(dt))
+                    self._fd[name] = os.open(os.path.join(self._path, name), os.O_RDWR)
+        return self
 
     def __enter__(self) -> ScratchArrays:
         return self
@@ -48,18 +76,24 @@ class ScratchArrays:
 
     @property
     def on_disk(self) -> bool:
-        return self._dir is not None
+        return self._path is not None
 
     def create(self, name: str, shape: tuple[int, int], dtype: type) -> None:
         dt = np.dtype(dtype)
         self._meta[name] = ((int(shape[0]), int(shape[1])), dt)
-        if self._dir is None:
+        if self._path is None:
             self._mem[name] = np.zeros(shape, dt)
             return
-        path = os.path.join(self._dir.name, name)
+        path = os.path.join(self._path, name)
         fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o600)
         os.ftruncate(fd, shape[0] * shape[1] * dt.itemsize)  # sparse zeros
         self._fd[name] = fd
+        if self._dir is None:  # shared: the index names every array (rewritten whole)
+            index = {k: [*sh, d.str] for k, (sh, d) in self._meta.items()}
+            tmp = os.path.join(self._path, f"index.json.{os.getpid()}")
+            with open(tmp, "w") as fh:
+                json.dump(index, fh)
+            os.replace(tmp, os.path.join(self._path, "index.json"))
 
     def shape(self, name: str) -> tuple[int, int]:
         return self._meta[name][0]
@@ -68,7 +102,7 @@ class ScratchArrays:
         """Rows ``r0 … r1 − 1`` (clipped to the array), a copy."""
         (nr, nc), dt = self._meta[name]
         r0, r1 = max(r0, 0), min(r1, nr)
-        if self._dir is None:
+        if self._path is None:
             return self._mem[name][r0:r1].copy()
         nbytes = max(r1 - r0, 0) * nc * dt.itemsize
         buf = bytearray(nbytes)
@@ -93,7 +127,7 @@ class ScratchArrays:
         if rows.ndim != 2 or rows.shape[1] != nc or r0 < 0 or r0 + rows.shape[0] > nr:
             raise ValueError(f"scratch array {name} {nr}×{nc}: cannot write "
                              f"{rows.shape} at row {r0}")
-        if self._dir is None:
+        if self._path is None:
             self._mem[name][r0:r0 + rows.shape[0]] = rows
             return
         data = rows.tobytes()

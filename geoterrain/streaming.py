@@ -22,7 +22,12 @@ single-band raster GDAL reads (not a web-map PNG encoding or a mosaic).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import os
+import struct
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -40,8 +45,9 @@ from geoterrain.exceptions import InputError, UsageError, exists_error
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
 from geoterrain.progress import Progress, StageClock
-from geoterrain.quantize import roundtrip
+from geoterrain.quantize import Quantizer, roundtrip
 from geoterrain.raster import ABSURD_HEIGHT, GDAL_READ_OPTIONS, VOID_SENTINELS
+from geoterrain.schedulers import run_tasks
 from geoterrain.scratch import ScratchArrays
 from geoterrain.store import StoreWriter
 from geoterrain.tileblobs import BoundsCoding, level_blobs, ring_blobs
@@ -61,8 +67,7 @@ __all__ = ["preprocess_streaming"]
 BAND_BYTES_PER_SAMPLE = 200
 FIXED_BYTES = 400 << 20
 # in-memory preprocess bytes per sample (raster.PREPROCESS_BYTES_PER_SAMPLE, projected)
-STAGES = ("scan", "quantise", "errors", "radii", "tile bounds", "normals", "heights",
-          "blobs", "write")
+STAGES = ("scan", "quantise", "errors, tiles, normals, heights", "blobs", "write")
 
 
 def streaming_band(path: str | Path, memory_limit: int) -> int | None:
@@ -160,6 +165,99 @@ def _scan(src: _Source, band: int) -> tuple[float | None, int]:
     return void, n_inf
 
 
+@dataclasses.dataclass(frozen=True)
+class _Job:
+    """What a pass needs (picklable: a scheduler ships it to its worker)."""
+
+    src: str
+    grid: dict
+    frame: dict
+    q: Quantizer
+    nodata: float | None
+    flip: bool
+    band: int
+    zstd_level: int
+    folder: str
+    pad: bool
+
+    @contextlib.contextmanager
+    def opened(self) -> Iterator[tuple]:
+        """(source, scene rows, grid, xs, ys) over the raster, opened in this process."""
+        grid = Grid(**self.grid)
+        frame = Frame.from_json(self.frame)
+        with rasterio.Env(**GDAL_READ_OPTIONS), rasterio.open(self.src) as ds:
+            source = _Source(ds, grid, self.nodata, self.flip)
+
+            def scene(i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
+                z, v = source.rows(i0, i1)
+                return frame.z(roundtrip(z, v, self.q)), v  # decoded, scene metres
+
+            X, Y = frame.grid_xy(grid.size)
+            yield source, scene, grid, np.ascontiguousarray(X[0]), np.ascontiguousarray(Y[:, 0])
+
+
+def _bounds_task(job: _Job) -> tuple:
+    # δ with each level's vertex heights, δ_edge, and the radius codes nested on them
+    with job.opened() as (_, scene, grid, xs, ys):
+        N = grid.size
+        sa = ScratchArrays.shared(os.path.join(job.folder, "bounds"))
+        lvl = band_vertex_errors(scene, N, band=job.band, scratch=sa, heights=True)
+        if job.pad:
+            se = ScratchArrays.shared(os.path.join(job.folder, "edge"))
+            band_vertex_errors(edge_rows(scene, (grid.rows, grid.cols)), N, band=job.band,
+                               scratch=se, data=(grid.rows, grid.cols))
+            se.close()
+        er = band_radius_codes(sa, N, xs, ys, *lvl.valid_range[:2])
+        sa.close()
+        return lvl.valid_range, lvl.stand_in, er
+
+
+def _tiles_task(job: _Job) -> tuple:
+    with job.opened() as (_, scene, grid, xs, ys):
+        return band_tile_bounds(scene, grid.size, grid.t, xs, ys, band=job.band)
+
+
+def _normals_task(job: _Job) -> None:
+    with job.opened() as (_, scene, grid, xs, ys):
+        sn = ScratchArrays.shared(os.path.join(job.folder, "normals"))
+        band_normal_codes(scene, grid.size, xs, ys, grid.top_level + 1, sn, band=job.band,
+                          bits=NORMAL_BITS)
+        sn.close()
+
+
+_RECORD = struct.Struct("<iiiI")  # a height blob's record: L, x, y, length
+
+
+def _heights_task(job: _Job) -> int:
+    # the height blobs into a scratch file of records, as they are made
+    with job.opened() as (source, _, grid, _, _), \
+            open(os.path.join(job.folder, "heights.bin"), "wb") as fh:
+        count = [0]
+
+        def sink(part: dict) -> None:
+            for key, b in part.items():
+                fh.write(_RECORD.pack(*key, len(b)) + b)
+            count[0] += len(part)
+
+        band_encode_pyramid(source.rows, grid.size, grid.t, job.q, level=job.zstd_level,
+                            sink=sink)
+        return count[0]
+
+
+def _heights_records(path: str, batch: int = 4096) -> Iterator[dict]:
+    """The height blobs of :func:`_heights_task`'s file, ``batch`` at a time."""
+    with open(path, "rb") as fh:
+        part: dict = {}
+        while head := fh.read(_RECORD.size):
+            L, x, y, n = _RECORD.unpack(head)
+            part[(L, x, y)] = fh.read(n)
+            if len(part) >= batch:
+                yield part
+                part = {}
+        if part:
+            yield part
+
+
 def _lattice(sa: ScratchArrays, pre: str, L: int, n: int, p0: int, p1: int, m: int,
              top: bool, dtype) -> np.ndarray:
     """Rows p0 … p1 − 1 of level L's lattice (m a side, sample (p, q) = grid sample
@@ -194,6 +292,7 @@ def preprocess_streaming(
     scratch: str | Path | None = None,
     derive_normals: bool = True,
     derive_bounds: bool = True,
+    scheduler: str = "sync",
     progress: Progress | None = None,
 ) -> Path:
     """Preprocess a DEM a window at a time into the store
@@ -201,8 +300,11 @@ def preprocess_streaming(
     metadata but the timings); memory is set by ``band`` rows, not the raster.
 
     Parameters are :func:`~geoterrain.preprocessing.preprocess`'s, and
-    ``band`` (rows per band, a power of two) and ``scratch`` (the folder of the scratch
-    files; default the store's folder).
+    ``band`` (rows per band, a power of two), ``scratch`` (the folder of the scratch
+    files; default the store's folder) and ``scheduler``
+    (:mod:`geoterrain.schedulers`: where the four independent passes run, δ with δ_edge
+    and the radius codes, the tile table, the normals and the height blobs; the store is
+    the same on every one, and this process stays its only writer).
 
     Examples
     --------
@@ -255,17 +357,10 @@ def preprocess_streaming(
                              "gdal_translate -a_nodata)")
         nd = declared if declared is not None else void
         source = _Source(ds, grid, nd, flip)
-        N, t = grid.size, grid.t
+        N = grid.size
         stage("scan")
 
         q = band_quantizer(lambda: source.bands(band), dtype, codec_error)
-        X, Y = frame.grid_xy(N)
-        xs, ys = np.ascontiguousarray(X[0]), np.ascontiguousarray(Y[:, 0])
-
-        def scene(i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
-            z, v = source.rows(i0, i1)
-            return frame.z(roundtrip(z, v, q)), v  # decoded heights, scene metres
-
         hv = [np.inf, -np.inf]  # decoded heights
         raw = [np.inf, -np.inf]  # source heights
         nvalid = 0
@@ -284,29 +379,25 @@ def preprocess_streaming(
                              "else set the right nodata or unit")
         stage("quantise")
 
-        folder = Path(scratch) if scratch is not None else (dst.parent if str(dst.parent) else
-                                                            Path("."))
-        with ScratchArrays(folder) as sa, ScratchArrays(folder) as se:
-            lvl = band_vertex_errors(scene, N, band=band, scratch=sa, heights=True)
-            lo, hi, _ = lvl.valid_range
-            pad = has_padding(grid)
-            if pad:
-                band_vertex_errors(edge_rows(scene, (grid.rows, grid.cols)), N, band=band,
-                                   scratch=se, data=(grid.rows, grid.cols))
-            stage("errors")
-            er = band_radius_codes(sa, N, xs, ys, lo, hi)
-            stage("radii")
-            bounds, blocks = band_tile_bounds(scene, N, t, xs, ys, band=band)
-            stage("tile bounds")
-            band_normal_codes(scene, N, xs, ys, grid.top_level + 1, sa, band=band,
-                              bits=NORMAL_BITS)
-            stage("normals")
+    parent = Path(scratch) if scratch is not None else (dst.parent if str(dst.parent) else
+                                                        Path("."))
+    pad = has_padding(grid)
+    with tempfile.TemporaryDirectory(prefix="geoterrain-", dir=parent) as folder:
+        job = _Job(str(src), grid.to_json(), frame.to_json(), q, nd, flip, band, zstd_level,
+                   folder, pad)
+        (vrange, stand_in, er), (bounds, blocks), _, _ = run_tasks(
+            scheduler, [(_bounds_task, (job,)), (_tiles_task, (job,)),
+                        (_normals_task, (job,)), (_heights_task, (job,))])
+        stage("errors, tiles, normals, heights")
+        sa = ScratchArrays.shared(os.path.join(folder, "bounds"))
+        se = ScratchArrays.shared(os.path.join(folder, "edge")) if pad else None
+        sn = ScratchArrays.shared(os.path.join(folder, "normals"))
+        try:
             with StoreWriter(dst, overwrite=overwrite) as w:
-                band_encode_pyramid(source.rows, N, t, q, level=zstd_level,
-                                    sink=lambda part: w.put_blobs("heights", part))
+                for part in _heights_records(os.path.join(folder, "heights.bin")):
+                    w.put_blobs("heights", part)
                 stored = set(bounds)  # the tiles whose footprint holds a valid sample
-                stage("heights")
-                meta = _level_blobs(w, sa, se if pad else None, grid, bounds, stored, er,
+                meta = _level_blobs(w, sa, se, sn, grid, bounds, stored, er,
                                     derive_normals, derive_bounds)
                 stage("blobs")
                 w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
@@ -317,16 +408,20 @@ def preprocess_streaming(
                     normals_derived=meta["derive_normals"], valid_samples=nvalid,
                     samples=grid.rows * grid.cols, height_range=hv,
                     delta_max_finite=meta["delta_max"],
-                    edge_max=meta["edge_max"] if pad else None, stand_in_z=lvl.stand_in,
+                    edge_max=meta["edge_max"] if pad else None, stand_in_z=stand_in,
                     block_delta_levels=int(blocks.shape[2]), times=times))
                 stage("write")
                 w.commit()
+        finally:
+            for arrs in (sa, se, sn):
+                if arrs is not None:
+                    arrs.close()
     return dst
 
 
-def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None, grid: Grid,
-                 bounds: dict, stored: set, er: int, derive_normals: bool,
-                 derive_bounds: bool) -> dict:
+def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
+                 sn: ScratchArrays, grid: Grid, bounds: dict, stored: set, er: int,
+                 derive_normals: bool, derive_bounds: bool) -> dict:
     """The δ, r, normals and δ_edge blobs and the tile rows, a tile row of each level at a
     time (preprocessing.preprocess's compress stage on each level's lattice window)."""
     n, t, top = grid.n, grid.t, grid.top_level
@@ -364,7 +459,7 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None, gr
             p0, p1 = y * T1, y * T1 + T
             d = _lattice(sa, "", L, n, p0, p1, m, is_top, np.float32)
             rc = _lattice(sa, "r", L, n, p0, p1, m, is_top, np.uint8)
-            nrm = sa.read(f"n{L}", p0, p1).reshape(T, m, 2)
+            nrm = sn.read(f"n{L}", p0, p1).reshape(T, m, 2)
             coding = BoundsCoding(d, None, ed, r_codes=(rc, er))
             edge = None
             if se is not None:

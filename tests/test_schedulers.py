@@ -1,0 +1,89 @@
+"""Schedulers (geoterrain.schedulers) and the streaming preprocess on each.
+
+The store must be the same on every scheduler (the passes are pure), and a task whose
+worker process is killed must be run again, on a fresh pool (``processes``) or by dask
+(``dask:local``, a real LocalCluster of 2 worker processes).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from geoterrain.exceptions import UsageError
+from geoterrain.preprocessing import preprocess
+from geoterrain.schedulers import parse_scheduler, run_tasks
+from geoterrain.streaming import preprocess_streaming
+from tests.test_streaming import _assert_same_store, _tif
+
+
+def _die_once(marker: str, value: int) -> int:
+    """Kill this worker process the first time (SIGKILL: no cleanup, no exception)."""
+    if not os.path.exists(marker):
+        with open(marker, "w"):
+            pass
+        os.kill(os.getpid(), signal.SIGKILL)
+    return value * 2
+
+
+def test_scheduler_specs():
+    assert parse_scheduler("threads:3") == ("threads", 3)
+    for bad in ("", "threads", "threads:0", "processes:x", "dask", "dask:local", "gpu:2"):
+        with pytest.raises(UsageError, match="sync, threads:N"):
+            parse_scheduler(bad)
+
+
+@pytest.mark.parametrize("spec", ["sync", "threads:2", "processes:2"])
+def test_results_come_back_in_order(spec):
+    assert run_tasks(spec, [(pow, (2, k)) for k in range(6)]) == [1, 2, 4, 8, 16, 32]
+
+
+@pytest.mark.parametrize("spec", ["processes:2", "dask:local:2"])
+def test_a_killed_worker_s_task_is_run_again(tmp_path, spec):
+    if spec.startswith("dask"):
+        pytest.importorskip("distributed")
+    marker = str(tmp_path / "died")
+    out = run_tasks(spec, [(_die_once, (marker, 21)), (pow, (3, 2))])
+    assert out == [42, 9]
+    assert os.path.exists(marker)  # the first run did die
+
+
+def _dem(tmp, seed, rows, cols, holes):
+    rng = np.random.default_rng(seed)
+    z = rng.normal(0, 20, (rows, cols)).cumsum(0).cumsum(1).astype(np.float32)
+    z[rng.random(z.shape) < holes] = -9999
+    return _tif(tmp / "dem.tif", z, -9999)
+
+
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 10_000), rows=st.integers(9, 120), cols=st.integers(9, 120),
+       holes=st.sampled_from([0.0, 0.1]), spec=st.sampled_from(["threads:2", "processes:2"]),
+       band=st.sampled_from([2, 16]))
+def test_the_store_is_the_same_on_every_scheduler(tmp_path_factory, seed, rows, cols, holes,
+                                                  spec, band):
+    tmp = tmp_path_factory.mktemp("sch")
+    src = _dem(tmp, seed, rows, cols, holes)
+    a = preprocess(src, tmp / "a.gt", tile_size=16)
+    b = preprocess_streaming(src, tmp / "b.gt", tile_size=16, band=band, scheduler=spec)
+    _assert_same_store(a, b)
+
+
+def test_the_store_is_the_same_on_a_dask_local_cluster(tmp_path):
+    """A real LocalCluster of 2 worker processes runs the four passes."""
+    pytest.importorskip("distributed")
+    src = _dem(tmp_path, 7, 100, 90, 0.05)
+    a = preprocess(src, tmp_path / "a.gt", tile_size=16)
+    b = preprocess_streaming(src, tmp_path / "b.gt", tile_size=16, band=8,
+                             scheduler="dask:local:2")
+    _assert_same_store(a, b)
+
+
+def test_no_dask_scheduler_at_an_address_is_a_usage_error(tmp_path):
+    pytest.importorskip("distributed")
+    with pytest.raises(UsageError, match="no dask scheduler"):
+        run_tasks("dask:tcp://127.0.0.1:9", [(pow, (2, 2))])
