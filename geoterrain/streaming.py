@@ -25,8 +25,8 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
+import shutil
 import struct
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -49,7 +49,7 @@ from geoterrain.quantize import Quantizer, roundtrip
 from geoterrain.raster import ABSURD_HEIGHT, GDAL_READ_OPTIONS, VOID_SENTINELS
 from geoterrain.schedulers import run_tasks
 from geoterrain.scratch import ScratchArrays
-from geoterrain.store import StoreWriter
+from geoterrain.store import StoreWriter, remove_stale_partials
 from geoterrain.tileblobs import BoundsCoding, level_blobs, ring_blobs
 from geoterrain.units import resolve_z_units
 from geoterrain.vertexdata import (
@@ -382,7 +382,14 @@ def preprocess_streaming(
     parent = Path(scratch) if scratch is not None else (dst.parent if str(dst.parent) else
                                                         Path("."))
     pad = has_padding(grid)
-    with tempfile.TemporaryDirectory(prefix="geoterrain-", dir=parent) as folder:
+    # the scratch folder is named like a partial store (.NAME.scratch.partial-PID): a
+    # killed run's is removed by the next run in this folder (store.remove_stale_partials)
+    remove_stale_partials(parent)
+    folder = str(parent / f".{dst.name}.scratch.partial-{os.getpid()}")
+    shutil.rmtree(folder, ignore_errors=True)
+    os.makedirs(folder)
+    with contextlib.ExitStack() as cleanup:
+        cleanup.callback(shutil.rmtree, folder, True)
         job = _Job(str(src), grid.to_json(), frame.to_json(), q, nd, flip, band, zstd_level,
                    folder, pad)
         (vrange, stand_in, er), (bounds, blocks), _, _ = run_tasks(

@@ -87,3 +87,34 @@ def test_no_dask_scheduler_at_an_address_is_a_usage_error(tmp_path):
     pytest.importorskip("distributed")
     with pytest.raises(UsageError, match="no dask scheduler"):
         run_tasks("dask:tcp://127.0.0.1:9", [(pow, (2, 2))])
+
+
+def test_a_killed_streaming_run_leaves_no_store_and_the_next_run_cleans_up(tmp_path):
+    """SIGKILL of the driver mid-run: no store at the destination (its scratch folder and
+    partial store are named .NAME.*partial-PID), and the next run in that folder removes
+    them and writes the store."""
+    import subprocess
+    import sys
+    import time
+
+    import geoterrain
+
+    src = _dem(tmp_path, 3, 600, 500, 0.02)
+    out = tmp_path / "out"
+    out.mkdir()
+    dst = out / "s.gt"
+    code = ("from geoterrain.streaming import preprocess_streaming; "
+            f"preprocess_streaming({src!r}, {str(dst)!r}, band=4)")
+    p = subprocess.Popen([sys.executable, "-c", code])
+    deadline = time.monotonic() + 120
+    while not list(out.glob(".*.scratch.partial-*")) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    p.kill()
+    p.wait()
+    assert not dst.exists()
+    left = [x.name for x in out.iterdir()]
+    assert left and all(".partial-" in n for n in left), left
+    preprocess_streaming(src, dst, band=64)
+    assert [x.name for x in out.iterdir()] == ["s.gt"]
+    assert geoterrain.open(dst).tile(0, 0, 0).heights.shape == (65, 65)
