@@ -46,10 +46,14 @@ from geoterrain.raster import ENCODINGS
               help="Where a streamed preprocess's passes run: sync, threads:N, "
                    "processes:N, dask:ADDRESS (a running dask scheduler) or dask:local:N "
                    "(N local worker processes). The store is the same on each.")
+@click.option("--resume", is_flag=True,
+              help="Take up a streamed preprocess of the same DEM and settings that was "
+                   "killed: the passes it finished are reused, and the store is the one an "
+                   "uninterrupted run writes.")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,
-            codec_error, old_max_error, zstd_level, nodata, memory_limit, scheduler,
+            codec_error, old_max_error, zstd_level, nodata, memory_limit, scheduler, resume,
             overwrite):
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
@@ -87,7 +91,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
             dem, output, tile_size=tile_size, band=band, encoding=encoding,
             pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, tile=tile,
             codec_error=codec_error, overwrite=overwrite, zstd_level=zstd_level, nodata=nodata,
-            memory_limit=memory_limit, scheduler=scheduler, progress=bar)
+            memory_limit=memory_limit, scheduler=scheduler, resume=resume, progress=bar)
     finally:
         bar.close()
     if not quiet:

@@ -103,6 +103,7 @@ def preprocess(
     derive_bounds: bool = True,
     memory_limit: int | None = None,
     scheduler: str = "sync",
+    resume: bool = False,
 ) -> Path:
     """Preprocess a DEM into a store and return the store's path.
 
@@ -165,6 +166,10 @@ def preprocess(
         whole-grid preprocess runs here. ``processes`` and ``dask:local`` start fresh
         Python processes, so a script that calls this with them needs Python's
         ``if __name__ == "__main__":`` guard.
+    resume
+        A streamed preprocess killed before it finished left its scratch folder beside
+        ``dst``; with ``resume`` the same job reuses the passes it had finished and
+        writes the store an uninterrupted run writes. Without it, that folder is removed.
 
     Examples
     --------
@@ -197,7 +202,8 @@ def preprocess(
                          "pass dst", cli="a mosaic (several files or a glob) has no default "
                          "store name; pass -o STORE")
     dst = Path(dst) if dst is not None else default_store_path(src)
-    remove_stale_partials(dst.parent if str(dst.parent) else Path("."))
+    if not resume:  # a killed streaming run's scratch stays for resume to take up
+        remove_stale_partials(dst.parent if str(dst.parent) else Path("."))
     if dst.exists() and not overwrite:
         raise exists_error(dst)
     if any(f.resolve() == dst.resolve() for f in files):
@@ -213,7 +219,8 @@ def preprocess(
                 files[0], dst, tile_size=tile_size, z_scale=z_scale, z_units=z_units,
                 codec_error=codec_error, overwrite=overwrite, zstd_level=zstd_level,
                 nodata=nodata, band=rows, derive_normals=derive_normals,
-                derive_bounds=derive_bounds, scheduler=scheduler, progress=progress)
+                derive_bounds=derive_bounds, scheduler=scheduler, resume=resume,
+                progress=progress)
     r = read_raster(files if mosaic else src, band=band, encoding=encoding, nodata=nodata)
     validate(r, z_scale)
     zxy = parse_tile(tile) if tile is not None else None

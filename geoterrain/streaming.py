@@ -24,7 +24,10 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
+import logging
 import os
+import re
 import shutil
 import struct
 from collections.abc import Iterator
@@ -34,6 +37,7 @@ import numpy as np
 import rasterio
 from rasterio.windows import Window
 
+from geoterrain._version import __version__
 from geoterrain.bandcodec import band_encode_pyramid
 from geoterrain.banddelta import band_vertex_errors, edge_rows
 from geoterrain.bandnormals import band_normal_codes
@@ -49,8 +53,9 @@ from geoterrain.quantize import Quantizer, roundtrip
 from geoterrain.raster import ABSURD_HEIGHT, GDAL_READ_OPTIONS, VOID_SENTINELS
 from geoterrain.schedulers import run_tasks
 from geoterrain.scratch import ScratchArrays
-from geoterrain.store import StoreWriter, remove_stale_partials
+from geoterrain.store import StoreWriter, _alive, remove_stale_partials
 from geoterrain.tileblobs import BoundsCoding, level_blobs, ring_blobs
+from geoterrain.tilebounds import TileBounds
 from geoterrain.units import resolve_z_units
 from geoterrain.vertexdata import (
     NORMAL_BITS,
@@ -59,7 +64,9 @@ from geoterrain.vertexdata import (
     store_metadata,
 )
 
-__all__ = ["preprocess_streaming"]
+__all__ = ["preprocess_streaming", "streaming_band"]
+
+log = logging.getLogger("geoterrain")
 
 # Bytes per sample of a band's rows, over every stage's windows and their copies, and
 # what the process holds besides (imports, compiled kernels, tile tables): measured on
@@ -258,6 +265,79 @@ def _heights_records(path: str, batch: int = 4096) -> Iterator[dict]:
             yield part
 
 
+def _save_done(path: str, out) -> None:
+    # a finished pass's result, as plain data (a resumed run reads no pickle)
+    if isinstance(out, tuple) and len(out) == 2 and isinstance(out[0], dict):  # tiles
+        keys = np.array(sorted(out[0]), np.int64).reshape(-1, 3)
+        rows = np.array([out[0][tuple(k)] for k in keys.tolist()], np.float64)
+        payload = {"kind": "tiles"}
+        np.savez(path + ".npz", keys=keys, rows=rows.reshape(len(keys), -1), blocks=out[1])
+    else:
+        payload = {"kind": "value", "value": out}
+    tmp = f"{path}.{os.getpid()}"
+    with open(tmp, "w") as fh:
+        json.dump(payload, fh)
+    os.replace(tmp, path)
+
+
+def _load_done(path: str):
+    with open(path) as fh:
+        payload = json.load(fh)
+    if payload["kind"] == "tiles":
+        with np.load(path + ".npz", allow_pickle=False) as z:
+            rows = {tuple(k): TileBounds(int(r[0]), *map(float, r[1:]))
+                    for k, r in zip(z["keys"].tolist(), z["rows"], strict=True)}
+            return rows, z["blocks"]
+    v = payload["value"]
+    return (tuple(v[0]), v[1], v[2]) if isinstance(v, list) else v
+
+
+_PASSES = {"bounds": _bounds_task, "tiles": _tiles_task, "normals": _normals_task,
+           "heights": _heights_task}
+
+
+def _pass(job: _Job, name: str):
+    """Run pass ``name``, or read its result if a resumed run's folder has it; the
+    result is recorded when the pass ends (``done-NAME``)."""
+    done = os.path.join(job.folder, f"done-{name}")
+    if os.path.exists(done):
+        return _load_done(done)
+    out = _PASSES[name](job)
+    _save_done(done, out)
+    return out
+
+
+def _job_record(src: Path, job: _Job) -> dict:
+    # what a resumed run must share with the killed one: the input file and every setting
+    st = os.stat(src)
+    d = dataclasses.asdict(job)
+    d.pop("folder")
+    d["q"] = dataclasses.asdict(job.q)
+    return json.loads(json.dumps({"src": str(src.resolve()), "size": st.st_size,
+                                  "mtime_ns": st.st_mtime_ns, "job": d,
+                                  "generator": __version__}))
+
+
+def _adopt(parent: Path, dst: Path, record: dict) -> str | None:
+    """A killed run's scratch folder for ``dst`` with the same job record, renamed to this
+    process (its passes' results are reused), or None."""
+    pat = re.compile(rf"^\.{re.escape(dst.name)}\.scratch\.partial-(\d+)$")
+    for e in os.scandir(parent):
+        m = pat.match(e.name)
+        if not m or _alive(int(m.group(1))) or e.stat().st_uid != os.getuid():
+            continue
+        try:
+            with open(os.path.join(e.path, "job.json")) as fh:
+                same = json.load(fh) == record
+        except (OSError, ValueError):
+            same = False
+        if same:
+            mine = str(parent / f".{dst.name}.scratch.partial-{os.getpid()}")
+            os.rename(e.path, mine)
+            return mine
+    return None
+
+
 def _lattice(sa: ScratchArrays, pre: str, L: int, n: int, p0: int, p1: int, m: int,
              top: bool, dtype) -> np.ndarray:
     """Rows p0 … p1 − 1 of level L's lattice (m a side, sample (p, q) = grid sample
@@ -293,6 +373,7 @@ def preprocess_streaming(
     derive_normals: bool = True,
     derive_bounds: bool = True,
     scheduler: str = "sync",
+    resume: bool = False,
     progress: Progress | None = None,
 ) -> Path:
     """Preprocess a DEM a window at a time into the store
@@ -304,7 +385,9 @@ def preprocess_streaming(
     files; default the store's folder) and ``scheduler``
     (:mod:`geoterrain.schedulers`: where the four independent passes run, δ with δ_edge
     and the radius codes, the tile table, the normals and the height blobs; the store is
-    the same on every one, and this process stays its only writer).
+    the same on every one, and this process stays its only writer) and ``resume`` (reuse
+    the passes a killed run of the same job into ``dst`` finished: its scratch folder
+    records each pass's result; the store is the one an uninterrupted run writes).
 
     Examples
     --------
@@ -384,17 +467,26 @@ def preprocess_streaming(
     pad = has_padding(grid)
     # the scratch folder is named like a partial store (.NAME.scratch.partial-PID): a
     # killed run's is removed by the next run in this folder (store.remove_stale_partials)
+    # unless that run resumes it
+    job = _Job(str(src), grid.to_json(), frame.to_json(), q, nd, flip, band, zstd_level,
+               "", pad)
+    record = _job_record(src, job)
+    folder = _adopt(parent, dst, record) if resume else None
+    if folder is not None:
+        done = sorted(p.name[5:] for p in Path(folder).glob("done-*") if "." not in p.name)
+        log.info("%s: resuming a killed run; passes done: %s", dst, ", ".join(done) or "none")
     remove_stale_partials(parent)
-    folder = str(parent / f".{dst.name}.scratch.partial-{os.getpid()}")
-    shutil.rmtree(folder, ignore_errors=True)
-    os.makedirs(folder)
+    if folder is None:
+        folder = str(parent / f".{dst.name}.scratch.partial-{os.getpid()}")
+        shutil.rmtree(folder, ignore_errors=True)
+        os.makedirs(folder)
+        with open(os.path.join(folder, "job.json"), "w") as fh:
+            json.dump(record, fh)
+    job = dataclasses.replace(job, folder=folder)
     with contextlib.ExitStack() as cleanup:
         cleanup.callback(shutil.rmtree, folder, True)
-        job = _Job(str(src), grid.to_json(), frame.to_json(), q, nd, flip, band, zstd_level,
-                   folder, pad)
         (vrange, stand_in, er), (bounds, blocks), _, _ = run_tasks(
-            scheduler, [(_bounds_task, (job,)), (_tiles_task, (job,)),
-                        (_normals_task, (job,)), (_heights_task, (job,))])
+            scheduler, [(_pass, (job, name)) for name in _PASSES])
         stage("errors, tiles, normals, heights")
         sa = ScratchArrays.shared(os.path.join(folder, "bounds"))
         se = ScratchArrays.shared(os.path.join(folder, "edge")) if pad else None

@@ -118,3 +118,48 @@ def test_a_killed_streaming_run_leaves_no_store_and_the_next_run_cleans_up(tmp_p
     preprocess_streaming(src, dst, band=64)
     assert [x.name for x in out.iterdir()] == ["s.gt"]
     assert geoterrain.open(dst).tile(0, 0, 0).heights.shape == (65, 65)
+
+
+def _killed_after_first_pass(src, dst, band):
+    # a streaming run into dst, SIGKILLed once its first pass is recorded
+    import subprocess
+    import sys
+    import time
+
+    code = ("from geoterrain.streaming import preprocess_streaming; "
+            f"preprocess_streaming({src!r}, {str(dst)!r}, band={band})")
+    p = subprocess.Popen([sys.executable, "-c", code])
+    deadline = time.monotonic() + 180
+    while not list(dst.parent.glob(f".{dst.name}.scratch.partial-*/done-bounds")) \
+            and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    p.kill()
+    p.wait()
+    assert not dst.exists(), "the run ended before it could be killed"
+
+
+def test_resume_after_a_killed_driver_reuses_its_passes(tmp_path, caplog):
+    """SIGKILL of the driver once its first pass is recorded; `resume` takes up that
+    scratch folder, reuses the recorded pass, and writes the uninterrupted run's store.
+    A run with another setting does not take it up."""
+    import logging
+
+    src = _dem(tmp_path, 5, 600, 500, 0.02)
+    ref = preprocess(src, tmp_path / "ref.gt")
+    out = tmp_path / "out"
+    out.mkdir()
+    dst = out / "s.gt"
+    _killed_after_first_pass(src, dst, 4)
+    with caplog.at_level(logging.INFO, logger="geoterrain"):
+        preprocess_streaming(src, dst, band=4, resume=True)
+    assert "resuming a killed run; passes done: bounds" in caplog.text
+    _assert_same_store(ref, dst)
+    assert [x.name for x in out.iterdir()] == ["s.gt"]
+    caplog.clear()
+    dst.unlink()
+    _killed_after_first_pass(src, dst, 4)
+    with caplog.at_level(logging.INFO, logger="geoterrain"):
+        preprocess_streaming(src, dst, band=8, resume=True)  # another job: a fresh run
+    assert "resuming" not in caplog.text
+    _assert_same_store(ref, dst)
+    assert [x.name for x in out.iterdir()] == ["s.gt"]
