@@ -134,3 +134,29 @@ def test_the_cli_streams_a_raster_over_its_memory_limit(tmp_path):
                                    "--memory-limit", "64M"])
     assert run.exit_code == 0, run.output
     _assert_same_store(tmp_path / "s.gt", preprocess(dem, tmp_path / "w.gt"))
+
+
+@pytest.mark.slow
+def test_a_16385_dem_preprocesses_in_bounded_memory(tmp_path):
+    """Issue 12's memory target: a 16385² DEM over a 1 GiB memory limit streams, and the
+    process peaks under 1.5 GB and within 10 % of a 4097² DEM under the same limit
+    (each in a fresh process; VmHWM)."""
+    import subprocess
+    import sys
+
+    from geoterrain.synth import generate, write_geotiff
+
+    code = ("import sys, json; from geoterrain.preprocessing import preprocess; "
+            "from geoterrain.memory import peak_rss; "
+            "preprocess(sys.argv[1], sys.argv[2], memory_limit=1 << 30); "
+            "print(json.dumps(peak_rss()))")
+    peaks = {}
+    for n in (4097, 16385):
+        dem = str(write_geotiff(str(tmp_path / f"f{n}.tif"), generate("fbm", n, seed=7)))
+        run = subprocess.run([sys.executable, "-c", code, dem, str(tmp_path / f"f{n}.gt")],
+                             capture_output=True, text=True, check=True)
+        peaks[n] = json.loads(run.stdout.strip().splitlines()[-1])
+        (tmp_path / f"f{n}.tif").unlink()
+    print("peaks MB", {n: p / 2**20 for n, p in peaks.items()})
+    assert peaks[16385] <= 1.5e9
+    assert peaks[16385] <= 1.1 * peaks[4097]
