@@ -160,3 +160,17 @@ def test_a_16385_dem_preprocesses_in_bounded_memory(tmp_path):
     print("peaks MB", {n: p / 2**20 for n, p in peaks.items()})
     assert peaks[16385] <= 1.5e9
     assert peaks[16385] <= 1.1 * peaks[4097]
+
+
+def test_a_vrt_mosaic_streams_to_the_merged_raster_s_store(tmp_path):
+    """A .vrt of a 2×2 mosaic (a void across the seam) is a single raster to the
+    streaming preprocess: its store is the merged GeoTIFF's, but the source name."""
+    from geoterrain.mosaic import build_vrt
+    from tests.test_mosaic import _synthetic, split, store_contents
+
+    merged = _synthetic(tmp_path)
+    vrt = tmp_path / "mosaic.vrt"
+    vrt.write_text(build_vrt(split(merged, tmp_path / "tiles")))
+    ref = store_contents(preprocess(merged, tmp_path / "merged.gt", tile_size=16))
+    got = store_contents(preprocess_streaming(vrt, tmp_path / "v.gt", tile_size=16, band=8))
+    assert got == ref
