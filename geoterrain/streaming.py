@@ -73,6 +73,7 @@ log = logging.getLogger("geoterrain")
 # the 16385² fBm (docs/benchmarks.md §3b), with a margin
 BAND_BYTES_PER_SAMPLE = 200
 FIXED_BYTES = 400 << 20
+BAND_SAMPLES = 1 << 20
 # in-memory preprocess bytes per sample (raster.PREPROCESS_BYTES_PER_SAMPLE, projected)
 STAGES = ("scan", "quantise", "errors, tiles, normals, heights", "blobs", "write")
 
@@ -104,10 +105,12 @@ def streaming_band(path: str | Path, memory_limit: int) -> int | None:
     if H * W * PREPROCESS_BYTES_PER_SAMPLE["projected"] <= memory_limit:
         return None
     N = Grid.for_shape(H, W).size
-    rows = max(memory_limit - FIXED_BYTES, 0) // (N * BAND_BYTES_PER_SAMPLE)
-    # at most 256 rows: wider bands cost memory and gain no time (16385²: 108 s with
-    # 128 rows, 115 s with 256; docs/benchmarks.md §3b)
-    return int(min(max(1 << max(int(rows).bit_length() - 1, 0), 2), 256))
+    # at most BAND_SAMPLES a band, whatever the limit: the band's memory is then the same
+    # for every raster width (4097²: 256 rows, 397 MB; 16385²: 64 rows, 430 MB), and
+    # wider bands gain no time (16385²: 104 s with 64 rows, 107 s with 128, 115 s with 256)
+    rows = min(max(memory_limit - FIXED_BYTES, 0) // (N * BAND_BYTES_PER_SAMPLE),
+               BAND_SAMPLES // (N - 1))
+    return int(max(1 << max(int(rows).bit_length() - 1, 0), 2))
 
 
 class _Source:
