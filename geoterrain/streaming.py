@@ -16,8 +16,10 @@ Each stage is its whole-grid twin's streaming form, the same bits
 
 Per-level arrays live in scratch files (:mod:`geoterrain.scratch`); blobs go to the
 store writer as they are made. Memory is set by ``band``: the rows of a band's window
-and of one tile row of each level, not the raster. Projected and pixel frames; a
-single-band raster GDAL reads (not a web-map PNG encoding or a mosaic).
+and of one tile row of each level, not the raster. The four passes after the quantizer
+run on any scheduler (:mod:`geoterrain.streampasses`, :mod:`geoterrain.schedulers`),
+and a killed run can be resumed. Projected and pixel frames; a single-band raster GDAL
+reads (a ``.vrt`` too; not a web-map PNG encoding, a list or a glob of tiles).
 """
 
 from __future__ import annotations
@@ -70,8 +72,7 @@ log = logging.getLogger("geoterrain")
 # the 16385² fBm (docs/benchmarks.md §3b), with a margin
 BAND_BYTES_PER_SAMPLE = 200
 FIXED_BYTES = 400 << 20
-BAND_SAMPLES = 1 << 20
-# in-memory preprocess bytes per sample (raster.PREPROCESS_BYTES_PER_SAMPLE, projected)
+BAND_SAMPLES = 1 << 20  # at most this many samples a band (streaming_band)
 STAGES = ("scan", "quantise", "errors, tiles, normals, heights", "blobs", "write")
 
 
