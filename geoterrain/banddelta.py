@@ -44,8 +44,7 @@ from geoterrain.bounds import (
     _block_sweep_part,
     _centre1,
     _edge_err_part,
-    _mid1,
-    edge_err_window,
+    edge_delta_nb,
     edge_status_nb,
     grid_order,
 )
@@ -211,25 +210,10 @@ def _fine_level_nb(z, vb, w0, r0, B, N, h, st, st_prev, qb_prev, last, C, R, K, 
             jc = b * s
             flo = st[ar, b - 1] if b > 0 else 0
             fhi = st[ar, b] if b < nb else 0
-            f = flo | fhi
-            if f == 2:
-                continue
-            if f == 1:
-                if h == 1:
-                    m = _mid1(z, ic - w0, jc, True)
-                else:
-                    m = 0.0
-                    if flo:
-                        m = max(m, QR[ar, b - 1])
-                    if fhi:
-                        m = max(m, QL[ar, b])
-                R[ar, b] = round_up32(m)
-                continue
-            m, c = edge_err_window(z, vb, ic, jc, h, True, N, w0)
-            if c == 2:
-                R[ar, b] = np.inf
-            elif c == 1:
-                R[ar, b] = round_up32(m)
+            qlo = QR[ar, b - 1] if flo else 0.0
+            qhi = QL[ar, b] if fhi else 0.0
+            R[ar, b] = edge_delta_nb(z, vb, ic, jc, h, True, N, w0, flo, fhi, qlo, qhi,
+                                     R[ar, b])
     # edge midpoints on block rows' top edges: the block above may be the band above's
     nk = nrow + (1 if last else 0)
     for ak in prange(nk):
@@ -246,25 +230,9 @@ def _fine_level_nb(z, vb, w0, r0, B, N, h, st, st_prev, qb_prev, last, C, R, K, 
                 flo = st_prev[b]
                 qlo = qb_prev[b]
             fhi = st[ak, b] if a < nb else 0
-            f = flo | fhi
-            if f == 2:
-                continue
-            if f == 1:
-                if h == 1:
-                    m = _mid1(z, ic - w0, jc, False)
-                else:
-                    m = 0.0
-                    if flo:
-                        m = max(m, qlo)
-                    if fhi:
-                        m = max(m, QT[ak, b])
-                K[ak, b] = round_up32(m)
-                continue
-            m, c = edge_err_window(z, vb, ic, jc, h, False, N, w0)
-            if c == 2:
-                K[ak, b] = np.inf
-            elif c == 1:
-                K[ak, b] = round_up32(m)
+            qhi = QT[ak, b] if fhi else 0.0
+            K[ak, b] = edge_delta_nb(z, vb, ic, jc, h, False, N, w0, flo, fhi, qlo, qhi,
+                                     K[ak, b])
 
 
 @njit(cache=True, parallel=True)

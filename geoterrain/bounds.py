@@ -176,6 +176,35 @@ def edge_err_window(z, vb, ic, jc, h, rows, N, w0):
     return edge_status_nb(m, cnt, tot)
 
 
+@njit(cache=True, inline="always")
+def edge_delta_nb(z, vb, ic, jc, h, rows, N, w0, flo, fhi, qlo, qhi, old):
+    """Raw δ of edge midpoint (ic, jc) from its two blocks: their statuses ``flo``,
+    ``fhi`` (1 all valid, 2 all invalid, 3 mixed, 0 outside the grid) and, for h ≥ 2,
+    their quarter maxima ``qlo``, ``qhi`` facing it; ``z``/``vb`` hold the grid's rows
+    from ``w0`` on. Both blocks all valid: the max of their quarters (h = 1: the closed
+    form); a mix: the diamond swept (+inf if it mixes too); ``old`` when nothing is
+    valid."""
+    f = flo | fhi
+    if f == 2:
+        return old
+    if f == 1:
+        if h == 1:
+            m = _mid1(z, ic - w0, jc, rows)
+        else:
+            m = 0.0
+            if flo:
+                m = max(m, qlo)
+            if fhi:
+                m = max(m, qhi)
+        return round_up32(m)
+    m, c = edge_err_window(z, vb, ic, jc, h, rows, N, w0)
+    if c == 2:
+        return np.inf
+    if c == 1:
+        return round_up32(m)
+    return old
+
+
 @njit(cache=True, parallel=_PARALLEL)
 def _block_status_nb(vb):
     # bs[centre of a closed 2h block] = bit 1: holds a valid sample, bit 2: an invalid one;
@@ -362,7 +391,6 @@ def _raw_delta_nb(z, vb, all_valid):
                     ic = h + a * s if rows else a * s
                     jc = b * s if rows else h + b * s
                     # adjacent blocks (lo side, hi side) and their status
-                    f = 0
                     flo = 0
                     fhi = 0
                     if rows:
@@ -375,31 +403,16 @@ def _raw_delta_nb(z, vb, all_valid):
                             flo = 1 if all_valid else bs[ic - h, jc]
                         if ic < N - 1:
                             fhi = 1 if all_valid else bs[ic + h, jc]
-                    f = flo | fhi
-                    if f == 2:
-                        continue
-                    if f == 1:
-                        if h == 1:
-                            m = _mid1(z, ic, jc, rows)
-                        else:
-                            m = 0.0
-                            if rows:
-                                if flo:
-                                    m = max(m, QR[a, b - 1])
-                                if fhi:
-                                    m = max(m, QL[a, b])
-                            else:
-                                if flo:
-                                    m = max(m, QB[a - 1, b])
-                                if fhi:
-                                    m = max(m, QT[a, b])
-                        out[ic, jc] = round_up32(m)
-                        continue
-                    m, c = _edge_err(z, vb, ic, jc, h, rows, N)
-                    if c == 2:
-                        out[ic, jc] = np.inf
-                    elif c == 1:
-                        out[ic, jc] = round_up32(m)
+                    if h >= 2 and rows:
+                        qlo = QR[a, b - 1] if flo else 0.0
+                        qhi = QL[a, b] if fhi else 0.0
+                    elif h >= 2:
+                        qlo = QB[a - 1, b] if flo else 0.0
+                        qhi = QT[a, b] if fhi else 0.0
+                    else:
+                        qlo = qhi = 0.0
+                    out[ic, jc] = edge_delta_nb(z, vb, ic, jc, h, rows, N, 0, flo, fhi, qlo,
+                                                qhi, out[ic, jc])
         h *= 2
     return out
 
