@@ -68,6 +68,8 @@ class LevelDelta:
     """(min, max, count) of the valid heights, from the first pass."""
     stand_in: float | None = None
     """The height of invalid vertices in ``Z*`` arrays (None: not kept)."""
+    max_finite: float = 0.0
+    """The largest finite δ (0 if none)."""
 
     @property
     def n(self) -> int:
@@ -367,12 +369,14 @@ def _zero_beyond(a: np.ndarray, a_lo: int, s: int, di: int, dj: int,
 
 
 def _saturate(sa: ScratchArrays, n: int, budget: int,
-              data: tuple[int, int] | None = None) -> None:
+              data: tuple[int, int] | None = None) -> float:
     # LP §2.4 (L46) as a pull, fine to coarse and ``budget`` bytes of rows at a time: an
     # edge midpoint at h takes its four children centres at h/2 (R[a, b]: centre rows
     # 2a, 2a+1 and columns 2b−1, 2b of level h/2; K[a, b]: rows 2a−1, 2a and columns
     # 2b, 2b+1), then a centre takes its block's four edge midpoints. ``data``: first
-    # zero the raw δ of the vertices whose diamond misses the data's rows × cols
+    # zero the raw δ of the vertices whose diamond misses the data's rows × cols.
+    # Returns the largest finite saturated δ (0 if none): what its log8 codes must cover
+    top = 0.0
     for k in range(n):
         nb = sa.shape(f"C{k}")[0]
         step = max(1, budget // (16 * (nb + 1) * 4))
@@ -400,6 +404,9 @@ def _saturate(sa: ScratchArrays, n: int, budget: int,
             sa.write(f"C{k}", a_lo, C)
             sa.write(f"R{k}", a_lo, R)
             sa.write(f"K{k}", a_lo, K)
+            for a in (C, R, K):
+                top = max(top, float(np.max(a, where=np.isfinite(a), initial=0.0)))
+    return top
 
 
 def _keep_heights(sa: ScratchArrays, z: np.ndarray, v: np.ndarray, w0: int, r0: int,
@@ -548,6 +555,6 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
         _coarse_finish_nb(stc, *acc, rt, sw[0], kt, sw[1], C, R, K)
         for x, a in zip("CRK", (C, R, K), strict=True):
             sa.write(f"{x}{k}", 0, a)
-    _saturate(sa, n, budget=max(B, 64) * N * 16, data=data)
-    return LevelDelta(N, sa, (lo, hi, count), stand_in)
+    top = _saturate(sa, n, budget=max(B, 64) * N * 16, data=data)
+    return LevelDelta(N, sa, (lo, hi, count), stand_in, top)
 

@@ -280,7 +280,7 @@ def preprocess_streaming(
     job = dataclasses.replace(job, folder=folder)
     with contextlib.ExitStack() as cleanup:
         cleanup.callback(shutil.rmtree, folder, True)
-        (vrange, stand_in, er), (bounds, blocks), _, _ = run_tasks(
+        (vrange, stand_in, er, dmax, emax), (bounds, blocks), _, _ = run_tasks(
             scheduler, [(run_pass, (job, name)) for name in PASSES])
         stage("errors, tiles, normals, heights")
         sa = ScratchArrays.shared(os.path.join(folder, "bounds"))
@@ -291,7 +291,7 @@ def preprocess_streaming(
                 for part in heights_records(os.path.join(folder, "heights.bin")):
                     w.put_blobs("heights", part)
                 stored = set(bounds)  # the tiles whose footprint holds a valid sample
-                meta = _level_blobs(w, sa, se, sn, grid, bounds, stored, er,
+                meta = _level_blobs(w, sa, se, sn, grid, bounds, stored, er, dmax, emax,
                                     derive_normals, derive_bounds)
                 stage("blobs")
                 w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
@@ -315,32 +315,21 @@ def preprocess_streaming(
 
 def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                  sn: ScratchArrays, grid: Grid, bounds: dict, stored: set, er: int,
-                 derive_normals: bool, derive_bounds: bool) -> dict:
+                 dmax: float, emax: float, derive_normals: bool,
+                 derive_bounds: bool) -> dict:
     """The δ, r, normals and δ_edge blobs and the tile rows, a tile row of each level at a
-    time (preprocessing.preprocess's compress stage on each level's lattice window)."""
+    time (preprocessing.preprocess's compress stage on each level's lattice window).
+    ``dmax``, ``emax``: the largest finite δ and δ_edge, which set δ's code exponent."""
     n, t, top = grid.n, grid.t, grid.top_level
     T, T1 = grid.tile_samples, grid.tile_samples - 1
     derive_normals = derive_normals and T >= 3
     derive_bounds = derive_bounds and T >= 3 and top > 0
-    # δ's code exponent: the largest finite δ (and δ_edge) over every level
-    dmax = emax = 0.0
-    for arrs, which in ((sa, "d"), (se, "e")):
-        if arrs is None:
-            continue
-        for k in range(n):
-            for x in "CRK":
-                nr, nc = arrs.shape(f"{x}{k}")
-                step = max(1, (16 << 20) // (4 * nc))  # 16 MB of rows at a time
-                for r0 in range(0, nr, step):
-                    a = arrs.read(f"{x}{k}", r0, r0 + step)
-                    m = float(np.max(a, where=np.isfinite(a), initial=0.0))
-                    if which == "d":
-                        dmax = max(dmax, m)
-                    else:
-                        emax = max(emax, m)
     ed = log8_exponent(np.array([dmax]))
     if se is not None:
         ed = max(ed, log8_exponent(np.array([emax])))
+    row_keys: dict[tuple[int, int], list[int]] = {}  # (L, y) → the stored tiles' x
+    for L, x, y in stored:
+        row_keys.setdefault((L, y), []).append(x)
     tile_rows: dict = {}
     edge_max: list = []
     e_stored: list = []
@@ -349,7 +338,7 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
         m = grid.tiles_per_side(L) * T1 + 1
         is_top = L == top
         for y in range(grid.tiles_per_side(L)):
-            keys = sorted(x for (L2, x, y2) in stored if L2 == L and y2 == y)
+            keys = sorted(row_keys.get((L, y), ()))
             p0, p1 = y * T1, y * T1 + T
             d = _lattice(sa, "", L, n, p0, p1, m, is_top, np.float32)
             rc = _lattice(sa, "r", L, n, p0, p1, m, is_top, np.uint8)

@@ -115,19 +115,22 @@ class Job:
 
 
 def _bounds_pass(job: Job) -> tuple:
-    # δ with each level's vertex heights, δ_edge, and the radius codes nested on them
+    # δ with each level's vertex heights, δ_edge, and the radius codes nested on them:
+    # (valid range, stand-in height, r's exponent, largest finite δ and δ_edge)
     with job.opened() as (_, scene, grid, xs, ys):
         N = grid.size
         sa = ScratchArrays.shared(os.path.join(job.folder, "bounds"))
         lvl = band_vertex_errors(scene, N, band=job.band, scratch=sa, heights=True)
+        emax = 0.0
         if job.pad:
             se = ScratchArrays.shared(os.path.join(job.folder, "edge"))
-            band_vertex_errors(edge_rows(scene, (grid.rows, grid.cols)), N, band=job.band,
-                               scratch=se, data=(grid.rows, grid.cols))
+            emax = band_vertex_errors(edge_rows(scene, (grid.rows, grid.cols)), N,
+                                      band=job.band, scratch=se,
+                                      data=(grid.rows, grid.cols)).max_finite
             se.close()
         er = band_radius_codes(sa, N, xs, ys, *lvl.valid_range[:2])
         sa.close()
-        return lvl.valid_range, lvl.stand_in, er
+        return lvl.valid_range, lvl.stand_in, er, lvl.max_finite, emax
 
 
 def _tiles_pass(job: Job) -> tuple:
@@ -200,7 +203,7 @@ def _load_done(path: str):
                     for k, r in zip(z["keys"].tolist(), z["rows"], strict=True)}
             return rows, z["blocks"]
     v = payload["value"]
-    return (tuple(v[0]), v[1], v[2]) if isinstance(v, list) else v
+    return (tuple(v[0]), *v[1:]) if isinstance(v, list) else v
 
 
 PASSES = {"bounds": _bounds_pass, "tiles": _tiles_pass, "normals": _normals_pass,
