@@ -163,3 +163,19 @@ def test_resume_after_a_killed_driver_reuses_its_passes(tmp_path, caplog):
     assert "resuming" not in caplog.text
     _assert_same_store(ref, dst)
     assert [x.name for x in out.iterdir()] == ["s.gt"]
+
+
+@pytest.mark.parametrize("args, says", [(["--memory-limit", "12Q"], "--memory-limit"),
+                                        (["--memory-limit", "1K"], "64M"),
+                                        (["--scheduler", "gpu:2"], "--scheduler")])
+def test_bad_streaming_options_are_one_line_usage_errors(tmp_path, args, says):
+    from click.testing import CliRunner
+
+    from geoterrain.cli.main import cli
+
+    src = _dem(tmp_path, 1, 20, 20, 0.0)
+    run = CliRunner().invoke(cli, ["preprocess", src, "-o", str(tmp_path / "s.gt"), *args])
+    assert run.exit_code == 2, run.output
+    err = [ln for ln in run.output.splitlines() if ln.startswith("Error")]
+    assert len(err) == 1 and says in err[0] and "Traceback" not in run.output
+    assert not (tmp_path / "s.gt").exists()
