@@ -104,6 +104,47 @@ def group_boxes(cells: np.ndarray, key: np.ndarray, pts: np.ndarray, ij: np.ndar
 
 
 @njit(cache=True, nogil=True)
+def _facing(cells, key, pts, eye, out):
+    for f in range(len(key)):
+        a, b, c = cells[4 * f + 1], cells[4 * f + 2], cells[4 * f + 3]
+        ux, uy, uz = pts[b, 0] - pts[a, 0], pts[b, 1] - pts[a, 1], pts[b, 2] - pts[a, 2]
+        vx, vy, vz = pts[c, 0] - pts[a, 0], pts[c, 1] - pts[a, 1], pts[c, 2] - pts[a, 2]
+        nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+        rx = eye[0] - (pts[a, 0] + pts[b, 0] + pts[c, 0]) / 3.0
+        ry = eye[1] - (pts[a, 1] + pts[b, 1] + pts[c, 1]) / 3.0
+        rz = eye[2] - (pts[a, 2] + pts[b, 2] + pts[c, 2]) / 3.0
+        den = np.sqrt((nx * nx + ny * ny + nz * nz) * (rx * rx + ry * ry + rz * rz))
+        if den > 0.0:  # a degenerate face (no area) or one at the eye faces nothing
+            cos = min(abs(nx * rx + ny * ry + nz * rz) / den, 1.0)
+            k = key[f]
+            out[k] = max(out[k], cos)
+
+
+def group_facing(cells: np.ndarray, key: np.ndarray, pts: np.ndarray, eye, n: int
+                 ) -> np.ndarray:
+    """Per group 0 … n−1 (``key`` per face): the largest |cos| between a face's normal and
+    the line from its centroid to ``eye``, 1 for a face seen square on, 0 edge on (and
+    for an empty group). A texel on a face of facing c spans c times fewer pixels across
+    its foreshortened direction than square on, the rule by which a mipmap picks its
+    level (:func:`~geoterrain.tiletextures.build_view_texture`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> cells = np.array([3, 0, 1, 2])
+    >>> pts = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0]])
+    >>> round(float(group_facing(cells, np.array([0]), pts, (1 / 3, 1 / 3, 5.0), 1)[0]), 6)
+    1.0
+    >>> float(group_facing(cells, np.array([0]), pts, (5.0, 1 / 3, 0.0), 1)[0])
+    0.0
+    """
+    out = np.zeros(n)
+    _facing(np.ascontiguousarray(cells, np.int64), np.ascontiguousarray(key, np.int64),
+            np.ascontiguousarray(pts, np.float64), np.asarray(eye, np.float64), out)
+    return out
+
+
+@njit(cache=True, nogil=True)
 def _number(cells, group, G, V, src, pg, out_faces):
     F = len(group)
     start = np.zeros(G + 1, np.int64)  # counting sort of the faces by group

@@ -7,12 +7,19 @@ bruteforce triangles all do, skirts included). The footprint's shading
 (elevation colours × hillshade from the stored normal maps, :mod:`textures`)
 comes from the coarsest pyramid level ``Lt`` whose texel projects to at most
 ``TEXEL_PX`` = 1.5 pixels (so 0.75–1.5 px: about one) at the footprint's nearest
-point to the eye::
+point to the eye, across the texel's most foreshortened direction::
 
-    texel_px(Lt) = 2^Lt · s0 · f / d ≤ TEXEL_PX,   f = (H / 2) / tan(fov_y / 2)
+    texel_px(Lt) = 2^Lt · s0 · f · c / d ≤ TEXEL_PX,   f = (H / 2) / tan(fov_y / 2)
 
 (``s0`` the finest sample spacing, ``d`` the distance from the eye to the box of
-the footprint's drawn vertices), clamped to ``L - MAX_PAGE_LEVELS ≤ Lt ≤ L``.
+the footprint's drawn vertices, ``c`` the largest |cos| between one of its drawn
+faces' normals and the line to the eye, at least ``MIN_FACING``), clamped to
+``L - MAX_PAGE_LEVELS ≤ Lt ≤ L``. ``c`` is the level rule of a mipmap (the larger
+of a pixel's two texel derivatives), taken at the footprint's most squarely seen
+face: a footprint seen at a grazing angle gets coarser texels, as the mipmapped
+whole-DEM texture does, instead of aliasing texels finer than a pixel across the
+slope (on the 4097² fBm flight of ``benchmarks/bench_render.py`` this halves the
+tiles shaded: 1647 → 852).
 Only the level-``Lt`` tiles under a footprint that its triangles touch are
 shaded, each once per (level, x, y, shading, palette) and kept in the terrain's
 byte-bounded tile cache; a tile no drawn triangle touches is never decoded or
@@ -46,6 +53,7 @@ from geoterrain.atlaskernels import (
     clamp_fill,
     face_footprints,
     group_boxes,
+    group_facing,
     magnify_into,
     number_pages,
 )
@@ -64,6 +72,7 @@ from geoterrain.textures import (
 from geoterrain.tileshade import shade_tile
 
 TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
+MIN_FACING = 2.0 ** -8  # a footprint seen edge on: 8 levels coarser, at most the top
 MAX_PAGE_LEVELS = 3  # a footprint's page is at most 2^3 × 2^3 tiles (513² texels at t = 6)
 MAX_ATLAS = 8192  # texels per side; beyond it every page is coarsened one level
 GUTTER = 1  # replicated border texels around each page (no bleeding between pages)
@@ -81,7 +90,7 @@ class ViewTexture:
     ``source`` (V',) the selection vertex each point copies, ``image`` (H, W, 3) uint8
     (read-only; row r of the image at v = (r + 0.5) / H, so VTK, whose row 0 is v = 0,
     shows it as it is, without a flipped copy), ``stats`` (textures_built,
-    texture_tiles, pages, atlas, texture_ms).
+    texture_tiles, pages, texel_levels (pages per texel level), atlas, texture_ms).
     """
 
     points: np.ndarray
@@ -245,7 +254,8 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
         return ViewTexture(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 2),
                            np.float32), np.zeros(0, np.int64), np.zeros((1, 1, 3), np.uint8),
                            {**counter, "texture_tiles": 0, "textures_deferred": 0,
-                            "pages": 0, "atlas": [0, 0], "texture_ms": 0.0})
+                            "pages": 0, "texel_levels": {}, "atlas": [0, 0],
+                            "texture_ms": 0.0})
     pts = np.asarray(mesh.points, np.float64)
     ij = np.asarray(mesh.point_data["grid_ij"])
     cells = np.asarray(mesh.faces)  # VTK's flat triangles: 3, a, b, c, ...
@@ -266,9 +276,11 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
         lo, hi, ilo_e, ihi_e = group_boxes(cells, fe, pts, ij, len(E))
     eL, eX, eY = _table_keys(E, base)
     sh = 2 * (top + 1) + 1
-    # 1. the texel level each footprint wants, from its drawn vertices' box
+    # 1. the texel level each footprint wants, from its drawn vertices' box and its
+    #    faces' foreshortening (a mipmap's rule: the texel's most compressed direction)
     eye = np.asarray(view.eye, np.float64)
     d = np.linalg.norm(np.maximum(0.0, np.maximum(lo - eye, eye - hi)), axis=1)
+    d = d / np.maximum(group_facing(cells, fe, pts, eye, len(E)), MIN_FACING)
     f = 0.5 * view.size[1] / math.tan(math.radians(view.fov_y_deg) / 2)
     s0 = _spacing(terrain)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -360,7 +372,9 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     tc[:, 0] = (col + 0.5) / AW
     tc[:, 1] = (row + 0.5) / AH  # VTK's v: the image's row 0 at v = 0 (see ViewTexture)
     atlas.setflags(write=False)  # shown by VTK without a copy (rendering._image_data)
+    lv, nlv = np.unique(Lt, return_counts=True)
     st = {**counter, "texture_tiles": n_tiles, "textures_deferred": deferred, "pages": G,
+          "texel_levels": {int(a): int(b) for a, b in zip(lv, nlv, strict=True)},
           "atlas": [int(AW), int(AH)],
           "texture_ms": round((time.perf_counter() - t0) * 1e3, 3)}
     return ViewTexture(pts[src], faces, tc, src, atlas, st)

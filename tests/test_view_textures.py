@@ -17,8 +17,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import geoterrain
-from geoterrain import lod
-from geoterrain.atlaskernels import group_boxes, number_pages
+from geoterrain import lod, tiletextures
+from geoterrain.atlaskernels import group_boxes, group_facing, number_pages
 from geoterrain.grid import Grid
 from geoterrain.rendering import TerrainScene, _plotter, default_view, render, render_array
 from geoterrain.tiletextures import build_view_texture, footprints
@@ -214,6 +214,57 @@ def test_page_boxes_hold_their_faces_corners(F, V, G, data):
         np.testing.assert_array_equal(hi[g], pts[c].max(0))
         np.testing.assert_array_equal(ilo[g], ij[c].min(0))
         np.testing.assert_array_equal(ihi[g], ij[c].max(0))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 300), st.integers(3, 20), st.integers(1, 9), st.data())
+def test_page_facing_is_its_most_squarely_seen_face(F, V, G, data):
+    """The compiled facing equals the angle from numpy's cross products, per group."""
+    rng, faces, key, cells = _random_faces(F, V, G, data)
+    pts = rng.normal(size=(V, 3)) * rng.uniform(0.1, 100.0)
+    eye = rng.normal(size=3) * 300.0
+    got = group_facing(cells, key, pts, eye, G)
+    a, b, c = pts[faces[:, 0]], pts[faces[:, 1]], pts[faces[:, 2]]
+    n = np.cross(b - a, c - a)
+    ray = eye - (a + b + c) / 3.0
+    den = np.linalg.norm(n, axis=1) * np.linalg.norm(ray, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos = np.where(den > 0, np.abs((n * ray).sum(1)) / den, 0.0)
+    for g in range(G):
+        want = cos[key == g].max(initial=0.0)
+        assert abs(got[g] - min(want, 1.0)) <= 1e-9, (g, got[g], want)
+    assert ((got >= 0) & (got <= 1)).all()
+
+
+def _texel_levels(t, view, monkeypatch, foreshorten: bool) -> dict:
+    if not foreshorten:  # every footprint taken as seen square on
+        monkeypatch.setattr(tiletextures, "group_facing",
+                            lambda cells, key, pts, eye, n: np.ones(n))
+    sel = lod.select(t, view, pixel_error=1.0, strategy="rtin")
+    levels = build_view_texture(t, sel, view).stats["texel_levels"]
+    monkeypatch.undo()
+    return levels
+
+
+def test_grazing_footprints_get_coarser_texels(tmp_path_factory, monkeypatch):
+    """A mipmap's rule: at a grazing angle, texels are coarser than square on (never
+    finer), and a view straight down on the plane is unchanged."""
+    from tests.test_pictures import array_store
+
+    t = array_store(tmp_path_factory, "flat1025", np.full((1025, 1025), 100.0))
+    lo, hi = t.scene_box()
+    c = (0.5 * (lo + hi)).tolist()
+    size = (320, 240)
+    mean = lambda lv: sum(k * n for k, n in lv.items()) / sum(lv.values())  # noqa: E731
+    top = View((c[0], c[1], c[2] + 8000.0), tuple(c), size=size, up=(0.0, 1.0, 0.0))
+    assert _texel_levels(t, top, monkeypatch, True) == _texel_levels(t, top, monkeypatch,
+                                                                       False)
+    # 6° above the plane: a texel spans sin 6° ≈ 1/10 of its width across the slope
+    graze = View((c[0], c[1] - 13000.0, c[2] + 13000.0 * np.tan(np.radians(6.0))), tuple(c),
+                 size=size)
+    on, off = (_texel_levels(t, graze, monkeypatch, f) for f in (True, False))
+    assert min(on) >= min(off) and max(on) >= max(off)
+    assert mean(on) >= mean(off) + 1.0, (on, off)
 
 
 def test_a_picture_is_rendered_once(tmp_path_factory):
