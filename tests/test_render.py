@@ -678,3 +678,25 @@ def test_view_cache_location(tmp_path, monkeypatch):
     assert first.name.startswith("a-") and not is_store(dem)
     dem.write_bytes(b"changed")  # size (and mtime) change: another key, a fresh store
     assert cached_store(dem) != first
+
+
+@pytest.mark.parametrize("aa", ["msaa", "none", "fxaa"])
+def test_frame_reads_the_picture_just_drawn(tmp_path_factory, aa):
+    """``frame`` reads the render buffer without VTK's end-of-frame resolve: the picture
+    is the one a swapped render shows (only anti-aliased edges may differ, by the
+    resolve's gamma), and each frame's own, never the previous one's."""
+    t = synth_store(tmp_path_factory, "draw", size=129)
+    size = (240, 160)
+    scene = TerrainScene(_plotter(size, aa), t)
+    try:
+        a, _ = scene.frame(default_view(t, size, 30.0), 1.0)
+        b, _ = scene.frame(default_view(t, size, 150.0), 1.0)
+        scene.plotter.render()  # swapped: VTK's own resolve, then the front buffer
+        shot = np.asarray(scene.plotter.screenshot(return_img=True))[..., :3]
+    finally:
+        scene.plotter.close()
+    assert psnr(a, b) < 25.0  # another view, another picture
+    if aa == "fxaa":  # the CPU pass runs on frame's picture only
+        assert psnr(b, shot) >= 30.0, psnr(b, shot)
+    else:
+        assert psnr(b, shot) >= (38.0 if aa == "msaa" else 99.0), psnr(b, shot)  # 41.6 measured
