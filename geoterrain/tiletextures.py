@@ -7,26 +7,30 @@ bruteforce triangles all do, skirts included). The footprint's shading
 (elevation colours × hillshade from the stored normal maps, :mod:`textures`)
 comes from the coarsest pyramid level ``Lt`` whose texel projects to at most
 ``TEXEL_PX`` = 1.5 pixels (so 0.75–1.5 px: about one) at the footprint's nearest
-point to the eye, across the texel's most foreshortened direction::
+point to the eye, as the side of a square of the texel's projected area::
 
-    texel_px(Lt) = 2^Lt · s0 · f · c / d ≤ TEXEL_PX,   f = (H / 2) / tan(fov_y / 2)
+    texel_px(Lt) = 2^Lt · s0 · f · √c / d ≤ TEXEL_PX,   f = (H / 2) / tan(fov_y / 2)
 
 (``s0`` the finest sample spacing, ``d`` the distance from the eye to the box of
 the footprint's drawn vertices, ``c`` the largest |cos| between one of its drawn
 faces' normals and the line to the eye, at least ``MIN_FACING``), clamped to
-``L - MAX_PAGE_LEVELS ≤ Lt ≤ L``. ``c`` is the level rule of a mipmap (the larger
-of a pixel's two texel derivatives), taken at the footprint's most squarely seen
-face: a footprint seen at a grazing angle gets coarser texels, as the mipmapped
-whole-DEM texture does, instead of aliasing texels finer than a pixel across the
-slope (on the 4097² fBm flight of ``benchmarks/bench_render.py`` this halves the
-tiles shaded: 1647 → 852).
+``L - MAX_PAGE_LEVELS ≤ Lt ≤ L``. A texel seen at a grazing angle covers c times the
+pixels across the slope that it covers along it: the area's side √c lies between the
+distance alone (c = 1, texels finer than a pixel across the slope) and a mipmap's rule
+(c, its larger texel derivative), which blurred rtin's pictures: its faces are smoother,
+so more foreshortened, than the fine relief their texture shows (Laplacian deviation of
+an fBm overview 13.3 against 18.2 for the mipmapped whole-DEM texture; √c: 18.9). On
+the 4097² fBm flight of ``benchmarks/bench_render.py`` √c shades 1125 tiles instead of
+1647.
+
 Only the level-``Lt`` tiles under a footprint that its triangles touch are
 shaded, each once per (level, x, y, shading, palette) and kept in the terrain's
 byte-bounded tile cache; a tile no drawn triangle touches is never decoded or
 shaded. Chosen by measurement on srtm1_japan at 640×360, rtin τ = 1 against the
 bruteforce render with the mipmapped whole-DEM level-0 texture: texels ≤ 0.5 / 1 /
 1.5 / 2 px gave 34.7 / 36.9 / 37.8 / 37.7 dB (view 1) and 33.6 / 35.0 / 35.3 / 35.2 dB
-(view 2); finer texels alias, as there are no mipmaps across atlas pages.
+(view 2); finer texels alias, as there are no mipmaps across atlas pages. With √c:
+37.85 and 35.56 dB at 1.5 px (docs/benchmarks.md §6f has every shared DEM).
 
 The pages are packed into one atlas texture (one actor, per-vertex texture
 coordinates; vertices are duplicated per footprint). An atlas rather than one
@@ -72,7 +76,7 @@ from geoterrain.textures import (
 from geoterrain.tileshade import shade_tile
 
 TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
-MIN_FACING = 2.0 ** -8  # a footprint seen edge on: 8 levels coarser, at most the top
+MIN_FACING = 2.0 ** -8  # a footprint seen edge on: 4 levels coarser, at most the top
 MAX_PAGE_LEVELS = 3  # a footprint's page is at most 2^3 × 2^3 tiles (513² texels at t = 6)
 MAX_ATLAS = 8192  # texels per side; beyond it every page is coarsened one level
 GUTTER = 1  # replicated border texels around each page (no bleeding between pages)
@@ -277,10 +281,10 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     eL, eX, eY = _table_keys(E, base)
     sh = 2 * (top + 1) + 1
     # 1. the texel level each footprint wants, from its drawn vertices' box and its
-    #    faces' foreshortening (a mipmap's rule: the texel's most compressed direction)
+    #    faces' foreshortening (the texel's projected area, as a square of TEXEL_PX)
     eye = np.asarray(view.eye, np.float64)
     d = np.linalg.norm(np.maximum(0.0, np.maximum(lo - eye, eye - hi)), axis=1)
-    d = d / np.maximum(group_facing(cells, fe, pts, eye, len(E)), MIN_FACING)
+    d = d / np.sqrt(np.maximum(group_facing(cells, fe, pts, eye, len(E)), MIN_FACING))
     f = 0.5 * view.size[1] / math.tan(math.radians(view.fov_y_deg) / 2)
     s0 = _spacing(terrain)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -247,8 +247,8 @@ def _texel_levels(t, view, monkeypatch, foreshorten: bool) -> dict:
 
 
 def test_grazing_footprints_get_coarser_texels(tmp_path_factory, monkeypatch):
-    """A mipmap's rule: at a grazing angle, texels are coarser than square on (never
-    finer), and a view straight down on the plane is unchanged."""
+    """At a grazing angle texels are coarser than square on (never finer), by the
+    texel's projected area; a view straight down on the plane is unchanged."""
     from tests.test_pictures import array_store
 
     t = array_store(tmp_path_factory, "flat1025", np.full((1025, 1025), 100.0))
@@ -259,7 +259,8 @@ def test_grazing_footprints_get_coarser_texels(tmp_path_factory, monkeypatch):
     top = View((c[0], c[1], c[2] + 8000.0), tuple(c), size=size, up=(0.0, 1.0, 0.0))
     assert _texel_levels(t, top, monkeypatch, True) == _texel_levels(t, top, monkeypatch,
                                                                        False)
-    # 6° above the plane: a texel spans sin 6° ≈ 1/10 of its width across the slope
+    # 6° above the plane: a texel's projected area is sin 6° ≈ 1/10 of square on's, its
+    # side ≈ 1/3: one level coarser or more
     graze = View((c[0], c[1] - 13000.0, c[2] + 13000.0 * np.tan(np.radians(6.0))), tuple(c),
                  size=size)
     on, off = (_texel_levels(t, graze, monkeypatch, f) for f in (True, False))
