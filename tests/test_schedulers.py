@@ -12,7 +12,7 @@ import signal
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from geoterrain.exceptions import UsageError
@@ -60,21 +60,37 @@ def _dem(tmp, seed, rows, cols, holes):
     return _tif(tmp / "dem.tif", z, -9999)
 
 
-@settings(max_examples=4, deadline=None)
+@pytest.fixture(scope="module")
+def dask_address():
+    """A real LocalCluster of 2 one-thread worker processes, shared by the examples (one
+    takes about 3 s to start); its scheduler's address."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        yield cluster.scheduler_address
+
+
+@settings(max_examples=12, deadline=None)
 @given(seed=st.integers(0, 10_000), rows=st.integers(9, 120), cols=st.integers(9, 120),
-       holes=st.sampled_from([0.0, 0.1]), spec=st.sampled_from(["threads:2", "processes:2"]),
-       band=st.sampled_from([2, 16]))
-def test_the_store_is_the_same_on_every_scheduler(tmp_path_factory, seed, rows, cols, holes,
-                                                  spec, band):
+       holes=st.sampled_from([0.0, 0.1]),
+       spec=st.sampled_from(["sync", "threads:2", "processes:2", "dask"]),
+       band=st.sampled_from([2, 4, 16, 64]))
+@example(seed=3, rows=40, cols=33, holes=0.1, spec="dask", band=4)
+@example(seed=4, rows=70, cols=21, holes=0.0, spec="processes:2", band=2)
+def test_the_store_is_the_same_on_every_scheduler(tmp_path_factory, dask_address, seed, rows,
+                                                  cols, holes, spec, band):
+    """Bytes equal the whole-grid store's for every band size on every scheduler
+    (``dask``: the shared LocalCluster, through ``dask:ADDRESS``)."""
     tmp = tmp_path_factory.mktemp("sch")
     src = _dem(tmp, seed, rows, cols, holes)
     a = preprocess(src, tmp / "a.gt", tile_size=16)
+    spec = f"dask:{dask_address}" if spec == "dask" else spec
     b = preprocess_streaming(src, tmp / "b.gt", tile_size=16, band=band, scheduler=spec)
     _assert_same_store(a, b)
 
 
 def test_the_store_is_the_same_on_a_dask_local_cluster(tmp_path):
-    """A real LocalCluster of 2 worker processes runs the four passes."""
+    """``dask:local:2`` starts its own LocalCluster of 2 worker processes."""
     pytest.importorskip("distributed")
     src = _dem(tmp_path, 7, 100, 90, 0.05)
     a = preprocess(src, tmp_path / "a.gt", tile_size=16)
