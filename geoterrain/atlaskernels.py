@@ -117,16 +117,18 @@ def _facing(cells, key, pts, eye, out):
         if den > 0.0:  # a degenerate face (no area) or one at the eye faces nothing
             cos = min(abs(nx * rx + ny * ry + nz * rz) / den, 1.0)
             k = key[f]
-            out[k] = max(out[k], cos)
+            if 0 <= k < len(out):  # checked: numba does not bounds-check
+                out[k] = max(out[k], cos)
 
 
 def group_facing(cells: np.ndarray, key: np.ndarray, pts: np.ndarray, eye, n: int
                  ) -> np.ndarray:
     """Per group 0 … n−1 (``key`` per face): the largest |cos| between a face's normal and
     the line from its centroid to ``eye``, 1 for a face seen square on, 0 edge on (and
-    for an empty group). A texel on a face of facing c spans c times fewer pixels across
-    its foreshortened direction than square on, the rule by which a mipmap picks its
-    level (:func:`~geoterrain.tiletextures.build_view_texture`).
+    for an empty group). A texel on a face of facing c covers c times the pixels it
+    covers square on (c times fewer across its foreshortened direction):
+    :func:`~geoterrain.tiletextures.build_view_texture` sizes its texels by the side of
+    that area, √c.
 
     Examples
     --------

@@ -302,16 +302,17 @@ def _draw(plotter) -> np.ndarray:
 
     A plain ``Render()`` ends with ``Frame()``: the multisampled picture resolved by a
     gamma-correcting full-screen shader into the display framebuffer, then blitted
-    again. On a software renderer (llvmpipe) that pass is most of an MSAA frame: 65 ms
-    of a 1280×720 frame whose triangles take a few (measured on the 4097² flight of
-    ``benchmarks/bench_render.py``). Here the buffers are not swapped, so ``Frame()``
-    does not run, and the colours are read from the render framebuffer, resolved by
-    the driver's plain average of the samples (``glBlitFramebuffer``): 14 ms less per
-    frame; only anti-aliased edge pixels differ (58.9 dB against the swapped picture,
-    1.8 % of the pixels). The front buffer keeps the previous picture: read pictures
-    with this function (or :meth:`TerrainScene.frame`), not ``plotter.screenshot``.
-    With the plotter's ``fxaa`` anti-aliasing the picture is then filtered on the CPU
-    along its depth edges.
+    again. On a software renderer (llvmpipe) a 1280×720 MSAA render costs about 65 ms
+    whatever it draws (a small sphere as much as a 49 k-triangle view of the 4097²
+    flight of ``benchmarks/bench_render.py``). Here the buffers are not swapped, so
+    ``Frame()`` does not run, and the colours are read from the render framebuffer,
+    resolved by the driver's plain average of the samples: that view's render and
+    read-back took 52.4 ms instead of 66.7. Only anti-aliased edge pixels differ
+    (58.9 dB against the swapped picture, 1.8 % of the pixels). The front buffer is not
+    written (black, or an older swapped picture): read pictures with this function (or
+    :meth:`TerrainScene.frame`), not ``plotter.screenshot``. The depth buffer is the
+    render framebuffer's, as with swapping. With the plotter's ``fxaa`` anti-aliasing
+    the picture is then filtered on the CPU along its depth edges.
     """
     from vtkmodules.util.numpy_support import vtk_to_numpy
     from vtkmodules.vtkCommonCore import vtkUnsignedCharArray

@@ -62,12 +62,20 @@ def _dem(tmp, seed, rows, cols, holes):
 
 @pytest.fixture(scope="module")
 def dask_address():
-    """A real LocalCluster of 2 one-thread worker processes, shared by the examples (one
-    takes about 3 s to start); its scheduler's address."""
-    distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
-        yield cluster.scheduler_address
+    """The address of a real LocalCluster of 2 one-thread worker processes, started by
+    the first example that asks (one takes about 3 s to start) and shared by the rest."""
+    started = []
+
+    def address() -> str:
+        if not started:
+            distributed = pytest.importorskip("distributed")
+            started.append(distributed.LocalCluster(n_workers=2, threads_per_worker=1,
+                                                    processes=True, dashboard_address=None))
+        return started[0].scheduler_address
+
+    yield address
+    for cluster in started:
+        cluster.close()
 
 
 @settings(max_examples=12, deadline=None)
@@ -84,7 +92,7 @@ def test_the_store_is_the_same_on_every_scheduler(tmp_path_factory, dask_address
     tmp = tmp_path_factory.mktemp("sch")
     src = _dem(tmp, seed, rows, cols, holes)
     a = preprocess(src, tmp / "a.gt", tile_size=16)
-    spec = f"dask:{dask_address}" if spec == "dask" else spec
+    spec = f"dask:{dask_address()}" if spec == "dask" else spec
     b = preprocess_streaming(src, tmp / "b.gt", tile_size=16, band=band, scheduler=spec)
     _assert_same_store(a, b)
 

@@ -265,7 +265,12 @@ def test_grazing_footprints_get_coarser_texels(tmp_path_factory, monkeypatch):
                  size=size)
     on, off = (_texel_levels(t, graze, monkeypatch, f) for f in (True, False))
     assert min(on) >= min(off) and max(on) >= max(off)
-    assert mean(on) >= mean(off) + 1.0, (on, off)
+    # rtin draws the plane as one page: 1.4 levels finer than one texel a pixel by
+    # distance alone (level 1), 1.5 levels coarser by √c (c ≈ 0.12: level 2); a mipmap's
+    # c would make it 3 levels coarser (level 4), blurring the relief rtin's flat faces
+    # stand for
+    assert len(on) == len(off) == 1
+    assert 1.0 <= mean(on) - mean(off) <= 2.0, (on, off)
 
 
 def test_a_picture_is_rendered_once(tmp_path_factory):
