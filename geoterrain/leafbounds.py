@@ -195,6 +195,51 @@ def tile_leaf_bounds(terrain, key: tuple[int, int, int], kind: str, log8: bool, 
     return r
 
 
+def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
+    """Scene X, Y (T, T) from which a tile's normals are derived on read.
+
+    In a projected or pixel frame, the tile's own (:meth:`Terrain.tile_xy`: the
+    preprocess's values, so the derived codes are its codes). In a geographic frame,
+    pyproj at ``NORMAL_XY_NODES`` × ``NORMAL_XY_NODES`` nodes of the tile only (every 8
+    samples of a 65² tile), bilinear between them: a sample's own pyproj call would cost
+    about 2.6 ms a 65² tile, 20× the stored read. The bilinear positions are off by the
+    projection's curvature over a node cell, far under a normal code's resolution
+    (tested: a code or its neighbour); the border ring, which the preprocess stores
+    from the full map, keeps its exact codes.
+
+    Examples
+    --------
+    >>> X, Y = normal_xy(t, 0, 0, 0)
+    >>> X.shape == (t.grid.tile_samples,) * 2
+    True
+    """
+    if terrain.frame.kind != "geographic":
+        return terrain.tile_xy(level, x, y)
+    g = terrain.grid
+    T = g.tile_samples
+    m = min(T, NORMAL_XY_NODES)  # nodes a side: every (T − 1) / (m − 1) samples
+    k = np.arange(m) * ((T - 1) // (m - 1))
+    rows, cols = g.tile_rows(level, y), g.tile_cols(level, x)
+    ii, jj = np.meshgrid(rows[k], cols[k], indexing="ij")
+    cx, cy = terrain.frame.xy(ii, jj)  # pyproj at the nodes only
+    return _bilinear(np.asarray(cx, np.float64), k, T), _bilinear(np.asarray(cy, np.float64), k, T)
+
+
+NORMAL_XY_NODES = 9  # pyproj nodes a side of a tile for its derived normals' x, y
+
+
+def _bilinear(c: np.ndarray, k: np.ndarray, T: int) -> np.ndarray:
+    """(T, T) values bilinear between node values ``c`` (m, m) at sample offsets ``k``."""
+    s = np.arange(T)
+    cell = np.minimum(np.searchsorted(k, s, side="right") - 1, len(k) - 2)
+    f = (s - k[cell]) / (k[cell + 1] - k[cell])
+    a, b = cell[:, None], cell[None, :]
+    fa, fb = f[:, None], f[None, :]
+    top = c[a, b] + (c[a, b + 1] - c[a, b]) * fb
+    bot = c[a + 1, b] + (c[a + 1, b + 1] - c[a + 1, b]) * fb
+    return top + (bot - top) * fa
+
+
 def derived_normal_codes(terrain, level: int, x: int, y: int) -> np.ndarray:
     """A tile whose normals blob is its border ring: the interior is the normal map of
     its decoded heights (the preprocess's central differences, seed 000's
@@ -215,7 +260,7 @@ def derived_normal_codes(terrain, level: int, x: int, y: int) -> np.ndarray:
         raise StoreCorruptError(f"{terrain.path}: tile {(level, x, y)} normals cannot be "
                                 "decoded; re-run `geoterrain preprocess`") from None
     tile = terrain.tile(level, x, y)
-    X, Y = terrain.tile_xy(level, x, y)
+    X, Y = normal_xy(terrain, level, x, y)
     # one tile on this thread (serial kernels: no thread pool for 65² samples, and safe in
     # a fork() child, where GNU OpenMP aborts a parallel launch)
     codes = encode_octahedral(normal_map(X, Y, terrain.frame.z(tile.heights), tile.valid,

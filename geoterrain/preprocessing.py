@@ -144,9 +144,11 @@ def preprocess(
     derive_normals
         Store only the border ring of each level-0 tile's normal map: a reader derives
         the rest from the tile's decoded heights, to the same codes (the full map's
-        central differences read nothing outside the tile there). Not on geographic
-        frames, whose scene x, y cost a pyproj call per sample. False stores every
-        normal, as stores before this option did.
+        central differences read nothing outside the tile there). On geographic frames
+        the reader takes the tile's scene x, y bilinear between its corners
+        (:func:`geoterrain.leafbounds.normal_xy`), so those codes are the full map's to
+        within the projection's curvature over a tile. False stores every normal, as
+        stores before this option did.
     derive_bounds
         Store δ and r of each level-0 tile's new vertices only on its border ring: a
         reader derives the rest from the tile's decoded heights, to the same values
@@ -253,10 +255,9 @@ def preprocess(
     q = choose_quantizer(heights, r.src_dtype, codec_error=codec_error, scale=r.scale,
                          offset=r.offset)
     Z = decoded_heights(heights, valid, q)  # NaN where invalid
-    # derived on read only where a tile's scene x, y are cheap: an affine frame (a
-    # geographic one calls pyproj, about 2.6 ms a 65² tile, 20× the stored read)
-    derive_normals = (bool(derive_normals) and grid.tile_samples >= 3
-                      and frame.kind != "geographic")
+    # δ and r derived on read only in an affine frame (a geographic one's carry
+    # curvilinear terms of pyproj's x, y); normals in every frame (leafbounds.normal_xy)
+    derive_normals = bool(derive_normals) and grid.tile_samples >= 3
     derive_bounds = (bool(derive_bounds) and grid.tile_samples >= 3 and grid.top_level > 0
                      and frame.kind != "geographic")
     hv = Z[valid]

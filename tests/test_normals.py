@@ -16,6 +16,7 @@ from geoterrain.normals import (
     normal_map,
     normal_pyramid,
 )
+from geoterrain.vertexdata import ring_index
 
 KERNELS = ["central", "horn"]
 
@@ -334,12 +335,42 @@ def test_derived_level0_normals_are_the_stored_ones(tmp_path_factory, seed, shap
     assert ring.path.stat().st_size <= full.path.stat().st_size  # (pages: tiny DEMs tie)
 
 
-def test_geographic_stores_keep_every_normal(tmp_path):
-    """On a geographic frame a tile's scene x, y need pyproj (ms per tile): no ring."""
-    z = np.random.default_rng(1).normal(0, 5, (33, 33)).cumsum(0)
-    full, ring = _pair(tmp_path, z, crs="EPSG:4326", spacing=1 / 3600,
-                       origin=(139.0, 35.0))
-    assert ring.frame.kind == "geographic" and "normals_derived" not in ring.meta
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 10_000), origin=st.sampled_from([(139.0, 35.0), (-122.3, 46.2),
+                                                            (20.0, 69.5), (-70.0, -33.0)]),
+       arcsec=st.sampled_from([1.0, 3.0, 30.0]), tile=st.sampled_from([4, 16, 64]))
+def test_geographic_stores_derive_level0_normals_to_a_code(tmp_path_factory, seed, origin,
+                                                             arcsec, tile):
+    """On a geographic frame the reader derives level 0's interior normals from scene
+    x, y bilinear between pyproj nodes (one call a tile): every code is the full store's
+    or next to it, the ring and the other levels are the full store's, and the
+    tangents of the bilinear positions are pyproj's to 10⁻³ of a sample spacing."""
+    from geoterrain.leafbounds import normal_xy
+
+    tmp = tmp_path_factory.mktemp("gn")
+    rng = np.random.default_rng(seed)
+    z = rng.normal(0, 5, (80, 70)).cumsum(0).cumsum(1) / 3 + 500.0
+    full, ring = _pair(tmp, z.astype(np.float32), crs="EPSG:4326", spacing=arcsec / 3600,
+                       origin=origin, tile_size=tile)
+    assert ring.frame.kind == "geographic" and ring.meta["normals_derived"] == [0]
+    rr, cc = ring_index(ring.grid.tile_samples)
+    for L, x, y in full.tile_info:
+        a = full.tile_normal_codes(L, x, y).astype(int)
+        b = ring.tile_normal_codes(L, x, y).astype(int)
+        if L > 0:
+            assert np.array_equal(a, b)
+            continue
+        assert np.array_equal(a[rr, cc], b[rr, cc])
+        assert np.abs(a - b).max() <= 1
+        X, Y = normal_xy(ring, L, x, y)
+        g = ring.grid
+        ii, jj = np.meshgrid(g.tile_rows(L, y), g.tile_cols(L, x), indexing="ij")
+        X0, Y0 = ring.frame.xy(ii, jj)
+        step = float(np.hypot(X0[0, 1] - X0[0, 0], Y0[0, 1] - Y0[0, 0]))
+        for e in (X - X0, Y - Y0):  # the tangents' error: under 10⁻³ rad (0.06°)
+            assert max(np.abs(np.diff(e, axis=0)).max(),
+                       np.abs(np.diff(e, axis=1)).max()) <= 1e-3 * step
+    assert ring.path.stat().st_size < full.path.stat().st_size
 
 
 def test_a_damaged_ring_is_refused_in_one_line(tmp_path):
