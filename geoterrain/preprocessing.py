@@ -145,7 +145,7 @@ def preprocess(
         Store only the border ring of each level-0 tile's normal map: a reader derives
         the rest from the tile's decoded heights, to the same codes (the full map's
         central differences read nothing outside the tile there). On geographic frames
-        the reader takes the tile's scene x, y bilinear between its corners
+        the reader takes the tile's scene x, y bilinear between pyproj nodes
         (:func:`geoterrain.leafbounds.normal_xy`), so those codes are the full map's to
         within the projection's curvature over a tile. False stores every normal, as
         stores before this option did.
