@@ -205,7 +205,10 @@ def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarr
     about 2.6 ms a 65² tile, 20× the stored read. The bilinear positions are off by the
     projection's curvature over a node cell, far under a normal code's resolution
     (tested: a code or its neighbour); the border ring, which the preprocess stores
-    from the full map, keeps its exact codes.
+    from the full map, keeps its exact codes. pyproj at the cells' centres checks the
+    interpolation: where it strays (a tile next to a pole, where latitudes clamp, or at
+    the scene frame's antipode), the tile's own x, y (:meth:`Terrain.tile_xy`), and so
+    the full map's codes.
 
     Examples
     --------
@@ -218,14 +221,33 @@ def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarr
     g = terrain.grid
     T = g.tile_samples
     m = min(T, NORMAL_XY_NODES)  # nodes a side: every (T − 1) / (m − 1) samples
-    k = np.arange(m) * ((T - 1) // (m - 1))
+    w = (T - 1) // (m - 1)
+    if w == 1:  # a node on every sample: exact
+        return terrain.tile_xy(level, x, y)
+    k = np.arange(m) * w
     rows, cols = g.tile_rows(level, y), g.tile_cols(level, x)
-    ii, jj = np.meshgrid(rows[k], cols[k], indexing="ij")
-    cx, cy = terrain.frame.xy(ii, jj)  # pyproj at the nodes only
-    return _bilinear(np.asarray(cx, np.float64), k, T), _bilinear(np.asarray(cy, np.float64), k, T)
+    # pyproj at the nodes and at the cells' centres, which check the interpolation
+    kc = k[:-1] + w // 2
+    pick = np.concatenate([k, kc])
+    ii, jj = np.meshgrid(rows[pick], cols[pick], indexing="ij")
+    px, py = (np.asarray(v, np.float64) for v in terrain.frame.xy(ii, jj))
+    cx, cy = px[:m, :m], py[:m, :m]
+    X, Y = _bilinear(cx, k, T), _bilinear(cy, k, T)
+    # where the frame bends within a cell (next to a pole, where latitudes clamp, or
+    # the scene frame's antipode) the bilinear x, y stray: then the tile's own
+    step = min(np.hypot(np.diff(cx, axis=1), np.diff(cy, axis=1)).min(),
+               np.hypot(np.diff(cx, axis=0), np.diff(cy, axis=0)).min()) / w
+    off = max(np.abs(X[np.ix_(kc, kc)] - px[m:, m:]).max(),
+              np.abs(Y[np.ix_(kc, kc)] - py[m:, m:]).max())
+    if not (np.isfinite(off) and step > 0 and off <= NORMAL_XY_TOLERANCE * w * step):
+        return terrain.tile_xy(level, x, y)
+    return X, Y
 
 
 NORMAL_XY_NODES = 9  # pyproj nodes a side of a tile for its derived normals' x, y
+# a cell centre's bilinear x, y may be off by this × the cell's width in samples × the
+# sample spacing: a parabolic bump that size tilts the tangents by under 10⁻³ rad
+NORMAL_XY_TOLERANCE = 2e-4
 
 
 def _bilinear(c: np.ndarray, k: np.ndarray, T: int) -> np.ndarray:

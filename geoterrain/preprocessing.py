@@ -146,9 +146,9 @@ def preprocess(
         the rest from the tile's decoded heights, to the same codes (the full map's
         central differences read nothing outside the tile there). On geographic frames
         the reader takes the tile's scene x, y bilinear between pyproj nodes
-        (:func:`geoterrain.leafbounds.normal_xy`), so those codes are the full map's to
-        within the projection's curvature over a tile. False stores every normal, as
-        stores before this option did.
+        (:func:`geoterrain.leafbounds.normal_xy`; the tile's own where the frame bends
+        too much for that), so those codes are the full map's or a neighbour code.
+        False stores every normal, as stores before this option did.
     derive_bounds
         Store δ and r of each level-0 tile's new vertices only on its border ring: a
         reader derives the rest from the tile's decoded heights, to the same values

@@ -298,9 +298,11 @@ class Terrain:
     stored_normals = True  # tile_normals decode tile_normal_codes (a view may rescale them)
 
     def tile_normal_codes(self, level: int, x: int, y: int) -> np.ndarray:
-        """The stored octahedral codes (T, T, 2) of the tile's normals (``normal_bits``
-        bits each; :func:`~geoterrain.normals.decode_octahedral` unpacks them). Not
-        cached: each call reads and counts a decode."""
+        """The octahedral codes (T, T, 2) of the tile's normals (``normal_bits`` bits
+        each; :func:`~geoterrain.normals.decode_octahedral` unpacks them): as stored, or,
+        on a level in ``normals_derived``, the ring as stored and the rest derived from
+        the heights (:func:`~geoterrain.leafbounds.derived_normal_codes`). Not cached:
+        each call reads and counts a decode."""
         if level in self._derived_normal_levels:
             return derived_normal_codes(self, level, x, y)
         raw, planar = self.tile_normal_bytes(level, x, y)

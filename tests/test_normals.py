@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from geoterrain.normals import (
@@ -339,6 +339,8 @@ def test_derived_level0_normals_are_the_stored_ones(tmp_path_factory, seed, shap
 @given(seed=st.integers(0, 10_000), origin=st.sampled_from([(139.0, 35.0), (-122.3, 46.2),
                                                             (20.0, 69.5), (-70.0, -33.0)]),
        arcsec=st.sampled_from([1.0, 3.0, 30.0]), tile=st.sampled_from([4, 16, 64]))
+@example(seed=1, origin=(20.0, 69.5), arcsec=30.0, tile=64)  # corner-only nodes fail here
+@example(seed=2, origin=(139.0, 35.0), arcsec=30.0, tile=64)
 def test_geographic_stores_derive_level0_normals_to_a_code(tmp_path_factory, seed, origin,
                                                              arcsec, tile):
     """On a geographic frame the reader derives level 0's interior normals from scene
@@ -371,6 +373,22 @@ def test_geographic_stores_derive_level0_normals_to_a_code(tmp_path_factory, see
             assert max(np.abs(np.diff(e, axis=0)).max(),
                        np.abs(np.diff(e, axis=1)).max()) <= 1e-3 * step
     assert ring.path.stat().st_size < full.path.stat().st_size
+
+
+def test_geographic_normals_take_exact_xy_where_the_frame_bends(tmp_path):
+    """A whole-world 1° grid: cells of 8° bend too much for bilinear x, y (next to the
+    poles, where latitudes clamp, and at the scene frame's antipode), so those tiles
+    take their own x, y and every level-0 code is the full store's or next to it
+    (bilinear everywhere: codes off by up to 31 steps)."""
+    rng = np.random.default_rng(1)
+    z = (rng.normal(0, 60, (180, 360)).cumsum(0) + 2000).astype(np.float32)
+    full, ring = _pair(tmp_path, z, crs="EPSG:4326", spacing=1.0, origin=(-180.0, 90.0),
+                       tile_size=64)
+    assert ring.meta["normals_derived"] == [0]
+    for L, x, y in full.tile_info:
+        if L == 0:
+            a = full.tile_normal_codes(L, x, y).astype(int)
+            assert np.abs(a - ring.tile_normal_codes(L, x, y).astype(int)).max() <= 1
 
 
 def test_a_damaged_ring_is_refused_in_one_line(tmp_path):
