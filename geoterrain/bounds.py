@@ -31,7 +31,7 @@ from geoterrain.bintree import main_diagonal_nb, parents_nb
 from geoterrain.rounding import round_up32
 from geoterrain.threads import cores_for
 
-__all__ = ["vertex_errors"]
+__all__ = ["saturate", "vertex_errors"]
 
 
 # --------------------------------------------------------------------------- helpers
@@ -453,6 +453,19 @@ def _saturate_nb(d):
     d[N - 1, 0] = 0
     d[N - 1, N - 1] = 0
     return d
+
+
+def saturate(d: np.ndarray) -> np.ndarray:
+    """Saturate per-vertex errors in place, fine to coarse, so δ(parent) ≥ δ(child) on
+    every bintree edge (seed 002 §2.4, L46); the domain corners get 0. Returns ``d``.
+
+    Examples
+    --------
+    >>> d = np.zeros((3, 3), np.float32); d[0, 1] = 2.0  # an edge midpoint
+    >>> float(saturate(d)[1, 1])  # its parent, the centre
+    2.0
+    """
+    return _saturate_nb(d)
 
 
 def _raw_delta(zf: np.ndarray, valid: np.ndarray) -> np.ndarray:

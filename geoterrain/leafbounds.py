@@ -32,14 +32,21 @@ from numba import njit
 
 from geoterrain import zstdsafe
 from geoterrain.bintree import main_diagonal_nb
-from geoterrain.bounds import _centre1, _edge_err, _mid1
+from geoterrain.bounds import _centre1, _edge_err, _mid1, saturate
 from geoterrain.exceptions import StoreCorruptError
 from geoterrain.normals import encode_octahedral, normal_map
 from geoterrain.radii import _nest, code_up_nb
-from geoterrain.rounding import round_up32
-from geoterrain.vertexdata import log8_table, ring_from_bytes, ring_index
+from geoterrain.rounding import round_up, round_up32
+from geoterrain.vertexdata import (
+    log8_table,
+    new_mask,
+    ring_from_bytes,
+    ring_index,
+    ring_new_index,
+)
 
-__all__ = ["derived_normal_codes", "leaf_delta", "leaf_radius", "tile_leaf_bounds"]
+__all__ = ["derived_normal_codes", "geographic_leaf_delta", "leaf_delta", "leaf_radius",
+           "tile_leaf_bounds"]
 
 
 @njit(cache=True, nogil=True)
@@ -54,10 +61,13 @@ def _status(vb, ci, cj):
 
 
 @njit(cache=True, nogil=True)
-def _leaf_delta_nb(z, vb, all_valid, i0, j0, rr, rc, rv, table, out):
+def _leaf_delta_nb(z, vb, all_valid, i0, j0, rr, rc, rv, table, slack, sat, code, out):
     # bounds._raw_delta_nb's h = 1 pass on the tile's interior, then its saturation
     # (bounds._saturate_nb: centre = max(centre, its 4 edge midpoints)), then the codes'
-    # values (the code map is monotone: coding after the max = the max of the codes)
+    # values (the code map is monotone: coding after the max = the max of the codes).
+    # ``slack`` (a geographic tile's, else 0: x + 0 is x) is added to every raw value;
+    # ``code`` False leaves the values uncoded (the preprocess codes them with the grid);
+    # ``sat`` False leaves them raw too (no ring, no saturation)
     T = z.shape[0]
     for ci in range(1, T - 1, 2):
         for cj in range(1, T - 1, 2):
@@ -65,7 +75,7 @@ def _leaf_delta_nb(z, vb, all_valid, i0, j0, rr, rc, rv, table, out):
             if f == 1:
                 out[ci, cj] = round_up32(_centre1(z, ci, cj,
                                                   main_diagonal_nb((i0 + ci) // 2,
-                                                                   (j0 + cj) // 2)))
+                                                                   (j0 + cj) // 2)) + slack)
             elif f == 3:
                 out[ci, cj] = np.inf
             else:
@@ -81,20 +91,24 @@ def _leaf_delta_nb(z, vb, all_valid, i0, j0, rr, rc, rv, table, out):
                 f = _status(vb, i - 1, j) | _status(vb, i + 1, j)
             v = np.float32(0.0)
             if f == 1:
-                v = round_up32(_mid1(z, i, j, rows))
+                v = round_up32(_mid1(z, i, j, rows) + slack)
             elif f != 2:
                 m, c = _edge_err(z, vb, i, j, 1, rows, T)
                 if c == 2:
                     v = np.float32(np.inf)
                 elif c == 1:
-                    v = round_up32(m)
+                    v = round_up32(m + slack)
             out[i, j] = v
+    if not sat:
+        return
     for k in range(rr.shape[0]):  # the border's edge midpoints, as stored
         out[rr[k], rc[k]] = rv[k]
     for ci in range(1, T - 1, 2):
         for cj in range(1, T - 1, 2):
             out[ci, cj] = max(out[ci, cj], out[ci - 1, cj], out[ci + 1, cj],
                               out[ci, cj - 1], out[ci, cj + 1])
+    if not code:
+        return
     for i in range(T):
         for j in range(1 - (i & 1), T, 2 - (i & 1)):  # the new vertices
             out[i, j] = table[code_up_nb(table, np.float64(out[i, j]))]
@@ -102,9 +116,13 @@ def _leaf_delta_nb(z, vb, all_valid, i0, j0, rr, rc, rv, table, out):
 
 def leaf_delta(z: np.ndarray, valid: np.ndarray, origin: tuple[int, int],
                ring_rows: np.ndarray, ring_cols: np.ndarray, ring_values: np.ndarray,
-               e: int) -> np.ndarray:
+               e: int | None, slack: float = 0.0) -> np.ndarray:
     """The stored δ (float32) of a level-0 tile's new vertices: saturated exact δ, coded
-    as 8-bit log codes from ``2^e`` (:func:`geoterrain.vertexdata.log8_codes`).
+    as 8-bit log codes from ``2^e`` (:func:`geoterrain.vertexdata.log8_codes`); ``e``
+    None: not coded (the preprocess's values before the grid is coded).
+
+    ``slack`` (a geographic tile's, :func:`geographic_slack`; 0 elsewhere) is added to
+    each closed-form value before it is rounded up to float32 and saturated.
 
     ``z``: the tile's (T, T) scene heights (invalid samples ignored); ``valid``: its
     mask; ``origin``: the (row, column) of its first sample in the full grid (the
@@ -125,7 +143,8 @@ def leaf_delta(z: np.ndarray, valid: np.ndarray, origin: tuple[int, int],
     out = np.zeros(zf.shape, np.float32)
     _leaf_delta_nb(zf, valid.view(np.uint8), bool(valid.all()), int(origin[0]), int(origin[1]),
                    np.asarray(ring_rows, np.int64), np.asarray(ring_cols, np.int64),
-                   np.asarray(ring_values, np.float32), _table(e), out)
+                   np.asarray(ring_values, np.float32), _table(0 if e is None else e),
+                   float(slack), True, e is not None, out)
     return out
 
 
@@ -170,9 +189,11 @@ def leaf_radius(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
 
 # ------------------------------------------------ a store's level-0 tiles, derived on read
 def tile_leaf_bounds(terrain, key: tuple[int, int, int], kind: str, log8: bool, e: int,
-                     rows: np.ndarray, cols: np.ndarray, ring: np.ndarray) -> np.ndarray:
+                     rows: np.ndarray, cols: np.ndarray, ring: np.ndarray,
+                     slack: float = 0.0) -> np.ndarray:
     """The stored δ or r of a level-0 tile's new vertices, derived from its decoded
     heights; the border ring's as stored (``Terrain``'s reader of a ``RING`` blob).
+    ``slack``: a geographic tile's δ slack (:func:`geographic_leaf_delta`).
 
     Examples
     --------
@@ -188,11 +209,88 @@ def tile_leaf_bounds(terrain, key: tuple[int, int, int], kind: str, log8: bool, 
     z = terrain.frame.z(tile.heights)
     if kind == "delta":
         t = terrain.grid.t
-        return leaf_delta(z, tile.valid, (key[2] << t, key[1] << t), rows, cols, ring, e)
+        return leaf_delta(z, tile.valid, (key[2] << t, key[1] << t), rows, cols, ring, e,
+                          slack)
     X, Y = terrain.tile_xy(*key)
     r = leaf_radius(X, Y, z, tile.valid, terrain.stand_in_z, e)
     r[rows, cols] = ring
     return r
+
+
+def geographic_leaf_delta(delta: np.ndarray, z: np.ndarray, valid: np.ndarray, t: int,
+                          dm: np.ndarray, bulge: np.ndarray
+                          ) -> dict[tuple[int, int, int], float] | None:
+    """Level-0 δ of a geographic grid as a reader derives it: raised in place, tile by
+    tile, then saturated again; the per-tile slack, or None (``delta`` untouched) where
+    the closed forms cannot bound a tile.
+
+    On a geographic grid δ also holds the metric term δ_m of :mod:`geoterrain.curvature`
+    (the error measured in the scene's curvilinear x, y), which needs pyproj's x, y of
+    every sample. At level 0 that term is tiny (a sample's offset from its index-space
+    place on a 1-sample triangle, about 10⁻⁴ m), so each tile stores one number instead
+    of its values: the slack s, the largest amount by which δ_m exceeds the index-space
+    closed form (seed 002 §2.3) at one of the tile's new vertices off the border ring. A
+    reader adds s to each closed form before it rounds up and saturates
+    (:func:`leaf_delta`), which gives at least max(closed form, δ_m) at every vertex, so
+    at least the grid's saturated δ: still a bound. The border ring's values are stored
+    as they are. Since the raised values may exceed ``delta``, the grid is saturated
+    again (§2.4, L46), so every parent still bounds its children.
+
+    ``delta``: (N, N) float32, saturated; ``z``: scene heights; ``valid``: the mask;
+    ``t``: the tile exponent; ``dm``, ``bulge``: :func:`~geoterrain.curvature.metric_terms`'
+    raw terms. Returns {(0, x, y): s} for the tiles with a valid sample.
+
+    Examples
+    --------
+    >>> from geoterrain.bounds import vertex_errors
+    >>> z = np.random.default_rng(0).normal(size=(9, 9)); v = np.ones((9, 9), bool)
+    >>> dm = np.zeros((9, 9)); dm[1, 1] = 5.0  # a metric term, say
+    >>> d = saturate(np.maximum(vertex_errors(z, v), dm.astype(np.float32)))
+    >>> s = geographic_leaf_delta(d, z, v, 2, dm, np.zeros((9, 9), bool))
+    >>> 0 < s[(0, 0, 0)] <= 5.0
+    True
+    """
+    T = (1 << t) + 1
+    n_tiles = (delta.shape[0] - 1) >> t
+    rr, rc = ring_new_index(T)
+    inner = new_mask(T)
+    inner[rr, rc] = False  # the ring is stored as it is
+    empty = np.zeros(0, np.int64)
+    raised = []
+    out: dict[tuple[int, int, int], float] = {}
+    for y in range(n_tiles):
+        for x in range(n_tiles):
+            sub = np.s_[y << t:(y << t) + T, x << t:(x << t) + T]
+            v = np.asarray(valid[sub], bool) & np.isfinite(z[sub])
+            if not v.any():
+                continue
+            if bulge[sub][inner].any():
+                return None  # a border chord that needs refining (no such case known)
+            zt = np.where(v, z[sub], 0.0)
+            w = delta[sub]
+            raw = np.zeros((T, T), np.float32)  # the closed forms, unsaturated
+            _leaf_delta_nb(zt, v.view(np.uint8), bool(v.all()), y << t, x << t, empty, empty,
+                           np.zeros(0, np.float32), _table(0), 0.0, False, False, raw)
+            fin = inner & np.isfinite(raw)
+            s = max(0.0, float((dm[sub][fin] - raw[fin]).max())) if fin.any() else 0.0
+            for _ in range(8):  # float32 rounding may leave a value an ulp short
+                s = float(round_up(np.array([s]), np.float32)[0])
+                d = leaf_delta(zt, v, (y << t, x << t), rr, rc, w[rr, rc], None, s)
+                short = d[inner].astype(np.float64) < w[inner]
+                if not short.any():
+                    break
+                if np.isinf(w[inner][short]).any():
+                    return None  # a +inf the closed forms do not give (no such case known)
+                s += float((w[inner][short] - d[inner][short]).max()) + 2.0**-40
+            else:
+                return None
+            raised.append((sub, d))
+            out[(0, x, y)] = s
+    for sub, d in raised:
+        blk = delta[sub]
+        blk[inner] = d[inner]
+    saturate(delta)
+    return out
 
 
 def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:

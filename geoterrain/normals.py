@@ -191,6 +191,18 @@ def _normals_nb(x, y, z, v, horn, out):  # pragma: no cover - compiled
             out[i, j, 2] = 1.0
             if not v[i, j]:
                 continue
+            if (not horn and 0 < i < rows - 1 and 0 < j < cols - 1 and v[i - 1, j]
+                    and v[i + 1, j] and v[i, j - 1] and v[i, j + 1]):
+                # the common case, straight-line: both central tangents (the arithmetic
+                # of _tangent_nb's two-sided branch, so the same bits)
+                jx = 0.5 * ((x[i, j + 1] - x[i, j]) + (x[i, j] - x[i, j - 1]))
+                jy = 0.5 * ((y[i, j + 1] - y[i, j]) + (y[i, j] - y[i, j - 1]))
+                jz = 0.5 * ((z[i, j + 1] - z[i, j]) + (z[i, j] - z[i, j - 1]))
+                ix = 0.5 * ((x[i + 1, j] - x[i, j]) + (x[i, j] - x[i - 1, j]))
+                iy = 0.5 * ((y[i + 1, j] - y[i, j]) + (y[i, j] - y[i - 1, j]))
+                iz = 0.5 * ((z[i + 1, j] - z[i, j]) + (z[i, j] - z[i - 1, j]))
+                _unit_cross(jx, jy, jz, ix, iy, iz, out, i, j)
+                continue
             if horn:
                 jx, jy, jz, hj = _horn_nb(x, y, z, v, i, j, 1)
                 ix, iy, iz, hi = _horn_nb(x, y, z, v, i, j, 0)
@@ -203,18 +215,24 @@ def _normals_nb(x, y, z, v, horn, out):  # pragma: no cover - compiled
                 ix, iy, iz = -jy, jx, 0.0
             elif hi and not hj:
                 jx, jy, jz = iy, -ix, 0.0
-            nx = jy * iz - jz * iy
-            ny = jz * ix - jx * iz
-            nz = jx * iy - jy * ix
-            if nz < 0.0:
-                nx, ny, nz = -nx, -ny, -nz
-            length = np.sqrt(nx * nx + ny * ny + nz * nz)
-            scale = max(abs(jx), abs(jy), abs(jz), abs(ix), abs(iy), abs(iz), 1e-300)
-            if not length > 1e-12 * scale * scale:
-                continue
-            out[i, j, 0] = nx / length
-            out[i, j, 1] = ny / length
-            out[i, j, 2] = nz / length
+            _unit_cross(jx, jy, jz, ix, iy, iz, out, i, j)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _unit_cross(jx, jy, jz, ix, iy, iz, out, i, j):  # pragma: no cover - compiled
+    """out[i, j] = the unit cross product of the tangents, z up; left (0, 0, 1) where
+    it is degenerate."""
+    nx = jy * iz - jz * iy
+    ny = jz * ix - jx * iz
+    nz = jx * iy - jy * ix
+    if nz < 0.0:
+        nx, ny, nz = -nx, -ny, -nz
+    length = np.sqrt(nx * nx + ny * ny + nz * nz)
+    scale = max(abs(jx), abs(jy), abs(jz), abs(ix), abs(iy), abs(iz), 1e-300)
+    if length > 1e-12 * scale * scale:
+        out[i, j, 0] = nx / length
+        out[i, j, 1] = ny / length
+        out[i, j, 2] = nz / length
 
 
 def _box_sum(a: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

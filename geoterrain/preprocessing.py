@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from geoterrain.bounds import vertex_errors
+from geoterrain.bounds import saturate, vertex_errors
 from geoterrain.codec import decoded_heights, encode_pyramid
 from geoterrain.curvature import metric_bounds, metric_terms
 from geoterrain.edgepad import (
@@ -27,6 +27,7 @@ from geoterrain.edgepad import (
 from geoterrain.exceptions import InputError, UsageError, exists_error
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
+from geoterrain.leafbounds import geographic_leaf_delta
 from geoterrain.memory import available_memory
 from geoterrain.mosaic import is_glob, mosaic_name, source_files
 from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
@@ -153,8 +154,10 @@ def preprocess(
         Store δ and r of each level-0 tile's new vertices only on its border ring: a
         reader derives the rest from the tile's decoded heights, to the same values
         (they are the bintree's finest vertices, whose diamonds lie in the tile;
-        :mod:`geoterrain.leafbounds`). Not on geographic frames (δ and r there carry
-        curvilinear terms of the scene x, y). False stores them all.
+        :mod:`geoterrain.leafbounds`). On geographic frames δ only, with a per-tile
+        slack for its curvilinear term (:func:`geoterrain.leafbounds.geographic_leaf_delta`:
+        the derived δ is the stored grid's or a little above it); r there is stored
+        whole. False stores them all.
     memory_limit
         Bytes the job may hold (default: half the memory available now). A raster whose
         whole-grid preprocess would need more is read a window at a time
@@ -258,8 +261,7 @@ def preprocess(
     # δ and r derived on read only in an affine frame (a geographic one's carry
     # curvilinear terms of pyproj's x, y); normals in every frame (leafbounds.normal_xy)
     derive_normals = bool(derive_normals) and grid.tile_samples >= 3
-    derive_bounds = (bool(derive_bounds) and grid.tile_samples >= 3 and grid.top_level > 0
-                     and frame.kind != "geographic")
+    derive_bounds = bool(derive_bounds) and grid.tile_samples >= 3 and grid.top_level > 0
     hv = Z[valid]
     height_range = [float(hv.min()), float(hv.max())]
     del hv
@@ -273,6 +275,14 @@ def preprocess(
         radius = vertex_radii(X, Y, Z, valid)
         terms = metric_terms(X, Y, Z, valid)
         delta, radius = metric_bounds(delta, radius, X, Y, Z, valid, terms=terms)
+    slack = delta_before = None
+    ring_kinds: tuple[str, ...] = ("delta", "radius") if derive_bounds else ()
+    if derive_bounds and frame.kind == "geographic":
+        # level 0's δ as a reader derives it: the closed forms + a per-tile slack for the
+        # metric term (δ only: r would need pyproj's x, y of every sample)
+        delta_before = delta.copy() if has_padding(grid) else None
+        slack = geographic_leaf_delta(delta, Z, valid, grid.t, terms[0], terms[2])
+        ring_kinds = ("delta",) if slack is not None else ()
     # nested radii (seed 002 §2.4, L50–52) as the 8-bit log codes they are stored as,
     # nested on the coded values (a projected frame needs no radii before: r = nesting)
     r_codes = radius_codes(X, Y, Z, valid, radius)
@@ -303,8 +313,12 @@ def preprocess(
             et = metric_terms(X, Y, Zr, ok, window=win, base=terms)
             d_edge, _ = metric_bounds(d_edge, None, X, Y, Zr, ok, window=win, terms=et)
             del et
+            if slack is not None:  # where δ_edge was δ it follows δ's raise, nested again
+                same = d_edge == delta_before
+                d_edge[same] = delta[same]
+                saturate(d_edge)
         del Zr, ok
-    del terms
+    del terms, delta_before
     ed = None if d_edge is None else max(log8_exponent(delta), log8_exponent(d_edge))
     coding = BoundsCoding(delta, None, ed, r_codes=r_codes)
     if d_edge is not None:
@@ -328,7 +342,8 @@ def preprocess(
                                         [(x, y) for _, x, y in keys],
                                         ("delta", "radius") if normals_ring else
                                         ("delta", "radius", "normals"),
-                                        ring=L == 0 and derive_bounds)
+                                        ring=ring_kinds if L == 0 else False,
+                                        slack=slack if L == 0 else None)
         if normals_ring:
             blobs["normals"] = ring_blobs(nrm_levels[0], grid.t, [(x, y) for _, x, y in keys])
         for kind, b in blobs.items():

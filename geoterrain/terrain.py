@@ -28,7 +28,6 @@ from geoterrain.vertexdata import (
     VERSION_2,
     decode_bounds,
     normals_from_bytes,
-    normals_to_bytes,
     unpack_block_errors,
 )
 
@@ -225,9 +224,12 @@ class Terrain:
             parent = {"delta": self.tile_delta, "radius": self.tile_radius,
                       "delta_edge": self.tile_delta_edge}[kind](L + 1, x // 2, y // 2)
         derive = None
-        if L == 0 and stored in ("delta", "radius") and self.frame.kind != "geographic":
-            def derive(rows, cols, ring, log8, e):  # a RING blob: the rest from the heights
-                return tile_leaf_bounds(self, key, stored, log8, e, rows, cols, ring)
+        # a RING blob: the rest from the heights (a geographic store's δ only, with its
+        # slack: r would need pyproj's x, y of every sample)
+        if L == 0 and (stored == "delta" or stored == "radius"
+                       and self.frame.kind != "geographic"):
+            def derive(rows, cols, ring, log8, e, slack):
+                return tile_leaf_bounds(self, key, stored, log8, e, rows, cols, ring, slack)
         # a stored tile's own δ_edge blob may hold differences from its δ codes
         base = (self.tile_delta(*key) if stored == "delta_edge" and len(blob) > 1
                 and blob[1] & DIFF and key in self.tile_info else None)
@@ -315,9 +317,10 @@ class Terrain:
     def tile_normal_bytes(self, level: int, x: int, y: int) -> tuple[bytes, bool]:
         """The tile's normal codes as stored, decompressed: T·T·2 components, and whether
         they are two planes of 2-D differences (8-bit ``normals_layout`` 2,
-        :func:`~geoterrain.vertexdata.normals_to_bytes`) rather than (u, v) pairs."""
-        if level in self._derived_normal_levels:
-            return normals_to_bytes(derived_normal_codes(self, level, x, y)), True
+        :func:`~geoterrain.vertexdata.normals_to_bytes`) rather than (u, v) pairs (a
+        derived level's codes come as pairs: they were never coded)."""
+        if level in self._derived_normal_levels:  # derived: as (u, v) pairs, not re-coded
+            return np.ascontiguousarray(derived_normal_codes(self, level, x, y)).tobytes(), False
         T, bits = self.grid.tile_samples, self.meta["normal_bits"]
         try:  # bounded: exactly T × T × 2 components, never a decompression bomb
             raw = zstdsafe.decompress(self._blob((level, x, y), "normals"),

@@ -28,6 +28,7 @@ from geoterrain.vertexdata import (
     LOG_STEPS,
     NEW_ONLY,
     RING,
+    SLACK,
     VERSION_2,
     log8_exponent,
     log8_table,
@@ -308,8 +309,8 @@ def compress_rows(rows: np.ndarray, prefix: bytes = b"", level: int = _ZSTD_LEVE
 
 def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_level: int,
                 tiles: Iterable[tuple[int, int]], kinds=("delta", "radius", "normals"),
-                ring: bool = False, base: BoundsCoding | None = None
-                ) -> tuple[dict, np.ndarray, np.ndarray]:
+                ring: bool | tuple[str, ...] = False, base: BoundsCoding | None = None,
+                slack: dict | None = None) -> tuple[dict, np.ndarray, np.ndarray]:
     """The δ, r and normals blobs of the stored tiles ``(x, y)`` of one level.
 
     ``nrm`` is the level's octahedral normal map (n, n, 2) uint8. Returns
@@ -320,6 +321,9 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     :mod:`geoterrain.leafbounds`); the maxima still cover every new vertex. ``base``
     (a δ_edge's δ, coded with the same table): the δ blobs hold each code's difference
     from ``base``'s mod 256 (flag ``DIFF``); the maxima are still of ``coding``'s values.
+    ``ring`` may name the kinds instead (``("delta",)``: a geographic store's, whose r is
+    stored whole); ``slack`` maps a tile's key to its ring δ's slack (flag ``SLACK``,
+    :func:`geoterrain.leafbounds.geographic_leaf_delta`; none where it is 0).
 
     Examples
     --------
@@ -356,20 +360,33 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         cols = (xy[:, 0, None] << (t + level)) + jj[None] * s
         pd = pd - base.dc[rows, cols]  # uint8: wraps mod 256, exactly invertible
         flags |= DIFF
-    if ring:
-        if level != 0 or not new_only or T < 3:
+    ring_kinds = ("delta", "radius") if ring is True else tuple(ring or ())
+    flags_d, flags_r = flags, flags & ~DIFF
+    if ring_kinds:
+        if level != 0 or not new_only or T < 3 or base is not None:
             raise ValueError("ring bounds blobs are for level 0 below the top level")
         rr, rc = ring_new_index(T)
         pos = np.searchsorted(np.flatnonzero(new_mask(T)), rr * T + rc)
-        pd = pd[:, pos]
-        pr = pr[:, pos] if rlog else np.concatenate([pr[:, pos], pr[:, nnew + pos]], axis=1)
-        flags |= RING
-    head_d = bytes([VERSION_2, flags | LOG8, int(coding.ed) & 0xFF])
-    head_r = bytes([VERSION_2, flags & ~DIFF | (LOG8 if rlog else 0),
+        if "delta" in ring_kinds:
+            pd = pd[:, pos]
+            flags_d |= RING
+        if "radius" in ring_kinds:
+            pr = pr[:, pos] if rlog else np.concatenate([pr[:, pos], pr[:, nnew + pos]], axis=1)
+            flags_r |= RING
+    head_d = bytes([VERSION_2, flags_d | LOG8, int(coding.ed) & 0xFF])
+    head_r = bytes([VERSION_2, flags_r | (LOG8 if rlog else 0),
                     int(coding.er if rlog else coding.kr) & 0xFF])
     keys = [(level, int(x), int(y)) for x, y in xy]
     rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
     blobs = {kind: dict(zip(keys, compress_rows(*rows[kind]), strict=True)) for kind in kinds}
+    if slack and "delta" in blobs:
+        if not flags_d & RING:
+            raise ValueError("a slack is for a ring δ blob")
+        for key, b in blobs["delta"].items():
+            s = float(slack.get(key, 0.0))
+            if s > 0:  # the header with SLACK, the float32, the payload as it was
+                blobs["delta"][key] = (bytes([b[0], b[1] | SLACK, b[2]])
+                                       + np.float32(s).astype("<f4").tobytes() + b[3:])
     return blobs, dmax, rmax
 
 

@@ -23,7 +23,9 @@ in stores before. Flag ``RING`` (level 0, with
 and codes them as the preprocess did (:mod:`geoterrain.leafbounds`). Flag ``DIFF`` (log8
 only; a stored tile's ``delta_edge``): each code is stored as its difference mod 256
 from the same vertex's code in the tile's ``delta`` blob (same ``e``): δ_edge differs
-from δ only near the padding, so the payload is mostly zeros.
+from δ only near the padding, so the payload is mostly zeros. Flag ``SLACK`` (a ``RING``
+δ of a geographic tile): a little-endian float32 s ≥ 0 follows the exponent; the reader
+adds it to each derived closed form (:func:`geoterrain.leafbounds.geographic_leaf_delta`).
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ from geoterrain.rounding import round_up
 
 VERSION = 1
 VERSION_2 = 2
-NEW_ONLY, LOG8, RING, DIFF = 1, 2, 4, 8  # version-2 flags
+NEW_ONLY, LOG8, RING, DIFF, SLACK = 1, 2, 4, 8, 16  # version-2 flags
 LOG_STEPS = 16  # codes per octave: at most 2^(1/16) - 1 = 4.4 % above the exact value
 _F16_MAX = 32768.0  # keep the scaled maximum well inside float16's finite range
 
@@ -97,9 +99,10 @@ def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None
     """Inverse of :func:`encode_bounds` and :func:`pack_bounds_v2`: float32 values ≥ the
     encoded ones. A version-2 new-vertices-only blob needs the parent tile's decoded
     values and the tile's ``(x % 2, y % 2)``; a ``RING`` blob also needs ``derive(rows,
-    cols, ring_values, log8, e)``: the stored values (T, T) of the tile's new vertices,
-    computed from its heights with the ring's (:mod:`geoterrain.leafbounds`) and coded
-    with the blob's code (log8 or float16) and exponent. A ``DIFF`` blob needs ``base``:
+    cols, ring_values, log8, e, slack)``: the stored values (T, T) of the tile's new
+    vertices, computed from its heights with the ring's (:mod:`geoterrain.leafbounds`;
+    ``slack``: the blob's ``SLACK``, else 0) and coded with the blob's code (log8 or
+    float16) and exponent. A ``DIFF`` blob needs ``base``:
     the tile's decoded δ, whose codes its payload is added to."""
     if len(blob) >= 1 and blob[0] == VERSION_2:
         return _decode_v2(blob, shape, parent, parity, derive, base)
@@ -224,9 +227,17 @@ def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
 
 def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
                parity: tuple[int, int], derive, base) -> np.ndarray:
-    if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING | DIFF):
+    if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING | DIFF | SLACK):
         raise ValueError("not a bounds blob of a known version")
     flags, e = blob[1], int(np.int8(np.uint8(blob[2])))
+    body, slack = blob[3:], 0.0
+    if flags & SLACK:  # a float32 after the exponent: only on a ring δ
+        if not (flags & RING and flags & LOG8) or len(blob) < 7:
+            raise ValueError("a slack needs a ring of log8 codes")
+        slack = float(np.frombuffer(blob[3:7], "<f4")[0])
+        if not (np.isfinite(slack) and slack >= 0):
+            raise ValueError("a bounds slack must be finite and not negative")
+        body = blob[7:]
     if flags & DIFF and (flags & RING or not flags & LOG8 or base is None
                          or np.shape(base) != tuple(shape)):
         raise ValueError("a difference bounds blob needs log8 codes and the tile's δ")
@@ -241,7 +252,7 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
     else:
         n = len(keep) if keep is not None else int(np.prod(shape))
     width = 1 if flags & LOG8 else 2
-    raw = zstdsafe.decompress(blob[3:], width * n, exact=True)  # bounded: never a bomb
+    raw = zstdsafe.decompress(body, width * n, exact=True)  # bounded: never a bomb
     if flags & DIFF:  # + the codes of the tile's δ at the same vertices, mod 256
         b = log8_codes(np.asarray(base).ravel() if keep is None
                        else np.asarray(base).ravel()[keep], e)
@@ -253,7 +264,7 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         vals = round_up(h.astype(np.float64) * 2.0**e, np.float32)
     out = np.empty(shape, np.float32)
     if flags & RING:  # the ring as stored, the rest derived and coded as stored
-        out.ravel()[keep] = derive(rr, rc, vals, bool(flags & LOG8), e).ravel()[keep]
+        out.ravel()[keep] = derive(rr, rc, vals, bool(flags & LOG8), e, slack).ravel()[keep]
     elif keep is None:
         out.ravel()[:] = vals
     else:

@@ -15,9 +15,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import geoterrain
+from geoterrain.bounds import saturate
 from geoterrain.exceptions import StoreCorruptError
 from geoterrain.leafbounds import leaf_delta, leaf_radius
-from geoterrain.vertexdata import DIFF, NEW_ONLY, RING, VERSION_2, ring_new_index
+from geoterrain.vertexdata import DIFF, NEW_ONLY, RING, SLACK, VERSION_2, ring_new_index
 from tests.conftest import real_dem, store_pair, write_tif
 
 
@@ -86,11 +87,132 @@ def test_real_dem_bounds_are_derived_exactly(tmp_path, name):
     _assert_same_bounds(*out)
 
 
-def test_geographic_stores_keep_every_bound(tmp_path):
-    """δ and r carry curvilinear terms of the scene x, y on a geographic frame: no ring."""
+def _delta_grid(t, get="tile_delta") -> tuple[np.ndarray, np.ndarray]:
+    """The whole padded grid's decoded δ (or δ_edge), every tile at its level, and where
+    a stored tile holds the vertex (an unstored tile's vertices are never read)."""
+    g = t.grid
+    T, out = g.tile_samples, np.zeros((g.size, g.size), np.float32)
+    held = np.zeros(out.shape, bool)
+    for L, x, y in sorted(t.tile_info, reverse=True):
+        s = 1 << L
+        r = y * (T - 1) * s + np.arange(T) * s
+        c = x * (T - 1) * s + np.arange(T) * s
+        out[np.ix_(r, c)] = getattr(t, get)(L, x, y)
+        held[np.ix_(r, c)] = True
+    return out, held
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 10_000), shape=st.sampled_from([(33, 33), (50, 37), (20, 65)]),
+       tile=st.sampled_from([2, 4, 16]), holes=st.sampled_from([0.0, 0.05]),
+       place=st.sampled_from([(139.0, 35.0, 1 / 3600), (-70.0, -33.0, 1 / 1200),
+                              (20.0, 69.5, 1 / 120), (10.0, -89.5, 1 / 120)]))
+def test_geographic_stores_derive_level0_delta_with_a_slack(tmp_path_factory, seed, shape,
+                                                           tile, holes, place):
+    """On a geographic frame δ carries a curvilinear term of pyproj's x, y, so a ring δ
+    blob stores one slack per tile (``SLACK``) that the reader adds to the closed forms.
+    Against the store that keeps every δ: each decoded δ and δ_edge is at least its
+    value (still a bound) and above it by at most a code step and twice the largest
+    slack; δ is nested over the whole decoded grid (saturating it changes nothing);
+    r is stored whole and decodes to the same values. Places from 30 m SRTM tiles to
+    1 km cells next to the south pole."""
+    tmp = tmp_path_factory.mktemp("gl")
+    rng = np.random.default_rng(seed)
+    z = rng.normal(0, 20, shape).cumsum(0).cumsum(1) / 5 + rng.normal(0, 3, shape)
+    if holes:
+        z[rng.random(shape) < holes] = -9999.0
+    lon, lat, step = place
+    full, ring = _pair(tmp, z.astype(np.float32), nodata=-9999.0, tile_size=tile,
+                       crs="EPSG:4326", spacing=step, origin=(lon, lat))
+    assert ring.frame.kind == "geographic"
+    slacks = [float(np.frombuffer(ring._blob(k, "delta")[3:7], "<f4")[0])
+              for k in ring.tile_info if ring._blob(k, "delta")[1] & SLACK]
+    top = max(slacks, default=0.0)
+    assert all(0 < s < np.inf for s in slacks), slacks
+    assert {ring._blob(k, "radius")[1] & RING for k in ring.tile_info} == {0}
+    assert (ring.grid.top_level == 0
+            or {bool(ring._blob(k, "delta")[1] & RING) for k in ring.tile_info
+                if k[0] == 0} == {True})
+    step_up = 2 ** (1 / 16)
+    for key in full.tile_info:
+        assert np.array_equal(full.tile_radius(*key), ring.tile_radius(*key))
+        for get in ("tile_delta", "tile_delta_edge"):
+            a, b = getattr(full, get)(*key), getattr(ring, get)(*key)
+            assert (b >= a).all(), (key, get)
+            f = np.isfinite(a)
+            assert np.array_equal(np.isinf(a), np.isinf(b)), (key, get)
+            assert (b[f] <= a[f] * step_up * (1 + 1e-6) + 2 * top * step_up).all(), (key, get)
+    for get in ("tile_delta", "tile_delta_edge"):
+        d, held = _delta_grid(ring, get)  # nested: saturating changes no stored vertex
+        assert np.array_equal(saturate(d.copy())[held], d[held]), get
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.sampled_from([3, 4, 5]), t=st.sampled_from([1, 2, 3]),
+       holes=st.sampled_from([0.0, 0.1]))
+def test_geographic_leaf_delta_raises_to_a_nested_bound(seed, n, t, holes):
+    """The writer's half, on float values (no codes to hide an ulp): from a grid δ
+    saturated over random metric terms δ_m at level-0 vertices, every value afterwards
+    is at least the one before and at least max(closed form, δ_m) (so still a bound),
+    the grid is nested again (saturating it changes nothing), and each tile's
+    :func:`leaf_delta` with its slack reproduces its new vertices exactly (what a reader
+    derives)."""
+    from geoterrain.bounds import vertex_errors
+    from geoterrain.leafbounds import geographic_leaf_delta
+    from geoterrain.vertexdata import new_mask
+
+    rng = np.random.default_rng(seed)
+    N = (1 << n) + 1
+    t = min(t, n - 1)
+    z = rng.normal(0, 3, (N, N)).cumsum(0)
+    valid = rng.random((N, N)) >= holes
+    dm = np.where(rng.random((N, N)) < 0.3, rng.exponential(0.5, (N, N)), 0.0)
+    dm[~new_mask(N)] = 0.0  # (level 0's vertices only matter here)
+    before = saturate(np.maximum(vertex_errors(z, valid), dm.astype(np.float32)))
+    d = before.copy()
+    slack = geographic_leaf_delta(d, z, valid, t, dm, np.zeros((N, N), bool))
+    assert slack is not None
+    assert (d >= before).all()
+    assert np.array_equal(saturate(d.copy()), d)
+    T = (1 << t) + 1
+    rr, rc = ring_new_index(T)
+    inner = new_mask(T)
+    for (_, x, y), s in slack.items():
+        sub = np.s_[y << t:(y << t) + T, x << t:(x << t) + T]
+        got = leaf_delta(z[sub], valid[sub], (y << t, x << t), rr, rc, d[sub][rr, rc], None, s)
+        assert np.array_equal(got[inner], d[sub][inner]), (x, y)
+
+
+def test_a_geographic_slack_is_checked(tmp_path):
+    """A stranger's slack: negative, NaN, or on a blob that is not a ring of log8 codes,
+    is refused in one line; a valid one only raises the derived δ."""
     z = np.random.default_rng(1).normal(0, 5, (33, 33)).cumsum(0)
     _, ring = _pair(tmp_path, z, crs="EPSG:4326", spacing=1 / 3600, origin=(139.0, 35.0))
-    assert ring.frame.kind == "geographic" and _ring_flags(ring) == {0}
+    key = next(k for k in ring.tile_info if k[0] == 0)
+    blob = ring._blob
+    good = blob(key, "delta")
+    assert good[1] & RING
+    body = good[7:] if good[1] & SLACK else good[3:]
+    head = bytes([good[0], good[1] | SLACK, good[2]])
+    want = ring.tile_delta(*key)
+    for s, ok in ((-1.0, False), (float("nan"), False), (float("inf"), False), (0.5, True)):
+        bad = head + np.float32(s).astype("<f4").tobytes() + body
+        fresh = geoterrain.open(ring.path)
+        fresh._blob = lambda k, kind, bad=bad: bad if (k, kind) == (key, "delta") else blob(
+            k, kind)
+        if ok:
+            got = fresh.tile_delta(*key)
+            assert (got >= want).all() and (got > want).any()
+        else:
+            with pytest.raises(StoreCorruptError, match="delta cannot be decoded"):
+                fresh.tile_delta(*key)
+    lvl1 = next(k for k in ring.tile_info if k[0] == 1)
+    b1 = blob(lvl1, "delta")  # a slack on a blob that is not a ring
+    bad1 = bytes([b1[0], b1[1] | SLACK, b1[2]]) + np.float32(0.1).tobytes() + b1[3:]
+    fresh = geoterrain.open(ring.path)
+    fresh._blob = lambda k, kind: bad1 if (k, kind) == (lvl1, "delta") else blob(k, kind)
+    with pytest.raises(StoreCorruptError, match="delta cannot be decoded"):
+        fresh.tile_delta(*lvl1)
 
 
 def test_a_damaged_or_misplaced_ring_is_refused_in_one_line(tmp_path):
