@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["Quantizer", "choose_quantizer", "codes_to_heights", "heights_to_codes", "roundtrip",
-           "valid_codes"]
+           "tile_heights", "valid_codes"]
 
 _I64_MAX = np.int64(np.iinfo(np.int64).max)
 _I32_MAX = np.int64(np.iinfo(np.int32).max)
@@ -275,6 +275,55 @@ def codes_to_heights(codes: np.ndarray, quantizer: Quantizer) -> np.ndarray:
         b = np.ascontiguousarray(np.where(codes < 0, codes ^ _I64_MAX, codes))
         return b.view(np.float64).copy()
     return quantizer.offset + codes * quantizer.step
+
+
+def tile_heights(codes: np.ndarray, valid: np.ndarray, quantizer: Quantizer, factor: float
+                 ) -> tuple[np.ndarray, float, float, int]:
+    """A decoded tile's heights: :func:`codes_to_heights` with NaN where not ``valid``,
+    and the smallest and largest valid height × ``factor`` (scene z; NaN if one is not
+    finite) and the valid count, in one compiled pass (the same float64 arithmetic as
+    the numpy expressions).
+
+    Examples
+    --------
+    >>> h, lo, hi, n = tile_heights(np.array([[1, 2]]), np.array([[True, False]]),
+    ...                             Quantizer("int", 0.5, 10.0), 2.0)
+    >>> h.tolist(), lo, hi, n
+    ([[10.5, nan]], 21.0, 21.0, 1)
+    """
+    codes = np.ascontiguousarray(codes, dtype=np.int64)
+    valid = np.ascontiguousarray(valid, dtype=np.bool_)
+    if quantizer.mode == "float":  # bit patterns: numpy's views
+        h = np.ascontiguousarray(codes_to_heights(codes, quantizer))
+        lo, hi, n = _finish_nb(h, valid, float(factor), 0, 0.0, 0.0, codes)
+    else:
+        h = np.empty(codes.shape, np.float64)
+        lo, hi, n = _finish_nb(h, valid, float(factor), 1, float(quantizer.step),
+                               float(quantizer.offset), codes)
+    return h, lo, hi, int(n)
+
+
+@njit(cache=True, nogil=True)
+def _finish_nb(h, valid, factor, from_codes, step, offset, codes):  # pragma: no cover
+    # from_codes: h = offset + code * step (codes_to_heights' int arithmetic); then NaN
+    # where invalid and the valid scene z range (h * factor, as Frame.z)
+    lo, hi, n, bad = np.inf, -np.inf, 0, False
+    hf, vf, cf = h.reshape(-1), valid.reshape(-1), codes.reshape(-1)
+    for k in range(hf.size):
+        if from_codes:
+            hf[k] = offset + np.float64(cf[k]) * step
+        if vf[k]:
+            z = hf[k] * factor
+            if not np.isfinite(z):
+                bad = True
+            lo = min(lo, z)
+            hi = max(hi, z)
+            n += 1
+        else:
+            hf[k] = np.nan
+    if bad:  # a valid height that is not finite: no range (a caller's check fails)
+        return np.nan, np.nan, n
+    return lo, hi, n
 
 
 @njit(cache=True, nogil=True)

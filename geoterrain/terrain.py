@@ -18,7 +18,7 @@ from geoterrain.exceptions import StoreCorruptError, StoreError
 from geoterrain.grid import level_offsets
 from geoterrain.leafbounds import derived_normal_codes, tile_leaf_bounds
 from geoterrain.normals import decode_octahedral
-from geoterrain.quantize import codes_to_heights
+from geoterrain.quantize import tile_heights
 from geoterrain.store import StoreReader
 from geoterrain.storecheck import check_store
 from geoterrain.vertexdata import (
@@ -194,15 +194,14 @@ class Terrain:
             raise StoreCorruptError(f"{self.path}: tile {key} heights cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
         self.decoded_tiles += 1
-        h = codes_to_heights(codes, self.quantizer)
-        h = np.where(valid, h, np.nan)
-        # the decoded heights must lie in the tile row's box (a bound checksum on its own
+        # the heights (NaN where not valid) and their scene z range, in one pass: the
+        # decoded heights must lie in the tile row's box (a bound checksum on its own
         # cannot tell an edited quantizer or frame from the truth)
+        h, zlo, zhi, nv = tile_heights(codes, valid, self.quantizer,
+                                       self.frame.z_to_m * self.frame.z_scale)
         info = self.tile_info[key]
-        z = self.frame.z(h[valid])
         tol = 1e-9 * max(1.0, abs(info["zmin"]), abs(info["zmax"]))
-        if int(valid.sum()) != 0 and not (z.min() >= info["zmin"] - tol
-                                          and z.max() <= info["zmax"] + tol):
+        if nv != 0 and not (zlo >= info["zmin"] - tol and zhi <= info["zmax"] + tol):
             raise StoreCorruptError(f"{self.path}: tile {key} heights lie outside the tile's "
                                     "recorded bounds: the file is damaged; re-run "
                                     "`geoterrain preprocess`")
