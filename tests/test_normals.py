@@ -317,7 +317,7 @@ def _pair(tmp_path, z, **kw):
 def test_derived_level0_normals_are_the_stored_ones(tmp_path_factory, seed, shape, tile,
                                                     holes, lossy, z_scale, z_units):
     """A store whose level-0 normals blobs hold only the border ring decodes every
-    tile's normal codes (and the shading bytes) exactly as the store that keeps them
+    tile's normal codes (and its shaded texture) exactly as the store that keeps them
     all: random rough DEMs, nodata holes, padded shapes, lossless and ε = 2, heights
     exaggerated and in feet (the scene z the reader must rebuild)."""
     tmp = tmp_path_factory.mktemp("nd")
