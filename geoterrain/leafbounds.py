@@ -121,7 +121,7 @@ def leaf_delta(z: np.ndarray, valid: np.ndarray, origin: tuple[int, int],
     as 8-bit log codes from ``2^e`` (:func:`geoterrain.vertexdata.log8_codes`); ``e``
     None: not coded (the preprocess's values before the grid is coded).
 
-    ``slack`` (a geographic tile's, :func:`geographic_slack`; 0 elsewhere) is added to
+    ``slack`` (a geographic tile's, :func:`geographic_leaf_delta`; 0 elsewhere) is added to
     each closed-form value before it is rounded up to float32 and saturated.
 
     ``z``: the tile's (T, T) scene heights (invalid samples ignored); ``valid``: its

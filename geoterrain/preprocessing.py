@@ -258,8 +258,9 @@ def preprocess(
     q = choose_quantizer(heights, r.src_dtype, codec_error=codec_error, scale=r.scale,
                          offset=r.offset)
     Z = decoded_heights(heights, valid, q)  # NaN where invalid
-    # δ and r derived on read only in an affine frame (a geographic one's carry
-    # curvilinear terms of pyproj's x, y); normals in every frame (leafbounds.normal_xy)
+    # level 0's normals and δ derived on read in every frame (a geographic tile's with
+    # bilinear x, y and a slack: leafbounds.normal_xy, geographic_leaf_delta); r only in
+    # an affine frame (a geographic one's needs pyproj's x, y of every sample)
     derive_normals = bool(derive_normals) and grid.tile_samples >= 3
     derive_bounds = bool(derive_bounds) and grid.tile_samples >= 3 and grid.top_level > 0
     hv = Z[valid]

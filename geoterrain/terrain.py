@@ -225,8 +225,8 @@ class Terrain:
         derive = None
         # a RING blob: the rest from the heights (a geographic store's δ only, with its
         # slack: r would need pyproj's x, y of every sample)
-        if L == 0 and (stored == "delta" or stored == "radius"
-                       and self.frame.kind != "geographic"):
+        if L == 0 and (stored == "delta"
+                       or (stored == "radius" and self.frame.kind != "geographic")):
             def derive(rows, cols, ring, log8, e, slack):
                 return tile_leaf_bounds(self, key, stored, log8, e, rows, cols, ring, slack)
         # a stored tile's own δ_edge blob may hold differences from its δ codes

@@ -291,9 +291,10 @@ def _level_payloads(dc, r16, t8, up, rc, rt, nrm, ys, xs, t, level, new_only, pd
                     pn[k, base + i * T + j] = np.uint8(v & 0xFF)
 
 
-def compress_rows(rows: np.ndarray, prefix: bytes = b"", level: int = _ZSTD_LEVEL
-                  ) -> list[bytes]:
-    """``prefix + zstd(row)`` of every row of a 2-D uint8 array, in one call on every core.
+def compress_rows(rows: np.ndarray, prefix: bytes | list[bytes] = b"",
+                  level: int = _ZSTD_LEVEL) -> list[bytes]:
+    """``prefix + zstd(row)`` of every row of a 2-D uint8 array, in one call on every core
+    (``prefix`` may be one per row).
 
     Examples
     --------
@@ -304,7 +305,9 @@ def compress_rows(rows: np.ndarray, prefix: bytes = b"", level: int = _ZSTD_LEVE
     [True, True, True]
     """
     rows = np.ascontiguousarray(rows, np.uint8)
-    return [prefix + f for f in compress_many([r.tobytes() for r in rows], level)]
+    heads = [prefix] * len(rows) if isinstance(prefix, bytes) else list(prefix)
+    return [h + f for h, f in zip(heads, compress_many([r.tobytes() for r in rows], level),
+                                  strict=True)]
 
 
 def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_level: int,
@@ -377,16 +380,14 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     head_r = bytes([VERSION_2, flags_r | (LOG8 if rlog else 0),
                     int(coding.er if rlog else coding.kr) & 0xFF])
     keys = [(level, int(x), int(y)) for x, y in xy]
-    rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
-    blobs = {kind: dict(zip(keys, compress_rows(*rows[kind]), strict=True)) for kind in kinds}
-    if slack and "delta" in blobs:
+    if slack:  # a tile with a slack: the flag, then the float32 after the exponent
         if not flags_d & RING:
             raise ValueError("a slack is for a ring δ blob")
-        for key, b in blobs["delta"].items():
-            s = float(slack.get(key, 0.0))
-            if s > 0:  # the header with SLACK, the float32, the payload as it was
-                blobs["delta"][key] = (bytes([b[0], b[1] | SLACK, b[2]])
-                                       + np.float32(s).astype("<f4").tobytes() + b[3:])
+        head_d = [head_d if s <= 0 else bytes([head_d[0], head_d[1] | SLACK, head_d[2]])
+                  + np.float32(s).astype("<f4").tobytes()
+                  for s in (float(slack.get(k, 0.0)) for k in keys)]
+    rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
+    blobs = {kind: dict(zip(keys, compress_rows(*rows[kind]), strict=True)) for kind in kinds}
     return blobs, dmax, rmax
 
 
