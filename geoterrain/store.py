@@ -43,9 +43,11 @@ from geoterrain.exceptions import (
     WriteError,
     exists_error,
 )
+from geoterrain.pagepack import LEAF_HEADER, leaf_cell_size, pack_order
 
 SCHEMA_VERSION = 2  # 2: checksums bound to their tile and kind; per-level key digests
 PAGE_SIZE = 1024  # bytes per SQLite page of a written store
+PACK_BYTES = 4 << 20  # blob bytes a writer holds before inserting them, packed (pagepack)
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
 TILE_COLUMNS = ("nvalid", "zmin", "zmax", "error", "boundary_error",
                 "xmin", "xmax", "ymin", "ymax", "delta_max", "radius_max")
@@ -318,6 +320,9 @@ class StoreWriter:
         self.overwrite = overwrite
         self._keys: list[tuple[int, int, int]] = []
         self._meta: dict[str, str] = {}
+        self._rows: list[tuple] = []  # blob rows not yet inserted (see _flush)
+        self._row_bytes = 0
+        self._rowid = 0  # rows inserted so far: the next one's rowid is this + 1
         self._committed = False
         try:
             if self.tmp.exists():
@@ -363,12 +368,29 @@ class StoreWriter:
             self._meta[k] = json.dumps(v)
 
     def put_blob(self, key: tuple[int, int, int], kind: str, data: bytes) -> None:
-        self._guard(self.con.execute, "INSERT INTO blobs VALUES (?,?,?,?,?,?)",
-                    (*key, kind, data, blob_crc(key, kind, data)))
+        self.put_blobs(kind, {key: data})
 
     def put_blobs(self, kind: str, blobs: dict[tuple[int, int, int], bytes]) -> None:
-        rows = ((*k, kind, d, blob_crc(k, kind, d)) for k, d in blobs.items())
-        self._guard(self.con.executemany, "INSERT INTO blobs VALUES (?,?,?,?,?,?)", rows)
+        """Add blobs of one kind. They are inserted in batches of about
+        :data:`PACK_BYTES`, each in the order that fills SQLite's leaf pages
+        (:mod:`geoterrain.pagepack`), so a store's bytes depend on the sequence of rows
+        given, not on how it is split into calls."""
+        for k, d in blobs.items():
+            self._rows.append((*k, kind, d, blob_crc(k, kind, d)))
+            self._row_bytes += len(d)
+            if self._row_bytes >= PACK_BYTES:
+                self._guard(self._flush)
+
+    def _flush(self) -> None:
+        """Insert the buffered blob rows, packed into leaf pages (pagepack.pack_order)."""
+        rows, self._rows, self._row_bytes = self._rows, [], 0
+        if not rows:
+            return
+        last = self._rowid + len(rows)  # cells are sized with the batch's largest rowid
+        sizes = [leaf_cell_size(r, last, PAGE_SIZE) for r in rows]
+        order = pack_order(sizes, PAGE_SIZE - LEAF_HEADER)
+        self.con.executemany("INSERT INTO blobs VALUES (?,?,?,?,?,?)", (rows[i] for i in order))
+        self._rowid = last
 
     def put_tiles(self, rows: dict[tuple[int, int, int], tuple]) -> None:
         """Per-tile numbers, in the order of :data:`TILE_COLUMNS`."""
@@ -385,6 +407,7 @@ class StoreWriter:
         meta["complete"] = json.dumps(True)
 
         def _finish():
+            self._flush()
             self.con.executemany("INSERT INTO metadata VALUES (?,?)", meta.items())
             self.con.execute("INSERT INTO metadata VALUES (?,?)",
                              ("metadata_crc32", json.dumps(_meta_crc(meta))))
