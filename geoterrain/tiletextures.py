@@ -119,6 +119,13 @@ def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Pale
     (33, 33, 3)
     """
     pal = as_palette(cmap)
+    return _shaded(terrain, _rgb_key(terrain, shading, pal, light, drape, level, x, y),
+                   level, x, y, shading, pal, counter, light, drape)
+
+
+def _shaded(terrain, key: tuple, level: int, x: int, y: int, shading: str, pal: Palette,
+            counter: dict | None, light: Light | None, drape: Drape | None) -> np.ndarray:
+    """:func:`tile_rgb` under its cache ``key`` (:func:`_rgb_key`)."""
 
     def make():
         if counter is not None:
@@ -144,16 +151,28 @@ def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Pale
             rgb *= tile_shade(terrain, level, x, y, light, _spacing(terrain))[..., None]
         return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
 
-    return terrain._cached(_rgb_key(terrain, shading, pal, light, drape, level, x, y), make)
+    return terrain._cached(key, make)
+
+
+# every shading style met so far, numbered: a tile's cache key holds the number, so a
+# lookup hashes a few ints, not the palette, light and drape (a handful of styles a
+# process; each is a small frozen value)
+_STYLES: dict[tuple, int] = {}
+
+
+def _style_id(terrain, shading: str, pal: Palette, light: Light | None,
+              drape: Drape | None) -> int:
+    """The number of this shading style. A vertically exaggerated view shares its base
+    terrain's cache but not its shading (its normals are steeper)."""
+    lk = None if light is None or light.is_default else light
+    ve = float(getattr(terrain, "vertical_exaggeration", 1.0))
+    return _STYLES.setdefault((shading, pal, lk, drape, ve), len(_STYLES))
 
 
 def _rgb_key(terrain, shading: str, pal: Palette, light: Light | None, drape: Drape | None,
              level: int, x: int, y: int) -> tuple:
-    """The cache key of :func:`tile_rgb`. A vertically exaggerated view shares its base
-    terrain's cache but not its shading (its normals are steeper)."""
-    lk = None if light is None or light.is_default else light
-    ve = float(getattr(terrain, "vertical_exaggeration", 1.0))
-    return ("rgb", shading, pal, lk, drape, ve, level, x, y)
+    """The cache key of :func:`tile_rgb`."""
+    return ("rgb", _style_id(terrain, shading, pal, light, drape), level, x, y)
 
 
 def _stand_in(terrain, key: tuple, step: int, rgb_key, atlas: np.ndarray, r: int,
@@ -190,6 +209,19 @@ def footprints(ij: np.ndarray, faces: np.ndarray, grid) -> tuple[np.ndarray, ...
     faces = np.asarray(faces, np.int64)
     cells = np.concatenate([np.full((len(faces), 1), 3, np.int64), faces], 1).ravel()
     return _table_keys(face_footprints(ij, cells, grid.t, base), base)
+
+
+def _flat_cells(mesh) -> np.ndarray:
+    """A triangle mesh's cells in VTK's flat layout (3, a, b, c, …) as int64, from its
+    connectivity: the selections' fixed-size cell arrays have no legacy array, and
+    exporting one walks every cell (1 ms a frame at 50 k faces)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    conn = vtk_to_numpy(mesh.GetPolys().GetConnectivityArray())
+    out = np.empty((len(conn) // 3, 4), np.int64)
+    out[:, 0] = 3
+    out[:, 1:] = conn.reshape(-1, 3)
+    return out.ravel()
 
 
 def _table_keys(e: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -262,7 +294,7 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
                             "texture_ms": 0.0})
     pts = np.asarray(mesh.points, np.float64)
     ij = np.asarray(mesh.point_data["grid_ij"])
-    cells = np.asarray(mesh.faces)  # VTK's flat triangles: 3, a, b, c, ...
+    cells = _flat_cells(mesh)  # VTK's flat triangles: 3, a, b, c, ...
     top = g.top_level
     # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
     base = level_offsets(top)
@@ -330,38 +362,43 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     rect = np.empty((G, 4), np.int64)  # per page: row, column, height, width written
     stored = terrain.tile_info
     pal = as_palette(cmap)
+    sid = _style_id(terrain, shading, pal, light, drape)
 
     def rgb_key(L, x, y):
-        return _rgb_key(terrain, shading, pal, light, drape, L, x, y)
+        return ("rgb", sid, L, x, y)  # _rgb_key's, with the style numbered once
 
-    for gi in range(G):  # one step per page; the texels are whole-array copies
-        lt, kk = int(Lt[gi]), int(k[gi])
-        span = step << gL[gi]  # the footprint's width in full-resolution samples
-        bi, bj = int(gY[gi]) * span, int(gX[gi]) * span
-        y0, x0 = int(ay[gi]) + GUTTER, int(ax[gi]) + GUTTER
+    # one step per page, on Python ints (numpy scalars cost more than the step itself);
+    # the texels are whole-array copies
+    for gi, (lt, kk, gl, gy, gx, py, px, i0, i1, j0, j1) in enumerate(zip(
+            Lt.tolist(), k.tolist(), gL.tolist(), gY.tolist(), gX.tolist(), ay.tolist(),
+            ax.tolist(), ilo.tolist(), ihi.tolist(), jlo.tolist(), jhi.tolist(),
+            strict=True)):
+        span = step << gl  # the footprint's width in full-resolution samples
+        bi, bj = gy * span, gx * span
+        y0, x0 = py + GUTTER, px + GUTTER
         wt = step << lt  # a level-lt tile's width in full-resolution samples
         last = (1 << kk) - 1
-        ty0, ty1 = min(last, int((ilo[gi] - bi) // wt)), min(last, int((ihi[gi] - bi - 1) // wt))
-        tx0, tx1 = min(last, int((jlo[gi] - bj) // wt)), min(last, int((jhi[gi] - bj - 1) // wt))
+        ty0, ty1 = min(last, (i0 - bi) // wt), min(last, (i1 - bi - 1) // wt)
+        tx0, tx1 = min(last, (j0 - bj) // wt), min(last, (j1 - bj - 1) // wt)
         # the texels written: these tiles' rectangle, whose border gets a gutter below
         rect[gi] = (y0 + ty0 * step, x0 + tx0 * step, (ty1 - ty0 + 1) * step + 1,
                     (tx1 - tx0 + 1) * step + 1)
         for ty in range(ty0, ty1 + 1):
             for tx in range(tx0, tx1 + 1):
-                key = (lt, (int(gX[gi]) << kk) + tx, (int(gY[gi]) << kk) + ty)
+                key = (lt, (gx << kk) + tx, (gy << kk) + ty)
                 r, c = y0 + ty * step, x0 + tx * step
                 if key not in stored:
                     atlas[r:r + step + 1, c:c + step + 1] = MISSING_GREY
                     continue
                 n_tiles += 1
+                ck = rgb_key(*key)
                 if max_builds is not None and counter["textures_built"] >= max_builds \
-                        and terrain.peek(rgb_key(*key)) is None:
+                        and terrain.peek(ck) is None:
                     if _stand_in(terrain, key, step, rgb_key, atlas, r, c):
                         deferred += 1
                         continue
-                atlas[r:r + step + 1, c:c + step + 1] = tile_rgb(terrain, *key, shading,
-                                                                 cmap, counter, light,
-                                                                 drape)
+                atlas[r:r + step + 1, c:c + step + 1] = _shaded(terrain, ck, *key, shading,
+                                                                pal, counter, light, drape)
     # each page's written tiles clamped to their edge over the rest of the page and its
     # gutter (a multisampled pixel centre may fall past a face at a page's seam)
     page = (step << k) + 1 + 2 * GUTTER  # a page's allocation: its texels and gutter
