@@ -50,11 +50,15 @@ from geoterrain.raster import ENCODINGS
               help="Take up a streamed preprocess of the same DEM and settings that was "
                    "killed: the passes it finished are reused, and the store is the one an "
                    "uninterrupted run writes.")
+@click.option("--stored-normals", is_flag=True,
+              help="Store every tile's normal map whole, not just its border (the rest is "
+                   "derived from the heights when a tile is shaded): a store about a third "
+                   "larger on SRTM DEMs, whose new textures shade about 0.2 ms a tile faster.")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,
             codec_error, old_max_error, zstd_level, nodata, memory_limit, scheduler, resume,
-            overwrite):
+            stored_normals, overwrite):
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
     DEM is any raster GDAL reads (GeoTIFF/COG, SRTM .hgt, Esri ASCII, a .vrt,
@@ -91,7 +95,8 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
             dem, output, tile_size=tile_size, band=band, encoding=encoding,
             pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, tile=tile,
             codec_error=codec_error, overwrite=overwrite, zstd_level=zstd_level, nodata=nodata,
-            memory_limit=memory_limit, scheduler=scheduler, resume=resume, progress=bar)
+            memory_limit=memory_limit, scheduler=scheduler, resume=resume, progress=bar,
+            derive_normals=not stored_normals)
     finally:
         bar.close()
     if not quiet:

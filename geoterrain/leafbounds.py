@@ -296,8 +296,9 @@ def geographic_leaf_delta(delta: np.ndarray, z: np.ndarray, valid: np.ndarray, t
 def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
     """Scene X, Y (T, T) from which a tile's normals are derived on read.
 
-    In a projected or pixel frame, the tile's own (:meth:`Terrain.tile_xy`: the
-    preprocess's values, so the derived codes are its codes). In a geographic frame,
+    In a projected or pixel frame, the preprocess's values (:meth:`Frame.grid_xy`'s: X
+    by column, Y by row, as read-only broadcast views), so the derived codes are its
+    codes. In a geographic frame,
     pyproj at ``NORMAL_XY_NODES`` × ``NORMAL_XY_NODES`` nodes of the tile only (every 8
     samples of a 65² tile), bilinear between them: a sample's own pyproj call would cost
     about 2.6 ms a 65² tile, 20× the stored read. The bilinear positions are off by the
@@ -314,9 +315,15 @@ def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarr
     >>> X.shape == (t.grid.tile_samples,) * 2
     True
     """
-    if terrain.frame.kind != "geographic":
-        return terrain.tile_xy(level, x, y)
     g = terrain.grid
+    if terrain.frame.kind != "geographic":
+        # X by column and Y by row, as the preprocess's grid_xy: broadcast views, and no
+        # T² positions to compute and cache for every tile shaded
+        rows, cols = g.tile_rows(level, y), g.tile_cols(level, x)
+        xs, _ = terrain.frame.xy(np.zeros(len(cols)), cols)
+        _, ys = terrain.frame.xy(rows, np.zeros(len(rows)))
+        shape = (len(rows), len(cols))
+        return np.broadcast_to(xs[None, :], shape), np.broadcast_to(ys[:, None], shape)
     T = g.tile_samples
     m = min(T, NORMAL_XY_NODES)  # nodes a side: every (T − 1) / (m − 1) samples
     w = (T - 1) // (m - 1)

@@ -8,9 +8,13 @@ positions, so curvilinear (geographic) grids and vertical exaggeration are handl
 - :func:`normal_map`: unit normals (N, N, 3) float32, central differences (or Horn/Sobel
   weights) of the positions along rows and columns, normal = cross product pointing +Z
   (parallel compiled kernel, float64 arithmetic).
+- :func:`level_normal_maps`: the maps of every pyramid level, level L the
+  :func:`normal_map` of level L's own samples (every 2**L-th row and column): what a
+  store holds, and what its reader derives from a tile's decoded heights and its stored
+  border ring at every level (docs/store.md).
 - :func:`normal_pyramid`: the maps of every pyramid level, each level a 3x3 binomial
-  weighted mean (renormalised) of the previous one around its kept samples (fast path of
-  the preprocessing pipeline).
+  weighted mean (renormalised) of the previous one around its kept samples (what stores
+  held before; kept for comparison, docs/benchmarks.md §7g).
 - :func:`level_normals`: the map for one pyramid level L directly from the full map (box
   mean over each sample's footprint, renormalised; summed-area tables, memory-hungry).
 - :func:`encode_octahedral` / :func:`decode_octahedral`: 2-component octahedral packing
@@ -29,6 +33,7 @@ from numba import njit, prange
 
 __all__ = [
     "normal_map",
+    "level_normal_maps",
     "level_normals",
     "normal_pyramid",
     "encode_octahedral",
@@ -108,6 +113,37 @@ def normal_map(
         else:
             vv = _valid_finite_nb(x, y, z, v)
             _normals_nb(x, y, z, vv, kernel == "horn", out)
+    return out
+
+
+def level_normal_maps(x: np.ndarray, y: np.ndarray, z: np.ndarray,
+                      valid: np.ndarray | None, levels: int) -> list[np.ndarray]:
+    """Normal maps of pyramid levels 0 … ``levels`` − 1, each (N_L, N_L, 3) float32:
+    level L is :func:`normal_map` of level L's own samples (rows and columns
+    0, 2**L, 2·2**L, …), central differences at that level's spacing (seed 000's
+    normal-map lighting, one map per level of the texture quadtree, §2.5).
+
+    A coarse texel's normal is then the slope across 2·2**L samples through it: the mean
+    of the fine slopes along its row and column, so no finer sample is needed, and a
+    reader rebuilds it from a tile's decoded heights (the stored border ring supplies the
+    neighbours outside the tile).
+
+    Examples
+    --------
+    >>> j, i = np.meshgrid(np.arange(9.0), np.arange(9.0))
+    >>> maps = level_normal_maps(j, -i, 0.5 * j, None, 3)
+    >>> [m.shape[0] for m in maps]
+    [9, 5, 3]
+    >>> bool(np.allclose(maps[2], maps[0][::4, ::4]))  # a plane's normal at every level
+    True
+    """
+    if levels < 1:
+        raise ValueError("levels must be >= 1")
+    out = []
+    for L in range(levels):
+        s = 1 << L
+        out.append(normal_map(x[::s, ::s], y[::s, ::s], z[::s, ::s],
+                              None if valid is None else np.asarray(valid)[::s, ::s]))
     return out
 
 

@@ -30,7 +30,7 @@ from geoterrain.grid import Grid
 from geoterrain.leafbounds import geographic_leaf_delta
 from geoterrain.memory import available_memory
 from geoterrain.mosaic import is_glob, mosaic_name, source_files
-from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
+from geoterrain.normals import encode_octahedral, level_normal_maps
 from geoterrain.progress import Progress, StageClock
 from geoterrain.quantize import choose_quantizer
 from geoterrain.radii import stand_in_z, valid_range, vertex_radii
@@ -143,9 +143,11 @@ def preprocess(
         The value of voids, overriding the file's (NaN: none but NaN); see
         :func:`geoterrain.raster.read_raster` for undeclared voids.
     derive_normals
-        Store only the border ring of each level-0 tile's normal map: a reader derives
-        the rest from the tile's decoded heights, to the same codes (the full map's
-        central differences read nothing outside the tile there). On geographic frames
+        Store only the border ring of each tile's normal map, at every level: a reader
+        derives the rest from the tile's decoded heights, to the same codes (a level's
+        map is the central differences of that level's samples, which read nothing
+        outside the tile there; :func:`geoterrain.normals.level_normal_maps`). On
+        geographic frames
         the reader takes the tile's scene x, y bilinear between pyproj nodes
         (:func:`geoterrain.leafbounds.normal_xy`; the tile's own where the frame bends
         too much for that), so those codes are the full map's or a neighbour code.
@@ -292,11 +294,10 @@ def preprocess(
     # per-tile bounds, and every GeoMipMapping block's exact δ_n (seed 000 §2.4)
     bounds, blocks = tile_and_block_errors(Z, valid, X, Y, grid.t)
     stage("tile bounds")
-    nrm = normal_map(X, Y, Z, valid)
-    # per-level maps filtered from full resolution (seed 000 normal-map lighting)
+    # one map per level, central differences of the level's own samples (seed 000
+    # normal-map lighting): a reader rebuilds each tile's from its heights and ring
     nrm_levels = [encode_octahedral(n, NORMAL_BITS)
-                  for n in normal_pyramid(nrm, valid, grid.top_level + 1)]
-    del nrm
+                  for n in level_normal_maps(X, Y, Z, valid, grid.top_level + 1)]
     stage("normals")
 
     height_blobs = encode_pyramid(heights, valid, grid.t, q, level=zstd_level)
@@ -337,8 +338,8 @@ def preprocess(
         keys = [k for k in height_blobs if k[0] == L]
         if not keys:
             continue
-        # level 0's rings: the rest is derived from the heights on read
-        normals_ring = L == 0 and derive_normals
+        # every level's rings: the rest is derived from the heights on read
+        normals_ring = derive_normals
         blobs, dmax, rmax = level_blobs(coding, nrm_levels[L], grid.t, L, grid.top_level,
                                         [(x, y) for _, x, y in keys],
                                         ("delta", "radius") if normals_ring else
@@ -346,7 +347,8 @@ def preprocess(
                                         ring=ring_kinds if L == 0 else False,
                                         slack=slack if L == 0 else None)
         if normals_ring:
-            blobs["normals"] = ring_blobs(nrm_levels[0], grid.t, [(x, y) for _, x, y in keys])
+            blobs["normals"] = ring_blobs(nrm_levels[L], grid.t, [(x, y) for _, x, y in keys],
+                                          L)
         for kind, b in blobs.items():
             extra[kind].update(b)
         # per-tile max δ and r (of the values as stored, over the vertices new at this
@@ -378,7 +380,8 @@ def preprocess(
         w.put_metadata(store_metadata(
             source=mosaic_name(files), source_dtype=r.src_dtype, source_nodata=r.nodata,
             encoding=r.encoding, grid=grid.to_json(), frame=frame.to_json(),
-            quantizer=dataclasses.asdict(q), normals_derived=derive_normals,
+            quantizer=dataclasses.asdict(q),
+            normals_derived=list(range(grid.top_level + 1)) if derive_normals else [],
             valid_samples=nvalid, samples=r.valid.size, height_range=height_range,
             delta_max_finite=_finite_max(delta),
             edge_max=edge_max if has_padding(grid) else None, stand_in_z=stand_in_z(Z, valid),

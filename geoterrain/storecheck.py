@@ -176,10 +176,12 @@ def check_store(path: str | Path, m: dict, tiles: dict) -> tuple[Grid, Frame, Qu
             raise _Bad("normal_bits must be 8 or 16")
         if m.get("normals_layout", 1) not in (1, 2):
             raise _Bad("normals_layout must be 1 or 2")
-        if "normals_derived" in m and (m["normals_derived"] != [0] or m["normal_bits"] != 8
-                                       or g.tile_samples < 3):
-            raise _Bad("normals_derived must be [0], with 8-bit normals and tiles of 3 "
-                       "samples or more")
+        # every level's rings (written now), or level 0's (stores before)
+        if "normals_derived" in m and (
+                m["normals_derived"] not in ([0], list(range(g.top_level + 1)))
+                or m["normal_bits"] != 8 or g.tile_samples < 3):
+            raise _Bad("normals_derived must be [0] or every level, with 8-bit normals and "
+                       "tiles of 3 samples or more")
         nv = _int(m.get("valid_samples"), 1, g.rows * g.cols, "valid_samples")
         frac = _num(m.get("nodata_fraction"), "nodata_fraction", 0.0, 1.0)
         if abs(frac - (1.0 - nv / (g.rows * g.cols))) > 1e-9:

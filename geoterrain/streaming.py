@@ -299,7 +299,8 @@ def preprocess_streaming(
                     source=src.name, source_dtype=dtype,
                     source_nodata=None if nd is None else float(nd), encoding="raw",
                     grid=grid.to_json(), frame=frame.to_json(), quantizer=dataclasses.asdict(q),
-                    normals_derived=meta["derive_normals"], valid_samples=nvalid,
+                    normals_derived=(list(range(grid.top_level + 1))
+                                     if meta["derive_normals"] else []), valid_samples=nvalid,
                     samples=grid.rows * grid.cols, height_range=hv,
                     delta_max_finite=meta["delta_max"],
                     edge_max=meta["edge_max"] if pad else None, stand_in_z=stand_in,
@@ -351,7 +352,7 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                                     None, ed, r_codes=(rc, er))
             top_w = 0 if is_top else 1  # the window's level 0 is level L
             if keys:
-                ring = L == 0 and derive_normals
+                ring = derive_normals  # every level's normals: the border ring
                 blobs, dm, rm = level_blobs(
                     coding, nrm, t, 0, top_w, [(x, 0) for x in keys],
                     ("delta", "radius") if ring else ("delta", "radius", "normals"),

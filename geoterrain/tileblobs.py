@@ -391,11 +391,13 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     return blobs, dmax, rmax
 
 
-def ring_blobs(nrm: np.ndarray, t: int, tiles: Iterable[tuple[int, int]]) -> dict:
-    """Level-0 normals blobs that hold only each tile's border ring (4T − 4 samples, as
-    :func:`geoterrain.vertexdata.ring_planes`, zstd): a reader derives the interior
-    from the tile's own heights (:meth:`geoterrain.terrain.Terrain.tile_normal_codes`),
-    as the central differences there read no sample outside the tile.
+def ring_blobs(nrm: np.ndarray, t: int, tiles: Iterable[tuple[int, int]],
+               level: int = 0) -> dict:
+    """Normals blobs of level ``level`` (``nrm``: that level's codes) that hold only each
+    tile's border ring (4T − 4 samples, as :func:`geoterrain.vertexdata.ring_planes`,
+    zstd): a reader derives the interior from the tile's own heights
+    (:meth:`geoterrain.terrain.Terrain.tile_normal_codes`), as the central differences
+    there read no sample outside the tile.
 
     Examples
     --------
@@ -406,5 +408,5 @@ def ring_blobs(nrm: np.ndarray, t: int, tiles: Iterable[tuple[int, int]]) -> dic
     xy = np.asarray(list(tiles), np.int64).reshape(-1, 2)
     rr, cc = ring_index((1 << t) + 1)
     rings = nrm[(xy[:, 1, None] << t) + rr[None], (xy[:, 0, None] << t) + cc[None]]
-    keys = [(0, int(x), int(y)) for x, y in xy]
+    keys = [(level, int(x), int(y)) for x, y in xy]
     return dict(zip(keys, compress_rows(ring_planes(rings)), strict=True))

@@ -284,19 +284,22 @@ NORMAL_BITS = 8  # bits per octahedral normal component the preprocess stores
 
 def store_metadata(*, source: str, source_dtype: str, source_nodata: float | None,
                    encoding: str, grid: dict, frame: dict, quantizer: dict,
-                   normals_derived: bool, valid_samples: int, samples: int,
+                   normals_derived: list[int], valid_samples: int, samples: int,
                    height_range: list, delta_max_finite: float, edge_max: list | None,
                    stand_in_z: float, block_delta_levels: int, times: dict) -> dict:
     """The metadata a preprocess writes (the whole-grid one and the streaming one).
 
+    ``normals_derived``: the levels whose normals blobs are border rings (every level of
+    the grid, or none).
+
     Examples
     --------
     >>> m = store_metadata(source="d.tif", source_dtype="int16", source_nodata=None,
-    ...     encoding="raw", grid={}, frame={}, quantizer={}, normals_derived=True,
+    ...     encoding="raw", grid={}, frame={}, quantizer={}, normals_derived=[0, 1],
     ...     valid_samples=3, samples=4, height_range=[0, 1], delta_max_finite=0.0,
     ...     edge_max=None, stand_in_z=0.5, block_delta_levels=1, times={})
     >>> m["nodata_fraction"], m["normals_derived"], "delta_edge" in m
-    (0.25, [0], False)
+    (0.25, [0, 1], False)
     """
     from geoterrain._version import __version__
 
@@ -313,8 +316,8 @@ def store_metadata(*, source: str, source_dtype: str, source_nodata: float | Non
         "normal_bits": NORMAL_BITS,
         "normals_layout": NORMALS_PLANAR_DXDY,
         # levels whose normals blobs hold only the tile's border ring (the interior is
-        # the central differences of the decoded heights, computed on read)
-        **({"normals_derived": [0]} if normals_derived else {}),
+        # the central differences of the level's decoded heights, computed on read)
+        **({"normals_derived": [int(v) for v in normals_derived]} if normals_derived else {}),
         "valid_samples": valid_samples,
         "nodata_fraction": float(1.0 - valid_samples / samples),
         "height_range": height_range,

@@ -61,7 +61,8 @@ def test_derived_level0_bounds_are_the_stored_ones(tmp_path_factory, seed, shape
     assert _ring_flags(full) == {0}
     assert ring.grid.top_level == 0 or RING in _ring_flags(ring)
     _assert_same_bounds(full, ring)
-    assert ring.path.stat().st_size <= full.path.stat().st_size  # (pages: tiny DEMs tie)
+    if tile >= 16:  # a 3- or 5-sample tile is nearly all ring: the sizes tie, ± a page
+        assert ring.path.stat().st_size < full.path.stat().st_size
 
 
 def test_only_level0_blobs_are_rings(tmp_path):

@@ -302,9 +302,10 @@ def test_hillshade_from_codes_is_the_array_formula(bits, seed, az, alt):
     np.testing.assert_allclose(got, want, rtol=2e-6, atol=2e-6)
 
 
-# ------------------------------------------ level-0 normals derived from the heights
+# ----------------------------------- every level's normals derived from its heights
 def _pair(tmp_path, z, **kw):
-    """The same DEM preprocessed with every normal stored and with level 0's derived."""
+    """The same DEM preprocessed with every normal stored and with every level's derived
+    from the heights and the stored border rings."""
     from tests.conftest import store_pair
 
     return store_pair(tmp_path, z, "derive_normals", **kw)
@@ -314,10 +315,10 @@ def _pair(tmp_path, z, **kw):
 @given(seed=st.integers(0, 10_000), shape=st.sampled_from([(33, 33), (50, 37), (20, 65)]),
        tile=st.sampled_from([2, 4, 16]), holes=st.booleans(), lossy=st.booleans(),
        z_scale=st.sampled_from([1.0, 3.0]), z_units=st.sampled_from(["m", "ft"]))
-def test_derived_level0_normals_are_the_stored_ones(tmp_path_factory, seed, shape, tile,
-                                                    holes, lossy, z_scale, z_units):
-    """A store whose level-0 normals blobs hold only the border ring decodes every
-    tile's normal codes (and its shaded texture) exactly as the store that keeps them
+def test_derived_normals_are_the_stored_ones(tmp_path_factory, seed, shape, tile,
+                                             holes, lossy, z_scale, z_units):
+    """A store whose normals blobs hold only the border ring, at every level, decodes
+    every tile's normal codes (and its shaded texture) exactly as the store that keeps them
     all: random rough DEMs, nodata holes, padded shapes, lossless and ε = 2, heights
     exaggerated and in feet (the scene z the reader must rebuild)."""
     tmp = tmp_path_factory.mktemp("nd")
@@ -329,12 +330,13 @@ def test_derived_level0_normals_are_the_stored_ones(tmp_path_factory, seed, shap
                        codec_error=2.0 if lossy else None,
                        pre={"z_scale": z_scale, "z_units": z_units})
     assert "normals_derived" not in full.meta
-    assert ring.meta["normals_derived"] == [0]
+    assert ring.meta["normals_derived"] == list(range(ring.grid.top_level + 1))
     for L, x, y in full.tile_info:
         assert np.array_equal(full.tile_normal_codes(L, x, y), ring.tile_normal_codes(L, x, y))
         assert np.array_equal(tiletextures.tile_rgb(full, L, x, y, "normals"),
                               tiletextures.tile_rgb(ring, L, x, y, "normals"))
-    assert ring.path.stat().st_size <= full.path.stat().st_size  # (pages: tiny DEMs tie)
+    if tile >= 16:  # a 3- or 5-sample tile is nearly all ring: the sizes tie, ± a page
+        assert ring.path.stat().st_size < full.path.stat().st_size
 
 
 @settings(max_examples=8, deadline=None)
@@ -343,12 +345,12 @@ def test_derived_level0_normals_are_the_stored_ones(tmp_path_factory, seed, shap
        arcsec=st.sampled_from([1.0, 3.0, 30.0]), tile=st.sampled_from([4, 16, 64]))
 @example(seed=1, origin=(20.0, 69.5), arcsec=30.0, tile=64)  # corner-only nodes fail here
 @example(seed=2, origin=(139.0, 35.0), arcsec=30.0, tile=64)
-def test_geographic_stores_derive_level0_normals_to_a_code(tmp_path_factory, seed, origin,
-                                                             arcsec, tile):
-    """On a geographic frame the reader derives level 0's interior normals from scene
-    x, y bilinear between pyproj nodes (one call a tile): every code is the full store's
-    or next to it, the ring and the other levels are the full store's, and the
-    tangents of the bilinear positions are pyproj's to 10⁻³ of a sample spacing."""
+def test_geographic_stores_derive_normals_to_a_code(tmp_path_factory, seed, origin, arcsec,
+                                                     tile):
+    """On a geographic frame the reader derives every level's interior normals from
+    scene x, y bilinear between pyproj nodes (one call a tile): every code is the full
+    store's or next to it, the ring is the full store's, and the tangents of the
+    bilinear positions are pyproj's to 10⁻³ of a sample spacing."""
     from geoterrain.leafbounds import normal_xy
 
     tmp = tmp_path_factory.mktemp("gn")
@@ -356,14 +358,12 @@ def test_geographic_stores_derive_level0_normals_to_a_code(tmp_path_factory, see
     z = rng.normal(0, 5, (80, 70)).cumsum(0).cumsum(1) / 3 + 500.0
     full, ring = _pair(tmp, z.astype(np.float32), crs="EPSG:4326", spacing=arcsec / 3600,
                        origin=origin, tile_size=tile)
-    assert ring.frame.kind == "geographic" and ring.meta["normals_derived"] == [0]
+    assert ring.frame.kind == "geographic"
+    assert ring.meta["normals_derived"] == list(range(ring.grid.top_level + 1))
     rr, cc = ring_index(ring.grid.tile_samples)
     for L, x, y in full.tile_info:
         a = full.tile_normal_codes(L, x, y).astype(int)
         b = ring.tile_normal_codes(L, x, y).astype(int)
-        if L > 0:
-            assert np.array_equal(a, b)
-            continue
         assert np.array_equal(a[rr, cc], b[rr, cc])
         assert np.abs(a - b).max() <= 1
         X, Y = normal_xy(ring, L, x, y)
@@ -380,17 +380,16 @@ def test_geographic_stores_derive_level0_normals_to_a_code(tmp_path_factory, see
 def test_geographic_normals_take_exact_xy_where_the_frame_bends(tmp_path):
     """A whole-world 1° grid: cells of 8° bend too much for bilinear x, y (next to the
     poles, where latitudes clamp, and at the scene frame's antipode), so those tiles
-    take their own x, y and every level-0 code is the full store's or next to it
-    (bilinear everywhere: codes off by up to 31 steps)."""
+    take their own x, y and every code is the full store's or next to it (bilinear
+    everywhere: level-0 codes off by up to 31 steps)."""
     rng = np.random.default_rng(1)
     z = (rng.normal(0, 60, (180, 360)).cumsum(0) + 2000).astype(np.float32)
     full, ring = _pair(tmp_path, z, crs="EPSG:4326", spacing=1.0, origin=(-180.0, 90.0),
                        tile_size=64)
-    assert ring.meta["normals_derived"] == [0]
+    assert ring.meta["normals_derived"] == list(range(ring.grid.top_level + 1))
     for L, x, y in full.tile_info:
-        if L == 0:
-            a = full.tile_normal_codes(L, x, y).astype(int)
-            assert np.abs(a - ring.tile_normal_codes(L, x, y).astype(int)).max() <= 1
+        a = full.tile_normal_codes(L, x, y).astype(int)
+        assert np.abs(a - ring.tile_normal_codes(L, x, y).astype(int)).max() <= 1
 
 
 def test_a_damaged_ring_is_refused_in_one_line(tmp_path):

@@ -8,7 +8,7 @@ row bands (geoterrain.banddelta), the radius codes nested on per-level arrays
 The oracles are the whole-grid functions in memory:
 :func:`geoterrain.bounds.vertex_errors`, :func:`geoterrain.edgepad.edge_deltas`,
 :func:`geoterrain.tileblobs.radius_codes`,
-:func:`geoterrain.codec.encode_pyramid`, :func:`geoterrain.normals.normal_pyramid`,
+:func:`geoterrain.codec.encode_pyramid`, :func:`geoterrain.normals.level_normal_maps`,
 :func:`geoterrain.quantize.choose_quantizer` and
 :func:`geoterrain.tilebounds.tile_and_block_errors`. The streamed values must be the
 same bits for every band or super-tile size, with the per-level arrays in memory or in
@@ -34,7 +34,7 @@ from geoterrain.bounds import vertex_errors
 from geoterrain.codec import encode_pyramid
 from geoterrain.edgepad import edge_deltas, edge_support
 from geoterrain.grid import Grid
-from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
+from geoterrain.normals import encode_octahedral, level_normal_maps
 from geoterrain.quantize import Quantizer, choose_quantizer
 from geoterrain.radii import stand_in_z, valid_range
 from geoterrain.scratch import ScratchArrays
@@ -208,7 +208,7 @@ def test_windowed_height_blobs_are_encode_pyramids(seed, n, t, holes, mode, pred
        band=st.sampled_from([1, 2, 3, 7, 16, 256]), data=st.data())
 def test_banded_normal_codes_are_the_whole_grid_maps(seed, n, holes, band, data):
     """Every level's octahedral codes from the row-band cascade are those of the
-    whole-grid normal map and pyramid, for any band (odd ones too)."""
+    whole-grid maps of each level's samples, for any band (odd ones too)."""
     z, v = _grid(seed, n, holes)
     z[~v] = np.nan
     N = z.shape[0]
@@ -217,7 +217,7 @@ def test_banded_normal_codes_are_the_whole_grid_maps(seed, n, holes, band, data)
     xs = np.arange(N) * rng.uniform(0.1, 30)
     ys = -np.arange(N) * rng.uniform(0.1, 30)
     X, Y = np.broadcast_to(xs[None, :], (N, N)), np.broadcast_to(ys[:, None], (N, N))
-    ref = [encode_octahedral(a, 8) for a in normal_pyramid(normal_map(X, Y, z, v), v, levels)]
+    ref = [encode_octahedral(a, 8) for a in level_normal_maps(X, Y, z, v, levels)]
     sa = ScratchArrays()
     band_normal_codes(rows_of(z, v), N, xs, ys, levels, sa, band=band)
     for L, r in enumerate(ref):
