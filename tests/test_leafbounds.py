@@ -62,7 +62,7 @@ def test_derived_level0_bounds_are_the_stored_ones(tmp_path_factory, seed, shape
     assert ring.grid.top_level == 0 or RING in _ring_flags(ring)
     _assert_same_bounds(full, ring)
     if tile >= 16:  # a 3- or 5-sample tile is nearly all ring: the sizes tie, ± a page
-        assert ring.path.stat().st_size < full.path.stat().st_size
+        assert ring.path.stat().st_size <= full.path.stat().st_size
 
 
 def test_only_level0_blobs_are_rings(tmp_path):
