@@ -369,9 +369,10 @@ def _bilinear(c: np.ndarray, k: np.ndarray, T: int) -> np.ndarray:
 
 def derived_normal_codes(terrain, level: int, x: int, y: int) -> np.ndarray:
     """A tile whose normals blob is its border ring: the interior is the normal map of
-    its decoded heights (the preprocess's central differences, seed 000's
-    full-resolution normal map: they read no sample outside the tile there), encoded as
-    the preprocess encodes; the ring is the stored codes.
+    its decoded heights (the preprocess's central differences of the level's samples,
+    seed 000's normal-map lighting, :func:`geoterrain.normals.level_normal_maps`: they
+    read no sample outside the tile there), encoded as the preprocess encodes; the ring
+    is the stored codes.
 
     Examples
     --------

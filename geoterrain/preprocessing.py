@@ -147,10 +147,9 @@ def preprocess(
         derives the rest from the tile's decoded heights, to the same codes (a level's
         map is the central differences of that level's samples, which read nothing
         outside the tile there; :func:`geoterrain.normals.level_normal_maps`). On
-        geographic frames
-        the reader takes the tile's scene x, y bilinear between pyproj nodes
-        (:func:`geoterrain.leafbounds.normal_xy`; the tile's own where the frame bends
-        too much for that), so those codes are the full map's or a neighbour code.
+        geographic frames the reader takes the tile's scene x, y bilinear between pyproj
+        nodes (:func:`geoterrain.leafbounds.normal_xy`; the tile's own where the frame
+        bends too much for that), so those codes are the full map's or a neighbour code.
         False stores every normal, as stores before this option did.
     derive_bounds
         Store δ and r of each level-0 tile's new vertices only on its border ring: a
@@ -260,9 +259,10 @@ def preprocess(
     q = choose_quantizer(heights, r.src_dtype, codec_error=codec_error, scale=r.scale,
                          offset=r.offset)
     Z = decoded_heights(heights, valid, q)  # NaN where invalid
-    # level 0's normals and δ derived on read in every frame (a geographic tile's with
-    # bilinear x, y and a slack: leafbounds.normal_xy, geographic_leaf_delta); r only in
-    # an affine frame (a geographic one's needs pyproj's x, y of every sample)
+    # every level's normals and level 0's δ derived on read in every frame (a geographic
+    # tile's with bilinear x, y and a slack: leafbounds.normal_xy, geographic_leaf_delta);
+    # level 0's r only in an affine frame (a geographic one's needs pyproj's x, y of
+    # every sample)
     derive_normals = bool(derive_normals) and grid.tile_samples >= 3
     derive_bounds = bool(derive_bounds) and grid.tile_samples >= 3 and grid.top_level > 0
     hv = Z[valid]

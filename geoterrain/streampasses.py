@@ -221,15 +221,22 @@ def run_pass(job: Job, name: str):
     return out
 
 
+# what the passes write to the scratch folder; a killed run's folder from code that wrote
+# another format is not resumed (2: each level's normal map from the level's own samples)
+SCRATCH_FORMAT = 2
+
+
 def job_record(src: Path, job: Job) -> dict:
-    # what a resumed run must share with the killed one: the input file and every setting
+    # what a resumed run must share with the killed one: the input file, every setting and
+    # the scratch format
     st = os.stat(src)
     d = dataclasses.asdict(job)
     d.pop("folder")
     d["q"] = dataclasses.asdict(job.q)
     return json.loads(json.dumps({"src": str(src.resolve()), "size": st.st_size,
                                   "mtime_ns": st.st_mtime_ns, "job": d,
-                                  "generator": __version__}))
+                                  "generator": __version__,
+                                  "scratch_format": SCRATCH_FORMAT}))
 
 
 def adopt(parent: Path, dst: Path, record: dict) -> str | None:
