@@ -160,9 +160,25 @@ class Frame:
         if self.kind == "geographic":
             i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
             return self.xy(i, j)
-        xs, _ = self.xy(np.zeros(n), np.arange(n))
-        _, ys = self.xy(np.arange(n), np.zeros(n))
-        return np.broadcast_to(xs[None, :], (n, n)), np.broadcast_to(ys[:, None], (n, n))
+        return self.axis_xy(np.arange(n), np.arange(n))
+
+    def axis_xy(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Scene X, Y of the samples ``rows`` × ``cols`` of a projected or pixel frame,
+        where X depends on the column only and Y on the row only: read-only broadcast
+        views of one row of X and one column of Y (:meth:`grid_xy`'s values).
+
+        Examples
+        --------
+        >>> X, Y = Frame.pixel(3, 3, 2.0).axis_xy(np.array([0, 2]), np.array([1, 2]))
+        >>> X.tolist(), Y.tolist()
+        ([[0.0, 2.0], [0.0, 2.0]], [[2.0, 2.0], [-2.0, -2.0]])
+        """
+        if self.kind == "geographic":
+            raise ValueError("a geographic frame's x, y depend on both row and column")
+        xs, _ = self.xy(np.zeros(len(cols)), cols)
+        _, ys = self.xy(rows, np.zeros(len(rows)))
+        shape = (len(rows), len(cols))
+        return np.broadcast_to(xs[None, :], shape), np.broadcast_to(ys[:, None], shape)
 
     def crs_to_scene(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Scene X, Y of points given in the source CRS."""

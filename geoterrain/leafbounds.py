@@ -296,9 +296,8 @@ def geographic_leaf_delta(delta: np.ndarray, z: np.ndarray, valid: np.ndarray, t
 def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
     """Scene X, Y (T, T) from which a tile's normals are derived on read.
 
-    In a projected or pixel frame, the preprocess's values (:meth:`Frame.grid_xy`'s: X
-    by column, Y by row, as read-only broadcast views), so the derived codes are its
-    codes. In a geographic frame,
+    In a projected or pixel frame, the preprocess's values (:meth:`Frame.axis_xy`, as
+    :meth:`Frame.grid_xy`'s), so the derived codes are its codes. In a geographic frame,
     pyproj at ``NORMAL_XY_NODES`` × ``NORMAL_XY_NODES`` nodes of the tile only (every 8
     samples of a 65² tile), bilinear between them: a sample's own pyproj call would cost
     about 2.6 ms a 65² tile, 20× the stored read. The bilinear positions are off by the
@@ -317,13 +316,9 @@ def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarr
     """
     g = terrain.grid
     if terrain.frame.kind != "geographic":
-        # X by column and Y by row, as the preprocess's grid_xy: broadcast views, and no
-        # T² positions to compute and cache for every tile shaded
-        rows, cols = g.tile_rows(level, y), g.tile_cols(level, x)
-        xs, _ = terrain.frame.xy(np.zeros(len(cols)), cols)
-        _, ys = terrain.frame.xy(rows, np.zeros(len(rows)))
-        shape = (len(rows), len(cols))
-        return np.broadcast_to(xs[None, :], shape), np.broadcast_to(ys[:, None], shape)
+        # the preprocess's grid_xy values as broadcast views: no T² positions to compute
+        # and cache for every tile shaded
+        return terrain.frame.axis_xy(g.tile_rows(level, y), g.tile_cols(level, x))
     T = g.tile_samples
     m = min(T, NORMAL_XY_NODES)  # nodes a side: every (T − 1) / (m − 1) samples
     w = (T - 1) // (m - 1)

@@ -48,6 +48,7 @@ Examples
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -156,8 +157,10 @@ def _shaded(terrain, key: tuple, level: int, x: int, y: int, shading: str, pal: 
 
 # every shading style met so far, numbered: a tile's cache key holds the number, so a
 # lookup hashes a few ints, not the palette, light and drape (a handful of styles a
-# process; each is a small frozen value)
+# process; each is a small frozen value). Numbered under a lock: the viewer shades on a
+# worker thread, and two new styles must never get one number.
 _STYLES: dict[tuple, int] = {}
+_STYLES_LOCK = threading.Lock()
 
 
 def _style_id(terrain, shading: str, pal: Palette, light: Light | None,
@@ -166,7 +169,9 @@ def _style_id(terrain, shading: str, pal: Palette, light: Light | None,
     terrain's cache but not its shading (its normals are steeper)."""
     lk = None if light is None or light.is_default else light
     ve = float(getattr(terrain, "vertical_exaggeration", 1.0))
-    return _STYLES.setdefault((shading, pal, lk, drape, ve), len(_STYLES))
+    style = (shading, pal, lk, drape, ve)
+    with _STYLES_LOCK:
+        return _STYLES.setdefault(style, len(_STYLES))
 
 
 def _rgb_key(terrain, shading: str, pal: Palette, light: Light | None, drape: Drape | None,
@@ -206,21 +211,16 @@ def footprints(ij: np.ndarray, faces: np.ndarray, grid) -> tuple[np.ndarray, ...
     """
     top = grid.top_level
     base = level_offsets(top)
-    faces = np.asarray(faces, np.int64)
-    cells = np.concatenate([np.full((len(faces), 1), 3, np.int64), faces], 1).ravel()
-    return _table_keys(face_footprints(ij, cells, grid.t, base), base)
+    return _table_keys(face_footprints(ij, _flat_cells(faces), grid.t, base), base)
 
 
-def _flat_cells(mesh) -> np.ndarray:
-    """A triangle mesh's cells in VTK's flat layout (3, a, b, c, …) as int64, from its
-    connectivity: the selections' fixed-size cell arrays have no legacy array, and
-    exporting one walks every cell (1 ms a frame at 50 k faces)."""
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-
-    conn = vtk_to_numpy(mesh.GetPolys().GetConnectivityArray())
-    out = np.empty((len(conn) // 3, 4), np.int64)
+def _flat_cells(faces: np.ndarray) -> np.ndarray:
+    """Triangles ``faces`` (F, 3), or (3F,) vertex ids, in VTK's flat layout
+    (3, a, b, c, …) as int64: the atlas kernels' input."""
+    faces = np.asarray(faces).reshape(-1, 3)
+    out = np.empty((len(faces), 4), np.int64)
     out[:, 0] = 3
-    out[:, 1:] = conn.reshape(-1, 3)
+    out[:, 1:] = faces
     return out.ravel()
 
 
@@ -294,7 +294,11 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
                             "texture_ms": 0.0})
     pts = np.asarray(mesh.points, np.float64)
     ij = np.asarray(mesh.point_data["grid_ij"])
-    cells = _flat_cells(mesh)  # VTK's flat triangles: 3, a, b, c, ...
+    # from the cells' connectivity: the selections' fixed-size cell arrays have no legacy
+    # array, and exporting one walks every cell (1 ms a frame at 50 k faces)
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    cells = _flat_cells(vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()))
     top = g.top_level
     # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
     base = level_offsets(top)
