@@ -143,7 +143,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             finally:
                 bar.close()
             if stats_path:
-                from geoterrain.store import write_atomic
+                from geoterrain.atomicfiles import write_atomic
 
                 write_atomic(stats_path, json.dumps(frames, indent=2, default=float))
             if not quiet:

@@ -3,7 +3,7 @@
 Every frame selects its own level of detail for its own camera and is drawn by the
 same offscreen scene as a single picture (:class:`geoterrain.rendering.TerrainScene`).
 The output is written to a hidden partial and published only when every frame is
-done (``geoterrain.store.publish``), so an error or an interrupt leaves nothing that
+done (``geoterrain.atomicfiles.publish``), so an error or an interrupt leaves nothing that
 looks like a result; a GIF is streamed frame by frame (:mod:`geoterrain.gifstream`),
 so memory stays flat in the number of frames.
 
@@ -22,6 +22,7 @@ import shutil
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from geoterrain.atomicfiles import partial_path, publish, remove_stale_partials
 from geoterrain.cameras import interpolate_views, load_cameras, orbit_views
 from geoterrain.colours import Palette
 from geoterrain.drape import Drape
@@ -31,7 +32,6 @@ from geoterrain.lod.registry import DEFAULT, strategy_info
 from geoterrain.overlays import compose, layout_for
 from geoterrain.rendering import TerrainScene, _plotter, _writable_target, _write_png
 from geoterrain.shading import Light
-from geoterrain.store import partial_path, publish, remove_stale_partials
 from geoterrain.view import View
 
 __all__ = ["animate", "check_animation_output", "flythrough", "orbit"]

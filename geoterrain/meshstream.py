@@ -4,7 +4,7 @@
 δ > e, :func:`geoterrain.lod.static`) without building it as one ``PolyData``:
 the chunks of :func:`geoterrain.lod.stream.static_chunks` go to hidden partial
 files beside the output, and the file is assembled (header, vertices, faces)
-and published only once complete (``store.publish``: an interrupted or failed
+and published only once complete (``atomicfiles.publish``: an interrupted or failed
 write leaves nothing behind). The files hold what :func:`geoterrain.export.write_mesh`
 writes for the same mesh:
 
@@ -41,10 +41,10 @@ import numpy as np
 from numba import njit
 
 from geoterrain._version import __version__
+from geoterrain.atomicfiles import partial_path, publish, remove_stale_partials
 from geoterrain.exceptions import UsageError, WriteError
 from geoterrain.export import check_mesh_path
 from geoterrain.memory import available_memory
-from geoterrain.store import partial_path, publish, remove_stale_partials
 
 STREAM_FORMATS = (".ply", ".obj", ".stl")
 # resident bytes per triangle of the in-memory path (PolyData, normals, the writer's

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from geoterrain.atomicfiles import remove_stale_partials
 from geoterrain.bounds import saturate, vertex_errors
 from geoterrain.codec import decoded_heights, encode_pyramid
 from geoterrain.curvature import metric_bounds, metric_terms
@@ -36,7 +37,7 @@ from geoterrain.quantize import choose_quantizer
 from geoterrain.radii import stand_in_z, valid_range, vertex_radii
 from geoterrain.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.schedulers import parse_scheduler
-from geoterrain.store import StoreWriter, default_store_path, remove_stale_partials
+from geoterrain.store import StoreWriter, default_store_path
 from geoterrain.streaming import preprocess_streaming, streaming_band
 from geoterrain.tileblobs import BoundsCoding, level_blobs, radius_codes, ring_blobs
 from geoterrain.tilebounds import tile_and_block_errors

@@ -43,6 +43,7 @@ import numpy as np
 
 from geoterrain import lod
 from geoterrain.antialias import _AA, ANTI_ALIASING, depth_buffer, fxaa
+from geoterrain.atomicfiles import partial_path, publish, remove_stale_partials, write_atomic
 from geoterrain.cameras import (  # noqa: F401 - the camera helpers are part of this API
     default_view,
     interpolate_views,
@@ -61,7 +62,6 @@ from geoterrain.lod.registry import DEFAULT, strategy_info
 from geoterrain.memory import peak_rss as _peak_rss
 from geoterrain.overlays import compose, layout_for
 from geoterrain.shading import Light
-from geoterrain.store import partial_path, publish, remove_stale_partials, write_atomic
 from geoterrain.textures import SHADINGS, texture_image, texture_level
 from geoterrain.tiletextures import build_view_texture
 from geoterrain.view import View

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 import rasterio
 
+from geoterrain.atomicfiles import remove_stale_partials
 from geoterrain.bandquantize import band_quantizer
 from geoterrain.edgepad import has_padding
 from geoterrain.exceptions import InputError, UsageError, exists_error
@@ -45,7 +46,7 @@ from geoterrain.quantize import roundtrip
 from geoterrain.raster import ABSURD_HEIGHT, GDAL_READ_OPTIONS, VOID_SENTINELS
 from geoterrain.schedulers import run_tasks
 from geoterrain.scratch import ScratchArrays
-from geoterrain.store import StoreWriter, remove_stale_partials
+from geoterrain.store import StoreWriter
 from geoterrain.streampasses import (
     PASSES,
     Job,
@@ -261,7 +262,7 @@ def preprocess_streaming(
                                                         Path("."))
     pad = has_padding(grid)
     # the scratch folder is named like a partial store (.NAME.scratch.partial-PID): a
-    # killed run's is removed by the next run in this folder (store.remove_stale_partials)
+    # killed run's is removed by the next run in this folder (atomicfiles.remove_stale_partials)
     # unless that run resumes it
     job = Job(str(src), grid.to_json(), frame.to_json(), q, nd, flip, band, zstd_level,
                "", pad)

@@ -26,6 +26,7 @@ import rasterio
 from rasterio.windows import Window
 
 from geoterrain._version import __version__
+from geoterrain.atomicfiles import pid_alive
 from geoterrain.bandcodec import band_encode_pyramid
 from geoterrain.banddelta import band_vertex_errors, edge_rows
 from geoterrain.bandnormals import band_normal_codes
@@ -36,7 +37,6 @@ from geoterrain.grid import Grid
 from geoterrain.quantize import Quantizer, roundtrip
 from geoterrain.raster import GDAL_READ_OPTIONS
 from geoterrain.scratch import ScratchArrays
-from geoterrain.store import _alive
 from geoterrain.tilebounds import TileBounds
 from geoterrain.vertexdata import NORMAL_BITS
 
@@ -245,7 +245,7 @@ def adopt(parent: Path, dst: Path, record: dict) -> str | None:
     pat = re.compile(rf"^\.{re.escape(dst.name)}\.scratch\.partial-(\d+)$")
     for e in os.scandir(parent):
         m = pat.match(e.name)
-        if not m or _alive(int(m.group(1))) or e.stat().st_uid != os.getuid():
+        if not m or pid_alive(int(m.group(1))) or e.stat().st_uid != os.getuid():
             continue
         try:
             with open(os.path.join(e.path, "job.json")) as fh:

@@ -7,9 +7,9 @@ import json
 
 import pytest
 
-import geoterrain.store as store
+import geoterrain.atomicfiles as atomicfiles
+from geoterrain.atomicfiles import write_atomic
 from geoterrain.exceptions import WriteError
-from geoterrain.store import write_atomic
 
 
 class _DiskFull:
@@ -36,7 +36,7 @@ class _DiskFull:
 
 def test_a_failed_write_leaves_no_half_written_file(tmp_path, monkeypatch):
     out = tmp_path / "stats.json"
-    monkeypatch.setattr(store, "open", _DiskFull, raising=False)
+    monkeypatch.setattr(atomicfiles, "open", _DiskFull, raising=False)
     with pytest.raises(WriteError, match="No space left"):
         write_atomic(out, json.dumps({"triangles": list(range(100))}))
     assert list(tmp_path.iterdir()) == []  # neither the file nor its partial
@@ -49,7 +49,7 @@ def test_a_failed_publish_keeps_the_old_file(tmp_path, monkeypatch):
     def fail(*a, **k):
         raise OSError(errno.EIO, "Input/output error")
 
-    monkeypatch.setattr(store, "publish", fail)
+    monkeypatch.setattr(atomicfiles, "publish", fail)
     with pytest.raises(WriteError):
         write_atomic(out, '{"new": 2}')
     assert out.read_text() == '{"old": 1}'
