@@ -49,6 +49,22 @@ def test_preprocess_and_info(fbm_tif, tmp_path):
     assert json.loads(res.output)["grid"] == [129, 129]
 
 
+def test_stored_normals_keeps_every_normal_map_whole(fbm_tif, tmp_path):
+    """`preprocess --stored-normals` writes full normal maps (no derived levels) with the
+    codes the default store derives, and a larger file."""
+    import geoterrain
+
+    a, b = tmp_path / "ring.geoterrain", tmp_path / "whole.geoterrain"
+    assert run("-q", "preprocess", fbm_tif, "-o", a).exit_code == 0
+    assert run("-q", "preprocess", fbm_tif, "-o", b, "--stored-normals").exit_code == 0
+    with geoterrain.open(a) as ring, geoterrain.open(b) as whole:
+        assert ring.meta["normals_derived"] == list(range(ring.grid.top_level + 1))
+        assert "normals_derived" not in whole.meta
+        for key in whole.tile_info:
+            assert np.array_equal(ring.tile_normal_codes(*key), whole.tile_normal_codes(*key))
+    assert b.stat().st_size > a.stat().st_size
+
+
 def test_default_output_name(tmp_path, fbm_tif):
     res = run("-q", "preprocess", fbm_tif)
     assert res.exit_code == 0
