@@ -71,6 +71,7 @@ __all__ = [
     "BLOB_VERSION",
     "encode_pyramid",
     "decode_tile",
+    "decode_tile_valid",
     "tile_valid",
     "decoded_codes",
     "decoded_heights",
@@ -419,6 +420,10 @@ def tile_valid(blob: bytes, t: int | None = None) -> np.ndarray:
     np.int64(8)
     """
     _, kind, te, _, payload = _parse(blob, t)
+    return _mask(kind, te, payload)
+
+
+def _mask(kind: int, te: int, payload: bytes) -> np.ndarray:
     tt = (1 << te) + 1
     if kind == _MASK_ALL_VALID:
         return np.ones((tt, tt), bool)
@@ -465,7 +470,30 @@ def decode_tile(
     [[2, 3, 4], [7, 8, 9], [12, 13, 14]]
     """
     del quantizer
+    return _decode_codes(blob, parent_codes, tile_xy_parity, *_parse(blob, t))
+
+
+def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
+                      tile_xy_parity: tuple[int, int] = (0, 0), t: int | None = None,
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The tile's codes (:func:`decode_tile`) and valid mask (:func:`tile_valid`), its
+    payload decompressed once.
+
+    Examples
+    --------
+    >>> z = np.arange(9.0).reshape(3, 3); v = np.ones((3, 3), bool); v[0, 0] = False
+    >>> codes, valid = decode_tile_valid(encode_pyramid(z, v, 6, Quantizer("int"))[(0, 0, 0)],
+    ...                                  None)
+    >>> codes[1].tolist(), int(valid.sum())
+    ([3, 4, 5], 8)
+    """
     top, kind, te, w, payload = _parse(blob, t)
+    return (_decode_codes(blob, parent_codes, tile_xy_parity, top, kind, te, w, payload),
+            _mask(kind, te, payload))
+
+
+def _decode_codes(blob: bytes, parent_codes: np.ndarray | None, tile_xy_parity: tuple[int, int],
+                  top: bool, kind: int, te: int, w: int, payload: bytes) -> np.ndarray:
     tt = (1 << te) + 1
     off = ((tt * tt + 7) // 8) if kind == _MASK_STORED else 0
     body = payload[off:]

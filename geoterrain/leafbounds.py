@@ -317,8 +317,14 @@ def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarr
     g = terrain.grid
     if terrain.frame.kind != "geographic":
         # the preprocess's grid_xy values as broadcast views: no T² positions to compute
-        # and cache for every tile shaded
-        return terrain.frame.axis_xy(g.tile_rows(level, y), g.tile_cols(level, x))
+        # for every tile shaded; X of a tile column and Y of a tile row are cached (a
+        # frame's new tiles share them)
+        f, T = terrain.frame, g.tile_samples
+        xs = terrain._cached(("normal_x", level, x), lambda: f.axis_xy(
+            g.tile_rows(level, 0)[:1], g.tile_cols(level, x))[0][0])
+        ys = terrain._cached(("normal_y", level, y), lambda: f.axis_xy(
+            g.tile_rows(level, y), g.tile_cols(level, 0)[:1])[1][:, 0])
+        return np.broadcast_to(xs[None, :], (T, T)), np.broadcast_to(ys[:, None], (T, T))
     T = g.tile_samples
     m = min(T, NORMAL_XY_NODES)  # nodes a side: every (T − 1) / (m − 1) samples
     w = (T - 1) // (m - 1)

@@ -13,7 +13,7 @@ import zstandard
 
 from geoterrain import zstdsafe
 from geoterrain.bintree import vertex_level
-from geoterrain.codec import decode_tile, tile_valid
+from geoterrain.codec import decode_tile_valid
 from geoterrain.exceptions import StoreCorruptError, StoreError
 from geoterrain.grid import level_offsets
 from geoterrain.leafbounds import derived_normal_codes, tile_leaf_bounds
@@ -188,8 +188,7 @@ class Terrain:
         parent = self.tile(L + 1, x // 2, y // 2).codes if L < self.grid.top_level else None
         blob = self._blob(key, "heights")
         try:
-            codes = decode_tile(blob, parent, self.quantizer, (x % 2, y % 2), t=self.grid.t)
-            valid = tile_valid(blob, t=self.grid.t)
+            codes, valid = decode_tile_valid(blob, parent, (x % 2, y % 2), t=self.grid.t)
         except (ValueError, zstandard.ZstdError):
             raise StoreCorruptError(f"{self.path}: tile {key} heights cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None

@@ -351,6 +351,7 @@ def normals_to_bytes(oct8: np.ndarray) -> bytes:
     return e.tobytes()
 
 
+@lru_cache(maxsize=8)
 def ring_index(T: int) -> tuple[np.ndarray, np.ndarray]:
     """Rows and columns of a T × T tile's border ring, 4T − 4 samples: the top row, the
     bottom row, then the left and the right column without their corners.
@@ -365,6 +366,8 @@ def ring_index(T: int) -> tuple[np.ndarray, np.ndarray]:
     m = np.arange(1, T - 1)
     rows = np.concatenate([np.zeros(T, np.int64), np.full(T, T - 1), m, m])
     cols = np.concatenate([a, a, np.zeros(T - 2, np.int64), np.full(T - 2, T - 1)])
+    rows.setflags(write=False)  # shared: cached per T
+    cols.setflags(write=False)
     return rows, cols
 
 

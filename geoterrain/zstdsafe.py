@@ -11,6 +11,7 @@ declared size is checked first, and frames without one are decoded with a cap.
 from __future__ import annotations
 
 import os
+import threading
 
 import zstandard
 
@@ -42,13 +43,25 @@ def decompress(data: bytes, limit: int, exact: bool = False) -> bytes:
     if declared > limit:
         raise ValueError(f"zstd frame declares {declared} bytes, more than the {limit} expected")
     try:
-        out = zstandard.ZstdDecompressor().decompress(data, max_output_size=max(limit, 1))
+        out = _decompressor().decompress(data, max_output_size=max(limit, 1))
     except zstandard.ZstdError as exc:
         raise ValueError(f"damaged zstd frame ({exc})") from None
     if len(out) > limit or (exact and len(out) != limit):
         raise ValueError(f"zstd frame holds {len(out)} bytes, expected "
                          f"{'exactly' if exact else 'at most'} {limit}")
     return out
+
+
+_TLS = threading.local()
+
+
+def _decompressor() -> zstandard.ZstdDecompressor:
+    """This thread's decompressor (one is not thread-safe; making one per frame cost
+    about 5 µs of a 20 µs tile read)."""
+    d = getattr(_TLS, "dctx", None)
+    if d is None:
+        d = _TLS.dctx = zstandard.ZstdDecompressor()
+    return d
 
 
 def compress_many(payloads: list[bytes], level: int = 3, threads: int | None = None

@@ -38,3 +38,33 @@ def test_fused_shading_is_the_numpy_composition(seed, planar, with_clim, wl, low
     d = np.abs(got.astype(int) - want.astype(int))
     assert d.max() <= 1  # the dot product's float32 rounding (numpy's matmul order)
     assert (d > 0).mean() < 0.01
+
+
+def test_shade_table_is_the_per_code_hillshade():
+    """The table the fused shading looks codes up in holds, for every 8-bit code, exactly
+    the hillshade the code decodes to (hillshade_codes, one code at a time)."""
+    from geoterrain.normals import hillshade_codes
+    from geoterrain.tileshade import shade_lut
+
+    u, v = np.meshgrid(np.arange(256), np.arange(256), indexing="ij")
+    codes = np.stack([u, v], -1).astype(np.uint8)
+    for light in (_sun(), np.array([0.6, -0.3, 0.74], np.float32)):
+        light = (light / np.linalg.norm(light)).astype(np.float32)
+        want = hillshade_codes(codes, 8, light, AMBIENT, SHADE_CEILING)
+        assert np.array_equal(shade_lut(light, AMBIENT, SHADE_CEILING), want)
+
+
+def test_ramp_slopes_are_numpy_s():
+    """The ramps' cached slopes give np.interp's values to the bit (its formula)."""
+    from geoterrain.tileshade import _stops
+
+    x = np.linspace(-0.1, 1.1, 2001)
+    x = np.clip(np.concatenate([x, [0.15, 0.35, 0.6, 0.82, 1.0, 0.0]]), 0.0, 1.0)
+    for ramp in (LAND, WATER):
+        xp, fp, slope = _stops(ramp)
+        for k in range(3):
+            j = np.clip(np.searchsorted(xp, x, side="right") - 1, 0, len(xp) - 1)
+            last = j == len(xp) - 1
+            jj = np.minimum(j, len(xp) - 2)
+            got = np.where(last | (xp[j] == x), fp[j, k], slope[jj, k] * (x - xp[j]) + fp[j, k])
+            assert np.array_equal(got, np.interp(x, xp, fp[:, k]))
