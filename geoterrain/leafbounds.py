@@ -368,6 +368,24 @@ def _bilinear(c: np.ndarray, k: np.ndarray, T: int) -> np.ndarray:
     return top + (bot - top) * fa
 
 
+def ring_codes(terrain, level: int, x: int, y: int) -> np.ndarray:
+    """The normal codes (4T − 4, 2) of a tile's border ring on a derived level, as stored
+    (in :func:`~geoterrain.vertexdata.ring_index`'s order).
+
+    Examples
+    --------
+    >>> ring_codes(t, 0, 0, 0).shape[1]  # doctest: +SKIP
+    2
+    """
+    n = len(ring_index(terrain.grid.tile_samples)[0])
+    try:  # bounded: exactly the ring's 4T − 4 pairs
+        return ring_from_bytes(zstdsafe.decompress(terrain._blob((level, x, y), "normals"),
+                                                   2 * n, exact=True))
+    except ValueError:
+        raise StoreCorruptError(f"{terrain.path}: tile {(level, x, y)} normals cannot be "
+                                "decoded; re-run `geoterrain preprocess`") from None
+
+
 def derived_normal_codes(terrain, level: int, x: int, y: int) -> np.ndarray:
     """A tile whose normals blob is its border ring: the interior is the normal map of
     its decoded heights (the preprocess's central differences of the level's samples,
@@ -380,14 +398,8 @@ def derived_normal_codes(terrain, level: int, x: int, y: int) -> np.ndarray:
     >>> derived_normal_codes(t, 0, 0, 0).shape[2]  # doctest: +SKIP
     2
     """
-    T = terrain.grid.tile_samples
-    rr, cc = ring_index(T)
-    try:  # bounded: exactly the ring's 4T − 4 pairs
-        ring = ring_from_bytes(zstdsafe.decompress(terrain._blob((level, x, y), "normals"),
-                                                   2 * len(rr), exact=True))
-    except ValueError:
-        raise StoreCorruptError(f"{terrain.path}: tile {(level, x, y)} normals cannot be "
-                                "decoded; re-run `geoterrain preprocess`") from None
+    rr, cc = ring_index(terrain.grid.tile_samples)
+    ring = ring_codes(terrain, level, x, y)
     tile = terrain.tile(level, x, y)
     X, Y = normal_xy(terrain, level, x, y)
     # one tile on this thread (serial kernels: no thread pool for 65² samples, and safe in

@@ -586,15 +586,20 @@ def oct_shade(cu, cv, m, lx, ly, lz, amb, ceil):  # pragma: no cover - compiled
 _SERIAL: dict = {}
 
 
-def _serial_twin(kernel) -> None:
+def serial_twin(kernel):
     """``kernel``'s Python function compiled again without threads (its ``prange`` loops
-    run as ``range``: the same arithmetic), kept in :data:`_SERIAL` under its name."""
+    run as ``range``: the same arithmetic), kept in :data:`SERIAL_KERNELS` under its
+    name and returned."""
     f = kernel.py_func
     twin = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial",
                               f.__defaults__, f.__closure__)
     twin.__qualname__ = f.__qualname__ + "_serial"  # its own cache entry
     _SERIAL[f.__name__] = njit(cache=True, nogil=True)(twin)
+    return _SERIAL[f.__name__]
 
 
 for _k in (_valid_finite_nb, _normals_nb, _encode_oct_nb):
-    _serial_twin(_k)
+    serial_twin(_k)
+
+#: the serial twins by kernel name (one tile's work on the calling thread)
+SERIAL_KERNELS = _SERIAL

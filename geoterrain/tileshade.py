@@ -26,9 +26,14 @@ True
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
-from geoterrain.normals import oct_shade
+from geoterrain.normals import SERIAL_KERNELS, oct_shade, serial_twin
+from geoterrain.threads import forked
+
+_valid_finite_serial = SERIAL_KERNELS["_valid_finite_nb"]
+_normals_serial = SERIAL_KERNELS["_normals_nb"]
+_encode_oct_serial = SERIAL_KERNELS["_encode_oct_nb"]
 
 _RAMPS: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
@@ -105,7 +110,7 @@ def shade_lut(light: np.ndarray, ambient: float, ceiling: float) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _shade_tile(h, codes, planar, lut, base, span, wet_level, has_water,
+def _shade_tile(h, cf, codes, planar, lut, base, span, wet_level, has_water,
                 depth_lo, depth_span, depth_ramp, land_x, land_c, land_s, water_x, water_c,
                 water_s, out):  # pragma: no cover - compiled
     T0, T1 = h.shape
@@ -123,7 +128,7 @@ def _shade_tile(h, codes, planar, lut, base, span, wet_level, has_water,
     zero = np.float32(0.0)
     for i in range(T0):
         for j in range(T1):
-            z = h[i, j]
+            z = h[i, j] * cf  # metres
             if z != z:
                 z = 0.0  # nodata: the colour of 0 (nan_to_num)
             wet = has_water and z <= wet_level
@@ -155,6 +160,19 @@ def shade_tile(h: np.ndarray, codes: np.ndarray, planar: bool, bits: int, light:
     """
     if bits != 8:
         raise ValueError("the fused shading reads 8-bit normal codes")
+    T0, T1 = h.shape
+    out = np.empty((T0, T1, 3), np.uint8)
+    _shade_tile(np.ascontiguousarray(h, np.float64), 1.0,
+                np.ascontiguousarray(np.asarray(codes, np.uint8).reshape(-1)),
+                bool(planar), shade_lut(light, ambient, ceiling),
+                *_palette_args(clim, water_level, land, water), out)
+    return out
+
+
+def _palette_args(clim, water_level, land, water) -> tuple:
+    """The compiled shading's palette arguments: base, span, the water level, whether
+    there is water, the depth ramp's low end, span and whether it ramps, and the land
+    and water ramps (:func:`_stops`)."""
     lo, hi = (float(v) for v in clim)
     if hi <= lo:
         lo, hi = lo - 0.5, lo + 0.5
@@ -165,14 +183,82 @@ def shade_tile(h: np.ndarray, codes: np.ndarray, planar: bool, bits: int, light:
     depth_lo = min(lo, wet_level)
     depth_ramp = wl is not None and wl > depth_lo
     depth_span = max(wet_level - depth_lo, 1e-9)
-    lx, lc, ls = _stops(land)
-    wx, wc, ws = _stops(water)
-    T0, T1 = h.shape
-    out = np.empty((T0, T1, 3), np.uint8)
-    _shade_tile(np.ascontiguousarray(h, np.float64),
-                np.ascontiguousarray(np.asarray(codes, np.uint8).reshape(-1)),
-                bool(planar), shade_lut(light, ambient, ceiling), float(base), float(span),
-                wet_level, wl is not None,
-                float(depth_lo), float(depth_span), bool(depth_ramp), lx, lc, ls, wx, wc, ws,
-                out)
+    return (float(base), float(span), wet_level, wl is not None, float(depth_lo),
+            float(depth_span), bool(depth_ramp), *_stops(land), *_stops(water))
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _shade_tiles(h, cf, zf, valid, X, Y, derive, rings, rr, cc, stored, planar, lut, base,
+                 span, wet_level, has_water, depth_lo, depth_span, depth_ramp, land_x, land_c,
+                 land_s, water_x, water_c, water_s, out):  # pragma: no cover - compiled
+    n, T0, T1 = h.shape
+    for k in prange(n):  # tiles on every core: each writes its own
+        if derive[k]:
+            z = np.empty((T0, T1), np.float64)
+            for i in range(T0):
+                for j in range(T1):
+                    z[i, j] = h[k, i, j] * zf  # Frame.z
+            vv = _valid_finite_serial(X[k], Y[k], z, valid[k])
+            nrm = np.empty((T0, T1, 3), np.float32)
+            _normals_serial(X[k], Y[k], z, vv, False, nrm)
+            codes = np.empty((T0 * T1, 2), np.uint8)
+            _encode_oct_serial(nrm.reshape((-1, 3)), 255, False, codes)
+            for q in range(len(rr)):  # the stored border ring
+                codes[rr[q] * T1 + cc[q], 0] = rings[k, q, 0]
+                codes[rr[q] * T1 + cc[q], 1] = rings[k, q, 1]
+            _shade_tile(h[k], cf, codes.reshape(-1), False, lut, base, span, wet_level,
+                        has_water, depth_lo, depth_span, depth_ramp, land_x, land_c, land_s,
+                        water_x, water_c, water_s, out[k])
+        else:
+            _shade_tile(h[k], cf, stored[k], planar[k], lut, base, span, wet_level,
+                        has_water, depth_lo, depth_span, depth_ramp, land_x, land_c, land_s,
+                        water_x, water_c, water_s, out[k])
+
+
+def shade_tiles(h: np.ndarray, cf: float, zf: float, valid: np.ndarray, X: np.ndarray,
+                Y: np.ndarray, derive: np.ndarray, rings: np.ndarray, ring_rows: np.ndarray,
+                ring_cols: np.ndarray, stored: np.ndarray, planar: np.ndarray,
+                light: np.ndarray, ambient: float, ceiling: float, clim: tuple[float, float],
+                water_level: float | None, land, water) -> np.ndarray:
+    """:func:`shade_tile` of n tiles at once, on every core: RGB uint8 (n, T, T, 3).
+
+    ``h`` (n, T, T) heights in source units (× ``cf`` for metres, × ``zf`` for scene z,
+    as ``Frame.z``), ``valid`` (n, T, T). A tile with ``derive[k]`` gets its 8-bit normal
+    codes derived from its heights, as :func:`geoterrain.leafbounds.derived_normal_codes`
+    derives them (the same serial kernels: ``normal_map`` of scene ``X[k]``, ``Y[k]``
+    (n, T, T), the heights' z and ``valid``, ``encode_octahedral``), with its border ring
+    (``ring_rows``, ``ring_cols``) set to ``rings[k]``; another reads its stored codes
+    ``stored[k]`` (T·T·2 bytes, ``planar[k]`` as in :func:`shade_tile`). Each tile's
+    pixels are :func:`shade_tile`'s.
+
+    Examples
+    --------
+    >>> from geoterrain.colours import LAND, WATER
+    >>> from geoterrain.normals import encode_octahedral, normal_map
+    >>> j, i = np.meshgrid(np.arange(4.0), np.arange(4.0))
+    >>> h, v = np.stack([3.0 * j * i, 2.0 * j]), np.ones((2, 4, 4), bool)
+    >>> codes = [encode_octahedral(normal_map(j, -i, z, v[0]), 8) for z in h]
+    >>> args = (np.array([0, 0, 1], np.float32), 0.35, 1.25, (0.0, 10.0), None, LAND, WATER)
+    >>> rgb = shade_tiles(h, 1.0, 1.0, v, np.stack([j, j]), np.stack([-i, -i]),
+    ...                   np.array([True, False]),  # tile 0 derived, tile 1 as stored
+    ...                   np.stack([c[:1, 0] for c in codes]), np.array([0]), np.array([0]),
+    ...                   np.stack([c.reshape(-1) for c in codes]), np.zeros(2, bool), *args)
+    >>> all(np.array_equal(rgb[k], shade_tile(h[k], codes[k], False, 8, *args))
+    ...     for k in range(2))
+    True
+    """
+    n, T0, T1 = h.shape
+    out = np.empty((n, T0, T1, 3), np.uint8)
+    if n == 0:
+        return out
+    kernel = _SERIAL_TILES if forked() else _shade_tiles  # no thread pool in a fork child
+    kernel(np.ascontiguousarray(h, np.float64), float(cf), float(zf),
+           np.ascontiguousarray(valid, np.bool_), X, Y, np.asarray(derive, np.bool_),
+           np.ascontiguousarray(rings, np.uint8), np.asarray(ring_rows, np.int64),
+           np.asarray(ring_cols, np.int64), np.ascontiguousarray(stored, np.uint8),
+           np.asarray(planar, np.bool_), shade_lut(light, ambient, ceiling),
+           *_palette_args(clim, water_level, land, water), out)
     return out
+
+
+_SERIAL_TILES = serial_twin(_shade_tiles)

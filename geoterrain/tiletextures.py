@@ -65,6 +65,7 @@ from geoterrain.atlaskernels import (
 from geoterrain.colours import LAND, WATER, Palette, as_palette, colorize, water_level
 from geoterrain.drape import Drape, drape_tile
 from geoterrain.grid import level_offsets
+from geoterrain.leafbounds import normal_xy, ring_codes
 from geoterrain.memory import sparse_zeros
 from geoterrain.shading import Light, tile_shade
 from geoterrain.textures import (
@@ -74,7 +75,8 @@ from geoterrain.textures import (
     elevation_range,
     tile_hillshade,
 )
-from geoterrain.tileshade import shade_tile
+from geoterrain.tileshade import shade_tile, shade_tiles
+from geoterrain.vertexdata import ring_index
 
 TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
 MIN_FACING = 2.0 ** -8  # a footprint seen edge on: 4 levels coarser, at most the top
@@ -132,9 +134,7 @@ def _shaded(terrain, key: tuple, level: int, x: int, y: int, shading: str, pal: 
         if counter is not None:
             counter["textures_built"] = counter.get("textures_built", 0) + 1
         z0, z1 = elevation_range(terrain)
-        if shading == "normals" and (light is None or light.is_default) and drape is None \
-                and pal.cmap == "auto" and getattr(terrain, "stored_normals", False) \
-                and terrain.meta["normal_bits"] == 8:  # the default: one compiled pass
+        if _default_style(terrain, shading, pal, light, drape):  # one compiled pass
             raw, planar = terrain.tile_normal_bytes(level, x, y)
             return shade_tile(terrain.tile(level, x, y).heights * terrain.frame.z_to_m,
                               np.frombuffer(raw, np.uint8), planar, 8, _sun(), AMBIENT,
@@ -153,6 +153,57 @@ def _shaded(terrain, key: tuple, level: int, x: int, y: int, shading: str, pal: 
         return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
 
     return terrain._cached(key, make)
+
+
+def _default_style(terrain, shading: str, pal: Palette, light: Light | None,
+                   drape: Drape | None) -> bool:
+    """Whether tiles are shaded in the default style (the ``auto`` palette's tint × the
+    sun's hillshade of the stored 8-bit normal codes, no drape): by
+    :mod:`geoterrain.tileshade`'s compiled passes."""
+    return (shading == "normals" and (light is None or light.is_default) and drape is None
+            and pal.cmap == "auto" and getattr(terrain, "stored_normals", False)
+            and terrain.meta["normal_bits"] == 8)
+
+
+def _shade_batch(terrain, keys: list, pal: Palette) -> list[np.ndarray]:
+    """:func:`_shaded` of the tiles ``keys`` in the default style, in one compiled call
+    over all of them on every core (:func:`geoterrain.tileshade.shade_tiles`); the same
+    pixels. Here only the reading: heights, valid masks, stored codes or rings, x, y."""
+    g = terrain.grid
+    T, n = g.tile_samples, len(keys)
+    derived = set(terrain._derived_normal_levels)
+    rr, cc = ring_index(T)
+    h = np.empty((n, T, T))
+    valid = np.empty((n, T, T), bool)
+    derive = np.zeros(n, bool)
+    rings = np.zeros((n, len(rr), 2), np.uint8)
+    stored = np.zeros((n, T * T * 2), np.uint8)
+    planar = np.zeros(n, bool)
+    axes = terrain.frame.kind != "geographic"  # x by column, y by row: broadcast views
+    X = np.zeros((n, T) if axes else (n, T, T))
+    Y = np.zeros((n, T) if axes else (n, T, T))
+    for k, (L, x, y) in enumerate(keys):
+        tile = terrain.tile(L, x, y)
+        h[k], valid[k] = tile.heights, tile.valid
+        if L in derived:
+            derive[k] = True
+            rings[k] = ring_codes(terrain, L, x, y)
+            xk, yk = normal_xy(terrain, L, x, y)
+            X[k], Y[k] = (xk[0], yk[:, 0]) if axes else (xk, yk)
+        else:
+            raw, planar[k] = terrain.tile_normal_bytes(L, x, y)
+            stored[k] = np.frombuffer(raw, np.uint8)
+    terrain.decoded_normals += int(derive.sum())  # as derived_normal_codes counts
+    if axes:
+        X = np.broadcast_to(X[:, None, :], (n, T, T))
+        Y = np.broadcast_to(Y[:, :, None], (n, T, T))
+    z0, z1 = elevation_range(terrain)
+    f = terrain.frame
+    rgb = shade_tiles(h, f.z_to_m, f.z_to_m * f.z_scale, valid, X, Y, derive, rings, rr, cc,
+                      stored, planar, _sun(), AMBIENT, SHADE_CEILING,
+                      pal.clim if pal.clim is not None else (z0, z1),
+                      water_level(pal, (z0, z1)), LAND, WATER)
+    return [a.copy() for a in rgb]  # each cached on its own (not views of one array)
 
 
 # every shading style met so far, numbered: a tile's cache key holds the number, so a
@@ -373,6 +424,7 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
 
     # one step per page, on Python ints (numpy scalars cost more than the step itself);
     # the texels are whole-array copies
+    placed = []  # (tile key, atlas row, atlas column) of every stored tile drawn
     for gi, (lt, kk, gl, gy, gx, py, px, i0, i1, j0, j1) in enumerate(zip(
             Lt.tolist(), k.tolist(), gL.tolist(), gY.tolist(), gX.tolist(), ay.tolist(),
             ax.tolist(), ilo.tolist(), ihi.tolist(), jlo.tolist(), jhi.tolist(),
@@ -393,16 +445,30 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
                 r, c = y0 + ty * step, x0 + tx * step
                 if key not in stored:
                     atlas[r:r + step + 1, c:c + step + 1] = MISSING_GREY
-                    continue
-                n_tiles += 1
-                ck = rgb_key(*key)
-                if max_builds is not None and counter["textures_built"] >= max_builds \
-                        and terrain.peek(ck) is None:
-                    if _stand_in(terrain, key, step, rgb_key, atlas, r, c):
-                        deferred += 1
-                        continue
-                atlas[r:r + step + 1, c:c + step + 1] = _shaded(terrain, ck, *key, shading,
-                                                                pal, counter, light, drape)
+                else:
+                    placed.append((key, r, c))
+    # the tiles shaded anew (at most max_builds, in drawing order), in one compiled call
+    # where the style allows
+    ready: dict = {}
+    if _default_style(terrain, shading, pal, light, drape):
+        todo = [key for key in dict.fromkeys(key for key, _, _ in placed)
+                if terrain.peek(rgb_key(*key)) is None][:max_builds]
+        if len(todo) > 1:
+            for key, rgb in zip(todo, _shade_batch(terrain, todo, pal), strict=True):
+                ready[key] = terrain._cached(rgb_key(*key), lambda rgb=rgb: rgb)
+            counter["textures_built"] += len(todo)
+    for key, r, c in placed:
+        n_tiles += 1
+        rgb = ready.get(key)
+        if rgb is None:
+            ck = rgb_key(*key)
+            if max_builds is not None and counter["textures_built"] >= max_builds \
+                    and terrain.peek(ck) is None \
+                    and _stand_in(terrain, key, step, rgb_key, atlas, r, c):
+                deferred += 1
+                continue
+            rgb = _shaded(terrain, ck, *key, shading, pal, counter, light, drape)
+        atlas[r:r + step + 1, c:c + step + 1] = rgb
     # each page's written tiles clamped to their edge over the rest of the page and its
     # gutter (a multisampled pixel centre may fall past a face at a page's seam)
     page = (step << k) + 1 + 2 * GUTTER  # a page's allocation: its texels and gutter

@@ -335,6 +335,7 @@ def test_derived_normals_are_the_stored_ones(tmp_path_factory, seed, shape, tile
         assert np.array_equal(full.tile_normal_codes(L, x, y), ring.tile_normal_codes(L, x, y))
         assert np.array_equal(tiletextures.tile_rgb(full, L, x, y, "normals"),
                               tiletextures.tile_rgb(ring, L, x, y, "normals"))
+    _batch_is_tile_by_tile(full, ring)
     if tile >= 16:  # a 3- or 5-sample tile is nearly all ring: the sizes tie, ± a page
         assert ring.path.stat().st_size <= full.path.stat().st_size
 
@@ -365,6 +366,7 @@ def test_geographic_stores_derive_normals_to_a_code(tmp_path_factory, seed, orig
         a = full.tile_normal_codes(L, x, y).astype(int)
         b = ring.tile_normal_codes(L, x, y).astype(int)
         assert np.array_equal(a[rr, cc], b[rr, cc])
+        tiletextures.tile_rgb(ring, L, x, y, "normals")
         assert np.abs(a - b).max() <= 1
         X, Y = normal_xy(ring, L, x, y)
         g = ring.grid
@@ -374,8 +376,23 @@ def test_geographic_stores_derive_normals_to_a_code(tmp_path_factory, seed, orig
         for e in (X - X0, Y - Y0):  # the tangents' error: under 10⁻³ rad (0.06°)
             assert max(np.abs(np.diff(e, axis=0)).max(),
                        np.abs(np.diff(e, axis=1)).max()) <= 1e-3 * step
+    _batch_is_tile_by_tile(ring)
     if tile >= 16:  # a 5-sample tile is nearly all ring: the sizes may tie
         assert ring.path.stat().st_size < full.path.stat().st_size
+
+
+def _batch_is_tile_by_tile(*terrains) -> None:
+    """A frame's new tiles shaded in one compiled call over all of them (derived and
+    stored codes, on every core) are, pixel for pixel, the tiles shaded one by one."""
+    from geoterrain.colours import as_palette
+
+    for t in terrains:
+        keys = sorted(t.tile_info)
+        n0 = t.decoded_normals
+        got = tiletextures._shade_batch(t, keys, as_palette("auto"))
+        assert t.decoded_normals - n0 == len(keys)  # every normals read is counted
+        for k, rgb in zip(keys, got, strict=True):
+            assert np.array_equal(rgb, tiletextures.tile_rgb(t, *k, "normals")), k
 
 
 def test_geographic_normals_take_exact_xy_where_the_frame_bends(tmp_path):
