@@ -6,6 +6,8 @@ from __future__ import annotations
 import mmap
 import os
 import sys
+import threading
+import weakref
 
 import numpy as np
 
@@ -98,3 +100,62 @@ def sparse_zeros(shape: tuple[int, ...], dtype=np.uint8) -> np.ndarray:
     if hasattr(mmap, "MADV_NOHUGEPAGE"):
         buf.madvise(mmap.MADV_NOHUGEPAGE)
     return np.frombuffer(buf, dt, count=int(np.prod(shape, dtype=np.int64))).reshape(shape)
+
+
+class ZeroPool:
+    """Zeroed arrays on 4 KiB pages (:func:`sparse_zeros`'s) that are reused once nothing
+    references the array handed out: a per-frame buffer (a view's texture atlas, a few
+    MB) then costs a memset, not a page fault per 4 KiB on first touch (1.4 ms of a
+    1234 × 1072 atlas's 1.6 ms fill). An array handed out keeps its mapping busy for as
+    long as it, or any view of it (a VTK array sharing it included), is alive.
+
+    Examples
+    --------
+    >>> pool = ZeroPool()
+    >>> a = pool.zeros((2, 3))
+    >>> a[0, 0] = 5
+    >>> b = pool.zeros((2, 3))  # ``a`` is alive: another mapping
+    >>> int(b.sum()), len(pool)
+    (0, 2)
+    >>> del a
+    >>> int(pool.zeros((3, 2)).sum()), len(pool)  # ``a``'s mapping, zeroed again
+    (0, 2)
+    """
+
+    def __init__(self, keep: int = 3, largest: int = 64 << 20):
+        self.keep = keep  # mappings kept for reuse
+        self.largest = largest  # bytes: a larger array is a fresh sparse_zeros, not kept
+        self._maps: list[tuple[mmap.mmap, weakref.ref | None]] = []
+        self._lock = threading.Lock()
+
+    def __len__(self) -> int:
+        return len(self._maps)
+
+    def zeros(self, shape: tuple[int, ...], dtype=np.uint8) -> np.ndarray:
+        """A zeroed array of ``shape`` and ``dtype``."""
+        dt = np.dtype(dtype)
+        count = int(np.prod(shape, dtype=np.int64))
+        n = max(1, count * dt.itemsize)
+        if n > self.largest or not hasattr(mmap, "MAP_ANONYMOUS"):
+            return sparse_zeros(shape, dt)
+        with self._lock:
+            free = [k for k, (mm, ref) in enumerate(self._maps)
+                    if (ref is None or ref() is None) and len(mm) >= n]
+            if free:
+                k = min(free, key=lambda k: len(self._maps[k][0]))  # the smallest fitting
+                mm = self._maps[k][0]
+                flat = np.frombuffer(mm, np.uint8, count=n)
+                flat.fill(0)
+            else:
+                mm = mmap.mmap(-1, n, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
+                if hasattr(mmap, "MADV_NOHUGEPAGE"):
+                    mm.madvise(mmap.MADV_NOHUGEPAGE)
+                flat = np.frombuffer(mm, np.uint8, count=n)
+                idle = [k for k, (_, ref) in enumerate(self._maps) if ref is None or ref() is None]
+                if len(self._maps) >= self.keep and idle:  # drop an idle one for it
+                    del self._maps[min(idle, key=lambda k: len(self._maps[k][0]))]
+                k = len(self._maps)
+                self._maps.append((mm, None))
+            self._maps[k] = (mm, weakref.ref(flat))  # busy while flat (any view) lives
+        return flat.view(dt)[:count].reshape(shape)
+

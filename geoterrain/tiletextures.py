@@ -66,7 +66,7 @@ from geoterrain.colours import LAND, WATER, Palette, as_palette, colorize, water
 from geoterrain.drape import Drape, drape_tile
 from geoterrain.grid import level_offsets
 from geoterrain.leafbounds import normal_xy, ring_codes
-from geoterrain.memory import sparse_zeros
+from geoterrain.memory import ZeroPool
 from geoterrain.shading import Light, tile_shade
 from geoterrain.textures import (
     AMBIENT,
@@ -212,6 +212,8 @@ def _shade_batch(terrain, keys: list, pal: Palette) -> list[np.ndarray]:
 # worker thread, and two new styles must never get one number.
 _STYLES: dict[tuple, int] = {}
 _STYLES_LOCK = threading.Lock()
+# the atlases' memory, reused once the atlas shown before is released (no page faults)
+_ATLASES = ZeroPool()
 
 
 def _style_id(terrain, shading: str, pal: Palette, light: Light | None,
@@ -405,14 +407,15 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     np.minimum.at(jlo, e_group, ilo_e[:, 1])
     np.maximum.at(ihi, e_group, ihi_e[:, 0])
     np.maximum.at(jhi, e_group, ihi_e[:, 1])
-    # on 4 KiB pages: a fresh atlas on huge pages stalled on their first touch (the
-    # kernel compacting memory for them), 11 ms of an 8 MB atlas's fill. The pages are
-    # filled below (their tiles, then clamped to those over the rest of the page and its
-    # gutter), so the atlas is not filled first (2.6 ms a frame at 1839 × 1608): only a
-    # multisampled pixel shaded more than a texel past a face, at a grazing seam, reads
-    # the shelves' slack (3 pixels of 256 k, by up to 15 levels, in a review's view;
-    # they read grey before, as wrong)
-    atlas = sparse_zeros((AH, AW, 3), np.uint8)
+    # zeroed, on 4 KiB pages (a fresh atlas on huge pages stalled on its first touch,
+    # the kernel compacting memory for them: 11 ms of an 8 MB atlas's fill), reused once
+    # the atlas shown before is released (a fresh mapping faulted page by page: 1.4 ms
+    # of a 4 MB atlas). The pages are filled below (their tiles, then clamped to those
+    # over the rest of the page and its gutter), so the atlas is not filled with a colour
+    # first: only a multisampled pixel shaded more than a texel past a face, at a grazing
+    # seam, reads the shelves' slack, zero (3 pixels of 256 k, by up to 15 levels, in a
+    # review's view; they read grey before, as wrong)
+    atlas = _ATLASES.zeros((AH, AW, 3), np.uint8)
     n_tiles = deferred = 0
     rect = np.empty((G, 4), np.int64)  # per page: row, column, height, width written
     stored = terrain.tile_info
