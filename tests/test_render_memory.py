@@ -8,6 +8,8 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from geoterrain.memory import sparse_zeros
 
@@ -65,3 +67,27 @@ def test_a_16385_render_peaks_under_one_gigabyte(tmp_path):
         s = json.loads(stats.read_text())
         assert s["triangles"] > 0 and s["terrain_fraction"] > 0.3, s
         assert peak < 1e9, f"view {view}: the render peaked at {peak / 1e6:.0f} MB"
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.integers(1, 40_000), st.booleans()), min_size=1, max_size=30))
+def test_zero_pool_never_hands_out_memory_in_use(ops):
+    """The atlas pool: every array it hands out is zeroed, and never shares memory with
+    an array (or a view of one, or a VTK array sharing one) that is still alive."""
+    from vtkmodules.util.numpy_support import numpy_to_vtk
+
+    from geoterrain.memory import ZeroPool
+
+    pool = ZeroPool(keep=2, largest=30_000)
+    alive: list = []
+    for size, keep in ops:
+        a = pool.zeros((size, 3), np.uint8)
+        assert a.shape == (size, 3) and not a.any()
+        assert not any(np.shares_memory(a, b) for b, _ in alive)
+        a[:] = 7  # written, as an atlas is
+        if keep:  # still shown: through a VTK array sharing a view of it
+            alive.append((a.reshape(-1), numpy_to_vtk(a.reshape(-1, 3), deep=False)))
+            del a
+        if len(alive) > 3:
+            alive.pop(0)
+    assert len(pool) <= 5  # the arrays alive at an allocation (3 kept, the last), a new one
