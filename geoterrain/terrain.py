@@ -115,6 +115,14 @@ class Terrain:
             self._cache_used -= sz
         return val
 
+    def lookup(self, key: tuple):
+        """The cached value of ``key``, marked as just used, or None (nothing is made)."""
+        hit = self._cache.get(key)
+        if hit is None:
+            return None
+        self._cache.move_to_end(key)
+        return hit[0]
+
     def peek(self, key: tuple):
         """The cached value of ``key`` (as :meth:`_cached` keys it), or None; the cache's
         order is left as it is."""

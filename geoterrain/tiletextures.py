@@ -460,17 +460,19 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
             for key, rgb in zip(todo, _shade_batch(terrain, todo, pal), strict=True):
                 ready[key] = terrain._cached(rgb_key(*key), lambda rgb=rgb: rgb)
             counter["textures_built"] += len(todo)
+    lookup = terrain.lookup
     for key, r, c in placed:
         n_tiles += 1
         rgb = ready.get(key)
         if rgb is None:
-            ck = rgb_key(*key)
-            if max_builds is not None and counter["textures_built"] >= max_builds \
-                    and terrain.peek(ck) is None \
-                    and _stand_in(terrain, key, step, rgb_key, atlas, r, c):
-                deferred += 1
-                continue
-            rgb = _shaded(terrain, ck, *key, shading, pal, counter, light, drape)
+            ck = ("rgb", sid, *key)  # rgb_key's
+            rgb = lookup(ck)
+            if rgb is None:
+                if max_builds is not None and counter["textures_built"] >= max_builds \
+                        and _stand_in(terrain, key, step, rgb_key, atlas, r, c):
+                    deferred += 1
+                    continue
+                rgb = _shaded(terrain, ck, *key, shading, pal, counter, light, drape)
         atlas[r:r + step + 1, c:c + step + 1] = rgb
     # each page's written tiles clamped to their edge over the rest of the page and its
     # gutter (a multisampled pixel centre may fall past a face at a page's seam)
