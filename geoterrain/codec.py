@@ -58,10 +58,9 @@ from geoterrain.symbols import (
     pack_symbols,
     packed_is_tried,
     pick_stream,
-    read_stream,
+    read_residuals,
     shuffled_streams,
     stream_candidates,
-    unzigzag,
     zigzag,
 )
 from geoterrain.threads import cores_for
@@ -498,7 +497,7 @@ def _decode_codes(blob: bytes, parent_codes: np.ndarray | None, tile_xy_parity: 
     off = ((tt * tt + 7) // 8) if kind == _MASK_STORED else 0
     body = payload[off:]
     if top:
-        r = unzigzag(read_stream(body, w, tt * tt))
+        r = read_residuals(body, w, tt * tt)
         return np.cumsum(r).reshape(tt, tt)
     if parent_codes is None:
         raise ValueError("a non-top tile needs its parent's decoded codes")
@@ -507,7 +506,7 @@ def _decode_codes(blob: bytes, parent_codes: np.ndarray | None, tile_xy_parity: 
     parent = np.asarray(parent_codes, np.int64)
     if parent.shape != (tt, tt):
         raise ValueError(f"parent codes must be ({tt}, {tt})")
-    r = unzigzag(read_stream(body, w, 3 * h * h + 2 * h))
+    r = read_residuals(body, w, 3 * h * h + 2 * h)
     out = np.empty((tt, tt), np.int64)
     if blob[1] & 8:  # cubic: the parent tile's own predictions (with its edge fallbacks)
         cubic_child(np.ascontiguousarray(parent), py * h, px * h, h, r, out)

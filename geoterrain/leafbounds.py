@@ -317,13 +317,9 @@ def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarr
     g = terrain.grid
     if terrain.frame.kind != "geographic":
         # the preprocess's grid_xy values as broadcast views: no T² positions to compute
-        # for every tile shaded; X of a tile column and Y of a tile row are cached (a
-        # frame's new tiles share them)
-        f, T = terrain.frame, g.tile_samples
-        xs = terrain._cached(("normal_x", level, x), lambda: f.axis_xy(
-            g.tile_rows(level, 0)[:1], g.tile_cols(level, x))[0][0])
-        ys = terrain._cached(("normal_y", level, y), lambda: f.axis_xy(
-            g.tile_rows(level, y), g.tile_cols(level, 0)[:1])[1][:, 0])
+        # for every tile shaded
+        T = g.tile_samples
+        xs, ys = normal_axes(terrain, level, x, y)
         return np.broadcast_to(xs[None, :], (T, T)), np.broadcast_to(ys[:, None], (T, T))
     T = g.tile_samples
     m = min(T, NORMAL_XY_NODES)  # nodes a side: every (T − 1) / (m − 1) samples
@@ -348,6 +344,25 @@ def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarr
     if not (np.isfinite(off) and step > 0 and off <= NORMAL_XY_TOLERANCE * w * step):
         return terrain.tile_xy(level, x, y)
     return X, Y
+
+
+def normal_axes(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
+    """A projected or pixel frame's :func:`normal_xy` as its two axes: X (T,) of the
+    tile's columns and Y (T,) of its rows (:meth:`Frame.axis_xy`'s values), cached by
+    tile column and row (a frame's new tiles share them).
+
+    Examples
+    --------
+    >>> xs, ys = normal_axes(t, 0, 0, 0)  # doctest: +SKIP
+    >>> xs.shape == ys.shape == (t.grid.tile_samples,)  # doctest: +SKIP
+    True
+    """
+    g, f = terrain.grid, terrain.frame
+    xs = terrain._cached(("normal_x", level, x), lambda: f.axis_xy(
+        g.tile_rows(level, 0)[:1], g.tile_cols(level, x))[0][0])
+    ys = terrain._cached(("normal_y", level, y), lambda: f.axis_xy(
+        g.tile_rows(level, y), g.tile_cols(level, 0)[:1])[1][:, 0])
+    return xs, ys
 
 
 NORMAL_XY_NODES = 9  # pyproj nodes a side of a tile for its derived normals' x, y

@@ -293,14 +293,38 @@ def tile_heights(codes: np.ndarray, valid: np.ndarray, quantizer: Quantizer, fac
     """
     codes = np.ascontiguousarray(codes, dtype=np.int64)
     valid = np.ascontiguousarray(valid, dtype=np.bool_)
-    if quantizer.mode == "float":  # bit patterns: numpy's views
-        h = np.ascontiguousarray(codes_to_heights(codes, quantizer))
+    if quantizer.mode == "float":  # bit patterns (codes_to_heights' map, compiled)
+        h = np.empty(codes.shape, np.float64)
+        _bits_to_heights_nb(codes, quantizer.float_bits == 32, h)
         lo, hi, n = _finish_nb(h, valid, float(factor), 0, 0.0, 0.0, codes)
     else:
         h = np.empty(codes.shape, np.float64)
         lo, hi, n = _finish_nb(h, valid, float(factor), 1, float(quantizer.step),
                                float(quantizer.offset), codes)
     return h, lo, hi, int(n)
+
+
+@njit(cache=True, nogil=True)
+def _bits_to_heights_nb(codes, f32, out):  # pragma: no cover - compiled
+    # codes_to_heights of the float modes: the order-preserving integer back to its IEEE
+    # bit pattern (two's complement -> sign-magnitude), viewed as float32 or float64
+    cf, of = codes.reshape(-1), out.reshape(-1)
+    if f32:
+        b = np.empty(cf.size, np.int32)
+        for k in range(cf.size):
+            c = np.int32(cf[k])  # astype(np.int32): the low 32 bits
+            b[k] = c ^ np.int32(0x7FFFFFFF) if c < 0 else c
+        fv = b.view(np.float32)
+        for k in range(cf.size):
+            of[k] = np.float64(fv[k])
+    else:
+        b = np.empty(cf.size, np.int64)
+        for k in range(cf.size):
+            c = cf[k]
+            b[k] = c ^ np.int64(0x7FFFFFFFFFFFFFFF) if c < 0 else c
+        fv = b.view(np.float64)
+        for k in range(cf.size):
+            of[k] = fv[k]
 
 
 @njit(cache=True, nogil=True)

@@ -216,3 +216,60 @@ def read_stream(body: bytes, code: int, count: int) -> np.ndarray:
         off = -(-count // (8 // k))
         zz[esc] += unshuffle(body[off:], w, nesc)
     return zz
+
+
+def read_residuals(body: bytes, code: int, count: int) -> np.ndarray:
+    """``unzigzag(read_stream(body, code, count))`` in one compiled pass: the ``count``
+    residuals (int64) a tile decodes (the composition spent about 20 µs of a 65² tile's
+    decode in its array steps). A ``body`` too short for its stream raises ValueError,
+    as :func:`read_stream` does.
+
+    Examples
+    --------
+    >>> code, stream = choose_stream(zigzag(np.array([0, -1, 5, 300])), 600, {})
+    >>> read_residuals(stream, code, 4).tolist()
+    [0, -1, 5, 300]
+    """
+    w, k = code & 15, code >> 4
+    buf = np.frombuffer(body, np.uint8)
+    out = np.empty(count, np.int64)
+    if w not in (0, 1, 2, 4, 8) or k not in (0, *PACK_BITS) \
+            or _residuals_nb(buf, w, k, count, out) < 0:
+        raise ValueError("residual stream shorter than its header says")
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _residuals_nb(buf, w, k, count, out):  # pragma: no cover - compiled
+    """Residuals of a shuffled (k = 0) or k-bit packed stream with shuffled escapes, as
+    :func:`read_stream` then :func:`unzigzag`; −1 if ``buf`` is too short."""
+    if k == 0:
+        if len(buf) < count * w:
+            return -1
+        for i in range(count):
+            u = np.uint64(0)
+            for b in range(w):  # byte b of every value, then byte b + 1 (shuffled)
+                u |= np.uint64(buf[b * count + i]) << np.uint64(8 * b)
+            out[i] = np.int64(u >> np.uint64(1)) ^ -np.int64(u & np.uint64(1))
+        return 0
+    per = 8 // k
+    m = (1 << k) - 1
+    off = (count + per - 1) // per
+    if len(buf) < off:
+        return -1
+    nesc = 0
+    for i in range(count):
+        if (buf[i // per] >> ((i % per) * k)) & m == m:
+            nesc += 1
+    if nesc and len(buf) < off + nesc * w:
+        return -1
+    e = 0
+    for i in range(count):
+        u = np.uint64((buf[i // per] >> ((i % per) * k)) & m)
+        if u == m and nesc:  # an escape: the symbol plus its shuffled remainder
+            for b in range(w):
+                u += np.uint64(buf[off + b * nesc + e]) << np.uint64(8 * b)
+            e += 1
+        out[i] = np.int64(u >> np.uint64(1)) ^ -np.int64(u & np.uint64(1))
+    return 0
+

@@ -65,7 +65,7 @@ from geoterrain.atlaskernels import (
 from geoterrain.colours import LAND, WATER, Palette, as_palette, colorize, water_level
 from geoterrain.drape import Drape, drape_tile
 from geoterrain.grid import level_offsets
-from geoterrain.leafbounds import normal_xy, ring_codes
+from geoterrain.leafbounds import normal_axes, normal_xy, ring_codes
 from geoterrain.memory import ZeroPool
 from geoterrain.shading import Light, tile_shade
 from geoterrain.textures import (
@@ -188,8 +188,7 @@ def _shade_batch(terrain, keys: list, pal: Palette) -> list[np.ndarray]:
         if L in derived:
             derive[k] = True
             rings[k] = ring_codes(terrain, L, x, y)
-            xk, yk = normal_xy(terrain, L, x, y)
-            X[k], Y[k] = (xk[0], yk[:, 0]) if axes else (xk, yk)
+            X[k], Y[k] = normal_axes(terrain, L, x, y) if axes else normal_xy(terrain, L, x, y)
         else:
             raw, planar[k] = terrain.tile_normal_bytes(L, x, y)
             stored[k] = np.frombuffer(raw, np.uint8)

@@ -435,3 +435,59 @@ def test_pack_symbols_is_the_numpy_packing(seed, n, k, lead):
     packed, esc = _pack_symbols(zz, k)
     assert packed.tobytes() == want.tobytes() and packed.shape == want.shape
     np.testing.assert_array_equal(esc, (zz >= m).sum(axis=-1))
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 300),
+       scale=st.sampled_from([0, 1, 3, 40, 5000, 2**40]), cut=st.integers(0, 40))
+def test_fused_residual_read_is_read_stream_then_unzigzag(seed, n, scale, cut):
+    """Every candidate stream (shuffled, and k-bit packed with escapes) reads back through
+    the one compiled pass exactly as through read_stream and unzigzag; a truncated body
+    is refused by both."""
+    from geoterrain.symbols import (
+        pack_symbols,
+        read_residuals,
+        read_stream,
+        stream_candidates,
+        unzigzag,
+        zigzag,
+    )
+
+    rng = np.random.default_rng(seed)
+    r = np.round(rng.standard_cauchy(n) * scale).clip(-2**50, 2**50).astype(np.int64)
+    zz = zigzag(r)
+    packs = {k: pack_symbols(zz, k) for k in _PACK_BITS}
+    for code, body in stream_candidates(zz, int(zz.max()), packs):
+        assert read_residuals(body, code, n).tolist() == r.tolist()
+        short = body[:max(0, len(body) - cut)] if cut else body
+        try:
+            want = unzigzag(read_stream(short, code, n)).tolist()
+        except ValueError:
+            want = None
+        try:
+            got = read_residuals(short, code, n).tolist()
+        except ValueError:
+            got = None
+        assert got == want
+
+
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), bits=st.sampled_from([32, 64]),
+       special=st.booleans())
+def test_compiled_float_heights_are_codes_to_heights(seed, bits, special):
+    """A float store's decoded heights (the compiled bit-pattern map of tile_heights) are
+    codes_to_heights' to the bit: signs, zeros, subnormals, infinities and NaN payloads."""
+    from geoterrain.quantize import Quantizer, codes_to_heights, heights_to_codes, tile_heights
+
+    rng = np.random.default_rng(seed)
+    z = rng.standard_cauchy((9, 7)) * 10.0 ** rng.integers(-40, 40, (9, 7))
+    if special:
+        z.flat[:6] = [0.0, -0.0, np.inf, -np.inf, np.nan, 1e-310]
+    q = Quantizer("float", float_bits=bits)
+    codes = heights_to_codes(z, q)
+    if bits == 32:  # any int32 pattern, NaN payloads included
+        codes.flat[-4:] = rng.integers(-2**31, 2**31, 4)
+    valid = np.ones(z.shape, bool)
+    h, *_ = tile_heights(codes, valid, q, 1.0)
+    want = codes_to_heights(codes, q)
+    assert np.array_equal(h.view(np.int64), want.view(np.int64))
