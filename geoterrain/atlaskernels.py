@@ -244,12 +244,18 @@ def magnify_into(atlas: np.ndarray, r: int, c: int, anc: np.ndarray, oy: int, ox
 def _clamp_fill(atlas, rect, box):
     for g in range(rect.shape[0]):
         a, b, h, w = rect[g, 0], rect[g, 1], rect[g, 2], rect[g, 3]
+        j0, j1 = box[g, 1], box[g, 1] + box[g, 3]
         for i in range(box[g, 0], box[g, 0] + box[g, 2]):
             si = min(max(i, a), a + h - 1)
-            inside = a <= i < a + h
-            for j in range(box[g, 1], box[g, 1] + box[g, 3]):
-                if inside and b <= j < b + w:
-                    continue  # written: the rectangle itself
+            if a <= i < a + h:  # a written row: only its texels left and right of it
+                for j in range(j0, b):
+                    for k in range(3):
+                        atlas[i, j, k] = atlas[si, b, k]
+                for j in range(b + w, j1):
+                    for k in range(3):
+                        atlas[i, j, k] = atlas[si, b + w - 1, k]
+                continue
+            for j in range(j0, j1):
                 sj = min(max(j, b), b + w - 1)
                 for k in range(3):
                     atlas[i, j, k] = atlas[si, sj, k]

@@ -314,3 +314,25 @@ def test_unknown_texture_mode(tmp_path_factory):
     t = _fresh(tmp_path_factory)
     with pytest.raises(geoterrain.exceptions.UsageError):
         TerrainScene(_plotter((64, 64)), t, textures="atlas")
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_clamp_fill_is_clamp_to_edge(seed):
+    """Every texel of a page's box outside its written rectangle is the rectangle's
+    nearest texel (GL's clamp-to-edge), and the rectangle itself is left as written."""
+    from geoterrain.atlaskernels import clamp_fill
+
+    rng = np.random.default_rng(seed)
+    H, W = int(rng.integers(4, 30)), int(rng.integers(4, 30))
+    atlas = rng.integers(0, 256, (H, W, 3)).astype(np.uint8)
+    r0, c0 = int(rng.integers(0, H - 1)), int(rng.integers(0, W - 1))
+    bh, bw = int(rng.integers(1, H - r0 + 1)), int(rng.integers(1, W - c0 + 1))
+    a, b = r0 + int(rng.integers(0, bh)), c0 + int(rng.integers(0, bw))
+    h, w = int(rng.integers(1, r0 + bh - a + 1)), int(rng.integers(1, c0 + bw - b + 1))
+    want = atlas.copy()
+    ii = np.clip(np.arange(r0, r0 + bh), a, a + h - 1)
+    jj = np.clip(np.arange(c0, c0 + bw), b, b + w - 1)
+    want[r0:r0 + bh, c0:c0 + bw] = atlas[ii[:, None], jj[None, :]]
+    clamp_fill(atlas, np.array([[a, b, h, w]]), np.array([[r0, c0, bh, bw]]))
+    assert np.array_equal(atlas, want)
