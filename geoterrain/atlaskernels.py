@@ -235,6 +235,48 @@ def number_pages(cells: np.ndarray, group: np.ndarray, n_groups: int, n_vertices
 
 
 @njit(cache=True, nogil=True)
+def _tcoords(src, pg, ij, pts, Lt, gL, gX, gY, ax, ay, step, gutter, AW, AH, tc, out_pts):
+    for p in range(len(src)):
+        g, v = pg[p], src[p]
+        scale = np.float64(np.int64(1) << Lt[g])
+        span = np.float64(step << gL[g])
+        col = (ax[g] + gutter) + (ij[v, 1] - gX[g] * span) / scale
+        row = (ay[g] + gutter) + (ij[v, 0] - gY[g] * span) / scale
+        tc[p, 0] = (col + 0.5) / AW
+        tc[p, 1] = (row + 0.5) / AH
+        for d in range(3):
+            out_pts[p, d] = pts[v, d]
+
+
+def page_tcoords(src: np.ndarray, pg: np.ndarray, ij: np.ndarray, pts: np.ndarray,
+                 pages: tuple, step: int, gutter: int, size: tuple[int, int]
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's texture coordinates (P, 2) float32 in the atlas and its position
+    (P, 3): point p copies vertex ``src[p]`` (grid indices ``ij``, scene ``pts``) on page
+    ``pg[p]``. ``pages`` = (texel level, footprint level, x, y, atlas column, atlas row)
+    arrays per page; ``size`` the atlas's (width, height). A texel's centre is at
+    (column + 0.5) / width, VTK's v at (row + 0.5) / height.
+
+    Examples
+    --------
+    >>> one = np.array([0]), np.array([0]), np.array([0]), np.array([0])
+    >>> tc, xyz = page_tcoords(np.array([0]), np.array([0]), np.array([[2, 3]]),
+    ...                        np.array([[1.0, 2.0, 3.0]]), (*one, np.array([5]),
+    ...                        np.array([7])), 4, 1, (20, 10))
+    >>> tc.tolist(), xyz.tolist()  # column 5 + 1 + 3, row 7 + 1 + 2
+    ([[0.4749999940395355, 1.0499999523162842]], [[1.0, 2.0, 3.0]])
+    """
+    Lt, gL, gX, gY, ax, ay = (np.ascontiguousarray(a, np.int64) for a in pages)
+    tc = np.empty((len(src), 2), np.float32)
+    out_pts = np.empty((len(src), 3), np.float64)
+    _tcoords(np.ascontiguousarray(src, np.int64), np.ascontiguousarray(pg, np.int64),
+             np.ascontiguousarray(ij, np.int64), np.ascontiguousarray(pts, np.float64),
+             Lt, gL, gX, gY, ax, ay, int(step), int(gutter), float(size[0]),
+             float(size[1]), tc, out_pts)
+    return tc, out_pts
+
+
+@njit(cache=True, nogil=True)
 def _magnify(atlas, r, c, anc, oy, ox, d, n):
     for i in range(n):
         si = oy + (i >> d)

@@ -61,6 +61,7 @@ from geoterrain.atlaskernels import (
     group_facing,
     magnify_into,
     number_pages,
+    page_tcoords,
 )
 from geoterrain.colours import LAND, WATER, Palette, as_palette, colorize, water_level
 from geoterrain.drape import Drape, drape_tile
@@ -479,17 +480,13 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     clamp_fill(atlas, rect, np.stack([ay, ax, page, page], 1))
     # one point per (page, vertex): a vertex shared by two pages is duplicated
     src, pg, faces = number_pages(cells, e_group[fe], G, len(pts))
-    scale = np.left_shift(1, Lt[pg]).astype(np.float64)
-    span = (step << gL[pg]).astype(np.float64)
-    col = ax[pg] + GUTTER + (ij[src, 1] - gX[pg] * span) / scale
-    row = ay[pg] + GUTTER + (ij[src, 0] - gY[pg] * span) / scale
-    tc = np.empty((len(src), 2), np.float32)
-    tc[:, 0] = (col + 0.5) / AW
-    tc[:, 1] = (row + 0.5) / AH  # VTK's v: the image's row 0 at v = 0 (see ViewTexture)
+    # VTK's v: the image's row 0 at v = 0 (see ViewTexture)
+    tc, xyz = page_tcoords(src, pg, ij, pts, (Lt, gL, gX, gY, ax, ay), step, GUTTER,
+                           (AW, AH))
     atlas.setflags(write=False)  # shown by VTK without a copy (rendering._image_data)
     lv, nlv = np.unique(Lt, return_counts=True)
     st = {**counter, "texture_tiles": n_tiles, "textures_deferred": deferred, "pages": G,
           "texel_levels": {int(a): int(b) for a, b in zip(lv, nlv, strict=True)},
           "atlas": [int(AW), int(AH)],
           "texture_ms": round((time.perf_counter() - t0) * 1e3, 3)}
-    return ViewTexture(pts[src], faces, tc, src, atlas, st)
+    return ViewTexture(xyz, faces, tc, src, atlas, st)

@@ -336,3 +336,31 @@ def test_clamp_fill_is_clamp_to_edge(seed):
     want[r0:r0 + bh, c0:c0 + bw] = atlas[ii[:, None], jj[None, :]]
     clamp_fill(atlas, np.array([[a, b, h, w]]), np.array([[r0, c0, bh, bw]]))
     assert np.array_equal(atlas, want)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_page_tcoords_are_the_numpy_formula(seed):
+    """The compiled texture coordinates are, to the bit, the array formula's: a point's
+    column in its page (grid column minus the page origin, in texels of its level), plus
+    the page's atlas column and gutter, at the texel's centre, over the atlas width."""
+    from geoterrain.atlaskernels import page_tcoords
+
+    rng = np.random.default_rng(seed)
+    G, V, P, step, gutter = int(rng.integers(1, 9)), 50, int(rng.integers(1, 80)), 64, 1
+    Lt = rng.integers(0, 6, G)
+    gL = Lt + rng.integers(0, 3, G)
+    gX, gY = rng.integers(0, 9, G), rng.integers(0, 9, G)
+    ax, ay = rng.integers(0, 3000, G), rng.integers(0, 3000, G)
+    src, pg = rng.integers(0, V, P), rng.integers(0, G, P)
+    ij = rng.integers(0, 1 << 14, (V, 2))
+    pts = rng.normal(size=(V, 3))
+    AW, AH = int(rng.integers(100, 8192)), int(rng.integers(100, 8192))
+    tc, xyz = page_tcoords(src, pg, ij, pts, (Lt, gL, gX, gY, ax, ay), step, gutter, (AW, AH))
+    scale = np.left_shift(1, Lt[pg]).astype(np.float64)
+    span = (step << gL[pg]).astype(np.float64)
+    col = ax[pg] + gutter + (ij[src, 1] - gX[pg] * span) / scale
+    row = ay[pg] + gutter + (ij[src, 0] - gY[pg] * span) / scale
+    want = np.stack([(col + 0.5) / AW, (row + 0.5) / AH], 1).astype(np.float32)
+    assert np.array_equal(tc.view(np.int32), want.view(np.int32))
+    assert np.array_equal(xyz, pts[src])
