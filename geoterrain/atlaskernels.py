@@ -14,9 +14,9 @@ Examples
 --------
 >>> import numpy as np
 >>> ij = np.array([[0, 0], [0, 64], [64, 0], [64, 64]])
->>> cells = np.array([3, 0, 1, 2, 3, 1, 3, 2])  # two faces, VTK's flat layout
+>>> faces = np.array([[0, 1, 2], [1, 3, 2]])  # two triangles
 >>> base = np.array([0, 4, 5])  # a 129² grid of 65² tiles: 2² level-0 tiles, 1 at level 1
->>> fp = face_footprints(ij, cells, 6, base)
+>>> fp = face_footprints(ij, faces, 6, base)
 >>> fp.tolist()  # both faces lie in level-0 tile (0, 0)
 [0, 0]
 """
@@ -27,11 +27,17 @@ import numpy as np
 from numba import njit
 
 
+def _as_faces(faces: np.ndarray) -> np.ndarray:
+    """Triangles (F, 3) int64, C-ordered: the kernels' input (a VTK connectivity array,
+    (3F,), reshaped)."""
+    return np.ascontiguousarray(np.asarray(faces).reshape(-1, 3), np.int64)
+
+
 @njit(cache=True, nogil=True)
-def _footprints(ij, cells, t, base, out):
+def _footprints(ij, faces, t, base, out):
     top = len(base) - 2
     for f in range(len(out)):
-        a, b, c = cells[4 * f + 1], cells[4 * f + 2], cells[4 * f + 3]
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
         i0 = min(ij[a, 0], ij[b, 0], ij[c, 0])
         i1 = max(ij[a, 0], ij[b, 0], ij[c, 0])
         j0 = min(ij[a, 1], ij[b, 1], ij[c, 1])
@@ -47,28 +53,29 @@ def _footprints(ij, cells, t, base, out):
         out[f] = key
 
 
-def face_footprints(ij: np.ndarray, cells: np.ndarray, t: int, base: np.ndarray
+def face_footprints(ij: np.ndarray, faces: np.ndarray, t: int, base: np.ndarray
                     ) -> np.ndarray:
     """Dense tile-table index of each face's footprint: the smallest stored-tile square
     (level L, x, y) that holds the face (the rule of
     :func:`~geoterrain.tiletextures.footprints`).
 
-    ``ij`` (V, 2) grid indices, ``cells`` VTK's flat triangle array (3, a, b, c, …),
+    ``ij`` (V, 2) grid indices, ``faces`` (F, 3) the triangles' vertex ids,
     ``t`` log2 of the tile width in samples, ``base`` (top + 2,) the table's level
     offsets. Returns (F,) int64; see the module example.
     """
-    out = np.empty(len(cells) // 4, np.int64)
-    _footprints(np.ascontiguousarray(ij, np.int64), np.ascontiguousarray(cells, np.int64),
+    faces = _as_faces(faces)
+    out = np.empty(len(faces), np.int64)
+    _footprints(np.ascontiguousarray(ij, np.int64), _as_faces(faces),
                 t, np.ascontiguousarray(base, np.int64), out)
     return out
 
 
 @njit(cache=True, nogil=True)
-def _boxes(cells, key, pts, ij, lo, hi, ilo, ihi):
+def _boxes(faces, key, pts, ij, lo, hi, ilo, ihi):
     for f in range(len(key)):
         k = key[f]
         for c in range(3):
-            v = cells[4 * f + 1 + c]
+            v = faces[f, c]
             for d in range(3):
                 lo[k, d] = min(lo[k, d], pts[v, d])
                 hi[k, d] = max(hi[k, d], pts[v, d])
@@ -77,7 +84,7 @@ def _boxes(cells, key, pts, ij, lo, hi, ilo, ihi):
                 ihi[k, d] = max(ihi[k, d], ij[v, d])
 
 
-def group_boxes(cells: np.ndarray, key: np.ndarray, pts: np.ndarray, ij: np.ndarray,
+def group_boxes(faces: np.ndarray, key: np.ndarray, pts: np.ndarray, ij: np.ndarray,
                 n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per group 0 … n−1 (``key`` per face): the box of its faces' corners in scene units
     (lo, hi (n, 3)) and in grid indices (ilo, ihi (n, 2)); empty groups keep ±inf and
@@ -86,9 +93,9 @@ def group_boxes(cells: np.ndarray, key: np.ndarray, pts: np.ndarray, ij: np.ndar
     Examples
     --------
     >>> import numpy as np
-    >>> cells = np.array([3, 0, 1, 2])
+    >>> faces = np.array([[0, 1, 2]])
     >>> pts = np.array([[0., 0, 5], [1, 0, 6], [0, 1, 7]])
-    >>> lo, hi, ilo, ihi = group_boxes(cells, np.array([1]), pts, np.zeros((3, 2), int), 2)
+    >>> lo, hi, ilo, ihi = group_boxes(faces, np.array([1]), pts, np.zeros((3, 2), int), 2)
     >>> hi[1].tolist(), bool(np.isinf(lo[0]).all())
     ([1.0, 1.0, 7.0], True)
     """
@@ -97,16 +104,16 @@ def group_boxes(cells: np.ndarray, key: np.ndarray, pts: np.ndarray, ij: np.ndar
     big = np.iinfo(np.int64)
     ilo = np.full((n, 2), big.max, np.int64)
     ihi = np.full((n, 2), big.min, np.int64)
-    _boxes(np.ascontiguousarray(cells, np.int64), np.ascontiguousarray(key, np.int64),
+    _boxes(_as_faces(faces), np.ascontiguousarray(key, np.int64),
            np.ascontiguousarray(pts, np.float64), np.ascontiguousarray(ij, np.int64),
            lo, hi, ilo, ihi)
     return lo, hi, ilo, ihi
 
 
 @njit(cache=True, nogil=True)
-def _facing(cells, key, pts, eye, out):
+def _facing(faces, key, pts, eye, out):
     for f in range(len(key)):
-        a, b, c = cells[4 * f + 1], cells[4 * f + 2], cells[4 * f + 3]
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
         ux, uy, uz = pts[b, 0] - pts[a, 0], pts[b, 1] - pts[a, 1], pts[b, 2] - pts[a, 2]
         vx, vy, vz = pts[c, 0] - pts[a, 0], pts[c, 1] - pts[a, 1], pts[c, 2] - pts[a, 2]
         nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
@@ -121,7 +128,7 @@ def _facing(cells, key, pts, eye, out):
                 out[k] = max(out[k], cos)
 
 
-def group_facing(cells: np.ndarray, key: np.ndarray, pts: np.ndarray, eye, n: int
+def group_facing(faces: np.ndarray, key: np.ndarray, pts: np.ndarray, eye, n: int
                  ) -> np.ndarray:
     """Per group 0 … n−1 (``key`` per face): the largest |cos| between a face's normal and
     the line from its centroid to ``eye``, 1 for a face seen square on, 0 edge on (and
@@ -133,21 +140,21 @@ def group_facing(cells: np.ndarray, key: np.ndarray, pts: np.ndarray, eye, n: in
     Examples
     --------
     >>> import numpy as np
-    >>> cells = np.array([3, 0, 1, 2])
+    >>> faces = np.array([[0, 1, 2]])
     >>> pts = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0]])
-    >>> round(float(group_facing(cells, np.array([0]), pts, (1 / 3, 1 / 3, 5.0), 1)[0]), 6)
+    >>> round(float(group_facing(faces, np.array([0]), pts, (1 / 3, 1 / 3, 5.0), 1)[0]), 6)
     1.0
-    >>> float(group_facing(cells, np.array([0]), pts, (5.0, 1 / 3, 0.0), 1)[0])
+    >>> float(group_facing(faces, np.array([0]), pts, (5.0, 1 / 3, 0.0), 1)[0])
     0.0
     """
     out = np.zeros(n)
-    _facing(np.ascontiguousarray(cells, np.int64), np.ascontiguousarray(key, np.int64),
+    _facing(_as_faces(faces), np.ascontiguousarray(key, np.int64),
             np.ascontiguousarray(pts, np.float64), np.asarray(eye, np.float64), out)
     return out
 
 
 @njit(cache=True, nogil=True)
-def _number(cells, group, G, V, src, pg, out_faces):
+def _number(faces, group, G, V, src, pg, out_faces):
     F = len(group)
     start = np.zeros(G + 1, np.int64)  # counting sort of the faces by group
     for f in range(F):
@@ -169,7 +176,7 @@ def _number(cells, group, G, V, src, pg, out_faces):
         for q in range(start[g], start[g + 1]):
             f = order[q]
             for c in range(3):
-                v = cells[4 * f + 1 + c]
+                v = faces[f, c]
                 if stamp[v] != g:
                     stamp[v] = g
                     pv[n] = v
@@ -205,11 +212,11 @@ def _number(cells, group, G, V, src, pg, out_faces):
         for q in range(start[g], start[g + 1]):
             f = order[q]
             for c in range(3):
-                out_faces[f, c] = newid[cells[4 * f + 1 + c]]
+                out_faces[f, c] = newid[faces[f, c]]
     return n
 
 
-def number_pages(cells: np.ndarray, group: np.ndarray, n_groups: int, n_vertices: int
+def number_pages(faces: np.ndarray, group: np.ndarray, n_groups: int, n_vertices: int
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One point per (page, vertex) drawn: a vertex shared by two pages is duplicated.
 
@@ -220,18 +227,18 @@ def number_pages(cells: np.ndarray, group: np.ndarray, n_groups: int, n_vertices
     Examples
     --------
     >>> import numpy as np
-    >>> cells = np.array([3, 0, 1, 2, 3, 1, 3, 2])
-    >>> src, page, faces = number_pages(cells, np.array([1, 0]), 2, 4)
+    >>> faces = np.array([[0, 1, 2], [1, 3, 2]])
+    >>> src, page, faces = number_pages(faces, np.array([1, 0]), 2, 4)
     >>> src.tolist(), page.tolist(), faces.tolist()
     ([1, 2, 3, 0, 1, 2], [0, 0, 0, 1, 1, 1], [[3, 4, 5], [0, 2, 1]])
     """
     F = len(group)
     src = np.empty(3 * F, np.int64)
     pg = np.empty(3 * F, np.int64)
-    faces = np.empty((F, 3), np.int64)
-    n = _number(np.ascontiguousarray(cells, np.int64), np.ascontiguousarray(group, np.int64),
-                n_groups, n_vertices, src, pg, faces)
-    return src[:n].copy(), pg[:n].copy(), faces
+    out = np.empty((F, 3), np.int64)
+    n = _number(_as_faces(faces), np.ascontiguousarray(group, np.int64),
+                n_groups, n_vertices, src, pg, out)
+    return src[:n].copy(), pg[:n].copy(), out
 
 
 @njit(cache=True, nogil=True)

@@ -264,17 +264,7 @@ def footprints(ij: np.ndarray, faces: np.ndarray, grid) -> tuple[np.ndarray, ...
     """
     top = grid.top_level
     base = level_offsets(top)
-    return _table_keys(face_footprints(ij, _flat_cells(faces), grid.t, base), base)
-
-
-def _flat_cells(faces: np.ndarray) -> np.ndarray:
-    """Triangles ``faces`` (F, 3), or (3F,) vertex ids, in VTK's flat layout
-    (3, a, b, c, …) as int64: the atlas kernels' input."""
-    faces = np.asarray(faces).reshape(-1, 3)
-    out = np.empty((len(faces), 4), np.int64)
-    out[:, 0] = 3
-    out[:, 1:] = faces
-    return out.ravel()
+    return _table_keys(face_footprints(ij, faces, grid.t, base), base)
 
 
 def _table_keys(e: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -351,14 +341,17 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     # array, and exporting one walks every cell (1 ms a frame at 50 k faces)
     from vtkmodules.util.numpy_support import vtk_to_numpy
 
-    cells = _flat_cells(vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()))
+    # a copy: a fixed-size cell array's connectivity is made for the call, and the
+    # numpy view would outlive it
+    tris = np.array(vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()),
+                    np.int64).reshape(-1, 3)  # (F, 3)
     top = g.top_level
     # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
     base = level_offsets(top)
-    fkey = face_footprints(ij, cells, g.t, base)
+    fkey = face_footprints(ij, tris, g.t, base)
     ntab = int(base[-1])
     if ntab <= max(DENSE_TABLE, DENSE_PER_FACE * len(fkey)):  # a scatter into the table
-        lo, hi, ilo_e, ihi_e = group_boxes(cells, fkey, pts, ij, ntab)
+        lo, hi, ilo_e, ihi_e = group_boxes(tris, fkey, pts, ij, ntab)
         E = np.flatnonzero(np.isfinite(lo[:, 0]))  # the footprints some face lies in
         lo, hi, ilo_e, ihi_e = lo[E], hi[E], ilo_e[E], ihi_e[E]
         pos = np.empty(ntab, np.int64)
@@ -366,14 +359,14 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
         fe = pos[fkey]  # each face's footprint, numbered 0 … len(E) − 1
     else:  # far more tiles than faces (small tiles, a huge grid): number the used ones
         E, fe = np.unique(fkey, return_inverse=True)
-        lo, hi, ilo_e, ihi_e = group_boxes(cells, fe, pts, ij, len(E))
+        lo, hi, ilo_e, ihi_e = group_boxes(tris, fe, pts, ij, len(E))
     eL, eX, eY = _table_keys(E, base)
     sh = 2 * (top + 1) + 1
     # 1. the texel level each footprint wants, from its drawn vertices' box and its
     #    faces' foreshortening (the texel's projected area, as a square of TEXEL_PX)
     eye = np.asarray(view.eye, np.float64)
     d = np.linalg.norm(np.maximum(0.0, np.maximum(lo - eye, eye - hi)), axis=1)
-    d = d / np.sqrt(np.maximum(group_facing(cells, fe, pts, eye, len(E)), MIN_FACING))
+    d = d / np.sqrt(np.maximum(group_facing(tris, fe, pts, eye, len(E)), MIN_FACING))
     f = 0.5 * view.size[1] / math.tan(math.radians(view.fov_y_deg) / 2)
     s0 = _spacing(terrain)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -479,7 +472,7 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     page = (step << k) + 1 + 2 * GUTTER  # a page's allocation: its texels and gutter
     clamp_fill(atlas, rect, np.stack([ay, ax, page, page], 1))
     # one point per (page, vertex): a vertex shared by two pages is duplicated
-    src, pg, faces = number_pages(cells, e_group[fe], G, len(pts))
+    src, pg, faces = number_pages(tris, e_group[fe], G, len(pts))
     # VTK's v: the image's row 0 at v = 0 (see ViewTexture)
     tc, xyz = page_tcoords(src, pg, ij, pts, (Lt, gL, gX, gY, ax, ay), step, GUTTER,
                            (AW, AH))

@@ -192,7 +192,7 @@ def _random_faces(F: int, V: int, G: int, data):
 def test_pages_number_each_vertex_once_per_page(F, V, G, data):
     """The counting-sort numbering equals np.unique over (page, vertex), faces in order."""
     _, faces, group, cells = _random_faces(F, V, G, data)
-    src, page, out = number_pages(cells, group, G, V)
+    src, page, out = number_pages(faces, group, G, V)
     upk, inv = np.unique(np.repeat(group, 3) * V + faces.ravel(), return_inverse=True)
     np.testing.assert_array_equal(src, upk % V)
     np.testing.assert_array_equal(page, upk // V)
@@ -204,7 +204,7 @@ def test_pages_number_each_vertex_once_per_page(F, V, G, data):
 def test_page_boxes_hold_their_faces_corners(F, V, G, data):
     rng, faces, key, cells = _random_faces(F, V, G, data)
     pts, ij = rng.normal(size=(V, 3)), rng.integers(-50, 50, (V, 2))
-    lo, hi, ilo, ihi = group_boxes(cells, key, pts, ij, G)
+    lo, hi, ilo, ihi = group_boxes(faces, key, pts, ij, G)
     for g in range(G):
         c = faces[key == g].ravel()
         if len(c) == 0:
@@ -223,7 +223,7 @@ def test_page_facing_is_its_most_squarely_seen_face(F, V, G, data):
     rng, faces, key, cells = _random_faces(F, V, G, data)
     pts = rng.normal(size=(V, 3)) * rng.uniform(0.1, 100.0)
     eye = rng.normal(size=3) * 300.0
-    got = group_facing(cells, key, pts, eye, G)
+    got = group_facing(faces, key, pts, eye, G)
     a, b, c = pts[faces[:, 0]], pts[faces[:, 1]], pts[faces[:, 2]]
     n = np.cross(b - a, c - a)
     ray = eye - (a + b + c) / 3.0
