@@ -33,24 +33,68 @@ def _as_faces(faces: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.asarray(faces).reshape(-1, 3), np.int64)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _footprint(ij, faces, t, base, f):
+    """Face f's footprint: the dense table index of the finest tile that holds it."""
+    top = len(base) - 2
+    a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+    i0 = min(ij[a, 0], ij[b, 0], ij[c, 0])
+    i1 = max(ij[a, 0], ij[b, 0], ij[c, 0])
+    j0 = min(ij[a, 1], ij[b, 1], ij[c, 1])
+    j1 = max(ij[a, 1], ij[b, 1], ij[c, 1])
+    key = base[top]  # not held by any tile: the top tile (footprints' default)
+    for lv in range(top + 1):  # finest first: the first tile that holds the face
+        w = np.int64(1 << t) << lv
+        last = (np.int64(1) << (top - lv)) - 1
+        xs, ys = min(j0 // w, last), min(i0 // w, last)
+        if j1 <= (xs + 1) * w and i1 <= (ys + 1) * w:
+            key = base[lv] + ys * (last + 1) + xs
+            break
+    return key
+
+
 @njit(cache=True, nogil=True)
 def _footprints(ij, faces, t, base, out):
-    top = len(base) - 2
     for f in range(len(out)):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        i0 = min(ij[a, 0], ij[b, 0], ij[c, 0])
-        i1 = max(ij[a, 0], ij[b, 0], ij[c, 0])
-        j0 = min(ij[a, 1], ij[b, 1], ij[c, 1])
-        j1 = max(ij[a, 1], ij[b, 1], ij[c, 1])
-        key = base[top]  # not held by any tile: the top tile (footprints' default)
-        for lv in range(top + 1):  # finest first: the first tile that holds the face
-            w = np.int64(1 << t) << lv
-            last = (np.int64(1) << (top - lv)) - 1
-            xs, ys = min(j0 // w, last), min(i0 // w, last)
-            if j1 <= (xs + 1) * w and i1 <= (ys + 1) * w:
-                key = base[lv] + ys * (last + 1) + xs
-                break
-        out[f] = key
+        out[f] = _footprint(ij, faces, t, base, f)
+
+
+@njit(cache=True, nogil=True)
+def _footprint_groups(ij, faces, t, base, pts, eye, key, lo, hi, ilo, ihi, facing):
+    for f in range(len(key)):
+        k = _footprint(ij, faces, t, base, f)
+        key[f] = k
+        _box(faces, f, k, pts, ij, lo, hi, ilo, ihi)
+        _face_facing(faces, f, k, pts, eye, facing)
+
+
+def footprint_groups(ij: np.ndarray, faces: np.ndarray, t: int, base: np.ndarray,
+                     pts: np.ndarray, eye) -> tuple[np.ndarray, ...]:
+    """:func:`face_footprints`, then :func:`group_boxes` and :func:`group_facing` over the
+    whole dense tile table, in one pass over the faces: (key (F,), lo, hi, ilo, ihi,
+    facing (n,)), n the table's size ``base[-1]``.
+
+    Examples
+    --------
+    >>> faces = np.array([[0, 1, 2]])
+    >>> ij = np.array([[0, 0], [0, 8], [8, 0]])
+    >>> pts = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0]])
+    >>> key, lo, hi, ilo, ihi, facing = footprint_groups(ij, faces, 3, np.array([0, 1, 2]),
+    ...                                                  pts, (1 / 3, 1 / 3, 5.0))
+    >>> key.tolist(), hi[0].tolist(), round(float(facing[0]), 3)
+    ([0], [1.0, 1.0, 0.0], 1.0)
+    """
+    faces = _as_faces(faces)
+    n = int(base[-1])
+    key = np.empty(len(faces), np.int64)
+    lo, hi = np.full((n, 3), np.inf), np.full((n, 3), -np.inf)
+    big = np.iinfo(np.int64)
+    ilo, ihi = np.full((n, 2), big.max, np.int64), np.full((n, 2), big.min, np.int64)
+    facing = np.zeros(n)
+    _footprint_groups(np.ascontiguousarray(ij, np.int64), faces, t,
+                      np.ascontiguousarray(base, np.int64), np.ascontiguousarray(pts, np.float64),
+                      np.asarray(eye, np.float64), key, lo, hi, ilo, ihi, facing)
+    return key, lo, hi, ilo, ihi, facing
 
 
 def face_footprints(ij: np.ndarray, faces: np.ndarray, t: int, base: np.ndarray
@@ -70,18 +114,22 @@ def face_footprints(ij: np.ndarray, faces: np.ndarray, t: int, base: np.ndarray
     return out
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _box(faces, f, k, pts, ij, lo, hi, ilo, ihi):
+    for c in range(3):
+        v = faces[f, c]
+        for d in range(3):
+            lo[k, d] = min(lo[k, d], pts[v, d])
+            hi[k, d] = max(hi[k, d], pts[v, d])
+        for d in range(2):
+            ilo[k, d] = min(ilo[k, d], ij[v, d])
+            ihi[k, d] = max(ihi[k, d], ij[v, d])
+
+
 @njit(cache=True, nogil=True)
 def _boxes(faces, key, pts, ij, lo, hi, ilo, ihi):
     for f in range(len(key)):
-        k = key[f]
-        for c in range(3):
-            v = faces[f, c]
-            for d in range(3):
-                lo[k, d] = min(lo[k, d], pts[v, d])
-                hi[k, d] = max(hi[k, d], pts[v, d])
-            for d in range(2):
-                ilo[k, d] = min(ilo[k, d], ij[v, d])
-                ihi[k, d] = max(ihi[k, d], ij[v, d])
+        _box(faces, f, key[f], pts, ij, lo, hi, ilo, ihi)
 
 
 def group_boxes(faces: np.ndarray, key: np.ndarray, pts: np.ndarray, ij: np.ndarray,
@@ -110,22 +158,29 @@ def group_boxes(faces: np.ndarray, key: np.ndarray, pts: np.ndarray, ij: np.ndar
     return lo, hi, ilo, ihi
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _face_facing(faces, f, k, pts, eye, out):
+    """out[k] = max(out[k], |cos|) of face f's normal and the line to ``eye``."""
+    a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+    ux, uy, uz = pts[b, 0] - pts[a, 0], pts[b, 1] - pts[a, 1], pts[b, 2] - pts[a, 2]
+    vx, vy, vz = pts[c, 0] - pts[a, 0], pts[c, 1] - pts[a, 1], pts[c, 2] - pts[a, 2]
+    nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+    rx = eye[0] - (pts[a, 0] + pts[b, 0] + pts[c, 0]) / 3.0
+    ry = eye[1] - (pts[a, 1] + pts[b, 1] + pts[c, 1]) / 3.0
+    rz = eye[2] - (pts[a, 2] + pts[b, 2] + pts[c, 2]) / 3.0
+    den = np.sqrt((nx * nx + ny * ny + nz * nz) * (rx * rx + ry * ry + rz * rz))
+    if den > 0.0:  # a degenerate face (no area) or one at the eye faces nothing
+        cos = min(abs(nx * rx + ny * ry + nz * rz) / den, 1.0)
+        if 0 <= k < len(out):  # checked: numba does not bounds-check
+            out[k] = max(out[k], cos)
+
+
 @njit(cache=True, nogil=True)
 def _facing(faces, key, pts, eye, out):
     for f in range(len(key)):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        ux, uy, uz = pts[b, 0] - pts[a, 0], pts[b, 1] - pts[a, 1], pts[b, 2] - pts[a, 2]
-        vx, vy, vz = pts[c, 0] - pts[a, 0], pts[c, 1] - pts[a, 1], pts[c, 2] - pts[a, 2]
-        nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
-        rx = eye[0] - (pts[a, 0] + pts[b, 0] + pts[c, 0]) / 3.0
-        ry = eye[1] - (pts[a, 1] + pts[b, 1] + pts[c, 1]) / 3.0
-        rz = eye[2] - (pts[a, 2] + pts[b, 2] + pts[c, 2]) / 3.0
-        den = np.sqrt((nx * nx + ny * ny + nz * nz) * (rx * rx + ry * ry + rz * rz))
-        if den > 0.0:  # a degenerate face (no area) or one at the eye faces nothing
-            cos = min(abs(nx * rx + ny * ry + nz * rz) / den, 1.0)
-            k = key[f]
-            if 0 <= k < len(out):  # checked: numba does not bounds-check
-                out[k] = max(out[k], cos)
+        _face_facing(faces, f, key[f], pts, eye, out)
+
+
 
 
 def group_facing(faces: np.ndarray, key: np.ndarray, pts: np.ndarray, eye, n: int

@@ -57,6 +57,7 @@ import numpy as np
 from geoterrain.atlaskernels import (
     clamp_fill,
     face_footprints,
+    footprint_groups,
     group_boxes,
     group_facing,
     magnify_into,
@@ -348,25 +349,25 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     top = g.top_level
     # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
     base = level_offsets(top)
-    fkey = face_footprints(ij, tris, g.t, base)
     ntab = int(base[-1])
-    if ntab <= max(DENSE_TABLE, DENSE_PER_FACE * len(fkey)):  # a scatter into the table
-        lo, hi, ilo_e, ihi_e = group_boxes(tris, fkey, pts, ij, ntab)
+    eye = np.asarray(view.eye, np.float64)
+    if ntab <= max(DENSE_TABLE, DENSE_PER_FACE * len(tris)):  # a scatter into the table
+        fkey, lo, hi, ilo_e, ihi_e, facing = footprint_groups(ij, tris, g.t, base, pts, eye)
         E = np.flatnonzero(np.isfinite(lo[:, 0]))  # the footprints some face lies in
-        lo, hi, ilo_e, ihi_e = lo[E], hi[E], ilo_e[E], ihi_e[E]
+        lo, hi, ilo_e, ihi_e, facing = lo[E], hi[E], ilo_e[E], ihi_e[E], facing[E]
         pos = np.empty(ntab, np.int64)
         pos[E] = np.arange(len(E))
         fe = pos[fkey]  # each face's footprint, numbered 0 … len(E) − 1
     else:  # far more tiles than faces (small tiles, a huge grid): number the used ones
-        E, fe = np.unique(fkey, return_inverse=True)
+        E, fe = np.unique(face_footprints(ij, tris, g.t, base), return_inverse=True)
         lo, hi, ilo_e, ihi_e = group_boxes(tris, fe, pts, ij, len(E))
+        facing = group_facing(tris, fe, pts, eye, len(E))
     eL, eX, eY = _table_keys(E, base)
     sh = 2 * (top + 1) + 1
     # 1. the texel level each footprint wants, from its drawn vertices' box and its
     #    faces' foreshortening (the texel's projected area, as a square of TEXEL_PX)
-    eye = np.asarray(view.eye, np.float64)
     d = np.linalg.norm(np.maximum(0.0, np.maximum(lo - eye, eye - hi)), axis=1)
-    d = d / np.sqrt(np.maximum(group_facing(tris, fe, pts, eye, len(E)), MIN_FACING))
+    d = d / np.sqrt(np.maximum(facing, MIN_FACING))
     f = 0.5 * view.size[1] / math.tan(math.radians(view.fov_y_deg) / 2)
     s0 = _spacing(terrain)
     with np.errstate(divide="ignore", invalid="ignore"):
