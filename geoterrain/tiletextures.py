@@ -342,8 +342,8 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     # array, and exporting one walks every cell (1 ms a frame at 50 k faces)
     from vtkmodules.util.numpy_support import vtk_to_numpy
 
-    # a copy: a fixed-size cell array's connectivity is made for the call, and the
-    # numpy view would outlive it
+    # a copy, int64 and owned (0.1 ms at 50 k faces): nothing below keeps a view of
+    # VTK's own array
     tris = np.array(vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()),
                     np.int64).reshape(-1, 3)  # (F, 3)
     top = g.top_level
