@@ -116,7 +116,14 @@ class Terrain:
         return val
 
     def lookup(self, key: tuple):
-        """The cached value of ``key``, marked as just used, or None (nothing is made)."""
+        """The cached value of ``key``, marked as just used, or None (nothing is made).
+
+        Examples
+        --------
+        >>> tile = t.tile(t.grid.top_level, 0, 0)
+        >>> t.lookup(("h", t.grid.top_level, 0, 0)) is tile, t.lookup(("h", 99, 0, 0))
+        (True, None)
+        """
         hit = self._cache.get(key)
         if hit is None:
             return None
