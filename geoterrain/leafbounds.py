@@ -353,8 +353,8 @@ def normal_axes(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.nda
 
     Examples
     --------
-    >>> xs, ys = normal_axes(t, 0, 0, 0)  # doctest: +SKIP
-    >>> xs.shape == ys.shape == (t.grid.tile_samples,)  # doctest: +SKIP
+    >>> xs, ys = normal_axes(t, 0, 0, 0)
+    >>> xs.shape == ys.shape == (t.grid.tile_samples,)
     True
     """
     g, f = terrain.grid, terrain.frame
@@ -389,8 +389,8 @@ def ring_codes(terrain, level: int, x: int, y: int) -> np.ndarray:
 
     Examples
     --------
-    >>> ring_codes(t, 0, 0, 0).shape[1]  # doctest: +SKIP
-    2
+    >>> ring_codes(t, 0, 0, 0).shape == (4 * t.grid.tile_samples - 4, 2)
+    True
     """
     n = len(ring_index(terrain.grid.tile_samples)[0])
     try:  # bounded: exactly the ring's 4T − 4 pairs

@@ -108,8 +108,8 @@ def normal_map(
     out = np.empty((*x.shape, 3), np.float32)
     if x.size:
         if serial:  # the same code without threads (a tile; a fork() child)
-            vv = _SERIAL["_valid_finite_nb"](x, y, z, v)
-            _SERIAL["_normals_nb"](x, y, z, vv, kernel == "horn", out)
+            vv = SERIAL_KERNELS["_valid_finite_nb"](x, y, z, v)
+            SERIAL_KERNELS["_normals_nb"](x, y, z, vv, kernel == "horn", out)
         else:
             vv = _valid_finite_nb(x, y, z, v)
             _normals_nb(x, y, z, vv, kernel == "horn", out)
@@ -442,7 +442,7 @@ def encode_octahedral(n: np.ndarray, bits: int = 8, precise: bool = False, *,
         n = n.astype(np.float64)
     flat = np.ascontiguousarray(n.reshape(-1, 3))
     out = np.empty((flat.shape[0], 2), np.uint8 if bits == 8 else np.uint16)
-    (_SERIAL["_encode_oct_nb"] if serial else _encode_oct_nb)(flat, (1 << bits) - 1,
+    (SERIAL_KERNELS["_encode_oct_nb"] if serial else _encode_oct_nb)(flat, (1 << bits) - 1,
                                                               bool(precise), out)
     return out.reshape(*n.shape[:-1], 2)
 
@@ -583,7 +583,8 @@ def oct_shade(cu, cv, m, lx, ly, lz, amb, ceil):  # pragma: no cover - compiled
     return min(amb + (one - amb) * lam, ceil)
 
 
-_SERIAL: dict = {}
+#: the serial twins by kernel name (one tile's work on the calling thread)
+SERIAL_KERNELS: dict = {}
 
 
 def serial_twin(kernel):
@@ -594,12 +595,9 @@ def serial_twin(kernel):
     twin = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial",
                               f.__defaults__, f.__closure__)
     twin.__qualname__ = f.__qualname__ + "_serial"  # its own cache entry
-    _SERIAL[f.__name__] = njit(cache=True, nogil=True)(twin)
-    return _SERIAL[f.__name__]
+    SERIAL_KERNELS[f.__name__] = njit(cache=True, nogil=True)(twin)
+    return SERIAL_KERNELS[f.__name__]
 
 
 for _k in (_valid_finite_nb, _normals_nb, _encode_oct_nb):
     serial_twin(_k)
-
-#: the serial twins by kernel name (one tile's work on the calling thread)
-SERIAL_KERNELS = _SERIAL
