@@ -26,10 +26,10 @@ positions, so curvilinear (geographic) grids and vertical exaggeration are handl
 
 from __future__ import annotations
 
-import types
-
 import numpy as np
 from numba import njit, prange
+
+from geoterrain.threads import serial_twin
 
 __all__ = [
     "normal_map",
@@ -587,17 +587,5 @@ def oct_shade(cu, cv, m, lx, ly, lz, amb, ceil):  # pragma: no cover - compiled
 SERIAL_KERNELS: dict = {}
 
 
-def serial_twin(kernel):
-    """``kernel``'s Python function compiled again without threads (its ``prange`` loops
-    run as ``range``: the same arithmetic), kept in :data:`SERIAL_KERNELS` under its
-    name and returned."""
-    f = kernel.py_func
-    twin = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial",
-                              f.__defaults__, f.__closure__)
-    twin.__qualname__ = f.__qualname__ + "_serial"  # its own cache entry
-    SERIAL_KERNELS[f.__name__] = njit(cache=True, nogil=True)(twin)
-    return SERIAL_KERNELS[f.__name__]
-
-
 for _k in (_valid_finite_nb, _normals_nb, _encode_oct_nb):
-    serial_twin(_k)
+    SERIAL_KERNELS[_k.__name__] = serial_twin(_k)

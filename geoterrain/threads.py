@@ -12,14 +12,16 @@ and loses 1.4–2.4× on one with a core taken.
 
 from __future__ import annotations
 
+import types
 from collections.abc import Iterator
 from contextlib import contextmanager
 
 import numba
+from numba import njit
 
 from geoterrain._fork import FORKED
 
-__all__ = ["PARALLEL_MIN_SAMPLES", "cores_for", "forked"]
+__all__ = ["PARALLEL_MIN_SAMPLES", "cores_for", "forked", "serial_twin"]
 
 PARALLEL_MIN_SAMPLES = 1 << 19  # about 724²: below it, one thread
 
@@ -37,6 +39,27 @@ def forked() -> bool:
     False
     """
     return FORKED[0]
+
+
+def serial_twin(kernel):
+    """``kernel`` (a compiled kernel or its Python function) compiled again without
+    threads, its ``prange`` loops run as ``range`` (the same arithmetic), with its own
+    cache entry: what a fork() child runs, and one small piece of work on the calling
+    thread.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from geoterrain.normals import _valid_finite_nb
+    >>> twin = serial_twin(_valid_finite_nb)
+    >>> twin.py_func.__name__, twin(*[np.zeros((1, 2))] * 3, np.ones((1, 2), bool)).tolist()
+    ('_valid_finite_nb_serial', [[True, True]])
+    """
+    f = getattr(kernel, "py_func", kernel)
+    twin = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial",
+                              f.__defaults__, f.__closure__)
+    twin.__qualname__ = f.__qualname__ + "_serial"  # its own cache entry
+    return njit(cache=True, nogil=True)(twin)
 
 
 @contextmanager

@@ -28,8 +28,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.normals import SERIAL_KERNELS, oct_shade, serial_twin
-from geoterrain.threads import forked
+from geoterrain.normals import SERIAL_KERNELS, oct_shade
+from geoterrain.threads import forked, serial_twin
 
 _valid_finite_serial = SERIAL_KERNELS["_valid_finite_nb"]
 _normals_serial = SERIAL_KERNELS["_normals_nb"]

@@ -29,13 +29,11 @@ domain's edge), and its children are the four triangles of that diamond's halves
 
 from __future__ import annotations
 
-import types
-
 import numpy as np
 from numba import njit, prange
 
 from geoterrain.lod.kernels import _coarsest_tile, sample_xy
-from geoterrain.threads import forked
+from geoterrain.threads import forked, serial_twin
 
 _SERIAL: dict = {}
 
@@ -44,10 +42,7 @@ def _parallel(f):
     """``f`` compiled with its ``prange`` loops run in parallel, and a serial twin (in
     :data:`_SERIAL`) for forked children: numba's GNU OpenMP layer aborts a process
     forked from one that used it at its first parallel launch."""
-    twin = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial",
-                              f.__defaults__, f.__closure__)
-    twin.__qualname__ = f.__qualname__ + "_serial"  # its own cache entry
-    _SERIAL[f.__name__] = njit(cache=True, nogil=True)(twin)
+    _SERIAL[f.__name__] = serial_twin(f)
     return njit(cache=True, nogil=True, parallel=True)(f)
 
 
