@@ -251,7 +251,8 @@ def shade_tiles(h: np.ndarray, cf: float, zf: float, valid: np.ndarray, X: np.nd
     out = np.empty((n, T0, T1, 3), np.uint8)
     if n == 0:
         return out
-    kernel = _SERIAL_TILES if forked() else _shade_tiles  # no thread pool in a fork child
+    # one tile, or a fork child (no thread pool there): on this thread
+    kernel = _SERIAL_TILES if n == 1 or forked() else _shade_tiles
     kernel(np.ascontiguousarray(h, np.float64), float(cf), float(zf),
            np.ascontiguousarray(valid, np.bool_), X, Y, np.asarray(derive, np.bool_),
            np.ascontiguousarray(rings, np.uint8), np.asarray(ring_rows, np.int64),

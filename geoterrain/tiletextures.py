@@ -77,7 +77,7 @@ from geoterrain.textures import (
     elevation_range,
     tile_hillshade,
 )
-from geoterrain.tileshade import shade_tile, shade_tiles
+from geoterrain.tileshade import shade_tiles
 from geoterrain.vertexdata import ring_index
 
 TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
@@ -135,13 +135,9 @@ def _shaded(terrain, key: tuple, level: int, x: int, y: int, shading: str, pal: 
     def make():
         if counter is not None:
             counter["textures_built"] = counter.get("textures_built", 0) + 1
-        z0, z1 = elevation_range(terrain)
         if _default_style(terrain, shading, pal, light, drape):  # one compiled pass
-            raw, planar = terrain.tile_normal_bytes(level, x, y)
-            return shade_tile(terrain.tile(level, x, y).heights * terrain.frame.z_to_m,
-                              np.frombuffer(raw, np.uint8), planar, 8, _sun(), AMBIENT,
-                              SHADE_CEILING, pal.clim if pal.clim is not None else (z0, z1),
-                              water_level(pal, (z0, z1)), LAND, WATER)
+            return _shade_batch(terrain, [(level, x, y)], pal)[0]
+        z0, z1 = elevation_range(terrain)
         h = np.nan_to_num(terrain.tile(level, x, y).heights, nan=0.0)
         rgb = colorize(h * terrain.frame.z_to_m, pal, (z0, z1))
         if drape is not None:  # the image over the colours; its nodata shows them
@@ -168,9 +164,10 @@ def _default_style(terrain, shading: str, pal: Palette, light: Light | None,
 
 
 def _shade_batch(terrain, keys: list, pal: Palette) -> list[np.ndarray]:
-    """:func:`_shaded` of the tiles ``keys`` in the default style, in one compiled call
-    over all of them on every core (:func:`geoterrain.tileshade.shade_tiles`); the same
-    pixels. Here only the reading: heights, valid masks, stored codes or rings, x, y."""
+    """The default style's shading (RGB uint8 (T, T, 3)) of each tile of ``keys``, in
+    one compiled call over all of them on every core
+    (:func:`geoterrain.tileshade.shade_tiles`; a single tile's on this thread). Here only
+    the reading: heights, valid masks, stored codes or rings, x, y."""
     g = terrain.grid
     T, n = g.tile_samples, len(keys)
     derived = set(terrain._derived_normal_levels)
@@ -450,10 +447,9 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
     if _default_style(terrain, shading, pal, light, drape):
         todo = [key for key in dict.fromkeys(key for key, _, _ in placed)
                 if terrain.peek(rgb_key(*key)) is None][:max_builds]
-        if len(todo) > 1:
-            for key, rgb in zip(todo, _shade_batch(terrain, todo, pal), strict=True):
-                ready[key] = terrain._cached(rgb_key(*key), lambda rgb=rgb: rgb)
-            counter["textures_built"] += len(todo)
+        for key, rgb in zip(todo, _shade_batch(terrain, todo, pal), strict=True):
+            ready[key] = terrain._cached(rgb_key(*key), lambda rgb=rgb: rgb)
+        counter["textures_built"] += len(todo)
     lookup = terrain.lookup
     for key, r, c in placed:
         n_tiles += 1

@@ -383,15 +383,24 @@ def test_geographic_stores_derive_normals_to_a_code(tmp_path_factory, seed, orig
 
 def _batch_is_tile_by_tile(*terrains) -> None:
     """A frame's new tiles shaded in one compiled call over all of them (derived and
-    stored codes, on every core) are, pixel for pixel, the tiles shaded one by one."""
-    from geoterrain.colours import as_palette
+    stored codes, on every core) are, pixel for pixel, the tiles shaded one by one from
+    their normal codes as the terrain reads them (tile_normal_codes, shade_tile), and
+    what tile_rgb gives."""
+    from geoterrain.colours import LAND, WATER, as_palette, water_level
+    from geoterrain.textures import AMBIENT, SHADE_CEILING, _sun, elevation_range
+    from geoterrain.tileshade import shade_tile
 
     for t in terrains:
         keys = sorted(t.tile_info)
         n0 = t.decoded_normals
         got = tiletextures._shade_batch(t, keys, as_palette("auto"))
         assert t.decoded_normals - n0 == len(keys)  # every normals read is counted
+        lim = elevation_range(t)
         for k, rgb in zip(keys, got, strict=True):
+            one = shade_tile(t.tile(*k).heights * t.frame.z_to_m, t.tile_normal_codes(*k),
+                             False, 8, _sun(), AMBIENT, SHADE_CEILING, lim,
+                             water_level(as_palette("auto"), lim), LAND, WATER)
+            assert np.array_equal(rgb, one), k
             assert np.array_equal(rgb, tiletextures.tile_rgb(t, *k, "normals")), k
 
 
