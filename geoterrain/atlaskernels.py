@@ -87,9 +87,7 @@ def footprint_groups(ij: np.ndarray, faces: np.ndarray, t: int, base: np.ndarray
     faces = _as_faces(faces)
     n = int(base[-1])
     key = np.empty(len(faces), np.int64)
-    lo, hi = np.full((n, 3), np.inf), np.full((n, 3), -np.inf)
-    big = np.iinfo(np.int64)
-    ilo, ihi = np.full((n, 2), big.max, np.int64), np.full((n, 2), big.min, np.int64)
+    lo, hi, ilo, ihi = _empty_boxes(n)
     facing = np.zeros(n)
     _footprint_groups(np.ascontiguousarray(ij, np.int64), faces, t,
                       np.ascontiguousarray(base, np.int64), np.ascontiguousarray(pts, np.float64),
@@ -109,9 +107,17 @@ def face_footprints(ij: np.ndarray, faces: np.ndarray, t: int, base: np.ndarray
     """
     faces = _as_faces(faces)
     out = np.empty(len(faces), np.int64)
-    _footprints(np.ascontiguousarray(ij, np.int64), _as_faces(faces),
-                t, np.ascontiguousarray(base, np.int64), out)
+    _footprints(np.ascontiguousarray(ij, np.int64), faces, t,
+                np.ascontiguousarray(base, np.int64), out)
     return out
+
+
+def _empty_boxes(n: int) -> tuple[np.ndarray, ...]:
+    """n empty boxes: scene lo, hi (n, 3) at ±inf, grid ilo, ihi (n, 2) at the int64
+    extremes (what :func:`group_boxes` leaves for a group without faces)."""
+    big = np.iinfo(np.int64)
+    return (np.full((n, 3), np.inf), np.full((n, 3), -np.inf),
+            np.full((n, 2), big.max, np.int64), np.full((n, 2), big.min, np.int64))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -147,11 +153,7 @@ def group_boxes(faces: np.ndarray, key: np.ndarray, pts: np.ndarray, ij: np.ndar
     >>> hi[1].tolist(), bool(np.isinf(lo[0]).all())
     ([1.0, 1.0, 7.0], True)
     """
-    lo = np.full((n, 3), np.inf)
-    hi = np.full((n, 3), -np.inf)
-    big = np.iinfo(np.int64)
-    ilo = np.full((n, 2), big.max, np.int64)
-    ihi = np.full((n, 2), big.min, np.int64)
+    lo, hi, ilo, ihi = _empty_boxes(n)
     _boxes(_as_faces(faces), np.ascontiguousarray(key, np.int64),
            np.ascontiguousarray(pts, np.float64), np.ascontiguousarray(ij, np.int64),
            lo, hi, ilo, ihi)

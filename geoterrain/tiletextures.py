@@ -335,12 +335,11 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
                             "texture_ms": 0.0})
     pts = np.asarray(mesh.points, np.float64)
     ij = np.asarray(mesh.point_data["grid_ij"])
-    # from the cells' connectivity: the selections' fixed-size cell arrays have no legacy
-    # array, and exporting one walks every cell (1 ms a frame at 50 k faces)
+    # the triangles from the cells' connectivity (the selections' fixed-size cell arrays
+    # have no legacy array; exporting one walks every cell: 1 ms a frame at 50 k faces),
+    # copied as int64 (0.1 ms): nothing below keeps a view of VTK's own array
     from vtkmodules.util.numpy_support import vtk_to_numpy
 
-    # a copy, int64 and owned (0.1 ms at 50 k faces): nothing below keeps a view of
-    # VTK's own array
     tris = np.array(vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()),
                     np.int64).reshape(-1, 3)  # (F, 3)
     top = g.top_level
@@ -455,7 +454,7 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
         n_tiles += 1
         rgb = ready.get(key)
         if rgb is None:
-            ck = ("rgb", sid, *key)  # rgb_key's
+            ck = rgb_key(*key)
             rgb = lookup(ck)
             if rgb is None:
                 if max_builds is not None and counter["textures_built"] >= max_builds \
