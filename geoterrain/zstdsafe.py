@@ -56,8 +56,8 @@ _TLS = threading.local()
 
 
 def _decompressor() -> zstandard.ZstdDecompressor:
-    """This thread's decompressor (one is not thread-safe; making one per frame cost
-    about 5 µs of a 20 µs tile read)."""
+    """This thread's decompressor (one is not thread-safe; making one for each frame
+    read took about 13 of the 18 µs a 65² tile's payload took to parse)."""
     d = getattr(_TLS, "dctx", None)
     if d is None:
         d = _TLS.dctx = zstandard.ZstdDecompressor()
