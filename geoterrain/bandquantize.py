@@ -16,9 +16,12 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from geoterrain.quantize import (
+    FINE_STEPS,
     Quantizer,
     _grid_checks,
     _roundtrip_error,
+    fine_quantizer,
+    fine_steps_ok,
     float_quantizer,
     lossy_quantizer,
 )
@@ -93,17 +96,26 @@ def band_quantizer(bands: Bands, src_dtype: np.dtype | type | str,
     off = 0.0 if offset is None else float(offset)
     exact, f32, n, vmax = True, True, 0, 0.0
     lo, hi = np.inf, -np.inf
+    # finer grids (quantize.fine_quantizer): integer heights pass every one, so a band
+    # is checked only once the heights have left the integers
+    free = scale is None and offset is None
+    fine = np.ones(len(FINE_STEPS) if free else 0, np.bool_)
     for v in bands():
         v = _finite(v)
         if v.size:
             e, f = _grid_checks(v, sc, off)
             exact, f32 = exact and e, f32 and f
+            if not exact and fine.any():
+                fine_steps_ok(v, dt, fine)
             n += v.size
             vmax = max(vmax, float(np.abs(v).max()))
             lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
     lossy = codec_error is not None and codec_error > 0
     if exact and (not lossy or 2.0 * float(codec_error) <= sc):
         return Quantizer("int", sc, off, 0.0)
+    q = fine_quantizer(fine, dt) if fine.size else None
+    if q is not None and (not lossy or 2.0 * float(codec_error) <= q.step):
+        return q
     if lossy:
         eps = float(codec_error)
         if offset is None and n:

@@ -17,6 +17,14 @@ __all__ = ["Quantizer", "choose_quantizer", "codes_to_heights", "heights_to_code
            "tile_heights", "valid_codes"]
 
 _I64_MAX = np.int64(np.iinfo(np.int64).max)
+# lossless steps finer than 1 tried on float sources, coarsest first, and whether each
+# is a decimal ("decimal" mode) or binary ("int" mode, exact in floats): the first under
+# which every height decodes to itself is taken (fine_quantizer)
+FINE_STEPS = tuple(sorted([(2.0 ** -m, False) for m in range(1, 9)]
+                          + [(10.0 ** -d, True) for d in range(1, 5)], reverse=True))
+DECIMAL_STEPS = tuple(s for s, d in FINE_STEPS if d)
+_STEPS = np.array([s for s, _ in FINE_STEPS], np.float64)
+_DIVS = np.array([float(round(1.0 / s)) if d else 0.0 for s, d in FINE_STEPS], np.float64)
 _I32_MAX = np.int64(np.iinfo(np.int32).max)
 
 
@@ -26,9 +34,13 @@ class Quantizer:
 
     Attributes
     ----------
-    mode : {"int", "quantized", "float"}
+    mode : {"int", "decimal", "quantized", "float"}
         ``"int"``: lossless, heights are exactly ``offset + q * step`` (integer DEMs,
-        Terrain-RGB's 0.1 m). ``"quantized"``: ``q = round((z - offset) / step)`` with
+        Terrain-RGB's 0.1 m). ``"decimal"``: lossless, heights are exactly the decimal
+        ``q / 10^d`` (``step`` = 10^-d, offset 0) rounded to the source float
+        (``float_bits``): a float DEM written with d decimal places, as many LiDAR and
+        survey products are (1238.6 ft is the float32 nearest 12386 / 10, not
+        ``12386 * 0.1``). ``"quantized"``: ``q = round((z - offset) / step)`` with
         ``step`` slightly below ``2 * codec_error`` so ``|decoded - z| <= codec_error``.
         ``"float"``: lossless bit-exact floats; codes are the float bit patterns mapped to
         order-preserving integers (``float_bits`` = 32 or 64).
@@ -37,7 +49,7 @@ class Quantizer:
     codec_error : float
         Guaranteed bound on ``|decoded - z|`` (0 for lossless modes).
     float_bits : int
-        Width of the source float in ``"float"`` mode.
+        Width of the source float in ``"float"`` and ``"decimal"`` modes.
 
     Examples
     --------
@@ -66,12 +78,19 @@ class Quantizer:
         return cls(**d)
 
     def __post_init__(self) -> None:
-        if self.mode not in ("int", "quantized", "float"):
+        if self.mode not in ("int", "decimal", "quantized", "float"):
             raise ValueError(f"unknown quantizer mode {self.mode!r}")
         if self.mode != "float" and not self.step > 0:
             raise ValueError("quantizer step must be > 0")
         if self.float_bits not in (32, 64):
             raise ValueError("float_bits must be 32 or 64")
+        if self.mode == "decimal" and (self.offset != 0.0 or self.step not in DECIMAL_STEPS):
+            raise ValueError("a decimal quantizer has a step of 10^-d (d = 1 to 4) and offset 0")
+
+    @property
+    def divisor(self) -> float:
+        """``"decimal"`` mode: 10^d, the exact integer its codes are divided by."""
+        return float(round(1.0 / self.step))
 
 
 @njit(cache=True, nogil=True)
@@ -104,10 +123,14 @@ def choose_quantizer(
 
     Integer sources, and float sources whose values are all exactly ``k * scale + offset``
     (``scale`` defaults to 1, i.e. integer-valued floats are detected), are coded
-    losslessly as integers. Other floats are coded **bit-exactly at the source float
-    precision** (``"float"`` mode: lossless, but measured at 14-21 bits per sample on
-    float32 DEMs, about 2.5x a 0.1-unit quantized code, because the low mantissa bits are
-    incompressible noise) unless ``codec_error`` is given, in which case they are quantized
+    losslessly as integers. Without a given ``scale`` and ``offset``, float sources whose
+    values all lie on a finer grid are coded losslessly as integers of the coarsest grid
+    that decodes every value bit for bit (:func:`fine_quantizer`: steps 2^-1 to 2^-8, or
+    decimals of 1 to 4 places rounded to the source float, as 1238.6 ft in a float32).
+    Other floats are coded **bit-exactly at the source float precision** (``"float"``
+    mode: lossless, but measured at 14-21 bits per sample on float32 DEMs, about 2.5x a
+    0.1-unit quantized code, because the low mantissa bits are incompressible noise)
+    unless ``codec_error`` is given, in which case they are quantized
     with ``|decoded - z| <= codec_error``.
     Lossless integer coding is kept when ``2 * codec_error <= scale``.
 
@@ -130,11 +153,16 @@ def choose_quantizer(
     --------
     >>> choose_quantizer(np.array([1.0, 5.0]), np.int16).mode
     'int'
-    >>> choose_quantizer(np.array([1.25, 5.5]), np.float32).mode
+    >>> choose_quantizer(np.array([1.2345678, 5.5]), np.float64).mode
     'float'
     >>> q = choose_quantizer(np.array([1.25, 5.5]), np.float32, codec_error=0.5)
     >>> q.mode, q.step < 1.0
     ('quantized', True)
+    >>> q = choose_quantizer(np.float32([1238.6, 1245.15]), np.float32)
+    >>> q.mode, q.step, q.float_bits
+    ('decimal', 0.01, 32)
+    >>> choose_quantizer(np.array([1.25, 5.5]), np.float32).step
+    0.25
     """
     dt = np.dtype(src_dtype)
     v = np.ascontiguousarray(values, dtype=np.float64).ravel()
@@ -144,6 +172,10 @@ def choose_quantizer(
     lossy = codec_error is not None and codec_error > 0
     if exact and (not lossy or 2.0 * float(codec_error) <= sc):
         return Quantizer("int", sc, off, 0.0)
+    free = scale is None and offset is None
+    fine = fine_quantizer(fine_steps_ok(v, dt), dt) if free else None
+    if fine is not None and (not lossy or 2.0 * float(codec_error) <= fine.step):
+        return fine
     if lossy:
         v, vmax = _finite_copy(v)  # the finite values (a copy) and max |v|, one pass
         eps = float(codec_error)
@@ -152,6 +184,79 @@ def choose_quantizer(
         return lossy_quantizer(eps, off, vmax, v.size > 0,
                                lambda step: _roundtrip_error(v, step, off))
     return float_quantizer(dt, f32)
+
+
+def fine_steps_ok(v: np.ndarray, dt: np.dtype, ok: np.ndarray | None = None) -> np.ndarray:
+    """For each of :data:`FINE_STEPS`: does every finite value of ``v`` decode to itself
+    under it (code ``rint(x / step)``; a binary step decodes ``code × step``, a decimal
+    one ``code / 10^d`` rounded to the source float), bit for bit but for a −0, which
+    decodes as +0 (as in the ``"int"`` mode)? ``ok`` (the flags of
+    earlier values, updated in place) lets a caller check a raster band by band.
+    Examples: :func:`fine_quantizer`."""
+    if ok is None:
+        ok = np.ones(len(FINE_STEPS), np.bool_)
+    if ok.any():
+        _fine_steps_nb(np.ascontiguousarray(v, np.float64).ravel(), _STEPS, _DIVS,
+                       np.dtype(dt).itemsize <= 4, ok)
+    return ok
+
+
+def fine_quantizer(ok: np.ndarray, dt: np.dtype) -> Quantizer | None:
+    """The lossless quantizer of the coarsest step that :func:`fine_steps_ok` passed (a
+    binary one as ``"int"``, a decimal one as ``"decimal"``), or None. For float sources
+    whose heights are not integers: heights on a finer grid, as survey and LiDAR
+    products write them, cost a few bits a sample as codes, against 14–21 as floats.
+
+    Examples
+    --------
+    >>> dt = np.dtype("float32")
+    >>> fine_quantizer(fine_steps_ok(np.float32([1238.6, 1245.1]), dt), dt)
+    Quantizer(mode='decimal', step=0.1, offset=0.0, codec_error=0.0, float_bits=32)
+    >>> fine_quantizer(fine_steps_ok(np.array([0.25, 7.5]), dt), dt).mode
+    'int'
+    >>> fine_quantizer(fine_steps_ok(np.array([np.pi]), dt), dt) is None
+    True
+    """
+    dt = np.dtype(dt)
+    if dt.kind != "f":
+        return None
+    for (step, decimal), good in zip(FINE_STEPS, ok, strict=True):
+        if good:
+            if decimal:
+                return Quantizer("decimal", step, 0.0, 0.0, 32 if dt.itemsize <= 4 else 64)
+            return Quantizer("int", step, 0.0, 0.0)
+    return None
+
+
+@njit(cache=True, nogil=True)
+def _fine_steps_nb(v, steps, divs, f32, ok):  # pragma: no cover - compiled
+    left = 0
+    for s in range(ok.size):
+        left += ok[s]
+    for x in v:
+        if left == 0:
+            return
+        if not np.isfinite(x):
+            continue
+        for s in range(ok.size):
+            if not ok[s]:
+                continue
+            r = np.rint(x / steps[s])
+            if divs[s] > 0:
+                h = _decimal_value(r, divs[s], f32)
+            else:
+                h = r * steps[s]
+            if not abs(r) < 2.0**52 or h != x:
+                ok[s] = False
+                left -= 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _decimal_value(r, div, f32):
+    # "decimal" mode's decode: the code over 10^d (both exact: one correctly rounded
+    # division, the double nearest the decimal), then to float32 if the source was
+    h = np.float64(r) / div
+    return np.float64(np.float32(h)) if f32 else h
 
 
 def float_quantizer(dt: np.dtype, f32: bool) -> Quantizer:
@@ -267,6 +372,9 @@ def codes_to_heights(codes: np.ndarray, quantizer: Quantizer) -> np.ndarray:
     0.0
     """
     codes = np.asarray(codes, dtype=np.int64)
+    if quantizer.mode == "decimal":
+        h = codes.astype(np.float64) / quantizer.divisor
+        return h.astype(np.float32).astype(np.float64) if quantizer.float_bits == 32 else h
     if quantizer.mode == "float":
         if quantizer.float_bits == 32:
             c = codes.astype(np.int32)
@@ -299,7 +407,10 @@ def tile_heights(codes: np.ndarray, valid: np.ndarray, quantizer: Quantizer, fac
         lo, hi, n = _finish_nb(h, valid, float(factor), 0, 0.0, 0.0, codes)
     else:
         h = np.empty(codes.shape, np.float64)
-        lo, hi, n = _finish_nb(h, valid, float(factor), 1, float(quantizer.step),
+        dec = quantizer.mode == "decimal"  # 2: code / 10^d, 3: the same to float32
+        how = (2 + (quantizer.float_bits == 32)) if dec else 1
+        lo, hi, n = _finish_nb(h, valid, float(factor), how,
+                               quantizer.divisor if dec else float(quantizer.step),
                                float(quantizer.offset), codes)
     return h, lo, hi, int(n)
 
@@ -329,13 +440,16 @@ def _bits_to_heights_nb(codes, f32, out):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True)
 def _finish_nb(h, valid, factor, from_codes, step, offset, codes):  # pragma: no cover
-    # from_codes: h = offset + code * step (codes_to_heights' int arithmetic); then NaN
+    # from_codes 1: h = offset + code * step (codes_to_heights' int arithmetic); 2 and 3:
+    # "decimal" mode, code / step (step holds 10^d), 3 rounded to float32; then NaN
     # where invalid and the valid scene z range (h * factor, as Frame.z)
     lo, hi, n, bad = np.inf, -np.inf, 0, False
     hf, vf, cf = h.reshape(-1), valid.reshape(-1), codes.reshape(-1)
     for k in range(hf.size):
-        if from_codes:
+        if from_codes == 1:
             hf[k] = offset + np.float64(cf[k]) * step
+        elif from_codes >= 2:
+            hf[k] = _decimal_value(np.float64(cf[k]), step, from_codes == 3)
         if vf[k]:
             z = hf[k] * factor
             if not np.isfinite(z):
@@ -353,9 +467,11 @@ def _finish_nb(h, valid, factor, from_codes, step, offset, codes):  # pragma: no
 @njit(cache=True, nogil=True)
 def _roundtrip_nb(z, valid, mode, step, offset, out):
     """``codes_to_heights(heights_to_codes(z))`` where valid, NaN elsewhere, in one pass
-    (mode 0: int/quantized, 1: float32, 2: float64). Returns the largest |code| seen
-    (invalid samples count as height 0, as :func:`heights_to_codes` sees them)."""
+    (mode 0: int/quantized, 1: float32, 2: float64, 3 and 4: decimal to float32 and
+    float64). Returns the largest |code| seen (invalid samples count as height 0, as
+    :func:`heights_to_codes` sees them)."""
     peak = 0.0
+    div = np.float64(np.rint(1.0 / step))
     for i in range(z.shape[0]):
         for j in range(z.shape[1]):
             ok = valid[i, j]
@@ -364,6 +480,10 @@ def _roundtrip_nb(z, valid, mode, step, offset, out):
                 h = np.float64(np.float32(x))
             elif mode == 2:
                 h = x
+            elif mode >= 3:
+                r = _rounded(x, step, offset)
+                peak = max(peak, abs(r))
+                h = _decimal_value(np.float64(np.int64(r)), div, mode == 3)
             else:
                 r = _rounded(x, step, offset)
                 peak = max(peak, abs(r))
@@ -392,6 +512,8 @@ def _whole_grid(kernel, dtype, z, valid, quantizer: Quantizer) -> np.ndarray:
     valid = np.asarray(valid, bool)
     out = np.empty(z.shape, dtype)
     mode = (1 if quantizer.float_bits == 32 else 2) if quantizer.mode == "float" else 0
+    if quantizer.mode == "decimal":  # codes as the int modes'; decoded as decimals
+        mode = 3 if quantizer.float_bits == 32 else 4
     z2, v2, o2 = (a.reshape(1, -1) if a.ndim != 2 else a for a in (z, valid, out))
     peak = kernel(z2, v2, mode, float(quantizer.step), float(quantizer.offset), o2)
     if peak >= 2.0**62:
@@ -411,7 +533,7 @@ def _codes_nb(z, valid, mode, step, offset, out):
     for i in range(z.shape[0]):
         for j in range(z.shape[1]):
             x = z[i, j] if valid[i, j] else 0.0
-            if mode == 1:
+            if mode == 1:  # (modes 3 and 4, decimal, code as mode 0)
                 f32[0] = np.float32(x)
                 b = np.int64(i32[0])
                 out[i, j] = b ^ 0x7FFFFFFF if b < 0 else b

@@ -15,7 +15,7 @@ from geoterrain.exceptions import StoreError
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
 from geoterrain.memory import available_memory
-from geoterrain.quantize import Quantizer
+from geoterrain.quantize import DECIMAL_STEPS, Quantizer
 
 __all__ = ["check_store", "available_memory"]
 
@@ -104,7 +104,7 @@ def _frame(m: dict, g: Grid) -> Frame:
 def _quantizer(m: dict) -> Quantizer:
     fields = {"mode", "step", "offset", "codec_error", "float_bits"}
     d = _keys(m.get("quantizer"), fields, {"mode"}, "quantizer")
-    if d["mode"] not in ("int", "quantized", "float"):
+    if d["mode"] not in ("int", "decimal", "quantized", "float"):
         raise _Bad("quantizer.mode is unknown")
     step = _num(d.get("step", 1.0), "quantizer.step", positive=True)
     _num(d.get("offset", 0.0), "quantizer.offset")
@@ -117,6 +117,8 @@ def _quantizer(m: dict) -> Quantizer:
         raise _Bad("a lossless quantizer has codec_error 0")
     if d["mode"] == "float" and (step, d.get("offset", 0.0)) != (1.0, 0.0):
         raise _Bad("a float quantizer has step 1 and offset 0")
+    if d["mode"] == "decimal" and (step not in DECIMAL_STEPS or d.get("offset", 0.0) != 0.0):
+        raise _Bad("a decimal quantizer has a step of 10^-d (d = 1 to 4) and offset 0")
     return Quantizer.from_json(d)
 
 

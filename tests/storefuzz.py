@@ -67,7 +67,7 @@ _BAD_META = [
     ("frame", "kind", "weird"), ("frame", "transform", [1, 0, 0, 0]),
     ("frame", "unit_to_m", float("nan")), ("frame", "rows", 3),
     ("quantizer", "step", 10.0), ("quantizer", "step", 0), ("quantizer", "mode", "zip"),
-    ("quantizer", "offset", 1e3), ("quantizer", "float_bits", 7),
+    ("quantizer", "offset", 1e3), ("quantizer", "float_bits", 7), ("quantizer", "mode", "decimal"),
     (None, "normal_bits", 12), (None, "valid_samples", 0), (None, "valid_samples", 10**12),
     (None, "height_range", [5, 1]), (None, "height_range", "x"),
     (None, "nodata_fraction", 2.0), (None, "tile_keys", {}), (None, "schema_version", 1),

@@ -22,6 +22,7 @@ from geoterrain.quantize import (
     codes_to_heights,
     heights_to_codes,
     roundtrip,
+    tile_heights,
 )
 from geoterrain.symbols import PACK_BITS as _PACK_BITS
 from geoterrain.symbols import byte_width as _width
@@ -375,6 +376,57 @@ def test_the_compiled_roundtrip_is_the_codes_roundtrip(q, seed, mag):
                     np.nan)
     got = roundtrip(z, valid, q)
     assert got.tobytes() == want.tobytes()  # bit for bit, signed zeros and NaN included
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31), places=st.integers(1, 4), binary=st.booleans(),
+       dtype=st.sampled_from([np.float32, np.float64]), mag=st.sampled_from([1.0, 1e3, 1e5]),
+       t=st.integers(1, 3))
+def test_heights_on_a_finer_grid_are_integer_codes(seed, places, binary, dtype, mag, t):
+    """Float heights written on a grid finer than 1 (d decimal places rounded to the
+    source float, or multiples of 2^-m) are coded as integers of the coarsest candidate
+    grid that holds them all, and decode bit for bit on every path (a −0 as +0)."""
+    rng = np.random.default_rng(seed)
+    n = (1 << t) * 2 + 1
+    m = 2 * places  # binary: steps of 2^-2 .. 2^-8
+    raw = rng.normal(0, mag, (n, n))
+    z = (np.rint(raw * 2.0**m) / 2.0**m if binary
+         else np.rint(raw * 10.0**places) / 10.0**places).astype(dtype).astype(np.float64)
+    z += 0.0  # a −0 decodes as +0, the same height (as in the "int" mode): bits below
+    valid = rng.random(z.shape) > 0.1
+    qz = choose_quantizer(z[valid], dtype)
+    fin = z[valid]
+
+    def holds(step, decimal):  # independent of the quantizer: numpy on the values
+        k = np.rint(fin / step)
+        back = k / round(1 / step) if decimal else k * step
+        if decimal and np.dtype(dtype) == np.float32:
+            back = back.astype(np.float32).astype(np.float64)
+        return bool(np.all(np.abs(k) < 2.0**52) and np.array_equal(back, fin))
+
+    from geoterrain.quantize import FINE_STEPS
+    if holds(1.0, False):
+        assert qz.mode == "int" and qz.step == 1.0
+    else:
+        good = [(s, d) for s, d in FINE_STEPS if holds(s, d)]
+        assert good  # the values were made on one of the grids
+        assert (qz.step, qz.mode == "decimal") == good[0]  # the coarsest that holds
+        assert qz.codec_error == 0.0
+    check_pyramid(z, valid, t, qz)  # every tile decodes to z bit for bit
+    codes = heights_to_codes(np.where(valid, z, 0.0), qz)
+    h, lo, hi, nv = tile_heights(codes, valid, qz, 1.0)
+    assert np.array_equal(h[valid].view(np.int64), fin.view(np.int64))
+    assert (lo, hi, nv) == (fin.min(), fin.max(), fin.size)
+    assert np.array_equal(roundtrip(z, valid, qz)[valid].view(np.int64), fin.view(np.int64))
+
+
+def test_a_float32_decimal_is_not_its_float64_product():
+    """1238.6 in a float32 is not 12386 × 0.1 in any float: the decimal mode divides."""
+    z = np.float32([1238.6, 1009.3, 1264.9]).astype(np.float64)
+    assert not np.array_equal(np.rint(z / 0.1) * 0.1, z)
+    q = choose_quantizer(z, np.float32)
+    assert (q.mode, q.step, q.float_bits) == ("decimal", 0.1, 32)
+    assert np.array_equal(codes_to_heights(heights_to_codes(z, q), q), z)
 
 
 @settings(max_examples=60, deadline=None)

@@ -227,7 +227,8 @@ def test_banded_normal_codes_are_the_whole_grid_maps(seed, n, holes, band, data)
 
 @settings(deadline=None)
 @given(seed=st.integers(0, 100_000), rows=st.integers(1, 200),
-       kind=st.sampled_from(["normal", "integers", "flat", "tiny", "few"]),
+       kind=st.sampled_from(["normal", "integers", "flat", "tiny", "few", "tenths",
+                             "late_tenths", "eighths"]),
        eps=st.sampled_from([None, 0.3, 0.5, 2.0]), terrain_rgb=st.booleans(),
        dtype=st.sampled_from(["float32", "float64", "int16"]), band=st.integers(1, 40),
        sort_max=st.sampled_from([1, 5, 1 << 22]), bins=st.sampled_from([2, 16, 1 << 16]))
@@ -244,7 +245,13 @@ def test_banded_quantizer_is_choose_quantizer(seed, rows, kind, eps, terrain_rgb
          "integers": lambda: np.round(rng.normal(100, 30, shape)),
          "flat": lambda: np.where(rng.random(shape) < 0.8, 5.25, rng.normal(size=shape)),
          "tiny": lambda: rng.normal(0, 1e-3, shape).astype(np.float32).astype(float),
-         "few": lambda: rng.choice([1.0, 2.0, 2.5, 1e6], shape)}[kind]()
+         "few": lambda: rng.choice([1.0, 2.0, 2.5, 1e6], shape),
+         "tenths": lambda: np.rint(rng.normal(1000, 30, shape) * 10) / 10,
+         # integers until the last row: the bands are checked for finer grids only
+         # once the heights leave the integers
+         "late_tenths": lambda: np.vstack([np.round(rng.normal(100, 30, shape))[:-1],
+                                           np.rint(rng.normal(100, 30, (1, 7)) * 10) / 10]),
+         "eighths": lambda: np.rint(rng.normal(100, 30, shape) * 8) / 8}[kind]()
     z[rng.random(shape) < 0.2] = np.nan
     sc, off = (0.1, -10000.0) if terrain_rgb else (None, None)
 
