@@ -45,7 +45,7 @@ def exact_v1_copy(store: Path, dst: Path) -> Path:
 
     from geoterrain.bounds import vertex_errors
     from geoterrain.radii import vertex_radii
-    from geoterrain.store import blob_crc
+    from geoterrain.store import blob_crc, blob_key
     from geoterrain.vertexdata import encode_bounds
 
     shutil.copy(store, dst)
@@ -62,8 +62,9 @@ def exact_v1_copy(store: Path, dst: Path) -> Path:
         ix = np.ix_(g.tile_rows(k[0], k[2]), g.tile_cols(k[0], k[1]))
         for kind, a in exact.items():
             blob = encode_bounds(a[ix], cctx)
-            con.execute("UPDATE blobs SET data=?, crc32=? WHERE level=? AND x=? AND y=? "
-                        "AND kind=?", (blob, blob_crc(k, kind, blob), *k, kind))
+            con.execute("UPDATE blobs SET data=?, crc32=? WHERE rowid = "
+                        "(SELECT blob FROM blob_keys WHERE key = ?)",
+                        (blob, blob_crc(k, kind, blob), blob_key(k, kind)))
     con.commit()
     con.execute("VACUUM")
     con.close()

@@ -2,10 +2,18 @@
 
 Schema (version :data:`SCHEMA_VERSION`), in the spirit of MBTiles/GeoPackage::
 
-    metadata(name TEXT PRIMARY KEY, value TEXT)       -- JSON values
-    tiles(level, x, y, nvalid, zmin, zmax, error, boundary_error,
+    metadata(name TEXT, value TEXT)                    -- JSON values, one row a name
+    tiles(key INTEGER PRIMARY KEY, nvalid, zmin, zmax, error, boundary_error,
           xmin, xmax, ymin, ymax, delta_max, radius_max, crc32)  -- per-tile numbers
-    blobs(level, x, y, kind, data BLOB, crc32)         -- per-tile arrays
+    blobs(data BLOB, crc32)                            -- per-tile arrays, by rowid
+    blob_keys(key INTEGER PRIMARY KEY, blob)           -- key → blobs rowid
+
+A tile's key packs (level, x, y) as :func:`tile_key` (the Morton number of x, y, then
+5 bits of level), a blob's key packs the tile's and its kind as :func:`blob_key`:
+small integers, so the keys cost 2–4 bytes where the columns and their primary-key
+indexes of schema 2 cost about 20 (docs/benchmarks.md §7h). The blob rows themselves
+are bare, so the writer can insert them in the order that fills SQLite's leaf pages
+(:mod:`geoterrain.pagepack`); ``blob_keys`` finds them.
 
 ``kind`` is one of ``heights`` (residual-coded heights and valid mask),
 ``delta`` (per-vertex errors δ), ``radius`` (nested sphere radii) and
@@ -35,6 +43,8 @@ import struct
 import zlib
 from pathlib import Path
 
+import numpy as np
+
 from geoterrain.atomicfiles import publish, remove_stale_partials
 from geoterrain.exceptions import (
     StoreCorruptError,
@@ -45,37 +55,26 @@ from geoterrain.exceptions import (
 )
 from geoterrain.pagepack import LEAF_HEADER, leaf_cell_size, pack_order
 
-SCHEMA_VERSION = 2  # 2: checksums bound to their tile and kind; per-level key digests
+SCHEMA_VERSION = 3  # 2: checksums bound to their tile and kind; per-level key digests;
+#                    3: packed integer keys, bare blob rows found through blob_keys
 PAGE_SIZE = 1024  # bytes per SQLite page of a written store
 PACK_BYTES = 4 << 20  # blob bytes a writer holds before inserting them, packed (pagepack)
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
 TILE_COLUMNS = ("nvalid", "zmin", "zmax", "error", "boundary_error",
                 "xmin", "xmax", "ymin", "ymax", "delta_max", "radius_max")
 
-_SCHEMA = """
-CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT NOT NULL);
-CREATE TABLE tiles (
-    level INTEGER NOT NULL, x INTEGER NOT NULL, y INTEGER NOT NULL,
-    nvalid INTEGER NOT NULL, zmin REAL, zmax REAL, error REAL, boundary_error REAL,
-    xmin REAL, xmax REAL, ymin REAL, ymax REAL, delta_max REAL, radius_max REAL,
-    crc32 INTEGER NOT NULL,
-    PRIMARY KEY (level, x, y));
-CREATE TABLE blobs (
-    level INTEGER NOT NULL, x INTEGER NOT NULL, y INTEGER NOT NULL, kind TEXT NOT NULL,
-    data BLOB NOT NULL, crc32 INTEGER NOT NULL,
-    PRIMARY KEY (level, x, y, kind));
-"""
-
-
-# The only schema objects a store may hold, and each table's columns (name, type).
-_TABLES = {
-    "metadata": (("name", "TEXT"), ("value", "TEXT")),
-    "tiles": (("level", "INTEGER"), ("x", "INTEGER"), ("y", "INTEGER"), ("nvalid", "INTEGER"),
-              *((c, "REAL") for c in TILE_COLUMNS[1:]), ("crc32", "INTEGER")),
-    "blobs": (("level", "INTEGER"), ("x", "INTEGER"), ("y", "INTEGER"), ("kind", "TEXT"),
-              ("data", "BLOB"), ("crc32", "INTEGER")),
+# The only schema objects a store may hold: these four tables, their SQL word for word
+# (a reader compares it), and no index, view or trigger.
+_TABLE_SQL = {
+    # no primary key: its index cost a page; the writer writes each name once, and a
+    # reader refuses a repeated one
+    "metadata": "CREATE TABLE metadata (name TEXT NOT NULL, value TEXT NOT NULL)",
+    "tiles": "CREATE TABLE tiles (key INTEGER PRIMARY KEY, nvalid INTEGER NOT NULL, "
+             + ", ".join(f"{c} REAL" for c in TILE_COLUMNS[1:]) + ", crc32 INTEGER NOT NULL)",
+    "blobs": "CREATE TABLE blobs (data BLOB NOT NULL, crc32 INTEGER NOT NULL)",
+    "blob_keys": "CREATE TABLE blob_keys (key INTEGER PRIMARY KEY, blob INTEGER NOT NULL)",
 }
-_INDEXES = {f"sqlite_autoindex_{t}_1": t for t in _TABLES}
+_SCHEMA = "".join(f"{sql};\n" for sql in _TABLE_SQL.values())
 BLOB_KINDS = ("heights", "delta", "radius", "normals")
 # optional: a second δ (padding replicated, geoterrain/edgepad.py) on the tiles that the
 # metadata's "delta_edge" list names, and on no other
@@ -83,6 +82,10 @@ EDGE_KIND = "delta_edge"
 # optional: every GeoMipMapping block's exact δ_n (geoterrain/tilebounds.py), one table
 # for the whole grid, on the root tile, when the metadata has "block_delta_levels"
 BLOCK_KIND = "block_delta"
+# every kind's number in a blob key (never renumber: stores hold them)
+KIND_CODES = {k: i for i, k in enumerate((*BLOB_KINDS, EDGE_KIND, BLOCK_KIND))}
+_KINDS = {i: k for k, i in KIND_CODES.items()}
+_COORD_BITS = 26  # x, y < 2^26 tiles a side: keys stay below 2^62
 _META_MAX_BYTES = 1 << 20  # metadata is a few kB; more is not a store of ours
 # a damaged schema's SQLite error message may not even decode as UTF-8
 _DB_ERRORS = (sqlite3.DatabaseError, UnicodeDecodeError)
@@ -98,6 +101,67 @@ def blob_crc(key: tuple[int, int, int], kind: str, data: bytes) -> int:
     True
     """
     return zlib.crc32(data, zlib.crc32(struct.pack("<3q", *key) + kind.encode()))
+
+
+_SPREAD8 = [sum(((b >> i) & 1) << (2 * i) for i in range(8)) for b in range(256)]
+_GATHER8 = [sum(((b >> (2 * i)) & 1) << i for i in range(4)) for b in range(256)]
+
+
+def _spread(v: int) -> int:
+    """The bits of ``v`` (< 2^32) moved to the even positions (Morton order's half)."""
+    return (_SPREAD8[v & 255] | _SPREAD8[(v >> 8) & 255] << 16
+            | _SPREAD8[(v >> 16) & 255] << 32 | _SPREAD8[(v >> 24) & 255] << 48)
+
+
+def _gather(m: int) -> int:
+    """The inverse of :func:`_spread`: the even bits of ``m``, packed."""
+    out, bit = 0, 0
+    while m:
+        out |= _GATHER8[m & 255] << bit
+        m >>= 8
+        bit += 4
+    return out
+
+
+def tile_key(key: tuple[int, int, int]) -> int:
+    """A tile's (level, x, y) as one small integer: the Morton number of (x, y) times
+    32, plus the level (< 32). Tiles near each other get near numbers, and level-L
+    keys stay below 32 · 4^(top − L).
+
+    Examples
+    --------
+    >>> tile_key((0, 0, 0)), tile_key((2, 1, 0)), tile_key((0, 1, 1))
+    (0, 34, 96)
+    >>> unpack_tile_key(tile_key((3, 5, 9)))
+    (3, 5, 9)
+    """
+    level, x, y = (int(v) for v in key)
+    if not (0 <= level < 32 and 0 <= x < 1 << _COORD_BITS and 0 <= y < 1 << _COORD_BITS):
+        raise ValueError(f"tile key {key} out of range")
+    return ((_spread(x) | _spread(y) << 1) << 5) | level
+
+
+def unpack_tile_key(k: int) -> tuple[int, int, int]:
+    """(level, x, y) of a :func:`tile_key`."""
+    m = k >> 5
+    return k & 31, _gather(m), _gather(m >> 1)
+
+
+def blob_key(key: tuple[int, int, int], kind: str) -> int:
+    """A blob's place as one small integer: its :func:`tile_key` times 8 plus the kind's
+    number (:data:`KIND_CODES`).
+
+    Examples
+    --------
+    >>> blob_key((0, 0, 0), "delta"), unpack_blob_key(blob_key((1, 2, 3), "normals"))
+    (1, ((1, 2, 3), 'normals'))
+    """
+    return tile_key(key) << 3 | KIND_CODES[kind]
+
+
+def unpack_blob_key(k: int) -> tuple[tuple[int, int, int], str]:
+    """((level, x, y), kind) of a :func:`blob_key`; KeyError for an unknown kind."""
+    return unpack_tile_key(k >> 3), _KINDS[k & 7]
 
 
 def keys_digest(keys) -> str:
@@ -193,6 +257,9 @@ class StoreWriter:
         self._rows: list[tuple] = []  # blob rows not yet inserted (see _flush)
         self._row_bytes = 0
         self._rowid = 0  # rows inserted so far: the next one's rowid is this + 1
+        # every blob's (key, rowid), inserted into blob_keys in key order at commit (in
+        # the order of insertion, the keys would split its pages half empty)
+        self._blob_ids: list[np.ndarray] = []
         self._committed = False
         try:
             if self.tmp.exists():
@@ -246,28 +313,34 @@ class StoreWriter:
         (:mod:`geoterrain.pagepack`), so a store's bytes depend on the sequence of rows
         given, not on how it is split into calls."""
         for k, d in blobs.items():
-            self._rows.append((*k, kind, d, blob_crc(k, kind, d)))
+            self._rows.append((blob_key(k, kind), d, blob_crc(k, kind, d)))
             self._row_bytes += len(d)
             if self._row_bytes >= PACK_BYTES:
                 self._guard(self._flush)
 
     def _flush(self) -> None:
-        """Insert the buffered blob rows, packed into leaf pages (pagepack.pack_order)."""
+        """Insert the buffered blob rows, packed into leaf pages (pagepack.pack_order),
+        and their keys."""
         rows, self._rows, self._row_bytes = self._rows, [], 0
         if not rows:
             return
         last = self._rowid + len(rows)  # cells are sized with the batch's largest rowid
-        sizes = [leaf_cell_size(r, last, PAGE_SIZE) for r in rows]
+        sizes = [leaf_cell_size(r[1:], last, PAGE_SIZE) for r in rows]
         order = pack_order(sizes, PAGE_SIZE - LEAF_HEADER)
-        self.con.executemany("INSERT INTO blobs VALUES (?,?,?,?,?,?)", (rows[i] for i in order))
+        self.con.executemany("INSERT INTO blobs VALUES (?,?)", (rows[i][1:] for i in order))
+        ids = np.empty((len(rows), 2), np.int64)
+        ids[:, 0] = [rows[i][0] for i in order]
+        ids[:, 1] = np.arange(self._rowid + 1, last + 1)
+        self._blob_ids.append(ids)
         self._rowid = last
 
     def put_tiles(self, rows: dict[tuple[int, int, int], tuple]) -> None:
         """Per-tile numbers, in the order of :data:`TILE_COLUMNS`."""
         self._keys.extend(rows)
-        data = ((*k, *v, _row_crc(k, v)) for k, v in rows.items())
+        # in key order: rows appended in rowid order fill their pages
+        data = sorted((tile_key(k), *v, _row_crc(k, v)) for k, v in rows.items())
         self._guard(self.con.executemany,
-                    f"INSERT INTO tiles VALUES ({', '.join('?' * (len(TILE_COLUMNS) + 4))})", data)
+                    f"INSERT INTO tiles VALUES ({', '.join('?' * (len(TILE_COLUMNS) + 2))})", data)
 
     def commit(self) -> Path:
         """Finish: write metadata and the complete flag, fsync, rename into place."""
@@ -278,7 +351,11 @@ class StoreWriter:
 
         def _finish():
             self._flush()
-            self.con.executemany("INSERT INTO metadata VALUES (?,?)", meta.items())
+            if self._blob_ids:
+                ids = np.concatenate(self._blob_ids)
+                ids = ids[np.argsort(ids[:, 0], kind="stable")]
+                self.con.executemany("INSERT INTO blob_keys VALUES (?,?)", ids.tolist())
+            self.con.executemany("INSERT INTO metadata VALUES (?,?)", sorted(meta.items()))
             self.con.execute("INSERT INTO metadata VALUES (?,?)",
                              ("metadata_crc32", json.dumps(_meta_crc(meta))))
             self.con.execute("COMMIT")
@@ -364,6 +441,8 @@ class StoreReader:
         if not all(isinstance(k, str) and isinstance(v, str) for k, v in rows):
             raise self._foreign("its metadata holds values that are not text")
         raw = dict(rows)
+        if len(raw) != len(rows):
+            raise self._foreign("its metadata names an entry twice")
         crc = raw.pop("metadata_crc32", None)
         if raw.get("complete") != "true":
             raise StoreError(
@@ -386,24 +465,19 @@ class StoreReader:
         return StoreError(f"{self.path}: not a geoterrain store ({why}); refusing to read it")
 
     def _check_schema(self) -> None:
-        """Exactly the three plain tables (and their primary-key indexes), nothing else."""
+        """Exactly the four plain tables, as the writer declares them, nothing else."""
         seen = self.con.execute("SELECT type, name, tbl_name, sql FROM sqlite_master").fetchall()
         tables = set()
-        for typ, name, tbl, sql in seen:
-            if typ == "table" and name in _TABLES and str(sql).startswith(f"CREATE TABLE {name}"):
+        for typ, name, _tbl, sql in seen:
+            if typ == "table" and name in _TABLE_SQL and sql == _TABLE_SQL[name]:
                 tables.add(name)
-            elif typ == "index" and _INDEXES.get(name) == tbl and sql is None:
-                pass
+            elif typ == "table" and name in _TABLE_SQL:
+                raise self._foreign(f"table {name} has other columns")
             else:
                 raise self._foreign(f"it holds a {typ} {_show(name)}: views, triggers and "
                                     "other objects are refused")
-        if tables != set(_TABLES):
-            raise self._foreign(f"tables {', '.join(sorted(set(_TABLES) - tables))} missing")
-        for name, cols in _TABLES.items():
-            info = self.con.execute(f"PRAGMA table_xinfo({name})").fetchall()
-            got = tuple((r[1], str(r[2]).upper()) for r in info)
-            if got != cols or any(r[6] for r in info):
-                raise self._foreign(f"table {name} has other columns")
+        if tables != set(_TABLE_SQL):
+            raise self._foreign(f"tables {', '.join(sorted(set(_TABLE_SQL) - tables))} missing")
 
     def _damaged(self, what: str) -> StoreCorruptError:
         return StoreCorruptError(f"{self.path}: checksum mismatch in {what}: the file is damaged; "
@@ -413,8 +487,8 @@ class StoreReader:
         """A tile's blob, checksum-verified (bound to key and kind), or None when not stored."""
         try:
             row = self.con.execute(
-                "SELECT data, crc32 FROM blobs WHERE level=? AND x=? AND y=? AND kind=?",
-                (*key, kind)).fetchone()
+                "SELECT b.data, b.crc32 FROM blob_keys k JOIN blobs b ON b.rowid = k.blob "
+                "WHERE k.key = ?", (blob_key(key, kind),)).fetchone()
         except _DB_ERRORS:
             raise self._damaged(f"tile {key} {kind}") from None
         if row is None:
@@ -432,16 +506,20 @@ class StoreReader:
         """
         try:
             rows = self.con.execute(
-                f"SELECT level, x, y, {', '.join(TILE_COLUMNS)}, crc32 FROM tiles").fetchall()
-            blob_keys = self.con.execute("SELECT level, x, y, kind FROM blobs").fetchall()
+                f"SELECT key, {', '.join(TILE_COLUMNS)}, crc32 FROM tiles").fetchall()
+            packed = self.con.execute("SELECT key, blob FROM blob_keys").fetchall()
+            n_blobs, joined = self.con.execute(
+                "SELECT (SELECT COUNT(*) FROM blobs), (SELECT COUNT(*) FROM blob_keys k "
+                "JOIN blobs b ON b.rowid = k.blob)").fetchone()
         except _DB_ERRORS:
             raise self._damaged("the tile table") from None
         out = {}
         for r in rows:
-            key, vals, crc = tuple(r[:3]), tuple(r[3:-1]), r[-1]
-            if not all(type(v) is int for v in (*key, vals[0])) or not all(
-                    v is None or type(v) in (int, float) for v in vals):
-                raise self._damaged(f"tile {_show(key)} bounds")
+            vals, crc = tuple(r[1:-1]), r[-1]
+            if type(r[0]) is not int or r[0] < 0 or not all(
+                    v is None or type(v) in (int, float) for v in vals) or type(vals[0]) is not int:
+                raise self._damaged(f"tile {_show(r[0])} bounds")
+            key = unpack_tile_key(r[0])
             if _row_crc(key, vals) != crc:
                 raise self._damaged(f"tile {key} bounds")
             out[key] = dict(zip(TILE_COLUMNS, vals, strict=True))
@@ -449,11 +527,18 @@ class StoreReader:
             raise StoreCorruptError(f"{self.path}: the tile table does not match the recorded "
                                     "tile keys (rows missing or added): the file is damaged; "
                                     "re-run `geoterrain preprocess`")
-        want = {(*k, kind) for k in out for kind in BLOB_KINDS}
-        want |= {(*k, EDGE_KIND) for k in self.edge_keys(out)}
+        want = {r[0] << 3 | KIND_CODES[kind] for r in rows for kind in BLOB_KINDS}
+        try:
+            want |= {blob_key(k, EDGE_KIND) for k in self.edge_keys(out)}
+        except ValueError:  # a key out of any grid's range
+            raise self._damaged("the delta_edge list") from None
         if "block_delta_levels" in self.metadata and out:
-            want.add((max(k[0] for k in out), 0, 0, BLOCK_KIND))  # the root tile
-        if len(blob_keys) != len(want) or set(blob_keys) != want:
+            want.add(blob_key((max(k[0] for k in out), 0, 0), BLOCK_KIND))  # the root tile
+        # every key names one blob row and every row is named once (a row's checksum
+        # binds it to its key, so a pointer moved to another row fails on read)
+        ids = {b for _, b in packed}
+        if (len(packed) != len(want) or {k for k, _ in packed} != want
+                or len(ids) != len(packed) or n_blobs != len(packed) or joined != len(packed)):
             raise StoreCorruptError(f"{self.path}: the blobs do not match the tile table "
                                     "(blobs missing or added): the file is damaged; "
                                     "re-run `geoterrain preprocess`")
@@ -480,13 +565,18 @@ class StoreReader:
 
     def blob_bytes_by_kind_level(self) -> dict[tuple[str, int], int]:
         try:
-            rows = self.con.execute(
-                "SELECT kind, level, SUM(LENGTH(data)) FROM blobs GROUP BY kind, level").fetchall()
+            rows = self.con.execute("SELECT k.key, LENGTH(b.data) FROM blob_keys k "
+                                    "JOIN blobs b ON b.rowid = k.blob").fetchall()
         except _DB_ERRORS:
             raise self._damaged("the blob table") from None
-        if not all(isinstance(k, str) and type(lv) is int and type(s) is int for k, lv, s in rows):
-            raise self._damaged("the blob table")
-        return {(k, lv): s for k, lv, s in rows}
+        out: dict[tuple[str, int], int] = {}
+        try:
+            for k, n in rows:
+                (level, _, _), kind = unpack_blob_key(k)
+                out[kind, level] = out.get((kind, level), 0) + n
+        except (KeyError, TypeError):
+            raise self._damaged("the blob table") from None
+        return out
 
     def close(self) -> None:
         self.con.close()

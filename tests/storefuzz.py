@@ -21,6 +21,17 @@ import zlib
 from pathlib import Path
 
 import numpy as np
+from storesql import (
+    all_tiles,
+    blob_keys,
+    delete_blob,
+    delete_tile,
+    read_blob,
+    tile_row,
+    update_blob,
+)
+
+from geoterrain.store import tile_key
 
 MEM_LIMIT_EXTRA = 1 << 30  # address space beyond the worker's own at the start
 CASE_TIMEOUT_S = 10
@@ -99,38 +110,31 @@ def mutate(path: Path, rng: random.Random) -> str:
         return "truncate"
     con = sqlite3.connect(path)
     try:
-        keys = con.execute("SELECT level, x, y, kind FROM blobs").fetchall()
+        keys = blob_keys(con)
         if kind in ("swap", "swapcrc"):
             bk = rng.choice(sorted({k[3] for k in keys}))  # delta_edge on padded stores
             same = [k for k in keys if k[3] == bk]
             if len(same) < 2:
                 same = [k for k in keys if k[3] == "heights"]
             a, b = rng.sample(same, 2)
-            cols = "data, crc32" if kind == "swapcrc" else "data"
-            ra = con.execute(f"SELECT {cols} FROM blobs WHERE level=? AND x=? AND y=? AND kind=?",
-                             a).fetchone()
-            rb = con.execute(f"SELECT {cols} FROM blobs WHERE level=? AND x=? AND y=? AND kind=?",
-                             b).fetchone()
-            sets = ", ".join(f"{c.strip()}=?" for c in cols.split(","))
-            con.execute(f"UPDATE blobs SET {sets} WHERE level=? AND x=? AND y=? AND kind=?",
-                        (*rb, *a))
-            con.execute(f"UPDATE blobs SET {sets} WHERE level=? AND x=? AND y=? AND kind=?",
-                        (*ra, *b))
+            cols = ("data", "crc32") if kind == "swapcrc" else ("data",)
+            ra, rb = (read_blob(con, k, ", ".join(cols)) for k in (a, b))
+            update_blob(con, a, **dict(zip(cols, rb, strict=True)))
+            update_blob(con, b, **dict(zip(cols, ra, strict=True)))
             desc = f"{kind} {bk} {a[:3]}<->{b[:3]}"
         elif kind == "delete":
-            table = rng.choice(["tiles", "blobs"])
+            table = rng.choice(["tiles", "blobs", "blob_keys", "blob and key"])
             k = rng.choice(keys)
             if table == "tiles":
-                con.execute("DELETE FROM tiles WHERE level=? AND x=? AND y=?", k[:3])
+                delete_tile(con, k[:3])
             else:
-                con.execute("DELETE FROM blobs WHERE level=? AND x=? AND y=? AND kind=?", k)
+                delete_blob(con, k, row=table != "blob_keys", key=table != "blobs")
             desc = f"delete {table} {k}"
         elif kind == "dup":
-            k = rng.choice(keys)
-            row = con.execute("SELECT * FROM tiles WHERE level=? AND x=? AND y=?",
-                              k[:3]).fetchone()
+            k = rng.choice(sorted(all_tiles(con)))  # a stored tile (a δ_edge's may not be)
+            row = tile_row(con, k)
             con.execute(f"INSERT OR IGNORE INTO tiles VALUES ({','.join('?' * len(row))})",
-                        (row[0], row[1] + 1000, *row[2:]))
+                        (tile_key((k[0], k[1] + 1000, k[2])), *row[1:]))
             desc = f"extra tile row beside {k[:3]}"
         elif kind == "meta":
             group, field, value = rng.choice(_BAD_META)
@@ -151,8 +155,7 @@ def mutate(path: Path, rng: random.Random) -> str:
             elif which == "bview":
                 con.execute("ALTER TABLE blobs RENAME TO b0")
                 con.execute("CREATE VIEW blobs AS WITH RECURSIVE c(n) AS (SELECT 1 UNION ALL "
-                            "SELECT n+1 FROM c) SELECT 0 AS level, 0 AS x, 0 AS y, 'heights' "
-                            "AS kind, x'00' AS data, 0 AS crc32 FROM c")
+                            "SELECT n+1 FROM c) SELECT x'00' AS data, 0 AS crc32 FROM c")
             elif which == "trigger":
                 con.execute("CREATE TRIGGER t AFTER INSERT ON tiles BEGIN SELECT 1; END")
             elif which == "index":
@@ -165,19 +168,16 @@ def mutate(path: Path, rng: random.Random) -> str:
             bk = k[3]
             declared = rng.choice([0, 16 << 30, 1 << 40, 200 << 20])
             frame = zstd_bomb(declared, rng.choice([2, 64, 512]))
-            old = con.execute("SELECT data FROM blobs WHERE level=? AND x=? AND y=? AND kind=?",
-                              k).fetchone()[0]
+            old = read_blob(con, k)[0]
             prefix = {"heights": 4, "delta": 2, "radius": 2, "normals": 0, "delta_edge": 2,
                       "block_delta": 0}[bk]
             data = old[:prefix] + frame
-            con.execute("UPDATE blobs SET data=?, crc32=? WHERE level=? AND x=? AND y=? AND "
-                        "kind=?", (data, _blob_crc(k[:3], bk, data), *k))
+            update_blob(con, k, data=data, crc32=_blob_crc(k[:3], bk, data))
             desc = f"zstd bomb in {k} declaring {declared}"
         else:  # blobjunk: random bytes with a valid bound checksum
             k = rng.choice(keys)
             data = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 200)))
-            con.execute("UPDATE blobs SET data=?, crc32=? WHERE level=? AND x=? AND y=? AND "
-                        "kind=?", (data, _blob_crc(k[:3], k[3], data), *k))
+            update_blob(con, k, data=data, crc32=_blob_crc(k[:3], k[3], data))
             desc = f"junk blob {k}"
         con.commit()
     finally:

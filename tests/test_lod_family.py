@@ -199,6 +199,7 @@ def test_a_damaged_block_table_is_refused_in_one_line(tmp_path):
     from geoterrain.store import _meta_crc, blob_crc
     from geoterrain.synth import generate, write_geotiff
     from geoterrain.view import View
+    from tests.storesql import delete_blob, update_blob
 
     dem = write_geotiff(tmp_path / "d.tif", generate("fbm", 65, seed=4))
     p = geoterrain.preprocess(dem, tmp_path / "d.geoterrain", tile_size=16)
@@ -210,8 +211,8 @@ def test_a_damaged_block_table_is_refused_in_one_line(tmp_path):
     for bad in (np.full(shape, np.nan, "<f4"), np.zeros(shape[0], "<f4")):
         data = zstandard.ZstdCompressor().compress(bad.tobytes())
         con = sqlite3.connect(p)
-        con.execute("UPDATE blobs SET data=?, crc32=? WHERE level=? AND x=? AND y=? AND "
-                    "kind='block_delta'", (data, blob_crc(key, "block_delta", data), *key))
+        update_blob(con, (*key, "block_delta"), data=data,
+                    crc32=blob_crc(key, "block_delta", data))
         con.commit()
         con.close()
         with geoterrain.open(p) as t, pytest.raises(StoreCorruptError, match="block") as ex:
@@ -220,7 +221,7 @@ def test_a_damaged_block_table_is_refused_in_one_line(tmp_path):
     # an older store: no table (its blob and metadata key gone, the metadata checksum
     # made consistent): it opens, and geomipmap takes the covering tiles' bound
     con = sqlite3.connect(p)
-    con.execute("DELETE FROM blobs WHERE kind='block_delta'")
+    delete_blob(con, (*key, "block_delta"), key=True)
     con.execute("DELETE FROM metadata WHERE name='block_delta_levels'")
     meta = dict(con.execute("SELECT name, value FROM metadata WHERE name != 'metadata_crc32'"))
     con.execute("UPDATE metadata SET value=? WHERE name='metadata_crc32'",

@@ -15,6 +15,7 @@ from geoterrain.exceptions import InputError, UsageError
 from geoterrain.mosaic import build_vrt
 from geoterrain.preprocessing import preprocess
 from tests.conftest import real_dem, write_tif
+from tests.storesql import all_blobs, all_tiles
 
 # what may differ between two stores of the same heights: the source's name and the clock
 _VOLATILE = {"source", "preprocess_seconds", "metadata_crc32"}
@@ -24,9 +25,8 @@ def store_contents(path: Path) -> tuple:
     """Every blob and tile row, and the metadata but the source name and the timings."""
     con = sqlite3.connect(path)
     try:
-        blobs = con.execute("SELECT level, x, y, kind, data FROM blobs "
-                            "ORDER BY level, x, y, kind").fetchall()
-        tiles = con.execute("SELECT * FROM tiles ORDER BY level, x, y").fetchall()
+        blobs = sorted(all_blobs(con).items())
+        tiles = sorted(all_tiles(con).items())
         meta = {k: v for k, v in con.execute("SELECT name, value FROM metadata")
                 if k not in _VOLATILE}
     finally:

@@ -22,6 +22,9 @@ from geoterrain.synth import generate, write_geotiff
 
 sys.path.insert(0, str(Path(__file__).parent))
 from storefuzz import _meta_rewrite, zstd_bomb  # noqa: E402
+from storesql import all_tiles, blob_keys, delete_blob, delete_tile, read_blob, update_blob  # noqa: E402
+
+from geoterrain.store import blob_crc  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -53,35 +56,37 @@ def _meta(field, value, group=None):
 
 def _bomb(store):
     con = sqlite3.connect(store)
-    k = con.execute("SELECT level, x, y FROM blobs WHERE kind='heights' ORDER BY level DESC"
-                    ).fetchone()
-    old = con.execute("SELECT data FROM blobs WHERE level=? AND x=? AND y=? AND kind='heights'",
-                      k).fetchone()[0]
-    import struct
-    import zlib
+    k = max(blob_keys(con, "heights"))  # the top tile's
+    old = read_blob(con, k)[0]
     data = old[:4] + zstd_bomb(16 << 30, 8)
-    crc = zlib.crc32(data, zlib.crc32(struct.pack("<3q", *k) + b"heights"))
-    con.execute("UPDATE blobs SET data=?, crc32=? WHERE level=? AND x=? AND y=? AND "
-                "kind='heights'", (data, crc, *k))
+    update_blob(con, k, data=data, crc32=blob_crc(k[:3], "heights", data))
     con.commit()
     con.close()
 
 
 def _swap_heights(store):
     con = sqlite3.connect(store)
-    a, b = con.execute("SELECT level, x, y, data FROM blobs WHERE kind='heights' AND level=0 "
-                       "LIMIT 2").fetchall()
-    con.execute("UPDATE blobs SET data=? WHERE level=? AND x=? AND y=? AND kind='heights'",
-                (b[3], *a[:3]))
+    a, b = [k for k in blob_keys(con, "heights") if k[0] == 0][:2]
+    update_blob(con, a, data=read_blob(con, b)[0])
+    con.commit()
+    con.close()
+
+
+def _delete(store, blob=None, tiles=None):
+    con = sqlite3.connect(store)
+    if blob is not None:
+        delete_blob(con, blob)
+    for k in list(all_tiles(con)) if tiles else ():
+        if tiles(k):
+            delete_tile(con, k)
     con.commit()
     con.close()
 
 
 # (id, how to damage a copy of the store or None, argv with {store} {dem} {d}, exit code)
 STORE_CASES = [
-    ("missing-blob", lambda s: _sql(s, "DELETE FROM blobs WHERE level=0 AND x=1 AND y=1 AND "
-                                       "kind='delta'"), ["info", "{store}"], 1),
-    ("deleted-tile-rows", lambda s: _sql(s, "DELETE FROM tiles WHERE level=0 AND (x+y)%2=0"),
+    ("missing-blob", lambda s: _delete(s, blob=(0, 1, 1, "delta")), ["info", "{store}"], 1),
+    ("deleted-tile-rows", lambda s: _delete(s, tiles=lambda k: k[0] == 0 and sum(k) % 2 == 0),
      ["mesh", "{store}", "-o", "{d}/m.ply"], 1),
     ("swapped-heights", _swap_heights, ["mesh", "{store}", "-o", "{d}/m.ply"], 1),
     ("z-scale-0", _meta("z_scale", 0, "frame"), ["mesh", "{store}", "-o", "{d}/m.ply"], 1),
@@ -96,7 +101,7 @@ STORE_CASES = [
     ("endless-blobs-view", lambda s: _sql(
         s, "ALTER TABLE blobs RENAME TO b0",
         "CREATE VIEW blobs AS WITH RECURSIVE c(n) AS (SELECT 1 UNION ALL SELECT n+1 FROM c) "
-        "SELECT 0 AS level, 0 AS x, 0 AS y, 'h' AS kind, x'00' AS data, 0 AS crc32 FROM c"),
+        "SELECT x'00' AS data, 0 AS crc32 FROM c"),
      ["render", "{store}", "-o", "{d}/r.png"], 1),
     ("trigger", lambda s: _sql(s, "CREATE TRIGGER t AFTER INSERT ON tiles BEGIN SELECT 1; END"),
      ["info", "{store}"], 1),

@@ -1,6 +1,7 @@
 """The store is complete and valid, or absent; damage gives a clear error."""
 
 import os
+import shutil
 import signal
 import sqlite3
 import subprocess
@@ -9,10 +10,21 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import geoterrain
 from geoterrain.exceptions import StoreCorruptError, StoreError, UsageError, WriteError
-from geoterrain.store import StoreReader, StoreWriter
+from geoterrain.store import (
+    KIND_CODES,
+    StoreReader,
+    StoreWriter,
+    blob_key,
+    tile_key,
+    unpack_blob_key,
+    unpack_tile_key,
+)
+from tests.storesql import blob_keys, delete_blob, read_blob, update_blob
 
 
 def test_incomplete_temp_file_is_never_a_valid_store(tmp_path):
@@ -63,12 +75,10 @@ def test_kill_mid_write_leaves_no_valid_store(tmp_path):
 def test_flipped_byte_in_blob_gives_clear_error(tmp_path, fbm_tif):
     dst = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
     con = sqlite3.connect(dst)
-    data, = con.execute("SELECT data FROM blobs WHERE level=0 AND x=0 AND y=0 "
-                        "AND kind='heights'").fetchone()
+    data, = read_blob(con, (0, 0, 0, "heights"))
     bad = bytearray(data)
     bad[len(bad) // 2] ^= 0x10
-    con.execute("UPDATE blobs SET data=? WHERE level=0 AND x=0 AND y=0 AND kind='heights'",
-                (bytes(bad),))
+    update_blob(con, (0, 0, 0, "heights"), data=bytes(bad))
     con.commit()
     con.close()
     t = geoterrain.open(dst)
@@ -124,8 +134,72 @@ def test_missing_tile_is_a_clear_store_error(tmp_path, fbm_tif):
             t.tile(0, 999, 999)
         key = t.tile_keys(0)[0]
     con = sqlite3.connect(store)  # a blob row lost from a store that lists the tile
-    con.execute("DELETE FROM blobs WHERE level=? AND x=? AND y=? AND kind='heights'", key)
+    delete_blob(con, (*key, "heights"))
     con.commit()
     con.close()
     with pytest.raises(StoreCorruptError, match="missing"):  # caught on open
+        geoterrain.open(store)
+
+
+@settings(max_examples=300, deadline=None)
+@given(level=st.integers(0, 31), x=st.integers(0, (1 << 26) - 1),
+       y=st.integers(0, (1 << 26) - 1), kind=st.sampled_from(sorted(KIND_CODES)))
+def test_packed_keys_round_trip_and_stay_small(level, x, y, kind):
+    """A tile's and a blob's packed keys give back (level, x, y) and the kind; a level-L
+    key of a pyramid whose top is N stays below 32 · 4^(N − L) (as a 2^(N−L)-tile side
+    needs), so small stores have 1–3 byte keys."""
+    k = tile_key((level, x, y))
+    assert unpack_tile_key(k) == (level, x, y)
+    assert unpack_blob_key(blob_key((level, x, y), kind)) == ((level, x, y), kind)
+    side = max(x, y).bit_length()  # the smallest 2^b tiles a side holding x and y
+    assert k < 32 << (2 * side)
+    assert 0 <= blob_key((level, x, y), kind) < 1 << 62
+
+
+@pytest.mark.parametrize("bad", [(-1, 0, 0), (32, 0, 0), (0, 1 << 26, 0), (0, 0, -3)])
+def test_keys_out_of_range_are_refused(bad):
+    with pytest.raises(ValueError):
+        tile_key(bad)
+
+
+def _two_heights(con):
+    a, b = [k for k in blob_keys(con, "heights") if k[0] == 0][:2]
+    return blob_key(a[:3], "heights"), blob_key(b[:3], "heights")
+
+
+def test_blob_pointers_are_checked(tmp_path, fbm_tif):
+    """Two keys naming one row are refused on open; two pointers swapped open (each
+    names a row) but each swapped blob fails its checksum, bound to its key, on read."""
+    store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
+    with geoterrain.open(store) as t:
+        want = t.tile(*t.tile_keys(0)[0]).heights.copy()
+    shared, swapped = tmp_path / "shared.geoterrain", tmp_path / "swapped.geoterrain"
+    shutil.copy(store, shared)
+    shutil.copy(store, swapped)
+    with sqlite3.connect(shared) as con:
+        ka, kb = _two_heights(con)
+        con.execute("UPDATE blob_keys SET blob = (SELECT blob FROM blob_keys WHERE key = ?) "
+                    "WHERE key = ?", (kb, ka))
+    with pytest.raises(StoreCorruptError, match="blobs do not match"):
+        geoterrain.open(shared)
+    with sqlite3.connect(swapped) as con:
+        ka, kb = _two_heights(con)
+        (ia,), (ib,) = (con.execute("SELECT blob FROM blob_keys WHERE key = ?", (k,)).fetchone()
+                        for k in (ka, kb))
+        con.execute("UPDATE blob_keys SET blob = ? WHERE key = ?", (-1, ka))
+        con.execute("UPDATE blob_keys SET blob = ? WHERE key = ?", (ia, kb))
+        con.execute("UPDATE blob_keys SET blob = ? WHERE key = ?", (ib, ka))
+    for k in (ka, kb):
+        with geoterrain.open(swapped) as t, pytest.raises(StoreCorruptError, match="checksum"):
+            t.tile(*unpack_blob_key(k)[0])
+    with geoterrain.open(store) as t:  # the original still reads
+        assert np.array_equal(t.tile(*t.tile_keys(0)[0]).heights, want, equal_nan=True)
+
+
+def test_a_repeated_metadata_name_is_refused(tmp_path, fbm_tif):
+    store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
+    with sqlite3.connect(store) as con:
+        con.execute("INSERT INTO metadata SELECT name, value FROM metadata "
+                    "WHERE name = 'quantizer'")
+    with pytest.raises(StoreError, match="twice"):
         geoterrain.open(store)

@@ -14,6 +14,7 @@ import geoterrain
 from geoterrain.preprocessing import preprocess
 from geoterrain.storesize import component_bytes, size_report
 from tests.conftest import write_tif
+from tests.storesql import update_blob
 
 
 def _int_dem(tmp_path):
@@ -82,8 +83,7 @@ def _rewrite_bounds_v1(store, tmp_path):
     con = sqlite3.connect(old)
     for (k, kind), a in vals.items():
         blob = encode_bounds(a, cctx)
-        con.execute("UPDATE blobs SET data=?, crc32=? WHERE level=? AND x=? AND y=? AND kind=?",
-                    (blob, blob_crc(k, kind, blob), *k, kind))
+        update_blob(con, (*k, kind), data=blob, crc32=blob_crc(k, kind, blob))
     con.commit()
     con.close()
     return old, vals

@@ -21,13 +21,13 @@ from geoterrain.exceptions import InputError, UsageError
 from geoterrain.preprocessing import preprocess
 from geoterrain.streaming import preprocess_streaming
 from tests.conftest import real_dem
+from tests.storesql import all_blobs, all_tiles
 
 
 def _content(path) -> tuple[dict, dict, dict]:
     con = sqlite3.connect(path)
     try:
-        blobs = {tuple(r[:4]): bytes(r[4]) for r in con.execute("SELECT * FROM blobs")}
-        tiles = {tuple(r[:3]): tuple(r[3:]) for r in con.execute("SELECT * FROM tiles")}
+        blobs, tiles = all_blobs(con), all_tiles(con)
         meta = {k: json.loads(v) for k, v in con.execute("SELECT * FROM metadata")}
     finally:
         con.close()
