@@ -37,8 +37,8 @@ class Quantizer:
     mode : {"int", "decimal", "quantized", "float"}
         ``"int"``: lossless, heights are exactly ``offset + q * step`` (integer DEMs,
         Terrain-RGB's 0.1 m). ``"decimal"``: lossless, heights are exactly the decimal
-        ``q / 10^d`` (``step`` = 10^-d, offset 0) rounded to the source float
-        (``float_bits``): a float DEM written with d decimal places, as many LiDAR and
+        ``q / 10^d`` (``step`` = 10^-d, offset 0) rounded to ``float_bits`` (32 for a
+        source of at most 4 bytes): a float DEM written with d decimal places, as many LiDAR and
         survey products are (1238.6 ft is the float32 nearest 12386 / 10, not
         ``12386 * 0.1``). ``"quantized"``: ``q = round((z - offset) / step)`` with
         ``step`` slightly below ``2 * codec_error`` so ``|decoded - z| <= codec_error``.
@@ -126,7 +126,8 @@ def choose_quantizer(
     losslessly as integers. Without a given ``scale`` and ``offset``, float sources whose
     values all lie on a finer grid are coded losslessly as integers of the coarsest grid
     that decodes every value bit for bit (:func:`fine_quantizer`: steps 2^-1 to 2^-8, or
-    decimals of 1 to 4 places rounded to the source float, as 1238.6 ft in a float32).
+    decimals of 1 to 4 places rounded to the source float, as 1238.6 ft in a float32;
+    float32 for a float16 source).
     Other floats are coded **bit-exactly at the source float precision** (``"float"``
     mode: lossless, but measured at 14-21 bits per sample on float32 DEMs, about 2.5x a
     0.1-unit quantized code, because the low mantissa bits are incompressible noise)
@@ -172,7 +173,8 @@ def choose_quantizer(
     lossy = codec_error is not None and codec_error > 0
     if exact and (not lossy or 2.0 * float(codec_error) <= sc):
         return Quantizer("int", sc, off, 0.0)
-    free = scale is None and offset is None
+    free = scale is None and offset is None and (
+        not lossy or 2.0 * float(codec_error) <= FINE_STEPS[0][0])  # else none could serve
     fine = fine_quantizer(fine_steps_ok(v, dt), dt) if free else None
     if fine is not None and (not lossy or 2.0 * float(codec_error) <= fine.step):
         return fine
@@ -189,8 +191,8 @@ def choose_quantizer(
 def fine_steps_ok(v: np.ndarray, dt: np.dtype, ok: np.ndarray | None = None) -> np.ndarray:
     """For each of :data:`FINE_STEPS`: does every finite value of ``v`` decode to itself
     under it (code ``rint(x / step)``; a binary step decodes ``code × step``, a decimal
-    one ``code / 10^d`` rounded to the source float), bit for bit but for a −0, which
-    decodes as +0 (as in the ``"int"`` mode)? ``ok`` (the flags of
+    one ``code / 10^d`` rounded to float32 for a source of at most 4 bytes), bit for bit
+    but for a −0, which decodes as +0 (as in the ``"int"`` mode)? ``ok`` (the flags of
     earlier values, updated in place) lets a caller check a raster band by band.
     Examples: :func:`fine_quantizer`."""
     if ok is None:

@@ -41,6 +41,7 @@ import os
 import sqlite3
 import struct
 import zlib
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -123,6 +124,7 @@ def _gather(m: int) -> int:
     return out
 
 
+@lru_cache(maxsize=1 << 16)  # a reader packs the same few keys over and over
 def tile_key(key: tuple[int, int, int]) -> int:
     """A tile's (level, x, y) as one small integer: the Morton number of (x, y) times
     32, plus the level (< 32). Tiles near each other get near numbers, and level-L
@@ -142,7 +144,9 @@ def tile_key(key: tuple[int, int, int]) -> int:
 
 
 def unpack_tile_key(k: int) -> tuple[int, int, int]:
-    """(level, x, y) of a :func:`tile_key`."""
+    """(level, x, y) of a :func:`tile_key`; ValueError for a negative number."""
+    if k < 0:
+        raise ValueError(f"tile key {k} is negative")
     m = k >> 5
     return k & 31, _gather(m), _gather(m >> 1)
 
@@ -160,7 +164,8 @@ def blob_key(key: tuple[int, int, int], kind: str) -> int:
 
 
 def unpack_blob_key(k: int) -> tuple[tuple[int, int, int], str]:
-    """((level, x, y), kind) of a :func:`blob_key`; KeyError for an unknown kind."""
+    """((level, x, y), kind) of a :func:`blob_key`; KeyError for an unknown kind,
+    ValueError for a negative number."""
     return unpack_tile_key(k >> 3), _KINDS[k & 7]
 
 
@@ -399,8 +404,9 @@ class StoreReader:
     """Read a store, verifying schema, completeness and checksums.
 
     The file is untrusted input: it is opened read-only with ``trusted_schema``
-    off, and refused unless its schema holds exactly the three plain tables with
-    their columns (so no view, trigger or virtual table can run while reading).
+    off, and refused unless its schema holds exactly the four plain tables, declared
+    as the writer declares them (so no view, trigger or virtual table can run while
+    reading).
 
     Examples
     --------
@@ -439,9 +445,11 @@ class StoreReader:
             self.con.close()
             raise
         if not all(isinstance(k, str) and isinstance(v, str) for k, v in rows):
+            self.con.close()
             raise self._foreign("its metadata holds values that are not text")
         raw = dict(rows)
         if len(raw) != len(rows):
+            self.con.close()
             raise self._foreign("its metadata names an entry twice")
         crc = raw.pop("metadata_crc32", None)
         if raw.get("complete") != "true":
@@ -508,9 +516,9 @@ class StoreReader:
             rows = self.con.execute(
                 f"SELECT key, {', '.join(TILE_COLUMNS)}, crc32 FROM tiles").fetchall()
             packed = self.con.execute("SELECT key, blob FROM blob_keys").fetchall()
-            n_blobs, joined = self.con.execute(
-                "SELECT (SELECT COUNT(*) FROM blobs), (SELECT COUNT(*) FROM blob_keys k "
-                "JOIN blobs b ON b.rowid = k.blob)").fetchone()
+            # the rowid range only (a few pages): counting or joining the rows would
+            # read every leaf page of the blobs, which hold the blob bytes
+            lo, hi = self.con.execute("SELECT MIN(rowid), MAX(rowid) FROM blobs").fetchone()
         except _DB_ERRORS:
             raise self._damaged("the tile table") from None
         out = {}
@@ -534,11 +542,14 @@ class StoreReader:
             raise self._damaged("the delta_edge list") from None
         if "block_delta_levels" in self.metadata and out:
             want.add(blob_key((max(k[0] for k in out), 0, 0), BLOCK_KIND))  # the root tile
-        # every key names one blob row and every row is named once (a row's checksum
-        # binds it to its key, so a pointer moved to another row fails on read)
+        # the keys name distinct rows that fill the table's rowid range exactly, so
+        # every row is named once (a missing row in the range reads as "missing"; a
+        # row's checksum binds it to its key, so a pointer moved to another row fails)
         ids = {b for _, b in packed}
         if (len(packed) != len(want) or {k for k, _ in packed} != want
-                or len(ids) != len(packed) or n_blobs != len(packed) or joined != len(packed)):
+                or len(ids) != len(packed) or not all(type(b) is int for b in ids)
+                or (packed and (lo, hi) != (min(ids), max(ids)))
+                or (packed and hi - lo + 1 != len(ids)) or (not packed and lo is not None)):
             raise StoreCorruptError(f"{self.path}: the blobs do not match the tile table "
                                     "(blobs missing or added): the file is damaged; "
                                     "re-run `geoterrain preprocess`")
@@ -564,17 +575,21 @@ class StoreReader:
         return out
 
     def blob_bytes_by_kind_level(self) -> dict[tuple[str, int], int]:
+        """Blob bytes per (kind, level) (``info``'s split); a key without its row is
+        damage."""
         try:
             rows = self.con.execute("SELECT k.key, LENGTH(b.data) FROM blob_keys k "
-                                    "JOIN blobs b ON b.rowid = k.blob").fetchall()
+                                    "LEFT JOIN blobs b ON b.rowid = k.blob").fetchall()
         except _DB_ERRORS:
             raise self._damaged("the blob table") from None
+        if any(n is None for _, n in rows):  # a key whose row is gone
+            raise self._damaged("the blob table")
         out: dict[tuple[str, int], int] = {}
         try:
             for k, n in rows:
                 (level, _, _), kind = unpack_blob_key(k)
                 out[kind, level] = out.get((kind, level), 0) + n
-        except (KeyError, TypeError):
+        except (KeyError, TypeError, ValueError):
             raise self._damaged("the blob table") from None
         return out
 

@@ -1,10 +1,11 @@
 """A mutation fuzzer over stores: every case must end in a clean error or identical output.
 
 Mutations: flipped bytes, swapped blobs (with and without their checksums),
-deleted and duplicated rows, metadata edited to bad values (checksum
-recomputed, as a deliberate editor would), planted views, triggers, tables and
-indexes, and zstd bombs (checksum recomputed). Cases run in a forked worker
-under a memory limit (RLIMIT_AS) and a per-case timeout (SIGALRM).
+deleted and duplicated rows, blob keys pointing nowhere or keyed out of range,
+metadata edited to bad values (checksum recomputed, as a deliberate editor would),
+planted views, triggers, tables and indexes, and zstd bombs (checksum recomputed).
+Cases run in a forked worker under a memory limit (RLIMIT_AS) and a per-case timeout
+(SIGALRM).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from storesql import (
     update_blob,
 )
 
-from geoterrain.store import tile_key
+from geoterrain.store import blob_key, tile_key
 
 MEM_LIMIT_EXTRA = 1 << 30  # address space beyond the worker's own at the start
 CASE_TIMEOUT_S = 10
@@ -95,7 +96,7 @@ _BAD_META = [
 def mutate(path: Path, rng: random.Random) -> str:
     """Apply one random mutation to the store at ``path``; return its description."""
     kind = rng.choice(["flip", "flip", "swap", "swapcrc", "delete", "dup", "meta", "meta",
-                       "plant", "bomb", "truncate", "blobjunk"])
+                       "plant", "bomb", "truncate", "blobjunk", "keyjunk"])
     if kind == "flip":
         data = bytearray(path.read_bytes())
         n = rng.choice([1, 1, 4, 64])
@@ -174,6 +175,17 @@ def mutate(path: Path, rng: random.Random) -> str:
             data = old[:prefix] + frame
             update_blob(con, k, data=data, crc32=_blob_crc(k[:3], bk, data))
             desc = f"zstd bomb in {k} declaring {declared}"
+        elif kind == "keyjunk":  # a blob_keys row pointing or keyed where no row is
+            k = rng.choice(keys)
+            bk = blob_key(k[:3], k[3])
+            how = rng.choice(["text", "float", "negative", "huge", "kind7", "negkey"])
+            if how in ("kind7", "negkey"):
+                new = bk | 7 if how == "kind7" else -8
+                con.execute("UPDATE blob_keys SET key = ? WHERE key = ?", (new, bk))
+            else:
+                val = {"text": "1", "float": 1.5, "negative": -1, "huge": 1 << 62}[how]
+                con.execute("UPDATE blob_keys SET blob = ? WHERE key = ?", (val, bk))
+            desc = f"blob key {k} {how}"
         else:  # blobjunk: random bytes with a valid bound checksum
             k = rng.choice(keys)
             data = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 200)))

@@ -228,7 +228,7 @@ def test_banded_normal_codes_are_the_whole_grid_maps(seed, n, holes, band, data)
 @settings(deadline=None)
 @given(seed=st.integers(0, 100_000), rows=st.integers(1, 200),
        kind=st.sampled_from(["normal", "integers", "flat", "tiny", "few", "tenths",
-                             "late_tenths", "eighths"]),
+                             "late_tenths", "eighths", "huge_then_half"]),
        eps=st.sampled_from([None, 0.3, 0.5, 2.0]), terrain_rgb=st.booleans(),
        dtype=st.sampled_from(["float32", "float64", "int16"]), band=st.integers(1, 40),
        sort_max=st.sampled_from([1, 5, 1 << 22]), bins=st.sampled_from([2, 16, 1 << 16]))
@@ -251,7 +251,12 @@ def test_banded_quantizer_is_choose_quantizer(seed, rows, kind, eps, terrain_rgb
          # once the heights leave the integers
          "late_tenths": lambda: np.vstack([np.round(rng.normal(100, 30, shape))[:-1],
                                            np.rint(rng.normal(100, 30, (1, 7)) * 10) / 10]),
-         "eighths": lambda: np.rint(rng.normal(100, 30, shape) * 8) / 8}[kind]()
+         "eighths": lambda: np.rint(rng.normal(100, 30, shape) * 8) / 8,
+         # integers too large for some finer grids' codes, then halves and tenths: the
+         # integer bands count through their largest |x|
+         "huge_then_half": lambda: np.vstack([
+             rng.choice([2.0**51, 4336280868294623.0, 1e15 + 1, 7.0], (rows - 1, 7)),
+             rng.choice([0.5, 0.1, 0.0001], (1, 7))])}[kind]()
     z[rng.random(shape) < 0.2] = np.nan
     sc, off = (0.1, -10000.0) if terrain_rgb else (None, None)
 
@@ -270,6 +275,25 @@ def test_banded_quantizer_is_choose_quantizer(seed, rows, kind, eps, terrain_rgb
     finally:
         bq.SORT_MAX, bq.BINS = saved
     assert got == ref
+
+
+@pytest.mark.parametrize("bands", [
+    [[[2.0**51]], [[0.5]]],
+    [[[4336280868294623.0]], [[0.1]]],
+    [[[1e15 + 1]], [[0.0001]]],
+    [[[3.0], [2.0**52]], [[0.25]]],
+])
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_banded_finer_grids_count_the_integer_bands_before(bands, dtype):
+    """Integer bands then a band off the integers: the integers' codes under a finer step
+    can pass 2^52, so the bands must choose what the whole array chooses (here: no finer
+    step, float codes), never a step that would round the large integers."""
+    import geoterrain.bandquantize as bq
+
+    arrays = [np.array(b, np.float64) for b in bands]
+    whole = choose_quantizer(np.concatenate([a.ravel() for a in arrays]), dtype)
+    assert bq.band_quantizer(lambda: iter(arrays), dtype) == whole
+    assert whole.mode == "float"
 
 
 @settings(deadline=None)
