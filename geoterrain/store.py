@@ -262,9 +262,6 @@ class StoreWriter:
         self._rows: list[tuple] = []  # blob rows not yet inserted (see _flush)
         self._row_bytes = 0
         self._rowid = 0  # rows inserted so far: the next one's rowid is this + 1
-        # every blob's (key, rowid), inserted into blob_keys in key order at commit (in
-        # the order of insertion, the keys would split its pages half empty)
-        self._blob_ids: list[np.ndarray] = []
         self._committed = False
         try:
             if self.tmp.exists():
@@ -333,17 +330,26 @@ class StoreWriter:
         sizes = [leaf_cell_size(r[1:], last, PAGE_SIZE) for r in rows]
         order = pack_order(sizes, PAGE_SIZE - LEAF_HEADER)
         self.con.executemany("INSERT INTO blobs VALUES (?,?)", (rows[i][1:] for i in order))
-        ids = np.empty((len(rows), 2), np.int64)
-        ids[:, 0] = [rows[i][0] for i in order]
-        ids[:, 1] = np.arange(self._rowid + 1, last + 1)
-        self._blob_ids.append(ids)
+        # their keys in key order (in the packing's order they would split the pages of
+        # blob_keys half empty; a store of one batch gets full pages, a larger one full
+        # pages within each batch's run of keys)
+        rowid = np.empty(len(rows), np.int64)
+        rowid[order] = np.arange(self._rowid + 1, last + 1)
+        keys = [r[0] for r in rows]
+        self.con.executemany("INSERT INTO blob_keys VALUES (?,?)",
+                             ((keys[i], int(rowid[i])) for i in sorted(range(len(rows)),
+                                                                       key=keys.__getitem__)))
         self._rowid = last
 
     def put_tiles(self, rows: dict[tuple[int, int, int], tuple]) -> None:
         """Per-tile numbers, in the order of :data:`TILE_COLUMNS`."""
         self._keys.extend(rows)
-        # in key order: rows appended in rowid order fill their pages
-        data = sorted((tile_key(k), *v, _row_crc(k, v)) for k, v in rows.items())
+        # in key order (rows appended in rowid order fill their pages), one row at a
+        # time: a list of every row would double the memory of a large pyramid's table
+        keys = list(rows)
+        packed = np.fromiter((tile_key(k) for k in keys), np.int64, len(keys))
+        data = ((int(packed[i]), *rows[keys[i]], _row_crc(keys[i], rows[keys[i]]))
+                for i in np.argsort(packed, kind="stable"))
         self._guard(self.con.executemany,
                     f"INSERT INTO tiles VALUES ({', '.join('?' * (len(TILE_COLUMNS) + 2))})", data)
 
@@ -356,10 +362,6 @@ class StoreWriter:
 
         def _finish():
             self._flush()
-            if self._blob_ids:
-                ids = np.concatenate(self._blob_ids)
-                ids = ids[np.argsort(ids[:, 0], kind="stable")]
-                self.con.executemany("INSERT INTO blob_keys VALUES (?,?)", ids.tolist())
             self.con.executemany("INSERT INTO metadata VALUES (?,?)", sorted(meta.items()))
             self.con.execute("INSERT INTO metadata VALUES (?,?)",
                              ("metadata_crc32", json.dumps(_meta_crc(meta))))
