@@ -50,14 +50,19 @@ def _int_body(v: int) -> tuple[int, int]:
 
 
 def record_size(values: tuple) -> int:
-    """Bytes of SQLite's record of ``values`` (int, str, bytes), header included.
+    """Bytes of SQLite's record of ``values`` (None, int, str, bytes), header included.
+    (An INTEGER PRIMARY KEY column is stored as None: its value is the rowid.)
 
     >>> record_size((1, "ab", b"xyz"))  # header 4 bytes, bodies 0 + 2 + 3
     9
+    >>> record_size((None, b"xyz"))
+    6
     """
     types, body = [], 0
     for v in values:
-        if isinstance(v, bytes):
+        if v is None:
+            st, n = 0, 0
+        elif isinstance(v, bytes):
             st, n = 2 * len(v) + 12, len(v)
         elif isinstance(v, str):
             b = len(v.encode("utf-8"))

@@ -5,7 +5,7 @@ Schema (version :data:`SCHEMA_VERSION`), in the spirit of MBTiles/GeoPackage::
     metadata(name TEXT, value TEXT)                    -- JSON values, one row a name
     tiles(key INTEGER PRIMARY KEY, nvalid, zmin, zmax, error, boundary_error,
           xmin, xmax, ymin, ymax, delta_max, radius_max, crc32)  -- per-tile numbers
-    blobs(data BLOB, crc32)                            -- per-tile arrays, by rowid
+    blobs(id INTEGER PRIMARY KEY, data BLOB, crc32)    -- per-tile arrays, by id
     blob_keys(key INTEGER PRIMARY KEY, blob)           -- key → blobs rowid
 
 A tile's key packs (level, x, y) as :func:`tile_key` (the Morton number of x, y, then
@@ -72,7 +72,9 @@ _TABLE_SQL = {
     "metadata": "CREATE TABLE metadata (name TEXT NOT NULL, value TEXT NOT NULL)",
     "tiles": "CREATE TABLE tiles (key INTEGER PRIMARY KEY, nvalid INTEGER NOT NULL, "
              + ", ".join(f"{c} REAL" for c in TILE_COLUMNS[1:]) + ", crc32 INTEGER NOT NULL)",
-    "blobs": "CREATE TABLE blobs (data BLOB NOT NULL, crc32 INTEGER NOT NULL)",
+    # id is the rowid (an INTEGER PRIMARY KEY, so VACUUM keeps it: blob_keys holds it)
+    "blobs": "CREATE TABLE blobs (id INTEGER PRIMARY KEY, data BLOB NOT NULL, "
+             "crc32 INTEGER NOT NULL)",
     "blob_keys": "CREATE TABLE blob_keys (key INTEGER PRIMARY KEY, blob INTEGER NOT NULL)",
 }
 _SCHEMA = "".join(f"{sql};\n" for sql in _TABLE_SQL.values())
@@ -327,9 +329,10 @@ class StoreWriter:
         if not rows:
             return
         last = self._rowid + len(rows)  # cells are sized with the batch's largest rowid
-        sizes = [leaf_cell_size(r[1:], last, PAGE_SIZE) for r in rows]
+        sizes = [leaf_cell_size((None, *r[1:]), last, PAGE_SIZE) for r in rows]
         order = pack_order(sizes, PAGE_SIZE - LEAF_HEADER)
-        self.con.executemany("INSERT INTO blobs VALUES (?,?)", (rows[i][1:] for i in order))
+        self.con.executemany("INSERT INTO blobs VALUES (NULL,?,?)",
+                             (rows[i][1:] for i in order))
         # their keys in key order (in the packing's order they would split the pages of
         # blob_keys half empty; a store of one batch gets full pages, a larger one full
         # pages within each batch's run of keys)

@@ -42,6 +42,18 @@ def delete_blob(con, k: tuple, row: bool = True, key: bool = False) -> None:
         con.execute("DELETE FROM blob_keys WHERE key = ?", (bk,))
 
 
+def remove_blob(con, k: tuple) -> None:
+    """Remove blob ``k`` as if it had never been written: its row and key go, and the
+    last row takes its rowid (a store's rows fill their rowid range)."""
+    bk = blob_key(k[:3], k[3])
+    (gap,) = con.execute("SELECT blob FROM blob_keys WHERE key = ?", (bk,)).fetchone()
+    delete_blob(con, k, key=True)
+    (top,) = con.execute("SELECT MAX(rowid) FROM blobs").fetchone()
+    if top is not None and top > gap:
+        con.execute("UPDATE blobs SET rowid = ? WHERE rowid = ?", (gap, top))
+        con.execute("UPDATE blob_keys SET blob = ? WHERE blob = ?", (gap, top))
+
+
 def all_blobs(con) -> dict[tuple[int, int, int, str], bytes]:
     """Every blob's bytes by (level, x, y, kind)."""
     rows = con.execute("SELECT k.key, b.data FROM blob_keys k JOIN blobs b ON b.rowid = k.blob")

@@ -199,7 +199,7 @@ def test_a_damaged_block_table_is_refused_in_one_line(tmp_path):
     from geoterrain.store import _meta_crc, blob_crc
     from geoterrain.synth import generate, write_geotiff
     from geoterrain.view import View
-    from tests.storesql import delete_blob, update_blob
+    from tests.storesql import remove_blob, update_blob
 
     dem = write_geotiff(tmp_path / "d.tif", generate("fbm", 65, seed=4))
     p = geoterrain.preprocess(dem, tmp_path / "d.geoterrain", tile_size=16)
@@ -221,7 +221,7 @@ def test_a_damaged_block_table_is_refused_in_one_line(tmp_path):
     # an older store: no table (its blob and metadata key gone, the metadata checksum
     # made consistent): it opens, and geomipmap takes the covering tiles' bound
     con = sqlite3.connect(p)
-    delete_blob(con, (*key, "block_delta"), key=True)
+    remove_blob(con, (*key, "block_delta"))
     con.execute("DELETE FROM metadata WHERE name='block_delta_levels'")
     meta = dict(con.execute("SELECT name, value FROM metadata WHERE name != 'metadata_crc32'"))
     con.execute("UPDATE metadata SET value=? WHERE name='metadata_crc32'",

@@ -94,7 +94,7 @@ def _check_leaves(dst, one_batch: bool) -> None:
         rows = con.execute("SELECT rowid, data, crc32 FROM blobs ORDER BY rowid").fetchall()
     finally:
         con.close()
-    cells = [leaf_cell_size(tuple(r[1:]), r[0], store.PAGE_SIZE) for r in rows]
+    cells = [leaf_cell_size((None, *r[1:]), r[0], store.PAGE_SIZE) for r in rows]
     assert size - unused - count * LEAF_HEADER == sum(cells)
     cap = store.PAGE_SIZE - LEAF_HEADER
     pages: list[list[int]] = []
