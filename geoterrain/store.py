@@ -78,6 +78,8 @@ _TABLE_SQL = {
     "blob_keys": "CREATE TABLE blob_keys (key INTEGER PRIMARY KEY, blob INTEGER NOT NULL)",
 }
 _SCHEMA = "".join(f"{sql};\n" for sql in _TABLE_SQL.values())
+# the metadata table of schema versions 1 and 2 (a reader still finds their version)
+_OLD_METADATA_SQL = "CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT NOT NULL)"
 BLOB_KINDS = ("heights", "delta", "radius", "normals")
 # optional: a second δ (padding replicated, geoterrain/edgepad.py) on the tiles that the
 # metadata's "delta_edge" list names, and on no other
@@ -485,12 +487,36 @@ class StoreReader:
             if typ == "table" and name in _TABLE_SQL and sql == _TABLE_SQL[name]:
                 tables.add(name)
             elif typ == "table" and name in _TABLE_SQL:
+                self._older_schema(seen)
                 raise self._foreign(f"table {name} has other columns")
             else:
                 raise self._foreign(f"it holds a {typ} {_show(name)}: views, triggers and "
                                     "other objects are refused")
         if tables != set(_TABLE_SQL):
             raise self._foreign(f"tables {', '.join(sorted(set(_TABLE_SQL) - tables))} missing")
+
+    def _older_schema(self, seen: list) -> None:
+        """A store of an older schema (version 1 or 2: three plain tables and their
+        primary-key indexes, the metadata declared as then) says how to rebuild it,
+        rather than "not a geoterrain store". Its schema_version is read only when the
+        file holds nothing else, so no SQL of the file's can run."""
+        old = {"metadata": _OLD_METADATA_SQL}
+        plain = all(typ == "table" and str(sql).startswith(f"CREATE TABLE {name} (")
+                    and name in ("metadata", "tiles", "blobs")
+                    or typ == "index" and sql is None
+                    and name == f"sqlite_autoindex_{tbl}_1" for typ, name, tbl, sql in seen)
+        if not plain or (dict((n, s) for t, n, _, s in seen if t == "table").get("metadata")
+                         != old["metadata"]):
+            return
+        row = self.con.execute(
+            "SELECT value FROM metadata WHERE name = 'schema_version'").fetchone()
+        try:
+            version = json.loads(row[0]) if row else None
+        except (ValueError, TypeError, RecursionError):
+            return
+        if type(version) is int and 0 < version < SCHEMA_VERSION:
+            raise StoreError(f"{self.path}: store schema version {version}, this geoterrain "
+                             f"reads version {SCHEMA_VERSION}; {REBUILD}")
 
     def _damaged(self, what: str) -> StoreCorruptError:
         return StoreCorruptError(f"{self.path}: checksum mismatch in {what}: the file is damaged; "

@@ -211,6 +211,35 @@ def test_a_vacuumed_store_reads_the_same(tmp_path, fbm_tif):
             assert np.array_equal(t.tile(*k).heights, h, equal_nan=True)
 
 
+_V2_SCHEMA = """
+CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE tiles (level INTEGER NOT NULL, x INTEGER NOT NULL, y INTEGER NOT NULL,
+    nvalid INTEGER NOT NULL, crc32 INTEGER NOT NULL, PRIMARY KEY (level, x, y));
+CREATE TABLE blobs (level INTEGER NOT NULL, x INTEGER NOT NULL, y INTEGER NOT NULL,
+    kind TEXT NOT NULL, data BLOB NOT NULL, crc32 INTEGER NOT NULL,
+    PRIMARY KEY (level, x, y, kind));
+"""
+
+
+@pytest.mark.parametrize("extra", ["", "CREATE TRIGGER t AFTER INSERT ON tiles BEGIN "
+                                       "SELECT 1; END;"])
+def test_a_schema_2_store_says_to_rebuild_it(tmp_path, extra):
+    """A store of the previous schema is told apart from a stranger's file: its version
+    and the rebuild command, read only when the file holds nothing but the old tables."""
+    p = tmp_path / "old.geoterrain"
+    con = sqlite3.connect(p)
+    con.executescript(_V2_SCHEMA + extra)
+    con.execute("INSERT INTO metadata VALUES ('schema_version', '2')")
+    con.commit()
+    con.close()
+    if extra:
+        with pytest.raises(StoreError, match="not a geoterrain store"):
+            StoreReader(p)
+    else:
+        with pytest.raises(StoreError, match="schema version 2.*preprocess DEM --overwrite"):
+            StoreReader(p)
+
+
 def test_a_repeated_metadata_name_is_refused(tmp_path, fbm_tif):
     store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
     with sqlite3.connect(store) as con:
