@@ -20,6 +20,7 @@ from geoterrain.quantize import (
     Quantizer,
     _grid_checks,
     _roundtrip_error,
+    fine_grids_apply,
     fine_quantizer,
     fine_steps_ok,
     float_quantizer,
@@ -98,31 +99,27 @@ def band_quantizer(bands: Bands, src_dtype: np.dtype | type | str,
     lo, hi = np.inf, -np.inf
     # finer grids (quantize.fine_quantizer), checked only once the heights have left
     # the integers: an integer passes a step exactly when |x| / step < 2^52, so the
-    # integer bands before count through their largest |x| (ipeak)
-    lossy = codec_error is not None and codec_error > 0
-    free = scale is None and offset is None and (
-        not lossy or 2.0 * float(codec_error) <= FINE_STEPS[0][0])
-    fine = np.ones(len(FINE_STEPS) if free else 0, np.bool_)
-    ipeak = 0.0
+    # integer bands before count through their largest |x| (vmax so far)
+    fine = np.ones(len(FINE_STEPS) if fine_grids_apply(scale, offset, codec_error) else 0,
+                   np.bool_)
     for v in bands():
         v = _finite(v)
         if v.size:
             e, f = _grid_checks(v, sc, off)
             was = exact
             exact, f32 = exact and e, f32 and f
-            if exact:
-                ipeak = max(ipeak, float(np.abs(v).max()))
-            elif fine.any():
+            if not exact and fine.any():
                 if was:
-                    fine_steps_ok(np.array([ipeak]), dt, fine)
+                    fine_steps_ok(np.array([vmax]), dt, fine)
                 fine_steps_ok(v, dt, fine)
             n += v.size
             vmax = max(vmax, float(np.abs(v).max()))
             lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
+    lossy = codec_error is not None and codec_error > 0
     if exact and (not lossy or 2.0 * float(codec_error) <= sc):
         return Quantizer("int", sc, off, 0.0)
-    q = fine_quantizer(fine, dt) if fine.size else None
-    if q is not None and (not lossy or 2.0 * float(codec_error) <= q.step):
+    q = fine_quantizer(fine, dt, codec_error) if fine.size else None
+    if q is not None:
         return q
     if lossy:
         eps = float(codec_error)

@@ -173,10 +173,9 @@ def choose_quantizer(
     lossy = codec_error is not None and codec_error > 0
     if exact and (not lossy or 2.0 * float(codec_error) <= sc):
         return Quantizer("int", sc, off, 0.0)
-    free = scale is None and offset is None and (
-        not lossy or 2.0 * float(codec_error) <= FINE_STEPS[0][0])  # else none could serve
-    fine = fine_quantizer(fine_steps_ok(v, dt), dt) if free else None
-    if fine is not None and (not lossy or 2.0 * float(codec_error) <= fine.step):
+    fine = (fine_quantizer(fine_steps_ok(v, dt), dt, codec_error)
+            if fine_grids_apply(scale, offset, codec_error) else None)
+    if fine is not None:
         return fine
     if lossy:
         v, vmax = _finite_copy(v)  # the finite values (a copy) and max |v|, one pass
@@ -203,11 +202,23 @@ def fine_steps_ok(v: np.ndarray, dt: np.dtype, ok: np.ndarray | None = None) -> 
     return ok
 
 
-def fine_quantizer(ok: np.ndarray, dt: np.dtype) -> Quantizer | None:
+def fine_grids_apply(scale: float | None, offset: float | None,
+                     codec_error: float | None) -> bool:
+    """Whether :func:`choose_quantizer` looks for a finer grid: no known grid is given,
+    and a bound ε, if any, lets a lossless code win (2ε ≤ the coarsest fine step)."""
+    lossy = codec_error is not None and codec_error > 0
+    return scale is None and offset is None and (
+        not lossy or 2.0 * float(codec_error) <= FINE_STEPS[0][0])
+
+
+def fine_quantizer(ok: np.ndarray, dt: np.dtype, codec_error: float | None = None
+                   ) -> Quantizer | None:
     """The lossless quantizer of the coarsest step that :func:`fine_steps_ok` passed (a
-    binary one as ``"int"``, a decimal one as ``"decimal"``), or None. For float sources
-    whose heights are not integers: heights on a finer grid, as survey and LiDAR
-    products write them, cost a few bits a sample as codes, against 14–21 as floats.
+    binary one as ``"int"``, a decimal one as ``"decimal"``), or None; None too when a
+    bound ``codec_error`` is given and the step is finer than 2ε (the lossy quantizer
+    then codes fewer levels). For float sources whose heights are not integers: heights
+    on a finer grid, as survey and LiDAR products write them, cost a few bits a sample
+    as codes, against 14–21 as floats.
 
     Examples
     --------
@@ -224,6 +235,8 @@ def fine_quantizer(ok: np.ndarray, dt: np.dtype) -> Quantizer | None:
         return None
     for (step, decimal), good in zip(FINE_STEPS, ok, strict=True):
         if good:
+            if codec_error is not None and codec_error > 0 and 2.0 * codec_error > step:
+                return None
             if decimal:
                 return Quantizer("decimal", step, 0.0, 0.0, 32 if dt.itemsize <= 4 else 64)
             return Quantizer("int", step, 0.0, 0.0)
@@ -482,14 +495,11 @@ def _roundtrip_nb(z, valid, mode, step, offset, out):
                 h = np.float64(np.float32(x))
             elif mode == 2:
                 h = x
-            elif mode >= 3:
+            else:  # integer codes, decoded as int/quantized (0) or as decimals (3, 4)
                 r = _rounded(x, step, offset)
                 peak = max(peak, abs(r))
-                h = _decimal_value(np.float64(np.int64(r)), div, mode == 3)
-            else:
-                r = _rounded(x, step, offset)
-                peak = max(peak, abs(r))
-                h = offset + np.float64(np.int64(r)) * step
+                c = np.float64(np.int64(r))
+                h = _decimal_value(c, div, mode == 3) if mode >= 3 else offset + c * step
             out[i, j] = h if ok else np.nan
     return peak
 

@@ -15,7 +15,7 @@ from geoterrain.exceptions import StoreError
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
 from geoterrain.memory import available_memory
-from geoterrain.quantize import DECIMAL_STEPS, Quantizer
+from geoterrain.quantize import Quantizer
 
 __all__ = ["check_store", "available_memory"]
 
@@ -117,9 +117,10 @@ def _quantizer(m: dict) -> Quantizer:
         raise _Bad("a lossless quantizer has codec_error 0")
     if d["mode"] == "float" and (step, d.get("offset", 0.0)) != (1.0, 0.0):
         raise _Bad("a float quantizer has step 1 and offset 0")
-    if d["mode"] == "decimal" and (step not in DECIMAL_STEPS or d.get("offset", 0.0) != 0.0):
-        raise _Bad("a decimal quantizer has a step of 10^-d (d = 1 to 4) and offset 0")
-    return Quantizer.from_json(d)
+    try:  # the quantizer's own rules (a decimal one's step and offset)
+        return Quantizer.from_json(d)
+    except ValueError as exc:
+        raise _Bad(str(exc)) from None
 
 
 def _tiles(tiles: dict, g: Grid, f: Frame, m: dict) -> None:

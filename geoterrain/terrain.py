@@ -583,7 +583,7 @@ def describe_codec(q: Quantizer) -> str:
     if q.mode == "int":
         return f"lossless integer codes × {q.step:g} + {q.offset:g}, residuals + zstd"
     if q.mode == "decimal":
-        places = len(f"{q.step:g}") - 2
+        places = len(str(int(q.divisor))) - 1  # 10^d
         return (f"lossless decimals ({places} place{'s' * (places > 1)}, rounded to "
                 f"float{q.float_bits}) as integer codes, residuals + zstd")
     return f"quantised to ε = {q.codec_error:g} (step {q.step:.6g}), residuals + zstd"
