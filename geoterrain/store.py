@@ -41,10 +41,7 @@ import os
 import sqlite3
 import struct
 import zlib
-from functools import lru_cache
 from pathlib import Path
-
-import numpy as np
 
 from geoterrain.atomicfiles import publish, remove_stale_partials
 from geoterrain.exceptions import (
@@ -55,6 +52,16 @@ from geoterrain.exceptions import (
     exists_error,
 )
 from geoterrain.pagepack import LEAF_HEADER, leaf_cell_size, pack_order
+from geoterrain.storekeys import (  # noqa: F401 - the kinds and keys are the store's API
+    BLOB_KINDS,
+    BLOCK_KIND,
+    EDGE_KIND,
+    KIND_CODES,
+    blob_key,
+    tile_key,
+    unpack_blob_key,
+    unpack_tile_key,
+)
 
 SCHEMA_VERSION = 3  # 2: checksums bound to their tile and kind; per-level key digests;
 #                    3: packed integer keys, bare blob rows found through blob_keys
@@ -80,17 +87,6 @@ _TABLE_SQL = {
 _SCHEMA = "".join(f"{sql};\n" for sql in _TABLE_SQL.values())
 # the metadata table of schema versions 1 and 2 (a reader still finds their version)
 _OLD_METADATA_SQL = "CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT NOT NULL)"
-BLOB_KINDS = ("heights", "delta", "radius", "normals")
-# optional: a second δ (padding replicated, geoterrain/edgepad.py) on the tiles that the
-# metadata's "delta_edge" list names, and on no other
-EDGE_KIND = "delta_edge"
-# optional: every GeoMipMapping block's exact δ_n (geoterrain/tilebounds.py), one table
-# for the whole grid, on the root tile, when the metadata has "block_delta_levels"
-BLOCK_KIND = "block_delta"
-# every kind's number in a blob key (never renumber: stores hold them)
-KIND_CODES = {k: i for i, k in enumerate((*BLOB_KINDS, EDGE_KIND, BLOCK_KIND))}
-_KINDS = {i: k for k, i in KIND_CODES.items()}
-_COORD_BITS = 26  # x, y < 2^26 tiles a side: keys stay below 2^62
 _META_MAX_BYTES = 1 << 20  # metadata is a few kB; more is not a store of ours
 # a damaged schema's SQLite error message may not even decode as UTF-8
 _DB_ERRORS = (sqlite3.DatabaseError, UnicodeDecodeError)
@@ -106,71 +102,6 @@ def blob_crc(key: tuple[int, int, int], kind: str, data: bytes) -> int:
     True
     """
     return zlib.crc32(data, zlib.crc32(struct.pack("<3q", *key) + kind.encode()))
-
-
-_SPREAD8 = [sum(((b >> i) & 1) << (2 * i) for i in range(8)) for b in range(256)]
-_GATHER8 = [sum(((b >> (2 * i)) & 1) << i for i in range(4)) for b in range(256)]
-
-
-def _spread(v: int) -> int:
-    """The bits of ``v`` (< 2^32) moved to the even positions (Morton order's half)."""
-    return (_SPREAD8[v & 255] | _SPREAD8[(v >> 8) & 255] << 16
-            | _SPREAD8[(v >> 16) & 255] << 32 | _SPREAD8[(v >> 24) & 255] << 48)
-
-
-def _gather(m: int) -> int:
-    """The inverse of :func:`_spread`: the even bits of ``m``, packed."""
-    out, bit = 0, 0
-    while m:
-        out |= _GATHER8[m & 255] << bit
-        m >>= 8
-        bit += 4
-    return out
-
-
-@lru_cache(maxsize=1 << 16)  # a reader packs the same few keys over and over
-def tile_key(key: tuple[int, int, int]) -> int:
-    """A tile's (level, x, y) as one small integer: the Morton number of (x, y) times
-    32, plus the level (< 32). Tiles near each other get near numbers, and level-L
-    keys stay below 32 · 4^(top − L).
-
-    Examples
-    --------
-    >>> tile_key((0, 0, 0)), tile_key((2, 1, 0)), tile_key((0, 1, 1))
-    (0, 34, 96)
-    >>> unpack_tile_key(tile_key((3, 5, 9)))
-    (3, 5, 9)
-    """
-    level, x, y = (int(v) for v in key)
-    if not (0 <= level < 32 and 0 <= x < 1 << _COORD_BITS and 0 <= y < 1 << _COORD_BITS):
-        raise ValueError(f"tile key {key} out of range")
-    return ((_spread(x) | _spread(y) << 1) << 5) | level
-
-
-def unpack_tile_key(k: int) -> tuple[int, int, int]:
-    """(level, x, y) of a :func:`tile_key`; ValueError for a negative number."""
-    if k < 0:
-        raise ValueError(f"tile key {k} is negative")
-    m = k >> 5
-    return k & 31, _gather(m), _gather(m >> 1)
-
-
-def blob_key(key: tuple[int, int, int], kind: str) -> int:
-    """A blob's place as one small integer: its :func:`tile_key` times 8 plus the kind's
-    number (:data:`KIND_CODES`).
-
-    Examples
-    --------
-    >>> blob_key((0, 0, 0), "delta"), unpack_blob_key(blob_key((1, 2, 3), "normals"))
-    (1, ((1, 2, 3), 'normals'))
-    """
-    return tile_key(key) << 3 | KIND_CODES[kind]
-
-
-def unpack_blob_key(k: int) -> tuple[tuple[int, int, int], str]:
-    """((level, x, y), kind) of a :func:`blob_key`; KeyError for an unknown kind,
-    ValueError for a negative number."""
-    return unpack_tile_key(k >> 3), _KINDS[k & 7]
 
 
 def keys_digest(keys) -> str:
@@ -338,12 +269,8 @@ class StoreWriter:
         # their keys in key order (in the packing's order they would split the pages of
         # blob_keys half empty; a store of one batch gets full pages, a larger one full
         # pages within each batch's run of keys)
-        rowid = np.empty(len(rows), np.int64)
-        rowid[order] = np.arange(self._rowid + 1, last + 1)
-        keys = [r[0] for r in rows]
-        self.con.executemany("INSERT INTO blob_keys VALUES (?,?)",
-                             ((keys[i], int(rowid[i])) for i in sorted(range(len(rows)),
-                                                                       key=keys.__getitem__)))
+        self.con.executemany("INSERT INTO blob_keys VALUES (?,?)", sorted(
+            (rows[i][0], rowid) for rowid, i in enumerate(order, self._rowid + 1)))
         self._rowid = last
 
     def put_tiles(self, rows: dict[tuple[int, int, int], tuple]) -> None:
@@ -351,10 +278,7 @@ class StoreWriter:
         self._keys.extend(rows)
         # in key order (rows appended in rowid order fill their pages), one row at a
         # time: a list of every row would double the memory of a large pyramid's table
-        keys = list(rows)
-        packed = np.fromiter((tile_key(k) for k in keys), np.int64, len(keys))
-        data = ((int(packed[i]), *rows[keys[i]], _row_crc(keys[i], rows[keys[i]]))
-                for i in np.argsort(packed, kind="stable"))
+        data = ((tile_key(k), *rows[k], _row_crc(k, rows[k])) for k in sorted(rows, key=tile_key))
         self._guard(self.con.executemany,
                     f"INSERT INTO tiles VALUES ({', '.join('?' * (len(TILE_COLUMNS) + 2))})", data)
 
@@ -500,13 +424,11 @@ class StoreReader:
         primary-key indexes, the metadata declared as then) says how to rebuild it,
         rather than "not a geoterrain store". Its schema_version is read only when the
         file holds nothing else, so no SQL of the file's can run."""
-        old = {"metadata": _OLD_METADATA_SQL}
-        plain = all(typ == "table" and str(sql).startswith(f"CREATE TABLE {name} (")
-                    and name in ("metadata", "tiles", "blobs")
-                    or typ == "index" and sql is None
-                    and name == f"sqlite_autoindex_{tbl}_1" for typ, name, tbl, sql in seen)
-        if not plain or (dict((n, s) for t, n, _, s in seen if t == "table").get("metadata")
-                         != old["metadata"]):
+        plain = all(typ == "table" and name in ("metadata", "tiles", "blobs")
+                    and str(sql).startswith(f"CREATE TABLE {name} (")
+                    or typ == "index" and sql is None and name == f"sqlite_autoindex_{tbl}_1"
+                    for typ, name, tbl, sql in seen)
+        if not plain or ("table", "metadata", "metadata", _OLD_METADATA_SQL) not in seen:
             return
         row = self.con.execute(
             "SELECT value FROM metadata WHERE name = 'schema_version'").fetchone()
