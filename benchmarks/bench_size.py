@@ -45,7 +45,7 @@ def exact_v1_copy(store: Path, dst: Path) -> Path:
 
     from geoterrain.bounds import vertex_errors
     from geoterrain.radii import vertex_radii
-    from geoterrain.store import blob_crc, blob_key
+    from geoterrain.store import StoreReader, blob_crc, blob_key
     from geoterrain.vertexdata import encode_bounds
 
     shutil.copy(store, dst)
@@ -57,14 +57,15 @@ def exact_v1_copy(store: Path, dst: Path) -> Path:
         exact = {"delta": vertex_errors(Z, v), "radius": vertex_radii(X, Y, Z, v)}
         keys = list(t.tile_info)
     cctx = zstandard.ZstdCompressor(level=3)
+    table = StoreReader(dst).table()
+    rowid = dict(zip(table.blobs.tolist(), table.ids.tolist(), strict=True))
     con = sqlite3.connect(dst)
     for k in keys:
         ix = np.ix_(g.tile_rows(k[0], k[2]), g.tile_cols(k[0], k[1]))
         for kind, a in exact.items():
             blob = encode_bounds(a[ix], cctx)
-            con.execute("UPDATE blobs SET data=?, crc32=? WHERE rowid = "
-                        "(SELECT blob FROM blob_keys WHERE key = ?)",
-                        (blob, blob_crc(k, kind, blob), blob_key(k, kind)))
+            con.execute("UPDATE blobs SET data=?, crc32=? WHERE rowid = ?",
+                        (blob, blob_crc(k, kind, blob), rowid[blob_key(k, kind)]))
     con.commit()
     con.execute("VACUUM")
     con.close()

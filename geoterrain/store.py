@@ -1,19 +1,20 @@
-"""The store: one SQLite file, written atomically, every blob checksummed.
+"""The store: one SQLite file, written atomically, every row checksummed.
 
-Schema (version :data:`SCHEMA_VERSION`), in the spirit of MBTiles/GeoPackage::
+Schema (version :data:`SCHEMA_VERSION`), two plain tables::
 
-    metadata(name TEXT, value TEXT)                    -- JSON values, one row a name
-    tiles(key INTEGER PRIMARY KEY, nvalid, zmin, zmax, error, boundary_error,
-          xmin, xmax, ymin, ymax, delta_max, radius_max, crc32)  -- per-tile numbers
+    catalog(id INTEGER PRIMARY KEY, data BLOB, crc32)  -- 0: metadata; 1: tile table
     blobs(id INTEGER PRIMARY KEY, data BLOB, crc32)    -- per-tile arrays, by id
-    blob_keys(key INTEGER PRIMARY KEY, blob)           -- key → blobs rowid
 
-A tile's key packs (level, x, y) as :func:`tile_key` (the Morton number of x, y, then
-5 bits of level), a blob's key packs the tile's and its kind as :func:`blob_key`:
-small integers, so the keys cost 2–4 bytes where the columns and their primary-key
-indexes of schema 2 cost about 20 (docs/benchmarks.md §7h). The blob rows themselves
-are bare, so the writer can insert them in the order that fills SQLite's leaf pages
-(:mod:`geoterrain.pagepack`); ``blob_keys`` finds them.
+Row 0 of ``catalog`` is the metadata, one zstd-compressed JSON object. Row 1 is the
+tile table (:func:`pack_tiles`): every tile's packed key and numbers
+(:data:`TILE_COLUMNS`), and every blob's packed key and ``blobs`` row id, column by
+column, delta-coded and zstd-compressed. A tile's key packs (level, x, y) as
+:func:`tile_key` (the Morton number of x, y, then 5 bits of level), a blob's packs
+the tile's and its kind as :func:`blob_key`. Schema 3 kept the tile numbers, the blob
+keys and the metadata in tables of their own, one SQL row each: with their b-tree
+pages and per-row overhead that was a fifth of a small store (docs/benchmarks.md
+§7i). The blob rows are bare, so the writer inserts them in the order that fills
+SQLite's leaf pages (:mod:`geoterrain.pagepack`); the catalog finds them.
 
 ``kind`` is one of ``heights`` (residual-coded heights and valid mask),
 ``delta`` (per-vertex errors δ), ``radius`` (nested sphere radii) and
@@ -22,27 +23,34 @@ tiles the metadata lists) and ``block_delta`` (every GeoMipMapping block's δ_n,
 table on the root tile). See docs/store.md.
 
 A store is written to a hidden temporary file in the destination folder and
-published only after the ``complete`` flag is committed, so an interrupted write
-never leaves a file that opens as a valid store. Without ``overwrite`` the publish
-is a create-if-absent (a hard link), so of two racing writers exactly one wins.
+published only after the metadata (with its ``complete`` flag) is committed, so an
+interrupted write never leaves a file that opens as a valid store. Without
+``overwrite`` the publish is a create-if-absent (a hard link), so of two racing
+writers exactly one wins.
 
 A store may come from a stranger: :class:`StoreReader` opens it read-only with
-SQLite's ``trusted_schema`` off and refuses any schema object but the three
-plain tables (no views, triggers or virtual tables), so reading runs no SQL of
-the file's. Checksums bind each blob and row to its (level, x, y, kind), and
-the metadata records each level's tile count and key digest.
+SQLite's ``trusted_schema`` off and refuses any schema object but the two plain
+tables (no views, triggers or virtual tables), so reading runs no SQL of the file's.
+Checksums bind each blob to its (level, x, y, kind) and each catalog row to its id;
+a compressed row may not decode to more than :data:`RATIO_CAP` times its size, so a
+small file cannot ask for much memory; the metadata records each level's tile count.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import sqlite3
 import struct
+import threading
 import zlib
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+import zstandard
+
+from geoterrain import zstdsafe
 from geoterrain.atomicfiles import publish, remove_stale_partials
 from geoterrain.exceptions import (
     StoreCorruptError,
@@ -63,30 +71,34 @@ from geoterrain.storekeys import (  # noqa: F401 - the kinds and keys are the st
     unpack_tile_key,
 )
 
-SCHEMA_VERSION = 3  # 2: checksums bound to their tile and kind; per-level key digests;
-#                    3: packed integer keys, bare blob rows found through blob_keys
+SCHEMA_VERSION = 4  # 2: checksums bound to their tile and kind; per-level key digests;
+#                    3: packed integer keys, bare blob rows found through blob_keys;
+#                    4: metadata, tile numbers and blob keys in compressed catalog rows
 PAGE_SIZE = 1024  # bytes per SQLite page of a written store
 PACK_BYTES = 4 << 20  # blob bytes a writer holds before inserting them, packed (pagepack)
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
 TILE_COLUMNS = ("nvalid", "zmin", "zmax", "error", "boundary_error",
                 "xmin", "xmax", "ymin", "ymax", "delta_max", "radius_max")
+META_ID, TILES_ID = 0, 1  # the catalog rows of the metadata and of the tile table
+RATIO_CAP = 256  # a zstd catalog row decodes to at most this many times its bytes + 64 kB
+_RATIO_SLACK = 1 << 16
+_TABLE_HEAD = struct.Struct("<BII")  # format (0 raw, 1 zstd), tiles, blobs
+_ZSTD_CATALOG = 19  # a few kB of numbers in most stores: the strongest level costs little
 
-# The only schema objects a store may hold: these four tables, their SQL word for word
-# (a reader compares it), and no index, view or trigger.
+# The only schema objects a store may hold: these two tables, their SQL word for word
+# (a reader compares it), and no index, view or trigger. Each id is the rowid (an
+# INTEGER PRIMARY KEY, so VACUUM keeps it: the catalog holds the blob ids).
 _TABLE_SQL = {
-    # no primary key: its index cost a page; the writer writes each name once, and a
-    # reader refuses a repeated one
-    "metadata": "CREATE TABLE metadata (name TEXT NOT NULL, value TEXT NOT NULL)",
-    "tiles": "CREATE TABLE tiles (key INTEGER PRIMARY KEY, nvalid INTEGER NOT NULL, "
-             + ", ".join(f"{c} REAL" for c in TILE_COLUMNS[1:]) + ", crc32 INTEGER NOT NULL)",
-    # id is the rowid (an INTEGER PRIMARY KEY, so VACUUM keeps it: blob_keys holds it)
+    "catalog": "CREATE TABLE catalog (id INTEGER PRIMARY KEY, data BLOB NOT NULL, "
+               "crc32 INTEGER NOT NULL)",
     "blobs": "CREATE TABLE blobs (id INTEGER PRIMARY KEY, data BLOB NOT NULL, "
              "crc32 INTEGER NOT NULL)",
-    "blob_keys": "CREATE TABLE blob_keys (key INTEGER PRIMARY KEY, blob INTEGER NOT NULL)",
 }
 _SCHEMA = "".join(f"{sql};\n" for sql in _TABLE_SQL.values())
-# the metadata table of schema versions 1 and 2 (a reader still finds their version)
-_OLD_METADATA_SQL = "CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT NOT NULL)"
+# the tables of schema versions 1 to 3 (a reader still finds their version)
+_OLD_TABLES = ("metadata", "tiles", "blobs", "blob_keys")
+_OLD_METADATA_SQL = ("CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT NOT NULL)",
+                     "CREATE TABLE metadata (name TEXT NOT NULL, value TEXT NOT NULL)")
 _META_MAX_BYTES = 1 << 20  # metadata is a few kB; more is not a store of ours
 # a damaged schema's SQLite error message may not even decode as UTF-8
 _DB_ERRORS = (sqlite3.DatabaseError, UnicodeDecodeError)
@@ -104,36 +116,139 @@ def blob_crc(key: tuple[int, int, int], kind: str, data: bytes) -> int:
     return zlib.crc32(data, zlib.crc32(struct.pack("<3q", *key) + kind.encode()))
 
 
-def keys_digest(keys) -> str:
-    """SHA-256 (hex) of sorted tile keys: a missing or extra row changes it.
+def catalog_crc(row_id: int, data: bytes) -> int:
+    """CRC-32 of a catalog row bound to its id.
 
     Examples
     --------
-    >>> keys_digest([(0, 1, 0), (0, 0, 0)]) == keys_digest([(0, 0, 0), (0, 1, 0)])
+    >>> catalog_crc(0, b"x") != catalog_crc(1, b"x")
     True
     """
-    h = hashlib.sha256()
-    for k in sorted(keys):
-        h.update(struct.pack("<3q", *k))
-    return h.hexdigest()
+    return zlib.crc32(data, zlib.crc32(struct.pack("<q", row_id)))
 
 
-def level_digests(keys) -> dict[str, list]:
-    """Per level: [tile count, :func:`keys_digest`] (what the metadata records)."""
-    by: dict[int, list] = {}
+@dataclass(frozen=True)
+class TileTable:
+    """The catalog's tile table: every tile and every blob, ascending by key.
+
+    ``numbers`` is (tiles, len(TILE_COLUMNS)) float64 in the order of
+    :data:`TILE_COLUMNS`, NaN where a number is absent (an empty tile's bounds).
+    """
+
+    tiles: np.ndarray  # int64 packed tile keys (tile_key)
+    numbers: np.ndarray  # float64 (tiles, 11)
+    blobs: np.ndarray  # int64 packed blob keys (blob_key)
+    ids: np.ndarray  # int64 their rowids in ``blobs``
+
+
+def _deltas(a: np.ndarray) -> bytes:
+    return np.diff(a.astype("<i8"), prepend=np.int64(0)).astype("<i8").tobytes()
+
+
+def _ascending(raw: bytes, n: int) -> np.ndarray:
+    # a delta-coded key column back; each step must be > 0 (so the keys are distinct),
+    # and a sum past 2^63 wraps below its predecessor, which the same test refuses
+    d = np.frombuffer(raw, "<i8", n)
+    a = np.cumsum(d, dtype=np.int64)
+    if n and (a[0] < 0 or (d[1:] <= 0).any() or (np.diff(a) <= 0).any()):
+        raise ValueError("keys not ascending")
+    return a
+
+
+def pack_tiles(table: TileTable) -> bytes:
+    """The tile table's catalog row: a head (format, tile and blob counts), then the key
+    columns as differences, the numbers column by column with their bytes shuffled
+    (bytes of one significance together), and the ids as differences; zstd, or raw
+    when zstd would pass :data:`RATIO_CAP` (a store's own rows always read back).
+
+    Examples
+    --------
+    >>> t = TileTable(np.array([0, 64]), np.ones((2, 11)), np.array([0, 1, 2, 3, 512]),
+    ...               np.array([5, 1, 2, 3, 4]))
+    >>> u = unpack_tiles(pack_tiles(t))
+    >>> [np.array_equal(getattr(t, f), getattr(u, f)) for f in ("tiles", "numbers", "blobs", "ids")]
+    [True, True, True, True]
+    """
+    n, m = len(table.tiles), len(table.blobs)
+    nums = np.ascontiguousarray(table.numbers, "<f8").reshape(n, len(TILE_COLUMNS)).T
+    shuffled = nums.copy().view(np.uint8).reshape(len(TILE_COLUMNS), n, 8).transpose(0, 2, 1)
+    raw = (_deltas(table.tiles) + shuffled.tobytes() + _deltas(table.blobs)
+           + _deltas(table.ids))
+    packed = zstandard.ZstdCompressor(level=_ZSTD_CATALOG).compress(raw)
+    if len(raw) > RATIO_CAP * len(packed) + _RATIO_SLACK:
+        return _TABLE_HEAD.pack(0, n, m) + raw
+    return _TABLE_HEAD.pack(1, n, m) + packed
+
+
+def unpack_tiles(data: bytes) -> TileTable:
+    """The :class:`TileTable` of its catalog row; ValueError for anything malformed
+    (sizes, keys not strictly ascending, a zstd frame past :data:`RATIO_CAP`)."""
+    if len(data) < _TABLE_HEAD.size:
+        raise ValueError("catalog row too short")
+    fmt, n, m = _TABLE_HEAD.unpack_from(data)
+    body = data[_TABLE_HEAD.size:]
+    size = 8 * (n * (1 + len(TILE_COLUMNS)) + 2 * m)
+    if fmt == 1:
+        if size > RATIO_CAP * len(body) + _RATIO_SLACK:
+            raise ValueError("catalog row claims too many rows for its size")
+        body = zstdsafe.decompress(body, size, exact=True)
+    elif fmt != 0 or len(body) != size:
+        raise ValueError("catalog row of an unknown format or size")
+    tiles = _ascending(body[:8 * n], n)
+    off = 8 * n
+    nb = 8 * n * len(TILE_COLUMNS)
+    numbers = (np.frombuffer(body[off:off + nb], np.uint8).reshape(len(TILE_COLUMNS), 8, n)
+               .transpose(0, 2, 1).copy().view("<f8").reshape(len(TILE_COLUMNS), n).T)
+    off += nb
+    blobs = _ascending(body[off:off + 8 * m], m)
+    ids = np.cumsum(np.frombuffer(body[off + 8 * m:], "<i8", m), dtype=np.int64)
+    return TileTable(tiles, np.ascontiguousarray(numbers, np.float64), blobs, ids)
+
+
+def pack_metadata(items: dict) -> bytes:
+    """The metadata's catalog row: its JSON (names sorted), zstd-compressed.
+
+    Examples
+    --------
+    >>> unpack_metadata(pack_metadata({"b": 1, "a": [2.5, None]}))
+    {'a': [2.5, None], 'b': 1}
+    """
+    text = json.dumps(items, sort_keys=True).encode()
+    return zstandard.ZstdCompressor(level=_ZSTD_CATALOG).compress(text)
+
+
+def unpack_metadata(data: bytes) -> dict:
+    """The metadata of a catalog row; ValueError for anything but a JSON object of at
+    most 1 MB whose names are distinct (at any depth)."""
+    try:
+        items = json.loads(zstdsafe.decompress(data, _META_MAX_BYTES),
+                           object_pairs_hook=_unique_names)
+    except RecursionError:
+        raise ValueError("metadata is not JSON") from None
+    if not isinstance(items, dict):
+        raise ValueError("metadata is not a JSON object")
+    return items
+
+
+def _unique_names(pairs: list) -> dict:
+    out = dict(pairs)
+    if len(out) != len(pairs):
+        raise ValueError("metadata names an entry twice")
+    return out
+
+
+def tile_counts(keys) -> dict[str, int]:
+    """Tiles per level (what the metadata records as ``tile_counts``).
+
+    Examples
+    --------
+    >>> tile_counts([(0, 0, 0), (0, 1, 0), (1, 0, 0)])
+    {'0': 2, '1': 1}
+    """
+    out: dict[str, int] = {}
     for k in keys:
-        by.setdefault(int(k[0]), []).append(tuple(int(v) for v in k))
-    return {str(L): [len(ks), keys_digest(ks)] for L, ks in sorted(by.items())}
-
-
-def _row_crc(key: tuple[int, int, int], values: tuple) -> int:
-    # Pack numbers canonically so a flipped bit in any column is detected.
-    nums = [float("nan") if v is None else float(v) for v in values]
-    return zlib.crc32(struct.pack(f"<3q{len(nums)}d", *key, *nums))
-
-
-def _meta_crc(items: dict[str, str]) -> int:
-    return zlib.crc32(json.dumps(items, sort_keys=True).encode())
+        out[str(int(k[0]))] = out.get(str(int(k[0])), 0) + 1
+    return dict(sorted(out.items(), key=lambda kv: int(kv[0])))
 
 
 def default_store_path(src: str | Path) -> Path:
@@ -192,8 +307,9 @@ class StoreWriter:
         remove_stale_partials(parent)
         self.tmp = parent / f".{self.dst.name}.partial-{os.getpid()}"
         self.overwrite = overwrite
-        self._keys: list[tuple[int, int, int]] = []
-        self._meta: dict[str, str] = {}
+        self._meta: dict = {}
+        self._tiles: list[tuple[np.ndarray, np.ndarray]] = []  # (keys, numbers) a call
+        self._ids: list[np.ndarray] = []  # (blob key, rowid) pairs of each batch
         self._rows: list[tuple] = []  # blob rows not yet inserted (see _flush)
         self._row_bytes = 0
         self._rowid = 0  # rows inserted so far: the next one's rowid is this + 1
@@ -237,9 +353,9 @@ class StoreWriter:
             raise WriteError(f"cannot write {self.dst}: {msg}") from None
 
     def put_metadata(self, items: dict) -> None:
-        """Add metadata entries (JSON-encoded)."""
+        """Add metadata entries (JSON values)."""
         for k, v in items.items():
-            self._meta[k] = json.dumps(v)
+            self._meta[k] = json.loads(json.dumps(v))  # a copy, and JSON now or never
 
     def put_blob(self, key: tuple[int, int, int], kind: str, data: bytes) -> None:
         self.put_blobs(kind, {key: data})
@@ -257,7 +373,7 @@ class StoreWriter:
 
     def _flush(self) -> None:
         """Insert the buffered blob rows, packed into leaf pages (pagepack.pack_order),
-        and their keys."""
+        and keep their keys and rowids for the catalog."""
         rows, self._rows, self._row_bytes = self._rows, [], 0
         if not rows:
             return
@@ -266,34 +382,47 @@ class StoreWriter:
         order = pack_order(sizes, PAGE_SIZE - LEAF_HEADER)
         self.con.executemany("INSERT INTO blobs VALUES (NULL,?,?)",
                              (rows[i][1:] for i in order))
-        # their keys in key order (in the packing's order they would split the pages of
-        # blob_keys half empty; a store of one batch gets full pages, a larger one full
-        # pages within each batch's run of keys)
-        self.con.executemany("INSERT INTO blob_keys VALUES (?,?)", sorted(
-            (rows[i][0], rowid) for rowid, i in enumerate(order, self._rowid + 1)))
+        self._ids.append(np.array([(rows[i][0], rowid) for rowid, i
+                                   in enumerate(order, self._rowid + 1)], np.int64))
         self._rowid = last
 
     def put_tiles(self, rows: dict[tuple[int, int, int], tuple]) -> None:
         """Per-tile numbers, in the order of :data:`TILE_COLUMNS`."""
-        self._keys.extend(rows)
-        # in key order (rows appended in rowid order fill their pages), one row at a
-        # time: a list of every row would double the memory of a large pyramid's table
-        data = ((tile_key(k), *rows[k], _row_crc(k, rows[k])) for k in sorted(rows, key=tile_key))
-        self._guard(self.con.executemany,
-                    f"INSERT INTO tiles VALUES ({', '.join('?' * (len(TILE_COLUMNS) + 2))})", data)
+        if rows:
+            keys = np.fromiter((tile_key(k) for k in rows), np.int64, len(rows))
+            nums = np.array([[np.nan if v is None else float(v) for v in r]
+                             for r in rows.values()], np.float64)
+            if nums.shape != (len(rows), len(TILE_COLUMNS)):
+                raise ValueError(f"a tile row holds {len(TILE_COLUMNS)} numbers")
+            self._tiles.append((keys, nums))
+
+    def _tile_table(self) -> bytes:
+        """The tile table's catalog row (keys sorted and checked distinct), and the
+        metadata's tile counts."""
+        tk = np.concatenate([k for k, _ in self._tiles] or [np.zeros(0, np.int64)])
+        tn = np.concatenate([n for _, n in self._tiles]
+                            or [np.zeros((0, len(TILE_COLUMNS)))])
+        ids = np.concatenate(self._ids or [np.zeros((0, 2), np.int64)])
+        self._tiles, self._ids = [], []
+        order, border = np.argsort(tk, kind="stable"), np.argsort(ids[:, 0], kind="stable")
+        tk, tn, ids = tk[order], tn[order], ids[border]
+        if (np.diff(tk) == 0).any() or (np.diff(ids[:, 0]) == 0).any():
+            raise WriteError(f"cannot write {self.dst}: a tile or blob was given twice")
+        self._meta["tile_counts"] = tile_counts([(int(L),) for L in (tk & 31).tolist()])
+        return pack_tiles(TileTable(tk, tn, ids[:, 0], ids[:, 1]))
 
     def commit(self) -> Path:
-        """Finish: write metadata and the complete flag, fsync, rename into place."""
-        meta = dict(self._meta)
-        meta["schema_version"] = json.dumps(SCHEMA_VERSION)
-        meta["tile_keys"] = json.dumps(level_digests(self._keys))
-        meta["complete"] = json.dumps(True)
+        """Finish: write the catalog, the metadata with its complete flag, fsync,
+        rename into place."""
 
         def _finish():
             self._flush()
-            self.con.executemany("INSERT INTO metadata VALUES (?,?)", sorted(meta.items()))
-            self.con.execute("INSERT INTO metadata VALUES (?,?)",
-                             ("metadata_crc32", json.dumps(_meta_crc(meta))))
+            rows = {TILES_ID: self._tile_table()}
+            self._meta["schema_version"] = SCHEMA_VERSION
+            self._meta["complete"] = True
+            rows[META_ID] = pack_metadata(self._meta)
+            self.con.executemany("INSERT INTO catalog VALUES (?,?,?)",
+                                 ((i, d, catalog_crc(i, d)) for i, d in sorted(rows.items())))
             self.con.execute("COMMIT")
             self.con.close()
             fd = os.open(self.tmp, os.O_RDONLY)
@@ -308,7 +437,11 @@ class StoreWriter:
             finally:
                 os.close(dfd)
 
-        self._guard(_finish)
+        try:
+            self._guard(_finish)
+        except WriteError:
+            self.abort()
+            raise
         self._committed = True
         return self.dst
 
@@ -335,7 +468,7 @@ class StoreReader:
     """Read a store, verifying schema, completeness and checksums.
 
     The file is untrusted input: it is opened read-only with ``trusted_schema``
-    off, and refused unless its schema holds exactly the four plain tables, declared
+    off, and refused unless its schema holds exactly the two plain tables, declared
     as the writer declares them (so no view, trigger or virtual table can run while
     reading).
 
@@ -358,16 +491,16 @@ class StoreReader:
         except sqlite3.Error:
             raise StoreError(f"{self.path}: cannot open the store read-only") from None
         try:
-            # damaged text never raises: it decodes with U+FFFD and then fails its checksum
+            # damaged text never raises: it decodes with U+FFFD and then fails a check
             self.con.text_factory = lambda b: b.decode("utf-8", "replace")
             self.con.execute("PRAGMA trusted_schema=OFF")
             self.con.execute("PRAGMA query_only=ON")
             self._check_schema()
-            n, size = self.con.execute(
-                "SELECT COUNT(*), SUM(LENGTH(name) + LENGTH(value)) FROM metadata").fetchone()
-            if n > 256 or (size or 0) > _META_MAX_BYTES:
-                raise self._foreign("its metadata table is far too large")
-            rows = self.con.execute("SELECT name, value FROM metadata").fetchall()
+            rows = self.con.execute("SELECT id, data, crc32 FROM catalog "
+                                    f"WHERE id IN ({META_ID}, {TILES_ID})").fetchall()
+            (n,) = self.con.execute("SELECT COUNT(*) FROM catalog").fetchone()
+            if n != len(rows):
+                raise self._foreign("its catalog holds rows of no meaning")
         except _DB_ERRORS:
             self.con.close()
             raise StoreError(f"{self.path}: not a geoterrain store (or damaged); "
@@ -375,60 +508,67 @@ class StoreReader:
         except StoreError:
             self.con.close()
             raise
-        if not all(isinstance(k, str) and isinstance(v, str) for k, v in rows):
+        if not all(type(i) is int and isinstance(d, bytes) for i, d, _ in rows):
             self.con.close()
-            raise self._foreign("its metadata holds values that are not text")
-        raw = dict(rows)
-        if len(raw) != len(rows):
+            raise self._foreign("its catalog holds rows that are not numbered blobs")
+        self._rows = {i: (d, c) for i, d, c in rows}
+        if META_ID not in self._rows:
             self.con.close()
-            raise self._foreign("its metadata names an entry twice")
-        crc = raw.pop("metadata_crc32", None)
-        if raw.get("complete") != "true":
             raise StoreError(
                 f"{self.path}: incomplete store (interrupted write); re-run preprocess")
+        data, crc = self._rows.pop(META_ID)
         try:
-            ok = crc is not None and int(json.loads(crc)) == _meta_crc(raw)
-            self.metadata = {k: json.loads(v) for k, v in raw.items()} if ok else {}
-        except (ValueError, TypeError, RecursionError):
-            ok = False
-        if not ok:
+            if catalog_crc(META_ID, data) != crc:
+                raise ValueError
+            self.metadata = unpack_metadata(data)
+        except ValueError:
+            self.con.close()
             raise StoreCorruptError(f"{self.path}: metadata checksum mismatch: the file is "
-                                    "damaged; re-run `geoterrain preprocess`")
+                                    "damaged; re-run `geoterrain preprocess`") from None
+        if self.metadata.get("complete") is not True:
+            self.con.close()
+            raise StoreError(
+                f"{self.path}: incomplete store (interrupted write); re-run preprocess")
         version = self.metadata.get("schema_version")
         if version != SCHEMA_VERSION:
+            self.con.close()
             raise StoreError(f"{self.path}: store schema version {_show(version)}, this "
                              f"geoterrain reads version {SCHEMA_VERSION}; {REBUILD}")
         self.blob_reads = 0  # how many blobs were read (tests count them)
+        self._table: TileTable | None = None
+        self._lookup: tuple[np.ndarray, np.ndarray] | None = None
+        self._lock = threading.Lock()
 
     def _foreign(self, why: str) -> StoreError:
         return StoreError(f"{self.path}: not a geoterrain store ({why}); refusing to read it")
 
     def _check_schema(self) -> None:
-        """Exactly the four plain tables, as the writer declares them, nothing else."""
+        """Exactly the two plain tables, as the writer declares them, nothing else."""
         seen = self.con.execute("SELECT type, name, tbl_name, sql FROM sqlite_master").fetchall()
         tables = set()
         for typ, name, _tbl, sql in seen:
             if typ == "table" and name in _TABLE_SQL and sql == _TABLE_SQL[name]:
                 tables.add(name)
-            elif typ == "table" and name in _TABLE_SQL:
-                self._older_schema(seen)
+                continue
+            self._older_schema(seen)
+            if typ == "table" and name in _TABLE_SQL:
                 raise self._foreign(f"table {name} has other columns")
-            else:
-                raise self._foreign(f"it holds a {typ} {_show(name)}: views, triggers and "
-                                    "other objects are refused")
+            raise self._foreign(f"it holds a {typ} {_show(name)}: views, triggers and "
+                                "other objects are refused")
         if tables != set(_TABLE_SQL):
             raise self._foreign(f"tables {', '.join(sorted(set(_TABLE_SQL) - tables))} missing")
 
     def _older_schema(self, seen: list) -> None:
-        """A store of an older schema (version 1 or 2: three plain tables and their
-        primary-key indexes, the metadata declared as then) says how to rebuild it,
-        rather than "not a geoterrain store". Its schema_version is read only when the
-        file holds nothing else, so no SQL of the file's can run."""
-        plain = all(typ == "table" and name in ("metadata", "tiles", "blobs")
+        """A store of an older schema (versions 1 to 3: plain tables and their
+        primary-key indexes, the metadata table declared as then) says how to rebuild
+        it, rather than "not a geoterrain store". Its schema_version is read only when
+        the file holds nothing else, so no SQL of the file's can run."""
+        plain = all(typ == "table" and name in _OLD_TABLES
                     and str(sql).startswith(f"CREATE TABLE {name} (")
                     or typ == "index" and sql is None and name == f"sqlite_autoindex_{tbl}_1"
                     for typ, name, tbl, sql in seen)
-        if not plain or ("table", "metadata", "metadata", _OLD_METADATA_SQL) not in seen:
+        if not plain or not any(("table", "metadata", "metadata", sql) in seen
+                                for sql in _OLD_METADATA_SQL):
             return
         row = self.con.execute(
             "SELECT value FROM metadata WHERE name = 'schema_version'").fetchone()
@@ -444,16 +584,36 @@ class StoreReader:
         return StoreCorruptError(f"{self.path}: checksum mismatch in {what}: the file is damaged; "
                                  "re-run `geoterrain preprocess`")
 
+    def table(self) -> TileTable:
+        """The tile table, checksum-verified and parsed (once; thread-safe)."""
+        with self._lock:
+            if self._table is None:
+                data, crc = self._rows.get(TILES_ID, (b"", None))
+                try:
+                    if catalog_crc(TILES_ID, data) != crc:
+                        raise ValueError
+                    self._table = unpack_tiles(data)
+                except ValueError:
+                    raise self._damaged("the tile table") from None
+            return self._table
+
+    def _blob_id(self, key: int) -> int | None:
+        t = self.table()
+        i = int(np.searchsorted(t.blobs, key))
+        return int(t.ids[i]) if i < len(t.blobs) and t.blobs[i] == key else None
+
     def get_blob(self, key: tuple[int, int, int], kind: str) -> bytes | None:
         """A tile's blob, checksum-verified (bound to key and kind), or None when not stored."""
+        rowid = self._blob_id(blob_key(key, kind))
+        if rowid is None:
+            return None
         try:
-            row = self.con.execute(
-                "SELECT b.data, b.crc32 FROM blob_keys k JOIN blobs b ON b.rowid = k.blob "
-                "WHERE k.key = ?", (blob_key(key, kind),)).fetchone()
-        except _DB_ERRORS:
+            row = self.con.execute("SELECT data, crc32 FROM blobs WHERE rowid = ?",
+                                   (rowid,)).fetchone()
+        except (*_DB_ERRORS, OverflowError):
             raise self._damaged(f"tile {key} {kind}") from None
         if row is None:
-            return None
+            raise self._damaged(f"tile {key} {kind} (its row is missing)")
         self.blob_reads += 1
         data, crc = row
         if not isinstance(data, bytes) or blob_crc(key, kind, data) != crc:
@@ -461,48 +621,43 @@ class StoreReader:
         return data
 
     def tiles(self) -> dict[tuple[int, int, int], dict]:
-        """Every stored tile's numbers, checksum-verified, checked against the key digests.
+        """Every stored tile's numbers, checksum-verified, checked against the tile counts.
 
         Every tile must hold one blob of each kind, and no blob may lack its tile.
         """
-        try:
-            rows = self.con.execute(
-                f"SELECT key, {', '.join(TILE_COLUMNS)}, crc32 FROM tiles").fetchall()
-            packed = self.con.execute("SELECT key, blob FROM blob_keys").fetchall()
-            # the rowid range only (a few pages): counting or joining the rows would
-            # read every leaf page of the blobs, which hold the blob bytes
-            lo, hi = self.con.execute("SELECT MIN(rowid), MAX(rowid) FROM blobs").fetchone()
-        except _DB_ERRORS:
-            raise self._damaged("the tile table") from None
-        out = {}
-        for r in rows:
-            vals, crc = tuple(r[1:-1]), r[-1]
-            if type(r[0]) is not int or r[0] < 0 or not all(
-                    v is None or type(v) in (int, float) for v in vals) or type(vals[0]) is not int:
-                raise self._damaged(f"tile {_show(r[0])} bounds")
-            key = unpack_tile_key(r[0])
-            if _row_crc(key, vals) != crc:
-                raise self._damaged(f"tile {key} bounds")
-            out[key] = dict(zip(TILE_COLUMNS, vals, strict=True))
-        if level_digests(out) != self.metadata.get("tile_keys"):
+        t = self.table()
+        if tile_counts([(k & 31,) for k in t.tiles.tolist()]) != self.metadata.get("tile_counts"):
             raise StoreCorruptError(f"{self.path}: the tile table does not match the recorded "
-                                    "tile keys (rows missing or added): the file is damaged; "
+                                    "tile counts (rows missing or added): the file is damaged; "
                                     "re-run `geoterrain preprocess`")
-        want = {r[0] << 3 | KIND_CODES[kind] for r in rows for kind in BLOB_KINDS}
+        nvalid = t.numbers[:, 0]
+        if not (nvalid >= 0).all() or (nvalid % 1 != 0).any():
+            raise self._damaged("the tile table")
+        out = {}
+        for k, r in zip(t.tiles.tolist(), t.numbers.tolist(), strict=True):
+            vals = [None if v != v else v for v in r]  # NaN: an absent number
+            vals[0] = int(vals[0])
+            out[unpack_tile_key(k)] = dict(zip(TILE_COLUMNS, vals, strict=True))
+        want = {k << 3 | KIND_CODES[kind] for k in t.tiles.tolist() for kind in BLOB_KINDS}
         try:
             want |= {blob_key(k, EDGE_KIND) for k in self.edge_keys(out)}
         except ValueError:  # a key out of any grid's range
             raise self._damaged("the delta_edge list") from None
         if "block_delta_levels" in self.metadata and out:
             want.add(blob_key((max(k[0] for k in out), 0, 0), BLOCK_KIND))  # the root tile
-        # the keys name distinct rows that fill the table's rowid range exactly, so
-        # every row is named once (a missing row in the range reads as "missing"; a
-        # row's checksum binds it to its key, so a pointer moved to another row fails)
-        ids = {b for _, b in packed}
-        if (len(packed) != len(want) or {k for k, _ in packed} != want
-                or len(ids) != len(packed) or not all(type(b) is int for b in ids)
-                or (packed and (lo, hi) != (min(ids), max(ids)))
-                or (packed and hi - lo + 1 != len(ids)) or (not packed and lo is not None)):
+        # the ids are distinct and fill the blob table's rowid range exactly, so every
+        # row is named once (a missing row in the range reads as "missing"; a row's
+        # checksum binds it to its key, so an id moved to another row fails)
+        keys, ids = set(t.blobs.tolist()), t.ids
+        try:
+            # the rowid range only (a few pages): counting the rows would read every
+            # leaf page of the blobs, which hold the blob bytes
+            lo, hi = self.con.execute("SELECT MIN(rowid), MAX(rowid) FROM blobs").fetchone()
+        except _DB_ERRORS:
+            raise self._damaged("the blob table") from None
+        if (keys != want or len(np.unique(ids)) != len(ids)
+                or (len(ids) and (lo, hi) != (int(ids.min()), int(ids.max())))
+                or (len(ids) and hi - lo + 1 != len(ids)) or (not len(ids) and lo is not None)):
             raise StoreCorruptError(f"{self.path}: the blobs do not match the tile table "
                                     "(blobs missing or added): the file is damaged; "
                                     "re-run `geoterrain preprocess`")
@@ -531,17 +686,15 @@ class StoreReader:
         """Blob bytes per (kind, level) (``info``'s split); a key without its row is
         damage."""
         try:
-            rows = self.con.execute("SELECT k.key, LENGTH(b.data) FROM blob_keys k "
-                                    "LEFT JOIN blobs b ON b.rowid = k.blob").fetchall()
+            sizes = dict(self.con.execute("SELECT rowid, LENGTH(data) FROM blobs").fetchall())
         except _DB_ERRORS:
             raise self._damaged("the blob table") from None
-        if any(n is None for _, n in rows):  # a key whose row is gone
-            raise self._damaged("the blob table")
         out: dict[tuple[str, int], int] = {}
         try:
-            for k, n in rows:
+            t = self.table()
+            for k, i in zip(t.blobs.tolist(), t.ids.tolist(), strict=True):
                 (level, _, _), kind = unpack_blob_key(k)
-                out[kind, level] = out.get((kind, level), 0) + n
+                out[kind, level] = out.get((kind, level), 0) + sizes[i]
         except (KeyError, TypeError, ValueError):
             raise self._damaged("the blob table") from None
         return out

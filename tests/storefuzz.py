@@ -1,7 +1,8 @@
 """A mutation fuzzer over stores: every case must end in a clean error or identical output.
 
 Mutations: flipped bytes, swapped blobs (with and without their checksums),
-deleted and duplicated rows, blob keys pointing nowhere or keyed out of range,
+deleted and duplicated rows, blob keys pointing nowhere or keyed out of range, junk
+and zstd bombs in the catalog's tile table (checksum recomputed),
 metadata edited to bad values (checksum recomputed, as a deliberate editor would),
 planted views, triggers, tables and indexes, and zstd bombs (checksum recomputed).
 Cases run in a forked worker under a memory limit (RLIMIT_AS) and a per-case timeout
@@ -27,12 +28,17 @@ from storesql import (
     blob_keys,
     delete_blob,
     delete_tile,
+    put_tile,
     read_blob,
+    read_meta,
+    read_table,
     tile_row,
     update_blob,
+    write_meta,
+    write_table,
 )
 
-from geoterrain.store import blob_key, tile_key
+from geoterrain.store import TILES_ID, TileTable, blob_key, catalog_crc
 
 MEM_LIMIT_EXTRA = 1 << 30  # address space beyond the worker's own at the start
 CASE_TIMEOUT_S = 10
@@ -61,15 +67,9 @@ def _blob_crc(key, kind, data):
 
 
 def _meta_rewrite(con, edit):
-    rows = dict(con.execute("SELECT name, value FROM metadata").fetchall())
-    rows.pop("metadata_crc32")
-    meta = {k: json.loads(v) for k, v in rows.items()}
+    meta = read_meta(con)
     edit(meta)
-    raw = {k: json.dumps(v) for k, v in meta.items()}
-    con.execute("DELETE FROM metadata")
-    con.executemany("INSERT INTO metadata VALUES (?,?)", raw.items())
-    crc = zlib.crc32(json.dumps(raw, sort_keys=True).encode())
-    con.execute("INSERT INTO metadata VALUES (?,?)", ("metadata_crc32", json.dumps(crc)))
+    write_meta(con, meta)
 
 
 _BAD_META = [
@@ -82,7 +82,8 @@ _BAD_META = [
     ("quantizer", "offset", 1e3), ("quantizer", "float_bits", 7), ("quantizer", "mode", "decimal"),
     (None, "normal_bits", 12), (None, "valid_samples", 0), (None, "valid_samples", 10**12),
     (None, "height_range", [5, 1]), (None, "height_range", "x"),
-    (None, "nodata_fraction", 2.0), (None, "tile_keys", {}), (None, "schema_version", 1),
+    (None, "nodata_fraction", 2.0), (None, "tile_counts", {}), (None, "schema_version", 1),
+    (None, "tile_counts", {"0": 10**9}), (None, "complete", 1),
     (None, "grid", None), (None, "frame", []), (None, "quantizer", "int"),
     (None, "delta_edge", "x"), (None, "delta_edge", [[0, 0]]),
     (None, "delta_edge", [[0, 0, 0, -1.0]]), (None, "delta_edge", [[99, 0, 0, 1.0]]),
@@ -96,7 +97,7 @@ _BAD_META = [
 def mutate(path: Path, rng: random.Random) -> str:
     """Apply one random mutation to the store at ``path``; return its description."""
     kind = rng.choice(["flip", "flip", "swap", "swapcrc", "delete", "dup", "meta", "meta",
-                       "plant", "bomb", "truncate", "blobjunk", "keyjunk"])
+                       "plant", "bomb", "truncate", "blobjunk", "keyjunk", "tablejunk"])
     if kind == "flip":
         data = bytearray(path.read_bytes())
         n = rng.choice([1, 1, 4, 64])
@@ -124,18 +125,16 @@ def mutate(path: Path, rng: random.Random) -> str:
             update_blob(con, b, **dict(zip(cols, ra, strict=True)))
             desc = f"{kind} {bk} {a[:3]}<->{b[:3]}"
         elif kind == "delete":
-            table = rng.choice(["tiles", "blobs", "blob_keys", "blob and key"])
+            table = rng.choice(["tiles", "blobs", "blob keys", "blob and key"])
             k = rng.choice(keys)
             if table == "tiles":
                 delete_tile(con, k[:3])
             else:
-                delete_blob(con, k, row=table != "blob_keys", key=table != "blobs")
+                delete_blob(con, k, row=table != "blob keys", key=table != "blobs")
             desc = f"delete {table} {k}"
         elif kind == "dup":
             k = rng.choice(sorted(all_tiles(con)))  # a stored tile (a δ_edge's may not be)
-            row = tile_row(con, k)
-            con.execute(f"INSERT OR IGNORE INTO tiles VALUES ({','.join('?' * len(row))})",
-                        (tile_key((k[0], k[1] + 1000, k[2])), *row[1:]))
+            put_tile(con, (k[0], k[1] + 1000, k[2]), tile_row(con, k))
             desc = f"extra tile row beside {k[:3]}"
         elif kind == "meta":
             group, field, value = rng.choice(_BAD_META)
@@ -150,15 +149,15 @@ def mutate(path: Path, rng: random.Random) -> str:
         elif kind == "plant":
             which = rng.choice(["view", "bview", "trigger", "index", "table"])
             if which == "view":
-                con.execute("ALTER TABLE metadata RENAME TO m0")
-                con.execute("CREATE VIEW metadata AS WITH RECURSIVE c(n) AS (SELECT 1 UNION ALL "
-                            "SELECT n+1 FROM c) SELECT 'k'||n AS name, 'v' AS value FROM c")
+                con.execute("ALTER TABLE catalog RENAME TO c0")
+                con.execute("CREATE VIEW catalog AS WITH RECURSIVE c(n) AS (SELECT 1 UNION ALL "
+                            "SELECT n+1 FROM c) SELECT n AS id, x'00' AS data, 0 AS crc32 FROM c")
             elif which == "bview":
                 con.execute("ALTER TABLE blobs RENAME TO b0")
                 con.execute("CREATE VIEW blobs AS WITH RECURSIVE c(n) AS (SELECT 1 UNION ALL "
                             "SELECT n+1 FROM c) SELECT x'00' AS data, 0 AS crc32 FROM c")
             elif which == "trigger":
-                con.execute("CREATE TRIGGER t AFTER INSERT ON tiles BEGIN SELECT 1; END")
+                con.execute("CREATE TRIGGER t AFTER INSERT ON catalog BEGIN SELECT 1; END")
             elif which == "index":
                 con.execute("CREATE INDEX i ON blobs(crc32)")
             else:
@@ -175,17 +174,36 @@ def mutate(path: Path, rng: random.Random) -> str:
             data = old[:prefix] + frame
             update_blob(con, k, data=data, crc32=_blob_crc(k[:3], bk, data))
             desc = f"zstd bomb in {k} declaring {declared}"
-        elif kind == "keyjunk":  # a blob_keys row pointing or keyed where no row is
+        elif kind == "keyjunk":  # a blob key pointing or keyed where no row is
             k = rng.choice(keys)
             bk = blob_key(k[:3], k[3])
-            how = rng.choice(["text", "float", "negative", "huge", "kind7", "negkey"])
+            how = rng.choice(["zero", "negative", "huge", "twin", "kind7", "negkey"])
+            t = read_table(con)
+            blobs, ids = t.blobs.copy(), t.ids.copy()
+            i = int(np.flatnonzero(blobs == bk)[0])
             if how in ("kind7", "negkey"):
-                new = bk | 7 if how == "kind7" else -8
-                con.execute("UPDATE blob_keys SET key = ? WHERE key = ?", (new, bk))
+                blobs[i] = bk | 7 if how == "kind7" else -8
+                order = np.argsort(blobs)
+                blobs, ids = blobs[order], ids[order]
             else:
-                val = {"text": "1", "float": 1.5, "negative": -1, "huge": 1 << 62}[how]
-                con.execute("UPDATE blob_keys SET blob = ? WHERE key = ?", (val, bk))
+                ids[i] = {"zero": 0, "negative": -1, "huge": 1 << 62,
+                          "twin": ids[(i + 1) % len(ids)]}[how]
+            write_table(con, TileTable(t.tiles, t.numbers, blobs, ids))
             desc = f"blob key {k} {how}"
+        elif kind == "tablejunk":  # the tile table's row: junk or a bomb, valid checksum
+            how = rng.choice(["junk", "bomb", "raw", "short"])
+            if how == "junk":
+                data = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 200)))
+            elif how == "bomb":  # a head claiming 2^31 tiles, then a bomb
+                data = struct.pack("<BII", 1, 1 << 31, 0) + zstd_bomb(
+                    rng.choice([0, 16 << 30, 1 << 40]), rng.choice([2, 64, 512]))
+            elif how == "raw":  # raw, claiming more rows than it holds
+                data = struct.pack("<BII", 0, 1000, 1000) + bytes(64)
+            else:
+                data = b"\x01"
+            con.execute("UPDATE catalog SET data = ?, crc32 = ? WHERE id = ?",
+                        (data, catalog_crc(TILES_ID, data), TILES_ID))
+            desc = f"tile table {how}"
         else:  # blobjunk: random bytes with a valid bound checksum
             k = rng.choice(keys)
             data = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 200)))

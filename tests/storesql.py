@@ -1,20 +1,72 @@
 """A store's rows by tile key, through SQL: for tests that damage, edit or compare stores.
 
-Schema 3 keeps blob rows bare and finds them through ``blob_keys`` (geoterrain/store.py);
-these helpers address them by ``(level, x, y, kind)`` as the tests think of them.
+Schema 4 keeps blob rows bare and finds them through the tile table, a compressed row
+of ``catalog`` (geoterrain/store.py); these helpers address them by
+``(level, x, y, kind)`` as the tests think of them. Edits of the catalog rewrite its
+rows with valid checksums (a stranger's file may be consistent and still wrong).
 """
 
 from __future__ import annotations
 
-from geoterrain.store import blob_key, tile_key, unpack_blob_key, unpack_tile_key
+import numpy as np
 
-BLOB = "rowid = (SELECT blob FROM blob_keys WHERE key = ?)"  # one blob row, by its key
+from geoterrain.store import (
+    META_ID,
+    TILE_COLUMNS,
+    TILES_ID,
+    TileTable,
+    blob_key,
+    catalog_crc,
+    pack_metadata,
+    pack_tiles,
+    tile_key,
+    unpack_blob_key,
+    unpack_metadata,
+    unpack_tile_key,
+    unpack_tiles,
+)
+
+
+def _row(con, row_id: int) -> bytes:
+    return con.execute("SELECT data FROM catalog WHERE id = ?", (row_id,)).fetchone()[0]
+
+
+def _put_row(con, row_id: int, data: bytes) -> None:
+    con.execute("UPDATE catalog SET data = ?, crc32 = ? WHERE id = ?",
+                (data, catalog_crc(row_id, data), row_id))
+
+
+def read_table(con) -> TileTable:
+    """The tile table as stored."""
+    return unpack_tiles(_row(con, TILES_ID))
+
+
+def write_table(con, t: TileTable) -> None:
+    """Replace the tile table (valid checksum)."""
+    _put_row(con, TILES_ID, pack_tiles(t))
+
+
+def read_meta(con) -> dict:
+    """The metadata as stored."""
+    return unpack_metadata(_row(con, META_ID))
+
+
+def write_meta(con, meta: dict) -> None:
+    """Replace the metadata (valid checksum)."""
+    _put_row(con, META_ID, pack_metadata(meta))
+
+
+def blob_id(con, k: tuple) -> int | None:
+    """The rowid of blob ``k`` = (level, x, y, kind), or None."""
+    t = read_table(con)
+    hit = np.flatnonzero(t.blobs == blob_key(k[:3], k[3]))
+    return int(t.ids[hit[0]]) if len(hit) else None
 
 
 def blob_keys(con, kind: str | None = None) -> list[tuple[int, int, int, str]]:
     """Every blob's (level, x, y, kind), in key order (only ``kind``'s if given)."""
     out = []
-    for (k,) in con.execute("SELECT key FROM blob_keys ORDER BY key"):
+    for k in read_table(con).blobs.tolist():
         key, knd = unpack_blob_key(k)
         if kind is None or knd == kind:
             out.append((*key, knd))
@@ -23,53 +75,76 @@ def blob_keys(con, kind: str | None = None) -> list[tuple[int, int, int, str]]:
 
 def read_blob(con, k: tuple, cols: str = "data") -> tuple:
     """Columns ``cols`` of blob ``k`` = (level, x, y, kind)."""
-    return con.execute(f"SELECT {cols} FROM blobs WHERE {BLOB}",
-                       (blob_key(k[:3], k[3]),)).fetchone()
+    return con.execute(f"SELECT {cols} FROM blobs WHERE rowid = ?", (blob_id(con, k),)).fetchone()
 
 
 def update_blob(con, k: tuple, **cols) -> None:
     """Set columns of blob ``k`` (``data=...``, ``crc32=...``)."""
     sets = ", ".join(f"{c}=?" for c in cols)
-    con.execute(f"UPDATE blobs SET {sets} WHERE {BLOB}", (*cols.values(), blob_key(k[:3], k[3])))
+    con.execute(f"UPDATE blobs SET {sets} WHERE rowid = ?", (*cols.values(), blob_id(con, k)))
+
+
+def _drop_key(con, k: tuple) -> None:
+    t = read_table(con)
+    keep = t.blobs != blob_key(k[:3], k[3])
+    write_table(con, TileTable(t.tiles, t.numbers, t.blobs[keep], t.ids[keep]))
 
 
 def delete_blob(con, k: tuple, row: bool = True, key: bool = False) -> None:
-    """Delete blob ``k``'s row (``row``) and/or its entry in blob_keys (``key``)."""
-    bk = blob_key(k[:3], k[3])
+    """Delete blob ``k``'s row (``row``) and/or its entry in the tile table (``key``)."""
     if row:
-        con.execute(f"DELETE FROM blobs WHERE {BLOB}", (bk,))
+        con.execute("DELETE FROM blobs WHERE rowid = ?", (blob_id(con, k),))
     if key:
-        con.execute("DELETE FROM blob_keys WHERE key = ?", (bk,))
+        _drop_key(con, k)
 
 
 def remove_blob(con, k: tuple) -> None:
     """Remove blob ``k`` as if it had never been written: its row and key go, and the
     last row takes its rowid (a store's rows fill their rowid range)."""
-    bk = blob_key(k[:3], k[3])
-    (gap,) = con.execute("SELECT blob FROM blob_keys WHERE key = ?", (bk,)).fetchone()
+    gap = blob_id(con, k)
     delete_blob(con, k, key=True)
     (top,) = con.execute("SELECT MAX(rowid) FROM blobs").fetchone()
     if top is not None and top > gap:
         con.execute("UPDATE blobs SET rowid = ? WHERE rowid = ?", (gap, top))
-        con.execute("UPDATE blob_keys SET blob = ? WHERE blob = ?", (gap, top))
+        t = read_table(con)
+        write_table(con, TileTable(t.tiles, t.numbers, t.blobs,
+                                   np.where(t.ids == top, gap, t.ids)))
 
 
 def all_blobs(con) -> dict[tuple[int, int, int, str], bytes]:
     """Every blob's bytes by (level, x, y, kind)."""
-    rows = con.execute("SELECT k.key, b.data FROM blob_keys k JOIN blobs b ON b.rowid = k.blob")
-    return {(*key, kind): bytes(d) for key, kind, d in
-            ((*unpack_blob_key(k), d) for k, d in rows)}
+    t = read_table(con)
+    data = dict(con.execute("SELECT rowid, data FROM blobs"))
+    pairs = zip(t.blobs.tolist(), t.ids.tolist(), strict=True)
+    return {(*key, kind): bytes(data[i]) for key, kind, i in
+            ((*unpack_blob_key(k), i) for k, i in pairs)}
 
 
 def all_tiles(con) -> dict[tuple[int, int, int], tuple]:
-    """Every tile row's numbers and checksum by (level, x, y)."""
-    return {unpack_tile_key(r[0]): tuple(r[1:]) for r in con.execute("SELECT * FROM tiles")}
+    """Every tile's numbers (in the order of TILE_COLUMNS) by (level, x, y)."""
+    t = read_table(con)
+    return {unpack_tile_key(k): tuple(r)
+            for k, r in zip(t.tiles.tolist(), t.numbers.tolist(), strict=True)}
 
 
 def tile_row(con, key: tuple) -> tuple:
-    """The tile row of (level, x, y), its packed key first."""
-    return con.execute("SELECT * FROM tiles WHERE key = ?", (tile_key(key),)).fetchone()
+    """The numbers of tile (level, x, y), in the order of TILE_COLUMNS."""
+    return all_tiles(con)[tuple(key)]
+
+
+def put_tile(con, key: tuple, numbers: tuple) -> None:
+    """Add (or replace) tile (level, x, y) with ``numbers`` (valid checksum)."""
+    t = read_table(con)
+    k = tile_key(key)
+    keep = t.tiles != k
+    tiles = np.append(t.tiles[keep], k)
+    nums = np.vstack([t.numbers[keep], np.array(numbers, np.float64).reshape(1, len(TILE_COLUMNS))])
+    order = np.argsort(tiles)
+    write_table(con, TileTable(tiles[order], nums[order], t.blobs, t.ids))
 
 
 def delete_tile(con, key: tuple) -> None:
-    con.execute("DELETE FROM tiles WHERE key = ?", (tile_key(key),))
+    """Remove tile (level, x, y) from the tile table (its blobs stay; valid checksum)."""
+    t = read_table(con)
+    keep = t.tiles != tile_key(key)
+    write_table(con, TileTable(t.tiles[keep], t.numbers[keep], t.blobs, t.ids))

@@ -19,7 +19,6 @@ from geoterrain.lod import rtin
 from geoterrain.lod.clip import clip_in_place
 from geoterrain.measure import vertical_error
 from geoterrain.reference import static_mesh
-from geoterrain.store import _meta_crc
 from geoterrain.synth import generate, write_geotiff
 
 _T: dict = {}
@@ -176,21 +175,18 @@ def test_clipping_keeps_exactly_the_rectangle(n, e, seed, fr, fc):
 def test_a_delta_edge_list_naming_a_missing_tile_is_refused(tmp_path):
     """The tiles with a second δ come from the metadata of a file that may come from a
     stranger: a list naming a tile the store does not hold fails to open, in one line."""
-    import json
     import sqlite3
+
+    from tests.storesql import read_meta, write_meta
 
     z = generate("fbm", 65, seed=4)[:50, :40]
     dem = write_geotiff(tmp_path / "d.tif", z)
     p = geoterrain.preprocess(dem, tmp_path / "d.geoterrain", tile_size=16)
     con = sqlite3.connect(p)
-    (raw,) = con.execute("SELECT value FROM metadata WHERE name='delta_edge'").fetchone()
-    rows = json.loads(raw)
-    assert rows, "a padded store lists its tiles with a second δ"
-    rows.append([0, 99, 99, 1.0])
-    con.execute("UPDATE metadata SET value=? WHERE name='delta_edge'", (json.dumps(rows),))
-    meta = dict(con.execute("SELECT name, value FROM metadata WHERE name != 'metadata_crc32'"))
-    con.execute("UPDATE metadata SET value=? WHERE name='metadata_crc32'",
-                (json.dumps(_meta_crc(meta)),))  # a consistent file: only the list is wrong
+    meta = read_meta(con)
+    assert meta["delta_edge"], "a padded store lists its tiles with a second δ"
+    meta["delta_edge"].append([0, 99, 99, 1.0])
+    write_meta(con, meta)  # a consistent file: only the list is wrong
     con.commit()
     con.close()
     with pytest.raises(StoreCorruptError, match="delta_edge") as ex:

@@ -189,17 +189,16 @@ def test_a_damaged_block_table_is_refused_in_one_line(tmp_path):
     """The block δ_n table comes from a file that may come from a stranger: a table
     that decodes to NaN (under a valid checksum) or to too few values is refused in one
     line when geomipmap reads it, and a store without one uses the covering tiles."""
-    import json
     import sqlite3
 
     import zstandard
 
     import geoterrain
     from geoterrain.exceptions import StoreCorruptError
-    from geoterrain.store import _meta_crc, blob_crc
+    from geoterrain.store import blob_crc
     from geoterrain.synth import generate, write_geotiff
     from geoterrain.view import View
-    from tests.storesql import remove_blob, update_blob
+    from tests.storesql import read_meta, remove_blob, update_blob, write_meta
 
     dem = write_geotiff(tmp_path / "d.tif", generate("fbm", 65, seed=4))
     p = geoterrain.preprocess(dem, tmp_path / "d.geoterrain", tile_size=16)
@@ -222,10 +221,9 @@ def test_a_damaged_block_table_is_refused_in_one_line(tmp_path):
     # made consistent): it opens, and geomipmap takes the covering tiles' bound
     con = sqlite3.connect(p)
     remove_blob(con, (*key, "block_delta"))
-    con.execute("DELETE FROM metadata WHERE name='block_delta_levels'")
-    meta = dict(con.execute("SELECT name, value FROM metadata WHERE name != 'metadata_crc32'"))
-    con.execute("UPDATE metadata SET value=? WHERE name='metadata_crc32'",
-                (json.dumps(_meta_crc(meta)),))
+    meta = read_meta(con)
+    del meta["block_delta_levels"]
+    write_meta(con, meta)
     con.commit()
     con.close()
     with geoterrain.open(p) as t:

@@ -15,10 +15,10 @@ from geoterrain.exceptions import InputError, UsageError
 from geoterrain.mosaic import build_vrt
 from geoterrain.preprocessing import preprocess
 from tests.conftest import real_dem, write_tif
-from tests.storesql import all_blobs, all_tiles
+from tests.storesql import all_blobs, all_tiles, read_meta
 
 # what may differ between two stores of the same heights: the source's name and the clock
-_VOLATILE = {"source", "preprocess_seconds", "metadata_crc32"}
+_VOLATILE = {"source", "preprocess_seconds"}
 
 
 def store_contents(path: Path) -> tuple:
@@ -27,8 +27,7 @@ def store_contents(path: Path) -> tuple:
     try:
         blobs = sorted(all_blobs(con).items())
         tiles = sorted(all_tiles(con).items())
-        meta = {k: v for k, v in con.execute("SELECT name, value FROM metadata")
-                if k not in _VOLATILE}
+        meta = {k: v for k, v in read_meta(con).items() if k not in _VOLATILE}
     finally:
         con.close()
     return blobs, tiles, meta

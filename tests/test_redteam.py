@@ -94,16 +94,16 @@ STORE_CASES = [
     ("frame-kind", _meta("kind", "warped", "frame"), ["info", "{store}"], 1),
     ("step-x10", _meta("step", 10.0, "quantizer"), ["mesh", "{store}", "-o", "{d}/m.ply"], 1),
     ("grid-n-16", _meta("n", 16, "grid"), ["mesh", "{store}", "-o", "{d}/m.ply"], 1),
-    ("recursive-metadata-view", lambda s: _sql(
-        s, "ALTER TABLE metadata RENAME TO m0",
-        "CREATE VIEW metadata AS WITH RECURSIVE c(n) AS (SELECT 1 UNION ALL SELECT n+1 FROM c) "
-        "SELECT 'k'||n AS name, 'v' AS value FROM c"), ["info", "{store}"], 1),
+    ("recursive-catalog-view", lambda s: _sql(
+        s, "ALTER TABLE catalog RENAME TO c0",
+        "CREATE VIEW catalog AS WITH RECURSIVE c(n) AS (SELECT 1 UNION ALL SELECT n+1 FROM c) "
+        "SELECT n AS id, x'00' AS data, 0 AS crc32 FROM c"), ["info", "{store}"], 1),
     ("endless-blobs-view", lambda s: _sql(
         s, "ALTER TABLE blobs RENAME TO b0",
         "CREATE VIEW blobs AS WITH RECURSIVE c(n) AS (SELECT 1 UNION ALL SELECT n+1 FROM c) "
         "SELECT x'00' AS data, 0 AS crc32 FROM c"),
      ["render", "{store}", "-o", "{d}/r.png"], 1),
-    ("trigger", lambda s: _sql(s, "CREATE TRIGGER t AFTER INSERT ON tiles BEGIN SELECT 1; END"),
+    ("trigger", lambda s: _sql(s, "CREATE TRIGGER t AFTER INSERT ON catalog BEGIN SELECT 1; END"),
      ["info", "{store}"], 1),
     ("zstd-bomb", _bomb, ["mesh", "{store}", "-o", "{d}/m.ply"], 1),
     ("escape-in-metadata", _meta("schema_version", "\x1b[31mred"), ["info", "{store}"], 1),

@@ -4,12 +4,14 @@ import os
 import shutil
 import signal
 import sqlite3
+import struct
 import subprocess
 import sys
 import time
 
 import numpy as np
 import pytest
+import zstandard
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -17,14 +19,26 @@ import geoterrain
 from geoterrain.exceptions import StoreCorruptError, StoreError, UsageError, WriteError
 from geoterrain.store import (
     KIND_CODES,
+    META_ID,
+    TILE_COLUMNS,
     StoreReader,
     StoreWriter,
+    TileTable,
     blob_key,
+    catalog_crc,
+    pack_tiles,
     tile_key,
     unpack_blob_key,
     unpack_tile_key,
+    unpack_tiles,
 )
-from tests.storesql import blob_keys, delete_blob, read_blob, update_blob
+from tests.storesql import (
+    delete_blob,
+    read_blob,
+    read_table,
+    update_blob,
+    write_table,
+)
 
 
 def test_incomplete_temp_file_is_never_a_valid_store(tmp_path):
@@ -162,9 +176,9 @@ def test_keys_out_of_range_are_refused(bad):
         tile_key(bad)
 
 
-def _two_heights(con):
-    a, b = [k for k in blob_keys(con, "heights") if k[0] == 0][:2]
-    return blob_key(a[:3], "heights"), blob_key(b[:3], "heights")
+def _two_heights(t):
+    return [i for i, k in enumerate(t.blobs.tolist())
+            if unpack_blob_key(k)[1] == "heights" and unpack_blob_key(k)[0][0] == 0][:2]
 
 
 def test_blob_pointers_are_checked(tmp_path, fbm_tif):
@@ -176,28 +190,24 @@ def test_blob_pointers_are_checked(tmp_path, fbm_tif):
     shared, swapped = tmp_path / "shared.geoterrain", tmp_path / "swapped.geoterrain"
     shutil.copy(store, shared)
     shutil.copy(store, swapped)
-    with sqlite3.connect(shared) as con:
-        ka, kb = _two_heights(con)
-        con.execute("UPDATE blob_keys SET blob = (SELECT blob FROM blob_keys WHERE key = ?) "
-                    "WHERE key = ?", (kb, ka))
+    for path in (shared, swapped):
+        with sqlite3.connect(path) as con:
+            t = read_table(con)
+            a, b = _two_heights(t)
+            ids = t.ids.copy()
+            ids[a], ids[b] = (ids[b], ids[b]) if path == shared else (ids[b], ids[a])
+            write_table(con, TileTable(t.tiles, t.numbers, t.blobs, ids))
     with pytest.raises(StoreCorruptError, match="blobs do not match"):
         geoterrain.open(shared)
-    with sqlite3.connect(swapped) as con:
-        ka, kb = _two_heights(con)
-        (ia,), (ib,) = (con.execute("SELECT blob FROM blob_keys WHERE key = ?", (k,)).fetchone()
-                        for k in (ka, kb))
-        con.execute("UPDATE blob_keys SET blob = ? WHERE key = ?", (-1, ka))
-        con.execute("UPDATE blob_keys SET blob = ? WHERE key = ?", (ia, kb))
-        con.execute("UPDATE blob_keys SET blob = ? WHERE key = ?", (ib, ka))
-    for k in (ka, kb):
-        with geoterrain.open(swapped) as t, pytest.raises(StoreCorruptError, match="checksum"):
-            t.tile(*unpack_blob_key(k)[0])
+    for i in (a, b):
+        with geoterrain.open(swapped) as s, pytest.raises(StoreCorruptError, match="checksum"):
+            s.tile(*unpack_blob_key(int(t.blobs[i]))[0])
     with geoterrain.open(store) as t:  # the original still reads
         assert np.array_equal(t.tile(*t.tile_keys(0)[0]).heights, want, equal_nan=True)
 
 
 def test_a_vacuumed_store_reads_the_same(tmp_path, fbm_tif):
-    """blob_keys holds the blob rows' ids, so they are the table's INTEGER PRIMARY KEY
+    """The tile table holds the blob rows' ids, so they are the table's INTEGER PRIMARY KEY
     (SQLite's VACUUM may renumber the rowids of a table without one): a vacuumed store
     reads every tile as before."""
     store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
@@ -221,29 +231,105 @@ CREATE TABLE blobs (level INTEGER NOT NULL, x INTEGER NOT NULL, y INTEGER NOT NU
 """
 
 
+_V3_SCHEMA = """
+CREATE TABLE metadata (name TEXT NOT NULL, value TEXT NOT NULL);
+CREATE TABLE tiles (key INTEGER PRIMARY KEY, nvalid INTEGER NOT NULL, crc32 INTEGER NOT NULL);
+CREATE TABLE blobs (id INTEGER PRIMARY KEY, data BLOB NOT NULL, crc32 INTEGER NOT NULL);
+CREATE TABLE blob_keys (key INTEGER PRIMARY KEY, blob INTEGER NOT NULL);
+"""
+
+
+@pytest.mark.parametrize("version,schema", [(2, _V2_SCHEMA), (3, _V3_SCHEMA)])
 @pytest.mark.parametrize("extra", ["", "CREATE TRIGGER t AFTER INSERT ON tiles BEGIN "
                                        "SELECT 1; END;"])
-def test_a_schema_2_store_says_to_rebuild_it(tmp_path, extra):
-    """A store of the previous schema is told apart from a stranger's file: its version
+def test_an_older_store_says_to_rebuild_it(tmp_path, version, schema, extra):
+    """A store of a previous schema is told apart from a stranger's file: its version
     and the rebuild command, read only when the file holds nothing but the old tables."""
     p = tmp_path / "old.geoterrain"
     con = sqlite3.connect(p)
-    con.executescript(_V2_SCHEMA + extra)
-    con.execute("INSERT INTO metadata VALUES ('schema_version', '2')")
+    con.executescript(schema + extra)
+    con.execute("INSERT INTO metadata VALUES ('schema_version', ?)", (str(version),))
     con.commit()
     con.close()
     if extra:
         with pytest.raises(StoreError, match="not a geoterrain store"):
             StoreReader(p)
     else:
-        with pytest.raises(StoreError, match="schema version 2.*preprocess DEM --overwrite"):
+        with pytest.raises(StoreError,
+                           match=f"schema version {version}.*preprocess DEM --overwrite"):
             StoreReader(p)
 
 
 def test_a_repeated_metadata_name_is_refused(tmp_path, fbm_tif):
+    """The metadata is one JSON object: a name given twice (which JSON readers resolve
+    by keeping either) is refused, at any depth, even with a valid checksum."""
+    store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
+    for twice in ('{"schema_version": 4, "complete": true, "complete": true}',
+                  '{"schema_version": 4, "complete": true, "grid": {"n": 1, "n": 2}}'):
+        bad = tmp_path / "bad.geoterrain"
+        shutil.copy(store, bad)
+        data = zstandard.ZstdCompressor().compress(twice.encode())
+        with sqlite3.connect(bad) as con:
+            con.execute("UPDATE catalog SET data = ?, crc32 = ? WHERE id = ?",
+                        (data, catalog_crc(META_ID, data), META_ID))
+        with pytest.raises(StoreError, match="metadata"):
+            geoterrain.open(bad)
+
+
+def test_a_stray_catalog_row_is_refused(tmp_path, fbm_tif):
     store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
     with sqlite3.connect(store) as con:
-        con.execute("INSERT INTO metadata SELECT name, value FROM metadata "
-                    "WHERE name = 'quantizer'")
-    with pytest.raises(StoreError, match="twice"):
+        con.execute("INSERT INTO catalog VALUES (7, x'00', 0)")
+    with pytest.raises(StoreError, match="rows of no meaning"):
         geoterrain.open(store)
+
+
+_KEYS = st.lists(st.integers(0, (1 << 62) - 1), max_size=40, unique=True).map(sorted)
+
+
+@settings(max_examples=200, deadline=None)
+@given(tiles=_KEYS, blobs=_KEYS, seed=st.integers(0, 2**32 - 1), flat=st.booleans())
+def test_the_tile_table_round_trips(tiles, blobs, seed, flat):
+    """pack_tiles / unpack_tiles give back every key, number (NaN and ±inf too) and
+    id; whatever the compression ratio (a flat table may be stored raw)."""
+    rng = np.random.default_rng(seed)
+    nums = (np.zeros((len(tiles), len(TILE_COLUMNS))) if flat
+            else rng.normal(size=(len(tiles), len(TILE_COLUMNS))) * 1e3)
+    if len(tiles) and not flat:
+        nums[rng.integers(len(tiles)), rng.integers(1, len(TILE_COLUMNS))] = np.nan
+        nums[rng.integers(len(tiles)), rng.integers(1, len(TILE_COLUMNS))] = -np.inf
+    ids = rng.permutation(len(blobs)).astype(np.int64) + 1
+    t = TileTable(np.array(tiles, np.int64), nums, np.array(blobs, np.int64), ids)
+    u = unpack_tiles(pack_tiles(t))
+    assert np.array_equal(u.tiles, t.tiles) and np.array_equal(u.blobs, t.blobs)
+    assert np.array_equal(u.ids, t.ids)
+    assert np.array_equal(u.numbers, t.numbers, equal_nan=True)
+
+
+def test_a_flat_table_past_the_ratio_cap_is_stored_raw():
+    n = 20000  # all-equal numbers and regular keys compress far past RATIO_CAP
+    t = TileTable(np.arange(n, dtype=np.int64) * 32, np.zeros((n, len(TILE_COLUMNS))),
+                  np.zeros(0, np.int64), np.zeros(0, np.int64))
+    data = pack_tiles(t)
+    assert data[0] == 0 and len(data) > 8 * n * (1 + len(TILE_COLUMNS))
+    assert np.array_equal(unpack_tiles(data).tiles, t.tiles)
+
+
+@pytest.mark.parametrize("tiles", [[5, 5], [7, 3], [-32, 0]])
+def test_a_table_whose_keys_do_not_ascend_is_refused(tiles):
+    t = TileTable(np.array(tiles, np.int64), np.zeros((2, len(TILE_COLUMNS))),
+                  np.zeros(0, np.int64), np.zeros(0, np.int64))
+    with pytest.raises(ValueError, match="ascending"):
+        unpack_tiles(pack_tiles(t))
+
+
+def test_a_table_claiming_more_than_its_bytes_allow_is_refused():
+    """A head claiming 2^31 tiles over a few bytes of zstd is refused before any
+    allocation (RATIO_CAP), as is a raw row shorter than its counts."""
+    bomb = struct.pack("<BII", 1, 1 << 31, 0) + zstandard.ZstdCompressor().compress(b"x")
+    with pytest.raises(ValueError, match="too many"):
+        unpack_tiles(bomb)
+    with pytest.raises(ValueError, match="size"):
+        unpack_tiles(struct.pack("<BII", 0, 10, 0) + bytes(80))
+
+

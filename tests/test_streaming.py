@@ -21,18 +21,17 @@ from geoterrain.exceptions import InputError, UsageError
 from geoterrain.preprocessing import preprocess
 from geoterrain.streaming import preprocess_streaming
 from tests.conftest import real_dem
-from tests.storesql import all_blobs, all_tiles
+from tests.storesql import all_blobs, all_tiles, read_meta
 
 
 def _content(path) -> tuple[dict, dict, dict]:
     con = sqlite3.connect(path)
     try:
         blobs, tiles = all_blobs(con), all_tiles(con)
-        meta = {k: json.loads(v) for k, v in con.execute("SELECT * FROM metadata")}
+        meta = read_meta(con)
     finally:
         con.close()
-    for k in ("preprocess_seconds", "metadata_crc32"):  # timings differ, and so their crc
-        meta.pop(k)
+    meta.pop("preprocess_seconds")  # timings differ
     return blobs, tiles, meta
 
 
