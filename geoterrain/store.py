@@ -84,6 +84,7 @@ RATIO_CAP = 256  # a zstd catalog row decodes to at most this many times its byt
 _RATIO_SLACK = 1 << 16
 _TABLE_HEAD = struct.Struct("<BII")  # format (0 raw, 1 zstd), tiles, blobs
 _ZSTD_CATALOG = 19  # a few kB of numbers in most stores: the strongest level costs little
+_ZSTD_STRONG_MAX = 1 << 20  # ... up to a table of this many bytes (see pack_tiles)
 
 # The only schema objects a store may hold: these two tables, their SQL word for word
 # (a reader compares it), and no index, view or trigger. Each id is the rowid (an
@@ -95,6 +96,10 @@ _TABLE_SQL = {
              "crc32 INTEGER NOT NULL)",
 }
 _SCHEMA = "".join(f"{sql};\n" for sql in _TABLE_SQL.values())
+# the writer's staging of the tile table (temp tables: never in the store's file)
+_STAGING = ("CREATE TEMP TABLE staged_tiles (key INTEGER PRIMARY KEY, "
+            + ", ".join(f"n{j} REAL" for j in range(len(TILE_COLUMNS))) + ");\n"
+            "CREATE TEMP TABLE staged_blobs (key INTEGER PRIMARY KEY, blob INTEGER NOT NULL);\n")
 # the tables of schema versions 1 to 3 (a reader still finds their version)
 _OLD_TABLES = ("metadata", "tiles", "blobs", "blob_keys")
 _OLD_METADATA_SQL = ("CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT NOT NULL)",
@@ -155,11 +160,50 @@ def _ascending(raw: bytes, n: int) -> np.ndarray:
     return a
 
 
+def _delta_chunks(chunks):
+    # int64 differences of an ascending column given in chunks (the first from 0)
+    last = np.int64(0)
+    for c in chunks:
+        c = np.asarray(c, np.int64)
+        if len(c):
+            yield np.diff(c, prepend=last).astype("<i8").tobytes()
+            last = c[-1]
+
+
+def _shuffled(col: np.ndarray) -> bytes:
+    # a float64 column's bytes by significance: every value's first byte, then second...
+    return np.ascontiguousarray(col, "<f8").view(np.uint8).reshape(len(col), 8).T.tobytes()
+
+
+def _table_columns(table: TileTable):
+    # pack_tiles' stream of bytes, one column at a time
+    yield from _delta_chunks([table.tiles])
+    nums = np.asarray(table.numbers, np.float64).reshape(len(table.tiles), len(TILE_COLUMNS))
+    for j in range(len(TILE_COLUMNS)):
+        yield _shuffled(nums[:, j])
+    yield from _delta_chunks([table.blobs])
+    yield from _delta_chunks([table.ids])
+
+
+def _pack_stream(n: int, m: int, columns) -> bytes:
+    # the catalog row of a tile table of n tiles and m blobs whose bytes ``columns()``
+    # gives in pieces (see pack_tiles); it is called twice for a raw row
+    size = 8 * (n * (1 + len(TILE_COLUMNS)) + 2 * m)
+    level = _ZSTD_CATALOG if size <= _ZSTD_STRONG_MAX else 3
+    z = zstandard.ZstdCompressor(level=level).compressobj(size=size)
+    packed = b"".join([z.compress(c) for c in columns()] + [z.flush()])
+    if size > RATIO_CAP * len(packed) + _RATIO_SLACK:
+        return _TABLE_HEAD.pack(0, n, m) + b"".join(columns())
+    return _TABLE_HEAD.pack(1, n, m) + packed
+
+
 def pack_tiles(table: TileTable) -> bytes:
     """The tile table's catalog row: a head (format, tile and blob counts), then the key
     columns as differences, the numbers column by column with their bytes shuffled
-    (bytes of one significance together), and the ids as differences; zstd, or raw
-    when zstd would pass :data:`RATIO_CAP` (a store's own rows always read back).
+    (bytes of one significance together), and the ids as differences; zstd (level 19 up
+    to 1 MiB, whose compressor then needs a few MB; 3 above, where 19 would need about
+    100 MB), or raw when zstd would pass :data:`RATIO_CAP` (a store's own rows always
+    read back).
 
     Examples
     --------
@@ -169,15 +213,7 @@ def pack_tiles(table: TileTable) -> bytes:
     >>> [np.array_equal(getattr(t, f), getattr(u, f)) for f in ("tiles", "numbers", "blobs", "ids")]
     [True, True, True, True]
     """
-    n, m = len(table.tiles), len(table.blobs)
-    nums = np.ascontiguousarray(table.numbers, "<f8").reshape(n, len(TILE_COLUMNS)).T
-    shuffled = nums.copy().view(np.uint8).reshape(len(TILE_COLUMNS), n, 8).transpose(0, 2, 1)
-    raw = (_deltas(table.tiles) + shuffled.tobytes() + _deltas(table.blobs)
-           + _deltas(table.ids))
-    packed = zstandard.ZstdCompressor(level=_ZSTD_CATALOG).compress(raw)
-    if len(raw) > RATIO_CAP * len(packed) + _RATIO_SLACK:
-        return _TABLE_HEAD.pack(0, n, m) + raw
-    return _TABLE_HEAD.pack(1, n, m) + packed
+    return _pack_stream(len(table.tiles), len(table.blobs), lambda: _table_columns(table))
 
 
 def unpack_tiles(data: bytes) -> TileTable:
@@ -308,12 +344,11 @@ class StoreWriter:
         self.tmp = parent / f".{self.dst.name}.partial-{os.getpid()}"
         self.overwrite = overwrite
         self._meta: dict = {}
-        self._tiles: list[tuple[np.ndarray, np.ndarray]] = []  # (keys, numbers) a call
-        self._ids: list[np.ndarray] = []  # (blob key, rowid) pairs of each batch
         self._rows: list[tuple] = []  # blob rows not yet inserted (see _flush)
         self._row_bytes = 0
         self._rowid = 0  # rows inserted so far: the next one's rowid is this + 1
         self._committed = False
+        self._n = 0  # tiles staged, counted at commit
         try:
             if self.tmp.exists():
                 self.tmp.unlink()
@@ -332,6 +367,13 @@ class StoreWriter:
         self.con.execute("PRAGMA synchronous=OFF")
         self.con.execute(f"PRAGMA application_id={APPLICATION_ID}")
         self.con.executescript(_SCHEMA)
+        # the tile table is staged in SQLite's temporary database (a file of its own,
+        # deleted when the connection closes; its pages cached in at most 2 MB), so a
+        # large pyramid's table costs the writer no memory until commit, and then a
+        # column at a time (pack_tiles)
+        self.con.execute("PRAGMA temp_store=FILE")
+        self.con.execute("PRAGMA temp.cache_size=-2000")
+        self.con.executescript(_STAGING)
         self.con.execute("BEGIN")
 
     def _guard(self, fn, *args):
@@ -382,34 +424,45 @@ class StoreWriter:
         order = pack_order(sizes, PAGE_SIZE - LEAF_HEADER)
         self.con.executemany("INSERT INTO blobs VALUES (NULL,?,?)",
                              (rows[i][1:] for i in order))
-        self._ids.append(np.array([(rows[i][0], rowid) for rowid, i
-                                   in enumerate(order, self._rowid + 1)], np.int64))
+        self.con.executemany("INSERT INTO temp.staged_blobs VALUES (?,?)", (
+            (rows[i][0], rowid) for rowid, i in enumerate(order, self._rowid + 1)))
         self._rowid = last
 
     def put_tiles(self, rows: dict[tuple[int, int, int], tuple]) -> None:
         """Per-tile numbers, in the order of :data:`TILE_COLUMNS`."""
-        if rows:
-            keys = np.fromiter((tile_key(k) for k in rows), np.int64, len(rows))
-            nums = np.array([[np.nan if v is None else float(v) for v in r]
-                             for r in rows.values()], np.float64)
-            if nums.shape != (len(rows), len(TILE_COLUMNS)):
+        for r in rows.values():
+            if len(r) != len(TILE_COLUMNS):
                 raise ValueError(f"a tile row holds {len(TILE_COLUMNS)} numbers")
-            self._tiles.append((keys, nums))
+        marks = ", ".join("?" * (1 + len(TILE_COLUMNS)))
+        self._guard(self.con.executemany, f"INSERT INTO temp.staged_tiles VALUES ({marks})",
+                    ((tile_key(k), *r) for k, r in rows.items()))
+
+    def _staged_columns(self):
+        # the staged table's bytes for pack_tiles, a column at a time, in key order
+        # (the staging tables' primary keys); SQL NULL is NaN (SQLite stores no NaN)
+        def rows(sql):
+            cur = self.con.execute(sql)
+            while chunk := cur.fetchmany(1 << 16):
+                yield chunk
+
+        yield from _delta_chunks(np.fromiter((r[0] for r in c), np.int64, len(c))
+                                 for c in rows("SELECT key FROM temp.staged_tiles"))
+        for j in range(len(TILE_COLUMNS)):
+            col = np.fromiter((np.nan if v is None else v for c in rows(
+                f"SELECT n{j} FROM temp.staged_tiles") for (v,) in c), np.float64, self._n)
+            yield _shuffled(col)
+        for what in ("key", "blob"):
+            yield from _delta_chunks(np.fromiter((r[0] for r in c), np.int64, len(c)) for c
+                                     in rows(f"SELECT {what} FROM temp.staged_blobs"))
 
     def _tile_table(self) -> bytes:
-        """The tile table's catalog row (keys sorted and checked distinct), and the
-        metadata's tile counts."""
-        tk = np.concatenate([k for k, _ in self._tiles] or [np.zeros(0, np.int64)])
-        tn = np.concatenate([n for _, n in self._tiles]
-                            or [np.zeros((0, len(TILE_COLUMNS)))])
-        ids = np.concatenate(self._ids or [np.zeros((0, 2), np.int64)])
-        self._tiles, self._ids = [], []
-        order, border = np.argsort(tk, kind="stable"), np.argsort(ids[:, 0], kind="stable")
-        tk, tn, ids = tk[order], tn[order], ids[border]
-        if (np.diff(tk) == 0).any() or (np.diff(ids[:, 0]) == 0).any():
-            raise WriteError(f"cannot write {self.dst}: a tile or blob was given twice")
-        self._meta["tile_counts"] = tile_counts([(int(L),) for L in (tk & 31).tolist()])
-        return pack_tiles(TileTable(tk, tn, ids[:, 0], ids[:, 1]))
+        """The tile table's catalog row, and the metadata's tile counts."""
+        counts = self.con.execute("SELECT key & 31, COUNT(*) FROM temp.staged_tiles "
+                                  "GROUP BY 1 ORDER BY 1").fetchall()
+        self._meta["tile_counts"] = {str(L): c for L, c in counts}
+        self._n = sum(c for _, c in counts)
+        (m,) = self.con.execute("SELECT COUNT(*) FROM temp.staged_blobs").fetchone()
+        return _pack_stream(self._n, m, self._staged_columns)
 
     def commit(self) -> Path:
         """Finish: write the catalog, the metadata with its complete flag, fsync,

@@ -306,6 +306,52 @@ def test_the_tile_table_round_trips(tiles, blobs, seed, flat):
     assert np.array_equal(u.numbers, t.numbers, equal_nan=True)
 
 
+def test_the_writer_packs_its_staged_table_as_pack_tiles_does(tmp_path, fbm_tif):
+    """The writer streams its tile table from SQLite's temporary tables a column at a
+    time; the row it writes is the one pack_tiles makes of the table read back, and no
+    staging table is left in the store."""
+    store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain", tile_size=16)
+    r = StoreReader(store)
+    t = r.table()
+    assert len(t.tiles) > 1 and len(t.blobs) >= 4 * len(t.tiles)
+    (row,) = r.con.execute("SELECT data FROM catalog WHERE id = 1").fetchone()
+    assert row == pack_tiles(t)
+    assert [n for (n,) in r.con.execute("SELECT name FROM sqlite_master")] == ["catalog",
+                                                                               "blobs"]
+
+
+def test_a_large_staged_table_reads_back_exactly(tmp_path):
+    """More tiles and blobs than one fetch of the staging tables (65 536) and a table
+    past 1 MiB (zstd level 3): every key, number (None as NaN) and id reads back."""
+    rng = np.random.default_rng(5)
+    n = 70_000
+    keys = [(0, int(x), int(y)) for x, y in rng.permutation(300 * 300)[:n, None]
+            // np.array([1, 300]) % 300]
+    nums = rng.normal(size=(n, len(TILE_COLUMNS))) * 1e4
+    nums[:, 0] = rng.integers(0, 4226, n)
+    nums[::7, 3] = np.nan
+    rows = {k: tuple(None if v != v else float(v) for v in r)
+            for k, r in zip(keys, nums.tolist(), strict=True)}
+    with StoreWriter(tmp_path / "big.geoterrain") as w:
+        for i in range(0, n, 9_999):  # in calls, as the preprocess puts a tile row
+            part = keys[i:i + 9_999]
+            w.put_tiles({k: rows[k] for k in part})
+            w.put_blobs("heights", {k: bytes([i % 251]) for k in part})
+        w.commit()
+    r = StoreReader(tmp_path / "big.geoterrain")
+    t = r.table()
+    order = np.argsort([tile_key(k) for k in keys])
+    assert np.array_equal(t.tiles, np.sort([tile_key(k) for k in keys]))
+    assert np.array_equal(t.numbers, nums[order], equal_nan=True)
+    assert np.array_equal(t.blobs, np.sort([blob_key(k, "heights") for k in keys]))
+    assert sorted(t.ids.tolist()) == list(range(1, n + 1))
+    for k in keys[:50]:
+        assert r.get_blob(k, "heights") == bytes([keys.index(k) // 9_999 * 9_999 % 251])
+    (row,) = r.con.execute("SELECT data FROM catalog WHERE id = 1").fetchone()
+    assert row[0] == 1 and row == pack_tiles(t)
+    assert r.metadata["tile_counts"] == {"0": n}
+
+
 def test_a_flat_table_past_the_ratio_cap_is_stored_raw():
     n = 20000  # all-equal numbers and regular keys compress far past RATIO_CAP
     t = TileTable(np.arange(n, dtype=np.int64) * 32, np.zeros((n, len(TILE_COLUMNS))),
