@@ -57,7 +57,9 @@ def exact_v1_copy(store: Path, dst: Path) -> Path:
         exact = {"delta": vertex_errors(Z, v), "radius": vertex_radii(X, Y, Z, v)}
         keys = list(t.tile_info)
     cctx = zstandard.ZstdCompressor(level=3)
-    table = StoreReader(dst).table()
+    reader = StoreReader(dst)
+    table = reader.table()
+    reader.close()
     rowid = dict(zip(table.blobs.tolist(), table.ids.tolist(), strict=True))
     con = sqlite3.connect(dst)
     for k in keys:

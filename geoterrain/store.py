@@ -44,13 +44,10 @@ import sqlite3
 import struct
 import threading
 import zlib
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import zstandard
 
-from geoterrain import zstdsafe
 from geoterrain.atomicfiles import publish, remove_stale_partials
 from geoterrain.exceptions import (
     StoreCorruptError,
@@ -60,6 +57,21 @@ from geoterrain.exceptions import (
     exists_error,
 )
 from geoterrain.pagepack import LEAF_HEADER, leaf_cell_size, pack_order
+from geoterrain.storecatalog import (  # noqa: F401 - the catalog's rows are the store's API
+    META_ID,
+    RATIO_CAP,
+    TILE_COLUMNS,
+    TILES_ID,
+    TileTable,
+    catalog_crc,
+    pack_metadata,
+    pack_stream,
+    pack_tiles,
+    table_columns,
+    tile_counts,
+    unpack_metadata,
+    unpack_tiles,
+)
 from geoterrain.storekeys import (  # noqa: F401 - the kinds and keys are the store's API
     BLOB_KINDS,
     BLOCK_KIND,
@@ -77,14 +89,6 @@ SCHEMA_VERSION = 4  # 2: checksums bound to their tile and kind; per-level key d
 PAGE_SIZE = 1024  # bytes per SQLite page of a written store
 PACK_BYTES = 4 << 20  # blob bytes a writer holds before inserting them, packed (pagepack)
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
-TILE_COLUMNS = ("nvalid", "zmin", "zmax", "error", "boundary_error",
-                "xmin", "xmax", "ymin", "ymax", "delta_max", "radius_max")
-META_ID, TILES_ID = 0, 1  # the catalog rows of the metadata and of the tile table
-RATIO_CAP = 256  # a zstd catalog row decodes to at most this many times its bytes + 64 kB
-_RATIO_SLACK = 1 << 16
-_TABLE_HEAD = struct.Struct("<BII")  # format (0 raw, 1 zstd), tiles, blobs
-_ZSTD_CATALOG = 19  # a few kB of numbers in most stores: the strongest level costs little
-_ZSTD_STRONG_MAX = 1 << 20  # ... up to a table of this many bytes (see pack_tiles)
 
 # The only schema objects a store may hold: these two tables, their SQL word for word
 # (a reader compares it), and no index, view or trigger. Each id is the rowid (an
@@ -104,7 +108,6 @@ _STAGING = ("CREATE TEMP TABLE staged_tiles (key INTEGER PRIMARY KEY, "
 _OLD_TABLES = ("metadata", "tiles", "blobs", "blob_keys")
 _OLD_METADATA_SQL = ("CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT NOT NULL)",
                      "CREATE TABLE metadata (name TEXT NOT NULL, value TEXT NOT NULL)")
-_META_MAX_BYTES = 1 << 20  # metadata is a few kB; more is not a store of ours
 # a damaged schema's SQLite error message may not even decode as UTF-8
 _DB_ERRORS = (sqlite3.DatabaseError, UnicodeDecodeError)
 REBUILD = "rebuild it with `geoterrain preprocess DEM --overwrite`"
@@ -119,172 +122,6 @@ def blob_crc(key: tuple[int, int, int], kind: str, data: bytes) -> int:
     True
     """
     return zlib.crc32(data, zlib.crc32(struct.pack("<3q", *key) + kind.encode()))
-
-
-def catalog_crc(row_id: int, data: bytes) -> int:
-    """CRC-32 of a catalog row bound to its id.
-
-    Examples
-    --------
-    >>> catalog_crc(0, b"x") != catalog_crc(1, b"x")
-    True
-    """
-    return zlib.crc32(data, zlib.crc32(struct.pack("<q", row_id)))
-
-
-@dataclass(frozen=True)
-class TileTable:
-    """The catalog's tile table: every tile and every blob, ascending by key.
-
-    ``numbers`` is (tiles, len(TILE_COLUMNS)) float64 in the order of
-    :data:`TILE_COLUMNS`, NaN where a number is absent (an empty tile's bounds).
-    """
-
-    tiles: np.ndarray  # int64 packed tile keys (tile_key)
-    numbers: np.ndarray  # float64 (tiles, 11)
-    blobs: np.ndarray  # int64 packed blob keys (blob_key)
-    ids: np.ndarray  # int64 their rowids in ``blobs``
-
-
-def _deltas(a: np.ndarray) -> bytes:
-    return np.diff(a.astype("<i8"), prepend=np.int64(0)).astype("<i8").tobytes()
-
-
-def _ascending(raw: bytes, n: int) -> np.ndarray:
-    # a delta-coded key column back; each step must be > 0 (so the keys are distinct),
-    # and a sum past 2^63 wraps below its predecessor, which the same test refuses
-    d = np.frombuffer(raw, "<i8", n)
-    a = np.cumsum(d, dtype=np.int64)
-    if n and (a[0] < 0 or (d[1:] <= 0).any() or (np.diff(a) <= 0).any()):
-        raise ValueError("keys not ascending")
-    return a
-
-
-def _delta_chunks(chunks):
-    # int64 differences of an ascending column given in chunks (the first from 0)
-    last = np.int64(0)
-    for c in chunks:
-        c = np.asarray(c, np.int64)
-        if len(c):
-            yield np.diff(c, prepend=last).astype("<i8").tobytes()
-            last = c[-1]
-
-
-def _shuffled(col: np.ndarray) -> bytes:
-    # a float64 column's bytes by significance: every value's first byte, then second...
-    return np.ascontiguousarray(col, "<f8").view(np.uint8).reshape(len(col), 8).T.tobytes()
-
-
-def _table_columns(table: TileTable):
-    # pack_tiles' stream of bytes, one column at a time
-    yield from _delta_chunks([table.tiles])
-    nums = np.asarray(table.numbers, np.float64).reshape(len(table.tiles), len(TILE_COLUMNS))
-    for j in range(len(TILE_COLUMNS)):
-        yield _shuffled(nums[:, j])
-    yield from _delta_chunks([table.blobs])
-    yield from _delta_chunks([table.ids])
-
-
-def _pack_stream(n: int, m: int, columns) -> bytes:
-    # the catalog row of a tile table of n tiles and m blobs whose bytes ``columns()``
-    # gives in pieces (see pack_tiles); it is called twice for a raw row
-    size = 8 * (n * (1 + len(TILE_COLUMNS)) + 2 * m)
-    level = _ZSTD_CATALOG if size <= _ZSTD_STRONG_MAX else 3
-    z = zstandard.ZstdCompressor(level=level).compressobj(size=size)
-    packed = b"".join([z.compress(c) for c in columns()] + [z.flush()])
-    if size > RATIO_CAP * len(packed) + _RATIO_SLACK:
-        return _TABLE_HEAD.pack(0, n, m) + b"".join(columns())
-    return _TABLE_HEAD.pack(1, n, m) + packed
-
-
-def pack_tiles(table: TileTable) -> bytes:
-    """The tile table's catalog row: a head (format, tile and blob counts), then the key
-    columns as differences, the numbers column by column with their bytes shuffled
-    (bytes of one significance together), and the ids as differences; zstd (level 19 up
-    to 1 MiB, whose compressor then needs a few MB; 3 above, where 19 would need about
-    100 MB), or raw when zstd would pass :data:`RATIO_CAP` (a store's own rows always
-    read back).
-
-    Examples
-    --------
-    >>> t = TileTable(np.array([0, 64]), np.ones((2, 11)), np.array([0, 1, 2, 3, 512]),
-    ...               np.array([5, 1, 2, 3, 4]))
-    >>> u = unpack_tiles(pack_tiles(t))
-    >>> [np.array_equal(getattr(t, f), getattr(u, f)) for f in ("tiles", "numbers", "blobs", "ids")]
-    [True, True, True, True]
-    """
-    return _pack_stream(len(table.tiles), len(table.blobs), lambda: _table_columns(table))
-
-
-def unpack_tiles(data: bytes) -> TileTable:
-    """The :class:`TileTable` of its catalog row; ValueError for anything malformed
-    (sizes, keys not strictly ascending, a zstd frame past :data:`RATIO_CAP`)."""
-    if len(data) < _TABLE_HEAD.size:
-        raise ValueError("catalog row too short")
-    fmt, n, m = _TABLE_HEAD.unpack_from(data)
-    body = data[_TABLE_HEAD.size:]
-    size = 8 * (n * (1 + len(TILE_COLUMNS)) + 2 * m)
-    if fmt == 1:
-        if size > RATIO_CAP * len(body) + _RATIO_SLACK:
-            raise ValueError("catalog row claims too many rows for its size")
-        body = zstdsafe.decompress(body, size, exact=True)
-    elif fmt != 0 or len(body) != size:
-        raise ValueError("catalog row of an unknown format or size")
-    tiles = _ascending(body[:8 * n], n)
-    off = 8 * n
-    nb = 8 * n * len(TILE_COLUMNS)
-    numbers = (np.frombuffer(body[off:off + nb], np.uint8).reshape(len(TILE_COLUMNS), 8, n)
-               .transpose(0, 2, 1).copy().view("<f8").reshape(len(TILE_COLUMNS), n).T)
-    off += nb
-    blobs = _ascending(body[off:off + 8 * m], m)
-    ids = np.cumsum(np.frombuffer(body[off + 8 * m:], "<i8", m), dtype=np.int64)
-    return TileTable(tiles, np.ascontiguousarray(numbers, np.float64), blobs, ids)
-
-
-def pack_metadata(items: dict) -> bytes:
-    """The metadata's catalog row: its JSON (names sorted), zstd-compressed.
-
-    Examples
-    --------
-    >>> unpack_metadata(pack_metadata({"b": 1, "a": [2.5, None]}))
-    {'a': [2.5, None], 'b': 1}
-    """
-    text = json.dumps(items, sort_keys=True).encode()
-    return zstandard.ZstdCompressor(level=_ZSTD_CATALOG).compress(text)
-
-
-def unpack_metadata(data: bytes) -> dict:
-    """The metadata of a catalog row; ValueError for anything but a JSON object of at
-    most 1 MB whose names are distinct (at any depth)."""
-    try:
-        items = json.loads(zstdsafe.decompress(data, _META_MAX_BYTES),
-                           object_pairs_hook=_unique_names)
-    except RecursionError:
-        raise ValueError("metadata is not JSON") from None
-    if not isinstance(items, dict):
-        raise ValueError("metadata is not a JSON object")
-    return items
-
-
-def _unique_names(pairs: list) -> dict:
-    out = dict(pairs)
-    if len(out) != len(pairs):
-        raise ValueError("metadata names an entry twice")
-    return out
-
-
-def tile_counts(keys) -> dict[str, int]:
-    """Tiles per level (what the metadata records as ``tile_counts``).
-
-    Examples
-    --------
-    >>> tile_counts([(0, 0, 0), (0, 1, 0), (1, 0, 0)])
-    {'0': 2, '1': 1}
-    """
-    out: dict[str, int] = {}
-    for k in keys:
-        out[str(int(k[0]))] = out.get(str(int(k[0])), 0) + 1
-    return dict(sorted(out.items(), key=lambda kv: int(kv[0])))
 
 
 def default_store_path(src: str | Path) -> Path:
@@ -348,7 +185,6 @@ class StoreWriter:
         self._row_bytes = 0
         self._rowid = 0  # rows inserted so far: the next one's rowid is this + 1
         self._committed = False
-        self._n = 0  # tiles staged, counted at commit
         try:
             if self.tmp.exists():
                 self.tmp.unlink()
@@ -429,40 +265,41 @@ class StoreWriter:
         self._rowid = last
 
     def put_tiles(self, rows: dict[tuple[int, int, int], tuple]) -> None:
-        """Per-tile numbers, in the order of :data:`TILE_COLUMNS`."""
+        """Per-tile numbers, in the order of :data:`TILE_COLUMNS` (``nvalid`` a count)."""
         for r in rows.values():
-            if len(r) != len(TILE_COLUMNS):
-                raise ValueError(f"a tile row holds {len(TILE_COLUMNS)} numbers")
+            if len(r) != len(TILE_COLUMNS) or not (isinstance(r[0], int | np.integer)
+                                                   and r[0] >= 0):
+                raise ValueError(f"a tile row holds {len(TILE_COLUMNS)} numbers, the "
+                                 "first a count of valid samples")
         marks = ", ".join("?" * (1 + len(TILE_COLUMNS)))
         self._guard(self.con.executemany, f"INSERT INTO temp.staged_tiles VALUES ({marks})",
-                    ((tile_key(k), *r) for k, r in rows.items()))
+                    ((tile_key(k), int(r[0]), *r[1:]) for k, r in rows.items()))
 
-    def _staged_columns(self):
-        # the staged table's bytes for pack_tiles, a column at a time, in key order
-        # (the staging tables' primary keys); SQL NULL is NaN (SQLite stores no NaN)
-        def rows(sql):
-            cur = self.con.execute(sql)
-            while chunk := cur.fetchmany(1 << 16):
-                yield chunk
-
-        yield from _delta_chunks(np.fromiter((r[0] for r in c), np.int64, len(c))
-                                 for c in rows("SELECT key FROM temp.staged_tiles"))
-        for j in range(len(TILE_COLUMNS)):
-            col = np.fromiter((np.nan if v is None else v for c in rows(
-                f"SELECT n{j} FROM temp.staged_tiles") for (v,) in c), np.float64, self._n)
-            yield _shuffled(col)
-        for what in ("key", "blob"):
-            yield from _delta_chunks(np.fromiter((r[0] for r in c), np.int64, len(c)) for c
-                                     in rows(f"SELECT {what} FROM temp.staged_blobs"))
+    def _staged(self, sql: str, dtype=np.int64):
+        # one column of a staging table, in key order, in chunks (SQL NULL as NaN:
+        # SQLite stores no NaN)
+        cur = self.con.execute(sql)
+        while chunk := cur.fetchmany(1 << 16):
+            yield np.fromiter((np.nan if v is None else v for (v,) in chunk), dtype,
+                              len(chunk))
 
     def _tile_table(self) -> bytes:
-        """The tile table's catalog row, and the metadata's tile counts."""
+        """The tile table's catalog row, streamed from the staging tables a column at a
+        time, and the metadata's tile counts."""
         counts = self.con.execute("SELECT key & 31, COUNT(*) FROM temp.staged_tiles "
                                   "GROUP BY 1 ORDER BY 1").fetchall()
         self._meta["tile_counts"] = {str(L): c for L, c in counts}
-        self._n = sum(c for _, c in counts)
         (m,) = self.con.execute("SELECT COUNT(*) FROM temp.staged_blobs").fetchone()
-        return _pack_stream(self._n, m, self._staged_columns)
+
+        def column(name: str) -> np.ndarray:
+            return np.concatenate([*self._staged(f"SELECT {name} FROM temp.staged_tiles "
+                                                 "ORDER BY key", np.float64), np.zeros(0)])
+
+        return pack_stream(sum(c for _, c in counts), m, lambda: table_columns(
+            lambda: self._staged("SELECT key FROM temp.staged_tiles ORDER BY key"),
+            lambda: (column(f"n{j}") for j in range(len(TILE_COLUMNS))),
+            lambda: self._staged("SELECT key FROM temp.staged_blobs ORDER BY key"),
+            lambda: self._staged("SELECT blob FROM temp.staged_blobs ORDER BY key")))
 
     def commit(self) -> Path:
         """Finish: write the catalog, the metadata with its complete flag, fsync,
@@ -564,20 +401,22 @@ class StoreReader:
         if not all(type(i) is int and isinstance(d, bytes) for i, d, _ in rows):
             self.con.close()
             raise self._foreign("its catalog holds rows that are not numbered blobs")
-        self._rows = {i: (d, c) for i, d, c in rows}
-        if META_ID not in self._rows:
+        self._catalog = {i: (d, c) for i, d, c in rows}  # until parsed
+        if META_ID not in self._catalog:
             self.con.close()
             raise StoreError(
                 f"{self.path}: incomplete store (interrupted write); re-run preprocess")
-        data, crc = self._rows.pop(META_ID)
-        try:
-            if catalog_crc(META_ID, data) != crc:
-                raise ValueError
-            self.metadata = unpack_metadata(data)
-        except ValueError:
+        data, crc = self._catalog.pop(META_ID)
+        if catalog_crc(META_ID, data) != crc:
             self.con.close()
             raise StoreCorruptError(f"{self.path}: metadata checksum mismatch: the file is "
-                                    "damaged; re-run `geoterrain preprocess`") from None
+                                    "damaged; re-run `geoterrain preprocess`")
+        try:
+            self.metadata = unpack_metadata(data)
+        except ValueError as exc:
+            self.con.close()
+            raise StoreCorruptError(f"{self.path}: its metadata cannot be read ({exc}): the "
+                                    "file is damaged; re-run `geoterrain preprocess`") from None
         if self.metadata.get("complete") is not True:
             self.con.close()
             raise StoreError(
@@ -589,7 +428,6 @@ class StoreReader:
                              f"geoterrain reads version {SCHEMA_VERSION}; {REBUILD}")
         self.blob_reads = 0  # how many blobs were read (tests count them)
         self._table: TileTable | None = None
-        self._lookup: tuple[np.ndarray, np.ndarray] | None = None
         self._lock = threading.Lock()
 
     def _foreign(self, why: str) -> StoreError:
@@ -639,15 +477,23 @@ class StoreReader:
 
     def table(self) -> TileTable:
         """The tile table, checksum-verified and parsed (once; thread-safe)."""
+        if self._table is not None:
+            return self._table
         with self._lock:
             if self._table is None:
-                data, crc = self._rows.get(TILES_ID, (b"", None))
+                if TILES_ID not in self._catalog:
+                    raise StoreCorruptError(f"{self.path}: the tile table is missing: the "
+                                            "file is damaged; re-run `geoterrain preprocess`")
+                data, crc = self._catalog[TILES_ID]
+                if catalog_crc(TILES_ID, data) != crc:
+                    raise self._damaged("the tile table")
                 try:
-                    if catalog_crc(TILES_ID, data) != crc:
-                        raise ValueError
-                    self._table = unpack_tiles(data)
-                except ValueError:
-                    raise self._damaged("the tile table") from None
+                    self._table = unpack_tiles(data, self.path.stat().st_size)
+                except (ValueError, OSError) as exc:
+                    raise StoreCorruptError(
+                        f"{self.path}: the tile table cannot be read ({exc}): the file is "
+                        "damaged; re-run `geoterrain preprocess`") from None
+                del self._catalog[TILES_ID]  # its bytes are not needed again
             return self._table
 
     def _blob_id(self, key: int) -> int | None:
@@ -676,45 +522,62 @@ class StoreReader:
     def tiles(self) -> dict[tuple[int, int, int], dict]:
         """Every stored tile's numbers, checksum-verified, checked against the tile counts.
 
-        Every tile must hold one blob of each kind, and no blob may lack its tile.
+        Every tile must hold one blob of each kind, and no blob may lack its tile. The
+        table is checked as arrays first, so a damaged one costs no per-tile objects.
         """
         t = self.table()
-        if tile_counts([(k & 31,) for k in t.tiles.tolist()]) != self.metadata.get("tile_counts"):
+        damaged = StoreCorruptError(f"{self.path}: the blobs do not match the tile table "
+                                    "(blobs missing or added): the file is damaged; "
+                                    "re-run `geoterrain preprocess`")
+        levels = np.bincount(t.tiles & 31, minlength=32) if len(t.tiles) else np.zeros(32)
+        if {str(L): int(c) for L, c in enumerate(levels) if c} != self.metadata.get(
+                "tile_counts"):
             raise StoreCorruptError(f"{self.path}: the tile table does not match the recorded "
                                     "tile counts (rows missing or added): the file is damaged; "
                                     "re-run `geoterrain preprocess`")
         nvalid = t.numbers[:, 0]
-        if not (nvalid >= 0).all() or (nvalid % 1 != 0).any():
-            raise self._damaged("the tile table")
-        out = {}
-        for k, r in zip(t.tiles.tolist(), t.numbers.tolist(), strict=True):
-            vals = [None if v != v else v for v in r]  # NaN: an absent number
-            vals[0] = int(vals[0])
-            out[unpack_tile_key(k)] = dict(zip(TILE_COLUMNS, vals, strict=True))
-        want = {k << 3 | KIND_CODES[kind] for k in t.tiles.tolist() for kind in BLOB_KINDS}
-        try:
-            want |= {blob_key(k, EDGE_KIND) for k in self.edge_keys(out)}
-        except ValueError:  # a key out of any grid's range
-            raise self._damaged("the delta_edge list") from None
-        if "block_delta_levels" in self.metadata and out:
-            want.add(blob_key((max(k[0] for k in out), 0, 0), BLOCK_KIND))  # the root tile
+        if not np.isfinite(nvalid).all() or (nvalid < 0).any() or (nvalid % 1 != 0).any():
+            raise StoreCorruptError(f"{self.path}: the tile table holds an impossible count "
+                                    "of valid samples: the file is damaged; re-run "
+                                    "`geoterrain preprocess`")
+        # the blob keys: one of each kind per tile, the δ_edge tiles', the root's table
+        edge = np.array([blob_key(k, EDGE_KIND) for k in self._edge_keys_checked()], np.int64)
+        want = [(t.tiles[:, None] << 3 | np.arange(len(BLOB_KINDS))).ravel(), edge]
+        if "block_delta_levels" in self.metadata and len(t.tiles):
+            want.append(np.array([blob_key((int(levels.nonzero()[0][-1]), 0, 0), BLOCK_KIND)]))
+        want = np.concatenate(want)
+        if len(np.unique(want)) != len(want) or not np.array_equal(np.sort(want), t.blobs):
+            raise damaged
         # the ids are distinct and fill the blob table's rowid range exactly, so every
         # row is named once (a missing row in the range reads as "missing"; a row's
         # checksum binds it to its key, so an id moved to another row fails)
-        keys, ids = set(t.blobs.tolist()), t.ids
         try:
             # the rowid range only (a few pages): counting the rows would read every
             # leaf page of the blobs, which hold the blob bytes
             lo, hi = self.con.execute("SELECT MIN(rowid), MAX(rowid) FROM blobs").fetchone()
         except _DB_ERRORS:
             raise self._damaged("the blob table") from None
-        if (keys != want or len(np.unique(ids)) != len(ids)
-                or (len(ids) and (lo, hi) != (int(ids.min()), int(ids.max())))
-                or (len(ids) and hi - lo + 1 != len(ids)) or (not len(ids) and lo is not None)):
-            raise StoreCorruptError(f"{self.path}: the blobs do not match the tile table "
-                                    "(blobs missing or added): the file is damaged; "
-                                    "re-run `geoterrain preprocess`")
+        ids = t.ids
+        if len(ids) and ((lo, hi) != (int(ids.min()), int(ids.max())) or hi - lo + 1 != len(ids)
+                         or len(np.unique(ids)) != len(ids)):
+            raise damaged
+        if not len(ids) and lo is not None:
+            raise damaged
+        out = {}
+        for k, r in zip(t.tiles.tolist(), t.numbers.tolist(), strict=True):
+            vals = [None if v != v else v for v in r]  # NaN: an absent number
+            vals[0] = int(vals[0])
+            out[unpack_tile_key(k)] = dict(zip(TILE_COLUMNS, vals, strict=True))
         return out
+
+    def _edge_keys_checked(self) -> list[tuple[int, int, int]]:
+        try:
+            keys = list(self.edge_keys({}))
+            for k in keys:
+                tile_key(k)  # in any grid's range
+        except ValueError:
+            raise self._damaged("the delta_edge list") from None
+        return keys
 
     def edge_keys(self, tiles: dict) -> dict[tuple[int, int, int], float]:
         """The tiles with a ``delta_edge`` blob and the largest δ_edge of their stored

@@ -1,9 +1,10 @@
-"""A store's keys: tiles and blobs named by one small integer each (schema 3).
+"""A store's keys: tiles and blobs named by one small integer each (schemas 3 and 4).
 
 A tile's (level, x, y) packs as the Morton number of (x, y) times 32 plus the level, a
 blob's place as its tile's key times 8 plus its kind's number. Near tiles get near
-numbers, so keys cost 2–4 bytes in a store of any size (docs/store.md). The blob kinds
-and their numbers live here too: stores hold the numbers, so they never change.
+numbers, so the tile table's sorted key columns are small differences (docs/store.md).
+The blob kinds and their numbers live here too: stores hold the numbers, so they never
+change.
 
 Examples
 --------

@@ -38,7 +38,7 @@ from storesql import (
     write_table,
 )
 
-from geoterrain.store import TILES_ID, TileTable, blob_key, catalog_crc
+from geoterrain.store import TILES_ID, TileTable, blob_key, catalog_crc, pack_tiles
 
 MEM_LIMIT_EXTRA = 1 << 30  # address space beyond the worker's own at the start
 CASE_TIMEOUT_S = 10
@@ -191,8 +191,28 @@ def mutate(path: Path, rng: random.Random) -> str:
             write_table(con, TileTable(t.tiles, t.numbers, blobs, ids))
             desc = f"blob key {k} {how}"
         elif kind == "tablejunk":  # the tile table's row: junk or a bomb, valid checksum
-            how = rng.choice(["junk", "bomb", "raw", "short"])
-            if how == "junk":
+            how = rng.choice(["junk", "bomb", "raw", "short", "wrap", "huge"])
+            t = read_table(con)
+            if how == "wrap":  # one more tile (and its 4 blobs) whose key difference
+                #                  carries the sum past 2^63, in a raw row
+                n, m = len(t.tiles), len(t.blobs)
+                nums = np.vstack([t.numbers, t.numbers[-1:]])
+                diffs = [np.diff(t.tiles, prepend=np.int64(0)).tolist() + [(1 << 63) - 1],
+                         np.diff(t.blobs, prepend=np.int64(0)).tolist() + [1, 1, 1, 1],
+                         np.diff(t.ids, prepend=np.int64(0)).tolist() + [1, 1, 1, 1]]
+                cols = [np.ascontiguousarray(nums[:, j]).view(np.uint8).reshape(-1, 8).T
+                        .tobytes() for j in range(nums.shape[1])]
+                data = (struct.pack("<BII", 0, n + 1, m + 4)
+                        + np.array(diffs[0], "<i8").tobytes() + b"".join(cols)
+                        + np.array(diffs[1], "<i8").tobytes() + np.array(diffs[2], "<i8").tobytes())
+            elif how == "huge":  # far more tiles than the file could hold, compressing
+                #                  well but under RATIO_CAP
+                k = 400_000
+                data = pack_tiles(TileTable(
+                    np.arange(k, dtype=np.int64) * 32, np.zeros((k, t.numbers.shape[1])),
+                    np.arange(4 * k, dtype=np.int64),
+                    np.random.default_rng(rng.randrange(1 << 30)).permutation(4 * k) + 1))
+            elif how == "junk":
                 data = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 200)))
             elif how == "bomb":  # a head claiming 2^31 tiles, then a bomb
                 data = struct.pack("<BII", 1, 1 << 31, 0) + zstd_bomb(

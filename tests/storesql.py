@@ -121,9 +121,10 @@ def all_blobs(con) -> dict[tuple[int, int, int, str], bytes]:
 
 
 def all_tiles(con) -> dict[tuple[int, int, int], tuple]:
-    """Every tile's numbers (in the order of TILE_COLUMNS) by (level, x, y)."""
+    """Every tile's numbers (in the order of TILE_COLUMNS, None where absent, so that
+    tuples compare) by (level, x, y)."""
     t = read_table(con)
-    return {unpack_tile_key(k): tuple(r)
+    return {unpack_tile_key(k): tuple(None if v != v else v for v in r)
             for k, r in zip(t.tiles.tolist(), t.numbers.tolist(), strict=True)}
 
 
@@ -138,7 +139,8 @@ def put_tile(con, key: tuple, numbers: tuple) -> None:
     k = tile_key(key)
     keep = t.tiles != k
     tiles = np.append(t.tiles[keep], k)
-    nums = np.vstack([t.numbers[keep], np.array(numbers, np.float64).reshape(1, len(TILE_COLUMNS))])
+    row = np.array([np.nan if v is None else v for v in numbers], np.float64)
+    nums = np.vstack([t.numbers[keep], row.reshape(1, len(TILE_COLUMNS))])
     order = np.argsort(tiles)
     write_table(con, TileTable(tiles[order], nums[order], t.blobs, t.ids))
 
