@@ -8,7 +8,8 @@ Schema (version :data:`SCHEMA_VERSION`), two plain tables::
 Row 0 of ``catalog`` is the metadata, one zstd-compressed JSON object. Row 1 is the
 tile table (:func:`pack_tiles`): every tile's packed key and numbers
 (:data:`TILE_COLUMNS`), and every blob's packed key and ``blobs`` row id, column by
-column, delta-coded and zstd-compressed. A tile's key packs (level, x, y) as
+column, delta-coded and zstd-compressed (formats and their checks:
+:mod:`geoterrain.storecatalog`). A tile's key packs (level, x, y) as
 :func:`tile_key` (the Morton number of x, y, then 5 bits of level), a blob's packs
 the tile's and its kind as :func:`blob_key`. Schema 3 kept the tile numbers, the blob
 keys and the metadata in tables of their own, one SQL row each: with their b-tree
@@ -32,8 +33,9 @@ A store may come from a stranger: :class:`StoreReader` opens it read-only with
 SQLite's ``trusted_schema`` off and refuses any schema object but the two plain
 tables (no views, triggers or virtual tables), so reading runs no SQL of the file's.
 Checksums bind each blob to its (level, x, y, kind) and each catalog row to its id;
-a compressed row may not decode to more than :data:`RATIO_CAP` times its size, so a
-small file cannot ask for much memory; the metadata records each level's tile count.
+the tile table's counts must fit the file's size and a compressed row may not decode
+to more than :data:`RATIO_CAP` times its size, so a small file cannot ask for much
+memory; the metadata records each level's tile count.
 """
 
 from __future__ import annotations
