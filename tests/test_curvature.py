@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from geoterrain.curvature import BORDER_FRACTION
@@ -220,6 +220,7 @@ def _vertex_triangles(N):
 
 @settings(max_examples=8)
 @given(seed=st.integers(0, 2**16), lat=st.floats(-80, 80), rough=st.floats(0, 400))
+@example(seed=17927, lat=0.0, rough=273.0)  # an invalid split vertex (see below)
 def test_each_triangle_is_within_its_vertex_bounds(seed, lat, rough):
     """Oracle per bintree triangle T of split vertex v: every valid sample whose scene x/y
     lies in T (measured by metricmeasure) is within δ(v) of T and within r(v) of p_v."""
@@ -228,7 +229,7 @@ def test_each_triangle_is_within_its_vertex_bounds(seed, lat, rough):
     from geoterrain.bounds import vertex_errors
     from geoterrain.curvature import metric_bounds
     from geoterrain.frame import Frame
-    from geoterrain.radii import vertex_radii
+    from geoterrain.radii import _proxy_positions, vertex_radii
 
     N = 17
     fr = Frame.from_raster((0.6, 0, 10.0, 0, -0.3, lat + 2.4), CRS.from_epsg(4326).to_wkt(), N, N)
@@ -237,6 +238,7 @@ def test_each_triangle_is_within_its_vertex_bounds(seed, lat, rough):
     Z = rough * rng.random((N, N)) + 30.0 * np.indices((N, N))[1]
     valid = rng.random((N, N)) > 0.05
     d, r = metric_bounds(vertex_errors(Z, valid), vertex_radii(X, Y, Z, valid), X, Y, Z, valid)
+    proxy = _proxy_positions(X, Y, np.where(valid, Z, np.nan), valid)
     tol = BORDER_FRACTION * min(np.hypot(np.diff(X, axis=a), np.diff(Y, axis=a)).min()
                                 for a in (0, 1))
     for v, a, b, c in _vertex_triangles(N):
@@ -252,7 +254,12 @@ def test_each_triangle_is_within_its_vertex_bounds(seed, lat, rough):
         if not held.any():
             continue
         assert err[held].max() <= d[v], (v, a, b, c, err[held].max(), d[v])
-        dist = np.sqrt((X - X[v]) ** 2 + (Y - Y[v]) ** 2 + (Z - Z[v]) ** 2)
+        # r(v) is about v's position in the nested spheres: its own when valid, else the
+        # finite proxy that stands in for it (radii.vertex_radii); a 5 % nodata grid has
+        # invalid split vertices, whose raw Z is noise (found by hypothesis: seed 17927,
+        # lat 0, rough 273, v = (11, 5) invalid, 1.5 mm beyond r measured from raw Z)
+        cx, cy, cz = (P[v] for P in proxy)
+        dist = np.sqrt((X - cx) ** 2 + (Y - cy) ** 2 + (Z - cz) ** 2)
         assert dist[held].max() <= r[v], (v, dist[held].max(), r[v])
 
 
