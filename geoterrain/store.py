@@ -5,17 +5,12 @@ Schema (version :data:`SCHEMA_VERSION`), two plain tables::
     catalog(id INTEGER PRIMARY KEY, data BLOB, crc32)  -- 0: metadata; 1: tile table
     blobs(id INTEGER PRIMARY KEY, data BLOB, crc32)    -- per-tile arrays, by id
 
-Row 0 of ``catalog`` is the metadata, one zstd-compressed JSON object. Row 1 is the
-tile table (:func:`pack_tiles`): every tile's packed key and numbers
-(:data:`TILE_COLUMNS`), and every blob's packed key and ``blobs`` row id, column by
-column, delta-coded and zstd-compressed (formats and their checks:
-:mod:`geoterrain.storecatalog`). A tile's key packs (level, x, y) as
-:func:`tile_key` (the Morton number of x, y, then 5 bits of level), a blob's packs
-the tile's and its kind as :func:`blob_key`. Schema 3 kept the tile numbers, the blob
-keys and the metadata in tables of their own, one SQL row each: with their b-tree
-pages and per-row overhead that was a fifth of a small store (docs/benchmarks.md
-§7i). The blob rows are bare, so the writer inserts them in the order that fills
-SQLite's leaf pages (:mod:`geoterrain.pagepack`); the catalog finds them.
+The catalog's rows, their formats and checks are :mod:`geoterrain.storecatalog`'s: the
+metadata (compressed JSON) and the tile table (every tile's numbers, every blob's
+packed key, :mod:`geoterrain.storekeys`, and row id; schema 3's SQL tables of a row
+each were a fifth of a small store, docs/benchmarks.md §7i). The blob rows are bare,
+so the writer inserts them in the order that fills SQLite's leaf pages
+(:mod:`geoterrain.pagepack`); the tile table finds them.
 
 ``kind`` is one of ``heights`` (residual-coded heights and valid mask),
 ``delta`` (per-vertex errors δ), ``radius`` (nested sphere radii) and
@@ -33,9 +28,8 @@ A store may come from a stranger: :class:`StoreReader` opens it read-only with
 SQLite's ``trusted_schema`` off and refuses any schema object but the two plain
 tables (no views, triggers or virtual tables), so reading runs no SQL of the file's.
 Checksums bind each blob to its (level, x, y, kind) and each catalog row to its id;
-the tile table's counts must fit the file's size and a compressed row may not decode
-to more than :data:`RATIO_CAP` times its size, so a small file cannot ask for much
-memory; the metadata records each level's tile count.
+the tile table's size is bounded by the file's (storecatalog), and it must match the
+metadata's tile counts.
 """
 
 from __future__ import annotations
@@ -70,7 +64,6 @@ from geoterrain.storecatalog import (  # noqa: F401 - the catalog's rows are the
     pack_stream,
     pack_tiles,
     table_columns,
-    tile_counts,
     unpack_metadata,
     unpack_tiles,
 )
@@ -298,10 +291,10 @@ class StoreWriter:
                                                  "ORDER BY key", np.float64), np.zeros(0)])
 
         return pack_stream(sum(c for _, c in counts), m, lambda: table_columns(
-            lambda: self._staged("SELECT key FROM temp.staged_tiles ORDER BY key"),
-            lambda: (column(f"n{j}") for j in range(len(TILE_COLUMNS))),
-            lambda: self._staged("SELECT key FROM temp.staged_blobs ORDER BY key"),
-            lambda: self._staged("SELECT blob FROM temp.staged_blobs ORDER BY key")))
+            self._staged("SELECT key FROM temp.staged_tiles ORDER BY key"),
+            (column(f"n{j}") for j in range(len(TILE_COLUMNS))),
+            self._staged("SELECT key FROM temp.staged_blobs ORDER BY key"),
+            self._staged("SELECT blob FROM temp.staged_blobs ORDER BY key")))
 
     def commit(self) -> Path:
         """Finish: write the catalog, the metadata with its complete flag, fsync,
@@ -329,11 +322,7 @@ class StoreWriter:
             finally:
                 os.close(dfd)
 
-        try:
-            self._guard(_finish)
-        except WriteError:
-            self.abort()
-            raise
+        self._guard(_finish)
         self._committed = True
         return self.dst
 
@@ -383,6 +372,17 @@ class StoreReader:
         except sqlite3.Error:
             raise StoreError(f"{self.path}: cannot open the store read-only") from None
         try:
+            self._open()
+        except BaseException:
+            self.con.close()
+            raise
+        self.blob_reads = 0  # how many blobs were read (tests count them)
+        self._table: TileTable | None = None
+        self._lock = threading.Lock()
+
+    def _open(self) -> None:
+        # the schema, the catalog's two rows, the metadata: every check of opening
+        try:
             # damaged text never raises: it decodes with U+FFFD and then fails a check
             self.con.text_factory = lambda b: b.decode("utf-8", "replace")
             self.con.execute("PRAGMA trusted_schema=OFF")
@@ -391,46 +391,31 @@ class StoreReader:
             rows = self.con.execute("SELECT id, data, crc32 FROM catalog "
                                     f"WHERE id IN ({META_ID}, {TILES_ID})").fetchall()
             (n,) = self.con.execute("SELECT COUNT(*) FROM catalog").fetchone()
-            if n != len(rows):
-                raise self._foreign("its catalog holds rows of no meaning")
         except _DB_ERRORS:
-            self.con.close()
             raise StoreError(f"{self.path}: not a geoterrain store (or damaged); "
                              "re-run `geoterrain preprocess`") from None
-        except StoreError:
-            self.con.close()
-            raise
+        if n != len(rows):
+            raise self._foreign("its catalog holds rows of no meaning")
         if not all(type(i) is int and isinstance(d, bytes) for i, d, _ in rows):
-            self.con.close()
             raise self._foreign("its catalog holds rows that are not numbered blobs")
         self._catalog = {i: (d, c) for i, d, c in rows}  # until parsed
         if META_ID not in self._catalog:
-            self.con.close()
             raise StoreError(
                 f"{self.path}: incomplete store (interrupted write); re-run preprocess")
         data, crc = self._catalog.pop(META_ID)
         if catalog_crc(META_ID, data) != crc:
-            self.con.close()
-            raise StoreCorruptError(f"{self.path}: metadata checksum mismatch: the file is "
-                                    "damaged; re-run `geoterrain preprocess`")
+            raise self._corrupt("metadata checksum mismatch")
         try:
             self.metadata = unpack_metadata(data)
         except ValueError as exc:
-            self.con.close()
-            raise StoreCorruptError(f"{self.path}: its metadata cannot be read ({exc}): the "
-                                    "file is damaged; re-run `geoterrain preprocess`") from None
+            raise self._corrupt(f"its metadata cannot be read ({exc})") from None
         if self.metadata.get("complete") is not True:
-            self.con.close()
             raise StoreError(
                 f"{self.path}: incomplete store (interrupted write); re-run preprocess")
         version = self.metadata.get("schema_version")
         if version != SCHEMA_VERSION:
-            self.con.close()
             raise StoreError(f"{self.path}: store schema version {_show(version)}, this "
                              f"geoterrain reads version {SCHEMA_VERSION}; {REBUILD}")
-        self.blob_reads = 0  # how many blobs were read (tests count them)
-        self._table: TileTable | None = None
-        self._lock = threading.Lock()
 
     def _foreign(self, why: str) -> StoreError:
         return StoreError(f"{self.path}: not a geoterrain store ({why}); refusing to read it")
@@ -473,9 +458,12 @@ class StoreReader:
             raise StoreError(f"{self.path}: store schema version {version}, this geoterrain "
                              f"reads version {SCHEMA_VERSION}; {REBUILD}")
 
-    def _damaged(self, what: str) -> StoreCorruptError:
-        return StoreCorruptError(f"{self.path}: checksum mismatch in {what}: the file is damaged; "
+    def _corrupt(self, why: str) -> StoreCorruptError:
+        return StoreCorruptError(f"{self.path}: {why}: the file is damaged; "
                                  "re-run `geoterrain preprocess`")
+
+    def _damaged(self, what: str) -> StoreCorruptError:
+        return self._corrupt(f"checksum mismatch in {what}")
 
     def table(self) -> TileTable:
         """The tile table, checksum-verified and parsed (once; thread-safe)."""
@@ -484,17 +472,14 @@ class StoreReader:
         with self._lock:
             if self._table is None:
                 if TILES_ID not in self._catalog:
-                    raise StoreCorruptError(f"{self.path}: the tile table is missing: the "
-                                            "file is damaged; re-run `geoterrain preprocess`")
+                    raise self._corrupt("the tile table is missing")
                 data, crc = self._catalog[TILES_ID]
                 if catalog_crc(TILES_ID, data) != crc:
                     raise self._damaged("the tile table")
                 try:
                     self._table = unpack_tiles(data, self.path.stat().st_size)
                 except (ValueError, OSError) as exc:
-                    raise StoreCorruptError(
-                        f"{self.path}: the tile table cannot be read ({exc}): the file is "
-                        "damaged; re-run `geoterrain preprocess`") from None
+                    raise self._corrupt(f"the tile table cannot be read ({exc})") from None
                 del self._catalog[TILES_ID]  # its bytes are not needed again
             return self._table
 
@@ -528,22 +513,20 @@ class StoreReader:
         table is checked as arrays first, so a damaged one costs no per-tile objects.
         """
         t = self.table()
-        damaged = StoreCorruptError(f"{self.path}: the blobs do not match the tile table "
-                                    "(blobs missing or added): the file is damaged; "
-                                    "re-run `geoterrain preprocess`")
+        damaged = self._corrupt("the blobs do not match the tile table (blobs missing or added)")
         levels = np.bincount(t.tiles & 31, minlength=32) if len(t.tiles) else np.zeros(32)
         if {str(L): int(c) for L, c in enumerate(levels) if c} != self.metadata.get(
                 "tile_counts"):
-            raise StoreCorruptError(f"{self.path}: the tile table does not match the recorded "
-                                    "tile counts (rows missing or added): the file is damaged; "
-                                    "re-run `geoterrain preprocess`")
+            raise self._corrupt("the tile table does not match the recorded tile counts "
+                                "(rows missing or added)")
         nvalid = t.numbers[:, 0]
         if not np.isfinite(nvalid).all() or (nvalid < 0).any() or (nvalid % 1 != 0).any():
-            raise StoreCorruptError(f"{self.path}: the tile table holds an impossible count "
-                                    "of valid samples: the file is damaged; re-run "
-                                    "`geoterrain preprocess`")
+            raise self._corrupt("the tile table holds an impossible count of valid samples")
         # the blob keys: one of each kind per tile, the δ_edge tiles', the root's table
-        edge = np.array([blob_key(k, EDGE_KIND) for k in self._edge_keys_checked()], np.int64)
+        try:
+            edge = np.array([blob_key(k, EDGE_KIND) for k in self.edge_keys({})], np.int64)
+        except ValueError:  # a key out of any grid's range
+            raise self._damaged("the delta_edge list") from None
         want = [(t.tiles[:, None] << 3 | np.arange(len(BLOB_KINDS))).ravel(), edge]
         if "block_delta_levels" in self.metadata and len(t.tiles):
             want.append(np.array([blob_key((int(levels.nonzero()[0][-1]), 0, 0), BLOCK_KIND)]))
@@ -571,15 +554,6 @@ class StoreReader:
             vals[0] = int(vals[0])
             out[unpack_tile_key(k)] = dict(zip(TILE_COLUMNS, vals, strict=True))
         return out
-
-    def _edge_keys_checked(self) -> list[tuple[int, int, int]]:
-        try:
-            keys = list(self.edge_keys({}))
-            for k in keys:
-                tile_key(k)  # in any grid's range
-        except ValueError:
-            raise self._damaged("the delta_edge list") from None
-        return keys
 
     def edge_keys(self, tiles: dict) -> dict[tuple[int, int, int], float]:
         """The tiles with a ``delta_edge`` blob and the largest δ_edge of their stored

@@ -44,7 +44,7 @@ _ZSTD_STRONG_MAX = 1 << 20  # ... up to a table of this many bytes (see pack_til
 
 __all__ = ["KEY_LIMIT", "META_ID", "META_MAX_BYTES", "MIN_BLOB_ROW_BYTES", "RATIO_CAP",
            "TILES_ID", "TILE_COLUMNS", "TileTable", "catalog_crc", "pack_metadata",
-           "pack_stream", "pack_tiles", "tile_counts", "unpack_metadata", "unpack_tiles"]
+           "pack_stream", "pack_tiles", "table_columns", "unpack_metadata", "unpack_tiles"]
 
 
 def catalog_crc(row_id: int, data: bytes) -> int:
@@ -101,13 +101,12 @@ def _shuffled(col: np.ndarray) -> bytes:
 def table_columns(keys, columns, blob_keys, blob_ids):
     """The tile table's bytes in pieces, for :func:`pack_stream`: ``keys`` (chunks of
     ascending tile keys), ``columns`` (the 11 number columns, each whole, in key order),
-    ``blob_keys`` and ``blob_ids`` (chunks, in blob key order); callables, each giving
-    a fresh iterator."""
-    yield from _delta_chunks(keys())
-    for col in columns():
+    ``blob_keys`` and ``blob_ids`` (chunks, in blob key order); iterables, read lazily."""
+    yield from _delta_chunks(keys)
+    for col in columns:
         yield _shuffled(col)
-    yield from _delta_chunks(blob_keys())
-    yield from _delta_chunks(blob_ids())
+    yield from _delta_chunks(blob_keys)
+    yield from _delta_chunks(blob_ids)
 
 
 def pack_stream(n: int, m: int, pieces) -> bytes:
@@ -136,8 +135,7 @@ def pack_tiles(table: TileTable) -> bytes:
     """
     nums = np.asarray(table.numbers, np.float64).reshape(len(table.tiles), len(TILE_COLUMNS))
     return pack_stream(len(table.tiles), len(table.blobs), lambda: table_columns(
-        lambda: [table.tiles], lambda: (nums[:, j] for j in range(len(TILE_COLUMNS))),
-        lambda: [table.blobs], lambda: [table.ids]))
+        [table.tiles], nums.T, [table.blobs], [table.ids]))
 
 
 def unpack_tiles(data: bytes, file_bytes: int | None = None) -> TileTable:
@@ -202,18 +200,3 @@ def _unique_names(pairs: list) -> dict:
     if len(out) != len(pairs):
         raise ValueError("it names an entry twice")
     return out
-
-
-def tile_counts(keys) -> dict[str, int]:
-    """Tiles per level, from (level, ...) keys (what the metadata records as
-    ``tile_counts``).
-
-    Examples
-    --------
-    >>> tile_counts([(0, 0, 0), (0, 1, 0), (1, 0, 0)])
-    {'0': 2, '1': 1}
-    """
-    out: dict[str, int] = {}
-    for k in keys:
-        out[str(int(k[0]))] = out.get(str(int(k[0])), 0) + 1
-    return dict(sorted(out.items(), key=lambda kv: int(kv[0])))

@@ -193,18 +193,14 @@ def mutate(path: Path, rng: random.Random) -> str:
         elif kind == "tablejunk":  # the tile table's row: junk or a bomb, valid checksum
             how = rng.choice(["junk", "bomb", "raw", "short", "wrap", "huge"])
             t = read_table(con)
-            if how == "wrap":  # one more tile (and its 4 blobs) whose key difference
-                #                  carries the sum past 2^63, in a raw row
-                n, m = len(t.tiles), len(t.blobs)
-                nums = np.vstack([t.numbers, t.numbers[-1:]])
-                diffs = [np.diff(t.tiles, prepend=np.int64(0)).tolist() + [(1 << 63) - 1],
-                         np.diff(t.blobs, prepend=np.int64(0)).tolist() + [1, 1, 1, 1],
-                         np.diff(t.ids, prepend=np.int64(0)).tolist() + [1, 1, 1, 1]]
-                cols = [np.ascontiguousarray(nums[:, j]).view(np.uint8).reshape(-1, 8).T
-                        .tobytes() for j in range(nums.shape[1])]
-                data = (struct.pack("<BII", 0, n + 1, m + 4)
-                        + np.array(diffs[0], "<i8").tobytes() + b"".join(cols)
-                        + np.array(diffs[1], "<i8").tobytes() + np.array(diffs[2], "<i8").tobytes())
+            if how == "wrap":  # one more tile (and its 4 blobs) whose key difference,
+                #                  2^63 - 1, carries the sum past 2^63 (wraps negative)
+                last = int(t.tiles[-1])
+                wrapped = np.int64(last + (1 << 63) - 1 - (1 << 64))
+                data = pack_tiles(TileTable(
+                    np.append(t.tiles, wrapped), np.vstack([t.numbers, t.numbers[-1:]]),
+                    np.append(t.blobs, t.blobs[-1] + np.arange(1, 5)),
+                    np.append(t.ids, t.ids.max() + np.arange(1, 5))))
             elif how == "huge":  # far more tiles than the file could hold, compressing
                 #                  well but under RATIO_CAP
                 k = 400_000
