@@ -186,10 +186,12 @@ def compose(img: np.ndarray, view: View, terrain, *, shading: str = "normals",
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(W / DPI, H / DPI), dpi=DPI)
+    # the overlays are drawn on a transparent figure and blended over the picture after:
+    # drawing the picture itself through the figure (an imshow, resampled and composited
+    # by Agg) cost 45 ms a frame, and 170 ms more in a cold process
+    fig = Figure(figsize=(W / DPI, H / DPI), dpi=DPI, facecolor="none")
     FigureCanvasAgg(fig)
     ax = fig.add_axes((0, 0, 1, 1))
-    ax.imshow(img, interpolation="nearest", extent=(0, W, H, 0))
     ax.axis("off")
     fs = layout.fs
     pt = 72.0 / DPI
@@ -280,4 +282,27 @@ def compose(img: np.ndarray, view: View, terrain, *, shading: str = "normals",
             # display coordinates have y up: flip to the picture's rows
             extents[name] = (min(b.x0 for b in bbs), H - max(b.y1 for b in bbs),
                              max(b.x1 for b in bbs), H - min(b.y0 for b in bbs))
-    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    return over(img, np.asarray(fig.canvas.buffer_rgba()))
+
+
+def over(img: np.ndarray, rgba: np.ndarray) -> np.ndarray:
+    """``rgba`` (straight alpha, uint8) composited over the opaque picture ``img``.
+
+    Porter–Duff "over" with the result rounded to the nearest integer, as Agg blends:
+    out = (img·(255 − a) + rgb·a) / 255, on the pixels the overlays touch only.
+
+    Examples
+    --------
+    >>> img = np.full((1, 2, 3), 200, np.uint8)
+    >>> rgba = np.array([[[0, 0, 0, 255], [0, 0, 0, 0]]], np.uint8)
+    >>> over(img, rgba)[0, :, 0].tolist()
+    [0, 200]
+    """
+    out = np.array(img, np.uint8, copy=True)
+    flat, src = out.reshape(-1, 3), rgba.reshape(-1, 4)
+    idx = np.flatnonzero(src[:, 3])
+    src = src[idx]
+    a = src[:, 3:4].astype(np.uint16)
+    mix = flat[idx] * (255 - a) + src[:, :3] * a + np.uint16(128)  # ≤ 65 153
+    flat[idx] = (mix + (mix >> 8)) >> 8  # = round(mix / 255), exact below 65 536
+    return out

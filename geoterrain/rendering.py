@@ -71,10 +71,16 @@ PLAIN_COLOR = (0.80, 0.78, 0.72)
 
 
 def _prefer_egl() -> None:
-    """Use the EGL (headless) OpenGL window when there is no display, before VTK makes one."""
+    """Use the EGL (headless) OpenGL window when there is no display, before VTK makes one.
+
+    Also tells PyVista that plotting is allowed: its X-server probe (``xset -q``, then a
+    throw-away render window, about 0.1 s of a cold render) only decides whether to warn
+    that no display exists, and an offscreen EGL window needs none.
+    """
     if sys.platform.startswith("linux") and not os.environ.get("DISPLAY") \
             and not os.environ.get("WAYLAND_DISPLAY"):
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+        os.environ.setdefault("ALLOW_PLOTTING", "true")
 
 
 # -------------------------------------------------------------------------- scene
@@ -381,7 +387,9 @@ def _write_png(path: str | Path, img: np.ndarray, overwrite: bool = True) -> Non
     remove_stale_partials(path.parent)
     tmp = partial_path(path)
     try:
-        iio.imwrite(tmp, img, extension=".png")
+        # zlib level 3: 2.5x faster than Pillow's default 6 on rendered terrain, and
+        # no larger (62 against 152 ms, 886 against 899 kB at 1280x720)
+        iio.imwrite(tmp, img, extension=".png", compress_level=3)
         publish(tmp, path, overwrite)
     except OSError as exc:
         tmp.unlink(missing_ok=True)

@@ -7,13 +7,15 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import geoterrain
 from geoterrain import lod
 from geoterrain.cameras import default_view, interpolate_views, orbit_views
 from geoterrain.colours import Palette, colorize
 from geoterrain.exceptions import UsageError
-from geoterrain.overlays import compose, layout_for, north_direction
+from geoterrain.overlays import compose, layout_for, north_direction, over
 from geoterrain.rendering import TerrainScene, _plotter, overview
 from geoterrain.synth import generate, write_geotiff
 from geoterrain.textures import texture_image
@@ -222,6 +224,36 @@ def test_overlays_never_cover_terrain(tmp_path_factory, size):
         # boxes are opaque white: their insides show no terrain colour
         bx0, by0, bx1, by1 = (int(round(c)) for c in lay.boxes["north_arrow"])
         assert (out[by0 + 2, bx0 + 2] == 255).all()
+
+
+def test_overlays_leave_the_picture_outside_their_boxes(tmp_path_factory):
+    """compose blends the overlays over the picture: every pixel outside the boxes (with
+    a 2-pixel margin for their anti-aliased edges) is the picture's, bit for bit."""
+    t = synth_store(tmp_path_factory, "synth")
+    v = overview(t, (640, 360), title="Noise")
+    img = np.random.default_rng(3).integers(0, 256, (360, 640, 3), dtype=np.uint8)
+    out = compose(img, v, t, title="Noise")
+    inside = np.zeros((360, 640), bool)
+    for x0, y0, x1, y1 in layout_for(t, (640, 360), title="Noise").boxes.values():
+        inside[max(int(y0) - 2, 0):int(math.ceil(y1)) + 3,
+               max(int(x0) - 2, 0):int(math.ceil(x1)) + 3] = True
+    assert inside.any() and not inside.all()
+    assert np.array_equal(out[~inside], img[~inside])
+    assert (out[inside] != img[inside]).any()
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_over_is_rounded_porter_duff(seed):
+    """``over`` against the float formula round((img·(255 − a) + rgb·a) / 255)."""
+    rng = np.random.default_rng(seed)
+    img = rng.integers(0, 256, (7, 9, 3), dtype=np.uint8)
+    rgba = rng.integers(0, 256, (7, 9, 4), dtype=np.uint8)
+    rgba[..., 3][rng.random((7, 9)) < 0.3] = 0
+    rgba[..., 3][rng.random((7, 9)) < 0.2] = 255
+    a = rgba[..., 3:4].astype(np.float64)
+    ref = np.floor((img * (255 - a) + rgba[..., :3] * a) / 255 + 0.5)
+    assert np.array_equal(over(img, rgba), ref.astype(np.uint8))
 
 
 @pytest.mark.parametrize("size", [(960, 540), pytest.param((1280, 720), marks=SLOW)])
