@@ -95,10 +95,12 @@ _TABLE_SQL = {
              "crc32 INTEGER NOT NULL)",
 }
 _SCHEMA = "".join(f"{sql};\n" for sql in _TABLE_SQL.values())
-# the writer's staging of the tile table (temp tables: never in the store's file)
-_STAGING = ("CREATE TEMP TABLE staged_tiles (key INTEGER PRIMARY KEY, "
+# the writer's staging of the tile table (an attached file beside the partial store,
+# never the store's own file)
+_STAGING = ("CREATE TABLE staging.staged_tiles (key INTEGER PRIMARY KEY, "
             + ", ".join(f"n{j} REAL" for j in range(len(TILE_COLUMNS))) + ");\n"
-            "CREATE TEMP TABLE staged_blobs (key INTEGER PRIMARY KEY, blob INTEGER NOT NULL);\n")
+            "CREATE TABLE staging.staged_blobs (key INTEGER PRIMARY KEY, "
+            "blob INTEGER NOT NULL);\n")
 # the tables of schema versions 1 to 3 (a reader still finds their version)
 _OLD_TABLES = ("metadata", "tiles", "blobs", "blob_keys")
 _OLD_METADATA_SQL = ("CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT NOT NULL)",
@@ -174,6 +176,9 @@ class StoreWriter:
             raise UsageError(f"{parent}: no such directory for the store; create it first")
         remove_stale_partials(parent)
         self.tmp = parent / f".{self.dst.name}.partial-{os.getpid()}"
+        # the tile table's staging file, in the same folder: a full disk is the store's
+        # disk, and a killed writer's file is a partial that the next run removes
+        self.staging = parent / f".{self.dst.name}.staging.partial-{os.getpid()}"
         self.overwrite = overwrite
         self._meta: dict = {}
         self._rows: list[tuple] = []  # blob rows not yet inserted (see _flush)
@@ -181,8 +186,9 @@ class StoreWriter:
         self._rowid = 0  # rows inserted so far: the next one's rowid is this + 1
         self._committed = False
         try:
-            if self.tmp.exists():
-                self.tmp.unlink()
+            for f in (self.tmp, self.staging):
+                if f.exists():
+                    f.unlink()
             self.con = sqlite3.connect(self.tmp, isolation_level=None)
         except (OSError, sqlite3.Error) as exc:
             raise WriteError(
@@ -198,12 +204,16 @@ class StoreWriter:
         self.con.execute("PRAGMA synchronous=OFF")
         self.con.execute(f"PRAGMA application_id={APPLICATION_ID}")
         self.con.executescript(_SCHEMA)
-        # the tile table is staged in SQLite's temporary database (a file of its own,
-        # deleted when the connection closes; its pages cached in at most 2 MB), so a
+        # the tile table is staged in a database file of its own beside the partial
+        # store (deleted at commit or abort; its pages cached in at most 2 MB), so a
         # large pyramid's table costs the writer no memory until commit, and then a
-        # column at a time (pack_tiles)
-        self.con.execute("PRAGMA temp_store=FILE")
-        self.con.execute("PRAGMA temp.cache_size=-2000")
+        # column at a time (pack_tiles). SQLite's temporary files would put it on
+        # another disk (or in RAM on a tmpfs), and a full disk there would be reported
+        # as this store's.
+        self.con.execute("ATTACH DATABASE ? AS staging", (str(self.staging),))
+        self.con.execute("PRAGMA staging.journal_mode=OFF")
+        self.con.execute("PRAGMA staging.synchronous=OFF")
+        self.con.execute("PRAGMA staging.cache_size=-2000")
         self.con.executescript(_STAGING)
         self.con.execute("BEGIN")
 
@@ -255,7 +265,7 @@ class StoreWriter:
         order = pack_order(sizes, PAGE_SIZE - LEAF_HEADER)
         self.con.executemany("INSERT INTO blobs VALUES (NULL,?,?)",
                              (rows[i][1:] for i in order))
-        self.con.executemany("INSERT INTO temp.staged_blobs VALUES (?,?)", (
+        self.con.executemany("INSERT INTO staging.staged_blobs VALUES (?,?)", (
             (rows[i][0], rowid) for rowid, i in enumerate(order, self._rowid + 1)))
         self._rowid = last
 
@@ -267,7 +277,8 @@ class StoreWriter:
                 raise ValueError(f"a tile row holds {len(TILE_COLUMNS)} numbers, the "
                                  "first a count of valid samples")
         marks = ", ".join("?" * (1 + len(TILE_COLUMNS)))
-        self._guard(self.con.executemany, f"INSERT INTO temp.staged_tiles VALUES ({marks})",
+        self._guard(self.con.executemany,
+                    f"INSERT INTO staging.staged_tiles VALUES ({marks})",
                     ((tile_key(k), int(r[0]), *r[1:]) for k, r in rows.items()))
 
     def _staged(self, sql: str, dtype=np.int64):
@@ -281,20 +292,21 @@ class StoreWriter:
     def _tile_table(self) -> bytes:
         """The tile table's catalog row, streamed from the staging tables a column at a
         time, and the metadata's tile counts."""
-        counts = self.con.execute("SELECT key & 31, COUNT(*) FROM temp.staged_tiles "
+        counts = self.con.execute("SELECT key & 31, COUNT(*) FROM staging.staged_tiles "
                                   "GROUP BY 1 ORDER BY 1").fetchall()
         self._meta["tile_counts"] = {str(L): c for L, c in counts}
-        (m,) = self.con.execute("SELECT COUNT(*) FROM temp.staged_blobs").fetchone()
+        (m,) = self.con.execute("SELECT COUNT(*) FROM staging.staged_blobs").fetchone()
 
         def column(name: str) -> np.ndarray:
-            return np.concatenate([*self._staged(f"SELECT {name} FROM temp.staged_tiles "
-                                                 "ORDER BY key", np.float64), np.zeros(0)])
+            return np.concatenate([*self._staged(f"SELECT {name} FROM "
+                                                 "staging.staged_tiles ORDER BY key",
+                                                 np.float64), np.zeros(0)])
 
         return pack_stream(sum(c for _, c in counts), m, lambda: table_columns(
-            self._staged("SELECT key FROM temp.staged_tiles ORDER BY key"),
+            self._staged("SELECT key FROM staging.staged_tiles ORDER BY key"),
             (column(f"n{j}") for j in range(len(TILE_COLUMNS))),
-            self._staged("SELECT key FROM temp.staged_blobs ORDER BY key"),
-            self._staged("SELECT blob FROM temp.staged_blobs ORDER BY key")))
+            self._staged("SELECT key FROM staging.staged_blobs ORDER BY key"),
+            self._staged("SELECT blob FROM staging.staged_blobs ORDER BY key")))
 
     def commit(self) -> Path:
         """Finish: write the catalog, the metadata with its complete flag, fsync,
@@ -310,6 +322,7 @@ class StoreWriter:
                                  ((i, d, catalog_crc(i, d)) for i, d in sorted(rows.items())))
             self.con.execute("COMMIT")
             self.con.close()
+            self.staging.unlink(missing_ok=True)
             fd = os.open(self.tmp, os.O_RDONLY)
             try:
                 os.fsync(fd)
@@ -332,10 +345,11 @@ class StoreWriter:
             self.con.close()
         except Exception:  # noqa: BLE001 - closing a broken connection
             pass
-        try:
-            self.tmp.unlink()
-        except OSError:
-            pass
+        for f in (self.tmp, self.staging):
+            try:
+                f.unlink()
+            except OSError:
+                pass
 
     def __enter__(self) -> StoreWriter:
         return self

@@ -65,6 +65,7 @@ def test_a_16385_render_peaks_under_one_gigabyte(tmp_path):
                             *view], check=True, capture_output=True, text=True)
         peak = json.loads(r.stdout.strip().splitlines()[-1])["peak_bytes"]
         s = json.loads(stats.read_text())
+        print(f"view {k} {view}: peak {peak / 1e6:.0f} MB, {s['triangles']} triangles")
         assert s["triangles"] > 0 and s["terrain_fraction"] > 0.3, s
         assert peak < 1e9, f"view {view}: the render peaked at {peak / 1e6:.0f} MB"
 

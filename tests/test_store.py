@@ -308,7 +308,7 @@ def test_the_tile_table_round_trips(keys, seed, flat):
 
 
 def test_the_writer_packs_its_staged_table_as_pack_tiles_does(tmp_path, fbm_tif):
-    """The writer streams its tile table from SQLite's temporary tables a column at a
+    """The writer streams its tile table from its staging tables a column at a
     time; the row it writes is the one pack_tiles makes of the table read back, and no
     staging table is left in the store."""
     store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain", tile_size=16)
@@ -319,6 +319,23 @@ def test_the_writer_packs_its_staged_table_as_pack_tiles_does(tmp_path, fbm_tif)
     assert row == pack_tiles(t)
     assert [n for (n,) in r.con.execute("SELECT name FROM sqlite_master")] == ["catalog",
                                                                                "blobs"]
+
+
+def test_the_staging_file_sits_beside_the_store_and_goes(tmp_path):
+    """The tile table is staged in a file in the store's own folder (so a full disk is
+    the store's disk), and neither it nor the partial store outlives commit or abort."""
+    for finish in ("commit", "abort"):
+        d = tmp_path / finish
+        d.mkdir()
+        w = StoreWriter(d / "a.geoterrain")
+        w.put_blobs("heights", {(0, 0, 0): b"x"})
+        w.put_tiles({(0, 0, 0): (1, *[0.0] * (len(TILE_COLUMNS) - 1))})
+        names = sorted(p.name for p in d.iterdir())
+        assert names == sorted([w.tmp.name, w.staging.name]), names
+        assert w.staging.name.startswith(".a.geoterrain.staging.partial-")
+        getattr(w, finish)()
+        left = sorted(p.name for p in d.iterdir())
+        assert left == (["a.geoterrain"] if finish == "commit" else []), left
 
 
 def test_a_large_staged_table_reads_back_exactly(tmp_path):
