@@ -16,10 +16,10 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from geoterrain.quantize import (
-    FINE_STEPS,
     Quantizer,
     _grid_checks,
     _roundtrip_error,
+    fine_candidates,
     fine_grids_apply,
     fine_quantizer,
     fine_steps_ok,
@@ -100,8 +100,8 @@ def band_quantizer(bands: Bands, src_dtype: np.dtype | type | str,
     # finer grids (quantize.fine_quantizer), checked only once the heights have left
     # the integers: an integer passes a step exactly when |x| / step < 2^52, so the
     # integer bands before count through their largest |x| (vmax so far)
-    fine = np.ones(len(FINE_STEPS) if fine_grids_apply(scale, offset, codec_error) else 0,
-                   np.bool_)
+    fine = np.ones(len(fine_candidates(dt)) if fine_grids_apply(scale, offset, codec_error)
+                   else 0, np.bool_)
     for v in bands():
         v = _finite(v)
         if v.size:

@@ -23,8 +23,36 @@ _I64_MAX = np.int64(np.iinfo(np.int64).max)
 FINE_STEPS = tuple(sorted([(2.0 ** -m, False) for m in range(1, 9)]
                           + [(10.0 ** -d, True) for d in range(1, 5)], reverse=True))
 DECIMAL_STEPS = tuple(s for s, d in FINE_STEPS if d)
-_STEPS = np.array([s for s, _ in FINE_STEPS], np.float64)
-_DIVS = np.array([float(round(1.0 / s)) if d else 0.0 for s, d in FINE_STEPS], np.float64)
+
+
+def fine_candidates(dt: np.dtype) -> tuple[tuple[float, bool, bool], ...]:
+    """The lossless grids tried on a float source of dtype ``dt``, coarsest first:
+    (step, decimal, to float32). A decimal decodes as ``code / 10^d`` rounded to float32
+    for a source of at most 4 bytes. A float64 source tries each decimal twice, as
+    float64 and then rounded to float32: a float64 raster written from float32 decimals
+    (a conversion that widened 1238.6f) holds the float32 nearest each decimal.
+
+    Examples
+    --------
+    >>> [c for c in fine_candidates(np.dtype("float64")) if c[0] == 0.1]
+    [(0.1, True, False), (0.1, True, True)]
+    >>> [c for c in fine_candidates(np.dtype("float32")) if c[0] == 0.1]
+    [(0.1, True, True)]
+    """
+    if np.dtype(dt).itemsize <= 4:
+        return tuple((s, d, d) for s, d in FINE_STEPS)
+    return tuple(c for s, d in FINE_STEPS
+                 for c in ([(s, d, False), (s, d, True)] if d else [(s, d, False)]))
+
+
+def _candidate_arrays(dt: np.dtype) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    # the kernel's view of fine_candidates: steps, divisors (0: binary), to-float32 flags
+    c = fine_candidates(dt)
+    return (np.array([s for s, _, _ in c], np.float64),
+            np.array([float(round(1.0 / s)) if d else 0.0 for s, d, _ in c], np.float64),
+            np.array([f for _, _, f in c], np.bool_))
+
+
 _I32_MAX = np.int64(np.iinfo(np.int32).max)
 
 
@@ -188,17 +216,17 @@ def choose_quantizer(
 
 
 def fine_steps_ok(v: np.ndarray, dt: np.dtype, ok: np.ndarray | None = None) -> np.ndarray:
-    """For each of :data:`FINE_STEPS`: does every finite value of ``v`` decode to itself
-    under it (code ``rint(x / step)``; a binary step decodes ``code × step``, a decimal
-    one ``code / 10^d`` rounded to float32 for a source of at most 4 bytes), bit for bit
+    """For each of :func:`fine_candidates`: does every finite value of ``v`` decode to
+    itself under it (code ``rint(x / step)``; a binary step decodes ``code × step``, a
+    decimal one ``code / 10^d``, rounded to float32 where the candidate says), bit for bit
     but for a −0, which decodes as +0 (as in the ``"int"`` mode)? ``ok`` (the flags of
     earlier values, updated in place) lets a caller check a raster band by band.
     Examples: :func:`fine_quantizer`."""
     if ok is None:
-        ok = np.ones(len(FINE_STEPS), np.bool_)
+        ok = np.ones(len(fine_candidates(dt)), np.bool_)
     if ok.any():
-        _fine_steps_nb(np.ascontiguousarray(v, np.float64).ravel(), _STEPS, _DIVS,
-                       np.dtype(dt).itemsize <= 4, ok)
+        _fine_steps_nb(np.ascontiguousarray(v, np.float64).ravel(), *_candidate_arrays(dt),
+                       ok)
     return ok
 
 
@@ -233,18 +261,18 @@ def fine_quantizer(ok: np.ndarray, dt: np.dtype, codec_error: float | None = Non
     dt = np.dtype(dt)
     if dt.kind != "f":
         return None
-    for (step, decimal), good in zip(FINE_STEPS, ok, strict=True):
+    for (step, decimal, f32), good in zip(fine_candidates(dt), ok, strict=True):
         if good:
             if codec_error is not None and codec_error > 0 and 2.0 * codec_error > step:
                 return None
             if decimal:
-                return Quantizer("decimal", step, 0.0, 0.0, 32 if dt.itemsize <= 4 else 64)
+                return Quantizer("decimal", step, 0.0, 0.0, 32 if f32 else 64)
             return Quantizer("int", step, 0.0, 0.0)
     return None
 
 
 @njit(cache=True, nogil=True)
-def _fine_steps_nb(v, steps, divs, f32, ok):  # pragma: no cover - compiled
+def _fine_steps_nb(v, steps, divs, f32s, ok):  # pragma: no cover - compiled
     left = 0
     for s in range(ok.size):
         left += ok[s]
@@ -258,7 +286,7 @@ def _fine_steps_nb(v, steps, divs, f32, ok):  # pragma: no cover - compiled
                 continue
             r = np.rint(x / steps[s])
             if divs[s] > 0:
-                h = _decimal_value(r, divs[s], f32)
+                h = _decimal_value(r, divs[s], f32s[s])
             else:
                 h = r * steps[s]
             if not abs(r) < 2.0**52 or h != x:

@@ -381,35 +381,45 @@ def test_the_compiled_roundtrip_is_the_codes_roundtrip(q, seed, mag):
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**31), places=st.integers(1, 4), m=st.integers(1, 8),
        binary=st.booleans(), dtype=st.sampled_from([np.float16, np.float32, np.float64]),
-       mag=st.sampled_from([1.0, 1e3, 1e5, 1e11, 1e15]), t=st.integers(1, 3))
-def test_heights_on_a_finer_grid_are_integer_codes(seed, places, m, binary, dtype, mag, t):
+       mag=st.sampled_from([1.0, 1e3, 1e5, 1e11, 1e15]), t=st.integers(1, 3),
+       widened=st.booleans())
+def test_heights_on_a_finer_grid_are_integer_codes(seed, places, m, binary, dtype, mag, t,
+                                                   widened):
     """Float heights written on a grid finer than 1 (d decimal places rounded to the
-    source float, or multiples of 2^-m) are coded as integers of the coarsest candidate
-    grid that holds them all, and decode bit for bit on every path (a −0 as +0)."""
+    source float, or multiples of 2^-m; a float64 source may hold float32 decimals,
+    ``widened``) are coded as integers of the coarsest candidate grid that holds them
+    all, and decode bit for bit on every path (a −0 as +0)."""
     rng = np.random.default_rng(seed)
     n = (1 << t) * 2 + 1
     raw = rng.normal(0, mag, (n, n))
+    written = np.float32 if widened and dtype == np.float64 else dtype
     z = (np.rint(raw * 2.0**m) / 2.0**m if binary
-         else np.rint(raw * 10.0**places) / 10.0**places).astype(dtype).astype(np.float64)
+         else np.rint(raw * 10.0**places) / 10.0**places).astype(written).astype(np.float64)
     z += 0.0  # a −0 decodes as +0, the same height (as in the "int" mode): bits below
     valid = (rng.random(z.shape) > 0.1) & np.isfinite(z)  # (float16 overflows past 65504)
     assume(valid.any())
     qz = choose_quantizer(z[valid], dtype)
     fin = z[valid]
 
-    def holds(step, decimal):  # independent of the quantizer: numpy on the values
+    def holds(step, decimal, f32):  # independent of the quantizer: numpy on the values
         k = np.rint(fin / step)
         back = k / round(1 / step) if decimal else k * step
-        if decimal and np.dtype(dtype).itemsize <= 4:
+        if f32:
             back = back.astype(np.float32).astype(np.float64)
         return bool(np.all(np.abs(k) < 2.0**52) and np.array_equal(back, fin))
 
     from geoterrain.quantize import FINE_STEPS
-    good = [(s, d) for s, d in FINE_STEPS if holds(s, d)]
-    if holds(1.0, False):
+    small = np.dtype(dtype).itemsize <= 4  # decimals decode to float32; float64 tries both
+    cands = [(s, d, f) for s, d in FINE_STEPS
+             for f in ((d,) if small else (False, True) if d else (False,))]
+    good = [c for c in cands if holds(*c)]
+    if holds(1.0, False, False):
         assert qz.mode == "int" and qz.step == 1.0
     elif good:  # (none where the codes would pass 2^52: huge heights, fine steps)
-        assert (qz.step, qz.mode == "decimal") == good[0]  # the coarsest that holds
+        s, d, f = good[0]  # the coarsest that holds
+        assert (qz.step, qz.mode == "decimal") == (s, d)
+        if d:
+            assert qz.float_bits == (32 if f else 64)
         assert qz.codec_error == 0.0
     else:
         assert qz.mode == "float"
@@ -419,6 +429,18 @@ def test_heights_on_a_finer_grid_are_integer_codes(seed, places, m, binary, dtyp
     assert np.array_equal(h[valid].view(np.int64), fin.view(np.int64))
     assert (lo, hi, nv) == (fin.min(), fin.max(), fin.size)
     assert np.array_equal(roundtrip(z, valid, qz)[valid].view(np.int64), fin.view(np.int64))
+
+
+def test_float32_decimals_in_a_float64_raster_are_decimal_codes():
+    """A float64 raster widened from float32 decimals (1238.6f as a double) is coded as
+    decimals rounded to float32, losslessly, and not as 64-bit floats."""
+    z = np.float32([1238.6, 1009.3, 1264.9, -3.7]).astype(np.float64)
+    q = choose_quantizer(z, np.float64)
+    assert (q.mode, q.step, q.float_bits) == ("decimal", 0.1, 32)
+    assert codes_to_heights(heights_to_codes(z, q), q).tobytes() == z.tobytes()
+    exact = np.array([1238.6, 1009.3])  # the doubles nearest the decimals: float64 kept
+    q = choose_quantizer(exact, np.float64)
+    assert (q.mode, q.step, q.float_bits) == ("decimal", 0.1, 64)
 
 
 def test_a_float32_decimal_is_not_its_float64_product():

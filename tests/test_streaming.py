@@ -59,7 +59,7 @@ def _tif(path, z, nodata=None, crs="EPSG:32633", south_up=False) -> str:
 @settings(max_examples=12, deadline=None)
 @given(seed=st.integers(0, 10_000), rows=st.integers(5, 150), cols=st.integers(5, 150),
        tile=st.sampled_from([2, 4, 16, 64]), holes=st.sampled_from([0.0, 0.05, 0.6]),
-       dtype=st.sampled_from(["float32", "int16", "tenths"]),
+       dtype=st.sampled_from(["float32", "int16", "tenths", "tenths64"]),
        eps=st.sampled_from([None, 0.5, 2.0]),
        band=st.sampled_from([2, 8, 64]), south_up=st.booleans())
 def test_streamed_store_is_the_preprocessed_one(tmp_path_factory, seed, rows, cols, tile,
@@ -69,8 +69,13 @@ def test_streamed_store_is_the_preprocessed_one(tmp_path_factory, seed, rows, co
     tmp = tmp_path_factory.mktemp("st")
     rng = np.random.default_rng(seed)
     z = rng.normal(0, 20, (rows, cols)).cumsum(0).cumsum(1) / 5 + rng.normal(0, 3, (rows, cols))
-    # "tenths": float32 heights of one decimal place (the "decimal" quantizer)
-    z = (np.rint(z * 10) / 10).astype(np.float32) if dtype == "tenths" else z.astype(dtype)
+    # "tenths": float32 heights of one decimal place (the "decimal" quantizer);
+    # "tenths64": the same float32 values written as float64
+    if dtype.startswith("tenths"):
+        z = (np.rint(z * 10) / 10).astype(np.float32)
+        z = z.astype(np.float64) if dtype == "tenths64" else z
+    else:
+        z = z.astype(dtype)
     nodata = None
     if holes:
         z[rng.random(z.shape) < holes] = -9999
