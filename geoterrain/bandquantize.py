@@ -98,16 +98,22 @@ def band_quantizer(bands: Bands, src_dtype: np.dtype | type | str,
     exact, f32, n, vmax = True, True, 0, 0.0
     lo, hi = np.inf, -np.inf
     # finer grids (quantize.fine_quantizer), checked only once the heights have left
-    # the integers: an integer passes a step exactly when |x| / step < 2^52, so the
-    # integer bands before count through their largest |x| (vmax so far)
-    fine = np.ones(len(fine_candidates(dt)) if fine_grids_apply(scale, offset, codec_error)
-                   else 0, np.bool_)
+    # the integers: an integer passes a binary or float64 decimal step exactly when
+    # |x| / step < 2^52, so the integer bands before count through their largest |x|
+    # (vmax so far); a candidate rounded to float32 also needs every value to be a
+    # float32 (an odd integer above 2^24 is not), which f32 tracks over every band
+    cands = fine_candidates(dt)
+    fine = np.ones(len(cands) if fine_grids_apply(scale, offset, codec_error) else 0,
+                   np.bool_)
+    to_f32 = np.array([c[2] for c in cands], np.bool_)[:fine.size]
     for v in bands():
         v = _finite(v)
         if v.size:
             e, f = _grid_checks(v, sc, off)
             was = exact
             exact, f32 = exact and e, f32 and f
+            if not f32:
+                fine &= ~to_f32
             if not exact and fine.any():
                 if was:
                     fine_steps_ok(np.array([vmax]), dt, fine)

@@ -282,7 +282,13 @@ def compose(img: np.ndarray, view: View, terrain, *, shading: str = "normals",
             # display coordinates have y up: flip to the picture's rows
             extents[name] = (min(b.x0 for b in bbs), H - max(b.y1 for b in bbs),
                              max(b.x1 for b in bbs), H - min(b.y0 for b in bbs))
-    return over(img, np.asarray(fig.canvas.buffer_rgba()))
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    if rgba.shape[:2] != (H, W):  # matplotlib before 3.11 could round a size down a pixel
+        fit = np.zeros((H, W, 4), np.uint8)
+        h, w = min(H, rgba.shape[0]), min(W, rgba.shape[1])
+        fit[:h, :w] = rgba[:h, :w]
+        rgba = fit
+    return over(img, rgba)
 
 
 def over(img: np.ndarray, rgba: np.ndarray) -> np.ndarray:
@@ -298,6 +304,12 @@ def over(img: np.ndarray, rgba: np.ndarray) -> np.ndarray:
     >>> over(img, rgba)[0, :, 0].tolist()
     [0, 200]
     """
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"over: the picture must be (H, W, 3) uint8, not {img.shape} "
+                         f"{img.dtype}")
+    if rgba.dtype != np.uint8 or rgba.shape != (*img.shape[:2], 4):
+        raise ValueError(f"over: the overlay must be {(*img.shape[:2], 4)} uint8, not "
+                         f"{rgba.shape} {rgba.dtype}")
     out = np.array(img, np.uint8, copy=True)
     flat, src = out.reshape(-1, 3), rgba.reshape(-1, 4)
     idx = np.flatnonzero(src[:, 3])

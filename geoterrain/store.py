@@ -39,6 +39,7 @@ import os
 import sqlite3
 import struct
 import threading
+import weakref
 import zlib
 from pathlib import Path
 
@@ -149,6 +150,15 @@ def is_store(path: str | Path) -> bool:
         return False
 
 
+def _unlink_all(paths: tuple[Path, ...]) -> None:
+    """Remove ``paths`` that exist (a writer's partial store and staging file)."""
+    for f in paths:
+        try:
+            f.unlink()
+        except OSError:
+            pass
+
+
 class StoreWriter:
     """Write a store atomically: use as a context manager, then :meth:`commit`.
 
@@ -177,8 +187,11 @@ class StoreWriter:
         remove_stale_partials(parent)
         self.tmp = parent / f".{self.dst.name}.partial-{os.getpid()}"
         # the tile table's staging file, in the same folder: a full disk is the store's
-        # disk, and a killed writer's file is a partial that the next run removes
-        self.staging = parent / f".{self.dst.name}.staging.partial-{os.getpid()}"
+        # disk, and a killed writer's file is a partial that the next run removes (the
+        # suffix after the pid: no other output's partial can have this name)
+        self.staging = self.tmp.with_name(self.tmp.name + ".staging")
+        # a writer dropped without commit or abort leaves neither file behind
+        self._cleanup = weakref.finalize(self, _unlink_all, (self.tmp, self.staging))
         self.overwrite = overwrite
         self._meta: dict = {}
         self._rows: list[tuple] = []  # blob rows not yet inserted (see _flush)
@@ -337,6 +350,7 @@ class StoreWriter:
 
         self._guard(_finish)
         self._committed = True
+        self._cleanup.detach()  # published: nothing of this writer's is left to remove
         return self.dst
 
     def abort(self) -> None:
@@ -345,11 +359,7 @@ class StoreWriter:
             self.con.close()
         except Exception:  # noqa: BLE001 - closing a broken connection
             pass
-        for f in (self.tmp, self.staging):
-            try:
-                f.unlink()
-            except OSError:
-                pass
+        self._cleanup()  # both files, once
 
     def __enter__(self) -> StoreWriter:
         return self

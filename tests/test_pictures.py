@@ -256,6 +256,14 @@ def test_over_is_rounded_porter_duff(seed):
     assert np.array_equal(over(img, rgba), ref.astype(np.uint8))
 
 
+def test_over_refuses_what_it_cannot_blend():
+    img = np.zeros((4, 5, 3), np.uint8)
+    with pytest.raises(ValueError, match="overlay must be"):
+        over(img, np.zeros((4, 4, 4), np.uint8))  # a canvas a pixel narrower
+    with pytest.raises(ValueError, match="picture must be"):
+        over(img.astype(np.float32), np.zeros((4, 5, 4), np.uint8))
+
+
 @pytest.mark.parametrize("size", [(960, 540), pytest.param((1280, 720), marks=SLOW)])
 def test_default_view_fills_the_frame(tmp_path_factory, size):
     """The default overview (azimuth 190, elevation 40) fills ≥ 40 % of the frame; a low

@@ -332,10 +332,27 @@ def test_the_staging_file_sits_beside_the_store_and_goes(tmp_path):
         w.put_tiles({(0, 0, 0): (1, *[0.0] * (len(TILE_COLUMNS) - 1))})
         names = sorted(p.name for p in d.iterdir())
         assert names == sorted([w.tmp.name, w.staging.name]), names
-        assert w.staging.name.startswith(".a.geoterrain.staging.partial-")
+        assert w.staging.name == f".a.geoterrain.partial-{os.getpid()}.staging"
         getattr(w, finish)()
         left = sorted(p.name for p in d.iterdir())
         assert left == (["a.geoterrain"] if finish == "commit" else []), left
+
+
+def test_a_dropped_writer_leaves_nothing_and_a_dead_ones_files_are_removed(tmp_path):
+    """A writer garbage-collected without commit or abort removes its partial store and
+    staging file; those of a dead process are removed by the next writer there."""
+    import gc
+
+    w = StoreWriter(tmp_path / "a.geoterrain")
+    w.put_blobs("heights", {(0, 0, 0): b"x"})
+    del w
+    gc.collect()
+    assert list(tmp_path.iterdir()) == []
+    dead = 999_999_999  # no such process
+    for name in (f".a.geoterrain.partial-{dead}", f".a.geoterrain.partial-{dead}.staging"):
+        (tmp_path / name).write_bytes(b"junk")
+    StoreWriter(tmp_path / "b.geoterrain").abort()
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_large_staged_table_reads_back_exactly(tmp_path):

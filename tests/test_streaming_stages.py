@@ -228,7 +228,8 @@ def test_banded_normal_codes_are_the_whole_grid_maps(seed, n, holes, band, data)
 @settings(deadline=None)
 @given(seed=st.integers(0, 100_000), rows=st.integers(1, 200),
        kind=st.sampled_from(["normal", "integers", "flat", "tiny", "few", "tenths",
-                             "late_tenths", "eighths", "huge_then_half"]),
+                             "late_tenths", "eighths", "huge_then_half",
+                             "odd_then_f32_tenths"]),
        eps=st.sampled_from([None, 0.3, 0.5, 2.0]), terrain_rgb=st.booleans(),
        dtype=st.sampled_from(["float32", "float64", "int16"]), band=st.integers(1, 40),
        sort_max=st.sampled_from([1, 5, 1 << 22]), bins=st.sampled_from([2, 16, 1 << 16]))
@@ -256,7 +257,13 @@ def test_banded_quantizer_is_choose_quantizer(seed, rows, kind, eps, terrain_rgb
          # integer bands count through their largest |x|
          "huge_then_half": lambda: np.vstack([
              rng.choice([2.0**51, 4336280868294623.0, 1e15 + 1, 7.0], (rows - 1, 7)),
-             rng.choice([0.5, 0.1, 0.0001], (1, 7))])}[kind]()
+             rng.choice([0.5, 0.1, 0.0001], (1, 7))]),
+         # integers float32 cannot hold (odd, above 2^24; the largest even, so a float32),
+         # then float32 tenths widened to float64: no float32-rounded decimal may pass
+         "odd_then_f32_tenths": lambda: np.vstack([
+             np.hstack([2.0**24 + 1 + 2 * rng.integers(0, 1000, (rows - 1, 6)),
+                        np.full((rows - 1, 1), 2.0**25)]),
+             (np.rint(rng.normal(1000, 30, (1, 7)) * 10) / 10).astype(np.float32)])}[kind]()
     z[rng.random(shape) < 0.2] = np.nan
     sc, off = (0.1, -10000.0) if terrain_rgb else (None, None)
 
@@ -282,6 +289,7 @@ def test_banded_quantizer_is_choose_quantizer(seed, rows, kind, eps, terrain_rgb
     [[[4336280868294623.0]], [[0.1]]],
     [[[1e15 + 1]], [[0.0001]]],
     [[[3.0], [2.0**52]], [[0.25]]],
+    [[[16777217.0, 16777218.0]], [[float(np.float32(1238.6))]]],
 ])
 @pytest.mark.parametrize("dtype", ["float32", "float64"])
 def test_banded_finer_grids_count_the_integer_bands_before(bands, dtype):
