@@ -548,7 +548,7 @@ class StoreReader:
             raise self._corrupt("the tile table holds an impossible count of valid samples")
         # the blob keys: one of each kind per tile, the δ_edge tiles', the root's table
         try:
-            edge = np.array([blob_key(k, EDGE_KIND) for k in self.edge_keys({})], np.int64)
+            edge = np.array([blob_key(k, EDGE_KIND) for k in self.edge_keys()], np.int64)
         except ValueError:  # a key out of any grid's range
             raise self._damaged("the delta_edge list") from None
         want = [(t.tiles[:, None] << 3 | np.arange(len(BLOB_KINDS))).ravel(), edge]
@@ -579,7 +579,7 @@ class StoreReader:
             out[unpack_tile_key(k)] = dict(zip(TILE_COLUMNS, vals, strict=True))
         return out
 
-    def edge_keys(self, tiles: dict) -> dict[tuple[int, int, int], float]:
+    def edge_keys(self) -> dict[tuple[int, int, int], float]:
         """The tiles with a ``delta_edge`` blob and the largest δ_edge of their stored
         vertices (+inf where stored as None), from the metadata; {} when it has none. A
         key may name a tile that is not stored (then the blob is all it has); the

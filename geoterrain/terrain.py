@@ -81,7 +81,7 @@ class Terrain:
             self.grid, self.frame, self.quantizer = check_store(self.path, m, self.tile_info)
             # tiles with a second δ (padding replicated: geoterrain/edgepad.py) → the
             # largest δ_edge of their new vertices; None: the store predates it
-            self.edge_max = (self.reader.edge_keys(self.tile_info) if "delta_edge" in m
+            self.edge_max = (self.reader.edge_keys() if "delta_edge" in m
                              else None)
             if self.edge_max and any(L > self.grid.top_level or max(x, y) >=
                                      self.grid.tiles_per_side(L) for L, x, y in self.edge_max):
