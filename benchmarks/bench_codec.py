@@ -16,11 +16,7 @@ vertical units), for:
 
 Run from the project root::
 
-    python benchmarks/bench_codec.py [--quick] [--dems-only] [--eps 0.5 1 2] [--level 19]
-
-``--level-table`` instead measures encode time (median of ``--repeat`` runs) and size
-per zstd level (3, 6, 9, 12, 19) on the 4097^2 fbm field of ``geoterrain.synth`` (seed
-7, float32 values), in lossless float mode and quantized mode at epsilon = 1.
+    python benchmarks/bench_codec.py [--quick] [--dems-only] [--eps 0.5 1 2]
 """
 
 from __future__ import annotations
@@ -141,13 +137,13 @@ def sz3_bytes(h: np.ndarray, valid: np.ndarray, eps: float) -> int | None:
     return int(comp.nbytes)
 
 
-def run_one(name, h, valid, native, scale, offset, eps, level, rows, lerc_ok):
+def run_one(name, h, valid, native, scale, offset, eps, rows, lerc_ok):
     nvalid = int(valid.sum())
     src_dtype = native.dtype
     qz = choose_quantizer(h[valid], src_dtype, codec_error=eps or None, scale=scale, offset=offset)
     z, v = pad(h, valid)
     t0 = time.perf_counter()
-    blobs = encode_pyramid(z, v, 6, qz, level=level)
+    blobs = encode_pyramid(z, v, 6, qz)
     t_enc = time.perf_counter() - t0
     ours = sum(map(len, blobs.values()))
     # decode every tile top-down
@@ -202,44 +198,12 @@ def run_one(name, h, valid, native, scale, offset, eps, level, rows, lerc_ok):
     print(rows[-1], flush=True)
 
 
-def level_table(repeat: int) -> None:
-    """Encode time and size per zstd level, float mode and quantized eps = 1."""
-    from geoterrain.synth import generate
-
-    n = 4097
-    z = generate("fbm", n, seed=7).astype(np.float64)
-    v = np.ones(z.shape, bool)
-    modes = {
-        "float": choose_quantizer(z, np.float32),
-        "eps=1": choose_quantizer(z, np.float32, codec_error=1.0),
-    }
-    print("| mode | zstd level | enc s (median) | runs | bytes | bits/sample |")
-    print("|---|---|---|---|---|---|")
-    for name, qz in modes.items():
-        for level in (3, 6, 9, 12, 19):
-            ts = []
-            for _ in range(repeat):
-                t0 = time.perf_counter()
-                blobs = encode_pyramid(z, v, 6, qz, level=level)
-                ts.append(time.perf_counter() - t0)
-            nb = sum(map(len, blobs.values()))
-            runs = " ".join(f"{t:.2f}" for t in ts)
-            bps = 8 * nb / n / n
-            print(f"| {name} | {level} | {np.median(ts):.2f} | {runs} | {nb} | {bps:.3f} |")
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="skip the 4097^2 synthetic field")
-    ap.add_argument("--level", type=int, default=19, help="zstd level of our tiles")
-    ap.add_argument("--level-table", action="store_true", help="time/size per zstd level")
-    ap.add_argument("--repeat", type=int, default=3, help="runs per level (--level-table)")
     ap.add_argument("--dems-only", action="store_true", help="skip the synthetic fields")
     ap.add_argument("--eps", type=float, nargs="+", default=EPSILONS, help="codec bounds")
     args = ap.parse_args()
-    if args.level_table:
-        level_table(args.repeat)
-        return
     try:
         import lerc  # noqa: F401
 
@@ -269,7 +233,7 @@ def main() -> None:
     rows: list[str] = []
     for name, h, valid, native, scale, offset in data:
         for eps in args.eps:
-            run_one(name, h, valid, native, scale, offset, eps, args.level, rows, lerc_ok)
+            run_one(name, h, valid, native, scale, offset, eps, rows, lerc_ok)
 
 
 if __name__ == "__main__":

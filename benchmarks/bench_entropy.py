@@ -3,8 +3,8 @@
 For each shared DEM (``../shared/dems``, skipped when absent) and ε, the pyramid of
 ``bench_codec.py`` (t = 6, the preprocess predictor choice), in bits per valid sample:
 
-- **ours**: every tile blob, as stored (headers, masks, zstd frames);
-- **top**: the top tile's blob alone (raster-order deltas; decoded first);
+- **ours**: every tile blob, as stored (headers, masks, range-coded streams);
+- **top**: the top tile's blob alone (coded coarse to fine inside itself; decoded first);
 - **below top, as stored**: the other blobs;
 - **H0 per tile**: the order-0 entropy of each tile's zigzag residuals, summed over the
   valid samples (an ideal static coder with a free table per tile: a bound that no
@@ -40,9 +40,8 @@ from geoterrain.codec import (  # noqa: E402
     encode_pyramid,
     pyramid_shape,
 )
-from geoterrain.predict import tile_zigzag  # noqa: E402
+from geoterrain.predict import predict  # noqa: E402
 from geoterrain.quantize import choose_quantizer, valid_codes  # noqa: E402
-from geoterrain.symbols import PACK_BITS  # noqa: E402
 
 
 def entropy_bits(x: np.ndarray) -> float:
@@ -76,23 +75,28 @@ def level_residuals(d: np.ndarray, v: np.ndarray, n: int, te: int, lev: int, cub
     sample's valid flag and context (class, activity bucket)."""
     hh = 1 << (te - 1)
     s, nt = 1 << lev, 1 << (n - lev - te)
-    zz = np.empty((nt, nt, 2 * hh * (hh + 1) + hh * hh), np.uint64)
-    zmax = np.empty((nt, nt), np.uint64)
-    esc = np.empty((nt, nt, len(PACK_BITS)), np.int64)
-    tile_zigzag(d, s, hh, (1 << te) if cubic else 0, zz, zmax, esc)
-    P = d[::2 * s, ::2 * s]
+    lv = d[::s, ::s]
+    P = lv[::2, ::2]
+    preds = predict(lv, (1 << te) if cubic else None)
     V = v[::s, ::s]
+    sls = [(slice(0, None, 2), slice(1, None, 2)), (slice(1, None, 2), slice(0, None, 2)),
+           (slice(1, None, 2), slice(1, None, 2))]
+    res = [lv[sl] - p for sl, p in zip(sls, preds, strict=True)]
     act = [np.abs(P[:, 1:] - P[:, :-1]), np.abs(P[1:, :] - P[:-1, :]),
            np.maximum(np.abs(P[1:, 1:] - P[:-1, :-1]), np.abs(P[1:, :-1] - P[:-1, 1:]))]
-    ok = [V[0::2, 1::2], V[1::2, 0::2], V[1::2, 1::2]]
     shapes = [(hh + 1, hh), (hh, hh + 1), (hh, hh)]
-    acts = np.concatenate([tile_blocks(a, nt, hh, *sh)
-                           for a, sh in zip(act, shapes, strict=True)], 2)
-    valid = np.concatenate([tile_blocks(o, nt, hh, *sh)
-                            for o, sh in zip(ok, shapes, strict=True)], 2)
-    cls = np.concatenate([np.full(r * c, k) for k, (r, c) in enumerate(shapes)])
+
+    def blocks(arrs):
+        return np.concatenate([tile_blocks(a, nt, hh, *sh)
+                               for a, sh in zip(arrs, shapes, strict=True)], 2)
+
+    r = blocks(res)
+    zz = (r << 1) ^ (r >> 63)
+    valid = blocks([V[sl] for sl in sls])
+    acts = blocks(act)
+    cls = np.concatenate([np.full(a * b, k) for k, (a, b) in enumerate(shapes)])
     bucket = np.minimum(np.floor(np.log2(1.0 + acts)).astype(np.int64), 15)
-    return zz.astype(np.int64), valid, bucket * 3 + cls[None, None, :]
+    return zz, valid, bucket * 3 + cls[None, None, :]
 
 
 def main(argv=None) -> None:
@@ -111,7 +115,7 @@ def main(argv=None) -> None:
                                   offset=offset)
             z, v = pad(h, valid)
             nv = int(valid.sum())
-            blobs = encode_pyramid(z, v, 6, qz, level=19)
+            blobs = encode_pyramid(z, v, 6, qz)
             n, te = pyramid_shape(z.shape[0], 6)
             lmax = n - te
             d = valid_codes(z, v, qz)

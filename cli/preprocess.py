@@ -33,9 +33,6 @@ from geoterrain.raster import ENCODINGS
               help="Height codec bound ε: every stored height is within EPS (height units) "
                    "of the source. Default: lossless.")
 @click.option("--max-error", "old_max_error", type=float, hidden=True)
-@click.option("--zstd-level", default=6, show_default=True, type=click.IntRange(1, 22),
-              help="zstd level of the height residuals (9: ≤ 0.5 % smaller; 19: ~2 % "
-              "smaller, several times slower).")
 @click.option("--nodata", type=float, help="The value of voids, overriding the file's "
               "(nan: only NaN). Undeclared -32768/-9999/float32-min runs are voids by default.")
 @click.option("--memory-limit", callback=parse_bytes, metavar="SIZE",
@@ -57,7 +54,7 @@ from geoterrain.raster import ENCODINGS
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,
-            codec_error, old_max_error, zstd_level, nodata, memory_limit, scheduler, resume,
+            codec_error, old_max_error, nodata, memory_limit, scheduler, resume,
             stored_normals, overwrite):
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
@@ -94,7 +91,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
         out = geoterrain.preprocess(
             dem, output, tile_size=tile_size, band=band, encoding=encoding,
             pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, tile=tile,
-            codec_error=codec_error, overwrite=overwrite, zstd_level=zstd_level, nodata=nodata,
+            codec_error=codec_error, overwrite=overwrite, nodata=nodata,
             memory_limit=memory_limit, scheduler=scheduler, resume=resume, progress=bar,
             derive_normals=not stored_normals)
     finally:

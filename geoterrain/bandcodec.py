@@ -71,7 +71,7 @@ def super_level(N: int, t: int, coarse_max: int = 1025) -> int:
 
 
 def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
-                        level: int = 19, predictor: str = "auto", coarse_max: int = 1025,
+                        predictor: str = "auto", coarse_max: int = 1025,
                         sink: Callable[[dict], None] | None = None
                         ) -> dict[tuple[int, int, int], bytes]:
     """``{(L, x, y): blob}`` of every stored tile of an (N, N) grid read through
@@ -98,7 +98,7 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
     k = super_level(N, t, coarse_max)
     if k == 0:
         z, v = window(0, N, 0, N)
-        out = encode_pyramid(z, v, t, quantizer, level=level, predictor=predictor)
+        out = encode_pyramid(z, v, t, quantizer, predictor=predictor)
         if sink is None:
             return out
         sink(out)
@@ -142,9 +142,10 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
         counts.append(c[0::2, 0::2] + c[0::2, 1::2] + c[1::2, 0::2] + c[1::2, 1::2])
     dc = _decoded_codes(valid_codes(zc, vc, quantizer), vc, te, lmax - k, cubic)
     part: dict[tuple[int, int, int], bytes] = {}
-    _encode_levels(part, dc, vc, n - k, te, lmax - k, cubic, level, None, counts=counts)
+    _encode_levels(part, dc, vc, n - k, te, lmax - k, cubic, None, counts=counts,
+                   wide=quantizer.mode == "float")
     coarse = {(L + k, x, y): b for (L, x, y), b in part.items()}
-    coarse[(lmax, 0, 0)] = _encode_top(dc, vc, te, lmax - k, cubic, level)
+    coarse[(lmax, 0, 0)] = _encode_top(dc, vc, te, lmax - k, cubic)
     emit(coarse)
     # levels below k, one super-tile at a time, under the coarse grid's decoded codes
     T = 1 << te
@@ -157,8 +158,8 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
         for lev in range(k - 1, -1, -1):
             fill_level(d, v, 1 << lev, period)
         part = {}
-        _encode_levels(part, d, v, te + k, te, k, cubic, level, None,
-                       counts=footprint_counts(v, te))
+        _encode_levels(part, d, v, te + k, te, k, cubic, None,
+                       counts=footprint_counts(v, te), wide=quantizer.mode == "float")
         emit({(L, x + int(sx) * (1 << (k - L)), y + int(sy) * (1 << (k - L))): b
               for (L, x, y), b in part.items()})
     return out

@@ -7,64 +7,53 @@ Here the pyramid is the vertex-aligned one of ``docs/conventions.md`` (level L k
 is *closed loop* on integer codes, so errors never accumulate down the pyramid:
 
 1. every height becomes an int64 code ``q`` (:class:`geoterrain.quantize.Quantizer`);
-2. the top tile ``(Lmax, 0, 0)`` stores its codes directly (raster-order delta);
+2. the top tile ``(Lmax, 0, 0)`` is coded coarse to fine inside itself: its 4 corners,
+   then each level of its own grid from the next coarser one, as below;
 3. every finer tile stores only the samples that are new at its level (those not on the
-   parent level's grid), as residuals ``q - pred``; ``pred`` is the floor-mean of the 2
-   (row / column midpoints) or 4 (cell centres, both diagonals) neighbouring samples of
-   the PARENT tile's decoded codes. Samples of the parent level are copied.
+   parent level's grid), as residuals ``q - pred``; ``pred`` is U(.) of
+   :mod:`geoterrain.predict` (linear floor-means or 4-point cubic) on the PARENT tile's
+   decoded codes. Samples of the parent level are copied.
 
-Invalid samples get residual 0 (their decoded code is the prediction; in the top tile
-they repeat the previous code), so they cost almost nothing.
+Invalid samples are not coded: their decoded code is their prediction (a top-tile
+corner's is the first valid code of the top tile, raster order), so they cost nothing.
+The residuals are coded by :mod:`geoterrain.entropy` (an adaptive binary range coder
+with contexts), afresh in every tile.
 
-Blob format (version 1), one blob per stored tile::
+Blob format (version 2), one blob per stored tile::
 
-    byte 0   version (1)
-    byte 1   flags: bit 0 = top tile (direct codes); bits 1-2 = mask kind
-             (0 all valid, 1 all invalid, 2 mask stored); bit 3 = cubic predictor
+    byte 0   version (2)
+    byte 1   flags: bit 0 = top tile; bits 1-2 = mask kind (0 all valid, 1 all
+             invalid, 2 mask stored); bit 3 = cubic predictor; bit 4 = wide
     byte 2   t (tile size T = 2**t + 1)
-    byte 3   residual stream: low nibble w = byte width (0, 1, 2, 4, 8), high nibble
-             k = symbol bits (0, 1, 2, 4)
-    rest     one zstd frame of: [np.packbits(valid (T, T), C order) if mask kind == 2]
-             + the residual stream of the K zigzag residuals (K = T*T for the top tile,
-             3h^2 + 2h otherwise):
-             k = 0: the K values as w-byte little-endian ints, byte-shuffled (all byte 0s,
-                    then all byte 1s, ...); nothing when w = 0 (all residuals zero);
-             k > 0: ceil(K / (8 // k)) bytes of k-bit symbols min(zz, 2**k - 1), 8 // k per
-                    byte from the low bits up, then for each symbol equal to 2**k - 1 (an
-                    escape) zz - (2**k - 1) in the byte-shuffled w-byte form above.
+    rest     the range-coded stream of :mod:`geoterrain.entropy`: the (T, T) valid mask
+             when stored, then the zigzag residuals: for the top tile the 4 corners
+             (deltas, raster order) and then its levels of stride 2**(t-1) … 1; for the
+             other tiles, with h = 2**(t-1), class A (even rows, odd columns, (h+1, h)),
+             class B (odd rows, even columns, (h, h+1)), class C (odd rows, odd columns,
+             (h, h)), each in raster order, invalid samples skipped.
+    wide     (a non-top tile of a lossless float store, whose residuals are float bit
+             patterns of 10-30 bits: the range coder's ~7 % saving there costs 3 times
+             zstd's time, docs/benchmarks.md §8d) byte 3 = w, the residuals' byte width
+             (0, 1, 2, 4, 8); then one zstd frame of [np.packbits(mask) when stored] +
+             the 3h² + 2h zigzag residuals (0 at invalid samples) as w-byte
+             little-endian values, byte-shuffled (all byte 0s, then all byte 1s, ...).
 
-Residual order: top tile, the T*T codes in raster order (delta from the previous code,
-first from 0); other tiles, with h = 2**(t-1): class A (even rows, odd columns, (h+1, h)),
-then class B (odd rows, even columns, (h, h+1)), then class C (odd rows, odd columns,
-(h, h)), each in raster order. Arithmetic is int64 modulo 2**64.
+Arithmetic is int64 modulo 2**64.
 """
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable
 
 import numpy as np
-import zstandard
 
-from geoterrain import zstdsafe
-from geoterrain.grid import footprint_counts, level_tiles
-from geoterrain.predict import cubic_child, fill_level, linear_child, predict, tile_zigzag
+from geoterrain import entropy
+from geoterrain.entropy import MASK_ALL_INVALID, MASK_ALL_VALID, MASK_STORED
+from geoterrain.grid import footprint_counts
+from geoterrain.predict import cubic_child, fill_level, linear_child, predict
 from geoterrain.quantize import Quantizer, codes_to_heights, roundtrip, valid_codes
-from geoterrain.symbols import (
-    PACK_BITS,
-    UINTS,
-    choose_stream,
-    pack_symbols,
-    packed_is_tried,
-    pick_stream,
-    read_residuals,
-    shuffled_streams,
-    stream_candidates,
-    zigzag,
-)
 from geoterrain.threads import cores_for
-from geoterrain.zstdsafe import compress_many
+from geoterrain.zstdsafe import compress_many, decompress
 
 __all__ = [
     "BLOB_VERSION",
@@ -77,20 +66,27 @@ __all__ = [
     "pyramid_shape",
 ]
 
-BLOB_VERSION = 1
-_HEADER = 4
-_MASK_ALL_VALID, _MASK_ALL_INVALID, _MASK_STORED = 0, 1, 2
+BLOB_VERSION = 2
+_HEADER = 3
 
-def _forward_fill(codes: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Invalid entries (raster order) repeat the previous valid code; leading ones the first."""
-    flat, v = codes.ravel(), valid.ravel()
-    if not v.any():
-        return np.zeros_like(codes)
-    idx = np.where(v, np.arange(v.size), 0)
-    np.maximum.accumulate(idx, out=idx)
-    first = int(np.argmax(v))
-    idx[:first] = first
-    return flat[idx].reshape(codes.shape)
+
+def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool) -> None:
+    """In place on the top tile's codes: an invalid corner takes the first valid code
+    (raster order; 0 when none), an invalid sample of its finer grids its prediction."""
+    v = valid.ravel()
+    first = top.ravel()[int(np.argmax(v))] if v.any() else 0
+    last = top.shape[0] - 1
+    for i in (0, last):
+        for j in (0, last):
+            if not valid[i, j]:
+                top[i, j] = first
+    for k in range(te - 1, -1, -1):
+        fill_level(top, valid, 1 << k, _top_period(te, cubic))
+
+
+def _top_period(te: int, cubic: bool) -> int:
+    # the top tile's own levels: cubic away from its borders only (any period ≥ 2**te)
+    return (1 << te) if cubic else 0
 
 
 def pyramid_shape(n_samples: int, t: int) -> tuple[int, int]:
@@ -111,8 +107,11 @@ def pyramid_shape(n_samples: int, t: int) -> tuple[int, int]:
     return n, min(t, n)
 
 
-def _header(top: bool, mask_kind: int, t: int, w: int, cubic: bool) -> bytes:
-    return bytes((BLOB_VERSION, int(top) | (mask_kind << 1) | (int(cubic) << 3), t, w))
+def _header(top: bool, mask_kind: int, t: int, cubic: bool, w: int | None = None) -> bytes:
+    flags = int(top) | (mask_kind << 1) | (int(cubic) << 3)
+    if w is None:
+        return bytes((BLOB_VERSION, flags, t))
+    return bytes((BLOB_VERSION, flags | _WIDE, t, w))  # a wide blob
 
 
 def _resolve_predictor(
@@ -139,10 +138,11 @@ def _predictor_bits(qq: np.ndarray, vv: np.ndarray, te: int) -> bool:
     # True when the cubic predictor's finest residuals have the smaller zero-order entropy
     bits = []
     for period in (None, 1 << te):
-        preds = predict(qq[::2, ::2], period)
+        preds = predict(qq, period)
         h = 0.0
         for sl, p in zip(_CLASSES, preds, strict=True):
-            zz = zigzag(np.ascontiguousarray(qq[sl] - p)[vv[sl]])
+            r = np.ascontiguousarray(qq[sl] - p)[vv[sl]]
+            zz = ((r << 1) ^ (r >> 63)).view(np.uint64)  # zigzag
             cnt = np.bincount(np.minimum(zz, 1 << 16).astype(np.int64))
             pr = cnt[cnt > 0] / zz.size
             h += float(-(cnt[cnt > 0] * np.log2(pr)).sum())
@@ -165,16 +165,15 @@ def decoded_codes(
 ) -> np.ndarray:
     """Codes (N, N) int64 that decoding every tile gives, invalid samples included.
 
-    Vectorised level by level on the full grid: valid samples keep their code; invalid
-    samples of the top level repeat the previous code (raster order), invalid samples of
-    finer levels get the prediction from the coarser level. ``predictor`` as for
-    :func:`encode_pyramid`.
+    Level by level on the full grid: valid samples keep their code; an invalid corner
+    of the top tile takes its first valid code, every other invalid sample its
+    prediction from the coarser samples. ``predictor`` as for :func:`encode_pyramid`.
 
     Examples
     --------
     >>> z = np.arange(9.0).reshape(3, 3); v = np.ones((3, 3), bool); v[1, 1] = False
-    >>> int(decoded_codes(z, v, 6, Quantizer("int"))[1, 1])  # top tile: previous code
-    3
+    >>> int(decoded_codes(z, v, 6, Quantizer("int"))[1, 1])  # the centre: its prediction
+    4
     """
     valid = np.asarray(valid, dtype=bool)
     n, te = pyramid_shape(valid.shape[0], t)
@@ -186,7 +185,7 @@ def decoded_codes(
 def _decoded_codes(d: np.ndarray, valid: np.ndarray, te: int, lmax: int, cubic: bool):
     """In place on the codes ``d``: what tile decoding gives at invalid samples."""
     s = 1 << lmax
-    d[::s, ::s] = _forward_fill(d[::s, ::s], valid[::s, ::s])
+    _top_fill(d[::s, ::s], valid[::s, ::s], te, cubic)
     for lev in range(lmax - 1, -1, -1):  # compiled: the rule of predict, in place
         fill_level(d, valid, 1 << lev, (1 << te) if cubic else 0)
     return d
@@ -227,7 +226,6 @@ def encode_pyramid(
     valid: np.ndarray,
     t: int,
     quantizer: Quantizer,
-    level: int = 19,
     progress: Callable[[int, int], None] | None = None,
     predictor: str = "auto",
 ) -> dict[tuple[int, int, int], bytes]:
@@ -241,9 +239,6 @@ def encode_pyramid(
     t : int
         Tile exponent (T = 2**t + 1; shrinks to n when n < t).
     quantizer : Quantizer
-    level : int
-        zstd level (19 for preprocessing; 3-9 are 5-10x faster for ~2 % more bytes).
-        Each level's tiles are compressed in one zstd call on every core.
     progress : callable, optional
         ``progress(done_levels, total_levels)`` after each level.
     predictor : {"auto", "linear", "cubic"}
@@ -275,137 +270,141 @@ def encode_pyramid(
     cubic = _resolve_predictor(predictor, d, valid, te, lmax)
     d = _decoded_codes(d, valid, te, lmax, cubic)
 
-    out[(lmax, 0, 0)] = _encode_top(d, valid, te, lmax, cubic, level)
+    out[(lmax, 0, 0)] = _encode_top(d, valid, te, lmax, cubic)
     with cores_for(d.size):  # small grids on one thread (geoterrain/threads.py)
-        _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress)
+        _encode_levels(out, d, valid, n, te, lmax, cubic, progress,
+                       wide=quantizer.mode == "float")
     return out
 
 
-def _encode_top(d, valid, te, lmax, cubic, level) -> bytes:
-    # the top tile: raster-order delta of the (forward-filled) decoded codes
+def _mask_kind(nvalid: int, size: int) -> int:
+    return MASK_ALL_VALID if nvalid == size else MASK_ALL_INVALID if nvalid == 0 \
+        else MASK_STORED
+
+
+def _encode_top(d, valid, te, lmax, cubic) -> bytes:
+    # the top tile, coarse to fine inside itself (entropy.encode_top)
     s = 1 << lmax
-    r = np.diff(d[::s, ::s].ravel(), prepend=np.int64(0))
-    head, payload = _pack(r, valid[::s, ::s], True, te, cubic)
-    return head + _compressor(level).compress(payload)
+    top, vt = np.ascontiguousarray(d[::s, ::s]), np.ascontiguousarray(valid[::s, ::s])
+    kind = _mask_kind(int(vt.sum()), vt.size)
+    return _header(True, kind, te, cubic) + entropy.encode_top(
+        top, vt, te, _top_period(te, cubic), kind)
 
 
-def _encode_levels(out, d, valid, n, te, lmax, cubic, level, progress, counts=None) -> None:
-    """Blobs of every non-top stored tile into ``out`` (stream choice per tile, then zstd
-    of the whole level on every core). ``counts``: which tiles are stored (> 0), per
-    level (default :func:`footprint_counts` of ``valid``)."""
+def _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts=None,
+                   wide=False) -> None:
+    """Blobs of every non-top stored tile into ``out`` (each level's tiles coded in one
+    compiled call on every core; ``wide``: the wide blobs). ``counts``: which tiles are
+    stored (> 0), per level (default :func:`footprint_counts` of ``valid``)."""
     tt = (1 << te) + 1
-    period = (1 << te) if cubic else None
+    period = (1 << te) if cubic else 0
     if progress is not None:
         progress(1, lmax + 1)
-
     if counts is None:
         counts = footprint_counts(valid, te)
     h = 1 << (te - 1)
+    cap = 64 + tt * tt  # a level's rows: 8 bits a sample, then twice the last level's longest
     for lev in range(lmax - 1, -1, -1):
         s = 1 << lev
-        nt = 1 << (n - lev - te)
-        zz = np.empty((nt, nt, 2 * h * (h + 1) + h * h), np.uint64)
-        zmax = np.empty((nt, nt), np.uint64)
-        esc = np.empty((nt, nt, len(PACK_BITS)), np.int64)  # the kernel counts k = 1, 2, 4
-        tile_zigzag(d, s, h, period or 0, zz, zmax, esc)  # the residuals of predict
-        # k-bit packs only for the tiles where choose_stream would try them
-        packs = {}
-        for c, k in enumerate(PACK_BITS):
-            ys, xs = np.nonzero(packed_is_tried(esc[..., c], zz.shape[2]))
-            rows = {}
-            if len(ys):
-                packed, _ = pack_symbols(zz[ys, xs], k)
-                rows = dict(zip(zip(ys.tolist(), xs.tolist(), strict=True), packed,
-                                strict=True))
-            packs[k] = (rows, esc[..., c])
-        vt = level_tiles(valid, te, lev)
-        nvalid = vt.sum(axis=(2, 3))
-        bulk = shuffled_streams(zz, zmax, esc, (counts[lev] > 0) & (nvalid == tt * tt))
-
-        keys, heads, payloads, pending = [], [], [], []
-        for y, x in zip(*np.nonzero(counts[lev]), strict=True):
-            yx = (int(y), int(x))
-            if yx in bulk:  # all valid, nothing to compare: the shuffled stream
-                code, stream = bulk[yx]
-                keys.append((lev, int(x), int(y)))
-                heads.append(_header(False, _MASK_ALL_VALID, te, code, cubic))
-                payloads.append(stream)
+        ys, xs = np.nonzero(counts[lev])
+        if ys.size:
+            nvalid = _tile_valid_counts(valid, s, h, ys, xs)
+            kinds = np.where(nvalid == tt * tt, MASK_ALL_VALID,
+                             np.where(nvalid == 0, MASK_ALL_INVALID, MASK_STORED))
+            if wide:
+                out.update(_wide_blobs(lev, d, valid, s, h, te, period, ys, xs, kinds, cubic))
                 continue
-            kind = (
-                _MASK_ALL_VALID
-                if nvalid[y, x] == tt * tt
-                else _MASK_ALL_INVALID
-                if nvalid[y, x] == 0
-                else _MASK_STORED
-            )
-            cands = stream_candidates(zz[y, x], int(zmax[y, x]),
-                                      {k: (p[0].get(yx), p[1][y, x]) for k, p in packs.items()})
-            mask = np.packbits(vt[y, x]).tobytes() if kind == _MASK_STORED else b""
-            pending.append((len(keys), kind, mask, cands))
-            keys.append((lev, int(x), int(y)))
-            heads.append(b"")
-            payloads.append(b"")
-        # choose_stream's probes (zstd level 3) of the whole level in one call, every core
-        probes = iter(len(f) for f in compress_many(
-            [c[1] for *_, cands in pending if len(cands) > 1 for c in cands], 3))
-        for pos, kind, mask, cands in pending:
-            code, stream = cands[0] if len(cands) == 1 else \
-                pick_stream(cands, [next(probes) for _ in cands])
-            heads[pos] = _header(False, kind, te, code, cubic)
-            payloads[pos] = mask + stream
-        # zstd of the whole level in one call, on every core (identical to one by one)
-        frames = compress_many(payloads, level)
-        out.update((k, h + f) for k, h, f in zip(keys, heads, frames, strict=True))
-        del zz, packs, vt
+            streams = _encode_tiles(d, valid, s, h, period, ys, xs, kinds, cap)
+            cap = 64 + 2 * max(map(len, streams))
+            heads = [_header(False, int(k), te, cubic) for k in range(3)]
+            out.update(((lev, int(x), int(y)), heads[k] + b)
+                       for x, y, k, b in zip(xs.tolist(), ys.tolist(), kinds.tolist(), streams,
+                                             strict=True))
         if progress is not None:
             progress(lmax - lev + 1, lmax + 1)
 
 
-_TLS = threading.local()
+_WIDE, _WIDE_LEVEL = 16, 6  # the wide blobs' flag bit and zstd level
+_UINTS = {1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}
 
 
-def _compressor(level: int) -> zstandard.ZstdCompressor:
-    """This thread's zstd compressor at ``level`` (a compressor is not thread-safe)."""
-    cache = getattr(_TLS, "cctx", None)
-    if cache is None:
-        cache = _TLS.cctx = {}
-    c = cache.get(level)
-    if c is None:
-        c = cache[level] = zstandard.ZstdCompressor(level=level)
-    return c
+def _wide_blobs(lev, d, valid, s, h, te, period, ys, xs, kinds, cubic) -> dict:
+    """The wide blobs of the listed tiles (the format's ``wide`` row): residuals and
+    maxima in one compiled call, zstd of the level in one call on every core."""
+    tt = 2 * h + 1
+    zz = np.empty((ys.size, 3 * h * h + 2 * h), np.uint64)
+    zmax = np.empty(ys.size, np.uint64)
+    entropy.level_zigzag(d, s, h, period, ys.astype(np.int64), xs.astype(np.int64), zz, zmax)
+    heads, payloads = [], []
+    for q in range(ys.size):
+        zm = int(zmax[q])
+        w = 0 if zm == 0 else next(b for b in (1, 2, 4, 8) if zm < 1 << (8 * b))
+        i0, j0 = int(ys[q]) * 2 * h * s, int(xs[q]) * 2 * h * s
+        mask = np.packbits(valid[i0:i0 + (tt - 1) * s + 1:s, j0:j0 + (tt - 1) * s + 1:s]
+                           ).tobytes() if kinds[q] == MASK_STORED else b""
+        body = np.ascontiguousarray(zz[q].astype(np.dtype(_UINTS[w]).newbyteorder("<"))
+                                    .view(np.uint8).reshape(-1, w).T).tobytes() if w else b""
+        heads.append(_header(False, int(kinds[q]), te, cubic, w))
+        payloads.append(mask + body)
+    frames = compress_many(payloads, _WIDE_LEVEL)
+    return {(lev, int(x), int(y)): hd + f
+            for x, y, hd, f in zip(xs.tolist(), ys.tolist(), heads, frames, strict=True)}
 
 
-def _pack(r: np.ndarray, vt: np.ndarray, top: bool, te: int, cubic: bool) -> tuple[bytes, bytes]:
-    nv = int(vt.sum())
-    kind = _MASK_ALL_VALID if nv == vt.size else _MASK_ALL_INVALID if nv == 0 else _MASK_STORED
-    zz = zigzag(np.ascontiguousarray(r.ravel()))
-    packs = {k: pack_symbols(zz, k) for k in PACK_BITS}
-    code, stream = choose_stream(zz, int(zz.max()) if zz.size else 0, packs, _compressor(3))
-    payload = (np.packbits(vt).tobytes() if kind == _MASK_STORED else b"") + stream
-    return _header(top, kind, te, code, cubic), payload
+def _tile_valid_counts(valid, s, h, ys, xs) -> np.ndarray:
+    # valid samples of each listed tile of level valid[::s, ::s] (tiles of 2h + 1)
+    v = valid[::s, ::s]
+    cs = np.zeros((v.shape[0] + 1, v.shape[1] + 1), np.int64)
+    np.cumsum(np.cumsum(v, 0), 1, out=cs[1:, 1:])
+    i0, j0 = ys * 2 * h, xs * 2 * h
+    i1, j1 = i0 + 2 * h + 1, j0 + 2 * h + 1
+    return cs[i1, j1] - cs[i0, j1] - cs[i1, j0] + cs[i0, j0]
+
+
+def _encode_tiles(d, valid, s, h, period, ys, xs, kinds, cap) -> list[bytes]:
+    """The streams of the listed tiles: a row of ``cap`` bytes of a shared buffer each,
+    coded on every core; a tile whose stream outgrows its row is coded again in a row 8
+    times longer."""
+    out: list[bytes] = [b""] * ys.size
+    todo = np.arange(ys.size)
+    while todo.size:
+        buf = np.zeros((todo.size, cap), np.uint8)
+        lens = np.empty(todo.size, np.int64)
+        entropy.encode_level(d, valid, s, h, period, ys[todo].astype(np.int64),
+                             xs[todo].astype(np.int64), kinds[todo].astype(np.int64), buf, lens)
+        for row, q in enumerate(todo.tolist()):
+            if lens[row] >= 0:
+                out[q] = buf[row, :lens[row]].tobytes()
+        todo = todo[lens < 0]
+        cap *= 8
+    return out
 
 
 # --------------------------------------------------------------------------- decoding
 
 
-def _parse(blob: bytes, t: int | None = None) -> tuple[bool, int, int, int, bytes]:
-    """Header fields and the decompressed payload, refusing anything malformed.
+_NOT_A_STREAM = "tile blob's stream has bytes past its end (not one the encoder writes)"
 
-    The payload's size is bounded before it is allocated (mask bytes + at most 9
-    bytes per residual), and ``t``, when given, must match the blob's tile size.
-    """
+
+def _parse(blob: bytes, t: int | None = None) -> tuple[bool, int, int, bool, int, np.ndarray]:
+    """Header fields (top, mask kind, t, cubic, w: -1 unless wide) and the stream,
+    refusing a malformed header; ``t``, when given, must match the blob's tile size.
+    Any range-coded stream decodes to some codes, in bounded time; the decoders then
+    refuse one with bytes past its end. A wide blob's frame must hold exactly its size."""
     if len(blob) < _HEADER or blob[0] != BLOB_VERSION:
         raise ValueError(f"not a version-{BLOB_VERSION} tile blob")
-    top, kind, te, w = bool(blob[1] & 1), (blob[1] >> 1) & 3, blob[2], blob[3]
-    if blob[1] & ~0b1111 or kind > _MASK_STORED or not 1 <= te <= 15 or (t is not None and te != t):
+    top, kind, te = bool(blob[1] & 1), (blob[1] >> 1) & 3, blob[2]
+    if blob[1] & ~0b11111 or kind > MASK_STORED or not 1 <= te <= 15 or (t is not None and te != t):
         raise ValueError("tile blob header does not match the store's grid")
-    if (w & 15) not in UINTS and (w & 15) != 0 or (w >> 4) not in (0, *PACK_BITS):
-        raise ValueError("tile blob names an unknown residual stream")
-    tt = (1 << te) + 1
-    # the largest payload: the mask, k-bit symbols and 8-byte escapes for every residual
-    limit = (tt * tt + 7) // 8 + tt * tt + 8 * tt * tt
-    payload = zstdsafe.decompress(blob[_HEADER:], limit)
-    return top, kind, te, w, payload
+    if not blob[1] & _WIDE:
+        return top, kind, te, bool(blob[1] & 8), -1, np.frombuffer(blob, np.uint8,
+                                                                   offset=_HEADER)
+    if top or len(blob) < _HEADER + 1 or blob[_HEADER] not in (0, 1, 2, 4, 8):
+        raise ValueError("tile blob header does not match the store's grid")
+    w, tt, h = blob[_HEADER], (1 << te) + 1, 1 << (te - 1)
+    size = ((tt * tt + 7) // 8 if kind == MASK_STORED else 0) + w * (3 * h * h + 2 * h)
+    payload = decompress(blob[_HEADER + 1:], size, exact=True)  # bounded: never a bomb
+    return top, kind, te, bool(blob[1] & 8), w, np.frombuffer(payload, np.uint8)
 
 
 def tile_valid(blob: bytes, t: int | None = None) -> np.ndarray:
@@ -418,19 +417,17 @@ def tile_valid(blob: bytes, t: int | None = None) -> np.ndarray:
     >>> tile_valid(blob).sum()
     np.int64(8)
     """
-    _, kind, te, _, payload = _parse(blob, t)
-    return _mask(kind, te, payload)
+    _, kind, te, _, w, data = _parse(blob, t)
+    if w >= 0:
+        return _wide_mask(kind, te, data)
+    return entropy.decode_mask(data, (1 << te) + 1, kind)
 
 
-def _mask(kind: int, te: int, payload: bytes) -> np.ndarray:
+def _wide_mask(kind: int, te: int, data: np.ndarray) -> np.ndarray:
     tt = (1 << te) + 1
-    if kind == _MASK_ALL_VALID:
-        return np.ones((tt, tt), bool)
-    if kind == _MASK_ALL_INVALID:
-        return np.zeros((tt, tt), bool)
-    nb = (tt * tt + 7) // 8
-    bits = np.unpackbits(np.frombuffer(payload, np.uint8, nb), count=tt * tt)
-    return bits.reshape(tt, tt).astype(bool)
+    if kind != MASK_STORED:
+        return np.full((tt, tt), kind == MASK_ALL_VALID)
+    return np.unpackbits(data[:(tt * tt + 7) // 8], count=tt * tt).reshape(tt, tt).astype(bool)
 
 
 def decode_tile(
@@ -469,7 +466,7 @@ def decode_tile(
     [[2, 3, 4], [7, 8, 9], [12, 13, 14]]
     """
     del quantizer
-    return _decode_codes(blob, parent_codes, tile_xy_parity, *_parse(blob, t))
+    return decode_tile_valid(blob, parent_codes, tile_xy_parity, t)[0]
 
 
 def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
@@ -486,31 +483,35 @@ def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
     >>> codes[1].tolist(), int(valid.sum())
     ([3, 4, 5], 8)
     """
-    top, kind, te, w, payload = _parse(blob, t)
-    return (_decode_codes(blob, parent_codes, tile_xy_parity, top, kind, te, w, payload),
-            _mask(kind, te, payload))
-
-
-def _decode_codes(blob: bytes, parent_codes: np.ndarray | None, tile_xy_parity: tuple[int, int],
-                  top: bool, kind: int, te: int, w: int, payload: bytes) -> np.ndarray:
-    tt = (1 << te) + 1
-    off = ((tt * tt + 7) // 8) if kind == _MASK_STORED else 0
-    body = payload[off:]
+    top, kind, te, cubic, w, data = _parse(blob, t)
     if top:
-        r = read_residuals(body, w, tt * tt)
-        return np.cumsum(r).reshape(tt, tt)
+        codes, valid, exact = entropy.decode_top(data, te, _top_period(te, cubic), kind)
+        if not exact:
+            raise ValueError(_NOT_A_STREAM)
+        return codes, valid
     if parent_codes is None:
         raise ValueError("a non-top tile needs its parent's decoded codes")
-    h = 1 << (te - 1)
+    tt, h = (1 << te) + 1, 1 << (te - 1)
     px, py = int(tile_xy_parity[0]) & 1, int(tile_xy_parity[1]) & 1
-    parent = np.asarray(parent_codes, np.int64)
+    parent = np.ascontiguousarray(parent_codes, np.int64)
     if parent.shape != (tt, tt):
         raise ValueError(f"parent codes must be ({tt}, {tt})")
-    r = read_residuals(body, w, 3 * h * h + 2 * h)
-    out = np.empty((tt, tt), np.int64)
-    if blob[1] & 8:  # cubic: the parent tile's own predictions (with its edge fallbacks)
-        cubic_child(np.ascontiguousarray(parent), py * h, px * h, h, r, out)
-        return out
     c = np.ascontiguousarray(parent[py * h: py * h + h + 1, px * h: px * h + h + 1])
-    linear_child(c, h, r, out)
-    return out
+    if w >= 0:  # a wide blob
+        valid = _wide_mask(kind, te, data)
+        off = (tt * tt + 7) // 8 if kind == MASK_STORED else 0
+        n = 3 * h * h + 2 * h
+        zz = np.zeros(n, np.uint64) if w == 0 else np.ascontiguousarray(
+            data[off:].reshape(w, n).T).view(np.dtype(_UINTS[w]).newbyteorder("<")
+                                             ).ravel().astype(np.uint64)
+    else:
+        zz, valid, exact = entropy.decode_tile(data, c, h, kind)
+        if not exact:
+            raise ValueError(_NOT_A_STREAM)
+    r = ((zz >> np.uint64(1)) ^ (np.uint64(0) - (zz & np.uint64(1)))).view(np.int64)
+    out = np.empty((tt, tt), np.int64)
+    if cubic:  # the parent tile's own predictions (with its edge fallbacks)
+        cubic_child(parent, py * h, px * h, h, r, out)
+    else:
+        linear_child(c, h, r, out)
+    return out, valid

@@ -4,8 +4,8 @@ samples of a level from the coarser level's decoded codes.
 One rule, three forms that give the same integers:
 
 - :func:`predict`: numpy on a whole coarse grid (the codec's choice of predictor);
-- :func:`fill_level` and :func:`tile_zigzag`: compiled, a whole level at a time (the
-  encoder's void fill and residuals);
+- :func:`fill_level` and ``_pred``: compiled, a whole level at a time (the encoder's
+  void fill; :func:`geoterrain.entropy.encode_level` takes its residuals from ``_pred``);
 - :func:`cubic_child` and :func:`linear_child`: compiled, one child tile from its parent
   tile (the decoder).
 
@@ -18,13 +18,9 @@ border (so a tile never reads outside its parent). Arithmetic is int64 modulo 2*
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from geoterrain.symbols import PACK_BITS
-
-__all__ = ["cubic_child", "fill_level", "linear_child", "predict", "tile_zigzag"]
-
-assert PACK_BITS == (1, 2, 4), "tile_zigzag counts the escapes of k = 1, 2 and 4"
+__all__ = ["cubic_child", "fill_level", "linear_child", "predict"]
 
 
 def _mean2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -32,35 +28,38 @@ def _mean2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return (a >> 1) + (b >> 1) + (a & b & 1)
 
 
-def predict(c: np.ndarray, period: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Predictions of the new samples from coarse codes ``c`` (last two axes = grid).
+def predict(f: np.ndarray, period: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Predictions of the new samples of a level grid ``f`` ((2M - 1)², last two axes)
+    from its coarse samples ``f[::2, ::2]`` and, for the cell centres, its row midpoints.
 
     Returns class A (row midpoints, (M, M-1)), B (column midpoints, (M-1, M)) and C (cell
-    centres, (M-1, M-1)) - the U(.) operator of seed 000 section 2.9.
+    centres, (M-1, M-1)): the U(.) operator of seed 000 section 2.9, applied as SZ3
+    interpolates (one direction, then the other, from decoded values): A and B from
+    the coarse samples, C along the column from the A samples above and below it (the
+    decoder has them before C).
 
-    ``period=None``: linear, floor-means of the 2 axis neighbours; for C the mean of the
-    two diagonal means. ``period=P``: 4-point interpolatory (Kobbelt / Dyn-Levin-Gregory)
-    weights (-1, 9, 9, -1)/16 per axis, separable for C, rounded; a midpoint between
-    coarse k and k+1 falls back to linear (0, 8, 8, 0)/16 when k-1 or k+2 lies outside the
-    parent tile, i.e. when k % P == 0 or (k + 1) % P == 0 (P = parent tile intervals).
+    ``period=None``: linear, floor-means of the 2 neighbours. ``period=P``: 4-point
+    interpolatory (Kobbelt / Dyn-Levin-Gregory) weights (-1, 9, 9, -1)/16, rounded; a
+    midpoint between coarse k and k+1 falls back to linear (0, 8, 8, 0)/16 when k-1 or
+    k+2 lies outside the parent tile for A and B (k % P == 0 or (k + 1) % P == 0, P =
+    parent tile intervals), outside the child tile for C (the same with P / 2).
 
     Examples
     --------
-    >>> pa, pb, pc = predict(np.array([[0, 4], [8, 13]], np.int64))
-    >>> pa.tolist(), pb.tolist(), pc.tolist()
-    ([[2], [10]], [[4, 8]], [[6]])
+    >>> pa, pb, pc = predict(np.array([[0, 9, 4], [9, 9, 9], [8, 6, 13]], np.int64))
+    >>> pa.tolist(), pb.tolist(), pc.tolist()  # C: the floor-mean of A's 9 and 6
+    ([[2], [10]], [[4, 8]], [[7]])
     """
+    c = f[..., ::2, ::2]
+    a = f[..., ::2, 1::2]
     if period is None:
         pa = _mean2(c[..., :, :-1], c[..., :, 1:])
         pb = _mean2(c[..., :-1, :], c[..., 1:, :])
-        pc = _mean2(
-            _mean2(c[..., :-1, :-1], c[..., 1:, 1:]), _mean2(c[..., :-1, 1:], c[..., 1:, :-1])
-        )
+        pc = _mean2(a[..., :-1, :], a[..., 1:, :])
         return pa, pb, pc
-    na = _interp16(c, -1, period)
-    pa = (na + 8) >> 4
+    pa = (_interp16(c, -1, period) + 8) >> 4
     pb = (_interp16(c, -2, period) + 8) >> 4
-    pc = (_interp16(na, -2, period) + 128) >> 8
+    pc = (_interp16(a, -2, period // 2) + 8) >> 4
     return pa, pb, pc
 
 
@@ -116,18 +115,15 @@ def cubic_child(parent, oy, ox, h, r, out):
         for b in range(h + 1):
             out[2 * a + 1, 2 * b] = ((_mid16(parent, 0, ox + b, 1, 0, oy + a, m) + 8) >> 4) + r[n]
             n += 1
-    for a in range(h):  # C: the column interpolation of the row midpoints, unrounded
-        k = oy + a
+    for a in range(h):  # C: along the column from the decoded A samples of this tile
         for b in range(h):
-            q = ox + b
-            n1 = _mid16(parent, k, 0, 0, 1, q, m)
-            n2 = _mid16(parent, k + 1, 0, 0, 1, q, m)
-            if 1 <= k <= m - 3:
-                v = 9 * (n1 + n2) - _mid16(parent, k - 1, 0, 0, 1, q, m) \
-                    - _mid16(parent, k + 2, 0, 0, 1, q, m)
+            j = 2 * b + 1
+            if 1 <= a <= h - 2:
+                v = 9 * (out[2 * a, j] + out[2 * a + 2, j]) - out[2 * a - 2, j] \
+                    - out[2 * a + 4, j]
             else:
-                v = 8 * (n1 + n2)
-            out[2 * a + 1, 2 * b + 1] = ((v + 128) >> 8) + r[n]
+                v = 8 * (out[2 * a, j] + out[2 * a + 2, j])
+            out[2 * a + 1, j] = ((v + 8) >> 4) + r[n]
             n += 1
 
 
@@ -162,8 +158,8 @@ def linear_child(c, h, r, out):
             n += 1
     for a in range(h):
         for b in range(h):
-            out[2 * a + 1, 2 * b + 1] = _fmean(_fmean(c[a, b], c[a + 1, b + 1]),
-                                               _fmean(c[a, b + 1], c[a + 1, b])) + r[n]
+            out[2 * a + 1, 2 * b + 1] = _fmean(out[2 * a, 2 * b + 1],
+                                               out[2 * a + 2, 2 * b + 1]) + r[n]
             n += 1
 
 
@@ -183,8 +179,9 @@ def _c16(d, s2, i0, j0, di, dj, k, mc, P):
 @njit(cache=True, nogil=True)
 def _pred(d, s, i, j, P):
     """The prediction U(.) of :func:`predict` at sample (i, j) (one of i, j odd) of the
-    level ``d[::s, ::s]`` from its coarse samples; ``P`` = 0: linear floor-means, else
-    cubic with period ``P`` (seed 000 §2.9)."""
+    level ``d[::s, ::s]`` from its coarse samples (a cell centre from the A samples of
+    its column); ``P`` = 0: linear floor-means, else cubic with period ``P`` (seed 000
+    §2.9)."""
     s2 = 2 * s
     ci, cj = i >> 1, j >> 1
     if P == 0:
@@ -192,28 +189,28 @@ def _pred(d, s, i, j, P):
             return _fmean(d[ci * s2, cj * s2], d[ci * s2, (cj + 1) * s2])
         if j & 1 == 0:  # B: column midpoint
             return _fmean(d[ci * s2, cj * s2], d[(ci + 1) * s2, cj * s2])
-        return _fmean(_fmean(d[ci * s2, cj * s2], d[(ci + 1) * s2, (cj + 1) * s2]),
-                      _fmean(d[ci * s2, (cj + 1) * s2], d[(ci + 1) * s2, cj * s2]))
+        # C: the A samples above and below (same level)
+        return _fmean(d[(i - 1) * s, j * s], d[(i + 1) * s, j * s])
     mc = (d.shape[0] - 1) // s2 + 1
     if i & 1 == 0:
         return (_c16(d, s2, ci, 0, 0, 1, cj, mc, P) + 8) >> 4
     if j & 1 == 0:
         return (_c16(d, s2, 0, cj, 1, 0, ci, mc, P) + 8) >> 4
-    k = ci  # C: the row interpolation of the column-direction midpoints, unrounded
-    n1 = _c16(d, s2, k, 0, 0, 1, cj, mc, P)
-    n2 = _c16(d, s2, k + 1, 0, 0, 1, cj, mc, P)
-    if mc >= 4 and 1 <= k <= mc - 3 and k % P != 0 and (k + 1) % P != 0:
-        v = 9 * (n1 + n2) - _c16(d, s2, k - 1, 0, 0, 1, cj, mc, P) \
-            - _c16(d, s2, k + 2, 0, 0, 1, cj, mc, P)
-    else:
-        v = 8 * (n1 + n2)
-    return (v + 128) >> 8
+    # C: along the column through the A samples (rows 2k, 2k + 2 of the level), cubic
+    # inside the child tile (period P / 2 in coarse rows)
+    k, h = ci, P >> 1
+    v = 8 * (d[(i - 1) * s, j * s] + d[(i + 1) * s, j * s])
+    if mc >= 4 and 1 <= k <= mc - 3 and k % h != 0 and (k + 1) % h != 0:
+        v += d[(i - 1) * s, j * s] + d[(i + 1) * s, j * s] - d[(i - 3) * s, j * s] \
+            - d[(i + 3) * s, j * s]
+    return (v + 8) >> 4
 
 
 @njit(cache=True, nogil=True)
 def fill_level(d, valid, s, P):
     """In place: invalid new samples of level ``d[::s, ::s]`` take their prediction
-    (``P`` = 0: linear, else cubic with period ``P``).
+    (``P`` = 0: linear, else cubic with period ``P``): the row and column midpoints,
+    then the cell centres (predicted from the row midpoints).
 
     Examples
     --------
@@ -223,63 +220,9 @@ def fill_level(d, valid, s, P):
     [[0, 2, 4], [4, 9, 8], [8, 10, 13]]
     """
     m = (d.shape[0] - 1) // s + 1
-    for i in range(m):
-        for j in range(m):
-            if (i & 1 or j & 1) and not valid[i * s, j * s]:
-                d[i * s, j * s] = _pred(d, s, i, j, P)
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def tile_zigzag(d, s, h, P, zz, zmax, esc):
-    """Zigzagged residuals of every tile of level ``d[::s, ::s]`` into ``zz`` (nt, nt,
-    L): per tile, classes A ((h + 1) × h), B (h × (h + 1)) and C (h × h) in raster
-    order, as the decoder reads them (:func:`cubic_child`, :func:`linear_child`).
-    Per tile also the largest value and, for each k of ``PACK_BITS`` (1, 2, 4), the
-    count of values ≥ 2^k − 1 (the escapes of :func:`pack_symbols`).
-
-    Examples
-    --------
-    >>> d = np.array([[0, 2, 4], [4, 7, 8], [8, 10, 13]], np.int64)
-    >>> zz, zmax = np.empty((1, 1, 5), np.uint64), np.empty((1, 1), np.uint64)
-    >>> tile_zigzag(d, 1, 1, 0, zz, zmax, np.empty((1, 1, 3), np.int64))
-    >>> zz[0, 0].tolist(), int(zmax[0, 0])  # residual +1 at the centre: zigzag 2
-    ([0, 0, 0, 0, 2], 2)
-    """
-    nt = zz.shape[0]
-    for ty in prange(nt):  # rows of tiles on every core: each writes its own tiles
-        for tx in range(nt):
-            _one_tile_zigzag(d, s, h, P, zz, ty, tx)
-            zm = np.uint64(0)
-            e1, e3, e15 = 0, 0, 0
-            for u in zz[ty, tx]:
-                zm = max(zm, u)
-                e1 += u >= 1
-                e3 += u >= 3
-                e15 += u >= 15
-            zmax[ty, tx] = zm
-            esc[ty, tx, 0], esc[ty, tx, 1], esc[ty, tx, 2] = e1, e3, e15
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _one_tile_zigzag(d, s, h, P, zz, ty, tx):
-    # one tile of tile_zigzag
-    n = 0
-    i0, j0 = ty * 2 * h, tx * 2 * h
-    for a in range(h + 1):
-        for b in range(h):
-            i, j = i0 + 2 * a, j0 + 2 * b + 1
-            r = d[i * s, j * s] - _pred(d, s, i, j, P)
-            zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
-            n += 1
-    for a in range(h):
-        for b in range(h + 1):
-            i, j = i0 + 2 * a + 1, j0 + 2 * b
-            r = d[i * s, j * s] - _pred(d, s, i, j, P)
-            zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
-            n += 1
-    for a in range(h):
-        for b in range(h):
-            i, j = i0 + 2 * a + 1, j0 + 2 * b + 1
-            r = d[i * s, j * s] - _pred(d, s, i, j, P)
-            zz[ty, tx, n] = np.uint64((r << 1) ^ (r >> 63))
-            n += 1
+    for centres in (False, True):
+        for i in range(m):
+            for j in range(m):
+                if (i & 1 or j & 1) and bool(i & 1 and j & 1) == centres \
+                        and not valid[i * s, j * s]:
+                    d[i * s, j * s] = _pred(d, s, i, j, P)

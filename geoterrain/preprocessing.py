@@ -98,7 +98,6 @@ def preprocess(
     tile: str | None = None,
     codec_error: float | None = None,
     overwrite: bool = False,
-    zstd_level: int = 6,
     nodata: float | None = None,
     progress: Progress | None = None,
     derive_normals: bool = True,
@@ -134,9 +133,6 @@ def preprocess(
     codec_error
         The height codec's bound ε, in height units: every stored height is within ε
         of the source; default lossless. (Not the static mesh's ``max_error``.)
-    zstd_level
-        zstd level of the height residuals (6: within 0.5 % of level 9's size on every
-        shared DEM, 0.2 s less on a 4097² float DEM; see docs/benchmarks.md §3).
     overwrite
         Replace an existing store. Without it the store is published only if
         ``dst`` is still absent (of two racing runs, one gets "exists").
@@ -224,7 +220,7 @@ def preprocess(
         if rows is not None:  # too large for the whole grid: a window at a time
             return preprocess_streaming(
                 files[0], dst, tile_size=tile_size, z_scale=z_scale, z_units=z_units,
-                codec_error=codec_error, overwrite=overwrite, zstd_level=zstd_level,
+                codec_error=codec_error, overwrite=overwrite,
                 nodata=nodata, band=rows, derive_normals=derive_normals,
                 derive_bounds=derive_bounds, scheduler=scheduler, resume=resume,
                 progress=progress)
@@ -301,7 +297,7 @@ def preprocess(
                   for n in level_normal_maps(X, Y, Z, valid, grid.top_level + 1)]
     stage("normals")
 
-    height_blobs = encode_pyramid(heights, valid, grid.t, q, level=zstd_level)
+    height_blobs = encode_pyramid(heights, valid, grid.t, q)
     # δ: 8-bit log codes rounded up (saturation survives: one monotone map per store);
     # r: 8-bit log codes rounded up, nested on the codes. Below the top level only the
     # vertices new at the level are stored; the others are the parent's (vertexdata.py).

@@ -162,7 +162,6 @@ def preprocess_streaming(
     z_units: str = "auto",
     codec_error: float | None = None,
     overwrite: bool = False,
-    zstd_level: int = 6,
     nodata: float | None = None,
     band: int = 256,
     scratch: str | Path | None = None,
@@ -264,8 +263,7 @@ def preprocess_streaming(
     # the scratch folder is named like a partial store (.NAME.scratch.partial-PID): a
     # killed run's is removed by the next run in this folder (atomicfiles.remove_stale_partials)
     # unless that run resumes it
-    job = Job(str(src), grid.to_json(), frame.to_json(), q, nd, flip, band, zstd_level,
-               "", pad)
+    job = Job(str(src), grid.to_json(), frame.to_json(), q, nd, flip, band, "", pad)
     record = job_record(src, job)
     folder = adopt(parent, dst, record) if resume else None
     if folder is not None:

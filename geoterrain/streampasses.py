@@ -94,7 +94,6 @@ class Job:
     nodata: float | None
     flip: bool
     band: int
-    zstd_level: int
     folder: str
     pad: bool
 
@@ -160,8 +159,7 @@ def _heights_pass(job: Job) -> int:
                 fh.write(_RECORD.pack(*key, len(b)) + b)
             count[0] += len(part)
 
-        band_encode_pyramid(source.rows, grid.size, grid.t, job.q, level=job.zstd_level,
-                            sink=sink)
+        band_encode_pyramid(source.rows, grid.size, grid.t, job.q, sink=sink)
         return count[0]
 
 

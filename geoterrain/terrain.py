@@ -579,14 +579,14 @@ def _nbytes(v) -> int:
 def describe_codec(q: Quantizer) -> str:
     """One line saying how heights are coded."""
     if q.mode == "float":
-        return f"lossless float{q.float_bits} (bit-exact), residuals + zstd"
+        return f"lossless float{q.float_bits} (bit-exact), residuals + range coder"
     if q.mode == "int":
-        return f"lossless integer codes × {q.step:g} + {q.offset:g}, residuals + zstd"
+        return f"lossless integer codes × {q.step:g} + {q.offset:g}, residuals + range coder"
     if q.mode == "decimal":
         places = len(str(int(q.divisor))) - 1  # 10^d
         return (f"lossless decimals ({places} place{'s' * (places > 1)}, rounded to "
-                f"float{q.float_bits}) as integer codes, residuals + zstd")
-    return f"quantised to ε = {q.codec_error:g} (step {q.step:.6g}), residuals + zstd"
+                f"float{q.float_bits}) as integer codes, residuals + range coder")
+    return f"quantised to ε = {q.codec_error:g} (step {q.step:.6g}), residuals + range coder"
 
 
 def open(path: str | Path, cache_bytes: int = 1536 << 20) -> Terrain:  # noqa: A001

@@ -169,7 +169,7 @@ def mutate(path: Path, rng: random.Random) -> str:
             declared = rng.choice([0, 16 << 30, 1 << 40, 200 << 20])
             frame = zstd_bomb(declared, rng.choice([2, 64, 512]))
             old = read_blob(con, k)[0]
-            prefix = {"heights": 4, "delta": 2, "radius": 2, "normals": 0, "delta_edge": 2,
+            prefix = {"heights": 3, "delta": 2, "radius": 2, "normals": 0, "delta_edge": 2,
                       "block_delta": 0}[bk]
             data = old[:prefix] + frame
             update_blob(con, k, data=data, crc32=_blob_crc(k[:3], bk, data))

@@ -190,13 +190,13 @@ def test_windowed_height_blobs_are_encode_pyramids(seed, n, t, holes, mode, pred
         z = np.round(z)
     k_max = super_level(N, t, 3)  # the deepest super-tile level there is
     cmax = ((N - 1) >> min(coarse, k_max)) + 1
-    ref = encode_pyramid(z, v, t, q, level=3, predictor=predictor)
-    got = band_encode_pyramid(window_of(z, v), N, t, q, level=3, predictor=predictor,
+    ref = encode_pyramid(z, v, t, q, predictor=predictor)
+    got = band_encode_pyramid(window_of(z, v), N, t, q, predictor=predictor,
                               coarse_max=cmax)
     assert got.keys() == ref.keys()
     assert [k for k in ref if got[k] != ref[k]] == []
     parts: list[dict] = []  # handed out as made, none kept
-    assert band_encode_pyramid(window_of(z, v), N, t, q, level=3, predictor=predictor,
+    assert band_encode_pyramid(window_of(z, v), N, t, q, predictor=predictor,
                                coarse_max=cmax, sink=parts.append) == {}
     assert {k: b for p in parts for k, b in p.items()} == ref
     assert sum(map(len, parts)) == len(ref)  # each tile once

@@ -1,0 +1,559 @@
+"""The height codec's entropy stage: an adaptive binary range coder with contexts.
+
+A tile's residuals (the codec's order: classes A, B and C, each in raster order) are
+binarised as a zero flag, the bit length of the zigzag value in unary, and its bits
+below the leading one. Each binary decision is coded with an adaptive model: counts
+``n0, n1`` (halved past :data:`LIMIT`) give ``P(0) = (n0 + 1/2) / (n0 + n1 + 1)``
+(the Krichevsky–Trofimov estimate). The zero flags and the unary length are modelled
+per context, the class and the log2 bucket of an activity that the decoder knows
+before the sample: the zigzag residuals already decoded around it (its 8 neighbours
+and the samples two to its left and two above) plus the parents' height difference
+along its predicted span. This is the context modelling of lossless image coders
+(CALIC, LOCO-I) over seed 000 §2.9's residual pyramid; SZ3 codes its interpolation
+residuals with one Huffman table per array instead.
+
+The models start afresh in every tile, so a tile still decodes from its own bytes and
+its parent's codes. The coder is the byte-oriented range coder of LZMA (16-bit
+probabilities, carries through a cached byte): its always-zero first byte is not
+stored, and trailing zero bytes are dropped (the decoder reads zeros past the end).
+
+A stream is ``[the valid mask, T·T bits, when stored] + [the values]``; the mask bits
+are modelled on their left, upper and upper-left neighbours.
+
+Examples
+--------
+>>> import numpy as np
+>>> zz = np.array([0, 1, 0, 0, 7, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0], np.uint64)
+>>> c = np.zeros((3, 3), np.int64); ok = np.ones((5, 5), np.bool_)
+>>> data = encode_tile(zz, ok, c, 2, MASK_ALL_VALID)
+>>> back, _, exact = decode_tile(np.frombuffer(data, np.uint8), c, 2, MASK_ALL_VALID)
+>>> back.tolist() == zz.tolist(), exact
+(True, True)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from geoterrain.predict import _pred
+
+__all__ = [
+    "LIMIT",
+    "MASK_ALL_INVALID",
+    "MASK_ALL_VALID",
+    "MASK_STORED",
+    "decode_mask",
+    "decode_tile",
+    "decode_top",
+    "encode_level",
+    "level_zigzag",
+    "encode_tile",
+    "encode_top",
+]
+
+LIMIT = 255  # counts are halved past this total (adapts to a tile's changing statistics)
+_NB = 16  # activity buckets per class
+_J = 8  # steps of the length away from its expected value modelled apart
+# offsets of the model groups in one (rows, 2) count array
+_Z0 = 0  # zero flags: class × bucket
+_G0 = _Z0 + 3 * _NB  # "length ≥ expected": class × bucket
+_UP0 = _G0 + 3 * _NB  # "length > expected + j": class × bucket × j
+_DN0 = _UP0 + 3 * _NB * _J  # "length < expected - 1 - j": class × bucket × j
+_M0 = _DN0 + 3 * _NB * _J  # the bit below the leading one, per length
+_S0 = _M0 + 65  # the sign: class × the signs two to the left and two above
+_K0 = _S0 + 27  # mask bits: 8 neighbour patterns
+_ROWS = _K0 + 8
+_HALF = 1 << 15  # P(0) of a raw bit
+_TOP = 1 << 24
+
+
+# ----------------------------------------------------------------------- range coder
+
+
+# 2^32 / (2n + 2) for every count total n ≤ LIMIT + 1: P(0) without a division
+_INV = np.array([(1 << 32) // (2 * n + 2) for n in range(LIMIT + 2)], np.int64)
+
+
+
+
+@njit(cache=True, nogil=True)
+def _shift_low(st, buf):
+    # st: low, range, cache, cache size, position, overflow
+    low = st[0]
+    if low < 0xFF000000 or low >= (1 << 32):
+        carry = low >> 32
+        temp = st[2]
+        while True:
+            p = st[4]
+            if p >= 1:  # byte 0 (always 0) is not stored
+                if p - 1 < buf.size:
+                    buf[p - 1] = (temp + carry) & 0xFF
+                else:
+                    st[5] = 1
+            st[4] = p + 1
+            temp = 0xFF
+            st[3] -= 1
+            if st[3] == 0:
+                break
+        st[2] = (low >> 24) & 0xFF
+    st[3] += 1
+    st[0] = (low & 0x00FFFFFF) << 8
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _code(enc, st, buf, p0, bit):
+    """Encode ``bit`` (enc) or decode one (returned) with P(0) = p0 / 65536."""
+    x, rng = st[0], st[1]  # low (encoder) or code (decoder), range: kept in registers
+    bound = (rng >> 16) * p0
+    if enc:
+        if bit == 0:
+            rng = bound
+        else:
+            x += bound
+            rng -= bound
+        st[1] = rng
+        st[0] = x
+        if rng < _TOP:
+            while st[1] < _TOP:
+                st[1] <<= 8
+                _shift_low(st, buf)
+        return bit
+    if x < bound:
+        rng = bound
+        bit = 0
+    else:
+        x -= bound
+        rng -= bound
+        bit = 1
+    if rng < _TOP:
+        p = st[4]
+        while rng < _TOP:
+            rng <<= 8
+            x = ((x << 8) | (buf[p] if p < buf.size else 0)) & 0xFFFFFFFF
+            p += 1
+        st[4] = p
+    st[0] = x
+    st[1] = rng
+    return bit
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bit(enc, st, buf, m, k, bit):
+    """Code ``bit`` with the adaptive model ``m[k]`` and update it: Krichevsky–Trofimov,
+    P(0) = (n0 + 1/2) / (n + 1), counts halved past ``LIMIT``."""
+    n0, n1 = m[k, 0], m[k, 1]
+    b = _code(enc, st, buf, ((2 * n0 + 1) * _INV[n0 + n1]) >> 16, bit)
+    if b:
+        n1 += 1
+    else:
+        n0 += 1
+    if n0 + n1 > LIMIT:
+        n0, n1 = (n0 + 1) >> 1, (n1 + 1) >> 1
+    m[k, 0] = n0
+    m[k, 1] = n1
+    return b
+
+
+@njit(cache=True, nogil=True)
+def _start_nb(enc, buf):
+    st = np.zeros(6, np.int64)
+    st[1] = 0xFFFFFFFF
+    if enc:
+        st[3] = 1
+    else:
+        for p in range(4):
+            st[0] = (st[0] << 8) | (buf[p] if p < buf.size else 0)
+        st[4] = 4
+    return st
+
+
+@njit(cache=True, nogil=True)
+def _finish(st, buf):
+    """Flush the encoder; the stored length (trailing zeros dropped), -1 on overflow."""
+    for _ in range(5):
+        _shift_low(st, buf)
+    if st[5]:
+        return -1
+    n = st[4] - 1
+    while n > 0 and buf[n - 1] == 0:
+        n -= 1
+    return n
+
+
+# ----------------------------------------------------------------------- binarisation
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bitlen(x):
+    """The bit length of the uint64 ``x`` (0 for 0), in six halvings."""
+    b = 0
+    for w in (32, 16, 8, 4, 2, 1):
+        if x >> np.uint64(w):
+            x >>= np.uint64(w)
+            b += w
+    return b + np.int64(x != 0)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _direct(enc, st, buf, c, v):
+    """Code (or decode, returned) the ``c`` ≤ 16 equiprobable bits ``v`` at once."""
+    r = st[1] >> c
+    if enc:
+        st[0] += r * v
+    else:
+        v = min(st[0] // r, (1 << c) - 1)  # a stranger's stream may hold any code
+        st[0] -= r * v
+    st[1] = r
+    while st[1] < _TOP:
+        st[1] <<= 8
+        if enc:
+            _shift_low(st, buf)
+        else:
+            p = st[4]
+            st[0] = ((st[0] << 8) | (buf[p] if p < buf.size else 0)) & 0xFFFFFFFF
+            st[4] = p + 1
+    return v
+
+
+@njit(cache=True, nogil=True)
+def _value(enc, st, buf, m, u, ctx, sctx, ke):
+    """Code the zigzag value ``u`` (uint64) as a zero flag (context ``ctx``), a sign
+    (context ``sctx``) and a magnitude: its bit length k as steps up or down from the
+    expected length ``ke`` (adaptive, per ``ctx`` and step), the bit below its leading
+    one (adaptive, per k), the rest as equiprobable bits. The value decoded."""
+    if _bit(enc, st, buf, m, _Z0 + ctx, np.int64(u != 0)) == 0:
+        return np.uint64(0)
+    neg = _bit(enc, st, buf, m, _S0 + sctx, np.int64(u & np.uint64(1)))
+    mag = (u >> np.uint64(1)) + (u & np.uint64(1))  # |r|, 2^63 included
+    kk = _bitlen(mag) if enc else 0
+    if _bit(enc, st, buf, m, _G0 + ctx, np.int64(kk >= ke)) == 1:
+        k = ke
+        while k < 64:  # up: 1 = longer
+            if _bit(enc, st, buf, m, _UP0 + ctx * _J + min(k - ke, _J - 1),
+                    np.int64(kk > k)) == 0:
+                break
+            k += 1
+    else:
+        k = ke - 1
+        while k > 1:  # down: 1 = shorter
+            if _bit(enc, st, buf, m, _DN0 + ctx * _J + min(ke - 1 - k, _J - 1),
+                    np.int64(kk < k)) == 0:
+                break
+            k -= 1
+    v = np.uint64(1)
+    if k >= 2:
+        b = np.int64((mag >> np.uint64(k - 2)) & np.uint64(1)) if enc else np.int64(0)
+        v = (v << np.uint64(1)) | np.uint64(_bit(enc, st, buf, m, _M0 + k, b))
+    rest = k - 2  # the bits below: equiprobable, 16 at a time
+    while rest > 0:
+        c = min(rest, 16)
+        rest -= c
+        w = np.int64((mag >> np.uint64(rest)) & np.uint64((1 << c) - 1)) if enc else np.int64(0)
+        v = (v << np.uint64(c)) | np.uint64(_direct(enc, st, buf, c, w))
+    return (v << np.uint64(1)) - np.uint64(neg)  # back to zigzag: 2|r| - (r < 0)
+
+
+_FAST = 8  # from this expected length on, zero flag, sign and mantissa are not modelled
+
+
+@njit(cache=True, nogil=True)
+def _value_wide(enc, st, buf, m, u, ctx, ke):
+    """:func:`_value` where the expected length ``ke`` ≥ ``_FAST`` (rough data: a zero or
+    a skewed sign is rare there): the length k ≥ 0 of |r| from ``ke`` (k = 0: r = 0),
+    then the sign and the bits below the leading one as k equiprobable bits. Half the
+    modelled decisions of :func:`_value`, for a fraction of a bit more."""
+    mag = (u >> np.uint64(1)) + (u & np.uint64(1))
+    kk = _bitlen(mag) if enc else 0
+    if _bit(enc, st, buf, m, _G0 + ctx, np.int64(kk >= ke)) == 1:
+        k = ke
+        while k < 64:
+            if _bit(enc, st, buf, m, _UP0 + ctx * _J + min(k - ke, _J - 1),
+                    np.int64(kk > k)) == 0:
+                break
+            k += 1
+    else:
+        k = ke - 1
+        while k > 0:
+            if _bit(enc, st, buf, m, _DN0 + ctx * _J + min(ke - 1 - k, _J - 1),
+                    np.int64(kk < k)) == 0:
+                break
+            k -= 1
+    if k == 0:
+        return np.uint64(0)
+    # k bits: the mantissa below the leading one, then the sign
+    w = ((mag ^ (np.uint64(1) << np.uint64(k - 1))) << np.uint64(1)) | (u & np.uint64(1)) \
+        if enc else np.uint64(0)
+    v = np.uint64(0)
+    rest = k
+    while rest > 0:
+        c = min(rest, 16)
+        rest -= c
+        x = np.int64((w >> np.uint64(rest)) & np.uint64((1 << c) - 1)) if enc else np.int64(0)
+        v = (v << np.uint64(c)) | np.uint64(_direct(enc, st, buf, c, x))
+    neg = v & np.uint64(1)
+    mag = (v >> np.uint64(1)) | (np.uint64(1) << np.uint64(k - 1))
+    return (mag << np.uint64(1)) - neg
+
+
+@njit(cache=True, nogil=True)
+def _mask(enc, st, buf, m, ok):
+    # the valid mask, raster order, each bit modelled on its left, up and up-left bits
+    t = ok.shape[0]
+    for i in range(t):
+        for j in range(t):
+            c = 0
+            if j > 0 and ok[i, j - 1]:
+                c |= 1
+            if i > 0 and ok[i - 1, j]:
+                c |= 2
+            if i > 0 and j > 0 and ok[i - 1, j - 1]:
+                c |= 4
+            ok[i, j] = _bit(enc, st, buf, m, _K0 + c, np.int64(ok[i, j])) == 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _absdiff(a, b):
+    d = a - b
+    if d < 0:
+        d = -d
+    return d if d >= 0 else np.int64(1) << 62  # wrapped: "very large"
+
+
+@njit(cache=True, nogil=True)
+def _residuals(enc, st, buf, m, zz, ok, c, h, e):
+    """Code the 3h² + 2h values ``zz`` of a child tile (classes A, B, C) whose valid
+    mask is ``ok`` ((2h + 1)²) and parent samples ``c`` ((h + 1)²); invalid samples
+    are skipped (their value is 0). ``e``: (2h + 5)² scratch."""
+    e[:, :] = 0
+    n = 0
+    for cls in range(3):
+        ra = h + 1 if cls == 0 else h
+        rb = h if cls == 0 else h + 1 if cls == 1 else h
+        oi = 0 if cls == 0 else 1
+        oj = 1 if cls != 1 else 0
+        for a in range(ra):
+            for b in range(rb):
+                li, lj = 2 * a + oi, 2 * b + oj
+                if not ok[li, lj]:
+                    zz[n] = 0
+                    n += 1
+                    continue
+                if cls == 0:
+                    g = _absdiff(c[a, b], c[a, b + 1])
+                elif cls == 1:
+                    g = _absdiff(c[a, b], c[a + 1, b])
+                else:
+                    g = max(_absdiff(c[a, b], c[a + 1, b + 1]),
+                            _absdiff(c[a, b + 1], c[a + 1, b]))
+                y, x = li + 2, lj + 2
+                s = (e[y - 1, x - 1] + e[y - 1, x] + e[y - 1, x + 1] + e[y, x - 1]
+                     + e[y, x + 1] + e[y + 1, x - 1] + e[y + 1, x] + e[y + 1, x + 1]
+                     + e[y, x - 2] + e[y - 2, x])
+                bits = _bitlen(np.uint64(2 * s + min(g, np.int64(1) << 44)))
+                bk = min(bits, _NB - 1)
+                sl, su = e[y, x - 2], e[y - 2, x]
+                sc = cls * 9 + 3 * (0 if sl == 0 else 1 + (sl & 1)) \
+                    + (0 if su == 0 else 1 + (su & 1))
+                # the expected bit length of |r|: 2·s holds about 12 zigzag values
+                ke = max(1, bits - 3)
+                if ke >= _FAST:
+                    u = _value_wide(enc, st, buf, m, zz[n], cls * _NB + bk, ke)
+                else:
+                    u = _value(enc, st, buf, m, zz[n], cls * _NB + bk, sc, ke)
+                zz[n] = u
+                e[y, x] = min(u, np.uint64(1 << 40))
+                n += 1
+
+
+# ----------------------------------------------------------------------- tiles
+
+MASK_ALL_VALID, MASK_ALL_INVALID, MASK_STORED = 0, 1, 2
+
+
+@njit(cache=True, nogil=True)
+def _tile(enc, buf, zz, ok, c, h, kind):
+    st = _start_nb(enc, buf)
+    m = np.zeros((_ROWS, 2), np.int64)
+    if kind == MASK_STORED:
+        _mask(enc, st, buf, m, ok)
+    e = np.zeros((2 * h + 5, 2 * h + 5), np.uint64)
+    _residuals(enc, st, buf, m, zz, ok, c, h, e)
+    return st
+
+
+def encode_tile(zz: np.ndarray, ok: np.ndarray, c: np.ndarray, h: int, kind: int) -> bytes:
+    """The stream of one child tile: its zigzag residuals ``zz`` (uint64, codec order),
+    its valid mask ``ok`` ((2h + 1)², stored when ``kind`` is :data:`MASK_STORED`) and
+    its parent samples ``c`` ((h + 1)², the contexts). See the module's example."""
+    ok = np.ascontiguousarray(ok, np.bool_)
+    cap = 64 + 2 * zz.size + ok.size // 4
+    while True:
+        buf = np.zeros(cap, np.uint8)
+        st = _tile(True, buf, np.array(zz, np.uint64), ok.copy(), np.asarray(c, np.int64),
+                   h, kind)
+        n = _finish(st, buf)
+        if n >= 0:
+            return buf[:n].tobytes()
+        cap *= 8
+
+
+@njit(cache=True, nogil=True)
+def _canonical(data, st):
+    # the encoder's stream exactly: the decoder read every byte (and the zeros the
+    # encoder dropped after them), and the last byte is not a dropped zero
+    return data.size <= st[4] and (data.size == 0 or data[data.size - 1] != 0)
+
+
+@njit(cache=True, nogil=True)
+def decode_tile(data, c, h, kind):
+    """The zigzag residuals (uint64, codec order) and the valid mask ((2h + 1)²) of one
+    child tile's stream ``data`` (uint8) whose parent samples are ``c`` ((h + 1)²), and
+    whether ``data`` is exactly a stream the encoder writes (any bytes decode to some
+    values; bytes past the stream's end, as a spliced or padded blob has, are caught)."""
+    t = 2 * h + 1
+    ok = np.full((t, t), kind != MASK_ALL_INVALID)
+    zz = np.zeros(3 * h * h + 2 * h, np.uint64)
+    st = _tile(False, data.copy(), zz, ok, c, h, kind)  # a writable copy: one typing
+    return zz, ok, _canonical(data, st)
+
+
+@njit(cache=True, nogil=True)
+def decode_mask(data, t, kind):
+    """Only the valid mask (t × t) of a stream (the mask comes first)."""
+    ok = np.full((t, t), kind != MASK_ALL_INVALID)
+    if kind == MASK_STORED:
+        buf = data.copy()
+        _mask(False, _start_nb(False, buf), buf, np.zeros((_ROWS, 2), np.int64), ok)
+    return ok
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _zig(r):
+    return np.uint64((r << 1) ^ (r >> 63))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _unzig(u):
+    return np.int64(u >> np.uint64(1)) ^ -np.int64(u & np.uint64(1))
+
+
+@njit(cache=True, nogil=True)
+def _level_zigzag(d, s, h, P, i0, j0, zz):
+    # the residuals of the child tile at level-grid (i0, j0) of d[::s, ::s], codec order
+    n = 0
+    for cls in range(3):
+        ra = h + 1 if cls == 0 else h
+        rb = h if cls == 0 else h + 1 if cls == 1 else h
+        oi = 0 if cls == 0 else 1
+        oj = 1 if cls != 1 else 0
+        for a in range(ra):
+            for b in range(rb):
+                i, j = i0 + 2 * a + oi, j0 + 2 * b + oj
+                zz[n] = _zig(d[i * s, j * s] - _pred(d, s, i, j, P))
+                n += 1
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def encode_level(d, valid, s, h, P, ys, xs, kinds, buf, lens):
+    """Encode the child tiles (ys[q], xs[q]) of level ``d[::s, ::s]`` (their residuals
+    from :func:`geoterrain.predict._pred`, period ``P``) into rows of ``buf``; ``lens``
+    gets each stream's length, -1 where a row was too short. On every core."""
+    t = 2 * h + 1
+    for q in prange(ys.size):
+        i0, j0 = ys[q] * 2 * h, xs[q] * 2 * h
+        zz = np.empty(3 * h * h + 2 * h, np.uint64)
+        _level_zigzag(d, s, h, P, i0, j0, zz)
+        ok = np.empty((t, t), np.bool_)
+        c = np.empty((h + 1, h + 1), np.int64)
+        for a in range(t):
+            for b in range(t):
+                ok[a, b] = valid[(i0 + a) * s, (j0 + b) * s]
+        for a in range(h + 1):
+            for b in range(h + 1):
+                c[a, b] = d[(i0 + 2 * a) * s, (j0 + 2 * b) * s]
+        st = _tile(True, buf[q], zz, ok, c, h, kinds[q])
+        lens[q] = _finish(st, buf[q])
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def level_zigzag(d, s, h, P, ys, xs, zz, zmax):
+    """The zigzag residuals (codec order) of the child tiles (ys[q], xs[q]) of level
+    ``d[::s, ::s]`` into rows of ``zz``, and each row's largest value, on every core
+    (the wide blobs of :mod:`geoterrain.codec`)."""
+    for q in prange(ys.size):
+        _level_zigzag(d, s, h, P, ys[q] * 2 * h, xs[q] * 2 * h, zz[q])
+        zm = np.uint64(0)
+        for u in zz[q]:
+            zm = max(zm, u)
+        zmax[q] = zm
+
+
+# ----------------------------------------------------------------------- the top tile
+
+
+@njit(cache=True, nogil=True)
+def _top(enc, buf, top, ok, te, P, kind):
+    """The top tile coarse to fine inside itself: its 4 corners (deltas), then each
+    level of its own grid (stride 2^k) from the next coarser one, with the residuals
+    of :func:`geoterrain.predict._pred` (period ``P``), one set of models throughout."""
+    st = _start_nb(enc, buf)
+    m = np.zeros((_ROWS, 2), np.int64)
+    if kind == MASK_STORED:
+        _mask(enc, st, buf, m, ok)
+    last = top.shape[0] - 1
+    prev = np.int64(0)
+    for q in range(4):
+        i, j = (q >> 1) * last, (q & 1) * last
+        u = _zig(top[i, j] - prev) if enc else np.uint64(0)
+        u = _value(enc, st, buf, m, u, _NB - 1, 0, 1)
+        if not enc:
+            top[i, j] = prev + _unzig(u)
+        prev = top[i, j]
+    for k in range(te - 1, -1, -1):
+        s, h = 1 << k, 1 << (te - k - 1)
+        zz = np.zeros(3 * h * h + 2 * h, np.uint64)
+        if enc:
+            _level_zigzag(top, s, h, P, 0, 0, zz)
+        okv = np.ascontiguousarray(ok[::s, ::s])
+        c = np.ascontiguousarray(top[::2 * s, ::2 * s])
+        e = np.zeros((2 * h + 5, 2 * h + 5), np.uint64)
+        _residuals(enc, st, buf, m, zz, okv, c, h, e)
+        if not enc:
+            n = 0
+            for cls in range(3):
+                ra = h + 1 if cls == 0 else h
+                rb = h if cls == 0 else h + 1 if cls == 1 else h
+                oi = 0 if cls == 0 else 1
+                oj = 1 if cls != 1 else 0
+                for a in range(ra):
+                    for b in range(rb):
+                        i, j = 2 * a + oi, 2 * b + oj
+                        top[i * s, j * s] = _pred(top, s, i, j, P) + _unzig(zz[n])
+                        n += 1
+    return st
+
+
+def encode_top(top: np.ndarray, ok: np.ndarray, te: int, P: int, kind: int) -> bytes:
+    """The stream of the top tile ``top`` ((2^te + 1)² decoded codes, invalid samples
+    holding their fill) with valid mask ``ok``; ``P`` as :func:`geoterrain.predict._pred`."""
+    top = np.ascontiguousarray(top, np.int64)
+    cap = 64 + 2 * top.size
+    while True:
+        buf = np.zeros(cap, np.uint8)
+        st = _top(True, buf, top.copy(), np.ascontiguousarray(ok, np.bool_).copy(), te, P, kind)
+        n = _finish(st, buf)
+        if n >= 0:
+            return buf[:n].tobytes()
+        cap *= 8
+
+
+@njit(cache=True, nogil=True)
+def decode_top(data, te, P, kind):
+    """The top tile's codes and valid mask from its stream (:func:`encode_top`), and
+    whether ``data`` is exactly a stream the encoder writes (as :func:`decode_tile`)."""
+    t = (1 << te) + 1
+    ok = np.full((t, t), kind != MASK_ALL_INVALID)
+    top = np.zeros((t, t), np.int64)
+    st = _top(False, data.copy(), top, ok, te, P, kind)
+    return top, ok, _canonical(data, st)
