@@ -9,7 +9,7 @@ level inside the tile. So, with a super-tile level k:
 1. a first pass reads each super-tile (the closed footprint of one level-k tile,
    2**(t + k) + 1 samples a side) and keeps its samples every 2**k (the coarse grid,
    levels k and up) and whether any of its samples is valid (which tiles are stored);
-2. the coarse grid is decoded and coded as a whole pyramid (top tile forward-filled);
+2. the coarse grid is decoded and coded as a whole pyramid;
 3. a second pass reads each super-tile again, sets its level-k samples to the coarse
    grid's decoded codes, fills and codes its levels below k.
 

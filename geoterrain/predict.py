@@ -9,10 +9,13 @@ One rule, three forms that give the same integers:
 - :func:`cubic_child` and :func:`linear_child`: compiled, one child tile from its parent
   tile (the decoder).
 
-Linear: floor-means of the 2 axis neighbours (row and column midpoints) or of the two
-diagonal means (cell centres). Cubic: 4-point interpolatory weights (−1, 9, 9, −1)/16 per
-axis, separable for the centres, rounded, falling back to linear next to a parent-tile
-border (so a tile never reads outside its parent). Arithmetic is int64 modulo 2**64.
+Row midpoints (A) and column midpoints (B) come from the coarse samples; cell centres
+(C) from the decoded row midpoints above and below them, along the column (SZ3's one
+direction, then the other). Linear: floor-means of the 2 neighbours. Cubic: 4-point
+interpolatory weights (−1, 9, 9, −1)/16, rounded, falling back to linear next to a
+parent-tile border for A and B and next to a child-tile border for C (so a tile never
+reads outside its parent, nor a centre outside its own tile). Arithmetic is int64
+modulo 2**64.
 """
 
 from __future__ import annotations
