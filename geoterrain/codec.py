@@ -287,8 +287,7 @@ def _encode_top(d, valid, te, lmax, cubic) -> bytes:
     s = 1 << lmax
     top, vt = np.ascontiguousarray(d[::s, ::s]), np.ascontiguousarray(valid[::s, ::s])
     kind = _mask_kind(int(vt.sum()), vt.size)
-    return _header(True, kind, te, cubic) + entropy.encode_top(
-        top, vt, te, _top_period(te, cubic), kind)
+    return _header(True, kind, te, cubic) + entropy.encode_top(top, vt, te, cubic, kind)
 
 
 def _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts=None,
@@ -370,7 +369,7 @@ def _encode_tiles(d, valid, s, h, period, ys, xs, kinds, cap) -> list[bytes]:
     while todo.size:
         buf = np.zeros((todo.size, cap), np.uint8)
         lens = np.empty(todo.size, np.int64)
-        entropy.encode_level(d, valid, s, h, period, ys[todo].astype(np.int64),
+        entropy.encode_level(d, valid, s, h, period > 0, ys[todo].astype(np.int64),
                              xs[todo].astype(np.int64), kinds[todo].astype(np.int64), buf, lens)
         for row, q in enumerate(todo.tolist()):
             if lens[row] >= 0:
@@ -485,7 +484,7 @@ def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
     """
     top, kind, te, cubic, w, data = _parse(blob, t)
     if top:
-        codes, valid, exact = entropy.decode_top(data, te, _top_period(te, cubic), kind)
+        codes, valid, exact = entropy.decode_top(data, te, cubic, kind)
         if not exact:
             raise ValueError(_NOT_A_STREAM)
         return codes, valid
@@ -497,17 +496,18 @@ def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
     if parent.shape != (tt, tt):
         raise ValueError(f"parent codes must be ({tt}, {tt})")
     c = np.ascontiguousarray(parent[py * h: py * h + h + 1, px * h: px * h + h + 1])
-    if w >= 0:  # a wide blob
-        valid = _wide_mask(kind, te, data)
-        off = (tt * tt + 7) // 8 if kind == MASK_STORED else 0
-        n = 3 * h * h + 2 * h
-        zz = np.zeros(n, np.uint64) if w == 0 else np.ascontiguousarray(
-            data[off:].reshape(w, n).T).view(np.dtype(_UINTS[w]).newbyteorder("<")
-                                             ).ravel().astype(np.uint64)
-    else:
-        zz, valid, exact = entropy.decode_tile(data, c, h, kind)
+    if w < 0:  # range-coded: the predictions are applied as the residuals are decoded
+        out, valid, exact = entropy.decode_tile(data, parent, px, py, cubic, kind)
         if not exact:
             raise ValueError(_NOT_A_STREAM)
+        return out, valid
+    # a wide blob: every residual, then the predictions
+    valid = _wide_mask(kind, te, data)
+    off = (tt * tt + 7) // 8 if kind == MASK_STORED else 0
+    n = 3 * h * h + 2 * h
+    zz = np.zeros(n, np.uint64) if w == 0 else np.ascontiguousarray(
+        data[off:].reshape(w, n).T).view(np.dtype(_UINTS[w]).newbyteorder("<")
+                                         ).ravel().astype(np.uint64)
     r = ((zz >> np.uint64(1)) ^ (np.uint64(0) - (zz & np.uint64(1)))).view(np.int64)
     out = np.empty((tt, tt), np.int64)
     if cubic:  # the parent tile's own predictions (with its edge fallbacks)

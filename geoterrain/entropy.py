@@ -23,12 +23,13 @@ are modelled on their left, upper and upper-left neighbours.
 Examples
 --------
 >>> import numpy as np
->>> zz = np.array([0, 1, 0, 0, 7, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0], np.uint64)
->>> c = np.zeros((3, 3), np.int64); ok = np.ones((5, 5), np.bool_)
->>> data = encode_tile(zz, ok, c, 2, MASK_ALL_VALID)
->>> back, _, exact = decode_tile(np.frombuffer(data, np.uint8), c, 2, MASK_ALL_VALID)
->>> back.tolist() == zz.tolist(), exact
-(True, True)
+>>> parent = np.arange(25, dtype=np.int64).reshape(5, 5) * 4
+>>> child = np.arange(25, dtype=np.int64).reshape(5, 5) * 2 + 3; ok = np.ones((5, 5), bool)
+>>> data = encode_tile(child, ok, parent, (0, 0), False, MASK_ALL_VALID)
+>>> out, _, exact = decode_tile(np.frombuffer(data, np.uint8), parent, 0, 0, False,
+...                             MASK_ALL_VALID)
+>>> out[1::2].tolist() == child[1::2].tolist(), out[0, 0], exact  # even samples: the parent's
+(True, np.int64(0), True)
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.predict import _pred
+from geoterrain.predict import _fmean, _mid16, _pred
 
 __all__ = [
     "LIMIT",
@@ -52,17 +53,17 @@ __all__ = [
     "encode_top",
 ]
 
-LIMIT = 255  # counts are halved past this total (adapts to a tile's changing statistics)
+LIMIT = 1023  # counts are halved past this total (adapts to a tile's changing statistics)
 _NB = 16  # activity buckets per class
 _J = 8  # steps of the length away from its expected value modelled apart
 # offsets of the model groups in one (rows, 2) count array
-_Z0 = 0  # zero flags: class × bucket
-_G0 = _Z0 + 3 * _NB  # "length ≥ expected": class × bucket
+_Z0 = 0  # zero flags: class × bucket × 3 phases
+_G0 = _Z0 + 3 * _NB * 3  # "length ≥ expected": class × bucket
 _UP0 = _G0 + 3 * _NB  # "length > expected + j": class × bucket × j
 _DN0 = _UP0 + 3 * _NB * _J  # "length < expected - 1 - j": class × bucket × j
 _M0 = _DN0 + 3 * _NB * _J  # the bit below the leading one, per length
-_S0 = _M0 + 65  # the sign: class × the signs two to the left and two above
-_K0 = _S0 + 27  # mask bits: 8 neighbour patterns
+_S0 = _M0 + 65  # the sign: class × the signs two to the left and two above × 5 phases
+_K0 = _S0 + 27 * 5  # mask bits: 8 neighbour patterns
 _ROWS = _K0 + 8
 _HALF = 1 << 15  # P(0) of a raw bit
 _TOP = 1 << 24
@@ -217,14 +218,16 @@ def _direct(enc, st, buf, c, v):
 
 
 @njit(cache=True, nogil=True)
-def _value(enc, st, buf, m, u, ctx, sctx, ke):
-    """Code the zigzag value ``u`` (uint64) as a zero flag (context ``ctx``), a sign
-    (context ``sctx``) and a magnitude: its bit length k as steps up or down from the
-    expected length ``ke`` (adaptive, per ``ctx`` and step), the bit below its leading
-    one (adaptive, per k), the rest as equiprobable bits. The value decoded."""
-    if _bit(enc, st, buf, m, _Z0 + ctx, np.int64(u != 0)) == 0:
+def _value(enc, st, buf, m, u, ctx, sctx, ke, ph):
+    """Code the zigzag value ``u`` (uint64) as a zero flag (context ``ctx`` and the
+    prediction's phase ``ph``, 0 … 4), a sign (context ``sctx`` and ``ph``) and a
+    magnitude: its bit length k as steps up or down from the expected length ``ke``
+    (adaptive, per ``ctx`` and step), the bit below its leading one (adaptive, per k),
+    the rest as equiprobable bits. The value decoded."""
+    zph = 0 if ph == 2 else 1 if ph == 1 or ph == 3 else 2  # |phase|: 0, small, large
+    if _bit(enc, st, buf, m, _Z0 + ctx * 3 + zph, np.int64(u != 0)) == 0:
         return np.uint64(0)
-    neg = _bit(enc, st, buf, m, _S0 + sctx, np.int64(u & np.uint64(1)))
+    neg = _bit(enc, st, buf, m, _S0 + sctx * 5 + ph, np.int64(u & np.uint64(1)))
     mag = (u >> np.uint64(1)) + (u & np.uint64(1))  # |r|, 2^63 included
     kk = _bitlen(mag) if enc else 0
     if _bit(enc, st, buf, m, _G0 + ctx, np.int64(kk >= ke)) == 1:
@@ -320,13 +323,36 @@ def _absdiff(a, b):
     return d if d >= 0 else np.int64(1) << 62  # wrapped: "very large"
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _phase(v16):
+    """The bucket of where the unrounded prediction ``v16`` / 16 lies against the
+    rounded one ((v16 + 8) >> 4): well below, below, on it, above, well above. On a
+    grid coarser than the data (codes of 2ε) the residual leans that way."""
+    o = ((v16 + 8) & 15) - 8
+    return 0 if o <= -5 else 1 if o < 0 else 2 if o == 0 else 3 if o < 5 else 4
+
+
 @njit(cache=True, nogil=True)
-def _residuals(enc, st, buf, m, zz, ok, c, h, e):
-    """Code the 3h² + 2h values ``zz`` of a child tile (classes A, B, C) whose valid
-    mask is ``ok`` ((2h + 1)²) and parent samples ``c`` ((h + 1)²); invalid samples
-    are skipped (their value is 0). ``e``: (2h + 5)² scratch."""
-    e[:, :] = 0
-    n = 0
+def _child(enc, st, buf, m, parent, oy, ox, h, cubic, out, ok):
+    """Code (or decode into ``out``) a child tile's new samples, classes A, B, C in
+    raster order, given its parent tile ``parent`` (the child is the quadrant at rows
+    ``oy``…, columns ``ox``…, h + 1 parent samples a side) and its valid mask ``ok``.
+
+    The predictions are U(.) of :mod:`geoterrain.predict` (``cubic``: 4-point inside the
+    parent tile for A and B, inside this tile for C; else floor-means), each sample's
+    from the values before it: A and B from the parent, C from this tile's A samples
+    above and below. An invalid sample is not coded: its value is its prediction (the
+    encoder's ``out`` is set so too). Contexts: the class, the activity bucket of the
+    coded residuals around the sample and the parents' difference along its span, the
+    prediction's phase (:func:`_phase`), and for the sign the signs two to the left
+    and two above.
+    """
+    mp = parent.shape[0]
+    t = 2 * h + 1
+    for a in range(h + 1):
+        for b in range(h + 1):
+            out[2 * a, 2 * b] = parent[oy + a, ox + b]
+    e = np.zeros((t + 4, t + 4), np.uint64)
     for cls in range(3):
         ra = h + 1 if cls == 0 else h
         rb = h if cls == 0 else h + 1 if cls == 1 else h
@@ -335,35 +361,51 @@ def _residuals(enc, st, buf, m, zz, ok, c, h, e):
         for a in range(ra):
             for b in range(rb):
                 li, lj = 2 * a + oi, 2 * b + oj
-                if not ok[li, lj]:
-                    zz[n] = 0
-                    n += 1
-                    continue
+                # the prediction (cubic: from v16, 16 times it unrounded; linear: the
+                # floor-mean of the two neighbours), its phase, the parents' span
                 if cls == 0:
-                    g = _absdiff(c[a, b], c[a, b + 1])
+                    p0, p1 = parent[oy + a, ox + b], parent[oy + a, ox + b + 1]
+                    v16 = _mid16(parent, oy + a, 0, 0, 1, ox + b, mp) if cubic else 0
+                    g = _absdiff(p0, p1)
                 elif cls == 1:
-                    g = _absdiff(c[a, b], c[a + 1, b])
+                    p0, p1 = parent[oy + a, ox + b], parent[oy + a + 1, ox + b]
+                    v16 = _mid16(parent, 0, ox + b, 1, 0, oy + a, mp) if cubic else 0
+                    g = _absdiff(p0, p1)
                 else:
-                    g = max(_absdiff(c[a, b], c[a + 1, b + 1]),
-                            _absdiff(c[a, b + 1], c[a + 1, b]))
+                    p0, p1 = out[li - 1, lj], out[li + 1, lj]
+                    v16 = 8 * (p0 + p1)
+                    if cubic and 1 <= a <= h - 2:
+                        v16 += p0 + p1 - out[li - 3, lj] - out[li + 3, lj]
+                    g = max(_absdiff(parent[oy + a, ox + b], parent[oy + a + 1, ox + b + 1]),
+                            _absdiff(parent[oy + a, ox + b + 1], parent[oy + a + 1, ox + b]))
+                if cubic:
+                    pred, ph = (v16 + 8) >> 4, _phase(v16)
+                else:  # a half-way mean lies half a code above its floor
+                    pred, ph = _fmean(p0, p1), 4 if (p0 ^ p1) & 1 else 2
+                if not ok[li, lj]:
+                    out[li, lj] = pred
+                    continue
                 y, x = li + 2, lj + 2
                 s = (e[y - 1, x - 1] + e[y - 1, x] + e[y - 1, x + 1] + e[y, x - 1]
                      + e[y, x + 1] + e[y + 1, x - 1] + e[y + 1, x] + e[y + 1, x + 1]
                      + e[y, x - 2] + e[y - 2, x])
                 bits = _bitlen(np.uint64(2 * s + min(g, np.int64(1) << 44)))
                 bk = min(bits, _NB - 1)
-                sl, su = e[y, x - 2], e[y - 2, x]
-                sc = cls * 9 + 3 * (0 if sl == 0 else 1 + (sl & 1)) \
-                    + (0 if su == 0 else 1 + (su & 1))
                 # the expected bit length of |r|: 2·s holds about 12 zigzag values
                 ke = max(1, bits - 3)
+                u = _zig(out[li, lj] - pred) if enc else np.uint64(0)
                 if ke >= _FAST:
-                    u = _value_wide(enc, st, buf, m, zz[n], cls * _NB + bk, ke)
+                    u = _value_wide(enc, st, buf, m, u, cls * _NB + bk, ke)
                 else:
-                    u = _value(enc, st, buf, m, zz[n], cls * _NB + bk, sc, ke)
-                zz[n] = u
+                    sl, su = e[y, x - 2], e[y - 2, x]
+                    sc = cls * 9 + 3 * (0 if sl == 0 else 1 + (sl & 1)) \
+                        + (0 if su == 0 else 1 + (su & 1))
+                    # the phase matters where residuals are small (a coarse code grid)
+                    u = _value(enc, st, buf, m, u, cls * _NB + bk, sc, ke,
+                               ph if bits <= 6 else 2)
+                if not enc:
+                    out[li, lj] = pred + _unzig(u)
                 e[y, x] = min(u, np.uint64(1 << 40))
-                n += 1
 
 
 # ----------------------------------------------------------------------- tiles
@@ -372,26 +414,28 @@ MASK_ALL_VALID, MASK_ALL_INVALID, MASK_STORED = 0, 1, 2
 
 
 @njit(cache=True, nogil=True)
-def _tile(enc, buf, zz, ok, c, h, kind):
+def _tile(enc, buf, parent, py, px, h, cubic, out, ok, kind):
     st = _start_nb(enc, buf)
     m = np.zeros((_ROWS, 2), np.int64)
     if kind == MASK_STORED:
         _mask(enc, st, buf, m, ok)
-    e = np.zeros((2 * h + 5, 2 * h + 5), np.uint64)
-    _residuals(enc, st, buf, m, zz, ok, c, h, e)
+    _child(enc, st, buf, m, parent, py * h, px * h, h, cubic, out, ok)
     return st
 
 
-def encode_tile(zz: np.ndarray, ok: np.ndarray, c: np.ndarray, h: int, kind: int) -> bytes:
-    """The stream of one child tile: its zigzag residuals ``zz`` (uint64, codec order),
-    its valid mask ``ok`` ((2h + 1)², stored when ``kind`` is :data:`MASK_STORED`) and
-    its parent samples ``c`` ((h + 1)², the contexts). See the module's example."""
+def encode_tile(child: np.ndarray, ok: np.ndarray, parent: np.ndarray, parity: tuple[int, int],
+                cubic: bool, kind: int) -> bytes:
+    """The stream of one child tile: its codes ``child`` ((2h + 1)²; invalid samples are
+    not coded), its valid mask ``ok`` (stored when ``kind`` is :data:`MASK_STORED`),
+    its parent tile's codes ``parent`` (same size) and ``parity`` = (x % 2, y % 2), the
+    quadrant it covers. See the module's example."""
     ok = np.ascontiguousarray(ok, np.bool_)
-    cap = 64 + 2 * zz.size + ok.size // 4
+    t = ok.shape[0]
+    cap = 64 + 2 * t * t
     while True:
         buf = np.zeros(cap, np.uint8)
-        st = _tile(True, buf, np.array(zz, np.uint64), ok.copy(), np.asarray(c, np.int64),
-                   h, kind)
+        st = _tile(True, buf, np.ascontiguousarray(parent, np.int64), parity[1] & 1,
+                   parity[0] & 1, t // 2, cubic, np.array(child, np.int64), ok.copy(), kind)
         n = _finish(st, buf)
         if n >= 0:
             return buf[:n].tobytes()
@@ -406,16 +450,16 @@ def _canonical(data, st):
 
 
 @njit(cache=True, nogil=True)
-def decode_tile(data, c, h, kind):
-    """The zigzag residuals (uint64, codec order) and the valid mask ((2h + 1)²) of one
-    child tile's stream ``data`` (uint8) whose parent samples are ``c`` ((h + 1)²), and
-    whether ``data`` is exactly a stream the encoder writes (any bytes decode to some
-    values; bytes past the stream's end, as a spliced or padded blob has, are caught)."""
-    t = 2 * h + 1
+def decode_tile(data, parent, px, py, cubic, kind):
+    """The codes ((2h + 1)²) and the valid mask of the child tile (x % 2, y % 2) =
+    (``px``, ``py``) of ``parent`` whose stream is ``data`` (uint8), and whether ``data``
+    is exactly a stream the encoder writes (any bytes decode to some codes; bytes past
+    the stream's end, as a spliced or padded blob has, are caught)."""
+    t = parent.shape[0]
     ok = np.full((t, t), kind != MASK_ALL_INVALID)
-    zz = np.zeros(3 * h * h + 2 * h, np.uint64)
-    st = _tile(False, data.copy(), zz, ok, c, h, kind)  # a writable copy: one typing
-    return zz, ok, _canonical(data, st)
+    out = np.empty((t, t), np.int64)
+    st = _tile(False, data.copy(), parent, py, px, t // 2, cubic, out, ok, kind)
+    return out, ok, _canonical(data, st)
 
 
 @njit(cache=True, nogil=True)
@@ -455,24 +499,23 @@ def _level_zigzag(d, s, h, P, i0, j0, zz):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def encode_level(d, valid, s, h, P, ys, xs, kinds, buf, lens):
-    """Encode the child tiles (ys[q], xs[q]) of level ``d[::s, ::s]`` (their residuals
-    from :func:`geoterrain.predict._pred`, period ``P``) into rows of ``buf``; ``lens``
-    gets each stream's length, -1 where a row was too short. On every core."""
+def encode_level(d, valid, s, h, cubic, ys, xs, kinds, buf, lens):
+    """Encode the child tiles (ys[q], xs[q]) of level ``d[::s, ::s]`` (their parents
+    on ``d[::2s, ::2s]``) into rows of ``buf``; ``lens`` gets each stream's length, -1
+    where a row was too short. On every core."""
     t = 2 * h + 1
     for q in prange(ys.size):
-        i0, j0 = ys[q] * 2 * h, xs[q] * 2 * h
-        zz = np.empty(3 * h * h + 2 * h, np.uint64)
-        _level_zigzag(d, s, h, P, i0, j0, zz)
+        i0, j0 = ys[q] * 2 * h, xs[q] * 2 * h  # the tile, on the level's grid
+        pi0, pj0 = (ys[q] >> 1) * 2 * h, (xs[q] >> 1) * 2 * h  # its parent, a level up
+        out = np.empty((t, t), np.int64)
         ok = np.empty((t, t), np.bool_)
-        c = np.empty((h + 1, h + 1), np.int64)
+        parent = np.empty((t, t), np.int64)
         for a in range(t):
             for b in range(t):
+                out[a, b] = d[(i0 + a) * s, (j0 + b) * s]
                 ok[a, b] = valid[(i0 + a) * s, (j0 + b) * s]
-        for a in range(h + 1):
-            for b in range(h + 1):
-                c[a, b] = d[(i0 + 2 * a) * s, (j0 + 2 * b) * s]
-        st = _tile(True, buf[q], zz, ok, c, h, kinds[q])
+                parent[a, b] = d[(pi0 + a) * 2 * s, (pj0 + b) * 2 * s]
+        st = _tile(True, buf[q], parent, ys[q] & 1, xs[q] & 1, h, cubic, out, ok, kinds[q])
         lens[q] = _finish(st, buf[q])
 
 
@@ -493,10 +536,10 @@ def level_zigzag(d, s, h, P, ys, xs, zz, zmax):
 
 
 @njit(cache=True, nogil=True)
-def _top(enc, buf, top, ok, te, P, kind):
+def _top(enc, buf, top, ok, te, cubic, kind):
     """The top tile coarse to fine inside itself: its 4 corners (deltas), then each
-    level of its own grid (stride 2^k) from the next coarser one, with the residuals
-    of :func:`geoterrain.predict._pred` (period ``P``), one set of models throughout."""
+    level of its own grid (stride 2^k) as a child of the next coarser (:func:`_child`,
+    the whole of it), one set of models throughout."""
     st = _start_nb(enc, buf)
     m = np.zeros((_ROWS, 2), np.int64)
     if kind == MASK_STORED:
@@ -506,42 +549,28 @@ def _top(enc, buf, top, ok, te, P, kind):
     for q in range(4):
         i, j = (q >> 1) * last, (q & 1) * last
         u = _zig(top[i, j] - prev) if enc else np.uint64(0)
-        u = _value(enc, st, buf, m, u, _NB - 1, 0, 1)
+        u = _value(enc, st, buf, m, u, _NB - 1, 0, 1, 2)
         if not enc:
             top[i, j] = prev + _unzig(u)
         prev = top[i, j]
     for k in range(te - 1, -1, -1):
         s, h = 1 << k, 1 << (te - k - 1)
-        zz = np.zeros(3 * h * h + 2 * h, np.uint64)
-        if enc:
-            _level_zigzag(top, s, h, P, 0, 0, zz)
-        okv = np.ascontiguousarray(ok[::s, ::s])
-        c = np.ascontiguousarray(top[::2 * s, ::2 * s])
-        e = np.zeros((2 * h + 5, 2 * h + 5), np.uint64)
-        _residuals(enc, st, buf, m, zz, okv, c, h, e)
-        if not enc:
-            n = 0
-            for cls in range(3):
-                ra = h + 1 if cls == 0 else h
-                rb = h if cls == 0 else h + 1 if cls == 1 else h
-                oi = 0 if cls == 0 else 1
-                oj = 1 if cls != 1 else 0
-                for a in range(ra):
-                    for b in range(rb):
-                        i, j = 2 * a + oi, 2 * b + oj
-                        top[i * s, j * s] = _pred(top, s, i, j, P) + _unzig(zz[n])
-                        n += 1
+        parent = np.ascontiguousarray(top[::2 * s, ::2 * s])
+        out = np.ascontiguousarray(top[::s, ::s])
+        _child(enc, st, buf, m, parent, 0, 0, h, cubic, out, np.ascontiguousarray(ok[::s, ::s]))
+        top[::s, ::s] = out
     return st
 
 
-def encode_top(top: np.ndarray, ok: np.ndarray, te: int, P: int, kind: int) -> bytes:
-    """The stream of the top tile ``top`` ((2^te + 1)² decoded codes, invalid samples
-    holding their fill) with valid mask ``ok``; ``P`` as :func:`geoterrain.predict._pred`."""
+def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int) -> bytes:
+    """The stream of the top tile ``top`` ((2^te + 1)² codes; an invalid corner holds
+    its fill, other invalid samples are not coded) with valid mask ``ok``."""
     top = np.ascontiguousarray(top, np.int64)
     cap = 64 + 2 * top.size
     while True:
         buf = np.zeros(cap, np.uint8)
-        st = _top(True, buf, top.copy(), np.ascontiguousarray(ok, np.bool_).copy(), te, P, kind)
+        st = _top(True, buf, top.copy(), np.ascontiguousarray(ok, np.bool_).copy(), te, cubic,
+                  kind)
         n = _finish(st, buf)
         if n >= 0:
             return buf[:n].tobytes()
@@ -549,11 +578,11 @@ def encode_top(top: np.ndarray, ok: np.ndarray, te: int, P: int, kind: int) -> b
 
 
 @njit(cache=True, nogil=True)
-def decode_top(data, te, P, kind):
+def decode_top(data, te, cubic, kind):
     """The top tile's codes and valid mask from its stream (:func:`encode_top`), and
     whether ``data`` is exactly a stream the encoder writes (as :func:`decode_tile`)."""
     t = (1 << te) + 1
     ok = np.full((t, t), kind != MASK_ALL_INVALID)
     top = np.zeros((t, t), np.int64)
-    st = _top(False, data.copy(), top, ok, te, P, kind)
+    st = _top(False, data.copy(), top, ok, te, cubic, kind)
     return top, ok, _canonical(data, st)
