@@ -78,34 +78,48 @@ _INV = np.array([(1 << 32) // (2 * n + 2) for n in range(LIMIT + 2)], np.int64)
 
 
 
-@njit(cache=True, nogil=True)
-def _shift_low(st, buf):
-    # st: low, range, cache, cache size, position, overflow
-    low = st[0]
-    if low < 0xFF000000 or low >= (1 << 32):
-        carry = low >> 32
-        temp = st[2]
-        while True:
-            p = st[4]
-            if p >= 1:  # byte 0 (always 0) is not stored
-                if p - 1 < buf.size:
-                    buf[p - 1] = (temp + carry) & 0xFF
-                else:
-                    st[5] = 1
-            st[4] = p + 1
-            temp = 0xFF
-            st[3] -= 1
-            if st[3] == 0:
-                break
-        st[2] = (low >> 24) & 0xFF
-    st[3] += 1
-    st[0] = (low & 0x00FFFFFF) << 8
+# The coder's state is five int64 scalars S = (x, range, cache, cache size, position),
+# passed and returned (never an array: kept in registers, a decision costs ~4 ns, not
+# ~15); x is the encoder's low or the decoder's code. Past ``buf`` the encoder writes
+# nothing and :func:`_finish` reports the overflow.
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _code(enc, st, buf, p0, bit):
-    """Encode ``bit`` (enc) or decode one (returned) with P(0) = p0 / 65536."""
-    x, rng = st[0], st[1]  # low (encoder) or code (decoder), range: kept in registers
+def _shift_low(S, buf):
+    x, rng, cache, csize, pos = S
+    if x < 0xFF000000 or x >= (1 << 32):
+        carry = x >> 32
+        temp = cache
+        while True:
+            if 1 <= pos <= buf.size:  # byte 0 (always 0) is not stored
+                buf[pos - 1] = (temp + carry) & 0xFF
+            pos += 1
+            temp = 0xFF
+            csize -= 1
+            if csize == 0:
+                break
+        cache = (x >> 24) & 0xFF
+    return ((x & 0x00FFFFFF) << 8, rng, cache, csize + 1, pos)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _renorm(enc, S, buf):
+    # bring the range back to ≥ 2^24, a byte at a time
+    x, rng, cache, csize, pos = S
+    while rng < _TOP:
+        rng <<= 8
+        if enc:
+            x, _, cache, csize, pos = _shift_low((x, rng, cache, csize, pos), buf)
+        else:
+            x = ((x << 8) | (buf[pos] if pos < buf.size else 0)) & 0xFFFFFFFF
+            pos += 1
+    return (x, rng, cache, csize, pos)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _code(enc, S, buf, p0, bit):
+    """Encode ``bit`` (enc) or decode one, with P(0) = p0 / 65536: (bit, state)."""
+    x, rng, cache, csize, pos = S
     bound = (rng >> 16) * p0
     if enc:
         if bit == 0:
@@ -113,38 +127,22 @@ def _code(enc, st, buf, p0, bit):
         else:
             x += bound
             rng -= bound
-        st[1] = rng
-        st[0] = x
-        if rng < _TOP:
-            while st[1] < _TOP:
-                st[1] <<= 8
-                _shift_low(st, buf)
-        return bit
-    if x < bound:
+    elif x < bound:
         rng = bound
         bit = 0
     else:
         x -= bound
         rng -= bound
         bit = 1
-    if rng < _TOP:
-        p = st[4]
-        while rng < _TOP:
-            rng <<= 8
-            x = ((x << 8) | (buf[p] if p < buf.size else 0)) & 0xFFFFFFFF
-            p += 1
-        st[4] = p
-    st[0] = x
-    st[1] = rng
-    return bit
+    return bit, _renorm(enc, (x, rng, cache, csize, pos), buf)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _bit(enc, st, buf, m, k, bit):
+def _bit(enc, S, buf, m, k, bit):
     """Code ``bit`` with the adaptive model ``m[k]`` and update it: Krichevsky–Trofimov,
-    P(0) = (n0 + 1/2) / (n + 1), counts halved past ``LIMIT``."""
+    P(0) = (n0 + 1/2) / (n + 1), counts halved past ``LIMIT``. (bit, state)."""
     n0, n1 = m[k, 0], m[k, 1]
-    b = _code(enc, st, buf, ((2 * n0 + 1) * _INV[n0 + n1]) >> 16, bit)
+    b, S = _code(enc, S, buf, ((2 * n0 + 1) * _INV[n0 + n1]) >> 16, bit)
     if b:
         n1 += 1
     else:
@@ -153,30 +151,27 @@ def _bit(enc, st, buf, m, k, bit):
         n0, n1 = (n0 + 1) >> 1, (n1 + 1) >> 1
     m[k, 0] = n0
     m[k, 1] = n1
-    return b
+    return b, S
 
 
 @njit(cache=True, nogil=True)
-def _start_nb(enc, buf):
-    st = np.zeros(6, np.int64)
-    st[1] = 0xFFFFFFFF
+def _start(enc, buf):
     if enc:
-        st[3] = 1
-    else:
-        for p in range(4):
-            st[0] = (st[0] << 8) | (buf[p] if p < buf.size else 0)
-        st[4] = 4
-    return st
+        return (np.int64(0), np.int64(0xFFFFFFFF), np.int64(0), np.int64(1), np.int64(0))
+    x = np.int64(0)
+    for p in range(4):
+        x = (x << 8) | (buf[p] if p < buf.size else 0)
+    return (x, np.int64(0xFFFFFFFF), np.int64(0), np.int64(0), np.int64(4))
 
 
 @njit(cache=True, nogil=True)
-def _finish(st, buf):
+def _finish(S, buf):
     """Flush the encoder; the stored length (trailing zeros dropped), -1 on overflow."""
     for _ in range(5):
-        _shift_low(st, buf)
-    if st[5]:
+        S = _shift_low(S, buf)
+    n = S[4] - 1
+    if n > buf.size:
         return -1
-    n = st[4] - 1
     while n > 0 and buf[n - 1] == 0:
         n -= 1
     return n
@@ -197,110 +192,102 @@ def _bitlen(x):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _direct(enc, st, buf, c, v):
-    """Code (or decode, returned) the ``c`` ≤ 16 equiprobable bits ``v`` at once."""
-    r = st[1] >> c
+def _direct(enc, S, buf, c, v):
+    """Code (or decode) the ``c`` ≤ 16 equiprobable bits ``v`` at once: (v, state)."""
+    x, rng, cache, csize, pos = S
+    r = rng >> c
     if enc:
-        st[0] += r * v
+        x += r * v
     else:
-        v = min(st[0] // r, (1 << c) - 1)  # a stranger's stream may hold any code
-        st[0] -= r * v
-    st[1] = r
-    while st[1] < _TOP:
-        st[1] <<= 8
-        if enc:
-            _shift_low(st, buf)
-        else:
-            p = st[4]
-            st[0] = ((st[0] << 8) | (buf[p] if p < buf.size else 0)) & 0xFFFFFFFF
-            st[4] = p + 1
-    return v
+        v = min(x // r, (1 << c) - 1)  # a stranger's stream may hold any code
+        x -= r * v
+    return v, _renorm(enc, (x, r, cache, csize, pos), buf)
 
 
-@njit(cache=True, nogil=True)
-def _value(enc, st, buf, m, u, ctx, sctx, ke, ph):
-    """Code the zigzag value ``u`` (uint64) as a zero flag (context ``ctx`` and the
-    prediction's phase ``ph``, 0 … 4), a sign (context ``sctx`` and ``ph``) and a
-    magnitude: its bit length k as steps up or down from the expected length ``ke``
-    (adaptive, per ``ctx`` and step), the bit below its leading one (adaptive, per k),
-    the rest as equiprobable bits. The value decoded."""
-    zph = 0 if ph == 2 else 1 if ph == 1 or ph == 3 else 2  # |phase|: 0, small, large
-    if _bit(enc, st, buf, m, _Z0 + ctx * 3 + zph, np.int64(u != 0)) == 0:
-        return np.uint64(0)
-    neg = _bit(enc, st, buf, m, _S0 + sctx * 5 + ph, np.int64(u & np.uint64(1)))
-    mag = (u >> np.uint64(1)) + (u & np.uint64(1))  # |r|, 2^63 included
-    kk = _bitlen(mag) if enc else 0
-    if _bit(enc, st, buf, m, _G0 + ctx, np.int64(kk >= ke)) == 1:
+@njit(cache=True, nogil=True, inline="always")
+def _length(enc, S, buf, m, kk, ctx, ke, kmin):
+    """The bit length k ≥ ``kmin`` (``kk`` when encoding) as steps up or down from the
+    expected length ``ke``, each step modelled per ``ctx`` and its distance: (k, state)."""
+    up, S = _bit(enc, S, buf, m, _G0 + ctx, np.int64(kk >= ke))
+    if up == 1:
         k = ke
-        while k < 64:  # up: 1 = longer
-            if _bit(enc, st, buf, m, _UP0 + ctx * _J + min(k - ke, _J - 1),
-                    np.int64(kk > k)) == 0:
+        while k < 64:  # 1 = longer
+            b, S = _bit(enc, S, buf, m, _UP0 + ctx * _J + min(k - ke, _J - 1),
+                        np.int64(kk > k))
+            if b == 0:
                 break
             k += 1
     else:
         k = ke - 1
-        while k > 1:  # down: 1 = shorter
-            if _bit(enc, st, buf, m, _DN0 + ctx * _J + min(ke - 1 - k, _J - 1),
-                    np.int64(kk < k)) == 0:
+        while k > kmin:  # 1 = shorter
+            b, S = _bit(enc, S, buf, m, _DN0 + ctx * _J + min(ke - 1 - k, _J - 1),
+                        np.int64(kk < k))
+            if b == 0:
                 break
             k -= 1
+    return k, S
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bits(enc, S, buf, w, n):
+    """The ``n`` low bits of ``w`` (uint64) as equiprobable bits, 16 at a time."""
+    v = np.uint64(0)
+    while n > 0:
+        c = min(n, 16)
+        n -= c
+        x = np.int64((w >> np.uint64(n)) & np.uint64((1 << c) - 1)) if enc else np.int64(0)
+        x, S = _direct(enc, S, buf, c, x)
+        v = (v << np.uint64(c)) | np.uint64(x)
+    return v, S
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _value(enc, S, buf, m, u, ctx, sctx, ke, ph):
+    """Code the zigzag value ``u`` (uint64) as a zero flag (context ``ctx`` and the
+    prediction's phase ``ph``, 0 … 4), a sign (context ``sctx`` and ``ph``) and a
+    magnitude: its bit length k as steps up or down from the expected length ``ke``
+    (adaptive, per ``ctx`` and step), the bit below its leading one (adaptive, per k),
+    the rest as equiprobable bits. (The value, state.)"""
+    zph = 0 if ph == 2 else 1 if ph == 1 or ph == 3 else 2  # |phase|: 0, small, large
+    nz, S = _bit(enc, S, buf, m, _Z0 + ctx * 3 + zph, np.int64(u != 0))
+    if nz == 0:
+        return np.uint64(0), S
+    neg, S = _bit(enc, S, buf, m, _S0 + sctx * 5 + ph, np.int64(u & np.uint64(1)))
+    mag = (u >> np.uint64(1)) + (u & np.uint64(1))  # |r|, 2^63 included
+    k, S = _length(enc, S, buf, m, _bitlen(mag) if enc else 0, ctx, ke, 1)
     v = np.uint64(1)
     if k >= 2:
         b = np.int64((mag >> np.uint64(k - 2)) & np.uint64(1)) if enc else np.int64(0)
-        v = (v << np.uint64(1)) | np.uint64(_bit(enc, st, buf, m, _M0 + k, b))
-    rest = k - 2  # the bits below: equiprobable, 16 at a time
-    while rest > 0:
-        c = min(rest, 16)
-        rest -= c
-        w = np.int64((mag >> np.uint64(rest)) & np.uint64((1 << c) - 1)) if enc else np.int64(0)
-        v = (v << np.uint64(c)) | np.uint64(_direct(enc, st, buf, c, w))
-    return (v << np.uint64(1)) - np.uint64(neg)  # back to zigzag: 2|r| - (r < 0)
+        b, S = _bit(enc, S, buf, m, _M0 + k, b)
+        v = (v << np.uint64(1)) | np.uint64(b)
+        low, S = _bits(enc, S, buf, mag, k - 2)  # the bits below: equiprobable
+        v = (v << np.uint64(k - 2)) | low
+    return (v << np.uint64(1)) - np.uint64(neg), S  # back to zigzag: 2|r| - (r < 0)
 
 
 _FAST = 8  # from this expected length on, zero flag, sign and mantissa are not modelled
 
 
-@njit(cache=True, nogil=True)
-def _value_wide(enc, st, buf, m, u, ctx, ke):
+@njit(cache=True, nogil=True, inline="always")
+def _value_wide(enc, S, buf, m, u, ctx, ke):
     """:func:`_value` where the expected length ``ke`` ≥ ``_FAST`` (rough data: a zero or
     a skewed sign is rare there): the length k ≥ 0 of |r| from ``ke`` (k = 0: r = 0),
     then the sign and the bits below the leading one as k equiprobable bits. Half the
     modelled decisions of :func:`_value`, for a fraction of a bit more."""
     mag = (u >> np.uint64(1)) + (u & np.uint64(1))
-    kk = _bitlen(mag) if enc else 0
-    if _bit(enc, st, buf, m, _G0 + ctx, np.int64(kk >= ke)) == 1:
-        k = ke
-        while k < 64:
-            if _bit(enc, st, buf, m, _UP0 + ctx * _J + min(k - ke, _J - 1),
-                    np.int64(kk > k)) == 0:
-                break
-            k += 1
-    else:
-        k = ke - 1
-        while k > 0:
-            if _bit(enc, st, buf, m, _DN0 + ctx * _J + min(ke - 1 - k, _J - 1),
-                    np.int64(kk < k)) == 0:
-                break
-            k -= 1
+    k, S = _length(enc, S, buf, m, _bitlen(mag) if enc else 0, ctx, ke, 0)
     if k == 0:
-        return np.uint64(0)
+        return np.uint64(0), S
     # k bits: the mantissa below the leading one, then the sign
     w = ((mag ^ (np.uint64(1) << np.uint64(k - 1))) << np.uint64(1)) | (u & np.uint64(1)) \
         if enc else np.uint64(0)
-    v = np.uint64(0)
-    rest = k
-    while rest > 0:
-        c = min(rest, 16)
-        rest -= c
-        x = np.int64((w >> np.uint64(rest)) & np.uint64((1 << c) - 1)) if enc else np.int64(0)
-        v = (v << np.uint64(c)) | np.uint64(_direct(enc, st, buf, c, x))
-    neg = v & np.uint64(1)
+    v, S = _bits(enc, S, buf, w, k)
     mag = (v >> np.uint64(1)) | (np.uint64(1) << np.uint64(k - 1))
-    return (mag << np.uint64(1)) - neg
+    return (mag << np.uint64(1)) - (v & np.uint64(1)), S
 
 
 @njit(cache=True, nogil=True)
-def _mask(enc, st, buf, m, ok):
+def _mask(enc, S, buf, m, ok):
     # the valid mask, raster order, each bit modelled on its left, up and up-left bits
     t = ok.shape[0]
     for i in range(t):
@@ -312,7 +299,9 @@ def _mask(enc, st, buf, m, ok):
                 c |= 2
             if i > 0 and j > 0 and ok[i - 1, j - 1]:
                 c |= 4
-            ok[i, j] = _bit(enc, st, buf, m, _K0 + c, np.int64(ok[i, j])) == 1
+            b, S = _bit(enc, S, buf, m, _K0 + c, np.int64(ok[i, j]))
+            ok[i, j] = b == 1
+    return S
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -333,7 +322,7 @@ def _phase(v16):
 
 
 @njit(cache=True, nogil=True)
-def _child(enc, st, buf, m, parent, oy, ox, h, cubic, out, ok):
+def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok):
     """Code (or decode into ``out``) a child tile's new samples, classes A, B, C in
     raster order, given its parent tile ``parent`` (the child is the quadrant at rows
     ``oy``…, columns ``ox``…, h + 1 parent samples a side) and its valid mask ``ok``.
@@ -395,17 +384,18 @@ def _child(enc, st, buf, m, parent, oy, ox, h, cubic, out, ok):
                 ke = max(1, bits - 3)
                 u = _zig(out[li, lj] - pred) if enc else np.uint64(0)
                 if ke >= _FAST:
-                    u = _value_wide(enc, st, buf, m, u, cls * _NB + bk, ke)
+                    u, S = _value_wide(enc, S, buf, m, u, cls * _NB + bk, ke)
                 else:
                     sl, su = e[y, x - 2], e[y - 2, x]
                     sc = cls * 9 + 3 * (0 if sl == 0 else 1 + (sl & 1)) \
                         + (0 if su == 0 else 1 + (su & 1))
                     # the phase matters where residuals are small (a coarse code grid)
-                    u = _value(enc, st, buf, m, u, cls * _NB + bk, sc, ke,
-                               ph if bits <= 6 else 2)
+                    u, S = _value(enc, S, buf, m, u, cls * _NB + bk, sc, ke,
+                                  ph if bits <= 6 else 2)
                 if not enc:
                     out[li, lj] = pred + _unzig(u)
                 e[y, x] = min(u, np.uint64(1 << 40))
+    return S
 
 
 # ----------------------------------------------------------------------- tiles
@@ -415,12 +405,11 @@ MASK_ALL_VALID, MASK_ALL_INVALID, MASK_STORED = 0, 1, 2
 
 @njit(cache=True, nogil=True)
 def _tile(enc, buf, parent, py, px, h, cubic, out, ok, kind):
-    st = _start_nb(enc, buf)
+    S = _start(enc, buf)
     m = np.zeros((_ROWS, 2), np.int64)
     if kind == MASK_STORED:
-        _mask(enc, st, buf, m, ok)
-    _child(enc, st, buf, m, parent, py * h, px * h, h, cubic, out, ok)
-    return st
+        S = _mask(enc, S, buf, m, ok)
+    return _child(enc, S, buf, m, parent, py * h, px * h, h, cubic, out, ok)
 
 
 def encode_tile(child: np.ndarray, ok: np.ndarray, parent: np.ndarray, parity: tuple[int, int],
@@ -443,10 +432,10 @@ def encode_tile(child: np.ndarray, ok: np.ndarray, parent: np.ndarray, parity: t
 
 
 @njit(cache=True, nogil=True)
-def _canonical(data, st):
+def _canonical(data, S):
     # the encoder's stream exactly: the decoder read every byte (and the zeros the
     # encoder dropped after them), and the last byte is not a dropped zero
-    return data.size <= st[4] and (data.size == 0 or data[data.size - 1] != 0)
+    return data.size <= S[4] and (data.size == 0 or data[data.size - 1] != 0)
 
 
 @njit(cache=True, nogil=True)
@@ -468,7 +457,7 @@ def decode_mask(data, t, kind):
     ok = np.full((t, t), kind != MASK_ALL_INVALID)
     if kind == MASK_STORED:
         buf = data.copy()
-        _mask(False, _start_nb(False, buf), buf, np.zeros((_ROWS, 2), np.int64), ok)
+        _mask(False, _start(False, buf), buf, np.zeros((_ROWS, 2), np.int64), ok)
     return ok
 
 
@@ -540,16 +529,16 @@ def _top(enc, buf, top, ok, te, cubic, kind):
     """The top tile coarse to fine inside itself: its 4 corners (deltas), then each
     level of its own grid (stride 2^k) as a child of the next coarser (:func:`_child`,
     the whole of it), one set of models throughout."""
-    st = _start_nb(enc, buf)
+    S = _start(enc, buf)
     m = np.zeros((_ROWS, 2), np.int64)
     if kind == MASK_STORED:
-        _mask(enc, st, buf, m, ok)
+        S = _mask(enc, S, buf, m, ok)
     last = top.shape[0] - 1
     prev = np.int64(0)
     for q in range(4):
         i, j = (q >> 1) * last, (q & 1) * last
         u = _zig(top[i, j] - prev) if enc else np.uint64(0)
-        u = _value(enc, st, buf, m, u, _NB - 1, 0, 1, 2)
+        u, S = _value(enc, S, buf, m, u, _NB - 1, 0, 1, 2)
         if not enc:
             top[i, j] = prev + _unzig(u)
         prev = top[i, j]
@@ -557,9 +546,10 @@ def _top(enc, buf, top, ok, te, cubic, kind):
         s, h = 1 << k, 1 << (te - k - 1)
         parent = np.ascontiguousarray(top[::2 * s, ::2 * s])
         out = np.ascontiguousarray(top[::s, ::s])
-        _child(enc, st, buf, m, parent, 0, 0, h, cubic, out, np.ascontiguousarray(ok[::s, ::s]))
+        S = _child(enc, S, buf, m, parent, 0, 0, h, cubic, out,
+                   np.ascontiguousarray(ok[::s, ::s]))
         top[::s, ::s] = out
-    return st
+    return S
 
 
 def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int) -> bytes:
