@@ -554,7 +554,16 @@ def _top(enc, buf, top, ok, te, cubic, kind):
 
 def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int) -> bytes:
     """The stream of the top tile ``top`` ((2^te + 1)² codes; an invalid corner holds
-    its fill, other invalid samples are not coded) with valid mask ``ok``."""
+    its fill, other invalid samples are not coded) with valid mask ``ok``.
+
+    Examples
+    --------
+    >>> top = np.arange(25, dtype=np.int64).reshape(5, 5) ** 2; ok = np.ones((5, 5), bool)
+    >>> data = encode_top(top, ok, 2, True, MASK_ALL_VALID)
+    >>> back, _, exact = decode_top(np.frombuffer(data, np.uint8), 2, True, MASK_ALL_VALID)
+    >>> back.tolist() == top.tolist(), exact
+    (True, True)
+    """
     top = np.ascontiguousarray(top, np.int64)
     cap = 64 + 2 * top.size
     while True:
