@@ -49,7 +49,7 @@ import numpy as np
 
 from geoterrain import entropy
 from geoterrain.entropy import MASK_ALL_INVALID, MASK_ALL_VALID, MASK_STORED
-from geoterrain.grid import footprint_counts
+from geoterrain.grid import footprint_counts, level_tiles
 from geoterrain.predict import cubic_child, fill_level, linear_child, predict
 from geoterrain.quantize import Quantizer, codes_to_heights, roundtrip, valid_codes
 from geoterrain.threads import cores_for
@@ -303,11 +303,13 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts=None,
         counts = footprint_counts(valid, te)
     h = 1 << (te - 1)
     cap = 64 + tt * tt  # a level's rows: 8 bits a sample, then twice the last level's longest
+    all_valid = bool(valid.all())
     for lev in range(lmax - 1, -1, -1):
         s = 1 << lev
         ys, xs = np.nonzero(counts[lev])
         if ys.size:
-            nvalid = _tile_valid_counts(valid, s, h, ys, xs)
+            nvalid = np.full(ys.size, tt * tt) if all_valid else \
+                level_tiles(valid, te, lev)[ys, xs].sum(axis=(1, 2))
             kinds = np.where(nvalid == tt * tt, MASK_ALL_VALID,
                              np.where(nvalid == 0, MASK_ALL_INVALID, MASK_STORED))
             if wide:
@@ -348,16 +350,6 @@ def _wide_blobs(lev, d, valid, s, h, te, period, ys, xs, kinds, cubic) -> dict:
     frames = compress_many(payloads, _WIDE_LEVEL)
     return {(lev, int(x), int(y)): hd + f
             for x, y, hd, f in zip(xs.tolist(), ys.tolist(), heads, frames, strict=True)}
-
-
-def _tile_valid_counts(valid, s, h, ys, xs) -> np.ndarray:
-    # valid samples of each listed tile of level valid[::s, ::s] (tiles of 2h + 1)
-    v = valid[::s, ::s]
-    cs = np.zeros((v.shape[0] + 1, v.shape[1] + 1), np.int64)
-    np.cumsum(np.cumsum(v, 0), 1, out=cs[1:, 1:])
-    i0, j0 = ys * 2 * h, xs * 2 * h
-    i1, j1 = i0 + 2 * h + 1, j0 + 2 * h + 1
-    return cs[i1, j1] - cs[i0, j1] - cs[i1, j0] + cs[i0, j0]
 
 
 def _encode_tiles(d, valid, s, h, period, ys, xs, kinds, cap) -> list[bytes]:
