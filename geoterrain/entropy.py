@@ -313,6 +313,18 @@ def _absdiff(a, b):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _class_shape(cls, h):
+    """Rows, columns and the first sample's (row, column) of class ``cls`` in a child
+    tile of 2h + 1: A (h + 1, h) from (0, 1), B (h, h + 1) from (1, 0), C (h, h)
+    from (1, 1)."""
+    if cls == 0:
+        return h + 1, h, 0, 1
+    if cls == 1:
+        return h, h + 1, 1, 0
+    return h, h, 1, 1
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _phase(v16):
     """The bucket of where the unrounded prediction ``v16`` / 16 lies against the
     rounded one ((v16 + 8) >> 4): well below, below, on it, above, well above. On a
@@ -343,10 +355,7 @@ def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok):
             out[2 * a, 2 * b] = parent[oy + a, ox + b]
     e = np.zeros((t + 4, t + 4), np.uint64)
     for cls in range(3):
-        ra = h + 1 if cls == 0 else h
-        rb = h if cls == 0 else h + 1 if cls == 1 else h
-        oi = 0 if cls == 0 else 1
-        oj = 1 if cls != 1 else 0
+        ra, rb, oi, oj = _class_shape(cls, h)
         for a in range(ra):
             for b in range(rb):
                 li, lj = 2 * a + oi, 2 * b + oj
@@ -476,10 +485,7 @@ def _level_zigzag(d, s, h, P, i0, j0, zz):
     # the residuals of the child tile at level-grid (i0, j0) of d[::s, ::s], codec order
     n = 0
     for cls in range(3):
-        ra = h + 1 if cls == 0 else h
-        rb = h if cls == 0 else h + 1 if cls == 1 else h
-        oi = 0 if cls == 0 else 1
-        oj = 1 if cls != 1 else 0
+        ra, rb, oi, oj = _class_shape(cls, h)
         for a in range(ra):
             for b in range(rb):
                 i, j = i0 + 2 * a + oi, j0 + 2 * b + oj
