@@ -81,10 +81,11 @@ _INV = np.array([(1 << 32) // (2 * n + 2) for n in range(LIMIT + 2)], np.int64)
 # The coder's state is five int64 scalars S = (x, range, cache, cache size, position),
 # passed and returned (never an array: kept in registers, a decision costs ~4 ns, not
 # ~15); x is the encoder's low or the decoder's code. Past ``buf`` the encoder writes
-# nothing and :func:`_finish` reports the overflow.
+# nothing and :func:`_finish` reports the overflow. Only the per-decision functions are
+# inlined: inlining the per-value ones too made a cold compile 3–20 times longer.
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _shift_low(S, buf):
     x, rng, cache, csize, pos = S
     if x < 0xFF000000 or x >= (1 << 32):
@@ -204,7 +205,7 @@ def _direct(enc, S, buf, c, v):
     return v, _renorm(enc, (x, r, cache, csize, pos), buf)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _length(enc, S, buf, m, kk, ctx, ke, kmin):
     """The bit length k ≥ ``kmin`` (``kk`` when encoding) as steps up or down from the
     expected length ``ke``, each step modelled per ``ctx`` and its distance: (k, state)."""
@@ -228,7 +229,7 @@ def _length(enc, S, buf, m, kk, ctx, ke, kmin):
     return k, S
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _bits(enc, S, buf, w, n):
     """The ``n`` low bits of ``w`` (uint64) as equiprobable bits, 16 at a time."""
     v = np.uint64(0)
@@ -241,7 +242,7 @@ def _bits(enc, S, buf, w, n):
     return v, S
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _value(enc, S, buf, m, u, ctx, sctx, ke, ph):
     """Code the zigzag value ``u`` (uint64) as a zero flag (context ``ctx`` and the
     prediction's phase ``ph``, 0 … 4), a sign (context ``sctx`` and ``ph``) and a
@@ -268,7 +269,7 @@ def _value(enc, S, buf, m, u, ctx, sctx, ke, ph):
 _FAST = 8  # from this expected length on, zero flag, sign and mantissa are not modelled
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _value_wide(enc, S, buf, m, u, ctx, ke):
     """:func:`_value` where the expected length ``ke`` ≥ ``_FAST`` (rough data: a zero or
     a skewed sign is rare there): the length k ≥ 0 of |r| from ``ke`` (k = 0: r = 0),
