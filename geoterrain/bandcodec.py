@@ -28,6 +28,7 @@ from geoterrain.codec import (
     _decoded_codes,
     _encode_levels,
     _encode_top,
+    _period,
     _predictor_bits,
     _predictor_crop,
     encode_pyramid,
@@ -149,7 +150,7 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
     emit(coarse)
     # levels below k, one super-tile at a time, under the coarse grid's decoded codes
     T = 1 << te
-    period = T if cubic else 0
+    period = _period(te, cubic)
     for sy, sx in zip(*np.nonzero(stored), strict=True):
         z, v = window(sy * W, sy * W + W + 1, sx * W, sx * W + W + 1)
         v = np.ascontiguousarray(v, bool)

@@ -80,12 +80,12 @@ def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool) -> None:
         for j in (0, last):
             if not valid[i, j]:
                 top[i, j] = first
-    for k in range(te - 1, -1, -1):
-        fill_level(top, valid, 1 << k, _top_period(te, cubic))
+    for k in range(te - 1, -1, -1):  # its own levels: 2**te exceeds their intervals
+        fill_level(top, valid, 1 << k, _period(te, cubic))
 
 
-def _top_period(te: int, cubic: bool) -> int:
-    # the top tile's own levels: cubic away from its borders only (any period ≥ 2**te)
+def _period(te: int, cubic: bool) -> int:
+    # fill_level's P: the parent tile's intervals for the cubic predictor, 0 for linear
     return (1 << te) if cubic else 0
 
 
@@ -187,7 +187,7 @@ def _decoded_codes(d: np.ndarray, valid: np.ndarray, te: int, lmax: int, cubic: 
     s = 1 << lmax
     _top_fill(d[::s, ::s], valid[::s, ::s], te, cubic)
     for lev in range(lmax - 1, -1, -1):  # compiled: the rule of predict, in place
-        fill_level(d, valid, 1 << lev, (1 << te) if cubic else 0)
+        fill_level(d, valid, 1 << lev, _period(te, cubic))
     return d
 
 
@@ -277,16 +277,17 @@ def encode_pyramid(
     return out
 
 
-def _mask_kind(nvalid: int, size: int) -> int:
-    return MASK_ALL_VALID if nvalid == size else MASK_ALL_INVALID if nvalid == 0 \
-        else MASK_STORED
+def _mask_kind(nvalid, size: int):
+    # a tile's mask kind from its count of valid samples (also element-wise on arrays)
+    return np.where(nvalid == size, MASK_ALL_VALID,
+                    np.where(nvalid == 0, MASK_ALL_INVALID, MASK_STORED))
 
 
 def _encode_top(d, valid, te, lmax, cubic) -> bytes:
     # the top tile, coarse to fine inside itself (entropy.encode_top)
     s = 1 << lmax
     top, vt = np.ascontiguousarray(d[::s, ::s]), np.ascontiguousarray(valid[::s, ::s])
-    kind = _mask_kind(int(vt.sum()), vt.size)
+    kind = int(_mask_kind(int(vt.sum()), vt.size))
     return _header(True, kind, te, cubic) + entropy.encode_top(top, vt, te, cubic, kind)
 
 
@@ -296,7 +297,6 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts=None,
     compiled call on every core; ``wide``: the wide blobs). ``counts``: which tiles are
     stored (> 0), per level (default :func:`footprint_counts` of ``valid``)."""
     tt = (1 << te) + 1
-    period = (1 << te) if cubic else 0
     if progress is not None:
         progress(1, lmax + 1)
     if counts is None:
@@ -310,12 +310,11 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts=None,
         if ys.size:
             nvalid = np.full(ys.size, tt * tt) if all_valid else \
                 level_tiles(valid, te, lev)[ys, xs].sum(axis=(1, 2))
-            kinds = np.where(nvalid == tt * tt, MASK_ALL_VALID,
-                             np.where(nvalid == 0, MASK_ALL_INVALID, MASK_STORED))
+            kinds = _mask_kind(nvalid, tt * tt)
             if wide:
-                out.update(_wide_blobs(lev, d, valid, s, h, te, period, ys, xs, kinds, cubic))
+                out.update(_wide_blobs(lev, d, valid, s, h, te, ys, xs, kinds, cubic))
                 continue
-            streams = _encode_tiles(d, valid, s, h, period, ys, xs, kinds, cap)
+            streams = _encode_tiles(d, valid, s, h, cubic, ys, xs, kinds, cap)
             cap = 64 + 2 * max(map(len, streams))
             heads = [_header(False, int(k), te, cubic) for k in range(3)]
             out.update(((lev, int(x), int(y)), heads[k] + b)
@@ -329,13 +328,14 @@ _WIDE, _WIDE_LEVEL = 16, 6  # the wide blobs' flag bit and zstd level
 _UINTS = {1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}
 
 
-def _wide_blobs(lev, d, valid, s, h, te, period, ys, xs, kinds, cubic) -> dict:
+def _wide_blobs(lev, d, valid, s, h, te, ys, xs, kinds, cubic) -> dict:
     """The wide blobs of the listed tiles (the format's ``wide`` row): residuals and
     maxima in one compiled call, zstd of the level in one call on every core."""
     tt = 2 * h + 1
     zz = np.empty((ys.size, 3 * h * h + 2 * h), np.uint64)
     zmax = np.empty(ys.size, np.uint64)
-    entropy.level_zigzag(d, s, h, period, ys.astype(np.int64), xs.astype(np.int64), zz, zmax)
+    entropy.level_zigzag(d, s, h, _period(te, cubic), ys.astype(np.int64), xs.astype(np.int64),
+                         zz, zmax)
     heads, payloads = [], []
     for q in range(ys.size):
         zm = int(zmax[q])
@@ -352,7 +352,7 @@ def _wide_blobs(lev, d, valid, s, h, te, period, ys, xs, kinds, cubic) -> dict:
             for x, y, hd, f in zip(xs.tolist(), ys.tolist(), heads, frames, strict=True)}
 
 
-def _encode_tiles(d, valid, s, h, period, ys, xs, kinds, cap) -> list[bytes]:
+def _encode_tiles(d, valid, s, h, cubic, ys, xs, kinds, cap) -> list[bytes]:
     """The streams of the listed tiles: a row of ``cap`` bytes of a shared buffer each,
     coded on every core; a tile whose stream outgrows its row is coded again in a row 8
     times longer."""
@@ -361,7 +361,7 @@ def _encode_tiles(d, valid, s, h, period, ys, xs, kinds, cap) -> list[bytes]:
     while todo.size:
         buf = np.zeros((todo.size, cap), np.uint8)
         lens = np.empty(todo.size, np.int64)
-        entropy.encode_level(d, valid, s, h, period > 0, ys[todo].astype(np.int64),
+        entropy.encode_level(d, valid, s, h, cubic, ys[todo].astype(np.int64),
                              xs[todo].astype(np.int64), kinds[todo].astype(np.int64), buf, lens)
         for row, q in enumerate(todo.tolist()):
             if lens[row] >= 0:
@@ -487,7 +487,6 @@ def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
     parent = np.ascontiguousarray(parent_codes, np.int64)
     if parent.shape != (tt, tt):
         raise ValueError(f"parent codes must be ({tt}, {tt})")
-    c = np.ascontiguousarray(parent[py * h: py * h + h + 1, px * h: px * h + h + 1])
     if w < 0:  # range-coded: the predictions are applied as the residuals are decoded
         out, valid, exact = entropy.decode_tile(data, parent, px, py, cubic, kind)
         if not exact:
@@ -505,5 +504,6 @@ def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
     if cubic:  # the parent tile's own predictions (with its edge fallbacks)
         cubic_child(parent, py * h, px * h, h, r, out)
     else:
-        linear_child(c, h, r, out)
+        linear_child(np.ascontiguousarray(parent[py * h:py * h + h + 1, px * h:px * h + h + 1]),
+                     h, r, out)
     return out, valid
