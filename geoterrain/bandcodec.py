@@ -31,6 +31,7 @@ from geoterrain.codec import (
     _period,
     _predictor_bits,
     _predictor_crop,
+    decoded_codes,
     encode_pyramid,
     pyramid_shape,
 )
@@ -73,7 +74,9 @@ def super_level(N: int, t: int, coarse_max: int = 1025) -> int:
 
 def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
                         predictor: str = "auto", coarse_max: int = 1025,
-                        sink: Callable[[dict], None] | None = None
+                        sink: Callable[[dict], None] | None = None,
+                        decoded: Callable[[int, int, np.ndarray, np.ndarray], None]
+                        | None = None,
                         ) -> dict[tuple[int, int, int], bytes]:
     """``{(L, x, y): blob}`` of every stored tile of an (N, N) grid read through
     ``window(i0, i1, j0, j1)`` → (heights, valid) of rows i0 … i1 − 1 and columns
@@ -83,7 +86,10 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
     bounds the coarse grid's side (:func:`super_level`). With ``sink``, the blobs are
     handed to ``sink(part)`` as they are made (the coarse levels, then a super-tile's
     levels at a time; a store writer's ``put_blobs``) and none is kept: the result is
-    empty.
+    empty. With ``decoded``, ``decoded(i0, j0, codes, valid)`` gets the decoded codes of each
+    stored super-tile (every sample, invalid ones included) whose first sample is
+    (i0, j0): the heights the store decodes to, which residual bins make depend on the
+    pyramid (:attr:`geoterrain.quantize.Quantizer.bins`).
 
     Examples
     --------
@@ -100,6 +106,8 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
     if k == 0:
         z, v = window(0, N, 0, N)
         out = encode_pyramid(z, v, t, quantizer, predictor=predictor)
+        if decoded is not None:
+            decoded(0, 0, decoded_codes(z, v, t, quantizer, predictor), np.asarray(v, bool))
         if sink is None:
             return out
         sink(out)
@@ -141,12 +149,13 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
     while counts[-1].shape[0] > 1:
         c = counts[-1]
         counts.append(c[0::2, 0::2] + c[0::2, 1::2] + c[1::2, 0::2] + c[1::2, 1::2])
-    dc = _decoded_codes(valid_codes(zc, vc, quantizer), vc, te, lmax - k, cubic)
+    bins = quantizer.bins
+    dc = _decoded_codes(valid_codes(zc, vc, quantizer), vc, te, lmax - k, cubic, bins)
     part: dict[tuple[int, int, int], bytes] = {}
     _encode_levels(part, dc, vc, n - k, te, lmax - k, cubic, None, counts=counts,
-                   wide=quantizer.mode == "float")
+                   wide=quantizer.mode == "float", bins=bins)
     coarse = {(L + k, x, y): b for (L, x, y), b in part.items()}
-    coarse[(lmax, 0, 0)] = _encode_top(dc, vc, te, lmax - k, cubic)
+    coarse[(lmax, 0, 0)] = _encode_top(dc, vc, te, lmax - k, cubic, bins)
     emit(coarse)
     # levels below k, one super-tile at a time, under the coarse grid's decoded codes
     T = 1 << te
@@ -157,10 +166,13 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
         d = valid_codes(z, v, quantizer)
         d[::step, ::step] = dc[sy * T:sy * T + T + 1, sx * T:sx * T + T + 1]
         for lev in range(k - 1, -1, -1):
-            fill_level(d, v, 1 << lev, period)
+            fill_level(d, v, 1 << lev, period, bins)
+        if decoded is not None:
+            decoded(int(sy) * W, int(sx) * W, d, v)
         part = {}
         _encode_levels(part, d, v, te + k, te, k, cubic, None,
-                       counts=footprint_counts(v, te), wide=quantizer.mode == "float")
+                       counts=footprint_counts(v, te), wide=quantizer.mode == "float",
+                       bins=bins)
         emit({(L, x + int(sx) * (1 << (k - L)), y + int(sy) * (1 << (k - L))): b
               for (L, x, y), b in part.items()})
     return out

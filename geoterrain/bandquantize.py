@@ -24,6 +24,7 @@ from geoterrain.quantize import (
     fine_quantizer,
     fine_steps_ok,
     float_quantizer,
+    grid_bins_quantizer,
     lossy_quantizer,
 )
 
@@ -124,6 +125,8 @@ def band_quantizer(bands: Bands, src_dtype: np.dtype | type | str,
     lossy = codec_error is not None and codec_error > 0
     if exact and (not lossy or 2.0 * float(codec_error) <= sc):
         return Quantizer("int", sc, off, 0.0)
+    if exact:  # a lossy bound on a known grid: bins of its codes
+        return grid_bins_quantizer(float(codec_error), sc, off, vmax)
     q = fine_quantizer(fine, dt, codec_error) if fine.size else None
     if q is not None:
         return q

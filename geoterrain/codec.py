@@ -12,7 +12,12 @@ is *closed loop* on integer codes, so errors never accumulate down the pyramid:
 3. every finer tile stores only the samples that are new at its level (those not on the
    parent level's grid), as residuals ``q - pred``; ``pred`` is U(.) of
    :mod:`geoterrain.predict` (linear floor-means or 4-point cubic) on the PARENT tile's
-   decoded codes. Samples of the parent level are copied.
+   decoded codes. Samples of the parent level are copied. With residual bins W > 1 (a
+   lossy quantizer, :attr:`~geoterrain.quantize.Quantizer.bins`) the residual is
+   rounded to a multiple of W (SZ3's linear quantisation): the decoded code is
+   ``pred + W · round((q - pred) / W)`` and the multiple is what is coded; the top
+   tile's own grids use :func:`top_bins`. The decoded codes then depend on the pyramid
+   (:func:`decoded_codes` computes them coarse to fine, as the encoder does).
 
 Invalid samples are not coded: their decoded code is their prediction (a top-tile
 corner's is the first valid code of the top tile, raster order), so they cost nothing.
@@ -70,9 +75,12 @@ BLOB_VERSION = 2
 _HEADER = 3
 
 
-def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool) -> None:
+def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool,
+              W: np.ndarray | None = None) -> None:
     """In place on the top tile's codes: an invalid corner takes the first valid code
-    (raster order; 0 when none), an invalid sample of its finer grids its prediction."""
+    (raster order; 0 when none), an invalid sample of its finer grids its prediction, a
+    valid one of its grid of stride 2^k its code in residual bins ``W[k]`` (None: all
+    1; :func:`geoterrain.predict.fill_level`)."""
     v = valid.ravel()
     first = top.ravel()[int(np.argmax(v))] if v.any() else 0
     last = top.shape[0] - 1
@@ -81,7 +89,24 @@ def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool) -> None:
             if not valid[i, j]:
                 top[i, j] = first
     for k in range(te - 1, -1, -1):  # its own levels: 2**te exceeds their intervals
-        fill_level(top, valid, 1 << k, _period(te, cubic))
+        fill_level(top, valid, 1 << k, _period(te, cubic), 1 if W is None else int(W[k]))
+
+
+def top_bins(bins: int, te: int) -> np.ndarray:
+    """The residual bins of the top tile's own grids (strides 1, 2, … 2^(te - 1) of the
+    top level): the largest odd width ≤ 3/4 of the other tiles' ``bins``. Every finer
+    sample is predicted from the top tile's, which are few: SZ3 halves its error bound
+    on its coarse levels for the same reason. On the six shared DEMs at ε = 0.5, 1 and
+    2 (docs/benchmarks.md §8e): fewer bytes than 1/2 or 1/4 in 14 cells, as many in 4;
+    against no tightening, 19 % fewer on the smallest pyramid (St Helens, whose top tile
+    holds a sixteenth of the samples) and at most 2.8 % more elsewhere.
+
+    Examples
+    --------
+    >>> [int(top_bins(w, 6)[0]) for w in (1, 3, 5, 9, 15, 39)]
+    [1, 1, 3, 5, 11, 29]
+    """
+    return np.full(te, max(1, ((3 * bins) // 4 - 1) | 1), np.int64)
 
 
 def _period(te: int, cubic: bool) -> int:
@@ -179,15 +204,19 @@ def decoded_codes(
     n, te = pyramid_shape(valid.shape[0], t)
     lmax = n - te
     d = valid_codes(z, valid, quantizer)  # heights_to_codes(where(valid, z, 0))
-    return _decoded_codes(d, valid, te, lmax, _resolve_predictor(predictor, d, valid, te, lmax))
+    return _decoded_codes(d, valid, te, lmax, _resolve_predictor(predictor, d, valid, te, lmax),
+                          quantizer.bins)
 
 
-def _decoded_codes(d: np.ndarray, valid: np.ndarray, te: int, lmax: int, cubic: bool):
-    """In place on the codes ``d``: what tile decoding gives at invalid samples."""
+def _decoded_codes(d: np.ndarray, valid: np.ndarray, te: int, lmax: int, cubic: bool,
+                   bins: int = 1):
+    """In place on the codes ``d``: what tile decoding gives at invalid samples, and
+    with residual ``bins`` > 1 at valid ones too (coarse to fine: each level's
+    predictions read the decoded codes of the coarser ones)."""
     s = 1 << lmax
-    _top_fill(d[::s, ::s], valid[::s, ::s], te, cubic)
+    _top_fill(d[::s, ::s], valid[::s, ::s], te, cubic, top_bins(bins, te))
     for lev in range(lmax - 1, -1, -1):  # compiled: the rule of predict, in place
-        fill_level(d, valid, 1 << lev, _period(te, cubic))
+        fill_level(d, valid, 1 << lev, _period(te, cubic), bins)
     return d
 
 
@@ -200,10 +229,12 @@ def decoded_heights(
 ) -> np.ndarray:
     """Heights (N, N) float64 exactly as decoding every tile gives them.
 
-    Valid samples decode to ``codes_to_heights(heights_to_codes(z))`` whatever the
-    pyramid (closed-loop coding). Invalid samples are NaN, unless ``t`` is given: then
-    they hold exactly the (meaningless) values tile decoding produces (with the same
-    ``predictor`` as the encoding).
+    Without residual bins (``quantizer.bins`` = 1), valid samples decode to
+    ``codes_to_heights(heights_to_codes(z))`` whatever the pyramid (closed-loop coding).
+    Invalid samples are NaN, unless ``t`` is given: then they hold exactly the
+    (meaningless) values tile decoding produces (with the same ``predictor`` as the
+    encoding). With bins the decoded heights depend on the pyramid: ``t`` is then
+    required.
 
     Examples
     --------
@@ -215,6 +246,9 @@ def decoded_heights(
     if t is not None:
         d = decoded_codes(z, valid, t, quantizer, predictor)
         return codes_to_heights(d, quantizer)
+    if quantizer.bins > 1:
+        raise ValueError("heights decoded through residual bins depend on the pyramid: "
+                         "pass t")
     return roundtrip(z, valid, quantizer)  # the same values, in one compiled pass
 
 
@@ -268,12 +302,12 @@ def encode_pyramid(
         return out
     d = valid_codes(z, valid, quantizer)  # heights_to_codes(where(valid, z, 0))
     cubic = _resolve_predictor(predictor, d, valid, te, lmax)
-    d = _decoded_codes(d, valid, te, lmax, cubic)
+    d = _decoded_codes(d, valid, te, lmax, cubic, quantizer.bins)
 
-    out[(lmax, 0, 0)] = _encode_top(d, valid, te, lmax, cubic)
+    out[(lmax, 0, 0)] = _encode_top(d, valid, te, lmax, cubic, quantizer.bins)
     with cores_for(d.size):  # small grids on one thread (geoterrain/threads.py)
         _encode_levels(out, d, valid, n, te, lmax, cubic, progress,
-                       wide=quantizer.mode == "float")
+                       wide=quantizer.mode == "float", bins=quantizer.bins)
     return out
 
 
@@ -283,16 +317,17 @@ def _mask_kind(nvalid, size: int):
                     np.where(nvalid == 0, MASK_ALL_INVALID, MASK_STORED))
 
 
-def _encode_top(d, valid, te, lmax, cubic) -> bytes:
+def _encode_top(d, valid, te, lmax, cubic, bins=1) -> bytes:
     # the top tile, coarse to fine inside itself (entropy.encode_top)
     s = 1 << lmax
     top, vt = np.ascontiguousarray(d[::s, ::s]), np.ascontiguousarray(valid[::s, ::s])
     kind = int(_mask_kind(int(vt.sum()), vt.size))
-    return _header(True, kind, te, cubic) + entropy.encode_top(top, vt, te, cubic, kind)
+    return _header(True, kind, te, cubic) + entropy.encode_top(top, vt, te, cubic, kind,
+                                                               top_bins(bins, te))
 
 
 def _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts=None,
-                   wide=False) -> None:
+                   wide=False, bins=1) -> None:
     """Blobs of every non-top stored tile into ``out`` (each level's tiles coded in one
     compiled call on every core; ``wide``: the wide blobs). ``counts``: which tiles are
     stored (> 0), per level (default :func:`footprint_counts` of ``valid``)."""
@@ -314,7 +349,7 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts=None,
             if wide:
                 out.update(_wide_blobs(lev, d, valid, s, h, te, ys, xs, kinds, cubic))
                 continue
-            streams = _encode_tiles(d, valid, s, h, cubic, ys, xs, kinds, cap)
+            streams = _encode_tiles(d, valid, s, h, cubic, ys, xs, kinds, cap, bins)
             cap = 64 + 2 * max(map(len, streams))
             heads = [_header(False, int(k), te, cubic) for k in range(3)]
             out.update(((lev, int(x), int(y)), heads[k] + b)
@@ -352,7 +387,7 @@ def _wide_blobs(lev, d, valid, s, h, te, ys, xs, kinds, cubic) -> dict:
             for x, y, hd, f in zip(xs.tolist(), ys.tolist(), heads, frames, strict=True)}
 
 
-def _encode_tiles(d, valid, s, h, cubic, ys, xs, kinds, cap) -> list[bytes]:
+def _encode_tiles(d, valid, s, h, cubic, ys, xs, kinds, cap, bins) -> list[bytes]:
     """The streams of the listed tiles: a row of ``cap`` bytes of a shared buffer each,
     coded on every core; a tile whose stream outgrows its row is coded again in a row 8
     times longer."""
@@ -362,7 +397,8 @@ def _encode_tiles(d, valid, s, h, cubic, ys, xs, kinds, cap) -> list[bytes]:
         buf = np.zeros((todo.size, cap), np.uint8)
         lens = np.empty(todo.size, np.int64)
         entropy.encode_level(d, valid, s, h, cubic, ys[todo].astype(np.int64),
-                             xs[todo].astype(np.int64), kinds[todo].astype(np.int64), buf, lens)
+                             xs[todo].astype(np.int64), kinds[todo].astype(np.int64), buf, lens,
+                             bins)
         for row, q in enumerate(todo.tolist()):
             if lens[row] >= 0:
                 out[q] = buf[row, :lens[row]].tobytes()
@@ -438,7 +474,7 @@ def decode_tile(
         The parent tile's decoded codes (the whole tile: the cubic predictor reads one
         sample beyond the child's quadrant); None for the top tile.
     quantizer : Quantizer
-        Same as for encoding (codes are quantizer-independent, kept for symmetry).
+        Same as for encoding (its residual bins).
     tile_xy_parity : (int, int)
         ``(x % 2, y % 2)`` of the tile: which quadrant of the parent it covers.
     t : int or None
@@ -456,15 +492,14 @@ def decode_tile(
     >>> decode_tile(blobs[(0, 1, 0)], top, Quantizer("int"), (1, 0)).tolist()
     [[2, 3, 4], [7, 8, 9], [12, 13, 14]]
     """
-    del quantizer
-    return decode_tile_valid(blob, parent_codes, tile_xy_parity, t)[0]
+    return decode_tile_valid(blob, parent_codes, tile_xy_parity, t, quantizer.bins)[0]
 
 
 def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
                       tile_xy_parity: tuple[int, int] = (0, 0), t: int | None = None,
-                      ) -> tuple[np.ndarray, np.ndarray]:
+                      bins: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """The tile's codes (:func:`decode_tile`) and valid mask (:func:`tile_valid`), its
-    payload decompressed once.
+    payload decompressed once; ``bins``: the quantizer's residual bins.
 
     Examples
     --------
@@ -476,7 +511,7 @@ def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
     """
     top, kind, te, cubic, w, data = _parse(blob, t)
     if top:
-        codes, valid, exact = entropy.decode_top(data, te, cubic, kind)
+        codes, valid, exact = entropy.decode_top(data, te, cubic, kind, top_bins(bins, te))
         if not exact:
             raise ValueError(_NOT_A_STREAM)
         return codes, valid
@@ -488,7 +523,7 @@ def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
     if parent.shape != (tt, tt):
         raise ValueError(f"parent codes must be ({tt}, {tt})")
     if w < 0:  # range-coded: the predictions are applied as the residuals are decoded
-        out, valid, exact = entropy.decode_tile(data, parent, px, py, cubic, kind)
+        out, valid, exact = entropy.decode_tile(data, parent, px, py, cubic, kind, bins)
         if not exact:
             raise ValueError(_NOT_A_STREAM)
         return out, valid

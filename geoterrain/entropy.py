@@ -335,7 +335,7 @@ def _phase(v16):
 
 
 @njit(cache=True, nogil=True)
-def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok):
+def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok, W):
     """Code (or decode into ``out``) a child tile's new samples, classes A, B, C in
     raster order, given its parent tile ``parent`` (the child is the quadrant at rows
     ``oy``…, columns ``ox``…, h + 1 parent samples a side) and its valid mask ``ok``.
@@ -347,7 +347,9 @@ def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok):
     encoder's ``out`` is set so too). Contexts: the class, the activity bucket of the
     coded residuals around the sample and the parents' difference along its span, the
     prediction's phase (:func:`_phase`), and for the sign the signs two to the left
-    and two above.
+    and two above. ``W`` > 1: residual bins (:attr:`geoterrain.quantize.Quantizer.bins`);
+    the encoder's codes are already binned (:func:`geoterrain.predict.fill_level`), a
+    multiple of ``W`` from their prediction, and that multiple is coded.
     """
     mp = parent.shape[0]
     t = 2 * h + 1
@@ -381,6 +383,9 @@ def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok):
                     pred, ph = (v16 + 8) >> 4, _phase(v16)
                 else:  # a half-way mean lies half a code above its floor
                     pred, ph = _fmean(p0, p1), 4 if (p0 ^ p1) & 1 else 2
+                if W > 1:  # in bins centred on the prediction: no phase
+                    g //= W
+                    ph = 2
                 if not ok[li, lj]:
                     out[li, lj] = pred
                     continue
@@ -392,7 +397,7 @@ def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok):
                 bk = min(bits, _NB - 1)
                 # the expected bit length of |r|: 2·s holds about 12 zigzag values
                 ke = max(1, bits - 3)
-                u = _zig(out[li, lj] - pred) if enc else np.uint64(0)
+                u = _zig((out[li, lj] - pred) // W) if enc else np.uint64(0)
                 if ke >= _FAST:
                     u, S = _value_wide(enc, S, buf, m, u, cls * _NB + bk, ke)
                 else:
@@ -403,7 +408,7 @@ def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok):
                     u, S = _value(enc, S, buf, m, u, cls * _NB + bk, sc, ke,
                                   ph if bits <= 6 else 2)
                 if not enc:
-                    out[li, lj] = pred + _unzig(u)
+                    out[li, lj] = pred + W * _unzig(u)
                 e[y, x] = min(u, np.uint64(1 << 40))
     return S
 
@@ -414,27 +419,28 @@ MASK_ALL_VALID, MASK_ALL_INVALID, MASK_STORED = 0, 1, 2
 
 
 @njit(cache=True, nogil=True)
-def _tile(enc, buf, parent, py, px, h, cubic, out, ok, kind):
+def _tile(enc, buf, parent, py, px, h, cubic, out, ok, kind, W):
     S = _start(enc, buf)
     m = np.zeros((_ROWS, 2), np.int64)
     if kind == MASK_STORED:
         S = _mask(enc, S, buf, m, ok)
-    return _child(enc, S, buf, m, parent, py * h, px * h, h, cubic, out, ok)
+    return _child(enc, S, buf, m, parent, py * h, px * h, h, cubic, out, ok, W)
 
 
 def encode_tile(child: np.ndarray, ok: np.ndarray, parent: np.ndarray, parity: tuple[int, int],
-                cubic: bool, kind: int) -> bytes:
+                cubic: bool, kind: int, W: int = 1) -> bytes:
     """The stream of one child tile: its codes ``child`` ((2h + 1)²; invalid samples are
     not coded), its valid mask ``ok`` (stored when ``kind`` is :data:`MASK_STORED`),
     its parent tile's codes ``parent`` (same size) and ``parity`` = (x % 2, y % 2), the
-    quadrant it covers. See the module's example."""
+    quadrant it covers; ``W``: the residual bins (``child``'s new samples already binned
+    against the predictions). See the module's example."""
     ok = np.ascontiguousarray(ok, np.bool_)
     t = ok.shape[0]
     cap = 64 + 2 * t * t
     while True:
         buf = np.zeros(cap, np.uint8)
         st = _tile(True, buf, np.ascontiguousarray(parent, np.int64), parity[1] & 1,
-                   parity[0] & 1, t // 2, cubic, np.array(child, np.int64), ok.copy(), kind)
+                   parity[0] & 1, t // 2, cubic, np.array(child, np.int64), ok.copy(), kind, W)
         n = _finish(st, buf)
         if n >= 0:
             return buf[:n].tobytes()
@@ -449,7 +455,7 @@ def _canonical(data, S):
 
 
 @njit(cache=True, nogil=True)
-def decode_tile(data, parent, px, py, cubic, kind):
+def decode_tile(data, parent, px, py, cubic, kind, W=1):
     """The codes ((2h + 1)²) and the valid mask of the child tile (x % 2, y % 2) =
     (``px``, ``py``) of ``parent`` whose stream is ``data`` (uint8), and whether ``data``
     is exactly a stream the encoder writes (any bytes decode to some codes; bytes past
@@ -457,7 +463,7 @@ def decode_tile(data, parent, px, py, cubic, kind):
     t = parent.shape[0]
     ok = np.full((t, t), kind != MASK_ALL_INVALID)
     out = np.empty((t, t), np.int64)
-    st = _tile(False, data.copy(), parent, py, px, t // 2, cubic, out, ok, kind)
+    st = _tile(False, data.copy(), parent, py, px, t // 2, cubic, out, ok, kind, W)
     return out, ok, _canonical(data, st)
 
 
@@ -495,7 +501,7 @@ def _level_zigzag(d, s, h, P, i0, j0, zz):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def encode_level(d, valid, s, h, cubic, ys, xs, kinds, buf, lens):
+def encode_level(d, valid, s, h, cubic, ys, xs, kinds, buf, lens, W):
     """Encode the child tiles (ys[q], xs[q]) of level ``d[::s, ::s]`` (their parents
     on ``d[::2s, ::2s]``) into rows of ``buf``; ``lens`` gets each stream's length, -1
     where a row was too short. On every core."""
@@ -511,7 +517,7 @@ def encode_level(d, valid, s, h, cubic, ys, xs, kinds, buf, lens):
                 out[a, b] = d[(i0 + a) * s, (j0 + b) * s]
                 ok[a, b] = valid[(i0 + a) * s, (j0 + b) * s]
                 parent[a, b] = d[(pi0 + a) * 2 * s, (pj0 + b) * 2 * s]
-        st = _tile(True, buf[q], parent, ys[q] & 1, xs[q] & 1, h, cubic, out, ok, kinds[q])
+        st = _tile(True, buf[q], parent, ys[q] & 1, xs[q] & 1, h, cubic, out, ok, kinds[q], W)
         lens[q] = _finish(st, buf[q])
 
 
@@ -532,10 +538,10 @@ def level_zigzag(d, s, h, P, ys, xs, zz, zmax):
 
 
 @njit(cache=True, nogil=True)
-def _top(enc, buf, top, ok, te, cubic, kind):
+def _top(enc, buf, top, ok, te, cubic, kind, W):
     """The top tile coarse to fine inside itself: its 4 corners (deltas), then each
-    level of its own grid (stride 2^k) as a child of the next coarser (:func:`_child`,
-    the whole of it), one set of models throughout."""
+    level of its own grid (stride 2^k, residual bins ``W[k]``) as a child of the next
+    coarser (:func:`_child`, the whole of it), one set of models throughout."""
     S = _start(enc, buf)
     m = np.zeros((_ROWS, 2), np.int64)
     if kind == MASK_STORED:
@@ -554,14 +560,17 @@ def _top(enc, buf, top, ok, te, cubic, kind):
         parent = np.ascontiguousarray(top[::2 * s, ::2 * s])
         out = np.ascontiguousarray(top[::s, ::s])
         S = _child(enc, S, buf, m, parent, 0, 0, h, cubic, out,
-                   np.ascontiguousarray(ok[::s, ::s]))
+                   np.ascontiguousarray(ok[::s, ::s]), W[k])
         top[::s, ::s] = out
     return S
 
 
-def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int) -> bytes:
+def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int,
+               W: np.ndarray | None = None) -> bytes:
     """The stream of the top tile ``top`` ((2^te + 1)² codes; an invalid corner holds
-    its fill, other invalid samples are not coded) with valid mask ``ok``.
+    its fill, other invalid samples are not coded) with valid mask ``ok`` and the
+    residual bins ``W[k]`` of its grid of stride 2^k (None: all 1; the grids already
+    binned, :func:`geoterrain.codec._top_fill`; the corners are exact).
 
     Examples
     --------
@@ -576,19 +585,28 @@ def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int)
     while True:
         buf = np.zeros(cap, np.uint8)
         st = _top(True, buf, top.copy(), np.ascontiguousarray(ok, np.bool_).copy(), te, cubic,
-                  kind)
+                  kind, _top_bins(W, te))
         n = _finish(st, buf)
         if n >= 0:
             return buf[:n].tobytes()
         cap *= 8
 
 
+def _top_bins(W, te):
+    return np.ones(te, np.int64) if W is None else np.ascontiguousarray(W, np.int64)
+
+
+def decode_top(data, te, cubic, kind, W=None):
+    """The top tile's codes and valid mask from its stream (:func:`encode_top`, the same
+    residual bins ``W``), and whether ``data`` is exactly a stream the encoder writes (as
+    :func:`decode_tile`)."""
+    return _decode_top(data, te, cubic, kind, _top_bins(W, te))
+
+
 @njit(cache=True, nogil=True)
-def decode_top(data, te, cubic, kind):
-    """The top tile's codes and valid mask from its stream (:func:`encode_top`), and
-    whether ``data`` is exactly a stream the encoder writes (as :func:`decode_tile`)."""
+def _decode_top(data, te, cubic, kind, W):
     t = (1 << te) + 1
     ok = np.full((t, t), kind != MASK_ALL_INVALID)
     top = np.zeros((t, t), np.int64)
-    st = _top(False, data.copy(), top, ok, te, cubic, kind)
+    st = _top(False, data.copy(), top, ok, te, cubic, kind, W)
     return top, ok, _canonical(data, st)

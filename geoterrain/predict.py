@@ -210,10 +210,13 @@ def _pred(d, s, i, j, P):
 
 
 @njit(cache=True, nogil=True)
-def fill_level(d, valid, s, P):
-    """In place: invalid new samples of level ``d[::s, ::s]`` take their prediction
-    (``P`` = 0: linear, else cubic with period ``P``): the row and column midpoints,
-    then the cell centres (predicted from the row midpoints).
+def fill_level(d, valid, s, P, W=1):
+    """In place, the decoded codes of level ``d[::s, ::s]``'s new samples: an invalid
+    one takes its prediction (``P`` = 0: linear, else cubic with period ``P``), a valid
+    one (``W`` > 1, the residual bins) its prediction plus ``W`` times its residual
+    rounded to bins, ``p + W · round((d - p) / W)`` (SZ3's linear quantisation, the
+    prediction from decoded codes); the row and column midpoints, then the cell
+    centres (predicted from the decoded row midpoints).
 
     Examples
     --------
@@ -221,11 +224,19 @@ def fill_level(d, valid, s, P):
     >>> fill_level(d, np.eye(3, dtype=bool) | np.eye(3, dtype=bool)[::-1], 1, 0)
     >>> d.tolist()
     [[0, 2, 4], [4, 9, 8], [8, 10, 13]]
+    >>> d = np.array([[0, 9, 4], [9, 9, 9], [8, 9, 13]], np.int64)
+    >>> fill_level(d, np.ones((3, 3), bool), 1, 0, 3)  # within 1 of each code
+    >>> d.tolist()
+    [[0, 8, 4], [10, 9, 8], [8, 10, 13]]
     """
     m = (d.shape[0] - 1) // s + 1
+    h = W >> 1
     for centres in (False, True):
         for i in range(m):
             for j in range(m):
-                if (i & 1 or j & 1) and bool(i & 1 and j & 1) == centres \
-                        and not valid[i * s, j * s]:
-                    d[i * s, j * s] = _pred(d, s, i, j, P)
+                if (i & 1 or j & 1) and bool(i & 1 and j & 1) == centres:
+                    if not valid[i * s, j * s]:
+                        d[i * s, j * s] = _pred(d, s, i, j, P)
+                    elif W > 1:
+                        p = _pred(d, s, i, j, P)
+                        d[i * s, j * s] = p + W * ((d[i * s, j * s] - p + h) // W)

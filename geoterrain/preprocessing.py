@@ -6,7 +6,6 @@ read → pad → quantise → errors → radii → tile bounds → normals → c
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import os
 from pathlib import Path
@@ -255,7 +254,11 @@ def preprocess(
     # the valid heights: NaN elsewhere, which the quantiser ignores
     q = choose_quantizer(heights, r.src_dtype, codec_error=codec_error, scale=r.scale,
                          offset=r.offset)
-    Z = decoded_heights(heights, valid, q)  # NaN where invalid
+    if q.bins > 1:  # residual bins: decoded through the pyramid (codec.decoded_codes)
+        Z = decoded_heights(heights, valid, q, t=grid.t)
+        Z[~valid] = np.nan
+    else:
+        Z = decoded_heights(heights, valid, q)  # NaN where invalid
     # every level's normals and level 0's δ derived on read in every frame (a geographic
     # tile's with bilinear x, y and a slack: leafbounds.normal_xy, geographic_leaf_delta);
     # level 0's r only in an affine frame (a geographic one's needs pyproj's x, y of
@@ -377,7 +380,7 @@ def preprocess(
         w.put_metadata(store_metadata(
             source=mosaic_name(files), source_dtype=r.src_dtype, source_nodata=r.nodata,
             encoding=r.encoding, grid=grid.to_json(), frame=frame.to_json(),
-            quantizer=dataclasses.asdict(q),
+            quantizer=q.to_json(),
             normals_derived=list(range(grid.top_level + 1)) if derive_normals else [],
             valid_samples=nvalid, samples=r.valid.size, height_range=height_range,
             delta_max_finite=_finite_max(delta),

@@ -7,6 +7,7 @@ within a chosen bound ε (``|decoded - z| <= ε``).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -23,6 +24,8 @@ _I64_MAX = np.int64(np.iinfo(np.int64).max)
 FINE_STEPS = tuple(sorted([(2.0 ** -m, False) for m in range(1, 9)]
                           + [(10.0 ** -d, True) for d in range(1, 5)], reverse=True))
 DECIMAL_STEPS = tuple(s for s, d in FINE_STEPS if d)
+MAX_BINS = (1 << 20) - 1
+FLOAT_BINS = 15  # the residual bins of a lossy float source: codes of 2ε / 15
 
 
 def fine_candidates(dt: np.dtype) -> tuple[tuple[float, bool, bool], ...]:
@@ -78,6 +81,14 @@ class Quantizer:
         Guaranteed bound on ``|decoded - z|`` (0 for lossless modes).
     float_bits : int
         Width of the source float in ``"float"`` and ``"decimal"`` modes.
+    bins : int
+        ``"quantized"`` mode: the odd width, in codes, of the codec's residual bins (SZ3's
+        quantisation of each residual against its prediction from decoded codes: a
+        decoded code is the prediction plus a multiple of ``bins``, within ``(bins - 1)
+        / 2`` codes of the sample's own). 1: every code decodes to itself
+        (``|decoded - z| <= step / 2``); above 1, ``step / 2 + (bins - 1) / 2 · step <=
+        codec_error`` and decoded heights depend on the pyramid
+        (:func:`geoterrain.codec.decoded_codes`).
 
     Examples
     --------
@@ -90,6 +101,7 @@ class Quantizer:
     offset: float = 0.0
     codec_error: float = 0.0
     float_bits: int = 64
+    bins: int = 1
 
     @classmethod
     def from_json(cls, d: dict) -> Quantizer:
@@ -105,6 +117,20 @@ class Quantizer:
             d.setdefault("codec_error", d.pop("max_error"))
         return cls(**d)
 
+    def to_json(self) -> dict:
+        """For a store's metadata: every field, ``bins`` only when above 1 (a store
+        without residual bins reads as before; code that predates them refuses one with).
+
+        Examples
+        --------
+        >>> Quantizer("int").to_json()
+        {'mode': 'int', 'step': 1.0, 'offset': 0.0, 'codec_error': 0.0, 'float_bits': 64}
+        """
+        d = dataclasses.asdict(self)
+        if self.bins == 1:
+            del d["bins"]
+        return d
+
     def __post_init__(self) -> None:
         if self.mode not in ("int", "decimal", "quantized", "float"):
             raise ValueError(f"unknown quantizer mode {self.mode!r}")
@@ -114,6 +140,10 @@ class Quantizer:
             raise ValueError("float_bits must be 32 or 64")
         if self.mode == "decimal" and (self.offset != 0.0 or self.step not in DECIMAL_STEPS):
             raise ValueError("a decimal quantizer has a step of 10^-d (d = 1 to 4) and offset 0")
+        if not (isinstance(self.bins, int) and 1 <= self.bins <= MAX_BINS and self.bins & 1):
+            raise ValueError(f"quantizer bins must be an odd integer in 1 … {MAX_BINS}")
+        if self.bins > 1 and self.mode != "quantized":
+            raise ValueError("only a quantized (lossy) quantizer has residual bins")
 
     @property
     def divisor(self) -> float:
@@ -201,6 +231,10 @@ def choose_quantizer(
     lossy = codec_error is not None and codec_error > 0
     if exact and (not lossy or 2.0 * float(codec_error) <= sc):
         return Quantizer("int", sc, off, 0.0)
+    if exact:  # a lossy bound on a known grid: bins of its codes
+        fin = v[np.isfinite(v)]
+        return grid_bins_quantizer(float(codec_error), sc, off,
+                                   float(np.abs(fin).max()) if fin.size else 0.0)
     fine = (fine_quantizer(fine_steps_ok(v, dt), dt, codec_error)
             if fine_grids_apply(scale, offset, codec_error) else None)
     if fine is not None:
@@ -252,7 +286,7 @@ def fine_quantizer(ok: np.ndarray, dt: np.dtype, codec_error: float | None = Non
     --------
     >>> dt = np.dtype("float32")
     >>> fine_quantizer(fine_steps_ok(np.float32([1238.6, 1245.1]), dt), dt)
-    Quantizer(mode='decimal', step=0.1, offset=0.0, codec_error=0.0, float_bits=32)
+    Quantizer(mode='decimal', step=0.1, offset=0.0, codec_error=0.0, float_bits=32, bins=1)
     >>> fine_quantizer(fine_steps_ok(np.array([0.25, 7.5]), dt), dt).mode
     'int'
     >>> fine_quantizer(fine_steps_ok(np.array([np.pi]), dt), dt) is None
@@ -311,11 +345,49 @@ def float_quantizer(dt: np.dtype, f32: bool) -> Quantizer:
     return Quantizer("float", 1.0, 0.0, 0.0, bits)
 
 
+def grid_bins_quantizer(eps: float, sc: float, off: float, vmax: float) -> Quantizer:
+    """The ε quantizer of heights on the grid ``off + k · sc`` (every one of them, as
+    :func:`choose_quantizer` checks) with 2ε > ``sc``: the grid's own codes, residual
+    bins of the largest odd width W with (W - 1) / 2 · sc ≤ ε. Where the grid's
+    arithmetic is not exact in float64 (``sc`` not a power of two, or ``off`` not an
+    integer), ε less the float64 rounding margin of :func:`lossy_quantizer`.
+
+    Examples
+    --------
+    >>> grid_bins_quantizer(2.0, 1.0, 0.0, 300.0).bins  # SRTM metres at ε = 2
+    5
+    >>> grid_bins_quantizer(2.0, 0.1, -10000.0, 9000.0).bins  # Terrain-RGB's 0.1 m
+    39
+    """
+    m, _ = np.frexp(sc)
+    exact = m == 0.5 and float(off).is_integer()
+    margin = 0.0 if exact else 8.0 * float(np.finfo(np.float64).eps
+                                            * (2.0 * vmax + 2.0 * abs(off) + eps))
+    k = int(np.floor((eps - margin) / sc * (1 + 1e-12)))
+    while k > 0 and k * sc > eps - margin:
+        k -= 1
+    k = min(k, (MAX_BINS - 1) // 2)
+    if k == 0:
+        return Quantizer("int", sc, off, 0.0)
+    return Quantizer("quantized", sc, off, eps, bins=2 * k + 1)
+
+
 def lossy_quantizer(eps: float, off: float, vmax: float, any_values: bool,
                     roundtrip_error: Callable[[float], tuple[float, float]]) -> Quantizer:
-    """The ε quantizer of heights within ±``vmax`` around the offset ``off``: step 2ε
-    less the float64 rounding margin, shrunk until ``roundtrip_error(step)`` → (the
-    largest |decoded − height|, the largest |code|) is within ε (8 tries)."""
+    """The ε quantizer of heights within ±``vmax`` around the offset ``off``: codes of
+    about 2ε / :data:`FLOAT_BINS` and residual bins of :data:`FLOAT_BINS` codes. The
+    step is 2ε / W less the float64 rounding margin, shrunk until
+    ``roundtrip_error(step)`` → (the largest |code · step + off − height|, the largest
+    |code|) is within ε / W (8 tries); a decoded code lies at most (W − 1) / 2 codes
+    from the sample's own, so within ε / W + (W − 1) / 2 · 2ε / W = ε."""
+    W = FLOAT_BINS
+    q = _pointwise_quantizer(eps / W, off, vmax, any_values, roundtrip_error)
+    return Quantizer("quantized", q.step, off, eps, bins=W)
+
+
+def _pointwise_quantizer(eps: float, off: float, vmax: float, any_values: bool,
+                         roundtrip_error: Callable[[float], tuple[float, float]]
+                         ) -> Quantizer:
     # float64 rounding of (z - off)/step, q*step and off + q*step: a few ulps of the
     # magnitudes involved; shrink the step by that margin (seed 000 has no formula).
     margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))

@@ -17,7 +17,7 @@ from geoterrain.exceptions import StoreError
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
 from geoterrain.memory import available_memory
-from geoterrain.quantize import Quantizer
+from geoterrain.quantize import MAX_BINS, Quantizer
 
 __all__ = ["check_store", "available_memory"]
 
@@ -104,7 +104,7 @@ def _frame(m: dict, g: Grid) -> Frame:
 
 
 def _quantizer(m: dict) -> Quantizer:
-    fields = {"mode", "step", "offset", "codec_error", "float_bits"}
+    fields = {"mode", "step", "offset", "codec_error", "float_bits", "bins"}
     d = _keys(m.get("quantizer"), fields, {"mode"}, "quantizer")
     if d["mode"] not in ("int", "decimal", "quantized", "float"):
         raise _Bad("quantizer.mode is unknown")
@@ -113,7 +113,11 @@ def _quantizer(m: dict) -> Quantizer:
     eps = _num(d.get("codec_error", 0.0), "quantizer.codec_error", lo=0.0)
     if d.get("float_bits", 64) not in (32, 64):
         raise _Bad("quantizer.float_bits must be 32 or 64")
-    if d["mode"] == "quantized" and not eps < step <= 2 * eps:
+    bins = d.get("bins", 1)
+    if type(bins) is not int or not (1 <= bins <= MAX_BINS and bins & 1):
+        raise _Bad(f"quantizer.bins must be an odd integer in 1 … {MAX_BINS}")
+    if d["mode"] == "quantized" and not (step <= 2 * eps and (bins - 1) * step <= 2 * eps
+                                         and eps < (bins + 1) * step):
         raise _Bad("quantizer.step does not match its codec_error")
     if d["mode"] != "quantized" and eps != 0:
         raise _Bad("a lossless quantizer has codec_error 0")

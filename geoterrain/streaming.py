@@ -244,10 +244,11 @@ def preprocess_streaming(
         nvalid = 0
         for i in range(0, N, band):
             z, v = source.rows(i, min(i + band, N))
-            dz = roundtrip(z, v, q)[v]
             nvalid += int(v.sum())
-            if dz.size:
-                hv = [min(hv[0], float(dz.min())), max(hv[1], float(dz.max()))]
+            if v.any():
+                if q.bins == 1:  # decoded here; with bins by the height pass (below)
+                    dz = roundtrip(z, v, q)[v]
+                    hv = [min(hv[0], float(dz.min())), max(hv[1], float(dz.max()))]
                 raw = [min(raw[0], float(z[v].min())), max(raw[1], float(z[v].max()))]
         if nvalid == 0:
             raise InputError(f"{src}: every sample is nodata; check the nodata value or the band")
@@ -279,8 +280,14 @@ def preprocess_streaming(
     job = dataclasses.replace(job, folder=folder)
     with contextlib.ExitStack() as cleanup:
         cleanup.callback(shutil.rmtree, folder, True)
-        (vrange, stand_in, er, dmax, emax), (bounds, blocks), _, _ = run_tasks(
-            scheduler, [(run_pass, (job, name)) for name in PASSES])
+        if q.bins == 1:
+            (vrange, stand_in, er, dmax, emax), (bounds, blocks), _, _ = run_tasks(
+                scheduler, [(run_pass, (job, name)) for name in PASSES])
+        else:  # the decoded heights first: the other passes read them (streampasses)
+            (hp,) = run_tasks(scheduler, [(run_pass, (job, "heights"))])
+            hv = list(hp["range"])
+            (vrange, stand_in, er, dmax, emax), (bounds, blocks), _ = run_tasks(
+                scheduler, [(run_pass, (job, name)) for name in PASSES if name != "heights"])
         stage("errors, tiles, normals, heights")
         sa = ScratchArrays.shared(os.path.join(folder, "bounds"))
         se = ScratchArrays.shared(os.path.join(folder, "edge")) if pad else None
@@ -297,7 +304,7 @@ def preprocess_streaming(
                 w.put_metadata(store_metadata(
                     source=src.name, source_dtype=dtype,
                     source_nodata=None if nd is None else float(nd), encoding="raw",
-                    grid=grid.to_json(), frame=frame.to_json(), quantizer=dataclasses.asdict(q),
+                    grid=grid.to_json(), frame=frame.to_json(), quantizer=q.to_json(),
                     normals_derived=(list(range(grid.top_level + 1))
                                      if meta["derive_normals"] else []), valid_samples=nvalid,
                     samples=grid.rows * grid.cols, height_range=hv,

@@ -2,7 +2,10 @@
 and the records that let a killed run be resumed.
 
 After the scan and the quantizer, four passes over the raster are independent: δ with
-δ_edge and the radius codes, the tile table, the normals, and the height blobs. Each is
+δ_edge and the radius codes, the tile table, the normals, and the height blobs. With
+residual bins (a lossy store, :attr:`geoterrain.quantize.Quantizer.bins`) the decoded
+heights depend on the pyramid: the height pass then runs first and writes them to the
+scratch file ``decoded.f8``, which the other three read instead of the raster. Each is
 a module-level function of a picklable :class:`Job` (the raster's path and every
 setting), opens the raster itself, and writes into its own folder of the job's scratch
 folder (:meth:`geoterrain.scratch.ScratchArrays.shared`), so any scheduler
@@ -34,7 +37,7 @@ from geoterrain.bandradii import band_radius_codes
 from geoterrain.bandtiles import band_tile_bounds
 from geoterrain.frame import Frame
 from geoterrain.grid import Grid
-from geoterrain.quantize import Quantizer, roundtrip
+from geoterrain.quantize import Quantizer, codes_to_heights, roundtrip
 from geoterrain.raster import GDAL_READ_OPTIONS
 from geoterrain.scratch import ScratchArrays
 from geoterrain.tilebounds import TileBounds
@@ -107,7 +110,13 @@ class Job:
 
             def scene(i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
                 z, v = source.rows(i0, i1)
-                return frame.z(roundtrip(z, v, self.q)), v  # decoded, scene metres
+                if self.q.bins == 1:
+                    return frame.z(roundtrip(z, v, self.q)), v  # decoded, scene metres
+                h = np.fromfile(os.path.join(self.folder, DECODED), "<f8", (i1 - i0) * N,
+                                offset=i0 * N * 8).reshape(i1 - i0, N)
+                return frame.z(np.where(v, h, np.nan)), v
+
+            N = grid.size
 
             X, Y = frame.grid_xy(grid.size)
             yield source, scene, grid, np.ascontiguousarray(X[0]), np.ascontiguousarray(Y[:, 0])
@@ -148,19 +157,42 @@ def _normals_pass(job: Job) -> None:
 _RECORD = struct.Struct("<iiiI")  # a height blob's record: L, x, y, length
 
 
-def _heights_pass(job: Job) -> int:
-    # the height blobs into a scratch file of records, as they are made
+def _heights_pass(job: Job) -> dict:
+    # the height blobs into a scratch file of records, as they are made; with residual
+    # bins, the decoded heights too (DECODED, row-major float64) and their range
     with job.opened() as (source, _, grid, _, _), \
             open(os.path.join(job.folder, "heights.bin"), "wb") as fh:
         count = [0]
+        span = [np.inf, -np.inf]
 
         def sink(part: dict) -> None:
             for key, b in part.items():
                 fh.write(_RECORD.pack(*key, len(b)) + b)
             count[0] += len(part)
 
-        band_encode_pyramid(source.rows, grid.size, grid.t, job.q, sink=sink)
-        return count[0]
+        if job.q.bins == 1:
+            band_encode_pyramid(source.rows, grid.size, grid.t, job.q, sink=sink,
+                                coarse_max=COARSE_MAX)
+            return {"blobs": count[0], "range": None}
+        N = grid.size
+        fd = os.open(os.path.join(job.folder, DECODED), os.O_RDWR | os.O_CREAT | os.O_TRUNC)
+        try:
+            os.ftruncate(fd, N * N * 8)
+
+            def decoded(i0: int, j0: int, codes: np.ndarray, valid: np.ndarray) -> None:
+                h = codes_to_heights(codes, job.q)
+                if valid.any():
+                    span[:] = min(span[0], float(h[valid].min())), max(span[1],
+                                                                        float(h[valid].max()))
+                rows = np.ascontiguousarray(h, "<f8")
+                for r in range(rows.shape[0]):
+                    os.pwrite(fd, rows[r].tobytes(), ((i0 + r) * N + j0) * 8)
+
+            band_encode_pyramid(source.rows, N, grid.t, job.q, sink=sink, decoded=decoded,
+                                coarse_max=COARSE_MAX)
+        finally:
+            os.close(fd)
+        return {"blobs": count[0], "range": span}
 
 
 def heights_records(path: str, batch: int = 4096) -> Iterator[dict]:
@@ -206,6 +238,8 @@ def _load_done(path: str):
 
 PASSES = {"bounds": _bounds_pass, "tiles": _tiles_pass, "normals": _normals_pass,
            "heights": _heights_pass}
+DECODED = "decoded.f8"  # the decoded heights with residual bins (the height pass writes it)
+COARSE_MAX = 1025  # the height pass's coarse grid side (bandcodec.super_level)
 
 
 def run_pass(job: Job, name: str):
@@ -220,8 +254,9 @@ def run_pass(job: Job, name: str):
 
 
 # what the passes write to the scratch folder; a killed run's folder from code that wrote
-# another format is not resumed (2: each level's normal map from the level's own samples)
-SCRATCH_FORMAT = 2
+# another format is not resumed (2: each level's normal map from the level's own samples;
+# 3: the height pass's result a dict, and with residual bins the decoded heights first)
+SCRATCH_FORMAT = 3
 
 
 def job_record(src: Path, job: Job) -> dict:

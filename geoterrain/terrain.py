@@ -203,7 +203,8 @@ class Terrain:
         parent = self.tile(L + 1, x // 2, y // 2).codes if L < self.grid.top_level else None
         blob = self._blob(key, "heights")
         try:
-            codes, valid = decode_tile_valid(blob, parent, (x % 2, y % 2), t=self.grid.t)
+            codes, valid = decode_tile_valid(blob, parent, (x % 2, y % 2), t=self.grid.t,
+                                             bins=self.quantizer.bins)
         except (ValueError, zstandard.ZstdError):
             raise StoreCorruptError(f"{self.path}: tile {key} heights cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None

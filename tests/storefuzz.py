@@ -80,6 +80,8 @@ _BAD_META = [
     ("frame", "unit_to_m", float("nan")), ("frame", "rows", 3),
     ("quantizer", "step", 10.0), ("quantizer", "step", 0), ("quantizer", "mode", "zip"),
     ("quantizer", "offset", 1e3), ("quantizer", "float_bits", 7), ("quantizer", "mode", "decimal"),
+    ("quantizer", "bins", 2), ("quantizer", "bins", 0), ("quantizer", "bins", 2**40),
+    ("quantizer", "bins", "7"), ("quantizer", "bins", 7),
     (None, "normal_bits", 12), (None, "valid_samples", 0), (None, "valid_samples", 10**12),
     (None, "height_range", [5, 1]), (None, "height_range", "x"),
     (None, "nodata_fraction", 2.0), (None, "tile_counts", {}), (None, "schema_version", 1),

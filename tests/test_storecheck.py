@@ -83,3 +83,29 @@ def test_a_sound_table_passes(store):
     path, meta, tiles, g = store
     assert check_store(path, meta, tiles)[0] == g
     assert np.isfinite([v["zmin"] for v in tiles.values()]).all()
+
+
+@pytest.mark.parametrize("q, ok", [
+    ({"mode": "quantized", "step": 0.1, "offset": -10000.0, "codec_error": 0.5, "bins": 9},
+     True),
+    ({"mode": "quantized", "step": 0.9, "offset": 0.0, "codec_error": 0.5}, True),  # no bins
+    ({"mode": "quantized", "step": 0.1, "offset": 0.0, "codec_error": 0.5, "bins": 8}, False),
+    ({"mode": "quantized", "step": 0.1, "offset": 0.0, "codec_error": 0.5, "bins": 13}, False),
+    ({"mode": "quantized", "step": 0.1, "offset": 0.0, "codec_error": 0.5, "bins": 3}, False),
+    ({"mode": "quantized", "step": 0.1, "offset": 0.0, "codec_error": 0.5, "bins": "9"}, False),
+    ({"mode": "quantized", "step": 0.1, "offset": 0.0, "codec_error": 0.5, "bins": 2**40},
+     False),
+    ({"mode": "int", "step": 1.0, "offset": 0.0, "codec_error": 0.0, "bins": 3}, False),
+])
+def test_residual_bins_must_fit_the_bound(store, q, ok):
+    """A stranger's quantizer: the bins W must be an odd integer whose half-width
+    (W - 1) / 2 codes stays within ε and whose W + 1 codes exceed it, and only a lossy
+    (quantized) quantizer has them."""
+    path, meta, tiles, g = store
+    m = copy.deepcopy(meta)
+    m["quantizer"] = q
+    if ok:
+        assert check_store(path, m, tiles)[2].bins == q.get("bins", 1)
+    else:
+        with pytest.raises(StoreError, match="quantizer"):
+            check_store(path, m, tiles)

@@ -180,3 +180,23 @@ def test_a_vrt_mosaic_streams_to_the_merged_raster_s_store(tmp_path):
     ref = store_contents(preprocess(merged, tmp_path / "merged.gt", tile_size=16))
     got = store_contents(preprocess_streaming(vrt, tmp_path / "v.gt", tile_size=16, band=8))
     assert got == ref
+
+
+@pytest.mark.parametrize("eps", [2.0, 0.25])
+def test_binned_heights_stream_through_super_tiles(tmp_path, monkeypatch, eps):
+    """A lossy store (residual bins: decoded heights that depend on the pyramid) streams
+    to the preprocessed one when the height pass codes super-tiles under a coarse grid
+    (a small coarse grid here, as a 16385² raster has): the decoded heights it writes for
+    the other passes are the whole grid's, super-tile corners and borders included."""
+    import geoterrain.streampasses as sp
+
+    monkeypatch.setattr(sp, "COARSE_MAX", 9)
+    rng = np.random.default_rng(4)
+    z = (rng.normal(0, 20, (120, 125)).cumsum(0).cumsum(1) / 40).astype(np.float32)
+    z[30:40, 50:70] = -9999
+    src = _tif(tmp_path / "dem.tif", z, -9999)
+    a = preprocess(src, tmp_path / "a.geoterrain", tile_size=4, codec_error=eps)
+    b = preprocess_streaming(src, tmp_path / "b.geoterrain", tile_size=4, codec_error=eps,
+                             band=16)
+    _assert_same_store(a, b)
+    assert geoterrain.open(b).quantizer.bins > 1

@@ -31,7 +31,7 @@ from geoterrain.bandnormals import band_normal_codes
 from geoterrain.bandradii import band_radius_codes
 from geoterrain.bandtiles import band_tile_bounds
 from geoterrain.bounds import vertex_errors
-from geoterrain.codec import encode_pyramid
+from geoterrain.codec import decoded_codes, encode_pyramid
 from geoterrain.edgepad import edge_deltas, edge_support
 from geoterrain.grid import Grid
 from geoterrain.normals import encode_octahedral, level_normal_maps
@@ -173,17 +173,19 @@ def test_banded_radius_codes_are_the_whole_grid_codes(seed, n, holes, band, budg
 @settings(deadline=None)
 @given(seed=st.integers(0, 100_000), n=st.integers(2, 8), t=st.integers(1, 4),
        holes=st.sampled_from(["none", "sparse", "dense", "blocks", "islands"]),
-       mode=st.sampled_from(["int", "float", "quantized"]),
+       mode=st.sampled_from(["int", "float", "quantized", "bins"]),
        predictor=st.sampled_from(["auto", "linear", "cubic"]), coarse=st.integers(0, 8))
 def test_windowed_height_blobs_are_encode_pyramids(seed, n, t, holes, mode, predictor, coarse):
     """Every tile blob from super-tile windows (coarse grid first, then each super-tile
     under its decoded codes) is encode_pyramid's, byte for byte, and the same tiles are
-    stored: integer, float and ε-quantised codes, voids (filled from the coarse levels),
-    all three predictor settings, every super-tile level."""
+    stored: integer, float and ε-quantised codes (pointwise and in residual bins), voids
+    (filled from the coarse levels), all three predictor settings, every super-tile
+    level. The decoded codes handed out per super-tile are decoded_codes'."""
     z, v = _grid(seed, n, holes)
     N = z.shape[0]
     q = {"int": Quantizer("int"), "float": Quantizer("float", 1.0, 0.0, 0.0, 32),
-         "quantized": Quantizer("quantized", 0.7, 3.0, 0.35)}[mode]
+         "quantized": Quantizer("quantized", 0.7, 3.0, 0.35),
+         "bins": Quantizer("quantized", 0.1, 3.0, 0.35, bins=7)}[mode]
     if mode == "float":
         z = z.astype(np.float32).astype(np.float64)
     elif mode == "int":
@@ -200,6 +202,18 @@ def test_windowed_height_blobs_are_encode_pyramids(seed, n, t, holes, mode, pred
                                coarse_max=cmax, sink=parts.append) == {}
     assert {k: b for p in parts for k, b in p.items()} == ref
     assert sum(map(len, parts)) == len(ref)  # each tile once
+    dec = np.zeros((N, N), np.int64)
+    seen = np.zeros((N, N), bool)
+
+    def decoded(i0, j0, codes, valid):
+        m = codes.shape[0]
+        dec[i0:i0 + m, j0:j0 + m] = codes
+        seen[i0:i0 + m, j0:j0 + m] |= valid
+
+    band_encode_pyramid(window_of(z, v), N, t, q, predictor=predictor, coarse_max=cmax,
+                        sink=lambda part: None, decoded=decoded)
+    want = decoded_codes(z, v, t, q, predictor)
+    assert seen[v].all() and np.array_equal(dec[v], want[v])
 
 
 @settings(deadline=None)
