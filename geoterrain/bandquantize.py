@@ -126,7 +126,12 @@ def band_quantizer(bands: Bands, src_dtype: np.dtype | type | str,
     if exact and (not lossy or 2.0 * float(codec_error) <= sc):
         return Quantizer("int", sc, off, 0.0)
     if exact:  # a lossy bound on a known grid: bins of its codes
-        return grid_bins_quantizer(float(codec_error), sc, off, vmax)
+
+        def bins_error(k: int) -> float:
+            return max((_roundtrip_error(_finite(v), sc, off, k)[0] for v in bands()),
+                       default=0.0)
+
+        return grid_bins_quantizer(float(codec_error), sc, off, vmax, bins_error)
     q = fine_quantizer(fine, dt, codec_error) if fine.size else None
     if q is not None:
         return q

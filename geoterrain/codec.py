@@ -98,8 +98,8 @@ def top_bins(bins: int, te: int) -> np.ndarray:
     sample is predicted from the top tile's, which are few: SZ3 halves its error bound
     on its coarse levels for the same reason. On the six shared DEMs at ε = 0.5, 1 and
     2 (docs/benchmarks.md §8e): fewer bytes than 1/2 or 1/4 in 14 cells, as many in 4;
-    against no tightening, 19 % fewer on the smallest pyramid (St Helens, whose top tile
-    holds a sixteenth of the samples) and at most 2.8 % more elsewhere.
+    against no tightening, 16–20 % fewer on the smallest pyramid (St Helens, whose top
+    tile holds a sixteenth of the samples) and at most 2.8 % more elsewhere.
 
     Examples
     --------

@@ -234,7 +234,8 @@ def choose_quantizer(
     if exact:  # a lossy bound on a known grid: bins of its codes
         fin = v[np.isfinite(v)]
         return grid_bins_quantizer(float(codec_error), sc, off,
-                                   float(np.abs(fin).max()) if fin.size else 0.0)
+                                   float(np.abs(fin).max()) if fin.size else 0.0,
+                                   lambda k: _roundtrip_error(fin, sc, off, k)[0])
     fine = (fine_quantizer(fine_steps_ok(v, dt), dt, codec_error)
             if fine_grids_apply(scale, offset, codec_error) else None)
     if fine is not None:
@@ -345,28 +346,35 @@ def float_quantizer(dt: np.dtype, f32: bool) -> Quantizer:
     return Quantizer("float", 1.0, 0.0, 0.0, bits)
 
 
-def grid_bins_quantizer(eps: float, sc: float, off: float, vmax: float) -> Quantizer:
+def grid_bins_quantizer(eps: float, sc: float, off: float, vmax: float,
+                        bins_error: Callable[[int], float]) -> Quantizer:
     """The ε quantizer of heights on the grid ``off + k · sc`` (every one of them, as
     :func:`choose_quantizer` checks) with 2ε > ``sc``: the grid's own codes, residual
-    bins of the largest odd width W with (W - 1) / 2 · sc ≤ ε. Where the grid's
-    arithmetic is not exact in float64 (``sc`` not a power of two, or ``off`` not an
-    integer), ε less the float64 rounding margin of :func:`lossy_quantizer`.
+    bins of the largest odd width W = 2k + 1 with k · sc ≤ ε whose extreme codes decode
+    within ε of every height in float64 (``bins_error(k)``: the largest |off + (c ± k)
+    · sc − x|, :func:`_roundtrip_error`). A decoded code lies within k of the height's
+    own c, and the codes between decode within (k − 1) · sc plus a few ulps, which is
+    under ε while ``sc`` exceeds the float64 rounding margin of :func:`lossy_quantizer`
+    (else no bins).
 
     Examples
     --------
-    >>> grid_bins_quantizer(2.0, 1.0, 0.0, 300.0).bins  # SRTM metres at ε = 2
+    >>> v = np.array([147.0, 298.0])  # SRTM metres at ε = 2
+    >>> grid_bins_quantizer(2.0, 1.0, 0.0, 298.0, lambda k: _roundtrip_error(v, 1.0, 0.0, k)[0]
+    ...                     ).bins
     5
-    >>> grid_bins_quantizer(2.0, 0.1, -10000.0, 9000.0).bins  # Terrain-RGB's 0.1 m
-    39
     """
-    m, _ = np.frexp(sc)
-    exact = m == 0.5 and float(off).is_integer()
-    margin = 0.0 if exact else 8.0 * float(np.finfo(np.float64).eps
-                                            * (2.0 * vmax + 2.0 * abs(off) + eps))
-    k = int(np.floor((eps - margin) / sc * (1 + 1e-12)))
-    while k > 0 and k * sc > eps - margin:
+    margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))
+    k = int(np.floor(eps / sc * (1 + 1e-12))) if sc > margin else 0
+    while k > 0 and k * sc > eps:
         k -= 1
     k = min(k, (MAX_BINS - 1) // 2)
+    for _ in range(4):  # the float64 decode of the extreme codes, on the data itself
+        if k == 0 or bins_error(k) <= eps:
+            break
+        k -= 1
+    else:
+        k = 0
     if k == 0:
         return Quantizer("int", sc, off, 0.0)
     return Quantizer("quantized", sc, off, eps, bins=2 * k + 1)
@@ -441,15 +449,17 @@ def _rounded(x, step, offset):
 
 
 @njit(cache=True, nogil=True)
-def _roundtrip_error(v, step, offset):
-    """max |offset + rint((x - offset)/step)·step − x| over ``v`` (the codes' decode, as
-    :func:`codes_to_heights` of :func:`heights_to_codes`), and the largest |code|."""
+def _roundtrip_error(v, step, offset, shift=0):
+    """max |offset + (rint((x - offset)/step) ± ``shift``)·step − x| over ``v`` (the
+    codes' decode, as :func:`codes_to_heights` of :func:`heights_to_codes`, moved by
+    ``shift`` codes), and the largest |code|."""
     err, peak = 0.0, 0.0
     for x in v:
         r = _rounded(x, step, offset)
         peak = max(peak, abs(r))
         if abs(r) < 2.0**62:
-            err = max(err, abs(offset + np.float64(np.int64(r)) * step - x))
+            for c in (np.int64(r) - shift, np.int64(r) + shift):
+                err = max(err, abs(offset + np.float64(c) * step - x))
     return err, peak
 
 
