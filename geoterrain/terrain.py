@@ -587,6 +587,9 @@ def describe_codec(q: Quantizer) -> str:
         places = len(str(int(q.divisor))) - 1  # 10^d
         return (f"lossless decimals ({places} place{'s' * (places > 1)}, rounded to "
                 f"float{q.float_bits}) as integer codes, residuals + range coder")
+    if q.bins > 1:
+        return (f"within ε = {q.codec_error:g}: codes of {q.step:.6g}, residuals in bins of "
+                f"{q.bins} codes + range coder")
     return f"quantised to ε = {q.codec_error:g} (step {q.step:.6g}), residuals + range coder"
 
 
