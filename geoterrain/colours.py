@@ -10,6 +10,11 @@ A :class:`Palette` says how heights (metres, no exaggeration) become colours:
 - ``water_level=H``: heights at or below H are water.
 - ``clim=(lo, hi)``: the heights the map spans (default: the data's range).
 
+A store coded within ε (``--codec-error``) cannot tell heights within ε of the water
+level apart, so its ``tolerance`` ε paints them all as the water's surface: a flat sea
+whose decoded heights wander within ±ε stays one colour, and the depth ramp starts ε
+below the level.
+
 Examples
 --------
 >>> p = Palette("auto", water_level=0.0)
@@ -88,10 +93,19 @@ def water_level(palette: Palette, data_range: tuple[float, float]) -> float | No
     return None
 
 
-def colorize(h: np.ndarray, palette: Palette, data_range: tuple[float, float]) -> np.ndarray:
+def colorize(h: np.ndarray, palette: Palette, data_range: tuple[float, float],
+             tolerance: float = 0.0) -> np.ndarray:
     """RGB float32 in [0, 1] (shape h.shape + (3,)) for heights ``h`` in metres.
 
-    ``data_range`` is the data's (min, max); ``palette.clim`` overrides it for the map.
+    ``data_range`` is the data's (min, max); ``palette.clim`` overrides it for the map;
+    ``tolerance``: the heights' codec bound ε in metres (the module's last paragraph).
+
+    Examples
+    --------
+    >>> p = Palette("auto")
+    >>> rgb = colorize(np.array([-1.5, 0.0, 1.5]), p, (-1.5, 900.0), tolerance=2.0)
+    >>> bool((rgb == rgb[1]).all())  # all within ε of the sea level: its surface
+    True
     """
     h = np.asarray(h, np.float64)
     lo, hi = palette.clim if palette.clim is not None else data_range
@@ -107,25 +121,28 @@ def colorize(h: np.ndarray, palette: Palette, data_range: tuple[float, float]) -
         cm = matplotlib.colormaps[palette.cmap]
         rgb = cm(np.clip((h - lo) / (hi - lo), 0, 1))[..., :3]
     if wl is not None:
-        wet = h <= wl
+        wet = h <= wl + tolerance
         if wet.any():
-            depth_lo = min(lo, wl)
-            span = max(wl - depth_lo, 1e-9)
-            frac = np.clip((h[wet] - depth_lo) / span, 0, 1) if wl > depth_lo else 1.0
+            top = wl - tolerance  # the depth ramp's surface
+            depth_lo = min(lo, top)
+            span = max(top - depth_lo, 1e-9)
+            frac = np.clip((h[wet] - depth_lo) / span, 0, 1) if top > depth_lo else 1.0
             rgb[wet] = _ramp(WATER, np.broadcast_to(frac, h[wet].shape))
     return rgb.astype(np.float32)
 
 
-def colorbar_map(palette: Palette, data_range: tuple[float, float], n: int = 256):
-    """(matplotlib ListedColormap, (lo, hi)) that draws exactly the colours of :func:`colorize`."""
+def colorbar_map(palette: Palette, data_range: tuple[float, float], n: int = 256,
+                 tolerance: float = 0.0):
+    """(matplotlib ListedColormap, (lo, hi)) that draws exactly the colours of
+    :func:`colorize` (with the same ``tolerance``)."""
     import matplotlib
 
     lo, hi = palette.clim if palette.clim is not None else data_range
     if hi <= lo:
         lo, hi = lo - 0.5, lo + 0.5
     wl = water_level(palette, data_range)
-    if wl is not None and wl <= lo:  # water without depth: give it a band below the land
+    if wl is not None and wl - tolerance <= lo:  # water without depth: a band below the land
         lo = wl - SEA_SPAN * (hi - wl)
     z = np.linspace(lo, hi, n)
-    rgb = colorize(z, palette, data_range)
+    rgb = colorize(z, palette, data_range, tolerance)
     return matplotlib.colors.ListedColormap(rgb), (lo, hi)

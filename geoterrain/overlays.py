@@ -28,7 +28,7 @@ import numpy as np
 
 from geoterrain.cameras import project
 from geoterrain.colours import Palette, as_palette, colorbar_map
-from geoterrain.textures import elevation_range
+from geoterrain.textures import elevation_range, height_tolerance
 from geoterrain.view import View
 
 DPI = 100.0
@@ -143,7 +143,8 @@ def layout_for(terrain, size: tuple[int, int], *, shading: str = "normals",
     ve = getattr(terrain, "vertical_exaggeration", 1.0) if ve == 1.0 else ve
     limits = None
     if colorbar and shading != "plain":
-        _, limits = colorbar_map(as_palette(cmap), elevation_range(terrain))
+        _, limits = colorbar_map(as_palette(cmap), elevation_range(terrain),
+                                 tolerance=height_tolerance(terrain))
     return plan(size, title=title, limits=limits, scale_bar=scale_bar,
                 north_arrow=north_arrow, ve=ve)
 
@@ -213,7 +214,8 @@ def compose(img: np.ndarray, view: View, terrain, *, shading: str = "normals",
              fontsize=1.3 * fs * pt, weight="bold")
     if "colorbar" in layout.boxes:
         x0, y0, x1, y1 = box("colorbar")
-        cm, (lo, hi) = colorbar_map(as_palette(cmap), elevation_range(terrain))
+        cm, (lo, hi) = colorbar_map(as_palette(cmap), elevation_range(terrain),
+                                    tolerance=height_tolerance(terrain))
         bx1 = x1 - pad
         bx0 = bx1 - 0.9 * fs
         by0, by1 = y0 + pad + 0.5 * fs, y1 - pad - 0.5 * fs

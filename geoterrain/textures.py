@@ -72,6 +72,13 @@ def texture_level(terrain, max_size: int = MAX_TEXTURE) -> int:
     return g.top_level
 
 
+def height_tolerance(terrain) -> float:
+    """The codec's bound ε on the terrain's heights, in metres (0 when lossless): the
+    colours' ``tolerance`` around the water level (:func:`geoterrain.colours.colorize`)."""
+    q = getattr(terrain, "quantizer", None)
+    return float(q.codec_error) * terrain.frame.z_to_m if q is not None else 0.0
+
+
 def elevation_range(terrain) -> tuple[float, float]:
     """(min, max) elevation in metres (no vertical exaggeration) of the valid data."""
     lo, hi = terrain.scene_box()
@@ -103,7 +110,7 @@ def build_texture_image(terrain, shading: str, cmap: str | Palette = "auto",
         h[sl] = np.nan_to_num(terrain.tile(lv, x, y).heights, nan=0.0)
     z0, z1 = elevation_range(terrain)
     zm = terrain.frame.z_to_m
-    rgb = colorize(h * zm, as_palette(cmap), (z0, z1))
+    rgb = colorize(h * zm, as_palette(cmap), (z0, z1), height_tolerance(terrain))
     rgb *= shade[..., None]
     return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
 

@@ -149,12 +149,12 @@ def _shade_tile(h, cf, codes, planar, lut, base, span, wet_level, has_water,
 
 def shade_tile(h: np.ndarray, codes: np.ndarray, planar: bool, bits: int, light: np.ndarray,
                ambient: float, ceiling: float, clim: tuple[float, float],
-               water_level: float | None, land, water) -> np.ndarray:
+               water_level: float | None, land, water, tolerance: float = 0.0) -> np.ndarray:
     """RGB uint8 (T, T, 3): the ``auto`` palette's tint of heights ``h`` (metres, NaN as 0)
     × the hillshade of ``codes`` (8-bit; ``planar``: as stored, else (T, T, 2) pairs).
 
     ``clim`` is the palette's (lo, hi), ``water_level`` its level or None, ``land`` and
-    ``water`` the ramps
+    ``water`` the ramps, ``tolerance`` the heights' codec bound (metres)
     (:data:`geoterrain.colours.LAND`, ``WATER``). The same arithmetic as
     ``colorize`` × ``_hillshade``; see the module example.
     """
@@ -165,24 +165,26 @@ def shade_tile(h: np.ndarray, codes: np.ndarray, planar: bool, bits: int, light:
     _shade_tile(np.ascontiguousarray(h, np.float64), 1.0,
                 np.ascontiguousarray(np.asarray(codes, np.uint8).reshape(-1)),
                 bool(planar), shade_lut(light, ambient, ceiling),
-                *_palette_args(clim, water_level, land, water), out)
+                *_palette_args(clim, water_level, land, water, tolerance), out)
     return out
 
 
-def _palette_args(clim, water_level, land, water) -> tuple:
-    """The compiled shading's palette arguments: base, span, the water level, whether
-    there is water, the depth ramp's low end, span and whether it ramps, and the land
-    and water ramps (:func:`_stops`)."""
+def _palette_args(clim, water_level, land, water, tolerance: float = 0.0) -> tuple:
+    """The compiled shading's palette arguments: base, span, the level at or below
+    which it is water, whether there is water, the depth ramp's low end, span and
+    whether it ramps, and the land and water ramps (:func:`_stops`); ``tolerance`` as
+    :func:`geoterrain.colours.colorize`'s."""
     lo, hi = (float(v) for v in clim)
     if hi <= lo:
         lo, hi = lo - 0.5, lo + 0.5
     wl = water_level
     base = max(lo, wl) if wl is not None else lo
     span = max(hi - base, 1e-9)
-    wet_level = float(wl) if wl is not None else 0.0
-    depth_lo = min(lo, wet_level)
-    depth_ramp = wl is not None and wl > depth_lo
-    depth_span = max(wet_level - depth_lo, 1e-9)
+    wet_level = float(wl) + tolerance if wl is not None else 0.0
+    top = wet_level - 2.0 * tolerance  # the depth ramp's surface
+    depth_lo = min(lo, top)
+    depth_ramp = wl is not None and top > depth_lo
+    depth_span = max(top - depth_lo, 1e-9)
     return (float(base), float(span), wet_level, wl is not None, float(depth_lo),
             float(depth_span), bool(depth_ramp), *_stops(land), *_stops(water))
 
@@ -219,7 +221,7 @@ def shade_tiles(h: np.ndarray, cf: float, zf: float, valid: np.ndarray, X: np.nd
                 Y: np.ndarray, derive: np.ndarray, rings: np.ndarray, ring_rows: np.ndarray,
                 ring_cols: np.ndarray, stored: np.ndarray, planar: np.ndarray,
                 light: np.ndarray, ambient: float, ceiling: float, clim: tuple[float, float],
-                water_level: float | None, land, water) -> np.ndarray:
+                water_level: float | None, land, water, tolerance: float = 0.0) -> np.ndarray:
     """:func:`shade_tile` of n tiles at once, on every core: RGB uint8 (n, T, T, 3).
 
     ``h`` (n, T, T) heights in source units (× ``cf`` for metres, × ``zf`` for scene z,
@@ -258,7 +260,7 @@ def shade_tiles(h: np.ndarray, cf: float, zf: float, valid: np.ndarray, X: np.nd
            np.ascontiguousarray(rings, np.uint8), np.asarray(ring_rows, np.int64),
            np.asarray(ring_cols, np.int64), np.ascontiguousarray(stored, np.uint8),
            np.asarray(planar, np.bool_), shade_lut(light, ambient, ceiling),
-           *_palette_args(clim, water_level, land, water), out)
+           *_palette_args(clim, water_level, land, water, tolerance), out)
     return out
 
 

@@ -75,6 +75,7 @@ from geoterrain.textures import (
     SHADE_CEILING,
     _sun,
     elevation_range,
+    height_tolerance,
     tile_hillshade,
 )
 from geoterrain.tileshade import shade_tiles
@@ -139,7 +140,7 @@ def _shaded(terrain, key: tuple, level: int, x: int, y: int, shading: str, pal: 
             return _shade_batch(terrain, [(level, x, y)], pal)[0]
         z0, z1 = elevation_range(terrain)
         h = np.nan_to_num(terrain.tile(level, x, y).heights, nan=0.0)
-        rgb = colorize(h * terrain.frame.z_to_m, pal, (z0, z1))
+        rgb = colorize(h * terrain.frame.z_to_m, pal, (z0, z1), height_tolerance(terrain))
         if drape is not None:  # the image over the colours; its nodata shows them
             img, on = drape_tile(terrain, drape, level, x, y)
             a = float(drape.opacity)
@@ -200,7 +201,7 @@ def _shade_batch(terrain, keys: list, pal: Palette) -> list[np.ndarray]:
     rgb = shade_tiles(h, f.z_to_m, f.z_to_m * f.z_scale, valid, X, Y, derive, rings, rr, cc,
                       stored, planar, _sun(), AMBIENT, SHADE_CEILING,
                       pal.clim if pal.clim is not None else (z0, z1),
-                      water_level(pal, (z0, z1)), LAND, WATER)
+                      water_level(pal, (z0, z1)), LAND, WATER, height_tolerance(terrain))
     return [a.copy() for a in rgb]  # each cached on its own (not views of one array)
 
 

@@ -55,9 +55,10 @@ def colour_bar(terrain, cmap: str | Palette):
     import pyvista as pv
     from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
 
-    from geoterrain.textures import elevation_range
+    from geoterrain.textures import elevation_range, height_tolerance
 
-    cm, (lo, hi) = colorbar_map(as_palette(cmap), elevation_range(terrain))
+    cm, (lo, hi) = colorbar_map(as_palette(cmap), elevation_range(terrain),
+                                tolerance=height_tolerance(terrain))
     lut = pv.LookupTable(cm)
     lut.scalar_range = (lo, hi)
     bar = vtkScalarBarActor()

@@ -50,22 +50,26 @@ def test_a_tile_stream_decodes_to_its_codes_and_mask(seed, h, scale, kind, holes
 
 @settings(max_examples=80, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), te=st.integers(1, 6), cubic=st.booleans(),
-       holes=st.floats(0.0, 1.0), scale=st.sampled_from([0, 1, 100, 2**40]))
-def test_the_top_tile_decodes_to_its_fill(seed, te, cubic, holes, scale):
+       holes=st.floats(0.0, 1.0), scale=st.sampled_from([0, 1, 100, 2**40]),
+       W=st.sampled_from([1, 3, 41]))
+def test_the_top_tile_decodes_to_its_fill(seed, te, cubic, holes, scale, W):
     """Coarse to fine inside the top tile: the decoded tile is the encoder's codes with
     every invalid sample but the corners filled by fill_level, level by level (the rule
-    the encoder's whole-grid fill follows)."""
+    the encoder's whole-grid fill follows), and with residual bins W every valid one
+    binned by it, within (W - 1) / 2 of its code."""
     rng = np.random.default_rng(seed)
     t = (1 << te) + 1
     top = np.round(rng.normal(0, 1, (t, t)).cumsum(0) * scale).astype(np.int64)
     ok = rng.random((t, t)) >= holes
     kind = MASK_ALL_VALID if ok.all() else MASK_ALL_INVALID if not ok.any() else MASK_STORED
-    data = entropy.encode_top(top, ok, te, cubic, kind)
-    got, mask, exact = entropy.decode_top(np.frombuffer(data, np.uint8), te, cubic, kind)
-    assert exact
     want = top.copy()
     for k in range(te - 1, -1, -1):
-        fill_level(want, ok, 1 << k, (1 << te) if cubic else 0)
+        fill_level(want, ok, 1 << k, (1 << te) if cubic else 0, W)
+    assert np.all(np.abs(want - top)[ok] <= (W - 1) // 2)
+    data = entropy.encode_top(want, ok, te, cubic, kind, np.full(te, W))
+    got, mask, exact = entropy.decode_top(np.frombuffer(data, np.uint8), te, cubic, kind,
+                                          np.full(te, W))
+    assert exact
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(mask, ok)
 
@@ -73,15 +77,15 @@ def test_the_top_tile_decodes_to_its_fill(seed, te, cubic, holes, scale):
 @settings(max_examples=200, deadline=None)
 @given(data=st.binary(max_size=300), h=st.sampled_from([1, 4, 32]),
        kind=st.sampled_from([MASK_ALL_VALID, MASK_ALL_INVALID, MASK_STORED]),
-       te=st.integers(1, 6), cubic=st.booleans())
-def test_any_bytes_decode_to_some_codes(data, h, kind, te, cubic):
+       te=st.integers(1, 6), cubic=st.booleans(), W=st.sampled_from([1, 3, 1025]))
+def test_any_bytes_decode_to_some_codes(data, h, kind, te, cubic, W):
     """A stream from a stranger is never refused and never runs away: any bytes decode,
-    in bounded time, to arrays of the tile's shape."""
+    in bounded time, to arrays of the tile's shape (residual bins too)."""
     buf = np.frombuffer(data, np.uint8)
     t = 2 * h + 1
-    out, ok, _ = entropy.decode_tile(buf, np.zeros((t, t), np.int64), 1, 0, cubic, kind)
+    out, ok, _ = entropy.decode_tile(buf, np.zeros((t, t), np.int64), 1, 0, cubic, kind, W)
     assert out.shape == ok.shape == (t, t)
-    top, ok, _ = entropy.decode_top(buf, te, cubic, kind)
+    top, ok, _ = entropy.decode_top(buf, te, cubic, kind, np.full(te, W))
     assert top.shape == ok.shape == ((1 << te) + 1,) * 2
 
 

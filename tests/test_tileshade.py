@@ -16,8 +16,9 @@ from geoterrain.vertexdata import normals_from_bytes, normals_to_bytes
 
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2 ** 32 - 1), st.booleans(), st.booleans(),
-       st.sampled_from([None, -20.0, 0.0, 150.0]), st.booleans())
-def test_fused_shading_is_the_numpy_composition(seed, planar, with_clim, wl, low_data):
+       st.sampled_from([None, -20.0, 0.0, 150.0]), st.booleans(),
+       st.sampled_from([0.0, 0.5, 30.0]))
+def test_fused_shading_is_the_numpy_composition(seed, planar, with_clim, wl, low_data, tol):
     rng = np.random.default_rng(seed)
     T = int(rng.integers(2, 40))
     lo = -300.0 if low_data else 50.0
@@ -27,14 +28,14 @@ def test_fused_shading_is_the_numpy_composition(seed, planar, with_clim, wl, low
     codes = rng.integers(0, 256, (T, T, 2)).astype(np.uint8)
     pal = Palette("auto", clim=(-100.0, 700.0) if with_clim else None, water_level=wl)
     rng_data = (lo, 900.0)
-    rgb = colorize(np.nan_to_num(h, nan=0.0), pal, rng_data)
+    rgb = colorize(np.nan_to_num(h, nan=0.0), pal, rng_data, tol)
     rgb *= _hillshade(decode_octahedral(codes, 8))[..., None]
     want = (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
     raw = normals_to_bytes(codes) if planar else codes.tobytes()
     assert planar is False or np.array_equal(normals_from_bytes(raw, T), codes)
     got = shade_tile(h, np.frombuffer(raw, np.uint8), planar, 8, _sun(), AMBIENT,
                      SHADE_CEILING, pal.clim if pal.clim is not None else rng_data,
-                     water_level(pal, rng_data), LAND, WATER)
+                     water_level(pal, rng_data), LAND, WATER, tol)
     d = np.abs(got.astype(int) - want.astype(int))
     assert d.max() <= 1  # the dot product's float32 rounding (numpy's matmul order)
     assert (d > 0).mean() < 0.01
@@ -68,3 +69,27 @@ def test_ramp_slopes_are_numpy_s():
             jj = np.minimum(j, len(xp) - 2)
             got = np.where(last | (xp[j] == x), fp[j, k], slope[jj, k] * (x - xp[j]) + fp[j, k])
             assert np.array_equal(got, np.interp(x, xp, fp[:, k]))
+
+
+def test_a_lossy_flat_sea_keeps_one_colour(tmp_path):
+    """A store coded within ε decodes a flat sea at 0 m to heights that wander within
+    ±ε (residual bins keep each prediction's error); the colours treat heights within ε
+    of the water level as its surface, so the sea stays one colour, as losslessly."""
+    import geoterrain
+    from geoterrain.synth import generate, write_geotiff
+    from geoterrain.textures import elevation_range, height_tolerance
+
+    z = generate("fbm", 257, seed=3).astype(np.float64)
+    z = np.round((z - z.min()) / (z.max() - z.min()) * 800.0 - 250.0)
+    z[z < 0] = 0.0  # a sea at 0 m around a coast
+    dem = write_geotiff(str(tmp_path / "sea.tif"), z.astype(np.int16))
+    t = geoterrain.open(geoterrain.preprocess(dem, tmp_path / "sea.gt", codec_error=2.0))
+    sea = [t.tile(0, x, y).heights[z[y * 64:y * 64 + 65, x * 64:x * 64 + 65] == 0]
+           for y in range(4) for x in range(4)]
+    sea = np.concatenate(sea)
+    assert t.quantizer.bins == 5 and np.abs(sea).max() <= 2.0
+    assert np.unique(sea).size > 1  # the premise: the decoded sea is not flat
+    pal = Palette("auto")
+    rgb = colorize(sea, pal, elevation_range(t), height_tolerance(t))
+    assert height_tolerance(t) == 2.0 and (rgb == rgb[0]).all()
+    assert not (colorize(sea, pal, elevation_range(t)) == rgb[0]).all()  # without it
