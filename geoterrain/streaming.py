@@ -178,9 +178,10 @@ def preprocess_streaming(
     Parameters are :func:`~geoterrain.preprocessing.preprocess`'s, and
     ``band`` (rows per band, a power of two), ``scratch`` (the folder of the scratch
     files; default the store's folder) and ``scheduler``
-    (:mod:`geoterrain.schedulers`: where the four independent passes run, δ with δ_edge
-    and the radius codes, the tile table, the normals and the height blobs; the store is
-    the same on every one, and this process stays its only writer) and ``resume`` (reuse
+    (:mod:`geoterrain.schedulers`: where the four passes run, δ with δ_edge and the
+    radius codes, the tile table, the normals and the height blobs, the last one first
+    with ``codec_error``, as the others read its decoded heights; the store is the same
+    on every one, and this process stays its only writer) and ``resume`` (reuse
     the passes a killed run of the same job into ``dst`` finished: its scratch folder
     records each pass's result; the store is the one an uninterrupted run writes).
 

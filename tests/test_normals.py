@@ -387,7 +387,13 @@ def _batch_is_tile_by_tile(*terrains) -> None:
     their normal codes as the terrain reads them (tile_normal_codes, shade_tile), and
     what tile_rgb gives."""
     from geoterrain.colours import LAND, WATER, as_palette, water_level
-    from geoterrain.textures import AMBIENT, SHADE_CEILING, _sun, elevation_range
+    from geoterrain.textures import (
+        AMBIENT,
+        SHADE_CEILING,
+        _sun,
+        elevation_range,
+        height_tolerance,
+    )
     from geoterrain.tileshade import shade_tile
 
     for t in terrains:
@@ -399,7 +405,8 @@ def _batch_is_tile_by_tile(*terrains) -> None:
         for k, rgb in zip(keys, got, strict=True):
             one = shade_tile(t.tile(*k).heights * t.frame.z_to_m, t.tile_normal_codes(*k),
                              False, 8, _sun(), AMBIENT, SHADE_CEILING, lim,
-                             water_level(as_palette("auto"), lim), LAND, WATER)
+                             water_level(as_palette("auto"), lim), LAND, WATER,
+                             height_tolerance(t))
             assert np.array_equal(rgb, one), k
             assert np.array_equal(rgb, tiletextures.tile_rgb(t, *k, "normals")), k
 
