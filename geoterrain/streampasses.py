@@ -112,9 +112,11 @@ class Job:
                 z, v = source.rows(i0, i1)
                 if self.q.bins == 1:
                     return frame.z(roundtrip(z, v, self.q)), v  # decoded, scene metres
+                del z  # only the mask: the heights are the height pass's (in place below)
                 h = np.fromfile(os.path.join(self.folder, DECODED), "<f8", (i1 - i0) * N,
                                 offset=i0 * N * 8).reshape(i1 - i0, N)
-                return frame.z(np.where(v, h, np.nan)), v
+                h[~v] = np.nan
+                return frame.z(h, out=h), v
 
             N = grid.size
 
@@ -181,9 +183,8 @@ def _heights_pass(job: Job) -> dict:
 
             def decoded(i0: int, j0: int, codes: np.ndarray, valid: np.ndarray) -> None:
                 h = codes_to_heights(codes, job.q)
-                if valid.any():
-                    span[:] = min(span[0], float(h[valid].min())), max(span[1],
-                                                                        float(h[valid].max()))
+                span[:] = (min(span[0], float(np.min(h, where=valid, initial=np.inf))),
+                           max(span[1], float(np.max(h, where=valid, initial=-np.inf))))
                 rows = np.ascontiguousarray(h, "<f8")
                 for r in range(rows.shape[0]):
                     os.pwrite(fd, rows[r].tobytes(), ((i0 + r) * N + j0) * 8)
