@@ -144,17 +144,17 @@ def test_a_killed_streaming_run_leaves_no_store_and_the_next_run_cleans_up(tmp_p
     assert geoterrain.open(dst).tile(0, 0, 0).heights.shape == (65, 65)
 
 
-def _killed_after_first_pass(src, dst, band):
+def _killed_after_first_pass(src, dst, band, eps=None, first="bounds"):
     # a streaming run into dst, SIGKILLed once its first pass is recorded
     import subprocess
     import sys
     import time
 
     code = ("from geoterrain.streaming import preprocess_streaming; "
-            f"preprocess_streaming({src!r}, {str(dst)!r}, band={band})")
+            f"preprocess_streaming({src!r}, {str(dst)!r}, band={band}, codec_error={eps})")
     p = subprocess.Popen([sys.executable, "-c", code])
     deadline = time.monotonic() + 180
-    while not list(dst.parent.glob(f".{dst.name}.scratch.partial-*/done-bounds")) \
+    while not list(dst.parent.glob(f".{dst.name}.scratch.partial-*/done-{first}")) \
             and p.poll() is None and time.monotonic() < deadline:
         time.sleep(0.02)
     p.kill()
@@ -185,6 +185,25 @@ def test_resume_after_a_killed_driver_reuses_its_passes(tmp_path, caplog):
     with caplog.at_level(logging.INFO, logger="geoterrain"):
         preprocess_streaming(src, dst, band=8, resume=True)  # another job: a fresh run
     assert "resuming" not in caplog.text
+    _assert_same_store(ref, dst)
+    assert [x.name for x in out.iterdir()] == ["s.gt"]
+
+
+def test_a_lossy_run_resumes_from_its_decoded_heights(tmp_path, caplog):
+    """With ε the height pass runs first and leaves the decoded heights in the scratch
+    folder: a driver killed after it resumes from them (the other passes read them) to
+    the uninterrupted run's store."""
+    import logging
+
+    src = _dem(tmp_path, 5, 600, 500, 0.02)
+    ref = preprocess(src, tmp_path / "ref.gt", codec_error=1.0)
+    out = tmp_path / "out"
+    out.mkdir()
+    dst = out / "s.gt"
+    _killed_after_first_pass(src, dst, 4, eps=1.0, first="heights")
+    with caplog.at_level(logging.INFO, logger="geoterrain"):
+        preprocess_streaming(src, dst, band=4, codec_error=1.0, resume=True)
+    assert "resuming a killed run; passes done: heights" in caplog.text
     _assert_same_store(ref, dst)
     assert [x.name for x in out.iterdir()] == ["s.gt"]
 
