@@ -75,12 +75,10 @@ BLOB_VERSION = 2
 _HEADER = 3
 
 
-def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool,
-              W: np.ndarray | None = None) -> None:
+def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool, W: int = 1) -> None:
     """In place on the top tile's codes: an invalid corner takes the first valid code
     (raster order; 0 when none), an invalid sample of its finer grids its prediction, a
-    valid one of its grid of stride 2^k its code in residual bins ``W[k]`` (None: all
-    1; :func:`geoterrain.predict.fill_level`)."""
+    valid one its code in residual bins ``W`` (:func:`geoterrain.predict.fill_level`)."""
     v = valid.ravel()
     first = top.ravel()[int(np.argmax(v))] if v.any() else 0
     last = top.shape[0] - 1
@@ -89,12 +87,12 @@ def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool,
             if not valid[i, j]:
                 top[i, j] = first
     for k in range(te - 1, -1, -1):  # its own levels: 2**te exceeds their intervals
-        fill_level(top, valid, 1 << k, _period(te, cubic), 1 if W is None else int(W[k]))
+        fill_level(top, valid, 1 << k, _period(te, cubic), W)
 
 
-def top_bins(bins: int, te: int) -> np.ndarray:
-    """The residual bins of the top tile's own grids (strides 1, 2, … 2^(te - 1) of the
-    top level): the largest odd width ≤ 3/4 of the other tiles' ``bins``. Every finer
+def top_bins(bins: int) -> int:
+    """The residual bins of the top tile's own grids: the largest odd width ≤ 3/4 of the
+    other tiles' ``bins``. Every finer
     sample is predicted from the top tile's, which are few: SZ3 halves its error bound
     on its coarse levels for the same reason. On the six shared DEMs at ε = 0.5, 1 and
     2 (docs/benchmarks.md §8e): fewer bytes than 1/2 or 1/4 in 14 cells, as many in 4;
@@ -103,10 +101,10 @@ def top_bins(bins: int, te: int) -> np.ndarray:
 
     Examples
     --------
-    >>> [int(top_bins(w, 6)[0]) for w in (1, 3, 5, 9, 15, 39)]
+    >>> [top_bins(w) for w in (1, 3, 5, 9, 15, 39)]
     [1, 1, 3, 5, 11, 29]
     """
-    return np.full(te, max(1, ((3 * bins) // 4 - 1) | 1), np.int64)
+    return max(1, ((3 * bins) // 4 - 1) | 1)
 
 
 def _period(te: int, cubic: bool) -> int:
@@ -214,7 +212,7 @@ def _decoded_codes(d: np.ndarray, valid: np.ndarray, te: int, lmax: int, cubic: 
     with residual ``bins`` > 1 at valid ones too (coarse to fine: each level's
     predictions read the decoded codes of the coarser ones)."""
     s = 1 << lmax
-    _top_fill(d[::s, ::s], valid[::s, ::s], te, cubic, top_bins(bins, te))
+    _top_fill(d[::s, ::s], valid[::s, ::s], te, cubic, top_bins(bins))
     for lev in range(lmax - 1, -1, -1):  # compiled: the rule of predict, in place
         fill_level(d, valid, 1 << lev, _period(te, cubic), bins)
     return d
@@ -323,7 +321,7 @@ def _encode_top(d, valid, te, lmax, cubic, bins=1) -> bytes:
     top, vt = np.ascontiguousarray(d[::s, ::s]), np.ascontiguousarray(valid[::s, ::s])
     kind = int(_mask_kind(int(vt.sum()), vt.size))
     return _header(True, kind, te, cubic) + entropy.encode_top(top, vt, te, cubic, kind,
-                                                               top_bins(bins, te))
+                                                               top_bins(bins))
 
 
 def _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts=None,
@@ -511,7 +509,7 @@ def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
     """
     top, kind, te, cubic, w, data = _parse(blob, t)
     if top:
-        codes, valid, exact = entropy.decode_top(data, te, cubic, kind, top_bins(bins, te))
+        codes, valid, exact = entropy.decode_top(data, te, cubic, kind, top_bins(bins))
         if not exact:
             raise ValueError(_NOT_A_STREAM)
         return codes, valid

@@ -540,7 +540,7 @@ def level_zigzag(d, s, h, P, ys, xs, zz, zmax):
 @njit(cache=True, nogil=True)
 def _top(enc, buf, top, ok, te, cubic, kind, W):
     """The top tile coarse to fine inside itself: its 4 corners (deltas), then each
-    level of its own grid (stride 2^k, residual bins ``W[k]``) as a child of the next
+    level of its own grid (stride 2^k, residual bins ``W``) as a child of the next
     coarser (:func:`_child`, the whole of it), one set of models throughout."""
     S = _start(enc, buf)
     m = np.zeros((_ROWS, 2), np.int64)
@@ -560,17 +560,17 @@ def _top(enc, buf, top, ok, te, cubic, kind, W):
         parent = np.ascontiguousarray(top[::2 * s, ::2 * s])
         out = np.ascontiguousarray(top[::s, ::s])
         S = _child(enc, S, buf, m, parent, 0, 0, h, cubic, out,
-                   np.ascontiguousarray(ok[::s, ::s]), W[k])
+                   np.ascontiguousarray(ok[::s, ::s]), W)
         top[::s, ::s] = out
     return S
 
 
 def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int,
-               W: np.ndarray | None = None) -> bytes:
+               W: int = 1) -> bytes:
     """The stream of the top tile ``top`` ((2^te + 1)² codes; an invalid corner holds
-    its fill, other invalid samples are not coded) with valid mask ``ok`` and the
-    residual bins ``W[k]`` of its grid of stride 2^k (None: all 1; the grids already
-    binned, :func:`geoterrain.codec._top_fill`; the corners are exact).
+    its fill, other invalid samples are not coded) with valid mask ``ok`` and residual
+    bins ``W`` (its grids already binned, :func:`geoterrain.codec._top_fill`; the
+    corners are exact).
 
     Examples
     --------
@@ -585,26 +585,18 @@ def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int,
     while True:
         buf = np.zeros(cap, np.uint8)
         st = _top(True, buf, top.copy(), np.ascontiguousarray(ok, np.bool_).copy(), te, cubic,
-                  kind, _top_bins(W, te))
+                  kind, W)
         n = _finish(st, buf)
         if n >= 0:
             return buf[:n].tobytes()
         cap *= 8
 
 
-def _top_bins(W, te):
-    return np.ones(te, np.int64) if W is None else np.ascontiguousarray(W, np.int64)
-
-
-def decode_top(data, te, cubic, kind, W=None):
+@njit(cache=True, nogil=True)
+def decode_top(data, te, cubic, kind, W=1):
     """The top tile's codes and valid mask from its stream (:func:`encode_top`, the same
     residual bins ``W``), and whether ``data`` is exactly a stream the encoder writes (as
     :func:`decode_tile`)."""
-    return _decode_top(data, te, cubic, kind, _top_bins(W, te))
-
-
-@njit(cache=True, nogil=True)
-def _decode_top(data, te, cubic, kind, W):
     t = (1 << te) + 1
     ok = np.full((t, t), kind != MASK_ALL_INVALID)
     top = np.zeros((t, t), np.int64)

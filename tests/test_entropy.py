@@ -66,9 +66,9 @@ def test_the_top_tile_decodes_to_its_fill(seed, te, cubic, holes, scale, W):
     for k in range(te - 1, -1, -1):
         fill_level(want, ok, 1 << k, (1 << te) if cubic else 0, W)
     assert np.all(np.abs(want - top)[ok] <= (W - 1) // 2)
-    data = entropy.encode_top(want, ok, te, cubic, kind, np.full(te, W))
+    data = entropy.encode_top(want, ok, te, cubic, kind, W)
     got, mask, exact = entropy.decode_top(np.frombuffer(data, np.uint8), te, cubic, kind,
-                                          np.full(te, W))
+                                          W)
     assert exact
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(mask, ok)
@@ -85,7 +85,7 @@ def test_any_bytes_decode_to_some_codes(data, h, kind, te, cubic, W):
     t = 2 * h + 1
     out, ok, _ = entropy.decode_tile(buf, np.zeros((t, t), np.int64), 1, 0, cubic, kind, W)
     assert out.shape == ok.shape == (t, t)
-    top, ok, _ = entropy.decode_top(buf, te, cubic, kind, np.full(te, W))
+    top, ok, _ = entropy.decode_top(buf, te, cubic, kind, W)
     assert top.shape == ok.shape == ((1 << te) + 1,) * 2
 
 
