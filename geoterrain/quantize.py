@@ -389,17 +389,11 @@ def lossy_quantizer(eps: float, off: float, vmax: float, any_values: bool,
     |code|) is within ε / W (8 tries); a decoded code lies at most (W − 1) / 2 codes
     from the sample's own, so within ε / W + (W − 1) / 2 · 2ε / W = ε."""
     W = FLOAT_BINS
-    q = _pointwise_quantizer(eps / W, off, vmax, any_values, roundtrip_error)
-    return Quantizer("quantized", q.step, off, eps, bins=W)
-
-
-def _pointwise_quantizer(eps: float, off: float, vmax: float, any_values: bool,
-                         roundtrip_error: Callable[[float], tuple[float, float]]
-                         ) -> Quantizer:
+    e = eps / W  # each code's own rounding
     # float64 rounding of (z - off)/step, q*step and off + q*step: a few ulps of the
     # magnitudes involved; shrink the step by that margin (seed 000 has no formula).
-    margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + eps))
-    step = 2.0 * (eps - margin)
+    margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + e))
+    step = 2.0 * (e - margin)
     if step <= 0:
         raise ValueError(f"codec_error {eps} is below the float64 resolution of the data")
     for _ in range(8):
@@ -408,10 +402,10 @@ def _pointwise_quantizer(eps: float, off: float, vmax: float, any_values: bool,
         err, peak = roundtrip_error(step)  # of codes_to_heights(heights_to_codes)
         if peak >= 2.0**62:
             raise ValueError("heights out of range for the quantizer step")
-        if err <= eps:
+        if err <= e:
             break
         step *= 1.0 - 1e-9
-    return Quantizer("quantized", step, off, eps)
+    return Quantizer("quantized", step, off, eps, bins=W)
 
 
 @njit(cache=True, nogil=True)
