@@ -41,7 +41,8 @@ from geoterrain.codec import (  # noqa: E402
     pyramid_shape,
 )
 from geoterrain.predict import predict  # noqa: E402
-from geoterrain.quantize import choose_quantizer, valid_codes  # noqa: E402
+from geoterrain.quantchoice import choose_quantizer  # noqa: E402
+from geoterrain.quantize import valid_codes  # noqa: E402
 
 
 def entropy_bits(x: np.ndarray) -> float:

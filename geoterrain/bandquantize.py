@@ -1,5 +1,5 @@
 """The height quantizer of a grid read in row bands (issue 12's streaming preprocess; the
-whole-grid twin is :func:`geoterrain.quantize.choose_quantizer`).
+whole-grid twin is :func:`geoterrain.quantchoice.choose_quantizer`).
 
 The same choice from the same statistics, each gathered over bands: whether every
 finite height lies on the code grid and is a float32 (an AND), their count and largest
@@ -15,8 +15,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from geoterrain.quantize import (
-    Quantizer,
+from geoterrain.quantchoice import (
     _grid_checks,
     _roundtrip_error,
     fine_candidates,
@@ -27,6 +26,7 @@ from geoterrain.quantize import (
     grid_bins_quantizer,
     lossy_quantizer,
 )
+from geoterrain.quantize import Quantizer
 
 __all__ = ["band_quantizer"]
 
@@ -82,12 +82,12 @@ def _kth(bands: Bands, k: int, lo: float, hi: float) -> float:
 def band_quantizer(bands: Bands, src_dtype: np.dtype | type | str,
                    codec_error: float | None = None, scale: float | None = None,
                    offset: float | None = None) -> Quantizer:
-    """:func:`~geoterrain.quantize.choose_quantizer` of the heights that ``bands()``
+    """:func:`~geoterrain.quantchoice.choose_quantizer` of the heights that ``bands()``
     yields (arrays of any shape, a fresh iterator per call; non-finite values ignored).
 
     Examples
     --------
-    >>> from geoterrain.quantize import choose_quantizer
+    >>> from geoterrain.quantchoice import choose_quantizer
     >>> z = np.random.default_rng(0).normal(100, 30, (64, 64))
     >>> bands = lambda: (z[i:i + 8] for i in range(0, 64, 8))
     >>> band_quantizer(bands, np.float32, 0.5) == choose_quantizer(z, np.float32, 0.5)
@@ -98,7 +98,7 @@ def band_quantizer(bands: Bands, src_dtype: np.dtype | type | str,
     off = 0.0 if offset is None else float(offset)
     exact, f32, n, vmax = True, True, 0, 0.0
     lo, hi = np.inf, -np.inf
-    # finer grids (quantize.fine_quantizer), checked only once the heights have left
+    # finer grids (quantchoice.fine_quantizer), checked only once the heights have left
     # the integers: an integer passes a binary or float64 decimal step exactly when
     # |x| / step < 2^52, so the integer bands before count through their largest |x|
     # (vmax so far); a candidate rounded to float32 also needs every value to be a

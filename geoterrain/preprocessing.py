@@ -32,7 +32,7 @@ from geoterrain.memory import available_memory
 from geoterrain.mosaic import is_glob, mosaic_name, source_files
 from geoterrain.normals import encode_octahedral, level_normal_maps
 from geoterrain.progress import Progress, StageClock
-from geoterrain.quantize import choose_quantizer
+from geoterrain.quantchoice import choose_quantizer
 from geoterrain.radii import stand_in_z, valid_range, vertex_radii
 from geoterrain.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.schedulers import parse_scheduler

@@ -16,11 +16,10 @@ from geoterrain.codec import (
     pyramid_shape,
     tile_valid,
 )
+from geoterrain.quantchoice import FLOAT_BINS, choose_quantizer
 from geoterrain.quantize import (
-    FLOAT_BINS,
     MAX_BINS,
     Quantizer,
-    choose_quantizer,
     codes_to_heights,
     heights_to_codes,
     roundtrip,

@@ -9,7 +9,7 @@ The oracles are the whole-grid functions in memory:
 :func:`geoterrain.bounds.vertex_errors`, :func:`geoterrain.edgepad.edge_deltas`,
 :func:`geoterrain.tileblobs.radius_codes`,
 :func:`geoterrain.codec.encode_pyramid`, :func:`geoterrain.normals.level_normal_maps`,
-:func:`geoterrain.quantize.choose_quantizer` and
+:func:`geoterrain.quantchoice.choose_quantizer` and
 :func:`geoterrain.tilebounds.tile_and_block_errors`. The streamed values must be the
 same bits for every band or super-tile size, with the per-level arrays in memory or in
 scratch files. That equality is what makes a streaming preprocess give the same store
@@ -35,7 +35,8 @@ from geoterrain.codec import decoded_codes, encode_pyramid
 from geoterrain.edgepad import edge_deltas, edge_support
 from geoterrain.grid import Grid
 from geoterrain.normals import encode_octahedral, level_normal_maps
-from geoterrain.quantize import Quantizer, choose_quantizer
+from geoterrain.quantchoice import choose_quantizer
+from geoterrain.quantize import Quantizer
 from geoterrain.radii import stand_in_z, valid_range
 from geoterrain.scratch import ScratchArrays
 from geoterrain.tileblobs import radius_codes
