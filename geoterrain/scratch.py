@@ -120,19 +120,32 @@ class ScratchArrays:
             out[a - r0:b - r0] = self.read(name, a, b)
         return out
 
-    def write(self, name: str, r0: int, rows: np.ndarray) -> None:
-        """Rows ``r0 …`` from ``rows`` (same column count and dtype)."""
+    def write(self, name: str, r0: int, rows: np.ndarray, c0: int = 0) -> None:
+        """Rows ``r0 …`` from ``rows`` (the dtype's), at columns ``c0 …`` (a block of
+        whole rows when ``rows`` is as wide as the array, else one write a row).
+
+        Examples
+        --------
+        >>> s = ScratchArrays(); s.create("b", (3, 4), np.int8)
+        >>> s.write("b", 1, np.ones((2, 2), np.int8), c0=2); s.read("b", 0, 3).tolist()
+        [[0, 0, 0, 0], [0, 0, 1, 1], [0, 0, 1, 1]]
+        """
         (nr, nc), dt = self._meta[name]
         rows = np.ascontiguousarray(rows, dtype=dt)
-        if rows.ndim != 2 or rows.shape[1] != nc or r0 < 0 or r0 + rows.shape[0] > nr:
+        if rows.ndim != 2 or c0 < 0 or c0 + rows.shape[1] > nc or r0 < 0 \
+                or r0 + rows.shape[0] > nr:
             raise ValueError(f"scratch array {name} {nr}×{nc}: cannot write "
-                             f"{rows.shape} at row {r0}")
+                             f"{rows.shape} at row {r0}, column {c0}")
         if self._path is None:
-            self._mem[name][r0:r0 + rows.shape[0]] = rows
+            self._mem[name][r0:r0 + rows.shape[0], c0:c0 + rows.shape[1]] = rows
             return
-        data = rows.tobytes()
-        if os.pwrite(self._fd[name], data, r0 * nc * dt.itemsize) != len(data):
-            raise OSError(f"scratch array {name}: short write")
+        blocks = [rows] if rows.shape[1] == nc else rows
+        step = rows.shape[0] if rows.shape[1] == nc else 1
+        for k, block in enumerate(blocks):
+            data = block.tobytes()
+            at = ((r0 + k * step) * nc + c0) * dt.itemsize
+            if os.pwrite(self._fd[name], data, at) != len(data):
+                raise OSError(f"scratch array {name}: short write")
 
     def close(self) -> None:
         for fd in self._fd.values():

@@ -5,7 +5,7 @@ After the scan and the quantizer, four passes over the raster are independent: Î
 Î´_edge and the radius codes, the tile table, the normals, and the height blobs. With
 residual bins (a lossy store, :attr:`geoterrain.quantize.Quantizer.bins`) the decoded
 heights depend on the pyramid: the height pass then runs first and writes them to the
-scratch file ``decoded.f8``, which the other three read instead of the raster. Each is
+scratch arrays of ``decoded/``, which the other three read instead of the raster. Each is
 a module-level function of a picklable :class:`Job` (the raster's path and every
 setting), opens the raster itself, and writes into its own folder of the job's scratch
 folder (:meth:`geoterrain.scratch.ScratchArrays.shared`), so any scheduler
@@ -107,21 +107,26 @@ class Job:
         frame = Frame.from_json(self.frame)
         with rasterio.Env(**GDAL_READ_OPTIONS), rasterio.open(self.src) as ds:
             source = Source(ds, grid, self.nodata, self.flip)
+            decoded: list[ScratchArrays] = []  # the height pass's, opened at the first read
 
             def scene(i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
                 z, v = source.rows(i0, i1)
                 if self.q.bins == 1:
                     return frame.z(roundtrip(z, v, self.q)), v  # decoded, scene metres
                 del z  # only the mask: the heights are the height pass's (in place below)
-                h = np.fromfile(os.path.join(self.folder, DECODED), "<f8", (i1 - i0) * N,
-                                offset=i0 * N * 8).reshape(i1 - i0, N)
+                if not decoded:
+                    decoded.append(ScratchArrays.shared(os.path.join(self.folder, DECODED)))
+                h = decoded[0].read("h", i0, i1)
                 h[~v] = np.nan
                 return frame.z(h, out=h), v
 
-            N = grid.size
-
             X, Y = frame.grid_xy(grid.size)
-            yield source, scene, grid, np.ascontiguousarray(X[0]), np.ascontiguousarray(Y[:, 0])
+            try:
+                yield (source, scene, grid, np.ascontiguousarray(X[0]),
+                       np.ascontiguousarray(Y[:, 0]))
+            finally:
+                for a in decoded:
+                    a.close()
 
 
 def _bounds_pass(job: Job) -> tuple:
@@ -176,23 +181,20 @@ def _heights_pass(job: Job) -> dict:
             band_encode_pyramid(source.rows, grid.size, grid.t, job.q, sink=sink,
                                 coarse_max=COARSE_MAX)
             return {"blobs": count[0], "range": None}
-        N = grid.size
-        fd = os.open(os.path.join(job.folder, DECODED), os.O_RDWR | os.O_CREAT | os.O_TRUNC)
+        sa = ScratchArrays.shared(os.path.join(job.folder, DECODED))
         try:
-            os.ftruncate(fd, N * N * 8)
+            sa.create("h", (grid.size, grid.size), np.float64)
 
             def decoded(i0: int, j0: int, codes: np.ndarray, valid: np.ndarray) -> None:
                 h = codes_to_heights(codes, job.q)
                 span[:] = (min(span[0], float(np.min(h, where=valid, initial=np.inf))),
                            max(span[1], float(np.max(h, where=valid, initial=-np.inf))))
-                rows = np.ascontiguousarray(h, "<f8")
-                for r in range(rows.shape[0]):
-                    os.pwrite(fd, rows[r].tobytes(), ((i0 + r) * N + j0) * 8)
+                sa.write("h", i0, h, c0=j0)
 
-            band_encode_pyramid(source.rows, N, grid.t, job.q, sink=sink, decoded=decoded,
-                                coarse_max=COARSE_MAX)
+            band_encode_pyramid(source.rows, grid.size, grid.t, job.q, sink=sink,
+                                decoded=decoded, coarse_max=COARSE_MAX)
         finally:
-            os.close(fd)
+            sa.close()
         return {"blobs": count[0], "range": span}
 
 
@@ -239,7 +241,7 @@ def _load_done(path: str):
 
 PASSES = {"bounds": _bounds_pass, "tiles": _tiles_pass, "normals": _normals_pass,
            "heights": _heights_pass}
-DECODED = "decoded.f8"  # the decoded heights with residual bins (the height pass writes it)
+DECODED = "decoded"  # the decoded heights with residual bins (scratch arrays, by the height pass)
 COARSE_MAX = 1025  # the height pass's coarse grid side (bandcodec.super_level)
 
 
