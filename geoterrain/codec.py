@@ -19,8 +19,14 @@ is *closed loop* on integer codes, so errors never accumulate down the pyramid:
    tile's own grids use :func:`top_bins`. The decoded codes then depend on the pyramid
    (:func:`decoded_codes` computes them coarse to fine, as the encoder does).
 
-Invalid samples are not coded: their decoded code is their prediction (a top-tile
-corner's is the first valid code of the top tile, raster order), so they cost nothing.
+Invalid samples are not coded: their decoded code is their prediction, so they cost
+nothing. In the top tile, whose invalid samples every finer tile is predicted from,
+they are then filled outward from the valid ones (the mean of the nearest, ring by
+ring, :func:`geoterrain.predict.fill_outward`; an invalid corner, which is coded, holds
+that fill of the source's codes): a DEM padded to 2**n + 1 samples otherwise paid for
+its padding's interpolated predictions in every tile along the edge of its data (St
+Helens at ε = 2 m: 1 149 bytes, 651 of them below the top tile, against 624 and 269
+with the fill).
 The residuals are coded by :mod:`geoterrain.entropy` (an adaptive binary range coder
 with contexts), afresh in every tile.
 
@@ -28,7 +34,9 @@ Blob format (version 2), one blob per stored tile::
 
     byte 0   version (2)
     byte 1   flags: bit 0 = top tile; bits 1-2 = mask kind (0 all valid, 1 all
-             invalid, 2 mask stored); bit 3 = cubic predictor; bit 4 = wide
+             invalid, 2 mask stored); bit 3 = cubic predictor; bit 4 = wide; bit 5
+             = filled (a top tile with a stored mask: its invalid samples filled
+             outward after decoding; always set now, absent in older stores)
     byte 2   t (tile size T = 2**t + 1)
     rest     the range-coded stream of :mod:`geoterrain.entropy`: the (T, T) valid mask
              when stored, then the zigzag residuals: for the top tile the 4 corners
@@ -55,7 +63,7 @@ import numpy as np
 from geoterrain import entropy
 from geoterrain.entropy import MASK_ALL_INVALID, MASK_ALL_VALID, MASK_STORED
 from geoterrain.grid import footprint_counts, level_tiles
-from geoterrain.predict import cubic_child, fill_level, linear_child, predict
+from geoterrain.predict import cubic_child, fill_level, fill_outward, linear_child, predict
 from geoterrain.quantize import Quantizer, codes_to_heights, roundtrip, valid_codes
 from geoterrain.threads import cores_for
 from geoterrain.zstdsafe import compress_many, decompress
@@ -76,18 +84,36 @@ _HEADER = 3
 
 
 def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool, W: int = 1) -> None:
-    """In place on the top tile's codes: an invalid corner takes the first valid code
-    (raster order; 0 when none), an invalid sample of its finer grids its prediction, a
-    valid one its code in residual bins ``W`` (:func:`geoterrain.predict.fill_level`)."""
-    v = valid.ravel()
-    first = top.ravel()[int(np.argmax(v))] if v.any() else 0
-    last = top.shape[0] - 1
-    for i in (0, last):
-        for j in (0, last):
-            if not valid[i, j]:
-                top[i, j] = first
-    for k in range(te - 1, -1, -1):  # its own levels: 2**te exceeds their intervals
-        fill_level(top, valid, 1 << k, _period(te, cubic), W)
+    """In place on the top tile's codes, what its decoding gives (:func:`entropy._top`):
+    an invalid corner holds the fill of the source's codes (the encoder is free to
+    choose it: the corners are coded); then level by level of its own grid, a valid
+    sample its code in residual bins ``W`` (:func:`geoterrain.predict.fill_level`) and,
+    once the level is decoded, every invalid sample its fill from the valid ones and
+    the corners (:func:`geoterrain.predict.fill_outward`), which the next level and
+    the finer tiles are predicted from."""
+    P = _period(te, cubic)
+    if valid.all():
+        for k in range(te - 1, -1, -1):  # its own levels: 2**te exceeds their intervals
+            fill_level(top, valid, 1 << k, P, W)
+        return
+    near = np.array(top)  # a contiguous copy
+    fill_outward(near, np.ascontiguousarray(valid))
+    corners = _corners(top.shape[0])
+    top[corners] = np.where(valid[corners], top[corners], near[corners])
+    known = valid | corners
+    for k in range(te - 1, -1, -1):
+        s = 1 << k
+        fill_level(top, valid, s, P, W)
+        level = np.array(top[::s, ::s])
+        fill_outward(level, np.ascontiguousarray(known[::s, ::s]))
+        top[::s, ::s] = level
+
+
+def _corners(size: int) -> np.ndarray:
+    # a (size, size) mask of the 4 corners
+    c = np.zeros((size, size), bool)
+    c[::size - 1, ::size - 1] = True
+    return c
 
 
 def top_bins(bins: int) -> int:
@@ -131,7 +157,9 @@ def pyramid_shape(n_samples: int, t: int) -> tuple[int, int]:
 
 
 def _header(top: bool, mask_kind: int, t: int, cubic: bool, w: int | None = None) -> bytes:
+    # a top tile with invalid samples always has them filled outward (_top_fill)
     flags = int(top) | (mask_kind << 1) | (int(cubic) << 3)
+    flags |= _FILLED if top and mask_kind == MASK_STORED else 0
     if w is None:
         return bytes((BLOB_VERSION, flags, t))
     return bytes((BLOB_VERSION, flags | _WIDE, t, w))  # a wide blob
@@ -188,8 +216,9 @@ def decoded_codes(
 ) -> np.ndarray:
     """Codes (N, N) int64 that decoding every tile gives, invalid samples included.
 
-    Level by level on the full grid: valid samples keep their code; an invalid corner
-    of the top tile takes its first valid code, every other invalid sample its
+    Level by level on the full grid: valid samples keep their code (or its bins); an
+    invalid sample of the top tile ends as the mean of the nearest valid ones
+    (:func:`geoterrain.predict.fill_outward`), every other invalid sample its
     prediction from the coarser samples. ``predictor`` as for :func:`encode_pyramid`.
 
     Examples
@@ -321,7 +350,7 @@ def _encode_top(d, valid, te, lmax, cubic, bins=1) -> bytes:
     top, vt = np.ascontiguousarray(d[::s, ::s]), np.ascontiguousarray(valid[::s, ::s])
     kind = int(_mask_kind(int(vt.sum()), vt.size))
     return _header(True, kind, te, cubic) + entropy.encode_top(top, vt, te, cubic, kind,
-                                                               top_bins(bins))
+                                                               top_bins(bins), True)
 
 
 def _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts=None,
@@ -358,6 +387,7 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts=None,
 
 
 _WIDE, _WIDE_LEVEL = 16, 6  # the wide blobs' flag bit and zstd level
+_FILLED = 32  # the top tile's flag bit: its invalid samples filled outward (_top_fill)
 _UINTS = {1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}
 
 
@@ -419,7 +449,9 @@ def _parse(blob: bytes, t: int | None = None) -> tuple[bool, int, int, bool, int
     if len(blob) < _HEADER or blob[0] != BLOB_VERSION:
         raise ValueError(f"not a version-{BLOB_VERSION} tile blob")
     top, kind, te = bool(blob[1] & 1), (blob[1] >> 1) & 3, blob[2]
-    if blob[1] & ~0b11111 or kind > MASK_STORED or not 1 <= te <= 15 or (t is not None and te != t):
+    filled_ok = not blob[1] & _FILLED or (top and kind == MASK_STORED)
+    if blob[1] & ~0b111111 or kind > MASK_STORED or not 1 <= te <= 15 or not filled_ok \
+            or (t is not None and te != t):
         raise ValueError("tile blob header does not match the store's grid")
     if not blob[1] & _WIDE:
         return top, kind, te, bool(blob[1] & 8), -1, np.frombuffer(blob, np.uint8,
@@ -509,7 +541,8 @@ def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
     """
     top, kind, te, cubic, w, data = _parse(blob, t)
     if top:
-        codes, valid, exact = entropy.decode_top(data, te, cubic, kind, top_bins(bins))
+        codes, valid, exact = entropy.decode_top(data, te, cubic, kind, top_bins(bins),
+                                                 bool(blob[1] & _FILLED))
         if not exact:
             raise ValueError(_NOT_A_STREAM)
         return codes, valid

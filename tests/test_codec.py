@@ -254,6 +254,63 @@ def test_decode_tile_direct_api_and_errors():
         decode_tile(b"\x09" + blobs[(0, 0, 0)][1:], top, qz)
 
 
+def test_a_padded_dem_pays_little_for_its_padding():
+    """A DEM padded to 2**n + 1 (its last row and column invalid) costs about what the
+    same surface costs with them valid: the top tile's invalid samples are filled
+    outward from the data, so the tiles along the data's edge are predicted from it.
+    Measured 1.04-1.05 lossless and 1.52-1.64 with ε = 1 (mostly the edge tiles'
+    masks); with the invalid samples' interpolated predictions, 1.13-1.20 and 2.10-2.54."""
+    n = 129
+    y, x = np.mgrid[0:n, 0:n].astype(float)
+    padded = (y < n - 1) & (x < n - 1)
+    for z in (0.004 * ((x - 50) ** 2 + (y - 70) ** 2) + 6 * np.sin(x / 13) * np.cos(y / 17)
+              + 3 * x, np.hypot(x - 64, y - 80) * 1.7 + 2 * np.sin((x + y) / 9)):
+        for eps, bound in ((None, 1.1), (1.0, 1.8)):
+            zz = np.round(z) if eps is None else z
+            q = choose_quantizer(zz[padded], np.float64, codec_error=eps)
+            whole = encode_pyramid(zz, np.ones((n, n), bool), 4, q)
+            blobs = check_pyramid(zz, padded, 4, q, codec_error=eps or 0.0)
+            assert sum(map(len, blobs.values())) <= bound * sum(map(len, whole.values()))
+
+
+# Blobs and decoded codes written by the codec before the top tile's outward fill
+# (a 9 x 9 int grid, 3 y + 2 x + (x y) // 3 on its first 7 rows and columns, t = 2, the
+# linear predictor): the decoder must still give the codes that codec gave.
+_BEFORE_FILL = {
+    (0, 0, 0): "02000227c86e3860", (0, 0, 1): "020402fd6befbc", (0, 1, 0): "020402d1ac868202",
+    (0, 1, 1): "020402d1a9f513fa", (1, 0, 0): "020502dc721af55ad926d39fff40b5e583e5fe",
+}
+_BEFORE_FILL_CODES = [
+    [0, 2, 4, 6, 8, 10, 12, 6, 0], [3, 5, 7, 10, 12, 14, 17, 8, 0],
+    [6, 8, 11, 14, 16, 19, 22, 11, 0], [9, 12, 15, 18, 21, 24, 27, 13, 0],
+    [12, 15, 18, 22, 25, 28, 32, 16, 0], [15, 18, 22, 26, 29, 33, 37, 18, 0],
+    [18, 22, 26, 30, 34, 38, 42, 21, 0], [9, 11, 13, 15, 17, 19, 21, 10, 0],
+    [0, 0, 0, 0, 0, 0, 0, 0, 0]]
+
+
+def test_a_store_from_before_the_fill_decodes_as_before():
+    """A top blob without the ``filled`` flag decodes its invalid samples to their
+    predictions, as the codec that wrote it did; one written now has the flag, and the
+    flag on a tile it does not belong to is refused."""
+    qz = Quantizer("int")
+    blobs = {k: bytes.fromhex(v) for k, v in _BEFORE_FILL.items()}
+    levels = decode_all(blobs, 9, 2, qz)
+    want = np.array(_BEFORE_FILL_CODES)
+    assert np.array_equal(levels[0][0], want)
+    assert np.array_equal(levels[1][0], want[::2, ::2])
+    i, j = np.mgrid[0:9, 0:9]
+    z = (3 * i + 2 * j + (i * j) // 3).astype(float)
+    now = encode_pyramid(z, (i < 7) & (j < 7), 2, qz, predictor="linear")
+    assert now[(1, 0, 0)][1] & 32 and not any(b[1] & 32 for k, b in now.items() if k[0] == 0)
+    assert np.array_equal(decode_all(now, 9, 2, qz)[0][0][:7, :7], want[:7, :7])
+    bad = blobs[(0, 1, 1)]
+    with pytest.raises(ValueError, match="header"):
+        decode_tile(bad[:1] + bytes([bad[1] | 32]) + bad[2:], levels[1][0], qz, (1, 1))
+    full = encode_pyramid(z, np.ones((9, 9), bool), 2, qz)[(1, 0, 0)]  # all valid: no flag
+    with pytest.raises(ValueError, match="header"):
+        decode_tile(full[:1] + bytes([full[1] | 32]) + full[2:], None, qz)
+
+
 # ----------------------------------------------------------------------------- invalid data
 
 
