@@ -578,7 +578,8 @@ def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int,
     """The stream of the top tile ``top`` ((2^te + 1)² codes; an invalid corner holds
     its fill, other invalid samples are not coded) with valid mask ``ok`` and residual
     bins ``W`` (its grids already binned, :func:`geoterrain.codec._top_fill`; the
-    corners are exact).
+    corners are exact); ``filled``: its invalid samples filled outward after each of its
+    levels (:func:`_top`), as that fill did.
 
     Examples
     --------
