@@ -94,28 +94,21 @@ def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool, W: int =
     the corners (:func:`geoterrain.predict.fill_outward`), which the next level and
     the finer tiles are predicted from."""
     P = _period(te, cubic)
-    if valid.all():
-        for k in range(te - 1, -1, -1):  # its own levels: 2**te exceeds their intervals
-            fill_level(top, valid, 1 << k, P, W)
-        return
-    near = np.array(top)  # a contiguous copy
-    fill_outward(near, np.ascontiguousarray(valid))
-    corners = _corners(top.shape[0])
-    top[corners] = np.where(valid[corners], top[corners], near[corners])
-    known = valid | corners
-    for k in range(te - 1, -1, -1):
+    filled = not valid.all()
+    if filled:
+        c = top.shape[0] - 1  # the corners: [::c, ::c]
+        near = np.array(top)  # a contiguous copy
+        fill_outward(near, np.ascontiguousarray(valid))
+        top[::c, ::c] = np.where(valid[::c, ::c], top[::c, ::c], near[::c, ::c])
+        known = valid.copy()
+        known[::c, ::c] = True
+    for k in range(te - 1, -1, -1):  # its own levels: 2**te exceeds their intervals
         s = 1 << k
         fill_level(top, valid, s, P, W)
-        level = np.array(top[::s, ::s])
-        fill_outward(level, np.ascontiguousarray(known[::s, ::s]))
-        top[::s, ::s] = level
-
-
-def _corners(size: int) -> np.ndarray:
-    # a (size, size) mask of the 4 corners
-    c = np.zeros((size, size), bool)
-    c[::size - 1, ::size - 1] = True
-    return c
+        if filled:
+            level = np.array(top[::s, ::s])
+            fill_outward(level, np.ascontiguousarray(known[::s, ::s]))
+            top[::s, ::s] = level
 
 
 def top_bins(bins: int) -> int:
