@@ -31,8 +31,7 @@ from geoterrain.codec import (
     _period,
     _predictor_bits,
     _predictor_crop,
-    decoded_codes,
-    encode_pyramid,
+    encode_decoded,
     pyramid_shape,
 )
 from geoterrain.grid import footprint_counts
@@ -97,6 +96,7 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
     >>> z = np.round(rng.normal(0, 9, (65, 65)).cumsum(0)); v = rng.random((65, 65)) > 0.1
     >>> q = Quantizer("int")
     >>> a = band_encode_pyramid(window_of(z, v), 65, 3, q, coarse_max=9)
+    >>> from geoterrain.codec import encode_pyramid
     >>> a == encode_pyramid(z, v, 3, q)
     True
     """
@@ -105,9 +105,9 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
     k = super_level(N, t, coarse_max)
     if k == 0:
         z, v = window(0, N, 0, N)
-        out = encode_pyramid(z, v, t, quantizer, predictor=predictor)
+        out, d = encode_decoded(z, v, t, quantizer, predictor=predictor)
         if decoded is not None:
-            decoded(0, 0, decoded_codes(z, v, t, quantizer, predictor), np.asarray(v, bool))
+            decoded(0, 0, d, np.asarray(v, bool))
         if sink is None:
             return out
         sink(out)

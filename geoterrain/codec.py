@@ -78,6 +78,7 @@ __all__ = [
     "tile_valid",
     "decoded_codes",
     "decoded_heights",
+    "encode_decoded",
     "pyramid_shape",
 ]
 
@@ -313,6 +314,27 @@ def encode_pyramid(
     >>> sorted(encode_pyramid(z, v, 1, Quantizer("int")))
     [(0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1), (1, 0, 0)]
     """
+    return encode_decoded(z, valid, t, quantizer, progress, predictor)[0]
+
+
+def encode_decoded(
+    z: np.ndarray,
+    valid: np.ndarray,
+    t: int,
+    quantizer: Quantizer,
+    progress: Callable[[int, int], None] | None = None,
+    predictor: str = "auto",
+) -> tuple[dict[tuple[int, int, int], bytes], np.ndarray]:
+    """:func:`encode_pyramid`'s blobs and the (N, N) codes decoding them gives
+    (:func:`decoded_codes`), which the encoder computes on its way.
+
+    Examples
+    --------
+    >>> z = np.arange(25.0).reshape(5, 5); v = np.ones((5, 5), bool)
+    >>> blobs, d = encode_decoded(z, v, 1, Quantizer("int"))
+    >>> blobs == encode_pyramid(z, v, 1, Quantizer("int")), int(d[2, 3])
+    (True, 13)
+    """
     valid = np.asarray(valid, dtype=bool)
     z = np.asarray(z, dtype=np.float64)
     if z.shape != valid.shape or z.ndim != 2 or z.shape[0] != z.shape[1]:
@@ -320,17 +342,16 @@ def encode_pyramid(
     n, te = pyramid_shape(z.shape[0], t)
     lmax = n - te
     out: dict[tuple[int, int, int], bytes] = {}
-    if not valid.any():
-        return out
     d = valid_codes(z, valid, quantizer)  # heights_to_codes(where(valid, z, 0))
     cubic = _resolve_predictor(predictor, d, valid, te, lmax)
     d = _decoded_codes(d, valid, te, lmax, cubic, quantizer.bins)
-
+    if not valid.any():
+        return out, d
     out[(lmax, 0, 0)] = _encode_top(d, valid, te, lmax, cubic, quantizer.bins)
     with cores_for(d.size):  # small grids on one thread (geoterrain/threads.py)
         _encode_levels(out, d, valid, n, te, lmax, cubic, progress,
                        wide=quantizer.mode == "float", bins=quantizer.bins)
-    return out
+    return out, d
 
 
 def _mask_kind(nvalid, size: int):

@@ -15,7 +15,7 @@ from numba import njit
 
 from geoterrain.atomicfiles import remove_stale_partials
 from geoterrain.bounds import saturate, vertex_errors
-from geoterrain.codec import decoded_heights, encode_pyramid
+from geoterrain.codec import decoded_heights, encode_decoded, encode_pyramid
 from geoterrain.curvature import metric_bounds, metric_terms
 from geoterrain.edgepad import (
     edge_deltas,
@@ -33,6 +33,7 @@ from geoterrain.mosaic import is_glob, mosaic_name, source_files
 from geoterrain.normals import encode_octahedral, level_normal_maps
 from geoterrain.progress import Progress, StageClock
 from geoterrain.quantchoice import choose_quantizer
+from geoterrain.quantize import codes_to_heights
 from geoterrain.radii import stand_in_z, valid_range, vertex_radii
 from geoterrain.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.schedulers import parse_scheduler
@@ -254,8 +255,11 @@ def preprocess(
     # the valid heights: NaN elsewhere, which the quantiser ignores
     q = choose_quantizer(heights, r.src_dtype, codec_error=codec_error, scale=r.scale,
                          offset=r.offset)
-    if q.bins > 1:  # residual bins: decoded through the pyramid (codec.decoded_codes)
-        Z = decoded_heights(heights, valid, q, t=grid.t)
+    height_blobs = None
+    if q.bins > 1:  # residual bins: the heights depend on the pyramid, coded here once
+        height_blobs, codes = encode_decoded(heights, valid, grid.t, q)
+        Z = codes_to_heights(codes, q)
+        del codes
         Z[~valid] = np.nan
     else:
         Z = decoded_heights(heights, valid, q)  # NaN where invalid
@@ -300,7 +304,8 @@ def preprocess(
                   for n in level_normal_maps(X, Y, Z, valid, grid.top_level + 1)]
     stage("normals")
 
-    height_blobs = encode_pyramid(heights, valid, grid.t, q)
+    if height_blobs is None:
+        height_blobs = encode_pyramid(heights, valid, grid.t, q)
     # δ: 8-bit log codes rounded up (saturation survives: one monotone map per store);
     # r: 8-bit log codes rounded up, nested on the codes. Below the top level only the
     # vertices new at the level are stored; the others are the parent's (vertexdata.py).
