@@ -76,8 +76,6 @@ _TOP = 1 << 24
 _INV = np.array([(1 << 32) // (2 * n + 2) for n in range(LIMIT + 2)], np.int64)
 
 
-
-
 # The coder's state is five int64 scalars S = (x, range, cache, cache size, position),
 # passed and returned (never an array: kept in registers, a decision costs ~4 ns, not
 # ~15); x is the encoder's low or the decoder's code. Past ``buf`` the encoder writes
@@ -541,10 +539,8 @@ def level_zigzag(d, s, h, P, ys, xs, zz, zmax):
 def _top(enc, buf, top, ok, te, cubic, kind, W, filled):
     """The top tile coarse to fine inside itself: its 4 corners (deltas), then each
     level of its own grid (stride 2^k, residual bins ``W``) as a child of the next
-    coarser (:func:`_child`, the whole of it), one set of models throughout.
-    ``filled``: after each level, its invalid samples are filled outward from its valid
-    ones and the corners (:func:`geoterrain.predict.fill_outward`), so that the next
-    level is predicted from them and not from interpolated fills."""
+    coarser (:func:`_child`, the whole of it), one set of models throughout; with
+    ``filled``, each level's invalid samples then filled outward (``fill_outward``)."""
     S = _start(enc, buf)
     m = np.zeros((_ROWS, 2), np.int64)
     if kind == MASK_STORED:
@@ -575,11 +571,9 @@ def _top(enc, buf, top, ok, te, cubic, kind, W, filled):
 
 def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int,
                W: int = 1, filled: bool = False) -> bytes:
-    """The stream of the top tile ``top`` ((2^te + 1)² codes; an invalid corner holds
-    its fill, other invalid samples are not coded) with valid mask ``ok`` and residual
-    bins ``W`` (its grids already binned, :func:`geoterrain.codec._top_fill`; the
-    corners are exact); ``filled``: its invalid samples filled outward after each of its
-    levels (:func:`_top`), as that fill did.
+    """The stream of the top tile ``top`` ((2^te + 1)² codes, as
+    :func:`geoterrain.codec._top_fill` leaves them: binned, invalid corners filled;
+    other invalid samples are not coded), mask ``ok``, bins ``W``, ``filled`` (:func:`_top`).
 
     Examples
     --------
