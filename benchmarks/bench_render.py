@@ -9,7 +9,10 @@ whole-DEM texture) and the draw with
 read-back. The first frame of a configuration is reported apart (cold); the
 medians are over the other, warm, frames. Bruteforce is drawn on every
 ``--brute-every``-th view only (each of its frames draws every level-0 tile), and
-the LOD/bruteforce ratio is taken over those same views.
+the LOD/bruteforce ratio is taken over those same views. The frame's CPU time (the
+process's, the software renderer's threads included) is reported beside its wall
+time, and the host's load average before and after: on a shared machine the wall
+time of the same work moves with the load, its CPU time much less.
 
     PYTHONPATH=. python benchmarks/bench_render.py STORE [--views 24] [--size 1280x720]
         [--tau 1] [--strategies rtin] [--brute-every 4] [--global] [--json out.json]
@@ -24,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import statistics
 import time
 
@@ -67,7 +71,8 @@ def run_config(store: str, views, strategy: str, textures: str, tau: float, pick
                     continue
                 _, st = scene.frame(v, tau, strategy)
                 frames.append({"view": k, "kind": kind, **{key: st[key] for key in (
-                    "frame_ms", "select_ms", "texture_ms", "render_ms", "triangles",
+                    "frame_ms", "select_ms", "texture_ms", "render_ms", "cpu_ms",
+                    "render_cpu_ms", "triangles",
                     "tiles_decoded", "normals_decoded", "textures_built", "bytes_read",
                     "peak_rss_mb")}})
         finally:
@@ -98,6 +103,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--json")
     a = ap.parse_args(argv)
     size = tuple(int(s) for s in a.size.split("x"))
+    load0 = os.getloadavg()[0]
     with geoterrain.open(a.store) as t:
         views = flight(t, a.views, size)
     brute_views = set(range(0, len(views), max(1, a.brute_every)))
@@ -114,10 +120,13 @@ def main(argv=None) -> dict:
         runs.append(brute)
         bmed = _med(brute["frames"])
     print(f"{len(views)} views, {size[0]}×{size[1]}, τ = {a.tau:g}, anti-aliasing "
-          f"{a.anti_aliasing}; bruteforce on {0 if brute is None else len(brute_views)} of them")
+          f"{a.anti_aliasing}; bruteforce on {0 if brute is None else len(brute_views)} of them; "
+          f"load average {load0:.2f} before, {os.getloadavg()[0]:.2f} after, "
+          f"{os.cpu_count()} cores")
     print("| strategy | textures | setup ms | cold frame ms | warm frame ms (median) | "
-          "select | texture | draw | ratio to bruteforce (same views) |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "select | texture | draw | frame CPU ms | draw CPU ms | "
+          "ratio to bruteforce (same views) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in runs:
         fr = r["frames"]
         warm = fr[1:] if len(fr) > 1 else fr
@@ -125,11 +134,14 @@ def main(argv=None) -> dict:
         r["summary"] = {"cold_frame_ms": fr[0]["frame_ms"], "warm_frame_ms": _med(warm),
                         "select_ms": _med(warm, "select_ms"),
                         "texture_ms": _med(warm, "texture_ms"),
-                        "render_ms": _med(warm, "render_ms"), "ratio_to_bruteforce": ratio}
+                        "render_ms": _med(warm, "render_ms"), "cpu_ms": _med(warm, "cpu_ms"),
+                        "render_cpu_ms": _med(warm, "render_cpu_ms"),
+                        "ratio_to_bruteforce": ratio}
         sm = r["summary"]
         print(f"| {r['strategy']} | {r['textures']} | {r['setup_ms']:.0f} | "
               f"{sm['cold_frame_ms']:.0f} | {sm['warm_frame_ms']:.0f} | {sm['select_ms']:.0f} | "
-              f"{sm['texture_ms']:.0f} | {sm['render_ms']:.0f} | {ratio:.1f}× |")
+              f"{sm['texture_ms']:.0f} | {sm['render_ms']:.0f} | {sm['cpu_ms']:.0f} | "
+              f"{sm['render_cpu_ms']:.0f} | {ratio:.1f}× |")
     out = {"views": len(views), "size": list(size), "tau": a.tau, "runs": runs}
     if a.json:
         with open(a.json, "w") as fh:

@@ -230,20 +230,24 @@ class TerrainScene:
         The stats count what the whole frame did (selection and texture):
         ``tiles_decoded`` (heights), ``normals_decoded``, ``bounds_decoded`` (δ, r),
         ``textures_built``, ``bytes_read`` and ``peak_rss_mb`` (the process's peak
-        resident memory so far), besides the selection's own stats.
+        resident memory so far), besides the selection's own stats. Times: ``select_ms``,
+        ``texture_ms``, ``render_ms`` (the draw and read-back) and ``frame_ms``, wall
+        clock; ``cpu_ms`` and ``render_cpu_ms``, the process's CPU time over the frame
+        and over the draw, the renderer's threads included (a software renderer draws
+        on every core, so ``render_cpu_ms`` can exceed ``render_ms``).
         """
         t = self.terrain
         if view.near is None or view.far is None:  # the picture's own clipping planes
             view = view.clipped_to(*t.scene_box())
         c0 = io_counters(t)
-        t0 = time.perf_counter()
+        t0, p0 = time.perf_counter(), time.process_time()
         sel = lod.select(t, view, pixel_error=pixel_error, strategy=strategy)
         t1 = time.perf_counter()
         self.update(sel, view)
         self.set_camera(view)
-        t2 = time.perf_counter()
+        t2, p2 = time.perf_counter(), time.process_time()
         img = _draw(self.plotter)
-        t3 = time.perf_counter()
+        t3, p3 = time.perf_counter(), time.process_time()
         c1 = io_counters(t)
         stats = {**sel.stats, "select_tiles_decoded": sel.stats.get("tiles_decoded", 0),
                  **{k: c1[k] - c0[k] for k in c0},
@@ -253,7 +257,9 @@ class TerrainScene:
                  "peak_rss_mb": round(peak_rss() / 2**20, 1),
                  "update_ms": round((t2 - t1) * 1e3, 3),
                  "render_ms": round((t3 - t2) * 1e3, 3),
-                 "frame_ms": round((t3 - t0) * 1e3, 3)}
+                 "frame_ms": round((t3 - t0) * 1e3, 3),
+                 "cpu_ms": round((p3 - p0) * 1e3, 3),
+                 "render_cpu_ms": round((p3 - p2) * 1e3, 3)}
         return img, stats
 
     def terrain_fraction(self) -> float:

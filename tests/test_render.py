@@ -707,3 +707,20 @@ def test_frame_reads_the_picture_just_drawn(tmp_path_factory, aa):
         assert psnr(b, shot) >= 30.0, psnr(b, shot)
     else:
         assert psnr(b, shot) >= (38.0 if aa == "msaa" else 99.0), psnr(b, shot)  # 41.6 measured
+
+
+def test_frame_reports_its_cpu_time(tmp_path_factory):
+    """``frame`` reports the process's CPU time over the frame and over its draw (the
+    renderer's threads included): measured, not copied from the wall clock, and the
+    draw's part of the frame's."""
+    t = synth_store(tmp_path_factory, "draw", size=129)
+    size = (240, 160)
+    scene = TerrainScene(_plotter(size), t)
+    try:
+        stats = [scene.frame(default_view(t, size, az), 1.0)[1] for az in (30.0, 150.0)]
+    finally:
+        scene.plotter.close()
+    for st_ in stats:
+        assert 0.0 < st_["render_cpu_ms"] <= st_["cpu_ms"], st_
+        assert st_["cpu_ms"] != st_["frame_ms"]  # its own clock
+        assert st_["render_ms"] <= st_["frame_ms"]
