@@ -1,8 +1,9 @@
 """Anti-aliasing of a rendered picture on the CPU: FXAA as a compiled post-pass.
 
 A software OpenGL renderer (Mesa's llvmpipe, what offscreen VTK uses on a machine
-without a GPU) shades every sample of a multisampled frame: 4× MSAA made a 1280×720
-terrain frame 3–4× slower to draw (12 → 51 ms at 18 k triangles, 22 → 70 ms at 42 k).
+without a GPU) tests depth and writes colour for every sample of a multisampled frame
+(its compiled fragment code loops over the samples): 4× MSAA made a 1280×720 terrain
+frame 2–4× slower to draw (12 → 51 ms at 18 k triangles, 22 → 70 ms at 42 k).
 VTK's own FXAA pass costs as much there. This is Lottes's FXAA 3.11 "quality" filter
 (NVIDIA, 2011) run on the read-back picture: find luma edges, estimate each edge
 pixel's coverage from the length of the edge span it lies on and the sub-pixel luma
