@@ -16,7 +16,7 @@ time of the same work moves with the load, its CPU time much less.
 
     PYTHONPATH=. python benchmarks/bench_render.py STORE [--views 24] [--size 1280x720]
         [--tau 1] [--strategies rtin] [--brute-every 4] [--global] [--json out.json]
-        [--anti-aliasing msaa|fxaa|none] [--skip-bruteforce]
+        [--anti-aliasing auto|msaa|edges|fxaa|none] [--skip-bruteforce]
 
 ``--global`` adds the previous whole-DEM texture (``textures="global"``) as a
 baseline measured in the same run.
@@ -58,7 +58,7 @@ def flight(t, n: int, size: tuple[int, int]) -> list[tuple[str, View]]:
 
 
 def run_config(store: str, views, strategy: str, textures: str, tau: float, pick=None,
-               anti_aliasing: str = "msaa") -> dict:
+               anti_aliasing: str = "auto") -> dict:
     """Frame stats of one configuration over ``views`` (indices ``pick``), cold store."""
     t0 = time.perf_counter()
     with geoterrain.open(store) as t:
@@ -72,7 +72,7 @@ def run_config(store: str, views, strategy: str, textures: str, tau: float, pick
                 _, st = scene.frame(v, tau, strategy)
                 frames.append({"view": k, "kind": kind, **{key: st[key] for key in (
                     "frame_ms", "select_ms", "texture_ms", "render_ms", "cpu_ms",
-                    "render_cpu_ms", "triangles",
+                    "render_cpu_ms", "anti_aliasing", "triangles",
                     "tiles_decoded", "normals_decoded", "textures_built", "bytes_read",
                     "peak_rss_mb")}})
         finally:
@@ -96,9 +96,12 @@ def main(argv=None) -> dict:
     ap.add_argument("--strategies", default="rtin")
     ap.add_argument("--brute-every", type=int, default=4)
     ap.add_argument("--global", dest="glob", action="store_true")
-    ap.add_argument("--anti-aliasing", default="msaa", choices=ANTI_ALIASING,
-                    help="msaa: the renderer's multisampling; fxaa: the CPU pass over the "
-                    "read-back picture (geoterrain.antialias); none")
+    ap.add_argument("--anti-aliasing", default="auto", choices=ANTI_ALIASING,
+                    help="auto (the default: edges where a frame's silhouettes are sparse, "
+                    "else msaa); msaa: the renderer's multisampling; edges: the mesh's "
+                    "silhouette edges blended by their coverage (geoterrain.edgeaa); "
+                    "fxaa: the CPU pass over the read-back picture (geoterrain.antialias); "
+                    "none")
     ap.add_argument("--skip-bruteforce", action="store_true")
     ap.add_argument("--json")
     a = ap.parse_args(argv)

@@ -129,11 +129,15 @@ def _set_anti_aliasing(ctx, param, value):
 
 
 anti_aliasing_option = click.option(
-    "--anti-aliasing", type=click.Choice(["msaa", "fxaa", "none"]), default="msaa",
-    show_default=True, expose_value=False, callback=_set_anti_aliasing,
-    help="Smoothing of jagged edges in pictures: msaa (the renderer's multisampling), "
-         "fxaa (a pass over each picture on the CPU along its depth edges; 3-4x faster "
-         "to draw on a software renderer, within 1 dB of msaa), or none.")
+    "--anti-aliasing", type=click.Choice(["auto", "msaa", "edges", "fxaa", "none"]),
+    default="auto", show_default=True, expose_value=False, callback=_set_anti_aliasing,
+    help="Smoothing of jagged edges in pictures: auto (edges for a picture whose "
+         "silhouettes are sparse, else msaa), msaa (the renderer's multisampling), edges "
+         "(the mesh's silhouette edges blended by their exact coverage on the CPU: about "
+         "half the draw on a software renderer; as close to a supersampled picture as "
+         "msaa where silhouettes are long edges, worse where steep thin facets crowd a "
+         "pixel), fxaa (a pass over each picture on the CPU along its depth edges), or "
+         "none.")
 
 
 def _set_morphing(ctx, param, value):

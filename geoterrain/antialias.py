@@ -196,15 +196,18 @@ def fxaa(img: np.ndarray, depth: np.ndarray | None = None, subpix: float = SUBPI
     return out
 
 
-ANTI_ALIASING = ("msaa", "fxaa", "none")
+ANTI_ALIASING = ("auto", "msaa", "edges", "fxaa", "none")
 _AA: contextvars.ContextVar[str] = contextvars.ContextVar("geoterrain_anti_aliasing",
-                                                         default="msaa")
+                                                         default="auto")
 
 
 @contextlib.contextmanager
 def anti_aliasing(mode: str) -> Iterator[None]:
-    """Scope the anti-aliasing of the offscreen pictures rendered inside (``msaa``, the
-    renderer's multisampling; ``fxaa``, :func:`fxaa` on each read-back picture; ``none``);
+    """Scope the anti-aliasing of the offscreen pictures rendered inside (``auto``, the
+    default: ``edges`` for a frame whose silhouettes are sparse, else ``msaa``;
+    ``msaa``, the renderer's multisampling; ``edges``, the mesh's silhouette edges
+    blended by their coverage, :mod:`geoterrain.edgeaa`; ``fxaa``, :func:`fxaa` on each
+    read-back picture; ``none``);
     a command's ``--anti-aliasing`` sets it for its whole run
     (:func:`geoterrain.rendering._plotter` reads it).
 
@@ -214,7 +217,7 @@ def anti_aliasing(mode: str) -> Iterator[None]:
     ...     _AA.get()
     'fxaa'
     >>> _AA.get()
-    'msaa'
+    'auto'
     """
     if mode not in ANTI_ALIASING:
         raise UsageError(f"unknown anti-aliasing {mode!r}; use {', '.join(ANTI_ALIASING)}")

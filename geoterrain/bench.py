@@ -317,7 +317,7 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
         views = flight(*extent(X, Y, Z), n_views=n_views)
     res = BenchResult(views=list(views))
     scene = None
-    aa = ""  # the pictures' anti-aliasing (msaa, fxaa or none) when they are drawn
+    aa = ""  # the pictures' anti-aliasing (edges, msaa, fxaa or none) when they are drawn
     if render:
         scene = _renderer(views[0][1].size, terrain)
         aa = str(getattr(scene.plotter, "_geoterrain_aa", ""))
@@ -342,11 +342,12 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
                     sel = lod.select(terrain, view, pixel_error=float(tau), strategy=strategy,
                                      reuse=False)
                     peak = _selection_peak(terrain, view, float(tau), strategy)
-                    render_ms, textures_built = float("nan"), 0
+                    render_ms, textures_built, frame_aa = float("nan"), 0, aa
                     if scene is not None:
                         _, rs = scene.frame(view, float(tau), strategy)  # reuses the selection
                         render_ms = float(rs["update_ms"] + rs["render_ms"])
                         textures_built = int(rs.get("textures_built", 0))
+                        frame_aa = str(rs.get("anti_aliasing", aa))  # auto: the one taken
                     pts = np.asarray(sel.mesh.points, np.float64)
                     faces = sel.surface_faces()
                     ij = sel.ij
@@ -373,7 +374,7 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
                     res.rows.append({
                         "source": source, "frame": fi, "view": kind, "strategy": strategy,
                         "tau": float(tau), "select_ms": float(st["select_ms"]),
-                        "render_ms": render_ms, "anti_aliasing": aa,
+                        "render_ms": render_ms, "anti_aliasing": frame_aa,
                         "triangles": int(st["triangles"]),
                         "skirt_triangles": int(st.get("skirt_triangles", 0)),
                         "vertices": int(st["vertices"]),

@@ -55,6 +55,7 @@ from geoterrain.cameras import (  # noqa: F401 - the camera helpers are part of 
 )
 from geoterrain.colours import Palette
 from geoterrain.drape import Drape
+from geoterrain.edgeaa import SPARSE_MAX_FACES, edge_antialias, silhouette_edges, sparse
 from geoterrain.exaggerate import exaggerated
 from geoterrain.exceptions import UsageError, WriteError, exists_error
 from geoterrain.lod.mesh import polydata
@@ -246,7 +247,10 @@ class TerrainScene:
         self.update(sel, view)
         self.set_camera(view)
         t2, p2 = time.perf_counter(), time.process_time()
+        edges, aa = self._anti_aliasing()
         img = _draw(self.plotter)
+        if edges is not None:
+            img = edge_antialias(img, depth_buffer(self.plotter), edges)
         t3, p3 = time.perf_counter(), time.process_time()
         c1 = io_counters(t)
         stats = {**sel.stats, "select_tiles_decoded": sel.stats.get("tiles_decoded", 0),
@@ -258,9 +262,44 @@ class TerrainScene:
                  "update_ms": round((t2 - t1) * 1e3, 3),
                  "render_ms": round((t3 - t2) * 1e3, 3),
                  "frame_ms": round((t3 - t0) * 1e3, 3),
+                 "anti_aliasing": aa,
                  "cpu_ms": round((p3 - p0) * 1e3, 3),
                  "render_cpu_ms": round((p3 - p2) * 1e3, 3)}
         return img, stats
+
+    def _anti_aliasing(self):
+        """This frame's anti-aliasing, chosen before it is drawn: (the silhouette edges
+        to blend after the draw, or None; the mode's name for the stats).
+
+        ``auto`` (the default) finds the selection mesh's silhouette edges through the
+        camera VTK draws with and, where they are sparse
+        (:func:`geoterrain.edgeaa.sparse`), draws without multisampling and blends
+        them; otherwise it draws with MSAA. ``edges`` always blends them.
+        """
+        p = self.plotter
+        mode = getattr(p, "_geoterrain_aa", "msaa")
+        if mode not in ("auto", "edges"):
+            return None, mode
+        mesh = self.selection.mesh if self.selection is not None else None
+        edges = None
+        if mesh is not None and mesh.n_cells and (
+                mode == "edges" or mesh.n_cells <= SPARSE_MAX_FACES):
+            from vtkmodules.util.numpy_support import vtk_to_numpy
+
+            w, h = p.render_window.GetSize()
+            m = p.camera.GetCompositeProjectionTransformMatrix(w / h, -1, 1)
+            proj = np.array([[m.GetElement(i, j) for j in range(4)] for i in range(4)])
+            faces = vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()).reshape(-1, 3)
+            edges = silhouette_edges(np.asarray(mesh.points), faces, proj, (w, h),
+                                     p.camera.position)
+        if mode == "auto":
+            if edges is not None and not sparse(edges):
+                edges = None
+            rw = p.render_window
+            want = 0 if edges is not None else p._geoterrain_samples
+            if rw.GetMultiSamples() != want:
+                rw.SetMultiSamples(want)
+        return edges, "edges" if edges is not None else "msaa"
 
     def terrain_fraction(self) -> float:
         """Fraction of the last image's pixels covered by terrain (its depth buffer, read
@@ -350,11 +389,15 @@ def _draw(plotter) -> np.ndarray:
 def _plotter(size: tuple[int, int], anti_aliasing: bool | str | None = None):
     """An offscreen plotter (EGL when there is no display).
 
-    ``anti_aliasing``: ``"msaa"`` (or True; the renderer's multisampling), ``"fxaa"``
+    ``anti_aliasing``: ``"auto"`` (the default: each frame of
+    :meth:`TerrainScene.frame` takes ``"edges"`` where its silhouettes are sparse,
+    else ``"msaa"``), ``"msaa"`` (or True; the renderer's multisampling), ``"edges"``
+    (drawn without it; :meth:`TerrainScene.frame` blends the mesh's silhouette edges by
+    their coverage, :mod:`geoterrain.edgeaa`), ``"fxaa"``
     (a CPU pass over each read-back picture along its depth edges,
     :mod:`geoterrain.antialias`: 3–5 ms where a software renderer's MSAA costs 30–60 ms
     at 1280×720), ``"none"`` (or False); None: the scope's
-    (:func:`geoterrain.antialias.anti_aliasing`, MSAA by default).
+    (:func:`geoterrain.antialias.anti_aliasing`, ``"auto"`` by default).
     """
     if anti_aliasing is None:
         anti_aliasing = _AA.get()
@@ -366,7 +409,8 @@ def _plotter(size: tuple[int, int], anti_aliasing: bool | str | None = None):
     import pyvista as pv
 
     p = pv.Plotter(off_screen=True, window_size=list(size))
-    if mode != "msaa":
+    p._geoterrain_samples = int(p.render_window.GetMultiSamples())  # what "msaa" draws with
+    if mode not in ("msaa", "auto"):
         p.disable_anti_aliasing()
     p._geoterrain_aa = mode
     return p
