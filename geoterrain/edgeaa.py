@@ -50,8 +50,9 @@ from numba import njit
 # tiles, where it is 6-8.5 dB further (docs/benchmarks.md §6l)
 SPARSE_EDGES_PER_KPX = 30.0
 # a mesh with more faces is drawn with MSAA under "auto" without looking for its edges
-# (a full-resolution mesh: its edge table alone would take gigabytes)
-SPARSE_MAX_FACES = 4_000_000
+# (a full-resolution mesh): the edge table takes 16 bytes a slot, 4F slots rounded up to
+# a power of two (130 MB at 2 M faces; an rtin frame at 1280x720 has 30-150 k)
+SPARSE_MAX_FACES = 2_000_000
 
 
 @dataclass
@@ -126,19 +127,19 @@ def _silhouettes(faces, pts, eye, x, y, z, ok, n_pts):  # pragma: no cover - com
         d = (nx * (eye[0] - pts[a, 0]) + ny * (eye[1] - pts[a, 1])
              + nz * (eye[2] - pts[a, 2]))
         toward[f] = d > 0.0 and ok[a] and ok[b] and ok[c]
-    # each undirected edge's faces, through an open-addressing table
+    # each undirected edge's faces, through an open-addressing table (at most 3F/2 + the
+    # border's edges in 4F slots: a quarter to three eighths full)
     cap = 1
-    while cap < 6 * F + 2:
+    while cap < 4 * F + 2:
         cap *= 2
     keys = np.full(cap, -1, np.int64)
-    first = np.full(cap, -1, np.int64)  # face * 3 + edge of the first face seen
-    second = np.full(cap, -1, np.int64)
+    first = np.full(cap, -1, np.int32)  # face * 3 + edge of the first face seen
+    second = np.full(cap, -1, np.int32)
     for f in range(F):
         for k in range(3):
             u, v = faces[f, k], faces[f, (k + 1) % 3]
-            lo, hi = min(u, v), max(u, v)
-            key = lo * n_pts + hi
-            h = (key * 0x9E3779B97F4A7C15) & (cap - 1)
+            key = min(u, v) * n_pts + max(u, v)
+            h = ((key * 0x5851F42D4C957F2D) >> 17) & (cap - 1)  # wraps: a hash
             while keys[h] != -1 and keys[h] != key:
                 h = (h + 1) & (cap - 1)
             if keys[h] == -1:
@@ -148,12 +149,17 @@ def _silhouettes(faces, pts, eye, x, y, z, ok, n_pts):  # pragma: no cover - com
                 second[h] = f * 3 + k
     # each silhouette edge once per face beside it (the face on the visible side is
     # the one the depth buffer shows there: at an open border a face turned away can
-    # be the visible one), each border edge once
+    # be the visible one), each border edge once; counted, then written
     n = 0
-    ea = np.empty(cap, np.int64)
-    eb = np.empty(cap, np.int64)
-    ec = np.empty(cap, np.int64)
-    tol = np.empty(cap)
+    for h in range(cap):
+        if keys[h] != -1 and (second[h] == -1
+                              or toward[first[h] // 3] != toward[second[h] // 3]):
+            n += 1 if second[h] == -1 else 2
+    ea = np.empty(n, np.int64)
+    eb = np.empty(n, np.int64)
+    ec = np.empty(n, np.int64)
+    tol = np.empty(n)
+    n = 0
     for h in range(cap):
         if keys[h] == -1:
             continue
