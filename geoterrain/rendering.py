@@ -236,6 +236,9 @@ class TerrainScene:
         clock; ``cpu_ms`` and ``render_cpu_ms``, the process's CPU time over the frame
         and over the draw, the renderer's threads included (a software renderer draws
         on every core, so ``render_cpu_ms`` can exceed ``render_ms``).
+        ``anti_aliasing`` is the one the picture got (under ``auto``: ``edges`` or
+        ``msaa``, :meth:`_anti_aliasing`); ``render_ms`` includes finding and blending
+        the edges.
         """
         t = self.terrain
         if view.near is None or view.far is None:  # the picture's own clipping planes
