@@ -206,14 +206,22 @@ def silhouette_edges(points: np.ndarray, faces: np.ndarray, projection: np.ndarr
     pts = np.ascontiguousarray(points, np.float64)
     faces = np.ascontiguousarray(faces, np.int64)
     m = np.ascontiguousarray(projection, np.float64)
+    eye = np.ascontiguousarray(eye, np.float64)
+    W, H = (int(v) for v in size)
     n = len(pts)
+    # the compiled passes index without bounds checks: refuse what would read outside
+    if pts.ndim != 2 or pts.shape[1] != 3 or not np.isfinite(pts).all():
+        raise ValueError("points must be finite (n, 3)")
+    if faces.ndim != 2 or faces.shape[1] != 3 or (
+            len(faces) and (faces.min() < 0 or faces.max() >= n)):
+        raise ValueError("faces must be (F, 3) indices into the points")
+    if m.shape != (4, 4) or eye.shape != (3,) or W < 1 or H < 1:
+        raise ValueError("projection must be 4x4, eye 3 numbers, size positive")
     x, y, z = np.empty(n), np.empty(n), np.empty(n)
     ok = np.empty(n, np.bool_)
-    W, H = size
     _project(pts, m, float(W), float(H), x, y, z, ok)
-    a, b, c, tol = _silhouettes(faces, pts, np.asarray(eye, np.float64), x, y, z, ok,
-                                max(n, 1))
-    return Silhouettes(x, y, z, a, b, c, tol, (int(W), int(H)))
+    a, b, c, tol = _silhouettes(faces, pts, eye, x, y, z, ok, max(n, 1))
+    return Silhouettes(x, y, z, a, b, c, tol, (W, H))
 
 
 @njit(cache=True, nogil=True)
@@ -286,6 +294,10 @@ def edge_antialias(img: np.ndarray, depth: np.ndarray, edges: Silhouettes) -> np
     >>> out[4, 3].tolist()  # the edge at x = 3.6: 0.6 of this pixel on the face's side
     [153, 153, 153]
     """
+    W, H = edges.size
+    if img.shape != (H, W, 3) or img.dtype != np.uint8 or np.shape(depth) != (H, W):
+        raise ValueError(f"the picture must be ({H}, {W}, 3) uint8 and its depth ({H}, {W}), "
+                         "the size the edges were found for")
     out = img.copy()
     _blend(img, np.ascontiguousarray(depth, np.float32), edges.x, edges.y, edges.z,
            edges.a, edges.b, edges.c, edges.tol, out)

@@ -105,6 +105,24 @@ def test_a_face_turned_away_is_a_silhouette_only_beside_one_turned_towards():
     assert len(e.a) == 4
 
 
+def test_bad_input_is_refused_before_the_compiled_passes():
+    pts, faces, n = _quad_through(0.2, 0.0)
+    cases = [(pts[:, :2], faces), (np.where(pts == pts[0], np.nan, pts), faces),
+             (pts, faces[:, :2]), (pts, faces + 4), (pts, faces - 1)]
+    for p, f in cases:
+        with pytest.raises(ValueError, match="points|faces"):
+            silhouette_edges(p, f, np.eye(4), (W, H), EYE)
+    with pytest.raises(ValueError, match="projection"):
+        silhouette_edges(pts, faces, np.eye(3), (W, H), EYE)
+    with pytest.raises(ValueError, match="projection"):
+        silhouette_edges(pts, faces, np.eye(4), (0, H), EYE)
+    e = silhouette_edges(pts, faces, np.eye(4), (W, H), EYE)
+    img, depth, _ = _drawn(pts, n)
+    for i, d in ((img[:-1], depth[:-1]), (img, depth[:, :-1]), (img.astype(float), depth)):
+        with pytest.raises(ValueError, match="the size the edges were found for"):
+            edge_antialias(i, d, e)
+
+
 def test_sparse_counts_distinct_edges_on_screen():
     pts, faces, _ = _quad_through(0.2, 0.0)
     e = silhouette_edges(pts, faces, np.eye(4), (W, H), EYE)
