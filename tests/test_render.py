@@ -724,3 +724,17 @@ def test_frame_reports_its_cpu_time(tmp_path_factory):
         assert 0.0 < st_["render_cpu_ms"] <= st_["cpu_ms"], st_
         assert st_["cpu_ms"] != st_["frame_ms"]  # its own clock
         assert st_["render_ms"] <= st_["frame_ms"]
+
+
+def test_the_cli_offers_every_anti_aliasing():
+    """cli/options.py lists the modes itself (importing the library would load numba at
+    every command's start): it must offer exactly the library's, default first."""
+    from cli.options import anti_aliasing_option
+    from geoterrain.antialias import _AA, ANTI_ALIASING
+
+    @anti_aliasing_option
+    def f():
+        pass
+
+    opt = f.__click_params__[0]
+    assert tuple(opt.type.choices) == ANTI_ALIASING and opt.default == _AA.get()
