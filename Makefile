@@ -27,7 +27,7 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
-# The browser test (tests/test_cesium.py): Debian's chromium, Node/npm and the npm
+# The browser test (tests/export/test_cesium.py): Debian's chromium, Node/npm and the npm
 # package cesium in .browser/ (needs root for apt-get, network for apt and npm).
 browser:
 	command -v chromium >/dev/null || apt-get install -y --no-install-recommends chromium

@@ -8,7 +8,7 @@ import pytest
 @pytest.fixture(scope="session")
 def _doctest_terrain(tmp_path_factory):
     import geoterrain
-    from geoterrain.synth import generate, write_geotiff
+    from geoterrain.ingest.synth import generate, write_geotiff
 
     d = tmp_path_factory.mktemp("doctest")
     dem = write_geotiff(d / "dem.tif", generate("fbm", 129, seed=3))
@@ -22,4 +22,4 @@ def _doctest_names(request):
     if type(request.node).__name__ == "DoctestItem":
         ns = request.getfixturevalue("doctest_namespace")
         ns["t"] = request.getfixturevalue("_doctest_terrain")
-        ns["View"] = __import__("geoterrain.view", fromlist=["View"]).View
+        ns["View"] = __import__("geoterrain.core.view", fromlist=["View"]).View

@@ -31,9 +31,9 @@ import zstandard
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from geoterrain.codec import decode_tile, encode_pyramid  # noqa: E402
-from geoterrain.quantchoice import choose_quantizer  # noqa: E402
-from geoterrain.quantize import codes_to_heights, heights_to_codes  # noqa: E402
+from geoterrain.codec.pyramid import decode_tile, encode_pyramid  # noqa: E402
+from geoterrain.codec.quantchoice import choose_quantizer  # noqa: E402
+from geoterrain.codec.quantize import codes_to_heights, heights_to_codes  # noqa: E402
 
 DEMS = Path(__file__).resolve().parents[2] / "shared" / "dems"
 EPSILONS = [0.0, 0.1, 0.5, 1.0, 2.0]

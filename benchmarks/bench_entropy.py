@@ -34,15 +34,15 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from bench_codec import load_dems, pad, sz3_bytes  # noqa: E402
 
-from geoterrain.codec import (  # noqa: E402
+from geoterrain.codec.predict import predict  # noqa: E402
+from geoterrain.codec.pyramid import (  # noqa: E402
     _decoded_codes,
     _resolve_predictor,
     encode_pyramid,
     pyramid_shape,
 )
-from geoterrain.predict import predict  # noqa: E402
-from geoterrain.quantchoice import choose_quantizer  # noqa: E402
-from geoterrain.quantize import valid_codes  # noqa: E402
+from geoterrain.codec.quantchoice import choose_quantizer  # noqa: E402
+from geoterrain.codec.quantize import valid_codes  # noqa: E402
 
 
 def entropy_bits(x: np.ndarray) -> float:

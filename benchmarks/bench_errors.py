@@ -1,4 +1,5 @@
-"""Benchmark of the bound kernels, geoterrain.bounds and geoterrain.tilebounds (a script,
+"""Benchmark of the bound kernels, geoterrain.bounds.delta and geoterrain.bounds.tilebounds (a
+script,
 not a test).
 
 1. Timing on a seeded 4097² spectral fBm DEM: the pure-numpy δ reference vs. the compiled
@@ -20,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from geoterrain.bounds import vertex_errors
-from geoterrain.radii import vertex_radii
-from geoterrain.reference import saturate, static_mesh, vertex_errors_reference
-from geoterrain.tilebounds import tile_errors
+from geoterrain.bounds.delta import vertex_errors
+from geoterrain.bounds.radii import vertex_radii
+from geoterrain.bounds.tilebounds import tile_errors
+from geoterrain.testing.reference import saturate, static_mesh, vertex_errors_reference
 
 FUJI = Path("/work/shared/dems/fuji_terrain_rgb.png")
 

@@ -14,8 +14,8 @@ import time
 from pathlib import Path
 
 import geoterrain
-from geoterrain import bench
-from geoterrain.synth import generate, write_geotiff
+from geoterrain.bench import harness as bench
+from geoterrain.ingest.synth import generate, write_geotiff
 
 
 def main() -> None:

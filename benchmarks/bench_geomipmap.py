@@ -3,10 +3,10 @@ covering level-n tile's error (the bound stores without the table fall back to),
 same views in the same run, and with morphing on (continuous block levels), with chunked
 beside them (a script, not a test).
 
-Each configuration runs ``geoterrain.bench.run`` over its built-in 6-view flight on a
+Each configuration runs ``geoterrain.bench.harness.run`` over its built-in 6-view flight on a
 freshly opened store; "tile bound" hides the table (``Terrain.block_errors`` → None), so
 ``geomipmap`` takes the covering tiles' errors as it does on an older store. ρ is
-measured by :func:`geoterrain.measure.screen_space_error`, independently of the
+measured by :func:`geoterrain.testing.measure.screen_space_error`, independently of the
 selection. The three geomipmap modes rotate (each first in turn), ``--runs`` times each;
 triangle counts are exact, select times are medians over every run and view.
 
@@ -21,7 +21,7 @@ import statistics
 from pathlib import Path
 
 import geoterrain
-from geoterrain import bench
+from geoterrain.bench import harness as bench
 from geoterrain.lod import geomipmap
 from geoterrain.lod.switches import geomorphing
 

@@ -1,8 +1,8 @@
-"""Peak memory of writing an animated GIF: imageio's writer vs geoterrain.gifstream.
+"""Peak memory of writing an animated GIF: imageio's writer vs geoterrain.rendering.gifstream.
 
 Each run is a fresh process that writes ``n`` synthetic 1280×720 frames (a smooth
 picture with a moving band, so each frame differs) and reports its peak resident set
-(``VmHWM``, :func:`geoterrain.memory.peak_rss`; ``ru_maxrss`` would count the parent's
+(``VmHWM``, :func:`geoterrain.core.memory.peak_rss`; ``ru_maxrss`` would count the parent's
 peak at exec) and wall time. A writer that streams keeps a flat peak as ``n`` grows;
 one that holds the frames grows by about 1280·720·3 B = 2.8 MB per frame.
 
@@ -35,7 +35,7 @@ if {writer!r} == "imageio":
     w = iio2.get_writer({out!r}, mode="I", duration=100.0, loop=0)
     add, close = w.append_data, w.close
 else:
-    from geoterrain.gifstream import GifStream
+    from geoterrain.rendering.gifstream import GifStream
     g = GifStream({out!r}, 10.0)
     add, close = g.append, g.close
 for k in range(n):
@@ -43,7 +43,7 @@ for k in range(n):
     f[:, (k * 16) % W:(k * 16) % W + 40] = 255
     add(f)
 close()
-from geoterrain.memory import peak_rss  # VmHWM: not the parent's peak at exec
+from geoterrain.core.memory import peak_rss  # VmHWM: not the parent's peak at exec
 print(json.dumps({{"wall_s": time.perf_counter() - t0,
                   "max_rss_kb": peak_rss() // 1024}}))
 """

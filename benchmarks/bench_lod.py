@@ -5,7 +5,7 @@ Usage:
                                    [--taus 0.5,1,2,4,8] [--static] [--occlusion on,off]
 
 Per strategy and τ: selection ms (median, p95), triangles, tiles decoded, and
-the measured screen-space error (max, p99) from geoterrain.measure on every
+the measured screen-space error (max, p99) from geoterrain.testing.measure on every
 ``--measure-every``-th view. Oblique views are those with elevation < 30°; the
 triangle ratio against bruteforce is reported for them. ``--static`` adds the
 static mesh against pymartini ``get_mesh`` at e ∈ {1, 5, 20}, timed in the same
@@ -24,9 +24,9 @@ import time
 import numpy as np
 
 import geoterrain
+from geoterrain.core.view import View
 from geoterrain.lod import STRATEGIES
-from geoterrain.measure import screen_space_error, vertical_error
-from geoterrain.view import View
+from geoterrain.testing.measure import screen_space_error, vertical_error
 
 
 def flight(truth, n: int) -> list[tuple[View, bool]]:
@@ -144,7 +144,7 @@ def main() -> None:
     elif a.dem:
         src, name = a.dem, os.path.basename(a.dem)
     else:
-        from geoterrain.synth import generate, write_geotiff
+        from geoterrain.ingest.synth import generate, write_geotiff
 
         src = write_geotiff(os.path.join(d, "fbm.tif"), generate("fbm", a.size, seed=7))
         name = f"fbm {a.size}²"

@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 import geoterrain  # noqa: E402
-from geoterrain.rendering import TerrainScene, _plotter, default_view  # noqa: E402
+from geoterrain.rendering.scene import TerrainScene, _plotter, default_view  # noqa: E402
 
 DEMS = Path(__file__).resolve().parents[2] / "shared" / "dems"
 NAMES = ("srtm3_pysheds.tif", "srtm1_japan.tif", "fuji_terrain_rgb.png",

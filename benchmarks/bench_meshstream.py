@@ -4,12 +4,12 @@ Makes (or reuses) an fBm store of ``--size``² samples, then writes the static m
 bound ``--max-error`` to a binary PLY twice, each in a fresh process:
 
 - ``streamed``: ``geoterrain mesh STORE -o m.ply --max-error E`` (what the CLI does now:
-  :func:`geoterrain.meshstream.write_static_mesh`);
+  :func:`geoterrain.export.meshstream.write_static_mesh`);
 - ``in-memory``: the whole mesh as one PolyData, then ``export.write_mesh`` (what the
   CLI did before, and still does for .vtp/.vtk).
 
 Each process reports its own peak resident set (``VmHWM``,
-:func:`geoterrain.memory.peak_rss`; ``ru_maxrss`` would count the parent's peak at exec);
+:func:`geoterrain.core.memory.peak_rss`; ``ru_maxrss`` would count the parent's peak at exec);
 with ``--check`` the two files are compared (same points, same triangles up to vertex
 order, normals ≤ 1e-5).
 
@@ -46,12 +46,12 @@ if {mode!r} == "streamed":
         pass
 else:
     import geoterrain
-    from geoterrain.export import write_mesh
-    from geoterrain.formats import with_elevation
+    from geoterrain.export.meshfiles import write_mesh
+    from geoterrain.export.formats import with_elevation
     with geoterrain.open({store!r}) as t:
         write_mesh(with_elevation(t, t.static_selection(float({e!r})).mesh), {out!r},
                    overwrite=True)
-from geoterrain.memory import peak_rss  # VmHWM: not the parent's peak at exec
+from geoterrain.core.memory import peak_rss  # VmHWM: not the parent's peak at exec
 print(json.dumps({{"wall_s": time.perf_counter() - t0,
                   "max_rss_kb": peak_rss() // 1024}}))
 """
@@ -107,7 +107,7 @@ def main() -> None:
     store = a.work / f"fbm_{a.size}.geoterrain"
     if not store.exists():
         import geoterrain
-        from geoterrain.synth import generate, write_geotiff
+        from geoterrain.ingest.synth import generate, write_geotiff
 
         t0 = time.perf_counter()
         dem = write_geotiff(a.work / f"fbm_{a.size}.tif", generate("fbm", a.size, seed=1))

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-import geoterrain.preprocessing as pp
-from geoterrain.bench import flight
-from geoterrain.synth import generate
+import geoterrain.preprocessing.pipeline as pp
+from geoterrain.bench.harness import flight
+from geoterrain.ingest.synth import generate
 from geoterrain.terrain import Terrain
 
 DEMS = Path(__file__).resolve().parents[1] / ".." / "shared" / "dems"

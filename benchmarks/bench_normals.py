@@ -23,14 +23,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from geoterrain.normals import (  # noqa: E402
+from geoterrain.bounds.normals import (  # noqa: E402
     decode_octahedral,
     encode_octahedral,
     level_normals,
     normal_map,
     normal_pyramid,
 )
-from geoterrain.synth import generate  # noqa: E402
+from geoterrain.ingest.synth import generate  # noqa: E402
 
 
 def timed(label: str, f, repeat: int):

@@ -4,9 +4,9 @@ Usage:
     python benchmarks/bench_occlusion.py --check [--views 104]
     python benchmarks/bench_occlusion.py --store fbm4097.geoterrain [--views 24] [--runs 3]
 
-``--check``: low views (:func:`geoterrain.bench.ground_views`) over synthetic DEMs and
+``--check``: low views (:func:`geoterrain.bench.harness.ground_views`) over synthetic DEMs and
 the shared real ones (``../shared/dems``, when present), preprocessed with 16-sample
-tiles. For each view the ray-march oracle (:func:`geoterrain.reference.visible_samples`)
+tiles. For each view the ray-march oracle (:func:`geoterrain.testing.reference.visible_samples`)
 finds the valid samples the eye sees; every strategy checked must draw all of them
 (the count lost must be 0). A level-0 tile is hidden when none of its samples in the
 frustum is visible; the table gives how many of those culling removed.
@@ -29,12 +29,12 @@ import numpy as np
 
 import geoterrain
 from geoterrain import lod
-from geoterrain.bench import ground_views
+from geoterrain.bench.harness import ground_views
+from geoterrain.ingest.synth import generate
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import tile_index
-from geoterrain.measure import mesh_heights_on_grid
-from geoterrain.reference import visible_samples
-from geoterrain.synth import generate
+from geoterrain.testing.measure import mesh_heights_on_grid
+from geoterrain.testing.reference import visible_samples
 
 DEMS = Path(__file__).resolve().parents[1] / ".." / "shared" / "dems"
 REAL = ("fuji_terrain_rgb.png", "st_helens_terrain_rgb.png", "terrarium.png",
@@ -42,7 +42,7 @@ REAL = ("fuji_terrain_rgb.png", "st_helens_terrain_rgb.png", "terrarium.png",
 
 
 def _synthetic(tmp: Path) -> list[tuple[str, Path]]:
-    from geoterrain.synth import write_geotiff
+    from geoterrain.ingest.synth import write_geotiff
 
     out = []
     for name, n, seed, holes in (("fbm 513²", 513, 2, False), ("fbm 257² with nodata", 257, 7,

@@ -15,8 +15,8 @@ import argparse
 import statistics
 import time
 
-from geoterrain.store import StoreReader
-from geoterrain.storecheck import check_store
+from geoterrain.store.check import check_store
+from geoterrain.store.database import StoreReader
 
 
 def main() -> None:

@@ -22,7 +22,7 @@ import tempfile
 import numpy as np
 
 import geoterrain
-from geoterrain.synth import generate, write_geotiff
+from geoterrain.ingest.synth import generate, write_geotiff
 
 
 def build(d: str) -> tuple[str, str]:

@@ -1,9 +1,9 @@
 """Popping along a smooth flight: cdlod and rtin with and without morphing, and chunked.
 
-The flight is :func:`geoterrain.bench.glide` (the eye moves 1 % of its height above the
+The flight is :func:`geoterrain.bench.harness.glide` (the eye moves 1 % of its height above the
 terrain per frame). Per frame and strategy, ``pop`` is the largest jump of the drawn
 surface since the previous frame, in pixels
-(:func:`geoterrain.measure.screen_space_change`, which rasterises both meshes and knows
+(:func:`geoterrain.testing.measure.screen_space_change`, which rasterises both meshes and knows
 nothing of the selection); ``rho`` the measured screen-space error; both use the
 full-resolution heights. ``cdlod-nomorph`` is cdlod's selection with k snapped from 0 to
 1 at each range (``morph=False``): the same ranges, no slide. ``rtin-morph`` is rtin with
@@ -33,10 +33,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import geoterrain  # noqa: E402
 from geoterrain import lod  # noqa: E402
-from geoterrain.bench import extent, glide  # noqa: E402
+from geoterrain.bench.harness import extent, glide  # noqa: E402
 from geoterrain.lod import cdlod  # noqa: E402
 from geoterrain.lod.switches import occlusion_culling  # noqa: E402
-from geoterrain.measure import screen_space_change, screen_space_error  # noqa: E402
+from geoterrain.testing.measure import screen_space_change, screen_space_error  # noqa: E402
 
 
 def surface_of(mesh):

@@ -31,12 +31,12 @@ PRE = """
 import json, sys, time
 t0 = time.perf_counter()
 import geoterrain
-from geoterrain.preprocessing import preprocess
+from geoterrain.preprocessing.pipeline import preprocess
 t1 = time.perf_counter()
 p = preprocess(sys.argv[1], sys.argv[2], overwrite=True, codec_error={eps})
 wall = time.perf_counter() - t1
 t = geoterrain.open(p)
-from geoterrain.memory import peak_rss  # VmHWM: not the parent's peak at exec
+from geoterrain.core.memory import peak_rss  # VmHWM: not the parent's peak at exec
 peak = peak_rss() / 2**20
 print(json.dumps({{"wall": wall, "import": t1 - t0, "stages": t.meta["preprocess_seconds"],
                   "bytes": t.info()["size_bytes"], "peak_mb": peak}}))
@@ -73,7 +73,7 @@ def main() -> None:
     ap.add_argument("--skip-pymartini", action="store_true",
                     help="time ours only (Martini(16385) alone needs several GB)")
     a = ap.parse_args()
-    from geoterrain.synth import generate, write_geotiff
+    from geoterrain.ingest.synth import generate, write_geotiff
 
     tmp = tempfile.TemporaryDirectory()  # removed at exit (a 16385² source is 1 GB)
     d = tmp.name
@@ -104,7 +104,7 @@ def main() -> None:
     err_stage = med.get("errors", 0) + med.get("radii", 0)
     print(f"| **preprocess total (wall, its module imported)** | **{wall:.2f}** |")
     imp = statistics.median(r["import"] for r in ours)
-    print(f"| (import of geoterrain.preprocessing, outside the total) | {imp:.2f} |")
+    print(f"| (import of geoterrain.preprocessing.pipeline, outside the total) | {imp:.2f} |")
     print(f"| pymartini Martini({a.size}) + create_tile | {mart:.2f} |")
     print(f"| ratio total / pymartini | {wall / mart:.2f} |")
     print(f"| ratio (errors + radii) / pymartini | {err_stage / mart:.2f} |")

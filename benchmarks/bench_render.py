@@ -34,9 +34,9 @@ import time
 import numpy as np
 
 import geoterrain
-from geoterrain.antialias import ANTI_ALIASING
-from geoterrain.rendering import TerrainScene, _plotter, default_view
-from geoterrain.view import View
+from geoterrain.core.view import View
+from geoterrain.rendering.antialias import ANTI_ALIASING
+from geoterrain.rendering.scene import TerrainScene, _plotter, default_view
 
 
 def flight(t, n: int, size: tuple[int, int]) -> list[tuple[str, View]]:
@@ -99,8 +99,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--anti-aliasing", default="auto", choices=ANTI_ALIASING,
                     help="auto (the default: edges where a frame's silhouettes are sparse, "
                     "else msaa); msaa: the renderer's multisampling; edges: the mesh's "
-                    "silhouette edges blended by their coverage (geoterrain.edgeaa); "
-                    "fxaa: the CPU pass over the read-back picture (geoterrain.antialias); "
+                    "silhouette edges blended by their coverage (geoterrain.rendering.edgeaa); "
+                    "fxaa: the CPU pass over the read-back picture "
+                    "(geoterrain.rendering.antialias); "
                     "none")
     ap.add_argument("--skip-bruteforce", action="store_true")
     ap.add_argument("--json")

@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from geoterrain.reference import shadow_reference
-from geoterrain.shading import Light, shadow_fraction, shadow_mask, sky_view_core
-from geoterrain.synth import generate
+from geoterrain.ingest.synth import generate
+from geoterrain.rendering.shading import Light, shadow_fraction, shadow_mask, sky_view_core
+from geoterrain.testing.reference import shadow_reference
 
 DEMS = Path(__file__).resolve().parents[1].parent / "shared" / "dems"
 SUNS = [(315, 45), (200, 20), (135, 35), (250, 25), (45, 30), (100, 60)]
@@ -83,7 +83,7 @@ def timing(runs: int) -> None:
 
 def render_cost(store: str) -> None:
     import geoterrain
-    from geoterrain.rendering import default_view, render_array
+    from geoterrain.rendering.scene import default_view, render_array
 
     with geoterrain.open(store) as t:  # compile every kernel first (a small render)
         render_array(t, default_view(t, (160, 90), 190, 40),

@@ -31,8 +31,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 import geoterrain  # noqa: E402
-from geoterrain.storesize import size_report  # noqa: E402
-from geoterrain.units import tile_from_path  # noqa: E402
+from geoterrain.ingest.units import tile_from_path  # noqa: E402
+from geoterrain.store.size import size_report  # noqa: E402
 
 DEMS = Path(__file__).resolve().parents[2] / "shared" / "dems"
 NAMES = ("srtm3_pysheds.tif", "srtm1_japan.tif", "roi_epsg3089.tif", "fuji_terrain_rgb.png",
@@ -43,10 +43,10 @@ def exact_v1_copy(store: Path, dst: Path) -> Path:
     """``store`` with δ and r as version-1 blobs of the exact values (float16, rounded up)."""
     import zstandard
 
-    from geoterrain.bounds import vertex_errors
-    from geoterrain.radii import vertex_radii
-    from geoterrain.store import StoreReader, blob_crc, blob_key
-    from geoterrain.vertexdata import encode_bounds
+    from geoterrain.bounds.delta import vertex_errors
+    from geoterrain.bounds.radii import vertex_radii
+    from geoterrain.bounds.vertexdata import encode_bounds
+    from geoterrain.store.database import StoreReader, blob_crc, blob_key
 
     shutil.copy(store, dst)
     with geoterrain.open(store) as t:

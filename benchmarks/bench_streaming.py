@@ -9,26 +9,29 @@ Usage:
 ``--stage bounds`` (default): δ and the radius codes.
 Each run is a fresh process; the banded and whole-grid runs alternate. "banded" reads
 the GeoTIFF through rasterio windows (GDAL's cache set to 64 MB) and keeps the
-per-level arrays in scratch files (``geoterrain.banddelta``, ``geoterrain.bandradii``,
-``geoterrain.scratch``); "whole" reads the raster and runs
-``geoterrain.bounds.vertex_errors`` and ``geoterrain.tileblobs.radius_codes``. Both
+per-level arrays in scratch files (``geoterrain.preprocessing.bands.delta``,
+``geoterrain.preprocessing.bands.radii``,
+``geoterrain.preprocessing.scratch``); "whole" reads the raster and runs
+``geoterrain.bounds.delta.vertex_errors`` and ``geoterrain.bounds.tileblobs.radius_codes``. Both
 print a SHA-256 of every level's (C, R, K) arrays of δ, then of the codes, which must
 agree. x and y are the sample's column and row times its pixel size.
 
 ``--stage heights``: the height pyramid's tile blobs (lossless codes of the float32
 heights, zstd level 6 as the preprocess writes them); "banded" reads super-tile windows
-(``geoterrain.bandcodec``, the coarse grid at most 1025² codes), "whole" runs
-``geoterrain.codec.encode_pyramid``; both print a SHA-256 of the sum of every
+(``geoterrain.preprocessing.bands.codec``, the coarse grid at most 1025² codes), "whole" runs
+``geoterrain.codec.pyramid.encode_pyramid``; both print a SHA-256 of the sum of every
 (key, blob)'s digest. The banded run hands each super-tile's blobs to a sink that keeps
 none, as a store writer would.
 
 ``--stage normals``: every level's octahedral normal codes (8 bits, the preprocess's
-levels for 65² tiles); "banded" runs ``geoterrain.bandnormals`` on row bands, "whole"
+levels for 65² tiles); "banded" runs ``geoterrain.preprocessing.bands.normals`` on row bands,
+"whole"
 ``normal_map``, ``normal_pyramid`` and ``encode_octahedral``; both print a SHA-256 of the
 levels' codes.
 
 ``--stage tiles``: the tile table's bounds and every block's δ_n (65² tiles); "banded"
-runs ``geoterrain.bandtiles``, "whole" ``tilebounds.tile_and_block_errors``; both print
+runs ``geoterrain.preprocessing.bands.tiles``, "whole" ``tilebounds.tile_and_block_errors``; both
+print
 a SHA-256 of the sorted table and the blocks.
 
 Peak memory is the process's VmHWM; "imports" is the VmRSS after the imports, before
@@ -47,12 +50,12 @@ RUN = """
 import hashlib, json, sys, time
 import numpy as np, rasterio
 from rasterio.windows import Window
-from geoterrain.memory import peak_rss, current_rss
-from geoterrain.banddelta import band_vertex_errors
-from geoterrain.bandradii import band_radius_codes
-from geoterrain.bounds import vertex_errors
-from geoterrain.scratch import ScratchArrays
-from geoterrain.tileblobs import radius_codes
+from geoterrain.core.memory import peak_rss, current_rss
+from geoterrain.preprocessing.bands.delta import band_vertex_errors
+from geoterrain.preprocessing.bands.radii import band_radius_codes
+from geoterrain.bounds.delta import vertex_errors
+from geoterrain.preprocessing.scratch import ScratchArrays
+from geoterrain.bounds.tileblobs import radius_codes
 path, mode, band, stage = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
 base = current_rss()
 t0 = time.perf_counter()
@@ -68,10 +71,10 @@ with rasterio.Env(GDAL_CACHEMAX=64 * 2**20), rasterio.open(path) as ds:
         return z, (np.isfinite(z) if nd is None else z != nd)
     if stage == "tiles":
         if mode == "banded":
-            from geoterrain.bandtiles import band_tile_bounds
+            from geoterrain.preprocessing.bands.tiles import band_tile_bounds
             tb, blocks = band_tile_bounds(rows, N, 6, xs, ys, band=band)
         else:
-            from geoterrain.tilebounds import tile_and_block_errors
+            from geoterrain.bounds.tilebounds import tile_and_block_errors
             z, v = rows(0, N)
             X = np.broadcast_to(xs[None, :], (N, N))
             Y = np.broadcast_to(ys[:, None], (N, N))
@@ -80,10 +83,10 @@ with rasterio.Env(GDAL_CACHEMAX=64 * 2**20), rasterio.open(path) as ds:
         h.update(repr(sorted(tb.items())).encode() + blocks.tobytes())
         e = len(tb)
     elif stage == "normals":
-        from geoterrain.normals import encode_octahedral, normal_map, normal_pyramid
+        from geoterrain.bounds.normals import encode_octahedral, normal_map, normal_pyramid
         levels = (N - 1).bit_length() - 1 - 6 + 1
         if mode == "banded":
-            from geoterrain.bandnormals import band_normal_codes
+            from geoterrain.preprocessing.bands.normals import band_normal_codes
             with ScratchArrays("/tmp") as sa:
                 band_normal_codes(rows, N, xs, ys, levels, sa, band=band)
                 for L in range(levels):
@@ -99,9 +102,9 @@ with rasterio.Env(GDAL_CACHEMAX=64 * 2**20), rasterio.open(path) as ds:
             del z, v
         e = levels
     elif stage == "heights":
-        from geoterrain.bandcodec import band_encode_pyramid
-        from geoterrain.codec import encode_pyramid
-        from geoterrain.quantize import Quantizer
+        from geoterrain.preprocessing.bands.codec import band_encode_pyramid
+        from geoterrain.codec.pyramid import encode_pyramid
+        from geoterrain.codec.quantize import Quantizer
         q = Quantizer("float", 1.0, 0.0, 0.0, 32)
         if mode == "banded":
             def window(i0, i1, j0, j1):

@@ -6,7 +6,7 @@ Table: over ``bench_lod.flight`` (``--views`` views, 1280×720) at τ = ``--tau`
 strategy's mesh is measured by ``measure.screen_space_error`` over every valid sample in
 view (independent of the selection code).
 
-Figure (``--figure PNG``): along :func:`geoterrain.bench.glide` (``--frames`` frames, the
+Figure (``--figure PNG``): along :func:`geoterrain.bench.harness.glide` (``--frames`` frames, the
 eye moving ``--step`` (5 %) of its height per frame), per frame:
 
 - the HAM-driven tessellation (``tessellation``),
@@ -36,10 +36,10 @@ sys.path.insert(0, str(Path(__file__).parent))
 from bench_lod import flight  # noqa: E402
 
 import geoterrain  # noqa: E402
-from geoterrain.bench import extent, glide  # noqa: E402
+from geoterrain.bench.harness import extent, glide  # noqa: E402
 from geoterrain.lod import tessellation  # noqa: E402
 from geoterrain.lod.switches import occlusion_culling  # noqa: E402
-from geoterrain.measure import screen_space_error  # noqa: E402
+from geoterrain.testing.measure import screen_space_error  # noqa: E402
 
 
 def _rho(sel_ij, faces, z, scene, v) -> float:

@@ -10,7 +10,7 @@ For each DEM and e ∈ {1, 5, 20, 100}:
   (``rtin.EDGE_PADDING = False``);
 - pydelatin's greedy TIN of the unpadded DEM at e, against ours at the same e.
 
-Every error is measured by :func:`geoterrain.measure.vertical_error` (barycentric, over the
+Every error is measured by :func:`geoterrain.testing.measure.vertical_error` (barycentric, over the
 valid samples, in grid space), independently of the code that selects the meshes.
 Triangle counts are exact, so one run is enough.
 
@@ -29,7 +29,7 @@ import numpy as np
 
 import geoterrain
 from geoterrain.lod import rtin
-from geoterrain.measure import vertical_error
+from geoterrain.testing.measure import vertical_error
 
 DEMS = Path(__file__).resolve().parents[1].parent / "shared" / "dems"
 ERRORS = (1.0, 5.0, 20.0, 100.0)
@@ -93,7 +93,7 @@ def main() -> None:
     dems = a.dems or [str(p) for p in (DEMS / "fuji_terrain_rgb.png",
                                        DEMS / "srtm1_japan.tif") if p.exists()]
     if not a.dems:
-        from geoterrain.synth import generate, write_geotiff
+        from geoterrain.ingest.synth import generate, write_geotiff
 
         dems.append(write_geotiff(os.path.join(d, "fbm700x900.tif"),
                                   generate("fbm", 1025, seed=7)[:700, :900]))

@@ -1,6 +1,6 @@
 """The interactive viewer's responsiveness, measured through its controller.
 
-Drives :class:`geoterrain.viewer.ViewerController` in background mode (the viewer's
+Drives :class:`geoterrain.rendering.viewer.ViewerController` in background mode (the viewer's
 default: selection and textures in a worker thread) on an offscreen window, over
 ``bench_render.flight`` (an approach from the overview to a low pass). Per camera move:
 
@@ -45,8 +45,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from bench_render import flight  # noqa: E402
 
 import geoterrain  # noqa: E402
-from geoterrain.rendering import _plotter  # noqa: E402
-from geoterrain.viewer import REST_MS, ViewerController  # noqa: E402
+from geoterrain.rendering.scene import _plotter  # noqa: E402
+from geoterrain.rendering.viewer import REST_MS, ViewerController  # noqa: E402
 
 
 def move(c: ViewerController, view) -> dict:

@@ -17,7 +17,7 @@ from geoterrain.cli.options import (
 
 
 def _aa() -> str:
-    from geoterrain.antialias import _AA
+    from geoterrain.rendering.antialias import _AA
 
     return _AA.get()
 
@@ -81,8 +81,8 @@ def command(ctx, source, synthetic, seed, strategies, pixel_errors, n_views, cam
     import json
     from pathlib import Path
 
-    from geoterrain import bench
-    from geoterrain.bench_report import format_table, plot, summarise, write_csv
+    from geoterrain.bench import harness as bench
+    from geoterrain.bench.report import format_table, plot, summarise, write_csv
     from geoterrain.exceptions import UsageError
 
     quiet = bool((ctx.obj or {}).get("quiet"))

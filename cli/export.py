@@ -70,7 +70,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     """
     import geoterrain
     from geoterrain.exceptions import UsageError
-    from geoterrain.formats import check_export_path, export_mesh
+    from geoterrain.export.formats import check_export_path, export_mesh
 
     out = check_export_path(output, overwrite)
     if crs_coords and look_from is None and look_at is None and out.suffix.lower() != ".ply":

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from geoterrain.rasters import PRODUCTS
+from geoterrain.export.rasters import PRODUCTS
 
 
 @click.command("export-raster")
@@ -30,7 +30,7 @@ def command(ctx, store, what, output, level, overwrite):
       geoterrain export-raster dem.geoterrain --what error --level 2 -o delta_l2.tif
     """
     import geoterrain
-    from geoterrain.rasters import export_raster
+    from geoterrain.export.rasters import export_raster
 
     with geoterrain.open(store) as t:
         out = export_raster(t, what, output, level=level, overwrite=overwrite)

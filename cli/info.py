@@ -21,7 +21,7 @@ def command(store, as_json, no_reference):
       geoterrain info dem.geoterrain --json
     """
     import geoterrain
-    from geoterrain.storesize import component_bytes, size_report
+    from geoterrain.store.size import component_bytes, size_report
 
     with geoterrain.open(store) as t:
         i = t.info()

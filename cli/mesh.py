@@ -46,9 +46,9 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     """
 
     import geoterrain
-    from geoterrain.export import check_mesh_path, write_mesh
-    from geoterrain.formats import with_elevation
-    from geoterrain.meshstream import STREAM_CACHE_BYTES, STREAM_FORMATS, check_in_memory
+    from geoterrain.export.formats import with_elevation
+    from geoterrain.export.meshfiles import check_mesh_path, write_mesh
+    from geoterrain.export.meshstream import STREAM_CACHE_BYTES, STREAM_FORMATS, check_in_memory
 
     out = check_mesh_path(output, overwrite)  # before any work
     max_error = mesh_request(max_error, look_from, look_at)
@@ -74,7 +74,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
 
 def _stream(ctx, t, max_error, out, overwrite) -> dict:
     from geoterrain.cli.options import StageBar
-    from geoterrain.meshstream import write_static_mesh
+    from geoterrain.export.meshstream import write_static_mesh
 
     bar = StageBar("mesh", ctx.obj["quiet"])
     try:

@@ -122,7 +122,7 @@ occlusion_option = click.option(
 
 
 def _set_anti_aliasing(ctx, param, value):
-    from geoterrain.antialias import anti_aliasing
+    from geoterrain.rendering.antialias import anti_aliasing
 
     ctx.with_resource(anti_aliasing(value))  # for this command's run only
     return value
@@ -195,8 +195,8 @@ def camera_options(f):
 
 
 def _check_cmap(ctx, param, value):
-    from geoterrain.colours import check_cmap
     from geoterrain.exceptions import UsageError
+    from geoterrain.rendering.colours import check_cmap
 
     try:
         check_cmap(value)
@@ -239,8 +239,8 @@ def colour_options(f):
 
 
 def palette(cmap, clim, water_level):
-    """The :class:`geoterrain.colours.Palette` of the colour options."""
-    from geoterrain.colours import Palette
+    """The :class:`geoterrain.rendering.colours.Palette` of the colour options."""
+    from geoterrain.rendering.colours import Palette
 
     return Palette(cmap, clim, water_level)
 
@@ -249,7 +249,7 @@ def _parse_sun(ctx, param, value):
     if value is None:
         return None
     from geoterrain.exceptions import UsageError
-    from geoterrain.shading import parse_sun
+    from geoterrain.rendering.shading import parse_sun
 
     try:
         return parse_sun(value)
@@ -294,12 +294,12 @@ def drape_options(f):
 
 def light_and_drape(shading, sun, hillshade, shadows, ambient_occlusion, drape_path,
                     drape_opacity):
-    """The :class:`geoterrain.shading.Light` (None: the default light) and the
-    :class:`geoterrain.drape.Drape` (None without --drape) of the light and drape
+    """The :class:`geoterrain.rendering.shading.Light` (None: the default light) and the
+    :class:`geoterrain.rendering.drape.Drape` (None without --drape) of the light and drape
     options, checked against --shading."""
-    from geoterrain.drape import Drape
     from geoterrain.exceptions import UsageError
-    from geoterrain.shading import SUN_AZIMUTH, SUN_ELEVATION, Light
+    from geoterrain.rendering.drape import Drape
+    from geoterrain.rendering.shading import SUN_AZIMUTH, SUN_ELEVATION, Light
 
     az, el = sun if sun is not None else (SUN_AZIMUTH, SUN_ELEVATION)
     lit = Light(az, el, hillshade == "multi", bool(shadows), bool(ambient_occlusion))

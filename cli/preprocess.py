@@ -5,8 +5,8 @@ from __future__ import annotations
 import click
 
 from geoterrain.cli.options import StageBar, parse_bytes
-from geoterrain.frame import Z_UNITS
-from geoterrain.raster import ENCODINGS
+from geoterrain.core.frame import Z_UNITS
+from geoterrain.ingest.raster import ENCODINGS
 
 
 @click.command("preprocess")

@@ -87,11 +87,11 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     metres), or {"crs": true, "cameras": [...]} for source-CRS coordinates.
     """
     import geoterrain
-    import geoterrain.animation as A
-    import geoterrain.rendering as R
-    from geoterrain.cameras import check_elevation
+    import geoterrain.rendering.animation as A
+    import geoterrain.rendering.scene as R
+    from geoterrain.core.view import View
     from geoterrain.exceptions import UsageError
-    from geoterrain.view import View
+    from geoterrain.rendering.cameras import check_elevation
 
     quiet = (ctx.obj or {}).get("quiet", False)
     try:
@@ -143,7 +143,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             finally:
                 bar.close()
             if stats_path:
-                from geoterrain.atomicfiles import write_atomic
+                from geoterrain.core.atomicfiles import write_atomic
 
                 write_atomic(stats_path, json.dumps(frames, indent=2, default=float))
             if not quiet:

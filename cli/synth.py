@@ -35,7 +35,7 @@ def command(kind, size, seed, spacing, crs, origin, output, overwrite):
     from pathlib import Path
 
     from geoterrain.exceptions import UsageError
-    from geoterrain.synth import generate, write_geotiff
+    from geoterrain.ingest.synth import generate, write_geotiff
 
     if Path(output).exists() and not overwrite:
         raise UsageError(f"{output} exists; pass --overwrite or choose another -o path")

@@ -47,7 +47,7 @@ def command(ctx, store, output, fmt, max_zoom, min_zoom, max_error, geoid, overw
     import geoterrain
     from geoterrain.cli.options import StageBar
     from geoterrain.exceptions import UsageError
-    from geoterrain.qmesh import write_tileset
+    from geoterrain.export.qmesh import write_tileset
 
     if not max_error > 0:
         raise UsageError(f"--max-error must be > 0, got {max_error}")

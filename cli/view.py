@@ -65,9 +65,9 @@ def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, 
     """
     import geoterrain
     from geoterrain.exceptions import GeoterrainError
-    from geoterrain.preprocessing import cached_store_path, ensure_store
-    from geoterrain.store import is_store
-    from geoterrain.viewer import show
+    from geoterrain.preprocessing.pipeline import cached_store_path, ensure_store
+    from geoterrain.rendering.viewer import show
+    from geoterrain.store.database import is_store
 
     quiet = (ctx.obj or {}).get("quiet", False)
     lit, dr = light_and_drape(shading, sun, hillshade, shadows, ambient_occlusion,

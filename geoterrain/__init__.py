@@ -17,28 +17,28 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-from geoterrain import _fork  # noqa: F401  (the fork hook, before any kernel runs)
 from geoterrain._version import __version__
+from geoterrain.core import _fork  # noqa: F401  (the fork hook, before any kernel runs)
 from geoterrain.exceptions import GeoterrainError
 
 if TYPE_CHECKING:
-    from geoterrain.animation import orbit
-    from geoterrain.preprocessing import preprocess
-    from geoterrain.rendering import default_view, render
+    from geoterrain.core.view import View
+    from geoterrain.preprocessing.pipeline import preprocess
+    from geoterrain.rendering.animation import orbit
+    from geoterrain.rendering.scene import default_view, render
+    from geoterrain.rendering.viewer import show
     from geoterrain.terrain import Terrain, open  # noqa: A004
-    from geoterrain.view import View
-    from geoterrain.viewer import show
 
 # public name → the module that defines it
 _LAZY = {
-    "preprocess": "geoterrain.preprocessing",
+    "preprocess": "geoterrain.preprocessing.pipeline",
     "open": "geoterrain.terrain",
     "Terrain": "geoterrain.terrain",
-    "View": "geoterrain.view",
-    "render": "geoterrain.rendering",
-    "default_view": "geoterrain.rendering",
-    "orbit": "geoterrain.animation",
-    "show": "geoterrain.viewer",
+    "View": "geoterrain.core.view",
+    "render": "geoterrain.rendering.scene",
+    "default_view": "geoterrain.rendering.scene",
+    "orbit": "geoterrain.rendering.animation",
+    "show": "geoterrain.rendering.viewer",
 }
 
 __all__ = ["GeoterrainError", "Terrain", "View", "__version__", "default_view", "open",

@@ -11,17 +11,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 import zstandard
 
-from geoterrain import zstdsafe
-from geoterrain.bintree import vertex_level
-from geoterrain.codec import decode_tile_valid
-from geoterrain.exceptions import StoreCorruptError, StoreError
-from geoterrain.grid import level_offsets
-from geoterrain.leafbounds import derived_normal_codes, tile_leaf_bounds
-from geoterrain.normals import decode_octahedral
-from geoterrain.quantize import tile_heights
-from geoterrain.store import StoreReader
-from geoterrain.storecheck import check_store
-from geoterrain.vertexdata import (
+from geoterrain.bounds.leafbounds import derived_normal_codes, tile_leaf_bounds
+from geoterrain.bounds.normals import decode_octahedral
+from geoterrain.bounds.vertexdata import (
     DIFF,
     NEW_ONLY,
     NORMALS_PLANAR_DXDY,
@@ -30,13 +22,21 @@ from geoterrain.vertexdata import (
     normals_from_bytes,
     unpack_block_errors,
 )
+from geoterrain.codec.pyramid import decode_tile_valid
+from geoterrain.codec.quantize import tile_heights
+from geoterrain.core import zstdsafe
+from geoterrain.core.bintree import vertex_level
+from geoterrain.core.grid import level_offsets
+from geoterrain.exceptions import StoreCorruptError, StoreError
+from geoterrain.store.check import check_store
+from geoterrain.store.database import StoreReader
 
 if TYPE_CHECKING:
     import pyvista as pv
 
+    from geoterrain.codec.quantize import Quantizer
+    from geoterrain.core.view import View
     from geoterrain.lod import Selection
-    from geoterrain.quantize import Quantizer
-    from geoterrain.view import View
 
 TileKey = tuple[int, int, int]
 
@@ -61,7 +61,7 @@ class Terrain:
     --------
     >>> import tempfile, os
     >>> import geoterrain
-    >>> from geoterrain.synth import generate, write_geotiff
+    >>> from geoterrain.ingest.synth import generate, write_geotiff
     >>> d = tempfile.mkdtemp()
     >>> dem = write_geotiff(os.path.join(d, "dem.tif"), generate("fbm", 33, seed=1))
     >>> t = geoterrain.open(geoterrain.preprocess(dem))
@@ -79,7 +79,7 @@ class Terrain:
             self.tile_info = self.reader.tiles()
             # an untrusted file: every field is checked before anything is sized from it
             self.grid, self.frame, self.quantizer = check_store(self.path, m, self.tile_info)
-            # tiles with a second δ (padding replicated: geoterrain/edgepad.py) → the
+            # tiles with a second δ (padding replicated: geoterrain/bounds/edgepad.py) → the
             # largest δ_edge of their new vertices; None: the store predates it
             self.edge_max = (self.reader.edge_keys() if "delta_edge" in m
                              else None)
@@ -256,7 +256,7 @@ class Terrain:
     def block_errors(self) -> np.ndarray | None:
         """Every GeoMipMapping block's exact δ_n (seed 000 §2.4), (nb, nb, levels) indexed
         [y, x, n], nb the level-0 tiles per side, n = 0 … min(t, top level) (see
-        :func:`geoterrain.tilebounds.tile_and_block_errors`); None for a store written
+        :func:`geoterrain.bounds.tilebounds.tile_and_block_errors`); None for a store written
         before the table was.
 
         Examples
@@ -286,7 +286,7 @@ class Terrain:
         return self._cached(("d", level, x, y), lambda: self._bounds((level, x, y), "delta"))
 
     def tile_delta_edge(self, level: int, x: int, y: int) -> np.ndarray:
-        """δ with the padding replicated from the data's edge (:mod:`geoterrain.edgepad`),
+        """δ with the padding replicated from the data's edge (:mod:`geoterrain.bounds.edgepad`),
         float32 (T, T): the tile's second δ blob where it has one, else its δ blob (the
         same new vertices), over its parent's δ_edge."""
         if not self.edge_max:
@@ -315,9 +315,9 @@ class Terrain:
 
     def tile_normal_codes(self, level: int, x: int, y: int) -> np.ndarray:
         """The octahedral codes (T, T, 2) of the tile's normals (``normal_bits`` bits
-        each; :func:`~geoterrain.normals.decode_octahedral` unpacks them): as stored, or,
+        each; :func:`~geoterrain.bounds.normals.decode_octahedral` unpacks them): as stored, or,
         on a level in ``normals_derived``, the ring as stored and the rest derived from
-        the heights (:func:`~geoterrain.leafbounds.derived_normal_codes`). Not cached:
+        the heights (:func:`~geoterrain.bounds.leafbounds.derived_normal_codes`). Not cached:
         each call reads and counts a decode."""
         if level in self._derived_normal_levels:
             return derived_normal_codes(self, level, x, y)
@@ -331,7 +331,7 @@ class Terrain:
     def tile_normal_bytes(self, level: int, x: int, y: int) -> tuple[bytes, bool]:
         """The tile's normal codes as stored, decompressed: T·T·2 components, and whether
         they are two planes of 2-D differences (8-bit ``normals_layout`` 2,
-        :func:`~geoterrain.vertexdata.normals_to_bytes`) rather than (u, v) pairs (a
+        :func:`~geoterrain.bounds.vertexdata.normals_to_bytes`) rather than (u, v) pairs (a
         derived level's codes come as pairs: they were never coded)."""
         if level in self._derived_normal_levels:  # derived: as (u, v) pairs, not re-coded
             return np.ascontiguousarray(derived_normal_codes(self, level, x, y)).tobytes(), False
@@ -457,7 +457,7 @@ class Terrain:
 
         Examples
         --------
-        >>> from geoterrain.view import View
+        >>> from geoterrain.core.view import View
         >>> sel = t.select(View((0, -800, 400), (0, 0, 0)), pixel_error=1.0)
         >>> sel.stats["triangles"] > 0
         True
@@ -543,7 +543,7 @@ class Terrain:
     # -------------------------------------------------------------- notebooks
     def _repr_html_(self) -> str:
         """A notebook's summary: extent, CRS, size, levels, codec and a shaded thumbnail."""
-        from geoterrain.notebook import repr_html  # upper layer, loaded on first display
+        from geoterrain.rendering.notebook import repr_html  # upper layer, loaded on first display
 
         return repr_html(self)
 
@@ -551,9 +551,9 @@ class Terrain:
         """Show the terrain: PyVista's notebook backend, or an offscreen image (PIL).
 
         Keywords: ``shading``, ``pixel_error``, ``strategy``, ``size``, ``cmap``; the
-        rest go to ``Plotter.show``. See :func:`geoterrain.notebook.plot`.
+        rest go to ``Plotter.show``. See :func:`geoterrain.rendering.notebook.plot`.
         """
-        from geoterrain.notebook import plot  # upper layer, loaded on first use
+        from geoterrain.rendering.notebook import plot  # upper layer, loaded on first use
 
         return plot(self, view, **kwargs)
 
@@ -603,7 +603,7 @@ def open(path: str | Path, cache_bytes: int = 1536 << 20) -> Terrain:  # noqa: A
 
 def _unit_name(factor: float) -> str:
     """'m', 'ft' or 'us-ft' for a metres-per-unit factor, else 'units of N m'."""
-    from geoterrain.units import unit_of_factor
+    from geoterrain.ingest.units import unit_of_factor
 
     u = unit_of_factor(factor)
     return u if u is not None else f"units of {factor:.6g} m"

@@ -80,7 +80,7 @@ def write_tif(path, z, crs="EPSG:32633", origin=(500000.0, 5000000.0), spacing=1
 
 @pytest.fixture
 def fbm_tif(tmp_path) -> Path:
-    from geoterrain.synth import generate, write_geotiff
+    from geoterrain.ingest.synth import generate, write_geotiff
 
     return write_geotiff(tmp_path / "fbm.tif", generate("fbm", 129, seed=3))
 

@@ -24,16 +24,16 @@ import pytest
 
 import geoterrain
 from conftest import real_dem, write_tif
-from geoterrain.bench import flight
+from geoterrain.bench.harness import flight
+from geoterrain.core.view import View
 from geoterrain.exceptions import InputError
 from geoterrain.lod import STRATEGIES, strategy_info
-from geoterrain.measure import (
+from geoterrain.testing.measure import (
     mesh_height_range_on_grid,
     mesh_heights_on_grid,
     screen_space_error,
     vertical_error,
 )
-from geoterrain.view import View
 
 pytestmark = pytest.mark.stress
 
@@ -45,7 +45,7 @@ REL = 1e-9
 
 # ---------------------------------------------------------------- helpers
 def fbm(n: int, m: int | None = None, seed: int = 0, amp: float = 500.0) -> np.ndarray:
-    from geoterrain.synth import generate
+    from geoterrain.ingest.synth import generate
 
     z = generate("fbm", (n, m or n), seed=seed)
     z = z - z.min()
@@ -126,7 +126,7 @@ def check_view(t, view: View, strategies=STRATEGIES, taus=TAUS, conforming=True)
             for m in ((False, True) if strategy_info(s).morphs else (None,))]
     for strategy, tau, morph in runs:
         # ρ ≤ τ at every sample in the frustum: no horizon culling here (with it, at
-        # the visible samples: tests/test_occlusion.py); morphing off and on
+        # the visible samples: tests/lod/test_occlusion.py); morphing off and on
         sel = t.select(view, pixel_error=tau, strategy=strategy, occlusion=False,
                        morph=morph)
         check_finite_stats(sel.stats)
@@ -223,7 +223,7 @@ def test_everest_heights_with_centimetre_noise(tmp_path):
 @pytest.mark.parametrize("spacing", [0.01, 1000.0, (1.0, 100.0), (100.0, 1.0)],
                          ids=["1cm", "1km", "aniso_1_100", "aniso_100_1"])
 def test_spacing(tmp_path, spacing):
-    from geoterrain.synth import write_geotiff
+    from geoterrain.ingest.synth import write_geotiff
 
     z = fbm(65, amp=50.0 if spacing == 0.01 else 500.0)
     src = write_geotiff(tmp_path / "s.tif", z, spacing=spacing)
@@ -472,7 +472,7 @@ def test_degenerate_camera_is_a_clear_error():
 
 # ---------------------------------------------------------------- render (cheap cases)
 def _render(t, view):
-    render = pytest.importorskip("geoterrain.rendering")
+    render = pytest.importorskip("geoterrain.rendering.scene")
     img, stats = render.render_array(t, view, pixel_error=1.0)
     assert img.shape == (view.size[1], view.size[0], 3)
     check_finite_stats(stats)

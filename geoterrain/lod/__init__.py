@@ -18,7 +18,7 @@ Strategies only read the terrain; what they derive from it is cached in
 Examples
 --------
 >>> import geoterrain, tempfile, os
->>> from geoterrain.synth import generate, write_geotiff
+>>> from geoterrain.ingest.synth import generate, write_geotiff
 >>> dem = write_geotiff(os.path.join(tempfile.mkdtemp(), "d.tif"), generate("fbm", 65, seed=2))
 >>> t = geoterrain.open(geoterrain.preprocess(dem))
 >>> sel = select(t, geoterrain.View((0, -900, 500), (0, 0, 0)), pixel_error=1.0)
@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from geoterrain.core.view import View
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.registry import DEFAULT, REGISTRY, STRATEGIES, StrategyInfo, strategy_info
 from geoterrain.lod.switches import (
@@ -47,7 +48,6 @@ from geoterrain.lod.switches import (
     occlusion_culling,
     occlusion_enabled,
 )
-from geoterrain.view import View
 
 if TYPE_CHECKING:
     import pyvista as pv

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from geoterrain.core.view import View
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import assemble, quadtree_leaves, tile_index
-from geoterrain.view import View
 
 
 def select(terrain, view: View, tau: float):

@@ -55,14 +55,14 @@ import weakref
 
 import numpy as np
 
-from geoterrain.bintree import vertex_level
+from geoterrain.core.bintree import vertex_level
+from geoterrain.core.view import INSIDE, OUTSIDE, View
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.registry import strategy_info
 from geoterrain.lod.switches import morphing_choice
 from geoterrain.lod.tiles import TileIndex, tile_geometry, tile_index
-from geoterrain.view import INSIDE, OUTSIDE, View
 
 MORPH_FRACTION = 0.5  # seed 001 §2.7: half of each level's range morphs
 _SAFE = 1.0 + 1e-6  # margin on every range bound (float round-off of distances)

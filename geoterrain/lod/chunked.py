@@ -22,11 +22,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from geoterrain.core.view import View
 from geoterrain.lod.chunks import assemble_chunks, chunk_error, chunk_leaves, morph_heights
 from geoterrain.lod.morph import MORPH_START
 from geoterrain.lod.switches import morphing_enabled
 from geoterrain.lod.tiles import tile_index
-from geoterrain.view import View
 
 
 def select(terrain, view: View, tau: float):

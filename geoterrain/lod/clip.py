@@ -1,13 +1,13 @@
 """Clip a grid mesh to the data's rectangle (the static mesh of a padded store).
 
-With the padding replicated from the data's edge (:mod:`geoterrain.edgepad`), the static
+With the padding replicated from the data's edge (:mod:`geoterrain.bounds.edgepad`), the static
 mesh may hold triangles that reach past the DEM's last row or column. Each is cut by the
 half-planes i ≤ rows − 1 and j ≤ cols − 1 in grid-index space (Sutherland–Hodgman), and the
 piece is fanned into triangles. A cut point lies on its triangle's plane, so every
 sample keeps the height it had; and it is made once per mesh edge (or once for the
 rectangle's corner), so the two triangles of a cut edge share it and no crack opens.
 Positions are interpolated along the edge (in x, y, z): on a curvilinear frame the cut
-edge is the triangle's chord of the border (see :func:`geoterrain.curvature.metric_bounds`,
+edge is the triangle's chord of the border (see :func:`geoterrain.bounds.curvature.metric_bounds`,
 ``window``).
 """
 

@@ -4,7 +4,7 @@
   sampled every 2ⁿ samples (the stored level-n samples), n = 0 … min(t, top level),
   the coarsest being 2×2 vertices. A quadtree is used only for frustum culling.
 - **δ_n** (seed 000 §2.4: the height change of the vanishing vertices) is the block's
-  exact value, computed at preprocess (:func:`geoterrain.tilebounds.tile_and_block_errors`)
+  exact value, computed at preprocess (:func:`geoterrain.bounds.tilebounds.tile_and_block_errors`)
   and stored per block and level (:meth:`geoterrain.terrain.Terrain.block_errors`): the
   max over the block's full-resolution samples of |z − S_n|, S_n the union-jack surface
   the block draws at level n, rounded up to float32; then δ = max{δ_0 … δ_n} as the
@@ -43,6 +43,7 @@ import weakref
 
 import numpy as np
 
+from geoterrain.core.view import View
 from geoterrain.lod import geomipmap_morph as gm
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
 from geoterrain.lod.morph import MORPH_START
@@ -55,7 +56,6 @@ from geoterrain.lod.tiles import (
     tile_index,
     union_jack_faces,
 )
-from geoterrain.view import View
 
 _TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _TEMPLATES: dict[tuple, np.ndarray] = {}

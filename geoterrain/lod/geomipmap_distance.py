@@ -10,8 +10,8 @@ the measured error; the mesh (blocks, stitching) is :mod:`geoterrain.lod.geomipm
 
 from __future__ import annotations
 
+from geoterrain.core.view import View
 from geoterrain.lod import geomipmap
-from geoterrain.view import View
 
 
 def select(terrain, view: View, tau: float):

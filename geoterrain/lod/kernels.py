@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from geoterrain.bintree import parents_nb
+from geoterrain.core.bintree import parents_nb
 
 
 @njit(cache=True, nogil=True, inline="always")

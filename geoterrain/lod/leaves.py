@@ -32,8 +32,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from geoterrain.core.threads import forked, serial_twin
 from geoterrain.lod.kernels import _coarsest_tile, sample_xy
-from geoterrain.threads import forked, serial_twin
 
 _SERIAL: dict = {}
 
@@ -338,7 +338,7 @@ def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: flo
     ``scratch``: a dict that keeps the working arrays from one call to the next.
     ``D``: the pooled δ to read (default ``pool.D``; ``pool.DE`` for δ_edge).
     ``window``: (rows, cols) of the data when the padding is replicated
-    (:mod:`geoterrain.edgepad`): a vertex beyond it takes the height of the nearest
+    (:mod:`geoterrain.bounds.edgepad`): a vertex beyond it takes the height of the nearest
     sample of the data's last row or column, whose tile must be pooled too.
     ``room``: spare rows after the vertices and after the faces (the returned arrays are
     views of larger ones, for :func:`geoterrain.lod.clip.clip_in_place`).

@@ -58,6 +58,7 @@ import weakref
 
 import numpy as np
 
+from geoterrain.core.view import View
 from geoterrain.lod.horizon import (
     BINS,
     _horizon_cull,
@@ -65,7 +66,6 @@ from geoterrain.lod.horizon import (
 )
 from geoterrain.lod.switches import occlusion_enabled
 from geoterrain.lod.tiles import tile_index
-from geoterrain.view import View
 
 __all__ = ["BINS", "eye_above_surface", "hidden_rows", "occluder_rows"]
 

@@ -19,7 +19,7 @@ import weakref
 
 import numpy as np
 
-from geoterrain.grid import level_offsets
+from geoterrain.core.grid import level_offsets
 from geoterrain.lod.kernels import BLOCK, block_bounds
 
 _POOLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

@@ -26,11 +26,11 @@ import weakref
 
 import numpy as np
 
+from geoterrain.core.view import OUTSIDE, View
 from geoterrain.lod.geomipmap import _NEIGHBOUR, template
 from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import TileIndex, tile_index
-from geoterrain.view import OUTSIDE, View
 
 _TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 S_MIN = 2  # minimum leaf edge s_m, in samples

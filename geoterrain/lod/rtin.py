@@ -29,7 +29,9 @@ import weakref
 
 import numpy as np
 
-from geoterrain.edgepad import has_padding
+from geoterrain.bounds.edgepad import has_padding
+from geoterrain.core.memory import sparse_zeros
+from geoterrain.core.view import View
 from geoterrain.lod.clip import clip_in_place
 from geoterrain.lod.emit import cull_compact, cull_in_place, walk_gather
 from geoterrain.lod.kernels import (
@@ -50,8 +52,6 @@ from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.pool import tile_pool
 from geoterrain.lod.switches import morphing_enabled
 from geoterrain.lod.tiles import TileIndex, tile_index, tile_table
-from geoterrain.memory import sparse_zeros
-from geoterrain.view import View
 
 BLOCKS = True  # fill_lp tests each tile's blocks' bounds before their samples
 _HASHED_UP_TO = 1 << 22  # vertex numbers in a hash table below this capacity (48 MB at most)
@@ -340,7 +340,7 @@ def static(terrain, max_error: float):
     its ``elevation`` already (computed with the positions).
 
     On a store with padding (a DEM that is not (2^n+1)²), the padding is replicated from
-    the data's edge instead (Martini's padding, :mod:`geoterrain.edgepad`): δ_edge
+    the data's edge instead (Martini's padding, :mod:`geoterrain.bounds.edgepad`): δ_edge
     selects the vertices, a vertex in the padding takes its replicated height, and the
     mesh is clipped to the data (:mod:`geoterrain.lod.clip`). The bound is the same, and
     the DEM's edge no longer needs full resolution.

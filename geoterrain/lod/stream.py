@@ -21,7 +21,7 @@ several GB. Here the same mesh comes out chunk by chunk (:func:`static_chunks`):
 Memory: two N² bool flags, one N² int32 map, the pool's budget and one chunk;
 independent of the mesh's size. The triangles are those of the in-memory static
 mesh (the vertex order may differ where a vertex is first used by a dropped
-triangle); ``tests/test_meshstream.py`` checks it.
+triangle); ``tests/export/test_meshstream.py`` checks it.
 
 Examples
 --------
@@ -205,7 +205,7 @@ def _edge_chunk(tris, pool, zfac, g, vid, nv, cuts):
 def static_flags(terrain, max_error: float, pool: TilePool, edge: bool = False) -> ActiveSet:
     """:func:`geoterrain.lod.rtin.static_active` with δ read through ``pool`` in batches
     that fit its budget (the same flags, bounded memory); ``edge``: δ_edge, the second δ
-    of a padded store (:mod:`geoterrain.edgepad`), as :func:`geoterrain.lod.static` reads
+    of a padded store (:mod:`geoterrain.bounds.edgepad`), as :func:`geoterrain.lod.static` reads
     it.
 
     Examples
@@ -234,7 +234,7 @@ def _gather(pool: TilePool, flat: np.ndarray, zfac: float, window=None):
     """Scene positions and grid indices of samples ``flat`` through ``pool`` (the
     chunk's tiles only); invalid samples have z NaN. ``window`` (rows, cols): a sample
     beyond it takes the height of the nearest sample of the data's last row or column
-    (replicated padding, :mod:`geoterrain.edgepad`)."""
+    (replicated padding, :mod:`geoterrain.bounds.edgepad`)."""
     N = pool.N
     more = np.zeros(0, np.int64)
     if window is not None:
@@ -272,7 +272,7 @@ def static_chunks(terrain, max_error: float, *, chunk: int = CHUNK,
         raise ValueError(f"chunk must be ≥ 1, got {chunk}")
     pool = TilePool(terrain, pool_bytes)
     g = terrain.grid
-    edge = rtin.edge_padding(terrain)  # replicated padding, clipped (geoterrain.edgepad)
+    edge = rtin.edge_padding(terrain)  # replicated padding, clipped (geoterrain.bounds.edgepad)
     cuts = new_cuts()
     act = static_flags(terrain, float(max_error), pool, edge)
     active, mixed = act.active, act.mixed

@@ -38,7 +38,7 @@ HAM gives no error bound: ρ is measured (``bounded=False`` in the registry).
 
 Examples
 --------
->>> from geoterrain.view import View
+>>> from geoterrain.core.view import View
 >>> mesh, stats = select(t, View((0, -800, 400), (0, 0, 0)), 1.0)
 >>> stats["patches"] > 0 and 1 <= stats["mean_factor"] <= 64
 True
@@ -51,9 +51,9 @@ import weakref
 import numpy as np
 from numba import njit
 
+from geoterrain.core.view import View
 from geoterrain.lod.geomipmap import _NEIGHBOUR, _assemble, _stitch, tables, visible_blocks
 from geoterrain.lod.mesh import empty_polydata
-from geoterrain.view import View
 
 T_LIMIT = 64  # the tessellator's largest factor (Fig. 5.3)
 HAM_SCALE = 1.0  # g(HAM) = HAM_SCALE · √HAM (eq. 5-2)

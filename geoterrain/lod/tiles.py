@@ -20,9 +20,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from geoterrain.grid import level_offsets
+from geoterrain.core.grid import level_offsets
+from geoterrain.core.view import INSIDE, OUTSIDE, View
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
-from geoterrain.view import INSIDE, OUTSIDE, View
 
 _INDEX: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _GEOMETRY: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

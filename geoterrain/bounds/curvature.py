@@ -1,0 +1,325 @@
+"""δ and r that hold in the scene's metric x/y on curvilinear (geographic) grids.
+
+:func:`geoterrain.bounds.delta.vertex_errors` bounds the vertical error of a mesh interpolated in
+grid-index space. A geographic grid maps to the scene curvilinearly (pyproj, see
+:mod:`geoterrain.core.frame`), while the mesh is drawn with straight edges between its
+vertices' metric positions. A sample's metric position then differs from the barycentric
+position its grid indices imply (by about the sagitta of the triangle's curved edges), so
+a sample is interpolated by the triangle that holds it *in metres*, which may be a
+neighbour, and a curved domain border may bulge outside a coarse triangle's chord.
+
+This module makes δ bound the error as seen in metres, with the same argument as the
+index-space δ (seed 002 §2.3): a drawn triangle T is a leaf whose split vertex v is
+inactive, so every sample that T holds must be within δ(v) of T's plane. Per vertex v and
+each of the (up to) two triangles drawn while v is absent:
+
+- δ_m(v) = max |z_s − S_T(X_s, Y_s)| over the valid samples s whose scene (X, Y) lies in
+  T's metric triangle, widened by a band of ``2 · frac`` sample spacings (S_T: T's plane,
+  extended). Samples are searched in T's index box widened by the largest displacement
+  |P_s − A_T(s)| of T's own samples (A_T: the affine map of T's corners), in samples,
+  plus two.
+- If a valid sample of T lies beyond a chord of T on the domain border by more than
+  ``frac / 2`` of a sample spacing, δ(v) = +inf: the border is refined until its chords
+  follow the curve to within that fraction, so no valid sample is left outside the mesh.
+- r_m(v) = max |p_v − p_s| over the same samples, so the nested spheres (LP §2.4) still
+  hold every sample v's triangles can be measured at.
+
+Then δ = saturate(max(δ, δ_m)) and r = nest(max(r, r_m)), both float32 rounded up.
+The extra term is computed only for geographic frames: projected and pixel grids are
+affine, their δ and r are left bit-identical.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from geoterrain.bounds.delta import _saturate_nb
+from geoterrain.bounds.edgepad import _reaches_data
+from geoterrain.bounds.radii import _proxy_positions
+from geoterrain.core.bintree import child_nb, main_diagonal_nb
+from geoterrain.core.rounding import round_up32
+from geoterrain.core.threads import cores_for
+
+__all__ = ["BORDER_FRACTION", "metric_bounds", "metric_terms"]
+
+#: Chords on the domain border follow the curved border to this fraction of a spacing.
+BORDER_FRACTION = 0.01
+
+
+@njit(cache=True)
+def _tri_term(X, Y, Z, vb, vi, vj, ai, aj, bi, bj, ci, cj, frac, N, border, wi, wj):
+    """(max error, max distance to p_v, border bulge, search margin m in samples) for
+    triangle (a, b, c) of vertex v.
+
+    ``wi × wj``: the data window a static mesh is clipped to (N × N: none). A triangle
+    that crosses its last row or column bulges when a sample of T on that row or column
+    is displaced from its place in T (|P_s − A_T(s)|) by more than ``frac / 2`` spacings:
+    the clipped edge is T's chord of the curved data border there."""
+    if not (vb[ai, aj] and vb[bi, bj] and vb[ci, cj]):
+        return 0.0, 0.0, False, 0
+    ax, ay, az = X[ai, aj], Y[ai, aj], Z[ai, aj]
+    bx, by, bz = X[bi, bj], Y[bi, bj], Z[bi, bj]
+    cx, cy, cz = X[ci, cj], Y[ci, cj], Z[ci, cj]
+    det = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
+    # index-space map: (i, j) = a + u (b − a) + w (c − a); metric A_T the same with X, Y
+    dbi, dbj, dci, dcj = bi - ai, bj - aj, ci - ai, cj - aj
+    idet = dbi * dcj - dci * dbj
+    if det == 0.0 or idet == 0:
+        return 0.0, 0.0, False, 0
+    # linear part of A_T: columns = metric images of the unit index steps di, dj
+    m11 = ((bx - ax) * dcj - (cx - ax) * dbj) / idet  # dX/di
+    m12 = ((cx - ax) * dbi - (bx - ax) * dci) / idet  # dX/dj
+    m21 = ((by - ay) * dcj - (cy - ay) * dbj) / idet
+    m22 = ((cy - ay) * dbi - (by - ay) * dci) / idet
+    # smallest singular value: metres per index step, the local sample spacing
+    p = m11 * m11 + m12 * m12 + m21 * m21 + m22 * m22
+    q = abs(m11 * m22 - m12 * m21)
+    smin = q / np.sqrt(0.5 * (p + np.sqrt(max(p * p - 4 * q * q, 0.0))))
+    tol = 2.0 * frac * smin
+    la = np.hypot(cx - bx, cy - by)
+    lb = np.hypot(ax - cx, ay - cy)
+    lc = np.hypot(bx - ax, by - ay)
+    area2 = abs(det)
+    ta, tb, tc = tol * la / area2, tol * lb / area2, tol * lc / area2
+    inv = 1.0 / det
+    i0, i1 = min(ai, bi, ci), max(ai, bi, ci)
+    j0, j1 = min(aj, bj, cj), max(aj, bj, cj)
+    # pass 1: largest displacement |P_s − A_T(s)| of T's own samples (index box)
+    disp = 0.0
+    dwin = 0.0  # the same, over T's samples on the data window's last row or column
+    cross = i1 > wi - 1 or j1 > wj - 1
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            ex = ax + m11 * (i - ai) + m12 * (j - aj) - X[i, j]
+            ey = ay + m21 * (i - ai) + m22 * (j - aj) - Y[i, j]
+            dd = np.hypot(ex, ey)
+            disp = max(disp, dd)
+            if cross and ((i == wi - 1 and j <= wj - 1) or (j == wj - 1 and i <= wi - 1)):
+                dwin = max(dwin, dd)
+    m = int(np.ceil(disp / smin)) + 2
+    # border chords of T: edges whose two ends lie on one side of the domain
+    bulge = dwin > 0.5 * frac * smin
+    vx, vy, vz = X[vi, vj], Y[vi, vj], Z[vi, vj]
+    emax = 0.0
+    rmax = 0.0
+    for i in range(max(i0 - m, 0), min(i1 + m, N - 1) + 1):
+        for j in range(max(j0 - m, 0), min(j1 + m, N - 1) + 1):
+            if not vb[i, j]:
+                continue
+            px = X[i, j] - ax
+            py = Y[i, j] - ay
+            l1 = (px * (cy - ay) - py * (cx - ax)) * inv
+            l2 = ((bx - ax) * py - (by - ay) * px) * inv
+            l0 = 1.0 - l1 - l2
+            own = i0 <= i <= i1 and j0 <= j <= j1
+            if border and own:
+                # signed distance beyond each border edge (opposite a: b–c, etc.)
+                if _on_border(bi, bj, ci, cj, N) and -l0 * area2 / la > 0.5 * frac * smin:
+                    bulge = True
+                if _on_border(ai, aj, ci, cj, N) and -l1 * area2 / lb > 0.5 * frac * smin:
+                    bulge = True
+                if _on_border(ai, aj, bi, bj, N) and -l2 * area2 / lc > 0.5 * frac * smin:
+                    bulge = True
+            if l0 < -ta or l1 < -tb or l2 < -tc:
+                continue
+            zs = Z[i, j]
+            if (i == ai and j == aj) or (i == bi and j == bj) or (i == ci and j == cj):
+                continue  # the corners are mesh vertices (and v's ancestors)
+            emax = max(emax, abs(az * l0 + bz * l1 + cz * l2 - zs))
+            rmax = max(rmax, np.sqrt((X[i, j] - vx) ** 2 + (Y[i, j] - vy) ** 2
+                                     + (zs - vz) ** 2))
+    return emax, rmax, bulge, m
+
+
+@njit(cache=True, inline="always")
+def _on_border(ai, aj, bi, bj, N):
+    return ((ai == bi and (ai == 0 or ai == N - 1))
+            or (aj == bj and (aj == 0 or aj == N - 1)))
+
+
+@njit(cache=True, inline="always")
+def _same_as_base(i, j, h, M, wi, wj):
+    """Whether every sample vertex (i, j)'s triangles read, their index box ± ``M``, lies
+    in the data's wi × wj, where the replicated grid equals the original one."""
+    return M >= 0 and i + h + M <= wi - 1 and j + h + M <= wj - 1
+
+
+@njit(cache=True, parallel=True)
+def _vertex_terms(X, Y, Z, vb, frac, wi, wj, M, dm0, bulge0, mrow):
+    """Raw per-vertex (δ_m, r_m, bulge) over the triangles drawn while each vertex is absent
+    (rows of blocks on every core: each vertex is written by its own iteration only), and
+    in ``mrow[i]`` the largest search margin of row i's triangles.
+
+    A vertex whose diamond misses the data's wi × wj gets nothing (with a data window,
+    :mod:`geoterrain.bounds.edgepad`: its error is clipped away; without one, wi = wj = N, every
+    vertex reaches it). ``M`` ≥ 0 (δ_edge over the replicated grid): a vertex that reads
+    only data samples (box ± M, M the original grid's largest margin) takes ``dm0`` and
+    ``bulge0`` from the original grid's run (r_m is not computed then)."""
+    N = Z.shape[0]
+    dm = np.zeros((N, N))
+    rm = np.zeros((N, N))
+    bulge = np.zeros((N, N), np.bool_)
+    h = 1
+    while h < N - 1:
+        s = 2 * h
+        nb = (N - 1) // s
+        for a in prange(nb):  # block centres: the two halves of the block
+            for b in range(nb):
+                i, j = h + a * s, h + b * s
+                if not _reaches_data(i, j, wi, wj):
+                    continue
+                if _same_as_base(i, j, h, M, wi, wj):
+                    dm[i, j], bulge[i, j] = dm0[i, j], bulge0[i, j]
+                    continue
+                i0, j0 = i - h, j - h
+                main = main_diagonal_nb(a, b)
+                for k in range(2):
+                    if main:  # diagonal (i0, j0)–(i0+s, j0+s), apex (i0, j0+s) / (i0+s, j0)
+                        t = _tri_term(X, Y, Z, vb, i, j, i0, j0, i0 + s, j0 + s,
+                                      i0 + k * s, j0 + (1 - k) * s, frac, N, True, wi, wj)
+                    else:
+                        t = _tri_term(X, Y, Z, vb, i, j, i0, j0 + s, i0 + s, j0,
+                                      i0 + k * s, j0 + k * s, frac, N, True, wi, wj)
+                    dm[i, j] = max(dm[i, j], t[0])
+                    rm[i, j] = max(rm[i, j], t[1])
+                    bulge[i, j] |= t[2]
+                    mrow[i] = max(mrow[i], t[3])
+        for typ in range(2):  # edge midpoints: the two triangles on their hypotenuse
+            rows = typ == 0
+            na = nb if rows else nb + 1
+            nc = nb + 1 if rows else nb
+            for a in prange(na):
+                for b in range(nc):
+                    i = h + a * s if rows else a * s
+                    j = b * s if rows else h + b * s
+                    if not _reaches_data(i, j, wi, wj):
+                        continue
+                    if _same_as_base(i, j, h, M, wi, wj):
+                        dm[i, j], bulge[i, j] = dm0[i, j], bulge0[i, j]
+                        continue
+                    for k in range(2):
+                        if rows:  # hypotenuse (i ± h, j), apex (i, j ± h)
+                            ci, cj = i, j + (2 * k - 1) * h
+                            ea, eb, fa, fb = i - h, j, i + h, j
+                        else:
+                            ci, cj = i + (2 * k - 1) * h, j
+                            ea, eb, fa, fb = i, j - h, i, j + h
+                        if not (0 <= ci < N and 0 <= cj < N):
+                            continue
+                        t = _tri_term(X, Y, Z, vb, i, j, ea, eb, fa, fb, ci, cj, frac, N, True, wi,
+                                      wj)
+                        dm[i, j] = max(dm[i, j], t[0])
+                        rm[i, j] = max(rm[i, j], t[1])
+                        bulge[i, j] |= t[2]
+                        mrow[i] = max(mrow[i], t[3])
+        h *= 2
+    return dm, rm, bulge
+
+
+def metric_terms(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, valid: np.ndarray,
+                 frac: float = BORDER_FRACTION, window: tuple[int, int] | None = None,
+                 base: tuple | None = None) -> tuple:
+    """The raw per-vertex terms (δ_m, r_m, bulge) of :func:`metric_bounds` and the largest
+    search margin M, in samples.
+
+    ``window`` and ``base`` (the terms of the original grid): the terms of δ_edge over
+    the replicated grid (:mod:`geoterrain.bounds.edgepad`), computed only for the vertices that
+    reach the data and read a padding sample; the others are 0 or the base's.
+    """
+    vb = np.ascontiguousarray(np.asarray(valid, bool) & np.isfinite(Z))
+    Zf = np.ascontiguousarray(np.where(vb, Z, 0.0), np.float64)
+    X = np.ascontiguousarray(X, np.float64)
+    Y = np.ascontiguousarray(Y, np.float64)
+    N = Zf.shape[0]
+    wi, wj = window if window is not None else Zf.shape
+    if base is not None:
+        dm0, _, bulge0, M = base
+    else:
+        dm0, bulge0, M = np.zeros((1, 1)), np.zeros((1, 1), np.bool_), -1
+    mrow = np.zeros(N, np.int64)
+    with cores_for(Zf.size):  # small grids on one thread (geoterrain/core/threads.py)
+        dm, rm, bulge = _vertex_terms(X, Y, Zf, vb, float(frac), int(wi), int(wj), int(M),
+                                      dm0, bulge0, mrow)
+    return dm, rm, bulge, int(mrow.max()) if N else 0
+
+
+@njit(cache=True)
+def _renest_nb(X, Y, Z, r):
+    # LP §2.4 (L50–52) again, fine to coarse, on radii already raised: r(v) ≥ |p_v − p_c| + r(c)
+    N = Z.shape[0]
+    h = 1
+    while h < N - 1:
+        for pass_ in range(2):
+            for i in range(0, N, h):
+                for j in range(0, N, h):
+                    centre = (i // h) % 2 == 1 and (j // h) % 2 == 1
+                    edge = ((i // h) % 2 == 1) != ((j // h) % 2 == 1)
+                    if (pass_ == 0 and not edge) or (pass_ == 1 and not centre):
+                        continue
+                    best = np.float64(r[i, j])
+                    for k in range(4):
+                        ci, cj = child_nb(i, j, h, k)
+                        if 0 <= ci < N and 0 <= cj < N:
+                            d = np.sqrt((X[i, j] - X[ci, cj]) ** 2 + (Y[i, j] - Y[ci, cj]) ** 2
+                                        + (Z[i, j] - Z[ci, cj]) ** 2) + np.float64(r[ci, cj])
+                            best = max(best, d)
+                    r[i, j] = round_up32(best)
+        h *= 2
+    return r
+
+
+def metric_bounds(delta: np.ndarray, radius: np.ndarray | None, X: np.ndarray,
+                  Y: np.ndarray, Z: np.ndarray, valid: np.ndarray,
+                  frac: float = BORDER_FRACTION, window: tuple[int, int] | None = None,
+                  terms: tuple | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """δ and r raised so they hold in scene x/y on a curvilinear grid (module docstring).
+
+    Parameters
+    ----------
+    delta, radius : float32 (N, N), from :func:`geoterrain.bounds.delta.vertex_errors` and
+        :func:`geoterrain.bounds.radii.vertex_radii` (not modified). ``radius`` None: r is
+        neither raised nor returned (None).
+    X, Y, Z : float64 (N, N) scene positions (Z NaN or anything where invalid).
+    valid : bool (N, N).
+    frac : border chords follow the curved border to within ``frac / 2`` of a sample
+        spacing; samples within ``2 frac`` spacings of a triangle count as in it.
+    window : (rows, cols) of the data when the mesh is clipped to it
+        (:mod:`geoterrain.bounds.edgepad`): the clipped edges on its last row and column follow
+        the curved border to within the same ``frac / 2`` (see :func:`_tri_term`).
+    terms : the raw terms from :func:`metric_terms` (default: computed here).
+
+    Examples
+    --------
+    >>> from geoterrain.bounds.delta import vertex_errors
+    >>> from geoterrain.bounds.radii import vertex_radii
+    >>> I, J = np.indices((5, 5)).astype(float)
+    >>> X, Y = 100 * J + (I - 2) ** 2, -100 * I  # rows bowed by 4 m: a curved grid
+    >>> Z, ok = 0.5 * X, np.ones((5, 5), bool)
+    >>> d, r = vertex_errors(Z, ok), vertex_radii(X, Y, Z, ok)
+    >>> d2, r2 = metric_bounds(d, r, X, Y, Z, ok)
+    >>> float(d.max()), float(d2[2, 2]) > 0, bool((d2 >= d).all() and (r2 >= r).all())
+    (2.0, True, True)
+    """
+    if terms is None:
+        terms = metric_terms(X, Y, Z, valid, frac, window)
+    dm, rm, bulge, _ = terms  # 0 where a diamond misses the data window (_vertex_terms)
+    d = np.maximum(delta.astype(np.float64), dm)
+    d[bulge] = np.inf
+    d32 = _saturate_nb(_round_up(d))
+    if radius is None:
+        return d32, None
+    vb = np.asarray(valid, bool) & np.isfinite(Z)
+    r = np.maximum(radius.astype(np.float64), rm)
+    xp, yp, zp = _proxy_positions(np.ascontiguousarray(X, np.float64),
+                                  np.ascontiguousarray(Y, np.float64),
+                                  np.where(vb, Z, np.nan), vb)
+    return d32, _renest_nb(xp, yp, zp, _round_up(r))
+
+
+def _round_up(a: np.ndarray) -> np.ndarray:
+    """float64 → float32, never rounding down."""
+    f = a.astype(np.float32)
+    low = f.astype(np.float64) < a
+    f[low] = np.nextafter(f[low], np.float32(np.inf))
+    return f

@@ -1,0 +1,427 @@
+"""A level-0 tile's δ, r and normals, derived on read from the tile's decoded heights.
+
+(:func:`tile_leaf_bounds` and :func:`derived_normal_codes` are what ``Terrain`` calls
+for a ring blob; the normals' rule is in the last function's docstring.)
+
+Below the top level a tile stores only the vertices new at its level (the others are
+its parent's, :mod:`geoterrain.bounds.vertexdata`). At level 0 those are the samples with an
+odd row or column: the bintree's finest vertices, of half-span h = 1 (seed 002 §2.3):
+
+- a block centre (odd row and column): its diamond is its own closed 2 × 2 cell, so its
+  exact δ (:func:`geoterrain.bounds.delta.vertex_errors`) is the h = 1 closed form over those
+  9 samples, saturated with its 4 edge midpoints (§2.4, L46: they are its children and
+  have none), and its sphere radius is the largest distance to them (L50–52: they are
+  leaves, r = 0);
+- an edge midpoint: a leaf (r = 0); its diamond is the two cells beside it, both inside
+  the tile unless it lies on the tile's border.
+
+So every new vertex's δ and r is a function of the tile's own samples, except the δ of
+the edge midpoints on the border ring, whose second cell lies in the next tile (its
+validity decides between the closed form, a partial sweep and +inf). A store keeps only
+those ring values (:data:`geoterrain.bounds.vertexdata.RING`); a reader rebuilds the rest here,
+with the same arithmetic as the whole-grid kernels (the same compiled helpers, no fast
+math), and codes them as the preprocess codes them, so it decodes the same values.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from numba import njit
+
+from geoterrain.bounds.delta import _centre1, _edge_err, _mid1, saturate
+from geoterrain.bounds.normals import encode_octahedral, normal_map
+from geoterrain.bounds.radii import _nest, code_up_nb
+from geoterrain.bounds.vertexdata import (
+    log8_table,
+    new_mask,
+    ring_from_bytes,
+    ring_index,
+    ring_new_index,
+)
+from geoterrain.core import zstdsafe
+from geoterrain.core.bintree import main_diagonal_nb
+from geoterrain.core.rounding import round_up, round_up32
+from geoterrain.exceptions import StoreCorruptError
+
+__all__ = ["derived_normal_codes", "geographic_leaf_delta", "leaf_delta", "leaf_radius",
+           "tile_leaf_bounds"]
+
+
+@njit(cache=True, nogil=True)
+def _status(vb, ci, cj):
+    # the closed 2 × 2 cell centred at (ci, cj): bit 1 holds a valid sample, bit 2 an
+    # invalid one (bounds._block_status_nb at h = 1)
+    f = 0
+    for di in range(-1, 2):
+        for dj in range(-1, 2):
+            f |= 1 if vb[ci + di, cj + dj] else 2
+    return f
+
+
+@njit(cache=True, nogil=True)
+def _leaf_delta_nb(z, vb, all_valid, i0, j0, rr, rc, rv, table, slack, sat, code, out):
+    # bounds._raw_delta_nb's h = 1 pass on the tile's interior, then its saturation
+    # (bounds._saturate_nb: centre = max(centre, its 4 edge midpoints)), then the codes'
+    # values (the code map is monotone: coding after the max = the max of the codes).
+    # ``slack`` (a geographic tile's, else 0: x + 0 is x) is added to every raw value;
+    # ``code`` False leaves the values uncoded (the preprocess codes them with the grid);
+    # ``sat`` False leaves them raw too (no ring, no saturation)
+    T = z.shape[0]
+    for ci in range(1, T - 1, 2):
+        for cj in range(1, T - 1, 2):
+            f = 1 if all_valid else _status(vb, ci, cj)
+            if f == 1:
+                out[ci, cj] = round_up32(_centre1(z, ci, cj,
+                                                  main_diagonal_nb((i0 + ci) // 2,
+                                                                   (j0 + cj) // 2)) + slack)
+            elif f == 3:
+                out[ci, cj] = np.inf
+            else:
+                out[ci, cj] = 0.0
+    for i in range(1, T - 1):
+        for j in range(1 + (i & 1), T - 1, 2):  # (odd, even) and (even, odd), off the ring
+            rows = (i & 1) == 1  # hypotenuse along the rows: ends (i ± 1, j)
+            if all_valid:
+                f = 1
+            elif rows:
+                f = _status(vb, i, j - 1) | _status(vb, i, j + 1)
+            else:
+                f = _status(vb, i - 1, j) | _status(vb, i + 1, j)
+            v = np.float32(0.0)
+            if f == 1:
+                v = round_up32(_mid1(z, i, j, rows) + slack)
+            elif f != 2:
+                m, c = _edge_err(z, vb, i, j, 1, rows, T)
+                if c == 2:
+                    v = np.float32(np.inf)
+                elif c == 1:
+                    v = round_up32(m + slack)
+            out[i, j] = v
+    if not sat:
+        return
+    for k in range(rr.shape[0]):  # the border's edge midpoints, as stored
+        out[rr[k], rc[k]] = rv[k]
+    for ci in range(1, T - 1, 2):
+        for cj in range(1, T - 1, 2):
+            out[ci, cj] = max(out[ci, cj], out[ci - 1, cj], out[ci + 1, cj],
+                              out[ci, cj - 1], out[ci, cj + 1])
+    if not code:
+        return
+    for i in range(T):
+        for j in range(1 - (i & 1), T, 2 - (i & 1)):  # the new vertices
+            out[i, j] = table[code_up_nb(table, np.float64(out[i, j]))]
+
+
+def leaf_delta(z: np.ndarray, valid: np.ndarray, origin: tuple[int, int],
+               ring_rows: np.ndarray, ring_cols: np.ndarray, ring_values: np.ndarray,
+               e: int | None, slack: float = 0.0) -> np.ndarray:
+    """The stored δ (float32) of a level-0 tile's new vertices: saturated exact δ, coded
+    as 8-bit log codes from ``2^e`` (:func:`geoterrain.bounds.vertexdata.log8_codes`); ``e``
+    None: not coded (the preprocess's values before the grid is coded).
+
+    ``slack`` (a geographic tile's, :func:`geographic_leaf_delta`; 0 elsewhere) is added to
+    each closed-form value before it is rounded up to float32 and saturated.
+
+    ``z``: the tile's (T, T) scene heights (invalid samples ignored); ``valid``: its
+    mask; ``origin``: the (row, column) of its first sample in the full grid (the
+    cells' diagonals alternate with the global cell index, seed 002's union jack);
+    ``ring_*``: the border's new vertices and their stored δ. The other samples of the
+    result (the parent's vertices) are 0. Equal to the code values of
+    :func:`~geoterrain.bounds.delta.vertex_errors` of the whole grid there (tested).
+
+    Examples
+    --------
+    >>> z = np.zeros((3, 3)); z[1, 1] = 2.0
+    >>> r, c = np.array([0, 2, 1, 1]), np.array([1, 1, 0, 2])
+    >>> float(leaf_delta(z, np.ones((3, 3), bool), (0, 0), r, c, np.zeros(4), -3)[1, 1])
+    2.0
+    """
+    valid = np.asarray(valid, bool) & np.isfinite(z)
+    zf = np.where(valid, z, 0.0)  # invalid heights are never read
+    out = np.zeros(zf.shape, np.float32)
+    _leaf_delta_nb(zf, valid.view(np.uint8), bool(valid.all()), int(origin[0]), int(origin[1]),
+                   np.asarray(ring_rows, np.int64), np.asarray(ring_cols, np.int64),
+                   np.asarray(ring_values, np.float32), _table(0 if e is None else e),
+                   float(slack), True, e is not None, out)
+    return out
+
+
+@lru_cache(maxsize=64)
+def _table(e: int) -> np.ndarray:
+    return log8_table(e).astype(np.float64)
+
+
+@njit(cache=True, nogil=True)
+def _leaf_radius_nb(x, y, z, table, out):
+    T = z.shape[0]
+    r = np.zeros((T, T), np.float32)  # the edge midpoints: leaves of code 0
+    for ci in range(1, T - 1, 2):
+        for cj in range(1, T - 1, 2):
+            # the log8 code of the nesting over its children (tileblobs.radius_codes)
+            out[ci, cj] = table[code_up_nb(table, _nest(x, y, z, r, ci, cj, 1))]
+
+
+def leaf_radius(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
+                stand_in_z: float, e: int) -> np.ndarray:
+    """The stored r (float32) of a level-0 tile's new vertices: nested sphere radii coded
+    as the preprocess codes them, 8-bit log codes from ``2^e``
+    (:func:`geoterrain.bounds.tileblobs.radius_codes`).
+
+    ``x, y, z``: the tile's (T, T) scene positions; invalid heights are replaced by
+    ``stand_in_z``, as :func:`geoterrain.bounds.radii.vertex_radii` does. The edge midpoints
+    (leaves) and the parent's vertices are 0.
+
+    Examples
+    --------
+    >>> ii, jj = np.indices((3, 3)).astype(float)
+    >>> float(leaf_radius(jj, -ii, np.zeros((3, 3)), np.ones((3, 3), bool), 0.0, 0)[1, 1])
+    1.0
+    """
+    ok = np.asarray(valid, bool) & np.isfinite(z)
+    zp = np.where(ok, z, stand_in_z)
+    out = np.zeros(zp.shape, np.float32)
+    _leaf_radius_nb(np.ascontiguousarray(x, np.float64), np.ascontiguousarray(y, np.float64),
+                    zp, _table(e), out)
+    return out
+
+
+# ------------------------------------------------ a store's level-0 tiles, derived on read
+def tile_leaf_bounds(terrain, key: tuple[int, int, int], kind: str, log8: bool, e: int,
+                     rows: np.ndarray, cols: np.ndarray, ring: np.ndarray,
+                     slack: float = 0.0) -> np.ndarray:
+    """The stored δ or r of a level-0 tile's new vertices, derived from its decoded
+    heights; the border ring's as stored (``Terrain``'s reader of a ``RING`` blob).
+    ``slack``: a geographic tile's δ slack (:func:`geographic_leaf_delta`).
+
+    Examples
+    --------
+    >>> from geoterrain.bounds.vertexdata import ring_new_index
+    >>> r, c = ring_new_index(t.grid.tile_samples)
+    >>> d = tile_leaf_bounds(t, (0, 0, 0), "delta", True, 0, r, c, np.zeros(len(r)))
+    >>> d.shape == (t.grid.tile_samples,) * 2 and bool((d >= 0).all())
+    True
+    """
+    if not log8:  # ring blobs are only ever written in log8 codes
+        raise ValueError(f"a ring {kind} blob not in log8 codes")
+    tile = terrain.tile(*key)
+    z = terrain.frame.z(tile.heights)
+    if kind == "delta":
+        t = terrain.grid.t
+        return leaf_delta(z, tile.valid, (key[2] << t, key[1] << t), rows, cols, ring, e,
+                          slack)
+    X, Y = terrain.tile_xy(*key)
+    r = leaf_radius(X, Y, z, tile.valid, terrain.stand_in_z, e)
+    r[rows, cols] = ring
+    return r
+
+
+def geographic_leaf_delta(delta: np.ndarray, z: np.ndarray, valid: np.ndarray, t: int,
+                          dm: np.ndarray, bulge: np.ndarray
+                          ) -> dict[tuple[int, int, int], float] | None:
+    """Level-0 δ of a geographic grid as a reader derives it: raised in place, tile by
+    tile, then saturated again; the per-tile slack, or None (``delta`` untouched) where
+    the closed forms cannot bound a tile.
+
+    On a geographic grid δ also holds the metric term δ_m of :mod:`geoterrain.bounds.curvature`
+    (the error measured in the scene's curvilinear x, y), which needs pyproj's x, y of
+    every sample. At level 0 that term is tiny (a sample's offset from its index-space
+    place on a 1-sample triangle, about 10⁻⁴ m), so each tile stores one number instead
+    of its values: the slack s, the largest amount by which δ_m exceeds the index-space
+    closed form (seed 002 §2.3) at one of the tile's new vertices off the border ring. A
+    reader adds s to each closed form before it rounds up and saturates
+    (:func:`leaf_delta`), which gives at least max(closed form, δ_m) at every vertex, so
+    at least the grid's saturated δ: still a bound. The border ring's values are stored
+    as they are. Since the raised values may exceed ``delta``, the grid is saturated
+    again (§2.4, L46), so every parent still bounds its children.
+
+    ``delta``: (N, N) float32, saturated; ``z``: scene heights; ``valid``: the mask;
+    ``t``: the tile exponent; ``dm``, ``bulge``: :func:`~geoterrain.bounds.curvature.metric_terms`'
+    raw terms. Returns {(0, x, y): s} for the tiles with a valid sample.
+
+    Examples
+    --------
+    >>> from geoterrain.bounds.delta import vertex_errors
+    >>> z = np.random.default_rng(0).normal(size=(9, 9)); v = np.ones((9, 9), bool)
+    >>> dm = np.zeros((9, 9)); dm[1, 1] = 5.0  # a metric term, say
+    >>> d = saturate(np.maximum(vertex_errors(z, v), dm.astype(np.float32)))
+    >>> s = geographic_leaf_delta(d, z, v, 2, dm, np.zeros((9, 9), bool))
+    >>> 0 < s[(0, 0, 0)] <= 5.0
+    True
+    """
+    T = (1 << t) + 1
+    n_tiles = (delta.shape[0] - 1) >> t
+    rr, rc = ring_new_index(T)
+    inner = new_mask(T)
+    inner[rr, rc] = False  # the ring is stored as it is
+    empty = np.zeros(0, np.int64)
+    raised = []
+    out: dict[tuple[int, int, int], float] = {}
+    for y in range(n_tiles):
+        for x in range(n_tiles):
+            sub = np.s_[y << t:(y << t) + T, x << t:(x << t) + T]
+            v = np.asarray(valid[sub], bool) & np.isfinite(z[sub])
+            if not v.any():
+                continue
+            if bulge[sub][inner].any():
+                return None  # a border chord that needs refining (no such case known)
+            zt = np.where(v, z[sub], 0.0)
+            w = delta[sub]
+            raw = np.zeros((T, T), np.float32)  # the closed forms, unsaturated
+            _leaf_delta_nb(zt, v.view(np.uint8), bool(v.all()), y << t, x << t, empty, empty,
+                           np.zeros(0, np.float32), _table(0), 0.0, False, False, raw)
+            fin = inner & np.isfinite(raw)
+            s = max(0.0, float((dm[sub][fin] - raw[fin]).max())) if fin.any() else 0.0
+            for _ in range(8):  # float32 rounding may leave a value an ulp short
+                s = float(round_up(np.array([s]), np.float32)[0])
+                d = leaf_delta(zt, v, (y << t, x << t), rr, rc, w[rr, rc], None, s)
+                short = d[inner].astype(np.float64) < w[inner]
+                if not short.any():
+                    break
+                if np.isinf(w[inner][short]).any():
+                    return None  # a +inf the closed forms do not give (no such case known)
+                s += float((w[inner][short] - d[inner][short]).max()) + 2.0**-40
+            else:
+                return None
+            raised.append((sub, d))
+            out[(0, x, y)] = s
+    for sub, d in raised:
+        blk = delta[sub]
+        blk[inner] = d[inner]
+    saturate(delta)
+    return out
+
+
+def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
+    """Scene X, Y (T, T) from which a tile's normals are derived on read.
+
+    In a projected or pixel frame, the preprocess's values (:meth:`Frame.axis_xy`, as
+    :meth:`Frame.grid_xy`'s), so the derived codes are its codes. In a geographic frame,
+    pyproj at ``NORMAL_XY_NODES`` × ``NORMAL_XY_NODES`` nodes of the tile only (every 8
+    samples of a 65² tile), bilinear between them: a sample's own pyproj call would cost
+    about 2.6 ms a 65² tile, 20× the stored read. The bilinear positions are off by the
+    projection's curvature over a node cell, far under a normal code's resolution
+    (tested: a code or its neighbour); the border ring, which the preprocess stores
+    from the full map, keeps its exact codes. pyproj at the cells' centres checks the
+    interpolation: where it strays (a tile next to a pole, where latitudes clamp, or at
+    the scene frame's antipode), the tile's own x, y (:meth:`Terrain.tile_xy`), and so
+    the full map's codes.
+
+    Examples
+    --------
+    >>> X, Y = normal_xy(t, 0, 0, 0)
+    >>> X.shape == (t.grid.tile_samples,) * 2
+    True
+    """
+    g = terrain.grid
+    if terrain.frame.kind != "geographic":
+        # the preprocess's grid_xy values as broadcast views: no T² positions to compute
+        # for every tile shaded
+        T = g.tile_samples
+        xs, ys = normal_axes(terrain, level, x, y)
+        return np.broadcast_to(xs[None, :], (T, T)), np.broadcast_to(ys[:, None], (T, T))
+    T = g.tile_samples
+    m = min(T, NORMAL_XY_NODES)  # nodes a side: every (T − 1) / (m − 1) samples
+    w = (T - 1) // (m - 1)
+    if w == 1:  # a node on every sample: exact
+        return terrain.tile_xy(level, x, y)
+    k = np.arange(m) * w
+    rows, cols = g.tile_rows(level, y), g.tile_cols(level, x)
+    # pyproj at the nodes and at the cells' centres, which check the interpolation
+    kc = k[:-1] + w // 2
+    pick = np.concatenate([k, kc])
+    ii, jj = np.meshgrid(rows[pick], cols[pick], indexing="ij")
+    px, py = (np.asarray(v, np.float64) for v in terrain.frame.xy(ii, jj))
+    cx, cy = px[:m, :m], py[:m, :m]
+    X, Y = _bilinear(cx, k, T), _bilinear(cy, k, T)
+    # where the frame bends within a cell (next to a pole, where latitudes clamp, or
+    # the scene frame's antipode) the bilinear x, y stray: then the tile's own
+    step = min(np.hypot(np.diff(cx, axis=1), np.diff(cy, axis=1)).min(),
+               np.hypot(np.diff(cx, axis=0), np.diff(cy, axis=0)).min()) / w
+    off = max(np.abs(X[np.ix_(kc, kc)] - px[m:, m:]).max(),
+              np.abs(Y[np.ix_(kc, kc)] - py[m:, m:]).max())
+    if not (np.isfinite(off) and step > 0 and off <= NORMAL_XY_TOLERANCE * w * step):
+        return terrain.tile_xy(level, x, y)
+    return X, Y
+
+
+def normal_axes(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
+    """A projected or pixel frame's :func:`normal_xy` as its two axes: X (T,) of the
+    tile's columns and Y (T,) of its rows (:meth:`Frame.axis_xy`'s values), cached by
+    tile column and row (a frame's new tiles share them).
+
+    Examples
+    --------
+    >>> xs, ys = normal_axes(t, 0, 0, 0)
+    >>> xs.shape == ys.shape == (t.grid.tile_samples,)
+    True
+    """
+    g, f = terrain.grid, terrain.frame
+    xs = terrain._cached(("normal_x", level, x), lambda: f.axis_xy(
+        g.tile_rows(level, 0)[:1], g.tile_cols(level, x))[0][0])
+    ys = terrain._cached(("normal_y", level, y), lambda: f.axis_xy(
+        g.tile_rows(level, y), g.tile_cols(level, 0)[:1])[1][:, 0])
+    return xs, ys
+
+
+NORMAL_XY_NODES = 9  # pyproj nodes a side of a tile for its derived normals' x, y
+# a cell centre's bilinear x, y may be off by this × the cell's width in samples × the
+# sample spacing: a parabolic bump that size tilts the tangents by under 10⁻³ rad
+NORMAL_XY_TOLERANCE = 2e-4
+
+
+def _bilinear(c: np.ndarray, k: np.ndarray, T: int) -> np.ndarray:
+    """(T, T) values bilinear between node values ``c`` (m, m) at sample offsets ``k``."""
+    s = np.arange(T)
+    cell = np.minimum(np.searchsorted(k, s, side="right") - 1, len(k) - 2)
+    f = (s - k[cell]) / (k[cell + 1] - k[cell])
+    a, b = cell[:, None], cell[None, :]
+    fa, fb = f[:, None], f[None, :]
+    top = c[a, b] + (c[a, b + 1] - c[a, b]) * fb
+    bot = c[a + 1, b] + (c[a + 1, b + 1] - c[a + 1, b]) * fb
+    return top + (bot - top) * fa
+
+
+def ring_codes(terrain, level: int, x: int, y: int) -> np.ndarray:
+    """The normal codes (4T − 4, 2) of a tile's border ring on a derived level, as stored
+    (in :func:`~geoterrain.bounds.vertexdata.ring_index`'s order).
+
+    Examples
+    --------
+    >>> ring_codes(t, 0, 0, 0).shape == (4 * t.grid.tile_samples - 4, 2)
+    True
+    """
+    n = len(ring_index(terrain.grid.tile_samples)[0])
+    try:  # bounded: exactly the ring's 4T − 4 pairs
+        return ring_from_bytes(zstdsafe.decompress(terrain._blob((level, x, y), "normals"),
+                                                   2 * n, exact=True))
+    except ValueError:
+        raise StoreCorruptError(f"{terrain.path}: tile {(level, x, y)} normals cannot be "
+                                "decoded; re-run `geoterrain preprocess`") from None
+
+
+def derived_normal_codes(terrain, level: int, x: int, y: int) -> np.ndarray:
+    """A tile whose normals blob is its border ring: the interior is the normal map of
+    its decoded heights (the preprocess's central differences of the level's samples,
+    seed 000's normal-map lighting, :func:`geoterrain.bounds.normals.level_normal_maps`: they
+    read no sample outside the tile there), encoded as the preprocess encodes; the ring
+    is the stored codes.
+
+    Examples
+    --------
+    >>> derived_normal_codes(t, 0, 0, 0).shape[2]  # doctest: +SKIP
+    2
+    """
+    rr, cc = ring_index(terrain.grid.tile_samples)
+    ring = ring_codes(terrain, level, x, y)
+    tile = terrain.tile(level, x, y)
+    X, Y = normal_xy(terrain, level, x, y)
+    # one tile on this thread (serial kernels: no thread pool for 65² samples, and safe in
+    # a fork() child, where GNU OpenMP aborts a parallel launch)
+    codes = encode_octahedral(normal_map(X, Y, terrain.frame.z(tile.heights), tile.valid,
+                                         serial=True),
+                              terrain.meta["normal_bits"], serial=True)
+    codes[rr, cc] = ring
+    terrain.decoded_normals += 1
+    return codes

@@ -1,0 +1,204 @@
+"""Nested bounding-sphere radii (seed 002 §2.4, L50–52), as float radii and as the
+8-bit log codes they are stored as.
+
+The radii nest, r(v) ≥ |p_v − p_c| + r(c) on every edge of the vertex DAG, so that with
+δ saturated (:mod:`geoterrain.bounds.delta`) the screen-space error of LP eq. 2,
+ρ = λ δ / (|p − o| − r), is monotone along it. :func:`vertex_radii` computes them in
+float32 rounded up; ``_radii_nb`` with a log8 table nests the stored codes themselves
+(:func:`geoterrain.bounds.tileblobs.radius_codes`), so the stored values nest exactly.
+
+The sphere of every vertex must contain those of its children, valid or not, so invalid
+positions are replaced by finite *proxy* positions before nesting: z by the midpoint of
+the valid height range (so a valid vertex's radius grows by at most about half the
+relief near nodata), and non-finite x or y by an affine fit of the finite ones in
+(i, j). Nesting then holds on every DAG edge, and radii of valid vertices stay finite.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from geoterrain.bounds.delta import _PARALLEL, grid_order
+from geoterrain.core.bintree import child_nb
+from geoterrain.core.rounding import round_up32
+from geoterrain.core.threads import cores_for
+
+__all__ = ["stand_in_z", "valid_range", "vertex_radii"]
+
+def stand_in_z(z: np.ndarray, valid: np.ndarray) -> float:
+    """The height standing in for invalid samples in the nested spheres: the middle of
+    the valid height range (0 when nothing is valid). Stored with the store, so that the
+    view-dependent predicate places invalid vertices where the radii did.
+
+    Examples
+    --------
+    >>> stand_in_z(np.array([[1.0, np.nan], [5.0, 100.0]]), np.array([[1, 0], [1, 0]], bool))
+    3.0
+    """
+    lo, hi, n = valid_range(z, valid)
+    return float(0.5 * (lo + hi)) if n else 0.0
+
+
+def valid_range(z: np.ndarray, valid: np.ndarray) -> tuple[float, float, int]:
+    """(min, max, count) of the finite valid samples of a 2-D grid, one compiled pass
+    without copying them ((inf, -inf, 0) when there are none).
+
+    Examples
+    --------
+    >>> valid_range(np.array([[1.0, np.nan], [5.0, -2.0]]), np.array([[1, 1], [1, 0]], bool))
+    (1.0, 5.0, 2)
+    """
+    lo, hi, n = _valid_range_nb(np.asarray(z, dtype=np.float64), np.asarray(valid, bool))
+    return float(lo), float(hi), int(n)
+
+
+@njit(cache=True, nogil=True)
+def _valid_range_nb(z, valid):
+    # min, max and count of the finite valid samples, one pass, no copy
+    lo, hi, n = np.inf, -np.inf, 0
+    for i in range(z.shape[0]):
+        for j in range(z.shape[1]):
+            v = z[i, j]
+            if valid[i, j] and np.isfinite(v):
+                lo = min(lo, v)
+                hi = max(hi, v)
+                n += 1
+    return lo, hi, n
+
+
+def _proxy_positions(x, y, z, valid):
+    z = np.ascontiguousarray(z, dtype=np.float64)
+    valid = np.asarray(valid, dtype=bool)
+    if valid.all() and np.isfinite(z).all():
+        zp = z
+    else:
+        zp = np.where(valid & np.isfinite(z), z, stand_in_z(z, valid))
+    out = [zp]
+    for c in (x, y):
+        c = np.asarray(c, dtype=np.float64)  # no copy of a broadcast view (grid_xy)
+        if not np.isfinite(c).all():
+            ok = np.isfinite(c)
+            ii, jj = np.nonzero(ok)
+            if ii.size:
+                A = np.stack([ii, jj, np.ones_like(ii)], 1).astype(np.float64)
+                coef = np.linalg.lstsq(A, c[ok], rcond=None)[0]
+            else:
+                coef = np.zeros(3)
+            ii_, jj_ = np.indices(c.shape)
+            c = np.where(ok, c, coef[0] * ii_ + coef[1] * jj_ + coef[2])
+        out.append(c)
+    return out[1], out[2], out[0]
+
+
+def vertex_radii(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Nested bounding-sphere radii (seed 002 §2.4, L50–52), float32 (N, N) rounded up.
+
+    r = 0 for the finest vertices (and the 4 corners); otherwise
+    r(v) = max over children c of |p_v − p_c| + r(c) with p = (x, y, z) in 3-D scene
+    coordinates (curvilinear x, y are fine), computed coarse-from-fine. Each level is
+    rounded up to float32 before its parents use it, so r32(v) ≥ |p_v − p_c| + r32(c)
+    holds for the stored values. Invalid positions are replaced by finite proxies (see the
+    module docstring), so nesting holds on every DAG edge.
+
+    Examples
+    --------
+    >>> I, J = np.indices((3, 3)).astype(float)
+    >>> r = vertex_radii(J, -I, np.zeros((3, 3)), np.ones((3, 3), bool))
+    >>> float(r[1, 1]), float(r[0, 1])
+    (1.0, 0.0)
+    """
+    x, y, z = _proxy_positions(x, y, z, valid)
+    grid_order(z.shape[0])
+    none = np.empty((0, 0), np.float32)
+    with cores_for(z.size):
+        return _radii_nb(x, y, z, none, np.empty(0), np.empty((0, 0), np.uint8))
+
+
+@njit(cache=True, inline="always")
+def _nest(x, y, z, r, i, j, h):
+    # max over the children c of |p_v − p_c| + r(c) (children outside the grid: none)
+    N = z.shape[0]
+    best = 0.0
+    for k in range(4):
+        ci, cj = child_nb(i, j, h, k)
+        if 0 <= ci < N and 0 <= cj < N:
+            d = np.sqrt((x[i, j] - x[ci, cj]) ** 2 + (y[i, j] - y[ci, cj]) ** 2
+                        + (z[i, j] - z[ci, cj]) ** 2) + np.float64(r[ci, cj])
+            best = max(best, d)
+    return best
+
+
+@njit(cache=True, nogil=True, inline="always")
+def code_up_nb(table, x):
+    """The smallest log8 code whose value is ≥ x (:func:`log8_codes`; ``table`` float64,
+    increasing, ending with +inf): a binary search, compiled, inlined."""
+    lo, hi = 0, table.shape[0] - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if table[mid] >= x:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@njit(cache=True, nogil=True, inline="always")
+def nest_code_nb(x, y, z, r, codes, table, i, j, h):
+    """The code of vertex (i, j) of half-span h with the nesting of seed 002 §2.4
+    (L50–52) on the coded values: the smallest code ≥ its radius and ≥ |p_v − p_c| +
+    table[code(c)] for each child c (children outside the grid: none)."""
+    N = z.shape[0]
+    best = np.float64(r[i, j]) if r.shape[0] else 0.0
+    for k in range(4):
+        ci, cj = child_nb(i, j, h, k)
+        if 0 <= ci < N and 0 <= cj < N:
+            d = np.sqrt((x[i, j] - x[ci, cj]) ** 2 + (y[i, j] - y[ci, cj]) ** 2
+                        + (z[i, j] - z[ci, cj]) ** 2) + table[codes[ci, cj]]
+            best = max(best, d)
+    return code_up_nb(table, best)
+
+
+@njit(cache=True, inline="always")
+def _visit(x, y, z, r, rin, table, codes, i, j, h):
+    # one vertex of _radii_nb: its float32 radius, or its code nested on the codes
+    if table.shape[0] == 0:
+        r[i, j] = round_up32(_nest(x, y, z, r, i, j, h))
+    else:
+        codes[i, j] = nest_code_nb(x, y, z, rin, codes, table, i, j, h)
+
+
+@njit(cache=True, parallel=_PARALLEL)
+def _radii_nb(x, y, z, rin, table, codes):
+    # LP §2.4 (L50–52): r(v) = max over children c of |p_v − p_c| + r(c), fine to coarse;
+    # each level is rounded up to float32 before its parents read it. With a log8
+    # ``table``: ``codes`` instead, nested on the coded values (tileblobs.radius_codes),
+    # covering ``rin`` too where given; the float radii are then not made.
+    N = z.shape[0]
+    coded = table.shape[0] > 0
+    r = np.zeros((0, 0) if coded else (N, N), np.float32)
+    if coded:
+        for i in prange(N):
+            for j in range(N):  # leaves keep their own (0 without radii)
+                codes[i, j] = code_up_nb(table, np.float64(rin[i, j])) if rin.shape[0] else 0
+    h = 1
+    while h < N - 1:
+        s = 2 * h
+        nb = (N - 1) // s
+        if h >= 2:  # edge midpoints (those of h = 1 are leaves: r = 0)
+            for typ in range(2):
+                rows = typ == 0
+                na = nb if rows else nb + 1
+                nc = nb + 1 if rows else nb
+                for a in prange(na):
+                    for b in range(nc):
+                        i = h + a * s if rows else a * s
+                        j = b * s if rows else h + b * s
+                        _visit(x, y, z, r, rin, table, codes, i, j, h)
+        for a in prange(nb):  # centres
+            for b in range(nb):
+                i = h + a * s
+                j = h + b * s
+                _visit(x, y, z, r, rin, table, codes, i, j, h)
+        h *= 2
+    return r

@@ -1,0 +1,412 @@
+"""Every stored tile's δ, r and normal-map blobs, built level by level on whole arrays.
+
+The per-vertex bounds are coded once at full resolution (the codes are elementwise:
+:func:`geoterrain.bounds.vertexdata.log8_codes` for δ; for r nested log8 codes,
+:func:`radius_codes`, or rounded-up float16), then one
+compiled pass per pyramid level gathers each stored tile's payload (only the vertices
+new at the level, as :func:`geoterrain.bounds.vertexdata.pack_bounds_v2` stores them; the
+normals as planar 2-D differences, :func:`geoterrain.bounds.vertexdata.normals_to_bytes`) and
+the per-tile maxima of the stored δ and r. zstd then compresses every payload of the
+level in one call on every core. The blobs are byte-identical to packing each tile
+with the per-tile functions (tested).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+import numpy as np
+from numba import njit, prange
+
+from geoterrain.bounds.radii import _proxy_positions, _radii_nb
+from geoterrain.bounds.vertexdata import (
+    DIFF,
+    LOG8,
+    LOG_STEPS,
+    NEW_ONLY,
+    RING,
+    SLACK,
+    VERSION_2,
+    log8_exponent,
+    log8_table,
+    new_mask,
+    ring_index,
+    ring_new_index,
+    ring_planes,
+    scale_exponent,
+)
+from geoterrain.core.rounding import round_up
+from geoterrain.core.threads import cores_for
+from geoterrain.core.zstdsafe import compress_many
+
+__all__ = ["BoundsCoding", "level_blobs", "compress_rows", "radius_codes"]
+
+_ZSTD_LEVEL = 3  # δ, r and normals: level 19 saves 3 % at many times the time (§7)
+
+
+class BoundsCoding:
+    """δ and r of a whole pyramid, coded once at full resolution.
+
+    ``dc``: δ's 8-bit log codes; ``r16``: r scaled by ``2^-kr`` and rounded up to
+    float16. ``d_stored`` and ``r_stored`` (computed on demand): the float32 values a
+    reader decodes; the per-tile maxima in the tile rows are maxima of these, so a tile
+    skipped by them skips no stored vertex.
+
+    Examples
+    --------
+    >>> c = BoundsCoding(np.array([[0.0, 1.5], [2.0, np.inf]]), np.ones((2, 2)))
+    >>> bool((c.d_stored >= [[0.0, 1.5], [2.0, np.inf]]).all()), c.r16.dtype.name
+    (True, 'float16')
+    """
+
+    def __init__(self, delta: np.ndarray, radius: np.ndarray | None, ed: int | None = None,
+                 r_codes: tuple[np.ndarray, int] | None = None) -> None:
+        # ed: δ's code exponent (default: the smallest that covers its largest finite
+        # value); a given one must cover it too (a larger one steps more coarsely).
+        # r_codes: (codes, e) of :func:`radius_codes`: r stored as nested log8 codes,
+        # and ``radius`` (float16 otherwise) is not coded (None allowed)
+        self.ed = log8_exponent(delta) if ed is None else int(ed)
+        self.rc = None if r_codes is None else np.ascontiguousarray(r_codes[0], np.uint8)
+        self.er = None if r_codes is None else int(r_codes[1])
+        if radius is None and r_codes is None:
+            raise ValueError("r needs its radii or its codes")
+        code_r = r_codes is None
+        self.kr = scale_exponent(radius) if code_r else 0
+        t8 = log8_table(self.ed)
+        shape = np.shape(delta)
+        self.table = t8
+        self.dc = np.empty(shape, np.uint8)
+        bits = np.empty(shape if code_r else (0, 0), np.uint16)
+        d2 = np.asarray(delta).reshape(-1, shape[-1])
+        r2 = np.asarray(radius).reshape(d2.shape) if code_r else np.empty((0, 0), np.float32)
+        with cores_for(d2.size):  # small grids on one thread (geoterrain/core/threads.py)
+            odd = _code_bounds(d2, r2, t8.astype(np.float64), self.ed, 2.0 ** -self.kr,
+                               self.dc.reshape(d2.shape), bits.reshape(r2.shape))
+        self.r16 = bits.view(np.float16)
+        if odd:  # NaN, negative or -0.0 radii (none in practice): numpy's exact rule
+            m = ~(np.asarray(radius) > 0) & ~(np.asarray(radius) == 0) | np.signbit(radius)
+            r = np.asarray(radius, np.float64)[m] * 2.0 ** -self.kr
+            self.r16[m] = round_up(r, np.float16)
+
+    @property
+    def d_stored(self) -> np.ndarray:
+        return self.table[self.dc]
+
+    @property
+    def r_stored(self) -> np.ndarray:
+        if self.rc is not None:
+            return log8_table(self.er)[self.rc]
+        return round_up(self.r16.astype(np.float64) * 2.0 ** self.kr, np.float32)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _first_ge(table, x, c):
+    """The first index i with table[i] >= x (numpy's searchsorted, side="left"), walked
+    from the guess ``c`` (the table is increasing and ends with +inf ≥ x)."""
+    c = min(max(c, 0), table.shape[0] - 1)
+    while c > 0 and table[c - 1] >= x:
+        c -= 1
+    while table[c] < x:
+        c += 1
+    return c
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _f16_up_bits(x, bits):
+    """The bit pattern of the smallest float16 ≥ x (x ≥ +0.0 or +inf; ``bits``: x's
+    float64 bit pattern): float16 patterns of non-negative values increase with the
+    value, so rounding the mantissa up may carry into the next binade (and past 65504
+    onto +inf, 0x7C00)."""
+    if x > 65504.0:
+        return 0x7C00
+    if x < 2.0 ** -14:  # subnormal float16: multiples of 2^-24 (exact scaling)
+        return int(math.ceil(x * 2.0 ** 24))
+    e = ((bits >> 52) & 0x7FF) - 1023  # x in [2^e, 2^(e+1)), e in [-14, 15]
+    b = ((e + 15) << 10) | ((bits >> 42) & 0x3FF)
+    if bits & ((1 << 42) - 1):
+        b += 1
+    return b
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _f16_value(b):
+    """The value of any float16 bit pattern, as float64 (exact)."""
+    e, m = (b >> 10) & 0x1F, b & 0x3FF
+    if e == 31:
+        v = np.inf if m == 0 else np.nan
+    elif e == 0:
+        v = m * 2.0 ** -24
+    else:
+        v = (m + 1024) * 2.0 ** (e - 25)
+    return -v if b & 0x8000 else v
+
+
+def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
+                 radius: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """Nested radii as 8-bit log codes rounded up, the nesting re-established on the
+    coded values: ``(codes, e)``, with table[code(v)] ≥ r(v) and ≥ |p_v − p_c| +
+    table[code(c)] on every DAG edge (seed 002 §2.4, L50–52), positions as
+    :func:`geoterrain.bounds.radii.vertex_radii` takes them (invalid ones by its proxies).
+    ``radius`` None: the nesting alone, from leaves of radius 0 (what
+    :func:`~geoterrain.bounds.radii.vertex_radii` computes, without its float32 roundings:
+    the codes are ≥ its radii all the same); given (radii raised beyond the nesting, as
+    :func:`geoterrain.bounds.curvature.metric_bounds` raises them), each code also covers them.
+
+    Each vertex's rounding (< 4.4 %) passes to its parents, but damped: a child's sphere
+    is a fraction of its parent's. ``e`` leaves two octaves above the largest radius for
+    that growth, and doubles its headroom in the rare case a code still overflows.
+
+    Examples
+    --------
+    >>> from geoterrain.bounds.radii import vertex_radii
+    >>> I, J = np.indices((5, 5)).astype(float)
+    >>> ok = np.ones((5, 5), bool)
+    >>> r = vertex_radii(J, -I, np.zeros((5, 5)), ok)
+    >>> codes, e = radius_codes(J, -I, np.zeros((5, 5)), ok, r)
+    >>> v = log8_table(e)[codes]
+    >>> bool((v >= r).all()), bool(v[2, 2] >= 2 ** 0.5 + v[1, 1])
+    (True, True)
+    """
+    xp, yp, zp = _proxy_positions(x, y, z, valid)
+    codes = np.empty(zp.shape, np.uint8)
+    if radius is None:  # the largest radius is at most the root's: the grid's diagonal
+        r = np.empty((0, 0), np.float32)
+        span = [np.nanmax(c) - np.nanmin(c) for c in (xp[[0, -1]][:, [0, -1]],
+                                                      yp[[0, -1]][:, [0, -1]])]
+        peak = float(np.hypot(*span) + np.nanmax(zp) - np.nanmin(zp))
+        e = log8_exponent(np.array([peak])) + 2
+    else:
+        r = np.ascontiguousarray(radius, np.float32)
+        e = log8_exponent(r) + 2
+    e = min(e, 127)  # the blob header's int8 (a larger one would wrap to a tiny scale)
+    while True:
+        table = log8_table(e).astype(np.float64)
+        with cores_for(codes.size):
+            _radii_nb(xp, yp, zp, r, table, codes)
+        if not (codes == 255).any() or e >= 127:
+            return codes, e
+        e = min(e + 4, 127)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _code_bounds(delta, radius, t8, e8, down, dc, r16):
+    """One pass (rows on every core): δ's log8 codes (:func:`log8_codes`: NaN as +inf);
+    r scaled by ``down`` and rounded up to float16 (bit patterns). Returns the count of
+    radii that are NaN, negative or -0.0, left for numpy."""
+    odd = 0
+    lo8 = t8[1]
+    for i in prange(delta.shape[0]):
+        buf = np.empty(1, np.float64)
+        ibuf = buf.view(np.int64)  # float64 bit patterns (exponent and mantissa)
+        for j in range(delta.shape[1]):
+            x = np.float64(delta[i, j])
+            if x != x:
+                x = np.inf
+            if x <= lo8:
+                g = 0
+            elif x == np.inf:
+                g = 255
+            else:  # log2(x) ≈ exponent + mantissa fraction (within 0.09)
+                buf[0] = x
+                b = ibuf[0]
+                f = ((b >> 52) & 0x7FF) - 1023 + (b & ((1 << 52) - 1)) * 2.0 ** -52
+                g = int(LOG_STEPS * (f - e8)) + 1
+            c = _first_ge(t8, x, g)  # the guess is off by at most two codes
+            dc[i, j] = c
+            if radius.shape[0] == 0:  # r coded elsewhere (radius_codes)
+                continue
+            r = np.float64(radius[i, j])
+            if r > 0 or (r == 0 and math.copysign(1.0, r) > 0):
+                buf[0] = r * down
+                b = _f16_up_bits(buf[0], ibuf[0])
+                r16[i, j] = b
+            else:
+                odd += 1
+    return odd
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _level_payloads(dc, r16, t8, up, rc, rt, nrm, ys, xs, t, level, new_only, pd, pr, pn,
+                    dmax, rmax):
+    """Row k of ``pd``/``pr``/``pn``: tile (level, xs[k], ys[k])'s δ codes, r float16
+    planes (low bytes, then high bytes) and normal planes of 2-D differences (mod 256);
+    ``dmax``/``rmax``: the maxima of the stored δ and r over the same vertices, the
+    values a reader decodes: ``t8[code]`` and the float16 times ``up`` (exact in
+    float32: 11 bits, exponent in range); NaN propagates as numpy's max does. With r's
+    log8 codes ``rc`` (``rt`` their table; empty when r is float16), ``pr`` holds the
+    codes, one byte each."""
+    rlog = rc.shape[0] > 0
+    T = (1 << t) + 1
+    s = 1 << level
+    step = (1 << t) * s
+    nnew = pd.shape[1]
+    for k in prange(ys.shape[0]):  # tiles on every core: each writes its own rows
+        y0, x0 = ys[k] * step, xs[k] * step
+        m = 0
+        dm = np.float32(-np.inf)
+        rm = np.float32(-np.inf)
+        dnan = False
+        rnan = False
+        for i in range(T):
+            yi = y0 + i * s
+            for j in range(T):
+                if new_only and (i & 1) == 0 and (j & 1) == 0:
+                    continue
+                xj = x0 + j * s
+                pd[k, m] = dc[yi, xj]
+                if rlog:
+                    pr[k, m] = rc[yi, xj]
+                    rv = rt[rc[yi, xj]]
+                else:
+                    b = r16[yi, xj]
+                    pr[k, m] = np.uint8(b & 0xFF)
+                    pr[k, nnew + m] = np.uint8(b >> 8)
+                    rv = np.float32(_f16_value(b) * up)
+                dv = t8[dc[yi, xj]]
+                if dv != dv:
+                    dnan = True
+                elif dv > dm:
+                    dm = dv
+                if rv != rv:
+                    rnan = True
+                elif rv > rm:
+                    rm = rv
+                m += 1
+        dmax[k] = np.float32(np.nan) if dnan else dm
+        rmax[k] = np.float32(np.nan) if rnan else rm
+        # normals: the level's own map, tile window at (ys[k] 2^t, xs[k] 2^t)
+        ny0, nx0 = ys[k] * (1 << t), xs[k] * (1 << t)
+        for c in range(2):
+            base = c * T * T
+            for i in range(T):
+                for j in range(T):
+                    v = np.int32(nrm[ny0 + i, nx0 + j, c])
+                    if i > 0:
+                        v -= np.int32(nrm[ny0 + i - 1, nx0 + j, c])
+                    if j > 0:
+                        v -= np.int32(nrm[ny0 + i, nx0 + j - 1, c])
+                        if i > 0:
+                            v += np.int32(nrm[ny0 + i - 1, nx0 + j - 1, c])
+                    pn[k, base + i * T + j] = np.uint8(v & 0xFF)
+
+
+def compress_rows(rows: np.ndarray, prefix: bytes | list[bytes] = b"",
+                  level: int = _ZSTD_LEVEL) -> list[bytes]:
+    """``prefix + zstd(row)`` of every row of a 2-D uint8 array, in one call on every core
+    (``prefix`` may be one per row).
+
+    Examples
+    --------
+    >>> rows = np.arange(12, dtype=np.uint8).reshape(3, 4)
+    >>> import zstandard
+    >>> d = zstandard.ZstdDecompressor()
+    >>> [d.decompress(b[1:]) == r.tobytes() for b, r in zip(compress_rows(rows, b"v"), rows)]
+    [True, True, True]
+    """
+    rows = np.ascontiguousarray(rows, np.uint8)
+    heads = [prefix] * len(rows) if isinstance(prefix, bytes) else list(prefix)
+    return [h + f for h, f in zip(heads, compress_many([r.tobytes() for r in rows], level),
+                                  strict=True)]
+
+
+def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_level: int,
+                tiles: Iterable[tuple[int, int]], kinds=("delta", "radius", "normals"),
+                ring: bool | tuple[str, ...] = False, base: BoundsCoding | None = None,
+                slack: dict | None = None) -> tuple[dict, np.ndarray, np.ndarray]:
+    """The δ, r and normals blobs of the stored tiles ``(x, y)`` of one level.
+
+    ``nrm`` is the level's octahedral normal map (n, n, 2) uint8. Returns
+    ``({"delta": {...}, "radius": {...}, "normals": {...}}, dmax, rmax)`` with blobs
+    keyed ``(level, x, y)`` and the per-tile maxima in the order of ``tiles``; only the
+    ``kinds`` asked for are compressed. ``ring`` (level 0 below the top): the δ and r
+    blobs hold only the border's new vertices (flag ``RING``; a reader derives the rest,
+    :mod:`geoterrain.bounds.leafbounds`); the maxima still cover every new vertex. ``base``
+    (a δ_edge's δ, coded with the same table): the δ blobs hold each code's difference
+    from ``base``'s mod 256 (flag ``DIFF``); the maxima are still of ``coding``'s values.
+    ``ring`` may name the kinds instead (``("delta",)``: a geographic store's, whose r is
+    stored whole); ``slack`` maps a tile's key to its ring δ's slack (flag ``SLACK``,
+    :func:`geoterrain.bounds.leafbounds.geographic_leaf_delta`; none where it is 0).
+
+    Examples
+    --------
+    >>> c = BoundsCoding(np.ones((5, 5)), np.ones((5, 5)))
+    >>> nrm = np.zeros((5, 5, 2), np.uint8)
+    >>> blobs, dmax, rmax = level_blobs(c, nrm, 2, 0, 0, [(0, 0)])
+    >>> sorted(blobs), float(dmax[0]), float(rmax[0])
+    (['delta', 'normals', 'radius'], 1.0, 1.0)
+    """
+    xy = np.asarray(list(tiles), np.int64).reshape(-1, 2)
+    T = (1 << t) + 1
+    new_only = level < top_level
+    nnew = T * T - (((T + 1) // 2) ** 2 if new_only else 0)
+    k = len(xy)
+    pd = np.empty((k, nnew), np.uint8)
+    rlog = coding.rc is not None
+    pr = np.empty((k, nnew if rlog else 2 * nnew), np.uint8)
+    pn = np.empty((k, 2 * T * T), np.uint8)
+    dmax = np.empty(k, np.float32)
+    rmax = np.empty(k, np.float32)
+    with cores_for(coding.dc.size):
+        _level_payloads(coding.dc, coding.r16.view(np.uint16), coding.table, 2.0 ** coding.kr,
+                        coding.rc if rlog else np.empty((0, 0), np.uint8),
+                        log8_table(coding.er) if rlog else np.empty(0, np.float32),
+                        np.ascontiguousarray(nrm, np.uint8), np.ascontiguousarray(xy[:, 1]),
+                        np.ascontiguousarray(xy[:, 0]), t, level, new_only, pd, pr, pn, dmax, rmax)
+    flags = NEW_ONLY if new_only else 0
+    if base is not None:
+        if base.ed != coding.ed or ring:
+            raise ValueError("a difference δ blob needs one code table and no ring")
+        s = 1 << level
+        ii, jj = np.nonzero(new_mask(T) if new_only else np.ones((T, T), bool))
+        rows = (xy[:, 1, None] << (t + level)) + ii[None] * s
+        cols = (xy[:, 0, None] << (t + level)) + jj[None] * s
+        pd = pd - base.dc[rows, cols]  # uint8: wraps mod 256, exactly invertible
+        flags |= DIFF
+    ring_kinds = ("delta", "radius") if ring is True else tuple(ring or ())
+    flags_d, flags_r = flags, flags & ~DIFF
+    if ring_kinds:
+        if level != 0 or not new_only or T < 3 or base is not None:
+            raise ValueError("ring bounds blobs are for level 0 below the top level")
+        rr, rc = ring_new_index(T)
+        pos = np.searchsorted(np.flatnonzero(new_mask(T)), rr * T + rc)
+        if "delta" in ring_kinds:
+            pd = pd[:, pos]
+            flags_d |= RING
+        if "radius" in ring_kinds:
+            pr = pr[:, pos] if rlog else np.concatenate([pr[:, pos], pr[:, nnew + pos]], axis=1)
+            flags_r |= RING
+    head_d = bytes([VERSION_2, flags_d | LOG8, int(coding.ed) & 0xFF])
+    head_r = bytes([VERSION_2, flags_r | (LOG8 if rlog else 0),
+                    int(coding.er if rlog else coding.kr) & 0xFF])
+    keys = [(level, int(x), int(y)) for x, y in xy]
+    if slack:  # a tile with a slack: the flag, then the float32 after the exponent
+        if not flags_d & RING:
+            raise ValueError("a slack is for a ring δ blob")
+        head_d = [head_d if s <= 0 else bytes([head_d[0], head_d[1] | SLACK, head_d[2]])
+                  + np.float32(s).astype("<f4").tobytes()
+                  for s in (float(slack.get(k, 0.0)) for k in keys)]
+    rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
+    blobs = {kind: dict(zip(keys, compress_rows(*rows[kind]), strict=True)) for kind in kinds}
+    return blobs, dmax, rmax
+
+
+def ring_blobs(nrm: np.ndarray, t: int, tiles: Iterable[tuple[int, int]],
+               level: int = 0) -> dict:
+    """Normals blobs of level ``level`` (``nrm``: that level's codes) that hold only each
+    tile's border ring (4T − 4 samples, as :func:`geoterrain.bounds.vertexdata.ring_planes`,
+    zstd): a reader derives the interior from the tile's own heights
+    (:meth:`geoterrain.terrain.Terrain.tile_normal_codes`), as the central differences
+    there read no sample outside the tile.
+
+    Examples
+    --------
+    >>> nrm = np.arange(5 * 5 * 2, dtype=np.uint8).reshape(5, 5, 2)
+    >>> sorted(ring_blobs(nrm, 2, [(0, 0)]))
+    [(0, 0, 0)]
+    """
+    xy = np.asarray(list(tiles), np.int64).reshape(-1, 2)
+    rr, cc = ring_index((1 << t) + 1)
+    rings = nrm[(xy[:, 1, None] << t) + rr[None], (xy[:, 0, None] << t) + cc[None]]
+    keys = [(level, int(x), int(y)) for x, y in xy]
+    return dict(zip(keys, compress_rows(ring_planes(rings)), strict=True))

@@ -1,0 +1,311 @@
+"""Per-tile error bounds and boxes of the stored pyramid (the store's tile table).
+
+For every stored tile ``(L, x, y)`` (docs/conventions.md): the max vertical error of the
+level-L union-jack surface over the tile's footprint, the same on its border lines (what
+a skirt must cover), and the box of its valid samples. Invalid samples are handled as in
+:mod:`geoterrain.bounds.delta`: never read, and a triangle mixing valid and invalid samples
+makes the bound +inf.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from geoterrain.bounds.delta import cell_rows_nb, check_grid
+from geoterrain.core.bintree import main_diagonal_nb
+from geoterrain.core.grid import footprint_counts
+from geoterrain.core.threads import cores_for
+
+__all__ = ["TileBounds", "tile_and_block_errors", "tile_errors"]
+
+
+def closed_blocks(a: np.ndarray, s: int, op, dtype=None) -> np.ndarray:
+    """``op``-reduction of ``a`` over the closed blocks ``[p*s : (p+1)*s + 1]`` (shared
+    borders), separably: rows, then columns. Returns (nb, nb)."""
+    N = a.shape[0]
+    nb = (N - 1) // s
+    r = op.reduce(a[:-1].reshape(nb, s, N), axis=1, dtype=dtype)
+    r = op(r, a[s::s])
+    c = op.reduce(r[:, :-1].reshape(nb, nb, s), axis=2)
+    return op(c, r[:, s::s])
+
+
+class TileBounds(NamedTuple):
+    """Bounds of one stored tile, in the column order of the store's tile table."""
+
+    nvalid: int
+    zmin: float
+    zmax: float
+    error: float
+    boundary_error: float
+    xmin: float
+    xmax: float
+    ymin: float
+    ymax: float
+
+
+@njit(cache=True, parallel=True)
+def _level_field_nb(z, vf, s, E):
+    # E = max over the all-valid closed triangles containing a sample of |z − S_L| (0 if
+    # none), S_L the union-jack surface of cell size s; and per cell whether one of its
+    # two closed triangles mixes valid and invalid samples. Rows of cells run on every
+    # core, even rows then odd ones, so no two threads share a row of E (a max: the
+    # order does not change it).
+    N = z.shape[0]
+    nb = (N - 1) // s
+    E[:, :] = 0.0
+    mixed = np.zeros((nb, nb), np.bool_)
+    for parity in range(2):
+        for k in prange((nb - parity + 1) // 2):
+            _level_field_row(z, vf, s, E, mixed, 2 * k + parity)
+    return mixed
+
+
+@njit(cache=True, nogil=True)
+def _level_field_row(z, vf, s, E, mixed, bi):
+    # one row bi of cells of _level_field_nb
+    nb = (z.shape[1] - 1) // s
+    for bj in range(nb):
+        i0 = bi * s
+        j0 = bj * s
+        main = main_diagonal_nb(bi, bj)
+        tot, c1, t1, c2, t2 = cell_counts_nb(vf, i0, j0, s, main)
+        if tot == 0:
+            continue
+        whole = tot == (s + 1) * (s + 1)
+        ok1 = c1 == t1
+        ok2 = c2 == t2
+        if not whole:
+            mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
+            if not (ok1 or ok2):
+                continue
+        cell_field_rows_nb(z, i0, j0, s, main, z[i0, j0], z[i0, j0 + s], z[i0 + s, j0],
+                           z[i0 + s, j0 + s], whole, ok1, ok2, 0, s, E)
+
+
+@njit(cache=True, nogil=True)
+def cell_counts_nb(vf, i0, j0, s, main):
+    """(valid samples, then valid and total samples of each closed triangle) of the closed
+    cell of side s at (i0, j0) of ``vf`` (the first triangle holds the diagonal too)."""
+    tot = 0
+    c1 = 0.0
+    c2 = 0.0
+    t1 = 0.0
+    t2 = 0.0
+    for di in range(s + 1):
+        for dj in range(s + 1):
+            tot += vf[i0 + di, j0 + dj]
+            first = dj >= di if main else di + dj <= s
+            both = dj == di if main else di + dj == s
+            v = np.float64(vf[i0 + di, j0 + dj])
+            if first or both:
+                c1 += v
+                t1 += 1.0
+            if (not first) or both:
+                c2 += v
+                t2 += 1.0
+    return tot, c1, t1, c2, t2
+
+
+@njit(cache=True, nogil=True)
+def cell_field_rows_nb(z, i0, j0, s, main, z00, z01, z10, z11, whole, ok1, ok2, d0, d1, E):
+    """Rows d0 … d1 (cell-relative) of one cell's part of _level_field_nb's E: |z − S_L|
+    on the samples of its all-valid triangles (every sample if ``whole``), maxed into E
+    (E and z share their row numbering; the corners are given)."""
+    inv = 1.0 / s
+    if whole:  # all valid: split each row at the diagonal
+        for di in range(d0, d1 + 1):
+            i = i0 + di
+            fi = di * inv
+            b1, g1, b2, g2 = cell_rows_nb(z00, z01, z10, z11, fi, inv, main)
+            cut = di if main else s - di + 1
+            for dj in range(cut):
+                e = abs(z[i, j0 + dj] - (b1 + g1 * dj))
+                if e > E[i, j0 + dj]:
+                    E[i, j0 + dj] = e
+            for dj in range(cut, s + 1):
+                e = abs(z[i, j0 + dj] - (b2 + g2 * dj))
+                if e > E[i, j0 + dj]:
+                    E[i, j0 + dj] = e
+        return
+    for di in range(d0, d1 + 1):
+        i = i0 + di
+        for dj in range(s + 1):
+            j = j0 + dj
+            if main:
+                first = dj >= di
+                both = dj == di
+            else:
+                first = di + dj <= s
+                both = di + dj == s
+            if both:
+                first = ok1
+            if not (ok1 if first else ok2):
+                continue
+            if main:
+                if first:
+                    S = z00 + (z01 - z00) * (dj * inv) + (z11 - z01) * (di * inv)
+                else:
+                    S = z00 + (z10 - z00) * (di * inv) + (z11 - z10) * (dj * inv)
+            else:
+                if first:
+                    S = z00 + (z10 - z00) * (di * inv) + (z01 - z00) * (dj * inv)
+                else:
+                    S = (z11 + (z01 - z11) * ((s - di) * inv)
+                         + (z10 - z11) * ((s - dj) * inv))
+            e = abs(z[i, j] - S)
+            if e > E[i, j]:
+                E[i, j] = e
+
+
+@njit(cache=True, parallel=True)
+def _tile_boxes_nb(z, x, y, vb, S):
+    # Per closed tile footprint of span S: the box of the valid samples (each tile reads
+    # its own footprint in raster order: the same min/max sequence as a raster sweep).
+    N = z.shape[0]
+    nt = (N - 1) // S
+    box = np.empty((6, nt, nt))
+    for ty in prange(nt):
+        for tx in range(nt):
+            z0, z1, x0, x1, y0, y1 = np.inf, -np.inf, np.inf, -np.inf, np.inf, -np.inf
+            for i in range(ty * S, ty * S + S + 1):
+                for j in range(tx * S, tx * S + S + 1):
+                    if vb[i, j]:
+                        z0 = min(z0, z[i, j])
+                        z1 = max(z1, z[i, j])
+                        x0 = min(x0, x[i, j])
+                        x1 = max(x1, x[i, j])
+                        y0 = min(y0, y[i, j])
+                        y1 = max(y1, y[i, j])
+            box[0, ty, tx], box[1, ty, tx], box[2, ty, tx] = z0, z1, x0
+            box[3, ty, tx], box[4, ty, tx], box[5, ty, tx] = x1, y0, y1
+    return box
+
+
+def tile_rows(per_level: list, box0: np.ndarray, nvalid: list
+              ) -> dict[tuple[int, int, int], TileBounds]:
+    """The stored tiles' :class:`TileBounds` from each level's (error, boundary error)
+    arrays, level 0's boxes (6, nt, nt) and the footprint counts: boxes pooled up the
+    levels (a parent's closed footprint is the union of its children's), errors made
+    monotone up the quadtree."""
+    boxes = [box0]
+    for err, _ in per_level[1:]:
+        nt = err.shape[0]
+        b4 = boxes[-1].reshape(6, nt, 2, nt, 2)
+        box = np.empty((6, nt, nt))
+        box[0::2] = b4[0::2].min(axis=(2, 4))
+        box[1::2] = b4[1::2].max(axis=(2, 4))
+        boxes.append(box)
+    for L in range(1, len(per_level)):  # monotone up the quadtree
+        child = per_level[L - 1][0]
+        nt = child.shape[0] // 2
+        cmax = child.reshape(nt, 2, nt, 2).max(axis=(1, 3))
+        np.maximum(per_level[L][0], cmax, out=per_level[L][0])
+    out: dict[tuple[int, int, int], TileBounds] = {}
+    for L, ((err, bnd), box) in enumerate(zip(per_level, boxes, strict=True)):
+        nval = nvalid[L]
+        for ty, tx in zip(*np.nonzero(nval > 0), strict=True):
+            out[(L, int(tx), int(ty))] = TileBounds(
+                int(nval[ty, tx]), float(box[0, ty, tx]), float(box[1, ty, tx]),
+                float(err[ty, tx]), float(bnd[ty, tx]), float(box[2, ty, tx]),
+                float(box[3, ty, tx]), float(box[4, ty, tx]), float(box[5, ty, tx]))
+    return out
+
+
+def tile_errors(
+    z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray, t: int = 6
+) -> dict[tuple[int, int, int], TileBounds]:
+    """Error bounds of every stored tile ``(L, x, y)`` of the pyramid (docs/conventions.md):
+    the first half of :func:`tile_and_block_errors`.
+
+    Examples
+    --------
+    >>> I, J = np.indices((5, 5)).astype(float)
+    >>> tb = tile_errors(I * J, np.ones((5, 5), bool), J, -I, t=1)
+    >>> sorted(tb), tb[(1, 0, 0)].error, tb[(1, 0, 0)].nvalid
+    ([(0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1), (1, 0, 0)], 1.0, 25)
+    """
+    return tile_and_block_errors(z, valid, x, y, t)[0]
+
+
+def tile_and_block_errors(
+    z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray, t: int = 6
+) -> tuple[dict[tuple[int, int, int], TileBounds], np.ndarray]:
+    """Error bounds of every stored tile ``(L, x, y)`` of the pyramid (docs/conventions.md),
+    and every GeoMipMapping block's exact δ_n.
+
+    Returns a dict keyed by ``(L, x, y)`` (x counts columns, y rows) of :class:`TileBounds`
+    (a NamedTuple ordered like the store's tile columns) for every tile whose footprint
+    holds a valid sample:
+
+    * ``error``: max over the valid footprint samples of |z − S_L|, S_L the union-jack
+      uniform surface of level L; +inf if a level-L triangle of the tile (closed, drawn or
+      not) mixes valid and invalid samples (level 0 is the data itself: always 0); then
+      made monotone up the quadtree (parent ≥ its children).
+    * ``boundary_error``: the same max over the samples on the tile's four border lines
+      (what a skirt must cover); +inf if a mixed triangle lies in a border cell.
+    * ``zmin, zmax, xmin, xmax, ymin, ymax``: box of the valid footprint samples in scene
+      coordinates; ``nvalid``: number of valid footprint samples (borders included).
+
+    The second result, ``blocks`` (nb, nb, n_max + 1) indexed [y, x, n], is seed 000
+    §2.4's δ_n for every level-0 tile (a GeoMipMapping block) drawn at its geomipmap n
+    (the level-n union-jack surface over the block, n = 0 … min(t, top level)): the max
+    over the block's valid closed-footprint samples of |z − S_n|, not made monotone, and
+    +inf where a level-n triangle in the block mixes valid and invalid samples. It is the
+    same field as ``error``, pooled over one block instead of a level-n tile, so it is
+    exact where ``error`` of the covering tile is only an upper bound. A block without
+    valid samples has 0.
+
+    Examples
+    --------
+    >>> I, J = np.indices((5, 5)).astype(float)
+    >>> tb, blocks = tile_and_block_errors(I * J, np.ones((5, 5), bool), J, -I, t=1)
+    >>> blocks.shape, blocks[..., 1].tolist()  # 2×2 blocks, each a 3×3 sample square
+    ((2, 2, 2), [[1.0, 1.0], [1.0, 1.0]])
+    """
+    zf, valid, n = check_grid(z, valid)
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    N = zf.shape[0]
+    te = min(t, n)
+    lmax = n - te
+    cpt = 1 << te  # cells per tile side
+    vb = valid.view(np.uint8)
+    xc, yc = x, y  # no copy: x and y may be broadcast views (Frame.grid_xy)
+    E = np.zeros((N, N))
+    nvalid = footprint_counts(valid, te)
+    per_level = []
+    nb0 = (N - 1) // cpt  # blocks (level-0 tiles) per side
+    blocks = np.zeros((nb0, nb0, min(te, lmax) + 1))
+    for L in range(lmax + 1):
+        S = 1 << (te + L)  # tile span in full-resolution samples
+        nt = (N - 1) // S
+        if L == 0:
+            mixed = np.zeros((nt * cpt, nt * cpt), bool)
+        else:
+            with cores_for(zf.size):  # small grids on one thread (threads.py)
+                mixed = _level_field_nb(zf, vb, 1 << L, E)
+        err = closed_blocks(E, S, np.maximum)
+        m4 = mixed.reshape(nt, cpt, nt, cpt)
+        err = np.where(m4.any(axis=(1, 3)), np.inf, err)
+        if 0 < L < blocks.shape[2]:  # the same field over each block (seed 000 §2.4 δ_n)
+            c = 1 << (te - L)  # level-L cells per block side
+            mb = mixed.reshape(nb0, c, nb0, c).any(axis=(1, 3))
+            blocks[..., L] = np.where(mb, np.inf, closed_blocks(E, cpt, np.maximum))
+        rows = np.maximum.reduce(E[::S, :-1].reshape(nt + 1, nt, S), axis=2)
+        rows = np.maximum(rows, E[::S, S::S])
+        cols = np.maximum.reduce(E[:-1, ::S].reshape(nt, S, nt + 1), axis=1)
+        cols = np.maximum(cols, E[S::S, ::S])
+        bnd = np.maximum(np.maximum(rows[:-1], rows[1:]), np.maximum(cols[:, :-1], cols[:, 1:]))
+        border = (m4[:, 0].any(axis=2) | m4[:, -1].any(axis=2)
+                  | m4[:, :, :, 0].any(axis=1) | m4[:, :, :, -1].any(axis=1))
+        bnd = np.where(border, np.inf, bnd)
+        if L == 0:
+            with cores_for(zf.size):
+                box0 = _tile_boxes_nb(zf, xc, yc, vb, S)
+        per_level.append((err, bnd))
+    out = tile_rows(per_level, box0, nvalid)
+    return out, blocks

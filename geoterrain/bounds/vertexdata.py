@@ -1,0 +1,426 @@
+"""Compact, conservative storage of per-vertex bounds (δ and r) in tile blobs.
+
+Every value is rounded *up*, so a stored δ or r is never smaller than the computed
+one: every bound stays a bound (and δ = +inf, the mixed-diamond marker, stays +inf).
+Blob version 1 (older stores, still read): version byte, int8 scale exponent, then
+float16 times that power of two, byte-shuffled, zstd (at most 2^-10 relative above
+the exact value). The preprocess uses one exponent per store and kind, so rounding is
+a single monotone map and saturation survives it.
+
+Blob version 2 (:func:`pack_bounds_v2`, issue 12's size levers): version byte, flags,
+int8 exponent, then zstd of the samples kept. Flag ``NEW_ONLY``: the samples shared
+with the parent tile (every other row and column) are left out and read back from
+the parent's decoded values, which are the same vertices' bounds, so decoding is
+exact. Flag ``LOG8``: 8-bit logarithmic codes, ``LOG_STEPS`` per octave from
+``2^e``, rounded *up* (code 0 is 0, code 255 is +inf): a stored value exceeds the
+exact one by less than ``2^(1/LOG_STEPS) - 1`` relative, and with one ``e`` per store
+and kind the map is monotone, so saturation survives it. δ is always coded so; r is
+too in stores written now, its codes nested again on the coded values
+(:func:`geoterrain.bounds.tileblobs.radius_codes`), and as float16 times ``2^e`` (no ``LOG8``)
+in stores before. Flag ``RING`` (level 0, with
+``NEW_ONLY``): only the new vertices of the tile's border ring are stored
+(:func:`ring_new_index`); a reader derives the others from the tile's decoded heights
+and codes them as the preprocess did (:mod:`geoterrain.bounds.leafbounds`). Flag ``DIFF`` (log8
+only; a stored tile's ``delta_edge``): each code is stored as its difference mod 256
+from the same vertex's code in the tile's ``delta`` blob (same ``e``): δ_edge differs
+from δ only near the padding, so the payload is mostly zeros. Flag ``SLACK`` (a ``RING``
+δ of a geographic tile): a little-endian float32 s ≥ 0 follows the exponent; the reader
+adds it to each derived closed form (:func:`geoterrain.bounds.leafbounds.geographic_leaf_delta`).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import zstandard
+
+from geoterrain.core import zstdsafe
+from geoterrain.core.rounding import round_up
+
+VERSION = 1
+VERSION_2 = 2
+NEW_ONLY, LOG8, RING, DIFF, SLACK = 1, 2, 4, 8, 16  # version-2 flags
+LOG_STEPS = 16  # codes per octave: at most 2^(1/16) - 1 = 4.4 % above the exact value
+_F16_MAX = 32768.0  # keep the scaled maximum well inside float16's finite range
+
+
+def encode_bounds(a: np.ndarray, cctx: zstandard.ZstdCompressor) -> bytes:
+    """Encode a non-negative float array (+inf allowed) so decoding never under-estimates.
+
+    Examples
+    --------
+    >>> a = np.array([[0.0, 1e-3], [123.456, np.inf]], np.float32)
+    >>> b = decode_bounds(encode_bounds(a, zstandard.ZstdCompressor()), a.shape)
+    >>> bool((b >= a).all()), bool(np.isinf(b[1, 1])), float(b[1, 0]) <= 123.456 * (1 + 2**-10)
+    (True, True, True)
+    """
+    h, k = scale_bounds(np.asarray(a)[None])
+    return pack_bounds(h[0], int(k[0]), cctx)
+
+
+def scale_exponent(a: np.ndarray) -> int:
+    """The power-of-two scale exponent that fits the largest finite value of ``a``."""
+    fin = np.asarray(a)[np.isfinite(a)]
+    peak = float(fin.max()) if fin.size else 0.0
+    return int(np.clip(np.ceil(np.log2(peak / _F16_MAX)), -100, 100)) if peak > 0 else 0
+
+
+def scale_bounds(tiles: np.ndarray, k: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorised first half of :func:`encode_bounds` for a stack of tiles (..., T, T).
+
+    Returns the rounded-up float16 values and the scale exponents (one per tile).
+    With one exponent ``k`` for a whole store, rounding is one monotone function,
+    so orderings such as saturation (δ(parent) ≥ δ(child)) survive it exactly.
+    A blob is ``bytes([VERSION, k & 0xFF]) + zstd(byte-shuffled float16)``, see
+    :func:`pack_bounds`.
+    """
+    a = np.asarray(tiles, np.float64)
+    if k is None:
+        fin = np.where(np.isfinite(a), a, 0.0).max(axis=(-2, -1))
+        with np.errstate(divide="ignore"):
+            kk = np.where(fin > 0, np.ceil(np.log2(fin / _F16_MAX)), 0.0)
+        k = np.clip(kk, -100, 100).astype(np.int64)
+    else:
+        k = np.full(a.shape[:-2], k, np.int64)
+    v = a * np.exp2(-k.astype(np.float64))[..., None, None]  # exact: powers of two
+    return round_up(v, np.float16), k
+
+
+def pack_bounds(h: np.ndarray, k: int, cctx: zstandard.ZstdCompressor) -> bytes:
+    """Second half of :func:`encode_bounds`: one tile's float16 values and exponent → blob."""
+    planes = np.ascontiguousarray(h).view(np.uint8).reshape(-1, 2).T.copy()
+    return bytes([VERSION, int(k) & 0xFF]) + cctx.compress(planes.tobytes())
+
+
+def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None = None,
+                  parity: tuple[int, int] = (0, 0), derive=None,
+                  base: np.ndarray | None = None) -> np.ndarray:
+    """Inverse of :func:`encode_bounds` and :func:`pack_bounds_v2`: float32 values ≥ the
+    encoded ones. A version-2 new-vertices-only blob needs the parent tile's decoded
+    values and the tile's ``(x % 2, y % 2)``; a ``RING`` blob also needs ``derive(rows,
+    cols, ring_values, log8, e, slack)``: the stored values (T, T) of the tile's new
+    vertices, computed from its heights with the ring's (:mod:`geoterrain.bounds.leafbounds`;
+    ``slack``: the blob's ``SLACK``, else 0) and coded with the blob's code (log8 or
+    float16) and exponent. A ``DIFF`` blob needs ``base``:
+    the tile's decoded δ, whose codes its payload is added to."""
+    if len(blob) >= 1 and blob[0] == VERSION_2:
+        return _decode_v2(blob, shape, parent, parity, derive, base)
+    if len(blob) < 2 or blob[0] != VERSION:
+        raise ValueError("not a bounds blob of a known version")
+    k = int(np.int8(np.uint8(blob[1])))
+    n = int(np.prod(shape))
+    raw = zstdsafe.decompress(blob[2:], 2 * n, exact=True)  # bounded: never a bomb
+    planes = np.frombuffer(raw, np.uint8).reshape(2, n)
+    h = planes.T.copy().view(np.float16).reshape(shape)
+    # float32 output: round up again so the bound survives the cast
+    return round_up(h.astype(np.float64) * 2.0**k, np.float32)
+
+
+@lru_cache(maxsize=256)
+def _log8_table_ro(e: int) -> np.ndarray:
+    v = log8_table(e)
+    v.flags.writeable = False
+    return v
+
+
+@lru_cache(maxsize=8)
+def _new_flat(T: int) -> np.ndarray:
+    """Flat indices of :func:`new_mask` (T), in row-major order (read-only, cached)."""
+    f = np.flatnonzero(new_mask(T))
+    f.flags.writeable = False
+    return f
+
+
+def log8_table(e: int) -> np.ndarray:
+    """The 256 float32 values of the 8-bit log codes from ``2^e`` (0, then increasing, +inf).
+
+    Examples
+    --------
+    >>> v = log8_table(-3)
+    >>> float(v[0]), float(v[1]), bool(np.isinf(v[255])), bool((np.diff(v) > 0).all())
+    (0.0, 0.125, True, True)
+    """
+    c = np.arange(1, 255, dtype=np.float64)
+    v = np.empty(256, np.float32)
+    v[0], v[255] = 0.0, np.inf
+    v[1:255] = round_up(np.exp2(e + (c - 1) / LOG_STEPS), np.float32)
+    return v
+
+
+def log8_exponent(a: np.ndarray) -> int:
+    """The exponent ``e`` whose top finite code (254) covers the largest finite value."""
+    fin = np.asarray(a)[np.isfinite(a)]
+    peak = float(fin.max()) if fin.size else 0.0
+    if peak <= 0:
+        return 0
+    return int(np.clip(np.ceil(np.log2(peak) - 253 / LOG_STEPS), -128, 127))
+
+
+def log8_codes(a: np.ndarray, e: int) -> np.ndarray:
+    """The smallest code whose value is ≥ each value of ``a`` (non-negative, +inf allowed).
+
+    Examples
+    --------
+    >>> a = np.array([0.0, 1e-9, 0.3, 7.0, np.inf])
+    >>> e = log8_exponent(a)
+    >>> b = log8_table(e)[log8_codes(a, e)]
+    >>> bool((b >= a).all()), bool((b[1:4] <= a[1:4] * 2 ** (1 / 16) + 2.0 ** e).all())
+    (True, True)
+    """
+    table = log8_table(e).astype(np.float64)
+    a = np.asarray(a, np.float64)
+    a = np.where(np.isnan(a), np.inf, a)  # never a bound smaller than unknown
+    # the first table entry ≥ a: monotone in a, so orderings (saturation) survive
+    return np.searchsorted(table, a, side="left").astype(np.uint8)
+
+
+@lru_cache(maxsize=8)
+def ring_new_index(T: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the new vertices on a T × T tile's border (an odd column on
+    the top and bottom rows, an odd row on the left and right columns; T odd): 2(T − 1)
+    samples, the top row, the bottom row, then the left and the right column.
+
+    Examples
+    --------
+    >>> r, c = ring_new_index(5)
+    >>> list(zip(r.tolist(), c.tolist()))
+    [(0, 1), (0, 3), (4, 1), (4, 3), (1, 0), (3, 0), (1, 4), (3, 4)]
+    """
+    odd = np.arange(1, T, 2)
+    k = len(odd)
+    rows = np.concatenate([np.zeros(k, np.int64), np.full(k, T - 1), odd, odd])
+    cols = np.concatenate([odd, odd, np.zeros(k, np.int64), np.full(k, T - 1)])
+    rows.flags.writeable = cols.flags.writeable = False
+    return rows, cols
+
+
+def new_mask(T: int) -> np.ndarray:
+    """(T, T) True where a sample is new at its level (not on the parent's even grid)."""
+    m = np.ones((T, T), bool)
+    m[::2, ::2] = False
+    return m
+
+
+def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
+                   cctx: zstandard.ZstdCompressor) -> bytes:
+    """A version-2 blob of one tile: ``values`` are log8 codes (uint8) or scaled float16.
+
+    Examples
+    --------
+    >>> a = np.abs(np.random.default_rng(0).normal(size=(5, 5)))
+    >>> e = log8_exponent(a)
+    >>> blob = pack_bounds_v2(log8_codes(a, e), e, True, False, zstandard.ZstdCompressor())
+    >>> bool((decode_bounds(blob, (5, 5)) >= a).all())
+    True
+    """
+    v = np.asarray(values)
+    if new_only:
+        v = v[new_mask(v.shape[0])]
+    if log8:
+        payload = np.ascontiguousarray(v, np.uint8).tobytes()
+    else:
+        payload = np.ascontiguousarray(v, np.float16).view(np.uint8).reshape(-1, 2).T.tobytes()
+    flags = (NEW_ONLY if new_only else 0) | (LOG8 if log8 else 0)
+    return bytes([VERSION_2, flags, int(e) & 0xFF]) + cctx.compress(payload)
+
+
+def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
+               parity: tuple[int, int], derive, base) -> np.ndarray:
+    if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING | DIFF | SLACK):
+        raise ValueError("not a bounds blob of a known version")
+    flags, e = blob[1], int(np.int8(np.uint8(blob[2])))
+    body, slack = blob[3:], 0.0
+    if flags & SLACK:  # a float32 after the exponent: only on a ring δ
+        if not (flags & RING and flags & LOG8) or len(blob) < 7:
+            raise ValueError("a slack needs a ring of log8 codes")
+        slack = float(np.frombuffer(blob[3:7], "<f4")[0])
+        if not (np.isfinite(slack) and slack >= 0):
+            raise ValueError("a bounds slack must be finite and not negative")
+        body = blob[7:]
+    if flags & DIFF and (flags & RING or not flags & LOG8 or base is None
+                         or np.shape(base) != tuple(shape)):
+        raise ValueError("a difference bounds blob needs log8 codes and the tile's δ")
+    T = shape[0]
+    square = len(shape) == 2 and shape[0] == shape[1]
+    if flags & RING and not (flags & NEW_ONLY and square and T >= 3 and derive is not None):
+        raise ValueError("a ring bounds blob needs a level-0 tile's heights")
+    keep = _new_flat(T) if flags & NEW_ONLY and square else None
+    if flags & RING:
+        rr, rc = ring_new_index(T)
+        n = len(rr)
+    else:
+        n = len(keep) if keep is not None else int(np.prod(shape))
+    width = 1 if flags & LOG8 else 2
+    raw = zstdsafe.decompress(body, width * n, exact=True)  # bounded: never a bomb
+    if flags & DIFF:  # + the codes of the tile's δ at the same vertices, mod 256
+        b = log8_codes(np.asarray(base).ravel() if keep is None
+                       else np.asarray(base).ravel()[keep], e)
+        vals = _log8_table_ro(e)[b + np.frombuffer(raw, np.uint8)]
+    elif flags & LOG8:
+        vals = _log8_table_ro(e)[np.frombuffer(raw, np.uint8)]
+    else:
+        h = np.frombuffer(raw, np.uint8).reshape(2, n).T.copy().view(np.float16).ravel()
+        vals = round_up(h.astype(np.float64) * 2.0**e, np.float32)
+    out = np.empty(shape, np.float32)
+    if flags & RING:  # the ring as stored, the rest derived and coded as stored
+        out.ravel()[keep] = derive(rr, rc, vals, bool(flags & LOG8), e, slack).ravel()[keep]
+    elif keep is None:
+        out.ravel()[:] = vals
+    else:
+        out.ravel()[keep] = vals
+    if flags & NEW_ONLY:
+        if parent is None or parent.shape != tuple(shape):
+            raise ValueError("a new-vertices-only bounds blob needs its parent's values")
+        half = (T - 1) // 2
+        px, py = int(parity[0]) & 1, int(parity[1]) & 1
+        out[::2, ::2] = parent[py * half: py * half + half + 1, px * half: px * half + half + 1]
+    return out
+
+
+NORMALS_PLANAR_DXDY = 2  # metadata ``normals_layout``; absent or 1: raw interleaved bytes
+NORMAL_BITS = 8  # bits per octahedral normal component the preprocess stores
+
+
+def store_metadata(*, source: str, source_dtype: str, source_nodata: float | None,
+                   encoding: str, grid: dict, frame: dict, quantizer: dict,
+                   normals_derived: list[int], valid_samples: int, samples: int,
+                   height_range: list, delta_max_finite: float, edge_max: list | None,
+                   stand_in_z: float, block_delta_levels: int, times: dict) -> dict:
+    """The metadata a preprocess writes (the whole-grid one and the streaming one).
+
+    ``normals_derived``: the levels whose normals blobs are border rings (every level of
+    the grid, or none).
+
+    Examples
+    --------
+    >>> m = store_metadata(source="d.tif", source_dtype="int16", source_nodata=None,
+    ...     encoding="raw", grid={}, frame={}, quantizer={}, normals_derived=[0, 1],
+    ...     valid_samples=3, samples=4, height_range=[0, 1], delta_max_finite=0.0,
+    ...     edge_max=None, stand_in_z=0.5, block_delta_levels=1, times={})
+    >>> m["nodata_fraction"], m["normals_derived"], "delta_edge" in m
+    (0.25, [0, 1], False)
+    """
+    from geoterrain._version import __version__
+
+    return {
+        "format": "geoterrain",
+        "generator": f"geoterrain {__version__}",
+        "source": source,
+        "source_dtype": source_dtype,
+        "source_nodata": source_nodata,
+        "encoding": encoding,
+        "grid": grid,
+        "frame": frame,
+        "quantizer": quantizer,
+        "normal_bits": NORMAL_BITS,
+        "normals_layout": NORMALS_PLANAR_DXDY,
+        # levels whose normals blobs hold only the tile's border ring (the interior is
+        # the central differences of the level's decoded heights, computed on read)
+        **({"normals_derived": [int(v) for v in normals_derived]} if normals_derived else {}),
+        "valid_samples": valid_samples,
+        "nodata_fraction": float(1.0 - valid_samples / samples),
+        "height_range": height_range,
+        "delta_max_finite": delta_max_finite,
+        # per tile with a second δ (padding replicated, edgepad.py): [L, x, y, max of its
+        # new vertices' stored δ_edge (None: +inf)]; absent without padding
+        **({"delta_edge": edge_max} if edge_max is not None else {}),
+        "stand_in_z": stand_in_z,
+        # the root tile's block_delta blob: each block's δ_n, n = 0 … this − 1
+        "block_delta_levels": block_delta_levels,
+        "preprocess_seconds": times,
+    }
+
+
+def normals_to_bytes(oct8: np.ndarray) -> bytes:
+    """A tile's 8-bit octahedral normals (T, T, 2) as two planes of 2-D differences
+    (mod 256): neighbouring normals agree, so zstd finds ~15 % fewer bytes than in the
+    raw interleaved pairs (docs/benchmarks.md §7).
+
+    Examples
+    --------
+    >>> a = np.random.default_rng(1).integers(0, 256, (5, 5, 2)).astype(np.uint8)
+    >>> bool((normals_from_bytes(normals_to_bytes(a), 5) == a).all())
+    True
+    """
+    p = np.ascontiguousarray(np.moveaxis(np.asarray(oct8, np.uint8), -1, 0))
+    d = p.copy()
+    d[:, 1:, :] = p[:, 1:, :] - p[:, :-1, :]  # uint8: wraps mod 256, exactly invertible
+    e = d.copy()
+    e[:, :, 1:] = d[:, :, 1:] - d[:, :, :-1]
+    return e.tobytes()
+
+
+@lru_cache(maxsize=8)
+def ring_index(T: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of a T × T tile's border ring, 4T − 4 samples: the top row, the
+    bottom row, then the left and the right column without their corners.
+
+    Examples
+    --------
+    >>> r, c = ring_index(3)
+    >>> list(zip(r.tolist(), c.tolist()))
+    [(0, 0), (0, 1), (0, 2), (2, 0), (2, 1), (2, 2), (1, 0), (1, 2)]
+    """
+    a = np.arange(T)
+    m = np.arange(1, T - 1)
+    rows = np.concatenate([np.zeros(T, np.int64), np.full(T, T - 1), m, m])
+    cols = np.concatenate([a, a, np.zeros(T - 2, np.int64), np.full(T - 2, T - 1)])
+    rows.setflags(write=False)  # shared: cached per T
+    cols.setflags(write=False)
+    return rows, cols
+
+
+def ring_planes(rings: np.ndarray) -> np.ndarray:
+    """Rings' 8-bit codes (k, R, 2), each as two planes of first differences (mod 256):
+    (k, 2R) uint8, one stored blob's bytes per row (:func:`ring_from_bytes` inverts one).
+
+    Examples
+    --------
+    >>> a = np.random.default_rng(2).integers(0, 256, (3, 8, 2)).astype(np.uint8)
+    >>> all((ring_from_bytes(r.tobytes()) == a[k]).all() for k, r in enumerate(ring_planes(a)))
+    True
+    """
+    p = np.ascontiguousarray(np.asarray(rings, np.uint8).transpose(0, 2, 1))  # (k, 2, R)
+    d = p.copy()
+    d[:, :, 1:] = p[:, :, 1:] - p[:, :, :-1]  # uint8: wraps mod 256, exactly invertible
+    return d.reshape(len(d), -1)
+
+
+def ring_from_bytes(raw: bytes) -> np.ndarray:
+    """One row of :func:`ring_planes` back to the ring's codes: (R, 2) uint8."""
+    d = np.frombuffer(raw, np.uint8).reshape(2, -1)
+    return np.ascontiguousarray(np.cumsum(d, axis=1, dtype=np.uint8).T)
+
+
+def normals_from_bytes(raw: bytes, T: int) -> np.ndarray:
+    """Inverse of :func:`normals_to_bytes`: (T, T, 2) uint8."""
+    e = np.frombuffer(raw, np.uint8).reshape(2, T, T)
+    p = np.cumsum(np.cumsum(e, axis=2, dtype=np.uint8), axis=1, dtype=np.uint8)
+    return np.ascontiguousarray(np.moveaxis(p, 0, -1))
+
+
+def pack_block_errors(blocks: np.ndarray) -> bytes:
+    """Every GeoMipMapping block's δ_n (nb, nb, levels), as little-endian float32
+    rounded *up* (a stored δ_n is never below the exact one; +inf stays +inf), zstd.
+
+    Examples
+    --------
+    >>> b = np.array([[[0.0, 0.1, np.inf]]])
+    >>> back = unpack_block_errors(pack_block_errors(b), 1, 3)
+    >>> bool((back >= b).all()), back[0, 0, 2]
+    (True, np.float64(inf))
+    """
+    a = round_up(np.asarray(blocks, np.float64), np.float32).astype("<f4")
+    return zstandard.ZstdCompressor(level=6).compress(np.ascontiguousarray(a).tobytes())
+
+
+def unpack_block_errors(blob: bytes, nb: int, levels: int) -> np.ndarray:
+    """Inverse of :func:`pack_block_errors`: (nb, nb, levels) float64. A store may come
+    from a stranger: ``ValueError`` unless the blob decodes to exactly that many values,
+    each ≥ 0 (+inf allowed, NaN not)."""
+    raw = zstdsafe.decompress(blob, nb * nb * levels * 4, exact=True)
+    a = np.frombuffer(raw, "<f4").astype(np.float64).reshape(nb, nb, levels)
+    if not (a >= 0).all():  # NaN fails too
+        raise ValueError("a block δ_n is negative or NaN")
+    return a

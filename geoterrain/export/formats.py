@@ -1,0 +1,501 @@
+"""Georeferenced mesh files for other tools: glTF/GLB, OBJ + MTL + PNG, PLY, printable STL.
+
+Every file is written from a :class:`~geoterrain.lod.Selection` (a static or a
+view-dependent LOD mesh) and says where it is on Earth:
+
+- **glTF / GLB** (pygltflib): float32 positions relative to the scene origin (the
+  raster centre), glTF's Y-up axes (x = east, y = up, z = −north), normals, an
+  ``_ELEVATION`` attribute (metres), the shading texture (elevation colours ×
+  hillshade, :mod:`geoterrain.rendering.textures`; or an image draped by
+  :mod:`geoterrain.rendering.drape`)
+  embedded in an unlit material, and the georeference (:func:`georeference`) in
+  ``asset.extras.geoterrain`` and a sidecar ``<file>.json``.
+- **OBJ** with an MTL and a PNG texture beside it (and the sidecar).
+- **PLY** (binary): x, y, z (float64), normals, ``elevation``; the CRS and the origin
+  offset in header comments. ``crs_coords=True`` writes source-CRS x, y of each
+  vertex's sample (pyproj through :class:`~geoterrain.core.frame.Frame`) and z = elevation.
+- **STL**: a closed, printable solid (:func:`printable_solid`): the surface, vertical
+  walls along its boundary and a flat base ``base_height`` under the lowest point;
+  ``print_size`` scales the longer side to that many millimetres.
+
+Every file is written under a hidden name beside its destination and renamed into
+place once complete, so a failed export leaves nothing behind.
+
+Examples
+--------
+>>> import tempfile, os
+>>> sel = t.static_selection(5.0)
+>>> p = export_mesh(t, sel, os.path.join(tempfile.mkdtemp(), "t.glb"))
+>>> p.name, p.with_name("t.glb.json").exists()
+('t.glb', True)
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from geoterrain._version import __version__
+from geoterrain.exceptions import UsageError, WriteError, exists_error
+from geoterrain.export.meshfiles import check_output_path
+from geoterrain.rendering.textures import SHADINGS, texture_image, texture_level
+
+EXPORT_FORMATS = (".glb", ".gltf", ".obj", ".stl", ".ply")
+TEXTURE_SIZE = 4097  # samples per side of an exported texture at most (a coarser level beyond)
+
+
+@dataclass
+class MeshArrays:
+    """The referenced part of a selection, ready to write.
+
+    ``xyz`` scene frame (float64), ``faces`` (F, 3), ``ij`` grid row/column of each
+    vertex's sample, ``elevation`` metres (scene Z without vertical exaggeration),
+    ``normals`` area-weighted unit vertex normals (scene frame), ``surface`` (F,) bool
+    (False on skirt triangles).
+    """
+
+    xyz: np.ndarray
+    faces: np.ndarray
+    ij: np.ndarray
+    elevation: np.ndarray
+    normals: np.ndarray
+    surface: np.ndarray
+
+
+def mesh_arrays(terrain, selection, *, skirts: bool = True) -> MeshArrays:
+    """The vertices the selection's triangles use, with elevation and normals.
+
+    Examples
+    --------
+    >>> m = mesh_arrays(t, t.static_selection(5.0))
+    >>> m.xyz.shape[0] == m.elevation.shape[0] == m.normals.shape[0]
+    True
+    """
+    faces = selection.faces
+    surface = np.ones(len(faces), bool)
+    if len(faces) and "skirt" in selection.mesh.cell_data:
+        surface = np.asarray(selection.mesh.cell_data["skirt"]) == 0
+    if not skirts:
+        faces, surface = faces[surface], surface[surface]
+    pts = np.asarray(selection.mesh.points, np.float64)
+    used = np.zeros(len(pts), bool)
+    used[faces.ravel()] = True
+    remap = np.cumsum(used) - 1
+    xyz = pts[used]
+    ij = selection.ij[used] if len(selection.ij) else np.zeros((len(xyz), 2))
+    faces = remap[faces].astype(np.int64)
+    elevation = (xyz[:, 2] / (terrain.frame.z_scale or 1.0)).astype(np.float32)
+    return MeshArrays(xyz, faces, ij, elevation, vertex_normals(xyz, faces), surface)
+
+
+def vertex_normals(xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals (float32); +Z where a vertex has no area.
+
+    Examples
+    --------
+    >>> n = vertex_normals(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]]), np.array([[0, 1, 2]]))
+    >>> n.tolist()
+    [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]
+    """
+    p = xyz[faces]
+    fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])  # length = 2 × area
+    n = np.zeros((len(xyz), 3))
+    for k in range(3):
+        for c in range(3):
+            n[:, c] += np.bincount(faces[:, k], fn[:, c], minlength=len(xyz))
+    length = np.linalg.norm(n, axis=1)
+    bad = length == 0
+    n[bad] = (0.0, 0.0, 1.0)
+    length[bad] = 1.0
+    return (n / length[:, None]).astype(np.float32)
+
+
+def georeference(terrain, scale: float = 1.0, offset: tuple[float, float, float] = (0, 0, 0)
+                 ) -> dict:
+    """How a written position maps back to the source CRS (the sidecar's content).
+
+    A file position p (its axes named by the format) is ``scene = p / scale + offset``
+    in the scene frame: east, north, up metres from ``origin_crs``. For a projected
+    frame, source-CRS x, y = ``origin_crs + (east, north) / unit_to_m``; for a
+    geographic one (east, north) are coordinates of ``positions_crs_wkt`` (an
+    azimuthal equidistant CRS centred on the origin). Heights: up / z_scale metres.
+
+    Examples
+    --------
+    >>> g = georeference(t)
+    >>> g["frame"], len(g["origin_crs"])
+    ('projected', 2)
+    """
+    f = terrain.frame
+    return {
+        "generator": f"geoterrain {__version__}",
+        "crs_name": f.crs_name,
+        "crs_wkt": f.crs_wkt,
+        "frame": f.kind,
+        "positions_crs_wkt": f.aeqd_wkt if f.kind == "geographic" else f.crs_wkt,
+        "origin_crs": [float(v) for v in f.origin_crs],
+        "unit_to_m": f.unit_to_m,
+        "z_scale": f.z_scale,
+        "units": "metres" if scale == 1.0 else f"{scale:g} per metre",
+        "scale": float(scale),
+        "offset_scene": [float(v) for v in offset],
+        "transform": list(f.transform),
+        "grid": [terrain.grid.rows, terrain.grid.cols],
+    }
+
+
+def _tcoords(terrain, ij: np.ndarray, level: int, flip: bool) -> np.ndarray:
+    """Texture coordinates of samples ``ij`` in the level-L texture (row 0 at the top)."""
+    S = terrain.grid.level_size(level)
+    s = float(1 << level)
+    uv = np.empty((len(ij), 2), np.float32)
+    uv[:, 0] = (ij[:, 1] / s + 0.5) / S
+    uv[:, 1] = (ij[:, 0] / s + 0.5) / S
+    if flip:
+        uv[:, 1] = 1.0 - uv[:, 1]
+    return uv
+
+
+def _png(img: np.ndarray) -> bytes:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(img).save(buf, format="PNG", compress_level=6)
+    return buf.getvalue()
+
+
+def _texture(terrain, shading: str, cmap: str, texture_size: int,
+             drape: str | Path | None = None) -> tuple[np.ndarray, int]:
+    if shading not in SHADINGS or shading == "plain":
+        raise UsageError(f"unknown texture shading {shading!r}; use normals or elevation")
+    if texture_size < 2:
+        raise UsageError(f"texture_size must be ≥ 2, got {texture_size}")
+    L = texture_level(terrain, texture_size)
+    img = texture_image(terrain, shading, cmap, L)
+    if drape is not None:
+        from geoterrain.rendering.drape import drape_image
+
+        img = drape_image(terrain, drape, L, base=img)
+    return img, L
+
+
+class _Files:
+    """Several files written under hidden names, renamed into place together at the end."""
+
+    def __init__(self, overwrite: bool):
+        self.overwrite = overwrite
+        self.items: list[tuple[Path, Path]] = []
+
+    def path(self, out: Path) -> Path:
+        if out.exists() and not self.overwrite:
+            raise exists_error(out)
+        tmp = out.with_name(f".{out.name}.partial{out.suffix}")
+        self.items.append((tmp, out))
+        return tmp
+
+    def write(self, out: Path, data: bytes | str) -> None:
+        tmp = self.path(out)
+        (tmp.write_text if isinstance(data, str) else tmp.write_bytes)(data)
+
+    def commit(self) -> None:
+        for tmp, out in self.items:
+            tmp.replace(out)
+
+    def discard(self) -> None:
+        for tmp, _ in self.items:
+            tmp.unlink(missing_ok=True)
+
+
+def check_export_path(path: str | Path, overwrite: bool = False) -> Path:
+    """:func:`geoterrain.export.meshfiles.check_output_path` for :data:`EXPORT_FORMATS`.
+
+    Examples
+    --------
+    >>> check_export_path("out.glb").suffix
+    '.glb'
+    """
+    return check_output_path(path, EXPORT_FORMATS, overwrite, "export")
+
+
+def export_mesh(terrain, selection, path: str | Path, *, overwrite: bool = False,
+                shading: str = "normals", cmap: str = "auto",
+                texture_size: int = TEXTURE_SIZE, crs_coords: bool = False,
+                base_height: float | None = None, print_size: float | None = None,
+                drape: str | Path | None = None) -> Path:
+    """Write ``selection`` of ``terrain`` to ``path`` (.glb, .gltf, .obj, .stl or .ply).
+
+    Parameters
+    ----------
+    shading, cmap, texture_size : the texture of glTF and OBJ
+    (:mod:`geoterrain.rendering.textures`).
+    drape : glTF and OBJ: a georeferenced image (orthophoto, map) reprojected onto the
+        DEM's grid as the texture (:mod:`geoterrain.rendering.drape`) instead of the shading.
+    crs_coords : PLY only: float64 source-CRS x, y and elevation z instead of scene metres.
+    base_height, print_size : STL only (:func:`printable_solid`).
+
+    Returns the path written. See the module docstring for each format's content.
+    """
+    out = check_export_path(path, overwrite)
+    ext = out.suffix.lower()
+    if crs_coords and ext != ".ply":
+        raise UsageError("crs_coords applies to PLY only", cli="--crs-coords applies to .ply only")
+    if drape is not None and ext not in (".glb", ".gltf", ".obj"):
+        raise UsageError("drape applies to glTF and OBJ only (they carry a texture)",
+                         cli="--drape applies to .glb, .gltf and .obj only")
+    if (base_height is not None or print_size is not None) and ext != ".stl":
+        raise UsageError("base_height and print_size apply to STL only",
+                         cli="--base-height and --print-size apply to .stl only")
+    m = mesh_arrays(terrain, selection, skirts=ext != ".stl")
+    if ext == ".stl" and "skirt" in selection.mesh.cell_data \
+            and np.any(np.asarray(selection.mesh.cell_data["skirt"]) != 0):
+        raise UsageError("a printable solid needs a conforming mesh (static or rtin); this "
+                         "one has skirts over T-junctions")
+    if len(m.faces) == 0:
+        raise UsageError("the mesh is empty (the view sees no terrain); nothing to export")
+    files = _Files(overwrite)
+    try:
+        if ext in (".glb", ".gltf"):
+            img, L = _texture(terrain, shading, cmap, texture_size, drape)
+            geo = georeference(terrain)
+            data = gltf_document(m, _tcoords(terrain, m.ij, L, flip=False), _png(img), geo,
+                                 binary=ext == ".glb")
+            files.write(out, data)
+            files.write(out.with_name(out.name + ".json"), json.dumps(geo, indent=1))
+        elif ext == ".obj":
+            img, L = _texture(terrain, shading, cmap, texture_size, drape)
+            uv = _tcoords(terrain, m.ij, L, flip=True)
+            mtl, png = out.with_suffix(".mtl"), out.with_suffix(".png")
+            files.write(out, obj_text(m, uv, mtl.name))
+            files.write(mtl, f"# geoterrain {__version__}\nnewmtl terrain\nKa 1 1 1\nKd 1 1 1\n"
+                             f"Ks 0 0 0\nillum 1\nmap_Kd {png.name}\n")
+            files.write(png, _png(img))
+            files.write(out.with_name(out.name + ".json"),
+                        json.dumps(georeference(terrain), indent=1))
+        elif ext == ".ply":
+            files.write(out, ply_bytes(terrain, m, crs_coords))
+        else:
+            xyz, faces, geo = printable_solid(terrain, m, base_height, print_size)
+            files.write(out, stl_bytes(xyz, faces))
+            files.write(out.with_name(out.name + ".json"), json.dumps(geo, indent=1))
+        files.commit()
+    except OSError as exc:
+        raise WriteError(f"{out}: cannot write the export ({exc.strerror or exc})") from None
+    finally:
+        files.discard()
+    return out
+
+
+# ---------------------------------------------------------------------------- glTF
+def gltf_document(m: MeshArrays, uv: np.ndarray, png: bytes, geo: dict, binary: bool = True
+                  ) -> bytes | str:
+    """A glTF 2.0 document (GLB bytes or .gltf JSON text with embedded buffers)."""
+    import pygltflib as g
+
+    # scene (east, north, up) → glTF Y-up (x = east, y = up, z = −north)
+    pos = np.column_stack([m.xyz[:, 0], m.xyz[:, 2], -m.xyz[:, 1]]).astype(np.float32)
+    nrm = np.column_stack([m.normals[:, 0], m.normals[:, 2], -m.normals[:, 1]]).astype(np.float32)
+    # the scene's faces are counter-clockwise from above; the axis swap keeps their winding
+    idx = m.faces.astype(np.uint32).ravel()
+    chunks = [pos.tobytes(), nrm.tobytes(), uv.astype(np.float32).tobytes(),
+              m.elevation.astype(np.float32).tobytes(), idx.tobytes(), png]
+    views, blob, off = [], b"", 0
+    for k, c in enumerate(chunks):
+        pad = (-len(c)) % 4
+        target = g.ELEMENT_ARRAY_BUFFER if k == 4 else g.ARRAY_BUFFER if k < 4 else None
+        views.append(g.BufferView(buffer=0, byteOffset=off, byteLength=len(c), target=target))
+        blob += c + b"\0" * pad
+        off += len(c) + pad
+    V = len(pos)
+    acc = [
+        g.Accessor(bufferView=0, componentType=g.FLOAT, count=V, type=g.VEC3,
+                   min=pos.min(0).tolist(), max=pos.max(0).tolist()),
+        g.Accessor(bufferView=1, componentType=g.FLOAT, count=V, type=g.VEC3),
+        g.Accessor(bufferView=2, componentType=g.FLOAT, count=V, type=g.VEC2),
+        g.Accessor(bufferView=3, componentType=g.FLOAT, count=V, type=g.SCALAR),
+        g.Accessor(bufferView=4, componentType=g.UNSIGNED_INT, count=len(idx), type=g.SCALAR),
+    ]
+    prim = g.Primitive(attributes=g.Attributes(POSITION=0, NORMAL=1, TEXCOORD_0=2,
+                                               _ELEVATION=3), indices=4, material=0)
+    doc = g.GLTF2(
+        asset=g.Asset(generator=geo["generator"], version="2.0", extras={"geoterrain": geo}),
+        scene=0, scenes=[g.Scene(nodes=[0])], nodes=[g.Node(mesh=0, name="terrain")],
+        meshes=[g.Mesh(primitives=[prim], name="terrain")],
+        materials=[g.Material(
+            name="terrain", doubleSided=False,
+            pbrMetallicRoughness=g.PbrMetallicRoughness(
+                baseColorTexture=g.TextureInfo(index=0), metallicFactor=0.0,
+                roughnessFactor=1.0),
+            extensions={"KHR_materials_unlit": {}})],
+        extensionsUsed=["KHR_materials_unlit"],
+        textures=[g.Texture(source=0, sampler=0)],
+        samplers=[g.Sampler(magFilter=g.LINEAR, minFilter=g.LINEAR_MIPMAP_LINEAR,
+                            wrapS=g.CLAMP_TO_EDGE, wrapT=g.CLAMP_TO_EDGE)],
+        images=[g.Image(bufferView=5, mimeType="image/png", name="shading")],
+        accessors=acc, bufferViews=views, buffers=[g.Buffer(byteLength=len(blob))],
+    )
+    doc.set_binary_blob(blob)
+    if binary:
+        return b"".join(doc.save_to_bytes())
+    doc.convert_buffers(g.BufferFormat.DATAURI)
+    return doc.to_json()
+
+
+# ----------------------------------------------------------------------------- OBJ
+def _rows(fmt: str, a: np.ndarray) -> str:
+    """Format the rows of ``a`` with ``fmt`` (one % per column), newline-terminated."""
+    if len(a) == 0:
+        return ""
+    return ((fmt + "\n") * len(a)) % tuple(a.ravel().tolist())  # one C-level format call
+
+
+def obj_text(m: MeshArrays, uv: np.ndarray, mtl_name: str) -> str:
+    """Wavefront OBJ: positions (scene metres, Z up), texture coordinates, normals, faces."""
+    f = m.faces + 1
+    head = (f"# geoterrain {__version__}: scene frame, metres east/north/up from the origin "
+            "in the .json sidecar\n"
+            f"mtllib {mtl_name}\no terrain\n")
+    return (head + _rows("v %.4f %.4f %.4f", m.xyz) + _rows("vt %.7f %.7f", uv)
+            + _rows("vn %.5f %.5f %.5f", m.normals) + "usemtl terrain\ns 1\n"
+            + _rows("f %d/%d/%d %d/%d/%d %d/%d/%d", np.repeat(f, 3, axis=1)))
+
+
+# ----------------------------------------------------------------------------- PLY
+def ply_bytes(terrain, m: MeshArrays, crs_coords: bool = False) -> bytes:
+    """Binary little-endian PLY with the CRS and offset in header comments.
+
+    Scene positions by default (``comment offset`` = CRS coordinates of the origin);
+    with ``crs_coords`` the x, y of each vertex are the source-CRS coordinates of its
+    sample (float64) and z its elevation in metres.
+    """
+    f = terrain.frame
+    if crs_coords:
+        if f.crs_wkt is None:
+            raise UsageError("crs_coords needs a georeferenced DEM; this one has no CRS",
+                             cli="--crs-coords needs a georeferenced DEM; this one has no CRS")
+        x, y = f.crs_xy(m.ij[:, 0], m.ij[:, 1])
+        xyz = np.column_stack([x, y, m.elevation.astype(np.float64)])
+    else:
+        xyz = m.xyz
+    vdt = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("nx", "<f4"), ("ny", "<f4"),
+                    ("nz", "<f4"), ("elevation", "<f4")])
+    v = np.empty(len(xyz), vdt)
+    v["x"], v["y"], v["z"] = xyz.T
+    v["nx"], v["ny"], v["nz"] = m.normals.T
+    v["elevation"] = m.elevation
+    fdt = np.dtype([("n", "u1"), ("i", "<i4", 3)])
+    fc = np.empty(len(m.faces), fdt)
+    fc["n"], fc["i"] = 3, m.faces
+    wkt = (f.crs_wkt or "none").replace("\n", " ")
+    comments = [f"generator geoterrain {__version__}", f"crs {f.crs_name}", f"crs_wkt {wkt}",
+                f"positions {'source_crs' if crs_coords else 'scene'}"]
+    if not crs_coords:
+        ox, oy = f.origin_crs
+        comments.append(f"offset {ox:.10g} {oy:.10g} 0 (source-CRS coordinates of the origin)")
+        comments.append(f"frame {f.kind} unit_to_m {f.unit_to_m:.12g} z_scale {f.z_scale:g}")
+    head = ["ply", "format binary_little_endian 1.0", *("comment " + c for c in comments),
+            f"element vertex {len(v)}", *(f"property {t} {n}" for n, t in (
+                ("x", "double"), ("y", "double"), ("z", "double"), ("nx", "float"),
+                ("ny", "float"), ("nz", "float"), ("elevation", "float"))),
+            f"element face {len(fc)}", "property list uchar int vertex_indices", "end_header"]
+    return ("\n".join(head) + "\n").encode() + v.tobytes() + fc.tobytes()
+
+
+# ----------------------------------------------------------------------------- STL
+def printable_solid(terrain, m: MeshArrays, base_height: float | None = None,
+                    print_size: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The surface closed into a solid: walls down every boundary edge and a flat base.
+
+    ``print_size`` (mm): the longer horizontal side becomes that long, every axis
+    scaled alike (the vertical exaggeration is the store's ``z_scale``); the model
+    sits on z = 0 with x, y ≥ 0. ``base_height``: the base's thickness under the
+    lowest point, in output units (mm with ``print_size``, else metres); default 3 mm,
+    or 2 % of the longer side. The surface must be conforming (every interior edge
+    shared by two triangles, as static and ``rtin`` meshes are).
+
+    Returns (points (P, 3), faces (F, 3) wound outwards, georeference dict).
+    """
+    if print_size is not None and not (np.isfinite(print_size) and print_size > 0):
+        raise UsageError(f"print_size must be > 0 mm, got {print_size}",
+                         cli=f"--print-size must be > 0 mm, got {print_size}")
+    xyz, faces = m.xyz, m.faces
+    lo, hi = xyz.min(0), xyz.max(0)
+    side = float(max(hi[0] - lo[0], hi[1] - lo[1])) or 1.0
+    scale = 1.0 if print_size is None else float(print_size) / side
+    if base_height is None:
+        base_height = 3.0 if print_size is not None else 0.02 * side
+    if not (np.isfinite(base_height) and base_height > 0):
+        raise UsageError(f"base_height must be > 0, got {base_height}",
+                         cli=f"--base-height must be > 0, got {base_height}")
+    offset = (float(lo[0]), float(lo[1]), float(lo[2]) - base_height / scale)
+    top = (xyz - offset) * scale
+    V = len(top)
+    bottom = top.copy()
+    bottom[:, 2] = 0.0
+    # directed edges a→b of the (counter-clockwise) surface; boundary = no b→a partner
+    a = faces.ravel()
+    b = faces[:, [1, 2, 0]].ravel()
+    fwd, rev = a * V + b, b * V + a
+    fs = np.sort(fwd)  # sorting, not np.unique/np.isin: several times faster here
+    if (fs[1:] == fs[:-1]).any():
+        raise UsageError("the mesh is not a manifold surface; cannot close it into a solid")
+    boundary = ~_contains(fs, rev)
+    ea, eb = a[boundary], b[boundary]
+    if not _contains(np.sort(ea), eb).all() or not _contains(np.sort(eb), ea).all():
+        raise UsageError("the mesh is not conforming (T-junctions); a printable solid needs a "
+                         "static or rtin mesh")
+    walls = np.concatenate([np.column_stack([ea, eb + V, eb]),
+                            np.column_stack([ea, ea + V, eb + V])])
+    out_faces = np.concatenate([faces, faces[:, ::-1] + V, walls])
+    pts = np.concatenate([top, bottom])
+    # edges that are each used once forwards and once backwards: a closed 2-manifold
+    fa = out_faces.ravel()
+    fb = out_faces[:, [1, 2, 0]].ravel()
+    P = len(pts)
+    f2, r2 = np.sort(fa * P + fb), np.sort(fb * P + fa)
+    if not np.array_equal(f2, r2) or (f2[1:] == f2[:-1]).any():
+        raise UsageError("the mesh is not conforming (T-junctions); a printable solid needs a "
+                         "static or rtin mesh")
+    geo = georeference(terrain, scale, offset)
+    geo["base_height"] = float(base_height)
+    return pts, out_faces, geo
+
+
+def _contains(sorted_keys: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Whether each of ``q`` is in ``sorted_keys`` (binary search)."""
+    if len(sorted_keys) == 0:
+        return np.zeros(len(q), bool)
+    k = np.minimum(np.searchsorted(sorted_keys, q), len(sorted_keys) - 1)
+    return sorted_keys[k] == q
+
+
+def stl_bytes(xyz: np.ndarray, faces: np.ndarray) -> bytes:
+    """Binary STL of triangles ``faces`` over points ``xyz`` (float32, facet normals)."""
+    p = xyz[faces]
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.divide(n, ln, out=np.zeros_like(n), where=ln > 0)
+    rec = np.zeros(len(faces), np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")]))
+    rec["n"], rec["v"] = n, p
+    header = f"geoterrain {__version__} printable solid".encode().ljust(80, b" ")
+    return header + np.uint32(len(faces)).tobytes() + rec.tobytes()
+
+
+def with_elevation(terrain, mesh):
+    """A shallow copy of ``mesh`` with an ``elevation`` point array (metres, made active).
+
+    Examples
+    --------
+    >>> m = with_elevation(t, t.mesh(5.0))
+    >>> m.active_scalars_name
+    'elevation'
+    """
+    out = mesh.copy(deep=False)
+    if out.n_points:
+        z = np.asarray(out.points, np.float64)[:, 2]
+        out.point_data["elevation"] = (z / (terrain.frame.z_scale or 1.0)).astype(np.float32)
+        out.set_active_scalars("elevation")
+    return out

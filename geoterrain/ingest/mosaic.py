@@ -1,0 +1,180 @@
+"""Ingest: several DEM tiles read as one raster (a GDAL VRT mosaic).
+
+``preprocess`` accepts a ``.vrt`` (GDAL reads it natively), a list of files or a
+glob (``tiles/*.hgt``). A list or glob becomes a VRT written here from each
+source's rasterio metadata (size, geotransform, CRS, dtype, nodata): no pixel is
+read or copied, GDAL pastes the sources lazily, so the mosaic costs what one
+raster of its size costs. (``rasterio.merge`` would instead copy every tile into
+one more in-memory array, and rasterio has no BuildVRT.)
+
+The sources must share one CRS, one pixel size (north-up, no rotation), one band
+count and one pixel grid; each source's nodata is honoured (its nodata pixels
+leave what lies below, and gaps between tiles are nodata).
+"""
+
+from __future__ import annotations
+
+import glob as _glob
+import warnings
+from pathlib import Path
+from xml.sax.saxutils import escape
+
+import numpy as np
+import rasterio
+
+from geoterrain.exceptions import InputError, UsageError
+
+GLOB_CHARS = "*?["
+_GDAL_TYPES = {"uint8": "Byte", "int8": "Int8", "uint16": "UInt16", "int16": "Int16",
+               "uint32": "UInt32", "int32": "Int32", "float32": "Float32",
+               "float64": "Float64", "int64": "Int64", "uint64": "UInt64"}
+
+
+def is_glob(src: str | Path) -> bool:
+    """Whether ``src`` is a glob pattern (and not an existing file's name).
+
+    Examples
+    --------
+    >>> is_glob("tiles/*.hgt"), is_glob("dem.tif")
+    (True, False)
+    """
+    return isinstance(src, str) and any(c in src for c in GLOB_CHARS) and not Path(src).exists()
+
+
+def source_files(src: str | Path | list | tuple) -> list[Path]:
+    """The files of a DEM argument: one path, a list of paths, or a glob (sorted).
+
+    Examples
+    --------
+    >>> source_files("dem.tif")
+    [PosixPath('dem.tif')]
+    """
+    if isinstance(src, (list, tuple)):
+        if not src:
+            raise UsageError("no DEM given: pass a file, a list of files or a glob")
+        files = [Path(p) for p in src]
+    elif is_glob(src):
+        files = [Path(p) for p in sorted(_glob.glob(str(src)))]
+        if not files:
+            raise InputError(f"{src}: no file matches this pattern; check the folder and suffix")
+    else:
+        return [Path(src)]
+    for p in files:
+        if not p.is_file():
+            raise InputError(f"{p}: no such file; check the path")
+    return files
+
+
+def mosaic_name(files: list[Path]) -> str:
+    """A short name of a mosaic for messages and the store's ``source`` metadata."""
+    if len(files) == 1:
+        return files[0].name
+    return f"mosaic of {len(files)} files ({files[0].name} … {files[-1].name})"
+
+
+def _describe(p: Path) -> dict:
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            with rasterio.open(p) as s:
+                return {"path": p, "w": s.width, "h": s.height, "count": s.count,
+                        "dtypes": s.dtypes, "crs": s.crs, "t": s.transform,
+                        "nodata": s.nodatavals, "georef": s.crs is not None
+                        or not s.transform.is_identity}
+    except rasterio.errors.RasterioIOError as exc:
+        first = str(exc).splitlines()[0] if str(exc) else "unreadable"
+        raise InputError(f"{p}: not a raster GDAL can read ({first})") from None
+
+
+def build_vrt(files: list[Path]) -> str:
+    """A GDAL VRT (XML text) pasting ``files`` onto one grid, after checking they fit.
+
+    One-line :class:`InputError` for mixed CRSs, pixel sizes, band counts, rotated
+    or ungeoreferenced sources, and sources off the common pixel grid.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> from geoterrain.ingest.synth import generate, write_geotiff
+    >>> d = tempfile.mkdtemp()
+    >>> a = write_geotiff(os.path.join(d, "a.tif"), generate("fbm", 9))
+    >>> build_vrt([Path(a)]).startswith("<VRTDataset")
+    True
+    """
+    info = [_describe(p) for p in files]
+    first = info[0]
+    for s in info:
+        if not s["georef"]:
+            raise InputError(f"{s['path']}: has no georeference; a mosaic places its tiles by "
+                             "their geotransforms (give one file, or georeference the tiles)")
+        t = s["t"]
+        if t.b != 0 or t.d != 0:
+            raise InputError(f"{s['path']}: is rotated; a mosaic needs north-up tiles "
+                             "(gdalwarp them first)")
+        if s["crs"] != first["crs"]:
+            raise InputError(f"mixed CRSs: {first['path'].name} is {first['crs']}, "
+                             f"{s['path'].name} is {s['crs']}; reproject the tiles to one CRS")
+        f = first["t"]
+        if not (np.isclose(t.a, f.a, rtol=1e-9, atol=0) and np.isclose(t.e, f.e, rtol=1e-9,
+                                                                        atol=0)):
+            raise InputError(f"mixed resolutions: {first['path'].name} has pixels "
+                             f"{f.a:g}×{abs(f.e):g}, {s['path'].name} {t.a:g}×{abs(t.e):g}; "
+                             "resample the tiles to one pixel size")
+        if s["count"] != first["count"]:
+            raise InputError(f"mixed band counts: {first['path'].name} has {first['count']}, "
+                             f"{s['path'].name} {s['count']}; give tiles with the same bands")
+    a, e = first["t"].a, first["t"].e
+    if e > 0:
+        raise InputError(f"{first['path']}: is south-up; a mosaic needs north-up tiles")
+    x0 = min(s["t"].c for s in info)
+    y0 = max(s["t"].f for s in info)
+    offs = []
+    for s in info:
+        cx, cy = (s["t"].c - x0) / a, (s["t"].f - y0) / e
+        ox, oy = round(cx), round(cy)
+        if abs(cx - ox) > 1e-6 or abs(cy - oy) > 1e-6:
+            raise InputError(f"{s['path'].name}: is off the pixel grid of {first['path'].name} "
+                             f"(offset {cx:.3f}, {cy:.3f} pixels); resample onto one grid")
+        offs.append((ox, oy))
+    width = max(ox + s["w"] for (ox, _), s in zip(offs, info, strict=True))
+    height = max(oy + s["h"] for (_, oy), s in zip(offs, info, strict=True))
+    dtype = np.result_type(*(d for s in info for d in s["dtypes"])).name
+    if dtype not in _GDAL_TYPES:
+        raise InputError(f"{first['path']}: pixel type {dtype} cannot be mosaicked")
+    srs = f"<SRS>{escape(first['crs'].to_wkt())}</SRS>" if first["crs"] else ""
+    gt = ", ".join(repr(float(v)) for v in (x0, a, 0.0, y0, 0.0, e))
+    bands = []
+    for b in range(1, first["count"] + 1):
+        nds = [s["nodata"][b - 1] for s in info]
+        declared = [v for v in nds if v is not None]
+        # the mosaic's nodata: the sources' own; gaps and source voids are filled with it
+        band_nd = declared[0] if declared else (float("nan") if dtype.startswith("float")
+                                                else None)
+        srcs = []
+        for (ox, oy), s, nd in zip(offs, info, nds, strict=True):
+            nd_xml = f"<NODATA>{_num(nd)}</NODATA>" if nd is not None else ""
+            srcs.append(
+                "<ComplexSource>"
+                f"<SourceFilename relativeToVRT=\"0\">{escape(str(s['path'].resolve()))}"
+                f"</SourceFilename><SourceBand>{b}</SourceBand>"
+                f"<SrcRect xOff=\"0\" yOff=\"0\" xSize=\"{s['w']}\" ySize=\"{s['h']}\"/>"
+                f"<DstRect xOff=\"{ox}\" yOff=\"{oy}\" xSize=\"{s['w']}\" ySize=\"{s['h']}\"/>"
+                f"{nd_xml}</ComplexSource>")
+        nd_band = f"<NoDataValue>{_num(band_nd)}</NoDataValue>" if band_nd is not None else ""
+        bands.append(f"<VRTRasterBand dataType=\"{_GDAL_TYPES[dtype]}\" band=\"{b}\">"
+                     f"{nd_band}{''.join(srcs)}</VRTRasterBand>")
+    return (f"<VRTDataset rasterXSize=\"{width}\" rasterYSize=\"{height}\">{srs}"
+            f"<GeoTransform>{gt}</GeoTransform>{''.join(bands)}</VRTDataset>")
+
+
+def _num(v: float) -> str:
+    return "nan" if np.isnan(v) else repr(float(v))
+
+
+def open_mosaic(files: list[Path]):
+    """``files`` opened as one rasterio dataset (a VRT in memory), to use as a context.
+
+    The caller must also close the returned MemoryFile (:func:`contextlib.ExitStack`).
+    """
+    mem = rasterio.MemoryFile(build_vrt(files).encode(), ext="vrt")
+    return mem, mem.open()

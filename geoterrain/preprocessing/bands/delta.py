@@ -1,0 +1,560 @@
+"""δ of a grid read in row bands: memory set by the band, not the grid (issue 12).
+
+The same exact, saturated δ as :func:`geoterrain.bounds.delta.vertex_errors` (seed 002 §2.3
+with the exact diamond maximum, saturated by §2.4, L46), bit for bit, from a grid that
+is never held whole: a ``rows(i0, i1)`` callback hands out rows ``i0 … i1 − 1`` (a
+rasterio window, a scratch file), ``band`` rows at a time.
+
+How the bintree splits over row bands of B = 2**b rows (docs/conventions.md):
+
+- **Fine levels** (half-span h ≤ B/2, blocks of side 2h ≤ B) lie inside one band: each
+  band sweeps its blocks with the whole-grid kernels (:func:`bounds._block_sweep`,
+  ``_centre1``, ``_mid1``). Only the edge midpoints on a band's top row see the band
+  above: their diamond's upper quarter maximum and block status are carried from it
+  (one row of each per level), and a mixed diamond is swept over a halo of B/2 rows.
+- **Coarse levels** (h ≥ B) span bands. Their corners and centres lie on rows and
+  columns that are multiples of B, read once by a first pass (with each B block's
+  valid/invalid status). Each band then adds its rows to every coarse block's running
+  maxima (:func:`bounds._block_sweep_part`) and to each mixed diamond's running sweep
+  (:func:`bounds._edge_err_part`). A maximum over rows is exact, so the split changes no
+  bit.
+- **Saturation** pulls each vertex's children's saturated δ level by level, fine to
+  coarse, on the per-level arrays (children of an edge midpoint at h: the four centres
+  at h/2 beside it; of a centre: its block's four edge midpoints), which is the same
+  maximum as :func:`bounds._saturate_nb`'s push.
+
+Per-level arrays (``LevelDelta``) hold, for h = 1, 2, 4, …, with s = 2h and
+nb = (N − 1)/s: ``C`` (nb, nb), the block centres (h + a·s, h + b·s); ``R`` (nb, nb + 1),
+the edge midpoints (h + a·s, b·s) whose hypotenuse runs along the rows; ``K``
+(nb + 1, nb), the edge midpoints (a·s, h + b·s). They are the vertices new at each
+level, in the order a store writes them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from geoterrain.bounds.delta import (
+    _block_sweep,
+    _block_sweep_part,
+    _centre1,
+    _edge_err_part,
+    edge_delta_nb,
+    edge_status_nb,
+    grid_order,
+)
+from geoterrain.bounds.radii import valid_range
+from geoterrain.core.bintree import main_diagonal_nb
+from geoterrain.core.rounding import round_up32
+from geoterrain.preprocessing.scratch import ScratchArrays
+
+__all__ = ["LevelDelta", "band_vertex_errors", "edge_rows", "rows_of"]
+
+Rows = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass
+class LevelDelta:
+    """Per-level δ arrays of an (N, N) grid in ``arrays`` (:class:`ScratchArrays`, in
+    memory or in scratch files): ``C{k}``, ``R{k}``, ``K{k}`` for h = 2**k, k < n."""
+
+    N: int
+    arrays: ScratchArrays
+    valid_range: tuple[float, float, int] = (np.inf, -np.inf, 0)
+    """(min, max, count) of the valid heights, from the first pass."""
+    stand_in: float | None = None
+    """The height of invalid vertices in ``Z*`` arrays (None: not kept)."""
+    max_finite: float = 0.0
+    """The largest finite δ (0 if none)."""
+
+    @property
+    def n(self) -> int:
+        return grid_order(self.N)
+
+    def level(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Level k's (C, R, K), whole."""
+        return tuple(self.arrays.read(f"{x}{k}", 0, self.arrays.shape(f"{x}{k}")[0])
+                     for x in "CRK")
+
+    def grid(self) -> np.ndarray:
+        """The (N, N) float32 grid of :func:`geoterrain.bounds.delta.vertex_errors` (tests,
+        small grids).
+
+        Examples
+        --------
+        >>> z = np.zeros((3, 3)); z[1, 1] = 2.0
+        >>> d = band_vertex_errors(rows_of(z, np.ones((3, 3), bool)), 3, band=2)
+        >>> float(d.grid()[1, 1])
+        2.0
+        """
+        d = np.zeros((self.N, self.N), np.float32)
+        for k in range(self.n):
+            C, R, K = self.level(k)
+            h = 1 << k
+            s = 2 * h
+            d[h::s, h::s] = C
+            d[h::s, 0::s] = R
+            d[0::s, h::s] = K
+        return d
+
+
+def rows_of(z: np.ndarray, valid: np.ndarray) -> Rows:
+    """A ``rows`` callback over in-memory arrays (tests, small grids).
+
+    Examples
+    --------
+    >>> z, v = rows_of(np.arange(9.0).reshape(3, 3), np.ones((3, 3), bool))(1, 3)
+    >>> z.shape
+    (2, 3)
+    """
+    return lambda i0, i1: (z[i0:i1], valid[i0:i1])
+
+
+def edge_rows(rows: Rows, data: tuple[int, int]) -> Rows:
+    """The rows of :func:`geoterrain.bounds.edgepad.edge_support`'s grid: the padding of a grid
+    whose data is its top-left ``data = (rows, cols)`` replicated from the data's last
+    column and row (a nodata sample there makes its copies nodata).
+
+    Examples
+    --------
+    >>> z = np.array([[1.0, 2.0, 0.0], [3.0, 4.0, 0.0], [0.0, 0.0, 0.0]])
+    >>> v = np.array([[1, 1, 0], [1, 1, 0], [0, 0, 0]], bool)
+    >>> edge_rows(rows_of(z, v), (2, 2))(1, 3)[0].tolist()
+    [[3.0, 4.0, 4.0], [3.0, 4.0, 4.0]]
+    """
+    H, W = data
+
+    def replicated(i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
+        src = np.minimum(np.arange(i0, i1), H - 1)  # rows past the data: its last one
+        lo, hi = int(src.min()), int(src.max()) + 1
+        z, v = rows(lo, hi)
+        z = np.array(np.asarray(z, np.float64)[src - lo])
+        v = np.array(np.asarray(v, bool)[src - lo])
+        z[:, W:] = z[:, W - 1:W]
+        v[:, W:] = v[:, W - 1:W]
+        z[~v] = np.nan
+        return z, v
+
+    return replicated
+
+
+def _window(rows: Rows, i0: int, i1: int, N: int) -> tuple[np.ndarray, np.ndarray]:
+    # check_grid's rules on a window: non-finite heights are invalid, invalid heights 0
+    z, v = rows(i0, i1)
+    z = np.asarray(z, dtype=np.float64)
+    v = np.asarray(v, dtype=bool)
+    if z.shape != (i1 - i0, N) or v.shape != z.shape:
+        raise ValueError(f"rows({i0}, {i1}) gave {z.shape} and {v.shape}, "
+                         f"expected ({i1 - i0}, {N})")
+    v = v & np.isfinite(z)
+    z = np.where(v, z, 0.0)
+    return np.ascontiguousarray(z), np.ascontiguousarray(v)
+
+
+@njit(cache=True, parallel=True)
+def _status_nb(v, r, s, nrow, nb):
+    # status bits (1 valid, 2 invalid) of nrow rows of closed s-blocks, from v's row r
+    out = np.zeros((nrow, nb), np.uint8)
+    for a in prange(nrow):
+        for b in range(nb):
+            f = 0
+            for i in range(r + a * s, r + a * s + s + 1):
+                for j in range(b * s, b * s + s + 1):
+                    f |= 1 if v[i, j] else 2
+                if f == 3:
+                    break
+            out[a, b] = f
+    return out
+
+
+def _pool(st: np.ndarray) -> np.ndarray:
+    # a closed 2s block's status is the OR of its four closed s blocks'
+    return st[0::2, 0::2] | st[0::2, 1::2] | st[1::2, 0::2] | st[1::2, 1::2]
+
+
+@njit(cache=True, parallel=True)
+def _fine_level_nb(z, vb, w0, r0, B, N, h, st, st_prev, qb_prev, last, C, R, K, QB):
+    """One fine level (2h ≤ B) of the band whose core rows start at r0: raw δ of its
+    centres and edge midpoints (the same branches as bounds._raw_delta_nb); QB gets the
+    block rows' lower quarter maxima (the next band's carry)."""
+    s = 2 * h
+    nb = (N - 1) // s
+    nrow = B // s
+    a0 = r0 // s
+    QL = np.zeros((nrow, nb))
+    QR = np.zeros((nrow, nb))
+    QT = np.zeros((nrow, nb))
+    for ar in prange(nrow):
+        a = a0 + ar
+        for b in range(nb):
+            f = st[ar, b]
+            main = main_diagonal_nb(a, b)
+            if f == 1:
+                if h == 1:
+                    m = _centre1(z, a * s + h - w0, b * s + h, main)
+                else:
+                    m, ml, mr, mt, mb = _block_sweep(z, a * s - w0, b * s, s, main)
+                    QL[ar, b] = ml
+                    QR[ar, b] = mr
+                    QT[ar, b] = mt
+                    QB[ar, b] = mb
+                C[ar, b] = round_up32(m)
+            elif f == 3:
+                C[ar, b] = np.inf
+    # edge midpoints whose hypotenuse runs along the rows: inside their block row
+    for ar in prange(nrow):
+        ic = h + (a0 + ar) * s
+        for b in range(nb + 1):
+            jc = b * s
+            flo = st[ar, b - 1] if b > 0 else 0
+            fhi = st[ar, b] if b < nb else 0
+            qlo = QR[ar, b - 1] if flo else 0.0
+            qhi = QL[ar, b] if fhi else 0.0
+            R[ar, b] = edge_delta_nb(z, vb, ic, jc, h, True, N, w0, flo, fhi, qlo, qhi,
+                                     R[ar, b])
+    # edge midpoints on block rows' top edges: the block above may be the band above's
+    nk = nrow + (1 if last else 0)
+    for ak in prange(nk):
+        a = a0 + ak
+        ic = a * s
+        for b in range(nb):
+            jc = h + b * s
+            flo = 0
+            qlo = 0.0
+            if ak >= 1:
+                flo = st[ak - 1, b]
+                qlo = QB[ak - 1, b]
+            elif a >= 1:
+                flo = st_prev[b]
+                qlo = qb_prev[b]
+            fhi = st[ak, b] if a < nb else 0
+            qhi = QT[ak, b] if fhi else 0.0
+            K[ak, b] = edge_delta_nb(z, vb, ic, jc, h, False, N, w0, flo, fhi, qlo, qhi,
+                                     K[ak, b])
+
+
+@njit(cache=True, parallel=True)
+def _coarse_rows_nb(z, w0, h, st, zd, dB, r_lo, r_hi, MC, QL, QR, QT, QB):
+    """Add grid rows r_lo … r_hi (inclusive, inside the window from w0) to the running
+    maxima of every all-valid block of the coarse level h (corners from the decimated
+    grid ``zd``, every dB samples)."""
+    s = 2 * h
+    nb = st.shape[0]
+    k = s // dB
+    for b in prange(nb):
+        for a in range(max(r_lo // s - 1, 0), min(r_hi // s, nb - 1) + 1):
+            d0 = max(r_lo - a * s, 0)
+            d1 = min(r_hi - a * s, s)
+            if d0 > d1 or st[a, b] != 1:
+                continue
+            main = main_diagonal_nb(a, b)
+            mc, ml, mr, mt, mb = _block_sweep_part(
+                z, a * s, b * s, s, main, zd[a * k, b * k], zd[a * k, b * k + k],
+                zd[a * k + k, b * k], zd[a * k + k, b * k + k], zd[a * k + k // 2, b * k + k // 2],
+                d0, d1, w0)
+            MC[a, b] = max(MC[a, b], mc)
+            QL[a, b] = max(QL[a, b], ml)
+            QR[a, b] = max(QR[a, b], mr)
+            QT[a, b] = max(QT[a, b], mt)
+            QB[a, b] = max(QB[a, b], mb)
+
+
+@njit(cache=True)
+def _coarse_edges_nb(z, vb, w0, h, N, zd, dB, rows, todo, r_lo, r_hi, EM, EC, ET):
+    """Add grid rows r_lo … r_hi to the running sweeps of the coarse level's mixed edge
+    midpoints listed in ``todo`` ((a, b) rows; R-type if ``rows``, else K-type)."""
+    s = 2 * h
+    u = h // dB  # h in decimated steps
+    for t in range(todo.shape[0]):
+        a = todo[t, 0]
+        b = todo[t, 1]
+        if rows:
+            ic = h + a * s
+            jc = b * s
+            ii = (ic // dB)
+            jj = (jc // dB)
+            lo_ok = jc - h >= 0
+            hi_ok = jc + h <= N - 1
+            za = zd[ii - u, jj]
+            zb = zd[ii + u, jj]
+            z_lo = zd[ii, jj - u] if lo_ok else 0.0
+            z_hi = zd[ii, jj + u] if hi_ok else 0.0
+        else:
+            ic = a * s
+            jc = h + b * s
+            ii = (ic // dB)
+            jj = (jc // dB)
+            lo_ok = ic - h >= 0
+            hi_ok = ic + h <= N - 1
+            za = zd[ii, jj - u]
+            zb = zd[ii, jj + u]
+            z_lo = zd[ii - u, jj] if lo_ok else 0.0
+            z_hi = zd[ii + u, jj] if hi_ok else 0.0
+        d0 = max(r_lo - ic, -h)
+        d1 = min(r_hi - ic, h)
+        if d0 > d1:
+            continue
+        m, c, n = _edge_err_part(z, vb, ic, jc, h, rows, lo_ok, hi_ok, za, zb, z_lo, z_hi,
+                                 d0, d1, w0)
+        EM[t] = max(EM[t], m)
+        EC[t] += c
+        ET[t] += n
+
+
+@njit(cache=True)
+def _coarse_finish_nb(st, MC, QL, QR, QT, QB, rtodo, rsw, ktodo, ksw, C, R, K):
+    # the branches of bounds._raw_delta_nb, once every row has been added
+    nb = st.shape[0]
+    for a in range(nb):
+        for b in range(nb):
+            if st[a, b] == 1:
+                C[a, b] = round_up32(MC[a, b])
+            elif st[a, b] == 3:
+                C[a, b] = np.inf
+    for a in range(nb):
+        for b in range(nb + 1):
+            flo = st[a, b - 1] if b > 0 else 0
+            fhi = st[a, b] if b < nb else 0
+            if flo | fhi == 1:
+                m = 0.0
+                if flo:
+                    m = max(m, QR[a, b - 1])
+                if fhi:
+                    m = max(m, QL[a, b])
+                R[a, b] = round_up32(m)
+    for a in range(nb + 1):
+        for b in range(nb):
+            flo = st[a - 1, b] if a > 0 else 0
+            fhi = st[a, b] if a < nb else 0
+            if flo | fhi == 1:
+                m = 0.0
+                if flo:
+                    m = max(m, QB[a - 1, b])
+                if fhi:
+                    m = max(m, QT[a, b])
+                K[a, b] = round_up32(m)
+    for todo, (em, ec, et), out in ((rtodo, rsw, R), (ktodo, ksw, K)):
+        for t in range(todo.shape[0]):
+            m, c = edge_status_nb(em[t], ec[t], et[t])
+            if c == 2:
+                out[todo[t, 0], todo[t, 1]] = np.inf
+            elif c == 1:
+                out[todo[t, 0], todo[t, 1]] = round_up32(m)
+
+
+def _mixed_edges(st: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    # (a, b) of the R- and K-type edge midpoints whose two blocks' statuses mix (f = 3)
+    nb = st.shape[0]
+    z = np.zeros((nb, 1), np.uint8)
+    fr = np.hstack([z, st]) | np.hstack([st, z])
+    zk = np.zeros((1, nb), np.uint8)
+    fk = np.vstack([zk, st]) | np.vstack([st, zk])
+    return (np.argwhere(fr == 3).astype(np.int64), np.argwhere(fk == 3).astype(np.int64))
+
+
+def _zero_beyond(a: np.ndarray, a_lo: int, s: int, di: int, dj: int,
+                 data: tuple[int, int]) -> None:
+    # edgepad.zero_beyond_data on rows a_lo … of one kind of level array: vertex
+    # (a·s + di, b·s + dj) of half-span h keeps its value only if its diamond reaches the
+    # data's rows × cols, i.e. a·s + di − h ≤ rows − 1 and b·s + dj − h ≤ cols − 1
+    h = s // 2
+    rows, cols = data
+    a_idx = a_lo + np.arange(a.shape[0])
+    a[a_idx * s + di - h > rows - 1] = 0
+    a[:, np.arange(a.shape[1]) * s + dj - h > cols - 1] = 0
+
+
+def _saturate(sa: ScratchArrays, n: int, budget: int,
+              data: tuple[int, int] | None = None) -> float:
+    # LP §2.4 (L46) as a pull, fine to coarse and ``budget`` bytes of rows at a time: an
+    # edge midpoint at h takes its four children centres at h/2 (R[a, b]: centre rows
+    # 2a, 2a+1 and columns 2b−1, 2b of level h/2; K[a, b]: rows 2a−1, 2a and columns
+    # 2b, 2b+1), then a centre takes its block's four edge midpoints. ``data``: first
+    # zero the raw δ of the vertices whose diamond misses the data's rows × cols.
+    # Returns the largest finite saturated δ (0 if none): what its log8 codes must cover
+    top = 0.0
+    for k in range(n):
+        nb = sa.shape(f"C{k}")[0]
+        step = max(1, budget // (16 * (nb + 1) * 4))
+        for a_lo in range(0, nb, step):
+            a_hi = min(a_lo + step, nb)
+            C = sa.read(f"C{k}", a_lo, a_hi)
+            R = sa.read(f"R{k}", a_lo, a_hi)
+            K = sa.read(f"K{k}", a_lo, a_hi + 1)
+            if data is not None:
+                s = 2 << k
+                for arr, di, dj in ((C, s // 2, s // 2), (R, s // 2, 0), (K, 0, s // 2)):
+                    _zero_beyond(arr, a_lo, s, di, dj, data)
+            if k:
+                # the finer level's centre rows 2a_lo − 1 … 2a_hi, zero outside the grid
+                P = np.zeros((2 * (a_hi - a_lo) + 2, 2 * nb + 2), np.float32)
+                p0 = max(2 * a_lo - 1, 0)
+                rows = sa.read(f"C{k - 1}", p0, 2 * a_hi + 1)
+                P[p0 - (2 * a_lo - 1):p0 - (2 * a_lo - 1) + len(rows), 1:-1] = rows
+                m = np.maximum(P[1:-1:2], P[2::2])  # rows 2a, 2a+1 of each R row
+                np.maximum(R, np.maximum(m[:, 0::2], m[:, 1::2]), out=R)
+                m = np.maximum(P[0::2], P[1::2])  # rows 2a−1, 2a of each K row
+                np.maximum(K, np.maximum(m[:, 1:-1:2], m[:, 2::2]), out=K)
+            np.maximum(C, np.maximum(np.maximum(R[:, :-1], R[:, 1:]),
+                                     np.maximum(K[:-1], K[1:])), out=C)
+            sa.write(f"C{k}", a_lo, C)
+            sa.write(f"R{k}", a_lo, R)
+            sa.write(f"K{k}", a_lo, K)
+            for a in (C, R, K):
+                top = max(top, float(np.max(a, where=np.isfinite(a), initial=0.0)))
+    return top
+
+
+def _keep_heights(sa: ScratchArrays, z: np.ndarray, v: np.ndarray, w0: int, r0: int,
+                  r_end: int, N: int, n: int, stand_in: float) -> None:
+    # the heights of every level's vertices on grid rows r0 … r_end, invalid ones by the
+    # stand-in (radii._proxy_positions): ZC{k}, ZR{k}, ZK{k}, for the nested radii
+    zp = np.where(v, z, stand_in)
+    for k in range(n):
+        h = 1 << k
+        s = 2 * h
+        for x, off, cols in (("C", h, slice(h, None, s)), ("R", h, slice(0, None, s)),
+                             ("K", 0, slice(h, None, s))):
+            a_lo = max(-(-(r0 - off) // s), 0)
+            a_hi = (r_end - off) // s
+            if a_hi >= a_lo:
+                idx = np.arange(a_lo, a_hi + 1) * s + off - w0
+                sa.write(f"Z{x}{k}", a_lo, zp[idx][:, cols])
+
+
+def band_vertex_errors(rows: Rows, N: int, band: int = 256,
+                       scratch: ScratchArrays | None = None,
+                       heights: bool = False,
+                       data: tuple[int, int] | None = None) -> LevelDelta:
+    """Exact, saturated δ of an (N, N) grid read ``band`` rows at a time; the values of
+    :func:`geoterrain.bounds.delta.vertex_errors`, bit for bit, for any band.
+
+    Parameters
+    ----------
+    rows
+        ``rows(i0, i1)`` → (heights, valid) of grid rows i0 … i1 − 1, shape (i1 − i0, N):
+        heights in scene units (float64, or anything that converts), valid bool.
+    N
+        Grid side, 2**n + 1.
+    band
+        Rows per band, a power of two ≥ 2 (clipped to N − 1). Each band's window is
+        1.5·band + 1 rows; the first pass reads every band once more.
+    scratch
+        Where the per-level arrays go (:class:`ScratchArrays`; default in memory). With
+        a scratch folder, memory is the band's window and a few rows of each level.
+    heights
+        Also keep every level's vertex heights (``ZC{k}``, ``ZR{k}``, ``ZK{k}``,
+        float64), invalid ones replaced by the middle of the valid range
+        (:func:`geoterrain.bounds.radii.stand_in_z`): what
+        :func:`geoterrain.preprocessing.bands.radii.band_radius_codes` nests.
+    data
+        ``(rows, cols)`` of the data in a padded grid: the raw δ of every vertex whose
+        diamond misses them is 0 before saturation. With ``rows`` replicating the data's
+        edge into the padding (:func:`edge_rows`), that is
+        :func:`geoterrain.bounds.edgepad.edge_deltas` (δ_edge).
+
+    Examples
+    --------
+    >>> from geoterrain.bounds.delta import vertex_errors
+    >>> rng = np.random.default_rng(1)
+    >>> z = rng.normal(size=(17, 17)); v = np.ones_like(z, bool)
+    >>> d = band_vertex_errors(rows_of(z, v), 17, band=4)
+    >>> bool(np.array_equal(d.grid(), vertex_errors(z, v)))
+    True
+    """
+    n = grid_order(N)
+    if band < 2 or band & (band - 1):
+        raise ValueError(f"band must be a power of two ≥ 2, got {band}")
+    B = min(band, N - 1)
+    nbands = nB = (N - 1) // B
+    # first pass: every B block's status, and the grid every B samples (coarse corners)
+    stB = np.zeros((nB, nB), np.uint8)
+    zd = np.zeros((nB + 1, nB + 1))
+    lo, hi, count = np.inf, -np.inf, 0
+    for k in range(nbands):
+        r0 = k * B
+        z, v = _window(rows, r0, r0 + B + 1, N)
+        stB[k] = _status_nb(v, 0, B, 1, nB)[0]
+        zd[k] = z[0, ::B]
+        if k == nbands - 1:
+            zd[k + 1] = z[B, ::B]
+        a, b, c = valid_range(z[:B + (k == nbands - 1)], v[:B + (k == nbands - 1)])
+        lo, hi, count = min(lo, a), max(hi, b), count + c
+    stand_in = (0.5 * (lo + hi) if count else 0.0) if heights else None  # radii.stand_in_z
+    coarse = []  # per coarse level: (h, status, accumulators, mixed edges and sweeps)
+    st = stB
+    h = B
+    while h < N - 1:
+        st = _pool(st)
+        nb = st.shape[0]
+        acc = [np.zeros((nb, nb)) for _ in range(5)]  # centre, left, right, top, bottom
+        rt, kt = _mixed_edges(st)
+        sw = [(np.zeros(len(t)), np.zeros(len(t), np.int64), np.zeros(len(t), np.int64))
+              for t in (rt, kt)]
+        coarse.append((h, st, acc, (rt, kt), sw))
+        h *= 2
+    nfine = B.bit_length() - 1  # levels h = 1 … B/2
+    sa = ScratchArrays() if scratch is None else scratch
+    for k in range(n):
+        nb = (N - 1) >> (k + 1)
+        sa.create(f"C{k}", (nb, nb), np.float32)
+        sa.create(f"R{k}", (nb, nb + 1), np.float32)
+        sa.create(f"K{k}", (nb + 1, nb), np.float32)
+        if heights:
+            sa.create(f"ZC{k}", (nb, nb), np.float64)
+            sa.create(f"ZR{k}", (nb, nb + 1), np.float64)
+            sa.create(f"ZK{k}", (nb + 1, nb), np.float64)
+    carry = [(np.zeros((N - 1) // (2 << k), np.uint8), np.zeros((N - 1) // (2 << k)))
+             for k in range(nfine)]
+    for k in range(nbands):
+        r0 = k * B
+        last = k == nbands - 1
+        w0 = max(0, r0 - B // 2)
+        z, v = _window(rows, w0, r0 + B + 1, N)
+        # fine levels: block statuses from the samples, pooled up the band's levels
+        sts = [_status_nb(v, r0 - w0, 2, B // 2, (N - 1) // 2)]
+        for _ in range(1, nfine):
+            sts.append(_pool(sts[-1]))
+        for lk in range(nfine):
+            hh = 1 << lk
+            s = 2 * hh
+            nb = (N - 1) // s
+            nrow = B // s
+            a0 = r0 // s
+            nk = nrow + (1 if last else 0)
+            Cb = np.zeros((nrow, nb), np.float32)
+            Rb = np.zeros((nrow, nb + 1), np.float32)
+            Kb = np.zeros((nk, nb), np.float32)
+            QB = np.zeros((nrow, nb))
+            st_prev, qb_prev = carry[lk]
+            _fine_level_nb(z, v, w0, r0, B, N, hh, sts[lk], st_prev, qb_prev, last,
+                           Cb, Rb, Kb, QB)
+            sa.write(f"C{lk}", a0, Cb)
+            sa.write(f"R{lk}", a0, Rb)
+            sa.write(f"K{lk}", a0, Kb)
+            carry[lk] = (sts[lk][-1].copy(), QB[-1].copy())
+        # coarse levels: this band's core rows (and the grid's last row, last)
+        r_hi = r0 + B if last else r0 + B - 1
+        if stand_in is not None:
+            _keep_heights(sa, z, v, w0, r0, r_hi, N, n, stand_in)
+        for hc, stc, acc, todo, sw in coarse:
+            _coarse_rows_nb(z, w0, hc, stc, zd, B, r0, r_hi, *acc)
+            for rows_type, t, (em, ec, et) in zip((True, False), todo, sw, strict=True):
+                if len(t):
+                    _coarse_edges_nb(z, v, w0, hc, N, zd, B, rows_type, t, r0, r_hi,
+                                     em, ec, et)
+    for k, (_, stc, acc, (rt, kt), sw) in enumerate(coarse, start=nfine):
+        nb = stc.shape[0]
+        C = np.zeros((nb, nb), np.float32)
+        R = np.zeros((nb, nb + 1), np.float32)
+        K = np.zeros((nb + 1, nb), np.float32)
+        _coarse_finish_nb(stc, *acc, rt, sw[0], kt, sw[1], C, R, K)
+        for x, a in zip("CRK", (C, R, K), strict=True):
+            sa.write(f"{x}{k}", 0, a)
+    top = _saturate(sa, n, budget=max(B, 64) * N * 16, data=data)
+    return LevelDelta(N, sa, (lo, hi, count), stand_in, top)
+

@@ -1,0 +1,92 @@
+"""Every level's normal codes from a grid read in row bands (issue 12's streaming
+preprocess; the whole-grid twins are :func:`geoterrain.bounds.normals.level_normal_maps` and
+:func:`~geoterrain.bounds.normals.encode_octahedral`).
+
+Level L's map is the central differences of level L's own samples (every 2**L-th row and
+column), so a band of level-L rows needs one row of halo each side. The levels form a
+cascade: each keeps its last row (the next band's halo) and the rows whose successor
+has not arrived, and hands its even rows, every other column, to the next level. Codes
+go to the scratch arrays ``n{L}`` ((N_L, 2·N_L) uint8: each row's (u, v) pairs), the
+same bytes as the whole-grid maps'.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from geoterrain.bounds.normals import encode_octahedral, normal_map
+from geoterrain.preprocessing.scratch import ScratchArrays
+
+__all__ = ["band_normal_codes"]
+
+Rows = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
+
+
+class _Level:
+    """One level of the cascade: its buffered rows (scene heights, valid) from level row
+    ``start`` on, and ``done``, the rows whose normals are written."""
+
+    def __init__(self, rows: int, xs: np.ndarray, ys: np.ndarray) -> None:
+        self.rows, self.xs, self.ys = rows, xs, ys
+        self.start = self.done = 0
+        self.z = np.empty((0, len(xs)), np.float64)
+        self.v = np.empty((0, len(xs)), np.bool_)
+
+
+def band_normal_codes(rows: Rows, N: int, xs: np.ndarray, ys: np.ndarray, levels: int,
+                      sa: ScratchArrays, band: int = 256, bits: int = 8) -> None:
+    """Write ``n{L}`` (L < ``levels``) to ``sa``: the octahedral codes of
+    ``encode_octahedral(level_normal_maps(X, Y, Z, valid, levels)[L], bits)``, from
+    ``rows(i0, i1)`` → (scene heights, valid) of rows i0 … i1 − 1.
+
+    ``xs``, ``ys``: scene x of each column and y of each row (a projected or pixel frame).
+
+    Examples
+    --------
+    >>> from geoterrain.bounds.normals import level_normal_maps
+    >>> z = np.random.default_rng(3).normal(size=(9, 9)); v = np.ones((9, 9), bool)
+    >>> xs = ys = np.arange(9.0)
+    >>> sa = ScratchArrays()
+    >>> band_normal_codes(lambda a, b: (z[a:b], v[a:b]), 9, xs, -ys, 3, sa, band=2)
+    >>> X, Y = np.meshgrid(xs, -ys)
+    >>> top = encode_octahedral(level_normal_maps(X, Y, z, v, 3)[2], 8)
+    >>> bool((sa.read("n2", 0, 3).reshape(3, 3, 2) == top).all())
+    True
+    """
+    xs = np.asarray(xs, np.float64)
+    ys = np.asarray(ys, np.float64)
+    lv = []
+    for L in range(levels):
+        s = 1 << L
+        m = (N - 1) // s + 1
+        sa.create(f"n{L}", (m, 2 * m), np.uint8)
+        lv.append(_Level(m, xs[::s], ys[::s]))
+
+    def feed(L: int, a0: int, z: np.ndarray, v: np.ndarray) -> None:
+        # level L's rows a0 … a0 + len(z) − 1, which follow the rows fed before
+        cur = lv[L]
+        cur.z = np.concatenate([cur.z, z])
+        cur.v = np.concatenate([cur.v, v])
+        end = cur.start + len(cur.z)
+        hi = cur.rows if end >= cur.rows else end - 1  # rows below hi have their successor
+        if hi > cur.done:
+            w0, w1 = max(cur.done - 1, 0), min(hi + 1, end)  # one row of halo each side
+            zz, vv = cur.z[w0 - cur.start:w1 - cur.start], cur.v[w0 - cur.start:w1 - cur.start]
+            X = np.broadcast_to(cur.xs[None, :], zz.shape)
+            Y = np.broadcast_to(cur.ys[w0:w1, None], zz.shape)
+            n = normal_map(X, Y, zz, vv)[cur.done - w0:hi - w0]
+            sa.write(f"n{L}", cur.done, encode_octahedral(n, bits).reshape(len(n), -1))
+            cur.done = hi
+            keep = max(cur.done - 1, cur.start) - cur.start  # the next band's halo row
+            cur.z, cur.v, cur.start = cur.z[keep:], cur.v[keep:], cur.start + keep
+        if L + 1 < levels:  # the even rows, every other column, are the next level's
+            first = a0 + (a0 & 1)
+            if first < a0 + len(z):
+                k = first - a0
+                feed(L + 1, first // 2, z[k::2, ::2], v[k::2, ::2])
+
+    for r0 in range(0, N, band):
+        z, v = rows(r0, min(r0 + band, N))
+        feed(0, r0, np.asarray(z, np.float64), np.asarray(v, bool))

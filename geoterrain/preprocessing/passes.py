@@ -1,0 +1,296 @@
+"""The streaming preprocess's passes (:mod:`geoterrain.preprocessing.streaming`) as scheduler tasks,
+and the records that let a killed run be resumed.
+
+After the scan and the quantizer, four passes over the raster are independent: δ with
+δ_edge and the radius codes, the tile table, the normals, and the height blobs. With
+residual bins (a lossy store, :attr:`geoterrain.codec.quantize.Quantizer.bins`) the decoded
+heights depend on the pyramid: the height pass then runs first and writes them to the
+scratch arrays of ``decoded/``, which the other three read instead of the raster. Each is
+a module-level function of a picklable :class:`Job` (the raster's path and every
+setting), opens the raster itself, and writes into its own folder of the job's scratch
+folder (:meth:`geoterrain.preprocessing.scratch.ScratchArrays.shared`), so any scheduler
+(:mod:`geoterrain.preprocessing.schedulers`) can run it. When a pass ends its result is recorded
+there
+as plain data (JSON and ``.npz``, no pickle), which ``--resume`` reads back.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import os
+import re
+import struct
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import rasterio
+from rasterio.windows import Window
+
+from geoterrain._version import __version__
+from geoterrain.bounds.tilebounds import TileBounds
+from geoterrain.bounds.vertexdata import NORMAL_BITS
+from geoterrain.codec.quantize import Quantizer, codes_to_heights, roundtrip
+from geoterrain.core.atomicfiles import pid_alive
+from geoterrain.core.frame import Frame
+from geoterrain.core.grid import Grid
+from geoterrain.ingest.raster import GDAL_READ_OPTIONS
+from geoterrain.preprocessing.bands.codec import band_encode_pyramid
+from geoterrain.preprocessing.bands.delta import band_vertex_errors, edge_rows
+from geoterrain.preprocessing.bands.normals import band_normal_codes
+from geoterrain.preprocessing.bands.radii import band_radius_codes
+from geoterrain.preprocessing.bands.tiles import band_tile_bounds
+from geoterrain.preprocessing.scratch import ScratchArrays
+
+__all__ = ["PASSES", "Job", "Source", "adopt", "heights_records", "job_record", "run_pass"]
+
+
+class Source:
+    """Rows of the padded (N, N) grid from a raster file: source heights (float64, NaN
+    where invalid) and validity, north up, the padding invalid."""
+
+    def __init__(self, ds, grid: Grid, nodata: float | None, flip: bool) -> None:
+        self.ds, self.grid, self.nodata, self.flip = ds, grid, nodata, flip
+        self.H, self.W, self.N = grid.rows, grid.cols, grid.size
+
+    def file_rows(self, i0: int, i1: int, j0: int = 0, j1: int | None = None) -> np.ndarray:
+        """The raw band's rows i0 … i1 − 1 and columns j0 … j1 − 1 (north up), the
+        file's dtype."""
+        j1 = self.W if j1 is None else j1
+        if self.flip:
+            a = self.ds.read(1, window=Window(j0, self.H - i1, j1 - j0, i1 - i0))
+            return a[::-1]
+        return self.ds.read(1, window=Window(j0, i0, j1 - j0, i1 - i0))
+
+    def rows(self, i0: int, i1: int, j0: int = 0, j1: int | None = None
+             ) -> tuple[np.ndarray, np.ndarray]:
+        j1 = self.N if j1 is None else j1
+        z = np.full((i1 - i0, j1 - j0), np.nan)
+        v = np.zeros(z.shape, bool)
+        r1 = min(i1, self.H)
+        c1 = min(j1, self.W)
+        if r1 > i0 and c1 > j0:
+            data = self.file_rows(i0, r1, j0, c1)
+            h = data.astype(np.float64)
+            ok = np.isfinite(h)
+            if self.nodata is not None and not np.isnan(self.nodata):
+                nd = np.asarray(self.nodata, dtype=data.dtype) if \
+                    np.issubdtype(data.dtype, np.floating) else self.nodata
+                ok &= data != nd
+            z[:r1 - i0, :c1 - j0] = np.where(ok, h, np.nan)
+            v[:r1 - i0, :c1 - j0] = ok
+        return z, v
+
+    def bands(self, band: int):
+        return (self.rows(i, min(i + band, self.N))[0] for i in range(0, self.N, band))
+
+
+@dataclasses.dataclass(frozen=True)
+class Job:
+    """What a pass needs (picklable: a scheduler ships it to its worker)."""
+
+    src: str
+    grid: dict
+    frame: dict
+    q: Quantizer
+    nodata: float | None
+    flip: bool
+    band: int
+    folder: str
+    pad: bool
+
+    @contextlib.contextmanager
+    def opened(self) -> Iterator[tuple]:
+        """(source, scene rows, grid, xs, ys) over the raster, opened in this process."""
+        grid = Grid(**self.grid)
+        frame = Frame.from_json(self.frame)
+        with rasterio.Env(**GDAL_READ_OPTIONS), rasterio.open(self.src) as ds:
+            source = Source(ds, grid, self.nodata, self.flip)
+            decoded: list[ScratchArrays] = []  # the height pass's, opened at the first read
+
+            def scene(i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
+                z, v = source.rows(i0, i1)
+                if self.q.bins == 1:
+                    return frame.z(roundtrip(z, v, self.q)), v  # decoded, scene metres
+                del z  # only the mask: the heights are the height pass's (in place below)
+                if not decoded:
+                    decoded.append(ScratchArrays.shared(os.path.join(self.folder, DECODED)))
+                h = decoded[0].read("h", i0, i1)
+                h[~v] = np.nan
+                return frame.z(h, out=h), v
+
+            X, Y = frame.grid_xy(grid.size)
+            try:
+                yield (source, scene, grid, np.ascontiguousarray(X[0]),
+                       np.ascontiguousarray(Y[:, 0]))
+            finally:
+                for a in decoded:
+                    a.close()
+
+
+def _bounds_pass(job: Job) -> tuple:
+    # δ with each level's vertex heights, δ_edge, and the radius codes nested on them:
+    # (valid range, stand-in height, r's exponent, largest finite δ and δ_edge)
+    with job.opened() as (_, scene, grid, xs, ys):
+        N = grid.size
+        sa = ScratchArrays.shared(os.path.join(job.folder, "bounds"))
+        lvl = band_vertex_errors(scene, N, band=job.band, scratch=sa, heights=True)
+        emax = 0.0
+        if job.pad:
+            se = ScratchArrays.shared(os.path.join(job.folder, "edge"))
+            emax = band_vertex_errors(edge_rows(scene, (grid.rows, grid.cols)), N,
+                                      band=job.band, scratch=se,
+                                      data=(grid.rows, grid.cols)).max_finite
+            se.close()
+        er = band_radius_codes(sa, N, xs, ys, *lvl.valid_range[:2])
+        sa.close()
+        return lvl.valid_range, lvl.stand_in, er, lvl.max_finite, emax
+
+
+def _tiles_pass(job: Job) -> tuple:
+    with job.opened() as (_, scene, grid, xs, ys):
+        return band_tile_bounds(scene, grid.size, grid.t, xs, ys, band=job.band)
+
+
+def _normals_pass(job: Job) -> None:
+    with job.opened() as (_, scene, grid, xs, ys):
+        sn = ScratchArrays.shared(os.path.join(job.folder, "normals"))
+        band_normal_codes(scene, grid.size, xs, ys, grid.top_level + 1, sn, band=job.band,
+                          bits=NORMAL_BITS)
+        sn.close()
+
+
+_RECORD = struct.Struct("<iiiI")  # a height blob's record: L, x, y, length
+
+
+def _heights_pass(job: Job) -> dict:
+    # the height blobs into a scratch file of records, as they are made; with residual
+    # bins, the decoded heights too (DECODED, row-major float64) and their range
+    with job.opened() as (source, _, grid, _, _), \
+            open(os.path.join(job.folder, "heights.bin"), "wb") as fh:
+        count = [0]
+        span = [np.inf, -np.inf]
+
+        def sink(part: dict) -> None:
+            for key, b in part.items():
+                fh.write(_RECORD.pack(*key, len(b)) + b)
+            count[0] += len(part)
+
+        if job.q.bins == 1:
+            band_encode_pyramid(source.rows, grid.size, grid.t, job.q, sink=sink,
+                                coarse_max=COARSE_MAX)
+            return {"blobs": count[0], "range": None}
+        sa = ScratchArrays.shared(os.path.join(job.folder, DECODED))
+        try:
+            sa.create("h", (grid.size, grid.size), np.float64)
+
+            def decoded(i0: int, j0: int, codes: np.ndarray, valid: np.ndarray) -> None:
+                h = codes_to_heights(codes, job.q)
+                span[:] = (min(span[0], float(np.min(h, where=valid, initial=np.inf))),
+                           max(span[1], float(np.max(h, where=valid, initial=-np.inf))))
+                sa.write("h", i0, h, c0=j0)
+
+            band_encode_pyramid(source.rows, grid.size, grid.t, job.q, sink=sink,
+                                decoded=decoded, coarse_max=COARSE_MAX)
+        finally:
+            sa.close()
+        return {"blobs": count[0], "range": span}
+
+
+def heights_records(path: str, batch: int = 4096) -> Iterator[dict]:
+    """The height blobs of :func:`_heights_pass`'s file, ``batch`` at a time."""
+    with open(path, "rb") as fh:
+        part: dict = {}
+        while head := fh.read(_RECORD.size):
+            L, x, y, n = _RECORD.unpack(head)
+            part[(L, x, y)] = fh.read(n)
+            if len(part) >= batch:
+                yield part
+                part = {}
+        if part:
+            yield part
+
+
+def _save_done(path: str, out) -> None:
+    # a finished pass's result, as plain data (a resumed run reads no pickle)
+    if isinstance(out, tuple) and len(out) == 2 and isinstance(out[0], dict):  # tiles
+        keys = np.array(sorted(out[0]), np.int64).reshape(-1, 3)
+        rows = np.array([out[0][tuple(k)] for k in keys.tolist()], np.float64)
+        payload = {"kind": "tiles"}
+        np.savez(path + ".npz", keys=keys, rows=rows.reshape(len(keys), -1), blocks=out[1])
+    else:
+        payload = {"kind": "value", "value": out}
+    tmp = f"{path}.{os.getpid()}"
+    with open(tmp, "w") as fh:
+        json.dump(payload, fh)
+    os.replace(tmp, path)
+
+
+def _load_done(path: str):
+    with open(path) as fh:
+        payload = json.load(fh)
+    if payload["kind"] == "tiles":
+        with np.load(path + ".npz", allow_pickle=False) as z:
+            rows = {tuple(k): TileBounds(int(r[0]), *map(float, r[1:]))
+                    for k, r in zip(z["keys"].tolist(), z["rows"], strict=True)}
+            return rows, z["blocks"]
+    v = payload["value"]
+    return (tuple(v[0]), *v[1:]) if isinstance(v, list) else v
+
+
+PASSES = {"bounds": _bounds_pass, "tiles": _tiles_pass, "normals": _normals_pass,
+           "heights": _heights_pass}
+DECODED = "decoded"  # the decoded heights with residual bins (scratch arrays, by the height pass)
+COARSE_MAX = 1025  # the height pass's coarse grid side (bandcodec.super_level)
+
+
+def run_pass(job: Job, name: str):
+    """Run pass ``name``, or read its result if a resumed run's folder has it; the
+    result is recorded when the pass ends (``done-NAME``)."""
+    done = os.path.join(job.folder, f"done-{name}")
+    if os.path.exists(done):
+        return _load_done(done)
+    out = PASSES[name](job)
+    _save_done(done, out)
+    return out
+
+
+# what the passes write to the scratch folder; a killed run's folder from code that wrote
+# another format is not resumed (2: each level's normal map from the level's own samples;
+# 3: the height pass's result a dict, and with residual bins the decoded heights first)
+SCRATCH_FORMAT = 3
+
+
+def job_record(src: Path, job: Job) -> dict:
+    # what a resumed run must share with the killed one: the input file, every setting and
+    # the scratch format
+    st = os.stat(src)
+    d = dataclasses.asdict(job)
+    d.pop("folder")
+    d["q"] = dataclasses.asdict(job.q)
+    return json.loads(json.dumps({"src": str(src.resolve()), "size": st.st_size,
+                                  "mtime_ns": st.st_mtime_ns, "job": d,
+                                  "generator": __version__,
+                                  "scratch_format": SCRATCH_FORMAT}))
+
+
+def adopt(parent: Path, dst: Path, record: dict) -> str | None:
+    """A killed run's scratch folder for ``dst`` with the same job record, renamed to this
+    process (its passes' results are reused), or None."""
+    pat = re.compile(rf"^\.{re.escape(dst.name)}\.scratch\.partial-(\d+)$")
+    for e in os.scandir(parent):
+        m = pat.match(e.name)
+        if not m or pid_alive(int(m.group(1))) or e.stat().st_uid != os.getuid():
+            continue
+        try:
+            with open(os.path.join(e.path, "job.json")) as fh:
+                same = json.load(fh) == record
+        except (OSError, ValueError):
+            same = False
+        if same:
+            mine = str(parent / f".{dst.name}.scratch.partial-{os.getpid()}")
+            os.rename(e.path, mine)
+            return mine
+    return None

@@ -1,0 +1,137 @@
+"""Notebook conventions: a terrain's HTML summary with a thumbnail, and ``plot``.
+
+``Terrain._repr_html_`` and ``Terrain.plot`` forward here (imported on first use,
+so opening a store never loads VTK or matplotlib).
+
+- :func:`repr_html`: a table of extent, CRS, size, levels, tiles and codec, and a
+  thumbnail (elevation colours × hillshade of a coarse pyramid level).
+- :func:`plot`: the terrain through PyVista's notebook backend when one is usable
+  (``pyvista.global_theme.jupyter_backend`` set and its package installed, inside a
+  Jupyter kernel), otherwise an offscreen render returned as a ``PIL.Image``, which
+  notebooks show inline.
+
+Examples
+--------
+>>> "<table" in repr_html(t) and "data:image/png;base64," in repr_html(t)
+True
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+
+import numpy as np
+
+from geoterrain.rendering.textures import build_texture_image, texture_level
+
+THUMBNAIL = 257  # samples per side of the thumbnail at most
+
+
+def thumbnail_png(terrain, max_size: int = THUMBNAIL, shading: str = "normals") -> bytes:
+    """PNG bytes of the shaded texture of the finest level that fits ``max_size``,
+    cropped to the data (no padding).
+
+    Examples
+    --------
+    >>> thumbnail_png(t)[:4]
+    b'\\x89PNG'
+    """
+    from PIL import Image
+
+    L = texture_level(terrain, max_size)
+    img = build_texture_image(terrain, shading, level=L)
+    s = 1 << L
+    H, W = -(-terrain.grid.rows // s), -(-terrain.grid.cols // s)
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(img[:H, :W])).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def repr_html(terrain) -> str:
+    """An HTML summary of ``terrain`` (extent, CRS, size, levels, codec) and a thumbnail."""
+    info = terrain.info()
+    ex = info["extent_m"]
+    w = ex["x"][1] - ex["x"][0]
+    h = ex["y"][1] - ex["y"][0]
+    tiles = sum(info["tiles_per_level"].values())
+    lo, hi = info["height_range"]
+    rows = [
+        ("path", info["path"]),
+        ("CRS", f"{info['crs']} ({info['frame']})"),
+        ("extent", f"{w / 1000:.3f} km × {h / 1000:.3f} km"),
+        ("size", f"{info['grid'][0]} × {info['grid'][1]} samples "
+                 f"(padded {info['padded'][0]}), {info['size_bytes'] / 2**20:.1f} MiB"),
+        ("heights", f"{lo:.6g} … {hi:.6g} (nodata {100 * info['nodata_fraction']:.1f} %)"),
+        ("levels", f"{info['levels']} levels, {tiles} tiles of {info['tile_samples']}²"),
+        ("codec", info["codec"]),
+    ]
+    body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
+                   f"<td style='text-align:left'>{html.escape(str(v))}</td></tr>"
+                   for k, v in rows)
+    png = base64.b64encode(thumbnail_png(terrain)).decode()
+    return ("<div style='display:flex;gap:1em;align-items:flex-start'>"
+            f"<img src='data:image/png;base64,{png}' style='max-width:256px' "
+            "alt='shaded thumbnail'/>"
+            f"<table><caption style='text-align:left'><b>geoterrain.Terrain</b></caption>"
+            f"{body}</table></div>")
+
+
+def notebook_backend() -> str | None:
+    """PyVista's notebook backend when it can be used here, else None."""
+    import importlib.util
+
+    try:
+        from IPython import get_ipython
+    except ImportError:
+        return None
+    ip = get_ipython()
+    if ip is None or "IPKernelApp" not in getattr(ip, "config", {}):
+        return None
+    import pyvista as pv
+
+    backend = pv.global_theme.jupyter_backend
+    if not backend or backend in ("none", "static"):
+        return None
+    pkg = "trame" if backend.startswith(("trame", "client", "server", "html")) else backend
+    return backend if importlib.util.find_spec(pkg) is not None else None
+
+
+def plot(terrain, view=None, *, shading: str = "normals", pixel_error: float = 1.0,
+         strategy: str | None = None, size: tuple[int, int] = (960, 540),
+         cmap: str = "auto", **kwargs):
+    """Show the terrain: PyVista's notebook backend if usable, else an offscreen image.
+
+    ``view`` defaults to :func:`geoterrain.default_view`; ``kwargs`` go to
+    ``Plotter.show`` (interactive) and are otherwise ignored. Returns what
+    ``Plotter.show`` returns, or a ``PIL.Image.Image`` of the offscreen render.
+
+    Examples
+    --------
+    >>> img = plot(t, size=(320, 180))  # doctest: +SKIP
+    >>> img.size  # doctest: +SKIP
+    (320, 180)
+    """
+    from geoterrain.lod.registry import DEFAULT
+    from geoterrain.rendering.cameras import default_view
+    from geoterrain.rendering.scene import TerrainScene, render_array
+
+    strategy = strategy or DEFAULT
+    view = view or default_view(terrain, size)
+    backend = notebook_backend()
+    if backend is not None:
+        import pyvista as pv
+
+        from geoterrain import lod
+
+        p = pv.Plotter(notebook=True, window_size=list(view.size))
+        scene = TerrainScene(p, terrain, shading, cmap)
+        scene.update(lod.select(terrain, view, pixel_error, strategy))
+        scene.set_camera(view)
+        return p.show(jupyter_backend=backend, **kwargs)
+    from PIL import Image
+
+    img, _ = render_array(terrain, view, pixel_error=pixel_error, strategy=strategy,
+                          shading=shading, cmap=cmap)
+    return Image.fromarray(img)

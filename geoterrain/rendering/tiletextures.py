@@ -1,0 +1,482 @@
+"""View-dependent terrain textures: a texture quadtree beside the geometry quadtree.
+
+Seed 000 §2.5 (chunked LOD keeps a texture quadtree beside the geometry one):
+each triangle a selection draws lies in one stored tile footprint (the smallest
+quadtree tile (L, x, y) that holds it; RTIN, chunked, GeoMipMapping, quadtree and
+bruteforce triangles all do, skirts included). The footprint's shading
+(elevation colours × hillshade from the stored normal maps, :mod:`textures`)
+comes from the coarsest pyramid level ``Lt`` whose texel projects to at most
+``TEXEL_PX`` = 1.5 pixels (so 0.75–1.5 px: about one) at the footprint's nearest
+point to the eye, as the side of a square of the texel's projected area::
+
+    texel_px(Lt) = 2^Lt · s0 · f · √c / d ≤ TEXEL_PX,   f = (H / 2) / tan(fov_y / 2)
+
+(``s0`` the finest sample spacing, ``d`` the distance from the eye to the box of
+the footprint's drawn vertices, ``c`` the largest |cos| between one of its drawn
+faces' normals and the line to the eye, at least ``MIN_FACING``), clamped to
+``L - MAX_PAGE_LEVELS ≤ Lt ≤ L``. A texel seen at a grazing angle covers c times the
+pixels across the slope that it covers along it: the area's side √c lies between the
+distance alone (c = 1, texels finer than a pixel across the slope) and a mipmap's rule
+(c, its larger texel derivative), which blurred rtin's pictures: its faces are smoother,
+so more foreshortened, than the fine relief their texture shows (Laplacian deviation of
+an fBm overview 13.3 against 18.2 for the mipmapped whole-DEM texture; √c: 18.9). On
+the 4097² fBm flight of ``benchmarks/bench_render.py`` √c shades 1125 tiles instead of
+1647.
+
+Only the level-``Lt`` tiles under a footprint that its triangles touch are
+shaded, each once per (level, x, y, shading, palette) and kept in the terrain's
+byte-bounded tile cache; a tile no drawn triangle touches is never decoded or
+shaded. Chosen by measurement on srtm1_japan at 640×360, rtin τ = 1 against the
+bruteforce render with the mipmapped whole-DEM level-0 texture: texels ≤ 0.5 / 1 /
+1.5 / 2 px gave 34.7 / 36.9 / 37.8 / 37.7 dB (view 1) and 33.6 / 35.0 / 35.3 / 35.2 dB
+(view 2); finer texels alias, as there are no mipmaps across atlas pages. With √c:
+37.85 and 35.56 dB at 1.5 px (docs/benchmarks.md §6f has every shared DEM).
+
+The pages are packed into one atlas texture (one actor, per-vertex texture
+coordinates; vertices are duplicated per footprint). An atlas rather than one
+actor per tile: a frame has hundreds of pages, and VTK draws one actor per call.
+
+Examples
+--------
+>>> from geoterrain import lod
+>>> sel = lod.select(t, View((0, -900, 500), (0, 0, 0), size=(320, 240)))
+>>> tex = build_view_texture(t, sel, View((0, -900, 500), (0, 0, 0), size=(320, 240)))
+>>> tex.image.dtype.name, tex.tcoords.shape[1], tex.stats["textures_built"] > 0
+('uint8', 2, True)
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from geoterrain.bounds.leafbounds import normal_axes, normal_xy, ring_codes
+from geoterrain.bounds.vertexdata import ring_index
+from geoterrain.core.grid import level_offsets
+from geoterrain.core.memory import ZeroPool
+from geoterrain.rendering.atlaskernels import (
+    clamp_fill,
+    face_footprints,
+    footprint_groups,
+    group_boxes,
+    group_facing,
+    magnify_into,
+    number_pages,
+    page_tcoords,
+)
+from geoterrain.rendering.colours import LAND, WATER, Palette, as_palette, colorize, water_level
+from geoterrain.rendering.drape import Drape, drape_tile
+from geoterrain.rendering.shading import Light, tile_shade
+from geoterrain.rendering.textures import (
+    AMBIENT,
+    SHADE_CEILING,
+    _sun,
+    elevation_range,
+    height_tolerance,
+    tile_hillshade,
+)
+from geoterrain.rendering.tileshade import shade_tiles
+
+TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
+MIN_FACING = 2.0 ** -8  # a footprint seen edge on: 4 levels coarser, at most the top
+MAX_PAGE_LEVELS = 3  # a footprint's page is at most 2^3 × 2^3 tiles (513² texels at t = 6)
+MAX_ATLAS = 8192  # texels per side; beyond it every page is coarsened one level
+GUTTER = 1  # replicated border texels around each page (no bleeding between pages)
+# footprints are grouped through the whole (level, y, x) tile table up to this many
+# tiles, or this many per face; beyond, through a sort of the ones used
+DENSE_TABLE, DENSE_PER_FACE = 1 << 16, 2
+MISSING_GREY = 128  # a tile that is not stored (all nodata): never visible
+
+
+@dataclass
+class ViewTexture:
+    """An atlas and the mesh arrays that map onto it.
+
+    ``points`` (V', 3), ``faces`` (F, 3) into them, ``tcoords`` (V', 2) float32,
+    ``source`` (V',) the selection vertex each point copies, ``image`` (H, W, 3) uint8
+    (read-only; row r of the image at v = (r + 0.5) / H, so VTK, whose row 0 is v = 0,
+    shows it as it is, without a flipped copy), ``stats`` (textures_built,
+    texture_tiles, pages, texel_levels (pages per texel level), atlas, texture_ms).
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    tcoords: np.ndarray
+    source: np.ndarray
+    image: np.ndarray
+    stats: dict = field(default_factory=dict)
+
+
+def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Palette = "auto",
+             counter: dict | None = None, light: Light | None = None,
+             drape: Drape | None = None) -> np.ndarray:
+    """RGB uint8 (T, T, 3) shading of stored tile (level, x, y), cached in the terrain.
+
+    The cache is the terrain's tile cache (same byte budget), keyed by
+    (level, x, y, shading, palette). ``counter["textures_built"]`` counts builds.
+
+    Examples
+    --------
+    >>> tile_rgb(t, t.grid.top_level, 0, 0, "normals").shape
+    (33, 33, 3)
+    """
+    pal = as_palette(cmap)
+    return _shaded(terrain, _rgb_key(terrain, shading, pal, light, drape, level, x, y),
+                   level, x, y, shading, pal, counter, light, drape)
+
+
+def _shaded(terrain, key: tuple, level: int, x: int, y: int, shading: str, pal: Palette,
+            counter: dict | None, light: Light | None, drape: Drape | None) -> np.ndarray:
+    """:func:`tile_rgb` under its cache ``key`` (:func:`_rgb_key`)."""
+
+    def make():
+        if counter is not None:
+            counter["textures_built"] = counter.get("textures_built", 0) + 1
+        if _default_style(terrain, shading, pal, light, drape):  # one compiled pass
+            return _shade_batch(terrain, [(level, x, y)], pal)[0]
+        z0, z1 = elevation_range(terrain)
+        h = np.nan_to_num(terrain.tile(level, x, y).heights, nan=0.0)
+        rgb = colorize(h * terrain.frame.z_to_m, pal, (z0, z1), height_tolerance(terrain))
+        if drape is not None:  # the image over the colours; its nodata shows them
+            img, on = drape_tile(terrain, drape, level, x, y)
+            a = float(drape.opacity)
+            rgb[on] = a * img[on] + (1.0 - a) * rgb[on]
+        if shading == "normals" and (light is None or light.is_default):
+            rgb *= tile_hillshade(terrain, level, x, y)[..., None]
+        elif shading == "normals":  # sun, shadows, ambient occlusion (geoterrain.rendering.shading)
+            rgb *= tile_shade(terrain, level, x, y, light, _spacing(terrain))[..., None]
+        return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
+
+    return terrain._cached(key, make)
+
+
+def _default_style(terrain, shading: str, pal: Palette, light: Light | None,
+                   drape: Drape | None) -> bool:
+    """Whether tiles are shaded in the default style (the ``auto`` palette's tint × the
+    sun's hillshade of the stored 8-bit normal codes, no drape): by
+    :mod:`geoterrain.rendering.tileshade`'s compiled passes."""
+    return (shading == "normals" and (light is None or light.is_default) and drape is None
+            and pal.cmap == "auto" and getattr(terrain, "stored_normals", False)
+            and terrain.meta["normal_bits"] == 8)
+
+
+def _shade_batch(terrain, keys: list, pal: Palette) -> list[np.ndarray]:
+    """The default style's shading (RGB uint8 (T, T, 3)) of each tile of ``keys``, in
+    one compiled call over all of them on every core
+    (:func:`geoterrain.rendering.tileshade.shade_tiles`; a single tile's on this thread). Here only
+    the reading: heights, valid masks, stored codes or rings, x, y."""
+    g = terrain.grid
+    T, n = g.tile_samples, len(keys)
+    derived = set(terrain._derived_normal_levels)
+    rr, cc = ring_index(T)
+    h = np.empty((n, T, T))
+    valid = np.empty((n, T, T), bool)
+    derive = np.zeros(n, bool)
+    rings = np.zeros((n, len(rr), 2), np.uint8)
+    stored = np.zeros((n, T * T * 2), np.uint8)
+    planar = np.zeros(n, bool)
+    axes = terrain.frame.kind != "geographic"  # x by column, y by row: broadcast views
+    X = np.zeros((n, T) if axes else (n, T, T))
+    Y = np.zeros((n, T) if axes else (n, T, T))
+    for k, (L, x, y) in enumerate(keys):
+        tile = terrain.tile(L, x, y)
+        h[k], valid[k] = tile.heights, tile.valid
+        if L in derived:
+            derive[k] = True
+            rings[k] = ring_codes(terrain, L, x, y)
+            X[k], Y[k] = normal_axes(terrain, L, x, y) if axes else normal_xy(terrain, L, x, y)
+        else:
+            raw, planar[k] = terrain.tile_normal_bytes(L, x, y)
+            stored[k] = np.frombuffer(raw, np.uint8)
+    terrain.decoded_normals += int(derive.sum())  # as derived_normal_codes counts
+    if axes:
+        X = np.broadcast_to(X[:, None, :], (n, T, T))
+        Y = np.broadcast_to(Y[:, :, None], (n, T, T))
+    z0, z1 = elevation_range(terrain)
+    f = terrain.frame
+    rgb = shade_tiles(h, f.z_to_m, f.z_to_m * f.z_scale, valid, X, Y, derive, rings, rr, cc,
+                      stored, planar, _sun(), AMBIENT, SHADE_CEILING,
+                      pal.clim if pal.clim is not None else (z0, z1),
+                      water_level(pal, (z0, z1)), LAND, WATER, height_tolerance(terrain))
+    return [a.copy() for a in rgb]  # each cached on its own (not views of one array)
+
+
+# every shading style met so far, numbered: a tile's cache key holds the number, so a
+# lookup hashes a few ints, not the palette, light and drape (a handful of styles a
+# process; each is a small frozen value). Numbered under a lock: the viewer shades on a
+# worker thread, and two new styles must never get one number.
+_STYLES: dict[tuple, int] = {}
+_STYLES_LOCK = threading.Lock()
+# the atlases' memory, reused once the atlas shown before is released (no page faults)
+_ATLASES = ZeroPool()
+
+
+def _style_id(terrain, shading: str, pal: Palette, light: Light | None,
+              drape: Drape | None) -> int:
+    """The number of this shading style. A vertically exaggerated view shares its base
+    terrain's cache but not its shading (its normals are steeper)."""
+    lk = None if light is None or light.is_default else light
+    ve = float(getattr(terrain, "vertical_exaggeration", 1.0))
+    style = (shading, pal, lk, drape, ve)
+    with _STYLES_LOCK:
+        return _STYLES.setdefault(style, len(_STYLES))
+
+
+def _rgb_key(terrain, shading: str, pal: Palette, light: Light | None, drape: Drape | None,
+             level: int, x: int, y: int) -> tuple:
+    """The cache key of :func:`tile_rgb`."""
+    return ("rgb", _style_id(terrain, shading, pal, light, drape), level, x, y)
+
+
+def _stand_in(terrain, key: tuple, step: int, rgb_key, atlas: np.ndarray, r: int,
+              c: int) -> bool:
+    """Write tile ``key``'s texels (step + 1)² at (r, c) of ``atlas``, cut from the nearest
+    ancestor whose shading is already cached, each ancestor texel repeated 2^d × 2^d;
+    False (nothing written) if none is cached."""
+    L, x, y = key
+    for d in range(1, terrain.grid.top_level - L + 1):
+        if step >> d < 1:
+            break
+        anc = terrain.peek(rgb_key(L + d, x >> d, y >> d))
+        if anc is None:
+            continue
+        n = step >> d  # the tile's width in ancestor texels
+        oy, ox = (y - (y >> d << d)) * n, (x - (x >> d << d)) * n
+        magnify_into(atlas, r, c, anc, oy, ox, d, step + 1)
+        return True
+    return False
+
+
+def footprints(ij: np.ndarray, faces: np.ndarray, grid) -> tuple[np.ndarray, ...]:
+    """(L, x, y) of the smallest stored-tile footprint holding each face, all arrays (F,).
+
+    Examples
+    --------
+    >>> L, x, y = footprints(np.array([[0, 0], [0, 32], [32, 0]]), np.array([[0, 1, 2]]),
+    ...                      t.grid)
+    >>> int(L[0]), int(x[0]), int(y[0])
+    (0, 0, 0)
+    """
+    top = grid.top_level
+    base = level_offsets(top)
+    return _table_keys(face_footprints(ij, faces, grid.t, base), base)
+
+
+def _table_keys(e: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(L, x, y) of dense tile-table indices ``e``."""
+    top = len(base) - 2
+    L = np.searchsorted(base, e, side="right") - 1
+    rem = e - base[L]
+    return L, rem & ((np.int64(1) << (top - L)) - 1), rem >> (top - L)
+
+
+def _spacing(terrain) -> float:
+    """The finest sample spacing (scene units) near the grid centre and corners."""
+    g = terrain.grid
+    pts = []
+    for c in ((g.rows // 2, g.cols // 2), (0, 0), (max(g.rows - 2, 0), max(g.cols - 2, 0))):
+        ii = np.array([c[0], c[0], c[0] + 1])
+        jj = np.array([c[1], c[1] + 1, c[1]])
+        X, Y = terrain.frame.xy(ii, jj)
+        pts.append(min(math.hypot(X[1] - X[0], Y[1] - Y[0]), math.hypot(X[2] - X[0],
+                                                                          Y[2] - Y[0])))
+    return max(min(pts), 1e-12)
+
+
+def _pack(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Shelf packing of square pages (largest first): (x0, y0, width, height)."""
+    order = np.argsort(-sizes, kind="stable")
+    W = max(int(sizes.max()), int(math.ceil(math.sqrt(float((sizes.astype(np.float64) ** 2)
+                                                              .sum())) * 1.1)))
+    x0 = np.zeros(len(sizes), np.int64)
+    y0 = np.zeros(len(sizes), np.int64)
+    cx = cy = shelf = 0
+    for k in order:  # one step per page (tens to hundreds), never per texel
+        s = int(sizes[k])
+        if cx + s > W:
+            cy, cx, shelf = cy + shelf, 0, 0
+        x0[k], y0[k] = cx, cy
+        cx += s
+        shelf = max(shelf, s)
+    return x0, y0, W, cy + shelf
+
+
+def build_view_texture(terrain, selection, view, shading: str = "normals",
+                       cmap: str | Palette = "auto", texel_px: float = TEXEL_PX,
+                       light: Light | None = None, drape: Drape | None = None,
+                       max_builds: int | None = None) -> ViewTexture:
+    """The atlas of what ``selection`` draws in ``view`` at about ``texel_px`` px per texel.
+
+    ``max_builds`` caps the tiles shaded anew by this call (an interactive frame's
+    budget): past it, a tile whose shading is not cached is cut from its nearest cached
+    ancestor's, magnified (``stats["textures_deferred"]`` counts them; a later call
+    with the same selection shades the next ones). None: every tile at its own level.
+
+    Examples
+    --------
+    >>> v = View((0, -900, 500), (0, 0, 0), size=(320, 240))
+    >>> from geoterrain import lod
+    >>> tex = build_view_texture(t, lod.select(t, v), v, "elevation")
+    >>> bool((tex.tcoords >= 0).all() and (tex.tcoords <= 1).all())
+    True
+    """
+    t0 = time.perf_counter()
+    g = terrain.grid
+    mesh = selection.mesh
+    counter = {"textures_built": 0}
+    if mesh.n_cells == 0 or mesh.n_points == 0:
+        return ViewTexture(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 2),
+                           np.float32), np.zeros(0, np.int64), np.zeros((1, 1, 3), np.uint8),
+                           {**counter, "texture_tiles": 0, "textures_deferred": 0,
+                            "pages": 0, "texel_levels": {}, "atlas": [0, 0],
+                            "texture_ms": 0.0})
+    pts = np.asarray(mesh.points, np.float64)
+    ij = np.asarray(mesh.point_data["grid_ij"])
+    # the triangles from the cells' connectivity (the selections' fixed-size cell arrays
+    # have no legacy array; exporting one walks every cell: 1 ms a frame at 50 k faces),
+    # copied as int64 (0.1 ms): nothing below keeps a view of VTK's own array
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    tris = np.array(vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()),
+                    np.int64).reshape(-1, 3)  # (F, 3)
+    top = g.top_level
+    # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
+    base = level_offsets(top)
+    ntab = int(base[-1])
+    eye = np.asarray(view.eye, np.float64)
+    if ntab <= max(DENSE_TABLE, DENSE_PER_FACE * len(tris)):  # a scatter into the table
+        fkey, lo, hi, ilo_e, ihi_e, facing = footprint_groups(ij, tris, g.t, base, pts, eye)
+        E = np.flatnonzero(np.isfinite(lo[:, 0]))  # the footprints some face lies in
+        lo, hi, ilo_e, ihi_e, facing = lo[E], hi[E], ilo_e[E], ihi_e[E], facing[E]
+        pos = np.empty(ntab, np.int64)
+        pos[E] = np.arange(len(E))
+        fe = pos[fkey]  # each face's footprint, numbered 0 … len(E) − 1
+    else:  # far more tiles than faces (small tiles, a huge grid): number the used ones
+        E, fe = np.unique(face_footprints(ij, tris, g.t, base), return_inverse=True)
+        lo, hi, ilo_e, ihi_e = group_boxes(tris, fe, pts, ij, len(E))
+        facing = group_facing(tris, fe, pts, eye, len(E))
+    eL, eX, eY = _table_keys(E, base)
+    sh = 2 * (top + 1) + 1
+    # 1. the texel level each footprint wants, from its drawn vertices' box and its
+    #    faces' foreshortening (the texel's projected area, as a square of TEXEL_PX)
+    d = np.linalg.norm(np.maximum(0.0, np.maximum(lo - eye, eye - hi)), axis=1)
+    d = d / np.sqrt(np.maximum(facing, MIN_FACING))
+    f = 0.5 * view.size[1] / math.tan(math.radians(view.fov_y_deg) / 2)
+    s0 = _spacing(terrain)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        want = np.floor(np.log2(np.maximum(d, 1e-30) * texel_px / (s0 * f)))
+    want = np.clip(np.nan_to_num(want, nan=0.0, posinf=top, neginf=0.0), 0,
+                   top).astype(np.int64)
+    fLt = np.maximum(want, eL - MAX_PAGE_LEVELS)
+    # 2. a footprint that wants a coarser texel than its own level is drawn from its
+    #    ancestor tile at that level (one tile page), so far footprints share pages
+    up = np.maximum(fLt - eL, 0)
+    L2, X2, Y2 = np.maximum(eL, fLt), eX >> up, eY >> up
+    step = 1 << g.t
+    while True:
+        keys, e_group = np.unique(((L2 << sh | Y2) << sh | X2) << 5 | fLt,
+                                  return_inverse=True)
+        G = len(keys)
+        Lt = keys & 31
+        rest = keys >> 5
+        gL = rest >> (2 * sh)
+        gY, gX = (rest >> sh) & ((1 << sh) - 1), rest & ((1 << sh) - 1)
+        k = gL - Lt
+        sizes = (step << k) + 1 + 2 * GUTTER
+        ax, ay, AW, AH = _pack(sizes)
+        if max(AW, AH) <= MAX_ATLAS or (fLt >= L2).all():
+            break
+        fLt = np.minimum(fLt + 1, L2)  # too many texels: every page one level coarser
+    big = np.iinfo(np.int64)
+    ilo, jlo = np.full(G, big.max), np.full(G, big.max)
+    ihi, jhi = np.full(G, big.min), np.full(G, big.min)
+    np.minimum.at(ilo, e_group, ilo_e[:, 0])
+    np.minimum.at(jlo, e_group, ilo_e[:, 1])
+    np.maximum.at(ihi, e_group, ihi_e[:, 0])
+    np.maximum.at(jhi, e_group, ihi_e[:, 1])
+    # zeroed, on 4 KiB pages (a fresh atlas on huge pages stalled on its first touch,
+    # the kernel compacting memory for them: 11 ms of an 8 MB atlas's fill), reused once
+    # the atlas shown before is released (a fresh mapping faulted page by page: 1.4 ms
+    # of a 4 MB atlas). The pages are filled below (their tiles, then clamped to those
+    # over the rest of the page and its gutter), so the atlas is not filled with a colour
+    # first: only a multisampled pixel shaded more than a texel past a face, at a grazing
+    # seam, reads the shelves' slack, zero (3 pixels of 256 k, by up to 15 levels, in a
+    # review's view; they read grey before, as wrong)
+    atlas = _ATLASES.zeros((AH, AW, 3), np.uint8)
+    n_tiles = deferred = 0
+    rect = np.empty((G, 4), np.int64)  # per page: row, column, height, width written
+    stored = terrain.tile_info
+    pal = as_palette(cmap)
+    sid = _style_id(terrain, shading, pal, light, drape)
+
+    def rgb_key(L, x, y):
+        return ("rgb", sid, L, x, y)  # _rgb_key's, with the style numbered once
+
+    # one step per page, on Python ints (numpy scalars cost more than the step itself);
+    # the texels are whole-array copies
+    placed = []  # (tile key, atlas row, atlas column) of every stored tile drawn
+    for gi, (lt, kk, gl, gy, gx, py, px, i0, i1, j0, j1) in enumerate(zip(
+            Lt.tolist(), k.tolist(), gL.tolist(), gY.tolist(), gX.tolist(), ay.tolist(),
+            ax.tolist(), ilo.tolist(), ihi.tolist(), jlo.tolist(), jhi.tolist(),
+            strict=True)):
+        span = step << gl  # the footprint's width in full-resolution samples
+        bi, bj = gy * span, gx * span
+        y0, x0 = py + GUTTER, px + GUTTER
+        wt = step << lt  # a level-lt tile's width in full-resolution samples
+        last = (1 << kk) - 1
+        ty0, ty1 = min(last, (i0 - bi) // wt), min(last, (i1 - bi - 1) // wt)
+        tx0, tx1 = min(last, (j0 - bj) // wt), min(last, (j1 - bj - 1) // wt)
+        # the texels written: these tiles' rectangle, whose border gets a gutter below
+        rect[gi] = (y0 + ty0 * step, x0 + tx0 * step, (ty1 - ty0 + 1) * step + 1,
+                    (tx1 - tx0 + 1) * step + 1)
+        for ty in range(ty0, ty1 + 1):
+            for tx in range(tx0, tx1 + 1):
+                key = (lt, (gx << kk) + tx, (gy << kk) + ty)
+                r, c = y0 + ty * step, x0 + tx * step
+                if key not in stored:
+                    atlas[r:r + step + 1, c:c + step + 1] = MISSING_GREY
+                else:
+                    placed.append((key, r, c))
+    # the tiles shaded anew (at most max_builds, in drawing order), in one compiled call
+    # where the style allows
+    ready: dict = {}
+    if _default_style(terrain, shading, pal, light, drape):
+        todo = [key for key in dict.fromkeys(key for key, _, _ in placed)
+                if terrain.peek(rgb_key(*key)) is None][:max_builds]
+        for key, rgb in zip(todo, _shade_batch(terrain, todo, pal), strict=True):
+            ready[key] = terrain._cached(rgb_key(*key), lambda rgb=rgb: rgb)
+        counter["textures_built"] += len(todo)
+    lookup = terrain.lookup
+    for key, r, c in placed:
+        n_tiles += 1
+        rgb = ready.get(key)
+        if rgb is None:
+            ck = rgb_key(*key)
+            rgb = lookup(ck)
+            if rgb is None:
+                if max_builds is not None and counter["textures_built"] >= max_builds \
+                        and _stand_in(terrain, key, step, rgb_key, atlas, r, c):
+                    deferred += 1
+                    continue
+                rgb = _shaded(terrain, ck, *key, shading, pal, counter, light, drape)
+        atlas[r:r + step + 1, c:c + step + 1] = rgb
+    # each page's written tiles clamped to their edge over the rest of the page and its
+    # gutter (a multisampled pixel centre may fall past a face at a page's seam)
+    page = (step << k) + 1 + 2 * GUTTER  # a page's allocation: its texels and gutter
+    clamp_fill(atlas, rect, np.stack([ay, ax, page, page], 1))
+    # one point per (page, vertex): a vertex shared by two pages is duplicated
+    src, pg, faces = number_pages(tris, e_group[fe], G, len(pts))
+    # VTK's v: the image's row 0 at v = 0 (see ViewTexture)
+    tc, xyz = page_tcoords(src, pg, ij, pts, (Lt, gL, gX, gY, ax, ay), step, GUTTER,
+                           (AW, AH))
+    atlas.setflags(write=False)  # shown by VTK without a copy (rendering._image_data)
+    lv, nlv = np.unique(Lt, return_counts=True)
+    st = {**counter, "texture_tiles": n_tiles, "textures_deferred": deferred, "pages": G,
+          "texel_levels": {int(a): int(b) for a, b in zip(lv, nlv, strict=True)},
+          "atlas": [int(AW), int(AH)],
+          "texture_ms": round((time.perf_counter() - t0) * 1e3, 3)}
+    return ViewTexture(xyz, faces, tc, src, atlas, st)

@@ -1,0 +1,626 @@
+"""The store: one SQLite file, written atomically, every row checksummed.
+
+Schema (version :data:`SCHEMA_VERSION`), two plain tables::
+
+    catalog(id INTEGER PRIMARY KEY, data BLOB, crc32)  -- 0: metadata; 1: tile table
+    blobs(id INTEGER PRIMARY KEY, data BLOB, crc32)    -- per-tile arrays, by id
+
+The catalog's rows, their formats and checks are :mod:`geoterrain.store.catalog`'s: the
+metadata (compressed JSON) and the tile table (every tile's numbers, every blob's
+packed key, :mod:`geoterrain.store.keys`, and row id; schema 3's SQL tables of a row
+each were a fifth of a small store, docs/benchmarks.md §7i). The blob rows are bare,
+so the writer inserts them in the order that fills SQLite's leaf pages
+(:mod:`geoterrain.store.pagepack`); the tile table finds them.
+
+``kind`` is one of ``heights`` (residual-coded heights and valid mask),
+``delta`` (per-vertex errors δ), ``radius`` (nested sphere radii) and
+``normals`` (octahedral normal map); optionally ``delta_edge`` (a second δ, on the
+tiles the metadata lists) and ``block_delta`` (every GeoMipMapping block's δ_n, one
+table on the root tile). See docs/store.md.
+
+A store is written to a hidden temporary file in the destination folder and
+published only after the metadata (with its ``complete`` flag) is committed, so an
+interrupted write never leaves a file that opens as a valid store. Without
+``overwrite`` the publish is a create-if-absent (a hard link), so of two racing
+writers exactly one wins.
+
+A store may come from a stranger: :class:`StoreReader` opens it read-only with
+SQLite's ``trusted_schema`` off and refuses any schema object but the two plain
+tables (no views, triggers or virtual tables), so reading runs no SQL of the file's.
+Checksums bind each blob to its (level, x, y, kind) and each catalog row to its id;
+the tile table's size is bounded by the file's (storecatalog), and it must match the
+metadata's tile counts.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+import struct
+import threading
+import weakref
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+from geoterrain.core.atomicfiles import publish, remove_stale_partials
+from geoterrain.exceptions import (
+    StoreCorruptError,
+    StoreError,
+    UsageError,
+    WriteError,
+    exists_error,
+)
+from geoterrain.store.catalog import (  # noqa: F401 - the catalog's rows are the store's API
+    META_ID,
+    RATIO_CAP,
+    TILE_COLUMNS,
+    TILES_ID,
+    TileTable,
+    catalog_crc,
+    pack_metadata,
+    pack_stream,
+    pack_tiles,
+    table_columns,
+    unpack_metadata,
+    unpack_tiles,
+)
+from geoterrain.store.keys import (  # noqa: F401 - the kinds and keys are the store's API
+    BLOB_KINDS,
+    BLOCK_KIND,
+    EDGE_KIND,
+    KIND_CODES,
+    blob_key,
+    tile_key,
+    unpack_blob_key,
+    unpack_tile_key,
+)
+from geoterrain.store.pagepack import LEAF_HEADER, leaf_cell_size, pack_order
+
+SCHEMA_VERSION = 5  # 2: checksums bound to their tile and kind; per-level key digests;
+#                    3: packed integer keys, bare blob rows found through blob_keys;
+#                    4: metadata, tile numbers and blob keys in compressed catalog rows;
+#                    5: height blobs of version 2 (range-coded, geoterrain/codec/entropy.py)
+PAGE_SIZE = 1024  # bytes per SQLite page of a written store
+PACK_BYTES = 4 << 20  # blob bytes a writer holds before inserting them, packed (pagepack)
+APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
+
+# The only schema objects a store may hold: these two tables, their SQL word for word
+# (a reader compares it), and no index, view or trigger. Each id is the rowid (an
+# INTEGER PRIMARY KEY, so VACUUM keeps it: the catalog holds the blob ids).
+_TABLE_SQL = {
+    "catalog": "CREATE TABLE catalog (id INTEGER PRIMARY KEY, data BLOB NOT NULL, "
+               "crc32 INTEGER NOT NULL)",
+    "blobs": "CREATE TABLE blobs (id INTEGER PRIMARY KEY, data BLOB NOT NULL, "
+             "crc32 INTEGER NOT NULL)",
+}
+_SCHEMA = "".join(f"{sql};\n" for sql in _TABLE_SQL.values())
+# the writer's staging of the tile table (an attached file beside the partial store,
+# never the store's own file)
+_STAGING = ("CREATE TABLE staging.staged_tiles (key INTEGER PRIMARY KEY, "
+            + ", ".join(f"n{j} REAL" for j in range(len(TILE_COLUMNS))) + ");\n"
+            "CREATE TABLE staging.staged_blobs (key INTEGER PRIMARY KEY, "
+            "blob INTEGER NOT NULL);\n")
+# the tables of schema versions 1 to 3 (a reader still finds their version)
+_OLD_TABLES = ("metadata", "tiles", "blobs", "blob_keys")
+_OLD_METADATA_SQL = ("CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT NOT NULL)",
+                     "CREATE TABLE metadata (name TEXT NOT NULL, value TEXT NOT NULL)")
+# a damaged schema's SQLite error message may not even decode as UTF-8
+_DB_ERRORS = (sqlite3.DatabaseError, UnicodeDecodeError)
+REBUILD = "rebuild it with `geoterrain preprocess DEM --overwrite`"
+
+
+def blob_crc(key: tuple[int, int, int], kind: str, data: bytes) -> int:
+    """CRC-32 of a blob bound to its place: (level, x, y, kind) then the bytes.
+
+    Examples
+    --------
+    >>> blob_crc((0, 0, 0), "delta", b"x") != blob_crc((0, 1, 0), "delta", b"x")
+    True
+    """
+    return zlib.crc32(data, zlib.crc32(struct.pack("<3q", *key) + kind.encode()))
+
+
+def default_store_path(src: str | Path) -> Path:
+    """The input's path with the suffix ``.geoterrain``.
+
+    Examples
+    --------
+    >>> default_store_path("dem/fuji.tif").name
+    'fuji.geoterrain'
+    """
+    return Path(src).with_suffix(".geoterrain")
+
+
+def is_store(path: str | Path) -> bool:
+    """True when ``path`` is a geoterrain store (by suffix, or by its first bytes).
+
+    Examples
+    --------
+    >>> is_store("dem.geoterrain"), is_store("no-such.tif")
+    (True, False)
+    """
+    if str(path).endswith(".geoterrain"):
+        return True
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(16).startswith(b"SQLite format 3")
+    except OSError:
+        return False
+
+
+def _unlink_all(paths: tuple[Path, ...]) -> None:
+    """Remove ``paths`` that exist (a writer's partial store and staging file)."""
+    for f in paths:
+        try:
+            f.unlink()
+        except OSError:
+            pass
+
+
+class StoreWriter:
+    """Write a store atomically: use as a context manager, then :meth:`commit`.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> dst = os.path.join(tempfile.mkdtemp(), "a.geoterrain")
+    >>> with StoreWriter(dst) as w:
+    ...     w.put_metadata({"note": "hi"})
+    ...     w.put_blob((0, 0, 0), "heights", b"x")
+    ...     _ = w.commit()
+    >>> StoreReader(dst).metadata["note"]
+    'hi'
+    """
+
+    def __init__(self, dst: str | Path, overwrite: bool = False):
+        self.dst = Path(dst)
+        if self.dst.exists() and not overwrite:
+            raise exists_error(self.dst)
+        if self.dst.is_dir():
+            raise UsageError(f"{self.dst} is a directory; give a file path",
+                             cli=f"{self.dst} is a directory; give a file path with -o")
+        parent = self.dst.parent if str(self.dst.parent) else Path(".")
+        if not parent.is_dir():
+            raise UsageError(f"{parent}: no such directory for the store; create it first")
+        remove_stale_partials(parent)
+        self.tmp = parent / f".{self.dst.name}.partial-{os.getpid()}"
+        # the tile table's staging file, in the same folder: a full disk is the store's
+        # disk, and a killed writer's file is a partial that the next run removes (the
+        # suffix after the pid: no other output's partial can have this name)
+        self.staging = self.tmp.with_name(self.tmp.name + ".staging")
+        # a writer dropped without commit or abort leaves neither file behind
+        self._cleanup = weakref.finalize(self, _unlink_all, (self.tmp, self.staging))
+        self.overwrite = overwrite
+        self._meta: dict = {}
+        self._rows: list[tuple] = []  # blob rows not yet inserted (see _flush)
+        self._row_bytes = 0
+        self._rowid = 0  # rows inserted so far: the next one's rowid is this + 1
+        self._committed = False
+        try:
+            for f in (self.tmp, self.staging):
+                if f.exists():
+                    f.unlink()
+            self.con = sqlite3.connect(self.tmp, isolation_level=None)
+        except (OSError, sqlite3.Error) as exc:
+            raise WriteError(
+                f"cannot write in {parent}: {exc}; choose a writable -o path") from None
+        self._guard(self._init)
+
+    def _init(self) -> None:
+        # The temporary file is not the store; durability comes from fsync + rename.
+        # Small pages: a tile blob of a few kB overflows into whole pages, and 4 kB pages
+        # left ~30 % of a store as slack (docs/benchmarks.md §7); readers take any size.
+        self.con.execute(f"PRAGMA page_size={PAGE_SIZE}")
+        self.con.execute("PRAGMA journal_mode=OFF")
+        self.con.execute("PRAGMA synchronous=OFF")
+        self.con.execute(f"PRAGMA application_id={APPLICATION_ID}")
+        self.con.executescript(_SCHEMA)
+        # the tile table is staged in a database file of its own beside the partial
+        # store (deleted at commit or abort; its pages cached in at most 2 MB), so a
+        # large pyramid's table costs the writer no memory until commit, and then a
+        # column at a time (pack_tiles). SQLite's temporary files would put it on
+        # another disk (or in RAM on a tmpfs), and a full disk there would be reported
+        # as this store's.
+        self.con.execute("ATTACH DATABASE ? AS staging", (str(self.staging),))
+        self.con.execute("PRAGMA staging.journal_mode=OFF")
+        self.con.execute("PRAGMA staging.synchronous=OFF")
+        self.con.execute("PRAGMA staging.cache_size=-2000")
+        self.con.executescript(_STAGING)
+        self.con.execute("BEGIN")
+
+    def _guard(self, fn, *args):
+        try:
+            return fn(*args)
+        except UsageError:
+            self.abort()
+            raise
+        except (OSError, sqlite3.Error) as exc:
+            self.abort()
+            msg = str(exc)
+            if "full" in msg or getattr(exc, "errno", None) == 28:
+                raise WriteError(
+                    f"disk full while writing {self.dst}; free space and retry") from None
+            if "readonly" in msg or "read-only" in msg or "permission" in msg.lower():
+                raise WriteError(
+                    f"cannot write {self.dst}: read-only location; choose another -o path"
+                ) from None
+            raise WriteError(f"cannot write {self.dst}: {msg}") from None
+
+    def put_metadata(self, items: dict) -> None:
+        """Add metadata entries (JSON values)."""
+        for k, v in items.items():
+            self._meta[k] = json.loads(json.dumps(v))  # a copy, and JSON now or never
+
+    def put_blob(self, key: tuple[int, int, int], kind: str, data: bytes) -> None:
+        self.put_blobs(kind, {key: data})
+
+    def put_blobs(self, kind: str, blobs: dict[tuple[int, int, int], bytes]) -> None:
+        """Add blobs of one kind. They are inserted in batches of about
+        :data:`PACK_BYTES`, each in the order that fills SQLite's leaf pages
+        (:mod:`geoterrain.store.pagepack`), so a store's bytes depend on the sequence of rows
+        given, not on how it is split into calls."""
+        for k, d in blobs.items():
+            self._rows.append((blob_key(k, kind), d, blob_crc(k, kind, d)))
+            self._row_bytes += len(d)
+            if self._row_bytes >= PACK_BYTES:
+                self._guard(self._flush)
+
+    def _flush(self) -> None:
+        """Insert the buffered blob rows, packed into leaf pages (pagepack.pack_order),
+        and keep their keys and rowids for the catalog."""
+        rows, self._rows, self._row_bytes = self._rows, [], 0
+        if not rows:
+            return
+        last = self._rowid + len(rows)  # cells are sized with the batch's largest rowid
+        sizes = [leaf_cell_size((None, *r[1:]), last, PAGE_SIZE) for r in rows]
+        order = pack_order(sizes, PAGE_SIZE - LEAF_HEADER)
+        self.con.executemany("INSERT INTO blobs VALUES (NULL,?,?)",
+                             (rows[i][1:] for i in order))
+        self.con.executemany("INSERT INTO staging.staged_blobs VALUES (?,?)", (
+            (rows[i][0], rowid) for rowid, i in enumerate(order, self._rowid + 1)))
+        self._rowid = last
+
+    def put_tiles(self, rows: dict[tuple[int, int, int], tuple]) -> None:
+        """Per-tile numbers, in the order of :data:`TILE_COLUMNS` (``nvalid`` a count)."""
+        for r in rows.values():
+            if len(r) != len(TILE_COLUMNS) or not (isinstance(r[0], int | np.integer)
+                                                   and r[0] >= 0):
+                raise ValueError(f"a tile row holds {len(TILE_COLUMNS)} numbers, the "
+                                 "first a count of valid samples")
+        marks = ", ".join("?" * (1 + len(TILE_COLUMNS)))
+        self._guard(self.con.executemany,
+                    f"INSERT INTO staging.staged_tiles VALUES ({marks})",
+                    ((tile_key(k), int(r[0]), *r[1:]) for k, r in rows.items()))
+
+    def _staged(self, sql: str, dtype=np.int64):
+        # one column of a staging table, in key order, in chunks (SQL NULL as NaN:
+        # SQLite stores no NaN)
+        cur = self.con.execute(sql)
+        while chunk := cur.fetchmany(1 << 16):
+            yield np.fromiter((np.nan if v is None else v for (v,) in chunk), dtype,
+                              len(chunk))
+
+    def _tile_table(self) -> bytes:
+        """The tile table's catalog row, streamed from the staging tables a column at a
+        time, and the metadata's tile counts."""
+        counts = self.con.execute("SELECT key & 31, COUNT(*) FROM staging.staged_tiles "
+                                  "GROUP BY 1 ORDER BY 1").fetchall()
+        self._meta["tile_counts"] = {str(L): c for L, c in counts}
+        (m,) = self.con.execute("SELECT COUNT(*) FROM staging.staged_blobs").fetchone()
+
+        def column(name: str) -> np.ndarray:
+            return np.concatenate([*self._staged(f"SELECT {name} FROM "
+                                                 "staging.staged_tiles ORDER BY key",
+                                                 np.float64), np.zeros(0)])
+
+        return pack_stream(sum(c for _, c in counts), m, lambda: table_columns(
+            self._staged("SELECT key FROM staging.staged_tiles ORDER BY key"),
+            (column(f"n{j}") for j in range(len(TILE_COLUMNS))),
+            self._staged("SELECT key FROM staging.staged_blobs ORDER BY key"),
+            self._staged("SELECT blob FROM staging.staged_blobs ORDER BY key")))
+
+    def commit(self) -> Path:
+        """Finish: write the catalog, the metadata with its complete flag, fsync,
+        rename into place."""
+
+        def _finish():
+            self._flush()
+            rows = {TILES_ID: self._tile_table()}
+            self._meta["schema_version"] = SCHEMA_VERSION
+            self._meta["complete"] = True
+            rows[META_ID] = pack_metadata(self._meta)
+            self.con.executemany("INSERT INTO catalog VALUES (?,?,?)",
+                                 ((i, d, catalog_crc(i, d)) for i, d in sorted(rows.items())))
+            self.con.execute("COMMIT")
+            self.con.close()
+            self.staging.unlink(missing_ok=True)
+            fd = os.open(self.tmp, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            publish(self.tmp, self.dst, self.overwrite)
+            dfd = os.open(self.dst.parent if str(self.dst.parent) else ".", os.O_RDONLY)
+            try:
+                os.fsync(dfd)
+            finally:
+                os.close(dfd)
+
+        self._guard(_finish)
+        self._committed = True
+        self._cleanup.detach()  # published: nothing of this writer's is left to remove
+        return self.dst
+
+    def abort(self) -> None:
+        """Drop the temporary file; the destination is untouched."""
+        try:
+            self.con.close()
+        except Exception:  # noqa: BLE001 - closing a broken connection
+            pass
+        self._cleanup()  # both files, once
+
+    def __enter__(self) -> StoreWriter:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if not self._committed:
+            self.abort()
+
+
+class StoreReader:
+    """Read a store, verifying schema, completeness and checksums.
+
+    The file is untrusted input: it is opened read-only with ``trusted_schema``
+    off, and refused unless its schema holds exactly the two plain tables, declared
+    as the writer declares them (so no view, trigger or virtual table can run while
+    reading).
+
+    Examples
+    --------
+    >>> try:
+    ...     StoreReader("missing.geoterrain")
+    ... except StoreError as e:
+    ...     print(str(e).split(";")[0])
+    missing.geoterrain: no such store
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise StoreError(f"{self.path}: no such store; run `geoterrain preprocess DEM` first")
+        try:
+            self.con = sqlite3.connect(self.path.resolve().as_uri() + "?mode=ro", uri=True,
+                                       check_same_thread=False)
+        except sqlite3.Error:
+            raise StoreError(f"{self.path}: cannot open the store read-only") from None
+        try:
+            self._open()
+        except BaseException:
+            self.con.close()
+            raise
+        self.blob_reads = 0  # how many blobs were read (tests count them)
+        self._table: TileTable | None = None
+        self._lock = threading.Lock()
+
+    def _open(self) -> None:
+        # the schema, the catalog's two rows, the metadata: every check of opening
+        try:
+            # damaged text never raises: it decodes with U+FFFD and then fails a check
+            self.con.text_factory = lambda b: b.decode("utf-8", "replace")
+            self.con.execute("PRAGMA trusted_schema=OFF")
+            self.con.execute("PRAGMA query_only=ON")
+            self._check_schema()
+            rows = self.con.execute("SELECT id, data, crc32 FROM catalog "
+                                    f"WHERE id IN ({META_ID}, {TILES_ID})").fetchall()
+            (n,) = self.con.execute("SELECT COUNT(*) FROM catalog").fetchone()
+        except _DB_ERRORS:
+            raise StoreError(f"{self.path}: not a geoterrain store (or damaged); "
+                             "re-run `geoterrain preprocess`") from None
+        if n != len(rows):
+            raise self._foreign("its catalog holds rows of no meaning")
+        if not all(type(i) is int and isinstance(d, bytes) for i, d, _ in rows):
+            raise self._foreign("its catalog holds rows that are not numbered blobs")
+        self._catalog = {i: (d, c) for i, d, c in rows}  # until parsed
+        if META_ID not in self._catalog:
+            raise StoreError(
+                f"{self.path}: incomplete store (interrupted write); re-run preprocess")
+        data, crc = self._catalog.pop(META_ID)
+        if catalog_crc(META_ID, data) != crc:
+            raise self._corrupt("metadata checksum mismatch")
+        try:
+            self.metadata = unpack_metadata(data)
+        except ValueError as exc:
+            raise self._corrupt(f"its metadata cannot be read ({exc})") from None
+        if self.metadata.get("complete") is not True:
+            raise StoreError(
+                f"{self.path}: incomplete store (interrupted write); re-run preprocess")
+        version = self.metadata.get("schema_version")
+        if version != SCHEMA_VERSION:
+            raise StoreError(f"{self.path}: store schema version {_show(version)}, this "
+                             f"geoterrain reads version {SCHEMA_VERSION}; {REBUILD}")
+
+    def _foreign(self, why: str) -> StoreError:
+        return StoreError(f"{self.path}: not a geoterrain store ({why}); refusing to read it")
+
+    def _check_schema(self) -> None:
+        """Exactly the two plain tables, as the writer declares them, nothing else."""
+        seen = self.con.execute("SELECT type, name, tbl_name, sql FROM sqlite_master").fetchall()
+        tables = set()
+        for typ, name, _tbl, sql in seen:
+            if typ == "table" and name in _TABLE_SQL and sql == _TABLE_SQL[name]:
+                tables.add(name)
+                continue
+            self._older_schema(seen)
+            if typ == "table" and name in _TABLE_SQL:
+                raise self._foreign(f"table {name} has other columns")
+            raise self._foreign(f"it holds a {typ} {_show(name)}: views, triggers and "
+                                "other objects are refused")
+        if tables != set(_TABLE_SQL):
+            raise self._foreign(f"tables {', '.join(sorted(set(_TABLE_SQL) - tables))} missing")
+
+    def _older_schema(self, seen: list) -> None:
+        """A store of an older schema (versions 1 to 3: plain tables and their
+        primary-key indexes, the metadata table declared as then) says how to rebuild
+        it, rather than "not a geoterrain store". Its schema_version is read only when
+        the file holds nothing else, so no SQL of the file's can run."""
+        plain = all(typ == "table" and name in _OLD_TABLES
+                    and str(sql).startswith(f"CREATE TABLE {name} (")
+                    or typ == "index" and sql is None and name == f"sqlite_autoindex_{tbl}_1"
+                    for typ, name, tbl, sql in seen)
+        if not plain or not any(("table", "metadata", "metadata", sql) in seen
+                                for sql in _OLD_METADATA_SQL):
+            return
+        row = self.con.execute(
+            "SELECT value FROM metadata WHERE name = 'schema_version'").fetchone()
+        try:
+            version = json.loads(row[0]) if row else None
+        except (ValueError, TypeError, RecursionError):
+            return
+        if type(version) is int and 0 < version < SCHEMA_VERSION:
+            raise StoreError(f"{self.path}: store schema version {version}, this geoterrain "
+                             f"reads version {SCHEMA_VERSION}; {REBUILD}")
+
+    def _corrupt(self, why: str) -> StoreCorruptError:
+        return StoreCorruptError(f"{self.path}: {why}: the file is damaged; "
+                                 "re-run `geoterrain preprocess`")
+
+    def _damaged(self, what: str) -> StoreCorruptError:
+        return self._corrupt(f"checksum mismatch in {what}")
+
+    def table(self) -> TileTable:
+        """The tile table, checksum-verified and parsed (once; thread-safe)."""
+        if self._table is not None:
+            return self._table
+        with self._lock:
+            if self._table is None:
+                if TILES_ID not in self._catalog:
+                    raise self._corrupt("the tile table is missing")
+                data, crc = self._catalog[TILES_ID]
+                if catalog_crc(TILES_ID, data) != crc:
+                    raise self._damaged("the tile table")
+                try:
+                    self._table = unpack_tiles(data, self.path.stat().st_size)
+                except (ValueError, OSError) as exc:
+                    raise self._corrupt(f"the tile table cannot be read ({exc})") from None
+                del self._catalog[TILES_ID]  # its bytes are not needed again
+            return self._table
+
+    def _blob_id(self, key: int) -> int | None:
+        t = self.table()
+        i = int(np.searchsorted(t.blobs, key))
+        return int(t.ids[i]) if i < len(t.blobs) and t.blobs[i] == key else None
+
+    def get_blob(self, key: tuple[int, int, int], kind: str) -> bytes | None:
+        """A tile's blob, checksum-verified (bound to key and kind), or None when not stored."""
+        rowid = self._blob_id(blob_key(key, kind))
+        if rowid is None:
+            return None
+        try:
+            row = self.con.execute("SELECT data, crc32 FROM blobs WHERE rowid = ?",
+                                   (rowid,)).fetchone()
+        except (*_DB_ERRORS, OverflowError):
+            raise self._damaged(f"tile {key} {kind}") from None
+        if row is None:
+            raise self._damaged(f"tile {key} {kind} (its row is missing)")
+        self.blob_reads += 1
+        data, crc = row
+        if not isinstance(data, bytes) or blob_crc(key, kind, data) != crc:
+            raise self._damaged(f"tile {key} {kind}")
+        return data
+
+    def tiles(self) -> dict[tuple[int, int, int], dict]:
+        """Every stored tile's numbers, checksum-verified, checked against the tile counts.
+
+        Every tile must hold one blob of each kind, and no blob may lack its tile. The
+        table is checked as arrays first, so a damaged one costs no per-tile objects.
+        """
+        t = self.table()
+        damaged = self._corrupt("the blobs do not match the tile table (blobs missing or added)")
+        levels = np.bincount(t.tiles & 31, minlength=32) if len(t.tiles) else np.zeros(32)
+        if {str(L): int(c) for L, c in enumerate(levels) if c} != self.metadata.get(
+                "tile_counts"):
+            raise self._corrupt("the tile table does not match the recorded tile counts "
+                                "(rows missing or added)")
+        nvalid = t.numbers[:, 0]
+        if not np.isfinite(nvalid).all() or (nvalid < 0).any() or (nvalid % 1 != 0).any():
+            raise self._corrupt("the tile table holds an impossible count of valid samples")
+        # the blob keys: one of each kind per tile, the δ_edge tiles', the root's table
+        try:
+            edge = np.array([blob_key(k, EDGE_KIND) for k in self.edge_keys()], np.int64)
+        except ValueError:  # a key out of any grid's range
+            raise self._damaged("the delta_edge list") from None
+        want = [(t.tiles[:, None] << 3 | np.arange(len(BLOB_KINDS))).ravel(), edge]
+        if "block_delta_levels" in self.metadata and len(t.tiles):
+            want.append(np.array([blob_key((int(levels.nonzero()[0][-1]), 0, 0), BLOCK_KIND)]))
+        want = np.concatenate(want)
+        if len(np.unique(want)) != len(want) or not np.array_equal(np.sort(want), t.blobs):
+            raise damaged
+        # the ids are distinct and fill the blob table's rowid range exactly, so every
+        # row is named once (a missing row in the range reads as "missing"; a row's
+        # checksum binds it to its key, so an id moved to another row fails)
+        try:
+            # the rowid range only (a few pages): counting the rows would read every
+            # leaf page of the blobs, which hold the blob bytes
+            lo, hi = self.con.execute("SELECT MIN(rowid), MAX(rowid) FROM blobs").fetchone()
+        except _DB_ERRORS:
+            raise self._damaged("the blob table") from None
+        ids = t.ids
+        if len(ids) and ((lo, hi) != (int(ids.min()), int(ids.max())) or hi - lo + 1 != len(ids)
+                         or len(np.unique(ids)) != len(ids)):
+            raise damaged
+        if not len(ids) and lo is not None:
+            raise damaged
+        out = {}
+        for k, r in zip(t.tiles.tolist(), t.numbers.tolist(), strict=True):
+            vals = [None if v != v else v for v in r]  # NaN: an absent number
+            vals[0] = int(vals[0])
+            out[unpack_tile_key(k)] = dict(zip(TILE_COLUMNS, vals, strict=True))
+        return out
+
+    def edge_keys(self) -> dict[tuple[int, int, int], float]:
+        """The tiles with a ``delta_edge`` blob and the largest δ_edge of their stored
+        vertices (+inf where stored as None), from the metadata; {} when it has none. A
+        key may name a tile that is not stored (then the blob is all it has); the
+        terrain checks it lies in the grid."""
+        rows = self.metadata.get("delta_edge", [])
+        out = {}
+        if not isinstance(rows, list):
+            raise self._damaged("the delta_edge list")
+        for r in rows:
+            if not (isinstance(r, list) and len(r) == 4 and all(type(v) is int for v in r[:3])
+                    and (r[3] is None or (type(r[3]) in (int, float) and r[3] >= 0))):
+                raise self._damaged("the delta_edge list")
+            key = tuple(r[:3])
+            if min(key) < 0 or key in out:
+                raise self._damaged("the delta_edge list")
+            out[key] = float("inf") if r[3] is None else float(r[3])
+        return out
+
+    def blob_bytes_by_kind_level(self) -> dict[tuple[str, int], int]:
+        """Blob bytes per (kind, level) (``info``'s split); a key without its row is
+        damage."""
+        try:
+            sizes = dict(self.con.execute("SELECT rowid, LENGTH(data) FROM blobs").fetchall())
+        except _DB_ERRORS:
+            raise self._damaged("the blob table") from None
+        out: dict[tuple[str, int], int] = {}
+        try:
+            t = self.table()
+            for k, i in zip(t.blobs.tolist(), t.ids.tolist(), strict=True):
+                (level, _, _), kind = unpack_blob_key(k)
+                out[kind, level] = out.get((kind, level), 0) + sizes[i]
+        except (KeyError, TypeError, ValueError):
+            raise self._damaged("the blob table") from None
+        return out
+
+    def close(self) -> None:
+        self.con.close()
+
+
+def _show(v: object) -> str:
+    """A value from a store, printable: repr, no control characters, at most 40 chars."""
+    r = "".join(c if c.isprintable() else "?" for c in repr(v))
+    return r if len(r) <= 40 else r[:37] + "..."

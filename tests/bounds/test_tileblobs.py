@@ -1,0 +1,155 @@
+"""The level-at-once blob builder gives the bytes the per-tile packers give."""
+
+from __future__ import annotations
+
+import numpy as np
+import zstandard
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from geoterrain.bounds.tileblobs import BoundsCoding, compress_rows, level_blobs
+from geoterrain.bounds.vertexdata import (
+    decode_bounds,
+    log8_codes,
+    log8_exponent,
+    log8_table,
+    normals_to_bytes,
+    pack_bounds_v2,
+    scale_bounds,
+    scale_exponent,
+)
+from geoterrain.core.grid import level_tiles
+from geoterrain.core.rounding import round_up
+
+
+def per_tile(delta, radius, nrm, t, L, top, tiles):
+    """The blobs and maxima as each tile's own packers make them (the reference)."""
+    cctx = zstandard.ZstdCompressor(level=3)
+    ed, kr = log8_exponent(delta), scale_exponent(radius)
+    dc = log8_codes(level_tiles(delta, t, L), ed)
+    r16, _ = scale_bounds(level_tiles(radius, t, L), kr)
+    tn = level_tiles(nrm, t, 0)
+    new_only = L < top
+    new = np.ones(((1 << t) + 1,) * 2, bool)
+    if new_only:
+        new[::2, ::2] = False
+    out = {"delta": {}, "radius": {}, "normals": {}}
+    dmax, rmax = [], []
+    for x, y in tiles:
+        key = (L, x, y)
+        out["delta"][key] = pack_bounds_v2(dc[y, x], ed, True, new_only, cctx)
+        out["radius"][key] = pack_bounds_v2(r16[y, x], kr, False, new_only, cctx)
+        out["normals"][key] = cctx.compress(normals_to_bytes(tn[y, x]))
+        dmax.append(log8_table(ed)[dc[y, x][new]].max())
+        rmax.append(round_up(r16[y, x][new].astype(np.float64) * 2.0**kr, np.float32).max())
+    return out, np.array(dmax, np.float32), np.array(rmax, np.float32)
+
+
+@settings(max_examples=40, deadline=None)
+@given(t=st.integers(1, 3), levels=st.integers(0, 2), seed=st.integers(0, 2**31),
+       scale=st.sampled_from([1e-6, 1.0, 3e4]), holes=st.booleans())
+def test_level_blobs_match_the_per_tile_packers(t, levels, seed, scale, holes):
+    rng = np.random.default_rng(seed)
+    n = (1 << (t + levels)) + 1
+    delta = np.abs(rng.normal(0, scale, (n, n)))
+    radius = np.abs(rng.normal(0, scale, (n, n))) + delta
+    if holes:  # +inf marks mixed diamonds; exact zeros are common on flat ground
+        delta[rng.random((n, n)) < 0.1] = np.inf
+        delta[rng.random((n, n)) < 0.1] = 0.0
+        radius[0, 1], radius[1, 0] = np.nan, -0.0  # never made, but coded as numpy does
+    coding = BoundsCoding(delta, radius)
+    for L in range(levels + 1):
+        nt = 1 << (levels - L)
+        nrm = rng.integers(0, 256, ((n - 1) // (1 << L) + 1,) * 2 + (2,)).astype(np.uint8)
+        tiles = [(x, y) for y in range(nt) for x in range(nt) if rng.random() < 0.8]
+        got, dmax, rmax = level_blobs(coding, nrm, t, L, levels, tiles)
+        want, wd, wr = per_tile(delta, radius, nrm, t, L, levels, tiles)
+        assert got == want
+        np.testing.assert_array_equal(dmax, wd)
+        np.testing.assert_array_equal(rmax, wr)
+
+
+def test_stored_maxima_bound_every_decoded_value():
+    rng = np.random.default_rng(5)
+    delta = np.abs(rng.normal(0, 7, (17, 17)))
+    coding = BoundsCoding(delta, delta + 1)
+    blobs, dmax, _ = level_blobs(coding, np.zeros((17, 17, 2), np.uint8), 4, 0, 0, [(0, 0)])
+    dec = decode_bounds(blobs["delta"][(0, 0, 0)], (17, 17))
+    assert (dec >= delta).all() and dmax[0] == dec.max()
+
+
+def test_compress_rows_is_one_compress_per_row():
+    rows = np.random.default_rng(0).integers(0, 4, (50, 300)).astype(np.uint8)
+    cctx = zstandard.ZstdCompressor(level=3)
+    assert compress_rows(rows, b"\x02") == [b"\x02" + cctx.compress(r.tobytes()) for r in rows]
+    assert compress_rows(rows[:0]) == []
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31), scale=st.sampled_from([1e-30, 1e-6, 1.0, 1e4, 1e30]))
+def test_the_compiled_coding_is_numpys(seed, scale):
+    rng = np.random.default_rng(seed)
+    delta = np.abs(rng.normal(0, scale, (7, 9))).astype(np.float32)
+    radius = np.abs(rng.normal(0, scale, (7, 9))).astype(np.float32)
+    delta.ravel()[:3] = [np.nan, np.inf, 0.0]
+    radius.ravel()[:5] = [np.inf, 0.0, -0.0, np.nan, 1e-45]  # -0.0 and NaN: numpy's path
+    c = BoundsCoding(delta, radius)
+    ed, kr = log8_exponent(delta), scale_exponent(radius)
+    assert (c.ed, c.kr) == (ed, kr)
+    np.testing.assert_array_equal(c.dc, log8_codes(delta, ed))
+    np.testing.assert_array_equal(c.d_stored, log8_table(ed)[c.dc])
+    r16 = round_up(radius.astype(np.float64) * 2.0**-kr, np.float16)
+    assert c.r16.tobytes() == r16.tobytes()  # bit for bit: signed zero, NaN
+    want = round_up(r16.astype(np.float64) * 2.0**kr, np.float32)
+    assert c.r_stored.tobytes() == want.tobytes()
+
+
+def test_radius_codes_keep_their_exponent_in_the_header_range():
+    """Coordinates so large that the radii's exponent would pass int8's 127 (the blob
+    header's byte): e stays 127 and the codes still bound the radii (+inf at worst),
+    never a wrapped, tiny scale."""
+    import warnings
+
+    from geoterrain.bounds.radii import vertex_radii
+    from geoterrain.bounds.tileblobs import radius_codes
+    from geoterrain.bounds.vertexdata import log8_table
+
+    ii, jj = np.indices((9, 9)).astype(np.float64)
+    x, y, z = jj * 1e42, -ii * 1e42, np.zeros((9, 9))
+    ok = np.ones((9, 9), bool)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # float32 overflow: +inf radii
+        r = vertex_radii(x, y, z, ok)
+        codes, e = radius_codes(x, y, z, ok)
+    assert e == 127
+    assert (log8_table(e)[codes] >= r).all()
+
+
+@settings(max_examples=25, deadline=None)
+@given(t=st.integers(1, 3), levels=st.integers(0, 2), seed=st.integers(0, 2**31))
+def test_level_blobs_with_log8_radii_match_the_per_tile_packers(t, levels, seed):
+    """r given as log8 codes (radius_codes): each tile's r blob is that tile's codes in a
+    log8 version-2 blob (new vertices only below the top), its maxima the codes' values."""
+    rng = np.random.default_rng(seed)
+    n = (1 << (t + levels)) + 1
+    delta = np.abs(rng.normal(0, 5, (n, n)))
+    rc = rng.integers(0, 255, (n, n)).astype(np.uint8)
+    er = int(rng.integers(-20, 20))
+    coding = BoundsCoding(delta, None, r_codes=(rc, er))
+    cctx = zstandard.ZstdCompressor(level=3)
+    for L in range(levels + 1):
+        nt = 1 << (levels - L)
+        nrm = np.zeros(((n - 1) // (1 << L) + 1,) * 2 + (2,), np.uint8)
+        tiles = [(x, y) for y in range(nt) for x in range(nt)]
+        got, _, rmax = level_blobs(coding, nrm, t, L, levels, tiles, ("radius",))
+        codes = level_tiles(rc, t, L)
+        new = np.ones(((1 << t) + 1,) * 2, bool)
+        if L < levels:
+            new[::2, ::2] = False
+        for k, (x, y) in enumerate(tiles):
+            want = pack_bounds_v2(codes[y, x], er, True, L < levels, cctx)
+            assert got["radius"][(L, x, y)] == want
+            assert rmax[k] == log8_table(er)[codes[y, x][new]].max()
+            dec = decode_bounds(want, codes[y, x].shape, None if L == levels else
+                                np.zeros_like(codes[y, x], np.float32), (x % 2, y % 2))
+            assert (dec[new] == log8_table(er)[codes[y, x][new]]).all()

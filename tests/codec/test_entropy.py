@@ -1,0 +1,207 @@
+"""Tests of the height codec's entropy stage (geoterrain.codec.entropy)."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from geoterrain.codec import entropy
+from geoterrain.codec.entropy import MASK_ALL_INVALID, MASK_ALL_VALID, MASK_STORED
+from geoterrain.codec.predict import fill_level
+from geoterrain.codec.pyramid import decode_tile, encode_pyramid
+from geoterrain.codec.quantize import Quantizer
+
+
+def _new(t: int) -> np.ndarray:
+    """The samples new at a child tile's level (not on its parent's grid)."""
+    new = np.ones((t, t), bool)
+    new[::2, ::2] = False
+    return new
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), h=st.sampled_from([1, 2, 3, 4, 8, 32]),
+       scale=st.sampled_from([0, 3, 1000, 2**40, 2**62]),
+       kind=st.sampled_from([MASK_ALL_VALID, MASK_ALL_INVALID, MASK_STORED]),
+       holes=st.floats(0.0, 1.0), cubic=st.booleans(), px=st.integers(0, 1),
+       py=st.integers(0, 1))
+def test_a_tile_stream_decodes_to_its_codes_and_mask(seed, h, scale, kind, holes, cubic, px,
+                                                      py):
+    """Every valid new sample's code and the whole mask come back, the parent's samples
+    are copied, and the stream is exactly the one the encoder wrote."""
+    rng = np.random.default_rng(seed)
+    t = 2 * h + 1
+    ok = {MASK_ALL_VALID: np.ones((t, t), bool), MASK_ALL_INVALID: np.zeros((t, t), bool),
+          MASK_STORED: rng.random((t, t)) >= holes}[kind]
+    parent = rng.integers(-scale - 1, scale + 1, (t, t))
+    child = rng.integers(-scale - 1, scale + 1, (t, t))
+    data = entropy.encode_tile(child, ok, parent, (px, py), cubic, kind)
+    out, mask, exact = entropy.decode_tile(np.frombuffer(data, np.uint8), parent, px, py,
+                                           cubic, kind)
+    assert exact
+    np.testing.assert_array_equal(out[ok & _new(t)], child[ok & _new(t)])
+    np.testing.assert_array_equal(out[::2, ::2], parent[py * h:py * h + h + 1,
+                                                        px * h:px * h + h + 1])
+    np.testing.assert_array_equal(mask, ok)
+    np.testing.assert_array_equal(
+        entropy.decode_mask(np.frombuffer(data, np.uint8), t, kind), ok)
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), te=st.integers(1, 6), cubic=st.booleans(),
+       holes=st.floats(0.0, 1.0), scale=st.sampled_from([0, 1, 100, 2**40]),
+       W=st.sampled_from([1, 3, 41]))
+def test_the_top_tile_decodes_to_its_fill(seed, te, cubic, holes, scale, W):
+    """Coarse to fine inside the top tile: the decoded tile is the encoder's codes with
+    every invalid sample but the corners filled by fill_level, level by level (the rule
+    the encoder's whole-grid fill follows), and with residual bins W every valid one
+    binned by it, within (W - 1) / 2 of its code."""
+    rng = np.random.default_rng(seed)
+    t = (1 << te) + 1
+    top = np.round(rng.normal(0, 1, (t, t)).cumsum(0) * scale).astype(np.int64)
+    ok = rng.random((t, t)) >= holes
+    kind = MASK_ALL_VALID if ok.all() else MASK_ALL_INVALID if not ok.any() else MASK_STORED
+    want = top.copy()
+    for k in range(te - 1, -1, -1):
+        fill_level(want, ok, 1 << k, (1 << te) if cubic else 0, W)
+    assert np.all(np.abs(want - top)[ok] <= (W - 1) // 2)
+    data = entropy.encode_top(want, ok, te, cubic, kind, W)
+    got, mask, exact = entropy.decode_top(np.frombuffer(data, np.uint8), te, cubic, kind,
+                                          W)
+    assert exact
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(mask, ok)
+
+
+@settings(max_examples=200, deadline=None)
+@given(data=st.binary(max_size=300), h=st.sampled_from([1, 4, 32]),
+       kind=st.sampled_from([MASK_ALL_VALID, MASK_ALL_INVALID, MASK_STORED]),
+       te=st.integers(1, 6), cubic=st.booleans(), W=st.sampled_from([1, 3, 1025]))
+def test_any_bytes_decode_to_some_codes(data, h, kind, te, cubic, W):
+    """A stream from a stranger is never refused and never runs away: any bytes decode,
+    in bounded time, to arrays of the tile's shape (residual bins too)."""
+    buf = np.frombuffer(data, np.uint8)
+    t = 2 * h + 1
+    out, ok, _ = entropy.decode_tile(buf, np.zeros((t, t), np.int64), 1, 0, cubic, kind, W)
+    assert out.shape == ok.shape == (t, t)
+    top, ok, _ = entropy.decode_top(buf, te, cubic, kind, W)
+    assert top.shape == ok.shape == ((1 << te) + 1,) * 2
+
+
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), extra=st.binary(min_size=32, max_size=200))
+def test_bytes_past_a_streams_end_are_refused(seed, extra):
+    """A stream is decoded whole: the same stream with bytes appended (a spliced blob,
+    a frame of another format) or a zero byte appended (a padded one) is told apart from
+    the encoder's. (A few bytes just past the end can be read as part of the stream:
+    the encoder drops its trailing zeros, which the decoder reads back as zeros.)"""
+    rng = np.random.default_rng(seed)
+    t = 9
+    parent = np.zeros((t, t), np.int64)
+    child = rng.geometric(0.4, (t, t)) - 1
+    ok = np.ones((t, t), bool)
+    data = entropy.encode_tile(child, ok, parent, (0, 0), False, MASK_ALL_VALID)
+    for bad in (data + extra, data + b"\0"):
+        *_, exact = entropy.decode_tile(np.frombuffer(bad, np.uint8), parent, 0, 0, False,
+                                        MASK_ALL_VALID)
+        assert not exact
+
+
+def test_a_flat_tile_costs_a_few_bytes():
+    """The adaptive models learn a flat 65² tile at once: 4 160 new samples in at most
+    8 bytes (a per-tile table, as zstd's frames carry, would cost more)."""
+    t = 65
+    z = np.zeros((t, t), np.int64)
+    data = entropy.encode_tile(z, np.ones((t, t), bool), z, (0, 0), True, MASK_ALL_VALID)
+    assert len(data) <= 8
+
+
+def test_contexts_beat_one_model_on_mixed_activity():
+    """Half the tile rough, half flat: the activity contexts code it in fewer bytes
+    than the same values shuffled among the new samples (where neighbours tell
+    nothing)."""
+    rng = np.random.default_rng(3)
+    t = 65
+    amp = np.where(np.arange(t)[None, :] < t // 2, 200.0, 0.3) * np.ones((t, t))
+    child = np.round(rng.normal(0, 1, (t, t)) * amp).astype(np.int64)
+    parent = np.zeros((t, t), np.int64)
+    child[::2, ::2] = 0
+    ok = np.ones((t, t), bool)
+    shuffled = child.copy()
+    shuffled[_new(t)] = rng.permutation(child[_new(t)])
+    as_is = len(entropy.encode_tile(child, ok, parent, (0, 0), False, MASK_ALL_VALID))
+    mixed = len(entropy.encode_tile(shuffled, ok, parent, (0, 0), False, MASK_ALL_VALID))
+    assert as_is < 0.9 * mixed
+
+
+def test_the_phase_of_a_prediction_is_a_context():
+    """Codes on a grid coarser than the surface (ε-quantised heights): where the
+    floor-mean of the neighbours sits half a code below the truth, the residual leans
+    up. Coded with the phase, such a tile costs less than the same residuals with the
+    phases scrambled."""
+    rng = np.random.default_rng(4)
+    t = 65
+    parent = rng.integers(0, 8, (t, t)).cumsum(1)  # a ramp of small integer steps
+    child = np.zeros((t, t), np.int64)
+    ok = np.ones((t, t), bool)
+    # the truth is the exact midpoint, rounded up: residual 1 where the mean is a half
+    h = t // 2
+    c = parent[:h + 1, :h + 1]
+    child[::2, ::2] = c
+    child[::2, 1::2] = (c[:, :-1] + c[:, 1:] + 1) // 2
+    child[1::2, ::2] = (c[:-1] + c[1:] + 1) // 2
+    child[1::2, 1::2] = (child[:-2:2, 1::2] + child[2::2, 1::2] + 1) // 2
+    with_phase = len(entropy.encode_tile(child, ok, parent, (0, 0), False, MASK_ALL_VALID))
+    # the same residuals where the phase says nothing: the parents all even
+    even = parent * 2
+    c2 = even[:h + 1, :h + 1]
+    child2 = np.zeros_like(child)
+    child2[::2, ::2] = c2
+    r = child
+    child2[::2, 1::2] = (c2[:, :-1] + c2[:, 1:]) // 2 + (r[::2, 1::2] - (c[:, :-1] + c[:, 1:]) // 2)
+    child2[1::2, ::2] = (c2[:-1] + c2[1:]) // 2 + (r[1::2, ::2] - (c[:-1] + c[1:]) // 2)
+    child2[1::2, 1::2] = (child2[:-2:2, 1::2] + child2[2::2, 1::2]) // 2 + (
+        r[1::2, 1::2] - (child[:-2:2, 1::2] + child[2::2, 1::2]) // 2)
+    scrambled = len(entropy.encode_tile(child2, ok, even, (0, 0), False, MASK_ALL_VALID))
+    assert with_phase < 0.8 * scrambled
+
+
+def test_a_tile_past_its_first_row_is_coded_again():
+    """Integer noise of about 40 bits a residual overflows the 8 bits a sample that a
+    level's rows start with; those tiles are coded again and decode exactly."""
+    rng = np.random.default_rng(5)
+    z = np.round(rng.normal(0, 2.0**40, (129, 129)))
+    v = np.ones(z.shape, bool)
+    q = Quantizer("int")
+    blobs = encode_pyramid(z, v, 6, q)
+    assert len(blobs[(0, 0, 0)]) > 64 + 65 * 65  # more than the first row held
+    assert not blobs[(0, 0, 0)][1] & 16  # range-coded, not a wide blob
+    top = decode_tile(blobs[(1, 0, 0)], None, q)
+    child = decode_tile(blobs[(0, 1, 1)], top, q, (1, 1))
+    np.testing.assert_array_equal(child, z[64:, 64:].astype(np.int64))
+
+
+def test_a_lossless_float_store_has_wide_blobs_below_its_top():
+    """Float bit patterns (10-30 bits a residual) go to the byte-shuffled zstd blobs;
+    they decode exactly like the range-coded ones, and a frame holding more or less
+    than its size is refused."""
+    import pytest
+
+    rng = np.random.default_rng(6)
+    z = rng.normal(0, 100, (129, 129)).astype(np.float32).astype(np.float64)
+    v = rng.random(z.shape) > 0.05
+    q = Quantizer("float", float_bits=32)
+    blobs = encode_pyramid(z, v, 6, q)
+    assert blobs[(0, 1, 0)][1] & 16 and not blobs[(1, 0, 0)][1] & 16
+    top = decode_tile(blobs[(1, 0, 0)], None, q)
+    child = decode_tile(blobs[(0, 1, 0)], top, q, (1, 0))
+    from geoterrain.codec.quantize import codes_to_heights
+    ok = v[:65, 64:]
+    np.testing.assert_array_equal(codes_to_heights(child, q)[ok], z[:65, 64:][ok])
+    import zstandard
+    b = blobs[(0, 1, 0)]
+    raw = zstandard.ZstdDecompressor().decompress(b[4:])
+    for bad in (raw + b"x", raw[:-1]):
+        with pytest.raises(ValueError):
+            decode_tile(b[:4] + zstandard.ZstdCompressor().compress(bad), top, q, (1, 0))

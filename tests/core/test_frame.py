@@ -1,0 +1,59 @@
+import numpy as np
+import pytest
+from pyproj import CRS, Geod
+
+from geoterrain.core.frame import Frame
+from geoterrain.ingest.raster import read_raster
+from tests.conftest import real_dem
+
+
+def test_projected_feet_are_converted_to_metres():
+    r = read_raster(real_dem("roi_epsg3089.tif"))
+    f = Frame.from_raster(r.transform, r.crs_wkt, *r.shape)
+    assert f.kind == "projected"
+    assert f.unit_to_m == pytest.approx(1200 / 3937)  # US survey foot
+    X, Y = f.xy(np.array([0, 0]), np.array([0, 1]))
+    assert X[1] - X[0] == pytest.approx(r.transform[0] * 1200 / 3937)
+    # the scene origin is the raster centre: coordinates stay small
+    assert abs(X[0]) < 1e4 and abs(Y[0]) < 1e4
+
+
+@pytest.mark.parametrize("name", ["srtm1_japan.tif", "srtm3_pysheds.tif"])
+def test_geographic_extent_matches_geodesic_distances(name):
+    r = read_raster(real_dem(name))
+    H, W = r.shape
+    f = Frame.from_raster(r.transform, r.crs_wkt, H, W)
+    assert f.kind == "geographic"
+    geod = CRS.from_wkt(r.crs_wkt).get_geod()
+    for i0, j0, i1, j1 in [(0, 0, 0, W - 1), (H - 1, 0, H - 1, W - 1), (0, 0, H - 1, 0),
+                           (H // 2, 0, H // 2, W - 1), (0, 0, H - 1, W - 1)]:
+        X, Y = f.xy(np.array([i0, i1]), np.array([j0, j1]))
+        lon, lat = f._crs_xy(np.array([i0, i1]), np.array([j0, j1]))
+        _, _, d = geod.inv(lon[0], lat[0], lon[1], lat[1])
+        assert np.hypot(X[1] - X[0], Y[1] - Y[0]) == pytest.approx(d, rel=1e-3)
+
+
+def test_one_degree_tile_has_true_proportions():
+    # a synthetic 1°×1° tile at 45°N: east-west extent shrinks with cos(lat)
+    t = (1 / 100, 0.0, 10.0, 0.0, -1 / 100, 46.0)
+    f = Frame.from_raster(t, CRS.from_epsg(4326).to_wkt(), 100, 100)
+    geod = Geod(ellps="WGS84")
+    for i in (0, 50, 99):
+        X, Y = f.xy(np.array([i, i]), np.array([0, 99]))
+        lon, lat = f._crs_xy(np.array([i, i]), np.array([0, 99]))
+        d = geod.inv(lon[0], lat[0], lon[1], lat[1])[2]
+        assert np.hypot(X[1] - X[0], Y[1] - Y[0]) == pytest.approx(d, rel=1e-3)
+
+
+def test_crs_round_trip_and_pixel_frame():
+    f = Frame.pixel(5, 7, 30.0)
+    X, Y = f.xy(np.array([0, 4]), np.array([0, 6]))
+    assert X.tolist() == [-90.0, 90.0] and Y.tolist() == [60.0, -60.0]
+    x, y = f.scene_to_crs(X, Y)
+    X2, Y2 = f.crs_to_scene(x, y)
+    np.testing.assert_allclose([X2, Y2], [X, Y])
+
+
+def test_z_units_and_scale():
+    f = Frame.pixel(2, 2, z_to_m=0.3048, z_scale=2.0)
+    assert f.z(np.array([10.0]))[0] == pytest.approx(6.096)

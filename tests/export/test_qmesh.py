@@ -1,0 +1,306 @@
+"""Cesium quantized-mesh tile sets, read back with an independent decoder.
+
+quantized-mesh-tile decodes every tile; the tests then check, against the source
+DEM read with rasterio: heights within each tile's declared error, edge vertices
+shared exactly by neighbouring tiles, no vertex next to a nodata sample, and a
+layer.json that lists exactly the tiles written.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import matplotlib.tri as mtri
+import numpy as np
+import pytest
+import rasterio
+from click.testing import CliRunner
+
+import geoterrain
+from geoterrain.export.qmesh import tile_rect
+from tests.conftest import real_dem, write_tif
+
+qmt = pytest.importorskip("quantized_mesh_tile")
+
+
+def _read_tileset(out: Path, dem: Path):
+    tiles = {}
+    for p in sorted(out.glob("*/*/*.terrain")):
+        z_, x, y = int(p.parent.parent.name), int(p.parent.name), int(p.stem)
+        w, s, e, n = tile_rect(z_, x, y)
+        t = qmt.TerrainTile(west=w, south=s, east=e, north=n)
+        t.fromFile(str(p), hasLighting=True, hasWatermask=True, gzipped=True)
+        tiles[(z_, x, y)] = t
+    with rasterio.open(dem) as src:
+        h = src.read(1, masked=True)
+        transform = src.transform
+    return out, tiles, h, transform
+
+
+@pytest.fixture(scope="module")
+def japan(tmp_path_factory):
+    """srtm1_japan (slow: about 90 s to tile, more to decode in pure Python)."""
+    from geoterrain.export.qmesh import write_tileset
+
+    dem = real_dem("srtm1_japan.tif")
+    d = tmp_path_factory.mktemp("qmesh_japan")
+    with geoterrain.open(geoterrain.preprocess(dem, d / "j.geoterrain")) as t:
+        write_tileset(t, d / "tiles")
+    return _read_tileset(d / "tiles", dem)
+
+
+SETS = ["tileset", pytest.param("japan", marks=pytest.mark.slow)]
+
+
+@pytest.fixture(scope="module")
+def tileset(tmp_path_factory):
+    from geoterrain.cli.main import cli
+    from geoterrain.ingest.synth import generate
+
+    d = tmp_path_factory.mktemp("qmesh")
+    # gentle relief (so not every border sample is needed by its own error), straddling
+    # tile boundaries of levels 10 and 11 in both directions
+    z = generate("fbm", 129, seed=4).astype(np.float32) * 0.05
+    z[10:40, 70:110] = -9999  # a nodata hole inside the DEM
+    z[:, :6] = -9999  # and a nodata margin
+    dem = write_tif(d / "geo.tif", z, crs="EPSG:4326", origin=(138.45, 35.55),
+                    spacing=1 / 1200, nodata=-9999)
+    store = geoterrain.preprocess(dem, tile_size=32)
+    out = d / "tiles"
+    res = CliRunner().invoke(cli, ["-q", "tiles", str(store), "-o", str(out),
+                                   "--format", "quantized-mesh", "--max-error", "2"],
+                           catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    return _read_tileset(out, dem)
+
+
+@pytest.fixture(scope="module")
+def steep(tmp_path_factory):
+    """Rough relief at 1" (0–200 m over 2 km): the resampling error is a large share of
+    the fine levels' geometric error, so the per-tile threshold has to leave room for it."""
+    from geoterrain.export.qmesh import write_tileset
+    from geoterrain.ingest.synth import generate
+
+    d = tmp_path_factory.mktemp("qmesh_steep")
+    z = generate("fbm", 65, seed=9).astype(np.float32) * 0.1
+    dem = write_tif(d / "steep.tif", z, crs="EPSG:4326", origin=(138.71, 35.37),
+                    spacing=1 / 3600, nodata=-9999)
+    with geoterrain.open(geoterrain.preprocess(dem, tile_size=32)) as t:
+        write_tileset(t, d / "tiles", max_error=2.0)
+    return _read_tileset(d / "tiles", dem)
+
+
+def _coords(t):
+    v = np.array(t.getVerticesCoordinates(), np.float64)
+    return v[:, 0], v[:, 1], v[:, 2]
+
+
+@pytest.mark.parametrize("which", SETS)
+def test_every_tile_decodes_with_its_extensions(which, request):
+    tileset = request.getfixturevalue(which)
+    out, tiles, _, _ = tileset
+    layer = json.loads((out / "layer.json").read_text())
+    assert layer["format"] == "quantized-mesh-1.0" and layer["scheme"] == "tms"
+    assert set(layer["extensions"]) == {"octvertexnormals", "watermask"}
+    listed = {(z, x, y) for z, rects in enumerate(layer["available"]) for r in rects
+              for x in range(r["startX"], r["endX"] + 1) for y in range(r["startY"], r["endY"] + 1)}
+    assert listed == set(tiles)
+    assert {(0, 0, 0), (0, 1, 0)} <= set(tiles)
+    assert layer["maxzoom"] == max(z for z, _, _ in tiles)
+    for t in tiles.values():
+        lon, lat, hgt = _coords(t)
+        assert len(t.indices) % 3 == 0 and len(t.indices) > 0
+        assert len(t.vLight) == len(lon)  # one oct-encoded normal per vertex
+        assert np.allclose(np.linalg.norm(np.array(t.vLight), axis=1), 1, atol=0.02)
+        assert len(t.watermask) == 1
+
+
+@pytest.mark.parametrize("which", [*SETS, "steep"])
+def test_heights_within_the_declared_error_of_the_dem(which, request):
+    tileset = request.getfixturevalue(which)
+    out, tiles, h, transform = tileset
+    declared = json.loads((out / "geoterrain.json").read_text())["declared_error"]
+    rows, cols = np.mgrid[0:h.shape[0], 0:h.shape[1]]
+    slon, slat = rasterio.transform.xy(transform, rows.ravel(), cols.ravel())
+    slon, slat = np.asarray(slon), np.asarray(slat)
+    dem = h.filled(np.nan).ravel()
+    checked = 0
+    for (z, x, y), t in tiles.items():
+        lon, lat, hgt = _coords(t)
+        w, s, e, n = tile_rect(z, x, y)
+        inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n) & np.isfinite(dem)
+        if not inside.any():
+            continue
+        tri = mtri.Triangulation(lon, lat, np.array(t.indices).reshape(-1, 3))
+        surf = np.ma.filled(mtri.LinearTriInterpolator(tri, hgt)(slon[inside], slat[inside]),
+                            np.nan)
+        diff = np.abs(surf - dem[inside])
+        diff = diff[np.isfinite(diff)]
+        checked += len(diff)
+        assert diff.max(initial=0) <= declared[f"{z}/{x}/{y}"] + 1e-3, (z, x, y)
+    assert checked > 10000
+
+
+@pytest.mark.parametrize("which", [*SETS, "steep"])
+def test_declared_errors_fit_cesiums_level_error(which, request):
+    """Below max zoom each tile's declared error (an a-priori bound: resampling error +
+    largest left-out δ + quantisation) is ≤ Cesium's levelMaximumGeometricError."""
+    from geoterrain.export.qmesh import cesium_level_error
+
+    out, tiles, _, _ = request.getfixturevalue(which)
+    info = json.loads((out / "geoterrain.json").read_text())
+    zmax = info["max_zoom"]
+    below = [(k, v) for k, v in info["declared_error"].items() if int(k.split("/")[0]) < zmax]
+    assert len(below) > 5
+    for k, v in below:
+        assert v <= cesium_level_error(int(k.split("/")[0])) + 1e-4, k
+    assert info["over_level_error"] == sum(
+        v > info["levels"][k.split("/")[0]]["level_error"] + 1e-4
+        for k, v in info["declared_error"].items())
+
+
+@pytest.mark.parametrize("which", SETS)
+def test_neighbours_share_their_edge_vertices_exactly(which, request):
+    tileset = request.getfixturevalue(which)
+    _, tiles, _, _ = tileset
+    pairs = set()
+    for (z, x, y), t in tiles.items():
+        for (dx, dy), mine, theirs in (((1, 0), "eastI", "westI"), ((0, 1), "northI", "southI")):
+            o = tiles.get((z, x + dx, y + dy))
+            if o is None:
+                continue
+            a = np.array(_coords(t)).T[getattr(t, mine)]
+            b = np.array(_coords(o)).T[getattr(o, theirs)]
+            a, b = a[np.lexsort(a.T[::-1])], b[np.lexsort(b.T[::-1])]
+            assert a.shape == b.shape and len(a) > 0, (z, x, y, dx, dy)
+            assert np.array_equal(a[:, 2], b[:, 2])  # identical heights
+            along = 1 if dx else 0  # latitude along an east edge, longitude along a north one
+            assert np.allclose(a[:, along], b[:, along], rtol=0, atol=1e-9)
+            pairs.add((z, dx))
+    assert {(10, 1), (10, 0), (11, 1), (11, 0)} <= pairs  # east and north edges, two levels
+
+
+@pytest.mark.parametrize("which", SETS)
+def test_no_vertex_at_a_nodata_sample(which, request):
+    tileset = request.getfixturevalue(which)
+    _, tiles, h, transform = tileset
+    bad = np.ma.getmaskarray(h)
+    inv = ~transform
+    for (z, _, _), t in tiles.items():
+        if z < 8:  # the flat placeholder tiles of the coarsest levels lie outside the grid
+            continue
+        lon, lat, _ = _coords(t)
+        c = inv.a * lon + inv.b * lat + inv.c - 0.5  # sample (pixel-centre) coordinates
+        r = inv.d * lon + inv.e * lat + inv.f - 0.5
+        assert (r > -1e-6).all() and (c > -1e-6).all()
+        assert (r < h.shape[0] - 1 + 1e-6).all() and (c < h.shape[1] - 1 + 1e-6).all()
+        r0, c0 = np.floor(r + 1e-9).astype(int), np.floor(c + 1e-9).astype(int)
+        for dr in (0, 1):
+            for dc in (0, 1):
+                rr = np.minimum(r0 + dr, h.shape[0] - 1)
+                cc = np.minimum(c0 + dc, h.shape[1] - 1)
+                near = (np.abs(r - rr) < 1) & (np.abs(c - cc) < 1)
+                assert not bad[rr[near], cc[near]].any()
+
+
+def test_tiles_refuses_to_overwrite_a_layer(tileset):
+    from geoterrain.cli.main import cli
+
+    out, _, _, _ = tileset
+    store = next(out.parent.glob("*.geoterrain"))
+    res = CliRunner().invoke(cli, ["tiles", str(store), "-o", str(out)])
+    assert res.exit_code == 2 and "exists" in res.stderr
+
+
+def test_geoid_gives_ellipsoidal_heights_within_the_declared_error(tmp_path):
+    """--geoid egm96: decoded heights are the DEM's + the EGM96 undulation N (pyproj here,
+    straight from the grid), within each tile's declared error; without the grid, a
+    one-line error."""
+    from pyproj import Transformer
+
+    from geoterrain.cli.main import cli
+    from geoterrain.exceptions import UsageError
+    from geoterrain.export.qmesh import geoid_transformer
+    from geoterrain.ingest.synth import generate
+
+    z = generate("fbm", 65, seed=2).astype(np.float32) * 0.1
+    dem = write_tif(tmp_path / "g.tif", z, crs="EPSG:4326", origin=(138.71, 35.37),
+                    spacing=1 / 3600, nodata=-9999)
+    store = geoterrain.preprocess(dem, tile_size=32)
+    try:
+        geoid_transformer()
+    except UsageError as exc:
+        res = CliRunner().invoke(cli, ["tiles", str(store), "-o", str(tmp_path / "t"),
+                                       "--geoid", "egm96"])
+        assert res.exit_code == 2 and "proj-data" in res.stderr
+        pytest.skip(f"no EGM96 grid: {exc}")
+    res = CliRunner().invoke(cli, ["-q", "tiles", str(store), "-o", str(tmp_path / "t"),
+                                   "--geoid", "egm96"], catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    out, tiles, h, transform = _read_tileset(tmp_path / "t", dem)
+    info = json.loads((out / "geoterrain.json").read_text())
+    assert info["heights"].startswith("WGS 84 ellipsoidal")
+    rows, cols = np.mgrid[0:h.shape[0], 0:h.shape[1]]
+    slon, slat = (np.asarray(a) for a in rasterio.transform.xy(transform, rows.ravel(),
+                                                                   cols.ravel()))
+    tr = Transformer.from_crs("EPSG:4326+5773", "EPSG:4979", always_xy=True)
+    ell = np.asarray(tr.transform(slon, slat, h.filled(np.nan).ravel())[2])
+    assert 35 < np.nanmean(ell - h.filled(np.nan).ravel()) < 45  # N ≈ +40 m at Fuji
+    zmax = info["max_zoom"]
+    t = tiles[max(k for k in tiles if k[0] == zmax)]
+    lon, lat, hgt = _coords(t)
+    w, s, e, n = tile_rect(*max(k for k in tiles if k[0] == zmax))
+    inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)
+    surf = mtri.LinearTriInterpolator(mtri.Triangulation(lon, lat, np.array(t.indices)
+                                                         .reshape(-1, 3)), hgt)
+    diff = np.abs(np.ma.filled(surf(slon[inside], slat[inside]), np.nan) - ell[inside])
+    key = "/".join(map(str, max(k for k in tiles if k[0] == zmax)))
+    assert np.nanmax(diff) <= info["declared_error"][key] + 1e-3
+    assert np.isfinite(diff).sum() > 100
+
+
+def test_rough_levels_are_rebuilt_on_a_finer_lattice(tmp_path):
+    """Where the resampling error leaves no room under the level error, the whole level is
+    rebuilt on a 257² lattice: its tiles still hold their declared bound at every DEM
+    sample and still share edge vertices; tiles over the level error are counted."""
+    from geoterrain.export.qmesh import write_tileset
+    from geoterrain.ingest.synth import generate
+
+    z = generate("fbm", 65, seed=9).astype(np.float32)  # 0–2000 m over 2 km
+    dem = write_tif(tmp_path / "rough.tif", z, crs="EPSG:4326", origin=(138.71, 35.37),
+                    spacing=1 / 3600, nodata=-9999)
+    with geoterrain.open(geoterrain.preprocess(dem, tile_size=32)) as t:
+        write_tileset(t, tmp_path / "tiles", max_error=2.0)
+    out, tiles, h, transform = _read_tileset(tmp_path / "tiles", dem)
+    info = json.loads((out / "geoterrain.json").read_text())
+    fine = [int(z) for z, v in info["levels"].items() if v["lattice"] == 257]
+    assert fine and max(fine) < info["max_zoom"]
+    rows, cols = np.mgrid[0:h.shape[0], 0:h.shape[1]]
+    slon, slat = (np.asarray(a) for a in rasterio.transform.xy(transform, rows.ravel(),
+                                                                   cols.ravel()))
+    dem_h = h.filled(np.nan).ravel()
+    checked = 0
+    for (zz, x, y), tile in tiles.items():
+        if zz not in fine:
+            continue
+        lon, lat, hgt = _coords(tile)
+        w, s, e, n = tile_rect(zz, x, y)
+        step = np.diff(np.unique(lon)).min() / (e - w)  # 1/256 on a 257² lattice
+        assert abs(step * 256 - 1) < 0.01, (zz, step)
+        checked += 1
+        inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)
+        tri = mtri.Triangulation(lon, lat, np.array(tile.indices).reshape(-1, 3))
+        surf = np.ma.filled(mtri.LinearTriInterpolator(tri, hgt)(slon[inside], slat[inside]),
+                            np.nan)
+        diff = np.abs(surf - dem_h[inside])
+        assert np.nanmax(diff) <= info["declared_error"][f"{zz}/{x}/{y}"] + 1e-3
+        o = tiles.get((zz, x + 1, y))
+        if o is not None:
+            a = np.array(_coords(tile)).T[tile.eastI]
+            b = np.array(_coords(o)).T[o.westI]
+            assert np.array_equal(np.sort(a[:, 2]), np.sort(b[:, 2]))
+    assert checked >= len(fine)
+    over = sum(v > info["levels"][k.split("/")[0]]["level_error"] + 1e-4
+               for k, v in info["declared_error"].items())
+    assert info["over_level_error"] == over

@@ -1,0 +1,69 @@
+"""Notebook conventions: the HTML summary, plot, top-level names and the docs notebook."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+import geoterrain
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_top_level_names():
+    from geoterrain.rendering import animation, cameras
+
+    assert geoterrain.default_view is cameras.default_view
+    assert geoterrain.orbit is animation.orbit
+    assert {"default_view", "orbit"} <= set(dir(geoterrain))
+
+
+def test_repr_html_summarises_the_terrain(tmp_path, fbm_tif):
+    import base64
+    import io
+    import re
+
+    from PIL import Image
+
+    t = geoterrain.open(geoterrain.preprocess(fbm_tif, tmp_path / "a.geoterrain", tile_size=32))
+    h = t._repr_html_()
+    info = t.info()
+    for word in ("UTM", "km", f"{info['levels']} levels", info["codec"], "129 × 129"):
+        assert word in h, word
+    png = re.search(r"data:image/png;base64,([A-Za-z0-9+/=]+)", h).group(1)
+    img = Image.open(io.BytesIO(base64.b64decode(png)))
+    assert img.size == (129, 129)  # the data, not the padding
+    import numpy as np
+
+    assert len(np.unique(np.asarray(img).reshape(-1, 3), axis=0)) > 100  # shaded, not blank
+    t.close()
+
+
+def test_plot_without_a_notebook_backend_is_an_image(tmp_path, fbm_tif):
+    import numpy as np
+
+    t = geoterrain.open(geoterrain.preprocess(fbm_tif, tmp_path / "a.geoterrain", tile_size=32))
+    img = t.plot(size=(320, 180))
+    assert img.size == (320, 180)
+    a = np.asarray(img)
+    assert (np.abs(a.astype(int) - a[0, 0]).sum(-1) > 30).mean() > 0.1  # terrain is drawn
+    t.close()
+
+
+def test_docs_notebook_runs(tmp_path, monkeypatch):
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(
+        [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    nb = nbformat.read(ROOT / "docs" / "quickstart.ipynb", as_version=4)
+    nbclient.NotebookClient(nb, timeout=300, kernel_name="python3",
+                            resources={"metadata": {"path": str(tmp_path)}}).execute()
+    outs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
+    assert not [o for o in outs if o.output_type == "error"]
+    assert any("text/html" in o.get("data", {}) for o in outs)  # the Terrain summary
+    assert any("image/png" in o.get("data", {}) for o in outs)  # t.plot()
+    text = "".join(o.get("text", "") for o in outs)
+    assert "terrain.glb" in text and "True" in text

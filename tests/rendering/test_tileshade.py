@@ -1,0 +1,96 @@
+"""The fused tile shading (geoterrain.rendering.tileshade) against the numpy composition it
+replaces:
+colours.colorize × textures._hillshade(decode_octahedral(codes)), clipped, rounded."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from geoterrain.bounds.normals import decode_octahedral
+from geoterrain.bounds.vertexdata import normals_from_bytes, normals_to_bytes
+from geoterrain.rendering.colours import LAND, WATER, Palette, colorize, water_level
+from geoterrain.rendering.textures import AMBIENT, SHADE_CEILING, _hillshade, _sun
+from geoterrain.rendering.tileshade import shade_tile
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2 ** 32 - 1), st.booleans(), st.booleans(),
+       st.sampled_from([None, -20.0, 0.0, 150.0]), st.booleans(),
+       st.sampled_from([0.0, 0.5, 30.0]))
+def test_fused_shading_is_the_numpy_composition(seed, planar, with_clim, wl, low_data, tol):
+    rng = np.random.default_rng(seed)
+    T = int(rng.integers(2, 40))
+    lo = -300.0 if low_data else 50.0
+    h = rng.uniform(lo, 900.0, (T, T))
+    h[rng.random((T, T)) < 0.1] = np.nan  # nodata: coloured as 0 m
+    h[0, 0] = 0.0
+    codes = rng.integers(0, 256, (T, T, 2)).astype(np.uint8)
+    pal = Palette("auto", clim=(-100.0, 700.0) if with_clim else None, water_level=wl)
+    rng_data = (lo, 900.0)
+    rgb = colorize(np.nan_to_num(h, nan=0.0), pal, rng_data, tol)
+    rgb *= _hillshade(decode_octahedral(codes, 8))[..., None]
+    want = (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
+    raw = normals_to_bytes(codes) if planar else codes.tobytes()
+    assert planar is False or np.array_equal(normals_from_bytes(raw, T), codes)
+    got = shade_tile(h, np.frombuffer(raw, np.uint8), planar, 8, _sun(), AMBIENT,
+                     SHADE_CEILING, pal.clim if pal.clim is not None else rng_data,
+                     water_level(pal, rng_data), LAND, WATER, tol)
+    d = np.abs(got.astype(int) - want.astype(int))
+    assert d.max() <= 1  # the dot product's float32 rounding (numpy's matmul order)
+    assert (d > 0).mean() < 0.01
+
+
+def test_shade_table_is_the_per_code_hillshade():
+    """The table the fused shading looks codes up in holds, for every 8-bit code, exactly
+    the hillshade the code decodes to (hillshade_codes, one code at a time)."""
+    from geoterrain.bounds.normals import hillshade_codes
+    from geoterrain.rendering.tileshade import shade_lut
+
+    u, v = np.meshgrid(np.arange(256), np.arange(256), indexing="ij")
+    codes = np.stack([u, v], -1).astype(np.uint8)
+    for light in (_sun(), np.array([0.6, -0.3, 0.74], np.float32)):
+        light = (light / np.linalg.norm(light)).astype(np.float32)
+        want = hillshade_codes(codes, 8, light, AMBIENT, SHADE_CEILING)
+        assert np.array_equal(shade_lut(light, AMBIENT, SHADE_CEILING), want)
+
+
+def test_ramp_slopes_are_numpy_s():
+    """The ramps' cached slopes give np.interp's values to the bit (its formula)."""
+    from geoterrain.rendering.tileshade import _stops
+
+    x = np.linspace(-0.1, 1.1, 2001)
+    x = np.clip(np.concatenate([x, [0.15, 0.35, 0.6, 0.82, 1.0, 0.0]]), 0.0, 1.0)
+    for ramp in (LAND, WATER):
+        xp, fp, slope = _stops(ramp)
+        for k in range(3):
+            j = np.clip(np.searchsorted(xp, x, side="right") - 1, 0, len(xp) - 1)
+            last = j == len(xp) - 1
+            jj = np.minimum(j, len(xp) - 2)
+            got = np.where(last | (xp[j] == x), fp[j, k], slope[jj, k] * (x - xp[j]) + fp[j, k])
+            assert np.array_equal(got, np.interp(x, xp, fp[:, k]))
+
+
+def test_a_lossy_flat_sea_keeps_one_colour(tmp_path):
+    """A store coded within ε decodes a flat sea at 0 m to heights that wander within
+    ±ε (residual bins keep each prediction's error); the colours treat heights within ε
+    of the water level as its surface, so the sea stays one colour, as losslessly."""
+    import geoterrain
+    from geoterrain.ingest.synth import generate, write_geotiff
+    from geoterrain.rendering.textures import elevation_range, height_tolerance
+
+    z = generate("fbm", 257, seed=3).astype(np.float64)
+    z = np.round((z - z.min()) / (z.max() - z.min()) * 800.0 - 250.0)
+    z[z < 0] = 0.0  # a sea at 0 m around a coast
+    dem = write_geotiff(str(tmp_path / "sea.tif"), z.astype(np.int16))
+    t = geoterrain.open(geoterrain.preprocess(dem, tmp_path / "sea.gt", codec_error=2.0))
+    sea = [t.tile(0, x, y).heights[z[y * 64:y * 64 + 65, x * 64:x * 64 + 65] == 0]
+           for y in range(4) for x in range(4)]
+    sea = np.concatenate(sea)
+    assert t.quantizer.bins == 5 and np.abs(sea).max() <= 2.0
+    assert np.unique(sea).size > 1  # the premise: the decoded sea is not flat
+    pal = Palette("auto")
+    rgb = colorize(sea, pal, elevation_range(t), height_tolerance(t))
+    assert height_tolerance(t) == 2.0 and (rgb == rgb[0]).all()
+    assert not (colorize(sea, pal, elevation_range(t)) == rgb[0]).all()  # without it
