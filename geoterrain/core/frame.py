@@ -222,6 +222,23 @@ class Frame:
         return Frame(**d)
 
 
+def level_transform(transform, level: int):
+    """The affine transform (rasterio ``Affine``) of pyramid level L of a source grid.
+
+    Pixel centre k of level L is source pixel centre k·2^L.
+
+    Examples
+    --------
+    >>> level_transform((10.0, 0.0, 500.0, 0.0, -10.0, 900.0), 1)
+    Affine(20.0, 0.0, 495.0,
+           0.0, -20.0, 905.0)
+    """
+    from rasterio.transform import Affine
+
+    s = float(1 << level)
+    return Affine(*transform[:6]) @ Affine.translation(0.5 - s / 2, 0.5 - s / 2) @ Affine.scale(s)
+
+
 def _scale_factor(crs: CRS, transform, rows: int, cols: int) -> float:
     """The projection's point scale factor at the grid centre, where it departs from 1 by
     more than 1 % (Web Mercator: 1/cos φ); else 1, so conformal grids such as UTM keep

@@ -30,27 +30,11 @@ from pathlib import Path
 
 import numpy as np
 
+from geoterrain.core.frame import level_transform
 from geoterrain.exceptions import UsageError, WriteError, exists_error
 from geoterrain.rendering.textures import _hillshade
 
 PRODUCTS = ("hillshade", "normals", "slope", "error")
-
-
-def level_transform(transform, level: int):
-    """The affine transform (rasterio ``Affine``) of pyramid level L of a source grid.
-
-    Pixel centre k of level L is source pixel centre k·2^L.
-
-    Examples
-    --------
-    >>> level_transform((10.0, 0.0, 500.0, 0.0, -10.0, 900.0), 1)
-    Affine(20.0, 0.0, 495.0,
-           0.0, -20.0, 905.0)
-    """
-    from rasterio.transform import Affine
-
-    s = float(1 << level)
-    return Affine(*transform[:6]) @ Affine.translation(0.5 - s / 2, 0.5 - s / 2) @ Affine.scale(s)
 
 
 def level_shape(terrain, level: int) -> tuple[int, int]:

@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from geoterrain.core.frame import level_transform
 from geoterrain.exceptions import InputError, UsageError
 
 
@@ -78,7 +79,6 @@ def drape_image(terrain, path: str | Path, level: int,
     from rasterio.enums import Resampling
     from rasterio.warp import reproject
 
-    from geoterrain.export.rasters import level_transform
 
     f = _georeferenced(terrain)
     p = Path(path)
@@ -177,7 +177,6 @@ def drape_tile(terrain, drape: Drape, level: int, x: int, y: int
     from rasterio.transform import Affine
     from rasterio.warp import reproject
 
-    from geoterrain.export.rasters import level_transform
 
     f = _georeferenced(terrain)
     rgb, mask, src_crs, src_tr = _source(drape.path)
