@@ -23,19 +23,19 @@ from pathlib import Path
 import geoterrain
 from geoterrain.bench import harness as bench
 from geoterrain.lod import geomipmap
-from geoterrain.lod.switches import geomorphing
 
 MODES = ("tile bound", "exact", "exact, morph")
 
 
 def run(store: str, mode: str, taus: tuple[float, ...], views: int) -> list[dict]:
     """bench rows of one configuration: one of ``MODES`` or ``chunked``."""
-    with geoterrain.open(store) as t, geomorphing(mode.endswith("morph")):
+    with geoterrain.open(store) as t:
         if mode == "tile bound":
             t.block_errors = lambda: None  # as a store written before the table
-        geomipmap._TABLES.clear()
+        t.forget(geomipmap.__name__)
         strategy = "chunked" if mode == "chunked" else "geomipmap"
-        return bench.run(t, n_views=views, taus=taus, strategies=(strategy,)).rows
+        return bench.run(t, n_views=views, taus=taus, strategies=(strategy,),
+                         morph=mode.endswith("morph")).rows
 
 
 def main(argv=None) -> None:

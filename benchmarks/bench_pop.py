@@ -35,7 +35,6 @@ import geoterrain  # noqa: E402
 from geoterrain import lod  # noqa: E402
 from geoterrain.bench.harness import extent, glide  # noqa: E402
 from geoterrain.lod import cdlod  # noqa: E402
-from geoterrain.lod.switches import occlusion_culling  # noqa: E402
 from geoterrain.testing.measure import screen_space_change, screen_space_error  # noqa: E402
 
 
@@ -51,11 +50,12 @@ def surface_of(mesh):
 def select(t, view, tau, name):
     t0 = time.perf_counter()
     if name == "cdlod-nomorph":
-        mesh, _ = cdlod.select(t, view, tau, morph=False)
+        mesh, _ = cdlod.select(t, view, tau, occlusion=False, morph=False)
     elif name.endswith("-morph"):  # rtin-morph, chunked-morph, geomipmap-morph
-        mesh = lod.select(t, view, tau, name[:-len("-morph")], reuse=False, morph=True).mesh
+        mesh = lod.select(t, view, tau, name[:-len("-morph")], reuse=False, occlusion=False,
+                          morph=True).mesh
     else:
-        mesh = lod.select(t, view, tau, name, reuse=False).mesh
+        mesh = lod.select(t, view, tau, name, reuse=False, occlusion=False).mesh
     return mesh, (time.perf_counter() - t0) * 1e3
 
 
@@ -69,9 +69,7 @@ def main() -> None:
                     default="cdlod,cdlod-nomorph,rtin,rtin-morph,chunked,chunked-morph,"
                             "geomipmap,geomipmap-morph")
     a = ap.parse_args()
-    # every sample in view counts, hidden ones too: the LOD's own popping, no culling
-    with occlusion_culling(False):
-        run(a)
+    run(a)  # every sample in view counts, hidden ones too: the LOD's own popping, no culling
 
 
 def run(a) -> None:

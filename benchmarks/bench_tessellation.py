@@ -38,7 +38,6 @@ from bench_lod import flight  # noqa: E402
 import geoterrain  # noqa: E402
 from geoterrain.bench.harness import extent, glide  # noqa: E402
 from geoterrain.lod import tessellation  # noqa: E402
-from geoterrain.lod.switches import occlusion_culling  # noqa: E402
 from geoterrain.testing.measure import screen_space_error  # noqa: E402
 
 
@@ -82,7 +81,8 @@ def figure(t, scene, n_frames: int, tau: float, path: str, step: float) -> None:
     hist = np.zeros(7, np.int64)
     for v in views:
         for name, ham in (("HAM tessellation", True), ("straight VD LOD", False)):
-            mesh, st = tessellation.select(t, v, tau, ham=ham)
+            # every patch in view counts, as on seed 004's GPU: no culling
+            mesh, st = tessellation.select(t, v, tau, occlusion=False, ham=ham)
             ij, f, z = _surface(mesh)
             rows[name].append(len(f))
             rho[name].append(_rho(ij, f, z, scene, v) if len(f) else 0.0)
@@ -151,8 +151,7 @@ def main() -> None:
     valid = np.isfinite(Z)
     scene = (X, Y, np.where(valid, Z, 0.0), valid)
     if a.figure:
-        with occlusion_culling(False):  # every patch in view counts, as on seed 004's GPU
-            figure(t, scene, a.frames, a.tau, a.figure, a.step)
+        figure(t, scene, a.frames, a.tau, a.figure, a.step)
     else:
         table(t, scene, a.views, a.tau)
 

@@ -16,12 +16,6 @@ from geoterrain.cli.options import (
 )
 
 
-def _aa() -> str:
-    from geoterrain.rendering.antialias import _AA
-
-    return _AA.get()
-
-
 def _floats(ctx, param, value):
     if value is None:
         return None
@@ -61,8 +55,9 @@ def _floats(ctx, param, value):
 @click.option("--cache-dir", type=click.Path(file_okay=False),
               help="Where a DEM's store is written (default: a temporary directory).")
 @click.pass_context
-def command(ctx, source, synthetic, seed, strategies, pixel_errors, n_views, cameras, size,
-            render, peers, peer_errors, output, plot_path, cache_dir):
+def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_aliasing,
+            pixel_errors, n_views, cameras, size, render, peers, peer_errors, output, plot_path,
+            cache_dir):
     """Benchmark the LOD strategies on SOURCE (a store or a DEM) or a synthetic DEM.
 
     Runs every strategy at every τ over a camera path (a built-in flight of
@@ -108,7 +103,8 @@ def command(ctx, source, synthetic, seed, strategies, pixel_errors, n_views, cam
         res = bench.benchmark(source, synthetic=synthetic, seed=seed, strategies=strategies,
                               taus=pixel_errors, n_views=n_views, cameras=cameras, size=size,
                               render=render, peer_errors=(peer_errors or True) if peers
-                              else False, work_dir=cache_dir, progress=progress)
+                              else False, work_dir=cache_dir, progress=progress,
+                              occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing)
     finally:
         if bar is not None:
             bar.__exit__(None, None, None)
@@ -120,7 +116,7 @@ def command(ctx, source, synthetic, seed, strategies, pixel_errors, n_views, cam
                f"{len(pixel_errors)} τ = {len(res.rows)} frames, {res.wall_s:.1f} s wall"
                + (f"; preprocess {res.preprocess_s:.2f} s" if res.preprocess_s is not None
                   else "") + f"; store {res.store_bytes / 2**20:.2f} MiB"
-               + (f"; rendered with {_aa()} anti-aliasing" if render else ""))
+               + (f"; rendered with {anti_aliasing} anti-aliasing" if render else ""))
     click.echo(format_table(summarise(res.rows)))
     if res.peers:
         click.echo("\n# static meshes at matched vertical error (m)")

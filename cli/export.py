@@ -42,7 +42,7 @@ from geoterrain.cli.options import (
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, size,
-            pixel_error, strategy, shading, cmap, texture_size, drape, base_height,
+            pixel_error, strategy, occlusion, shading, cmap, texture_size, drape, base_height,
             print_size, overwrite):
     """Export STORE's mesh for other tools: static (--max-error) or for a view.
 
@@ -78,7 +78,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     max_error = mesh_request(max_error, look_from, look_at)
     with geoterrain.open(store) as t:
         sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error,
-                          strategy)
+                          strategy, occlusion)
         export_mesh(t, sel, out, overwrite=overwrite, shading=shading, cmap=cmap,
                     texture_size=texture_size, drape=drape, base_height=base_height,
                     print_size=print_size,

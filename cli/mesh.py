@@ -31,7 +31,7 @@ from geoterrain.cli.options import (
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, size,
-            pixel_error, strategy, vertical_exaggeration, overwrite):
+            pixel_error, strategy, occlusion, vertical_exaggeration, overwrite):
     """Write a mesh of STORE: static (--max-error) or for a view (--look-from/--look-at).
 
     A static mesh keeps every vertex whose error bound δ exceeds --max-error, so
@@ -65,7 +65,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
             if max_error is not None:
                 check_in_memory(t, max_error, out)
             sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size,
-                              pixel_error, strategy)
+                              pixel_error, strategy, occlusion)
             write_mesh(with_elevation(t, sel.mesh), out, overwrite=overwrite)
             stats = sel.stats
     if not ctx.obj["quiet"]:

@@ -107,30 +107,15 @@ def _positive(ctx, param, value):
     return value
 
 
-def _set_occlusion(ctx, param, value):
-    from geoterrain.lod.switches import occlusion_culling
-
-    ctx.with_resource(occlusion_culling(value))  # for this command's run only
-    return value
-
-
 occlusion_option = click.option(
-    "--occlusion/--no-occlusion", default=True, show_default=True, expose_value=False,
-    callback=_set_occlusion,
+    "--occlusion/--no-occlusion", default=True, show_default=True,
     help="Skip tiles hidden behind nearer terrain before reading them (horizon culling; "
          "conservative: nothing visible is lost). --no-occlusion draws them too.")
 
 
-def _set_anti_aliasing(ctx, param, value):
-    from geoterrain.rendering.antialias import anti_aliasing
-
-    ctx.with_resource(anti_aliasing(value))  # for this command's run only
-    return value
-
-
 anti_aliasing_option = click.option(
     "--anti-aliasing", type=click.Choice(["auto", "msaa", "edges", "fxaa", "none"]),
-    default="auto", show_default=True, expose_value=False, callback=_set_anti_aliasing,
+    default="auto", show_default=True,
     help="Smoothing of jagged edges in pictures: auto (edges for a picture whose "
          "silhouettes are sparse, else msaa), msaa (the renderer's multisampling), edges "
          "(the mesh's silhouette edges blended by their exact coverage on the CPU: about "
@@ -140,16 +125,8 @@ anti_aliasing_option = click.option(
          "none.")
 
 
-def _set_morphing(ctx, param, value):
-    from geoterrain.lod.switches import geomorphing
-
-    if value is not None:
-        ctx.with_resource(geomorphing(value))  # for this command's run only
-    return value
-
-
 morph_option = click.option(
-    "--morph/--no-morph", default=None, expose_value=False, callback=_set_morphing,
+    "--morph/--no-morph", default=None,
     help="Geomorph: a vertex slides into place instead of popping as the camera moves "
          "(rtin: it appears at 0.75 τ, costing triangles; chunked: a chunk slides from "
          "its parent's surface; geomipmap: each block slides between its levels; "
@@ -339,9 +316,10 @@ def mesh_request(max_error, look_from, look_at) -> float | None:
     return e
 
 
-def select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error, strategy):
+def select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error, strategy,
+                occlusion: bool = True):
     """The static selection of bound ``max_error``, or the view's (source-CRS camera points
-    with ``crs_coords``), after :func:`mesh_request`."""
+    with ``crs_coords``; horizon culling with ``occlusion``), after :func:`mesh_request`."""
     import geoterrain
     from geoterrain.exceptions import UsageError
 
@@ -352,4 +330,4 @@ def select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_e
     if look_from == look_at:
         raise UsageError("--look-from and --look-at must differ")
     return t.select(geoterrain.View(look_from, look_at, fov_y_deg=fov, size=size), pixel_error,
-                    strategy)
+                    strategy, occlusion=occlusion)

@@ -63,7 +63,8 @@ from geoterrain.cli.options import (
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
-            fov, pixel_error, strategy, vertical_exaggeration, shading, cmap, clim, water_level,
+            fov, pixel_error, strategy, occlusion, morph, anti_aliasing, vertical_exaggeration,
+            shading, cmap, clim, water_level,
             sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity, title,
             no_overlays, stats_path, orbit, cameras, frames_between, fps, overwrite):
     """Render STORE offscreen: each frame selects its own level of detail.
@@ -132,7 +133,8 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             bar = StageBar("rendering", quiet)
             kw = dict(pixel_error=pixel_error, strategy=strategy, shading=shading, cmap=cmap,
                       title=title, fps=fps, progress=lambda d, n: bar("frame", d, n),
-                      overwrite=overwrite, light=lit, drape=dr, **overlays)
+                      overwrite=overwrite, light=lit, drape=dr, occlusion=occlusion,
+                      morph=morph, anti_aliasing=anti_aliasing, **overlays)
             try:
                 if orbit is not None:
                     frames = A.orbit(t, out, orbit, size=size, azimuth=azimuth,
@@ -167,6 +169,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
         st = R.render(t, view, out, pixel_error=pixel_error, strategy=strategy,
                       shading=shading, cmap=cmap, title=title, scale_bar=not no_overlays,
                       stats_path=stats_path, overwrite=overwrite, light=lit, drape=dr,
+                      occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing,
                       **overlays)
     if not quiet:
         click.echo(f"wrote {out}: {st['triangles']:,} triangles ({strategy}, τ = "

@@ -38,7 +38,8 @@ from geoterrain.cli.options import (
               help="Window WIDTHxHEIGHT.")
 @click.option("--rebuild", is_flag=True, help="Preprocess the DEM again even if cached.")
 @click.pass_context
-def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, cmap, clim,
+def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exaggeration,
+            shading, cmap, clim,
             water_level, sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity,
             size, rebuild):
     """Open SOURCE (a store or a DEM) in an interactive 3-D window.
@@ -93,7 +94,7 @@ def command(ctx, source, strategy, pixel_error, vertical_exaggeration, shading, 
     with geoterrain.open(store) as base:
         t = exaggerated(base, vertical_exaggeration)
         show(t, strategy, pixel_error, shading=shading, cmap=palette(cmap, clim, water_level),
-             size=size, light=lit, drape=dr)
+             size=size, light=lit, drape=dr, occlusion=occlusion, morph=morph)
 
 
 def has_display() -> bool:

@@ -26,13 +26,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import weakref
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
 from geoterrain.exceptions import UsageError
 
-_WRAPPED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
+
+_T = TypeVar("_T")
 _VERTICAL = ("zmin", "zmax", "error", "boundary_error", "delta_max")
 
 
@@ -48,14 +52,15 @@ def check_exaggeration(n: float) -> float:
     return n
 
 
-def exaggerated(terrain, n: float):
-    """``terrain`` seen with its heights × ``n`` (the same object when n = 1)."""
+def exaggerated(terrain: TerrainLike, n: float) -> TerrainLike:
+    """``terrain`` seen with its heights × ``n`` (the same object when n = 1; one view a
+    factor, kept with the terrain)."""
     n = check_exaggeration(n)
     if n == 1.0:
         return terrain
     if isinstance(terrain, Exaggerated):
         return exaggerated(terrain.base, terrain.n * n)
-    per = _WRAPPED.setdefault(terrain, {})
+    per = terrain.derived(__name__, dict)
     if n not in per:
         per[n] = Exaggerated(terrain, n)
     return per[n]
@@ -64,11 +69,13 @@ def exaggerated(terrain, n: float):
 class Exaggerated:
     """A read-only view of a terrain with its scene heights (and error data) × ``n``.
 
-    Everything not overridden here is the base terrain's own (grid, tiles in
-    source units, tile keys, x, y, caches).
+    It implements :class:`~geoterrain.core.terrainlike.TerrainLike`. Everything not
+    overridden here is the base terrain's own (grid, tiles in source units, tile keys,
+    x, y, the tile cache); what other modules derive from it (:meth:`derived`) is its
+    own, as its error data differ.
     """
 
-    def __init__(self, base, n: float):
+    def __init__(self, base: TerrainLike, n: float):
         self.base, self.n = base, float(n)
         self.r_scale = max(self.n, 1.0)
         self.frame = dataclasses.replace(base.frame, z_scale=base.frame.z_scale * self.n)
@@ -82,8 +89,23 @@ class Exaggerated:
                 d["radius_max"] = d["radius_max"] * self.r_scale
             self.tile_info[k] = d
         self._own: dict = {}
+        self._derived: dict[str, Any] = {}
 
     stored_normals = False  # tile_normals are rescaled, not the stored codes' normals
+
+    def derived(self, owner: str, make: Callable[[], _T]) -> _T:
+        """This view's own :meth:`~geoterrain.terrain.Terrain.derived` slot."""
+        got = self._derived.get(owner)
+        if got is None:
+            got = self._derived[owner] = make()
+        return got
+
+    def forget(self, owner: str | None = None) -> None:
+        """Drop what ``owner`` derived from this view (every module's with None)."""
+        if owner is None:
+            self._derived.clear()
+        else:
+            self._derived.pop(owner, None)
 
     def __getattr__(self, name):
         return getattr(self.base, name)

@@ -1,18 +1,21 @@
-"""Terrain: lazy, cached, checksum-verified access to a store."""
+"""Terrain: lazy, cached, checksum-verified access to a store.
+
+:class:`Terrain` implements :class:`~geoterrain.core.terrainlike.TerrainLike`, the one
+interface every later stage reads a terrain through.
+"""
 
 from __future__ import annotations
 
 import os
 from collections import OrderedDict
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 import zstandard
 
-from geoterrain.bounds.leafbounds import derived_normal_codes, tile_leaf_bounds
-from geoterrain.bounds.normals import decode_octahedral
+from geoterrain.bounds.leafbounds import normal_axes, normal_xy, tile_leaf_bounds
+from geoterrain.bounds.normals import decode_octahedral, derived_codes
 from geoterrain.bounds.vertexdata import (
     DIFF,
     NEW_ONLY,
@@ -20,6 +23,8 @@ from geoterrain.bounds.vertexdata import (
     VERSION_2,
     decode_bounds,
     normals_from_bytes,
+    ring_from_bytes,
+    ring_index,
     unpack_block_errors,
 )
 from geoterrain.codec.pyramid import decode_tile_valid
@@ -27,35 +32,32 @@ from geoterrain.codec.quantize import tile_heights
 from geoterrain.core import zstdsafe
 from geoterrain.core.bintree import vertex_level
 from geoterrain.core.grid import level_offsets
+from geoterrain.core.terrainlike import Tile, TileKey
 from geoterrain.exceptions import StoreCorruptError, StoreError
 from geoterrain.store.check import check_store
 from geoterrain.store.database import StoreReader
 
 if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+
     import pyvista as pv
 
     from geoterrain.codec.quantize import Quantizer
     from geoterrain.core.view import View
     from geoterrain.lod import Selection
 
-TileKey = tuple[int, int, int]
+__all__ = ["Terrain", "Tile", "TileKey", "describe_codec", "open"]
 
-
-@dataclass
-class Tile:
-    """One decoded tile: level-L samples of its (T, T) window."""
-
-    key: TileKey
-    codes: np.ndarray  # (T, T) codes (int64) or raw floats, what children predict from
-    heights: np.ndarray  # (T, T) float64 source units, NaN where not valid
-    valid: np.ndarray  # (T, T) bool
+_T = TypeVar("_T")
 
 
 class Terrain:
     """A preprocessed terrain, read lazily from its store.
 
     Tiles are decoded on demand, with their ancestors (the codec predicts each
-    level from the decoded level above), and kept in an LRU cache.
+    level from the decoded level above), and kept in an LRU cache bounded in bytes
+    (``cache_bytes``, :meth:`memo`). What other modules derive from the terrain once
+    (their tables, pools, scratch) is kept in its :meth:`derived` slot.
 
     Examples
     --------
@@ -94,14 +96,26 @@ class Terrain:
         self._cache: OrderedDict[tuple, tuple[object, int]] = OrderedDict()
         self._cache_budget = cache_bytes
         self._cache_used = 0
+        self._derived: dict[str, Any] = {}
         self.decoded_tiles = 0  # tiles whose heights were decoded (a view counts these)
         self.decoded_normals = 0  # tiles whose normal maps were decoded
         self.decoded_bounds = 0  # δ or r arrays decoded
         self.bytes_read = 0  # blob bytes read from the store
 
+    vertical_exaggeration = 1.0  # heights as stored (a view may scale them)
+    stored_normals = True  # tile_normals decode normal_codes (a view may rescale them)
+
     # ------------------------------------------------------------------ cache
-    def _cached(self, key: tuple, make):
-        """LRU cache of decoded arrays, bounded in bytes (``cache_bytes``)."""
+    def memo(self, key: tuple, make: Callable[[], _T]) -> _T:
+        """The value cached under ``key``, made by ``make`` on a miss: the terrain's LRU
+        cache of decoded arrays (and what other modules make from them, such as a
+        tile's shading), bounded in bytes (``cache_bytes``).
+
+        Examples
+        --------
+        >>> t.memo(("example",), lambda: np.zeros(3)).shape
+        (3,)
+        """
         c = self._cache
         if key in c:
             c.move_to_end(key)
@@ -131,10 +145,59 @@ class Terrain:
         return hit[0]
 
     def peek(self, key: tuple):
-        """The cached value of ``key`` (as :meth:`_cached` keys it), or None; the cache's
+        """The cached value of ``key`` (as :meth:`memo` keys it), or None; the cache's
         order is left as it is."""
         hit = self._cache.get(key)
         return None if hit is None else hit[0]
+
+    def cache_keys(self) -> list[tuple]:
+        """The keys the tile cache holds, least recently used first (what a frame read:
+        ``("h", level, x, y)`` heights, ``("rgb", style, level, x, y)`` shading, …).
+
+        Examples
+        --------
+        >>> _ = t.tile(t.grid.top_level, 0, 0)
+        >>> ("h", t.grid.top_level, 0, 0) in t.cache_keys()
+        True
+        """
+        return list(self._cache)
+
+    def clear_cache(self) -> None:
+        """Empty the tile cache (decoded heights, bounds, normals, shading): the next
+        reads decode again (a benchmark's cold start)."""
+        self._cache.clear()
+        self._cache_used = 0
+
+    def derived(self, owner: str, make: Callable[[], _T]) -> _T:
+        """What module ``owner`` derives from this terrain once (its tables, a tile pool,
+        scratch buffers), made by ``make`` on first use and kept as long as the terrain,
+        outside the byte-bounded tile cache. The one place such data lives: no module
+        keeps a cache of terrains.
+
+        Examples
+        --------
+        >>> t.derived("example", dict) is t.derived("example", dict)
+        True
+        """
+        got = self._derived.get(owner)
+        if got is None:
+            got = self._derived[owner] = make()
+        return got
+
+    def forget(self, owner: str | None = None) -> None:
+        """Drop what ``owner`` derived (every module's with None): it is derived anew on
+        its next use (a test's or a benchmark's hook).
+
+        Examples
+        --------
+        >>> a = t.derived("example", dict); t.forget("example")
+        >>> t.derived("example", dict) is a
+        False
+        """
+        if owner is None:
+            self._derived.clear()
+        else:
+            self._derived.pop(owner, None)
 
     @property
     def stand_in_z(self) -> float:
@@ -196,7 +259,7 @@ class Terrain:
     def tile(self, level: int, x: int, y: int) -> Tile:
         """Decode tile (level, x, y) and, as needed, its ancestors (never finer data)."""
         key = (level, x, y)
-        return self._cached(("h", *key), lambda: self._decode(key))
+        return self.memo(("h", *key), lambda: self._decode(key))
 
     def _decode(self, key: TileKey) -> Tile:
         L, x, y = key
@@ -279,11 +342,11 @@ class Terrain:
                 raise StoreCorruptError(f"{self.path}: the block δ_n table is damaged "
                                         f"({exc}); re-run `geoterrain preprocess`") from None
 
-        return self._cached(("block_delta",), make)
+        return self.memo(("block_delta",), make)
 
     def tile_delta(self, level: int, x: int, y: int) -> np.ndarray:
         """Per-vertex errors δ (scene units) of the tile's samples, float32 (T, T)."""
-        return self._cached(("d", level, x, y), lambda: self._bounds((level, x, y), "delta"))
+        return self.memo(("d", level, x, y), lambda: self._bounds((level, x, y), "delta"))
 
     def tile_delta_edge(self, level: int, x: int, y: int) -> np.ndarray:
         """δ with the padding replicated from the data's edge (:mod:`geoterrain.bounds.edgepad`),
@@ -291,12 +354,12 @@ class Terrain:
         same new vertices), over its parent's δ_edge."""
         if not self.edge_max:
             return self.tile_delta(level, x, y)
-        return self._cached(("de", level, x, y),
+        return self.memo(("de", level, x, y),
                             lambda: self._bounds((level, x, y), "delta_edge"))
 
     def tile_radius(self, level: int, x: int, y: int) -> np.ndarray:
         """Nested bounding-sphere radii (scene units) of the tile's samples, float32 (T, T)."""
-        return self._cached(("r", level, x, y), lambda: self._bounds((level, x, y), "radius"))
+        return self.memo(("r", level, x, y), lambda: self._bounds((level, x, y), "radius"))
 
     def tile_xy(self, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
         """Scene X, Y (T, T) of the tile's samples (cached: geographic frames call pyproj)."""
@@ -304,46 +367,96 @@ class Terrain:
             g = self.grid
             ii, jj = np.meshgrid(g.tile_rows(level, y), g.tile_cols(level, x), indexing="ij")
             return self.frame.xy(ii, jj)
-        return self._cached(("xy", level, x, y), make)
+        return self.memo(("xy", level, x, y), make)
 
     def tile_normals(self, level: int, x: int, y: int) -> np.ndarray:
         """Unit normals (T, T, 3) float32 of the level-L normal map at the tile's samples."""
-        return self._cached(("n", level, x, y), lambda: decode_octahedral(
+        return self.memo(("n", level, x, y), lambda: decode_octahedral(
             self.tile_normal_codes(level, x, y), self.meta["normal_bits"]))
 
-    stored_normals = True  # tile_normals decode tile_normal_codes (a view may rescale them)
-
     def tile_normal_codes(self, level: int, x: int, y: int) -> np.ndarray:
-        """The octahedral codes (T, T, 2) of the tile's normals (``normal_bits`` bits
-        each; :func:`~geoterrain.bounds.normals.decode_octahedral` unpacks them): as stored, or,
-        on a level in ``normals_derived``, the ring as stored and the rest derived from
-        the heights (:func:`~geoterrain.bounds.leafbounds.derived_normal_codes`). Not cached:
-        each call reads and counts a decode."""
-        if level in self._derived_normal_levels:
-            return derived_normal_codes(self, level, x, y)
-        raw, planar = self.tile_normal_bytes(level, x, y)
-        T = self.grid.tile_samples
-        if planar:
-            return normals_from_bytes(raw, T)
-        dt = np.uint8 if self.meta["normal_bits"] == 8 else np.uint16
-        return np.frombuffer(raw, dt).reshape(T, T, 2)
+        """The octahedral codes (T, T, 2) of one tile's normals: :meth:`normal_codes`."""
+        return self.normal_codes([(level, x, y)])[0]
 
-    def tile_normal_bytes(self, level: int, x: int, y: int) -> tuple[bytes, bool]:
-        """The tile's normal codes as stored, decompressed: T·T·2 components, and whether
+    def normal_codes(self, keys: Sequence[TileKey]) -> np.ndarray:
+        """The octahedral codes (n, T, T, 2) of tiles ``keys``' normals (``normal_bits``
+        bits each; :func:`~geoterrain.bounds.normals.decode_octahedral` unpacks them):
+        the one door to a tile's normals. A tile stored whole is read as stored; one on a
+        level in ``normals_derived`` has its border ring as stored and the rest derived
+        from its decoded heights, all such tiles in one compiled call
+        (:func:`~geoterrain.bounds.normals.derived_codes`). Not cached: each tile read
+        counts a decode (``decoded_normals``).
+
+        Examples
+        --------
+        >>> keys = t.tile_keys(0)[:2]
+        >>> t.normal_codes(keys).shape == (2, t.grid.tile_samples, t.grid.tile_samples, 2)
+        True
+        """
+        T, bits = self.grid.tile_samples, self.meta["normal_bits"]
+        out = np.empty((len(keys), T, T, 2), np.uint8 if bits == 8 else np.uint16)
+        derived = self._derived_normal_levels
+        on_read = []
+        for n, key in enumerate(keys):
+            if key[0] in derived:
+                on_read.append(n)
+                continue
+            raw, planar = self._normal_bytes(key)
+            out[n] = (normals_from_bytes(raw, T) if planar
+                      else np.frombuffer(raw, out.dtype).reshape(T, T, 2))
+        if on_read:
+            out[on_read] = self._derive_normals([keys[n] for n in on_read], bits)
+        return out
+
+    def _normal_bytes(self, key: TileKey) -> tuple[bytes, bool]:
+        """A whole stored normal map's codes, decompressed: T·T·2 components, and whether
         they are two planes of 2-D differences (8-bit ``normals_layout`` 2,
-        :func:`~geoterrain.bounds.vertexdata.normals_to_bytes`) rather than (u, v) pairs (a
-        derived level's codes come as pairs: they were never coded)."""
-        if level in self._derived_normal_levels:  # derived: as (u, v) pairs, not re-coded
-            return np.ascontiguousarray(derived_normal_codes(self, level, x, y)).tobytes(), False
+        :func:`~geoterrain.bounds.vertexdata.normals_to_bytes`) rather than pairs."""
         T, bits = self.grid.tile_samples, self.meta["normal_bits"]
         try:  # bounded: exactly T × T × 2 components, never a decompression bomb
-            raw = zstdsafe.decompress(self._blob((level, x, y), "normals"),
-                                      T * T * 2 * (bits // 8), exact=True)
+            raw = zstdsafe.decompress(self._blob(key, "normals"), T * T * 2 * (bits // 8),
+                                      exact=True)
         except ValueError:
-            raise StoreCorruptError(f"{self.path}: tile {(level, x, y)} normals cannot be "
-                                    "decoded; re-run `geoterrain preprocess`") from None
+            raise StoreCorruptError(f"{self.path}: tile {key} normals cannot be decoded; "
+                                    "re-run `geoterrain preprocess`") from None
         self.decoded_normals += 1
         return raw, bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY
+
+    def _normal_ring(self, key: TileKey, n: int) -> np.ndarray:
+        """The stored border ring (n = 4T − 4, 2) of a tile on a derived level, in
+        :func:`~geoterrain.bounds.vertexdata.ring_index`'s order."""
+        try:  # bounded: exactly the ring's 4T − 4 pairs
+            return ring_from_bytes(zstdsafe.decompress(self._blob(key, "normals"), 2 * n,
+                                                       exact=True))
+        except ValueError:
+            raise StoreCorruptError(f"{self.path}: tile {key} normals cannot be decoded; "
+                                    "re-run `geoterrain preprocess`") from None
+
+    def _derive_normals(self, keys: list[TileKey], bits: int) -> np.ndarray:
+        """The codes of tiles on derived levels: the normal map of each one's decoded
+        heights (the preprocess's central differences of the level's samples, seed 000's
+        normal-map lighting, :func:`~geoterrain.bounds.normals.level_normal_maps`: they
+        read no sample outside the tile there), encoded as the preprocess encodes, with
+        its stored border ring."""
+        T, n = self.grid.tile_samples, len(keys)
+        rr, cc = ring_index(T)
+        h = np.empty((n, T, T))
+        valid = np.empty((n, T, T), bool)
+        rings = np.empty((n, len(rr), 2), np.uint8 if bits == 8 else np.uint16)
+        axes = self.frame.kind != "geographic"  # x by column, y by row: broadcast views
+        X = np.zeros((n, T) if axes else (n, T, T))
+        Y = np.zeros((n, T) if axes else (n, T, T))
+        for k, key in enumerate(keys):
+            tile = self.tile(*key)
+            h[k], valid[k] = tile.heights, tile.valid
+            rings[k] = self._normal_ring(key, len(rr))
+            X[k], Y[k] = normal_axes(self, *key) if axes else normal_xy(self, *key)
+        if axes:
+            X = np.broadcast_to(X[:, None, :], (n, T, T))
+            Y = np.broadcast_to(Y[:, :, None], (n, T, T))
+        self.decoded_normals += n
+        return derived_codes(h, self.frame.z_to_m * self.frame.z_scale, valid, X, Y, rings,
+                             (rr, cc), bits)
 
     @property
     def _derived_normal_levels(self) -> tuple[int, ...]:

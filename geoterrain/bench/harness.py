@@ -33,6 +33,7 @@ import tracemalloc
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -42,6 +43,9 @@ from geoterrain.exceptions import UsageError
 from geoterrain.lod.registry import STRATEGIES, strategy_info
 from geoterrain.store.database import is_store
 from geoterrain.testing.measure import screen_space_change, screen_space_error, vertical_error
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 BRUTE_MEASURE_LIMIT = 4_000_000  # bruteforce meshes larger than this are not rasterised
 TAUS = (0.5, 1.0, 2.0, 4.0, 8.0)
@@ -228,49 +232,50 @@ def _mesh_key(ij: np.ndarray, faces: np.ndarray, z: np.ndarray) -> str:
     return h.hexdigest()
 
 
-def _renderer(size: tuple[int, int], terrain):
+def _renderer(size: tuple[int, int], terrain: TerrainLike, anti_aliasing: str,
+              occlusion: bool, morph: bool | None):
     """An offscreen render scene of ``size`` for ``terrain``."""
     from geoterrain.rendering.scene import TerrainScene, _plotter
 
-    return TerrainScene(_plotter(size), terrain)
+    return TerrainScene(_plotter(size, anti_aliasing), terrain, occlusion=occlusion,
+                        morph=morph)
 
 
-def _selection_peak(terrain, view: View, tau: float, strategy: str) -> int:
+def _selection_peak(terrain: TerrainLike, view: View, tau: float, strategy: str,
+                    switches: dict) -> int:
     """Peak bytes allocated while selecting again (tracemalloc slows Python code, so the
     timed selection runs without it; this second run finds the tiles already decoded)."""
     tracemalloc.start()
     try:
-        lod.select(terrain, view, pixel_error=tau, strategy=strategy, reuse=False)
+        lod.select(terrain, view, pixel_error=tau, strategy=strategy, reuse=False, **switches)
         return tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
 
 
-def _measuring_handle(terrain):
+def _measuring_handle(terrain: TerrainLike):
     """A second handle on ``terrain``'s store (its own cache), or ``terrain`` itself."""
     from geoterrain.terrain import Terrain
 
     return Terrain(terrain.path) if type(terrain) is Terrain else terrain
 
 
-def _empty_cache(terrain) -> None:
+def _empty_cache(terrain: TerrainLike) -> None:
     """Empty the terrain's tile cache (decoded heights, bounds, normals, textures)."""
-    base = getattr(terrain, "base", terrain)
-    if hasattr(base, "_cache"):
-        base._cache.clear()
-        base._cache_used = 0
+    terrain.clear_cache()
 
 
-def _counters(terrain) -> tuple[int, int, int, int]:
+def _counters(terrain: TerrainLike) -> tuple[int, int, int, int]:
     return (int(terrain.decoded_tiles), int(getattr(terrain, "decoded_normals", 0)),
             int(getattr(terrain, "decoded_bounds", 0)), int(getattr(terrain, "bytes_read", 0)))
 
 
-def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
+def run(terrain: TerrainLike, views: Sequence[tuple[str, View]] | None = None, *,
         strategies: Sequence[str] = STRATEGIES, taus: Sequence[float] = TAUS,
         n_views: int = 8, render: bool = False, source: str = "",
         preprocess_s: float | None = None, store_bytes: int | None = None,
-        progress: Progress | None = None, pop: bool = True) -> BenchResult:
+        progress: Progress | None = None, pop: bool = True, occlusion: bool = True,
+        morph: bool | None = None, anti_aliasing: str = "auto") -> BenchResult:
     """Run every strategy at every τ over ``views`` and measure each frame.
 
     Parameters
@@ -285,6 +290,9 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
     pop : measure ``pop_px``, the largest jump of the drawn surface since the previous
         frame of the same strategy and τ (:func:`geoterrain.testing.measure.screen_space_change`;
         meaningful on a smooth path such as :func:`glide`; NaN on the first frame).
+    occlusion, morph : the selections' horizon culling and geomorphing
+        (:func:`geoterrain.lod.select`).
+    anti_aliasing : the rendered frames' (:func:`geoterrain.rendering.scene.render`).
 
     Returns
     -------
@@ -318,8 +326,9 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
     res = BenchResult(views=list(views))
     scene = None
     aa = ""  # the pictures' anti-aliasing (edges, msaa, fxaa or none) when they are drawn
+    switches = {"occlusion": occlusion, "morph": morph}
     if render:
-        scene = _renderer(views[0][1].size, terrain)
+        scene = _renderer(views[0][1].size, terrain, anti_aliasing, occlusion, morph)
         aa = str(getattr(scene.plotter, "_geoterrain_aa", ""))
     cache: dict[str, tuple] = {}
     previous: dict[tuple, tuple] = {}  # (strategy, τ) → last frame's surface, for pop_px
@@ -337,11 +346,11 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
                     _empty_cache(terrain)
                     c0 = _counters(terrain)
                     cold = lod.select(terrain, view, pixel_error=float(tau), strategy=strategy,
-                                      reuse=False)
+                                      reuse=False, **switches)
                     c1 = _counters(terrain)
                     sel = lod.select(terrain, view, pixel_error=float(tau), strategy=strategy,
-                                     reuse=False)
-                    peak = _selection_peak(terrain, view, float(tau), strategy)
+                                     reuse=False, **switches)
+                    peak = _selection_peak(terrain, view, float(tau), strategy, switches)
                     render_ms, textures_built, frame_aa = float("nan"), 0, aa
                     if scene is not None:
                         _, rs = scene.frame(view, float(tau), strategy)  # reuses the selection
@@ -399,7 +408,7 @@ def run(terrain, views: Sequence[tuple[str, View]] | None = None, *,
 
 
 # ----------------------------------------------------------------- peers
-def _padded_scene_heights(terrain) -> tuple[np.ndarray, np.ndarray, int, int]:
+def _padded_scene_heights(terrain: TerrainLike) -> tuple[np.ndarray, np.ndarray, int, int]:
     """Level-0 heights in scene units on the padded (2^k+1)² grid, padding filled by
     replicating the source edge; and the source-region valid mask, rows, cols."""
     h, v = terrain.level_heights(0)
@@ -411,7 +420,7 @@ def _padded_scene_heights(terrain) -> tuple[np.ndarray, np.ndarray, int, int]:
     return zp, ok, H, W
 
 
-def peers(terrain, errors: Sequence[float]) -> tuple[list[dict], list[str]]:
+def peers(terrain: TerrainLike, errors: Sequence[float]) -> tuple[list[dict], list[str]]:
     """Static meshes of rtin, pymartini and pydelatin at the same vertical error targets.
 
     Each mesh is measured with :func:`geoterrain.testing.measure.vertical_error` on the
@@ -488,7 +497,7 @@ def peers(terrain, errors: Sequence[float]) -> tuple[list[dict], list[str]]:
 
 
 # ----------------------------------------------------------------- the whole job
-def default_peer_errors(terrain) -> tuple[float, ...]:
+def default_peer_errors(terrain: TerrainLike) -> tuple[float, ...]:
     """Vertical errors for :func:`peers`: 0.5, 1, 2, 4, 8 × max(codec step, 0.1 % of relief).
 
     Examples
@@ -510,14 +519,16 @@ def benchmark(source: str | Path | None = None, *, synthetic: int | None = None,
               n_views: int = 8, cameras: str | Path | None = None,
               size: tuple[int, int] = SIZE, render: bool = False, peer_errors:
               Sequence[float] | bool = False, work_dir: str | Path | None = None,
-              progress: ProgressTotal | None = None) -> BenchResult:
+              progress: ProgressTotal | None = None, occlusion: bool = True,
+              morph: bool | None = None, anti_aliasing: str = "auto") -> BenchResult:
     """The whole benchmark of ``geoterrain bench``: store, flight, strategies, peers.
 
     Parameters
     ----------
     source : a store, or a DEM (preprocessed first into ``work_dir``, timed).
     synthetic : instead of ``source``, an N×N fBm DEM with ``seed``.
-    strategies, taus, n_views, size, render : see :func:`run` and :func:`flight`.
+    strategies, taus, n_views, size, render, occlusion, morph, anti_aliasing : see
+        :func:`run` and :func:`flight`.
     cameras : a cameras JSON (:func:`load_path`) instead of the built-in flight.
     peer_errors : vertical errors for :func:`peers`; True for
         :func:`default_peer_errors`; False for no peers.
@@ -573,7 +584,8 @@ def benchmark(source: str | Path | None = None, *, synthetic: int | None = None,
             total = len(views) * len(strategies) * len(taus)
             res = run(t, views, strategies=strategies, taus=taus, render=render, source=label,
                       preprocess_s=preprocess_s, store_bytes=store_bytes,
-                      progress=(lambda n: progress(n, total)) if progress else None)
+                      progress=(lambda n: progress(n, total)) if progress else None,
+                      occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing)
             if peer_errors is not False:
                 errs = default_peer_errors(t) if peer_errors is True else tuple(peer_errors)
                 if any(not (math.isfinite(e) and e >= 0) for e in errs):

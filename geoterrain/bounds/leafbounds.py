@@ -1,7 +1,8 @@
 """A level-0 tile's δ, r and normals, derived on read from the tile's decoded heights.
 
-(:func:`tile_leaf_bounds` and :func:`derived_normal_codes` are what ``Terrain`` calls
-for a ring blob; the normals' rule is in the last function's docstring.)
+(:func:`tile_leaf_bounds` is what ``Terrain`` calls for a ring blob of δ or r; for one of
+normals it derives the rest with :func:`geoterrain.bounds.normals.derived_codes` from the
+x, y of :func:`normal_xy`.)
 
 Below the top level a tile stores only the vertices new at its level (the others are
 its parent's, :mod:`geoterrain.bounds.vertexdata`). At level 0 those are the samples with an
@@ -26,26 +27,25 @@ math), and codes them as the preprocess codes them, so it decodes the same value
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
 from geoterrain.bounds.delta import _centre1, _edge_err, _mid1, saturate
-from geoterrain.bounds.normals import encode_octahedral, normal_map
 from geoterrain.bounds.radii import _nest, code_up_nb
 from geoterrain.bounds.vertexdata import (
     log8_table,
     new_mask,
-    ring_from_bytes,
-    ring_index,
     ring_new_index,
 )
-from geoterrain.core import zstdsafe
 from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.rounding import round_up, round_up32
-from geoterrain.exceptions import StoreCorruptError
 
-__all__ = ["derived_normal_codes", "geographic_leaf_delta", "leaf_delta", "leaf_radius",
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
+
+__all__ = ["geographic_leaf_delta", "leaf_delta", "leaf_radius", "normal_axes", "normal_xy",
            "tile_leaf_bounds"]
 
 
@@ -188,7 +188,7 @@ def leaf_radius(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
 
 
 # ------------------------------------------------ a store's level-0 tiles, derived on read
-def tile_leaf_bounds(terrain, key: tuple[int, int, int], kind: str, log8: bool, e: int,
+def tile_leaf_bounds(terrain: TerrainLike, key: tuple[int, int, int], kind: str, log8: bool, e: int,
                      rows: np.ndarray, cols: np.ndarray, ring: np.ndarray,
                      slack: float = 0.0) -> np.ndarray:
     """The stored δ or r of a level-0 tile's new vertices, derived from its decoded
@@ -293,7 +293,7 @@ def geographic_leaf_delta(delta: np.ndarray, z: np.ndarray, valid: np.ndarray, t
     return out
 
 
-def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
+def normal_xy(terrain: TerrainLike, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
     """Scene X, Y (T, T) from which a tile's normals are derived on read.
 
     In a projected or pixel frame, the preprocess's values (:meth:`Frame.axis_xy`, as
@@ -346,7 +346,7 @@ def normal_xy(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarr
     return X, Y
 
 
-def normal_axes(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
+def normal_axes(terrain: TerrainLike, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
     """A projected or pixel frame's :func:`normal_xy` as its two axes: X (T,) of the
     tile's columns and Y (T,) of its rows (:meth:`Frame.axis_xy`'s values), cached by
     tile column and row (a frame's new tiles share them).
@@ -358,9 +358,9 @@ def normal_axes(terrain, level: int, x: int, y: int) -> tuple[np.ndarray, np.nda
     True
     """
     g, f = terrain.grid, terrain.frame
-    xs = terrain._cached(("normal_x", level, x), lambda: f.axis_xy(
+    xs = terrain.memo(("normal_x", level, x), lambda: f.axis_xy(
         g.tile_rows(level, 0)[:1], g.tile_cols(level, x))[0][0])
-    ys = terrain._cached(("normal_y", level, y), lambda: f.axis_xy(
+    ys = terrain.memo(("normal_y", level, y), lambda: f.axis_xy(
         g.tile_rows(level, y), g.tile_cols(level, 0)[:1])[1][:, 0])
     return xs, ys
 
@@ -381,47 +381,3 @@ def _bilinear(c: np.ndarray, k: np.ndarray, T: int) -> np.ndarray:
     top = c[a, b] + (c[a, b + 1] - c[a, b]) * fb
     bot = c[a + 1, b] + (c[a + 1, b + 1] - c[a + 1, b]) * fb
     return top + (bot - top) * fa
-
-
-def ring_codes(terrain, level: int, x: int, y: int) -> np.ndarray:
-    """The normal codes (4T − 4, 2) of a tile's border ring on a derived level, as stored
-    (in :func:`~geoterrain.bounds.vertexdata.ring_index`'s order).
-
-    Examples
-    --------
-    >>> ring_codes(t, 0, 0, 0).shape == (4 * t.grid.tile_samples - 4, 2)
-    True
-    """
-    n = len(ring_index(terrain.grid.tile_samples)[0])
-    try:  # bounded: exactly the ring's 4T − 4 pairs
-        return ring_from_bytes(zstdsafe.decompress(terrain._blob((level, x, y), "normals"),
-                                                   2 * n, exact=True))
-    except ValueError:
-        raise StoreCorruptError(f"{terrain.path}: tile {(level, x, y)} normals cannot be "
-                                "decoded; re-run `geoterrain preprocess`") from None
-
-
-def derived_normal_codes(terrain, level: int, x: int, y: int) -> np.ndarray:
-    """A tile whose normals blob is its border ring: the interior is the normal map of
-    its decoded heights (the preprocess's central differences of the level's samples,
-    seed 000's normal-map lighting, :func:`geoterrain.bounds.normals.level_normal_maps`: they
-    read no sample outside the tile there), encoded as the preprocess encodes; the ring
-    is the stored codes.
-
-    Examples
-    --------
-    >>> derived_normal_codes(t, 0, 0, 0).shape[2]  # doctest: +SKIP
-    2
-    """
-    rr, cc = ring_index(terrain.grid.tile_samples)
-    ring = ring_codes(terrain, level, x, y)
-    tile = terrain.tile(level, x, y)
-    X, Y = normal_xy(terrain, level, x, y)
-    # one tile on this thread (serial kernels: no thread pool for 65² samples, and safe in
-    # a fork() child, where GNU OpenMP aborts a parallel launch)
-    codes = encode_octahedral(normal_map(X, Y, terrain.frame.z(tile.heights), tile.valid,
-                                         serial=True),
-                              terrain.meta["normal_bits"], serial=True)
-    codes[rr, cc] = ring
-    terrain.decoded_normals += 1
-    return codes

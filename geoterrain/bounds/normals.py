@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.core.threads import serial_twin
+from geoterrain.core.threads import forked, serial_twin
 
 __all__ = [
     "normal_map",
@@ -38,7 +38,7 @@ __all__ = [
     "normal_pyramid",
     "encode_octahedral",
     "decode_octahedral",
-    "hillshade_codes",
+    "derived_codes",
 ]
 
 #: measured bounds (degrees) for :func:`encode_octahedral` (default: rounding), see the
@@ -537,55 +537,69 @@ def _decode_oct_nb(e, m, out):  # pragma: no cover - compiled
         out[k, 2] = zz / n
 
 
-def hillshade_codes(codes: np.ndarray, bits: int, light: np.ndarray, ambient: float,
-                    ceiling: float) -> np.ndarray:
-    """Hillshade (H, W) float32 straight from octahedral codes (H, W, 2), in one compiled
-    pass: ``min(ambient + (1 − ambient)·clip(n·l, 0, 1) / l_z, ceiling)`` with ``n`` the
-    decoded unit normal (:func:`decode_octahedral`, float32) and ``l`` the unit ``light``.
-
-    A tile's texture needs only this shade: decoding its normals to float32 first
-    (and keeping them) cost 0.14 ms a 65² tile and 50 kB of cache.
-
-    Examples
-    --------
-    >>> e = encode_octahedral(np.array([[0.0, 0.0, 1.0]]), 8)
-    >>> s = hillshade_codes(e, 8, np.array([0.0, 0.0, 1.0], np.float32), 0.35, 1.25)
-    >>> round(float(s[0]), 3)  # the sun overhead lights flat ground fully
-    1.0
-    """
-    if bits not in (8, 16):
-        raise ValueError("bits must be 8 or 16")
-    e = np.asarray(codes)
-    out = np.empty(e.shape[:-1], np.float32)
-    lt = np.asarray(light, np.float32)
-    _shade_oct_nb(np.ascontiguousarray(e.reshape(-1, 2)), float((1 << bits) - 1), lt[0],
-                  lt[1], lt[2], np.float32(ambient), np.float32(ceiling), out.reshape(-1))
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _shade_oct_nb(e, m, lx, ly, lz, amb, ceil, out):  # pragma: no cover - compiled
-    for k in range(e.shape[0]):
-        out[k] = oct_shade(e[k, 0], e[k, 1], m, lx, ly, lz, amb, ceil)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def oct_shade(cu, cv, m, lx, ly, lz, amb, ceil):  # pragma: no cover - compiled
-    """The hillshade (float32) of one code (cu, cv) over ``m``, unit light (lx, ly, lz):
-    min(amb + (1 − amb)·clip(n·l, 0, 1) / l_z, ceil), n decoded as float32
-    (:func:`decode_octahedral`). Shared by :func:`hillshade_codes` and the fused tile
-    shading (:mod:`geoterrain.rendering.tileshade`)."""
-    one = np.float32(1.0)
-    x, y, zz = _oct_point(cu, cv, m)
-    n = np.sqrt(x * x + y * y + zz * zz)
-    d = np.float32(x / n) * lx + np.float32(y / n) * ly + np.float32(zz / n) * lz
-    lam = min(max(d, np.float32(0.0)), one) / lz
-    return min(amb + (one - amb) * lam, ceil)
-
-
 #: the serial twins by kernel name (one tile's work on the calling thread)
 SERIAL_KERNELS: dict = {}
 
 
 for _k in (_valid_finite_nb, _normals_nb, _encode_oct_nb):
     SERIAL_KERNELS[_k.__name__] = serial_twin(_k)
+_valid_finite_serial = SERIAL_KERNELS["_valid_finite_nb"]
+_normals_serial = SERIAL_KERNELS["_normals_nb"]
+_encode_oct_serial = SERIAL_KERNELS["_encode_oct_nb"]
+
+
+def derived_codes(h: np.ndarray, zf: float, valid: np.ndarray, x: np.ndarray, y: np.ndarray,
+                  rings: np.ndarray, ring: tuple[np.ndarray, np.ndarray],
+                  bits: int = 8) -> np.ndarray:
+    """The normal codes (n, T, T, 2) of tiles whose normal maps are derived on read: each
+    tile's :func:`normal_map` (central differences) of scene x, y (n, T, T; broadcast views
+    are fine) and z = ``h`` × ``zf`` (heights in source units, as ``Frame.z``) where
+    ``valid``, encoded by :func:`encode_octahedral` with ``bits``, and its border ring
+    (``ring`` = rows, columns: :func:`~geoterrain.bounds.vertexdata.ring_index`) set to
+    ``rings[k]``, the codes stored for it. The tiles run on every core, each with the
+    serial kernels (one tile, or a fork() child: on this thread).
+
+    Examples
+    --------
+    >>> j, i = np.meshgrid(np.arange(4.0), np.arange(4.0))
+    >>> v = np.ones((1, 4, 4), bool)
+    >>> z = (0.5 * j)[None]
+    >>> want = encode_octahedral(normal_map(j, -i, z[0], v[0]), 8)
+    >>> got = derived_codes(z, 1.0, v, j[None], -i[None], want[:1, :1], (np.array([0]),
+    ...                     np.array([0])))
+    >>> bool(np.array_equal(got[0], want))
+    True
+    """
+    if bits not in (8, 16):
+        raise ValueError("bits must be 8 or 16")
+    n, T0, T1 = h.shape
+    out = np.empty((n, T0, T1, 2), np.uint8 if bits == 8 else np.uint16)
+    if n == 0:
+        return out
+    kernel = _DERIVED_SERIAL if n == 1 or forked() else _derived_codes_nb
+    rr, cc = ring
+    kernel(np.ascontiguousarray(h, np.float64), float(zf), np.ascontiguousarray(valid, np.bool_),
+           x, y, np.ascontiguousarray(rings), np.asarray(rr, np.int64),
+           np.asarray(cc, np.int64), (1 << bits) - 1, out)
+    return out
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _derived_codes_nb(h, zf, valid, X, Y, rings, rr, cc, m, out):  # pragma: no cover
+    n, T0, T1 = h.shape
+    for k in prange(n):  # tiles on every core: each writes its own
+        z = np.empty((T0, T1), np.float64)
+        for i in range(T0):
+            for j in range(T1):
+                z[i, j] = h[k, i, j] * zf  # Frame.z
+        vv = _valid_finite_serial(X[k], Y[k], z, valid[k])
+        nrm = np.empty((T0, T1, 3), np.float32)
+        _normals_serial(X[k], Y[k], z, vv, False, nrm)
+        codes = out[k].reshape((T0 * T1, 2))
+        _encode_oct_serial(nrm.reshape((-1, 3)), m, False, codes)
+        for q in range(len(rr)):  # the stored border ring
+            codes[rr[q] * T1 + cc[q], 0] = rings[k, q, 0]
+            codes[rr[q] * T1 + cc[q], 1] = rings[k, q, 1]
+
+
+_DERIVED_SERIAL = serial_twin(_derived_codes_nb)

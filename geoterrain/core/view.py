@@ -52,7 +52,7 @@ class View:
     size: tuple[int, int] = (1280, 720)
     near: float | None = None
     far: float | None = None
-    _cache: dict = field(default_factory=dict, compare=False, repr=False)
+    memos: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.fov_y_deg < 180.0:
@@ -101,8 +101,9 @@ class View:
         Order: left, right, bottom, top, near, far. A missing near plane passes
         through the eye; a missing far plane is (0, 0, 0, 1) (always inside).
         """
-        if "planes" in self._cache:
-            return self._cache["planes"]
+        return self.memo("planes", self._planes)
+
+    def _planes(self) -> np.ndarray:
         r, u, f = self.basis()
         ty = np.tan(np.radians(self.fov_y_deg) / 2.0)
         tx = ty * self.size[0] / self.size[1]
@@ -118,8 +119,23 @@ class View:
             out[5] = (0.0, 0.0, 0.0, 1.0)
         else:
             out[5, :3], out[5, 3] = -f, f @ e + self.far
-        self._cache["planes"] = out
         return out
+
+    def memo(self, key, make):
+        """The value ``make()`` gave for ``key`` the first time this view was asked:
+        what a module derives from the camera once per view (its frustum planes, the
+        occlusion test's sectors and results), held in :attr:`memos`.
+
+        Examples
+        --------
+        >>> v = View((0, -1000, 500), (0, 0, 0))
+        >>> v.memo("example", lambda: 1), v.memo("example", lambda: 2)
+        (1, 1)
+        """
+        got = self.memos.get(key)
+        if got is None:
+            got = self.memos[key] = make()
+        return got
 
     # --------------------------------------------------------------- culling
     def spheres_visible(self, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:

@@ -36,6 +36,7 @@ import io
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -43,6 +44,9 @@ from geoterrain._version import __version__
 from geoterrain.exceptions import UsageError, WriteError, exists_error
 from geoterrain.export.meshfiles import check_output_path
 from geoterrain.rendering.textures import SHADINGS, texture_image, texture_level
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 EXPORT_FORMATS = (".glb", ".gltf", ".obj", ".stl", ".ply")
 TEXTURE_SIZE = 4097  # samples per side of an exported texture at most (a coarser level beyond)
@@ -66,7 +70,7 @@ class MeshArrays:
     surface: np.ndarray
 
 
-def mesh_arrays(terrain, selection, *, skirts: bool = True) -> MeshArrays:
+def mesh_arrays(terrain: TerrainLike, selection, *, skirts: bool = True) -> MeshArrays:
     """The vertices the selection's triangles use, with elevation and normals.
 
     Examples
@@ -114,7 +118,8 @@ def vertex_normals(xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return (n / length[:, None]).astype(np.float32)
 
 
-def georeference(terrain, scale: float = 1.0, offset: tuple[float, float, float] = (0, 0, 0)
+def georeference(terrain: TerrainLike, scale: float = 1.0, offset: tuple[float, float,
+                 float] = (0, 0, 0)
                  ) -> dict:
     """How a written position maps back to the source CRS (the sidecar's content).
 
@@ -148,7 +153,7 @@ def georeference(terrain, scale: float = 1.0, offset: tuple[float, float, float]
     }
 
 
-def _tcoords(terrain, ij: np.ndarray, level: int, flip: bool) -> np.ndarray:
+def _tcoords(terrain: TerrainLike, ij: np.ndarray, level: int, flip: bool) -> np.ndarray:
     """Texture coordinates of samples ``ij`` in the level-L texture (row 0 at the top)."""
     S = terrain.grid.level_size(level)
     s = float(1 << level)
@@ -168,7 +173,7 @@ def _png(img: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def _texture(terrain, shading: str, cmap: str, texture_size: int,
+def _texture(terrain: TerrainLike, shading: str, cmap: str, texture_size: int,
              drape: str | Path | None = None) -> tuple[np.ndarray, int]:
     if shading not in SHADINGS or shading == "plain":
         raise UsageError(f"unknown texture shading {shading!r}; use normals or elevation")
@@ -221,7 +226,7 @@ def check_export_path(path: str | Path, overwrite: bool = False) -> Path:
     return check_output_path(path, EXPORT_FORMATS, overwrite, "export")
 
 
-def export_mesh(terrain, selection, path: str | Path, *, overwrite: bool = False,
+def export_mesh(terrain: TerrainLike, selection, path: str | Path, *, overwrite: bool = False,
                 shading: str = "normals", cmap: str = "auto",
                 texture_size: int = TEXTURE_SIZE, crs_coords: bool = False,
                 base_height: float | None = None, print_size: float | None = None,
@@ -364,7 +369,7 @@ def obj_text(m: MeshArrays, uv: np.ndarray, mtl_name: str) -> str:
 
 
 # ----------------------------------------------------------------------------- PLY
-def ply_bytes(terrain, m: MeshArrays, crs_coords: bool = False) -> bytes:
+def ply_bytes(terrain: TerrainLike, m: MeshArrays, crs_coords: bool = False) -> bytes:
     """Binary little-endian PLY with the CRS and offset in header comments.
 
     Scene positions by default (``comment offset`` = CRS coordinates of the origin);
@@ -405,7 +410,7 @@ def ply_bytes(terrain, m: MeshArrays, crs_coords: bool = False) -> bytes:
 
 
 # ----------------------------------------------------------------------------- STL
-def printable_solid(terrain, m: MeshArrays, base_height: float | None = None,
+def printable_solid(terrain: TerrainLike, m: MeshArrays, base_height: float | None = None,
                     print_size: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """The surface closed into a solid: walls down every boundary edge and a flat base.
 
@@ -484,7 +489,7 @@ def stl_bytes(xyz: np.ndarray, faces: np.ndarray) -> bytes:
     return header + np.uint32(len(faces)).tobytes() + rec.tobytes()
 
 
-def with_elevation(terrain, mesh):
+def with_elevation(terrain: TerrainLike, mesh):
     """A shallow copy of ``mesh`` with an ``elevation`` point array (metres, made active).
 
     Examples

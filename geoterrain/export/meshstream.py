@@ -36,6 +36,7 @@ import shutil
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -45,6 +46,9 @@ from geoterrain.core.atomicfiles import partial_path, publish, remove_stale_part
 from geoterrain.core.memory import available_memory
 from geoterrain.exceptions import UsageError, WriteError
 from geoterrain.export.meshfiles import check_mesh_path
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 STREAM_FORMATS = (".ply", ".obj", ".stl")
 # resident bytes per triangle of the in-memory path (PolyData, normals, the writer's
@@ -100,7 +104,8 @@ def _rows(fmt: str, a: np.ndarray) -> bytes:
     return (((fmt + "\n") * len(a)) % tuple(a.ravel().tolist())).encode()
 
 
-def write_static_mesh(terrain, max_error: float, path: str | Path, *, overwrite: bool = False,
+def write_static_mesh(terrain: TerrainLike, max_error: float, path: str | Path, *,
+                      overwrite: bool = False,
                       chunk: int | None = None,
                       progress: Callable[[int, int], None] | None = None) -> dict:
     """Stream the static mesh of bound ``max_error`` to ``path`` (.ply, .obj or .stl).
@@ -223,7 +228,7 @@ def _check_error(max_error) -> float:
     return e
 
 
-def estimated_triangles(terrain, max_error: float) -> int:
+def estimated_triangles(terrain: TerrainLike, max_error: float) -> int:
     """Triangles of the static mesh of bound ``max_error``, counted without building it
     (the flags and one walk of :mod:`geoterrain.lod.stream`; no heights are read).
 
@@ -239,7 +244,7 @@ def estimated_triangles(terrain, max_error: float) -> int:
     return int(_count_leaves(act.active, act.mixed))
 
 
-def check_in_memory(terrain, max_error: float, path: str | Path,
+def check_in_memory(terrain: TerrainLike, max_error: float, path: str | Path,
                     available: int | None = None) -> None:
     """Refuse (a :class:`UsageError` naming the streaming formats) a static mesh to a
     format that cannot stream when building it in memory would not fit.

@@ -54,6 +54,7 @@ import math
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pyproj import CRS, Transformer
@@ -62,6 +63,9 @@ from geoterrain.bounds.delta import vertex_errors
 from geoterrain.exceptions import UsageError, WriteError, exists_error
 from geoterrain.lod.kernels import close_upward, extract
 from geoterrain.lod.mesh import orient_ccw
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 WGS84_A = 6378137.0
 WGS84_B = 6356752.3142451793
@@ -125,7 +129,7 @@ class _Dem:
     ellipsoidal heights (what CesiumJS assumes) at every sample, through pyproj.
     """
 
-    def __init__(self, terrain, geoid: str | None = None):
+    def __init__(self, terrain: TerrainLike, geoid: str | None = None):
         f = terrain.frame
         if f.kind == "pixel" or f.crs_wkt is None:
             raise UsageError("quantized-mesh tiles need a georeferenced DEM; this one has no CRS")
@@ -494,7 +498,7 @@ def max_zoom_for(dem: _Dem, lattice: int) -> int:
     return 23
 
 
-def write_tileset(terrain, out_dir: str | Path, *, max_zoom: int | None = None,
+def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | None = None,
                   min_zoom: int = 0, lattice: int = 129, max_error: float = 1.0,
                   overwrite: bool = False, geoid: str | None = None,
                   progress: Callable[[str, int, int], None] | None = None) -> dict:

@@ -1,7 +1,7 @@
 """Georeferenced 2-D products of a store as Cloud-Optimised GeoTIFFs (rasterio).
 
 - ``hillshade``: the shading factor the renderer multiplies the colours by
-  (:func:`geoterrain.rendering.textures._hillshade` of the stored normal maps: sun from the
+  (:func:`geoterrain.rendering.shading.hillshade` of the stored normal maps: sun from the
   north-west at 45°, ambient 0.35, 1 on flat ground, at most 1.25), float32.
 - ``normals``: the stored unit normals (3 bands: east, north, up; scene frame, so
   with the store's vertical exaggeration), float32.
@@ -27,23 +27,27 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from geoterrain.core.frame import level_transform
 from geoterrain.exceptions import UsageError, WriteError, exists_error
-from geoterrain.rendering.textures import _hillshade
+from geoterrain.rendering.shading import hillshade
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 PRODUCTS = ("hillshade", "normals", "slope", "error")
 
 
-def level_shape(terrain, level: int) -> tuple[int, int]:
+def level_shape(terrain: TerrainLike, level: int) -> tuple[int, int]:
     """(rows, cols) of level L within the source extent."""
     s = 1 << level
     return -(-terrain.grid.rows // s), -(-terrain.grid.cols // s)
 
 
-def _level_normals(terrain, level: int) -> tuple[np.ndarray, np.ndarray]:
+def _level_normals(terrain: TerrainLike, level: int) -> tuple[np.ndarray, np.ndarray]:
     """Stored normals (H, W, 3) of level L and its valid mask, cropped to the source extent."""
     g = terrain.grid
     S, T, step = g.level_size(level), g.tile_samples, 1 << g.t
@@ -55,7 +59,7 @@ def _level_normals(terrain, level: int) -> tuple[np.ndarray, np.ndarray]:
     return n[:H, :W], valid[:H, :W]
 
 
-def level_error(terrain, level: int) -> np.ndarray:
+def level_error(terrain: TerrainLike, level: int) -> np.ndarray:
     """δ (metres) of the level-L samples within the source extent, NaN at nodata (H, W)."""
     H, W = level_shape(terrain, level)
     s = 1 << level
@@ -71,7 +75,7 @@ def level_error(terrain, level: int) -> np.ndarray:
     return out
 
 
-def product(terrain, what: str, level: int = 0) -> np.ndarray:
+def product(terrain: TerrainLike, what: str, level: int = 0) -> np.ndarray:
     """The (bands, H, W) float32 array of product ``what`` at level L (NaN = nodata).
 
     Examples
@@ -89,7 +93,7 @@ def product(terrain, what: str, level: int = 0) -> np.ndarray:
         return level_error(terrain, level)[None]
     n, valid = _level_normals(terrain, level)
     if what == "hillshade":
-        out = _hillshade(n)[None]
+        out = hillshade(n)[None]
     elif what == "normals":
         out = np.moveaxis(n, 2, 0).copy()
     else:
@@ -100,7 +104,7 @@ def product(terrain, what: str, level: int = 0) -> np.ndarray:
     return out
 
 
-def export_raster(terrain, what: str, path: str | Path, *, level: int = 0,
+def export_raster(terrain: TerrainLike, what: str, path: str | Path, *, level: int = 0,
                   overwrite: bool = False) -> Path:
     """Write product ``what`` (:data:`PRODUCTS`) of level L to ``path`` as a COG GeoTIFF.
 

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import math
 import time
-import weakref
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -41,22 +40,15 @@ import numpy as np
 from geoterrain.core.view import View
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.registry import DEFAULT, REGISTRY, STRATEGIES, StrategyInfo, strategy_info
-from geoterrain.lod.switches import (
-    geomorphing,
-    morphing_choice,
-    morphing_enabled,
-    occlusion_culling,
-    occlusion_enabled,
-)
 
 if TYPE_CHECKING:
     import pyvista as pv
 
-__all__ = ["DEFAULT", "REGISTRY", "STRATEGIES", "Selection", "StrategyInfo",
-           "geomorphing", "morphing_enabled", "occlusion_culling", "occlusion_enabled",
-           "select", "static", "strategy_info"]
+    from geoterrain.core.terrainlike import TerrainLike
 
-_LAST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+__all__ = ["DEFAULT", "REGISTRY", "STRATEGIES", "Selection", "StrategyInfo", "select", "static",
+           "strategy_info"]
+
 
 
 @dataclass
@@ -97,13 +89,14 @@ class Selection:
         return f
 
 
-def _view_key(view: View, tau: float, strategy: str) -> tuple:
+def _view_key(view: View, tau: float, strategy: str, occlusion: bool,
+              morph: bool | None) -> tuple:
     return (view.look_from, view.look_at, view.up, view.fov_y_deg, view.size, view.near,
-            view.far, tau, strategy, occlusion_enabled(), morphing_choice())
+            view.far, tau, strategy, occlusion, morph)
 
 
-def select(terrain, view: View, pixel_error: float = 1.0, strategy: str = DEFAULT, *,
-           reuse: bool = True, occlusion: bool | None = None,
+def select(terrain: TerrainLike, view: View, pixel_error: float = 1.0, strategy: str = DEFAULT, *,
+           reuse: bool = True, occlusion: bool = True,
            morph: bool | None = None) -> Selection:
     """The mesh of ``terrain`` for ``view`` with projected error ≤ ``pixel_error`` pixels.
 
@@ -116,26 +109,19 @@ def select(terrain, view: View, pixel_error: float = 1.0, strategy: str = DEFAUL
     reuse : hand back the previous selection of this terrain when the camera, τ and
         strategy are unchanged (its stats say ``reused: True``, ``select_ms: 0``);
         False always selects anew (benchmarks time real selections).
-    occlusion : cull tiles hidden behind nearer terrain
-        (:mod:`geoterrain.lod.occlusion`); None keeps the current setting (on unless
-        switched off with :func:`occlusion_culling`).
+    occlusion : cull tiles hidden behind nearer terrain before reading them
+        (:mod:`geoterrain.lod.occlusion`; conservative: nothing visible is lost).
     morph : geomorph, for the strategies that can (rtin: seed 002's band 0.75 τ … τ;
         chunked: each chunk to its parent over the same band; geomipmap: continuous
         block levels, seed 000's trilinear geomipmapping; cdlod: seed 001's ranges);
-        None keeps the current setting (each strategy's default, rtin, chunked and
-        geomipmap off, cdlod on, unless :func:`geomorphing` chose).
+        None: each strategy's default (rtin, chunked and geomipmap off, cdlod on).
 
     Examples
     --------
     >>> sel = select(t, View((0, -800, 400), (0, 0, 0)), 2.0, "chunked")  # doctest: +SKIP
     """
-    if occlusion is not None:
-        with occlusion_culling(bool(occlusion)):
-            return select(terrain, view, pixel_error, strategy, reuse=reuse, morph=morph)
-    if morph is not None:
-        with geomorphing(bool(morph)):
-            return select(terrain, view, pixel_error, strategy, reuse=reuse)
     info = strategy_info(strategy)
+    occlusion, morph = bool(occlusion), None if morph is None else bool(morph)
     if not isinstance(view, View):
         raise UsageError(f"view must be a geoterrain.View, got {type(view).__name__}")
     try:
@@ -144,21 +130,21 @@ def select(terrain, view: View, pixel_error: float = 1.0, strategy: str = DEFAUL
         raise UsageError(f"pixel_error must be a number, got {pixel_error!r}") from None
     if not (math.isfinite(tau) and tau > 0):
         raise UsageError(f"pixel_error must be a finite number > 0, got {pixel_error}")
-    key = _view_key(view, tau, strategy)
-    last = _LAST.get(terrain)
-    if reuse and last is not None and last[0] == key:
-        sel = last[1]
+    key = _view_key(view, tau, strategy, occlusion, morph)
+    last = terrain.derived(__name__, dict)  # the terrain's last selection, for reuse
+    if reuse and last.get("key") == key:
+        sel = last["selection"]
         return Selection(sel.mesh, {**sel.stats, "reused": True, "select_ms": 0.0,
                                     "tiles_decoded": 0})
     t0, dec0 = time.perf_counter(), terrain.decoded_tiles
-    mesh, stats = info.load()(terrain, view, tau)
+    mesh, stats = info.load()(terrain, view, tau, occlusion=occlusion, morph=morph)
     sel = _finish(terrain, mesh, stats, strategy, t0, dec0)
     sel.stats["pixel_error"] = tau
-    _LAST[terrain] = (key, sel)
+    last.update(key=key, selection=sel)
     return sel
 
 
-def static(terrain, max_error: float = 1.0) -> Selection:
+def static(terrain: TerrainLike, max_error: float = 1.0) -> Selection:
     """The static mesh keeping every vertex with δ > ``max_error``: vertical error ≤ it.
 
     Examples
@@ -181,7 +167,7 @@ def static(terrain, max_error: float = 1.0) -> Selection:
     return sel
 
 
-def _finish(terrain, mesh, stats: dict, strategy: str, t0: float, dec0: int,
+def _finish(terrain: TerrainLike, mesh, stats: dict, strategy: str, t0: float, dec0: int,
             elevated: bool = False) -> Selection:
     from vtkmodules.util.numpy_support import vtk_to_numpy
 

@@ -6,15 +6,22 @@ whole: the mesh does not depend on τ, and its error is zero up to round-off.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from geoterrain.core.view import View
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import assemble, quadtree_leaves, tile_index
 
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
-def select(terrain, view: View, tau: float):
-    """Every visible level-0 tile (``tau`` is ignored), and the stats.
+
+def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,
+           morph: bool | None = None):
+    """Every visible level-0 tile (``tau`` and ``morph`` are ignored), and the stats;
+    ``occlusion``: cull the tiles hidden behind nearer terrain.
 
     Examples
     --------
@@ -23,5 +30,5 @@ def select(terrain, view: View, tau: float):
     index = tile_index(terrain)
     leaves, stats = quadtree_leaves(terrain, index, view,
                                     lambda nodes, L: np.ones(len(nodes), bool),
-                                    hidden_rows(terrain, view))
+                                    hidden_rows(terrain, view, enabled=occlusion))
     return assemble(terrain, index, leaves), stats

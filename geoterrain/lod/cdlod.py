@@ -51,7 +51,7 @@
 from __future__ import annotations
 
 import math
-import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -61,20 +61,20 @@ from geoterrain.exceptions import UsageError
 from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.registry import strategy_info
-from geoterrain.lod.switches import morphing_choice
 from geoterrain.lod.tiles import TileIndex, tile_geometry, tile_index
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 MORPH_FRACTION = 0.5  # seed 001 §2.7: half of each level's range morphs
 _SAFE = 1.0 + 1e-6  # margin on every range bound (float round-off of distances)
 _END = 1.0 - 1e-9  # k = 1 from r·_END on: a boundary sample never falls just short of r
-_TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_PARTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 class LevelTables:
     """Per-level numbers from the stored tiles: e_L, M_L, c_L, diag_L (scene units)."""
 
-    def __init__(self, terrain, index: TileIndex):
+    def __init__(self, terrain: TerrainLike, index: TileIndex):
         g = terrain.grid
         top = g.top_level
         L = index.keys[:, 0]
@@ -106,11 +106,8 @@ class LevelTables:
         self.top = top
 
 
-def _tables(terrain, index: TileIndex) -> LevelTables:
-    tb = _TABLES.get(terrain)
-    if tb is None:
-        tb = _TABLES[terrain] = LevelTables(terrain, index)
-    return tb
+def _tables(terrain: TerrainLike, index: TileIndex) -> LevelTables:
+    return terrain.derived(f"{__name__}.tables", lambda: LevelTables(terrain, index))
 
 
 def ranges(tb: LevelTables, lam: float, tau: float, fraction: float = MORPH_FRACTION
@@ -146,11 +143,9 @@ def ranges(tb: LevelTables, lam: float, tau: float, fraction: float = MORPH_FRAC
     return r, m
 
 
-def _parts(terrain, index: TileIndex, row: int):
+def _parts(terrain: TerrainLike, index: TileIndex, row: int):
     """Cached per tile: global sample keys, positions, faces and each face's quadrant bit."""
-    cache = _PARTS.get(terrain)
-    if cache is None:
-        cache = _PARTS[terrain] = {}
+    cache = terrain.derived(f"{__name__}.parts", dict)
     got = cache.get(row)
     if got is None:
         ij, xyz, _valid, faces = tile_geometry(terrain, index, row)
@@ -164,13 +159,14 @@ def _parts(terrain, index: TileIndex, row: int):
     return got
 
 
-def _select_regions(terrain, index: TileIndex, tb: LevelTables, view: View, r: np.ndarray):
+def _select_regions(terrain: TerrainLike, index: TileIndex, tb: LevelTables, view: View,
+                    r: np.ndarray, occlusion: bool = True):
     """(rows, quadrant masks, levels) of the drawn regions; visited and culled counts."""
     g = terrain.grid
     nodes = index.rows_of(np.array([[g.top_level, 0, 0]]))
     nodes = nodes[nodes >= 0]
     inside = np.zeros(len(nodes), bool)
-    hidden = hidden_rows(terrain, view)
+    hidden = hidden_rows(terrain, view, enabled=occlusion)
     rows, masks, visited, culled = [], [], 0, 0
     while len(nodes):
         visited += len(nodes)
@@ -274,7 +270,7 @@ def _bounded(tb: LevelTables, key: np.ndarray, h: int, N: int) -> np.ndarray:
     return out
 
 
-def morph_positions(terrain, key: np.ndarray, xyz: np.ndarray, eye: np.ndarray,
+def morph_positions(terrain: TerrainLike, key: np.ndarray, xyz: np.ndarray, eye: np.ndarray,
                     r: np.ndarray, m: np.ndarray, tb: LevelTables | None = None
                     ) -> tuple[np.ndarray, int]:
     """Morphed scene positions of the samples ``key`` (global i·N + j) at unmorphed
@@ -328,13 +324,14 @@ def morph_positions(terrain, key: np.ndarray, xyz: np.ndarray, eye: np.ndarray,
     return P[: len(key)], moved
 
 
-def select(terrain, view: View, tau: float, *, morph: bool | None = None,
-           morph_fraction: float = MORPH_FRACTION):
+def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,
+           morph: bool | None = None, morph_fraction: float = MORPH_FRACTION):
     """The CDLOD mesh of ``view`` at pixel tolerance ``tau``, morphed, and its stats.
 
     ``morph=False`` (or ``morph_fraction=0``) keeps the selection but snaps each odd
-    vertex to its parent's surface at r_h instead of sliding it there; None follows
-    :func:`geoterrain.lod.switches.morphing_choice` (morphing unless switched off).
+    vertex to its parent's surface at r_h instead of sliding it there; None is the
+    registry's default for cdlod (morphing). ``occlusion``: cull the nodes hidden behind
+    nearer terrain.
 
     Examples
     --------
@@ -342,9 +339,8 @@ def select(terrain, view: View, tau: float, *, morph: bool | None = None,
     >>> stats["nodes"] > 0 and mesh.n_cells > 0
     True
     """
-    if morph is None:  # the choice in scope, else the registry's default (on)
-        morph = morphing_choice()
-        morph = strategy_info("cdlod").morph_default if morph is None else morph
+    if morph is None:  # the registry's default (on)
+        morph = strategy_info("cdlod").morph_default
     f = float(morph_fraction) if morph else 0.0
     if not 0.0 <= f < 1.0:
         raise UsageError(f"morph_fraction must be in [0, 1), got {morph_fraction}")
@@ -353,7 +349,7 @@ def select(terrain, view: View, tau: float, *, morph: bool | None = None,
         return empty_polydata(), {}
     tb = _tables(terrain, index)
     r, m = ranges(tb, view.lam, tau, f)
-    rows, masks, visited, culled = _select_regions(terrain, index, tb, view, r)
+    rows, masks, visited, culled = _select_regions(terrain, index, tb, view, r, occlusion)
     stats = {"tiles_visited": visited, "tiles_culled": culled, "nodes": int(len(rows)),
              "partial_nodes": int((masks != 15).sum()), "morph_fraction": f}
     if not len(rows):

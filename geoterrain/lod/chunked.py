@@ -20,17 +20,24 @@ morphing ancestors' errors, cover the steps between neighbours of different t.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from geoterrain.core.view import View
 from geoterrain.lod.chunks import assemble_chunks, chunk_error, chunk_leaves, morph_heights
 from geoterrain.lod.morph import MORPH_START
-from geoterrain.lod.switches import morphing_enabled
 from geoterrain.lod.tiles import tile_index
 
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
-def select(terrain, view: View, tau: float):
-    """The chunked-LOD mesh of ``view`` at pixel tolerance ``tau``, and its stats.
+
+def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,
+           morph: bool | None = None):
+    """The chunked-LOD mesh of ``view`` at pixel tolerance ``tau``, and its stats;
+    ``occlusion``: cull chunks hidden behind nearer terrain; ``morph``: geomorph (off
+    unless True).
 
     Examples
     --------
@@ -38,9 +45,9 @@ def select(terrain, view: View, tau: float):
     """
     index = tile_index(terrain)
     error = chunk_error(terrain, index)
-    morph = morphing_enabled()
+    morph = bool(morph)
     tau_min = MORPH_START * tau if morph else tau
-    leaves, stats = chunk_leaves(terrain, index, view, tau_min)
+    leaves, stats = chunk_leaves(terrain, index, view, tau_min, occlusion=occlusion)
     depth = zm = None
     if len(leaves):
         # a chunk's edge lies within ε_chunk of the samples (its uniform edge within

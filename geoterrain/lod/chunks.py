@@ -35,8 +35,8 @@ exactly.
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -44,10 +44,10 @@ from numba import njit
 from geoterrain.lod.kernels import close_upward, extract
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
 from geoterrain.lod.occlusion import hidden_rows
-from geoterrain.lod.switches import occlusion_enabled
 from geoterrain.lod.tiles import TileIndex, tile_table
 
-_CHUNKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 
 @dataclass
@@ -90,22 +90,23 @@ def chunk_errors(index: TileIndex) -> tuple[np.ndarray, np.ndarray]:
     return err, np.where(fin, err, 0.0)
 
 
-def _cache(terrain, index: TileIndex) -> dict:
-    c = _CHUNKS.get(terrain)
+def _cache(terrain: TerrainLike, index: TileIndex) -> dict:
+    held = terrain.derived(__name__, dict)
+    c = held.get("chunks")
     if c is None or c["index"] is not index:
         T = terrain.grid.tile_samples
         err, theta = chunk_errors(index)
-        c = _CHUNKS[terrain] = {"index": index, "error": err, "theta": theta,
+        c = held["chunks"] = {"index": index, "error": err, "theta": theta,
                                 "vid": np.full(T * T, -1, np.int32)}
     return c
 
 
-def chunk_error(terrain, index: TileIndex) -> np.ndarray:
+def chunk_error(terrain: TerrainLike, index: TileIndex) -> np.ndarray:
     """The cached :func:`chunk_errors` of ``terrain``."""
     return _cache(terrain, index)["error"]
 
 
-def chunk(terrain, index: TileIndex, row: int) -> Chunk:
+def chunk(terrain: TerrainLike, index: TileIndex, row: int) -> Chunk:
     """The cached chunk of index row ``row`` (built on first use)."""
     cache = _cache(terrain, index)
     ch = cache.get(row)
@@ -114,11 +115,12 @@ def chunk(terrain, index: TileIndex, row: int) -> Chunk:
     return ch
 
 
-def chunk_leaves(terrain, index: TileIndex, view, tau: float) -> tuple[np.ndarray, dict]:
+def chunk_leaves(terrain: TerrainLike, index: TileIndex, view, tau: float, *,
+                 occlusion: bool = True) -> tuple[np.ndarray, dict]:
     """The chunks to draw: the tile quadtree walked top-down, a node refined while
     λ·ε_chunk > τ·D_min (D_min: eye to the node's box; seed 000 §2.5), nodes outside
     the frustum or hidden behind nearer terrain culled, a node inside the frustum
-    passing that to its children.
+    passing that to its children (``occlusion=False``: no horizon culling).
 
     A compiled stack walk over a dense (level, y, x) → row table: the work follows
     the nodes visited, not the number of stored tiles.
@@ -140,7 +142,7 @@ def chunk_leaves(terrain, index: TileIndex, view, tau: float) -> tuple[np.ndarra
     args = (table[0], table[1], table[2], index.lo, index.hi, cache["error"], view.eye,
             view.planes, view.lam, float(tau))
     hidden = np.zeros(len(index.keys), bool)
-    if occlusion_enabled():
+    if occlusion:
         # the walk without culling first: the horizon is asked only about the nodes it
         # reaches (a few hundred), not every stored tile; culling only prunes that walk
         n, _, _, _, n_seen = _walk_chunks(*args, hidden, rows, seen)
@@ -201,7 +203,7 @@ def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, hidden, o
     return n, visited, culled, n_hidden, n_seen
 
 
-def _active(terrain, index: TileIndex, row: int, cache: dict) -> np.ndarray:
+def _active(terrain: TerrainLike, index: TileIndex, row: int, cache: dict) -> np.ndarray:
     """The vertices chunk ``row`` keeps (T × T flags in the tile's own layout, rows and
     columns as stored): δ > θ, the mixed diamonds, every vertex its parent chunk keeps
     (so the chunk refines its parent's mesh: each of its triangles lies in one of the
@@ -229,7 +231,7 @@ def _active(terrain, index: TileIndex, row: int, cache: dict) -> np.ndarray:
     return active
 
 
-def _build(terrain, index: TileIndex, row: int, cache: dict) -> Chunk:
+def _build(terrain: TerrainLike, index: TileIndex, row: int, cache: dict) -> Chunk:
     g = terrain.grid
     T = g.tile_samples
     L, x, y = (int(v) for v in index.keys[row])
@@ -312,7 +314,7 @@ class _Packed:
         self.S += len(ch.skirt_ab)
 
 
-def _packed(terrain, index: TileIndex, leaves: np.ndarray) -> _Packed:
+def _packed(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray) -> _Packed:
     cache = _cache(terrain, index)
     pk = cache.get("packed")
     if pk is None:
@@ -375,7 +377,7 @@ def _gather_chunks(leaves, depth, vo, fo, so, nv, nf, ns, lvl, XYZ, IJ, FACES, S
         base += nv[r]
 
 
-def assemble_chunks(terrain, index: TileIndex, leaves: np.ndarray,
+def assemble_chunks(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray,
                     skirt_depth: np.ndarray | None = None, zmorph: np.ndarray | None = None):
     """One mesh of the chunks of ``leaves`` with skirts ``skirt_depth[k]`` deep (seed 000
     §skirts; none where 0 or None), their vertices at heights ``zmorph`` (the chunks'
@@ -406,7 +408,7 @@ def assemble_chunks(terrain, index: TileIndex, leaves: np.ndarray,
 
 
 # ---------------------------------------------------------------- morphing to the parent
-def parents(terrain, index: TileIndex) -> np.ndarray:
+def parents(terrain: TerrainLike, index: TileIndex) -> np.ndarray:
     """Per index row, the row of its parent tile (−1 for the top one or a missing one)."""
     cache = _cache(terrain, index)
     got = cache.get("parents")
@@ -447,7 +449,8 @@ def _locate(pij, pfaces, cij, T, ids, w):
                     w[v, 0], w[v, 1], w[v, 2] = wa, wb, wc
 
 
-def parent_weights(terrain, index: TileIndex, row: int) -> tuple[np.ndarray, np.ndarray]:
+def parent_weights(terrain: TerrainLike, index: TileIndex, row: int) -> tuple[np.ndarray,
+                   np.ndarray]:
     """Where chunk ``row``'s vertices lie on its parent chunk's mesh: per vertex the
     parent's three vertex numbers (−1 where no parent triangle holds it: nodata, or no
     parent) and barycentric weights. The chunk refines its parent (:func:`_active`), so
@@ -512,7 +515,7 @@ def _leaf_heights(leaves, vo, nv, MZ, out):
         V += nv[r]
 
 
-def morph_heights(terrain, index: TileIndex, leaves: np.ndarray, eye, lam: float,
+def morph_heights(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray, eye, lam: float,
                   tau: float, tau_min: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Chunked LOD's morph to the parent, cascaded (seed 000 §2.5; the band of seed 002
     eq. 3): a chunk whose parent projects to ρ_P = λ·ε_P / D_min(P) draws

@@ -39,7 +39,7 @@ neighbour ratios); the blocks are assembled on whole arrays.
 
 from __future__ import annotations
 
-import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -48,7 +48,6 @@ from geoterrain.lod import geomipmap_morph as gm
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
 from geoterrain.lod.morph import MORPH_START
 from geoterrain.lod.occlusion import hidden_rows
-from geoterrain.lod.switches import morphing_enabled
 from geoterrain.lod.tiles import (
     TileIndex,
     quadtree_leaves,
@@ -57,7 +56,9 @@ from geoterrain.lod.tiles import (
     union_jack_faces,
 )
 
-_TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
+
 _TEMPLATES: dict[tuple, np.ndarray] = {}
 
 # edge order: top (row 0), bottom (row K), left (column 0), right (column K)
@@ -131,7 +132,7 @@ def template(K: int, ratios: tuple[int, int, int, int], parity: int = 0) -> np.n
 class Tables:
     """Per-terrain block tables: the level-0 tiles, their δ_n and neighbours."""
 
-    def __init__(self, terrain, index: TileIndex):
+    def __init__(self, terrain: TerrainLike, index: TileIndex):
         g = terrain.grid
         self.nmax = min(g.t, g.top_level)
         blocks = np.flatnonzero(index.keys[:, 0] == 0)
@@ -163,14 +164,11 @@ class Tables:
                                    self.delta[:, None, :])
 
 
-def tables(terrain, index: TileIndex) -> Tables:
-    tb = _TABLES.get(terrain)
-    if tb is None:
-        tb = _TABLES[terrain] = Tables(terrain, index)
-    return tb
+def tables(terrain: TerrainLike, index: TileIndex) -> Tables:
+    return terrain.derived(__name__, lambda: Tables(terrain, index))
 
 
-def _block_grids(terrain, index: TileIndex, xy: np.ndarray, n: int
+def _block_grids(terrain: TerrainLike, index: TileIndex, xy: np.ndarray, n: int
                  ) -> tuple[np.ndarray, np.ndarray]:
     """ij (B, (K+1)², 2) and scene xyz (B, (K+1)², 3) of blocks ``xy`` at level n (z NaN
     where no data): slices of the cached geometry of the level-n tiles covering them."""
@@ -261,9 +259,10 @@ def choose_levels(view: View, tau: float, delta: np.ndarray, lo: np.ndarray, hi:
     return np.cumprod(ok, axis=1).sum(1) - 1, dmin
 
 
-def visible_blocks(terrain, view: View) -> tuple:
-    """The tile index, the level-0 tiles (blocks) whose boxes meet the frustum, found
-    top-down through the tile quadtree, and the walk's stats.
+def visible_blocks(terrain: TerrainLike, view: View, *, occlusion: bool = True) -> tuple:
+    """The tile index, the level-0 tiles (blocks) whose boxes meet the frustum (and, with
+    ``occlusion``, are not hidden behind nearer terrain), found top-down through the tile
+    quadtree, and the walk's stats.
 
     Examples
     --------
@@ -276,14 +275,16 @@ def visible_blocks(terrain, view: View) -> tuple:
         return index, np.zeros(0, np.int64), {}
     leaves, stats = quadtree_leaves(terrain, index, view,
                                     lambda nodes, L: np.ones(len(nodes), bool),
-                                    hidden_rows(terrain, view))
+                                    hidden_rows(terrain, view, enabled=occlusion))
     return index, leaves, stats
 
 
-def select(terrain, view: View, tau: float, rule: str = "error"):
+def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,
+           morph: bool | None = None, rule: str = "error"):
     """The GeoMipMapping mesh of ``view`` at pixel tolerance ``tau``, and its stats;
-    geomorphed (:mod:`geoterrain.lod.geomipmap_morph`) when morphing is on and the rule
-    is ``error`` (the distance rule gives no bound to morph within, so it never morphs).
+    geomorphed (:mod:`geoterrain.lod.geomipmap_morph`) when ``morph`` is True and the
+    rule is ``error`` (the distance rule gives no bound to morph within, so it never
+    morphs); ``occlusion``: cull blocks hidden behind nearer terrain.
 
     Examples
     --------
@@ -291,11 +292,11 @@ def select(terrain, view: View, tau: float, rule: str = "error"):
     >>> stats["blocks"] > 0 and mesh.n_cells > 0
     True
     """
-    index, leaves, stats = visible_blocks(terrain, view)
+    index, leaves, stats = visible_blocks(terrain, view, occlusion=occlusion)
     if not len(leaves):
         return empty_polydata(), stats
     tb = tables(terrain, index)
-    if rule == "error" and morphing_enabled():
+    if rule == "error" and morph:
         return _select_morphed(terrain, index, tb, view, tau, leaves, stats)
     delta = tb.delta[tb.pos[leaves]]
     xy = index.keys[leaves, 1:]  # (x, y)
@@ -308,7 +309,7 @@ def select(terrain, view: View, tau: float, rule: str = "error"):
     return mesh, stats
 
 
-def _stitch(terrain, index, view, tau, xy, n, delta, dmin, nmax, bounded=True):
+def _stitch(terrain: TerrainLike, index, view, tau, xy, n, delta, dmin, nmax, bounded=True):
     """Neighbour ratios (B, 4) after refining coarser neighbours whose stitching would
     break λ·(δ_n + B)/D_min ≤ τ. ``n`` is updated in place."""
     nt = terrain.grid.tiles_per_side(0)
@@ -348,7 +349,7 @@ def _stitch(terrain, index, view, tau, xy, n, delta, dmin, nmax, bounded=True):
     return np.where(k > 0, 1 << k, 1), int((k > 0).sum())
 
 
-def _select_morphed(terrain, index, tb, view, tau, leaves, stats):
+def _select_morphed(terrain: TerrainLike, index, tb, view, tau, leaves, stats):
     """The geomorphed mesh: continuous levels for every stored block, restricted so
     that neighbours' stitching keeps the bound, drawn blocks morphed at their level."""
     g = terrain.grid
@@ -401,7 +402,7 @@ def _select_morphed(terrain, index, tb, view, tau, leaves, stats):
     return mesh, stats
 
 
-def _assemble(terrain, index, xy, n, ratios, heights=None):
+def _assemble(terrain: TerrainLike, index, xy, n, ratios, heights=None):
     """One mesh of every block at its level with its stitching template (whole arrays
     per (level, template) group); ``heights(sel, level, K, Z)`` may reshape the heights
     Z (B, K+1, K+1) of the group's blocks ``sel`` (geomorphing)."""

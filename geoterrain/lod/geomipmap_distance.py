@@ -10,11 +10,17 @@ the measured error; the mesh (blocks, stitching) is :mod:`geoterrain.lod.geomipm
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from geoterrain.core.view import View
 from geoterrain.lod import geomipmap
 
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
-def select(terrain, view: View, tau: float):
+
+def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,
+           morph: bool | None = None):
     """The GeoMipMapping mesh with the distance rule D_n = δ_n·C, and its stats.
 
     Examples
@@ -23,4 +29,4 @@ def select(terrain, view: View, tau: float):
     >>> stats["blocks"] > 0
     True
     """
-    return geomipmap.select(terrain, view, tau, rule="distance")
+    return geomipmap.select(terrain, view, tau, occlusion=occlusion, rule="distance")

@@ -30,10 +30,15 @@ Examples
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numba import njit
 
 from geoterrain.lod.kernels import _coarsest_tile
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 __all__ = ["MORPH_START", "edge_ends", "morph_heights", "morph_mesh"]
 
@@ -179,7 +184,8 @@ def morph_heights(verts, xyz, N, top, t, base, slot_of, D, R, H, zfac, eye, lam,
         xyz[v, 2] = tt * xyz[v, 2] + (1.0 - tt) * target
 
 
-def morph_mesh(terrain, verts: np.ndarray, xyz: np.ndarray, view, tmin: float, tmax: float
+def morph_mesh(terrain: TerrainLike, verts: np.ndarray, xyz: np.ndarray, view, tmin: float,
+               tmax: float
                ) -> np.ndarray:
     """Morph the heights ``xyz[:, 2]`` of an rtin mesh's vertices ``verts`` in place, for
     ``view`` and the band (``tmin``, ``tmax``); returns each vertex's t."""

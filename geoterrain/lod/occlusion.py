@@ -54,7 +54,7 @@ Examples
 from __future__ import annotations
 
 import math
-import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -64,21 +64,22 @@ from geoterrain.lod.horizon import (
     _horizon_cull,
     _near_footprints,
 )
-from geoterrain.lod.switches import occlusion_enabled
 from geoterrain.lod.tiles import tile_index
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 __all__ = ["BINS", "eye_above_surface", "hidden_rows", "occluder_rows"]
 
 NEAR_TILES = 32  # level-0 tiles nearest the eye that also occlude block by block
 BLOCKS = 16  # blocks per side of such a tile
-_FOOT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 class _Footprints:
     """Level-0 tile footprints (corner x, y), with a ring of empty ones around the grid,
     whether each is all valid, its zmin/zmax, and the curved-edge margin."""
 
-    def __init__(self, terrain):
+    def __init__(self, terrain: TerrainLike):
         g, f = terrain.grid, terrain.frame
         S, T = 1 << g.t, g.tile_samples
         n = g.tiles_per_side(0)
@@ -126,15 +127,12 @@ class _Footprints:
             self.margin = 2.0 * dev + 1e-6 * float(np.nanmax(np.abs(self.corners)))
 
 
-def _footprints(terrain) -> _Footprints:
-    fp = _FOOT.get(terrain)
-    if fp is None:
-        fp = _FOOT[terrain] = _Footprints(terrain)
-    return fp
+def _footprints(terrain: TerrainLike) -> _Footprints:
+    return terrain.derived(__name__, lambda: _Footprints(terrain))
 
 
 
-def _near_tiles(terrain, index, view: View, tiles: int = NEAR_TILES):
+def _near_tiles(terrain: TerrainLike, index, view: View, tiles: int = NEAR_TILES):
     """The level-0 tiles nearest the eye in the frustum that the tile bounds alone do not
     show hidden, and the eye's own: those :func:`_near_blocks` refines.
 
@@ -170,7 +168,7 @@ def _near_tiles(terrain, index, view: View, tiles: int = NEAR_TILES):
     return rows, fp.position[rows]
 
 
-def _near_blocks(terrain, index, rows: np.ndarray):
+def _near_blocks(terrain: TerrainLike, index, rows: np.ndarray):
     """Finer footprints for the level-0 tiles ``rows`` (:func:`_near_tiles`): each tile's
     b × b-cell blocks, with their lowest sample (state 1) or, if one of their samples is
     nodata, as holes (state 0). These tiles are the ones a view draws at full
@@ -190,7 +188,7 @@ def _near_blocks(terrain, index, rows: np.ndarray):
     return tuple(np.concatenate([g[i] for g in got]) for i in range(4))
 
 
-def _blocks(terrain, keys: list, b: int, into: dict) -> None:
+def _blocks(terrain: TerrainLike, keys: list, b: int, into: dict) -> None:
     """Corners, centres, states and lowest samples of the blocks of the level-0 tiles
     ``keys`` ((x, y, b) each), all tiles at once, stored per tile in ``into``."""
     S = 1 << terrain.grid.t
@@ -236,10 +234,7 @@ def _centres(corners: np.ndarray) -> np.ndarray:
 def _sector(view: View) -> tuple[float, float]:
     """The azimuths of the frustum's rays: (start, width); width 4π when they include
     straight down or up, or span π or more."""
-    got = view._cache.get("azimuths")
-    if got is None:
-        got = view._cache["azimuths"] = _sector_of(view)
-    return got
+    return view.memo("azimuths", lambda: _sector_of(view))
 
 
 def _sector_of(view: View) -> tuple[float, float]:
@@ -268,7 +263,7 @@ def _near_distance(view: View) -> float:
     return (view.near or 0.0) * math.sqrt(1 + tx * tx + ty * ty)
 
 
-def eye_above_surface(terrain, view: View) -> bool:
+def eye_above_surface(terrain: TerrainLike, view: View) -> bool:
     """Whether no ray from the eye meets the surface before the near plane: the
     footprints within that distance are all valid and below the eye by more than it.
 
@@ -337,14 +332,14 @@ def _surface_max_near(z: np.ndarray, i0: int, j0: int, ii: float, jj: float, rc:
     return best
 
 
-def occluder_rows(terrain, view: View) -> np.ndarray:
+def occluder_rows(terrain: TerrainLike, view: View) -> np.ndarray:
     """The level-0 tiles (index rows) that culling for ``view`` read to occlude with
     (empty before :func:`hidden_rows` ran for it, or when it culled nothing)."""
-    return view._cache.get(("occluders", id(terrain)), np.zeros(0, np.int64))
+    return view.memos.get(("occluders", id(terrain)), np.zeros(0, np.int64))
 
 
-def hidden_rows(terrain, view: View, grow: np.ndarray | None = None,
-                rows: np.ndarray | None = None) -> np.ndarray:
+def hidden_rows(terrain: TerrainLike, view: View, grow: np.ndarray | None = None,
+                rows: np.ndarray | None = None, *, enabled: bool = True) -> np.ndarray:
     """Which rows of the tile index are hidden from ``view`` by nearer terrain.
 
     ``grow`` (per row, scene units) widens each tile's box first, e.g. by the radius of
@@ -352,8 +347,8 @@ def hidden_rows(terrain, view: View, grow: np.ndarray | None = None,
     the rows a strategy may read, such as those its walk reaches: the others come back
     False (not hidden), and the work follows the rows asked for, not the store's size
     (the occluders are still every level-0 footprint in view). All False when culling
-    is switched off (:func:`occlusion`) or the eye is not safely above the terrain (see
-    the module docstring).
+    is switched off (``enabled=False``: a selection's ``occlusion=False``) or the eye is
+    not safely above the terrain (see the module docstring).
 
     Examples
     --------
@@ -363,11 +358,11 @@ def hidden_rows(terrain, view: View, grow: np.ndarray | None = None,
     """
     index = tile_index(terrain)
     out = np.zeros(len(index.keys), bool)
-    if not occlusion_enabled() or not len(out) or index.outside(view):
+    if not enabled or not len(out) or index.outside(view):
         return out  # (nothing in view: nothing to read either)
     key = ("hidden", id(terrain), None if grow is None else id(grow),
            None if rows is None else np.asarray(rows, np.int64).tobytes())
-    got = view._cache.get(key)
+    got = view.memos.get(key)
     if got is not None:
         return got
     fp = _footprints(terrain)
@@ -403,11 +398,11 @@ def hidden_rows(terrain, view: View, grow: np.ndarray | None = None,
             cen = np.concatenate([cen, bcen])
             state = np.concatenate([state, bs])
             zmin = np.concatenate([zmin, bz])
-        view._cache[("occluders", id(terrain))] = occluders
+        view.memos[("occluders", id(terrain))] = occluders
         if len(rows):
             got = np.zeros(len(rows), bool)
             _horizon_cull(ex, ey, ez, corners, cen, state, zmin, fp.margin, sec0, secw,
                           lo, hi, got)
             out[rows] = got
-    view._cache[key] = out
+    view.memos[key] = out
     return out

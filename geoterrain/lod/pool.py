@@ -16,13 +16,16 @@ A single request larger than the budget grows the slabs (correctness first).
 from __future__ import annotations
 
 import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from geoterrain.core.grid import level_offsets
 from geoterrain.lod.kernels import BLOCK, block_bounds
 
-_POOLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
+
 KINDS = ("delta", "radius", "height", "xy", "blocks", "delta_edge")
 # per sample; "delta_edge" (the static mesh of a padded store, edgepad.py) is not
 # budgeted: its pages are committed only on the few slots it is loaded into
@@ -33,7 +36,7 @@ BUDGET_BYTES = 384 << 20
 class TilePool:
     """The slabs of one terrain. Use :func:`tile_pool` to get the terrain's pool."""
 
-    def __init__(self, terrain, budget_bytes: int = BUDGET_BYTES):
+    def __init__(self, terrain: TerrainLike, budget_bytes: int = BUDGET_BYTES):
         g = terrain.grid
         self.terrain = weakref.proxy(terrain)
         self.top, self.t, self.N = g.top_level, g.t, g.size
@@ -188,9 +191,6 @@ class TilePool:
         self.have[kind][s] = True
 
 
-def tile_pool(terrain) -> TilePool:
+def tile_pool(terrain: TerrainLike) -> TilePool:
     """The :class:`TilePool` of ``terrain`` (made on first use, kept with the terrain)."""
-    p = _POOLS.get(terrain)
-    if p is None:
-        p = _POOLS[terrain] = TilePool(terrain)
-    return p
+    return terrain.derived(__name__, lambda: TilePool(terrain))

@@ -22,7 +22,7 @@
 
 from __future__ import annotations
 
-import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,14 +32,16 @@ from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import TileIndex, tile_index
 
-_TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
+
 S_MIN = 2  # minimum leaf edge s_m, in samples
 
 
 class Tables:
     """Per-terrain lookups: stored-tile rows per level on dense grids, and ĝ."""
 
-    def __init__(self, terrain, index: TileIndex):
+    def __init__(self, terrain: TerrainLike, index: TileIndex):
         g = terrain.grid
         self.rows = []
         for L in range(g.top_level + 1):
@@ -64,11 +66,8 @@ class Tables:
             self.g = float(dm.max(initial=0.0)) / (1 << g.t)
 
 
-def _tables(terrain, index):
-    tb = _TABLES.get(terrain)
-    if tb is None:
-        tb = _TABLES[terrain] = Tables(terrain, index)
-    return tb
+def _tables(terrain: TerrainLike, index):
+    return terrain.derived(__name__, lambda: Tables(terrain, index))
 
 
 def _node_rows(tb: Tables, top: int, k: int, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -79,8 +78,10 @@ def _node_rows(tb: Tables, top: int, k: int, x: np.ndarray, y: np.ndarray) -> np
     return tb.rows[0][y >> s, x >> s]
 
 
-def select(terrain, view: View, tau: float):
-    """The restricted-quadtree mesh of ``view`` for pixel tolerance ``tau``, and stats.
+def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,
+           morph: bool | None = None):
+    """The restricted-quadtree mesh of ``view`` for pixel tolerance ``tau``, and stats;
+    ``occlusion``: cull tiles hidden behind nearer terrain (``morph`` is ignored).
 
     Examples
     --------
@@ -97,7 +98,7 @@ def select(terrain, view: View, tau: float):
     sd = max(int(N1 // S_MIN).bit_length() - 1, 0)  # sd = log₂(s / s_m)
     lam, eye = view.lam, view.eye
     x = y = np.zeros(1, np.int64)
-    hidden = hidden_rows(terrain, view)
+    hidden = hidden_rows(terrain, view, enabled=occlusion)
     leaves, visited, culled = [], 0, 0
     for k in range(sd + 1):
         rows = _node_rows(tb, top, k, x, y)
@@ -171,7 +172,7 @@ def _restrict(leaves):
             return lv, D, dmax
 
 
-def _assemble(terrain, leaves, D, dmax):
+def _assemble(terrain: TerrainLike, leaves, D, dmax):
     """Each leaf as the 3×3 template, its edge midpoint removed next to a coarser leaf."""
     g = terrain.grid
     N1 = g.size - 1

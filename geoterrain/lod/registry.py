@@ -49,7 +49,8 @@ class StrategyInfo:
     morph_default: bool = False
 
     def load(self) -> Callable:
-        """The strategy's ``select(terrain, view, tau) -> (mesh, stats)`` (imports it)."""
+        """The strategy's ``select(terrain, view, tau, *, occlusion, morph) -> (mesh,
+        stats)`` (imports it)."""
         return importlib.import_module(self.module).select
 
 

@@ -25,7 +25,7 @@ The same module gives the static mesh (:func:`static`): every vertex with δ > e
 
 from __future__ import annotations
 
-import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -50,12 +50,13 @@ from geoterrain.lod.mesh import add_elevation, empty_polydata, polydata
 from geoterrain.lod.morph import MORPH_START, morph_mesh
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.pool import tile_pool
-from geoterrain.lod.switches import morphing_enabled
 from geoterrain.lod.tiles import TileIndex, tile_index, tile_table
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 BLOCKS = True  # fill_lp tests each tile's blocks' bounds before their samples
 _HASHED_UP_TO = 1 << 22  # vertex numbers in a hash table below this capacity (48 MB at most)
-_SCRATCH: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 class _Scratch:
@@ -94,11 +95,8 @@ class _Scratch:
         return np.uint8(self.gen)
 
 
-def _scratch(terrain) -> _Scratch:
-    sc = _SCRATCH.get(terrain)
-    if sc is None:
-        sc = _SCRATCH[terrain] = _Scratch(terrain.grid.size)
-    return sc
+def _scratch(terrain: TerrainLike) -> _Scratch:
+    return terrain.derived(f"{__name__}.scratch", lambda: _Scratch(terrain.grid.size))
 
 
 class ActiveSet:
@@ -108,7 +106,7 @@ class ActiveSet:
     set when it equals ``gen``; otherwise they are fresh bool arrays (``gen`` True).
     """
 
-    def __init__(self, terrain, stamped: bool = False):
+    def __init__(self, terrain: TerrainLike, stamped: bool = False):
         N = terrain.grid.size
         self.terrain = terrain
         if stamped:
@@ -147,7 +145,7 @@ class ActiveSet:
             self.mixed[a:a + (T - 1) * s + 1, b:b + (T - 1) * s + 1] = self.gen
 
 
-def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
+def static_active(terrain: TerrainLike, index: TileIndex, max_error: float) -> ActiveSet:
     """Every vertex with δ > e (the RTIN/Martini semantics, with a true bound)."""
     act = ActiveSet(terrain)
     rows = np.flatnonzero(index.delta_max > max_error)
@@ -162,13 +160,11 @@ def static_active(terrain, index: TileIndex, max_error: float) -> ActiveSet:
     return act
 
 
-_TREES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def _tile_tree(terrain, index: TileIndex):
+def _tile_tree(terrain: TerrainLike, index: TileIndex):
     """The dense (level, y, x) → row table of the stored tiles and, per row, the largest
     radius of the tile and its descendants (cached per terrain)."""
-    tree = _TREES.get(terrain)
+    held = terrain.derived(f"{__name__}.tree", dict)
+    tree = held.get("tree")
     if tree is None or tree[0] is not index:
         top = terrain.grid.top_level
         table, base = tile_table(index, top)
@@ -182,12 +178,14 @@ def _tile_tree(terrain, index: TileIndex):
                     child = table[base[L - 1] + cy * (np.int64(1) << (top - L + 1)) + cx]
                     ok = child >= 0
                     rsub[rows[ok]] = np.maximum(rsub[rows[ok]], rsub[child[ok]])
-        tree = _TREES[terrain] = (index, table, base, rsub)
+        tree = held["tree"] = (index, table, base, rsub)
     return tree[1], tree[2], tree[3]
 
 
-def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
-    """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex."""
+def view_active(terrain: TerrainLike, index: TileIndex, view: View, tau: float, *,
+                occlusion: bool = True) -> ActiveSet:
+    """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex
+    (and, with ``occlusion``, not hidden behind nearer terrain)."""
     lam, eye = view.lam, view.eye
     dm = index.delta_max
     floor = np.empty(len(dm))
@@ -197,7 +195,7 @@ def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
                   index.radius_max, rsub, eye, view.planes, lam, tau, floor, status)
     # a tile whose spheres all lie behind nearer terrain refines nothing (nor is read)
     rows = np.flatnonzero(status)
-    hidden = hidden_rows(terrain, view, index.radius_max, rows=rows)
+    hidden = hidden_rows(terrain, view, index.radius_max, rows=rows, enabled=occlusion)
     hid = hidden[rows]
     status[rows[hid]] = 0
     rows = rows[~hid]
@@ -219,7 +217,7 @@ def view_active(terrain, index: TileIndex, view: View, tau: float) -> ActiveSet:
     return act
 
 
-def _gather(terrain, flat: np.ndarray):
+def _gather(terrain: TerrainLike, flat: np.ndarray):
     """Scene positions, grid indices and pyramid levels of samples ``flat``, read from
     the pooled tiles."""
     pool = tile_pool(terrain)
@@ -234,7 +232,7 @@ def _gather(terrain, flat: np.ndarray):
     return xyz, ij, lvl
 
 
-def active_mesh(terrain, act: ActiveSet, view: View | None = None,
+def active_mesh(terrain: TerrainLike, act: ActiveSet, view: View | None = None,
                 band: tuple[float, float] | None = None, tau: float = 0.0):
     """The conforming mesh of an active set: bisect, gather positions, cull, wind.
 
@@ -289,7 +287,7 @@ def active_mesh(terrain, act: ActiveSet, view: View | None = None,
                                                     "level": level})
 
 
-def _mesh_in_passes(terrain, act: ActiveSet, planes: np.ndarray, eye: np.ndarray,
+def _mesh_in_passes(terrain: TerrainLike, act: ActiveSet, planes: np.ndarray, eye: np.ndarray,
                     slack: float, view=None, band=None):
     """:func:`active_mesh` in three passes: walk, gather from the pool, cull."""
     sc = _scratch(terrain)
@@ -306,8 +304,11 @@ def _mesh_in_passes(terrain, act: ActiveSet, planes: np.ndarray, eye: np.ndarray
                                      "level": level})
 
 
-def select(terrain, view: View, tau: float):
-    """The LP-refined mesh of ``view`` at pixel tolerance ``tau`` (LP eq. 2), and stats.
+def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,
+           morph: bool | None = None):
+    """The LP-refined mesh of ``view`` at pixel tolerance ``tau`` (LP eq. 2), and stats;
+    ``occlusion``: skip tiles hidden behind nearer terrain; ``morph``: geomorph (off
+    unless True).
 
     Examples
     --------
@@ -316,12 +317,12 @@ def select(terrain, view: View, tau: float):
     index = tile_index(terrain)
     if index.outside(view):
         return empty_polydata(), {}
-    if morphing_enabled():  # seed 002 §2.10: vertices appear at τ_min, true at τ_max = τ
+    if morph:  # seed 002 §2.10: vertices appear at τ_min, true at τ_max = τ
         tmin = MORPH_START * tau
-        act = view_active(terrain, index, view, tmin)
+        act = view_active(terrain, index, view, tmin, occlusion=occlusion)
         return (active_mesh(terrain, act, view, (tmin, tau), tau),
                 {"tiles_hidden": act.tiles_hidden, "morph_band": (tmin, tau)})
-    act = view_active(terrain, index, view, tau)
+    act = view_active(terrain, index, view, tau, occlusion=occlusion)
     return active_mesh(terrain, act, view, tau=tau), {"tiles_hidden": act.tiles_hidden}
 
 
@@ -330,7 +331,7 @@ def select(terrain, view: View, tau: float):
 EDGE_PADDING = True
 
 
-def static(terrain, max_error: float):
+def static(terrain: TerrainLike, max_error: float):
     """The static mesh keeping every vertex with δ > ``max_error``, and stats.
 
     Its vertical error is ≤ ``max_error`` at every valid full-resolution sample.
@@ -380,12 +381,12 @@ def static(terrain, max_error: float):
     return add_elevation(mesh, terrain.frame.z_scale, elev), {}
 
 
-def edge_padding(terrain) -> bool:
+def edge_padding(terrain: TerrainLike) -> bool:
     """Whether the static mesh of ``terrain`` replicates its padding (edgepad.py)."""
     return bool(EDGE_PADDING and terrain.edge_max is not None and has_padding(terrain.grid))
 
 
-def static_keys(terrain, index: TileIndex, pool, e: float, edge: bool) -> np.ndarray:
+def static_keys(terrain: TerrainLike, index: TileIndex, pool, e: float, edge: bool) -> np.ndarray:
     """(K, 3) keys of the tiles holding a vertex of the static mesh δ > e (δ_edge with
     ``edge``, and then also the unstored tiles that hold only a second δ)."""
     dmax = _edge_delta_max(terrain, index, pool) if edge else index.delta_max
@@ -396,7 +397,7 @@ def static_keys(terrain, index: TileIndex, pool, e: float, edge: bool) -> np.nda
     return keys
 
 
-def _edge_delta_max(terrain, index: TileIndex, pool) -> np.ndarray:
+def _edge_delta_max(terrain: TerrainLike, index: TileIndex, pool) -> np.ndarray:
     """Per index row, the largest δ_edge of the tile's new vertices (its δ's elsewhere)."""
     dmax = np.array(index.delta_max, np.float64)
     if terrain.edge_max:

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -44,6 +45,9 @@ from geoterrain.lod.kernels import fill_static, gather_pooled, mark_tiles, walk_
 from geoterrain.lod.pool import TilePool
 from geoterrain.lod.rtin import ActiveSet
 from geoterrain.lod.tiles import tile_index
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 CHUNK = 1 << 20  # leaf triangles per chunk
 POOL_BYTES = 192 << 20  # the private tile pool's budget (heights, x, y; δ while flagging)
@@ -202,7 +206,8 @@ def _edge_chunk(tris, pool, zfac, g, vid, nv, cuts):
     return faces[:nf], xyz, ij
 
 
-def static_flags(terrain, max_error: float, pool: TilePool, edge: bool = False) -> ActiveSet:
+def static_flags(terrain: TerrainLike, max_error: float, pool: TilePool,
+                 edge: bool = False) -> ActiveSet:
     """:func:`geoterrain.lod.rtin.static_active` with δ read through ``pool`` in batches
     that fit its budget (the same flags, bounded memory); ``edge``: δ_edge, the second δ
     of a padded store (:mod:`geoterrain.bounds.edgepad`), as :func:`geoterrain.lod.static` reads
@@ -259,7 +264,7 @@ def _gather(pool: TilePool, flat: np.ndarray, zfac: float, window=None):
     return xyz, ij
 
 
-def static_chunks(terrain, max_error: float, *, chunk: int = CHUNK,
+def static_chunks(terrain: TerrainLike, max_error: float, *, chunk: int = CHUNK,
                   pool_bytes: int = POOL_BYTES, count: bool = True) -> Iterator[MeshChunk]:
     """The static mesh of bound ``max_error`` (every vertex with δ > e), chunk by chunk.
 

@@ -46,7 +46,7 @@ True
 
 from __future__ import annotations
 
-import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
@@ -55,10 +55,12 @@ from geoterrain.core.view import View
 from geoterrain.lod.geomipmap import _NEIGHBOUR, _assemble, _stitch, tables, visible_blocks
 from geoterrain.lod.mesh import empty_polydata
 
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
+
 T_LIMIT = 64  # the tessellator's largest factor (Fig. 5.3)
 HAM_SCALE = 1.0  # g(HAM) = HAM_SCALE · √HAM (eq. 5-2)
 
-_HAM: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 @njit(cache=True, nogil=True)
@@ -123,12 +125,13 @@ def _power_of_two(t: np.ndarray) -> np.ndarray:
     return np.exp2(np.ceil(np.log2(np.clip(t, 1.0, T_LIMIT) - 1e-9))).clip(1, T_LIMIT)
 
 
-def ham_max(terrain, index, rows: np.ndarray) -> np.ndarray:
+def ham_max(terrain: TerrainLike, index, rows: np.ndarray) -> np.ndarray:
     """HAM_max of the level-0 patches ``rows`` (cached per terrain; a patch is decoded
     the first time it is asked for)."""
-    cache = _HAM.get(terrain)
+    held = terrain.derived(__name__, dict)
+    cache = held.get("ham")
     if cache is None or cache[0] is not index:
-        cache = _HAM[terrain] = (index, np.full(len(index.keys), np.nan))
+        cache = held["ham"] = (index, np.full(len(index.keys), np.nan))
     out = cache[1]
     z_to_m = terrain.frame.z_to_m
     for r in rows[np.isnan(out[rows])].tolist():
@@ -144,7 +147,7 @@ def ham_max(terrain, index, rows: np.ndarray) -> np.ndarray:
     return out[rows]
 
 
-def factors(terrain, index, leaves: np.ndarray, view: View, tau: float, *,
+def factors(terrain: TerrainLike, index, leaves: np.ndarray, view: View, tau: float, *,
             ham: bool = True) -> np.ndarray:
     """The tessellation factor (a power of two in [1, 64]) of each visible patch.
 
@@ -190,14 +193,16 @@ def factors(terrain, index, leaves: np.ndarray, view: View, tau: float, *,
     return _power_of_two(out)
 
 
-def select(terrain, view: View, tau: float, *, ham: bool = True):
+def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,
+           morph: bool | None = None, ham: bool = True):
     """The HAM-driven tessellation of ``view`` at pixel tolerance ``tau``, and its stats.
 
     Unbounded (seed 004 gives no error bound): ``geoterrain bench`` measures ρ.
     ``stats["factor_counts"]`` counts the drawn patches per factor 1, 2, 4 … 64 (seed
-    004's factor histogram); ``ham=False`` drops the HAM cap (see :func:`factors`).
+    004's factor histogram); ``ham=False`` drops the HAM cap (see :func:`factors`);
+    ``occlusion``: cull patches hidden behind nearer terrain (``morph`` is ignored).
     """
-    index, leaves, stats = visible_blocks(terrain, view)
+    index, leaves, stats = visible_blocks(terrain, view, occlusion=occlusion)
     if not len(leaves):
         return empty_polydata(), stats
     g = terrain.grid

@@ -15,8 +15,8 @@ terrain itself is only read.
 
 from __future__ import annotations
 
-import weakref
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,8 +24,8 @@ from geoterrain.core.grid import level_offsets
 from geoterrain.core.view import INSIDE, OUTSIDE, View
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
 
-_INDEX: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_GEOMETRY: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 
 class TileIndex:
@@ -39,7 +39,7 @@ class TileIndex:
     mixing data and nodata).
     """
 
-    def __init__(self, terrain):
+    def __init__(self, terrain: TerrainLike):
         info = terrain.tile_info
         keys = sorted(info)
         self.row = {k: n for n, k in enumerate(keys)}
@@ -89,12 +89,9 @@ def tile_table(index: TileIndex, top: int) -> tuple[np.ndarray, np.ndarray]:
     return table, base
 
 
-def tile_index(terrain) -> TileIndex:
+def tile_index(terrain: TerrainLike) -> TileIndex:
     """The :class:`TileIndex` of ``terrain``, built once and cached with the terrain."""
-    ix = _INDEX.get(terrain)
-    if ix is None:
-        ix = _INDEX[terrain] = TileIndex(terrain)
-    return ix
+    return terrain.derived(f"{__name__}.index", lambda: TileIndex(terrain))
 
 
 def union_jack_faces(t: int) -> np.ndarray:
@@ -124,7 +121,7 @@ def union_jack_faces(t: int) -> np.ndarray:
 Refine = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def quadtree_leaves(terrain, index: TileIndex, view: View, refine: Refine,
+def quadtree_leaves(terrain: TerrainLike, index: TileIndex, view: View, refine: Refine,
                     hidden: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """Leaf tiles (rows into ``index``) to draw, walking the tile quadtree top-down.
 
@@ -171,16 +168,15 @@ def quadtree_leaves(terrain, index: TileIndex, view: View, refine: Refine,
     return leaves, {"tiles_visited": visited, "tiles_culled": culled, "tiles_hidden": n_hidden}
 
 
-def tile_geometry(terrain, index: TileIndex, row: int
+def tile_geometry(terrain: TerrainLike, index: TileIndex, row: int
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Cached geometry of one stored tile: ij (V, 2), xyz (V, 3), valid (V,), faces.
 
     Faces are the union-jack triangles whose three corners are valid, wound
     counter-clockwise seen from above.
     """
-    cache = _GEOMETRY.get(terrain)
-    if cache is None:
-        cache = _GEOMETRY[terrain] = {"faces": union_jack_faces(terrain.grid.t)}
+    cache = terrain.derived(f"{__name__}.geometry",
+                            lambda: {"faces": union_jack_faces(terrain.grid.t)})
     if row in cache:
         return cache[row]
     g = terrain.grid
@@ -197,7 +193,7 @@ def tile_geometry(terrain, index: TileIndex, row: int
     return out
 
 
-def _skirts(terrain, index: TileIndex, row: int, xyz: np.ndarray, valid: np.ndarray,
+def _skirts(terrain: TerrainLike, index: TileIndex, row: int, xyz: np.ndarray, valid: np.ndarray,
             depth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Skirt vertices, faces (local indices ≥ len(xyz)) and the edge sample of each
     skirt vertex, hanging ``depth`` below the tile's inner edges (seed 000 §skirts)."""
@@ -229,7 +225,7 @@ def _skirts(terrain, index: TileIndex, row: int, xyz: np.ndarray, valid: np.ndar
     return sk_xyz, faces, e.ravel()
 
 
-def assemble(terrain, index: TileIndex, leaves: np.ndarray,
+def assemble(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray,
              skirt_depth: np.ndarray | None = None):
     """One mesh of the stored tiles ``leaves``, each with skirts ``skirt_depth[k]`` deep
     (none where the depth is 0, or when ``skirt_depth`` is None).

@@ -21,6 +21,7 @@ import math
 import shutil
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from geoterrain.core.atomicfiles import partial_path, publish, remove_stale_partials
 from geoterrain.core.view import View
@@ -33,6 +34,9 @@ from geoterrain.rendering.drape import Drape
 from geoterrain.rendering.overlays import compose, layout_for
 from geoterrain.rendering.scene import TerrainScene, _plotter, _writable_target, _write_png
 from geoterrain.rendering.shading import Light
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 __all__ = ["animate", "check_animation_output", "flythrough", "orbit"]
 
@@ -105,13 +109,16 @@ def _animation_writer(out: str | Path, fps: float, overwrite: bool = True):
     return append, lambda: None, lambda: publish(tmp, out, overwrite), tmp
 
 
-def animate(terrain, views: Sequence[View], out: str | Path, *, pixel_error: float = 1.0,
+def animate(terrain: TerrainLike, views: Sequence[View], out: str | Path, *,
+            pixel_error: float = 1.0,
             strategy: str = DEFAULT, shading: str = "normals", cmap: str | Palette = "auto",
             title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
             north_arrow: bool = True, fps: float = 10.0, progress: Progress | None = None,
             vertical_exaggeration: float = 1.0, overwrite: bool = True,
-            light: Light | None = None, drape: Drape | None = None) -> list[dict]:
-    """Render each view (each with its own LOD selection) into a GIF, MP4 or PNG folder.
+            light: Light | None = None, drape: Drape | None = None, occlusion: bool = True,
+            morph: bool | None = None, anti_aliasing: str = "auto") -> list[dict]:
+    """Render each view (each with its own LOD selection) into a GIF, MP4 or PNG folder
+    (the picture's arguments are :func:`~geoterrain.rendering.scene.render`'s).
 
     Returns the per-frame stats. The output is written to a hidden partial and
     moved into place only when every frame is done; ``overwrite=False`` refuses
@@ -135,7 +142,8 @@ def animate(terrain, views: Sequence[View], out: str | Path, *, pixel_error: flo
     all_stats = []
     ok = False
     try:
-        scene = TerrainScene(_plotter(size), terrain, shading, cmap, light=light, drape=drape)
+        scene = TerrainScene(_plotter(size, anti_aliasing), terrain, shading, cmap,
+                             light=light, drape=drape, occlusion=occlusion, morph=morph)
         try:
             for k, v in enumerate(views):
                 img, st = scene.frame(v, pixel_error, strategy)
@@ -163,7 +171,8 @@ def animate(terrain, views: Sequence[View], out: str | Path, *, pixel_error: flo
     return all_stats
 
 
-def orbit(terrain, out: str | Path, n_frames: int = 36, *, size: tuple[int, int] = (1280, 720),
+def orbit(terrain: TerrainLike, out: str | Path, n_frames: int = 36, *, size: tuple[int,
+          int] = (1280, 720),
           azimuth: float = 190.0, elevation: float = 40.0, distance: float | None = None,
           fov_y_deg: float = 30.0, **kw) -> list[dict]:
     """A full turn around the terrain centre, ``n_frames`` frames, to a .gif/.mp4/folder.
@@ -187,7 +196,7 @@ def orbit(terrain, out: str | Path, n_frames: int = 36, *, size: tuple[int, int]
     return animate(terrain, views, out, **kw)
 
 
-def flythrough(terrain, cameras_json: str | Path, out: str | Path, *,
+def flythrough(terrain: TerrainLike, cameras_json: str | Path, out: str | Path, *,
                size: tuple[int, int] = (1280, 720), fov_y_deg: float = 30.0,
                frames_between: int = 0, **kw) -> list[dict]:
     """Fly along the cameras of a JSON file (see :func:`load_cameras`).

@@ -27,14 +27,8 @@ True
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
-from collections.abc import Iterator
-
 import numpy as np
 from numba import njit, prange
-
-from geoterrain.exceptions import UsageError
 
 EDGE_THRESHOLD = 1.0 / 8.0  # a pixel is on an edge when its local luma range exceeds
 EDGE_THRESHOLD_MIN = 1.0 / 16.0  # this share of its brightest neighbour, and this
@@ -196,36 +190,12 @@ def fxaa(img: np.ndarray, depth: np.ndarray | None = None, subpix: float = SUBPI
     return out
 
 
+#: the pictures' anti-aliasing modes (:func:`geoterrain.rendering.scene.render`'s
+#: ``anti_aliasing``): ``auto`` (the default: ``edges`` for a frame whose silhouettes are
+#: sparse, else ``msaa``), ``msaa`` (the renderer's multisampling), ``edges`` (the mesh's
+#: silhouette edges blended by their coverage, :mod:`geoterrain.rendering.edgeaa`),
+#: ``fxaa`` (:func:`fxaa` on each read-back picture) and ``none``
 ANTI_ALIASING = ("auto", "msaa", "edges", "fxaa", "none")
-_AA: contextvars.ContextVar[str] = contextvars.ContextVar("geoterrain_anti_aliasing",
-                                                         default="auto")
-
-
-@contextlib.contextmanager
-def anti_aliasing(mode: str) -> Iterator[None]:
-    """Scope the anti-aliasing of the offscreen pictures rendered inside (``auto``, the
-    default: ``edges`` for a frame whose silhouettes are sparse, else ``msaa``;
-    ``msaa``, the renderer's multisampling; ``edges``, the mesh's silhouette edges
-    blended by their coverage, :mod:`geoterrain.rendering.edgeaa`; ``fxaa``, :func:`fxaa` on each
-    read-back picture; ``none``);
-    a command's ``--anti-aliasing`` sets it for its whole run
-    (:func:`geoterrain.rendering.scene._plotter` reads it).
-
-    Examples
-    --------
-    >>> with anti_aliasing("fxaa"):
-    ...     _AA.get()
-    'fxaa'
-    >>> _AA.get()
-    'auto'
-    """
-    if mode not in ANTI_ALIASING:
-        raise UsageError(f"unknown anti-aliasing {mode!r}; use {', '.join(ANTI_ALIASING)}")
-    tok = _AA.set(mode)
-    try:
-        yield
-    finally:
-        _AA.reset(tok)
 
 
 def depth_buffer(plotter) -> np.ndarray:

@@ -15,14 +15,18 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from geoterrain.core.view import View, load_views
 from geoterrain.exceptions import UsageError
 
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
-def terrain_bounds(terrain) -> tuple[np.ndarray, np.ndarray]:
+
+def terrain_bounds(terrain: TerrainLike) -> tuple[np.ndarray, np.ndarray]:
     """Scene-frame box (lo, hi) of the terrain's valid data (:meth:`Terrain.scene_box`)."""
     return terrain.scene_box()
 
@@ -52,7 +56,7 @@ def check_elevation(elevation: float) -> None:
                          "look_from and look_at")
 
 
-def default_view(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 190.0,
+def default_view(terrain: TerrainLike, size: tuple[int, int] = (1280, 720), azimuth: float = 190.0,
                  elevation: float = 40.0, distance: float | None = None,
                  fov_y_deg: float = 30.0, look_at: Sequence[float] | None = None,
                  fit_rect: Sequence[float] | None = None, fill: float | None = None,
@@ -130,7 +134,7 @@ def default_view(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 
     return View(tuple(eye), tuple(c), up, fov_y_deg, tuple(size))
 
 
-def _coarse_points(terrain) -> np.ndarray:
+def _coarse_points(terrain: TerrainLike) -> np.ndarray:
     """Scene positions of the valid samples of the top pyramid tile (the terrain's shape)."""
     g = terrain.grid
     L = g.top_level
@@ -141,7 +145,7 @@ def _coarse_points(terrain) -> np.ndarray:
     return np.stack([X, Y, terrain.frame.z(h[ok])], 1)
 
 
-def orbit_views(terrain, n_frames: int, size: tuple[int, int] = (1280, 720),
+def orbit_views(terrain: TerrainLike, n_frames: int, size: tuple[int, int] = (1280, 720),
                 azimuth: float = 190.0, elevation: float = 40.0,
                 distance: float | None = None, fov_y_deg: float = 30.0,
                 fit_rect: Sequence[float] | None = None) -> list[View]:
@@ -183,7 +187,7 @@ def symmetric_rect(size: tuple[int, int], rect: Sequence[float] | None) -> tuple
     return (W / 2 - hx, H / 2 - hy, W / 2 + hx, H / 2 + hy)
 
 
-def load_cameras(terrain, path: str | Path, size: tuple[int, int] = (1280, 720),
+def load_cameras(terrain: TerrainLike, path: str | Path, size: tuple[int, int] = (1280, 720),
                  fov_y_deg: float = 30.0) -> list[View]:
     """Views from a cameras JSON file, CRS cameras placed in ``terrain``'s frame.
 
@@ -196,7 +200,7 @@ def load_cameras(terrain, path: str | Path, size: tuple[int, int] = (1280, 720),
     return load_views(path, size, fov_y_deg, terrain.frame)
 
 
-def to_scene(terrain, p: Sequence[float]) -> np.ndarray:
+def to_scene(terrain: TerrainLike, p: Sequence[float]) -> np.ndarray:
     """Source-CRS (x, y, height in metres) → scene frame (z-scale applied)."""
     return np.array(terrain.frame.crs_point_to_scene(p))
 

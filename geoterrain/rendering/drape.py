@@ -29,11 +29,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from geoterrain.core.frame import level_transform
 from geoterrain.exceptions import InputError, UsageError
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 
 def _read_rgb(src) -> tuple[np.ndarray, np.ndarray]:
@@ -67,7 +71,7 @@ def _read_rgb(src) -> tuple[np.ndarray, np.ndarray]:
     return np.clip(rgb, 0, 255).astype(np.float32), mask
 
 
-def drape_image(terrain, path: str | Path, level: int,
+def drape_image(terrain: TerrainLike, path: str | Path, level: int,
                 base: np.ndarray | None = None) -> np.ndarray:
     """The image at ``path`` on the level-``level`` grid: RGB uint8 (S, S, 3), row 0 on top.
 
@@ -121,7 +125,7 @@ class Drape:
 _SOURCES: dict = {}
 
 
-def _georeferenced(terrain):
+def _georeferenced(terrain: TerrainLike):
     """The terrain's frame; a UsageError when the DEM has no CRS to drape in."""
     f = terrain.frame
     if f.kind == "pixel" or not f.crs_wkt:
@@ -152,7 +156,7 @@ def _source(path: str):
     return _SOURCES[key]
 
 
-def drape_tile(terrain, drape: Drape, level: int, x: int, y: int
+def drape_tile(terrain: TerrainLike, drape: Drape, level: int, x: int, y: int
                ) -> tuple[np.ndarray, np.ndarray]:
     """The drape over stored tile (level, x, y): RGB float32 (T, T, 3) in 0..1 and the
     (T, T) mask of the samples it covers. Only the tile's window is reprojected.

@@ -21,15 +21,20 @@ from __future__ import annotations
 import base64
 import html
 import io
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from geoterrain.rendering.textures import build_texture_image, texture_level
 
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
+
 THUMBNAIL = 257  # samples per side of the thumbnail at most
 
 
-def thumbnail_png(terrain, max_size: int = THUMBNAIL, shading: str = "normals") -> bytes:
+def thumbnail_png(terrain: TerrainLike, max_size: int = THUMBNAIL,
+                  shading: str = "normals") -> bytes:
     """PNG bytes of the shaded texture of the finest level that fits ``max_size``,
     cropped to the data (no padding).
 
@@ -49,7 +54,7 @@ def thumbnail_png(terrain, max_size: int = THUMBNAIL, shading: str = "normals") 
     return buf.getvalue()
 
 
-def repr_html(terrain) -> str:
+def repr_html(terrain: TerrainLike) -> str:
     """An HTML summary of ``terrain`` (extent, CRS, size, levels, codec) and a thumbnail."""
     info = terrain.info()
     ex = info["extent_m"]
@@ -98,7 +103,7 @@ def notebook_backend() -> str | None:
     return backend if importlib.util.find_spec(pkg) is not None else None
 
 
-def plot(terrain, view=None, *, shading: str = "normals", pixel_error: float = 1.0,
+def plot(terrain: TerrainLike, view=None, *, shading: str = "normals", pixel_error: float = 1.0,
          strategy: str | None = None, size: tuple[int, int] = (960, 540),
          cmap: str = "auto", **kwargs):
     """Show the terrain: PyVista's notebook backend if usable, else an offscreen image.

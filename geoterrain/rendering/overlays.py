@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,6 +31,9 @@ from geoterrain.core.view import View
 from geoterrain.rendering.cameras import project
 from geoterrain.rendering.colours import Palette, as_palette, colorbar_map
 from geoterrain.rendering.textures import elevation_range, height_tolerance
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 DPI = 100.0
 Box = tuple[float, float, float, float]  # x0, y0, x1, y1 in pixels, y down
@@ -136,7 +140,7 @@ def plan(size: tuple[int, int], *, title: str | None = None,
     return lay
 
 
-def layout_for(terrain, size: tuple[int, int], *, shading: str = "normals",
+def layout_for(terrain: TerrainLike, size: tuple[int, int], *, shading: str = "normals",
                cmap: str | Palette = "auto", title: str | None = None, colorbar: bool = True,
                scale_bar: bool = True, north_arrow: bool = True, ve: float = 1.0) -> Layout:
     """:func:`plan` with the colour bar's range taken from ``terrain`` and the palette."""
@@ -160,7 +164,7 @@ def north_direction(view: View) -> np.ndarray | None:
     return d / np.linalg.norm(d)
 
 
-def compose(img: np.ndarray, view: View, terrain, *, shading: str = "normals",
+def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str = "normals",
             cmap: str | Palette = "auto", title: str | None = None, colorbar: bool = True,
             scale_bar: bool = True, north_arrow: bool = True, ve: float = 1.0,
             layout: Layout | None = None, extents: dict | None = None) -> np.ndarray:

@@ -38,6 +38,7 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -49,7 +50,7 @@ from geoterrain.exaggerate import exaggerated
 from geoterrain.exceptions import UsageError, WriteError, exists_error
 from geoterrain.lod.mesh import polydata
 from geoterrain.lod.registry import DEFAULT, strategy_info
-from geoterrain.rendering.antialias import _AA, ANTI_ALIASING, depth_buffer, fxaa
+from geoterrain.rendering.antialias import ANTI_ALIASING, depth_buffer, fxaa
 from geoterrain.rendering.cameras import (  # noqa: F401 - the camera helpers are part of this API
     default_view,
     interpolate_views,
@@ -66,6 +67,9 @@ from geoterrain.rendering.overlays import compose, layout_for
 from geoterrain.rendering.shading import Light
 from geoterrain.rendering.textures import SHADINGS, texture_image, texture_level
 from geoterrain.rendering.tiletextures import build_view_texture
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 BACKGROUND = (0.86, 0.90, 0.95)  # a pale sky
 PLAIN_COLOR = (0.80, 0.78, 0.72)
@@ -98,10 +102,12 @@ class TerrainScene:
     >>> img, stats = scene.frame(default_view(t, (640, 480)))  # doctest: +SKIP
     """
 
-    def __init__(self, plotter, terrain, shading: str = "normals", cmap: str | Palette = "auto",
+    def __init__(self, plotter, terrain: TerrainLike, shading: str = "normals",
+                 cmap: str | Palette = "auto",
                  background: Sequence[float] = BACKGROUND, vertical_exaggeration: float = 1.0,
                  textures: str = "view", light: Light | None = None,
-                 drape: Drape | None = None):
+                 drape: Drape | None = None, occlusion: bool = True,
+                 morph: bool | None = None):
         import pyvista as pv
 
         terrain = exaggerated(terrain, vertical_exaggeration)
@@ -110,6 +116,7 @@ class TerrainScene:
             raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
         self.plotter, self.terrain, self.shading, self.cmap = plotter, terrain, shading, cmap
         self.light, self.drape = light, drape
+        self.occlusion, self.morph = occlusion, morph  # each frame's selection's switches
         if ((light is not None and not light.is_default) or drape is not None) \
                 and textures == "global":
             raise UsageError("sun, shadows, ambient occlusion and drapes need the per-view "
@@ -245,7 +252,8 @@ class TerrainScene:
             view = view.clipped_to(*t.scene_box())
         c0 = io_counters(t)
         t0, p0 = time.perf_counter(), time.process_time()
-        sel = lod.select(t, view, pixel_error=pixel_error, strategy=strategy)
+        sel = lod.select(t, view, pixel_error=pixel_error, strategy=strategy,
+                         occlusion=self.occlusion, morph=self.morph)
         t1 = time.perf_counter()
         self.update(sel, view)
         self.set_camera(view)
@@ -338,7 +346,7 @@ def _image_data(img: np.ndarray):
     return out
 
 
-def io_counters(terrain) -> dict:
+def io_counters(terrain: TerrainLike) -> dict:
     """The terrain's running counts of decoded tiles (by kind) and store bytes read."""
     return {"tiles_decoded": int(terrain.decoded_tiles),
             "normals_decoded": int(getattr(terrain, "decoded_normals", 0)),
@@ -389,7 +397,7 @@ def _draw(plotter) -> np.ndarray:
     return img
 
 
-def _plotter(size: tuple[int, int], anti_aliasing: bool | str | None = None):
+def _plotter(size: tuple[int, int], anti_aliasing: bool | str = "auto"):
     """An offscreen plotter (EGL when there is no display).
 
     ``anti_aliasing``: ``"auto"`` (the default: each frame of
@@ -399,11 +407,8 @@ def _plotter(size: tuple[int, int], anti_aliasing: bool | str | None = None):
     their coverage, :mod:`geoterrain.rendering.edgeaa`), ``"fxaa"``
     (a CPU pass over each read-back picture along its depth edges,
     :mod:`geoterrain.rendering.antialias`: 3–5 ms where a software renderer's MSAA costs 30–60 ms
-    at 1280×720), ``"none"`` (or False); None: the scope's
-    (:func:`geoterrain.rendering.antialias.anti_aliasing`, ``"auto"`` by default).
+    at 1280×720), ``"none"`` (or False).
     """
-    if anti_aliasing is None:
-        anti_aliasing = _AA.get()
     mode = {True: "msaa", False: "none"}.get(anti_aliasing, anti_aliasing)
     if mode not in ANTI_ALIASING:
         raise UsageError(f"unknown anti-aliasing {anti_aliasing!r}; use "
@@ -452,7 +457,7 @@ def _write_png(path: str | Path, img: np.ndarray, overwrite: bool = True) -> Non
         raise
 
 
-def overview(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 190.0,
+def overview(terrain: TerrainLike, size: tuple[int, int] = (1280, 720), azimuth: float = 190.0,
              elevation: float = 40.0, distance: float | None = None, fov_y_deg: float = 30.0,
              *, shading: str = "normals", cmap: str | Palette = "auto",
              title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
@@ -474,11 +479,15 @@ def overview(terrain, size: tuple[int, int] = (1280, 720), azimuth: float = 190.
                         fit_rect=lay.free)
 
 
-def render_array(terrain, view: View, *, pixel_error: float = 1.0, strategy: str = DEFAULT,
+def render_array(terrain: TerrainLike, view: View, *, pixel_error: float = 1.0,
+                 strategy: str = DEFAULT,
                  shading: str = "normals", cmap: str | Palette = "auto", scene=None,
                  vertical_exaggeration: float = 1.0, light: Light | None = None,
-                 drape: Drape | None = None) -> tuple[np.ndarray, dict]:
-    """The rendered image (H, W, 3) uint8 of ``view`` without overlays, and its stats.
+                 drape: Drape | None = None, occlusion: bool = True, morph: bool | None = None,
+                 anti_aliasing: str = "auto") -> tuple[np.ndarray, dict]:
+    """The rendered image (H, W, 3) uint8 of ``view`` without overlays, and its stats
+    (the arguments are :func:`render`'s; ``scene``: draw with this
+    :class:`TerrainScene` rather than a new one, whose own settings then apply).
 
     Examples
     --------
@@ -489,9 +498,9 @@ def render_array(terrain, view: View, *, pixel_error: float = 1.0, strategy: str
     strategy_info(strategy)
     own = scene is None
     if own:
-        scene = TerrainScene(_plotter(view.size), terrain, shading, cmap,
+        scene = TerrainScene(_plotter(view.size, anti_aliasing), terrain, shading, cmap,
                              vertical_exaggeration=vertical_exaggeration, light=light,
-                             drape=drape)
+                             drape=drape, occlusion=occlusion, morph=morph)
     try:
         img, stats = scene.frame(view, pixel_error, strategy)
         stats["terrain_fraction"] = round(scene.terrain_fraction(), 4)
@@ -501,12 +510,13 @@ def render_array(terrain, view: View, *, pixel_error: float = 1.0, strategy: str
     return img, stats
 
 
-def render(terrain, view: View | None, path: str | Path, *, pixel_error: float = 1.0,
+def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_error: float = 1.0,
            strategy: str = DEFAULT, shading: str = "normals", cmap: str | Palette = "auto",
            title: str | None = None, colorbar: bool = True, scale_bar: bool = True,
            north_arrow: bool = True, stats_path: str | Path | None = None,
            vertical_exaggeration: float = 1.0, overwrite: bool = True,
-           light: Light | None = None, drape: Drape | None = None) -> dict:
+           light: Light | None = None, drape: Drape | None = None, occlusion: bool = True,
+           morph: bool | None = None, anti_aliasing: str = "auto") -> dict:
     """Render one view of the terrain to a PNG, with its own level of detail.
 
     ``overwrite=False`` refuses an existing ``path`` (checked before rendering).
@@ -530,6 +540,10 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
         shading); None is the classic north-west sun at 45°.
     drape : a :class:`~geoterrain.rendering.drape.Drape`: a georeferenced image (any CRS) over
         the colour map, or blended with it; its nodata shows the colour map.
+    occlusion, morph : the selection's horizon culling and geomorphing
+        (:func:`geoterrain.lod.select`).
+    anti_aliasing : ``"auto"`` (edges where the picture's silhouettes are sparse, else
+        MSAA), ``"msaa"``, ``"edges"``, ``"fxaa"`` or ``"none"`` (:func:`_plotter`).
 
     Returns
     -------
@@ -552,7 +566,8 @@ def render(terrain, view: View | None, path: str | Path, *, pixel_error: float =
     if shading not in SHADINGS:
         raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
     img, stats = render_array(terrain, view, pixel_error=pixel_error, strategy=strategy,
-                              shading=shading, cmap=cmap, light=light, drape=drape)
+                              shading=shading, cmap=cmap, light=light, drape=drape,
+                              occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing)
     img = compose(img, view, terrain, shading=shading, cmap=cmap, title=title,
                   colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
     _write_png(path, img, overwrite)

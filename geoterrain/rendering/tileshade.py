@@ -2,8 +2,8 @@
 
 :func:`~geoterrain.rendering.tiletextures.tile_rgb` shades a tile as
 ``colours.colorize`` (the ``auto`` palette's land and water ramps, ``np.interp`` per
-channel) × ``textures.tile_hillshade`` (the stored octahedral normal codes, after
-undoing their planar differences), clipped and rounded to uint8. Done as numpy
+channel) × ``shading.tile_hillshade`` (the tile's octahedral normal codes), clipped
+and rounded to uint8. Done as numpy
 passes, that cost about 0.3 ms of a 65² tile's 0.55 ms. Here it is one pass with the
 same float64 ramp arithmetic (numpy's interpolation formula, slope·(x − x_j) + y_j)
 and the same float32 product and rounding.
@@ -28,12 +28,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.bounds.normals import SERIAL_KERNELS, oct_shade
 from geoterrain.core.threads import forked, serial_twin
-
-_valid_finite_serial = SERIAL_KERNELS["_valid_finite_nb"]
-_normals_serial = SERIAL_KERNELS["_normals_nb"]
-_encode_oct_serial = SERIAL_KERNELS["_encode_oct_nb"]
+from geoterrain.rendering.shading import oct_shade
 
 _RAMPS: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
@@ -88,7 +84,7 @@ _LUTS: dict[tuple, np.ndarray] = {}
 
 def shade_lut(light: np.ndarray, ambient: float, ceiling: float) -> np.ndarray:
     """The hillshade (256, 256) float32 of every 8-bit octahedral code (u, v), under the
-    unit ``light`` (:func:`~geoterrain.bounds.normals.oct_shade`, so exactly its values): a
+    unit ``light`` (:func:`~geoterrain.rendering.shading.oct_shade`, so exactly its values): a
     tile's shading looks its codes up rather than decoding each (0.07 ms of a 65²
     tile). Built once per light (0.5 ms), kept (a few lights a process: 256 kB each).
 
@@ -156,7 +152,7 @@ def shade_tile(h: np.ndarray, codes: np.ndarray, planar: bool, bits: int, light:
     ``clim`` is the palette's (lo, hi), ``water_level`` its level or None, ``land`` and
     ``water`` the ramps, ``tolerance`` the heights' codec bound (metres)
     (:data:`geoterrain.rendering.colours.LAND`, ``WATER``). The same arithmetic as
-    ``colorize`` × ``_hillshade``; see the module example.
+    ``colorize`` × ``shading.hillshade``; see the module example.
     """
     if bits != 8:
         raise ValueError("the fused shading reads 8-bit normal codes")
@@ -190,61 +186,34 @@ def _palette_args(clim, water_level, land, water, tolerance: float = 0.0) -> tup
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _shade_tiles(h, cf, zf, valid, X, Y, derive, rings, rr, cc, stored, planar, lut, base,
-                 span, wet_level, has_water, depth_lo, depth_span, depth_ramp, land_x, land_c,
-                 land_s, water_x, water_c, water_s, out):  # pragma: no cover - compiled
+def _shade_tiles(h, cf, codes, lut, palette, out):  # pragma: no cover - compiled
+    (base, span, wet_level, has_water, depth_lo, depth_span, depth_ramp, land_x, land_c,
+     land_s, water_x, water_c, water_s) = palette
     n, T0, T1 = h.shape
     for k in prange(n):  # tiles on every core: each writes its own
-        if derive[k]:
-            z = np.empty((T0, T1), np.float64)
-            for i in range(T0):
-                for j in range(T1):
-                    z[i, j] = h[k, i, j] * zf  # Frame.z
-            vv = _valid_finite_serial(X[k], Y[k], z, valid[k])
-            nrm = np.empty((T0, T1, 3), np.float32)
-            _normals_serial(X[k], Y[k], z, vv, False, nrm)
-            codes = np.empty((T0 * T1, 2), np.uint8)
-            _encode_oct_serial(nrm.reshape((-1, 3)), 255, False, codes)
-            for q in range(len(rr)):  # the stored border ring
-                codes[rr[q] * T1 + cc[q], 0] = rings[k, q, 0]
-                codes[rr[q] * T1 + cc[q], 1] = rings[k, q, 1]
-            _shade_tile(h[k], cf, codes.reshape(-1), False, lut, base, span, wet_level,
-                        has_water, depth_lo, depth_span, depth_ramp, land_x, land_c, land_s,
-                        water_x, water_c, water_s, out[k])
-        else:
-            _shade_tile(h[k], cf, stored[k], planar[k], lut, base, span, wet_level,
-                        has_water, depth_lo, depth_span, depth_ramp, land_x, land_c, land_s,
-                        water_x, water_c, water_s, out[k])
+        _shade_tile(h[k], cf, codes[k].reshape(-1), False, lut, base, span, wet_level,
+                    has_water, depth_lo, depth_span, depth_ramp, land_x, land_c, land_s,
+                    water_x, water_c, water_s, out[k])
 
 
-def shade_tiles(h: np.ndarray, cf: float, zf: float, valid: np.ndarray, X: np.ndarray,
-                Y: np.ndarray, derive: np.ndarray, rings: np.ndarray, ring_rows: np.ndarray,
-                ring_cols: np.ndarray, stored: np.ndarray, planar: np.ndarray,
-                light: np.ndarray, ambient: float, ceiling: float, clim: tuple[float, float],
+def shade_tiles(h: np.ndarray, cf: float, codes: np.ndarray, light: np.ndarray,
+                ambient: float, ceiling: float, clim: tuple[float, float],
                 water_level: float | None, land, water, tolerance: float = 0.0) -> np.ndarray:
     """:func:`shade_tile` of n tiles at once, on every core: RGB uint8 (n, T, T, 3).
 
-    ``h`` (n, T, T) heights in source units (× ``cf`` for metres, × ``zf`` for scene z,
-    as ``Frame.z``), ``valid`` (n, T, T). A tile with ``derive[k]`` gets its 8-bit normal
-    codes derived from its heights, as :func:`geoterrain.bounds.leafbounds.derived_normal_codes`
-    derives them (the same serial kernels: ``normal_map`` of scene ``X[k]``, ``Y[k]``
-    (n, T, T), the heights' z and ``valid``, ``encode_octahedral``), with its border ring
-    (``ring_rows``, ``ring_cols``) set to ``rings[k]``; another reads its stored codes
-    ``stored[k]`` (T·T·2 bytes, ``planar[k]`` as in :func:`shade_tile`). Each tile's
-    pixels are :func:`shade_tile`'s.
+    ``h`` (n, T, T) heights in source units (× ``cf`` for metres), ``codes`` (n, T, T, 2)
+    their 8-bit normal codes (``TerrainLike.normal_codes``). Each tile's pixels are
+    :func:`shade_tile`'s.
 
     Examples
     --------
     >>> from geoterrain.rendering.colours import LAND, WATER
     >>> from geoterrain.bounds.normals import encode_octahedral, normal_map
     >>> j, i = np.meshgrid(np.arange(4.0), np.arange(4.0))
-    >>> h, v = np.stack([3.0 * j * i, 2.0 * j]), np.ones((2, 4, 4), bool)
-    >>> codes = [encode_octahedral(normal_map(j, -i, z, v[0]), 8) for z in h]
+    >>> h, v = np.stack([3.0 * j * i, 2.0 * j]), np.ones((4, 4), bool)
+    >>> codes = np.stack([encode_octahedral(normal_map(j, -i, z, v), 8) for z in h])
     >>> args = (np.array([0, 0, 1], np.float32), 0.35, 1.25, (0.0, 10.0), None, LAND, WATER)
-    >>> rgb = shade_tiles(h, 1.0, 1.0, v, np.stack([j, j]), np.stack([-i, -i]),
-    ...                   np.array([True, False]),  # tile 0 derived, tile 1 as stored
-    ...                   np.stack([c[:1, 0] for c in codes]), np.array([0]), np.array([0]),
-    ...                   np.stack([c.reshape(-1) for c in codes]), np.zeros(2, bool), *args)
+    >>> rgb = shade_tiles(h, 1.0, codes, *args)
     >>> all(np.array_equal(rgb[k], shade_tile(h[k], codes[k], False, 8, *args))
     ...     for k in range(2))
     True
@@ -253,14 +222,13 @@ def shade_tiles(h: np.ndarray, cf: float, zf: float, valid: np.ndarray, X: np.nd
     out = np.empty((n, T0, T1, 3), np.uint8)
     if n == 0:
         return out
+    if codes.dtype != np.uint8:
+        raise ValueError("the fused shading reads 8-bit normal codes")
     # one tile, or a fork child (no thread pool there): on this thread
     kernel = _SERIAL_TILES if n == 1 or forked() else _shade_tiles
-    kernel(np.ascontiguousarray(h, np.float64), float(cf), float(zf),
-           np.ascontiguousarray(valid, np.bool_), X, Y, np.asarray(derive, np.bool_),
-           np.ascontiguousarray(rings, np.uint8), np.asarray(ring_rows, np.int64),
-           np.asarray(ring_cols, np.int64), np.ascontiguousarray(stored, np.uint8),
-           np.asarray(planar, np.bool_), shade_lut(light, ambient, ceiling),
-           *_palette_args(clim, water_level, land, water, tolerance), out)
+    kernel(np.ascontiguousarray(h, np.float64), float(cf), np.ascontiguousarray(codes),
+           shade_lut(light, ambient, ceiling),
+           _palette_args(clim, water_level, land, water, tolerance), out)
     return out
 
 

@@ -51,11 +51,10 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geoterrain.bounds.leafbounds import normal_axes, normal_xy, ring_codes
-from geoterrain.bounds.vertexdata import ring_index
 from geoterrain.core.grid import level_offsets
 from geoterrain.core.memory import ZeroPool
 from geoterrain.rendering.atlaskernels import (
@@ -70,16 +69,19 @@ from geoterrain.rendering.atlaskernels import (
 )
 from geoterrain.rendering.colours import LAND, WATER, Palette, as_palette, colorize, water_level
 from geoterrain.rendering.drape import Drape, drape_tile
-from geoterrain.rendering.shading import Light, tile_shade
-from geoterrain.rendering.textures import (
+from geoterrain.rendering.shading import (
     AMBIENT,
+    DEFAULT_SUN,
     SHADE_CEILING,
-    _sun,
-    elevation_range,
-    height_tolerance,
+    Light,
     tile_hillshade,
+    tile_shade,
 )
+from geoterrain.rendering.textures import elevation_range, height_tolerance
 from geoterrain.rendering.tileshade import shade_tiles
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
 MIN_FACING = 2.0 ** -8  # a footprint seen edge on: 4 levels coarser, at most the top
@@ -111,7 +113,8 @@ class ViewTexture:
     stats: dict = field(default_factory=dict)
 
 
-def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Palette = "auto",
+def tile_rgb(terrain: TerrainLike, level: int, x: int, y: int, shading: str,
+             cmap: str | Palette = "auto",
              counter: dict | None = None, light: Light | None = None,
              drape: Drape | None = None) -> np.ndarray:
     """RGB uint8 (T, T, 3) shading of stored tile (level, x, y), cached in the terrain.
@@ -129,7 +132,8 @@ def tile_rgb(terrain, level: int, x: int, y: int, shading: str, cmap: str | Pale
                    level, x, y, shading, pal, counter, light, drape)
 
 
-def _shaded(terrain, key: tuple, level: int, x: int, y: int, shading: str, pal: Palette,
+def _shaded(terrain: TerrainLike, key: tuple, level: int, x: int, y: int, shading: str,
+            pal: Palette,
             counter: dict | None, light: Light | None, drape: Drape | None) -> np.ndarray:
     """:func:`tile_rgb` under its cache ``key`` (:func:`_rgb_key`)."""
 
@@ -151,55 +155,32 @@ def _shaded(terrain, key: tuple, level: int, x: int, y: int, shading: str, pal: 
             rgb *= tile_shade(terrain, level, x, y, light, _spacing(terrain))[..., None]
         return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
 
-    return terrain._cached(key, make)
+    return terrain.memo(key, make)
 
 
-def _default_style(terrain, shading: str, pal: Palette, light: Light | None,
+def _default_style(terrain: TerrainLike, shading: str, pal: Palette, light: Light | None,
                    drape: Drape | None) -> bool:
     """Whether tiles are shaded in the default style (the ``auto`` palette's tint × the
     sun's hillshade of the stored 8-bit normal codes, no drape): by
     :mod:`geoterrain.rendering.tileshade`'s compiled passes."""
     return (shading == "normals" and (light is None or light.is_default) and drape is None
-            and pal.cmap == "auto" and getattr(terrain, "stored_normals", False)
+            and pal.cmap == "auto" and terrain.stored_normals
             and terrain.meta["normal_bits"] == 8)
 
 
-def _shade_batch(terrain, keys: list, pal: Palette) -> list[np.ndarray]:
+def _shade_batch(terrain: TerrainLike, keys: list, pal: Palette) -> list[np.ndarray]:
     """The default style's shading (RGB uint8 (T, T, 3)) of each tile of ``keys``, in
     one compiled call over all of them on every core
-    (:func:`geoterrain.rendering.tileshade.shade_tiles`; a single tile's on this thread). Here only
-    the reading: heights, valid masks, stored codes or rings, x, y."""
+    (:func:`geoterrain.rendering.tileshade.shade_tiles`; a single tile's on this thread),
+    from their heights and the normal codes the terrain hands over."""
     g = terrain.grid
     T, n = g.tile_samples, len(keys)
-    derived = set(terrain._derived_normal_levels)
-    rr, cc = ring_index(T)
     h = np.empty((n, T, T))
-    valid = np.empty((n, T, T), bool)
-    derive = np.zeros(n, bool)
-    rings = np.zeros((n, len(rr), 2), np.uint8)
-    stored = np.zeros((n, T * T * 2), np.uint8)
-    planar = np.zeros(n, bool)
-    axes = terrain.frame.kind != "geographic"  # x by column, y by row: broadcast views
-    X = np.zeros((n, T) if axes else (n, T, T))
-    Y = np.zeros((n, T) if axes else (n, T, T))
-    for k, (L, x, y) in enumerate(keys):
-        tile = terrain.tile(L, x, y)
-        h[k], valid[k] = tile.heights, tile.valid
-        if L in derived:
-            derive[k] = True
-            rings[k] = ring_codes(terrain, L, x, y)
-            X[k], Y[k] = normal_axes(terrain, L, x, y) if axes else normal_xy(terrain, L, x, y)
-        else:
-            raw, planar[k] = terrain.tile_normal_bytes(L, x, y)
-            stored[k] = np.frombuffer(raw, np.uint8)
-    terrain.decoded_normals += int(derive.sum())  # as derived_normal_codes counts
-    if axes:
-        X = np.broadcast_to(X[:, None, :], (n, T, T))
-        Y = np.broadcast_to(Y[:, :, None], (n, T, T))
+    for k, key in enumerate(keys):
+        h[k] = terrain.tile(*key).heights
+    codes = terrain.normal_codes(keys)
     z0, z1 = elevation_range(terrain)
-    f = terrain.frame
-    rgb = shade_tiles(h, f.z_to_m, f.z_to_m * f.z_scale, valid, X, Y, derive, rings, rr, cc,
-                      stored, planar, _sun(), AMBIENT, SHADE_CEILING,
+    rgb = shade_tiles(h, terrain.frame.z_to_m, codes, DEFAULT_SUN, AMBIENT, SHADE_CEILING,
                       pal.clim if pal.clim is not None else (z0, z1),
                       water_level(pal, (z0, z1)), LAND, WATER, height_tolerance(terrain))
     return [a.copy() for a in rgb]  # each cached on its own (not views of one array)
@@ -215,7 +196,7 @@ _STYLES_LOCK = threading.Lock()
 _ATLASES = ZeroPool()
 
 
-def _style_id(terrain, shading: str, pal: Palette, light: Light | None,
+def _style_id(terrain: TerrainLike, shading: str, pal: Palette, light: Light | None,
               drape: Drape | None) -> int:
     """The number of this shading style. A vertically exaggerated view shares its base
     terrain's cache but not its shading (its normals are steeper)."""
@@ -226,13 +207,14 @@ def _style_id(terrain, shading: str, pal: Palette, light: Light | None,
         return _STYLES.setdefault(style, len(_STYLES))
 
 
-def _rgb_key(terrain, shading: str, pal: Palette, light: Light | None, drape: Drape | None,
+def _rgb_key(terrain: TerrainLike, shading: str, pal: Palette, light: Light | None,
+             drape: Drape | None,
              level: int, x: int, y: int) -> tuple:
     """The cache key of :func:`tile_rgb`."""
     return ("rgb", _style_id(terrain, shading, pal, light, drape), level, x, y)
 
 
-def _stand_in(terrain, key: tuple, step: int, rgb_key, atlas: np.ndarray, r: int,
+def _stand_in(terrain: TerrainLike, key: tuple, step: int, rgb_key, atlas: np.ndarray, r: int,
               c: int) -> bool:
     """Write tile ``key``'s texels (step + 1)² at (r, c) of ``atlas``, cut from the nearest
     ancestor whose shading is already cached, each ancestor texel repeated 2^d × 2^d;
@@ -274,7 +256,7 @@ def _table_keys(e: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, ...]:
     return L, rem & ((np.int64(1) << (top - L)) - 1), rem >> (top - L)
 
 
-def _spacing(terrain) -> float:
+def _spacing(terrain: TerrainLike) -> float:
     """The finest sample spacing (scene units) near the grid centre and corners."""
     g = terrain.grid
     pts = []
@@ -305,7 +287,7 @@ def _pack(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
     return x0, y0, W, cy + shelf
 
 
-def build_view_texture(terrain, selection, view, shading: str = "normals",
+def build_view_texture(terrain: TerrainLike, selection, view, shading: str = "normals",
                        cmap: str | Palette = "auto", texel_px: float = TEXEL_PX,
                        light: Light | None = None, drape: Drape | None = None,
                        max_builds: int | None = None) -> ViewTexture:
@@ -448,7 +430,7 @@ def build_view_texture(terrain, selection, view, shading: str = "normals",
         todo = [key for key in dict.fromkeys(key for key, _, _ in placed)
                 if terrain.peek(rgb_key(*key)) is None][:max_builds]
         for key, rgb in zip(todo, _shade_batch(terrain, todo, pal), strict=True):
-            ready[key] = terrain._cached(rgb_key(*key), lambda rgb=rgb: rgb)
+            ready[key] = terrain.memo(rgb_key(*key), lambda rgb=rgb: rgb)
         counter["textures_built"] += len(todo)
     lookup = terrain.lookup
     for key, r, c in placed:

@@ -32,19 +32,22 @@ from __future__ import annotations
 
 import gc
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from geoterrain import lod
 from geoterrain.core.view import View
 from geoterrain.lod.registry import DEFAULT, STRATEGIES, strategy_info
-from geoterrain.lod.switches import morphing_choice, occlusion_enabled
 from geoterrain.rendering.cameras import default_view
 from geoterrain.rendering.colours import Palette
 from geoterrain.rendering.drape import Drape
 from geoterrain.rendering.scene import TerrainScene
 from geoterrain.rendering.shading import Light
 from geoterrain.rendering.viewer_style import cell_colours, colour_bar, mute_style_timers
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 COLOR_MODES = ("shading", "level", "tile")
 HELP = ("m strategy  +/- tau  g morph  x wireframe  c colour  space freeze  h home  "
@@ -84,11 +87,13 @@ class ViewerController:
     >>> c.stats["triangles"]  # doctest: +SKIP
     """
 
-    def __init__(self, plotter, terrain, strategy: str = DEFAULT, pixel_error: float = 1.0,
+    def __init__(self, plotter, terrain: TerrainLike, strategy: str = DEFAULT,
+                 pixel_error: float = 1.0,
                  shading: str = "normals", cmap: str | Palette = "auto",
                  throttle_ms: float = 100.0,
                  background: bool = False, light: Light | None = None,
-                 drape: Drape | None = None):
+                 drape: Drape | None = None, occlusion: bool = True,
+                 morph: bool | None = None):
         strategy_info(strategy)
         self.plotter, self.terrain = plotter, terrain
         self.strategy, self.pixel_error = strategy, float(pixel_error)
@@ -128,8 +133,8 @@ class ViewerController:
         self.message = ""
         self.screenshots = 0
         self._legend(cmap)
-        # the worker thread takes the command's settings along
-        self.occlusion, self.morph = occlusion_enabled(), morphing_choice()
+        # the selections' switches (key g toggles the morphing)
+        self.occlusion, self.morph = bool(occlusion), morph
         plotter.renderer.AddObserver("StartEvent", self._clip)
         self.home = default_view(terrain, tuple(plotter.window_size))
         self._go_home()
@@ -513,12 +518,15 @@ class ViewerController:
         return BUSY_POLL_MS if self._future is not None else POLL_MS
 
 
-def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,
+def show(terrain: TerrainLike, strategy: str = DEFAULT, pixel_error: float = 1.0, *,
          shading: str = "normals", cmap: str | Palette = "auto",
          size: tuple[int, int] = (1280, 720),
          title: str | None = None, throttle_ms: float = 100.0,
-         light: Light | None = None, drape: Drape | None = None) -> ViewerController:
-    """Open an interactive window on the terrain; the LOD follows the camera.
+         light: Light | None = None, drape: Drape | None = None, occlusion: bool = True,
+         morph: bool | None = None) -> ViewerController:
+    """Open an interactive window on the terrain; the LOD follows the camera (its
+    selections cull with ``occlusion`` and geomorph with ``morph``, as
+    :func:`geoterrain.lod.select`'s).
 
     Keys: ``m`` strategy, ``+``/``-`` τ, ``g`` morph, ``x`` wireframe, ``c`` colour by
     shading / LOD level / tile, ``space`` freeze the LOD, ``h`` home, ``s`` screenshot,
@@ -533,7 +541,8 @@ def show(terrain, strategy: str = DEFAULT, pixel_error: float = 1.0, *,
 
     p = pv.Plotter(window_size=list(size), title=title or f"geoterrain — {terrain.path.name}")
     ctl = ViewerController(p, terrain, strategy, pixel_error, shading, cmap, throttle_ms,
-                           background=True, light=light, drape=drape)
+                           background=True, light=light, drape=drape, occlusion=occlusion,
+                           morph=morph)
     ctl.bind()
     try:
         p.show()

@@ -7,9 +7,14 @@ texture and draw; this module only builds what VTK shows.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from geoterrain.rendering.colours import Palette, as_palette, colorbar_map
+
+if TYPE_CHECKING:
+    from geoterrain.core.terrainlike import TerrainLike
 
 
 def terrain_style():
@@ -43,7 +48,7 @@ def mute_style_timers(style) -> None:
         style.AddObserver("TimerEvent", lambda *_args: None)
 
 
-def colour_bar(terrain, cmap: str | Palette):
+def colour_bar(terrain: TerrainLike, cmap: str | Palette):
     """A ``vtkScalarBarActor`` of the terrain's elevation colours in metres, on an
     opaque box at the window's right edge.
 

@@ -508,14 +508,14 @@ class StoreReader:
                 del self._catalog[TILES_ID]  # its bytes are not needed again
             return self._table
 
-    def _blob_id(self, key: int) -> int | None:
+    def _rowid_of(self, key: int) -> int | None:
         t = self.table()
         i = int(np.searchsorted(t.blobs, key))
         return int(t.ids[i]) if i < len(t.blobs) and t.blobs[i] == key else None
 
     def get_blob(self, key: tuple[int, int, int], kind: str) -> bytes | None:
         """A tile's blob, checksum-verified (bound to key and kind), or None when not stored."""
-        rowid = self._blob_id(blob_key(key, kind))
+        rowid = self._rowid_of(blob_key(key, kind))
         if rowid is None:
             return None
         try:

@@ -289,7 +289,7 @@ def test_compiled_octahedral_decode_equals_the_array_formula(bits):
        st.floats(0.0, 360.0), st.floats(5.0, 90.0))
 def test_hillshade_from_codes_is_the_array_formula(bits, seed, az, alt):
     """The compiled shade of stored codes equals decode-then-shade (float32 rounding)."""
-    from geoterrain.bounds.normals import hillshade_codes
+    from geoterrain.rendering.shading import hillshade_codes
 
     rng = np.random.default_rng(seed)
     codes = rng.integers(0, 1 << bits, (17, 19, 2)).astype(np.uint8 if bits == 8 else np.uint16)
@@ -387,13 +387,8 @@ def _batch_is_tile_by_tile(*terrains) -> None:
     their normal codes as the terrain reads them (tile_normal_codes, shade_tile), and
     what tile_rgb gives."""
     from geoterrain.rendering.colours import LAND, WATER, as_palette, water_level
-    from geoterrain.rendering.textures import (
-        AMBIENT,
-        SHADE_CEILING,
-        _sun,
-        elevation_range,
-        height_tolerance,
-    )
+    from geoterrain.rendering.shading import AMBIENT, DEFAULT_SUN, SHADE_CEILING
+    from geoterrain.rendering.textures import elevation_range, height_tolerance
     from geoterrain.rendering.tileshade import shade_tile
 
     for t in terrains:
@@ -404,7 +399,7 @@ def _batch_is_tile_by_tile(*terrains) -> None:
         lim = elevation_range(t)
         for k, rgb in zip(keys, got, strict=True):
             one = shade_tile(t.tile(*k).heights * t.frame.z_to_m, t.tile_normal_codes(*k),
-                             False, 8, _sun(), AMBIENT, SHADE_CEILING, lim,
+                             False, 8, DEFAULT_SUN, AMBIENT, SHADE_CEILING, lim,
                              water_level(as_palette("auto"), lim), LAND, WATER,
                              height_tolerance(t))
             assert np.array_equal(rgb, one), k

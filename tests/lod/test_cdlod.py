@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from geoterrain.core.view import View
 from geoterrain.ingest.synth import generate
-from geoterrain.lod import cdlod, occlusion_culling
+from geoterrain.lod import cdlod
 from geoterrain.lod.tiles import tile_geometry, tile_index
 from geoterrain.testing.measure import (
     mesh_height_range_on_grid,
@@ -77,8 +77,8 @@ def coarser_edge_gaps(sel) -> tuple[float, int]:
 def test_no_gap_at_any_morph_k_and_error_within_tau(smooth, az, el, dist, tau, frac):
     c = smooth
     v = view(c, az, el, dist)
-    with occlusion_culling(False):  # every sample in the frustum drawn (culling: its tests)
-        mesh, stats = cdlod.select(c.t, v, tau, morph_fraction=frac)
+    # every sample in the frustum drawn (culling: its own tests)
+    mesh, stats = cdlod.select(c.t, v, tau, occlusion=False, morph_fraction=frac)
 
     class Sel:  # the two accessors the helpers read
         pass

@@ -20,7 +20,7 @@ from conftest import has_real_dem, real_dem, write_tif
 from geoterrain import lod
 from geoterrain.bench.harness import ground_views
 from geoterrain.core.view import View
-from geoterrain.lod import occlusion_culling, occlusion_enabled, strategy_info
+from geoterrain.lod import strategy_info
 from geoterrain.lod.occlusion import (
     _surface_max_near,
     eye_above_surface,
@@ -129,15 +129,12 @@ def test_a_wall_hides_the_tiles_behind_it(wall):
     hidden = hidden_rows(wall, v)
     assert hidden[behind].mean() > 0.5
     assert not hidden[front].any()
-    with occlusion_culling(False):
-        assert not occlusion_enabled()
-        assert not hidden_rows(wall, v).any()
+    assert not hidden_rows(wall, v, enabled=False).any()
     # the selections skip them: fewer triangles drawn (τ small enough that the ground
     # behind the wall would be refined)
     for s in ("rtin", "chunked"):
         on = lod.select(wall, v, 0.2, s, reuse=False)
-        with occlusion_culling(False):
-            off = lod.select(wall, v, 0.2, s, reuse=False)
+        off = lod.select(wall, v, 0.2, s, reuse=False, occlusion=False)
         assert on.stats["triangles"] < off.stats["triangles"], s
 
 
@@ -249,7 +246,7 @@ def test_hidden_tiles_are_not_decoded(tmp_path):
     t2 = geoterrain.open(t.path)  # an empty cache
     sel = lod.select(t2, v, 1.0, "chunked", reuse=False)
     assert sel.stats["tiles_hidden"] > 0
-    decoded = {k[1:] for k in t2._cache if k[0] == "h"}
+    decoded = {k[1:] for k in t2.cache_keys() if k[0] == "h"}
     read = {tuple(k) for k in tile_index(t2).keys[occluder_rows(t2, v)].tolist()}
     assert len(read) <= 40
     assert not (decoded & set(culled)) - read, "a culled tile was decoded"
@@ -429,12 +426,12 @@ def test_the_upper_bound_pass_changes_nothing(rough_store, seed, low):
         eye[2] = max(eye[2], float(np.nanmax(Z)) + rng.uniform(-30, 30))
         view = View(tuple(eye), tuple(target), size=(320, 180))
     got = hidden_rows(t, view)
-    want = _hidden_in_one_pass(t, dataclasses.replace(view, _cache={}))
+    want = _hidden_in_one_pass(t, dataclasses.replace(view, memos={}))
     assert np.array_equal(got, want)
     # asked about some rows only (what a strategy's walk reaches): the same answer for
     # those, not hidden for the others
     some = np.flatnonzero(rng.random(len(want)) < rng.uniform(0.05, 0.6))
-    part = hidden_rows(t, dataclasses.replace(view, _cache={}), rows=some)
+    part = hidden_rows(t, dataclasses.replace(view, memos={}), rows=some)
     assert np.array_equal(part[some], want[some])
     assert not np.delete(part, some).any()
 

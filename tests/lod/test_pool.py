@@ -31,7 +31,8 @@ def test_a_tiny_pool_gives_the_same_meshes(tmp_path):
     big = pool_mod.tile_pool(t)
     assert big.capacity >= 100  # the default budget holds every tile touched
     small = pool_mod.TilePool(t, budget_bytes=1)  # 16 slots: evicts on every request
-    pool_mod._POOLS[t] = small
+    t.forget("geoterrain.lod.pool")  # the next selections take this pool
+    assert t.derived("geoterrain.lod.pool", lambda: small) is small
     for v, m in zip(views, ref, strict=True):
         got = lod.select(t, v, 1.0, "rtin", reuse=False).mesh
         np.testing.assert_array_equal(np.asarray(got.points), np.asarray(m.points))

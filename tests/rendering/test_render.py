@@ -151,14 +151,12 @@ def test_fxaa_pictures_stay_with_msaa_and_bruteforce(tmp_path_factory):
             s.plotter.close()
 
 
-def test_anti_aliasing_scope_and_errors():
+def test_anti_aliasing_argument_and_errors():
     from geoterrain.exceptions import UsageError
-    from geoterrain.rendering.antialias import anti_aliasing
 
-    with anti_aliasing("fxaa"):
-        p = _plotter((32, 24))
-        assert p._geoterrain_aa == "fxaa" and p.render_window.GetMultiSamples() == 0
-        p.close()
+    p = _plotter((32, 24), "fxaa")
+    assert p._geoterrain_aa == "fxaa" and p.render_window.GetMultiSamples() == 0
+    p.close()
     p = _plotter((32, 24))
     assert p._geoterrain_aa == "auto" and p.render_window.GetMultiSamples() > 0
     p.close()
@@ -166,9 +164,9 @@ def test_anti_aliasing_scope_and_errors():
         _plotter((32, 24), "ssaa")
 
 
-def test_the_anti_aliasing_option_lasts_one_command(tmp_path_factory, tmp_path):
-    """`render --anti-aliasing fxaa` renders with it, and a later picture in the same
-    process is back to the default."""
+def test_the_anti_aliasing_option_reaches_the_picture(tmp_path_factory, tmp_path):
+    """`render --anti-aliasing fxaa` renders with it, and a picture without the option
+    has the default."""
     from click.testing import CliRunner
 
     from geoterrain.cli.main import cli
@@ -179,7 +177,7 @@ def test_the_anti_aliasing_option_lasts_one_command(tmp_path_factory, tmp_path):
 
     real = R._plotter
 
-    def spy(size, anti_aliasing=None):
+    def spy(size, anti_aliasing="auto"):
         p = real(size, anti_aliasing)
         seen.append(p._geoterrain_aa)
         return p
@@ -729,12 +727,16 @@ def test_frame_reports_its_cpu_time(tmp_path_factory):
 def test_the_cli_offers_every_anti_aliasing():
     """cli/options.py lists the modes itself (importing the library would load numba at
     every command's start): it must offer exactly the library's, default first."""
+    import inspect
+
     from cli.options import anti_aliasing_option
-    from geoterrain.rendering.antialias import _AA, ANTI_ALIASING
+    from geoterrain.rendering.antialias import ANTI_ALIASING
+    from geoterrain.rendering.scene import render
 
     @anti_aliasing_option
     def f():
         pass
 
     opt = f.__click_params__[0]
-    assert tuple(opt.type.choices) == ANTI_ALIASING and opt.default == _AA.get()
+    default = inspect.signature(render).parameters["anti_aliasing"].default
+    assert tuple(opt.type.choices) == ANTI_ALIASING and opt.default == default

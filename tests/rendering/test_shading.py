@@ -15,7 +15,6 @@ from hypothesis import strategies as st
 from geoterrain.cli.main import cli
 from geoterrain.ingest.synth import generate
 from geoterrain.rendering.shading import Light, hillshade, shadow_mask, sky_view
-from geoterrain.rendering.textures import _hillshade
 from geoterrain.testing.reference import shadow_reference
 from tests.conftest import has_real_dem, real_dem
 
@@ -91,10 +90,15 @@ def test_sky_view_is_within_0_and_1_and_lower_in_a_valley(seed):
 
 
 def test_the_default_light_is_the_classic_hillshade():
+    """The default light is the cartographic sun (north-west, 45°) of the classic
+    formula min(0.35 + 0.65 · max(n·l, 0) / l_z, 1.25), written out here."""
     rng = np.random.default_rng(0)
     n = rng.normal(size=(50, 3)).astype(np.float32)
     n /= np.linalg.norm(n, axis=1, keepdims=True)
-    np.testing.assert_array_equal(hillshade(n, Light()), _hillshade(n))
+    s = np.sqrt(0.5)
+    sun = np.array([-s * s, s * s, s], np.float32)  # 315°: x = sin·cos, y = cos·cos
+    want = np.minimum(0.35 + 0.65 * np.clip(n @ sun, 0.0, None) / sun[2], 1.25)
+    np.testing.assert_allclose(hillshade(n, Light()), want, rtol=0, atol=1e-6)
 
 
 def test_render_with_sun_shadows_and_occlusion(tmp_path):

@@ -1,6 +1,6 @@
 """The fused tile shading (geoterrain.rendering.tileshade) against the numpy composition it
 replaces:
-colours.colorize × textures._hillshade(decode_octahedral(codes)), clipped, rounded."""
+colours.colorize × shading.hillshade(decode_octahedral(codes)), clipped, rounded."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from geoterrain.bounds.normals import decode_octahedral
 from geoterrain.bounds.vertexdata import normals_from_bytes, normals_to_bytes
 from geoterrain.rendering.colours import LAND, WATER, Palette, colorize, water_level
-from geoterrain.rendering.textures import AMBIENT, SHADE_CEILING, _hillshade, _sun
+from geoterrain.rendering.shading import AMBIENT, DEFAULT_SUN, SHADE_CEILING, hillshade
 from geoterrain.rendering.tileshade import shade_tile
 
 
@@ -30,11 +30,11 @@ def test_fused_shading_is_the_numpy_composition(seed, planar, with_clim, wl, low
     pal = Palette("auto", clim=(-100.0, 700.0) if with_clim else None, water_level=wl)
     rng_data = (lo, 900.0)
     rgb = colorize(np.nan_to_num(h, nan=0.0), pal, rng_data, tol)
-    rgb *= _hillshade(decode_octahedral(codes, 8))[..., None]
+    rgb *= hillshade(decode_octahedral(codes, 8))[..., None]
     want = (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
     raw = normals_to_bytes(codes) if planar else codes.tobytes()
     assert planar is False or np.array_equal(normals_from_bytes(raw, T), codes)
-    got = shade_tile(h, np.frombuffer(raw, np.uint8), planar, 8, _sun(), AMBIENT,
+    got = shade_tile(h, np.frombuffer(raw, np.uint8), planar, 8, DEFAULT_SUN, AMBIENT,
                      SHADE_CEILING, pal.clim if pal.clim is not None else rng_data,
                      water_level(pal, rng_data), LAND, WATER, tol)
     d = np.abs(got.astype(int) - want.astype(int))
@@ -45,12 +45,12 @@ def test_fused_shading_is_the_numpy_composition(seed, planar, with_clim, wl, low
 def test_shade_table_is_the_per_code_hillshade():
     """The table the fused shading looks codes up in holds, for every 8-bit code, exactly
     the hillshade the code decodes to (hillshade_codes, one code at a time)."""
-    from geoterrain.bounds.normals import hillshade_codes
+    from geoterrain.rendering.shading import hillshade_codes
     from geoterrain.rendering.tileshade import shade_lut
 
     u, v = np.meshgrid(np.arange(256), np.arange(256), indexing="ij")
     codes = np.stack([u, v], -1).astype(np.uint8)
-    for light in (_sun(), np.array([0.6, -0.3, 0.74], np.float32)):
+    for light in (DEFAULT_SUN, np.array([0.6, -0.3, 0.74], np.float32)):
         light = (light / np.linalg.norm(light)).astype(np.float32)
         want = hillshade_codes(codes, 8, light, AMBIENT, SHADE_CEILING)
         assert np.array_equal(shade_lut(light, AMBIENT, SHADE_CEILING), want)

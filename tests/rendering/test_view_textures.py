@@ -61,7 +61,7 @@ def test_textures_only_under_drawn_faces(tmp_path_factory):
              (float(lo[0]) + 300.0, float(lo[1]) + 300.0, float(c[2])), size=(320, 200))
     sel = lod.select(t, v, 1.0)
     tex = build_view_texture(t, sel, v)
-    built = [k[-3:] for k in t._cache if k[0] == "rgb"]  # (..., level, x, y)
+    built = [k[-3:] for k in t.cache_keys() if k[0] == "rgb"]  # (..., level, x, y)
     assert len(built) == tex.stats["textures_built"] > 0
     ij = sel.ij.astype(np.int64)
     f = sel.faces
