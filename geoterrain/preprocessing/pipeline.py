@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +36,7 @@ from geoterrain.bounds.vertexdata import (
 )
 from geoterrain.codec.pyramid import decoded_heights, encode_decoded, encode_pyramid
 from geoterrain.codec.quantchoice import choose_quantizer
-from geoterrain.codec.quantize import codes_to_heights
+from geoterrain.codec.quantize import Quantizer, codes_to_heights
 from geoterrain.core.atomicfiles import remove_stale_partials
 from geoterrain.core.frame import Frame
 from geoterrain.core.grid import Grid
@@ -184,9 +185,86 @@ def preprocess(
     >>> preprocess(dem).name
     'dem.geoterrain'
     """
+    req = request(src, dst, tile_size=tile_size, codec_error=codec_error,
+                  pixel_size=pixel_size, overwrite=overwrite, scheduler=scheduler,
+                  resume=resume)
+    if (not req.mosaic and tile is None and pixel_size is None and encoding in ("auto", "raw")
+            and band in (None, 1)):
+        limit = available_memory() // 2 if memory_limit is None else int(memory_limit)
+        rows = streaming_band(req.files[0], limit)
+        if rows is not None:  # too large for the whole grid: a window at a time
+            return preprocess_streaming(
+                req.files[0], req.dst, tile_size=tile_size, z_scale=z_scale, z_units=z_units,
+                codec_error=codec_error, overwrite=overwrite,
+                nodata=nodata, band=rows, derive_normals=derive_normals,
+                derive_bounds=derive_bounds, scheduler=scheduler, resume=resume,
+                progress=progress)
     stage = StageClock(STAGES, progress)
-    times = stage.times
+    dem = read_dem(req, band=band, encoding=encoding, nodata=nodata, tile=tile,
+                   pixel_size=pixel_size, z_units=z_units, z_scale=z_scale)
+    stage("read")
+    surface = pad(dem)
+    stage("pad")
+    surface = quantise(dem, surface, codec_error)
+    stage("quantise")
+    derive_normals = bool(derive_normals) and dem.grid.tile_samples >= 3
+    derive_bounds = (bool(derive_bounds) and dem.grid.tile_samples >= 3
+                     and dem.grid.top_level > 0)
+    bounds = vertex_bounds(dem, surface, derive_bounds, stage)
+    tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
+                                          dem.grid.t)
+    stage("tile bounds")
+    # one map per level, central differences of the level's own samples (seed 000
+    # normal-map lighting): a reader rebuilds each tile's from its heights and ring
+    normal_maps = [encode_octahedral(n, NORMAL_BITS) for n in level_normal_maps(
+        surface.X, surface.Y, surface.Z, surface.valid, dem.grid.top_level + 1)]
+    stage("normals")
+    blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals)
+    del normal_maps
+    stage("compress")
+    meta = dict(source=mosaic_name(req.files), source_dtype=dem.raster.src_dtype,
+                source_nodata=dem.raster.nodata, encoding=dem.raster.encoding,
+                grid=dem.grid.to_json(), frame=dem.frame.to_json(),
+                quantizer=surface.q.to_json(),
+                normals_derived=(list(range(dem.grid.top_level + 1)) if derive_normals
+                                 else []),
+                valid_samples=dem.valid_samples, samples=dem.raster.valid.size,
+                height_range=surface.height_range, delta_max_finite=_finite_max(bounds.delta),
+                edge_max=blobs.edge_max if has_padding(dem.grid) else None,
+                stand_in_z=stand_in_z(surface.Z, surface.valid),
+                block_delta_levels=int(blocks.shape[2]))
+    write_store(req, dem.grid, blobs, blocks, meta, stage)
+    return req.dst
 
+
+# ------------------------------------------------------------------ the stages
+@dataclass(frozen=True)
+class Request:
+    """A preprocess's checked request: the source (``files``, several for a mosaic) and
+    the store to write."""
+
+    files: list[Path]
+    mosaic: bool
+    dst: Path
+    overwrite: bool
+    src: str | Path | list
+    tile_size: int
+
+
+def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
+            codec_error: float | None, pixel_size: float | None, overwrite: bool,
+            scheduler: str, resume: bool) -> Request:
+    """:func:`preprocess`'s arguments checked before any work (a one-line
+    :class:`UsageError` each), and a killed run's leftovers beside ``dst`` removed
+    unless it is resumed.
+
+    Examples
+    --------
+    >>> r = request(__file__, "x.geoterrain", tile_size=64, codec_error=None,
+    ...             pixel_size=None, overwrite=True, scheduler="sync", resume=True)
+    >>> r.dst.name, r.mosaic
+    ('x.geoterrain', False)
+    """
     if codec_error is not None and not (np.isfinite(codec_error) and codec_error >= 0):
         raise UsageError(f"codec_error must be a finite number ≥ 0, got {codec_error}",
                          cli=f"--codec-error must be a finite number ≥ 0, got {codec_error}")
@@ -213,25 +291,34 @@ def preprocess(
     if any(f.resolve() == dst.resolve() for f in files):
         raise UsageError(f"{dst}: the store would overwrite its own input; choose another dst",
                          cli=f"{dst}: the store would overwrite its own input; choose another -o")
+    return Request(files, mosaic, dst, overwrite, src, tile_size)
 
-    if (not mosaic and tile is None and pixel_size is None and encoding in ("auto", "raw")
-            and band in (None, 1)):
-        limit = available_memory() // 2 if memory_limit is None else int(memory_limit)
-        rows = streaming_band(files[0], limit)
-        if rows is not None:  # too large for the whole grid: a window at a time
-            return preprocess_streaming(
-                files[0], dst, tile_size=tile_size, z_scale=z_scale, z_units=z_units,
-                codec_error=codec_error, overwrite=overwrite,
-                nodata=nodata, band=rows, derive_normals=derive_normals,
-                derive_bounds=derive_bounds, scheduler=scheduler, resume=resume,
-                progress=progress)
-    r = read_raster(files if mosaic else src, band=band, encoding=encoding, nodata=nodata)
+
+@dataclass
+class Dem:
+    """The DEM read: its raster (heights, mask, georeference), scene frame and padded
+    grid."""
+
+    raster: Raster
+    frame: Frame
+    grid: Grid
+    valid_samples: int
+
+
+def read_dem(req: Request, *, band: int | None, encoding: str, nodata: float | None,
+             tile: str | None, pixel_size: float | None, z_units: str,
+             z_scale: float | None) -> Dem:
+    """Read and check the DEM (a web-map tile placed in Web Mercator by its z/x/y), and
+    its frame (pyproj) and padded grid."""
+    src = req.src
+    r = read_raster(req.files if req.mosaic else src, band=band, encoding=encoding,
+                    nodata=nodata)
     validate(r, z_scale)
     zxy = parse_tile(tile) if tile is not None else None
     if zxy is not None and (pixel_size is not None or r.crs_wkt is not None):
         raise UsageError("a web-map tile is placed by its z/x/y; give tile or pixel_size, not "
                          "both", cli="give --tile or --pixel-size, not both")
-    if zxy is None and r.crs_wkt is None and pixel_size is None and not mosaic:
+    if zxy is None and r.crs_wkt is None and pixel_size is None and not req.mosaic:
         zxy = tile_from_path(src)
     if zxy is not None:
         r.transform, r.crs_wkt = tile_georeference(*zxy, r.shape[1], r.shape[0])
@@ -242,101 +329,152 @@ def preprocess(
                               z_scale=1.0 if z_scale is None else z_scale)
     if r.crs_wkt is None and pixel_size is None:
         log.warning("%s has no CRS: using 1 m per pixel; set pixel_size (--pixel-size)", src)
-    grid = Grid.for_shape(*r.shape, tile_size=tile_size)
-    stage("read")
+    grid = Grid.for_shape(*r.shape, tile_size=req.tile_size)
+    return Dem(r, frame, grid, int(np.count_nonzero(r.valid)))
 
+
+@dataclass
+class Surface:
+    """The padded grid's samples: source ``heights`` (NaN = nodata) and ``valid``, scene
+    ``X``, ``Y`` and, once quantised, the decoded scene heights ``Z`` with the quantizer
+    ``q``, their range (source units) and, with residual bins, the height blobs already
+    coded."""
+
+    heights: np.ndarray
+    valid: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    Z: np.ndarray | None = None
+    q: Quantizer | None = None
+    height_range: list[float] | None = None
+    height_blobs: dict | None = None
+
+
+def pad(dem: Dem) -> Surface:
+    """The DEM padded to the (2^n+1)² grid (invalid padding), with scene x, y."""
+    grid, r = dem.grid, dem.raster
     valid = grid.pad(r.valid, False)
     heights = grid.pad(r.heights, np.nan)
     heights[~valid] = np.nan
     r.heights = None  # the padded copy holds them now (memory: issue 12)
-    nvalid = int(np.count_nonzero(r.valid))
-    X, Y = frame.grid_xy(grid.size)
-    stage("pad")
+    X, Y = dem.frame.grid_xy(grid.size)
+    return Surface(heights, valid, X, Y)
 
-    # the valid heights: NaN elsewhere, which the quantiser ignores
-    q = choose_quantizer(heights, r.src_dtype, codec_error=codec_error, scale=r.scale,
+
+def quantise(dem: Dem, s: Surface, codec_error: float | None) -> Surface:
+    """The quantizer of the valid heights (NaN elsewhere, which it ignores) and the
+    heights as a reader decodes them, in scene metres (``Z``)."""
+    r = dem.raster
+    q = choose_quantizer(s.heights, r.src_dtype, codec_error=codec_error, scale=r.scale,
                          offset=r.offset)
     height_blobs = None
     if q.bins > 1:  # residual bins: the heights depend on the pyramid, coded here once
-        height_blobs, codes = encode_decoded(heights, valid, grid.t, q)
+        height_blobs, codes = encode_decoded(s.heights, s.valid, dem.grid.t, q)
         Z = codes_to_heights(codes, q)
         del codes
-        Z[~valid] = np.nan
+        Z[~s.valid] = np.nan
     else:
-        Z = decoded_heights(heights, valid, q)  # NaN where invalid
-    # every level's normals and level 0's δ derived on read in every frame (a geographic
-    # tile's with bilinear x, y and a slack: leafbounds.normal_xy, geographic_leaf_delta);
-    # level 0's r only in an affine frame (a geographic one's needs pyproj's x, y of
-    # every sample)
-    derive_normals = bool(derive_normals) and grid.tile_samples >= 3
-    derive_bounds = bool(derive_bounds) and grid.tile_samples >= 3 and grid.top_level > 0
-    hv = Z[valid]
+        Z = decoded_heights(s.heights, s.valid, q)  # NaN where invalid
+    hv = Z[s.valid]
     height_range = [float(hv.min()), float(hv.max())]
     del hv
-    Z = frame.z(Z, out=Z)  # scene metres, in place
-    stage("quantise")
+    Z = dem.frame.z(Z, out=Z)  # scene metres, in place
+    return Surface(s.heights, s.valid, s.X, s.Y, Z, q, height_range, height_blobs)
 
-    delta = vertex_errors(Z, valid)
+
+@dataclass
+class VertexBounds:
+    """Per-vertex δ (saturated) and the radii's codes, how level 0's are stored (its
+    ``ring_kinds`` as border rings, a geographic δ with its per-tile ``slack``), and the
+    metric terms of a geographic frame."""
+
+    delta: np.ndarray
+    r_codes: np.ndarray
+    ring_kinds: tuple[str, ...]
+    slack: np.ndarray | None
+    terms: tuple | None
+    delta_before: np.ndarray | None
+
+
+def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool, stage: StageClock
+                  ) -> VertexBounds:
+    """δ (LP's exact vertex errors, saturated) and the nested radii (seed 002 §2.4,
+    L50–52) as the 8-bit log codes they are stored as; on a geographic frame, both made
+    to hold in the scene's metric x, y (:mod:`geoterrain.bounds.curvature`)."""
+    frame, grid, valid = dem.frame, dem.grid, s.valid
+    delta = vertex_errors(s.Z, valid)
     stage("errors")
     terms = radius = None
     if frame.kind == "geographic":  # curvilinear grid: δ and r that hold in scene x/y
-        radius = vertex_radii(X, Y, Z, valid)
-        terms = metric_terms(X, Y, Z, valid)
-        delta, radius = metric_bounds(delta, radius, X, Y, Z, valid, terms=terms)
+        radius = vertex_radii(s.X, s.Y, s.Z, valid)
+        terms = metric_terms(s.X, s.Y, s.Z, valid)
+        delta, radius = metric_bounds(delta, radius, s.X, s.Y, s.Z, valid, terms=terms)
     slack = delta_before = None
     ring_kinds: tuple[str, ...] = ("delta", "radius") if derive_bounds else ()
     if derive_bounds and frame.kind == "geographic":
         # level 0's δ as a reader derives it: the closed forms + a per-tile slack for the
         # metric term (δ only: r would need pyproj's x, y of every sample)
         delta_before = delta.copy() if has_padding(grid) else None
-        slack = geographic_leaf_delta(delta, Z, valid, grid.t, terms[0], terms[2])
+        slack = geographic_leaf_delta(delta, s.Z, valid, grid.t, terms[0], terms[2])
         ring_kinds = ("delta",) if slack is not None else ()
-    # nested radii (seed 002 §2.4, L50–52) as the 8-bit log codes they are stored as,
     # nested on the coded values (a projected frame needs no radii before: r = nesting)
-    r_codes = radius_codes(X, Y, Z, valid, radius)
+    r_codes = radius_codes(s.X, s.Y, s.Z, valid, radius)
     del radius
     stage("radii")
-    # per-tile bounds, and every GeoMipMapping block's exact δ_n (seed 000 §2.4)
-    bounds, blocks = tile_and_block_errors(Z, valid, X, Y, grid.t)
-    stage("tile bounds")
-    # one map per level, central differences of the level's own samples (seed 000
-    # normal-map lighting): a reader rebuilds each tile's from its heights and ring
-    nrm_levels = [encode_octahedral(n, NORMAL_BITS)
-                  for n in level_normal_maps(X, Y, Z, valid, grid.top_level + 1)]
-    stage("normals")
+    return VertexBounds(delta, r_codes, ring_kinds, slack, terms, delta_before)
 
+
+@dataclass
+class TileBlobs:
+    """Every stored tile's blobs by kind, its tile-table row, and the tiles with a
+    second δ (``edge_max``)."""
+
+    heights: dict
+    extra: dict[str, dict]
+    tile_rows: dict
+    edge_max: list
+
+
+def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
+               normal_maps: list[np.ndarray], derive_normals: bool) -> TileBlobs:
+    """The height pyramid's blobs (the residual codec), and every tile's δ, r, normals and
+    δ_edge blobs with its tile-table row.
+
+    δ: 8-bit log codes rounded up (saturation survives: one monotone map per store); r:
+    8-bit log codes rounded up, nested on the codes. Below the top level only the
+    vertices new at the level are stored; the others are the parent's
+    (:mod:`geoterrain.bounds.vertexdata`). Padding is replicated from the data's edge for
+    a second δ, the static mesh's (:mod:`geoterrain.bounds.edgepad`), coded with the same
+    table as δ, so the two agree wherever their raw values do.
+    """
+    grid, frame, valid, Z = dem.grid, dem.frame, s.valid, s.Z
+    height_blobs = s.height_blobs
     if height_blobs is None:
-        height_blobs = encode_pyramid(heights, valid, grid.t, q)
-    # δ: 8-bit log codes rounded up (saturation survives: one monotone map per store);
-    # r: 8-bit log codes rounded up, nested on the codes. Below the top level only the
-    # vertices new at the level are stored; the others are the parent's (vertexdata.py).
-    # padding by edge replication: a second δ for the static mesh (geoterrain/bounds/edgepad.py),
-    # coded with the same table as δ, so the two agree wherever their raw values do
+        height_blobs = encode_pyramid(s.heights, valid, grid.t, s.q)
+    delta = b.delta
     edge = d_edge = None
     if has_padding(grid):
         Zr, ok = edge_support(Z, valid, grid)
         d_edge = edge_deltas(Zr, ok, grid)
         if frame.kind == "geographic":  # only where a padding sample is read: the rest
             win = (grid.rows, grid.cols)  # is the original grid's terms
-            et = metric_terms(X, Y, Zr, ok, window=win, base=terms)
-            d_edge, _ = metric_bounds(d_edge, None, X, Y, Zr, ok, window=win, terms=et)
+            et = metric_terms(s.X, s.Y, Zr, ok, window=win, base=b.terms)
+            d_edge, _ = metric_bounds(d_edge, None, s.X, s.Y, Zr, ok, window=win, terms=et)
             del et
-            if slack is not None:  # where δ_edge was δ it follows δ's raise, nested again
-                same = d_edge == delta_before
+            if b.slack is not None:  # where δ_edge was δ it follows δ's raise, nested again
+                same = d_edge == b.delta_before
                 d_edge[same] = delta[same]
                 saturate(d_edge)
         del Zr, ok
-    del terms, delta_before
     ed = None if d_edge is None else max(log8_exponent(delta), log8_exponent(d_edge))
-    coding = BoundsCoding(delta, None, ed, r_codes=r_codes)
+    coding = BoundsCoding(delta, None, ed, r_codes=b.r_codes)
     if d_edge is not None:
-        edge = BoundsCoding(d_edge, None, ed, r_codes=r_codes)
+        edge = BoundsCoding(d_edge, None, ed, r_codes=b.r_codes)
         del d_edge
         # one table, so comparing codes compares the stored values
         edge_keys = edge_tiles(coding.dc, edge.dc, grid, sorted(height_blobs))
         # unstored tiles holding a vertex the static mesh may need: a whole δ_edge tile
         edge_only = edge_only_tiles(edge.dc, grid, set(height_blobs))
-    del r_codes
     tile_rows: dict = {}
     extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}, "delta_edge": {}}
     edge_max: list = []
@@ -345,22 +483,21 @@ def preprocess(
         if not keys:
             continue
         # every level's rings: the rest is derived from the heights on read
-        normals_ring = derive_normals
-        blobs, dmax, rmax = level_blobs(coding, nrm_levels[L], grid.t, L, grid.top_level,
+        blobs, dmax, rmax = level_blobs(coding, normal_maps[L], grid.t, L, grid.top_level,
                                         [(x, y) for _, x, y in keys],
-                                        ("delta", "radius") if normals_ring else
+                                        ("delta", "radius") if derive_normals else
                                         ("delta", "radius", "normals"),
-                                        ring=ring_kinds if L == 0 else False,
-                                        slack=slack if L == 0 else None)
-        if normals_ring:
-            blobs["normals"] = ring_blobs(nrm_levels[L], grid.t, [(x, y) for _, x, y in keys],
-                                          L)
-        for kind, b in blobs.items():
-            extra[kind].update(b)
+                                        ring=b.ring_kinds if L == 0 else False,
+                                        slack=b.slack if L == 0 else None)
+        if derive_normals:
+            blobs["normals"] = ring_blobs(normal_maps[L], grid.t,
+                                          [(x, y) for _, x, y in keys], L)
+        for kind, blob in blobs.items():
+            extra[kind].update(blob)
         # per-tile max δ and r (of the values as stored, over the vertices new at this
         # level) let a view skip a tile without decoding it
         for key, dm, rm in zip(keys, dmax.tolist(), rmax.tolist(), strict=True):
-            tile_rows[key] = (*bounds[key], dm, rm)
+            tile_rows[key] = (*tiles[key], dm, rm)
         # the second δ: new vertices over the parent's on stored tiles, whole tiles on
         # the unstored ones (nothing else there to read a parent from)
         # (the stored tiles' as differences from their δ codes: zero but near the padding)
@@ -369,33 +506,29 @@ def preprocess(
             ekeys = [(x, y) for L2, x, y in keys_e if L2 == L]
             if not ekeys:
                 continue
-            eb, emax, _ = level_blobs(edge, nrm_levels[L], grid.t, L, top, ekeys, ("delta",),
+            eb, emax, _ = level_blobs(edge, normal_maps[L], grid.t, L, top, ekeys, ("delta",),
                                       base=base)
             extra["delta_edge"].update(eb["delta"])
             edge_max += [[L, x, y, m if np.isfinite(m) else None]
                          for (x, y), m in zip(ekeys, emax.tolist(), strict=True)]
-    del coding, nrm_levels, edge
-    stage("compress")
+    return TileBlobs(height_blobs, extra, tile_rows, edge_max)
 
-    with StoreWriter(dst, overwrite=overwrite) as w:
-        w.put_blobs("heights", height_blobs)
-        for kind, blobs in extra.items():
-            w.put_blobs(kind, blobs)
+
+def write_store(req: Request, grid: Grid, blobs: TileBlobs, blocks: np.ndarray, meta: dict,
+                stage: StageClock) -> None:
+    """Write the store atomically: every blob, the tile table, the GeoMipMapping blocks'
+    δ_n and the metadata (with the stages' times), published as ``req.dst`` only when
+    complete."""
+    with StoreWriter(req.dst, overwrite=req.overwrite) as w:
+        w.put_blobs("heights", blobs.heights)
+        for kind, b in blobs.extra.items():
+            w.put_blobs(kind, b)
         w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
-        w.put_tiles(tile_rows)
-        w.put_metadata(store_metadata(
-            source=mosaic_name(files), source_dtype=r.src_dtype, source_nodata=r.nodata,
-            encoding=r.encoding, grid=grid.to_json(), frame=frame.to_json(),
-            quantizer=q.to_json(),
-            normals_derived=list(range(grid.top_level + 1)) if derive_normals else [],
-            valid_samples=nvalid, samples=r.valid.size, height_range=height_range,
-            delta_max_finite=_finite_max(delta),
-            edge_max=edge_max if has_padding(grid) else None, stand_in_z=stand_in_z(Z, valid),
-            block_delta_levels=int(blocks.shape[2]), times=times))
+        w.put_tiles(blobs.tile_rows)
+        w.put_metadata(store_metadata(**meta, times=stage.times))
         stage("write")
-        times["write"] = times.get("write", 0.0)
+        stage.times["write"] = stage.times.get("write", 0.0)
         w.commit()
-    return dst
 
 
 def cached_store_path(dem: str | Path) -> Path:
