@@ -16,7 +16,7 @@ For each shared DEM (``../shared/dems``, skipped when absent) and ε, the pyrami
 
 The entropies count valid samples only (the decoder knows the mask). They show which
 gaps an entropy coder alone could close and which need another quantiser (SZ3 codes
-the prediction error in bins of 2ε; ours quantises the heights first, docs §8b).
+the prediction error in bins of 2ε; ours quantises the heights first, docs/lab/height-codec.md).
 
     python benchmarks/bench_entropy.py [--eps 0.5 1 2] [--dem NAME ...]
 """

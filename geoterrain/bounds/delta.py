@@ -68,7 +68,7 @@ def check_grid(z: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 _FM = True
 # Rows on every core for large grids (errors 0.54 → 0.34 s, radii 0.32 → 0.20 s on the
-# quiet 4097² fBm, docs/benchmarks.md §3); small ones run on one thread, where a busy
+# quiet 4097² fBm, docs/lab/preprocess.md); small ones run on one thread, where a busy
 # core made the barriers cost more than the work (geoterrain/core/threads.py: cores_for).
 # Each output is written by one iteration, so the values do not depend on the threads.
 _PARALLEL = True

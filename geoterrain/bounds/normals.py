@@ -14,7 +14,7 @@ positions, so curvilinear (geographic) grids and vertical exaggeration are handl
   border ring at every level (docs/store.md).
 - :func:`normal_pyramid`: the maps of every pyramid level, each level a 3x3 binomial
   weighted mean (renormalised) of the previous one around its kept samples (what stores
-  held before; kept for comparison, docs/benchmarks.md §7g).
+  held before; kept for comparison, docs/lab/store-size.md).
 - :func:`level_normals`: the map for one pyramid level L directly from the full map (box
   mean over each sample's footprint, renormalised; summed-area tables, memory-hungry).
 - :func:`encode_octahedral` / :func:`decode_octahedral`: 2-component octahedral packing

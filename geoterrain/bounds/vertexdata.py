@@ -335,7 +335,7 @@ def store_metadata(*, source: str, source_dtype: str, source_nodata: float | Non
 def normals_to_bytes(oct8: np.ndarray) -> bytes:
     """A tile's 8-bit octahedral normals (T, T, 2) as two planes of 2-D differences
     (mod 256): neighbouring normals agree, so zstd finds ~15 % fewer bytes than in the
-    raw interleaved pairs (docs/benchmarks.md §7).
+    raw interleaved pairs (`benchmarks/bench_size.py`; docs/lab/store-size.md).
 
     Examples
     --------

@@ -48,7 +48,7 @@ Blob format (version 2), one blob per stored tile::
              (h, h)), each in raster order, invalid samples skipped.
     wide     (a non-top tile of a lossless float store, whose residuals are float bit
              patterns of 10-30 bits: the range coder's ~7 % saving there costs 3 times
-             zstd's time, docs/benchmarks.md §8d) byte 3 = w, the residuals' byte width
+             zstd's time, docs/lab/height-codec.md) byte 3 = w, the residuals' byte width
              (0, 1, 2, 4, 8); then one zstd frame of [np.packbits(mask) when stored] +
              the 3h² + 2h zigzag residuals (0 at invalid samples) as w-byte
              little-endian values, byte-shuffled (all byte 0s, then all byte 1s, ...).
@@ -117,7 +117,7 @@ def top_bins(bins: int) -> int:
     other tiles' ``bins``. Every finer
     sample is predicted from the top tile's, which are few: SZ3 halves its error bound
     on its coarse levels for the same reason. On the six shared DEMs at ε = 0.5, 1 and
-    2 (docs/benchmarks.md §8e): fewer bytes than 1/2 or 1/4 in 14 cells, as many in 4;
+    2 (docs/lab/height-codec.md): fewer bytes than 1/2 or 1/4 in 14 cells, as many in 4;
     against no tightening, 16–20 % fewer on the smallest pyramid (St Helens, whose top
     tile holds a sixteenth of the samples) and at most 2.8 % more elsewhere.
 

@@ -68,11 +68,12 @@ ABSURD_HEIGHT = 1e5  # |h| beyond this is almost surely a unit or nodata problem
 VOID_SENTINELS = (-32768.0, -32767.0, -9999.0, float(np.finfo(np.float32).min))
 ROUGH_PNG_STEP = 1000.0  # metres: a median neighbour step beyond this is not terrain
 # GDAL decodes the blocks of a compressed raster on every core (4097² DEFLATE GeoTIFF:
-# 0.27 → 0.13 s on 2 cores, docs/benchmarks.md §3); the bytes read are the same
+# 0.27 → 0.13 s on 2 cores, docs/lab/preprocess.md); the bytes read are the same
 # GDAL's block cache is set, not left at its default of 5 % of RAM: a whole-raster read
 # keeps no block after copying it out, and a windowed one rereads little
 GDAL_READ_OPTIONS = {"GDAL_NUM_THREADS": "ALL_CPUS", "GDAL_CACHEMAX": 64 * 2**20}
-# peak RSS of the preprocess per source sample, measured (docs/benchmarks.md §3): 62 at
+# peak RSS of the preprocess per source sample, measured (benchmarks/bench_preprocess.py,
+# docs/lab/preprocess.md): 62 at
 # 4097² and 52 at 8193² in a projected CRS, 116 at 4097² in a geographic one (full X, Y
 # and the curvilinear terms); with a margin
 PREPROCESS_BYTES_PER_SAMPLE = {"projected": 72, "geographic": 128}

@@ -1,6 +1,7 @@
 """Compiled bintree extraction (numba): one resumable stack-based walk, vertices numbered in order.
 
-Benchmarked against the level-by-level numpy bisection in docs/benchmarks.md.
+Benchmarked against the level-by-level numpy bisection it replaced; today's figures come
+from ``benchmarks/bench_lod.py`` (docs/benchmarks.md; history in docs/lab/lod-flight.md).
 """
 
 from __future__ import annotations

@@ -72,7 +72,7 @@ log = logging.getLogger("geoterrain")
 
 # Bytes per sample of a band's rows, over every stage's windows and their copies, and
 # what the process holds besides (imports, compiled kernels, tile tables): measured on
-# the 16385² fBm (docs/benchmarks.md §3b), with a margin
+# the 16385² fBm (docs/lab/streaming.md), with a margin
 BAND_BYTES_PER_SAMPLE = 200
 FIXED_BYTES = 400 << 20
 BAND_SAMPLES = 1 << 20  # at most this many samples a band (streaming_band)

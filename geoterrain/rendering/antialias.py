@@ -9,7 +9,7 @@ VTK's own FXAA pass costs as much there. This is Lottes's FXAA 3.11 "quality" fi
 pixel's coverage from the length of the edge span it lies on and the sub-pixel luma
 difference, and blend it with its neighbour across the edge. It runs in a few
 milliseconds on the whole picture. Against a 16×-supersampled render of the same mesh
-and texture it scores like 4× MSAA (docs/benchmarks.md §6).
+and texture it scores like 4× MSAA (docs/lab/rendering-frame.md).
 
 Examples
 --------

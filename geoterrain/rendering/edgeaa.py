@@ -20,8 +20,8 @@ with it. Against a 16× supersampled picture of the same mesh and texture, the p
 is 1.4 dB closer than 4× MSAA on average where the silhouettes are sparse (four of the
 six shared DEMs, 12 views: closer on 8, at most 1.9 dB further on the others), and
 6–8.5 dB further where thousands of steep thin facets put many edges in one pixel (the
-Terrain-RGB and Terrarium tiles), where coverage needs samples (docs/benchmarks.md
-§6l). The default anti-aliasing (``"auto"``) therefore takes this pass for a frame
+Terrain-RGB and Terrarium tiles), where coverage needs samples (docs/lab/anti-aliasing.md).
+The default anti-aliasing (``"auto"``) therefore takes this pass for a frame
 whose silhouettes are sparse (:func:`sparse`) and the renderer's MSAA for the others;
 ``"edges"`` always takes it.
 
@@ -47,7 +47,7 @@ from numba import njit
 # pass to stand in for MSAA: 0.9-20.6 on srtm1_japan, srtm3, St Helens and roi (3 views
 # each at 640x360) and 0.3-15.9 over the 4097² fBm flight at 1280x720, where it is as
 # close to a supersampled picture as MSAA or closer; 60-87 on the Fuji and Terrarium
-# tiles, where it is 6-8.5 dB further (docs/benchmarks.md §6l)
+# tiles, where it is 6-8.5 dB further (docs/lab/anti-aliasing.md)
 SPARSE_EDGES_PER_KPX = 30.0
 # a mesh with more faces is drawn with MSAA under "auto" without looking for its edges
 # (a full-resolution mesh): the edge table takes 16 bytes a slot, 4F slots rounded up to

@@ -327,7 +327,7 @@ def shadow_mask(z: np.ndarray, valid: np.ndarray, spacing: float, azimuth: float
     The sweep runs on a bilinear ``supersample``× refinement of the grid, so the
     terrain between samples occludes as a bilinear surface does (the ray march of the
     oracle): at 3× the masks agree on ≥ 99.5 % of the samples of real DEM crops, at 1×
-    on ≥ 98.4 % (docs/benchmarks.md).
+    on ≥ 98.4 % (`benchmarks/bench_shading.py`; docs/lab/light.md).
     """
     valid = np.asarray(valid, bool)
     if elevation >= 90.0:

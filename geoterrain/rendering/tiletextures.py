@@ -30,7 +30,7 @@ shaded. Chosen by measurement on srtm1_japan at 640×360, rtin τ = 1 against th
 bruteforce render with the mipmapped whole-DEM level-0 texture: texels ≤ 0.5 / 1 /
 1.5 / 2 px gave 34.7 / 36.9 / 37.8 / 37.7 dB (view 1) and 33.6 / 35.0 / 35.3 / 35.2 dB
 (view 2); finer texels alias, as there are no mipmaps across atlas pages. With √c:
-37.85 and 35.56 dB at 1.5 px (docs/benchmarks.md §6f has every shared DEM).
+37.85 and 35.56 dB at 1.5 px (docs/lab/rendering-frame.md has every shared DEM).
 
 The pages are packed into one atlas texture (one actor, per-vertex texture
 coordinates; vertices are duplicated per footprint). An atlas rather than one

@@ -244,7 +244,8 @@ class ViewerController:
         if not self._gc_frozen:
             # the window is up: what the imports, VTK and the first frame made is kept
             # for good, so a full garbage collection (the GIL held, the window frozen)
-            # no longer walks it (the longest UI block 81.7 → 4 ms, docs/benchmarks.md §6d)
+            # no longer walks it (the longest UI block 81.7 → 4 ms, benchmarks/bench_viewer.py;
+            # docs/lab/viewer.md)
             gc.freeze()
             self._gc_frozen = True
         f = self._future

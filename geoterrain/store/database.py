@@ -8,7 +8,7 @@ Schema (version :data:`SCHEMA_VERSION`), two plain tables::
 The catalog's rows, their formats and checks are :mod:`geoterrain.store.catalog`'s: the
 metadata (compressed JSON) and the tile table (every tile's numbers, every blob's
 packed key, :mod:`geoterrain.store.keys`, and row id; schema 3's SQL tables of a row
-each were a fifth of a small store, docs/benchmarks.md §7i). The blob rows are bare,
+each were a fifth of a small store, docs/lab/store-size.md). The blob rows are bare,
 so the writer inserts them in the order that fills SQLite's leaf pages
 (:mod:`geoterrain.store.pagepack`); the tile table finds them.
 
@@ -212,7 +212,7 @@ class StoreWriter:
     def _init(self) -> None:
         # The temporary file is not the store; durability comes from fsync + rename.
         # Small pages: a tile blob of a few kB overflows into whole pages, and 4 kB pages
-        # left ~30 % of a store as slack (docs/benchmarks.md §7); readers take any size.
+        # left ~30 % of a store as slack (docs/lab/store-size.md); readers take any size.
         self.con.execute(f"PRAGMA page_size={PAGE_SIZE}")
         self.con.execute("PRAGMA journal_mode=OFF")
         self.con.execute("PRAGMA synchronous=OFF")

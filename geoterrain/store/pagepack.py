@@ -5,7 +5,7 @@ last leaf page starts a new leaf: what is left of the old one stays empty. A blo
 keeps at most ``U − 35`` bytes of its record on the leaf (``U`` the page size) and moves
 the rest to full overflow pages, so a store's leaf cells range from a few dozen bytes to
 nearly a page. Appended in key order they left about 130 bytes of every 1 kB page empty
-(docs/benchmarks.md §7f): 6–10 % of a store.
+(`benchmarks/bench_size.py`, docs/lab/store-size.md): 6–10 % of a store.
 
 :func:`pack_order` numbers the rows so that, appended in that order, consecutive rows
 fill each leaf: best-fit decreasing bin packing of each row's leaf cell

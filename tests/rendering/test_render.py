@@ -233,7 +233,7 @@ def test_lod_fidelity_with_sun_shadows_and_occlusion(tmp_path_factory):
     az 90 / el 20 view: 38.1 dB (sun 315°/45°) and 39.6 dB (200°/35° with the drape). A
     low sun raises the hillshade's contrast, and with it the cost of the same one-pixel
     LOD error: at 250°/25° that view measures 33.2 dB with or without shadows
-    (docs/benchmarks.md)."""
+    (docs/lab/light.md)."""
     from geoterrain.rendering.shading import Light
 
     t = _fidelity_terrain(tmp_path_factory)
