@@ -66,6 +66,7 @@ from geoterrain.rendering.edgeaa import SPARSE_MAX_FACES, edge_antialias, silhou
 from geoterrain.rendering.overlays import compose, layout_for
 from geoterrain.rendering.shading import Light
 from geoterrain.rendering.textures import SHADINGS, texture_image, texture_level
+from geoterrain.rendering.tileshader import TileShader
 from geoterrain.rendering.tiletextures import build_view_texture
 
 if TYPE_CHECKING:
@@ -135,6 +136,7 @@ class TerrainScene:
             tex.repeat = False
             self.texture = tex
         elif shading != "plain":  # the per-view atlas replaces its image each frame
+            self.shader = TileShader(terrain, shading, cmap, light, drape)
             self.texture = pv.Texture(np.zeros((1, 1, 3), np.uint8))
             self.texture.interpolate = True
             self.texture.repeat = False
@@ -161,8 +163,8 @@ class TerrainScene:
         """
         if self.shading == "plain" or self.textures != "view":
             return None
-        return build_view_texture(self.terrain, selection, view, self.shading, self.cmap,
-                                  light=self.light, drape=self.drape, max_builds=max_builds)
+        return build_view_texture(self.terrain, selection, view, self.shader,
+                                  max_builds=max_builds)
 
     def update(self, selection, view: View | None = None, vtex=None) -> None:
         """Show ``selection.mesh`` (the actor is reused).

@@ -13,6 +13,7 @@ Examples
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -89,3 +90,23 @@ def texture_image(terrain: TerrainLike, shading: str, cmap: str | Palette = "aut
     if key not in cache:
         cache[key] = build_texture_image(terrain, shading, cmap, L)
     return cache[key]
+
+
+def sample_spacing(terrain: TerrainLike) -> float:
+    """The finest sample spacing (scene units) near the grid centre and corners: a
+    level-L texel is 2^L of it.
+
+    Examples
+    --------
+    >>> sample_spacing(t) > 0
+    True
+    """
+    g = terrain.grid
+    pts = []
+    for c in ((g.rows // 2, g.cols // 2), (0, 0), (max(g.rows - 2, 0), max(g.cols - 2, 0))):
+        ii = np.array([c[0], c[0], c[0] + 1])
+        jj = np.array([c[1], c[1] + 1, c[1]])
+        X, Y = terrain.frame.xy(ii, jj)
+        pts.append(min(math.hypot(X[1] - X[0], Y[1] - Y[0]), math.hypot(X[2] - X[0],
+                                                                          Y[2] - Y[0])))
+    return max(min(pts), 1e-12)

@@ -1,6 +1,6 @@
 """One texture tile's default shading in one compiled pass: hypsometric tint × hillshade.
 
-:func:`~geoterrain.rendering.tiletextures.tile_rgb` shades a tile as
+:func:`~geoterrain.rendering.tileshader.tile_rgb` shades a tile as
 ``colours.colorize`` (the ``auto`` palette's land and water ramps, ``np.interp`` per
 channel) × ``shading.tile_hillshade`` (the tile's octahedral normal codes), clipped
 and rounded to uint8. Done as numpy

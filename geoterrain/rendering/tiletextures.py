@@ -32,15 +32,18 @@ bruteforce render with the mipmapped whole-DEM level-0 texture: texels ≤ 0.5 /
 (view 2); finer texels alias, as there are no mipmaps across atlas pages. With √c:
 37.85 and 35.56 dB at 1.5 px (docs/lab/rendering-frame.md has every shared DEM).
 
-The pages are packed into one atlas texture (one actor, per-vertex texture
+How a tile is shaded is the picture's style's business
+(:class:`~geoterrain.rendering.tileshader.TileShader`): the atlas asks it for the tiles
+it places. The pages are packed into one atlas texture (one actor, per-vertex texture
 coordinates; vertices are duplicated per footprint). An atlas rather than one
 actor per tile: a frame has hundreds of pages, and VTK draws one actor per call.
 
 Examples
 --------
 >>> from geoterrain import lod
->>> sel = lod.select(t, View((0, -900, 500), (0, 0, 0), size=(320, 240)))
->>> tex = build_view_texture(t, sel, View((0, -900, 500), (0, 0, 0), size=(320, 240)))
+>>> from geoterrain.rendering.tileshader import TileShader
+>>> v = View((0, -900, 500), (0, 0, 0), size=(320, 240))
+>>> tex = build_view_texture(t, lod.select(t, v), v, TileShader(t))
 >>> tex.image.dtype.name, tex.tcoords.shape[1], tex.stats["textures_built"] > 0
 ('uint8', 2, True)
 """
@@ -48,7 +51,6 @@ Examples
 from __future__ import annotations
 
 import math
-import threading
 import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -67,21 +69,11 @@ from geoterrain.rendering.atlaskernels import (
     number_pages,
     page_tcoords,
 )
-from geoterrain.rendering.colours import LAND, WATER, Palette, as_palette, colorize, water_level
-from geoterrain.rendering.drape import Drape, drape_tile
-from geoterrain.rendering.shading import (
-    AMBIENT,
-    DEFAULT_SUN,
-    SHADE_CEILING,
-    Light,
-    tile_hillshade,
-    tile_shade,
-)
-from geoterrain.rendering.textures import elevation_range, height_tolerance
-from geoterrain.rendering.tileshade import shade_tiles
+from geoterrain.rendering.textures import sample_spacing
 
 if TYPE_CHECKING:
     from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.rendering.tileshader import TileShader
 
 TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
 MIN_FACING = 2.0 ** -8  # a footprint seen edge on: 4 levels coarser, at most the top
@@ -113,117 +105,20 @@ class ViewTexture:
     stats: dict = field(default_factory=dict)
 
 
-def tile_rgb(terrain: TerrainLike, level: int, x: int, y: int, shading: str,
-             cmap: str | Palette = "auto",
-             counter: dict | None = None, light: Light | None = None,
-             drape: Drape | None = None) -> np.ndarray:
-    """RGB uint8 (T, T, 3) shading of stored tile (level, x, y), cached in the terrain.
-
-    The cache is the terrain's tile cache (same byte budget), keyed by
-    (level, x, y, shading, palette). ``counter["textures_built"]`` counts builds.
-
-    Examples
-    --------
-    >>> tile_rgb(t, t.grid.top_level, 0, 0, "normals").shape
-    (33, 33, 3)
-    """
-    pal = as_palette(cmap)
-    return _shaded(terrain, _rgb_key(terrain, shading, pal, light, drape, level, x, y),
-                   level, x, y, shading, pal, counter, light, drape)
-
-
-def _shaded(terrain: TerrainLike, key: tuple, level: int, x: int, y: int, shading: str,
-            pal: Palette,
-            counter: dict | None, light: Light | None, drape: Drape | None) -> np.ndarray:
-    """:func:`tile_rgb` under its cache ``key`` (:func:`_rgb_key`)."""
-
-    def make():
-        if counter is not None:
-            counter["textures_built"] = counter.get("textures_built", 0) + 1
-        if _default_style(terrain, shading, pal, light, drape):  # one compiled pass
-            return _shade_batch(terrain, [(level, x, y)], pal)[0]
-        z0, z1 = elevation_range(terrain)
-        h = np.nan_to_num(terrain.tile(level, x, y).heights, nan=0.0)
-        rgb = colorize(h * terrain.frame.z_to_m, pal, (z0, z1), height_tolerance(terrain))
-        if drape is not None:  # the image over the colours; its nodata shows them
-            img, on = drape_tile(terrain, drape, level, x, y)
-            a = float(drape.opacity)
-            rgb[on] = a * img[on] + (1.0 - a) * rgb[on]
-        if shading == "normals" and (light is None or light.is_default):
-            rgb *= tile_hillshade(terrain, level, x, y)[..., None]
-        elif shading == "normals":  # sun, shadows, ambient occlusion (geoterrain.rendering.shading)
-            rgb *= tile_shade(terrain, level, x, y, light, _spacing(terrain))[..., None]
-        return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
-
-    return terrain.memo(key, make)
-
-
-def _default_style(terrain: TerrainLike, shading: str, pal: Palette, light: Light | None,
-                   drape: Drape | None) -> bool:
-    """Whether tiles are shaded in the default style (the ``auto`` palette's tint × the
-    sun's hillshade of the stored 8-bit normal codes, no drape): by
-    :mod:`geoterrain.rendering.tileshade`'s compiled passes."""
-    return (shading == "normals" and (light is None or light.is_default) and drape is None
-            and pal.cmap == "auto" and terrain.stored_normals
-            and terrain.meta["normal_bits"] == 8)
-
-
-def _shade_batch(terrain: TerrainLike, keys: list, pal: Palette) -> list[np.ndarray]:
-    """The default style's shading (RGB uint8 (T, T, 3)) of each tile of ``keys``, in
-    one compiled call over all of them on every core
-    (:func:`geoterrain.rendering.tileshade.shade_tiles`; a single tile's on this thread),
-    from their heights and the normal codes the terrain hands over."""
-    g = terrain.grid
-    T, n = g.tile_samples, len(keys)
-    h = np.empty((n, T, T))
-    for k, key in enumerate(keys):
-        h[k] = terrain.tile(*key).heights
-    codes = terrain.normal_codes(keys)
-    z0, z1 = elevation_range(terrain)
-    rgb = shade_tiles(h, terrain.frame.z_to_m, codes, DEFAULT_SUN, AMBIENT, SHADE_CEILING,
-                      pal.clim if pal.clim is not None else (z0, z1),
-                      water_level(pal, (z0, z1)), LAND, WATER, height_tolerance(terrain))
-    return [a.copy() for a in rgb]  # each cached on its own (not views of one array)
-
-
-# every shading style met so far, numbered: a tile's cache key holds the number, so a
-# lookup hashes a few ints, not the palette, light and drape (a handful of styles a
-# process; each is a small frozen value). Numbered under a lock: the viewer shades on a
-# worker thread, and two new styles must never get one number.
-_STYLES: dict[tuple, int] = {}
-_STYLES_LOCK = threading.Lock()
 # the atlases' memory, reused once the atlas shown before is released (no page faults)
 _ATLASES = ZeroPool()
 
 
-def _style_id(terrain: TerrainLike, shading: str, pal: Palette, light: Light | None,
-              drape: Drape | None) -> int:
-    """The number of this shading style. A vertically exaggerated view shares its base
-    terrain's cache but not its shading (its normals are steeper)."""
-    lk = None if light is None or light.is_default else light
-    ve = float(getattr(terrain, "vertical_exaggeration", 1.0))
-    style = (shading, pal, lk, drape, ve)
-    with _STYLES_LOCK:
-        return _STYLES.setdefault(style, len(_STYLES))
-
-
-def _rgb_key(terrain: TerrainLike, shading: str, pal: Palette, light: Light | None,
-             drape: Drape | None,
-             level: int, x: int, y: int) -> tuple:
-    """The cache key of :func:`tile_rgb`."""
-    return ("rgb", _style_id(terrain, shading, pal, light, drape), level, x, y)
-
-
-def _stand_in(terrain: TerrainLike, key: tuple, step: int, rgb_key, atlas: np.ndarray, r: int,
+def _stand_in(shader: TileShader, top: int, key: tuple, step: int, atlas: np.ndarray, r: int,
               c: int) -> bool:
     """Write tile ``key``'s texels (step + 1)² at (r, c) of ``atlas``, cut from the nearest
     ancestor whose shading is already cached, each ancestor texel repeated 2^d × 2^d;
     False (nothing written) if none is cached."""
     L, x, y = key
-    for d in range(1, terrain.grid.top_level - L + 1):
+    for d in range(1, top - L + 1):
         if step >> d < 1:
             break
-        anc = terrain.peek(rgb_key(L + d, x >> d, y >> d))
+        anc = shader.peek(L + d, x >> d, y >> d)
         if anc is None:
             continue
         n = step >> d  # the tile's width in ancestor texels
@@ -256,19 +151,6 @@ def _table_keys(e: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, ...]:
     return L, rem & ((np.int64(1) << (top - L)) - 1), rem >> (top - L)
 
 
-def _spacing(terrain: TerrainLike) -> float:
-    """The finest sample spacing (scene units) near the grid centre and corners."""
-    g = terrain.grid
-    pts = []
-    for c in ((g.rows // 2, g.cols // 2), (0, 0), (max(g.rows - 2, 0), max(g.cols - 2, 0))):
-        ii = np.array([c[0], c[0], c[0] + 1])
-        jj = np.array([c[1], c[1] + 1, c[1]])
-        X, Y = terrain.frame.xy(ii, jj)
-        pts.append(min(math.hypot(X[1] - X[0], Y[1] - Y[0]), math.hypot(X[2] - X[0],
-                                                                          Y[2] - Y[0])))
-    return max(min(pts), 1e-12)
-
-
 def _pack(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
     """Shelf packing of square pages (largest first): (x0, y0, width, height)."""
     order = np.argsort(-sizes, kind="stable")
@@ -287,11 +169,12 @@ def _pack(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
     return x0, y0, W, cy + shelf
 
 
-def build_view_texture(terrain: TerrainLike, selection, view, shading: str = "normals",
-                       cmap: str | Palette = "auto", texel_px: float = TEXEL_PX,
-                       light: Light | None = None, drape: Drape | None = None,
-                       max_builds: int | None = None) -> ViewTexture:
-    """The atlas of what ``selection`` draws in ``view`` at about ``texel_px`` px per texel.
+def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader,
+                       texel_px: float = TEXEL_PX, max_builds: int | None = None
+                       ) -> ViewTexture:
+    """The atlas of what ``selection`` draws in ``view`` at about ``texel_px`` px per texel,
+    its tiles shaded by ``shader`` (:class:`~geoterrain.rendering.tileshader.TileShader`:
+    the picture's style).
 
     ``max_builds`` caps the tiles shaded anew by this call (an interactive frame's
     budget): past it, a tile whose shading is not cached is cut from its nearest cached
@@ -300,15 +183,20 @@ def build_view_texture(terrain: TerrainLike, selection, view, shading: str = "no
 
     Examples
     --------
-    >>> v = View((0, -900, 500), (0, 0, 0), size=(320, 240))
     >>> from geoterrain import lod
-    >>> tex = build_view_texture(t, lod.select(t, v), v, "elevation")
+    >>> from geoterrain.rendering.tileshader import TileShader
+    >>> v = View((0, -900, 500), (0, 0, 0), size=(320, 240))
+    >>> tex = build_view_texture(t, lod.select(t, v), v, TileShader(t, "elevation"))
     >>> bool((tex.tcoords >= 0).all() and (tex.tcoords <= 1).all())
     True
     """
     t0 = time.perf_counter()
     g = terrain.grid
+    top = g.top_level
+    # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
+    base = level_offsets(top)
     mesh = selection.mesh
+    built0 = shader.built
     counter = {"textures_built": 0}
     if mesh.n_cells == 0 or mesh.n_points == 0:
         return ViewTexture(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 2),
@@ -325,9 +213,6 @@ def build_view_texture(terrain: TerrainLike, selection, view, shading: str = "no
 
     tris = np.array(vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()),
                     np.int64).reshape(-1, 3)  # (F, 3)
-    top = g.top_level
-    # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
-    base = level_offsets(top)
     ntab = int(base[-1])
     eye = np.asarray(view.eye, np.float64)
     if ntab <= max(DENSE_TABLE, DENSE_PER_FACE * len(tris)):  # a scatter into the table
@@ -348,7 +233,7 @@ def build_view_texture(terrain: TerrainLike, selection, view, shading: str = "no
     d = np.linalg.norm(np.maximum(0.0, np.maximum(lo - eye, eye - hi)), axis=1)
     d = d / np.sqrt(np.maximum(facing, MIN_FACING))
     f = 0.5 * view.size[1] / math.tan(math.radians(view.fov_y_deg) / 2)
-    s0 = _spacing(terrain)
+    s0 = sample_spacing(terrain)
     with np.errstate(divide="ignore", invalid="ignore"):
         want = np.floor(np.log2(np.maximum(d, 1e-30) * texel_px / (s0 * f)))
     want = np.clip(np.nan_to_num(want, nan=0.0, posinf=top, neginf=0.0), 0,
@@ -392,12 +277,6 @@ def build_view_texture(terrain: TerrainLike, selection, view, shading: str = "no
     n_tiles = deferred = 0
     rect = np.empty((G, 4), np.int64)  # per page: row, column, height, width written
     stored = terrain.tile_info
-    pal = as_palette(cmap)
-    sid = _style_id(terrain, shading, pal, light, drape)
-
-    def rgb_key(L, x, y):
-        return ("rgb", sid, L, x, y)  # _rgb_key's, with the style numbered once
-
     # one step per page, on Python ints (numpy scalars cost more than the step itself);
     # the texels are whole-array copies
     placed = []  # (tile key, atlas row, atlas column) of every stored tile drawn
@@ -423,29 +302,18 @@ def build_view_texture(terrain: TerrainLike, selection, view, shading: str = "no
                     atlas[r:r + step + 1, c:c + step + 1] = MISSING_GREY
                 else:
                     placed.append((key, r, c))
-    # the tiles shaded anew (at most max_builds, in drawing order), in one compiled call
-    # where the style allows
-    ready: dict = {}
-    if _default_style(terrain, shading, pal, light, drape):
-        todo = [key for key in dict.fromkeys(key for key, _, _ in placed)
-                if terrain.peek(rgb_key(*key)) is None][:max_builds]
-        for key, rgb in zip(todo, _shade_batch(terrain, todo, pal), strict=True):
-            ready[key] = terrain.memo(rgb_key(*key), lambda rgb=rgb: rgb)
-        counter["textures_built"] += len(todo)
-    lookup = terrain.lookup
-    for key, r, c in placed:
+    # the tiles' shading, those not cached shaded now (at most max_builds, in drawing
+    # order); past the budget a tile is cut from a cached ancestor where there is one
+    rgbs = shader([key for key, _, _ in placed], max_builds)
+    for (key, r, c), rgb in zip(placed, rgbs, strict=True):
         n_tiles += 1
-        rgb = ready.get(key)
         if rgb is None:
-            ck = rgb_key(*key)
-            rgb = lookup(ck)
-            if rgb is None:
-                if max_builds is not None and counter["textures_built"] >= max_builds \
-                        and _stand_in(terrain, key, step, rgb_key, atlas, r, c):
-                    deferred += 1
-                    continue
-                rgb = _shaded(terrain, ck, *key, shading, pal, counter, light, drape)
+            if _stand_in(shader, top, key, step, atlas, r, c):
+                deferred += 1
+                continue
+            rgb = shader.tile(*key)
         atlas[r:r + step + 1, c:c + step + 1] = rgb
+    counter["textures_built"] = shader.built - built0
     # each page's written tiles clamped to their edge over the rest of the page and its
     # gutter (a multisampled pixel centre may fall past a face at a page's seam)
     page = (step << k) + 1 + 2 * GUTTER  # a page's allocation: its texels and gutter

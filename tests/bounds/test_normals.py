@@ -17,7 +17,7 @@ from geoterrain.bounds.normals import (
     normal_pyramid,
 )
 from geoterrain.bounds.vertexdata import ring_index
-from geoterrain.rendering import tiletextures
+from geoterrain.rendering import tileshader
 
 KERNELS = ["central", "horn"]
 
@@ -333,8 +333,8 @@ def test_derived_normals_are_the_stored_ones(tmp_path_factory, seed, shape, tile
     assert ring.meta["normals_derived"] == list(range(ring.grid.top_level + 1))
     for L, x, y in full.tile_info:
         assert np.array_equal(full.tile_normal_codes(L, x, y), ring.tile_normal_codes(L, x, y))
-        assert np.array_equal(tiletextures.tile_rgb(full, L, x, y, "normals"),
-                              tiletextures.tile_rgb(ring, L, x, y, "normals"))
+        assert np.array_equal(tileshader.tile_rgb(full, L, x, y, "normals"),
+                              tileshader.tile_rgb(ring, L, x, y, "normals"))
     _batch_is_tile_by_tile(full, ring)
     if tile >= 16:  # a 3- or 5-sample tile is nearly all ring: the sizes tie, ± a page
         assert ring.path.stat().st_size <= full.path.stat().st_size
@@ -366,7 +366,7 @@ def test_geographic_stores_derive_normals_to_a_code(tmp_path_factory, seed, orig
         a = full.tile_normal_codes(L, x, y).astype(int)
         b = ring.tile_normal_codes(L, x, y).astype(int)
         assert np.array_equal(a[rr, cc], b[rr, cc])
-        tiletextures.tile_rgb(ring, L, x, y, "normals")
+        tileshader.tile_rgb(ring, L, x, y, "normals")
         assert np.abs(a - b).max() <= 1
         X, Y = normal_xy(ring, L, x, y)
         g = ring.grid
@@ -394,7 +394,7 @@ def _batch_is_tile_by_tile(*terrains) -> None:
     for t in terrains:
         keys = sorted(t.tile_info)
         n0 = t.decoded_normals
-        got = tiletextures._shade_batch(t, keys, as_palette("auto"))
+        got = tileshader.TileShader(t)._batch(keys)
         assert t.decoded_normals - n0 == len(keys)  # every normals read is counted
         lim = elevation_range(t)
         for k, rgb in zip(keys, got, strict=True):
@@ -403,7 +403,7 @@ def _batch_is_tile_by_tile(*terrains) -> None:
                              water_level(as_palette("auto"), lim), LAND, WATER,
                              height_tolerance(t))
             assert np.array_equal(rgb, one), k
-            assert np.array_equal(rgb, tiletextures.tile_rgb(t, *k, "normals")), k
+            assert np.array_equal(rgb, tileshader.tile_rgb(t, *k, "normals")), k
 
 
 def test_geographic_normals_take_exact_xy_where_the_frame_bends(tmp_path):

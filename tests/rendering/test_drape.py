@@ -216,7 +216,7 @@ def test_view_textures_take_the_drape_per_tile(dem, tmp_path):
     """render/view drape: each texture tile's texels carry the image reprojected from
     another CRS (its own window only), blended by the opacity; nodata shows the map."""
     from geoterrain.rendering.drape import Drape
-    from geoterrain.rendering.tiletextures import tile_rgb
+    from geoterrain.rendering.tileshader import tile_rgb
 
     d, _, _, t = dem
     # a 4326 image over the western half only; its eastern half is nodata (alpha 0)

@@ -472,7 +472,7 @@ def test_viewer_shows_a_move_within_its_texture_budget_then_refines(tmp_path_fac
         c.toggle_freeze()
         last = c.scene.texture_stats
         assert last["textures_deferred"] == 0
-        full = build_view_texture(t, c.scene.selection, c._view())
+        full = build_view_texture(t, c.scene.selection, c._view(), c.scene.shader)
         assert full.stats["textures_built"] == 0  # everything it needs is shaded
         p.camera.position = tuple(lo + 0.02 * (hi - lo))  # a move in flight when closed
         c.close()

@@ -137,7 +137,7 @@ def test_tile_windows_cast_the_shadows_of_the_whole_dem(tmp_path):
     import geoterrain
     from geoterrain.ingest.synth import write_geotiff
     from geoterrain.rendering.shading import _level_window, shadow_reach
-    from geoterrain.rendering.tiletextures import _spacing
+    from geoterrain.rendering.textures import sample_spacing as _spacing
 
     z = _synthetic("fbm")
     dem = write_geotiff(tmp_path / "d.tif", z, spacing=30.0)

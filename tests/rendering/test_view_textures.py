@@ -23,6 +23,7 @@ from geoterrain.core.view import View
 from geoterrain.rendering import tiletextures
 from geoterrain.rendering.atlaskernels import group_boxes, group_facing, number_pages
 from geoterrain.rendering.scene import TerrainScene, _plotter, default_view, render, render_array
+from geoterrain.rendering.tileshader import TileShader
 from geoterrain.rendering.tiletextures import build_view_texture, footprints
 from tests.rendering.test_render import _fidelity_terrain, psnr, synth_store
 
@@ -60,7 +61,7 @@ def test_textures_only_under_drawn_faces(tmp_path_factory):
     v = View((float(lo[0]) - 200.0, float(lo[1]) - 200.0, float(hi[2]) + 150.0),
              (float(lo[0]) + 300.0, float(lo[1]) + 300.0, float(c[2])), size=(320, 200))
     sel = lod.select(t, v, 1.0)
-    tex = build_view_texture(t, sel, v)
+    tex = build_view_texture(t, sel, v, TileShader(t))
     built = [k[-3:] for k in t.cache_keys() if k[0] == "rgb"]  # (..., level, x, y)
     assert len(built) == tex.stats["textures_built"] > 0
     ij = sel.ij.astype(np.int64)
@@ -82,8 +83,7 @@ def test_a_frame_budget_shows_magnified_ancestors_then_the_same_atlas(tmp_path_f
     """With ``max_builds`` a frame shades at most that many new tiles (where a cached
     ancestor can stand in); each stand-in is its ancestor's texels repeated; repeating
     the call shades the rest and ends with the atlas of an unbudgeted build."""
-    from geoterrain.rendering.colours import as_palette
-    from geoterrain.rendering.tiletextures import _rgb_key, _stand_in
+    from geoterrain.rendering.tiletextures import _stand_in
 
     t = _fresh(tmp_path_factory, size=1025)
     lo, hi = t.scene_box()
@@ -91,11 +91,12 @@ def test_a_frame_budget_shows_magnified_ancestors_then_the_same_atlas(tmp_path_f
     far = default_view(t, (320, 200))
     near = View((float(lo[0]) - 100.0, float(lo[1]) - 100.0, float(hi[2]) + 80.0),
                 (float(c[0]), float(c[1]), float(c[2])), size=(320, 200))
-    build_view_texture(t, lod.select(t, far, 1.0), far)  # the coarse tiles, cached
+    # the coarse tiles, cached
+    build_view_texture(t, lod.select(t, far, 1.0), far, TileShader(t))
     sel = lod.select(t, near, 1.0)
     passes = []
     while True:
-        tex = build_view_texture(t, sel, near, max_builds=3)
+        tex = build_view_texture(t, sel, near, TileShader(t), max_builds=3)
         passes.append(tex)
         if tex.stats["textures_deferred"] == 0:
             break
@@ -103,21 +104,20 @@ def test_a_frame_budget_shows_magnified_ancestors_then_the_same_atlas(tmp_path_f
         assert len(passes) < 200
     assert len(passes) > 2 and passes[0].stats["textures_deferred"] > 0
     assert not np.array_equal(passes[0].image, passes[-1].image)
-    ref = build_view_texture(_fresh(tmp_path_factory, size=1025), sel, near)
+    fresh = _fresh(tmp_path_factory, size=1025)
+    ref = build_view_texture(fresh, sel, near, TileShader(fresh))
     np.testing.assert_array_equal(passes[-1].image, ref.image)
     np.testing.assert_array_equal(passes[-1].tcoords, ref.tcoords)
     # a stand-in is its ancestor's texels, each repeated 2^d × 2^d
-    pal = as_palette("auto")
-
-    def key(L, x, y):
-        return _rgb_key(t, "normals", pal, None, None, L, x, y)
+    shader = TileShader(t)
+    key = shader.key
 
     step = 1 << t.grid.t
     L, x, y = 0, 5, 6
     anc = t.peek(key(2, 1, 1))
     assert anc is not None
     blk = np.zeros((step + 3, step + 3, 3), np.uint8)  # level 1 or 2 is cached: d = 1 or 2
-    assert _stand_in(t, (L, x, y), step, key, blk, 1, 2)
+    assert _stand_in(shader, t.grid.top_level, (L, x, y), step, blk, 1, 2)
     assert not blk[0].any() and not blk[:, :2].any()  # written at (1, 2) only
     blk = blk[1:, 2:]
     d = 1 if t.peek(key(1, 2, 3)) is not None else 2
@@ -137,10 +137,10 @@ def test_footprints_grouped_by_sort_equal_the_dense_table(tmp_path_factory, monk
     t = _fresh(tmp_path_factory, size=1025)
     for v in (default_view(t, (320, 200)), default_view(t, (320, 200), 80.0, 15.0)):
         sel = lod.select(t, v, 1.0)
-        dense = build_view_texture(t, sel, v)
+        dense = build_view_texture(t, sel, v, TileShader(t))
         monkeypatch.setattr(tt, "DENSE_TABLE", 0)
         monkeypatch.setattr(tt, "DENSE_PER_FACE", 0)
-        sparse = build_view_texture(t, sel, v)
+        sparse = build_view_texture(t, sel, v, TileShader(t))
         monkeypatch.undo()
         for f in ("points", "faces", "tcoords", "source", "image"):
             np.testing.assert_array_equal(getattr(dense, f), getattr(sparse, f))
@@ -150,7 +150,7 @@ def test_exaggerated_textures_are_not_the_base_terrains(tmp_path_factory):
     """A vertically exaggerated view shares the tile cache: its steeper shading must
     not be served the base terrain's (or the reverse)."""
     from geoterrain.exaggerate import exaggerated
-    from geoterrain.rendering.tiletextures import tile_rgb
+    from geoterrain.rendering.tileshader import tile_rgb
 
     t = _fresh(tmp_path_factory)
     L = t.grid.top_level
@@ -245,7 +245,7 @@ def _texel_levels(t, view, monkeypatch, foreshorten: bool) -> dict:
         monkeypatch.setattr(tiletextures, "group_facing",
                             lambda faces, key, pts, eye, n: np.ones(n))
     sel = lod.select(t, view, pixel_error=1.0, strategy="rtin")
-    levels = build_view_texture(t, sel, view).stats["texel_levels"]
+    levels = build_view_texture(t, sel, view, TileShader(t)).stats["texel_levels"]
     monkeypatch.undo()
     return levels
 
