@@ -73,9 +73,11 @@ def test_each_crossed_pixel_gets_the_edge_coverage(angle, offset):
     err = np.abs(out - want)[inner]
     assert err.max() <= 0.125 * 160 + 1, err.max()  # no worse than 4 samples
     assert np.mean(err) <= 2.5, np.mean(err)
-    # and closer to it than the drawn picture
+    # and closer to it than the drawn picture, beyond the blend's rounding to 8 bits (an
+    # edge along the pixels' borders: the drawn picture is exact, and a blend by a
+    # coverage of 0.999 may round a grey level away)
     raw = np.abs(img.astype(float)[..., 0] - want)[inner]
-    assert err.sum() <= raw.sum() + 1e-9
+    assert np.maximum(err - 1.0, 0.0).sum() <= raw.sum() + 1e-9
     if raw.max() > 8:
         assert err.sum() < 0.6 * raw.sum(), (err.sum(), raw.sum())
 
