@@ -34,7 +34,7 @@ import numpy as np
 from geoterrain.exceptions import UsageError
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 _T = TypeVar("_T")
 _VERTICAL = ("zmin", "zmax", "error", "boundary_error", "delta_max")
@@ -69,7 +69,7 @@ def exaggerated(terrain: TerrainLike, n: float) -> TerrainLike:
 class Exaggerated:
     """A read-only view of a terrain with its scene heights (and error data) × ``n``.
 
-    It implements :class:`~geoterrain.core.terrainlike.TerrainLike`. Everything not
+    It implements :class:`~geoterrain.terrainlike.TerrainLike`. Everything not
     overridden here is the base terrain's own (grid, tiles in source units, tile keys,
     x, y, the tile cache); what other modules derive from it (:meth:`derived`) is its
     own, as its error data differ.

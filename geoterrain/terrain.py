@@ -1,6 +1,6 @@
 """Terrain: lazy, cached, checksum-verified access to a store.
 
-:class:`Terrain` implements :class:`~geoterrain.core.terrainlike.TerrainLike`, the one
+:class:`Terrain` implements :class:`~geoterrain.terrainlike.TerrainLike`, the one
 interface every later stage reads a terrain through.
 """
 
@@ -32,10 +32,10 @@ from geoterrain.codec.quantize import tile_heights
 from geoterrain.core import zstdsafe
 from geoterrain.core.bintree import vertex_level
 from geoterrain.core.grid import level_offsets
-from geoterrain.core.terrainlike import Tile, TileKey
 from geoterrain.exceptions import StoreCorruptError, StoreError
 from geoterrain.store.check import check_store
 from geoterrain.store.database import StoreReader
+from geoterrain.terrainlike import Tile, TileKey
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence

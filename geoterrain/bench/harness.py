@@ -45,7 +45,7 @@ from geoterrain.store.database import is_store
 from geoterrain.testing.measure import screen_space_change, screen_space_error, vertical_error
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 BRUTE_MEASURE_LIMIT = 4_000_000  # bruteforce meshes larger than this are not rasterised
 TAUS = (0.5, 1.0, 2.0, 4.0, 8.0)

@@ -43,7 +43,7 @@ from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.rounding import round_up, round_up32
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 __all__ = ["geographic_leaf_delta", "leaf_delta", "leaf_radius", "normal_axes", "normal_xy",
            "tile_leaf_bounds"]

@@ -46,7 +46,7 @@ from geoterrain.export.meshfiles import check_output_path
 from geoterrain.rendering.textures import SHADINGS, texture_image, texture_level
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 EXPORT_FORMATS = (".glb", ".gltf", ".obj", ".stl", ".ply")
 TEXTURE_SIZE = 4097  # samples per side of an exported texture at most (a coarser level beyond)

@@ -48,7 +48,7 @@ from geoterrain.exceptions import UsageError, WriteError
 from geoterrain.export.meshfiles import check_mesh_path
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 STREAM_FORMATS = (".ply", ".obj", ".stl")
 # resident bytes per triangle of the in-memory path (PolyData, normals, the writer's

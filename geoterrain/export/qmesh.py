@@ -65,7 +65,7 @@ from geoterrain.lod.kernels import close_upward, extract
 from geoterrain.lod.mesh import orient_ccw
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 WGS84_A = 6378137.0
 WGS84_B = 6356752.3142451793

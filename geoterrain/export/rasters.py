@@ -36,7 +36,7 @@ from geoterrain.exceptions import UsageError, WriteError, exists_error
 from geoterrain.rendering.shading import hillshade
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 PRODUCTS = ("hillshade", "normals", "slope", "error")
 

@@ -44,7 +44,7 @@ from geoterrain.lod.registry import DEFAULT, REGISTRY, STRATEGIES, StrategyInfo,
 if TYPE_CHECKING:
     import pyvista as pv
 
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 __all__ = ["DEFAULT", "REGISTRY", "STRATEGIES", "Selection", "StrategyInfo", "select", "static",
            "strategy_info"]

@@ -15,7 +15,7 @@ from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import assemble, quadtree_leaves, tile_index
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 
 def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,

@@ -64,7 +64,7 @@ from geoterrain.lod.registry import strategy_info
 from geoterrain.lod.tiles import TileIndex, tile_geometry, tile_index
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 MORPH_FRACTION = 0.5  # seed 001 §2.7: half of each level's range morphs
 _SAFE = 1.0 + 1e-6  # margin on every range bound (float round-off of distances)

@@ -30,7 +30,7 @@ from geoterrain.lod.morph import MORPH_START
 from geoterrain.lod.tiles import tile_index
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 
 def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,

@@ -57,7 +57,7 @@ from geoterrain.lod.tiles import (
 )
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 _TEMPLATES: dict[tuple, np.ndarray] = {}
 

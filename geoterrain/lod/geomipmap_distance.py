@@ -16,7 +16,7 @@ from geoterrain.core.view import View
 from geoterrain.lod import geomipmap
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 
 def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,

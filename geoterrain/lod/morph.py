@@ -38,7 +38,7 @@ from numba import njit
 from geoterrain.lod.kernels import _coarsest_tile
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 __all__ = ["MORPH_START", "edge_ends", "morph_heights", "morph_mesh"]
 

@@ -67,7 +67,7 @@ from geoterrain.lod.horizon import (
 from geoterrain.lod.tiles import tile_index
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 __all__ = ["BINS", "eye_above_surface", "hidden_rows", "occluder_rows"]
 

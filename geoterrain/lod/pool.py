@@ -24,7 +24,7 @@ from geoterrain.core.grid import level_offsets
 from geoterrain.lod.kernels import BLOCK, block_bounds
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 KINDS = ("delta", "radius", "height", "xy", "blocks", "delta_edge")
 # per sample; "delta_edge" (the static mesh of a padded store, edgepad.py) is not

@@ -33,7 +33,7 @@ from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import TileIndex, tile_index
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 S_MIN = 2  # minimum leaf edge s_m, in samples
 

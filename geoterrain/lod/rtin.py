@@ -53,7 +53,7 @@ from geoterrain.lod.pool import tile_pool
 from geoterrain.lod.tiles import TileIndex, tile_index, tile_table
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 BLOCKS = True  # fill_lp tests each tile's blocks' bounds before their samples
 _HASHED_UP_TO = 1 << 22  # vertex numbers in a hash table below this capacity (48 MB at most)

@@ -47,7 +47,7 @@ from geoterrain.lod.rtin import ActiveSet
 from geoterrain.lod.tiles import tile_index
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 CHUNK = 1 << 20  # leaf triangles per chunk
 POOL_BYTES = 192 << 20  # the private tile pool's budget (heights, x, y; δ while flagging)

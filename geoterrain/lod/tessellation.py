@@ -56,7 +56,7 @@ from geoterrain.lod.geomipmap import _NEIGHBOUR, _assemble, _stitch, tables, vis
 from geoterrain.lod.mesh import empty_polydata
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 T_LIMIT = 64  # the tessellator's largest factor (Fig. 5.3)
 HAM_SCALE = 1.0  # g(HAM) = HAM_SCALE · √HAM (eq. 5-2)

@@ -25,7 +25,7 @@ from geoterrain.core.view import INSIDE, OUTSIDE, View
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 
 class TileIndex:

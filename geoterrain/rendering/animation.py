@@ -36,7 +36,7 @@ from geoterrain.rendering.scene import TerrainScene, _plotter, _writable_target,
 from geoterrain.rendering.shading import Light
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 __all__ = ["animate", "check_animation_output", "flythrough", "orbit"]
 

@@ -23,7 +23,7 @@ from geoterrain.core.view import View, load_views
 from geoterrain.exceptions import UsageError
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 
 def terrain_bounds(terrain: TerrainLike) -> tuple[np.ndarray, np.ndarray]:

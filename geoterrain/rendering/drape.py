@@ -37,7 +37,7 @@ from geoterrain.core.frame import level_transform
 from geoterrain.exceptions import InputError, UsageError
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 
 def _read_rgb(src) -> tuple[np.ndarray, np.ndarray]:

@@ -28,7 +28,7 @@ import numpy as np
 from geoterrain.rendering.textures import build_texture_image, texture_level
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 THUMBNAIL = 257  # samples per side of the thumbnail at most
 

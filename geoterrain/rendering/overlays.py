@@ -33,7 +33,7 @@ from geoterrain.rendering.colours import Palette, as_palette, colorbar_map
 from geoterrain.rendering.textures import elevation_range, height_tolerance
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 DPI = 100.0
 Box = tuple[float, float, float, float]  # x0, y0, x1, y1 in pixels, y down

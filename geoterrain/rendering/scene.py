@@ -70,7 +70,7 @@ from geoterrain.rendering.tileshader import TileShader
 from geoterrain.rendering.tiletextures import build_view_texture
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 BACKGROUND = (0.86, 0.90, 0.95)  # a pale sky
 PLAIN_COLOR = (0.80, 0.78, 0.72)

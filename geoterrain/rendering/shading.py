@@ -46,7 +46,7 @@ from numba import njit
 from geoterrain.bounds.normals import _oct_point
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 AMBIENT = 0.35  # the shade of a slope facing away from the sun
 SHADE_CEILING = 1.25  # the brightest a slope facing the sun gets (flat ground: 1)

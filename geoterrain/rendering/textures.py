@@ -22,7 +22,7 @@ from geoterrain.rendering.colours import Palette, as_palette, colorize
 from geoterrain.rendering.shading import hillshade
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 SHADINGS = ("normals", "elevation", "plain")
 MAX_TEXTURE = 8193  # samples per side; a larger DEM's texture comes from a coarser level

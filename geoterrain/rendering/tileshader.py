@@ -43,7 +43,7 @@ from geoterrain.rendering.textures import elevation_range, height_tolerance, sam
 from geoterrain.rendering.tileshade import shade_tiles
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike, TileKey
+    from geoterrain.terrainlike import TerrainLike, TileKey
 
 __all__ = ["TileShader", "tile_rgb"]
 

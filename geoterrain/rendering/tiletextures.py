@@ -72,8 +72,8 @@ from geoterrain.rendering.atlaskernels import (
 from geoterrain.rendering.textures import sample_spacing
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
     from geoterrain.rendering.tileshader import TileShader
+    from geoterrain.terrainlike import TerrainLike
 
 TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
 MIN_FACING = 2.0 ** -8  # a footprint seen edge on: 4 levels coarser, at most the top

@@ -47,7 +47,7 @@ from geoterrain.rendering.shading import Light
 from geoterrain.rendering.viewer_style import cell_colours, colour_bar, mute_style_timers
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 COLOR_MODES = ("shading", "level", "tile")
 HELP = ("m strategy  +/- tau  g morph  x wireframe  c colour  space freeze  h home  "

@@ -14,7 +14,7 @@ import numpy as np
 from geoterrain.rendering.colours import Palette, as_palette, colorbar_map
 
 if TYPE_CHECKING:
-    from geoterrain.core.terrainlike import TerrainLike
+    from geoterrain.terrainlike import TerrainLike
 
 
 def terrain_style():

@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from geoterrain.terrain import Terrain
+    from geoterrain.terrainlike import TerrainLike
 
 COMPONENTS = ("heights", "delta", "radius", "normals")
 
 
-def component_bytes(t: Terrain) -> dict[str, int]:
+def component_bytes(t: TerrainLike) -> dict[str, int]:
     """Bytes per component: the blob kinds (``delta`` with the optional second δ and
     block δ_n table), and ``index/other`` (SQLite pages, tile rows, metadata: the file
     size less the blobs).
@@ -77,7 +77,7 @@ def deflate_geotiff_bytes(heights: np.ndarray, valid: np.ndarray, dtype: str,
         os.unlink(path)
 
 
-def size_report(t: Terrain) -> dict:
+def size_report(t: TerrainLike) -> dict:
     """Bytes per component, the DEFLATE + predictor GeoTIFF of the same heights, and the
     ratio store / GeoTIFF (decodes every level-0 tile: seconds on a large store).
 
