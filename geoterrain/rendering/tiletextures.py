@@ -195,15 +195,62 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
     top = g.top_level
     # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
     base = level_offsets(top)
-    mesh = selection.mesh
     built0 = shader.built
-    counter = {"textures_built": 0}
-    if mesh.n_cells == 0 or mesh.n_points == 0:
+    if selection.mesh.n_cells == 0 or selection.mesh.n_points == 0:
         return ViewTexture(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 2),
                            np.float32), np.zeros(0, np.int64), np.zeros((1, 1, 3), np.uint8),
-                           {**counter, "texture_tiles": 0, "textures_deferred": 0,
+                           {"textures_built": 0, "texture_tiles": 0, "textures_deferred": 0,
                             "pages": 0, "texel_levels": {}, "atlas": [0, 0],
                             "texture_ms": 0.0})
+    pts, ij, tris = _mesh_arrays(selection)
+    fp = _footprints(pts, ij, tris, g.t, base, view)
+    fLt = _texel_levels(fp, view, sample_spacing(terrain), texel_px, top)
+    pg = _pages(fp, fLt, g.t, top)
+    # zeroed, on 4 KiB pages (a fresh atlas on huge pages stalled on its first touch,
+    # the kernel compacting memory for them: 11 ms of an 8 MB atlas's fill), reused once
+    # the atlas shown before is released (a fresh mapping faulted page by page: 1.4 ms
+    # of a 4 MB atlas). The pages are filled below (their tiles, then clamped to those
+    # over the rest of the page and its gutter), so the atlas is not filled with a colour
+    # first: only a multisampled pixel shaded more than a texel past a face, at a grazing
+    # seam, reads the shelves' slack, zero (3 pixels of 256 k, by up to 15 levels, in a
+    # review's view; they read grey before, as wrong)
+    atlas = _ATLASES.zeros((pg.AH, pg.AW, 3), np.uint8)
+    step = 1 << g.t
+    placed, rect = _place(pg, terrain.tile_info, step, atlas)
+    # the tiles' shading, those not cached shaded now (at most max_builds, in drawing
+    # order); past the budget a tile is cut from a cached ancestor where there is one
+    rgbs = shader([key for key, _, _ in placed], max_builds)
+    deferred = 0
+    for (key, r, c), rgb in zip(placed, rgbs, strict=True):
+        if rgb is None:
+            if _stand_in(shader, top, key, step, atlas, r, c):
+                deferred += 1
+                continue
+            rgb = shader.tile(*key)
+        atlas[r:r + step + 1, c:c + step + 1] = rgb
+    # each page's written tiles clamped to their edge over the rest of the page and its
+    # gutter (a multisampled pixel centre may fall past a face at a page's seam)
+    page = (step << pg.k) + 1 + 2 * GUTTER  # a page's allocation: its texels and gutter
+    clamp_fill(atlas, rect, np.stack([pg.ay, pg.ax, page, page], 1))
+    # one point per (page, vertex): a vertex shared by two pages is duplicated
+    src, pgi, faces = number_pages(tris, pg.e_group[fp.fe], pg.G, len(pts))
+    # VTK's v: the image's row 0 at v = 0 (see ViewTexture)
+    tc, xyz = page_tcoords(src, pgi, ij, pts, (pg.Lt, pg.gL, pg.gX, pg.gY, pg.ax, pg.ay),
+                           step, GUTTER, (pg.AW, pg.AH))
+    atlas.setflags(write=False)  # shown by VTK without a copy (rendering._image_data)
+    lv, nlv = np.unique(pg.Lt, return_counts=True)
+    st = {"textures_built": shader.built - built0, "texture_tiles": len(placed),
+          "textures_deferred": deferred, "pages": pg.G,
+          "texel_levels": {int(a): int(b) for a, b in zip(lv, nlv, strict=True)},
+          "atlas": [int(pg.AW), int(pg.AH)],
+          "texture_ms": round((time.perf_counter() - t0) * 1e3, 3)}
+    return ViewTexture(xyz, faces, tc, src, atlas, st)
+
+
+def _mesh_arrays(selection) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The selection's points (V, 3) float64, grid (row, column) per point and triangles
+    (F, 3) int64."""
+    mesh = selection.mesh
     pts = np.asarray(mesh.points, np.float64)
     ij = np.asarray(mesh.point_data["grid_ij"])
     # the triangles from the cells' connectivity (the selections' fixed-size cell arrays
@@ -213,37 +260,95 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
 
     tris = np.array(vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()),
                     np.int64).reshape(-1, 3)  # (F, 3)
+    return pts, ij, tris
+
+
+@dataclass
+class _Footprints:
+    """The tile footprints some face lies in: their (level, x, y), drawn vertices' scene
+    box (lo, hi) and sample box (ilo, ihi), the faces' largest foreshortening, and each
+    face's footprint ``fe``."""
+
+    L: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    ilo: np.ndarray
+    ihi: np.ndarray
+    facing: np.ndarray
+    fe: np.ndarray
+
+
+def _footprints(pts: np.ndarray, ij: np.ndarray, tris: np.ndarray, t: int, base: np.ndarray,
+                view) -> _Footprints:
+    """Each face's smallest stored-tile footprint and the footprints' boxes: through the
+    dense tile table (a scatter), or, with far more tiles than faces, a sort."""
     ntab = int(base[-1])
     eye = np.asarray(view.eye, np.float64)
     if ntab <= max(DENSE_TABLE, DENSE_PER_FACE * len(tris)):  # a scatter into the table
-        fkey, lo, hi, ilo_e, ihi_e, facing = footprint_groups(ij, tris, g.t, base, pts, eye)
+        fkey, lo, hi, ilo_e, ihi_e, facing = footprint_groups(ij, tris, t, base, pts, eye)
         E = np.flatnonzero(np.isfinite(lo[:, 0]))  # the footprints some face lies in
         lo, hi, ilo_e, ihi_e, facing = lo[E], hi[E], ilo_e[E], ihi_e[E], facing[E]
         pos = np.empty(ntab, np.int64)
         pos[E] = np.arange(len(E))
         fe = pos[fkey]  # each face's footprint, numbered 0 … len(E) − 1
     else:  # far more tiles than faces (small tiles, a huge grid): number the used ones
-        E, fe = np.unique(face_footprints(ij, tris, g.t, base), return_inverse=True)
+        E, fe = np.unique(face_footprints(ij, tris, t, base), return_inverse=True)
         lo, hi, ilo_e, ihi_e = group_boxes(tris, fe, pts, ij, len(E))
         facing = group_facing(tris, fe, pts, eye, len(E))
     eL, eX, eY = _table_keys(E, base)
-    sh = 2 * (top + 1) + 1
-    # 1. the texel level each footprint wants, from its drawn vertices' box and its
-    #    faces' foreshortening (the texel's projected area, as a square of TEXEL_PX)
-    d = np.linalg.norm(np.maximum(0.0, np.maximum(lo - eye, eye - hi)), axis=1)
-    d = d / np.sqrt(np.maximum(facing, MIN_FACING))
+    return _Footprints(eL, eX, eY, lo, hi, ilo_e, ihi_e, facing, fe)
+
+
+def _texel_levels(fp: _Footprints, view, s0: float, texel_px: float, top: int) -> np.ndarray:
+    """The texel level each footprint wants, from its drawn vertices' box and its faces'
+    foreshortening (the texel's projected area, as a square of ``texel_px``; module
+    docstring), at most ``MAX_PAGE_LEVELS`` finer than the footprint."""
+    eye = np.asarray(view.eye, np.float64)
+    d = np.linalg.norm(np.maximum(0.0, np.maximum(fp.lo - eye, eye - fp.hi)), axis=1)
+    d = d / np.sqrt(np.maximum(fp.facing, MIN_FACING))
     f = 0.5 * view.size[1] / math.tan(math.radians(view.fov_y_deg) / 2)
-    s0 = sample_spacing(terrain)
     with np.errstate(divide="ignore", invalid="ignore"):
         want = np.floor(np.log2(np.maximum(d, 1e-30) * texel_px / (s0 * f)))
     want = np.clip(np.nan_to_num(want, nan=0.0, posinf=top, neginf=0.0), 0,
                    top).astype(np.int64)
-    fLt = np.maximum(want, eL - MAX_PAGE_LEVELS)
-    # 2. a footprint that wants a coarser texel than its own level is drawn from its
-    #    ancestor tile at that level (one tile page), so far footprints share pages
+    return np.maximum(want, fp.L - MAX_PAGE_LEVELS)
+
+
+@dataclass
+class _Pages:
+    """The atlas's pages: per page its texel level ``Lt``, tile (gL, gX, gY), levels ``k``
+    between them, place (ax, ay) and drawn samples' box (ilo, ihi, jlo, jhi); each
+    footprint's page ``e_group``; the atlas's size (AW, AH)."""
+
+    G: int
+    Lt: np.ndarray
+    gL: np.ndarray
+    gX: np.ndarray
+    gY: np.ndarray
+    k: np.ndarray
+    ax: np.ndarray
+    ay: np.ndarray
+    AW: int
+    AH: int
+    e_group: np.ndarray
+    ilo: np.ndarray
+    ihi: np.ndarray
+    jlo: np.ndarray
+    jhi: np.ndarray
+
+
+def _pages(fp: _Footprints, fLt: np.ndarray, t: int, top: int) -> _Pages:
+    """A footprint that wants a coarser texel than its own level is drawn from its
+    ancestor tile at that level (one tile page), so far footprints share pages; the
+    pages are packed, every page one level coarser while the atlas exceeds
+    ``MAX_ATLAS``."""
+    eL, eX, eY = fp.L, fp.X, fp.Y
     up = np.maximum(fLt - eL, 0)
     L2, X2, Y2 = np.maximum(eL, fLt), eX >> up, eY >> up
-    step = 1 << g.t
+    sh = 2 * (top + 1) + 1
+    step = 1 << t
     while True:
         keys, e_group = np.unique(((L2 << sh | Y2) << sh | X2) << 5 | fLt,
                                   return_inverse=True)
@@ -261,29 +366,25 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
     big = np.iinfo(np.int64)
     ilo, jlo = np.full(G, big.max), np.full(G, big.max)
     ihi, jhi = np.full(G, big.min), np.full(G, big.min)
-    np.minimum.at(ilo, e_group, ilo_e[:, 0])
-    np.minimum.at(jlo, e_group, ilo_e[:, 1])
-    np.maximum.at(ihi, e_group, ihi_e[:, 0])
-    np.maximum.at(jhi, e_group, ihi_e[:, 1])
-    # zeroed, on 4 KiB pages (a fresh atlas on huge pages stalled on its first touch,
-    # the kernel compacting memory for them: 11 ms of an 8 MB atlas's fill), reused once
-    # the atlas shown before is released (a fresh mapping faulted page by page: 1.4 ms
-    # of a 4 MB atlas). The pages are filled below (their tiles, then clamped to those
-    # over the rest of the page and its gutter), so the atlas is not filled with a colour
-    # first: only a multisampled pixel shaded more than a texel past a face, at a grazing
-    # seam, reads the shelves' slack, zero (3 pixels of 256 k, by up to 15 levels, in a
-    # review's view; they read grey before, as wrong)
-    atlas = _ATLASES.zeros((AH, AW, 3), np.uint8)
-    n_tiles = deferred = 0
-    rect = np.empty((G, 4), np.int64)  # per page: row, column, height, width written
-    stored = terrain.tile_info
+    np.minimum.at(ilo, e_group, fp.ilo[:, 0])
+    np.minimum.at(jlo, e_group, fp.ilo[:, 1])
+    np.maximum.at(ihi, e_group, fp.ihi[:, 0])
+    np.maximum.at(jhi, e_group, fp.ihi[:, 1])
+    return _Pages(G, Lt, gL, gX, gY, k, ax, ay, AW, AH, e_group, ilo, ihi, jlo, jhi)
+
+
+def _place(pg: _Pages, stored, step: int, atlas: np.ndarray) -> tuple[list, np.ndarray]:
+    """Where each page's tiles that its faces touch go in ``atlas``: (tile key, row,
+    column) of the stored ones (a tile not stored is written grey now), and per page the
+    rectangle (row, column, height, width) its tiles cover."""
+    rect = np.empty((pg.G, 4), np.int64)
     # one step per page, on Python ints (numpy scalars cost more than the step itself);
     # the texels are whole-array copies
-    placed = []  # (tile key, atlas row, atlas column) of every stored tile drawn
+    placed = []
     for gi, (lt, kk, gl, gy, gx, py, px, i0, i1, j0, j1) in enumerate(zip(
-            Lt.tolist(), k.tolist(), gL.tolist(), gY.tolist(), gX.tolist(), ay.tolist(),
-            ax.tolist(), ilo.tolist(), ihi.tolist(), jlo.tolist(), jhi.tolist(),
-            strict=True)):
+            pg.Lt.tolist(), pg.k.tolist(), pg.gL.tolist(), pg.gY.tolist(), pg.gX.tolist(),
+            pg.ay.tolist(), pg.ax.tolist(), pg.ilo.tolist(), pg.ihi.tolist(),
+            pg.jlo.tolist(), pg.jhi.tolist(), strict=True)):
         span = step << gl  # the footprint's width in full-resolution samples
         bi, bj = gy * span, gx * span
         y0, x0 = py + GUTTER, px + GUTTER
@@ -291,7 +392,7 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
         last = (1 << kk) - 1
         ty0, ty1 = min(last, (i0 - bi) // wt), min(last, (i1 - bi - 1) // wt)
         tx0, tx1 = min(last, (j0 - bj) // wt), min(last, (j1 - bj - 1) // wt)
-        # the texels written: these tiles' rectangle, whose border gets a gutter below
+        # the texels written: these tiles' rectangle, whose border gets a gutter
         rect[gi] = (y0 + ty0 * step, x0 + tx0 * step, (ty1 - ty0 + 1) * step + 1,
                     (tx1 - tx0 + 1) * step + 1)
         for ty in range(ty0, ty1 + 1):
@@ -302,31 +403,4 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
                     atlas[r:r + step + 1, c:c + step + 1] = MISSING_GREY
                 else:
                     placed.append((key, r, c))
-    # the tiles' shading, those not cached shaded now (at most max_builds, in drawing
-    # order); past the budget a tile is cut from a cached ancestor where there is one
-    rgbs = shader([key for key, _, _ in placed], max_builds)
-    for (key, r, c), rgb in zip(placed, rgbs, strict=True):
-        n_tiles += 1
-        if rgb is None:
-            if _stand_in(shader, top, key, step, atlas, r, c):
-                deferred += 1
-                continue
-            rgb = shader.tile(*key)
-        atlas[r:r + step + 1, c:c + step + 1] = rgb
-    counter["textures_built"] = shader.built - built0
-    # each page's written tiles clamped to their edge over the rest of the page and its
-    # gutter (a multisampled pixel centre may fall past a face at a page's seam)
-    page = (step << k) + 1 + 2 * GUTTER  # a page's allocation: its texels and gutter
-    clamp_fill(atlas, rect, np.stack([ay, ax, page, page], 1))
-    # one point per (page, vertex): a vertex shared by two pages is duplicated
-    src, pg, faces = number_pages(tris, e_group[fe], G, len(pts))
-    # VTK's v: the image's row 0 at v = 0 (see ViewTexture)
-    tc, xyz = page_tcoords(src, pg, ij, pts, (Lt, gL, gX, gY, ax, ay), step, GUTTER,
-                           (AW, AH))
-    atlas.setflags(write=False)  # shown by VTK without a copy (rendering._image_data)
-    lv, nlv = np.unique(Lt, return_counts=True)
-    st = {**counter, "texture_tiles": n_tiles, "textures_deferred": deferred, "pages": G,
-          "texel_levels": {int(a): int(b) for a, b in zip(lv, nlv, strict=True)},
-          "atlas": [int(AW), int(AH)],
-          "texture_ms": round((time.perf_counter() - t0) * 1e3, 3)}
-    return ViewTexture(xyz, faces, tc, src, atlas, st)
+    return placed, rect
