@@ -25,6 +25,8 @@ True
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit, prange
 
@@ -35,10 +37,60 @@ _valid_finite_serial = SERIAL_KERNELS["_valid_finite_nb"]
 _normals_serial = SERIAL_KERNELS["_normals_nb"]
 _encode_oct_serial = SERIAL_KERNELS["_encode_oct_nb"]
 
-_RAMPS: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+class Ramp(NamedTuple):
+    """A colour ramp as the compiled shading reads it (:func:`_stops`): its stops ``x``
+    (n,), their colours ``c`` (n, 3) and each segment's slopes ``slope`` (n − 1, 3)."""
+
+    x: np.ndarray
+    c: np.ndarray
+    slope: np.ndarray
 
 
-def _stops(ramp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+class Tint(NamedTuple):
+    """The ``auto`` palette's tint as the compiled shading reads it
+    (:func:`_palette_args`): land from ``base`` over ``span``; water at or below
+    ``wet_level`` when ``has_water``, its depth ramp (when ``depth_ramp``) from
+    ``depth_lo`` over ``depth_span``; the land and water ramps (:class:`Ramp`'s arrays,
+    flat: a parallel loop takes no tuple of tuples of arrays)."""
+
+    base: float
+    span: float
+    wet_level: float
+    has_water: bool
+    depth_lo: float
+    depth_span: float
+    depth_ramp: bool
+    land_x: np.ndarray
+    land_c: np.ndarray
+    land_slope: np.ndarray
+    water_x: np.ndarray
+    water_c: np.ndarray
+    water_slope: np.ndarray
+
+
+class NormalSources(NamedTuple):
+    """Where :func:`_shade_tiles` takes each tile's 8-bit normal codes from: with
+    ``derive[k]``, derived from its heights (times ``zf``: scene z), ``valid`` mask and
+    scene ``X``, ``Y`` (n, T, T), its border ring (``ring_rows``, ``ring_cols``) set to
+    ``rings[k]``; else its ``stored`` codes (``planar[k]``: two planes of differences,
+    as stored)."""
+
+    derive: np.ndarray
+    zf: float
+    valid: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    rings: np.ndarray
+    ring_rows: np.ndarray
+    ring_cols: np.ndarray
+    stored: np.ndarray
+    planar: np.ndarray
+
+
+_RAMPS: dict[tuple, Ramp] = {}
+
+
+def _stops(ramp) -> Ramp:
     """A ramp's stops, colours (n, 3) and each segment's slopes (n − 1, 3), np.interp's
     (fp[j + 1] − fp[j]) / (xp[j + 1] − xp[j]); cached (the palette's ramps are a few)."""
     key = tuple((float(x), tuple(float(c) for c in col)) for x, col in ramp)
@@ -50,7 +102,7 @@ def _stops(ramp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         for j in range(len(xp) - 1):  # the same division as numpy's, per segment
             for k in range(3):
                 slope[j, k] = (fp[j + 1, k] - fp[j, k]) / (xp[j + 1] - xp[j])
-        got = _RAMPS[key] = (xp, fp, slope)
+        got = _RAMPS[key] = Ramp(xp, fp, slope)
     return got
 
 
@@ -110,9 +162,12 @@ def shade_lut(light: np.ndarray, ambient: float, ceiling: float) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _shade_tile(h, cf, codes, planar, lut, base, span, wet_level, has_water,
-                depth_lo, depth_span, depth_ramp, land_x, land_c, land_s, water_x, water_c,
-                water_s, out):  # pragma: no cover - compiled
+def _shade_tile(h, cf, codes, planar, lut, tint, out):  # pragma: no cover - compiled
+    """:func:`shade_tile`'s pass: heights ``h`` (× ``cf``: metres), 8-bit normal
+    ``codes`` (flat; ``planar``: as stored), the hillshade ``lut`` (:func:`shade_lut`)
+    and the palette's ``tint`` (:class:`Tint`), into ``out`` (T, T, 3)."""
+    base, span, wet_level, has_water, depth_lo, depth_span, depth_ramp = tint[:7]
+    land_x, land_c, land_s, water_x, water_c, water_s = tint[7:]
     T0, T1 = h.shape
     if planar:  # two planes of 2-D differences mod 256 (vertexdata.normals_to_bytes)
         uv = np.empty(T0 * T1 * 2, np.uint8)  # to interleaved pairs
@@ -165,12 +220,12 @@ def shade_tile(h: np.ndarray, codes: np.ndarray, planar: bool, bits: int, light:
     _shade_tile(np.ascontiguousarray(h, np.float64), 1.0,
                 np.ascontiguousarray(np.asarray(codes, np.uint8).reshape(-1)),
                 bool(planar), shade_lut(light, ambient, ceiling),
-                *_palette_args(clim, water_level, land, water, tolerance), out)
+                _palette_args(clim, water_level, land, water, tolerance), out)
     return out
 
 
-def _palette_args(clim, water_level, land, water, tolerance: float = 0.0) -> tuple:
-    """The compiled shading's palette arguments: base, span, the level at or below
+def _palette_args(clim, water_level, land, water, tolerance: float = 0.0) -> Tint:
+    """The compiled shading's palette :class:`Tint`: base, span, the level at or below
     which it is water, whether there is water, the depth ramp's low end, span and
     whether it ramps, and the land and water ramps (:func:`_stops`); ``tolerance`` as
     :func:`geoterrain.rendering.colours.colorize`'s."""
@@ -185,14 +240,15 @@ def _palette_args(clim, water_level, land, water, tolerance: float = 0.0) -> tup
     depth_lo = min(lo, top)
     depth_ramp = wl is not None and top > depth_lo
     depth_span = max(top - depth_lo, 1e-9)
-    return (float(base), float(span), wet_level, wl is not None, float(depth_lo),
-            float(depth_span), bool(depth_ramp), *_stops(land), *_stops(water))
+    return Tint(float(base), float(span), wet_level, wl is not None, float(depth_lo),
+                float(depth_span), bool(depth_ramp), *_stops(land), *_stops(water))
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _shade_tiles(h, cf, zf, valid, X, Y, derive, rings, rr, cc, stored, planar, lut, base,
-                 span, wet_level, has_water, depth_lo, depth_span, depth_ramp, land_x, land_c,
-                 land_s, water_x, water_c, water_s, out):  # pragma: no cover - compiled
+def _shade_tiles(h, cf, src, lut, tint, out):  # pragma: no cover - compiled
+    """:func:`shade_tiles`'s pass: :func:`_shade_tile` of each tile of ``h``, its normal
+    codes from ``src`` (:class:`NormalSources`)."""
+    derive, zf, valid, X, Y, rings, rr, cc, stored, planar = src
     n, T0, T1 = h.shape
     for k in prange(n):  # tiles on every core: each writes its own
         if derive[k]:
@@ -208,13 +264,9 @@ def _shade_tiles(h, cf, zf, valid, X, Y, derive, rings, rr, cc, stored, planar, 
             for q in range(len(rr)):  # the stored border ring
                 codes[rr[q] * T1 + cc[q], 0] = rings[k, q, 0]
                 codes[rr[q] * T1 + cc[q], 1] = rings[k, q, 1]
-            _shade_tile(h[k], cf, codes.reshape(-1), False, lut, base, span, wet_level,
-                        has_water, depth_lo, depth_span, depth_ramp, land_x, land_c, land_s,
-                        water_x, water_c, water_s, out[k])
+            _shade_tile(h[k], cf, codes.reshape(-1), False, lut, tint, out[k])
         else:
-            _shade_tile(h[k], cf, stored[k], planar[k], lut, base, span, wet_level,
-                        has_water, depth_lo, depth_span, depth_ramp, land_x, land_c, land_s,
-                        water_x, water_c, water_s, out[k])
+            _shade_tile(h[k], cf, stored[k], planar[k], lut, tint, out[k])
 
 
 def shade_tiles(h: np.ndarray, cf: float, zf: float, valid: np.ndarray, X: np.ndarray,
@@ -255,12 +307,14 @@ def shade_tiles(h: np.ndarray, cf: float, zf: float, valid: np.ndarray, X: np.nd
         return out
     # one tile, or a fork child (no thread pool there): on this thread
     kernel = _SERIAL_TILES if n == 1 or forked() else _shade_tiles
-    kernel(np.ascontiguousarray(h, np.float64), float(cf), float(zf),
-           np.ascontiguousarray(valid, np.bool_), X, Y, np.asarray(derive, np.bool_),
-           np.ascontiguousarray(rings, np.uint8), np.asarray(ring_rows, np.int64),
-           np.asarray(ring_cols, np.int64), np.ascontiguousarray(stored, np.uint8),
-           np.asarray(planar, np.bool_), shade_lut(light, ambient, ceiling),
-           *_palette_args(clim, water_level, land, water, tolerance), out)
+    src = NormalSources(np.asarray(derive, np.bool_), float(zf),
+                        np.ascontiguousarray(valid, np.bool_), X, Y,
+                        np.ascontiguousarray(rings, np.uint8), np.asarray(ring_rows, np.int64),
+                        np.asarray(ring_cols, np.int64), np.ascontiguousarray(stored, np.uint8),
+                        np.asarray(planar, np.bool_))
+    kernel(np.ascontiguousarray(h, np.float64), float(cf), src,
+           shade_lut(light, ambient, ceiling),
+           _palette_args(clim, water_level, land, water, tolerance), out)
     return out
 
 
