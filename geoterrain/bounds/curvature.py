@@ -31,6 +31,8 @@ affine, their δ and r are left bit-identical.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit, prange
 
@@ -47,15 +49,31 @@ __all__ = ["BORDER_FRACTION", "metric_bounds", "metric_terms"]
 BORDER_FRACTION = 0.01
 
 
-@njit(cache=True)
-def _tri_term(X, Y, Z, vb, vi, vj, ai, aj, bi, bj, ci, cj, frac, N, border, wi, wj):
-    """(max error, max distance to p_v, border bulge, search margin m in samples) for
-    triangle (a, b, c) of vertex v.
+class MetricGrid(NamedTuple):
+    """A curvilinear grid as the metric kernels read it: scene ``X``, ``Y``, heights ``Z``
+    (0 where invalid) and validity ``vb`` (N, N), the border fraction ``frac``, and the
+    data window ``wi × wj`` a static mesh is clipped to (N × N: none)."""
 
-    ``wi × wj``: the data window a static mesh is clipped to (N × N: none). A triangle
+    X: np.ndarray
+    Y: np.ndarray
+    Z: np.ndarray
+    vb: np.ndarray
+    frac: float
+    wi: int
+    wj: int
+
+
+@njit(cache=True)
+def _tri_term(g, vi, vj, ai, aj, bi, bj, ci, cj, border):
+    """(max error, max distance to p_v, border bulge, search margin m in samples) for
+    triangle (a, b, c) of vertex v of the grid ``g`` (:class:`MetricGrid`).
+
+    ``g.wi × g.wj``: the data window a static mesh is clipped to (N × N: none). A triangle
     that crosses its last row or column bulges when a sample of T on that row or column
     is displaced from its place in T (|P_s − A_T(s)|) by more than ``frac / 2`` spacings:
     the clipped edge is T's chord of the curved data border there."""
+    X, Y, Z, vb, frac, wi, wj = g
+    N = Z.shape[0]
     if not (vb[ai, aj] and vb[bi, bj] and vb[ci, cj]):
         return 0.0, 0.0, False, 0
     ax, ay, az = X[ai, aj], Y[ai, aj], Z[ai, aj]
@@ -146,17 +164,19 @@ def _same_as_base(i, j, h, M, wi, wj):
 
 
 @njit(cache=True, parallel=True)
-def _vertex_terms(X, Y, Z, vb, frac, wi, wj, M, dm0, bulge0, mrow):
-    """Raw per-vertex (δ_m, r_m, bulge) over the triangles drawn while each vertex is absent
-    (rows of blocks on every core: each vertex is written by its own iteration only), and
-    in ``mrow[i]`` the largest search margin of row i's triangles.
+def _vertex_terms(g, M, dm0, bulge0, mrow):
+    """Raw per-vertex (δ_m, r_m, bulge) over the triangles drawn while each vertex of the
+    grid ``g`` (:class:`MetricGrid`) is absent (rows of blocks on every core: each vertex
+    is written by its own iteration only), and in ``mrow[i]`` the largest search margin
+    of row i's triangles.
 
     A vertex whose diamond misses the data's wi × wj gets nothing (with a data window,
     :mod:`geoterrain.bounds.edgepad`: its error is clipped away; without one, wi = wj = N, every
     vertex reaches it). ``M`` ≥ 0 (δ_edge over the replicated grid): a vertex that reads
     only data samples (box ± M, M the original grid's largest margin) takes ``dm0`` and
     ``bulge0`` from the original grid's run (r_m is not computed then)."""
-    N = Z.shape[0]
+    wi, wj = g.wi, g.wj
+    N = g.Z.shape[0]
     dm = np.zeros((N, N))
     rm = np.zeros((N, N))
     bulge = np.zeros((N, N), np.bool_)
@@ -176,11 +196,11 @@ def _vertex_terms(X, Y, Z, vb, frac, wi, wj, M, dm0, bulge0, mrow):
                 main = main_diagonal_nb(a, b)
                 for k in range(2):
                     if main:  # diagonal (i0, j0)–(i0+s, j0+s), apex (i0, j0+s) / (i0+s, j0)
-                        t = _tri_term(X, Y, Z, vb, i, j, i0, j0, i0 + s, j0 + s,
-                                      i0 + k * s, j0 + (1 - k) * s, frac, N, True, wi, wj)
+                        t = _tri_term(g, i, j, i0, j0, i0 + s, j0 + s,
+                                      i0 + k * s, j0 + (1 - k) * s, True)
                     else:
-                        t = _tri_term(X, Y, Z, vb, i, j, i0, j0 + s, i0 + s, j0,
-                                      i0 + k * s, j0 + k * s, frac, N, True, wi, wj)
+                        t = _tri_term(g, i, j, i0, j0 + s, i0 + s, j0,
+                                      i0 + k * s, j0 + k * s, True)
                     dm[i, j] = max(dm[i, j], t[0])
                     rm[i, j] = max(rm[i, j], t[1])
                     bulge[i, j] |= t[2]
@@ -207,8 +227,7 @@ def _vertex_terms(X, Y, Z, vb, frac, wi, wj, M, dm0, bulge0, mrow):
                             ea, eb, fa, fb = i, j - h, i, j + h
                         if not (0 <= ci < N and 0 <= cj < N):
                             continue
-                        t = _tri_term(X, Y, Z, vb, i, j, ea, eb, fa, fb, ci, cj, frac, N, True, wi,
-                                      wj)
+                        t = _tri_term(g, i, j, ea, eb, fa, fb, ci, cj, True)
                         dm[i, j] = max(dm[i, j], t[0])
                         rm[i, j] = max(rm[i, j], t[1])
                         bulge[i, j] |= t[2]
@@ -239,8 +258,8 @@ def metric_terms(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, valid: np.ndarray,
         dm0, bulge0, M = np.zeros((1, 1)), np.zeros((1, 1), np.bool_), -1
     mrow = np.zeros(N, np.int64)
     with cores_for(Zf.size):  # small grids on one thread (geoterrain/core/threads.py)
-        dm, rm, bulge = _vertex_terms(X, Y, Zf, vb, float(frac), int(wi), int(wj), int(M),
-                                      dm0, bulge0, mrow)
+        dm, rm, bulge = _vertex_terms(MetricGrid(X, Y, Zf, vb, float(frac), int(wi), int(wj)),
+                                      int(M), dm0, bulge0, mrow)
     return dm, rm, bulge, int(mrow.max()) if N else 0
 
 

@@ -24,6 +24,8 @@ mixes valid and invalid samples gets δ = +inf; an all-invalid one gets 0.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit, prange
 
@@ -61,6 +63,51 @@ def check_grid(z: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return zf, valid, n
 
 
+# ------------------------------------------------------------- the kernels' bundles
+class Cell(NamedTuple):
+    """A union-jack cell (a block) of side ``s``, its first sample at row ``i0``, column
+    ``j0`` (as the caller's arrays number them), its diagonal (``main``: (0, 0)–(1, 1),
+    else (0, 1)–(1, 0)) and its corner heights."""
+
+    i0: int
+    j0: int
+    s: int
+    main: bool
+    z00: float
+    z01: float
+    z10: float
+    z11: float
+
+
+class Diamond(NamedTuple):
+    """An edge midpoint's diamond: the vertex (``ic``, ``jc``) of half-span ``h``, its
+    hypotenuse along the rows (``rows``: ends (ic ± h, jc)) or the columns, the heights
+    ``za``, ``zb`` of the hypotenuse's ends and ``z_lo``, ``z_hi`` of the other two
+    corners, which exist only if ``lo_ok``, ``hi_ok`` (else 0, never read)."""
+
+    ic: int
+    jc: int
+    h: int
+    rows: bool
+    lo_ok: bool
+    hi_ok: bool
+    za: float
+    zb: float
+    z_lo: float
+    z_hi: float
+
+
+class Beside(NamedTuple):
+    """The two blocks beside an edge midpoint, on its low and high side: their statuses
+    ``flo``, ``fhi`` (1 all valid, 2 all invalid, 3 mixed, 0 outside the grid) and, for
+    h ≥ 2, their quarter maxima ``qlo``, ``qhi`` facing it."""
+
+    flo: int
+    fhi: int
+    qlo: float
+    qhi: float
+
+
 # ------------------------------------------------------------- numba δ kernel (exact)
 # Every kernel returns (max |z − S|, status) with status 0 = all invalid, 1 = all valid,
 # 2 = mixed; +inf is assigned afterwards in numpy (the block sweeps are compiled with fast
@@ -85,12 +132,12 @@ def _mid1(z, ic, jc, rows):
 # no fast math here: a reader repeats these for level 0's vertices (geoterrain/bounds/leafbounds.py)
 # and must get the same bits on any machine (fast math may fuse a multiply-add)
 @njit(cache=True)
-def _edge_err_part(z, vb, ic, jc, h, rows, lo_ok, hi_ok, za, zb, z_lo, z_hi, d0, d1, r0):
-    """Rows ``ic + d`` (d in [d0, d1]) of an edge midpoint's diamond sweep: (max, valid
-    count, sample count). ``z``/``vb`` hold grid rows from ``r0`` on (a band, or the
-    grid with r0 = 0); ``za``, ``zb`` are the hypotenuse's ends, ``z_lo``, ``z_hi`` the
-    other two diamond corners (read only if ``lo_ok``/``hi_ok``). Max and counts are
-    exact, so sweeping the rows in any split gives the bits of one sweep."""
+def _edge_err_part(z, vb, dia, d0, d1, r0):
+    """Rows ``ic + d`` (d in [d0, d1]) of an edge midpoint's diamond sweep (``dia``:
+    :class:`Diamond`): (max, valid count, sample count). ``z``/``vb`` hold grid rows from
+    ``r0`` on (a band, or the grid with r0 = 0). Max and counts are exact, so sweeping
+    the rows in any split gives the bits of one sweep."""
+    ic, jc, h, rows, lo_ok, hi_ok, za, zb, z_lo, z_hi = dia
     invh = 1.0 / h
     zm = 0.5 * (za + zb)
     g = 0.5 * (zb - za) * invh
@@ -171,19 +218,18 @@ def edge_err_window(z, vb, ic, jc, h, rows, N, w0):
         zb = z[il, jc + h]
         z_lo = z[il - h, jc] if lo_ok else 0.0
         z_hi = z[il + h, jc] if hi_ok else 0.0
-    m, cnt, tot = _edge_err_part(z, vb, ic, jc, h, rows, lo_ok, hi_ok, za, zb, z_lo, z_hi,
-                                 -h, h, w0)
+    m, cnt, tot = _edge_err_part(z, vb, Diamond(ic, jc, h, rows, lo_ok, hi_ok, za, zb, z_lo,
+                                                z_hi), -h, h, w0)
     return edge_status_nb(m, cnt, tot)
 
 
 @njit(cache=True, inline="always")
-def edge_delta_nb(z, vb, ic, jc, h, rows, N, w0, flo, fhi, qlo, qhi, old):
-    """Raw δ of edge midpoint (ic, jc) from its two blocks: their statuses ``flo``,
-    ``fhi`` (1 all valid, 2 all invalid, 3 mixed, 0 outside the grid) and, for h ≥ 2,
-    their quarter maxima ``qlo``, ``qhi`` facing it; ``z``/``vb`` hold the grid's rows
-    from ``w0`` on. Both blocks all valid: the max of their quarters (h = 1: the closed
-    form); a mix: the diamond swept (+inf if it mixes too); ``old`` when nothing is
-    valid."""
+def edge_delta_nb(z, vb, ic, jc, h, rows, N, w0, beside, old):
+    """Raw δ of edge midpoint (ic, jc) from its two blocks (``beside``: :class:`Beside`);
+    ``z``/``vb`` hold the grid's rows from ``w0`` on. Both blocks all valid: the max of
+    their quarters (h = 1: the closed form); a mix: the diamond swept (+inf if it mixes
+    too); ``old`` when nothing is valid."""
+    flo, fhi, qlo, qhi = beside
     f = flo | fhi
     if f == 2:
         return old
@@ -268,10 +314,12 @@ def _centre1(z, ci, cj, main):
 
 
 @njit(cache=True, fastmath=_FM)
-def _block_sweep_part(z, i0, j0, s, main, z00, z01, z10, z11, zc, d0, d1, r0):
-    """Rows ``d0 … d1`` (block-relative, inclusive) of :func:`_block_sweep`'s pass, the
-    corners and centre given; ``z`` holds grid rows from ``r0`` on. Maxima are exact,
-    so sweeping a block's rows in any split gives the bits of one sweep."""
+def _block_sweep_part(z, cell, zc, d0, d1, r0):
+    """Rows ``d0 … d1`` (block-relative, inclusive) of :func:`_block_sweep`'s pass over
+    the block ``cell`` (:class:`Cell`, at a grid row), its centre height ``zc`` given;
+    ``z`` holds grid rows from ``r0`` on. Maxima are exact, so sweeping a block's rows in
+    any split gives the bits of one sweep."""
+    i0, j0, s, main, z00, z01, z10, z11 = cell
     h = s // 2
     inv = 1.0 / s
     invh = 1.0 / h
@@ -340,8 +388,8 @@ def _block_sweep(z, i0, j0, s, main):
     the next depth: each quarter's diamond is one quarter of each adjacent block).
     Returns (centre, left, right, top, bottom); quarters are closed (diagonals in both)."""
     h = s // 2
-    return _block_sweep_part(z, i0, j0, s, main, z[i0, j0], z[i0, j0 + s], z[i0 + s, j0],
-                             z[i0 + s, j0 + s], z[i0 + h, j0 + h], 0, s, 0)
+    return _block_sweep_part(z, Cell(i0, j0, s, main, z[i0, j0], z[i0, j0 + s], z[i0 + s, j0],
+                                     z[i0 + s, j0 + s]), z[i0 + h, j0 + h], 0, s, 0)
 
 
 @njit(cache=True, parallel=_PARALLEL)
@@ -411,8 +459,8 @@ def _raw_delta_nb(z, vb, all_valid):
                         qhi = QT[a, b] if fhi else 0.0
                     else:
                         qlo = qhi = 0.0
-                    out[ic, jc] = edge_delta_nb(z, vb, ic, jc, h, rows, N, 0, flo, fhi, qlo,
-                                                qhi, out[ic, jc])
+                    out[ic, jc] = edge_delta_nb(z, vb, ic, jc, h, rows, N, 0,
+                                                Beside(flo, fhi, qlo, qhi), out[ic, jc])
         h *= 2
     return out
 

@@ -27,7 +27,7 @@ math), and codes them as the preprocess codes them, so it decodes the same value
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -49,6 +49,18 @@ __all__ = ["geographic_leaf_delta", "leaf_delta", "leaf_radius", "normal_axes", 
            "tile_leaf_bounds"]
 
 
+class Ring(NamedTuple):
+    """A level-0 tile's border ring as stored: the rows, columns and δ of its new
+    vertices (what a reader cannot derive from the tile's own samples)."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    values: np.ndarray
+
+
+_NO_RING = Ring(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.float32))
+
+
 @njit(cache=True, nogil=True)
 def _status(vb, ci, cj):
     # the closed 2 × 2 cell centred at (ci, cj): bit 1 holds a valid sample, bit 2 an
@@ -61,13 +73,15 @@ def _status(vb, ci, cj):
 
 
 @njit(cache=True, nogil=True)
-def _leaf_delta_nb(z, vb, all_valid, i0, j0, rr, rc, rv, table, slack, sat, code, out):
+def _leaf_delta_nb(z, vb, all_valid, i0, j0, ring, table, slack, sat, code, out):
     # bounds._raw_delta_nb's h = 1 pass on the tile's interior, then its saturation
-    # (bounds._saturate_nb: centre = max(centre, its 4 edge midpoints)), then the codes'
-    # values (the code map is monotone: coding after the max = the max of the codes).
+    # (bounds._saturate_nb: centre = max(centre, its 4 edge midpoints), the border's edge
+    # midpoints from ``ring``), then the codes' values (the code map is monotone: coding
+    # after the max = the max of the codes).
     # ``slack`` (a geographic tile's, else 0: x + 0 is x) is added to every raw value;
     # ``code`` False leaves the values uncoded (the preprocess codes them with the grid);
     # ``sat`` False leaves them raw too (no ring, no saturation)
+    rr, rc, rv = ring
     T = z.shape[0]
     for ci in range(1, T - 1, 2):
         for cj in range(1, T - 1, 2):
@@ -141,10 +155,10 @@ def leaf_delta(z: np.ndarray, valid: np.ndarray, origin: tuple[int, int],
     valid = np.asarray(valid, bool) & np.isfinite(z)
     zf = np.where(valid, z, 0.0)  # invalid heights are never read
     out = np.zeros(zf.shape, np.float32)
+    ring = Ring(np.asarray(ring_rows, np.int64), np.asarray(ring_cols, np.int64),
+                np.asarray(ring_values, np.float32))
     _leaf_delta_nb(zf, valid.view(np.uint8), bool(valid.all()), int(origin[0]), int(origin[1]),
-                   np.asarray(ring_rows, np.int64), np.asarray(ring_cols, np.int64),
-                   np.asarray(ring_values, np.float32), _table(0 if e is None else e),
-                   float(slack), True, e is not None, out)
+                   ring, _table(0 if e is None else e), float(slack), True, e is not None, out)
     return out
 
 
@@ -255,7 +269,6 @@ def geographic_leaf_delta(delta: np.ndarray, z: np.ndarray, valid: np.ndarray, t
     rr, rc = ring_new_index(T)
     inner = new_mask(T)
     inner[rr, rc] = False  # the ring is stored as it is
-    empty = np.zeros(0, np.int64)
     raised = []
     out: dict[tuple[int, int, int], float] = {}
     for y in range(n_tiles):
@@ -269,8 +282,8 @@ def geographic_leaf_delta(delta: np.ndarray, z: np.ndarray, valid: np.ndarray, t
             zt = np.where(v, z[sub], 0.0)
             w = delta[sub]
             raw = np.zeros((T, T), np.float32)  # the closed forms, unsaturated
-            _leaf_delta_nb(zt, v.view(np.uint8), bool(v.all()), y << t, x << t, empty, empty,
-                           np.zeros(0, np.float32), _table(0), 0.0, False, False, raw)
+            _leaf_delta_nb(zt, v.view(np.uint8), bool(v.all()), y << t, x << t, _NO_RING,
+                           _table(0), 0.0, False, False, raw)
             fin = inner & np.isfinite(raw)
             s = max(0.0, float((dm[sub][fin] - raw[fin]).max())) if fin.any() else 0.0
             for _ in range(8):  # float32 rounding may leave a value an ulp short

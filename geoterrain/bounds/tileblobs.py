@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -44,6 +45,32 @@ __all__ = ["BoundsCoding", "level_blobs", "compress_rows", "radius_codes"]
 
 # δ, r and normals: zstd level 19 saves 3 % at many times the time (docs/lab/store-size.md)
 _ZSTD_LEVEL = 3
+
+
+class CodedBounds(NamedTuple):
+    """A :class:`BoundsCoding`'s codes as :func:`_level_payloads` reads them: δ's log8
+    codes ``dc`` and their table ``t8``; r as float16 bit patterns ``r16`` (times ``up``:
+    the stored value) or, when ``rc`` is not empty, as log8 codes ``rc`` with table
+    ``rt``."""
+
+    dc: np.ndarray
+    r16: np.ndarray
+    t8: np.ndarray
+    up: float
+    rc: np.ndarray
+    rt: np.ndarray
+
+
+class LevelPayloads(NamedTuple):
+    """What :func:`_level_payloads` writes, a row per tile: the δ codes ``pd``, the r
+    bytes ``pr``, the normal planes ``pn``, and the maxima ``dmax``, ``rmax`` of the
+    stored δ and r."""
+
+    pd: np.ndarray
+    pr: np.ndarray
+    pn: np.ndarray
+    dmax: np.ndarray
+    rmax: np.ndarray
 
 
 class BoundsCoding:
@@ -89,6 +116,13 @@ class BoundsCoding:
             m = ~(np.asarray(radius) > 0) & ~(np.asarray(radius) == 0) | np.signbit(radius)
             r = np.asarray(radius, np.float64)[m] * 2.0 ** -self.kr
             self.r16[m] = round_up(r, np.float16)
+
+    def codes(self) -> CodedBounds:
+        """The codes as :class:`CodedBounds`."""
+        rlog = self.rc is not None
+        return CodedBounds(self.dc, self.r16.view(np.uint16), self.table, 2.0 ** self.kr,
+                           self.rc if rlog else np.empty((0, 0), np.uint8),
+                           log8_table(self.er) if rlog else np.empty(0, np.float32))
 
     @property
     def d_stored(self) -> np.ndarray:
@@ -228,15 +262,22 @@ def _code_bounds(delta, radius, t8, e8, down, dc, r16):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _level_payloads(dc, r16, t8, up, rc, rt, nrm, ys, xs, t, level, new_only, pd, pr, pn,
-                    dmax, rmax):
-    """Row k of ``pd``/``pr``/``pn``: tile (level, xs[k], ys[k])'s δ codes, r float16
-    planes (low bytes, then high bytes) and normal planes of 2-D differences (mod 256);
-    ``dmax``/``rmax``: the maxima of the stored δ and r over the same vertices, the
-    values a reader decodes: ``t8[code]`` and the float16 times ``up`` (exact in
-    float32: 11 bits, exponent in range); NaN propagates as numpy's max does. With r's
-    log8 codes ``rc`` (``rt`` their table; empty when r is float16), ``pr`` holds the
-    codes, one byte each."""
+def _level_payloads(codes, nrm, ys, xs, t, level, new_only, out):
+    """Row k of ``out.pd``/``pr``/``pn`` (:class:`LevelPayloads`): tile (level, xs[k],
+    ys[k])'s δ codes, r float16 planes (low bytes, then high bytes) and normal planes of
+    2-D differences (mod 256); ``dmax``/``rmax``: the maxima of the stored δ and r over
+    the same vertices, the values a reader decodes: ``t8[code]`` and the float16 times
+    ``up`` (exact in float32: 11 bits, exponent in range); NaN propagates as numpy's max
+    does. With r's log8 codes ``rc`` (``rt`` their table; empty when r is float16; all
+    in ``codes``: :class:`CodedBounds`), ``pr`` holds the codes, one byte each."""
+    dc, r16, t8, up, rc, rt = codes
+    # the outputs bound one by one, outside the parallel loop: numba's parfors see a
+    # write through an array unpacked from a tuple as dead
+    pd = out.pd
+    pr = out.pr
+    pn = out.pn
+    dmax = out.dmax
+    rmax = out.rmax
     rlog = rc.shape[0] > 0
     T = (1 << t) + 1
     s = 1 << level
@@ -349,11 +390,9 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     dmax = np.empty(k, np.float32)
     rmax = np.empty(k, np.float32)
     with cores_for(coding.dc.size):
-        _level_payloads(coding.dc, coding.r16.view(np.uint16), coding.table, 2.0 ** coding.kr,
-                        coding.rc if rlog else np.empty((0, 0), np.uint8),
-                        log8_table(coding.er) if rlog else np.empty(0, np.float32),
-                        np.ascontiguousarray(nrm, np.uint8), np.ascontiguousarray(xy[:, 1]),
-                        np.ascontiguousarray(xy[:, 0]), t, level, new_only, pd, pr, pn, dmax, rmax)
+        _level_payloads(coding.codes(), np.ascontiguousarray(nrm, np.uint8),
+                        np.ascontiguousarray(xy[:, 1]), np.ascontiguousarray(xy[:, 0]), t,
+                        level, new_only, LevelPayloads(pd, pr, pn, dmax, rmax))
     flags = NEW_ONLY if new_only else 0
     if base is not None:
         if base.ed != coding.ed or ring:

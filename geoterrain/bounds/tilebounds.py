@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.bounds.delta import cell_rows_nb, check_grid
+from geoterrain.bounds.delta import Cell, cell_rows_nb, check_grid
 from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.grid import footprint_counts
 from geoterrain.core.threads import cores_for
@@ -82,8 +82,8 @@ def _level_field_row(z, vf, s, E, mixed, bi):
             mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
             if not (ok1 or ok2):
                 continue
-        cell_field_rows_nb(z, i0, j0, s, main, z[i0, j0], z[i0, j0 + s], z[i0 + s, j0],
-                           z[i0 + s, j0 + s], whole, ok1, ok2, 0, s, E)
+        cell_field_rows_nb(z, Cell(i0, j0, s, main, z[i0, j0], z[i0, j0 + s], z[i0 + s, j0],
+                                   z[i0 + s, j0 + s]), whole, ok1, ok2, 0, s, E)
 
 
 @njit(cache=True, nogil=True)
@@ -111,10 +111,12 @@ def cell_counts_nb(vf, i0, j0, s, main):
 
 
 @njit(cache=True, nogil=True)
-def cell_field_rows_nb(z, i0, j0, s, main, z00, z01, z10, z11, whole, ok1, ok2, d0, d1, E):
+def cell_field_rows_nb(z, cell, whole, ok1, ok2, d0, d1, E):
     """Rows d0 … d1 (cell-relative) of one cell's part of _level_field_nb's E: |z − S_L|
-    on the samples of its all-valid triangles (every sample if ``whole``), maxed into E
-    (E and z share their row numbering; the corners are given)."""
+    on the samples of its all-valid triangles (every sample if ``whole``; else of the
+    first if ``ok1``, of the second if ``ok2``), maxed into E (E and z share their row
+    numbering; ``cell``: :class:`~geoterrain.bounds.delta.Cell`, its corners given)."""
+    i0, j0, s, main, z00, z01, z10, z11 = cell
     inv = 1.0 / s
     if whole:  # all valid: split each row at the diagonal
         for di in range(d0, d1 + 1):

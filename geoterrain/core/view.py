@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -19,6 +20,17 @@ def _unit(v: np.ndarray) -> np.ndarray:
     if not np.isfinite(n) or n == 0:
         raise ValueError(f"degenerate direction {v}")
     return v / n
+
+
+class ViewTerms(NamedTuple):
+    """What the compiled selection kernels read of a view and a tolerance (seed 002 eq. 2,
+    λδ > τ(d − r)): the ``eye`` (3,), the inward frustum ``planes`` (P, 4) (P = 0: no
+    culling), ``lam`` (λ) and ``tau`` (τ)."""
+
+    eye: np.ndarray
+    planes: np.ndarray
+    lam: float
+    tau: float
 
 
 @dataclass(frozen=True)
@@ -136,6 +148,17 @@ class View:
         if got is None:
             got = self.memos[key] = make()
         return got
+
+    def terms(self, tau: float) -> ViewTerms:
+        """The :class:`ViewTerms` of this view at tolerance ``tau``.
+
+        Examples
+        --------
+        >>> v = View((0, -1000, 500), (0, 0, 0))
+        >>> t = v.terms(1.0); t.eye.tolist(), t.planes.shape, t.tau
+        ([0.0, -1000.0, 500.0], (6, 4), 1.0)
+        """
+        return ViewTerms(self.eye, self.planes, self.lam, float(tau))
 
     # --------------------------------------------------------------- culling
     def spheres_visible(self, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:

@@ -36,7 +36,7 @@ exactly.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -44,7 +44,7 @@ from numba import njit
 from geoterrain.lod.kernels import close_upward, extract
 from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
 from geoterrain.lod.occlusion import hidden_rows
-from geoterrain.lod.tiles import TileIndex, tile_table
+from geoterrain.lod.tiles import TileIndex, TileTree, tile_table
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -133,14 +133,13 @@ def chunk_leaves(terrain: TerrainLike, index: TileIndex, view, tau: float, *,
     True
     """
     cache = _cache(terrain, index)
-    table = cache.get("table")
-    if table is None:
+    tree = cache.get("table")
+    if tree is None:
         top = terrain.grid.top_level
-        table = cache["table"] = (*tile_table(index, top), top)
+        tree = cache["table"] = TileTree(*tile_table(index, top), top, index.lo, index.hi)
     rows = np.empty(len(index.keys), np.int64)
     seen = np.empty(len(index.keys), np.int64)
-    args = (table[0], table[1], table[2], index.lo, index.hi, cache["error"], view.eye,
-            view.planes, view.lam, float(tau))
+    args = (tree, cache["error"], view.terms(tau))
     hidden = np.zeros(len(index.keys), bool)
     if occlusion:
         # the walk without culling first: the horizon is asked only about the nodes it
@@ -153,7 +152,13 @@ def chunk_leaves(terrain: TerrainLike, index: TileIndex, view, tau: float, *,
 
 
 @njit(cache=True, nogil=True)
-def _walk_chunks(table, base, top, lo, hi, err, eye, planes, lam, tau, hidden, out, seen):
+def _walk_chunks(tree, err, view, hidden, out, seen):
+    """:func:`chunk_leaves`'s walk of the quadtree ``tree``
+    (:class:`~geoterrain.lod.tiles.TileTree`) for ``view``
+    (:class:`~geoterrain.core.view.ViewTerms`): the chunks to draw into ``out``, the
+    nodes in the frustum into ``seen``; returns (drawn, visited, culled, hidden, seen)."""
+    table, base, top, lo, hi = tree
+    eye, planes, lam, tau = view
     stack = np.empty((4 * (top + 1) + 4, 4), np.int64)  # (L, x, y, inside)
     stack[0] = (top, 0, 0, 0)
     sp, n, visited, culled, n_hidden, n_seen = 1, 0, 0, 0, 0, 0
@@ -273,6 +278,36 @@ def _build(terrain: TerrainLike, index: TileIndex, row: int, cache: dict) -> Chu
     return Chunk(ij, xyz, faces, skirt_ab, L)
 
 
+class PackedChunks(NamedTuple):
+    """The packed chunks as :func:`_gather_chunks` reads them (:meth:`_Packed.arrays`):
+    per index row its first vertex ``vo``, face ``fo`` and skirt segment ``so``, their
+    counts ``nv``, ``nf``, ``ns`` and its level ``lvl``; every chunk's vertices ``xyz``,
+    ``ij``, faces and skirt segments ``seg`` end to end."""
+
+    vo: np.ndarray
+    fo: np.ndarray
+    so: np.ndarray
+    nv: np.ndarray
+    nf: np.ndarray
+    ns: np.ndarray
+    lvl: np.ndarray
+    xyz: np.ndarray
+    ij: np.ndarray
+    faces: np.ndarray
+    seg: np.ndarray
+
+
+class ChunkMesh(NamedTuple):
+    """A frame's chunked mesh as :func:`_gather_chunks` writes it: per vertex ``xyz`` and
+    grid ``ij``, per face its vertices ``faces``, ``level`` and ``skirt`` flag."""
+
+    xyz: np.ndarray
+    ij: np.ndarray
+    faces: np.ndarray
+    level: np.ndarray
+    skirt: np.ndarray
+
+
 class _Packed:
     """Every built chunk's arrays packed end to end (grown on demand), with per-row
     offsets, so a frame's mesh is gathered by one compiled pass."""
@@ -313,6 +348,11 @@ class _Packed:
         self.F += len(ch.faces)
         self.S += len(ch.skirt_ab)
 
+    def arrays(self) -> PackedChunks:
+        """The arrays as they are now (:meth:`add` may replace them)."""
+        return PackedChunks(self.vo, self.fo, self.so, self.nv, self.nf, self.ns, self.lvl,
+                            self.xyz, self.ij, self.faces, self.seg)
+
 
 def _packed(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray) -> _Packed:
     cache = _cache(terrain, index)
@@ -325,11 +365,13 @@ def _packed(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray) -> _Pack
 
 
 @njit(cache=True, nogil=True)
-def _gather_chunks(leaves, depth, vo, fo, so, nv, nf, ns, lvl, XYZ, IJ, FACES, SEG,
-                   xyz, ij, faces, level, skirt, zmorph):
-    """Copy the chunks of ``leaves`` into the output arrays: surfaces first (heights from
-    ``zmorph`` when it is not empty), then two hanging vertices per skirt segment (a, b)
-    and triangles (a, b', b), (a, a', b')."""
+def _gather_chunks(leaves, depth, packed, mesh, zmorph):
+    """Copy the chunks of ``leaves`` (from ``packed``: :class:`PackedChunks`) into the
+    output arrays ``mesh`` (:class:`ChunkMesh`): surfaces first (heights from ``zmorph``
+    when it is not empty), then two hanging vertices per skirt segment (a, b), ``depth``
+    below, and triangles (a, b', b), (a, a', b')."""
+    vo, fo, so, nv, nf, ns, lvl, XYZ, IJ, FACES, SEG = packed
+    xyz, ij, faces, level, skirt = mesh
     V = 0
     F = 0
     morph = zmorph.shape[0] > 0
@@ -402,8 +444,7 @@ def assemble_chunks(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray,
     xyz, ij = np.empty((V, 3)), np.empty((V, 2))
     faces, level, skirt = np.empty((F, 3), np.int32), np.empty(F, np.int16), np.empty(F, np.uint8)
     zm = np.zeros(0) if zmorph is None else np.asarray(zmorph, np.float64)
-    _gather_chunks(leaves, depth, pk.vo, pk.fo, pk.so, pk.nv, pk.nf, pk.ns, pk.lvl, pk.xyz,
-                   pk.ij, pk.faces, pk.seg, xyz, ij, faces, level, skirt, zm)
+    _gather_chunks(leaves, depth, pk.arrays(), ChunkMesh(xyz, ij, faces, level, skirt), zm)
     return polydata(xyz, faces, ij, {"skirt": skirt, "level": level})
 
 

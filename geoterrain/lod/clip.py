@@ -13,11 +13,28 @@ edge is the triangle's chord of the border (see :func:`geoterrain.bounds.curvatu
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit, types
 from numba.typed import Dict
 
 __all__ = ["clip_in_place", "clip_kernel", "new_cuts"]
+
+
+class ClipRoom(NamedTuple):
+    """The working arrays of a clip (:func:`_room`): the cut points made (grid indices
+    ``oi``, positions ``oxyz``, keys ``okey``) and the two polygons of :func:`_polygon`,
+    the one being cut and the one being made (corner ids ``pid``, the ends ``pu``,
+    ``pw`` of the edge a corner was cut from, grid indices ``pc``)."""
+
+    oi: np.ndarray
+    oxyz: np.ndarray
+    okey: np.ndarray
+    pid: np.ndarray
+    pu: np.ndarray
+    pw: np.ndarray
+    pc: np.ndarray
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -62,12 +79,12 @@ def _classify(faces, F, ij, li, lj, cls):
 
 
 @njit(cache=True, nogil=True)
-def _polygon(f, faces, ij, xyz, li, lj, M, made, next_id, oi, oxyz, okey, nnew, pid, pu,
-             pw, pc):
+def _polygon(f, faces, ij, xyz, li, lj, M, made, next_id, room, nnew):
     """Face f cut by i ≤ li then j ≤ lj (Sutherland–Hodgman); the polygon's corners go to
-    ``pid`` (a vertex id, or −1 − the id of a cut point) and ``pc`` (grid indices), row
-    ``cur``. A cut point new to ``made`` gets id ``next_id + nnew`` and its place in
-    ``oi``, ``oxyz``, ``okey`` row ``nnew``. Returns (corners, cur, nnew)."""
+    ``room.pid`` (a vertex id, or −1 − the id of a cut point) and ``room.pc`` (grid
+    indices), row ``cur``. A cut point new to ``made`` gets id ``next_id + nnew`` and its
+    place in ``room.oi``, ``oxyz``, ``okey`` row ``nnew``. Returns (corners, cur, nnew)."""
+    oi, oxyz, okey, pid, pu, pw, pc = room
     lim = (li, lj)
     n = 3
     for k in range(3):
@@ -166,11 +183,12 @@ def _piece(n, cur, pc, k0, k):
 
 @njit(cache=True, nogil=True)
 def _room(ncut):
-    """Cut points (grid indices, positions, keys: up to 5 a face, 1 spare) and the two
-    polygons of :func:`_polygon` (ids, edge ends, grid indices)."""
-    return (np.empty((5 * ncut + 1, 2)), np.empty((5 * ncut + 1, 3)),
-            np.empty(5 * ncut + 1, np.int64), np.empty((2, 6), np.int64),
-            np.empty((2, 6), np.int64), np.empty((2, 6), np.int64), np.empty((2, 6, 2)))
+    """A :class:`ClipRoom` for ``ncut`` cut faces: cut points (up to 5 a face, 1 spare)
+    and the two polygons of :func:`_polygon`."""
+    return ClipRoom(np.empty((5 * ncut + 1, 2)), np.empty((5 * ncut + 1, 3)),
+                    np.empty(5 * ncut + 1, np.int64), np.empty((2, 6), np.int64),
+                    np.empty((2, 6), np.int64), np.empty((2, 6), np.int64),
+                    np.empty((2, 6, 2)))
 
 
 @njit(cache=True, nogil=True)
@@ -187,7 +205,8 @@ def clip_kernel(faces, ij, xyz, li, lj, M, made, next_id):
     ncut = _classify(faces, F, ij, li, lj, cls)
     out = np.empty((F + 2 * ncut, 3), np.int64)
     src = np.empty(F + 2 * ncut, np.int64)  # the face each output face comes from
-    oi, oxyz, okey, pid, pu, pw, pc = _room(ncut)
+    room = _room(ncut)
+    oi, oxyz, okey, pid, pu, pw, pc = room
     nnew = 0
     nf = 0
     for f in range(F):
@@ -196,8 +215,7 @@ def clip_kernel(faces, ij, xyz, li, lj, M, made, next_id):
             src[nf] = f
             nf += 1
         elif cls[f] == 2:
-            n, cur, nnew = _polygon(f, faces, ij, xyz, li, lj, M, made, next_id, oi, oxyz,
-                                    okey, nnew, pid, pu, pw, pc)
+            n, cur, nnew = _polygon(f, faces, ij, xyz, li, lj, M, made, next_id, room, nnew)
             k0 = _fan_start(n, cur, pc)
             for k in range(1, n - 1):
                 p1, p2 = _piece(n, cur, pc, k0, k)
@@ -232,7 +250,8 @@ def clip_in_place(faces, level, F, ij, xyz, V, li, lj, M):
     if ncut == 0 and not (cls == 1).any():
         return F, V
     made = Dict.empty(key_type=types.int64, value_type=types.int64)
-    oi, oxyz, okey, pid, pu, pw, pc = _room(ncut)
+    room = _room(ncut)
+    oi, oxyz, okey, pid, pu, pw, pc = room
     extra = np.empty((2 * ncut + 1, 3), np.int64)
     extra_lv = np.empty(2 * ncut + 1, level.dtype)
     holes = np.empty(F, np.int64)  # face rows to fill (only the first few are used)
@@ -244,8 +263,7 @@ def clip_in_place(faces, level, F, ij, xyz, V, li, lj, M):
             holes[nh] = f
             nh += 1
         elif cls[f] == 2:
-            n, cur, nnew = _polygon(f, faces, ij, xyz, li, lj, M, made, V, oi, oxyz, okey,
-                                    nnew, pid, pu, pw, pc)
+            n, cur, nnew = _polygon(f, faces, ij, xyz, li, lj, M, made, V, room, nnew)
             k0 = _fan_start(n, cur, pc)
             first = True
             for k in range(1, n - 1):

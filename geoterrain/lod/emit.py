@@ -124,12 +124,12 @@ def _slot(keys, idx):
 
 
 @njit(cache=True, nogil=True)
-def walk_gather(active, mixed, gen, stack, state, vid, keys, top, t, base, slot_of, H, X, Y,
-                aff, zfac, faces, verts, xyz, ij, lvl):
-    """:func:`_walk` with the gather of :func:`gather_pooled` done as each vertex is
-    first numbered, so the mesh is emitted in one pass: faces to ``faces``, and
-    per vertex its sample index, position (x, y, height · zfac), grid indices (float64)
-    and pyramid level.
+def walk_gather(flags, stack, state, vid, keys, slabs, faces, verts, xyz, ij, lvl):
+    """:func:`_walk` over the active set ``flags`` (:class:`~geoterrain.lod.kernels.ActiveFlags`)
+    with the gather of :func:`gather_pooled` (from the pool's ``slabs``,
+    :class:`~geoterrain.lod.pool.PoolSlabs`) done as each vertex is first numbered, so
+    the mesh is emitted in one pass: faces to ``faces``, and per vertex its sample index,
+    position (x, y, height · zfac), grid indices (float64) and pyramid level.
 
     Vertex numbers live in the dense scratch ``vid`` (N², −1 = none; reset on return)
     or, when ``keys`` is not empty, in a hash table (``keys`` all −1, power-of-two
@@ -137,6 +137,9 @@ def walk_gather(active, mixed, gen, stack, state, vid, keys, top, t, base, slot_
     cache instead of being spread over the N² scratch.
     Returns (faces, vertices, status): status 0 done, 1 an output array or the table is
     full, 2 a vertex lies in a tile that is not pooled."""
+    active, mixed, gen = flags.active, flags.mixed, flags.gen
+    top, t, base, slot_of = slabs.top, slabs.t, slabs.base, slabs.slot_of
+    H, X, Y, aff, zfac = slabs.H, slabs.X, slabs.Y, slabs.aff, slabs.zfac
     cap, capv = faces.shape[0], xyz.shape[0]
     hashed = keys.shape[0] > 0
     if hashed:

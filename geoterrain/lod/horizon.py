@@ -20,12 +20,27 @@ True
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 BINS = 2048  # azimuth bins over the full turn
 EPS = 1e-12  # radians: a bin that rounding could move is counted against culling
+
+
+class FootprintSet(NamedTuple):
+    """Footprints as :func:`_horizon_cull` reads them: per footprint its ``corners``
+    (P, K, 2) in scene x/y (a convex polygon), ``cen`` (P, 3) its centre and radius,
+    ``state`` (see :func:`_horizon_cull`) and ``zmin`` its lowest (or, standing in,
+    highest) height; ``margin``: how far a footprint's drawn surface may reach beyond it
+    (every span is widened by it)."""
+
+    corners: np.ndarray
+    cen: np.ndarray
+    state: np.ndarray
+    zmin: np.ndarray
+    margin: float
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -129,9 +144,10 @@ def _in_sector(ex, ey, cen, wedge):
 
 
 @njit(cache=True, nogil=True)
-def _horizon_cull(ex, ey, ez, corners, cen, state, zmin, margin, sec0, secw, lo, hi, out):
+def _horizon_cull(ex, ey, ez, fps, sec0, secw, lo, hi, out):
     """``out[row] = True`` for each box (``lo``, ``hi``) hidden behind the horizon of
-    the footprints ``corners`` (the eye already known to be above the surface).
+    the footprints ``fps`` (:class:`FootprintSet`), seen from (``ex``, ``ey``, ``ez``)
+    (the eye already known to be above the surface).
 
     ``state`` per footprint: 1 all valid (an occluder), 0 a hole (nodata or outside the
     grid), −1 ignored (replaced by finer footprints), 2 standing in for finer
@@ -141,6 +157,7 @@ def _horizon_cull(ex, ey, ez, corners, cen, state, zmin, margin, sec0, secw, lo,
 
     Returns 1 (``out`` left as is) when a state-2 footprint holds the eye or lies within
     ``margin`` of it, where it gives no upper bound; else 0."""
+    corners, cen, state, zmin, margin = fps
     P = corners.shape[0]
     B = BINS
     dphi = 2 * math.pi / B

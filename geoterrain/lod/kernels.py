@@ -6,10 +6,24 @@ from ``benchmarks/bench_lod.py`` (docs/benchmarks.md; history in docs/lab/lod-fl
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from geoterrain.core.bintree import parents_nb
+
+
+class ActiveFlags(NamedTuple):
+    """The dense per-sample flags a selection fills and walks: ``active`` and ``mixed``
+    (N, N), bools or generation stamps where ``== gen`` means set, and ``boxes``
+    (levels, 4): rows i0, i1 and columns j0, j1 of the active vertices per pyramid level
+    (what the closure scans)."""
+
+    active: np.ndarray
+    mixed: np.ndarray
+    gen: bool | int
+    boxes: np.ndarray
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -274,9 +288,11 @@ def block_bounds(D, R, H, X, Y, aff, s, i0, j0, step, coarse, out):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _block_floor(bk, zfac, zproxy, eye, planes, P, lam, tau):
+def _block_floor(bk, zfac, zproxy, view, P):
     """LP eq. 2 on a block's bounds, as :func:`lp_tiles` on a tile's: −2 when no vertex
-    of the block can be active, else a floor τ(D_box − r_max) (−1: none)."""
+    of the block can be active, else a floor τ(D_box − r_max) (−1: none); the first
+    ``P`` of the ``view``'s planes (:class:`~geoterrain.core.view.ViewTerms`) tested."""
+    eye, planes, lam, tau = view
     dm, rm = bk[0], bk[1]
     if dm == np.inf:
         return -1.0  # a mixed vertex is always active (see fill_lp)
@@ -304,9 +320,11 @@ def _block_floor(bk, zfac, zproxy, eye, planes, P, lam, tau):
 
 
 @njit(cache=True, nogil=True)
-def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy, eye, planes,
-            lam, tau, active, mixed, gen, top_step, boxes, level, BK, blocks=True):
-    """LP eq. 2 with sphere culling on pooled tiles, scattered into the dense flags.
+def fill_lp(tiles, inside, floor, slabs, zproxy, view, flags, top_step, blocks=True):
+    """LP eq. 2 with sphere culling on pooled ``tiles`` (:class:`~geoterrain.lod.pool.PooledTiles`,
+    read from the pool's ``slabs``, :class:`~geoterrain.lod.pool.PoolSlabs`), for ``view``
+    (:class:`~geoterrain.core.view.ViewTerms`), scattered into the dense ``flags``
+    (:class:`ActiveFlags`).
 
     A vertex is active iff its sphere (p, r) is not outside any frustum plane, δ > 0,
     and λδ > τ(d − r) or the eye is inside the sphere (d ≤ r); d = ‖p − eye‖ and
@@ -320,9 +338,9 @@ def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy
     A vertex with λδ ≤ ``floor[k]`` (τ times the tile's least d − r, from
     :func:`lp_tiles`) is inactive and skipped before its sphere is read: d and r are
     computed by the same monotone float operations, so the result is unchanged.
-    Each vertex made active grows ``boxes[level[k]]`` (rows i0, i1, columns j0, j1 of
-    the active vertices per pyramid level), so the closure scans where vertices are
-    active, not the whole of a coarse tile that only a corner of the view touches.
+    Each vertex made active grows ``flags.boxes[L]`` (L the tile's level), so the
+    closure scans where vertices are active, not the whole of a coarse tile that only a
+    corner of the view touches.
     With ``blocks``, each ``BLOCK``² block's bounds (``BK[slot]``, from
     :func:`block_bounds`) are tested first, as the tiles' are, and a block that can
     hold no active vertex is skipped (a mixed vertex makes its block's δ infinite, so
@@ -331,32 +349,37 @@ def fill_lp(slots, inside, floor, i0, j0, step, D, R, H, X, Y, aff, zfac, zproxy
     monotone float operations.
     Serial on purpose: on a shared 2-core machine, a parallel region waiting on a
     descheduled thread made frames 3× slower than one thread."""
-    T = D.shape[1]
+    BK = slabs.BK
+    T = slabs.D.shape[1]
     nb = BK.shape[1] if blocks else 1
-    for k in range(slots.shape[0]):
-        s = slots[k]
-        P = 0 if inside[k] else planes.shape[0]
-        lv = level[k]
-        coarse = step[k] < top_step
+    for k in range(tiles.slots.shape[0]):
+        s = tiles.slots[k]
+        P = 0 if inside[k] else view.planes.shape[0]
+        coarse = tiles.step[k] < top_step
         for p in range(nb):
-            a0, a1 = (p * BLOCK, T if p == nb - 1 else (p + 1) * BLOCK) if blocks else (0, T)
+            rows = (p * BLOCK, T if p == nb - 1 else (p + 1) * BLOCK) if blocks else (0, T)
             for q in range(nb):
-                b0, b1 = (q * BLOCK, T if q == nb - 1 else (q + 1) * BLOCK) if blocks else (0, T)
+                cols = (q * BLOCK, T if q == nb - 1 else (q + 1) * BLOCK) if blocks else (0, T)
                 fl = floor[k]
                 if blocks:
-                    fb = _block_floor(BK[s, p, q], zfac, zproxy, eye, planes, P, lam, tau)
+                    fb = _block_floor(BK[s, p, q], slabs.zfac, zproxy, view, P)
                     if fb == -2.0:
                         continue
                     fl = max(fl, fb)
-                _fill_block(s, a0, a1, b0, b1, coarse, fl, P, i0[k], j0[k], step[k], D, R, H,
-                            X, Y, aff, zfac, zproxy, eye, planes, lam, tau, active, mixed,
-                            gen, boxes, lv)
+                _fill_block(tiles, k, coarse, P, rows, cols, fl, slabs, zproxy, view, flags)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _fill_block(s, a0, a1, b0, b1, coarse, fl, P, i0, j0, step, D, R, H, X, Y, aff, zfac,
-                zproxy, eye, planes, lam, tau, active, mixed, gen, boxes, lv):
-    """:func:`fill_lp`'s test on the samples [a0, a1) × [b0, b1) of pool slot ``s``."""
+def _fill_block(tiles, k, coarse, P, rows, cols, fl, slabs, zproxy, view, flags):
+    """:func:`fill_lp`'s test on the samples ``rows`` × ``cols`` ([a0, a1) × [b0, b1))
+    of tile k, the first ``P`` planes tested, vertices with λδ ≤ ``fl`` skipped."""
+    s, i0, j0, step = tiles.slots[k], tiles.i0[k], tiles.j0[k], tiles.step[k]
+    lv = tiles.level[k]
+    D, R, H, X, Y, aff, zfac = slabs.D, slabs.R, slabs.H, slabs.X, slabs.Y, slabs.aff, slabs.zfac
+    eye, planes, lam, tau = view
+    active, mixed, gen, boxes = flags
+    a0, a1 = rows
+    b0, b1 = cols
     for a in range(a0, a1):
         i = i0 + a * step
         for b in range(b0, b1):
@@ -391,15 +414,17 @@ def _fill_block(s, a0, a1, b0, b1, coarse, fl, P, i0, j0, step, D, R, H, X, Y, a
 
 
 @njit(cache=True, nogil=True)
-def lp_tiles(lo, hi, dmax, rmax, eye, planes, lam, tau, floor):
+def lp_tiles(lo, hi, dmax, rmax, view, floor):
     """The tiles that can hold an LP-active vertex (seed 002 eq. 2, tested with tile
-    bounds only), as a status per tile: 0 no, 1 yes, 2 yes and inside the frustum.
+    bounds only, for ``view``: :class:`~geoterrain.core.view.ViewTerms`), as a status per
+    tile: 0 no, 1 yes, 2 yes and inside the frustum.
 
     Conservative: a vertex of the tile lies in its box, so d − r ≥ D_box − r_max; its
     sphere lies in the box grown by r_max, tested against each plane as a box.
     ``floor[k]`` receives τ·(D_box − r_max): a vertex with λδ ≤ it is not active
     (:func:`fill_lp` skips it without reading its sphere).
     """
+    eye, planes, lam, tau = view
     n = lo.shape[0]
     out = np.zeros(n, np.uint8)
     for k in range(n):
@@ -447,10 +472,13 @@ def level_boxes(L, i0, i1, j0, j1, boxes):
 
 
 @njit(cache=True, nogil=True)
-def gather_pooled(flat, N, top, t, base, slot_of, H, X, Y, aff, zfac, xyz, ij, level):
+def gather_pooled(flat, N, slabs, xyz, ij, level):
     """Scene positions ``xyz`` (x, y, height · zfac), grid ``ij`` and pyramid level of
     full-resolution samples ``flat`` (i·N + j), read from the coarsest tile holding
-    each (unstored tiles: NaN height, x = y = 0)."""
+    each in the pool's ``slabs`` (:class:`~geoterrain.lod.pool.PoolSlabs`; unstored
+    tiles: NaN height, x = y = 0)."""
+    top, t, base, slot_of = slabs.top, slabs.t, slabs.base, slabs.slot_of
+    H, X, Y, aff, zfac = slabs.H, slabs.X, slabs.Y, slabs.aff, slabs.zfac
     for k in range(flat.shape[0]):
         i, j = flat[k] // N, flat[k] % N
         L, idx, a, b = _coarsest_tile(i, j, top, t, base)
@@ -488,15 +516,17 @@ def mark_tiles(flat, N, top, t, base, occ):
 
 
 @njit(cache=True, nogil=True)
-def lp_tiles_walk(table, base, top, lo, hi, dmax, rmax, rsub, eye, planes, lam, tau, floor,
-                  out):
-    """:func:`lp_tiles` for the tiles the quadtree reaches from the top: a subtree whose
+def lp_tiles_walk(tree, dmax, rmax, rsub, view, floor, out):
+    """:func:`lp_tiles` for the tiles the quadtree ``tree``
+    (:class:`~geoterrain.lod.tiles.TileTree`) reaches from the top: a subtree whose
     box grown by its largest radius (``rsub``: the tile's and every descendant's) lies
     outside a frustum plane is not entered. A descendant's box lies in its ancestor's
     and its radius is at most ``rsub``, so :func:`lp_tiles` gives those tiles status 0
     too: the result is the same, at a cost that follows the tiles near the frustum.
-    ``table``/``base``: the dense (level, y, x) → row table; ``out``/``floor`` are
-    filled for the visited rows (``out`` must start at 0). Returns tiles visited."""
+    ``out``/``floor`` are filled for the visited rows (``out`` must start at 0).
+    Returns tiles visited."""
+    table, base, top, lo, hi = tree
+    planes = view.planes
     P = planes.shape[0]
     stack = np.empty((4 * (top + 2), 3), np.int64)
     stack[0, 0], stack[0, 1], stack[0, 2] = top, 0, 0
@@ -524,7 +554,7 @@ def lp_tiles_walk(table, base, top, lo, hi, dmax, rmax, rsub, eye, planes, lam, 
         if skip:
             continue
         st = lp_tiles(lo[row:row + 1], hi[row:row + 1], dmax[row:row + 1],
-                      rmax[row:row + 1], eye, planes, lam, tau, fl)
+                      rmax[row:row + 1], view, fl)
         out[row] = st[0]
         floor[row] = fl[0]
         if L > 0:

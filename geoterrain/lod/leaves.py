@@ -29,13 +29,40 @@ domain's edge), and its children are the four triangles of that diamond's halves
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit, prange
 
 from geoterrain.core.threads import forked, serial_twin
 from geoterrain.lod.kernels import _coarsest_tile, sample_xy
+from geoterrain.lod.pool import PooledTiles
 
 _SERIAL: dict = {}
+
+
+class SampleAt(NamedTuple):
+    """Where a vertex's sample lies: in pool slot ``slot``, row ``a`` and column ``b`` of
+    its tile; grid row ``i`` and column ``j``, pyramid level ``L``."""
+
+    slot: int
+    a: int
+    b: int
+    i: int
+    j: int
+    L: int
+
+
+class LeafVertices(NamedTuple):
+    """The static mesh's vertices as its kernels number and write them: ``vid`` the dense
+    N² vertex-number scratch (−1: none), and per vertex its position ``xyz`` (x, y, z),
+    grid indices ``ij`` (float64), pyramid level ``lvl`` and elevation ``elev``."""
+
+    vid: np.ndarray
+    xyz: np.ndarray
+    ij: np.ndarray
+    lvl: np.ndarray
+    elev: np.ndarray
 
 
 def _parallel(f):
@@ -52,14 +79,16 @@ def _kernel(name: str):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _listed(D, sl, a, b, T, coarse, ty, tx, tps, e, i, j, s):
-    """Whether sample (a, b) of the tile in slot ``sl`` is an active vertex (δ > e) that
-    the tile owns: new at its level (unless ``coarse`` is False), not on the tile's last
-    row (column) unless the tile is the level's last in that direction, and not a grid
-    corner."""
+def _listed(D, sl, a, b, coarse, inner_row, inner_col, e, i, j, s):
+    """Whether sample (a, b) (grid sample (i, j)) of the tile in slot ``sl`` of ``D`` is
+    an active vertex (δ > e) that the tile owns: new at its level (unless ``coarse`` is
+    False), not on the tile's last row (column) if the tile is not the level's last in
+    that direction (``inner_row``, ``inner_col``), and not a grid corner (``s``: the
+    grid's last row and column)."""
+    T = D.shape[1]
     if coarse and (a & 1) == 0 and (b & 1) == 0:
         return False  # a coarser level's vertex, owned by that level's tile
-    if (a == T - 1 and ty != tps - 1) or (b == T - 1 and tx != tps - 1):
+    if (a == T - 1 and inner_row) or (b == T - 1 and inner_col):
         return False
     if not np.float64(D[sl, a, b]) > e:
         return False
@@ -67,19 +96,22 @@ def _listed(D, sl, a, b, T, coarse, ty, tx, tps, e, i, j, s):
 
 
 @_parallel
-def _find_active(slots, i0, j0, step, ty, tx, tps, D, e, top_step, s, cnt, loc):
-    """Per tile k: how many vertices :func:`_listed` names, in ``cnt[k]``, and (unless
-    ``loc`` has no columns) their local indices (a << 16 | b) in ``loc[k]``."""
+def _find_active(tiles, D, e, top_step, s, cnt, loc):
+    """Per tile k of ``tiles``: how many vertices :func:`_listed` names, in ``cnt[k]``,
+    and (unless ``loc`` has no columns) their local indices (a << 16 | b) in ``loc[k]``."""
     T = D.shape[1]
     keep = loc.shape[1] > 0
+    slots, i0, j0, step = tiles.slots, tiles.i0, tiles.j0, tiles.step
+    tx, ty, tps = tiles.tx, tiles.ty, tiles.tps
     for k in prange(slots.shape[0]):
         sl = slots[k]
         coarse = step[k] < top_step
+        inner_row, inner_col = ty[k] != tps[k] - 1, tx[k] != tps[k] - 1
         c = 0
         for a in range(T):
             i = i0[k] + a * step[k]
             for b in range(T):
-                if _listed(D, sl, a, b, T, coarse, ty[k], tx[k], tps[k], e, i,
+                if _listed(D, sl, a, b, coarse, inner_row, inner_col, e, i,
                            j0[k] + b * step[k], s):
                     if keep:
                         loc[k, c] = (a << 16) | b
@@ -88,15 +120,25 @@ def _find_active(slots, i0, j0, step, ty, tx, tps, D, e, top_step, s, cnt, loc):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _vertex(v, sl, a, b, i, j, H, X, Y, aff, zfac, inv_scale, L, N, vid, xyz, ij, lvl,
-            elev):
-    """Number sample (i, j) (sample (a, b) of slot ``sl``) v and write its position
-    (x, y, height · zfac), grid indices, level and elevation (z · ``inv_scale`` as
-    float32, :func:`~geoterrain.lod.mesh.add_elevation`'s formula); returns whether
-    its height is invalid."""
+def _position(at, X, Y, aff, H, zfac):
+    """The scene position (x, y, height · zfac) of the sample ``at`` (:class:`SampleAt`),
+    read from the pool's slabs (:class:`~geoterrain.lod.pool.PoolSlabs`' fields)."""
+    x, y = sample_xy(X, Y, aff, at.slot, at.a, at.b, at.i, at.j)
+    return x, y, H[at.slot, at.a, at.b] * zfac
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _vertex(v, at, N, p, inv_scale, vid, xyz, ij, lvl, elev):
+    """Number the sample ``at`` (:class:`SampleAt`) v in ``vid`` (N²) and write its
+    position ``p`` (:func:`_position`), grid indices, level and elevation (z ·
+    ``inv_scale`` as float32, :func:`~geoterrain.lod.mesh.add_elevation`'s formula);
+    returns whether its height is invalid. The arrays it reads and writes come one by
+    one, bound before the callers' loops (:class:`LeafVertices`' fields): inlined into a
+    parallel loop, writes through arrays unpacked from a tuple would be dropped as dead
+    by numba's parfors, and a tuple's fields read in the loop cost a fifth more time."""
+    sl, a, b, i, j, L = at
+    x, y, z = p
     vid[i * N + j] = v
-    x, y = sample_xy(X, Y, aff, sl, a, b, i, j)
-    z = H[sl, a, b] * zfac
     xyz[v, 0], xyz[v, 1], xyz[v, 2] = x, y, z
     elev[v] = np.float32(z * inv_scale)
     ij[v, 0], ij[v, 1] = i, j
@@ -105,11 +147,13 @@ def _vertex(v, sl, a, b, i, j, H, X, Y, aff, zfac, inv_scale, L, N, vid, xyz, ij
 
 
 @njit(cache=True, nogil=True)
-def _replicate(pad, ij, rows, cols, N, top, t, base, slot_of, H, zfac, inv_scale, xyz,
-               elev):
-    """Vertices ``pad`` (beyond the data's rows × cols) take the height of the nearest
-    sample of the data's last row or column (replicated padding, edgepad.py); returns
-    how many now have one."""
+def _replicate(pad, rows, cols, N, slabs, inv_scale, verts):
+    """Vertices ``pad`` of ``verts`` (beyond the data's rows × cols) take the height of
+    the nearest sample of the data's last row or column (replicated padding, edgepad.py;
+    read from the pool's ``slabs``); returns how many now have one."""
+    top, t, base, slot_of, H, zfac = (slabs.top, slabs.t, slabs.base, slabs.slot_of, slabs.H,
+                                      slabs.zfac)
+    ij, xyz, elev = verts.ij, verts.xyz, verts.elev
     fixed = 0
     for k in range(pad.shape[0]):
         v = pad[k]
@@ -125,31 +169,43 @@ def _replicate(pad, ij, rows, cols, N, top, t, base, slot_of, H, zfac, inv_scale
 
 
 @_parallel
-def _number_active(slots, i0, j0, step, ty, tx, tps, D, e, top_step, H, X, Y, aff, zfac,
-                   inv_scale, level, s, cnt, loc, first, vid, xyz, ij, lvl, elev, invalid):
+def _number_active(tiles, slabs, e, top_step, inv_scale, s, cnt, loc, first, verts,
+                   invalid):
     """Per tile, the vertices :func:`_find_active` counted (read from ``loc``, or found
-    again when it has no columns): number them from ``first[k]`` into the dense ``vid``
-    (N², −1 = none) and write each one's data (:func:`_vertex`); ``invalid[k]``: how
-    many have no valid height."""
+    again, by their δ ``slabs.D``, when it has no columns): number them from
+    ``first[k]`` into ``verts.vid`` and write each one's data (:func:`_vertex`);
+    ``invalid[k]``: how many have no valid height."""
     N = s + 1
+    D = slabs.D
     T = D.shape[1]
+    slots, i0, j0, step, level = tiles.slots, tiles.i0, tiles.j0, tiles.step, tiles.level
+    tx, ty, tps = tiles.tx, tiles.ty, tiles.tps
+    X, Y, aff, H, zfac = slabs.X, slabs.Y, slabs.aff, slabs.H, slabs.zfac
+    vid = verts.vid  # one by one, before the parallel loop (see _vertex)
+    xyz = verts.xyz
+    ij = verts.ij
+    lvl = verts.lvl
+    elev = verts.elev
     for k in prange(slots.shape[0]):
         sl, v, bad = slots[k], first[k], 0
         if loc.shape[1] > 0:
             for r in range(cnt[k]):
                 a, b = loc[k, r] >> 16, loc[k, r] & 0xFFFF
-                bad += _vertex(v, sl, a, b, i0[k] + a * step[k], j0[k] + b * step[k], H, X,
-                               Y, aff, zfac, inv_scale, level[k], N, vid, xyz, ij, lvl, elev)
+                at = SampleAt(sl, a, b, i0[k] + a * step[k], j0[k] + b * step[k], level[k])
+                p = _position(at, X, Y, aff, H, zfac)
+                bad += _vertex(v, at, N, p, inv_scale, vid, xyz, ij, lvl, elev)
                 v += 1
         else:
             coarse = step[k] < top_step
+            inner_row, inner_col = ty[k] != tps[k] - 1, tx[k] != tps[k] - 1
             for a in range(T):
                 i = i0[k] + a * step[k]
                 for b in range(T):
                     j = j0[k] + b * step[k]
-                    if _listed(D, sl, a, b, T, coarse, ty[k], tx[k], tps[k], e, i, j, s):
-                        bad += _vertex(v, sl, a, b, i, j, H, X, Y, aff, zfac, inv_scale,
-                                       level[k], N, vid, xyz, ij, lvl, elev)
+                    if _listed(D, sl, a, b, coarse, inner_row, inner_col, e, i, j, s):
+                        at = SampleAt(sl, a, b, i, j, level[k])
+                        p = _position(at, X, Y, aff, H, zfac)
+                        bad += _vertex(v, at, N, p, inv_scale, vid, xyz, ij, lvl, elev)
                         v += 1
         invalid[k] = bad
 
@@ -287,17 +343,18 @@ def _gather_blocks(ef, el, per, cnt, first, faces, level, vid, ij, N):
 
 
 @njit(cache=True, nogil=True)
-def _corners(s, top, t, base, slot_of, H, X, Y, aff, zfac, inv_scale, vid, xyz, ij, lvl,
-             elev):
-    """Vertices 0–3: the grid's corners, read from the top tile (``slot_of`` ≥ 0)
+def _corners(s, slabs, inv_scale, verts):
+    """Vertices 0–3: the grid's corners, read from the top tile (pooled in ``slabs``)
     by :func:`_vertex`; returns how many have no valid height."""
+    vid, xyz, ij, lvl, elev = verts
     bad = 0
     for v in range(4):
         i = s if v >= 2 else 0
         j = s if v % 2 == 1 else 0
-        L, ti, a, b = _coarsest_tile(i, j, top, t, base)
-        bad += _vertex(v, slot_of[ti], a, b, i, j, H, X, Y, aff, zfac, inv_scale, L, s + 1,
-                       vid, xyz, ij, lvl, elev)
+        L, ti, a, b = _coarsest_tile(i, j, slabs.top, slabs.t, slabs.base)
+        at = SampleAt(slabs.slot_of[ti], a, b, i, j, L)
+        p = _position(at, slabs.X, slabs.Y, slabs.aff, slabs.H, slabs.zfac)
+        bad += _vertex(v, at, s + 1, p, inv_scale, vid, xyz, ij, lvl, elev)
     return bad
 
 
@@ -355,19 +412,21 @@ def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: flo
     s, top = pool.N - 1, pool.top
     i0, j0, step = pool.origins(keys)
     L = keys[:, 0].astype(np.int64)
-    tps = np.int64(1) << (top - L)
-    ty, tx = keys[:, 2].astype(np.int64), keys[:, 1].astype(np.int64)
+    tiles = PooledTiles(slots, i0, j0, step, L, keys[:, 1].astype(np.int64),
+                        keys[:, 2].astype(np.int64), np.int64(1) << (top - L))
     cnt = np.zeros(len(slots), np.int64)
     top_step = np.int64(1) << top
     T = pool.T
-    D = pool.D if D is None else D
+    slabs = pool.slabs(zfac)
+    if D is not None:
+        slabs = slabs._replace(D=D)
     find, number, emit, count, gather, reset = (_kernel(n) for n in (
         "_find_active", "_number_active", "_emit_leaves", "_count_leaves", "_gather_blocks",
         "_reset"))
     scratch = {} if scratch is None else scratch
     listed = len(slots) * T * T * 4 <= KEEP_BYTES  # else found again: no fresh lists
     loc = _buffer(scratch, "loc", (len(slots), T * T if listed else 0), np.uint32)
-    find(slots, i0, j0, step, ty, tx, tps, D, float(e), top_step, s, cnt, loc)
+    find(tiles, slabs.D, float(e), top_step, s, cnt, loc)
     first = np.empty(len(slots), np.int64)
     if len(cnt):
         first[0] = 4
@@ -378,17 +437,14 @@ def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: flo
     xyz, ij = np.empty((V + rv, 3))[:V], np.empty((V + rv, 2))[:V]
     lvl, elev = np.empty(V + rv, np.int8)[:V], np.empty(V + rv, np.float32)[:V]
     inv = 1.0 / float(z_scale)
-    bad = _corners(s, top, pool.t, pool.base, pool.slot_of, pool.H, pool.X, pool.Y,
-                   pool.aff, zfac, inv, vid, xyz, ij, lvl, elev)
+    verts = LeafVertices(vid, xyz, ij, lvl, elev)
+    bad = _corners(s, slabs, inv, verts)
     invalid = np.zeros(len(slots), np.int64)
-    number(slots, i0, j0, step, ty, tx, tps, D, float(e), top_step, pool.H, pool.X,
-           pool.Y, pool.aff, zfac, inv, L, s, cnt, loc, first, vid, xyz, ij, lvl, elev,
-           invalid)
+    number(tiles, slabs, float(e), top_step, inv, s, cnt, loc, first, verts, invalid)
     bad += int(invalid.sum())
     if window is not None:  # padding vertices: their replicated heights
         pad = np.flatnonzero((ij[:, 0] >= window[0]) | (ij[:, 1] >= window[1]))
-        bad -= _replicate(pad, ij, window[0], window[1], s + 1, top, pool.t, pool.base,
-                          pool.slot_of, pool.H, zfac, inv, xyz, elev)
+        bad -= _replicate(pad, window[0], window[1], s + 1, slabs, inv, verts)
     m = (s // 2) * (s + 1) + s // 2
     root = bool(vid[m] < 0)  # the centre inactive: the two base triangles are leaves
     per = 4096

@@ -103,14 +103,16 @@ def _true_z(key, N, top, t, base, slot_of, H, zfac):
 
 
 @njit(cache=True, nogil=True)
-def morph_heights(verts, xyz, N, top, t, base, slot_of, D, R, H, zfac, eye, lam, tmin, tmax,
-                  tout):
+def morph_heights(verts, xyz, N, slabs, eye, lam, tmin, tmax, tout):
     """Morph ``xyz[:, 2]`` in place (eq. 3–4) for mesh vertices ``verts`` (flat i·N + j);
     ``tout`` receives each vertex's t. δ, r and the ends' true heights are read from the
-    pooled tiles (``slot_of``, ``D``, ``R``, ``H`` × ``zfac``) as the selection read them.
+    pooled tiles (``slabs``: :class:`~geoterrain.lod.pool.PoolSlabs`, its ``D``, ``R``,
+    ``H`` × ``zfac``) as the selection read them.
 
     Only vertices with t < 1 move; the end of an edge is either one of them (already
     moved: they are processed coarse first) or at its true height."""
+    top, t, base, slot_of = slabs.top, slabs.t, slabs.base, slabs.slot_of
+    D, R, H, zfac = slabs.D, slabs.R, slabs.H, slabs.zfac
     nv = verts.shape[0]
     moving = np.empty(nv, np.int64)
     nm = 0
@@ -198,6 +200,6 @@ def morph_mesh(terrain: TerrainLike, verts: np.ndarray, xyz: np.ndarray, view, t
     pool.slots(np.flatnonzero(occ), ("delta", "radius", "height"))
     tout = np.ones(len(verts))
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
-    morph_heights(verts, xyz, pool.N, pool.top, pool.t, pool.base, pool.slot_of, pool.D,
-                  pool.R, pool.H, zfac, view.eye, view.lam, float(tmin), float(tmax), tout)
+    morph_heights(verts, xyz, pool.N, pool.slabs(zfac), view.eye, view.lam, float(tmin),
+                  float(tmax), tout)
     return tout

@@ -61,6 +61,7 @@ import numpy as np
 from geoterrain.core.view import View
 from geoterrain.lod.horizon import (
     BINS,
+    FootprintSet,
     _horizon_cull,
     _near_footprints,
 )
@@ -160,9 +161,9 @@ def _near_tiles(terrain: TerrainLike, index, view: View, tiles: int = NEAR_TILES
         near = np.hypot(c[:, 0] - e[0], c[:, 1] - e[1]) - c[:, 2] - fp.margin
         keep = np.flatnonzero(near < d[pick].max())
         sec0, secw = _sector(view)
-        _horizon_cull(float(e[0]), float(e[1]), float(e[2]), fp.corners[keep],
-                      fp.centres[keep], fp.state[keep], fp.zmin[keep], fp.margin, sec0, secw,
-                      lo[pick], hi[pick], hid)
+        _horizon_cull(float(e[0]), float(e[1]), float(e[2]),
+                      FootprintSet(fp.corners[keep], fp.centres[keep], fp.state[keep],
+                                 fp.zmin[keep], fp.margin), sec0, secw, lo[pick], hi[pick], hid)
     pick = np.union1d(pick[~hid][:tiles], np.flatnonzero(under))
     rows = rows[pick]
     return rows, fp.position[rows]
@@ -387,8 +388,8 @@ def hidden_rows(terrain: TerrainLike, view: View, grow: np.ndarray | None = None
             zup = zmin.copy()
             zup[replaced] = fp.zmax[replaced]
             upper = np.zeros(len(rows), bool)
-            if _horizon_cull(ex, ey, ez, corners, cen, state, zup, fp.margin, sec0, secw,
-                             lo, hi, upper) == 0:
+            if _horizon_cull(ex, ey, ez, FootprintSet(corners, cen, state, zup, fp.margin),
+                             sec0, secw, lo, hi, upper) == 0:
                 rows, lo, hi = rows[upper], lo[upper], hi[upper]
                 occluders = occluders[:0] if not len(rows) else occluders
         if len(rows) and len(occluders):
@@ -401,8 +402,8 @@ def hidden_rows(terrain: TerrainLike, view: View, grow: np.ndarray | None = None
         view.memos[("occluders", id(terrain))] = occluders
         if len(rows):
             got = np.zeros(len(rows), bool)
-            _horizon_cull(ex, ey, ez, corners, cen, state, zmin, fp.margin, sec0, secw,
-                          lo, hi, got)
+            _horizon_cull(ex, ey, ez, FootprintSet(corners, cen, state, zmin, fp.margin), sec0,
+                          secw, lo, hi, got)
             out[rows] = got
     view.memos[key] = out
     return out

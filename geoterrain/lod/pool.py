@@ -16,7 +16,7 @@ A single request larger than the budget grows the slabs (correctness first).
 from __future__ import annotations
 
 import weakref
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -31,6 +31,45 @@ KINDS = ("delta", "radius", "height", "xy", "blocks", "delta_edge")
 # budgeted: its pages are committed only on the few slots it is loaded into
 _BYTES = {"delta": 4, "radius": 4, "height": 8, "xy": 16, "blocks": 0, "delta_edge": 0}
 BUDGET_BYTES = 384 << 20
+
+_NONE = np.zeros(0, np.int64)
+
+
+class PoolSlabs(NamedTuple):
+    """A pool's slabs as the compiled kernels read them (:meth:`TilePool.slabs`): the
+    slot table (level ``L``'s tiles from ``base[L]``, ``top`` the top level, ``t`` log2
+    of a tile's cells a side; ``slot_of`` −1: not pooled), the per-slot δ ``D``, r ``R``,
+    heights ``H``, x, y ``X``, ``Y`` (empty for an affine frame, computed from ``aff``)
+    and block bounds ``BK``, and ``zfac``: a height times it is a scene z (``Frame.z``)."""
+
+    top: int
+    t: int
+    base: np.ndarray
+    slot_of: np.ndarray
+    D: np.ndarray
+    R: np.ndarray
+    H: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    aff: np.ndarray
+    BK: np.ndarray
+    zfac: float
+
+
+class PooledTiles(NamedTuple):
+    """Tiles as the compiled kernels walk them: per tile its pool slot, the grid row
+    ``i0`` and column ``j0`` of its first sample, its sample spacing ``step`` (2^L) and
+    ``level`` L; ``tx``, ``ty`` and ``tps`` (its x, y and its level's tiles a side) only
+    for the kernels that need them (:mod:`geoterrain.lod.leaves`), else empty."""
+
+    slots: np.ndarray
+    i0: np.ndarray
+    j0: np.ndarray
+    step: np.ndarray
+    level: np.ndarray
+    tx: np.ndarray = _NONE
+    ty: np.ndarray = _NONE
+    tps: np.ndarray = _NONE
 
 
 class TilePool:
@@ -81,6 +120,12 @@ class TilePool:
         and their sample spacing 2^L."""
         L = keys[:, 0]
         return (keys[:, 2] << self.t) << L, (keys[:, 1] << self.t) << L, np.int64(1) << L
+
+    def slabs(self, zfac: float) -> PoolSlabs:
+        """The slabs as they are now (a later :meth:`slots` may grow them), heights
+        scaled by ``zfac`` to scene z."""
+        return PoolSlabs(self.top, self.t, self.base, self.slot_of, self.D, self.R, self.H,
+                         self.X, self.Y, self.aff, self.BK, float(zfac))
 
     def table_index(self, keys: np.ndarray) -> np.ndarray:
         """Index into the slot table of (L, x, y) keys (K, 3)."""

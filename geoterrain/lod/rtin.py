@@ -35,6 +35,7 @@ from geoterrain.core.view import View
 from geoterrain.lod.clip import clip_in_place
 from geoterrain.lod.emit import cull_compact, cull_in_place, walk_gather
 from geoterrain.lod.kernels import (
+    ActiveFlags,
     close_upward_boxes,
     extract,
     fill_lp,
@@ -49,8 +50,8 @@ from geoterrain.lod.leaves import static_leaves
 from geoterrain.lod.mesh import add_elevation, empty_polydata, polydata
 from geoterrain.lod.morph import MORPH_START, morph_mesh
 from geoterrain.lod.occlusion import hidden_rows
-from geoterrain.lod.pool import tile_pool
-from geoterrain.lod.tiles import TileIndex, tile_index, tile_table
+from geoterrain.lod.pool import PooledTiles, tile_pool
+from geoterrain.lod.tiles import TileIndex, TileTree, tile_index, tile_table
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -186,13 +187,13 @@ def view_active(terrain: TerrainLike, index: TileIndex, view: View, tau: float, 
                 occlusion: bool = True) -> ActiveSet:
     """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex
     (and, with ``occlusion``, not hidden behind nearer terrain)."""
-    lam, eye = view.lam, view.eye
+    terms = view.terms(tau)
     dm = index.delta_max
     floor = np.empty(len(dm))
     status = np.zeros(len(dm), np.uint8)
     table, base, rsub = _tile_tree(terrain, index)
-    lp_tiles_walk(table, base, terrain.grid.top_level, index.lo, index.hi, dm,
-                  index.radius_max, rsub, eye, view.planes, lam, tau, floor, status)
+    lp_tiles_walk(TileTree(table, base, terrain.grid.top_level, index.lo, index.hi), dm,
+                  index.radius_max, rsub, terms, floor, status)
     # a tile whose spheres all lie behind nearer terrain refines nothing (nor is read)
     rows = np.flatnonzero(status)
     hidden = hidden_rows(terrain, view, index.radius_max, rows=rows, enabled=occlusion)
@@ -207,10 +208,10 @@ def view_active(terrain: TerrainLike, index: TileIndex, view: View, tau: float, 
         idx, i0, j0, step = act.tiles(rows, index, boxes=False)
         slots = pool.slots(idx, ("delta", "radius", "height", "xy", "blocks"))
         zfac = terrain.frame.z_to_m * terrain.frame.z_scale
-        fill_lp(slots, inside, floor, i0, j0, step, pool.D, pool.R, pool.H, pool.X, pool.Y,
-                pool.aff, zfac, terrain.stand_in_z, eye, view.planes, lam, tau, act.active,
-                act.mixed, act.gen, 1 << terrain.grid.top_level, act.boxes,
-                index.keys[rows, 0], pool.BK, BLOCKS)
+        fill_lp(PooledTiles(slots, i0, j0, step, index.keys[rows, 0]), inside, floor,
+                pool.slabs(zfac), terrain.stand_in_z, terms,
+                ActiveFlags(act.active, act.mixed, act.gen, act.boxes),
+                1 << terrain.grid.top_level, BLOCKS)
     act.close()
     mixed = index.mixed_rows
     act.mark_unknown_mixed(mixed[status[mixed] == 0], index)  # not read this frame
@@ -227,8 +228,7 @@ def _gather(terrain: TerrainLike, flat: np.ndarray):
     n = len(flat)
     xyz, ij, lvl = np.empty((n, 3)), np.empty((n, 2), np.int64), np.empty(n, np.int64)
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
-    gather_pooled(flat, pool.N, pool.top, pool.t, pool.base, pool.slot_of, pool.H, pool.X,
-                  pool.Y, pool.aff, zfac, xyz, ij, lvl)
+    gather_pooled(flat, pool.N, pool.slabs(zfac), xyz, ij, lvl)
     return xyz, ij, lvl
 
 
@@ -267,10 +267,9 @@ def active_mesh(terrain: TerrainLike, act: ActiveSet, view: View | None = None,
         stack, state = walk_start(act.active.shape[0])
         keys = np.full(M, -1, np.int64)
         vid = sc.vid if M == 0 else np.empty(M, np.int32)
-        nf, nv, status = walk_gather(act.active, act.mixed, act.gen, stack, state, vid, keys,
-                                     pool.top, pool.t, pool.base, pool.slot_of, pool.H,
-                                     pool.X, pool.Y, pool.aff, zfac, faces, verts, xyz, ij,
-                                     lvl)
+        nf, nv, status = walk_gather(ActiveFlags(act.active, act.mixed, act.gen, act.boxes),
+                                     stack, state, vid, keys, pool.slabs(zfac), faces, verts,
+                                     xyz, ij, lvl)
         if status == 0:
             break
         if status == 2:

@@ -253,12 +253,11 @@ def _gather(pool: TilePool, flat: np.ndarray, zfac: float, window=None):
                ("delta_edge", "height", "xy"))
     n = len(flat)
     xyz, ij, lvl = np.empty((n, 3)), np.empty((n, 2), np.int64), np.empty(n, np.int64)
-    gather_pooled(flat, N, pool.top, pool.t, pool.base, pool.slot_of, pool.H, pool.X,
-                  pool.Y, pool.aff, zfac, xyz, ij, lvl)
+    slabs = pool.slabs(zfac)
+    gather_pooled(flat, N, slabs, xyz, ij, lvl)
     if len(more):
         rep = np.empty((len(more), 3))
-        gather_pooled(more, N, pool.top, pool.t, pool.base, pool.slot_of, pool.H, pool.X,
-                      pool.Y, pool.aff, zfac, rep, np.empty((len(more), 2), np.int64),
+        gather_pooled(more, N, slabs, rep, np.empty((len(more), 2), np.int64),
                       np.empty(len(more), np.int64))
         xyz[pad, 2] = rep[:, 2]
     return xyz, ij

@@ -16,7 +16,7 @@ terrain itself is only read.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -68,6 +68,18 @@ class TileIndex:
         if top[0] < 0:
             return True
         return bool(view.box_visibility(self.lo[top], self.hi[top])[0] == 0)
+
+
+class TileTree(NamedTuple):
+    """A tile index as the compiled quadtree walks read it: the dense (level, y, x) → row
+    ``table`` and its level offsets ``base`` (:func:`tile_table`), the ``top`` level, and
+    each row's box ``lo``, ``hi`` (R, 3) (:class:`TileIndex`)."""
+
+    table: np.ndarray
+    base: np.ndarray
+    top: int
+    lo: np.ndarray
+    hi: np.ndarray
 
 
 def tile_table(index: TileIndex, top: int) -> tuple[np.ndarray, np.ndarray]:

@@ -23,8 +23,23 @@ Examples
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
+
+
+class AtlasPages(NamedTuple):
+    """An atlas's pages as :func:`page_tcoords`'s kernel reads them, per page: its texel
+    level, its footprint's level, x and y, and the atlas column and row it starts at
+    (int64 arrays)."""
+
+    texel_level: np.ndarray
+    level: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    col: np.ndarray
+    row: np.ndarray
 
 
 def _as_faces(faces: np.ndarray) -> np.ndarray:
@@ -299,7 +314,8 @@ def number_pages(faces: np.ndarray, group: np.ndarray, n_groups: int, n_vertices
 
 
 @njit(cache=True, nogil=True)
-def _tcoords(src, pg, ij, pts, Lt, gL, gX, gY, ax, ay, step, gutter, AW, AH, tc, out_pts):
+def _tcoords(src, pg, ij, pts, pages, step, gutter, AW, AH, tc, out_pts):
+    Lt, gL, gX, gY, ax, ay = pages
     for p in range(len(src)):
         g, v = pg[p], src[p]
         scale = np.float64(np.int64(1) << Lt[g])
@@ -330,13 +346,12 @@ def page_tcoords(src: np.ndarray, pg: np.ndarray, ij: np.ndarray, pts: np.ndarra
     >>> tc.tolist(), xyz.tolist()  # column 5 + 1 + 3, row 7 + 1 + 2
     ([[0.4749999940395355, 1.0499999523162842]], [[1.0, 2.0, 3.0]])
     """
-    Lt, gL, gX, gY, ax, ay = (np.ascontiguousarray(a, np.int64) for a in pages)
+    pages = AtlasPages(*(np.ascontiguousarray(a, np.int64) for a in pages))
     tc = np.empty((len(src), 2), np.float32)
     out_pts = np.empty((len(src), 3), np.float64)
     _tcoords(np.ascontiguousarray(src, np.int64), np.ascontiguousarray(pg, np.int64),
              np.ascontiguousarray(ij, np.int64), np.ascontiguousarray(pts, np.float64),
-             Lt, gL, gX, gY, ax, ay, int(step), int(gutter), float(size[0]),
-             float(size[1]), tc, out_pts)
+             pages, int(step), int(gutter), float(size[0]), float(size[1]), tc, out_pts)
     return tc, out_pts
 
 

@@ -25,16 +25,50 @@ True
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit, prange
 
 from geoterrain.core.threads import forked, serial_twin
 from geoterrain.rendering.shading import oct_shade
 
-_RAMPS: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+class Ramp(NamedTuple):
+    """A colour ramp as the compiled shading reads it (:func:`_stops`): its stops ``x``
+    (n,), their colours ``c`` (n, 3) and each segment's slopes ``slope`` (n − 1, 3)."""
+
+    x: np.ndarray
+    c: np.ndarray
+    slope: np.ndarray
 
 
-def _stops(ramp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+class Tint(NamedTuple):
+    """The ``auto`` palette's tint as the compiled shading reads it
+    (:func:`_palette_args`): land from ``base`` over ``span``; water at or below
+    ``wet_level`` when ``has_water``, its depth ramp (when ``depth_ramp``) from
+    ``depth_lo`` over ``depth_span``; the land and water ramps (:class:`Ramp`'s arrays,
+    flat: a parallel loop takes no tuple of tuples of arrays)."""
+
+    base: float
+    span: float
+    wet_level: float
+    has_water: bool
+    depth_lo: float
+    depth_span: float
+    depth_ramp: bool
+    land_x: np.ndarray
+    land_c: np.ndarray
+    land_slope: np.ndarray
+    water_x: np.ndarray
+    water_c: np.ndarray
+    water_slope: np.ndarray
+
+
+_RAMPS: dict[tuple, Ramp] = {}
+
+
+def _stops(ramp) -> Ramp:
     """A ramp's stops, colours (n, 3) and each segment's slopes (n − 1, 3), np.interp's
     (fp[j + 1] − fp[j]) / (xp[j + 1] − xp[j]); cached (the palette's ramps are a few)."""
     key = tuple((float(x), tuple(float(c) for c in col)) for x, col in ramp)
@@ -46,7 +80,7 @@ def _stops(ramp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         for j in range(len(xp) - 1):  # the same division as numpy's, per segment
             for k in range(3):
                 slope[j, k] = (fp[j + 1, k] - fp[j, k]) / (xp[j + 1] - xp[j])
-        got = _RAMPS[key] = (xp, fp, slope)
+        got = _RAMPS[key] = Ramp(xp, fp, slope)
     return got
 
 
@@ -106,9 +140,12 @@ def shade_lut(light: np.ndarray, ambient: float, ceiling: float) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _shade_tile(h, cf, codes, planar, lut, base, span, wet_level, has_water,
-                depth_lo, depth_span, depth_ramp, land_x, land_c, land_s, water_x, water_c,
-                water_s, out):  # pragma: no cover - compiled
+def _shade_tile(h, cf, codes, planar, lut, tint, out):  # pragma: no cover - compiled
+    """:func:`shade_tile`'s pass: heights ``h`` (× ``cf``: metres), 8-bit normal
+    ``codes`` (flat; ``planar``: as stored), the hillshade ``lut`` (:func:`shade_lut`)
+    and the palette's ``tint`` (:class:`Tint`), into ``out`` (T, T, 3)."""
+    base, span, wet_level, has_water, depth_lo, depth_span, depth_ramp = tint[:7]
+    land_x, land_c, land_s, water_x, water_c, water_s = tint[7:]
     T0, T1 = h.shape
     if planar:  # two planes of 2-D differences mod 256 (vertexdata.normals_to_bytes)
         uv = np.empty(T0 * T1 * 2, np.uint8)  # to interleaved pairs
@@ -161,12 +198,12 @@ def shade_tile(h: np.ndarray, codes: np.ndarray, planar: bool, bits: int, light:
     _shade_tile(np.ascontiguousarray(h, np.float64), 1.0,
                 np.ascontiguousarray(np.asarray(codes, np.uint8).reshape(-1)),
                 bool(planar), shade_lut(light, ambient, ceiling),
-                *_palette_args(clim, water_level, land, water, tolerance), out)
+                _palette_args(clim, water_level, land, water, tolerance), out)
     return out
 
 
-def _palette_args(clim, water_level, land, water, tolerance: float = 0.0) -> tuple:
-    """The compiled shading's palette arguments: base, span, the level at or below
+def _palette_args(clim, water_level, land, water, tolerance: float = 0.0) -> Tint:
+    """The compiled shading's palette :class:`Tint`: base, span, the level at or below
     which it is water, whether there is water, the depth ramp's low end, span and
     whether it ramps, and the land and water ramps (:func:`_stops`); ``tolerance`` as
     :func:`geoterrain.rendering.colours.colorize`'s."""
@@ -181,19 +218,17 @@ def _palette_args(clim, water_level, land, water, tolerance: float = 0.0) -> tup
     depth_lo = min(lo, top)
     depth_ramp = wl is not None and top > depth_lo
     depth_span = max(top - depth_lo, 1e-9)
-    return (float(base), float(span), wet_level, wl is not None, float(depth_lo),
-            float(depth_span), bool(depth_ramp), *_stops(land), *_stops(water))
+    return Tint(float(base), float(span), wet_level, wl is not None, float(depth_lo),
+                float(depth_span), bool(depth_ramp), *_stops(land), *_stops(water))
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _shade_tiles(h, cf, codes, lut, palette, out):  # pragma: no cover - compiled
-    (base, span, wet_level, has_water, depth_lo, depth_span, depth_ramp, land_x, land_c,
-     land_s, water_x, water_c, water_s) = palette
+def _shade_tiles(h, cf, codes, lut, tint, out):  # pragma: no cover - compiled
+    """:func:`shade_tiles`'s pass: :func:`_shade_tile` of each tile of ``h`` with its
+    normal codes ``codes[k]`` (pairs)."""
     n, T0, T1 = h.shape
     for k in prange(n):  # tiles on every core: each writes its own
-        _shade_tile(h[k], cf, codes[k].reshape(-1), False, lut, base, span, wet_level,
-                    has_water, depth_lo, depth_span, depth_ramp, land_x, land_c, land_s,
-                    water_x, water_c, water_s, out[k])
+        _shade_tile(h[k], cf, codes[k].reshape(-1), False, lut, tint, out[k])
 
 
 def shade_tiles(h: np.ndarray, cf: float, codes: np.ndarray, light: np.ndarray,

@@ -19,6 +19,7 @@ triangle is *outside*.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -29,8 +30,26 @@ __all__ = ["MetricError", "metric_errors", "metric_vertical_error", "metric_scre
 EPS = 1e-9
 
 
+class SampleHash(NamedTuple):
+    """A uniform hash of sample positions: the samples in cell order (``order``), cell
+    k's first at ``starts[k]`` (k = row · nx + column, ``starts`` nx·ny + 1 long), the
+    grid's origin ``x0``, ``y0``, its cells ``cell`` wide, ``nx`` × ``ny`` of them."""
+
+    order: np.ndarray
+    starts: np.ndarray
+    x0: float
+    y0: float
+    cell: float
+    nx: int
+    ny: int
+
+
 @njit(cache=True)
-def _errors_nb(fx, fy, fz, sx, sy, sz, order, starts, x0, y0, cell, nx, ny, tol):
+def _errors_nb(fx, fy, fz, sx, sy, sz, grid, tol):
+    """Per sample (``sx``, ``sy``, ``sz``, hashed in ``grid``: :class:`SampleHash`) the
+    largest |plane − z| over the triangles (corners ``fx``, ``fy``, ``fz`` (F, 3)) that
+    hold it, and over those within ``tol`` of it (−1: none)."""
+    order, starts, x0, y0, cell, nx, ny = grid
     n = sx.shape[0]
     err_in = np.full(n, -1.0)
     err_band = np.full(n, -1.0)
@@ -130,8 +149,8 @@ def metric_errors(faces: np.ndarray, vx: np.ndarray, vy: np.ndarray, vz: np.ndar
     starts = np.searchsorted(key[order], np.arange(nx * ny + 1))
     vx, vy, vz = (np.asarray(a, np.float64) for a in (vx, vy, vz))
     if fc.size:
-        e_in, e_band = _errors_nb(vx[fc], vy[fc], vz[fc], sx, sy, sz, order, starts,
-                                  x0, y0, cell, nx, ny, float(tol))
+        e_in, e_band = _errors_nb(vx[fc], vy[fc], vz[fc], sx, sy, sz,
+                                  SampleHash(order, starts, x0, y0, cell, nx, ny), float(tol))
     else:
         e_in = e_band = np.full(idx.size, -1.0)
     e = np.where(e_in >= 0, e_in, e_band)

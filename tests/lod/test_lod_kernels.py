@@ -18,7 +18,7 @@ import geoterrain
 from geoterrain.ingest.synth import generate, write_geotiff
 from geoterrain.lod import emit, kernels, leaves, rtin
 from geoterrain.lod.pool import tile_pool
-from geoterrain.lod.tiles import tile_index
+from geoterrain.lod.tiles import TileTree, tile_index
 
 _T: dict = {}
 
@@ -149,13 +149,13 @@ def test_the_tile_walk_equals_testing_every_tile(tmp_path_factory, az, el, dist,
     index = tile_index(t)
     n = len(index.keys)
     f1, f2 = np.empty(n), np.empty(n)
-    ref = kernels.lp_tiles(index.lo, index.hi, index.delta_max, index.radius_max, v.eye,
-                           v.planes, v.lam, tau, f1)
+    ref = kernels.lp_tiles(index.lo, index.hi, index.delta_max, index.radius_max,
+                           v.terms(tau), f1)
     got = np.zeros(n, np.uint8)
     table, base, rsub = rtin._tile_tree(t, index)
-    visited = kernels.lp_tiles_walk(table, base, t.grid.top_level, index.lo, index.hi,
-                                    index.delta_max, index.radius_max, rsub, v.eye, v.planes,
-                                    v.lam, tau, f2, got)
+    tree = TileTree(table, base, t.grid.top_level, index.lo, index.hi)
+    visited = kernels.lp_tiles_walk(tree, index.delta_max, index.radius_max, rsub,
+                                    v.terms(tau), f2, got)
     np.testing.assert_array_equal(got, ref)
     on = ref > 0
     np.testing.assert_array_equal(f2[on], f1[on])

@@ -290,7 +290,7 @@ def test_the_horizon_kernel_hides_only_what_an_occluder_covers(seed):
     box it hides, each sampled ray to the box's top passes under an occluder's lowest
     height inside that occluder's footprint, nearer than the box, having crossed no hole
     on the way there (the geometric claim the culling rests on)."""
-    from geoterrain.lod.horizon import _horizon_cull
+    from geoterrain.lod.horizon import FootprintSet, _horizon_cull
     from geoterrain.lod.occlusion import _centres
 
     rng = np.random.default_rng(seed)
@@ -309,8 +309,8 @@ def test_the_horizon_kernel_hides_only_what_an_occluder_covers(seed):
     hi = lo + np.stack([rng.uniform(5, 50, 40), rng.uniform(5, 50, 40),
                         rng.uniform(0, 200, 40)], 1)
     out = np.zeros(40, bool)
-    _horizon_cull(eye[0], eye[1], eye[2], corners, _centres(corners), state, zmin, 0.0, 0.0,
-                  4 * np.pi, lo, hi, out)
+    _horizon_cull(eye[0], eye[1], eye[2], FootprintSet(corners, _centres(corners), state, zmin,
+                                                     0.0), 0.0, 4 * np.pi, lo, hi, out)
     s = np.linspace(0, 1, 4001)[1:-1]
     for r in np.flatnonzero(out):
         for _ in range(25):
@@ -393,8 +393,9 @@ def _hidden_in_one_pass(t, view):
         corners, cen = np.concatenate([corners, bc]), np.concatenate([cen, bcen])
         state, zmin = np.concatenate([state, bs]), np.concatenate([zmin, bz])
     e = view.eye
-    oc._horizon_cull(float(e[0]), float(e[1]), float(e[2]), corners, cen, state, zmin,
-                     fp.margin, *oc._sector(view), index.lo, index.hi, out)
+    oc._horizon_cull(float(e[0]), float(e[1]), float(e[2]),
+                     oc.FootprintSet(corners, cen, state, zmin, fp.margin), *oc._sector(view),
+                     index.lo, index.hi, out)
     return out
 
 
@@ -442,7 +443,7 @@ def test_a_standing_in_footprint_bounds_its_blocks(seed):
     """The kernel's state 2: a footprint standing in for its 4 × 4 blocks at their
     highest sample hides at least every box those blocks hide (the upper-bound pass of
     :func:`hidden_rows` relies on it)."""
-    from geoterrain.lod.horizon import _horizon_cull
+    from geoterrain.lod.horizon import FootprintSet, _horizon_cull
     from geoterrain.lod.occlusion import _centres
 
     rng = np.random.default_rng(seed)
@@ -474,13 +475,15 @@ def test_a_standing_in_footprint_bounds_its_blocks(seed):
     fine_state = state.copy()
     fine_state[split] = -1
     fine = np.zeros(60, bool)
-    _horizon_cull(eye[0], eye[1], eye[2], np.concatenate([corners, bc]),
-                  _centres(np.concatenate([corners, bc])),
-                  np.concatenate([fine_state, np.ones(len(bc), np.int8)]),
-                  np.concatenate([zmin, bz]), 0.0, 0.0, 4 * np.pi, lo, hi, fine)
+    every = np.concatenate([corners, bc])
+    _horizon_cull(eye[0], eye[1], eye[2],
+                  FootprintSet(every, _centres(every),
+                               np.concatenate([fine_state, np.ones(len(bc), np.int8)]),
+                               np.concatenate([zmin, bz]), 0.0), 0.0, 4 * np.pi, lo, hi, fine)
     up_state, up_z = state.copy(), zmin.copy()
     up_state[split], up_z[split] = 2, top
     upper = np.zeros(60, bool)
-    if _horizon_cull(eye[0], eye[1], eye[2], corners, _centres(corners), up_state, up_z, 0.0,
-                     0.0, 4 * np.pi, lo, hi, upper) == 0:
+    if _horizon_cull(eye[0], eye[1], eye[2], FootprintSet(corners, _centres(corners), up_state,
+                                                        up_z, 0.0), 0.0, 4 * np.pi, lo, hi,
+                     upper) == 0:
         assert not (fine & ~upper).any(), "a box the blocks hide is not hidden by the bound"

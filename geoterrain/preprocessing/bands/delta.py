@@ -34,11 +34,15 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from geoterrain.bounds.delta import (
+    Beside,
+    Cell,
+    Diamond,
     _block_sweep,
     _block_sweep_part,
     _centre1,
@@ -55,6 +59,53 @@ from geoterrain.preprocessing.scratch import ScratchArrays
 __all__ = ["LevelDelta", "band_vertex_errors", "edge_rows", "rows_of"]
 
 Rows = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
+
+
+class BandWindow(NamedTuple):
+    """A band of an (N, N) grid's rows as the band kernels read it: heights ``z``
+    (invalid ones 0) and validity ``v`` of the window's rows, from grid row ``w0`` (a
+    halo above the band, then its own rows ``r0`` … ``r_end``); ``B`` rows a band (also
+    the step of the grid's corners read every B samples) and ``N`` the grid's side."""
+
+    z: np.ndarray
+    v: np.ndarray
+    w0: int
+    r0: int
+    r_end: int
+    B: int
+    N: int
+
+
+class LevelVertices(NamedTuple):
+    """One level's values (or rows of them) per kind of vertex (module docstring): the
+    block centres ``C``, the edge midpoints ``R`` whose hypotenuse runs along the rows
+    and ``K`` whose hypotenuse runs along the columns."""
+
+    C: np.ndarray
+    R: np.ndarray
+    K: np.ndarray
+
+
+class BlockMaxima(NamedTuple):
+    """A coarse level's running maxima, per block: of its centre's sweep and of its four
+    quarters' (left, right, top, bottom: the edge midpoints' sides), as
+    :func:`geoterrain.bounds.delta._block_sweep_part` returns them."""
+
+    centre: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    top: np.ndarray
+    bottom: np.ndarray
+
+
+class Sweeps(NamedTuple):
+    """Running sweeps of a coarse level's mixed edge midpoints, one per listed diamond:
+    the largest error ``m``, the valid samples ``valid`` and all samples ``total`` seen
+    (:func:`geoterrain.bounds.delta.edge_status_nb` once every row is in)."""
+
+    m: np.ndarray
+    valid: np.ndarray
+    total: np.ndarray
 
 
 @dataclass
@@ -177,10 +228,17 @@ def _pool(st: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, parallel=True)
-def _fine_level_nb(z, vb, w0, r0, B, N, h, st, st_prev, qb_prev, last, C, R, K, QB):
-    """One fine level (2h ≤ B) of the band whose core rows start at r0: raw δ of its
-    centres and edge midpoints (the same branches as bounds._raw_delta_nb); QB gets the
-    block rows' lower quarter maxima (the next band's carry)."""
+def _fine_level_nb(band, h, st, st_prev, qb_prev, out, QB):
+    """One fine level (2h ≤ B) of the ``band`` (:class:`BandWindow`): raw δ of its
+    centres and edge midpoints into ``out`` (:class:`LevelVertices`; the same branches as
+    bounds._raw_delta_nb), ``st`` its blocks' statuses and ``st_prev``, ``qb_prev`` the
+    band above's last block row's; QB gets the block rows' lower quarter maxima (the
+    next band's carry)."""
+    z, vb, w0, r0, B, N = band.z, band.v, band.w0, band.r0, band.B, band.N
+    last = band.r_end == N - 1
+    C = out.C  # one by one (see bounds.tileblobs._level_payloads)
+    R = out.R
+    K = out.K
     s = 2 * h
     nb = (N - 1) // s
     nrow = B // s
@@ -214,7 +272,7 @@ def _fine_level_nb(z, vb, w0, r0, B, N, h, st, st_prev, qb_prev, last, C, R, K, 
             fhi = st[ar, b] if b < nb else 0
             qlo = QR[ar, b - 1] if flo else 0.0
             qhi = QL[ar, b] if fhi else 0.0
-            R[ar, b] = edge_delta_nb(z, vb, ic, jc, h, True, N, w0, flo, fhi, qlo, qhi,
+            R[ar, b] = edge_delta_nb(z, vb, ic, jc, h, True, N, w0, Beside(flo, fhi, qlo, qhi),
                                      R[ar, b])
     # edge midpoints on block rows' top edges: the block above may be the band above's
     nk = nrow + (1 if last else 0)
@@ -233,15 +291,22 @@ def _fine_level_nb(z, vb, w0, r0, B, N, h, st, st_prev, qb_prev, last, C, R, K, 
                 qlo = qb_prev[b]
             fhi = st[ak, b] if a < nb else 0
             qhi = QT[ak, b] if fhi else 0.0
-            K[ak, b] = edge_delta_nb(z, vb, ic, jc, h, False, N, w0, flo, fhi, qlo, qhi,
-                                     K[ak, b])
+            K[ak, b] = edge_delta_nb(z, vb, ic, jc, h, False, N, w0,
+                                     Beside(flo, fhi, qlo, qhi), K[ak, b])
 
 
 @njit(cache=True, parallel=True)
-def _coarse_rows_nb(z, w0, h, st, zd, dB, r_lo, r_hi, MC, QL, QR, QT, QB):
-    """Add grid rows r_lo … r_hi (inclusive, inside the window from w0) to the running
-    maxima of every all-valid block of the coarse level h (corners from the decimated
-    grid ``zd``, every dB samples)."""
+def _coarse_rows_nb(band, h, st, zd, acc):
+    """Add the ``band``'s rows (:class:`BandWindow`: r_lo … r_hi, inclusive, inside the
+    window from w0) to the running maxima ``acc`` (:class:`BlockMaxima`) of every
+    all-valid block of the coarse level h (corners from the decimated grid ``zd``, every
+    dB = B samples)."""
+    z, w0, dB, r_lo, r_hi = band.z, band.w0, band.B, band.r0, band.r_end
+    MC = acc.centre  # one by one (see bounds.tileblobs._level_payloads)
+    QL = acc.left
+    QR = acc.right
+    QT = acc.top
+    QB = acc.bottom
     s = 2 * h
     nb = st.shape[0]
     k = s // dB
@@ -253,9 +318,9 @@ def _coarse_rows_nb(z, w0, h, st, zd, dB, r_lo, r_hi, MC, QL, QR, QT, QB):
                 continue
             main = main_diagonal_nb(a, b)
             mc, ml, mr, mt, mb = _block_sweep_part(
-                z, a * s, b * s, s, main, zd[a * k, b * k], zd[a * k, b * k + k],
-                zd[a * k + k, b * k], zd[a * k + k, b * k + k], zd[a * k + k // 2, b * k + k // 2],
-                d0, d1, w0)
+                z, Cell(a * s, b * s, s, main, zd[a * k, b * k], zd[a * k, b * k + k],
+                        zd[a * k + k, b * k], zd[a * k + k, b * k + k]),
+                zd[a * k + k // 2, b * k + k // 2], d0, d1, w0)
             MC[a, b] = max(MC[a, b], mc)
             QL[a, b] = max(QL[a, b], ml)
             QR[a, b] = max(QR[a, b], mr)
@@ -264,9 +329,13 @@ def _coarse_rows_nb(z, w0, h, st, zd, dB, r_lo, r_hi, MC, QL, QR, QT, QB):
 
 
 @njit(cache=True)
-def _coarse_edges_nb(z, vb, w0, h, N, zd, dB, rows, todo, r_lo, r_hi, EM, EC, ET):
-    """Add grid rows r_lo … r_hi to the running sweeps of the coarse level's mixed edge
-    midpoints listed in ``todo`` ((a, b) rows; R-type if ``rows``, else K-type)."""
+def _coarse_edges_nb(band, h, zd, rows, todo, sweeps):
+    """Add the ``band``'s rows (:class:`BandWindow`: r_lo … r_hi) to the running
+    ``sweeps`` (:class:`Sweeps`) of the coarse level's mixed edge midpoints listed in
+    ``todo`` ((a, b) rows; R-type if ``rows``, else K-type; corners from ``zd``, every
+    dB = B samples)."""
+    z, vb, w0, N, dB, r_lo, r_hi = band.z, band.v, band.w0, band.N, band.B, band.r0, band.r_end
+    EM, EC, ET = sweeps
     s = 2 * h
     u = h // dB  # h in decimated steps
     for t in range(todo.shape[0]):
@@ -298,16 +367,20 @@ def _coarse_edges_nb(z, vb, w0, h, N, zd, dB, rows, todo, r_lo, r_hi, EM, EC, ET
         d1 = min(r_hi - ic, h)
         if d0 > d1:
             continue
-        m, c, n = _edge_err_part(z, vb, ic, jc, h, rows, lo_ok, hi_ok, za, zb, z_lo, z_hi,
-                                 d0, d1, w0)
+        m, c, n = _edge_err_part(z, vb, Diamond(ic, jc, h, rows, lo_ok, hi_ok, za, zb, z_lo,
+                                                z_hi), d0, d1, w0)
         EM[t] = max(EM[t], m)
         EC[t] += c
         ET[t] += n
 
 
 @njit(cache=True)
-def _coarse_finish_nb(st, MC, QL, QR, QT, QB, rtodo, rsw, ktodo, ksw, C, R, K):
-    # the branches of bounds._raw_delta_nb, once every row has been added
+def _coarse_finish_nb(st, acc, rtodo, rsw, ktodo, ksw, out):
+    # the branches of bounds._raw_delta_nb, once every row has been added: from the blocks'
+    # maxima ``acc`` (BlockMaxima) and the mixed edges' sweeps (Sweeps), into ``out``
+    # (LevelVertices)
+    MC, QL, QR, QT, QB = acc
+    C, R, K = out
     nb = st.shape[0]
     for a in range(nb):
         for b in range(nb):
@@ -337,13 +410,13 @@ def _coarse_finish_nb(st, MC, QL, QR, QT, QB, rtodo, rsw, ktodo, ksw, C, R, K):
                 if fhi:
                     m = max(m, QT[a, b])
                 K[a, b] = round_up32(m)
-    for todo, (em, ec, et), out in ((rtodo, rsw, R), (ktodo, ksw, K)):
+    for todo, (em, ec, et), vals in ((rtodo, rsw, R), (ktodo, ksw, K)):
         for t in range(todo.shape[0]):
             m, c = edge_status_nb(em[t], ec[t], et[t])
             if c == 2:
-                out[todo[t, 0], todo[t, 1]] = np.inf
+                vals[todo[t, 0], todo[t, 1]] = np.inf
             elif c == 1:
-                out[todo[t, 0], todo[t, 1]] = round_up32(m)
+                vals[todo[t, 0], todo[t, 1]] = round_up32(m)
 
 
 def _mixed_edges(st: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -491,9 +564,9 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
     while h < N - 1:
         st = _pool(st)
         nb = st.shape[0]
-        acc = [np.zeros((nb, nb)) for _ in range(5)]  # centre, left, right, top, bottom
+        acc = BlockMaxima(*(np.zeros((nb, nb)) for _ in range(5)))
         rt, kt = _mixed_edges(st)
-        sw = [(np.zeros(len(t)), np.zeros(len(t), np.int64), np.zeros(len(t), np.int64))
+        sw = [Sweeps(np.zeros(len(t)), np.zeros(len(t), np.int64), np.zeros(len(t), np.int64))
               for t in (rt, kt)]
         coarse.append((h, st, acc, (rt, kt), sw))
         h *= 2
@@ -515,6 +588,9 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
         last = k == nbands - 1
         w0 = max(0, r0 - B // 2)
         z, v = _window(rows, w0, r0 + B + 1, N)
+        # the band's core rows (and the grid's last row, last): what the coarse levels add
+        r_hi = r0 + B if last else r0 + B - 1
+        band = BandWindow(z, v, w0, r0, r_hi, B, N)
         # fine levels: block statuses from the samples, pooled up the band's levels
         sts = [_status_nb(v, r0 - w0, 2, B // 2, (N - 1) // 2)]
         for _ in range(1, nfine):
@@ -531,28 +607,24 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
             Kb = np.zeros((nk, nb), np.float32)
             QB = np.zeros((nrow, nb))
             st_prev, qb_prev = carry[lk]
-            _fine_level_nb(z, v, w0, r0, B, N, hh, sts[lk], st_prev, qb_prev, last,
-                           Cb, Rb, Kb, QB)
+            _fine_level_nb(band, hh, sts[lk], st_prev, qb_prev, LevelVertices(Cb, Rb, Kb), QB)
             sa.write(f"C{lk}", a0, Cb)
             sa.write(f"R{lk}", a0, Rb)
             sa.write(f"K{lk}", a0, Kb)
             carry[lk] = (sts[lk][-1].copy(), QB[-1].copy())
-        # coarse levels: this band's core rows (and the grid's last row, last)
-        r_hi = r0 + B if last else r0 + B - 1
         if stand_in is not None:
             _keep_heights(sa, z, v, w0, r0, r_hi, N, n, stand_in)
         for hc, stc, acc, todo, sw in coarse:
-            _coarse_rows_nb(z, w0, hc, stc, zd, B, r0, r_hi, *acc)
-            for rows_type, t, (em, ec, et) in zip((True, False), todo, sw, strict=True):
+            _coarse_rows_nb(band, hc, stc, zd, acc)
+            for rows_type, t, sweeps in zip((True, False), todo, sw, strict=True):
                 if len(t):
-                    _coarse_edges_nb(z, v, w0, hc, N, zd, B, rows_type, t, r0, r_hi,
-                                     em, ec, et)
+                    _coarse_edges_nb(band, hc, zd, rows_type, t, sweeps)
     for k, (_, stc, acc, (rt, kt), sw) in enumerate(coarse, start=nfine):
         nb = stc.shape[0]
         C = np.zeros((nb, nb), np.float32)
         R = np.zeros((nb, nb + 1), np.float32)
         K = np.zeros((nb + 1, nb), np.float32)
-        _coarse_finish_nb(stc, *acc, rt, sw[0], kt, sw[1], C, R, K)
+        _coarse_finish_nb(stc, acc, rt, sw[0], kt, sw[1], LevelVertices(C, R, K))
         for x, a in zip("CRK", (C, R, K), strict=True):
             sa.write(f"{x}{k}", 0, a)
     top = _saturate(sa, n, budget=max(B, 64) * N * 16, data=data)

@@ -20,23 +20,53 @@ counts come from the same rows. The table is the whole-grid one, bit for bit.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
+from geoterrain.bounds.delta import Cell
 from geoterrain.bounds.tilebounds import TileBounds, cell_counts_nb, cell_field_rows_nb, tile_rows
 from geoterrain.codec.pyramid import pyramid_shape
 from geoterrain.core.bintree import main_diagonal_nb
+from geoterrain.preprocessing.bands.delta import BandWindow
 
 __all__ = ["band_tile_bounds"]
 
 Rows = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
 
 
+class CellCounts(NamedTuple):
+    """A coarse level's valid samples per cell, counted by the first pass: in the closed
+    cell ``tot``, in its first triangle ``c1`` and its second ``c2`` (each with the
+    diagonal)."""
+
+    tot: np.ndarray
+    c1: np.ndarray
+    c2: np.ndarray
+
+
+class MixedMarks(NamedTuple):
+    """Where a level's cells mix valid and invalid samples, marked on its tiles
+    (``tiles``), on the tiles whose border cells mix (``borders``) and on level 0's
+    GeoMipMapping blocks (``blocks``); ``cpt`` cells a tile side, ``cb`` cells a block
+    side (0: no blocks at this level)."""
+
+    tiles: np.ndarray
+    borders: np.ndarray
+    blocks: np.ndarray
+    cpt: int
+    cb: int
+
+
 @njit(cache=True, parallel=True)
-def _coarse_counts_nb(v, w0, r_lo, r_hi, s, tot, c1, c2):
-    # add rows r_lo … r_hi of v (rows from w0) to each cell's valid counts: the closed
-    # cell, its first triangle (with the diagonal) and its second (with the diagonal)
+def _coarse_counts_nb(v, w0, r_lo, r_hi, s, counts):
+    # add rows r_lo … r_hi of v (rows from w0) to each cell's valid counts (CellCounts):
+    # the closed cell, its first triangle (with the diagonal) and its second (with the
+    # diagonal)
+    tot = counts.tot  # one by one (see bounds.tileblobs._level_payloads)
+    c1 = counts.c1
+    c2 = counts.c2
     nb = tot.shape[0]
     for bj in prange(nb):
         j0 = bj * s
@@ -63,25 +93,26 @@ def _coarse_counts_nb(v, w0, r_lo, r_hi, s, tot, c1, c2):
 
 
 @njit(cache=True, parallel=True)
-def _level_rows_nb(z, v, w0, r0, r_end, s, coarse, tot, c1, c2, zd, dB, E, tmix, bmix,
-                   kmix, cpt, cb):
-    """E of level s on rows r0 … r_end (z, v, E hold rows from w0), and the mixed cells'
-    marks on their tiles (``tmix``), the tiles' border cells (``bmix``) and the level-0
-    blocks (``kmix``, ``cb`` cells a side; 0: none)."""
-    nb = (v.shape[1] - 1) // s
-    bi_lo = max(0, (r0 - 1) // s)  # cells with a row in r0 … r_end
-    bi_hi = min(nb - 1, r_end // s)
+def _level_rows_nb(band, s, coarse, counts, zd, E, marks):
+    """E of level s on the ``band``'s rows r0 … r_end (:class:`BandWindow`: z, v, E hold
+    rows from w0; a coarse level's cells counted in ``counts``, :class:`CellCounts`, its
+    corners from ``zd``, every B samples), and the mixed cells' ``marks``
+    (:class:`MixedMarks`)."""
+    nb = (band.v.shape[1] - 1) // s
+    bi_lo = max(0, (band.r0 - 1) // s)  # cells with a row in r0 … r_end
+    bi_hi = min(nb - 1, band.r_end // s)
     for parity in range(2):  # even columns of cells, then odd: no thread shares a column
         for kb in prange((nb - parity + 1) // 2):
             bj = 2 * kb + parity
-            _level_cells(z, v, w0, r0, r_end, s, coarse, tot, c1, c2, zd, dB, E, tmix, bmix,
-                         kmix, cpt, cb, bi_lo, bi_hi, bj)
+            _level_cells(band, s, coarse, counts, zd, E, marks, bi_lo, bi_hi, bj)
 
 
 @njit(cache=True, nogil=True)
-def _level_cells(z, v, w0, r0, r_end, s, coarse, tot, c1, c2, zd, dB, E, tmix, bmix, kmix,
-                 cpt, cb, bi_lo, bi_hi, bj):
+def _level_cells(band, s, coarse, counts, zd, E, marks, bi_lo, bi_hi, bj):
     # one column bj of cells of _level_rows_nb
+    z, v, w0, r0, r_end, dB = band.z, band.v, band.w0, band.r0, band.r_end, band.B
+    tot, c1, c2 = counts
+    tmix, bmix, kmix, cpt, cb = marks
     t1 = (s + 1) * (s + 2) / 2.0  # samples of a closed triangle (with the diagonal)
     for bi in range(bi_lo, bi_hi + 1):
         main = main_diagonal_nb(bi, bj)
@@ -113,7 +144,7 @@ def _level_cells(z, v, w0, r0, r_end, s, coarse, tot, c1, c2, zd, dB, E, tmix, b
             z10, z11 = z[i + s, bj * s], z[i + s, bj * s + s]
         d0 = max(0, r0 - bi * s)
         d1 = min(s, r_end - bi * s)
-        cell_field_rows_nb(z, bi * s - w0, bj * s, s, main, z00, z01, z10, z11, whole,
+        cell_field_rows_nb(z, Cell(bi * s - w0, bj * s, s, main, z00, z01, z10, z11), whole,
                            ok1, ok2, d0, d1, E)
 
 
@@ -174,8 +205,9 @@ def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
         return np.ascontiguousarray(np.where(v, z, 0.0)), np.ascontiguousarray(v)
 
     # first pass: the coarse levels' cell counts, and the grid every B samples
-    coarse = {L: [np.zeros(((N - 1) >> L,) * 2, np.int64), np.zeros(((N - 1) >> L,) * 2),
-                  np.zeros(((N - 1) >> L,) * 2)] for L in range(1, lmax + 1) if (1 << L) > B}
+    coarse = {L: CellCounts(np.zeros(((N - 1) >> L,) * 2, np.int64),
+                            np.zeros(((N - 1) >> L,) * 2), np.zeros(((N - 1) >> L,) * 2))
+              for L in range(1, lmax + 1) if (1 << L) > B}
     zd = np.zeros((nbands + 1, nbands + 1))
     for k in range(nbands):
         r0 = k * B
@@ -185,8 +217,8 @@ def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
         if last:
             zd[k + 1] = z[B, ::B]
         vb = v.view(np.uint8)
-        for L, (tot, c1, c2) in coarse.items():
-            _coarse_counts_nb(vb, r0, r0, r0 + B if last else r0 + B - 1, 1 << L, tot, c1, c2)
+        for L, cells in coarse.items():
+            _coarse_counts_nb(vb, r0, r0, r0 + B if last else r0 + B - 1, 1 << L, cells)
     nts = [(N - 1) >> (te + L) for L in range(lmax + 1)]
     err = [np.zeros((m, m)) for m in nts]
     bnd = [np.zeros((m, m)) for m in nts]
@@ -221,15 +253,16 @@ def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
                                                   cpt, op), r0, cpt, op)
         # every level's error field on this band's rows, reduced into its tiles
         E = np.zeros(z.shape)
+        band = BandWindow(z, v.view(np.uint8), w0, r0, r_end, B, N)
         for L in range(1, lmax + 1):
             s = 1 << L
             S = cpt << L
             E[:] = 0.0
-            tot, c1, c2 = coarse.get(L, (np.zeros((0, 0), np.int64), np.zeros((0, 0)),
-                                         np.zeros((0, 0))))
+            cells = coarse.get(L, CellCounts(np.zeros((0, 0), np.int64), np.zeros((0, 0)),
+                                             np.zeros((0, 0))))
             cb = (1 << (te - L)) if L < nblk else 0
-            _level_rows_nb(z, v.view(np.uint8), w0, r0, r_end, s, L in coarse, tot, c1, c2,
-                           zd, B, E, tmix[L], bmix[L], kmix[..., L if cb else 0], cpt, cb)
+            _level_rows_nb(band, s, L in coarse, cells, zd, E,
+                           MixedMarks(tmix[L], bmix[L], kmix[..., L if cb else 0], cpt, cb))
             Ec = E[core]
             _into_rows(err[L], _closed_cols(Ec, S, np.maximum), r0, S, np.maximum)
             if cb:
