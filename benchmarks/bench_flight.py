@@ -15,6 +15,7 @@ from pathlib import Path
 
 import geoterrain
 from geoterrain.bench import harness as bench
+from geoterrain.bench.report import format_table, plot, summarise, write_csv
 from geoterrain.ingest.synth import generate, write_geotiff
 
 
@@ -38,12 +39,12 @@ def main() -> None:
             res = bench.run(t, n_views=a.views, taus=taus, source=f"fbm {a.size}²",
                             preprocess_s=round(pre, 3), store_bytes=os.path.getsize(store))
         if a.output:
-            bench.write_csv(res.rows, a.output)
+            write_csv(res.rows, a.output)
         if a.plot:
-            bench.plot(res.rows, a.plot, title=f"fbm {a.size}² (seed {a.seed})")
+            plot(res.rows, a.plot, title=f"fbm {a.size}² (seed {a.seed})")
         print(f"# fbm {a.size}²: preprocess {pre:.1f} s, bench {res.wall_s:.1f} s, "
               f"total {time.perf_counter() - t0:.1f} s")
-        print(bench.format_table(bench.summarise(res.rows)))
+        print(format_table(summarise(res.rows)))
 
 
 if __name__ == "__main__":
