@@ -151,6 +151,7 @@ def test_fxaa_pictures_stay_with_msaa_and_bruteforce(tmp_path_factory):
             s.plotter.close()
 
 
+@pytest.mark.fast
 def test_anti_aliasing_scope_and_errors():
     from geoterrain.exceptions import UsageError
     from geoterrain.rendering.antialias import anti_aliasing
@@ -166,6 +167,7 @@ def test_anti_aliasing_scope_and_errors():
         _plotter((32, 24), "ssaa")
 
 
+@pytest.mark.fast
 def test_the_anti_aliasing_option_lasts_one_command(tmp_path_factory, tmp_path):
     """`render --anti-aliasing fxaa` renders with it, and a later picture in the same
     process is back to the default."""
@@ -269,6 +271,7 @@ def test_large_coordinates_render_identically(tmp_path_factory):
     assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
 
 
+@pytest.mark.fast
 def test_controller_offscreen(tmp_path_factory):
     from geoterrain.rendering.viewer import ViewerController
 
@@ -316,6 +319,7 @@ def test_controller_offscreen(tmp_path_factory):
         p.close()
 
 
+@pytest.mark.fast
 def test_controller_background_selection(tmp_path_factory):
     """Background mode: camera events never wait for a selection; poll() swaps it in."""
     from geoterrain.rendering.viewer import ViewerController
@@ -356,6 +360,7 @@ class _TimerLog:
         self.live.remove(tid)
 
 
+@pytest.mark.fast
 def test_a_frame_in_flight_is_polled_every_busy_period(tmp_path_factory, monkeypatch):
     """While a background frame (a selection, then its texture passes) is in flight the
     window has one repeating BUSY_POLL_MS timer; once nothing is, it is destroyed (the
@@ -392,6 +397,7 @@ def test_a_frame_in_flight_is_polled_every_busy_period(tmp_path_factory, monkeyp
         p.close()
 
 
+@pytest.mark.fast
 def test_timer_events_do_not_steer_the_camera():
     """VTK's interactor styles repeat the current drag on every timer event; muted, the
     viewer's polling timers leave the camera where the mouse put it."""
@@ -556,6 +562,7 @@ def test_viewer_draws_moves_without_multisampling_and_the_rest_with_it(tmp_path_
         gc.unfreeze()
 
 
+@pytest.mark.fast
 def test_viewer_status_box_screenshot_and_ui_time(tmp_path_factory, tmp_path):
     """The status line is on an opaque box and shows the busy sign while a background
     selection runs; ``s`` saves a PNG with the overlays; in background mode the UI
@@ -598,6 +605,7 @@ def _cli():
         return importlib.import_module("geoterrain.cli.main").cli
 
 
+@pytest.mark.fast
 def test_cli_orbit_gif_and_png(tmp_path_factory, tmp_path):
     import imageio.v3 as iio
     from click.testing import CliRunner
@@ -639,6 +647,7 @@ def test_cli_orbit_mp4_decodes_with_every_frame(tmp_path_factory, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o.mp4"]
 
 
+@pytest.mark.fast
 def test_view_from_camera_round_trip(tmp_path_factory):
     t = synth_store(tmp_path_factory, "fbm")
     v = default_view(t, (320, 240))
@@ -652,6 +661,7 @@ def test_view_from_camera_round_trip(tmp_path_factory):
         p.close()
 
 
+@pytest.mark.fast
 def test_view_without_terrain_and_errors(tmp_path_factory, tmp_path):
     from geoterrain.exceptions import UsageError
 
@@ -665,6 +675,7 @@ def test_view_without_terrain_and_errors(tmp_path_factory, tmp_path):
         render(t, sky, tmp_path / "x.png", strategy="nope")
 
 
+@pytest.mark.fast
 def test_view_cache_location(tmp_path, monkeypatch):
     _cli()
     from geoterrain.preprocessing.pipeline import cached_store_path as cached_store
@@ -680,6 +691,7 @@ def test_view_cache_location(tmp_path, monkeypatch):
     assert cached_store(dem) != first
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("aa", ["msaa", "none", "fxaa"])
 def test_frame_reads_the_picture_just_drawn(tmp_path_factory, aa):
     """``frame`` reads the render buffer without VTK's end-of-frame resolve: the picture
@@ -709,6 +721,7 @@ def test_frame_reads_the_picture_just_drawn(tmp_path_factory, aa):
         assert psnr(b, shot) >= (38.0 if aa == "msaa" else 99.0), psnr(b, shot)  # 41.6 measured
 
 
+@pytest.mark.fast
 def test_frame_reports_its_cpu_time(tmp_path_factory):
     """``frame`` reports the process's CPU time over the frame and over its draw (the
     renderer's threads included): measured, not copied from the wall clock, and the
@@ -726,6 +739,7 @@ def test_frame_reports_its_cpu_time(tmp_path_factory):
         assert st_["render_ms"] <= st_["frame_ms"]
 
 
+@pytest.mark.fast
 def test_the_cli_offers_every_anti_aliasing():
     """cli/options.py lists the modes itself (importing the library would load numba at
     every command's start): it must offer exactly the library's, default first."""

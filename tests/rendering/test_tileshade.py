@@ -5,6 +5,7 @@ colours.colorize × textures._hillshade(decode_octahedral(codes)), clipped, roun
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -13,6 +14,8 @@ from geoterrain.bounds.vertexdata import normals_from_bytes, normals_to_bytes
 from geoterrain.rendering.colours import LAND, WATER, Palette, colorize, water_level
 from geoterrain.rendering.textures import AMBIENT, SHADE_CEILING, _hillshade, _sun
 from geoterrain.rendering.tileshade import shade_tile
+
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
 
 @settings(max_examples=60, deadline=None)

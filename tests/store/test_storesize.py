@@ -18,6 +18,8 @@ from geoterrain.store.size import component_bytes, size_report
 from tests.conftest import write_tif
 from tests.store.storesql import read_table, update_blob
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 
 def _int_dem(tmp_path):
     rng = np.random.default_rng(5)
