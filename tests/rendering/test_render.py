@@ -721,7 +721,6 @@ def test_frame_reads_the_picture_just_drawn(tmp_path_factory, aa):
         assert psnr(b, shot) >= (38.0 if aa == "msaa" else 99.0), psnr(b, shot)  # 41.6 measured
 
 
-@pytest.mark.fast
 def test_frame_reports_its_cpu_time(tmp_path_factory):
     """``frame`` reports the process's CPU time over the frame and over its draw (the
     renderer's threads included): measured, not copied from the wall clock, and the
