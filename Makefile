@@ -1,12 +1,16 @@
 # Two entry points for a fresh machine (see README):
 #   make demo   set up .venv, preprocess a sample DEM, write a mesh and an offscreen view
-#   make test   set up .venv and run the whole test suite
+#   make test   set up .venv and run the whole test suite (what CI runs; lists the 15 slowest)
+# and for everyday work:
+#   make test-fast           the fast tier (tests marked `fast`, and every doctest): about a
+#                            minute on two cores, and it exercises every module
+#   make test-fast-coverage  the fast tier, failing unless it exercised every module
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint clean setup browser test-browser geoid
+.PHONY: demo test test-fast test-fast-coverage lint clean setup browser test-browser geoid
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,7 +29,15 @@ demo: $(STAMP)
 	@echo "demo done: see out/"
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --durations=15
+
+FAST := -m 'fast and not slow and not browser'
+
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -q $(FAST) --durations=10
+
+test-fast-coverage: $(STAMP)
+	$(BIN)/python -m pytest -q $(FAST) --durations=10 --tiercheck
 
 # The browser test (tests/export/test_cesium.py): Debian's chromium, Node/npm and the npm
 # package cesium in .browser/ (needs root for apt-get, network for apt and npm).

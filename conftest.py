@@ -1,8 +1,33 @@
-"""Doctest names: ``t`` is a small preprocessed terrain, as in the docstrings' examples."""
+"""Doctest names: ``t`` is a small preprocessed terrain, as in the docstrings' examples.
+
+Doctests belong to the fast tier (``make test-fast``, marker ``fast``): each module's
+examples are its cheapest check. ``--tiercheck`` (``make test-fast-coverage``) fails the
+run unless it exercised every module (tests/tiercheck.py).
+"""
 
 from __future__ import annotations
 
 import pytest
+
+
+def pytest_addoption(parser):
+    parser.addoption("--tiercheck", action="store_true",
+                     help="fail unless the run exercised every module of geoterrain "
+                          "(traced with coverage.py; see tests/tiercheck.py)")
+
+
+def pytest_configure(config):
+    if config.getoption("--tiercheck"):
+        import tiercheck
+
+        config.pluginmanager.register(tiercheck, "tiercheck")
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m deselects by marker
+def pytest_collection_modifyitems(items):
+    for item in items:
+        if type(item).__name__ == "DoctestItem":
+            item.add_marker(pytest.mark.fast)
 
 
 @pytest.fixture(scope="session")

@@ -12,6 +12,8 @@ from click.testing import CliRunner
 import geoterrain.store.database
 from tests.conftest import write_tif
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 
 def run(*args):
     # imported here: geoterrain.cli is the top-level cli/ folder, mapped into the package

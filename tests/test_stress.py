@@ -295,6 +295,7 @@ def test_nodata_patterns(tmp_path, name):
             assert np.isfinite(Z[ij[:, 0], ij[:, 1]]).all()
 
 
+@pytest.mark.fast
 def test_spike_among_nodata_seen_from_its_top(tmp_path):
     """Regression: a visible valid spike whose surrounding diamonds are mixed (nodata
     nearby) and whose neighbours' spheres are all outside the view was left undrawn by
@@ -313,6 +314,7 @@ def test_spike_among_nodata_seen_from_its_top(tmp_path):
     assert [8, 16] in sel.ij.astype(int).tolist()
 
 
+@pytest.mark.fast
 def test_all_nodata_is_a_clear_input_error(tmp_path):
     z = np.full((9, 9), -9999.0, np.float32)
     with pytest.raises(InputError, match="nodata"):
@@ -328,6 +330,7 @@ def test_degenerate_shapes(tmp_path, shape):
     full_check(build(tmp_path, z), n_views=4)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("shape", [(1, 5), (5, 1), (1, 1)], ids=lambda s: f"{s[0]}x{s[1]}")
 def test_too_small_is_a_clear_input_error(tmp_path, shape):
     with pytest.raises(InputError, match="at least 2×2"):
@@ -463,6 +466,7 @@ def test_camera_extremes(fbm_terrain, cam):
     check_view(fbm_terrain, _camera_extremes(fbm_terrain)[cam], taus=(0.5, 1.0, 8.0))
 
 
+@pytest.mark.fast
 def test_degenerate_camera_is_a_clear_error():
     with pytest.raises(ValueError):
         View((0, 0, 0), (0, 0, 0)).basis()
@@ -479,6 +483,7 @@ def _render(t, view):
     return img
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("name", ["spike", "cliff", "constant"])
 def test_render_hostile(tmp_path, name):
     t = build(tmp_path, _hostile(name, 33))
@@ -487,6 +492,7 @@ def test_render_hostile(tmp_path, name):
     _render(t, View((0, -2000, zmax + 2000), (0, 0, 0), size=(160, 120)))
 
 
+@pytest.mark.fast
 def test_render_empty_selection(tmp_path):
     """Regression: an empty LOD mesh (terrain behind the camera) used to make the first
     frame raise PyVista's 'Empty meshes cannot be plotted'; it renders the background."""

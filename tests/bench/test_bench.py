@@ -35,6 +35,7 @@ def test_cli_synthetic_csv_plot_table(tmp_path):
     assert "| rtin | 1 |" in r.output
 
 
+@pytest.mark.fast
 def test_cli_store_and_path(tmp_path, fbm_tif):
     store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
     cams = tmp_path / "cams.json"
@@ -65,6 +66,7 @@ def test_cli_render_csv_names_the_anti_aliasing(tmp_path, fbm_tif):
         assert all(float(row["render_ms"]) > 0 for row in rows)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("args,code", [
     ([], 2),
     (["--synthetic", "65", "x.tif"], 2),
@@ -79,6 +81,7 @@ def test_cli_bad_input(tmp_path, args, code):
     assert "Traceback" not in r.output
 
 
+@pytest.mark.fast
 def test_bad_cameras_json_is_input_error(tmp_path):
     p = tmp_path / "c.json"
     p.write_text(json.dumps([{"look_from": [0, 0, 0], "look_at": [0, 0, 0]}]))
@@ -89,6 +92,7 @@ def test_bad_cameras_json_is_input_error(tmp_path):
         bench.load_path(p)
 
 
+@pytest.mark.fast
 def test_flight_kinds_and_usage_error():
     v = bench.flight((-1, -1, 0), (1, 1, 0), n_views=8)
     assert [k for k, _ in v][:4] == list(bench.VIEW_KINDS)
@@ -98,6 +102,7 @@ def test_flight_kinds_and_usage_error():
         bench.flight((0, 0, 0), (1, 1, 1), n_views=0)
 
 
+@pytest.mark.fast
 def test_peers_match_rtin_static(tmp_path, fbm_tif):
     pytest.importorskip("pymartini")
     t = geoterrain.open(geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain"))

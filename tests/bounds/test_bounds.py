@@ -142,6 +142,7 @@ HSET = settings(max_examples=40, deadline=None, suppress_health_check=[HealthChe
 # ------------------------------------------------------------------------ analytic
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("N", [3, 9, 33])
 def test_flat_and_affine(N):
     II, JJ = np.indices((N, N)).astype(np.float64)
@@ -164,6 +165,7 @@ def test_flat_and_affine(N):
         assert len(f) == 2
 
 
+@pytest.mark.fast
 def test_xy_analytic():
     # Seed 002 §2.3: z = x·y; span-s block centres δ = s²/4; after propagation the edge
     # midpoints of span-s blocks (s ≥ 4) are s²/16. Our δ is the exact diamond maximum,
@@ -210,6 +212,7 @@ def test_kernel_matches_reference(data, N):
     np.testing.assert_allclose(a[fin], b[fin], rtol=1e-6, atol=1e-12)
 
 
+@pytest.mark.fast
 @given(data=st.data(), N=SIZES)
 @HSET
 def test_saturation_and_nesting(data, N):
@@ -279,6 +282,7 @@ def check_mesh(verts, faces, valid):
             assert pt not in vset, f"T-junction at {pt}"
 
 
+@pytest.mark.fast
 @given(data=st.data(), N=st.sampled_from([3, 5, 9, 17]))
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 def test_static_mesh_bound(data, N):
@@ -298,6 +302,7 @@ def test_static_mesh_bound(data, N):
 # ------------------------------------------------------------------------ tiles
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("seed", range(4))
 def test_tile_errors_brute(seed):
     rng = np.random.default_rng(seed)
@@ -413,6 +418,7 @@ def mesh_deviation_np(verts, faces, z, valid):
     return worst
 
 
+@pytest.mark.fast
 def test_mesh_deviation_np_agrees_with_loops():
     rng = np.random.default_rng(5)
     N = 17

@@ -174,6 +174,7 @@ def test_real_geographic_dems(tmp_path):
             assert np.nanmax(err) <= e * (1 + REL) + _z_slack(Z), (name, e, np.nanmax(err))
 
 
+@pytest.mark.fast
 def test_projected_and_pixel_paths_never_call_it(tmp_path, monkeypatch):
     """δ and r of affine grids stay bit-identical: the metric term is not computed."""
     import geoterrain.preprocessing.pipeline as pp

@@ -106,6 +106,7 @@ def test_replicated_padding_needs_fewer_triangles_than_nodata(tmp_path_factory, 
     assert edge <= nodata
 
 
+@pytest.mark.fast
 def test_a_store_without_padding_is_unchanged(tmp_path):
     """A (2^n+1)² DEM has no padding: no second δ is stored, and the static mesh is the
     nodata rule's, triangle for triangle."""
@@ -172,6 +173,7 @@ def test_clipping_keeps_exactly_the_rectangle(n, e, seed, fr, fc):
     assert len(np.unique(np.round(ij2, 9), axis=0)) == len(ij2)
 
 
+@pytest.mark.fast
 def test_a_delta_edge_list_naming_a_missing_tile_is_refused(tmp_path):
     """The tiles with a second δ come from the metadata of a file that may come from a
     stranger: a list naming a tile the store does not hold fails to open, in one line."""

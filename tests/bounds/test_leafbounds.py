@@ -65,6 +65,7 @@ def test_derived_level0_bounds_are_the_stored_ones(tmp_path_factory, seed, shape
         assert ring.path.stat().st_size <= full.path.stat().st_size
 
 
+@pytest.mark.fast
 def test_only_level0_blobs_are_rings(tmp_path):
     """Coarser tiles' new vertices have diamonds beyond the tile: they stay stored."""
     z = np.random.default_rng(4).normal(0, 5, (65, 65)).cumsum(0)
@@ -148,6 +149,7 @@ def test_geographic_stores_derive_level0_delta_with_a_slack(tmp_path_factory, se
         assert np.array_equal(saturate(d.copy())[held], d[held]), get
 
 
+@pytest.mark.fast
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 10_000), n=st.sampled_from([3, 4, 5]), t=st.sampled_from([1, 2, 3]),
        holes=st.sampled_from([0.0, 0.1]))
@@ -184,6 +186,7 @@ def test_geographic_leaf_delta_raises_to_a_nested_bound(seed, n, t, holes):
         assert np.array_equal(got[inner], d[sub][inner]), (x, y)
 
 
+@pytest.mark.fast
 def test_a_geographic_slack_is_checked(tmp_path):
     """A stranger's slack: negative, NaN, or on a blob that is not a ring of log8 codes,
     is refused in one line; a valid one only raises the derived δ."""
@@ -216,6 +219,7 @@ def test_a_geographic_slack_is_checked(tmp_path):
         fresh.tile_delta(*lvl1)
 
 
+@pytest.mark.fast
 def test_a_damaged_or_misplaced_ring_is_refused_in_one_line(tmp_path):
     """A stranger's store: a ring at level 1, a δ blob flagged as differences, a ring of
     the wrong length, a ring δ coded as float16: each is a one-line StoreCorruptError."""
@@ -241,6 +245,7 @@ def test_a_damaged_or_misplaced_ring_is_refused_in_one_line(tmp_path):
             ring.tile_delta(*key)
 
 
+@pytest.mark.fast
 def test_a_forked_child_derives_the_same_bounds(tmp_path):
     """The derivation kernels are serial: a fork() child of a parent that ran the
     parallel preprocess kernels reads derived bounds (GNU OpenMP would abort a parallel
@@ -256,6 +261,7 @@ def test_a_forked_child_derives_the_same_bounds(tmp_path):
     assert got == b"same", (got, status)
 
 
+@pytest.mark.fast
 def test_leaf_kernels_by_hand():
     """Closed forms on one cell: the centre's δ is its distance to the midpoint of the
     cell's split diagonal (which flips with the cell's global parity), saturated with its

@@ -34,6 +34,7 @@ def check_unit(n):
     assert np.all(n[..., 2] >= 0)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_plane_regular_grid(kernel):
     i, j = np.indices((33, 33), dtype=np.float64)
@@ -45,6 +46,7 @@ def test_plane_regular_grid(kernel):
     assert np.allclose(n, plane_normal(a, b), atol=1e-6)  # borders included
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_plane_curvilinear_grid(kernel):
     pyproj = pytest.importorskip("pyproj")
@@ -61,6 +63,7 @@ def test_plane_curvilinear_grid(kernel):
     assert np.allclose(n[holes], plane_normal(a, b), atol=1e-6)
 
 
+@pytest.mark.fast
 def test_plane_synthetic_warp():
     u, v = np.meshgrid(np.linspace(0, 1, 25), np.linspace(0, 1, 25))
     x = 100 * u + 7 * np.sin(3 * v) + 3 * u * v
@@ -70,6 +73,7 @@ def test_plane_synthetic_warp():
     assert np.allclose(n, plane_normal(a, b), atol=1e-6)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_cone_radially_symmetric(kernel):
     m = 41
@@ -97,6 +101,7 @@ def test_cone_radially_symmetric(kernel):
         assert np.isclose(n[20, 30, 2], plane_normal(2.0, 0.0)[2], atol=1e-6)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_holes_borders_no_nan(kernel):
     rng = np.random.default_rng(0)
@@ -120,6 +125,7 @@ def test_holes_borders_no_nan(kernel):
     assert np.array_equal(n, np.broadcast_to(np.float32([0, 0, 1]), (4, 4, 3)))
 
 
+@pytest.mark.fast
 def test_level_normals_matches_brute_force():
     rng = np.random.default_rng(1)
     nf = rng.normal(0, 0.3, (17, 17, 3))
@@ -141,6 +147,7 @@ def test_level_normals_matches_brute_force():
     assert np.allclose(level_normals(nf, 0), nf, atol=1e-6)
 
 
+@pytest.mark.fast
 def test_level_normals_of_plane_is_plane():
     i, j = np.indices((65, 65), dtype=np.float64)
     n = normal_map(j, -i, 0.2 * j - 0.1 * i)
@@ -148,6 +155,7 @@ def test_level_normals_of_plane_is_plane():
         assert np.allclose(level_normals(n, level), plane_normal(0.2, 0.1), atol=1e-6)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("precise", [False, True])
 @pytest.mark.parametrize("bits", [8, 16])
 def test_octahedral_roundtrip(bits, precise):
@@ -175,6 +183,7 @@ def test_octahedral_roundtrip(bits, precise):
         encode_octahedral(v, 12)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_row_blocks_are_exact(kernel, monkeypatch):
     """The compiled kernel matches the vectorised reference, itself exact by row blocks."""
@@ -194,6 +203,7 @@ def test_row_blocks_are_exact(kernel, monkeypatch):
     assert np.array_equal(ref_mod.normal_map_reference(x, y, z, valid, kernel=kernel), ref)
 
 
+@pytest.mark.fast
 def test_normal_map_degenerate_shapes():
     for shape in [(1, 1), (1, 6), (6, 1), (2, 2)]:
         i, j = np.indices(shape, dtype=np.float64)
@@ -228,6 +238,7 @@ def _pyramid_reference(nf, valid, levels):
     return out
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("size", [17, 20])
 def test_normal_pyramid_matches_brute_force(size):
     rng = np.random.default_rng(11)
@@ -249,6 +260,7 @@ def test_normal_pyramid_matches_brute_force(size):
     assert np.array_equal(got[1][:2, :2], np.broadcast_to(np.float32([0, 0, 1]), (2, 2, 3)))
 
 
+@pytest.mark.fast
 def test_normal_pyramid_of_plane_is_plane():
     i, j = np.indices((65, 65), dtype=np.float64)
     n = normal_map(j, -i, 0.2 * j - 0.1 * i)
@@ -262,6 +274,7 @@ def test_normal_pyramid_of_plane_is_plane():
         normal_pyramid(n, None, 0)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("bits", [8, 16])
 def test_compiled_octahedral_decode_equals_the_array_formula(bits):
     """The compiled decode does the array formula's float64 operations in its order."""
@@ -284,6 +297,7 @@ def test_compiled_octahedral_decode_equals_the_array_formula(bits):
     assert got.shape == (3, 4096, 3) and np.array_equal(got, want)
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None)
 @given(st.sampled_from([8, 16]), st.integers(0, 2 ** 32 - 1),
        st.floats(0.0, 360.0), st.floats(5.0, 90.0))
@@ -421,6 +435,7 @@ def test_geographic_normals_take_exact_xy_where_the_frame_bends(tmp_path):
         assert np.abs(a - ring.tile_normal_codes(L, x, y).astype(int)).max() <= 1
 
 
+@pytest.mark.fast
 def test_a_damaged_ring_is_refused_in_one_line(tmp_path):
     """A ring blob of the wrong length (a stranger's store) is a one-line error."""
     import zstandard
@@ -436,6 +451,7 @@ def test_a_damaged_ring_is_refused_in_one_line(tmp_path):
         ring.tile_normal_codes(0, 0, 0)
 
 
+@pytest.mark.fast
 def test_a_forked_child_derives_the_same_normals(tmp_path):
     """After the parent has run the parallel kernels (the preprocess, a derived read), a
     child made by fork() reads derived normals with the serial kernels: GNU OpenMP would

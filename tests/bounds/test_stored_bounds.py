@@ -55,6 +55,7 @@ def test_saturation_and_nesting_of_stored_bounds(tmp_path, name):
         assert (radius[a] >= (dist + radius[b]) * (1 - 1e-12)).all()
 
 
+@pytest.mark.fast
 def test_coarse_tile_reads_no_finer_data(tmp_path):
     from geoterrain.ingest.synth import generate, write_geotiff
 

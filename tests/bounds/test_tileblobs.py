@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import zstandard
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -20,6 +21,8 @@ from geoterrain.bounds.vertexdata import (
 )
 from geoterrain.core.grid import level_tiles
 from geoterrain.core.rounding import round_up
+
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
 
 def per_tile(delta, radius, nrm, t, L, top, tiles):

@@ -110,6 +110,7 @@ def fractal(n_samples, seed=0, relief=1000.0):
 # ----------------------------------------------------------------------------- lossless
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize(
     "n_samples,t", [(3, 1), (3, 6), (5, 1), (5, 6), (17, 2), (65, 3), (129, 6)]
 )
@@ -126,6 +127,7 @@ def test_int_roundtrip_exact(n_samples, t, predictor):
     assert used_cubic == {predictor == "cubic" and te >= 2 and n > te}
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_float_roundtrip_bit_exact(dtype):
     rng = np.random.default_rng(3)
@@ -139,6 +141,7 @@ def test_float_roundtrip_bit_exact(dtype):
     check_pyramid(z, valid, 3, qz)
 
 
+@pytest.mark.fast
 def test_known_scale_terrain_rgb_is_lossless_int():
     rng = np.random.default_rng(4)
     k = rng.integers(100000, 140000, (33, 33))
@@ -152,6 +155,7 @@ def test_known_scale_terrain_rgb_is_lossless_int():
     assert choose_quantizer(z + 0.01234, np.float64, scale=0.1).mode == "float"
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     n=st.integers(1, 5),
@@ -169,6 +173,7 @@ def test_int_roundtrip_hypothesis(n, t, seed, hole_p, amp, predictor):
     check_pyramid(z, valid, t, Quantizer("int"), predictor=predictor)
 
 
+@pytest.mark.fast
 @settings(max_examples=25, deadline=None)
 @given(
     n=st.integers(1, 5),
@@ -202,6 +207,7 @@ def _fields(size, seed):
     }
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("eps", [0.01, 0.1, 0.5, 2.0])
 @pytest.mark.parametrize("kind", ["random", "fractal", "spiky", "everest", "trench"])
 @pytest.mark.parametrize("predictor", ["linear", "cubic"])
@@ -214,6 +220,7 @@ def test_quantized_within_eps(eps, kind, predictor):
     check_pyramid(z, valid, 3, qz, codec_error=eps, predictor=predictor)
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None)
 @given(
     base=st.sampled_from([0.0, 8848.0, -11000.0, 1e6, -3.7e5]),
@@ -229,6 +236,7 @@ def test_quantized_bound_hypothesis(base, eps, seed):
     check_pyramid(z, np.ones(z.shape, bool), 2, qz, codec_error=eps)
 
 
+@pytest.mark.fast
 def test_int_source_with_small_eps_stays_lossless():
     z = np.arange(25.0).reshape(5, 5)
     assert choose_quantizer(z, np.int16, codec_error=0.4).mode == "int"
@@ -238,6 +246,7 @@ def test_int_source_with_small_eps_stays_lossless():
 # ----------------------------------------------------------------------------- access
 
 
+@pytest.mark.fast
 def test_decode_tile_direct_api_and_errors():
     z = np.arange(81.0).reshape(9, 9)
     qz = Quantizer("int")
@@ -254,6 +263,7 @@ def test_decode_tile_direct_api_and_errors():
         decode_tile(b"\x09" + blobs[(0, 0, 0)][1:], top, qz)
 
 
+@pytest.mark.fast
 def test_a_padded_dem_pays_little_for_its_padding():
     """A DEM padded to 2**n + 1 (its last row and column invalid) costs about what the
     same surface costs with them valid: the top tile's invalid samples are filled
@@ -288,6 +298,7 @@ _BEFORE_FILL_CODES = [
     [0, 0, 0, 0, 0, 0, 0, 0, 0]]
 
 
+@pytest.mark.fast
 def test_a_store_from_before_the_fill_decodes_as_before():
     """A top blob without the ``filled`` flag decodes its invalid samples to their
     predictions, as the codec that wrote it did; one written now has the flag, and the
@@ -314,6 +325,7 @@ def test_a_store_from_before_the_fill_decodes_as_before():
 # ----------------------------------------------------------------------------- invalid data
 
 
+@pytest.mark.fast
 def test_all_invalid_grid_and_tiles_absent():
     z = np.zeros((33, 33))
     assert encode_pyramid(z, np.zeros(z.shape, bool), 2, Quantizer("int")) == {}
@@ -323,6 +335,7 @@ def test_all_invalid_grid_and_tiles_absent():
     assert (0, 3, 3) not in blobs and (0, 0, 0) in blobs and (0, 2, 0) in blobs  # shares col 8
 
 
+@pytest.mark.fast
 def test_one_sample_wide_strip_at_odd_column():
     size, t = 65, 3
     z = np.round(fractal(size, 5))
@@ -336,6 +349,7 @@ def test_one_sample_wide_strip_at_odd_column():
     assert tile_valid(blobs[(0, 1, 0)]).sum() == 9
 
 
+@pytest.mark.fast
 def test_checkerboard_holes_cost_little():
     size = 129
     z = np.round(fractal(size, 6))
@@ -354,6 +368,7 @@ def test_checkerboard_holes_cost_little():
         assert np.array_equal(tv, valid[sl])
 
 
+@pytest.mark.fast
 def test_invalid_values_are_ignored():
     z = np.round(fractal(33, 8))
     valid = np.ones(z.shape, bool)
@@ -368,6 +383,7 @@ def test_invalid_values_are_ignored():
     check_pyramid(z2, valid, 2, qz)
 
 
+@pytest.mark.fast
 def test_pyramid_shape_rejects_bad_sizes():
     with pytest.raises(ValueError):
         pyramid_shape(6, 3)
@@ -393,6 +409,7 @@ _QUANTIZERS = [Quantizer("int", 1.0, 0.0), Quantizer("int", 0.1, -10000.0),
                Quantizer("float", float_bits=64)]
 
 
+@pytest.mark.fast
 @settings(max_examples=60, deadline=None)
 @given(q=st.sampled_from(_QUANTIZERS), seed=st.integers(0, 2**31),
        mag=st.sampled_from([1.0, 1e3, 1e6]))
@@ -412,6 +429,7 @@ def test_the_compiled_roundtrip_is_the_codes_roundtrip(q, seed, mag):
     assert got.tobytes() == want.tobytes()  # bit for bit, signed zeros and NaN included
 
 
+@pytest.mark.fast
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**31), places=st.integers(1, 4), m=st.integers(1, 8),
        binary=st.booleans(), dtype=st.sampled_from([np.float16, np.float32, np.float64]),
@@ -465,6 +483,7 @@ def test_heights_on_a_finer_grid_are_integer_codes(seed, places, m, binary, dtyp
     assert np.array_equal(roundtrip(z, valid, qz)[valid].view(np.int64), fin.view(np.int64))
 
 
+@pytest.mark.fast
 def test_float32_decimals_in_a_float64_raster_are_decimal_codes():
     """A float64 raster widened from float32 decimals (1238.6f as a double) is coded as
     decimals rounded to float32, losslessly, and not as 64-bit floats."""
@@ -477,6 +496,7 @@ def test_float32_decimals_in_a_float64_raster_are_decimal_codes():
     assert (q.mode, q.step, q.float_bits) == ("decimal", 0.1, 64)
 
 
+@pytest.mark.fast
 def test_a_float32_decimal_is_not_its_float64_product():
     """1238.6 in a float32 is not 12386 × 0.1 in any float: the decimal mode divides."""
     z = np.float32([1238.6, 1009.3, 1264.9]).astype(np.float64)
@@ -486,6 +506,7 @@ def test_a_float32_decimal_is_not_its_float64_product():
     assert np.array_equal(codes_to_heights(heights_to_codes(z, q), q), z)
 
 
+@pytest.mark.fast
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**31), kind=st.sampled_from(["int", "tenths", "f32", "f64"]),
        dtype=st.sampled_from([np.int16, np.float32, np.float64]))
@@ -508,6 +529,7 @@ def test_choose_quantizer_sees_the_grid_and_the_float_width(seed, kind, dtype):
         assert q.float_bits == (32 if f32 and small else 64)
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**31), n=st.integers(1, 60), eps=st.sampled_from([0.01, 0.5, 3.0]),
        mag=st.sampled_from([1.0, 1e3, 1e7]))
@@ -531,6 +553,7 @@ def test_the_lossy_quantiser_is_the_numpy_one(seed, n, eps, mag):
                                                                  FLOAT_BINS, eps)
 
 
+@pytest.mark.fast
 @settings(max_examples=100, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), bits=st.sampled_from([32, 64]),
        special=st.booleans())
@@ -561,6 +584,7 @@ def test_compiled_float_heights_are_codes_to_heights(seed, bits, special):
 # ----------------------------------------------------------------------------- residual bins
 
 
+@pytest.mark.fast
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**31), eps=st.sampled_from([0.3, 0.5, 1.0, 2.0, 7.5]),
        grid=st.sampled_from([(1.0, 0.0), (0.1, -10000.0), (1 / 256, -32768.0), (0.25, 3.0),
@@ -592,6 +616,7 @@ def test_grid_bins_stay_within_eps(seed, eps, grid, holes, t):
     check_pyramid(z, valid, t, qz, codec_error=eps)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("eps", [0.5, 2.0])
 def test_bins_shrink_a_smooth_surface(eps):
     """On a surface smooth against ε, residual bins (the prediction's error within the
@@ -610,6 +635,7 @@ def test_bins_shrink_a_smooth_surface(eps):
         assert sum(map(len, binned.values())) < 0.5 * sum(map(len, pointwise.values()))
 
 
+@pytest.mark.fast
 def test_a_quantizer_without_bins_reads_as_before():
     """Metadata without ``bins`` (stores from before them) gives bins = 1, and bins = 1
     is not written (such stores stay readable by older code); a wrong width is refused."""

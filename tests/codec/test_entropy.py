@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -11,6 +12,8 @@ from geoterrain.codec.entropy import MASK_ALL_INVALID, MASK_ALL_VALID, MASK_STOR
 from geoterrain.codec.predict import fill_level
 from geoterrain.codec.pyramid import decode_tile, encode_pyramid
 from geoterrain.codec.quantize import Quantizer
+
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
 
 def _new(t: int) -> np.ndarray:

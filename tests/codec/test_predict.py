@@ -4,6 +4,7 @@ integers."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -15,6 +16,8 @@ from geoterrain.codec.predict import (
     linear_child,
     predict,
 )
+
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
 
 @settings(max_examples=120, deadline=None)

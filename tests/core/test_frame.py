@@ -33,6 +33,7 @@ def test_geographic_extent_matches_geodesic_distances(name):
         assert np.hypot(X[1] - X[0], Y[1] - Y[0]) == pytest.approx(d, rel=1e-3)
 
 
+@pytest.mark.fast
 def test_one_degree_tile_has_true_proportions():
     # a synthetic 1°×1° tile at 45°N: east-west extent shrinks with cos(lat)
     t = (1 / 100, 0.0, 10.0, 0.0, -1 / 100, 46.0)
@@ -45,6 +46,7 @@ def test_one_degree_tile_has_true_proportions():
         assert np.hypot(X[1] - X[0], Y[1] - Y[0]) == pytest.approx(d, rel=1e-3)
 
 
+@pytest.mark.fast
 def test_crs_round_trip_and_pixel_frame():
     f = Frame.pixel(5, 7, 30.0)
     X, Y = f.xy(np.array([0, 4]), np.array([0, 6]))
@@ -54,6 +56,7 @@ def test_crs_round_trip_and_pixel_frame():
     np.testing.assert_allclose([X2, Y2], [X, Y])
 
 
+@pytest.mark.fast
 def test_z_units_and_scale():
     f = Frame.pixel(2, 2, z_to_m=0.3048, z_scale=2.0)
     assert f.z(np.array([10.0]))[0] == pytest.approx(6.096)

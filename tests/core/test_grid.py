@@ -1,8 +1,11 @@
 import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
 from geoterrain.core.grid import Grid
+
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
 
 @given(st.integers(2, 3000), st.integers(2, 3000), st.sampled_from([2, 4, 16, 64]))

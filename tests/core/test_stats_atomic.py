@@ -11,6 +11,8 @@ import geoterrain.core.atomicfiles as atomicfiles
 from geoterrain.core.atomicfiles import write_atomic
 from geoterrain.exceptions import WriteError
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 
 class _DiskFull:
     """A file whose second write fails with ENOSPC after the first went through."""

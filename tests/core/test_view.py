@@ -3,6 +3,8 @@ import pytest
 
 from geoterrain.core.view import INSIDE, OUTSIDE, View
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 
 def test_lambda_and_from_camera():
     import pyvista as pv

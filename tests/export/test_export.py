@@ -22,6 +22,8 @@ from geoterrain.export.rasters import export_raster, product
 from geoterrain.rendering.textures import build_texture_image, elevation_range, texture_level
 from tests.conftest import write_tif
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 trimesh = pytest.importorskip("trimesh")
 pygltflib = pytest.importorskip("pygltflib")
 

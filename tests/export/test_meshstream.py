@@ -93,6 +93,7 @@ def _canon(m: pv.PolyData):
     return p[o], f[np.lexsort(f.T[::-1])], o
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("ext", STREAM_FORMATS)
 @pytest.mark.parametrize("which", [0, 1])
 def test_streamed_file_is_the_written_mesh(stores, tmp_path, ext, which):
@@ -128,6 +129,7 @@ def test_chunk_size_does_not_change_the_file(stores, tmp_path, ext):
     assert (tmp_path / f"a{ext}").read_bytes() == (tmp_path / f"b{ext}").read_bytes()
 
 
+@pytest.mark.fast
 def test_a_failed_stream_leaves_nothing(stores, tmp_path, monkeypatch):
     import geoterrain.lod.stream as S
 
@@ -149,6 +151,7 @@ def test_a_failed_stream_leaves_nothing(stores, tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["m.ply"]
 
 
+@pytest.mark.fast
 def test_in_memory_formats_refuse_a_mesh_too_large(stores):
     t = stores[0]
     check_in_memory(t, 1.0, "m.vtp")  # fits
@@ -157,6 +160,7 @@ def test_in_memory_formats_refuse_a_mesh_too_large(stores):
     check_in_memory(t, 1e9, "m.vtp", available=10_000)  # two triangles fit
 
 
+@pytest.mark.fast
 def test_cli_mesh_streams_and_refuses(stores, tmp_path, monkeypatch):
     from tests.test_cli import assert_one_line_error, run
 

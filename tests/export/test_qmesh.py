@@ -96,6 +96,7 @@ def _coords(t):
     return v[:, 0], v[:, 1], v[:, 2]
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("which", SETS)
 def test_every_tile_decodes_with_its_extensions(which, request):
     tileset = request.getfixturevalue(which)
@@ -116,6 +117,7 @@ def test_every_tile_decodes_with_its_extensions(which, request):
         assert len(t.watermask) == 1
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("which", [*SETS, "steep"])
 def test_heights_within_the_declared_error_of_the_dem(which, request):
     tileset = request.getfixturevalue(which)
@@ -142,6 +144,7 @@ def test_heights_within_the_declared_error_of_the_dem(which, request):
     assert checked > 10000
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("which", [*SETS, "steep"])
 def test_declared_errors_fit_cesiums_level_error(which, request):
     """Below max zoom each tile's declared error (an a-priori bound: resampling error +
@@ -160,6 +163,7 @@ def test_declared_errors_fit_cesiums_level_error(which, request):
         for k, v in info["declared_error"].items())
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("which", SETS)
 def test_neighbours_share_their_edge_vertices_exactly(which, request):
     tileset = request.getfixturevalue(which)
@@ -181,6 +185,7 @@ def test_neighbours_share_their_edge_vertices_exactly(which, request):
     assert {(10, 1), (10, 0), (11, 1), (11, 0)} <= pairs  # east and north edges, two levels
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("which", SETS)
 def test_no_vertex_at_a_nodata_sample(which, request):
     tileset = request.getfixturevalue(which)
@@ -204,6 +209,7 @@ def test_no_vertex_at_a_nodata_sample(which, request):
                 assert not bad[rr[near], cc[near]].any()
 
 
+@pytest.mark.fast
 def test_tiles_refuses_to_overwrite_a_layer(tileset):
     from geoterrain.cli.main import cli
 

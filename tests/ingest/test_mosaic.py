@@ -89,6 +89,7 @@ def test_mosaic_of_four_tiles_gives_the_merged_store(tmp_path, overlap):
     _same_store_every_way(merged, tiles, tmp_path, str(tmp_path / "tiles" / "tile_*.tif"))
 
 
+@pytest.mark.fast
 def test_each_tile_keeps_its_own_nodata(tmp_path):
     merged = _synthetic(tmp_path)
     tiles = split(merged, tmp_path / "tiles", nodatas=(-32768, -9999, -32768, -9999))
@@ -101,6 +102,7 @@ def test_real_srtm_split_in_four(tmp_path):
     _same_store_every_way(dem, tiles, tmp_path, str(tmp_path / "hgt" / "*.tif"))
 
 
+@pytest.mark.fast
 def test_gaps_between_tiles_are_nodata(tmp_path):
     merged = _synthetic(tmp_path)
     tiles = split(merged, tmp_path / "tiles")
@@ -119,6 +121,7 @@ def _tile(tmp_path, name, **kw):
     return write_tif(tmp_path / name, z, **kw)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("second, why", [
     (dict(crs="EPSG:32632", origin=(500080.0, 5000000.0)), "mixed CRSs"),
     (dict(spacing=5.0, origin=(500080.0, 5000000.0)), "mixed resolutions"),
@@ -133,6 +136,7 @@ def test_mismatched_tiles_are_refused_in_one_line(tmp_path, second, why):
     assert not (tmp_path / "o.geoterrain").exists()
 
 
+@pytest.mark.fast
 def test_mixed_band_counts_are_refused(tmp_path):
     a = _tile(tmp_path, "a.tif")
     prof = dict(driver="GTiff", height=8, width=8, count=2, dtype="float32", crs="EPSG:32633",
@@ -143,6 +147,7 @@ def test_mixed_band_counts_are_refused(tmp_path):
         preprocess([a, tmp_path / "b.tif"], tmp_path / "o.geoterrain")
 
 
+@pytest.mark.fast
 def test_glob_without_match_and_mosaic_without_output(tmp_path):
     with pytest.raises(InputError, match="no file matches"):
         preprocess(str(tmp_path / "*.hgt"), tmp_path / "o.geoterrain")
@@ -151,6 +156,7 @@ def test_glob_without_match_and_mosaic_without_output(tmp_path):
         preprocess([a, b])
 
 
+@pytest.mark.fast
 def test_cli_takes_several_files_and_a_glob(tmp_path):
     from geoterrain.cli.main import cli
 

@@ -44,6 +44,7 @@ def test_small_and_odd_grids(tmp_path, shape, dtype):
     np.testing.assert_array_equal(Z, z.astype(np.float64))
 
 
+@pytest.mark.fast
 def test_nodata_and_nan_are_masks(tmp_path):
     z = np.arange(100, dtype=np.float32).reshape(10, 10)
     z[2, 3] = -9999
@@ -55,6 +56,7 @@ def test_nodata_and_nan_are_masks(tmp_path):
     assert np.isfinite(Z).sum() == 98
 
 
+@pytest.mark.fast
 def test_all_padding_or_nodata_tiles_are_not_stored(tmp_path):
     z = np.zeros((70, 70), np.int16)
     z[:, 40:] = -32768
@@ -68,6 +70,7 @@ def test_all_padding_or_nodata_tiles_are_not_stored(tmp_path):
     assert max(xs) == 2 and max(ys) == 4
 
 
+@pytest.mark.fast
 def test_terrain_rgb_png_decodes_to_known_heights(tmp_path):
     rgb = np.zeros((3, 4, 4), np.uint8)
     code = 100000 + np.arange(16).reshape(4, 4)  # h = -10000 + code * 0.1 = 0.0 … 1.5
@@ -82,6 +85,7 @@ def test_terrain_rgb_png_decodes_to_known_heights(tmp_path):
     assert t.frame.kind == "pixel"
 
 
+@pytest.mark.fast
 def test_z_scale_and_pixel_size_are_recorded(tmp_path):
     z = np.full((5, 5), 10.0, np.float32)
     src = write_tif(tmp_path / "d.tif", z)
@@ -129,6 +133,7 @@ def test_other_gdal_formats(tmp_path, driver, ext):
     assert t_.info()["grid"] == list(z.shape)
 
 
+@pytest.mark.fast
 def test_a_dem_too_big_for_memory_is_refused_in_one_line_by_its_frame(tmp_path, monkeypatch):
     """The memory check counts the measured bytes per sample of the DEM's frame kind: a
     geographic DEM needs more than a projected one of the same size, and the refusal is

@@ -18,6 +18,7 @@ def lag1_autocorrelation(h: np.ndarray) -> float:
     return float(np.mean(out))
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kind", KINDS)
 def test_deterministic_per_seed(kind: str) -> None:
     a = generate(kind, 65, seed=7)
@@ -25,6 +26,7 @@ def test_deterministic_per_seed(kind: str) -> None:
     np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kind", KINDS)
 def test_different_seeds_differ(kind: str) -> None:
     a = generate(kind, 65, seed=1)
@@ -33,6 +35,7 @@ def test_different_seeds_differ(kind: str) -> None:
     assert np.abs(a - b).mean() > 1.0
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kind", KINDS)
 @pytest.mark.parametrize("size", [(2, 3), (3, 2), 1, (1, 7), 2, 17, (33, 70), (70, 33), 100])
 def test_shapes_dtype_finite(kind: str, size: int | tuple[int, int]) -> None:
@@ -43,6 +46,7 @@ def test_shapes_dtype_finite(kind: str, size: int | tuple[int, int]) -> None:
     assert np.isfinite(h).all()
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kind", KINDS)
 def test_relief_and_base(kind: str) -> None:
     h = generate(kind, (40, 57), seed=4, relief=1234.0, base=100.0)
@@ -52,6 +56,7 @@ def test_relief_and_base(kind: str) -> None:
     assert 0.0 <= default.min() and default.max() == pytest.approx(2000.0, abs=1e-2)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kind", KINDS)
 @pytest.mark.parametrize("seed", [0, 11])
 def test_has_relief_and_is_not_white_noise(kind: str, seed: int) -> None:
@@ -63,6 +68,7 @@ def test_has_relief_and_is_not_white_noise(kind: str, seed: int) -> None:
     assert abs(lag1_autocorrelation(shuffled)) < 0.1
 
 
+@pytest.mark.fast
 def test_kind_parameters_change_the_surface() -> None:
     rough = generate("fbm", 129, seed=5, H=0.2)
     smooth = generate("fbm", 129, seed=5, H=1.0)
@@ -80,11 +86,13 @@ def test_kind_parameters_change_the_surface() -> None:
     assert np.isfinite(r).all()
 
 
+@pytest.mark.fast
 def test_fault_count_is_capped() -> None:
     h = generate("fault", 33, seed=0, faults=10**9)
     assert np.isfinite(h).all()
 
 
+@pytest.mark.fast
 def test_unknown_kind_and_parameter() -> None:
     with pytest.raises(ValueError, match="unknown kind"):
         generate("perlin-xyz", 17)
@@ -94,6 +102,7 @@ def test_unknown_kind_and_parameter() -> None:
         generate("fbm", 0)
 
 
+@pytest.mark.fast
 def test_geotiff_round_trip(tmp_path) -> None:
     h = generate("ridged", (70, 45), seed=9, relief=2500.0)
     path = write_geotiff(tmp_path / "dem.tif", h, crs="EPSG:32633",
@@ -112,6 +121,7 @@ def test_geotiff_round_trip(tmp_path) -> None:
         np.testing.assert_array_equal(src.read(1), h)
 
 
+@pytest.mark.fast
 def test_geotiff_nodata_and_anisotropic_spacing(tmp_path) -> None:
     h = generate("fbm", 20, seed=1)
     h[0, 0] = -9999.0

@@ -17,6 +17,8 @@ from geoterrain.ingest.units import (
     tile_georeference,
 )
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 
 def test_feet_from_the_crs_and_warnings(caplog):
     assert crs_z_units("EPSG:3089") == ("us-ft", "horizontal")

@@ -99,6 +99,7 @@ def test_no_gap_at_any_morph_k_and_error_within_tau(smooth, az, el, dist, tau, f
     assert err.max <= tau * SLACK and err.n_uncovered == 0, (err, stats)
 
 
+@pytest.mark.fast
 def test_far_view_morphs_and_meets_coarser_edges(smooth):
     """A view whose mesh has level changes and vertices mid-morph (0 < k < 1): the gap
     test above does see T-junction vertices on coarser edges."""
@@ -131,6 +132,7 @@ def coarser_edge_gaps_without_morph(c, view):
     return coarser_edge_gaps(sel)
 
 
+@pytest.mark.fast
 def test_at_k_one_a_node_matches_its_parent(smooth):
     """Every odd vertex fully morphed: a level-L tile's surface is its parent's surface
     on the tile's footprint (seed 001 §2.7)."""
@@ -158,6 +160,7 @@ def test_at_k_one_a_node_matches_its_parent(smooth):
         np.testing.assert_allclose(child[both], parent[both], rtol=0, atol=1e-9)
 
 
+@pytest.mark.fast
 def test_ranges_hold_the_crack_free_constraint(smooth):
     t = smooth.t
     tb = cdlod._tables(t, tile_index(t))
@@ -170,6 +173,7 @@ def test_ranges_hold_the_crack_free_constraint(smooth):
         assert np.all(fin >= 1500.0 * tb.e[1:] / 1.0)
 
 
+@pytest.mark.fast
 def test_popping_metric_sees_a_jump_and_ignores_a_still_surface(smooth):
     c = smooth
     view = random_view(c, 0.7, 0.5, 1.0, 0.0, 0.0)

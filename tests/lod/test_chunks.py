@@ -8,6 +8,7 @@ tile's footprint: code independent of the chunk builder.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -57,6 +58,7 @@ def test_every_chunk_is_within_its_error(tmp_path, seed, tile, hole):
         assert m.max <= err[row] + 1e-9, (L, x, y, m.max, err[row])
 
 
+@pytest.mark.fast
 def test_chunks_are_smaller_than_uniform_tiles(tmp_path):
     t = _store(tmp_path, 5, 32, False)
     index = tile_index(t)

@@ -10,6 +10,8 @@ from geoterrain import lod
 from geoterrain.exaggerate import exaggerated
 from geoterrain.ingest.synth import generate, write_geotiff
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 FT = 0.3048
 
 

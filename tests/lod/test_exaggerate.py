@@ -40,6 +40,7 @@ def test_exaggerated_screen_error_is_at_most_tau(terrains, data, n, az, el, dist
     assert err.max <= tau * SLACK, (n, err, sel.stats)
 
 
+@pytest.mark.fast
 def test_exaggeration_one_is_the_terrain_and_bad_values_refused(terrains):
     t = terrains[0].t
     assert exaggerated(t, 1.0) is t
@@ -49,6 +50,7 @@ def test_exaggeration_one_is_the_terrain_and_bad_values_refused(terrains):
             exaggerated(t, bad)
 
 
+@pytest.mark.fast
 def test_rendered_exaggeration_is_labelled_and_steeper(tmp_path_factory, tmp_path):
     from click.testing import CliRunner
 
@@ -76,6 +78,7 @@ def test_rendered_exaggeration_is_labelled_and_steeper(tmp_path_factory, tmp_pat
     assert r.exit_code == 0, r.output
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("n", [0.5, 4.0])
 def test_exaggerated_padded_static_mesh_keeps_its_vertical_error(terrains, n):
     """A padded store's static mesh reads its second δ (δ_edge, edgepad.py) and the
@@ -93,6 +96,7 @@ def test_exaggerated_padded_static_mesh_keeps_its_vertical_error(terrains, n):
         assert err.n_uncovered_valid == 0 and err.max <= e * (1 + 1e-9) + 1e-9, (n, e, err)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("strategy", ["geomipmap", "geomipmap_distance"])
 def test_exaggerated_block_errors_scale(terrains, strategy):
     """GeoMipMapping's per-block δ_n table is vertical: an exaggerated view scales it

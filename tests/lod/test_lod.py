@@ -197,6 +197,7 @@ def terrains(holey, tmp_path_factory):
     return out
 
 
+@pytest.mark.fast
 def test_synthetic_terrains_do_not_need_real_dems(terrains):
     assert [c.name for c in terrains[:2]] == ["holey", "ridged"]
     assert all(c.valid.any() and not c.valid.all() for c in terrains[:2])
@@ -230,6 +231,7 @@ def test_static_mesh_on_real_dems(tmp_path, name):
         prev = sel.stats["triangles"]
 
 
+@pytest.mark.fast
 def test_flat_terrain_gives_two_triangles(tmp_path_factory):
     t = _store(tmp_path_factory, "flat", np.full((33, 33), 7.0, np.float32))
     assert t.static_selection(0.0).stats["triangles"] == 2
@@ -237,6 +239,7 @@ def test_flat_terrain_gives_two_triangles(tmp_path_factory):
     assert sel.stats["triangles"] == 2
 
 
+@pytest.mark.fast
 def test_affine_terrain_gives_two_triangles(tmp_path_factory):
     yy, xx = np.mgrid[:65, :65]
     t = _store(tmp_path_factory, "affine", (3.0 * xx - 2.0 * yy + 100).astype(np.float64))
@@ -301,6 +304,7 @@ def test_screen_space_error_is_at_most_tau(terrains, data, az, el, dist, tx, ty,
         assert err.n_uncovered == 0, (err, sel.stats)
 
 
+@pytest.mark.fast
 def test_rtin_full_view_covers_exact_valid_domain(terrains):
     checked = []
     for c in terrains:
@@ -332,6 +336,7 @@ def test_smaller_tau_never_removes_a_vertex(terrains, az, el, dist):
         assert coarse_in <= fine_all
 
 
+@pytest.mark.fast
 @given(az=st.floats(0, 2 * np.pi), el=st.floats(0.05, 1.5), dist=st.floats(0.05, 1.0),
        strategy=st.sampled_from(STRATEGIES))
 def test_culling_keeps_triangles_near_the_frustum(terrains, az, el, dist, strategy):
@@ -355,6 +360,7 @@ def test_culling_keeps_triangles_near_the_frustum(terrains, az, el, dist, strate
     assert (out_by.max(axis=1) <= tile_diag + 1e-6).all()
 
 
+@pytest.mark.fast
 def test_view_looking_away_is_empty_and_decodes_nothing(tmp_path_factory):
     z = generate("fbm", 129, seed=2)
     t = _store(tmp_path_factory, "away", z)
@@ -399,6 +405,7 @@ def test_eye_below_terrain_and_inside_spheres(terrains, strategy):
             assert err.n_uncovered <= (0.01 * seen if strategy == "rtin" else 0), what
 
 
+@pytest.mark.fast
 def test_unchanged_camera_reuses_selection(terrains):
     t = terrains[0].t
     v = random_view(terrains[0], 1.0, 0.5, 1.0, 0, 0)
@@ -407,6 +414,7 @@ def test_unchanged_camera_reuses_selection(terrains):
     assert b.stats["reused"] and b.stats["triangles"] == a.stats["triangles"]
 
 
+@pytest.mark.fast
 def test_corner_view_decodes_few_tiles_independent_of_store_size(tmp_path_factory):
     big = generate("fbm", 1025, seed=9).astype(np.float32)
     counts = []
@@ -426,6 +434,7 @@ def test_corner_view_decodes_few_tiles_independent_of_store_size(tmp_path_factor
     assert counts[1] < 0.1 * (1024 // 32) ** 2
 
 
+@pytest.mark.fast
 @given(n=st.integers(1, 6), seed=st.integers(0, 10_000), frac=st.floats(0.01, 0.5))
 def test_upward_closure_is_closed_and_box_limited_scan_agrees(n, seed, frac):
     from geoterrain.core.bintree import vertex_depth, vertex_parents

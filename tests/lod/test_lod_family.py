@@ -23,6 +23,7 @@ def _area(local: np.ndarray, f: np.ndarray) -> float:
                               - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1])).sum())
 
 
+@pytest.mark.fast
 def test_stitch_templates_tile_the_block_and_keep_only_coarse_edge_vertices():
     for K in (2, 4, 8):
         a, b = np.meshgrid(np.arange(K + 1), np.arange(K + 1), indexing="ij")
@@ -43,6 +44,7 @@ def test_stitch_templates_tile_the_block_and_keep_only_coarse_edge_vertices():
                 assert (on == (along % ratios[q] == 0)).all(), (K, ratios, q)
 
 
+@pytest.mark.fast
 def test_strip_bounds_bound_each_segment():
     """r ≥ 4: the segment's height range (rows 0–1 over r + 1 columns); r = 2: the
     largest distance of an omitted edge vertex from its neighbours' midpoint; inf where a
@@ -59,6 +61,7 @@ def test_strip_bounds_bound_each_segment():
     assert np.isinf(strip_bounds(Z, 4)[1, 0, 1]) and np.isfinite(strip_bounds(Z, 4)[0, 0, 1])
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None)
 @given(st.integers(0, 10**6), st.sampled_from([2, 4, 8, 16]), st.integers(0, 3),
        st.sampled_from([2, 4]))
@@ -85,6 +88,7 @@ def test_a_stitched_strip_moves_the_surface_by_at_most_its_bound(seed, K, e, r):
         assert diff >= B * (1 - 1e-9) - 1e-9
 
 
+@pytest.mark.fast
 @given(st.lists(st.tuples(st.integers(0, 4), st.floats(0, 1), st.floats(0, 1)), max_size=6))
 def test_restricted_quadtree_levels_differ_by_at_most_one(points):
     # random quadtree: split the leaf under each point down to the given depth
@@ -185,6 +189,7 @@ def test_stored_block_delta_is_each_blocks_exact_error(tmp_path, seed, size, til
                 assert err - tol <= stored <= err * (1 + 2.0 ** -22) + tol
 
 
+@pytest.mark.fast
 def test_a_damaged_block_table_is_refused_in_one_line(tmp_path):
     """The block δ_n table comes from a file that may come from a stranger: a table
     that decodes to NaN (under a valid checksum) or to too few values is refused in one

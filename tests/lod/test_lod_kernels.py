@@ -11,6 +11,7 @@ sample; the stored per-tile x, y.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -56,6 +57,7 @@ def _same(a, b) -> None:
                                   np.asarray(b.cell_data["level"]))
 
 
+@pytest.mark.fast
 @settings(max_examples=12, deadline=None)
 @given(az=st.floats(0, 6.28), el=st.floats(0.1, 1.4), dist=st.floats(0.05, 1.5),
        holes=st.booleans(), hashed=st.booleans())
@@ -73,6 +75,7 @@ def test_one_pass_mesh_equals_three_passes(tmp_path_factory, az, el, dist, holes
     _same(one, three)
 
 
+@pytest.mark.fast
 @settings(max_examples=12, deadline=None)
 @given(az=st.floats(0, 6.28), el=st.floats(0.05, 1.4), dist=st.floats(0.02, 1.5),
        tau=st.sampled_from([0.5, 1.0, 4.0]))
@@ -100,6 +103,7 @@ def test_the_lp_floor_changes_no_flag(tmp_path_factory, az, el, dist, tau):
     np.testing.assert_array_equal(m, plain.mixed == plain.gen)
 
 
+@pytest.mark.fast
 def test_affine_xy_equals_the_stored_tile_xy(tmp_path_factory):
     t = _terrain(tmp_path_factory, False)
     pool = tile_pool(t)
@@ -115,6 +119,7 @@ def test_affine_xy_equals_the_stored_tile_xy(tmp_path_factory):
                 assert got == (X[a, b], Y[a, b])  # bit for bit
 
 
+@pytest.mark.fast
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), nplanes=st.integers(0, 4))
 def test_cull_in_place_equals_cull_compact(seed, nplanes):
@@ -138,6 +143,7 @@ def test_cull_in_place_equals_cull_compact(seed, nplanes):
     np.testing.assert_array_equal(ij2[:nv], ij[keep])
 
 
+@pytest.mark.fast
 @settings(max_examples=15, deadline=None)
 @given(az=st.floats(0, 6.28), el=st.floats(0.02, 1.5), dist=st.floats(0.01, 2.0),
        tau=st.sampled_from([0.5, 1.0, 4.0]), holes=st.booleans())
@@ -162,6 +168,7 @@ def test_the_tile_walk_equals_testing_every_tile(tmp_path_factory, az, el, dist,
     assert visited <= n
 
 
+@pytest.mark.fast
 @settings(max_examples=80, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), t=st.floats(1e-4, 0.05), u=st.floats(0.05, 0.99))
 def test_culling_keeps_every_triangle_over_a_sample_in_the_frustum(seed, t, u):
@@ -235,6 +242,7 @@ def test_static_leaves_equal_the_walk(tmp_path_factory, e, which, counted):
     np.testing.assert_array_equal(*by_sample)
 
 
+@pytest.mark.fast
 @settings(max_examples=15, deadline=None)
 @given(az=st.floats(0, 6.28), el=st.floats(0.02, 1.4), dist=st.floats(0.02, 1.5),
        tau=st.sampled_from([0.5, 1.0, 4.0]), holes=st.booleans())
@@ -257,6 +265,7 @@ def test_skipping_blocks_by_their_bounds_changes_no_flag(tmp_path_factory, az, e
     np.testing.assert_array_equal(out[True][1], out[False][1])
 
 
+@pytest.mark.fast
 def test_the_static_elevation_is_the_seams_formula(tmp_path_factory):
     """The static mesh computes ``elevation`` with its positions; it equals what
     ``mesh.add_elevation`` computes from Z, bit for bit, with and without culled

@@ -100,6 +100,7 @@ def _morphed_rho(t, strategy, seed, tau):
     return sel, f, z, e
 
 
+@pytest.mark.fast
 @settings(max_examples=25, deadline=None)
 @given(st.integers(0, 10**6), st.sampled_from([0.5, 1.0, 4.0]))
 def test_morphed_mesh_keeps_rho_within_tau_and_has_no_crack(rough, seed, tau):
@@ -162,6 +163,7 @@ def test_morph_closure_t18(rough):
     assert checked > 100
 
 
+@pytest.mark.fast
 def test_static_meshes_hold_every_split_edge_end(rough):
     """The cascade needs both ends of the edge each vertex splits: present in any
     conforming rtin mesh (static meshes at several bounds)."""
@@ -202,6 +204,7 @@ def _glide_pops(t, strategy, tau):
     return pops
 
 
+@pytest.mark.fast
 def test_morphing_does_not_pop_along_a_glide(rough):
     """The issue's flight (1 % of the height per frame): pop ≤ 0.25 τ with morphing,
     and up to τ without it (the figure reported beside it)."""
@@ -211,6 +214,7 @@ def test_morphing_does_not_pop_along_a_glide(rough):
 
 
 # ---------------------------------------------------------------- chunked: to the parent
+@pytest.mark.fast
 @settings(max_examples=20, deadline=None)
 @given(st.integers(0, 10**6), st.sampled_from([0.5, 1.0, 4.0]))
 def test_morphing_chunks_keep_rho_within_tau(rough, seed, tau):
@@ -220,6 +224,7 @@ def test_morphing_chunks_keep_rho_within_tau(rough, seed, tau):
     assert e.max <= tau * (1 + 1e-9), e
 
 
+@pytest.mark.fast
 def test_a_chunk_at_t0_draws_its_parent_exactly(rough):
     """Each chunk refines its parent's mesh, so its vertices placed on the parent's
     surface (the weights the morph uses) draw the parent's surface at every sample of
@@ -253,6 +258,7 @@ def test_a_chunk_at_t0_draws_its_parent_exactly(rough):
     assert checked > 10
 
 
+@pytest.mark.fast
 def test_morphing_chunks_do_not_pop_along_a_glide(rough):
     """The issue's flight: chunked pops as chunks split (τ = 16 px, so that chunks do
     switch on this small, rough grid); morphing each chunk to its parent keeps the surface's
@@ -263,6 +269,7 @@ def test_morphing_chunks_do_not_pop_along_a_glide(rough):
     assert pops[False] > 0.25 * tau, pops  # (or the flight tests nothing)
 
 
+@pytest.mark.fast
 @settings(max_examples=15, deadline=None)
 @given(st.integers(0, 10**6), st.sampled_from([1.0, 4.0, 16.0]))
 def test_skirts_reach_below_every_morphing_neighbour(rough, seed, tau):
@@ -313,6 +320,7 @@ def _raster(K, faces, Z, n, shape):
     return mesh_heights_on_grid(ij, faces, Z.ravel(), shape)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("K", [2, 4, 8])
 def test_a_geomipmap_block_at_t1_draws_its_next_level(K):
     """Eq. 4-13 at t = 1 with Wagner's cases (and every edge at the next level too):
@@ -347,6 +355,7 @@ def test_a_geomipmap_block_at_t1_draws_its_next_level(K):
         assert np.array_equal(z0, Zn[0])
 
 
+@pytest.mark.fast
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.floats(0, 5), min_size=3, max_size=5), st.floats(0, 4),
        st.floats(0, 20), st.floats(0, 1))
@@ -393,6 +402,7 @@ def _dijkstra(ell, kap, present):
     return best
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None)
 @given(st.integers(1, 5), st.integers(1, 5), st.integers(0, 10**6))
 def test_restricted_levels_are_the_largest_field_within_the_allowances(ny, nx, seed):
@@ -410,6 +420,7 @@ def test_restricted_levels_are_the_largest_field_within_the_allowances(ny, nx, s
     assert np.isinf(L[~present]).all()
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("n", [9, 21, 31])
 def test_restricted_levels_follow_a_winding_path_to_its_end(n):
     """Stored blocks in a serpentine between no-data rows: the shortest path from the one
@@ -428,6 +439,7 @@ def test_restricted_levels_follow_a_winding_path_to_its_end(n):
     assert np.allclose(L[present], _dijkstra(ell, kap, present)[present])
 
 
+@pytest.mark.fast
 def test_blocks_agree_on_every_shared_vertex_before_the_merge(rough, monkeypatch):
     """Each block's morphed heights, recorded before ``_assemble`` keeps one vertex per
     sample: every sample two drawn blocks both use gets the same height from both (so
@@ -473,6 +485,7 @@ def test_blocks_agree_on_every_shared_vertex_before_the_merge(rough, monkeypatch
     assert shared > 100
 
 
+@pytest.mark.fast
 def test_morphing_geomipmap_does_not_pop_along_a_glide(rough):
     """The issue's flight: geomipmap pops as blocks switch (τ = 16 px, so that blocks do
     switch on this small, rough grid); continuous levels keep the jump ≤ 0.25 τ."""

@@ -121,6 +121,7 @@ def _behind_and_front(t):
     return np.flatnonzero(L0 & (ix.hi[:, 1] < -200.0)), np.flatnonzero(L0 & (mid > 100.0))
 
 
+@pytest.mark.fast
 def test_a_wall_hides_the_tiles_behind_it(wall):
     """Seen from 5 m above the highest ground north of the wall, looking south, the tiles beyond the
     wall are culled and those before it are not."""
@@ -138,6 +139,7 @@ def test_a_wall_hides_the_tiles_behind_it(wall):
         assert on.stats["triangles"] < off.stats["triangles"], s
 
 
+@pytest.mark.fast
 def test_a_wall_higher_than_the_eye_but_seen_over_from_above(wall):
     """From above the wall's top nothing behind it within the view is culled that the
     oracle sees, and some of it is seen."""
@@ -147,17 +149,20 @@ def test_a_wall_higher_than_the_eye_but_seen_over_from_above(wall):
     assert n_hidden > 0  # the wall does hide some ground behind it
 
 
+@pytest.mark.fast
 def test_no_culling_when_the_eye_is_inside_the_terrain(wall):
     v = View((0.0, 0.0, 100.0), (0.0, -400.0, 100.0), size=(320, 180))  # inside the wall
     assert not eye_above_surface(wall, v)
     assert not hidden_rows(wall, v).any()
 
 
+@pytest.mark.fast
 def test_no_culling_from_outside_the_grid(wall):
     v = View((0.0, 5000.0, 10.0), (0.0, 0.0, 0.0), size=(320, 180))
     assert not hidden_rows(wall, v).any()
 
 
+@pytest.mark.fast
 def test_no_culling_when_the_near_plane_cuts_the_ground(wall):
     """A near plane farther than the eye's height above the ground clips the ground
     before it, so what lies behind a clipped occluder can show: nothing is culled."""
@@ -167,6 +172,7 @@ def test_no_culling_when_the_near_plane_cuts_the_ground(wall):
     assert not hidden_rows(wall, v).any()
 
 
+@pytest.mark.fast
 def test_a_gap_in_the_data_is_not_a_horizon(tmp_path):
     """Across a nodata trench a ray may pass under a plateau (no surface joins them) and
     see the ground beyond from below, as a depth render does: the plateau must not
@@ -184,6 +190,7 @@ def test_a_gap_in_the_data_is_not_a_horizon(tmp_path):
     check_nothing_visible_lost(t, v, (20.0, 64.0), strategies=("chunked", "rtin"))
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None)
 @given(st.integers(0, 10**6), st.floats(0.0, 0.3))
 def test_surface_bound_near_the_eye(seed, rc):
@@ -229,6 +236,7 @@ def test_real_dems_lose_nothing_visible(tmp_path, name):
         check_nothing_visible_lost(t, view, ij, strategies=("rtin", "chunked", "cdlod"))
 
 
+@pytest.mark.fast
 def test_hidden_tiles_are_not_decoded(tmp_path):
     """Behind a ridge, culled level-0 tiles are neither decoded nor drawn (except the
     few nearest read as occluders, should one of them lie behind another)."""
@@ -326,6 +334,7 @@ def test_the_horizon_kernel_hides_only_what_an_occluder_covers(seed):
             assert under[:first_hole].any(), f"box {r} hidden, but a ray to {q} is not blocked"
 
 
+@pytest.mark.fast
 @settings(max_examples=200, deadline=None)
 @given(st.integers(0, 10**6))
 def test_the_kernel_geometry_matches_plain_trigonometry(seed):
@@ -405,6 +414,7 @@ def rough_store(tmp_path_factory):
     return _store(d, _fbm(129, 5, 60.0), tile_size=16)
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st.integers(0, 10**6), st.booleans())
@@ -437,6 +447,7 @@ def test_the_upper_bound_pass_changes_nothing(rough_store, seed, low):
     assert not np.delete(part, some).any()
 
 
+@pytest.mark.fast
 @settings(max_examples=80, deadline=None)
 @given(st.integers(0, 10**6))
 def test_a_standing_in_footprint_bounds_its_blocks(seed):

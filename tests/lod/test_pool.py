@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import geoterrain
 from geoterrain import lod
 from geoterrain.ingest.synth import generate, write_geotiff
 from geoterrain.lod import pool as pool_mod
+
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
 
 def _views(t, n=6):

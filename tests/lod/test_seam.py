@@ -15,6 +15,8 @@ from geoterrain.exceptions import UsageError
 from geoterrain.ingest.synth import generate, write_geotiff
 from geoterrain.lod import registry
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 
 @pytest.fixture(scope="module")
 def terrain(tmp_path_factory):

@@ -5,6 +5,7 @@ checked for every registered strategy in test_lod.py and test_stress.py)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -16,6 +17,7 @@ from geoterrain.lod.tiles import tile_index
 INTERIOR = (slice(3, -3), slice(3, -3))  # away from the edge-replicated border
 
 
+@pytest.mark.fast
 @given(a=st.floats(-5, 5), b=st.floats(-5, 5), c=st.floats(-100, 100))
 def test_a_plane_has_no_acceleration(a, b, c):
     i, j = np.indices((12, 12)).astype(float)
@@ -24,12 +26,14 @@ def test_a_plane_has_no_acceleration(a, b, c):
     np.testing.assert_allclose(ham(h)[INTERIOR], 0.0, atol=1e-8)
 
 
+@pytest.mark.fast
 @given(a=st.floats(1e-3, 10))
 def test_a_parabola_has_ham_128a(a):
     x = np.tile(np.arange(1.0, 14.0), (13, 1))  # x ≥ 1: away from the fold at the vertex
     np.testing.assert_allclose(ham(a * x * x)[INTERIOR], 128 * a, rtol=1e-9)
 
 
+@pytest.mark.fast
 @given(h=st.floats(0.1, 1000))
 def test_a_step_peaks_at_16h(h):
     z = np.zeros((15, 15))
@@ -37,6 +41,7 @@ def test_a_step_peaks_at_16h(h):
     assert abs(ham(z)[5:10].max() - 16 * h) <= 1e-9 * h
 
 
+@pytest.mark.fast
 def test_the_distance_law():
     # eq. 5-5…5-7: (64, 4, 100) → d_min = 400, T(200) = 16, continuous at both ends
     T = tess_factor(np.array([0.0, 99.999, 100.0, 200.0, 400.0, 1e6]), 64.0, 4.0, 100.0)

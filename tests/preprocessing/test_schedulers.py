@@ -31,6 +31,7 @@ def _die_once(marker: str, value: int) -> int:
     return value * 2
 
 
+@pytest.mark.fast
 def test_scheduler_specs():
     assert parse_scheduler("threads:3") == ("threads", 3)
     for bad in ("", "threads", "threads:0", "processes:x", "dask", "dask:local", "gpu:2"):
@@ -38,6 +39,7 @@ def test_scheduler_specs():
             parse_scheduler(bad)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("spec", ["sync", "threads:2", "processes:2"])
 def test_results_come_back_in_order(spec):
     assert run_tasks(spec, [(pow, (2, k)) for k in range(6)]) == [1, 2, 4, 8, 16, 32]

@@ -108,6 +108,7 @@ def test_streamed_store_of_an_undeclared_void_sentinel(tmp_path):
     assert _content(b)[2]["source_nodata"] == -32768.0
 
 
+@pytest.mark.fast
 def test_streaming_refuses_what_it_does_not_take(tmp_path):
     z = np.zeros((9, 9), np.float32)
     with pytest.raises(UsageError, match="geographic"):

@@ -104,6 +104,7 @@ def test_banded_delta_on_a_real_dem(band):
     assert np.array_equal(band_vertex_errors(rows_of(z, v), N, band=band).grid(), ref)
 
 
+@pytest.mark.fast
 def test_banded_delta_reads_rows_a_band_at_a_time():
     """No read is wider than the band's window (1.5·band + 1 rows)."""
     z, v = _grid(5, 7, "sparse")
@@ -119,6 +120,7 @@ def test_banded_delta_reads_rows_a_band_at_a_time():
     assert np.array_equal(d.grid(), vertex_errors(z, v))
 
 
+@pytest.mark.fast
 def test_banded_delta_refuses_bad_arguments():
     z, v = _grid(1, 4, "none")
     with pytest.raises(ValueError, match="power of two"):
@@ -129,6 +131,7 @@ def test_banded_delta_refuses_bad_arguments():
         band_vertex_errors(lambda i0, i1: (z[i0:i1, :5], v[i0:i1, :5]), 17, band=4)
 
 
+@pytest.mark.fast
 def test_scratch_arrays_round_trip_and_clean_up(tmp_path):
     with ScratchArrays(tmp_path) as sa:
         sa.create("a", (5, 3), np.float32)
@@ -242,6 +245,7 @@ def test_banded_normal_codes_are_the_whole_grid_maps(seed, n, holes, band, data)
         assert np.array_equal(sa.read(f"n{L}", 0, m).reshape(m, m, 2), r), L
 
 
+@pytest.mark.fast
 @settings(deadline=None)
 @given(seed=st.integers(0, 100_000), rows=st.integers(1, 200),
        kind=st.sampled_from(["normal", "integers", "flat", "tiny", "few", "tenths",
@@ -301,6 +305,7 @@ def test_banded_quantizer_is_choose_quantizer(seed, rows, kind, eps, terrain_rgb
     assert got == ref
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("bands", [
     [[[2.0**51]], [[0.5]]],
     [[[4336280868294623.0]], [[0.1]]],

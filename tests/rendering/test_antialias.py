@@ -8,10 +8,13 @@ The reference for a jagged edge is the exact pixel coverage of a half-plane, fro
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from geoterrain.rendering.antialias import fxaa
+
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
 LIGHT, DARK = np.array([220, 230, 240]), np.array([70, 110, 60])
 

@@ -23,6 +23,8 @@ from geoterrain.exceptions import InputError, UsageError
 from geoterrain.rendering.drape import drape_image
 from tests.conftest import write_tif
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 DEM_CRS = "EPSG:32633"
 X0, Y0, SP, N = 500000.0, 5000000.0, 10.0, 129
 

@@ -82,6 +82,7 @@ def test_each_crossed_pixel_gets_the_edge_coverage(angle, offset):
         assert err.sum() < 0.6 * raw.sum(), (err.sum(), raw.sum())
 
 
+@pytest.mark.fast
 def test_a_hidden_edge_leaves_the_picture_alone():
     pts, faces, n = _quad_through(0.3, 0.05)
     img, depth, _ = _drawn(pts, n)
@@ -92,6 +93,7 @@ def test_a_hidden_edge_leaves_the_picture_alone():
     assert not np.array_equal(edge_antialias(img, depth, e), img)
 
 
+@pytest.mark.fast
 def test_a_face_turned_away_is_a_silhouette_only_beside_one_turned_towards():
     # a ridge along x seen from the +y side, low: the face sloping down towards the eye
     # is turned towards it, the other away; the ridge is a silhouette, listed once per
@@ -107,6 +109,7 @@ def test_a_face_turned_away_is_a_silhouette_only_beside_one_turned_towards():
     assert len(e.a) == 4
 
 
+@pytest.mark.fast
 def test_bad_input_is_refused_before_the_compiled_passes():
     pts, faces, n = _quad_through(0.2, 0.0)
     cases = [(pts[:, :2], faces), (np.where(pts == pts[0], np.nan, pts), faces),
@@ -125,6 +128,7 @@ def test_bad_input_is_refused_before_the_compiled_passes():
             edge_antialias(i, d, e)
 
 
+@pytest.mark.fast
 def test_sparse_counts_distinct_edges_on_screen():
     pts, faces, _ = _quad_through(0.2, 0.0)
     e = silhouette_edges(pts, faces, np.eye(4), (W, H), EYE)
@@ -132,6 +136,7 @@ def test_sparse_counts_distinct_edges_on_screen():
     assert sparse(e)
 
 
+@pytest.mark.fast
 def test_auto_takes_msaa_where_silhouettes_crowd(tmp_path_factory, monkeypatch):
     """``auto`` draws with MSAA when the edges are dense, blends them when they are
     sparse, and each picture is the fixed mode's, pixel for pixel, in either order."""
@@ -194,6 +199,7 @@ def test_auto_is_as_close_to_a_supersampled_picture_as_msaa(tmp_path_factory):
         assert o["auto"] >= o["none"] + 3.0, o
 
 
+@pytest.mark.fast
 def test_a_mesh_too_large_for_the_edge_table_is_drawn_with_msaa(tmp_path_factory,
                                                                    monkeypatch):
     from geoterrain.rendering import scene as rendering

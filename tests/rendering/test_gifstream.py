@@ -8,6 +8,8 @@ import pytest
 
 from geoterrain.rendering.gifstream import GifStream
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 
 def _frames(n, h=96, w=128):
     rng = np.random.default_rng(7)

@@ -12,6 +12,7 @@ import geoterrain
 ROOT = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.fast
 def test_top_level_names():
     from geoterrain.rendering import animation, cameras
 
@@ -20,6 +21,7 @@ def test_top_level_names():
     assert {"default_view", "orbit"} <= set(dir(geoterrain))
 
 
+@pytest.mark.fast
 def test_repr_html_summarises_the_terrain(tmp_path, fbm_tif):
     import base64
     import io

@@ -57,6 +57,7 @@ def _render(t, view, palette="auto", shading="normals", strategy="rtin", selecti
 
 
 # ------------------------------------------------------------------------ colour
+@pytest.mark.fast
 def test_colorize_no_black_and_water_blue():
     h = np.linspace(-500, 3000, 2001)
     for p in (Palette(), Palette(water_level=0.0), Palette(water_level=120.0),
@@ -75,6 +76,7 @@ def test_colorize_no_black_and_water_blue():
     assert (rgb[:, 2] < rgb[:, 0] + 0.15).all()
 
 
+@pytest.mark.fast
 def test_palette_rejects_bad_input():
     with pytest.raises(UsageError, match="viridis"):
         Palette("not_a_map")
@@ -104,6 +106,7 @@ def _coast_check(t, tex):
     assert agree >= 0.99, agree
 
 
+@pytest.mark.fast
 def test_topobathy_texture_sea_blue_coast_visible(tmp_path_factory):
     t, _ = topobathy(tmp_path_factory)
     _coast_check(t, texture_image(t, "normals", "auto", level=0))
@@ -114,6 +117,7 @@ def test_srtm1_japan_sea_blue_coast_visible(tmp_path_factory):
     _coast_check(t, texture_image(t, "normals", "auto", level=0))
 
 
+@pytest.mark.fast
 def test_cli_cmap_and_elevation_are_usage_errors(tmp_path_factory, tmp_path):
     from click.testing import CliRunner
 
@@ -150,6 +154,7 @@ def test_top_down_misses_no_tile(tmp_path_factory, az):
         assert abs(c - n) <= 0.005 * n, (s, c, n)
 
 
+@pytest.mark.fast
 def test_top_down_up_is_well_defined():
     for az in (0.0, 90.0, 235.0, 300.0):
         v = View((0, 0, 1000), (0, 0, 0), tuple(np.array([-math.sin(math.radians(az)),
@@ -194,6 +199,7 @@ def test_north_arrow_matches_the_picture(tmp_path_factory, az, el):
     assert angle < 3.0, (az, el, angle, seen, d)
 
 
+@pytest.mark.fast
 def test_negative_elevation_refused(tmp_path_factory):
     t = synth_store(tmp_path_factory, "fbm")
     with pytest.raises(UsageError, match="look_from"):
@@ -226,6 +232,7 @@ def test_overlays_never_cover_terrain(tmp_path_factory, size):
         assert (out[by0 + 2, bx0 + 2] == 255).all()
 
 
+@pytest.mark.fast
 def test_overlays_leave_the_picture_outside_their_boxes(tmp_path_factory):
     """compose blends the overlays over the picture: every pixel outside the boxes (with
     a 2-pixel margin for their anti-aliased edges) is the picture's, bit for bit."""
@@ -242,6 +249,7 @@ def test_overlays_leave_the_picture_outside_their_boxes(tmp_path_factory):
     assert (out[inside] != img[inside]).any()
 
 
+@pytest.mark.fast
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2**32 - 1))
 def test_over_is_rounded_porter_duff(seed):
@@ -256,6 +264,7 @@ def test_over_is_rounded_porter_duff(seed):
     assert np.array_equal(over(img, rgba), ref.astype(np.uint8))
 
 
+@pytest.mark.fast
 def test_over_refuses_what_it_cannot_blend():
     img = np.zeros((4, 5, 3), np.uint8)
     with pytest.raises(ValueError, match="overlay must be"):
@@ -264,6 +273,7 @@ def test_over_refuses_what_it_cannot_blend():
         over(img.astype(np.float32), np.zeros((4, 5, 4), np.uint8))
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("size", [(960, 540), pytest.param((1280, 720), marks=SLOW)])
 def test_default_view_fills_the_frame(tmp_path_factory, size):
     """The default overview (azimuth 190, elevation 40) fills ≥ 40 % of the frame; a low
@@ -274,6 +284,7 @@ def test_default_view_fills_the_frame(tmp_path_factory, size):
         assert mask.mean() >= least, (size, az, el, mask.mean())
 
 
+@pytest.mark.fast
 def test_orbit_keeps_its_distance(tmp_path_factory):
     t = synth_store(tmp_path_factory, "fbm")
     lay = layout_for(t, (320, 240))
@@ -283,6 +294,7 @@ def test_orbit_keeps_its_distance(tmp_path_factory):
     assert len({v.look_at for v in vs}) == 1
 
 
+@pytest.mark.fast
 def test_interpolated_path_is_smooth():
     keys = [View((0, -1000, 500), (0, 0, 0)), View((1000, 0, 600), (0, 0, 0)),
             View((0, 1000, 400), (0, 0, 100)), View((-800, 0, 700), (0, 0, 0))]

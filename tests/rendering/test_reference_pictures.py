@@ -66,6 +66,7 @@ def _render(store, name: str, out: Path) -> np.ndarray:
     return iio.imread(out)[..., :3]
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("name", list(CASES))
 def test_picture_matches_its_reference(store, name, tmp_path):
     import imageio.v3 as iio

@@ -151,6 +151,7 @@ def test_fxaa_pictures_stay_with_msaa_and_bruteforce(tmp_path_factory):
             s.plotter.close()
 
 
+@pytest.mark.fast
 def test_anti_aliasing_argument_and_errors():
     from geoterrain.exceptions import UsageError
 
@@ -164,6 +165,7 @@ def test_anti_aliasing_argument_and_errors():
         _plotter((32, 24), "ssaa")
 
 
+@pytest.mark.fast
 def test_the_anti_aliasing_option_reaches_the_picture(tmp_path_factory, tmp_path):
     """`render --anti-aliasing fxaa` renders with it, and a picture without the option
     has the default."""
@@ -267,6 +269,7 @@ def test_large_coordinates_render_identically(tmp_path_factory):
     assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
 
 
+@pytest.mark.fast
 def test_controller_offscreen(tmp_path_factory):
     from geoterrain.rendering.viewer import ViewerController
 
@@ -314,6 +317,7 @@ def test_controller_offscreen(tmp_path_factory):
         p.close()
 
 
+@pytest.mark.fast
 def test_controller_background_selection(tmp_path_factory):
     """Background mode: camera events never wait for a selection; poll() swaps it in."""
     from geoterrain.rendering.viewer import ViewerController
@@ -354,6 +358,7 @@ class _TimerLog:
         self.live.remove(tid)
 
 
+@pytest.mark.fast
 def test_a_frame_in_flight_is_polled_every_busy_period(tmp_path_factory, monkeypatch):
     """While a background frame (a selection, then its texture passes) is in flight the
     window has one repeating BUSY_POLL_MS timer; once nothing is, it is destroyed (the
@@ -390,6 +395,7 @@ def test_a_frame_in_flight_is_polled_every_busy_period(tmp_path_factory, monkeyp
         p.close()
 
 
+@pytest.mark.fast
 def test_timer_events_do_not_steer_the_camera():
     """VTK's interactor styles repeat the current drag on every timer event; muted, the
     viewer's polling timers leave the camera where the mouse put it."""
@@ -554,6 +560,7 @@ def test_viewer_draws_moves_without_multisampling_and_the_rest_with_it(tmp_path_
         gc.unfreeze()
 
 
+@pytest.mark.fast
 def test_viewer_status_box_screenshot_and_ui_time(tmp_path_factory, tmp_path):
     """The status line is on an opaque box and shows the busy sign while a background
     selection runs; ``s`` saves a PNG with the overlays; in background mode the UI
@@ -596,6 +603,7 @@ def _cli():
         return importlib.import_module("geoterrain.cli.main").cli
 
 
+@pytest.mark.fast
 def test_cli_orbit_gif_and_png(tmp_path_factory, tmp_path):
     import imageio.v3 as iio
     from click.testing import CliRunner
@@ -637,6 +645,7 @@ def test_cli_orbit_mp4_decodes_with_every_frame(tmp_path_factory, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o.mp4"]
 
 
+@pytest.mark.fast
 def test_view_from_camera_round_trip(tmp_path_factory):
     t = synth_store(tmp_path_factory, "fbm")
     v = default_view(t, (320, 240))
@@ -650,6 +659,7 @@ def test_view_from_camera_round_trip(tmp_path_factory):
         p.close()
 
 
+@pytest.mark.fast
 def test_view_without_terrain_and_errors(tmp_path_factory, tmp_path):
     from geoterrain.exceptions import UsageError
 
@@ -663,6 +673,7 @@ def test_view_without_terrain_and_errors(tmp_path_factory, tmp_path):
         render(t, sky, tmp_path / "x.png", strategy="nope")
 
 
+@pytest.mark.fast
 def test_view_cache_location(tmp_path, monkeypatch):
     _cli()
     from geoterrain.preprocessing.pipeline import cached_store_path as cached_store
@@ -678,6 +689,7 @@ def test_view_cache_location(tmp_path, monkeypatch):
     assert cached_store(dem) != first
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("aa", ["msaa", "none", "fxaa"])
 def test_frame_reads_the_picture_just_drawn(tmp_path_factory, aa):
     """``frame`` reads the render buffer without VTK's end-of-frame resolve: the picture
@@ -707,23 +719,32 @@ def test_frame_reads_the_picture_just_drawn(tmp_path_factory, aa):
         assert psnr(b, shot) >= (38.0 if aa == "msaa" else 99.0), psnr(b, shot)  # 41.6 measured
 
 
-def test_frame_reports_its_cpu_time(tmp_path_factory):
+def test_frame_reports_its_cpu_time(tmp_path_factory, monkeypatch):
     """``frame`` reports the process's CPU time over the frame and over its draw (the
     renderer's threads included): measured, not copied from the wall clock, and the
     draw's part of the frame's."""
+    import time
+
     t = synth_store(tmp_path_factory, "draw", size=129)
     size = (240, 160)
     scene = TerrainScene(_plotter(size), t)
     try:
         stats = [scene.frame(default_view(t, size, az), 1.0)[1] for az in (30.0, 150.0)]
+        # its own clock: the process's, read at the frame's start, before and after the
+        # draw (a clock that runs 1 s a reading makes it plain)
+        clock = iter(range(1000))
+        monkeypatch.setattr(time, "process_time", lambda: float(next(clock)))
+        st_ = scene.frame(default_view(t, size, 270.0), 1.0)[1]
+        monkeypatch.undo()
     finally:
         scene.plotter.close()
+    assert st_["cpu_ms"] == 2000.0 and st_["render_cpu_ms"] == 1000.0, st_
     for st_ in stats:
         assert 0.0 < st_["render_cpu_ms"] <= st_["cpu_ms"], st_
-        assert st_["cpu_ms"] != st_["frame_ms"]  # its own clock
         assert st_["render_ms"] <= st_["frame_ms"]
 
 
+@pytest.mark.fast
 def test_the_cli_offers_every_anti_aliasing():
     """cli/options.py lists the modes itself (importing the library would load numba at
     every command's start): it must offer exactly the library's, default first."""

@@ -19,6 +19,7 @@ def _rss_kib() -> int:
         return int(fh.read().split()[1]) * 4  # resident pages of 4 KiB
 
 
+@pytest.mark.fast
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_sparse_flags_commit_only_the_pages_written():
     """Writing 5 000 scattered flags of a 16385² grid commits about 5 000 pages, not
@@ -70,6 +71,7 @@ def test_a_16385_render_peaks_under_one_gigabyte(tmp_path):
         assert peak < 1e9, f"view {view}: the render peaked at {peak / 1e6:.0f} MB"
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.tuples(st.integers(1, 40_000), st.booleans()), min_size=1, max_size=30))
 def test_zero_pool_never_hands_out_memory_in_use(ops):

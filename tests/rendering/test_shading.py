@@ -35,6 +35,7 @@ def _agreement(z, valid, az, el) -> float:
     return float((a == b)[valid].mean())
 
 
+@pytest.mark.fast
 @settings(max_examples=8, deadline=None)
 @given(name=st.sampled_from(["fbm", "ridged"]), az=st.floats(0, 360),
        el=st.floats(20, 70), hole=st.booleans())
@@ -56,6 +57,7 @@ def test_shadows_agree_on_a_real_dem(az, el):
     assert _agreement(z, np.ones(z.shape, bool), az, el) >= 0.99
 
 
+@pytest.mark.fast
 def test_a_spike_shades_the_ground_away_from_the_sun():
     z = np.zeros((21, 21))
     z[10, 10] = 5.0  # at 45°, a 5 m spike on 1 m samples casts a 5-sample shadow
@@ -68,6 +70,7 @@ def test_a_spike_shades_the_ground_away_from_the_sun():
         assert m.sum() < 15
 
 
+@pytest.mark.fast
 @settings(max_examples=20, deadline=None)
 @given(h=st.floats(-500, 5000), az=st.floats(0, 360), el=st.floats(1, 90))
 def test_a_level_plane_has_no_shadow_and_an_open_sky(h, az, el):
@@ -77,6 +80,7 @@ def test_a_level_plane_has_no_shadow_and_an_open_sky(h, az, el):
     assert (sky_view(z, v, 10.0) == 1.0).all()
 
 
+@pytest.mark.fast
 @settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 1000))
 def test_sky_view_is_within_0_and_1_and_lower_in_a_valley(seed):
@@ -89,6 +93,7 @@ def test_sky_view_is_within_0_and_1_and_lower_in_a_valley(seed):
     assert sb[16, 16] < sb[0, 16]
 
 
+@pytest.mark.fast
 def test_the_default_light_is_the_classic_hillshade():
     """The default light is the cartographic sun (north-west, 45°) of the classic
     formula min(0.35 + 0.65 · max(n·l, 0) / l_z, 1.25), written out here."""
@@ -131,6 +136,7 @@ def test_render_with_sun_shadows_and_occlusion(tmp_path):
     assert low.exit_code == 2 and "(0, 90]" in low.output
 
 
+@pytest.mark.fast
 def test_tile_windows_cast_the_shadows_of_the_whole_dem(tmp_path):
     """The textures shade each level-0 tile from a window of its neighbours: where the
     shadows are shorter than a tile, the tiles' shadows are the whole DEM's."""

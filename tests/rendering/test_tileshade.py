@@ -5,6 +5,7 @@ colours.colorize × shading.hillshade(decode_octahedral(codes)), clipped, rounde
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -13,6 +14,8 @@ from geoterrain.bounds.vertexdata import normals_from_bytes, normals_to_bytes
 from geoterrain.rendering.colours import LAND, WATER, Palette, colorize, water_level
 from geoterrain.rendering.shading import AMBIENT, DEFAULT_SUN, SHADE_CEILING, hillshade
 from geoterrain.rendering.tileshade import shade_tile
+
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
 
 @settings(max_examples=60, deadline=None)

@@ -36,6 +36,7 @@ def _fresh(tmp_path_factory, size=257, **kw):
     return geoterrain.open(t.path)  # a new handle: an empty cache
 
 
+@pytest.mark.fast
 def test_away_render_reads_nothing(tmp_path_factory, tmp_path):
     t = _fresh(tmp_path_factory)
     lo, hi = t.scene_box()
@@ -79,6 +80,7 @@ def test_textures_only_under_drawn_faces(tmp_path_factory):
     assert tex.image.shape[0] * tex.image.shape[1] < 16 * v.size[0] * v.size[1]
 
 
+@pytest.mark.fast
 def test_a_frame_budget_shows_magnified_ancestors_then_the_same_atlas(tmp_path_factory):
     """With ``max_builds`` a frame shades at most that many new tiles (where a cached
     ancestor can stand in); each stand-in is its ancestor's texels repeated; repeating
@@ -129,6 +131,7 @@ def test_a_frame_budget_shows_magnified_ancestors_then_the_same_atlas(tmp_path_f
             assert (blk[r, q] == src[oy + (r >> d), ox + (q >> d)]).all()
 
 
+@pytest.mark.fast
 def test_footprints_grouped_by_sort_equal_the_dense_table(tmp_path_factory, monkeypatch):
     """A pyramid with far more tiles than drawn faces groups its footprints through a
     sort instead of the dense tile table: the same atlas and mesh arrays."""
@@ -146,6 +149,7 @@ def test_footprints_grouped_by_sort_equal_the_dense_table(tmp_path_factory, monk
             np.testing.assert_array_equal(getattr(dense, f), getattr(sparse, f))
 
 
+@pytest.mark.fast
 def test_exaggerated_textures_are_not_the_base_terrains(tmp_path_factory):
     """A vertically exaggerated view shares the tile cache: its steeper shading must
     not be served the base terrain's (or the reverse)."""
@@ -161,6 +165,7 @@ def test_exaggerated_textures_are_not_the_base_terrains(tmp_path_factory):
     np.testing.assert_array_equal(b, fresh)
 
 
+@pytest.mark.fast
 @settings(max_examples=60, deadline=None)
 @given(st.integers(3, 9), st.data())
 def test_footprint_is_the_smallest_tile_holding_a_face(n, data):
@@ -188,6 +193,7 @@ def _random_faces(F: int, V: int, G: int, data):
     return rng, faces, rng.integers(0, G, F), cells
 
 
+@pytest.mark.fast
 @settings(max_examples=60, deadline=None)
 @given(st.integers(1, 400), st.integers(1, 30), st.integers(1, 12), st.data())
 def test_pages_number_each_vertex_once_per_page(F, V, G, data):
@@ -200,6 +206,7 @@ def test_pages_number_each_vertex_once_per_page(F, V, G, data):
     np.testing.assert_array_equal(out, inv.reshape(-1, 3))
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None)
 @given(st.integers(1, 300), st.integers(1, 20), st.integers(1, 9), st.data())
 def test_page_boxes_hold_their_faces_corners(F, V, G, data):
@@ -217,6 +224,7 @@ def test_page_boxes_hold_their_faces_corners(F, V, G, data):
         np.testing.assert_array_equal(ihi[g], ij[c].max(0))
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None)
 @given(st.integers(1, 300), st.integers(3, 20), st.integers(1, 9), st.data())
 def test_page_facing_is_its_most_squarely_seen_face(F, V, G, data):
@@ -277,6 +285,7 @@ def test_grazing_footprints_get_coarser_texels(tmp_path_factory, monkeypatch):
     assert 1.0 <= mean(on) - mean(off) <= 2.0, (on, off)
 
 
+@pytest.mark.fast
 def test_a_picture_is_rendered_once(tmp_path_factory):
     t = _fresh(tmp_path_factory)
     size = (320, 200)
@@ -314,12 +323,14 @@ def test_view_textures_match_the_full_resolution_texture(tmp_path_factory):
     assert min(out) >= 35.0, out
 
 
+@pytest.mark.fast
 def test_unknown_texture_mode(tmp_path_factory):
     t = _fresh(tmp_path_factory)
     with pytest.raises(geoterrain.exceptions.UsageError):
         TerrainScene(_plotter((64, 64)), t, textures="atlas")
 
 
+@pytest.mark.fast
 @settings(max_examples=80, deadline=None)
 @given(st.integers(0, 2**32 - 1))
 def test_clamp_fill_is_clamp_to_edge(seed):
@@ -342,6 +353,7 @@ def test_clamp_fill_is_clamp_to_edge(seed):
     assert np.array_equal(atlas, want)
 
 
+@pytest.mark.fast
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2**32 - 1))
 def test_page_tcoords_are_the_numpy_formula(seed):
@@ -370,6 +382,7 @@ def test_page_tcoords_are_the_numpy_formula(seed):
     assert np.array_equal(xyz, pts[src])
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None)
 @given(st.integers(1, 300), st.integers(3, 40), st.data())
 def test_one_pass_footprint_groups_are_the_three_passes(F, V, data):

@@ -29,6 +29,7 @@ def _dbstat(path) -> dict:
     return {(n, t): (c, size, unused) for n, t, c, size, unused in rows}
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None)
 @given(sizes=st.lists(st.integers(1, 1016), max_size=300), cap=st.sampled_from([1016, 4088]))
 def test_packed_pages_hold_their_items_and_leave_no_room_for_a_later_page(sizes, cap):
@@ -53,6 +54,7 @@ def test_packed_pages_hold_their_items_and_leave_no_room_for_a_later_page(sizes,
             assert cap - sum(pages[a]) < pages[b][0], (a, b)
 
 
+@pytest.mark.fast
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 2**31), n=st.integers(1, 400),
        small=st.floats(0.0, 1.0), pack_bytes=st.sampled_from([1 << 10, 1 << 16, 4 << 20]))

@@ -26,6 +26,8 @@ from storesql import all_tiles, blob_keys, delete_blob, delete_tile, read_blob, 
 
 from geoterrain.store.database import blob_crc  # noqa: E402
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 
 @pytest.fixture(scope="module")
 def base(tmp_path_factory):

@@ -41,6 +41,7 @@ from tests.store.storesql import (
 )
 
 
+@pytest.mark.fast
 def test_incomplete_temp_file_is_never_a_valid_store(tmp_path):
     dst = tmp_path / "a.geoterrain"
     w = StoreWriter(dst)
@@ -51,6 +52,7 @@ def test_incomplete_temp_file_is_never_a_valid_store(tmp_path):
         StoreReader(w.tmp)
 
 
+@pytest.mark.fast
 def test_failure_mid_write_leaves_nothing(tmp_path, fbm_tif, monkeypatch):
     def boom(*a, **k):
         raise OSError(28, "No space left on device")
@@ -86,6 +88,7 @@ def test_kill_mid_write_leaves_no_valid_store(tmp_path):
             StoreReader(f)
 
 
+@pytest.mark.fast
 def test_flipped_byte_in_blob_gives_clear_error(tmp_path, fbm_tif):
     dst = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
     con = sqlite3.connect(dst)
@@ -100,6 +103,7 @@ def test_flipped_byte_in_blob_gives_clear_error(tmp_path, fbm_tif):
         t.tile(0, 0, 0)
 
 
+@pytest.mark.fast
 def test_flipped_byte_anywhere_never_gives_wrong_heights(tmp_path, fbm_tif):
     dst = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
     good = geoterrain.open(dst).scene_xyz()[2]
@@ -117,6 +121,7 @@ def test_flipped_byte_anywhere_never_gives_wrong_heights(tmp_path, fbm_tif):
         np.testing.assert_array_equal(z, good)  # either an error or the right heights
 
 
+@pytest.mark.fast
 def test_existing_destination_needs_overwrite(tmp_path, fbm_tif):
     dst = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
     with pytest.raises(UsageError, match="overwrite=True") as exc:
@@ -134,6 +139,7 @@ def test_read_only_directory(tmp_path, fbm_tif):
         geoterrain.preprocess(fbm_tif, ro / "s.geoterrain")
 
 
+@pytest.mark.fast
 def test_not_a_store(tmp_path):
     p = tmp_path / "x.geoterrain"
     p.write_text("hello")
@@ -141,6 +147,7 @@ def test_not_a_store(tmp_path):
         StoreReader(p)
 
 
+@pytest.mark.fast
 def test_missing_tile_is_a_clear_store_error(tmp_path, fbm_tif):
     store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
     with geoterrain.open(store) as t:
@@ -157,6 +164,7 @@ def test_missing_tile_is_a_clear_store_error(tmp_path, fbm_tif):
         t.tile(*key)
 
 
+@pytest.mark.fast
 @settings(max_examples=300, deadline=None)
 @given(level=st.integers(0, 31), x=st.integers(0, (1 << 26) - 1),
        y=st.integers(0, (1 << 26) - 1), kind=st.sampled_from(sorted(KIND_CODES)))
@@ -172,6 +180,7 @@ def test_packed_keys_round_trip_and_stay_small(level, x, y, kind):
     assert 0 <= blob_key((level, x, y), kind) < 1 << 62
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("bad", [(-1, 0, 0), (32, 0, 0), (0, 1 << 26, 0), (0, 0, -3)])
 def test_keys_out_of_range_are_refused(bad):
     with pytest.raises(ValueError):
@@ -183,6 +192,7 @@ def _two_heights(t):
             if unpack_blob_key(k)[1] == "heights" and unpack_blob_key(k)[0][0] == 0][:2]
 
 
+@pytest.mark.fast
 def test_blob_pointers_are_checked(tmp_path, fbm_tif):
     """Two keys naming one row are refused on open; two pointers swapped open (each
     names a row) but each swapped blob fails its checksum, bound to its key, on read."""
@@ -208,6 +218,7 @@ def test_blob_pointers_are_checked(tmp_path, fbm_tif):
         assert np.array_equal(t.tile(*t.tile_keys(0)[0]).heights, want, equal_nan=True)
 
 
+@pytest.mark.fast
 def test_a_vacuumed_store_reads_the_same(tmp_path, fbm_tif):
     """The tile table holds the blob rows' ids, so they are the table's INTEGER PRIMARY KEY
     (SQLite's VACUUM may renumber the rowids of a table without one): a vacuumed store
@@ -241,6 +252,7 @@ CREATE TABLE blob_keys (key INTEGER PRIMARY KEY, blob INTEGER NOT NULL);
 """
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("version,schema", [(2, _V2_SCHEMA), (3, _V3_SCHEMA)])
 @pytest.mark.parametrize("extra", ["", "CREATE TRIGGER t AFTER INSERT ON tiles BEGIN "
                                        "SELECT 1; END;"])
@@ -262,6 +274,7 @@ def test_an_older_store_says_to_rebuild_it(tmp_path, version, schema, extra):
             StoreReader(p)
 
 
+@pytest.mark.fast
 def test_a_repeated_metadata_name_is_refused(tmp_path, fbm_tif):
     """The metadata is one JSON object: a name given twice (which JSON readers resolve
     by keeping either) is refused, at any depth, even with a valid checksum."""
@@ -278,6 +291,7 @@ def test_a_repeated_metadata_name_is_refused(tmp_path, fbm_tif):
             geoterrain.open(bad)
 
 
+@pytest.mark.fast
 def test_a_stray_catalog_row_is_refused(tmp_path, fbm_tif):
     store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
     with sqlite3.connect(store) as con:
@@ -289,6 +303,7 @@ def test_a_stray_catalog_row_is_refused(tmp_path, fbm_tif):
 _KEYS = st.lists(st.integers(0, (1 << 62) - 1), max_size=160, unique=True).map(sorted)
 
 
+@pytest.mark.fast
 @settings(max_examples=200, deadline=None)
 @given(keys=_KEYS, seed=st.integers(0, 2**32 - 1), flat=st.booleans())
 def test_the_tile_table_round_trips(keys, seed, flat):
@@ -309,6 +324,7 @@ def test_the_tile_table_round_trips(keys, seed, flat):
     assert np.array_equal(u.numbers, t.numbers, equal_nan=True)
 
 
+@pytest.mark.fast
 def test_the_writer_packs_its_staged_table_as_pack_tiles_does(tmp_path, fbm_tif):
     """The writer streams its tile table from its staging tables a column at a
     time; the row it writes is the one pack_tiles makes of the table read back, and no
@@ -323,6 +339,7 @@ def test_the_writer_packs_its_staged_table_as_pack_tiles_does(tmp_path, fbm_tif)
                                                                                "blobs"]
 
 
+@pytest.mark.fast
 def test_the_staging_file_sits_beside_the_store_and_goes(tmp_path):
     """The tile table is staged in a file in the store's own folder (so a full disk is
     the store's disk), and neither it nor the partial store outlives commit or abort."""
@@ -340,6 +357,7 @@ def test_the_staging_file_sits_beside_the_store_and_goes(tmp_path):
         assert left == (["a.geoterrain"] if finish == "commit" else []), left
 
 
+@pytest.mark.fast
 def test_a_dropped_writer_leaves_nothing_and_a_dead_ones_files_are_removed(tmp_path):
     """A writer garbage-collected without commit or abort removes its partial store and
     staging file; those of a dead process are removed by the next writer there."""
@@ -420,6 +438,7 @@ def test_a_flat_table_past_the_ratio_cap_is_stored_raw(tmp_path, monkeypatch):
     assert len(r.tiles()) == n
 
 
+@pytest.mark.fast
 def test_a_table_larger_than_its_file_could_hold_is_refused_before_decoding(tmp_path):
     """Every tile owns 4 blob rows and every blob row a few bytes of the file, so a
     head claiming more is refused before anything is decoded: a 0.4 MB file cannot
@@ -436,6 +455,7 @@ def test_a_table_larger_than_its_file_could_hold_is_refused_before_decoding(tmp_
 
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("tiles", [[5, 5], [7, 3], [-32, 0], [0, (1 << 63) - 1],
                                    [1 << 62, (1 << 62) + 1]])
 def test_a_table_whose_keys_do_not_ascend_is_refused(tiles):
@@ -447,6 +467,7 @@ def test_a_table_whose_keys_do_not_ascend_is_refused(tiles):
         unpack_tiles(pack_tiles(t))
 
 
+@pytest.mark.fast
 def test_a_table_claiming_more_than_its_bytes_allow_is_refused():
     """A head claiming 2^31 tiles over a few bytes of zstd is refused before any
     allocation (RATIO_CAP), as is a raw row shorter than its counts."""

@@ -13,6 +13,8 @@ import geoterrain
 from geoterrain.exceptions import StoreError
 from geoterrain.store.check import check_store
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 
 @pytest.fixture(scope="module")
 def store(tmp_path_factory):

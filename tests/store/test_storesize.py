@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import os
+import sqlite3
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +16,9 @@ import geoterrain
 from geoterrain.preprocessing.pipeline import preprocess
 from geoterrain.store.size import component_bytes, size_report
 from tests.conftest import write_tif
-from tests.store.storesql import update_blob
+from tests.store.storesql import read_table, update_blob
+
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
 
 def _int_dem(tmp_path):
@@ -24,12 +28,60 @@ def _int_dem(tmp_path):
     return write_tif(tmp_path / "d.tif", z.astype(np.int16), nodata=-32768)
 
 
-def test_components_add_up_to_the_file(tmp_path):
+# The store format's blob kinds by their number (a blob key's low 3 bits; stores hold the
+# numbers, geoterrain/store/keys.py never renumbers them), and the size report's component
+# of each, written out here so that the check below borrows nothing from the code it checks.
+_KIND_OF_CODE = {0: "heights", 1: "delta", 2: "radius", 3: "normals", 4: "delta_edge",
+                 5: "block_delta"}
+_COMPONENT_OF_KIND = {"heights": "heights", "delta": "delta", "delta_edge": "delta",
+                      "block_delta": "delta", "radius": "radius", "normals": "normals"}
+
+
+def _component_bytes_by_sql(store) -> tuple[dict[str, int], dict[str, int]]:
+    """Bytes per component read from the store's SQLite file (read-only): each blob row's
+    ``LENGTH(data)`` summed by the kind its key in the tile table names; ``index/other`` is
+    the file (page size × page count) less every blob row, whatever its key. Also the bytes
+    per blob kind, to show which kinds the store holds."""
+    con = sqlite3.connect(f"{Path(store).resolve().as_uri()}?mode=ro", uri=True)
+    try:
+        sizes = dict(con.execute("SELECT id, LENGTH(data) FROM blobs"))
+        (blob_total,) = con.execute("SELECT SUM(LENGTH(data)) FROM blobs").fetchone()
+        (page_size,) = con.execute("PRAGMA page_size").fetchone()
+        (page_count,) = con.execute("PRAGMA page_count").fetchone()
+        (catalog_bytes,) = con.execute("SELECT SUM(LENGTH(data)) FROM catalog").fetchone()
+        table = read_table(con)
+    finally:
+        con.close()
+    by_kind: dict[str, int] = {}
+    ids = table.ids.tolist()
+    for key, rowid in zip(table.blobs.tolist(), ids, strict=True):
+        kind = _KIND_OF_CODE[key & 7]
+        by_kind[kind] = by_kind.get(kind, 0) + sizes[rowid]
+    # every blob row is one key's, counted once
+    assert sorted(ids) == sorted(sizes) and len(set(ids)) == len(ids)
+    file_bytes = page_size * page_count
+    assert file_bytes == os.path.getsize(store)
+    out = dict.fromkeys(("heights", "delta", "radius", "normals"), 0)
+    for kind, n in by_kind.items():
+        out[_COMPONENT_OF_KIND[kind]] += n
+    out["index/other"] = file_bytes - blob_total
+    assert out["index/other"] > catalog_bytes > 0  # the catalog's rows are index/other's
+    return out, by_kind
+
+
+def test_components_are_the_blob_bytes_of_their_kinds(tmp_path):
     store = preprocess(_int_dem(tmp_path), tmp_path / "d.geoterrain")
+    want, by_kind = _component_bytes_by_sql(store)
+    # the store holds every kind (the padded 90×77 grid has second δs; block δ_n always),
+    # so that each kind's attribution is checked
+    assert set(by_kind) == set(_KIND_OF_CODE.values()), by_kind
+    assert all(v > 0 for v in by_kind.values()), by_kind
     with geoterrain.open(store) as t:
-        c = component_bytes(t)
-    assert sum(c.values()) == os.path.getsize(store)
-    assert all(v > 0 for v in c.values()), c
+        got = component_bytes(t)
+        report = size_report(t)
+    assert got == want and all(v > 0 for v in got.values()), (got, want)
+    assert report["components"] == want
+    assert report["store_bytes"] == sum(want.values()) == os.path.getsize(store)
 
 
 @pytest.mark.filterwarnings("ignore::rasterio.errors.NotGeoreferencedWarning")

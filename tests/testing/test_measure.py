@@ -69,6 +69,7 @@ def naive_vertical(vij, faces, vz, Z, valid):
     return err[sel], int(np.count_nonzero(valid & ~covered))
 
 
+@pytest.mark.fast
 def test_plane_mesh_has_zero_error() -> None:
     N = 33
     vij, faces = uniform_mesh(N, 8)
@@ -85,6 +86,7 @@ def test_plane_mesh_has_zero_error() -> None:
     np.testing.assert_allclose(zmesh, Z, atol=1e-9)
 
 
+@pytest.mark.fast
 def test_two_triangles_over_bumpy_grid_matches_brute_force() -> None:
     N = 17
     rng = np.random.default_rng(0)
@@ -125,6 +127,7 @@ def subset_meshes(draw):
     return vij, faces, vz, Z, valid
 
 
+@pytest.mark.fast
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(subset_meshes())
 def test_random_subsets_agree_with_naive_loop(case) -> None:
@@ -148,6 +151,7 @@ def test_random_subsets_agree_with_naive_loop(case) -> None:
     assert np.all((zmesh[cov] >= lo[cov] - 1e-9) & (zmesh[cov] <= hi[cov] + 1e-9))
 
 
+@pytest.mark.fast
 @settings(max_examples=40, deadline=None)
 @given(
     st.integers(0, 2**31 - 1),
@@ -173,6 +177,7 @@ def test_arbitrary_overlapping_triangles_agree_with_naive_loop(seed, n_tri, inte
         assert e.max == pytest.approx(errs.max(), abs=1e-7)
 
 
+@pytest.mark.fast
 def test_uncovered_and_invalid_samples() -> None:
     N = 9
     vij = np.array([[0, 0], [0, 8], [8, 0]])
@@ -192,6 +197,7 @@ def test_uncovered_and_invalid_samples() -> None:
     assert np.isnan(zmesh[~inside]).all()
 
 
+@pytest.mark.fast
 def test_empty_mesh() -> None:
     e = vertical_error(np.zeros((0, 2)), np.zeros((0, 3), int), np.zeros(0), np.zeros((3, 4)))
     assert e.n_samples == 0 and e.n_uncovered_valid == 12 and e.max == 0.0
@@ -208,6 +214,7 @@ def _scene(N: int, spacing: float = 10.0):
 ALL_INSIDE = np.tile([0.0, 0.0, 0.0, 1.0], (6, 1))
 
 
+@pytest.mark.fast
 def test_screen_space_error_of_constant_offset() -> None:
     N, offset, lam = 17, 2.5, 800.0
     X, Y, Z = _scene(N)
@@ -229,6 +236,7 @@ def test_screen_space_error_of_constant_offset() -> None:
     assert e1.max == pytest.approx(lam * offset / dist[4, 7], rel=1e-12)
 
 
+@pytest.mark.fast
 def test_samples_outside_frustum_are_excluded() -> None:
     N, lam = 17, 1000.0
     X, Y, Z = _scene(N)
@@ -253,6 +261,7 @@ def test_samples_outside_frustum_are_excluded() -> None:
     assert e0.n_samples == 0 and e0.max == 0.0
 
 
+@pytest.mark.fast
 def test_screen_space_uncovered_inside_frustum() -> None:
     N = 9
     X, Y, Z = _scene(N)
@@ -265,6 +274,7 @@ def test_screen_space_uncovered_inside_frustum() -> None:
     assert e.n_uncovered == int((i + j > 8).sum())
 
 
+@pytest.mark.fast
 def test_polydata_wrapper() -> None:
     pv = pytest.importorskip("pyvista")
     N = 9
@@ -282,6 +292,7 @@ def test_polydata_wrapper() -> None:
     assert vertical_error_polydata(mesh, xyz).n_samples == N * N - 1
 
 
+@pytest.mark.fast
 def test_vectorised_rasteriser_on_a_large_uniform_mesh() -> None:
     N = 257
     vij, faces = uniform_mesh(N, 2)
@@ -296,6 +307,7 @@ def test_vectorised_rasteriser_on_a_large_uniform_mesh() -> None:
     np.testing.assert_allclose(zmin, zmax, atol=1e-9)
 
 
+@pytest.mark.fast
 def test_non_finite_and_degenerate_triangles_are_not_drawn() -> None:
     vij = np.array([[0.0, 0.0], [0.0, 4.0], [4.0, 0.0], [np.nan, 1.0], [2.0, 2.0]])
     faces = np.array([[0, 1, 2], [0, 3, 1], [0, 4, 4], [0, 1, 2]])
