@@ -115,7 +115,12 @@ def _tri_term(g, vi, vj, ai, aj, bi, bj, ci, cj, border):
             disp = max(disp, dd)
             if cross and ((i == wi - 1 and j <= wj - 1) or (j == wj - 1 and i <= wi - 1)):
                 dwin = max(dwin, dd)
-    m = int(np.ceil(disp / smin)) + 2
+    # capped in floating point before the conversion: a triangle folded almost flat in
+    # metres (a padded global grid's corners beyond a pole) has disp / smin past 2^63, and
+    # converting that to an integer is undefined (it crashed a 540 × 1080 global grid); a
+    # margin of N samples already reaches every sample
+    mf = disp / smin
+    m = (int(np.ceil(mf)) if mf < N else N) + 2
     # border chords of T: edges whose two ends lie on one side of the domain
     bulge = dwin > 0.5 * frac * smin
     vx, vy, vz = X[vi, vj], Y[vi, vj], Z[vi, vj]
