@@ -87,15 +87,18 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
     dem = dem[0] if len(dem) == 1 else list(dem)
     quiet = ctx.obj["quiet"]
     bar = StageBar("preprocess", quiet)
+    times: dict[str, float] = {}
     try:
         out = geoterrain.preprocess(
             dem, output, tile_size=tile_size, band=band, encoding=encoding,
             pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, tile=tile,
             codec_error=codec_error, overwrite=overwrite, nodata=nodata,
             memory_limit=memory_limit, scheduler=scheduler, resume=resume, progress=bar,
-            derive_normals=not stored_normals)
+            derive_normals=not stored_normals, timings=times)
     finally:
         bar.close()
+    if ctx.obj["verbose"]:  # the store holds no timings: the same DEM gives the same bytes
+        click.echo("stages " + ", ".join(f"{k} {v:.2f} s" for k, v in times.items()), err=True)
     if not quiet:
         with geoterrain.open(out) as t:
             i = t.info()

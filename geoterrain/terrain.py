@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 from collections import OrderedDict
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -650,7 +651,9 @@ class Terrain:
                               for k in sorted({k for k, _ in sizes})},
             "tile_error_range": [min(errs, default=0.0), max(errs, default=0.0)],
             "vertex_error_max": m["delta_max_finite"],
-            "preprocess_seconds": m.get("preprocess_seconds", {}),
+            # the file's own clock (the store holds none: two runs write the same bytes)
+            "modified": datetime.fromtimestamp(os.stat(self.path).st_mtime, UTC)
+            .isoformat(timespec="seconds"),
         }
 
     # -------------------------------------------------------------- notebooks

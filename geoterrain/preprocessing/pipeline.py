@@ -1,6 +1,7 @@
 """The preprocess pipeline: DEM → padded pyramid → errors, normals, codec → store.
 
-Stages (timed; the times go into the store's metadata):
+Stages (timed; ``preprocess(timings=...)`` receives the times, never the store, so the
+same input and options give the same bytes):
 read → pad → quantise → errors → radii → tile bounds → normals → compress → write.
 """
 
@@ -106,6 +107,7 @@ def preprocess(
     memory_limit: int | None = None,
     scheduler: str = "sync",
     resume: bool = False,
+    timings: dict | None = None,
 ) -> Path:
     """Preprocess a DEM into a store and return the store's path.
 
@@ -175,6 +177,9 @@ def preprocess(
         A streamed preprocess killed before it finished left its scratch folder beside
         ``dst``; with ``resume`` the same job reuses the passes it had finished and
         writes the store an uninterrupted run writes. Without it, that folder is removed.
+    timings
+        A dict that receives each stage's seconds (``read``, ..., ``write``). They are
+        not stored: the same input and options write the same bytes.
 
     Examples
     --------
@@ -198,8 +203,8 @@ def preprocess(
                 codec_error=codec_error, overwrite=overwrite,
                 nodata=nodata, band=rows, derive_normals=derive_normals,
                 derive_bounds=derive_bounds, scheduler=scheduler, resume=resume,
-                progress=progress)
-    stage = StageClock(STAGES, progress)
+                progress=progress, timings=timings)
+    stage = StageClock(STAGES, progress, timings)
     dem = read_dem(req, band=band, encoding=encoding, nodata=nodata, tile=tile,
                    pixel_size=pixel_size, z_units=z_units, z_scale=z_scale)
     stage("read")
@@ -517,18 +522,16 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
 def write_store(req: Request, grid: Grid, blobs: TileBlobs, blocks: np.ndarray, meta: dict,
                 stage: StageClock) -> None:
     """Write the store atomically: every blob, the tile table, the GeoMipMapping blocks'
-    δ_n and the metadata (with the stages' times), published as ``req.dst`` only when
-    complete."""
+    δ_n and the metadata, published as ``req.dst`` only when complete."""
     with StoreWriter(req.dst, overwrite=req.overwrite) as w:
         w.put_blobs("heights", blobs.heights)
         for kind, b in blobs.extra.items():
             w.put_blobs(kind, b)
         w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
         w.put_tiles(blobs.tile_rows)
-        w.put_metadata(store_metadata(**meta, times=stage.times))
-        stage("write")
-        stage.times["write"] = stage.times.get("write", 0.0)
+        w.put_metadata(store_metadata(**meta))
         w.commit()
+    stage("write")
 
 
 def cached_store_path(dem: str | Path) -> Path:

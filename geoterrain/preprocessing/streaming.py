@@ -172,6 +172,7 @@ def preprocess_streaming(
     scheduler: str = "sync",
     resume: bool = False,
     progress: Progress | None = None,
+    timings: dict | None = None,
 ) -> Path:
     """Preprocess a DEM a window at a time into the store
     :func:`~geoterrain.preprocessing.pipeline.preprocess` writes (the same tiles, blobs and
@@ -197,8 +198,7 @@ def preprocess_streaming(
     >>> geoterrain.open(p).grid.size
     33
     """
-    stage = StageClock(STAGES, progress)
-    times = stage.times
+    stage = StageClock(STAGES, progress, timings)
 
     if band < 2 or band & (band - 1):
         raise UsageError(f"band must be a power of two ≥ 2, got {band}")
@@ -313,7 +313,7 @@ def preprocess_streaming(
                     samples=grid.rows * grid.cols, height_range=hv,
                     delta_max_finite=meta["delta_max"],
                     edge_max=meta["edge_max"] if pad else None, stand_in_z=stand_in,
-                    block_delta_levels=int(blocks.shape[2]), times=times))
+                    block_delta_levels=int(blocks.shape[2])))
                 stage("write")
                 w.commit()
         finally:
