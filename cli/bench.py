@@ -54,10 +54,11 @@ def _floats(ctx, param, value):
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Figure (PNG).")
 @click.option("--cache-dir", type=click.Path(file_okay=False),
               help="Where a DEM's store is written (default: a temporary directory).")
+@click.option("--overwrite", is_flag=True, help="Replace the CSV and the figure if they exist.")
 @click.pass_context
 def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_aliasing,
             pixel_errors, n_views, cameras, size, render, peers, peer_errors, output, plot_path,
-            cache_dir):
+            cache_dir, overwrite):
     """Benchmark the LOD strategies on SOURCE (a store or a DEM) or a synthetic DEM.
 
     Runs every strategy at every τ over a camera path (a built-in flight of
@@ -74,18 +75,26 @@ def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_ali
       geoterrain bench dem.tif --path cameras.json --render --peers -o dem.csv
     """
     import json
+    import os
     from pathlib import Path
 
     from geoterrain.bench import harness as bench
     from geoterrain.bench.report import format_table, plot, summarise, write_csv
+    from geoterrain.core.paths import check_output
     from geoterrain.exceptions import UsageError
 
     quiet = bool((ctx.obj or {}).get("quiet"))
     if cameras is not None and n_views != 8:
         raise UsageError("--views applies to the built-in flight; not with --path")
-    for p in (output, plot_path):
-        if p is not None and not Path(p).parent.exists():
-            raise UsageError(f"{p}: the directory does not exist")
+    inputs = [source, cameras]
+    for p, opt in ((output, "-o"), (plot_path, "--plot")):
+        if p is not None:
+            check_output(p, overwrite, inputs=inputs, option=opt)
+    if output is not None and plot_path is not None and Path(output).absolute() == \
+            Path(plot_path).absolute():
+        raise UsageError("-o and --plot name the same file; choose another --plot path")
+    if cache_dir is not None and os.path.lexists(cache_dir):
+        check_output(cache_dir, True, folder=True, inputs=inputs, option="--cache-dir")
     if plot_path is not None and Path(plot_path).suffix.lower() not in (".png", ".svg", ".pdf"):
         raise UsageError(f"{plot_path}: the plot must be .png, .svg or .pdf")
     bar = None

@@ -72,7 +72,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     from geoterrain.exceptions import UsageError
     from geoterrain.export.formats import check_export_path, export_mesh
 
-    out = check_export_path(output, overwrite)
+    out = check_export_path(output, overwrite, inputs=[store, drape])  # and its sidecars
     if crs_coords and look_from is None and look_at is None and out.suffix.lower() != ".ply":
         raise UsageError("--crs-coords applies to --look-from/--look-at or to .ply output")
     max_error = mesh_request(max_error, look_from, look_at)

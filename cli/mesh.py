@@ -50,7 +50,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     from geoterrain.export.meshfiles import check_mesh_path, write_mesh
     from geoterrain.export.meshstream import STREAM_CACHE_BYTES, STREAM_FORMATS, check_in_memory
 
-    out = check_mesh_path(output, overwrite)  # before any work
+    out = check_mesh_path(output, overwrite, inputs=[store])  # before any work
     max_error = mesh_request(max_error, look_from, look_at)
     from geoterrain.exaggerate import exaggerated
 

@@ -90,6 +90,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     import geoterrain
     import geoterrain.rendering.animation as A
     import geoterrain.rendering.scene as R
+    from geoterrain.core.paths import check_output, same_file
     from geoterrain.core.view import View
     from geoterrain.exceptions import UsageError
     from geoterrain.rendering.cameras import check_elevation
@@ -120,11 +121,18 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
         raise UsageError(f"{out}: a single view is written as .png (use --orbit or --path "
                          "for .gif/.mp4)")
     overlays = dict(colorbar=not no_overlays, north_arrow=not no_overlays)
+    inputs = [store, drape_path, cameras]
     if animated:
         overlays["scale_bar"] = not no_overlays
         A.check_animation_output(out, fps, overwrite)  # a bad target or --fps fails now
-    elif Path(out).exists() and not overwrite:
-        raise UsageError(f"{out} exists; pass --overwrite or choose another -o path")
+        check_output(out, True, folder=Path(out).suffix.lower() not in A.ANIMATION_SUFFIXES,
+                     inputs=inputs)  # not one of the inputs
+    else:
+        check_output(out, overwrite, inputs=inputs)
+    if stats_path is not None:  # --stats follows the --overwrite rule too
+        check_output(stats_path, overwrite, inputs=inputs, option="--stats")
+        if same_file(stats_path, out) or Path(stats_path).absolute() == Path(out).absolute():
+            raise UsageError("--stats and -o name the same file; choose another --stats path")
     from geoterrain.exaggerate import exaggerated
 
     with geoterrain.open(store) as base:
@@ -147,7 +155,8 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             if stats_path:
                 from geoterrain.core.atomicfiles import write_atomic
 
-                write_atomic(stats_path, json.dumps(frames, indent=2, default=float))
+                write_atomic(stats_path, json.dumps(frames, indent=2, default=float),
+                             overwrite)
             if not quiet:
                 ms = sorted(f["frame_ms"] for f in frames)
                 click.echo(f"wrote {out}: {len(frames)} frames, median frame "

@@ -32,13 +32,10 @@ def command(kind, size, seed, spacing, crs, origin, output, overwrite):
     Example:
       geoterrain synth fbm --size 1025 --seed 7 -o fbm.tif
     """
-    from pathlib import Path
-
-    from geoterrain.exceptions import UsageError
+    from geoterrain.core.paths import check_output
     from geoterrain.ingest.synth import generate, write_geotiff
 
-    if Path(output).exists() and not overwrite:
-        raise UsageError(f"{output} exists; pass --overwrite or choose another -o path")
+    check_output(output, overwrite)  # a regular file or nothing (core/paths.py)
     try:
         ox, oy = (float(v) for v in origin.split(","))
     except ValueError:

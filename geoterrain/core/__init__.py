@@ -3,5 +3,6 @@
 atomic output files and bounded zstd.
 """
 
-__all__ = ["_fork", "atomicfiles", "bintree", "frame", "grid", "memory", "progress", "rounding",
+__all__ = ["_fork", "atomicfiles", "bintree", "frame", "grid", "memory", "paths", "progress",
+           "rounding",
            "threads", "view", "zstdsafe"]

@@ -41,7 +41,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from geoterrain._version import __version__
-from geoterrain.exceptions import UsageError, WriteError, exists_error
+from geoterrain.core.atomicfiles import partial_path, publish
+from geoterrain.core.paths import check_output
+from geoterrain.exceptions import UsageError, WriteError
 from geoterrain.export.meshfiles import check_output_path
 from geoterrain.rendering.textures import SHADINGS, texture_image, texture_level
 
@@ -196,9 +198,9 @@ class _Files:
         self.items: list[tuple[Path, Path]] = []
 
     def path(self, out: Path) -> Path:
-        if out.exists() and not self.overwrite:
-            raise exists_error(out)
-        tmp = out.with_name(f".{out.name}.partial{out.suffix}")
+        check_output(out, self.overwrite)
+        tmp = partial_path(out)
+        tmp = tmp.with_name(tmp.name + out.suffix)
         self.items.append((tmp, out))
         return tmp
 
@@ -208,22 +210,43 @@ class _Files:
 
     def commit(self) -> None:
         for tmp, out in self.items:
-            tmp.replace(out)
+            publish(tmp, out, self.overwrite)
 
     def discard(self) -> None:
         for tmp, _ in self.items:
             tmp.unlink(missing_ok=True)
 
 
-def check_export_path(path: str | Path, overwrite: bool = False) -> Path:
-    """:func:`geoterrain.export.meshfiles.check_output_path` for :data:`EXPORT_FORMATS`.
+def export_paths(out: str | Path) -> list[Path]:
+    """Every file an export to ``out`` writes: ``out``, then its sidecars (the
+    georeference ``OUT.json``; an OBJ's material ``.mtl`` and texture ``.png``).
+
+    Examples
+    --------
+    >>> [p.name for p in export_paths("dem.obj")]
+    ['dem.obj', 'dem.obj.json', 'dem.mtl', 'dem.png']
+    """
+    out = Path(out)
+    ext = out.suffix.lower()
+    side = [] if ext == ".ply" else [out.with_name(out.name + ".json")]
+    if ext == ".obj":
+        side += [out.with_suffix(".mtl"), out.with_suffix(".png")]
+    return [out, *side]
+
+
+def check_export_path(path: str | Path, overwrite: bool = False, inputs=()) -> Path:
+    """:func:`geoterrain.export.meshfiles.check_output_path` for :data:`EXPORT_FORMATS`, and
+    the same rules for every sidecar (:func:`export_paths`), before any work.
 
     Examples
     --------
     >>> check_export_path("out.glb").suffix
     '.glb'
     """
-    return check_output_path(path, EXPORT_FORMATS, overwrite, "export")
+    out = check_output_path(path, EXPORT_FORMATS, overwrite, "export", inputs)
+    for side in export_paths(out)[1:]:
+        check_output(side, overwrite, inputs=inputs)
+    return out
 
 
 def export_mesh(terrain: TerrainLike, selection, path: str | Path, *, overwrite: bool = False,

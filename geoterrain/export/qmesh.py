@@ -51,6 +51,7 @@ import functools
 import gzip
 import json
 import math
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -60,7 +61,9 @@ import numpy as np
 from pyproj import CRS, Transformer
 
 from geoterrain.bounds.delta import vertex_errors
-from geoterrain.exceptions import UsageError, WriteError, exists_error
+from geoterrain.core.atomicfiles import write_atomic
+from geoterrain.core.paths import check_output
+from geoterrain.exceptions import UsageError, WriteError
 from geoterrain.lod.kernels import close_upward, extract
 from geoterrain.lod.mesh import orient_ccw
 
@@ -498,6 +501,20 @@ def max_zoom_for(dem: _Dem, lattice: int) -> int:
     return 23
 
 
+def _tile_folder(out: Path, z: int, x: int) -> Path:
+    """``out/z/x``, made if absent; a link or a file in its place is refused (tiles are
+    never written through a link out of the tile set)."""
+    p = out
+    for part in (str(z), str(x)):
+        p = p / part
+        try:
+            p.mkdir(exist_ok=True)
+        except FileExistsError:
+            pass
+        check_output(p, True, folder=True)
+    return p
+
+
 def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | None = None,
                   min_zoom: int = 0, lattice: int = 129, max_error: float = 1.0,
                   overwrite: bool = False, geoid: str | None = None,
@@ -509,9 +526,13 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
     ellipsoidal heights (:func:`geoid_transformer`), and the declared errors are against
     those.
     """
+    # a folder (new, with its parents, or one to write into; never a link or a file),
+    # whose files are replaced only with overwrite
     out = Path(out_dir)
-    if (out / "layer.json").exists() and not overwrite:
-        raise exists_error(out / "layer.json")
+    if os.path.lexists(out):
+        check_output(out, True, folder=True, inputs=[terrain.path], option="-o")
+        for name in ("layer.json", "geoterrain.json"):
+            check_output(out / name, overwrite, inputs=[terrain.path])
     if lattice < 3 or (lattice - 1) & (lattice - 2) or lattice > 129:
         raise UsageError(f"lattice must be 2^k + 1 in 3..129, got {lattice}")
     t0 = time.perf_counter()
@@ -557,10 +578,9 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
                     break
             nb = nt = 0
             for (x, y), (data, bound, ntri, _) in tiles.items():
-                p = out / str(z) / str(x) / f"{y}.terrain"
-                p.parent.mkdir(parents=True, exist_ok=True)
+                p = _tile_folder(out, z, x) / f"{y}.terrain"
                 blob = gzip.compress(data, compresslevel=6, mtime=0)
-                p.write_bytes(blob)
+                write_atomic(p, blob)  # a partial, then a rename: never a half tile
                 nb, nt = nb + len(blob), nt + ntri
                 errors[f"{z}/{x}/{y}"] = math.ceil(bound * 1e4) / 1e4  # rounded up
                 available.setdefault(z, []).append((x, y))
@@ -593,8 +613,8 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
              "heights": f"WGS 84 ellipsoidal (from {geoid.upper()})" if geoid else "as stored",
              "over_level_error": sum(v["over_level_error"] for v in levels.values()),
              "levels": levels, "declared_error": errors}
-    (out / "layer.json").write_text(json.dumps(layer, indent=1))
-    (out / "geoterrain.json").write_text(json.dumps(stats, indent=1))
+    write_atomic(out / "layer.json", json.dumps(layer, indent=1), overwrite)
+    write_atomic(out / "geoterrain.json", json.dumps(stats, indent=1), overwrite)
     return {k: v for k, v in stats.items() if k not in ("declared_error", "levels")}
 
 

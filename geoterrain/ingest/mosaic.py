@@ -22,6 +22,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 import rasterio
 
+from geoterrain.core.paths import input_problem
 from geoterrain.exceptions import InputError, UsageError
 
 GLOB_CHARS = "*?["
@@ -60,8 +61,8 @@ def source_files(src: str | Path | list | tuple) -> list[Path]:
     else:
         return [Path(src)]
     for p in files:
-        if not p.is_file():
-            raise InputError(f"{p}: no such file; check the path")
+        if (why := input_problem(p)) is not None:
+            raise InputError(f"{p}: {why}; give raster files")
     return files
 
 

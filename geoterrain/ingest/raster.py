@@ -16,6 +16,7 @@ import rasterio
 from rasterio.errors import RasterioIOError
 
 from geoterrain.core.memory import available_memory
+from geoterrain.core.paths import input_problem
 from geoterrain.exceptions import InputError, UsageError
 from geoterrain.ingest.mosaic import mosaic_name, open_mosaic, source_files
 
@@ -149,10 +150,8 @@ def read_raster(
     if len(files) > 1:
         return _read_mosaic(files, band, encoding, nodata)
     p = files[0]
-    if not p.exists():
-        raise InputError(f"{p}: no such file; check the path")
-    if p.is_dir():
-        raise InputError(f"{p}: is a directory, not a raster file")
+    if (why := input_problem(p)) is not None:  # a device or a FIFO is never opened
+        raise InputError(f"{p}: {why}; give a raster file")
     try:
         with warnings.catch_warnings(), rasterio.Env(**GDAL_READ_OPTIONS):
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)

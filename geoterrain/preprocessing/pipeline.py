@@ -42,8 +42,9 @@ from geoterrain.core.atomicfiles import remove_stale_partials
 from geoterrain.core.frame import Frame
 from geoterrain.core.grid import Grid
 from geoterrain.core.memory import available_memory
+from geoterrain.core.paths import check_output
 from geoterrain.core.progress import Progress, StageClock
-from geoterrain.exceptions import InputError, UsageError, exists_error
+from geoterrain.exceptions import InputError, UsageError
 from geoterrain.ingest.mosaic import is_glob, mosaic_name, source_files
 from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.ingest.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
@@ -291,11 +292,8 @@ def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
     dst = Path(dst) if dst is not None else default_store_path(src)
     if not resume:  # a killed streaming run's scratch stays for resume to take up
         remove_stale_partials(dst.parent if str(dst.parent) else Path("."))
-    if dst.exists() and not overwrite:
-        raise exists_error(dst)
-    if any(f.resolve() == dst.resolve() for f in files):
-        raise UsageError(f"{dst}: the store would overwrite its own input; choose another dst",
-                         cli=f"{dst}: the store would overwrite its own input; choose another -o")
+    # a regular file or nothing, replaced only with overwrite, never one of the inputs
+    check_output(dst, overwrite, inputs=files)
     return Request(files, mosaic, dst, overwrite, src, tile_size)
 
 

@@ -48,8 +48,9 @@ from geoterrain.codec.quantize import roundtrip
 from geoterrain.core.atomicfiles import remove_stale_partials
 from geoterrain.core.frame import Frame
 from geoterrain.core.grid import Grid
+from geoterrain.core.paths import check_output, input_problem
 from geoterrain.core.progress import Progress, StageClock
-from geoterrain.exceptions import InputError, UsageError, exists_error
+from geoterrain.exceptions import InputError, UsageError
 from geoterrain.ingest.raster import ABSURD_HEIGHT, GDAL_READ_OPTIONS, VOID_SENTINELS
 from geoterrain.ingest.units import resolve_z_units
 from geoterrain.preprocessing.bands.quantize import band_quantizer
@@ -204,10 +205,9 @@ def preprocess_streaming(
         raise UsageError(f"band must be a power of two ≥ 2, got {band}")
     src = Path(src)
     dst = Path(dst) if dst is not None else src.with_suffix(".geoterrain")
-    if dst.exists() and not overwrite:
-        raise exists_error(dst)
-    if not src.is_file():
-        raise InputError(f"{src}: no such file; check the path")
+    check_output(dst, overwrite, inputs=[src])  # core/paths.py: what may be replaced
+    if (why := input_problem(src)) is not None:
+        raise InputError(f"{src}: {why}; check the path")
     with rasterio.Env(**GDAL_READ_OPTIONS), rasterio.open(src) as ds:
         if ds.count != 1:
             raise UsageError(f"{src}: has {ds.count} bands; the streaming preprocess reads "
