@@ -24,6 +24,13 @@ interrupted write never leaves a file that opens as a valid store. Without
 ``overwrite`` the publish is a create-if-absent (a hard link), so of two racing
 writers exactly one wins.
 
+A reader never writes: :class:`StoreReader` opens a store with SQLite's ``immutable=1``
+(no lock, no journal, no ``-wal`` or ``-shm`` file is ever created beside it, so a store
+in a read-only folder or on a read-only medium reads the same), and refuses one with a
+non-empty hot journal or write-ahead log beside it (changes the file alone lacks, which
+reading without writing cannot apply). Stores are published by a rename, so a reader's
+open file is never changed under it.
+
 A store may come from a stranger: :class:`StoreReader` opens it read-only with
 SQLite's ``trusted_schema`` off and refuses any schema object but the two plain
 tables (no views, triggers or virtual tables), so reading runs no SQL of the file's.
@@ -46,12 +53,12 @@ from pathlib import Path
 import numpy as np
 
 from geoterrain.core.atomicfiles import publish, remove_stale_partials
+from geoterrain.core.paths import check_output, input_problem
 from geoterrain.exceptions import (
     StoreCorruptError,
     StoreError,
     UsageError,
     WriteError,
-    exists_error,
 )
 from geoterrain.store.catalog import (  # noqa: F401 - the catalog's rows are the store's API
     META_ID,
@@ -176,15 +183,9 @@ class StoreWriter:
     """
 
     def __init__(self, dst: str | Path, overwrite: bool = False):
-        self.dst = Path(dst)
-        if self.dst.exists() and not overwrite:
-            raise exists_error(self.dst)
-        if self.dst.is_dir():
-            raise UsageError(f"{self.dst} is a directory; give a file path",
-                             cli=f"{self.dst} is a directory; give a file path with -o")
+        # a regular file or nothing, replaced only with overwrite (core/paths.py)
+        self.dst = check_output(dst, overwrite)
         parent = self.dst.parent if str(self.dst.parent) else Path(".")
-        if not parent.is_dir():
-            raise UsageError(f"{parent}: no such directory for the store; create it first")
         remove_stale_partials(parent)
         self.tmp = parent / f".{self.dst.name}.partial-{os.getpid()}"
         # the tile table's staging file, in the same folder: a full disk is the store's
@@ -389,12 +390,25 @@ class StoreReader:
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
-        if not self.path.is_file():
+        why = input_problem(self.path)
+        if why == "no such file":
             raise StoreError(f"{self.path}: no such store; run `geoterrain preprocess DEM` first")
+        if why is not None:
+            raise StoreError(f"{self.path}: {why}; give a .geoterrain store")
+        for side in ("-journal", "-wal"):
+            try:
+                pending = os.path.getsize(f"{self.path}{side}") > 0
+            except OSError:
+                continue
+            if pending:
+                raise StoreError(f"{self.path}: SQLite's {self.path.name}{side} beside it holds "
+                                 "changes the store file lacks, which geoterrain cannot apply "
+                                 "without writing; re-run `geoterrain preprocess`")
         try:
-            self.con = sqlite3.connect(self.path.resolve().as_uri() + "?mode=ro", uri=True,
-                                       check_same_thread=False)
-        except sqlite3.Error:
+            # immutable: never a lock, a journal, or a -wal/-shm file beside the store
+            self.con = sqlite3.connect(self.path.resolve().as_uri() + "?mode=ro&immutable=1",
+                                       uri=True, check_same_thread=False)
+        except (sqlite3.Error, ValueError, OSError):
             raise StoreError(f"{self.path}: cannot open the store read-only") from None
         try:
             self._open()
