@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 import zstandard
 
+from geoterrain.bounds.delta import below_own_error
 from geoterrain.bounds.leafbounds import normal_axes, normal_xy, tile_leaf_bounds
 from geoterrain.bounds.normals import decode_octahedral, derived_codes
 from geoterrain.bounds.vertexdata import (
@@ -312,10 +313,20 @@ class Terrain:
         base = (self.tile_delta(*key) if stored == "delta_edge" and len(blob) > 1
                 and blob[1] & DIFF and key in self.tile_info else None)
         try:
-            return decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base)
+            out = decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base)
         except (ValueError, zstandard.ZstdError):
             raise StoreCorruptError(f"{self.path}: tile {key} {kind} cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
+        if kind == "delta" and key in self.tile_info:
+            # δ(v) ≥ v's own error on the decoded heights: a δ table swapped with another
+            # tile's (checksums recomputed) or edited down fails it (bounds/delta.py)
+            tile = self.tile(*key)
+            bad = below_own_error(out, self.frame.z(tile.heights), tile.valid)
+            if bad is not None:
+                raise StoreCorruptError(f"{self.path}: tile {key} δ is below the error of its "
+                                        f"vertex {bad} (bounds swapped or edited): the file "
+                                        "is damaged; re-run `geoterrain preprocess`")
+        return out
 
     def block_errors(self) -> np.ndarray | None:
         """Every GeoMipMapping block's exact δ_n (seed 000 §2.4), (nb, nb, levels) indexed

@@ -39,7 +39,7 @@ from geoterrain.codec.pyramid import decoded_heights, encode_decoded, encode_pyr
 from geoterrain.codec.quantchoice import choose_quantizer
 from geoterrain.codec.quantize import Quantizer, codes_to_heights
 from geoterrain.core.atomicfiles import remove_stale_partials
-from geoterrain.core.frame import Frame
+from geoterrain.core.frame import PIXEL_SIZE_RANGE, Frame
 from geoterrain.core.grid import Grid
 from geoterrain.core.memory import available_memory
 from geoterrain.core.paths import check_output
@@ -274,9 +274,11 @@ def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
     if codec_error is not None and not (np.isfinite(codec_error) and codec_error >= 0):
         raise UsageError(f"codec_error must be a finite number ≥ 0, got {codec_error}",
                          cli=f"--codec-error must be a finite number ≥ 0, got {codec_error}")
-    if pixel_size is not None and not (np.isfinite(pixel_size) and pixel_size > 0):
-        raise UsageError(f"pixel_size must be a finite number > 0, got {pixel_size}",
-                         cli=f"--pixel-size must be a finite number > 0, got {pixel_size}")
+    plo, phi = PIXEL_SIZE_RANGE
+    if pixel_size is not None and not (np.isfinite(pixel_size) and plo <= pixel_size <= phi):
+        raise UsageError(f"pixel_size must be a number in [{plo:g}, {phi:g}] metres, got "
+                         f"{pixel_size}", cli=f"--pixel-size must be a number in [{plo:g}, "
+                         f"{phi:g}] metres, got {pixel_size}")
     if not (isinstance(tile_size, int) and 2 <= tile_size <= MAX_TILE_SIZE
             and tile_size & (tile_size - 1) == 0):
         raise UsageError(f"tile_size must be a power of two in [2, {MAX_TILE_SIZE}], "
@@ -333,6 +335,7 @@ def read_dem(req: Request, *, band: int | None, encoding: str, nodata: float | N
     if r.crs_wkt is None and pixel_size is None:
         log.warning("%s has no CRS: using 1 m per pixel; set pixel_size (--pixel-size)", src)
     grid = Grid.for_shape(*r.shape, tile_size=req.tile_size)
+    frame.check_scene(grid.size, *valid_range(r.heights, r.valid)[:2])
     return Dem(r, frame, grid, int(np.count_nonzero(r.valid)))
 
 

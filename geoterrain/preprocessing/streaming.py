@@ -259,6 +259,7 @@ def preprocess_streaming(
             raise InputError(f"{src}: heights reach {max(map(abs, raw)):.3g}, beyond "
                              f"±{ABSURD_HEIGHT:.0e}; if they are real pass --z-scale (e.g. 1), "
                              "else set the right nodata or unit")
+        frame.check_scene(N, *raw)  # scene coordinates within SCENE_LIMIT (frame.py)
         stage("quantise")
 
     parent = Path(scratch) if scratch is not None else (dst.parent if str(dst.parent) else
