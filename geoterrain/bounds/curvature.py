@@ -41,7 +41,7 @@ from geoterrain.bounds.edgepad import _reaches_data
 from geoterrain.bounds.radii import _proxy_positions
 from geoterrain.core.bintree import child_nb, main_diagonal_nb
 from geoterrain.core.rounding import round_up32
-from geoterrain.core.threads import cores_for
+from geoterrain.core.threads import cores_for, parallel_kernel
 
 __all__ = ["BORDER_FRACTION", "metric_bounds", "metric_terms"]
 
@@ -168,7 +168,7 @@ def _same_as_base(i, j, h, M, wi, wj):
     return M >= 0 and i + h + M <= wi - 1 and j + h + M <= wj - 1
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _vertex_terms(g, M, dm0, bulge0, mrow):
     """Raw per-vertex (δ_m, r_m, bulge) over the triangles drawn while each vertex of the
     grid ``g`` (:class:`MetricGrid`) is absent (rows of blocks on every core: each vertex

@@ -31,7 +31,7 @@ from numba import njit, prange
 
 from geoterrain.core.bintree import main_diagonal_nb, parents_nb
 from geoterrain.core.rounding import round_up32
-from geoterrain.core.threads import cores_for
+from geoterrain.core.threads import cores_for, parallel_kernel
 
 __all__ = ["below_own_error", "saturate", "vertex_errors"]
 
@@ -118,7 +118,7 @@ _FM = True
 # quiet 4097² fBm, docs/lab/preprocess.md); small ones run on one thread, where a busy
 # core made the barriers cost more than the work (geoterrain/core/threads.py: cores_for).
 # Each output is written by one iteration, so the values do not depend on the threads.
-_PARALLEL = True
+# (Each prange kernel is a ParallelKernel: a fork() child runs its serial twin.)
 
 
 @njit(cache=True, inline="always")
@@ -251,7 +251,7 @@ def edge_delta_nb(z, vb, ic, jc, h, rows, N, w0, beside, old):
     return old
 
 
-@njit(cache=True, parallel=_PARALLEL)
+@parallel_kernel(cache=True)
 def _block_status_nb(vb):
     # bs[centre of a closed 2h block] = bit 1: holds a valid sample, bit 2: an invalid one;
     # built fine to coarse (a closed 2h block is the union of its four closed h blocks).
@@ -392,15 +392,12 @@ def _block_sweep(z, i0, j0, s, main):
                                      z[i0 + s, j0 + s]), z[i0 + h, j0 + h], 0, s, 0)
 
 
-@njit(cache=True, parallel=_PARALLEL)
-def _raw_delta_nb(z, vb, all_valid):
-    """Raw exact δ, float32 rounded up (+inf for mixed diamonds)."""
+@parallel_kernel(cache=True)
+def _raw_delta_nb(z, vb, bs, all_valid):
+    """Raw exact δ, float32 rounded up (+inf for mixed diamonds); ``bs`` the blocks'
+    status (:func:`_block_status_nb`; unread when ``all_valid``)."""
     N = z.shape[0]
     out = np.zeros((N, N), np.float32)
-    if all_valid:
-        bs = np.ones((1, 1), np.uint8)
-    else:
-        bs = _block_status_nb(vb)
     nq = max((N - 1) // 4, 1)
     QL = np.empty((nq, nq))
     QR = np.empty((nq, nq))
@@ -517,7 +514,10 @@ def saturate(d: np.ndarray) -> np.ndarray:
 
 
 def _raw_delta(zf: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    return _raw_delta_nb(zf, valid.view(np.uint8), bool(valid.all()))
+    all_valid = bool(valid.all())
+    vb = valid.view(np.uint8)
+    bs = np.ones((1, 1), np.uint8) if all_valid else _block_status_nb(vb)
+    return _raw_delta_nb(zf, vb, bs, all_valid)
 
 
 

@@ -30,7 +30,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.core.threads import forked, serial_twin
+from geoterrain.core.threads import forked, parallel_kernel, serial_twin
 from geoterrain.rendering.shading import oct_shade
 
 
@@ -222,7 +222,7 @@ def _palette_args(clim, water_level, land, water, tolerance: float = 0.0) -> Tin
                 float(depth_span), bool(depth_ramp), *_stops(land), *_stops(water))
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def _shade_tiles(h, cf, codes, lut, tint, out):  # pragma: no cover - compiled
     """:func:`shade_tiles`'s pass: :func:`_shade_tile` of each tile of ``h`` with its
     normal codes ``codes[k]`` (pairs)."""

@@ -13,16 +13,17 @@ column only and y on the row only. The codes go to ``rC{k}``, ``rR{k}``, ``rK{k}
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from geoterrain.bounds.radii import code_up_nb
 from geoterrain.bounds.vertexdata import log8_exponent, log8_table
+from geoterrain.core.threads import parallel_kernel
 from geoterrain.preprocessing.scratch import ScratchArrays
 
 __all__ = ["band_radius_codes"]
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _edge_codes_nb(xs, ys, h, rows, a_lo, nb, zv, pz, pc, table, out):
     """Codes of level h's edge midpoints (rows a_lo …; R-type if ``rows``, else K-type)
     from their four child centres at h/2 (``pz``, ``pc``: that level's centre heights
@@ -50,7 +51,7 @@ def _edge_codes_nb(xs, ys, h, rows, a_lo, nb, zv, pz, pc, table, out):
             out[ar, b] = code_up_nb(table, best)
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _centre_codes_nb(xs, ys, h, a_lo, zc, zr, zk, cr, ck, table, out):
     """Codes of level h's centres (rows a_lo …) from their block's four edge midpoints:
     up K[a], down K[a + 1], left R[b], right R[b + 1] (child_nb's order)."""
