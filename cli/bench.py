@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
+import math
 import sys
 
 import click
 
 from geoterrain.cli.options import (
+    SIZE,
     anti_aliasing_option,
     morph_option,
     occlusion_option,
-    parse_size,
     pixel_errors_option,
     strategies_option,
 )
@@ -23,8 +24,8 @@ def _floats(ctx, param, value):
         out = tuple(float(v) for v in value.split(",") if v.strip())
     except ValueError:
         raise click.BadParameter(f"expected comma-separated numbers, got {value!r}") from None
-    if not out:
-        raise click.BadParameter("expected at least one number")
+    if not out or not all(math.isfinite(v) and v > 0 for v in out):
+        raise click.BadParameter(f"expected finite numbers > 0, got {value!r}")
     return out
 
 
@@ -42,7 +43,7 @@ def _floats(ctx, param, value):
               help="Length of the built-in flight.")
 @click.option("--path", "cameras", type=click.Path(dir_okay=False),
               help="Cameras JSON: a list of {look_from, look_at, up?, fov?} in scene metres.")
-@click.option("--size", default="1280x720", show_default=True, callback=parse_size,
+@click.option("--size", default="1280x720", show_default=True, type=SIZE,
               help="Image size WxH the pixel error refers to.")
 @click.option("--render", is_flag=True, help="Also render every frame offscreen and time it.")
 @click.option("--peers", is_flag=True,

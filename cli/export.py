@@ -7,6 +7,8 @@ import json
 import click
 
 from geoterrain.cli.options import (
+    NON_NEGATIVE,
+    Number,
     camera_options,
     mesh_request,
     occlusion_option,
@@ -20,7 +22,7 @@ from geoterrain.cli.options import (
 @click.argument("store", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="File: .glb, .gltf, .obj (+ .mtl, .png), .ply or .stl.")
-@click.option("--max-error", type=float, metavar="E",
+@click.option("--max-error", type=NON_NEGATIVE, metavar="E",
               help="Static mesh: vertical error bound in metres (scene units); default 1.")
 @camera_options
 @pixel_error_option
@@ -35,9 +37,9 @@ from geoterrain.cli.options import (
 @click.option("--drape", type=click.Path(dir_okay=False), metavar="IMAGE",
               help="glTF/OBJ texture: a georeferenced image (orthophoto GeoTIFF, RGB or one "
                    "band, any CRS) reprojected onto the DEM instead of the shading.")
-@click.option("--base-height", type=float, metavar="H",
+@click.option("--base-height", type=Number(0, 1e6), metavar="H",
               help="STL: base thickness under the lowest point (mm with --print-size, else m).")
-@click.option("--print-size", type=float, metavar="MM",
+@click.option("--print-size", type=Number(0, 1e6, lo_open=True), metavar="MM",
               help="STL: scale the longer side to MM millimetres.")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context

@@ -7,6 +7,7 @@ import logging
 import signal
 import sys
 import traceback
+import warnings
 
 import click
 
@@ -22,7 +23,7 @@ COMMANDS = {"preprocess": "preprocess", "info": "info", "mesh": "mesh", "export"
 
 
 def one_line(text: object) -> str:
-    """``text`` as one printable line: newlines and runs of blanks as one space, control
+    r"""``text`` as one printable line: newlines and runs of blanks as one space, control
     characters as "?", bytes that are not UTF-8 (a file name's) as escapes, at most 400
     characters.
 
@@ -119,6 +120,22 @@ def cli(ctx, verbose, quiet):
     logging.basicConfig(level=logging.DEBUG if verbose > 1 else
                         logging.INFO if verbose else logging.WARNING,
                         format="%(levelname)s: %(message)s")
+    if verbose < 2:  # -vv: Python's own warnings, with their file and line
+        warnings.showwarning = _one_line_warning
+
+
+# library warnings that mean nothing to a user of the command line: a raster without a
+# geotransform is said in geoterrain's own words (--pixel-size), and matplotlib's missing
+# glyphs only change how an overlay's text looks
+_SILENT = ("NotGeoreferencedWarning", "Glyph")
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A library's warning as one line on stderr, without its source path."""
+    text = one_line(message)
+    if any(s in category.__name__ or s in text for s in _SILENT):
+        return
+    click.echo(f"warning: {text}", err=True)
 
 
 class Terminated(KeyboardInterrupt):

@@ -7,6 +7,7 @@ import json
 import click
 
 from geoterrain.cli.options import (
+    NON_NEGATIVE,
     camera_options,
     mesh_request,
     occlusion_option,
@@ -21,7 +22,7 @@ from geoterrain.cli.options import (
 @click.argument("store", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Mesh file: .ply, .vtp, .stl, .obj or .vtk.")
-@click.option("--max-error", type=float, metavar="E",
+@click.option("--max-error", type=NON_NEGATIVE, metavar="E",
               help="Static mesh: vertical error bound e in metres (scene units); default 1.")
 @camera_options
 @pixel_error_option

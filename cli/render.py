@@ -8,7 +8,12 @@ from pathlib import Path
 import click
 
 from geoterrain.cli.options import (
+    AZIMUTH,
+    DISTANCE,
+    FINITE,
+    Number,
     StageBar,
+    Text,
     anti_aliasing_option,
     camera_options,
     colour_options,
@@ -30,13 +35,14 @@ from geoterrain.cli.options import (
               help="Output .png (one view), .gif or .mp4 (--orbit / --path), or a directory "
                    "of PNG frames.")
 @camera_options
-@click.option("--azimuth", type=float,
+@click.option("--azimuth", type=AZIMUTH,
               help="Camera bearing from the target, degrees clockwise from north "
                    "[default: 190; 180 with --elevation 90, so north is up].")
-@click.option("--elevation", type=float, default=40.0, show_default=True,
+@click.option("--elevation", type=FINITE, default=40.0, show_default=True,
               help="Camera angle above the horizon, degrees in (0, 90]; 90 looks straight "
                    "down.")
-@click.option("--distance", type=float, help="Eye–target distance in metres (default: fit).")
+@click.option("--distance", type=DISTANCE,
+              help="Eye–target distance in metres (default: fit).")
 @pixel_error_option
 @strategy_option
 @occlusion_option
@@ -49,17 +55,19 @@ from geoterrain.cli.options import (
 @colour_options
 @light_options
 @drape_options
-@click.option("--title", help="Title drawn at the top.")
+@click.option("--title", type=Text(200), help="Title drawn at the top.")
 @click.option("--no-overlays", is_flag=True,
               help="No colour bar, scale bar or north arrow.")
 @click.option("--stats", "stats_path", type=click.Path(dir_okay=False),
               help="Write the selection and frame stats as JSON.")
-@click.option("--orbit", type=int, help="Render an orbit of N frames around the terrain.")
+@click.option("--orbit", type=click.IntRange(1, 100_000),
+              help="Render an orbit of N frames around the terrain.")
 @click.option("--path", "cameras", type=click.Path(exists=True, dir_okay=False),
               help="Fly through the cameras of a JSON file.")
 @click.option("--frames-between", type=click.IntRange(0, 1000), default=0, show_default=True,
               help="With --path: eased frames on a smooth spline between each pair of cameras.")
-@click.option("--fps", type=float, default=10.0, show_default=True, help="Animation speed.")
+@click.option("--fps", type=Number(0, 1000, lo_open=True), default=10.0, show_default=True,
+              help="Animation speed, frames per second in (0, 1000].")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import click
 
+from geoterrain.cli.options import PIXEL_SIZE, Point
+
 KINDS = ("fbm", "ridged", "diamond-square", "fault")
 
 
@@ -12,12 +14,12 @@ KINDS = ("fbm", "ridged", "diamond-square", "fault")
 @click.option("--size", default=1025, show_default=True, type=click.IntRange(2, 32769),
               help="Samples per side (2^n+1 fits the pyramid without padding).")
 @click.option("--seed", default=0, show_default=True, type=int, help="Random seed.")
-@click.option("--spacing", default=10.0, show_default=True,
-              type=click.FloatRange(min=0, min_open=True),
+@click.option("--spacing", default=10.0, show_default=True, type=PIXEL_SIZE,
               help="Metres between samples.")
 @click.option("--crs", default="EPSG:32633", show_default=True,
               help="Projected CRS of the output (default UTM 33N).")
 @click.option("--origin", default="500000,5000000", show_default=True,
+              type=Point(2, "X,Y"),
               help="CRS coordinates X,Y of the top-left corner.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="GeoTIFF to write.")
@@ -36,11 +38,15 @@ def command(kind, size, seed, spacing, crs, origin, output, overwrite):
     from geoterrain.ingest.synth import generate, write_geotiff
 
     check_output(output, overwrite)  # a regular file or nothing (core/paths.py)
+    from rasterio.crs import CRS
+    from rasterio.errors import CRSError
+
     try:
-        ox, oy = (float(v) for v in origin.split(","))
-    except ValueError:
-        raise click.BadParameter(f"expected X,Y, got {origin!r}", param_hint="--origin") from None
+        CRS.from_user_input(crs)
+    except CRSError:
+        raise click.BadParameter(f"not a CRS rasterio knows: {crs!r} (e.g. EPSG:32633)",
+                                 param_hint="--crs") from None
     z = generate(kind, size, seed=seed)
-    write_geotiff(output, z, crs=crs, origin=(ox, oy), spacing=spacing)
+    write_geotiff(output, z, crs=crs, origin=origin, spacing=spacing)
     click.echo(f"wrote {output}: {kind} {size}×{size}, seed {seed}, "
                f"heights {float(z.min()):.1f} … {float(z.max()):.1f} m", err=False)

@@ -23,17 +23,17 @@ from pyproj import CRS, Transformer
 from pyproj.crs import ProjectedCRS
 from pyproj.crs.coordinate_operation import AzimuthalEquidistantConversion
 
+# what a frame may hold, and a store's reader checks (core/limits.py)
+from geoterrain.core.limits import (  # noqa: F401 - part of this module's API
+    PIXEL_SIZE_RANGE,
+    SCENE_LIMIT,
+    UNIT_TO_M_RANGE,
+    Z_SCALE_RANGE,
+)
 from geoterrain.exceptions import InputError, UsageError
 
 # Vertical units a user may state (metres per unit); pyproj supplies horizontal ones.
 Z_UNITS = {"m": 1.0, "ft": 0.3048, "us-ft": 1200.0 / 3937.0}
-# What a frame may hold, and a store's reader checks: a horizontal unit of micrometres to
-# 1000 km, a vertical exaggeration and a pixel size in the same range, and scene
-# coordinates within 10^8 m (2.5 Earth circumferences): beyond, an option or a unit is wrong
-UNIT_TO_M_RANGE = (1e-6, 1e6)
-Z_SCALE_RANGE = (1e-6, 1e6)
-PIXEL_SIZE_RANGE = (1e-6, 1e6)
-SCENE_LIMIT = 1e8
 
 
 @dataclass(frozen=True)

@@ -55,9 +55,24 @@ def _os_problem(exc: OSError) -> str:
     return exc.strerror or str(exc)
 
 
-def input_problem(path: str | Path, *, folder: bool = False) -> str | None:
+def _not_utf8(path: str | Path) -> bool:
+    """Whether a file name holds bytes that are not UTF-8 (GDAL, SQLite and VTK take only
+    UTF-8 names)."""
+    try:
+        os.fspath(path).encode("utf-8") if isinstance(os.fspath(path), str) else \
+            os.fspath(path).decode("utf-8")
+    except UnicodeError:
+        return True
+    return False
+
+
+NOT_UTF8 = "a file name that is not UTF-8, which GDAL cannot open; rename it"
+
+
+def input_problem(path: str | Path, *, folder: bool = False, utf8: bool = False
+                  ) -> str | None:
     """Why ``path`` cannot be read as a file (or a ``folder``), in a few words; None if it
-    can be.
+    can be. ``utf8``: a name that is not UTF-8 is a problem too (a raster GDAL opens).
 
     Examples
     --------
@@ -72,6 +87,8 @@ def input_problem(path: str | Path, *, folder: bool = False) -> str | None:
         return _os_problem(exc)
     except ValueError:  # an embedded NUL
         return "not a valid file name"
+    if utf8 and _not_utf8(path):
+        return NOT_UTF8
     if folder and not stat.S_ISDIR(st.st_mode):
         return f"{kind_of(st.st_mode)}, not a folder"
     if not folder and not stat.S_ISREG(st.st_mode):
@@ -114,6 +131,10 @@ def check_output(path: str | Path, overwrite: bool, *, folder: bool = False,
     """
     p = Path(path)
     what = "folder" if folder else "file"
+    if _not_utf8(p):  # SQLite, GDAL and VTK write only UTF-8 names
+        raise UsageError(f"{_show(p)}: the name is not UTF-8; choose another path",
+                         cli=f"{_show(p)}: the name is not UTF-8; choose another {option} "
+                             "path")
     try:
         st = os.lstat(p)
     except FileNotFoundError:

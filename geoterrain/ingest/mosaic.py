@@ -61,7 +61,7 @@ def source_files(src: str | Path | list | tuple) -> list[Path]:
     else:
         return [Path(src)]
     for p in files:
-        if (why := input_problem(p)) is not None:
+        if (why := input_problem(p, utf8=True)) is not None:
             raise InputError(f"{p}: {why}; give raster files")
     return files
 

@@ -150,7 +150,7 @@ def read_raster(
     if len(files) > 1:
         return _read_mosaic(files, band, encoding, nodata)
     p = files[0]
-    if (why := input_problem(p)) is not None:  # a device or a FIFO is never opened
+    if (why := input_problem(p, utf8=True)) is not None:  # a device or a FIFO: never opened
         raise InputError(f"{p}: {why}; give a raster file")
     try:
         with warnings.catch_warnings(), rasterio.Env(**GDAL_READ_OPTIONS):
@@ -192,6 +192,7 @@ def _read_open(src, p: Path, band: int | None, encoding: str, nodata_arg: float 
                ) -> Raster:
     count, dtype = src.count, src.dtypes[0]
     is_png_tile = src.driver == "PNG" and count in (3, 4) and dtype == "uint8"
+    named_raw = encoding == "raw"
     guessed = False
     if encoding == "auto":
         encoding = "raw"
@@ -227,6 +228,14 @@ def _read_open(src, p: Path, band: int | None, encoding: str, nodata_arg: float 
         return Raster(heights, valid, transform, crs_wkt, dtype, None, encoding, str(p),
                       scale=scale, offset=offset, is_integer=True)
 
+    if (count >= 3 and dtype == "uint8" and transform is None and crs_wkt is None
+            and not named_raw):
+        # a picture (a photo, a map; a JPEG with EXIF), not heights: only when asked for
+        raise InputError(f"{p}: {count} 8-bit bands without a CRS or georeference: a picture, "
+                         "not a DEM; to read a band of it as heights pass encoding='raw' and "
+                         "band", cli=f"{p}: {count} 8-bit bands without a CRS or "
+                         "georeference: a picture, not a DEM; to read a band of it as heights "
+                         "pass --encoding raw --band N")
     if band is None:
         if count > 1:
             raise UsageError(f"{p}: has {count} bands; choose one with band=N (1..{count})",

@@ -205,6 +205,10 @@ def preprocess(
                 nodata=nodata, band=rows, derive_normals=derive_normals,
                 derive_bounds=derive_bounds, scheduler=scheduler, resume=resume,
                 progress=progress, timings=timings)
+    if scheduler != "sync":  # not silently: the whole-grid preprocess runs here
+        log.warning("%s fits the memory limit: preprocessed here, whole; the scheduler %s "
+                    "runs a streamed preprocess only (lower --memory-limit to stream it)",
+                    req.files[0] if not req.mosaic else "the mosaic", scheduler)
     stage = StageClock(STAGES, progress, timings)
     dem = read_dem(req, band=band, encoding=encoding, nodata=nodata, tile=tile,
                    pixel_size=pixel_size, z_units=z_units, z_scale=z_scale)

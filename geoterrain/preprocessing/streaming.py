@@ -96,6 +96,8 @@ def streaming_band(path: str | Path, memory_limit: int) -> int | None:
     """
     from geoterrain.ingest.raster import PREPROCESS_BYTES_PER_SAMPLE
 
+    if input_problem(path, utf8=True) is not None:  # read_raster says why, in one line
+        return None
     try:
         with rasterio.open(path) as ds:
             if ds.count != 1 or ds.driver == "PNG" or (ds.crs is not None
@@ -206,7 +208,7 @@ def preprocess_streaming(
     src = Path(src)
     dst = Path(dst) if dst is not None else src.with_suffix(".geoterrain")
     check_output(dst, overwrite, inputs=[src])  # core/paths.py: what may be replaced
-    if (why := input_problem(src)) is not None:
+    if (why := input_problem(src, utf8=True)) is not None:
         raise InputError(f"{src}: {why}; check the path")
     with rasterio.Env(**GDAL_READ_OPTIONS), rasterio.open(src) as ds:
         if ds.count != 1:
