@@ -12,6 +12,7 @@ from geoterrain.cli.options import (
     camera_options,
     mesh_request,
     occlusion_option,
+    parse_bytes,
     pixel_error_option,
     select_mesh,
     strategy_option,
@@ -41,11 +42,15 @@ from geoterrain.cli.options import (
               help="STL: base thickness under the lowest point (mm with --print-size, else m).")
 @click.option("--print-size", type=Number(0, 1e6, lo_open=True), metavar="MM",
               help="STL: scale the longer side to MM millimetres.")
+@click.option("--memory-limit", callback=parse_bytes, metavar="SIZE",
+              help="Memory the export may use, e.g. 2G (default: half of what is available). "
+                   "A static mesh whose estimated export passes it is refused before any "
+                   "work, with the estimate.")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, size,
             pixel_error, strategy, occlusion, shading, cmap, texture_size, drape, base_height,
-            print_size, overwrite):
+            print_size, memory_limit, overwrite):
     """Export STORE's mesh for other tools: static (--max-error) or for a view.
 
     \b
@@ -71,14 +76,17 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
       geoterrain export dem.geoterrain -o v.glb --look-from 0,-5000,2000 --look-at 0,0,0
     """
     import geoterrain
+    from geoterrain.core.memory import available_memory
     from geoterrain.exceptions import UsageError
-    from geoterrain.export.formats import check_export_path, export_mesh
+    from geoterrain.export.formats import check_export_memory, check_export_path, export_mesh
 
     out = check_export_path(output, overwrite, inputs=[store, drape])  # and its sidecars
     if crs_coords and look_from is None and look_at is None and out.suffix.lower() != ".ply":
         raise UsageError("--crs-coords applies to --look-from/--look-at or to .ply output")
     max_error = mesh_request(max_error, look_from, look_at)
     with geoterrain.open(store) as t:
+        if max_error is not None:  # bounded: refused before the mesh is built
+            check_export_memory(t, max_error, memory_limit or available_memory() // 2)
         sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error,
                           strategy, occlusion)
         export_mesh(t, sel, out, overwrite=overwrite, shading=shading, cmap=cmap,
