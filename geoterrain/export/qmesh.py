@@ -50,6 +50,7 @@ from __future__ import annotations
 import functools
 import gzip
 import json
+import logging
 import math
 import os
 import time
@@ -66,6 +67,8 @@ from geoterrain.core.paths import check_output
 from geoterrain.exceptions import UsageError, WriteError
 from geoterrain.lod.kernels import close_upward, extract
 from geoterrain.lod.mesh import orient_ccw
+
+log = logging.getLogger("geoterrain")
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -125,6 +128,26 @@ def geoid_transformer(geoid: str = "egm96") -> Transformer:
     return make()
 
 
+def pixel_degrees(terrain: TerrainLike) -> float:
+    """The DEM's sample spacing at its centre, in degrees of latitude (longitude steps
+    shrunk by cos φ), from its frame alone (no tile is decoded).
+
+    Examples
+    --------
+    >>> 0 < pixel_degrees(t) < 1
+    True
+    """
+    f, H, W = terrain.frame, terrain.grid.rows, terrain.grid.cols
+    if f.kind == "pixel" or f.crs_wkt is None:
+        raise UsageError("quantized-mesh tiles need a georeferenced DEM; this one has no CRS")
+    to_geo = Transformer.from_crs(CRS.from_wkt(f.crs_wkt), "EPSG:4326", always_xy=True)
+    a, b, c, d, e, g = f.transform[:6]
+    jj, ii = np.array([W / 2, W / 2 + 1.0]) + 0.5, np.array([H / 2, H / 2 + 1.0]) + 0.5
+    lon, lat = to_geo.transform(a * jj + b * ii + c, d * jj + e * ii + g)
+    return float(max(abs(lon[1] - lon[0]) * math.cos(math.radians(lat[0])),
+                     abs(lat[1] - lat[0])))
+
+
 class _Dem:
     """The store's full-resolution heights (metres) and where lon/lat fall on them.
 
@@ -146,19 +169,13 @@ class _Dem:
         crs = CRS.from_wkt(f.crs_wkt)
         self.to_src = Transformer.from_crs("EPSG:4326", crs, always_xy=True)
         self.to_geo = Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
-        self.pixel_deg = self._pixel_degrees(f)
+        self.pixel_deg = pixel_degrees(terrain)
         if geoid is not None:
             tr = geoid_transformer(geoid)
             ii, jj = np.nonzero(self.valid)
             lon, lat = self.lonlat(ii, jj)
             _, _, hz = tr.transform(lon, lat, self.h[ii, jj])
             self.h[ii, jj] = np.asarray(hz, np.float64)
-
-    def _pixel_degrees(self, f) -> float:
-        i, j = np.array([self.H / 2, self.H / 2 + 1.0]), np.array([self.W / 2, self.W / 2 + 1.0])
-        lon, lat = self.lonlat(i, j)
-        return float(max(abs(lon[1] - lon[0]) * math.cos(math.radians(lat[0])),
-                         abs(lat[1] - lat[0])))
 
     def lonlat(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Lon/lat of (fractional) sample positions (pixel centres at integers)."""
@@ -493,10 +510,17 @@ def _resampling_error(dem: _Dem, rect, h: np.ndarray, valid: np.ndarray) -> floa
 
 
 # ------------------------------------------------------------------------ tile set
-def max_zoom_for(dem: _Dem, lattice: int) -> int:
-    """The first level whose lattice spacing is at most the DEM's sample spacing."""
+def max_zoom_for(pixel_deg: float, lattice: int) -> int:
+    """The first level whose lattice spacing is at most the DEM's sample spacing
+    ``pixel_deg`` (degrees, :func:`pixel_degrees`).
+
+    Examples
+    --------
+    >>> max_zoom_for(1 / 3600, 129)  # 1″ SRTM
+    13
+    """
     for z in range(0, 24):
-        if 180.0 / (1 << z) / (lattice - 1) <= dem.pixel_deg * (1 + 1e-9):
+        if 180.0 / (1 << z) / (lattice - 1) <= pixel_deg * (1 + 1e-9):
             return z
     return 23
 
@@ -536,10 +560,19 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
     if lattice < 3 or (lattice - 1) & (lattice - 2) or lattice > 129:
         raise UsageError(f"lattice must be 2^k + 1 in 3..129, got {lattice}")
     t0 = time.perf_counter()
-    dem = _Dem(terrain, geoid)
-    zmax = max_zoom_for(dem, lattice) if max_zoom is None else int(max_zoom)
+    # the data fills levels up to its own resolution; one level past it is the most a
+    # tile set can use (finer tiles would only resample the same samples again)
+    fill = max_zoom_for(pixel_degrees(terrain), lattice)
+    zmax = fill if max_zoom is None else int(max_zoom)
+    if zmax > min(fill + 1, 22):
+        log.warning("max_zoom %d is past what the DEM can fill (its resolution is reached at "
+                    "zoom %d): capped at %d", zmax, fill, min(fill + 1, 22))
+        zmax = min(fill + 1, 22)
     if not 0 <= min_zoom <= zmax <= 22:
-        raise UsageError(f"zoom range {min_zoom}..{zmax} is not within 0..22")
+        raise UsageError(f"zoom range {min_zoom}..{zmax} is not within 0..22",
+                         cli=f"zoom range {min_zoom}..{zmax} is not within 0..22 (--min-zoom "
+                             f"must be at most --max-zoom, and at most {zmax} for this DEM)")
+    dem = _Dem(terrain, geoid)
     w, s, e, n = dem.extent()
     hv = dem.h[dem.valid]
     hrange = (float(np.floor(hv.min())), float(np.ceil(hv.max())))
