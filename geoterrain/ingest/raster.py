@@ -7,6 +7,7 @@ USGS DEM, ...) and the Mapbox Terrain-RGB and Terrarium PNG encodings.
 from __future__ import annotations
 
 import logging
+import os
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -73,6 +74,10 @@ ROUGH_PNG_STEP = 1000.0  # metres: a median neighbour step beyond this is not te
 # GDAL's block cache is set, not left at its default of 5 % of RAM: a whole-raster read
 # keeps no block after copying it out, and a windowed one rereads little
 GDAL_READ_OPTIONS = {"GDAL_NUM_THREADS": "ALL_CPUS", "GDAL_CACHEMAX": 64 * 2**20}
+# ... except in a fork() child: GDAL's pool of decoding threads was made in the parent
+# and its threads are not copied, so a read waits for them forever (Pool(2).map of
+# preprocess after a preprocess in the parent hung on a multi-block GeoTIFF)
+os.register_at_fork(after_in_child=lambda: GDAL_READ_OPTIONS.update(GDAL_NUM_THREADS="1"))
 # peak RSS of the preprocess per source sample, measured (benchmarks/bench_preprocess.py,
 # docs/lab/preprocess.md): 62 at
 # 4097² and 52 at 8193² in a projected CRS, 116 at 4097² in a geographic one (full X, Y

@@ -30,11 +30,13 @@ def _digest(p) -> str:
 @pytest.fixture(scope="module")
 def dems(tmp_path_factory):
     """Three DEMs, and the stores this (parent) process writes of them: the parent has run
-    every preprocess kernel, on threads, before any worker starts."""
+    every preprocess kernel, on threads, before any worker starts. One DEM has several
+    compressed blocks, which GDAL decodes on a pool of threads (a fork() child must not
+    wait for the parent's)."""
     d = tmp_path_factory.mktemp("fork")
     out = []
     for i in range(3):
-        src = write_geotiff(d / f"d{i}.tif", generate("fbm", 97, seed=20 + i))
+        src = write_geotiff(d / f"d{i}.tif", generate("fbm", (97, 300, 129)[i], seed=20 + i))
         ref = geoterrain.preprocess(src, d / f"ref{i}.geoterrain")
         out.append((src, _digest(ref)))
     return out
