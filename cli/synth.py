@@ -38,13 +38,13 @@ def command(kind, size, seed, spacing, crs, origin, output, overwrite):
     from geoterrain.ingest.synth import generate, write_geotiff
 
     check_output(output, overwrite)  # a regular file or nothing (core/paths.py)
-    from rasterio.crs import CRS
-    from rasterio.errors import CRSError
+    from pyproj import CRS
+    from pyproj.exceptions import CRSError
 
-    try:
+    try:  # pyproj: says nothing on stderr (GDAL would print PROJ's own error line too)
         CRS.from_user_input(crs)
     except CRSError:
-        raise click.BadParameter(f"not a CRS rasterio knows: {crs!r} (e.g. EPSG:32633)",
+        raise click.BadParameter(f"not a CRS PROJ knows: {crs!r} (e.g. EPSG:32633)",
                                  param_hint="--crs") from None
     z = generate(kind, size, seed=seed)
     write_geotiff(output, z, crs=crs, origin=origin, spacing=spacing)
