@@ -76,25 +76,29 @@ def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_ali
       geoterrain bench dem.tif --path cameras.json --render --peers -o dem.csv
     """
     import json
-    import os
     from pathlib import Path
 
     from geoterrain.bench import harness as bench
     from geoterrain.bench.report import format_table, plot, summarise, write_csv
-    from geoterrain.core.paths import check_output
+    from geoterrain.core.paths import check_output, input_problem
     from geoterrain.exceptions import UsageError
 
     quiet = bool((ctx.obj or {}).get("quiet"))
     if cameras is not None and n_views != 8:
         raise UsageError("--views applies to the built-in flight; not with --path")
     inputs = [source, cameras]
+    for p, what in ((None if synthetic else source, "give a DEM or a store"),
+                    (cameras, "give a cameras JSON file")):
+        # before any work: a FIFO would block the read, an over-long name fail in it
+        if p is not None and (why := input_problem(p)) is not None:
+            raise UsageError(f"{p}: {why}; {what}")
     for p, opt in ((output, "-o"), (plot_path, "--plot")):
         if p is not None:
             check_output(p, overwrite, inputs=inputs, option=opt)
     if output is not None and plot_path is not None and Path(output).absolute() == \
             Path(plot_path).absolute():
         raise UsageError("-o and --plot name the same file; choose another --plot path")
-    if cache_dir is not None and os.path.lexists(cache_dir):
+    if cache_dir is not None:  # an existing folder or a new one in an existing folder
         check_output(cache_dir, True, folder=True, inputs=inputs, option="--cache-dir")
     if plot_path is not None and Path(plot_path).suffix.lower() not in (".png", ".svg", ".pdf"):
         raise UsageError(f"{plot_path}: the plot must be .png, .svg or .pdf")

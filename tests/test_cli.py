@@ -312,3 +312,17 @@ def test_library_warnings_are_one_line(tmp_path):
     res = run("preprocess", png, "-o", tmp_path / "h.geoterrain")
     assert res.exit_code == 0, res.output
     assert "site-packages" not in res.stderr and "NotGeoreferenced" not in res.stderr
+
+
+def test_bench_inputs_are_checked_before_any_work(tmp_path, fbm_tif):
+    """Found by the CLI fuzzer: bench --path FIFO blocked forever, and an over-long
+    SOURCE or --cache-dir name ended in an internal error."""
+    os.mkfifo(tmp_path / "fifo")
+    res = run("-q", "bench", fbm_tif, "--path", tmp_path / "fifo",
+              "--cache-dir", tmp_path / "c")
+    assert_one_line_error(res, 2)
+    assert "FIFO" in res.stderr
+    long_name = tmp_path / ("n" * 300)
+    assert_one_line_error(run("-q", "bench", long_name), 2)
+    assert_one_line_error(run("-q", "bench", fbm_tif, "--cache-dir", long_name), 2)
+    assert not (tmp_path / "c").exists()
