@@ -348,6 +348,7 @@ class Surface:
     q: Quantizer | None = None
     height_range: list[float] | None = None
     height_blobs: dict | None = None
+    predictor: str = "auto"  # the codec's U(.) (an edit keeps the store's)
 
 
 def pad(dem: Dem) -> Surface:
@@ -450,7 +451,7 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     grid, frame, valid, Z = dem.grid, dem.frame, s.valid, s.Z
     height_blobs = s.height_blobs
     if height_blobs is None:
-        height_blobs = encode_pyramid(s.heights, valid, grid.t, s.q)
+        height_blobs = encode_pyramid(s.heights, valid, grid.t, s.q, predictor=s.predictor)
     delta = b.delta
     edge = d_edge = None
     if has_padding(grid):

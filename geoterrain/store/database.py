@@ -391,9 +391,10 @@ class StoreReader:
         self.path = Path(path)
         if not self.path.is_file():
             raise StoreError(f"{self.path}: no such store; run `geoterrain preprocess DEM` first")
+        _roll_back_interrupted_edit(self.path)
         try:
             self.con = sqlite3.connect(self.path.resolve().as_uri() + "?mode=ro", uri=True,
-                                       check_same_thread=False)
+                                       check_same_thread=False, timeout=30.0)
         except sqlite3.Error:
             raise StoreError(f"{self.path}: cannot open the store read-only") from None
         try:
@@ -616,8 +617,37 @@ class StoreReader:
             raise self._damaged("the blob table") from None
         return out
 
+    def version(self) -> int:
+        """SQLite's ``data_version`` of this connection: it changes when another
+        connection (an edit, :mod:`geoterrain.store.editor`) commits a change to the
+        file, so a reader can tell that what it holds is stale."""
+        with self._lock:
+            return int(self.con.execute("PRAGMA data_version").fetchone()[0])
+
     def close(self) -> None:
         self.con.close()
+
+
+def _roll_back_interrupted_edit(path: Path) -> None:
+    """An edit killed in its transaction leaves ``STORE-journal`` (the old pages) beside
+    the store: SQLite rolls it back when a connection that may write reads the file, and
+    a read-only one refuses the file meanwhile. This opens such a connection once and
+    reads the schema, which restores the old store; no SQL of the file's runs. A journal
+    of an edit still running (it holds its lock) is left alone."""
+    journal = Path(str(path) + "-journal")
+    if not journal.exists():
+        return
+    try:
+        con = sqlite3.connect(path, timeout=30.0)
+        try:
+            con.execute("PRAGMA trusted_schema=OFF")
+            con.execute("SELECT COUNT(*) FROM sqlite_master").fetchone()
+        finally:
+            con.close()
+    except sqlite3.Error:
+        raise StoreError(f"{path}: an interrupted edit left {journal.name} beside it; open "
+                         "the store once where it can be written (the edit is rolled back "
+                         "then), and keep the journal with it until then") from None
 
 
 def _show(v: object) -> str:
