@@ -34,7 +34,7 @@ from geoterrain.store.catalog import (
     unpack_metadata,
 )
 from geoterrain.store.database import SCHEMA_VERSION, StoreReader, blob_crc
-from geoterrain.store.keys import blob_key, tile_key, unpack_blob_key
+from geoterrain.store.keys import blob_key, tile_key, unpack_blob_key, unpack_tile_key
 
 __all__ = ["StoreEditor", "BUSY_SECONDS"]
 
@@ -105,11 +105,15 @@ class StoreEditor:
         self.table: TileTable = unpack_tiles(rows[TILES_ID])
 
     def apply(self, puts: dict[BlobKey, bytes], deletes: set[BlobKey],
-              tiles: dict[tuple[int, int, int], tuple] | None, metadata: dict) -> dict:
+              tiles: dict[tuple[int, int, int], tuple] | None, metadata: dict,
+              all_tiles: bool = True) -> dict:
         """Write the blobs ``puts`` (new or rewritten), remove ``deletes``, replace the
-        tile rows (``tiles``: every tile's numbers in :data:`TILE_COLUMNS` order; None
-        keeps them) and the metadata, and commit. Returns what was written:
-        ``{"rows": rows written, "blob_bytes": their bytes}``."""
+        tile rows (``tiles``: every tile's numbers in :data:`TILE_COLUMNS` order, or with
+        ``all_tiles`` False those that change or are new; None keeps them) and the
+        metadata, and commit. Returns what was written: ``{"rows": rows written,
+        "blob_bytes": their bytes, "catalog_bytes": the catalog's}``."""
+        if tiles is not None and not all_tiles:
+            tiles = self._merged(tiles)
         try:
             return self._apply(puts, deletes, tiles, metadata)
         except sqlite3.Error as exc:
@@ -119,6 +123,14 @@ class StoreEditor:
                 raise WriteError(f"disk full while editing {self.path}; nothing was "
                                  "changed; free space and retry") from None
             raise WriteError(f"cannot edit {self.path}: {msg}; nothing was changed") from None
+
+    def _merged(self, rows: dict) -> dict:
+        """The tile table's rows with ``rows`` replacing or adding theirs."""
+        t = self.table
+        out = {unpack_tile_key(int(k)): tuple(r) for k, r in
+               zip(t.tiles.tolist(), t.numbers.tolist(), strict=True)}
+        out.update(rows)
+        return out
 
     def _apply(self, puts, deletes, tiles, metadata) -> dict:
         t = self.table

@@ -86,7 +86,8 @@ def assert_same_store(edited: Path, fresh: Path) -> None:
     assert ba.keys() == bb.keys(), sorted(set(ba) ^ set(bb))
     differ = sorted(k for k in ba if ba[k] != bb[k])
     heights = [k for k in differ if k[3] == "heights"]
-    assert [k for k in differ if k[3] != "heights"] == []
+    assert [k for k in differ if k[3] != "heights"] == [], \
+        [k for k in differ if k[3] != "heights"][:8]
     if heights:  # only where the fresh store chose the other predictor: same codes
         top = max(k for k in ba if k[3] == "heights")
         assert _parse(ba[top])[3] != _parse(bb[top])[3], heights[:5]

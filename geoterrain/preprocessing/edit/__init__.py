@@ -195,7 +195,7 @@ def edit_terrain(terrain: TerrainLike, patch: Patch, mode: str = "replace", *,
     res.dirty = _merged(plan.dirty)
     plan.meta["edits"] = _log(meta_before.get("edits"), res)
     with StoreEditor(terrain.path, expect=meta_before) as ed:
-        stats = ed.apply(plan.puts, plan.deletes, plan.tiles, plan.meta)
+        stats = ed.apply(plan.puts, plan.deletes, plan.tiles, plan.meta, plan.all_tiles)
     res.rows, res.bytes = stats["rows"], stats["blob_bytes"] + stats["catalog_bytes"]
     res.seconds = time.perf_counter() - t0
     return res

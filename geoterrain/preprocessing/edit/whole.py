@@ -41,9 +41,10 @@ _CUBIC = 8  # a height blob's flag bit: the cubic predictor (codec/pyramid.py)
 @dataclass
 class Plan:
     """The rows an edit writes: blobs to put and to remove (``((level, x, y), kind)``),
-    every tile's row (:data:`~geoterrain.store.catalog.TILE_COLUMNS` order) and the new
-    metadata; ``dirty``: level-0 sample rectangles ``(r0, c0, r1, c1)`` (ends excluded)
-    outside which no decoded height, δ, r or normal changed."""
+    the tiles' rows (:data:`~geoterrain.store.catalog.TILE_COLUMNS` order: every tile's, or
+    with ``all_tiles`` False those that change) and the new metadata; ``dirty``: level-0
+    sample rectangles ``(r0, c0, r1, c1)`` (ends excluded) outside which no decoded
+    height, δ, r or normal changed."""
 
     puts: dict = field(default_factory=dict)
     deletes: set = field(default_factory=set)
@@ -51,6 +52,7 @@ class Plan:
     meta: dict = field(default_factory=dict)
     dirty: list = field(default_factory=list)
     how: str = "whole grid"
+    all_tiles: bool = True  # ``tiles`` holds every tile's row (else only those that change)
 
 
 def store_predictor(terrain: TerrainLike) -> str:
