@@ -675,8 +675,10 @@ class Terrain:
         or another process's ``geoterrain edit``): the tile table and metadata are read
         again, the cached tiles an edit reached are dropped (the edit log says where), and
         so is what other modules derived from the terrain, unless what they keep knows
-        how to take an edit in (an object with an ``edited(rects)`` method, such as the
-        tessellation's HAM statistics). Returns whether anything changed.
+        how to take an edit in (an object with an ``edited(edits)`` method, given the edit
+        log's new entries, such as the tessellation's HAM statistics,
+        :class:`geoterrain.lod.tessellation.HamStats`). Returns whether anything changed;
+        ``generation`` counts the changes taken in.
 
         Examples
         --------
@@ -702,7 +704,7 @@ class Terrain:
             if hook is None or rects is None:
                 del self._derived[owner]
             else:
-                hook(rects)
+                hook(news)
         self.generation += 1
         return True
 

@@ -143,6 +143,21 @@ class TerrainScene:
         self.mesh = pv.PolyData()
         self.actor = None
         self.selection = None
+
+    def retexture_all(self) -> None:
+        """After the store was edited: the whole-terrain texture (``textures="global"``)
+        is made again; per-view textures come from the tiles' shading, which the
+        terrain's refresh dropped where the edit reached."""
+        if self.textures == "global" and self.shading != "plain":
+            import pyvista as pv
+
+            tex = pv.Texture(texture_image(self.terrain, self.shading, self.cmap, self.level))
+            tex.interpolate = True
+            tex.mipmap = True
+            tex.repeat = False
+            self.texture = tex
+            if self.actor is not None:
+                self.actor.texture = tex
         self.texture_stats: dict = {}
 
     def _tcoords(self, ij: np.ndarray) -> np.ndarray:

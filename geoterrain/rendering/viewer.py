@@ -60,6 +60,8 @@ POLL_MS = 16.0  # background mode, idle: how often the window looks for a finish
 # finished frame waits ≤ 4 ms for the window, not up to a whole idle period
 BUSY_POLL_MS = 4.0
 REST_MS = 250.0  # the camera still this long: drawn again with anti-aliasing
+# how often the window looks whether its store was edited (geoterrain edit, Terrain.edit)
+STORE_POLL_MS = 500.0
 # texture tiles a camera move may shade before its picture is shown (~0.5 ms each);
 # the rest are magnified from cached coarser tiles and shaded by the passes that follow
 TEXTURE_BUILDS = 24
@@ -118,6 +120,8 @@ class ViewerController:
         self._last_key: tuple = ()
         self._future = None
         self._executor = None
+        self._store_t = time.perf_counter()  # when the store was last looked at
+        self.edits_shown = 0  # store edits taken in and redrawn
         self._deferred = 0  # stand-in texture tiles in the picture shown
         self._shown_view: View | None = None  # the view the shown textures were made for
         self._closed = False
@@ -241,6 +245,7 @@ class ViewerController:
         Returns True when the scene changed.
         """
         changed = False
+        self.watch_store()
         if not self._gc_frozen:
             # the window is up: what the imports, VTK and the first frame made is kept
             # for good, so a full garbage collection (the GIL held, the window frozen)
@@ -289,6 +294,29 @@ class ViewerController:
                 (time.perf_counter() - self._moved_t) * 1e3 >= REST_MS:
             self.settle()
         return changed
+
+    def watch_store(self, force: bool = False) -> bool:
+        """Every ``STORE_POLL_MS`` (or now with ``force``), while no frame is in flight:
+        when the store was edited (``geoterrain edit`` in another process, or
+        :meth:`~geoterrain.terrain.Terrain.edit`), take the edit in
+        (:meth:`~geoterrain.terrainlike.TerrainLike.refresh`: the tiles it reached are
+        decoded again) and select and draw the view anew. Returns whether it did."""
+        now = time.perf_counter()
+        if self._closed or self._busy or (self._future is not None and not self._future.done()):
+            return False
+        if not force and (now - self._store_t) * 1e3 < STORE_POLL_MS:
+            return False
+        self._store_t = now
+        if not self.terrain.refresh():
+            return False
+        self.edits_shown += 1
+        light = self.scene.light
+        if light is not None and (light.shadows or light.ambient_occlusion):
+            self.terrain.clear_cache()  # shadows and sky view reach far beyond an edit
+        self.scene.retexture_all()
+        self._last_key = ()
+        self._refresh()
+        return True
 
     def _arm(self) -> None:
         """While a background frame is in flight, have the window poll every

@@ -761,3 +761,32 @@ def test_the_cli_offers_every_anti_aliasing():
     opt = f.__click_params__[0]
     default = inspect.signature(render).parameters["anti_aliasing"].default
     assert tuple(opt.type.choices) == ANTI_ALIASING and opt.default == default
+
+
+@pytest.mark.fast
+def test_viewer_redraws_after_an_edit_of_its_store(tmp_path_factory, tmp_path):
+    """An edit of the store a window shows (here from another connection, as `geoterrain
+    edit` in another process) is taken in and drawn: the next look at the store
+    re-selects, and the mesh holds the edited heights."""
+    import shutil
+
+    from geoterrain.rendering.viewer import ViewerController
+
+    src = synth_store(tmp_path_factory, "fbm")
+    path = shutil.copy(src.path, tmp_path / "live.geoterrain")
+    t = geoterrain.open(path)
+    p = _plotter((320, 240))
+    try:
+        c = ViewerController(p, t, throttle_ms=0.0, strategy="bruteforce")
+        c.bind()
+        z0 = c.scene.mesh.points[:, 2].max()
+        assert c.watch_store(force=True) is False  # nothing edited yet
+        n0 = c.selections
+        with geoterrain.open(path) as other:  # a crater's rim lifted far above the rest
+            other.edit((100, 100), np.full((20, 20), 5000.0), "replace")
+        assert c.watch_store(force=True) is True
+        assert c.edits_shown == 1 and c.selections == n0 + 1
+        assert c.scene.mesh.points[:, 2].max() > z0 + 1000
+    finally:
+        p.close()
+        t.close()
