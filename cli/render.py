@@ -60,13 +60,16 @@ from geoterrain.cli.options import (
 @click.option("--frames-between", type=click.IntRange(0, 1000), default=0, show_default=True,
               help="With --path: eased frames on a smooth spline between each pair of cameras.")
 @click.option("--fps", type=float, default=10.0, show_default=True, help="Animation speed.")
+@click.option("--strips", is_flag=True,
+              help="Draw the mesh as seed 002's triangle strips instead of triangle lists "
+                   "(the same picture; see docs/benchmarks.md for the draw time).")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
             fov, pixel_error, strategy, occlusion, morph, anti_aliasing, vertical_exaggeration,
             shading, cmap, clim, water_level,
             sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity, title,
-            no_overlays, stats_path, orbit, cameras, frames_between, fps, overwrite):
+            no_overlays, stats_path, orbit, cameras, frames_between, fps, strips, overwrite):
     """Render STORE offscreen: each frame selects its own level of detail.
 
     \b
@@ -170,7 +173,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
                       shading=shading, cmap=cmap, title=title, scale_bar=not no_overlays,
                       stats_path=stats_path, overwrite=overwrite, light=lit, drape=dr,
                       occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing,
-                      **overlays)
+                      strips=strips, **overlays)
     if not quiet:
         click.echo(f"wrote {out}: {st['triangles']:,} triangles ({strategy}, τ = "
                    f"{pixel_error:g} px), select {st['select_ms']:.0f} ms, frame "

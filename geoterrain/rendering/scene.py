@@ -108,10 +108,11 @@ class TerrainScene:
                  background: Sequence[float] = BACKGROUND, vertical_exaggeration: float = 1.0,
                  textures: str = "view", light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True,
-                 morph: bool | None = None):
+                 morph: bool | None = None, strips: bool = False):
         import pyvista as pv
 
         terrain = exaggerated(terrain, vertical_exaggeration)
+        self.strips = bool(strips)  # draw the mesh as seed 002's triangle strips
 
         if shading not in SHADINGS:
             raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
@@ -219,6 +220,8 @@ class TerrainScene:
                     mesh.cell_data[k] = src.cell_data[k]
         else:
             self.texture_stats = {"textures_built": 0, "texture_tiles": 0}
+        if self.strips and mesh.n_cells and src.n_cells and "grid_ij" in src.point_data:
+            mesh = _as_strips(mesh, src, self.terrain.grid.n)
         self.selection = selection
         if self.actor is None:
             kw: dict = {"name": "terrain", "show_scalar_bar": False, "reset_camera": False}
@@ -414,6 +417,29 @@ def _draw(plotter) -> np.ndarray:
     return img
 
 
+def _as_strips(mesh, src, n: int):
+    """``mesh`` (triangles in the order of the selection ``src``'s) drawn as seed 002's
+    triangle strips (:mod:`geoterrain.lod.strips`): the faces in the order the seed's
+    refinement meets them, then stripped; points, point data and the texture kept (a
+    triangle's cell data is not: a strip is one cell)."""
+    import pyvista as pv
+
+    from geoterrain.lod.strips import seed_order, triangle_strips
+
+    faces = np.asarray(mesh.regular_faces)
+    order = seed_order(np.asarray(src.regular_faces), np.asarray(src.point_data["grid_ij"]), n)
+    cells, st = triangle_strips(faces[order])
+    out = pv.PolyData()
+    out.SetPoints(mesh.GetPoints())
+    out.strips = cells
+    tc = mesh.active_texture_coordinates
+    if tc is not None:
+        out.active_texture_coordinates = tc
+    for k, v in st.items():
+        out.field_data[f"strip_{k}"] = np.array([v])
+    return out
+
+
 def _plotter(size: tuple[int, int], anti_aliasing: bool | str = "auto"):
     """An offscreen plotter (EGL when there is no display).
 
@@ -501,7 +527,7 @@ def render_array(terrain: TerrainLike, view: View, *, pixel_error: float = 1.0,
                  shading: str = "normals", cmap: str | Palette = "auto", scene=None,
                  vertical_exaggeration: float = 1.0, light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True, morph: bool | None = None,
-                 anti_aliasing: str = "auto") -> tuple[np.ndarray, dict]:
+                 anti_aliasing: str = "auto", strips: bool = False) -> tuple[np.ndarray, dict]:
     """The rendered image (H, W, 3) uint8 of ``view`` without overlays, and its stats
     (the arguments are :func:`render`'s; ``scene``: draw with this
     :class:`TerrainScene` rather than a new one, whose own settings then apply).
@@ -517,7 +543,7 @@ def render_array(terrain: TerrainLike, view: View, *, pixel_error: float = 1.0,
     if own:
         scene = TerrainScene(_plotter(view.size, anti_aliasing), terrain, shading, cmap,
                              vertical_exaggeration=vertical_exaggeration, light=light,
-                             drape=drape, occlusion=occlusion, morph=morph)
+                             drape=drape, occlusion=occlusion, morph=morph, strips=strips)
     try:
         img, stats = scene.frame(view, pixel_error, strategy)
         stats["terrain_fraction"] = round(scene.terrain_fraction(), 4)
@@ -533,7 +559,8 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
            north_arrow: bool = True, stats_path: str | Path | None = None,
            vertical_exaggeration: float = 1.0, overwrite: bool = True,
            light: Light | None = None, drape: Drape | None = None, occlusion: bool = True,
-           morph: bool | None = None, anti_aliasing: str = "auto") -> dict:
+           morph: bool | None = None, anti_aliasing: str = "auto",
+           strips: bool = False) -> dict:
     """Render one view of the terrain to a PNG, with its own level of detail.
 
     ``overwrite=False`` refuses an existing ``path`` (checked before rendering).
@@ -561,6 +588,9 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
         (:func:`geoterrain.lod.select`).
     anti_aliasing : ``"auto"`` (edges where the picture's silhouettes are sparse, else
         MSAA), ``"msaa"``, ``"edges"``, ``"fxaa"`` or ``"none"`` (:func:`_plotter`).
+    strips : draw the mesh as seed 002's triangle strips (:mod:`geoterrain.lod.strips`)
+        instead of triangle lists: the same picture; on VTK's software renderer no faster
+        (docs/benchmarks.md, "Triangle strips"), hence off by default.
 
     Returns
     -------
@@ -584,7 +614,8 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
         raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
     img, stats = render_array(terrain, view, pixel_error=pixel_error, strategy=strategy,
                               shading=shading, cmap=cmap, light=light, drape=drape,
-                              occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing)
+                              occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing,
+                              strips=strips)
     img = compose(img, view, terrain, shading=shading, cmap=cmap, title=title,
                   colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
     _write_png(path, img, overwrite)
