@@ -72,7 +72,8 @@ for k in range(n):
     m = min(a.size, b.size) // 1024 * 1024
     pages = int((a[:m].reshape(-1, 1024) != b[:m].reshape(-1, 1024)).any(axis=1).sum())
     pages += (max(a.size, b.size) - m + 1023) // 1024
-    out.append({"wall": wall, "how": res.how, "why": res.why, "rows": res.rows,
+    out.append({"wall": wall, "write": res.write_seconds, "how": res.how, "why": res.why,
+                "rows": res.rows,
                 "bytes": res.bytes, "pages": pages, "growth": int(b.size - a.size),
                 "disk": disk, "size": int(a.size), "window": [r, c]})
     os.remove(p)
@@ -129,6 +130,10 @@ def main() -> None:
             if es:
                 w = med(e["wall"] for e in es)
                 print(f"| {name} | {w:.3f} | {w / p:.3f} |")
+                w = med(e["wall"] - e["write"] for e in es)
+                print(f"| {name}: computing the rows | {w:.3f} | {w / p:.3f} |")
+                w = med(e["write"] for e in es)
+                print(f"| {name}: the transaction (synced) | {w:.3f} | {w / p:.3f} |")
         allx = first + later
         print("\n| per edit (median) | bytes | % of the store |\n|---|---|---|")
         for key, what in (("bytes", "rows written (blobs + catalog)"),

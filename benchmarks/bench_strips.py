@@ -12,8 +12,9 @@ refinement meets them, one vertex a triangle and a repeated one at each swap). E
 draw is the project's (``scene._draw``: VTK's render, the picture read back), timed
 ``--draws`` times a round, the two scenes alternating, over ``--rounds`` rounds; the
 first draw of a new mesh (its upload, VTK's own strips → triangles conversion) is
-reported apart. Prints medians per frame and the strips/lists ratio, with the strip
-counts (strips, strip vertices against 3 × triangles of the lists).
+reported apart; which scene goes first alternates from view to view. Prints medians per
+frame and the strips/lists ratio, with the strip counts (strips, strip vertices against
+3 × triangles of the lists).
 """
 
 from __future__ import annotations
@@ -50,14 +51,17 @@ def main(argv=None) -> dict:
             for k, (_, v) in enumerate(views):
                 sel = t.select(v, a.tau, "rtin")
                 first, warm = {}, {"lists": [], "strips": []}
-                for kind, sc in scenes.items():
+                kinds = list(scenes) if k % 2 == 0 else list(scenes)[::-1]  # alternating
+                for kind in kinds:
+                    sc = scenes[kind]
                     sc.set_camera(v)
                     sc.update(sel, v)
                     t0 = time.perf_counter()
                     _draw(sc.plotter)
                     first[kind] = (time.perf_counter() - t0) * 1e3
                 for _ in range(a.rounds):
-                    for kind, sc in scenes.items():  # alternating
+                    for kind in kinds:
+                        sc = scenes[kind]
                         for _ in range(a.draws):
                             t0 = time.perf_counter()
                             _draw(sc.plotter)

@@ -54,6 +54,9 @@ def command(store, as_json, no_reference):
         f"errors       tile error {i['tile_error_range'][0]:.4g} … {i['tile_error_range'][1]:.4g}"
         f" m (scene); max vertex δ {i['vertex_error_max']:.4g} m (scene)",
     ]
+    if i.get("edits"):
+        e = i["edits"]
+        lines.append(f"edits        {e['count']} (geoterrain edit); the last: {e['last']}")
     # values come from the file: never let its control characters reach the terminal
     click.echo("\n".join("".join(c if c.isprintable() else "?" for c in ln) for ln in lines))
 

@@ -781,6 +781,7 @@ class Terrain:
             "tile_error_range": [min(errs, default=0.0), max(errs, default=0.0)],
             "vertex_error_max": m["delta_max_finite"],
             "preprocess_seconds": m.get("preprocess_seconds", {}),
+            "edits": _edits_summary(m.get("edits")),
         }
 
     # -------------------------------------------------------------- notebooks
@@ -808,6 +809,21 @@ class Terrain:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _edits_summary(log) -> dict | None:
+    """The metadata's edit log in a line's worth: how many edits, and the last one's
+    time, mode, source and window (None: never edited)."""
+    if not isinstance(log, dict) or not log.get("last"):
+        return None
+    e = log["last"][-1]
+    try:
+        r, c, h, w = (int(v) for v in e["window"])
+        last = (f"{e['time']} {e['mode']} of {e['source']}, rows {r} … {r + h - 1}, "
+                f"columns {c} … {c + w - 1}")
+    except (KeyError, TypeError, ValueError):
+        last = "?"
+    return {"count": int(log.get("count", 0)), "last": last}
 
 
 def _nbytes(v) -> int:

@@ -177,6 +177,14 @@ def test_heights_off_a_lossless_grid_are_refused_or_rounded(tmp_path):
         res = t.edit((2, 2), np.full((2, 2), 512.3), round_heights=True)
         assert res.rounded == pytest.approx(0.3)
         assert t.tile(0, 0, 0).heights[2, 2] == 512.0
+    # a float32 store: float64 heights become float32, as a float32 DEM would hold them
+    z32 = integer_dem(3, 20, 20) + np.random.default_rng(0).random((20, 20))
+    store = geoterrain.preprocess(write_dem(tmp_path / "f.tif", z32), tile_size=8)
+    with geoterrain.open(store) as t:
+        assert t.quantizer.mode == "float" and t.quantizer.float_bits == 32
+        res = t.edit((2, 2), np.full((2, 2), 512.3))
+        assert 0 < res.rounded < 1e-4
+        assert t.tile(0, 0, 0).heights[2, 2] == float(np.float32(512.3))
 
 
 @pytest.mark.fast

@@ -85,6 +85,7 @@ class EditResult:
     bytes: int = 0
     seconds: float = 0.0
     dirty: list = field(default_factory=list)
+    write_seconds: float = 0.0  # of ``seconds``: the transaction (its syncs included)
 
     def summary(self) -> str:
         """One line for the command line."""
@@ -194,10 +195,12 @@ def edit_terrain(terrain: TerrainLike, patch: Patch, mode: str = "replace", *,
     res.how = plan.how
     res.dirty = _merged(plan.dirty)
     plan.meta["edits"] = _log(meta_before.get("edits"), res)
+    tw = time.perf_counter()
     with StoreEditor(terrain.path, expect=meta_before) as ed:
         stats = ed.apply(plan.puts, plan.deletes, plan.tiles, plan.meta, plan.all_tiles)
     res.rows, res.bytes = stats["rows"], stats["blob_bytes"] + stats["catalog_bytes"]
     res.seconds = time.perf_counter() - t0
+    res.write_seconds = time.perf_counter() - tw
     return res
 
 

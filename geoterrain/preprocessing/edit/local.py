@@ -284,43 +284,41 @@ class _Job:
     # ------------------------------------------------------------- normals
     def normals(self) -> None:
         """Every level's normal map within one of its samples of the edit (central
-        differences of the level's samples), for the tiles that hold them."""
-        g, c = self.g, self.c
-        T, te = g.tile_samples, g.t
+        differences of the level's samples), for the tiles that hold them: one window
+        of the level's samples a level, its codes cut into the tiles' blobs."""
+        g, c, f = self.g, self.c, self.t.frame
+        te, N = g.t, g.size
         for L in range(g.top_level + 1):
-            step = 1 << L
+            step, span = 1 << L, g.tile_span(L)
             # a level-L sample in the edit (its rows and columns multiples of 2^L)
             if -(-c.r0 // step) * step >= c.r1 or -(-c.c0 // step) * step >= c.c1:
                 continue
-            for x, y in self.tiles_near(L, step):
-                key = (L, x, y)
-                if not self.stored(key):
-                    continue
-                codes = self._tile_normals(L, x, y)
-                if self.derive_normals:
-                    blob = next(iter(ring_blobs(codes, te, [(0, 0)], L).values()))
-                else:
-                    coding = BoundsCoding(np.zeros((T, T)), np.zeros((T, T)))
-                    blob = next(iter(level_blobs(coding, codes, te, 0, 1, [(0, 0)],
-                                                 ("normals",))[0]["normals"].values()))
-                self.put(key, "normals", blob)
-
-    def _tile_normals(self, L: int, x: int, y: int) -> np.ndarray:
-        """The (T, T, 2) normal codes of tile (L, x, y) of the edited grid: the level's
-        samples one beyond the tile (the central differences' neighbours), then the
-        tile."""
-        g, c, f = self.g, self.c, self.t.frame
-        T, step, span, N = g.tile_samples, 1 << L, g.tile_span(L), g.size
-        lo_i, lo_j = max(y * span - step, 0), max(x * span - step, 0)
-        hi_i, hi_j = min(y * span + span + step, N - 1), min(x * span + span + step, N - 1)
-        rows = np.arange(lo_i, hi_i + 1, step)
-        cols = np.arange(lo_j, hi_j + 1, step)
-        h, v = c.lattice(L, rows, cols)
-        ii, jj = np.meshgrid(rows, cols, indexing="ij")
-        X, Y = f.xy(ii, jj)
-        n = normal_map(X, Y, np.where(v, h * c.factor, np.nan), v, serial=True)
-        a, b = (y * span - lo_i) // step, (x * span - lo_j) // step
-        return encode_octahedral(n[a:a + T, b:b + T], NORMAL_BITS, serial=True)
+            keys = [(x, y) for x, y in self.tiles_near(L, step) if self.stored((L, x, y))]
+            if not keys:
+                continue
+            x0, y0 = min(x for x, _ in keys), min(y for _, y in keys)
+            x1, y1 = max(x for x, _ in keys), max(y for _, y in keys)
+            # the tiles' samples and one more around (the central differences' neighbours)
+            lo_i, lo_j = max(y0 * span - step, 0), max(x0 * span - step, 0)
+            hi_i = min((y1 + 1) * span + step, N - 1)
+            hi_j = min((x1 + 1) * span + step, N - 1)
+            rows = np.arange(lo_i, hi_i + 1, step)
+            cols = np.arange(lo_j, hi_j + 1, step)
+            h, v = c.lattice(L, rows, cols)
+            ii, jj = np.meshgrid(rows, cols, indexing="ij")
+            X, Y = f.xy(ii, jj)
+            n = normal_map(X, Y, np.where(v, h * c.factor, np.nan), v)
+            a, b = (y0 * span - lo_i) // step, (x0 * span - lo_j) // step
+            codes = encode_octahedral(n[a:, b:], NORMAL_BITS)  # from the first tile's corner
+            tiles = [(x - x0, y - y0) for x, y in keys]
+            if self.derive_normals:
+                blobs = ring_blobs(codes, te, tiles, L)
+            else:
+                coding = BoundsCoding(np.zeros(codes.shape[:2]), np.zeros(codes.shape[:2]))
+                blobs = level_blobs(coding, codes, te, 0, 1, tiles, ("normals",))[0]["normals"]
+                blobs = {(L, x, y): bb for (_, x, y), bb in blobs.items()}
+            for (x, y), (dx, dy) in zip(keys, tiles, strict=True):
+                self.put((L, x, y), "normals", blobs[(L, dx, dy)])
 
     # ------------------------------------------------------------- metadata
     def metadata(self) -> None:

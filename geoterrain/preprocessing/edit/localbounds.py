@@ -55,6 +55,8 @@ class Bounds:
         self.coarse_r: dict = {}  # (i, j) → new r code
         self.raw_new: dict = {}  # (i, j) → new raw δ (float32), coarse vertices
         self._sweeps: dict = {}  # a block's tile sweeps
+        self._bound_cache: dict = {}  # a block's tiles' bounds, order, swept and maxima
+        self._stored_cache: dict = {}
         self.tiles_swept = 0
         self.rows0 = {False: job.level0(False), True: job.level0(True)}
 
@@ -215,6 +217,12 @@ class Bounds:
 
     def _stored(self, i: int, j: int, kind: str) -> float:
         """A vertex's stored value, from a stored tile that holds it at its level."""
+        key = (i, j, kind)
+        if key not in self._stored_cache:
+            self._stored_cache[key] = self._stored_now(i, j, kind)
+        return self._stored_cache[key]
+
+    def _stored_now(self, i: int, j: int, kind: str) -> float:
         g = self.g
         h = (i | j) & -(i | j)
         k = min(h.bit_length() - 1, g.top_level)
@@ -358,20 +366,33 @@ class Bounds:
         ty, tx = np.meshgrid(np.arange(a * k, a * k + k), np.arange(b * k, b * k + k),
                              indexing="ij")
         ty, tx = ty.ravel(), tx.ravel()
-        zlo = self.rows0[new][1, ty, tx]
-        zhi = self.rows0[new][2, ty, tx]
-        bound = _bounds(cell, zc, ty * S - i0, tx * S - j0, S, zlo, zhi)
-        if k > 2:  # tighter: the union-jack surfaces of the block table (module docstring)
-            tight = self._uj_bounds(cell, zc, a, b, s, new)
-            bound = np.where(np.isneginf(bound), bound, np.minimum(bound, tight))
-        best = np.zeros(5)
-        swept = np.zeros(len(ty), bool)
-        w = np.array([k in want for k in range(5)])
+        bkey = (a, b, s, new)
+        got = self._bound_cache.get(bkey)
+        if got is None:
+            zlo = self.rows0[new][1, ty, tx]
+            zhi = self.rows0[new][2, ty, tx]
+            bound = _bounds(cell, zc, ty * S - i0, tx * S - j0, S, zlo, zhi)
+            if k > 2:  # tighter: the union-jack surfaces of the block table
+                tight = self._uj_bounds(cell, zc, a, b, s, new)
+                bound = np.where(np.isneginf(bound), bound, np.minimum(bound, tight))
+            # each region's tiles by decreasing bound, and which were swept
+            got = self._bound_cache[bkey] = (bound, np.argsort(-bound, axis=0, kind="stable"),
+                                             np.zeros(len(ty), bool), np.zeros(5))
+        bound, order, swept, best = got
+        pos = [0] * 5
         while True:
-            gain = np.where(swept[:, None] | ~w[None, :], -np.inf, bound - best[None, :])
-            q = int(np.argmax(gain.max(axis=1)))
-            if not gain[q].max() > 0:
-                return best
+            # the wanted region whose next unswept tile's bound most exceeds its best
+            pick, gain = -1, 0.0
+            for r in want:
+                while pos[r] < len(ty) and swept[order[pos[r], r]]:
+                    pos[r] += 1
+                if pos[r] < len(ty):
+                    g = bound[order[pos[r], r], r] - best[r]
+                    if g > gain:
+                        pick, gain = r, g
+            if pick < 0:
+                return best.copy()
+            q = int(order[pos[pick], pick])
             key = (a, b, s, new, int(ty[q]), int(tx[q]))
             m = self._sweeps.get(key)
             if m is None:
@@ -379,7 +400,7 @@ class Bounds:
                 a0, c0 = int(ty[q]) * S - i0, int(tx[q]) * S - j0
                 m = self._sweeps[key] = np.array(block_sweep_rect(
                     z, int(ty[q]) * S, int(tx[q]) * S, cell, zc, a0, a0 + S, c0, c0 + S))
-            best = np.maximum(best, m)
+            np.maximum(best, m, out=best)
             swept[q] = True
             self.tiles_swept += 1
 
@@ -562,6 +583,7 @@ class Bounds:
                       for tx in range(max((lo_c - 1) // S, 0), min(hi_c // S, nb - 1) + 1)
                       if ty * S <= hi_r and ty * S + S >= lo_r and tx * S <= hi_c
                       and tx * S + S >= lo_c]
+            self._fields_batch(blocks, L)
             for ty, tx in blocks:
                 e, mixed = self._field(ty, tx, L)[:2]
                 new[ty, tx, L] = np.inf if mixed else e
@@ -587,6 +609,27 @@ class Bounds:
                         y * span <= hi_r and y * span + span >= lo_r:
                     cols["boundary_error"] = float(self._skirt(x, y, L, new))
                 job.set_row(key, **cols)
+
+    def _fields_batch(self, blocks: list, L: int) -> None:
+        """:meth:`_field` of every block in ``blocks``' bounding rectangle, from one
+        window."""
+        if not blocks:
+            return
+        S, N, sl = self.S, self.N, 1 << L
+        ys = [b[0] for b in blocks]
+        xs = [b[1] for b in blocks]
+        i0, j0 = max(min(ys) * S - sl, 0), max(min(xs) * S - sl, 0)
+        i1, j1 = min((max(ys) + 1) * S + sl, N - 1), min((max(xs) + 1) * S + sl, N - 1)
+        z, v = self.c.rect(i0, j0, i1 + 1, j1 + 1)
+        E = np.zeros(z.shape)
+        mixed = np.zeros(((i1 - i0) // sl, (j1 - j0) // sl), np.bool_)
+        level_field_rect(z, v, i0, j0, sl, E, mixed)
+        for ty in range(min(ys), max(ys) + 1):
+            for tx in range(min(xs), max(xs) + 1):
+                a, b = ty * S - i0, tx * S - j0
+                Eb = E[a:a + S + 1, b:b + S + 1]
+                mb = mixed[a // sl:a // sl + S // sl, b // sl:b // sl + S // sl]
+                self._fields[(ty, tx, L)] = (float(Eb.max()), bool(mb.any()), Eb, mb)
 
     def _field(self, ty: int, tx: int, L: int) -> tuple:
         """Block (ty, tx)'s level-L field as the edit leaves it: (max over its closed

@@ -110,10 +110,14 @@ def fit_to_quantizer(heights: np.ndarray, valid: np.ndarray, q: Quantizer, *,
                      round_heights: bool, source: str) -> tuple[np.ndarray, float]:
     """The new heights as the store can hold them, and the largest change that took.
 
-    A lossless store (integer, decimal or float codes) holds exactly the heights on its
-    grid: others are refused in one line, or rounded to the grid with ``round_heights``.
-    A store coded within ε holds any height within ε (its contract): they are kept as
-    given and the codec rounds them. Heights past the quantizer's range are refused.
+    A lossless store of integer or decimal codes (an integer DEM, Terrain-RGB's 0.1 m, a
+    float DEM written with d decimals) holds exactly the heights on its grid: others are
+    refused in one line, or rounded to the grid with ``round_heights``. A lossless float
+    store holds the floats of its source's width: heights are rounded to it (float32:
+    what writing the edited DEM as float32 would do), and the largest rounding is
+    returned. A store coded within ε holds any height within ε (its contract): they are
+    kept as given and the codec rounds them. Heights past the quantizer's range are
+    refused.
 
     Examples
     --------
@@ -135,7 +139,7 @@ def fit_to_quantizer(heights: np.ndarray, valid: np.ndarray, q: Quantizer, *,
         return np.where(valid, heights, np.nan), 0.0
     off = valid & (back != h)
     diff = float(np.abs(back - h)[off].max()) if off.any() else 0.0
-    if off.any() and not round_heights:
+    if off.any() and not round_heights and q.mode != "float":
         k = np.flatnonzero(off.ravel())[0]
         example = float(h.ravel()[k])
         grid = (f"float{q.float_bits}" if q.mode == "float" else
