@@ -62,7 +62,7 @@ from geoterrain.cli.options import (
 @click.option("--fps", type=float, default=10.0, show_default=True, help="Animation speed.")
 @click.option("--strips", is_flag=True,
               help="Draw the mesh as seed 002's triangle strips instead of triangle lists "
-                   "(the same picture; see docs/benchmarks.md for the draw time).")
+                   "(the same picture; no faster on the CPU renderer, docs/benchmarks.md).")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,

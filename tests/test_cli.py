@@ -228,3 +228,35 @@ def test_the_occlusion_option_reaches_the_selection(tmp_path, fbm_tif, monkeypat
         res = run("mesh", store, "-o", tmp_path / f"{k}.vtp", *look, flag)
         assert res.exit_code == 0, res.output
     assert seen == [False, True]
+
+
+@pytest.mark.fast
+def test_edit_command(tmp_path):
+    """`geoterrain edit`: a patch placed by its georeference or --at, the summary line,
+    the edit in `info`, and one-line errors (exit 2 for the command line, 1 for data)."""
+    import numpy as np
+
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    z = np.rint(generate("fbm", 65, seed=3))
+    dem = write_geotiff(tmp_path / "d.tif", z, spacing=10.0)
+    assert run("-q", "preprocess", dem, "--tile-size", "16").exit_code == 0
+    store = tmp_path / "d.geoterrain"
+    # a cut of 5 × 6 samples whose top-left corner is row 10, column 20 of the DEM
+    cut = write_geotiff(tmp_path / "cut.tif", np.full((5, 6), -12.0),
+                        origin=(500000.0 + 20 * 10, 5000000.0 - 10 * 10), spacing=10.0)
+    res = run("edit", store, "--patch", cut, "--mode", "add")
+    assert res.exit_code == 0 and "changed 30 samples in rows 10 … 14, columns 20 … 25" \
+        in res.output, res.output
+    with geoterrain.open(store) as t:
+        assert t.tile(0, 1, 0).heights[10 - 0, 20 - 16] == z[10, 20] - 12
+    assert "edits        1" in run("info", store).output
+    res = run("edit", store, "--patch", cut, "--mode", "add", "--at", "0,0")
+    assert res.exit_code == 0 and "rows 0 … 4, columns 0 … 5" in res.output
+    frac = write_geotiff(tmp_path / "frac.tif", np.full((2, 2), 0.25), spacing=10.0)
+    assert_one_line_error(run("edit", store, "--patch", frac, "--at", "1,1"), 1)
+    assert run("edit", store, "--patch", frac, "--at", "1,1", "--round").exit_code == 0
+    assert_one_line_error(run("edit", store, "--patch", cut, "--at", "900,900"), 1)
+    res = run("edit", store, "--patch", cut, "--at", "x")  # click's usage error
+    assert res.exit_code == 2 and "ROW,COL" in res.output and "Traceback" not in res.output
+    assert_one_line_error(run("edit", tmp_path / "none.geoterrain", "--patch", cut), 1)

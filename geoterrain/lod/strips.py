@@ -12,7 +12,7 @@ and one that shares neither starts a new strip (culled triangles, nodata, a new 
 
 VTK draws them through ``vtkPolyData.SetStrips`` (:func:`strip_polydata`): whether
 that is faster than the triangle lists the project draws is measured by
-``benchmarks/bench_strips.py`` (docs/benchmarks.md, "Triangle strips").
+``benchmarks/bench_strips.py`` (docs/benchmarks.md: no faster on VTK's CPU renderer).
 
 Examples
 --------

@@ -590,7 +590,8 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
         MSAA), ``"msaa"``, ``"edges"``, ``"fxaa"`` or ``"none"`` (:func:`_plotter`).
     strips : draw the mesh as seed 002's triangle strips (:mod:`geoterrain.lod.strips`)
         instead of triangle lists: the same picture; on VTK's software renderer no faster
-        (docs/benchmarks.md, "Triangle strips"), hence off by default.
+        to draw (docs/benchmarks.md, "Editing a store, and triangle strips"), hence off by
+        default.
 
     Returns
     -------

@@ -100,8 +100,8 @@ class Bounds:
         """Per level, the vertices an edited sample reaches: ``direct`` ones hold one in
         their closed diamond (their raw δ changes); the others hold one in a
         descendant's diamond only (saturation and nesting pull from the whole DAG below
-        a vertex: a centre's descendants reach about 3h from it, an edge midpoint's 2h;
-        bounded here by 3h and 2h + h)."""
+        a vertex: the samples of its descendants' diamonds lie within 3h − 1 of a centre
+        and 2h − 1 of an edge midpoint, Chebyshev, by induction over the levels)."""
         c, N = self.c, self.N
         R0, R1, C0, C1 = c.r0, c.r1 - 1, c.c0, c.c1 - 1
         self.levels = []
@@ -130,7 +130,7 @@ class Bounds:
                 if kind == "centre":
                     near, hit = cheb <= 3 * h, cheb <= h
                 else:
-                    near, hit = cheb <= 3 * h, di + dj <= h
+                    near, hit = cheb <= 2 * h, di + dj <= h
                 sel = ok & near
                 out.append(np.stack([i[sel], j[sel], np.full(sel.sum(), h)], 1))
                 direct.append(hit[sel])
@@ -144,13 +144,14 @@ class Bounds:
         self.coarse_levels = [(h, v, d) for h, v, d in self.levels if 2 * h > self.S]
 
     def _window(self) -> None:
-        """The decoded window around the edit that holds every fine vertex's diamond
-        and blocks, three tiles beyond it; its stored δ and r codes."""
+        """The decoded window around the edit that holds every fine vertex's diamond,
+        blocks and children (within 4h ≤ two tiles of the edit), two tiles beyond it; its
+        stored δ and r codes."""
         c, t, S, N = self.c, self.t, self.S, self.N
-        self.oi = max((c.r0 // S - 3) * S, 0)
-        self.oj = max((c.c0 // S - 3) * S, 0)
-        self.i1 = min(((c.r1 - 1) // S + 4) * S, N - 1)
-        self.j1 = min(((c.c1 - 1) // S + 4) * S, N - 1)
+        self.oi = max((c.r0 // S - 2) * S, 0)
+        self.oj = max((c.c0 // S - 2) * S, 0)
+        self.i1 = min(((c.r1 - 1) // S + 3) * S, N - 1)
+        self.j1 = min(((c.c1 - 1) // S + 3) * S, N - 1)
         self.z, self.v = c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1)
         self.zo, self.vo = c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1, new=False)
         shape = self.z.shape
