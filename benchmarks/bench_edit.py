@@ -12,9 +12,9 @@ a full preprocess of the DEM in a fresh process, and an editing process that app
 Each process is timed after its imports (the compiled kernels are on disk); the first
 edit of a process also loads its kernels from numba's cache, so it is reported apart
 from the next ones. For each edit: the rows and bytes it wrote (blobs and catalog), the
-store's pages that differ afterwards (1 kB pages, compared with the copy before), the
-file's growth and the bytes the process wrote to disk (/proc/self/io, the rollback
-journal included). Prints markdown tables of medians and the ratios to the preprocess.
+store's pages that differ afterwards (1 kB pages, compared with the copy before) and the
+file's growth; and the time of the transaction apart (its syncs). Prints markdown tables
+of medians and the ratios to the preprocess.
 """
 
 from __future__ import annotations
@@ -47,10 +47,6 @@ from geoterrain.preprocessing.edit import Patch, edit_terrain
 store, work = sys.argv[1], sys.argv[2]
 n, w, seed = (int(v) for v in sys.argv[3:6])
 
-def written():
-    with open("/proc/self/io") as fh:
-        return int(next(l for l in fh if l.startswith("write_bytes")).split()[1])
-
 rng = np.random.default_rng(seed)
 out = []
 with geoterrain.open(store) as t0_:
@@ -60,13 +56,11 @@ for k in range(n):
     shutil.copy(store, p)
     os.sync()
     r, c = int(rng.integers(0, rows - w)), int(rng.integers(0, cols - w))
-    before = written()
     t = geoterrain.open(p)
     t1 = time.perf_counter()
     res = edit_terrain(t, Patch(r, c, np.full((w, w), -20.0)), "add")
     wall = time.perf_counter() - t1
     t.close()
-    disk = written() - before
     a = np.fromfile(store, np.uint8)
     b = np.fromfile(p, np.uint8)
     m = min(a.size, b.size) // 1024 * 1024
@@ -75,7 +69,7 @@ for k in range(n):
     out.append({"wall": wall, "write": res.write_seconds, "how": res.how, "why": res.why,
                 "rows": res.rows,
                 "bytes": res.bytes, "pages": pages, "growth": int(b.size - a.size),
-                "disk": disk, "size": int(a.size), "window": [r, c]})
+                "size": int(a.size), "window": [r, c]})
     os.remove(p)
 print(json.dumps(out))
 """
@@ -138,7 +132,7 @@ def main() -> None:
         print("\n| per edit (median) | bytes | % of the store |\n|---|---|---|")
         for key, what in (("bytes", "rows written (blobs + catalog)"),
                           ("pages", "pages of the store changed (1 kB)"),
-                          ("growth", "file growth"), ("disk", "written to disk (journal too)")):
+                          ("growth", "file growth")):
             v = med(e[key] * (1024 if key == "pages" else 1) for e in allx)
             print(f"| {what} | {v / 1e3:.1f} kB | {100 * v / size:.2f} % |")
         hows = {e["how"] + (f": {e['why']}" if e["why"] else "") for e in allx}
