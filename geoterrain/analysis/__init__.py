@@ -8,5 +8,13 @@ with ``crs=`` (``"lonlat"`` for longitude, latitude); answers come in the same f
 """
 
 from geoterrain.analysis.heights import Heights, Normals, height_at, normal_at
+from geoterrain.analysis.visibility import (
+    LineOfSight,
+    Viewshed,
+    line_of_sight,
+    viewshed,
+    write_viewshed,
+)
 
-__all__ = ["Heights", "Normals", "height_at", "normal_at"]
+__all__ = ["Heights", "LineOfSight", "Normals", "Viewshed", "height_at", "line_of_sight",
+           "normal_at", "viewshed", "write_viewshed"]
