@@ -8,6 +8,7 @@ with ``crs=`` (``"lonlat"`` for longitude, latitude); answers come in the same f
 """
 
 from geoterrain.analysis.heights import Heights, Normals, height_at, normal_at
+from geoterrain.analysis.profile import Profile, plot_profile, profile, write_profile_csv
 from geoterrain.analysis.visibility import (
     LineOfSight,
     Viewshed,
@@ -16,5 +17,6 @@ from geoterrain.analysis.visibility import (
     write_viewshed,
 )
 
-__all__ = ["Heights", "LineOfSight", "Normals", "Viewshed", "height_at", "line_of_sight",
-           "normal_at", "viewshed", "write_viewshed"]
+__all__ = ["Heights", "LineOfSight", "Normals", "Profile", "Viewshed", "height_at",
+           "line_of_sight", "normal_at", "plot_profile", "profile", "viewshed",
+           "write_profile_csv", "write_viewshed"]
