@@ -7,6 +7,7 @@ what :func:`geoterrain.open` returns) and points in the DEM's CRS, or in another
 with ``crs=`` (``"lonlat"`` for longitude, latitude); answers come in the same form.
 """
 
+from geoterrain.analysis.areas import Area, Plane, Volume, surface_area, volume
 from geoterrain.analysis.heights import Heights, Normals, height_at, normal_at
 from geoterrain.analysis.profile import Profile, plot_profile, profile, write_profile_csv
 from geoterrain.analysis.visibility import (
@@ -17,6 +18,6 @@ from geoterrain.analysis.visibility import (
     write_viewshed,
 )
 
-__all__ = ["Heights", "LineOfSight", "Normals", "Profile", "Viewshed", "height_at",
-           "line_of_sight", "normal_at", "plot_profile", "profile", "viewshed",
-           "write_profile_csv", "write_viewshed"]
+__all__ = ["Area", "Heights", "LineOfSight", "Normals", "Plane", "Profile", "Viewshed",
+           "Volume", "height_at", "line_of_sight", "normal_at", "plot_profile", "profile",
+           "surface_area", "viewshed", "volume", "write_profile_csv", "write_viewshed"]

@@ -5,13 +5,14 @@ the way the module documents, without a pyramid, a tile or a compiled kernel:
 
 - :func:`bilinear_reference`: the height at points, bilinear on pixel centres;
 - :func:`viewshed_reference`: the reference-plane viewshed, cell by cell;
+- :func:`triangulated_reference`: areas and volumes on the full triangulation, by GEOS;
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["bilinear_reference", "viewshed_reference"]
+__all__ = ["bilinear_reference", "triangulated_reference", "viewshed_reference"]
 
 
 def bilinear_reference(z: np.ndarray, valid: np.ndarray, transform, xy: np.ndarray
@@ -115,4 +116,94 @@ def viewshed_reference(z: np.ndarray, r2: np.ndarray, orow: int, ocol: int, eye:
                     c += side
             last = row
             r += step
+    return out
+
+
+def triangulated_reference(z: np.ndarray, valid: np.ndarray, transform, to_metres, polygon,
+                           base: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                           z_to_m: float = 1.0) -> dict:
+    """Areas and volumes of a shapely ``polygon`` (in the raster's CRS) on the raster's
+    full-resolution triangulation, by GEOS: every triangle cut by ``shapely.intersection``.
+
+    Triangles join pixel centres, each cell split along its union-jack diagonal (through
+    the corner whose row and column are both odd); a triangle with a nodata corner is left
+    out (its clipped area goes to ``nodata_area``). ``to_metres(x, y)`` places CRS points
+    in a metric frame (each triangle is measured through the affine map its corners give);
+    heights × ``z_to_m`` are metres; ``base`` (a, b, c) is the plane a·x + b·y + c in the
+    raster's units. Returns area_2d, area_3d, cut, fill and nodata_area (m², m³).
+    """
+    import shapely
+
+    H, W = z.shape
+    a, _, c, _, e, f = tuple(transform)[:6]
+    x0, y0, x1, y1 = polygon.bounds
+    j0 = max(int(np.floor((min(x0, x1) - c) / a - 0.5)) - 1, 0)
+    j1 = min(int(np.ceil((max(x0, x1) - c) / a - 0.5)) + 1, W - 1)
+    ylo, yhi = sorted(((y0 - f) / e - 0.5, (y1 - f) / e - 0.5))
+    i0, i1 = max(int(np.floor(ylo)) - 1, 0), min(int(np.ceil(yhi)) + 1, H - 1)
+    ii, jj = np.meshgrid(np.arange(i0, i1), np.arange(j0, j1), indexing="ij")
+    ii, jj = ii.ravel(), jj.ravel()
+    main = (ii + jj) % 2 == 0
+    # each cell's two triangles as (row, col) corners
+    c00, c01, c10, c11 = (ii, jj), (ii, jj + 1), (ii + 1, jj), (ii + 1, jj + 1)
+    tris = []
+    for m, corners in ((True, (c00, c01, c11)), (True, (c00, c11, c10)),
+                       (False, (c00, c01, c10)), (False, (c11, c10, c01))):
+        sel = main == m
+        tris.append(tuple((r[sel], q[sel]) for r, q in corners))
+    R = np.concatenate([np.stack([t[k][0] for k in range(3)], 1) for t in tris])
+    Q = np.concatenate([np.stack([t[k][1] for k in range(3)], 1) for t in tris])
+    X = a * (Q + 0.5) + c
+    Y = e * (R + 0.5) + f
+    polys = shapely.polygons(np.stack([X, Y], -1))
+    pieces = shapely.intersection(polys, polygon)
+    area_src = shapely.area(pieces)
+    keep = area_src > 0
+    R, Q, X, Y, pieces, area_src = R[keep], Q[keep], X[keep], Y[keep], pieces[keep], \
+        area_src[keep]
+    Xm, Ym = to_metres(X, Y)
+    ok = valid[R, Q].all(1)
+    Z = np.where(valid[R, Q], z[R, Q], 0.0) * z_to_m
+    cross_src = np.abs((X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0])
+                       - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0]))
+    e1 = np.stack([Xm[:, 1] - Xm[:, 0], Ym[:, 1] - Ym[:, 0], Z[:, 1] - Z[:, 0]], 1)
+    e2 = np.stack([Xm[:, 2] - Xm[:, 0], Ym[:, 2] - Ym[:, 0], Z[:, 2] - Z[:, 0]], 1)
+    j2 = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) / cross_src
+    j3 = np.linalg.norm(np.cross(e1, e2), axis=1) / cross_src
+    out = {"area_2d": float((area_src * j2)[ok].sum()),
+           "area_3d": float((area_src * j3)[ok].sum()),
+           "nodata_area": float((area_src * j2)[~ok].sum())}
+    # w = (z − base) · z_to_m, linear on each triangle in the CRS's x, y
+    w = Z - (base[0] * X + base[1] * Y + base[2]) * z_to_m
+    A = np.stack([X, Y, np.ones_like(X)], -1)
+    coef = np.linalg.solve(A[ok], w[ok][..., None])[..., 0]  # w = p x + q y + r
+    pc, areas, j2o = pieces[ok], area_src[ok], j2[ok]
+    Xo, Yo = X[ok], Y[ok]
+    L = 4 * (np.ptp(Xo, axis=1) + np.ptp(Yo, axis=1))[:, None]  # beyond the triangle
+    mx, my = Xo.mean(1), Yo.mean(1)
+    cut = fill = 0.0
+    for sign in (1.0, -1.0):
+        p, q, r = (sign * coef[:, k] for k in range(3))
+        g = np.hypot(p, q)
+        gs = np.where(g == 0, 1.0, g)
+        n = np.stack([p / gs, q / gs], -1)  # toward the side where sign·w grows
+        wm = p * mx + q * my + r  # the line sign·w = 0, near the triangle
+        p0 = np.stack([mx, my], -1) - (wm / gs)[:, None] * n
+        d = np.stack([-n[:, 1], n[:, 0]], -1)
+        quad = np.stack([p0 - L * d, p0 + L * d, p0 + L * d + L * n, p0 - L * d + L * n], 1)
+        ws = sign * w[ok]
+        whole = (ws >= 0).all(1)  # the triangle is on one side: no cut needed
+        none = (ws <= 0).all(1) & ~whole
+        cross = ~whole & ~none  # the line runs through the triangle: the quad reaches it
+        half = np.where(cross, shapely.intersection(pc, shapely.polygons(quad)), pc)
+        ha = np.where(whole, areas, np.where(none, 0.0, shapely.area(half)))
+        k = np.flatnonzero(ha > 0)
+        cen = shapely.centroid(half[k])
+        wv = p[k] * shapely.get_x(cen) + q[k] * shapely.get_y(cen) + r[k]  # sign · w
+        part = float(np.sum(ha[k] * wv * j2o[k]))
+        if sign > 0:
+            cut = part
+        else:
+            fill = part
+    out["cut"], out["fill"] = cut, fill
     return out
