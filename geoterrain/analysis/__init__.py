@@ -8,6 +8,7 @@ with ``crs=`` (``"lonlat"`` for longitude, latitude); answers come in the same f
 """
 
 from geoterrain.analysis.areas import Area, Plane, Volume, surface_area, volume
+from geoterrain.analysis.contours import Contours, contours, write_contours
 from geoterrain.analysis.heights import Heights, Normals, height_at, normal_at
 from geoterrain.analysis.profile import Profile, plot_profile, profile, write_profile_csv
 from geoterrain.analysis.visibility import (
@@ -18,6 +19,7 @@ from geoterrain.analysis.visibility import (
     write_viewshed,
 )
 
-__all__ = ["Area", "Heights", "LineOfSight", "Normals", "Plane", "Profile", "Viewshed",
+__all__ = ["Area", "Contours", "Heights", "LineOfSight", "Normals", "Plane", "Profile", "Viewshed",
            "Volume", "height_at", "line_of_sight", "normal_at", "plot_profile", "profile",
-           "surface_area", "viewshed", "volume", "write_profile_csv", "write_viewshed"]
+           "surface_area", "viewshed", "volume", "write_contours", "write_profile_csv",
+           "write_viewshed", "contours"]

@@ -6,13 +6,15 @@ the way the module documents, without a pyramid, a tile or a compiled kernel:
 - :func:`bilinear_reference`: the height at points, bilinear on pixel centres;
 - :func:`viewshed_reference`: the reference-plane viewshed, cell by cell;
 - :func:`triangulated_reference`: areas and volumes on the full triangulation, by GEOS;
+- :func:`contour_comparison`: two sets of contour lines, level by level (counts, Hausdorff);
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["bilinear_reference", "triangulated_reference", "viewshed_reference"]
+__all__ = ["bilinear_reference", "contour_comparison", "triangulated_reference",
+           "viewshed_reference"]
 
 
 def bilinear_reference(z: np.ndarray, valid: np.ndarray, transform, xy: np.ndarray
@@ -207,3 +209,45 @@ def triangulated_reference(z: np.ndarray, valid: np.ndarray, transform, to_metre
             fill = part
     out["cut"], out["fill"] = cut, fill
     return out
+
+
+def contour_comparison(lines_a: list, heights_a, lines_b: list, heights_b) -> dict:
+    """Per level, the closed and open line counts of two sets of contour lines and the
+    symmetric Hausdorff distance between them (every vertex and segment quarter of each
+    set to the other's nearest segment, by GEOS), in the lines' units:
+    ``{level: (counts_a, counts_b, hausdorff)}`` with counts (closed, open); a line is
+    closed when its last vertex is its first."""
+
+    def split(lines, heights):
+        out: dict = {}
+        for line, h in zip(lines, np.asarray(heights, np.float64).tolist(), strict=True):
+            p = np.asarray(line)[:, :2]
+            out.setdefault(h, []).append((p, bool(np.array_equal(p[0], p[-1]))))
+        return out
+
+    a, b = split(lines_a, heights_a), split(lines_b, heights_b)
+    res = {}
+    for h in sorted(set(a) | set(b)):
+        la, lb = a.get(h, []), b.get(h, [])
+        ca = (sum(c for _, c in la), sum(not c for _, c in la))
+        cb = (sum(c for _, c in lb), sum(not c for _, c in lb))
+        d = np.inf
+        if la and lb:
+            d = max(_directed(la, lb), _directed(lb, la))
+        res[h] = (ca, cb, d)
+    return res
+
+
+def _directed(la: list, lb: list) -> float:
+    """The largest distance from a point of lines ``la`` (their vertices and the points
+    at quarters of their segments) to lines ``lb`` (an STR tree of its segments)."""
+    import shapely
+
+    pa = np.concatenate([p for p, _ in la])
+    qa = np.concatenate([p[:-1] + f * (p[1:] - p[:-1]) for p, _ in la if len(p) > 1
+                         for f in (0.25, 0.5, 0.75)] or [pa[:0]])
+    segs = np.concatenate([np.stack([p[:-1], p[1:]], 1) for p, _ in lb if len(p) > 1])
+    tree = shapely.STRtree(shapely.linestrings(segs))
+    pts = shapely.points(np.concatenate([pa, qa]))
+    _, dist = tree.query_nearest(pts, return_distance=True, all_matches=False)
+    return float(dist.max())
