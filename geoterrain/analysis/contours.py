@@ -43,7 +43,7 @@ from geoterrain.exceptions import UsageError, WriteError, exists_error
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
-__all__ = ["Contours", "contours", "write_contours"]
+__all__ = ["Contours", "contours", "scene_lines", "write_contours"]
 
 TOL = 1e-6  # GDAL's fudge: a value this close to a level counts as above it
 MAX_LEVELS = 100_000  # GDAL's own limit
@@ -427,3 +427,27 @@ def write_contours(c: Contours, path: str | Path, crs_wkt: str | None, *,
     finally:
         tmp.unlink(missing_ok=True)
     return out
+
+
+def scene_lines(terrain: TerrainLike, c: Contours, major: int = 5
+                ) -> tuple[list[np.ndarray], list[float]]:
+    """Contour lines in the scene frame ((n, 3): x, y, the level's height as drawn) for
+    :func:`geoterrain.render`'s ``lines``, and their widths: every ``major``-th level of
+    the interval (an index contour) twice as wide.
+
+    Examples
+    --------
+    >>> lines, widths = scene_lines(t, contours(t, 200.0))
+    >>> lines[0].shape[1], sorted(set(widths)) <= [1.0, 2.0]
+    (3, True)
+    """
+    f = terrain.frame
+    out, widths = [], []
+    hs = np.asarray(c.heights, np.float64)
+    step = np.min(np.diff(np.unique(hs))) if len(np.unique(hs)) > 1 else 0.0
+    for p, h in zip(c.lines, hs.tolist(), strict=True):
+        X, Y = f.crs_to_scene(p[:, 0], p[:, 1])
+        out.append(np.column_stack([X, Y, np.full(len(p), h * f.z_to_m * f.z_scale)]))
+        idx = step > 0 and abs(h / (step * major) - round(h / (step * major))) < 1e-9
+        widths.append(2.0 if idx else 1.0)
+    return out, widths
