@@ -203,7 +203,7 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
     --------
     >>> c, f = t.frame.transform[2], t.frame.transform[5]
     >>> vs = viewshed(t, (c + 100.0, f - 100.0), radius=300.0)
-    >>> vs.stats["visible"] + vs.stats["hidden"] > 0, vs.stats["tiles_decoded"] > 0
+    >>> vs.stats["visible"] + vs.stats["hidden"] > 0, vs.stats["tiles_read"] > 0
     (True, True)
     """
     radius = _check("radius", radius, positive=True)
