@@ -10,7 +10,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-fast test-fast-coverage lint clean setup browser test-browser geoid
+.PHONY: demo test test-fast test-fast-coverage lint clean setup browser test-browser geoid gdal
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -49,6 +49,11 @@ browser:
 # PROJ's EGM96 geoid grid (Debian's proj-data) for `geoterrain tiles --geoid egm96`.
 geoid:
 	test -e /usr/share/proj/egm96_15.gtx || apt-get install -y --no-install-recommends proj-data
+
+# GDAL's own tools (Debian's gdal-bin): gdal_viewshed and gdal_contour, the references the
+# analysis tests compare with (they skip without them).
+gdal:
+	command -v gdal_viewshed >/dev/null || apt-get install -y --no-install-recommends gdal-bin
 
 test-browser: $(STAMP) browser
 	$(BIN)/python -m pytest -q -m browser

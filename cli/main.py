@@ -18,7 +18,8 @@ from geoterrain.exceptions import GeoterrainError
 # (about 0.2 s of a 2.7 s cold render)
 COMMANDS = {"preprocess": "preprocess", "info": "info", "mesh": "mesh", "export": "export",
             "export-raster": "export_raster", "tiles": "tiles", "render": "render",
-            "view": "view", "bench": "bench", "synth": "synth", "edit": "edit"}
+            "view": "view", "bench": "bench", "synth": "synth", "edit": "edit", "query": "query",
+            "profile": "profile", "viewshed": "viewshed", "contours": "contours"}
 
 
 class Group(click.Group):
@@ -71,6 +72,8 @@ def cli(ctx, verbose, quiet):
       geoterrain info dem.geoterrain
       geoterrain mesh dem.geoterrain -o dem.ply --max-error 1
       geoterrain render dem.geoterrain -o view.png
+      geoterrain query dem.geoterrain --at X,Y       # heights, profiles, viewsheds,
+      geoterrain contours dem.geoterrain --interval 50 -o c.gpkg   # contours: the analysis
 
     Run `geoterrain COMMAND --help` for each command's options.
     """

@@ -331,3 +331,132 @@ def select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_e
         raise UsageError("--look-from and --look-at must differ")
     return t.select(geoterrain.View(look_from, look_at, fov_y_deg=fov, size=size), pixel_error,
                     strategy, occlusion=occlusion)
+
+
+# ------------------------------------------------------------------ the analysis commands
+
+
+def points_crs_options(f):
+    """--crs and --lonlat: the CRS the command's coordinates are given in."""
+    for opt in reversed([
+        click.option("--crs", "crs", metavar="CRS",
+                     help="CRS of the given coordinates (an EPSG code such as EPSG:4326, a "
+                          "PROJ string or WKT) [default: the DEM's own]."),
+        click.option("--lonlat", is_flag=True,
+                     help="The coordinates are longitude, latitude in degrees (WGS 84)."),
+    ]):
+        f = opt(f)
+    return f
+
+
+def points_crs(crs, lonlat):
+    """The ``crs=`` argument of the analysis functions from --crs / --lonlat."""
+    from geoterrain.exceptions import UsageError
+
+    if crs and lonlat:
+        raise UsageError("give either --crs or --lonlat, not both")
+    return "lonlat" if lonlat else (crs or None)
+
+
+def parse_xy(value: str, flag: str) -> tuple[float, float]:
+    """``X,Y`` → two floats (a one-line UsageError naming ``flag`` otherwise)."""
+    from geoterrain.exceptions import UsageError
+
+    try:
+        x, y = (float(v) for v in value.split(","))
+    except ValueError:
+        raise UsageError(f"{flag} expects X,Y (two numbers), got {value!r}") from None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise UsageError(f"{flag} expects finite numbers, got {value!r}")
+    return x, y
+
+
+def read_geometry(value: str, flag: str):
+    """A geometry given as WKT, GeoJSON (text, or a .geojson/.json/.wkt file): a shapely
+    geometry, and whether it came from GeoJSON (whose coordinates are lon/lat, RFC 7946,
+    unless it names a CRS)."""
+    import json
+    from pathlib import Path
+
+    import shapely
+    from shapely.geometry import shape
+
+    from geoterrain.exceptions import UsageError
+
+    text = value
+    p = Path(value)
+    if len(value) < 4096 and p.suffix.lower() in (".geojson", ".json", ".wkt", ".txt"):
+        if not p.is_file():
+            raise UsageError(f"{flag}: {value} is not a file")
+        text = p.read_text()
+    text = text.strip()
+    try:
+        if text.startswith("{"):
+            obj = json.loads(text)
+            if obj.get("type") == "FeatureCollection":
+                feats = obj.get("features") or []
+                if len(feats) != 1:
+                    raise UsageError(f"{flag}: the GeoJSON holds {len(feats)} features; give "
+                                     "one")
+                obj = feats[0]
+            geom = shape(obj.get("geometry", obj) if obj.get("type") == "Feature" else obj)
+            return geom, True
+        return shapely.from_wkt(text), False
+    except (ValueError, TypeError, KeyError, AttributeError,
+            shapely.errors.ShapelyError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise UsageError(f"{flag}: cannot read {value[:60]!r} as WKT or GeoJSON ({first})"
+                         ) from None
+
+
+def read_points(path: str):
+    """Points from a CSV (columns x, y — or lon, lat — by name, else the first two) or a
+    GeoJSON of Points: an (N, 2) array, their names (or None), and whether they came from
+    GeoJSON (lon/lat)."""
+    import csv
+    import json
+    from pathlib import Path
+
+    import numpy as np
+
+    from geoterrain.exceptions import InputError, UsageError
+
+    p = Path(path)
+    if not p.is_file():
+        raise UsageError(f"--points: {path} is not a file")
+    if p.suffix.lower() in (".geojson", ".json"):
+        try:
+            obj = json.loads(p.read_text())
+            feats = obj["features"] if obj.get("type") == "FeatureCollection" else [obj]
+            xy = [f["geometry"]["coordinates"][:2] for f in feats
+                  if f.get("geometry", {}).get("type") == "Point"]
+        except (ValueError, KeyError, TypeError, AttributeError):
+            raise InputError(f"{path}: not a GeoJSON of points") from None
+        if not xy:
+            raise InputError(f"{path}: no Point features")
+        return np.asarray(xy, np.float64), None, True
+    rows = list(csv.reader(p.read_text().splitlines()))
+    if not rows:
+        raise InputError(f"{path}: empty")
+    head = [h.strip().lower() for h in rows[0]]
+    named = [("x", "y"), ("lon", "lat"), ("longitude", "latitude"), ("easting", "northing")]
+    cols = next(((head.index(a), head.index(b)) for a, b in named
+                 if a in head and b in head), None)
+    body = rows[1:] if cols is not None or not _numeric(rows[0][:2]) else rows
+    cols = cols or (0, 1)
+    try:
+        xy = np.array([[float(r[cols[0]]), float(r[cols[1]])] for r in body if r],
+                      np.float64)
+    except (ValueError, IndexError):
+        raise InputError(f"{path}: expected columns x,y (or lon,lat) of numbers") from None
+    if xy.size == 0:
+        raise InputError(f"{path}: no points")
+    return xy, None, False
+
+
+def _numeric(cells) -> bool:
+    try:
+        [float(c) for c in cells]
+    except ValueError:
+        return False
+    return len(cells) == 2

@@ -50,6 +50,9 @@ from geoterrain.cli.options import (
 @light_options
 @drape_options
 @click.option("--title", help="Title drawn at the top.")
+@click.option("--contours", "contour_interval", type=float, metavar="DZ",
+              help="Draw contour lines every DZ (the DEM's vertical unit) over the terrain, "
+                   "every fifth one bolder (single views).")
 @click.option("--no-overlays", is_flag=True,
               help="No colour bar, scale bar or north arrow.")
 @click.option("--stats", "stats_path", type=click.Path(dir_okay=False),
@@ -69,7 +72,8 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             fov, pixel_error, strategy, occlusion, morph, anti_aliasing, vertical_exaggeration,
             shading, cmap, clim, water_level,
             sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity, title,
-            no_overlays, stats_path, orbit, cameras, frames_between, fps, strips, overwrite):
+            contour_interval, no_overlays, stats_path, orbit, cameras, frames_between, fps,
+            strips, overwrite):
     """Render STORE offscreen: each frame selects its own level of detail.
 
     \b
@@ -83,6 +87,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
       geoterrain render dem.geoterrain -o relief.png -z 3
       geoterrain render dem.geoterrain -o sea.png --water-level 2 --clim -50,1500
       geoterrain render dem.geoterrain -o dusk.png --sun 250,15 --shadows --ambient-occlusion
+      geoterrain render dem.geoterrain -o lines.png --contours 50
       geoterrain render dem.geoterrain -o orbit.gif --orbit 36 --size 640x360
       geoterrain render dem.geoterrain -o fly.mp4 --path cameras.json --stats fly.json
 
@@ -119,6 +124,8 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
         raise UsageError(f"--orbit needs at least 1 frame, got {orbit}")
     ext = Path(out).suffix.lower()
     animated = orbit is not None or cameras is not None
+    if contour_interval is not None and animated:
+        raise UsageError("--contours draws on a single view (.png), not an animation")
     if not animated and ext != ".png":
         raise UsageError(f"{out}: a single view is written as .png (use --orbit or --path "
                          "for .gif/.mp4)")
@@ -169,11 +176,17 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             view = R.overview(t, size, azimuth, elevation, distance, fov, shading=shading,
                               cmap=cmap, title=title, colorbar=not no_overlays,
                               scale_bar=not no_overlays, north_arrow=not no_overlays)
+        lines = widths = None
+        if contour_interval is not None:
+            from geoterrain.analysis.contours import contours, scene_lines
+
+            lines, widths = scene_lines(base, contours(base, contour_interval))
+            lines = [p * (1.0, 1.0, vertical_exaggeration) for p in lines]
         st = R.render(t, view, out, pixel_error=pixel_error, strategy=strategy,
                       shading=shading, cmap=cmap, title=title, scale_bar=not no_overlays,
                       stats_path=stats_path, overwrite=overwrite, light=lit, drape=dr,
                       occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing,
-                      strips=strips, **overlays)
+                      strips=strips, lines=lines, line_widths=widths, **overlays)
     if not quiet:
         click.echo(f"wrote {out}: {st['triangles']:,} triangles ({strategy}, τ = "
                    f"{pixel_error:g} px), select {st['select_ms']:.0f} ms, frame "

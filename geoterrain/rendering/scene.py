@@ -527,10 +527,13 @@ def render_array(terrain: TerrainLike, view: View, *, pixel_error: float = 1.0,
                  shading: str = "normals", cmap: str | Palette = "auto", scene=None,
                  vertical_exaggeration: float = 1.0, light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True, morph: bool | None = None,
-                 anti_aliasing: str = "auto", strips: bool = False) -> tuple[np.ndarray, dict]:
+                 anti_aliasing: str = "auto", strips: bool = False, lines: list | None = None,
+                 line_widths: list | None = None) -> tuple[np.ndarray, dict]:
     """The rendered image (H, W, 3) uint8 of ``view`` without overlays, and its stats
     (the arguments are :func:`render`'s; ``scene``: draw with this
-    :class:`TerrainScene` rather than a new one, whose own settings then apply).
+    :class:`TerrainScene` rather than a new one, whose own settings then apply). ``lines``
+    (scene polylines, (n, 3) each, heights as drawn) are drawn where the terrain shows
+    them (:func:`geoterrain.rendering.overlays.draw_lines`).
 
     Examples
     --------
@@ -547,6 +550,14 @@ def render_array(terrain: TerrainLike, view: View, *, pixel_error: float = 1.0,
     try:
         img, stats = scene.frame(view, pixel_error, strategy)
         stats["terrain_fraction"] = round(scene.terrain_fraction(), 4)
+        if lines:
+            from geoterrain.rendering.antialias import depth_buffer
+            from geoterrain.rendering.overlays import draw_lines
+
+            seen = view if view.near is not None and view.far is not None \
+                else view.clipped_to(*scene.terrain.scene_box())  # the frame's planes
+            img = draw_lines(img, seen, lines, depth_buffer(scene.plotter),
+                             widths=line_widths)
     finally:
         if own:
             scene.plotter.close()
@@ -560,7 +571,8 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
            vertical_exaggeration: float = 1.0, overwrite: bool = True,
            light: Light | None = None, drape: Drape | None = None, occlusion: bool = True,
            morph: bool | None = None, anti_aliasing: str = "auto",
-           strips: bool = False) -> dict:
+           strips: bool = False, lines: list | None = None,
+           line_widths: list | None = None) -> dict:
     """Render one view of the terrain to a PNG, with its own level of detail.
 
     ``overwrite=False`` refuses an existing ``path`` (checked before rendering).
@@ -592,6 +604,9 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
         instead of triangle lists: the same picture; on VTK's software renderer no faster
         to draw (docs/benchmarks.md, "Editing a store, and triangle strips"), hence off by
         default.
+    lines, line_widths : polylines in the scene frame of the stored terrain ((n, 3) each,
+        such as contour lines; their heights are exaggerated with the terrain's) drawn
+        where the terrain shows them, and their widths in pixels.
 
     Returns
     -------
@@ -613,10 +628,12 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
                         scale_bar=scale_bar, north_arrow=north_arrow)
     if shading not in SHADINGS:
         raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
+    if lines and vertical_exaggeration != 1.0:
+        lines = [np.asarray(p, np.float64) * (1.0, 1.0, vertical_exaggeration) for p in lines]
     img, stats = render_array(terrain, view, pixel_error=pixel_error, strategy=strategy,
                               shading=shading, cmap=cmap, light=light, drape=drape,
                               occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing,
-                              strips=strips)
+                              strips=strips, lines=lines, line_widths=line_widths)
     img = compose(img, view, terrain, shading=shading, cmap=cmap, title=title,
                   colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
     _write_png(path, img, overwrite)

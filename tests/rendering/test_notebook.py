@@ -69,3 +69,20 @@ def test_docs_notebook_runs(tmp_path, monkeypatch):
     assert any("image/png" in o.get("data", {}) for o in outs)  # t.plot()
     text = "".join(o.get("text", "") for o in outs)
     assert "terrain.glb" in text and "True" in text
+
+
+def test_analysis_notebook_runs(tmp_path, monkeypatch):
+    """docs/analysis.ipynb: a profile, a viewshed draped in 3-D, contours over the render."""
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(
+        [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    nb = nbformat.read(ROOT / "docs" / "analysis.ipynb", as_version=4)
+    nbclient.NotebookClient(nb, timeout=600, kernel_name="python3",
+                            resources={"metadata": {"path": str(tmp_path)}}).execute()
+    outs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
+    assert not [o for o in outs if o.output_type == "error"]
+    assert sum("image/png" in o.get("data", {}) for o in outs) == 3  # profile, drape, lines
+    text = "".join(o.get("text", "") for o in outs)
+    assert "visible" in text and "contours.gpkg" in text and "±" in text
