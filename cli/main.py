@@ -18,7 +18,8 @@ from geoterrain.exceptions import GeoterrainError
 # (about 0.2 s of a 2.7 s cold render)
 COMMANDS = {"preprocess": "preprocess", "info": "info", "mesh": "mesh", "export": "export",
             "export-raster": "export_raster", "tiles": "tiles", "render": "render",
-            "view": "view", "bench": "bench", "synth": "synth"}
+            "view": "view", "bench": "bench", "synth": "synth",
+            "serve": "serve"}
 
 
 class Group(click.Group):
