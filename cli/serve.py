@@ -106,6 +106,7 @@ def command(ctx, sources, port, bind, cache_bytes, assets, max_error, geoid, cma
         sock = socket.socket(socket.AF_INET6 if ":" in bind else socket.AF_INET)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         sock.bind((bind, port))
+        sock.listen(2048)  # connections queue from now on: the URL printed works at once
     except (OSError, OverflowError) as exc:
         raise UsageError(f"cannot listen on {bind}:{port} ({getattr(exc, 'strerror', exc)}); "
                          "choose another --port (0: any free one) or --bind") from None

@@ -130,7 +130,7 @@ def encode_image(rgba: np.ndarray, fmt: str = "png") -> bytes:
     if fmt == "png":
         img.save(buf, "PNG", compress_level=6)
     elif fmt == "webp":
-        img.save(buf, "WEBP", lossless=True, quality=80, method=2)
+        img.save(buf, "WEBP", lossless=True, quality=80, method=2, exact=True)
     else:
         raise UsageError(f"unknown image format {fmt!r}; use png or webp")
     return buf.getvalue()
