@@ -654,6 +654,7 @@ def _ranges(tiles: list[tuple[int, int]]) -> list[dict]:
 
 # ------------------------------------------------------------ tiles cut on request
 EXTENSION_IDS = {"octvertexnormals": 1, "watermask": 2, "metadata": 4}
+METADATA_LEVELS = 10  # a tile's metadata lists the tiles of the next 10 levels under it
 
 
 def split_extensions(data: bytes) -> tuple[bytes, dict[str, bytes]]:
@@ -688,7 +689,8 @@ def split_extensions(data: bytes) -> tuple[bytes, dict[str, bytes]]:
 def metadata_block(meta: dict) -> bytes:
     """The metadata extension (id 4) of a tile: JSON, as CesiumJS reads it."""
     js = json.dumps(meta, separators=(",", ":")).encode()
-    return bytes([4]) + len(js).to_bytes(4, "little") + len(js).to_bytes(4, "little") + js
+    # the extension's length, then the JSON's own length and the JSON
+    return bytes([4]) + (4 + len(js)).to_bytes(4, "little") + len(js).to_bytes(4, "little") + js
 
 
 class QuantizedMeshTiles:
@@ -805,6 +807,7 @@ class QuantizedMeshTiles:
             "available": [_ranges(sorted(self.level_tiles(z)))
                           for z in range(self.max_zoom + 1)],
             "extensions": ["octvertexnormals", "watermask", "metadata"],
+            "metadataAvailability": METADATA_LEVELS,
             "attribution": "geoterrain",
         }
 
@@ -831,10 +834,19 @@ class QuantizedMeshTiles:
         return data, bound, ntri
 
     def metadata(self, z: int, x: int, y: int) -> dict:
-        """The metadata extension's content: which of the tile's children exist."""
-        kids = [(cx, cy) for cy in (2 * y, 2 * y + 1) for cx in (2 * x, 2 * x + 1)
-                if self.exists(z + 1, cx, cy)]
-        return {"available": [_ranges(kids)] if kids else []}
+        """The metadata extension's content: the tiles of the next
+        :data:`METADATA_LEVELS` levels under this one (CesiumJS learns the set's
+        availability from it when ``layer.json`` says ``metadataAvailability``)."""
+        out = []
+        for d in range(1, METADATA_LEVELS + 1):
+            if z + d > self.max_zoom:
+                break
+            kids = [(cx, cy) for cx, cy in self.level_tiles(z + d)
+                    if cx >> d == x and cy >> d == y]
+            out.append(_ranges(sorted(kids)) if kids else [])
+        while out and not out[-1]:
+            out.pop()
+        return {"available": out}
 
     def _window(self, z: int, x: int, y: int) -> _Dem:
         """The DEM under tile (z, x, y) and a margin (the normals' lattice ring and the

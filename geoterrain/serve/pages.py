@@ -55,7 +55,7 @@ def index_page(stores) -> str:
             + "".join(rows) + "</ul><p><a href='stats.json'>server figures</a></p></body></html>")
 
 
-CESIUM = """<!doctype html><html><head><meta charset="utf-8"><title>geoterrain · globe</title>
+CESIUM = r"""<!doctype html><html><head><meta charset="utf-8"><title>geoterrain · globe</title>
 <link rel="icon" href="data:,"><script src="lib/cesium/Cesium.js"></script>
 <link href="lib/cesium/Widgets/widgets.css" rel="stylesheet"><style>__STYLE__</style></head>
 <body><div id="map"></div><div id="panel"><select id="store"></select>
@@ -91,7 +91,9 @@ choose("imagery", null, IMAGERY, "imagery");
     fullscreenButton: false, infoBox: false, selectionIndicator: false,
     skyBox: false, skyAtmosphere: false,
     contextOptions: {webgl: {preserveDrawingBuffer: true}}});
+  // outside the DEM the terrain tiles have no triangles: the page's background shows
   viewer.scene.globe.baseColor = Cesium.Color.fromCssColorString("#d8dde3");
+  viewer.scene.backgroundColor = Cesium.Color.fromCssColorString("#3c4650");
   viewer.scene.globe.depthTestAgainstTerrain = true;
   viewer.scene.verticalExaggeration = Number(Q.get("exaggeration") || 1);
   // the camera opens on the data: south of its centre, looking north and down
@@ -103,16 +105,20 @@ choose("imagery", null, IMAGERY, "imagery");
     orientation: {heading: 0, pitch: Cesium.Math.toRadians(-38), roll: 0}});
   window.geoterrainView = viewer;
   window.geoterrainTerrain = terrain;
+  // ready: tiles were asked for, and none has been pending for a second
+  let started = false, quiet = 0;
+  viewer.scene.globe.tileLoadProgressEvent.addEventListener((n) => { if (n > 0) started = true; });
   const ready = () => {
-    if (viewer.scene.globe.tilesLoaded) window.geoterrainReady = true;
+    quiet = started && viewer.scene.globe.tilesLoaded ? quiet + 1 : 0;
+    if (quiet >= 5) window.geoterrainReady = true;
     else setTimeout(ready, 200);
   };
-  setTimeout(ready, 500);
+  setTimeout(ready, 200);
 })().catch((err) => { console.error(err); window.geoterrainError = String(err); });
 </script></body></html>"""
 
 
-MAPLIBRE = """<!doctype html><html><head><meta charset="utf-8"><title>geoterrain · map</title>
+MAPLIBRE = r"""<!doctype html><html><head><meta charset="utf-8"><title>geoterrain · map</title>
 <link rel="icon" href="data:,"><script src="lib/maplibre-gl/maplibre-gl.js"></script>
 __PMTILES__<link href="lib/maplibre-gl/maplibre-gl.css" rel="stylesheet">
 <style>__STYLE__</style></head>
@@ -134,7 +140,8 @@ function choose(id, values, value, key) {
 choose("store", STORES.map((s) => s.name), S.name, "store");
 choose("imagery", null, IMAGERY, "imagery");
 if (window.pmtiles) maplibregl.addProtocol("pmtiles", new pmtiles.Protocol().tile);
-const abs = (u) => u.startsWith("pmtiles://") ? u : new URL(u, location.href).href;
+const DIR = location.href.replace(/[?#].*$/, "").replace(/[^/]*$/, "");  // the page's folder
+const abs = (u) => /^[a-z]+:\/\//.test(u) ? u : DIR + u;  // keeps {z}/{x}/{y} as they are
 function source(url, extra) {  // a PMTiles archive or an XYZ template
   const s = {tileSize: 256, bounds: S.bounds, minzoom: S.minzoom, maxzoom: S.maxzoom, ...extra};
   if (url.startsWith("pmtiles://")) s.url = "pmtiles://" + abs(url.slice(10));
