@@ -163,12 +163,87 @@ def maplibre_elevations(page, tif, st, base_url, exaggeration, step):
     return out
 
 
+ELEVATIONS: dict[str, list[float]] = {}  # the served map's answers, for the static one
+
+
 def test_maplibre_page_from_serve(japan, server, tmp_path):
     chromium = chromium_or_skip("maplibre-gl")
     app, base = server
     st = app.state.stores["japan"].describe()
     with Page(chromium, tmp_path / "p") as page:
-        maplibre_elevations(page, japan[0], st, base + "maplibre.html?store=japan"
-                            "&exaggeration=1.5", 1.5, 0.1)
-        page.screenshot(tmp_path / "map.png")
+        page.open(base + "maplibre.html?store=japan")
+        page.wait("window.geoterrainReady === true", 300)
+        page.screenshot(tmp_path / "overview.png")
+        ELEVATIONS["serve"] = maplibre_elevations(
+            page, japan[0], st, base + "maplibre.html?store=japan&exaggeration=1.5", 1.5, 0.1)
         _clean(page)
+
+
+class _RangeHandler:
+    """A plain static file server that answers Range requests (as object storage does)."""
+
+    @staticmethod
+    def make(root):
+        import functools
+        import http.server
+        import os
+
+        class H(http.server.SimpleHTTPRequestHandler):
+            def send_head(self):
+                rng = self.headers.get("Range")
+                path = self.translate_path(self.path)
+                if not rng or not os.path.isfile(path):
+                    return super().send_head()
+                a, b = rng.split("=", 1)[1].split("-")
+                size = os.path.getsize(path)
+                a, b = int(a), min(int(b) if b else size - 1, size - 1)
+                fh = open(path, "rb")  # noqa: SIM115 - closed by copyfile's caller
+                fh.seek(a)
+                self.send_response(206)
+                self.send_header("Content-Type", self.guess_type(path))
+                self.send_header("Content-Range", f"bytes {a}-{b}/{size}")
+                self.send_header("Content-Length", str(b - a + 1))
+                self.end_headers()
+                import io
+
+                data = fh.read(b - a + 1)
+                fh.close()
+                return io.BytesIO(data)
+
+            def log_message(self, *args):
+                pass
+
+        srv = http.server.ThreadingHTTPServer(("127.0.0.1", 0),
+                                              functools.partial(H, directory=str(root)))
+        threading.Thread(target=srv.serve_forever, daemon=True).start()
+        return srv
+
+
+def test_maplibre_reads_the_pmtiles_from_a_static_host(japan, tmp_path):
+    chromium = chromium_or_skip("maplibre-gl", "pmtiles")
+    import json
+
+    from pmtiles.reader import MmapSource, Reader
+
+    from geoterrain.serve.site import write_site
+
+    site = tmp_path / "site"
+    with geoterrain.open(japan[1]) as t:
+        figs = write_site(t, site, imagery=("relief",), assets=MODULES, name="japan")
+    assert figs["lib"] == ["maplibre-gl", "pmtiles"]
+    with open(site / "japan.terrain-rgb.pmtiles", "rb") as fh:
+        assert Reader(MmapSource(fh)).header()["max_zoom"] == figs["max_zoom"]
+    st = json.loads((site / "japan.json").read_text())
+    srv = _RangeHandler.make(site)
+    base = f"http://127.0.0.1:{srv.server_address[1]}/"
+    try:
+        with Page(chromium, tmp_path / "p") as page:
+            got = maplibre_elevations(page, japan[0], st, base + "index.html?exaggeration=1.5",
+                                      1.5, 0.1)
+            page.screenshot(tmp_path / "static.png")
+            _clean(page)
+            assert any(".pmtiles" in u for u in page.requests)
+    finally:
+        srv.shutdown()
+    if "serve" in ELEVATIONS:  # the same elevations as the served map's
+        assert np.allclose(got, ELEVATIONS["serve"], atol=1e-6), (got, ELEVATIONS["serve"])
