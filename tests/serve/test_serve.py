@@ -190,6 +190,7 @@ def test_imagery_tiles_xyz_tms_png_webp(app):
 
 
 # ------------------------------------------------------------------ HTTP behaviour
+@pytest.mark.fast
 def test_layer_json_tilejson_cors_etag_and_negotiation(app):
     status, headers, body = asgi_get(app, "/ridge/layer.json")
     layer = json.loads(body)
@@ -276,6 +277,7 @@ def _raw_get(port, path, headers=None):
         c.close()
 
 
+@pytest.mark.fast
 def test_paths_outside_the_stores_absurd_zooms_and_huge_xy_never_escape(dem, tmp_path):
     # an assets folder with a link that points outside it
     root = tmp_path / "node_modules" / "cesium" / "Build" / "Cesium"
@@ -320,6 +322,7 @@ def test_cache_stays_within_its_budget(dem):
     assert c["evictions"] > 0 and n > 4
 
 
+@pytest.mark.fast
 def test_only_the_tiles_asked_for_are_decoded(dem):
     import rasterio
     from pyproj import Transformer
@@ -401,3 +404,16 @@ def test_serve_command_prints_its_url_first_and_errors_in_one_line(dem):
         assert r.returncode == code and "Traceback" not in r.stderr
         errors = [ln for ln in r.stderr.splitlines() if ln.startswith("Error")]
         assert len(errors) == 1 and r.stderr.strip().endswith(errors[0]), r.stderr
+
+
+@pytest.mark.fast
+def test_serve_command_usage_errors_in_process(dem, tmp_path):
+    from click.testing import CliRunner
+
+    from geoterrain.cli.main import cli
+
+    for args in ([str(tmp_path / "missing.geoterrain")], [str(dem[1]), "--cache", "12"],
+                 [str(dem[1]), "--max-error", "0"]):
+        r = CliRunner().invoke(cli, ["serve", *args], catch_exceptions=False)
+        assert r.exit_code == 2 and "Traceback" not in r.output
+        assert r.stderr.strip().splitlines()[-1].startswith("Error")
