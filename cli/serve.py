@@ -129,6 +129,8 @@ def command(ctx, sources, port, bind, cache_bytes, assets, max_error, geoid, cma
     config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off")
     try:
         uvicorn.Server(config).run(sockets=[sock])
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM after uvicorn's graceful shutdown
+        pass
     finally:
         for s in stores.values():
             s.terrain.close()
