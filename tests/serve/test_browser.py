@@ -247,3 +247,45 @@ def test_maplibre_reads_the_pmtiles_from_a_static_host(japan, tmp_path):
         srv.shutdown()
     if "serve" in ELEVATIONS:  # the same elevations as the served map's
         assert np.allclose(got, ELEVATIONS["serve"], atol=1e-6), (got, ELEVATIONS["serve"])
+
+
+def test_view_web_follows_the_camera(japan, tmp_path):
+    """`geoterrain view --web`: a drag moves the camera and the LOD changes (the status
+    line's triangle count), with no console error and no failed request."""
+    chromium = chromium_or_skip()
+    pytest.importorskip("trame")
+    pytest.importorskip("trame_vtk")
+    import re
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "geoterrain.cli.main", "view", str(japan[1]),
+                             "--web", "--port", "0", "--size", "900x560"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        url = proc.stdout.readline().strip()
+        assert url.startswith("http://127.0.0.1:"), proc.stderr.read()[-2000:]
+
+        def triangles(text):
+            return int(re.search(r"([\d,]+) triangles", text).group(1).replace(",", ""))
+
+        status = ("(() => { const e = document.getElementById('status');"
+                  " return e && e.textContent.includes('triangles') && e.textContent; })()")
+        with Page(chromium, tmp_path / "p", size=(900, 600)) as page:
+            page.open(url)
+            first = page.wait(status, 180)
+            sel0 = int(page.eval("document.getElementById('selections').textContent"))
+            time.sleep(2)
+            page.screenshot(tmp_path / "before.png")
+            page.drag(450, 420, 450, 180, steps=15)  # tilt up: the far terrain comes in
+            page.wait(f"Number(document.getElementById('selections').textContent) > {sel0}",
+                      60)
+            time.sleep(3)
+            after = page.eval("document.getElementById('status').textContent")
+            page.screenshot(tmp_path / "after.png")
+            _clean(page)
+        print(f"before: {first}\nafter:  {after}")
+        assert triangles(after) != triangles(first)
+    finally:
+        proc.terminate()
+        proc.wait(30)
