@@ -160,7 +160,8 @@ def main() -> None:
     print(f"server peak RSS {rss / 2**20:.0f} MiB (after start-up {rss0 / 2**20:.0f} MiB); "
           f"cache {c['bytes'] / 2**20:.1f} MiB, peak {c['peak_bytes'] / 2**20:.1f} MiB of "
           f"{c['budget_bytes'] / 2**20:.0f} MiB; tiles built {sum(st['tiles_built'].values())}"
-          f" for {len(paths)} distinct asked; stored tiles decoded {st['decoded_tiles']}")
+          f" for {len(paths)} distinct asked; stored tiles decoded {st['decoded_tiles']} "
+          f"of {stats['stores'][name].get('stored_tiles', '?')}")
     print(json.dumps({"cold": cold, "warm": warm, "stats": stats, "peak_rss": rss}))
 
 
