@@ -71,7 +71,6 @@ class Page:
         async def connect():
             return await websocket_connect(url, max_message_size=1 << 28)
 
-        asyncio.set_event_loop(self.loop)
         self.ws = self.loop.run_until_complete(asyncio.wait_for(connect(), 60))
         self.ids = iter(range(1, 1 << 30))
         self.console: list[str] = []  # every console line
