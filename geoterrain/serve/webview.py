@@ -6,7 +6,7 @@ plotter; trame (trame-vtk's remote view) streams its pictures to the page and se
 mouse back to the plotter's interactor, which moves the camera as on a terrain (VTK's
 terrain style: no roll). The LOD follows the camera: each camera change re-selects
 (throttled to one selection per ``throttle_ms`` while the mouse moves, and once more when
-it is released), and the page's status line (``#status``) says the strategy, τ, the
+it is released), and the status line at the foot of the page (``#status``) says the strategy, τ, the
 triangles drawn and the selection's time. Rendering is on the server (no WebGL needed in
 the browser, any GPU or none on the server).
 
@@ -90,7 +90,7 @@ def web_view(terrain: TerrainLike, *, port: int = 8080, bind: str = "127.0.0.1",
     with DivLayout(server) as layout:
         layout.root.style = "position:fixed;inset:0;margin:0;overflow:hidden"
         html.Div("{{ status }}", id="status",
-                 style="position:absolute;top:8px;left:8px;z-index:9;padding:4px 8px;"
+                 style="position:absolute;bottom:8px;left:8px;z-index:9;padding:4px 8px;"
                        "background:rgba(255,255,255,.9);font:14px system-ui,sans-serif;"
                        "border-radius:4px")
         html.Div("{{ selections }}", id="selections", style="display:none")
