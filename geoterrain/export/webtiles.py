@@ -210,8 +210,9 @@ class WebTiler:
     def __init__(self, terrain: TerrainLike, cmap: str = "auto"):
         f = terrain.frame
         if f.kind == "pixel" or f.crs_wkt is None:
-            raise UsageError(f"{terrain.path}: web tiles need a georeferenced DEM; this one "
-                             "has no CRS (preprocess a GeoTIFF with its CRS)")
+            raise UsageError(f"{terrain.path}: web tiles need a georeferenced DEM and this one "
+                             "has no CRS; preprocess one with its CRS (a web-map PNG tile: "
+                             "preprocess --tile Z/X/Y)")
         self.terrain, self.cmap = terrain, cmap
         self.crs = CRS.from_wkt(f.crs_wkt)
         self.merc_to_src = Transformer.from_crs("EPSG:3857", self.crs, always_xy=True)
