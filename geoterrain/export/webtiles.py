@@ -228,8 +228,11 @@ class WebTiler:
     def _pixel(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Fractional level-0 sample (i, j) of source-CRS points (centres at integers)."""
         ia, ib, id_, ie, c, f = self._inv
-        dx, dy = np.asarray(x) - c, np.asarray(y) - f
-        return id_ * dx + ie * dy - 0.5, ia * dx + ib * dy - 0.5
+        # points the source CRS cannot hold come back from pyproj as inf: NaN here, and
+        # the callers count non-finite samples as outside the DEM
+        with np.errstate(invalid="ignore"):
+            dx, dy = np.asarray(x) - c, np.asarray(y) - f
+            return id_ * dx + ie * dy - 0.5, ia * dx + ib * dy - 0.5
 
     @cached_property
     def bounds(self) -> tuple[float, float, float, float]:
