@@ -165,8 +165,11 @@ class Page:
                   buttons=0, clickCount=1)
 
     def close(self) -> None:
-        try:
+        async def close_ws():  # tornado writes the close frame on the running loop
             self.ws.close()
+
+        try:
+            self.loop.run_until_complete(close_ws())
         finally:
             self.proc.kill()
             self.proc.wait()
