@@ -20,6 +20,8 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as hst
 
 import geoterrain
 from tests.conftest import write_tif
@@ -302,6 +304,42 @@ def test_paths_outside_the_stores_absurd_zooms_and_huge_xy_never_escape(dem, tmp
     finally:
         server.should_exit = True
         th.join(10)
+
+
+_SEGMENTS = ["..", ".", "", "%2e%2e", "%2E%2e%2F", "..%2f", "%5c..", "%00", "%252e%252e",
+             "etc", "passwd", "secret.txt", "ridge.tif", "ridge", "ridge.geoterrain", "lib",
+             "cesium", "rgb", "terrarium", "relief", "hillshade", "slope", "error", "tms",
+             "layer.json", "stats.json", "cesium.html", "0.png", "1.webp", "0.terrain",
+             "9" * 40]
+
+
+@given(segs=hst.lists(hst.one_of(hst.sampled_from(_SEGMENTS),
+                                 hst.integers(-3, 10**15).map(str)), max_size=7),
+       absolute=hst.booleans())
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+def test_any_path_is_answered_without_a_500_or_a_file_outside_the_stores(dem, segs,
+                                                                          absolute):
+    # a file beside the store, which a traversal from it would reach
+    (dem[1].parent / "secret.txt").write_text("SECRET")
+    app = _fuzz_app(dem)
+    path = ("//" if absolute else "/") + "/".join(segs)
+    status, _, body = asgi_get(app, path)
+    assert status in (200, 400, 404), (path, status, body[:80])
+    assert b"SECRET" not in body and b"root:" not in body, path
+    if status != 200:
+        assert body.count(b"\n") <= 1, path  # one line
+    assert app.state.counters["errors_5xx"] == 0
+
+
+_APPS: dict = {}
+
+
+def _fuzz_app(dem):
+    """One app for all the examples (its cache keeps the tiles already built)."""
+    if dem[1] not in _APPS:
+        _APPS[dem[1]] = create_app([dem[1]])
+    return _APPS[dem[1]]
 
 
 # ------------------------------------------------------------------ cache, decodes
