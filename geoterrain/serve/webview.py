@@ -57,7 +57,7 @@ def web_view(terrain: TerrainLike, *, port: int = 8080, bind: str = "127.0.0.1",
     p = _plotter(tuple(size), "none")
     ctl = ViewerController(p, terrain, strategy, pixel_error, shading, cmap,
                            throttle_ms=throttle_ms, background=False, light=light,
-                           drape=drape, occlusion=occlusion, morph=morph)
+                           drape=drape, occlusion=occlusion, morph=morph, keys=False)
     iren = vtkGenericRenderWindowInteractor()  # no window system: trame feeds it events
     iren.SetRenderWindow(p.render_window)
     iren.SetInteractorStyle(vtkInteractorStyleTerrain())
@@ -73,18 +73,12 @@ def web_view(terrain: TerrainLike, *, port: int = 8080, bind: str = "127.0.0.1",
         state.selections = ctl.selections
         state.flush()
 
-    def on_camera(*_args) -> None:  # during a drag: throttled selections
-        if ctl.on_camera_changed():
-            show_status()
-
-    def on_release(*_args) -> None:  # the drag ended: the view's own selection
-        if not ctl.on_camera_changed() and ctl.pending:  # the last move was throttled
-            ctl.on_camera_changed(force=True)
+    def on_update(final: bool) -> None:  # a selection during the drag, or its end
         show_status()
-        ctrl.view_update()
+        if final:
+            ctrl.view_update()
 
-    p.camera.AddObserver("ModifiedEvent", on_camera)
-    iren.AddObserver("EndInteractionEvent", on_release)
+    ctl.follow(iren, on_update)
     state.selections = ctl.selections
 
     with DivLayout(server) as layout:
