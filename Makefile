@@ -15,7 +15,7 @@ STAMP  := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test,dev,bench]'
+	$(BIN)/pip install --quiet -e '.[test,dev,bench,web]'
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -39,12 +39,14 @@ test-fast: $(STAMP)
 test-fast-coverage: $(STAMP)
 	$(BIN)/python -m pytest -q $(FAST) --durations=10 --tiercheck
 
-# The browser test (tests/export/test_cesium.py): Debian's chromium, Node/npm and the npm
-# package cesium in .browser/ (needs root for apt-get, network for apt and npm).
+# The browser tests (tests/export/test_cesium.py, tests/serve/test_browser.py): Debian's
+# chromium, Node/npm and the npm packages cesium, maplibre-gl and pmtiles in .browser/
+# (needs root for apt-get, network for apt and npm). `geoterrain serve` finds them there.
 browser:
 	command -v chromium >/dev/null || apt-get install -y --no-install-recommends chromium
 	command -v npm >/dev/null || apt-get install -y --no-install-recommends nodejs npm
-	mkdir -p .browser && cd .browser && npm install --no-audit --no-fund cesium@1
+	mkdir -p .browser && cd .browser && npm install --no-audit --no-fund cesium@1 \
+		maplibre-gl@5 pmtiles@4
 
 # PROJ's EGM96 geoid grid (Debian's proj-data) for `geoterrain tiles --geoid egm96`.
 geoid:
@@ -52,8 +54,10 @@ geoid:
 
 # GDAL's own tools (Debian's gdal-bin): gdal_viewshed and gdal_contour, the references the
 # analysis tests compare with (they skip without them).
+# Never fatal: without root or a package mirror the comparisons skip.
 gdal:
-	command -v gdal_viewshed >/dev/null || apt-get install -y --no-install-recommends gdal-bin
+	command -v gdal_viewshed >/dev/null || (apt-get update -qq && apt-get install -y -qq \
+		--no-install-recommends gdal-bin) || echo "gdal-bin not installed: GDAL comparisons skip"
 
 test-browser: $(STAMP) browser
 	$(BIN)/python -m pytest -q -m browser

@@ -19,7 +19,8 @@ from geoterrain.exceptions import GeoterrainError
 COMMANDS = {"preprocess": "preprocess", "info": "info", "mesh": "mesh", "export": "export",
             "export-raster": "export_raster", "tiles": "tiles", "render": "render",
             "view": "view", "bench": "bench", "synth": "synth", "edit": "edit", "query": "query",
-            "profile": "profile", "viewshed": "viewshed", "contours": "contours"}
+            "profile": "profile", "viewshed": "viewshed", "contours": "contours",
+            "serve": "serve"}
 
 
 class Group(click.Group):

@@ -75,6 +75,31 @@ def level_error(terrain: TerrainLike, level: int) -> np.ndarray:
     return out
 
 
+def normals_slope(n: np.ndarray, z_scale: float = 1.0) -> np.ndarray:
+    """Slope in degrees from the horizontal of unit normals (…, 3) of a surface whose
+    heights are × ``z_scale`` (taken out: tan s = |n_xy| / (n_z · z_scale)).
+
+    Examples
+    --------
+    >>> float(normals_slope(np.array([0.6, 0.0, 0.8]))).__round__(2)
+    36.87
+    """
+    zs = z_scale or 1.0
+    return np.degrees(np.arctan2(np.hypot(n[..., 0], n[..., 1]), n[..., 2] * zs))
+
+
+def slope_degrees(terrain: TerrainLike, level: int, x: int, y: int) -> np.ndarray:
+    """Slope (degrees, (T, T) float) of stored tile (level, x, y) from its stored normals,
+    as ``export-raster --what slope`` computes it (the web slope tiles use it too).
+
+    Examples
+    --------
+    >>> slope_degrees(t, t.grid.top_level, 0, 0).shape
+    (33, 33)
+    """
+    return normals_slope(terrain.tile_normals(level, x, y), terrain.frame.z_scale)
+
+
 def product(terrain: TerrainLike, what: str, level: int = 0) -> np.ndarray:
     """The (bands, H, W) float32 array of product ``what`` at level L (NaN = nodata).
 
@@ -97,8 +122,7 @@ def product(terrain: TerrainLike, what: str, level: int = 0) -> np.ndarray:
     elif what == "normals":
         out = np.moveaxis(n, 2, 0).copy()
     else:
-        zs = terrain.frame.z_scale or 1.0
-        out = np.degrees(np.arctan2(np.hypot(n[..., 0], n[..., 1]), n[..., 2] * zs))[None]
+        out = normals_slope(n, terrain.frame.z_scale)[None]
     out = out.astype(np.float32)
     out[:, ~valid] = np.nan
     return out

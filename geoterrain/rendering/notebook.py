@@ -8,7 +8,9 @@ so opening a store never loads VTK or matplotlib).
 - :func:`plot`: the terrain through PyVista's notebook backend when one is usable
   (``pyvista.global_theme.jupyter_backend`` set and its package installed, inside a
   Jupyter kernel), otherwise an offscreen render returned as a ``PIL.Image``, which
-  notebooks show inline.
+  notebooks show inline. With trame's server-side rendering (the ``trame`` and
+  ``server`` backends, ``pip install 'geoterrain[notebook]'``) the viewer's controller
+  drives the plot, as in ``view --web``: the LOD follows the camera.
 
 Examples
 --------
@@ -110,7 +112,9 @@ def plot(terrain: TerrainLike, view=None, *, shading: str = "normals", pixel_err
 
     ``view`` defaults to :func:`geoterrain.default_view`; ``kwargs`` go to
     ``Plotter.show`` (interactive) and are otherwise ignored. Returns what
-    ``Plotter.show`` returns, or a ``PIL.Image.Image`` of the offscreen render.
+    ``Plotter.show`` returns, or a ``PIL.Image.Image`` of the offscreen render. Where
+    the pictures are rendered in the kernel (the ``trame`` and ``server`` backends) the
+    LOD is selected again as the camera moves (:func:`live_plot`).
 
     Examples
     --------
@@ -131,12 +135,51 @@ def plot(terrain: TerrainLike, view=None, *, shading: str = "normals", pixel_err
         from geoterrain import lod
 
         p = pv.Plotter(notebook=True, window_size=list(view.size))
-        scene = TerrainScene(p, terrain, shading, cmap)
-        scene.update(lod.select(terrain, view, pixel_error, strategy))
-        scene.set_camera(view)
+        if backend in LIVE_BACKENDS:
+            live_plot(p, terrain, view, shading=shading, pixel_error=pixel_error,
+                      strategy=strategy, cmap=cmap)
+        else:
+            scene = TerrainScene(p, terrain, shading, cmap)
+            scene.update(lod.select(terrain, view, pixel_error, strategy))
+            scene.set_camera(view)
         return p.show(jupyter_backend=backend, **kwargs)
     from PIL import Image
 
     img, _ = render_array(terrain, view, pixel_error=pixel_error, strategy=strategy,
                           shading=shading, cmap=cmap)
     return Image.fromarray(img)
+
+
+# trame backends that render in the kernel: the mouse reaches the plotter's interactor
+LIVE_BACKENDS = ("trame", "server")
+
+
+def live_plot(plotter, terrain: TerrainLike, view=None, *, shading: str = "normals",
+              pixel_error: float = 1.0, strategy: str | None = None, cmap: str = "auto"):
+    """Put the viewer's controller on ``plotter`` (off screen, its interactor fed by a
+    remote view) so that the LOD follows the camera; returns the controller.
+
+    Examples
+    --------
+    >>> import pyvista as pv
+    >>> p = pv.Plotter(off_screen=True, window_size=(320, 180))
+    >>> c = live_plot(p, t)
+    >>> n = c.selections
+    >>> p.camera.position = tuple(np.add(p.camera.position, (0.0, 0.0, 2000.0)))
+    >>> _ = p.iren.interactor.InvokeEvent("EndInteractionEvent")  # the mouse released
+    >>> c.selections > n
+    True
+    >>> c.close(); p.close()
+    """
+    from geoterrain.lod.registry import DEFAULT
+    from geoterrain.rendering.viewer import ViewerController
+
+    ctl = ViewerController(plotter, terrain, strategy or DEFAULT, pixel_error, shading, cmap,
+                           throttle_ms=150.0, background=False, keys=False)
+    if view is not None:
+        ctl.scene.set_camera(view)
+        ctl.on_camera_changed(force=True)
+    plotter.enable_terrain_style()  # no roll, as in the desktop viewer
+    ctl.follow(plotter.iren.interactor, lambda final: plotter.render() if final else None)
+    plotter._geoterrain_viewer = ctl  # noqa: SLF001 - kept alive as long as the plot
+    return ctl

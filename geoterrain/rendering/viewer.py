@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import gc
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -79,6 +80,8 @@ class ViewerController:
         in between are coalesced and handled by :meth:`poll` (a repeating timer).
     background : select in a worker thread so the window never waits for a selection
         (the mesh is swapped in by :meth:`poll` when ready); the interactive default.
+    keys : whether the window has the key bindings (the HUD lists them); False in a web
+        page or a notebook, where only the mouse reaches the plotter.
 
     Examples
     --------
@@ -95,8 +98,9 @@ class ViewerController:
                  throttle_ms: float = 100.0,
                  background: bool = False, light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True,
-                 morph: bool | None = None):
+                 morph: bool | None = None, keys: bool = True):
         strategy_info(strategy)
+        self.keys = bool(keys)
         self.plotter, self.terrain = plotter, terrain
         self.strategy, self.pixel_error = strategy, float(pixel_error)
         self.throttle_ms = throttle_ms
@@ -367,6 +371,33 @@ class ViewerController:
             changed |= self.poll()
         return changed
 
+    def follow(self, interactor, on_update: Callable[[bool], None] | None = None) -> None:
+        """Let the LOD follow the camera where the mouse reaches the plotter through
+        ``interactor`` (a VTK interactor) but no window runs this controller's timers (a
+        web page, a notebook): a throttled selection per camera change while dragging, and
+        the camera's own selection once the interaction ends. ``on_update(final)`` is
+        called after a selection during the drag (``final`` False) and at its end (True).
+
+        Examples
+        --------
+        >>> import pyvista as pv  # doctest: +SKIP
+        >>> p = pv.Plotter(off_screen=True)  # doctest: +SKIP
+        >>> c = ViewerController(p, t, keys=False)  # doctest: +SKIP
+        >>> c.follow(p.iren.interactor)  # doctest: +SKIP
+        """
+        def moved(*_args) -> None:
+            if self.on_camera_changed() and on_update is not None:
+                on_update(False)
+
+        def released(*_args) -> None:
+            if not self.on_camera_changed() and self.pending:  # the last move was throttled
+                self.on_camera_changed(force=True)
+            if on_update is not None:
+                on_update(True)
+
+        self.plotter.camera.AddObserver("ModifiedEvent", moved)
+        interactor.AddObserver("EndInteractionEvent", released)
+
     def close(self) -> None:
         """Stop the worker thread (and the busy-poll timer)."""
         self._closed = True
@@ -416,7 +447,8 @@ class ViewerController:
         extra = f"1 px = {scale:,.1f} m at the view centre" if scale else ""
         if self.message:
             extra = (extra + "   " if extra else "") + self.message
-        self._hud.SetText(2, line + "\n" + (extra + "\n" if extra else "") + HELP)
+        self._hud.SetText(2, line + "\n" + (extra + "\n" if extra else "")
+                          + (HELP if self.keys else ""))
 
     def _metres_per_pixel(self) -> float:
         c = self.plotter.camera

@@ -86,3 +86,45 @@ def test_analysis_notebook_runs(tmp_path, monkeypatch):
     assert sum("image/png" in o.get("data", {}) for o in outs) == 3  # profile, drape, lines
     text = "".join(o.get("text", "") for o in outs)
     assert "visible" in text and "contours.gpkg" in text and "±" in text
+
+
+@pytest.mark.parametrize("backend", ["server", "client"])
+def test_plot_with_trame_rendering_in_the_kernel_follows_the_camera(tmp_path, fbm_tif,
+                                                                    monkeypatch, backend):
+    """``plot`` through a trame backend that renders in the kernel ("trame", "server"):
+    the viewer's controller is on the plotter, and a camera move ended by the mouse's
+    release re-selects the LOD; "client" (vtk.js in the page) keeps one selection."""
+    import numpy as np
+    import pyvista as pv
+
+    from geoterrain.rendering import notebook
+
+    monkeypatch.setattr(notebook, "notebook_backend", lambda: backend)
+    shown = {}
+
+    def show(self, jupyter_backend=None, **kw):
+        shown["backend"] = jupyter_backend
+        return self
+
+    monkeypatch.setattr(pv.Plotter, "show", show)
+    t = geoterrain.open(geoterrain.preprocess(fbm_tif, tmp_path / "a.geoterrain", tile_size=32))
+    p = t.plot(size=(480, 270))
+    try:
+        assert shown["backend"] == backend
+        ctl = getattr(p, "_geoterrain_viewer", None)
+        if backend == "client":
+            assert ctl is None
+            return
+        first, n = ctl.stats["triangles"], ctl.selections
+        assert first > 0
+        c = p.camera  # down to the ground: the near terrain needs finer triangles
+        c.position = tuple(np.add(c.focal_point, np.subtract(c.position, c.focal_point) / 6))
+        p.iren.interactor.InvokeEvent("EndInteractionEvent")
+        assert ctl.selections > n
+        assert ctl.stats["triangles"] != first
+        assert "space freeze" not in ctl._hud.GetText(2)  # no key hints: no keys here
+    finally:
+        if getattr(p, "_geoterrain_viewer", None) is not None:
+            p._geoterrain_viewer.close()
+        p.close()
+        t.close()
