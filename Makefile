@@ -10,7 +10,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-fast test-fast-coverage lint clean setup browser test-browser geoid
+.PHONY: demo test test-fast test-fast-coverage lint clean setup browser test-browser geoid gdal
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -49,6 +49,12 @@ browser:
 # PROJ's EGM96 geoid grid (Debian's proj-data) for `geoterrain tiles --geoid egm96`.
 geoid:
 	test -e /usr/share/proj/egm96_15.gtx || apt-get install -y --no-install-recommends proj-data
+
+# GDAL's command-line tools (Debian's gdal-bin): tests/export/test_gdaldem.py compares the
+# hillshade and slope GeoTIFFs with gdaldem's (skipped without it). Idempotent.
+gdal:
+	command -v gdaldem >/dev/null || apt-get install -y --no-install-recommends gdal-bin \
+		|| (apt-get update && apt-get install -y --no-install-recommends gdal-bin)
 
 test-browser: $(STAMP) browser
 	$(BIN)/python -m pytest -q -m browser
