@@ -28,10 +28,12 @@ from geoterrain.cli.options import (
 @strategy_option
 @occlusion_option
 @vertical_exaggeration_option
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the summary as JSON (for scripts).")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, size,
-            pixel_error, strategy, occlusion, vertical_exaggeration, overwrite):
+            pixel_error, strategy, occlusion, vertical_exaggeration, as_json, overwrite):
     """Write a mesh of STORE: static (--max-error) or for a view (--look-from/--look-at).
 
     A static mesh keeps every vertex whose error bound δ exceeds --max-error, so
@@ -68,8 +70,12 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
                               pixel_error, strategy, occlusion)
             write_mesh(with_elevation(t, sel.mesh), out, overwrite=overwrite)
             stats = sel.stats
-    if not ctx.obj["quiet"]:
-        click.echo(json.dumps(stats))
+    if as_json:
+        click.echo(json.dumps({**stats, "output": str(out)}, default=float))
+    elif not ctx.obj["quiet"]:
+        from geoterrain.cli.options import human_bytes, mesh_words
+
+        click.echo(f"wrote {out} ({human_bytes(out.stat().st_size)})\n  {mesh_words(stats)}")
 
 
 def _stream(ctx, t, max_error, out, overwrite) -> dict:

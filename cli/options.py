@@ -331,3 +331,19 @@ def select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_e
         raise UsageError("--look-from and --look-at must differ")
     return t.select(geoterrain.View(look_from, look_at, fov_y_deg=fov, size=size), pixel_error,
                     strategy, occlusion=occlusion)
+
+
+def human_bytes(n: float) -> str:
+    """``n`` bytes in a reader's unit: 512 B, 12.3 kB, 31.9 MB, 1.20 GB."""
+    for unit, f in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= f:
+            return f"{n / f:.3g} {unit}" if n < 100 * f else f"{n / f:.0f} {unit}"
+    return f"{int(n)} B"
+
+
+def mesh_words(s: dict) -> str:
+    """A mesh's stats in words: triangles, vertices, and what bounds its error."""
+    what = (f"whole terrain, height error ≤ {s['max_error']:g} m" if "max_error" in s
+            else f"view from the camera, {s.get('strategy', 'rtin')} within "
+                 f"{s.get('pixel_error', 1.0):g} px on screen")
+    return f"{s['triangles']:,} triangles, {s['vertices']:,} vertices ({what})"

@@ -1,5 +1,6 @@
 """The command line: bad input gets one line and the right exit code, never a traceback."""
 
+import json
 import os
 import sqlite3
 from pathlib import Path
@@ -45,8 +46,6 @@ def test_preprocess_and_info(fbm_tif, tmp_path):
     assert res.exit_code == 0, res.output
     assert "EPSG" in res.output or "UTM" in res.output
     res = run("info", out, "--json")
-    import json
-
     assert res.exit_code == 0, res.output
     assert json.loads(res.output)["grid"] == [129, 129]
 
@@ -184,7 +183,10 @@ def test_mesh_command(tmp_path, fbm_tif):
     ply = tmp_path / "m.ply"
     res = run("mesh", store, "-o", ply, "--max-error", "5")
     assert res.exit_code == 0, res.output
-    assert '"triangles"' in res.output
+    assert "triangles" in res.output and "height error ≤ 5 m" in res.output
+    assert not res.output.lstrip().startswith("{")  # words, not JSON
+    res = run("mesh", store, "-o", ply, "--max-error", "5", "--overwrite", "--json")
+    assert json.loads(res.stdout)["triangles"] > 2
     assert pv.read(ply).n_cells > 2
     vtp = tmp_path / "v.vtp"
     res = run("mesh", store, "-o", vtp, "--look-from", "0,-1500,1500", "--look-at", "0,0,500",

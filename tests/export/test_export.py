@@ -17,7 +17,7 @@ from click.testing import CliRunner
 from rasterio.transform import xy as raster_xy
 
 import geoterrain
-from geoterrain.export.formats import export_mesh, mesh_arrays
+from geoterrain.export.formats import export_mesh, export_texture_level, mesh_arrays
 from geoterrain.export.rasters import Relief, export_raster, product
 from geoterrain.rendering.textures import build_texture_image, elevation_range, texture_level
 from tests.conftest import write_tif
@@ -76,8 +76,9 @@ def test_gltf_round_trip(terr, tmp_path, ext):
     (g,) = scene.geometry.values()
     assert len(g.vertices) == len(m.xyz) and len(g.faces) == len(m.faces)
     assert g.visual.material.baseColorTexture is not None
-    L = texture_level(t, 4097)
-    assert g.visual.material.baseColorTexture.size == (t.grid.level_size(L),) * 2
+    L = export_texture_level(t, 4097)
+    # the texture covers the data's rectangle, not the store's padded square
+    assert g.visual.material.baseColorTexture.size == (t.grid.cols >> L, t.grid.rows >> L)
     # the origin and CRS are in the asset extras and the sidecar
     doc = pygltflib.GLTF2.load(str(out))
     geo = doc.asset.extras["geoterrain"]
@@ -180,8 +181,9 @@ def test_export_errors_are_one_line(terr, tmp_path):
     t, _ = terr
     res = run("export", t.path, "-o", tmp_path / "x.fbx")
     assert res.exit_code == 2 and "unknown export format" in res.stderr
-    res = run("export", t.path, "-o", tmp_path / "x.glb", "--print-size", "100")
-    assert res.exit_code == 2 and "apply to .stl only" in res.stderr
+    res = run("export", t.path, "-o", tmp_path / "x.ply", "--print-size", "100",
+              "--crs-coords")
+    assert res.exit_code == 2 and "--crs-coords" in res.stderr
     res = run("export", t.path, "-o", tmp_path / "x.glb", "--crs-coords")
     assert res.exit_code == 2
     assert not list(tmp_path.iterdir())
