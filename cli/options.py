@@ -127,15 +127,17 @@ anti_aliasing_option = click.option(
 
 morph_option = click.option(
     "--morph/--no-morph", default=None,
-    help="Geomorph: a vertex slides into place instead of popping as the camera moves "
-         "(rtin: it appears at 0.75 τ, costing triangles; chunked: a chunk slides from "
-         "its parent's surface; geomipmap: each block slides between its levels; "
-         "cdlod: its own ranges). Default: rtin, chunked and geomipmap off, cdlod on.")
+    help="Geomorph: detail slides into place instead of popping as the camera moves "
+         "(rtin: a vertex starts sliding at 3/4 of the pixel error, costing triangles; "
+         "chunked: a tile slides from its parent's surface; geomipmap: each block slides "
+         "between its levels; cdlod: its own ranges). Default: rtin, chunked and geomipmap "
+         "off, cdlod on.")
 
 
 pixel_error_option = click.option(
     "--pixel-error", type=float, default=1.0, show_default=True, callback=_positive,
-    metavar="TAU", help="Screen-space error bound τ in pixels.")
+    metavar="PX", help="Level of detail: the mesh is never more than PX pixels from the "
+                       "full-resolution terrain on screen (larger: fewer triangles).")
 
 
 def _parse_pixel_errors(ctx, param, value):
@@ -150,8 +152,8 @@ def _parse_pixel_errors(ctx, param, value):
 
 pixel_errors_option = click.option(
     "--pixel-error", "pixel_errors", default="0.5,1,2,4,8", show_default=True,
-    callback=_parse_pixel_errors, metavar="TAU[,TAU...]",
-    help="Comma-separated screen-space error bounds τ in pixels.")
+    callback=_parse_pixel_errors, metavar="PX[,PX...]",
+    help="Comma-separated levels of detail: on-screen error bounds in pixels.")
 
 
 def camera_options(f):

@@ -44,18 +44,21 @@ def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exagg
             size, rebuild):
     """Open SOURCE (a store or a DEM) in an interactive 3-D window.
 
-    A DEM is preprocessed first into a store next to it (or in
-    ~/.cache/geoterrain when its folder is read-only); the path is printed
-    and the store is reused next time.
+    A DEM is preprocessed first into a store in the cache folder
+    ($XDG_CACHE_HOME/geoterrain, default ~/.cache/geoterrain; never beside your
+    data), keyed by the DEM's path, size and date; the path is printed and the
+    store is reused next time (--rebuild makes it again).
 
     \b
     Keys:
       m      next LOD strategy
-      + / -  τ × 2 / ÷ 2
+      + / -  coarser / finer detail (pixel error × 2 / ÷ 2)
       g      geomorphing on/off (rtin, chunked, geomipmap, cdlod)
       x      wireframe
       c      colour by shading / LOD level / tile
       space  freeze the LOD (fly around to inspect culling and refinement)
+      s      save a screenshot (the status line says where)
+      t      show or hide the engine's timings in the status line
       h      home view;  q  quit
 
     \b

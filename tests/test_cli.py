@@ -230,3 +230,24 @@ def test_the_occlusion_option_reaches_the_selection(tmp_path, fbm_tif, monkeypat
         res = run("mesh", store, "-o", tmp_path / f"{k}.vtp", *look, flag)
         assert res.exit_code == 0, res.output
     assert seen == [False, True]
+
+
+@pytest.mark.fast
+def test_help_texts_are_in_a_users_words():
+    """No --help names a seed document (their numbers belong to the strategy docs), `view
+    --help` says where the cached store goes and lists every key, and the level-of-detail
+    option speaks of pixels, not τ."""
+    import re
+
+    from geoterrain.cli.main import COMMANDS
+
+    texts = {c: run(c, "--help").output for c in COMMANDS}
+    texts["geoterrain"] = run("--help").output
+    for name, text in texts.items():
+        assert not re.search(r"seed\s*\d{3}|seed 0|HAM\b|\bLP\b", text), name
+        assert "δ" not in text and "τ" not in text, name
+    view = " ".join(texts["view"].split())
+    assert "~/.cache/geoterrain" in view and "next to it" not in view
+    for key in ("m ", "+ / -", "g ", "x ", "c ", "space", "s ", "t ", "h ", "q "):
+        assert f"  {key}" in texts["view"], key
+    assert "pixels" in texts["render"] and "TAU" not in texts["render"]
