@@ -147,6 +147,7 @@ def animate(terrain: TerrainLike, views: Sequence[View], out: str | Path, *,
         try:
             for k, v in enumerate(views):
                 img, st = scene.frame(v, pixel_error, strategy)
+                st["terrain_fraction"] = round(scene.terrain_fraction(), 4)
                 img = compose(img, v, terrain, shading=shading, cmap=cmap, title=title,
                               colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
                 append(img)

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geoterrain.rendering.colours import Palette, as_palette, colorbar_map
+from geoterrain.rendering.colours import Palette, as_palette, colorbar_map, water_swatch
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -51,32 +51,48 @@ def mute_style_timers(style) -> None:
 
 def colour_bar(terrain: TerrainLike, cmap: str | Palette):
     """A ``vtkScalarBarActor`` of the terrain's elevation colours in metres, on an
-    opaque box at the window's right edge.
+    opaque box at the window's right edge: labelled at the pictures' nice ticks (0, 500,
+    1000, …), over the data's range only, with the water as a swatch below it where the
+    data has water but no depth (:func:`~geoterrain.rendering.colours.water_swatch`).
 
     Examples
     --------
-    >>> colour_bar(t, "auto").GetTitle()
-    'elevation (m)'
+    >>> bar = colour_bar(t, "auto")
+    >>> bar.GetTitle(), bar.GetUseCustomLabels()
+    ('elevation (m)', True)
     """
     import pyvista as pv
+    from vtkmodules.vtkCommonCore import vtkDoubleArray
     from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
 
+    from geoterrain.rendering.overlays import _ticks
     from geoterrain.rendering.textures import elevation_range, height_tolerance
 
-    cm, (lo, hi) = colorbar_map(as_palette(cmap), elevation_range(terrain),
-                                tolerance=height_tolerance(terrain))
+    pal, rng, tol = as_palette(cmap), elevation_range(terrain), height_tolerance(terrain)
+    cm, (lo, hi) = colorbar_map(pal, rng, tolerance=tol)
     lut = pv.LookupTable(cm)
     lut.scalar_range = (lo, hi)
     bar = vtkScalarBarActor()
     bar.SetLookupTable(lut)
     bar.SetTitle("elevation (m)")
     bar.SetLabelFormat("%.0f")
-    bar.SetNumberOfLabels(5)
+    ticks = vtkDoubleArray()
+    for v, _ in _ticks(lo, hi):
+        ticks.InsertNextValue(v)
+    bar.SetCustomLabels(ticks)
+    bar.SetUseCustomLabels(True)
+    swatch = water_swatch(pal, rng, tol)
+    if swatch is not None:  # water without depth: a swatch, not a range
+        lut.SetBelowRangeColor(*swatch, 1.0)
+        lut.SetUseBelowRangeColor(True)
+        bar.SetDrawBelowRangeSwatch(True)
+        bar.SetBelowRangeAnnotation("water")
     bar.UnconstrainedFontSizeOn()
     bar.DrawBackgroundOn()
     bar.GetBackgroundProperty().SetColor(1.0, 1.0, 1.0)
     bar.GetBackgroundProperty().SetOpacity(0.85)
-    for tp, size in ((bar.GetLabelTextProperty(), 11), (bar.GetTitleTextProperty(), 12)):
+    for tp, size in ((bar.GetLabelTextProperty(), 11), (bar.GetTitleTextProperty(), 12),
+                     (bar.GetAnnotationTextProperty(), 11)):
         tp.SetColor(0.1, 0.1, 0.1)
         tp.SetFontSize(size)
         tp.ShadowOff()
