@@ -93,11 +93,14 @@ def water_level(palette: Palette, data_range: tuple[float, float]) -> float | No
 
 
 def colorize(h: np.ndarray, palette: Palette, data_range: tuple[float, float],
-             tolerance: float = 0.0) -> np.ndarray:
+             tolerance: float = 0.0, coast: float | None = None) -> np.ndarray:
     """RGB float32 in [0, 1] (shape h.shape + (3,)) for heights ``h`` in metres.
 
     ``data_range`` is the data's (min, max); ``palette.clim`` overrides it for the map;
-    ``tolerance``: the heights' codec bound ε in metres (the module's last paragraph).
+    ``tolerance``: the heights' codec bound ε in metres (the module's last paragraph);
+    ``coast``: heights up to this far above the water level are water too (heights
+    interpolated between integer samples: half the heights' step, so the coast runs
+    midway between a sample at the level and one a step above; at least ``tolerance``).
 
     Examples
     --------
@@ -120,7 +123,7 @@ def colorize(h: np.ndarray, palette: Palette, data_range: tuple[float, float],
         cm = matplotlib.colormaps[palette.cmap]
         rgb = cm(np.clip((h - lo) / (hi - lo), 0, 1))[..., :3]
     if wl is not None:
-        wet = h <= wl + tolerance
+        wet = h <= wl + (tolerance if coast is None else max(tolerance, coast))
         if wet.any():
             top = wl - tolerance  # the depth ramp's surface
             depth_lo = min(lo, top)

@@ -22,6 +22,11 @@ Shading (``shading=``):
 - ``"plain"``: one colour lit by the renderer from the mesh's own geometry:
   what a naive renderer shows (useful to look at the mesh itself).
 
+Where the palette has water (``water_level``, or the ``auto`` palette's sea at 0 m) a
+flat, lit, semi-transparent water surface is drawn at its level
+(:mod:`geoterrain.rendering.water`; ``water=False`` leaves the land below the level
+coloured as water without it).
+
 Examples
 --------
 >>> import geoterrain
@@ -108,7 +113,7 @@ class TerrainScene:
                  background: Sequence[float] = BACKGROUND, vertical_exaggeration: float = 1.0,
                  textures: str = "view", light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True,
-                 morph: bool | None = None):
+                 morph: bool | None = None, water: bool = True):
         import pyvista as pv
 
         terrain = exaggerated(terrain, vertical_exaggeration)
@@ -144,6 +149,14 @@ class TerrainScene:
         self.actor = None
         self.selection = None
         self.texture_stats: dict = {}
+        self.water_actor = None
+        if water and shading != "plain":
+            from geoterrain.rendering.water import add_water, water_mesh
+
+            wm = water_mesh(terrain, cmap)
+            if wm is not None:
+                sun = (light.azimuth, light.elevation) if light is not None else (315.0, 45.0)
+                self.water_actor = add_water(plotter, wm, sun)
 
     def _tcoords(self, ij: np.ndarray) -> np.ndarray:
         S = self.terrain.grid.level_size(self.level)
@@ -291,6 +304,11 @@ class TerrainScene:
         """
         p = self.plotter
         mode = getattr(p, "_geoterrain_aa", "msaa")
+        if mode == "auto" and self.water_actor is not None:
+            mode = "msaa"  # the water surface's edges are not the mesh's: multisampling
+            rw = p.render_window
+            if rw.GetMultiSamples() != p._geoterrain_samples:
+                rw.SetMultiSamples(p._geoterrain_samples)
         if mode not in ("auto", "edges"):
             return None, mode
         mesh = self.selection.mesh if self.selection is not None else None
@@ -486,7 +504,7 @@ def render_array(terrain: TerrainLike, view: View, *, pixel_error: float = 1.0,
                  shading: str = "normals", cmap: str | Palette = "auto", scene=None,
                  vertical_exaggeration: float = 1.0, light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True, morph: bool | None = None,
-                 anti_aliasing: str = "auto") -> tuple[np.ndarray, dict]:
+                 anti_aliasing: str = "auto", water: bool = True) -> tuple[np.ndarray, dict]:
     """The rendered image (H, W, 3) uint8 of ``view`` without overlays, and its stats
     (the arguments are :func:`render`'s; ``scene``: draw with this
     :class:`TerrainScene` rather than a new one, whose own settings then apply).
@@ -502,7 +520,7 @@ def render_array(terrain: TerrainLike, view: View, *, pixel_error: float = 1.0,
     if own:
         scene = TerrainScene(_plotter(view.size, anti_aliasing), terrain, shading, cmap,
                              vertical_exaggeration=vertical_exaggeration, light=light,
-                             drape=drape, occlusion=occlusion, morph=morph)
+                             drape=drape, occlusion=occlusion, morph=morph, water=water)
     try:
         img, stats = scene.frame(view, pixel_error, strategy)
         stats["terrain_fraction"] = round(scene.terrain_fraction(), 4)
@@ -518,7 +536,7 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
            north_arrow: bool = True, stats_path: str | Path | None = None,
            vertical_exaggeration: float = 1.0, overwrite: bool = True,
            light: Light | None = None, drape: Drape | None = None, occlusion: bool = True,
-           morph: bool | None = None, anti_aliasing: str = "auto") -> dict:
+           morph: bool | None = None, anti_aliasing: str = "auto", water: bool = True) -> dict:
     """Render one view of the terrain to a PNG, with its own level of detail.
 
     ``overwrite=False`` refuses an existing ``path`` (checked before rendering).
@@ -545,7 +563,10 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
     occlusion, morph : the selection's horizon culling and geomorphing
         (:func:`geoterrain.lod.select`).
     anti_aliasing : ``"auto"`` (edges where the picture's silhouettes are sparse, else
-        MSAA), ``"msaa"``, ``"edges"``, ``"fxaa"`` or ``"none"`` (:func:`_plotter`).
+        MSAA; MSAA with a water surface), ``"msaa"``, ``"edges"``, ``"fxaa"`` or
+        ``"none"`` (:func:`_plotter`).
+    water : draw a flat, lit, semi-transparent water surface where the palette has
+        water (:mod:`geoterrain.rendering.water`).
 
     Returns
     -------
@@ -569,7 +590,8 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
         raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
     img, stats = render_array(terrain, view, pixel_error=pixel_error, strategy=strategy,
                               shading=shading, cmap=cmap, light=light, drape=drape,
-                              occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing)
+                              occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing,
+                              water=water)
     img = compose(img, view, terrain, shading=shading, cmap=cmap, title=title,
                   colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
     _write_png(path, img, overwrite)

@@ -45,6 +45,24 @@ def height_tolerance(terrain: TerrainLike) -> float:
     return float(q.codec_error) * terrain.frame.z_to_m if q is not None else 0.0
 
 
+def coast_tolerance(terrain: TerrainLike) -> float:
+    """How far above the water level an *interpolated* height still counts as water, in
+    metres: half the heights' step where they are integers of a step (lossless integer or
+    decimal DEMs: an SRTM sea of zeros meets 1 m land midway, where its nearest samples
+    would draw it), else the codec's bound ε (:func:`height_tolerance`).
+
+    Examples
+    --------
+    >>> coast_tolerance(t) >= height_tolerance(t)
+    True
+    """
+    q = getattr(terrain, "quantizer", None)
+    eps = height_tolerance(terrain)
+    if q is not None and q.mode in ("int", "decimal"):
+        return max(eps, 0.5 * float(q.step) * terrain.frame.z_to_m)
+    return eps
+
+
 def elevation_range(terrain: TerrainLike) -> tuple[float, float]:
     """(min, max) elevation in metres (no vertical exaggeration) of the valid data."""
     lo, hi = terrain.scene_box()

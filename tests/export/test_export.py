@@ -258,24 +258,6 @@ def test_error_raster_is_the_stored_delta(terr, tmp_path):
         assert not np.isinf(e).any()
 
 
-def test_error_raster_holds_no_inf(tmp_path):
-    """srtm1_japan's δ is unbounded at the vertices every mesh keeps (0.5 % of them): the
-    GeoTIFF has nodata there, never inf (a GIS stretch breaks on inf)."""
-    from tests.conftest import real_dem
-
-    t = geoterrain.open(geoterrain.preprocess(real_dem("srtm1_japan.tif"),
-                                              tmp_path / "j.geoterrain"))
-    with t:
-        raw = t.gather(np.array([0, 0]), np.array([512, 883]), ("delta",))["delta"]
-        assert np.isinf(raw).all()  # the case this test is about
-        export_raster(t, "error", tmp_path / "e.tif")
-    with rasterio.open(tmp_path / "e.tif") as r:
-        e = r.read(1)
-        assert np.isnan(r.nodata)
-    assert not np.isinf(e).any()
-    assert np.isnan(e[0, [512, 883]]).all() and np.isfinite(e).mean() > 0.99
-
-
 def _holder(t, i, j):
     """The level-0 tile holding full-resolution sample (i, j) (tile-by-tile reference)."""
     g = t.grid

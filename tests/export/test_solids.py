@@ -17,8 +17,6 @@ import geoterrain
 from geoterrain.exaggerate import exaggerated
 from geoterrain.export.formats import estimate_bytes, export_mesh
 
-pytestmark = pytest.mark.fast
-
 trimesh = pytest.importorskip("trimesh")
 
 PRINT = 120.0  # mm
@@ -109,6 +107,7 @@ def test_glb_solid_keeps_its_texture_and_plain_walls(terr, tmp_path):
     assert geo["base_height"] == 20.0 and geo["scale"] == 1.0
 
 
+@pytest.mark.fast
 def test_texture_is_cropped_to_the_data(terr, tmp_path):
     from PIL import Image
 
