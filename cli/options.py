@@ -203,7 +203,7 @@ def _finite(ctx, param, value):
 
 
 def colour_options(f):
-    """--cmap, --clim and --water-level, shared by render and view."""
+    """--cmap, --clim, --water-level and --water/--no-water, shared by render and view."""
     for opt in reversed([
         click.option("--cmap", default="auto", show_default=True, callback=_check_cmap,
                      help="auto (land tints; water in blue at or below 0 m when the data "
@@ -211,7 +211,11 @@ def colour_options(f):
         click.option("--clim", callback=_parse_clim, metavar="MIN,MAX",
                      help="Heights (m) the colour map spans (default: the data's range)."),
         click.option("--water-level", type=float, callback=_finite, metavar="H",
-                     help="Colour everything at or below H metres as water."),
+                     help="Water up to H metres: a flood or a lake at that level."),
+        click.option("--water/--no-water", "water", default=True, show_default=True,
+                     help="Draw the water (--water-level, or the sea at 0 m of the auto "
+                          "colours) as a flat, lit, semi-transparent surface with the depth "
+                          "coloured below it; --no-water only colours the ground under it."),
     ]):
         f = opt(f)
     return f

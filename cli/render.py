@@ -64,7 +64,7 @@ from geoterrain.cli.options import (
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
             fov, pixel_error, strategy, occlusion, morph, anti_aliasing, vertical_exaggeration,
-            shading, cmap, clim, water_level,
+            shading, cmap, clim, water_level, water,
             sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity, title,
             no_overlays, stats_path, orbit, cameras, frames_between, fps, overwrite):
     """Render STORE offscreen: each frame selects its own level of detail.
@@ -78,7 +78,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
           --look-from 500000,4990000,3000 --look-at 505000,5000000,800
       geoterrain render dem.geoterrain -o top.png --elevation 90
       geoterrain render dem.geoterrain -o relief.png -z 3
-      geoterrain render dem.geoterrain -o sea.png --water-level 2 --clim -50,1500
+      geoterrain render dem.geoterrain -o flood.png --water-level 40 --clim 0,1200
       geoterrain render dem.geoterrain -o dusk.png --sun 250,15 --shadows --ambient-occlusion
       geoterrain render dem.geoterrain -o orbit.gif --orbit 36 --size 640x360
       geoterrain render dem.geoterrain -o fly.mp4 --path cameras.json --stats fly.json
@@ -134,7 +134,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             kw = dict(pixel_error=pixel_error, strategy=strategy, shading=shading, cmap=cmap,
                       title=title, fps=fps, progress=lambda d, n: bar("frame", d, n),
                       overwrite=overwrite, light=lit, drape=dr, occlusion=occlusion,
-                      morph=morph, anti_aliasing=anti_aliasing, **overlays)
+                      morph=morph, anti_aliasing=anti_aliasing, water=water, **overlays)
             try:
                 if orbit is not None:
                     frames = A.orbit(t, out, orbit, size=size, azimuth=azimuth,
@@ -170,7 +170,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
                       shading=shading, cmap=cmap, title=title, scale_bar=not no_overlays,
                       stats_path=stats_path, overwrite=overwrite, light=lit, drape=dr,
                       occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing,
-                      **overlays)
+                      water=water, **overlays)
     if not quiet:
         click.echo(f"wrote {out}: {st['triangles']:,} triangles ({strategy}, τ = "
                    f"{pixel_error:g} px), select {st['select_ms']:.0f} ms, frame "

@@ -39,8 +39,8 @@ from geoterrain.cli.options import (
 @click.option("--rebuild", is_flag=True, help="Preprocess the DEM again even if cached.")
 @click.pass_context
 def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exaggeration,
-            shading, cmap, clim,
-            water_level, sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity,
+            shading, cmap, clim, water_level, water,
+            sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity,
             size, rebuild):
     """Open SOURCE (a store or a DEM) in an interactive 3-D window.
 
@@ -97,7 +97,7 @@ def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exagg
     with geoterrain.open(store) as base:
         t = exaggerated(base, vertical_exaggeration)
         show(t, strategy, pixel_error, shading=shading, cmap=palette(cmap, clim, water_level),
-             size=size, light=lit, drape=dr, occlusion=occlusion, morph=morph)
+             size=size, light=lit, drape=dr, occlusion=occlusion, morph=morph, water=water)
 
 
 def has_display() -> bool:

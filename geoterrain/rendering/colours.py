@@ -47,6 +47,7 @@ class Palette:
     cmap: str = "auto"
     clim: tuple[float, float] | None = None
     water_level: float | None = None
+    sea: bool = True  # the auto palette's sea at 0 m where the data reaches it
 
     def __post_init__(self) -> None:
         check_cmap(self.cmap)
@@ -84,10 +85,20 @@ def _ramp(stops, x: np.ndarray) -> np.ndarray:
 
 
 def water_level(palette: Palette, data_range: tuple[float, float]) -> float | None:
-    """The level at or below which heights are water (None: no water)."""
+    """The level at or below which heights are water (None: no water): the palette's
+    ``water_level``, else the ``auto`` palette's sea at 0 m where the data reaches it (and
+    the palette's ``sea`` is on: :func:`geoterrain.rendering.textures.terrain_palette`
+    turns it off for data that only touches 0 m at a few samples).
+
+    Examples
+    --------
+    >>> water_level(Palette("auto"), (0.0, 900.0)), water_level(Palette("auto", sea=False),
+    ...                                                         (0.0, 900.0))
+    (0.0, None)
+    """
     if palette.water_level is not None:
         return float(palette.water_level)
-    if palette.cmap == "auto" and data_range[0] <= 0.0:
+    if palette.cmap == "auto" and palette.sea and data_range[0] <= 0.0:
         return 0.0
     return None
 

@@ -29,8 +29,8 @@ import numpy as np
 
 from geoterrain.core.view import View
 from geoterrain.rendering.cameras import project
-from geoterrain.rendering.colours import Palette, as_palette, colorbar_map, water_swatch
-from geoterrain.rendering.textures import elevation_range, height_tolerance
+from geoterrain.rendering.colours import Palette, colorbar_map, water_swatch
+from geoterrain.rendering.textures import elevation_range, height_tolerance, terrain_palette
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -218,7 +218,8 @@ def layout_for(terrain: TerrainLike, size: tuple[int, int], *, shading: str = "n
     ve = getattr(terrain, "vertical_exaggeration", 1.0) if ve == 1.0 else ve
     limits = swatch = None
     if colorbar and shading != "plain":
-        pal, rng, tol = as_palette(cmap), elevation_range(terrain), height_tolerance(terrain)
+        pal, rng = terrain_palette(terrain, cmap), elevation_range(terrain)
+        tol = height_tolerance(terrain)
         _, limits = colorbar_map(pal, rng, tolerance=tol)
         swatch = water_swatch(pal, rng, tol)
     return plan(size, title=title, limits=limits, scale_bar=scale_bar,
@@ -291,7 +292,7 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
              fontsize=1.3 * fs * pt, weight="bold")
     if "colorbar" in layout.boxes:
         x0, y0, x1, y1 = box("colorbar")
-        cm, (lo, hi) = colorbar_map(as_palette(cmap), elevation_range(terrain),
+        cm, (lo, hi) = colorbar_map(terrain_palette(terrain, cmap), elevation_range(terrain),
                                     tolerance=height_tolerance(terrain))
         bx1 = x1 - pad
         bx0 = bx1 - 0.9 * fs

@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geoterrain.rendering.colours import LAND, WATER, Palette, as_palette, colorize, water_level
+from geoterrain.rendering.colours import LAND, WATER, Palette, colorize, water_level
 from geoterrain.rendering.drape import Drape, drape_tile
 from geoterrain.rendering.shading import (
     AMBIENT,
@@ -49,6 +49,7 @@ from geoterrain.rendering.textures import (
     elevation_range,
     height_tolerance,
     sample_spacing,
+    terrain_palette,
 )
 from geoterrain.rendering.tileshade import shade_lut, shade_tiles, tint_tiles
 
@@ -120,7 +121,8 @@ class TileShader:
     def __init__(self, terrain: TerrainLike, shading: str = "normals",
                  cmap: str | Palette = "auto", light: Light | None = None,
                  drape: Drape | None = None):
-        self.terrain, self.shading, self.palette = terrain, shading, as_palette(cmap)
+        self.terrain, self.shading = terrain, shading
+        self.palette = terrain_palette(terrain, cmap)
         self.light, self.drape = light, drape
         self.built = 0
         # a vertically exaggerated view shares its base terrain's cache but not its

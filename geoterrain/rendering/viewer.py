@@ -103,12 +103,13 @@ class ViewerController:
                  throttle_ms: float = 100.0,
                  background: bool = False, light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True,
-                 morph: bool | None = None):
+                 morph: bool | None = None, water: bool = True):
         strategy_info(strategy)
         self.plotter, self.terrain = plotter, terrain
         self.strategy, self.pixel_error = strategy, float(pixel_error)
         self.throttle_ms = throttle_ms
-        self.scene = TerrainScene(plotter, terrain, shading, cmap, light=light, drape=drape)
+        self.scene = TerrainScene(plotter, terrain, shading, cmap, light=light, drape=drape,
+                                  water=water)
         self.frozen = False
         self.wireframe = False
         self.color_mode = "shading"
@@ -568,7 +569,7 @@ def show(terrain: TerrainLike, strategy: str = DEFAULT, pixel_error: float = 1.0
          size: tuple[int, int] = (1280, 720),
          title: str | None = None, throttle_ms: float = 100.0,
          light: Light | None = None, drape: Drape | None = None, occlusion: bool = True,
-         morph: bool | None = None) -> ViewerController:
+         morph: bool | None = None, water: bool = True) -> ViewerController:
     """Open an interactive window on the terrain; the LOD follows the camera (its
     selections cull with ``occlusion`` and geomorph with ``morph``, as
     :func:`geoterrain.lod.select`'s).
@@ -587,7 +588,7 @@ def show(terrain: TerrainLike, strategy: str = DEFAULT, pixel_error: float = 1.0
     p = pv.Plotter(window_size=list(size), title=title or f"geoterrain — {terrain.path.name}")
     ctl = ViewerController(p, terrain, strategy, pixel_error, shading, cmap, throttle_ms,
                            background=True, light=light, drape=drape, occlusion=occlusion,
-                           morph=morph)
+                           morph=morph, water=water)
     ctl.bind()
     try:
         p.show()

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geoterrain.rendering.colours import Palette, as_palette, colorbar_map, water_swatch
+from geoterrain.rendering.colours import Palette, colorbar_map, water_swatch
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -66,9 +66,14 @@ def colour_bar(terrain: TerrainLike, cmap: str | Palette):
     from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
 
     from geoterrain.rendering.overlays import _ticks
-    from geoterrain.rendering.textures import elevation_range, height_tolerance
+    from geoterrain.rendering.textures import (
+        elevation_range,
+        height_tolerance,
+        terrain_palette,
+    )
 
-    pal, rng, tol = as_palette(cmap), elevation_range(terrain), height_tolerance(terrain)
+    pal, rng = terrain_palette(terrain, cmap), elevation_range(terrain)
+    tol = height_tolerance(terrain)
     cm, (lo, hi) = colorbar_map(pal, rng, tolerance=tol)
     lut = pv.LookupTable(cm)
     lut.scalar_range = (lo, hi)

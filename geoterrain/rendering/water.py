@@ -43,8 +43,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geoterrain.rendering.colours import Palette, as_palette, water_level
-from geoterrain.rendering.textures import coast_tolerance, elevation_range
+from geoterrain.rendering.colours import Palette, water_level
+from geoterrain.rendering.textures import coast_tolerance, elevation_range, terrain_palette
 
 if TYPE_CHECKING:
     import pyvista as pv
@@ -69,7 +69,7 @@ def water_mesh(terrain: TerrainLike, palette: str | Palette) -> pv.PolyData | No
     >>> bool(np.ptp(m.points[:, 2]) == 0)  # flat
     True
     """
-    pal = as_palette(palette)
+    pal = terrain_palette(terrain, palette)
     wl = water_level(pal, elevation_range(terrain))
     if wl is None:
         return None
