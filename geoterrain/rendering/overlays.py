@@ -246,7 +246,9 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
 
     Each sits on an opaque box of :func:`layout_for`. The scale bar's box says
     "VE ×N" when the terrain is drawn exaggerated
-    (:func:`geoterrain.exaggerate.exaggerated`). ``extents``, when given, is
+    (:func:`geoterrain.exaggerate.exaggerated`). A map view (``view.parallel``) also gets
+    its neat line, grid and coordinate labels (:mod:`geoterrain.rendering.mapview`), and
+    its scale bar holds everywhere. ``extents``, when given, is
     filled with the drawn text's pixel boxes per overlay (for tests).
 
     Examples
@@ -258,8 +260,8 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
     if layout is None:
         layout = layout_for(terrain, (W, H), shading=shading, cmap=cmap, title=title,
                             colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow,
-                            ve=ve)
-    if not layout.boxes:
+                            ve=ve, exact_scale=view.parallel)
+    if not layout.boxes and not view.parallel:
         return img
     import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -367,6 +369,10 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
                                         mutation_scale=0.9 * fs))
             text("north_arrow", *(c + 0.72 * R * d), "N", ha="center", va="center",
                  fontsize=0.8 * fs * pt, weight="bold")
+    if view.parallel:  # a map: its neat line, grid and labels in the DEM's coordinates
+        from geoterrain.rendering.mapview import draw_map_grid
+
+        texts.update(draw_map_grid(ax, terrain, view, fs))
     ax.set_xlim(0, W)
     ax.set_ylim(H, 0)
     fig.canvas.draw()

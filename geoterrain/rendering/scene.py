@@ -239,7 +239,26 @@ class TerrainScene:
         and :func:`project` are one camera, straight down included.
         """
         cam = self.plotter.camera
-        _, u, _ = view.basis()
+        _, u, f = view.basis()
+        if self.water_actor is not None:
+            # a map, seen from straight above, draws the water over the terrain whatever
+            # its mesh (coarse there: vertical errors do not show), lifted above its top
+            # (which moves nothing in the picture); else at its level
+            lo, hi = self.terrain.scene_box()
+            lift = max(float(hi[2] - lo[2]), 1.0) * 1.01 if view.parallel else 0.0
+            self.water_actor.SetPosition(0.0, 0.0, lift)
+        if view.parallel:  # a map: the parallel projection of what the view frames
+            target = np.asarray(view.look_at, np.float64)
+            d = float(np.linalg.norm(view.eye - target))
+            lo, hi = self.terrain.scene_box()
+            near = 2.0 * float(np.linalg.norm(hi - lo)) + 1.0  # depth precision: close
+            cam.SetParallelProjection(True)
+            cam.parallel_scale = d * np.tan(np.radians(view.fov_y_deg) / 2.0)
+            cam.position, cam.focal_point = tuple(target - near * f), tuple(target)
+            cam.up = tuple(u)
+            self.plotter.renderer.ResetCameraClippingRange()
+            return
+        cam.SetParallelProjection(False)
         cam.position, cam.focal_point, cam.up = view.look_from, view.look_at, tuple(u)
         cam.view_angle = view.fov_y_deg
         self.plotter.renderer.ResetCameraClippingRange()

@@ -23,9 +23,11 @@ draws, over the terrain, a flat surface at that level (× the vertical exaggerat
   under a surface at 0 m does not flicker.
 
 The surface is a grid over the data at the finest pyramid level of at most
-``MAX_SIDE`` samples a side, keeping the cells with water at a corner; each vertex's
-opacity comes from the water's depth at its sample (alpha 0 on dry samples), so the
-surface ends within one of its cells of the shore, where its opacity is near 0.
+``MAX_SIDE`` samples a side, keeping the cells under water at all four corners; each
+vertex's opacity comes from the water's depth at its sample, and is 0 on the vertices next
+to dry land, so the surface fades out within one of its cells of the shore and never lies
+over land, however coarse the terrain's mesh there (a map view's mesh, seen from straight
+above, is very coarse: vertical errors do not show); the shore itself is the texture's.
 
 Examples
 --------
@@ -99,13 +101,20 @@ def _build(terrain: TerrainLike, wl: float):
     H, W = -(-g.rows // s), -(-g.cols // s)
     h, valid = terrain.level_heights(L)
     h, valid = h[:H, :W] * f.z_to_m, valid[:H, :W]
+    # a coarse DEM: the surface's grid finer than its samples (heights bilinear), so its
+    # fade at the shore is a fraction of a sample wide
+    k = 1
+    while L == 0 and 2 * k * max(H, W) <= MAX_SIDE and k < 8:
+        k *= 2
+    if k > 1:
+        h, valid = _finer(h, valid, k)
+        H, W = h.shape
+    s = s / k  # level-0 samples between the surface's grid points
     wet = valid & (h <= wl + coast_tolerance(terrain))
     if not wet.any():
         return None
-    # cells with water at a corner and data at every corner
-    ok = valid[:-1, :-1] & valid[1:, :-1] & valid[:-1, 1:] & valid[1:, 1:]
-    any_wet = wet[:-1, :-1] | wet[1:, :-1] | wet[:-1, 1:] | wet[1:, 1:]
-    ci, cj = np.nonzero(ok & any_wet)
+    # cells under water at every corner
+    ci, cj = np.nonzero(wet[:-1, :-1] & wet[1:, :-1] & wet[:-1, 1:] & wet[1:, 1:])
     if len(ci) == 0:
         return None
     idx = np.arange(H * W).reshape(H, W)
@@ -117,15 +126,21 @@ def _build(terrain: TerrainLike, wl: float):
     used[faces.ravel()] = True
     remap = np.cumsum(used) - 1
     vi, vj = np.divmod(np.flatnonzero(used), W)
-    X, Y = f.xy(vi * s, vj * s)
+    X, Y = f.xy(vi * s, vj * s)  # fractional sample positions on a finer grid
     z = wl * f.z_scale  # metres → scene (× the store's z-scale and any exaggeration)
     pts = np.column_stack([X, Y, np.full(len(vi), z)])
     depth = np.where(wet, wl - h, -1.0)[vi, vj]
     deepest = max(float(np.nanmax(np.where(wet, wl - h, 0.0))), 0.0)
     fade = max(DEPTH_FADE * deepest, 1e-9)
     x = np.clip(depth / fade, 0.0, 1.0)
-    alpha = np.where(depth >= -coast_tolerance(terrain) - 1e-12,
-                     ALPHA_MIN + (ALPHA_MAX - ALPHA_MIN) * x * x * (3 - 2 * x), 0.0)
+    # the shore: a wet sample with a dry (or missing) one among its 8 neighbours
+    pad = np.pad(wet, 1, constant_values=False)
+    inland = np.ones_like(wet)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            inland &= pad[1 + dy:1 + dy + H, 1 + dx:1 + dx + W]
+    alpha = np.where(inland[vi, vj], ALPHA_MIN + (ALPHA_MAX - ALPHA_MIN) * x * x * (3 - 2 * x),
+                     0.0)
     rgba = np.empty((len(vi), 4), np.uint8)
     rgba[:, :3] = np.round(np.array(SURFACE) * 255).astype(np.uint8)
     rgba[:, 3] = np.round(alpha * 255).astype(np.uint8)
@@ -157,6 +172,24 @@ def _build(terrain: TerrainLike, wl: float):
     mesh = polydata(np.concatenate(pts_all), np.concatenate(faces_all))
     mesh.point_data["rgba"] = np.concatenate(rgba_all)
     return mesh if isinstance(mesh, pv.PolyData) else None
+
+
+def _finer(h: np.ndarray, valid: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Heights on a grid k times finer (bilinear; a point is valid where its four samples
+    are), keeping the original samples as grid points."""
+    H, W = h.shape
+    ri = np.arange((H - 1) * k + 1) / k
+    cj = np.arange((W - 1) * k + 1) / k
+    i0 = np.minimum(ri.astype(int), H - 2)
+    j0 = np.minimum(cj.astype(int), W - 2)
+    fi, fj = (ri - i0)[:, None], (cj - j0)[None, :]
+    z = np.where(valid, h, 0.0)
+    a, b = z[np.ix_(i0, j0)], z[np.ix_(i0, j0 + 1)]
+    c, d = z[np.ix_(i0 + 1, j0)], z[np.ix_(i0 + 1, j0 + 1)]
+    out = (1 - fi) * (1 - fj) * a + (1 - fi) * fj * b + fi * (1 - fj) * c + fi * fj * d
+    ok = (valid[np.ix_(i0, j0)] & valid[np.ix_(i0, j0 + 1)] & valid[np.ix_(i0 + 1, j0)]
+          & valid[np.ix_(i0 + 1, j0 + 1)])
+    return out, ok
 
 
 def add_water(plotter, mesh, sun: tuple[float, float] = (315.0, 45.0)):

@@ -222,7 +222,8 @@ def test_water_surface_is_flat_lit_and_translucent(tmp_path_factory):
         assert np.allclose(top[np.abs(top) < 1e-9], 0.0)  # the sea at 0 m, even at -z 3
         alpha = m.point_data["rgba"][:, 3] / 255.0
         assert alpha.max() == pytest.approx(ALPHA_MAX, abs=0.01)
-        assert alpha[alpha > 0].min() == pytest.approx(ALPHA_MIN, abs=0.01)
+        # the shore's vertices are clear, the others between the shallow and deep opacity
+        assert (alpha == 0).any() and alpha[alpha > 0].min() >= ALPHA_MIN - 0.01
     # --water-level H: the surface at H (× the exaggeration)
     m = water_mesh(exaggerated(t, 2.0), Palette("auto", water_level=300.0))
     surface = m.points[m.point_data["rgba"][:, 3] < 255 * ALPHA_MAX - 1, 2]
