@@ -64,7 +64,7 @@ class StageBar:
         self.bar = None
 
     def __call__(self, stage: str, done: int, total: int) -> None:
-        if self.quiet:
+        if self.quiet or CompileBar.active is not None:  # the first run's bar is shown
             return
         if self.bar is None:
             self.bar = click.progressbar(length=total, label=self.label, file=sys.stderr,
@@ -76,6 +76,80 @@ class StageBar:
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
             self.bar = None
+
+
+# the stage folders whose compiled kernels each command may compile on its first run
+COMPILING = {
+    "preprocess": ("geoterrain.core", "geoterrain.ingest", "geoterrain.codec",
+                   "geoterrain.bounds", "geoterrain.preprocessing.pipeline",
+                   "geoterrain.store"),
+    "render": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+               "geoterrain.bounds.normals", "geoterrain.lod", "geoterrain.rendering"),
+    "mesh": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+             "geoterrain.lod", "geoterrain.export.meshstream"),
+    "export": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+               "geoterrain.bounds.normals", "geoterrain.lod", "geoterrain.rendering.tileshade",
+               "geoterrain.rendering.shading"),
+    "export-raster": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+                      "geoterrain.bounds.normals", "geoterrain.rendering.shading"),
+    "tiles": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+              "geoterrain.export.qmesh"),
+    "bench": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds", "geoterrain.lod",
+              "geoterrain.testing", "geoterrain.rendering"),
+}
+COMPILING["view"] = COMPILING["render"]
+
+
+class CompileBar:
+    """The first run of a command: says that kernels are being compiled (once, with an
+    estimate of the time) and shows a bar of the compilations numba reports, on stderr,
+    while the command's own progress bars wait (:class:`StageBar`); silent with -q or when
+    every kernel the command may need is cached (:func:`geoterrain.core.warmup.cold_kernels`).
+    """
+
+    active: CompileBar | None = None  # the bar shown now, if any
+
+    def __init__(self, command: str, quiet: bool):
+        self.command, self.quiet = command, quiet
+        self.bar = self.watch = None
+        self.total = 0
+
+    def __enter__(self) -> CompileBar:
+        from geoterrain.core.warmup import CompileWatch, cold_kernels, estimate_seconds
+
+        if self.quiet or self.command not in COMPILING:
+            return self
+        self.total = len(cold_kernels(COMPILING[self.command]))
+        if self.total == 0:
+            return self
+        click.echo(f"compiling kernels (first run only, about "
+                   f"{estimate_seconds(self.total)} s)", err=True)
+        self.bar = click.progressbar(length=self.total, label="compiling", file=sys.stderr,
+                                     show_eta=False, show_pos=True)
+        self.bar.__enter__()
+        CompileBar.active = self
+        self.watch = CompileWatch(self._step).__enter__()
+        return self
+
+    def _step(self, done: int) -> None:
+        if self.bar is not None:
+            self.bar.update(min(done, self.total) - self.bar.pos)
+            if done >= self.total:
+                self.finish()
+
+    def finish(self) -> None:
+        """Close the bar (the command's own bars show from now on)."""
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+            self.bar = None
+        if CompileBar.active is self:
+            CompileBar.active = None
+
+    def __exit__(self, *exc) -> None:
+        self.finish()
+        if self.watch is not None:
+            self.watch.__exit__(*exc)
+            self.watch = None
 
 
 def _strategy_help(prefix: str) -> str:

@@ -70,21 +70,43 @@ def preview_image(terrain: TerrainLike, selection, *, size: tuple[int, int] = (9
             p.add_mesh(polydata(sides.xyz, sides.faces), color=WALL_COLOUR, lighting=True,
                        ambient=0.35, diffuse=0.7, specular=0.0,
                        smooth_shading=False, show_scalar_bar=False)
-        az, el = math.radians(azimuth), math.radians(elevation)
-        d = np.array([math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el)])
-        lo = (top if sol is None else sol.points).min(0)
-        hi = (top if sol is None else sol.points).max(0)
-        c = 0.5 * (lo + hi)
-        radius = 0.5 * float(np.linalg.norm(hi - lo))
-        p.camera.focal_point = tuple(c)
-        p.camera.position = tuple(c + 4.0 * radius * d)
+        pts = top if sol is None else sol.points
+        v = _fit(pts.min(0), pts.max(0), tuple(size), azimuth, elevation)
+        p.camera.position, p.camera.focal_point = v.look_from, v.look_at
         p.camera.up = (0.0, 0.0, 1.0)
-        p.camera.view_angle = 30.0
-        p.reset_camera(bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]))
-        p.camera.zoom(1.5)
+        p.camera.view_angle = v.fov_y_deg
+        p.renderer.ResetCameraClippingRange()
         return _draw(p)
     finally:
         p.close()
+
+
+def _fit(lo: np.ndarray, hi: np.ndarray, size: tuple[int, int], azimuth: float,
+         elevation: float, fill: float = 0.92):
+    """A camera from ``azimuth``/``elevation`` whose picture holds the box (lo, hi),
+    centred, its projection spanning ``fill`` of the frame."""
+    from geoterrain.core.view import View
+    from geoterrain.rendering.cameras import project
+
+    az, el = math.radians(azimuth), math.radians(elevation)
+    d = np.array([math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el)])
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])
+    c = 0.5 * (lo + hi)
+    dist = 2.0 * float(np.linalg.norm(hi - lo)) + 1e-9
+    W, H = size
+    for _ in range(12):  # slide the target to centre the box, scale the distance to fit
+        v = View(tuple(c + dist * d), tuple(c), (0.0, 0.0, 1.0), 30.0, size)
+        px, depth = project(v, corners)
+        if np.any(depth <= 0):
+            dist *= 2.0
+            continue
+        (x0, y0), (x1, y1) = px.min(0), px.max(0)
+        r, u, _ = v.basis()
+        m_per_px = dist / v.lam
+        c = c + ((0.5 * (x0 + x1) - W / 2) * r - (0.5 * (y0 + y1) - H / 2) * u) * m_per_px
+        dist *= max((x1 - x0) / W, (y1 - y0) / H) / fill
+    return View(tuple(c + dist * d), tuple(c), (0.0, 0.0, 1.0), 30.0, size)
 
 
 def write_preview(terrain: TerrainLike, selection, path: str | Path, *,

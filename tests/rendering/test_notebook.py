@@ -66,6 +66,22 @@ def test_docs_notebook_runs(tmp_path, monkeypatch):
     outs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
     assert not [o for o in outs if o.output_type == "error"]
     assert any("text/html" in o.get("data", {}) for o in outs)  # the Terrain summary
-    assert any("image/png" in o.get("data", {}) for o in outs)  # t.plot()
+    # the default render, the map, water, a drape and the print's preview
+    assert sum("image/png" in o.get("data", {}) for o in outs) == 5
     text = "".join(o.get("text", "") for o in outs)
-    assert "terrain.glb" in text and "True" in text
+    assert "relief.stl" in text and "terrain.glb" in text and "uint8" in text
+    assert "True True" in text
+
+
+@pytest.mark.fast
+def test_docs_notebook_is_stored_with_its_pictures():
+    """The stored notebook carries its outputs (its page shows the pictures), made from the
+    real DEM, small enough for the repository, with no machine path in them."""
+    nbformat = pytest.importorskip("nbformat")
+    path = ROOT / "docs" / "quickstart.ipynb"
+    nb = nbformat.read(path, as_version=4)
+    outs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
+    assert sum("image/png" in o.get("data", {}) for o in outs) == 5
+    text = path.read_text()
+    assert "srtm1_japan" in text and "/tmp/" not in text and "/work/" not in text
+    assert path.stat().st_size < 1_500_000
