@@ -79,6 +79,9 @@ if TYPE_CHECKING:
 
 BACKGROUND = (0.86, 0.90, 0.95)  # a pale sky
 PLAIN_COLOR = (0.80, 0.78, 0.72)
+# how far (pixels in the picture, at most) a perspective view's water surface may move when
+# it is lifted over the terrain's coarse mesh (see TerrainScene.set_camera)
+WATER_LIFT_PX = 0.5
 
 
 def _prefer_egl() -> None:
@@ -150,6 +153,7 @@ class TerrainScene:
         self.selection = None
         self.texture_stats: dict = {}
         self.water_actor = None
+        self._water_pts = None
         if water and shading != "plain":
             from geoterrain.rendering.water import add_water, water_mesh
 
@@ -157,6 +161,8 @@ class TerrainScene:
             if wm is not None:
                 sun = (light.azimuth, light.elevation) if light is not None else (315.0, 45.0)
                 self.water_actor = add_water(plotter, wm, sun)
+                step = max(1, wm.n_points // 4096)  # where the lift is measured
+                self._water_pts = np.asarray(wm.points, np.float64)[::step]
 
     def _tcoords(self, ij: np.ndarray) -> np.ndarray:
         S = self.terrain.grid.level_size(self.level)
@@ -243,9 +249,13 @@ class TerrainScene:
         if self.water_actor is not None:
             # a map, seen from straight above, draws the water over the terrain whatever
             # its mesh (coarse there: vertical errors do not show), lifted above its top
-            # (which moves nothing in the picture); else at its level
+            # (which moves nothing in the picture); a perspective view lifts it as far as
+            # moves it by WATER_LIFT_PX in the picture at most (seen from high above, a
+            # coarse mesh's vertical errors barely show either, and would hide the water
+            # near the coast)
             lo, hi = self.terrain.scene_box()
-            lift = max(float(hi[2] - lo[2]), 1.0) * 1.01 if view.parallel else 0.0
+            top = max(float(hi[2] - lo[2]), 1.0) * 1.01
+            lift = top if view.parallel else min(top, self._water_lift(view))
             self.water_actor.SetPosition(0.0, 0.0, lift)
         if view.parallel:  # a map: the parallel projection of what the view frames
             target = np.asarray(view.look_at, np.float64)
@@ -264,6 +274,29 @@ class TerrainScene:
         self.plotter.renderer.ResetCameraClippingRange()
         if view.near is not None and view.far is not None:
             cam.clipping_range = (view.near, view.far)
+
+    def _water_lift(self, view: View) -> float:
+        """The height (scene units) the water surface may be lifted by in the perspective
+        ``view`` while no point of it moves more than ``WATER_LIFT_PX`` in the picture:
+        that over the largest of its points' picture motion per unit of height (the
+        derivative of the projection along z)."""
+        pts = self._water_pts
+        if pts is None or not len(pts):
+            return 0.0
+        r, u, f = view.basis()
+        rel = pts - np.asarray(view.look_from, np.float64)
+        d = rel @ f  # depth along the view direction
+        front = d > 1e-9
+        if not front.any():
+            return 0.0
+        d, x, y = d[front], rel[front] @ r, rel[front] @ u
+        k = view.lam  # pixels per unit across at depth 1
+        # a point at (x, y) across and d along the view sits at k·(x, y)/d px from the
+        # centre; moving it up by one unit changes x, y, d by r_z, u_z, f_z
+        dx = k * (r[2] * d - x * f[2]) / d**2
+        dy = k * (u[2] * d - y * f[2]) / d**2
+        rate = float(np.sqrt(dx * dx + dy * dy).max())
+        return WATER_LIFT_PX / rate if rate > 0 else float("inf")
 
     def frame(self, view: View, pixel_error: float = 1.0, strategy: str = DEFAULT,
               ) -> tuple[np.ndarray, dict]:

@@ -20,7 +20,12 @@ draws, over the terrain, a flat surface at that level (× the vertical exaggerat
   block of water (rayshader's water sides), so an exaggerated sea is a body of water, not
   a surface floating over a pit;
 - it is drawn with a polygon offset toward the camera, so a sea of exact zeros (SRTM)
-  under a surface at 0 m does not flicker.
+  under a surface at 0 m does not flicker;
+- where the terrain's mesh is coarse because its vertical errors barely show (seen from
+  high above), the mesh near the coast can rise above the level and hide the water: a
+  map lifts the surface above the terrain's top, a perspective view as far as moves it
+  half a pixel at most in the picture (``WATER_LIFT_PX`` in
+  :mod:`geoterrain.rendering.scene`).
 
 The surface is a grid over the data at the finest pyramid level of at most
 ``MAX_SIDE`` samples a side, keeping the cells under water at all four corners; each

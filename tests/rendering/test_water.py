@@ -293,3 +293,35 @@ def test_top_down_view_has_no_seam_between_water_and_land(tmp_path_factory):
     ys, xs = np.nonzero(terrain)
     inner = terrain[ys.min() + 2:ys.max() - 1, xs.min() + 2:xs.max() - 1]
     assert inner.all()
+
+
+def test_top_down_perspective_water_covers_a_sea_of_zeros(tmp_path_factory):
+    """A sea of exact zeros (as SRTM's) seen from high straight above in perspective: the
+    terrain's mesh is coarse there (its vertical errors barely show) and rises above 0 m
+    near the coast; the water surface is drawn over it everywhere the bare sea shows
+    (lifted by what moves it half a pixel at most), not only where the mesh stays at 0 m."""
+    d = tmp_path_factory.mktemp("zerosea")
+    z = (generate("fbm", (129, 129), seed=7, base=0.0, relief=400.0)
+         + np.linspace(-500.0, 400.0, 129)[None, :])
+    z = np.maximum(z, 0.0).astype(np.float32)  # the sea on the west: exact zeros
+    assert 0.3 < (z == 0).mean() < 0.5
+    dem = write_tif(d / "zerosea.tif", z, spacing=30.0)
+    t = geoterrain.open(geoterrain.preprocess(dem, d / "zerosea.geoterrain"))
+    lo, hi = t.scene_box()
+    c = 0.5 * (lo + hi)
+    v = View(tuple(c + [0, 0, 9000.0]), tuple(c), (0, 1, 0), 30.0, (320, 240))
+    pics = {}
+    for water in (False, True):
+        scene = TerrainScene(_plotter(v.size, "msaa"), t, water=water,
+                             cmap=Palette("auto", water_level=0.0))
+        try:
+            pics[water] = scene.frame(v, 1.0)[0].astype(int)
+        finally:
+            scene.plotter.close()
+    bare, wet = pics[False], pics[True]
+    # the bare sea: its one flat colour (the most frequent watery colour)
+    cols, counts = np.unique(bare[_watery(bare)].reshape(-1, 3), axis=0, return_counts=True)
+    sea = np.all(bare == cols[counts.argmax()], axis=-1)
+    assert sea.sum() > 0.1 * sea.size
+    covered = np.abs(wet - bare).sum(-1) > 6
+    assert covered[sea].mean() > 0.999, covered[sea].mean()
