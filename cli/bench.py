@@ -60,7 +60,7 @@ def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_ali
             cache_dir):
     """Benchmark the LOD strategies on SOURCE (a store or a DEM) or a synthetic DEM.
 
-    Runs every strategy at every τ over a camera path (a built-in flight of
+    Runs every strategy at every --pixel-error over a camera path (a built-in flight of
     overview, low oblique, grazing and looking-away views, or --path), and
     measures each frame: selection (and --render) time, triangles, vertices,
     tiles decoded, peak memory, and the measured screen-space error (max, p99)

@@ -36,6 +36,16 @@ class Group(click.Group):
             return None
         return importlib.import_module(f"geoterrain.cli.{mod}").command
 
+    def resolve_command(self, ctx, args):
+        name, cmd, rest = super().resolve_command(ctx, args)
+        if not any(a in ("-h", "--help") for a in rest):
+            # a first run: say that kernels compile, with a bar (cli/options.py)
+            from geoterrain.cli.options import CompileBar
+
+            bar = CompileBar(name, bool(ctx.params.get("quiet")))
+            ctx.meta["geoterrain.compile_bar"] = bar.__enter__()
+        return name, cmd, rest
+
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
@@ -57,6 +67,10 @@ class Group(click.Group):
             click.echo(f"Error: internal error {type(exc).__name__}: {first} "
                        "(re-run with -vv for the traceback and report it)", err=True)
             ctx.exit(1)
+        finally:
+            bar = ctx.meta.pop("geoterrain.compile_bar", None)
+            if bar is not None:
+                bar.__exit__(None, None, None)
 
 
 @click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"]})

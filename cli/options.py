@@ -64,7 +64,7 @@ class StageBar:
         self.bar = None
 
     def __call__(self, stage: str, done: int, total: int) -> None:
-        if self.quiet:
+        if self.quiet or CompileBar.active is not None:  # the first run's bar is shown
             return
         if self.bar is None:
             self.bar = click.progressbar(length=total, label=self.label, file=sys.stderr,
@@ -76,6 +76,80 @@ class StageBar:
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
             self.bar = None
+
+
+# the stage folders whose compiled kernels each command may compile on its first run
+COMPILING = {
+    "preprocess": ("geoterrain.core", "geoterrain.ingest", "geoterrain.codec",
+                   "geoterrain.bounds", "geoterrain.preprocessing.pipeline",
+                   "geoterrain.store"),
+    "render": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+               "geoterrain.bounds.normals", "geoterrain.lod", "geoterrain.rendering"),
+    "mesh": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+             "geoterrain.lod", "geoterrain.export.meshstream"),
+    "export": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+               "geoterrain.bounds.normals", "geoterrain.lod", "geoterrain.rendering.tileshade",
+               "geoterrain.rendering.shading"),
+    "export-raster": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+                      "geoterrain.bounds.normals", "geoterrain.rendering.shading"),
+    "tiles": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+              "geoterrain.export.qmesh"),
+    "bench": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds", "geoterrain.lod",
+              "geoterrain.testing", "geoterrain.rendering"),
+}
+COMPILING["view"] = COMPILING["render"]
+
+
+class CompileBar:
+    """The first run of a command: says that kernels are being compiled (once, with an
+    estimate of the time) and shows a bar of the compilations numba reports, on stderr,
+    while the command's own progress bars wait (:class:`StageBar`); silent with -q or when
+    every kernel the command may need is cached (:func:`geoterrain.core.warmup.cold_kernels`).
+    """
+
+    active: CompileBar | None = None  # the bar shown now, if any
+
+    def __init__(self, command: str, quiet: bool):
+        self.command, self.quiet = command, quiet
+        self.bar = self.watch = None
+        self.total = 0
+
+    def __enter__(self) -> CompileBar:
+        from geoterrain.core.warmup import CompileWatch, cold_kernels, estimate_seconds
+
+        if self.quiet or self.command not in COMPILING:
+            return self
+        self.total = len(cold_kernels(COMPILING[self.command]))
+        if self.total == 0:
+            return self
+        click.echo(f"compiling kernels (first run only, about "
+                   f"{estimate_seconds(self.total)} s)", err=True)
+        self.bar = click.progressbar(length=self.total, label="compiling", file=sys.stderr,
+                                     show_eta=False, show_pos=True)
+        self.bar.__enter__()
+        CompileBar.active = self
+        self.watch = CompileWatch(self._step).__enter__()
+        return self
+
+    def _step(self, done: int) -> None:
+        if self.bar is not None:
+            self.bar.update(min(done, self.total) - self.bar.pos)
+            if done >= self.total:
+                self.finish()
+
+    def finish(self) -> None:
+        """Close the bar (the command's own bars show from now on)."""
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+            self.bar = None
+        if CompileBar.active is self:
+            CompileBar.active = None
+
+    def __exit__(self, *exc) -> None:
+        self.finish()
+        if self.watch is not None:
+            self.watch.__exit__(*exc)
+            self.watch = None
 
 
 def _strategy_help(prefix: str) -> str:
@@ -127,15 +201,17 @@ anti_aliasing_option = click.option(
 
 morph_option = click.option(
     "--morph/--no-morph", default=None,
-    help="Geomorph: a vertex slides into place instead of popping as the camera moves "
-         "(rtin: it appears at 0.75 τ, costing triangles; chunked: a chunk slides from "
-         "its parent's surface; geomipmap: each block slides between its levels; "
-         "cdlod: its own ranges). Default: rtin, chunked and geomipmap off, cdlod on.")
+    help="Geomorph: detail slides into place instead of popping as the camera moves "
+         "(rtin: a vertex starts sliding at 3/4 of the pixel error, costing triangles; "
+         "chunked: a tile slides from its parent's surface; geomipmap: each block slides "
+         "between its levels; cdlod: its own ranges). Default: rtin, chunked and geomipmap "
+         "off, cdlod on.")
 
 
 pixel_error_option = click.option(
     "--pixel-error", type=float, default=1.0, show_default=True, callback=_positive,
-    metavar="TAU", help="Screen-space error bound τ in pixels.")
+    metavar="PX", help="Level of detail: the mesh is never more than PX pixels from the "
+                       "full-resolution terrain on screen (larger: fewer triangles).")
 
 
 def _parse_pixel_errors(ctx, param, value):
@@ -150,8 +226,8 @@ def _parse_pixel_errors(ctx, param, value):
 
 pixel_errors_option = click.option(
     "--pixel-error", "pixel_errors", default="0.5,1,2,4,8", show_default=True,
-    callback=_parse_pixel_errors, metavar="TAU[,TAU...]",
-    help="Comma-separated screen-space error bounds τ in pixels.")
+    callback=_parse_pixel_errors, metavar="PX[,PX...]",
+    help="Comma-separated levels of detail: on-screen error bounds in pixels.")
 
 
 def camera_options(f):
@@ -201,7 +277,7 @@ def _finite(ctx, param, value):
 
 
 def colour_options(f):
-    """--cmap, --clim and --water-level, shared by render and view."""
+    """--cmap, --clim, --water-level and --water/--no-water, shared by render and view."""
     for opt in reversed([
         click.option("--cmap", default="auto", show_default=True, callback=_check_cmap,
                      help="auto (land tints; water in blue at or below 0 m when the data "
@@ -209,7 +285,11 @@ def colour_options(f):
         click.option("--clim", callback=_parse_clim, metavar="MIN,MAX",
                      help="Heights (m) the colour map spans (default: the data's range)."),
         click.option("--water-level", type=float, callback=_finite, metavar="H",
-                     help="Colour everything at or below H metres as water."),
+                     help="Water up to H metres: a flood or a lake at that level."),
+        click.option("--water/--no-water", "water", default=True, show_default=True,
+                     help="Draw the water (--water-level, or the sea at 0 m of the auto "
+                          "colours) as a flat, lit, semi-transparent surface with the depth "
+                          "coloured below it; --no-water only colours the ground under it."),
     ]):
         f = opt(f)
     return f
@@ -331,6 +411,22 @@ def select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_e
         raise UsageError("--look-from and --look-at must differ")
     return t.select(geoterrain.View(look_from, look_at, fov_y_deg=fov, size=size), pixel_error,
                     strategy, occlusion=occlusion)
+
+
+def human_bytes(n: float) -> str:
+    """``n`` bytes in a reader's unit: 512 B, 12.3 kB, 31.9 MB, 1.20 GB."""
+    for unit, f in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= f:
+            return f"{n / f:.3g} {unit}" if n < 100 * f else f"{n / f:.0f} {unit}"
+    return f"{int(n)} B"
+
+
+def mesh_words(s: dict) -> str:
+    """A mesh's stats in words: triangles, vertices, and what bounds its error."""
+    what = (f"whole terrain, height error ≤ {s['max_error']:g} m" if "max_error" in s
+            else f"view from the camera, {s.get('strategy', 'rtin')} within "
+                 f"{s.get('pixel_error', 1.0):g} px on screen")
+    return f"{s['triangles']:,} triangles, {s['vertices']:,} vertices ({what})"
 
 
 # ------------------------------------------------------------------ the analysis commands

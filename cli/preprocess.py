@@ -99,6 +99,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
     if not quiet:
         with geoterrain.open(out) as t:
             i = t.info()
-        click.echo(f"wrote {out} ({i['size_bytes'] / 1e6:.2f} MB): {i['grid'][0]}×{i['grid'][1]} "
-                   f"samples, {i['levels']} levels, {sum(i['tiles_per_level'].values())} tiles, "
+        click.echo(f"wrote {out} ({i['size_bytes'] / 1e6:.2f} MB): {i['grid'][1]} × "
+                   f"{i['grid'][0]} samples (width × height), {i['levels']} levels, "
+                   f"{sum(i['tiles_per_level'].values())} tiles, "
                    f"{i['height_bits_per_valid_sample']:.2f} bits/sample heights")

@@ -37,6 +37,10 @@ from geoterrain.cli.options import (
               help="Camera angle above the horizon, degrees in (0, 90]; 90 looks straight "
                    "down.")
 @click.option("--distance", type=float, help="Eye–target distance in metres (default: fit).")
+@click.option("--map", "map_view", is_flag=True,
+              help="A map: orthographic, north up, the whole DEM framed with a graticule "
+                   "(geographic DEMs) or grid ticks in its CRS, the scale bar exact "
+                   "everywhere.")
 @pixel_error_option
 @strategy_option
 @occlusion_option
@@ -68,9 +72,10 @@ from geoterrain.cli.options import (
                    "(the same picture; no faster on the CPU renderer, docs/benchmarks.md).")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
-def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
+def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance,
+            map_view, size,
             fov, pixel_error, strategy, occlusion, morph, anti_aliasing, vertical_exaggeration,
-            shading, cmap, clim, water_level,
+            shading, cmap, clim, water_level, water,
             sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity, title,
             contour_interval, no_overlays, stats_path, orbit, cameras, frames_between, fps,
             strips, overwrite):
@@ -84,8 +89,9 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
       geoterrain render dem.geoterrain -o view.png --crs-coords \\
           --look-from 500000,4990000,3000 --look-at 505000,5000000,800
       geoterrain render dem.geoterrain -o top.png --elevation 90
+      geoterrain render dem.geoterrain -o map.png --map --title "Sagami Bay"
       geoterrain render dem.geoterrain -o relief.png -z 3
-      geoterrain render dem.geoterrain -o sea.png --water-level 2 --clim -50,1500
+      geoterrain render dem.geoterrain -o flood.png --water-level 40 --clim 0,1200
       geoterrain render dem.geoterrain -o dusk.png --sun 250,15 --shadows --ambient-occlusion
       geoterrain render dem.geoterrain -o lines.png --contours 50
       geoterrain render dem.geoterrain -o orbit.gif --orbit 36 --size 640x360
@@ -126,6 +132,18 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     animated = orbit is not None or cameras is not None
     if contour_interval is not None and animated:
         raise UsageError("--contours draws on a single view (.png), not an animation")
+    if map_view:
+        src = ctx.get_parameter_source
+        clash = [n for n, given in (("--look-from/--look-at", look_from is not None),
+                                    ("--orbit", orbit is not None),
+                                    ("--path", cameras is not None),
+                                    ("--distance", distance is not None),
+                                    ("--elevation", src("elevation").name == "COMMANDLINE"),
+                                    ("--azimuth", src("azimuth").name == "COMMANDLINE"))
+                 if given]
+        if clash:
+            raise UsageError(f"--map frames the whole DEM from straight above, north up; "
+                             f"drop {', '.join(clash)}")
     if not animated and ext != ".png":
         raise UsageError(f"{out}: a single view is written as .png (use --orbit or --path "
                          "for .gif/.mp4)")
@@ -144,7 +162,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             kw = dict(pixel_error=pixel_error, strategy=strategy, shading=shading, cmap=cmap,
                       title=title, fps=fps, progress=lambda d, n: bar("frame", d, n),
                       overwrite=overwrite, light=lit, drape=dr, occlusion=occlusion,
-                      morph=morph, anti_aliasing=anti_aliasing, **overlays)
+                      morph=morph, anti_aliasing=anti_aliasing, water=water, **overlays)
             try:
                 if orbit is not None:
                     frames = A.orbit(t, out, orbit, size=size, azimuth=azimuth,
@@ -172,6 +190,12 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
                 view.basis()
             except ValueError as exc:
                 raise UsageError(f"bad camera: {exc}") from None
+        elif map_view:
+            from geoterrain.rendering.mapview import map_view as make_map
+
+            view = make_map(t, size, shading=shading, cmap=cmap, title=title,
+                            colorbar=not no_overlays, scale_bar=not no_overlays,
+                            north_arrow=not no_overlays)
         else:
             view = R.overview(t, size, azimuth, elevation, distance, fov, shading=shading,
                               cmap=cmap, title=title, colorbar=not no_overlays,
@@ -186,7 +210,8 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
                       shading=shading, cmap=cmap, title=title, scale_bar=not no_overlays,
                       stats_path=stats_path, overwrite=overwrite, light=lit, drape=dr,
                       occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing,
-                      strips=strips, lines=lines, line_widths=widths, **overlays)
+                      strips=strips, lines=lines, line_widths=widths, water=water,
+                      **overlays)
     if not quiet:
         click.echo(f"wrote {out}: {st['triangles']:,} triangles ({strategy}, τ = "
                    f"{pixel_error:g} px), select {st['select_ms']:.0f} ms, frame "

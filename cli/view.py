@@ -46,23 +46,26 @@ from geoterrain.cli.options import (
               help="--web: address to listen on (0.0.0.0: your network).")
 @click.pass_context
 def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exaggeration,
-            shading, cmap, clim,
-            water_level, sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity,
+            shading, cmap, clim, water_level, water,
+            sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity,
             size, rebuild, web, port, bind):
     """Open SOURCE (a store or a DEM) in an interactive 3-D window.
 
-    A DEM is preprocessed first into a store next to it (or in
-    ~/.cache/geoterrain when its folder is read-only); the path is printed
-    and the store is reused next time.
+    A DEM is preprocessed first into a store in the cache folder
+    ($XDG_CACHE_HOME/geoterrain, default ~/.cache/geoterrain; never beside your
+    data), keyed by the DEM's path, size and date; the path is printed and the
+    store is reused next time (--rebuild makes it again).
 
     \b
     Keys:
       m      next LOD strategy
-      + / -  τ × 2 / ÷ 2
+      + / -  coarser / finer detail (pixel error × 2 / ÷ 2)
       g      geomorphing on/off (rtin, chunked, geomipmap, cdlod)
       x      wireframe
       c      colour by shading / LOD level / tile
       space  freeze the LOD (fly around to inspect culling and refinement)
+      s      save a screenshot (the status line says where)
+      t      show or hide the engine's timings in the status line
       h      home view;  q  quit
 
     With --web the same viewer runs in a browser tab (PyVista's trame backend:
@@ -113,7 +116,7 @@ def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exagg
     with geoterrain.open(store) as base:
         t = exaggerated(base, vertical_exaggeration)
         show(t, strategy, pixel_error, shading=shading, cmap=palette(cmap, clim, water_level),
-             size=size, light=lit, drape=dr, occlusion=occlusion, morph=morph)
+             size=size, light=lit, drape=dr, occlusion=occlusion, morph=morph, water=water)
 
 
 def _web(store, vertical_exaggeration, port, bind, **kw) -> None:

@@ -792,10 +792,12 @@ class Terrain:
         return repr_html(self)
 
     def plot(self, view: View | None = None, **kwargs):
-        """Show the terrain: PyVista's notebook backend, or an offscreen image (PIL).
+        """Show the terrain: the picture ``geoterrain render`` makes (overlays included), as
+        a PIL image; or PyVista's notebook backend with ``interactive=True``.
 
-        Keywords: ``shading``, ``pixel_error``, ``strategy``, ``size``, ``cmap``; the
-        rest go to ``Plotter.show``. See :func:`geoterrain.rendering.notebook.plot`.
+        Keywords: ``shading``, ``pixel_error``, ``strategy``, ``size``, ``cmap``, ``title``,
+        ``overlays``, ``map``, ``vertical_exaggeration``, ``light``, ``drape``, ``water``,
+        ``interactive``; see :func:`geoterrain.rendering.notebook.plot`.
         """
         from geoterrain.rendering.notebook import plot  # upper layer, loaded on first use
 

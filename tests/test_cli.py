@@ -1,5 +1,6 @@
 """The command line: bad input gets one line and the right exit code, never a traceback."""
 
+import json
 import os
 import sqlite3
 from pathlib import Path
@@ -45,8 +46,6 @@ def test_preprocess_and_info(fbm_tif, tmp_path):
     assert res.exit_code == 0, res.output
     assert "EPSG" in res.output or "UTM" in res.output
     res = run("info", out, "--json")
-    import json
-
     assert res.exit_code == 0, res.output
     assert json.loads(res.output)["grid"] == [129, 129]
 
@@ -184,7 +183,10 @@ def test_mesh_command(tmp_path, fbm_tif):
     ply = tmp_path / "m.ply"
     res = run("mesh", store, "-o", ply, "--max-error", "5")
     assert res.exit_code == 0, res.output
-    assert '"triangles"' in res.output
+    assert "triangles" in res.output and "height error ≤ 5 m" in res.output
+    assert not res.output.lstrip().startswith("{")  # words, not JSON
+    res = run("mesh", store, "-o", ply, "--max-error", "5", "--overwrite", "--json")
+    assert json.loads(res.stdout)["triangles"] > 2
     assert pv.read(ply).n_cells > 2
     vtp = tmp_path / "v.vtp"
     res = run("mesh", store, "-o", vtp, "--look-from", "0,-1500,1500", "--look-at", "0,0,500",
@@ -260,3 +262,23 @@ def test_edit_command(tmp_path):
     res = run("edit", store, "--patch", cut, "--at", "x")  # click's usage error
     assert res.exit_code == 2 and "ROW,COL" in res.output and "Traceback" not in res.output
     assert_one_line_error(run("edit", tmp_path / "none.geoterrain", "--patch", cut), 1)
+
+
+def test_help_texts_are_in_a_users_words():
+    """No --help names a seed document (their numbers belong to the strategy docs), `view
+    --help` says where the cached store goes and lists every key, and the level-of-detail
+    option speaks of pixels, not τ."""
+    import re
+
+    from geoterrain.cli.main import COMMANDS
+
+    texts = {c: run(c, "--help").output for c in COMMANDS}
+    texts["geoterrain"] = run("--help").output
+    for name, text in texts.items():
+        assert not re.search(r"seed\s*\d{3}|seed 0|HAM\b|\bLP\b", text), name
+        assert "δ" not in text and "τ" not in text, name
+    view = " ".join(texts["view"].split())
+    assert "~/.cache/geoterrain" in view and "next to it" not in view
+    for key in ("m ", "+ / -", "g ", "x ", "c ", "space", "s ", "t ", "h ", "q "):
+        assert f"  {key}" in texts["view"], key
+    assert "pixels" in texts["render"] and "TAU" not in texts["render"]

@@ -37,11 +37,14 @@ class StrategyInfo:
     ``conforming``: no T-junction and no edge used by more than two triangles (tested);
     ``morphs``: it geomorphs when morphing is on (``--morph``), keeping its bound;
     ``morph_default``: it morphs unless switched off (``--no-morph``).
+    ``summary`` names the method and its source (for the strategy docs); ``words`` says
+    what it does in a user's words (for ``--help``).
     """
 
     name: str
     module: str
     summary: str
+    words: str
     bounded: bool
     tau_independent: bool = False
     conforming: bool = False
@@ -56,28 +59,36 @@ class StrategyInfo:
 
 _ENTRIES = (
     StrategyInfo("rtin", "geoterrain.lod.rtin",
-                 "Lindstrom–Pascucci vertex refinement with nested spheres (seed 002)", True,
-                 conforming=True, morphs=True),
+                 "Lindstrom–Pascucci vertex refinement with nested spheres (seed 002)",
+                 "triangles refined where the view needs them, crack-free (the default)",
+                 True, conforming=True, morphs=True),
     StrategyInfo("chunked", "geoterrain.lod.chunked",
-                 "stored tile quadtree with skirts (seed 000 chunked LOD)", True,
+                 "stored tile quadtree with skirts (seed 000 chunked LOD)",
+                 "ready-made tiles at several resolutions, seams hidden by skirts", True,
                  morphs=True),
     StrategyInfo("bruteforce", "geoterrain.lod.bruteforce",
-                 "every full-resolution tile in the frustum (the zero-error baseline)", True,
+                 "every full-resolution tile in the frustum (the zero-error baseline)",
+                 "every sample in view at full resolution (exact, slowest)", True,
                  tau_independent=True, conforming=True),
     StrategyInfo("geomipmap", "geoterrain.lod.geomipmap",
-                 "GeoMipMapping: level-0 tile blocks, stitched edges (seed 000 §2.4)", True,
+                 "GeoMipMapping: level-0 tile blocks, stitched edges (seed 000 §2.4)",
+                 "blocks drawn at coarser steps by their error, edges stitched", True,
                  conforming=True, morphs=True),
     StrategyInfo("geomipmap_distance", "geoterrain.lod.geomipmap_distance",
                  "GeoMipMapping with the thesis's switch distances D_n = δ·C (unbounded)",
+                 "blocks switched at fixed distances (error not guaranteed)",
                  False, conforming=True),
     StrategyInfo("quadtree", "geoterrain.lod.quadtree",
-                 "restricted quadtree, Manhattan-distance LOD (seed 003; unbounded)", False,
+                 "restricted quadtree, Manhattan-distance LOD (seed 003; unbounded)",
+                 "a quadtree refined by distance (error not guaranteed)", False,
                  conforming=True),
     StrategyInfo("cdlod", "geoterrain.lod.cdlod",
                  "CDLOD: tile quadtree, one range per level, morphed, no skirts (seed 001)",
-                 True, morphs=True, morph_default=True),
+                 "tiles by distance ranges, blended smoothly between levels", True,
+                 morphs=True, morph_default=True),
     StrategyInfo("tessellation", "geoterrain.lod.tessellation",
                  "HAM-driven quad-domain tessellation, factors 1-64 (seed 004; unbounded)",
+                 "tiles subdivided by how rough they are (error not guaranteed)",
                  False, conforming=True),
 )
 
@@ -101,12 +112,13 @@ def strategy_info(name: str) -> StrategyInfo:
                          ) from None
 
 
-def describe() -> str:
-    """One line per strategy, ``name: summary``, for help texts.
+def describe(words: bool = True) -> str:
+    """One line per strategy, ``name: what it does``, for help texts (``words``: in a
+    user's words; else its technical summary with its source, for the strategy docs).
 
     Examples
     --------
-    >>> describe().splitlines()[0].startswith("rtin: ")
-    True
+    >>> describe().splitlines()[0]
+    'rtin: triangles refined where the view needs them, crack-free (the default)'
     """
-    return "\n".join(f"{e.name}: {e.summary}" for e in _ENTRIES)
+    return "\n".join(f"{e.name}: {e.words if words else e.summary}" for e in _ENTRIES)

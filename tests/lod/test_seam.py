@@ -43,7 +43,8 @@ def test_every_registered_strategy_selects_through_the_seam(terrain):
 
 
 def test_a_new_strategy_is_one_registry_line(terrain, monkeypatch):
-    entry = registry.StrategyInfo("every-tile", "geoterrain.lod.bruteforce", "test", True)
+    entry = registry.StrategyInfo("every-tile", "geoterrain.lod.bruteforce", "test", "test",
+                                   True)
     monkeypatch.setitem(registry.REGISTRY, entry.name, entry)
     sel = lod.select(terrain, view(terrain), 2.0, "every-tile")
     assert sel.stats["strategy"] == "every-tile" and sel.stats["triangles"] > 0

@@ -66,9 +66,11 @@ def test_docs_notebook_runs(tmp_path, monkeypatch):
     outs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
     assert not [o for o in outs if o.output_type == "error"]
     assert any("text/html" in o.get("data", {}) for o in outs)  # the Terrain summary
-    assert any("image/png" in o.get("data", {}) for o in outs)  # t.plot()
+    # the default render, the map, water, a drape and the print's preview
+    assert sum("image/png" in o.get("data", {}) for o in outs) == 5
     text = "".join(o.get("text", "") for o in outs)
-    assert "terrain.glb" in text and "True" in text
+    assert "relief.stl" in text and "terrain.glb" in text and "uint8" in text
+    assert "True True" in text
 
 
 def test_analysis_notebook_runs(tmp_path, monkeypatch):
@@ -91,7 +93,7 @@ def test_analysis_notebook_runs(tmp_path, monkeypatch):
 @pytest.mark.parametrize("backend", ["server", "client"])
 def test_plot_with_trame_rendering_in_the_kernel_follows_the_camera(tmp_path, fbm_tif,
                                                                     monkeypatch, backend):
-    """``plot`` through a trame backend that renders in the kernel ("trame", "server"):
+    """``plot(interactive=True)`` through a trame backend that renders in the kernel:
     the viewer's controller is on the plotter, and a camera move ended by the mouse's
     release re-selects the LOD; "client" (vtk.js in the page) keeps one selection."""
     import numpy as np
@@ -108,7 +110,7 @@ def test_plot_with_trame_rendering_in_the_kernel_follows_the_camera(tmp_path, fb
 
     monkeypatch.setattr(pv.Plotter, "show", show)
     t = geoterrain.open(geoterrain.preprocess(fbm_tif, tmp_path / "a.geoterrain", tile_size=32))
-    p = t.plot(size=(480, 270))
+    p = t.plot(size=(480, 270), interactive=True)
     try:
         assert shown["backend"] == backend
         ctl = getattr(p, "_geoterrain_viewer", None)
@@ -128,3 +130,17 @@ def test_plot_with_trame_rendering_in_the_kernel_follows_the_camera(tmp_path, fb
             p._geoterrain_viewer.close()
         p.close()
         t.close()
+
+
+@pytest.mark.fast
+def test_docs_notebook_is_stored_with_its_pictures():
+    """The stored notebook carries its outputs (its page shows the pictures), made from the
+    real DEM, small enough for the repository, with no machine path in them."""
+    nbformat = pytest.importorskip("nbformat")
+    path = ROOT / "docs" / "quickstart.ipynb"
+    nb = nbformat.read(path, as_version=4)
+    outs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
+    assert sum("image/png" in o.get("data", {}) for o in outs) == 5
+    text = path.read_text()
+    assert "srtm1_japan" in text and "/tmp/" not in text and "/work/" not in text
+    assert path.stat().st_size < 1_500_000
