@@ -68,8 +68,8 @@ from geoterrain.cli.options import (
               help="With --path: eased frames on a smooth spline between each pair of cameras.")
 @click.option("--fps", type=float, default=10.0, show_default=True, help="Animation speed.")
 @click.option("--strips", is_flag=True,
-              help="Draw the mesh as seed 002's triangle strips instead of triangle lists "
-                   "(the same picture; no faster on the CPU renderer, docs/benchmarks.md).")
+              help="Draw the mesh as triangle strips instead of triangle lists (the same "
+                   "picture; no faster on the CPU renderer, docs/benchmarks.md).")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance,

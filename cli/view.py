@@ -70,9 +70,9 @@ def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exagg
 
     With --web the same viewer runs in a browser tab (PyVista's trame backend:
     `pip install 'geoterrain[web]'`): the pictures are rendered here and streamed, the
-    mouse moves the camera and the LOD follows it; the status line says the strategy,
-    τ and the triangles drawn. Useful on a remote machine or a server without a
-    display (forward the port, e.g. ssh -L 8080:127.0.0.1:8080).
+    mouse moves the camera and the LOD follows it; the status line says the strategy, the
+    detail in pixels and the triangles drawn. Useful on a remote machine or a server
+    without a display (forward the port, e.g. ssh -L 8080:127.0.0.1:8080).
 
     \b
     Examples:
