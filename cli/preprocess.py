@@ -38,8 +38,8 @@ from geoterrain.ingest.raster import ENCODINGS
               "(nan: only NaN). Undeclared -32768/-9999/float32-min runs are voids by default.")
 @click.option("--memory-limit", callback=parse_bytes, metavar="SIZE",
               help="Memory the job may use, e.g. 2G or 800M (default: half of what is "
-                   "available). A single-band projected raster too large for it is read "
-                   "a window at a time, into the same store.")
+                   "available). A DEM too large for it (any input) is read a window at a "
+                   "time, into the same store.")
 @click.option("--scheduler", default="sync", show_default=True, metavar="SPEC",
               help="Where a streamed preprocess's passes run: sync, threads:N, "
                    "processes:N, dask:ADDRESS (a running dask scheduler) or dask:local:N "
