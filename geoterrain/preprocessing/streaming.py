@@ -102,14 +102,17 @@ def streaming_band(shape: tuple[int, int], memory_limit: int, geographic: bool =
     --------
     >>> streaming_band((65, 65), 1 << 40), streaming_band((65, 65), 1 << 18)
     (None, 2)
+    >>> streaming_band((1762, 47163), 16 << 30)  # pads to 65537²: streamed
+    16
     """
     from geoterrain.ingest.raster import PREPROCESS_BYTES_PER_SAMPLE
 
     H, W = shape
     kind = "geographic" if geographic else "projected"
-    if H * W * PREPROCESS_BYTES_PER_SAMPLE[kind] <= memory_limit:
+    N = Grid.for_shape(H, W).size  # the whole grid is padded to N²: a long, thin raster
+    if N * N * PREPROCESS_BYTES_PER_SAMPLE[kind] <= memory_limit:  # pads to far more
         return None
-    return band_rows(Grid.for_shape(H, W).size, memory_limit, geographic)
+    return band_rows(N, memory_limit, geographic)
 
 
 def band_rows(N: int, memory_limit: int, geographic: bool = False) -> int:
