@@ -12,7 +12,7 @@ Examples
 --------
 >>> STRATEGIES  # doctest: +NORMALIZE_WHITESPACE
 ('rtin', 'chunked', 'bruteforce', 'geomipmap', 'geomipmap_distance', 'quadtree', 'cdlod',
- 'tessellation')
+ 'tessellation', 'gtr', 'gtr_bounded', 'lauritsen_nielsen')
 >>> strategy_info("chunked").bounded
 True
 """
@@ -79,6 +79,16 @@ _ENTRIES = (
     StrategyInfo("tessellation", "geoterrain.lod.tessellation",
                  "HAM-driven quad-domain tessellation, factors 1-64 (seed 004; unbounded)",
                  False, conforming=True),
+    StrategyInfo("gtr", "geoterrain.lod.gtr",
+                 "GPU Terrain Rendering as the thesis built it: fixed-size blocks, "
+                 "D_n = δ_b·C, skirts, morphed (seed 000 §2.8; unbounded)", False,
+                 morphs=True, morph_default=True),
+    StrategyInfo("gtr_bounded", "geoterrain.lod.gtr_bounded",
+                 "GPU Terrain Rendering's blocks refined by the exact tile error over the "
+                 "box distance (seed 000 §2.8)", True, morphs=True),
+    StrategyInfo("lauritsen_nielsen", "geoterrain.lod.lauritsen_nielsen",
+                 "Lauritsen & Nielsen: GeoMipMapping chunks in a chunked-LOD quadtree, "
+                 "δ_b of eq. 4-23 (seed 000 §2.7)", True, morphs=True),
 )
 
 REGISTRY: dict[str, StrategyInfo] = {e.name: e for e in _ENTRIES}
