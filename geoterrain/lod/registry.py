@@ -12,7 +12,7 @@ Examples
 --------
 >>> STRATEGIES  # doctest: +NORMALIZE_WHITESPACE
 ('rtin', 'chunked', 'bruteforce', 'geomipmap', 'geomipmap_distance', 'quadtree', 'cdlod',
- 'tessellation', 'gtr', 'gtr_bounded', 'lauritsen_nielsen')
+ 'tessellation', 'gtr', 'gtr_bounded', 'lauritsen_nielsen', 'roam', 'roam_split')
 >>> strategy_info("chunked").bounded
 True
 """
@@ -89,6 +89,12 @@ _ENTRIES = (
     StrategyInfo("lauritsen_nielsen", "geoterrain.lod.lauritsen_nielsen",
                  "Lauritsen & Nielsen: GeoMipMapping chunks in a chunked-LOD quadtree, "
                  "δ_b of eq. 4-23 (seed 000 §2.7)", True, morphs=True),
+    StrategyInfo("roam", "geoterrain.lod.roam",
+                 "ROAM: triangle bintrees, wedgies, split and merge queues from the last "
+                 "frame (seed 000 §2.2)", True, conforming=True),
+    StrategyInfo("roam_split", "geoterrain.lod.roam_split",
+                 "McNally's split-only ROAM, variance over distance (seed 000 §2.2; "
+                 "unbounded)", False, conforming=True),
 )
 
 REGISTRY: dict[str, StrategyInfo] = {e.name: e for e in _ENTRIES}
