@@ -12,7 +12,8 @@ Examples
 --------
 >>> STRATEGIES  # doctest: +NORMALIZE_WHITESPACE
 ('rtin', 'chunked', 'bruteforce', 'geomipmap', 'geomipmap_distance', 'quadtree', 'cdlod',
- 'tessellation', 'gtr', 'gtr_bounded', 'lauritsen_nielsen', 'roam', 'roam_split')
+ 'tessellation', 'gtr', 'gtr_bounded', 'lauritsen_nielsen', 'roam', 'roam_split',
+ 'clipmap', 'clipmap_bounded', 'clipmap_gpu', 'rottger')
 >>> strategy_info("chunked").bounded
 True
 """
@@ -95,6 +96,21 @@ _ENTRIES = (
     StrategyInfo("roam_split", "geoterrain.lod.roam_split",
                  "McNally's split-only ROAM, variance over distance (seed 000 §2.2; "
                  "unbounded)", False, conforming=True),
+    StrategyInfo("clipmap", "geoterrain.lod.clipmap",
+                 "geometry clipmaps: nested viewer-centred 255² grids, toroidal updates, "
+                 "transition regions (seed 000 §2.9; unbounded)", False,
+                 tau_independent=True, conforming=True, morphs=True, morph_default=True),
+    StrategyInfo("clipmap_bounded", "geoterrain.lod.clipmap_bounded",
+                 "geometry clipmaps whose finest level and region sizes come from the tile "
+                 "errors (seed 000 §2.9)", True, conforming=True, morphs=True,
+                 morph_default=True),
+    StrategyInfo("clipmap_gpu", "geoterrain.lod.clipmap_gpu",
+                 "GPU-based geometry clipmaps: footprints, vertex-texture heights, emulated "
+                 "on arrays (seed 000 §2.10; unbounded)", False, tau_independent=True,
+                 conforming=True, morphs=True, morph_default=True),
+    StrategyInfo("rottger", "geoterrain.lod.rottger",
+                 "Röttger's quadtree matrix: d2 roughness propagated by K, fans, then refined "
+                 "to the LP δ bound (seed 000 §2.3)", True, conforming=True),
 )
 
 REGISTRY: dict[str, StrategyInfo] = {e.name: e for e in _ENTRIES}
