@@ -42,10 +42,15 @@ if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
 
+SKIRTS = ("optimised", "all", "none")  # Table 6-2's SkirtsOptimized, Skirts, None
+
+
 def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,
-           morph: bool | None = None):
+           morph: bool | None = None, skirts: str = "optimised"):
     """The GTR mesh of ``view`` at pixel tolerance ``tau`` (switch distances D_n = δ_b·C),
-    and its stats; ``morph``: eq. 5-6 geomorphing (on unless False).
+    and its stats; ``morph``: eq. 5-6 geomorphing (on unless False); ``skirts``: the
+    thesis's crack treatments (Table 6-2's SpatialCoherence): ``optimised`` (the default),
+    ``all`` (every inner side) or ``none`` (cracks left open).
 
     Examples
     --------
@@ -74,7 +79,9 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
         stats["morphing_blocks"] = int((t > 0).sum())
     edge = index.boundary[leaves].copy()
     edge = np.where(t > 0, np.maximum(edge, be.delta_b[np.maximum(p, 0)]), edge)
-    depth = skirt_depth(edge)
-    sides = skirt_sides(terrain, index, leaves, view, depth)
+    if skirts not in SKIRTS:
+        raise ValueError(f"skirts must be one of {', '.join(SKIRTS)}, got {skirts!r}")
+    depth = skirt_depth(edge) if skirts != "none" else np.zeros(len(leaves))
+    sides = skirt_sides(terrain, index, leaves, view, depth) if skirts == "optimised" else None
     stats.update(blocks=len(leaves), mean_level=float(index.keys[leaves, 0].mean()))
     return block_mesh(terrain, index, leaves, t, depth, sides), stats
