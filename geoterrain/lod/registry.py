@@ -110,7 +110,8 @@ _ENTRIES = (
                  conforming=True, morphs=True, morph_default=True),
     StrategyInfo("rottger", "geoterrain.lod.rottger",
                  "Röttger's quadtree matrix: d2 roughness propagated by K, fans, then refined "
-                 "to the LP δ bound (seed 000 §2.3)", True, conforming=True),
+                 "to the LP δ bound, eq. 4-7 blend (seed 000 §2.3)", True, conforming=True,
+                 morphs=True),
 )
 
 REGISTRY: dict[str, StrategyInfo] = {e.name: e for e in _ENTRIES}

@@ -28,7 +28,10 @@ Detail for Height Fields" (seed 000 §2.3, eq. 4-3 … 4-6).
   distance to the leaf's box; and neighbours keep levels differing by at most one (the
   restricted quadtree of :mod:`geoterrain.lod.quadtree`; the stats count what each pass
   added). So ρ ≤ τ: registered bounded.
-- Left out: the geomorph blend of eq. 4-7 (``morph`` is ignored).
+- **Geomorphing** (``morph=True``, off by default; eq. 4-7): each leaf's centre and edge
+  midpoints blend between the parent's surface and their heights by b = clamp(2(1 − f),
+  0, 1), neighbours sharing a midpoint taking the smaller b; a vertex moves only where the
+  bound still holds (:func:`_morph`).
 """
 
 from __future__ import annotations
@@ -179,8 +182,8 @@ def _hidden(tb: Tables, hidden: np.ndarray, k: int, x: np.ndarray, y: np.ndarray
 
 def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,
            morph: bool | None = None):
-    """The Röttger mesh of ``view`` at pixel tolerance ``tau`` and its stats (``morph`` is
-    ignored).
+    """The Röttger mesh of ``view`` at pixel tolerance ``tau`` and its stats; ``morph``:
+    eq. 4-7's blend (off unless True).
 
     Examples
     --------
@@ -197,6 +200,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     hidden = hidden_rows(terrain, view, enabled=occlusion)
     x = y = np.zeros(1, np.int64)
     leaves, visited, culled = [], 0, 0
+    splits: dict[int, tuple] = {}  # per depth: the nodes the rule split (keys) and their f
     for k in range(tb.n):
         h = 1 << (tb.n - k - 1)
         visited += len(x)
@@ -217,6 +221,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
             f = ell / (d * C_MIN * np.maximum(c * tb.d2[k][y, x], 1.0))  # eq. 4-5
         split = (f < 1.0) & (h > 1)
         leaves.append((k, x[~split], y[~split]))
+        splits[k] = (y[split].astype(np.int64) << 32) + x[split], f[split]
         x = (np.repeat(x[split], 4) << 1) + np.tile([0, 1, 0, 1], int(split.sum()))
         y = (np.repeat(y[split], 4) << 1) + np.tile([0, 0, 1, 1], int(split.sum()))
         if not len(x):
@@ -230,7 +235,106 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     mesh = assemble_leaves(terrain, leaves, D, dmax)
     stats.update(leaves=sum(len(v[1]) for v in leaves), seed_leaves=seed,
                  bound_splits=added[0], restricted_splits=added[1], depth=dmax)
+    if morph and mesh.n_points:
+        stats["morphing_vertices"] = _morph(terrain, tb, view, tau, leaves, D, dmax, splits,
+                                            mesh)
     return mesh, stats
+
+
+def _morph(terrain: TerrainLike, tb: Tables, view: View, tau: float, leaves, D, dmax: int,
+           splits: dict, mesh) -> int:
+    """Eq. 4-7's geomorph, in place on ``mesh``: each leaf's five vertices that its parent
+    lacks (centre, edge midpoints) are drawn at c + b·(z − c), c the parent's surface there
+    (the mean of the two samples bracketing it), b = clamp(2(1 − f), 0, 1) from the
+    parent's f (1 where the bound or the restriction, not the rule, split the parent);
+    a vertex two leaves share takes the smaller b (L1511–1513). Choice, for the bound: a
+    vertex moves only if every leaf it belongs to keeps λ·(its fan bound + the largest δ
+    of its vertices) / D_min ≤ τ (δ(v) bounds how far v's morph moves it: the parent's
+    surface at v is the bintree surface without v). Returns how many vertices moved."""
+    N = tb.N
+    ij = np.asarray(mesh.point_data["grid_ij"]).astype(np.int64)
+    pts = np.asarray(mesh.points)
+    key = ij[:, 0] * N + ij[:, 1]
+    order = np.argsort(key)
+    skey = key[order]
+    V = len(key)
+    ok = np.ones(V, bool)
+    fac = np.ones(V)
+    coarse = np.full(V, np.nan)
+    P = np.pad(D, 1, constant_values=-1)
+    lam = view.lam
+    a, b = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+    groups = []
+    for k, x, y in leaves:  # first: each leaf's vertices, and the five that may move
+        h = 1 << (tb.n - k - 1)
+        i0, j0 = y * 2 * h, x * 2 * h
+        ii = i0[:, None] + (a.ravel() * h)[None]
+        jj = j0[:, None] + (b.ravel() * h)[None]
+        pos = np.minimum(np.searchsorted(skey, ii * N + jj), V - 1)
+        ids = np.where(skey[pos] == ii * N + jj, order[pos], -1)
+        bl = np.ones(len(x))  # b from the parent's f (eq. 4-7); 1 where the rule did not
+        pk, pf = splits.get(k - 1, (np.zeros(0, np.int64), np.zeros(0)))  # split it
+        if len(pk):
+            srt = np.argsort(pk)
+            pk, pf = pk[srt], pf[srt]
+            want = ((y >> 1).astype(np.int64) << 32) + (x >> 1)
+            p = np.minimum(np.searchsorted(pk, want), len(pk) - 1)
+            bl = np.where(pk[p] == want, np.clip(2.0 * (1.0 - pf[p]), 0.0, 1.0), 1.0)
+        # the five new vertices' coarse heights: the parent's surface, whose union jack
+        # at the parent's spacing splits this quarter along (0,0)–(2,2) or (0,2)–(2,0)
+        main = ((i0 // (2 * h)) + (j0 // (2 * h))) % 2 == 0
+        Zc = tb.Z[ii, jj]  # (L, 9): the leaf's 3 × 3, row by row
+        cen = np.where(main, 0.5 * (Zc[:, 0] + Zc[:, 8]), 0.5 * (Zc[:, 2] + Zc[:, 6]))
+        for slot, c in ((4, cen), (1, 0.5 * (Zc[:, 0] + Zc[:, 2])),
+                        (7, 0.5 * (Zc[:, 6] + Zc[:, 8])), (3, 0.5 * (Zc[:, 0] + Zc[:, 6])),
+                        (5, 0.5 * (Zc[:, 2] + Zc[:, 8]))):
+            v = ids[:, slot]
+            s_ = (v >= 0) & (bl < 1.0)
+            np.minimum.at(fac, v[s_], bl[s_])
+            coarse[v[s_]] = c[s_]
+        groups.append((k, x, y, ii, jj, ids))
+    moving = (fac < 1.0) & np.isfinite(coarse)
+    for k, x, y, ii, jj, ids in groups:  # then: which leaves keep the bound while they move
+        e = _leaf_error(tb, P, dmax, k, x, y)
+        lo, hi = _boxes(terrain, tb, k, x, y)
+        dist = view.box_distance(lo, hi)
+        mv = (ids >= 0) & moving[np.maximum(ids, 0)]
+        dv = np.where(mv, np.nan_to_num(tb.delta[ii, jj], nan=np.inf), 0.0).max(1)
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            allowed = lam * (e + dv) <= tau * dist
+        m = ids >= 0
+        np.logical_and.at(ok, ids[m], np.repeat(allowed, 9).reshape(-1, 9)[m])
+    go = ok & (fac < 1.0) & np.isfinite(coarse)
+    z = pts[:, 2].copy()
+    z[go] = coarse[go] + fac[go] * (z[go] - coarse[go])
+    pts = pts.copy()
+    pts[:, 2] = z
+    mesh.points = pts
+    return int(go.sum())
+
+
+_SIDES = (((-1, 0), (-1, 0)), ((1, 0), (None, 0)), ((0, -1), (0, -1)), ((0, 1), (0, None)))
+
+
+def _leaf_error(tb: Tables, P: np.ndarray, dmax: int, k: int, x: np.ndarray, y: np.ndarray
+                ) -> np.ndarray:
+    """A bound of each depth-k leaf's fan surface against the samples: the largest LP δ
+    of its fan triangles' split vertices (its quarter centres) and of each edge midpoint
+    it skips (the neighbour across is coarser; ``P``: the padded depth map)."""
+    h = 1 << (tb.n - k - 1)
+    ci, cj = (2 * y + 1) * h, (2 * x + 1) * h
+    e = np.zeros(len(x))
+    if h > 1:
+        q = h // 2
+        for a, b in ((-q, -q), (-q, q), (q, -q), (q, q)):
+            e = np.maximum(e, tb.delta[ci + a, cj + b])
+    cc = 1 << (dmax - k)
+    r0, c0 = y * cc + 1, x * cc + 1
+    for (di, dj), (pr, pc) in _SIDES:
+        nb = P[r0 + (cc if pr is None else pr), c0 + (cc if pc is None else pc)]
+        skip = (nb >= 0) & (nb < k)
+        e = np.where(skip, np.maximum(e, tb.delta[ci + di * h, cj + dj * h]), e)
+    return e
 
 
 def _bound(terrain: TerrainLike, tb: Tables, view: View, tau: float, leaves):
@@ -253,18 +357,9 @@ def _bound(terrain: TerrainLike, tb: Tables, view: View, tau: float, leaves):
             lo, hi = _boxes(terrain, tb, k, x, y)
             dist = view.box_distance(lo, hi)
             ci, cj = (2 * y + 1) * h, (2 * x + 1) * h
-            e = np.zeros(len(x))
-            if h > 1:  # the fan triangles' split vertices: the quarter centres
-                q = h // 2
-                for a, b in ((-q, -q), (-q, q), (q, -q), (q, q)):
-                    e = np.maximum(e, tb.delta[ci + a, cj + b])
+            e = _leaf_error(tb, P, dmax, k, x, y)
             cc = 1 << (dmax - k)
             r0, c0 = y * cc + 1, x * cc + 1
-            for (di, dj), (pr, pc) in (((-h, 0), (-1, 0)), ((h, 0), (cc, 0)),
-                                       ((0, -h), (0, -1)), ((0, h), (0, cc))):
-                nb = P[r0 + pr, c0 + pc]
-                skip = (nb >= 0) & (nb < k)
-                e = np.where(skip, np.maximum(e, tb.delta[ci + di, cj + dj]), e)
             with np.errstate(invalid="ignore", divide="ignore"):
                 bad = ~(lam * e <= tau * dist) & (h > 1)
             if bad.any():

@@ -76,3 +76,32 @@ def test_the_seed_rule_and_the_bound_pass(rough):
     fine = rough.select(view, 1.0, "rottger", reuse=False).stats["triangles"]
     coarse = rough.select(view, 8.0, "rottger", reuse=False).stats["triangles"]
     assert coarse < fine
+
+
+@pytest.mark.fast
+def test_the_eq_4_7_blend_moves_vertices_within_the_bound(rough):
+    """With ``morph`` the leaves' new vertices slide towards the parent's surface (each
+    by at most its δ) where the bound allows; the measured ρ stays ≤ τ."""
+    from geoterrain.testing.measure import screen_space_error
+
+    X, Y, Z = rough.scene_xyz()
+    valid = np.isfinite(Z)
+    lo, hi = rough.scene_box()
+    c = 0.5 * (lo + hi)
+    w = float(hi[1] - lo[1])
+    moved = 0
+    for k, tau in enumerate((1.0, 4.0, 16.0)):
+        view = View(tuple(c + [0.1 * k * w, -1.2 * w, 0.5 * w]), tuple(c), size=(640, 360))
+        still = rough.select(view, tau, "rottger", reuse=False, occlusion=False, morph=False)
+        sel = rough.select(view, tau, "rottger", reuse=False, occlusion=False, morph=True)
+        assert sel.stats["triangles"] == still.stats["triangles"]
+        moved += sel.stats["morphing_vertices"]
+        z = np.asarray(sel.mesh.points)[:, 2]
+        z0 = np.asarray(still.mesh.points)[:, 2]
+        ij = sel.ij.astype(np.int64)
+        delta = rottger.tables(rough).delta[ij[:, 0], ij[:, 1]]
+        assert (np.abs(z - z0) <= delta + 1e-9).all()
+        e = screen_space_error(sel.ij, sel.surface_faces(), z, X, Y, np.where(valid, Z, 0.0),
+                               valid, view.eye, view.planes, view.lam)
+        assert e.max <= tau * (1 + 1e-9)
+    assert moved > 0
