@@ -464,7 +464,7 @@ def format_result(res: ExperimentResult) -> str:
     ...     thesis=(200, 294, 1310, 626), reference="BF", ratio=1.0,
     ...     thesis_ratio=(1.0, 1.0, 1.0, 1.0))], "msaa", 1.0, [])
     >>> print(format_result(r).splitlines()[2])  # doctest: +NORMALIZE_WHITESPACE
-    6-20  Valley  BF  bruteforce  10.0  1.00  5  200 294 1310 626  1.00–1.00
+    6-20  Valley  BF  bruteforce  10  1.00  5  200 294 1310 626  1.00–1.00
     """
     head = ("table", "group", "setting", "strategy", "FPS", "× ref", "triangles",
             "thesis " + " ".join(MACHINES), "thesis × ref")
@@ -476,7 +476,7 @@ def format_result(res: ExperimentResult) -> str:
         tr = [v for v in (r["thesis_ratio"] or ()) if v is not None]
         trs = f"{min(tr):.2f}–{max(tr):.2f}" if tr else "-"
         lines.append("  ".join([r["table"], r["group"], r["setting"], r["strategy"],
-                                f"{r['fps']:.1f}", f"{r['ratio']:.2f}", str(r["triangles"]),
+                                f"{r['fps']:.3g}", f"{r['ratio']:.2f}", str(r["triangles"]),
                                 th, trs]))
     return "\n".join(lines)
 
