@@ -85,3 +85,15 @@ def test_cli_lists_and_refuses_clearly():
     assert r.exit_code == 2 and re.search("unknown experiment 'nope'", r.output)
     r = invoke("bench", "--experiment", "algorithm", "--terrains", "Moon")
     assert r.exit_code == 2 and "unknown terrain 'Moon'" in r.output
+
+
+@pytest.mark.fast
+def test_thesis_ratios_print_as_the_docs_divide():
+    # Table 6-20, Highland on N2: GMM 195 / BF 120 = 1.625, which the docs write 1.63
+    rows = [{"table": "6-20", "group": "Highland", "setting": s, "algorithm": s,
+             "strategy": ex.ALGORITHMS[s], "terrain": "Highland", "fps": 1.0, "triangles": 1,
+             "thesis": th, "reference": "BF"}
+            for s, th in (("BF", (50, 120, 379, 33)), ("GMM", (53, 195, 409, 30)))]
+    ex._ratios(rows)
+    out = ex.format_result(ex.ExperimentResult("algorithm", rows, "msaa", 0.0, []))
+    assert out.splitlines()[-1].endswith("0.91–1.63")
