@@ -338,7 +338,25 @@ class TerrainScene:
         t0, p0 = time.perf_counter(), time.process_time()
         sel = lod.select(t, view, pixel_error=pixel_error, strategy=strategy,
                          occlusion=self.occlusion, morph=self.morph)
+        return self.draw(sel, view, (t0, p0, c0))
+
+    def draw(self, sel: lod.Selection, view: View, started: tuple | None = None
+             ) -> tuple[np.ndarray, dict]:
+        """Draw a selection made for ``view`` (by :meth:`frame`, or by a strategy called
+        with arguments of its own, as the benchmark experiments do) and return the image
+        and the stats of :meth:`frame`; ``started``: (wall clock, process clock, io
+        counters) when the selection began, else the draw's own start.
+
+        Examples
+        --------
+        >>> img, stats = scene.draw(sel, view)  # doctest: +SKIP
+        """
+        t = self.terrain
+        if view.near is None or view.far is None:
+            view = view.clipped_to(*t.scene_box())
         t1 = time.perf_counter()
+        t0, p0, c0 = started if started is not None else (t1, time.process_time(),
+                                                         io_counters(t))
         self.update(sel, view)
         self.set_camera(view)
         t2, p2 = time.perf_counter(), time.process_time()

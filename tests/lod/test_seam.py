@@ -68,7 +68,7 @@ def test_bad_pixel_error_is_a_usage_error_in_api_words(terrain, tau):
 
 def test_unknown_strategy_names_the_choices(terrain):
     with pytest.raises(UsageError, match="use one of rtin, chunked, bruteforce"):
-        terrain.select(view(terrain), 1.0, "roam")
+        terrain.select(view(terrain), 1.0, "no_such_strategy")
 
 
 def test_selection_writes_nothing_into_the_terrain(terrain):
