@@ -56,7 +56,7 @@ def _floats(ctx, param, value):
               help="Where a DEM's store is written (default: a temporary directory); with "
                    "--experiment, where the stand-in terrains and their stores are kept.")
 @click.option("--experiment", metavar="NAME",
-              help="Re-run one of seed 000's experiments (the thesis's Tables 6-3 … 6-20) "
+              help="Re-run one of the LOD thesis's experiments (its Tables 6-3 … 6-20) "
                    "instead: tile-size, cull-mode, lod-error, spatial-coherence, "
                    "temporal-coherence, resolution, algorithm; 'list' describes them.")
 @click.option("--terrains", default="Valley,Desert,Terrace,Highland", show_default=True,
@@ -77,7 +77,7 @@ def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_ali
     of the mesh against the full-resolution heights. A DEM is preprocessed
     first (its time and store size are recorded). Prints a summary table.
 
-    With --experiment NAME it re-runs one of the thesis's experiments instead (seed 000,
+    With --experiment NAME it re-runs one of the LOD thesis's experiments instead (its
     Tables 6-3 … 6-20: BF, GMM and GTR over a one-minute flight on stand-ins of its four
     terrains, every frame selected and drawn) and prints each row's frame rate beside the
     thesis's four machines. Every row is drawn with one anti-aliasing mode (msaa unless

@@ -93,35 +93,50 @@ _ENTRIES = (
                  False, conforming=True),
     StrategyInfo("gtr", "geoterrain.lod.gtr",
                  "GPU Terrain Rendering as the thesis built it: fixed-size blocks, "
-                 "D_n = δ_b·C, skirts, morphed (seed 000 §2.8; unbounded)", False,
+                 "D_n = δ_b·C, skirts, morphed (seed 000 §2.8; unbounded)",
+                 "fixed-size blocks switched by distance (error not guaranteed)", False,
                  morphs=True, morph_default=True),
     StrategyInfo("gtr_bounded", "geoterrain.lod.gtr_bounded",
                  "GPU Terrain Rendering's blocks refined by the exact tile error over the "
-                 "box distance (seed 000 §2.8)", True, morphs=True),
+                 "box distance (seed 000 §2.8)",
+                 "fixed-size blocks refined by their error, seams hidden by skirts",
+                 True, morphs=True),
     StrategyInfo("lauritsen_nielsen", "geoterrain.lod.lauritsen_nielsen",
                  "Lauritsen & Nielsen: GeoMipMapping chunks in a chunked-LOD quadtree, "
-                 "δ_b of eq. 4-23 (seed 000 §2.7)", True, morphs=True),
+                 "δ_b of eq. 4-23 (seed 000 §2.7)",
+                 "blocks drawn at coarser steps, grouped in a quadtree by their error",
+                 True, morphs=True),
     StrategyInfo("roam", "geoterrain.lod.roam",
                  "ROAM: triangle bintrees, wedgies, split and merge queues from the last "
-                 "frame (seed 000 §2.2)", True, conforming=True),
+                 "frame (seed 000 §2.2)",
+                 "triangles split and merged from the last frame by their error",
+                 True, conforming=True),
     StrategyInfo("roam_split", "geoterrain.lod.roam_split",
                  "McNally's split-only ROAM, variance over distance (seed 000 §2.2; "
-                 "unbounded)", False, conforming=True),
+                 "unbounded)",
+                 "triangles split by roughness over distance (error not guaranteed)",
+                 False, conforming=True),
     StrategyInfo("clipmap", "geoterrain.lod.clipmap",
                  "geometry clipmaps: nested viewer-centred 255² grids, toroidal updates, "
-                 "transition regions (seed 000 §2.9; unbounded)", False,
+                 "transition regions (seed 000 §2.9; unbounded)",
+                 "nested grids centred on the viewer (error not guaranteed)", False,
                  tau_independent=True, conforming=True, morphs=True, morph_default=True),
     StrategyInfo("clipmap_bounded", "geoterrain.lod.clipmap_bounded",
                  "geometry clipmaps whose finest level and region sizes come from the tile "
-                 "errors (seed 000 §2.9)", True, conforming=True, morphs=True,
+                 "errors (seed 000 §2.9)",
+                 "nested grids centred on the viewer, sized by the terrain's error",
+                 True, conforming=True, morphs=True,
                  morph_default=True),
     StrategyInfo("clipmap_gpu", "geoterrain.lod.clipmap_gpu",
                  "GPU-based geometry clipmaps: footprints, vertex-texture heights, emulated "
-                 "on arrays (seed 000 §2.10; unbounded)", False, tau_independent=True,
+                 "on arrays (seed 000 §2.10; unbounded)",
+                 "nested grids built from reusable pieces (error not guaranteed)",
+                 False, tau_independent=True,
                  conforming=True, morphs=True, morph_default=True),
     StrategyInfo("rottger", "geoterrain.lod.rottger",
                  "Röttger's quadtree matrix: d2 roughness propagated by K, fans, then refined "
-                 "to the LP δ bound, eq. 4-7 blend (seed 000 §2.3)", True, conforming=True,
+                 "to the LP δ bound, eq. 4-7 blend (seed 000 §2.3)",
+                 "a quadtree refined by roughness and distance, crack-free", True, conforming=True,
                  morphs=True),
 )
 
