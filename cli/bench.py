@@ -54,26 +54,44 @@ def _floats(ctx, param, value):
 @click.option("-o", "--output", type=click.Path(dir_okay=False), help="Tidy CSV of every frame.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Figure (PNG).")
 @click.option("--cache-dir", type=click.Path(file_okay=False),
-              help="Where a DEM's store is written (default: a temporary directory).")
+              help="Where a DEM's store is written (default: a temporary directory); with "
+                   "--experiment, where the stand-in terrains and their stores are kept.")
+@click.option("--experiment", metavar="NAME",
+              help="Re-run one of the LOD thesis's experiments (its Tables 6-3 … 6-20) "
+                   "instead: tile-size, cull-mode, lod-error, spatial-coherence, "
+                   "temporal-coherence, resolution, algorithm; 'list' describes them.")
+@click.option("--terrains", default="Valley,Desert,Terrace,Highland", show_default=True,
+              help="With --experiment: the thesis's terrains to run on (stand-ins of 257², "
+                   "513², 1025², 2049²).")
+@click.option("--frames", default=6, show_default=True, type=click.IntRange(1, 60),
+              help="With --experiment: frames timed over the one-minute flight.")
 @click.option("--overwrite", is_flag=True, help="Replace the CSV and the figure if they exist.")
 @click.pass_context
 def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_aliasing,
             pixel_errors, n_views, cameras, size, render, peers, peer_errors, output, plot_path,
-            cache_dir, overwrite):
+            cache_dir, experiment, terrains, frames, overwrite):
     """Benchmark the LOD strategies on SOURCE (a store or a DEM) or a synthetic DEM.
 
-    Runs every strategy at every τ over a camera path (a built-in flight of
+    Runs every strategy at every --pixel-error over a camera path (a built-in flight of
     overview, low oblique, grazing and looking-away views, or --path), and
     measures each frame: selection (and --render) time, triangles, vertices,
     tiles decoded, peak memory, and the measured screen-space error (max, p99)
     of the mesh against the full-resolution heights. A DEM is preprocessed
     first (its time and store size are recorded). Prints a summary table.
 
+    With --experiment NAME it re-runs one of the LOD thesis's experiments instead (its
+    Tables 6-3 … 6-20: BF, GMM and GTR over a one-minute flight on stand-ins of its four
+    terrains, every frame selected and drawn) and prints each row's frame rate beside the
+    thesis's four machines. Every row is drawn with one anti-aliasing mode (msaa unless
+    --anti-aliasing names another; auto, which chooses per frame, is refused).
+
     \b
     Examples:
       geoterrain bench --synthetic 1025 --plot b.png -o b.csv
       geoterrain bench dem.geoterrain --pixel-error 1,2 --strategies rtin,chunked
       geoterrain bench dem.tif --path cameras.json --render --peers -o dem.csv
+      geoterrain bench --experiment list
+      geoterrain bench --experiment algorithm --terrains Valley,Terrace -o t620.csv
     """
     import json
     from pathlib import Path
@@ -84,6 +102,9 @@ def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_ali
     from geoterrain.exceptions import UsageError
 
     quiet = bool((ctx.obj or {}).get("quiet"))
+    if experiment is not None:
+        return _experiment(ctx, experiment, source, synthetic, anti_aliasing, terrains, frames,
+                           output, cache_dir, quiet, overwrite)
     if cameras is not None and n_views != 8:
         raise UsageError("--views applies to the built-in flight; not with --path")
     inputs = [source, cameras]
@@ -143,3 +164,52 @@ def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_ali
         click.echo(f"wrote {plot_path}", err=True)
     if (ctx.obj or {}).get("verbose"):
         click.echo(json.dumps({"wall_s": round(res.wall_s, 2)}), err=True)
+
+
+def _experiment(ctx, name, source, synthetic, anti_aliasing, terrains, frames, output,
+                cache_dir, quiet, overwrite):
+    """``--experiment``: seed 000's tables re-run (:mod:`geoterrain.bench.experiments`)."""
+    from click.core import ParameterSource
+
+    from geoterrain.bench import experiments as ex
+    from geoterrain.core.paths import check_output
+    from geoterrain.exceptions import UsageError
+
+    if name == "list":
+        click.echo(ex.describe())
+        return
+    if source is not None or synthetic is not None:
+        raise UsageError("--experiment runs on the thesis's stand-in terrains: give no SOURCE "
+                         "or --synthetic (choose them with --terrains)")
+    if ctx.get_parameter_source("anti_aliasing") is ParameterSource.DEFAULT:
+        anti_aliasing = "msaa"  # one mode for every strategy (auto chooses per frame)
+    if output is not None:  # core/paths.py: what -o may replace
+        check_output(output, overwrite, option="-o")
+    if cache_dir is not None:
+        check_output(cache_dir, True, folder=True, option="--cache-dir")
+    names = tuple(t.strip() for t in terrains.split(",") if t.strip())
+    ex.configs(name, names)  # unknown names: a one-line error before any work
+    bar = None
+
+    def progress(n: int, total: int) -> None:
+        nonlocal bar
+        if quiet:
+            return
+        if bar is None:
+            bar = click.progressbar(length=total, label=name, file=sys.stderr, show_eta=True)
+            bar.__enter__()
+        bar.update(n)
+
+    try:
+        res = ex.run_experiment(name, terrains=names, frames=frames, anti_aliasing=anti_aliasing,
+                                work_dir=cache_dir, progress=progress)
+    finally:
+        if bar is not None:
+            bar.__exit__(None, None, None)
+    click.echo(ex.format_result(res))
+    for n in res.notes:
+        click.echo(f"note: {n}", err=True)
+    if output:
+        ex.write_result_csv(res, output)
+        if not quiet:
+            click.echo(f"wrote {output}", err=True)

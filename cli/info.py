@@ -16,6 +16,9 @@ import click
 def command(store, as_json, no_reference):
     """Describe STORE: size, CRS and frame, extent, grid, levels, tiles, codec and errors.
 
+    Sizes are width × height (east-west × north-south) throughout, as gdalinfo gives
+    them; --json keeps the grid as [rows, cols].
+
     \b
     Example:
       geoterrain info dem.geoterrain --json
@@ -40,9 +43,10 @@ def command(store, as_json, no_reference):
         f"crs          {i['crs']}",
         f"frame        {i['frame']}; origin {i['origin_crs'][0]:.6g}, {i['origin_crs'][1]:.6g} "
         f"({hu}); heights in {vu} × {zm:g} m/{vu} × z-scale {i['z_scale']:g}",
-        f"extent       {ex['x'][1] - ex['x'][0]:.1f} m × {ex['y'][1] - ex['y'][0]:.1f} m",
-        f"grid         {i['grid'][0]} × {i['grid'][1]} samples, padded to "
-        f"{i['padded'][0]} × {i['padded'][1]}",
+        f"extent       {ex['x'][1] - ex['x'][0]:.1f} m × {ex['y'][1] - ex['y'][0]:.1f} m "
+        "(width × height, east-west × north-south)",
+        f"grid         {i['grid'][1]} × {i['grid'][0]} samples (width × height), padded to "
+        f"{i['padded'][1]} × {i['padded'][0]}",
         f"tiles        {i['tile_samples']}² samples, {i['levels']} levels; stored per level "
         + ", ".join(f"L{k}:{v}" for k, v in i["tiles_per_level"].items()),
         f"heights      {lo:.6g} … {hi:.6g} {vu}{in_m}; "
@@ -54,6 +58,9 @@ def command(store, as_json, no_reference):
         f"errors       tile error {i['tile_error_range'][0]:.4g} … {i['tile_error_range'][1]:.4g}"
         f" m (scene); max vertex δ {i['vertex_error_max']:.4g} m (scene)",
     ]
+    if i.get("edits"):
+        e = i["edits"]
+        lines.append(f"edits        {e['count']} (geoterrain edit); the last: {e['last']}")
     # values come from the file: never let its control characters reach the terminal
     click.echo("\n".join("".join(c if c.isprintable() else "?" for c in ln) for ln in lines))
 

@@ -19,7 +19,9 @@ from geoterrain.exceptions import GeoterrainError
 # (about 0.2 s of a 2.7 s cold render)
 COMMANDS = {"preprocess": "preprocess", "info": "info", "mesh": "mesh", "export": "export",
             "export-raster": "export_raster", "tiles": "tiles", "render": "render",
-            "view": "view", "bench": "bench", "synth": "synth"}
+            "view": "view", "bench": "bench", "synth": "synth", "edit": "edit", "query": "query",
+            "profile": "profile", "viewshed": "viewshed", "contours": "contours",
+            "serve": "serve"}
 
 
 def one_line(text: object) -> str:
@@ -74,6 +76,16 @@ class Group(click.Group):
             return None
         return importlib.import_module(f"geoterrain.cli.{mod}").command
 
+    def resolve_command(self, ctx, args):
+        name, cmd, rest = super().resolve_command(ctx, args)
+        if not any(a in ("-h", "--help") for a in rest):
+            # a first run: say that kernels compile, with a bar (cli/options.py)
+            from geoterrain.cli.options import CompileBar
+
+            bar = CompileBar(name, bool(ctx.params.get("quiet")))
+            ctx.meta["geoterrain.compile_bar"] = bar.__enter__()
+        return name, cmd, rest
+
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
@@ -95,6 +107,10 @@ class Group(click.Group):
             click.echo(f"Error: internal error {type(exc).__name__}: {one_line(first)} "
                        "(re-run with -vv for the traceback and report it)", err=True)
             ctx.exit(1)
+        finally:
+            bar = ctx.meta.pop("geoterrain.compile_bar", None)
+            if bar is not None:
+                bar.__exit__(None, None, None)
 
 
 @click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"]})
@@ -111,6 +127,8 @@ def cli(ctx, verbose, quiet):
       geoterrain info dem.geoterrain
       geoterrain mesh dem.geoterrain -o dem.ply --max-error 1
       geoterrain render dem.geoterrain -o view.png
+      geoterrain query dem.geoterrain --at X,Y       # heights, profiles, viewsheds,
+      geoterrain contours dem.geoterrain --interval 50 -o c.gpkg   # contours: the analysis
 
     Run `geoterrain COMMAND --help` for each command's options.
     """

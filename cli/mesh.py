@@ -23,21 +23,25 @@ from geoterrain.cli.options import (
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Mesh file: .ply, .vtp, .stl, .obj or .vtk.")
 @click.option("--max-error", type=NON_NEGATIVE, metavar="E",
-              help="Static mesh: vertical error bound e in metres (scene units); default 1.")
+              help="Whole-terrain mesh: largest height error in metres; default 1.")
 @camera_options
 @pixel_error_option
 @strategy_option
 @occlusion_option
 @vertical_exaggeration_option
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the summary as JSON (for scripts).")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, size,
-            pixel_error, strategy, occlusion, vertical_exaggeration, overwrite):
-    """Write a mesh of STORE: static (--max-error) or for a view (--look-from/--look-at).
+            pixel_error, strategy, occlusion, vertical_exaggeration, as_json, overwrite):
+    """Write a mesh of STORE: the whole terrain (--max-error) or what a camera sees
+    (--look-from/--look-at).
 
-    A static mesh keeps every vertex whose error bound δ exceeds --max-error, so
-    its vertical error is at most that everywhere. A view-dependent mesh has a
-    projected error of at most --pixel-error pixels at every sample in view.
+    The whole-terrain mesh is within --max-error metres of the DEM's height
+    everywhere. A camera's mesh is detailed near the camera and coarse far away,
+    never more than --pixel-error pixels from the full-resolution terrain on screen.
+    The summary says what was written; --json prints it for scripts.
 
     \b
     Examples:
@@ -69,8 +73,12 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
                               pixel_error, strategy, occlusion)
             write_mesh(with_elevation(t, sel.mesh), out, overwrite=overwrite)
             stats = sel.stats
-    if not ctx.obj["quiet"]:
-        click.echo(json.dumps(stats))
+    if as_json:
+        click.echo(json.dumps({**stats, "output": str(out)}, default=float))
+    elif not ctx.obj["quiet"]:
+        from geoterrain.cli.options import human_bytes, mesh_words
+
+        click.echo(f"wrote {out} ({human_bytes(out.stat().st_size)})\n  {mesh_words(stats)}")
 
 
 def _stream(ctx, t, max_error, out, overwrite) -> dict:

@@ -20,7 +20,7 @@ type                   accepts
 ``DISTANCE``           metres in (0, 10^9]
 ``EXAGGERATION``       a vertical exaggeration in [10^-6, 10^6] (the store's own range)
 ``PIXEL_SIZE``         metres per sample in [10^-6, 10^6] (the store's own range)
-``PIXEL_ERROR``        τ in pixels, in (0, 10^4]
+``PIXEL_ERROR``        a screen-space error in pixels, in (0, 10^4]
 ``NODATA``             a finite number or NaN
 ``Point(n)``           ``n`` finite comma-separated numbers (``X,Y,Z``; ``X,Y``)
 ``SIZE``               a picture ``WIDTHxHEIGHT``, 16 … 16384 per side
@@ -220,7 +220,7 @@ class StageBar:
         self.bar = None
 
     def __call__(self, stage: str, done: int, total: int) -> None:
-        if self.quiet:
+        if self.quiet or CompileBar.active is not None:  # the first run's bar is shown
             return
         if self.bar is None:
             self.bar = click.progressbar(length=total, label=self.label, file=sys.stderr,
@@ -232,6 +232,80 @@ class StageBar:
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
             self.bar = None
+
+
+# the stage folders whose compiled kernels each command may compile on its first run
+COMPILING = {
+    "preprocess": ("geoterrain.core", "geoterrain.ingest", "geoterrain.codec",
+                   "geoterrain.bounds", "geoterrain.preprocessing.pipeline",
+                   "geoterrain.store"),
+    "render": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+               "geoterrain.bounds.normals", "geoterrain.lod", "geoterrain.rendering"),
+    "mesh": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+             "geoterrain.lod", "geoterrain.export.meshstream"),
+    "export": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+               "geoterrain.bounds.normals", "geoterrain.lod", "geoterrain.rendering.tileshade",
+               "geoterrain.rendering.shading"),
+    "export-raster": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+                      "geoterrain.bounds.normals", "geoterrain.rendering.shading"),
+    "tiles": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
+              "geoterrain.export.qmesh"),
+    "bench": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds", "geoterrain.lod",
+              "geoterrain.testing", "geoterrain.rendering"),
+}
+COMPILING["view"] = COMPILING["render"]
+
+
+class CompileBar:
+    """The first run of a command: says that kernels are being compiled (once, with an
+    estimate of the time) and shows a bar of the compilations numba reports, on stderr,
+    while the command's own progress bars wait (:class:`StageBar`); silent with -q or when
+    every kernel the command may need is cached (:func:`geoterrain.core.warmup.cold_kernels`).
+    """
+
+    active: CompileBar | None = None  # the bar shown now, if any
+
+    def __init__(self, command: str, quiet: bool):
+        self.command, self.quiet = command, quiet
+        self.bar = self.watch = None
+        self.total = 0
+
+    def __enter__(self) -> CompileBar:
+        from geoterrain.core.warmup import CompileWatch, cold_kernels, estimate_seconds
+
+        if self.quiet or self.command not in COMPILING:
+            return self
+        self.total = len(cold_kernels(COMPILING[self.command]))
+        if self.total == 0:
+            return self
+        click.echo(f"compiling kernels (first run only, about "
+                   f"{estimate_seconds(self.total)} s)", err=True)
+        self.bar = click.progressbar(length=self.total, label="compiling", file=sys.stderr,
+                                     show_eta=False, show_pos=True)
+        self.bar.__enter__()
+        CompileBar.active = self
+        self.watch = CompileWatch(self._step).__enter__()
+        return self
+
+    def _step(self, done: int) -> None:
+        if self.bar is not None:
+            self.bar.update(min(done, self.total) - self.bar.pos)
+            if done >= self.total:
+                self.finish()
+
+    def finish(self) -> None:
+        """Close the bar (the command's own bars show from now on)."""
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+            self.bar = None
+        if CompileBar.active is self:
+            CompileBar.active = None
+
+    def __exit__(self, *exc) -> None:
+        self.finish()
+        if self.watch is not None:
+            self.watch.__exit__(*exc)
+            self.watch = None
 
 
 def _strategy_help(prefix: str) -> str:
@@ -277,15 +351,18 @@ anti_aliasing_option = click.option(
 
 morph_option = click.option(
     "--morph/--no-morph", default=None,
-    help="Geomorph: a vertex slides into place instead of popping as the camera moves "
-         "(rtin: it appears at 0.75 τ, costing triangles; chunked: a chunk slides from "
-         "its parent's surface; geomipmap: each block slides between its levels; "
-         "cdlod: its own ranges). Default: rtin, chunked and geomipmap off, cdlod on.")
+    help="Geomorph: detail slides into place instead of popping as the camera moves "
+         "(rtin: a vertex starts sliding at 3/4 of the pixel error, costing triangles; "
+         "chunked: a tile slides from its parent's surface; geomipmap: each block slides "
+         "between its levels; cdlod: its own ranges). Default: rtin, chunked and geomipmap "
+         "off, cdlod on.")
 
 
 pixel_error_option = click.option(
     "--pixel-error", type=PIXEL_ERROR, default=1.0, show_default=True,
-    metavar="TAU", help="Screen-space error bound τ in pixels, in (0, 10000].")
+    metavar="PX", help="Level of detail: the mesh is never more than PX pixels from the "
+                       "full-resolution terrain on screen (larger: fewer triangles; at most "
+                       "10000).")
 
 
 def _parse_pixel_errors(ctx, param, value):
@@ -300,8 +377,8 @@ def _parse_pixel_errors(ctx, param, value):
 
 pixel_errors_option = click.option(
     "--pixel-error", "pixel_errors", default="0.5,1,2,4,8", show_default=True,
-    callback=_parse_pixel_errors, metavar="TAU[,TAU...]",
-    help="Comma-separated screen-space error bounds τ in pixels.")
+    callback=_parse_pixel_errors, metavar="PX[,PX...]",
+    help="Comma-separated levels of detail: on-screen error bounds in pixels.")
 
 
 def camera_options(f):
@@ -346,7 +423,7 @@ def _parse_clim(ctx, param, value):
 
 
 def colour_options(f):
-    """--cmap, --clim and --water-level, shared by render and view."""
+    """--cmap, --clim, --water-level and --water/--no-water, shared by render and view."""
     for opt in reversed([
         click.option("--cmap", default="auto", show_default=True, callback=_check_cmap,
                      help="auto (land tints; water in blue at or below 0 m when the data "
@@ -354,7 +431,11 @@ def colour_options(f):
         click.option("--clim", callback=_parse_clim, metavar="MIN,MAX",
                      help="Heights (m) the colour map spans (default: the data's range)."),
         click.option("--water-level", type=FINITE, metavar="H",
-                     help="Colour everything at or below H metres as water."),
+                     help="Water up to H metres: a flood or a lake at that level."),
+        click.option("--water/--no-water", "water", default=True, show_default=True,
+                     help="Draw the water (--water-level, or the sea at 0 m of the auto "
+                          "colours) as a flat, lit, semi-transparent surface with the depth "
+                          "coloured below it; --no-water only colours the ground under it."),
     ]):
         f = opt(f)
     return f
@@ -480,3 +561,148 @@ def select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_e
         raise UsageError("--look-from and --look-at must differ")
     return t.select(geoterrain.View(look_from, look_at, fov_y_deg=fov, size=size), pixel_error,
                     strategy, occlusion=occlusion)
+
+
+def human_bytes(n: float) -> str:
+    """``n`` bytes in a reader's unit: 512 B, 12.3 kB, 31.9 MB, 1.20 GB."""
+    for unit, f in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= f:
+            return f"{n / f:.3g} {unit}" if n < 100 * f else f"{n / f:.0f} {unit}"
+    return f"{int(n)} B"
+
+
+def mesh_words(s: dict) -> str:
+    """A mesh's stats in words: triangles, vertices, and what bounds its error."""
+    what = (f"whole terrain, height error ≤ {s['max_error']:g} m" if "max_error" in s
+            else f"view from the camera, {s.get('strategy', 'rtin')} within "
+                 f"{s.get('pixel_error', 1.0):g} px on screen")
+    return f"{s['triangles']:,} triangles, {s['vertices']:,} vertices ({what})"
+
+
+# ------------------------------------------------------------------ the analysis commands
+
+
+def points_crs_options(f):
+    """--crs and --lonlat: the CRS the command's coordinates are given in."""
+    for opt in reversed([
+        click.option("--crs", "crs", metavar="CRS",
+                     help="CRS of the given coordinates (an EPSG code such as EPSG:4326, a "
+                          "PROJ string or WKT) [default: the DEM's own]."),
+        click.option("--lonlat", is_flag=True,
+                     help="The coordinates are longitude, latitude in degrees (WGS 84)."),
+    ]):
+        f = opt(f)
+    return f
+
+
+def points_crs(crs, lonlat):
+    """The ``crs=`` argument of the analysis functions from --crs / --lonlat."""
+    from geoterrain.exceptions import UsageError
+
+    if crs and lonlat:
+        raise UsageError("give either --crs or --lonlat, not both")
+    return "lonlat" if lonlat else (crs or None)
+
+
+def parse_xy(value: str, flag: str) -> tuple[float, float]:
+    """``X,Y`` → two floats (a one-line UsageError naming ``flag`` otherwise)."""
+    from geoterrain.exceptions import UsageError
+
+    try:
+        x, y = (float(v) for v in value.split(","))
+    except ValueError:
+        raise UsageError(f"{flag} expects X,Y (two numbers), got {value!r}") from None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise UsageError(f"{flag} expects finite numbers, got {value!r}")
+    return x, y
+
+
+def read_geometry(value: str, flag: str):
+    """A geometry given as WKT, GeoJSON (text, or a .geojson/.json/.wkt file): a shapely
+    geometry, and whether it came from GeoJSON (whose coordinates are lon/lat, RFC 7946,
+    unless it names a CRS)."""
+    import json
+    from pathlib import Path
+
+    import shapely
+    from shapely.geometry import shape
+
+    from geoterrain.exceptions import UsageError
+
+    text = value
+    p = Path(value)
+    if len(value) < 4096 and p.suffix.lower() in (".geojson", ".json", ".wkt", ".txt"):
+        if not p.is_file():
+            raise UsageError(f"{flag}: {value} is not a file")
+        text = p.read_text()
+    text = text.strip()
+    try:
+        if text.startswith("{"):
+            obj = json.loads(text)
+            if obj.get("type") == "FeatureCollection":
+                feats = obj.get("features") or []
+                if len(feats) != 1:
+                    raise UsageError(f"{flag}: the GeoJSON holds {len(feats)} features; give "
+                                     "one")
+                obj = feats[0]
+            geom = shape(obj.get("geometry", obj) if obj.get("type") == "Feature" else obj)
+            return geom, True
+        return shapely.from_wkt(text), False
+    except (ValueError, TypeError, KeyError, AttributeError,
+            shapely.errors.ShapelyError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise UsageError(f"{flag}: cannot read {value[:60]!r} as WKT or GeoJSON ({first})"
+                         ) from None
+
+
+def read_points(path: str):
+    """Points from a CSV (columns x, y — or lon, lat — by name, else the first two) or a
+    GeoJSON of Points: an (N, 2) array, their names (or None), and whether they came from
+    GeoJSON (lon/lat)."""
+    import csv
+    import json
+    from pathlib import Path
+
+    import numpy as np
+
+    from geoterrain.exceptions import InputError, UsageError
+
+    p = Path(path)
+    if not p.is_file():
+        raise UsageError(f"--points: {path} is not a file")
+    if p.suffix.lower() in (".geojson", ".json"):
+        try:
+            obj = json.loads(p.read_text())
+            feats = obj["features"] if obj.get("type") == "FeatureCollection" else [obj]
+            xy = [f["geometry"]["coordinates"][:2] for f in feats
+                  if f.get("geometry", {}).get("type") == "Point"]
+        except (ValueError, KeyError, TypeError, AttributeError):
+            raise InputError(f"{path}: not a GeoJSON of points") from None
+        if not xy:
+            raise InputError(f"{path}: no Point features")
+        return np.asarray(xy, np.float64), None, True
+    rows = list(csv.reader(p.read_text().splitlines()))
+    if not rows:
+        raise InputError(f"{path}: empty")
+    head = [h.strip().lower() for h in rows[0]]
+    named = [("x", "y"), ("lon", "lat"), ("longitude", "latitude"), ("easting", "northing")]
+    cols = next(((head.index(a), head.index(b)) for a, b in named
+                 if a in head and b in head), None)
+    body = rows[1:] if cols is not None or not _numeric(rows[0][:2]) else rows
+    cols = cols or (0, 1)
+    try:
+        xy = np.array([[float(r[cols[0]]), float(r[cols[1]])] for r in body if r],
+                      np.float64)
+    except (ValueError, IndexError):
+        raise InputError(f"{path}: expected columns x,y (or lon,lat) of numbers") from None
+    if xy.size == 0:
+        raise InputError(f"{path}: no points")
+    return xy, None, False
+
+
+def _numeric(cells) -> bool:
+    try:
+        [float(c) for c in cells]
+    except ValueError:
+        return False
+    return len(cells) == 2

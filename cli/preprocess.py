@@ -13,6 +13,7 @@ from geoterrain.cli.options import (
     parse_bytes,
 )
 from geoterrain.core.frame import Z_UNITS
+from geoterrain.ingest.composite import PRIORITIES, RESAMPLINGS
 from geoterrain.ingest.raster import ENCODINGS
 
 
@@ -45,8 +46,8 @@ from geoterrain.ingest.raster import ENCODINGS
               "(nan: only NaN). Undeclared -32768/-9999/float32-min runs are voids by default.")
 @click.option("--memory-limit", callback=parse_bytes, metavar="SIZE",
               help="Memory the job may use, e.g. 2G or 800M (default: half of what is "
-                   "available). A single-band projected raster too large for it is read "
-                   "a window at a time, into the same store.")
+                   "available). A DEM too large for it (any input) is read a window at a "
+                   "time, into the same store.")
 @click.option("--scheduler", default="sync", show_default=True, metavar="SPEC",
               help="Where a streamed preprocess's passes run: sync, threads:N, "
                    "processes:N, dask:ADDRESS (a running dask scheduler) or dask:local:N "
@@ -55,6 +56,19 @@ from geoterrain.ingest.raster import ENCODINGS
               help="Take up a streamed preprocess of the same DEM and settings that was "
                    "killed: the passes it finished are reused, and the store is the one an "
                    "uninterrupted run writes.")
+@click.option("--crs", "target_crs", metavar="CRS",
+              help="Merge the sources onto a grid in this CRS (EPSG:xxxx, WKT, PROJ): sources "
+                   "of different CRSs or resolutions are warped there by GDAL. Default: the "
+                   "finest source's CRS.")
+@click.option("--resolution", type=float, metavar="RES",
+              help="Pixel size of the merged grid, in its CRS's units. Default: the finest "
+                   "source's.")
+@click.option("--resampling", type=click.Choice(RESAMPLINGS), default="bilinear",
+              show_default=True, help="How a source is warped onto the merged grid.")
+@click.option("--priority", type=click.Choice(PRIORITIES), default="finest",
+              show_default=True,
+              help="Where merged sources overlap: the finest valid one wins (finest), or the "
+                   "first given (order); a void is filled from the next.")
 @click.option("--stored-normals", is_flag=True,
               help="Store every tile's normal map whole, not just its border (the rest is "
                    "derived from the heights when a tile is shaded): a store about a third "
@@ -62,13 +76,14 @@ from geoterrain.ingest.raster import ENCODINGS
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,
-            codec_error, old_max_error, nodata, memory_limit, scheduler, resume,
-            stored_normals, overwrite):
+            codec_error, old_max_error, nodata, memory_limit, scheduler, resume, target_crs,
+            resolution, resampling, priority, stored_normals, overwrite):
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
     DEM is any raster GDAL reads (GeoTIFF/COG, SRTM .hgt, Esri ASCII, a .vrt,
     ...) or a Terrain-RGB / Terrarium PNG tile. Several files, or a quoted glob,
-    are read as one mosaic (one CRS, one pixel size, one band count; -o needed).
+    are read as one mosaic (-o needed); tiles of different CRSs or resolutions are
+    merged onto one grid (--crs, --resolution, --resampling, --priority).
     The store holds a padded power-of-two pyramid of tiles with per-vertex and
     per-tile error bounds, residual-coded heights and normal maps. It is written
     atomically: an interrupted run leaves no store behind.
@@ -80,6 +95,8 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
       geoterrain preprocess tile.png --pixel-size 30 -o tile.geoterrain
       geoterrain preprocess lidar.tif --codec-error 0.05 --z-scale 2
       geoterrain preprocess 'srtm/*.hgt' -o srtm.geoterrain
+      geoterrain preprocess lidar_1m.tif national_30m.tif -o merged.geoterrain
+      geoterrain preprocess national_30m.tif --crs EPSG:32633 --resolution 50 -o m.geoterrain
       geoterrain preprocess lidar_county.tif --memory-limit 2G
       geoterrain preprocess lidar_county.tif --memory-limit 2G --scheduler processes:4
     """
@@ -102,7 +119,8 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
             pixel_size=pixel_size, z_scale=z_scale, z_units=z_units, tile=tile,
             codec_error=codec_error, overwrite=overwrite, nodata=nodata,
             memory_limit=memory_limit, scheduler=scheduler, resume=resume, progress=bar,
-            derive_normals=not stored_normals, timings=times)
+            derive_normals=not stored_normals, crs=target_crs, resolution=resolution,
+            resampling=resampling, priority=priority, timings=times)
     finally:
         bar.close()
     if ctx.obj["verbose"]:  # the store holds no timings: the same DEM gives the same bytes
@@ -110,6 +128,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
     if not quiet:
         with geoterrain.open(out) as t:
             i = t.info()
-        click.echo(f"wrote {out} ({i['size_bytes'] / 1e6:.2f} MB): {i['grid'][0]}×{i['grid'][1]} "
-                   f"samples, {i['levels']} levels, {sum(i['tiles_per_level'].values())} tiles, "
+        click.echo(f"wrote {out} ({i['size_bytes'] / 1e6:.2f} MB): {i['grid'][1]} × "
+                   f"{i['grid'][0]} samples (width × height), {i['levels']} levels, "
+                   f"{sum(i['tiles_per_level'].values())} tiles, "
                    f"{i['height_bits_per_valid_sample']:.2f} bits/sample heights")

@@ -11,6 +11,7 @@ from geoterrain.cli.options import (
     AZIMUTH,
     DISTANCE,
     FINITE,
+    POSITIVE,
     Number,
     StageBar,
     Text,
@@ -43,6 +44,10 @@ from geoterrain.cli.options import (
                    "down.")
 @click.option("--distance", type=DISTANCE,
               help="Eye–target distance in metres (default: fit).")
+@click.option("--map", "map_view", is_flag=True,
+              help="A map: orthographic, north up, the whole DEM framed with a graticule "
+                   "(geographic DEMs) or grid ticks in its CRS, the scale bar exact "
+                   "everywhere.")
 @pixel_error_option
 @strategy_option
 @occlusion_option
@@ -56,6 +61,9 @@ from geoterrain.cli.options import (
 @light_options
 @drape_options
 @click.option("--title", type=Text(200), help="Title drawn at the top.")
+@click.option("--contours", "contour_interval", type=POSITIVE, metavar="DZ",
+              help="Draw contour lines every DZ (the DEM's vertical unit) over the terrain, "
+                   "every fifth one bolder (single views).")
 @click.option("--no-overlays", is_flag=True,
               help="No colour bar, scale bar or north arrow.")
 @click.option("--stats", "stats_path", type=click.Path(dir_okay=False),
@@ -68,13 +76,18 @@ from geoterrain.cli.options import (
               help="With --path: eased frames on a smooth spline between each pair of cameras.")
 @click.option("--fps", type=Number(0, 1000, lo_open=True), default=10.0, show_default=True,
               help="Animation speed, frames per second in (0, 1000].")
+@click.option("--strips", is_flag=True,
+              help="Draw the mesh as triangle strips instead of triangle lists (the same "
+                   "picture; no faster on the CPU renderer, docs/benchmarks.md).")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
-def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance, size,
+def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance,
+            map_view, size,
             fov, pixel_error, strategy, occlusion, morph, anti_aliasing, vertical_exaggeration,
-            shading, cmap, clim, water_level,
+            shading, cmap, clim, water_level, water,
             sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity, title,
-            no_overlays, stats_path, orbit, cameras, frames_between, fps, overwrite):
+            contour_interval, no_overlays, stats_path, orbit, cameras, frames_between, fps,
+            strips, overwrite):
     """Render STORE offscreen: each frame selects its own level of detail.
 
     \b
@@ -85,9 +98,11 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
       geoterrain render dem.geoterrain -o view.png --crs-coords \\
           --look-from 500000,4990000,3000 --look-at 505000,5000000,800
       geoterrain render dem.geoterrain -o top.png --elevation 90
+      geoterrain render dem.geoterrain -o map.png --map --title "Sagami Bay"
       geoterrain render dem.geoterrain -o relief.png -z 3
-      geoterrain render dem.geoterrain -o sea.png --water-level 2 --clim -50,1500
+      geoterrain render dem.geoterrain -o flood.png --water-level 40 --clim 0,1200
       geoterrain render dem.geoterrain -o dusk.png --sun 250,15 --shadows --ambient-occlusion
+      geoterrain render dem.geoterrain -o lines.png --contours 50
       geoterrain render dem.geoterrain -o orbit.gif --orbit 36 --size 640x360
       geoterrain render dem.geoterrain -o fly.mp4 --path cameras.json --stats fly.json
 
@@ -125,6 +140,20 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
         raise UsageError(f"--orbit needs at least 1 frame, got {orbit}")
     ext = Path(out).suffix.lower()
     animated = orbit is not None or cameras is not None
+    if contour_interval is not None and animated:
+        raise UsageError("--contours draws on a single view (.png), not an animation")
+    if map_view:
+        src = ctx.get_parameter_source
+        clash = [n for n, given in (("--look-from/--look-at", look_from is not None),
+                                    ("--orbit", orbit is not None),
+                                    ("--path", cameras is not None),
+                                    ("--distance", distance is not None),
+                                    ("--elevation", src("elevation").name == "COMMANDLINE"),
+                                    ("--azimuth", src("azimuth").name == "COMMANDLINE"))
+                 if given]
+        if clash:
+            raise UsageError(f"--map frames the whole DEM from straight above, north up; "
+                             f"drop {', '.join(clash)}")
     if not animated and ext != ".png":
         raise UsageError(f"{out}: a single view is written as .png (use --orbit or --path "
                          "for .gif/.mp4)")
@@ -150,7 +179,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             kw = dict(pixel_error=pixel_error, strategy=strategy, shading=shading, cmap=cmap,
                       title=title, fps=fps, progress=lambda d, n: bar("frame", d, n),
                       overwrite=overwrite, light=lit, drape=dr, occlusion=occlusion,
-                      morph=morph, anti_aliasing=anti_aliasing, **overlays)
+                      morph=morph, anti_aliasing=anti_aliasing, water=water, **overlays)
             try:
                 if orbit is not None:
                     frames = A.orbit(t, out, orbit, size=size, azimuth=azimuth,
@@ -179,14 +208,27 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
                 view.basis()
             except ValueError as exc:
                 raise UsageError(f"bad camera: {exc}") from None
+        elif map_view:
+            from geoterrain.rendering.mapview import map_view as make_map
+
+            view = make_map(t, size, shading=shading, cmap=cmap, title=title,
+                            colorbar=not no_overlays, scale_bar=not no_overlays,
+                            north_arrow=not no_overlays)
         else:
             view = R.overview(t, size, azimuth, elevation, distance, fov, shading=shading,
                               cmap=cmap, title=title, colorbar=not no_overlays,
                               scale_bar=not no_overlays, north_arrow=not no_overlays)
+        lines = widths = None
+        if contour_interval is not None:
+            from geoterrain.analysis.contours import contours, scene_lines
+
+            lines, widths = scene_lines(base, contours(base, contour_interval))
+            lines = [p * (1.0, 1.0, vertical_exaggeration) for p in lines]
         st = R.render(t, view, out, pixel_error=pixel_error, strategy=strategy,
                       shading=shading, cmap=cmap, title=title, scale_bar=not no_overlays,
                       stats_path=stats_path, overwrite=overwrite, light=lit, drape=dr,
                       occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing,
+                      strips=strips, lines=lines, line_widths=widths, water=water,
                       **overlays)
     if not quiet:
         click.echo(f"wrote {out}: {st['triangles']:,} triangles ({strategy}, τ = "

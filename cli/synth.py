@@ -1,4 +1,4 @@
-"""`geoterrain synth`: deterministic fractal DEMs as GeoTIFFs (seed 000, annex A)."""
+"""`geoterrain synth`: deterministic fractal DEMs as GeoTIFFs."""
 
 from __future__ import annotations
 
@@ -9,10 +9,41 @@ from geoterrain.cli.options import PIXEL_SIZE, Point
 KINDS = ("fbm", "ridged", "diamond-square", "fault")
 
 
+def _parse_size(ctx, param, value):
+    """``N`` → (N, N); ``WxH`` → (H, W) rows and columns."""
+    try:
+        parts = [int(v) for v in str(value).lower().split("x")]
+    except ValueError:
+        raise click.BadParameter(f"expected N or WIDTHxHEIGHT, got {value!r}") from None
+    if len(parts) == 1:
+        parts *= 2
+    if len(parts) != 2 or not all(2 <= v <= 32769 for v in parts):
+        raise click.BadParameter(f"expected N or WIDTHxHEIGHT, each in 2..32769, got {value!r}")
+    return parts[1], parts[0]
+
+
+def _parse_heights(ctx, param, value):
+    if value is None:
+        return None
+    import math
+
+    try:
+        lo, hi = (float(v) for v in value.split(","))
+    except ValueError:
+        raise click.BadParameter(f"expected MIN,MAX in metres, got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+        raise click.BadParameter(f"expected finite MIN < MAX, got {value!r}")
+    return lo, hi
+
+
 @click.command("synth")
 @click.argument("kind", type=click.Choice(KINDS))
-@click.option("--size", default=1025, show_default=True, type=click.IntRange(2, 32769),
-              help="Samples per side (2^n+1 fits the pyramid without padding).")
+@click.option("--size", default="1025", show_default=True, callback=_parse_size,
+              metavar="N|WxH", help="Samples per side, or WIDTHxHEIGHT (2^n+1 fits the "
+                                    "pyramid without padding).")
+@click.option("--heights", callback=_parse_heights, metavar="MIN,MAX",
+              help="Lowest and highest height in metres [default: 0,2000]; a negative MIN "
+                   "makes a topo-bathymetric DEM (the sea below 0 m).")
 @click.option("--seed", default=0, show_default=True, type=int, help="Random seed.")
 @click.option("--spacing", default=10.0, show_default=True, type=PIXEL_SIZE,
               help="Metres between samples.")
@@ -24,15 +55,16 @@ KINDS = ("fbm", "ridged", "diamond-square", "fault")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="GeoTIFF to write.")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
-def command(kind, size, seed, spacing, crs, origin, output, overwrite):
+def command(kind, size, heights, seed, spacing, crs, origin, output, overwrite):
     """Write a synthetic KIND DEM: fbm, ridged, diamond-square or fault.
 
     The result is a float32 GeoTIFF with a CRS and a transform, the same for
     the same seed on every machine.
 
     \b
-    Example:
+    Examples:
       geoterrain synth fbm --size 1025 --seed 7 -o fbm.tif
+      geoterrain synth fbm --size 120x91 --heights -2500,1500 --spacing 1000 -o tb.tif
     """
     from geoterrain.core.paths import check_output
     from geoterrain.ingest.synth import generate, write_geotiff
@@ -46,7 +78,8 @@ def command(kind, size, seed, spacing, crs, origin, output, overwrite):
     except CRSError:
         raise click.BadParameter(f"not a CRS PROJ knows: {crs!r} (e.g. EPSG:32633)",
                                  param_hint="--crs") from None
-    z = generate(kind, size, seed=seed)
+    lo, hi = heights if heights is not None else (0.0, 2000.0)
+    z = generate(kind, size, seed=seed, base=lo, relief=hi - lo)
     write_geotiff(output, z, crs=crs, origin=origin, spacing=spacing)
-    click.echo(f"wrote {output}: {kind} {size}×{size}, seed {seed}, "
+    click.echo(f"wrote {output}: {kind} {size[1]} × {size[0]} (width × height), seed {seed}, "
                f"heights {float(z.min()):.1f} … {float(z.max()):.1f} m", err=False)

@@ -37,32 +37,49 @@ from geoterrain.cli.options import (
 @click.option("--size", type=SIZE, default="1280x720", show_default=True,
               help="Window WIDTHxHEIGHT.")
 @click.option("--rebuild", is_flag=True, help="Preprocess the DEM again even if cached.")
+@click.option("--web", is_flag=True,
+              help="Serve the viewer as a web page (trame; rendered on this machine, no "
+                   "display needed): open the URL printed on the first line.")
+@click.option("--port", type=click.IntRange(0, 65535), default=8080, show_default=True,
+              help="--web: TCP port (0: any free one).")
+@click.option("--bind", default="127.0.0.1", show_default=True,
+              help="--web: address to listen on (0.0.0.0: your network).")
 @click.pass_context
 def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exaggeration,
-            shading, cmap, clim,
-            water_level, sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity,
-            size, rebuild):
+            shading, cmap, clim, water_level, water,
+            sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity,
+            size, rebuild, web, port, bind):
     """Open SOURCE (a store or a DEM) in an interactive 3-D window.
 
-    A DEM is preprocessed first into a store next to it (or in
-    ~/.cache/geoterrain when its folder is read-only); the path is printed
-    and the store is reused next time.
+    A DEM is preprocessed first into a store in the cache folder
+    ($XDG_CACHE_HOME/geoterrain, default ~/.cache/geoterrain; never beside your
+    data), keyed by the DEM's path, size and date; the path is printed and the
+    store is reused next time (--rebuild makes it again).
 
     \b
     Keys:
       m      next LOD strategy
-      + / -  τ × 2 / ÷ 2
+      + / -  coarser / finer detail (pixel error × 2 / ÷ 2)
       g      geomorphing on/off (rtin, chunked, geomipmap, cdlod)
       x      wireframe
       c      colour by shading / LOD level / tile
       space  freeze the LOD (fly around to inspect culling and refinement)
+      s      save a screenshot (the status line says where)
+      t      show or hide the engine's timings in the status line
       h      home view;  q  quit
+
+    With --web the same viewer runs in a browser tab (PyVista's trame backend:
+    `pip install 'geoterrain[web]'`): the pictures are rendered here and streamed, the
+    mouse moves the camera and the LOD follows it; the status line says the strategy, the
+    detail in pixels and the triangles drawn. Useful on a remote machine or a server
+    without a display (forward the port, e.g. ssh -L 8080:127.0.0.1:8080).
 
     \b
     Examples:
       geoterrain view dem.geoterrain
       geoterrain view srtm.tif --strategy chunked --pixel-error 2
       geoterrain view dem.geoterrain --sun 250,20 --shadows
+      geoterrain view dem.geoterrain --web --port 8080
     """
     import geoterrain
     from geoterrain.exceptions import GeoterrainError
@@ -85,6 +102,11 @@ def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exagg
             bar.close()
         click.echo(f"{'preprocessed into' if built else 'using the cached store'} {store}",
                    err=True)
+    if web:
+        _web(store, vertical_exaggeration, port, bind, strategy=strategy,
+             pixel_error=pixel_error, shading=shading, cmap=palette(cmap, clim, water_level),
+             size=size, light=lit, drape=dr, occlusion=occlusion, morph=morph)
+        return
     if not has_display():
         raise GeoterrainError(
             "no display to open a window on (DISPLAY is not set); use `geoterrain render` "
@@ -94,7 +116,45 @@ def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exagg
     with geoterrain.open(store) as base:
         t = exaggerated(base, vertical_exaggeration)
         show(t, strategy, pixel_error, shading=shading, cmap=palette(cmap, clim, water_level),
-             size=size, light=lit, drape=dr, occlusion=occlusion, morph=morph)
+             size=size, light=lit, drape=dr, occlusion=occlusion, morph=morph, water=water)
+
+
+def _web(store, vertical_exaggeration, port, bind, **kw) -> None:
+    """The viewer as a web page (geoterrain.serve.webview); the URL on the first line."""
+    import sys
+
+    import geoterrain
+    from geoterrain.exaggerate import exaggerated
+    from geoterrain.exceptions import UsageError
+
+    try:
+        import trame  # noqa: F401
+        import trame_vtk  # noqa: F401
+
+        from geoterrain.serve.webview import web_view
+    except ImportError:
+        raise UsageError("view --web needs trame and trame-vtk: pip install "
+                         "'geoterrain[web]'") from None
+    import socket
+
+    try:  # a clear error for a busy port, before any work
+        with socket.socket(socket.AF_INET6 if ":" in bind else socket.AF_INET) as s:
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            s.bind((bind, port))
+    except (OSError, OverflowError) as exc:
+        raise UsageError(f"cannot listen on {bind}:{port} ({getattr(exc, 'strerror', exc)}); "
+                         "choose another --port (0: any free one) or --bind") from None
+
+    def ready(url: str) -> None:
+        click.echo(url)
+        sys.stdout.flush()
+
+    with geoterrain.open(store) as base:
+        try:
+            web_view(exaggerated(base, vertical_exaggeration), port=port, bind=bind,
+                     on_ready=ready, **kw)
+        except KeyboardInterrupt:
+            pass
 
 
 def has_display() -> bool:

@@ -27,12 +27,13 @@ if TYPE_CHECKING:
     from geoterrain.rendering.animation import orbit
     from geoterrain.rendering.scene import default_view, render
     from geoterrain.rendering.viewer import show
-    from geoterrain.terrain import Terrain, open  # noqa: A004
+    from geoterrain.terrain import Terrain, edit, open  # noqa: A004
 
 # public name → the module that defines it
 _LAZY = {
     "preprocess": "geoterrain.preprocessing.pipeline",
     "open": "geoterrain.terrain",
+    "edit": "geoterrain.terrain",
     "Terrain": "geoterrain.terrain",
     "View": "geoterrain.core.view",
     "render": "geoterrain.rendering.scene",
@@ -41,7 +42,7 @@ _LAZY = {
     "show": "geoterrain.rendering.viewer",
 }
 
-__all__ = ["GeoterrainError", "Terrain", "View", "__version__", "default_view", "open",
+__all__ = ["GeoterrainError", "Terrain", "View", "__version__", "default_view", "edit", "open",
            "orbit", "preprocess", "render", "show"]
 
 

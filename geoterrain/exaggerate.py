@@ -79,6 +79,14 @@ class Exaggerated:
         self.base, self.n = base, float(n)
         self.r_scale = max(self.n, 1.0)
         self.frame = dataclasses.replace(base.frame, z_scale=base.frame.z_scale * self.n)
+        self._scale_info()
+        self._own: dict = {}
+        self._derived: dict[str, Any] = {}
+        self.generation = 0
+        self._base_generation = getattr(base, "generation", 0)
+
+    def _scale_info(self) -> None:
+        base = self.base
         self.tile_info = {}
         for k, v in base.tile_info.items():
             d = dict(v)
@@ -88,8 +96,19 @@ class Exaggerated:
             if d.get("radius_max") is not None:
                 d["radius_max"] = d["radius_max"] * self.r_scale
             self.tile_info[k] = d
-        self._own: dict = {}
-        self._derived: dict[str, Any] = {}
+
+    def refresh(self) -> bool:
+        """Take in the base store's edits (:meth:`geoterrain.terrain.Terrain.refresh`):
+        this view's scaled copies and derived data are made again."""
+        self.base.refresh()
+        if self.base.generation == self._base_generation:
+            return False
+        self._base_generation = self.base.generation
+        self._scale_info()
+        self._own.clear()
+        self._derived.clear()
+        self.generation += 1
+        return True
 
     stored_normals = False  # tile_normals are rescaled, not the stored codes' normals
 

@@ -45,6 +45,11 @@ class StoreCorruptError(StoreError):
     """A blob's checksum does not match: the file is damaged."""
 
 
+class StoreChangedError(StoreError):
+    """The store was edited (by another process) while it was being read: what the
+    reader holds is stale. ``Terrain.refresh()`` reads it again."""
+
+
 class WriteError(GeoterrainError):
     """The destination cannot be written (read-only directory, full disk, ...)."""
 

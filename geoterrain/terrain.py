@@ -34,7 +34,7 @@ from geoterrain.codec.quantize import tile_heights
 from geoterrain.core import zstdsafe
 from geoterrain.core.bintree import vertex_level
 from geoterrain.core.grid import level_offsets
-from geoterrain.exceptions import StoreCorruptError, StoreError
+from geoterrain.exceptions import StoreChangedError, StoreCorruptError, StoreError, UsageError
 from geoterrain.store.check import check_store
 from geoterrain.store.database import StoreReader
 from geoterrain.terrainlike import Tile, TileKey
@@ -47,8 +47,9 @@ if TYPE_CHECKING:
     from geoterrain.codec.quantize import Quantizer
     from geoterrain.core.view import View
     from geoterrain.lod import Selection
+    from geoterrain.preprocessing.edit import EditResult
 
-__all__ = ["Terrain", "Tile", "TileKey", "describe_codec", "open"]
+__all__ = ["Terrain", "Tile", "TileKey", "describe_codec", "edit", "open"]
 
 _T = TypeVar("_T")
 
@@ -76,7 +77,21 @@ class Terrain:
 
     def __init__(self, path: str | Path, cache_bytes: int = 1536 << 20):
         self.path = Path(path)
-        self.reader = StoreReader(path)
+        self._load()
+        self._cache: OrderedDict[tuple, tuple[object, int]] = OrderedDict()
+        self._cache_budget = cache_bytes
+        self._cache_used = 0
+        self._derived: dict[str, Any] = {}
+        self.decoded_tiles = 0  # tiles whose heights were decoded (a view counts these)
+        self.decoded_normals = 0  # tiles whose normal maps were decoded
+        self.decoded_bounds = 0  # δ or r arrays decoded
+        self.bytes_read = 0  # blob bytes read from the store
+        self.generation = 0  # how many edits this terrain has taken in (refresh)
+
+    def _load(self) -> None:
+        """Open the store: its metadata and tile table, every field checked."""
+        self.reader = StoreReader(self.path)
+        self._version = self.reader.version()
         try:
             m = self.reader.metadata
             self.meta = m
@@ -95,14 +110,8 @@ class Terrain:
         except BaseException:
             self.reader.close()
             raise
-        self._cache: OrderedDict[tuple, tuple[object, int]] = OrderedDict()
-        self._cache_budget = cache_bytes
-        self._cache_used = 0
-        self._derived: dict[str, Any] = {}
-        self.decoded_tiles = 0  # tiles whose heights were decoded (a view counts these)
-        self.decoded_normals = 0  # tiles whose normal maps were decoded
-        self.decoded_bounds = 0  # δ or r arrays decoded
-        self.bytes_read = 0  # blob bytes read from the store
+        edits = self.meta.get("edits")
+        self._edits_seen = int(edits.get("count", 0)) if isinstance(edits, dict) else 0
 
     vertical_exaggeration = 1.0  # heights as stored (a view may scale them)
     stored_normals = True  # tile_normals decode normal_codes (a view may rescale them)
@@ -222,6 +231,9 @@ class Terrain:
             raise StoreError(f"{self.path}: tile {key} is not stored: it lies outside the "
                              "data or holds only nodata")
         b = self.reader.get_blob(key, kind)
+        if self.reader.version() != self._version:  # an edit committed meanwhile
+            raise StoreChangedError(f"{self.path} was edited while it was read; call "
+                                    "refresh() (or open it again) and read again")
         if b is None:
             raise StoreCorruptError(f"{self.path}: the {kind} of tile {key} are missing; the "
                                     "file is damaged, re-run `geoterrain preprocess`")
@@ -613,6 +625,124 @@ class Terrain:
 
         return lod.static(self, max_error)
 
+    # ----------------------------------------------------------------- edits
+    def edit(self, window, heights: np.ndarray, mode: str = "replace", *,
+             round_heights: bool = False) -> EditResult:
+        """Change the heights of a window of the DEM, in the store, in place (issue 52).
+
+        Only what the edit reaches is recomputed and rewritten: the tiles under the
+        window and their ancestors, δ and r along the saturation chain, the tile rows and
+        block errors, the normals within their halo (:mod:`geoterrain.preprocessing.edit`);
+        the store then holds what a preprocess of the edited DEM gives. One transaction:
+        a killed edit leaves the old store. This terrain takes the edit in at once
+        (:meth:`refresh`).
+
+        Parameters
+        ----------
+        window
+            Where the patch goes: its top-left sample ``(row, col)`` of the DEM (rows
+            southwards, columns eastwards), optionally with its ``(rows, cols)``, or a
+            ``rasterio.windows.Window``.
+        heights
+            The patch, in the DEM's height units; NaN leaves a sample as it is.
+        mode
+            ``replace`` (over nodata too: fills a void), ``add``, ``min`` or ``max``
+            (these leave nodata as it is).
+        round_heights
+            Round heights a lossless store cannot hold (say 12.3 in an integer DEM) to its
+            grid instead of refusing them.
+
+        Returns
+        -------
+        :class:`~geoterrain.preprocessing.edit.EditResult` (window changed, rows and bytes
+        rewritten, time).
+
+        Examples
+        --------
+        >>> import shutil, tempfile, os
+        >>> p = os.path.join(tempfile.mkdtemp(), "c.geoterrain"); _ = shutil.copy(t.path, p)
+        >>> u = open(p)
+        >>> before = u.tile(0, 0, 0).heights[4, 4]
+        >>> res = u.edit((3, 3), np.full((3, 3), -5.0), mode="add")
+        >>> bool(u.tile(0, 0, 0).heights[4, 4] == before - 5), res.changed
+        (True, 9)
+        """
+        from geoterrain.preprocessing.edit import Patch, edit_terrain
+
+        if hasattr(window, "row_off"):  # a rasterio Window
+            row, col = int(window.row_off), int(window.col_off)
+            shape = (int(window.height), int(window.width))
+        else:
+            row, col = (int(v) for v in tuple(window)[:2])
+            shape = tuple(int(v) for v in tuple(window)[2:4]) or None
+        heights = np.asarray(heights, np.float64)
+        if shape is not None and heights.shape != shape:
+            raise UsageError(f"heights have shape {heights.shape}, the window {shape}")
+        res = edit_terrain(self, Patch(row, col, heights), mode, round_heights=round_heights)
+        self.refresh()
+        return res
+
+    def refresh(self) -> bool:
+        """Take in the edits committed to the store since it was read (by :meth:`edit`,
+        or another process's ``geoterrain edit``): the tile table and metadata are read
+        again, the cached tiles an edit reached are dropped (the edit log says where), and
+        so is what other modules derived from the terrain, unless what they keep knows
+        how to take an edit in (an object with an ``edited(edits)`` method, given the edit
+        log's new entries, such as the tessellation's HAM statistics,
+        :class:`geoterrain.lod.tessellation.HamStats`). Returns whether anything changed;
+        ``generation`` counts the changes taken in.
+
+        Examples
+        --------
+        >>> t.refresh()
+        False
+        """
+        if self.reader.version() == self._version:
+            return False
+        seen = self._edits_seen
+        self.reader.close()
+        self._load()
+        edits = self.meta.get("edits") if isinstance(self.meta.get("edits"), dict) else {}
+        news = [e for e in edits.get("last", []) if isinstance(e, dict) and e.get("n", 0) > seen]
+        rects = None  # None: everything
+        if news and len(news) == self._edits_seen - seen:
+            try:
+                rects = [tuple(int(v) for v in r) for e in news for r in e["dirty"]]
+            except (KeyError, TypeError, ValueError):
+                rects = None
+        self._drop(rects)
+        for owner, got in list(self._derived.items()):
+            hook = getattr(got, "edited", None)
+            if hook is None or rects is None:
+                del self._derived[owner]
+            else:
+                hook(news)
+        self.generation += 1
+        return True
+
+    def _drop(self, rects: list | None) -> None:
+        """Drop the cached values of tiles whose footprint meets ``rects`` (level-0
+        samples (r0, c0, r1, c1), ends excluded; None: every one), and every cached
+        value that is not a tile's (a key not ending in a tile's (level, x, y))."""
+        if rects is None:
+            self.clear_cache()
+            return
+        g = self.grid
+        R = np.array(rects, np.int64).reshape(-1, 4)
+        for key in list(self._cache):
+            tk = key[-3:]
+            if len(key) >= 4 and all(isinstance(v, int | np.integer) for v in tk):
+                L, x, y = (int(v) for v in tk)
+                if 0 <= L <= g.top_level:
+                    span = g.tile_span(L)
+                    i0, j0 = y * span, x * span
+                    hit = ((R[:, 0] <= i0 + span) & (R[:, 2] > i0)
+                           & (R[:, 1] <= j0 + span) & (R[:, 3] > j0)).any()
+                    if not hit:
+                        continue
+            _, size = self._cache.pop(key)
+            self._cache_used -= size
+
     # ------------------------------------------------------------------ info
     def info(self) -> dict:
         """A summary: size, CRS and frame, extent, grid, levels, tiles, nodata, codec, errors."""
@@ -665,6 +795,7 @@ class Terrain:
             # the file's own clock (the store holds none: two runs write the same bytes)
             "modified": datetime.fromtimestamp(os.stat(self.path).st_mtime, UTC)
             .isoformat(timespec="seconds"),
+            "edits": _edits_summary(m.get("edits")),
         }
 
     # -------------------------------------------------------------- notebooks
@@ -675,10 +806,12 @@ class Terrain:
         return repr_html(self)
 
     def plot(self, view: View | None = None, **kwargs):
-        """Show the terrain: PyVista's notebook backend, or an offscreen image (PIL).
+        """Show the terrain: the picture ``geoterrain render`` makes (overlays included), as
+        a PIL image; or PyVista's notebook backend with ``interactive=True``.
 
-        Keywords: ``shading``, ``pixel_error``, ``strategy``, ``size``, ``cmap``; the
-        rest go to ``Plotter.show``. See :func:`geoterrain.rendering.notebook.plot`.
+        Keywords: ``shading``, ``pixel_error``, ``strategy``, ``size``, ``cmap``, ``title``,
+        ``overlays``, ``map``, ``vertical_exaggeration``, ``light``, ``drape``, ``water``,
+        ``interactive``; see :func:`geoterrain.rendering.notebook.plot`.
         """
         from geoterrain.rendering.notebook import plot  # upper layer, loaded on first use
 
@@ -692,6 +825,22 @@ class Terrain:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _edits_summary(log) -> dict | None:
+    """The metadata's edit log in a line's worth: how many edits, and the last one's
+    mode, source and window (None: never edited)."""
+    if not isinstance(log, dict) or not log.get("last"):
+        return None
+    e = log["last"][-1]
+    try:
+        r, c, h, w = (int(v) for v in e["window"])
+        when = f"{e['time']} " if "time" in e else ""  # stores edited before it was dropped
+        last = (f"{when}{e['mode']} of {e['source']}, rows {r} … {r + h - 1}, "
+                f"columns {c} … {c + w - 1}")
+    except (KeyError, TypeError, ValueError):
+        last = "?"
+    return {"count": int(log.get("count", 0)), "last": last}
 
 
 def _nbytes(v) -> int:
@@ -726,6 +875,33 @@ def open(path: str | Path, cache_bytes: int = 1536 << 20) -> Terrain:  # noqa: A
     See :class:`Terrain`.
     """
     return Terrain(path, cache_bytes=cache_bytes)
+
+
+def edit(store: str | Path, patch: str | Path, mode: str = "replace", *,
+         at: tuple[int, int] | None = None, resampling: str = "bilinear",
+         round_heights: bool = False, band: int | None = None) -> EditResult:
+    """Edit a store in place with a patch raster (``geoterrain edit STORE --patch``).
+
+    The patch is placed on the store's grid by its georeference (as it is when it lies on
+    the grid, else resampled onto it with ``resampling``), or at ``at`` = (row, col) of
+    its top-left sample; its nodata samples change nothing. Modes, rounding and what is
+    rewritten: :meth:`Terrain.edit`.
+
+    Examples
+    --------
+    >>> import shutil, tempfile, os
+    >>> from geoterrain.ingest.synth import write_geotiff
+    >>> d = tempfile.mkdtemp()
+    >>> p = os.path.join(d, "c.geoterrain"); _ = shutil.copy(t.path, p)
+    >>> cut = write_geotiff(os.path.join(d, "cut.tif"), np.full((5, 5), -20.0))
+    >>> edit(p, cut, "add", at=(10, 12)).changed
+    25
+    """
+    from geoterrain.preprocessing.edit import edit_terrain, read_patch
+
+    with Terrain(store) as t:
+        p = read_patch(patch, t.frame, t.grid, at=at, resampling=resampling, band=band)
+        return edit_terrain(t, p, mode, round_heights=round_heights)
 
 
 def _unit_name(factor: float) -> str:

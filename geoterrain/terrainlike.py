@@ -68,6 +68,7 @@ class TerrainLike(Protocol):
         view whose normals are rescaled: read :meth:`tile_normals` then).
     decoded_tiles, decoded_normals, decoded_bounds, bytes_read : running counts of
         what was read from the store (a view's counts are its base's).
+    generation : how many edits of the store this terrain has taken in (:meth:`refresh`).
     """
 
     path: Path
@@ -80,6 +81,7 @@ class TerrainLike(Protocol):
     decoded_normals: int
     decoded_bounds: int
     bytes_read: int
+    generation: int
 
     @property
     def edge_max(self) -> Mapping[TileKey, float] | None: ...
@@ -140,3 +142,6 @@ class TerrainLike(Protocol):
     def derived(self, owner: str, make: Callable[[], T]) -> T: ...
 
     def forget(self, owner: str | None = None) -> None: ...
+
+    # edits of the store (geoterrain edit, Terrain.edit): taken in, caches dropped
+    def refresh(self) -> bool: ...

@@ -26,6 +26,17 @@ settings.register_profile("dev", max_examples=60, deadline=None)
 settings.load_profile("ci" if os.environ.get("CI") else "dev")
 
 
+@pytest.fixture(autouse=True)
+def _no_compile_notice(request, monkeypatch):
+    """A command's first run says "compiling kernels" on stderr when numba's cache is cold
+    (which depends on what ran before); tests that read a command's stderr see it only
+    where they test it (tests/core/test_warmup.py)."""
+    if request.module.__name__.rsplit(".", 1)[-1] != "test_warmup":
+        from geoterrain.core import warmup
+
+        monkeypatch.setattr(warmup, "cold_kernels", lambda modules: [])
+
+
 def has_real_dem(name: str) -> bool:
     """Whether a real DEM is available (for fixtures that add cases rather than skip)."""
     return (DEMS / name).is_file()

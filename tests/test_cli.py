@@ -1,5 +1,6 @@
 """The command line: bad input gets one line and the right exit code, never a traceback."""
 
+import json
 import os
 import sqlite3
 from pathlib import Path
@@ -45,8 +46,6 @@ def test_preprocess_and_info(fbm_tif, tmp_path):
     assert res.exit_code == 0, res.output
     assert "EPSG" in res.output or "UTM" in res.output
     res = run("info", out, "--json")
-    import json
-
     assert res.exit_code == 0, res.output
     assert json.loads(res.output)["grid"] == [129, 129]
 
@@ -184,7 +183,10 @@ def test_mesh_command(tmp_path, fbm_tif):
     ply = tmp_path / "m.ply"
     res = run("mesh", store, "-o", ply, "--max-error", "5")
     assert res.exit_code == 0, res.output
-    assert '"triangles"' in res.output
+    assert "triangles" in res.output and "height error ≤ 5 m" in res.output
+    assert not res.output.lstrip().startswith("{")  # words, not JSON
+    res = run("mesh", store, "-o", ply, "--max-error", "5", "--overwrite", "--json")
+    assert json.loads(res.stdout)["triangles"] > 2
     assert pv.read(ply).n_cells > 2
     vtp = tmp_path / "v.vtp"
     res = run("mesh", store, "-o", vtp, "--look-from", "0,-1500,1500", "--look-at", "0,0,500",
@@ -326,3 +328,53 @@ def test_bench_inputs_are_checked_before_any_work(tmp_path, fbm_tif):
     assert_one_line_error(run("-q", "bench", long_name), 2)
     assert_one_line_error(run("-q", "bench", fbm_tif, "--cache-dir", long_name), 2)
     assert not (tmp_path / "c").exists()
+@pytest.mark.fast
+def test_edit_command(tmp_path):
+    """`geoterrain edit`: a patch placed by its georeference or --at, the summary line,
+    the edit in `info`, and one-line errors (exit 2 for the command line, 1 for data)."""
+    import numpy as np
+
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    z = np.rint(generate("fbm", 65, seed=3))
+    dem = write_geotiff(tmp_path / "d.tif", z, spacing=10.0)
+    assert run("-q", "preprocess", dem, "--tile-size", "16").exit_code == 0
+    store = tmp_path / "d.geoterrain"
+    # a cut of 5 × 6 samples whose top-left corner is row 10, column 20 of the DEM
+    cut = write_geotiff(tmp_path / "cut.tif", np.full((5, 6), -12.0),
+                        origin=(500000.0 + 20 * 10, 5000000.0 - 10 * 10), spacing=10.0)
+    res = run("edit", store, "--patch", cut, "--mode", "add")
+    assert res.exit_code == 0 and "changed 30 samples in rows 10 … 14, columns 20 … 25" \
+        in res.output, res.output
+    with geoterrain.open(store) as t:
+        assert t.tile(0, 1, 0).heights[10 - 0, 20 - 16] == z[10, 20] - 12
+    assert "edits        1" in run("info", store).output
+    res = run("edit", store, "--patch", cut, "--mode", "add", "--at", "0,0")
+    assert res.exit_code == 0 and "rows 0 … 4, columns 0 … 5" in res.output
+    frac = write_geotiff(tmp_path / "frac.tif", np.full((2, 2), 0.25), spacing=10.0)
+    assert_one_line_error(run("edit", store, "--patch", frac, "--at", "1,1"), 1)
+    assert run("edit", store, "--patch", frac, "--at", "1,1", "--round").exit_code == 0
+    assert_one_line_error(run("edit", store, "--patch", cut, "--at", "900,900"), 1)
+    res = run("edit", store, "--patch", cut, "--at", "x")  # click's usage error
+    assert res.exit_code == 2 and "ROW,COL" in res.output and "Traceback" not in res.output
+    assert_one_line_error(run("edit", tmp_path / "none.geoterrain", "--patch", cut), 1)
+
+
+def test_help_texts_are_in_a_users_words():
+    """No --help names a seed document (their numbers belong to the strategy docs), `view
+    --help` says where the cached store goes and lists every key, and the level-of-detail
+    option speaks of pixels, not τ."""
+    import re
+
+    from geoterrain.cli.main import COMMANDS
+
+    texts = {c: run(c, "--help").output for c in COMMANDS}
+    texts["geoterrain"] = run("--help").output
+    for name, text in texts.items():
+        assert not re.search(r"seed\s*\d{3}|seed 0|HAM\b|\bLP\b", text), name
+        assert "δ" not in text and "τ" not in text, name
+    view = " ".join(texts["view"].split())
+    assert "~/.cache/geoterrain" in view and "next to it" not in view
+    for key in ("m ", "+ / -", "g ", "x ", "c ", "space", "s ", "t ", "h ", "q "):
+        assert f"  {key}" in texts["view"], key
+    assert "pixels" in texts["render"] and "TAU" not in texts["render"]

@@ -10,7 +10,7 @@ characters, a name that is not UTF-8; paths are the inputs, a missing folder, a 
 FIFO, a symbolic link, an existing file or the command's own input. A third of the cases
 are calm (valid-looking values only, a new output), so that whole commands run and their
 outputs are checked. What C libraries print on the process's stderr counts too. ``view`` opens a
-window and is left out.
+window and ``serve`` serves until Ctrl-C: both are left out.
 
 The default suite runs a short sample; the seeded 2 000-case run is marked slow::
 
@@ -33,7 +33,7 @@ from hypothesis import strategies as st
 
 pytestmark = pytest.mark.fast
 
-SKIP = {"view"}  # interactive: opens a window
+SKIP = {"view", "serve"}  # interactive: a window, or a server running until Ctrl-C
 CASE_SECONDS = 60  # a case running longer is a hang
 
 HOSTILE_NUMBERS = ["nan", "inf", "-inf", "0", "-1", "1e308", "-1e308", "1e-300", "", "abc",
@@ -112,7 +112,8 @@ def _number(p: click.Parameter):
 # a calm case's output for each command: a new file of a kind it writes
 CALM_OUTPUTS = {"preprocess": "out.geoterrain", "mesh": "out.ply", "export": "out.glb",
                 "export-raster": "out.tif", "tiles": "tiles", "render": "out.png",
-                "synth": "out.tif", "bench": "out.csv"}
+                "synth": "out.tif", "bench": "out.csv", "query": "out.csv",
+                "profile": "out.csv", "viewshed": "out.tif", "contours": "out.gpkg"}
 
 
 def _value(p: click.Parameter, d: Path, calm: bool = False, command: str = ""):

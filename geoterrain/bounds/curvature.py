@@ -50,9 +50,10 @@ BORDER_FRACTION = 0.01
 
 
 class MetricGrid(NamedTuple):
-    """A curvilinear grid as the metric kernels read it: scene ``X``, ``Y``, heights ``Z``
-    (0 where invalid) and validity ``vb`` (N, N), the border fraction ``frac``, and the
-    data window ``wi × wj`` a static mesh is clipped to (N × N: none)."""
+    """A curvilinear grid, or a window of its rows, as the metric kernels read it: scene
+    ``X``, ``Y``, heights ``Z`` (0 where invalid) and validity ``vb`` of the grid rows
+    ``w0`` … (every column of the (N, N) grid), the border fraction ``frac``, and the data
+    window ``wi × wj`` a static mesh is clipped to (N × N: none)."""
 
     X: np.ndarray
     Y: np.ndarray
@@ -61,39 +62,76 @@ class MetricGrid(NamedTuple):
     frac: float
     wi: int
     wj: int
+    w0: int = 0
 
 
-@njit(cache=True)
-def _tri_term(g, vi, vj, ai, aj, bi, bj, ci, cj, border):
-    """(max error, max distance to p_v, border bulge, search margin m in samples) for
-    triangle (a, b, c) of vertex v of the grid ``g`` (:class:`MetricGrid`).
+class Tri(NamedTuple):
+    """A triangle (a, b, c) drawn while vertex v is absent, as the row kernels read it:
+    corner and vertex indices and scene positions, its index box ``i0 … i1 × j0 … j1``,
+    and the terms of its affine maps (index space → metric plane, :func:`_tri_make`)."""
 
-    ``g.wi × g.wj``: the data window a static mesh is clipped to (N × N: none). A triangle
-    that crosses its last row or column bulges when a sample of T on that row or column
-    is displaced from its place in T (|P_s − A_T(s)|) by more than ``frac / 2`` spacings:
-    the clipped edge is T's chord of the curved data border there."""
-    X, Y, Z, vb, frac, wi, wj = g
-    N = Z.shape[0]
-    if not (vb[ai, aj] and vb[bi, bj] and vb[ci, cj]):
-        return 0.0, 0.0, False, 0
-    ax, ay, az = X[ai, aj], Y[ai, aj], Z[ai, aj]
-    bx, by, bz = X[bi, bj], Y[bi, bj], Z[bi, bj]
-    cx, cy, cz = X[ci, cj], Y[ci, cj], Z[ci, cj]
+    ai: int
+    aj: int
+    bi: int
+    bj: int
+    ci: int
+    cj: int
+    vi: int
+    vj: int
+    ax: float
+    ay: float
+    az: float
+    bx: float
+    by: float
+    bz: float
+    cx: float
+    cy: float
+    cz: float
+    vx: float
+    vy: float
+    vz: float
+    m11: float
+    m12: float
+    m21: float
+    m22: float
+    smin: float
+    la: float
+    lb: float
+    lc: float
+    area2: float
+    ta: float
+    tb: float
+    tc: float
+    inv: float
+    i0: int
+    i1: int
+    j0: int
+    j1: int
+
+
+@njit(cache=True, inline="always")
+def _tri_make(vi, vj, ai, aj, bi, bj, ci, cj, p, frac):
+    """(ok, :class:`Tri`) of triangle (a, b, c) of vertex v with scene positions ``p``
+    (12 floats: a, b, c, v as x, y, z); not ok (nothing to measure) when the metric or
+    index-space triangle is degenerate."""
+    ax, ay, az, bx, by, bz, cx, cy, cz, vx, vy, vz = p
     det = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
     # index-space map: (i, j) = a + u (b − a) + w (c − a); metric A_T the same with X, Y
     dbi, dbj, dci, dcj = bi - ai, bj - aj, ci - ai, cj - aj
     idet = dbi * dcj - dci * dbj
     if det == 0.0 or idet == 0:
-        return 0.0, 0.0, False, 0
+        z = 0.0
+        return False, Tri(ai, aj, bi, bj, ci, cj, vi, vj, ax, ay, az, bx, by, bz, cx, cy, cz,
+                          vx, vy, vz, z, z, z, z, z, z, z, z, z, z, z, z, z, ai, ai, aj, aj)
     # linear part of A_T: columns = metric images of the unit index steps di, dj
     m11 = ((bx - ax) * dcj - (cx - ax) * dbj) / idet  # dX/di
     m12 = ((cx - ax) * dbi - (bx - ax) * dci) / idet  # dX/dj
     m21 = ((by - ay) * dcj - (cy - ay) * dbj) / idet
     m22 = ((cy - ay) * dbi - (by - ay) * dci) / idet
     # smallest singular value: metres per index step, the local sample spacing
-    p = m11 * m11 + m12 * m12 + m21 * m21 + m22 * m22
+    pp = m11 * m11 + m12 * m12 + m21 * m21 + m22 * m22
     q = abs(m11 * m22 - m12 * m21)
-    smin = q / np.sqrt(0.5 * (p + np.sqrt(max(p * p - 4 * q * q, 0.0))))
+    smin = q / np.sqrt(0.5 * (pp + np.sqrt(max(pp * pp - 4 * q * q, 0.0))))
     tol = 2.0 * frac * smin
     la = np.hypot(cx - bx, cy - by)
     lb = np.hypot(ax - cx, ay - cy)
@@ -103,55 +141,128 @@ def _tri_term(g, vi, vj, ai, aj, bi, bj, ci, cj, border):
     inv = 1.0 / det
     i0, i1 = min(ai, bi, ci), max(ai, bi, ci)
     j0, j1 = min(aj, bj, cj), max(aj, bj, cj)
-    # pass 1: largest displacement |P_s − A_T(s)| of T's own samples (index box)
+    return True, Tri(ai, aj, bi, bj, ci, cj, vi, vj, ax, ay, az, bx, by, bz, cx, cy, cz,
+                     vx, vy, vz, m11, m12, m21, m22, smin, la, lb, lc, area2, ta, tb, tc, inv,
+                     i0, i1, j0, j1)
+
+
+@njit(cache=True, inline="always")
+def _tri_own(g, T, r_lo, r_hi, border):
+    """Pass 1 of a triangle ``T`` (:class:`Tri`) over its own samples (its index box) on
+    grid rows r_lo … r_hi of ``g`` (:class:`MetricGrid`): (the largest displacement
+    |P_s − A_T(s)|, the same over the samples on the data window's last row or column,
+    whether a valid sample bulges beyond a border chord of T). Maxima and an OR: the
+    rows may come in any split."""
+    X, Y, vb, frac, wi, wj, w0 = g.X, g.Y, g.vb, g.frac, g.wi, g.wj, g.w0
+    N = X.shape[1]
     disp = 0.0
     dwin = 0.0  # the same, over T's samples on the data window's last row or column
-    cross = i1 > wi - 1 or j1 > wj - 1
-    for i in range(i0, i1 + 1):
-        for j in range(j0, j1 + 1):
-            ex = ax + m11 * (i - ai) + m12 * (j - aj) - X[i, j]
-            ey = ay + m21 * (i - ai) + m22 * (j - aj) - Y[i, j]
+    cross = T.i1 > wi - 1 or T.j1 > wj - 1
+    bulge = False
+    half = 0.5 * frac * T.smin
+    on_a = border and _on_border(T.bi, T.bj, T.ci, T.cj, N)  # edges opposite a, b, c
+    on_b = border and _on_border(T.ai, T.aj, T.ci, T.cj, N)
+    on_c = border and _on_border(T.ai, T.aj, T.bi, T.bj, N)
+    for i in range(max(T.i0, r_lo), min(T.i1, r_hi) + 1):
+        for j in range(T.j0, T.j1 + 1):
+            x, y = X[i - w0, j], Y[i - w0, j]
+            ex = T.ax + T.m11 * (i - T.ai) + T.m12 * (j - T.aj) - x
+            ey = T.ay + T.m21 * (i - T.ai) + T.m22 * (j - T.aj) - y
             dd = np.hypot(ex, ey)
             disp = max(disp, dd)
             if cross and ((i == wi - 1 and j <= wj - 1) or (j == wj - 1 and i <= wi - 1)):
                 dwin = max(dwin, dd)
+            if (on_a or on_b or on_c) and vb[i - w0, j]:
+                # signed distance beyond each border edge (opposite a: b–c, etc.)
+                px = x - T.ax
+                py = y - T.ay
+                l1 = (px * (T.cy - T.ay) - py * (T.cx - T.ax)) * T.inv
+                l2 = ((T.bx - T.ax) * py - (T.by - T.ay) * px) * T.inv
+                l0 = 1.0 - l1 - l2
+                if on_a and -l0 * T.area2 / T.la > half:
+                    bulge = True
+                if on_b and -l1 * T.area2 / T.lb > half:
+                    bulge = True
+                if on_c and -l2 * T.area2 / T.lc > half:
+                    bulge = True
+    return disp, dwin, bulge
+
+
+@njit(cache=True, inline="always")
+def _tri_margin(T, disp, N):
+    """The search margin m, in samples, from a triangle's largest displacement on an
+    N-sample grid."""
     # capped in floating point before the conversion: a triangle folded almost flat in
     # metres (a padded global grid's corners beyond a pole) has disp / smin past 2^63, and
     # converting that to an integer is undefined (it crashed a 540 × 1080 global grid); a
     # margin of N samples already reaches every sample
-    mf = disp / smin
-    m = (int(np.ceil(mf)) if mf < N else N) + 2
-    # border chords of T: edges whose two ends lie on one side of the domain
-    bulge = dwin > 0.5 * frac * smin
-    vx, vy, vz = X[vi, vj], Y[vi, vj], Z[vi, vj]
+    mf = disp / T.smin
+    return (int(np.ceil(mf)) if mf < N else N) + 2
+
+
+@njit(cache=True, inline="always")
+def _tri_search(g, T, m, r_lo, r_hi):
+    """Pass 2 of a triangle ``T`` on grid rows r_lo … r_hi of ``g``: (max error, max
+    distance to p_v) over the valid samples of T's index box ± ``m`` whose scene (X, Y)
+    lies in T's metric triangle widened by 2 ``frac`` spacings (maxima: any split)."""
+    X, Y, Z, vb, w0 = g.X, g.Y, g.Z, g.vb, g.w0
+    N = X.shape[1]
     emax = 0.0
     rmax = 0.0
-    for i in range(max(i0 - m, 0), min(i1 + m, N - 1) + 1):
-        for j in range(max(j0 - m, 0), min(j1 + m, N - 1) + 1):
-            if not vb[i, j]:
+    for i in range(max(T.i0 - m, 0, r_lo), min(T.i1 + m, N - 1, r_hi) + 1):
+        for j in range(max(T.j0 - m, 0), min(T.j1 + m, N - 1) + 1):
+            if not vb[i - w0, j]:
                 continue
-            px = X[i, j] - ax
-            py = Y[i, j] - ay
-            l1 = (px * (cy - ay) - py * (cx - ax)) * inv
-            l2 = ((bx - ax) * py - (by - ay) * px) * inv
+            px = X[i - w0, j] - T.ax
+            py = Y[i - w0, j] - T.ay
+            l1 = (px * (T.cy - T.ay) - py * (T.cx - T.ax)) * T.inv
+            l2 = ((T.bx - T.ax) * py - (T.by - T.ay) * px) * T.inv
             l0 = 1.0 - l1 - l2
-            own = i0 <= i <= i1 and j0 <= j <= j1
-            if border and own:
-                # signed distance beyond each border edge (opposite a: b–c, etc.)
-                if _on_border(bi, bj, ci, cj, N) and -l0 * area2 / la > 0.5 * frac * smin:
-                    bulge = True
-                if _on_border(ai, aj, ci, cj, N) and -l1 * area2 / lb > 0.5 * frac * smin:
-                    bulge = True
-                if _on_border(ai, aj, bi, bj, N) and -l2 * area2 / lc > 0.5 * frac * smin:
-                    bulge = True
-            if l0 < -ta or l1 < -tb or l2 < -tc:
+            if l0 < -T.ta or l1 < -T.tb or l2 < -T.tc:
                 continue
-            zs = Z[i, j]
-            if (i == ai and j == aj) or (i == bi and j == bj) or (i == ci and j == cj):
+            zs = Z[i - w0, j]
+            if (i == T.ai and j == T.aj) or (i == T.bi and j == T.bj) or \
+                    (i == T.ci and j == T.cj):
                 continue  # the corners are mesh vertices (and v's ancestors)
-            emax = max(emax, abs(az * l0 + bz * l1 + cz * l2 - zs))
-            rmax = max(rmax, np.sqrt((X[i, j] - vx) ** 2 + (Y[i, j] - vy) ** 2
-                                     + (zs - vz) ** 2))
+            emax = max(emax, abs(T.az * l0 + T.bz * l1 + T.cz * l2 - zs))
+            rmax = max(rmax, np.sqrt((X[i - w0, j] - T.vx) ** 2 + (Y[i - w0, j] - T.vy) ** 2
+                                     + (zs - T.vz) ** 2))
+    return emax, rmax
+
+
+@njit(cache=True, inline="always")
+def _corners(g, vi, vj, ai, aj, bi, bj, ci, cj):
+    """Scene positions of a triangle's corners a, b, c and its vertex v in ``g``'s rows."""
+    X, Y, Z, w0 = g.X, g.Y, g.Z, g.w0
+    return (X[ai - w0, aj], Y[ai - w0, aj], Z[ai - w0, aj], X[bi - w0, bj], Y[bi - w0, bj],
+            Z[bi - w0, bj], X[ci - w0, cj], Y[ci - w0, cj], Z[ci - w0, cj], X[vi - w0, vj],
+            Y[vi - w0, vj], Z[vi - w0, vj])
+
+
+@njit(cache=True)
+def _tri_term(g, vi, vj, ai, aj, bi, bj, ci, cj, border):
+    """(max error, max distance to p_v, border bulge, search margin m in samples) for
+    triangle (a, b, c) of vertex v of the grid ``g`` (:class:`MetricGrid`, whole).
+
+    ``g.wi × g.wj``: the data window a static mesh is clipped to (N × N: none). A triangle
+    that crosses its last row or column bulges when a sample of T on that row or column
+    is displaced from its place in T (|P_s − A_T(s)|) by more than ``frac / 2`` spacings:
+    the clipped edge is T's chord of the curved data border there. The two passes are
+    :func:`_tri_own` and :func:`_tri_search`, which a streamed grid runs over row bands."""
+    vb = g.vb
+    N = vb.shape[1]
+    if not (vb[ai, aj] and vb[bi, bj] and vb[ci, cj]):
+        return 0.0, 0.0, False, 0
+    ok, T = _tri_make(vi, vj, ai, aj, bi, bj, ci, cj,
+                      _corners(g, vi, vj, ai, aj, bi, bj, ci, cj), g.frac)
+    if not ok:
+        return 0.0, 0.0, False, 0
+    # pass 1: largest displacement |P_s − A_T(s)| of T's own samples (index box), and
+    # the border chords of T (edges whose two ends lie on one side of the domain)
+    disp, dwin, bulge = _tri_own(g, T, 0, N - 1, border)
+    m = _tri_margin(T, disp, N)
+    bulge = bulge or dwin > 0.5 * g.frac * T.smin
+    emax, rmax = _tri_search(g, T, m, 0, N - 1)
     return emax, rmax, bulge, m
 
 
@@ -263,7 +374,7 @@ def metric_terms(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, valid: np.ndarray,
         dm0, bulge0, M = np.zeros((1, 1)), np.zeros((1, 1), np.bool_), -1
     mrow = np.zeros(N, np.int64)
     with cores_for(Zf.size):  # small grids on one thread (geoterrain/core/threads.py)
-        dm, rm, bulge = _vertex_terms(MetricGrid(X, Y, Zf, vb, float(frac), int(wi), int(wj)),
+        dm, rm, bulge = _vertex_terms(MetricGrid(X, Y, Zf, vb, float(frac), int(wi), int(wj), 0),
                                       int(M), dm0, bulge0, mrow)
     return dm, rm, bulge, int(mrow.max()) if N else 0
 

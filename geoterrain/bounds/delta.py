@@ -113,7 +113,7 @@ class Beside(NamedTuple):
 # 2 = mixed; +inf is assigned afterwards in numpy (the block sweeps are compiled with fast
 # math, so no kernel sees a non-finite value: invalid heights are zeroed beforehand).
 
-_FM = True
+_FM = {"nnan", "ninf", "nsz"}
 # Rows on every core for large grids (errors 0.54 → 0.34 s, radii 0.32 → 0.20 s on the
 # quiet 4097² fBm, docs/lab/preprocess.md); small ones run on one thread, where a busy
 # core made the barriers cost more than the work (geoterrain/core/threads.py: cores_for).

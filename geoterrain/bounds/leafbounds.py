@@ -46,7 +46,7 @@ if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
 __all__ = ["geographic_leaf_delta", "leaf_delta", "leaf_radius", "normal_axes", "normal_xy",
-           "tile_leaf_bounds"]
+           "tile_leaf_bounds", "tile_slack"]
 
 
 class Ring(NamedTuple):
@@ -266,44 +266,81 @@ def geographic_leaf_delta(delta: np.ndarray, z: np.ndarray, valid: np.ndarray, t
     """
     T = (1 << t) + 1
     n_tiles = (delta.shape[0] - 1) >> t
-    rr, rc = ring_new_index(T)
-    inner = new_mask(T)
-    inner[rr, rc] = False  # the ring is stored as it is
     raised = []
     out: dict[tuple[int, int, int], float] = {}
     for y in range(n_tiles):
         for x in range(n_tiles):
             sub = np.s_[y << t:(y << t) + T, x << t:(x << t) + T]
-            v = np.asarray(valid[sub], bool) & np.isfinite(z[sub])
-            if not v.any():
-                continue
-            if bulge[sub][inner].any():
-                return None  # a border chord that needs refining (no such case known)
-            zt = np.where(v, z[sub], 0.0)
-            w = delta[sub]
-            raw = np.zeros((T, T), np.float32)  # the closed forms, unsaturated
-            _leaf_delta_nb(zt, v.view(np.uint8), bool(v.all()), y << t, x << t, _NO_RING,
-                           _table(0), 0.0, False, False, raw)
-            fin = inner & np.isfinite(raw)
-            s = max(0.0, float((dm[sub][fin] - raw[fin]).max())) if fin.any() else 0.0
-            for _ in range(8):  # float32 rounding may leave a value an ulp short
-                s = float(round_up(np.array([s]), np.float32)[0])
-                d = leaf_delta(zt, v, (y << t, x << t), rr, rc, w[rr, rc], None, s)
-                short = d[inner].astype(np.float64) < w[inner]
-                if not short.any():
-                    break
-                if np.isinf(w[inner][short]).any():
-                    return None  # a +inf the closed forms do not give (no such case known)
-                s += float((w[inner][short] - d[inner][short]).max()) + 2.0**-40
-            else:
+            got = tile_slack(delta[sub], z[sub], valid[sub], dm[sub], bulge[sub],
+                             (y << t, x << t))
+            if got is None:
                 return None
+            if got is True:
+                continue
+            s, d = got
             raised.append((sub, d))
             out[(0, x, y)] = s
+    inner = _inner(T)
     for sub, d in raised:
         blk = delta[sub]
         blk[inner] = d[inner]
     saturate(delta)
     return out
+
+
+@lru_cache(maxsize=16)
+def _inner(T: int) -> np.ndarray:
+    # a level-0 tile's new vertices off its border ring
+    rr, rc = ring_new_index(T)
+    inner = new_mask(T)
+    inner[rr, rc] = False  # the ring is stored as it is
+    inner.flags.writeable = False
+    return inner
+
+
+def tile_slack(w: np.ndarray, z: np.ndarray, valid: np.ndarray, dm: np.ndarray,
+               bulge: np.ndarray, origin: tuple[int, int]
+               ) -> tuple[float, np.ndarray] | bool | None:
+    """One level-0 tile of :func:`geographic_leaf_delta`: (its slack s, the δ a reader
+    derives with it, whose inner new vertices replace ``w``'s), True for a tile without a
+    valid sample, or None where the closed forms cannot bound it.
+
+    ``w``, ``z``, ``valid``, ``dm``, ``bulge``: the tile's (T, T) saturated δ, scene
+    heights, mask and raw metric terms; ``origin``: its first sample's (row, column).
+
+    Examples
+    --------
+    >>> T = 5; z = np.arange(25.0).reshape(5, 5) ** 1.5; v = np.ones((5, 5), bool)
+    >>> from geoterrain.bounds.delta import vertex_errors
+    >>> w = vertex_errors(z, v); dm = np.full((5, 5), 0.5)
+    >>> s, d = tile_slack(w, z, v, dm, np.zeros((5, 5), bool), (0, 0))
+    >>> s >= 0 and bool((d[_inner(5)] >= w[_inner(5)]).all())
+    True
+    """
+    T = w.shape[0]
+    rr, rc = ring_new_index(T)
+    inner = _inner(T)
+    v = np.asarray(valid, bool) & np.isfinite(z)
+    if not v.any():
+        return True
+    if bulge[inner].any():
+        return None  # a border chord that needs refining (no such case known)
+    zt = np.where(v, z, 0.0)
+    raw = np.zeros((T, T), np.float32)  # the closed forms, unsaturated
+    _leaf_delta_nb(zt, v.view(np.uint8), bool(v.all()), origin[0], origin[1], _NO_RING,
+                   _table(0), 0.0, False, False, raw)
+    fin = inner & np.isfinite(raw)
+    s = max(0.0, float((dm[fin] - raw[fin]).max())) if fin.any() else 0.0
+    for _ in range(8):  # float32 rounding may leave a value an ulp short
+        s = float(round_up(np.array([s]), np.float32)[0])
+        d = leaf_delta(zt, v, origin, rr, rc, w[rr, rc], None, s)
+        short = d[inner].astype(np.float64) < w[inner]
+        if not short.any():
+            return s, d
+        if np.isinf(w[inner][short]).any():
+            return None  # a +inf the closed forms do not give (no such case known)
+        s += float((w[inner][short] - d[inner][short]).max()) + 2.0**-40
+    return None
 
 
 def normal_xy(terrain: TerrainLike, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:

@@ -47,6 +47,12 @@ class View:
         Image (width, height) in pixels.
     near, far
         Clipping distances; ``None`` means no near plane (beyond the eye) or no far plane.
+    parallel
+        A map's orthographic picture: the renderer draws the parallel projection of what
+        this (far, narrow) perspective view frames at its target, while the LOD selection
+        and the overlays use the perspective view itself, which differs from it by less
+        than the terrain's relief over the eye's distance
+        (:func:`geoterrain.rendering.mapview.map_view`).
 
     Examples
     --------
@@ -64,6 +70,7 @@ class View:
     size: tuple[int, int] = (1280, 720)
     near: float | None = None
     far: float | None = None
+    parallel: bool = False
     memos: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -216,7 +223,7 @@ class View:
         far = max(float(depth.max()), 0.0) * 1.01 + 0.01 * span  # skirts hang a little lower
         near = max(float(depth.min()) * 0.99, floor * far)
         return View(self.look_from, self.look_at, self.up, self.fov_y_deg, self.size,
-                    near, far)
+                    near, far, self.parallel)
 
 
 def load_views(path: str | Path, size: tuple[int, int] = (1280, 720), fov_y_deg: float = 30.0,

@@ -24,6 +24,8 @@ import rasterio
 
 from geoterrain.core.paths import input_problem
 from geoterrain.exceptions import InputError, UsageError
+from geoterrain.ingest.gdalerrors import gdal_reason
+from geoterrain.ingest.remote import Url, is_url, list_file, read_list
 
 GLOB_CHARS = "*?["
 _GDAL_TYPES = {"uint8": "Byte", "int8": "Int8", "uint16": "UInt16", "int16": "Int16",
@@ -39,31 +41,54 @@ def is_glob(src: str | Path) -> bool:
     >>> is_glob("tiles/*.hgt"), is_glob("dem.tif")
     (True, False)
     """
-    return isinstance(src, str) and any(c in src for c in GLOB_CHARS) and not Path(src).exists()
+    return (isinstance(src, str) and not is_url(src) and any(c in src for c in GLOB_CHARS)
+            and not Path(src).exists())
 
 
-def source_files(src: str | Path | list | tuple) -> list[Path]:
-    """The files of a DEM argument: one path, a list of paths, or a glob (sorted).
+def _one(p: str | Path | Url) -> Path | Url:
+    return p if isinstance(p, Url) else Url(str(p)) if is_url(p) else Path(p)
+
+
+def source_files(src: str | Path | list | tuple) -> list[Path | Url]:
+    """The files of a DEM argument: one path or URL, a list of them, a glob (sorted), or
+    a ``.txt`` file listing them (:mod:`geoterrain.ingest.remote`).
 
     Examples
     --------
-    >>> source_files("dem.tif")
-    [PosixPath('dem.tif')]
+    >>> source_files("dem.tif"), source_files("https://example.com/dem.tif")
+    ([PosixPath('dem.tif')], [Url('https://example.com/dem.tif')])
     """
     if isinstance(src, (list, tuple)):
         if not src:
             raise UsageError("no DEM given: pass a file, a list of files or a glob")
-        files = [Path(p) for p in src]
+        files = [_one(p) for p in src]
     elif is_glob(src):
         files = [Path(p) for p in sorted(_glob.glob(str(src)))]
         if not files:
             raise InputError(f"{src}: no file matches this pattern; check the folder and suffix")
+    elif list_file(src):
+        files = [_one(p) for p in read_list(src)]
+        if not files:
+            raise InputError(f"{src}: lists no source; write one URL or path a line")
+        if len(files) == 1:
+            return files
     else:
-        return [Path(src)]
+        return [_one(src)]
     for p in files:
         if (why := input_problem(p, utf8=True)) is not None:
             raise InputError(f"{p}: {why}; give raster files")
     return files
+
+
+def is_several(src: str | Path | list | tuple) -> bool:
+    """Whether a DEM argument names several sources (a list, a glob, a list file).
+
+    Examples
+    --------
+    >>> is_several(["a.tif", "b.tif"]), is_several("dem.tif")
+    (True, False)
+    """
+    return isinstance(src, (list, tuple)) or is_glob(src) or list_file(src)
 
 
 def mosaic_name(files: list[Path]) -> str:
@@ -77,14 +102,13 @@ def _describe(p: Path) -> dict:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with rasterio.open(p) as s:
+            with rasterio.open(str(p)) as s:
                 return {"path": p, "w": s.width, "h": s.height, "count": s.count,
                         "dtypes": s.dtypes, "crs": s.crs, "t": s.transform,
                         "nodata": s.nodatavals, "georef": s.crs is not None
                         or not s.transform.is_identity}
     except rasterio.errors.RasterioIOError as exc:
-        first = str(exc).splitlines()[0] if str(exc) else "unreadable"
-        raise InputError(f"{p}: not a raster GDAL can read ({first})") from None
+        raise InputError(f"{p}: not a raster GDAL can read ({gdal_reason(exc)})") from None
 
 
 def build_vrt(files: list[Path]) -> str:
@@ -156,7 +180,7 @@ def build_vrt(files: list[Path]) -> str:
             nd_xml = f"<NODATA>{_num(nd)}</NODATA>" if nd is not None else ""
             srcs.append(
                 "<ComplexSource>"
-                f"<SourceFilename relativeToVRT=\"0\">{escape(str(s['path'].resolve()))}"
+                f"<SourceFilename relativeToVRT=\"0\">{escape(_gdal_name(s['path']))}"
                 f"</SourceFilename><SourceBand>{b}</SourceBand>"
                 f"<SrcRect xOff=\"0\" yOff=\"0\" xSize=\"{s['w']}\" ySize=\"{s['h']}\"/>"
                 f"<DstRect xOff=\"{ox}\" yOff=\"{oy}\" xSize=\"{s['w']}\" ySize=\"{s['h']}\"/>"
@@ -166,6 +190,38 @@ def build_vrt(files: list[Path]) -> str:
                      f"{nd_band}{''.join(srcs)}</VRTRasterBand>")
     return (f"<VRTDataset rasterXSize=\"{width}\" rasterYSize=\"{height}\">{srs}"
             f"<GeoTransform>{gt}</GeoTransform>{''.join(bands)}</VRTDataset>")
+
+
+def failing_tile(files: list) -> str | None:
+    """"NAME: GDAL's reason" of the first of ``files`` whose pixels cannot be read (read a
+    few rows at a time), or None: what names the culprit when a mosaic's read fails (GDAL's
+    own message may name no file).
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> from geoterrain.ingest.synth import generate, write_geotiff
+    >>> a = write_geotiff(os.path.join(tempfile.mkdtemp(), "a.tif"), generate("fbm", 9))
+    >>> failing_tile([a]) is None
+    True
+    """
+    from rasterio.windows import Window
+
+    for f in files:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+                with rasterio.open(str(f)) as s:
+                    for i in range(0, s.height, 512):
+                        s.read(window=Window(0, i, s.width, min(512, s.height - i)))
+        except rasterio.errors.RasterioError as exc:
+            return f"{Path(str(f)).name}: {gdal_reason(exc)}"
+    return None
+
+
+def _gdal_name(p: Path | Url) -> str:
+    # what a VRT names: a URL through GDAL's HTTP reader, a file by its absolute path
+    return p.gdal if isinstance(p, Url) else str(p.resolve())
 
 
 def _num(v: float) -> str:

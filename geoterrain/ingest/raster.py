@@ -19,7 +19,9 @@ from rasterio.errors import RasterioIOError
 from geoterrain.core.memory import available_memory
 from geoterrain.core.paths import input_problem
 from geoterrain.exceptions import InputError, UsageError
-from geoterrain.ingest.mosaic import mosaic_name, open_mosaic, source_files
+from geoterrain.ingest.composite import CompositeReader, needs_composite, plan
+from geoterrain.ingest.gdalerrors import gdal_reason
+from geoterrain.ingest.mosaic import failing_tile, mosaic_name, open_mosaic, source_files
 
 log = logging.getLogger("geoterrain")
 
@@ -73,7 +75,11 @@ ROUGH_PNG_STEP = 1000.0  # metres: a median neighbour step beyond this is not te
 # 0.27 → 0.13 s on 2 cores, docs/lab/preprocess.md); the bytes read are the same
 # GDAL's block cache is set, not left at its default of 5 % of RAM: a whole-raster read
 # keeps no block after copying it out, and a windowed one rereads little
-GDAL_READ_OPTIONS = {"GDAL_NUM_THREADS": "ALL_CPUS", "GDAL_CACHEMAX": 64 * 2**20}
+# Rasters over HTTP (GDAL's /vsicurl/): a failed request is retried 3 times, half a second
+# apart; the other options only concern HTTP requests
+GDAL_READ_OPTIONS = {"GDAL_NUM_THREADS": "ALL_CPUS", "GDAL_CACHEMAX": 64 * 2**20,
+                     "GDAL_HTTP_MAX_RETRY": 3, "GDAL_HTTP_RETRY_DELAY": 0.5,
+                     "GDAL_HTTP_TIMEOUT": 60}
 # ... except in a fork() child: GDAL's pool of decoding threads was made in the parent
 # and its threads are not copied, so a read waits for them forever (Pool(2).map of
 # preprocess after a preprocess in the parent hung on a multi-block GeoTIFF)
@@ -118,6 +124,10 @@ def read_raster(
     band: int | None = None,
     encoding: str = "auto",
     nodata: float | None = None,
+    crs: str | None = None,
+    resolution: float | None = None,
+    resampling: str = "bilinear",
+    priority: str = "finest",
 ) -> Raster:
     """Read a DEM into a :class:`Raster`.
 
@@ -139,6 +149,14 @@ def read_raster(
         neither is given, an undeclared -32768, -32767, -9999 or float32-min run
         far below the other heights is taken as voids, with a warning.
 
+    crs, resolution, resampling, priority
+        Sources of several resolutions or CRSs, or any source with a declared target grid
+        (``crs``, ``resolution`` in its units), are merged onto one grid
+        (:mod:`geoterrain.ingest.composite`): each source warped there (``resampling``
+        ``bilinear``, ``cubic`` or ``nearest``) with its own nodata, the first valid
+        source winning where they overlap (finest first, or ``priority="order"``: as
+        given).
+
     A south-up raster (positive row step) is flipped to north-up.
 
     Examples
@@ -152,6 +170,9 @@ def read_raster(
     if encoding not in ENCODINGS:
         raise UsageError(f"unknown encoding {encoding!r}; use one of {', '.join(ENCODINGS)}")
     files = source_files(path)
+    if needs_composite(files, crs, resolution):
+        return _read_composite(files, band, encoding, nodata, crs, resolution, resampling,
+                               priority)
     if len(files) > 1:
         return _read_mosaic(files, band, encoding, nodata)
     p = files[0]
@@ -160,12 +181,11 @@ def read_raster(
     try:
         with warnings.catch_warnings(), rasterio.Env(**GDAL_READ_OPTIONS):
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with rasterio.open(p) as src:
+            with rasterio.open(str(p)) as src:
                 _check_memory(src, p)
                 return _read_open(src, p, band, encoding, nodata)
     except RasterioIOError as exc:
-        first = str(exc).splitlines()[0] if str(exc) else "unreadable"
-        raise InputError(f"{p}: not a raster GDAL can read ({first})") from None
+        raise InputError(f"{p}: not a raster GDAL can read ({gdal_reason(exc)})") from None
 
 
 def _check_memory(src, p) -> None:
@@ -178,6 +198,37 @@ def _check_memory(src, p) -> None:
             "crop or downsample it (gdal_translate -srcwin / -outsize) first")
 
 
+def _read_composite(files: list[Path], band: int | None, encoding: str, nodata: float | None,
+                    crs: str | None, resolution: float | None, resampling: str,
+                    priority: str) -> Raster:
+    """Sources merged onto one grid (:mod:`geoterrain.ingest.composite`), read whole."""
+    if encoding not in ("auto", "raw"):
+        raise UsageError("sources merged onto a target grid are read raw; drop encoding",
+                         cli="sources merged onto a target grid are read raw; drop --encoding")
+    layers, target = plan(files, crs, resolution, resampling, priority, band, nodata)
+    label = mosaic_name(files)
+    from rasterio.crs import CRS
+
+    kind = "geographic" if CRS.from_wkt(target.crs_wkt).is_geographic else "projected"
+    need = target.height * target.width * PREPROCESS_BYTES_PER_SAMPLE[kind]
+    if need > available_memory():
+        raise InputError(f"{label}: {target.height}×{target.width} samples need about "
+                         f"{need / 2**30:.1f} GiB to preprocess whole, "
+                         f"{available_memory() / 2**30:.1f} GiB is available; coarsen the "
+                         "target grid (--resolution)")
+    try:
+        with rasterio.Env(**GDAL_READ_OPTIONS):
+            reader = CompositeReader(layers, target)
+            try:
+                heights, valid = reader.heights(0, target.height)
+            finally:
+                reader.close()
+    except RasterioIOError as exc:
+        raise InputError(f"{label}: a source cannot be read ({gdal_reason(exc)})") from None
+    return Raster(heights, valid, tuple(target.transform), target.crs_wkt, target.dtype, None,
+                  "raw", label)
+
+
 def _read_mosaic(files: list[Path], band: int | None, encoding: str,
                  nodata: float | None) -> Raster:
     """Several tiles as one raster through an in-memory VRT (:mod:`geoterrain.ingest.mosaic`)."""
@@ -188,8 +239,8 @@ def _read_mosaic(files: list[Path], band: int | None, encoding: str,
             _check_memory(src, label)
             r = _read_open(src, Path(label), band, encoding, nodata)
     except RasterioIOError as exc:
-        first = str(exc).splitlines()[0] if str(exc) else "unreadable"
-        raise InputError(f"{label}: a tile cannot be read ({first})") from None
+        why = failing_tile(files) or gdal_reason(exc)
+        raise InputError(f"{label}: a tile cannot be read ({why})") from None
     return r
 
 

@@ -125,13 +125,13 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     stats = {"tiles_visited": visited, "tiles_culled": culled}
     if not leaves:
         return empty_polydata(), stats
-    leaves, D, dmax = _restrict(leaves)
-    mesh = _assemble(terrain, leaves, D, dmax)
+    leaves, D, dmax = restrict_leaves(leaves)
+    mesh = assemble_leaves(terrain, leaves, D, dmax)
     stats.update(leaves=sum(len(v[1]) for v in leaves), depth=dmax, g_hat=tb.g)
     return mesh, stats
 
 
-def _paint(leaves, dmax):
+def paint(leaves, dmax):
     """The dense depth map at depth ``dmax``: each cell holds its leaf's depth (−1: none)."""
     M = 1 << dmax
     D = np.full((M, M), -1, np.int64)
@@ -143,13 +143,13 @@ def _paint(leaves, dmax):
     return D
 
 
-def _restrict(leaves):
+def restrict_leaves(leaves):
     """Split leaves until neighbouring leaves differ by at most one level."""
     dmax = max(k for k, _, _ in leaves)
     by = {k: (x, y) for k, x, y in leaves}
     while True:
         lv = [(k, *by[k]) for k in sorted(by) if len(by[k][0])]
-        D = _paint(lv, dmax)
+        D = paint(lv, dmax)
         P = np.pad(D, 1, constant_values=-1)
         nb = np.maximum(np.maximum(P[:-2, 1:-1], P[2:, 1:-1]),
                         np.maximum(P[1:-1, :-2], P[1:-1, 2:]))
@@ -172,7 +172,7 @@ def _restrict(leaves):
             return lv, D, dmax
 
 
-def _assemble(terrain: TerrainLike, leaves, D, dmax):
+def assemble_leaves(terrain: TerrainLike, leaves, D, dmax):
     """Each leaf as the 3×3 template, its edge midpoint removed next to a coarser leaf."""
     g = terrain.grid
     N1 = g.size - 1

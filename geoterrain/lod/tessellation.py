@@ -4,10 +4,15 @@ map (HAM), the GPU quad-domain tessellator emulated on the CPU, on arrays.
 - **Patches** are the stored level-0 tiles (2^t sample intervals a side; t = 6 gives the
   seed's 64-texel patches, one quad per texel at T = 64).
 - **HAM** = |Sobel |Sobel h|| (eq. 5-8): the unnormalised 3×3 Sobel magnitude of the
-  heights, applied twice, edge-replicate padding, unit spacing, heights in metres. On a
-  plane it is 0, on a·x² it is 128·a, and a step of height h peaks at 16·h (tested).
-  HAM_max per patch is computed from the patch's full-resolution heights the first time
-  the patch is in view, then cached.
+  heights, applied twice, edge-replicate padding at the map's border, unit spacing,
+  heights in metres. On a plane it is 0, on a·x² it is 128·a, and a step of height h
+  peaks at 16·h (tested). A patch's statistics (HAM_max, h_max and where it is, L175)
+  are those of the whole map's HAM over the patch's samples: the kernel applied twice
+  reads two samples around each, so they come from the patch's full-resolution heights
+  and a two-sample halo of its neighbours' (:class:`HamStats`), computed the first time
+  the patch is in view, then kept. When the store is edited, only the patches within
+  two samples of the edit are computed again (seed 004 H16), which equals computing
+  every patch again (tested).
 - **T_max = g(HAM_max)** (eq. 5-2), g = ``HAM_SCALE``·√HAM_max, clipped to [1, 64]. The
   seed leaves g open ("a reasonable proportion"); the square root keeps a cliff from
   saturating every patch.
@@ -125,26 +130,106 @@ def _power_of_two(t: np.ndarray) -> np.ndarray:
     return np.exp2(np.ceil(np.log2(np.clip(t, 1.0, T_LIMIT) - 1e-9))).clip(1, T_LIMIT)
 
 
+HALO = 2  # the 3×3 kernel applied twice reads two samples around each (seed 004 H16)
+
+
+class HamStats:
+    """Seed 004's per-patch statistics (L175) of a terrain's level-0 tiles, computed on
+    first use and kept in the terrain's :meth:`~geoterrain.terrainlike.TerrainLike.derived`
+    slot: ``stats[y, x]`` = (HAM_max, h_max, x_argmax, y_argmax), NaN until computed;
+    x, y count samples from the patch's north-west corner, h in metres.
+
+    A patch's statistics read its samples and a :data:`HALO` of two around them (the map's
+    HAM at the patch), so an edit of the heights changes only the patches within two
+    samples of it: :meth:`edited` drops those (seed 004 H16), and the next use computes
+    them again. Nodata samples take the mean of the valid ones of the patch and its halo
+    (no false cliff at a void's edge).
+
+    Examples
+    --------
+    >>> hs = HamStats(t)
+    >>> s = hs.stats(np.array([0, 1]), np.array([0, 0]))
+    >>> s.shape, bool((s[:, 0] >= 0).all())
+    ((2, 4), True)
+    """
+
+    def __init__(self, terrain: TerrainLike):
+        self.terrain = terrain
+        n = terrain.grid.tiles_per_side(0)
+        self.values = np.full((n, n, 4), np.nan)
+        self.computed = 0  # patches computed (the tests count them)
+
+    def stats(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        """(len(xs), 4) statistics of the level-0 patches (xs, ys), computing the
+        missing ones."""
+        xs, ys = np.asarray(xs, np.int64), np.asarray(ys, np.int64)
+        for x, y in zip(xs.tolist(), ys.tolist(), strict=True):
+            if np.isnan(self.values[y, x, 0]):
+                self.values[y, x] = patch_stats(self.terrain, x, y)
+                self.computed += 1
+        return self.values[ys, xs]
+
+    def edited(self, edits: list) -> None:
+        """An edit of the store changed the heights of ``edits``' windows (the store's
+        edit log entries, each with its ``window`` (row, col, rows, cols)): drop the
+        patches within :data:`HALO` samples of them."""
+        g = self.terrain.grid
+        S, n = 1 << g.t, g.tiles_per_side(0)
+        for e in edits:
+            r, c, h, w = e["window"]
+            y0, y1 = max((r - HALO - 1) // S, 0), min((r + h - 1 + HALO) // S, n - 1)
+            x0, x1 = max((c - HALO - 1) // S, 0), min((c + w - 1 + HALO) // S, n - 1)
+            for y in range(y0, y1 + 1):
+                for x in range(x0, x1 + 1):
+                    if y * S - HALO <= r + h - 1 and y * S + S + HALO >= r and \
+                            x * S - HALO <= c + w - 1 and x * S + S + HALO >= c:
+                        self.values[y, x] = np.nan
+
+
+def patch_heights(terrain: TerrainLike, x: int, y: int, halo: int = HALO
+                  ) -> tuple[np.ndarray, int, int]:
+    """Level-0 heights (metres, NaN where not valid) of patch (x, y) and ``halo`` samples
+    around it within the map, and the patch's first row and column in that array."""
+    g = terrain.grid
+    S, n, N = 1 << g.t, g.tiles_per_side(0), g.size
+    i0, j0 = max(y * S - halo, 0), max(x * S - halo, 0)
+    i1, j1 = min(y * S + S + halo, N - 1), min(x * S + S + halo, N - 1)
+    h = np.full((i1 - i0 + 1, j1 - j0 + 1), np.nan)
+    for ty in range(max(i0 // S, 0), min(i1 // S, n - 1) + 1):
+        for tx in range(max(j0 // S, 0), min(j1 // S, n - 1) + 1):
+            if (0, tx, ty) not in terrain.tile_info:
+                continue
+            a0, a1 = max(i0, ty * S), min(i1, ty * S + S)
+            b0, b1 = max(j0, tx * S), min(j1, tx * S + S)
+            h[a0 - i0:a1 - i0 + 1, b0 - j0:b1 - j0 + 1] = terrain.tile(0, tx, ty).heights[
+                a0 - ty * S:a1 - ty * S + 1, b0 - tx * S:b1 - tx * S + 1]
+    return h * terrain.frame.z_to_m, y * S - i0, x * S - j0
+
+
+def patch_stats(terrain: TerrainLike, x: int, y: int) -> np.ndarray:
+    """(HAM_max, h_max, x_argmax, y_argmax) of level-0 patch (x, y): the map's HAM (eq.
+    5-8) over the patch's samples, from its heights and a two-sample halo."""
+    S = 1 << terrain.grid.t
+    h, a, b = patch_heights(terrain, x, y)
+    ok = np.isfinite(h)
+    if not ok.any():
+        return np.zeros(4)
+    if not ok.all():  # nodata: the mean of the valid samples (no false cliff)
+        h = np.where(ok, h, float(h[ok].mean()))
+    hp = h[a:a + S + 1, b:b + S + 1]
+    okp = ok[a:a + S + 1, b:b + S + 1]
+    hm = np.where(okp, hp, -np.inf)
+    k = int(np.argmax(hm))
+    return np.array([float(ham(h)[a:a + S + 1, b:b + S + 1].max()),
+                     float(hm.flat[k]) if okp.any() else 0.0, k % (S + 1), k // (S + 1)])
+
+
 def ham_max(terrain: TerrainLike, index, rows: np.ndarray) -> np.ndarray:
-    """HAM_max of the level-0 patches ``rows`` (cached per terrain; a patch is decoded
-    the first time it is asked for)."""
-    held = terrain.derived(__name__, dict)
-    cache = held.get("ham")
-    if cache is None or cache[0] is not index:
-        cache = held["ham"] = (index, np.full(len(index.keys), np.nan))
-    out = cache[1]
-    z_to_m = terrain.frame.z_to_m
-    for r in rows[np.isnan(out[rows])].tolist():
-        L, x, y = (int(v) for v in index.keys[r])
-        h = terrain.tile(L, x, y).heights * z_to_m
-        ok = np.isfinite(h)
-        if not ok.any():
-            out[r] = 0.0
-            continue
-        if not ok.all():  # nodata: stand in the patch's mean so no false cliff appears
-            h = np.where(ok, h, float(h[ok].mean()))
-        out[r] = float(ham(h).max())
-    return out[rows]
+    """HAM_max of the level-0 patches ``rows`` of ``index`` (:class:`HamStats`, kept per
+    terrain; a patch is computed the first time it is asked for)."""
+    hs = terrain.derived(__name__, lambda: HamStats(terrain))
+    keys = index.keys[rows]
+    return hs.stats(keys[:, 1], keys[:, 2])[:, 0]
 
 
 def factors(terrain: TerrainLike, index, leaves: np.ndarray, view: View, tau: float, *,

@@ -206,22 +206,24 @@ def tile_geometry(terrain: TerrainLike, index: TileIndex, row: int
 
 
 def _skirts(terrain: TerrainLike, index: TileIndex, row: int, xyz: np.ndarray, valid: np.ndarray,
-            depth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            depth: float, sides: int = 15) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Skirt vertices, faces (local indices ≥ len(xyz)) and the edge sample of each
-    skirt vertex, hanging ``depth`` below the tile's inner edges (seed 000 §skirts)."""
+    skirt vertex, hanging ``depth`` below the tile's inner edges (seed 000 §skirts);
+    ``sides``: a bit mask of the edges that may get one (1 top, 2 bottom, 4 left,
+    8 right), the edges on the domain's border never do."""
     g = terrain.grid
     T = g.tile_samples
     L, x, y = (int(v) for v in index.keys[row])
     n_side = g.tiles_per_side(L)
     idx = np.arange(T * T).reshape(T, T)
     edges = []
-    if y > 0:
+    if y > 0 and sides & 1:
         edges.append(idx[0])
-    if y < n_side - 1:
+    if y < n_side - 1 and sides & 2:
         edges.append(idx[-1])
-    if x > 0:
+    if x > 0 and sides & 4:
         edges.append(idx[:, 0])
-    if x < n_side - 1:
+    if x < n_side - 1 and sides & 8:
         edges.append(idx[:, -1])
     if not edges:
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
@@ -238,17 +240,23 @@ def _skirts(terrain: TerrainLike, index: TileIndex, row: int, xyz: np.ndarray, v
 
 
 def assemble(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray,
-             skirt_depth: np.ndarray | None = None):
+             skirt_depth: np.ndarray | None = None, heights: list | None = None,
+             sides: np.ndarray | None = None):
     """One mesh of the stored tiles ``leaves``, each with skirts ``skirt_depth[k]`` deep
     (none where the depth is 0, or when ``skirt_depth`` is None).
 
-    Cell data ``skirt`` (1 on skirt triangles) and ``level``; vertices that no
-    triangle uses (nodata) are dropped.
+    ``heights[k]`` (T², scene z) replaces leaf k's heights where not None (a morphing
+    tile); ``sides[k]`` is the bit mask of the edges leaf k may hang a skirt from (see
+    :func:`_skirts`; all four by default). Cell data ``skirt`` (1 on skirt triangles)
+    and ``level``; vertices that no triangle uses (nodata) are dropped.
     """
     ijs, xyzs, faces, skirt, level = [], [], [], [], []
     off = 0
     for k, row in enumerate(leaves.tolist()):
         ij, xyz, valid, f = tile_geometry(terrain, index, row)
+        if heights is not None and heights[k] is not None:
+            xyz = xyz.copy()
+            xyz[:, 2] = heights[k]
         L = int(index.keys[row, 0])
         ijs.append(ij)
         xyzs.append(xyz)
@@ -257,7 +265,8 @@ def assemble(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray,
         level.append(np.full(len(f), L, np.int16))
         n = len(xyz)
         if skirt_depth is not None and skirt_depth[k] > 0:
-            sxyz, sf, src = _skirts(terrain, index, row, xyz, valid, skirt_depth[k])
+            sxyz, sf, src = _skirts(terrain, index, row, xyz, valid, skirt_depth[k],
+                                    15 if sides is None else int(sides[k]))
             ijs.append(ij[src])
             xyzs.append(sxyz)
             faces.append(sf + off)

@@ -22,12 +22,11 @@ import json
 import os
 import re
 import struct
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
-import rasterio
-from rasterio.windows import Window
 
 from geoterrain._version import __version__
 from geoterrain.bounds.tilebounds import TileBounds
@@ -36,11 +35,20 @@ from geoterrain.codec.quantize import Quantizer, codes_to_heights, roundtrip
 from geoterrain.core.atomicfiles import pid_alive
 from geoterrain.core.frame import Frame
 from geoterrain.core.grid import Grid
-from geoterrain.ingest.raster import GDAL_READ_OPTIONS
+from geoterrain.exceptions import InputError
+from geoterrain.ingest.windows import RasterSpec, WindowReader
 from geoterrain.preprocessing.bands.codec import band_encode_pyramid
-from geoterrain.preprocessing.bands.delta import band_vertex_errors, edge_rows
+from geoterrain.preprocessing.bands.curvature import band_metric_terms
+from geoterrain.preprocessing.bands.delta import (
+    _saturate,
+    band_vertex_errors,
+    copy_levels,
+    edge_rows,
+    raise_delta,
+)
+from geoterrain.preprocessing.bands.leaf import band_leaf_slack, follow_slack
 from geoterrain.preprocessing.bands.normals import band_normal_codes
-from geoterrain.preprocessing.bands.radii import band_radius_codes
+from geoterrain.preprocessing.bands.radii import band_metric_radius_codes, band_radius_codes
 from geoterrain.preprocessing.bands.tiles import band_tile_bounds
 from geoterrain.preprocessing.scratch import ScratchArrays
 
@@ -48,21 +56,19 @@ __all__ = ["PASSES", "Job", "Source", "adopt", "heights_records", "job_record", 
 
 
 class Source:
-    """Rows of the padded (N, N) grid from a raster file: source heights (float64, NaN
-    where invalid) and validity, north up, the padding invalid."""
+    """Rows of the padded (N, N) grid from a raster source (:mod:`geoterrain.ingest.windows`):
+    source heights (float64, NaN where invalid) and validity, north up, the padding
+    invalid."""
 
-    def __init__(self, ds, grid: Grid, nodata: float | None, flip: bool) -> None:
-        self.ds, self.grid, self.nodata, self.flip = ds, grid, nodata, flip
+    def __init__(self, ds, grid: Grid, spec: RasterSpec) -> None:
+        self.reader = WindowReader(ds, spec)
+        self.grid, self.spec = grid, spec
         self.H, self.W, self.N = grid.rows, grid.cols, grid.size
 
     def file_rows(self, i0: int, i1: int, j0: int = 0, j1: int | None = None) -> np.ndarray:
         """The raw band's rows i0 … i1 − 1 and columns j0 … j1 − 1 (north up), the
-        file's dtype."""
-        j1 = self.W if j1 is None else j1
-        if self.flip:
-            a = self.ds.read(1, window=Window(j0, self.H - i1, j1 - j0, i1 - i0))
-            return a[::-1]
-        return self.ds.read(1, window=Window(j0, i0, j1 - j0, i1 - i0))
+        file's dtype (a raw raster)."""
+        return self.reader.raw(i0, i1, j0, j1)
 
     def rows(self, i0: int, i1: int, j0: int = 0, j1: int | None = None
              ) -> tuple[np.ndarray, np.ndarray]:
@@ -72,14 +78,8 @@ class Source:
         r1 = min(i1, self.H)
         c1 = min(j1, self.W)
         if r1 > i0 and c1 > j0:
-            data = self.file_rows(i0, r1, j0, c1)
-            h = data.astype(np.float64)
-            ok = np.isfinite(h)
-            if self.nodata is not None and not np.isnan(self.nodata):
-                nd = np.asarray(self.nodata, dtype=data.dtype) if \
-                    np.issubdtype(data.dtype, np.floating) else self.nodata
-                ok &= data != nd
-            z[:r1 - i0, :c1 - j0] = np.where(ok, h, np.nan)
+            h, ok = self.reader.heights(i0, r1, j0, c1)
+            z[:r1 - i0, :c1 - j0] = h
             v[:r1 - i0, :c1 - j0] = ok
         return z, v
 
@@ -89,26 +89,35 @@ class Source:
 
 @dataclasses.dataclass(frozen=True)
 class Job:
-    """What a pass needs (picklable: a scheduler ships it to its worker)."""
+    """What a pass needs (picklable: a scheduler ships it to its worker): the source and
+    how its pixels become heights (``spec``, with the nodata the scan settled), the grid,
+    the scene frame, the quantizer, rows per band, the scratch folder, whether the grid
+    has padding, and whether level 0's bounds are derived on read (a geographic store's
+    δ slack)."""
 
-    src: str
+    spec: RasterSpec
     grid: dict
     frame: dict
     q: Quantizer
-    nodata: float | None
-    flip: bool
     band: int
     folder: str
     pad: bool
+    derive_bounds: bool = True
+
+    @property
+    def geographic(self) -> bool:
+        return self.frame["kind"] == "geographic"
 
     @contextlib.contextmanager
-    def opened(self) -> Iterator[tuple]:
-        """(source, scene rows, grid, xs, ys) over the raster, opened in this process."""
+    def opened(self) -> Iterator[Opened]:
+        """The source opened in this process, with the grid's scene rows and x, y
+        (:class:`Opened`)."""
         grid = Grid(**self.grid)
         frame = Frame.from_json(self.frame)
-        with rasterio.Env(**GDAL_READ_OPTIONS), rasterio.open(self.src) as ds:
-            source = Source(ds, grid, self.nodata, self.flip)
+        with self.spec.open() as ds:
+            source = Source(ds, grid, self.spec)
             decoded: list[ScratchArrays] = []  # the height pass's, opened at the first read
+            xyz: list[ScratchArrays] = []  # the xy pass's, opened at the first read
 
             def scene(i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
                 z, v = source.rows(i0, i1)
@@ -121,44 +130,117 @@ class Job:
                 h[~v] = np.nan
                 return frame.z(h, out=h), v
 
-            X, Y = frame.grid_xy(grid.size)
+            def xy(i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
+                if not xyz:
+                    xyz.append(ScratchArrays.shared(os.path.join(self.folder, XY)))
+                return xyz[0].read("X", i0, i1), xyz[0].read("Y", i0, i1)
+
+            if self.geographic:
+                xs = ys = np.zeros(grid.size)  # x, y depend on row and column: xy()
+            else:
+                X, Y = frame.grid_xy(grid.size)
+                xs, ys = np.ascontiguousarray(X[0]), np.ascontiguousarray(Y[:, 0])
             try:
-                yield (source, scene, grid, np.ascontiguousarray(X[0]),
-                       np.ascontiguousarray(Y[:, 0]))
+                yield Opened(source, scene, grid, xs, ys, xy if self.geographic else None,
+                             frame)
             finally:
-                for a in decoded:
+                for a in decoded + xyz:
                     a.close()
+
+
+class Opened(NamedTuple):
+    """A pass's view of its source: the padded grid's rows (``source``), their decoded
+    scene heights and validity (``scene(i0, i1)``), the grid, scene x of each column and y
+    of each row (a projected or pixel frame) or ``xy(i0, i1)`` → the rows' scene X, Y (a
+    geographic one, from the xy pass's scratch arrays; None otherwise), and the frame."""
+
+    source: Source
+    scene: Callable
+    grid: Grid
+    xs: np.ndarray
+    ys: np.ndarray
+    xy: Callable | None
+    frame: Frame
+
+
+def _xy_pass(job: Job) -> None:
+    # a geographic grid's scene X, Y (pyproj), every row, into scratch arrays the other
+    # passes read (Frame.grid_xy's values, a band at a time)
+    grid = Grid(**job.grid)
+    frame = Frame.from_json(job.frame)
+    N = grid.size
+    sx = ScratchArrays.shared(os.path.join(job.folder, XY))
+    try:
+        sx.create("X", (N, N), np.float64)
+        sx.create("Y", (N, N), np.float64)
+        cols = np.arange(N)
+        for i0 in range(0, N, job.band):
+            i, j = np.meshgrid(np.arange(i0, min(i0 + job.band, N)), cols, indexing="ij")
+            X, Y = frame.xy(i, j)
+            if not (np.isfinite(X).all() and np.isfinite(Y).all()):
+                raise InputError(f"{job.spec.label}: pyproj gives no scene position for some "
+                                 "samples of the padded grid; crop the raster (gdal_translate "
+                                 "-projwin) or reproject it")
+            sx.write("X", i0, X)
+            sx.write("Y", i0, Y)
+    finally:
+        sx.close()
 
 
 def _bounds_pass(job: Job) -> tuple:
     # δ with each level's vertex heights, δ_edge, and the radius codes nested on them:
-    # (valid range, stand-in height, r's exponent, largest finite δ and δ_edge)
-    with job.opened() as (_, scene, grid, xs, ys):
-        N = grid.size
+    # (valid range, stand-in height, r's exponent, largest finite δ and δ_edge, and a
+    # geographic grid's level-0 slack)
+    with job.opened() as o:
+        grid, scene, N = o.grid, o.scene, o.grid.size
         sa = ScratchArrays.shared(os.path.join(job.folder, "bounds"))
         lvl = band_vertex_errors(scene, N, band=job.band, scratch=sa, heights=True)
-        emax = 0.0
+        dmax, emax, slack = lvl.max_finite, 0.0, None
+        n = grid.n
+        data = (grid.rows, grid.cols)
+        if job.geographic:  # curvilinear: δ and r that hold in scene x, y (bounds.curvature)
+            terms = band_metric_terms(scene, o.xy, N, job.band, sa)
+            dmax = raise_delta(sa, n)
+            er = band_metric_radius_codes(sa, N, o.xy)
+            if job.derive_bounds and grid.tile_samples >= 3 and grid.top_level > 0:
+                if job.pad:  # what δ_edge follows below
+                    copy_levels(sa, n, "", "db")
+                slack = band_leaf_slack(sa, N, grid.t, scene)
+                if slack is not None:
+                    dmax = _saturate(sa, n, SATURATE_BUDGET)
+        else:
+            er = band_radius_codes(sa, N, o.xs, o.ys, *lvl.valid_range[:2])
         if job.pad:
             se = ScratchArrays.shared(os.path.join(job.folder, "edge"))
-            emax = band_vertex_errors(edge_rows(scene, (grid.rows, grid.cols)), N,
-                                      band=job.band, scratch=se,
-                                      data=(grid.rows, grid.cols)).max_finite
+            rows = edge_rows(scene, data)
+            emax = band_vertex_errors(rows, N, band=job.band, scratch=se, data=data).max_finite
+            if job.geographic:  # only where a padding sample is read (bounds.curvature)
+                band_metric_terms(rows, o.xy, N, job.band, se, pre="e", window=data,
+                                  base=terms)
+                emax = raise_delta(se, n, terms="e")
+                if slack is not None:  # where δ_edge was δ it follows δ's raise, nested again
+                    follow_slack(se, sa, n)
+                    emax = _saturate(se, n, SATURATE_BUDGET)
             se.close()
-        er = band_radius_codes(sa, N, xs, ys, *lvl.valid_range[:2])
         sa.close()
-        return lvl.valid_range, lvl.stand_in, er, lvl.max_finite, emax
+        return (lvl.valid_range, lvl.stand_in, er, dmax, emax,
+                None if slack is None else [[x, y, s] for (_, x, y), s in sorted(slack.items())])
+
+
+SATURATE_BUDGET = 16 << 20  # bytes of rows a saturation reads at a time
 
 
 def _tiles_pass(job: Job) -> tuple:
-    with job.opened() as (_, scene, grid, xs, ys):
-        return band_tile_bounds(scene, grid.size, grid.t, xs, ys, band=job.band)
+    with job.opened() as o:
+        return band_tile_bounds(o.scene, o.grid.size, o.grid.t, o.xs, o.ys, band=job.band,
+                                xy=o.xy)
 
 
 def _normals_pass(job: Job) -> None:
-    with job.opened() as (_, scene, grid, xs, ys):
+    with job.opened() as o:
         sn = ScratchArrays.shared(os.path.join(job.folder, "normals"))
-        band_normal_codes(scene, grid.size, xs, ys, grid.top_level + 1, sn, band=job.band,
-                          bits=NORMAL_BITS)
+        band_normal_codes(o.scene, o.grid.size, o.xs, o.ys, o.grid.top_level + 1, sn,
+                          band=job.band, bits=NORMAL_BITS, xy=o.xy)
         sn.close()
 
 
@@ -168,8 +250,8 @@ _RECORD = struct.Struct("<iiiI")  # a height blob's record: L, x, y, length
 def _heights_pass(job: Job) -> dict:
     # the height blobs into a scratch file of records, as they are made; with residual
     # bins, the decoded heights too (DECODED, row-major float64) and their range
-    with job.opened() as (source, _, grid, _, _), \
-            open(os.path.join(job.folder, "heights.bin"), "wb") as fh:
+    with job.opened() as o, open(os.path.join(job.folder, "heights.bin"), "wb") as fh:
+        source, grid = o.source, o.grid
         count = [0]
         span = [np.inf, -np.inf]
 
@@ -241,8 +323,9 @@ def _load_done(path: str):
 
 
 PASSES = {"bounds": _bounds_pass, "tiles": _tiles_pass, "normals": _normals_pass,
-           "heights": _heights_pass}
+          "heights": _heights_pass, "xy": _xy_pass}
 DECODED = "decoded"  # the decoded heights with residual bins (scratch arrays, by the height pass)
+XY = "xy"  # a geographic grid's scene x, y (scratch arrays, by the xy pass)
 COARSE_MAX = 1025  # the height pass's coarse grid side (bandcodec.super_level)
 
 
@@ -259,20 +342,22 @@ def run_pass(job: Job, name: str):
 
 # what the passes write to the scratch folder; a killed run's folder from code that wrote
 # another format is not resumed (2: each level's normal map from the level's own samples;
-# 3: the height pass's result a dict, and with residual bins the decoded heights first)
-SCRATCH_FORMAT = 3
+# 3: the height pass's result a dict, and with residual bins the decoded heights first;
+# 4: any source (a raster spec), geographic grids with their xy pass)
+SCRATCH_FORMAT = 4
 
 
-def job_record(src: Path, job: Job) -> dict:
-    # what a resumed run must share with the killed one: the input file, every setting and
+def job_record(job: Job) -> dict:
+    # what a resumed run must share with the killed one: the input files, every setting and
     # the scratch format
-    st = os.stat(src)
+    files = []
+    for f in job.spec.files:
+        st = os.stat(f)
+        files.append([f, st.st_size, st.st_mtime_ns])
     d = dataclasses.asdict(job)
     d.pop("folder")
     d["q"] = dataclasses.asdict(job.q)
-    return json.loads(json.dumps({"src": str(src.resolve()), "size": st.st_size,
-                                  "mtime_ns": st.st_mtime_ns, "job": d,
-                                  "generator": __version__,
+    return json.loads(json.dumps({"files": files, "job": d, "generator": __version__,
                                   "scratch_format": SCRATCH_FORMAT}))
 
 

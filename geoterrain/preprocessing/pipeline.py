@@ -42,11 +42,12 @@ from geoterrain.core.atomicfiles import remove_stale_partials
 from geoterrain.core.frame import PIXEL_SIZE_RANGE, Frame
 from geoterrain.core.grid import Grid
 from geoterrain.core.memory import available_memory
-from geoterrain.core.paths import check_output
+from geoterrain.core.paths import check_output, input_problem
 from geoterrain.core.progress import Progress, StageClock
 from geoterrain.exceptions import InputError, UsageError
-from geoterrain.ingest.mosaic import is_glob, mosaic_name, source_files
+from geoterrain.ingest.mosaic import is_several, mosaic_name, source_files
 from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
+from geoterrain.ingest.remote import is_url
 from geoterrain.ingest.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
 from geoterrain.preprocessing.schedulers import parse_scheduler
 from geoterrain.preprocessing.streaming import preprocess_streaming, streaming_band
@@ -108,6 +109,10 @@ def preprocess(
     memory_limit: int | None = None,
     scheduler: str = "sync",
     resume: bool = False,
+    crs: str | None = None,
+    resolution: float | None = None,
+    resampling: str = "bilinear",
+    priority: str = "finest",
     timings: dict | None = None,
 ) -> Path:
     """Preprocess a DEM into a store and return the store's path.
@@ -161,12 +166,10 @@ def preprocess(
         the derived δ is the stored grid's or a little above it); r there is stored
         whole. False stores them all.
     memory_limit
-        Bytes the job may hold (default: half the memory available now). A raster whose
+        Bytes the job may hold (default: half the memory available now). A DEM whose
         whole-grid preprocess would need more is read a window at a time
         (:func:`geoterrain.preprocessing.streaming.preprocess_streaming`, the same store), with
-        bands
-        sized to the limit: a single-band raster in a projected or pixel frame. Others
-        are refused in one line when they do not fit.
+        bands sized to the limit: any input (a raster in any frame, a mosaic, a PNG tile).
     scheduler
         Where the streaming preprocess's four independent passes run
         (:mod:`geoterrain.preprocessing.schedulers`: ``sync``, ``threads:N``, ``processes:N``,
@@ -178,6 +181,14 @@ def preprocess(
         A streamed preprocess killed before it finished left its scratch folder beside
         ``dst``; with ``resume`` the same job reuses the passes it had finished and
         writes the store an uninterrupted run writes. Without it, that folder is removed.
+    crs, resolution, resampling, priority
+        Sources of different resolutions or CRSs (a 1 m LiDAR DEM inside a 30 m one), or
+        any source with a declared target grid, are merged onto one grid
+        (:mod:`geoterrain.ingest.composite`): ``crs`` (default: the finest source's),
+        ``resolution`` in its units (default: the finest source's), each source warped
+        there by GDAL with ``resampling`` (``bilinear``, ``cubic``, ``nearest``) and its
+        own nodata; where they overlap the finest valid source wins, or the first given
+        with ``priority="order"``, and voids are filled from the next.
     timings
         A dict that receives each stage's seconds (``read``, ..., ``write``). They are
         not stored: the same input and options write the same bytes.
@@ -194,24 +205,28 @@ def preprocess(
     req = request(src, dst, tile_size=tile_size, codec_error=codec_error,
                   pixel_size=pixel_size, overwrite=overwrite, scheduler=scheduler,
                   resume=resume)
-    if (not req.mosaic and tile is None and pixel_size is None and encoding in ("auto", "raw")
-            and band in (None, 1)):
-        limit = available_memory() // 2 if memory_limit is None else int(memory_limit)
-        rows = streaming_band(req.files[0], limit)
+    merge = dict(crs=crs, resolution=resolution, resampling=resampling, priority=priority)
+    limit = available_memory() // 2 if memory_limit is None else int(memory_limit)
+    probe = _probe(req, merge)
+    if probe is not None:
+        shape, crs_geographic = probe
+        geographic = crs_geographic and tile is None and pixel_size is None
+        rows = streaming_band(shape, limit, geographic)
         if rows is not None:  # too large for the whole grid: a window at a time
             return preprocess_streaming(
-                req.files[0], req.dst, tile_size=tile_size, z_scale=z_scale, z_units=z_units,
-                codec_error=codec_error, overwrite=overwrite,
-                nodata=nodata, band=rows, derive_normals=derive_normals,
-                derive_bounds=derive_bounds, scheduler=scheduler, resume=resume,
-                progress=progress, timings=timings)
+                req.src, req.dst, tile_size=tile_size, z_scale=z_scale, z_units=z_units,
+                codec_error=codec_error, overwrite=overwrite, nodata=nodata, band=rows,
+                raster_band=band, encoding=encoding, pixel_size=pixel_size, tile=tile,
+                derive_normals=derive_normals, derive_bounds=derive_bounds,
+                scheduler=scheduler, resume=resume, progress=progress, timings=timings,
+                **merge)
     if scheduler != "sync":  # not silently: the whole-grid preprocess runs here
         log.warning("%s fits the memory limit: preprocessed here, whole; the scheduler %s "
                     "runs a streamed preprocess only (lower --memory-limit to stream it)",
                     req.files[0] if not req.mosaic else "the mosaic", scheduler)
     stage = StageClock(STAGES, progress, timings)
     dem = read_dem(req, band=band, encoding=encoding, nodata=nodata, tile=tile,
-                   pixel_size=pixel_size, z_units=z_units, z_scale=z_scale)
+                   pixel_size=pixel_size, z_units=z_units, z_scale=z_scale, merge=merge)
     stage("read")
     surface = pad(dem)
     stage("pad")
@@ -245,6 +260,35 @@ def preprocess(
                 block_delta_levels=int(blocks.shape[2]))
     write_store(req, dem.grid, blobs, blocks, meta, stage)
     return req.dst
+
+
+def _probe(req: Request, merge: dict) -> tuple[tuple[int, int], bool] | None:
+    """(rows, cols) of the source and whether its CRS is geographic, from its metadata
+    (None when it cannot be read: the whole-grid reader then says why)."""
+    import warnings
+
+    import rasterio
+
+    from geoterrain.ingest.composite import needs_composite, plan
+    from geoterrain.ingest.mosaic import build_vrt
+
+    if any(not is_url(f) and input_problem(f, utf8=True) is not None for f in req.files):
+        return None  # the reader says why, in one line (a FIFO would block this open)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            if needs_composite(req.files, merge["crs"], merge["resolution"]):
+                _, t = plan(req.files, **merge)
+                geo = rasterio.crs.CRS.from_wkt(t.crs_wkt).is_geographic
+                return (t.height, t.width), bool(geo)
+            if req.mosaic:
+                with rasterio.MemoryFile(build_vrt(req.files).encode(), ext="vrt") as mem, \
+                        mem.open() as ds:
+                    return (ds.height, ds.width), bool(ds.crs and ds.crs.is_geographic)
+            with rasterio.open(str(req.files[0])) as ds:
+                return (ds.height, ds.width), bool(ds.crs and ds.crs.is_geographic)
+    except (rasterio.errors.RasterioIOError, InputError):
+        return None
 
 
 # ------------------------------------------------------------------ the stages
@@ -290,12 +334,14 @@ def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
                          f"[2, {MAX_TILE_SIZE}], got {tile_size}")
     parse_scheduler(scheduler)  # a bad spec is a usage error before any work
     files = source_files(src)
-    mosaic = isinstance(src, (list, tuple)) or is_glob(src)
+    mosaic = is_several(src)
     if dst is None and mosaic:
         raise UsageError("a mosaic (list of files or glob) has no default store name; "
                          "pass dst", cli="a mosaic (several files or a glob) has no default "
                          "store name; pass -o STORE")
-    dst = Path(dst) if dst is not None else default_store_path(src)
+    if dst is None:  # a URL's store goes to this folder, named after the URL's file
+        dst = default_store_path(files[0].name if is_url(src) else src)
+    dst = Path(dst)
     if not resume:  # a killed streaming run's scratch stays for resume to take up
         remove_stale_partials(dst.parent if str(dst.parent) else Path("."))
     # a regular file or nothing, replaced only with overwrite, never one of the inputs
@@ -316,12 +362,13 @@ class Dem:
 
 def read_dem(req: Request, *, band: int | None, encoding: str, nodata: float | None,
              tile: str | None, pixel_size: float | None, z_units: str,
-             z_scale: float | None) -> Dem:
-    """Read and check the DEM (a web-map tile placed in Web Mercator by its z/x/y), and
-    its frame (pyproj) and padded grid."""
+             z_scale: float | None, merge: dict | None = None) -> Dem:
+    """Read and check the DEM (a web-map tile placed in Web Mercator by its z/x/y;
+    sources merged onto one grid, ``merge``: :func:`geoterrain.ingest.raster.read_raster`'s
+    crs, resolution, resampling and priority), and its frame (pyproj) and padded grid."""
     src = req.src
     r = read_raster(req.files if req.mosaic else src, band=band, encoding=encoding,
-                    nodata=nodata)
+                    nodata=nodata, **(merge or {}))
     validate(r, z_scale)
     zxy = parse_tile(tile) if tile is not None else None
     if zxy is not None and (pixel_size is not None or r.crs_wkt is not None):
@@ -358,6 +405,7 @@ class Surface:
     q: Quantizer | None = None
     height_range: list[float] | None = None
     height_blobs: dict | None = None
+    predictor: str = "auto"  # the codec's U(.) (an edit keeps the store's)
 
 
 def pad(dem: Dem) -> Surface:
@@ -460,7 +508,7 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     grid, frame, valid, Z = dem.grid, dem.frame, s.valid, s.Z
     height_blobs = s.height_blobs
     if height_blobs is None:
-        height_blobs = encode_pyramid(s.heights, valid, grid.t, s.q)
+        height_blobs = encode_pyramid(s.heights, valid, grid.t, s.q, predictor=s.predictor)
     delta = b.delta
     edge = d_edge = None
     if has_padding(grid):

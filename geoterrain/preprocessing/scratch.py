@@ -98,6 +98,12 @@ class ScratchArrays:
     def shape(self, name: str) -> tuple[int, int]:
         return self._meta[name][0]
 
+    def dtype(self, name: str) -> np.dtype:
+        return self._meta[name][1]
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._meta
+
     def read(self, name: str, r0: int, r1: int) -> np.ndarray:
         """Rows ``r0 … r1 − 1`` (clipped to the array), a copy."""
         (nr, nc), dt = self._meta[name]

@@ -1,14 +1,19 @@
 """The preprocess job for a DEM larger than memory: the store of
 :func:`geoterrain.preprocessing.pipeline.preprocess`, from a raster read a window at a time
-(issue 12).
+(issues 12 and 45).
 
 Each stage is its whole-grid twin's streaming form, the same bits
 (``tests/preprocessing/test_streaming_stages.py``):
 
+- the source a window at a time (:mod:`geoterrain.ingest.windows`: any raster, a mosaic's
+  VRT, a PNG tile decoded per window);
 - the quantizer from band statistics (:mod:`geoterrain.preprocessing.bands.quantize`);
-- δ, δ_edge and the per-level heights in row bands (:mod:`geoterrain.preprocessing.bands.delta`),
-the
-  radius codes nested on them (:mod:`geoterrain.preprocessing.bands.radii`);
+- on a geographic grid, the scene x, y of every row once (pyproj, into scratch files);
+- δ, δ_edge and the per-level heights in row bands
+  (:mod:`geoterrain.preprocessing.bands.delta`), the radius codes nested on them
+  (:mod:`geoterrain.preprocessing.bands.radii`); on a geographic grid δ, δ_edge and r made
+  to hold in metric x, y (:mod:`geoterrain.preprocessing.bands.curvature`, the terms as
+  maxima over bands) and level 0's δ slack (:mod:`geoterrain.preprocessing.bands.leaf`);
 - the tile table (:mod:`geoterrain.preprocessing.bands.tiles`) and every level's normals
   (:mod:`geoterrain.preprocessing.bands.normals`) in row bands;
 - the height blobs a super-tile at a time (:mod:`geoterrain.preprocessing.bands.codec`);
@@ -20,8 +25,7 @@ store writer as they are made. Memory is set by ``band``: the rows of a band's w
 and of one tile row of each level, not the raster. The four passes after the quantizer
 run on any scheduler (:mod:`geoterrain.preprocessing.passes`,
 :mod:`geoterrain.preprocessing.schedulers`),
-and a killed run can be resumed. Projected and pixel frames; a single-band raster GDAL
-reads (a ``.vrt`` too; not a web-map PNG encoding, a list or a glob of tiles).
+and a killed run can be resumed.
 """
 
 from __future__ import annotations
@@ -35,7 +39,6 @@ import shutil
 from pathlib import Path
 
 import numpy as np
-import rasterio
 
 from geoterrain.bounds.edgepad import has_padding
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, ring_blobs
@@ -51,11 +54,19 @@ from geoterrain.core.grid import Grid
 from geoterrain.core.paths import check_output, input_problem
 from geoterrain.core.progress import Progress, StageClock
 from geoterrain.exceptions import InputError, UsageError
-from geoterrain.ingest.raster import ABSURD_HEIGHT, GDAL_READ_OPTIONS, VOID_SENTINELS
-from geoterrain.ingest.units import resolve_z_units
+from geoterrain.ingest.mosaic import is_several
+from geoterrain.ingest.raster import ABSURD_HEIGHT, VOID_SENTINELS
+from geoterrain.ingest.remote import Url, is_url
+from geoterrain.ingest.units import (
+    parse_tile,
+    resolve_z_units,
+    tile_from_path,
+    tile_georeference,
+)
+from geoterrain.ingest.windows import RasterSpec, describe, localize
+from geoterrain.preprocessing.bands.delta import level_lattice
 from geoterrain.preprocessing.bands.quantize import band_quantizer
 from geoterrain.preprocessing.passes import (
-    PASSES,
     Job,
     Source,
     adopt,
@@ -65,9 +76,9 @@ from geoterrain.preprocessing.passes import (
 )
 from geoterrain.preprocessing.schedulers import run_tasks
 from geoterrain.preprocessing.scratch import ScratchArrays
-from geoterrain.store.database import StoreWriter
+from geoterrain.store.database import StoreWriter, default_store_path
 
-__all__ = ["preprocess_streaming", "streaming_band"]
+__all__ = ["band_rows", "preprocess_streaming", "streaming_band"]
 
 log = logging.getLogger("geoterrain")
 
@@ -75,52 +86,59 @@ log = logging.getLogger("geoterrain")
 # what the process holds besides (imports, compiled kernels, tile tables): measured on
 # the 16385² fBm (docs/lab/streaming.md), with a margin
 BAND_BYTES_PER_SAMPLE = 200
+BAND_BYTES_PER_SAMPLE_GEOGRAPHIC = 400  # x, y and the metric terms' windows too
 FIXED_BYTES = 400 << 20
 BAND_SAMPLES = 1 << 20  # at most this many samples a band (streaming_band)
 STAGES = ("scan", "quantise", "errors, tiles, normals, heights", "blobs", "write")
 
 
-def streaming_band(path: str | Path, memory_limit: int) -> int | None:
-    """The band (rows, a power of two) to preprocess ``path`` a window at a time within
-    ``memory_limit`` bytes; None when the whole raster fits (or when the streaming
-    preprocess does not take the file: several bands, a PNG tile, geographic
-    coordinates, which then go whole).
+def streaming_band(shape: tuple[int, int], memory_limit: int, geographic: bool = False
+                   ) -> int | None:
+    """The band (rows, a power of two) to preprocess a raster of ``shape`` (rows, cols) a
+    window at a time within ``memory_limit`` bytes; None when its whole-grid preprocess
+    fits (:data:`geoterrain.ingest.raster.PREPROCESS_BYTES_PER_SAMPLE`, more per sample in a
+    geographic frame).
 
     Examples
     --------
-    >>> import tempfile, os
-    >>> from geoterrain.ingest.synth import generate, write_geotiff
-    >>> dem = write_geotiff(os.path.join(tempfile.mkdtemp(), "d.tif"), generate("fbm", 65))
-    >>> streaming_band(dem, 1 << 40), streaming_band(dem, 1 << 18)
+    >>> streaming_band((65, 65), 1 << 40), streaming_band((65, 65), 1 << 18)
     (None, 2)
+    >>> streaming_band((1762, 47163), 16 << 30)  # pads to 65537²: streamed
+    16
     """
     from geoterrain.ingest.raster import PREPROCESS_BYTES_PER_SAMPLE
 
-    if input_problem(path, utf8=True) is not None:  # read_raster says why, in one line
+    H, W = shape
+    kind = "geographic" if geographic else "projected"
+    N = Grid.for_shape(H, W).size  # the whole grid is padded to N²: a long, thin raster
+    if N * N * PREPROCESS_BYTES_PER_SAMPLE[kind] <= memory_limit:  # pads to far more
         return None
-    try:
-        with rasterio.open(path) as ds:
-            if ds.count != 1 or ds.driver == "PNG" or (ds.crs is not None
-                                                     and ds.crs.is_geographic):
-                return None
-            H, W = ds.height, ds.width
-    except rasterio.errors.RasterioIOError:
-        return None
-    if H * W * PREPROCESS_BYTES_PER_SAMPLE["projected"] <= memory_limit:
-        return None
-    N = Grid.for_shape(H, W).size
+    return band_rows(N, memory_limit, geographic)
+
+
+def band_rows(N: int, memory_limit: int, geographic: bool = False) -> int:
+    """Rows per band (a power of two ≥ 2) of the streaming preprocess of a grid of side N
+    within ``memory_limit`` bytes.
+
+    Examples
+    --------
+    >>> band_rows(4097, 1 << 30), band_rows(16385, 1 << 30), band_rows(65, 1 << 18)
+    (256, 64, 2)
+    """
+    per = BAND_BYTES_PER_SAMPLE_GEOGRAPHIC if geographic else BAND_BYTES_PER_SAMPLE
     # at most BAND_SAMPLES a band, whatever the limit: the band's memory is then the same
     # for every raster width (4097²: 256 rows, 397 MB; 16385²: 64 rows, 430 MB), and
     # wider bands gain no time (16385²: 104 s with 64 rows, 107 s with 128, 115 s with 256)
-    rows = min(max(memory_limit - FIXED_BYTES, 0) // (N * BAND_BYTES_PER_SAMPLE),
-               BAND_SAMPLES // (N - 1))
+    rows = min(max(memory_limit - FIXED_BYTES, 0) // (N * per), BAND_SAMPLES // (N - 1))
     return int(max(1 << max(int(rows).bit_length() - 1, 0), 2))
 
 
-def _scan(src: Source, band: int) -> tuple[float | None, int]:
+def _scan(src: Source, band: int) -> tuple[float | None, int, int]:
     # raster.py's rules over the file's rows: an undeclared void sentinel (the minimum,
-    # one of VOID_SENTINELS, more than 1000 below every other height) and ±inf samples
+    # one of VOID_SENTINELS, more than 1000 below every other height), how many samples
+    # hold it, and the ±inf samples
     m1 = m2 = np.inf  # the smallest finite height, and the smallest above it
+    n1 = 0  # how many samples are m1
     n_inf = 0
     for i in range(0, src.H, band):
         h = src.file_rows(i, min(i + band, src.H)).astype(np.float64)
@@ -131,35 +149,19 @@ def _scan(src: Source, band: int) -> tuple[float | None, int]:
         b1 = float(f.min())
         above = f[f > b1]
         cands = [m1, m2, b1, float(above.min()) if above.size else np.inf]
+        if b1 < m1:
+            n1 = 0
         m1 = min(cands)
         m2 = min((c for c in cands if c > m1), default=np.inf)
+        n1 += int(np.count_nonzero(f == m1))
     void = None
     if np.isfinite(m1) and m1 in VOID_SENTINELS and np.isfinite(m2) and m2 - m1 > 1000.0:
         void = m1
-    return void, n_inf
-
-
-def _lattice(sa: ScratchArrays, pre: str, L: int, n: int, p0: int, p1: int, m: int,
-             top: bool, dtype) -> np.ndarray:
-    """Rows p0 … p1 − 1 of level L's lattice (m a side, sample (p, q) = grid sample
-    (p 2^L, q 2^L)) of the per-level arrays ``{pre}C{k}``…: level L's new vertices, and
-    at the top level every coarser one too (0 elsewhere)."""
-    out = np.zeros((p1 - p0, m), dtype)
-    for k in range(L, n if top else L + 1):
-        u = 1 << (k - L)
-        for x, ro, co in (("C", u, u), ("R", u, 0), ("K", 0, u)):
-            a_lo = max(-(-(p0 - ro) // (2 * u)), 0)
-            a_hi = (p1 - 1 - ro) // (2 * u)
-            if a_hi < a_lo:
-                continue
-            rows = sa.read(f"{pre}{x}{k}", a_lo, a_hi + 1)
-            a_hi = a_lo + len(rows) - 1
-            out[ro + 2 * u * a_lo - p0:ro + 2 * u * a_hi - p0 + 1:2 * u, co::2 * u] = rows
-    return out
+    return void, n1, n_inf
 
 
 def preprocess_streaming(
-    src: str | Path,
+    src: str | Path | list,
     dst: str | Path | None = None,
     *,
     tile_size: int = 64,
@@ -169,27 +171,39 @@ def preprocess_streaming(
     overwrite: bool = False,
     nodata: float | None = None,
     band: int = 256,
+    raster_band: int | None = None,
+    encoding: str = "auto",
+    pixel_size: float | None = None,
+    tile: str | None = None,
     scratch: str | Path | None = None,
     derive_normals: bool = True,
     derive_bounds: bool = True,
     scheduler: str = "sync",
     resume: bool = False,
     progress: Progress | None = None,
+    crs: str | None = None,
+    resolution: float | None = None,
+    resampling: str = "bilinear",
+    priority: str = "finest",
     timings: dict | None = None,
 ) -> Path:
     """Preprocess a DEM a window at a time into the store
     :func:`~geoterrain.preprocessing.pipeline.preprocess` writes (the same tiles, blobs and
     metadata but the timings); memory is set by ``band`` rows, not the raster.
 
-    Parameters are :func:`~geoterrain.preprocessing.pipeline.preprocess`'s, and
-    ``band`` (rows per band, a power of two), ``scratch`` (the folder of the scratch
-    files; default the store's folder) and ``scheduler``
-    (:mod:`geoterrain.preprocessing.schedulers`: where the four passes run, δ with δ_edge and the
-    radius codes, the tile table, the normals and the height blobs, the last one first
-    with ``codec_error``, as the others read its decoded heights; the store is the same
-    on every one, and this process stays its only writer) and ``resume`` (reuse
-    the passes a killed run of the same job into ``dst`` finished: its scratch folder
-    records each pass's result; the store is the one an uninterrupted run writes).
+    Every input ``preprocess`` takes: any raster GDAL reads (a ``.vrt`` too), a list or a
+    glob of tiles (a mosaic, pasted by an in-memory VRT), a Terrain-RGB or Terrarium PNG
+    tile (decoded a window at a time), in a projected, geographic or pixel frame.
+    Parameters are :func:`~geoterrain.preprocessing.pipeline.preprocess`'s (its ``band``,
+    the raster's band, is ``raster_band`` here), and ``band`` (rows per band, a power of
+    two), ``scratch`` (the folder of the scratch files; default the store's folder) and
+    ``scheduler`` (:mod:`geoterrain.preprocessing.schedulers`: where the passes run: on a
+    geographic grid first its scene x, y; then δ with δ_edge and the radius codes, the
+    tile table, the normals and the height blobs, the last one first with
+    ``codec_error``, as the others read its decoded heights; the store is the same on
+    every one, and this process stays its only writer) and ``resume`` (reuse the passes
+    a killed run of the same job into ``dst`` finished: its scratch folder records each
+    pass's result; the store is the one an uninterrupted run writes).
 
     Examples
     --------
@@ -202,48 +216,83 @@ def preprocess_streaming(
     33
     """
     stage = StageClock(STAGES, progress, timings)
-
     if band < 2 or band & (band - 1):
         raise UsageError(f"band must be a power of two ≥ 2, got {band}")
-    src = Path(src)
-    dst = Path(dst) if dst is not None else src.with_suffix(".geoterrain")
-    check_output(dst, overwrite, inputs=[src])  # core/paths.py: what may be replaced
-    if (why := input_problem(src, utf8=True)) is not None:
-        raise InputError(f"{src}: {why}; check the path")
-    with rasterio.Env(**GDAL_READ_OPTIONS), rasterio.open(src) as ds:
-        if ds.count != 1:
-            raise UsageError(f"{src}: has {ds.count} bands; the streaming preprocess reads "
-                             "single-band rasters")
-        if ds.height < 2 or ds.width < 2:
-            raise InputError(f"{src}: grid is {ds.height}×{ds.width}; a DEM needs at least "
-                             "2×2 samples")
-        dtype = ds.dtypes[0]
-        crs_wkt = ds.crs.to_wkt() if ds.crs else None
-        transform = tuple(ds.transform)[:6] if (ds.crs or not ds.transform.is_identity) \
-            else None
-        flip = transform is not None and transform[4] > 0
-        if flip:  # south-up: rows flipped to north-up (raster.py)
-            a, b, c, d_, e, f = transform
-            transform = (a, b, c, d_, -e, f + e * ds.height)
-        grid = Grid.for_shape(ds.height, ds.width, tile_size=tile_size)
-        zu = resolve_z_units(z_units, crs_wkt, str(src))
-        frame = Frame.from_raster(transform, crs_wkt, ds.height, ds.width, z_units=zu,
-                                  z_scale=1.0 if z_scale is None else z_scale)
-        if frame.kind == "geographic":
-            raise UsageError(f"{src}: geographic coordinates; the streaming preprocess "
-                             "takes projected or pixel grids (use preprocess)")
-        declared = ds.nodatavals[0] if nodata is None else float(nodata)
-        probe = Source(ds, grid, None, flip)
-        void, n_inf = _scan(probe, band)
-        if n_inf:
-            raise InputError(f"{src}: {n_inf} sample(s) are ±inf; declare them nodata (e.g. "
-                             "gdal_translate -a_nodata)")
-        nd = declared if declared is not None else void
-        source = Source(ds, grid, nd, flip)
+    mosaic = is_several(src)
+    if dst is None:
+        if mosaic:
+            raise UsageError("a mosaic (list of files or glob) has no default store name; "
+                             "pass dst", cli="a mosaic (several files or a glob) has no "
+                             "default store name; pass -o STORE")
+        dst = default_store_path(Url(src).name if is_url(src) else src)
+    dst = Path(dst)
+    local = [] if mosaic or is_url(src) else [Path(src)]  # a file given as a path
+    check_output(dst, overwrite, inputs=local)  # core/paths.py: what may be replaced
+    for f in local:  # a FIFO would block the read, a device never end
+        if (why := input_problem(f, utf8=True)) is not None:
+            raise InputError(f"{f}: {why}; check the path")
+    if pixel_size is not None and not (np.isfinite(pixel_size) and pixel_size > 0):
+        raise UsageError(f"pixel_size must be a finite number > 0, got {pixel_size}",
+                         cli=f"--pixel-size must be a finite number > 0, got {pixel_size}")
+    spec, meta = describe(src, band=raster_band, encoding=encoding, nodata=nodata, rows=band,
+                          crs=crs, resolution=resolution, resampling=resampling,
+                          priority=priority)
+    H, W = meta["shape"]
+    transform, crs_wkt = meta["transform"], meta["crs_wkt"]
+    zxy = parse_tile(tile) if tile is not None else None
+    if zxy is not None and (pixel_size is not None or crs_wkt is not None):
+        raise UsageError("a web-map tile is placed by its z/x/y; give tile or pixel_size, not "
+                         "both", cli="give --tile or --pixel-size, not both")
+    if zxy is None and crs_wkt is None and pixel_size is None and not mosaic:
+        zxy = tile_from_path(src)
+    if zxy is not None:
+        transform, crs_wkt = tile_georeference(*zxy, W, H)
+        log.info("%s: web-map tile %d/%d/%d in EPSG:3857", src, *zxy)
+    grid = Grid.for_shape(H, W, tile_size=tile_size)
+    zu = resolve_z_units(z_units, crs_wkt, spec.label if mosaic else str(src))
+    frame = Frame.from_raster(transform, crs_wkt, H, W, pixel_size=pixel_size, z_units=zu,
+                              z_scale=1.0 if z_scale is None else z_scale)
+    if crs_wkt is None and pixel_size is None:
+        log.warning("%s has no CRS: using 1 m per pixel; set pixel_size (--pixel-size)", src)
+    parent = Path(scratch) if scratch is not None else (dst.parent if str(dst.parent) else
+                                                        Path("."))
+    # a source read over HTTP is fetched once into a folder named like a partial store (a
+    # killed run's is removed by the next run in this folder): every pass then reads it
+    fetch = parent / f".{dst.name}.fetch.partial-{os.getpid()}"
+    try:
+        return _streamed(src, dst, spec, meta, grid, frame, band, codec_error, z_scale,
+                         overwrite, parent, derive_normals, derive_bounds, scheduler, resume,
+                         stage, fetch)
+    finally:
+        shutil.rmtree(fetch, ignore_errors=True)
+
+
+def _streamed(src, dst: Path, spec: RasterSpec, meta: dict, grid: Grid, frame: Frame,
+              band: int, codec_error: float | None, z_scale: float | None, overwrite: bool,
+              parent: Path, derive_normals: bool, derive_bounds: bool, scheduler: str,
+              resume: bool, stage: StageClock, fetch: Path) -> Path:
+    # preprocess_streaming after its arguments: fetch, scan, quantise, the passes, write
+    remote = spec  # what a resumed run must match: the source as given
+    spec = localize(spec, fetch)
+    nd = meta["nodata"]
+    with spec.open() as ds:
+        if meta["encoding"] == "raw" and not spec.layers:  # (a merge: each source's nodata)
+            void, n_void, n_inf = _scan(Source(ds, grid, spec), band)
+            if n_inf:
+                raise InputError(f"{spec.label}: {n_inf} sample(s) are ±inf; declare them "
+                                 "nodata (e.g. gdal_translate -a_nodata)")
+            if nd is None and void is not None:
+                log.warning("%s: %d samples are %g, far below the other heights: taken as "
+                            "nodata (undeclared voids); pass --nodata to say otherwise",
+                            spec.label, n_void, void)
+                nd = void
+        spec = dataclasses.replace(spec, nodata=nd)
+        source = Source(ds, grid, spec)
         N = grid.size
         stage("scan")
 
-        q = band_quantizer(lambda: source.bands(band), dtype, codec_error)
+        q = band_quantizer(lambda: source.bands(band), meta["dtype"], codec_error,
+                           scale=meta["scale"], offset=meta["offset"])
         hv = [np.inf, -np.inf]  # decoded heights
         raw = [np.inf, -np.inf]  # source heights
         nvalid = 0
@@ -256,22 +305,23 @@ def preprocess_streaming(
                     hv = [min(hv[0], float(dz.min())), max(hv[1], float(dz.max()))]
                 raw = [min(raw[0], float(z[v].min())), max(raw[1], float(z[v].max()))]
         if nvalid == 0:
-            raise InputError(f"{src}: every sample is nodata; check the nodata value or the band")
+            raise InputError(f"{spec.label}: every sample is nodata; check the nodata value or "
+                             "the band")
         if max(abs(raw[0]), abs(raw[1])) > ABSURD_HEIGHT and z_scale is None:
-            raise InputError(f"{src}: heights reach {max(map(abs, raw)):.3g}, beyond "
+            raise InputError(f"{spec.label}: heights reach {max(map(abs, raw)):.3g}, beyond "
                              f"±{ABSURD_HEIGHT:.0e}; if they are real pass --z-scale (e.g. 1), "
                              "else set the right nodata or unit")
         frame.check_scene(N, *raw)  # scene coordinates within SCENE_LIMIT (frame.py)
         stage("quantise")
 
-    parent = Path(scratch) if scratch is not None else (dst.parent if str(dst.parent) else
-                                                        Path("."))
     pad = has_padding(grid)
+    derive_normals = bool(derive_normals) and grid.tile_samples >= 3
+    derive_bounds = bool(derive_bounds) and grid.tile_samples >= 3 and grid.top_level > 0
     # the scratch folder is named like a partial store (.NAME.scratch.partial-PID): a
     # killed run's is removed by the next run in this folder (atomicfiles.remove_stale_partials)
     # unless that run resumes it
-    job = Job(str(src), grid.to_json(), frame.to_json(), q, nd, flip, band, "", pad)
-    record = job_record(src, job)
+    job = Job(spec, grid.to_json(), frame.to_json(), q, band, "", pad, derive_bounds)
+    record = job_record(dataclasses.replace(job, spec=dataclasses.replace(remote, nodata=nd)))
     folder = adopt(parent, dst, record) if resume else None
     if folder is not None:
         done = sorted(p.name[5:] for p in Path(folder).glob("done-*") if "." not in p.name)
@@ -286,14 +336,18 @@ def preprocess_streaming(
     job = dataclasses.replace(job, folder=folder)
     with contextlib.ExitStack() as cleanup:
         cleanup.callback(shutil.rmtree, folder, True)
-        if q.bins == 1:
-            (vrange, stand_in, er, dmax, emax), (bounds, blocks), _, _ = run_tasks(
-                scheduler, [(run_pass, (job, name)) for name in PASSES])
-        else:  # the decoded heights first: the other passes read them (streampasses)
-            (hp,) = run_tasks(scheduler, [(run_pass, (job, "heights"))])
-            hv = list(hp["range"])
-            (vrange, stand_in, er, dmax, emax), (bounds, blocks), _ = run_tasks(
-                scheduler, [(run_pass, (job, name)) for name in PASSES if name != "heights"])
+        first = (["xy"] if frame.kind == "geographic" else []) + \
+            (["heights"] if q.bins > 1 else [])
+        if first:  # what the other passes read: scene x, y; decoded heights (residual bins)
+            got = dict(zip(first, run_tasks(scheduler, [(run_pass, (job, name))
+                                                        for name in first]), strict=True))
+            if "heights" in got:
+                hv = list(got["heights"]["range"])
+        rest = [name for name in ("bounds", "tiles", "normals", "heights") if name not in first]
+        got = dict(zip(rest, run_tasks(scheduler, [(run_pass, (job, name)) for name in rest]),
+                       strict=True))
+        vrange, stand_in, er, dmax, emax, slack = got["bounds"]
+        bounds, blocks = got["tiles"]
         stage("errors, tiles, normals, heights")
         sa = ScratchArrays.shared(os.path.join(folder, "bounds"))
         se = ScratchArrays.shared(os.path.join(folder, "edge")) if pad else None
@@ -303,19 +357,25 @@ def preprocess_streaming(
                 for part in heights_records(os.path.join(folder, "heights.bin")):
                     w.put_blobs("heights", part)
                 stored = set(bounds)  # the tiles whose footprint holds a valid sample
-                meta = _level_blobs(w, sa, se, sn, grid, bounds, stored, er, dmax, emax,
-                                    derive_normals, derive_bounds)
+                if frame.kind == "geographic" and derive_bounds:  # pipeline.vertex_bounds
+                    ring: tuple[str, ...] = ("delta",) if slack is not None else ()
+                else:
+                    ring = ("delta", "radius") if derive_bounds else ()
+                meta_blobs = _level_blobs(w, sa, se, sn, grid, bounds, stored, er, dmax, emax,
+                                          derive_normals, ring,
+                                          {(x, y): s for x, y, s in slack or ()})
                 stage("blobs")
                 w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
                 w.put_metadata(store_metadata(
-                    source=src.name, source_dtype=dtype,
-                    source_nodata=None if nd is None else float(nd), encoding="raw",
+                    source=spec.label, source_dtype=meta["dtype"],
+                    source_nodata=None if nd is None else float(nd),
+                    encoding=meta["encoding"],
                     grid=grid.to_json(), frame=frame.to_json(), quantizer=q.to_json(),
                     normals_derived=(list(range(grid.top_level + 1))
-                                     if meta["derive_normals"] else []), valid_samples=nvalid,
+                                     if derive_normals else []), valid_samples=nvalid,
                     samples=grid.rows * grid.cols, height_range=hv,
-                    delta_max_finite=meta["delta_max"],
-                    edge_max=meta["edge_max"] if pad else None, stand_in_z=stand_in,
+                    delta_max_finite=meta_blobs["delta_max"],
+                    edge_max=meta_blobs["edge_max"] if pad else None, stand_in_z=stand_in,
                     block_delta_levels=int(blocks.shape[2])))
                 stage("write")
                 w.commit()
@@ -328,15 +388,15 @@ def preprocess_streaming(
 
 def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                  sn: ScratchArrays, grid: Grid, bounds: dict, stored: set, er: int,
-                 dmax: float, emax: float, derive_normals: bool,
-                 derive_bounds: bool) -> dict:
+                 dmax: float, emax: float, derive_normals: bool, ring: tuple[str, ...],
+                 slack: dict) -> dict:
     """The δ, r, normals and δ_edge blobs and the tile rows, a tile row of each level at a
     time (preprocessing.preprocess's compress stage on each level's lattice window).
-    ``dmax``, ``emax``: the largest finite δ and δ_edge, which set δ's code exponent."""
+    ``dmax``, ``emax``: the largest finite δ and δ_edge, which set δ's code exponent;
+    ``ring``: the kinds level 0 stores as border rings; ``slack``: a geographic store's
+    level-0 slack per tile (x, y)."""
     n, t, top = grid.n, grid.t, grid.top_level
     T, T1 = grid.tile_samples, grid.tile_samples - 1
-    derive_normals = derive_normals and T >= 3
-    derive_bounds = derive_bounds and T >= 3 and top > 0
     ed = log8_exponent(np.array([dmax]))
     if se is not None:
         ed = max(ed, log8_exponent(np.array([emax])))
@@ -353,23 +413,24 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
         for y in range(grid.tiles_per_side(L)):
             keys = sorted(row_keys.get((L, y), ()))
             p0, p1 = y * T1, y * T1 + T
-            d = _lattice(sa, "", L, n, p0, p1, m, is_top, np.float32)
-            rc = _lattice(sa, "r", L, n, p0, p1, m, is_top, np.uint8)
+            d = level_lattice(sa, "", L, n, p0, p1, m, is_top, np.float32)
+            rc = level_lattice(sa, "r", L, n, p0, p1, m, is_top, np.uint8)
             nrm = sn.read(f"n{L}", p0, p1).reshape(T, m, 2)
             coding = BoundsCoding(d, None, ed, r_codes=(rc, er))
             edge = None
             if se is not None:
                 # every vertex of the lattice: an unstored tile's δ_edge blob is whole
-                edge = BoundsCoding(_lattice(se, "", L, n, p0, p1, m, True, np.float32),
+                edge = BoundsCoding(level_lattice(se, "", L, n, p0, p1, m, True, np.float32),
                                     None, ed, r_codes=(rc, er))
             top_w = 0 if is_top else 1  # the window's level 0 is level L
-            if keys:
-                ring = derive_normals  # every level's normals: the border ring
+            if keys:  # every level's normals: the border ring (derive_normals)
                 blobs, dm, rm = level_blobs(
                     coding, nrm, t, 0, top_w, [(x, 0) for x in keys],
-                    ("delta", "radius") if ring else ("delta", "radius", "normals"),
-                    ring=L == 0 and derive_bounds)
-                if ring:
+                    ("delta", "radius") if derive_normals else ("delta", "radius", "normals"),
+                    ring=ring if L == 0 else False,
+                    slack={(0, x, 0): slack[(x, y)] for x in keys if (x, y) in slack}
+                    if L == 0 and slack else None)
+                if derive_normals:
                     blobs["normals"] = ring_blobs(nrm, t, [(x, 0) for x in keys])
                 for kind, b in blobs.items():
                     w.put_blobs(kind, {(L, x, y): v for (_, x, _), v in b.items()})
@@ -396,7 +457,7 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
         edge_max += sorted(e_stored, key=lambda e: (e[1], e[2])) + e_only
         e_stored, e_only = [], []
     w.put_tiles(tile_rows)
-    return {"delta_max": dmax, "edge_max": edge_max, "derive_normals": derive_normals}
+    return {"delta_max": dmax, "edge_max": edge_max}
 
 
 def _held(mark: np.ndarray, T1: int, top: bool) -> np.ndarray:

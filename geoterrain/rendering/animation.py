@@ -120,7 +120,8 @@ def animate(terrain: TerrainLike, views: Sequence[View], out: str | Path, *,
             north_arrow: bool = True, fps: float = 10.0, progress: Progress | None = None,
             vertical_exaggeration: float = 1.0, overwrite: bool = True,
             light: Light | None = None, drape: Drape | None = None, occlusion: bool = True,
-            morph: bool | None = None, anti_aliasing: str = "auto") -> list[dict]:
+            morph: bool | None = None, anti_aliasing: str = "auto",
+            water: bool = True) -> list[dict]:
     """Render each view (each with its own LOD selection) into a GIF, MP4 or PNG folder
     (the picture's arguments are :func:`~geoterrain.rendering.scene.render`'s).
 
@@ -147,10 +148,12 @@ def animate(terrain: TerrainLike, views: Sequence[View], out: str | Path, *,
     ok = False
     try:
         scene = TerrainScene(_plotter(size, anti_aliasing), terrain, shading, cmap,
-                             light=light, drape=drape, occlusion=occlusion, morph=morph)
+                             light=light, drape=drape, occlusion=occlusion, morph=morph,
+                             water=water)
         try:
             for k, v in enumerate(views):
                 img, st = scene.frame(v, pixel_error, strategy)
+                st["terrain_fraction"] = round(scene.terrain_fraction(), 4)
                 img = compose(img, v, terrain, shading=shading, cmap=cmap, title=title,
                               colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
                 append(img)

@@ -318,7 +318,7 @@ def _tcoords(src, pg, ij, pts, pages, step, gutter, AW, AH, tc, out_pts):
     Lt, gL, gX, gY, ax, ay = pages
     for p in range(len(src)):
         g, v = pg[p], src[p]
-        scale = np.float64(np.int64(1) << Lt[g])
+        scale = 2.0 ** Lt[g]  # a texel's width in level-0 samples (a fraction: magnified)
         span = np.float64(step << gL[g])
         col = (ax[g] + gutter) + (ij[v, 1] - gX[g] * span) / scale
         row = (ay[g] + gutter) + (ij[v, 0] - gY[g] * span) / scale

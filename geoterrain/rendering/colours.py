@@ -38,7 +38,6 @@ LAND = [(0.00, (0.34, 0.58, 0.36)), (0.15, (0.55, 0.70, 0.42)), (0.35, (0.83, 0.
         (0.60, (0.72, 0.56, 0.38)), (0.82, (0.60, 0.50, 0.44)), (1.00, (0.96, 0.96, 0.96))]
 # water from the deepest (0) to the surface (1)
 WATER = [(0.00, (0.08, 0.22, 0.48)), (0.70, (0.25, 0.50, 0.78)), (1.00, (0.50, 0.72, 0.90))]
-SEA_SPAN = 0.25  # the share of the colour bar given to water when water has no depth range
 
 
 @dataclass(frozen=True)
@@ -48,6 +47,7 @@ class Palette:
     cmap: str = "auto"
     clim: tuple[float, float] | None = None
     water_level: float | None = None
+    sea: bool = True  # the auto palette's sea at 0 m where the data reaches it
 
     def __post_init__(self) -> None:
         check_cmap(self.cmap)
@@ -85,20 +85,33 @@ def _ramp(stops, x: np.ndarray) -> np.ndarray:
 
 
 def water_level(palette: Palette, data_range: tuple[float, float]) -> float | None:
-    """The level at or below which heights are water (None: no water)."""
+    """The level at or below which heights are water (None: no water): the palette's
+    ``water_level``, else the ``auto`` palette's sea at 0 m where the data reaches it (and
+    the palette's ``sea`` is on: :func:`geoterrain.rendering.textures.terrain_palette`
+    turns it off for data that only touches 0 m at a few samples).
+
+    Examples
+    --------
+    >>> water_level(Palette("auto"), (0.0, 900.0)), water_level(Palette("auto", sea=False),
+    ...                                                         (0.0, 900.0))
+    (0.0, None)
+    """
     if palette.water_level is not None:
         return float(palette.water_level)
-    if palette.cmap == "auto" and data_range[0] <= 0.0:
+    if palette.cmap == "auto" and palette.sea and data_range[0] <= 0.0:
         return 0.0
     return None
 
 
 def colorize(h: np.ndarray, palette: Palette, data_range: tuple[float, float],
-             tolerance: float = 0.0) -> np.ndarray:
+             tolerance: float = 0.0, coast: float | None = None) -> np.ndarray:
     """RGB float32 in [0, 1] (shape h.shape + (3,)) for heights ``h`` in metres.
 
     ``data_range`` is the data's (min, max); ``palette.clim`` overrides it for the map;
-    ``tolerance``: the heights' codec bound ε in metres (the module's last paragraph).
+    ``tolerance``: the heights' codec bound ε in metres (the module's last paragraph);
+    ``coast``: heights up to this far above the water level are water too (heights
+    interpolated between integer samples: half the heights' step, so the coast runs
+    midway between a sample at the level and one a step above; at least ``tolerance``).
 
     Examples
     --------
@@ -121,7 +134,7 @@ def colorize(h: np.ndarray, palette: Palette, data_range: tuple[float, float],
         cm = matplotlib.colormaps[palette.cmap]
         rgb = cm(np.clip((h - lo) / (hi - lo), 0, 1))[..., :3]
     if wl is not None:
-        wet = h <= wl + tolerance
+        wet = h <= wl + (tolerance if coast is None else max(tolerance, coast))
         if wet.any():
             top = wl - tolerance  # the depth ramp's surface
             depth_lo = min(lo, top)
@@ -134,15 +147,48 @@ def colorize(h: np.ndarray, palette: Palette, data_range: tuple[float, float],
 def colorbar_map(palette: Palette, data_range: tuple[float, float], n: int = 256,
                  tolerance: float = 0.0):
     """(matplotlib ListedColormap, (lo, hi)) that draws exactly the colours of
-    :func:`colorize` (with the same ``tolerance``)."""
+    :func:`colorize` (with the same ``tolerance``) over the heights the colours span.
+
+    The range is never wider than the data's (or ``clim``): where water has no depth in
+    the data (its lowest heights are the water level, as a sea of SRTM zeros), the bar is
+    the land's and the water is a swatch beside it (:func:`water_swatch`).
+
+    Examples
+    --------
+    >>> cm, (lo, hi) = colorbar_map(Palette("auto"), (0.0, 1500.0))
+    >>> lo, hi  # no sea range below 0 m that the data does not have
+    (0.0, 1500.0)
+    """
     import matplotlib
 
     lo, hi = palette.clim if palette.clim is not None else data_range
     if hi <= lo:
         lo, hi = lo - 0.5, lo + 0.5
     wl = water_level(palette, data_range)
-    if wl is not None and wl - tolerance <= lo:  # water without depth: a band below the land
-        lo = wl - SEA_SPAN * (hi - wl)
     z = np.linspace(lo, hi, n)
+    if water_swatch(palette, data_range, tolerance) is not None:
+        # the bar's lowest colour is the land's just above the water, not the water's
+        z[0] = np.nextafter(max(lo, wl + tolerance), np.inf)
     rgb = colorize(z, palette, data_range, tolerance)
     return matplotlib.colors.ListedColormap(rgb), (lo, hi)
+
+
+def water_swatch(palette: Palette, data_range: tuple[float, float],
+                 tolerance: float = 0.0) -> tuple[float, float, float] | None:
+    """The water's colour, for a swatch beside the colour bar, where the data has water
+    but no depth below it (its lowest heights are the water level); None otherwise (no
+    water, or water with a depth range, which the bar itself shows).
+
+    Examples
+    --------
+    >>> water_swatch(Palette("auto"), (0.0, 900.0)) is not None  # a sea of zeros
+    True
+    >>> water_swatch(Palette("auto"), (-50.0, 900.0)) is None  # depths: on the bar
+    True
+    """
+    lo = palette.clim[0] if palette.clim is not None else data_range[0]
+    wl = water_level(palette, data_range)
+    if wl is None or wl - tolerance > lo:
+        return None
+    rgb = colorize(np.array([wl]), palette, data_range, tolerance)[0]
+    return tuple(float(c) for c in rgb)

@@ -6,9 +6,12 @@ towards the eye and one turned away) and its border. The texture inside is filte
 already. Persson's geometric post-process anti-aliasing (GPAA, 2011) takes those
 edges from the geometry itself: each pixel an edge crosses is blended with its
 neighbour across the edge, weighted by the share of the pixel on the surface's side
-of the exact edge line (the pixel's extent along the edge's minor axis). Where the
-depth buffer shows that the surface at the pixel is not the edge's (a nearer hill
-hides it), the pixel is left as drawn.
+of the exact edge line. Persson takes that share as the pixel's extent along the
+edge's minor axis at the column's centre, which is the area only where the line runs
+through two opposite sides of the pixel; here it is the exact area, for each of the
+(at most three) pixels the line crosses in a column, near the pixels' corners too.
+Where the depth buffer shows that the surface at the pixel is not the edge's (a nearer
+hill hides it), the pixel is left as drawn.
 
 A face's side is its upward normal's (a height field's outside is up; the RTIN mesh's
 winding is not consistent), and a silhouette edge is listed once per face beside it:
@@ -17,10 +20,12 @@ the depth buffer says which.
 
 On a software renderer (llvmpipe) the draw without MSAA costs about half the draw
 with it. Against a 16× supersampled picture of the same mesh and texture, the pass
-is 1.4 dB closer than 4× MSAA on average where the silhouettes are sparse (four of the
-six shared DEMs, 12 views: closer on 8, at most 1.9 dB further on the others), and
-6–8.5 dB further where thousands of steep thin facets put many edges in one pixel (the
-Terrain-RGB and Terrarium tiles), where coverage needs samples (docs/lab/anti-aliasing.md).
+(measured with the centre's extent) is 1.4 dB closer than 4× MSAA on average where the
+silhouettes are sparse (four of the six shared DEMs, 12 views: closer on 8, at most
+1.9 dB further on the others), and 6–8.5 dB further where thousands of steep thin
+facets put many edges in one pixel (the Terrain-RGB and Terrarium tiles), where
+coverage needs samples (docs/lab/anti-aliasing.md); the exact area adds 0.03-0.15 dB
+against a 4 × 4 supersampled fBm (two views).
 The default anti-aliasing (``"auto"``) therefore takes this pass for a frame
 whose silhouettes are sparse (:func:`sparse`) and the renderer's MSAA for the others;
 ``"edges"`` always takes it.
@@ -246,36 +251,72 @@ def _blend(img, D, x, y, z, ea, eb, ec, tol, out):  # pragma: no cover - compile
         side_hi = du * (vc - v0) - dv * (uc - u0) > 0.0
         s0 = max(0, int(math.ceil(u0 - 0.5)))
         s1 = min(n_u - 1, int(math.floor(u1 - 0.5)))
+        slope = dv / du  # |slope| <= 1: across a column the line moves at most a pixel
         for s in range(s0, s1 + 1):
             t = (s + 0.5 - u0) / du
             lv = v0 + t * dv
             lz = z0 + t * (z1 - z0)
-            r = int(math.floor(lv))  # the pixel the edge line crosses
-            if r < 1 or r >= n_v - 1:
-                continue
-            frac = lv - r
-            cov = 1.0 - frac if side_hi else frac  # the pixel's share on the face's side
-            if cov > 0.5:  # drawn as the face: blend in the pixel across the edge
-                pf, pb = r, (r - 1 if side_hi else r + 1)
-            else:  # drawn as what lies behind: blend in the face's pixel
-                pb, pf = r, (r + 1 if side_hi else r - 1)
-            if major_x:
-                zf, zb = D[pf, s], D[pb, s]
-            else:
-                zf, zb = D[s, pf], D[s, pb]
-            # the face must be what is drawn on its side, and nothing nearer on the other
-            if abs(zf - lz) > tol[k] or zb < lz - tol[k]:
-                continue
-            for ch in range(3):
-                if major_x:
-                    f, b = img[pf, s, ch], img[pb, s, ch]
+            # the line enters and leaves the column at va, vb; the pixels it crosses there
+            # (at most two rows, three with the one it meets at the centre's either side)
+            va, vb = lv - 0.5 * slope, lv + 0.5 * slope
+            q0 = int(math.floor(min(va, vb)))
+            q1 = int(math.floor(max(va, vb) - 1e-12))
+            for q in range(q0, q1 + 1):
+                if q < 1 or q >= n_v - 1:
+                    continue
+                # the pixel's exact share on the face's side: the column's share of
+                # the pixel between the line and its far side, clamped per u (Persson's
+                # GPAA takes the extent at the centre only, exact only where the line
+                # runs through two opposite sides)
+                if side_hi:
+                    cov = _clamped_mean(q + 1.0 - va, q + 1.0 - vb)
                 else:
-                    f, b = img[s, pf, ch], img[s, pb, ch]
-                val = np.uint8(min(255.0, max(0.0, cov * f + (1.0 - cov) * b + 0.5)))
+                    cov = _clamped_mean(va - q, vb - q)
+                if cov <= 0.0 or cov >= 1.0:
+                    continue
+                if (q + 0.5 > lv) if side_hi else (q + 0.5 < lv):
+                    # drawn as the face (its centre on the face's side): blend in the
+                    # pixel across the edge
+                    pf, pb = q, (q - 1 if side_hi else q + 1)
+                else:  # drawn as what lies behind: blend in the face's pixel
+                    pb, pf = q, (q + 1 if side_hi else q - 1)
                 if major_x:
-                    out[r, s, ch] = val
+                    zf, zb = D[pf, s], D[pb, s]
                 else:
-                    out[s, r, ch] = val
+                    zf, zb = D[s, pf], D[s, pb]
+                # the face must be what is drawn on its side, and nothing nearer on the
+                # other
+                if abs(zf - lz) > tol[k] or zb < lz - tol[k]:
+                    continue
+                for ch in range(3):
+                    if major_x:
+                        f, b = img[pf, s, ch], img[pb, s, ch]
+                    else:
+                        f, b = img[s, pf, ch], img[s, pb, ch]
+                    val = np.uint8(min(255.0, max(0.0, cov * f + (1.0 - cov) * b + 0.5)))
+                    if major_x:
+                        out[q, s, ch] = val
+                    else:
+                        out[s, q, ch] = val
+
+
+@njit(cache=True, nogil=True)
+def _clamped_mean(g0, g1):  # pragma: no cover - compiled
+    """The mean over u in [0, 1] of clamp(g(u), 0, 1) for g linear from g0 to g1: the
+    share of a pixel on one side of a line through its column."""
+    if abs(g1 - g0) < 1e-9:
+        return min(1.0, max(0.0, 0.5 * (g0 + g1)))
+    return (_ramp_integral(g1) - _ramp_integral(g0)) / (g1 - g0)
+
+
+@njit(cache=True, nogil=True)
+def _ramp_integral(g):  # pragma: no cover - compiled
+    """The integral of clamp(x, 0, 1) from -inf to g."""
+    if g <= 0.0:
+        return 0.0
+    if g <= 1.0:
+        return 0.5 * g * g
+    return g - 0.5
 
 
 def edge_antialias(img: np.ndarray, depth: np.ndarray, edges: Silhouettes) -> np.ndarray:

@@ -5,10 +5,14 @@ so opening a store never loads VTK or matplotlib).
 
 - :func:`repr_html`: a table of extent, CRS, size, levels, tiles and codec, and a
   thumbnail (elevation colours × hillshade of a coarse pyramid level).
-- :func:`plot`: the terrain through PyVista's notebook backend when one is usable
+- :func:`plot`: the picture ``geoterrain render`` makes (framed into the room its colour
+  bar, scale bar and north arrow leave, with them), as a ``PIL.Image``, which notebooks
+  show inline; ``map=True`` for the map view, and the render's colours, light, drape and
+  exaggeration. ``interactive=True`` uses PyVista's notebook backend where one is usable
   (``pyvista.global_theme.jupyter_backend`` set and its package installed, inside a
-  Jupyter kernel), otherwise an offscreen render returned as a ``PIL.Image``, which
-  notebooks show inline.
+  Jupyter kernel). With trame's server-side rendering (the ``trame`` and ``server``
+  backends, ``pip install 'geoterrain[notebook]'``) the viewer's controller drives the
+  plot, as in ``view --web``: the LOD follows the camera.
 
 Examples
 --------
@@ -21,6 +25,7 @@ from __future__ import annotations
 import base64
 import html
 import io
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -63,11 +68,11 @@ def repr_html(terrain: TerrainLike) -> str:
     tiles = sum(info["tiles_per_level"].values())
     lo, hi = info["height_range"]
     rows = [
-        ("path", info["path"]),
+        ("store", Path(info["path"]).name),
         ("CRS", f"{info['crs']} ({info['frame']})"),
         ("extent", f"{w / 1000:.3f} km × {h / 1000:.3f} km"),
-        ("size", f"{info['grid'][0]} × {info['grid'][1]} samples "
-                 f"(padded {info['padded'][0]}), {info['size_bytes'] / 2**20:.1f} MiB"),
+        ("size", f"{info['grid'][1]} × {info['grid'][0]} samples (width × height; "
+                 f"padded {info['padded'][0]}), {info['size_bytes'] / 2**20:.1f} MiB"),
         ("heights", f"{lo:.6g} … {hi:.6g} (nodata {100 * info['nodata_fraction']:.1f} %)"),
         ("levels", f"{info['levels']} levels, {tiles} tiles of {info['tile_samples']}²"),
         ("codec", info["codec"]),
@@ -105,38 +110,100 @@ def notebook_backend() -> str | None:
 
 def plot(terrain: TerrainLike, view=None, *, shading: str = "normals", pixel_error: float = 1.0,
          strategy: str | None = None, size: tuple[int, int] = (960, 540),
-         cmap: str = "auto", **kwargs):
-    """Show the terrain: PyVista's notebook backend if usable, else an offscreen image.
+         cmap="auto", title: str | None = None, overlays: bool = True, map: bool = False,
+         vertical_exaggeration: float = 1.0, light=None, drape=None, water: bool = True,
+         interactive: bool = False, **kwargs):
+    """Show the terrain: the picture ``geoterrain render`` makes, as a ``PIL.Image``.
 
-    ``view`` defaults to :func:`geoterrain.default_view`; ``kwargs`` go to
-    ``Plotter.show`` (interactive) and are otherwise ignored. Returns what
-    ``Plotter.show`` returns, or a ``PIL.Image.Image`` of the offscreen render.
+    ``view`` defaults to the overview framed into the room the overlays leave (the
+    colour bar, scale bar and north arrow, drawn unless ``overlays=False``, and ``title``);
+    ``map=True`` draws the map view (orthographic, north up, with its graticule or grid).
+    ``cmap`` is a colormap name or a :class:`~geoterrain.rendering.colours.Palette`
+    (``Palette("auto", clim=(0, 1200), water_level=40)``: a flood at 40 m); ``light``, a
+    :class:`~geoterrain.rendering.shading.Light`; ``drape``, a
+    :class:`~geoterrain.rendering.drape.Drape`; ``water``, the water surface. With
+    ``interactive=True`` PyVista's notebook backend shows it (where one is usable;
+    ``kwargs`` go to ``Plotter.show``), else the picture is returned. Where the pictures
+    are rendered in the kernel (the ``trame`` and ``server`` backends) the LOD is selected
+    again as the camera moves (:func:`live_plot`).
 
     Examples
     --------
-    >>> img = plot(t, size=(320, 180))  # doctest: +SKIP
-    >>> img.size  # doctest: +SKIP
+    >>> img = plot(t, size=(320, 180), title="Demo")
+    >>> img.size
     (320, 180)
     """
+    from geoterrain.exaggerate import exaggerated
     from geoterrain.lod.registry import DEFAULT
-    from geoterrain.rendering.cameras import default_view
-    from geoterrain.rendering.scene import TerrainScene, render_array
+    from geoterrain.rendering.overlays import compose
+    from geoterrain.rendering.scene import TerrainScene, overview, render_array
 
     strategy = strategy or DEFAULT
-    view = view or default_view(terrain, size)
-    backend = notebook_backend()
+    terrain = exaggerated(terrain, vertical_exaggeration)
+    ov = dict(title=title, colorbar=overlays, scale_bar=overlays, north_arrow=overlays)
+    if view is None and map:
+        from geoterrain.rendering.mapview import map_view
+
+        view = map_view(terrain, size, shading=shading, cmap=cmap, **ov)
+    elif view is None:
+        view = overview(terrain, size, shading=shading, cmap=cmap, **ov)
+    backend = notebook_backend() if interactive else None
     if backend is not None:
         import pyvista as pv
 
         from geoterrain import lod
 
         p = pv.Plotter(notebook=True, window_size=list(view.size))
-        scene = TerrainScene(p, terrain, shading, cmap)
-        scene.update(lod.select(terrain, view, pixel_error, strategy))
-        scene.set_camera(view)
+        if backend in LIVE_BACKENDS:
+            live_plot(p, terrain, view, shading=shading, pixel_error=pixel_error,
+                      strategy=strategy, cmap=cmap, light=light, drape=drape, water=water)
+        else:
+            scene = TerrainScene(p, terrain, shading, cmap, light=light, drape=drape,
+                                 water=water)
+            scene.update(lod.select(terrain, view, pixel_error, strategy))
+            scene.set_camera(view)
         return p.show(jupyter_backend=backend, **kwargs)
     from PIL import Image
 
     img, _ = render_array(terrain, view, pixel_error=pixel_error, strategy=strategy,
-                          shading=shading, cmap=cmap)
+                          shading=shading, cmap=cmap, light=light, drape=drape, water=water)
+    if overlays or title:
+        img = compose(img, view, terrain, shading=shading, cmap=cmap, **ov)
     return Image.fromarray(img)
+
+
+# trame backends that render in the kernel: the mouse reaches the plotter's interactor
+LIVE_BACKENDS = ("trame", "server")
+
+
+def live_plot(plotter, terrain: TerrainLike, view=None, *, shading: str = "normals",
+              pixel_error: float = 1.0, strategy: str | None = None, cmap: str = "auto",
+              light=None, drape=None, water: bool = True):
+    """Put the viewer's controller on ``plotter`` (off screen, its interactor fed by a
+    remote view) so that the LOD follows the camera; returns the controller.
+
+    Examples
+    --------
+    >>> import pyvista as pv
+    >>> p = pv.Plotter(off_screen=True, window_size=(320, 180))
+    >>> c = live_plot(p, t)
+    >>> n = c.selections
+    >>> p.camera.position = tuple(np.add(p.camera.position, (0.0, 0.0, 2000.0)))
+    >>> _ = p.iren.interactor.InvokeEvent("EndInteractionEvent")  # the mouse released
+    >>> c.selections > n
+    True
+    >>> c.close(); p.close()
+    """
+    from geoterrain.lod.registry import DEFAULT
+    from geoterrain.rendering.viewer import ViewerController
+
+    ctl = ViewerController(plotter, terrain, strategy or DEFAULT, pixel_error, shading, cmap,
+                           throttle_ms=150.0, background=False, light=light, drape=drape,
+                           water=water, keys=False)
+    if view is not None:
+        ctl.scene.set_camera(view)
+        ctl.on_camera_changed(force=True)
+    plotter.enable_terrain_style()  # no roll, as in the desktop viewer
+    ctl.follow(plotter.iren.interactor, lambda final: plotter.render() if final else None)
+    plotter._geoterrain_viewer = ctl  # noqa: SLF001 - kept alive as long as the plot
+    return ctl

@@ -29,8 +29,8 @@ import numpy as np
 
 from geoterrain.core.view import View
 from geoterrain.rendering.cameras import project
-from geoterrain.rendering.colours import Palette, as_palette, colorbar_map
-from geoterrain.rendering.textures import elevation_range, height_tolerance
+from geoterrain.rendering.colours import Palette, colorbar_map, water_swatch
+from geoterrain.rendering.textures import elevation_range, height_tolerance, terrain_palette
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -55,9 +55,20 @@ def _fmt_ve(ve: float) -> str:
     return f"VE ×{ve:g}"
 
 
+MAX_COLUMN = 0.10  # the overlay column's share of the picture's width, at most
+MIN_FONT = 7.5  # pixels: the smallest text an overlay is drawn with
+
+
 @dataclass
 class Layout:
-    """Where each overlay box goes (pixels, y down) and the rectangle left free."""
+    """Where each overlay box goes (pixels, y down) and the rectangle left free.
+
+    ``compact``: the colour bar names its unit above the bar ("m") instead of a rotated
+    "elevation (m)" beside it, to keep the column within ``MAX_COLUMN`` of the width;
+    ``swatch``: the water's colour, shown as a swatch under the bar (water without depth
+    in the data); ``scale_note``: the scale bar's second line ("at view centre", or
+    nothing where the scale is the same everywhere, as in a map view).
+    """
 
     size: tuple[int, int]
     fs: float  # font size in pixels
@@ -65,6 +76,9 @@ class Layout:
     free: Box = (0.0, 0.0, 0.0, 0.0)
     ticks: list[tuple[float, str]] = field(default_factory=list)
     limits: tuple[float, float] | None = None
+    compact: bool = False
+    swatch: tuple[float, float, float] | None = None
+    scale_note: str = "at view centre"
 
 
 _MEASURE: dict = {}
@@ -83,25 +97,77 @@ def _text_size(s: str, fs: float, bold: bool = False) -> tuple[float, float]:
 
 
 def _ticks(lo: float, hi: float) -> list[tuple[float, str]]:
-    from matplotlib.ticker import MaxNLocator
+    """Nice ticks in [lo, hi]: multiples of 1, 2, 2.5 or 5 × 10^k, the step whose count of
+    ticks inside the range is nearest 5 (3 to 7), labelled with thousands separators.
 
-    vals = [v for v in MaxNLocator(nbins=5).tick_values(lo, hi) if lo <= v <= hi]
-    step = vals[1] - vals[0] if len(vals) > 1 else 1.0
-    digits = 0 if step >= 1 else max(0, -math.floor(math.log10(step)))
-    return [(v, f"{v:,.{digits}f}") for v in vals]
+    Examples
+    --------
+    >>> [s for _, s in _ticks(0.0, 1668.0)]
+    ['0', '500', '1,000', '1,500']
+    >>> [s for _, s in _ticks(1009.2, 1265.7)]
+    ['1,050', '1,100', '1,150', '1,200', '1,250']
+    """
+    if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
+        return [(lo, f"{lo:,.0f}")]
+    best = None
+    e = math.floor(math.log10(hi - lo)) - 2
+    for k in range(e, e + 4):
+        for m in (1.0, 2.0, 2.5, 5.0):
+            step = m * 10.0 ** k
+            first, last = math.ceil(lo / step - 1e-9), math.floor(hi / step + 1e-9)
+            n = last - first + 1
+            if 3 <= n <= 7 and (best is None or abs(n - 5) < abs(best[2] - 5)):
+                best = (step, first, n)
+    if best is None:  # cannot happen for a finite range; the two ends then
+        return [(lo, f"{lo:,.0f}"), (hi, f"{hi:,.0f}")]
+    step, first, n = best
+    vals = [(first + i) * step for i in range(n)]
+    digits = 0 if step >= 1 else max(0, -math.floor(math.log10(step) + 1e-9))
+    if step < 1 and round(step * 10 ** digits, 9) % 1:  # 0.25: two decimals
+        digits += 1
+    return [(v, f"{v + 0.0:,.{digits}f}") for v in vals]
 
 
 def plan(size: tuple[int, int], *, title: str | None = None,
          limits: tuple[float, float] | None = None, scale_bar: bool = True,
-         north_arrow: bool = True, ve: float = 1.0, units: str = "m") -> Layout:
+         north_arrow: bool = True, ve: float = 1.0, units: str = "m",
+         swatch: tuple[float, float, float] | None = None, exact_scale: bool = False,
+         right: float = 0.0) -> Layout:
     """The overlay boxes for a picture of ``size`` and the free rectangle between them.
 
-    ``limits`` is the colour bar's (lo, hi) in metres; None draws no colour bar.
+    ``limits`` is the colour bar's (lo, hi) in metres; None draws no colour bar;
+    ``swatch`` a water colour shown under it. The text scales with the picture (a 45th
+    of its shorter side, at least ``MIN_FONT`` px) and the column is kept within
+    ``MAX_COLUMN`` of the width (a compact colour bar where the full one would not fit).
+    ``exact_scale``: the scale holds everywhere (a map view): the scale bar has no "at
+    view centre". ``right``: pixels kept free between the picture and the column (a map's
+    tick labels).
+
+    Examples
+    --------
+    >>> lay = plan((480, 270), limits=(0.0, 1668.0))
+    >>> 480 - min(b[0] for b in lay.boxes.values()) <= 0.1 * 480  # the column's share
+    True
     """
     W, H = size
-    fs = max(11.0, min(W, H) / 45.0)
+    fs = max(MIN_FONT, min(W, H) / 45.0)
+    lay = Layout((W, H), fs, limits=limits, swatch=swatch)
+    note = "" if exact_scale else "at view centre"
+    for compact in (False, True):
+        _place_boxes(lay, title, limits, scale_bar, north_arrow, ve, compact, note, right)
+        x0 = min((b[0] for k, b in lay.boxes.items() if k != "title"), default=W)
+        if W - x0 <= MAX_COLUMN * W + 1e-9:
+            break
+    return lay
+
+
+def _place_boxes(lay: Layout, title, limits, scale_bar, north_arrow, ve, compact: bool,
+                 note: str, right: float) -> None:
+    W, H = lay.size
+    fs = lay.fs
     pad, m = 0.5 * fs, 0.5 * fs
-    lay = Layout((W, H), fs, limits=limits)
+    lay.boxes, lay.compact = {}, compact
+    lay.scale_note = "at centre" if compact and note else note
     top = 0.0
     if title:
         tw, th = _text_size(title, 1.3 * fs, bold=True)
@@ -113,17 +179,21 @@ def plan(size: tuple[int, int], *, title: str | None = None,
         R = 1.8 * fs
         widths["north_arrow"] = heights["north_arrow"] = 2 * R + 2 * pad
     if scale_bar:
-        lines = ["500 km", "at view centre"] + ([_fmt_ve(ve)] if ve != 1 else [])
+        lines = ["500 km"] + ([lay.scale_note] if lay.scale_note else []) \
+            + ([_fmt_ve(ve)] if ve != 1 else [])
         tw = max(_text_size(s, fs if k == 0 else 0.8 * fs)[0] for k, s in enumerate(lines))
-        widths["scale_bar"] = max(tw, 4 * fs) + 2 * pad
+        widths["scale_bar"] = max(tw, 3 * fs) + 2 * pad
         heights["scale_bar"] = 2 * pad + 1.2 * fs + 0.9 * fs + (len(lines) - 1) * 1.0 * fs
     if limits is not None:
         lay.ticks = _ticks(*limits)
         tickw = max((_text_size(s, 0.85 * fs)[0] for _, s in lay.ticks), default=0.0)
-        widths["colorbar"] = 2 * pad + 1.2 * fs + 0.3 * fs + tickw + 0.5 * fs + 0.9 * fs
+        if lay.swatch is not None:
+            tickw = max(tickw, _text_size("water", 0.85 * fs)[0])
+        title_w = 0.0 if compact else 1.2 * fs + 0.3 * fs
+        widths["colorbar"] = 2 * pad + title_w + tickw + 0.5 * fs + 0.9 * fs
     if not widths:
-        lay.free = (m, top + m, W - m, H - m)
-        return lay
+        lay.free = (m, top + m, W - m - right, H - m)
+        return
     cw = max(widths.values())
     x0, x1 = W - m - cw, W - m
     y = top + m
@@ -136,21 +206,25 @@ def plan(size: tuple[int, int], *, title: str | None = None,
         ybot -= heights["scale_bar"] + m
     if limits is not None and ybot - y > 4 * fs:
         lay.boxes["colorbar"] = (x1 - widths["colorbar"], y, x1, ybot)
-    lay.free = (m, top + m, x0 - m, H - m)
-    return lay
+    lay.free = (m, top + m, x0 - m - right, H - m)
 
 
 def layout_for(terrain: TerrainLike, size: tuple[int, int], *, shading: str = "normals",
                cmap: str | Palette = "auto", title: str | None = None, colorbar: bool = True,
-               scale_bar: bool = True, north_arrow: bool = True, ve: float = 1.0) -> Layout:
-    """:func:`plan` with the colour bar's range taken from ``terrain`` and the palette."""
+               scale_bar: bool = True, north_arrow: bool = True, ve: float = 1.0,
+               exact_scale: bool = False, right: float = 0.0) -> Layout:
+    """:func:`plan` with the colour bar's range (and water swatch) taken from ``terrain``
+    and the palette."""
     ve = getattr(terrain, "vertical_exaggeration", 1.0) if ve == 1.0 else ve
-    limits = None
+    limits = swatch = None
     if colorbar and shading != "plain":
-        _, limits = colorbar_map(as_palette(cmap), elevation_range(terrain),
-                                 tolerance=height_tolerance(terrain))
+        pal, rng = terrain_palette(terrain, cmap), elevation_range(terrain)
+        tol = height_tolerance(terrain)
+        _, limits = colorbar_map(pal, rng, tolerance=tol)
+        swatch = water_swatch(pal, rng, tol)
     return plan(size, title=title, limits=limits, scale_bar=scale_bar,
-                north_arrow=north_arrow, ve=ve)
+                north_arrow=north_arrow, ve=ve, swatch=swatch, exact_scale=exact_scale,
+                right=right)
 
 
 def north_direction(view: View) -> np.ndarray | None:
@@ -172,7 +246,9 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
 
     Each sits on an opaque box of :func:`layout_for`. The scale bar's box says
     "VE ×N" when the terrain is drawn exaggerated
-    (:func:`geoterrain.exaggerate.exaggerated`). ``extents``, when given, is
+    (:func:`geoterrain.exaggerate.exaggerated`). A map view (``view.parallel``) also gets
+    its neat line, grid and coordinate labels (:mod:`geoterrain.rendering.mapview`), and
+    its scale bar holds everywhere. ``extents``, when given, is
     filled with the drawn text's pixel boxes per overlay (for tests).
 
     Examples
@@ -184,8 +260,8 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
     if layout is None:
         layout = layout_for(terrain, (W, H), shading=shading, cmap=cmap, title=title,
                             colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow,
-                            ve=ve)
-    if not layout.boxes:
+                            ve=ve, exact_scale=view.parallel)
+    if not layout.boxes and not view.parallel:
         return img
     import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -218,11 +294,24 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
              fontsize=1.3 * fs * pt, weight="bold")
     if "colorbar" in layout.boxes:
         x0, y0, x1, y1 = box("colorbar")
-        cm, (lo, hi) = colorbar_map(as_palette(cmap), elevation_range(terrain),
+        cm, (lo, hi) = colorbar_map(terrain_palette(terrain, cmap), elevation_range(terrain),
                                     tolerance=height_tolerance(terrain))
         bx1 = x1 - pad
         bx0 = bx1 - 0.9 * fs
         by0, by1 = y0 + pad + 0.5 * fs, y1 - pad - 0.5 * fs
+        if layout.compact:  # the unit above the bar
+            by0 += 1.1 * fs
+            text("colorbar", 0.5 * (bx0 + bx1), y0 + pad + 0.55 * fs, "m", ha="center",
+                 va="center", fontsize=0.85 * fs * pt)
+        if layout.swatch is not None:  # water without depth: its own swatch, no range
+            sw = 0.9 * fs
+            sy1 = by1
+            by1 -= sw + 0.6 * fs
+            ax.add_patch(matplotlib.patches.Rectangle((bx0, sy1 - sw), bx1 - bx0, sw,
+                                                      fc=layout.swatch, ec="0.3", lw=0.6,
+                                                      zorder=3))
+            text("colorbar", bx0 - 0.45 * fs, sy1 - 0.5 * sw, "water", ha="right",
+                 va="center", fontsize=0.85 * fs * pt)
         grad = np.linspace(1, 0, 256)[:, None]
         ax.imshow(grad, cmap=cm, vmin=0, vmax=1, aspect="auto", extent=(bx0, bx1, by1, by0),
                   zorder=3, interpolation="bilinear")
@@ -233,8 +322,9 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
             ax.plot([bx0 - 0.3 * fs, bx0], [yy, yy], color="0.2", lw=0.8, zorder=3)
             text("colorbar", bx0 - 0.45 * fs, yy, s, ha="right", va="center",
                  fontsize=0.85 * fs * pt)
-        text("colorbar", x0 + pad + 0.6 * fs, 0.5 * (by0 + by1), "elevation (m)",
-             rotation=90, ha="center", va="center", fontsize=fs * pt)
+        if not layout.compact:
+            text("colorbar", x0 + pad + 0.6 * fs, 0.5 * (by0 + by1), "elevation (m)",
+                 rotation=90, ha="center", va="center", fontsize=fs * pt)
     target = np.asarray(view.look_at, np.float64)
     r, _, _ = view.basis()
     if "scale_bar" in layout.boxes:
@@ -261,8 +351,9 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
                         zorder=3)
             text("scale_bar", cx, yb - 0.4 * fs, _fmt_len(length), ha="center", va="bottom",
                  fontsize=fs * pt)
-            text("scale_bar", cx, yb + 0.5 * fs, "at view centre", ha="center", va="top",
-                 fontsize=0.8 * fs * pt)
+            if layout.scale_note:
+                text("scale_bar", cx, yb + 0.5 * fs, layout.scale_note, ha="center",
+                     va="top", fontsize=0.8 * fs * pt)
         if ve != 1:
             text("scale_bar", cx, y1 - pad, _fmt_ve(ve), ha="center", va="bottom",
                  fontsize=0.8 * fs * pt)
@@ -275,9 +366,13 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
             ax.add_patch(matplotlib.patches.Circle(c, R, fc="none", ec="0.7", lw=0.8, zorder=3))
             ax.annotate("", xy=c + 0.4 * R * d, xytext=c - 0.7 * R * d, zorder=3,
                         arrowprops=dict(arrowstyle="-|>", lw=2, color="black",
-                                        mutation_scale=1.2 * fs))
+                                        mutation_scale=0.9 * fs))
             text("north_arrow", *(c + 0.72 * R * d), "N", ha="center", va="center",
                  fontsize=0.8 * fs * pt, weight="bold")
+    if view.parallel:  # a map: its neat line, grid and labels in the DEM's coordinates
+        from geoterrain.rendering.mapview import draw_map_grid
+
+        texts.update(draw_map_grid(ax, terrain, view, fs))
     ax.set_xlim(0, W)
     ax.set_ylim(H, 0)
     fig.canvas.draw()
@@ -324,3 +419,74 @@ def over(img: np.ndarray, rgba: np.ndarray) -> np.ndarray:
     mix = flat[idx] * (255 - a) + src[:, :3] * a + np.uint16(128)  # ≤ 65 153
     flat[idx] = (mix + (mix >> 8)) >> 8  # = round(mix / 255), exact below 65 536
     return out
+
+
+def draw_lines(img: np.ndarray, view: View, lines: list, depth: np.ndarray | None = None, *,
+               widths: list | None = None, colour: tuple[int, int, int] = (60, 40, 20),
+               alpha: float = 0.85) -> np.ndarray:
+    """Draw 3-D polylines (scene coordinates, each (n, 3)) over a rendered picture where
+    the terrain does not hide them: contour lines on the view.
+
+    Each segment is projected with the picture's camera; with the picture's ``depth``
+    buffer (:func:`geoterrain.rendering.antialias.depth_buffer`, against the view's near
+    and far planes) a segment is drawn when both its ends lie no deeper than the drawn
+    surface there, with a slack of 1 % of the depth and three pixels' worth (the level of
+    detail may place the surface that far from the line's true height). Lines are
+    antialiased by Agg and blended "over" the picture; ``widths`` (pixels, per line;
+    default 1) makes every fifth contour bolder, as maps draw index contours.
+
+    Examples
+    --------
+    >>> from geoterrain.rendering.cameras import default_view
+    >>> v = default_view(t, (160, 120))
+    >>> lo, hi = t.scene_box()
+    >>> line = np.array([[lo[0], 0.0, hi[2]], [hi[0], 0.0, hi[2]]])
+    >>> out = draw_lines(np.full((120, 160, 3), 255, np.uint8), v, [line])
+    >>> int((out < 200).any(-1).sum()) > 20
+    True
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.collections import LineCollection
+    from matplotlib.figure import Figure
+
+    H, W = img.shape[:2]
+    if not lines:
+        return img
+    segs, lw = [], []
+    for k, line in enumerate(lines):
+        p = np.asarray(line, np.float64)
+        if len(p) < 2:
+            continue
+        xy, z = project(view, p)
+        ok = z > (view.near or 1e-9)
+        if depth is not None and view.near is not None and view.far is not None:
+            n, f = view.near, view.far
+            px = np.clip(np.round(xy).astype(np.int64), [0, 0], [W - 1, H - 1])
+            d = depth[px[:, 1], px[:, 0]].astype(np.float64)
+            zb = n * f / np.maximum(f - d * (f - n), 1e-12)  # the drawn surface's depth
+            slack = 0.01 * zb + 3.0 * z / view.lam
+            ok &= (z <= zb + slack) & (d < 1.0)
+        keep = ok[:-1] & ok[1:]
+        if keep.any():
+            s = np.stack([xy[:-1][keep], xy[1:][keep]], 1)
+            segs.append(s)
+            lw += [1.0 if widths is None else float(widths[k])] * len(s)
+    if not segs:
+        return img
+    fig = Figure(figsize=(W / DPI, H / DPI), dpi=DPI, facecolor="none")
+    FigureCanvasAgg(fig)
+    ax = fig.add_axes((0, 0, 1, 1))
+    ax.axis("off")
+    ax.set_xlim(0, W)
+    ax.set_ylim(H, 0)
+    col = tuple(c / 255 for c in colour) + (alpha,)
+    ax.add_collection(LineCollection(np.concatenate(segs), linewidths=np.asarray(lw) * 0.72,
+                                     colors=[col], antialiaseds=True, capstyle="round"))
+    fig.canvas.draw()
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    if rgba.shape[:2] != (H, W):
+        fit = np.zeros((H, W, 4), np.uint8)
+        h, w = min(H, rgba.shape[0]), min(W, rgba.shape[1])
+        fit[:h, :w] = rgba[:h, :w]
+        rgba = fit
+    return over(img, rgba)

@@ -22,6 +22,11 @@ Shading (``shading=``):
 - ``"plain"``: one colour lit by the renderer from the mesh's own geometry:
   what a naive renderer shows (useful to look at the mesh itself).
 
+Where the palette has water (``water_level``, or the ``auto`` palette's sea at 0 m) a
+flat, lit, semi-transparent water surface is drawn at its level
+(:mod:`geoterrain.rendering.water`; ``water=False`` leaves the land below the level
+coloured as water without it).
+
 Examples
 --------
 >>> import geoterrain
@@ -75,6 +80,9 @@ if TYPE_CHECKING:
 
 BACKGROUND = (0.86, 0.90, 0.95)  # a pale sky
 PLAIN_COLOR = (0.80, 0.78, 0.72)
+# how far (pixels in the picture, at most) a perspective view's water surface may move when
+# it is lifted over the terrain's coarse mesh (see TerrainScene.set_camera)
+WATER_LIFT_PX = 0.5
 
 
 def _prefer_egl() -> None:
@@ -109,10 +117,11 @@ class TerrainScene:
                  background: Sequence[float] = BACKGROUND, vertical_exaggeration: float = 1.0,
                  textures: str = "view", light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True,
-                 morph: bool | None = None):
+                 morph: bool | None = None, strips: bool = False, water: bool = True):
         import pyvista as pv
 
         terrain = exaggerated(terrain, vertical_exaggeration)
+        self.strips = bool(strips)  # draw the mesh as seed 002's triangle strips
 
         if shading not in SHADINGS:
             raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
@@ -145,7 +154,32 @@ class TerrainScene:
         self.actor = None
         self.selection = None
         self.texture_stats: dict = {}
+        self.water_actor = None
+        self._water_pts = None
+        if water and shading != "plain":
+            from geoterrain.rendering.water import add_water, water_mesh
 
+            wm = water_mesh(terrain, cmap)
+            if wm is not None:
+                sun = (light.azimuth, light.elevation) if light is not None else (315.0, 45.0)
+                self.water_actor = add_water(plotter, wm, sun)
+                step = max(1, wm.n_points // 4096)  # where the lift is measured
+                self._water_pts = np.asarray(wm.points, np.float64)[::step]
+
+    def retexture_all(self) -> None:
+        """After the store was edited: the whole-terrain texture (``textures="global"``)
+        is made again; per-view textures come from the tiles' shading, which the
+        terrain's refresh dropped where the edit reached."""
+        if self.textures == "global" and self.shading != "plain":
+            import pyvista as pv
+
+            tex = pv.Texture(texture_image(self.terrain, self.shading, self.cmap, self.level))
+            tex.interpolate = True
+            tex.mipmap = True
+            tex.repeat = False
+            self.texture = tex
+            if self.actor is not None:
+                self.actor.texture = tex
     def _tcoords(self, ij: np.ndarray) -> np.ndarray:
         S = self.terrain.grid.level_size(self.level)
         s = float(1 << self.level)
@@ -205,6 +239,8 @@ class TerrainScene:
                     mesh.cell_data[k] = src.cell_data[k]
         else:
             self.texture_stats = {"textures_built": 0, "texture_tiles": 0}
+        if self.strips and mesh.n_cells and src.n_cells and "grid_ij" in src.point_data:
+            mesh = _as_strips(mesh, src, self.terrain.grid.n)
         self.selection = selection
         if self.actor is None:
             kw: dict = {"name": "terrain", "show_scalar_bar": False, "reset_camera": False}
@@ -227,12 +263,58 @@ class TerrainScene:
         and :func:`project` are one camera, straight down included.
         """
         cam = self.plotter.camera
-        _, u, _ = view.basis()
+        _, u, f = view.basis()
+        if self.water_actor is not None:
+            # a map, seen from straight above, draws the water over the terrain whatever
+            # its mesh (coarse there: vertical errors do not show), lifted above its top
+            # (which moves nothing in the picture); a perspective view lifts it as far as
+            # moves it by WATER_LIFT_PX in the picture at most (seen from high above, a
+            # coarse mesh's vertical errors barely show either, and would hide the water
+            # near the coast)
+            lo, hi = self.terrain.scene_box()
+            top = max(float(hi[2] - lo[2]), 1.0) * 1.01
+            lift = top if view.parallel else min(top, self._water_lift(view))
+            self.water_actor.SetPosition(0.0, 0.0, lift)
+        if view.parallel:  # a map: the parallel projection of what the view frames
+            target = np.asarray(view.look_at, np.float64)
+            d = float(np.linalg.norm(view.eye - target))
+            lo, hi = self.terrain.scene_box()
+            near = 2.0 * float(np.linalg.norm(hi - lo)) + 1.0  # depth precision: close
+            cam.SetParallelProjection(True)
+            cam.parallel_scale = d * np.tan(np.radians(view.fov_y_deg) / 2.0)
+            cam.position, cam.focal_point = tuple(target - near * f), tuple(target)
+            cam.up = tuple(u)
+            self.plotter.renderer.ResetCameraClippingRange()
+            return
+        cam.SetParallelProjection(False)
         cam.position, cam.focal_point, cam.up = view.look_from, view.look_at, tuple(u)
         cam.view_angle = view.fov_y_deg
         self.plotter.renderer.ResetCameraClippingRange()
         if view.near is not None and view.far is not None:
             cam.clipping_range = (view.near, view.far)
+
+    def _water_lift(self, view: View) -> float:
+        """The height (scene units) the water surface may be lifted by in the perspective
+        ``view`` while no point of it moves more than ``WATER_LIFT_PX`` in the picture:
+        that over the largest of its points' picture motion per unit of height (the
+        derivative of the projection along z)."""
+        pts = self._water_pts
+        if pts is None or not len(pts):
+            return 0.0
+        r, u, f = view.basis()
+        rel = pts - np.asarray(view.look_from, np.float64)
+        d = rel @ f  # depth along the view direction
+        front = d > 1e-9
+        if not front.any():
+            return 0.0
+        d, x, y = d[front], rel[front] @ r, rel[front] @ u
+        k = view.lam  # pixels per unit across at depth 1
+        # a point at (x, y) across and d along the view sits at k·(x, y)/d px from the
+        # centre; moving it up by one unit changes x, y, d by r_z, u_z, f_z
+        dx = k * (r[2] * d - x * f[2]) / d**2
+        dy = k * (u[2] * d - y * f[2]) / d**2
+        rate = float(np.sqrt(dx * dx + dy * dy).max())
+        return WATER_LIFT_PX / rate if rate > 0 else float("inf")
 
     def frame(self, view: View, pixel_error: float = 1.0, strategy: str = DEFAULT,
               ) -> tuple[np.ndarray, dict]:
@@ -257,7 +339,25 @@ class TerrainScene:
         t0, p0 = time.perf_counter(), time.process_time()
         sel = lod.select(t, view, pixel_error=pixel_error, strategy=strategy,
                          occlusion=self.occlusion, morph=self.morph)
+        return self.draw(sel, view, (t0, p0, c0))
+
+    def draw(self, sel: lod.Selection, view: View, started: tuple | None = None
+             ) -> tuple[np.ndarray, dict]:
+        """Draw a selection made for ``view`` (by :meth:`frame`, or by a strategy called
+        with arguments of its own, as the benchmark experiments do) and return the image
+        and the stats of :meth:`frame`; ``started``: (wall clock, process clock, io
+        counters) when the selection began, else the draw's own start.
+
+        Examples
+        --------
+        >>> img, stats = scene.draw(sel, view)  # doctest: +SKIP
+        """
+        t = self.terrain
+        if view.near is None or view.far is None:
+            view = view.clipped_to(*t.scene_box())
         t1 = time.perf_counter()
+        t0, p0, c0 = started if started is not None else (t1, time.process_time(),
+                                                         io_counters(t))
         self.update(sel, view)
         self.set_camera(view)
         t2, p2 = time.perf_counter(), time.process_time()
@@ -292,6 +392,11 @@ class TerrainScene:
         """
         p = self.plotter
         mode = getattr(p, "_geoterrain_aa", "msaa")
+        if mode == "auto" and self.water_actor is not None:
+            mode = "msaa"  # the water surface's edges are not the mesh's: multisampling
+            rw = p.render_window
+            if rw.GetMultiSamples() != p._geoterrain_samples:
+                rw.SetMultiSamples(p._geoterrain_samples)
         if mode not in ("auto", "edges"):
             return None, mode
         mesh = self.selection.mesh if self.selection is not None else None
@@ -400,6 +505,29 @@ def _draw(plotter) -> np.ndarray:
     return img
 
 
+def _as_strips(mesh, src, n: int):
+    """``mesh`` (triangles in the order of the selection ``src``'s) drawn as seed 002's
+    triangle strips (:mod:`geoterrain.lod.strips`): the faces in the order the seed's
+    refinement meets them, then stripped; points, point data and the texture kept (a
+    triangle's cell data is not: a strip is one cell)."""
+    import pyvista as pv
+
+    from geoterrain.lod.strips import seed_order, triangle_strips
+
+    faces = np.asarray(mesh.regular_faces)
+    order = seed_order(np.asarray(src.regular_faces), np.asarray(src.point_data["grid_ij"]), n)
+    cells, st = triangle_strips(faces[order])
+    out = pv.PolyData()
+    out.SetPoints(mesh.GetPoints())
+    out.strips = cells
+    tc = mesh.active_texture_coordinates
+    if tc is not None:
+        out.active_texture_coordinates = tc
+    for k, v in st.items():
+        out.field_data[f"strip_{k}"] = np.array([v])
+    return out
+
+
 def _plotter(size: tuple[int, int], anti_aliasing: bool | str = "auto"):
     """An offscreen plotter (EGL when there is no display).
 
@@ -484,10 +612,13 @@ def render_array(terrain: TerrainLike, view: View, *, pixel_error: float = 1.0,
                  shading: str = "normals", cmap: str | Palette = "auto", scene=None,
                  vertical_exaggeration: float = 1.0, light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True, morph: bool | None = None,
-                 anti_aliasing: str = "auto") -> tuple[np.ndarray, dict]:
+                 anti_aliasing: str = "auto", strips: bool = False, lines: list | None = None,
+                 line_widths: list | None = None, water: bool = True) -> tuple[np.ndarray, dict]:
     """The rendered image (H, W, 3) uint8 of ``view`` without overlays, and its stats
     (the arguments are :func:`render`'s; ``scene``: draw with this
-    :class:`TerrainScene` rather than a new one, whose own settings then apply).
+    :class:`TerrainScene` rather than a new one, whose own settings then apply). ``lines``
+    (scene polylines, (n, 3) each, heights as drawn) are drawn where the terrain shows
+    them (:func:`geoterrain.rendering.overlays.draw_lines`).
 
     Examples
     --------
@@ -500,10 +631,19 @@ def render_array(terrain: TerrainLike, view: View, *, pixel_error: float = 1.0,
     if own:
         scene = TerrainScene(_plotter(view.size, anti_aliasing), terrain, shading, cmap,
                              vertical_exaggeration=vertical_exaggeration, light=light,
-                             drape=drape, occlusion=occlusion, morph=morph)
+                             drape=drape, occlusion=occlusion, morph=morph, strips=strips,
+                             water=water)
     try:
         img, stats = scene.frame(view, pixel_error, strategy)
         stats["terrain_fraction"] = round(scene.terrain_fraction(), 4)
+        if lines:
+            from geoterrain.rendering.antialias import depth_buffer
+            from geoterrain.rendering.overlays import draw_lines
+
+            seen = view if view.near is not None and view.far is not None \
+                else view.clipped_to(*scene.terrain.scene_box())  # the frame's planes
+            img = draw_lines(img, seen, lines, depth_buffer(scene.plotter),
+                             widths=line_widths)
     finally:
         if own:
             scene.plotter.close()
@@ -516,7 +656,9 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
            north_arrow: bool = True, stats_path: str | Path | None = None,
            vertical_exaggeration: float = 1.0, overwrite: bool = True,
            light: Light | None = None, drape: Drape | None = None, occlusion: bool = True,
-           morph: bool | None = None, anti_aliasing: str = "auto") -> dict:
+           morph: bool | None = None, anti_aliasing: str = "auto",
+           strips: bool = False, lines: list | None = None,
+           line_widths: list | None = None, water: bool = True) -> dict:
     """Render one view of the terrain to a PNG, with its own level of detail.
 
     ``overwrite=False`` refuses an existing ``path`` or ``stats_path`` (checked before
@@ -544,7 +686,17 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
     occlusion, morph : the selection's horizon culling and geomorphing
         (:func:`geoterrain.lod.select`).
     anti_aliasing : ``"auto"`` (edges where the picture's silhouettes are sparse, else
-        MSAA), ``"msaa"``, ``"edges"``, ``"fxaa"`` or ``"none"`` (:func:`_plotter`).
+        MSAA; MSAA with a water surface), ``"msaa"``, ``"edges"``, ``"fxaa"`` or
+        ``"none"`` (:func:`_plotter`).
+    strips : draw the mesh as seed 002's triangle strips (:mod:`geoterrain.lod.strips`)
+        instead of triangle lists: the same picture; on VTK's software renderer no faster
+        to draw (docs/benchmarks.md, "Editing a store, and triangle strips"), hence off by
+        default.
+    lines, line_widths : polylines in the scene frame of the stored terrain ((n, 3) each,
+        such as contour lines; their heights are exaggerated with the terrain's) drawn
+        where the terrain shows them, and their widths in pixels.
+    water : draw a flat, lit, semi-transparent water surface where the palette has
+        water (:mod:`geoterrain.rendering.water`).
 
     Returns
     -------
@@ -568,9 +720,13 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
                         scale_bar=scale_bar, north_arrow=north_arrow)
     if shading not in SHADINGS:
         raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
+    if lines and vertical_exaggeration != 1.0:
+        lines = [np.asarray(p, np.float64) * (1.0, 1.0, vertical_exaggeration) for p in lines]
     img, stats = render_array(terrain, view, pixel_error=pixel_error, strategy=strategy,
                               shading=shading, cmap=cmap, light=light, drape=drape,
-                              occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing)
+                              occlusion=occlusion, morph=morph, anti_aliasing=anti_aliasing,
+                              strips=strips, lines=lines, line_widths=line_widths,
+                              water=water)
     img = compose(img, view, terrain, shading=shading, cmap=cmap, title=title,
                   colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
     _write_png(path, img, overwrite)

@@ -137,7 +137,7 @@ def hillshade(normals: np.ndarray, light: Light = Light(),
     AMBIENT in shadow: ``min(AMBIENT + (1 − AMBIENT) · max(n·l, 0) / l_z, SHADE_CEILING)``
     for the sun l (the mean over the suns of a multidirectional light).
 
-    The one hillshade: pictures, the viewer, ``export-raster --what hillshade`` and the
+    The one hillshade: pictures, the viewer, ``export-raster --what shade`` and the
     exports' textures all shade with it (:func:`hillshade_codes` is its compiled form on
     stored normal codes, for the default light).
 

@@ -45,6 +45,66 @@ def height_tolerance(terrain: TerrainLike) -> float:
     return float(q.codec_error) * terrain.frame.z_to_m if q is not None else 0.0
 
 
+SEA_SHARE = 0.002  # the auto palette's sea: at least this share of the data at 0 m
+
+
+def terrain_palette(terrain: TerrainLike, cmap: str | Palette | None) -> Palette:
+    """The palette ``cmap`` for ``terrain``: the ``auto`` palette draws a sea at 0 m where
+    the data goes below 0 m (bathymetry), or where whole stored tiles of at least
+    ``SEA_SHARE`` of the data lie at 0 m (a sea of zeros, as SRTM's), from the tile table
+    alone (nothing is decoded); a DEM that merely touches 0 m at a sample or two (a
+    synthetic one scaled to start at 0) gets no water. An explicit ``water_level`` is kept
+    as given.
+
+    Examples
+    --------
+    >>> terrain_palette(t, "auto").cmap
+    'auto'
+    """
+    import dataclasses
+
+    pal = as_palette(cmap)
+    if pal.cmap != "auto" or pal.water_level is not None or not pal.sea:
+        return pal
+    if elevation_range(terrain)[0] > 0.0:
+        return pal
+    if elevation_range(terrain)[0] < -coast_tolerance(terrain):
+        return pal  # bathymetry
+    share = terrain.derived(__name__ + ".sea", lambda: _sea_share(terrain))
+    return pal if share >= SEA_SHARE else dataclasses.replace(pal, sea=False)
+
+
+def _sea_share(terrain: TerrainLike) -> float:
+    """The share of the valid samples in level-0 tiles that lie wholly at or below 0 m
+    (within the coast tolerance), from the tile table's boxes and counts."""
+    top = coast_tolerance(terrain) * terrain.frame.z_scale  # scene units
+    wet = total = 0
+    for (L, _, _), info in terrain.tile_info.items():
+        if L == 0:
+            n = int(info.get("nvalid", 0))
+            total += n
+            wet += n if info["zmax"] <= top else 0
+    return wet / total if total else 0.0
+
+
+def coast_tolerance(terrain: TerrainLike) -> float:
+    """How far above the water level an *interpolated* height still counts as water, in
+    metres: half the heights' step where they are integers of a step (lossless integer or
+    decimal DEMs: an SRTM sea of zeros meets 1 m land midway, where its nearest samples
+    would draw it), else the codec's bound ε (:func:`height_tolerance`).
+
+    Examples
+    --------
+    >>> coast_tolerance(t) >= height_tolerance(t)
+    True
+    """
+    q = getattr(terrain, "quantizer", None)
+    eps = height_tolerance(terrain)
+    if q is not None and q.mode in ("int", "decimal"):
+        return max(eps, 0.5 * float(q.step) * terrain.frame.z_to_m)
+    return eps
+
+
 def elevation_range(terrain: TerrainLike) -> tuple[float, float]:
     """(min, max) elevation in metres (no vertical exaggeration) of the valid data."""
     lo, hi = terrain.scene_box()
@@ -76,7 +136,7 @@ def build_texture_image(terrain: TerrainLike, shading: str, cmap: str | Palette 
         h[sl] = np.nan_to_num(terrain.tile(lv, x, y).heights, nan=0.0)
     z0, z1 = elevation_range(terrain)
     zm = terrain.frame.z_to_m
-    rgb = colorize(h * zm, as_palette(cmap), (z0, z1), height_tolerance(terrain))
+    rgb = colorize(h * zm, terrain_palette(terrain, cmap), (z0, z1), height_tolerance(terrain))
     rgb *= shade[..., None]
     return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
 
@@ -86,7 +146,7 @@ def texture_image(terrain: TerrainLike, shading: str, cmap: str | Palette = "aut
     """:func:`build_texture_image`, cached per terrain, shading, colour map and level."""
     L = texture_level(terrain) if level is None else level
     cache = terrain.derived(__name__, dict)
-    key = (shading, as_palette(cmap), L)
+    key = (shading, terrain_palette(terrain, cmap), L)
     if key not in cache:
         cache[key] = build_texture_image(terrain, shading, cmap, L)
     return cache[key]

@@ -139,13 +139,37 @@ def shade_lut(light: np.ndarray, ambient: float, ceiling: float) -> np.ndarray:
     return lut
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _texel(z, s, tint, out, i, j):  # pragma: no cover - compiled
+    """One texel: the tint of height ``z`` (metres; NaN: the colour of 0, as nan_to_num)
+    × the shade ``s``, clipped and rounded into ``out[i, j]``. The one colour rule of the
+    default style, for stored tiles and magnified ones alike."""
+    base, span, wet_level, has_water, depth_lo, depth_span, depth_ramp = tint[:7]
+    land_x, land_c, land_s, water_x, water_c, water_s = tint[7:]
+    one = np.float32(1.0)
+    zero = np.float32(0.0)
+    if z != z:
+        z = 0.0  # nodata: the colour of 0 (nan_to_num)
+    wet = has_water and z <= wet_level
+    if wet:
+        f = 1.0
+        if depth_ramp:
+            f = min(max((z - depth_lo) / depth_span, 0.0), 1.0)
+        xp, fp, sl = water_x, water_c, water_s
+    else:
+        f = min(max((z - base) / span, 0.0), 1.0)
+        xp, fp, sl = land_x, land_c, land_s
+    seg = _segment(f, xp)
+    for k in range(3):
+        w = min(max(np.float32(_ramp(f, seg, xp, fp, sl, k)) * s, zero), one)
+        out[i, j, k] = np.uint8(w * np.float32(255) + np.float32(0.5))
+
+
 @njit(cache=True, nogil=True)
 def _shade_tile(h, cf, codes, planar, lut, tint, out):  # pragma: no cover - compiled
     """:func:`shade_tile`'s pass: heights ``h`` (× ``cf``: metres), 8-bit normal
     ``codes`` (flat; ``planar``: as stored), the hillshade ``lut`` (:func:`shade_lut`)
     and the palette's ``tint`` (:class:`Tint`), into ``out`` (T, T, 3)."""
-    base, span, wet_level, has_water, depth_lo, depth_span, depth_ramp = tint[:7]
-    land_x, land_c, land_s, water_x, water_c, water_s = tint[7:]
     T0, T1 = h.shape
     if planar:  # two planes of 2-D differences mod 256 (vertexdata.normals_to_bytes)
         uv = np.empty(T0 * T1 * 2, np.uint8)  # to interleaved pairs
@@ -157,27 +181,55 @@ def _shade_tile(h, cf, codes, planar, lut, tint, out):  # pragma: no cover - com
                     k = 2 * (i * T1 + j) + c
                     uv[k] = acc if i == 0 else (uv[k - 2 * T1] + acc) & 255
         codes = uv
-    one = np.float32(1.0)
-    zero = np.float32(0.0)
     for i in range(T0):
         for j in range(T1):
-            z = h[i, j] * cf  # metres
-            if z != z:
-                z = 0.0  # nodata: the colour of 0 (nan_to_num)
-            wet = has_water and z <= wet_level
             s = lut[codes[2 * (i * T1 + j)], codes[2 * (i * T1 + j) + 1]]
-            if wet:
-                f = 1.0
-                if depth_ramp:
-                    f = min(max((z - depth_lo) / depth_span, 0.0), 1.0)
-                xp, fp, sl = water_x, water_c, water_s
-            else:
-                f = min(max((z - base) / span, 0.0), 1.0)
-                xp, fp, sl = land_x, land_c, land_s
-            seg = _segment(f, xp)
-            for k in range(3):
-                w = min(max(np.float32(_ramp(f, seg, xp, fp, sl, k)) * s, zero), one)
-                out[i, j, k] = np.uint8(w * np.float32(255) + np.float32(0.5))
+            _texel(h[i, j] * cf, s, tint, out, i, j)
+
+
+@njit(cache=True, nogil=True)
+def _tint_tile(h, cf, shade, tint, out):  # pragma: no cover - compiled
+    """A tile's texels from heights ``h`` (× ``cf``: metres) and a ready ``shade``
+    (float32), as :func:`_shade_tile` colours them (:func:`_texel`)."""
+    T0, T1 = h.shape
+    for i in range(T0):
+        for j in range(T1):
+            _texel(h[i, j] * cf, shade[i, j], tint, out, i, j)
+
+
+@parallel_kernel(cache=True, nogil=True)
+def _tint_tiles(h, cf, shade, tint, out):  # pragma: no cover - compiled
+    """:func:`_tint_tile` of each tile of ``h`` on every core."""
+    for k in prange(h.shape[0]):
+        _tint_tile(h[k], cf, shade[k], tint, out[k])
+
+
+def tint_tiles(h: np.ndarray, cf: float, shade: np.ndarray, clim: tuple[float, float],
+               water_level: float | None, land, water, tolerance: float = 0.0,
+               coast: float | None = None) -> np.ndarray:
+    """The default style's texels of n tiles from heights ``h`` (n, T, T) (× ``cf``:
+    metres; NaN: the colour of 0) and their shade (n, T, T) float32: the same colour rule
+    as :func:`shade_tiles` (:func:`_texel`), for tiles whose shade is not one stored normal
+    code per texel (a magnified tile's, interpolated at its texels). RGB uint8 (n, T, T, 3).
+
+    Examples
+    --------
+    >>> from geoterrain.rendering.colours import LAND, WATER
+    >>> h = np.array([[[-5.0, 0.5], [100.0, 900.0]]])
+    >>> rgb = tint_tiles(h, 1.0, np.ones((1, 2, 2), np.float32), (-100.0, 1000.0), 0.0,
+    ...                  LAND, WATER)
+    >>> bool(rgb[0, 0, 0, 2] > rgb[0, 0, 0, 0]), bool(rgb[0, 0, 1, 1] > rgb[0, 0, 1, 2])
+    (True, True)
+    """
+    n = h.shape[0]
+    out = np.empty((*h.shape, 3), np.uint8)
+    if n == 0:
+        return out
+    kernel = _SERIAL_TINT if n == 1 or forked() else _tint_tiles
+    kernel(np.ascontiguousarray(h, np.float64), float(cf),
+           np.ascontiguousarray(shade, np.float32),
+           _palette_args(clim, water_level, land, water, tolerance, coast), out)
+    return out
 
 
 def shade_tile(h: np.ndarray, codes: np.ndarray, planar: bool, bits: int, light: np.ndarray,
@@ -202,18 +254,20 @@ def shade_tile(h: np.ndarray, codes: np.ndarray, planar: bool, bits: int, light:
     return out
 
 
-def _palette_args(clim, water_level, land, water, tolerance: float = 0.0) -> Tint:
+def _palette_args(clim, water_level, land, water, tolerance: float = 0.0,
+                  coast: float | None = None) -> Tint:
     """The compiled shading's palette :class:`Tint`: base, span, the level at or below
     which it is water, whether there is water, the depth ramp's low end, span and
-    whether it ramps, and the land and water ramps (:func:`_stops`); ``tolerance`` as
-    :func:`geoterrain.rendering.colours.colorize`'s."""
+    whether it ramps, and the land and water ramps (:func:`_stops`); ``tolerance`` and
+    ``coast`` as :func:`geoterrain.rendering.colours.colorize`'s."""
     lo, hi = (float(v) for v in clim)
     if hi <= lo:
         lo, hi = lo - 0.5, lo + 0.5
     wl = water_level
     base = max(lo, wl) if wl is not None else lo
     span = max(hi - base, 1e-9)
-    wet_level = float(wl) + tolerance if wl is not None else 0.0
+    wet_level = float(wl) + (tolerance if coast is None else max(tolerance, coast)) \
+        if wl is not None else 0.0
     top = float(wl) - tolerance if wl is not None else 0.0  # the depth ramp's surface
     depth_lo = min(lo, top)
     depth_ramp = wl is not None and top > depth_lo
@@ -233,7 +287,8 @@ def _shade_tiles(h, cf, codes, lut, tint, out):  # pragma: no cover - compiled
 
 def shade_tiles(h: np.ndarray, cf: float, codes: np.ndarray, light: np.ndarray,
                 ambient: float, ceiling: float, clim: tuple[float, float],
-                water_level: float | None, land, water, tolerance: float = 0.0) -> np.ndarray:
+                water_level: float | None, land, water, tolerance: float = 0.0,
+                coast: float | None = None) -> np.ndarray:
     """:func:`shade_tile` of n tiles at once, on every core: RGB uint8 (n, T, T, 3).
 
     ``h`` (n, T, T) heights in source units (× ``cf`` for metres), ``codes`` (n, T, T, 2)
@@ -263,8 +318,9 @@ def shade_tiles(h: np.ndarray, cf: float, codes: np.ndarray, light: np.ndarray,
     kernel = _SERIAL_TILES if n == 1 or forked() else _shade_tiles
     kernel(np.ascontiguousarray(h, np.float64), float(cf), np.ascontiguousarray(codes),
            shade_lut(light, ambient, ceiling),
-           _palette_args(clim, water_level, land, water, tolerance), out)
+           _palette_args(clim, water_level, land, water, tolerance, coast), out)
     return out
 
 
 _SERIAL_TILES = serial_twin(_shade_tiles)
+_SERIAL_TINT = serial_twin(_tint_tiles)

@@ -11,6 +11,11 @@ codes) all of them in one compiled call on every core
 (:func:`geoterrain.rendering.shading.tile_hillshade`) or the lit shade
 (:func:`geoterrain.rendering.shading.tile_shade`).
 
+A magnified tile (level < 0, :mod:`geoterrain.rendering.tiletextures`) is shaded by the
+same rule from its level-0 tile's heights, shade (and drape) interpolated bilinearly at
+its texels (:func:`magnified`): the height is interpolated first and classified after, so
+a coast or a colour step follows the interpolated surface, not the nearest sample.
+
 Examples
 --------
 >>> shader = TileShader(t)
@@ -29,7 +34,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geoterrain.rendering.colours import LAND, WATER, Palette, as_palette, colorize, water_level
+from geoterrain.rendering.colours import LAND, WATER, Palette, colorize, water_level
 from geoterrain.rendering.drape import Drape, drape_tile
 from geoterrain.rendering.shading import (
     AMBIENT,
@@ -39,13 +44,63 @@ from geoterrain.rendering.shading import (
     tile_hillshade,
     tile_shade,
 )
-from geoterrain.rendering.textures import elevation_range, height_tolerance, sample_spacing
-from geoterrain.rendering.tileshade import shade_tiles
+from geoterrain.rendering.textures import (
+    coast_tolerance,
+    elevation_range,
+    height_tolerance,
+    sample_spacing,
+    terrain_palette,
+)
+from geoterrain.rendering.tileshade import shade_lut, shade_tiles, tint_tiles
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike, TileKey
 
-__all__ = ["TileShader", "tile_rgb"]
+__all__ = ["TileShader", "magnified", "tile_rgb"]
+
+
+def magnified(a: np.ndarray, level: int, x: int, y: int, step: int) -> np.ndarray:
+    """Magnified tile (``level`` < 0, x, y)'s texels (step + 1)² interpolated bilinearly in
+    ``a``, its level-0 tile's array (T, T, ...) (NaN-aware: a texel takes the weighted mean
+    of its finite corners; NaN where none is).
+
+    The tile covers 1/2^-level of its level-0 tile's side, from sample (y mod 2^-level,
+    x mod 2^-level) × its width, with 2^-level texels per sample.
+
+    Examples
+    --------
+    >>> a = np.array([[0.0, 4.0], [8.0, 12.0]])  # a 2 × 2 level-0 tile (step 1)
+    >>> magnified(np.kron(a, np.ones((1, 1))), -1, 0, 0, 2).tolist()[1]
+    [4.0, 6.0, 8.0]
+    """
+    k = -int(level)
+    if k <= 0:
+        raise ValueError("a magnified tile's level is below 0")
+    n = step >> k  # the tile's width in level-0 samples
+    m = (1 << k) - 1
+    wy = _weights(a.shape[0], (y & m) * n, k, step)
+    wx = _weights(a.shape[1], (x & m) * n, k, step)
+    v = np.asarray(a, np.float64)
+    ok = np.isfinite(v)
+    if ok.all():  # separable: rows, then columns
+        return np.einsum("ri,ij...,cj->rc...", wy, v, wx, optimize=True)
+    num = np.einsum("ri,ij...,cj->rc...", wy, np.where(ok, v, 0.0), wx, optimize=True)
+    den = np.einsum("ri,ij...,cj->rc...", wy, ok.astype(np.float64), wx, optimize=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 1e-12, num / np.maximum(den, 1e-300), np.nan)
+
+
+def _weights(T: int, o: int, k: int, step: int) -> np.ndarray:
+    """(step + 1, T) bilinear weights of a magnified tile's texels along one axis, from
+    sample ``o`` on, 2^k texels per sample."""
+    c = o + np.arange(step + 1, dtype=np.float64) / (1 << k)
+    i0 = np.minimum(np.floor(c).astype(np.int64), T - 2)
+    f = c - i0
+    w = np.zeros((step + 1, T))
+    r = np.arange(step + 1)
+    w[r, i0] = 1.0 - f
+    w[r, i0 + 1] += f
+    return w
 
 # every shading style met so far, numbered: a tile's cache key holds the number, so a
 # lookup hashes a few ints, not the palette, light and drape (a handful of styles a
@@ -66,7 +121,8 @@ class TileShader:
     def __init__(self, terrain: TerrainLike, shading: str = "normals",
                  cmap: str | Palette = "auto", light: Light | None = None,
                  drape: Drape | None = None):
-        self.terrain, self.shading, self.palette = terrain, shading, as_palette(cmap)
+        self.terrain, self.shading = terrain, shading
+        self.palette = terrain_palette(terrain, cmap)
         self.light, self.drape = light, drape
         self.built = 0
         # a vertically exaggerated view shares its base terrain's cache but not its
@@ -76,8 +132,9 @@ class TileShader:
         with _STYLES_LOCK:
             self.style = _STYLES.setdefault(style, len(_STYLES))
         # the default style: one compiled pass over many tiles (geoterrain.rendering.tileshade)
-        self.compiled = (shading == "normals" and lk is None and drape is None
-                         and self.palette.cmap == "auto" and terrain.stored_normals
+        self.tinted = (shading == "normals" and lk is None and drape is None
+                       and self.palette.cmap == "auto")
+        self.compiled = (self.tinted and terrain.stored_normals
                          and terrain.meta["normal_bits"] == 8)
 
     def key(self, level: int, x: int, y: int) -> tuple:
@@ -94,7 +151,7 @@ class TileShader:
 
     def __call__(self, keys: Sequence[TileKey], max_builds: int | None = None
                  ) -> list[np.ndarray | None]:
-        if self.compiled:
+        if self.compiled or (self.tinted and all(k[0] < 0 for k in keys)):
             # the new tiles in one compiled call, then the cached ones in order
             todo = [k for k in dict.fromkeys(keys) if self.peek(*k) is None][:max_builds]
             ready = {}
@@ -115,43 +172,103 @@ class TileShader:
 
         def make():
             self.built += 1
-            if self.compiled:
+            if self.compiled or (self.tinted and level < 0):
                 return self._batch([(level, x, y)])[0]
             return self._one(level, x, y)
 
         return self.terrain.memo(self.key(level, x, y), make)
 
     def _one(self, level: int, x: int, y: int) -> np.ndarray:
-        t, pal, light, drape = self.terrain, self.palette, self.light, self.drape
-        z0, z1 = elevation_range(t)
-        h = np.nan_to_num(t.tile(level, x, y).heights, nan=0.0)
-        rgb = colorize(h * t.frame.z_to_m, pal, (z0, z1), height_tolerance(t))
-        if drape is not None:  # the image over the colours; its nodata shows them
+        if level < 0:  # magnified: the level-0 tile's fields at the texels
+            k = -level
+            p = (0, x >> k, y >> k)
+            fields = self.terrain.memo(("fields", self.style, *p), lambda: self._fields(*p))
+            step = 1 << self.terrain.grid.t
+            fields = tuple(None if f is None else magnified(f, level, x, y, step)
+                           for f in fields)
+            return self._colour(*fields)
+        return self._colour(*self._fields(level, x, y))
+
+    def _fields(self, level: int, x: int, y: int) -> tuple:
+        """A stored tile's heights (metres, NaN at nodata), drape colours and coverage (or
+        None) and shade (or None): what :meth:`_colour` colours."""
+        t, light, drape = self.terrain, self.light, self.drape
+        h = t.tile(level, x, y).heights * t.frame.z_to_m
+        img = on = shade = None
+        if drape is not None:
             img, on = drape_tile(t, drape, level, x, y)
-            a = float(drape.opacity)
-            rgb[on] = a * img[on] + (1.0 - a) * rgb[on]
+            on = on.astype(np.float32)
         if self.shading == "normals" and (light is None or light.is_default):
-            rgb *= tile_hillshade(t, level, x, y)[..., None]
+            shade = tile_hillshade(t, level, x, y)
         elif self.shading == "normals":  # sun, shadows, ambient occlusion
-            rgb *= tile_shade(t, level, x, y, light, sample_spacing(t))[..., None]
+            shade = tile_shade(t, level, x, y, light, sample_spacing(t))
+        return h, img, on, shade
+
+    def _colour(self, h, img, on, shade) -> np.ndarray:
+        """RGB uint8 of a tile's (or its texels') fields: the palette's colours of the
+        heights, the drape over them, × the shade."""
+        t, pal, drape = self.terrain, self.palette, self.drape
+        z0, z1 = elevation_range(t)
+        rgb = colorize(np.nan_to_num(h, nan=0.0), pal, (z0, z1), height_tolerance(t),
+                       coast_tolerance(t))
+        if drape is not None:  # the image over the colours; its nodata shows them
+            cover = np.nan_to_num(on, nan=0.0) > 0.5
+            a = float(drape.opacity)
+            rgb[cover] = a * np.nan_to_num(img[cover]) + (1.0 - a) * rgb[cover]
+        if shade is not None:
+            rgb *= np.nan_to_num(shade, nan=1.0)[..., None]
         return (np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)
 
     def _batch(self, keys: list) -> list[np.ndarray]:
         """The default style's shading of each tile of ``keys`` in one compiled call over
         all of them on every core (:func:`geoterrain.rendering.tileshade.shade_tiles`; a
         single tile's on this thread), from their heights and the normal codes the
-        terrain hands over."""
+        terrain hands over; magnified tiles (level < 0) from their level-0 tile's heights
+        and hillshade interpolated at their texels, coloured by the same rule
+        (:func:`geoterrain.rendering.tileshade.tint_tiles`)."""
         t, pal = self.terrain, self.palette
-        T, n = t.grid.tile_samples, len(keys)
-        h = np.empty((n, T, T))
-        for k, key in enumerate(keys):
-            h[k] = t.tile(*key).heights
-        codes = t.normal_codes(keys)
+        T = t.grid.tile_samples
         z0, z1 = elevation_range(t)
-        rgb = shade_tiles(h, t.frame.z_to_m, codes, DEFAULT_SUN, AMBIENT, SHADE_CEILING,
-                          pal.clim if pal.clim is not None else (z0, z1),
-                          water_level(pal, (z0, z1)), LAND, WATER, height_tolerance(t))
-        return [a.copy() for a in rgb]  # each cached on its own (not views of one array)
+        clim = pal.clim if pal.clim is not None else (z0, z1)
+        args = (clim, water_level(pal, (z0, z1)), LAND, WATER, height_tolerance(t),
+                coast_tolerance(t))
+        real = [k for k in keys if k[0] >= 0]
+        out = {}
+        if real and not self.compiled:  # the tinted style over normals not stored
+            out.update({key: self._one(*key) for key in real})
+        elif real:
+            h = np.empty((len(real), T, T))
+            for k, key in enumerate(real):
+                h[k] = t.tile(*key).heights
+            codes = t.normal_codes(real)
+            rgb = shade_tiles(h, t.frame.z_to_m, codes, DEFAULT_SUN, AMBIENT, SHADE_CEILING,
+                              *args)
+            out.update({key: rgb[k].copy() for k, key in enumerate(real)})
+        virtual = [k for k in keys if k[0] < 0]
+        if virtual:
+            step = 1 << t.grid.t
+            h = np.empty((len(virtual), step + 1, step + 1))
+            s = np.empty((len(virtual), step + 1, step + 1), np.float32)
+            for k, (L, x, y) in enumerate(virtual):
+                p = (0, x >> -L, y >> -L)
+                ph, ps = t.memo(("fields", self.style, *p), lambda p=p: self._default_fields(p))
+                h[k] = magnified(ph, L, x, y, step)
+                s[k] = magnified(ps, L, x, y, step)
+            rgb = tint_tiles(h, 1.0, s, *args)
+            out.update({key: rgb[k].copy() for k, key in enumerate(virtual)})
+        return [out[k] for k in keys]  # each cached on its own (not views of one array)
+
+    def _default_fields(self, key) -> tuple[np.ndarray, np.ndarray]:
+        """A stored tile's heights (metres) and default hillshade for its magnified tiles:
+        from its normal codes, the values the compiled shading looks up (or the hillshade
+        of its normals where they are not the stored ones, as under exaggeration)."""
+        t = self.terrain
+        h = t.tile(*key).heights * t.frame.z_to_m
+        if not self.compiled:
+            return h, tile_hillshade(t, *key)
+        codes = t.normal_codes([key])[0]
+        lut = shade_lut(DEFAULT_SUN, AMBIENT, SHADE_CEILING)
+        return h, lut[codes[..., 0], codes[..., 1]]
 
 
 def tile_rgb(terrain: TerrainLike, level: int, x: int, y: int, shading: str,

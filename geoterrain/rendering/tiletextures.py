@@ -32,6 +32,14 @@ bruteforce render with the mipmapped whole-DEM level-0 texture: texels ≤ 0.5 /
 (view 2); finer texels alias, as there are no mipmaps across atlas pages. With √c:
 37.85 and 35.56 dB at 1.5 px (docs/lab/rendering-frame.md has every shared DEM).
 
+Where a level-0 sample spans more than ``TEXEL_PX`` pixels (a coarse DEM, or a close
+view), a footprint's texels come from a *magnified* level ``Lt < 0``, down to
+``-MAX_MAGNIFY``: a level-0 tile's area cut into 2^-Lt × 2^-Lt virtual tiles of the same
+(2^t + 1)² texels, each 2^Lt samples apart. Their key is (Lt, x, y) on that finer tile
+grid, so the atlas places them as any other; the style shades them from the heights and
+shading interpolated at their texels (:class:`~geoterrain.rendering.tileshader.TileShader`),
+so colour steps and coasts follow the surface, not its samples.
+
 How a tile is shaded is the picture's style's business
 (:class:`~geoterrain.rendering.tileshader.TileShader`): the atlas asks it for the tiles
 it places. The pages are packed into one atlas texture (one actor, per-vertex texture
@@ -78,6 +86,8 @@ if TYPE_CHECKING:
 TEXEL_PX = 1.5  # texels of 0.75-1.5 px: finer ones alias without mipmaps (measured below)
 MIN_FACING = 2.0 ** -8  # a footprint seen edge on: 4 levels coarser, at most the top
 MAX_PAGE_LEVELS = 3  # a footprint's page is at most 2^3 × 2^3 tiles (513² texels at t = 6)
+MAX_MAGNIFY = 3  # texels down to 1/8 of a sample apart (level -3): smooth classification
+LT_BIAS = 8  # texel levels are packed in page keys as Lt + LT_BIAS (5 bits, Lt ≥ -8)
 MAX_ATLAS = 8192  # texels per side; beyond it every page is coarsened one level
 GUTTER = 1  # replicated border texels around each page (no bleeding between pages)
 # footprints are grouped through the whole (level, y, x) tile table up to this many
@@ -204,7 +214,8 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
                             "texture_ms": 0.0})
     pts, ij, tris = _mesh_arrays(selection)
     fp = _footprints(pts, ij, tris, g.t, base, view)
-    fLt = _texel_levels(fp, view, sample_spacing(terrain), texel_px, top)
+    fLt = _texel_levels(fp, view, sample_spacing(terrain), texel_px, top,
+                        min(MAX_MAGNIFY, g.t))
     pg = _pages(fp, fLt, g.t, top)
     # zeroed, on 4 KiB pages (a fresh atlas on huge pages stalled on its first touch,
     # the kernel compacting memory for them: 11 ms of an 8 MB atlas's fill), reused once
@@ -216,7 +227,7 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
     # review's view; they read grey before, as wrong)
     atlas = _ATLASES.zeros((pg.AH, pg.AW, 3), np.uint8)
     step = 1 << g.t
-    placed, rect = _place(pg, terrain.tile_info, step, atlas)
+    placed, rect = _place(pg, _Stored(terrain.tile_info), step, atlas)
     # the tiles' shading, those not cached shaded now (at most max_builds, in drawing
     # order); past the budget a tile is cut from a cached ancestor where there is one
     rgbs = shader([key for key, _, _ in placed], max_builds)
@@ -301,17 +312,19 @@ def _footprints(pts: np.ndarray, ij: np.ndarray, tris: np.ndarray, t: int, base:
     return _Footprints(eL, eX, eY, lo, hi, ilo_e, ihi_e, facing, fe)
 
 
-def _texel_levels(fp: _Footprints, view, s0: float, texel_px: float, top: int) -> np.ndarray:
+def _texel_levels(fp: _Footprints, view, s0: float, texel_px: float, top: int,
+                  magnify: int = 0) -> np.ndarray:
     """The texel level each footprint wants, from its drawn vertices' box and its faces'
     foreshortening (the texel's projected area, as a square of ``texel_px``; module
-    docstring), at most ``MAX_PAGE_LEVELS`` finer than the footprint."""
+    docstring), at most ``MAX_PAGE_LEVELS`` finer than the footprint and at least
+    ``-magnify`` (a magnified level, texels 2^magnify per sample)."""
     eye = np.asarray(view.eye, np.float64)
     d = np.linalg.norm(np.maximum(0.0, np.maximum(fp.lo - eye, eye - fp.hi)), axis=1)
     d = d / np.sqrt(np.maximum(fp.facing, MIN_FACING))
     f = 0.5 * view.size[1] / math.tan(math.radians(view.fov_y_deg) / 2)
     with np.errstate(divide="ignore", invalid="ignore"):
         want = np.floor(np.log2(np.maximum(d, 1e-30) * texel_px / (s0 * f)))
-    want = np.clip(np.nan_to_num(want, nan=0.0, posinf=top, neginf=0.0), 0,
+    want = np.clip(np.nan_to_num(want, nan=0.0, posinf=top, neginf=-magnify), -magnify,
                    top).astype(np.int64)
     return np.maximum(want, fp.L - MAX_PAGE_LEVELS)
 
@@ -350,10 +363,10 @@ def _pages(fp: _Footprints, fLt: np.ndarray, t: int, top: int) -> _Pages:
     sh = 2 * (top + 1) + 1
     step = 1 << t
     while True:
-        keys, e_group = np.unique(((L2 << sh | Y2) << sh | X2) << 5 | fLt,
+        keys, e_group = np.unique(((L2 << sh | Y2) << sh | X2) << 5 | (fLt + LT_BIAS),
                                   return_inverse=True)
         G = len(keys)
-        Lt = keys & 31
+        Lt = (keys & 31) - LT_BIAS
         rest = keys >> 5
         gL = rest >> (2 * sh)
         gY, gX = (rest >> sh) & ((1 << sh) - 1), rest & ((1 << sh) - 1)
@@ -373,6 +386,18 @@ def _pages(fp: _Footprints, fLt: np.ndarray, t: int, top: int) -> _Pages:
     return _Pages(G, Lt, gL, gX, gY, k, ax, ay, AW, AH, e_group, ilo, ihi, jlo, jhi)
 
 
+class _Stored:
+    """Whether a texture tile's data is stored: a stored tile's key, or a magnified tile
+    (level < 0) whose level-0 tile is."""
+
+    def __init__(self, tile_info):
+        self.info = tile_info
+
+    def __contains__(self, key) -> bool:
+        L, x, y = key
+        return (L, x, y) in self.info if L >= 0 else (0, x >> -L, y >> -L) in self.info
+
+
 def _place(pg: _Pages, stored, step: int, atlas: np.ndarray) -> tuple[list, np.ndarray]:
     """Where each page's tiles that its faces touch go in ``atlas``: (tile key, row,
     column) of the stored ones (a tile not stored is written grey now), and per page the
@@ -388,7 +413,7 @@ def _place(pg: _Pages, stored, step: int, atlas: np.ndarray) -> tuple[list, np.n
         span = step << gl  # the footprint's width in full-resolution samples
         bi, bj = gy * span, gx * span
         y0, x0 = py + GUTTER, px + GUTTER
-        wt = step << lt  # a level-lt tile's width in full-resolution samples
+        wt = step << lt if lt >= 0 else step >> -lt  # a tile's width in level-0 samples
         last = (1 << kk) - 1
         ty0, ty1 = min(last, (i0 - bi) // wt), min(last, (i1 - bi - 1) // wt)
         tx0, tx1 = min(last, (j0 - bj) // wt), min(last, (j1 - bj - 1) // wt)

@@ -5,15 +5,19 @@ PyVista plotter (an offscreen one in the tests): ``on_camera_changed()``
 re-selects the LOD for the plotter's camera (throttled) and updates the terrain
 actor in place; key handlers are plain methods.
 
-Keys: ``m`` strategy, ``+``/``-`` τ ×/÷ 2, ``g`` geomorphing on/off, ``x`` wireframe,
-``c`` colour (shading / LOD level / tile), ``space`` freeze the LOD, ``h`` reset the view,
-``s`` save a screenshot (overlays included), ``q`` quit.
+Keys: ``m`` strategy, ``+``/``-`` coarser/finer detail (the pixel error τ ×/÷ 2),
+``g`` geomorphing on/off, ``x`` wireframe, ``c`` colour (shading / LOD level / tile),
+``space`` freeze the LOD, ``h`` reset the view, ``s`` save a screenshot (overlays
+included), ``t`` the engine's timings on/off, ``q`` quit.
 
 The camera moves as on a terrain (VTK's terrain interactor style): dragging turns
 around the vertical and tilts, and never rolls, so the horizon stays level. The
-status line sits on an opaque box and says when a selection is running; a colour
-bar (metres) and an east/north/up compass stay on screen. With ``background`` the
-worker thread also builds the frame's textures, so the window only swaps them in;
+status line sits on an opaque box and says, in plain words, the strategy, the detail
+(pixels on screen), the triangles drawn and the time a frame takes, and when the view
+is being updated; ``t`` adds the engine's own figures (selection and texture times,
+tiles decoded). A colour bar (metres; a legend of the detail levels while the triangles
+are coloured by level) and a north arrow that turns with the view stay on screen. With
+``background`` the worker thread also builds the frame's textures, so the window only swaps them in;
 while the camera moves frames are drawn without multisampling, and once it has rested
 ``REST_MS`` the view is drawn again with it (screenshots always are). Once the window
 is up, the objects of the imports and the first frame are frozen out of the garbage
@@ -32,6 +36,7 @@ from __future__ import annotations
 
 import gc
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -44,14 +49,20 @@ from geoterrain.rendering.colours import Palette
 from geoterrain.rendering.drape import Drape
 from geoterrain.rendering.scene import TerrainScene
 from geoterrain.rendering.shading import Light
-from geoterrain.rendering.viewer_style import cell_colours, colour_bar, mute_style_timers
+from geoterrain.rendering.viewer_style import (
+    Compass,
+    cell_colours,
+    colour_bar,
+    level_legend,
+    mute_style_timers,
+)
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
 COLOR_MODES = ("shading", "level", "tile")
-HELP = ("m strategy  +/- tau  g morph  x wireframe  c colour  space freeze  h home  "
-        "s screenshot  q quit")
+HELP = ("keys: m strategy  +/- coarser/finer  g morph  x wireframe  c colour  space freeze  "
+        "h home  s screenshot  t timings  q quit")
 
 
 POLL_MS = 16.0  # background mode, idle: how often the window looks for a finished frame
@@ -60,6 +71,8 @@ POLL_MS = 16.0  # background mode, idle: how often the window looks for a finish
 # finished frame waits ≤ 4 ms for the window, not up to a whole idle period
 BUSY_POLL_MS = 4.0
 REST_MS = 250.0  # the camera still this long: drawn again with anti-aliasing
+# how often the window looks whether its store was edited (geoterrain edit, Terrain.edit)
+STORE_POLL_MS = 500.0
 # texture tiles a camera move may shade before its picture is shown (~0.5 ms each);
 # the rest are magnified from cached coarser tiles and shaded by the passes that follow
 TEXTURE_BUILDS = 24
@@ -77,6 +90,8 @@ class ViewerController:
         in between are coalesced and handled by :meth:`poll` (a repeating timer).
     background : select in a worker thread so the window never waits for a selection
         (the mesh is swapped in by :meth:`poll` when ready); the interactive default.
+    keys : whether the window has the key bindings (the HUD lists them); False in a web
+        page or a notebook, where only the mouse reaches the plotter.
 
     Examples
     --------
@@ -93,12 +108,14 @@ class ViewerController:
                  throttle_ms: float = 100.0,
                  background: bool = False, light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True,
-                 morph: bool | None = None):
+                 morph: bool | None = None, water: bool = True, keys: bool = True):
         strategy_info(strategy)
+        self.keys = bool(keys)
         self.plotter, self.terrain = plotter, terrain
         self.strategy, self.pixel_error = strategy, float(pixel_error)
         self.throttle_ms = throttle_ms
-        self.scene = TerrainScene(plotter, terrain, shading, cmap, light=light, drape=drape)
+        self.scene = TerrainScene(plotter, terrain, shading, cmap, light=light, drape=drape,
+                                  water=water)
         self.frozen = False
         self.wireframe = False
         self.color_mode = "shading"
@@ -118,6 +135,8 @@ class ViewerController:
         self._last_key: tuple = ()
         self._future = None
         self._executor = None
+        self._store_t = time.perf_counter()  # when the store was last looked at
+        self.edits_shown = 0  # store edits taken in and redrawn
         self._deferred = 0  # stand-in texture tiles in the picture shown
         self._shown_view: View | None = None  # the view the shown textures were made for
         self._closed = False
@@ -132,6 +151,7 @@ class ViewerController:
         tp.SetFrameColor(0.6, 0.6, 0.6)
         self.message = ""
         self.screenshots = 0
+        self.telemetry = False  # key t: the engine's figures in the status line
         self._legend(cmap)
         # the selections' switches (key g toggles the morphing)
         self.occlusion, self.morph = bool(occlusion), morph
@@ -166,6 +186,8 @@ class ViewerController:
         to the mesh drawn, and a nearer near plane could show what culling left out)."""
         v = self._view()
         self.plotter.camera.clipping_range = (v.near, v.far)
+        if getattr(self, "_compass", None) is not None:
+            self._compass.update(v)
 
     def on_camera_changed(self, *_args, force: bool = False) -> bool:
         """Re-select the LOD for the current camera (unless frozen, unchanged or throttled).
@@ -241,6 +263,7 @@ class ViewerController:
         Returns True when the scene changed.
         """
         changed = False
+        self.watch_store()
         if not self._gc_frozen:
             # the window is up: what the imports, VTK and the first frame made is kept
             # for good, so a full garbage collection (the GIL held, the window frozen)
@@ -289,6 +312,29 @@ class ViewerController:
                 (time.perf_counter() - self._moved_t) * 1e3 >= REST_MS:
             self.settle()
         return changed
+
+    def watch_store(self, force: bool = False) -> bool:
+        """Every ``STORE_POLL_MS`` (or now with ``force``), while no frame is in flight:
+        when the store was edited (``geoterrain edit`` in another process, or
+        :meth:`~geoterrain.terrain.Terrain.edit`), take the edit in
+        (:meth:`~geoterrain.terrainlike.TerrainLike.refresh`: the tiles it reached are
+        decoded again) and select and draw the view anew. Returns whether it did."""
+        now = time.perf_counter()
+        if self._closed or self._busy or (self._future is not None and not self._future.done()):
+            return False
+        if not force and (now - self._store_t) * 1e3 < STORE_POLL_MS:
+            return False
+        self._store_t = now
+        if not self.terrain.refresh():
+            return False
+        self.edits_shown += 1
+        light = self.scene.light
+        if light is not None and (light.shadows or light.ambient_occlusion):
+            self.terrain.clear_cache()  # shadows and sky view reach far beyond an edit
+        self.scene.retexture_all()
+        self._last_key = ()
+        self._refresh()
+        return True
 
     def _arm(self) -> None:
         """While a background frame is in flight, have the window poll every
@@ -339,6 +385,33 @@ class ViewerController:
             changed |= self.poll()
         return changed
 
+    def follow(self, interactor, on_update: Callable[[bool], None] | None = None) -> None:
+        """Let the LOD follow the camera where the mouse reaches the plotter through
+        ``interactor`` (a VTK interactor) but no window runs this controller's timers (a
+        web page, a notebook): a throttled selection per camera change while dragging, and
+        the camera's own selection once the interaction ends. ``on_update(final)`` is
+        called after a selection during the drag (``final`` False) and at its end (True).
+
+        Examples
+        --------
+        >>> import pyvista as pv  # doctest: +SKIP
+        >>> p = pv.Plotter(off_screen=True)  # doctest: +SKIP
+        >>> c = ViewerController(p, t, keys=False)  # doctest: +SKIP
+        >>> c.follow(p.iren.interactor)  # doctest: +SKIP
+        """
+        def moved(*_args) -> None:
+            if self.on_camera_changed() and on_update is not None:
+                on_update(False)
+
+        def released(*_args) -> None:
+            if not self.on_camera_changed() and self.pending:  # the last move was throttled
+                self.on_camera_changed(force=True)
+            if on_update is not None:
+                on_update(True)
+
+        self.plotter.camera.AddObserver("ModifiedEvent", moved)
+        interactor.AddObserver("EndInteractionEvent", released)
+
     def close(self) -> None:
         """Stop the worker thread (and the busy-poll timer)."""
         self._closed = True
@@ -354,6 +427,10 @@ class ViewerController:
         prop = actor.GetProperty()
         prop.SetRepresentationToWireframe() if self.wireframe else prop.SetRepresentationToSurface()
         mesh, mapper = self.scene.mesh, actor.GetMapper()
+        if getattr(self, "_levels", None) is not None:  # a legend for the colours shown
+            self._levels.SetVisibility(self.color_mode == "level")
+            if self._bar is not None:
+                self._bar.SetVisibility(self.color_mode == "shading")
         if self.color_mode == "shading" or mesh.n_cells == 0:
             mapper.ScalarVisibilityOff()
             actor.SetTexture(self.scene.texture)
@@ -377,18 +454,30 @@ class ViewerController:
 
     def _update_hud(self) -> None:
         s = self.stats
-        morph = " morph" if self._morphing() and strategy_info(self.strategy).morphs else ""
-        line = (f"{self.strategy}{morph}  tau {self.pixel_error:g} px  "
-                f"{s.get('triangles', 0):,} tris  "
-                f"select {s.get('select_ms', 0.0):.0f} ms  frame {self.frame_ms:.0f} ms"
-                + ("  [FROZEN]" if self.frozen else "") + f"  colour: {self.color_mode}"
-                + ("  ... selecting" if self.busy and not self.refining else "")
-                + ("  ... shading textures" if self.refining else ""))
+        morph = ", morphing" if self._morphing() and strategy_info(self.strategy).morphs else ""
+        doing = (" · updating the view..." if self.busy and not self.refining
+                 else " · sharpening textures..." if self.refining else "")
+        line = (f"{self.strategy}{morph} · detail {self.pixel_error:g} px · "
+                f"{s.get('triangles', 0):,} triangles · frame {self.frame_ms:.0f} ms"
+                + (" · frozen" if self.frozen else "")
+                + ("" if self.color_mode == "shading" else f" · coloured by {self.color_mode}")
+                + doing)
+        lines = [line]
+        if self.telemetry:
+            lines.append(f"τ {self.pixel_error:g} px · select {s.get('select_ms', 0.0):.0f} ms"
+                         f" · textures {self.scene.texture_stats.get('texture_ms', 0.0):.0f} ms"
+                         f" ({self.scene.texture_stats.get('textures_built', 0)} shaded) · "
+                         f"tiles decoded {s.get('tiles_decoded', 0)} · UI "
+                         f"{getattr(self, 'ui_ms', 0.0):.0f} ms")
         scale = self._metres_per_pixel()
-        extra = f"1 px = {scale:,.1f} m at the view centre" if scale else ""
+        extra = f"1 px = {_length(scale)} at the view centre" if scale else ""
         if self.message:
             extra = (extra + "   " if extra else "") + self.message
-        self._hud.SetText(2, line + "\n" + (extra + "\n" if extra else "") + HELP)
+        if extra:
+            lines.append(extra)
+        self._hud.SetText(2, "\n".join([*lines, HELP] if self.keys else lines))
+        if getattr(self, "_compass", None) is not None:
+            self._compass.update(self.current_view())
 
     def _metres_per_pixel(self) -> float:
         c = self.plotter.camera
@@ -397,14 +486,16 @@ class ViewerController:
         return 2.0 * d * np.tan(np.radians(float(c.view_angle)) / 2.0) / H
 
     def _legend(self, cmap) -> None:
-        """The colour bar (metres, the texture's own colours) and the compass."""
-        try:
-            self.plotter.add_axes(xlabel="E", ylabel="N", zlabel="Up", line_width=2)
-        except Exception:  # noqa: BLE001 - a plotter without an orientation widget
-            pass
+        """The colour bar (metres, the texture's own colours), the level legend (shown while
+        the triangles are coloured by level) and the north arrow."""
+        self._compass = Compass(self.plotter)
+        self._bar = self._levels = None
         if self.scene.shading != "plain":
-            self.plotter.add_actor(colour_bar(self.terrain, cmap), name="colour-bar",
-                                   reset_camera=False)
+            self._bar = colour_bar(self.terrain, cmap)
+            self.plotter.add_actor(self._bar, name="colour-bar", reset_camera=False)
+        self._levels = level_legend(self.terrain.grid)
+        self._levels.SetVisibility(False)
+        self.plotter.add_actor(self._levels, name="level-legend", reset_camera=False)
 
     def screenshot(self, path=None) -> str:
         """Key ``s``: save the window, overlays included, as a PNG (a new name each time:
@@ -431,6 +522,13 @@ class ViewerController:
         """Key ``m``: the next LOD strategy."""
         self.strategy = STRATEGIES[(STRATEGIES.index(self.strategy) + 1) % len(STRATEGIES)]
         self._refresh()
+
+    def toggle_telemetry(self) -> None:
+        """Key ``t``: the engine's figures (selection and texture times, tiles decoded) in
+        the status line, or not."""
+        self.telemetry = not self.telemetry
+        self._update_hud()
+        self.plotter.render()
 
     def tau_up(self) -> None:
         """Key ``+``: τ × 2 (coarser)."""
@@ -496,7 +594,8 @@ class ViewerController:
                 "plus": self.tau_up, "equal": self.tau_up,
                 "KP_Add": self.tau_up, "minus": self.tau_down, "KP_Subtract": self.tau_down,
                 "x": self.toggle_wireframe, "c": self.next_color_mode,
-                "space": self.toggle_freeze, "h": self.reset_view, "s": self.screenshot}
+                "space": self.toggle_freeze, "h": self.reset_view, "s": self.screenshot,
+                "t": self.toggle_telemetry}
         for k, fn in keys.items():
             p.add_key_event(k, fn)
         if p.iren is not None:
@@ -519,19 +618,24 @@ class ViewerController:
         return BUSY_POLL_MS if self._future is not None else POLL_MS
 
 
+def _length(m: float) -> str:
+    """A length for the status line: 0.42 m, 12.3 m, 1.25 km."""
+    return f"{m / 1000:.3g} km" if m >= 1000 else f"{m:.3g} m"
+
+
 def show(terrain: TerrainLike, strategy: str = DEFAULT, pixel_error: float = 1.0, *,
          shading: str = "normals", cmap: str | Palette = "auto",
          size: tuple[int, int] = (1280, 720),
          title: str | None = None, throttle_ms: float = 100.0,
          light: Light | None = None, drape: Drape | None = None, occlusion: bool = True,
-         morph: bool | None = None) -> ViewerController:
+         morph: bool | None = None, water: bool = True) -> ViewerController:
     """Open an interactive window on the terrain; the LOD follows the camera (its
     selections cull with ``occlusion`` and geomorph with ``morph``, as
     :func:`geoterrain.lod.select`'s).
 
-    Keys: ``m`` strategy, ``+``/``-`` τ, ``g`` morph, ``x`` wireframe, ``c`` colour by
-    shading / LOD level / tile, ``space`` freeze the LOD, ``h`` home, ``s`` screenshot,
-    ``q`` quit.
+    Keys: ``m`` strategy, ``+``/``-`` coarser/finer detail, ``g`` morph, ``x`` wireframe,
+    ``c`` colour by shading / LOD level / tile, ``space`` freeze the LOD, ``h`` home,
+    ``s`` screenshot, ``t`` the engine's timings, ``q`` quit.
 
     Examples
     --------
@@ -543,7 +647,7 @@ def show(terrain: TerrainLike, strategy: str = DEFAULT, pixel_error: float = 1.0
     p = pv.Plotter(window_size=list(size), title=title or f"geoterrain — {terrain.path.name}")
     ctl = ViewerController(p, terrain, strategy, pixel_error, shading, cmap, throttle_ms,
                            background=True, light=light, drape=drape, occlusion=occlusion,
-                           morph=morph)
+                           morph=morph, water=water)
     ctl.bind()
     try:
         p.show()

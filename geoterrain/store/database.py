@@ -24,12 +24,16 @@ interrupted write never leaves a file that opens as a valid store. Without
 ``overwrite`` the publish is a create-if-absent (a hard link), so of two racing
 writers exactly one wins.
 
-A reader never writes: :class:`StoreReader` opens a store with SQLite's ``immutable=1``
-(no lock, no journal, no ``-wal`` or ``-shm`` file is ever created beside it, so a store
-in a read-only folder or on a read-only medium reads the same), and refuses one with a
-non-empty hot journal or write-ahead log beside it (changes the file alone lacks, which
-reading without writing cannot apply). Stores are published by a rename, so a reader's
-open file is never changed under it.
+A reader never writes beside a store: :class:`StoreReader` opens it read-only (no
+journal, no ``-wal`` or ``-shm`` file is ever created beside it, so a store in a
+read-only folder or on a read-only medium reads the same; a store in WAL mode, which
+geoterrain never writes, is opened with SQLite's ``immutable=1``), and refuses one with a
+non-empty write-ahead log, or a journal that no running edit holds and that is not one
+to roll back, beside it (changes the file alone lacks, which reading without writing
+cannot apply). Its one write: an edit killed in its transaction
+(:mod:`geoterrain.store.editor`) leaves SQLite's hot journal, which the next reader rolls
+back, restoring the old store byte for byte. Stores are published by a rename, and edited
+in place in one transaction, whose locks keep a reader's view whole.
 
 A store may come from a stranger: :class:`StoreReader` opens it read-only with
 SQLite's ``trusted_schema`` off and refuses any schema object but the two plain
@@ -395,19 +399,27 @@ class StoreReader:
             raise StoreError(f"{self.path}: no such store; run `geoterrain preprocess DEM` first")
         if why is not None:
             raise StoreError(f"{self.path}: {why}; give a .geoterrain store")
+        _roll_back_interrupted_edit(self.path)  # the one write: restoring the old store
         for side in ("-journal", "-wal"):
             try:
-                pending = os.path.getsize(f"{self.path}{side}") > 0
+                with open(f"{self.path}{side}", "rb") as fh:
+                    head = fh.read(len(JOURNAL_MAGIC))
             except OSError:
                 continue
-            if pending:
+            # a journal left now is an edit's still running (it holds its lock, and
+            # SQLite's locks keep this reader's view whole), or one that is not SQLite's
+            if head and not (side == "-journal" and _writer_active(self.path)):
                 raise StoreError(f"{self.path}: SQLite's {self.path.name}{side} beside it holds "
                                  "changes the store file lacks, which geoterrain cannot apply "
                                  "without writing; re-run `geoterrain preprocess`")
+        # read-only: no journal, -wal or -shm file is created beside the store; a store in
+        # WAL mode (not one geoterrain writes) is opened immutable, as it would need a -shm
+        # file otherwise. Others take SQLite's shared locks (the file is not written), so
+        # a reader waits out another process's edit and sees it (data_version)
+        uri = self.path.resolve().as_uri() + "?mode=ro" + \
+            ("&immutable=1" if _wal_mode(self.path) else "")
         try:
-            # immutable: never a lock, a journal, or a -wal/-shm file beside the store
-            self.con = sqlite3.connect(self.path.resolve().as_uri() + "?mode=ro&immutable=1",
-                                       uri=True, check_same_thread=False)
+            self.con = sqlite3.connect(uri, uri=True, check_same_thread=False, timeout=30.0)
         except (sqlite3.Error, ValueError, OSError):
             raise StoreError(f"{self.path}: cannot open the store read-only") from None
         try:
@@ -630,8 +642,74 @@ class StoreReader:
             raise self._damaged("the blob table") from None
         return out
 
+    def version(self) -> int:
+        """SQLite's ``data_version`` of this connection: it changes when another
+        connection (an edit, :mod:`geoterrain.store.editor`) commits a change to the
+        file, so a reader can tell that what it holds is stale."""
+        with self._lock:
+            return int(self.con.execute("PRAGMA data_version").fetchone()[0])
+
     def close(self) -> None:
         self.con.close()
+
+
+JOURNAL_MAGIC = bytes.fromhex("d9d505f920a163d7")  # a rollback journal's header (SQLite)
+
+
+def _writer_active(path: Path) -> bool:
+    """Whether another process holds SQLite's RESERVED lock on the store (an edit in its
+    transaction): asked of the file's POSIX locks, taking none."""
+    import fcntl
+    import struct
+
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return False
+    try:  # struct flock: type, whence, start, len, pid; RESERVED_BYTE is 2^30 + 1
+        lk = struct.pack("hhqqi", fcntl.F_RDLCK, os.SEEK_SET, 0x40000001, 1, 0)
+        got = fcntl.fcntl(fd, fcntl.F_GETLK, lk)
+        return struct.unpack("hhqqi", got)[0] != fcntl.F_UNLCK
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+
+
+def _wal_mode(path: Path) -> bool:
+    """Whether the SQLite file ``path`` is in WAL mode (its header's read/write versions)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(20)
+    except OSError:
+        return False
+    return len(head) == 20 and head[18] == 2 and head[19] == 2
+
+
+def _roll_back_interrupted_edit(path: Path) -> None:
+    """An edit killed in its transaction leaves ``STORE-journal`` (the old pages) beside
+    the store: SQLite rolls it back when a connection that may write reads the file, and
+    a read-only one refuses the file meanwhile. This opens such a connection once and
+    reads the schema, which restores the old store; no SQL of the file's runs. A journal
+    of an edit still running (it holds its lock) is left alone."""
+    journal = Path(str(path) + "-journal")
+    try:
+        with open(journal, "rb") as fh:
+            if fh.read(len(JOURNAL_MAGIC)) != JOURNAL_MAGIC:
+                return  # none, or not SQLite's: the reader refuses it without writing
+    except OSError:
+        return
+    try:
+        con = sqlite3.connect(path, timeout=30.0)
+        try:
+            con.execute("PRAGMA trusted_schema=OFF")
+            con.execute("SELECT COUNT(*) FROM sqlite_master").fetchone()
+        finally:
+            con.close()
+    except sqlite3.Error:
+        raise StoreError(f"{path}: an interrupted edit left {journal.name} beside it; open "
+                         "the store once where it can be written (the edit is rolled back "
+                         "then), and keep the journal with it until then") from None
 
 
 def _show(v: object) -> str:

@@ -17,8 +17,8 @@ from click.testing import CliRunner
 from rasterio.transform import xy as raster_xy
 
 import geoterrain
-from geoterrain.export.formats import export_mesh, mesh_arrays
-from geoterrain.export.rasters import export_raster, product
+from geoterrain.export.formats import export_mesh, export_texture_level, mesh_arrays
+from geoterrain.export.rasters import Relief, export_raster, product
 from geoterrain.rendering.textures import build_texture_image, elevation_range, texture_level
 from tests.conftest import write_tif
 
@@ -76,8 +76,9 @@ def test_gltf_round_trip(terr, tmp_path, ext):
     (g,) = scene.geometry.values()
     assert len(g.vertices) == len(m.xyz) and len(g.faces) == len(m.faces)
     assert g.visual.material.baseColorTexture is not None
-    L = texture_level(t, 4097)
-    assert g.visual.material.baseColorTexture.size == (t.grid.level_size(L),) * 2
+    L = export_texture_level(t, 4097)
+    # the texture covers the data's rectangle, not the store's padded square
+    assert g.visual.material.baseColorTexture.size == (t.grid.cols >> L, t.grid.rows >> L)
     # the origin and CRS are in the asset extras and the sidecar
     doc = pygltflib.GLTF2.load(str(out))
     geo = doc.asset.extras["geoterrain"]
@@ -180,8 +181,9 @@ def test_export_errors_are_one_line(terr, tmp_path):
     t, _ = terr
     res = run("export", t.path, "-o", tmp_path / "x.fbx")
     assert res.exit_code == 2 and "unknown export format" in res.stderr
-    res = run("export", t.path, "-o", tmp_path / "x.glb", "--print-size", "100")
-    assert res.exit_code == 2 and "apply to .stl only" in res.stderr
+    res = run("export", t.path, "-o", tmp_path / "x.ply", "--print-size", "100",
+              "--crs-coords")
+    assert res.exit_code == 2 and "--crs-coords" in res.stderr
     res = run("export", t.path, "-o", tmp_path / "x.glb", "--crs-coords")
     assert res.exit_code == 2
     assert not list(tmp_path.iterdir())
@@ -239,10 +241,10 @@ def test_geotiff_grid_and_crs(terr, tmp_path, level):
             assert r.transform == src.transform
 
 
-def test_hillshade_is_the_renders_shading(terr, tmp_path):
+def test_shade_is_the_renders_shading(terr, tmp_path):
     t, _ = terr
     L = texture_level(t)
-    export_raster(t, "hillshade", tmp_path / "h.tif", level=L)
+    export_raster(t, "shade", tmp_path / "h.tif", level=L)
     with rasterio.open(tmp_path / "h.tif") as r:
         shade = r.read(1)
     img = build_texture_image(t, "normals", "gist_earth", level=L).astype(np.float64)
@@ -271,8 +273,11 @@ def test_error_raster_is_the_stored_delta(terr, tmp_path):
                       for a, b in zip(i.tolist(), j.tolist(), strict=True)])
         _, valid = t.level_heights(0)
         ok = valid[i * s, j * s]
-        assert np.array_equal(e[i, j][ok], (d / t.frame.z_scale).astype(np.float32)[ok])
+        d = np.where(np.isfinite(d), d, np.nan)  # unbounded: nodata
+        assert np.array_equal(e[i, j][ok], (d / t.frame.z_scale).astype(np.float32)[ok],
+                              equal_nan=True)
         assert np.isnan(e[i, j][~ok]).all()
+        assert not np.isinf(e).any()
 
 
 def _holder(t, i, j):
@@ -289,18 +294,23 @@ def _local(t, i, j):
 
 
 def test_slope_is_the_dems_slope_in_degrees(terr):
-    """Slope against central differences of the source heights (exaggeration taken out)."""
+    """Slope against Horn's 3×3 gradient (gdaldem's) of the source heights, written out
+    as the eight weighted neighbours (exaggeration taken out); percent as 100·tan."""
     t, dem = terr
     s = product(t, "slope", 0)[0]
     with rasterio.open(dem) as src:
         z = src.read(1).astype(np.float64)
         dx, dy = src.res
-    gy, gx = np.gradient(z, dy, dx)
+    n = lambda a, b: z[1 + a:z.shape[0] - 1 + a, 1 + b:z.shape[1] - 1 + b]  # noqa: E731
+    gx = (n(-1, 1) + 2 * n(0, 1) + n(1, 1) - n(-1, -1) - 2 * n(0, -1) - n(1, -1)) / (8 * dx)
+    gy = (n(1, -1) + 2 * n(1, 0) + n(1, 1) - n(-1, -1) - 2 * n(-1, 0) - n(-1, 1)) / (8 * dy)
     ref = np.degrees(np.arctan(np.hypot(gx, gy)))
-    ok = np.isfinite(ref) & np.isfinite(s)
-    ok[[0, -1], :] = ok[:, [0, -1]] = False
+    inner = s[1:-1, 1:-1]
+    ok = np.isfinite(ref) & np.isfinite(inner)
     assert ok.sum() > 1000
-    assert np.percentile(np.abs(s - ref)[ok], 95) < 1.5  # 8-bit normals: ≤ 0.94° each
+    assert np.abs(inner - ref)[ok].max() < 1e-3
+    pct = product(t, "slope", 0, Relief(slope_units="percent"))[0][1:-1, 1:-1]
+    assert np.allclose(pct[ok], 100 * np.tan(np.radians(ref[ok])), rtol=1e-4, atol=1e-3)
 
 
 def test_products_shapes_and_nodata(terr):
@@ -309,7 +319,9 @@ def test_products_shapes_and_nodata(terr):
     assert n.shape[0] == 3
     ok = ~np.isnan(n[0])
     assert np.allclose(np.linalg.norm(n[:, ok], axis=0), 1, atol=1e-3)
-    assert np.isnan(product(t, "hillshade", 0)[0, :20, :30]).all()
+    assert np.isnan(product(t, "shade", 0)[0, :20, :30]).all()
+    hs = product(t, "hillshade", 0)
+    assert hs.dtype == np.uint8 and (hs[0, :20, :30] == 0).all() and hs[0, 40:, 40:].min() >= 1
 
 
 def test_export_raster_errors(terr, tmp_path):
@@ -319,3 +331,22 @@ def test_export_raster_errors(terr, tmp_path):
     res = run("export-raster", t.path, "--what", "slope", "-o", tmp_path / "a.png")
     assert res.exit_code == 2
     assert not list(tmp_path.iterdir())
+
+
+def test_export_raster_relief_options(terr, tmp_path):
+    t, _ = terr
+    res = run("-q", "export-raster", t.path, "--what", "hillshade", "--sun", "300,30", "-z", 2,
+              "-o", tmp_path / "h.tif")
+    assert res.exit_code == 0, res.output
+    with rasterio.open(tmp_path / "h.tif") as r:
+        assert r.dtypes[0] == "uint8" and r.nodata == 0 and r.tags()["sun"] == "300,30"
+        assert np.array_equal(r.read(1), product(t, "hillshade", 0, Relief(300, 30, 2.0))[0])
+    for args in (["--what", "slope", "--sun", "300,30"], ["--what", "error", "-z", "2"],
+                 ["--what", "hillshade", "--slope-units", "percent"],
+                 ["--what", "hillshade", "--sun", "300"],
+                 ["--what", "hillshade", "--sun", "300,95"],
+                 ["--what", "slope", "--scale", "-1"]):
+        res = run("export-raster", t.path, *args, "-o", tmp_path / "x.tif")
+        assert res.exit_code == 2, (args, res.output)
+        assert len(res.stderr.strip().splitlines()) <= 4 and "Traceback" not in res.output
+    assert not (tmp_path / "x.tif").exists()

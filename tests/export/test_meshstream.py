@@ -165,7 +165,7 @@ def test_cli_mesh_streams_and_refuses(stores, tmp_path, monkeypatch):
     from tests.test_cli import assert_one_line_error, run
 
     t = stores[1]
-    res = run("mesh", t.path, "-o", tmp_path / "m.ply", "--max-error", "2")
+    res = run("mesh", t.path, "-o", tmp_path / "m.ply", "--max-error", "2", "--json")
     assert res.exit_code == 0, res.output
     assert '"streamed": true' in res.output
     assert pv.read(tmp_path / "m.ply").n_cells == t.static_selection(2.0).stats["triangles"]

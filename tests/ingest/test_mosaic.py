@@ -122,16 +122,30 @@ def _tile(tmp_path, name, **kw):
 
 
 @pytest.mark.fast
-@pytest.mark.parametrize("second, why", [
-    (dict(crs="EPSG:32632", origin=(500080.0, 5000000.0)), "mixed CRSs"),
-    (dict(spacing=5.0, origin=(500080.0, 5000000.0)), "mixed resolutions"),
-    (dict(origin=(500083.0, 5000000.0)), "off the pixel grid"),
+@pytest.mark.parametrize("second", [
+    # a's east edge in the next UTM zone (pyproj: 500080, 5000000 in 32633 is
+    # 971703, 5017546 in 32632), so the merged grid stays small
+    dict(crs="EPSG:32632", origin=(971700.0, 5017550.0)),
+    dict(spacing=5.0, origin=(500080.0, 5000000.0)),
+    dict(origin=(500083.0, 5000000.0)),
 ])
-def test_mismatched_tiles_are_refused_in_one_line(tmp_path, second, why):
+def test_mismatched_tiles_are_merged_onto_one_grid(tmp_path, second):
+    """Mixed CRSs, resolutions or pixel grids were refused before issue 45; they are now
+    warped onto one grid (geoterrain.ingest.composite, tested in test_composite.py)."""
     a = _tile(tmp_path, "a.tif", origin=(500000.0, 5000000.0))
     b = _tile(tmp_path, "b.tif", **second)
-    with pytest.raises(InputError, match=why) as e:
-        preprocess([a, b], tmp_path / "o.geoterrain")
+    preprocess([a, b], tmp_path / "o.geoterrain")
+    assert (tmp_path / "o.geoterrain").exists()
+
+
+@pytest.mark.fast
+def test_a_merge_of_an_ungeoreferenced_tile_is_refused_in_one_line(tmp_path):
+    a = _tile(tmp_path, "a.tif", origin=(500000.0, 5000000.0))
+    b = _tile(tmp_path, "b.tif", spacing=5.0, origin=(500080.0, 5000000.0))
+    Image = pytest.importorskip("PIL.Image")
+    Image.fromarray(np.zeros((8, 8), np.uint8)).save(tmp_path / "c.png")
+    with pytest.raises(InputError, match="no CRS") as e:
+        preprocess([a, b, str(tmp_path / "c.png")], tmp_path / "o.geoterrain")
     assert "\n" not in str(e.value)
     assert not (tmp_path / "o.geoterrain").exists()
 
@@ -171,6 +185,7 @@ def test_cli_takes_several_files_and_a_glob(tmp_path):
     assert store_contents(tmp_path / "l.geoterrain") == store_contents(tmp_path / "g.geoterrain")
     r = run(cli, ["preprocess", *map(str, tiles)])
     assert r.exit_code == 2 and "-o STORE" in r.output
-    b = _tile(tmp_path, "b.tif", crs="EPSG:32632")
+    b = tmp_path / "b.tif"
+    b.write_bytes(b"not a raster")
     r = run(cli, ["preprocess", str(tiles[0]), str(b), "-o", str(tmp_path / "x.geoterrain")])
-    assert r.exit_code == 1 and "mixed CRSs" in r.output and "Traceback" not in r.output
+    assert r.exit_code == 1 and "b.tif" in r.output and "Traceback" not in r.output

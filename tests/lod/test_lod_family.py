@@ -14,7 +14,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from geoterrain.lod.geomipmap import strip_bounds, template
-from geoterrain.lod.quadtree import _paint, _restrict
+from geoterrain.lod.quadtree import paint as _paint
+from geoterrain.lod.quadtree import restrict_leaves as _restrict
 
 
 def _area(local: np.ndarray, f: np.ndarray) -> float:

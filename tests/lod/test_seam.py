@@ -43,7 +43,8 @@ def test_every_registered_strategy_selects_through_the_seam(terrain):
 
 
 def test_a_new_strategy_is_one_registry_line(terrain, monkeypatch):
-    entry = registry.StrategyInfo("every-tile", "geoterrain.lod.bruteforce", "test", True)
+    entry = registry.StrategyInfo("every-tile", "geoterrain.lod.bruteforce", "test", "test",
+                                   True)
     monkeypatch.setitem(registry.REGISTRY, entry.name, entry)
     sel = lod.select(terrain, view(terrain), 2.0, "every-tile")
     assert sel.stats["strategy"] == "every-tile" and sel.stats["triangles"] > 0
@@ -67,7 +68,7 @@ def test_bad_pixel_error_is_a_usage_error_in_api_words(terrain, tau):
 
 def test_unknown_strategy_names_the_choices(terrain):
     with pytest.raises(UsageError, match="use one of rtin, chunked, bruteforce"):
-        terrain.select(view(terrain), 1.0, "roam")
+        terrain.select(view(terrain), 1.0, "no_such_strategy")
 
 
 def test_selection_writes_nothing_into_the_terrain(terrain):

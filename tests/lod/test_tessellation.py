@@ -107,3 +107,57 @@ def test_the_ham_only_lowers_factors(tmp_path_factory, seed, k, az, tau):
     from geoterrain.lod import tessellation
     tri = [tessellation.select(t, v, tau, ham=h)[0].n_cells for h in (True, False)]
     assert tri[0] <= tri[1] <= 2 * 32 * 32 * len(patches)
+
+
+def _store(tmp_path, size=129, holes=False):
+    z = generate("fbm", size, seed=5)
+    if holes:
+        z[40:47, 60:70] = np.nan
+    return geoterrain.open(geoterrain.preprocess(
+        write_geotiff(tmp_path / "d.tif", z, spacing=30.0, nodata=np.nan if holes else None),
+        tmp_path / "d.geoterrain", tile_size=16))
+
+
+@pytest.mark.fast
+def test_patch_statistics_are_the_whole_maps_ham(tmp_path):
+    """HAM_max of a patch is the whole map's HAM (edge-replicated at the map's border
+    only) over the patch: the two-sample halo makes it exact."""
+    from geoterrain.bounds.tilebounds import closed_blocks
+    from geoterrain.lod.tessellation import HamStats
+
+    t = _store(tmp_path)
+    h, _ = t.level_heights(0)
+    full = closed_blocks(ham(h * t.frame.z_to_m), 16, np.maximum)
+    n = t.grid.tiles_per_side(0)
+    ys, xs = np.divmod(np.arange(n * n), n)
+    got = HamStats(t).stats(xs, ys)[:, 0].reshape(n, n)
+    np.testing.assert_array_equal(got, full)
+
+
+@pytest.mark.parametrize("holes", [False, True])
+def test_ham_after_an_edit_equals_a_full_recompute(tmp_path, holes):
+    """Seed 004 H16: after an edit only the patches within two samples of it are
+    computed again, and the statistics equal a full recompute on the edited store."""
+    from geoterrain.lod.tessellation import HamStats
+
+    t = _store(tmp_path, holes=holes)
+    n = t.grid.tiles_per_side(0)
+    ys, xs = np.divmod(np.arange(n * n), n)
+    hs = t.derived("geoterrain.lod.tessellation", lambda: HamStats(t))
+    hs.stats(xs, ys)
+    before = hs.computed
+    row, col = 30, 47  # rows 30 … 44, columns 47 … 58: within 2 of tiles 1 … 2 and 2 … 3
+    res = t.edit((row, col), np.full((15, 12), -25.0), "add")
+    assert res.window == (row, col, 15, 12) or holes
+    assert t.derived("geoterrain.lod.tessellation", dict) is hs  # kept, patched
+    dropped = np.isnan(hs.values[..., 0])
+    want = np.zeros((n, n), bool)
+    for y in range(n):
+        for x in range(n):
+            want[y, x] = (y * 16 - 2 <= row + 14 and y * 16 + 18 >= row
+                          and x * 16 - 2 <= col + 11 and x * 16 + 18 >= col)
+    np.testing.assert_array_equal(dropped, want)
+    after = hs.stats(xs, ys)
+    assert hs.computed - before == want.sum()
+    fresh = HamStats(geoterrain.open(t.path)).stats(xs, ys)
+    np.testing.assert_array_equal(after, fresh)

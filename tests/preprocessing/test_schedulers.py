@@ -109,6 +109,26 @@ def test_the_store_is_the_same_on_a_dask_local_cluster(tmp_path):
     _assert_same_store(a, b)
 
 
+@pytest.mark.parametrize("spec", ["processes:2", "dask:local:2"])
+def test_geographic_and_mosaic_input_give_the_same_store_on_every_scheduler(tmp_path, spec):
+    """Issue 45: a geographic mosaic of four tiles (its x, y pass first, then the metric
+    bounds) streams to the whole-grid store on worker processes and on a dask
+    LocalCluster, as on ``sync``."""
+    if spec.startswith("dask"):
+        pytest.importorskip("distributed")
+    from tests.ingest.test_mosaic import split
+    from tests.preprocessing.test_streaming_inputs import _geo_tif, _relief
+
+    z = _relief(6, 70, 80, holes=0.05)
+    merged = _geo_tif(tmp_path / "m.tif", z, 179.7, 61.0, 0.01, nodata=-9999)
+    tiles = [str(p) for p in split(merged, tmp_path / "tiles")]
+    a = preprocess(tiles, tmp_path / "a.gt", tile_size=16)
+    for sched in ("sync", spec):
+        b = preprocess_streaming(tiles, tmp_path / f"{sched[:4]}.gt", tile_size=16, band=8,
+                                 scheduler=sched)
+        _assert_same_store(a, b)
+
+
 def test_no_dask_scheduler_at_an_address_is_a_usage_error(tmp_path):
     pytest.importorskip("distributed")
     with pytest.raises(UsageError, match="no dask scheduler"):

@@ -296,7 +296,7 @@ def test_controller_offscreen(tmp_path_factory):
         assert c.pixel_error == 2.0 and c.stats["triangles"] <= tris
         assert "morph" not in c._hud.GetText(2).splitlines()[0]
         c.toggle_morph()  # key g: chunked geomorphs (its band refines from 0.75 τ)
-        assert c.morph is True and "chunked morph" in c._hud.GetText(2).splitlines()[0]
+        assert c.morph is True and "chunked, morphing" in c._hud.GetText(2).splitlines()[0]
         assert c.stats.get("morph_band") == (0.75 * 2.0, 2.0)
         c.toggle_morph()
         assert c.morph is False and "morph_band" not in c.stats
@@ -561,6 +561,48 @@ def test_viewer_draws_moves_without_multisampling_and_the_rest_with_it(tmp_path_
 
 
 @pytest.mark.fast
+def test_viewer_status_in_plain_words_level_legend_and_compass(tmp_path_factory):
+    """The status line says strategy, detail, triangles and frame time in words; the
+    engine's figures (τ, selection ms) only after key t; colouring by level swaps the
+    elevation bar for a level legend; the north arrow turns with the camera."""
+    from geoterrain.rendering.viewer import ViewerController
+
+    t = synth_store(tmp_path_factory, "fbm")
+    p = _plotter((320, 240))
+    try:
+        c = ViewerController(p, t, throttle_ms=0.0)
+        c.bind()
+        first = c._hud.GetText(2).splitlines()[0]
+        assert "triangles" in first and "detail 1 px" in first and "frame" in first
+        text = c._hud.GetText(2)
+        assert "tau" not in text and "select" not in text and "τ" not in text
+        c.toggle_telemetry()
+        assert "select" in c._hud.GetText(2) and "τ" in c._hud.GetText(2)
+        c.toggle_telemetry()
+        assert "select" not in c._hud.GetText(2)
+        assert c._bar.GetVisibility() and not c._levels.GetVisibility()
+        c.next_color_mode()  # level
+        assert c._levels.GetVisibility() and not c._bar.GetVisibility()
+        assert "coloured by level" in c._hud.GetText(2)
+        lut = c._levels.GetLookupTable()
+        assert lut.GetNumberOfAnnotatedValues() == t.grid.top_level + 1
+        c.next_color_mode()  # tile: neither
+        assert not c._levels.GetVisibility() and not c._bar.GetVisibility()
+        c.next_color_mode()
+        # the compass: north up in a view from the south, to the right from the west
+        # (seen from the west looking east, north is on the left)
+        p.render()
+        home = np.array(c._compass.direction)
+        assert home[1] > 0.5  # the home view looks roughly north
+        cam = p.camera
+        cam.position, cam.focal_point, cam.up = (-5000.0, 0.0, 3000.0), (0, 0, 0), (0, 0, 1)
+        p.render()
+        assert c._compass.direction[0] < -0.9
+    finally:
+        p.close()
+
+
+@pytest.mark.fast
 def test_viewer_status_box_screenshot_and_ui_time(tmp_path_factory, tmp_path):
     """The status line is on an opaque box and shows the busy sign while a background
     selection runs; ``s`` saves a PNG with the overlays; in background mode the UI
@@ -578,11 +620,11 @@ def test_viewer_status_box_screenshot_and_ui_time(tmp_path_factory, tmp_path):
         assert tp.GetBackgroundOpacity() > 0.5
         lo, hi = np.asarray(c.home.look_at), np.asarray(c.home.look_from)
         p.camera.position = tuple(lo + 0.3 * (hi - lo))
-        assert "selecting" in c._hud.GetText(2) or not c.busy
+        assert "updating the view" in c._hud.GetText(2) or not c.busy
         c.wait(timeout=60)
         while c._future is not None:
             c.wait(timeout=60)
-        assert "selecting" not in c._hud.GetText(2)
+        assert "updating the view" not in c._hud.GetText(2)
         assert c.ui_ms < 1000.0  # the swap, not the selection or the texture work
         shot = c.screenshot(tmp_path / "shot.png")
         img = iio.imread(shot)
@@ -761,3 +803,32 @@ def test_the_cli_offers_every_anti_aliasing():
     opt = f.__click_params__[0]
     default = inspect.signature(render).parameters["anti_aliasing"].default
     assert tuple(opt.type.choices) == ANTI_ALIASING and opt.default == default
+
+
+@pytest.mark.fast
+def test_viewer_redraws_after_an_edit_of_its_store(tmp_path_factory, tmp_path):
+    """An edit of the store a window shows (here from another connection, as `geoterrain
+    edit` in another process) is taken in and drawn: the next look at the store
+    re-selects, and the mesh holds the edited heights."""
+    import shutil
+
+    from geoterrain.rendering.viewer import ViewerController
+
+    src = synth_store(tmp_path_factory, "fbm")
+    path = shutil.copy(src.path, tmp_path / "live.geoterrain")
+    t = geoterrain.open(path)
+    p = _plotter((320, 240))
+    try:
+        c = ViewerController(p, t, throttle_ms=0.0, strategy="bruteforce")
+        c.bind()
+        z0 = c.scene.mesh.points[:, 2].max()
+        assert c.watch_store(force=True) is False  # nothing edited yet
+        n0 = c.selections
+        with geoterrain.open(path) as other:  # a crater's rim lifted far above the rest
+            other.edit((100, 100), np.full((20, 20), 5000.0), "replace")
+        assert c.watch_store(force=True) is True
+        assert c.edits_shown == 1 and c.selections == n0 + 1
+        assert c.scene.mesh.points[:, 2].max() > z0 + 1000
+    finally:
+        p.close()
+        t.close()

@@ -57,7 +57,8 @@ from geoterrain.core.rounding import round_up32
 from geoterrain.core.threads import parallel_kernel
 from geoterrain.preprocessing.scratch import ScratchArrays
 
-__all__ = ["LevelDelta", "band_vertex_errors", "edge_rows", "rows_of"]
+__all__ = ["LevelDelta", "band_vertex_errors", "edge_rows", "level_lattice", "raise_delta",
+           "rows_of"]
 
 Rows = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
 
@@ -443,22 +444,23 @@ def _zero_beyond(a: np.ndarray, a_lo: int, s: int, di: int, dj: int,
 
 
 def _saturate(sa: ScratchArrays, n: int, budget: int,
-              data: tuple[int, int] | None = None) -> float:
+              data: tuple[int, int] | None = None, pre: str = "") -> float:
     # LP §2.4 (L46) as a pull, fine to coarse and ``budget`` bytes of rows at a time: an
     # edge midpoint at h takes its four children centres at h/2 (R[a, b]: centre rows
     # 2a, 2a+1 and columns 2b−1, 2b of level h/2; K[a, b]: rows 2a−1, 2a and columns
     # 2b, 2b+1), then a centre takes its block's four edge midpoints. ``data``: first
     # zero the raw δ of the vertices whose diamond misses the data's rows × cols.
-    # Returns the largest finite saturated δ (0 if none): what its log8 codes must cover
+    # Returns the largest finite saturated δ (0 if none): what its log8 codes must cover.
+    # ``pre``: the arrays' name prefix
     top = 0.0
     for k in range(n):
-        nb = sa.shape(f"C{k}")[0]
+        nb = sa.shape(f"{pre}C{k}")[0]
         step = max(1, budget // (16 * (nb + 1) * 4))
         for a_lo in range(0, nb, step):
             a_hi = min(a_lo + step, nb)
-            C = sa.read(f"C{k}", a_lo, a_hi)
-            R = sa.read(f"R{k}", a_lo, a_hi)
-            K = sa.read(f"K{k}", a_lo, a_hi + 1)
+            C = sa.read(f"{pre}C{k}", a_lo, a_hi)
+            R = sa.read(f"{pre}R{k}", a_lo, a_hi)
+            K = sa.read(f"{pre}K{k}", a_lo, a_hi + 1)
             if data is not None:
                 s = 2 << k
                 for arr, di, dj in ((C, s // 2, s // 2), (R, s // 2, 0), (K, 0, s // 2)):
@@ -467,7 +469,7 @@ def _saturate(sa: ScratchArrays, n: int, budget: int,
                 # the finer level's centre rows 2a_lo − 1 … 2a_hi, zero outside the grid
                 P = np.zeros((2 * (a_hi - a_lo) + 2, 2 * nb + 2), np.float32)
                 p0 = max(2 * a_lo - 1, 0)
-                rows = sa.read(f"C{k - 1}", p0, 2 * a_hi + 1)
+                rows = sa.read(f"{pre}C{k - 1}", p0, 2 * a_hi + 1)
                 P[p0 - (2 * a_lo - 1):p0 - (2 * a_lo - 1) + len(rows), 1:-1] = rows
                 m = np.maximum(P[1:-1:2], P[2::2])  # rows 2a, 2a+1 of each R row
                 np.maximum(R, np.maximum(m[:, 0::2], m[:, 1::2]), out=R)
@@ -475,9 +477,9 @@ def _saturate(sa: ScratchArrays, n: int, budget: int,
                 np.maximum(K, np.maximum(m[:, 1:-1:2], m[:, 2::2]), out=K)
             np.maximum(C, np.maximum(np.maximum(R[:, :-1], R[:, 1:]),
                                      np.maximum(K[:-1], K[1:])), out=C)
-            sa.write(f"C{k}", a_lo, C)
-            sa.write(f"R{k}", a_lo, R)
-            sa.write(f"K{k}", a_lo, K)
+            sa.write(f"{pre}C{k}", a_lo, C)
+            sa.write(f"{pre}R{k}", a_lo, R)
+            sa.write(f"{pre}K{k}", a_lo, K)
             for a in (C, R, K):
                 top = max(top, float(np.max(a, where=np.isfinite(a), initial=0.0)))
     return top
@@ -631,3 +633,76 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
     top = _saturate(sa, n, budget=max(B, 64) * N * 16, data=data)
     return LevelDelta(N, sa, (lo, hi, count), stand_in, top)
 
+
+
+def level_lattice(sa: ScratchArrays, pre: str, L: int, n: int, p0: int, p1: int, m: int,
+             top: bool, dtype) -> np.ndarray:
+    """Rows p0 … p1 − 1 of level L's lattice (m a side, sample (p, q) = grid sample
+    (p 2^L, q 2^L)) of the per-level arrays ``{pre}C{k}``…: level L's new vertices, and
+    at the top level every coarser one too (0 elsewhere).
+
+    Examples
+    --------
+    >>> d = band_vertex_errors(rows_of(np.eye(5) * 4, np.ones((5, 5), bool)), 5, band=2)
+    >>> level_lattice(d.arrays, "", 0, 2, 0, 3, 5, False, np.float32).shape
+    (3, 5)
+    """
+    out = np.zeros((p1 - p0, m), dtype)
+    for k in range(L, n if top else L + 1):
+        u = 1 << (k - L)
+        for x, ro, co in (("C", u, u), ("R", u, 0), ("K", 0, u)):
+            a_lo = max(-(-(p0 - ro) // (2 * u)), 0)
+            a_hi = (p1 - 1 - ro) // (2 * u)
+            if a_hi < a_lo:
+                continue
+            rows = sa.read(f"{pre}{x}{k}", a_lo, a_hi + 1)
+            a_hi = a_lo + len(rows) - 1
+            out[ro + 2 * u * a_lo - p0:ro + 2 * u * a_hi - p0 + 1:2 * u, co::2 * u] = rows
+    return out
+
+
+def raise_delta(sa: ScratchArrays, n: int, terms: str = "", pre: str = "",
+                budget: int = 16 << 20) -> float:
+    """δ made to hold in a curvilinear grid's metric x, y
+    (:func:`geoterrain.bounds.curvature.metric_bounds` on per-level arrays): each saturated
+    ``{pre}C{k}``… raised to the metric term ``{terms}dm{x}{k}`` (rounded up to float32),
+    +inf where ``{terms}b{x}{k}`` flags a bulging border chord, then saturated again
+    (seed 002 §2.4, L46). Returns the largest finite δ.
+
+    Examples
+    --------
+    >>> d = band_vertex_errors(rows_of(np.zeros((5, 5)), np.ones((5, 5), bool)), 5, band=2)
+    >>> for k, nb in ((0, 2), (1, 1)):
+    ...     for x, sh in zip("CRK", ((nb, nb), (nb, nb + 1), (nb + 1, nb))):
+    ...         d.arrays.create(f"dm{x}{k}", sh, np.float64)
+    ...         d.arrays.create(f"b{x}{k}", sh, np.uint8)
+    >>> d.arrays.write("dmC0", 0, np.full((2, 2), 0.1))
+    >>> raise_delta(d.arrays, 2) == float(np.float32(0.1))  # rounded up, saturated
+    True
+    """
+    from geoterrain.bounds.curvature import _round_up
+
+    for k in range(n):
+        for x in "CRK":
+            nr, nc = sa.shape(f"{pre}{x}{k}")
+            step = max(1, budget // (16 * (nc + 1)))
+            for a0 in range(0, nr, step):
+                a1 = min(a0 + step, nr)
+                d = np.maximum(sa.read(f"{pre}{x}{k}", a0, a1).astype(np.float64),
+                               sa.read(f"{terms}dm{x}{k}", a0, a1))
+                d[sa.read(f"{terms}b{x}{k}", a0, a1) != 0] = np.inf
+                sa.write(f"{pre}{x}{k}", a0, _round_up(d))
+    return _saturate(sa, n, budget, pre=pre)
+
+
+def copy_levels(sa: ScratchArrays, n: int, src: str, dst: str, kinds: str = "CRK",
+                budget: int = 16 << 20) -> None:
+    """Copy the per-level arrays ``{src}{x}{k}`` to ``{dst}{x}{k}`` (created here)."""
+    for k in range(n):
+        for x in kinds:
+            shape = sa.shape(f"{src}{x}{k}")
+            dt = sa.dtype(f"{src}{x}{k}")
+            sa.create(f"{dst}{x}{k}", shape, dt)
+            step = max(1, budget // (max(shape[1], 1) * dt.itemsize))
+            for a0 in range(0, shape[0], step):
+                sa.write(f"{dst}{x}{k}", a0, sa.read(f"{src}{x}{k}", a0, a0 + step))

@@ -25,23 +25,29 @@ Rows = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
 
 
 class _Level:
-    """One level of the cascade: its buffered rows (scene heights, valid) from level row
-    ``start`` on, and ``done``, the rows whose normals are written."""
+    """One level of the cascade: its buffered rows (scene heights, valid, and on a
+    curvilinear grid scene x, y) from level row ``start`` on, and ``done``, the rows whose
+    normals are written."""
 
-    def __init__(self, rows: int, xs: np.ndarray, ys: np.ndarray) -> None:
+    def __init__(self, rows: int, xs: np.ndarray, ys: np.ndarray, curvilinear: bool) -> None:
         self.rows, self.xs, self.ys = rows, xs, ys
         self.start = self.done = 0
         self.z = np.empty((0, len(xs)), np.float64)
         self.v = np.empty((0, len(xs)), np.bool_)
+        self.X = np.empty((0, len(xs)), np.float64) if curvilinear else None
+        self.Y = np.empty((0, len(xs)), np.float64) if curvilinear else None
 
 
 def band_normal_codes(rows: Rows, N: int, xs: np.ndarray, ys: np.ndarray, levels: int,
-                      sa: ScratchArrays, band: int = 256, bits: int = 8) -> None:
+                      sa: ScratchArrays, band: int = 256, bits: int = 8,
+                      xy: Rows | None = None) -> None:
     """Write ``n{L}`` (L < ``levels``) to ``sa``: the octahedral codes of
     ``encode_octahedral(level_normal_maps(X, Y, Z, valid, levels)[L], bits)``, from
     ``rows(i0, i1)`` → (scene heights, valid) of rows i0 … i1 − 1.
 
-    ``xs``, ``ys``: scene x of each column and y of each row (a projected or pixel frame).
+    ``xs``, ``ys``: scene x of each column and y of each row (a projected or pixel frame);
+    on a curvilinear (geographic) grid, ``xy(i0, i1)`` → the rows' scene X, Y instead
+    (``xs`` and ``ys`` then only give the grid's side).
 
     Examples
     --------
@@ -62,31 +68,47 @@ def band_normal_codes(rows: Rows, N: int, xs: np.ndarray, ys: np.ndarray, levels
         s = 1 << L
         m = (N - 1) // s + 1
         sa.create(f"n{L}", (m, 2 * m), np.uint8)
-        lv.append(_Level(m, xs[::s], ys[::s]))
+        lv.append(_Level(m, xs[::s], ys[::s], xy is not None))
 
-    def feed(L: int, a0: int, z: np.ndarray, v: np.ndarray) -> None:
+    def feed(L: int, a0: int, z: np.ndarray, v: np.ndarray, gx: np.ndarray | None,
+             gy: np.ndarray | None) -> None:
         # level L's rows a0 … a0 + len(z) − 1, which follow the rows fed before
         cur = lv[L]
         cur.z = np.concatenate([cur.z, z])
         cur.v = np.concatenate([cur.v, v])
+        if gx is not None:
+            cur.X = np.concatenate([cur.X, gx])
+            cur.Y = np.concatenate([cur.Y, gy])
         end = cur.start + len(cur.z)
         hi = cur.rows if end >= cur.rows else end - 1  # rows below hi have their successor
         if hi > cur.done:
             w0, w1 = max(cur.done - 1, 0), min(hi + 1, end)  # one row of halo each side
             zz, vv = cur.z[w0 - cur.start:w1 - cur.start], cur.v[w0 - cur.start:w1 - cur.start]
-            X = np.broadcast_to(cur.xs[None, :], zz.shape)
-            Y = np.broadcast_to(cur.ys[w0:w1, None], zz.shape)
+            if cur.X is not None:
+                X = cur.X[w0 - cur.start:w1 - cur.start]
+                Y = cur.Y[w0 - cur.start:w1 - cur.start]
+            else:
+                X = np.broadcast_to(cur.xs[None, :], zz.shape)
+                Y = np.broadcast_to(cur.ys[w0:w1, None], zz.shape)
             n = normal_map(X, Y, zz, vv)[cur.done - w0:hi - w0]
             sa.write(f"n{L}", cur.done, encode_octahedral(n, bits).reshape(len(n), -1))
             cur.done = hi
             keep = max(cur.done - 1, cur.start) - cur.start  # the next band's halo row
             cur.z, cur.v, cur.start = cur.z[keep:], cur.v[keep:], cur.start + keep
+            if cur.X is not None:
+                cur.X, cur.Y = cur.X[keep:], cur.Y[keep:]
         if L + 1 < levels:  # the even rows, every other column, are the next level's
             first = a0 + (a0 & 1)
             if first < a0 + len(z):
                 k = first - a0
-                feed(L + 1, first // 2, z[k::2, ::2], v[k::2, ::2])
+                feed(L + 1, first // 2, z[k::2, ::2], v[k::2, ::2],
+                     None if gx is None else gx[k::2, ::2],
+                     None if gy is None else gy[k::2, ::2])
 
     for r0 in range(0, N, band):
-        z, v = rows(r0, min(r0 + band, N))
-        feed(0, r0, np.asarray(z, np.float64), np.asarray(v, bool))
+        r1 = min(r0 + band, N)
+        z, v = rows(r0, r1)
+        gx = gy = None
+        if xy is not None:
+            gx, gy = (np.asarray(a, np.float64) for a in xy(r0, r1))
+        feed(0, r0, np.asarray(z, np.float64), np.asarray(v, bool), gx, gy)

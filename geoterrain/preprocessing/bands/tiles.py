@@ -168,12 +168,13 @@ def _into_rows(acc: np.ndarray, per_row: np.ndarray, r0: int, S: int, op) -> Non
 
 
 def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
-                     band: int = 256
+                     band: int = 256, xy: Rows | None = None
                      ) -> tuple[dict[tuple[int, int, int], TileBounds], np.ndarray]:
     """:func:`~geoterrain.bounds.tilebounds.tile_and_block_errors` of the grid that
     ``rows(i0, i1)`` → (scene heights, valid) hands out, ``band`` rows (a power of two)
     at a time; ``xs``, ``ys``: scene x of each column and y of each row (a projected or
-    pixel frame).
+    pixel frame), or on a curvilinear (geographic) grid ``xy(i0, i1)`` → the rows'
+    scene X, Y.
 
     Examples
     --------
@@ -246,12 +247,16 @@ def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
             S = cpt << L
             _into_rows(counts[L], cs[:, S + 1::S] - cs[:, :-1:S][:, :m], r0, S, np.add)
         zc = z[core]
+        if xy is None:
+            gx, gy = xs[None, :], ys[r0:r_end + 1, None]
+        else:
+            gx, gy = (np.asarray(a, np.float64) for a in xy(r0, r_end + 1))
         for op, fill, sl in ((np.minimum, np.inf, 0), (np.maximum, -np.inf, 1)):
             _into_rows(box0[sl], _closed_cols(np.where(vc, zc, fill), cpt, op), r0, cpt, op)
-            _into_rows(box0[2 + sl], _closed_cols(np.where(vc, xs[None, :], fill), cpt, op),
+            _into_rows(box0[2 + sl], _closed_cols(np.where(vc, gx, fill), cpt, op),
                        r0, cpt, op)
-            _into_rows(box0[4 + sl], _closed_cols(np.where(vc, ys[r0:r_end + 1, None], fill),
-                                                  cpt, op), r0, cpt, op)
+            _into_rows(box0[4 + sl], _closed_cols(np.where(vc, gy, fill), cpt, op), r0, cpt,
+                       op)
         # every level's error field on this band's rows, reduced into its tiles
         E = np.zeros(z.shape)
         band = BandWindow(z, v.view(np.uint8), w0, r0, r_end, B, N)

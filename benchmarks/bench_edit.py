@@ -1,0 +1,147 @@
+"""Editing a store in place against preprocessing the edited DEM again, in the same run
+(issue 52: a 65 × 65 window of a 4097² store).
+
+Usage:
+    python benchmarks/bench_edit.py [--size 4097] [--window 65] [--edits 5] [--runs 3]
+        [--seed 0] [--int]
+
+Makes a fBm DEM (``geoterrain synth``; ``--int``: its heights rounded to whole metres,
+an integer store like SRTM's), preprocesses it once, then alternates ``--runs`` times:
+a full preprocess of the DEM in a fresh process, and an editing process that applies
+``--edits`` random windows (a cut: −20 m, ``add``), each to a fresh copy of the store.
+Each process is timed after its imports (the compiled kernels are on disk); the first
+edit of a process also loads its kernels from numba's cache, so it is reported apart
+from the next ones. For each edit: the rows and bytes it wrote (blobs and catalog), the
+store's pages that differ afterwards (1 kB pages, compared with the copy before) and the
+file's growth; and the time of the transaction apart (its syncs). Prints markdown tables
+of medians and the ratios to the preprocess.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+PRE = """
+import json, sys, time
+t0 = time.perf_counter()
+from geoterrain.preprocessing.pipeline import preprocess
+t1 = time.perf_counter()
+preprocess(sys.argv[1], sys.argv[2], overwrite=True)
+print(json.dumps({"wall": time.perf_counter() - t1}))
+"""
+
+EDIT = """
+import json, os, shutil, sys, time
+import numpy as np
+t0 = time.perf_counter()
+import geoterrain
+from geoterrain.preprocessing.edit import Patch, edit_terrain
+store, work = sys.argv[1], sys.argv[2]
+n, w, seed = (int(v) for v in sys.argv[3:6])
+
+rng = np.random.default_rng(seed)
+out = []
+with geoterrain.open(store) as t0_:
+    rows, cols = t0_.grid.rows, t0_.grid.cols
+for k in range(n):
+    p = os.path.join(work, f"e{k}.geoterrain")
+    shutil.copy(store, p)
+    os.sync()
+    r, c = int(rng.integers(0, rows - w)), int(rng.integers(0, cols - w))
+    t = geoterrain.open(p)
+    t1 = time.perf_counter()
+    res = edit_terrain(t, Patch(r, c, np.full((w, w), -20.0)), "add")
+    wall = time.perf_counter() - t1
+    t.close()
+    a = np.fromfile(store, np.uint8)
+    b = np.fromfile(p, np.uint8)
+    m = min(a.size, b.size) // 1024 * 1024
+    pages = int((a[:m].reshape(-1, 1024) != b[:m].reshape(-1, 1024)).any(axis=1).sum())
+    pages += (max(a.size, b.size) - m + 1023) // 1024
+    out.append({"wall": wall, "write": res.write_seconds, "how": res.how, "why": res.why,
+                "rows": res.rows,
+                "bytes": res.bytes, "pages": pages, "growth": int(b.size - a.size),
+                "size": int(a.size), "window": [r, c]})
+    os.remove(p)
+print(json.dumps(out))
+"""
+
+
+def child(code: str, *args: str):
+    out = subprocess.run([sys.executable, "-c", code, *args], check=True, capture_output=True,
+                         text=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=int, default=4097)
+    ap.add_argument("--window", type=int, default=65)
+    ap.add_argument("--edits", type=int, default=5)
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--int", action="store_true", help="integer heights (an SRTM-like store)")
+    a = ap.parse_args()
+    import numpy as np
+
+    from geoterrain.ingest.synth import generate, write_geotiff
+    from geoterrain.preprocessing.pipeline import preprocess
+
+    work = tempfile.mkdtemp(prefix="bench_edit")
+    try:
+        z = generate("fbm", a.size, seed=a.seed)
+        if a.int:
+            z = np.rint(z)
+        dem = write_geotiff(os.path.join(work, "dem.tif"), z)
+        store = os.path.join(work, "dem.geoterrain")
+        preprocess(dem, store, overwrite=True)  # compiles what is not yet cached
+        pre, first, later = [], [], []
+        for run in range(a.runs):
+            pre.append(child(PRE, dem, os.path.join(work, "p.geoterrain"))["wall"])
+            edits = child(EDIT, store, work, str(a.edits), str(a.window), str(a.seed + run))
+            first.append(edits[0])
+            later += edits[1:]
+            print(f"run {run}: preprocess {pre[-1]:.2f} s; edits "
+                  + ", ".join(f"{e['wall']:.3f} s ({e['how']})" for e in edits), flush=True)
+        med = statistics.median
+        p = med(pre)
+        size = first[0]["size"]
+        print(f"\n{a.size}² fBm{' (integer heights)' if a.int else ''}, store "
+              f"{size / 1e6:.1f} MB, {a.window}² windows, {a.runs} runs "
+              f"({len(first) + len(later)} edits), load {os.getloadavg()[0]:.1f}\n")
+        print("| | median s | × preprocess |\n|---|---|---|")
+        print(f"| preprocess (fresh process, after imports) | {p:.2f} | 1 |")
+        for name, es in (("first edit of a process (loads its kernels)", first),
+                         ("next edits", later)):
+            if es:
+                w = med(e["wall"] for e in es)
+                print(f"| {name} | {w:.3f} | {w / p:.3f} |")
+                w = med(e["wall"] - e["write"] for e in es)
+                print(f"| {name}: computing the rows | {w:.3f} | {w / p:.3f} |")
+                w = med(e["write"] for e in es)
+                print(f"| {name}: the transaction (synced) | {w:.3f} | {w / p:.3f} |")
+        allx = first + later
+        print("\n| per edit (median) | bytes | % of the store |\n|---|---|---|")
+        for key, what in (("bytes", "rows written (blobs + catalog)"),
+                          ("pages", "pages of the store changed (1 kB)"),
+                          ("growth", "file growth")):
+            v = med(e[key] * (1024 if key == "pages" else 1) for e in allx)
+            print(f"| {what} | {v / 1e3:.1f} kB | {100 * v / size:.2f} % |")
+        hows = {e["how"] + (f": {e['why']}" if e["why"] else "") for e in allx}
+        print(f"\nhow: {', '.join(sorted(hows))}; rows: {med(e['rows'] for e in allx)}")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    t0 = time.perf_counter()
+    main()
+    print(f"(bench took {time.perf_counter() - t0:.0f} s)")

@@ -1,0 +1,333 @@
+"""The viewshed's compiled sweep: Wang, Robinson & White's reference planes (2000), as
+``gdal_viewshed`` computes them, over rows outward from the observer, reading a tile's
+heights only when its box can reach the sight lines.
+
+Every cell's *sight-line height* (the height a point there must reach to be seen) is
+extrapolated from the observable heights H of the two cells next to it toward the
+observer, H = max(cell height, sight-line height); heights are lowered by Earth's
+curvature and refraction, z − k·d² (k = coefficient / (2 a)). With gdal_viewshed's
+default ``edge`` mode the two cells are the one along the row (or column) and the
+diagonal one; ``diagonal`` mode takes the row's and the column's; ``max`` and ``min``
+the larger or smaller of the two answers.
+
+Heights are known to ±ε (the store's codec error), and the observer's eye with them, so
+the sweep carries two fields, the lowest and the highest sight lines the source heights
+could give (each formula grows with the heights it reads and falls with the eye's, so
+the true one lies between): a cell is visible when its lowest height reaches the highest
+sight line, hidden when its highest height stays below the lowest, and *uncertain*
+otherwise. With ε = 0 the two fields are one, and every cell is decided exactly as the
+sweep over the source raster decides it.
+
+A cell of a tile that is not decoded is decided from a bound of its height: first the
+tile's box (the catalog's, free), then the coarser level's surface plus that level's
+stored error (the tile's parent, which decoding the tile would read anyway). When the
+bound (lowered by the cell's own curvature drop, plus ε and the target height) lies
+below the lowest sight line, the cell is hidden and its observable heights are the sight
+lines themselves, exactly what its heights would have given. Otherwise the sweep stops
+and asks for the tile (:func:`sweep_rows` returns it) and goes on from that cell.
+
+Codes: 0 hidden, 1 visible, 255 uncertain, 254 no answer (outside the radius, or nodata:
+a void neither hides nor is seen).
+
+Examples
+--------
+>>> line_height(2, 10.0, 0.0), edge_height(1, 3, 10.0, 4.0, 0.0)
+(20.0, 9.0)
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+HIDDEN, VISIBLE, UNCERTAIN, NO_ANSWER = 0, 1, 255, 254
+MODES = ("edge", "diagonal", "max", "min")
+NEED_NONE = -1
+
+
+class SweepGeometry(NamedTuple):
+    """The observer in window cells (``orow``, ``ocol``), ground metres per column step
+    ``mx`` (per window row; ``mx0`` the observer's row's, which the radius is measured
+    with, so that the disc is convex on the grid) and the north-south offset ``ny`` of
+    each row from the observer's (metres), the radius² (m²), the curvature factor ``kcurv``
+    (metres of drop per m²), the eye's height interval (``eye_lo``, ``eye_hi``, metres),
+    the target's height above ground, ε (metres), the mode (0 edge, 1 diagonal, 2 max, 3 min) and
+    ``two``: whether heights are known only within bounds (two fields are swept)."""
+
+    orow: int
+    ocol: int
+    mx: np.ndarray
+    mx0: float
+    ny: np.ndarray
+    r2max: float
+    kcurv: float
+    eye_lo: float
+    eye_hi: float
+    target: float
+    eps: float
+    mode: int
+    two: bool
+
+
+class SweepTiles(NamedTuple):
+    """The window's heights ``z`` (metres, NaN: nodata; read only in decoded tiles), each
+    window tile's ``status`` (0 not decoded, 1 decoded, 2 not stored: no data, 3 ``z``
+    holds upper bounds of its heights, less ε, from a coarser level), ``ztop``
+    (the highest height of its box, metres) and ``zerr`` (how far its heights in ``z`` may
+    be from the source's: ε, plus the pyramid level's error where read coarser); the
+    window's first grid row and column (``r0``, ``c0``), the tile size 2^``t``, the
+    window's first tile row and column (``ty0``, ``tx0``) and the grid's last tile index
+    (``tlast``)."""
+
+    z: np.ndarray
+    status: np.ndarray
+    ztop: np.ndarray
+    zerr: np.ndarray
+    r0: int
+    c0: int
+    t: int
+    ty0: int
+    tx0: int
+    tlast: int
+
+
+class SweepState(NamedTuple):
+    """The observable heights (low, high) of the previous row and of the row being swept,
+    the codes ``out`` (window rows, columns), and where a row that waited for a tile goes
+    on (``resume``: the half, 0 none, 1 west, 2 east, and the column)."""
+
+    last_lo: np.ndarray
+    last_hi: np.ndarray
+    this_lo: np.ndarray
+    this_hi: np.ndarray
+    out: np.ndarray
+    resume: np.ndarray
+
+
+@njit(cache=True, inline="always")
+def line_height(i, za, zo):
+    """Sight-line height at i cells along a row or column through the observer, from the
+    observable height ``za`` one cell nearer (GDAL's CalcHeightLine)."""
+    if i == 1:
+        return za
+    return (za - zo) / (i - 1) + za
+
+
+@njit(cache=True, inline="always")
+def edge_height(i, j, za, zb, zo):
+    """Sight-line height from the cells along the edge toward the observer: ``za`` the
+    diagonal neighbour, ``zb`` the one along the longer axis (GDAL's CalcHeightEdge)."""
+    if i == j:
+        return line_height(i, za, zo)
+    return ((za - zo) * i + (zb - zo) * (j - i)) / (j - 1) + zo
+
+
+@njit(cache=True, inline="always")
+def diagonal_height(i, j, za, zb, zo):
+    """Sight-line height from the row's and the column's neighbours (GDAL's
+    CalcHeightDiagonal)."""
+    return ((za - zo) * i + (zb - zo) * j) / (i + j - 1) + zo
+
+
+@njit(cache=True, inline="always")
+def _los(mode, i, j, this_prev, last, last_prev, zo):
+    """The sight-line height of cell (i columns, j rows from the observer; i, j ≥ 1) from
+    its neighbours toward the observer: along its row ``this_prev``, in the previous row
+    ``last`` (same column) and ``last_prev`` (diagonal)."""
+    if mode == 1:
+        return diagonal_height(i, j, this_prev, last, zo)
+    if i >= j:
+        e = edge_height(j, i, last_prev, this_prev, zo)
+    else:
+        e = edge_height(i, j, last_prev, last, zo)
+    if mode == 0:
+        return e
+    d = diagonal_height(i, j, this_prev, last, zo)
+    return max(e, d) if mode == 2 else min(e, d)
+
+
+@njit(cache=True, inline="always")
+def _tile_of(tiles, r, c):
+    ty = min((r + tiles.r0) >> tiles.t, tiles.tlast) - tiles.ty0
+    tx = min((c + tiles.c0) >> tiles.t, tiles.tlast) - tiles.tx0
+    return ty, tx
+
+
+@njit(cache=True, inline="always")
+def _decide(geo, st, r, c, z, e, lo, hi, curv):
+    """A cell with heights z ± e: its code and observable heights (z NaN: a void)."""
+    if np.isnan(z):  # transparent, no answer
+        st.out[r, c] = NO_ANSWER
+        st.this_lo[c] = lo
+        st.this_hi[c] = hi
+        return
+    z_lo = z - curv - e
+    z_hi = z - curv + e
+    if z_lo + geo.target >= hi:
+        st.out[r, c] = VISIBLE
+    elif z_hi + geo.target < lo:
+        st.out[r, c] = HIDDEN
+    else:
+        st.out[r, c] = UNCERTAIN
+    st.this_lo[c] = max(z_lo, lo)
+    st.this_hi[c] = max(z_hi, hi)
+
+
+@njit(cache=True, inline="always")
+def _tile_col(tiles, c):
+    return min((c + tiles.c0) >> tiles.t, tiles.tlast) - tiles.tx0
+
+
+@njit(cache=True)
+def _half(geo, tiles, st, r, first, side):
+    """Cells of row r from column ``first`` outward on one side (−1 west, +1 east), each
+    from its neighbours toward the observer. Returns (column, tile) where a tile must be
+    decoded, or (−1, NEED_NONE) when the half is done (or leaves the radius)."""
+    oc, ncol = geo.ocol, st.out.shape[1]
+    j = abs(r - geo.orow)
+    ny2 = geo.ny[r] * geo.ny[r]
+    mxr2 = geo.mx[r] * geo.mx[r]
+    ty = min((r + tiles.r0) >> tiles.t, tiles.tlast) - tiles.ty0
+    this_lo, this_hi, last_lo, last_hi = st.this_lo, st.this_hi, st.last_lo, st.last_hi
+    eye_lo, eye_hi, mode, two = geo.eye_lo, geo.eye_hi, geo.mode, geo.two
+    lift = geo.eps + max(geo.target, 0.0)
+    c = first
+    while 0 <= c < ncol:
+        dc = c - oc
+        d0 = dc * geo.mx0
+        if d0 * d0 + ny2 > geo.r2max:
+            break
+        # the tile's run of columns on this side, at one status
+        tx = _tile_col(tiles, c)
+        s = tiles.status[ty, tx]
+        top = tiles.ztop[ty, tx]
+        e = tiles.zerr[ty, tx]
+        edge = (tx + tiles.tx0) << tiles.t  # the run's first grid column
+        stop = (edge - tiles.c0 - 1) if side < 0 else (edge + (1 << tiles.t) - tiles.c0)
+        if (tx + tiles.tx0) == tiles.tlast and side > 0:
+            stop = ncol
+        while c != stop and 0 <= c < ncol:
+            dc = c - oc
+            d0 = dc * geo.mx0
+            if d0 * d0 + ny2 > geo.r2max:
+                return -1, NEED_NONE
+            i = abs(dc)
+            p = c - side
+            if j == 0:
+                lo = line_height(i, this_lo[p], eye_hi)
+                hi = line_height(i, this_hi[p], eye_lo) if two else lo
+            else:
+                lo = _los(mode, i, j, this_lo[p], last_lo[c], last_lo[p], eye_hi)
+                hi = _los(mode, i, j, this_hi[p], last_hi[c], last_hi[p], eye_lo) \
+                    if two else lo
+            curv = geo.kcurv * (dc * dc * mxr2 + ny2)
+            if s == 1:
+                _decide(geo, st, r, c, tiles.z[r, c], e, lo, hi, curv)
+            elif s == 2:  # no data in the tile
+                st.out[r, c] = NO_ANSWER
+                this_lo[c] = lo
+                this_hi[c] = hi
+            elif (tiles.z[r, c] if s == 3 else top) - curv + lift < lo:
+                # the cell's bound (its tile's box, or the coarser level's surface plus
+                # that level's error) is below every sight line: hidden
+                st.out[r, c] = HIDDEN
+                this_lo[c] = lo
+                this_hi[c] = hi
+            else:
+                return c, (ty << 16) | tx
+            c += side
+    return -1, NEED_NONE
+
+
+@njit(cache=True)
+def _centre(geo, tiles, st, r):
+    """The observer's column in row r (or, in the observer's row, the observer and its
+    two neighbours). Returns a tile to decode, or NEED_NONE; −2 when out of range."""
+    oc, ncol = geo.ocol, st.out.shape[1]
+    ty = min((r + tiles.r0) >> tiles.t, tiles.tlast) - tiles.ty0
+    j = abs(r - geo.orow)
+    ny2 = geo.ny[r] * geo.ny[r]
+    if j == 0:
+        for c in (oc - 1, oc + 1):  # seen, as they are: their heights are read
+            if 0 <= c < ncol and tiles.status[ty, _tile_col(tiles, c)] in (0, 3):
+                return (ty << 16) | _tile_col(tiles, c)
+        z0 = tiles.z[r, oc]
+        st.out[r, oc] = VISIBLE
+        st.this_lo[oc] = z0 - geo.eps
+        st.this_hi[oc] = z0 + geo.eps
+        for c in (oc - 1, oc + 1):
+            if not 0 <= c < ncol:
+                continue
+            d0 = geo.mx0
+            dx2 = geo.mx[r] * geo.mx[r]
+            tx = _tile_col(tiles, c)
+            z = tiles.z[r, c] if tiles.status[ty, tx] == 1 else np.nan
+            if np.isnan(z):
+                st.out[r, c] = NO_ANSWER
+                st.this_lo[c] = -np.inf
+                st.this_hi[c] = -np.inf
+            else:
+                st.out[r, c] = VISIBLE if d0 * d0 <= geo.r2max else NO_ANSWER
+                st.this_lo[c] = z - geo.kcurv * dx2 - tiles.zerr[ty, tx]
+                st.this_hi[c] = z - geo.kcurv * dx2 + tiles.zerr[ty, tx]
+        return NEED_NONE
+    if ny2 > geo.r2max:
+        return -2
+    tx = _tile_col(tiles, oc)
+    s = tiles.status[ty, tx]
+    lo = line_height(j, st.last_lo[oc], geo.eye_hi)
+    hi = line_height(j, st.last_hi[oc], geo.eye_lo) if geo.two else lo
+    curv = geo.kcurv * ny2
+    if s == 1:
+        _decide(geo, st, r, oc, tiles.z[r, oc], tiles.zerr[ty, tx], lo, hi, curv)
+    elif s == 2:
+        st.out[r, oc] = NO_ANSWER
+        st.this_lo[oc] = lo
+        st.this_hi[oc] = hi
+    elif (tiles.z[r, oc] if s == 3 else tiles.ztop[ty, tx]) - curv + geo.eps \
+            + max(geo.target, 0.0) < lo:
+        st.out[r, oc] = HIDDEN
+        st.this_lo[oc] = lo
+        st.this_hi[oc] = hi
+    else:
+        return (ty << 16) | tx
+    return NEED_NONE
+
+
+@njit(cache=True)
+def sweep_rows(geo, tiles, st, first, stop, step):
+    """Sweep rows ``first``, ``first + step``, … up to ``stop`` (excluded) outward from the
+    observer (``first`` equal to its row sweeps that row alone). Returns (row, tile) when
+    a tile must be decoded (call again from that row: ``st.resume`` says where the row
+    goes on, so no cell is computed twice), or (stop, NEED_NONE) when done."""
+    r = first
+    while r != stop:
+        j = abs(r - geo.orow)
+        half, col = st.resume[0], st.resume[1]
+        if half == 0:
+            st.out[r, :] = NO_ANSWER
+            need = _centre(geo, tiles, st, r)
+            if need == -2:  # the row is beyond the radius, and so are those after it
+                return stop, NEED_NONE
+            if need != NEED_NONE:
+                return r, need
+            half, col = 1, geo.ocol - (2 if j == 0 else 1)
+        if half == 1:
+            at, need = _half(geo, tiles, st, r, col, -1)
+            if need != NEED_NONE:
+                st.resume[0], st.resume[1] = 1, at
+                return r, need
+            half, col = 2, geo.ocol + (2 if j == 0 else 1)
+        at, need = _half(geo, tiles, st, r, col, 1)
+        if need != NEED_NONE:
+            st.resume[0], st.resume[1] = 2, at
+            return r, need
+        st.resume[0] = 0
+        st.last_lo[:] = st.this_lo
+        st.last_hi[:] = st.this_hi
+        if j == 0:
+            return stop, NEED_NONE
+        r += step
+    return stop, NEED_NONE

@@ -1,0 +1,640 @@
+"""Line of sight and viewsheds, read from the store's tiles only where the terrain can
+reach the sight lines.
+
+Both lower every height by Earth's curvature and the air's refraction as
+``gdal_viewshed`` does: z − c·d²/(2a), d the ground distance from the observer, a the
+semi-major axis of the DEM's ellipsoid and c the curvature coefficient (0.85714 by
+default: refraction bends sight lines back by a seventh of the curvature; 0 switches
+both off). Observer and target heights are metres above the ground; the ground is the
+DEM's (in metres, whatever its vertical unit).
+
+- :func:`viewshed` is Wang, Robinson & White's reference-plane sweep (2000) as
+  ``gdal_viewshed`` runs it (:mod:`geoterrain.analysis.sweep`), on the DEM's full
+  resolution: each cell is decided exactly as a sweep over the source raster decides
+  it, or marked uncertain where the store's codec error ε could change the answer. A
+  tile whose box lies below every sight line that reaches it is never decoded.
+- :func:`line_of_sight` follows one ray exactly over the bilinear surface (the surface
+  :func:`~geoterrain.analysis.heights.height_at` samples): in each cell the ray crosses,
+  the clearance is a quadratic in the distance and its least value is found in closed
+  form. Tiles whose box lies below the ray are not decoded.
+
+A nodata void neither hides anything nor is seen (it has no answer); an observer (or
+target) in nodata or outside the data is refused with a one-line error.
+
+Examples
+--------
+>>> c, f = t.frame.transform[2], t.frame.transform[5]
+>>> vs = viewshed(t, (c + 640.0, f - 640.0), radius=400.0, height=2.0)
+>>> vs.codes.dtype.name, int(vs.codes[vs.observer_cell]), vs.stats["uncertain"]
+('uint8', 1, 0)
+>>> los = line_of_sight(t, (c + 640.0, f - 640.0), (c + 700.0, f - 640.0), 2.0, 0.0)
+>>> los.visible == (los.clearance >= 0), los.distance
+(True, 60.0)
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+from numba import njit
+
+from geoterrain.analysis.heights import _bilinear, cell_corners
+from geoterrain.analysis.points import (
+    Reads,
+    as_xy,
+    grid_coords,
+    inside,
+    outside_error,
+    source_xy,
+    to_source,
+)
+from geoterrain.analysis.sweep import (
+    HIDDEN,
+    MODES,
+    NEED_NONE,
+    NO_ANSWER,
+    UNCERTAIN,
+    VISIBLE,
+    SweepGeometry,
+    SweepState,
+    SweepTiles,
+    sweep_rows,
+)
+from geoterrain.exceptions import InputError, UsageError, WriteError, exists_error
+
+if TYPE_CHECKING:
+    from geoterrain.terrainlike import TerrainLike
+
+__all__ = ["CURVATURE", "LineOfSight", "Viewshed", "line_of_sight", "viewshed",
+           "write_viewshed"]
+
+CURVATURE = 0.85714  # gdal_viewshed's default -cc: curvature less a seventh for refraction
+PALETTE = {HIDDEN: (40, 40, 48, 255), VISIBLE: (255, 214, 0, 255),
+           UNCERTAIN: (230, 0, 230, 255), NO_ANSWER: (0, 0, 0, 0)}
+
+
+class Viewshed(NamedTuple):
+    """A viewshed on the source grid: ``codes`` (rows, cols) uint8 over the window of the
+    DEM that the radius reaches (0 hidden, 1 visible, 255 uncertain, 254 no answer:
+    outside the radius or nodata), its ``transform`` (rasterio Affine, the source's pixel
+    size) and ``crs_wkt``; ``observer_cell`` (row, col) in ``codes``; ``observer`` (x, y in
+    the source CRS, ground and eye heights in metres); ``stats`` (tiles decoded and
+    skipped, bytes read, seconds, the count of each code)."""
+
+    codes: np.ndarray
+    transform: Any
+    crs_wkt: str | None
+    observer_cell: tuple[int, int]
+    observer: tuple[float, float, float, float]
+    stats: dict
+
+
+class LineOfSight(NamedTuple):
+    """Whether the target sees the observer: ``visible`` (on the stored heights),
+    ``certain`` (False when the codec error ε could change it), ``clearance`` (the least
+    height of the sight line above the terrain between them, metres, after curvature;
+    negative when blocked), ``obstruction`` (x, y in the source CRS and ground height in
+    metres of the first point that blocks the sight line; None when visible), ``distance``
+    (ground metres) and ``stats``."""
+
+    visible: bool
+    certain: bool
+    clearance: float
+    obstruction: tuple[float, float, float] | None
+    distance: float
+    stats: dict
+
+
+def _check(name: str, v: float, positive: bool = False) -> float:
+    v = float(v)
+    if not math.isfinite(v) or (positive and v <= 0):
+        need = "a finite number > 0" if positive else "a finite number"
+        flag = name.replace("_", "-")
+        raise UsageError(f"{name} must be {need}, got {v:g}", cli=f"--{flag} must be {need}, "
+                         f"got {v:g}")
+    return v
+
+
+def _semi_major(terrain: TerrainLike) -> float:
+    """The DEM's ellipsoid semi-major axis (metres); WGS 84's without a CRS."""
+    from pyproj import CRS
+
+    f = terrain.frame
+    if f.crs_wkt:
+        ell = CRS.from_wkt(f.crs_wkt).ellipsoid
+        if ell is not None and ell.semi_major_metre:
+            return float(ell.semi_major_metre)
+    return 6378137.0
+
+
+def _geod(terrain: TerrainLike):
+    from pyproj import CRS, Geod
+
+    crs = CRS.from_wkt(terrain.frame.crs_wkt)
+    return crs.get_geod() or Geod(ellps="WGS84")
+
+
+def _row_geometry(terrain: TerrainLike, rows: np.ndarray, orow: int, ocol: int
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Per grid row: ground metres per column step and the north-south offset from the
+    observer's row (metres). Geographic grids: geodesics along the parallel and the
+    meridian (pyproj); others: the pixel size in metres."""
+    f = terrain.frame
+    a, _, c, _, e, top = f.transform[:6]
+    if f.kind != "geographic":
+        mx = np.full(len(rows), abs(a) * f.unit_to_m)
+        ny = (rows - orow) * abs(e) * f.unit_to_m
+        return mx, ny
+    geod = _geod(terrain)
+    lon = c + a * (ocol + 0.5)
+    lat = np.clip(top + e * (rows + 0.5), -90.0, 90.0)
+    lat0 = top + e * (orow + 0.5)
+    n = len(rows)
+    _, _, mx = geod.inv(np.full(n, lon), lat, np.full(n, lon + a), lat)
+    _, _, d = geod.inv(np.full(n, lon), np.full(n, lat0), np.full(n, lon), lat)
+    return np.asarray(mx, np.float64), np.asarray(d, np.float64) * np.sign(rows - orow)
+
+
+def _observer(terrain: TerrainLike, point: Any, crs: Any, what: str = "observer"
+              ) -> tuple[np.ndarray, float, float]:
+    """(x, y) in the source CRS and its fractional grid coordinates, checked inside."""
+    xy = to_source(terrain.frame, as_xy(point), crs)
+    if xy.shape[0] != 1:
+        raise UsageError(f"the {what} is one point (x, y), got {xy.shape[0]}")
+    fi, fj = grid_coords(terrain.frame, xy)
+    if not inside(terrain.grid, fi, fj)[0]:
+        raise outside_error(terrain.frame, terrain.grid, as_xy(point), crs,
+                            np.array([True]), what)
+    return xy[0], float(fi[0]), float(fj[0])
+
+
+def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float = 2.0, *,
+             target_height: float = 0.0, curvature: float = CURVATURE, mode: str = "edge",
+             level: int = 0, crs: Any = None) -> Viewshed:
+    """The cells within ``radius`` metres of ``observer`` that an eye ``height`` metres
+    above the ground there sees (a target ``target_height`` metres above each cell).
+
+    Parameters
+    ----------
+    terrain : an open store.
+    observer : (x, y) in the DEM's CRS (or ``crs``; ``"lonlat"``); the observer stands on
+        the sample of the pixel holding the point, as in ``gdal_viewshed``.
+    radius : ground metres (the disc the cells' centres lie in).
+    height, target_height : metres above the ground.
+    curvature : the curvature-and-refraction coefficient c (heights drop by c·d²/(2a)).
+    mode : how a cell's sight line is interpolated from its neighbours toward the
+        observer: ``edge`` (gdal_viewshed's), ``diagonal``, ``max`` or ``min``.
+    level : 0 (exact on the full-resolution heights) or a coarser pyramid level L: the
+        tiles that must be read are read at level L (4^L times fewer samples), each
+        cell's height taken as the level-L surface there within the tile's stored error
+        bound (a tile touching nodata is read at level 0); the cells that bound could
+        change are marked uncertain (255), the others decided as at level 0.
+
+    Returns
+    -------
+    Viewshed
+        codes 0 hidden, 1 visible, 255 uncertain, 254 no answer, on the window of the
+        source grid the disc covers.
+
+    Examples
+    --------
+    >>> c, f = t.frame.transform[2], t.frame.transform[5]
+    >>> vs = viewshed(t, (c + 100.0, f - 100.0), radius=300.0)
+    >>> vs.stats["visible"] + vs.stats["hidden"] > 0, vs.stats["tiles_read"] > 0
+    (True, True)
+    """
+    radius = _check("radius", radius, positive=True)
+    height = _check("height", height)
+    target_height = _check("target_height", target_height)
+    curvature = _check("curvature", curvature)
+    if mode not in MODES:
+        raise UsageError(f"unknown viewshed mode {mode!r}; use one of {', '.join(MODES)}")
+    g, f = terrain.grid, terrain.frame
+    if not (isinstance(level, int | np.integer) and 0 <= level <= g.top_level):
+        raise UsageError(f"level must be an integer in 0..{g.top_level}, got {level}",
+                         cli=f"--level must be in 0..{g.top_level}, got {level}")
+    with Reads(terrain) as reads:
+        xy, fi, fj = _observer(terrain, observer, crs)
+        orow = min(max(int(math.floor(fi + 0.5)), 0), g.rows - 1)
+        ocol = min(max(int(math.floor(fj + 0.5)), 0), g.cols - 1)
+        # the window: rows and columns within the radius (the disc is measured with the
+        # observer row's column step, so it is convex on the grid)
+        all_rows = np.arange(g.rows)
+        mx_all, ny_all = _row_geometry(terrain, all_rows, orow, ocol)
+        rows = np.flatnonzero(np.abs(ny_all) <= radius)
+        r0, r1 = int(rows.min()), int(rows.max()) + 1
+        mx0 = float(mx_all[orow])
+        span = int(math.floor(radius / mx0)) if mx0 > 0 else 0
+        c0, c1 = max(ocol - span, 0), min(ocol + span, g.cols - 1) + 1
+        eps = float(terrain.quantizer.codec_error) * f.z_to_m
+        tiles, decode = _window_tiles(terrain, r0, r1, c0, c1, eps, int(level))
+        ty, tx = _tile_index(tiles, orow - r0, ocol - c0)
+        while tiles.status[ty, tx] != 1:
+            decode(ty, tx, 0)  # the observer's ground, exactly
+        zg = tiles.z[orow - r0, ocol - c0]
+        if not np.isfinite(zg):
+            raise InputError(f"the observer ({xy[0]:.10g}, {xy[1]:.10g}) stands on nodata: "
+                             "move it onto the data")
+        eye = zg + height
+        geo = SweepGeometry(orow - r0, ocol - c0, mx_all[r0:r1].copy(), mx0,
+                            ny_all[r0:r1].copy(), radius * radius,
+                            curvature / (2.0 * _semi_major(terrain)), eye - eps, eye + eps,
+                            target_height, eps, MODES.index(mode), eps > 0 or level > 0)
+        wr, wc = r1 - r0, c1 - c0
+        st = SweepState(*(np.zeros(wc) for _ in range(4)),
+                        np.full((wr, wc), NO_ANSWER, np.uint8), np.zeros(2, np.int64))
+        asked, base = 0, None
+        for first, stop, step in ((geo.orow, geo.orow + 1, 1), (geo.orow - 1, -1, -1),
+                                  (geo.orow + 1, wr, 1)):
+            if base is not None:  # each direction starts from the observer's row
+                st.last_lo[:], st.last_hi[:] = base
+            r = first
+            while True:
+                r, need = sweep_rows(geo, tiles, st, r, stop, step)
+                if need == NEED_NONE:
+                    break
+                decode(need >> 16, need & 0xFFFF)
+                asked += 1
+            if base is None:
+                base = (st.last_lo.copy(), st.last_hi.copy())
+    codes = st.out
+    from rasterio.transform import Affine
+
+    a, _, c, _, e, top = f.transform[:6]
+    window_tr = Affine(a, 0.0, c + a * c0, 0.0, e, top + e * r0)
+    in_disc = codes != NO_ANSWER
+    stored = tiles.status != 2
+    stats = reads.stats(
+        tiles_in_window=int(stored.sum()), tiles_read=int((tiles.status == 1).sum()),
+        tiles_skipped=int((stored & (tiles.status != 1)).sum()),
+        tiles_bounded=int((tiles.status == 3).sum()), waits=asked,
+        visible=int((codes == VISIBLE).sum()), hidden=int((codes == HIDDEN).sum()),
+        uncertain=int((codes == UNCERTAIN).sum()), cells=int(in_disc.sum()), radius=radius,
+        window=(r0, c0, r1 - r0, wc))
+    return Viewshed(codes, window_tr, f.crs_wkt, (geo.orow, geo.ocol),
+                    (float(xy[0]), float(xy[1]), float(zg), float(eye)), stats)
+
+
+def _tile_index(tiles: SweepTiles, r: int, c: int) -> tuple[int, int]:
+    ty = min((r + tiles.r0) >> tiles.t, tiles.tlast) - tiles.ty0
+    tx = min((c + tiles.c0) >> tiles.t, tiles.tlast) - tiles.tx0
+    return ty, tx
+
+
+def _window_tiles(terrain: TerrainLike, r0: int, r1: int, c0: int, c1: int, eps: float,
+                  level: int):
+    """The window's :class:`SweepTiles` (nothing decoded yet) and the function that
+    reads one of its level-0 tiles into it: at ``level`` where that level's tile error is
+    finite, else at level 0."""
+    g, f = terrain.grid, terrain.frame
+    tlast = g.tiles_per_side(0) - 1
+    ty0, ty1 = r0 >> g.t, min((r1 - 1) >> g.t, tlast)
+    tx0, tx1 = c0 >> g.t, min((c1 - 1) >> g.t, tlast)
+    nty, ntx = ty1 - ty0 + 1, tx1 - tx0 + 1
+    status = np.full((nty, ntx), 2, np.int8)
+    ztop = np.full((nty, ntx), np.inf)
+    zerr = np.full((nty, ntx), eps)
+    zs = f.z_scale or 1.0
+    for y in range(ty0, ty1 + 1):  # per tile, from the catalog: nothing decoded
+        for x in range(tx0, tx1 + 1):
+            info = terrain.tile_info.get((0, x, y))
+            if info is not None:
+                status[y - ty0, x - tx0] = 0
+                top = info["zmax"]
+                # the box is in scene units (a hair above it for the units' rounding); a
+                # tile with nodata is never decided from its box (its voids have no answer)
+                full = info["nvalid"] == g.tile_samples ** 2
+                ztop[y - ty0, x - tx0] = (top / zs) * (1 + 1e-12) + 1e-9 \
+                    if full and top is not None and np.isfinite(top) else np.inf
+    z = np.empty((r1 - r0, c1 - c0))  # read only where a tile was decoded into it
+    tiles = SweepTiles(z, status, ztop, zerr, r0, c0, g.t, ty0, tx0, tlast)
+    span = 1 << g.t
+
+    def decode(ty: int, tx: int, at: int = level) -> None:
+        if at == 0 and status[ty, tx] == 0 and bound_first(ty, tx):
+            return
+        # the cells the sweep takes from this tile: its rows and columns but the last,
+        # which its neighbour owns (sweep._tile_of), except on the grid's last tile
+        gy, gx = (ty + ty0) * span, (tx + tx0) * span
+        a0, a1 = max(gy, r0), min(gy + span + (ty + ty0 == tlast), r1)
+        b0, b1 = max(gx, c0), min(gx + span + (tx + tx0 == tlast), c1)
+        key = (at, (tx + tx0) >> at, (ty + ty0) >> at)
+        err = terrain.tile_info[key]["error"] if key in terrain.tile_info else np.inf
+        if at == 0 or not np.isfinite(err):
+            tile = terrain.tile(0, tx + tx0, ty + ty0)
+            z[a0 - r0:a1 - r0, b0 - c0:b1 - c0] = \
+                tile.heights[a0 - gy:a1 - gy, b0 - gx:b1 - gx] * f.z_to_m
+        else:
+            z[a0 - r0:a1 - r0, b0 - c0:b1 - c0] = level_surface(
+                terrain, at, np.arange(a0, a1), np.arange(b0, b1)) * f.z_to_m
+            zerr[ty, tx] = eps + err / zs * (1 + 1e-12) + 1e-9
+        status[ty, tx] = 1
+
+    def bound_first(ty: int, tx: int) -> bool:
+        """Level 1's surface plus its tile's error as the cells' bounds (status 3), when
+        that error is finite: the sweep may then decide them without level 0."""
+        gy, gx = (ty + ty0) * span, (tx + tx0) * span
+        key = (1, (tx + tx0) >> 1, (ty + ty0) >> 1)
+        if g.top_level < 1 or key not in terrain.tile_info:
+            return False
+        err = terrain.tile_info[key]["error"]
+        if not np.isfinite(err):
+            return False
+        a0, a1 = max(gy, r0), min(gy + span + (ty + ty0 == tlast), r1)
+        b0, b1 = max(gx, c0), min(gx + span + (tx + tx0 == tlast), c1)
+        s1 = level_surface(terrain, 1, np.arange(a0, a1), np.arange(b0, b1)) * f.z_to_m
+        # NaN where level 1 has no data: the sweep then reads level 0 (a void's code)
+        z[a0 - r0:a1 - r0, b0 - c0:b1 - c0] = s1 + (err / zs * (1 + 1e-12) + 1e-9)
+        status[ty, tx] = 3
+        return True
+
+    return tiles, decode
+
+
+def level_surface(terrain: TerrainLike, level: int, rows: np.ndarray, cols: np.ndarray
+                  ) -> np.ndarray:
+    """The level-L union-jack surface (source units; NaN on cells without data) at the
+    full-resolution samples ``rows`` × ``cols`` (ascending runs), which one level-L tile
+    holds.
+
+    Examples
+    --------
+    >>> rows = cols = np.arange(0, 9)
+    >>> s = level_surface(t, 2, rows, cols)
+    >>> bool(s[4, 4] == t.tile(0, 0, 0).heights[4, 4])  # a level-2 sample itself
+    True
+    """
+    g = terrain.grid
+    last = g.level_size(level) - 2
+    key = (level, int(min(cols[0] >> level, last) >> g.t),
+           int(min(rows[0] >> level, last) >> g.t))
+    out = np.full((len(rows), len(cols)), np.nan)
+    if key not in terrain.tile_info:
+        return out
+    tile = terrain.tile(*key)
+    h = np.where(tile.valid, tile.heights, np.nan)
+    _union_jack_block(h, level, key[2] << g.t, key[1] << g.t, np.asarray(rows, np.int64),
+                      np.asarray(cols, np.int64), out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _union_jack_block(h, level, a_org, b_org, rows, cols, out):
+    """out[k, l] = the level-L union-jack surface of tile heights ``h`` (its first sample
+    at level-L row ``a_org``, column ``b_org``) at full-resolution sample (rows[k],
+    cols[l]) (docs/conventions.md: a cell's diagonal by the parity of its indices; a
+    sample on the tile's far edge is read from the tile's last cell, which gives it)."""
+    n = h.shape[0] - 2
+    sz = 1 << level
+    for k in range(rows.shape[0]):
+        a = min((rows[k] >> level) - a_org, n)
+        di = (rows[k] - ((a + a_org) << level)) / sz
+        for m in range(cols.shape[0]):
+            b = min((cols[m] >> level) - b_org, n)
+            dj = (cols[m] - ((b + b_org) << level)) / sz
+            z00 = h[a, b]
+            z01 = h[a, b + 1]
+            z10 = h[a + 1, b]
+            z11 = h[a + 1, b + 1]
+            if (a + a_org + b + b_org) % 2 == 0:  # main diagonal (0, 0)–(1, 1)
+                if dj >= di:
+                    v = z00 + (z01 - z00) * dj + (z11 - z01) * di
+                else:
+                    v = z00 + (z10 - z00) * di + (z11 - z10) * dj
+            elif di + dj <= 1:
+                v = z00 + (z10 - z00) * di + (z01 - z00) * dj
+            else:
+                v = z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
+            out[k, m] = v
+
+
+def write_viewshed(vs: Viewshed, path: str | Path, *, overwrite: bool = False) -> Path:
+    """Write a viewshed as a GeoTIFF on the source grid (uint8: 0 hidden, 1 visible, 255
+    uncertain; 254 is nodata), with a colour table (visible yellow, hidden dark,
+    uncertain magenta, no answer transparent) so that it drapes as it is
+    (``geoterrain render --drape``). Written whole or not at all.
+
+    Examples
+    --------
+    >>> import tempfile, os, rasterio
+    >>> c, f = t.frame.transform[2], t.frame.transform[5]
+    >>> p = write_viewshed(viewshed(t, (c + 100.0, f - 100.0), 200.0),
+    ...                    os.path.join(tempfile.mkdtemp(), "vs.tif"))
+    >>> with rasterio.open(p) as r:
+    ...     r.nodata, r.colormap(1)[1][:3]
+    (254.0, (255, 214, 0))
+    """
+    import rasterio
+
+    from geoterrain.core.atomicfiles import partial_path, publish
+
+    out = Path(path)
+    if out.suffix.lower() not in (".tif", ".tiff"):
+        raise UsageError(f"{out}: a viewshed is written as a GeoTIFF: give a .tif name")
+    if out.exists() and not overwrite:
+        raise exists_error(out)
+    if vs.crs_wkt is None:
+        raise UsageError("the DEM has no CRS (pixel units): a GeoTIFF viewshed needs one; "
+                         "use the API's codes instead")
+    tmp = partial_path(out)
+    prof = dict(driver="GTiff", height=vs.codes.shape[0], width=vs.codes.shape[1], count=1,
+                dtype="uint8", crs=vs.crs_wkt, transform=vs.transform, nodata=NO_ANSWER,
+                compress="deflate", tiled=vs.codes.shape[0] >= 256 and vs.codes.shape[1] >= 256)
+    try:
+        with rasterio.open(tmp, "w", **prof) as dst:
+            dst.write(vs.codes, 1)
+            dst.write_colormap(1, PALETTE)
+            dst.set_band_description(1, "viewshed: 0 hidden, 1 visible, 255 uncertain")
+            x, y, zg, eye = vs.observer
+            dst.update_tags(observer_x=repr(x), observer_y=repr(y), ground_m=repr(zg),
+                            eye_m=repr(eye), values="0 hidden, 1 visible, 255 uncertain, "
+                            "254 no answer (outside the radius or nodata)")
+        publish(tmp, out, overwrite)
+    except (OSError, rasterio.errors.RasterioIOError) as exc:
+        raise WriteError(f"{out}: cannot write the viewshed ({exc})") from None
+    finally:
+        tmp.unlink(missing_ok=True)
+    return out
+
+
+# ------------------------------------------------------------------------- line of sight
+
+
+def _ground(terrain: TerrainLike, fi: float, fj: float) -> float:
+    """The bilinear ground height (metres) at a fractional grid point; NaN on nodata."""
+    g = terrain.grid
+    i = min(max(fi, 0.0), g.rows - 1.0)
+    j = min(max(fj, 0.0), g.cols - 1.0)
+    i0, j0 = min(int(math.floor(i)), max(g.rows - 2, 0)), min(int(math.floor(j)),
+                                                              max(g.cols - 2, 0))
+    h, ok = cell_corners(terrain, 0, np.array([i0]), np.array([j0]))
+    z = _bilinear(h, ok, np.array([i - i0]), np.array([j - j0]))[0]
+    return float(z) * terrain.frame.z_to_m
+
+
+def line_of_sight(terrain: TerrainLike, a: Any, b: Any, observer_height: float = 2.0,
+                  target_height: float = 0.0, *, curvature: float = CURVATURE,
+                  crs: Any = None) -> LineOfSight:
+    """Whether an eye ``observer_height`` metres above the ground at ``a`` sees a point
+    ``target_height`` metres above the ground at ``b``, over the bilinear surface.
+
+    The sight line runs straight from eye to target (on the grid: straight in the DEM's
+    CRS); the terrain under it is the bilinear surface, lowered by curvature and
+    refraction. The target is visible when the sight line stays at or above the terrain
+    everywhere between them.
+
+    Examples
+    --------
+    >>> c, f = t.frame.transform[2], t.frame.transform[5]
+    >>> los = line_of_sight(t, (c + 100.0, f - 100.0), (c + 100.0, f - 140.0), 2.0, 1.0)
+    >>> los.visible, los.obstruction is not None, round(los.distance, 6)
+    (False, True, 40.0)
+    >>> line_of_sight(t, (c + 100.0, f - 100.0), (c + 100.0, f - 140.0), 50.0, 1.0).visible
+    True
+    """
+    observer_height = _check("observer_height", observer_height)
+    target_height = _check("target_height", target_height)
+    curvature = _check("curvature", curvature)
+    f = terrain.frame
+    with Reads(terrain) as reads:
+        xa, fia, fja = _observer(terrain, a, crs, "observer")
+        xb, fib, fjb = _observer(terrain, b, crs, "target")
+        za, zb = _ground(terrain, fia, fja), _ground(terrain, fib, fjb)
+        for z, p, what in ((za, xa, "observer"), (zb, xb, "target")):
+            if not np.isfinite(z):
+                raise InputError(f"the {what} ({p[0]:.10g}, {p[1]:.10g}) stands on nodata: "
+                                 "move it onto the data")
+        D = _ground_distance(terrain, xa, xb, fia, fja, fib, fjb)
+        k = curvature / (2.0 * _semi_major(terrain))
+        eps = float(terrain.quantizer.codec_error) * f.z_to_m
+        eye, tgt = za + observer_height, zb + target_height - k * D * D
+        seg = _segments(terrain, fia, fja, fib, fjb)
+        lo_clear, t_block, skipped = _clearance(terrain, seg, eye, tgt, D, k, eps)
+    visible = bool(lo_clear >= -1e-9 * max(1.0, abs(eye)))
+    certain = eps == 0 or abs(lo_clear) > 2 * eps
+    obstruction = None
+    if not visible:
+        ti, tj = fia + (fib - fia) * t_block, fja + (fjb - fja) * t_block
+        p = source_xy(f, np.array([ti]), np.array([tj]))[0]
+        obstruction = (float(p[0]), float(p[1]), _ground(terrain, ti, tj))
+    return LineOfSight(visible, bool(certain), float(lo_clear), obstruction, float(D),
+                       reads.stats(tiles_skipped=skipped))
+
+
+def _ground_distance(terrain, xa, xb, fia, fja, fib, fjb) -> float:
+    f = terrain.frame
+    if f.kind == "geographic":
+        _, _, d = _geod(terrain).inv(xa[0], xa[1], xb[0], xb[1])
+        return float(d)
+    a, _, _, _, e, _ = f.transform[:6]
+    return float(math.hypot((fjb - fja) * a, (fib - fia) * e) * f.unit_to_m)
+
+
+def _segments(terrain: TerrainLike, fia, fja, fib, fjb) -> dict[str, np.ndarray]:
+    """The ray cut at every grid line it crosses: per piece its parameters t0 < t1 and
+    its level-0 cell (row, column)."""
+    g = terrain.grid
+    ts = [np.array([0.0, 1.0])]
+    for p, q in ((fia, fib), (fja, fjb)):
+        if p != q:
+            lo, hi = sorted((p, q))
+            k = np.arange(math.ceil(lo), math.floor(hi) + 1, dtype=np.float64)
+            ts.append((k - p) / (q - p))
+    t = np.unique(np.clip(np.concatenate(ts), 0.0, 1.0))
+    t0, t1 = t[:-1], t[1:]
+    tm = 0.5 * (t0 + t1)
+    mi = np.clip(fia + (fib - fia) * tm, 0.0, g.rows - 1.0)
+    mj = np.clip(fja + (fjb - fja) * tm, 0.0, g.cols - 1.0)
+    ci = np.minimum(np.floor(mi), max(g.rows - 2, 0)).astype(np.int64)
+    cj = np.minimum(np.floor(mj), max(g.cols - 2, 0)).astype(np.int64)
+    return {"t0": t0, "t1": t1, "ci": ci, "cj": cj,
+            "p": np.array([fia, fja, fib, fjb])}
+
+
+def _clearance(terrain: TerrainLike, seg: dict, eye: float, tgt: float, D: float, k: float,
+               eps: float) -> tuple[float, float, int]:
+    """The least clearance of the sight line over the pieces (metres), the first t where
+    it is below the terrain, and how many tiles were left undecoded.
+
+    A tile is read when its box could reach the sight line, or when its box leaves less
+    room than the least clearance found elsewhere (so the clearance is exact); the
+    others are not decoded."""
+    g, f = terrain.grid, terrain.frame
+    t0, t1, ci, cj = seg["t0"], seg["t1"], seg["ci"], seg["cj"]
+    tlast = g.tiles_per_side(0) - 1
+    tyx = np.minimum(ci >> g.t, tlast) * (tlast + 1) + np.minimum(cj >> g.t, tlast)
+    zs = f.z_scale or 1.0
+    keys, inv = np.unique(tyx, return_inverse=True)
+    top = np.array([(terrain.tile_info.get((0, int(u % (tlast + 1)), int(u // (tlast + 1))))
+                     or {"zmax": -np.inf})["zmax"] for u in keys.tolist()], np.float64)
+    top = top / zs * (1 + 1e-12) + 1e-9 + eps
+    sight_lo = eye - eps + (tgt - eye) * np.where(tgt >= eye, t0, t1)
+    room = sight_lo - (top[inv] - k * (D * t0) ** 2)  # a lower bound of the clearance
+    tile_room = np.full(len(keys), np.inf)
+    np.minimum.at(tile_room, inv, room)
+    first = tile_room <= 0
+    first[[inv[0], inv[-1]]] = True  # the ends' tiles are read for the ground anyway
+    best, t_block = _exact_clearance(terrain, seg, np.flatnonzero(first[inv]), eye, tgt, D, k)
+    more = ~first & (tile_room < best)
+    if more.any():
+        b2, _ = _exact_clearance(terrain, seg, np.flatnonzero(more[inv]), eye, tgt, D, k)
+        best = min(best, b2)
+    return best, t_block, int((~first & ~more).sum())
+
+
+def _exact_clearance(terrain: TerrainLike, seg: dict, idx: np.ndarray, eye: float,
+                     tgt: float, D: float, k: float) -> tuple[float, float]:
+    """The least clearance over pieces ``idx`` (their tiles decoded) and the first t where
+    the sight line is below the terrain (1 when it never is)."""
+    f = terrain.frame
+    t0, t1, ci, cj = seg["t0"], seg["t1"], seg["ci"], seg["cj"]
+    fia, fja, fib, fjb = seg["p"]
+    h, ok = cell_corners(terrain, 0, ci[idx], cj[idx])
+    h = h * f.z_to_m
+    void = ~ok.all(axis=1)  # a piece over nodata is transparent
+    # the ray in the cell's fractions: u = u0 + du t, v = v0 + dv t
+    du, dv = fib - fia, fjb - fja
+    u0, v0 = fia - ci[idx], fja - cj[idx]
+    h00, h01, h10, h11 = (np.where(ok[:, c], h[:, c], 0.0) for c in range(4))
+    q = h00 - h01 - h10 + h11
+    # the bilinear surface along the ray: z(t) = c0 + c1 t + c2 t²
+    c0 = h00 + (h10 - h00) * u0 + (h01 - h00) * v0 + q * u0 * v0
+    c1 = (h10 - h00) * du + (h01 - h00) * dv + q * (u0 * dv + v0 * du)
+    c2 = q * du * dv
+    # clearance s(t) − (z(t) − k D² t²), with s(t) = eye + (tgt − eye) t
+    A = -c2 + k * D * D
+    B = (tgt - eye) - c1
+    C = eye - c0
+    a0, a1 = t0[idx], t1[idx]
+
+    def clear(t):
+        return (A * t + B) * t + C
+
+    best = np.minimum(clear(a0), clear(a1))
+    tv = np.where(A > 0, -B / np.where(A > 0, 2 * A, 1.0), -1.0)
+    inner = (tv > a0) & (tv < a1)
+    best = np.where(inner, np.minimum(best, clear(np.where(inner, tv, a0))), best)
+    best = np.where(void, np.inf, best)
+    tol = 1e-9 * max(1.0, abs(eye))
+    blocked = np.flatnonzero(best < -tol)
+    low = float(best.min(initial=np.inf))
+    if blocked.size == 0:
+        return low, 1.0
+    m = blocked[np.argmin(a0[blocked])]  # the first blocked piece along the ray
+    return low, _first_below(A[m], B[m], C[m], a0[m], a1[m], tol)
+
+
+def _first_below(A: float, B: float, C: float, t0: float, t1: float, tol: float) -> float:
+    """The first t in [t0, t1] where A t² + B t + C < −tol (there is one)."""
+    if (A * t0 + B) * t0 + C < -tol:
+        return float(t0)
+    Cs = C + tol
+    if A == 0:
+        return float(min(max(-Cs / B, t0), t1)) if B != 0 else float(t0)
+    disc = max(B * B - 4 * A * Cs, 0.0)
+    roots = sorted(((-B - math.sqrt(disc)) / (2 * A), (-B + math.sqrt(disc)) / (2 * A)))
+    inside = [r for r in roots if t0 <= r <= t1]
+    return float(inside[0]) if inside else float(t0)

@@ -1,0 +1,169 @@
+"""The samples an edit reads: level-0 tiles as the store holds them and as the edit
+leaves them, decoded once each, and windows assembled from them."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from geoterrain.codec.quantize import heights_to_codes
+
+if TYPE_CHECKING:
+    from geoterrain.terrainlike import TerrainLike
+
+__all__ = ["Canvas"]
+
+
+class Canvas:
+    """Level-0 samples of ``terrain`` before (``new=False``) and after the edit that puts
+    ``heights``/``valid`` (source units, NaN where not valid) at rows ``r0 …``, columns
+    ``c0 …``.
+
+    Scene heights come as the kernels take them (:func:`geoterrain.bounds.delta.check_grid`):
+    float64, 0 where not valid, with the validity as uint8; samples outside the grid or
+    in unstored tiles are nodata.
+
+    Examples
+    --------
+    >>> c = Canvas(t, 1, 2, np.full((2, 2), 7.0), np.ones((2, 2), bool))
+    >>> z, v = c.rect(0, 0, 4, 4)
+    >>> float(z[1, 2]) == 7.0 * c.factor, z.shape
+    (True, (4, 4))
+    """
+
+    def __init__(self, terrain: TerrainLike, r0: int, c0: int, heights: np.ndarray,
+                 valid: np.ndarray):
+        self.terrain = terrain
+        g = terrain.grid
+        self.grid = g
+        self.S = 1 << g.t
+        self.nt = g.tiles_per_side(0)
+        self.r0, self.c0 = int(r0), int(c0)
+        self.r1, self.c1 = self.r0 + heights.shape[0], self.c0 + heights.shape[1]
+        self.heights = np.where(valid, heights, np.nan)
+        self.valid = np.asarray(valid, bool)
+        self.codes = heights_to_codes(np.where(self.valid, heights, 0.0), terrain.quantizer)
+        f = terrain.frame
+        self.factor = f.z_to_m * f.z_scale
+        self._tiles: dict = {}
+        self._z: dict = {}
+
+    def touches(self, i0: int, j0: int, i1: int, j1: int) -> bool:
+        """Whether the closed rectangle rows i0 … i1, columns j0 … j1 holds an edited
+        sample."""
+        return i0 < self.r1 and i1 >= self.r0 and j0 < self.c1 and j1 >= self.c0
+
+    def tile(self, ty: int, tx: int, new: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Level-0 tile (x = ``tx``, y = ``ty``): heights (source units, NaN where not
+        valid) and validity, (T, T)."""
+        key = (ty, tx, new)
+        got = self._tiles.get(key)
+        if got is not None:
+            return got
+        T = self.S + 1
+        t = self.terrain
+        if 0 <= ty < self.nt and 0 <= tx < self.nt and (0, tx, ty) in t.tile_info:
+            tl = t.tile(0, tx, ty)
+            h, v = tl.heights.copy(), tl.valid.copy()
+        else:
+            h, v = np.full((T, T), np.nan), np.zeros((T, T), bool)
+        i0, j0 = ty * self.S, tx * self.S
+        if new and self.touches(i0, j0, i0 + self.S, j0 + self.S):
+            a0, a1 = max(self.r0, i0), min(self.r1, i0 + T)
+            b0, b1 = max(self.c0, j0), min(self.c1, j0 + T)
+            h[a0 - i0:a1 - i0, b0 - j0:b1 - j0] = self.heights[a0 - self.r0:a1 - self.r0,
+                                                               b0 - self.c0:b1 - self.c0]
+            v[a0 - i0:a1 - i0, b0 - j0:b1 - j0] = self.valid[a0 - self.r0:a1 - self.r0,
+                                                             b0 - self.c0:b1 - self.c0]
+        self._tiles[key] = (h, v)
+        return h, v
+
+    def tile_z(self, ty: int, tx: int, new: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """The tile's scene heights (0 where not valid) and validity (uint8)."""
+        key = (ty, tx, new)
+        got = self._z.get(key)
+        if got is None:
+            h, v = self.tile(ty, tx, new)
+            z = np.where(v, np.multiply(np.where(v, h, 0.0), self.factor), 0.0)
+            got = self._z[key] = (np.ascontiguousarray(z), np.ascontiguousarray(v, np.uint8))
+        return got
+
+    def rect(self, i0: int, j0: int, i1: int, j1: int, new: bool = True
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """Scene heights (0 where not valid) and validity (uint8) of rows i0 … i1 − 1 and
+        columns j0 … j1 − 1 (samples outside the grid are nodata)."""
+        z = np.zeros((i1 - i0, j1 - j0))
+        v = np.zeros((i1 - i0, j1 - j0), np.uint8)
+        S, N = self.S, self.grid.size
+        for ty in range(max(i0, 0) // S, min(i1 - 1, N - 1) // S + 1):
+            ty = min(ty, self.nt - 1)
+            for tx in range(max(j0, 0) // S, min(j1 - 1, N - 1) // S + 1):
+                tx = min(tx, self.nt - 1)
+                tz, tv = self.tile_z(ty, tx, new)
+                a0, a1 = max(i0, ty * S), min(i1, ty * S + S + 1)
+                b0, b1 = max(j0, tx * S), min(j1, tx * S + S + 1)
+                if a1 <= a0 or b1 <= b0:
+                    continue
+                z[a0 - i0:a1 - i0, b0 - j0:b1 - j0] = tz[a0 - ty * S:a1 - ty * S,
+                                                          b0 - tx * S:b1 - tx * S]
+                v[a0 - i0:a1 - i0, b0 - j0:b1 - j0] = tv[a0 - ty * S:a1 - ty * S,
+                                                          b0 - tx * S:b1 - tx * S]
+        return z, v
+
+    def lattice(self, L: int, rows: np.ndarray, cols: np.ndarray, new: bool = True
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Heights (source units, NaN where not valid) and validity of the level-L
+        samples ``rows`` × ``cols`` (ascending multiples of 2^L), from the level-L tiles
+        (a lossless store's decoded codes there are the samples' own) and the edit."""
+        g, t = self.grid, self.terrain
+        T, span, step = g.tile_samples, g.tile_span(L), 1 << L
+        rows, cols = np.asarray(rows, np.int64), np.asarray(cols, np.int64)
+        h = np.full((len(rows), len(cols)), np.nan)
+        v = np.zeros((len(rows), len(cols)), bool)
+        n = g.tiles_per_side(L)
+        for y in range(min(int(rows[0]) // span, n - 1), min(int(rows[-1]) // span, n - 1) + 1):
+            ri = (rows - y * span) // step
+            mr = (ri >= 0) & (ri < T)
+            for x in range(min(int(cols[0]) // span, n - 1),
+                           min(int(cols[-1]) // span, n - 1) + 1):
+                if (L, x, y) not in t.tile_info:
+                    continue
+                tl = t.tile(L, x, y)
+                ci = (cols - x * span) // step
+                mc = (ci >= 0) & (ci < T)
+                h[np.ix_(mr, mc)] = tl.heights[np.ix_(ri[mr], ci[mc])]
+                v[np.ix_(mr, mc)] = tl.valid[np.ix_(ri[mr], ci[mc])]
+        if new:
+            mr = (rows >= self.r0) & (rows < self.r1)
+            mc = (cols >= self.c0) & (cols < self.c1)
+            if mr.any() and mc.any():
+                h[np.ix_(mr, mc)] = self.heights[np.ix_(rows[mr] - self.r0, cols[mc] - self.c0)]
+                v[np.ix_(mr, mc)] = self.valid[np.ix_(rows[mr] - self.r0, cols[mc] - self.c0)]
+        return h, v
+
+    def samples(self, i: np.ndarray, j: np.ndarray, new: bool = True
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Scene heights (0 where not valid) and validity (bool) of scattered samples,
+        each read from the coarsest tile that holds it."""
+        i, j = np.asarray(i, np.int64).ravel(), np.asarray(j, np.int64).ravel()
+        g, t = self.grid, self.terrain
+        top = g.top_level
+        z = np.zeros(i.shape)
+        v = np.zeros(i.shape, bool)
+        for k, (a, b) in enumerate(zip(i.tolist(), j.tolist(), strict=True)):
+            if new and self.r0 <= a < self.r1 and self.c0 <= b < self.c1:
+                v[k] = bool(self.valid[a - self.r0, b - self.c0])
+                z[k] = self.heights[a - self.r0, b - self.c0] * self.factor if v[k] else 0.0
+                continue
+            bits = a | b
+            L = top if bits == 0 else min((bits & -bits).bit_length() - 1, top)
+            span, n = g.tile_span(L), g.tiles_per_side(L)
+            y, x = min(a // span, n - 1), min(b // span, n - 1)
+            if (L, x, y) not in t.tile_info:
+                continue
+            tl = t.tile(L, x, y)
+            ra, cb = (a - y * span) >> L, (b - x * span) >> L
+            v[k] = bool(tl.valid[ra, cb])
+            z[k] = tl.heights[ra, cb] * self.factor if v[k] else 0.0
+        return z, v

@@ -1,0 +1,431 @@
+"""An edit computed over what it reaches only: the rows :mod:`.whole` would write, from a
+few decoded tiles instead of the whole grid (issue 52; seed 004 §5.2, L42: deforming the
+terrain at no extra cost).
+
+For the window E of changed samples:
+
+- **heights**: the tiles whose own samples change, or whose parent's decoded codes
+  (their prediction, :mod:`geoterrain.codec.predict`) change, level by level from the
+  top; each is coded as the whole-grid encoder codes it, and its decoded codes are
+  compared with the old ones to find the next level's;
+- **δ and r** (:mod:`.localbounds`): the vertices whose diamond holds a changed sample
+  (their ancestors are such vertices too, so the saturation chain up to the root is
+  among them); their δ is the exact diamond maximum, swept over the decoded tiles
+  where a block fits in a tile and, for larger blocks, a tile at a time, only the
+  tiles whose bound (the tile's height range against the block's planes) can beat the
+  largest value found; saturation and nesting in the stored codes (a code of a
+  maximum is the maximum of the codes);
+- **tile rows**: valid counts and boxes from the changed tiles up; tile errors from
+  the GeoMipMapping blocks' δ_n (the same field over a level-0 tile; the store keeps
+  them rounded up, which bounds the others' exact values, so only the blocks that can
+  hold the largest one are decoded); skirt errors along the tile borders E reaches;
+- **normals**: every level's central differences within one sample of E.
+
+It takes projected and pixel frames, lossless stores (and stores coded within ε
+without residual bins), unpadded grids whose block table covers every level; anything
+else, and an edit that changes a number every tile's codes depend on (δ's or r's code
+scale, the nodata stand-in height, a largest δ that only a full pass can find), goes to
+:mod:`.whole`, which says why (:func:`unsupported`, :func:`local_plan`). Tested against
+it and against a preprocess of the edited DEM.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from geoterrain.bounds.edgepad import has_padding
+from geoterrain.bounds.normals import encode_octahedral, normal_map
+from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, ring_blobs
+from geoterrain.bounds.vertexdata import LOG8, NORMAL_BITS, RING
+from geoterrain.codec.entropy import MASK_STORED, _level_zigzag, encode_tile
+from geoterrain.codec.predict import fill_level
+from geoterrain.codec.pyramid import (
+    _UINTS,
+    _WIDE_LEVEL,
+    _encode_top,
+    _header,
+    _mask_kind,
+    _period,
+    _top_fill,
+    decode_tile_valid,
+    top_bins,
+)
+from geoterrain.codec.quantize import valid_codes
+from geoterrain.core.zstdsafe import compress_many
+from geoterrain.preprocessing.edit.canvas import Canvas
+from geoterrain.preprocessing.edit.whole import Plan, store_predictor
+from geoterrain.store.catalog import TILE_COLUMNS
+from geoterrain.store.database import StoreReader
+
+if TYPE_CHECKING:
+    from geoterrain.terrainlike import TerrainLike
+
+__all__ = ["local_plan", "unsupported"]
+
+
+def unsupported(terrain: TerrainLike, row: int, col: int, heights: np.ndarray,
+                valid: np.ndarray) -> str:
+    """Why the local computation cannot take this store ("" when it can).
+
+    Examples
+    --------
+    >>> unsupported(t, 0, 0, np.zeros((1, 1)), np.ones((1, 1), bool))
+    ''
+    """
+    g, f, q, m = terrain.grid, terrain.frame, terrain.quantizer, terrain.meta
+    if f.kind == "geographic":
+        return "a geographic grid's δ and r hold curvilinear terms"
+    if q.bins > 1:
+        return "heights coded in residual bins depend on the whole pyramid"
+    if has_padding(g):
+        return "a padded grid's second δ (the static mesh's) is not computed by tiles yet"
+    if g.top_level > g.t or g.tile_samples < 3:
+        return "the block table does not cover every level"
+    if "block_delta_levels" not in m or m.get("normals_derived") not in (
+            None, list(range(g.top_level + 1))):
+        return "a store written before the block table and derived normals"
+    r = StoreReader(terrain.path)
+    try:
+        blob = r.get_blob((g.top_level, 0, 0), "delta")
+        rblob = r.get_blob((g.top_level, 0, 0), "radius")
+    finally:
+        r.close()
+    if not (blob and len(blob) > 2 and blob[1] & LOG8 and rblob and len(rblob) > 2
+            and rblob[1] & LOG8):
+        return "δ or r not in log8 codes (an older store)"
+    return ""
+
+
+def local_plan(terrain: TerrainLike, row: int, col: int, heights: np.ndarray,
+               valid: np.ndarray) -> tuple[Plan | None, str]:
+    """The plan of the edit putting ``heights``/``valid`` at (``row``, ``col``), computed
+    over what it reaches (module docstring); (None, why) when it needs the whole grid."""
+    from geoterrain.preprocessing.edit.localbounds import Bounds
+
+    job = _Job(terrain, Canvas(terrain, row, col, heights, valid))
+    job.tile_numbers()
+    job.heights()
+    why = Bounds(job).run()
+    if why:
+        return None, why
+    job.normals()
+    job.metadata()
+    return job.plan(), ""
+
+
+def _e8(blob: bytes) -> int:
+    return int(np.int8(np.uint8(blob[2])))
+
+
+class _Job:
+    """One edit's computation: the canvas, the old store's rows, and what changes."""
+
+    def __init__(self, terrain: TerrainLike, canvas: Canvas):
+        self.t = terrain
+        self.c = canvas
+        self.g = terrain.grid
+        self.reader = StoreReader(terrain.path)
+        self.puts: dict = {}
+        self.dirty: list = []
+        self.rows: dict = {}  # new tile rows (TILE_COLUMNS order), changed tiles only
+        top = (self.g.top_level, 0, 0)
+        dblob = self.reader.get_blob(top, "delta")
+        rblob = self.reader.get_blob(top, "radius")
+        self.ed, self.er = _e8(dblob), _e8(rblob)
+        self.derive_bounds = bool(self.t.tile_keys(0)) and self.g.top_level > 0 and bool(
+            (self.reader.get_blob(self.t.tile_keys(0)[0], "delta") or b"\0\0")[1] & RING)
+        self.derive_normals = bool(terrain.meta.get("normals_derived"))
+        self.meta = dict(terrain.meta)
+
+    # ------------------------------------------------------------- shared helpers
+    def old_row(self, key) -> tuple | None:
+        info = self.t.tile_info.get(key)
+        if info is None:
+            return None
+        return tuple(np.nan if info[c] is None else info[c] for c in TILE_COLUMNS)
+
+    def row(self, key) -> tuple | None:
+        """A tile's row as the edit leaves it (None: not stored)."""
+        return self.rows[key] if key in self.rows else self.old_row(key)
+
+    def set_row(self, key, **cols) -> None:
+        r = list(self.row(key) or (0,) + (np.nan,) * (len(TILE_COLUMNS) - 1))
+        for name, v in cols.items():
+            r[TILE_COLUMNS.index(name)] = v
+        self.rows[key] = tuple(r)
+
+    def put(self, key, kind: str, blob: bytes) -> None:
+        old = self.reader.get_blob(key, kind)
+        if old != blob:
+            self.puts[(key, kind)] = blob
+            self.dirty_tile(key)
+
+    def dirty_tile(self, key) -> None:
+        L, x, y = key
+        span = self.g.tile_span(L)
+        self.dirty.append((y * span, x * span, y * span + span + 1, x * span + span + 1))
+
+    def tiles_near(self, L: int, margin: int) -> list[tuple[int, int]]:
+        """Level-L tiles (x, y) whose closed footprint grown by ``margin`` samples meets
+        the edit."""
+        c, span, n = self.c, self.g.tile_span(L), self.g.tiles_per_side(L)
+        y0 = max((c.r0 - margin - 1) // span, 0)
+        y1 = min((c.r1 - 1 + margin) // span, n - 1)
+        x0 = max((c.c0 - margin - 1) // span, 0)
+        x1 = min((c.c1 - 1 + margin) // span, n - 1)
+        return [(x, y) for y in range(y0, y1 + 1) for x in range(x0, x1 + 1)
+                if c.touches(y * span - margin, x * span - margin, (y + 1) * span + margin,
+                             (x + 1) * span + margin)]
+
+    # ------------------------------------------------------------- tile rows
+    def tile_numbers(self) -> None:
+        """Valid counts and boxes of the tiles whose footprint holds an edited sample
+        (level 0 from its samples, coarser levels from their children: a parent's closed
+        footprint is the union of its children's)."""
+        g, c, f = self.g, self.c, self.t.frame
+        S = c.S
+        for x, y in self.tiles_near(0, 0):
+            h, v = c.tile(y, x)
+            n = int(v.sum())
+            key = (0, x, y)
+            if n == 0:
+                if key in self.t.tile_info:  # cannot happen with the edit modes
+                    raise AssertionError("an edit removed a tile's last valid sample")
+                continue
+            z = h[v] * c.factor
+            ii, jj = np.nonzero(v)
+            X, Y = f.xy(ii + y * S, jj + x * S)
+            self.set_row(key, nvalid=n, zmin=float(z.min()), zmax=float(z.max()),
+                         xmin=float(X.min()), xmax=float(X.max()), ymin=float(Y.min()),
+                         ymax=float(Y.max()), error=0.0, boundary_error=0.0)
+        oldv = np.zeros(c.valid.shape, bool)
+        ho, vo = _window(c, new=False)
+        oldv[:] = vo
+        delta_v = c.valid.astype(np.int64) - oldv.astype(np.int64)
+        for L in range(1, g.top_level + 1):
+            span = g.tile_span(L)
+            for x, y in self.tiles_near(L, 0):
+                a0, a1 = max(c.r0, y * span), min(c.r1, y * span + span + 1)
+                b0, b1 = max(c.c0, x * span), min(c.c1, x * span + span + 1)
+                dn = int(delta_v[a0 - c.r0:a1 - c.r0, b0 - c.c0:b1 - c.c0].sum())
+                old = self.row((L, x, y))
+                n = (0 if old is None else int(old[0])) + dn
+                if n == 0:
+                    continue
+                kids = [self.row((L - 1, 2 * x + dx, 2 * y + dy)) for dy in (0, 1)
+                        for dx in (0, 1)]
+                kids = np.array([k for k in kids if k is not None], np.float64)
+                cols = {"nvalid": n}
+                for name, op in (("zmin", np.min), ("zmax", np.max), ("xmin", np.min),
+                                 ("xmax", np.max), ("ymin", np.min), ("ymax", np.max)):
+                    cols[name] = float(op(kids[:, TILE_COLUMNS.index(name)]))
+                if old is None:
+                    cols.update(error=0.0, boundary_error=0.0)
+                self.set_row((L, x, y), **cols)
+
+    def stored(self, key) -> bool:
+        return self.row(key) is not None
+
+    # ------------------------------------------------------------- heights
+    def heights(self) -> None:
+        """The height blobs the edit reaches, top to bottom (module docstring)."""
+        g, c, t = self.g, self.c, self.t
+        q = t.quantizer
+        te, T, top = g.t, g.tile_samples, g.top_level
+        cubic = store_predictor(t) == "cubic"
+        wide = q.mode == "float"
+        self.codes: dict = {}  # (L, x, y) → new decoded codes
+        zero = int(valid_codes(np.zeros((1, 1)), np.ones((1, 1), bool), q)[0, 0])
+        changed: list = []  # level-0 rectangles (closed) of changed decoded codes, a level up
+        for L in range(top, -1, -1):
+            step, span = 1 << L, g.tile_span(L)
+            cands = set(self.tiles_near(L, 2 * step))
+            for r in changed:  # tiles whose prediction reads a changed parent sample
+                for x in range(max((r[1] - 2 * step - 1) // span, 0),
+                               min((r[3] + 2 * step) // span, g.tiles_per_side(L) - 1) + 1):
+                    for y in range(max((r[0] - 2 * step - 1) // span, 0),
+                                   min((r[2] + 2 * step) // span, g.tiles_per_side(L) - 1) + 1):
+                        cands.add((x, y))
+            changed = []
+            for x, y in sorted(cands):
+                key = (L, x, y)
+                if not self.stored(key):
+                    continue
+                old = t.tile(*key) if key in t.tile_info else None
+                codes = old.codes.copy() if old is not None else np.zeros((T, T), np.int64)
+                ok = old.valid.copy() if old is not None else np.zeros((T, T), bool)
+                _overlay(c, L, x, y, span, codes, ok)
+                if L == top:  # its invalid samples as valid_codes gives them, then filled
+                    d = np.where(ok, codes, zero)
+                    _top_fill(d, ok, te, cubic, top_bins(q.bins))
+                    blob = _encode_top(d, ok, te, 0, cubic, q.bins)
+                else:
+                    pk = (L + 1, x // 2, y // 2)
+                    parent = self.codes[pk] if pk in self.codes else t.tile(*pk).codes
+                    kind = int(_mask_kind(int(ok.sum()), T * T))
+                    if wide:
+                        blob = _wide(L, x, y, codes, ok, parent, te, kind, cubic)
+                    else:
+                        blob = _header(False, kind, te, cubic) + encode_tile(
+                            codes, ok, parent, (x % 2, y % 2), cubic, kind, q.bins)
+                dec, _ = decode_tile_valid(blob, None if L == top else parent,
+                                           (x % 2, y % 2), te, q.bins)
+                self.codes[key] = dec
+                self.put(key, "heights", blob)
+                diff = np.ones((T, T), bool) if old is None else (dec != old.codes)
+                if diff.any():
+                    ii, jj = np.nonzero(diff)
+                    changed.append((y * span + int(ii.min()) * step, x * span + int(jj.min())
+                                    * step, y * span + int(ii.max()) * step,
+                                    x * span + int(jj.max()) * step))
+
+    # ------------------------------------------------------------- normals
+    def normals(self) -> None:
+        """Every level's normal map within one of its samples of the edit (central
+        differences of the level's samples), for the tiles that hold them: one window
+        of the level's samples a level, its codes cut into the tiles' blobs."""
+        g, c, f = self.g, self.c, self.t.frame
+        te, N = g.t, g.size
+        for L in range(g.top_level + 1):
+            step, span = 1 << L, g.tile_span(L)
+            # a level-L sample in the edit (its rows and columns multiples of 2^L)
+            if -(-c.r0 // step) * step >= c.r1 or -(-c.c0 // step) * step >= c.c1:
+                continue
+            keys = [(x, y) for x, y in self.tiles_near(L, step) if self.stored((L, x, y))]
+            if not keys:
+                continue
+            x0, y0 = min(x for x, _ in keys), min(y for _, y in keys)
+            x1, y1 = max(x for x, _ in keys), max(y for _, y in keys)
+            # the tiles' samples and one more around (the central differences' neighbours)
+            lo_i, lo_j = max(y0 * span - step, 0), max(x0 * span - step, 0)
+            hi_i = min((y1 + 1) * span + step, N - 1)
+            hi_j = min((x1 + 1) * span + step, N - 1)
+            rows = np.arange(lo_i, hi_i + 1, step)
+            cols = np.arange(lo_j, hi_j + 1, step)
+            h, v = c.lattice(L, rows, cols)
+            ii, jj = np.meshgrid(rows, cols, indexing="ij")
+            X, Y = f.xy(ii, jj)
+            n = normal_map(X, Y, np.where(v, h * c.factor, np.nan), v)
+            a, b = (y0 * span - lo_i) // step, (x0 * span - lo_j) // step
+            codes = encode_octahedral(n[a:, b:], NORMAL_BITS)  # from the first tile's corner
+            tiles = [(x - x0, y - y0) for x, y in keys]
+            if self.derive_normals:
+                blobs = ring_blobs(codes, te, tiles, L)
+            else:
+                coding = BoundsCoding(np.zeros(codes.shape[:2]), np.zeros(codes.shape[:2]))
+                blobs = level_blobs(coding, codes, te, 0, 1, tiles, ("normals",))[0]["normals"]
+                blobs = {(L, x, y): bb for (_, x, y), bb in blobs.items()}
+            for (x, y), (dx, dy) in zip(keys, tiles, strict=True):
+                self.put((L, x, y), "normals", blobs[(L, dx, dy)])
+
+    # ------------------------------------------------------------- metadata
+    def metadata(self) -> None:
+        """The metadata's counts and ranges after the edit (the largest δ:
+        :mod:`.localbounds`)."""
+        g, c = self.g, self.c
+        m = self.meta
+        ho, vo = _window(c, new=False)
+        dn = int(c.valid.sum()) - int(vo.sum())
+        valid = int(m["valid_samples"]) + dn
+        m["valid_samples"] = valid
+        m["nodata_fraction"] = float(1.0 - valid / (g.rows * g.cols))
+        lo, hi = self.scene_range()
+        m["stand_in_z"] = float(0.5 * (lo + hi))
+        m["height_range"] = self.height_range(lo, hi)
+
+    def level0(self, new: bool = True) -> np.ndarray:
+        """The level-0 tiles' valid counts, smallest and largest scene heights, as
+        (3, nt, nt) arrays (0, +inf, −inf for a tile not stored), before or after."""
+        key = "_level0_new" if new else "_level0_old"
+        if not hasattr(self, key):
+            nt = self.g.tiles_per_side(0)
+            a = np.zeros((3, nt, nt))
+            a[1], a[2] = np.inf, -np.inf
+            info = self.t.tile_info
+            for k in self.t.tile_keys(0):
+                r = info[k]
+                a[:, k[2], k[1]] = r["nvalid"], r["zmin"], r["zmax"]
+            if new:
+                for k in self.rows:
+                    if k[0] == 0:
+                        a[:, k[2], k[1]] = self.rows[k][:3]
+            setattr(self, key, a)
+        return getattr(self, key)
+
+    def scene_range(self) -> tuple[float, float]:
+        """The smallest and largest valid scene height, from the level-0 tile rows."""
+        a = self.level0()
+        return float(a[1].min()), float(a[2].max())
+
+    def height_range(self, lo: float, hi: float) -> list[float]:
+        """The valid heights' range in source units: decoded from the tiles that hold
+        the scene range's ends."""
+        a = self.level0()
+        out = []
+        for col, end, op in ((1, lo, np.min), (2, hi, np.max)):
+            vals = []
+            for ty, tx in zip(*np.nonzero(a[col] == end), strict=True):
+                h, v = self.c.tile(int(ty), int(tx))
+                vals.append(float(op(h[v])))
+            out.append(float(op(vals)))
+        return out
+
+    # ------------------------------------------------------------- the plan
+    def plan(self) -> Plan:
+        out = {}
+        for k, r in self.rows.items():
+            r = list(r)
+            r[0] = int(r[0])
+            out[k] = tuple(r)
+        self.reader.close()
+        return Plan(self.puts, set(), out, self.meta, self.dirty, how="tiles",
+                    all_tiles=False)
+
+
+def _window(c: Canvas, new: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The edit's window's heights and validity, before or after."""
+    if new:
+        return c.heights, c.valid
+    z, v = c.rect(c.r0, c.c0, c.r1, c.c1, new=False)
+    return z / c.factor, v.astype(bool)
+
+
+def _overlay(c: Canvas, L: int, x: int, y: int, span: int, codes: np.ndarray,
+             ok: np.ndarray) -> None:
+    """Put the edit's codes and validity on tile (L, x, y)'s samples (in place)."""
+    step = 1 << L
+    i0, j0 = y * span, x * span
+    a = np.arange(-(-max(c.r0 - i0, 0) // step), min(c.r1 - 1 - i0, span) // step + 1)
+    b = np.arange(-(-max(c.c0 - j0, 0) // step), min(c.c1 - 1 - j0, span) // step + 1)
+    if a.size and b.size:
+        rr = i0 + a * step - c.r0
+        cc = j0 + b * step - c.c0
+        codes[np.ix_(a, b)] = c.codes[np.ix_(rr, cc)]
+        ok[np.ix_(a, b)] = c.valid[np.ix_(rr, cc)]
+
+
+def _wide(L: int, x: int, y: int, codes: np.ndarray, ok: np.ndarray, parent: np.ndarray,
+          te: int, kind: int, cubic: bool) -> bytes:
+    """A lossless float store's (wide) blob of one tile, as the whole-grid writer
+    (:func:`geoterrain.codec.pyramid._wide_blobs`) makes it: the residuals on the parent
+    tile's lattice (the child's quadrant filled in, its invalid samples given their
+    predictions first, as the writer's grid has them), then the same bytes."""
+    T = codes.shape[0]
+    h = (T - 1) // 2
+    px, py = x % 2, y % 2
+    d = np.zeros((2 * T - 1, 2 * T - 1), np.int64)
+    vv = np.ones((2 * T - 1, 2 * T - 1), bool)
+    d[py * (T - 1):py * (T - 1) + T, px * (T - 1):px * (T - 1) + T] = codes
+    vv[py * (T - 1):py * (T - 1) + T, px * (T - 1):px * (T - 1) + T] = ok
+    d[::2, ::2] = parent
+    fill_level(d, vv, 1, _period(te, cubic), 1)
+    zz = np.empty(3 * h * h + 2 * h, np.uint64)
+    _level_zigzag(d, 1, h, _period(te, cubic), py * 2 * h, px * 2 * h, zz)
+    zm = int(zz.max()) if zz.size else 0
+    w = 0 if zm == 0 else next(b for b in (1, 2, 4, 8) if zm < 1 << (8 * b))
+    mask = np.packbits(ok).tobytes() if kind == MASK_STORED else b""
+    body = np.ascontiguousarray(zz.astype(np.dtype(_UINTS[w]).newbyteorder("<"))
+                                .view(np.uint8).reshape(-1, w).T).tobytes() if w else b""
+    return _header(False, kind, te, cubic, w) + compress_many([mask + body], _WIDE_LEVEL)[0]

@@ -1,0 +1,776 @@
+"""δ, r, the tile errors and the blocks' δ_n of an edit, over what it reaches
+(:mod:`.local`).
+
+The vertices whose closed diamond holds a changed sample are recomputed, fine levels on
+a window of decoded tiles around the edit (:func:`geoterrain.bounds.windows.fine_raw_delta`),
+levels whose blocks outgrow a tile a tile at a time
+(:func:`geoterrain.bounds.windows.block_sweep_rect`): each tile of the block gets a bound
+on |z − P| for each of the block's planes P from the tile's height range, and tiles are
+swept in decreasing order of bound until no unswept bound passes the largest value
+found, which is then the exact maximum. Saturation (seed 002 §2.4, L46) and the radii's
+nesting (L50–52) run on the stored codes: the code of a maximum is the maximum of the
+codes, so unchanged children enter with their stored codes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from geoterrain.bounds.delta import Cell
+from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs
+from geoterrain.bounds.tilebounds import closed_blocks
+from geoterrain.bounds.vertexdata import log8_exponent, log8_table, pack_block_errors
+from geoterrain.bounds.windows import (
+    block_sweep_rect,
+    fine_raw_delta,
+    level_field_rect,
+    nest_codes_rect,
+    nest_codes_sparse,
+)
+from geoterrain.core.bintree import child_nb, main_diagonal_nb
+from geoterrain.core.rounding import round_up32
+
+__all__ = ["Bounds"]
+
+_SLACK = 1e-9  # relative slack of a tile's bound (float rounding of the planes)
+
+
+class _Whole(Exception):
+    """The edit needs the whole grid (the message says why)."""
+
+
+class Bounds:
+    """δ, r and tile errors of one edit (``job``: :class:`.local._Job`)."""
+
+    def __init__(self, job):
+        self.job = job
+        self.t, self.g, self.c = job.t, job.g, job.c
+        self.N = self.g.size
+        self.S = 1 << self.g.t
+        self.t8 = log8_table(job.ed).astype(np.float64)
+        self.rt = log8_table(job.er).astype(np.float64)
+        self.stand_in = float(self.t.stand_in_z)
+        self.coarse_d: dict = {}  # (i, j) → new saturated δ code, coarse vertices
+        self.coarse_r: dict = {}  # (i, j) → new r code
+        self.raw_new: dict = {}  # (i, j) → new raw δ (float32), coarse vertices
+        self._sweeps: dict = {}  # a block's tile sweeps
+        self._bound_cache: dict = {}  # a block's tiles' bounds, order, swept and maxima
+        self._stored_cache: dict = {}
+        self.tiles_swept = 0
+        self.rows0 = {False: job.level0(False), True: job.level0(True)}
+
+    def run(self) -> str:
+        """Everything, or why the whole grid is needed."""
+        try:
+            self._scales()
+            self._vertices()
+            self._window()
+            self._fine()
+            self._coarse()
+            self._delta_max()
+            self._blobs()
+            self._tile_errors()
+        except _Whole as exc:
+            return str(exc)
+        return ""
+
+    # ------------------------------------------------------------ store-wide numbers
+    def _scales(self) -> None:
+        """The numbers every tile's codes depend on must stay: r's code exponent (from
+        the height range) and, where there is nodata, the stand-in height."""
+        job, g, m = self.job, self.g, self.t.meta
+        if any(k not in self.t.tile_info for k in job.rows):
+            raise _Whole("the edit fills nodata where no tile was stored")
+        lo, hi = job.scene_range()
+        if int(m["valid_samples"]) < g.rows * g.cols or not self.c.valid.all():
+            if float(0.5 * (lo + hi)) != self.stand_in:
+                raise _Whole("the edit moves the nodata stand-in height (the middle of the "
+                             "height range), which every radius near nodata depends on")
+        f = self.t.frame
+        cx, cy = f.xy(np.array([0, 0, self.N - 1, self.N - 1]),
+                      np.array([0, self.N - 1, 0, self.N - 1]))
+        span = [float(np.nanmax(cx) - np.nanmin(cx)), float(np.nanmax(cy) - np.nanmin(cy))]
+        er = min(log8_exponent(np.array([float(np.hypot(*span) + hi - lo)])) + 2, 127)
+        if er != job.er:
+            raise _Whole("the edit changes r's code scale (the height range)")
+
+    # ------------------------------------------------------------ the vertices
+    def _vertices(self) -> None:
+        """Per level, the vertices an edited sample reaches: ``direct`` ones hold one in
+        their closed diamond (their raw δ changes); the others hold one in a
+        descendant's diamond only (saturation and nesting pull from the whole DAG below
+        a vertex: the samples of its descendants' diamonds lie within 3h − 1 of a centre
+        and 2h − 1 of an edge midpoint, Chebyshev, by induction over the levels)."""
+        c, N = self.c, self.N
+        R0, R1, C0, C1 = c.r0, c.r1 - 1, c.c0, c.c1 - 1
+        self.levels = []
+        h = 1
+        while h < N - 1:
+            s = 2 * h
+            nb = (N - 1) // s
+            out, direct = [], []
+            for kind in ("rows", "cols", "centre"):
+                reach = 3 * h
+                a = np.arange(max((R0 - reach - s) // s, 0), min((R1 + reach) // s, nb) + 1)
+                b = np.arange(max((C0 - reach - s) // s, 0), min((C1 + reach) // s, nb) + 1)
+                A, B = np.meshgrid(a, b, indexing="ij")
+                if kind == "centre":
+                    i, j = h + A * s, h + B * s
+                    ok = (A < nb) & (B < nb)
+                elif kind == "rows":
+                    i, j = h + A * s, B * s
+                    ok = A < nb
+                else:
+                    i, j = A * s, h + B * s
+                    ok = B < nb
+                di = np.maximum(np.maximum(R0 - i, i - R1), 0)
+                dj = np.maximum(np.maximum(C0 - j, j - C1), 0)
+                cheb = np.maximum(di, dj)
+                if kind == "centre":
+                    near, hit = cheb <= 3 * h, cheb <= h
+                else:
+                    near, hit = cheb <= 2 * h, di + dj <= h
+                sel = ok & near
+                out.append(np.stack([i[sel], j[sel], np.full(sel.sum(), h)], 1))
+                direct.append(hit[sel])
+            self.levels.append((h, np.concatenate(out).astype(np.int64),
+                                np.concatenate(direct)))
+            h *= 2
+        # fine levels: a block fits in a level-0 tile
+        fine = [(v, d) for h, v, d in self.levels if 2 * h <= self.S]
+        self.fine = np.concatenate([v for v, _ in fine] or [np.zeros((0, 3), np.int64)])
+        self.fine_direct = np.concatenate([d for _, d in fine] or [np.zeros(0, bool)])
+        self.coarse_levels = [(h, v, d) for h, v, d in self.levels if 2 * h > self.S]
+
+    def _window(self) -> None:
+        """The decoded window around the edit that holds every fine vertex's diamond,
+        blocks and children (within 4h ≤ two tiles of the edit), two tiles beyond it; its
+        stored δ and r codes."""
+        c, t, S, N = self.c, self.t, self.S, self.N
+        self.oi = max((c.r0 // S - 2) * S, 0)
+        self.oj = max((c.c0 // S - 2) * S, 0)
+        self.i1 = min(((c.r1 - 1) // S + 3) * S, N - 1)
+        self.j1 = min(((c.c1 - 1) // S + 3) * S, N - 1)
+        self.z, self.v = c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1)
+        self.zo, self.vo = c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1, new=False)
+        shape = self.z.shape
+        self.dc = np.zeros(shape, np.uint8)
+        self.rc = np.zeros(shape, np.uint8)
+        for ty in range(self.oi // S, self.i1 // S):
+            for tx in range(self.oj // S, self.j1 // S):
+                key = (0, tx, ty)
+                if key not in t.tile_info:
+                    raise _Whole("nodata tiles beside the edit")
+                sl = (slice(ty * S - self.oi, ty * S - self.oi + S + 1),
+                      slice(tx * S - self.oj, tx * S - self.oj + S + 1))
+                self.dc[sl] = _codes(self.t8, t.tile_delta(*key))
+                self.rc[sl] = _codes(self.rt, t.tile_radius(*key))
+        self.dc_old, self.rc_old = self.dc.copy(), self.rc.copy()
+        f = t.frame
+        ii, jj = np.meshgrid(np.arange(self.oi, self.i1 + 1), np.arange(self.oj, self.j1 + 1),
+                             indexing="ij")
+        self.X, self.Y = f.xy(ii, jj)
+        self.X, self.Y = np.ascontiguousarray(self.X), np.ascontiguousarray(self.Y)
+        self.zp = np.where(self.v.astype(bool), self.z, self.stand_in)
+
+    # ------------------------------------------------------------ fine levels
+    def _fine(self) -> None:
+        """Raw δ, then saturated codes and nested r codes of the fine vertices, in the
+        window, level by level (edge midpoints before centres)."""
+        vs = self.fine
+        raw = np.zeros(len(vs), np.float32)
+        fine_raw_delta(self.z, self.v, self.oi, self.oj, self.N, vs, raw)
+        self.fine_raw = raw
+        self._check_scale(raw)
+        raw_codes = np.searchsorted(self.t8, raw.astype(np.float64)).astype(np.uint8)
+        _saturate_rect(self.dc, raw_codes, vs, self.oi, self.oj, self.N)
+        leaves = (vs[:, 2] == 1) & ~(((vs[:, 0] // vs[:, 2]) % 2 == 1)
+                                     & ((vs[:, 1] // vs[:, 2]) % 2 == 1))
+        nest_codes_rect(self.X, self.Y, self.zp, self.rc, self.rt, vs[~leaves], self.oi,
+                        self.oj, self.N)
+        if (self.rc == 255).any():
+            raise _Whole("a radius outgrows its code scale")
+
+    def _check_scale(self, raw) -> None:
+        """A finite δ past the top finite code: the code exponent must grow."""
+        raw = np.asarray(raw, np.float64)
+        if (np.isfinite(raw) & (raw > self.t8[254])).any():
+            raise _Whole("the edit changes δ's code scale (its largest value)")
+
+    def _in_window(self, i: int, j: int) -> bool:
+        return self.oi <= i <= self.i1 and self.oj <= j <= self.j1
+
+    def d_code(self, i: int, j: int) -> int:
+        """δ's saturated code of vertex (i, j) as the edit leaves it."""
+        if (i, j) in self.coarse_d:
+            return self.coarse_d[(i, j)]
+        if self._in_window(i, j):
+            return int(self.dc[i - self.oi, j - self.oj])
+        return _codes(self.t8, self._stored(i, j, "delta"))
+
+    def r_code(self, i: int, j: int) -> int:
+        if (i, j) in self.coarse_r:
+            return self.coarse_r[(i, j)]
+        if self._in_window(i, j):
+            return int(self.rc[i - self.oi, j - self.oj])
+        return _codes(self.rt, self._stored(i, j, "radius"))
+
+    def _stored(self, i: int, j: int, kind: str) -> float:
+        """A vertex's stored value, from a stored tile that holds it at its level."""
+        key = (i, j, kind)
+        if key not in self._stored_cache:
+            self._stored_cache[key] = self._stored_now(i, j, kind)
+        return self._stored_cache[key]
+
+    def _stored_now(self, i: int, j: int, kind: str) -> float:
+        g = self.g
+        h = (i | j) & -(i | j)
+        k = min(h.bit_length() - 1, g.top_level)
+        span = g.tile_span(k)
+        n = g.tiles_per_side(k)
+        for y in {min(i // span, n - 1), max((i - 1) // span, 0)}:
+            for x in {min(j // span, n - 1), max((j - 1) // span, 0)}:
+                if (k, x, y) in self.t.tile_info and y * span <= i <= y * span + span \
+                        and x * span <= j <= x * span + span:
+                    arr = (self.t.tile_delta if kind == "delta" else self.t.tile_radius)(k, x, y)
+                    return float(arr[(i - y * span) >> k, (j - x * span) >> k])
+        if kind == "delta":
+            return 0.0  # no stored tile holds it: its diamond holds no data
+        raise _Whole("nodata tiles beside the edit's coarse vertices")
+
+    # ------------------------------------------------------------ coarse levels
+    def _coarse(self) -> None:
+        """The coarse vertices' codes, edge midpoints before centres at each level: a
+        direct vertex's raw δ by tiles; another's raw δ is unchanged, and its code is
+        known without it unless the edit lowered the child that held its saturated
+        value (then it is computed by tiles too)."""
+        self.direct_coarse = set()
+        for h, vs, direct in self.coarse_levels:
+            centre = ((vs[:, 0] // h) % 2 == 1) & ((vs[:, 1] // h) % 2 == 1)
+            order = np.concatenate([np.flatnonzero(~centre), np.flatnonzero(centre)])
+            for (i, j, _), d in zip(vs[order].tolist(), direct[order].tolist(), strict=True):
+                kids = [child_nb(i, j, h, k) for k in range(4)]
+                kids = [(ci, cj) for ci, cj in kids if 0 <= ci < self.N and 0 <= cj < self.N]
+                new_kids = max((self.d_code(ci, cj) for ci, cj in kids), default=0)
+                if d:
+                    self.direct_coarse.add((i, j))
+                    raw = self._coarse_raw(i, j, h)
+                    self._check_scale(raw)
+                    self.raw_new[(i, j)] = raw
+                    code = max(int(np.searchsorted(self.t8, float(raw))), new_kids)
+                else:
+                    old = _codes(self.t8, self._stored(i, j, "delta"))
+                    old_kids = max((_codes(self.t8, self._stored(ci, cj, "delta"))
+                                    for ci, cj in kids), default=0)
+                    if old > old_kids:  # its own raw δ held it: unchanged
+                        code = max(old, new_kids)
+                    elif new_kids >= old:
+                        code = new_kids
+                    else:
+                        raw = self._coarse_raw(i, j, h)
+                        self.raw_new[(i, j)] = raw
+                        code = max(int(np.searchsorted(self.t8, float(raw))), new_kids)
+                self.coarse_d[(i, j)] = code
+                self.coarse_r[(i, j)] = self._nest(i, j, kids, [self.r_code(ci, cj)
+                                                               for ci, cj in kids])
+                if self.coarse_r[(i, j)] == 255:
+                    raise _Whole("a radius outgrows its code scale")
+
+    def _nest(self, i: int, j: int, pos: list, codes: list) -> int:
+        pts = [(i, j)] + pos
+        ii = np.array([p[0] for p in pts])
+        jj = np.array([p[1] for p in pts])
+        X, Y = self.t.frame.xy(ii, jj)
+        z, v = self.c.samples(ii, jj)
+        z = np.where(v, z, self.stand_in)
+        px = np.zeros((1, 5))
+        py = np.zeros((1, 5))
+        pz = np.zeros((1, 5))
+        cc = np.zeros((1, 4), np.uint8)
+        ok = np.zeros((1, 4), np.bool_)
+        px[0, :len(pts)], py[0, :len(pts)], pz[0, :len(pts)] = X, Y, z
+        cc[0, :len(codes)] = codes
+        ok[0, :len(codes)] = True
+        out = np.zeros(1, np.uint8)
+        nest_codes_sparse(px, py, pz, cc, ok, self.rt, out)
+        return int(out[0])
+
+    def _status(self, a: int, b: int, s: int, new: bool = True) -> int:
+        """A coarse block's status (1 all valid, 2 all invalid, 3 mixed) from its tiles'
+        valid counts; 0 outside the grid."""
+        nb = (self.N - 1) // s
+        if not (0 <= a < nb and 0 <= b < nb):
+            return 0
+        k = s // self.S
+        n = self.rows0[new][0, a * k:a * k + k, b * k:b * k + k]
+        return (1 if (n > 0).any() else 0) | (2 if (n < (self.S + 1) ** 2).any() else 0)
+
+    def _coarse_raw(self, i: int, j: int, h: int, new: bool = True) -> np.float32:
+        """Raw δ of a coarse vertex (as bounds._raw_delta_nb computes it)."""
+        s = 2 * h
+        if (i // h) % 2 == 1 and (j // h) % 2 == 1:
+            a, b = (i - h) // s, (j - h) // s
+            f = self._status(a, b, s, new)
+            if f == 1:
+                return round_up32(self._block_max(a, b, s, (0,), new)[0])
+            return np.float32(np.inf) if f == 3 else np.float32(0.0)
+        if (i // h) % 2 == 1:  # hypotenuse along the rows
+            a, b = (i - h) // s, j // s
+            lo, hi = (a, b - 1, 2), (a, b, 1)
+        else:
+            a, b = i // s, (j - h) // s
+            lo, hi = (a - 1, b, 4), (a, b, 3)
+        flo = self._status(lo[0], lo[1], s, new)
+        fhi = self._status(hi[0], hi[1], s, new)
+        f = flo | fhi
+        if f == 2:
+            return np.float32(0.0)
+        if f == 1:
+            m = 0.0
+            for (ba, bb, which), fs in ((lo, flo), (hi, fhi)):
+                if fs:
+                    m = max(m, self._block_max(ba, bb, s, (which,), new)[which])
+            return round_up32(m)
+        if self._diamond_mixed(i, j, h, new):
+            return np.float32(np.inf)
+        raise _Whole("nodata beside a coarse vertex whose diamond may be all valid")
+
+    def _diamond_mixed(self, i: int, j: int, h: int, new: bool) -> bool:
+        """Whether tiles wholly inside the vertex's diamond hold valid and invalid
+        samples (the diamond is then mixed: δ = +inf)."""
+        S, T2 = self.S, (self.S + 1) ** 2
+        got = 0
+        for ty in range(max((i - h) // S, 0), min((i + h) // S, self.g.tiles_per_side(0) - 1) + 1):
+            for tx in range(max((j - h) // S, 0),
+                            min((j + h) // S, self.g.tiles_per_side(0) - 1) + 1):
+                corners = [(ty * S + a, tx * S + b) for a in (0, S) for b in (0, S)]
+                if all(abs(p - i) + abs(q - j) <= h for p, q in corners):
+                    n = self.rows0[new][0, ty, tx]
+                    got |= (1 if n > 0 else 0) | (2 if n < T2 else 0)
+                    if got == 3:
+                        return True
+        return False
+
+    def _block_max(self, a: int, b: int, s: int, want: tuple, new: bool = True) -> np.ndarray:
+        """The exact maxima (centre, left, right, top, bottom) of the all-valid block
+        (a, b) of side s > tile, those in ``want`` exact: its tiles swept in decreasing
+        order of their bound until no bound passes the best value found."""
+        c, S = self.c, self.S
+        i0, j0 = a * s, b * s
+        main = main_diagonal_nb(a, b)
+        corners = c.samples(np.array([i0, i0, i0 + s, i0 + s, i0 + s // 2]),
+                            np.array([j0, j0 + s, j0, j0 + s, j0 + s // 2]), new)[0]
+        z00, z01, z10, z11, zc = (float(v) for v in corners)
+        cell = Cell(i0, j0, s, main, z00, z01, z10, z11)
+        k = s // S
+        ty, tx = np.meshgrid(np.arange(a * k, a * k + k), np.arange(b * k, b * k + k),
+                             indexing="ij")
+        ty, tx = ty.ravel(), tx.ravel()
+        bkey = (a, b, s, new)
+        got = self._bound_cache.get(bkey)
+        if got is None:
+            zlo = self.rows0[new][1, ty, tx]
+            zhi = self.rows0[new][2, ty, tx]
+            bound = _bounds(cell, zc, ty * S - i0, tx * S - j0, S, zlo, zhi)
+            if k > 2:  # tighter: the union-jack surfaces of the block table
+                tight = self._uj_bounds(cell, zc, a, b, s, new)
+                bound = np.where(np.isneginf(bound), bound, np.minimum(bound, tight))
+            # each region's tiles by decreasing bound, and which were swept
+            got = self._bound_cache[bkey] = (bound, np.argsort(-bound, axis=0, kind="stable"),
+                                             np.zeros(len(ty), bool), np.zeros(5))
+        bound, order, swept, best = got
+        pos = [0] * 5
+        while True:
+            # the wanted region whose next unswept tile's bound most exceeds its best
+            pick, gain = -1, 0.0
+            for r in want:
+                while pos[r] < len(ty) and swept[order[pos[r], r]]:
+                    pos[r] += 1
+                if pos[r] < len(ty):
+                    g = bound[order[pos[r], r], r] - best[r]
+                    if g > gain:
+                        pick, gain = r, g
+            if pick < 0:
+                return best.copy()
+            q = int(order[pos[pick], pick])
+            key = (a, b, s, new, int(ty[q]), int(tx[q]))
+            m = self._sweeps.get(key)
+            if m is None:
+                z, _ = c.tile_z(int(ty[q]), int(tx[q]), new)
+                a0, c0 = int(ty[q]) * S - i0, int(tx[q]) * S - j0
+                m = self._sweeps[key] = np.array(block_sweep_rect(
+                    z, int(ty[q]) * S, int(tx[q]) * S, cell, zc, a0, a0 + S, c0, c0 + S))
+            np.maximum(best, m, out=best)
+            swept[q] = True
+            self.tiles_swept += 1
+
+    def _uj_bounds(self, cell: Cell, zc: float, a: int, b: int, s: int, new: bool
+                   ) -> np.ndarray:
+        """(tiles, 5) bounds of |z − P| over each tile of block (a, b) from the store's
+        GeoMipMapping table: at level n, z lies within the tile's δ_n (rounded up) of
+        S_n, the union-jack surface through the tile's level-n samples, and S_n − P is
+        linear on each of its triangles, so |z − P| ≤ max over those samples of
+        |z − P| + δ_n; the least over n = t, t − 1, t − 2. Tiles the edit changed get
+        +inf (the table is the old one) when ``new``."""
+        g, c, S = self.g, self.c, self.S
+        i0, j0, s_, main, z00, z01, z10, z11 = cell
+        h = s // 2
+        k = s // S
+        table = self.t.block_errors()
+        out = np.full((k * k, 5), np.inf)
+        for n in range(max(g.t - 2, 1), min(g.t, table.shape[2] - 1) + 1):
+            step = 1 << n
+            rows = np.arange(i0, i0 + s + 1, step)
+            cols = np.arange(j0, j0 + s + 1, step)
+            hh, vv = c.lattice(n, rows, cols, new)
+            if not vv.all():
+                return out
+            z = hh * c.factor
+            di = (rows - i0)[:, None].astype(np.float64)
+            dj = (cols - j0)[None, :].astype(np.float64)
+            fi = di / s
+            kl = (zc - 0.5 * (z00 + z10)) / h
+            kr = (zc - 0.5 * (z01 + z11)) / h
+            kt = (zc - 0.5 * (z00 + z01)) / h
+            kb = (zc - 0.5 * (z10 + z11)) / h
+            if main:
+                p1 = z00 + (z10 - z00) * fi + (z11 - z10) / s * dj
+                p2 = z00 + (z11 - z01) * fi + (z01 - z00) / s * dj
+                left, right = dj < di, dj > di
+            else:
+                p1 = z00 + (z10 - z00) * fi + (z01 - z00) / s * dj
+                p2 = z11 + (z01 - z11) * (1.0 - fi) + (z10 - z11) - (z10 - z11) / s * dj
+                left, right = dj < s - di, dj > s - di
+            a1, a2 = np.abs(z - p1), np.abs(z - p2)
+            errs = [np.where(left, a1, np.where(right, a2, np.maximum(a1, a2))),
+                    np.abs(z - (z00 + (z10 - z00) * fi + kl * dj)),
+                    np.abs(z - (z01 + (z11 - z01) * fi + kr * s - kr * dj)),
+                    np.abs(z - (z00 + kt * di + (z01 - z00) / s * dj)),
+                    np.abs(z - (z10 + kb * (s - di) + (z11 - z10) / s * dj))]
+            m = S // step
+            d_n = table[a * k:a * k + k, b * k:b * k + k, n].ravel()
+            for r, e in enumerate(errs):
+                per = closed_blocks(e, m, np.maximum).ravel()
+                bnd = per + d_n + _SLACK * (np.abs(z).max() + 1.0) * 4
+                out[:, r] = np.minimum(out[:, r], bnd)
+        if new:  # the edit's tiles: the table holds their old δ_n
+            ty = np.repeat(np.arange(a * k, a * k + k), k)
+            tx = np.tile(np.arange(b * k, b * k + k), k)
+            hit = (ty * S <= c.r1 - 1) & (ty * S + S >= c.r0) & (tx * S <= c.c1 - 1) & \
+                (tx * S + S >= c.c0)
+            out[hit] = np.inf
+        return out
+
+    # ------------------------------------------------------------ the largest δ
+    def _delta_max(self) -> None:
+        """The store's largest finite δ after the edit, exactly, and its code exponent,
+        which must stay.
+
+        D = max raw δ over the vertices of finite saturated δ. Only direct vertices'
+        raw δ changes; another enters or leaves D's set only if its saturated δ turns
+        finite or infinite (nodata filled), and then its raw δ is computed. The others'
+        maximum is the old D unless a direct or leaving vertex held it (only one whose
+        old code is D's can), in which case the new D is known only if the edit's
+        values reach the old one."""
+        job, t8 = self.job, self.t8
+        d_old = float(self.t.meta["delta_max_finite"])
+        top_code = int(np.searchsorted(t8, d_old))
+        fi, fj = self.fine[:, 0] - self.oi, self.fine[:, 1] - self.oj
+        new_fin = self.dc[fi, fj] < 255
+        old_fin = self.dc_old[fi, fj] < 255
+        fd = self.fine_direct
+        # the new maximum among direct vertices and those whose δ turned finite
+        enter = new_fin & (fd | ~old_fin)
+        a_new = float(self.fine_raw[enter].max()) if enter.any() else 0.0
+        held = False  # did a direct or leaving vertex hold the old maximum?
+        leave = old_fin & ~new_fin & ~fd
+        if (self.fine_raw[leave].astype(np.float64) == d_old).any():
+            held = True
+        cand = fd & old_fin & (self.dc_old[fi, fj] == top_code)
+        if cand.any() and not held:
+            raw_old = np.zeros(int(cand.sum()), np.float32)
+            fine_raw_delta(self.zo, self.vo, self.oi, self.oj, self.N, self.fine[cand], raw_old)
+            held = bool((raw_old.astype(np.float64) == d_old).any())
+        for h, vs, direct in self.coarse_levels:
+            for (i, j, _), d in zip(vs.tolist(), direct.tolist(), strict=True):
+                new_code = self.coarse_d[(i, j)]
+                old_code = _codes(t8, self._stored(i, j, "delta"))
+                if (new_code < 255) != (old_code < 255) and (i, j) not in self.raw_new:
+                    self.raw_new[(i, j)] = self._coarse_raw(i, j, h)
+                if new_code < 255 and (d or old_code == 255):
+                    a_new = max(a_new, float(self.raw_new[(i, j)]))
+                if old_code == top_code and not held and (d or new_code == 255):
+                    raw_old = self._coarse_raw(i, j, h, new=False) if d else self.raw_new[(i, j)]
+                    held = float(raw_old) == d_old
+        if held and a_new < d_old:
+            raise _Whole("the edit lowers the store's largest vertex error, which only a "
+                         "pass over every vertex can find again")
+        d_new = a_new if held else max(a_new, d_old)
+        if log8_exponent(np.array([d_new])) != job.ed:
+            raise _Whole("the edit changes δ's code scale (its largest value)")
+        job.meta["delta_max_finite"] = d_new
+
+    # ------------------------------------------------------------ blobs and rows
+    def _blobs(self) -> None:
+        """The δ and r blobs of the tiles holding a vertex whose code changed (as a new
+        vertex of its level), and their rows' largest stored δ and r."""
+        g, job = self.g, self.job
+        changed: dict = {}  # (i, j) → (δ code, r code)
+        sel = (self.dc != self.dc_old) | (self.rc != self.rc_old)
+        for a, b in zip(*np.nonzero(sel), strict=True):
+            changed[(int(a) + self.oi, int(b) + self.oj)] = None
+        for (i, j), code in self.coarse_d.items():
+            if code != _codes(self.t8, self._stored(i, j, "delta")) or \
+                    self.coarse_r[(i, j)] != _codes(self.rt, self._stored(i, j, "radius")):
+                changed[(i, j)] = None
+        tiles = set()
+        for i, j in changed:
+            h = (i | j) & -(i | j)
+            k = min(h.bit_length() - 1, g.top_level)
+            span, n = g.tile_span(k), g.tiles_per_side(k)
+            for y in {min(i // span, n - 1), max((i - 1) // span, 0)}:
+                for x in {min(j // span, n - 1), max((j - 1) // span, 0)}:
+                    if y * span <= i <= y * span + span and x * span <= j <= x * span + span:
+                        tiles.add((k, x, y))
+            job.dirty.append((i, j, i + 1, j + 1))
+        T = g.tile_samples
+        for key in sorted(tiles):
+            if key not in self.t.tile_info:
+                continue
+            L, x, y = key
+            span, step = g.tile_span(L), 1 << L
+            d = self.t.tile_delta(*key).astype(np.float64).copy()
+            r = self.t.tile_radius(*key).astype(np.float64).copy()
+            rows = y * span + np.arange(T) * step
+            cols = x * span + np.arange(T) * step
+            ii, jj = np.meshgrid(rows, cols, indexing="ij")
+            inw = (ii >= self.oi) & (ii <= self.i1) & (jj >= self.oj) & (jj <= self.j1)
+            d[inw] = self.t8[self.dc[ii[inw] - self.oi, jj[inw] - self.oj]]
+            r[inw] = self.rt[self.rc[ii[inw] - self.oi, jj[inw] - self.oj]]
+            for (i, j) in self.coarse_d:
+                if y * span <= i <= y * span + span and x * span <= j <= x * span + span \
+                        and (i - y * span) % step == 0 and (j - x * span) % step == 0:
+                    a, b = (i - y * span) // step, (j - x * span) // step
+                    d[a, b] = self.t8[self.coarse_d[(i, j)]]
+                    r[a, b] = self.rt[self.coarse_r[(i, j)]]
+            coding = BoundsCoding(d, None, job.ed,
+                                  r_codes=(np.searchsorted(self.rt, r).astype(np.uint8), job.er))
+            blobs, dm, rm = level_blobs(coding, np.zeros((T, T, 2), np.uint8), g.t, 0,
+                                        0 if L == g.top_level else 1, [(0, 0)],
+                                        ("delta", "radius"),
+                                        ring=L == 0 and job.derive_bounds)
+            for kind in ("delta", "radius"):
+                job.put(key, kind, blobs[kind][(0, 0, 0)])
+            job.set_row(key, delta_max=float(dm[0]), radius_max=float(rm[0]))
+
+    # ------------------------------------------------------------ tile errors
+    def _tile_errors(self) -> None:
+        """The blocks' δ_n, every tile's error and the skirt errors along the borders the
+        edit reaches (:func:`geoterrain.bounds.tilebounds.tile_and_block_errors`)."""
+        g, job, c, S = self.g, self.job, self.c, self.S
+        table = self.t.block_errors()
+        if table is None or table.shape[2] <= g.top_level:
+            raise _Whole("the block table does not cover every level")
+        new = np.array(table, np.float64)
+        self._fields: dict = {}
+        nb = g.tiles_per_side(0)
+        changed_blocks = {}
+        for L in range(1, g.top_level + 1):
+            sl = 1 << L
+            lo_r, hi_r = max((-(-c.r0 // sl) - 1) * sl, 0), ((c.r1 - 1) // sl + 1) * sl
+            lo_c, hi_c = max((-(-c.c0 // sl) - 1) * sl, 0), ((c.c1 - 1) // sl + 1) * sl
+            blocks = [(ty, tx) for ty in range(max((lo_r - 1) // S, 0), min(hi_r // S, nb - 1) + 1)
+                      for tx in range(max((lo_c - 1) // S, 0), min(hi_c // S, nb - 1) + 1)
+                      if ty * S <= hi_r and ty * S + S >= lo_r and tx * S <= hi_c
+                      and tx * S + S >= lo_c]
+            self._fields_batch(blocks, L)
+            for ty, tx in blocks:
+                e, mixed = self._field(ty, tx, L)[:2]
+                new[ty, tx, L] = np.inf if mixed else e
+            changed_blocks[L] = set(blocks)
+            self._region = getattr(self, "_region", {})
+            self._region[L] = (lo_r, lo_c, hi_r, hi_c)
+        job.put((g.top_level, 0, 0), "block_delta", pack_block_errors(new))
+        for L in range(1, g.top_level + 1):
+            span = g.tile_span(L)
+            k = 1 << L  # blocks per tile side
+            for x, y in job.tiles_near(L, 1 << L):
+                key = (L, x, y)
+                if job.row(key) is None:
+                    continue
+                own = self._own_error(y * k, x * k, k, L, new, changed_blocks[L])
+                kids = [job.row((L - 1, 2 * x + dx, 2 * y + dy)) for dy in (0, 1) for dx in (0, 1)]
+                err = max([own] + [r[3] for r in kids if r is not None])
+                cols = {"error": float(err)}
+                lo_r, lo_c, hi_r, hi_c = self._region[L]
+                if any(lo_r <= line <= hi_r for line in (y * span, y * span + span)) and \
+                        x * span <= hi_c and x * span + span >= lo_c or \
+                        any(lo_c <= line <= hi_c for line in (x * span, x * span + span)) and \
+                        y * span <= hi_r and y * span + span >= lo_r:
+                    cols["boundary_error"] = float(self._skirt(x, y, L, new))
+                job.set_row(key, **cols)
+
+    def _fields_batch(self, blocks: list, L: int) -> None:
+        """:meth:`_field` of every block in ``blocks``' bounding rectangle, from one
+        window."""
+        if not blocks:
+            return
+        S, N, sl = self.S, self.N, 1 << L
+        ys = [b[0] for b in blocks]
+        xs = [b[1] for b in blocks]
+        i0, j0 = max(min(ys) * S - sl, 0), max(min(xs) * S - sl, 0)
+        i1, j1 = min((max(ys) + 1) * S + sl, N - 1), min((max(xs) + 1) * S + sl, N - 1)
+        z, v = self.c.rect(i0, j0, i1 + 1, j1 + 1)
+        E = np.zeros(z.shape)
+        mixed = np.zeros(((i1 - i0) // sl, (j1 - j0) // sl), np.bool_)
+        level_field_rect(z, v, i0, j0, sl, E, mixed)
+        for ty in range(min(ys), max(ys) + 1):
+            for tx in range(min(xs), max(xs) + 1):
+                a, b = ty * S - i0, tx * S - j0
+                Eb = E[a:a + S + 1, b:b + S + 1]
+                mb = mixed[a // sl:a // sl + S // sl, b // sl:b // sl + S // sl]
+                self._fields[(ty, tx, L)] = (float(Eb.max()), bool(mb.any()), Eb, mb)
+
+    def _field(self, ty: int, tx: int, L: int) -> tuple:
+        """Block (ty, tx)'s level-L field as the edit leaves it: (max over its closed
+        footprint, whether one of its cells is mixed, E on its footprint, its cells'
+        mixed flags)."""
+        key = (ty, tx, L)
+        got = self._fields.get(key)
+        if got is not None:
+            return got
+        S, N, sl = self.S, self.N, 1 << L
+        i0, j0 = max(ty * S - sl, 0), max(tx * S - sl, 0)
+        i1, j1 = min(ty * S + S + sl, N - 1), min(tx * S + S + sl, N - 1)
+        z, v = self.c.rect(i0, j0, i1 + 1, j1 + 1)
+        E = np.zeros(z.shape)
+        mixed = np.zeros(((i1 - i0) // sl, (j1 - j0) // sl), np.bool_)
+        level_field_rect(z, v, i0, j0, sl, E, mixed)
+        a, b = ty * S - i0, tx * S - j0
+        Eb = E[a:a + S + 1, b:b + S + 1]
+        mb = mixed[a // sl:a // sl + S // sl, b // sl:b // sl + S // sl]
+        got = self._fields[key] = (float(Eb.max()), bool(mb.any()), Eb, mb)
+        return got
+
+    def _own_error(self, by: int, bx: int, k: int, L: int, table: np.ndarray,
+                   changed: set) -> float:
+        """max over the tile's k × k blocks of their level-L field (+inf if one has a
+        mixed cell): exact where the edit changed them, the others' stored values
+        (rounded up) bound theirs, so only those that may hold the maximum are
+        computed."""
+        vals = table[by:by + k, bx:bx + k, L]
+        if np.isinf(vals).any():
+            return np.inf
+        exact = np.full(vals.shape, np.nan)
+        for ty, tx in changed:
+            if by <= ty < by + k and bx <= tx < bx + k:
+                exact[ty - by, tx - bx] = self._field(ty, tx, L)[0]
+        best = float(np.nanmax(exact)) if np.isfinite(exact).any() else 0.0
+        order = np.argsort(-vals, axis=None)
+        for q in order.tolist():
+            a, b = divmod(q, k)
+            if vals[a, b] <= best:
+                break
+            if np.isnan(exact[a, b]):
+                best = max(best, self._field(by + a, bx + b, L)[0])
+        return best
+
+    def _skirt(self, x: int, y: int, L: int, table: np.ndarray) -> float:
+        """The tile's skirt error: the largest level-L field on its four border lines,
+        +inf if a cell along them inside the tile is mixed."""
+        g = self.g
+        k = 1 << L
+        by, bx, nb = y * k, x * k, g.tiles_per_side(0)
+        best = 0.0
+        # (block inside, which line of it, the block across) per border segment
+        segs = []
+        for q in range(k):
+            segs += [((by, bx + q), "top", (by - 1, bx + q)),
+                     ((by + k - 1, bx + q), "bottom", (by + k, bx + q)),
+                     ((by + q, bx), "left", (by + q, bx - 1)),
+                     ((by + q, bx + k - 1), "right", (by + q, bx + k))]
+        bounds = []
+        for inside, _, across in segs:
+            b = table[inside[0], inside[1], L]
+            if 0 <= across[0] < nb and 0 <= across[1] < nb:
+                b = min(b, table[across[0], across[1], L])
+            bounds.append(b)
+        for n in np.argsort(-np.array(bounds)).tolist():
+            inside, line, _ = segs[n]
+            mixed_possible = np.isinf(table[inside[0], inside[1], L])
+            if bounds[n] <= best and not mixed_possible:
+                continue
+            _, _, E, mb = self._field(inside[0], inside[1], L)
+            cells = {"top": mb[0], "bottom": mb[-1], "left": mb[:, 0], "right": mb[:, -1]}[line]
+            if cells.any():
+                return np.inf
+            vals = {"top": E[0], "bottom": E[-1], "left": E[:, 0], "right": E[:, -1]}[line]
+            best = max(best, float(vals.max()))
+        return best
+
+
+def _codes(table: np.ndarray, values) -> np.ndarray | int:
+    """Log8 codes of stored values (each a table entry)."""
+    out = np.searchsorted(table, np.asarray(values, np.float64)).astype(np.uint8)
+    return int(out) if out.ndim == 0 else out
+
+
+def _bounds(cell: Cell, zc: float, a0: np.ndarray, c0: np.ndarray, S: int, zlo: np.ndarray,
+            zhi: np.ndarray) -> np.ndarray:
+    """(tiles, 5) upper bounds of |z − P| over each tile (rows a0 … a0 + S, columns
+    c0 … c0 + S of the block) for the block's centre surface and its four quarter
+    planes (−inf where a tile misses a quarter): z within [zlo, zhi], P linear, so its
+    extremes lie at the tile's corners."""
+    i0, j0, s, main, z00, z01, z10, z11 = cell
+    h = s // 2
+    fi = np.stack([a0, a0, a0 + S, a0 + S], 1) / s
+    dj = np.stack([c0, c0 + S, c0, c0 + S], 1).astype(np.float64)
+    di = fi * s
+    kl = (zc - 0.5 * (z00 + z10)) / h
+    kr = (zc - 0.5 * (z01 + z11)) / h
+    kt = (zc - 0.5 * (z00 + z01)) / h
+    kb = (zc - 0.5 * (z10 + z11)) / h
+    if main:
+        p1 = z00 + (z10 - z00) * fi + (z11 - z10) / s * dj
+        p2 = z00 + (z11 - z01) * fi + (z01 - z00) / s * dj
+    else:
+        p1 = z00 + (z10 - z00) * fi + (z01 - z00) / s * dj
+        p2 = z11 + (z01 - z11) * (1.0 - fi) + (z10 - z11) - (z10 - z11) / s * dj
+    planes = [np.concatenate([p1, p2], 1),
+              z00 + (z10 - z00) * fi + kl * dj,
+              z01 + (z11 - z01) * fi + kr * s - kr * dj,
+              z00 + kt * di + (z01 - z00) / s * dj,
+              z10 + kb * (s - di) + (z11 - z10) / s * dj]
+    out = np.empty((len(a0), 5))
+    for k, P in enumerate(planes):
+        lo, hi = P.min(axis=1), P.max(axis=1)
+        b = np.maximum(zhi - lo, hi - zlo)
+        out[:, k] = b + _SLACK * (np.abs(zhi) + np.abs(zlo) + np.abs(lo) + np.abs(hi)) + 1e-300
+    # which quarter each tile meets (closed: diagonal samples in both)
+    r0, r1 = a0, a0 + S
+    q0, q1 = c0, c0 + S
+    fmax = lambda lo_, hi_: np.minimum(np.clip(h, lo_, hi_), s - np.clip(h, lo_, hi_))  # noqa: E731
+    gmin = lambda lo_, hi_: np.maximum(np.clip(h, lo_, hi_), s - np.clip(h, lo_, hi_))  # noqa: E731
+    out[:, 1] = np.where(q0 <= fmax(r0, r1), out[:, 1], -np.inf)
+    out[:, 2] = np.where(q1 >= gmin(r0, r1), out[:, 2], -np.inf)
+    out[:, 3] = np.where(r0 <= fmax(q0, q1), out[:, 3], -np.inf)
+    out[:, 4] = np.where(r1 >= gmin(q0, q1), out[:, 4], -np.inf)
+    return out
+
+
+@njit(cache=True)
+def _saturate_rect(codes, raw_codes, verts, oi, oj, N):
+    # saturation on the codes (bounds._saturate_nb's push, as a pull from the children):
+    # each listed vertex, fine to coarse, takes the largest of its raw code and its
+    # children's codes
+    for k in range(verts.shape[0]):
+        i, j, h = verts[k, 0], verts[k, 1], verts[k, 2]
+        c = raw_codes[k]
+        centre = (i // h) % 2 == 1 and (j // h) % 2 == 1
+        if centre or h > 1:
+            for q in range(4):
+                ci, cj = child_nb(i, j, h, q)
+                if 0 <= ci < N and 0 <= cj < N:
+                    c = max(c, codes[ci - oi, cj - oj])
+        codes[i - oi, j - oj] = c

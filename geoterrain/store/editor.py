@@ -1,0 +1,223 @@
+"""A store changed in place, all or nothing: one SQLite transaction (issue 52).
+
+An edit (:mod:`geoterrain.preprocessing.edit`) rewrites a few of a store's rows: the
+blobs it changes, the tile table and the metadata. Writing a whole new store beside the
+old one and publishing it (:class:`geoterrain.store.database.StoreWriter`) would rewrite
+every byte; here only the rows that change are written, in one transaction of SQLite's
+rollback journal (``STORE-journal``, the old pages, synced before a page of the store
+changes). A process killed at any point leaves either the old store with a hot journal,
+which SQLite rolls back when the store is next opened (:class:`StoreReader` does so),
+or the new one.
+
+Blob row ids stay what the tile table says: a rewritten blob keeps its row, a new blob
+takes a freed row or the next id, and a removed blob's row is refilled from the end of
+the table, so the ids still fill one range (the reader checks that).
+"""
+
+from __future__ import annotations
+
+import os
+import sqlite3
+from pathlib import Path
+
+import numpy as np
+
+from geoterrain.exceptions import StoreError, WriteError
+from geoterrain.store.catalog import (
+    META_ID,
+    TILE_COLUMNS,
+    TILES_ID,
+    TileTable,
+    catalog_crc,
+    pack_metadata,
+    pack_tiles,
+    unpack_metadata,
+)
+from geoterrain.store.database import SCHEMA_VERSION, StoreReader, blob_crc
+from geoterrain.store.keys import blob_key, tile_key, unpack_blob_key, unpack_tile_key
+
+__all__ = ["StoreEditor", "BUSY_SECONDS"]
+
+BUSY_SECONDS = 30.0  # how long an edit waits for readers to finish a read, or another edit
+
+BlobKey = tuple[tuple[int, int, int], str]  # ((level, x, y), kind)
+
+
+class StoreEditor:
+    """One all-or-nothing change of a store's rows.
+
+    ``expect`` is the metadata the change was planned against: if another edit committed
+    since, nothing is written and :class:`StoreError` says to retry.
+
+    Examples
+    --------
+    >>> import tempfile, os, numpy as np
+    >>> from geoterrain.store.database import StoreWriter
+    >>> p = os.path.join(tempfile.mkdtemp(), "s.geoterrain")
+    >>> with StoreWriter(p) as w:
+    ...     w.put_blobs("heights", {(0, 0, 0): b"old"})
+    ...     for kind in ("delta", "radius", "normals"):
+    ...         w.put_blob((0, 0, 0), kind, b"-")
+    ...     w.put_tiles({(0, 0, 0): (1,) + (0.0,) * 10})
+    ...     w.put_metadata({"note": "a"})
+    ...     _ = w.commit()
+    >>> with StoreEditor(p) as e:
+    ...     e.apply({((0, 0, 0), "heights"): b"new"}, set(), None, {"note": "b"})["rows"]
+    3
+    >>> r = StoreReader(p); r.get_blob((0, 0, 0), "heights"), r.metadata["note"]
+    (b'new', 'b')
+    """
+
+    def __init__(self, path: str | Path, expect: dict | None = None):
+        self.path = Path(path)
+        reader = StoreReader(self.path)  # rolls back an interrupted edit, checks the file
+        reader.close()
+        try:
+            self.con = sqlite3.connect(self.path, isolation_level=None, timeout=BUSY_SECONDS)
+        except sqlite3.Error as exc:
+            raise WriteError(f"cannot edit {self.path}: {exc}") from None
+        self._done = False
+        try:
+            self.con.execute("PRAGMA trusted_schema=OFF")
+            # the store was written without a journal; an edit keeps the old pages in one
+            # (the default DELETE mode: the file's format does not change), synced first
+            self.con.execute("PRAGMA journal_mode=DELETE")
+            self.con.execute("PRAGMA synchronous=FULL")
+            self.con.execute("BEGIN IMMEDIATE")  # one editor at a time
+        except sqlite3.OperationalError as exc:
+            self.con.close()
+            if "locked" in str(exc) or "busy" in str(exc):
+                raise StoreError(f"{self.path} is being edited by another process; retry "
+                                 "when it is done") from None
+            if "readonly" in str(exc) or "read-only" in str(exc):
+                raise WriteError(f"cannot edit {self.path}: read-only; copy it somewhere "
+                                 "writable") from None
+            raise WriteError(f"cannot edit {self.path}: {exc}") from None
+        # the catalog as it is now, inside the transaction: no other edit can commit
+        rows = dict((i, d) for i, d in self.con.execute("SELECT id, data FROM catalog"))
+        self.metadata = unpack_metadata(rows[META_ID])
+        if expect is not None and self.metadata != expect:
+            self.abort()
+            raise StoreError(f"{self.path} was changed by another edit while this one was "
+                             "planned; run it again")
+        from geoterrain.store.catalog import unpack_tiles
+
+        self.table: TileTable = unpack_tiles(rows[TILES_ID])
+
+    def apply(self, puts: dict[BlobKey, bytes], deletes: set[BlobKey],
+              tiles: dict[tuple[int, int, int], tuple] | None, metadata: dict,
+              all_tiles: bool = True) -> dict:
+        """Write the blobs ``puts`` (new or rewritten), remove ``deletes``, replace the
+        tile rows (``tiles``: every tile's numbers in :data:`TILE_COLUMNS` order, or with
+        ``all_tiles`` False those that change or are new; None keeps them) and the
+        metadata, and commit. Returns what was written: ``{"rows": rows written,
+        "blob_bytes": their bytes, "catalog_bytes": the catalog's}``."""
+        if tiles is not None and not all_tiles:
+            tiles = self._merged(tiles)
+        try:
+            return self._apply(puts, deletes, tiles, metadata)
+        except sqlite3.Error as exc:
+            self.abort()
+            msg = str(exc)
+            if "full" in msg:
+                raise WriteError(f"disk full while editing {self.path}; nothing was "
+                                 "changed; free space and retry") from None
+            raise WriteError(f"cannot edit {self.path}: {msg}; nothing was changed") from None
+
+    def _merged(self, rows: dict) -> dict:
+        """The tile table's rows with ``rows`` replacing or adding theirs."""
+        t = self.table
+        out = {unpack_tile_key(int(k)): tuple(r) for k, r in
+               zip(t.tiles.tolist(), t.numbers.tolist(), strict=True)}
+        out.update(rows)
+        return out
+
+    def _apply(self, puts, deletes, tiles, metadata) -> dict:
+        t = self.table
+        ids = dict(zip(t.blobs.tolist(), t.ids.tolist(), strict=True))
+        new_keys = {blob_key(k, kind): (k, kind) for k, kind in puts}
+        gone = sorted(ids.pop(blob_key(k, kind)) for k, kind in deletes
+                      if blob_key(k, kind) in ids)
+        written = 0
+        nbytes = 0
+        free = list(gone)  # rows freed by removed blobs, filled first
+        for bk, (k, kind) in sorted(new_keys.items()):
+            data = puts[(k, kind)]
+            crc = blob_crc(k, kind, data)
+            if bk in ids:
+                self.con.execute("UPDATE blobs SET data = ?, crc32 = ? WHERE id = ?",
+                                 (data, crc, ids[bk]))
+            else:
+                if free:
+                    rid = free.pop(0)
+                    self.con.execute("DELETE FROM blobs WHERE id = ?", (rid,))
+                else:
+                    rid = max(ids.values(), default=0) + 1
+                self.con.execute("INSERT INTO blobs VALUES (?, ?, ?)", (rid, data, crc))
+                ids[bk] = rid
+            written += 1
+            nbytes += len(data)
+        # rows still free: delete them, and move the last rows into the holes so the ids
+        # fill one range
+        for rid in free:
+            self.con.execute("DELETE FROM blobs WHERE id = ?", (rid,))
+        by_id = {v: k for k, v in ids.items()}
+        for rid in sorted(free):
+            last = max(by_id)
+            if last < rid:
+                continue
+            self.con.execute("UPDATE blobs SET id = ? WHERE id = ?", (rid, last))
+            bk = by_id.pop(last)
+            by_id[rid] = bk
+            ids[bk] = rid
+            written += 1
+        keys = np.array(sorted(ids), np.int64)
+        if tiles is None:
+            tk, nums = t.tiles, t.numbers
+        else:
+            order = sorted(tiles, key=tile_key)
+            tk = np.array([tile_key(k) for k in order], np.int64)
+            nums = np.array([[np.nan if v is None else float(v) for v in tiles[k]]
+                             for k in order], np.float64).reshape(len(order), len(TILE_COLUMNS))
+        table = TileTable(tk, nums, keys, np.array([ids[k] for k in keys.tolist()], np.int64))
+        meta = dict(metadata)
+        levels = np.bincount(tk & 31, minlength=32) if len(tk) else np.zeros(32, np.int64)
+        meta["tile_counts"] = {str(L): int(c) for L, c in enumerate(levels) if c}
+        meta["schema_version"] = SCHEMA_VERSION
+        meta["complete"] = True
+        rows = {TILES_ID: pack_tiles(table), META_ID: pack_metadata(meta)}
+        for i, d in rows.items():
+            self.con.execute("UPDATE catalog SET data = ?, crc32 = ? WHERE id = ?",
+                             (d, catalog_crc(i, d), i))
+        self.con.execute("COMMIT")  # the journal is synced, then the store, then deleted
+        self._done = True
+        self.con.close()
+        return {"rows": written + len(rows), "blob_bytes": nbytes,
+                "catalog_bytes": sum(map(len, rows.values()))}
+
+    def abort(self) -> None:
+        """Roll back: the store is left as it was."""
+        if self._done:
+            return
+        self._done = True
+        try:
+            self.con.execute("ROLLBACK")
+        except sqlite3.Error:
+            pass
+        self.con.close()
+
+    def __enter__(self) -> StoreEditor:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.abort()
+
+
+def blob_kinds_of(table: TileTable) -> set[BlobKey]:
+    """Every blob's ((level, x, y), kind) of a tile table."""
+    return {unpack_blob_key(int(k)) for k in table.blobs}
+
+
+def journal_of(path: str | Path) -> Path:
+    """The rollback journal SQLite keeps beside a store during an edit."""
+    return Path(os.fspath(path) + "-journal")

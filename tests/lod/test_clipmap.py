@@ -1,0 +1,172 @@
+"""Geometry clipmaps (``clipmap``, ``clipmap_bounded``, ``clipmap_gpu``): toroidal updates
+that read only the newly exposed samples, a constant amount of geometry along a flight,
+conforming meshes that cover every valid sample (no-data and padding included), and the
+bounded variant's ρ ≤ τ with the transitions on.
+
+Small regions (n = 15 or 31) give several levels on small terrains; the registered
+strategies (n = 255) are also run by tests/lod/test_lod.py and tests/test_stress.py.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import geoterrain
+from geoterrain.bench.harness import extent, glide
+from geoterrain.core.view import View
+from geoterrain.ingest.synth import generate, write_geotiff
+from geoterrain.lod import Selection, clipmaps
+from geoterrain.testing.measure import mesh_height_range_on_grid, screen_space_error
+
+
+@pytest.fixture(scope="module")
+def holey(tmp_path_factory):
+    """A 300 × 260 fBm with a no-data lake, padded to 513²."""
+    d = tmp_path_factory.mktemp("clip")
+    z = generate("fbm", (300, 260), seed=8).astype(np.float32) * 2
+    yy, xx = np.mgrid[:300, :260]
+    z[(yy - 200) ** 2 + (xx - 70) ** 2 < 400] = np.nan
+    dem = write_geotiff(d / "h.tif", z, nodata=np.nan)
+    return geoterrain.open(geoterrain.preprocess(dem, d / "h.geoterrain", tile_size=16))
+
+
+@pytest.fixture(scope="module")
+def square(tmp_path_factory):
+    """A 513² fBm: no padding, no no-data."""
+    d = tmp_path_factory.mktemp("clipsq")
+    dem = write_geotiff(d / "s.tif", generate("fbm", 513, seed=2))
+    return geoterrain.open(geoterrain.preprocess(dem, d / "s.geoterrain", tile_size=32))
+
+
+def _views(t, k, seed, size=(480, 270)):
+    X, Y, Z = t.scene_xyz()
+    lo, hi = extent(X, Y, Z)
+    c, r = 0.5 * (lo + hi), float(np.linalg.norm(hi[:2] - lo[:2]))
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(k):
+        az, el = rng.uniform(0, 2 * np.pi), rng.uniform(0.03, 1.2)
+        d = r * rng.uniform(0.05, 0.9)
+        base = c + rng.normal(0, 0.25 * r, 3) * [1, 1, 0]
+        eye = base + d * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az),
+                                   np.sin(el)])
+        out.append(View(tuple(eye), tuple(base), size=size, fov_y_deg=45))
+    return out
+
+
+def _check_conforming(t, sel):
+    """Every edge used at most twice, one height per grid point (no crack, no T-junction)."""
+    f = sel.surface_faces()
+    if not len(f):
+        return
+    N = t.grid.size
+    ij = np.asarray(sel.ij, np.int64)
+    key = (ij[:, 0] * N + ij[:, 1])[f]
+    e = np.sort(np.concatenate([key[:, [0, 1]], key[:, [1, 2]], key[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(e[:, 0] * N * N + e[:, 1], return_counts=True)
+    assert counts.max() <= 2
+    z = np.asarray(sel.mesh.points)[:, 2]
+    lo, hi = mesh_height_range_on_grid(sel.ij, f, z, (t.grid.rows, t.grid.cols))
+    assert np.nan_to_num(hi - lo).max() <= 1e-9 * max(1.0, float(np.nanmax(np.abs(z))))
+
+
+def _uncovered_far_from_nodata(t, sel, view) -> int:
+    """Valid samples in the frustum, not next to no-data, that no triangle covers."""
+    X, Y, Z = t.scene_xyz()
+    valid = np.isfinite(Z)
+    f = sel.surface_faces()
+    z = np.asarray(sel.mesh.points)[:, 2] if len(f) else np.zeros(0)
+    lo, _ = mesh_height_range_on_grid(sel.ij, f, z, Z.shape)
+    P = np.stack([X, Y, np.where(valid, Z, 0.0)], -1)
+    inside = (P @ view.planes[:, :3].T + view.planes[:, 3] >= 0).all(-1)
+    pad = np.pad(~valid, 1, constant_values=True)
+    near = np.zeros_like(valid)
+    H, W = Z.shape
+    for a in range(3):
+        for b in range(3):
+            near |= pad[a:a + H, b:b + W]
+    return int((valid & inside & ~near & ~np.isfinite(lo)).sum())
+
+
+@pytest.mark.fast
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 10**6), kind=st.sampled_from(["clipmap", "bounded", "gpu"]),
+       n=st.sampled_from([15, 31]), morph=st.booleans(), tau=st.sampled_from([1.0, 4.0]))
+def test_conforming_covering_and_bounded(holey, seed, kind, n, morph, tau):
+    X, Y, Z = holey.scene_xyz()
+    valid = np.isfinite(Z)
+    for view in _views(holey, 2, seed):
+        mesh, stats = clipmaps.select(holey, view, tau, kind=kind, occlusion=False,
+                                      morph=morph, n=n)
+        sel = Selection(mesh, stats)
+        _check_conforming(holey, sel)
+        # the culled rectangles lie outside the frustum: nothing inside goes uncovered
+        assert _uncovered_far_from_nodata(holey, sel, view) == 0
+        f = sel.surface_faces()
+        if kind == "bounded" and len(f):
+            e = screen_space_error(sel.ij, f, np.asarray(mesh.points)[:, 2], X, Y,
+                                   np.where(valid, Z, 0.0), valid, view.eye, view.planes,
+                                   view.lam)
+            assert e.max <= tau * (1 + 1e-9), (e.max, stats)
+
+
+@pytest.mark.fast
+def test_toroidal_updates_read_only_the_exposed_samples(square):
+    """Moving the viewer reads exactly the samples the new regions add (an L-shaped ring
+    per level), and every buffer then holds the store's heights."""
+    X, Y, Z = square.scene_xyz()
+    views = [v for _, v in glide(*extent(X, Y, Z), n_frames=30, step=0.2, size=(480, 270))]
+    square.forget(f"{clipmaps.__name__}.state.clipmap.31")
+    regions = None
+    for k, v in enumerate(views):
+        _, stats = clipmaps.select(square, v, 4.0, n=31)
+        state = square.derived(f"{clipmaps.__name__}.state.clipmap.31", dict)
+        now = {lv: (st_.r0, st_.r1, st_.c0, st_.c1) for lv, st_ in state["levels"].items()}
+        if regions is not None:
+            want = 0
+            for lv, (r0, r1, c0, c1) in now.items():
+                cur = np.zeros((square.grid.size,) * 2, bool)
+                s = 1 << lv
+                cur[r0 * s:(r1 + 1) * s:s, c0 * s:(c1 + 1) * s:s] = True
+                if lv in regions:
+                    q0, q1, p0, p1 = regions[lv]
+                    cur[q0 * s:(q1 + 1) * s:s, p0 * s:(p1 + 1) * s:s] = False
+                want += int(cur.sum())
+            assert stats["samples_updated"] == want, (k, stats, now, regions)
+        regions = now
+        for lv, st_ in state["levels"].items():  # the buffers hold the level's samples
+            s = 1 << lv
+            r = np.arange(st_.r0, st_.r1 + 1)
+            c = np.arange(st_.c0, st_.c1 + 1)
+            got = clipmaps.buffer_heights(st_, r[:, None], c[None, :])
+            np.testing.assert_array_equal(got, Z[np.ix_(r * s, c * s)])
+
+
+@pytest.mark.fast
+def test_the_geometry_is_constant_along_a_flight(square):
+    """§2.9's steady rendering rate: the same number of triangles every frame (before
+    culling) while the viewer's height keeps the same levels."""
+    X, Y, Z = square.scene_xyz()
+    views = [v for _, v in glide(*extent(X, Y, Z), n_frames=25, step=0.05, size=(480, 270))]
+    counts = {}
+    for v in views:
+        _, stats = clipmaps.select(square, v, 4.0, n=63)
+        counts.setdefault(stats["levels"], set()).add(stats["clipmap_triangles"])
+    assert all(len(c) == 1 for c in counts.values()), counts
+
+
+@pytest.mark.fast
+def test_regions_nest_and_keep_even_perimeters(holey):
+    for view in _views(holey, 5, 3):
+        clipmaps.select(holey, view, 2.0, n=31)
+        levels = holey.derived(f"{clipmaps.__name__}.state.clipmap.31", dict)["levels"]
+        for lv, st_ in levels.items():
+            assert st_.r0 % 2 == 0 and st_.c0 % 2 == 0 and st_.r1 % 2 == 0
+            assert st_.c1 % 2 == 0
+            if lv + 1 in levels:
+                P = levels[lv + 1]
+                assert 2 * P.r0 <= st_.r0 and st_.r1 <= 2 * P.r1
+                assert 2 * P.c0 <= st_.c0 and st_.c1 <= 2 * P.c1
