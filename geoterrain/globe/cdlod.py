@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from geoterrain.globe.nodes import (
     INSIDE,
@@ -109,11 +109,11 @@ class MorphOut(NamedTuple):
     k: np.ndarray
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _morph_nb(items, slabs, out, normals):
     slot, eye, m, rend, base = items
     V = slabs.rel.shape[1]
-    for t in prange(slot.shape[0]):
+    for t in range(slot.shape[0]):
         s = slot[t]
         ox = slabs.centre[s, 0] - eye[0]
         oy = slabs.centre[s, 1] - eye[1]

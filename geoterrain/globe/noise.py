@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 __all__ = ["Planet", "NoiseConstants", "NOISE", "error_bound", "height_range_bound"]
 
@@ -117,12 +117,12 @@ def _smooth(lo, hi, t):
     return s * s * (3.0 - 2.0 * s)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _fbm_nb(d, oc):
     table, n_low, lo, hi, m0, perm = oc
     n = d.shape[0]
     out = np.empty(n)
-    for i in prange(n):
+    for i in range(n):
         x, y, z = d[i, 0], d[i, 1], d[i, 2]
         low = 0.0
         for k in range(n_low):
