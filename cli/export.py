@@ -77,6 +77,9 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
         raise UsageError("--crs-coords applies to --look-from/--look-at or to .ply output")
     max_error = mesh_request(max_error, look_from, look_at)
     with geoterrain.open(store) as t:
+        from geoterrain.core.frame import check_flat
+
+        check_flat(t.frame, str(store))
         sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error,
                           strategy, occlusion)
         export_mesh(t, sel, out, overwrite=overwrite, shading=shading, cmap=cmap,
