@@ -17,6 +17,7 @@ Modules, in the order the data flows:
   request queue;
 - :mod:`~geoterrain.globe.cdlod`: selection, morph, the frame's mesh;
 - :mod:`~geoterrain.globe.globe`: :class:`Globe`, collision meshes, cameras;
+- :mod:`~geoterrain.globe.registry`: the globe's strategies, by name.
 """
 
 from __future__ import annotations
