@@ -118,6 +118,9 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     quiet = ctx.obj["quiet"]
     closed = ext == ".stl" or base_height is not None or print_size is not None
     with geoterrain.open(store) as base:
+        from geoterrain.core.frame import check_flat
+
+        check_flat(base.frame, str(store))
         t = exaggerated(base, vertical_exaggeration)
         sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error,
                           strategy, occlusion)
