@@ -75,6 +75,7 @@ class Terrain:
 
     def __init__(self, path: str | Path, cache_bytes: int = 1536 << 20):
         self.path = Path(path)
+        self._bytes_before = 0  # what the readers that refresh() replaced read
         self._load()
         self._cache: OrderedDict[tuple, tuple[object, int]] = OrderedDict()
         self._cache_budget = cache_bytes
@@ -83,7 +84,6 @@ class Terrain:
         self.decoded_tiles = 0  # tiles whose heights were decoded (a view counts these)
         self.decoded_normals = 0  # tiles whose normal maps were decoded
         self.decoded_bounds = 0  # δ or r arrays decoded
-        self.bytes_read = 0  # blob bytes read from the store
         self.generation = 0  # how many edits this terrain has taken in (refresh)
 
     def _load(self) -> None:
@@ -108,6 +108,7 @@ class Terrain:
         except BaseException:
             self.reader.close()
             raise
+        self.open_bytes = self.reader.bytes_read  # what opening read: O(1) pages and the catalog
         edits = self.meta.get("edits")
         self._edits_seen = int(edits.get("count", 0)) if isinstance(edits, dict) else 0
 
@@ -235,8 +236,22 @@ class Terrain:
         if b is None:
             raise StoreCorruptError(f"{self.path}: the {kind} of tile {key} are missing; the "
                                     "file is damaged, re-run `geoterrain preprocess`")
-        self.bytes_read += len(b)
         return b
+
+    @property
+    def bytes_read(self) -> int:
+        """Every byte read from the store file since it was opened, opening included, as
+        the operating system counts them (the store's pages, header and change counter:
+        :mod:`geoterrain.core.osreads`; the blobs' bytes only where it does not count them).
+
+        Examples
+        --------
+        >>> u = open(t.path)
+        >>> u.bytes_read == u.open_bytes > 0
+        True
+        >>> u.close()
+        """
+        return self._bytes_before + self.reader.bytes_read
 
     # ------------------------------------------------------------------ tiles
     def tile_keys(self, level: int | None = None) -> list[TileKey]:
@@ -688,6 +703,7 @@ class Terrain:
         if self.reader.version() == self._version:
             return False
         seen = self._edits_seen
+        self._bytes_before += self.reader.bytes_read
         self.reader.close()
         self._load()
         edits = self.meta.get("edits") if isinstance(self.meta.get("edits"), dict) else {}
