@@ -14,23 +14,9 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 import zstandard
 
-from geoterrain.bounds.leafbounds import normal_axes, normal_xy, tile_leaf_bounds
-from geoterrain.bounds.normals import decode_octahedral, derived_codes
-from geoterrain.bounds.vertexdata import (
-    DIFF,
-    NEW_ONLY,
-    NORMALS_PLANAR_DXDY,
-    VERSION_2,
-    decode_bounds,
-    normals_from_bytes,
-    ring_from_bytes,
-    ring_index,
-    unpack_block_errors,
-)
-from geoterrain.codec.pyramid import decode_tile_valid
-from geoterrain.codec.quantize import tile_heights
+# The decoders (geoterrain.bounds, geoterrain.codec, core.bintree) are imported where a
+# tile is read: they load numba, which opening a store and `geoterrain info` never need.
 from geoterrain.core import zstdsafe
-from geoterrain.core.bintree import vertex_level
 from geoterrain.core.grid import level_offsets
 from geoterrain.exceptions import StoreChangedError, StoreCorruptError, StoreError, UsageError
 from geoterrain.store.check import check_store
@@ -292,6 +278,9 @@ class Terrain:
         L, x, y = key
         parent = self.tile(L + 1, x // 2, y // 2).codes if L < self.grid.top_level else None
         blob = self._blob(key, "heights")
+        from geoterrain.codec.pyramid import decode_tile_valid
+        from geoterrain.codec.quantize import tile_heights
+
         try:
             codes, valid = decode_tile_valid(blob, parent, (x % 2, y % 2), t=self.grid.t,
                                              bins=self.quantizer.bins)
@@ -313,6 +302,9 @@ class Terrain:
         return Tile(key, codes, h, valid)
 
     def _bounds(self, key: TileKey, kind: str) -> np.ndarray:
+        from geoterrain.bounds.leafbounds import tile_leaf_bounds
+        from geoterrain.bounds.vertexdata import DIFF, NEW_ONLY, VERSION_2, decode_bounds
+
         T = self.grid.tile_samples
         self.decoded_bounds += 1
         L, x, y = key
@@ -362,6 +354,8 @@ class Terrain:
             nb = self.grid.tiles_per_side(0)
             key = (self.grid.top_level, 0, 0)
             try:
+                from geoterrain.bounds.vertexdata import unpack_block_errors
+
                 table = unpack_block_errors(self._blob(key, "block_delta"), nb, levels)
                 table.setflags(write=False)  # shared through the cache
                 return table
@@ -398,6 +392,8 @@ class Terrain:
 
     def tile_normals(self, level: int, x: int, y: int) -> np.ndarray:
         """Unit normals (T, T, 3) float32 of the level-L normal map at the tile's samples."""
+        from geoterrain.bounds.normals import decode_octahedral
+
         return self.memo(("n", level, x, y), lambda: decode_octahedral(
             self.tile_normal_codes(level, x, y), self.meta["normal_bits"]))
 
@@ -420,6 +416,8 @@ class Terrain:
         >>> t.normal_codes(keys).shape == (2, t.grid.tile_samples, t.grid.tile_samples, 2)
         True
         """
+        from geoterrain.bounds.vertexdata import normals_from_bytes
+
         T, bits = self.grid.tile_samples, self.meta["normal_bits"]
         out = np.empty((len(keys), T, T, 2), np.uint8 if bits == 8 else np.uint16)
         derived = self._derived_normal_levels
@@ -447,11 +445,15 @@ class Terrain:
             raise StoreCorruptError(f"{self.path}: tile {key} normals cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
         self.decoded_normals += 1
+        from geoterrain.bounds.vertexdata import NORMALS_PLANAR_DXDY
+
         return raw, bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY
 
     def _normal_ring(self, key: TileKey, n: int) -> np.ndarray:
         """The stored border ring (n = 4T − 4, 2) of a tile on a derived level, in
         :func:`~geoterrain.bounds.vertexdata.ring_index`'s order."""
+        from geoterrain.bounds.vertexdata import ring_from_bytes
+
         try:  # bounded: exactly the ring's 4T − 4 pairs
             return ring_from_bytes(zstdsafe.decompress(self._blob(key, "normals"), 2 * n,
                                                        exact=True))
@@ -465,6 +467,10 @@ class Terrain:
         normal-map lighting, :func:`~geoterrain.bounds.normals.level_normal_maps`: they
         read no sample outside the tile there), encoded as the preprocess encodes, with
         its stored border ring."""
+        from geoterrain.bounds.leafbounds import normal_axes, normal_xy
+        from geoterrain.bounds.normals import derived_codes
+        from geoterrain.bounds.vertexdata import ring_index
+
         T, n = self.grid.tile_samples, len(keys)
         rr, cc = ring_index(T)
         h = np.empty((n, T, T))
@@ -492,6 +498,8 @@ class Terrain:
     # ------------------------------------------------------- per-vertex data
     def vertex_level(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         """The coarsest pyramid level holding samples (i, j) (:func:`bintree.vertex_level`)."""
+        from geoterrain.core.bintree import vertex_level
+
         return vertex_level(i, j, self.grid.top_level)
 
     def gather(self, i: np.ndarray, j: np.ndarray, kinds=("delta", "radius", "height")

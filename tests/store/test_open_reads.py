@@ -137,3 +137,17 @@ def test_bytes_read_equals_what_strace_counts(stores, tmp_path):
     reads = [line for line in log.read_text().splitlines() if f"<{path}>" in line]
     counted = sum(int(line.rsplit("=", 1)[1]) for line in reads)
     assert counted == int(r.stdout.split()[-1]) > 0
+
+
+def test_opening_and_info_load_no_compiler(stores):
+    """`geoterrain info` answers at once: opening a store and its summary import neither
+    numba nor VTK (the decoders load where a tile is read)."""
+    code = ("import sys, geoterrain\n"
+            "t = geoterrain.open(sys.argv[1]); t.info()\n"
+            "print(*(m in sys.modules for m in ('numba', 'vtkmodules', 'pyvista')))\n"
+            "t.tile(0, 0, 0)\n"
+            "print('numba' in sys.modules)")
+    r = subprocess.run([sys.executable, "-c", code, str(stores[129])], capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.split() == ["False", "False", "False", "True"]
