@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from geoterrain.core.atomicfiles import publish, remove_stale_partials
+from geoterrain.core.osreads import EXACT, ReadMeter
 from geoterrain.exceptions import (
     StoreCorruptError,
     StoreError,
@@ -392,16 +393,21 @@ class StoreReader:
         if not self.path.is_file():
             raise StoreError(f"{self.path}: no such store; run `geoterrain preprocess DEM` first")
         _roll_back_interrupted_edit(self.path)
+        # every byte this reader reads from the file, opening included (bytes_read)
+        self.meter = ReadMeter()
+        self._blob_bytes = 0
         try:
-            self.con = sqlite3.connect(self.path.resolve().as_uri() + "?mode=ro", uri=True,
-                                       check_same_thread=False, timeout=30.0)
+            self.con = self.meter.call(lambda: sqlite3.connect(
+                self.path.resolve().as_uri() + "?mode=ro", uri=True,
+                check_same_thread=False, timeout=30.0))
         except sqlite3.Error:
             raise StoreError(f"{self.path}: cannot open the store read-only") from None
         try:
-            self._open()
+            self.meter.call(self._open)
         except BaseException:
             self.con.close()
             raise
+        self.open_bytes = self.bytes_read  # what opening read
         self.blob_reads = 0  # how many blobs were read (tests count them)
         self._table: TileTable | None = None
         self._lock = threading.Lock()
@@ -520,14 +526,15 @@ class StoreReader:
         if rowid is None:
             return None
         try:
-            row = self.con.execute("SELECT data, crc32 FROM blobs WHERE rowid = ?",
-                                   (rowid,)).fetchone()
+            row = self.meter.call(lambda: self.con.execute(
+                "SELECT data, crc32 FROM blobs WHERE rowid = ?", (rowid,)).fetchone())
         except (*_DB_ERRORS, OverflowError):
             raise self._damaged(f"tile {key} {kind}") from None
         if row is None:
             raise self._damaged(f"tile {key} {kind} (its row is missing)")
         self.blob_reads += 1
         data, crc = row
+        self._blob_bytes += len(data) if isinstance(data, bytes) else 0
         if not isinstance(data, bytes) or blob_crc(key, kind, data) != crc:
             raise self._damaged(f"tile {key} {kind}")
         return data
@@ -563,9 +570,12 @@ class StoreReader:
         # row is named once (a missing row in the range reads as "missing"; a row's
         # checksum binds it to its key, so an id moved to another row fails)
         try:
-            # the rowid range only (a few pages): counting the rows would read every
-            # leaf page of the blobs, which hold the blob bytes
-            lo, hi = self.con.execute("SELECT MIN(rowid), MAX(rowid) FROM blobs").fetchone()
+            # the rowid range only, one aggregate a query: SQLite reads one root-to-leaf
+            # path for each (its min/max shortcut takes a query of a single min or max;
+            # both in one query, or counting the rows, read every leaf page of the blobs)
+            lo, hi = self.meter.call(lambda: tuple(
+                self.con.execute(f"SELECT {f}(rowid) FROM blobs").fetchone()[0]
+                for f in ("MIN", "MAX")))
         except _DB_ERRORS:
             raise self._damaged("the blob table") from None
         ids = t.ids
@@ -604,7 +614,8 @@ class StoreReader:
         """Blob bytes per (kind, level) (``info``'s split); a key without its row is
         damage."""
         try:
-            sizes = dict(self.con.execute("SELECT rowid, LENGTH(data) FROM blobs").fetchall())
+            sizes = dict(self.meter.call(lambda: self.con.execute(
+                "SELECT rowid, LENGTH(data) FROM blobs").fetchall()))
         except _DB_ERRORS:
             raise self._damaged("the blob table") from None
         out: dict[tuple[str, int], int] = {}
@@ -622,7 +633,15 @@ class StoreReader:
         connection (an edit, :mod:`geoterrain.store.editor`) commits a change to the
         file, so a reader can tell that what it holds is stale."""
         with self._lock:
-            return int(self.con.execute("PRAGMA data_version").fetchone()[0])
+            return int(self.meter.call(
+                lambda: self.con.execute("PRAGMA data_version").fetchone()[0]))
+
+    @property
+    def bytes_read(self) -> int:
+        """Every byte this reader has read from the store file, opening included, as the
+        operating system counts them (:mod:`geoterrain.core.osreads`); where it does not
+        count a thread's reads, the blobs' bytes only."""
+        return self.meter.bytes if EXACT else self._blob_bytes
 
     def close(self) -> None:
         self.con.close()
