@@ -127,6 +127,9 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     quiet = ctx.obj["quiet"]
     closed = ext == ".stl" or base_height is not None or print_size is not None
     with geoterrain.open(store) as base:
+        from geoterrain.core.frame import check_flat
+
+        check_flat(base.frame, str(store))
         t = exaggerated(base, vertical_exaggeration)
         if max_error is not None:  # bounded: refused before the mesh is built
             check_export_memory(t, max_error, memory_limit or available_memory() // 2)

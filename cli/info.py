@@ -10,10 +10,11 @@ import click
 @click.command("info")
 @click.argument("store", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print machine-readable JSON.")
-@click.option("--no-reference", is_flag=True,
-              help="Skip the DEFLATE GeoTIFF size comparison (it decodes every full-resolution "
-                   "tile: seconds on a large store).")
-def command(store, as_json, no_reference):
+@click.option("--reference/--no-reference", default=False,
+              help="Also compare the size with a DEFLATE + predictor GeoTIFF of the same "
+                   "heights (it decodes every full-resolution tile: seconds on a large "
+                   "store; off by default, so info answers at once).")
+def command(store, as_json, reference):
     """Describe STORE: size, CRS and frame, extent, grid, levels, tiles, codec and errors.
 
     Sizes are width × height (east-west × north-south) throughout, as gdalinfo gives
@@ -28,7 +29,7 @@ def command(store, as_json, no_reference):
 
     with geoterrain.open(store) as t:
         i = t.info()
-        i["size"] = ({"components": component_bytes(t)} if no_reference else size_report(t))
+        i["size"] = size_report(t) if reference else {"components": component_bytes(t, i)}
     if as_json:
         click.echo(json.dumps(i, indent=2))
         return
@@ -73,4 +74,6 @@ def _size_line(s: dict) -> str:
     if "ratio" in s:
         line += (f"; {s['ratio']:.2f}× the DEFLATE+predictor GeoTIFF of the same heights "
                  f"({s['geotiff_deflate_bytes'] / 1e3:.1f} kB, {s['geotiff_dtype']})")
+    else:
+        line += "; --reference compares it with a DEFLATE+predictor GeoTIFF"
     return line

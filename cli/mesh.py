@@ -63,6 +63,9 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     stream = max_error is not None and out.suffix.lower() in STREAM_FORMATS
     with geoterrain.open(store, **({"cache_bytes": STREAM_CACHE_BYTES} if stream else {})
                          ) as base:
+        from geoterrain.core.frame import check_flat
+
+        check_flat(base.frame, str(store))
         t = exaggerated(base, vertical_exaggeration)
         if stream:
             stats = _stream(ctx, t, max_error, out, overwrite)

@@ -173,6 +173,9 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     from geoterrain.exaggerate import exaggerated
 
     with geoterrain.open(store) as base:
+        from geoterrain.core.frame import check_flat
+
+        check_flat(base.frame, str(store))
         t = exaggerated(base, vertical_exaggeration)
         if animated:
             bar = StageBar("rendering", quiet)

@@ -114,6 +114,9 @@ def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exagg
     from geoterrain.exaggerate import exaggerated
 
     with geoterrain.open(store) as base:
+        from geoterrain.core.frame import check_flat
+
+        check_flat(base.frame, str(store))
         t = exaggerated(base, vertical_exaggeration)
         show(t, strategy, pixel_error, shading=shading, cmap=palette(cmap, clim, water_level),
              size=size, light=lit, drape=dr, occlusion=occlusion, morph=morph, water=water)

@@ -15,24 +15,9 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 import zstandard
 
-from geoterrain.bounds.delta import below_own_error
-from geoterrain.bounds.leafbounds import normal_axes, normal_xy, tile_leaf_bounds
-from geoterrain.bounds.normals import decode_octahedral, derived_codes
-from geoterrain.bounds.vertexdata import (
-    DIFF,
-    NEW_ONLY,
-    NORMALS_PLANAR_DXDY,
-    VERSION_2,
-    decode_bounds,
-    normals_from_bytes,
-    ring_from_bytes,
-    ring_index,
-    unpack_block_errors,
-)
-from geoterrain.codec.pyramid import decode_tile_valid
-from geoterrain.codec.quantize import tile_heights
+# The decoders (geoterrain.bounds, geoterrain.codec, core.bintree) are imported where a
+# tile is read: they load numba, which opening a store and `geoterrain info` never need.
 from geoterrain.core import zstdsafe
-from geoterrain.core.bintree import vertex_level
 from geoterrain.core.grid import level_offsets
 from geoterrain.exceptions import StoreChangedError, StoreCorruptError, StoreError, UsageError
 from geoterrain.store.check import check_store
@@ -77,6 +62,7 @@ class Terrain:
 
     def __init__(self, path: str | Path, cache_bytes: int = 1536 << 20):
         self.path = Path(path)
+        self._bytes_before = 0  # what the readers that refresh() replaced read
         self._load()
         self._cache: OrderedDict[tuple, tuple[object, int]] = OrderedDict()
         self._cache_budget = cache_bytes
@@ -85,7 +71,6 @@ class Terrain:
         self.decoded_tiles = 0  # tiles whose heights were decoded (a view counts these)
         self.decoded_normals = 0  # tiles whose normal maps were decoded
         self.decoded_bounds = 0  # δ or r arrays decoded
-        self.bytes_read = 0  # blob bytes read from the store
         self.generation = 0  # how many edits this terrain has taken in (refresh)
 
     def _load(self) -> None:
@@ -110,6 +95,7 @@ class Terrain:
         except BaseException:
             self.reader.close()
             raise
+        self.open_bytes = self.reader.bytes_read  # what opening read: O(1) pages and the catalog
         edits = self.meta.get("edits")
         self._edits_seen = int(edits.get("count", 0)) if isinstance(edits, dict) else 0
 
@@ -237,8 +223,22 @@ class Terrain:
         if b is None:
             raise StoreCorruptError(f"{self.path}: the {kind} of tile {key} are missing; the "
                                     "file is damaged, re-run `geoterrain preprocess`")
-        self.bytes_read += len(b)
         return b
+
+    @property
+    def bytes_read(self) -> int:
+        """Every byte read from the store file since it was opened, opening included, as
+        the operating system counts them (the store's pages, header and change counter:
+        :mod:`geoterrain.core.osreads`; the blobs' bytes only where it does not count them).
+
+        Examples
+        --------
+        >>> u = open(t.path)
+        >>> u.bytes_read == u.open_bytes > 0
+        True
+        >>> u.close()
+        """
+        return self._bytes_before + self.reader.bytes_read
 
     # ------------------------------------------------------------------ tiles
     def tile_keys(self, level: int | None = None) -> list[TileKey]:
@@ -279,6 +279,9 @@ class Terrain:
         L, x, y = key
         parent = self.tile(L + 1, x // 2, y // 2).codes if L < self.grid.top_level else None
         blob = self._blob(key, "heights")
+        from geoterrain.codec.pyramid import decode_tile_valid
+        from geoterrain.codec.quantize import tile_heights
+
         try:
             codes, valid = decode_tile_valid(blob, parent, (x % 2, y % 2), t=self.grid.t,
                                              bins=self.quantizer.bins)
@@ -300,6 +303,9 @@ class Terrain:
         return Tile(key, codes, h, valid)
 
     def _bounds(self, key: TileKey, kind: str) -> np.ndarray:
+        from geoterrain.bounds.leafbounds import tile_leaf_bounds
+        from geoterrain.bounds.vertexdata import DIFF, NEW_ONLY, VERSION_2, decode_bounds
+
         T = self.grid.tile_samples
         self.decoded_bounds += 1
         L, x, y = key
@@ -332,6 +338,8 @@ class Terrain:
         if kind == "delta" and key in self.tile_info:
             # δ(v) ≥ v's own error on the decoded heights: a δ table swapped with another
             # tile's (checksums recomputed) or edited down fails it (bounds/delta.py)
+            from geoterrain.bounds.delta import below_own_error  # loads numba: not on open
+
             tile = self.tile(*key)
             bad = below_own_error(out, self.frame.z(tile.heights), tile.valid)
             if bad is not None:
@@ -359,6 +367,8 @@ class Terrain:
             nb = self.grid.tiles_per_side(0)
             key = (self.grid.top_level, 0, 0)
             try:
+                from geoterrain.bounds.vertexdata import unpack_block_errors
+
                 table = unpack_block_errors(self._blob(key, "block_delta"), nb, levels)
                 table.setflags(write=False)  # shared through the cache
                 return table
@@ -395,6 +405,8 @@ class Terrain:
 
     def tile_normals(self, level: int, x: int, y: int) -> np.ndarray:
         """Unit normals (T, T, 3) float32 of the level-L normal map at the tile's samples."""
+        from geoterrain.bounds.normals import decode_octahedral
+
         return self.memo(("n", level, x, y), lambda: decode_octahedral(
             self.tile_normal_codes(level, x, y), self.meta["normal_bits"]))
 
@@ -417,6 +429,8 @@ class Terrain:
         >>> t.normal_codes(keys).shape == (2, t.grid.tile_samples, t.grid.tile_samples, 2)
         True
         """
+        from geoterrain.bounds.vertexdata import normals_from_bytes
+
         T, bits = self.grid.tile_samples, self.meta["normal_bits"]
         out = np.empty((len(keys), T, T, 2), np.uint8 if bits == 8 else np.uint16)
         derived = self._derived_normal_levels
@@ -444,11 +458,15 @@ class Terrain:
             raise StoreCorruptError(f"{self.path}: tile {key} normals cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
         self.decoded_normals += 1
+        from geoterrain.bounds.vertexdata import NORMALS_PLANAR_DXDY
+
         return raw, bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY
 
     def _normal_ring(self, key: TileKey, n: int) -> np.ndarray:
         """The stored border ring (n = 4T − 4, 2) of a tile on a derived level, in
         :func:`~geoterrain.bounds.vertexdata.ring_index`'s order."""
+        from geoterrain.bounds.vertexdata import ring_from_bytes
+
         try:  # bounded: exactly the ring's 4T − 4 pairs
             return ring_from_bytes(zstdsafe.decompress(self._blob(key, "normals"), 2 * n,
                                                        exact=True))
@@ -462,6 +480,10 @@ class Terrain:
         normal-map lighting, :func:`~geoterrain.bounds.normals.level_normal_maps`: they
         read no sample outside the tile there), encoded as the preprocess encodes, with
         its stored border ring."""
+        from geoterrain.bounds.leafbounds import normal_axes, normal_xy
+        from geoterrain.bounds.normals import derived_codes
+        from geoterrain.bounds.vertexdata import ring_index
+
         T, n = self.grid.tile_samples, len(keys)
         rr, cc = ring_index(T)
         h = np.empty((n, T, T))
@@ -489,6 +511,8 @@ class Terrain:
     # ------------------------------------------------------- per-vertex data
     def vertex_level(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         """The coarsest pyramid level holding samples (i, j) (:func:`bintree.vertex_level`)."""
+        from geoterrain.core.bintree import vertex_level
+
         return vertex_level(i, j, self.grid.top_level)
 
     def gather(self, i: np.ndarray, j: np.ndarray, kinds=("delta", "radius", "height")
@@ -700,6 +724,7 @@ class Terrain:
         if self.reader.version() == self._version:
             return False
         seen = self._edits_seen
+        self._bytes_before += self.reader.bytes_read
         self.reader.close()
         self._load()
         edits = self.meta.get("edits") if isinstance(self.meta.get("edits"), dict) else {}

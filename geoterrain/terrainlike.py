@@ -67,7 +67,9 @@ class TerrainLike(Protocol):
     stored_normals : whether :meth:`normal_codes` are the surface's normals (False for a
         view whose normals are rescaled: read :meth:`tile_normals` then).
     decoded_tiles, decoded_normals, decoded_bounds, bytes_read : running counts of
-        what was read from the store (a view's counts are its base's).
+        what was read from the store (a view's counts are its base's); ``bytes_read``
+        counts every byte read from the store file, opening included.
+    open_bytes : the bytes that opening the store read (a part of ``bytes_read``).
     generation : how many edits of the store this terrain has taken in (:meth:`refresh`).
     """
 
@@ -81,6 +83,7 @@ class TerrainLike(Protocol):
     decoded_normals: int
     decoded_bounds: int
     bytes_read: int
+    open_bytes: int
     generation: int
 
     @property

@@ -34,6 +34,8 @@ from geoterrain.exceptions import InputError, UsageError
 
 # Vertical units a user may state (metres per unit); pyproj supplies horizontal ones.
 Z_UNITS = {"m": 1.0, "ft": 0.3048, "us-ft": 1200.0 / 3937.0}
+#: The widest geographic extent (metres) the flat scene draws (:meth:`Frame.flat_problem`).
+FLAT_LIMIT_M = 1_000_000.0
 
 
 @dataclass(frozen=True)
@@ -239,6 +241,44 @@ class Frame:
             return np.asarray(x), np.asarray(y)
         return X / self.unit_to_m + self.origin_crs[0], Y / self.unit_to_m + self.origin_crs[1]
 
+    def flat_problem(self) -> str | None:
+        """Why a flat scene cannot show this frame honestly, or None when it can.
+
+        A geographic grid is flattened onto a local azimuthal-equidistant plane. Beyond about
+        :data:`FLAT_LIMIT_M` (1 000 km) that plane drifts far from the Earth (its surface
+        falls ≈ 20 km below the plane 500 km from the centre, ≈ 700 km at 3 000 km), and a
+        grid that reaches a pole folds there. Both are for the globe. The extents are
+        geodesic lengths on the frame's ellipsoid (pyproj's ``Geod``): the longest parallel
+        it spans and its meridian.
+
+        Examples
+        --------
+        >>> wkt = CRS.from_epsg(4326).to_wkt()
+        >>> world = Frame.from_raster((0.25, 0, -180, 0, -0.25, 90), wkt, 720, 1440)
+        >>> world.flat_problem()
+        'it reaches the north and south poles'
+        >>> Frame.from_raster((0.001, 0, 139, 0, -0.001, 36), wkt, 300, 300).flat_problem()
+        """
+        if self.kind != "geographic":
+            return None
+        a, _, c, _, e, f = self.transform
+        lat0, lat1 = sorted((f, f + e * self.rows))
+        poles = [name for name, hit in (("north", lat1 >= 90.0 - 0.5 * abs(e)),
+                                        ("south", lat0 <= -90.0 + 0.5 * abs(e))) if hit]
+        if poles:
+            return f"it reaches the {' and '.join(poles)} pole{'s' if len(poles) > 1 else ''}"
+        geod = CRS.from_wkt(self.crs_wkt).get_geod()
+        lon_span = min(abs(a) * self.cols, 360.0)
+        lat_eq = min(max(0.0, lat0), lat1)  # the spanned latitude nearest the equator
+        lons = c + np.linspace(0.0, 1.0, 65) * lon_span * np.sign(a)
+        ew = geod.line_length(lons, np.full(65, lat_eq))
+        lon_mid = c + a * self.cols / 2
+        ns = geod.line_length([lon_mid, lon_mid], [lat0, lat1])
+        if max(ew, ns) > FLAT_LIMIT_M:
+            return (f"it spans {ew / 1e3:,.0f} × {ns / 1e3:,.0f} km, over the "
+                    f"{FLAT_LIMIT_M / 1e3:,.0f} km a flat scene can show honestly")
+        return None
+
     @property
     def crs_name(self) -> str:
         return CRS.from_wkt(self.crs_wkt).name if self.crs_wkt else "none (pixel units)"
@@ -252,6 +292,21 @@ class Frame:
         d["transform"] = tuple(d["transform"])
         d["origin_crs"] = tuple(d["origin_crs"])
         return Frame(**d)
+
+
+def check_flat(frame: Frame, name: str) -> None:
+    """Raise a one-line :class:`~geoterrain.exceptions.InputError` pointing to the globe
+    when the flat scene cannot show ``frame`` honestly (:meth:`Frame.flat_problem`).
+
+    Examples
+    --------
+    >>> check_flat(Frame.pixel(10, 10), "dem.geoterrain")
+    """
+    why = frame.flat_problem()
+    if why is not None:
+        msg = (f"{name}: {why}; a flat scene would fold or distort it: draw it on the globe "
+               "(geoterrain.globe.Globe)")
+        raise InputError(msg, cli=msg)
 
 
 def level_transform(transform, level: int):

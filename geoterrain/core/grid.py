@@ -6,7 +6,6 @@ from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from numba import njit
 
 
 def level_offsets(top: int) -> np.ndarray:
@@ -116,16 +115,6 @@ class Grid:
         return asdict(self)
 
 
-@njit(cache=True, nogil=True)
-def _integral_nb(v, ii):
-    """ii[i + 1, j + 1] = the count of v[:i + 1, :j + 1] (a summed-area table, one pass)."""
-    for i in range(v.shape[0]):
-        run = 0
-        for j in range(v.shape[1]):
-            run += v[i, j]
-            ii[i + 1, j + 1] = ii[i, j + 1] + run
-
-
 def footprint_counts(valid: np.ndarray, t: int) -> list[np.ndarray]:
     """Valid full-resolution samples in each tile footprint, for every pyramid level.
 
@@ -144,8 +133,10 @@ def footprint_counts(valid: np.ndarray, t: int) -> list[np.ndarray]:
     valid = np.asarray(valid, dtype=bool)
     N = valid.shape[0]
     n = int(N - 1).bit_length() - 1
+    from geoterrain.core.gridcount import integral_nb  # compiled: loaded where it runs
+
     ii = np.zeros((N + 1, N + 1), np.int32 if valid.size < 2**31 else np.int64)
-    _integral_nb(valid.view(np.uint8), ii)
+    integral_nb(valid.view(np.uint8), ii)
     out = []
     for L in range(n - t + 1):
         s = 1 << (t + L)

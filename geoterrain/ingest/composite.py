@@ -156,6 +156,7 @@ def plan(files: list, crs: str | None = None, resolution: float | None = None,
     Examples
     --------
     >>> import tempfile, os
+    >>> from pathlib import Path
     >>> from geoterrain.ingest.synth import generate, write_geotiff
     >>> d = tempfile.mkdtemp()
     >>> a = write_geotiff(os.path.join(d, "a.tif"), generate("fbm", 9), spacing=30.0)
@@ -163,7 +164,7 @@ def plan(files: list, crs: str | None = None, resolution: float | None = None,
     ...                   origin=(500100.0, 4999900.0))
     >>> layers, target = plan([a, b])
     >>> [Path(x.path).name for x in layers], target.transform[0], (target.width, target.height)
-    (['b.tif', 'a.tif'], 1.0, (240, 240))
+    (['b.tif', 'a.tif'], 1.0, (270, 270))
     """
     from rasterio.crs import CRS
     from rasterio.warp import calculate_default_transform, transform_bounds

@@ -3,8 +3,8 @@
 :func:`map_view` frames the whole terrain straight from above in a parallel projection
 (:attr:`geoterrain.core.view.View.parallel`): one scale at every point of the picture, so
 the scale bar holds everywhere and says so (no "at view centre"). Around the data's
-rectangle :func:`draw_map_grid` draws a neat line and its ticks, labelled in the DEM's own
-coordinates:
+rectangle :func:`geoterrain.rendering.mapgrid.draw_map_grid` draws a neat line and its
+ticks, labelled in the DEM's own coordinates:
 
 - a projected DEM (UTM, a state plane): grid lines of its eastings and northings (nice
   round values in its unit, e.g. every 5 000 m), straight in the picture, the scene frame
@@ -20,40 +20,21 @@ Examples
 >>> v = map_view(t, (480, 270))
 >>> v.parallel, [round(c, 6) + 0.0 for c in v.up]  # north up
 (True, [0.0, 1.0, 0.0])
->>> lines = grid_lines(t, v)
->>> len(lines) >= 4 and {ln.side for ln in lines} == {"bottom", "left"}
-True
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from geoterrain.core.view import View
-from geoterrain.rendering.cameras import project, terrain_bounds
-from geoterrain.rendering.overlays import Layout, _text_size, layout_for
+from geoterrain.rendering.cameras import terrain_bounds
+from geoterrain.rendering.overlays import Layout, layout_for, text_size
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
 MAP_FOV = 0.5  # degrees: the narrow perspective the LOD selection sees the map through
-MINUTES = (1, 2, 5, 10, 15, 20, 30, 60, 120, 300, 600, 900, 1800)  # graticule steps (′)
-
-
-@dataclass
-class GridLine:
-    """One grid line of a map: its picture polyline ``px`` (N, 2) (x right, y down), its
-    ``label``, the frame ``side`` it is labelled on ("bottom" or "left") and where it
-    meets that side (``at``: x for the bottom, y for the left)."""
-
-    px: np.ndarray
-    label: str
-    side: str
-    at: float
 
 
 def map_layout(terrain: TerrainLike, size: tuple[int, int], **kw) -> tuple[Layout, tuple]:
@@ -61,7 +42,7 @@ def map_layout(terrain: TerrainLike, size: tuple[int, int], **kw) -> tuple[Layou
     rectangle (x0, y0, x1, y1) left for the map inside the tick labels' margins."""
     lay = layout_for(terrain, size, exact_scale=True, **kw)
     fs = lay.fs
-    label_w = _text_size("139°59′E", 0.85 * fs)[0]
+    label_w = text_size("139°59′E", 0.85 * fs)[0]
     x0, y0, x1, y1 = lay.free
     return lay, (x0 + label_w + 0.8 * fs, y0 + 0.3 * fs, x1 - 0.3 * fs, y1 - 1.6 * fs)
 
@@ -92,108 +73,3 @@ def map_view(terrain: TerrainLike, size: tuple[int, int] = (1280, 720), **kw) ->
     tz = 0.5 * (lo[2] + hi[2])
     return View((tx, ty, tz + d), (tx, ty, tz), (0.0, 1.0, 0.0), MAP_FOV, tuple(size),
                 parallel=True)
-
-
-def map_rect(terrain: TerrainLike, view: View) -> tuple[float, float, float, float]:
-    """The data's rectangle (its scene box) in the picture: (x0, y0, x1, y1)."""
-    lo, hi = terrain_bounds(terrain)
-    z = float(view.look_at[2])
-    px, _ = project(view, np.array([[lo[0], lo[1], z], [hi[0], hi[1], z]]))
-    return (float(min(px[:, 0])), float(min(px[:, 1])), float(max(px[:, 0])),
-            float(max(px[:, 1])))
-
-
-def _nice_step(span: float, lines: int = 5) -> float:
-    """A 1-2-2.5-5 × 10^k step giving about ``lines`` lines over ``span``."""
-    raw = span / lines
-    e = 10.0 ** math.floor(math.log10(raw))
-    return min((m * e for m in (1, 2, 2.5, 5, 10)), key=lambda s: abs(span / s - lines))
-
-
-def _dms(v: float, pos: str, neg: str, minutes: bool) -> str:
-    h = pos if v >= 0 else neg
-    a = abs(v)
-    deg = int(math.floor(a + 1e-9))
-    mins = int(round((a - deg) * 60))
-    if mins == 60:
-        deg, mins = deg + 1, 0
-    return f"{deg}°{mins:02d}′{h}" if minutes else f"{deg}°{h}"
-
-
-def grid_lines(terrain: TerrainLike, view: View) -> list[GridLine]:
-    """The map's grid: eastings and northings of a projected DEM, or meridians and parallels
-    of a geographic one, as picture polylines with their labels (see the module docs)."""
-    f = terrain.frame
-    lo, hi = terrain_bounds(terrain)
-    z = float(view.look_at[2])
-    x0, y0, x1, y1 = map_rect(terrain, view)
-    # the data's extent in CRS coordinates
-    n = 41
-    ex = np.concatenate([np.linspace(lo[0], hi[0], n), np.full(n, hi[0]),
-                         np.linspace(hi[0], lo[0], n), np.full(n, lo[0])])
-    ey = np.concatenate([np.full(n, lo[1]), np.linspace(lo[1], hi[1], n), np.full(n, hi[1]),
-                         np.linspace(hi[1], lo[1], n)])
-    cx, cy = f.scene_to_crs(ex, ey)
-    out: list[GridLine] = []
-    geographic = f.kind == "geographic"
-    for axis in (0, 1):
-        a_lo, a_hi = (float(np.min(cx)), float(np.max(cx))) if axis == 0 else \
-            (float(np.min(cy)), float(np.max(cy)))
-        b_lo, b_hi = (float(np.min(cy)), float(np.max(cy))) if axis == 0 else \
-            (float(np.min(cx)), float(np.max(cx)))
-        if geographic:
-            step_min = min(MINUTES, key=lambda m: abs((a_hi - a_lo) * 60 / m - 4))
-            step = step_min / 60.0
-        else:
-            step = _nice_step(a_hi - a_lo, 4)
-        first = math.ceil(a_lo / step - 1e-9)
-        for k in range(first, int(math.floor(a_hi / step + 1e-9)) + 1):
-            v = k * step
-            b = np.linspace(b_lo, b_hi, 33)
-            xs, ys = (np.full_like(b, v), b) if axis == 0 else (b, np.full_like(b, v))
-            sx, sy = f.crs_to_scene(xs, ys)
-            px, _ = project(view, np.column_stack([sx, sy, np.full(len(b), z)]))
-            if geographic:
-                label = _dms(v, "E", "W", step_min < 60) if axis == 0 else \
-                    _dms(v, "N", "S", step_min < 60)
-            else:
-                label = f"{v:,.0f}" if step >= 1 else f"{v:,.{-math.floor(math.log10(step))}f}"
-            if axis == 0:  # meets the bottom edge at y1
-                at = float(np.interp(y1, px[::-1, 1], px[::-1, 0])) \
-                    if px[0, 1] > px[-1, 1] else float(np.interp(y1, px[:, 1], px[:, 0]))
-                if x0 - 0.5 <= at <= x1 + 0.5:
-                    out.append(GridLine(px, label, "bottom", at))
-            else:  # meets the left edge at x0
-                order = np.argsort(px[:, 0])
-                at = float(np.interp(x0, px[order, 0], px[order, 1]))
-                if y0 - 0.5 <= at <= y1 + 0.5:
-                    out.append(GridLine(px, label, "left", at))
-    return out
-
-
-def draw_map_grid(ax, terrain: TerrainLike, view: View, fs: float) -> dict:
-    """Draw the map's neat line, grid lines (clipped to it), ticks and labels on ``ax``
-    (a matplotlib axes over the picture, pixels, y down); returns the labels' texts by
-    name ("grid") for the caller's extents."""
-    import matplotlib
-
-    pt = 72.0 / 100.0
-    x0, y0, x1, y1 = map_rect(terrain, view)
-    frame = matplotlib.patches.Rectangle((x0, y0), x1 - x0, y1 - y0, fc="none", ec="0.15",
-                                         lw=0.9, zorder=3)
-    ax.add_patch(frame)
-    texts = []
-    tick = 0.45 * fs
-    for ln in grid_lines(terrain, view):
-        (line,) = ax.plot(ln.px[:, 0], ln.px[:, 1], color="0.1", alpha=0.35, lw=0.6,
-                          zorder=2.5)
-        line.set_clip_path(frame)
-        if ln.side == "bottom":
-            ax.plot([ln.at, ln.at], [y1, y1 + tick], color="0.15", lw=0.8, zorder=3)
-            texts.append(ax.text(ln.at, y1 + tick + 0.1 * fs, ln.label, ha="center",
-                                 va="top", fontsize=0.8 * fs * pt, zorder=4))
-        else:
-            ax.plot([x0 - tick, x0], [ln.at, ln.at], color="0.15", lw=0.8, zorder=3)
-            texts.append(ax.text(x0 - tick - 0.15 * fs, ln.at, ln.label, ha="right",
-                                 va="center", fontsize=0.8 * fs * pt, zorder=4))
-    return {"grid": texts}

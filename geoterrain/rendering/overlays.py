@@ -84,8 +84,15 @@ class Layout:
 _MEASURE: dict = {}
 
 
-def _text_size(s: str, fs: float, bold: bool = False) -> tuple[float, float]:
-    """(width, height) in pixels of ``s`` at ``fs`` pixels (matplotlib's own metrics)."""
+def text_size(s: str, fs: float, bold: bool = False) -> tuple[float, float]:
+    """(width, height) in pixels of ``s`` at ``fs`` pixels (matplotlib's own metrics).
+
+    Examples
+    --------
+    >>> w, h = text_size("10 km", 12.0)
+    >>> w > h > 0
+    True
+    """
     from matplotlib.backends.backend_agg import RendererAgg
     from matplotlib.font_manager import FontProperties
 
@@ -170,7 +177,7 @@ def _place_boxes(lay: Layout, title, limits, scale_bar, north_arrow, ve, compact
     lay.scale_note = "at centre" if compact and note else note
     top = 0.0
     if title:
-        tw, th = _text_size(title, 1.3 * fs, bold=True)
+        tw, th = text_size(title, 1.3 * fs, bold=True)
         bw, bh = tw + 2 * pad, th + 2 * pad
         lay.boxes["title"] = (W / 2 - bw / 2, m, W / 2 + bw / 2, m + bh)
         top = m + bh
@@ -181,14 +188,14 @@ def _place_boxes(lay: Layout, title, limits, scale_bar, north_arrow, ve, compact
     if scale_bar:
         lines = ["500 km"] + ([lay.scale_note] if lay.scale_note else []) \
             + ([_fmt_ve(ve)] if ve != 1 else [])
-        tw = max(_text_size(s, fs if k == 0 else 0.8 * fs)[0] for k, s in enumerate(lines))
+        tw = max(text_size(s, fs if k == 0 else 0.8 * fs)[0] for k, s in enumerate(lines))
         widths["scale_bar"] = max(tw, 3 * fs) + 2 * pad
         heights["scale_bar"] = 2 * pad + 1.2 * fs + 0.9 * fs + (len(lines) - 1) * 1.0 * fs
     if limits is not None:
         lay.ticks = _ticks(*limits)
-        tickw = max((_text_size(s, 0.85 * fs)[0] for _, s in lay.ticks), default=0.0)
+        tickw = max((text_size(s, 0.85 * fs)[0] for _, s in lay.ticks), default=0.0)
         if lay.swatch is not None:
-            tickw = max(tickw, _text_size("water", 0.85 * fs)[0])
+            tickw = max(tickw, text_size("water", 0.85 * fs)[0])
         title_w = 0.0 if compact else 1.2 * fs + 0.3 * fs
         widths["colorbar"] = 2 * pad + title_w + tickw + 0.5 * fs + 0.9 * fs
     if not widths:
@@ -370,7 +377,7 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
             text("north_arrow", *(c + 0.72 * R * d), "N", ha="center", va="center",
                  fontsize=0.8 * fs * pt, weight="bold")
     if view.parallel:  # a map: its neat line, grid and labels in the DEM's coordinates
-        from geoterrain.rendering.mapview import draw_map_grid
+        from geoterrain.rendering.mapgrid import draw_map_grid
 
         texts.update(draw_map_grid(ax, terrain, view, fs))
     ax.set_xlim(0, W)

@@ -126,6 +126,11 @@ class TerrainScene:
         if shading not in SHADINGS:
             raise UsageError(f"unknown shading {shading!r}; use one of {', '.join(SHADINGS)}")
         self.plotter, self.terrain, self.shading, self.cmap = plotter, terrain, shading, cmap
+        # where the first frame's bytes_read starts: at the store's opening when nothing was
+        # read from it since, else now (then each frame from where the last one ended)
+        read = int(getattr(terrain, "bytes_read", 0))
+        opened = int(getattr(terrain, "open_bytes", -1))
+        self._bytes_mark = read - opened if read == opened else read
         self.light, self.drape = light, drape
         self.occlusion, self.morph = occlusion, morph  # each frame's selection's switches
         if ((light is not None and not light.is_default) or drape is not None) \
@@ -323,7 +328,12 @@ class TerrainScene:
         The stats count what the whole frame did (selection and texture):
         ``tiles_decoded`` (heights), ``normals_decoded``, ``bounds_decoded`` (δ, r),
         ``textures_built``, ``bytes_read`` and ``peak_rss_mb`` (the process's peak
-        resident memory so far), besides the selection's own stats. Times: ``select_ms``,
+        resident memory so far), besides the selection's own stats. ``bytes_read`` is every
+        byte read from the store file since the scene's previous frame, as the operating
+        system counts them (:attr:`geoterrain.terrain.Terrain.bytes_read`); the first frame's
+        count starts where the scene was made, or where the store was opened when nothing
+        was read from it since (then it includes the opening), so the frames' counts add up
+        to what the process read from the store. Times: ``select_ms``,
         ``texture_ms``, ``render_ms`` (the draw and read-back) and ``frame_ms``, wall
         clock; ``cpu_ms`` and ``render_cpu_ms``, the process's CPU time over the frame
         and over the draw, the renderer's threads included (a software renderer draws
@@ -367,6 +377,7 @@ class TerrainScene:
             img = edge_antialias(img, depth_buffer(self.plotter), edges)
         t3, p3 = time.perf_counter(), time.process_time()
         c1 = io_counters(t)
+        c0["bytes_read"], self._bytes_mark = self._bytes_mark, c1["bytes_read"]
         stats = {**sel.stats, "select_tiles_decoded": sel.stats.get("tiles_decoded", 0),
                  **{k: c1[k] - c0[k] for k in c0},
                  "textures_built": int(self.texture_stats.get("textures_built", 0)),

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from geoterrain.codec.quantize import MAX_BINS, Quantizer
+from geoterrain.codec.quantizer import MAX_BINS, Quantizer
 from geoterrain.core.frame import SCENE_LIMIT, UNIT_TO_M_RANGE, Z_SCALE_RANGE, Z_UNITS, Frame
 from geoterrain.core.grid import Grid
 from geoterrain.core.memory import available_memory

@@ -57,6 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from geoterrain.core.atomicfiles import publish, remove_stale_partials
+from geoterrain.core.osreads import EXACT, ReadMeter
 from geoterrain.core.paths import check_output, input_problem
 from geoterrain.exceptions import (
     StoreCorruptError,
@@ -412,21 +413,30 @@ class StoreReader:
                 raise StoreError(f"{self.path}: SQLite's {self.path.name}{side} beside it holds "
                                  "changes the store file lacks, which geoterrain cannot apply "
                                  "without writing; re-run `geoterrain preprocess`")
+        # every byte this reader reads from the file, opening included (bytes_read)
+        self.meter = ReadMeter()
+        self._blob_bytes = 0
         # read-only: no journal, -wal or -shm file is created beside the store; a store in
         # WAL mode (not one geoterrain writes) is opened immutable, as it would need a -shm
         # file otherwise. Others take SQLite's shared locks (the file is not written), so
         # a reader waits out another process's edit and sees it (data_version)
-        uri = self.path.resolve().as_uri() + "?mode=ro" + \
-            ("&immutable=1" if _wal_mode(self.path) else "")
+        path = self.path
+
+        def connect() -> sqlite3.Connection:
+            uri = path.resolve().as_uri() + "?mode=ro" + ("&immutable=1" if _wal_mode(path)
+                                                          else "")
+            return sqlite3.connect(uri, uri=True, check_same_thread=False, timeout=30.0)
+
         try:
-            self.con = sqlite3.connect(uri, uri=True, check_same_thread=False, timeout=30.0)
+            self.con = self.meter.call(connect)
         except (sqlite3.Error, ValueError, OSError):
             raise StoreError(f"{self.path}: cannot open the store read-only") from None
         try:
-            self._open()
+            self.meter.call(self._open)
         except BaseException:
             self.con.close()
             raise
+        self.open_bytes = self.bytes_read  # what opening read
         self.blob_reads = 0  # how many blobs were read (tests count them)
         self._table: TileTable | None = None
         self._lock = threading.Lock()
@@ -545,14 +555,15 @@ class StoreReader:
         if rowid is None:
             return None
         try:
-            row = self.con.execute("SELECT data, crc32 FROM blobs WHERE rowid = ?",
-                                   (rowid,)).fetchone()
+            row = self.meter.call(lambda: self.con.execute(
+                "SELECT data, crc32 FROM blobs WHERE rowid = ?", (rowid,)).fetchone())
         except (*_DB_ERRORS, OverflowError):
             raise self._damaged(f"tile {key} {kind}") from None
         if row is None:
             raise self._damaged(f"tile {key} {kind} (its row is missing)")
         self.blob_reads += 1
         data, crc = row
+        self._blob_bytes += len(data) if isinstance(data, bytes) else 0
         if not isinstance(data, bytes) or blob_crc(key, kind, data) != crc:
             raise self._damaged(f"tile {key} {kind}")
         return data
@@ -588,9 +599,12 @@ class StoreReader:
         # row is named once (a missing row in the range reads as "missing"; a row's
         # checksum binds it to its key, so an id moved to another row fails)
         try:
-            # the rowid range only (a few pages): counting the rows would read every
-            # leaf page of the blobs, which hold the blob bytes
-            lo, hi = self.con.execute("SELECT MIN(rowid), MAX(rowid) FROM blobs").fetchone()
+            # the rowid range only, one aggregate a query: SQLite reads one root-to-leaf
+            # path for each (its min/max shortcut takes a query of a single min or max;
+            # both in one query, or counting the rows, read every leaf page of the blobs)
+            lo, hi = self.meter.call(lambda: tuple(
+                self.con.execute(f"SELECT {f}(rowid) FROM blobs").fetchone()[0]
+                for f in ("MIN", "MAX")))
         except _DB_ERRORS:
             raise self._damaged("the blob table") from None
         ids = t.ids
@@ -629,7 +643,8 @@ class StoreReader:
         """Blob bytes per (kind, level) (``info``'s split); a key without its row is
         damage."""
         try:
-            sizes = dict(self.con.execute("SELECT rowid, LENGTH(data) FROM blobs").fetchall())
+            sizes = dict(self.meter.call(lambda: self.con.execute(
+                "SELECT rowid, LENGTH(data) FROM blobs").fetchall()))
         except _DB_ERRORS:
             raise self._damaged("the blob table") from None
         out: dict[tuple[str, int], int] = {}
@@ -647,7 +662,15 @@ class StoreReader:
         connection (an edit, :mod:`geoterrain.store.editor`) commits a change to the
         file, so a reader can tell that what it holds is stale."""
         with self._lock:
-            return int(self.con.execute("PRAGMA data_version").fetchone()[0])
+            return int(self.meter.call(
+                lambda: self.con.execute("PRAGMA data_version").fetchone()[0]))
+
+    @property
+    def bytes_read(self) -> int:
+        """Every byte this reader has read from the store file, opening included, as the
+        operating system counts them (:mod:`geoterrain.core.osreads`); where it does not
+        count a thread's reads, the blobs' bytes only."""
+        return self.meter.bytes if EXACT else self._blob_bytes
 
     def close(self) -> None:
         self.con.close()

@@ -21,10 +21,11 @@ if TYPE_CHECKING:
 COMPONENTS = ("heights", "delta", "radius", "normals")
 
 
-def component_bytes(t: TerrainLike) -> dict[str, int]:
+def component_bytes(t: TerrainLike, info: dict | None = None) -> dict[str, int]:
     """Bytes per component: the blob kinds (``delta`` with the optional second δ and
     block δ_n table), and ``index/other`` (SQLite pages, tile rows, metadata: the file
-    size less the blobs).
+    size less the blobs). ``info``: ``t.info()`` when the caller has it (it reads every
+    leaf page of the blob table).
 
     Examples
     --------
@@ -32,7 +33,7 @@ def component_bytes(t: TerrainLike) -> dict[str, int]:
     >>> sum(b.values()) == t.info()["size_bytes"]
     True
     """
-    kinds = t.info()["bytes_by_kind"]
+    kinds = (info or t.info())["bytes_by_kind"]
     out = {k: int(kinds.get(k, 0)) for k in COMPONENTS}
     out["delta"] += int(kinds.get("delta_edge", 0)) + int(kinds.get("block_delta", 0))
     out["index/other"] = os.path.getsize(t.path) - sum(out.values())

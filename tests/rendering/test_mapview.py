@@ -14,7 +14,8 @@ from pyproj import Transformer
 import geoterrain
 from geoterrain.ingest.synth import generate
 from geoterrain.rendering.cameras import project
-from geoterrain.rendering.mapview import grid_lines, map_layout, map_rect, map_view
+from geoterrain.rendering.mapgrid import grid_lines, map_rect
+from geoterrain.rendering.mapview import map_layout, map_view
 from geoterrain.rendering.overlays import north_direction
 from geoterrain.rendering.scene import TerrainScene, _plotter, render
 from tests.conftest import write_tif

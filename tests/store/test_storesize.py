@@ -106,11 +106,16 @@ def test_info_prints_the_size_line(tmp_path):
     from geoterrain.cli.main import cli
 
     store = preprocess(_int_dem(tmp_path), tmp_path / "d.geoterrain")
-    res = CliRunner().invoke(cli, ["info", str(store)])
+    res = CliRunner().invoke(cli, ["info", str(store), "--reference"])
     assert res.exit_code == 0, res.output
     line = next(ln for ln in res.output.splitlines() if ln.startswith("size "))
-    assert "heights" in line and "normals" in line and "DEFLATE+predictor GeoTIFF" in line
-    res = CliRunner().invoke(cli, ["info", str(store), "--json", "--no-reference"])
+    assert "heights" in line and "normals" in line and "× the DEFLATE+predictor GeoTIFF" in line
+    # by default info decodes no tile (it answers at once: issue 51) and says how to compare
+    for args in ([], ["--no-reference"]):
+        res = CliRunner().invoke(cli, ["info", str(store), *args])
+        line = next(ln for ln in res.output.splitlines() if ln.startswith("size "))
+        assert res.exit_code == 0 and "--reference compares" in line, res.output
+    res = CliRunner().invoke(cli, ["info", str(store), "--json"])
     i = json.loads(res.output)
     assert "ratio" not in i["size"] and sum(i["size"]["components"].values()) == i["size_bytes"]
 

@@ -1,0 +1,435 @@
+"""Node errors, measured once where stores lie and bounded analytically elsewhere, and the
+per-depth tables the planetary CDLOD derives its ranges from.
+
+**What a node's error bounds.** e(N) bounds the radial distance (along the rays from the
+planet's centre) between N's drawn surface (flat triangles, unmorphed) and the truth at
+every truth lattice point in N (:mod:`geoterrain.globe.surface`).
+
+**Measured, over stores.** For each node whose cone meets a store's footprint, down to the
+depth where nothing new can appear (the store's resolved depth D_s, or the base layer's
+D_b at a seam with it), this module generates the node's values once, when the globe is
+made (seed 001's proposed pipeline, L537: bottom-up over the data, here from the stored
+pyramid), and sets, deepest first,
+
+    e(N) = max over children c of ( (1 + s_c)·M_c + e(c) )
+
+where M_c is c's largest radial move onto N's surface (the morph's |rT − r|, measured at
+every vertex of c) and s_c a relative slack. Why it holds: N's and c's surfaces are flat
+on c's triangles, where w = |p|/r is affine along the rays, so their radial gap is largest
+at c's vertices up to the factor (r_max/r_min)²·max|p|/min|p| = 1 + s_c; and
+|N − truth| ≤ |N − c| + |c − truth|. A child that holds no sampled point (beyond every
+truth depth) reproduces its parent exactly: M = e = 0. The store's own error (its coarse
+levels against its full resolution) is in e(N) exactly, not as a bound: the truth is the
+full resolution.
+
+**Bounded, over the base layer.** Where no store lies, a node samples the procedural
+planet (or the bare ellipsoid) at every vertex, and :func:`geoterrain.globe.noise.error_bound`
+bounds e from the circumradius of its triangles; its move is at most its parent's error.
+
+Examples
+--------
+>>> from geoterrain.globe.model import Model
+>>> from geoterrain.globe.layers import BaseLayer
+>>> from geoterrain.globe.surface import Surface
+>>> tb = ErrorTable(Surface(Model.get("sphere"), [], BaseLayer.ellipsoid(), node_cells=8))
+>>> bool(np.all(np.diff(tb.e[: tb.max_depth + 1]) < 0)), tb.regions
+(True, 0)
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from geoterrain.globe.nodes import children, decode, encode, geometry, hull, parent
+from geoterrain.globe.noise import error_bound, height_range_bound
+from geoterrain.globe.payload import Payload, payload_from_values
+from geoterrain.globe.polyhedron import FACES, face_directions
+from geoterrain.globe.surface import NodeKey, Surface
+
+__all__ = ["ErrorTable", "NodeError", "node_widths", "ranges", "ranges_from", "MORPH_FRACTION"]
+
+MORPH_FRACTION = 0.5  # seed 001 §3.3.2: half of each level's range morphs
+_SAFE = 1.0 + 1e-6
+_EXACT_DEPTHS = 6  # node widths measured on every node down to here, then halved
+
+
+@dataclass(frozen=True)
+class NodeError:
+    """A measured node: its error ``e``, its move ``move`` (M), the relative ``slack`` of
+    the chain, its vertices' radial range ``r_lo``, ``r_hi`` and ``sag``."""
+
+    e: float
+    move: float
+    slack: float
+    r_lo: float
+    r_hi: float
+    sag: float
+
+
+def node_widths(max_depth: int, lattice: int = 0) -> np.ndarray:
+    """Per depth D ≤ ``max_depth``, the largest chord (unit sphere) between two corners of one
+    cell of face lattice level D + ``lattice`` (a node when 0, a cell of an n-cell node when
+    log₂ n): the diagonals, the longest. Measured on every cell down to level 6, then
+    halved per level with 1 % to spare (the cells become similar).
+
+    Examples
+    --------
+    >>> w = node_widths(8)
+    >>> bool(np.all(np.diff(w) < 0)), round(float(w[0]), 3)
+    (True, 1.051)
+    """
+    out = np.zeros(max_depth + 1)
+    for D in range(max_depth + 1):
+        L = D + lattice
+        if L <= _EXACT_DEPTHS:
+            m = 1 << L
+            g = np.arange(m + 1) / m
+            V, U = np.meshgrid(g, g, indexing="ij")
+            w = 0.0
+            for f in range(FACES):
+                d = face_directions(f, U, V)
+                w = max(w, float(np.linalg.norm(d[:-1, :-1] - d[1:, 1:], axis=-1).max()),
+                        float(np.linalg.norm(d[1:, :-1] - d[:-1, 1:], axis=-1).max()))
+            out[D] = w
+        else:
+            out[D] = out[D - 1] * 0.5 * 1.01 if D > 0 else 0.0
+    if lattice and lattice > _EXACT_DEPTHS:  # every level beyond the measured ones
+        w0 = node_widths(0, _EXACT_DEPTHS)[0] * (0.5 * 1.01) ** (lattice - _EXACT_DEPTHS)
+        out = w0 * (0.5 * 1.01) ** np.arange(max_depth + 1)
+    return out
+
+
+class ErrorTable:
+    """Every node's error bound and the per-depth maxima (module docstring).
+
+    Attributes (arrays over depth 0 … ``max_depth``): ``e`` (largest error), ``move`` (largest
+    M), ``slack`` (largest s), ``diag`` (largest bounding-volume diagonal, heights included:
+    seed 001 L407), ``cell`` (largest cell diameter); ``regions`` the number of measured
+    nodes; ``r_min``, ``r_max`` the least and greatest distance of any point from the centre.
+    """
+
+    def __init__(self, surface: Surface, progress: Callable[[int, int], None] | None = None,
+                 keep: Callable[[Payload], None] | None = None):
+        self.surface = s = surface
+        self.max_depth = Dm = s.max_depth
+        self.nodes: dict[NodeKey, NodeError] = {}
+        rho = s.model.min_curvature_radius
+        planet = s.base.planet if s.base.kind == "procedural" else None
+        span = self._height_span()
+        self.h_lo, self.h_hi = span
+        self.r_min = s.model.b + span[0]
+        self.r_max = s.model.a + span[1]
+        w = node_widths(Dm)  # node corner chords, unit sphere
+        wc = node_widths(Dm, s.k)  # cell corner chords
+        # the base layer (or a pure-chord node) everywhere: analytic
+        rc = wc * self.r_max / math.sqrt(3) * 1.02  # ≥ a triangle's circumradius (or half
+        # its longest edge): the long diagonal / √3 ≥ it for the RT's cells
+        base_e = np.array([error_bound(planet, rc[D], rho, s.scale) if s.base_present and
+                           D <= s.base_depth else 0.0 for D in range(Dm + 1)])
+        self.base_e = base_e
+        self.e = base_e.copy()
+        self.move = np.zeros(Dm + 1)
+        self.slack = np.full(Dm + 1, 1e-3)
+        self.slope = self._base_slope(planet, wc)
+        self.regions = 0
+        self._measure(progress, keep)
+        # the nodes no one measured (the base layer, or copies beyond every layer's depth):
+        # their radial extent bounds heights over the node, the ellipsoid's own change across
+        # it, twice the error, the move and the sag of its triangles
+        self.width = w * self.r_max
+        ell = (s.model.a - s.model.b) * w
+        relief = np.array([height_range_bound(planet, w[D] * self.r_max, s.scale)
+                           if s.base_present else 0.0 for D in range(Dm + 1)])
+        relief = np.maximum(relief, self.slope * w * self.r_max)
+        sag = self.r_max * (1 - np.cos(np.minimum(wc, 2.0)))
+        self.other_e = base_e.copy()
+        self.other_move = np.zeros(Dm + 1)
+        if s.base_present:
+            self.other_move[1:s.base_depth + 1] = self.e[:s.base_depth][:Dm]
+        extent = ell + relief + 2 * self.other_e + self.other_move + sag
+        self.other_diag = (self.width + extent) * 1.01
+        self.cell = np.sqrt((wc * self.r_max) ** 2 + (self.slope * wc * self.r_max) ** 2) \
+            * 1.01
+        self._region_arrays()
+        self.diag = np.maximum(self.other_diag, self._per_depth(self.region_diag,
+                                                                np.ones(self.regions, bool)))
+
+    # ------------------------------------------------------------------ pieces
+    def _height_span(self) -> tuple[float, float]:
+        """The least and greatest height (metres, exaggerated) any layer can give."""
+        s = self.surface
+        lo, hi = 0.0, 0.0
+        for st in s.stores:
+            rng = st.terrain.meta.get("height_range") or [0.0, 0.0]
+            z = st.terrain.frame.z(np.asarray(rng, np.float64))
+            lo, hi = min(lo, float(z.min())), max(hi, float(z.max()))
+        if s.base_present and s.base.kind == "procedural":
+            m = s.base.planet.max_abs()
+            lo, hi = min(lo, -m), max(hi, m)
+        return lo * s.scale, hi * s.scale
+
+    def _base_slope(self, planet, wc) -> np.ndarray:
+        s = self.surface
+        out = np.zeros(self.max_depth + 1)
+        if s.base_present and planet is not None:
+            for D in range(self.max_depth + 1):
+                width = wc[D] * self.r_max
+                out[D] = height_range_bound(planet, width, s.scale) / max(width, 1e-9)
+        return out
+
+    def _rings(self):
+        """Per store: the depth its footprint matters to, its outline as unit ray directions
+        and their spacing (radians); and its feather band's inner outline with the depth that
+        matters to (the deepest: layers blended there change at every depth)."""
+        s = self.surface
+        out = []
+        for st, D in zip(s.stores, s.resolved, strict=True):
+            lim = max(D, s.base_depth) if s.base_present else D
+            if st.covers_globe():
+                out.append((st, lim, None, 0.0, None))
+                continue
+            rings = []
+            for inset in (0.0, st.feather):
+                lon, lat = st.footprint(256, inset)
+                P = s.model.to_ecef(lon, lat, np.zeros_like(lon))
+                d = P / np.linalg.norm(P, axis=-1)[:, None]
+                step = float(np.arccos(np.clip(np.einsum("ij,ij->i", d, np.roll(d, -1, 0)),
+                                               -1, 1)).max())
+                rings.append((d, step))
+            out.append((st, lim, rings[0], st.feather > 0, rings[1]))
+        return out
+
+    def _meets(self, keys: np.ndarray, rings) -> np.ndarray:
+        """Which nodes matter to a store at their depth (conservative): their cone meets its
+        footprint (an outline point within an outline spacing of the cone, or a node corner
+        or centre inside the footprint) down to the store's depth, or meets its feather band
+        down to the deepest depth."""
+        _, D, _, _ = decode(keys)
+        g = geometry(keys)
+        pts = np.concatenate([g.dirs, g.centre[:, None]], 1)  # (N, 5, 3)
+        _, lon, lat = self.surface.model.surface(pts)
+        out = np.zeros(len(keys), bool)
+
+        def near(ring, ok):
+            d, step = ring
+            side = np.einsum("nkj,mj->nmk", g.planes[ok], d)  # ≤ 0 inside
+            hit = np.zeros(len(keys), bool)
+            hit[ok] = (side <= math.sin(step) + 1e-12).all(2).any(1)
+            return hit
+
+        for st, lim, outer, banded, inner in rings:
+            if outer is None:
+                out |= D <= lim
+                continue
+            meets = near(outer, np.ones(len(keys), bool)) | st.covers(lon, lat).any(1)
+            out |= meets & (D <= lim)
+            if banded:
+                band = near(outer, meets) | near(inner, meets) | st.in_band(lon, lat).any(1)
+                out |= meets & band & (D <= self.max_depth)
+        return out
+
+    def _measure(self, progress, keep) -> None:
+        """Generate every node that meets a footprint, deepest first, and set its error."""
+        s = self.surface
+        if not s.stores:
+            return
+        rings = self._rings()
+        levels: list[np.ndarray] = []
+        cur = encode(np.arange(FACES), 0, 0, 0)
+        cur = cur[self._meets(cur, rings)]
+        while len(cur):
+            levels.append(cur)
+            D = len(levels) - 1
+            if D >= self.max_depth:
+                break
+            kids = children(cur).reshape(-1)
+            cur = kids[self._meets(kids, rings)]
+        total = sum(len(v) for v in levels)
+        done = 0
+        below: dict[int, NodeError] = {}
+        for D in range(len(levels) - 1, -1, -1):
+            here: dict[int, NodeError] = {}
+            for key in levels[D].tolist():
+                v = s.values(decode(key))
+                p = payload_from_values(s, v, normals=keep is not None)
+                if keep is not None:
+                    keep(p)
+                e = 0.0
+                if D < self.max_depth:
+                    for c in children(np.array([key]))[0].tolist():
+                        ce = below.get(c)
+                        if ce is None and self.base_e[D + 1] > 0:
+                            # a base node beside the stores: its move onto this node's
+                            # surface measured, its own error the base layer's bound
+                            cp = payload_from_values(s, s.values(decode(c)), normals=False)
+                            ce = NodeError(float(self.base_e[D + 1]), cp.move, cp.slack,
+                                           cp.r_lo, cp.r_hi, cp.sag)
+                            self.move[D + 1] = max(self.move[D + 1], cp.move)
+                            self.slack[D + 1] = max(self.slack[D + 1], cp.slack)
+                        if ce is not None:  # else beyond every truth depth: an exact copy
+                            e = max(e, (1 + ce.slack) * ce.move + ce.e)
+                ne = NodeError(e, p.move, p.slack, p.r_lo, p.r_hi, p.sag)
+                here[key] = ne
+                self.nodes[decode(key)] = ne
+                self.e[D] = max(self.e[D], e)
+                self.move[D] = max(self.move[D], p.move)
+                self.slack[D] = max(self.slack[D], p.slack)
+                self.slope[D] = max(self.slope[D], p.slope)
+                done += 1
+                if progress is not None:
+                    progress(done, total)
+            below = here
+        self.regions = total
+        if s.base_present:  # a base node's move onto its parent: at most the parent's error
+            for D in range(1, min(s.base_depth, self.max_depth) + 1):
+                self.move[D] = max(self.move[D], self.e[D - 1])
+
+    def _region_arrays(self) -> None:
+        """The measured nodes as arrays: keys, depth, e, move, slack, radial range of their
+        volumes, their hulls' corners, their parents' index (−1 for a root) and diameter."""
+        items = sorted(self.nodes.items(), key=lambda kv: kv[0][1])
+        n = len(items)
+        keys = np.array([encode(*k) for k, _ in items], np.int64).reshape(n)
+        self.region_keys = keys
+        self.region_depth = np.array([k[1] for k, _ in items], np.int64).reshape(n)
+        ne = [v for _, v in items]
+        self.region_e = np.array([v.e for v in ne]).reshape(n)
+        self.region_move = np.array([v.move for v in ne]).reshape(n)
+        self.region_slack = np.array([v.slack for v in ne]).reshape(n)
+        lo = np.array([v.r_lo - v.e - v.sag for v in ne]).reshape(n)
+        hi = np.array([v.r_hi + v.e for v in ne]).reshape(n)
+        self.region_lo, self.region_hi = lo, hi
+        if n:
+            g = geometry(keys)
+            self.region_geometry = g
+            self.region_corners = hull(g, lo, hi)[0]
+            chord = np.maximum(np.linalg.norm(g.dirs[:, 0] - g.dirs[:, 2], axis=-1),
+                               np.linalg.norm(g.dirs[:, 1] - g.dirs[:, 3], axis=-1))
+            self.region_diag = (hi * chord + (hi - lo)) * 1.01
+            pos = {int(k): i for i, k in enumerate(keys.tolist())}
+            self.region_parent = np.array([pos.get(int(p), -1) for p in
+                                           parent(keys).tolist()], np.int64)
+            self.region_parent[self.region_depth == 0] = -1
+        else:
+            self.region_diag = np.zeros(0)
+            self.region_parent = np.zeros(0, np.int64)
+
+    def _per_depth(self, values: np.ndarray, sel: np.ndarray) -> np.ndarray:
+        out = np.zeros(self.max_depth + 1)
+        if sel.any():
+            np.maximum.at(out, self.region_depth[sel], values[sel])
+        return out
+
+    def tables(self, sel: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+        """Per depth (e, move, slack, diag, cell) over the unmeasured nodes and the measured
+        nodes ``sel`` (a mask over them; None: all)."""
+        if sel is None:
+            sel = np.ones(self.regions, bool)
+        e = np.maximum(self.other_e, self._per_depth(self.region_e, sel))
+        mv = np.maximum(self.other_move, self._per_depth(self.region_move, sel))
+        sl = np.maximum(1e-3, self._per_depth(self.region_slack, sel))
+        dg = np.maximum(self.other_diag, self._per_depth(self.region_diag, sel))
+        return e, mv, sl, dg, self.cell
+
+    def view_ranges(self, view, lam: float, tau: float, fraction: float = MORPH_FRACTION,
+                    occluder=None, frustum: bool = True
+                    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """Ranges for one view: :func:`ranges` over the nodes this view could draw.
+
+        A measured node can be drawn only if the frustum (and the horizon) leave it and its
+        parent meets its depth's sphere, dist(parent) < R_{D−1}. Ranges from all measured
+        nodes draw a subset of those; ranges from that subset draw a subset of it; … The
+        sets shrink to a fixed point A with R = ranges(A), and every node R draws is in A: the
+        constraints hold for it. Returns (R, m, |A|).
+        """
+        from geoterrain.globe.nodes import OUTSIDE, frustum_state, horizon_hidden, shell_distance
+
+        if not self.regions:
+            R, m = ranges_from(self.tables(), self.max_depth, lam, tau, fraction)
+            return R, m, 0
+        vis = np.ones(self.regions, bool)
+        if frustum:
+            vis &= frustum_state(view.planes, self.region_corners) != OUTSIDE
+        if occluder is not None:
+            vis &= ~horizon_hidden(occluder, view.eye, self.region_corners)[0]
+        par = self.region_parent
+        has = par >= 0
+        g = self.region_geometry
+        pdist = np.zeros(self.regions)
+        pp = par[has]
+        pdist[has] = shell_distance(view.eye, type(g)(g.dirs[pp], g.planes[pp], g.centre[pp],
+                                                      g.cmin[pp]),
+                                    self.region_lo[pp], self.region_hi[pp])
+        A = vis.copy()
+        for _ in range(64):
+            R, m = ranges_from(self.tables(A), self.max_depth, lam, tau, fraction)
+            D = self.region_depth
+            near = ~has | (pdist < R[np.maximum(D - 1, 0)])
+            B = vis & near
+            if (B == A).all():
+                break
+            A = B
+        return R, m, int(A.sum())
+
+    # -------------------------------------------------------------------- API
+    def node(self, key: NodeKey) -> tuple[float, float]:
+        """(e, M) of node ``key``: measured, or the base layer's bound at its depth."""
+        ne = self.nodes.get(tuple(key))
+        if ne is not None:
+            return ne.e, ne.move
+        D = key[1]
+        return float(self.base_e[D]), float(self.base_e[D - 1]) if D > 0 and \
+            self.base_e[D] > 0 else 0.0
+
+
+def ranges(tb: ErrorTable, lam: float, tau: float, fraction: float = MORPH_FRACTION
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """View ranges R_D and morph starts m_D, D = 0 … max depth (R_max = 0: leaves are never
+    refined; m_0 = ∞: roots never morph).
+
+    A node of depth D is refined when its volume meets the sphere of radius R_D around the
+    eye. Each R_{D−1} is the smallest value meeting, with f = ``fraction``:
+
+    - R_{D−1} ≥ λ·e_{D−1}/τ (a depth-(D − 1) node is drawn beyond R_{D−1});
+    - (1 − f)(R_{D−1} − R_D) ≥ diag_D (seed 001 L407: one whole node fits each range, so
+      neighbours differ by one level at most and a node's vertices never reach the coarser
+      level's morph band);
+    - m_D − c_D − M_D ≥ λ(e_D + (1 + s)M_D)/τ, m_D = (1 − f)R_{D−1} + f·R_D (once a vertex
+      morphs, its triangles are off by at most e_D + (1 + s)M_D, and they lie beyond m_D less
+      a cell c_D and the move).
+
+    Examples
+    --------
+    >>> from geoterrain.globe.model import Model
+    >>> from geoterrain.globe.layers import BaseLayer
+    >>> from geoterrain.globe.surface import Surface
+    >>> tb = ErrorTable(Surface(Model.get("sphere"), [], BaseLayer.procedural(), node_cells=16))
+    >>> R, m = ranges(tb, 1000.0, 1.0)
+    >>> bool(np.all(np.diff(R) < 0)), float(R[-1]), bool(np.isinf(m[0]))
+    (True, 0.0, True)
+    """
+    return ranges_from(tb.tables(), tb.max_depth, lam, tau, fraction)
+
+
+def ranges_from(tables: tuple[np.ndarray, ...], Dm: int, lam: float, tau: float,
+                fraction: float = MORPH_FRACTION) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`ranges` from per-depth (e, move, slack, diag, cell) tables."""
+    e, move, slack, diag, cell = tables
+    f = float(fraction)
+    R = np.zeros(Dm + 1)
+    m = np.full(Dm + 1, np.inf)
+    for D in range(Dm, 0, -1):
+        prev = R[D]
+        need = [lam * e[D - 1] / tau * _SAFE, prev * (1 + 1e-9) + 1e-6]
+        if f < 1:
+            need.append(prev + diag[D] * _SAFE / (1 - f))
+            budget = (lam * (e[D] + (1 + slack[D]) * move[D]) / tau + cell[D]
+                      + move[D]) * _SAFE
+            need.append((budget - f * prev) / (1 - f))
+        R[D - 1] = max(need)
+        m[D] = (1 - f) * R[D - 1] + f * prev
+    return R, m

@@ -1,0 +1,238 @@
+"""Seed 001 §3.2.1–3.2.2: a node's bounds and the tests made on them, on arrays of nodes.
+
+A node is (face, depth, x, y): the face's u ∈ [x, x + 1]/2^D, v ∈ [y, y + 1]/2^D. Every point
+it draws, and every lattice point of its subtree, lies on a ray through its flat quad and
+between two distances from the centre, ρ_lo and ρ_hi: a *shell sector*. Its bounds are the
+seed's six planes:
+
+- **4 side planes** through the centre and each flat edge (n_k·x ≤ 0 inside, normals
+  outward). They are exact on the ellipsoid too, because every vertex lies on its own ray
+  (:mod:`geoterrain.globe.model`): the seed's worry that an ellipsoid's non-uniform scale
+  breaks plane bounds (L539) does not arise for points placed along rays.
+- **a top plane** c·x ≤ ρ_hi (c the centre direction): tangent to the sphere S_max;
+- **a bottom plane** c·x ≥ ρ_lo·min_k(c·ĉ_k): through the corner farthest from c (on the
+  long diagonal) projected onto S_min.
+
+The **8 corners** are the side edges' ends on the top and bottom planes; their hull is the
+six-plane volume. The **bounding sphere** is centred on their mean.
+
+Tests (all conservative, all on whole arrays):
+
+- :func:`shell_distance`: the exact distance from the eye to the shell sector (the seed
+  intersects its volume with a sphere by SAT; ours is exact and tighter: the distance to the
+  cone's side wedges, or radially inside the cone);
+- :func:`frustum_state`: outside when all 8 corners lie outside one frustum plane, inside
+  when all lie inside every plane (then the children skip the test);
+- :func:`horizon_hidden`: all 8 corners in the region the occluder hides from the eye (the
+  horizon cone behind the horizon plane), in the space where the occluding ellipsoid (the
+  lowest possible surface) is the unit sphere. That region is convex, so the hull is hidden.
+
+Examples
+--------
+>>> g = geometry(np.array([encode(0, 0, 0, 0)]))
+>>> g.planes.shape, bool(np.all(np.einsum("nkj,nj->nk", g.planes, g.centre) < 0))
+((1, 4, 3), True)
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from geoterrain.globe.polyhedron import face_points
+
+__all__ = ["encode", "decode", "children", "parent", "Geometry", "geometry", "hull",
+           "shell_distance", "frustum_state", "horizon_hidden", "Occluder",
+           "OUTSIDE", "INTERSECTS", "INSIDE"]
+
+OUTSIDE, INTERSECTS, INSIDE = 0, 1, 2
+_XY = 24  # bits of x and y in a key
+
+
+def encode(face, depth, x, y):
+    """An int64 key of node (face, depth, x, y) (arrays or ints).
+
+    Examples
+    --------
+    >>> k = encode(7, 3, 5, 2); decode(k)
+    (7, 3, 5, 2)
+    """
+    return ((np.int64(face) * 32 + np.int64(depth)) << np.int64(2 * _XY)) \
+        | (np.int64(y) << np.int64(_XY)) | np.int64(x)
+
+
+def decode(key):
+    """(face, depth, x, y) of keys (arrays, or ints for an int)."""
+    k = np.asarray(key, np.int64)
+    m = np.int64((1 << _XY) - 1)
+    x = k & m
+    y = (k >> np.int64(_XY)) & m
+    fd = k >> np.int64(2 * _XY)
+    out = (fd // 32, fd % 32, x, y)
+    if np.ndim(key) == 0:
+        return tuple(int(v) for v in out)
+    return out
+
+
+def children(keys: np.ndarray) -> np.ndarray:
+    """The four children of each key, (N, 4), in quadrant order (x bit, then y bit)."""
+    f, d, x, y = decode(np.asarray(keys, np.int64))
+    q = np.arange(4)
+    return encode(f[:, None], d[:, None] + 1, 2 * x[:, None] + (q & 1), 2 * y[:, None] + (q >> 1))
+
+
+def parent(keys: np.ndarray) -> np.ndarray:
+    """Each key's parent (depth − 1)."""
+    f, d, x, y = decode(np.asarray(keys, np.int64))
+    return encode(f, d - 1, x // 2, y // 2)
+
+
+class Geometry(NamedTuple):
+    """What a node's key fixes: unit corner directions ``dirs`` (N, 4, 3) in face order
+    (u0v0, u1v0, u1v1, u0v1), outward side-plane normals ``planes`` (N, 4, 3) (side k joins
+    corner k and k + 1), the centre direction ``centre`` (N, 3) and ``cmin`` (N,) = min_k
+    c·ĉ_k, the largest angle's cosine."""
+
+    dirs: np.ndarray
+    planes: np.ndarray
+    centre: np.ndarray
+    cmin: np.ndarray
+
+
+def geometry(keys: np.ndarray) -> Geometry:
+    """The :class:`Geometry` of nodes ``keys``."""
+    f, d, x, y = decode(np.asarray(keys, np.int64).reshape(-1))
+    s = 1.0 / (2.0 ** d)
+    u0, v0 = x * s, y * s
+    uu = np.stack([u0, u0 + s, u0 + s, u0], 1)
+    vv = np.stack([v0, v0, v0 + s, v0 + s], 1)
+    F = face_points(f[:, None], uu, vv)
+    dirs = F / np.linalg.norm(F, axis=-1)[..., None]
+    cen = face_points(f, u0 + s / 2, v0 + s / 2)
+    cen /= np.linalg.norm(cen, axis=-1)[..., None]
+    nrm = np.cross(F, np.roll(F, -1, axis=1))
+    nrm /= np.linalg.norm(nrm, axis=-1)[..., None]
+    # outward: the centre lies on the inner side
+    sign = np.where(np.einsum("nkj,nj->nk", nrm, cen) > 0, -1.0, 1.0)
+    nrm *= sign[..., None]
+    cmin = np.einsum("nkj,nj->nk", dirs, cen).min(1)
+    return Geometry(dirs, nrm, cen, cmin)
+
+
+def hull(g: Geometry, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                                 np.ndarray]:
+    """The 8 corners (N, 8, 3) of the six-plane volume of shell sectors [lo, hi], its
+    bounding sphere's centres (N, 3) and radii (N,)."""
+    cd = np.einsum("nkj,nj->nk", g.dirs, g.centre)  # c·ĉ_k
+    top = (hi[:, None] / cd)[..., None] * g.dirs
+    bottom = ((lo * g.cmin)[:, None] / cd)[..., None] * g.dirs
+    C = np.concatenate([bottom, top], 1)
+    mid = C.mean(1)
+    rad = np.linalg.norm(C - mid[:, None], axis=-1).max(1)
+    return C, mid, rad
+
+
+def _segment_distance(q: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance from points q to segments a–b (…, 3)."""
+    ab = b - a
+    t = np.clip(np.einsum("...j,...j", q - a, ab) / np.maximum(
+        np.einsum("...j,...j", ab, ab), 1e-300), 0.0, 1.0)
+    return np.linalg.norm(q - (a + t[..., None] * ab), axis=-1)
+
+
+def shell_distance(eye: np.ndarray, g: Geometry, lo: np.ndarray, hi: np.ndarray
+                   ) -> np.ndarray:
+    """Exact distance from ``eye`` (3,) to each node's shell sector {t·d: d in its cone,
+    lo ≤ t ≤ hi} (0 inside).
+
+    Inside the cone the nearest point is radial; outside it lies on a side wedge (the
+    nearest direction in a convex spherical polygon to one outside it is on its boundary),
+    an annular sector in the side plane: the in-plane distance to it, and the eye's height
+    over the plane.
+
+    Examples
+    --------
+    >>> g = geometry(np.array([encode(0, 0, 0, 0)]))
+    >>> e = g.centre[0] * 7e6
+    >>> round(float(shell_distance(e, g, np.array([6.3e6]), np.array([6.4e6]))[0]), 3)
+    600000.0
+    """
+    e = np.asarray(eye, np.float64)
+    re = float(np.linalg.norm(e))
+    side = np.einsum("nkj,j->nk", g.planes, e)  # > 0: outside that side
+    inside = (side <= 0).all(1)
+    out = np.maximum(np.maximum(lo - re, re - hi), 0.0)
+    if inside.all():
+        return out
+    k = np.flatnonzero(~inside)
+    a = g.dirs[k]  # (m, 4, 3)
+    b = np.roll(a, -1, axis=1)
+    n = g.planes[k]
+    h = np.einsum("mkj,j->mk", n, e)
+    q = e[None, None, :] - h[..., None] * n  # the eye projected on each side plane
+    # q = α·a + β·b: inside the wedge's angle when α, β ≥ 0
+    ab = np.einsum("mkj,mkj->mk", a, b)
+    qa = np.einsum("mkj,mkj->mk", q, a)
+    qb = np.einsum("mkj,mkj->mk", q, b)
+    den = 1.0 - ab * ab
+    alpha = (qa - ab * qb) / den
+    beta = (qb - ab * qa) / den
+    qn = np.linalg.norm(q, axis=-1)
+    radial = np.maximum(np.maximum(lo[k, None] - qn, qn - hi[k, None]), 0.0)
+    seg = np.minimum(
+        _segment_distance(q, a * lo[k, None, None], a * hi[k, None, None]),
+        _segment_distance(q, b * lo[k, None, None], b * hi[k, None, None]))
+    inplane = np.where((alpha >= 0) & (beta >= 0), radial, seg)
+    out[k] = np.sqrt(h * h + inplane * inplane).min(1)
+    return out
+
+
+def frustum_state(planes: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """OUTSIDE / INTERSECTS / INSIDE of hulls (N, 8, 3) against inward frustum ``planes``
+    (P, 4): outside when all 8 corners are outside one plane (seed 001 L338)."""
+    s = np.einsum("nvj,pj->npv", corners, planes[:, :3]) + planes[None, :, 3, None]
+    out = np.full(len(corners), INTERSECTS, np.int8)
+    out[(s >= 0).all((1, 2))] = INSIDE
+    out[(s < 0).all(2).any(1)] = OUTSIDE
+    return out
+
+
+class Occluder(NamedTuple):
+    """The ellipsoid nothing can be seen through: semi-axes ``a``, ``b`` (metres), at or
+    below the lowest possible surface, less the largest sag of a drawn chord."""
+
+    a: float
+    b: float
+
+
+def horizon_hidden(occ: Occluder, eye: np.ndarray, corners: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(hidden, in front): per hull, whether all its corners lie in the region the occluder
+    hides from ``eye`` (the horizon cone behind the horizon plane, seed 001 L344; exact for
+    an ellipsoid in the space that makes it the unit sphere), and whether all lie in front
+    of the horizon plane (then no part of the hull can be hidden: its children skip the
+    test).
+
+    Examples
+    --------
+    >>> occ = Occluder(6.0e6, 6.0e6)
+    >>> eye = np.array([0.0, 0.0, 7.0e6])
+    >>> behind = np.tile([0.0, 0.0, -6.5e6], (1, 8, 1)); front = np.tile([0.0, 1e5, 6.5e6],
+    ...                                                                     (1, 8, 1))
+    >>> horizon_hidden(occ, eye, np.concatenate([behind, front]))[0].tolist()
+    [True, False]
+    """
+    s = np.array([1.0 / occ.a, 1.0 / occ.a, 1.0 / occ.b])
+    C = np.asarray(eye, np.float64) * s
+    P = corners * s
+    vh2 = C @ C - 1.0
+    if vh2 <= 0:  # the eye is inside the occluder: hide nothing
+        z = np.zeros(len(corners), bool)
+        return z, z
+    vt = P - C
+    proj = -np.einsum("nvj,j->nv", vt, C)  # along the eye → centre axis
+    behind = proj > vh2  # beyond the horizon plane
+    in_cone = proj * proj >= vh2 * np.einsum("nvj,nvj->nv", vt, vt)
+    hidden = (behind & in_cone).all(1)
+    return hidden, (~behind).all(1)
