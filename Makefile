@@ -5,12 +5,14 @@
 #   make test-fast           the fast tier (tests marked `fast`, and every doctest): about a
 #                            minute on two cores, and it exercises every module
 #   make test-fast-coverage  the fast tier, failing unless it exercised every module
+#   make test-boundscheck    the fast tier and the grid-shape sweep with numba's bounds checks
+#                            on (NUMBA_BOUNDSCHECK=1, kernels compiled into a cache of their own)
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-fast test-fast-coverage lint clean setup browser test-browser geoid gdal
+.PHONY: demo test test-fast test-fast-coverage test-boundscheck lint clean setup browser test-browser geoid gdal
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -47,6 +49,12 @@ test-fast: $(STAMP)
 
 test-fast-coverage: $(STAMP)
 	$(BIN)/python -m pytest -q $(FAST) --durations=10 --tiercheck
+
+# every compiled kernel the fast tier and the shape sweep reach, with bounds checks: an index
+# outside an array is an IndexError, not a crash (tests/preprocessing/test_shape_sweep.py)
+test-boundscheck: $(STAMP)
+	NUMBA_BOUNDSCHECK=1 NUMBA_CACHE_DIR=.numba-boundscheck $(BIN)/python -m pytest -q \
+		-m '(fast or boundscheck) and not slow and not browser' -p no:randomly
 
 # The browser tests (tests/export/test_cesium.py, tests/serve/test_browser.py): Debian's
 # chromium, Node/npm and the npm packages cesium, maplibre-gl and pmtiles in .browser/

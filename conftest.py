@@ -7,7 +7,16 @@ run unless it exercised every module (tests/tiercheck.py).
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import pytest
+
+# numba's cache does not tell bounds-checked code from plain code: a run with
+# NUMBA_BOUNDSCHECK=1 (make test-boundscheck) keeps its compiled kernels apart, so neither
+# run loads the other's
+if os.environ.get("NUMBA_BOUNDSCHECK") == "1" and not os.environ.get("NUMBA_CACHE_DIR"):
+    os.environ["NUMBA_CACHE_DIR"] = str(Path(__file__).parent / ".numba-boundscheck")
 
 
 def pytest_addoption(parser):

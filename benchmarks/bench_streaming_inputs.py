@@ -78,7 +78,7 @@ def same_store(a: str, b: str) -> bool:
         con = sqlite3.connect(p)
         try:
             m = read_meta(con)
-            m.pop("preprocess_seconds")
+            m.pop("preprocess_seconds", None)  # stores before issue 49 held timings
             return all_blobs(con), all_tiles(con), m
         finally:
             con.close()

@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
+import math
 import sys
 
 import click
 
 from geoterrain.cli.options import (
+    SIZE,
     anti_aliasing_option,
     morph_option,
     occlusion_option,
-    parse_size,
     pixel_errors_option,
     strategies_option,
 )
@@ -23,8 +24,8 @@ def _floats(ctx, param, value):
         out = tuple(float(v) for v in value.split(",") if v.strip())
     except ValueError:
         raise click.BadParameter(f"expected comma-separated numbers, got {value!r}") from None
-    if not out:
-        raise click.BadParameter("expected at least one number")
+    if not out or not all(math.isfinite(v) and v > 0 for v in out):
+        raise click.BadParameter(f"expected finite numbers > 0, got {value!r}")
     return out
 
 
@@ -42,7 +43,7 @@ def _floats(ctx, param, value):
               help="Length of the built-in flight.")
 @click.option("--path", "cameras", type=click.Path(dir_okay=False),
               help="Cameras JSON: a list of {look_from, look_at, up?, fov?} in scene metres.")
-@click.option("--size", default="1280x720", show_default=True, callback=parse_size,
+@click.option("--size", default="1280x720", show_default=True, type=SIZE,
               help="Image size WxH the pixel error refers to.")
 @click.option("--render", is_flag=True, help="Also render every frame offscreen and time it.")
 @click.option("--peers", is_flag=True,
@@ -64,10 +65,11 @@ def _floats(ctx, param, value):
                    "513², 1025², 2049²).")
 @click.option("--frames", default=6, show_default=True, type=click.IntRange(1, 60),
               help="With --experiment: frames timed over the one-minute flight.")
+@click.option("--overwrite", is_flag=True, help="Replace the CSV and the figure if they exist.")
 @click.pass_context
 def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_aliasing,
             pixel_errors, n_views, cameras, size, render, peers, peer_errors, output, plot_path,
-            cache_dir, experiment, terrains, frames):
+            cache_dir, experiment, terrains, frames, overwrite):
     """Benchmark the LOD strategies on SOURCE (a store or a DEM) or a synthetic DEM.
 
     Runs every strategy at every --pixel-error over a camera path (a built-in flight of
@@ -96,17 +98,29 @@ def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_ali
 
     from geoterrain.bench import harness as bench
     from geoterrain.bench.report import format_table, plot, summarise, write_csv
+    from geoterrain.core.paths import check_output, input_problem
     from geoterrain.exceptions import UsageError
 
     quiet = bool((ctx.obj or {}).get("quiet"))
     if experiment is not None:
         return _experiment(ctx, experiment, source, synthetic, anti_aliasing, terrains, frames,
-                           output, cache_dir, quiet)
+                           output, cache_dir, quiet, overwrite)
     if cameras is not None and n_views != 8:
         raise UsageError("--views applies to the built-in flight; not with --path")
-    for p in (output, plot_path):
-        if p is not None and not Path(p).parent.exists():
-            raise UsageError(f"{p}: the directory does not exist")
+    inputs = [source, cameras]
+    for p, what in ((None if synthetic else source, "give a DEM or a store"),
+                    (cameras, "give a cameras JSON file")):
+        # before any work: a FIFO would block the read, an over-long name fail in it
+        if p is not None and (why := input_problem(p)) is not None:
+            raise UsageError(f"{p}: {why}; {what}")
+    for p, opt in ((output, "-o"), (plot_path, "--plot")):
+        if p is not None:
+            check_output(p, overwrite, inputs=inputs, option=opt)
+    if output is not None and plot_path is not None and Path(output).absolute() == \
+            Path(plot_path).absolute():
+        raise UsageError("-o and --plot name the same file; choose another --plot path")
+    if cache_dir is not None:  # an existing folder or a new one in an existing folder
+        check_output(cache_dir, True, folder=True, inputs=inputs, option="--cache-dir")
     if plot_path is not None and Path(plot_path).suffix.lower() not in (".png", ".svg", ".pdf"):
         raise UsageError(f"{plot_path}: the plot must be .png, .svg or .pdf")
     bar = None
@@ -153,13 +167,12 @@ def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_ali
 
 
 def _experiment(ctx, name, source, synthetic, anti_aliasing, terrains, frames, output,
-                cache_dir, quiet):
+                cache_dir, quiet, overwrite):
     """``--experiment``: seed 000's tables re-run (:mod:`geoterrain.bench.experiments`)."""
-    from pathlib import Path
-
     from click.core import ParameterSource
 
     from geoterrain.bench import experiments as ex
+    from geoterrain.core.paths import check_output
     from geoterrain.exceptions import UsageError
 
     if name == "list":
@@ -170,8 +183,10 @@ def _experiment(ctx, name, source, synthetic, anti_aliasing, terrains, frames, o
                          "or --synthetic (choose them with --terrains)")
     if ctx.get_parameter_source("anti_aliasing") is ParameterSource.DEFAULT:
         anti_aliasing = "msaa"  # one mode for every strategy (auto chooses per frame)
-    if output is not None and not Path(output).parent.exists():
-        raise UsageError(f"{output}: the directory does not exist")
+    if output is not None:  # core/paths.py: what -o may replace
+        check_output(output, overwrite, option="-o")
+    if cache_dir is not None:
+        check_output(cache_dir, True, folder=True, option="--cache-dir")
     names = tuple(t.strip() for t in terrains.split(",") if t.strip())
     ex.configs(name, names)  # unknown names: a one-line error before any work
     bar = None

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import click
 
+from geoterrain.cli.options import FINITE, NON_NEGATIVE, POSITIVE
+
 
 def _levels(ctx, param, value):
     if value is None:
@@ -16,13 +18,13 @@ def _levels(ctx, param, value):
 
 @click.command("contours")
 @click.argument("store", type=click.Path(dir_okay=False))
-@click.option("--interval", type=float, metavar="DZ",
+@click.option("--interval", type=POSITIVE, metavar="DZ",
               help="Height between contours (the DEM's vertical unit), as gdal_contour -i.")
-@click.option("--base", type=float, default=0.0, show_default=True,
+@click.option("--base", type=FINITE, default=0.0, show_default=True,
               help="A level the contours pass through (gdal_contour -off).")
 @click.option("--levels", callback=_levels, metavar="Z[,Z...]",
               help="These levels instead of an interval (gdal_contour -fl).")
-@click.option("--max-error", type=float, metavar="E",
+@click.option("--max-error", type=NON_NEGATIVE, metavar="E",
               help="Trace the coarsest pyramid level whose error is at most E (faster; the "
                    "bound is printed).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
@@ -44,12 +46,9 @@ def command(ctx, store, interval, base, levels, max_error, output, overwrite):
 
     if (interval is None) == (levels is None):
         raise UsageError("give --interval DZ or --levels Z,Z,… (one of them)")
-    from pathlib import Path
+    from geoterrain.core.paths import check_output
 
-    from geoterrain.exceptions import exists_error
-
-    if Path(output).exists() and not overwrite:
-        raise exists_error(output)
+    check_output(output, overwrite, inputs=[store])  # core/paths.py: what -o may replace
     with geoterrain.open(store) as t:
         c = contours(t, interval, base, levels=levels, max_error=max_error)
         write_contours(c, output, t.frame.crs_wkt, overwrite=overwrite)

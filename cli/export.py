@@ -7,11 +7,14 @@ import json
 import click
 
 from geoterrain.cli.options import (
+    NON_NEGATIVE,
+    Number,
     camera_options,
     human_bytes,
     mesh_request,
     mesh_words,
     occlusion_option,
+    parse_bytes,
     pixel_error_option,
     select_mesh,
     strategy_option,
@@ -25,7 +28,7 @@ LARGE = 20e6  # bytes: an export estimated larger than this is announced before 
 @click.argument("store", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="File: .glb, .gltf, .obj (+ .mtl, .png), .ply or .stl.")
-@click.option("--max-error", type=float, metavar="E",
+@click.option("--max-error", type=NON_NEGATIVE, metavar="E",
               help="Whole-terrain mesh: largest height error in metres; default 1. A larger "
                    "E makes a smaller file.")
 @camera_options
@@ -42,10 +45,10 @@ LARGE = 20e6  # bytes: an export estimated larger than this is announced before 
 @click.option("--drape", type=click.Path(dir_okay=False), metavar="IMAGE",
               help="glTF/OBJ texture: a georeferenced image (orthophoto GeoTIFF, RGB or one "
                    "band, any CRS) reprojected onto the DEM instead of the shading.")
-@click.option("--base-height", type=float, metavar="H",
+@click.option("--base-height", type=Number(0, 1e6), metavar="H",
               help="A closed solid for printing or viewing, on every format: walls and a "
                    "flat base H thick under the lowest point (mm with --print-size, else m).")
-@click.option("--print-size", type=float, metavar="MM",
+@click.option("--print-size", type=Number(0, 1e6, lo_open=True), metavar="MM",
               help="A closed solid scaled so its longer side is MM millimetres (glTF: "
                    "MM/1000 metres, as glTF's unit is the metre); base 3 mm by default.")
 @click.option("--preview", type=click.Path(dir_okay=False), metavar="PNG",
@@ -53,11 +56,15 @@ LARGE = 20e6  # bytes: an export estimated larger than this is announced before 
                    "south-west into a PNG picture.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the summary as JSON (for scripts).")
+@click.option("--memory-limit", callback=parse_bytes, metavar="SIZE",
+              help="Memory the export may use, e.g. 2G (default: half of what is available). "
+                   "A whole-terrain mesh whose estimated export passes it is refused before "
+                   "any work, with the estimate.")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
 def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, size,
             pixel_error, strategy, occlusion, vertical_exaggeration, shading, cmap, texture_size,
-            drape, base_height, print_size, preview, as_json, overwrite):
+            drape, base_height, print_size, preview, as_json, memory_limit, overwrite):
     """Export STORE's mesh for other tools: the whole terrain (--max-error) or what a
     camera sees (--look-from/--look-at).
 
@@ -91,9 +98,11 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
       geoterrain export dem.geoterrain -o v.glb --look-from 0,-5000,2000 --look-at 0,0,0
     """
     import geoterrain
+    from geoterrain.core.memory import available_memory
     from geoterrain.exaggerate import exaggerated
     from geoterrain.exceptions import UsageError
     from geoterrain.export.formats import (
+        check_export_memory,
         check_export_path,
         data_shape,
         estimate_bytes,
@@ -101,14 +110,14 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
         export_texture_level,
     )
 
-    out = check_export_path(output, overwrite)
+    out = check_export_path(output, overwrite, inputs=[store, drape])  # and its sidecars
     ext = out.suffix.lower()
     if preview is not None:
         from pathlib import Path
 
         from geoterrain.export.meshfiles import check_output_path
 
-        check_output_path(preview, (".png",), overwrite, "preview")
+        check_output_path(preview, (".png",), overwrite, "preview", [store, drape])
         if Path(preview).resolve() == out.with_suffix(".png").resolve() and ext == ".obj":
             raise UsageError(f"--preview {preview} is the OBJ's own texture; choose another "
                              "name")
@@ -122,6 +131,8 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
 
         check_flat(base.frame, str(store))
         t = exaggerated(base, vertical_exaggeration)
+        if max_error is not None:  # bounded: refused before the mesh is built
+            check_export_memory(t, max_error, memory_limit or available_memory() // 2)
         sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error,
                           strategy, occlusion)
         texels = 0

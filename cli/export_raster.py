@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from geoterrain.cli.options import POSITIVE
 from geoterrain.export.rasters import PRODUCTS, SLOPE_UNITS
 
 
@@ -34,9 +35,9 @@ def _parse_sun(ctx, param, value):
 @click.option("--multidirectional", is_flag=True,
               help="Hillshade: suns from 225, 270, 315 and 360 degrees, weighted by the "
                    "slope's aspect (gdaldem -multidirectional; --sun gives the altitude).")
-@click.option("-z", "--z-factor", type=float, default=1.0, show_default=True, metavar="Z",
+@click.option("-z", "--z-factor", type=POSITIVE, default=1.0, show_default=True, metavar="Z",
               help="Hillshade and slope: heights × Z (gdaldem -z).")
-@click.option("--scale", type=float, metavar="S",
+@click.option("--scale", type=POSITIVE, metavar="S",
               help="Hillshade and slope: vertical units per horizontal unit (gdaldem -s) "
                    "[default: right for the DEM; 111120 for a geographic DEM in metres, "
                    "as gdaldem's convention].")

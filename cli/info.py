@@ -39,7 +39,7 @@ def command(store, as_json, reference):
     zm = i["vertical_unit_to_m"]
     in_m = f" ({lo * zm:.6g} … {hi * zm:.6g} m)" if vu != "m" else ""
     lines = [
-        f"store        {i['path']} ({i['size_bytes'] / 1e6:.2f} MB)",
+        f"store        {i['path']} ({i['size_bytes'] / 1e6:.2f} MB, modified {i['modified']})",
         f"source       {i['source']} ({i['source_dtype']}, encoding {i['encoding']})",
         f"crs          {i['crs']}",
         f"frame        {i['frame']}; origin {i['origin_crs'][0]:.6g}, {i['origin_crs'][1]:.6g} "

@@ -7,6 +7,7 @@ import logging
 import signal
 import sys
 import traceback
+import warnings
 
 import click
 
@@ -23,9 +24,48 @@ COMMANDS = {"preprocess": "preprocess", "info": "info", "mesh": "mesh", "export"
             "serve": "serve"}
 
 
+def one_line(text: object) -> str:
+    r"""``text`` as one printable line: newlines and runs of blanks as one space, control
+    characters as "?", bytes that are not UTF-8 (a file name's) as escapes, at most 400
+    characters.
+
+    Examples
+    --------
+    >>> one_line("a\n  b\x07 c\udcff")
+    'a b? c\\udcff'
+    """
+    s = " ".join(str(text).split())
+    s = s.encode("utf-8", "backslashreplace").decode("utf-8")
+    s = "".join(c if c.isprintable() else "?" for c in s)
+    return s if len(s) <= 400 else s[:397] + "..."
+
+
 class Group(click.Group):
     """Turns library errors into one line and an exit code (2 usage, 1 data); loads each
-    command's module on first use."""
+    command's module on first use. Click's own usage errors (an unknown option, a value
+    its type refuses) are one line too, naming the command's ``--help``."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
+             **extra):
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, False, **extra)
+        try:
+            rv = super().main(args, prog_name, complete_var, False, **extra)
+        except click.exceptions.NoArgsIsHelpError as exc:  # the help itself, as Click shows it
+            exc.show()
+            sys.exit(exc.exit_code)
+        except click.exceptions.UsageError as exc:
+            where = exc.ctx.command_path if exc.ctx is not None else prog_name or "geoterrain"
+            msg = one_line(exc.format_message()).rstrip(".")
+            click.echo(f"Error: {msg}; see '{where} --help'", err=True)
+            sys.exit(exc.exit_code)
+        except click.ClickException as exc:
+            click.echo(f"Error: {one_line(exc.format_message())}", err=True)
+            sys.exit(exc.exit_code)
+        except click.exceptions.Abort:
+            click.echo("Aborted; nothing was written.", err=True)
+            sys.exit(1)
+        sys.exit(rv if isinstance(rv, int) else 0)
 
     def list_commands(self, ctx) -> list[str]:
         return sorted(COMMANDS)
@@ -50,7 +90,7 @@ class Group(click.Group):
         try:
             return super().invoke(ctx)
         except GeoterrainError as exc:
-            click.echo(f"Error: {exc.cli or exc}", err=True)
+            click.echo(f"Error: {one_line(exc.cli or exc)}", err=True)
             ctx.exit(exc.exit_code)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
@@ -64,7 +104,7 @@ class Group(click.Group):
             if (ctx.obj or {}).get("verbose", 0) > 1:
                 traceback.print_exc()
             first = str(exc).splitlines()[0] if str(exc) else ""
-            click.echo(f"Error: internal error {type(exc).__name__}: {first} "
+            click.echo(f"Error: internal error {type(exc).__name__}: {one_line(first)} "
                        "(re-run with -vv for the traceback and report it)", err=True)
             ctx.exit(1)
         finally:
@@ -98,6 +138,22 @@ def cli(ctx, verbose, quiet):
     logging.basicConfig(level=logging.DEBUG if verbose > 1 else
                         logging.INFO if verbose else logging.WARNING,
                         format="%(levelname)s: %(message)s")
+    if verbose < 2:  # -vv: Python's own warnings, with their file and line
+        warnings.showwarning = _one_line_warning
+
+
+# library warnings that mean nothing to a user of the command line: a raster without a
+# geotransform is said in geoterrain's own words (--pixel-size), and matplotlib's missing
+# glyphs only change how an overlay's text looks
+_SILENT = ("NotGeoreferencedWarning", "Glyph")
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A library's warning as one line on stderr, without its source path."""
+    text = one_line(message)
+    if any(s in category.__name__ or s in text for s in _SILENT):
+        return
+    click.echo(f"warning: {text}", err=True)
 
 
 class Terminated(KeyboardInterrupt):

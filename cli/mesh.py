@@ -7,6 +7,7 @@ import json
 import click
 
 from geoterrain.cli.options import (
+    NON_NEGATIVE,
     camera_options,
     mesh_request,
     occlusion_option,
@@ -21,7 +22,7 @@ from geoterrain.cli.options import (
 @click.argument("store", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Mesh file: .ply, .vtp, .stl, .obj or .vtk.")
-@click.option("--max-error", type=float, metavar="E",
+@click.option("--max-error", type=NON_NEGATIVE, metavar="E",
               help="Whole-terrain mesh: largest height error in metres; default 1.")
 @camera_options
 @pixel_error_option
@@ -54,7 +55,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     from geoterrain.export.meshfiles import check_mesh_path, write_mesh
     from geoterrain.export.meshstream import STREAM_CACHE_BYTES, STREAM_FORMATS, check_in_memory
 
-    out = check_mesh_path(output, overwrite)  # before any work
+    out = check_mesh_path(output, overwrite, inputs=[store])  # before any work
     max_error = mesh_request(max_error, look_from, look_at)
     from geoterrain.exaggerate import exaggerated
 

@@ -1,7 +1,35 @@
-"""Options shared between commands, and the progress bar.
+"""Options shared between commands, the Click types that check every value, and the
+progress bar.
 
-The strategy names come from the LOD registry (:mod:`geoterrain.lod.registry`),
-so a new strategy appears in every command and its ``--help`` by itself.
+Every value a command takes is checked here, before any work, with one line and exit 2
+(Click's usage errors are printed as one line by :mod:`geoterrain.cli.main`). A new
+command or option takes a type from this list rather than ``float`` or ``int``:
+
+=====================  ================================================================
+type                   accepts
+=====================  ================================================================
+``Number(lo, hi)``     a finite number in [lo, hi] (``lo_open``/``hi_open``: the open
+                       ends; ``nan=True`` also NaN, e.g. ``--nodata nan``)
+``FINITE``             any finite number (a height, a coordinate)
+``POSITIVE``           a finite number > 0 (a bound, a tolerance, a size in metres)
+``NON_NEGATIVE``       a finite number ≥ 0 (``--max-error``: 0 is every vertex)
+``AZIMUTH``            degrees clockwise from north, in [−360, 360]
+``ELEVATION``          degrees above the horizon, in (0, 90]
+``FOV``                a field of view, degrees in (0, 180)
+``FRACTION``           a number in [0, 1] (an opacity)
+``DISTANCE``           metres in (0, 10^9]
+``EXAGGERATION``       a vertical exaggeration in [10^-6, 10^6] (the store's own range)
+``PIXEL_SIZE``         metres per sample in [10^-6, 10^6] (the store's own range)
+``PIXEL_ERROR``        a screen-space error in pixels, in (0, 10^4]
+``NODATA``             a finite number or NaN
+``Point(n)``           ``n`` finite comma-separated numbers (``X,Y,Z``; ``X,Y``)
+``SIZE``               a picture ``WIDTHxHEIGHT``, 16 … 16384 per side
+``Text(n)``            printable text of at most ``n`` characters (a title)
+=====================  ================================================================
+
+For example ``click.option("--azimuth", type=AZIMUTH)``. The strategy names come from the
+LOD registry (:mod:`geoterrain.lod.registry`), so a new strategy appears in every command
+and its ``--help`` by itself.
 """
 
 from __future__ import annotations
@@ -11,33 +39,161 @@ import sys
 
 import click
 
+from geoterrain.core.limits import PIXEL_SIZE_RANGE, SCENE_LIMIT, Z_SCALE_RANGE
 from geoterrain.lod.registry import DEFAULT, STRATEGIES, describe
 
 
+def _number(text: object) -> float:
+    """A float from a command line word (ValueError otherwise)."""
+    if isinstance(text, bool):
+        raise ValueError(text)
+    if isinstance(text, int | float):
+        return float(text)
+    return float(str(text).strip())
+
+
+class Number(click.ParamType):
+    """A finite number in [lo, hi] (``lo_open``, ``hi_open``: excluded ends); ``nan``
+    also takes NaN. One line naming the range otherwise.
+
+    Examples
+    --------
+    >>> Number(0, 90, lo_open=True).convert("45", None, None)
+    45.0
+    >>> try:
+    ...     Number(0, 90, lo_open=True).convert("nan", None, None)
+    ... except click.BadParameter as e:
+    ...     print(e)
+    expected a number in (0, 90], got nan
+    """
+
+    name = "number"
+
+    def __init__(self, lo: float = -math.inf, hi: float = math.inf, *, lo_open: bool = False,
+                 hi_open: bool = False, nan: bool = False):
+        self.lo, self.hi, self.lo_open, self.hi_open, self.nan = lo, hi, lo_open, hi_open, nan
+
+    def describe(self) -> str:
+        if self.lo == -math.inf and self.hi == math.inf:
+            return "a finite number"
+        if self.hi == math.inf:
+            return f"a finite number {'>' if self.lo_open else '≥'} {self.lo:g}"
+        return (f"a number in {'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}"
+                f"{')' if self.hi_open else ']'}")
+
+    def convert(self, value, param, ctx):
+        try:
+            v = _number(value)
+        except ValueError:
+            self.fail(f"expected {self.describe()}, got {value!r}", param, ctx)
+        if math.isnan(v) and self.nan:
+            return v
+        lo_ok = v > self.lo if self.lo_open else v >= self.lo
+        hi_ok = v < self.hi if self.hi_open else v <= self.hi
+        if not (math.isfinite(v) and lo_ok and hi_ok):
+            self.fail(f"expected {self.describe()}, got {value}", param, ctx)
+        return v
+
+    def __repr__(self) -> str:
+        return f"Number({self.describe()})"
+
+
+FINITE = Number()
+POSITIVE = Number(0, lo_open=True)
+NON_NEGATIVE = Number(0)
+AZIMUTH = Number(-360, 360)
+ELEVATION = Number(0, 90, lo_open=True)
+FOV = Number(0, 180, lo_open=True, hi_open=True)
+FRACTION = Number(0, 1)
+DISTANCE = Number(0, 10 * SCENE_LIMIT, lo_open=True)
+EXAGGERATION = Number(*Z_SCALE_RANGE)
+PIXEL_SIZE = Number(*PIXEL_SIZE_RANGE)
+PIXEL_ERROR = Number(0, 1e4, lo_open=True)
+NODATA = Number(nan=True)
+
+
+class Point(click.ParamType):
+    """``n`` finite comma-separated numbers (``X,Y,Z`` with ``n`` = 3), as a tuple.
+
+    Examples
+    --------
+    >>> Point(3).convert("1,2.5,-3", None, None)
+    (1.0, 2.5, -3.0)
+    """
+
+    name = "point"
+
+    def __init__(self, n: int = 3, names: str = "X,Y,Z"):
+        self.n, self.names = n, names
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        try:
+            parts = tuple(_number(v) for v in str(value).split(","))
+        except ValueError:
+            self.fail(f"expected {self.names} numbers, got {value!r}", param, ctx)
+        if len(parts) != self.n or not all(math.isfinite(v) and abs(v) < 1e15 for v in parts):
+            self.fail(f"expected {self.n} finite numbers {self.names}, got {value!r}", param,
+                      ctx)
+        return parts
+
+
+class PictureSize(click.ParamType):
+    """``WIDTHxHEIGHT`` in pixels, 16 … 16384 per side, as (width, height).
+
+    Examples
+    --------
+    >>> SIZE.convert("640x360", None, None)
+    (640, 360)
+    """
+
+    name = "size"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        try:
+            w, h = (int(v) for v in str(value).lower().split("x"))
+        except ValueError:
+            self.fail(f"expected WIDTHxHEIGHT such as 1280x720, got {value!r}", param, ctx)
+        if w < 16 or h < 16 or w > 16384 or h > 16384:
+            self.fail(f"size {w}x{h} out of range (16..16384 per side)", param, ctx)
+        return w, h
+
+
+SIZE = PictureSize()
+
+
+class Text(click.ParamType):
+    """Printable text of at most ``n`` characters (no control characters).
+
+    Examples
+    --------
+    >>> Text(10).convert("Fuji", None, None)
+    'Fuji'
+    """
+
+    name = "text"
+
+    def __init__(self, n: int = 200):
+        self.n = n
+
+    def convert(self, value, param, ctx):
+        s = str(value)
+        if len(s) > self.n or not s.isprintable():
+            self.fail(f"expected printable text of at most {self.n} characters", param, ctx)
+        return s
+
+
 def parse_triple(ctx, param, value):
-    """Parse ``X,Y,Z`` into a tuple of three floats."""
-    if value is None:
-        return None
-    try:
-        parts = tuple(float(v) for v in value.split(","))
-    except ValueError:
-        raise click.BadParameter(f"expected X,Y,Z numbers, got {value!r}") from None
-    if len(parts) != 3:
-        raise click.BadParameter(f"expected three numbers X,Y,Z, got {value!r}")
-    return parts
+    """Parse ``X,Y,Z`` into a tuple of three finite floats (:class:`Point`)."""
+    return None if value is None else Point(3).convert(value, param, ctx)
 
 
 def parse_size(ctx, param, value):
-    """Parse ``WxH`` into (width, height)."""
-    if value is None:
-        return None
-    try:
-        w, h = (int(v) for v in value.lower().split("x"))
-    except ValueError:
-        raise click.BadParameter(f"expected WIDTHxHEIGHT such as 1280x720, got {value!r}") from None
-    if w < 16 or h < 16 or w > 16384 or h > 16384:
-        raise click.BadParameter(f"size {w}x{h} out of range (16..16384 per side)")
-    return w, h
+    """Parse ``WxH`` into (width, height) (:data:`SIZE`)."""
+    return None if value is None else SIZE.convert(value, param, ctx)
 
 
 def parse_bytes(ctx, param, value):
@@ -175,12 +331,6 @@ strategies_option = click.option(
     help=_strategy_help("Comma-separated LOD strategies:"))
 
 
-def _positive(ctx, param, value):
-    if value is not None and not (math.isfinite(value) and value > 0):
-        raise click.BadParameter(f"expected a finite number > 0, got {value}")
-    return value
-
-
 occlusion_option = click.option(
     "--occlusion/--no-occlusion", default=True, show_default=True,
     help="Skip tiles hidden behind nearer terrain before reading them (horizon culling; "
@@ -209,9 +359,10 @@ morph_option = click.option(
 
 
 pixel_error_option = click.option(
-    "--pixel-error", type=float, default=1.0, show_default=True, callback=_positive,
+    "--pixel-error", type=PIXEL_ERROR, default=1.0, show_default=True,
     metavar="PX", help="Level of detail: the mesh is never more than PX pixels from the "
-                       "full-resolution terrain on screen (larger: fewer triangles).")
+                       "full-resolution terrain on screen (larger: fewer triangles; at most "
+                       "10000).")
 
 
 def _parse_pixel_errors(ctx, param, value):
@@ -219,8 +370,8 @@ def _parse_pixel_errors(ctx, param, value):
         out = tuple(float(v) for v in value.split(",") if v.strip())
     except ValueError:
         raise click.BadParameter(f"expected comma-separated numbers, got {value!r}") from None
-    if not out or any(not (math.isfinite(v) and v > 0) for v in out):
-        raise click.BadParameter(f"expected finite numbers > 0, got {value!r}")
+    if not out or any(not (math.isfinite(v) and 0 < v <= PIXEL_ERROR.hi) for v in out):
+        raise click.BadParameter(f"expected numbers in (0, {PIXEL_ERROR.hi:g}], got {value!r}")
     return out
 
 
@@ -233,14 +384,15 @@ pixel_errors_option = click.option(
 def camera_options(f):
     """--look-from, --look-at, --crs-coords, --fov and --size, shared by mesh and render."""
     for opt in reversed([
-        click.option("--look-from", callback=parse_triple, help="Eye X,Y,Z (scene metres)."),
-        click.option("--look-at", callback=parse_triple, help="Target X,Y,Z (scene metres)."),
+        click.option("--look-from", type=Point(3), metavar="X,Y,Z",
+                     help="Eye X,Y,Z (scene metres)."),
+        click.option("--look-at", type=Point(3), metavar="X,Y,Z",
+                     help="Target X,Y,Z (scene metres)."),
         click.option("--crs-coords", is_flag=True,
                      help="--look-from/--look-at are source-CRS x,y and height z in metres."),
-        click.option("--fov", default=30.0, show_default=True,
-                     type=click.FloatRange(0, 180, min_open=True, max_open=True),
-                     help="Vertical field of view, degrees."),
-        click.option("--size", default="1280x720", show_default=True, callback=parse_size,
+        click.option("--fov", default=30.0, show_default=True, type=FOV,
+                     help="Vertical field of view, degrees in (0, 180)."),
+        click.option("--size", default="1280x720", show_default=True, type=SIZE,
                      help="Image WIDTHxHEIGHT (the pixel error refers to it)."),
     ]):
         f = opt(f)
@@ -270,12 +422,6 @@ def _parse_clim(ctx, param, value):
     return lo, hi
 
 
-def _finite(ctx, param, value):
-    if value is not None and not math.isfinite(value):
-        raise click.BadParameter(f"expected a finite number, got {value}")
-    return value
-
-
 def colour_options(f):
     """--cmap, --clim, --water-level and --water/--no-water, shared by render and view."""
     for opt in reversed([
@@ -284,7 +430,7 @@ def colour_options(f):
                           "reaches the sea) or any matplotlib colormap name."),
         click.option("--clim", callback=_parse_clim, metavar="MIN,MAX",
                      help="Heights (m) the colour map spans (default: the data's range)."),
-        click.option("--water-level", type=float, callback=_finite, metavar="H",
+        click.option("--water-level", type=FINITE, metavar="H",
                      help="Water up to H metres: a flood or a lake at that level."),
         click.option("--water/--no-water", "water", default=True, show_default=True,
                      help="Draw the water (--water-level, or the sea at 0 m of the auto "
@@ -309,9 +455,13 @@ def _parse_sun(ctx, param, value):
     from geoterrain.rendering.shading import parse_sun
 
     try:
-        return parse_sun(value)
+        az, el = parse_sun(value)
     except UsageError as exc:
         raise click.BadParameter(str(exc.cli or exc)) from None
+    if not (0 <= az <= 360 and 0 <= el <= 90):
+        raise click.BadParameter(f"expected AZ in [0, 360] and EL in [0, 90] degrees, got "
+                                 f"{value!r}")
+    return az, el
 
 
 def light_options(f):
@@ -341,7 +491,7 @@ def drape_options(f):
                      metavar="IMAGE",
                      help="A georeferenced image (an orthophoto, land cover; any CRS, "
                           "reprojected) drawn over the colour map; its nodata shows the map."),
-        click.option("--drape-opacity", type=click.FloatRange(0.0, 1.0), default=1.0,
+        click.option("--drape-opacity", type=FRACTION, default=1.0,
                      show_default=True, metavar="A",
                      help="1: the drape in place of the colour map; below 1: blended."),
     ]):
@@ -372,8 +522,8 @@ def light_and_drape(shading, sun, hillshade, shadows, ambient_occlusion, drape_p
 
 
 vertical_exaggeration_option = click.option(
-    "-z", "--vertical-exaggeration", "vertical_exaggeration", type=float, default=1.0,
-    show_default=True, callback=_positive, metavar="N",
+    "-z", "--vertical-exaggeration", "vertical_exaggeration", type=EXAGGERATION, default=1.0,
+    show_default=True, metavar="N",
     help="Draw heights × N (view time; the store's --z-scale is kept). The LOD error bound "
          "holds for the exaggerated surface; pictures say VE ×N.")
 

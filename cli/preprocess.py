@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import click
 
-from geoterrain.cli.options import StageBar, parse_bytes
+from geoterrain.cli.options import (
+    EXAGGERATION,
+    NODATA,
+    NON_NEGATIVE,
+    PIXEL_SIZE,
+    StageBar,
+    parse_bytes,
+)
 from geoterrain.core.frame import Z_UNITS
 from geoterrain.ingest.composite import PRIORITIES, RESAMPLINGS
 from geoterrain.ingest.raster import ENCODINGS
@@ -14,14 +21,15 @@ from geoterrain.ingest.raster import ENCODINGS
 @click.argument("dem", nargs=-1, required=True)
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
               help="Store to write. Default: the DEM's path with the suffix .geoterrain.")
-@click.option("--tile-size", default=64, show_default=True, type=int,
+@click.option("--tile-size", default=64, show_default=True, type=click.IntRange(2, 4096),
               help="Tile edge in samples, a power of two; tiles hold (size+1)² samples.")
-@click.option("--band", type=click.IntRange(min=1), help="Band to read from a multi-band raster.")
+@click.option("--band", type=click.IntRange(1, 65535),
+              help="Band to read from a multi-band raster.")
 @click.option("--encoding", type=click.Choice(ENCODINGS), default="auto", show_default=True,
               help="How pixels encode heights; auto decodes Terrain-RGB/Terrarium PNG tiles.")
-@click.option("--pixel-size", type=float,
+@click.option("--pixel-size", type=PIXEL_SIZE,
               help="Metres per sample for rasters without a CRS (PNG tiles); default 1.")
-@click.option("--z-scale", type=float, help="Vertical exaggeration (default 1).")
+@click.option("--z-scale", type=EXAGGERATION, help="Vertical exaggeration (default 1).")
 @click.option("--z-units", type=click.Choice(["auto", *Z_UNITS]), default="auto",
               show_default=True,
               help="Unit of the heights: metres, international feet or US survey feet; auto "
@@ -30,11 +38,11 @@ from geoterrain.ingest.raster import ENCODINGS
 @click.option("--tile", metavar="Z/X/Y",
               help="A web-map PNG tile's z/x/y: placed in Web Mercator at its true pixel size "
                    "(recognised by itself when the path ends in z/x/y.png).")
-@click.option("--codec-error", type=float, metavar="EPS",
+@click.option("--codec-error", type=NON_NEGATIVE, metavar="EPS",
               help="Height codec bound ε: every stored height is within EPS (height units) "
                    "of the source. Default: lossless.")
-@click.option("--max-error", "old_max_error", type=float, hidden=True)
-@click.option("--nodata", type=float, help="The value of voids, overriding the file's "
+@click.option("--max-error", "old_max_error", hidden=True)
+@click.option("--nodata", type=NODATA, help="The value of voids, overriding the file's "
               "(nan: only NaN). Undeclared -32768/-9999/float32-min runs are voids by default.")
 @click.option("--memory-limit", callback=parse_bytes, metavar="SIZE",
               help="Memory the job may use, e.g. 2G or 800M (default: half of what is "
@@ -104,6 +112,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
     dem = dem[0] if len(dem) == 1 else list(dem)
     quiet = ctx.obj["quiet"]
     bar = StageBar("preprocess", quiet)
+    times: dict[str, float] = {}
     try:
         out = geoterrain.preprocess(
             dem, output, tile_size=tile_size, band=band, encoding=encoding,
@@ -111,9 +120,11 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
             codec_error=codec_error, overwrite=overwrite, nodata=nodata,
             memory_limit=memory_limit, scheduler=scheduler, resume=resume, progress=bar,
             derive_normals=not stored_normals, crs=target_crs, resolution=resolution,
-            resampling=resampling, priority=priority)
+            resampling=resampling, priority=priority, timings=times)
     finally:
         bar.close()
+    if ctx.obj["verbose"]:  # the store holds no timings: the same DEM gives the same bytes
+        click.echo("stages " + ", ".join(f"{k} {v:.2f} s" for k, v in times.items()), err=True)
     if not quiet:
         with geoterrain.open(out) as t:
             i = t.info()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from geoterrain.cli.options import points_crs_options
+from geoterrain.cli.options import POSITIVE, points_crs_options
 
 
 @click.command("profile")
@@ -13,7 +13,7 @@ from geoterrain.cli.options import points_crs_options
               help="A LINESTRING (WKT, GeoJSON, or a .wkt/.geojson file; GeoJSON is lon/lat "
                    "unless --crs says otherwise).")
 @points_crs_options
-@click.option("--spacing", type=float, metavar="M",
+@click.option("--spacing", type=POSITIVE, metavar="M",
               help="Metres along the ground between samples [default: the DEM's cell].")
 @click.option("--level", type=click.IntRange(0), default=0, show_default=True,
               help="Pyramid level of the heights (with their bound in the CSV).")
@@ -52,14 +52,11 @@ def command(ctx, store, line, crs, lonlat, spacing, level, output, plot, title, 
     pcrs = pcrs or ("lonlat" if from_geojson else None)
     import numpy as np
 
-    for path in (output, plot):
-        if path is not None and not overwrite:
-            from pathlib import Path
+    from geoterrain.core.paths import check_output
 
-            from geoterrain.exceptions import exists_error
-
-            if Path(path).exists():
-                raise exists_error(path)
+    for path, opt in ((output, "-o"), (plot, "--plot")):
+        if path is not None:  # core/paths.py: what an output may replace
+            check_output(path, overwrite, inputs=[store], option=opt)
     with geoterrain.open(store) as t:
         p = profile(t, np.asarray(geom.coords)[:, :2], spacing, level=level, crs=pcrs)
     written = []

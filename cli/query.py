@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from geoterrain.cli.options import points_crs_options
+from geoterrain.cli.options import NON_NEGATIVE, points_crs_options
 
 
 @click.command("query")
@@ -26,7 +26,7 @@ from geoterrain.cli.options import points_crs_options
 @click.option("--base", default="0", show_default=True, metavar="H|fit|X,Y,Z;X,Y,Z;X,Y,Z",
               help="The volume's base: a height (the DEM's unit), 'fit' (the plane through "
                    "the ground along the polygon's outline) or three points of a plane.")
-@click.option("--max-error", type=float, metavar="E",
+@click.option("--max-error", type=NON_NEGATIVE, metavar="E",
               help="Areas and volumes: read each part at the coarsest level within E (the "
                    "DEM's unit) and state the answer's bound.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
@@ -126,10 +126,9 @@ def _write_csv(path, rows, overwrite) -> None:
     from pathlib import Path
 
     from geoterrain.core.atomicfiles import write_atomic
-    from geoterrain.exceptions import exists_error
+    from geoterrain.core.paths import check_output
 
-    if Path(path).exists() and not overwrite:
-        raise exists_error(path)
+    check_output(Path(path), overwrite)  # core/paths.py: what -o may replace
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
     w.writeheader()
@@ -145,7 +144,8 @@ def _polygon(t, polygon, base, max_error, pcrs, output, as_json, overwrite, quie
     from geoterrain.analysis import Plane, surface_area, volume
     from geoterrain.cli.options import read_geometry
     from geoterrain.core.atomicfiles import write_atomic
-    from geoterrain.exceptions import UsageError, exists_error
+    from geoterrain.core.paths import check_output
+    from geoterrain.exceptions import UsageError
 
     geom, from_geojson = read_geometry(polygon, "--polygon")
     pcrs = pcrs or ("lonlat" if from_geojson else None)
@@ -174,8 +174,7 @@ def _polygon(t, polygon, base, max_error, pcrs, output, as_json, overwrite, quie
            "tiles_decoded": a.stats["tiles_decoded"] + v.stats["tiles_decoded"],
            "seconds": a.stats["seconds"] + v.stats["seconds"]}
     if output:
-        if Path(output).exists() and not overwrite:
-            raise exists_error(output)
+        check_output(Path(output), overwrite)
         write_atomic(output, json.dumps(res, indent=1), overwrite=overwrite)
     if as_json:
         click.echo(json.dumps(res, indent=1))

@@ -8,7 +8,13 @@ from pathlib import Path
 import click
 
 from geoterrain.cli.options import (
+    AZIMUTH,
+    DISTANCE,
+    FINITE,
+    POSITIVE,
+    Number,
     StageBar,
+    Text,
     anti_aliasing_option,
     camera_options,
     colour_options,
@@ -30,13 +36,14 @@ from geoterrain.cli.options import (
               help="Output .png (one view), .gif or .mp4 (--orbit / --path), or a directory "
                    "of PNG frames.")
 @camera_options
-@click.option("--azimuth", type=float,
+@click.option("--azimuth", type=AZIMUTH,
               help="Camera bearing from the target, degrees clockwise from north "
                    "[default: 190; 180 with --elevation 90, so north is up].")
-@click.option("--elevation", type=float, default=40.0, show_default=True,
+@click.option("--elevation", type=FINITE, default=40.0, show_default=True,
               help="Camera angle above the horizon, degrees in (0, 90]; 90 looks straight "
                    "down.")
-@click.option("--distance", type=float, help="Eye–target distance in metres (default: fit).")
+@click.option("--distance", type=DISTANCE,
+              help="Eye–target distance in metres (default: fit).")
 @click.option("--map", "map_view", is_flag=True,
               help="A map: orthographic, north up, the whole DEM framed with a graticule "
                    "(geographic DEMs) or grid ticks in its CRS, the scale bar exact "
@@ -53,20 +60,22 @@ from geoterrain.cli.options import (
 @colour_options
 @light_options
 @drape_options
-@click.option("--title", help="Title drawn at the top.")
-@click.option("--contours", "contour_interval", type=float, metavar="DZ",
+@click.option("--title", type=Text(200), help="Title drawn at the top.")
+@click.option("--contours", "contour_interval", type=POSITIVE, metavar="DZ",
               help="Draw contour lines every DZ (the DEM's vertical unit) over the terrain, "
                    "every fifth one bolder (single views).")
 @click.option("--no-overlays", is_flag=True,
               help="No colour bar, scale bar or north arrow.")
 @click.option("--stats", "stats_path", type=click.Path(dir_okay=False),
               help="Write the selection and frame stats as JSON.")
-@click.option("--orbit", type=int, help="Render an orbit of N frames around the terrain.")
+@click.option("--orbit", type=click.IntRange(1, 100_000),
+              help="Render an orbit of N frames around the terrain.")
 @click.option("--path", "cameras", type=click.Path(exists=True, dir_okay=False),
               help="Fly through the cameras of a JSON file.")
 @click.option("--frames-between", type=click.IntRange(0, 1000), default=0, show_default=True,
               help="With --path: eased frames on a smooth spline between each pair of cameras.")
-@click.option("--fps", type=float, default=10.0, show_default=True, help="Animation speed.")
+@click.option("--fps", type=Number(0, 1000, lo_open=True), default=10.0, show_default=True,
+              help="Animation speed, frames per second in (0, 1000].")
 @click.option("--strips", is_flag=True,
               help="Draw the mesh as triangle strips instead of triangle lists (the same "
                    "picture; no faster on the CPU renderer, docs/benchmarks.md).")
@@ -104,6 +113,7 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     import geoterrain
     import geoterrain.rendering.animation as A
     import geoterrain.rendering.scene as R
+    from geoterrain.core.paths import check_output, same_file
     from geoterrain.core.view import View
     from geoterrain.exceptions import UsageError
     from geoterrain.rendering.cameras import check_elevation
@@ -148,11 +158,18 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
         raise UsageError(f"{out}: a single view is written as .png (use --orbit or --path "
                          "for .gif/.mp4)")
     overlays = dict(colorbar=not no_overlays, north_arrow=not no_overlays)
+    inputs = [store, drape_path, cameras]
     if animated:
         overlays["scale_bar"] = not no_overlays
         A.check_animation_output(out, fps, overwrite)  # a bad target or --fps fails now
-    elif Path(out).exists() and not overwrite:
-        raise UsageError(f"{out} exists; pass --overwrite or choose another -o path")
+        check_output(out, True, folder=Path(out).suffix.lower() not in A.ANIMATION_SUFFIXES,
+                     inputs=inputs)  # not one of the inputs
+    else:
+        check_output(out, overwrite, inputs=inputs)
+    if stats_path is not None:  # --stats follows the --overwrite rule too
+        check_output(stats_path, overwrite, inputs=inputs, option="--stats")
+        if same_file(stats_path, out) or Path(stats_path).absolute() == Path(out).absolute():
+            raise UsageError("--stats and -o name the same file; choose another --stats path")
     from geoterrain.exaggerate import exaggerated
 
     with geoterrain.open(store) as base:
@@ -178,7 +195,8 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
             if stats_path:
                 from geoterrain.core.atomicfiles import write_atomic
 
-                write_atomic(stats_path, json.dumps(frames, indent=2, default=float))
+                write_atomic(stats_path, json.dumps(frames, indent=2, default=float),
+                             overwrite)
             if not quiet:
                 ms = sorted(f["frame_ms"] for f in frames)
                 click.echo(f"wrote {out}: {len(frames)} frames, median frame "

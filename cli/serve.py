@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import click
 
+from geoterrain.cli.options import POSITIVE
+
 
 def _parse_cache(ctx, param, value):
     import re
@@ -29,7 +31,7 @@ def _parse_cache(ctx, param, value):
 @click.option("--assets", type=click.Path(file_okay=False, exists=True),
               help="A node_modules folder holding cesium, maplibre-gl and pmtiles "
                    "(default: ./node_modules, ./.browser/node_modules).")
-@click.option("--max-error", type=float, default=1.0, show_default=True, metavar="E",
+@click.option("--max-error", type=POSITIVE, default=1.0, show_default=True, metavar="E",
               help="Terrain tiles: vertex threshold at the finest level, metres.")
 @click.option("--geoid", type=click.Choice(["egm96"]),
               help="The DEM holds EGM96 heights (SRTM): give CesiumJS WGS 84 ellipsoidal "

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import click
 
+from geoterrain.cli.options import PIXEL_SIZE, Point
+
 KINDS = ("fbm", "ridged", "diamond-square", "fault")
 
 
@@ -43,12 +45,12 @@ def _parse_heights(ctx, param, value):
               help="Lowest and highest height in metres [default: 0,2000]; a negative MIN "
                    "makes a topo-bathymetric DEM (the sea below 0 m).")
 @click.option("--seed", default=0, show_default=True, type=int, help="Random seed.")
-@click.option("--spacing", default=10.0, show_default=True,
-              type=click.FloatRange(min=0, min_open=True),
+@click.option("--spacing", default=10.0, show_default=True, type=PIXEL_SIZE,
               help="Metres between samples.")
 @click.option("--crs", default="EPSG:32633", show_default=True,
               help="Projected CRS of the output (default UTM 33N).")
 @click.option("--origin", default="500000,5000000", show_default=True,
+              type=Point(2, "X,Y"),
               help="CRS coordinates X,Y of the top-left corner.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="GeoTIFF to write.")
@@ -64,19 +66,20 @@ def command(kind, size, heights, seed, spacing, crs, origin, output, overwrite):
       geoterrain synth fbm --size 1025 --seed 7 -o fbm.tif
       geoterrain synth fbm --size 120x91 --heights -2500,1500 --spacing 1000 -o tb.tif
     """
-    from pathlib import Path
-
-    from geoterrain.exceptions import UsageError
+    from geoterrain.core.paths import check_output
     from geoterrain.ingest.synth import generate, write_geotiff
 
-    if Path(output).exists() and not overwrite:
-        raise UsageError(f"{output} exists; pass --overwrite or choose another -o path")
-    try:
-        ox, oy = (float(v) for v in origin.split(","))
-    except ValueError:
-        raise click.BadParameter(f"expected X,Y, got {origin!r}", param_hint="--origin") from None
+    check_output(output, overwrite)  # a regular file or nothing (core/paths.py)
+    from pyproj import CRS
+    from pyproj.exceptions import CRSError
+
+    try:  # pyproj: says nothing on stderr (GDAL would print PROJ's own error line too)
+        CRS.from_user_input(crs)
+    except CRSError:
+        raise click.BadParameter(f"not a CRS PROJ knows: {crs!r} (e.g. EPSG:32633)",
+                                 param_hint="--crs") from None
     lo, hi = heights if heights is not None else (0.0, 2000.0)
     z = generate(kind, size, seed=seed, base=lo, relief=hi - lo)
-    write_geotiff(output, z, crs=crs, origin=(ox, oy), spacing=spacing)
+    write_geotiff(output, z, crs=crs, origin=origin, spacing=spacing)
     click.echo(f"wrote {output}: {kind} {size[1]} × {size[0]} (width × height), seed {seed}, "
                f"heights {float(z.min()):.1f} … {float(z.max()):.1f} m", err=False)

@@ -7,6 +7,8 @@ import json
 
 import click
 
+from geoterrain.cli.options import POSITIVE
+
 
 @click.command("tiles")
 @click.argument("store", type=click.Path(dir_okay=False))
@@ -20,7 +22,7 @@ import click
 @click.option("--max-zoom", type=click.IntRange(0, 22),
               help="Finest level; default: where the tiles' samples match the DEM's spacing.")
 @click.option("--min-zoom", type=click.IntRange(0, 22), default=0, show_default=True)
-@click.option("--max-error", type=float, default=1.0, show_default=True, metavar="E",
+@click.option("--max-error", type=POSITIVE, default=1.0, show_default=True, metavar="E",
               help="quantized-mesh: vertex selection threshold at the finest level, metres "
                    "(coarser levels use Cesium's level error).")
 @click.option("--encoding", type=click.Choice(["terrain-rgb", "terrarium"]),

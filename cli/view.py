@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from geoterrain.cli.options import (
+    SIZE,
     StageBar,
     colour_options,
     drape_options,
@@ -15,7 +16,6 @@ from geoterrain.cli.options import (
     morph_option,
     occlusion_option,
     palette,
-    parse_size,
     pixel_error_option,
     strategy_option,
     vertical_exaggeration_option,
@@ -34,7 +34,7 @@ from geoterrain.cli.options import (
 @colour_options
 @light_options
 @drape_options
-@click.option("--size", callback=parse_size, default="1280x720", show_default=True,
+@click.option("--size", type=SIZE, default="1280x720", show_default=True,
               help="Window WIDTHxHEIGHT.")
 @click.option("--rebuild", is_flag=True, help="Preprocess the DEM again even if cached.")
 @click.option("--web", is_flag=True,

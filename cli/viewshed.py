@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from geoterrain.cli.options import points_crs_options
+from geoterrain.cli.options import FINITE, POSITIVE, points_crs_options
 
 
 @click.command("viewshed")
@@ -12,13 +12,13 @@ from geoterrain.cli.options import points_crs_options
 @click.option("--observer", required=True, metavar="X,Y",
               help="Where the observer stands (the DEM's CRS, or --crs / --lonlat).")
 @points_crs_options
-@click.option("--height", type=float, default=2.0, show_default=True, metavar="H",
+@click.option("--height", type=FINITE, default=2.0, show_default=True, metavar="H",
               help="Eye height above the ground, metres.")
-@click.option("--target-height", type=float, default=0.0, show_default=True, metavar="H",
+@click.option("--target-height", type=FINITE, default=0.0, show_default=True, metavar="H",
               help="Height above each cell that must be seen, metres.")
-@click.option("--radius", type=float, required=True, metavar="M",
+@click.option("--radius", type=POSITIVE, required=True, metavar="M",
               help="How far to look, ground metres.")
-@click.option("--curvature", type=float, default=0.85714, show_default=True, metavar="C",
+@click.option("--curvature", type=FINITE, default=0.85714, show_default=True, metavar="C",
               help="Earth curvature and refraction coefficient as gdal_viewshed's -cc (heights "
                    "drop by C·d²/(2a)); 0 switches both off.")
 @click.option("--mode", type=click.Choice(["edge", "diagonal", "max", "min"]), default="edge",
@@ -51,12 +51,12 @@ def command(ctx, store, observer, crs, lonlat, height, target_height, radius, cu
     import geoterrain
     from geoterrain.analysis import viewshed, write_viewshed
     from geoterrain.cli.options import parse_xy, points_crs
-    from geoterrain.exceptions import exists_error
+    from geoterrain.core.paths import check_output
 
     pcrs = points_crs(crs, lonlat)
-    for path in (output, render_path):
-        if path is not None and Path(path).exists() and not overwrite:
-            raise exists_error(path)
+    for path, opt in ((output, "-o"), (render_path, "--render")):
+        if path is not None:  # core/paths.py: what an output may replace
+            check_output(Path(path), overwrite, inputs=[store], option=opt)
     with geoterrain.open(store) as t:
         vs = viewshed(t, parse_xy(observer, "--observer"), radius, height,
                       target_height=target_height, curvature=curvature, mode=mode,

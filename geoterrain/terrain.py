@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 from collections import OrderedDict
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -330,10 +331,22 @@ class Terrain:
         base = (self.tile_delta(*key) if stored == "delta_edge" and len(blob) > 1
                 and blob[1] & DIFF and key in self.tile_info else None)
         try:
-            return decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base)
+            out = decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base)
         except (ValueError, zstandard.ZstdError):
             raise StoreCorruptError(f"{self.path}: tile {key} {kind} cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
+        if kind == "delta" and key in self.tile_info:
+            # δ(v) ≥ v's own error on the decoded heights: a δ table swapped with another
+            # tile's (checksums recomputed) or edited down fails it (bounds/delta.py)
+            from geoterrain.bounds.delta import below_own_error  # loads numba: not on open
+
+            tile = self.tile(*key)
+            bad = below_own_error(out, self.frame.z(tile.heights), tile.valid)
+            if bad is not None:
+                raise StoreCorruptError(f"{self.path}: tile {key} δ is below the error of its "
+                                        f"vertex {bad} (bounds swapped or edited): the file "
+                                        "is damaged; re-run `geoterrain preprocess`")
+        return out
 
     def block_errors(self) -> np.ndarray | None:
         """Every GeoMipMapping block's exact δ_n (seed 000 §2.4), (nb, nb, levels) indexed
@@ -804,7 +817,9 @@ class Terrain:
                               for k in sorted({k for k, _ in sizes})},
             "tile_error_range": [min(errs, default=0.0), max(errs, default=0.0)],
             "vertex_error_max": m["delta_max_finite"],
-            "preprocess_seconds": m.get("preprocess_seconds", {}),
+            # the file's own clock (the store holds none: two runs write the same bytes)
+            "modified": datetime.fromtimestamp(os.stat(self.path).st_mtime, UTC)
+            .isoformat(timespec="seconds"),
             "edits": _edits_summary(m.get("edits")),
         }
 
@@ -839,13 +854,14 @@ class Terrain:
 
 def _edits_summary(log) -> dict | None:
     """The metadata's edit log in a line's worth: how many edits, and the last one's
-    time, mode, source and window (None: never edited)."""
+    mode, source and window (None: never edited)."""
     if not isinstance(log, dict) or not log.get("last"):
         return None
     e = log["last"][-1]
     try:
         r, c, h, w = (int(v) for v in e["window"])
-        last = (f"{e['time']} {e['mode']} of {e['source']}, rows {r} … {r + h - 1}, "
+        when = f"{e['time']} " if "time" in e else ""  # stores edited before it was dropped
+        last = (f"{when}{e['mode']} of {e['source']}, rows {r} … {r + h - 1}, "
                 f"columns {c} … {c + w - 1}")
     except (KeyError, TypeError, ValueError):
         last = "?"

@@ -232,6 +232,102 @@ def test_the_occlusion_option_reaches_the_selection(tmp_path, fbm_tif, monkeypat
     assert seen == [False, True]
 
 
+# values that ended in an internal error, wrote stores no reader accepts, or were taken
+# silently (issue 49): each is one line and exit 2 now, before any work
+BAD_VALUES = [
+    ("preprocess", "--codec-error", "1e-300"),
+    ("preprocess", "--pixel-size", "1e308"),
+    ("preprocess", "--z-scale", "1e308"),
+    ("preprocess", "--nodata", "inf"),
+    ("preprocess", "--tile-size", "3"),
+    ("render", "--azimuth", "nan"),
+    ("render", "--distance", "0"),
+    ("render", "--distance", "nan"),
+    ("render", "--distance", "1e308"),
+    ("render", "--distance", "-1"),
+    ("render", "--fov", "nan"),
+    ("render", "-z", "1e308"),
+    ("render", "--drape-opacity", "nan"),
+    ("render", "--sun", "400,50"),
+    ("render", "--pixel-error", "1e9"),
+    ("render", "--look-from", "nan,0,0"),
+    ("render", "--title", "a\x1b[31mred"),
+    ("render", "--fps", "inf"),
+    ("mesh", "--max-error", "-1"),
+    ("export", "--print-size", "nan"),
+    ("tiles", "--max-error", "inf"),
+]
+
+
+@pytest.mark.parametrize("command,option,value", BAD_VALUES,
+                         ids=[f"{c}{o}={v}" for c, o, v in BAD_VALUES])
+def test_every_value_is_checked(tmp_path, fbm_tif, command, option, value):
+    store = tmp_path / "s.geoterrain"
+    store.write_bytes(b"")  # never read: the value is refused first
+    out = {"preprocess": "x.geoterrain", "render": "v.png", "mesh": "m.ply",
+           "export": "e.stl", "tiles": "t"}[command]
+    src = fbm_tif if command == "preprocess" else store
+    res = run("-q", command, src, "-o", tmp_path / out, option, value)
+    assert_one_line_error(res, 2)
+    assert not (tmp_path / out).exists()
+
+
+def test_long_and_undecodable_names_are_one_line(tmp_path, fbm_tif):
+    long_name = tmp_path / ("n" * 300 + ".geoterrain")
+    assert_one_line_error(run("-q", "preprocess", fbm_tif, "-o", long_name), 2)
+    deep = tmp_path / "/".join(["d" * 200] * 25) / "x.geoterrain"
+    assert_one_line_error(run("-q", "preprocess", fbm_tif, "-o", deep), 2)
+    # names that are not UTF-8 (as Python hands them over: surrogate escapes), which GDAL
+    # and SQLite cannot take: refused in one line, as input and as output
+    raw = os.fsdecode(os.fsencode(str(tmp_path)) + b"/\xff\xfe.tif")
+    Path(raw).write_bytes(fbm_tif.read_bytes())
+    res = run("-q", "preprocess", raw, "-o", tmp_path / "u.geoterrain")
+    assert_one_line_error(res, 1)
+    assert "UTF-8" in res.stderr and not (tmp_path / "u.geoterrain").exists()
+    res = run("-q", "preprocess", fbm_tif, "-o",
+              os.fsdecode(os.fsencode(str(tmp_path)) + b"/\xfa.geoterrain"))
+    assert_one_line_error(res, 2)
+    assert_one_line_error(run("-q", "info", os.fsdecode(b"/nonexistent/\xff.geoterrain")), 1)
+
+
+def test_a_photo_is_not_a_dem_unless_named_raw(tmp_path):
+    from PIL import Image
+
+    photo = tmp_path / "holiday.jpg"
+    rgb = (np.random.default_rng(0).random((64, 80, 3)) * 255).astype(np.uint8)
+    Image.fromarray(rgb).save(photo, quality=90)
+    res = run("-q", "preprocess", photo, "-o", tmp_path / "p.geoterrain", "--band", "1")
+    assert_one_line_error(res, 1)
+    assert "picture" in res.stderr and "--encoding raw" in res.stderr
+    res = run("-q", "preprocess", photo, "-o", tmp_path / "p.geoterrain", "--band", "1",
+              "--encoding", "raw", "--pixel-size", "1")
+    assert res.exit_code == 0, res.output
+
+
+def test_library_warnings_are_one_line(tmp_path):
+    """A PNG without georeference says so in geoterrain's words, not rasterio's
+    NotGeoreferencedWarning with a site-packages path."""
+    from PIL import Image
+
+    png = tmp_path / "h.png"
+    Image.fromarray((np.arange(64 * 64).reshape(64, 64) % 251).astype(np.uint8)).save(png)
+    res = run("preprocess", png, "-o", tmp_path / "h.geoterrain")
+    assert res.exit_code == 0, res.output
+    assert "site-packages" not in res.stderr and "NotGeoreferenced" not in res.stderr
+
+
+def test_bench_inputs_are_checked_before_any_work(tmp_path, fbm_tif):
+    """Found by the CLI fuzzer: bench --path FIFO blocked forever, and an over-long
+    SOURCE or --cache-dir name ended in an internal error."""
+    os.mkfifo(tmp_path / "fifo")
+    res = run("-q", "bench", fbm_tif, "--path", tmp_path / "fifo",
+              "--cache-dir", tmp_path / "c")
+    assert_one_line_error(res, 2)
+    assert "FIFO" in res.stderr
+    long_name = tmp_path / ("n" * 300)
+    assert_one_line_error(run("-q", "bench", long_name), 2)
+    assert_one_line_error(run("-q", "bench", fbm_tif, "--cache-dir", long_name), 2)
+    assert not (tmp_path / "c").exists()
 @pytest.mark.fast
 def test_edit_command(tmp_path):
     """`geoterrain edit`: a patch placed by its georeference or --at, the summary line,

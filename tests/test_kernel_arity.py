@@ -10,6 +10,7 @@ import pkgutil
 from numba.core.registry import CPUDispatcher
 
 import geoterrain
+from geoterrain.core.threads import ParallelKernel
 
 MAX_ARGS = 12
 
@@ -20,6 +21,9 @@ def _kernels() -> dict[str, int]:
     found = {}
 
     def add(v):
+        if isinstance(v, ParallelKernel):  # its parallel kernel and its serial twin
+            add(v.parallel)
+            add(v.serial)
         if isinstance(v, CPUDispatcher):
             f = v.py_func
             found[f"{f.__module__}.{f.__qualname__}"] = len(inspect.signature(f).parameters)

@@ -55,12 +55,15 @@ def write_csv(rows: Sequence[dict], path: str | Path, columns: Sequence[str] = C
     >>> open(p).read().splitlines()
     ['frame,tau', '0,1.0']
     """
-    path = Path(path)
-    with path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(columns), extrasaction="ignore")
-        w.writeheader()
-        w.writerows(rows)
-    return path
+    import io
+
+    from geoterrain.core.atomicfiles import write_atomic
+
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=list(columns), extrasaction="ignore")
+    w.writeheader()
+    w.writerows(rows)
+    return write_atomic(path, buf.getvalue())
 
 
 def _p95(a: np.ndarray) -> float:
@@ -243,7 +246,13 @@ def plot(rows: Sequence[dict], path: str | Path, title: str = "") -> Path:
     ax.legend(fontsize=8)
     if title:
         fig.suptitle(title)
+    import io
+
+    from geoterrain.core.atomicfiles import write_atomic
+
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=110, format=path.suffix.lstrip(".").lower() or "png")
+    write_atomic(path, buf.getvalue())  # never a half-written figure
     plt.close(fig)
     return path

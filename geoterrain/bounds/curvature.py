@@ -41,7 +41,7 @@ from geoterrain.bounds.edgepad import _reaches_data
 from geoterrain.bounds.radii import _proxy_positions
 from geoterrain.core.bintree import child_nb, main_diagonal_nb
 from geoterrain.core.rounding import round_up32
-from geoterrain.core.threads import cores_for
+from geoterrain.core.threads import cores_for, parallel_kernel
 
 __all__ = ["BORDER_FRACTION", "metric_bounds", "metric_terms"]
 
@@ -189,9 +189,15 @@ def _tri_own(g, T, r_lo, r_hi, border):
 
 
 @njit(cache=True, inline="always")
-def _tri_margin(T, disp):
-    """The search margin m, in samples, from a triangle's largest displacement."""
-    return int(np.ceil(disp / T.smin)) + 2
+def _tri_margin(T, disp, N):
+    """The search margin m, in samples, from a triangle's largest displacement on an
+    N-sample grid."""
+    # capped in floating point before the conversion: a triangle folded almost flat in
+    # metres (a padded global grid's corners beyond a pole) has disp / smin past 2^63, and
+    # converting that to an integer is undefined (it crashed a 540 × 1080 global grid); a
+    # margin of N samples already reaches every sample
+    mf = disp / T.smin
+    return (int(np.ceil(mf)) if mf < N else N) + 2
 
 
 @njit(cache=True, inline="always")
@@ -254,7 +260,7 @@ def _tri_term(g, vi, vj, ai, aj, bi, bj, ci, cj, border):
     # pass 1: largest displacement |P_s − A_T(s)| of T's own samples (index box), and
     # the border chords of T (edges whose two ends lie on one side of the domain)
     disp, dwin, bulge = _tri_own(g, T, 0, N - 1, border)
-    m = _tri_margin(T, disp)
+    m = _tri_margin(T, disp, N)
     bulge = bulge or dwin > 0.5 * g.frac * T.smin
     emax, rmax = _tri_search(g, T, m, 0, N - 1)
     return emax, rmax, bulge, m
@@ -273,7 +279,7 @@ def _same_as_base(i, j, h, M, wi, wj):
     return M >= 0 and i + h + M <= wi - 1 and j + h + M <= wj - 1
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _vertex_terms(g, M, dm0, bulge0, mrow):
     """Raw per-vertex (δ_m, r_m, bulge) over the triangles drawn while each vertex of the
     grid ``g`` (:class:`MetricGrid`) is absent (rows of blocks on every core: each vertex

@@ -31,9 +31,9 @@ from numba import njit, prange
 
 from geoterrain.core.bintree import main_diagonal_nb, parents_nb
 from geoterrain.core.rounding import round_up32
-from geoterrain.core.threads import cores_for
+from geoterrain.core.threads import cores_for, parallel_kernel
 
-__all__ = ["saturate", "vertex_errors"]
+__all__ = ["below_own_error", "saturate", "vertex_errors"]
 
 
 # --------------------------------------------------------------------------- helpers
@@ -118,7 +118,7 @@ _FM = {"nnan", "ninf", "nsz"}
 # quiet 4097² fBm, docs/lab/preprocess.md); small ones run on one thread, where a busy
 # core made the barriers cost more than the work (geoterrain/core/threads.py: cores_for).
 # Each output is written by one iteration, so the values do not depend on the threads.
-_PARALLEL = True
+# (Each prange kernel is a ParallelKernel: a fork() child runs its serial twin.)
 
 
 @njit(cache=True, inline="always")
@@ -251,7 +251,7 @@ def edge_delta_nb(z, vb, ic, jc, h, rows, N, w0, beside, old):
     return old
 
 
-@njit(cache=True, parallel=_PARALLEL)
+@parallel_kernel(cache=True)
 def _block_status_nb(vb):
     # bs[centre of a closed 2h block] = bit 1: holds a valid sample, bit 2: an invalid one;
     # built fine to coarse (a closed 2h block is the union of its four closed h blocks).
@@ -392,15 +392,12 @@ def _block_sweep(z, i0, j0, s, main):
                                      z[i0 + s, j0 + s]), z[i0 + h, j0 + h], 0, s, 0)
 
 
-@njit(cache=True, parallel=_PARALLEL)
-def _raw_delta_nb(z, vb, all_valid):
-    """Raw exact δ, float32 rounded up (+inf for mixed diamonds)."""
+@parallel_kernel(cache=True)
+def _raw_delta_nb(z, vb, bs, all_valid):
+    """Raw exact δ, float32 rounded up (+inf for mixed diamonds); ``bs`` the blocks'
+    status (:func:`_block_status_nb`; unread when ``all_valid``)."""
     N = z.shape[0]
     out = np.zeros((N, N), np.float32)
-    if all_valid:
-        bs = np.ones((1, 1), np.uint8)
-    else:
-        bs = _block_status_nb(vb)
     nq = max((N - 1) // 4, 1)
     QL = np.empty((nq, nq))
     QR = np.empty((nq, nq))
@@ -517,7 +514,10 @@ def saturate(d: np.ndarray) -> np.ndarray:
 
 
 def _raw_delta(zf: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    return _raw_delta_nb(zf, valid.view(np.uint8), bool(valid.all()))
+    all_valid = bool(valid.all())
+    vb = valid.view(np.uint8)
+    bs = np.ones((1, 1), np.uint8) if all_valid else _block_status_nb(vb)
+    return _raw_delta_nb(zf, vb, bs, all_valid)
 
 
 
@@ -545,3 +545,66 @@ def vertex_errors(z: np.ndarray, valid: np.ndarray) -> np.ndarray:
     zf, valid, _ = check_grid(z, valid)
     with cores_for(zf.size):  # small grids on one thread (geoterrain/core/threads.py)
         return _saturate_nb(_raw_delta(zf, valid))
+
+
+# ------------------------------------------------------------- a check on read
+@njit(cache=True, nogil=True)
+def _below_own_error_nb(d, z, valid):
+    """Flat index of the first vertex whose δ is below its own error (|z_v − the mean of
+    its split edge's ends|), or −1. A centre vertex takes the smaller of its two
+    diagonals' (the union-jack parity depends on the tile's place); only vertices whose
+    corners are all valid are checked (a mixed diamond's δ is +inf)."""
+    T = d.shape[0]
+    h = 1
+    while h < T - 1:
+        for i in range(0, T, h):
+            for j in range(0, T, h):
+                oi = (i // h) & 1
+                oj = (j // h) & 1
+                if oi + oj == 0 or not valid[i, j]:
+                    continue
+                zv = z[i, j]
+                if oi + oj == 2:  # the centre of a 2h block
+                    if not (valid[i - h, j - h] and valid[i + h, j + h]
+                            and valid[i - h, j + h] and valid[i + h, j - h]):
+                        continue
+                    a, b = z[i - h, j - h], z[i + h, j + h]
+                    c, e = z[i - h, j + h], z[i + h, j - h]
+                    err = min(abs(zv - 0.5 * (a + b)), abs(zv - 0.5 * (c + e)))
+                    mag = abs(a) + abs(b) + abs(c) + abs(e)
+                else:  # the midpoint of a row or column edge
+                    if oi:
+                        a, b, ok = z[i - h, j], z[i + h, j], valid[i - h, j] and valid[i + h, j]
+                    else:
+                        a, b, ok = z[i, j - h], z[i, j + h], valid[i, j - h] and valid[i, j + h]
+                    if not ok:
+                        continue
+                    err = abs(zv - 0.5 * (a + b))
+                    mag = abs(a) + abs(b)
+                # float64 rounding of the two computations of the same error
+                if d[i, j] < err - 1e-12 * (mag + abs(zv)) - 1e-300:
+                    return i * T + j
+        h *= 2
+    return -1
+
+
+def below_own_error(delta: np.ndarray, z: np.ndarray, valid: np.ndarray
+                    ) -> tuple[int, int] | None:
+    """The first vertex (i, j) of a tile whose δ is below its own error, or None.
+
+    δ(v) is the largest error over v's diamond (seed 002 §2.3), which holds v itself:
+    |z_v − (z_a + z_b) / 2| for its split edge (a, b). A δ table swapped with another
+    tile's, or edited, fails this on almost any terrain that is not flat, which checksums
+    alone (anyone can recompute them) cannot see.
+
+    Examples
+    --------
+    >>> z = np.array([[0.0, 0.0, 0.0], [0.0, 4.0, 0.0], [0.0, 0.0, 0.0]])
+    >>> ok = np.ones((3, 3), bool)
+    >>> d = vertex_errors(z, ok)
+    >>> below_own_error(d, z, ok) is None, below_own_error(d * 0, z, ok)
+    (True, (1, 1))
+    """
+    k = int(_below_own_error_nb(np.ascontiguousarray(delta), np.ascontiguousarray(z, np.float64),
+                                np.ascontiguousarray(valid, np.bool_)))
+    return None if k < 0 else divmod(k, delta.shape[1])

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.core.threads import forked, serial_twin
+from geoterrain.core.threads import forked, parallel_kernel, serial_twin
 
 __all__ = [
     "normal_map",
@@ -147,7 +147,7 @@ def level_normal_maps(x: np.ndarray, y: np.ndarray, z: np.ndarray,
     return out
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def _valid_finite_nb(x, y, z, valid):  # pragma: no cover - compiled
     rows, cols = x.shape
     out = np.empty((rows, cols), np.bool_)
@@ -217,7 +217,7 @@ def _horn_nb(x, y, z, v, i, j, axis):  # pragma: no cover - compiled
     return 0.0, 0.0, 0.0, False
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def _normals_nb(x, y, z, v, horn, out):  # pragma: no cover - compiled
     rows, cols = v.shape
     for i in prange(rows):
@@ -373,7 +373,7 @@ def normal_pyramid(n_full: np.ndarray, valid: np.ndarray | None, levels: int) ->
     return out
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def _reduce_part_nb(n, w, i0, rows, out, wout, a0):  # pragma: no cover - compiled
     # rows a0 … of the next level from ``n``, ``w``: this level's rows i0 … of ``rows``
     cols = n.shape[1]
@@ -469,7 +469,7 @@ def _oct_dot_nb(cu, cv, m, ux, uy, uz):  # pragma: no cover - compiled
     return (x * ux + y * uy + zz * uz) / np.sqrt(x * x + y * y + zz * zz)
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def _encode_oct_nb(n, m, precise, out):  # pragma: no cover - compiled
     fm = float(m)
     for k in prange(n.shape[0]):
@@ -584,7 +584,7 @@ def derived_codes(h: np.ndarray, zf: float, valid: np.ndarray, x: np.ndarray, y:
     return out
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def _derived_codes_nb(h, zf, valid, X, Y, rings, rr, cc, m, out):  # pragma: no cover
     n, T0, T1 = h.shape
     for k in prange(n):  # tiles on every core: each writes its own

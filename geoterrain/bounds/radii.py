@@ -19,10 +19,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.bounds.delta import _PARALLEL, grid_order
+from geoterrain.bounds.delta import grid_order
 from geoterrain.core.bintree import child_nb
 from geoterrain.core.rounding import round_up32
-from geoterrain.core.threads import cores_for
+from geoterrain.core.threads import cores_for, parallel_kernel
 
 __all__ = ["stand_in_z", "valid_range", "vertex_radii"]
 
@@ -168,7 +168,7 @@ def _visit(x, y, z, r, rin, table, codes, i, j, h):
         codes[i, j] = nest_code_nb(x, y, z, rin, codes, table, i, j, h)
 
 
-@njit(cache=True, parallel=_PARALLEL)
+@parallel_kernel(cache=True)
 def _radii_nb(x, y, z, rin, table, codes):
     # LP §2.4 (L50–52): r(v) = max over children c of |p_v − p_c| + r(c), fine to coarse;
     # each level is rounded up to float32 before its parents read it. With a log8

@@ -38,7 +38,7 @@ from geoterrain.bounds.vertexdata import (
     scale_exponent,
 )
 from geoterrain.core.rounding import round_up
-from geoterrain.core.threads import cores_for
+from geoterrain.core.threads import cores_for, parallel_kernel
 from geoterrain.core.zstdsafe import compress_many
 
 __all__ = ["BoundsCoding", "level_blobs", "compress_rows", "radius_codes"]
@@ -224,7 +224,7 @@ def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
         e = min(e + 4, 127)
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def _code_bounds(delta, radius, t8, e8, down, dc, r16):
     """One pass (rows on every core): δ's log8 codes (:func:`log8_codes`: NaN as +inf);
     r scaled by ``down`` and rounded up to float16 (bit patterns). Returns the count of
@@ -261,7 +261,7 @@ def _code_bounds(delta, radius, t8, e8, down, dc, r16):
     return odd
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def _level_payloads(codes, nrm, ys, xs, t, level, new_only, out):
     """Row k of ``out.pd``/``pr``/``pn`` (:class:`LevelPayloads`): tile (level, xs[k],
     ys[k])'s δ codes, r float16 planes (low bytes, then high bytes) and normal planes of

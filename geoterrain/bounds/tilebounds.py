@@ -17,7 +17,7 @@ from numba import njit, prange
 from geoterrain.bounds.delta import Cell, cell_rows_nb, check_grid
 from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.grid import footprint_counts
-from geoterrain.core.threads import cores_for
+from geoterrain.core.threads import cores_for, parallel_kernel
 
 __all__ = ["TileBounds", "tile_and_block_errors", "tile_errors"]
 
@@ -47,7 +47,7 @@ class TileBounds(NamedTuple):
     ymax: float
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _level_field_nb(z, vf, s, E):
     # E = max over the all-valid closed triangles containing a sample of |z − S_L| (0 if
     # none), S_L the union-jack surface of cell size s; and per cell whether one of its
@@ -163,7 +163,7 @@ def cell_field_rows_nb(z, cell, whole, ok1, ok2, d0, d1, E):
                 E[i, j] = e
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _tile_boxes_nb(z, x, y, vb, S):
     # Per closed tile footprint of span S: the box of the valid samples (each tile reads
     # its own footprint in raster order: the same min/max sequence as a raster sweep).

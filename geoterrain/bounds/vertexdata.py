@@ -286,7 +286,7 @@ def store_metadata(*, source: str, source_dtype: str, source_nodata: float | Non
                    encoding: str, grid: dict, frame: dict, quantizer: dict,
                    normals_derived: list[int], valid_samples: int, samples: int,
                    height_range: list, delta_max_finite: float, edge_max: list | None,
-                   stand_in_z: float, block_delta_levels: int, times: dict) -> dict:
+                   stand_in_z: float, block_delta_levels: int) -> dict:
     """The metadata a preprocess writes (the whole-grid one and the streaming one).
 
     ``normals_derived``: the levels whose normals blobs are border rings (every level of
@@ -297,7 +297,7 @@ def store_metadata(*, source: str, source_dtype: str, source_nodata: float | Non
     >>> m = store_metadata(source="d.tif", source_dtype="int16", source_nodata=None,
     ...     encoding="raw", grid={}, frame={}, quantizer={}, normals_derived=[0, 1],
     ...     valid_samples=3, samples=4, height_range=[0, 1], delta_max_finite=0.0,
-    ...     edge_max=None, stand_in_z=0.5, block_delta_levels=1, times={})
+    ...     edge_max=None, stand_in_z=0.5, block_delta_levels=1)
     >>> m["nodata_fraction"], m["normals_derived"], "delta_edge" in m
     (0.25, [0, 1], False)
     """
@@ -328,7 +328,8 @@ def store_metadata(*, source: str, source_dtype: str, source_nodata: float | Non
         "stand_in_z": stand_in_z,
         # the root tile's block_delta blob: each block's δ_n, n = 0 … this − 1
         "block_delta_levels": block_delta_levels,
-        "preprocess_seconds": times,
+        # no timings and no clock: the same input and options give the same bytes
+        # (preprocess(timings=...) and `preprocess -v` report the stages' times)
     }
 
 

@@ -38,6 +38,7 @@ import numpy as np
 from numba import njit, prange
 
 from geoterrain.codec.predict import _fmean, _mid16, _pred, fill_outward
+from geoterrain.core.threads import parallel_kernel
 
 __all__ = [
     "LIMIT",
@@ -498,7 +499,7 @@ def _level_zigzag(d, s, h, P, i0, j0, zz):
                 n += 1
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def encode_level(d, valid, s, h, cubic, ys, xs, kinds, buf, lens, W):
     """Encode the child tiles (ys[q], xs[q]) of level ``d[::s, ::s]`` (their parents
     on ``d[::2s, ::2s]``) into rows of ``buf``; ``lens`` gets each stream's length, -1
@@ -519,7 +520,7 @@ def encode_level(d, valid, s, h, cubic, ys, xs, kinds, buf, lens, W):
         lens[q] = _finish(st, buf[q])
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def level_zigzag(d, s, h, P, ys, xs, zz, zmax):
     """The zigzag residuals (codec order) of the child tiles (ys[q], xs[q]) of level
     ``d[::s, ::s]`` into rows of ``zz``, and each row's largest value, on every core

@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 
 from geoterrain.codec.quantize import FINE_STEPS, MAX_BINS, Quantizer, _decimal_value, _rounded
+from geoterrain.exceptions import UsageError
 
 __all__ = ["FLOAT_BINS", "choose_quantizer", "fine_quantizer", "float_quantizer",
            "grid_bins_quantizer", "lossy_quantizer"]
@@ -272,6 +273,16 @@ def grid_bins_quantizer(eps: float, sc: float, off: float, vmax: float,
     return Quantizer("quantized", sc, off, eps, bins=2 * k + 1)
 
 
+def _too_fine(eps: float, margin: float) -> UsageError:
+    # a bound below what float64 codes of these heights can hold (a one-line usage error)
+    least = f"{4 * FLOAT_BINS * margin:.3g}"
+    return UsageError(f"codec_error {eps:g} is below the float64 resolution of these heights; "
+                      f"give at least {least}, or none for a lossless store",
+                      cli=f"--codec-error {eps:g} is below the float64 resolution of these "
+                          f"heights; give at least {least}, or leave it out for a lossless "
+                          "store")
+
+
 def lossy_quantizer(eps: float, off: float, vmax: float, any_values: bool,
                     roundtrip_error: Callable[[float], tuple[float, float]]) -> Quantizer:
     """The ε quantizer of heights within ±``vmax`` around the offset ``off``: codes of
@@ -287,13 +298,13 @@ def lossy_quantizer(eps: float, off: float, vmax: float, any_values: bool,
     margin = 8.0 * float(np.finfo(np.float64).eps * (2.0 * vmax + 2.0 * abs(off) + e))
     step = 2.0 * (e - margin)
     if step <= 0:
-        raise ValueError(f"codec_error {eps} is below the float64 resolution of the data")
+        raise _too_fine(eps, margin)
     for _ in range(8):
         if not any_values:
             break
         err, peak = roundtrip_error(step)  # of codes_to_heights(heights_to_codes)
         if peak >= 2.0**62:
-            raise ValueError("heights out of range for the quantizer step")
+            raise _too_fine(eps, margin)
         if err <= e:
             break
         step *= 1.0 - 1e-9

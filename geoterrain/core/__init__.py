@@ -3,5 +3,5 @@
 atomic output files and bounded zstd.
 """
 
-__all__ = ["_fork", "atomicfiles", "bintree", "frame", "grid", "memory", "progress", "rounding",
-           "threads", "view", "zstdsafe"]
+__all__ = ["_fork", "atomicfiles", "bintree", "frame", "grid", "limits", "memory", "paths",
+           "progress", "rounding", "threads", "view", "zstdsafe"]

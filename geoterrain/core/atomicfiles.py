@@ -3,7 +3,9 @@ published in one step, and the partials of killed processes removed by the next 
 
 Stores (:class:`geoterrain.store.database.StoreWriter`), pictures, animations, meshes and stats
 are all written this way, so an error or an interrupt never leaves a half-written file
-under the name asked for.
+under the name asked for. What may be replaced is :mod:`geoterrain.core.paths`'s rule
+(a regular file, or a folder of frames; never a device, a FIFO or a link), checked
+before the work by :func:`~geoterrain.core.paths.check_output` and again here.
 """
 
 from __future__ import annotations
@@ -12,7 +14,8 @@ import os
 import re
 from pathlib import Path
 
-from geoterrain.exceptions import WriteError, exists_error
+from geoterrain.core.paths import check_replaceable
+from geoterrain.exceptions import UsageError, WriteError, exists_error
 
 _PARTIAL = re.compile(r"^\..+\.partial-(\d+)(\.[A-Za-z0-9]{1,8})?$")
 
@@ -20,9 +23,11 @@ _PARTIAL = re.compile(r"^\..+\.partial-(\d+)(\.[A-Za-z0-9]{1,8})?$")
 def publish(tmp: str | Path, dst: str | Path, overwrite: bool) -> None:
     """Move a finished partial file (or folder) ``tmp`` to ``dst`` in one step.
 
-    With ``overwrite`` a rename replaces ``dst``; without, the publish is a
-    create-if-absent (a hard link, then the partial is unlinked), so of two
-    racing writers exactly one wins and the other gets "exists".
+    With ``overwrite`` a rename replaces ``dst``, if it is a regular file (a folder when
+    ``tmp`` is one); without, the publish is a create-if-absent (a hard link, then the
+    partial is unlinked), so of two racing writers exactly one wins and the other gets
+    "exists". Anything else at ``dst`` (a device, a FIFO, a link) is left as it is, and
+    the partial is removed.
 
     Examples
     --------
@@ -33,8 +38,14 @@ def publish(tmp: str | Path, dst: str | Path, overwrite: bool) -> None:
     'x'
     """
     tmp, dst = Path(tmp), Path(dst)
+    folder = os.path.isdir(tmp) and not os.path.islink(tmp)
+    try:
+        check_replaceable(dst, folder)
+    except UsageError:
+        _remove(tmp)
+        raise
     if overwrite:
-        if tmp.is_dir() and dst.is_dir():  # a folder of frames: swap, then drop the old one
+        if folder and os.path.isdir(dst):  # a folder of frames: swap, then drop the old one
             import shutil
 
             old = dst.parent / f".{dst.name}.old.partial-{os.getpid()}"
@@ -44,8 +55,9 @@ def publish(tmp: str | Path, dst: str | Path, overwrite: bool) -> None:
         else:
             os.replace(tmp, dst)
         return
-    if tmp.is_dir():
-        if dst.exists():
+    if folder:
+        if os.path.lexists(dst):
+            _remove(tmp)
             raise exists_error(dst)
         os.rename(tmp, dst)  # renaming a folder onto a non-empty folder fails
         return
@@ -55,12 +67,22 @@ def publish(tmp: str | Path, dst: str | Path, overwrite: bool) -> None:
         os.unlink(tmp)
         raise exists_error(dst) from None
     except OSError:  # a file system without hard links
-        if dst.exists():
+        if os.path.lexists(dst):
             os.unlink(tmp)
             raise exists_error(dst) from None
         os.replace(tmp, dst)
     else:
         os.unlink(tmp)
+
+
+def _remove(tmp: Path) -> None:
+    """Drop a partial file or folder."""
+    import shutil
+
+    if os.path.isdir(tmp) and not os.path.islink(tmp):
+        shutil.rmtree(tmp, ignore_errors=True)
+    else:
+        tmp.unlink(missing_ok=True)
 
 
 def write_atomic(path: str | Path, data: str | bytes, overwrite: bool = True) -> Path:

@@ -23,6 +23,13 @@ from pyproj import CRS, Transformer
 from pyproj.crs import ProjectedCRS
 from pyproj.crs.coordinate_operation import AzimuthalEquidistantConversion
 
+# what a frame may hold, and a store's reader checks (core/limits.py)
+from geoterrain.core.limits import (  # noqa: F401 - part of this module's API
+    PIXEL_SIZE_RANGE,
+    SCENE_LIMIT,
+    UNIT_TO_M_RANGE,
+    Z_SCALE_RANGE,
+)
 from geoterrain.exceptions import InputError, UsageError
 
 # Vertical units a user may state (metres per unit); pyproj supplies horizontal ones.
@@ -75,9 +82,11 @@ class Frame:
         """Build the frame of a raster from its affine transform and CRS."""
         if z_units not in Z_UNITS:
             raise UsageError(f"unknown vertical unit {z_units!r}; use one of {', '.join(Z_UNITS)}")
-        if not np.isfinite(z_scale) or z_scale <= 0:
-            raise UsageError(f"z_scale must be a positive number, got {z_scale}",
-                             cli=f"--z-scale must be a positive number, got {z_scale}")
+        lo, hi = Z_SCALE_RANGE
+        if not (np.isfinite(z_scale) and lo <= z_scale <= hi):
+            raise UsageError(f"z_scale must be a number in [{lo:g}, {hi:g}], got {z_scale}",
+                             cli=f"--z-scale must be a number in [{lo:g}, {hi:g}], got "
+                                 f"{z_scale}")
         kw = dict(z_to_m=Z_UNITS[z_units], z_scale=float(z_scale))
         if crs_wkt is None or pixel_size is not None:
             return Frame.pixel(rows, cols, pixel_size or 1.0, **kw)
@@ -98,6 +107,9 @@ class Frame:
             raise InputError(f"unsupported CRS kind for {crs.name!r}; reproject to a projected CRS")
         unit = crs.axis_info[0].unit_conversion_factor if crs.axis_info else 1.0
         unit /= _scale_factor(crs, transform, rows, cols)
+        if not (np.isfinite(unit) and UNIT_TO_M_RANGE[0] <= unit <= UNIT_TO_M_RANGE[1]):
+            raise InputError(f"the CRS's unit is {unit:.3g} m, outside {UNIT_TO_M_RANGE[0]:g} "
+                             f"… {UNIT_TO_M_RANGE[1]:g} m; fix the CRS (gdal_edit.py -a_srs)")
         return Frame("projected", rows, cols, tuple(transform), crs_wkt, unit_to_m=unit,
                      **kw)._with_origin()
 
@@ -150,6 +162,26 @@ class Frame:
         may be ``heights`` itself)."""
         return np.multiply(np.asarray(heights, np.float64), self.z_to_m * self.z_scale,
                            out=out)
+
+    def check_scene(self, size: int, lo: float, hi: float) -> None:
+        """Refuse (one line) a padded ``size`` × ``size`` grid of heights ``lo`` … ``hi``
+        (source units) whose scene coordinates would pass :data:`SCENE_LIMIT` metres:
+        a pixel size, a unit or a vertical exaggeration far too large.
+
+        Examples
+        --------
+        >>> Frame.pixel(3, 3, 2.0).check_scene(3, 0.0, 10.0)
+        """
+        k = np.array([0, size - 1])
+        x, y = self.xy(k[:, None], k[None, :])
+        z = self.z(np.array([lo, hi], np.float64))
+        span = max(float(np.abs(v).max()) for v in (x, y, z))
+        if not np.isfinite(span) or span > SCENE_LIMIT:
+            raise InputError(f"the scene would reach {span:.3g} m from its centre, beyond "
+                             f"{SCENE_LIMIT:.0e} m: pixel_size, z_scale or the unit is too "
+                             "large", cli=f"the scene would reach {span:.3g} m from its "
+                             f"centre, beyond {SCENE_LIMIT:.0e} m: --pixel-size, --z-scale "
+                             "or --z-units is too large")
 
     def heights_from_z(self, Z: np.ndarray) -> np.ndarray:
         """Inverse of :meth:`z`."""

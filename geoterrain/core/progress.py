@@ -24,10 +24,12 @@ class StageClock:
     ([('read', 1, 2), ('write', 2, 2)], ['read', 'write'])
     """
 
-    def __init__(self, stages: tuple[str, ...], progress: Progress | None = None) -> None:
+    def __init__(self, stages: tuple[str, ...], progress: Progress | None = None,
+                 times: dict | None = None) -> None:
         self.stages = stages
         self.progress = progress
-        self.times: dict[str, float] = {}
+        self.times: dict[str, float] = {} if times is None else times  # the caller's dict
+        self.times.clear()
         self._t0 = time.perf_counter()
 
     def __call__(self, name: str) -> None:

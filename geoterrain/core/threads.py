@@ -1,4 +1,17 @@
-"""How many cores the compiled (numba ``prange``) kernels use for a piece of work.
+"""How many cores the compiled (numba ``prange``) kernels use for a piece of work, and
+which kernels a fork() child runs.
+
+Fork safety: numba runs ``prange`` loops on GNU OpenMP here, which aborts a process forked
+from one that ran a parallel region ("Terminating: fork() called from a process already
+using GNU OpenMP") at the child's first parallel launch: a ``multiprocessing`` pool of the
+default fork start method died after any preprocess in its parent. Every parallel kernel
+is a :class:`ParallelKernel` (:func:`parallel_kernel`): a fork() child runs its serial
+twin, the same arithmetic on the calling thread, and never launches a parallel region.
+numba's other layers were measured against it (benchmarks/bench_threading.py,
+docs/lab/threading.md): ``workqueue`` is fork-safe but aborts when two threads launch
+kernels at once (the interactive viewer selects on a worker thread while the main thread
+shades), and ``tbb`` from the PyPI wheel is not found by numba in a virtual environment
+without ``LD_LIBRARY_PATH``. GNU OpenMP and twins cost the parent nothing.
 
 Measured on this 2-core machine (``vertex_errors``, ms, 2 threads / 1 thread): quiet,
 threads win at every size (65²: 0.08 / 0.10, 1025²: 20 / 33, 2049²: 92 / 153); with
@@ -12,8 +25,9 @@ and loses 1.4–2.4× on one with a core taken.
 
 from __future__ import annotations
 
+import functools
 import types
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 import numba
@@ -21,7 +35,8 @@ from numba import njit
 
 from geoterrain.core._fork import FORKED
 
-__all__ = ["PARALLEL_MIN_SAMPLES", "cores_for", "forked", "serial_twin"]
+__all__ = ["PARALLEL_MIN_SAMPLES", "ParallelKernel", "cores_for", "forked", "parallel_kernel",
+           "serial_twin"]
 
 PARALLEL_MIN_SAMPLES = 1 << 19  # about 724²: below it, one thread
 
@@ -55,11 +70,56 @@ def serial_twin(kernel):
     >>> twin.py_func.__name__, twin(*[np.zeros((1, 2))] * 3, np.ones((1, 2), bool)).tolist()
     ('_valid_finite_nb_serial', [[True, True]])
     """
+    if isinstance(kernel, ParallelKernel):
+        return kernel.serial
     f = getattr(kernel, "py_func", kernel)
     twin = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial",
                               f.__defaults__, f.__closure__)
     twin.__qualname__ = f.__qualname__ + "_serial"  # its own cache entry
     return njit(cache=True, nogil=True)(twin)
+
+
+class ParallelKernel:
+    """A compiled kernel whose ``prange`` loops run on numba's threads (``.parallel``), and
+    its serial twin (``.serial``, :func:`serial_twin`): calling it runs the twin in a
+    fork() child, where a parallel launch would abort the process, else the parallel one.
+    The choice costs a Python call (well under a microsecond). Call it from Python only: a
+    compiled caller calls ``.parallel`` or ``.serial`` itself.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from numba import prange
+    >>> @parallel_kernel(cache=False)
+    ... def double(a):
+    ...     for i in prange(a.size):
+    ...         a[i] *= 2
+    >>> a = np.arange(3.0); double(a); a.tolist(), double.serial.py_func.__name__
+    ([0.0, 2.0, 4.0], 'double_serial')
+    """
+
+    def __init__(self, f: Callable, **options):
+        self.py_func = f
+        self.parallel = njit(parallel=True, **options)(f)
+        self.serial = _twin(f, options)
+        functools.update_wrapper(self, f)
+
+    def __call__(self, *args):
+        return (self.serial if FORKED[0] else self.parallel)(*args)
+
+
+def parallel_kernel(**options) -> Callable[[Callable], ParallelKernel]:
+    """``@parallel_kernel(cache=True, nogil=True)`` in place of ``@njit(parallel=True,
+    ...)``: a :class:`ParallelKernel` (every ``prange`` kernel of geoterrain is one;
+    tests/test_kernel_arity.py checks)."""
+    return lambda f: ParallelKernel(f, **options)
+
+
+def _twin(f: Callable, options: dict):
+    twin = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial",
+                              f.__defaults__, f.__closure__)
+    twin.__qualname__ = f.__qualname__ + "_serial"  # its own cache entry
+    return njit(**options)(twin)
 
 
 @contextmanager

@@ -32,8 +32,10 @@ PACKAGE = Path(__file__).resolve().parents[1]
 # seconds a kernel takes to compile on a 2-core VM (the demo's first run: measured by
 # benchmarks/bench_first_run.py); the estimate is the count × this
 SECONDS_PER_KERNEL = 1.0
-# a cached kernel's decorator; an inlined one ("always") has no cache of its own
-_DECORATOR = re.compile(r"^@(?:numba\.)?njit\((?=[^)]*cache=True)(?![^)]*inline=\"always\")")
+# a cached kernel's decorator (a parallel kernel's: core/threads.py; its serial twin
+# compiles in a fork() child only); an inlined one ("always") has no cache of its own
+_DECORATOR = re.compile(r"^@(?:(?:numba\.)?njit|parallel_kernel)\((?=[^)]*cache=True)"
+                        r"(?![^)]*inline=\"always\")")
 _DEF = re.compile(r"^def (\w+)\(")
 
 

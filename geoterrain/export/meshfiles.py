@@ -13,7 +13,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from geoterrain.exceptions import UsageError, WriteError, exists_error
+from geoterrain.core.atomicfiles import partial_path, publish
+from geoterrain.core.paths import check_output
+from geoterrain.exceptions import UsageError, WriteError
 
 if TYPE_CHECKING:
     import pyvista as pv
@@ -23,9 +25,10 @@ _BARE = (".stl", ".obj")  # formats that carry no point or cell arrays
 
 
 def check_output_path(path: str | Path, formats: tuple[str, ...], overwrite: bool = False,
-                      what: str = "mesh") -> Path:
+                      what: str = "mesh", inputs=()) -> Path:
     """``path`` as a Path if a file of one of ``formats`` can be written there: a known
-    suffix, an existing folder, and no existing file unless ``overwrite``; a
+    suffix, and :func:`geoterrain.core.paths.check_output`'s rules (an existing folder; a
+    regular file there replaced only with ``overwrite``, never one of ``inputs``); a
     :class:`UsageError` otherwise (checked before any work is done).
 
     Examples
@@ -36,17 +39,10 @@ def check_output_path(path: str | Path, formats: tuple[str, ...], overwrite: boo
     out = Path(path)
     if out.suffix.lower() not in formats:
         raise UsageError(f"{out}: unknown {what} format; use one of {', '.join(formats)}")
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise UsageError(f"{parent}: no such directory; create it first or choose another path",
-                         cli=f"{parent}: no such directory; create it first or choose another "
-                             "-o path")
-    if out.exists() and not overwrite:
-        raise exists_error(out)
-    return out
+    return check_output(out, overwrite, inputs=inputs)
 
 
-def check_mesh_path(path: str | Path, overwrite: bool = False) -> Path:
+def check_mesh_path(path: str | Path, overwrite: bool = False, inputs=()) -> Path:
     """:func:`check_output_path` for :data:`MESH_FORMATS`.
 
     Examples
@@ -54,7 +50,7 @@ def check_mesh_path(path: str | Path, overwrite: bool = False) -> Path:
     >>> check_mesh_path("out.ply").suffix
     '.ply'
     """
-    return check_output_path(path, MESH_FORMATS, overwrite)
+    return check_output_path(path, MESH_FORMATS, overwrite, inputs=inputs)
 
 
 def write_mesh(mesh: pv.PolyData, path: str | Path, *, overwrite: bool = False) -> Path:
@@ -68,10 +64,11 @@ def write_mesh(mesh: pv.PolyData, path: str | Path, *, overwrite: bool = False) 
     if out.suffix.lower() in _BARE:
         mesh = mesh.copy()
         mesh.clear_data()
-    tmp = out.with_name(f".{out.name}.partial{out.suffix}")
+    tmp = partial_path(out)
+    tmp = tmp.with_name(tmp.name + out.suffix)  # VTK picks the writer by suffix
     try:
         mesh.save(str(tmp))
-        tmp.replace(out)
+        publish(tmp, out, overwrite)
     except OSError as exc:
         raise WriteError(f"{out}: cannot write the mesh ({exc.strerror or exc})") from None
     finally:

@@ -50,7 +50,9 @@ from __future__ import annotations
 import functools
 import gzip
 import json
+import logging
 import math
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -60,9 +62,13 @@ import numpy as np
 from pyproj import CRS, Transformer
 
 from geoterrain.bounds.delta import vertex_errors
-from geoterrain.exceptions import UsageError, WriteError, exists_error
+from geoterrain.core.atomicfiles import write_atomic
+from geoterrain.core.paths import check_output
+from geoterrain.exceptions import UsageError, WriteError
 from geoterrain.lod.kernels import close_upward, extract
 from geoterrain.lod.mesh import orient_ccw
+
+log = logging.getLogger("geoterrain")
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -122,6 +128,26 @@ def geoid_transformer(geoid: str = "egm96") -> Transformer:
     return make()
 
 
+def pixel_degrees(terrain: TerrainLike) -> float:
+    """The DEM's sample spacing at its centre, in degrees of latitude (longitude steps
+    shrunk by cos φ), from its frame alone (no tile is decoded).
+
+    Examples
+    --------
+    >>> 0 < pixel_degrees(t) < 1
+    True
+    """
+    f, H, W = terrain.frame, terrain.grid.rows, terrain.grid.cols
+    if f.kind == "pixel" or f.crs_wkt is None:
+        raise UsageError("quantized-mesh tiles need a georeferenced DEM; this one has no CRS")
+    to_geo = Transformer.from_crs(CRS.from_wkt(f.crs_wkt), "EPSG:4326", always_xy=True)
+    a, b, c, d, e, g = f.transform[:6]
+    jj, ii = np.array([W / 2, W / 2 + 1.0]) + 0.5, np.array([H / 2, H / 2 + 1.0]) + 0.5
+    lon, lat = to_geo.transform(a * jj + b * ii + c, d * jj + e * ii + g)
+    return float(max(abs(lon[1] - lon[0]) * math.cos(math.radians(lat[0])),
+                     abs(lat[1] - lat[0])))
+
+
 class _Dem:
     """The store's full-resolution heights (metres) and where lon/lat fall on them.
 
@@ -146,7 +172,7 @@ class _Dem:
         crs = CRS.from_wkt(f.crs_wkt)
         self.to_src = Transformer.from_crs("EPSG:4326", crs, always_xy=True)
         self.to_geo = Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
-        self.pixel_deg = self._pixel_degrees(f)
+        self.pixel_deg = pixel_degrees(terrain)
         self.full = (self.H, self.W)
         if not heights:
             self.h, self.valid = np.full((0, 0), np.nan), np.zeros((0, 0), bool)
@@ -175,12 +201,6 @@ class _Dem:
             lon, lat = self.lonlat(ii, jj)
             _, _, hz = tr.transform(lon, lat, self.h[ii, jj])
             self.h[ii, jj] = np.asarray(hz, np.float64)
-
-    def _pixel_degrees(self, f) -> float:
-        i, j = np.array([self.H / 2, self.H / 2 + 1.0]), np.array([self.W / 2, self.W / 2 + 1.0])
-        lon, lat = self.lonlat(i, j)
-        return float(max(abs(lon[1] - lon[0]) * math.cos(math.radians(lat[0])),
-                         abs(lat[1] - lat[0])))
 
     def lonlat(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Lon/lat of (fractional) sample positions (pixel centres at integers)."""
@@ -516,12 +536,33 @@ def _resampling_error(dem: _Dem, rect, h: np.ndarray, valid: np.ndarray) -> floa
 
 
 # ------------------------------------------------------------------------ tile set
-def max_zoom_for(dem: _Dem, lattice: int) -> int:
-    """The first level whose lattice spacing is at most the DEM's sample spacing."""
+def max_zoom_for(pixel_deg: float, lattice: int) -> int:
+    """The first level whose lattice spacing is at most the DEM's sample spacing
+    ``pixel_deg`` (degrees, :func:`pixel_degrees`).
+
+    Examples
+    --------
+    >>> max_zoom_for(1 / 3600, 129)  # 1″ SRTM
+    13
+    """
     for z in range(0, 24):
-        if 180.0 / (1 << z) / (lattice - 1) <= dem.pixel_deg * (1 + 1e-9):
+        if 180.0 / (1 << z) / (lattice - 1) <= pixel_deg * (1 + 1e-9):
             return z
     return 23
+
+
+def _tile_folder(out: Path, z: int, x: int) -> Path:
+    """``out/z/x``, made if absent; a link or a file in its place is refused (tiles are
+    never written through a link out of the tile set)."""
+    p = out
+    for part in (str(z), str(x)):
+        p = p / part
+        try:
+            p.mkdir(exist_ok=True)
+        except FileExistsError:
+            pass
+        check_output(p, True, folder=True)
+    return p
 
 
 def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | None = None,
@@ -535,16 +576,29 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
     ellipsoidal heights (:func:`geoid_transformer`), and the declared errors are against
     those.
     """
+    # a folder (new, with its parents, or one to write into; never a link or a file),
+    # whose files are replaced only with overwrite
     out = Path(out_dir)
-    if (out / "layer.json").exists() and not overwrite:
-        raise exists_error(out / "layer.json")
+    if os.path.lexists(out):
+        check_output(out, True, folder=True, inputs=[terrain.path], option="-o")
+        for name in ("layer.json", "geoterrain.json"):
+            check_output(out / name, overwrite, inputs=[terrain.path])
     if lattice < 3 or (lattice - 1) & (lattice - 2) or lattice > 129:
         raise UsageError(f"lattice must be 2^k + 1 in 3..129, got {lattice}")
     t0 = time.perf_counter()
-    dem = _Dem(terrain, geoid)
-    zmax = max_zoom_for(dem, lattice) if max_zoom is None else int(max_zoom)
+    # the data fills levels up to its own resolution; one level past it is the most a
+    # tile set can use (finer tiles would only resample the same samples again)
+    fill = max_zoom_for(pixel_degrees(terrain), lattice)
+    zmax = fill if max_zoom is None else int(max_zoom)
+    if zmax > min(fill + 1, 22):
+        log.warning("max_zoom %d is past what the DEM can fill (its resolution is reached at "
+                    "zoom %d): capped at %d", zmax, fill, min(fill + 1, 22))
+        zmax = min(fill + 1, 22)
     if not 0 <= min_zoom <= zmax <= 22:
-        raise UsageError(f"zoom range {min_zoom}..{zmax} is not within 0..22")
+        raise UsageError(f"zoom range {min_zoom}..{zmax} is not within 0..22",
+                         cli=f"zoom range {min_zoom}..{zmax} is not within 0..22 (--min-zoom "
+                             f"must be at most --max-zoom, and at most {zmax} for this DEM)")
+    dem = _Dem(terrain, geoid)
     w, s, e, n = dem.extent()
     hv = dem.h[dem.valid]
     hrange = (float(np.floor(hv.min())), float(np.ceil(hv.max())))
@@ -583,10 +637,9 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
                     break
             nb = nt = 0
             for (x, y), (data, bound, ntri, _) in tiles.items():
-                p = out / str(z) / str(x) / f"{y}.terrain"
-                p.parent.mkdir(parents=True, exist_ok=True)
+                p = _tile_folder(out, z, x) / f"{y}.terrain"
                 blob = gzip.compress(data, compresslevel=6, mtime=0)
-                p.write_bytes(blob)
+                write_atomic(p, blob)  # a partial, then a rename: never a half tile
                 nb, nt = nb + len(blob), nt + ntri
                 errors[f"{z}/{x}/{y}"] = math.ceil(bound * 1e4) / 1e4  # rounded up
                 available.setdefault(z, []).append((x, y))
@@ -619,8 +672,8 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
              "heights": f"WGS 84 ellipsoidal (from {geoid.upper()})" if geoid else "as stored",
              "over_level_error": sum(v["over_level_error"] for v in levels.values()),
              "levels": levels, "declared_error": errors}
-    (out / "layer.json").write_text(json.dumps(layer, indent=1))
-    (out / "geoterrain.json").write_text(json.dumps(stats, indent=1))
+    write_atomic(out / "layer.json", json.dumps(layer, indent=1), overwrite)
+    write_atomic(out / "geoterrain.json", json.dumps(stats, indent=1), overwrite)
     return {k: v for k, v in stats.items() if k not in ("declared_error", "levels")}
 
 
@@ -725,7 +778,8 @@ class QuantizedMeshTiles:
         self.geo = _Dem(terrain, geoid, heights=False)
         if geoid is not None:
             geoid_transformer(geoid)  # fail now if the grid is missing
-        self.max_zoom = max_zoom_for(self.geo, lattice) if max_zoom is None else int(max_zoom)
+        self.max_zoom = (max_zoom_for(self.geo.pixel_deg, lattice) if max_zoom is None
+                         else int(max_zoom))
         if not 0 <= self.max_zoom <= 22:
             raise UsageError(f"max_zoom must be in 0..22, got {self.max_zoom}")
         self.extent = self.geo.extent()

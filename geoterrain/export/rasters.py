@@ -43,8 +43,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from geoterrain.core.atomicfiles import partial_path, publish
 from geoterrain.core.frame import level_transform
-from geoterrain.exceptions import UsageError, WriteError, exists_error
+from geoterrain.core.paths import check_output
+from geoterrain.exceptions import UsageError, WriteError
 from geoterrain.rendering.shading import hillshade
 
 if TYPE_CHECKING:
@@ -329,8 +331,7 @@ def export_raster(terrain: TerrainLike, what: str, path: str | Path, *, level: i
     out = Path(path)
     if out.suffix.lower() not in (".tif", ".tiff"):
         raise UsageError(f"{out}: a GeoTIFF export needs a .tif or .tiff name")
-    if out.exists() and not overwrite:
-        raise exists_error(out)
+    check_output(out, overwrite, inputs=[terrain.path])  # core/paths.py
     f = terrain.frame
     if f.kind == "pixel":
         raise UsageError("the DEM has no georeference (pixel units); a GeoTIFF needs a CRS")
@@ -343,7 +344,8 @@ def export_raster(terrain: TerrainLike, what: str, path: str | Path, *, level: i
                    nodata=0 if byte else math.nan, compress="deflate",
                    predictor=2 if byte else 3)
     units = UNITS.get(what, relief.slope_units)
-    tmp = out.with_name(f".{out.name}.partial.tif")
+    tmp = partial_path(out)
+    tmp = tmp.with_name(tmp.name + ".tif")
     try:
         with rasterio.open(tmp, "w", **profile) as dst:
             dst.write(data)
@@ -357,7 +359,7 @@ def export_raster(terrain: TerrainLike, what: str, path: str | Path, *, level: i
                 tags.update(sun="multidirectional" if relief.multidirectional else
                             f"{relief.azimuth:g},{relief.altitude:g}")
             dst.update_tags(**tags)
-        tmp.replace(out)
+        publish(tmp, out, overwrite)
     except (OSError, rasterio.errors.RasterioIOError) as exc:
         raise WriteError(f"{out}: cannot write the GeoTIFF ({exc})") from None
     finally:

@@ -22,6 +22,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 import rasterio
 
+from geoterrain.core.paths import input_problem
 from geoterrain.exceptions import InputError, UsageError
 from geoterrain.ingest.gdalerrors import gdal_reason
 from geoterrain.ingest.remote import Url, is_url, list_file, read_list
@@ -74,8 +75,8 @@ def source_files(src: str | Path | list | tuple) -> list[Path | Url]:
     else:
         return [_one(src)]
     for p in files:
-        if not p.is_file():
-            raise InputError(f"{p}: no such file; check the path")
+        if (why := input_problem(p, utf8=True)) is not None:
+            raise InputError(f"{p}: {why}; give raster files")
     return files
 
 

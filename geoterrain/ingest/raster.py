@@ -7,6 +7,7 @@ USGS DEM, ...) and the Mapbox Terrain-RGB and Terrarium PNG encodings.
 from __future__ import annotations
 
 import logging
+import os
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,6 +17,7 @@ import rasterio
 from rasterio.errors import RasterioIOError
 
 from geoterrain.core.memory import available_memory
+from geoterrain.core.paths import input_problem
 from geoterrain.exceptions import InputError, UsageError
 from geoterrain.ingest.composite import CompositeReader, needs_composite, plan
 from geoterrain.ingest.gdalerrors import gdal_reason
@@ -78,6 +80,10 @@ ROUGH_PNG_STEP = 1000.0  # metres: a median neighbour step beyond this is not te
 GDAL_READ_OPTIONS = {"GDAL_NUM_THREADS": "ALL_CPUS", "GDAL_CACHEMAX": 64 * 2**20,
                      "GDAL_HTTP_MAX_RETRY": 3, "GDAL_HTTP_RETRY_DELAY": 0.5,
                      "GDAL_HTTP_TIMEOUT": 60}
+# ... except in a fork() child: GDAL's pool of decoding threads was made in the parent
+# and its threads are not copied, so a read waits for them forever (Pool(2).map of
+# preprocess after a preprocess in the parent hung on a multi-block GeoTIFF)
+os.register_at_fork(after_in_child=lambda: GDAL_READ_OPTIONS.update(GDAL_NUM_THREADS="1"))
 # peak RSS of the preprocess per source sample, measured (benchmarks/bench_preprocess.py,
 # docs/lab/preprocess.md): 62 at
 # 4097² and 52 at 8193² in a projected CRS, 116 at 4097² in a geographic one (full X, Y
@@ -170,10 +176,8 @@ def read_raster(
     if len(files) > 1:
         return _read_mosaic(files, band, encoding, nodata)
     p = files[0]
-    if not p.exists():
-        raise InputError(f"{p}: no such file; check the path")
-    if p.is_dir():
-        raise InputError(f"{p}: is a directory, not a raster file")
+    if (why := input_problem(p, utf8=True)) is not None:  # a device or a FIFO: never opened
+        raise InputError(f"{p}: {why}; give a raster file")
     try:
         with warnings.catch_warnings(), rasterio.Env(**GDAL_READ_OPTIONS):
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
@@ -244,6 +248,7 @@ def _read_open(src, p: Path, band: int | None, encoding: str, nodata_arg: float 
                ) -> Raster:
     count, dtype = src.count, src.dtypes[0]
     is_png_tile = src.driver == "PNG" and count in (3, 4) and dtype == "uint8"
+    named_raw = encoding == "raw"
     guessed = False
     if encoding == "auto":
         encoding = "raw"
@@ -279,6 +284,14 @@ def _read_open(src, p: Path, band: int | None, encoding: str, nodata_arg: float 
         return Raster(heights, valid, transform, crs_wkt, dtype, None, encoding, str(p),
                       scale=scale, offset=offset, is_integer=True)
 
+    if (count >= 3 and dtype == "uint8" and transform is None and crs_wkt is None
+            and not named_raw):
+        # a picture (a photo, a map; a JPEG with EXIF), not heights: only when asked for
+        raise InputError(f"{p}: {count} 8-bit bands without a CRS or georeference: a picture, "
+                         "not a DEM; to read a band of it as heights pass encoding='raw' and "
+                         "band", cli=f"{p}: {count} 8-bit bands without a CRS or "
+                         "georeference: a picture, not a DEM; to read a band of it as heights "
+                         "pass --encoding raw --band N")
     if band is None:
         if count > 1:
             raise UsageError(f"{p}: has {count} bands; choose one with band=N (1..{count})",

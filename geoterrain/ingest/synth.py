@@ -401,6 +401,14 @@ def write_geotiff(
     }
     if nodata is not None:
         profile["nodata"] = float(nodata)
-    with rasterio.open(path, "w", **profile) as dst:
-        dst.write(data, 1)
+    from geoterrain.core.atomicfiles import partial_path, publish
+
+    tmp = partial_path(path)
+    tmp = tmp.with_name(tmp.name + ".tif")
+    try:
+        with rasterio.open(tmp, "w", **profile) as dst:
+            dst.write(data, 1)
+        publish(tmp, path, overwrite=True)  # replaces a regular file only (core/paths.py)
+    finally:
+        tmp.unlink(missing_ok=True)
     return path

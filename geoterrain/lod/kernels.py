@@ -30,8 +30,9 @@ class ActiveFlags(NamedTuple):
 def sample_xy(X, Y, aff, s, a, b, i, j):
     """Scene x, y of sample (i, j), sample (a, b) of pool slot ``s``: from the slabs
     ``X``, ``Y``, or for an affine frame (``aff`` = a, b, c, d, e, f of the geotransform,
-    the origin x, y and the unit in metres) by ``Frame.xy``'s formula, in its order."""
-    if aff.shape[0] == 0:
+    the origin x, y and the unit in metres, then 1; all 0 for a curvilinear frame) by
+    ``Frame.xy``'s formula, in its order."""
+    if aff[9] == 0.0:
         return X[s, a, b], Y[s, a, b]
     jj, ii = j + 0.5, i + 0.5
     x = aff[0] * jj + aff[1] * ii + aff[2]

@@ -34,7 +34,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.core.threads import forked, serial_twin
+from geoterrain.core.threads import ParallelKernel, forked
 from geoterrain.lod.kernels import _coarsest_tile, sample_xy
 from geoterrain.lod.pool import PooledTiles
 
@@ -66,16 +66,17 @@ class LeafVertices(NamedTuple):
 
 
 def _parallel(f):
-    """``f`` compiled with its ``prange`` loops run in parallel, and a serial twin (in
-    :data:`_SERIAL`) for forked children: numba's GNU OpenMP layer aborts a process
-    forked from one that used it at its first parallel launch."""
-    _SERIAL[f.__name__] = serial_twin(f)
-    return njit(cache=True, nogil=True, parallel=True)(f)
+    """``f`` as a :class:`~geoterrain.core.threads.ParallelKernel` (its serial twin also
+    in :data:`_SERIAL`): numba's GNU OpenMP layer aborts a process forked from one that
+    used it at its first parallel launch, so a forked child runs the twin."""
+    k = ParallelKernel(f, cache=True, nogil=True)
+    _SERIAL[f.__name__] = k.serial
+    return k
 
 
 def _kernel(name: str):
     """The parallel kernel ``name``, or its serial twin in a forked child."""
-    return _SERIAL[name] if forked() else globals()[name]
+    return _SERIAL[name] if forked() else globals()[name].parallel
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -86,10 +86,15 @@ class TilePool:
         self.base = level_offsets(self.top)
         self.slot_of = np.full(int(self.base[-1]), -1, np.int32)
         f = terrain.frame
-        self.aff = np.zeros(0)  # geographic: x, y from the slabs (pyproj, cached per tile)
+        # geographic: all 0, x, y from the slabs (pyproj, cached per tile); aff[9] = 1
+        # marks an affine frame. Always 10 numbers: a parallel loop may load them before
+        # its branch on aff[9] (a load past an empty array's end, seen under numba's
+        # bounds checks in the shape sweep)
+        self.aff = np.zeros(10)
         if f.kind != "geographic":
-            self.aff = np.array([*f.transform[:6], *f.origin_crs, f.unit_to_m], np.float64)
-        kinds = KINDS if len(self.aff) == 0 else [k for k in KINDS if k != "xy"]
+            self.aff = np.array([*f.transform[:6], *f.origin_crs, f.unit_to_m, 1.0],
+                                np.float64)
+        kinds = KINDS if not self.affine else [k for k in KINDS if k != "xy"]
         per_slot = (self.T * self.T * sum(_BYTES[k] for k in kinds)
                     + self.nb ** 2 * 9 * 8)  # + each block's nine float64 bounds
         self.capacity = 0
@@ -114,6 +119,11 @@ class TilePool:
         for (L, x, y) in (terrain.edge_max or {}):
             if (L, x, y) not in terrain.tile_info:
                 self.edge_only[self.base[L] + y * (1 << (self.top - L)) + x] = True
+
+    @property
+    def affine(self) -> bool:
+        """Whether x, y are computed from ``aff`` (projected and pixel frames), not pooled."""
+        return bool(self.aff[9])
 
     def origins(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Grid row and column of the first sample of the (L, x, y) tiles ``keys`` (K, 3),
@@ -152,7 +162,7 @@ class TilePool:
         self.H = more(self.H, np.float64)
         self.BK = (np.zeros((new, self.nb, self.nb, 9)) if self.capacity == 0 else
                    np.concatenate([self.BK, np.zeros((extra, self.nb, self.nb, 9))]))
-        if len(self.aff) == 0:
+        if not self.affine:
             self.X, self.Y = more(self.X, np.float64), more(self.Y, np.float64)
         self.key_of = np.concatenate([self.key_of, np.full(extra, -1, np.int64)])
         self.stamp = np.concatenate([self.stamp, np.zeros(extra, np.int64)])
@@ -231,7 +241,7 @@ class TilePool:
             i0, j0, step = (int(v[0]) for v in self.origins(np.array([key], np.int64)))
             block_bounds(self.D, self.R, self.H, self.X, self.Y, self.aff, s, i0, j0, step,
                          key[0] < self.top, self.BK[s])
-        elif len(self.aff) == 0:  # affine frames: x, y computed in the kernels
+        elif not self.affine:  # affine frames: x, y computed in the kernels
             self.X[s], self.Y[s] = t.tile_xy(*key)
         self.have[kind][s] = True
 

@@ -1,6 +1,7 @@
 """The preprocess pipeline: DEM → padded pyramid → errors, normals, codec → store.
 
-Stages (timed; the times go into the store's metadata):
+Stages (timed; ``preprocess(timings=...)`` receives the times, never the store, so the
+same input and options give the same bytes):
 read → pad → quantise → errors → radii → tile bounds → normals → compress → write.
 """
 
@@ -38,11 +39,12 @@ from geoterrain.codec.pyramid import decoded_heights, encode_decoded, encode_pyr
 from geoterrain.codec.quantchoice import choose_quantizer
 from geoterrain.codec.quantize import Quantizer, codes_to_heights
 from geoterrain.core.atomicfiles import remove_stale_partials
-from geoterrain.core.frame import Frame
+from geoterrain.core.frame import PIXEL_SIZE_RANGE, Frame
 from geoterrain.core.grid import Grid
 from geoterrain.core.memory import available_memory
+from geoterrain.core.paths import check_output, input_problem
 from geoterrain.core.progress import Progress, StageClock
-from geoterrain.exceptions import InputError, UsageError, exists_error
+from geoterrain.exceptions import InputError, UsageError
 from geoterrain.ingest.mosaic import is_several, mosaic_name, source_files
 from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.ingest.remote import is_url
@@ -111,6 +113,7 @@ def preprocess(
     resolution: float | None = None,
     resampling: str = "bilinear",
     priority: str = "finest",
+    timings: dict | None = None,
 ) -> Path:
     """Preprocess a DEM into a store and return the store's path.
 
@@ -186,6 +189,9 @@ def preprocess(
         there by GDAL with ``resampling`` (``bilinear``, ``cubic``, ``nearest``) and its
         own nodata; where they overlap the finest valid source wins, or the first given
         with ``priority="order"``, and voids are filled from the next.
+    timings
+        A dict that receives each stage's seconds (``read``, ..., ``write``). They are
+        not stored: the same input and options write the same bytes.
 
     Examples
     --------
@@ -212,8 +218,13 @@ def preprocess(
                 codec_error=codec_error, overwrite=overwrite, nodata=nodata, band=rows,
                 raster_band=band, encoding=encoding, pixel_size=pixel_size, tile=tile,
                 derive_normals=derive_normals, derive_bounds=derive_bounds,
-                scheduler=scheduler, resume=resume, progress=progress, **merge)
-    stage = StageClock(STAGES, progress)
+                scheduler=scheduler, resume=resume, progress=progress, timings=timings,
+                **merge)
+    if scheduler != "sync":  # not silently: the whole-grid preprocess runs here
+        log.warning("%s fits the memory limit: preprocessed here, whole; the scheduler %s "
+                    "runs a streamed preprocess only (lower --memory-limit to stream it)",
+                    req.files[0] if not req.mosaic else "the mosaic", scheduler)
+    stage = StageClock(STAGES, progress, timings)
     dem = read_dem(req, band=band, encoding=encoding, nodata=nodata, tile=tile,
                    pixel_size=pixel_size, z_units=z_units, z_scale=z_scale, merge=merge)
     stage("read")
@@ -261,6 +272,8 @@ def _probe(req: Request, merge: dict) -> tuple[tuple[int, int], bool] | None:
     from geoterrain.ingest.composite import needs_composite, plan
     from geoterrain.ingest.mosaic import build_vrt
 
+    if any(not is_url(f) and input_problem(f, utf8=True) is not None for f in req.files):
+        return None  # the reader says why, in one line (a FIFO would block this open)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
@@ -309,9 +322,11 @@ def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
     if codec_error is not None and not (np.isfinite(codec_error) and codec_error >= 0):
         raise UsageError(f"codec_error must be a finite number ≥ 0, got {codec_error}",
                          cli=f"--codec-error must be a finite number ≥ 0, got {codec_error}")
-    if pixel_size is not None and not (np.isfinite(pixel_size) and pixel_size > 0):
-        raise UsageError(f"pixel_size must be a finite number > 0, got {pixel_size}",
-                         cli=f"--pixel-size must be a finite number > 0, got {pixel_size}")
+    plo, phi = PIXEL_SIZE_RANGE
+    if pixel_size is not None and not (np.isfinite(pixel_size) and plo <= pixel_size <= phi):
+        raise UsageError(f"pixel_size must be a number in [{plo:g}, {phi:g}] metres, got "
+                         f"{pixel_size}", cli=f"--pixel-size must be a number in [{plo:g}, "
+                         f"{phi:g}] metres, got {pixel_size}")
     if not (isinstance(tile_size, int) and 2 <= tile_size <= MAX_TILE_SIZE
             and tile_size & (tile_size - 1) == 0):
         raise UsageError(f"tile_size must be a power of two in [2, {MAX_TILE_SIZE}], "
@@ -329,11 +344,8 @@ def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
     dst = Path(dst)
     if not resume:  # a killed streaming run's scratch stays for resume to take up
         remove_stale_partials(dst.parent if str(dst.parent) else Path("."))
-    if dst.exists() and not overwrite:
-        raise exists_error(dst)
-    if any(f.resolve() == dst.resolve() for f in files):
-        raise UsageError(f"{dst}: the store would overwrite its own input; choose another dst",
-                         cli=f"{dst}: the store would overwrite its own input; choose another -o")
+    # a regular file or nothing, replaced only with overwrite, never one of the inputs
+    check_output(dst, overwrite, inputs=files)
     return Request(files, mosaic, dst, overwrite, src, tile_size)
 
 
@@ -374,6 +386,7 @@ def read_dem(req: Request, *, band: int | None, encoding: str, nodata: float | N
     if r.crs_wkt is None and pixel_size is None:
         log.warning("%s has no CRS: using 1 m per pixel; set pixel_size (--pixel-size)", src)
     grid = Grid.for_shape(*r.shape, tile_size=req.tile_size)
+    frame.check_scene(grid.size, *valid_range(r.heights, r.valid)[:2])
     return Dem(r, frame, grid, int(np.count_nonzero(r.valid)))
 
 
@@ -562,18 +575,16 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
 def write_store(req: Request, grid: Grid, blobs: TileBlobs, blocks: np.ndarray, meta: dict,
                 stage: StageClock) -> None:
     """Write the store atomically: every blob, the tile table, the GeoMipMapping blocks'
-    δ_n and the metadata (with the stages' times), published as ``req.dst`` only when
-    complete."""
+    δ_n and the metadata, published as ``req.dst`` only when complete."""
     with StoreWriter(req.dst, overwrite=req.overwrite) as w:
         w.put_blobs("heights", blobs.heights)
         for kind, b in blobs.extra.items():
             w.put_blobs(kind, b)
         w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
         w.put_tiles(blobs.tile_rows)
-        w.put_metadata(store_metadata(**meta, times=stage.times))
-        stage("write")
-        stage.times["write"] = stage.times.get("write", 0.0)
+        w.put_metadata(store_metadata(**meta))
         w.commit()
+    stage("write")
 
 
 def cached_store_path(dem: str | Path) -> Path:

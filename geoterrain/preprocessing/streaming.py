@@ -51,8 +51,9 @@ from geoterrain.codec.quantize import roundtrip
 from geoterrain.core.atomicfiles import remove_stale_partials
 from geoterrain.core.frame import Frame
 from geoterrain.core.grid import Grid
+from geoterrain.core.paths import check_output, input_problem
 from geoterrain.core.progress import Progress, StageClock
-from geoterrain.exceptions import InputError, UsageError, exists_error
+from geoterrain.exceptions import InputError, UsageError
 from geoterrain.ingest.mosaic import is_several
 from geoterrain.ingest.raster import ABSURD_HEIGHT, VOID_SENTINELS
 from geoterrain.ingest.remote import Url, is_url
@@ -184,6 +185,7 @@ def preprocess_streaming(
     resolution: float | None = None,
     resampling: str = "bilinear",
     priority: str = "finest",
+    timings: dict | None = None,
 ) -> Path:
     """Preprocess a DEM a window at a time into the store
     :func:`~geoterrain.preprocessing.pipeline.preprocess` writes (the same tiles, blobs and
@@ -213,7 +215,7 @@ def preprocess_streaming(
     >>> geoterrain.open(p).grid.size
     33
     """
-    stage = StageClock(STAGES, progress)
+    stage = StageClock(STAGES, progress, timings)
     if band < 2 or band & (band - 1):
         raise UsageError(f"band must be a power of two ≥ 2, got {band}")
     mosaic = is_several(src)
@@ -224,8 +226,11 @@ def preprocess_streaming(
                              "default store name; pass -o STORE")
         dst = default_store_path(Url(src).name if is_url(src) else src)
     dst = Path(dst)
-    if dst.exists() and not overwrite:
-        raise exists_error(dst)
+    local = [] if mosaic or is_url(src) else [Path(src)]  # a file given as a path
+    check_output(dst, overwrite, inputs=local)  # core/paths.py: what may be replaced
+    for f in local:  # a FIFO would block the read, a device never end
+        if (why := input_problem(f, utf8=True)) is not None:
+            raise InputError(f"{f}: {why}; check the path")
     if pixel_size is not None and not (np.isfinite(pixel_size) and pixel_size > 0):
         raise UsageError(f"pixel_size must be a finite number > 0, got {pixel_size}",
                          cli=f"--pixel-size must be a finite number > 0, got {pixel_size}")
@@ -269,7 +274,6 @@ def _streamed(src, dst: Path, spec: RasterSpec, meta: dict, grid: Grid, frame: F
     # preprocess_streaming after its arguments: fetch, scan, quantise, the passes, write
     remote = spec  # what a resumed run must match: the source as given
     spec = localize(spec, fetch)
-    times = stage.times
     nd = meta["nodata"]
     with spec.open() as ds:
         if meta["encoding"] == "raw" and not spec.layers:  # (a merge: each source's nodata)
@@ -307,6 +311,7 @@ def _streamed(src, dst: Path, spec: RasterSpec, meta: dict, grid: Grid, frame: F
             raise InputError(f"{spec.label}: heights reach {max(map(abs, raw)):.3g}, beyond "
                              f"±{ABSURD_HEIGHT:.0e}; if they are real pass --z-scale (e.g. 1), "
                              "else set the right nodata or unit")
+        frame.check_scene(N, *raw)  # scene coordinates within SCENE_LIMIT (frame.py)
         stage("quantise")
 
     pad = has_padding(grid)
@@ -371,7 +376,7 @@ def _streamed(src, dst: Path, spec: RasterSpec, meta: dict, grid: Grid, frame: F
                     samples=grid.rows * grid.cols, height_range=hv,
                     delta_max_finite=meta_blobs["delta_max"],
                     edge_max=meta_blobs["edge_max"] if pad else None, stand_in_z=stand_in,
-                    block_delta_levels=int(blocks.shape[2]), times=times))
+                    block_delta_levels=int(blocks.shape[2])))
                 stage("write")
                 w.commit()
         finally:

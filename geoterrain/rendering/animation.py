@@ -18,6 +18,7 @@ Examples
 from __future__ import annotations
 
 import math
+import os
 import shutil
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -26,7 +27,7 @@ from typing import TYPE_CHECKING
 from geoterrain.core.atomicfiles import partial_path, publish, remove_stale_partials
 from geoterrain.core.view import View
 from geoterrain.exaggerate import exaggerated
-from geoterrain.exceptions import UsageError
+from geoterrain.exceptions import UsageError, exists_error
 from geoterrain.lod.registry import DEFAULT, strategy_info
 from geoterrain.rendering.cameras import interpolate_views, load_cameras, orbit_views
 from geoterrain.rendering.colours import Palette
@@ -68,7 +69,10 @@ def check_animation_output(out: str | Path, fps: float, overwrite: bool = True) 
     if not (isinstance(fps, int | float) and math.isfinite(fps) and 0 < fps <= 1000):
         raise UsageError(f"fps must be a number in (0, 1000], got {fps}",
                          cli=f"--fps must be a number in (0, 1000], got {fps}")
-    _writable_target(out, overwrite)
+    folder = ext not in ANIMATION_SUFFIXES  # a folder of PNG frames
+    _writable_target(out, overwrite, folder=folder)
+    if folder and os.path.lexists(out) and not overwrite:
+        raise exists_error(out)
 
 
 def _animation_writer(out: str | Path, fps: float, overwrite: bool = True):

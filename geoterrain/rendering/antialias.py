@@ -30,6 +30,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from geoterrain.core.threads import parallel_kernel
+
 EDGE_THRESHOLD = 1.0 / 8.0  # a pixel is on an edge when its local luma range exceeds
 EDGE_THRESHOLD_MIN = 1.0 / 16.0  # this share of its brightest neighbour, and this
 SUBPIX = 0.75  # how much sub-pixel aliasing is removed (FXAA 3.11's default)
@@ -44,7 +46,7 @@ def _luma(lu, y, x, H, W):
     return lu[min(max(y, 0), H - 1), min(max(x, 0), W - 1)]
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def _lumas(img, lu):  # pragma: no cover - compiled
     """Rec. 601 luma in [0, 1] of every pixel."""
     for y in prange(img.shape[0]):
@@ -63,7 +65,7 @@ def _bilinear(lu, fy, fx, H, W):
     return a * (1 - ty) + b * ty
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def _fxaa(img, lu, z, steps, edge_t, edge_min, subpix, out):  # pragma: no cover - compiled
     H = img.shape[0]
     for y in prange(1, H - 1):  # a prange index may be unsigned: y − 1 would be a float

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from geoterrain.core.frame import level_transform
+from geoterrain.core.paths import input_problem
 from geoterrain.exceptions import InputError, UsageError
 
 if TYPE_CHECKING:
@@ -120,6 +121,8 @@ class Drape:
         if not (0.0 <= self.opacity <= 1.0):
             raise UsageError(f"the drape opacity must be in [0, 1], got {self.opacity:g}",
                              cli=f"--drape-opacity must be in [0, 1], got {self.opacity:g}")
+        if (why := input_problem(self.path, utf8=True)) is not None:  # before any work
+            raise InputError(f"{self.path}: {why}; give a georeferenced image")
 
 
 _SOURCES: dict = {}
@@ -139,7 +142,9 @@ def _source(path: str):
     import rasterio
 
     p = Path(path)
-    key = (str(p.resolve()), p.stat().st_mtime_ns if p.exists() else 0)
+    if (why := input_problem(p, utf8=True)) is not None:
+        raise InputError(f"{p}: {why}; give a georeferenced image")
+    key = (str(p.resolve()), p.stat().st_mtime_ns)
     if key not in _SOURCES:
         try:
             with rasterio.open(p) as src:

@@ -50,9 +50,10 @@ import numpy as np
 from geoterrain import lod
 from geoterrain.core.atomicfiles import partial_path, publish, remove_stale_partials, write_atomic
 from geoterrain.core.memory import peak_rss as _peak_rss
+from geoterrain.core.paths import check_output
 from geoterrain.core.view import View
 from geoterrain.exaggerate import exaggerated
-from geoterrain.exceptions import UsageError, WriteError, exists_error
+from geoterrain.exceptions import UsageError, WriteError
 from geoterrain.lod.mesh import polydata
 from geoterrain.lod.registry import DEFAULT, strategy_info
 from geoterrain.rendering.antialias import ANTI_ALIASING, depth_buffer, fxaa
@@ -566,15 +567,12 @@ def _plotter(size: tuple[int, int], anti_aliasing: bool | str = "auto"):
 
 
 # ---------------------------------------------------------------------- top level
-def _writable_target(path: Path, overwrite: bool) -> None:
-    """Refuse an existing ``path`` without ``overwrite``, or a missing parent folder."""
-    if path.exists() and not overwrite:
-        raise exists_error(path)
-    parent = path.parent if str(path.parent) else Path(".")
-    if not parent.is_dir():
-        raise UsageError(f"{parent}: no such directory; create it first or choose another "
-                         "output path", cli=f"{parent}: no such directory; create it first or "
-                         "choose another -o path")
+def _writable_target(path: Path, overwrite: bool, folder: bool = False,
+                     option: str = "-o") -> None:
+    """:func:`geoterrain.core.paths.check_output`: a missing parent folder, anything but a
+    regular file (a folder of frames with ``folder``), or an existing one without
+    ``overwrite`` is refused."""
+    check_output(path, overwrite, folder=folder, option=option)
 
 
 def _write_png(path: str | Path, img: np.ndarray, overwrite: bool = True) -> None:
@@ -674,7 +672,8 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
            line_widths: list | None = None, water: bool = True) -> dict:
     """Render one view of the terrain to a PNG, with its own level of detail.
 
-    ``overwrite=False`` refuses an existing ``path`` (checked before rendering).
+    ``overwrite=False`` refuses an existing ``path`` or ``stats_path`` (checked before
+    rendering).
 
     Parameters
     ----------
@@ -724,6 +723,8 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
     True
     """
     _writable_target(Path(path), overwrite)
+    if stats_path is not None:
+        _writable_target(Path(stats_path), overwrite, option="--stats")
     terrain = exaggerated(terrain, vertical_exaggeration)
     if view is None:
         view = overview(terrain, shading=shading, cmap=cmap, title=title, colorbar=colorbar,
@@ -743,5 +744,5 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
     stats.update(size=[int(view.size[0]), int(view.size[1])], path=str(path),
                  shading=shading, look_from=list(view.look_from), look_at=list(view.look_at))
     if stats_path is not None:
-        write_atomic(stats_path, json.dumps(stats, indent=2, default=float))  # never half
+        write_atomic(stats_path, json.dumps(stats, indent=2, default=float), overwrite)
     return stats

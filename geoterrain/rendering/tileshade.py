@@ -30,7 +30,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.core.threads import forked, serial_twin
+from geoterrain.core.threads import forked, parallel_kernel, serial_twin
 from geoterrain.rendering.shading import oct_shade
 
 
@@ -197,7 +197,7 @@ def _tint_tile(h, cf, shade, tint, out):  # pragma: no cover - compiled
             _texel(h[i, j] * cf, shade[i, j], tint, out, i, j)
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def _tint_tiles(h, cf, shade, tint, out):  # pragma: no cover - compiled
     """:func:`_tint_tile` of each tile of ``h`` on every core."""
     for k in prange(h.shape[0]):
@@ -276,7 +276,7 @@ def _palette_args(clim, water_level, land, water, tolerance: float = 0.0,
                 float(depth_span), bool(depth_ramp), *_stops(land), *_stops(water))
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@parallel_kernel(cache=True, nogil=True)
 def _shade_tiles(h, cf, codes, lut, tint, out):  # pragma: no cover - compiled
     """:func:`shade_tiles`'s pass: :func:`_shade_tile` of each tile of ``h`` with its
     normal codes ``codes[k]`` (pairs)."""

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from geoterrain.codec.quantizer import MAX_BINS, Quantizer
-from geoterrain.core.frame import Frame
+from geoterrain.core.frame import SCENE_LIMIT, UNIT_TO_M_RANGE, Z_SCALE_RANGE, Z_UNITS, Frame
 from geoterrain.core.grid import Grid
 from geoterrain.core.memory import available_memory
 from geoterrain.exceptions import StoreError
@@ -75,10 +75,15 @@ def _frame(m: dict, g: Grid) -> Frame:
     if not isinstance(tr, list) or len(tr) != 6:
         raise _Bad("frame.transform must be 6 numbers")
     tr = [_num(v, "frame.transform") for v in tr]
-    if tr[1] != 0 or tr[3] != 0 or tr[0] == 0 or tr[4] == 0:  # affine (a, b, c, d, e, f)
-        raise _Bad("frame.transform must be north-up with non-zero pixel sizes")
-    for k in ("unit_to_m", "z_to_m", "z_scale"):
-        _num(d[k], f"frame.{k}", positive=True, hi=1e12)
+    # affine (a, b, c, d, e, f): north-up, west to east (ingest flips a south-up raster;
+    # a reader would draw another one mirrored), not rotated
+    if tr[1] != 0 or tr[3] != 0 or not (tr[0] > 0 and tr[4] < 0):
+        raise _Bad("frame.transform must be north-up (pixel width > 0, height < 0), "
+                   "not rotated")
+    _num(d["unit_to_m"], "frame.unit_to_m", *UNIT_TO_M_RANGE)
+    _num(d["z_scale"], "frame.z_scale", *Z_SCALE_RANGE)
+    if d["z_to_m"] not in Z_UNITS.values():  # exactly one the writer knows
+        raise _Bad("frame.z_to_m is not a vertical unit (m, ft, us-ft)")
     oc = d["origin_crs"]
     if not isinstance(oc, list) or len(oc) != 2:
         raise _Bad("frame.origin_crs must be 2 numbers")
@@ -162,7 +167,8 @@ def _tiles(tiles: dict, g: Grid, f: Frame, m: dict) -> None:
     rules = [(~inside, "lies outside the grid"), (orphan, "has no parent tile"),
              (counts, "nvalid is out of range")]
     box = {k: _column(tiles, k) for k in _BOX}
-    rules += [(~np.isfinite(box[k]), f"{k} must be a finite number") for k in _BOX]
+    rules += [(~(np.abs(box[k]) <= SCENE_LIMIT), f"{k} must be a finite number within "
+               f"±{SCENE_LIMIT:.0e} m") for k in _BOX]
     for k in _BOUNDS:
         v = _column(tiles, k)
         rules += [(np.isnan(v), f"{k} must be a number"), (v < 0, f"{k} is out of range")]

@@ -24,6 +24,17 @@ interrupted write never leaves a file that opens as a valid store. Without
 ``overwrite`` the publish is a create-if-absent (a hard link), so of two racing
 writers exactly one wins.
 
+A reader never writes beside a store: :class:`StoreReader` opens it read-only (no
+journal, no ``-wal`` or ``-shm`` file is ever created beside it, so a store in a
+read-only folder or on a read-only medium reads the same; a store in WAL mode, which
+geoterrain never writes, is opened with SQLite's ``immutable=1``), and refuses one with a
+non-empty write-ahead log, or a journal that no running edit holds and that is not one
+to roll back, beside it (changes the file alone lacks, which reading without writing
+cannot apply). Its one write: an edit killed in its transaction
+(:mod:`geoterrain.store.editor`) leaves SQLite's hot journal, which the next reader rolls
+back, restoring the old store byte for byte. Stores are published by a rename, and edited
+in place in one transaction, whose locks keep a reader's view whole.
+
 A store may come from a stranger: :class:`StoreReader` opens it read-only with
 SQLite's ``trusted_schema`` off and refuses any schema object but the two plain
 tables (no views, triggers or virtual tables), so reading runs no SQL of the file's.
@@ -47,12 +58,12 @@ import numpy as np
 
 from geoterrain.core.atomicfiles import publish, remove_stale_partials
 from geoterrain.core.osreads import EXACT, ReadMeter
+from geoterrain.core.paths import check_output, input_problem
 from geoterrain.exceptions import (
     StoreCorruptError,
     StoreError,
     UsageError,
     WriteError,
-    exists_error,
 )
 from geoterrain.store.catalog import (  # noqa: F401 - the catalog's rows are the store's API
     META_ID,
@@ -177,15 +188,9 @@ class StoreWriter:
     """
 
     def __init__(self, dst: str | Path, overwrite: bool = False):
-        self.dst = Path(dst)
-        if self.dst.exists() and not overwrite:
-            raise exists_error(self.dst)
-        if self.dst.is_dir():
-            raise UsageError(f"{self.dst} is a directory; give a file path",
-                             cli=f"{self.dst} is a directory; give a file path with -o")
+        # a regular file or nothing, replaced only with overwrite (core/paths.py)
+        self.dst = check_output(dst, overwrite)
         parent = self.dst.parent if str(self.dst.parent) else Path(".")
-        if not parent.is_dir():
-            raise UsageError(f"{parent}: no such directory for the store; create it first")
         remove_stale_partials(parent)
         self.tmp = parent / f".{self.dst.name}.partial-{os.getpid()}"
         # the tile table's staging file, in the same folder: a full disk is the store's
@@ -390,17 +395,41 @@ class StoreReader:
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
-        if not self.path.is_file():
+        why = input_problem(self.path)
+        if why == "no such file":
             raise StoreError(f"{self.path}: no such store; run `geoterrain preprocess DEM` first")
-        _roll_back_interrupted_edit(self.path)
+        if why is not None:
+            raise StoreError(f"{self.path}: {why}; give a .geoterrain store")
+        _roll_back_interrupted_edit(self.path)  # the one write: restoring the old store
+        for side in ("-journal", "-wal"):
+            try:
+                with open(f"{self.path}{side}", "rb") as fh:
+                    head = fh.read(len(JOURNAL_MAGIC))
+            except OSError:
+                continue
+            # a journal left now is an edit's still running (it holds its lock, and
+            # SQLite's locks keep this reader's view whole), or one that is not SQLite's
+            if head and not (side == "-journal" and _writer_active(self.path)):
+                raise StoreError(f"{self.path}: SQLite's {self.path.name}{side} beside it holds "
+                                 "changes the store file lacks, which geoterrain cannot apply "
+                                 "without writing; re-run `geoterrain preprocess`")
         # every byte this reader reads from the file, opening included (bytes_read)
         self.meter = ReadMeter()
         self._blob_bytes = 0
+        # read-only: no journal, -wal or -shm file is created beside the store; a store in
+        # WAL mode (not one geoterrain writes) is opened immutable, as it would need a -shm
+        # file otherwise. Others take SQLite's shared locks (the file is not written), so
+        # a reader waits out another process's edit and sees it (data_version)
+        path = self.path
+
+        def connect() -> sqlite3.Connection:
+            uri = path.resolve().as_uri() + "?mode=ro" + ("&immutable=1" if _wal_mode(path)
+                                                          else "")
+            return sqlite3.connect(uri, uri=True, check_same_thread=False, timeout=30.0)
+
         try:
-            self.con = self.meter.call(lambda: sqlite3.connect(
-                self.path.resolve().as_uri() + "?mode=ro", uri=True,
-                check_same_thread=False, timeout=30.0))
-        except sqlite3.Error:
+            self.con = self.meter.call(connect)
+        except (sqlite3.Error, ValueError, OSError):
             raise StoreError(f"{self.path}: cannot open the store read-only") from None
         try:
             self.meter.call(self._open)
@@ -647,6 +676,39 @@ class StoreReader:
         self.con.close()
 
 
+JOURNAL_MAGIC = bytes.fromhex("d9d505f920a163d7")  # a rollback journal's header (SQLite)
+
+
+def _writer_active(path: Path) -> bool:
+    """Whether another process holds SQLite's RESERVED lock on the store (an edit in its
+    transaction): asked of the file's POSIX locks, taking none."""
+    import fcntl
+    import struct
+
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return False
+    try:  # struct flock: type, whence, start, len, pid; RESERVED_BYTE is 2^30 + 1
+        lk = struct.pack("hhqqi", fcntl.F_RDLCK, os.SEEK_SET, 0x40000001, 1, 0)
+        got = fcntl.fcntl(fd, fcntl.F_GETLK, lk)
+        return struct.unpack("hhqqi", got)[0] != fcntl.F_UNLCK
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+
+
+def _wal_mode(path: Path) -> bool:
+    """Whether the SQLite file ``path`` is in WAL mode (its header's read/write versions)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(20)
+    except OSError:
+        return False
+    return len(head) == 20 and head[18] == 2 and head[19] == 2
+
+
 def _roll_back_interrupted_edit(path: Path) -> None:
     """An edit killed in its transaction leaves ``STORE-journal`` (the old pages) beside
     the store: SQLite rolls it back when a connection that may write reads the file, and
@@ -654,7 +716,11 @@ def _roll_back_interrupted_edit(path: Path) -> None:
     reads the schema, which restores the old store; no SQL of the file's runs. A journal
     of an edit still running (it holds its lock) is left alone."""
     journal = Path(str(path) + "-journal")
-    if not journal.exists():
+    try:
+        with open(journal, "rb") as fh:
+            if fh.read(len(JOURNAL_MAGIC)) != JOURNAL_MAGIC:
+                return  # none, or not SQLite's: the reader refuses it without writing
+    except OSError:
         return
     try:
         con = sqlite3.connect(path, timeout=30.0)

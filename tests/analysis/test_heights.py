@@ -104,7 +104,9 @@ def test_coarse_level_reads_only_its_tiles(holed):
     pts = np.array([[c + a * 150.5, f + e * 20.5]])  # far from nodata
     top = t.grid.top_level
     got = height_at(t, pts, level=top)
-    assert got.level.tolist() == [top] and got.stats["tiles_decoded"] == 1
+    # the level's tile, and the tile whose δ gives the bound: a δ read is checked against
+    # its own tile's heights (a swapped or edited-down δ is refused, tests/store/test_redteam)
+    assert got.level.tolist() == [top] and got.stats["tiles_decoded"] == 2
 
 
 @pytest.mark.fast

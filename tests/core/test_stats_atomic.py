@@ -67,8 +67,8 @@ def test_render_stats_in_a_missing_folder_is_one_line(tmp_path):
     s = geoterrain.preprocess(dem, tmp_path / "d.geoterrain", tile_size=16)
     res = run("-q", "render", s, "-o", tmp_path / "v.png", "--size", "64x48",
               "--stats", tmp_path / "no" / "s.json")
-    assert_one_line_error(res, 1)
-    assert not (tmp_path / "no").exists()
+    assert_one_line_error(res, 2)  # refused before any work: nothing rendered
+    assert not (tmp_path / "no").exists() and not (tmp_path / "v.png").exists()
     res = run("-q", "render", s, "-o", tmp_path / "w.png", "--size", "64x48",
               "--stats", tmp_path / "s.json")
     assert res.exit_code == 0, res.output

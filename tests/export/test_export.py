@@ -189,6 +189,28 @@ def test_export_errors_are_one_line(terr, tmp_path):
     assert not list(tmp_path.iterdir())
 
 
+def test_a_static_export_past_the_memory_limit_is_refused_before_work(terr, tmp_path,
+                                                                      monkeypatch):
+    """The estimate (triangles counted without building the mesh) against --memory-limit:
+    refused in one line naming the estimate and the hint, before any selection."""
+    import geoterrain.cli.options as O
+    import geoterrain.export.formats as F
+
+    t, _ = terr
+    monkeypatch.setattr(F, "EXPORT_BYTES_PER_TRIANGLE", 1 << 30)  # every mesh is too big
+
+    def never(*a, **k):
+        raise AssertionError("the mesh was built")
+
+    monkeypatch.setattr(O, "select_mesh", never)
+    monkeypatch.setattr("geoterrain.cli.export.select_mesh", never)
+    res = run("export", t.path, "-o", tmp_path / "x.glb", "--max-error", "0.1",
+              "--memory-limit", "64M")
+    assert res.exit_code == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr
+    assert "triangles" in res.stderr and "--max-error" in res.stderr
+    assert not list(tmp_path.iterdir())
+
+
 def test_mesh_command_writes_elevation(terr, tmp_path):
     import pyvista as pv
 

@@ -107,7 +107,7 @@ def test_the_lp_floor_changes_no_flag(tmp_path_factory, az, el, dist, tau):
 def test_affine_xy_equals_the_stored_tile_xy(tmp_path_factory):
     t = _terrain(tmp_path_factory, False)
     pool = tile_pool(t)
-    assert len(pool.aff) == 9  # a projected frame: x, y are not pooled
+    assert pool.affine and len(pool.aff) == 10  # a projected frame: x, y are not pooled
     g = t.grid
     for L, x, y in [(0, 0, 0), (0, 15, 15), (1, 3, 5), (g.top_level, 0, 0)]:
         X, Y = t.tile_xy(L, x, y)

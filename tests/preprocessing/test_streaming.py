@@ -31,7 +31,6 @@ def _content(path) -> tuple[dict, dict, dict]:
         meta = read_meta(con)
     finally:
         con.close()
-    meta.pop("preprocess_seconds")  # timings differ
     return blobs, tiles, meta
 
 

@@ -249,7 +249,7 @@ def outcome(path: Path, view) -> tuple[str, object]:
                    + t.tile_radius(*k).tobytes() for k in lv0]
             info = t.info()
             for k in ("path", "size_bytes", "bytes_by_kind", "height_bytes_per_level",
-                      "height_bits_per_valid_sample"):  # file sizes, not content
+                      "height_bits_per_valid_sample", "modified"):  # the file, not content
                 info.pop(k)
             d = (np.asarray(m.points).tobytes(), np.asarray(m.faces).tobytes(),
                  np.asarray(sel.mesh.points).tobytes(), np.asarray(gmm.mesh.faces).tobytes(),

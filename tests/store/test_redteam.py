@@ -74,6 +74,33 @@ def _swap_heights(store):
     con.close()
 
 
+def _south_up(store):
+    """A south-up transform in the metadata (checksums recomputed): every reader would
+    draw the terrain mirrored, so it is refused."""
+    con = sqlite3.connect(store)
+
+    def edit(m):
+        a, b, c, d, e, f = m["frame"]["transform"]
+        m["frame"]["transform"] = [a, b, c, d, -e, f + e * m["frame"]["rows"]]
+    _meta_rewrite(con, edit)
+    con.commit()
+    con.close()
+
+
+def _swap_delta(level):
+    """Two tiles' δ blobs of one level swapped, their checksums recomputed for their new
+    places: the bound would be wrong for both tiles."""
+    def f(store):
+        con = sqlite3.connect(store)
+        a, b = [k for k in blob_keys(con, "delta") if k[0] == level][:2]
+        da, db = read_blob(con, a)[0], read_blob(con, b)[0]
+        update_blob(con, a, data=db, crc32=blob_crc(a[:3], "delta", db))
+        update_blob(con, b, data=da, crc32=blob_crc(b[:3], "delta", da))
+        con.commit()
+        con.close()
+    return f
+
+
 def _delete(store, blob=None, tiles=None):
     con = sqlite3.connect(store)
     if blob is not None:
@@ -110,6 +137,14 @@ STORE_CASES = [
     ("zstd-bomb", _bomb, ["mesh", "{store}", "-o", "{d}/m.ply"], 1),
     ("escape-in-metadata", _meta("schema_version", "\x1b[31mred"), ["info", "{store}"], 1),
     ("old-schema", _meta("schema_version", 1), ["info", "{store}"], 1),
+    ("south-up", _south_up, ["info", "{store}"], 1),
+    ("unit-to-m-1e-300", _meta("unit_to_m", 1e-300, "frame"), ["info", "{store}"], 1),
+    ("z-to-m-unknown", _meta("z_to_m", 0.5, "frame"), ["info", "{store}"], 1),
+    ("swapped-delta-level-1", _swap_delta(1), ["mesh", "{store}", "-o", "{d}/m.ply"], 1),
+    ("swapped-delta-level-0-rings", _swap_delta(0),
+     ["mesh", "{store}", "-o", "{d}/m.ply", "--max-error", "0"], 1),
+    ("swapped-delta-view", _swap_delta(1),
+     ["render", "{store}", "-o", "{d}/r.png", "--size", "64x48"], 1),
 ]
 
 ARG_CASES = [
@@ -121,6 +156,13 @@ ARG_CASES = [
     ("pixel-size-nan", ["preprocess", "{dem}", "-o", "{d}/x.geoterrain", "--pixel-size",
                         "nan"], 2),
     ("pixel-size-0", ["preprocess", "{dem}", "-o", "{d}/x.geoterrain", "--pixel-size", "0"], 2),
+    # values that used to write stores no reader accepts, or end in an internal error
+    ("pixel-size-1e308", ["preprocess", "{dem}", "-o", "{d}/x.geoterrain", "--pixel-size",
+                          "1e308"], 2),
+    ("z-scale-1e308", ["preprocess", "{dem}", "-o", "{d}/x.geoterrain", "--z-scale", "1e308"],
+     2),
+    ("codec-error-1e-300", ["preprocess", "{dem}", "-o", "{d}/x.geoterrain", "--codec-error",
+                            "1e-300"], 2),
     ("mesh-missing-dir", ["mesh", "{store}", "-o", "{d}/no/such/m.ply"], 2),
     ("render-missing-dir", ["render", "{store}", "-o", "{d}/no/such/r.png"], 2),
     ("render-exists", ["render", "{store}", "-o", "{d}/exists.png"], 2),

@@ -37,7 +37,8 @@ _BREAKS = [
     ("ymin", None, "ymin must be a finite number"),
     ("error", float("nan"), "error must be a number"),
     ("radius_max", -1.0, "radius_max is out of range"),
-    ("zmin", 1e12, "box is inverted"),
+    ("zmin", 1e7, "box is inverted"),
+    ("zmax", 1e12, "zmax must be a finite number within"),  # beyond any scene
 ]
 
 

@@ -42,6 +42,7 @@ from geoterrain.bounds.curvature import (
 )
 from geoterrain.bounds.edgepad import _reaches_data
 from geoterrain.core.bintree import main_diagonal_nb
+from geoterrain.core.threads import parallel_kernel
 from geoterrain.preprocessing.scratch import ScratchArrays
 
 __all__ = ["BandTerms", "RowCache", "band_metric_terms"]
@@ -156,7 +157,7 @@ def _fine_vertex(g, sp, kind, a, b, out):
         if not good:
             continue
         disp, dwin, bulge = _tri_own(g, T, T.i0, T.i1, True)
-        m = _tri_margin(T, disp)
+        m = _tri_margin(T, disp, N)
         if bulge or dwin > 0.5 * g.frac * T.smin:
             out.bulge[ar, b] = 1
         out.m[ar] = max(out.m[ar], m)
@@ -168,7 +169,7 @@ def _fine_vertex(g, sp, kind, a, b, out):
         out.rm[ar, b] = max(out.rm[ar, b], r)
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _fine_level_nb(g, sp, out):
     """The terms of a fine level's vertices on the band's core rows (``sp``, :class:`Span`)
     from the window ``g`` (:class:`MetricGrid` of rows ``g.w0`` …) into ``out``
@@ -199,7 +200,7 @@ def _listed(tl, t, frac):
                       tl.pos[t, 10], tl.pos[t, 11]), frac)
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _list_own_nb(g, tl, r_lo, r_hi):
     """Pass 1 of the listed triangles still without a margin, on grid rows r_lo … r_hi
     of ``g``, added to their running maxima."""
@@ -219,18 +220,18 @@ def _list_own_nb(g, tl, r_lo, r_hi):
 
 
 @njit(cache=True)
-def _list_margins_nb(tl, frac):
+def _list_margins_nb(tl, frac, N):
     # the margins once pass 1 has seen every row (whole-grid _tri_term's m and bulge)
     for t in range(tl.idx.shape[0]):
         if tl.m[t] >= 0:
             continue
         _, T = _listed(tl, t, frac)
-        tl.m[t] = _tri_margin(T, tl.acc[t, 0])
+        tl.m[t] = _tri_margin(T, tl.acc[t, 0], N)
         if tl.acc[t, 1] > 0.5 * frac * T.smin:
             tl.bulge[t] = True
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _list_search_nb(g, tl, r_lo, r_hi):
     """Pass 2 of every listed triangle on grid rows r_lo … r_hi of ``g``."""
     N = g.vb.shape[1]
@@ -427,7 +428,7 @@ def band_metric_terms(rows: Rows, xy: XY, N: int, band: int, scratch: ScratchArr
                     deferred.append(_deferred(g, h, "CRK".index(x), r0 // s, vt.defer))
         if len(tl.idx):
             _list_own_nb(g, tl, r0, r_end)
-    _list_margins_nb(tl, float(frac))
+    _list_margins_nb(tl, float(frac), N)
     if len(tl.m):
         M = max(M, int(tl.m.max()))
     if deferred:  # their pass 1 (and bulge) ran in their band's window

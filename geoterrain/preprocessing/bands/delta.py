@@ -54,6 +54,7 @@ from geoterrain.bounds.delta import (
 from geoterrain.bounds.radii import valid_range
 from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.rounding import round_up32
+from geoterrain.core.threads import parallel_kernel
 from geoterrain.preprocessing.scratch import ScratchArrays
 
 __all__ = ["LevelDelta", "band_vertex_errors", "edge_rows", "level_lattice", "raise_delta",
@@ -207,7 +208,7 @@ def _window(rows: Rows, i0: int, i1: int, N: int) -> tuple[np.ndarray, np.ndarra
     return np.ascontiguousarray(z), np.ascontiguousarray(v)
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _status_nb(v, r, s, nrow, nb):
     # status bits (1 valid, 2 invalid) of nrow rows of closed s-blocks, from v's row r
     out = np.zeros((nrow, nb), np.uint8)
@@ -228,7 +229,7 @@ def _pool(st: np.ndarray) -> np.ndarray:
     return st[0::2, 0::2] | st[0::2, 1::2] | st[1::2, 0::2] | st[1::2, 1::2]
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _fine_level_nb(band, h, st, st_prev, qb_prev, out, QB):
     """One fine level (2h ≤ B) of the ``band`` (:class:`BandWindow`): raw δ of its
     centres and edge midpoints into ``out`` (:class:`LevelVertices`; the same branches as
@@ -296,7 +297,7 @@ def _fine_level_nb(band, h, st, st_prev, qb_prev, out, QB):
                                      Beside(flo, fhi, qlo, qhi), K[ak, b])
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _coarse_rows_nb(band, h, st, zd, acc):
     """Add the ``band``'s rows (:class:`BandWindow`: r_lo … r_hi, inclusive, inside the
     window from w0) to the running maxima ``acc`` (:class:`BlockMaxima`) of every

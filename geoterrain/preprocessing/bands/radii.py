@@ -21,12 +21,13 @@ from numba import njit, prange
 from geoterrain.bounds.radii import code_up_nb
 from geoterrain.bounds.vertexdata import log8_exponent, log8_table
 from geoterrain.core.rounding import round_up32
+from geoterrain.core.threads import parallel_kernel
 from geoterrain.preprocessing.scratch import ScratchArrays
 
 __all__ = ["band_metric_radius_codes", "band_radius_codes", "level_xy"]
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _edge_codes_nb(xs, ys, h, rows, a_lo, nb, zv, pz, pc, table, out):
     """Codes of level h's edge midpoints (rows a_lo …; R-type if ``rows``, else K-type)
     from their four child centres at h/2 (``pz``, ``pc``: that level's centre heights
@@ -54,7 +55,7 @@ def _edge_codes_nb(xs, ys, h, rows, a_lo, nb, zv, pz, pc, table, out):
             out[ar, b] = code_up_nb(table, best)
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _centre_codes_nb(xs, ys, h, a_lo, zc, zr, zk, cr, ck, table, out):
     """Codes of level h's centres (rows a_lo …) from their block's four edge midpoints:
     up K[a], down K[a + 1], left R[b], right R[b + 1] (child_nb's order)."""
@@ -208,7 +209,7 @@ def _best(table, best):
     return np.float64(code_up_nb(table, best))
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _geo_edges_nb(ch, h, rows, a_lo, nb, table, out):
     """Level h's edge midpoints (rows a_lo … of R-type if ``rows``, else K-type) nested on
     their four child centres at h/2 (``ch``: :class:`NestRows`): seed 002 §2.4 (L50–52),
@@ -245,7 +246,7 @@ class CentreEdges(NamedTuple):
     vk: np.ndarray
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _geo_centres_nb(ch, e, table, out):
     """Block centres (``ch``'s z, x, y, rin) nested on their block's four edge midpoints
     ``e`` (:class:`CentreEdges`): up K[a], down K[a + 1], left R[b], right R[b + 1]."""

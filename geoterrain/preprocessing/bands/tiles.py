@@ -29,6 +29,7 @@ from geoterrain.bounds.delta import Cell
 from geoterrain.bounds.tilebounds import TileBounds, cell_counts_nb, cell_field_rows_nb, tile_rows
 from geoterrain.codec.pyramid import pyramid_shape
 from geoterrain.core.bintree import main_diagonal_nb
+from geoterrain.core.threads import parallel_kernel
 from geoterrain.preprocessing.bands.delta import BandWindow
 
 __all__ = ["band_tile_bounds"]
@@ -59,7 +60,7 @@ class MixedMarks(NamedTuple):
     cb: int
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _coarse_counts_nb(v, w0, r_lo, r_hi, s, counts):
     # add rows r_lo … r_hi of v (rows from w0) to each cell's valid counts (CellCounts):
     # the closed cell, its first triangle (with the diagonal) and its second (with the
@@ -92,7 +93,7 @@ def _coarse_counts_nb(v, w0, r_lo, r_hi, s, counts):
                 c2[bi, bj] += g
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(cache=True)
 def _level_rows_nb(band, s, coarse, counts, zd, E, marks):
     """E of level s on the ``band``'s rows r0 … r_end (:class:`BandWindow`: z, v, E hold
     rows from w0; a coarse level's cells counted in ``counts``, :class:`CellCounts`, its

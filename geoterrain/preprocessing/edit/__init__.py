@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -215,11 +214,10 @@ def _merged(rects: list) -> list:
 
 def _log(old: dict | None, res: EditResult) -> dict:
     """The metadata's edit log with ``res`` added: a running count and the last
-    :data:`EDIT_LOG` edits (when, how, where, and what a reader must decode again)."""
+    :data:`EDIT_LOG` edits (how, where, and what a reader must decode again; not when: the
+    same edits of the same store give the same bytes, as preprocess does)."""
     count = int(old.get("count", 0)) if isinstance(old, dict) else 0
     last = list(old.get("last", [])) if isinstance(old, dict) else []
-    last.append({"n": count + 1,
-                 "time": datetime.now(UTC).isoformat(timespec="seconds"),
-                 "mode": res.mode, "source": res.source, "window": list(res.window),
+    last.append({"n": count + 1, "mode": res.mode, "source": res.source, "window": list(res.window),
                  "samples": res.changed, "how": res.how, "dirty": res.dirty})
     return {"count": count + 1, "last": last[-EDIT_LOG:]}
