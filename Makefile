@@ -40,7 +40,7 @@ demo: $(STAMP)
 	@echo "demo done: see out/"
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q --durations=15
+	$(BIN)/python -m pytest -q --durations=40
 
 FAST := -m 'fast and not slow and not browser'
 

@@ -458,8 +458,8 @@ def _parse_sun(ctx, param, value):
         az, el = parse_sun(value)
     except UsageError as exc:
         raise click.BadParameter(str(exc.cli or exc)) from None
-    if not (0 <= az <= 360 and 0 <= el <= 90):
-        raise click.BadParameter(f"expected AZ in [0, 360] and EL in [0, 90] degrees, got "
+    if not (0 <= az <= 360 and 0 < el <= 90):  # a sun on the horizon lights nothing
+        raise click.BadParameter(f"expected AZ in [0, 360] and EL in (0, 90] degrees, got "
                                  f"{value!r}")
     return az, el
 

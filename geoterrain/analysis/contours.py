@@ -293,8 +293,11 @@ def _levels(interval: float | None, base: float, levels: Any, lo: float, hi: flo
                          cli=f"--interval must be a finite number > 0, got {interval}")
     if not math.isfinite(base):
         raise UsageError("the base level must be finite", cli="--base must be finite")
-    k0 = math.ceil((lo - 2 * TOL - base) / interval)
-    k1 = math.floor((hi + 2 * TOL - base) / interval)
+    q0, q1 = (lo - 2 * TOL - base) / interval, (hi + 2 * TOL - base) / interval
+    if not (math.isfinite(q0) and math.isfinite(q1)) or q1 - q0 > MAX_LEVELS:
+        raise UsageError(f"interval {interval:g} makes too many levels over the data's "
+                         f"{lo:g} … {hi:g}: give a larger interval")
+    k0, k1 = math.ceil(q0), math.floor(q1)
     if k1 - k0 > MAX_LEVELS:
         raise UsageError(f"interval {interval:g} makes {k1 - k0} levels over the data's "
                          f"{lo:g} … {hi:g}: give a larger interval")

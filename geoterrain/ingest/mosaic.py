@@ -74,8 +74,8 @@ def source_files(src: str | Path | list | tuple) -> list[Path | Url]:
             return files
     else:
         return [_one(src)]
-    for p in files:
-        if (why := input_problem(p, utf8=True)) is not None:
+    for p in files:  # a local device or FIFO is never opened (a URL is GDAL's to fetch)
+        if not is_url(p) and (why := input_problem(p, utf8=True)) is not None:
             raise InputError(f"{p}: {why}; give raster files")
     return files
 

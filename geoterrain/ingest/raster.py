@@ -22,6 +22,7 @@ from geoterrain.exceptions import InputError, UsageError
 from geoterrain.ingest.composite import CompositeReader, needs_composite, plan
 from geoterrain.ingest.gdalerrors import gdal_reason
 from geoterrain.ingest.mosaic import failing_tile, mosaic_name, open_mosaic, source_files
+from geoterrain.ingest.remote import is_url
 
 log = logging.getLogger("geoterrain")
 
@@ -176,7 +177,7 @@ def read_raster(
     if len(files) > 1:
         return _read_mosaic(files, band, encoding, nodata)
     p = files[0]
-    if (why := input_problem(p, utf8=True)) is not None:  # a device or a FIFO: never opened
+    if not is_url(p) and (why := input_problem(p, utf8=True)) is not None:  # a device, a FIFO
         raise InputError(f"{p}: {why}; give a raster file")
     try:
         with warnings.catch_warnings(), rasterio.Env(**GDAL_READ_OPTIONS):
