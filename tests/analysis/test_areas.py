@@ -71,6 +71,7 @@ def japan(tmp_path_factory):
     return store_of(tmp_path_factory, src), src
 
 
+@pytest.mark.slow  # heavy (10-36 s): the full tier runs it, CI skips it
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), n=st.integers(3, 14), hole=st.booleans(),
        r=st.floats(0.002, 0.03))

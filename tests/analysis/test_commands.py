@@ -69,6 +69,7 @@ def test_query_polygon(store):
     assert d["net_m3"] == pytest.approx(d["cut_m3"] - d["fill_m3"])
 
 
+@pytest.mark.slow  # heavy (10-36 s): the full tier runs it, CI skips it
 def test_profile_and_viewshed_and_contours(store, tmp_path):
     p, at = store
     line = f"LINESTRING ({at(5, 5).replace(',', ' ')}, {at(120, 100).replace(',', ' ')})"

@@ -18,6 +18,7 @@ from geoterrain.exceptions import InputError, UsageError
 from geoterrain.lod import STRATEGIES, strategy_info
 
 
+@pytest.mark.slow  # heavy (10-36 s): the full tier runs it, CI skips it
 def test_cli_synthetic_csv_plot_table(tmp_path):
     out, png = tmp_path / "b.csv", tmp_path / "b.png"
     r = CliRunner().invoke(cli, ["-q", "bench", "--synthetic", "65", "--views", "4",
@@ -51,6 +52,7 @@ def test_cli_store_and_path(tmp_path, fbm_tif):
     assert {row["anti_aliasing"] for row in rows} == {""}  # nothing drawn
 
 
+@pytest.mark.slow  # heavy (10-36 s): the full tier runs it, CI skips it
 def test_cli_render_csv_names_the_anti_aliasing(tmp_path, fbm_tif):
     """The CSV says how each frame's picture was anti-aliased (its render_ms depends on it)."""
     pytest.importorskip("geoterrain.rendering.scene")

@@ -107,6 +107,7 @@ def test_priority_order_lets_the_first_source_win(lidar_in_national):
     assert np.abs(r.heights[inside] - F[inside]).max() <= bilinear_bound(30.0) + 1e-4
 
 
+@pytest.mark.slow  # heavy (10-36 s): the full tier runs it, CI skips it
 def test_a_merge_streams_to_the_whole_read_s_store(tmp_path, lidar_in_national):
     """The warped layer read a VRT block at a time: bands and the whole raster give the
     same bits, so the streamed store is the whole one's (bilinear and cubic)."""
@@ -118,6 +119,7 @@ def test_a_merge_streams_to_the_whole_read_s_store(tmp_path, lidar_in_national):
         _assert_same_store(a, b)
 
 
+@pytest.mark.slow  # heavy (10-36 s): the full tier runs it, CI skips it
 def test_sources_in_two_crss_merge_onto_a_declared_grid(tmp_path):
     """A UTM source and a geographic one over the same ground, merged onto EPSG:4326 at a
     declared resolution (both warped): the same store whole and streamed, every sample

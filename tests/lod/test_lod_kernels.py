@@ -216,6 +216,7 @@ def _uneven(tmp_path_factory):
     return _T["uneven"]
 
 
+@pytest.mark.slow  # heavy (10-36 s): the full tier runs it, CI skips it
 @settings(max_examples=25, deadline=None)
 @given(e=st.one_of(st.just(0.0), st.floats(0.0, 60.0), st.just(1e12)),
        which=st.sampled_from(["plain", "holes", "uneven"]), counted=st.booleans())

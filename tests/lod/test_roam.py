@@ -105,7 +105,8 @@ def _views(t, n, seed, size=(480, 270)):
     return out
 
 
-@settings(max_examples=10, deadline=None)  # about 9 s: the full tier, not the fast one
+@pytest.mark.slow  # heavy (10-36 s): the full tier runs it, CI skips it
+@settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 10**6), taus=st.lists(st.sampled_from([1.0, 2.0, 8.0]), min_size=2,
                                                  max_size=4), occlusion=st.booleans())
 def test_split_and_merge_queues_reach_the_from_scratch_mesh(holey, seed, taus, occlusion):

@@ -129,6 +129,7 @@ def test_geographic_and_mosaic_input_give_the_same_store_on_every_scheduler(tmp_
         _assert_same_store(a, b)
 
 
+@pytest.mark.slow  # heavy (10-36 s): the full tier runs it, CI skips it
 def test_no_dask_scheduler_at_an_address_is_a_usage_error(tmp_path):
     pytest.importorskip("distributed")
     with pytest.raises(UsageError, match="no dask scheduler"):
