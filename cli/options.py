@@ -410,7 +410,8 @@ def _check_cmap(ctx, param, value):
     return value
 
 
-def _parse_clim(ctx, param, value):
+def parse_min_max(ctx, param, value):
+    """Click callback: ``MIN,MAX`` in metres → (min, max), finite and increasing."""
     if value is None:
         return None
     try:
@@ -428,7 +429,7 @@ def colour_options(f):
         click.option("--cmap", default="auto", show_default=True, callback=_check_cmap,
                      help="auto (land tints; water in blue at or below 0 m when the data "
                           "reaches the sea) or any matplotlib colormap name."),
-        click.option("--clim", callback=_parse_clim, metavar="MIN,MAX",
+        click.option("--clim", callback=parse_min_max, metavar="MIN,MAX",
                      help="Heights (m) the colour map spans (default: the data's range)."),
         click.option("--water-level", type=FINITE, metavar="H",
                      help="Water up to H metres: a flood or a lake at that level."),

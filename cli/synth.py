@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from geoterrain.cli.options import PIXEL_SIZE, Point
+from geoterrain.cli.options import PIXEL_SIZE, Point, parse_min_max
 
 KINDS = ("fbm", "ridged", "diamond-square", "fault")
 
@@ -22,26 +22,12 @@ def _parse_size(ctx, param, value):
     return parts[1], parts[0]
 
 
-def _parse_heights(ctx, param, value):
-    if value is None:
-        return None
-    import math
-
-    try:
-        lo, hi = (float(v) for v in value.split(","))
-    except ValueError:
-        raise click.BadParameter(f"expected MIN,MAX in metres, got {value!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
-        raise click.BadParameter(f"expected finite MIN < MAX, got {value!r}")
-    return lo, hi
-
-
 @click.command("synth")
 @click.argument("kind", type=click.Choice(KINDS))
 @click.option("--size", default="1025", show_default=True, callback=_parse_size,
               metavar="N|WxH", help="Samples per side, or WIDTHxHEIGHT (2^n+1 fits the "
                                     "pyramid without padding).")
-@click.option("--heights", callback=_parse_heights, metavar="MIN,MAX",
+@click.option("--heights", callback=parse_min_max, metavar="MIN,MAX",
               help="Lowest and highest height in metres [default: 0,2000]; a negative MIN "
                    "makes a topo-bathymetric DEM (the sea below 0 m).")
 @click.option("--seed", default=0, show_default=True, type=int, help="Random seed.")
