@@ -92,6 +92,16 @@ def colour_bar(terrain: TerrainLike, cmap: str | Palette):
         lut.SetUseBelowRangeColor(True)
         bar.SetDrawBelowRangeSwatch(True)
         bar.SetBelowRangeAnnotation("water")
+    _style_bar(bar)
+    bar.SetPosition(0.90, 0.25)
+    bar.SetWidth(0.08)
+    bar.SetHeight(0.5)
+    return bar
+
+
+def _style_bar(bar) -> None:
+    """A scalar bar in the viewer's look: a white, slightly transparent box, dark plain
+    text at fixed sizes."""
     bar.UnconstrainedFontSizeOn()
     bar.DrawBackgroundOn()
     bar.GetBackgroundProperty().SetColor(1.0, 1.0, 1.0)
@@ -103,10 +113,6 @@ def colour_bar(terrain: TerrainLike, cmap: str | Palette):
         tp.ShadowOff()
         tp.BoldOff()
         tp.ItalicOff()
-    bar.SetPosition(0.90, 0.25)
-    bar.SetWidth(0.08)
-    bar.SetHeight(0.5)
-    return bar
 
 
 def level_colours(top: int) -> np.ndarray:
@@ -158,17 +164,7 @@ def level_legend(grid):
     bar = vtkScalarBarActor()
     bar.SetLookupTable(lut)
     bar.SetTitle("detail level")
-    bar.UnconstrainedFontSizeOn()
-    bar.DrawBackgroundOn()
-    bar.GetBackgroundProperty().SetColor(1.0, 1.0, 1.0)
-    bar.GetBackgroundProperty().SetOpacity(0.85)
-    for tp, size in ((bar.GetLabelTextProperty(), 11), (bar.GetTitleTextProperty(), 12),
-                     (bar.GetAnnotationTextProperty(), 11)):
-        tp.SetColor(0.1, 0.1, 0.1)
-        tp.SetFontSize(size)
-        tp.ShadowOff()
-        tp.BoldOff()
-        tp.ItalicOff()
+    _style_bar(bar)
     bar.SetPosition(0.86, 0.25)
     bar.SetWidth(0.12)
     bar.SetHeight(0.5)
