@@ -47,7 +47,7 @@ if {mode!r} == "streamed":
 else:
     import geoterrain
     from geoterrain.export.meshfiles import write_mesh
-    from geoterrain.export.formats import with_elevation
+    from geoterrain.export.meshdata import with_elevation
     with geoterrain.open({store!r}) as t:
         write_mesh(with_elevation(t, t.static_selection(float({e!r})).mesh), {out!r},
                    overwrite=True)

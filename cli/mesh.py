@@ -51,7 +51,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     """
 
     import geoterrain
-    from geoterrain.export.formats import with_elevation
+    from geoterrain.export.meshdata import with_elevation
     from geoterrain.export.meshfiles import check_mesh_path, write_mesh
     from geoterrain.export.meshstream import STREAM_CACHE_BYTES, STREAM_FORMATS, check_in_memory
 

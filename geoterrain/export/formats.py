@@ -8,14 +8,16 @@ view-dependent LOD mesh) and says where it is on Earth:
   ``_ELEVATION`` attribute (metres), the shading texture (elevation colours ×
   hillshade, :mod:`geoterrain.rendering.textures`; or an image draped by
   :mod:`geoterrain.rendering.drape`)
-  embedded in an unlit material, and the georeference (:func:`georeference`) in
-  ``asset.extras.geoterrain`` and a sidecar ``<file>.json``.
+  embedded in an unlit material, and the georeference
+  (:func:`~geoterrain.export.meshdata.georeference`) in ``asset.extras.geoterrain``
+  and a sidecar ``<file>.json``.
 - **OBJ** with an MTL and a PNG texture beside it (and the sidecar).
 - **PLY** (binary): x, y, z (float64), normals, ``elevation``; the CRS and the origin
   offset in header comments. ``crs_coords=True`` writes source-CRS x, y of each
   vertex's sample (pyproj through :class:`~geoterrain.core.frame.Frame`) and z = elevation.
-- **STL**: a closed, printable solid (:func:`printable_solid`): the surface, vertical
-  walls along its boundary and a flat base ``base_height`` under the lowest point;
+- **STL**: a closed, printable solid
+  (:func:`~geoterrain.export.solids.printable_solid`): the surface, vertical walls
+  along its boundary and a flat base ``base_height`` under the lowest point;
   ``print_size`` scales the longer side to that many millimetres.
 
 ``base_height`` or ``print_size`` close a glTF, OBJ or PLY into the same solid: the
@@ -43,7 +45,6 @@ from __future__ import annotations
 import io
 import json
 import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -53,7 +54,9 @@ from geoterrain._version import __version__
 from geoterrain.core.atomicfiles import partial_path, publish
 from geoterrain.core.paths import check_output
 from geoterrain.exceptions import UsageError, WriteError
+from geoterrain.export.meshdata import MeshArrays, georeference, mesh_arrays, vertex_normals
 from geoterrain.export.meshfiles import check_output_path
+from geoterrain.export.solids import Solid, solid, stl_bytes
 from geoterrain.rendering.textures import SHADINGS, texture_image
 
 if TYPE_CHECKING:
@@ -62,107 +65,6 @@ if TYPE_CHECKING:
 EXPORT_FORMATS = (".glb", ".gltf", ".obj", ".stl", ".ply")
 TEXTURE_SIZE = 4097  # samples per side of an exported texture at most (a coarser level beyond)
 WALL_COLOUR = (0.62, 0.58, 0.52)  # a solid's walls and bottom: a plain warm grey
-
-
-@dataclass
-class MeshArrays:
-    """The referenced part of a selection, ready to write.
-
-    ``xyz`` scene frame (float64), ``faces`` (F, 3), ``ij`` grid row/column of each
-    vertex's sample, ``elevation`` metres (scene Z without vertical exaggeration),
-    ``normals`` area-weighted unit vertex normals (scene frame), ``surface`` (F,) bool
-    (False on skirt triangles).
-    """
-
-    xyz: np.ndarray
-    faces: np.ndarray
-    ij: np.ndarray
-    elevation: np.ndarray
-    normals: np.ndarray
-    surface: np.ndarray
-
-
-def mesh_arrays(terrain: TerrainLike, selection, *, skirts: bool = True) -> MeshArrays:
-    """The vertices the selection's triangles use, with elevation and normals.
-
-    Examples
-    --------
-    >>> m = mesh_arrays(t, t.static_selection(5.0))
-    >>> m.xyz.shape[0] == m.elevation.shape[0] == m.normals.shape[0]
-    True
-    """
-    faces = selection.faces
-    surface = np.ones(len(faces), bool)
-    if len(faces) and "skirt" in selection.mesh.cell_data:
-        surface = np.asarray(selection.mesh.cell_data["skirt"]) == 0
-    if not skirts:
-        faces, surface = faces[surface], surface[surface]
-    pts = np.asarray(selection.mesh.points, np.float64)
-    used = np.zeros(len(pts), bool)
-    used[faces.ravel()] = True
-    remap = np.cumsum(used) - 1
-    xyz = pts[used]
-    ij = selection.ij[used] if len(selection.ij) else np.zeros((len(xyz), 2))
-    faces = remap[faces].astype(np.int64)
-    elevation = (xyz[:, 2] / (terrain.frame.z_scale or 1.0)).astype(np.float32)
-    return MeshArrays(xyz, faces, ij, elevation, vertex_normals(xyz, faces), surface)
-
-
-def vertex_normals(xyz: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals (float32); +Z where a vertex has no area.
-
-    Examples
-    --------
-    >>> n = vertex_normals(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]]), np.array([[0, 1, 2]]))
-    >>> n.tolist()
-    [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]
-    """
-    p = xyz[faces]
-    fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])  # length = 2 × area
-    n = np.zeros((len(xyz), 3))
-    for k in range(3):
-        for c in range(3):
-            n[:, c] += np.bincount(faces[:, k], fn[:, c], minlength=len(xyz))
-    length = np.linalg.norm(n, axis=1)
-    bad = length == 0
-    n[bad] = (0.0, 0.0, 1.0)
-    length[bad] = 1.0
-    return (n / length[:, None]).astype(np.float32)
-
-
-def georeference(terrain: TerrainLike, scale: float = 1.0, offset: tuple[float, float,
-                 float] = (0, 0, 0)
-                 ) -> dict:
-    """How a written position maps back to the source CRS (the sidecar's content).
-
-    A file position p (its axes named by the format) is ``scene = p / scale + offset``
-    in the scene frame: east, north, up metres from ``origin_crs``. For a projected
-    frame, source-CRS x, y = ``origin_crs + (east, north) / unit_to_m``; for a
-    geographic one (east, north) are coordinates of ``positions_crs_wkt`` (an
-    azimuthal equidistant CRS centred on the origin). Heights: up / z_scale metres.
-
-    Examples
-    --------
-    >>> g = georeference(t)
-    >>> g["frame"], len(g["origin_crs"])
-    ('projected', 2)
-    """
-    f = terrain.frame
-    return {
-        "generator": f"geoterrain {__version__}",
-        "crs_name": f.crs_name,
-        "crs_wkt": f.crs_wkt,
-        "frame": f.kind,
-        "positions_crs_wkt": f.aeqd_wkt if f.kind == "geographic" else f.crs_wkt,
-        "origin_crs": [float(v) for v in f.origin_crs],
-        "unit_to_m": f.unit_to_m,
-        "z_scale": f.z_scale,
-        "units": "metres" if scale == 1.0 else f"{scale:g} per metre",
-        "scale": float(scale),
-        "offset_scene": [float(v) for v in offset],
-        "transform": list(f.transform),
-        "grid": [terrain.grid.rows, terrain.grid.cols],
-    }
 
 
 def data_shape(terrain: TerrainLike, level: int) -> tuple[int, int]:
@@ -332,7 +234,8 @@ def export_mesh(terrain: TerrainLike, selection, path: str | Path, *, overwrite:
         DEM's grid as the texture (:mod:`geoterrain.rendering.drape`) instead of the shading.
     crs_coords : PLY only: float64 source-CRS x, y and elevation z instead of scene metres.
     base_height, print_size : a closed solid with walls and a flat base
-        (:func:`printable_solid`); STL always is one, and either closes a glTF, OBJ or PLY.
+        (:func:`~geoterrain.export.solids.printable_solid`); STL always is one, and
+        either closes a glTF, OBJ or PLY.
     stats : filled with what was written: ``files``, ``bytes``, ``triangles``,
         ``vertices``, ``texture`` (width, height) and ``texture_level``, and for a solid
         ``solid`` (its size along x, y, z and their unit, the base height).
@@ -621,179 +524,3 @@ def ply_bytes(terrain: TerrainLike, m: MeshArrays, crs_coords: bool = False,
                 ("ny", "float"), ("nz", "float"), ("elevation", "float"))),
             f"element face {len(fc)}", "property list uchar int vertex_indices", "end_header"]
     return ("\n".join(head) + "\n").encode() + v.tobytes() + fc.tobytes()
-
-
-# ----------------------------------------------------------------------------- STL
-@dataclass
-class Solid:
-    """A surface closed into a solid (:func:`solid`): ``points`` (the surface's V points,
-    then the same V on the bottom plane z = 0), ``faces`` wound outwards (the surface's
-    ``n_surface`` faces, the bottom's as many, then the walls), and the map back to the
-    scene frame: scene = point / ``scale`` + ``offset``; ``unit`` ("mm" with a print
-    size, else "m"); ``base_height`` in that unit; ``geo`` the sidecar's georeference."""
-
-    points: np.ndarray
-    faces: np.ndarray
-    n_surface: int
-    scale: float
-    offset: tuple[float, float, float]
-    unit: str
-    base_height: float
-    geo: dict
-
-    def rescaled(self, f: float) -> Solid:
-        """The same solid with its units × ``f`` (millimetres → metres: 1e-3)."""
-        geo = dict(self.geo, scale=self.geo["scale"] * f, base_height=self.base_height * f,
-                   units=f"{self.geo['scale'] * f:g} per metre")
-        return Solid(self.points * f, self.faces, self.n_surface, self.scale * f, self.offset,
-                     {"mm": "m"}.get(self.unit, self.unit) if f == 1e-3 else self.unit,
-                     self.base_height * f, geo)
-
-    def surface(self, m: MeshArrays) -> MeshArrays:
-        """The surface's :class:`MeshArrays` in the solid's units."""
-        V = len(m.xyz)
-        return MeshArrays(self.points[:V], m.faces, m.ij, m.elevation, m.normals, m.surface)
-
-    def elevation(self, terrain: TerrainLike) -> np.ndarray:
-        """Each point's elevation in metres (float32): its scene height / z_scale."""
-        z = self.points[:, 2] / self.scale + self.offset[2]
-        return (z / (terrain.frame.z_scale or 1.0)).astype(np.float32)
-
-    def sides(self, terrain: TerrainLike) -> MeshArrays:
-        """The bottom and walls as their own mesh: the bottom's points (normal −z), then three
-        points per wall triangle (its own normal, so walls are flat-shaded)."""
-        F, V = self.n_surface, len(self.points) // 2
-        bottom = self.faces[F:2 * F] - V
-        walls = self.faces[2 * F:]
-        p = self.points[walls].reshape(-1, 3)
-        wn = np.cross(p[1::3] - p[0::3], p[2::3] - p[0::3])
-        wn /= np.maximum(np.linalg.norm(wn, axis=1, keepdims=True), 1e-30)
-        xyz = np.concatenate([self.points[V:], p])
-        normals = np.concatenate([np.tile([0.0, 0.0, -1.0], (V, 1)), np.repeat(wn, 3, 0)])
-        faces = np.concatenate([bottom, V + np.arange(len(p)).reshape(-1, 3)])
-        z = xyz[:, 2] / self.scale + self.offset[2]
-        elev = (z / (terrain.frame.z_scale or 1.0)).astype(np.float32)
-        return MeshArrays(xyz, faces.astype(np.int64), np.zeros((len(xyz), 2)), elev,
-                          normals.astype(np.float32), np.ones(len(faces), bool))
-
-    def summary(self) -> dict:
-        """Its size along x, y, z, unit and base height (for the command's summary)."""
-        ext = self.points.max(0) - self.points.min(0)
-        return {"size": [float(v) for v in ext], "units": self.unit,
-                "base_height": float(self.base_height)}
-
-
-def solid(terrain: TerrainLike, m: MeshArrays, base_height: float | None = None,
-          print_size: float | None = None) -> Solid:
-    """The surface closed into a :class:`Solid`: walls down every boundary edge and a flat
-    base.
-
-    ``print_size`` (mm): the longer horizontal side becomes that long, every axis
-    scaled alike (the vertical exaggeration is the terrain's, ``-z``); the model
-    sits on z = 0 with x, y ≥ 0. ``base_height``: the base's thickness under the
-    lowest point, in output units (mm with ``print_size``, else metres); default 3 mm,
-    or 2 % of the longer side. The surface must be conforming (every interior edge
-    shared by two triangles, as static and ``rtin`` meshes are).
-
-    Examples
-    --------
-    >>> s = solid(t, mesh_arrays(t, t.static_selection(5.0)), print_size=100.0)
-    >>> s.unit, float(s.points[:, 2].min()), round(float(np.ptp(s.points[:, :2], 0).max()), 6)
-    ('mm', 0.0, 100.0)
-    """
-    if print_size is not None and not (np.isfinite(print_size) and print_size > 0):
-        raise UsageError(f"print_size must be > 0 mm, got {print_size}",
-                         cli=f"--print-size must be > 0 mm, got {print_size}")
-    xyz, faces = m.xyz, m.faces
-    lo, hi = xyz.min(0), xyz.max(0)
-    side = float(max(hi[0] - lo[0], hi[1] - lo[1])) or 1.0
-    scale = 1.0 if print_size is None else float(print_size) / side
-    if base_height is None:
-        base_height = 3.0 if print_size is not None else 0.02 * side
-    if not (np.isfinite(base_height) and base_height > 0):
-        raise UsageError(f"base_height must be > 0, got {base_height}",
-                         cli=f"--base-height must be > 0, got {base_height}")
-    offset = (float(lo[0]), float(lo[1]), float(lo[2]) - base_height / scale)
-    top = (xyz - offset) * scale
-    V = len(top)
-    bottom = top.copy()
-    bottom[:, 2] = 0.0
-    # directed edges a→b of the (counter-clockwise) surface; boundary = no b→a partner
-    a = faces.ravel()
-    b = faces[:, [1, 2, 0]].ravel()
-    fwd, rev = a * V + b, b * V + a
-    fs = np.sort(fwd)  # sorting, not np.unique/np.isin: several times faster here
-    if (fs[1:] == fs[:-1]).any():
-        raise UsageError("the mesh is not a manifold surface; cannot close it into a solid")
-    boundary = ~_contains(fs, rev)
-    ea, eb = a[boundary], b[boundary]
-    if not _contains(np.sort(ea), eb).all() or not _contains(np.sort(eb), ea).all():
-        raise UsageError("the mesh is not conforming (T-junctions); a printable solid needs a "
-                         "static or rtin mesh")
-    walls = np.concatenate([np.column_stack([ea, eb + V, eb]),
-                            np.column_stack([ea, ea + V, eb + V])])
-    out_faces = np.concatenate([faces, faces[:, ::-1] + V, walls])
-    pts = np.concatenate([top, bottom])
-    # edges that are each used once forwards and once backwards: a closed 2-manifold
-    fa = out_faces.ravel()
-    fb = out_faces[:, [1, 2, 0]].ravel()
-    P = len(pts)
-    f2, r2 = np.sort(fa * P + fb), np.sort(fb * P + fa)
-    if not np.array_equal(f2, r2) or (f2[1:] == f2[:-1]).any():
-        raise UsageError("the mesh is not conforming (T-junctions); a printable solid needs a "
-                         "static or rtin mesh")
-    geo = georeference(terrain, scale, offset)
-    geo["base_height"] = float(base_height)
-    return Solid(pts, out_faces, len(faces), scale, offset,
-                 "mm" if print_size is not None else "m", float(base_height), geo)
-
-
-def printable_solid(terrain: TerrainLike, m: MeshArrays, base_height: float | None = None,
-                    print_size: float | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
-    """:func:`solid` as (points (P, 3), faces (F, 3) wound outwards, georeference dict).
-
-    Examples
-    --------
-    >>> pts, faces, geo = printable_solid(t, mesh_arrays(t, t.static_selection(5.0)))
-    >>> len(faces) > 0 and geo["base_height"] > 0
-    True
-    """
-    s = solid(terrain, m, base_height, print_size)
-    return s.points, s.faces, s.geo
-
-
-def _contains(sorted_keys: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Whether each of ``q`` is in ``sorted_keys`` (binary search)."""
-    if len(sorted_keys) == 0:
-        return np.zeros(len(q), bool)
-    k = np.minimum(np.searchsorted(sorted_keys, q), len(sorted_keys) - 1)
-    return sorted_keys[k] == q
-
-
-def stl_bytes(xyz: np.ndarray, faces: np.ndarray) -> bytes:
-    """Binary STL of triangles ``faces`` over points ``xyz`` (float32, facet normals)."""
-    p = xyz[faces]
-    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    ln = np.linalg.norm(n, axis=1, keepdims=True)
-    n = np.divide(n, ln, out=np.zeros_like(n), where=ln > 0)
-    rec = np.zeros(len(faces), np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")]))
-    rec["n"], rec["v"] = n, p
-    header = f"geoterrain {__version__} printable solid".encode().ljust(80, b" ")
-    return header + np.uint32(len(faces)).tobytes() + rec.tobytes()
-
-
-def with_elevation(terrain: TerrainLike, mesh):
-    """A shallow copy of ``mesh`` with an ``elevation`` point array (metres, made active).
-
-    Examples
-    --------
-    >>> m = with_elevation(t, t.mesh(5.0))
-    >>> m.active_scalars_name
-    'elevation'
-    """
-    out = mesh.copy(deep=False)
-    if out.n_points:
-        z = np.asarray(out.points, np.float64)[:, 2]
-        out.point_data["elevation"] = (z / (terrain.frame.z_scale or 1.0)).astype(np.float32)
-        out.set_active_scalars("elevation")
-    return out

@@ -27,9 +27,9 @@ from geoterrain.export.formats import (
     WALL_COLOUR,
     _tcoords,
     _texture,
-    mesh_arrays,
-    solid,
 )
+from geoterrain.export.meshdata import mesh_arrays
+from geoterrain.export.solids import solid
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike

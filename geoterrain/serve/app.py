@@ -60,7 +60,8 @@ from starlette.responses import Response
 from starlette.routing import Route
 
 from geoterrain.exceptions import GeoterrainError, UsageError
-from geoterrain.export.qmesh import QuantizedMeshTiles, metadata_block, split_extensions
+from geoterrain.export.qmeshformat import metadata_block, split_extensions
+from geoterrain.export.qmeshtiles import QuantizedMeshTiles
 from geoterrain.export.webtiles import ENCODINGS, IMAGERY, WebTiler, encode_image
 from geoterrain.serve.cache import ByteCache
 

@@ -17,7 +17,8 @@ from click.testing import CliRunner
 from rasterio.transform import xy as raster_xy
 
 import geoterrain
-from geoterrain.export.formats import export_mesh, export_texture_level, mesh_arrays
+from geoterrain.export.formats import export_mesh, export_texture_level
+from geoterrain.export.meshdata import mesh_arrays
 from geoterrain.export.rasters import Relief, export_raster, product
 from geoterrain.rendering.textures import build_texture_image, elevation_range, texture_level
 from tests.conftest import write_tif

@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import geoterrain
-from geoterrain.export.formats import with_elevation
+from geoterrain.export.meshdata import with_elevation
 from geoterrain.export.meshfiles import write_mesh
 from geoterrain.export.meshstream import STREAM_FORMATS, check_in_memory, write_static_mesh
 from geoterrain.ingest.synth import generate

@@ -18,7 +18,7 @@ import rasterio
 from click.testing import CliRunner
 
 import geoterrain
-from geoterrain.export.qmesh import tile_rect
+from geoterrain.export.qmeshformat import tile_rect
 from tests.conftest import real_dem, write_tif
 
 qmt = pytest.importorskip("quantized_mesh_tile")
@@ -149,7 +149,7 @@ def test_heights_within_the_declared_error_of_the_dem(which, request):
 def test_declared_errors_fit_cesiums_level_error(which, request):
     """Below max zoom each tile's declared error (an a-priori bound: resampling error +
     largest left-out δ + quantisation) is ≤ Cesium's levelMaximumGeometricError."""
-    from geoterrain.export.qmesh import cesium_level_error
+    from geoterrain.export.qmeshformat import cesium_level_error
 
     out, tiles, _, _ = request.getfixturevalue(which)
     info = json.loads((out / "geoterrain.json").read_text())
@@ -227,7 +227,7 @@ def test_geoid_gives_ellipsoidal_heights_within_the_declared_error(tmp_path):
 
     from geoterrain.cli.main import cli
     from geoterrain.exceptions import UsageError
-    from geoterrain.export.qmesh import geoid_transformer
+    from geoterrain.export.qmeshdem import geoid_transformer
     from geoterrain.ingest.synth import generate
 
     z = generate("fbm", 65, seed=2).astype(np.float32) * 0.1
@@ -327,7 +327,7 @@ def test_max_zoom_is_capped_by_what_the_data_fills(tmp_path, caplog, monkeypatch
     def stop(*a, **k):
         raise Stop
 
-    monkeypatch.setattr(Q, "_Dem", stop)  # the heights: where the work begins
+    monkeypatch.setattr(Q, "GeoDem", stop)  # the heights: where the work begins
     with geoterrain.open(store) as t:
         t0 = time.perf_counter()
         with pytest.raises(Stop):

@@ -111,7 +111,7 @@ def test_glb_solid_keeps_its_texture_and_plain_walls(terr, tmp_path):
 def test_texture_is_cropped_to_the_data(terr, tmp_path):
     from PIL import Image
 
-    from geoterrain.export.formats import mesh_arrays
+    from geoterrain.export.meshdata import mesh_arrays
 
     sel = terr.static_selection(2.0)
     out = export_mesh(terr, sel, tmp_path / "c.obj")

@@ -71,7 +71,7 @@ def test_cesium_page_from_serve(japan, server, tmp_path):
     chromium = chromium_or_skip("cesium")
     import imageio.v3 as iio
 
-    from geoterrain.export.qmesh import tile_rect
+    from geoterrain.export.qmeshformat import tile_rect
 
     app, base = server
     h, tr = _dem(japan[0])

@@ -125,7 +125,7 @@ def test_terrain_tiles_hold_their_declared_error_and_share_edges(app, dem):
     from matplotlib.tri import LinearTriInterpolator, Triangulation
     from quantized_mesh_tile.terrain import TerrainTile
 
-    from geoterrain.export.qmesh import QMAX, split_extensions, tile_rect
+    from geoterrain.export.qmeshformat import QMAX, split_extensions, tile_rect
 
     st = app.state.stores["ridge"]
     z = st.qmesh.max_zoom
@@ -213,7 +213,7 @@ def test_layer_json_tilejson_cors_etag_and_negotiation(app):
     assert "Accept" in headers["vary"] and headers["cache-control"].startswith("public")
     raw = gzip.decompress(body)
     # only the extensions asked for
-    from geoterrain.export.qmesh import split_extensions
+    from geoterrain.export.qmeshformat import split_extensions
 
     _, h2, b2 = asgi_get(app, path, {"accept": "application/vnd.quantized-mesh;"
                                      "extensions=octvertexnormals"})

@@ -1,0 +1,189 @@
+"""Where a quantized-mesh tile samples the store: the DEM's full-resolution heights
+in metres (optionally EGM96 → WGS 84 ellipsoidal, through pyproj), bilinear at any
+lon/lat, and ECEF normals on a tile's lattice.
+
+Examples
+--------
+>>> dem = GeoDem(t, heights=False)
+>>> (dem.H, dem.W) == (t.grid.rows, t.grid.cols)
+True
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from pyproj import CRS, Transformer
+
+from geoterrain.exceptions import UsageError
+from geoterrain.export.qmeshformat import ecef, lattice
+
+if TYPE_CHECKING:
+    from geoterrain.terrainlike import TerrainLike
+
+
+GEOIDS = ("egm96",)
+
+
+def geoid_transformer(geoid: str = "egm96") -> Transformer:
+    """pyproj's vertical transform from EGM96 heights to WGS 84 ellipsoidal heights.
+
+    Needs PROJ's EGM96 grid (``us_nga_egm96_15.tif``, or ``egm96_15.gtx`` from
+    Debian's ``proj-data`` package in /usr/share/proj); never a ballpark no-op.
+
+    Examples
+    --------
+    >>> try:
+    ...     n = geoid_transformer().transform(0.0, 0.0, 0.0)[2]  # N at (0°, 0°)
+    ... except UsageError:
+    ...     n = 17.16  # the grid is not installed here
+    >>> round(n, 2)
+    17.16
+    """
+    import pyproj
+
+    if geoid not in GEOIDS:
+        raise UsageError(f"unknown geoid {geoid!r}; use one of {', '.join(GEOIDS)}")
+
+    def make() -> Transformer:
+        return Transformer.from_crs("EPSG:4326+5773", "EPSG:4979", always_xy=True,
+                                    allow_ballpark=False, only_best=True)
+    try:
+        return make()
+    except pyproj.exceptions.ProjError:
+        if not Path("/usr/share/proj/egm96_15.gtx").exists():
+            raise UsageError("the EGM96 geoid grid is not installed: apt-get install proj-data "
+                             "(Debian/Ubuntu), or put us_nga_egm96_15.tif in PROJ's data folder "
+                             f"({pyproj.datadir.get_user_data_dir()})") from None
+    pyproj.datadir.append_data_dir("/usr/share/proj")  # Debian's proj-data
+    return make()
+
+
+def pixel_degrees(terrain: TerrainLike) -> float:
+    """The DEM's sample spacing at its centre, in degrees of latitude (longitude steps
+    shrunk by cos φ), from its frame alone (no tile is decoded).
+
+    Examples
+    --------
+    >>> 0 < pixel_degrees(t) < 1
+    True
+    """
+    f, H, W = terrain.frame, terrain.grid.rows, terrain.grid.cols
+    if f.kind == "pixel" or f.crs_wkt is None:
+        raise UsageError("quantized-mesh tiles need a georeferenced DEM; this one has no CRS")
+    to_geo = Transformer.from_crs(CRS.from_wkt(f.crs_wkt), "EPSG:4326", always_xy=True)
+    a, b, c, d, e, g = f.transform[:6]
+    jj, ii = np.array([W / 2, W / 2 + 1.0]) + 0.5, np.array([H / 2, H / 2 + 1.0]) + 0.5
+    lon, lat = to_geo.transform(a * jj + b * ii + c, d * jj + e * ii + g)
+    return float(max(abs(lon[1] - lon[0]) * math.cos(math.radians(lat[0])),
+                     abs(lat[1] - lat[0])))
+
+
+class GeoDem:
+    """The store's full-resolution heights (metres) and where lon/lat fall on them.
+
+    ``geoid``: the heights are EGM96 orthometric heights; convert them to WGS 84
+    ellipsoidal heights (what CesiumJS assumes) at every sample, through pyproj.
+    ``window``: ((i0, i1), (j0, j1)), the level-0 rows and columns (inclusive) to read;
+    only the stored tiles under them are decoded, and sample (i, j) of the arrays is
+    sample (i0 + i, j0 + j) of the grid (positions are computed on the whole grid and
+    the integer offset subtracted, exactly, so two windows agree on a shared sample).
+    ``heights=False``: the georeference alone (no tile is decoded).
+    """
+
+    def __init__(self, terrain: TerrainLike, geoid: str | None = None,
+                 window: tuple[tuple[int, int], tuple[int, int]] | None = None,
+                 heights: bool = True):
+        f = terrain.frame
+        if f.kind == "pixel" or f.crs_wkt is None:
+            raise UsageError("quantized-mesh tiles need a georeferenced DEM; this one has no CRS")
+        self.H, self.W = terrain.grid.rows, terrain.grid.cols
+        self.i0 = self.j0 = 0
+        self.transform = f.transform
+        crs = CRS.from_wkt(f.crs_wkt)
+        self.to_src = Transformer.from_crs("EPSG:4326", crs, always_xy=True)
+        self.to_geo = Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
+        self.pixel_deg = pixel_degrees(terrain)
+        self.full = (self.H, self.W)
+        if not heights:
+            self.h, self.valid = np.full((0, 0), np.nan), np.zeros((0, 0), bool)
+            return
+        if window is None:
+            h, v = terrain.level_heights(0)
+            H, W = self.H, self.W
+            self.h = (h[:H, :W] * f.z_to_m).astype(np.float64)
+            self.valid = v[:H, :W].copy()
+        else:
+            from geoterrain.export.webtiles import level_window
+
+            (i0, i1), (j0, j1) = window
+            i0, j0 = max(int(i0), 0), max(int(j0), 0)
+            i1, j1 = min(int(i1), self.H - 1), min(int(j1), self.W - 1)
+            self.h = level_window(terrain, 0, (i0, i1), (j0, j1),
+                                  lambda ks: [terrain.tile(*k).heights for k in ks])[..., 0]
+            self.h *= f.z_to_m
+            self.valid = np.isfinite(self.h)
+            self.i0, self.j0 = i0, j0
+            self.H, self.W = self.h.shape
+        self.h[~self.valid] = np.nan
+        if geoid is not None:
+            tr = geoid_transformer(geoid)
+            ii, jj = np.nonzero(self.valid)
+            lon, lat = self.lonlat(ii, jj)
+            _, _, hz = tr.transform(lon, lat, self.h[ii, jj])
+            self.h[ii, jj] = np.asarray(hz, np.float64)
+
+    def lonlat(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Lon/lat of (fractional) sample positions (pixel centres at integers)."""
+        a, b, c, d, e, f = self.transform[:6]
+        jj = np.asarray(j, np.float64) + (0.5 + self.j0)
+        ii = np.asarray(i, np.float64) + (0.5 + self.i0)
+        lon, lat = self.to_geo.transform(a * jj + b * ii + c, d * jj + e * ii + f)
+        return np.asarray(lon), np.asarray(lat)
+
+    def pixel(self, lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fractional sample row, column of lon/lat (north-up grids, frame.py's rule)."""
+        x, y = self.to_src.transform(lon, lat)
+        a, _, c, _, e, f = self.transform[:6]
+        return ((np.asarray(y) - f) / e - 0.5) - self.i0, ((np.asarray(x) - c) / a - 0.5) - self.j0
+
+    def bilinear(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
+        """Heights (metres) at lon/lat; NaN where a neighbouring sample is invalid/outside."""
+        i, j = self.pixel(lon, lat)
+        out = np.full(i.shape, np.nan)
+        ok = (i >= 0) & (i <= self.H - 1) & (j >= 0) & (j <= self.W - 1)
+        i0 = np.clip(np.floor(i[ok]).astype(np.int64), 0, max(self.H - 2, 0))
+        j0 = np.clip(np.floor(j[ok]).astype(np.int64), 0, max(self.W - 2, 0))
+        fi, fj = i[ok] - i0, j[ok] - j0
+        i1, j1 = np.minimum(i0 + 1, self.H - 1), np.minimum(j0 + 1, self.W - 1)
+        h = self.h
+        out[ok] = ((h[i0, j0] * (1 - fj) + h[i0, j1] * fj) * (1 - fi)
+                   + (h[i1, j0] * (1 - fj) + h[i1, j1] * fj) * fi)
+        return out
+
+    def extent(self) -> tuple[float, float, float, float]:
+        """Lon/lat box of the grid (its border densified through pyproj)."""
+        t = np.linspace(0, 1, 65)
+        i = np.concatenate([t * 0, t, t * 0 + 1, t]) * (self.H - 1)
+        j = np.concatenate([t, t * 0, t, t * 0 + 1]) * (self.W - 1)
+        lon, lat = self.lonlat(i, j)
+        return float(lon.min()), float(lat.min()), float(lon.max()), float(lat.max())
+
+
+
+def lattice_normals(dem: GeoDem, rect, M: int) -> np.ndarray:
+    """(M, M, 3) unit ECEF normals by central differences on a lattice with a margin."""
+    lon, lat = lattice(rect, M, 1)
+    h = dem.bilinear(lon, lat)
+    up = ecef(lon, lat, np.ones_like(h)) - ecef(lon, lat, np.zeros_like(h))
+    p = ecef(lon, lat, np.nan_to_num(h, nan=0.0))
+    de = p[1:-1, 2:] - p[1:-1, :-2]  # east
+    dn = p[:-2, 1:-1] - p[2:, 1:-1]  # north
+    nrm = np.cross(de, dn)
+    ln = np.linalg.norm(nrm, axis=-1, keepdims=True)
+    bad = ~np.isfinite(h[:-2, 1:-1] + h[2:, 1:-1] + h[1:-1, :-2] + h[1:-1, 2:])
+    nrm = np.where(bad[..., None] | (ln == 0), up[1:-1, 1:-1], nrm / np.maximum(ln, 1e-300))
+    return nrm / np.linalg.norm(nrm, axis=-1, keepdims=True)

@@ -1,0 +1,222 @@
+"""quantized-mesh-1.0 tiles cut one at a time, as a tile server asks for them.
+
+The same tiles as :func:`geoterrain.export.qmesh.write_tileset` writes, built from the
+level-0 tiles under each requested rectangle only.
+
+Examples
+--------
+>>> src = QuantizedMeshTiles(t)
+>>> src.exists(0, 0, 0) or src.exists(0, 1, 0)
+True
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from geoterrain.exceptions import UsageError
+from geoterrain.export.qmesh import availability_ranges, build_tile, max_zoom_for, select_tile
+from geoterrain.export.qmeshdem import GeoDem, geoid_transformer
+from geoterrain.export.qmeshformat import (
+    METADATA_LEVELS,
+    QMAX,
+    cesium_level_error,
+    lattice,
+    tile_rect,
+)
+
+if TYPE_CHECKING:
+    from geoterrain.terrainlike import TerrainLike
+
+
+class QuantizedMeshTiles:
+    """quantized-mesh-1.0 tiles of ``terrain`` cut one at a time (a server's source).
+
+    The same tiles as :func:`write_tileset` builds, with what a whole-set writer learns
+    from all the tiles fixed beforehand instead: one height quantisation range for every
+    tile (the store's recorded height range, widened by 120 m with ``geoid``), the
+    ``lattice`` at every level, and the tiles a level has (those whose lattice holds at
+    least 3 samples inside the DEM's grid, found from the georeference alone; coarser
+    levels than the first such level get flat tiles at the lowest height, as the writer
+    gives them). Building tile (z, x, y) decodes only the level-0 tiles under its
+    rectangle (:class:`GeoDem`'s window), and its declared bound is :func:`build_tile`'s.
+
+    Examples
+    --------
+    >>> q = QuantizedMeshTiles(t)
+    >>> q.layer("dem")["format"], q.exists(0, 0, 0), q.exists(0, 5, 0)
+    ('quantized-mesh-1.0', True, False)
+    >>> data, bound, triangles = q.tile(q.max_zoom, *min(q.level_tiles(q.max_zoom)))
+    >>> bound > 0 and triangles > 0
+    True
+    """
+
+    def __init__(self, terrain: TerrainLike, *, lattice: int = 129, max_error: float = 1.0,
+                 geoid: str | None = None, max_zoom: int | None = None):
+        if lattice < 3 or (lattice - 1) & (lattice - 2) or lattice > 129:
+            raise UsageError(f"lattice must be 2^k + 1 in 3..129, got {lattice}")
+        if not max_error > 0:
+            raise UsageError(f"max_error must be > 0, got {max_error}")
+        self.terrain, self.lattice, self.max_error, self.geoid = terrain, lattice, max_error, geoid
+        self.geo = GeoDem(terrain, geoid, heights=False)
+        if geoid is not None:
+            geoid_transformer(geoid)  # fail now if the grid is missing
+        self.max_zoom = (max_zoom_for(self.geo.pixel_deg, lattice) if max_zoom is None
+                         else int(max_zoom))
+        if not 0 <= self.max_zoom <= 22:
+            raise UsageError(f"max_zoom must be in 0..22, got {self.max_zoom}")
+        self.extent = self.geo.extent()
+        lo, hi = terrain.scene_box()
+        zs = terrain.frame.z_scale or 1.0
+        pad = 120.0 if geoid else 0.0  # EGM96's undulation is within −107..+86 m
+        h0, h1 = math.floor(lo[2] / zs - pad), math.ceil(hi[2] / zs + pad)
+        self.hrange = (float(h0), float(max(h1, h0 + 1)))
+        self._levels: dict[int, frozenset[tuple[int, int]]] = {}
+
+    # ---------------------------------------------------------------- which tiles
+    def _touching(self, z: int) -> tuple[range, range]:
+        w, s, e, n = self.extent
+        size = 180.0 / (1 << z)
+        xs = range(max(int((w + 180) // size), 0), min(int(math.ceil((e + 180) / size)), 2 << z))
+        ys = range(max(int((s + 90) // size), 0), min(int(math.ceil((n + 90) / size)), 1 << z))
+        return xs, ys
+
+    def _lattice_tiles(self, z: int) -> frozenset[tuple[int, int]]:
+        """Tiles of level z whose lattice has ≥ 3 samples inside the DEM's grid (the
+        level's lattices as one lon/lat grid through pyproj, counted per tile)."""
+        xs, ys = self._touching(z)
+        M = self.lattice
+        if len(xs) * len(ys) == 0:
+            return frozenset()
+        size = 180.0 / (1 << z)
+        k = np.arange(len(xs) * (M - 1) + 1)
+        lon = -180.0 + xs.start * size + k * size / (M - 1)
+        k = np.arange(len(ys) * (M - 1) + 1)
+        lat = -90.0 + ys.start * size + k * size / (M - 1)
+        inside = np.zeros((len(lat), len(lon)), bool)
+        for r in range(0, len(lat), 256):  # rows of the grid at a time
+            LO, LA = np.meshgrid(lon, lat[r:r + 256])
+            i, j = self.geo.pixel(LO, LA)
+            H, W = self.geo.full
+            inside[r:r + 256] = (i >= 0) & (i <= H - 1) & (j >= 0) & (j <= W - 1)
+        out = set()
+        for a, y in enumerate(ys):
+            for b, x in enumerate(xs):
+                blk = inside[a * (M - 1):(a + 1) * (M - 1) + 1, b * (M - 1):(b + 1) * (M - 1) + 1]
+                if np.count_nonzero(blk) >= 3:
+                    out.add((x, y))
+        return frozenset(out)
+
+    def level_tiles(self, z: int) -> frozenset[tuple[int, int]]:
+        """The (x, y) TMS tiles level z has (see the class docs)."""
+        if z not in self._levels:
+            if not 0 <= z <= self.max_zoom:
+                return frozenset()
+            if z <= self.data_from - 1:
+                xs, ys = self._touching(z)
+                got = {(x, y) for x in xs for y in ys}
+                if z == 0:
+                    got |= {(0, 0), (1, 0)}  # Cesium starts from both level-0 tiles
+                self._levels[z] = frozenset(got)
+            else:
+                self._levels[z] = self._lattice_tiles(z)
+        return self._levels[z]
+
+    @functools.cached_property
+    def data_from(self) -> int:
+        """The first level whose lattice reaches into the DEM (coarser ones are flat)."""
+        for z in range(self.max_zoom + 1):
+            if self._lattice_tiles(z):
+                return z
+        return self.max_zoom + 1
+
+    def exists(self, z: int, x: int, y: int) -> bool:
+        """Whether TMS tile (z, x, y) is one of the set's tiles."""
+        return 0 <= z <= self.max_zoom and (x, y) in self.level_tiles(z)
+
+    def layer(self, name: str, tiles: str = "{z}/{x}/{y}.terrain?v={version}") -> dict:
+        """The set's ``layer.json`` (availability per level, the extensions served)."""
+        return {
+            "tilejson": "2.1.0", "name": name, "version": "1.0.0",
+            "format": "quantized-mesh-1.0", "scheme": "tms", "projection": "EPSG:4326",
+            "tiles": [tiles], "bounds": list(self.extent),
+            "minzoom": 0, "maxzoom": self.max_zoom,
+            "available": [availability_ranges(sorted(self.level_tiles(z)))
+                          for z in range(self.max_zoom + 1)],
+            "extensions": ["octvertexnormals", "watermask", "metadata"],
+            "metadataAvailability": METADATA_LEVELS,
+            "attribution": "geoterrain",
+        }
+
+    # ---------------------------------------------------------------- one tile
+    def target(self, z: int) -> tuple[float, float | None]:
+        """(the bound's target, the fixed vertex threshold or None) of level z."""
+        if z == self.max_zoom:
+            return self.max_error, self.max_error
+        return cesium_level_error(z), None
+
+    def tile(self, z: int, x: int, y: int) -> tuple[bytes, float, int]:
+        """(tile bytes with the octvertexnormals and watermask extensions, not gzipped;
+        declared error bound in metres; triangles) of TMS tile (z, x, y), which must
+        :meth:`exists`."""
+        M = self.lattice
+        target, fixed = self.target(z)
+        res = None
+        if z >= self.data_from:
+            res = build_tile(self._window(z, x, y), z, x, y, M, target, self.hrange,
+                             fixed_threshold=fixed)
+        if res is None:  # coarser than the data, or all nodata: the flat tile
+            return self._flat(z, x, y)
+        data, bound, ntri, _ = res
+        return data, bound, ntri
+
+    def metadata(self, z: int, x: int, y: int) -> dict:
+        """The metadata extension's content: the tiles of the next
+        :data:`METADATA_LEVELS` levels under this one (CesiumJS learns the set's
+        availability from it when ``layer.json`` says ``metadataAvailability``)."""
+        out = []
+        for d in range(1, METADATA_LEVELS + 1):
+            if z + d > self.max_zoom:
+                break
+            kids = [(cx, cy) for cx, cy in self.level_tiles(z + d)
+                    if cx >> d == x and cy >> d == y]
+            out.append(availability_ranges(sorted(kids)) if kids else [])
+        while out and not out[-1]:
+            out.pop()
+        return {"available": out}
+
+    def _window(self, z: int, x: int, y: int) -> GeoDem:
+        """The DEM under tile (z, x, y) and a margin (the normals' lattice ring and the
+        bilinear neighbours): only those level-0 tiles are decoded."""
+        w, s, e, n = tile_rect(z, x, y)
+        mx, my = (e - w) / (self.lattice - 1), (n - s) / (self.lattice - 1)
+        t = np.linspace(0.0, 1.0, 33)
+        lon = np.concatenate([w - mx + t * (e - w + 2 * mx), w - mx + t * (e - w + 2 * mx),
+                              t * 0 + w - mx, t * 0 + e + mx])
+        lat = np.concatenate([t * 0 + s - my, t * 0 + n + my,
+                              s - my + t * (n - s + 2 * my), s - my + t * (n - s + 2 * my)])
+        i, j = self.geo.pixel(lon, lat)
+        win = ((int(np.floor(np.nanmin(i))) - 2, int(np.ceil(np.nanmax(i))) + 2),
+               (int(np.floor(np.nanmin(j))) - 2, int(np.ceil(np.nanmax(j))) + 2))
+        H, W = self.geo.full
+        win = ((max(win[0][0], 0), min(win[0][1], H - 1)),
+               (max(win[1][0], 0), min(win[1][1], W - 1)))
+        if win[0][0] > win[0][1] or win[1][0] > win[1][1]:
+            return GeoDem(self.terrain, self.geoid, heights=False)
+        return GeoDem(self.terrain, self.geoid, window=win)
+
+    def _flat(self, z: int, x: int, y: int) -> tuple[bytes, float, int]:
+        """Two triangles at the lowest height over the tile's rectangle; its bound needs no
+        heights: every height lies in the quantisation range."""
+        rect = tile_rect(z, x, y)
+        lon, lat = lattice(rect, 3)
+        h = np.full(lon.shape, self.hrange[0])
+        valid = np.ones(lon.shape, bool)
+        data, faces, _, _ = select_tile(self.geo, rect, 3, lon, lat, h, valid, np.zeros((3, 3)),
+                                    0.0, self.hrange, True)
+        e_h = 0.5 * (self.hrange[1] - self.hrange[0]) / QMAX
+        return data, self.hrange[1] - self.hrange[0] + e_h, len(faces)
