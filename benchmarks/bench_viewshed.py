@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import shutil
 import statistics
 import subprocess
@@ -122,7 +123,8 @@ def main() -> None:
           f"curvature {cc}")
     print(f"gdal_viewshed (process, GeoTIFF)   median {mg:.3f} s  runs {[round(x, 3) for x in tg]}")
     print(f"geoterrain viewshed (store, cold)  median {mv:.3f} s  runs {[round(x, 3) for x in tv]}")
-    print(f"ratio geoterrain / gdal: {mv / mg:.2f}")
+    print(f"ratio geoterrain / gdal: {mv / mg:.2f}  (load average {os.getloadavg()[0]:.1f}, "
+          f"{len(os.sched_getaffinity(0))} cores)")
     print(f"tiles: {s['tiles_in_window']} in the window, {s['tiles_read']} read, "
           f"{s['tiles_skipped']} skipped; {s['tiles_decoded']} decodes with ancestors, "
           f"{s['bytes_read']} bytes")
