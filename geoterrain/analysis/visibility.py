@@ -15,7 +15,7 @@ DEM's (in metres, whatever its vertical unit).
   tile whose box lies below every sight line that reaches it is never decoded
   (:mod:`geoterrain.analysis.window`). After the observer's row, the rows north and
   south of it depend only on that row: the two halves are swept on two threads where
-  two cores are free (the same answer as one after the other).
+  a second core is idle (the same answer as one after the other).
 - :func:`line_of_sight` follows one ray exactly over the bilinear surface (the surface
   :func:`~geoterrain.analysis.heights.height_at` samples): in each cell the ray crosses,
   the clearance is a quadratic in the distance and its least value is found in closed
@@ -301,18 +301,27 @@ def _sweep(geo: SweepGeometry, part: Half, st: SweepState, first: int, stop: int
         asked += 1
 
 
-def _cores() -> int:
+def _two_threads() -> bool:
+    """Whether a second thread would have a core of its own: two cores or more, at least
+    one of them idle on average over the last minute. On a saturated machine the second
+    thread only adds hand-offs of the lock and the GIL (2 cores at load 18: 1.18× the one
+    thread's time on srtm1_japan, docs/lab/analysis.md)."""
     try:
-        return len(os.sched_getaffinity(0))
+        cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
-        return os.cpu_count() or 1
+        cores = os.cpu_count() or 1
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):  # no load average: trust the cores
+        load = 0.0
+    return cores >= 2 and load <= cores - 1
 
 
 def _sweep_halves(geo: SweepGeometry, halves: list) -> int:
     """The north and south halves: the south one on a second thread while this one sweeps
     the north (the compiled sweep and the decoders release the GIL; the store is read
-    under the window's lock), or one after the other on one core."""
-    if _cores() < 2 or any(h[2] == h[3] for h in halves):
+    under the window's lock), or one after the other."""
+    if any(h[2] == h[3] for h in halves) or not _two_threads():
         return sum(_sweep(geo, *h) for h in halves)
     from concurrent.futures import ThreadPoolExecutor
 

@@ -104,8 +104,8 @@ def test_two_threads_give_the_one_thread_viewshed(voids, monkeypatch, level):
     t, src = voids
     a, _, c, _, e, f = t.frame.transform[:6]
     got = []
-    for cores in (2, 1):  # the halves north and south of the observer at once, then in turn
-        monkeypatch.setattr(visibility, "_cores", lambda n=cores: n)
+    for threads in (True, False):  # the halves north and south at once, then in turn
+        monkeypatch.setattr(visibility, "_two_threads", lambda on=threads: on)
         t.clear_cache()
         got.append(viewshed(t, (c + a * 80.5, f + e * 60.5), radius=2000.0, height=1.0,
                             level=level))
