@@ -14,14 +14,17 @@ unless ``--radius`` (metres) is given.
 Each run, alternating: ``gdal_viewshed`` as a process (its wall time, reading the GeoTIFF
 and writing its output), and :func:`geoterrain.analysis.viewshed` in this process from
 the open store with its tile cache emptied (decoding included, compiled kernels warm).
-Prints the medians, their ratio (same run), the tiles decoded and skipped, and the
-agreement on the cells both answer (and the cells that disagree).
+Prints the medians, their ratio (same run) with the load average, the CPU time of each
+(user + system: what a loaded machine's wall time tends to), the tiles decoded and
+skipped, and the agreement on the cells both answer (and the cells that disagree).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -93,16 +96,21 @@ def main() -> None:
     cmd = ["gdal_viewshed", "-q", "-ox", repr(ox), "-oy", repr(oy), "-oz", repr(a.height),
            "-md", repr(md), "-cc", repr(cc), "-ov", "2", str(dem), str(out)]
     viewshed(t, (ox, oy), radius, a.height, curvature=cc)  # compile, open caches
-    tg, tv, vs = [], [], None
+    tg, tv, cg, cv, vs = [], [], [], [], None
     for _ in range(a.runs):
         out.unlink(missing_ok=True)
+        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True)
         tg.append(time.perf_counter() - t0)
+        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cg.append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
         t.clear_cache()
+        c0 = time.process_time()  # every thread of this process
         t0 = time.perf_counter()
         vs = viewshed(t, (ox, oy), radius, a.height, curvature=cc)
         tv.append(time.perf_counter() - t0)
+        cv.append(time.process_time() - c0)
     with rasterio.open(out) as r:
         g, gt = r.read(1), r.transform
     dr = int(round((vs.transform.f - gt.f) / gt.e))
@@ -122,7 +130,11 @@ def main() -> None:
           f"curvature {cc}")
     print(f"gdal_viewshed (process, GeoTIFF)   median {mg:.3f} s  runs {[round(x, 3) for x in tg]}")
     print(f"geoterrain viewshed (store, cold)  median {mv:.3f} s  runs {[round(x, 3) for x in tv]}")
-    print(f"ratio geoterrain / gdal: {mv / mg:.2f}")
+    print(f"ratio geoterrain / gdal: {mv / mg:.2f}  (load average {os.getloadavg()[0]:.1f}, "
+          f"{len(os.sched_getaffinity(0))} cores)")
+    ccg, ccv = statistics.median(cg), statistics.median(cv)
+    print(f"CPU time (user + system), medians: gdal_viewshed {ccg:.3f} s, geoterrain "
+          f"{ccv:.3f} s, ratio {ccv / ccg:.2f}")
     print(f"tiles: {s['tiles_in_window']} in the window, {s['tiles_read']} read, "
           f"{s['tiles_skipped']} skipped; {s['tiles_decoded']} decodes with ancestors, "
           f"{s['bytes_read']} bytes")

@@ -147,9 +147,11 @@ def outside_error(frame: Frame, grid: Grid, xy: np.ndarray, crs: Any, bad: np.nd
     x0, x1 = sorted((c, c + a * grid.cols))
     y0, y1 = sorted((f, f + e * grid.rows))
     where = "" if crs is None else f" (given in {crs}; the extent is in the DEM's CRS)"
-    more = f" and {int(bad.sum()) - 1} more" if bad.sum() > 1 else ""
-    return InputError(f"{what} {k} ({xy[k, 0]:.10g}, {xy[k, 1]:.10g}){more} lies outside the "
-                      f"data: the DEM covers x {x0:.10g} … {x1:.10g}, y {y0:.10g} … "
+    n = int(bad.sum())
+    more = f" and {n - 1} more" if n > 1 else ""
+    verb = "lie" if n > 1 else "lies"  # "point 0 and 1 more lie", "point 0 lies"
+    return InputError(f"{what} {k} ({xy[k, 0]:.10g}, {xy[k, 1]:.10g}){more} {verb} outside "
+                      f"the data: the DEM covers x {x0:.10g} … {x1:.10g}, y {y0:.10g} … "
                       f"{y1:.10g}{where}")
 
 

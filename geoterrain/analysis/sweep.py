@@ -180,7 +180,7 @@ def _tile_col(tiles, c):
     return min((c + tiles.c0) >> tiles.t, tiles.tlast) - tiles.tx0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _half(geo, tiles, st, r, first, side):
     """Cells of row r from column ``first`` outward on one side (−1 west, +1 east), each
     from its neighbours toward the observer. Returns (column, tile) where a tile must be
@@ -241,7 +241,7 @@ def _half(geo, tiles, st, r, first, side):
     return -1, NEED_NONE
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _centre(geo, tiles, st, r):
     """The observer's column in row r (or, in the observer's row, the observer and its
     two neighbours). Returns a tile to decode, or NEED_NONE; −2 when out of range."""
@@ -296,7 +296,7 @@ def _centre(geo, tiles, st, r):
     return NEED_NONE
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def sweep_rows(geo, tiles, st, first, stop, step):
     """Sweep rows ``first``, ``first + step``, … up to ``stop`` (excluded) outward from the
     observer (``first`` equal to its row sweeps that row alone). Returns (row, tile) when

@@ -12,7 +12,10 @@ DEM's (in metres, whatever its vertical unit).
   ``gdal_viewshed`` runs it (:mod:`geoterrain.analysis.sweep`), on the DEM's full
   resolution: each cell is decided exactly as a sweep over the source raster decides
   it, or marked uncertain where the store's codec error ε could change the answer. A
-  tile whose box lies below every sight line that reaches it is never decoded.
+  tile whose box lies below every sight line that reaches it is never decoded
+  (:mod:`geoterrain.analysis.window`). After the observer's row, the rows north and
+  south of it depend only on that row: the two halves are swept on two threads where
+  a second core is idle (the same answer as one after the other).
 - :func:`line_of_sight` follows one ray exactly over the bilinear surface (the surface
   :func:`~geoterrain.analysis.heights.height_at` samples): in each cell the ray crosses,
   the clearance is a quadratic in the distance and its least value is found in closed
@@ -35,11 +38,11 @@ Examples
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
-from numba import njit
 
 from geoterrain.analysis.heights import _bilinear, cell_corners
 from geoterrain.analysis.points import (
@@ -63,6 +66,7 @@ from geoterrain.analysis.sweep import (
     SweepTiles,
     sweep_rows,
 )
+from geoterrain.analysis.window import Half, Window
 from geoterrain.exceptions import InputError, UsageError, WriteError, exists_error
 
 if TYPE_CHECKING:
@@ -230,11 +234,13 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
         span = int(math.floor(radius / mx0)) if mx0 > 0 else 0
         c0, c1 = max(ocol - span, 0), min(ocol + span, g.cols - 1) + 1
         eps = float(terrain.quantizer.codec_error) * f.z_to_m
-        tiles, decode = _window_tiles(terrain, r0, r1, c0, c1, eps, int(level))
-        ty, tx = _tile_index(tiles, orow - r0, ocol - c0)
-        while tiles.status[ty, tx] != 1:
-            decode(ty, tx, 0)  # the observer's ground, exactly
-        zg = tiles.z[orow - r0, ocol - c0]
+        win = Window(terrain, r0, r1, c0, c1, eps, int(level))
+        wr, wc = r1 - r0, c1 - c0
+        whole = win.half(0, wr)
+        ty, tx = _tile_index(whole.tiles, orow - r0, ocol - c0)
+        while whole.tiles.status[ty, tx] != 1:
+            whole.read(ty, tx, 0)  # the observer's ground, exactly
+        zg = win.z[orow - r0, ocol - c0]
         if not np.isfinite(zg):
             raise InputError(f"the observer ({xy[0]:.10g}, {xy[1]:.10g}) stands on nodata: "
                              "move it onto the data")
@@ -243,172 +249,91 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
                             ny_all[r0:r1].copy(), radius * radius,
                             curvature / (2.0 * _semi_major(terrain)), eye - eps, eye + eps,
                             target_height, eps, MODES.index(mode), eps > 0 or level > 0)
-        wr, wc = r1 - r0, c1 - c0
-        st = SweepState(*(np.zeros(wc) for _ in range(4)),
-                        np.full((wr, wc), NO_ANSWER, np.uint8), np.zeros(2, np.int64))
-        asked, base = 0, None
-        for first, stop, step in ((geo.orow, geo.orow + 1, 1), (geo.orow - 1, -1, -1),
-                                  (geo.orow + 1, wr, 1)):
-            if base is not None:  # each direction starts from the observer's row
-                st.last_lo[:], st.last_hi[:] = base
-            r = first
-            while True:
-                r, need = sweep_rows(geo, tiles, st, r, stop, step)
-                if need == NEED_NONE:
-                    break
-                decode(need >> 16, need & 0xFFFF)
-                asked += 1
-            if base is None:
-                base = (st.last_lo.copy(), st.last_hi.copy())
-    codes = st.out
+        codes = np.full((wr, wc), NO_ANSWER, np.uint8)
+        first = _state(codes)
+        asked = _sweep(geo, whole, first, geo.orow, geo.orow + 1, 1)  # the observer's row
+        # then the rows north and south of it, each from the observer's row, on two
+        # threads where there are two cores: each half writes only its own rows
+        halves = []
+        for part, start, stop, step in ((win.half(0, geo.orow, whole), geo.orow - 1, -1, -1),
+                                        (win.half(geo.orow + 1, wr, whole), geo.orow + 1, wr,
+                                         1)):
+            st = _state(codes)
+            st.last_lo[:], st.last_hi[:] = first.last_lo, first.last_hi
+            halves.append((part, st, start, stop, step))
+        asked += _sweep_halves(geo, halves)
     from rasterio.transform import Affine
 
     a, _, c, _, e, top = f.transform[:6]
     window_tr = Affine(a, 0.0, c + a * c0, 0.0, e, top + e * r0)
-    in_disc = codes != NO_ANSWER
-    stored = tiles.status != 2
+    stored = win.status != 2
+    read = np.zeros(stored.shape, bool)
+    bounded = np.zeros(stored.shape, bool)
+    for part in [whole] + [h[0] for h in halves]:
+        read |= part.tiles.status == 1
+        bounded |= part.tiles.status == 3
+    n = {k: int(np.count_nonzero(codes == k)) for k in (VISIBLE, HIDDEN, UNCERTAIN)}
     stats = reads.stats(
-        tiles_in_window=int(stored.sum()), tiles_read=int((tiles.status == 1).sum()),
-        tiles_skipped=int((stored & (tiles.status != 1)).sum()),
-        tiles_bounded=int((tiles.status == 3).sum()), waits=asked,
-        visible=int((codes == VISIBLE).sum()), hidden=int((codes == HIDDEN).sum()),
-        uncertain=int((codes == UNCERTAIN).sum()), cells=int(in_disc.sum()), radius=radius,
+        tiles_in_window=int(stored.sum()), tiles_read=int(read.sum()),
+        tiles_skipped=int((stored & ~read).sum()), tiles_bounded=int((bounded & ~read).sum()),
+        waits=asked, visible=n[VISIBLE], hidden=n[HIDDEN], uncertain=n[UNCERTAIN],
+        cells=codes.size - int(np.count_nonzero(codes == NO_ANSWER)), radius=radius,
         window=(r0, c0, r1 - r0, wc))
     return Viewshed(codes, window_tr, f.crs_wkt, (geo.orow, geo.ocol),
                     (float(xy[0]), float(xy[1]), float(zg), float(eye)), stats)
+
+
+def _state(codes: np.ndarray) -> SweepState:
+    return SweepState(*(np.zeros(codes.shape[1]) for _ in range(4)), codes,
+                      np.zeros(2, np.int64))
+
+
+def _sweep(geo: SweepGeometry, part: Half, st: SweepState, first: int, stop: int,
+           step: int) -> int:
+    """Sweep rows ``first`` … ``stop`` (excluded) of one part, reading each tile the
+    sweep asks for; returns how many times it asked."""
+    asked, r = 0, first
+    while True:
+        r, need = sweep_rows(geo, part.tiles, st, r, stop, step)
+        if need == NEED_NONE:
+            return asked
+        part.read(need >> 16, need & 0xFFFF)
+        asked += 1
+
+
+def _two_threads() -> bool:
+    """Whether a second thread would have a core of its own: two cores or more, at least
+    one of them idle on average over the last minute. On a saturated machine the second
+    thread only adds hand-offs of the lock and the GIL (2 cores at load 18: 1.18× the one
+    thread's time on srtm1_japan, docs/lab/analysis.md)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        cores = os.cpu_count() or 1
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):  # no load average: trust the cores
+        load = 0.0
+    return cores >= 2 and load <= cores - 1
+
+
+def _sweep_halves(geo: SweepGeometry, halves: list) -> int:
+    """The north and south halves: the south one on a second thread while this one sweeps
+    the north (the compiled sweep and the decoders release the GIL; the store is read
+    under the window's lock), or one after the other."""
+    if any(h[2] == h[3] for h in halves) or not _two_threads():
+        return sum(_sweep(geo, *h) for h in halves)
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1, thread_name_prefix="viewshed") as pool:
+        south = pool.submit(_sweep, geo, *halves[1])
+        return _sweep(geo, *halves[0]) + south.result()
 
 
 def _tile_index(tiles: SweepTiles, r: int, c: int) -> tuple[int, int]:
     ty = min((r + tiles.r0) >> tiles.t, tiles.tlast) - tiles.ty0
     tx = min((c + tiles.c0) >> tiles.t, tiles.tlast) - tiles.tx0
     return ty, tx
-
-
-def _window_tiles(terrain: TerrainLike, r0: int, r1: int, c0: int, c1: int, eps: float,
-                  level: int):
-    """The window's :class:`SweepTiles` (nothing decoded yet) and the function that
-    reads one of its level-0 tiles into it: at ``level`` where that level's tile error is
-    finite, else at level 0."""
-    g, f = terrain.grid, terrain.frame
-    tlast = g.tiles_per_side(0) - 1
-    ty0, ty1 = r0 >> g.t, min((r1 - 1) >> g.t, tlast)
-    tx0, tx1 = c0 >> g.t, min((c1 - 1) >> g.t, tlast)
-    nty, ntx = ty1 - ty0 + 1, tx1 - tx0 + 1
-    status = np.full((nty, ntx), 2, np.int8)
-    ztop = np.full((nty, ntx), np.inf)
-    zerr = np.full((nty, ntx), eps)
-    zs = f.z_scale or 1.0
-    for y in range(ty0, ty1 + 1):  # per tile, from the catalog: nothing decoded
-        for x in range(tx0, tx1 + 1):
-            info = terrain.tile_info.get((0, x, y))
-            if info is not None:
-                status[y - ty0, x - tx0] = 0
-                top = info["zmax"]
-                # the box is in scene units (a hair above it for the units' rounding); a
-                # tile with nodata is never decided from its box (its voids have no answer)
-                full = info["nvalid"] == g.tile_samples ** 2
-                ztop[y - ty0, x - tx0] = (top / zs) * (1 + 1e-12) + 1e-9 \
-                    if full and top is not None and np.isfinite(top) else np.inf
-    z = np.empty((r1 - r0, c1 - c0))  # read only where a tile was decoded into it
-    tiles = SweepTiles(z, status, ztop, zerr, r0, c0, g.t, ty0, tx0, tlast)
-    span = 1 << g.t
-
-    def decode(ty: int, tx: int, at: int = level) -> None:
-        if at == 0 and status[ty, tx] == 0 and bound_first(ty, tx):
-            return
-        # the cells the sweep takes from this tile: its rows and columns but the last,
-        # which its neighbour owns (sweep._tile_of), except on the grid's last tile
-        gy, gx = (ty + ty0) * span, (tx + tx0) * span
-        a0, a1 = max(gy, r0), min(gy + span + (ty + ty0 == tlast), r1)
-        b0, b1 = max(gx, c0), min(gx + span + (tx + tx0 == tlast), c1)
-        key = (at, (tx + tx0) >> at, (ty + ty0) >> at)
-        err = terrain.tile_info[key]["error"] if key in terrain.tile_info else np.inf
-        if at == 0 or not np.isfinite(err):
-            tile = terrain.tile(0, tx + tx0, ty + ty0)
-            z[a0 - r0:a1 - r0, b0 - c0:b1 - c0] = \
-                tile.heights[a0 - gy:a1 - gy, b0 - gx:b1 - gx] * f.z_to_m
-        else:
-            z[a0 - r0:a1 - r0, b0 - c0:b1 - c0] = level_surface(
-                terrain, at, np.arange(a0, a1), np.arange(b0, b1)) * f.z_to_m
-            zerr[ty, tx] = eps + err / zs * (1 + 1e-12) + 1e-9
-        status[ty, tx] = 1
-
-    def bound_first(ty: int, tx: int) -> bool:
-        """Level 1's surface plus its tile's error as the cells' bounds (status 3), when
-        that error is finite: the sweep may then decide them without level 0."""
-        gy, gx = (ty + ty0) * span, (tx + tx0) * span
-        key = (1, (tx + tx0) >> 1, (ty + ty0) >> 1)
-        if g.top_level < 1 or key not in terrain.tile_info:
-            return False
-        err = terrain.tile_info[key]["error"]
-        if not np.isfinite(err):
-            return False
-        a0, a1 = max(gy, r0), min(gy + span + (ty + ty0 == tlast), r1)
-        b0, b1 = max(gx, c0), min(gx + span + (tx + tx0 == tlast), c1)
-        s1 = level_surface(terrain, 1, np.arange(a0, a1), np.arange(b0, b1)) * f.z_to_m
-        # NaN where level 1 has no data: the sweep then reads level 0 (a void's code)
-        z[a0 - r0:a1 - r0, b0 - c0:b1 - c0] = s1 + (err / zs * (1 + 1e-12) + 1e-9)
-        status[ty, tx] = 3
-        return True
-
-    return tiles, decode
-
-
-def level_surface(terrain: TerrainLike, level: int, rows: np.ndarray, cols: np.ndarray
-                  ) -> np.ndarray:
-    """The level-L union-jack surface (source units; NaN on cells without data) at the
-    full-resolution samples ``rows`` × ``cols`` (ascending runs), which one level-L tile
-    holds.
-
-    Examples
-    --------
-    >>> rows = cols = np.arange(0, 9)
-    >>> s = level_surface(t, 2, rows, cols)
-    >>> bool(s[4, 4] == t.tile(0, 0, 0).heights[4, 4])  # a level-2 sample itself
-    True
-    """
-    g = terrain.grid
-    last = g.level_size(level) - 2
-    key = (level, int(min(cols[0] >> level, last) >> g.t),
-           int(min(rows[0] >> level, last) >> g.t))
-    out = np.full((len(rows), len(cols)), np.nan)
-    if key not in terrain.tile_info:
-        return out
-    tile = terrain.tile(*key)
-    h = np.where(tile.valid, tile.heights, np.nan)
-    _union_jack_block(h, level, key[2] << g.t, key[1] << g.t, np.asarray(rows, np.int64),
-                      np.asarray(cols, np.int64), out)
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _union_jack_block(h, level, a_org, b_org, rows, cols, out):
-    """out[k, l] = the level-L union-jack surface of tile heights ``h`` (its first sample
-    at level-L row ``a_org``, column ``b_org``) at full-resolution sample (rows[k],
-    cols[l]) (docs/conventions.md: a cell's diagonal by the parity of its indices; a
-    sample on the tile's far edge is read from the tile's last cell, which gives it)."""
-    n = h.shape[0] - 2
-    sz = 1 << level
-    for k in range(rows.shape[0]):
-        a = min((rows[k] >> level) - a_org, n)
-        di = (rows[k] - ((a + a_org) << level)) / sz
-        for m in range(cols.shape[0]):
-            b = min((cols[m] >> level) - b_org, n)
-            dj = (cols[m] - ((b + b_org) << level)) / sz
-            z00 = h[a, b]
-            z01 = h[a, b + 1]
-            z10 = h[a + 1, b]
-            z11 = h[a + 1, b + 1]
-            if (a + a_org + b + b_org) % 2 == 0:  # main diagonal (0, 0)–(1, 1)
-                if dj >= di:
-                    v = z00 + (z01 - z00) * dj + (z11 - z01) * di
-                else:
-                    v = z00 + (z10 - z00) * di + (z11 - z10) * dj
-            elif di + dj <= 1:
-                v = z00 + (z10 - z00) * di + (z01 - z00) * dj
-            else:
-                v = z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
-            out[k, m] = v
 
 
 def write_viewshed(vs: Viewshed, path: str | Path, *, overwrite: bool = False) -> Path:

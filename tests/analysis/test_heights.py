@@ -162,3 +162,16 @@ def test_normal_slope_aspect_of_a_plane(tmp_path, geo):
     assert got.slope[0] == pytest.approx(np.degrees(np.arctan(0.1)), rel=tol)
     assert got.aspect[0] == pytest.approx(270.0, abs=0.1 if geo else 1e-9)
     assert np.allclose(got.normal[0], np.array([-0.1, 0, 1]) / np.sqrt(1.01), atol=tol)
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("n, said", [(1, "point 0 (5, 5) lies outside"),
+                                     (2, "point 0 (5, 5) and 1 more lie outside"),
+                                     (3, "point 0 (5, 5) and 2 more lie outside")])
+def test_outside_error_agrees_in_number(holed, n, said):
+    from geoterrain.analysis.points import outside_error
+
+    t, _ = holed
+    xy = np.full((n, 2), 5.0)
+    msg = str(outside_error(t.frame, t.grid, xy, None, np.ones(n, bool)))
+    assert said in msg and "\n" not in msg

@@ -97,6 +97,28 @@ def test_hidden_tiles_are_not_decoded(voids):
 
 
 @pytest.mark.fast
+@pytest.mark.parametrize("level", [0, 1])
+def test_two_threads_give_the_one_thread_viewshed(voids, monkeypatch, level):
+    from geoterrain.analysis import visibility
+
+    t, src = voids
+    a, _, c, _, e, f = t.frame.transform[:6]
+    got = []
+    for threads in (True, False):  # the halves north and south at once, then in turn
+        monkeypatch.setattr(visibility, "_two_threads", lambda on=threads: on)
+        t.clear_cache()
+        got.append(viewshed(t, (c + a * 80.5, f + e * 60.5), radius=2000.0, height=1.0,
+                            level=level))
+    two, one = got
+    assert np.array_equal(two.codes, one.codes)
+    keep = ("tiles_read", "tiles_skipped", "tiles_bounded", "tiles_decoded", "waits",
+            "visible", "hidden", "uncertain", "cells")
+    assert {k: two.stats[k] for k in keep} == {k: one.stats[k] for k in keep}
+    if level == 0:
+        assert np.array_equal(one.codes, _reference(src, one))
+
+
+@pytest.mark.fast
 @pytest.mark.parametrize("level", [1, 2])
 def test_coarse_level_marks_the_cells_it_cannot_decide(voids, level):
     t, src = voids

@@ -1,0 +1,217 @@
+"""The viewshed's window of the grid: which of its tiles the sweep has read, at which
+level, and the reads themselves, safe for the two halves of the sweep running at once.
+
+:class:`Window` holds the window's heights (metres), filled only where a tile was read,
+and the per-tile numbers the compiled sweep (:mod:`geoterrain.analysis.sweep`) tests
+before it asks for a tile: the catalog's box top (free) and, once read, how far the
+heights may be from the source's. A half of the sweep gets its own view
+(:meth:`Window.half`): its own status and error arrays, and the rows it owns; its reads
+write only those rows, so the two halves never write what the other reads, and the
+store is read under one lock (a terrain is not thread-safe).
+
+Examples
+--------
+>>> w = Window(t, 0, 40, 0, 40, eps=0.0, level=0)
+>>> north = w.half(0, 4)
+>>> north.read(0, 0)  # bounded from level 1 first (status 3), then read (1)
+>>> int(north.tiles.status[0, 0]), int(w.status[0, 0])
+(3, 0)
+>>> north.read(0, 0); int(north.tiles.status[0, 0])
+1
+>>> bool((w.z[:4, :4] == t.tile(0, 0, 0).heights[:4, :4]).all())
+True
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numba import njit
+
+from geoterrain.analysis.sweep import SweepTiles
+
+if TYPE_CHECKING:
+    from geoterrain.terrainlike import TerrainLike
+
+__all__ = ["Half", "Window", "level_surface"]
+
+
+class Window:
+    """Window rows ``r0`` … ``r1`` − 1, columns ``c0`` … ``c1`` − 1 of the grid: the
+    :class:`~geoterrain.analysis.sweep.SweepTiles` with nothing decoded (``tiles``), read
+    at ``level`` where that level's tile error is finite (level 0 otherwise), heights known
+    to ±``eps`` metres (the codec's error)."""
+
+    def __init__(self, terrain: TerrainLike, r0: int, r1: int, c0: int, c1: int, eps: float,
+                 level: int):
+        g, f = terrain.grid, terrain.frame
+        self.terrain, self.level, self.eps = terrain, level, eps
+        self.r0, self.r1, self.c0, self.c1 = r0, r1, c0, c1
+        tlast = g.tiles_per_side(0) - 1
+        ty0, ty1 = r0 >> g.t, min((r1 - 1) >> g.t, tlast)
+        tx0, tx1 = c0 >> g.t, min((c1 - 1) >> g.t, tlast)
+        nty, ntx = ty1 - ty0 + 1, tx1 - tx0 + 1
+        status = np.full((nty, ntx), 2, np.int8)
+        ztop = np.full((nty, ntx), np.inf)
+        zs = f.z_scale or 1.0
+        for y in range(ty0, ty1 + 1):  # per tile, from the catalog: nothing decoded
+            for x in range(tx0, tx1 + 1):
+                info = terrain.tile_info.get((0, x, y))
+                if info is not None:
+                    status[y - ty0, x - tx0] = 0
+                    top = info["zmax"]
+                    # the box is in scene units (a hair above it for the units' rounding); a
+                    # tile with nodata is never decided from its box (its voids have no answer)
+                    full = info["nvalid"] == g.tile_samples ** 2
+                    ztop[y - ty0, x - tx0] = (top / zs) * (1 + 1e-12) + 1e-9 \
+                        if full and top is not None and np.isfinite(top) else np.inf
+        z = np.empty((r1 - r0, c1 - c0))  # read only where a tile was decoded into it
+        self.tiles = SweepTiles(z, status, ztop, np.full((nty, ntx), eps), r0, c0, g.t, ty0,
+                                tx0, tlast)
+        self.lock = threading.Lock()
+
+    @property
+    def z(self) -> np.ndarray:
+        return self.tiles.z
+
+    @property
+    def status(self) -> np.ndarray:
+        return self.tiles.status
+
+    def half(self, lo: int, hi: int, base: Half | None = None) -> Half:
+        """A view that owns window rows ``lo`` … ``hi`` − 1, starting from a copy of the
+        tiles' status and error as they stand in ``base`` (what it read is read for the
+        new view too; None: nothing read)."""
+        tl = self.tiles if base is None else base.tiles
+        return Half(self, tl._replace(status=tl.status.copy(), zerr=tl.zerr.copy()), lo, hi)
+
+
+class Half:
+    """What one part of the sweep reads: its :class:`SweepTiles` and the window rows it
+    writes (:meth:`read`)."""
+
+    def __init__(self, window: Window, tiles: SweepTiles, lo: int, hi: int):
+        self.w, self.tiles, self.lo, self.hi = window, tiles, lo, hi
+
+    def read(self, ty: int, tx: int, at: int | None = None) -> None:
+        """Read window tile (``ty``, ``tx``) into this half's rows: at the window's level
+        (``at`` None) or ``at``; at level 0 a tile not yet read is first bounded from level
+        1 (status 3: the sweep may then decide its cells without level 0)."""
+        w, st = self.w, self.tiles.status
+        at = w.level if at is None else at
+        # the status is this half's own; only the terrain's reads take the lock
+        if at == 0 and st[ty, tx] == 0 and self._bound_first(ty, tx):
+            return
+        terrain = w.terrain
+        ty0, tx0 = self.tiles.ty0, self.tiles.tx0
+        a0, a1, b0, b1 = self._cells(ty, tx)
+        gy, gx = (ty + ty0) << self.tiles.t, (tx + tx0) << self.tiles.t
+        zm = terrain.frame.z_to_m
+        key = (at, (tx + tx0) >> at, (ty + ty0) >> at)
+        err = terrain.tile_info[key]["error"] if key in terrain.tile_info else np.inf
+        z = w.z[a0 - w.r0:a1 - w.r0, b0 - w.c0:b1 - w.c0]
+        if at == 0 or not np.isfinite(err):
+            with w.lock:
+                tile = terrain.tile(0, tx + tx0, ty + ty0)
+            np.multiply(tile.heights[a0 - gy:a1 - gy, b0 - gx:b1 - gx], zm, out=z)
+        else:
+            np.multiply(level_surface(terrain, at, np.arange(a0, a1), np.arange(b0, b1),
+                                      w.lock), zm, out=z)
+            zs = terrain.frame.z_scale or 1.0
+            self.tiles.zerr[ty, tx] = w.eps + err / zs * (1 + 1e-12) + 1e-9
+        st[ty, tx] = 1
+
+    def _cells(self, ty: int, tx: int) -> tuple[int, int, int, int]:
+        """The grid rows a0 … a1 − 1 and columns b0 … b1 − 1 the sweep takes from the
+        tile, within this half's rows: the tile's rows and columns but the last, which its
+        neighbour owns (sweep._tile_of), except on the grid's last tile."""
+        tl, w = self.tiles, self.w
+        span = 1 << tl.t
+        gy, gx = (ty + tl.ty0) * span, (tx + tl.tx0) * span
+        a0 = max(gy, w.r0 + self.lo)
+        a1 = min(gy + span + (ty + tl.ty0 == tl.tlast), w.r0 + self.hi)
+        b0, b1 = max(gx, w.c0), min(gx + span + (tx + tl.tx0 == tl.tlast), w.c1)
+        return a0, max(a1, a0), b0, b1
+
+    def _bound_first(self, ty: int, tx: int) -> bool:
+        """Level 1's surface plus its tile's error as the cells' bounds (status 3), when
+        that error is finite."""
+        w, tl = self.w, self.tiles
+        terrain = w.terrain
+        key = (1, (tx + tl.tx0) >> 1, (ty + tl.ty0) >> 1)
+        if terrain.grid.top_level < 1 or key not in terrain.tile_info:
+            return False
+        err = terrain.tile_info[key]["error"]
+        if not np.isfinite(err):
+            return False
+        a0, a1, b0, b1 = self._cells(ty, tx)
+        zs = terrain.frame.z_scale or 1.0
+        z = w.z[a0 - w.r0:a1 - w.r0, b0 - w.c0:b1 - w.c0]
+        # NaN where level 1 has no data: the sweep then reads level 0 (a void's code)
+        np.multiply(level_surface(terrain, 1, np.arange(a0, a1), np.arange(b0, b1), w.lock),
+                    terrain.frame.z_to_m, out=z)
+        z += err / zs * (1 + 1e-12) + 1e-9
+        tl.status[ty, tx] = 3
+        return True
+
+
+def level_surface(terrain: TerrainLike, level: int, rows: np.ndarray, cols: np.ndarray,
+                  lock: threading.Lock | None = None) -> np.ndarray:
+    """The level-L union-jack surface (source units; NaN on cells without data) at the
+    full-resolution samples ``rows`` × ``cols`` (ascending runs), which one level-L tile
+    holds; its tile is read under ``lock`` where one is given.
+
+    Examples
+    --------
+    >>> rows = cols = np.arange(0, 9)
+    >>> s = level_surface(t, 2, rows, cols)
+    >>> bool(s[4, 4] == t.tile(0, 0, 0).heights[4, 4])  # a level-2 sample itself
+    True
+    """
+    g = terrain.grid
+    out = np.full((len(rows), len(cols)), np.nan)
+    if len(rows) == 0 or len(cols) == 0:
+        return out
+    last = g.level_size(level) - 2
+    key = (level, int(min(cols[0] >> level, last) >> g.t),
+           int(min(rows[0] >> level, last) >> g.t))
+    if key not in terrain.tile_info:
+        return out
+    with lock or contextlib.nullcontext():
+        tile = terrain.tile(*key)  # its heights are NaN where not valid
+    _union_jack_block(tile.heights, level, key[2] << g.t, key[1] << g.t,
+                      np.asarray(rows, np.int64), np.asarray(cols, np.int64), out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _union_jack_block(h, level, a_org, b_org, rows, cols, out):
+    """out[k, l] = the level-L union-jack surface of tile heights ``h`` (its first sample
+    at level-L row ``a_org``, column ``b_org``) at full-resolution sample (rows[k],
+    cols[l]) (docs/conventions.md: a cell's diagonal by the parity of its indices; a
+    sample on the tile's far edge is read from the tile's last cell, which gives it)."""
+    n = h.shape[0] - 2
+    sz = 1 << level
+    for k in range(rows.shape[0]):
+        a = min((rows[k] >> level) - a_org, n)
+        di = (rows[k] - ((a + a_org) << level)) / sz
+        for m in range(cols.shape[0]):
+            b = min((cols[m] >> level) - b_org, n)
+            dj = (cols[m] - ((b + b_org) << level)) / sz
+            z00 = h[a, b]
+            z01 = h[a, b + 1]
+            z10 = h[a + 1, b]
+            z11 = h[a + 1, b + 1]
+            if (a + a_org + b + b_org) % 2 == 0:  # main diagonal (0, 0)–(1, 1)
+                if dj >= di:
+                    v = z00 + (z01 - z00) * dj + (z11 - z01) * di
+                else:
+                    v = z00 + (z10 - z00) * di + (z11 - z10) * dj
+            elif di + dj <= 1:
+                v = z00 + (z10 - z00) * di + (z01 - z00) * dj
+            else:
+                v = z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
+            out[k, m] = v
