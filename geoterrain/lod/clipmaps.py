@@ -7,7 +7,14 @@ what ``clipmap``, ``clipmap_bounded`` and ``clipmap_gpu`` share.
   snapped to even level-l vertices (rule 3: the active perimeter lies on even vertices).
   The finest active level f is the finest whose extent n·g_l is at least 2.5 times the
   viewer's height above the terrain (§2.9: levels with h > 0.4·n·g_l are skipped); the
-  coarsest is the first whose grid covers the whole DEM.
+  coarsest is the first whose grid covers the whole DEM (as the paper's coarsest level
+  covers its terrain: levels leave and join at the fine end only). Choice: h is the
+  height above the highest terrain the clipmap covers, not above the ground under the
+  eye, so a level flight keeps its levels and draws a constant count before culling
+  (above the ground under the eye, the one-minute loop switched the finest level with
+  each ridge it crossed: 57 % spread); it never gives a coarser level than the ground
+  under the eye would. The count changes only when the viewer climbs or descends
+  through a level's 0.4·n·g_l.
 - **Active regions and cropping.** A clip region is moved inside the data rectangle
   (cropping: a region that reaches past the DEM is shifted back rather than cut, so it
   keeps its n × n vertices; one wider than the DEM is cut to it). Nesting holds after the
@@ -372,14 +379,11 @@ def select(terrain: TerrainLike, view: View, tau: float, *, kind: str = "clipmap
         if (n - 1) << lv >= span:
             Lmax = lv
             break
-    # the viewer's height above the terrain under it (or above the highest point)
-    ii = int(min(max(round(vi), 0), tb.H - 1))
-    jj = int(min(max(round(vj), 0), tb.W - 1))
-    zg = terrain.frame.z(terrain.gather(np.array([ii]), np.array([jj]), ("height",))["height"])
-    zt = float(zg[0]) if np.isfinite(zg[0]) else float(index.hi[:, 2].max())
-    if not (0 <= vi <= tb.H - 1 and 0 <= vj <= tb.W - 1):
-        zt = float(index.hi[:, 2].max())
-    h = max(float(view.eye[2]) - zt, 0.0)
+    # §2.9's h, the viewer's height above the terrain, measured above the highest terrain
+    # the clipmap covers (choice: not the ground under the eye, which changes with every
+    # ridge a level flight crosses and would switch the finest level, and the drawn count
+    # with it, frame to frame; never a coarser level than the ground under the eye gives)
+    h = max(float(view.eye[2]) - float(np.nanmax(index.hi[:, 2])), 0.0)
     halves = {lv: half0 for lv in range(Lmax + 1)}
     if bounded:
         f, halves = _bounded_levels(terrain, index, tb, view, tau, Lmax, half0, vi, vj,
