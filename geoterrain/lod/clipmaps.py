@@ -12,8 +12,8 @@ what ``clipmap``, ``clipmap_bounded`` and ``clipmap_gpu`` share.
   height above the highest terrain the clipmap covers, not above the ground under the
   eye, so a level flight keeps its levels and draws a constant count before culling
   (above the ground under the eye, the one-minute loop switched the finest level with
-  each ridge it crossed: 57 % spread); it never gives a coarser level than the ground
-  under the eye would. The count changes only when the viewer climbs or descends
+  the ridges it crossed: 226 316 to 323 090 triangles); it never gives a coarser level
+  than the ground under the eye would. The count changes only when the viewer climbs or descends
   through a level's 0.4·n·g_l.
 - **Active regions and cropping.** A clip region is moved inside the data rectangle
   (cropping: a region that reaches past the DEM is shifted back rather than cut, so it
