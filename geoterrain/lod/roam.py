@@ -44,6 +44,7 @@ from geoterrain.core.view import View
 from geoterrain.lod import roamkernels as rk
 from geoterrain.lod.mesh import empty_polydata, polydata
 from geoterrain.lod.occlusion import hidden_rows
+from geoterrain.lod.roamwedgies import wedgies
 from geoterrain.lod.tiles import tile_index, tile_table
 
 if TYPE_CHECKING:
@@ -59,7 +60,7 @@ def _build(terrain: TerrainLike) -> dict:
     Z = np.ascontiguousarray(terrain.frame.z(h).ravel())
     wedge = np.zeros(2 * N * N, np.float32)
     var = np.zeros(2 * N * N, np.float32)
-    rk.wedgies(Z, N, n, wedge, var, np.zeros(2 * N * N, np.uint8))
+    wedgies(Z, N, n, wedge, var, np.zeros(2 * N * N, np.uint8))
     f = terrain.frame
     margin = 0.0
     if f.kind == "geographic":

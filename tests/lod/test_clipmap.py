@@ -170,3 +170,94 @@ def test_regions_nest_and_keep_even_perimeters(holey):
                 P = levels[lv + 1]
                 assert 2 * P.r0 <= st_.r0 and st_.r1 <= 2 * P.r1
                 assert 2 * P.c0 <= st_.c0 and st_.c1 <= 2 * P.c1
+
+
+class _NoCulling(View):
+    """A view that culls nothing (no frustum planes): the clipmap's whole geometry."""
+
+    @property
+    def planes(self) -> np.ndarray:
+        return np.zeros((0, 4))
+
+
+def _flights(t, frames):
+    from geoterrain.bench.experiments import minute_flight
+
+    X, Y, Z = t.scene_xyz()
+    lo, hi = extent(X, Y, Z)
+    return {"glide": [v for _, v in glide(lo, hi, n_frames=frames, step=0.2,
+                                          size=(480, 270))],
+            "minute loop": [v for _, v in minute_flight(lo, hi, frames, size=(480, 270),
+                                                        warmup=False)]}
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("kind", ["clipmap", "gpu"])
+def test_the_count_is_constant_along_level_flights(square, kind):
+    """§2.9's steady rendering rate on the glide and the one-minute loop (both level
+    flights): the clipmap's triangles before culling, and the mesh drawn without culling,
+    stay constant within 5 % (the geometry exactly; the mesh varies by the stitched
+    perimeter sides that lie on the DEM's edge); culling is a separate step whose count
+    follows the heading (reported, not held constant)."""
+    for name, views in _flights(square, 12).items():
+        geometry, uncull, culled = [], [], []
+        for v in views:
+            mesh, stats = clipmaps.select(square, v, 4.0, kind=kind, occlusion=False, n=31)
+            nc = _NoCulling(v.look_from, v.look_at, v.up, v.fov_y_deg, v.size, v.near, v.far)
+            whole, s2 = clipmaps.select(square, nc, 4.0, kind=kind, occlusion=False, n=31)
+            assert s2["cells_culled"] == 0 and s2["levels"] == stats["levels"]
+            geometry.append(stats["clipmap_triangles"])
+            uncull.append(whole.n_cells)
+            culled.append(mesh.n_cells)
+        for counts in (geometry, uncull):
+            c = np.array(counts)
+            assert (c.max() - c.min()) <= 0.05 * np.median(c), (name, counts)
+        assert all(a <= b for a, b in zip(culled, uncull, strict=True)), (name, culled)
+
+
+@pytest.mark.fast
+def test_updates_touch_only_the_newly_exposed_l_shapes(square):
+    """When the view moves, each level's toroidal height buffer is written exactly at the
+    samples the new region adds to the old one (an L-shaped band: whole rows on the side
+    it moved to, whole columns on the other), and its normal map (the clipmap's texture)
+    only there and one sample beside them; nothing else in either buffer is touched.
+
+    Found by filling the buffers with sentinels before each frame (restored after)."""
+    key = f"{clipmaps.__name__}.state.clipmap.31"
+    sz, sn = -1.0e300, 9.0  # no height, no unit normal's component
+    for name, views in _flights(square, 40).items():
+        square.forget(key)
+        moved = 0
+        for k, v in enumerate(views):
+            state = square.derived(key, dict)
+            before = {lv: (s_, (s_.r0, s_.r1, s_.c0, s_.c1), s_.z.copy(), s_.normal.copy())
+                      for lv, s_ in state.get("levels", {}).items()}
+            for s_, _, _, _ in before.values():
+                s_.z[:] = sz
+                s_.normal[:] = sn
+            clipmaps.select(square, v, 4.0, n=31)
+            for lv, s_ in state["levels"].items():
+                if lv not in before or before[lv][0] is not s_:
+                    continue  # a level that joined (or a buffer that grew) is read whole
+                _, (q0, q1, p0, p1), z0, n0 = before[lv]
+                size = s_.size
+                rows, cols = np.arange(s_.r0, s_.r1 + 1), np.arange(s_.c0, s_.c1 + 1)
+                kept_r = (rows >= q0) & (rows <= q1)
+                kept_c = (cols >= p0) & (cols <= p1)
+                new = ~(kept_r[:, None] & kept_c[None, :])
+                want = np.zeros((size, size), bool)
+                want[np.ix_(rows % size, cols % size)] = new
+                # an L: the new rows whole, then the new columns of the kept rows
+                dr, dc = int((~kept_r).sum()), int((~kept_c).sum())
+                assert want.sum() == dr * len(cols) + dc * (len(rows) - dr), (name, k, lv)
+                wrote = s_.z != sz
+                np.testing.assert_array_equal(wrote, want, err_msg=f"{name} {k} level {lv}")
+                near = want.copy()  # the exposed samples and their 4-neighbours, toroidally
+                for ax in (0, 1):
+                    near |= np.roll(want, 1, ax) | np.roll(want, -1, ax)
+                wn = (s_.normal != sn).any(-1)
+                assert not (wn & ~near).any() and not (want & ~wn).any(), (name, k, lv)
+                moved += int(new.any())
+                s_.z[~wrote] = z0[~wrote]  # restore what was not rewritten
+                s_.normal[~wn] = n0[~wn]
+        assert moved >= 5, (name, moved)  # the flights do move the regions

@@ -17,10 +17,10 @@ from hypothesis import strategies as st
 
 import geoterrain
 from geoterrain.bench.harness import extent, glide
+from geoterrain.core.bintree import parents_nb
 from geoterrain.core.view import View
 from geoterrain.ingest.synth import generate, write_geotiff
 from geoterrain.lod import roam, roam_split
-from geoterrain.lod.roamkernels import parents_nb
 from geoterrain.testing.measure import vertical_error
 
 
