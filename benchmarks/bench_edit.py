@@ -103,6 +103,14 @@ def main() -> None:
         dem = write_geotiff(os.path.join(work, "dem.tif"), z)
         store = os.path.join(work, "dem.geoterrain")
         preprocess(dem, store, overwrite=True)  # compiles what is not yet cached
+        warm = os.path.join(work, "warm.geoterrain")  # and an edit's (serial) kernels
+        shutil.copy(store, warm)
+        import geoterrain
+        from geoterrain.preprocessing.edit import Patch, edit_terrain
+
+        with geoterrain.open(warm) as t:
+            edit_terrain(t, Patch(0, 0, np.full((a.window, a.window), -20.0)), "add")
+        os.remove(warm)
         pre, first, later = [], [], []
         for run in range(a.runs):
             pre.append(child(PRE, dem, os.path.join(work, "p.geoterrain"))["wall"])
