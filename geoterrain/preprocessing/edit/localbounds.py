@@ -150,7 +150,6 @@ class Bounds:
         self.i1 = min(((c.r1 - 1) // S + 3) * S, N - 1)
         self.j1 = min(((c.c1 - 1) // S + 3) * S, N - 1)
         self.z, self.v = c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1)
-        self.zo, self.vo = c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1, new=False)
         shape = self.z.shape
         self.dc = np.zeros(shape, np.uint8)
         self.rc = np.zeros(shape, np.uint8)
@@ -487,7 +486,8 @@ class Bounds:
         cand = fd & old_fin & (self.dc_old[fi, fj] == top_code)
         if cand.any() and not held:
             raw_old = np.zeros(int(cand.sum()), np.float32)
-            fine_raw_delta(self.zo, self.vo, self.oi, self.oj, self.N, self.fine[cand], raw_old)
+            zo, vo = self.c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1, new=False)
+            fine_raw_delta(zo, vo, self.oi, self.oj, self.N, self.fine[cand], raw_old)
             held = bool((raw_old.astype(np.float64) == d_old).any())
         for h, vs, direct in self.coarse_levels:
             for (i, j, _), d in zip(vs.tolist(), direct.tolist(), strict=True):
