@@ -26,6 +26,7 @@ and loses 1.4–2.4× on one with a core taken.
 from __future__ import annotations
 
 import functools
+import threading
 import types
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -36,9 +37,11 @@ from numba import njit
 from geoterrain.core._fork import FORKED
 
 __all__ = ["PARALLEL_MIN_SAMPLES", "ParallelKernel", "cores_for", "forked", "parallel_kernel",
-           "serial_twin"]
+           "serial_kernels", "serial_twin"]
 
 PARALLEL_MIN_SAMPLES = 1 << 19  # about 724²: below it, one thread
+
+_HERE = threading.local()  # .serial: this thread runs the serial twins (serial_kernels)
 
 # numba's GNU OpenMP layer aborts a process forked from one that ran a parallel region,
 # at the child's first parallel launch; the package registers the fork hook on import
@@ -105,7 +108,8 @@ class ParallelKernel:
         functools.update_wrapper(self, f)
 
     def __call__(self, *args):
-        return (self.serial if FORKED[0] else self.parallel)(*args)
+        return (self.serial if FORKED[0] or getattr(_HERE, "serial", False)
+                else self.parallel)(*args)
 
 
 def parallel_kernel(**options) -> Callable[[Callable], ParallelKernel]:
@@ -120,6 +124,31 @@ def _twin(f: Callable, options: dict):
                               f.__defaults__, f.__closure__)
     twin.__qualname__ = f.__qualname__ + "_serial"  # its own cache entry
     return njit(**options)(twin)
+
+
+@contextmanager
+def serial_kernels(serial: bool = True) -> Iterator[None]:
+    """Run every :class:`ParallelKernel` called inside on the calling thread (its serial
+    twin): for work made of many small pieces, such as an edit of a few tiles, where each
+    parallel region is short and, on a busy machine, waits at its barrier for a
+    descheduled thread; the parallel kernels are then not loaded at all. ``serial``
+    False: the parallel ones again (a large piece inside). Per thread, nestable,
+    restored on exit; results never depend on it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from geoterrain.bounds.normals import normal_map
+    >>> with serial_kernels():
+    ...     normal_map(*np.meshgrid(np.arange(3.0), np.arange(3.0)), np.zeros((3, 3))).shape
+    (3, 3, 3)
+    """
+    old = getattr(_HERE, "serial", False)
+    _HERE.serial = serial
+    try:
+        yield
+    finally:
+        _HERE.serial = old
 
 
 @contextmanager

@@ -109,13 +109,13 @@ def table_columns(keys, columns, blob_keys, blob_ids):
     yield from _delta_chunks(blob_ids)
 
 
-def pack_stream(n: int, m: int, pieces) -> bytes:
+def pack_stream(n: int, m: int, pieces, fast: bool = False) -> bytes:
     """The tile table's catalog row for n tiles and m blobs whose bytes ``pieces()``
     gives (:func:`table_columns`; called again for a raw row): zstd (level 19 up to
     1 MiB, whose compressor then needs a few MB; 3 above, where 19 would need about
-    100 MB), or raw when zstd would pass :data:`RATIO_CAP`."""
+    100 MB; 3 when ``fast``), or raw when zstd would pass :data:`RATIO_CAP`."""
     size = 8 * (n * (1 + len(TILE_COLUMNS)) + 2 * m)
-    level = _ZSTD_STRONG if size <= _ZSTD_STRONG_MAX else 3
+    level = _ZSTD_STRONG if size <= _ZSTD_STRONG_MAX and not fast else 3
     z = zstandard.ZstdCompressor(level=level).compressobj(size=size)
     packed = b"".join([z.compress(c) for c in pieces()] + [z.flush()])
     if size > RATIO_CAP * len(packed) + _RATIO_SLACK:
@@ -123,8 +123,10 @@ def pack_stream(n: int, m: int, pieces) -> bytes:
     return _HEAD.pack(1, n, m) + packed
 
 
-def pack_tiles(table: TileTable) -> bytes:
-    """The tile table's catalog row (see the module docstring).
+def pack_tiles(table: TileTable, fast: bool = False) -> bytes:
+    """The tile table's catalog row (see the module docstring). ``fast``: zstd level 3,
+    not 19 (an edit rewrites the row: on a 4097² store's 5461 tiles, 9 ms for 135 kB
+    against 0.26 s for 109 kB).
 
     Examples
     --------
@@ -135,7 +137,7 @@ def pack_tiles(table: TileTable) -> bytes:
     """
     nums = np.asarray(table.numbers, np.float64).reshape(len(table.tiles), len(TILE_COLUMNS))
     return pack_stream(len(table.tiles), len(table.blobs), lambda: table_columns(
-        [table.tiles], nums.T, [table.blobs], [table.ids]))
+        [table.tiles], nums.T, [table.blobs], [table.ids]), fast)
 
 
 def unpack_tiles(data: bytes, file_bytes: int | None = None) -> TileTable:

@@ -34,7 +34,7 @@ from geoterrain.store.catalog import (
     unpack_metadata,
 )
 from geoterrain.store.database import SCHEMA_VERSION, StoreReader, blob_crc
-from geoterrain.store.keys import blob_key, tile_key, unpack_blob_key, unpack_tile_key
+from geoterrain.store.keys import blob_key, tile_key, unpack_blob_key
 
 __all__ = ["StoreEditor", "BUSY_SECONDS"]
 
@@ -124,13 +124,18 @@ class StoreEditor:
                                  "changed; free space and retry") from None
             raise WriteError(f"cannot edit {self.path}: {msg}; nothing was changed") from None
 
-    def _merged(self, rows: dict) -> dict:
-        """The tile table's rows with ``rows`` replacing or adding theirs."""
+    def _merged(self, rows: dict) -> tuple[np.ndarray, np.ndarray]:
+        """The tile table's keys and numbers (key order) with ``rows`` replacing or adding
+        theirs."""
         t = self.table
-        out = {unpack_tile_key(int(k)): tuple(r) for k, r in
-               zip(t.tiles.tolist(), t.numbers.tolist(), strict=True)}
-        out.update(rows)
-        return out
+        keys = np.array([tile_key(k) for k in rows], np.int64)
+        vals = _numbers([rows[k] for k in rows])
+        allk = np.concatenate([np.asarray(t.tiles, np.int64), keys])
+        allv = np.concatenate([np.asarray(t.numbers, np.float64).reshape(-1, len(TILE_COLUMNS)),
+                               vals])
+        # each key's last row: the new one where there is one
+        uniq, first = np.unique(allk[::-1], return_index=True)
+        return uniq, allv[len(allk) - 1 - first]
 
     def _apply(self, puts, deletes, tiles, metadata) -> dict:
         t = self.table
@@ -174,18 +179,21 @@ class StoreEditor:
         keys = np.array(sorted(ids), np.int64)
         if tiles is None:
             tk, nums = t.tiles, t.numbers
+        elif isinstance(tiles, tuple):  # merged already (_merged)
+            tk, nums = tiles
         else:
             order = sorted(tiles, key=tile_key)
             tk = np.array([tile_key(k) for k in order], np.int64)
-            nums = np.array([[np.nan if v is None else float(v) for v in tiles[k]]
-                             for k in order], np.float64).reshape(len(order), len(TILE_COLUMNS))
+            nums = _numbers([tiles[k] for k in order])
         table = TileTable(tk, nums, keys, np.array([ids[k] for k in keys.tolist()], np.int64))
         meta = dict(metadata)
         levels = np.bincount(tk & 31, minlength=32) if len(tk) else np.zeros(32, np.int64)
         meta["tile_counts"] = {str(L): int(c) for L, c in enumerate(levels) if c}
         meta["schema_version"] = SCHEMA_VERSION
         meta["complete"] = True
-        rows = {TILES_ID: pack_tiles(table), META_ID: pack_metadata(meta)}
+        # the tile table at zstd's fast level: its strongest one took most of a small
+        # edit's time (catalog.pack_tiles)
+        rows = {TILES_ID: pack_tiles(table, fast=True), META_ID: pack_metadata(meta)}
         for i, d in rows.items():
             self.con.execute("UPDATE catalog SET data = ?, crc32 = ? WHERE id = ?",
                              (d, catalog_crc(i, d), i))
@@ -211,6 +219,12 @@ class StoreEditor:
 
     def __exit__(self, *exc) -> None:
         self.abort()
+
+
+def _numbers(rows: list) -> np.ndarray:
+    """Tile rows (None: NaN) as a (n, columns) float64 array."""
+    return np.array([[np.nan if v is None else float(v) for v in r] for r in rows],
+                    np.float64).reshape(len(rows), len(TILE_COLUMNS))
 
 
 def blob_kinds_of(table: TileTable) -> set[BlobKey]:

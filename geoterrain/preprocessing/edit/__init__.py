@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from geoterrain.core.threads import serial_kernels
 from geoterrain.preprocessing.edit.patch import (
     MODES,
     RESAMPLING,
@@ -152,7 +153,6 @@ def edit_terrain(terrain: TerrainLike, patch: Patch, mode: str = "replace", *,
         one-line error saying why not) or ``"whole grid"``.
     """
     from geoterrain.exceptions import UsageError
-    from geoterrain.preprocessing.edit import local
 
     t0 = time.perf_counter()
     if mode not in MODES:
@@ -160,8 +160,17 @@ def edit_terrain(terrain: TerrainLike, patch: Patch, mode: str = "replace", *,
                          cli=f"--mode must be one of {', '.join(MODES)}, got {mode!r}")
     if how not in ("auto", "tiles", "whole grid"):
         raise UsageError(f"unknown how {how!r}; use auto, tiles or whole grid")
-    g, q = terrain.grid, terrain.quantizer
-    p = patch.clipped(g)
+    p = patch.clipped(terrain.grid)
+    with serial_kernels():  # a few tiles' work: one thread (core/threads.py)
+        return _edit(terrain, p, mode, round_heights, how, t0)
+
+
+def _edit(terrain: TerrainLike, p: Patch, mode: str, round_heights: bool, how: str,
+          t0: float) -> EditResult:
+    from geoterrain.exceptions import UsageError
+    from geoterrain.preprocessing.edit import local
+
+    q = terrain.quantizer
     r0, c0 = p.row, p.col
     r1, c1 = r0 + p.heights.shape[0], c0 + p.heights.shape[1]
     old_h, old_v = window_heights(terrain, r0, c0, r1, c1)
@@ -186,10 +195,11 @@ def edit_terrain(terrain: TerrainLike, patch: Patch, mode: str = "replace", *,
     if plan is None:
         if how == "tiles":
             raise UsageError(f"{terrain.path}: this edit needs the whole grid ({why})")
-        h, v = terrain.level_heights(0)
-        h[r0 + a0:r0 + a1, c0 + b0:c0 + b1] = new_h
-        v[r0 + a0:r0 + a1, c0 + b0:c0 + b1] = new_v
-        plan = whole_plan(terrain, h, v, meta_before)
+        with serial_kernels(False):  # the whole grid: every core
+            h, v = terrain.level_heights(0)
+            h[r0 + a0:r0 + a1, c0 + b0:c0 + b1] = new_h
+            v[r0 + a0:r0 + a1, c0 + b0:c0 + b1] = new_v
+            plan = whole_plan(terrain, h, v, meta_before)
         res.why = why
     res.how = plan.how
     res.dirty = _merged(plan.dirty)

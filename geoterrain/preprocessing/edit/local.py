@@ -343,10 +343,12 @@ class _Job:
             nt = self.g.tiles_per_side(0)
             a = np.zeros((3, nt, nt))
             a[1], a[2] = np.inf, -np.inf
-            info = self.t.tile_info
-            for k in self.t.tile_keys(0):
-                r = info[k]
-                a[:, k[2], k[1]] = r["nvalid"], r["zmin"], r["zmax"]
+            table = self.reader.table()  # the rows tile_info holds, as arrays
+            lev0 = (table.tiles & 31) == 0
+            m = table.tiles[lev0] >> 5  # Morton number of (x, y): keys.tile_key
+            nums = np.asarray(table.numbers, np.float64).reshape(len(table.tiles), -1)[lev0]
+            cols = [TILE_COLUMNS.index(c) for c in ("nvalid", "zmin", "zmax")]
+            a[:, _compact(m >> 1), _compact(m)] = nums[:, cols].T
             if new:
                 for k in self.rows:
                     if k[0] == 0:
@@ -382,6 +384,17 @@ class _Job:
         self.reader.close()
         return Plan(self.puts, set(), out, self.meta, self.dirty, how="tiles",
                     all_tiles=False)
+
+
+def _compact(m: np.ndarray) -> np.ndarray:
+    """The even bits of Morton numbers ``m``, packed (:func:`geoterrain.store.keys.tile_key`
+    interleaves x in the even bits, y in the odd ones)."""
+    x = np.asarray(m, np.int64) & 0x5555555555555555
+    for shift, mask in ((1, 0x3333333333333333), (2, 0x0F0F0F0F0F0F0F0F),
+                        (4, 0x00FF00FF00FF00FF), (8, 0x0000FFFF0000FFFF),
+                        (16, 0x00000000FFFFFFFF)):
+        x = (x | (x >> shift)) & mask
+    return x
 
 
 def _window(c: Canvas, new: bool) -> tuple[np.ndarray, np.ndarray]:

@@ -1,5 +1,5 @@
-"""δ, r, the tile errors and the blocks' δ_n of an edit, over what it reaches
-(:mod:`.local`).
+"""δ and r of an edit, over what it reaches (:mod:`.local`); the tile errors and the
+blocks' δ_n: :mod:`.localerrors`.
 
 The vertices whose closed diamond holds a changed sample are recomputed, fine levels on
 a window of decoded tiles around the edit (:func:`geoterrain.bounds.windows.fine_raw_delta`),
@@ -20,24 +20,21 @@ from numba import njit
 from geoterrain.bounds.delta import Cell
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs
 from geoterrain.bounds.tilebounds import closed_blocks
-from geoterrain.bounds.vertexdata import log8_exponent, log8_table, pack_block_errors
+from geoterrain.bounds.vertexdata import log8_exponent, log8_table
 from geoterrain.bounds.windows import (
     block_sweep_rect,
     fine_raw_delta,
-    level_field_rect,
     nest_codes_rect,
     nest_codes_sparse,
 )
 from geoterrain.core.bintree import child_nb, main_diagonal_nb
 from geoterrain.core.rounding import round_up32
+from geoterrain.preprocessing.edit.localerrors import TileErrors
+from geoterrain.preprocessing.edit.localerrors import WholeGrid as _Whole
 
 __all__ = ["Bounds"]
 
 _SLACK = 1e-9  # relative slack of a tile's bound (float rounding of the planes)
-
-
-class _Whole(Exception):
-    """The edit needs the whole grid (the message says why)."""
 
 
 class Bounds:
@@ -70,7 +67,7 @@ class Bounds:
             self._coarse()
             self._delta_max()
             self._blobs()
-            self._tile_errors()
+            TileErrors(self.job).run()
         except _Whole as exc:
             return str(exc)
         return ""
@@ -153,7 +150,6 @@ class Bounds:
         self.i1 = min(((c.r1 - 1) // S + 3) * S, N - 1)
         self.j1 = min(((c.c1 - 1) // S + 3) * S, N - 1)
         self.z, self.v = c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1)
-        self.zo, self.vo = c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1, new=False)
         shape = self.z.shape
         self.dc = np.zeros(shape, np.uint8)
         self.rc = np.zeros(shape, np.uint8)
@@ -490,7 +486,8 @@ class Bounds:
         cand = fd & old_fin & (self.dc_old[fi, fj] == top_code)
         if cand.any() and not held:
             raw_old = np.zeros(int(cand.sum()), np.float32)
-            fine_raw_delta(self.zo, self.vo, self.oi, self.oj, self.N, self.fine[cand], raw_old)
+            zo, vo = self.c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1, new=False)
+            fine_raw_delta(zo, vo, self.oi, self.oj, self.N, self.fine[cand], raw_old)
             held = bool((raw_old.astype(np.float64) == d_old).any())
         for h, vs, direct in self.coarse_levels:
             for (i, j, _), d in zip(vs.tolist(), direct.tolist(), strict=True):
@@ -564,150 +561,6 @@ class Bounds:
                 job.put(key, kind, blobs[kind][(0, 0, 0)])
             job.set_row(key, delta_max=float(dm[0]), radius_max=float(rm[0]))
 
-    # ------------------------------------------------------------ tile errors
-    def _tile_errors(self) -> None:
-        """The blocks' δ_n, every tile's error and the skirt errors along the borders the
-        edit reaches (:func:`geoterrain.bounds.tilebounds.tile_and_block_errors`)."""
-        g, job, c, S = self.g, self.job, self.c, self.S
-        table = self.t.block_errors()
-        if table is None or table.shape[2] <= g.top_level:
-            raise _Whole("the block table does not cover every level")
-        new = np.array(table, np.float64)
-        self._fields: dict = {}
-        nb = g.tiles_per_side(0)
-        changed_blocks = {}
-        for L in range(1, g.top_level + 1):
-            sl = 1 << L
-            lo_r, hi_r = max((-(-c.r0 // sl) - 1) * sl, 0), ((c.r1 - 1) // sl + 1) * sl
-            lo_c, hi_c = max((-(-c.c0 // sl) - 1) * sl, 0), ((c.c1 - 1) // sl + 1) * sl
-            blocks = [(ty, tx) for ty in range(max((lo_r - 1) // S, 0), min(hi_r // S, nb - 1) + 1)
-                      for tx in range(max((lo_c - 1) // S, 0), min(hi_c // S, nb - 1) + 1)
-                      if ty * S <= hi_r and ty * S + S >= lo_r and tx * S <= hi_c
-                      and tx * S + S >= lo_c]
-            self._fields_batch(blocks, L)
-            for ty, tx in blocks:
-                e, mixed = self._field(ty, tx, L)[:2]
-                new[ty, tx, L] = np.inf if mixed else e
-            changed_blocks[L] = set(blocks)
-            self._region = getattr(self, "_region", {})
-            self._region[L] = (lo_r, lo_c, hi_r, hi_c)
-        job.put((g.top_level, 0, 0), "block_delta", pack_block_errors(new))
-        for L in range(1, g.top_level + 1):
-            span = g.tile_span(L)
-            k = 1 << L  # blocks per tile side
-            for x, y in job.tiles_near(L, 1 << L):
-                key = (L, x, y)
-                if job.row(key) is None:
-                    continue
-                own = self._own_error(y * k, x * k, k, L, new, changed_blocks[L])
-                kids = [job.row((L - 1, 2 * x + dx, 2 * y + dy)) for dy in (0, 1) for dx in (0, 1)]
-                err = max([own] + [r[3] for r in kids if r is not None])
-                cols = {"error": float(err)}
-                lo_r, lo_c, hi_r, hi_c = self._region[L]
-                if any(lo_r <= line <= hi_r for line in (y * span, y * span + span)) and \
-                        x * span <= hi_c and x * span + span >= lo_c or \
-                        any(lo_c <= line <= hi_c for line in (x * span, x * span + span)) and \
-                        y * span <= hi_r and y * span + span >= lo_r:
-                    cols["boundary_error"] = float(self._skirt(x, y, L, new))
-                job.set_row(key, **cols)
-
-    def _fields_batch(self, blocks: list, L: int) -> None:
-        """:meth:`_field` of every block in ``blocks``' bounding rectangle, from one
-        window."""
-        if not blocks:
-            return
-        S, N, sl = self.S, self.N, 1 << L
-        ys = [b[0] for b in blocks]
-        xs = [b[1] for b in blocks]
-        i0, j0 = max(min(ys) * S - sl, 0), max(min(xs) * S - sl, 0)
-        i1, j1 = min((max(ys) + 1) * S + sl, N - 1), min((max(xs) + 1) * S + sl, N - 1)
-        z, v = self.c.rect(i0, j0, i1 + 1, j1 + 1)
-        E = np.zeros(z.shape)
-        mixed = np.zeros(((i1 - i0) // sl, (j1 - j0) // sl), np.bool_)
-        level_field_rect(z, v, i0, j0, sl, E, mixed)
-        for ty in range(min(ys), max(ys) + 1):
-            for tx in range(min(xs), max(xs) + 1):
-                a, b = ty * S - i0, tx * S - j0
-                Eb = E[a:a + S + 1, b:b + S + 1]
-                mb = mixed[a // sl:a // sl + S // sl, b // sl:b // sl + S // sl]
-                self._fields[(ty, tx, L)] = (float(Eb.max()), bool(mb.any()), Eb, mb)
-
-    def _field(self, ty: int, tx: int, L: int) -> tuple:
-        """Block (ty, tx)'s level-L field as the edit leaves it: (max over its closed
-        footprint, whether one of its cells is mixed, E on its footprint, its cells'
-        mixed flags)."""
-        key = (ty, tx, L)
-        got = self._fields.get(key)
-        if got is not None:
-            return got
-        S, N, sl = self.S, self.N, 1 << L
-        i0, j0 = max(ty * S - sl, 0), max(tx * S - sl, 0)
-        i1, j1 = min(ty * S + S + sl, N - 1), min(tx * S + S + sl, N - 1)
-        z, v = self.c.rect(i0, j0, i1 + 1, j1 + 1)
-        E = np.zeros(z.shape)
-        mixed = np.zeros(((i1 - i0) // sl, (j1 - j0) // sl), np.bool_)
-        level_field_rect(z, v, i0, j0, sl, E, mixed)
-        a, b = ty * S - i0, tx * S - j0
-        Eb = E[a:a + S + 1, b:b + S + 1]
-        mb = mixed[a // sl:a // sl + S // sl, b // sl:b // sl + S // sl]
-        got = self._fields[key] = (float(Eb.max()), bool(mb.any()), Eb, mb)
-        return got
-
-    def _own_error(self, by: int, bx: int, k: int, L: int, table: np.ndarray,
-                   changed: set) -> float:
-        """max over the tile's k × k blocks of their level-L field (+inf if one has a
-        mixed cell): exact where the edit changed them, the others' stored values
-        (rounded up) bound theirs, so only those that may hold the maximum are
-        computed."""
-        vals = table[by:by + k, bx:bx + k, L]
-        if np.isinf(vals).any():
-            return np.inf
-        exact = np.full(vals.shape, np.nan)
-        for ty, tx in changed:
-            if by <= ty < by + k and bx <= tx < bx + k:
-                exact[ty - by, tx - bx] = self._field(ty, tx, L)[0]
-        best = float(np.nanmax(exact)) if np.isfinite(exact).any() else 0.0
-        order = np.argsort(-vals, axis=None)
-        for q in order.tolist():
-            a, b = divmod(q, k)
-            if vals[a, b] <= best:
-                break
-            if np.isnan(exact[a, b]):
-                best = max(best, self._field(by + a, bx + b, L)[0])
-        return best
-
-    def _skirt(self, x: int, y: int, L: int, table: np.ndarray) -> float:
-        """The tile's skirt error: the largest level-L field on its four border lines,
-        +inf if a cell along them inside the tile is mixed."""
-        g = self.g
-        k = 1 << L
-        by, bx, nb = y * k, x * k, g.tiles_per_side(0)
-        best = 0.0
-        # (block inside, which line of it, the block across) per border segment
-        segs = []
-        for q in range(k):
-            segs += [((by, bx + q), "top", (by - 1, bx + q)),
-                     ((by + k - 1, bx + q), "bottom", (by + k, bx + q)),
-                     ((by + q, bx), "left", (by + q, bx - 1)),
-                     ((by + q, bx + k - 1), "right", (by + q, bx + k))]
-        bounds = []
-        for inside, _, across in segs:
-            b = table[inside[0], inside[1], L]
-            if 0 <= across[0] < nb and 0 <= across[1] < nb:
-                b = min(b, table[across[0], across[1], L])
-            bounds.append(b)
-        for n in np.argsort(-np.array(bounds)).tolist():
-            inside, line, _ = segs[n]
-            mixed_possible = np.isinf(table[inside[0], inside[1], L])
-            if bounds[n] <= best and not mixed_possible:
-                continue
-            _, _, E, mb = self._field(inside[0], inside[1], L)
-            cells = {"top": mb[0], "bottom": mb[-1], "left": mb[:, 0], "right": mb[:, -1]}[line]
-            if cells.any():
-                return np.inf
-            vals = {"top": E[0], "bottom": E[-1], "left": E[:, 0], "right": E[:, -1]}[line]
-            best = max(best, float(vals.max()))
-        return best
 
 
 def _codes(table: np.ndarray, values) -> np.ndarray | int:
