@@ -9,13 +9,15 @@ whole-DEM texture) and the draw with
 read-back. The first frame of a configuration is reported apart (cold); the
 medians are over the other, warm, frames. Bruteforce is drawn on every
 ``--brute-every``-th view only (each of its frames draws every level-0 tile), and
-the LOD/bruteforce ratio is taken over those same views. The frame's CPU time (the
+the LOD/bruteforce ratio and the pictures' PSNR against bruteforce's are taken over those
+same views. The frame's CPU time (the
 process's, the software renderer's threads included) is reported beside its wall
 time, and the host's load average before and after: on a shared machine the wall
 time of the same work moves with the load, its CPU time much less.
 
     PYTHONPATH=. python benchmarks/bench_render.py STORE [--views 24] [--size 1280x720]
-        [--tau 1] [--strategies rtin] [--brute-every 4] [--global] [--json out.json]
+        [--tau 1] [--flight approach|low] [--strategies rtin] [--brute-every 4] [--global]
+        [--json out.json]
         [--anti-aliasing auto|msaa|edges|fxaa|none] [--skip-bruteforce]
 
 ``--global`` adds the previous whole-DEM texture (``textures="global"``) as a
@@ -57,19 +59,52 @@ def flight(t, n: int, size: tuple[int, int]) -> list[tuple[str, View]]:
     return views
 
 
+def low_flight(t, n: int, size: tuple[int, int]) -> list[tuple[str, View]]:
+    """A low, oblique pass that looks ahead over the terrain to its far side: the eye a
+    quarter of the relief above the highest point, pitched 8° down, flying across the
+    middle of the terrain from its south-west towards its north-east, turning 30°."""
+    lo, hi = t.scene_box()
+    c = (lo + hi) / 2
+    ext = float(max(hi[0] - lo[0], hi[1] - lo[1]))
+    z = float(hi[2] + 0.25 * max(hi[2] - lo[2], 1.0))
+    pitch = math.radians(8.0)
+    views = []
+    for k in range(n):
+        s = k / max(n - 1, 1)
+        eye = np.array([c[0] + ext * (-0.35 + 0.5 * s), c[1] + ext * (-0.35 + 0.5 * s), z])
+        az = math.radians(30.0 + 30.0 * s)  # the heading, clockwise from north
+        fwd = np.array([math.sin(az) * math.cos(pitch), math.cos(az) * math.cos(pitch),
+                        -math.sin(pitch)])
+        views.append((f"low {k}", View(tuple(eye), tuple(eye + 0.2 * ext * fwd),
+                                       fov_y_deg=45.0, size=size)))
+    return views
+
+
+FLIGHTS = {"approach": flight, "low": low_flight}
+
+
+def psnr(a: np.ndarray, b: np.ndarray) -> float:
+    """Peak signal-to-noise ratio of two uint8 pictures, dB (inf where identical)."""
+    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
+    return float("inf") if mse == 0 else 10.0 * math.log10(255.0**2 / mse)
+
+
 def run_config(store: str, views, strategy: str, textures: str, tau: float, pick=None,
-               anti_aliasing: str = "auto") -> dict:
-    """Frame stats of one configuration over ``views`` (indices ``pick``), cold store."""
+               anti_aliasing: str = "auto", keep=()) -> dict:
+    """Frame stats of one configuration over ``views`` (indices ``pick``), cold store; the
+    pictures of the views in ``keep`` are kept (``"pictures"``, by view)."""
     t0 = time.perf_counter()
     with geoterrain.open(store) as t:
         scene = TerrainScene(_plotter(views[0][1].size, anti_aliasing), t, textures=textures)
         setup_ms = (time.perf_counter() - t0) * 1e3
-        frames = []
+        frames, pictures = [], {}
         try:
             for k, (kind, v) in enumerate(views):
                 if pick is not None and k not in pick:
                     continue
-                _, st = scene.frame(v, tau, strategy)
+                img, st = scene.frame(v, tau, strategy)
+                if k in keep:
+                    pictures[k] = img
                 frames.append({"view": k, "kind": kind, **{key: st[key] for key in (
                     "frame_ms", "select_ms", "texture_ms", "render_ms", "cpu_ms",
                     "render_cpu_ms", "anti_aliasing", "triangles",
@@ -79,7 +114,7 @@ def run_config(store: str, views, strategy: str, textures: str, tau: float, pick
             scene.plotter.close()
     return {"strategy": strategy, "textures": textures, "anti_aliasing": anti_aliasing,
             "setup_ms": round(setup_ms, 1),
-            "frames": frames}
+            "frames": frames, "pictures": pictures}
 
 
 def _med(frames, key="frame_ms", views=None) -> float:
@@ -91,6 +126,9 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("store")
     ap.add_argument("--views", type=int, default=24)
+    ap.add_argument("--flight", default="approach", choices=sorted(FLIGHTS),
+                    help="approach (the default: from the overview down to a low pass) or "
+                    "low (a low, oblique pass looking ahead over the terrain)")
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--tau", type=float, default=1.0)
     ap.add_argument("--strategies", default="rtin")
@@ -109,28 +147,30 @@ def main(argv=None) -> dict:
     size = tuple(int(s) for s in a.size.split("x"))
     load0 = os.getloadavg()[0]
     with geoterrain.open(a.store) as t:
-        views = flight(t, a.views, size)
+        views = FLIGHTS[a.flight](t, a.views, size)
     brute_views = set(range(0, len(views), max(1, a.brute_every)))
     runs = []
     for s in a.strategies.split(","):
-        runs.append(run_config(a.store, views, s, "view", a.tau, None, a.anti_aliasing))
+        runs.append(run_config(a.store, views, s, "view", a.tau, None, a.anti_aliasing,
+                               () if a.skip_bruteforce else brute_views))
         if a.glob:
             runs.append(run_config(a.store, views, s, "global", a.tau, None, a.anti_aliasing))
     brute = None
     bmed = float("nan")
     if not a.skip_bruteforce:
         brute = run_config(a.store, views, "bruteforce", "view", a.tau, brute_views,
-                           a.anti_aliasing)
+                           a.anti_aliasing, brute_views)
         runs.append(brute)
         bmed = _med(brute["frames"])
-    print(f"{len(views)} views, {size[0]}×{size[1]}, τ = {a.tau:g}, anti-aliasing "
-          f"{a.anti_aliasing}; bruteforce on {0 if brute is None else len(brute_views)} of them; "
+    print(f"{a.flight} flight, {len(views)} views, {size[0]}×{size[1]}, τ = {a.tau:g}, "
+          f"anti-aliasing {a.anti_aliasing}; bruteforce on "
+          f"{0 if brute is None else len(brute_views)} of them; "
           f"load average {load0:.2f} before, {os.getloadavg()[0]:.2f} after, "
           f"{os.cpu_count()} cores")
     print("| strategy | textures | setup ms | cold frame ms | warm frame ms (median) | "
           "select | texture | draw | frame CPU ms | draw CPU ms | "
-          "ratio to bruteforce (same views) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "ratio to bruteforce (same views) | PSNR to bruteforce, dB (min, median) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in runs:
         fr = r["frames"]
         warm = fr[1:] if len(fr) > 1 else fr
@@ -142,10 +182,16 @@ def main(argv=None) -> dict:
                         "render_cpu_ms": _med(warm, "render_cpu_ms"),
                         "ratio_to_bruteforce": ratio}
         sm = r["summary"]
+        db = [psnr(p, brute["pictures"][k]) for k, p in r["pictures"].items()] \
+            if brute is not None and r is not brute else []
+        sm["psnr_to_bruteforce"] = db
+        dbs = f"{min(db):.1f}, {statistics.median(db):.1f}" if db else ""
         print(f"| {r['strategy']} | {r['textures']} | {r['setup_ms']:.0f} | "
               f"{sm['cold_frame_ms']:.0f} | {sm['warm_frame_ms']:.0f} | {sm['select_ms']:.0f} | "
               f"{sm['texture_ms']:.0f} | {sm['render_ms']:.0f} | {sm['cpu_ms']:.0f} | "
-              f"{sm['render_cpu_ms']:.0f} | {ratio:.1f}× |")
+              f"{sm['render_cpu_ms']:.0f} | {ratio:.1f}× | {dbs} |")
+    for r in runs:
+        r.pop("pictures")
     out = {"views": len(views), "size": list(size), "tau": a.tau, "runs": runs}
     if a.json:
         with open(a.json, "w") as fh:

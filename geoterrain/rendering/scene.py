@@ -158,6 +158,7 @@ class TerrainScene:
         self.mesh = pv.PolyData()
         self.actor = None
         self.selection = None
+        self._vtex = None  # the per-view atlas shown (kept while its pages stay the same)
         self.texture_stats: dict = {}
         self.water_actor = None
         self._water_pts = None
@@ -175,6 +176,7 @@ class TerrainScene:
         """After the store was edited: the whole-terrain texture (``textures="global"``)
         is made again; per-view textures come from the tiles' shading, which the
         terrain's refresh dropped where the edit reached."""
+        self._vtex = None  # its texels may show the data before the edit
         if self.textures == "global" and self.shading != "plain":
             import pyvista as pv
 
@@ -199,12 +201,14 @@ class TerrainScene:
         Thread-safe to call off the UI thread (it touches no VTK object); pass the
         result to :meth:`update`. ``max_builds``: at most this many tiles shaded anew,
         the rest magnified from cached ancestors
-        (:func:`~geoterrain.rendering.tiletextures.build_view_texture`).
+        (:func:`~geoterrain.rendering.tiletextures.build_view_texture`). Where the atlas
+        shown holds the same tiles at the same places, its image is kept, and
+        :meth:`update` uploads no texture.
         """
         if self.shading == "plain" or self.textures != "view":
             return None
         return build_view_texture(self.terrain, selection, view, self.shader,
-                                  max_builds=max_builds)
+                                  max_builds=max_builds, previous=self._vtex)
 
     def update(self, selection, view: View | None = None, vtex=None) -> None:
         """Show ``selection.mesh`` (the actor is reused).
@@ -229,7 +233,10 @@ class TerrainScene:
                 k: np.asarray(src.cell_data[k]) for k in ("level", "skirt")
                 if k in src.cell_data})
             mesh.active_texture_coordinates = vtex.tcoords  # VTK's v (ViewTexture)
-            self.texture.SetInputDataObject(_image_data(vtex.image))  # shared, not copied
+            if self._vtex is None or vtex.image is not self._vtex.image:
+                # shared, not copied; the same image is not given (nor uploaded) again
+                self.texture.SetInputDataObject(_image_data(vtex.image))
+            self._vtex = vtex
             self.texture_stats = dict(vtex.stats)
         elif src.n_points:
             self.texture_stats = {"textures_built": 0, "texture_tiles": 0}
@@ -327,7 +334,8 @@ class TerrainScene:
 
         The stats count what the whole frame did (selection and texture):
         ``tiles_decoded`` (heights), ``normals_decoded``, ``bounds_decoded`` (δ, r),
-        ``textures_built``, ``bytes_read`` and ``peak_rss_mb`` (the process's peak
+        ``textures_built``, ``atlas_reused`` (the atlas shown before was kept: no texel
+        copied or uploaded), ``bytes_read`` and ``peak_rss_mb`` (the process's peak
         resident memory so far), besides the selection's own stats. ``bytes_read`` is every
         byte read from the store file since the scene's previous frame, as the operating
         system counts them (:attr:`geoterrain.terrain.Terrain.bytes_read`); the first frame's
@@ -383,6 +391,7 @@ class TerrainScene:
                  "textures_built": int(self.texture_stats.get("textures_built", 0)),
                  "texture_tiles": int(self.texture_stats.get("texture_tiles", 0)),
                  "texture_ms": float(self.texture_stats.get("texture_ms", 0.0)),
+                 "atlas_reused": bool(self.texture_stats.get("atlas_reused", False)),
                  "peak_rss_mb": round(peak_rss() / 2**20, 1),
                  "update_ms": round((t2 - t1) * 1e3, 3),
                  "render_ms": round((t3 - t2) * 1e3, 3),

@@ -113,6 +113,7 @@ class ViewTexture:
     source: np.ndarray
     image: np.ndarray
     stats: dict = field(default_factory=dict)
+    layout: bytes | None = None  # what the image's texels depend on (None: not reusable)
 
 
 # the atlases' memory, reused once the atlas shown before is released (no page faults)
@@ -180,8 +181,8 @@ def _pack(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
 
 
 def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader,
-                       texel_px: float = TEXEL_PX, max_builds: int | None = None
-                       ) -> ViewTexture:
+                       texel_px: float = TEXEL_PX, max_builds: int | None = None,
+                       previous: ViewTexture | None = None) -> ViewTexture:
     """The atlas of what ``selection`` draws in ``view`` at about ``texel_px`` px per texel,
     its tiles shaded by ``shader`` (:class:`~geoterrain.rendering.tileshader.TileShader`:
     the picture's style).
@@ -190,6 +191,12 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
     budget): past it, a tile whose shading is not cached is cut from its nearest cached
     ancestor's, magnified (``stats["textures_deferred"]`` counts them; a later call
     with the same selection shades the next ones). None: every tile at its own level.
+
+    ``previous``: the atlas shown last. Where this view's atlas would hold the same
+    tiles at the same places (the same pages, levels, tiles and packing, the terrain not
+    edited since, none of them deferred), its image is kept (``stats["atlas_reused"]``):
+    no tile is copied, and the renderer, given the same image, uploads nothing; only the
+    mesh's texture coordinates are made anew.
 
     Examples
     --------
@@ -217,6 +224,13 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
     fLt = _texel_levels(fp, view, sample_spacing(terrain), texel_px, top,
                         min(MAX_MAGNIFY, g.t))
     pg = _pages(fp, fLt, g.t, top)
+    step = 1 << g.t
+    tiles = _tile_ranges(pg, step)
+    layout = _layout(pg, tiles, terrain.generation, shader)
+    if previous is not None and previous.layout == layout:
+        return _finish(previous.image, pg, fp, tris, ij, pts, step, layout, t0, {
+            "textures_built": 0, "texture_tiles": previous.stats.get("texture_tiles", 0),
+            "textures_deferred": 0, "atlas_reused": True})
     # zeroed, on 4 KiB pages (a fresh atlas on huge pages stalled on its first touch,
     # the kernel compacting memory for them: 11 ms of an 8 MB atlas's fill), reused once
     # the atlas shown before is released (a fresh mapping faulted page by page: 1.4 ms
@@ -226,8 +240,7 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
     # seam, reads the shelves' slack, zero (3 pixels of 256 k, by up to 15 levels, in a
     # review's view; they read grey before, as wrong)
     atlas = _ATLASES.zeros((pg.AH, pg.AW, 3), np.uint8)
-    step = 1 << g.t
-    placed, rect = _place(pg, _Stored(terrain.tile_info), step, atlas)
+    placed, rect = _place(pg, tiles, _Stored(terrain.tile_info), step, atlas)
     # the tiles' shading, those not cached shaded now (at most max_builds, in drawing
     # order); past the budget a tile is cut from a cached ancestor where there is one
     rgbs = shader([key for key, _, _ in placed], max_builds)
@@ -243,19 +256,34 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
     # gutter (a multisampled pixel centre may fall past a face at a page's seam)
     page = (step << pg.k) + 1 + 2 * GUTTER  # a page's allocation: its texels and gutter
     clamp_fill(atlas, rect, np.stack([pg.ay, pg.ax, page, page], 1))
+    atlas.setflags(write=False)  # shown by VTK without a copy (rendering._image_data)
+    return _finish(atlas, pg, fp, tris, ij, pts, step, None if deferred else layout, t0, {
+        "textures_built": shader.built - built0, "texture_tiles": len(placed),
+        "textures_deferred": deferred, "atlas_reused": False})
+
+
+def _finish(atlas: np.ndarray, pg: _Pages, fp: _Footprints, tris: np.ndarray,
+            ij: np.ndarray, pts: np.ndarray, step: int, layout: bytes | None, t0: float,
+            st: dict) -> ViewTexture:
+    """The mesh mapped onto ``atlas`` (its pages ``pg``) and the stats."""
     # one point per (page, vertex): a vertex shared by two pages is duplicated
     src, pgi, faces = number_pages(tris, pg.e_group[fp.fe], pg.G, len(pts))
     # VTK's v: the image's row 0 at v = 0 (see ViewTexture)
     tc, xyz = page_tcoords(src, pgi, ij, pts, (pg.Lt, pg.gL, pg.gX, pg.gY, pg.ax, pg.ay),
                            step, GUTTER, (pg.AW, pg.AH))
-    atlas.setflags(write=False)  # shown by VTK without a copy (rendering._image_data)
     lv, nlv = np.unique(pg.Lt, return_counts=True)
-    st = {"textures_built": shader.built - built0, "texture_tiles": len(placed),
-          "textures_deferred": deferred, "pages": pg.G,
-          "texel_levels": {int(a): int(b) for a, b in zip(lv, nlv, strict=True)},
-          "atlas": [int(pg.AW), int(pg.AH)],
-          "texture_ms": round((time.perf_counter() - t0) * 1e3, 3)}
-    return ViewTexture(xyz, faces, tc, src, atlas, st)
+    st.update(pages=pg.G, texel_levels={int(a): int(b) for a, b in zip(lv, nlv, strict=True)},
+              atlas=[int(pg.AW), int(pg.AH)],
+              texture_ms=round((time.perf_counter() - t0) * 1e3, 3))
+    return ViewTexture(xyz, faces, tc, src, atlas, st, layout)
+
+
+def _layout(pg: _Pages, tiles: tuple[np.ndarray, ...], generation: int, shader) -> bytes:
+    """What an atlas's texels depend on: its size, each page's texel level, tile, place
+    and the range of its tiles written, the terrain's edits and the style."""
+    head = np.array([pg.AW, pg.AH, generation, id(shader)], np.int64)
+    return b"".join(np.ascontiguousarray(a, np.int64).tobytes() for a in (
+        head, pg.Lt, pg.gL, pg.gX, pg.gY, pg.ax, pg.ay, *tiles))
 
 
 def _mesh_arrays(selection) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -398,25 +426,32 @@ class _Stored:
         return (L, x, y) in self.info if L >= 0 else (0, x >> -L, y >> -L) in self.info
 
 
-def _place(pg: _Pages, stored, step: int, atlas: np.ndarray) -> tuple[list, np.ndarray]:
-    """Where each page's tiles that its faces touch go in ``atlas``: (tile key, row,
-    column) of the stored ones (a tile not stored is written grey now), and per page the
-    rectangle (row, column, height, width) its tiles cover."""
+def _tile_ranges(pg: _Pages, step: int) -> tuple[np.ndarray, ...]:
+    """Per page, the rows ty0 … ty1 and columns tx0 … tx1 of its level-Lt tiles that its
+    faces' samples touch (whole arrays, (G,) each)."""
+    span = np.left_shift(step, pg.gL)  # the footprint's width in full-resolution samples
+    bi, bj = pg.gY * span, pg.gX * span
+    # a tile's width in level-0 samples
+    wt = np.where(pg.Lt >= 0, np.left_shift(step, np.maximum(pg.Lt, 0)),
+                  np.right_shift(step, np.maximum(-pg.Lt, 0)))
+    last = np.left_shift(1, pg.k) - 1
+    return (np.minimum(last, (pg.ilo - bi) // wt), np.minimum(last, (pg.ihi - bi - 1) // wt),
+            np.minimum(last, (pg.jlo - bj) // wt), np.minimum(last, (pg.jhi - bj - 1) // wt))
+
+
+def _place(pg: _Pages, tiles: tuple[np.ndarray, ...], stored, step: int, atlas: np.ndarray
+           ) -> tuple[list, np.ndarray]:
+    """Where each page's tiles that its faces touch (``tiles``: :func:`_tile_ranges`) go
+    in ``atlas``: (tile key, row, column) of the stored ones (a tile not stored is written
+    grey now), and per page the rectangle (row, column, height, width) its tiles cover."""
     rect = np.empty((pg.G, 4), np.int64)
     # one step per page, on Python ints (numpy scalars cost more than the step itself);
     # the texels are whole-array copies
     placed = []
-    for gi, (lt, kk, gl, gy, gx, py, px, i0, i1, j0, j1) in enumerate(zip(
-            pg.Lt.tolist(), pg.k.tolist(), pg.gL.tolist(), pg.gY.tolist(), pg.gX.tolist(),
-            pg.ay.tolist(), pg.ax.tolist(), pg.ilo.tolist(), pg.ihi.tolist(),
-            pg.jlo.tolist(), pg.jhi.tolist(), strict=True)):
-        span = step << gl  # the footprint's width in full-resolution samples
-        bi, bj = gy * span, gx * span
+    for gi, (lt, kk, gy, gx, py, px, ty0, ty1, tx0, tx1) in enumerate(zip(
+            pg.Lt.tolist(), pg.k.tolist(), pg.gY.tolist(), pg.gX.tolist(),
+            pg.ay.tolist(), pg.ax.tolist(), *(a.tolist() for a in tiles), strict=True)):
         y0, x0 = py + GUTTER, px + GUTTER
-        wt = step << lt if lt >= 0 else step >> -lt  # a tile's width in level-0 samples
-        last = (1 << kk) - 1
-        ty0, ty1 = min(last, (i0 - bi) // wt), min(last, (i1 - bi - 1) // wt)
-        tx0, tx1 = min(last, (j0 - bj) // wt), min(last, (j1 - bj - 1) // wt)
         # the texels written: these tiles' rectangle, whose border gets a gutter
         rect[gi] = (y0 + ty0 * step, x0 + tx0 * step, (ty1 - ty0 + 1) * step + 1,
                     (tx1 - tx0 + 1) * step + 1)

@@ -414,3 +414,60 @@ def test_one_pass_footprint_groups_are_the_three_passes(F, V, data):
     for a, b in zip((lo, hi, ilo, ihi), group_boxes(faces, want, pts, ij, n), strict=True):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(facing, group_facing(faces, want, pts, eye, n))
+
+
+@pytest.mark.fast
+def test_an_unchanged_atlas_is_kept_and_no_picture_changes(tmp_path_factory):
+    """A frame whose atlas would hold the same tiles at the same places keeps the one
+    shown (no texel copied or uploaded); no picture differs from a fresh scene's."""
+    t = _fresh(tmp_path_factory)
+    size = (320, 200)
+    a = default_view(t, size)
+    b = default_view(t, size, azimuth=100.0, elevation=25.0)
+    scene = TerrainScene(_plotter(size), t)
+    try:
+        img_a, st_a = scene.frame(a)
+        img_a2, st_a2 = scene.frame(a)  # the same view: the same atlas, kept
+        img_b, st_b = scene.frame(b)
+        img_a3, st_a3 = scene.frame(a)  # another atlas was shown in between
+    finally:
+        scene.plotter.close()
+    assert not st_a["atlas_reused"] and st_a2["atlas_reused"] and st_a2["textures_built"] == 0
+    assert not st_b["atlas_reused"] and not st_a3["atlas_reused"]
+    assert np.array_equal(img_a2, img_a) and np.array_equal(img_a3, img_a)
+    fresh = TerrainScene(_plotter(size), _fresh(tmp_path_factory))
+    try:
+        assert np.array_equal(fresh.frame(b)[0], img_b)
+    finally:
+        fresh.plotter.close()
+
+
+@pytest.mark.fast
+def test_an_atlas_is_not_kept_across_an_edit_or_a_budget(tmp_path_factory):
+    t = _fresh(tmp_path_factory)
+    v = View((0, -900, 500), (0, 0, 0), size=(320, 240))
+    sel = lod.select(t, v)
+    shader = TileShader(t)
+    first = build_view_texture(t, sel, v, shader)
+    again = build_view_texture(t, sel, v, shader, previous=first)
+    assert again.stats["atlas_reused"] and again.image is first.image
+    assert np.array_equal(again.tcoords, first.tcoords) and np.array_equal(again.faces,
+                                                                           first.faces)
+    other = build_view_texture(t, sel, v, TileShader(t, "elevation"), previous=first)
+    assert not other.stats["atlas_reused"]  # another style
+    t.generation += 1  # as an edit taken in by refresh() counts it
+    assert not build_view_texture(t, sel, v, shader, previous=first).stats["atlas_reused"]
+    # an atlas with tiles cut from their ancestors (a frame's budget) is never kept
+    t2 = _fresh(tmp_path_factory, size=1025)
+    lo, hi = t2.scene_box()
+    c = 0.5 * (lo + hi)
+    far = default_view(t2, (320, 200))
+    near = View((float(lo[0]) - 100.0, float(lo[1]) - 100.0, float(hi[2]) + 80.0),
+                (float(c[0]), float(c[1]), float(c[2])), size=(320, 200))
+    shader2 = TileShader(t2)
+    build_view_texture(t2, lod.select(t2, far, 1.0), far, shader2)  # the coarse tiles
+    sel2 = lod.select(t2, near, 1.0)
+    part = build_view_texture(t2, sel2, near, shader2, max_builds=3)
+    assert part.stats["textures_deferred"] > 0 and part.layout is None
+    assert not build_view_texture(t2, sel2, near, shader2, max_builds=3,
+                                  previous=part).stats["atlas_reused"]
