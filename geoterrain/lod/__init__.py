@@ -180,7 +180,7 @@ def _finish(terrain: TerrainLike, mesh, stats: dict, strategy: str, t0: float, d
     ms = (time.perf_counter() - t0) * 1e3
     n = mesh.GetNumberOfCells()
     counted = {}
-    if "triangles" not in stats:
+    if not {"triangles", "skirt_triangles"} <= stats.keys():
         arr = mesh.GetCellData().GetArray("skirt") if n else None  # VTK calls: no wrapper cost
         skirt = vtk_to_numpy(arr) if arr is not None else np.zeros(0, np.uint8)
         none = not np.count_nonzero(skirt)  # one pass; most meshes have no skirt
