@@ -14,14 +14,13 @@ safe in the renderer) whatever the CRS coordinates are.
 from __future__ import annotations
 
 import os
+import re
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
-from pyproj import CRS, Transformer
-from pyproj.crs import ProjectedCRS
-from pyproj.crs.coordinate_operation import AzimuthalEquidistantConversion
 
 # what a frame may hold, and a store's reader checks (core/limits.py)
 from geoterrain.core.limits import (  # noqa: F401 - part of this module's API
@@ -31,6 +30,12 @@ from geoterrain.core.limits import (  # noqa: F401 - part of this module's API
     Z_SCALE_RANGE,
 )
 from geoterrain.exceptions import InputError, UsageError
+
+if TYPE_CHECKING:
+    from pyproj import CRS, Transformer
+
+# pyproj (a tenth of a second of CPU to import) is loaded where a frame is built or a
+# transform runs: a command that only reads a store's numbers (``info``) never loads it
 
 # Vertical units a user may state (metres per unit); pyproj supplies horizontal ones.
 Z_UNITS = {"m": 1.0, "ft": 0.3048, "us-ft": 1200.0 / 3937.0}
@@ -94,6 +99,8 @@ class Frame:
             raise InputError("the raster has a CRS but no geotransform; cannot place it")
         if transform[1] != 0 or transform[3] != 0:
             raise InputError("rotated geotransforms are not supported; warp the DEM north-up first")
+        from pyproj import CRS
+
         crs = CRS.from_wkt(crs_wkt)
         if crs.is_geographic:
             a, _, c, _, e, f = transform
@@ -118,6 +125,10 @@ class Frame:
         origin = (float(ox[0]), float(oy[0]))
         aeqd = None
         if self.kind == "geographic":
+            from pyproj import CRS
+            from pyproj.crs import ProjectedCRS
+            from pyproj.crs.coordinate_operation import AzimuthalEquidistantConversion
+
             geod = CRS.from_wkt(self.crs_wkt).geodetic_crs
             conv = AzimuthalEquidistantConversion(latitude_natural_origin=origin[1],
                                                   longitude_natural_origin=origin[0])
@@ -145,6 +156,8 @@ class Frame:
     def _to_scene(self) -> Transformer | None:
         if self.kind != "geographic":
             return None
+        from pyproj import CRS, Transformer
+
         return Transformer.from_crs(CRS.from_wkt(self.crs_wkt), CRS.from_wkt(self.aeqd_wkt),
                                     always_xy=True)
 
@@ -253,6 +266,7 @@ class Frame:
 
         Examples
         --------
+        >>> from pyproj import CRS
         >>> wkt = CRS.from_epsg(4326).to_wkt()
         >>> world = Frame.from_raster((0.25, 0, -180, 0, -0.25, 90), wkt, 720, 1440)
         >>> world.flat_problem()
@@ -267,6 +281,8 @@ class Frame:
                                         ("south", lat0 <= -90.0 + 0.5 * abs(e))) if hit]
         if poles:
             return f"it reaches the {' and '.join(poles)} pole{'s' if len(poles) > 1 else ''}"
+        from pyproj import CRS
+
         geod = CRS.from_wkt(self.crs_wkt).get_geod()
         lon_span = min(abs(a) * self.cols, 360.0)
         lat_eq = min(max(0.0, lat0), lat1)  # the spanned latitude nearest the equator
@@ -281,7 +297,25 @@ class Frame:
 
     @property
     def crs_name(self) -> str:
-        return CRS.from_wkt(self.crs_wkt).name if self.crs_wkt else "none (pixel units)"
+        """The CRS's name: its WKT's root name where the root is a plain CRS (what
+        pyproj's ``CRS.name`` gives, without loading pyproj), else pyproj's.
+
+        Examples
+        --------
+        >>> Frame.pixel(3, 3).crs_name
+        'none (pixel units)'
+        >>> Frame("projected", 3, 3, (1, 0, 0, 0, -1, 0), 'PROJCS["NAD83 / UTM zone 17N",'
+        ...       'GEOGCS["NAD83"]]').crs_name
+        'NAD83 / UTM zone 17N'
+        """
+        if not self.crs_wkt:
+            return "none (pixel units)"
+        m = _WKT_ROOT.match(self.crs_wkt)
+        if m:
+            return m.group(2).replace('""', '"')
+        from pyproj import CRS
+
+        return CRS.from_wkt(self.crs_wkt).name
 
     def to_json(self) -> dict:
         return asdict(self)
@@ -292,6 +326,11 @@ class Frame:
         d["transform"] = tuple(d["transform"])
         d["origin_crs"] = tuple(d["origin_crs"])
         return Frame(**d)
+
+
+# a WKT 1 or 2 root that is a plain CRS, and its name (a quote inside it doubled)
+_WKT_ROOT = re.compile(r'\s*(PROJCS|GEOGCS|GEOCCS|PROJCRS|GEOGCRS|GEODCRS)\s*\[\s*'
+                       r'"((?:[^"]|"")*)"\s*,')
 
 
 def check_flat(frame: Frame, name: str) -> None:

@@ -173,15 +173,20 @@ def _finish(terrain: TerrainLike, mesh, stats: dict, strategy: str, t0: float, d
 
     from geoterrain.lod.mesh import add_elevation  # (pyvista: loaded with the first mesh)
 
-    if not elevated:  # (the static mesh computes it with its positions)
+    # a strategy whose mesh has its elevation, and counts its triangles, as it assembles
+    # it says so (stats "elevated" and "triangles"): no pass over the mesh here
+    if not (elevated or stats.pop("elevated", False)):  # (static: computed with positions)
         add_elevation(mesh, terrain.frame.z_scale)  # every strategy's mesh, skirts included
     ms = (time.perf_counter() - t0) * 1e3
     n = mesh.GetNumberOfCells()
-    arr = mesh.GetCellData().GetArray("skirt") if n else None  # VTK calls: no wrapper cost
-    skirt = vtk_to_numpy(arr) if arr is not None else np.zeros(0, np.uint8)
-    none = not np.count_nonzero(skirt)  # one pass; most meshes have no skirt
-    stats = {"strategy": strategy, "triangles": n if none else int((skirt == 0).sum()),
-             "skirt_triangles": 0 if none else int((skirt == 1).sum()),
+    counted = {}
+    if not {"triangles", "skirt_triangles"} <= stats.keys():
+        arr = mesh.GetCellData().GetArray("skirt") if n else None  # VTK calls: no wrapper cost
+        skirt = vtk_to_numpy(arr) if arr is not None else np.zeros(0, np.uint8)
+        none = not np.count_nonzero(skirt)  # one pass; most meshes have no skirt
+        counted = {"triangles": n if none else int((skirt == 0).sum()),
+                   "skirt_triangles": 0 if none else int((skirt == 1).sum())}
+    stats = {"strategy": strategy, **counted,
              "vertices": int(mesh.GetNumberOfPoints()),
              "tiles_visited": 0, "tiles_culled": 0, **stats,
              "tiles_decoded": int(terrain.decoded_tiles - dec0),

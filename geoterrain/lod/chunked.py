@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from geoterrain.core.view import View
-from geoterrain.lod.chunks import assemble_chunks, chunk_error, chunk_leaves, morph_heights
+from geoterrain.lod.chunks import assemble_counted, chunk_error, chunk_leaves, morph_heights
 from geoterrain.lod.morph import MORPH_START
 from geoterrain.lod.tiles import tile_index
 
@@ -61,4 +61,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
             stats["morph_band"] = (tau_min, tau)
         depth_all = float(np.max(be[np.isfinite(be)], initial=0.0))
         depth = np.where(np.isfinite(be), be, 0.0) + depth_all
-    return assemble_chunks(terrain, index, leaves, depth, zm), stats
+    mesh, n_surf, n_skirt = assemble_counted(terrain, index, leaves, depth, zm)
+    # counted and elevated while assembled: the selection's finish makes no pass over it
+    stats.update(triangles=n_surf, skirt_triangles=n_skirt, elevated=True)
+    return mesh, stats

@@ -42,7 +42,7 @@ import numpy as np
 from numba import njit
 
 from geoterrain.lod.kernels import close_upward, extract
-from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
+from geoterrain.lod.mesh import add_elevation, empty_polydata, orient_ccw, polydata
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import TileIndex, TileTree, tile_table
 
@@ -281,8 +281,9 @@ def _build(terrain: TerrainLike, index: TileIndex, row: int, cache: dict) -> Chu
 class PackedChunks(NamedTuple):
     """The packed chunks as :func:`_gather_chunks` reads them (:meth:`_Packed.arrays`):
     per index row its first vertex ``vo``, face ``fo`` and skirt segment ``so``, their
-    counts ``nv``, ``nf``, ``ns`` and its level ``lvl``; every chunk's vertices ``xyz``,
-    ``ij``, faces and skirt segments ``seg`` end to end."""
+    counts ``nv``, ``nf``, ``ns`` and its level ``lvl``; every chunk's vertices ``xyz``
+    (float64), ``ij`` (float64, as the mesh holds them), faces (int32, the chunk's own
+    vertex ids) and skirt segments ``seg`` end to end."""
 
     vo: np.ndarray
     fo: np.ndarray
@@ -299,10 +300,13 @@ class PackedChunks(NamedTuple):
 
 class ChunkMesh(NamedTuple):
     """A frame's chunked mesh as :func:`_gather_chunks` writes it: per vertex ``xyz`` and
-    grid ``ij``, per face its vertices ``faces``, ``level`` and ``skirt`` flag."""
+    grid ``ij`` (float64), ``elevation`` (float32 metres: scene z × ``inv_scale``, as
+    :func:`~geoterrain.lod.mesh.add_elevation` computes it), per face its vertices
+    ``faces`` (int32), ``level`` and ``skirt`` flag."""
 
     xyz: np.ndarray
     ij: np.ndarray
+    elevation: np.ndarray
     faces: np.ndarray
     level: np.ndarray
     skirt: np.ndarray
@@ -320,8 +324,9 @@ class _Packed:
         self.nf = np.zeros(n_rows, np.int64)
         self.ns = np.zeros(n_rows, np.int64)
         self.lvl = np.zeros(n_rows, np.int16)
-        self.xyz, self.ij = np.zeros((0, 3)), np.zeros((0, 2), np.int64)
-        self.faces, self.seg = np.zeros((0, 3), np.int64), np.zeros((0, 2), np.int64)
+        # the dtypes the frame's mesh has: a frame copies them block by block, unconverted
+        self.xyz, self.ij = np.zeros((0, 3)), np.zeros((0, 2))
+        self.faces, self.seg = np.zeros((0, 3), np.int32), np.zeros((0, 2), np.int64)
         # per vertex: where it lies on the parent chunk (morphing only), laid out as the
         # vertices and filled for the rows ``weighed``
         self.pid, self.pw = np.zeros((0, 3), np.int64), np.zeros((0, 3))
@@ -342,7 +347,7 @@ class _Packed:
         self.lvl[row] = ch.level
         self.xyz = self._put(self.xyz, self.V, ch.xyz)
         self.ij = self._put(self.ij, self.V, ch.ij)
-        self.faces = self._put(self.faces, self.F, ch.faces)
+        self.faces = self._put(self.faces, self.F, ch.faces)  # local ids: int32 holds them
         self.seg = self._put(self.seg, self.S, ch.skirt_ab)
         self.V += len(ch.xyz)
         self.F += len(ch.faces)
@@ -365,13 +370,14 @@ def _packed(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray) -> _Pack
 
 
 @njit(cache=True, nogil=True)
-def _gather_chunks(leaves, depth, packed, mesh, zmorph):
+def _gather_chunks(leaves, depth, packed, mesh, zmorph, inv_scale):
     """Copy the chunks of ``leaves`` (from ``packed``: :class:`PackedChunks`) into the
     output arrays ``mesh`` (:class:`ChunkMesh`): surfaces first (heights from ``zmorph``
     when it is not empty), then two hanging vertices per skirt segment (a, b), ``depth``
-    below, and triangles (a, b', b), (a, a', b')."""
+    below, and triangles (a, b', b), (a, a', b'); each vertex's elevation is its scene z
+    × ``inv_scale``."""
     vo, fo, so, nv, nf, ns, lvl, XYZ, IJ, FACES, SEG = packed
-    xyz, ij, faces, level, skirt = mesh
+    xyz, ij, elevation, faces, level, skirt = mesh
     V = 0
     F = 0
     morph = zmorph.shape[0] > 0
@@ -381,7 +387,9 @@ def _gather_chunks(leaves, depth, packed, mesh, zmorph):
         for v in range(nv[r]):
             xyz[V + v, 0] = XYZ[o + v, 0]
             xyz[V + v, 1] = XYZ[o + v, 1]
-            xyz[V + v, 2] = zmorph[V + v] if morph else XYZ[o + v, 2]
+            z = zmorph[V + v] if morph else XYZ[o + v, 2]
+            xyz[V + v, 2] = z
+            elevation[V + v] = z * inv_scale
             ij[V + v, 0] = IJ[o + v, 0]
             ij[V + v, 1] = IJ[o + v, 1]
         o = fo[r]
@@ -408,6 +416,8 @@ def _gather_chunks(leaves, depth, packed, mesh, zmorph):
                 ij[sb, c] = ij[b, c]
             xyz[sa, 2] = xyz[a, 2] - depth[k]
             xyz[sb, 2] = xyz[b, 2] - depth[k]
+            elevation[sa] = xyz[sa, 2] * inv_scale
+            elevation[sb] = xyz[sb, 2] * inv_scale
             faces[F, 0], faces[F, 1], faces[F, 2] = a, sb, b
             faces[F + 1, 0], faces[F + 1, 1], faces[F + 1, 2] = a, sa, sb
             level[F] = lvl[r]
@@ -423,7 +433,9 @@ def assemble_chunks(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray,
                     skirt_depth: np.ndarray | None = None, zmorph: np.ndarray | None = None):
     """One mesh of the chunks of ``leaves`` with skirts ``skirt_depth[k]`` deep (seed 000
     §skirts; none where 0 or None), their vertices at heights ``zmorph`` (the chunks'
-    vertices in order, :func:`morph_heights`) if given. Cell data ``skirt`` and ``level``.
+    vertices in order, :func:`morph_heights`) if given. Cell data ``skirt`` and ``level``;
+    point data ``grid_ij`` and ``elevation`` (active, as
+    :func:`~geoterrain.lod.mesh.add_elevation` makes it).
 
     Examples
     --------
@@ -432,20 +444,33 @@ def assemble_chunks(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray,
     >>> assemble_chunks(t, ix, ix.rows_of(np.array([[t.grid.top_level, 0, 0]]))).n_cells > 0
     True
     """
+    return assemble_counted(terrain, index, leaves, skirt_depth, zmorph)[0]
+
+
+def assemble_counted(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray,
+                     skirt_depth: np.ndarray | None = None,
+                     zmorph: np.ndarray | None = None) -> tuple[object, int, int]:
+    """:func:`assemble_chunks`, and its numbers of surface and skirt triangles (known
+    before the mesh is filled: no pass over it to count them)."""
     leaves = np.asarray(leaves, np.int64)
     if not len(leaves):
-        return empty_polydata()
+        return empty_polydata(), 0, 0
     depth = np.zeros(len(leaves)) if skirt_depth is None else np.asarray(skirt_depth, float)
     pk = _packed(terrain, index, leaves)
-    ns = np.where(depth > 0, pk.ns[leaves], 0)
-    V = int(pk.nv[leaves].sum()) + 2 * int(ns.sum())
-    F = int(pk.nf[leaves].sum()) + 2 * int(ns.sum())
+    n_skirt = 2 * int(pk.ns[leaves][depth > 0].sum())
+    n_surf = int(pk.nf[leaves].sum())
+    V = int(pk.nv[leaves].sum()) + n_skirt
+    F = n_surf + n_skirt
     # the layouts the PolyData wraps without a copy: float64 grid_ij, int32 faces
-    xyz, ij = np.empty((V, 3)), np.empty((V, 2))
+    xyz, ij, elev = np.empty((V, 3)), np.empty((V, 2)), np.empty(V, np.float32)
     faces, level, skirt = np.empty((F, 3), np.int32), np.empty(F, np.int16), np.empty(F, np.uint8)
     zm = np.zeros(0) if zmorph is None else np.asarray(zmorph, np.float64)
-    _gather_chunks(leaves, depth, pk.arrays(), ChunkMesh(xyz, ij, faces, level, skirt), zm)
-    return polydata(xyz, faces, ij, {"skirt": skirt, "level": level})
+    z_scale = float(terrain.frame.z_scale)
+    _gather_chunks(leaves, depth, pk.arrays(), ChunkMesh(xyz, ij, elev, faces, level, skirt), zm,
+                   1.0 / z_scale)
+    mesh = polydata(xyz, faces, ij, {"skirt": skirt, "level": level})
+    add_elevation(mesh, z_scale, elev)  # (filled by the gather, with add_elevation's formula)
+    return mesh, n_surf, n_skirt
 
 
 # ---------------------------------------------------------------- morphing to the parent

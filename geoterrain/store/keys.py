@@ -16,8 +16,10 @@ from __future__ import annotations
 
 from functools import lru_cache
 
+import numpy as np
+
 __all__ = ["BLOB_KINDS", "BLOCK_KIND", "EDGE_KIND", "KIND_CODES", "blob_key", "tile_key",
-           "unpack_blob_key", "unpack_tile_key"]
+           "unpack_blob_key", "unpack_tile_key", "unpack_tile_keys"]
 
 BLOB_KINDS = ("heights", "delta", "radius", "normals")
 # optional: a second δ (padding replicated, geoterrain/bounds/edgepad.py) on the tiles that the
@@ -77,6 +79,33 @@ def unpack_tile_key(k: int) -> tuple[int, int, int]:
         raise ValueError(f"tile key {k} is negative")
     m = k >> 5
     return k & 31, _gather(m), _gather(m >> 1)
+
+
+def _gather_even(m: np.ndarray) -> np.ndarray:
+    """The even bits of each ``m`` (uint64), packed: :func:`_gather` on whole arrays."""
+    m = m & np.uint64(0x5555555555555555)
+    for shift, mask in ((1, 0x3333333333333333), (2, 0x0F0F0F0F0F0F0F0F),
+                        (4, 0x00FF00FF00FF00FF), (8, 0x0000FFFF0000FFFF),
+                        (16, 0x00000000FFFFFFFF)):
+        m = (m | (m >> np.uint64(shift))) & np.uint64(mask)
+    return m.astype(np.int64)
+
+
+def unpack_tile_keys(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(level, x, y) arrays of many :func:`tile_key` numbers at once (int64); ValueError
+    where one is negative.
+
+    Examples
+    --------
+    >>> L, x, y = unpack_tile_keys(np.array([tile_key((3, 5, 9)), tile_key((0, 1, 1))]))
+    >>> L.tolist(), x.tolist(), y.tolist()
+    ([3, 0], [5, 1], [9, 1])
+    """
+    k = np.asarray(keys, np.int64)
+    if k.size and int(k.min()) < 0:
+        raise ValueError(f"tile key {int(k.min())} is negative")
+    m = (k >> 5).astype(np.uint64)
+    return k & 31, _gather_even(m), _gather_even(m >> np.uint64(1))
 
 
 def blob_key(key: tuple[int, int, int], kind: str) -> int:

@@ -2,8 +2,10 @@ import numpy as np
 import pytest
 from pyproj import CRS, Geod
 
+import geoterrain
 from geoterrain.core.frame import Frame
 from geoterrain.ingest.raster import read_raster
+from geoterrain.ingest.synth import generate, write_geotiff
 from tests.conftest import real_dem
 
 
@@ -60,3 +62,30 @@ def test_crs_round_trip_and_pixel_frame():
 def test_z_units_and_scale():
     f = Frame.pixel(2, 2, z_to_m=0.3048, z_scale=2.0)
     assert f.z(np.array([10.0]))[0] == pytest.approx(6.096)
+
+
+@pytest.mark.parametrize("version", ["WKT1_GDAL", "WKT2_2019"])
+@pytest.mark.parametrize("epsg", [4326, 4269, 32633, 3857, 3089, 2056, 27700, 4978, 3035, 6933,
+                                  5070, 4258, 7415])
+def test_crs_name_without_pyproj_is_pyprojs(epsg, version):
+    """The name read from the WKT's root (no pyproj import) is pyproj's CRS.name, for plain
+    and compound CRSs, WKT 1 and 2; a root it does not read goes to pyproj."""
+    wkt = CRS.from_epsg(epsg).to_wkt(version)
+    f = Frame("projected", 3, 3, (1.0, 0.0, 0.0, 0.0, -1.0, 0.0), wkt)
+    assert f.crs_name == CRS.from_wkt(wkt).name
+
+
+def test_info_does_not_import_pyproj(tmp_path):
+    """``geoterrain info`` reads a store's numbers only: pyproj stays unloaded."""
+    import subprocess
+    import sys
+
+    z = generate("fbm", 65, seed=1)
+    store = geoterrain.preprocess(write_geotiff(tmp_path / "d.tif", z), tmp_path / "d.geoterrain")
+    code = ("import sys; from geoterrain.cli.main import main\n"
+            f"sys.argv = ['geoterrain', 'info', {str(store)!r}]\n"
+            "try:\n    main()\nexcept SystemExit:\n    pass\n"
+            "print('PYPROJ', 'pyproj' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert "PYPROJ False" in out, out

@@ -478,3 +478,21 @@ def test_a_table_claiming_more_than_its_bytes_allow_is_refused():
         unpack_tiles(struct.pack("<BII", 0, 10, 40) + bytes(80))
 
 
+
+
+def test_tile_keys_unpack_as_arrays_as_one_by_one():
+    """``unpack_tile_keys`` (whole arrays) gives what ``unpack_tile_key`` gives per key."""
+    from geoterrain.store.keys import tile_key, unpack_tile_key, unpack_tile_keys
+
+    @settings(max_examples=50, deadline=None)
+    @given(st.lists(st.tuples(st.integers(0, 31), st.integers(0, (1 << 26) - 1),
+                              st.integers(0, (1 << 26) - 1)), max_size=20))
+    def check(keys):
+        k = [tile_key(key) for key in keys]
+        L, x, y = unpack_tile_keys(np.array(k, np.int64))
+        assert list(zip(L.tolist(), x.tolist(), y.tolist(), strict=True)) == \
+            [unpack_tile_key(v) for v in k]
+
+    check()
+    with pytest.raises(ValueError):
+        unpack_tile_keys(np.array([5, -1]))
