@@ -91,10 +91,11 @@ from geoterrain.store.keys import (  # noqa: F401 - the kinds and keys are the s
 )
 from geoterrain.store.pagepack import LEAF_HEADER, leaf_cell_size, pack_order
 
-SCHEMA_VERSION = 5  # 2: checksums bound to their tile and kind; per-level key digests;
+SCHEMA_VERSION = 6  # 2: checksums bound to their tile and kind; per-level key digests;
 #                    3: packed integer keys, bare blob rows found through blob_keys;
 #                    4: metadata, tile numbers and blob keys in compressed catalog rows;
-#                    5: height blobs of version 2 (range-coded, geoterrain/codec/entropy.py)
+#                    5: height blobs of version 2 (range-coded, geoterrain/codec/entropy.py);
+#                    6: δ and r blobs may hold cell centres only (vertexdata.CENTRES)
 PAGE_SIZE = 1024  # bytes per SQLite page of a written store
 PACK_BYTES = 4 << 20  # blob bytes a writer holds before inserting them, packed (pagepack)
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
