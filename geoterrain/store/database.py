@@ -89,7 +89,7 @@ from geoterrain.store.keys import (  # noqa: F401 - the kinds and keys are the s
     unpack_blob_key,
     unpack_tile_key,
 )
-from geoterrain.store.pagepack import LEAF_HEADER, leaf_cell_size, pack_order
+from geoterrain.store.pagepack import LEAF_HEADER, blob_cell_sizes, pack_order
 
 SCHEMA_VERSION = 6  # 2: checksums bound to their tile and kind; per-level key digests;
 #                    3: packed integer keys, bare blob rows found through blob_keys;
@@ -282,7 +282,8 @@ class StoreWriter:
         if not rows:
             return
         last = self._rowid + len(rows)  # cells are sized with the batch's largest rowid
-        sizes = [leaf_cell_size((None, *r[1:]), last, PAGE_SIZE) for r in rows]
+        sizes = blob_cell_sizes([len(r[1]) for r in rows], [r[2] for r in rows], last,
+                                PAGE_SIZE).tolist()
         order = pack_order(sizes, PAGE_SIZE - LEAF_HEADER)
         self.con.executemany("INSERT INTO blobs VALUES (NULL,?,?)",
                              (rows[i][1:] for i in order))
