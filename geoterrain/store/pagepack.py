@@ -112,9 +112,9 @@ def blob_cell_sizes(lengths, crcs, rowid: int, usable: int) -> np.ndarray:
     data's lengths and the CRCs (0 … 2^32 − 1): a store's writer sizes thousands of rows.
 
     >>> blob_cell_sizes([600], [7], 1, 1024).tolist()
-    [609]
+    [611]
     >>> leaf_cell_size((None, bytes(600), 7), 1, 1024)
-    609
+    611
     """
     n = np.asarray(lengths, np.int64)
     c = np.asarray(crcs, np.int64)
