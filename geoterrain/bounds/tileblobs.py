@@ -36,6 +36,7 @@ from geoterrain.bounds.vertexdata import (
     ring_new_index,
     ring_planes,
     scale_exponent,
+    shape_codes,
 )
 from geoterrain.core.rounding import round_up
 from geoterrain.core.threads import cores_for, parallel_kernel
@@ -333,10 +334,10 @@ def _level_payloads(codes, nrm, ys, xs, t, level, new_only, out):
                     pn[k, base + i * T + j] = np.uint8(v & 0xFF)
 
 
-def compress_rows(rows: np.ndarray, prefix: bytes | list[bytes] = b"",
+def compress_rows(rows: np.ndarray | list[np.ndarray], prefix: bytes | list[bytes] = b"",
                   level: int = _ZSTD_LEVEL) -> list[bytes]:
-    """``prefix + zstd(row)`` of every row of a 2-D uint8 array, in one call on every core
-    (``prefix`` may be one per row).
+    """``prefix + zstd(row)`` of every row of a 2-D uint8 array (or a list of uint8 rows),
+    in one call on every core (``prefix`` may be one per row).
 
     Examples
     --------
@@ -346,7 +347,8 @@ def compress_rows(rows: np.ndarray, prefix: bytes | list[bytes] = b"",
     >>> [d.decompress(b[1:]) == r.tobytes() for b, r in zip(compress_rows(rows, b"v"), rows)]
     [True, True, True]
     """
-    rows = np.ascontiguousarray(rows, np.uint8)
+    if not isinstance(rows, list):  # a list: rows of different lengths
+        rows = np.ascontiguousarray(rows, np.uint8)
     heads = [prefix] * len(rows) if isinstance(prefix, bytes) else list(prefix)
     return [h + f for h, f in zip(heads, compress_many([r.tobytes() for r in rows], level),
                                   strict=True)]
@@ -426,9 +428,21 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         head_d = [head_d if s <= 0 else bytes([head_d[0], head_d[1] | SLACK, head_d[2]])
                   + np.float32(s).astype("<f4").tobytes()
                   for s in (float(slack.get(k, 0.0)) for k in keys)]
+    # schema 6's CENTRES (vertexdata.shape_codes): a tile whose new vertices off the cell
+    # centres all have code 0 (a geographic level-0 r: leaves) stores the centres only
+    if new_only and k and T >= 3 and "delta" in kinds and not flags_d & (RING | DIFF):
+        pd, head_d = _shaped(pd, head_d)
+    if new_only and k and T >= 3 and rlog and "radius" in kinds and not flags_r & RING:
+        pr, head_r = _shaped(pr, head_r)
     rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
     blobs = {kind: dict(zip(keys, compress_rows(*rows[kind]), strict=True)) for kind in kinds}
     return blobs, dmax, rmax
+
+
+def _shaped(p: np.ndarray, head: bytes) -> tuple[list[np.ndarray], list[bytes]]:
+    # each tile's payload shaped (vertexdata.shape_codes) and its header with the flag
+    rows, flags = shape_codes(p)
+    return rows, [bytes([head[0], head[1] | int(f), head[2]]) for f in flags]
 
 
 def ring_blobs(nrm: np.ndarray, t: int, tiles: Iterable[tuple[int, int]],

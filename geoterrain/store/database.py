@@ -90,14 +90,15 @@ from geoterrain.store.keys import (  # noqa: F401 - the kinds and keys are the s
     unpack_tile_key,
     unpack_tile_keys,
 )
-from geoterrain.store.pagepack import LEAF_HEADER, leaf_cell_size, pack_order
+from geoterrain.store.pagepack import LEAF_HEADER, blob_cell_sizes, pack_order
 
 _KIND_NAMES = {i: k for k, i in KIND_CODES.items()}  # a blob key's kind number → its name
 
-SCHEMA_VERSION = 5  # 2: checksums bound to their tile and kind; per-level key digests;
+SCHEMA_VERSION = 6  # 2: checksums bound to their tile and kind; per-level key digests;
 #                    3: packed integer keys, bare blob rows found through blob_keys;
 #                    4: metadata, tile numbers and blob keys in compressed catalog rows;
-#                    5: height blobs of version 2 (range-coded, geoterrain/codec/entropy.py)
+#                    5: height blobs of version 2 (range-coded, geoterrain/codec/entropy.py);
+#                    6: δ and r blobs may hold cell centres only (vertexdata.CENTRES)
 PAGE_SIZE = 1024  # bytes per SQLite page of a written store
 PACK_BYTES = 4 << 20  # blob bytes a writer holds before inserting them, packed (pagepack)
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
@@ -284,7 +285,8 @@ class StoreWriter:
         if not rows:
             return
         last = self._rowid + len(rows)  # cells are sized with the batch's largest rowid
-        sizes = [leaf_cell_size((None, *r[1:]), last, PAGE_SIZE) for r in rows]
+        sizes = blob_cell_sizes([len(r[1]) for r in rows], [r[2] for r in rows], last,
+                                PAGE_SIZE).tolist()
         order = pack_order(sizes, PAGE_SIZE - LEAF_HEADER)
         self.con.executemany("INSERT INTO blobs VALUES (NULL,?,?)",
                              (rows[i][1:] for i in order))

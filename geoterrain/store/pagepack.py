@@ -24,6 +24,8 @@ from __future__ import annotations
 
 from bisect import bisect_left, insort
 
+import numpy as np
+
 LEAF_HEADER = 8  # bytes of a table b-tree leaf page's header
 CELL_POINTER = 2  # bytes of a cell's entry in the page's cell pointer array
 
@@ -97,6 +99,35 @@ def leaf_cell_size(values: tuple, rowid: int, usable: int) -> int:
     p = record_size(values)
     local = local_size(p, usable)
     return (varint_len(p) + varint_len(rowid) + local + (4 if local < p else 0)
+            + CELL_POINTER)
+
+
+def _varint_lens(v: np.ndarray) -> np.ndarray:
+    # varint_len of every value of v ≥ 0, on whole arrays
+    return 1 + sum((v >= (1 << (7 * k))).astype(np.int64) for k in range(1, 9))
+
+
+def blob_cell_sizes(lengths, crcs, rowid: int, usable: int) -> np.ndarray:
+    """:func:`leaf_cell_size` of every blob row ``(None, data, crc32)`` at once, from the
+    data's lengths and the CRCs (0 … 2^32 − 1): a store's writer sizes thousands of rows.
+
+    >>> blob_cell_sizes([600], [7], 1, 1024).tolist()
+    [611]
+    >>> leaf_cell_size((None, bytes(600), 7), 1, 1024)
+    611
+    """
+    n = np.asarray(lengths, np.int64)
+    c = np.asarray(crcs, np.int64)
+    # the crc's serial type and body (_int_body): 0 and 1 have none, then 1-4 or 6 bytes
+    body = np.select([c <= 1, c < 1 << 7, c < 1 << 15, c < 1 << 23, c < 1 << 31],
+                     [0, 1, 2, 3, 4], 6)
+    types = 2 + _varint_lens(2 * n + 12)  # serial types: NULL and the int 1 byte each
+    p = types + 1 + n + body  # + the header's own length (< 128: one byte)
+    max_local = usable - 35
+    min_local = (usable - 12) * 32 // 255 - 23
+    k = min_local + (p - min_local) % (usable - 4)
+    local = np.where(p <= max_local, p, np.where(k <= max_local, k, min_local))
+    return (_varint_lens(p) + varint_len(rowid) + local + np.where(local < p, 4, 0)
             + CELL_POINTER)
 
 

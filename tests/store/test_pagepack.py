@@ -13,7 +13,13 @@ from hypothesis import strategies as st
 
 import geoterrain.store.database as store
 from geoterrain.store.database import StoreReader, StoreWriter
-from geoterrain.store.pagepack import LEAF_HEADER, leaf_cell_size, pack_order, varint_len
+from geoterrain.store.pagepack import (
+    LEAF_HEADER,
+    blob_cell_sizes,
+    leaf_cell_size,
+    pack_order,
+    varint_len,
+)
 from tests.store.storesql import all_blobs
 
 
@@ -132,3 +138,14 @@ def test_a_preprocessed_store_packs_its_leaves(tmp_path, fbm_tif, tile_size):
     for dst in (a, b):
         StoreReader(dst).tiles()  # a valid store
         _check_leaves(dst, one_batch=True)
+
+
+@settings(max_examples=60, deadline=None)
+@given(rows=st.lists(st.tuples(st.integers(0, 1 << 20), st.integers(0, (1 << 32) - 1)),
+                     min_size=1, max_size=20),
+       rowid=st.integers(1, 1 << 62), usable=st.sampled_from([512, 1024, 4096, 65536]))
+def test_blob_cell_sizes_are_leaf_cell_sizes(rows, rowid, usable):
+    """The writer's whole-array sizes of its blob rows equal the per-row rule."""
+    n, c = zip(*rows, strict=True)
+    want = [leaf_cell_size((None, bytes(k), crc), rowid, usable) for k, crc in rows]
+    assert blob_cell_sizes(n, c, rowid, usable).tolist() == want
