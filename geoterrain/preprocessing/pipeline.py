@@ -496,13 +496,46 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     return TileBlobs(height_blobs, extra, tile_rows, edge_max)
 
 
+def tile_row_order(extra: dict[str, dict], stored: set) -> list[tuple[str, dict]]:
+    """The δ, r, normals and δ_edge blobs in the order the streamed preprocess makes them
+    (:func:`geoterrain.preprocessing.streaming.stream`: a tile row of each level at a
+    time, coarse levels last; in a row its δ, r and normals by x, then its δ_edge, the
+    ``stored`` tiles' before the others'), so the two write the same file: a store's
+    bytes follow the sequence of its blob rows (:mod:`geoterrain.store.pagepack`).
+
+    Examples
+    --------
+    >>> extra = {"delta": {(0, 1, 0): b"b", (0, 0, 0): b"a", (1, 0, 0): b"c"},
+    ...          "delta_edge": {(0, 2, 0): b"e", (0, 0, 0): b"d"}}
+    >>> for kind, b in tile_row_order(extra, {(0, 0, 0), (0, 1, 0)}):
+    ...     print(kind, list(b))
+    delta [(0, 0, 0), (0, 1, 0)]
+    delta_edge [(0, 0, 0)]
+    delta_edge [(0, 2, 0)]
+    delta [(1, 0, 0)]
+    """
+    kinds = ("delta", "radius", "normals", "delta_edge")
+    rows: dict[tuple[int, int], dict[str, list]] = {}  # (L, y) → kind → keys
+    for kind in kinds:
+        for k in extra.get(kind, ()):
+            rows.setdefault((k[0], k[2]), {}).setdefault(kind, []).append(k)
+    out = []
+    for row in sorted(rows):
+        for kind, keys in sorted(rows[row].items(), key=lambda kv: kinds.index(kv[0])):
+            keys.sort(key=lambda k: k[1])
+            parts = ([keys] if kind != "delta_edge" else
+                     [[k for k in keys if k in stored], [k for k in keys if k not in stored]])
+            out += [(kind, {k: extra[kind][k] for k in part}) for part in parts if part]
+    return out
+
+
 def write_store(req: Request, grid: Grid, blobs: TileBlobs, blocks: np.ndarray, meta: dict,
                 stage: StageClock) -> None:
     """Write the store atomically: every blob, the tile table, the GeoMipMapping blocks'
     δ_n and the metadata, published as ``req.dst`` only when complete."""
     with StoreWriter(req.dst, overwrite=req.overwrite) as w:
         w.put_blobs("heights", blobs.heights)
-        for kind, b in blobs.extra.items():
+        for kind, b in tile_row_order(blobs.extra, set(blobs.heights)):
             w.put_blobs(kind, b)
         w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
         w.put_tiles(blobs.tile_rows)
