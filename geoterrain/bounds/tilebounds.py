@@ -282,32 +282,31 @@ def tile_and_block_errors(
     per_level = []
     nb0 = (N - 1) // cpt  # blocks (level-0 tiles) per side
     blocks = np.zeros((nb0, nb0, min(te, lmax) + 1))
-    for L in range(lmax + 1):
-        S = 1 << (te + L)  # tile span in full-resolution samples
-        nt = (N - 1) // S
-        if L == 0:
-            mixed = np.zeros((nt * cpt, nt * cpt), bool)
-        else:
-            with cores_for(zf.size):  # small grids on one thread (threads.py)
+    with cores_for(zf.size):  # small grids' kernels on one thread (threads.py)
+        for L in range(lmax + 1):
+            S = 1 << (te + L)  # tile span in full-resolution samples
+            nt = (N - 1) // S
+            if L == 0:
+                mixed = np.zeros((nt * cpt, nt * cpt), bool)
+            else:
                 mixed = _level_field_nb(zf, vb, 1 << L, E)
-        err = closed_blocks(E, S, np.maximum)
-        m4 = mixed.reshape(nt, cpt, nt, cpt)
-        err = np.where(m4.any(axis=(1, 3)), np.inf, err)
-        if 0 < L < blocks.shape[2]:  # the same field over each block (seed 000 §2.4 δ_n)
-            c = 1 << (te - L)  # level-L cells per block side
-            mb = mixed.reshape(nb0, c, nb0, c).any(axis=(1, 3))
-            blocks[..., L] = np.where(mb, np.inf, closed_blocks(E, cpt, np.maximum))
-        rows = np.maximum.reduce(E[::S, :-1].reshape(nt + 1, nt, S), axis=2)
-        rows = np.maximum(rows, E[::S, S::S])
-        cols = np.maximum.reduce(E[:-1, ::S].reshape(nt, S, nt + 1), axis=1)
-        cols = np.maximum(cols, E[S::S, ::S])
-        bnd = np.maximum(np.maximum(rows[:-1], rows[1:]), np.maximum(cols[:, :-1], cols[:, 1:]))
-        border = (m4[:, 0].any(axis=2) | m4[:, -1].any(axis=2)
-                  | m4[:, :, :, 0].any(axis=1) | m4[:, :, :, -1].any(axis=1))
-        bnd = np.where(border, np.inf, bnd)
-        if L == 0:
-            with cores_for(zf.size):
+            err = closed_blocks(E, S, np.maximum)
+            m4 = mixed.reshape(nt, cpt, nt, cpt)
+            err = np.where(m4.any(axis=(1, 3)), np.inf, err)
+            if 0 < L < blocks.shape[2]:  # the same field over each block (seed 000 §2.4 δ_n)
+                c = 1 << (te - L)  # level-L cells per block side
+                mb = mixed.reshape(nb0, c, nb0, c).any(axis=(1, 3))
+                blocks[..., L] = np.where(mb, np.inf, closed_blocks(E, cpt, np.maximum))
+            rows = np.maximum.reduce(E[::S, :-1].reshape(nt + 1, nt, S), axis=2)
+            rows = np.maximum(rows, E[::S, S::S])
+            cols = np.maximum.reduce(E[:-1, ::S].reshape(nt, S, nt + 1), axis=1)
+            cols = np.maximum(cols, E[S::S, ::S])
+            bnd = np.maximum(np.maximum(rows[:-1], rows[1:]), np.maximum(cols[:, :-1], cols[:, 1:]))
+            border = (m4[:, 0].any(axis=2) | m4[:, -1].any(axis=2)
+                      | m4[:, :, :, 0].any(axis=1) | m4[:, :, :, -1].any(axis=1))
+            bnd = np.where(border, np.inf, bnd)
+            if L == 0:
                 box0 = _tile_boxes_nb(zf, xc, yc, vb, S)
-        per_level.append((err, bnd))
+            per_level.append((err, bnd))
     out = tile_rows(per_level, box0, nvalid)
     return out, blocks

@@ -58,6 +58,18 @@ def source_files(src: str | Path | list | tuple) -> list[Path | Url]:
     >>> source_files("dem.tif"), source_files("https://example.com/dem.tif")
     ([PosixPath('dem.tif')], [Url('https://example.com/dem.tif')])
     """
+    return sources(src)[0]
+
+
+def sources(src: str | Path | list | tuple) -> tuple[list[Path | Url], bool]:
+    """:func:`source_files` of a DEM argument and whether it names several
+    (:func:`is_several`), resolved once.
+
+    Examples
+    --------
+    >>> sources("dem.tif"), sources(["https://example.com/a.tif"])
+    (([PosixPath('dem.tif')], False), ([Url('https://example.com/a.tif')], True))
+    """
     if isinstance(src, (list, tuple)):
         if not src:
             raise UsageError("no DEM given: pass a file, a list of files or a glob")
@@ -71,13 +83,13 @@ def source_files(src: str | Path | list | tuple) -> list[Path | Url]:
         if not files:
             raise InputError(f"{src}: lists no source; write one URL or path a line")
         if len(files) == 1:
-            return files
+            return files, True
     else:
-        return [_one(src)]
+        return [_one(src)], False
     for p in files:  # a local device or FIFO is never opened (a URL is GDAL's to fetch)
         if not is_url(p) and (why := input_problem(p, utf8=True)) is not None:
             raise InputError(f"{p}: {why}; give raster files")
-    return files
+    return files, True
 
 
 def is_several(src: str | Path | list | tuple) -> bool:

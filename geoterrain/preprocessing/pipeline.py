@@ -38,25 +38,22 @@ from geoterrain.bounds.vertexdata import (
 from geoterrain.codec.pyramid import decoded_heights, encode_decoded, encode_pyramid
 from geoterrain.codec.quantchoice import choose_quantizer
 from geoterrain.codec.quantize import Quantizer, codes_to_heights
-from geoterrain.core.atomicfiles import remove_stale_partials
-from geoterrain.core.frame import PIXEL_SIZE_RANGE, Frame
+from geoterrain.core.frame import Frame
 from geoterrain.core.grid import Grid
 from geoterrain.core.memory import available_memory
-from geoterrain.core.paths import check_output, input_problem
+from geoterrain.core.paths import input_problem
 from geoterrain.core.progress import Progress, StageClock
-from geoterrain.exceptions import InputError, UsageError
-from geoterrain.ingest.mosaic import is_several, mosaic_name, source_files
+from geoterrain.exceptions import InputError
+from geoterrain.ingest.mosaic import mosaic_name
 from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.ingest.remote import is_url
-from geoterrain.ingest.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
-from geoterrain.preprocessing.schedulers import parse_scheduler
-from geoterrain.preprocessing.streaming import preprocess_streaming, streaming_band
-from geoterrain.store.database import StoreWriter, default_store_path
+from geoterrain.preprocessing.request import Request, place, request
+from geoterrain.preprocessing.streaming import stream, streaming_band
+from geoterrain.store.database import StoreWriter
 
 log = logging.getLogger("geoterrain")
 STAGES = ("read", "pad", "quantise", "errors", "radii", "tile bounds", "normals", "compress",
           "write")
-MAX_TILE_SIZE = 4096
 
 
 @njit(cache=True, nogil=True)
@@ -213,13 +210,11 @@ def preprocess(
         geographic = crs_geographic and tile is None and pixel_size is None
         rows = streaming_band(shape, limit, geographic)
         if rows is not None:  # too large for the whole grid: a window at a time
-            return preprocess_streaming(
-                req.src, req.dst, tile_size=tile_size, z_scale=z_scale, z_units=z_units,
-                codec_error=codec_error, overwrite=overwrite, nodata=nodata, band=rows,
-                raster_band=band, encoding=encoding, pixel_size=pixel_size, tile=tile,
-                derive_normals=derive_normals, derive_bounds=derive_bounds,
-                scheduler=scheduler, resume=resume, progress=progress, timings=timings,
-                **merge)
+            return stream(req, z_scale=z_scale, z_units=z_units, codec_error=codec_error,
+                          nodata=nodata, band=rows, raster_band=band, encoding=encoding,
+                          pixel_size=pixel_size, tile=tile, derive_normals=derive_normals,
+                          derive_bounds=derive_bounds, scheduler=scheduler, resume=resume,
+                          progress=progress, timings=timings, **merge)
     if scheduler != "sync":  # not silently: the whole-grid preprocess runs here
         log.warning("%s fits the memory limit: preprocessed here, whole; the scheduler %s "
                     "runs a streamed preprocess only (lower --memory-limit to stream it)",
@@ -292,63 +287,6 @@ def _probe(req: Request, merge: dict) -> tuple[tuple[int, int], bool] | None:
 
 
 # ------------------------------------------------------------------ the stages
-@dataclass(frozen=True)
-class Request:
-    """A preprocess's checked request: the source (``files``, several for a mosaic) and
-    the store to write."""
-
-    files: list[Path]
-    mosaic: bool
-    dst: Path
-    overwrite: bool
-    src: str | Path | list
-    tile_size: int
-
-
-def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
-            codec_error: float | None, pixel_size: float | None, overwrite: bool,
-            scheduler: str, resume: bool) -> Request:
-    """:func:`preprocess`'s arguments checked before any work (a one-line
-    :class:`UsageError` each), and a killed run's leftovers beside ``dst`` removed
-    unless it is resumed.
-
-    Examples
-    --------
-    >>> r = request(__file__, "x.geoterrain", tile_size=64, codec_error=None,
-    ...             pixel_size=None, overwrite=True, scheduler="sync", resume=True)
-    >>> r.dst.name, r.mosaic
-    ('x.geoterrain', False)
-    """
-    if codec_error is not None and not (np.isfinite(codec_error) and codec_error >= 0):
-        raise UsageError(f"codec_error must be a finite number ≥ 0, got {codec_error}",
-                         cli=f"--codec-error must be a finite number ≥ 0, got {codec_error}")
-    plo, phi = PIXEL_SIZE_RANGE
-    if pixel_size is not None and not (np.isfinite(pixel_size) and plo <= pixel_size <= phi):
-        raise UsageError(f"pixel_size must be a number in [{plo:g}, {phi:g}] metres, got "
-                         f"{pixel_size}", cli=f"--pixel-size must be a number in [{plo:g}, "
-                         f"{phi:g}] metres, got {pixel_size}")
-    if not (isinstance(tile_size, int) and 2 <= tile_size <= MAX_TILE_SIZE
-            and tile_size & (tile_size - 1) == 0):
-        raise UsageError(f"tile_size must be a power of two in [2, {MAX_TILE_SIZE}], "
-                         f"got {tile_size}", cli=f"--tile-size must be a power of two in "
-                         f"[2, {MAX_TILE_SIZE}], got {tile_size}")
-    parse_scheduler(scheduler)  # a bad spec is a usage error before any work
-    files = source_files(src)
-    mosaic = is_several(src)
-    if dst is None and mosaic:
-        raise UsageError("a mosaic (list of files or glob) has no default store name; "
-                         "pass dst", cli="a mosaic (several files or a glob) has no default "
-                         "store name; pass -o STORE")
-    if dst is None:  # a URL's store goes to this folder, named after the URL's file
-        dst = default_store_path(files[0].name if is_url(src) else src)
-    dst = Path(dst)
-    if not resume:  # a killed streaming run's scratch stays for resume to take up
-        remove_stale_partials(dst.parent if str(dst.parent) else Path("."))
-    # a regular file or nothing, replaced only with overwrite, never one of the inputs
-    check_output(dst, overwrite, inputs=files)
-    return Request(files, mosaic, dst, overwrite, src, tile_size)
-
-
 @dataclass
 class Dem:
     """The DEM read: its raster (heights, mask, georeference), scene frame and padded
@@ -366,26 +304,12 @@ def read_dem(req: Request, *, band: int | None, encoding: str, nodata: float | N
     """Read and check the DEM (a web-map tile placed in Web Mercator by its z/x/y;
     sources merged onto one grid, ``merge``: :func:`geoterrain.ingest.raster.read_raster`'s
     crs, resolution, resampling and priority), and its frame (pyproj) and padded grid."""
-    src = req.src
-    r = read_raster(req.files if req.mosaic else src, band=band, encoding=encoding,
+    r = read_raster(req.files if req.mosaic else req.src, band=band, encoding=encoding,
                     nodata=nodata, **(merge or {}))
     validate(r, z_scale)
-    zxy = parse_tile(tile) if tile is not None else None
-    if zxy is not None and (pixel_size is not None or r.crs_wkt is not None):
-        raise UsageError("a web-map tile is placed by its z/x/y; give tile or pixel_size, not "
-                         "both", cli="give --tile or --pixel-size, not both")
-    if zxy is None and r.crs_wkt is None and pixel_size is None and not req.mosaic:
-        zxy = tile_from_path(src)
-    if zxy is not None:
-        r.transform, r.crs_wkt = tile_georeference(*zxy, r.shape[1], r.shape[0])
-        log.info("%s: web-map tile %d/%d/%d in EPSG:3857", src, *zxy)
-    z_units = resolve_z_units(z_units, r.crs_wkt, r.path)
-    frame = Frame.from_raster(r.transform, r.crs_wkt, r.shape[0], r.shape[1],
-                              pixel_size=pixel_size, z_units=z_units,
-                              z_scale=1.0 if z_scale is None else z_scale)
-    if r.crs_wkt is None and pixel_size is None:
-        log.warning("%s has no CRS: using 1 m per pixel; set pixel_size (--pixel-size)", src)
-    grid = Grid.for_shape(*r.shape, tile_size=req.tile_size)
+    r.transform, r.crs_wkt, frame, grid = place(req, r.shape, r.transform, r.crs_wkt,
+                                                tile=tile, pixel_size=pixel_size,
+                                                z_units=z_units, z_scale=z_scale, label=r.path)
     frame.check_scene(grid.size, *valid_range(r.heights, r.valid)[:2])
     return Dem(r, frame, grid, int(np.count_nonzero(r.valid)))
 
@@ -572,13 +496,46 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     return TileBlobs(height_blobs, extra, tile_rows, edge_max)
 
 
+def tile_row_order(extra: dict[str, dict], stored: set) -> list[tuple[str, dict]]:
+    """The δ, r, normals and δ_edge blobs in the order the streamed preprocess makes them
+    (:func:`geoterrain.preprocessing.streaming.stream`: a tile row of each level at a
+    time, coarse levels last; in a row its δ, r and normals by x, then its δ_edge, the
+    ``stored`` tiles' before the others'), so the two write the same file: a store's
+    bytes follow the sequence of its blob rows (:mod:`geoterrain.store.pagepack`).
+
+    Examples
+    --------
+    >>> extra = {"delta": {(0, 1, 0): b"b", (0, 0, 0): b"a", (1, 0, 0): b"c"},
+    ...          "delta_edge": {(0, 2, 0): b"e", (0, 0, 0): b"d"}}
+    >>> for kind, b in tile_row_order(extra, {(0, 0, 0), (0, 1, 0)}):
+    ...     print(kind, list(b))
+    delta [(0, 0, 0), (0, 1, 0)]
+    delta_edge [(0, 0, 0)]
+    delta_edge [(0, 2, 0)]
+    delta [(1, 0, 0)]
+    """
+    kinds = ("delta", "radius", "normals", "delta_edge")
+    rows: dict[tuple[int, int], dict[str, list]] = {}  # (L, y) → kind → keys
+    for kind in kinds:
+        for k in extra.get(kind, ()):
+            rows.setdefault((k[0], k[2]), {}).setdefault(kind, []).append(k)
+    out = []
+    for row in sorted(rows):
+        for kind, keys in sorted(rows[row].items(), key=lambda kv: kinds.index(kv[0])):
+            keys.sort(key=lambda k: k[1])
+            parts = ([keys] if kind != "delta_edge" else
+                     [[k for k in keys if k in stored], [k for k in keys if k not in stored]])
+            out += [(kind, {k: extra[kind][k] for k in part}) for part in parts if part]
+    return out
+
+
 def write_store(req: Request, grid: Grid, blobs: TileBlobs, blocks: np.ndarray, meta: dict,
                 stage: StageClock) -> None:
     """Write the store atomically: every blob, the tile table, the GeoMipMapping blocks'
     δ_n and the metadata, published as ``req.dst`` only when complete."""
     with StoreWriter(req.dst, overwrite=req.overwrite) as w:
         w.put_blobs("heights", blobs.heights)
-        for kind, b in blobs.extra.items():
+        for kind, b in tile_row_order(blobs.extra, set(blobs.heights)):
             w.put_blobs(kind, b)
         w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
         w.put_tiles(blobs.tile_rows)

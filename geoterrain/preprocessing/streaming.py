@@ -51,18 +51,11 @@ from geoterrain.codec.quantize import roundtrip
 from geoterrain.core.atomicfiles import remove_stale_partials
 from geoterrain.core.frame import Frame
 from geoterrain.core.grid import Grid
-from geoterrain.core.paths import check_output, input_problem
+from geoterrain.core.paths import input_problem
 from geoterrain.core.progress import Progress, StageClock
 from geoterrain.exceptions import InputError, UsageError
-from geoterrain.ingest.mosaic import is_several
 from geoterrain.ingest.raster import ABSURD_HEIGHT, VOID_SENTINELS
-from geoterrain.ingest.remote import Url, is_url
-from geoterrain.ingest.units import (
-    parse_tile,
-    resolve_z_units,
-    tile_from_path,
-    tile_georeference,
-)
+from geoterrain.ingest.remote import is_url
 from geoterrain.ingest.windows import RasterSpec, describe, localize
 from geoterrain.preprocessing.bands.delta import level_lattice
 from geoterrain.preprocessing.bands.quantize import band_quantizer
@@ -74,11 +67,12 @@ from geoterrain.preprocessing.passes import (
     job_record,
     run_pass,
 )
+from geoterrain.preprocessing.request import Request, place, request
 from geoterrain.preprocessing.schedulers import run_tasks
 from geoterrain.preprocessing.scratch import ScratchArrays
-from geoterrain.store.database import StoreWriter, default_store_path
+from geoterrain.store.database import StoreWriter
 
-__all__ = ["band_rows", "preprocess_streaming", "streaming_band"]
+__all__ = ["band_rows", "preprocess_streaming", "stream", "streaming_band"]
 
 log = logging.getLogger("geoterrain")
 
@@ -215,64 +209,76 @@ def preprocess_streaming(
     >>> geoterrain.open(p).grid.size
     33
     """
+    req = request(src, dst, tile_size=tile_size, codec_error=codec_error,
+                  pixel_size=pixel_size, overwrite=overwrite, scheduler=scheduler,
+                  resume=resume)
+    for f in req.files:  # a FIFO would block the read, a device never end
+        if not is_url(f) and (why := input_problem(f, utf8=True)) is not None:
+            raise InputError(f"{f}: {why}; check the path")
+    return stream(req, z_scale=z_scale, z_units=z_units, codec_error=codec_error,
+                  nodata=nodata, band=band, raster_band=raster_band, encoding=encoding,
+                  pixel_size=pixel_size, tile=tile, scratch=scratch,
+                  derive_normals=derive_normals, derive_bounds=derive_bounds,
+                  scheduler=scheduler, resume=resume, progress=progress, crs=crs,
+                  resolution=resolution, resampling=resampling, priority=priority,
+                  timings=timings)
+
+
+def stream(req: Request, *, z_scale: float | None = None, z_units: str = "auto",
+           codec_error: float | None = None, nodata: float | None = None, band: int = 256,
+           raster_band: int | None = None, encoding: str = "auto",
+           pixel_size: float | None = None, tile: str | None = None,
+           scratch: str | Path | None = None, derive_normals: bool = True,
+           derive_bounds: bool = True, scheduler: str = "sync", resume: bool = False,
+           progress: Progress | None = None, crs: str | None = None,
+           resolution: float | None = None, resampling: str = "bilinear",
+           priority: str = "finest", timings: dict | None = None) -> Path:
+    """:func:`preprocess_streaming` of a request already resolved and checked
+    (:func:`geoterrain.preprocessing.request.request`: the source's files and the store
+    to write), as :func:`geoterrain.preprocessing.pipeline.preprocess` hands it on; the
+    other parameters are ``preprocess_streaming``'s.
+
+    Examples
+    --------
+    >>> import tempfile, os, geoterrain
+    >>> from geoterrain.ingest.synth import generate, write_geotiff
+    >>> from geoterrain.preprocessing.request import request
+    >>> d = tempfile.mkdtemp()
+    >>> dem = write_geotiff(os.path.join(d, "dem.tif"), generate("fbm", 33, seed=1))
+    >>> req = request(dem, None, tile_size=16, codec_error=None, pixel_size=None,
+    ...               overwrite=False, scheduler="sync", resume=False)
+    >>> geoterrain.open(stream(req, band=8)).grid.tile_samples
+    17
+    """
     stage = StageClock(STAGES, progress, timings)
     if band < 2 or band & (band - 1):
         raise UsageError(f"band must be a power of two ≥ 2, got {band}")
-    mosaic = is_several(src)
-    if dst is None:
-        if mosaic:
-            raise UsageError("a mosaic (list of files or glob) has no default store name; "
-                             "pass dst", cli="a mosaic (several files or a glob) has no "
-                             "default store name; pass -o STORE")
-        dst = default_store_path(Url(src).name if is_url(src) else src)
-    dst = Path(dst)
-    local = [] if mosaic or is_url(src) else [Path(src)]  # a file given as a path
-    check_output(dst, overwrite, inputs=local)  # core/paths.py: what may be replaced
-    for f in local:  # a FIFO would block the read, a device never end
-        if (why := input_problem(f, utf8=True)) is not None:
-            raise InputError(f"{f}: {why}; check the path")
-    if pixel_size is not None and not (np.isfinite(pixel_size) and pixel_size > 0):
-        raise UsageError(f"pixel_size must be a finite number > 0, got {pixel_size}",
-                         cli=f"--pixel-size must be a finite number > 0, got {pixel_size}")
-    spec, meta = describe(src, band=raster_band, encoding=encoding, nodata=nodata, rows=band,
-                          crs=crs, resolution=resolution, resampling=resampling,
+    spec, meta = describe(req.files, band=raster_band, encoding=encoding, nodata=nodata,
+                          rows=band, crs=crs, resolution=resolution, resampling=resampling,
                           priority=priority)
-    H, W = meta["shape"]
-    transform, crs_wkt = meta["transform"], meta["crs_wkt"]
-    zxy = parse_tile(tile) if tile is not None else None
-    if zxy is not None and (pixel_size is not None or crs_wkt is not None):
-        raise UsageError("a web-map tile is placed by its z/x/y; give tile or pixel_size, not "
-                         "both", cli="give --tile or --pixel-size, not both")
-    if zxy is None and crs_wkt is None and pixel_size is None and not mosaic:
-        zxy = tile_from_path(src)
-    if zxy is not None:
-        transform, crs_wkt = tile_georeference(*zxy, W, H)
-        log.info("%s: web-map tile %d/%d/%d in EPSG:3857", src, *zxy)
-    grid = Grid.for_shape(H, W, tile_size=tile_size)
-    zu = resolve_z_units(z_units, crs_wkt, spec.label if mosaic else str(src))
-    frame = Frame.from_raster(transform, crs_wkt, H, W, pixel_size=pixel_size, z_units=zu,
-                              z_scale=1.0 if z_scale is None else z_scale)
-    if crs_wkt is None and pixel_size is None:
-        log.warning("%s has no CRS: using 1 m per pixel; set pixel_size (--pixel-size)", src)
+    _, _, frame, grid = place(req, meta["shape"], meta["transform"], meta["crs_wkt"],
+                              tile=tile, pixel_size=pixel_size, z_units=z_units,
+                              z_scale=z_scale, label=spec.label if req.mosaic else str(req.src))
+    dst = req.dst
     parent = Path(scratch) if scratch is not None else (dst.parent if str(dst.parent) else
                                                         Path("."))
     # a source read over HTTP is fetched once into a folder named like a partial store (a
     # killed run's is removed by the next run in this folder): every pass then reads it
     fetch = parent / f".{dst.name}.fetch.partial-{os.getpid()}"
     try:
-        return _streamed(src, dst, spec, meta, grid, frame, band, codec_error, z_scale,
-                         overwrite, parent, derive_normals, derive_bounds, scheduler, resume,
-                         stage, fetch)
+        return _streamed(req, spec, meta, grid, frame, band, codec_error, z_scale, parent,
+                         derive_normals, derive_bounds, scheduler, resume, stage, fetch)
     finally:
         shutil.rmtree(fetch, ignore_errors=True)
 
 
-def _streamed(src, dst: Path, spec: RasterSpec, meta: dict, grid: Grid, frame: Frame,
-              band: int, codec_error: float | None, z_scale: float | None, overwrite: bool,
-              parent: Path, derive_normals: bool, derive_bounds: bool, scheduler: str,
-              resume: bool, stage: StageClock, fetch: Path) -> Path:
+def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Frame,
+              band: int, codec_error: float | None, z_scale: float | None, parent: Path,
+              derive_normals: bool, derive_bounds: bool, scheduler: str, resume: bool,
+              stage: StageClock, fetch: Path) -> Path:
     # preprocess_streaming after its arguments: fetch, scan, quantise, the passes, write
     remote = spec  # what a resumed run must match: the source as given
+    dst = req.dst
     spec = localize(spec, fetch)
     nd = meta["nodata"]
     with spec.open() as ds:
@@ -353,7 +359,7 @@ def _streamed(src, dst: Path, spec: RasterSpec, meta: dict, grid: Grid, frame: F
         se = ScratchArrays.shared(os.path.join(folder, "edge")) if pad else None
         sn = ScratchArrays.shared(os.path.join(folder, "normals"))
         try:
-            with StoreWriter(dst, overwrite=overwrite) as w:
+            with StoreWriter(dst, overwrite=req.overwrite) as w:
                 for part in heights_records(os.path.join(folder, "heights.bin")):
                     w.put_blobs("heights", part)
                 stored = set(bounds)  # the tiles whose footprint holds a valid sample
