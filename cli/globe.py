@@ -192,3 +192,112 @@ def view(ctx: click.Context, stores, geo_camera, size, pixel_error, vertical_exa
         home = globe_view(g, geo_camera, size, 30.0, lambda s: click.echo(s, err=True))
         show_globe(g, home, pixel_error, shading=shading, cmap=palette, size=size)
 
+
+
+def flyover_options(f):
+    """--fps, --frame-budget and --measure-every of `bench --globe`."""
+    for opt in reversed([
+        click.option("--flight-fps", "flight_fps", type=click.FloatRange(0.5, 120.0),
+                     default=10.0, show_default=True,
+                     help="--globe: frames per second of flight time (the flyover lasts 24 s)."),
+        click.option("--frame-budget", type=click.FloatRange(1.0, 1e5), default=None,
+                     metavar="MS",
+                     help="--globe: the frame budget in ms that no frame may stall on "
+                          "payload generation for [default: 1000 / --flight-fps]."),
+        click.option("--measure-every", type=click.IntRange(0, 10_000), default=10,
+                     show_default=True,
+                     help="--globe with a store: measure ρ every N frames (0: never)."),
+    ]):
+        f = opt(f)
+    return f
+
+
+def bench(ctx: click.Context, source, size, taus, render_frames: bool, flight_fps: float,
+          frame_budget, measure_every: int, output, overwrite: bool) -> None:
+    """`geoterrain bench --globe`: seed 001's flyover, per-frame figures and the summary."""
+    import numpy as np
+
+    from geoterrain.bench.globeflight import flyover, run_flyover, summary
+    from geoterrain.core.atomicfiles import write_atomic
+    from geoterrain.core.paths import check_output
+    from geoterrain.exceptions import UsageError
+    from geoterrain.globe import Globe
+
+    quiet = (ctx.obj or {}).get("quiet", False)
+    if len(taus) != 1:
+        raise UsageError("bench --globe flies at one --pixel-error, got "
+                         f"{','.join(f'{t:g}' for t in taus)}")
+    tau = taus[0]
+    stores = (source,) if source else ()
+    if stores:
+        check_stores(stores)
+    if output is not None:
+        check_output(output, overwrite, inputs=list(stores), option="-o")
+        if Path(output).suffix.lower() not in (".csv", ".json"):
+            raise UsageError(f"{output}: the frames are written as .csv or .json")
+    budget = float(frame_budget) if frame_budget else 1000.0 / flight_fps
+    bar = StageBar("globe", quiet)
+    try:
+        g = Globe(list(stores), progress=lambda d, n: bar("measuring nodes", d, n))
+    finally:
+        bar.close()
+    with g:
+        measure = None
+        if stores:
+            st = g.stores[0]
+            fl, fb = st.footprint(16)
+            lon, lat = float(np.mean(fl)), float(np.mean(fb))
+            # ρ is measured through a central projection onto the store's tangent plane:
+            # for a regional geographic store (up to 30°)
+            if measure_every and st.geographic and max(np.ptp(fl), np.ptp(fb)) < 30.0:
+                from geoterrain.globe.layers import FEATHER
+                from geoterrain.testing.globemeasure import measured_rho, store_truth
+
+                truth = store_truth(st.terrain, int(FEATHER) + 1)
+                if len(truth):  # a store within its feathered edge: nothing to measure
+                    centre = truth.mean(0)
+
+                    def measure(sel, view):
+                        rho, n, _ = measured_rho(sel, truth, view, centre)
+                        return rho if n else None
+        else:  # the procedural planet: over the highest ground near the seed's start
+            lon, lat = 139.25, 35.35
+        views = flyover(g, lon, lat, fps=flight_fps, size=size)
+        bar = StageBar("flyover", quiet)
+        try:
+            frames = run_flyover(g, views, tau, render=render_frames, measure=measure,
+                                 measure_every=measure_every,
+                                 progress=lambda d, n: bar("frame", d, n))
+        finally:
+            bar.close()
+    s = summary(frames, budget)
+    if output is not None:
+        if Path(output).suffix.lower() == ".json":
+            text = json.dumps(dict(summary=s, frames=frames), indent=1)
+        else:
+            cols = list(frames[0])
+            text = "\n".join([",".join(cols)] + [",".join("" if f[c] is None else str(f[c])
+                                                          for c in cols) for f in frames])
+            text += "\n"
+        write_atomic(output, text, overwrite)
+    what = source or "the procedural planet"
+    click.echo(f"# bench --globe: seed 001's flyover over {what}, {len(frames)} frames "
+               f"({flight_fps:g} per second of flight), τ = {tau:g} px, {size[0]}x{size[1]}"
+               f"{', rendered' if render_frames else ', not rendered'}")
+    click.echo(f"frame ms: median {s['frame_ms_median']}, p90 {s['frame_ms_p90']}, p99 "
+               f"{s['frame_ms_p99']}, max {s['frame_ms_max']} (min {s['frame_ms_min']})")
+    click.echo(f"selection: {100 * s['selection_share_median']:.1f} % of the frame "
+               f"(median), {100 * s['selection_share_total']:.1f} % of the run, "
+               f"{100 * s['selection_share_max']:.1f} % at most; mesh (morph) "
+               f"{100 * s['mesh_share_total']:.1f} % of the run")
+    click.echo(f"render: {100 * s['render_share_total']:.1f} % of the run; the rest of "
+               f"the select call (dispatch, the interpreter shared with the generating "
+               f"threads) at most {s['other_ms_max']} ms")
+    click.echo(f"generation on the frame: at most {s['generation_ms_max']} ms; "
+               f"{s['frames_stalled_on_generation']} frames stalled over the "
+               f"{budget:g} ms budget; {s['frames_over_budget']} frames over it in all")
+    click.echo(f"pop: at most {s['pop_px_max']} px"
+               + (f"; measured ρ at most {s['rho_px_max']} px over {s['rho_frames']} frames"
+                  if s["rho_px_max"] is not None else ""))
+    if output is not None and not quiet:
+        click.echo(f"wrote {output}", err=True)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -238,7 +239,9 @@ class Globe:
         if not (math.isfinite(tau) and tau > 0):
             raise UsageError(f"pixel_error must be a positive number, got {tau}",
                              cli=f"--pixel-error must be a positive number, got {tau}")
-        self.generate_pending(wait=False) if not wait else None
+        ti = time.perf_counter()
+        installed = self.generate_pending(wait=False) if not wait else 0
+        install_ms = (time.perf_counter() - ti) * 1e3
         sel = select(self, view, tau, frustum=frustum, horizon=horizon, morph=morph,
                      wait=wait, normals=normals)
         q = self.queue
@@ -247,7 +250,8 @@ class Globe:
         sel.stats.update(dispatched=q.dispatched, in_flight=q.in_flight,
                          generation_ms=round(q.generation_ms, 3),
                          stall_ms=round(q.stall_ms, 3), payloads=self.payloads.used,
-                         evicted=self.evicted)
+                         evicted=self.evicted, installed=installed,
+                         install_ms=round(install_ms, 3))
         return sel
 
     def camera(self, lon: float, lat: float, height: float, heading: float = 0.0,

@@ -166,7 +166,7 @@ class GlobeViewerController:
         p.add_mesh(m, scalars="rgb", rgb=True, name="globe", reset_camera=False,
                    smooth_shading=self.shading != "elevation",
                    lighting=self.shading != "elevation",
-                   style="wireframe" if self.wireframe else "surface")
+                   style="wireframe" if self.wireframe else "surface", render=False)
         self.mesh = m
         d = np.linalg.norm(sel.points, axis=1)
         self._moving = True

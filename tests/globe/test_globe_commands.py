@@ -15,7 +15,7 @@ from tests.conftest import write_tif
 
 @pytest.fixture(scope="module")
 def stores(tmp_path_factory):
-    """A whole-globe store (2° cells) and a small regional one (0.01°, over the Alps)."""
+    """A whole-globe store (2° cells) and a regional one (160² cells of 0.01°, the Alps)."""
     import geoterrain
 
     d = tmp_path_factory.mktemp("globecli")
@@ -25,7 +25,7 @@ def stores(tmp_path_factory):
     world = geoterrain.preprocess(
         write_tif(d / "world.tif", z, crs="EPSG:4326", origin=(-180.0, 90.0), spacing=2.0),
         d / "world.geoterrain")
-    yy, xx = np.mgrid[0:64, 0:64] / 64.0
+    yy, xx = np.mgrid[0:160, 0:160] / 160.0
     alps = (1500 + 1200 * np.sin(6 * xx) * np.cos(5 * yy)).astype(np.float32)
     region = geoterrain.preprocess(
         write_tif(d / "alps.tif", alps, crs="EPSG:4326", origin=(10.0, 46.5), spacing=0.01),
@@ -68,8 +68,8 @@ def test_camera_option_heading_pitch_and_the_underground_warning(stores):
     assert res.exit_code == 0, res.output
     warn = [s for s in res.stderr.splitlines() if s.startswith("warning")]
     assert len(warn) == 1 and "under the ground" in warn[0], res.stderr
-    res = r.invoke(cli, ["render", "--globe", world, region, "-o", str(d / "high.png"),
-                         "--size", "96x64", "--camera", "10.3,46.2,9000,90,-10"])
+    res = r.invoke(cli, ["render", "--globe", world, region, "-o", str(out), "--overwrite",
+                         "--size", "16x16", "--camera", "10.3,46.2,9000,90,-10"])
     assert res.exit_code == 0 and "under the ground" not in res.stderr, res.output
 
 
@@ -144,3 +144,24 @@ def test_globe_viewer_offscreen_follows_the_camera_with_a_floating_origin(stores
     finally:
         p.close()
         g.close()
+
+
+def test_bench_globe_flies_seed_001s_flyover_and_reports_each_frame(stores):
+    d, world, region = stores
+    out = d / "fly.json"
+    res = CliRunner().invoke(cli, ["bench", "--globe", region, "--flight-fps", "0.5",
+                                   "--measure-every", "4", "--size", "160x90", "-o",
+                                   str(out)])
+    assert res.exit_code == 0, res.output
+    assert "frame ms: median" in res.stdout and "selection:" in res.stdout
+    rep = json.loads(out.read_text())
+    frames, s = rep["frames"], rep["summary"]
+    assert len(frames) == s["frames"] == 13  # 24 s of flight at 0.5 frames a second
+    h = [f["height_m"] for f in frames]
+    # the seed's phases: from outside the atmosphere down to the ground, then away again
+    assert h[0] > 1e7 and min(h) < 5e3 and h[-1] > 1e7
+    assert all(f["triangles"] > 0 and f["nodes"] > 0 for f in frames)
+    assert s["rho_frames"] >= 1 and s["budget_ms"] == 2000.0
+    assert 0 < s["selection_share_median"] < 1
+    res = CliRunner().invoke(cli, ["bench", "--globe", region, "--strategies", "rtin"])
+    assert "--strategies" in _one_line(res, 2)
