@@ -102,8 +102,9 @@ def command(ctx, source, globe, flight_fps, frame_budget, measure_every, synthet
       geoterrain bench --experiment algorithm --terrains Valley,Terrace -o t620.csv
       geoterrain bench --globe japan.geoterrain --render --size 640x360 -o flyover.csv
 
-    With --globe it flies seed 001's flyover on the globe (over the store, or the
-    procedural planet without one) with the asynchronous payload queue, and reports the
+    With --globe it flies the planetary flyover on the globe (from outside the
+    atmosphere down to the ground and away again; over the store, or the procedural
+    planet without one) with the asynchronous payload queue, and reports the
     frame-time distribution, the selection's share of the frame, the frames that stalled
     on generation, pop and (over a store) the measured screen-space error.
     """

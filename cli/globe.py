@@ -14,7 +14,7 @@ from pathlib import Path
 
 import click
 
-from geoterrain.cli.options import StageBar, _number
+from geoterrain.cli.options import Number, StageBar, _number
 
 #: what ``--camera`` holds: (lon, lat, height, heading, pitch)
 CAMERA_HELP = ("--globe: the camera LON,LAT,HEIGHT[,HEADING[,PITCH]]: degrees, metres above "
@@ -65,8 +65,9 @@ GEO_CAMERA = GeoCamera()
 
 globe_flag = click.option(
     "--globe", is_flag=True,
-    help="Draw the stores (any number) on the WGS 84 globe (seed 001's planetary CDLOD): "
-         "whole-globe, continental and polar DEMs, and several stores at once.")
+    help="Draw the stores (any number) on the WGS 84 globe, the detail following the camera "
+         "over the whole planet: whole-globe, continental and polar DEMs, and several stores "
+         "at once.")
 camera_option = click.option("--camera", "geo_camera", type=GEO_CAMERA,
                              metavar="LON,LAT,HEIGHT[,HEADING[,PITCH]]", help=CAMERA_HELP)
 
@@ -197,10 +198,10 @@ def view(ctx: click.Context, stores, geo_camera, size, pixel_error, vertical_exa
 def flyover_options(f):
     """--fps, --frame-budget and --measure-every of `bench --globe`."""
     for opt in reversed([
-        click.option("--flight-fps", "flight_fps", type=click.FloatRange(0.5, 120.0),
+        click.option("--flight-fps", "flight_fps", type=Number(0.5, 120.0),
                      default=10.0, show_default=True,
                      help="--globe: frames per second of flight time (the flyover lasts 24 s)."),
-        click.option("--frame-budget", type=click.FloatRange(1.0, 1e5), default=None,
+        click.option("--frame-budget", type=Number(1.0, 1e5), default=None,
                      metavar="MS",
                      help="--globe: the frame budget in ms that no frame may stall on "
                           "payload generation for [default: 1000 / --flight-fps]."),
