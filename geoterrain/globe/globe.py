@@ -180,6 +180,13 @@ class Globe:
             self._install(row, p)
         return len(done)
 
+    def install_finished(self) -> int:
+        """Install the payloads whose generation finished (no dispatch); how many."""
+        done = self.queue.collect()
+        for row, p in done:
+            self._install(row, p)
+        return len(done)
+
     def ready_roots(self) -> np.ndarray:
         """The 30 roots (their payloads are made with the globe and never evicted)."""
         return self.nodes.roots()
@@ -240,7 +247,9 @@ class Globe:
             raise UsageError(f"pixel_error must be a positive number, got {tau}",
                              cli=f"--pixel-error must be a positive number, got {tau}")
         ti = time.perf_counter()
-        installed = self.generate_pending(wait=False) if not wait else 0
+        # the payloads finished since the last frame; the frame dispatches once, after its
+        # selection, within the budget (seed L471: ``budget`` dispatches a frame)
+        installed = self.install_finished() if not wait else 0
         install_ms = (time.perf_counter() - ti) * 1e3
         sel = select(self, view, tau, frustum=frustum, horizon=horizon, morph=morph,
                      wait=wait, normals=normals)
