@@ -7,6 +7,7 @@ import sys
 
 import click
 
+from geoterrain.cli.globe import flyover_options, globe_flag
 from geoterrain.cli.options import (
     SIZE,
     anti_aliasing_option,
@@ -15,6 +16,10 @@ from geoterrain.cli.options import (
     pixel_errors_option,
     strategies_option,
 )
+
+#: the options `bench --globe` takes
+GLOBE_BENCH_OPTIONS = {"globe", "flight_fps", "frame_budget", "measure_every", "size",
+                       "pixel_errors", "render", "output", "overwrite"}
 
 
 def _floats(ctx, param, value):
@@ -31,6 +36,8 @@ def _floats(ctx, param, value):
 
 @click.command("bench")
 @click.argument("source", required=False, type=click.Path(dir_okay=False))
+@globe_flag
+@flyover_options
 @click.option("--synthetic", type=click.IntRange(3, 16385), metavar="N",
               help="Benchmark a synthetic N×N fbm DEM instead of SOURCE.")
 @click.option("--seed", default=1, show_default=True, help="Seed of the synthetic DEM.")
@@ -67,7 +74,8 @@ def _floats(ctx, param, value):
               help="With --experiment: frames timed over the one-minute flight.")
 @click.option("--overwrite", is_flag=True, help="Replace the CSV and the figure if they exist.")
 @click.pass_context
-def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_aliasing,
+def command(ctx, source, globe, flight_fps, frame_budget, measure_every, synthetic, seed,
+            strategies, occlusion, morph, anti_aliasing,
             pixel_errors, n_views, cameras, size, render, peers, peer_errors, output, plot_path,
             cache_dir, experiment, terrains, frames, overwrite):
     """Benchmark the LOD strategies on SOURCE (a store or a DEM) or a synthetic DEM.
@@ -92,6 +100,13 @@ def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_ali
       geoterrain bench dem.tif --path cameras.json --render --peers -o dem.csv
       geoterrain bench --experiment list
       geoterrain bench --experiment algorithm --terrains Valley,Terrace -o t620.csv
+      geoterrain bench --globe japan.geoterrain --render --size 640x360 -o flyover.csv
+
+    With --globe it flies the planetary flyover on the globe (from outside the
+    atmosphere down to the ground and away again; over the store, or the procedural
+    planet without one) with the asynchronous payload queue, and reports the
+    frame-time distribution, the selection's share of the frame, the frames that stalled
+    on generation, pop and (over a store) the measured screen-space error.
     """
     import json
     from pathlib import Path
@@ -102,6 +117,14 @@ def command(ctx, source, synthetic, seed, strategies, occlusion, morph, anti_ali
     from geoterrain.exceptions import UsageError
 
     quiet = bool((ctx.obj or {}).get("quiet"))
+    if globe:
+        from geoterrain.cli import globe as G
+
+        G.refuse_options(ctx, GLOBE_BENCH_OPTIONS, "bench --globe")
+        if ctx.get_parameter_source("pixel_errors").name == "DEFAULT":
+            pixel_errors = (1.0,)  # the flyover flies at one τ
+        return G.bench(ctx, source, size, pixel_errors, render, flight_fps, frame_budget,
+                       measure_every, output, overwrite)
     if experiment is not None:
         return _experiment(ctx, experiment, source, synthetic, anti_aliasing, terrains, frames,
                            output, cache_dir, quiet, overwrite)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from geoterrain.cli.globe import camera_option, globe_flag
 from geoterrain.cli.options import (
     AZIMUTH,
     DISTANCE,
@@ -29,12 +30,20 @@ from geoterrain.cli.options import (
     vertical_exaggeration_option,
 )
 
+#: the options `render --globe` takes (the others are the flat scene's)
+GLOBE_OPTIONS = {"out", "globe", "geo_camera", "fov", "size", "pixel_error",
+                 "vertical_exaggeration", "shading", "cmap", "clim", "water_level",
+                 "title", "no_overlays", "stats_path", "overwrite"}
+
 
 @click.command("render")
-@click.argument("store", type=click.Path(dir_okay=False))
+@click.argument("stores", metavar="STORE...", nargs=-1, required=True,
+                type=click.Path(dir_okay=False))
 @click.option("-o", "--output", "out", required=True, type=click.Path(),
               help="Output .png (one view), .gif or .mp4 (--orbit / --path), or a directory "
                    "of PNG frames.")
+@globe_flag
+@camera_option
 @camera_options
 @click.option("--azimuth", type=AZIMUTH,
               help="Camera bearing from the target, degrees clockwise from north "
@@ -81,8 +90,8 @@ from geoterrain.cli.options import (
                    "picture; no faster on the CPU renderer, docs/benchmarks.md).")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
-def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation, distance,
-            map_view, size,
+def command(ctx, stores, out, globe, geo_camera, look_from, look_at, crs_coords, azimuth,
+            elevation, distance, map_view, size,
             fov, pixel_error, strategy, occlusion, morph, anti_aliasing, vertical_exaggeration,
             shading, cmap, clim, water_level, water,
             sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity, title,
@@ -105,10 +114,16 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
       geoterrain render dem.geoterrain -o lines.png --contours 50
       geoterrain render dem.geoterrain -o orbit.gif --orbit 36 --size 640x360
       geoterrain render dem.geoterrain -o fly.mp4 --path cameras.json --stats fly.json
+      geoterrain render --globe world.geoterrain japan.geoterrain -o earth.png
+      geoterrain render --globe japan.geoterrain -o fuji.png --camera 138.5,35.0,9000,330,-15
 
     \b
     A cameras JSON is a list of {"look_from": [x,y,z], "look_at": [x,y,z]} (scene
     metres), or {"crs": true, "cameras": [...]} for source-CRS coordinates.
+
+    With --globe, the STOREs (any number: a whole-globe raster, a continent, a pole, a
+    regional DEM) are drawn on the WGS 84 globe, seen from --camera (default: all of
+    them framed from above); a camera under the ground is warned about.
     """
     import geoterrain
     import geoterrain.rendering.animation as A
@@ -119,6 +134,20 @@ def command(ctx, store, out, look_from, look_at, crs_coords, azimuth, elevation,
     from geoterrain.rendering.cameras import check_elevation
 
     quiet = (ctx.obj or {}).get("quiet", False)
+    if globe:
+        from geoterrain.cli import globe as G
+
+        G.refuse_options(ctx, GLOBE_OPTIONS, "render --globe")
+        return G.render(ctx, stores, out, geo_camera, size, fov, pixel_error,
+                        vertical_exaggeration, shading, palette(cmap, clim, water_level),
+                        title, not no_overlays, stats_path, overwrite)
+    if geo_camera is not None:
+        raise UsageError("--camera LON,LAT,HEIGHT places the camera on the globe: add "
+                         "--globe (the flat scene takes --look-from/--look-at)")
+    if len(stores) > 1:
+        raise UsageError(f"the flat scene draws one store, got {len(stores)}; draw several "
+                         "on one globe with --globe")
+    store = stores[0]
     try:
         check_elevation(elevation)
     except UsageError:

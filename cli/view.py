@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from geoterrain.cli.globe import camera_option, globe_flag
 from geoterrain.cli.options import (
     SIZE,
     StageBar,
@@ -21,9 +22,16 @@ from geoterrain.cli.options import (
     vertical_exaggeration_option,
 )
 
+#: the options `view --globe` takes (the others are the flat viewer's)
+GLOBE_OPTIONS = {"globe", "geo_camera", "pixel_error", "vertical_exaggeration", "shading",
+                 "cmap", "clim", "water_level", "size"}
+
 
 @click.command("view")
-@click.argument("source", type=click.Path(exists=True, dir_okay=False))
+@click.argument("sources", metavar="SOURCE...", nargs=-1, required=True,
+                type=click.Path(exists=True, dir_okay=False))
+@globe_flag
+@camera_option
 @strategy_option
 @occlusion_option
 @morph_option
@@ -45,8 +53,8 @@ from geoterrain.cli.options import (
 @click.option("--bind", default="127.0.0.1", show_default=True,
               help="--web: address to listen on (0.0.0.0: your network).")
 @click.pass_context
-def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exaggeration,
-            shading, cmap, clim, water_level, water,
+def command(ctx, sources, globe, geo_camera, strategy, occlusion, morph, pixel_error,
+            vertical_exaggeration, shading, cmap, clim, water_level, water,
             sun, hillshade, shadows, ambient_occlusion, drape_path, drape_opacity,
             size, rebuild, web, port, bind):
     """Open SOURCE (a store or a DEM) in an interactive 3-D window.
@@ -80,6 +88,13 @@ def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exagg
       geoterrain view srtm.tif --strategy chunked --pixel-error 2
       geoterrain view dem.geoterrain --sun 250,20 --shadows
       geoterrain view dem.geoterrain --web --port 8080
+      geoterrain view --globe world.geoterrain japan.geoterrain
+      geoterrain view --globe japan.geoterrain --camera 138.73,35.36,12000,0,-20
+
+    With --globe the stores (any number) are drawn on the WGS 84 globe and the detail
+    follows the camera over the whole planet (keys: +/- detail, x wireframe, space
+    freeze, h home, s screenshot, q quit); --camera LON,LAT,HEIGHT[,HEADING[,PITCH]]
+    places the first view (default: all the stores framed from above).
     """
     import geoterrain
     from geoterrain.exceptions import GeoterrainError
@@ -88,6 +103,21 @@ def command(ctx, source, strategy, occlusion, morph, pixel_error, vertical_exagg
     from geoterrain.store.database import is_store
 
     quiet = (ctx.obj or {}).get("quiet", False)
+    if globe:
+        from geoterrain.cli import globe as G
+
+        G.refuse_options(ctx, GLOBE_OPTIONS, "view --globe")
+        return G.view(ctx, sources, geo_camera, size, pixel_error, vertical_exaggeration,
+                      shading, palette(cmap, clim, water_level))
+    from geoterrain.exceptions import UsageError
+
+    if geo_camera is not None:
+        raise UsageError("--camera LON,LAT,HEIGHT places the camera on the globe: add "
+                         "--globe")
+    if len(sources) > 1:
+        raise UsageError(f"the flat viewer opens one store, got {len(sources)}; open "
+                         "several on one globe with --globe")
+    source = sources[0]
     lit, dr = light_and_drape(shading, sun, hillshade, shadows, ambient_occlusion,
                               drape_path, drape_opacity)  # bad values fail before any work
     src = Path(source)

@@ -156,6 +156,7 @@ def command_lines(draw, d: Path):
     for p in cmd.params:
         if isinstance(p, click.Argument):
             good = {"dem": d / "dem.tif", "store": d / "s.geoterrain",
+                    "stores": d / "s.geoterrain", "sources": d / "s.geoterrain",
                     "source": d / "s.geoterrain"}.get(p.name)
             if good is not None:
                 argv.append(draw(st.one_of(st.just(str(good)), _paths(d))) if not calm
@@ -173,6 +174,8 @@ def command_lines(draw, d: Path):
             argv += [opt, draw(_value(p, d, calm, name))]
     if name == "bench" and "--cache-dir" not in argv:
         argv += ["--cache-dir", str(d / "cache")]  # not the user's cache folder
+    if name == "bench" and "--globe" in argv:  # the flyover: a few small frames (the
+        argv += ["--flight-fps", "0.5", "--size", "64x48"]  # last value of an option wins)
     return name, argv
 
 

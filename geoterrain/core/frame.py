@@ -345,7 +345,9 @@ def check_flat(frame: Frame, name: str) -> None:
     if why is not None:
         msg = (f"{name}: {why}; a flat scene would fold or distort it: draw it on the globe "
                "(geoterrain.globe.Globe)")
-        raise InputError(msg, cli=msg)
+        raise InputError(msg, cli=f"{name}: {why}; a flat scene would fold or distort it: "
+                         f"draw it on the globe: geoterrain render --globe {name} -o "
+                         "earth.png (or view --globe; geoterrain.globe.Globe in Python)")
 
 
 def level_transform(transform, level: int):

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -179,6 +180,13 @@ class Globe:
             self._install(row, p)
         return len(done)
 
+    def install_finished(self) -> int:
+        """Install the payloads whose generation finished (no dispatch); how many."""
+        done = self.queue.collect()
+        for row, p in done:
+            self._install(row, p)
+        return len(done)
+
     def ready_roots(self) -> np.ndarray:
         """The 30 roots (their payloads are made with the globe and never evicted)."""
         return self.nodes.roots()
@@ -238,7 +246,11 @@ class Globe:
         if not (math.isfinite(tau) and tau > 0):
             raise UsageError(f"pixel_error must be a positive number, got {tau}",
                              cli=f"--pixel-error must be a positive number, got {tau}")
-        self.generate_pending(wait=False) if not wait else None
+        ti = time.perf_counter()
+        # the payloads finished since the last frame; the frame dispatches once, after its
+        # selection, within the budget (seed L471: ``budget`` dispatches a frame)
+        installed = self.install_finished() if not wait else 0
+        install_ms = (time.perf_counter() - ti) * 1e3
         sel = select(self, view, tau, frustum=frustum, horizon=horizon, morph=morph,
                      wait=wait, normals=normals)
         q = self.queue
@@ -247,7 +259,8 @@ class Globe:
         sel.stats.update(dispatched=q.dispatched, in_flight=q.in_flight,
                          generation_ms=round(q.generation_ms, 3),
                          stall_ms=round(q.stall_ms, 3), payloads=self.payloads.used,
-                         evicted=self.evicted)
+                         evicted=self.evicted, installed=installed,
+                         install_ms=round(install_ms, 3))
         return sel
 
     def camera(self, lon: float, lat: float, height: float, heading: float = 0.0,

@@ -63,6 +63,6 @@ def test_a_whole_globe_raster_preprocesses_and_the_flat_render_refuses_it(tmp_pa
         res = r.invoke(cli, args, catch_exceptions=False)
         assert res.exit_code == 1, res.output
         err = res.stderr.strip().splitlines()
-        assert len(err) == 1 and "globe.Globe" in err[0] and "poles" in err[0], res.stderr
+        assert len(err) == 1 and "render --globe" in err[0] and "poles" in err[0], res.stderr
         assert "Traceback" not in res.output
     assert not list(tmp_path.glob("w.*"))  # nothing half-written
