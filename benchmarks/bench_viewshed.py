@@ -4,7 +4,8 @@
     python benchmarks/bench_viewshed.py --dem ../shared/dems/srtm1_japan.tif --radius 10000
 
 With ``--size N`` the DEM is ``geoterrain synth fbm --size N --seed 7`` (10 m cells), made
-in ``--workdir`` (kept between runs); ``--dem`` takes a GeoTIFF (a geographic one is run
+in ``--workdir`` (kept between runs; by default a folder in the system temporary
+directory, never the working folder); ``--dem`` takes a GeoTIFF (a geographic one is run
 with curvature off, ``-cc 0``, as gdal_viewshed measures its distances in degrees, and its
 ``-md`` is given in degrees to cover the disc; cells are compared where both answer).
 The observer stands at the DEM's centre (``--observer X,Y`` in its CRS otherwise),
@@ -29,6 +30,7 @@ import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -59,7 +61,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=4097)
     ap.add_argument("--dem")
-    ap.add_argument("--workdir", default="bench_viewshed")
+    ap.add_argument("--workdir", default=os.path.join(tempfile.gettempdir(),
+                                                      "geoterrain-bench-viewshed"))
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--coverage", type=float, default=0.25)
     ap.add_argument("--radius", type=float)
