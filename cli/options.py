@@ -220,8 +220,12 @@ class StageBar:
         self.bar = None
 
     def __call__(self, stage: str, done: int, total: int) -> None:
-        if self.quiet or CompileBar.active is not None:  # the first run's bar is shown
+        if self.quiet:
             return
+        if CompileBar.active is not None:  # the first run's bar is shown
+            if CompileBar.active.compiling():
+                return
+            CompileBar.active.finish()  # the command's own work goes on: its bar from now
         if self.bar is None:
             self.bar = click.progressbar(length=total, label=self.label, file=sys.stderr,
                                          show_eta=False, item_show_func=lambda s: s)
@@ -257,10 +261,12 @@ COMPILING["view"] = COMPILING["render"]
 
 
 class CompileBar:
-    """The first run of a command: says that kernels are being compiled (once, with an
-    estimate of the time) and shows a bar of the compilations numba reports, on stderr,
-    while the command's own progress bars wait (:class:`StageBar`); silent with -q or when
-    every kernel the command may need is cached (:func:`geoterrain.core.warmup.cold_kernels`).
+    """The first run of a command: when numba starts compiling a kernel the cache did not
+    hold, says so (once, with an estimate of the time for the command's uncached kernels)
+    and shows a bar of the compilations, on stderr, while the command's own progress bars
+    wait (:class:`StageBar`); silent with -q, when every kernel the command may need is
+    cached (:func:`geoterrain.core.warmup.cold_kernels`), or when the run compiles none of
+    the uncached ones (another strategy's kernels, say).
     """
 
     active: CompileBar | None = None  # the bar shown now, if any
@@ -278,14 +284,20 @@ class CompileBar:
         self.total = len(cold_kernels(COMPILING[self.command]))
         if self.total == 0:
             return self
-        click.echo(f"compiling kernels (first run only, about "
-                   f"{estimate_seconds(self.total)} s)", err=True)
+        self.estimate = estimate_seconds(self.total)
+        self.watch = CompileWatch(self._step, started=self._show).__enter__()
+        return self
+
+    def _show(self) -> None:
+        click.echo(f"compiling kernels (first run only, about {self.estimate} s)", err=True)
         self.bar = click.progressbar(length=self.total, label="compiling", file=sys.stderr,
                                      show_eta=False, show_pos=True)
         self.bar.__enter__()
         CompileBar.active = self
-        self.watch = CompileWatch(self._step).__enter__()
-        return self
+
+    def compiling(self) -> bool:
+        """Whether numba is compiling a kernel now."""
+        return self.watch is not None and self.watch.depth > 0
 
     def _step(self, done: int) -> None:
         if self.bar is not None:

@@ -114,8 +114,9 @@ def estimate_seconds(n: int) -> int:
 
 
 class CompileWatch:
-    """Counts numba's compilations while it is active (a context manager) and calls
-    ``progress(done)`` after each.
+    """Counts numba's compilations while it is active (a context manager), calls
+    ``started()`` when the first begins (a kernel loaded from the cache is no compilation)
+    and ``progress(done)`` after each; ``depth`` is how many are under way now.
 
     Examples
     --------
@@ -126,9 +127,11 @@ class CompileWatch:
     0
     """
 
-    def __init__(self, progress: Callable[[int], None] | None = None):
-        self.progress = progress
+    def __init__(self, progress: Callable[[int], None] | None = None,
+                 started: Callable[[], None] | None = None):
+        self.progress, self.started = progress, started
         self.done = 0
+        self.depth = 0  # compilations under way now (a kernel compiles those it calls)
         self._listener = None
 
     def __enter__(self) -> CompileWatch:
@@ -138,9 +141,13 @@ class CompileWatch:
 
         class _Listener(event.Listener):
             def on_start(self, ev) -> None:
-                pass
+                watch.depth += 1
+                if watch.started is not None:  # the first compilation: say so once
+                    started, watch.started = watch.started, None
+                    started()
 
             def on_end(self, ev) -> None:
+                watch.depth -= 1
                 watch.done += 1
                 if watch.progress is not None:
                     watch.progress(watch.done)
