@@ -192,7 +192,10 @@ class Globe:
         return self.nodes.roots()
 
     def touch(self, rows: np.ndarray, view: View) -> None:
-        """Mark the drawn nodes and their ancestors as used this frame (kept from eviction)."""
+        """Mark the drawn nodes, their ancestors and the ancestors' other children as used
+        this frame (kept from eviction): a node refines only while all four of its children
+        are ready, so a culled sibling evicted now would be requested again next frame (with
+        a full pool the converged mesh of a still picture then never came)."""
         pool = self.nodes
         self.frame_no += 1
         cur = np.unique(np.asarray(rows, np.int64))
@@ -200,6 +203,8 @@ class Globe:
             pool.used_frame[cur] = self.frame_no
             cur = np.unique(pool.parent[cur])
             cur = cur[cur >= 0]
+            kids = pool.kids[cur].reshape(-1)
+            pool.used_frame[kids[kids >= 0]] = self.frame_no
         self._view = view
 
     def evict(self, count: int) -> int:
