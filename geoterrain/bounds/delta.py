@@ -33,7 +33,7 @@ from geoterrain.core.bintree import main_diagonal_nb, parents_nb
 from geoterrain.core.rounding import round_up32
 from geoterrain.core.threads import cores_for, parallel_kernel
 
-__all__ = ["below_own_error", "saturate", "vertex_errors"]
+__all__ = ["below_own_error", "delta_max_finite", "saturate", "vertex_errors"]
 
 
 # --------------------------------------------------------------------------- helpers
@@ -608,3 +608,24 @@ def below_own_error(delta: np.ndarray, z: np.ndarray, valid: np.ndarray
     k = int(_below_own_error_nb(np.ascontiguousarray(delta), np.ascontiguousarray(z, np.float64),
                                 np.ascontiguousarray(valid, np.bool_)))
     return None if k < 0 else divmod(k, delta.shape[1])
+
+
+@njit(cache=True, nogil=True)
+def _finite_max_nb(a):
+    m = 0.0
+    for v in a.ravel():
+        if np.isfinite(v) and v > m:
+            m = v
+    return m
+
+
+def delta_max_finite(delta: np.ndarray) -> float:
+    """The largest finite δ, or 0 (the store's ``delta_max_finite``), without copying
+    the finite values.
+
+    Examples
+    --------
+    >>> delta_max_finite(np.array([0.5, np.inf, 2.0, np.nan], np.float32))
+    2.0
+    """
+    return float(_finite_max_nb(delta))  # a float32 value is exact in float64

@@ -19,7 +19,10 @@ from pathlib import Path
 
 from geoterrain.exceptions import UsageError, exists_error
 
-__all__ = ["check_output", "input_problem", "kind_of", "same_file"]
+__all__ = ["STORE_SUFFIX", "check_output", "default_store_path", "input_problem", "kind_of",
+           "same_file"]
+
+STORE_SUFFIX = ".geoterrain"  # a store's file name ends so (store.database.is_store)
 
 _KINDS = ((stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a directory"),
           (stat.S_ISLNK, "a symbolic link"), (stat.S_ISCHR, "a character device"),
@@ -194,3 +197,15 @@ def _show(p: str | Path) -> str:
     s = s.encode("utf-8", "backslashreplace").decode("utf-8")
     s = "".join(c if c.isprintable() else "?" for c in s)
     return s if len(s) <= 200 else s[:96] + "…" + s[-96:]
+
+
+def default_store_path(src: str | Path) -> Path:
+    """The store a preprocess of ``src`` writes by default: its path with the suffix
+    :data:`STORE_SUFFIX`.
+
+    Examples
+    --------
+    >>> default_store_path("dem/fuji.tif").name
+    'fuji.geoterrain'
+    """
+    return Path(src).with_suffix(STORE_SUFFIX)

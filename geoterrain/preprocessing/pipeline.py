@@ -13,10 +13,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from geoterrain.bounds.curvature import metric_bounds, metric_terms
-from geoterrain.bounds.delta import saturate, vertex_errors
+from geoterrain.bounds.delta import delta_max_finite, saturate, vertex_errors
 from geoterrain.bounds.edgepad import (
     edge_deltas,
     edge_only_tiles,
@@ -41,10 +40,9 @@ from geoterrain.codec.quantize import Quantizer, codes_to_heights
 from geoterrain.core.frame import Frame
 from geoterrain.core.grid import Grid
 from geoterrain.core.memory import available_memory
-from geoterrain.core.paths import input_problem
+from geoterrain.core.paths import STORE_SUFFIX, input_problem
 from geoterrain.core.progress import Progress, StageClock
 from geoterrain.exceptions import InputError
-from geoterrain.ingest.mosaic import mosaic_name
 from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.ingest.remote import is_url
 from geoterrain.preprocessing.request import Request, place, request
@@ -54,20 +52,6 @@ from geoterrain.store.database import StoreWriter
 log = logging.getLogger("geoterrain")
 STAGES = ("read", "pad", "quantise", "errors", "radii", "tile bounds", "normals", "compress",
           "write")
-
-
-@njit(cache=True, nogil=True)
-def _finite_max_nb(a):
-    m = 0.0
-    for v in a.ravel():
-        if np.isfinite(v) and v > m:
-            m = v
-    return m
-
-
-def _finite_max(a: np.ndarray) -> float:
-    """max(0, the largest finite value of ``a``) without copying the finite values."""
-    return float(_finite_max_nb(a))  # a float32 value is exact in float64
 
 
 def validate(r: Raster, z_scale: float | None) -> None:
@@ -242,14 +226,14 @@ def preprocess(
     blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals)
     del normal_maps
     stage("compress")
-    meta = dict(source=mosaic_name(req.files), source_dtype=dem.raster.src_dtype,
+    meta = dict(source=req.name, source_dtype=dem.raster.src_dtype,
                 source_nodata=dem.raster.nodata, encoding=dem.raster.encoding,
                 grid=dem.grid.to_json(), frame=dem.frame.to_json(),
                 quantizer=surface.q.to_json(),
                 normals_derived=(list(range(dem.grid.top_level + 1)) if derive_normals
                                  else []),
                 valid_samples=dem.valid_samples, samples=dem.raster.valid.size,
-                height_range=surface.height_range, delta_max_finite=_finite_max(bounds.delta),
+                height_range=surface.height_range, delta_max_finite=delta_max_finite(bounds.delta),
                 edge_max=blobs.edge_max if has_padding(dem.grid) else None,
                 stand_in_z=stand_in_z(surface.Z, surface.valid),
                 block_delta_levels=int(blocks.shape[2]))
@@ -561,7 +545,7 @@ def cached_store_path(dem: str | Path) -> Path:
     key = f"{dem}\0{st.st_size}\0{st.st_mtime_ns}".encode()
     digest = hashlib.sha256(key).hexdigest()[:16]
     cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "geoterrain"
-    return cache / f"{dem.stem}-{digest}.geoterrain"
+    return cache / f"{dem.stem}-{digest}{STORE_SUFFIX}"
 
 
 def ensure_store(dem: str | Path, *, rebuild: bool = False,

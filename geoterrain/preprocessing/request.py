@@ -19,13 +19,12 @@ import numpy as np
 from geoterrain.core.atomicfiles import remove_stale_partials
 from geoterrain.core.frame import PIXEL_SIZE_RANGE, Frame
 from geoterrain.core.grid import Grid
-from geoterrain.core.paths import check_output
+from geoterrain.core.paths import check_output, default_store_path
 from geoterrain.exceptions import UsageError
-from geoterrain.ingest.mosaic import sources
+from geoterrain.ingest.mosaic import mosaic_name, sources
 from geoterrain.ingest.remote import Url
 from geoterrain.ingest.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
 from geoterrain.preprocessing.schedulers import parse_scheduler
-from geoterrain.store.database import default_store_path
 
 __all__ = ["MAX_TILE_SIZE", "Placement", "Request", "place", "request"]
 
@@ -37,7 +36,8 @@ MAX_TILE_SIZE = 4096
 class Request:
     """A preprocess's checked request: the source as given (``src``), its ``files``
     (several for a mosaic; a URL as :class:`~geoterrain.ingest.remote.Url`), the store
-    to write and the tile size."""
+    to write, the tile size, and the source's short ``name`` (messages and the store's
+    ``source`` metadata)."""
 
     files: list[Path | Url]
     mosaic: bool
@@ -45,6 +45,7 @@ class Request:
     overwrite: bool
     src: str | Path | list
     tile_size: int
+    name: str
 
 
 def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
@@ -58,8 +59,8 @@ def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
     --------
     >>> r = request(__file__, "x.geoterrain", tile_size=64, codec_error=None,
     ...             pixel_size=None, overwrite=True, scheduler="sync", resume=True)
-    >>> r.dst.name, r.mosaic
-    ('x.geoterrain', False)
+    >>> r.dst.name, r.mosaic, r.name
+    ('x.geoterrain', False, 'request.py')
     """
     if codec_error is not None and not (np.isfinite(codec_error) and codec_error >= 0):
         raise UsageError(f"codec_error must be a finite number ≥ 0, got {codec_error}",
@@ -76,6 +77,7 @@ def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
                          f"[2, {MAX_TILE_SIZE}], got {tile_size}")
     parse_scheduler(scheduler)  # a bad spec is a usage error before any work
     files, mosaic = sources(src)
+    name = mosaic_name(files)
     if dst is None and mosaic:
         raise UsageError("a mosaic (list of files or glob) has no default store name; "
                          "pass dst", cli="a mosaic (several files or a glob) has no default "
@@ -87,7 +89,7 @@ def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
         remove_stale_partials(dst.parent if str(dst.parent) else Path("."))
     # a regular file or nothing, replaced only with overwrite, never one of the inputs
     check_output(dst, overwrite, inputs=files)
-    return Request(files, mosaic, dst, overwrite, src, tile_size)
+    return Request(files, mosaic, dst, overwrite, src, tile_size, name)
 
 
 class Placement(NamedTuple):

@@ -58,7 +58,7 @@ import numpy as np
 
 from geoterrain.core.atomicfiles import publish, remove_stale_partials
 from geoterrain.core.osreads import EXACT, ReadMeter
-from geoterrain.core.paths import check_output, input_problem
+from geoterrain.core.paths import STORE_SUFFIX, check_output, input_problem
 from geoterrain.exceptions import (
     StoreCorruptError,
     StoreError,
@@ -139,17 +139,6 @@ def blob_crc(key: tuple[int, int, int], kind: str, data: bytes) -> int:
     return zlib.crc32(data, zlib.crc32(struct.pack("<3q", *key) + kind.encode()))
 
 
-def default_store_path(src: str | Path) -> Path:
-    """The input's path with the suffix ``.geoterrain``.
-
-    Examples
-    --------
-    >>> default_store_path("dem/fuji.tif").name
-    'fuji.geoterrain'
-    """
-    return Path(src).with_suffix(".geoterrain")
-
-
 def is_store(path: str | Path) -> bool:
     """True when ``path`` is a geoterrain store (by suffix, or by its first bytes).
 
@@ -158,7 +147,7 @@ def is_store(path: str | Path) -> bool:
     >>> is_store("dem.geoterrain"), is_store("no-such.tif")
     (True, False)
     """
-    if str(path).endswith(".geoterrain"):
+    if str(path).endswith(STORE_SUFFIX):
         return True
     try:
         with open(path, "rb") as fh:

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from geoterrain.bounds.delta import delta_max_finite
 from geoterrain.bounds.edgepad import has_padding
 from geoterrain.bounds.normals import encode_octahedral, level_normal_maps
 from geoterrain.bounds.radii import stand_in_z
@@ -128,12 +129,11 @@ def whole_plan(terrain: TerrainLike, heights: np.ndarray, valid: np.ndarray,
         for key, b in bb.items():
             new[(key, kind)] = b
     new[((g.top_level, 0, 0), "block_delta")] = pack_block_errors(blocks)
-    from geoterrain.preprocessing.pipeline import _finite_max
 
     m = dict(meta)
     m.update(valid_samples=int(np.count_nonzero(valid)),
              nodata_fraction=float(1.0 - np.count_nonzero(valid) / (g.rows * g.cols)),
-             height_range=height_range, delta_max_finite=_finite_max(bounds.delta),
+             height_range=height_range, delta_max_finite=delta_max_finite(bounds.delta),
              stand_in_z=stand_in_z(Z, valid),
              normals_derived=list(range(g.top_level + 1)) if derive_normals else [])
     if not derive_normals:
