@@ -81,7 +81,7 @@ test-browser: $(STAMP) browser
 	$(BIN)/python -m pytest -q -m browser
 
 lint: $(STAMP)
-	$(BIN)/ruff check geoterrain cli tests benchmarks
+	$(BIN)/ruff check .
 
 clean:
 	rm -rf $(VENV) out .pytest_cache
