@@ -129,12 +129,12 @@ def main() -> None:
                 _baseline(base, a, dem, store, work, run)
             pre.append(child(PRE, dem, os.path.join(work, "p.geoterrain")))
             edits = child(EDIT, store, work, str(a.edits), str(a.window), str(a.seed + run))
-            if a.baseline_tree and run % 2 == 1:
-                _baseline(base, a, dem, store, work, run)
             first.append(edits[0])
             later += edits[1:]
             print(f"run {run}: preprocess {pre[-1]['wall']:.2f} s; edits "
                   + ", ".join(f"{e['wall']:.3f} s ({e['how']})" for e in edits), flush=True)
+            if a.baseline_tree and run % 2 == 1:  # in turns: the baseline second
+                _baseline(base, a, dem, store, work, run)
         med = statistics.median
         p = med(e["wall"] for e in pre)
         pc = med(e["cpu"] for e in pre)
