@@ -3,7 +3,7 @@
 
 Usage:
     python benchmarks/bench_edit.py [--size 4097] [--window 65] [--edits 5] [--runs 3]
-        [--seed 0] [--int]
+        [--seed 0] [--int] [--baseline-tree DIR]
 
 Makes a fBm DEM (``geoterrain synth``; ``--int``: its heights rounded to whole metres,
 an integer store like SRTM's), preprocesses it once, then alternates ``--runs`` times:
@@ -13,7 +13,11 @@ Each process is timed after its imports (the compiled kernels are on disk); the 
 edit of a process also loads its kernels from numba's cache, so it is reported apart
 from the next ones. For each edit: the rows and bytes it wrote (blobs and catalog), the
 store's pages that differ afterwards (1 kB pages, compared with the copy before) and the
-file's growth; and the time of the transaction apart (its syncs). Prints markdown tables
+file's growth; and the time of the transaction apart (its syncs). ``--baseline-tree DIR``:
+another commit's ``geoterrain/`` with its ``cli/`` copied in as ``geoterrain/cli/`` (as
+benchmarks/bench_startup.py; run once beforehand, so its kernels are cached), whose two
+children run in turns with this tree's in each run, for same-run ratios (a table at the
+end). Prints markdown tables
 of medians and the ratios to the preprocess, in wall time and in CPU time (the process's
 user + system time over all its threads: less sensitive to other jobs on the machine
 than wall time, but it counts the preprocess's parallel work once per core).
@@ -78,9 +82,12 @@ print(json.dumps(out))
 """
 
 
-def child(code: str, *args: str):
+def child(code: str, *args: str, tree: str | None = None):
+    env = dict(os.environ)
+    if tree is not None:  # another commit's geoterrain/ first on the path
+        env["PYTHONPATH"] = tree + os.pathsep + env.get("PYTHONPATH", "")
     out = subprocess.run([sys.executable, "-c", code, *args], check=True, capture_output=True,
-                         text=True)
+                         text=True, env=env)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -92,6 +99,7 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--int", action="store_true", help="integer heights (an SRTM-like store)")
+    ap.add_argument("--baseline-tree", help="another commit's geoterrain/ to compare with")
     a = ap.parse_args()
     import numpy as np
 
@@ -115,13 +123,18 @@ def main() -> None:
             edit_terrain(t, Patch(0, 0, np.full((a.window, a.window), -20.0)), "add")
         os.remove(warm)
         pre, first, later = [], [], []
+        base: dict = {"pre": [], "first": [], "next": []}
         for run in range(a.runs):
+            if a.baseline_tree and run % 2 == 0:
+                _baseline(base, a, dem, store, work, run)
             pre.append(child(PRE, dem, os.path.join(work, "p.geoterrain")))
             edits = child(EDIT, store, work, str(a.edits), str(a.window), str(a.seed + run))
             first.append(edits[0])
             later += edits[1:]
             print(f"run {run}: preprocess {pre[-1]['wall']:.2f} s; edits "
                   + ", ".join(f"{e['wall']:.3f} s ({e['how']})" for e in edits), flush=True)
+            if a.baseline_tree and run % 2 == 1:  # in turns: the baseline second
+                _baseline(base, a, dem, store, work, run)
         med = statistics.median
         p = med(e["wall"] for e in pre)
         pc = med(e["cpu"] for e in pre)
@@ -155,8 +168,30 @@ def main() -> None:
             print(f"| {what} | {v / 1e3:.1f} kB | {100 * v / size:.2f} % |")
         hows = {e["how"] + (f": {e['why']}" if e["why"] else "") for e in allx}
         print(f"\nhow: {', '.join(sorted(hows))}; rows: {med(e['rows'] for e in allx)}")
+        if a.baseline_tree:
+            print("\n| same run, in turns | preprocess wall / CPU s | first edit wall / CPU s "
+                  "(× preprocess) | next edits wall / CPU s (× preprocess) |\n|---|---|---|---|")
+            for name, r in (("this tree", {"pre": pre, "first": first, "next": later}),
+                            ("baseline", base)):
+                pw, pc = med(e["wall"] for e in r["pre"]), med(e["cpu"] for e in r["pre"])
+                cells = [f"{pw:.2f} / {pc:.2f}"]
+                for k in ("first", "next"):
+                    w, c = med(e["wall"] for e in r[k]), med(e["cpu"] for e in r[k])
+                    cells.append(f"{w:.3f} / {c:.3f} ({w / pw:.3f} / {c / pc:.3f})")
+                print(f"| {name} | " + " | ".join(cells) + " |")
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def _baseline(base: dict, a, dem: str, store: str, work: str, run: int) -> None:
+    """The baseline tree's preprocess and editing processes of run ``run`` (same edits)."""
+    tree = os.path.abspath(a.baseline_tree)
+    base["pre"].append(child(PRE, dem, os.path.join(work, "p.geoterrain"), tree=tree))
+    edits = child(EDIT, store, work, str(a.edits), str(a.window), str(a.seed + run), tree=tree)
+    base["first"].append(edits[0])
+    base["next"] += edits[1:]
+    print(f"run {run}, baseline: preprocess {base['pre'][-1]['wall']:.2f} s; edits "
+          + ", ".join(f"{e['wall']:.3f} s" for e in edits), flush=True)
 
 
 if __name__ == "__main__":

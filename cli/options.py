@@ -277,19 +277,23 @@ class CompileBar:
         self.total = 0
 
     def __enter__(self) -> CompileBar:
-        from geoterrain.core.warmup import CompileWatch, cold_kernels, estimate_seconds
+        from geoterrain.core.warmup import CompileWatch
 
         if self.quiet or self.command not in COMPILING:
             return self
-        self.total = len(cold_kernels(COMPILING[self.command]))
-        if self.total == 0:
-            return self
-        self.estimate = estimate_seconds(self.total)
+        # the uncached kernels are counted when numba starts its first compilation, not
+        # here: a warm run (every kernel it uses cached) then never scans the sources
         self.watch = CompileWatch(self._step, started=self._show).__enter__()
         return self
 
     def _show(self) -> None:
-        click.echo(f"compiling kernels (first run only, about {self.estimate} s)", err=True)
+        from geoterrain.core import warmup
+
+        self.total = len(warmup.cold_kernels(COMPILING[self.command]))
+        if self.total == 0:  # a kernel outside the command's stage folders: nothing said
+            return
+        click.echo(f"compiling kernels (first run only, about "
+                   f"{warmup.estimate_seconds(self.total)} s)", err=True)
         self.bar = click.progressbar(length=self.total, label="compiling", file=sys.stderr,
                                      show_eta=False, show_pos=True)
         self.bar.__enter__()

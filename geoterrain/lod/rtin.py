@@ -32,7 +32,6 @@ import numpy as np
 from geoterrain.bounds.edgepad import has_padding
 from geoterrain.core.memory import sparse_zeros
 from geoterrain.core.view import View
-from geoterrain.lod.clip import clip_in_place
 from geoterrain.lod.emit import cull_compact, cull_in_place, walk_gather
 from geoterrain.lod.kernels import (
     ActiveFlags,
@@ -46,9 +45,7 @@ from geoterrain.lod.kernels import (
     mark_tiles,
     walk_start,
 )
-from geoterrain.lod.leaves import static_leaves
 from geoterrain.lod.mesh import add_elevation, empty_polydata, polydata
-from geoterrain.lod.morph import MORPH_START, morph_mesh
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.pool import PooledTiles, tile_pool
 from geoterrain.lod.tiles import TileIndex, TileTree, tile_index, tile_table
@@ -278,6 +275,8 @@ def active_mesh(terrain: TerrainLike, act: ActiveSet, view: View | None = None,
         M = 4 * M if 4 * M <= _HASHED_UP_TO else 0
     sc.last_faces = nf
     if band is not None:
+        from geoterrain.lod.morph import morph_mesh
+
         morph_mesh(terrain, verts[:nv], xyz[:nv], view, *band)
     nf, nv, level = cull_in_place(faces[:nf], xyz[:nv], ij[:nv], planes, lvl[:nv], eye,
                                   slack)
@@ -295,6 +294,8 @@ def _mesh_in_passes(terrain: TerrainLike, act: ActiveSet, planes: np.ndarray, ey
     sc.last_faces = len(faces)
     xyz, ij, lvl = _gather(terrain, flat)
     if band is not None:
+        from geoterrain.lod.morph import morph_mesh
+
         morph_mesh(terrain, flat, xyz, view, *band)
     faces, keep, level = cull_compact(faces, xyz, planes, lvl, eye, slack)
     if keep is not None:
@@ -317,6 +318,8 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     if index.outside(view):
         return empty_polydata(), {}
     if morph:  # seed 002 §2.10: vertices appear at τ_min, true at τ_max = τ
+        from geoterrain.lod.morph import MORPH_START
+
         tmin = MORPH_START * tau
         act = view_active(terrain, index, view, tmin, occlusion=occlusion)
         return (active_mesh(terrain, act, view, (tmin, tau), tau),
@@ -345,6 +348,10 @@ def static(terrain: TerrainLike, max_error: float):
     mesh is clipped to the data (:mod:`geoterrain.lod.clip`). The bound is the same, and
     the DEM's edge no longer needs full resolution.
     """
+    # imported here: a view's selection (render, view) needs neither, nor their kernels
+    from geoterrain.lod.clip import clip_in_place
+    from geoterrain.lod.leaves import static_leaves
+
     index = tile_index(terrain)
     pool = tile_pool(terrain)
     e = float(max_error)

@@ -36,6 +36,19 @@ __all__ = ["Bounds"]
 
 _SLACK = 1e-9  # relative slack of a tile's bound (float rounding of the planes)
 
+# The scalar helpers called from this module's Python code run as Python (the same
+# integer arithmetic; round_up32's float32 steps are IEEE operations in numpy too): a
+# compiled scalar called from Python costs a load from numba's cache in each process
+# (2-5 ms each, docs/lab/editing.md) for a few hundred calls of well under a microsecond.
+# The kernels below keep calling the compiled ones.
+_child = child_nb.py_func
+_main_diagonal = main_diagonal_nb.py_func
+
+
+def _round_up32(a: float) -> float:
+    # what the compiled round_up32 returns to Python: its float32 as a float
+    return float(round_up32.py_func(a))
+
 
 class Bounds:
     """δ, r and tile errors of one edit (``job``: :class:`.local._Job`)."""
@@ -246,7 +259,7 @@ class Bounds:
             centre = ((vs[:, 0] // h) % 2 == 1) & ((vs[:, 1] // h) % 2 == 1)
             order = np.concatenate([np.flatnonzero(~centre), np.flatnonzero(centre)])
             for (i, j, _), d in zip(vs[order].tolist(), direct[order].tolist(), strict=True):
-                kids = [child_nb(i, j, h, k) for k in range(4)]
+                kids = [_child(i, j, h, k) for k in range(4)]
                 kids = [(ci, cj) for ci, cj in kids if 0 <= ci < self.N and 0 <= cj < self.N]
                 new_kids = max((self.d_code(ci, cj) for ci, cj in kids), default=0)
                 if d:
@@ -309,7 +322,7 @@ class Bounds:
             a, b = (i - h) // s, (j - h) // s
             f = self._status(a, b, s, new)
             if f == 1:
-                return round_up32(self._block_max(a, b, s, (0,), new)[0])
+                return _round_up32(self._block_max(a, b, s, (0,), new)[0])
             return np.float32(np.inf) if f == 3 else np.float32(0.0)
         if (i // h) % 2 == 1:  # hypotenuse along the rows
             a, b = (i - h) // s, j // s
@@ -327,7 +340,7 @@ class Bounds:
             for (ba, bb, which), fs in ((lo, flo), (hi, fhi)):
                 if fs:
                     m = max(m, self._block_max(ba, bb, s, (which,), new)[which])
-            return round_up32(m)
+            return _round_up32(m)
         if self._diamond_mixed(i, j, h, new):
             return np.float32(np.inf)
         raise _Whole("nodata beside a coarse vertex whose diamond may be all valid")
@@ -354,7 +367,7 @@ class Bounds:
         order of their bound until no bound passes the best value found."""
         c, S = self.c, self.S
         i0, j0 = a * s, b * s
-        main = main_diagonal_nb(a, b)
+        main = _main_diagonal(a, b)
         corners = c.samples(np.array([i0, i0, i0 + s, i0 + s, i0 + s // 2]),
                             np.array([j0, j0 + s, j0, j0 + s, j0 + s // 2]), new)[0]
         z00, z01, z10, z11, zc = (float(v) for v in corners)
