@@ -216,8 +216,8 @@ class Terrain:
                                               and key in self.edge_max):
             raise StoreError(f"{self.path}: tile {key} is not stored: it lies outside the "
                              "data or holds only nodata")
-        b = self.reader.get_blob(key, kind)
-        if self.reader.version() != self._version:  # an edit committed meanwhile
+        b, version = self.reader.get_blob_version(key, kind)
+        if version != self._version:  # an edit committed meanwhile
             raise StoreChangedError(f"{self.path} was edited while it was read; call "
                                     "refresh() (or open it again) and read again")
         if b is None:

@@ -96,7 +96,8 @@ class SweepTiles(NamedTuple):
 class SweepState(NamedTuple):
     """The observable heights (low, high) of the previous row and of the row being swept,
     the codes ``out`` (window rows, columns), and where a row that waited for a tile goes
-    on (``resume``: the half, 0 none, 1 west, 2 east, and the column)."""
+    on (``resume``: 0 from its start, 1 from the columns ``resume[1]`` westward and
+    ``resume[2]`` eastward)."""
 
     last_lo: np.ndarray
     last_hi: np.ndarray
@@ -181,64 +182,114 @@ def _tile_col(tiles, c):
 
 
 @njit(cache=True, nogil=True)
-def _half(geo, tiles, st, r, first, side):
-    """Cells of row r from column ``first`` outward on one side (−1 west, +1 east), each
-    from its neighbours toward the observer. Returns (column, tile) where a tile must be
-    decoded, or (−1, NEED_NONE) when the half is done (or leaves the radius)."""
-    oc, ncol = geo.ocol, st.out.shape[1]
+def _sides(geo, tiles, st, r):
+    """Cells of row r outward on both sides of the observer's column, from the columns
+    ``st.resume[1]`` (west, −1: done) and ``st.resume[2]`` (east, the window's width:
+    done), each cell from its neighbours toward the observer. The two sides are
+    independent chains (a cell waits on its neighbour's division), stepped together so
+    that the processor overlaps them. Returns a tile to decode (the resume columns then
+    say where each side stands) or NEED_NONE when the row is done."""
+    z, status, ztop, zerr = tiles.z, tiles.status, tiles.ztop, tiles.zerr
+    out, this_lo, this_hi, last_lo, last_hi = st.out, st.this_lo, st.this_hi, st.last_lo, \
+        st.last_hi
+    oc, mx0, r2max, kcurv, target = geo.ocol, geo.mx0, geo.r2max, geo.kcurv, geo.target
+    eye_lo, eye_hi, mode, two = geo.eye_lo, geo.eye_hi, geo.mode, geo.two
+    t, c0, tx0, tlast = tiles.t, tiles.c0, tiles.tx0, tiles.tlast
+    ncol = out.shape[1]
     j = abs(r - geo.orow)
     ny2 = geo.ny[r] * geo.ny[r]
     mxr2 = geo.mx[r] * geo.mx[r]
-    ty = min((r + tiles.r0) >> tiles.t, tiles.tlast) - tiles.ty0
-    this_lo, this_hi, last_lo, last_hi = st.this_lo, st.this_hi, st.last_lo, st.last_hi
-    eye_lo, eye_hi, mode, two = geo.eye_lo, geo.eye_hi, geo.mode, geo.two
-    lift = geo.eps + max(geo.target, 0.0)
-    c = first
-    while 0 <= c < ncol:
-        dc = c - oc
-        d0 = dc * geo.mx0
-        if d0 * d0 + ny2 > geo.r2max:
-            break
-        # the tile's run of columns on this side, at one status
-        tx = _tile_col(tiles, c)
-        s = tiles.status[ty, tx]
-        top = tiles.ztop[ty, tx]
-        e = tiles.zerr[ty, tx]
-        edge = (tx + tiles.tx0) << tiles.t  # the run's first grid column
-        stop = (edge - tiles.c0 - 1) if side < 0 else (edge + (1 << tiles.t) - tiles.c0)
-        if (tx + tiles.tx0) == tiles.tlast and side > 0:
-            stop = ncol
-        while c != stop and 0 <= c < ncol:
+    ty = min((r + tiles.r0) >> t, tlast) - tiles.ty0
+    lift = geo.eps + max(target, 0.0)
+    # per side (0 west, 1 east): its column, whether it goes on, the run of columns in
+    # one tile it stands in (tile column, status, box top, error, the run's end; −2⁴⁰:
+    # none yet) and the observable heights of its last cell
+    none = -(1 << 40)
+    col = np.empty(2, np.int64)
+    col[0], col[1] = st.resume[1], st.resume[2]
+    on = np.empty(2, np.bool_)
+    run_tx = np.zeros(2, np.int64)
+    run_s = np.zeros(2, np.int64)
+    run_stop = np.full(2, none, np.int64)
+    run_top = np.zeros(2)
+    run_e = np.zeros(2)
+    plo = np.zeros(2)
+    phi = np.zeros(2)
+    for sd in range(2):
+        c = col[sd]
+        on[sd] = 0 <= c < ncol
+        if on[sd]:
+            side = 2 * sd - 1
+            plo[sd] = this_lo[c - side]
+            phi[sd] = this_hi[c - side]
+    need = NEED_NONE
+    while on[0] or on[1]:
+        for sd in range(2):
+            if not on[sd]:
+                continue
+            c = col[sd]
+            side = 2 * sd - 1
+            if c == run_stop[sd] or run_stop[sd] == none:  # a new run of columns
+                tx = min((c + c0) >> t, tlast) - tx0
+                edge = (tx + tx0) << t  # the run's first grid column
+                stop = (edge - c0 - 1) if side < 0 else (edge + (1 << t) - c0)
+                if (tx + tx0) == tlast and side > 0:
+                    stop = ncol
+                run_tx[sd], run_s[sd], run_stop[sd] = tx, status[ty, tx], stop
+                run_top[sd], run_e[sd] = ztop[ty, tx], zerr[ty, tx]
             dc = c - oc
-            d0 = dc * geo.mx0
-            if d0 * d0 + ny2 > geo.r2max:
-                return -1, NEED_NONE
+            d0 = dc * mx0
+            if d0 * d0 + ny2 > r2max:  # beyond the radius: this side is done
+                on[sd] = False
+                col[sd] = -1 if side < 0 else ncol
+                continue
             i = abs(dc)
             p = c - side
             if j == 0:
-                lo = line_height(i, this_lo[p], eye_hi)
-                hi = line_height(i, this_hi[p], eye_lo) if two else lo
+                lo = line_height(i, plo[sd], eye_hi)
+                hi = line_height(i, phi[sd], eye_lo) if two else lo
             else:
-                lo = _los(mode, i, j, this_lo[p], last_lo[c], last_lo[p], eye_hi)
-                hi = _los(mode, i, j, this_hi[p], last_hi[c], last_hi[p], eye_lo) \
+                lo = _los(mode, i, j, plo[sd], last_lo[c], last_lo[p], eye_hi)
+                hi = _los(mode, i, j, phi[sd], last_hi[c], last_hi[p], eye_lo) \
                     if two else lo
-            curv = geo.kcurv * (dc * dc * mxr2 + ny2)
+            curv = kcurv * (dc * dc * mxr2 + ny2)
+            s = run_s[sd]
+            nlo, nhi = lo, hi
             if s == 1:
-                _decide(geo, st, r, c, tiles.z[r, c], e, lo, hi, curv)
+                zc = z[r, c]
+                if np.isnan(zc):  # transparent, no answer
+                    out[r, c] = NO_ANSWER
+                else:
+                    e = run_e[sd]
+                    z_lo = zc - curv - e
+                    z_hi = zc - curv + e
+                    if z_lo + target >= hi:
+                        out[r, c] = VISIBLE
+                    elif z_hi + target < lo:
+                        out[r, c] = HIDDEN
+                    else:
+                        out[r, c] = UNCERTAIN
+                    nlo = max(z_lo, lo)
+                    nhi = max(z_hi, hi)
             elif s == 2:  # no data in the tile
-                st.out[r, c] = NO_ANSWER
-                this_lo[c] = lo
-                this_hi[c] = hi
-            elif (tiles.z[r, c] if s == 3 else top) - curv + lift < lo:
+                out[r, c] = NO_ANSWER
+            elif (z[r, c] if s == 3 else run_top[sd]) - curv + lift < lo:
                 # the cell's bound (its tile's box, or the coarser level's surface plus
                 # that level's error) is below every sight line: hidden
-                st.out[r, c] = HIDDEN
-                this_lo[c] = lo
-                this_hi[c] = hi
+                out[r, c] = HIDDEN
             else:
-                return c, (ty << 16) | tx
-            c += side
-    return -1, NEED_NONE
+                need = (ty << 16) | run_tx[sd]
+                break
+            this_lo[c] = nlo
+            this_hi[c] = nhi
+            plo[sd], phi[sd] = nlo, nhi
+            col[sd] = c + side
+            on[sd] = 0 <= c + side < ncol
+        if need != NEED_NONE:
+            break
+    st.resume[1] = col[0] if on[0] else -1
+    st.resume[2] = col[1] if on[1] else ncol
+    return need
 
 
 @njit(cache=True, nogil=True)
@@ -305,24 +356,17 @@ def sweep_rows(geo, tiles, st, first, stop, step):
     r = first
     while r != stop:
         j = abs(r - geo.orow)
-        half, col = st.resume[0], st.resume[1]
-        if half == 0:
+        if st.resume[0] == 0:
             st.out[r, :] = NO_ANSWER
             need = _centre(geo, tiles, st, r)
             if need == -2:  # the row is beyond the radius, and so are those after it
                 return stop, NEED_NONE
             if need != NEED_NONE:
                 return r, need
-            half, col = 1, geo.ocol - (2 if j == 0 else 1)
-        if half == 1:
-            at, need = _half(geo, tiles, st, r, col, -1)
-            if need != NEED_NONE:
-                st.resume[0], st.resume[1] = 1, at
-                return r, need
-            half, col = 2, geo.ocol + (2 if j == 0 else 1)
-        at, need = _half(geo, tiles, st, r, col, 1)
+            d = 2 if j == 0 else 1
+            st.resume[0], st.resume[1], st.resume[2] = 1, geo.ocol - d, geo.ocol + d
+        need = _sides(geo, tiles, st, r)
         if need != NEED_NONE:
-            st.resume[0], st.resume[1] = 2, at
             return r, need
         st.resume[0] = 0
         st.last_lo[:] = st.this_lo

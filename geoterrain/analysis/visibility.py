@@ -285,7 +285,7 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
 
 def _state(codes: np.ndarray) -> SweepState:
     return SweepState(*(np.zeros(codes.shape[1]) for _ in range(4)), codes,
-                      np.zeros(2, np.int64))
+                      np.zeros(3, np.int64))
 
 
 def _sweep(geo: SweepGeometry, part: Half, st: SweepState, first: int, stop: int,

@@ -556,12 +556,36 @@ class StoreReader:
 
     def get_blob(self, key: tuple[int, int, int], kind: str) -> bytes | None:
         """A tile's blob, checksum-verified (bound to key and kind), or None when not stored."""
+        return self.get_blob_version(key, kind, False)[0]
+
+    def get_blob_version(self, key: tuple[int, int, int], kind: str, version: bool = True
+                         ) -> tuple[bytes | None, int]:
+        """:meth:`get_blob` and, read right after it in the same metered call, the
+        :meth:`version` (−1 unless ``version``): a reader that checks each blob against
+        the version it opened pays one look at the I/O counters for both.
+
+        Examples
+        --------
+        >>> r = StoreReader(t.path)
+        >>> blob, v = r.get_blob_version((0, 0, 0), "heights")
+        >>> blob == r.get_blob((0, 0, 0), "heights"), v == r.version()
+        (True, True)
+        >>> r.close()
+        """
         rowid = self._rowid_of(blob_key(key, kind))
         if rowid is None:
-            return None
+            return None, self.version() if version else -1
+
+        def read():
+            row = self.con.execute("SELECT data, crc32 FROM blobs WHERE rowid = ?",
+                                   (rowid,)).fetchone()
+            if not version:
+                return row, -1
+            with self._lock:
+                return row, int(self.con.execute("PRAGMA data_version").fetchone()[0])
+
         try:
-            row = self.meter.call(lambda: self.con.execute(
-                "SELECT data, crc32 FROM blobs WHERE rowid = ?", (rowid,)).fetchone())
+            row, ver = self.meter.call(read)
         except (*_DB_ERRORS, OverflowError):
             raise self._damaged(f"tile {key} {kind}") from None
         if row is None:
@@ -571,7 +595,7 @@ class StoreReader:
         self._blob_bytes += len(data) if isinstance(data, bytes) else 0
         if not isinstance(data, bytes) or blob_crc(key, kind, data) != crc:
             raise self._damaged(f"tile {key} {kind}")
-        return data
+        return data, ver
 
     def tiles(self) -> dict[tuple[int, int, int], dict]:
         """Every stored tile's numbers, checksum-verified, checked against the tile counts.
