@@ -25,6 +25,7 @@ True
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 from typing import TYPE_CHECKING
 
@@ -54,20 +55,24 @@ class Window:
         ty0, ty1 = r0 >> g.t, min((r1 - 1) >> g.t, tlast)
         tx0, tx1 = c0 >> g.t, min((c1 - 1) >> g.t, tlast)
         nty, ntx = ty1 - ty0 + 1, tx1 - tx0 + 1
-        status = np.full((nty, ntx), 2, np.int8)
-        ztop = np.full((nty, ntx), np.inf)
         zs = f.z_scale or 1.0
+        inf, cells, get = math.inf, g.tile_samples ** 2, terrain.tile_info.get
+        st, tops = [], []
         for y in range(ty0, ty1 + 1):  # per tile, from the catalog: nothing decoded
             for x in range(tx0, tx1 + 1):
-                info = terrain.tile_info.get((0, x, y))
-                if info is not None:
-                    status[y - ty0, x - tx0] = 0
-                    top = info["zmax"]
-                    # the box is in scene units (a hair above it for the units' rounding); a
-                    # tile with nodata is never decided from its box (its voids have no answer)
-                    full = info["nvalid"] == g.tile_samples ** 2
-                    ztop[y - ty0, x - tx0] = (top / zs) * (1 + 1e-12) + 1e-9 \
-                        if full and top is not None and np.isfinite(top) else np.inf
+                info = get((0, x, y))
+                if info is None:
+                    st.append(2)
+                    tops.append(inf)
+                    continue
+                st.append(0)
+                top = info["zmax"]
+                # the box is in scene units (a hair above it for the units' rounding); a
+                # tile with nodata is never decided from its box (its voids have no answer)
+                tops.append((top / zs) * (1 + 1e-12) + 1e-9 if info["nvalid"] == cells
+                            and top is not None and math.isfinite(top) else inf)
+        status = np.array(st, np.int8).reshape(nty, ntx)
+        ztop = np.array(tops, np.float64).reshape(nty, ntx)
         z = np.empty((r1 - r0, c1 - c0))  # read only where a tile was decoded into it
         self.tiles = SweepTiles(z, status, ztop, np.full((nty, ntx), eps), r0, c0, g.t, ty0,
                                 tx0, tlast)
@@ -151,9 +156,11 @@ class Half:
         zs = terrain.frame.z_scale or 1.0
         z = w.z[a0 - w.r0:a1 - w.r0, b0 - w.c0:b1 - w.c0]
         # NaN where level 1 has no data: the sweep then reads level 0 (a void's code)
-        np.multiply(level_surface(terrain, 1, np.arange(a0, a1), np.arange(b0, b1), w.lock),
-                    terrain.frame.z_to_m, out=z)
-        z += err / zs * (1 + 1e-12) + 1e-9
+        with w.lock:
+            tile = terrain.tile(*key)  # its heights are NaN where not valid
+        g = terrain.grid
+        _union_jack_into(tile.heights, 1, key[2] << g.t, key[1] << g.t, a0, b0,
+                         terrain.frame.z_to_m, err / zs * (1 + 1e-12) + 1e-9, z)
         tl.status[ty, tx] = 3
         return True
 
@@ -185,6 +192,20 @@ def level_surface(terrain: TerrainLike, level: int, rows: np.ndarray, cols: np.n
     _union_jack_block(tile.heights, level, key[2] << g.t, key[1] << g.t,
                       np.asarray(rows, np.int64), np.asarray(cols, np.int64), out)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _union_jack_into(h, level, a_org, b_org, a0, b0, scale, add, out):
+    """out[k, m] = the level-L union-jack surface of tile heights ``h`` at full-resolution
+    sample (a0 + k, b0 + m) (:func:`_union_jack_block`) × ``scale`` + ``add``: the
+    surface in metres lifted by its error, written where the sweep reads it."""
+    rows = np.arange(a0, a0 + out.shape[0])
+    cols = np.arange(b0, b0 + out.shape[1])
+    v = np.empty((1, cols.shape[0]))
+    for k in range(rows.shape[0]):
+        _union_jack_block(h, level, a_org, b_org, rows[k:k + 1], cols, v)
+        for m in range(cols.shape[0]):
+            out[k, m] = v[0, m] * scale + add
 
 
 @njit(cache=True, nogil=True)
