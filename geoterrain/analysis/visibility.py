@@ -220,7 +220,8 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
     if not (isinstance(level, int | np.integer) and 0 <= level <= g.top_level):
         raise UsageError(f"level must be an integer in 0..{g.top_level}, got {level}",
                          cli=f"--level must be in 0..{g.top_level}, got {level}")
-    with Reads(terrain) as reads:
+    # one read transaction: the store's version checked once, not per tile
+    with Reads(terrain) as reads, terrain.snapshot():
         xy, fi, fj = _observer(terrain, observer, crs)
         orow = min(max(int(math.floor(fi + 0.5)), 0), g.rows - 1)
         ocol = min(max(int(math.floor(fj + 0.5)), 0), g.cols - 1)
