@@ -194,45 +194,67 @@ def level_surface(terrain: TerrainLike, level: int, rows: np.ndarray, cols: np.n
     return out
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _union_jack_at(h, level, a_org, b_org, row, col):
-    """The level-L union-jack surface of tile heights ``h`` (its first sample at level-L
-    row ``a_org``, column ``b_org``) at full-resolution sample (``row``, ``col``)
-    (docs/conventions.md: a cell's diagonal by the parity of its indices; a sample on
-    the tile's far edge is read from the tile's last cell, which gives it)."""
-    n = h.shape[0] - 2
-    sz = 1 << level
-    a = min((row >> level) - a_org, n)
-    di = (row - ((a + a_org) << level)) / sz
-    b = min((col >> level) - b_org, n)
-    dj = (col - ((b + b_org) << level)) / sz
-    z00 = h[a, b]
-    z01 = h[a, b + 1]
-    z10 = h[a + 1, b]
-    z11 = h[a + 1, b + 1]
-    if (a + a_org + b + b_org) % 2 == 0:  # main diagonal (0, 0)–(1, 1)
-        if dj >= di:
-            return z00 + (z01 - z00) * dj + (z11 - z01) * di
-        return z00 + (z10 - z00) * di + (z11 - z10) * dj
-    if di + dj <= 1:
-        return z00 + (z10 - z00) * di + (z01 - z00) * dj
-    return z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
-
-
 @njit(cache=True, nogil=True)
 def _union_jack_into(h, level, a_org, b_org, a0, b0, scale, add, out):
     """out[k, m] = the level-L union-jack surface of tile heights ``h`` at full-resolution
-    sample (a0 + k, b0 + m) (:func:`_union_jack_at`) × ``scale`` + ``add``: the surface
+    sample (a0 + k, b0 + m) (:func:`_union_jack_block`) × ``scale`` + ``add``: the surface
     in metres lifted by its error, written where the sweep reads it."""
+    n = h.shape[0] - 2
+    sz = 1 << level
+    ncol = out.shape[1]
+    bs = np.empty(ncol, np.int64)
+    djs = np.empty(ncol)
+    for m in range(ncol):
+        b = min(((b0 + m) >> level) - b_org, n)
+        bs[m] = b
+        djs[m] = (b0 + m - ((b + b_org) << level)) / sz
     for k in range(out.shape[0]):
-        for m in range(out.shape[1]):
-            out[k, m] = _union_jack_at(h, level, a_org, b_org, a0 + k, b0 + m) * scale + add
+        a = min(((a0 + k) >> level) - a_org, n)
+        di = (a0 + k - ((a + a_org) << level)) / sz
+        for m in range(ncol):
+            b = bs[m]
+            dj = djs[m]
+            z00 = h[a, b]
+            z01 = h[a, b + 1]
+            z10 = h[a + 1, b]
+            z11 = h[a + 1, b + 1]
+            if (a + a_org + b + b_org) % 2 == 0:  # main diagonal (0, 0)–(1, 1)
+                if dj >= di:
+                    v = z00 + (z01 - z00) * dj + (z11 - z01) * di
+                else:
+                    v = z00 + (z10 - z00) * di + (z11 - z10) * dj
+            elif di + dj <= 1:
+                v = z00 + (z10 - z00) * di + (z01 - z00) * dj
+            else:
+                v = z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
+            out[k, m] = v * scale + add
 
 
 @njit(cache=True, nogil=True)
 def _union_jack_block(h, level, a_org, b_org, rows, cols, out):
-    """out[k, m] = the level-L union-jack surface of tile heights ``h`` at full-resolution
-    sample (rows[k], cols[m]) (:func:`_union_jack_at`)."""
+    """out[k, l] = the level-L union-jack surface of tile heights ``h`` (its first sample
+    at level-L row ``a_org``, column ``b_org``) at full-resolution sample (rows[k],
+    cols[l]) (docs/conventions.md: a cell's diagonal by the parity of its indices; a
+    sample on the tile's far edge is read from the tile's last cell, which gives it)."""
+    n = h.shape[0] - 2
+    sz = 1 << level
     for k in range(rows.shape[0]):
+        a = min((rows[k] >> level) - a_org, n)
+        di = (rows[k] - ((a + a_org) << level)) / sz
         for m in range(cols.shape[0]):
-            out[k, m] = _union_jack_at(h, level, a_org, b_org, rows[k], cols[m])
+            b = min((cols[m] >> level) - b_org, n)
+            dj = (cols[m] - ((b + b_org) << level)) / sz
+            z00 = h[a, b]
+            z01 = h[a, b + 1]
+            z10 = h[a + 1, b]
+            z11 = h[a + 1, b + 1]
+            if (a + a_org + b + b_org) % 2 == 0:  # main diagonal (0, 0)–(1, 1)
+                if dj >= di:
+                    v = z00 + (z01 - z00) * dj + (z11 - z01) * di
+                else:
+                    v = z00 + (z10 - z00) * di + (z11 - z10) * dj
+            elif di + dj <= 1:
+                v = z00 + (z10 - z00) * di + (z01 - z00) * dj
+            else:
+                v = z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
+            out[k, m] = v
