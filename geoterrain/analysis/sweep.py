@@ -181,18 +181,37 @@ def _tile_col(tiles, c):
     return min((c + tiles.c0) >> tiles.t, tiles.tlast) - tiles.tx0
 
 
+@njit(cache=True, inline="always")
+def _reach(geo, r):
+    """How many columns either side of the observer's row r reaches within the radius:
+    the largest k with (k·mx0)² + ny² ≤ radius² (the test each cell's centre takes;
+    monotone in k, so found from an estimate and a step or two); −1 when none."""
+    ny2 = geo.ny[r] * geo.ny[r]
+    if ny2 > geo.r2max:
+        return -1
+    mx0 = geo.mx0
+    if not mx0 > 0:
+        return 1 << 40
+    k = int(np.sqrt(geo.r2max - ny2) / mx0)
+    while k > 0 and (k * mx0) * (k * mx0) + ny2 > geo.r2max:
+        k -= 1
+    while ((k + 1) * mx0) * ((k + 1) * mx0) + ny2 <= geo.r2max:
+        k += 1
+    return k
+
+
 @njit(cache=True, nogil=True)
 def _sides(geo, tiles, st, r):
     """Cells of row r outward on both sides of the observer's column, from the columns
-    ``st.resume[1]`` (west, −1: done) and ``st.resume[2]`` (east, the window's width:
-    done), each cell from its neighbours toward the observer. The two sides are
+    ``st.resume[1]`` (west) and ``st.resume[2]`` (east) to the radius or the window's
+    edge, each cell from its neighbours toward the observer. The two sides are
     independent chains (a cell waits on its neighbour's division), stepped together so
     that the processor overlaps them. Returns a tile to decode (the resume columns then
     say where each side stands) or NEED_NONE when the row is done."""
     z, status, ztop, zerr = tiles.z, tiles.status, tiles.ztop, tiles.zerr
     out, this_lo, this_hi, last_lo, last_hi = st.out, st.this_lo, st.this_hi, st.last_lo, \
         st.last_hi
-    oc, mx0, r2max, kcurv, target = geo.ocol, geo.mx0, geo.r2max, geo.kcurv, geo.target
+    oc, kcurv, target = geo.ocol, geo.kcurv, geo.target
     eye_lo, eye_hi, mode, two = geo.eye_lo, geo.eye_hi, geo.mode, geo.two
     t, c0, tx0, tlast = tiles.t, tiles.c0, tiles.tx0, tiles.tlast
     ncol = out.shape[1]
@@ -201,6 +220,9 @@ def _sides(geo, tiles, st, r):
     mxr2 = geo.mx[r] * geo.mx[r]
     ty = min((r + tiles.r0) >> t, tlast) - tiles.ty0
     lift = geo.eps + max(target, 0.0)
+    # the columns within the radius (and the window)
+    reach = _reach(geo, r)
+    first_c, last_c = max(oc - reach, 0), min(oc + reach, ncol - 1)
     # per side (0 west, 1 east): its column, whether it goes on, the run of columns in
     # one tile it stands in (tile column, status, box top, error, the run's end; −2⁴⁰:
     # none yet) and the observable heights of its last cell
@@ -217,7 +239,7 @@ def _sides(geo, tiles, st, r):
     phi = np.zeros(2)
     for sd in range(2):
         c = col[sd]
-        on[sd] = 0 <= c < ncol
+        on[sd] = first_c <= c <= last_c
         if on[sd]:
             side = 2 * sd - 1
             plo[sd] = this_lo[c - side]
@@ -238,11 +260,6 @@ def _sides(geo, tiles, st, r):
                 run_tx[sd], run_s[sd], run_stop[sd] = tx, status[ty, tx], stop
                 run_top[sd], run_e[sd] = ztop[ty, tx], zerr[ty, tx]
             dc = c - oc
-            d0 = dc * mx0
-            if d0 * d0 + ny2 > r2max:  # beyond the radius: this side is done
-                on[sd] = False
-                col[sd] = -1 if side < 0 else ncol
-                continue
             i = abs(dc)
             p = c - side
             if j == 0:
@@ -284,11 +301,10 @@ def _sides(geo, tiles, st, r):
             this_hi[c] = nhi
             plo[sd], phi[sd] = nlo, nhi
             col[sd] = c + side
-            on[sd] = 0 <= c + side < ncol
+            on[sd] = first_c <= c + side <= last_c
         if need != NEED_NONE:
             break
-    st.resume[1] = col[0] if on[0] else -1
-    st.resume[2] = col[1] if on[1] else ncol
+    st.resume[1], st.resume[2] = col[0], col[1]
     return need
 
 
@@ -369,8 +385,12 @@ def sweep_rows(geo, tiles, st, first, stop, step):
         if need != NEED_NONE:
             return r, need
         st.resume[0] = 0
-        st.last_lo[:] = st.this_lo
-        st.last_hi[:] = st.this_hi
+        # the next row (farther out) reads only within this row's reach
+        k = _reach(geo, r) + 1
+        a, b = max(geo.ocol - k, 0), min(geo.ocol + k, st.out.shape[1] - 1) + 1
+        st.last_lo[a:b] = st.this_lo[a:b]
+        if geo.two:
+            st.last_hi[a:b] = st.this_hi[a:b]
         if j == 0:
             return stop, NEED_NONE
         r += step
