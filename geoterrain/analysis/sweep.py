@@ -97,7 +97,9 @@ class SweepState(NamedTuple):
     """The observable heights (low, high) of the previous row and of the row being swept,
     the codes ``out`` (window rows, columns), and where a row that waited for a tile goes
     on (``resume``: 0 from its start, 1 from the columns ``resume[1]`` westward and
-    ``resume[2]`` eastward)."""
+    ``resume[2]`` eastward); ``probe``: the cell that asked for a tile (column, its
+    lowest sight line, curvature drop and lift: it is hidden by a bound z when
+    z − drop + lift < sight line; column −1: none)."""
 
     last_lo: np.ndarray
     last_hi: np.ndarray
@@ -105,6 +107,7 @@ class SweepState(NamedTuple):
     this_hi: np.ndarray
     out: np.ndarray
     resume: np.ndarray
+    probe: np.ndarray
 
 
 @njit(cache=True, inline="always")
@@ -296,6 +299,7 @@ def _sides(geo, tiles, st, r):
                 out[r, c] = HIDDEN
             else:
                 need = (ty << 16) | run_tx[sd]
+                st.probe[0], st.probe[1], st.probe[2], st.probe[3] = c, lo, curv, lift
                 break
             this_lo[c] = nlo
             this_hi[c] = nhi

@@ -286,7 +286,7 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
 
 def _state(codes: np.ndarray) -> SweepState:
     return SweepState(*(np.zeros(codes.shape[1]) for _ in range(4)), codes,
-                      np.zeros(3, np.int64))
+                      np.zeros(3, np.int64), np.full(4, -1.0))
 
 
 def _sweep(geo: SweepGeometry, part: Half, st: SweepState, first: int, stop: int,
@@ -295,10 +295,11 @@ def _sweep(geo: SweepGeometry, part: Half, st: SweepState, first: int, stop: int
     sweep asks for; returns how many times it asked."""
     asked, r = 0, first
     while True:
+        st.probe[0] = -1.0
         r, need = sweep_rows(geo, part.tiles, st, r, stop, step)
         if need == NEED_NONE:
             return asked
-        part.read(need >> 16, need & 0xFFFF)
+        part.read(need >> 16, need & 0xFFFF, probe=(r, *st.probe) if st.probe[0] >= 0 else None)
         asked += 1
 
 

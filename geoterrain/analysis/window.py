@@ -101,14 +101,18 @@ class Half:
     def __init__(self, window: Window, tiles: SweepTiles, lo: int, hi: int):
         self.w, self.tiles, self.lo, self.hi = window, tiles, lo, hi
 
-    def read(self, ty: int, tx: int, at: int | None = None) -> None:
+    def read(self, ty: int, tx: int, at: int | None = None,
+             probe: tuple[int, float, float, float, float] | None = None) -> None:
         """Read window tile (``ty``, ``tx``) into this half's rows: at the window's level
         (``at`` None) or ``at``; at level 0 a tile not yet read is first bounded from level
-        1 (status 3: the sweep may then decide its cells without level 0)."""
+        1 (status 3: the sweep may then decide its cells without level 0), unless the
+        cell that asked for it (``probe``: window row, column, its lowest sight line,
+        curvature drop and lift, :class:`~geoterrain.analysis.sweep.SweepState`) is not
+        hidden by that bound either: the sweep would ask again from that very cell."""
         w, st = self.w, self.tiles.status
         at = w.level if at is None else at
         # the status is this half's own; only the terrain's reads take the lock
-        if at == 0 and st[ty, tx] == 0 and self._bound_first(ty, tx):
+        if at == 0 and st[ty, tx] == 0 and self._bound_first(ty, tx, probe):
             return
         terrain = w.terrain
         ty0, tx0 = self.tiles.ty0, self.tiles.tx0
@@ -141,9 +145,9 @@ class Half:
         b0, b1 = max(gx, w.c0), min(gx + span + (tx + tl.tx0 == tl.tlast), w.c1)
         return a0, max(a1, a0), b0, b1
 
-    def _bound_first(self, ty: int, tx: int) -> bool:
+    def _bound_first(self, ty: int, tx: int, probe=None) -> bool:
         """Level 1's surface plus its tile's error as the cells' bounds (status 3), when
-        that error is finite."""
+        that error is finite and hides the probed cell (if any)."""
         w, tl = self.w, self.tiles
         terrain = w.terrain
         key = (1, (tx + tl.tx0) >> 1, (ty + tl.ty0) >> 1)
@@ -152,15 +156,21 @@ class Half:
         err = terrain.tile_info[key]["error"]
         if not np.isfinite(err):
             return False
-        a0, a1, b0, b1 = self._cells(ty, tx)
         zs = terrain.frame.z_scale or 1.0
-        z = w.z[a0 - w.r0:a1 - w.r0, b0 - w.c0:b1 - w.c0]
-        # NaN where level 1 has no data: the sweep then reads level 0 (a void's code)
         with w.lock:
             tile = terrain.tile(*key)  # its heights are NaN where not valid
-        g = terrain.grid
-        _union_jack_into(tile.heights, 1, key[2] << g.t, key[1] << g.t, a0, b0,
-                         terrain.frame.z_to_m, err / zs * (1 + 1e-12) + 1e-9, z)
+        g, zm, lift = terrain.grid, terrain.frame.z_to_m, err / zs * (1 + 1e-12) + 1e-9
+        org = (key[2] << g.t, key[1] << g.t)
+        if probe is not None:  # the asking cell first: the same test as the sweep's
+            r, c, lo, drop, up = probe
+            one = np.empty((1, 1))
+            _union_jack_into(tile.heights, 1, *org, r + w.r0, int(c) + w.c0, zm, lift, one)
+            if not one[0, 0] - drop + up < lo:
+                return False
+        a0, a1, b0, b1 = self._cells(ty, tx)
+        z = w.z[a0 - w.r0:a1 - w.r0, b0 - w.c0:b1 - w.c0]
+        # NaN where level 1 has no data: the sweep then reads level 0 (a void's code)
+        _union_jack_into(tile.heights, 1, *org, a0, b0, zm, lift, z)
         tl.status[ty, tx] = 3
         return True
 
