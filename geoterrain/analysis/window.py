@@ -163,9 +163,8 @@ class Half:
         org = (key[2] << g.t, key[1] << g.t)
         if probe is not None:  # the asking cell first: the same test as the sweep's
             r, c, lo, drop, up = probe
-            one = np.empty((1, 1))
-            _union_jack_into(tile.heights, 1, *org, r + w.r0, int(c) + w.c0, zm, lift, one)
-            if not one[0, 0] - drop + up < lo:
+            v = _union_jack_one(tile.heights, 1, *org, r + w.r0, int(c) + w.c0)
+            if not v * zm + lift - drop + up < lo:
                 return False
         a0, a1, b0, b1 = self._cells(ty, tx)
         z = w.z[a0 - w.r0:a1 - w.r0, b0 - w.c0:b1 - w.c0]
@@ -202,6 +201,27 @@ def level_surface(terrain: TerrainLike, level: int, rows: np.ndarray, cols: np.n
     _union_jack_block(tile.heights, level, key[2] << g.t, key[1] << g.t,
                       np.asarray(rows, np.int64), np.asarray(cols, np.int64), out)
     return out
+
+
+def _union_jack_one(h: np.ndarray, level: int, a_org: int, b_org: int, row: int,
+                    col: int) -> float:
+    """:func:`_union_jack_into`'s surface at one sample, in Python: the same float
+    operations in the same order (a compiled call costs more than the arithmetic)."""
+    n = h.shape[0] - 2
+    sz = 1 << level
+    a = min((row >> level) - a_org, n)
+    di = (row - ((a + a_org) << level)) / sz
+    b = min((col >> level) - b_org, n)
+    dj = (col - ((b + b_org) << level)) / sz
+    z00, z01 = float(h[a, b]), float(h[a, b + 1])
+    z10, z11 = float(h[a + 1, b]), float(h[a + 1, b + 1])
+    if (a + a_org + b + b_org) % 2 == 0:  # main diagonal (0, 0)–(1, 1)
+        if dj >= di:
+            return z00 + (z01 - z00) * dj + (z11 - z01) * di
+        return z00 + (z10 - z00) * di + (z11 - z10) * dj
+    if di + dj <= 1:
+        return z00 + (z10 - z00) * di + (z01 - z00) * dj
+    return z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
 
 
 @njit(cache=True, nogil=True)
