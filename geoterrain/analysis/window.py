@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import mmap
 import threading
 from typing import TYPE_CHECKING
 
@@ -73,7 +74,7 @@ class Window:
                             and top is not None and math.isfinite(top) else inf)
         status = np.array(st, np.int8).reshape(nty, ntx)
         ztop = np.array(tops, np.float64).reshape(nty, ntx)
-        z = np.empty((r1 - r0, c1 - c0))  # read only where a tile was decoded into it
+        z = _scratch(r1 - r0, c1 - c0)  # read only where a tile was decoded into it
         self.tiles = SweepTiles(z, status, ztop, np.full((nty, ntx), eps), r0, c0, g.t, ty0,
                                 tx0, tlast)
         self.lock = threading.Lock()
@@ -172,6 +173,19 @@ class Half:
         _union_jack_into(tile.heights, 1, *org, a0, b0, zm, lift, z)
         tl.status[ty, tx] = 3
         return True
+
+
+def _scratch(rows: int, cols: int) -> np.ndarray:
+    """An uninitialised (rows, cols) float64 array in ordinary pages: the window's
+    heights are written only where a tile is decoded, and numpy's huge pages would have
+    the kernel zero 2 MiB at the first touch of each (7 % of a cold 4097² viewshed)."""
+    n = rows * cols * 8
+    if n < 1 << 22:
+        return np.empty((rows, cols))
+    m = mmap.mmap(-1, n)
+    with contextlib.suppress(AttributeError, OSError):  # not Linux: whatever it gives
+        m.madvise(mmap.MADV_NOHUGEPAGE)
+    return np.frombuffer(m, np.float64).reshape(rows, cols)
 
 
 def level_surface(terrain: TerrainLike, level: int, rows: np.ndarray, cols: np.ndarray,

@@ -141,6 +141,19 @@ def test_the_asking_cell_probe_changes_nothing_read(voids, monkeypatch):
     assert fast.stats["tiles_bounded"] > 0 and fast.stats["waits"] < full.stats["waits"]
 
 
+@pytest.mark.fast
+@pytest.mark.parametrize("rows, cols", [(3, 5), (1024, 700)])
+def test_window_scratch_is_a_writable_float_grid(rows, cols):
+    """The window's heights (ordinary pages from 4 MiB up) hold what is written."""
+    from geoterrain.analysis.window import _scratch
+
+    z = _scratch(rows, cols)
+    assert z.shape == (rows, cols) and z.dtype == np.float64 and z.flags.writeable
+    z[-1, -1], z[0, 0] = 1.5, -2.0
+    z[rows // 2] = np.arange(cols)
+    assert z[-1, -1] == 1.5 and z[0, 0] == -2.0 and (z[rows // 2] == np.arange(cols)).all()
+
+
 @settings(max_examples=200, deadline=None)
 @given(st.integers(0, 2**31), st.integers(1, 3), st.sampled_from([1.0, 0.3048, 0.1]))
 def test_level_bound_is_the_union_jack_surface(seed, level, zm):
