@@ -15,7 +15,8 @@ DEM's (in metres, whatever its vertical unit).
   tile whose box lies below every sight line that reaches it is never decoded
   (:mod:`geoterrain.analysis.window`). After the observer's row, the rows north and
   south of it depend only on that row: the two halves are swept on two threads where
-  a second core is idle (the same answer as one after the other).
+  there are two cores (the same answer as one after the other). The tiles are read in
+  one read transaction of the store (:meth:`~geoterrain.terrain.Terrain.snapshot`).
 - :func:`line_of_sight` follows one ray exactly over the bilinear surface (the surface
   :func:`~geoterrain.analysis.heights.height_at` samples): in each cell the ray crosses,
   the clearance is a quadratic in the distance and its least value is found in closed
@@ -304,19 +305,16 @@ def _sweep(geo: SweepGeometry, part: Half, st: SweepState, first: int, stop: int
 
 
 def _two_threads() -> bool:
-    """Whether a second thread would have a core of its own: two cores or more, at least
-    one of them idle on average over the last minute. On a saturated machine the second
-    thread only adds hand-offs of the lock and the GIL (2 cores at load 18: 1.18× the one
-    thread's time on srtm1_japan, docs/lab/analysis.md)."""
+    """Whether the halves run on two threads: where there are two cores or more, busy or
+    not. On a saturated machine the second thread once lost to the hand-offs of the lock
+    and the GIL (2 cores at load 18: 1.18× one thread's time); with the sweep's Python
+    overhead cut it gains there too (2 cores at load 11–12, same-run medians: 0.88×,
+    1.00× and 0.93× one thread's wall time, docs/lab/analysis.md)."""
     try:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
         cores = os.cpu_count() or 1
-    try:
-        load = os.getloadavg()[0]
-    except (AttributeError, OSError):  # no load average: trust the cores
-        load = 0.0
-    return cores >= 2 and load <= cores - 1
+    return cores >= 2
 
 
 def _sweep_halves(geo: SweepGeometry, halves: list) -> int:
