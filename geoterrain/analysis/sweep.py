@@ -95,7 +95,8 @@ class SweepTiles(NamedTuple):
 
 class SweepState(NamedTuple):
     """The observable heights (low, high) of the previous row and of the row being swept,
-    the codes ``out`` (window rows, columns), and where a row that waited for a tile goes
+    the codes ``out`` (window rows, columns; NO_ANSWER where the sweep writes nothing,
+    as it comes), and where a row that waited for a tile goes
     on (``resume``: 0 from its start, 1 from the columns ``resume[1]`` westward and
     ``resume[2]`` eastward); ``probe``: the cell that asked for a tile (column, its
     lowest sight line, curvature drop and lift: it is hidden by a bound z when
@@ -377,7 +378,6 @@ def sweep_rows(geo, tiles, st, first, stop, step):
     while r != stop:
         j = abs(r - geo.orow)
         if st.resume[0] == 0:
-            st.out[r, :] = NO_ANSWER
             need = _centre(geo, tiles, st, r)
             if need == -2:  # the row is beyond the radius, and so are those after it
                 return stop, NEED_NONE
