@@ -72,7 +72,10 @@ class SweepGeometry(NamedTuple):
 
 
 class SweepTiles(NamedTuple):
-    """The window's heights ``z`` (metres, NaN: nodata; read only in decoded tiles), each
+    """The window's heights ``z`` (metres, NaN: nodata; read only in decoded tiles), one
+    (2^t + 1)² block per window tile (``z[ty, tx, i, j]``: grid sample (row, column)
+    (ty + ty0)·2^t + i, (tx + tx0)·2^t + j; a tile's cells lie together, so a decoded
+    tile touches few pages of memory), each
     window tile's ``status`` (0 not decoded, 1 decoded, 2 not stored: no data, 3 ``z``
     holds upper bounds of its heights, less ε, from a coarser level), ``ztop``
     (the highest height of its box, metres) and ``zerr`` (how far its heights in ``z`` may
@@ -161,6 +164,14 @@ def _tile_of(tiles, r, c):
 
 
 @njit(cache=True, inline="always")
+def _z(tiles, r, c):
+    """The height held for window cell (r, c): in its tile's block."""
+    ty, tx = _tile_of(tiles, r, c)
+    return tiles.z[ty, tx, r + tiles.r0 - ((ty + tiles.ty0) << tiles.t),
+                   c + tiles.c0 - ((tx + tiles.tx0) << tiles.t)]
+
+
+@njit(cache=True, inline="always")
 def _decide(geo, st, r, c, z, e, lo, hi, curv):
     """A cell with heights z ± e: its code and observable heights (z NaN: a void)."""
     if np.isnan(z):  # transparent, no answer
@@ -223,6 +234,7 @@ def _sides(geo, tiles, st, r):
     ny2 = geo.ny[r] * geo.ny[r]
     mxr2 = geo.mx[r] * geo.mx[r]
     ty = min((r + tiles.r0) >> t, tlast) - tiles.ty0
+    zr = r + tiles.r0 - ((ty + tiles.ty0) << t)  # the row in its tiles' blocks
     lift = geo.eps + max(target, 0.0)
     # the columns within the radius (and the window)
     reach = _reach(geo, r)
@@ -239,6 +251,7 @@ def _sides(geo, tiles, st, r):
     run_stop = np.full(2, none, np.int64)
     run_top = np.zeros(2)
     run_e = np.zeros(2)
+    run_zc = np.zeros(2, np.int64)  # window column → column in the run's tile block
     plo = np.zeros(2)
     phi = np.zeros(2)
     for sd in range(2):
@@ -263,6 +276,7 @@ def _sides(geo, tiles, st, r):
                     stop = ncol
                 run_tx[sd], run_s[sd], run_stop[sd] = tx, status[ty, tx], stop
                 run_top[sd], run_e[sd] = ztop[ty, tx], zerr[ty, tx]
+                run_zc[sd] = c0 - edge
             dc = c - oc
             i = abs(dc)
             p = c - side
@@ -277,7 +291,7 @@ def _sides(geo, tiles, st, r):
             s = run_s[sd]
             nlo, nhi = lo, hi
             if s == 1:
-                zc = z[r, c]
+                zc = z[ty, run_tx[sd], zr, c + run_zc[sd]]
                 if np.isnan(zc):  # transparent, no answer
                     out[r, c] = NO_ANSWER
                 else:
@@ -294,7 +308,8 @@ def _sides(geo, tiles, st, r):
                     nhi = max(z_hi, hi)
             elif s == 2:  # no data in the tile
                 out[r, c] = NO_ANSWER
-            elif (z[r, c] if s == 3 else run_top[sd]) - curv + lift < lo:
+            elif (z[ty, run_tx[sd], zr, c + run_zc[sd]] if s == 3 else run_top[sd]) \
+                    - curv + lift < lo:
                 # the cell's bound (its tile's box, or the coarser level's surface plus
                 # that level's error) is below every sight line: hidden
                 out[r, c] = HIDDEN
@@ -325,7 +340,7 @@ def _centre(geo, tiles, st, r):
         for c in (oc - 1, oc + 1):  # seen, as they are: their heights are read
             if 0 <= c < ncol and tiles.status[ty, _tile_col(tiles, c)] in (0, 3):
                 return (ty << 16) | _tile_col(tiles, c)
-        z0 = tiles.z[r, oc]
+        z0 = _z(tiles, r, oc)
         st.out[r, oc] = VISIBLE
         st.this_lo[oc] = z0 - geo.eps
         st.this_hi[oc] = z0 + geo.eps
@@ -335,7 +350,7 @@ def _centre(geo, tiles, st, r):
             d0 = geo.mx0
             dx2 = geo.mx[r] * geo.mx[r]
             tx = _tile_col(tiles, c)
-            z = tiles.z[r, c] if tiles.status[ty, tx] == 1 else np.nan
+            z = _z(tiles, r, c) if tiles.status[ty, tx] == 1 else np.nan
             if np.isnan(z):
                 st.out[r, c] = NO_ANSWER
                 st.this_lo[c] = -np.inf
@@ -353,12 +368,12 @@ def _centre(geo, tiles, st, r):
     hi = line_height(j, st.last_hi[oc], geo.eye_lo) if geo.two else lo
     curv = geo.kcurv * ny2
     if s == 1:
-        _decide(geo, st, r, oc, tiles.z[r, oc], tiles.zerr[ty, tx], lo, hi, curv)
+        _decide(geo, st, r, oc, _z(tiles, r, oc), tiles.zerr[ty, tx], lo, hi, curv)
     elif s == 2:
         st.out[r, oc] = NO_ANSWER
         st.this_lo[oc] = lo
         st.this_hi[oc] = hi
-    elif (tiles.z[r, oc] if s == 3 else tiles.ztop[ty, tx]) - curv + geo.eps \
+    elif (_z(tiles, r, oc) if s == 3 else tiles.ztop[ty, tx]) - curv + geo.eps \
             + max(geo.target, 0.0) < lo:
         st.out[r, oc] = HIDDEN
         st.this_lo[oc] = lo

@@ -242,7 +242,7 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
         ty, tx = _tile_index(whole.tiles, orow - r0, ocol - c0)
         while whole.tiles.status[ty, tx] != 1:
             whole.read(ty, tx, 0)  # the observer's ground, exactly
-        zg = win.z[orow - r0, ocol - c0]
+        zg = win.height(orow - r0, ocol - c0)
         if not np.isfinite(zg):
             raise InputError(f"the observer ({xy[0]:.10g}, {xy[1]:.10g}) stands on nodata: "
                              "move it onto the data")

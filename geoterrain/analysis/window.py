@@ -18,7 +18,7 @@ Examples
 (3, 0)
 >>> north.read(0, 0); int(north.tiles.status[0, 0])
 1
->>> bool((w.z[:4, :4] == t.tile(0, 0, 0).heights[:4, :4]).all())
+>>> all(w.height(i, j) == t.tile(0, 0, 0).heights[i, j] for i in range(4) for j in range(4))
 True
 """
 
@@ -74,14 +74,20 @@ class Window:
                             and top is not None and math.isfinite(top) else inf)
         status = np.array(st, np.int8).reshape(nty, ntx)
         ztop = np.array(tops, np.float64).reshape(nty, ntx)
-        z = _scratch(r1 - r0, c1 - c0)  # read only where a tile was decoded into it
+        side = (1 << g.t) + 1  # a block per tile, read only where one was decoded into it
+        z = _scratch(nty * ntx * side, side).reshape(nty, ntx, side, side)
         self.tiles = SweepTiles(z, status, ztop, np.full((nty, ntx), eps), r0, c0, g.t, ty0,
                                 tx0, tlast)
         self.lock = threading.Lock()
 
-    @property
-    def z(self) -> np.ndarray:
-        return self.tiles.z
+    def height(self, r: int, c: int) -> float:
+        """The height held for window cell (r, c) (metres; meaningful where its tile was
+        read)."""
+        tl = self.tiles
+        ty = min((r + tl.r0) >> tl.t, tl.tlast) - tl.ty0
+        tx = min((c + tl.c0) >> tl.t, tl.tlast) - tl.tx0
+        return float(tl.z[ty, tx, r + tl.r0 - ((ty + tl.ty0) << tl.t),
+                          c + tl.c0 - ((tx + tl.tx0) << tl.t)])
 
     @property
     def status(self) -> np.ndarray:
@@ -122,7 +128,7 @@ class Half:
         zm = terrain.frame.z_to_m
         key = (at, (tx + tx0) >> at, (ty + ty0) >> at)
         err = terrain.tile_info[key]["error"] if key in terrain.tile_info else np.inf
-        z = w.z[a0 - w.r0:a1 - w.r0, b0 - w.c0:b1 - w.c0]
+        z = self.tiles.z[ty, tx, a0 - gy:a1 - gy, b0 - gx:b1 - gx]
         if at == 0 or not np.isfinite(err):
             with w.lock:
                 tile = terrain.tile(0, tx + tx0, ty + ty0)
@@ -168,7 +174,8 @@ class Half:
             if not v * zm + lift - drop + up < lo:
                 return False
         a0, a1, b0, b1 = self._cells(ty, tx)
-        z = w.z[a0 - w.r0:a1 - w.r0, b0 - w.c0:b1 - w.c0]
+        gy, gx = (ty + tl.ty0) << tl.t, (tx + tl.tx0) << tl.t
+        z = tl.z[ty, tx, a0 - gy:a1 - gy, b0 - gx:b1 - gx]
         # NaN where level 1 has no data: the sweep then reads level 0 (a void's code)
         _union_jack_into(tile.heights, 1, *org, a0, b0, zm, lift, z)
         tl.status[ty, tx] = 3
@@ -178,7 +185,7 @@ class Half:
 def _scratch(rows: int, cols: int) -> np.ndarray:
     """An uninitialised (rows, cols) float64 array in ordinary pages: the window's
     heights are written only where a tile is decoded, and numpy's huge pages would have
-    the kernel zero 2 MiB at the first touch of each (7 % of a cold 4097² viewshed)."""
+    the kernel zero 2 MiB at the first touch of each (8 % of a cold 4097² viewshed)."""
     n = rows * cols * 8
     if n < 1 << 22:
         return np.empty((rows, cols))
