@@ -21,6 +21,7 @@ True
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
@@ -104,6 +105,8 @@ class TerrainLike(Protocol):
     def scene_box(self) -> tuple[np.ndarray, np.ndarray]: ...
 
     def tile(self, level: int, x: int, y: int) -> Tile: ...
+
+    def snapshot(self) -> AbstractContextManager[None]: ...
 
     def tile_delta(self, level: int, x: int, y: int) -> np.ndarray: ...
 

@@ -72,7 +72,10 @@ class SweepGeometry(NamedTuple):
 
 
 class SweepTiles(NamedTuple):
-    """The window's heights ``z`` (metres, NaN: nodata; read only in decoded tiles), each
+    """The window's heights ``z`` (metres, NaN: nodata; read only in decoded tiles), one
+    (2^t + 1)² block per window tile (``z[ty, tx, i, j]``: grid sample (row, column)
+    (ty + ty0)·2^t + i, (tx + tx0)·2^t + j; a tile's cells lie together, so a decoded
+    tile touches few pages of memory), each
     window tile's ``status`` (0 not decoded, 1 decoded, 2 not stored: no data, 3 ``z``
     holds upper bounds of its heights, less ε, from a coarser level), ``ztop``
     (the highest height of its box, metres) and ``zerr`` (how far its heights in ``z`` may
@@ -95,8 +98,12 @@ class SweepTiles(NamedTuple):
 
 class SweepState(NamedTuple):
     """The observable heights (low, high) of the previous row and of the row being swept,
-    the codes ``out`` (window rows, columns), and where a row that waited for a tile goes
-    on (``resume``: the half, 0 none, 1 west, 2 east, and the column)."""
+    the codes ``out`` (window rows, columns; NO_ANSWER where the sweep writes nothing,
+    as it comes), and where a row that waited for a tile goes
+    on (``resume``: 0 from its start, 1 from the columns ``resume[1]`` westward and
+    ``resume[2]`` eastward); ``probe``: the cell that asked for a tile (column, its
+    lowest sight line, curvature drop and lift: it is hidden by a bound z when
+    z − drop + lift < sight line; column −1: none)."""
 
     last_lo: np.ndarray
     last_hi: np.ndarray
@@ -104,6 +111,7 @@ class SweepState(NamedTuple):
     this_hi: np.ndarray
     out: np.ndarray
     resume: np.ndarray
+    probe: np.ndarray
 
 
 @njit(cache=True, inline="always")
@@ -156,6 +164,14 @@ def _tile_of(tiles, r, c):
 
 
 @njit(cache=True, inline="always")
+def _z(tiles, r, c):
+    """The height held for window cell (r, c): in its tile's block."""
+    ty, tx = _tile_of(tiles, r, c)
+    return tiles.z[ty, tx, r + tiles.r0 - ((ty + tiles.ty0) << tiles.t),
+                   c + tiles.c0 - ((tx + tiles.tx0) << tiles.t)]
+
+
+@njit(cache=True, inline="always")
 def _decide(geo, st, r, c, z, e, lo, hi, curv):
     """A cell with heights z ± e: its code and observable heights (z NaN: a void)."""
     if np.isnan(z):  # transparent, no answer
@@ -180,65 +196,136 @@ def _tile_col(tiles, c):
     return min((c + tiles.c0) >> tiles.t, tiles.tlast) - tiles.tx0
 
 
+@njit(cache=True, inline="always")
+def _reach(geo, r):
+    """How many columns either side of the observer's row r reaches within the radius:
+    the largest k with (k·mx0)² + ny² ≤ radius² (the test each cell's centre takes;
+    monotone in k, so found from an estimate and a step or two); −1 when none."""
+    ny2 = geo.ny[r] * geo.ny[r]
+    if ny2 > geo.r2max:
+        return -1
+    mx0 = geo.mx0
+    if not mx0 > 0:
+        return 1 << 40
+    k = int(np.sqrt(geo.r2max - ny2) / mx0)
+    while k > 0 and (k * mx0) * (k * mx0) + ny2 > geo.r2max:
+        k -= 1
+    while ((k + 1) * mx0) * ((k + 1) * mx0) + ny2 <= geo.r2max:
+        k += 1
+    return k
+
+
 @njit(cache=True, nogil=True)
-def _half(geo, tiles, st, r, first, side):
-    """Cells of row r from column ``first`` outward on one side (−1 west, +1 east), each
-    from its neighbours toward the observer. Returns (column, tile) where a tile must be
-    decoded, or (−1, NEED_NONE) when the half is done (or leaves the radius)."""
-    oc, ncol = geo.ocol, st.out.shape[1]
+def _sides(geo, tiles, st, r):
+    """Cells of row r outward on both sides of the observer's column, from the columns
+    ``st.resume[1]`` (west) and ``st.resume[2]`` (east) to the radius or the window's
+    edge, each cell from its neighbours toward the observer. The two sides are
+    independent chains (a cell waits on its neighbour's division), stepped together so
+    that the processor overlaps them. Returns a tile to decode (the resume columns then
+    say where each side stands) or NEED_NONE when the row is done."""
+    z, status, ztop, zerr = tiles.z, tiles.status, tiles.ztop, tiles.zerr
+    out, this_lo, this_hi, last_lo, last_hi = st.out, st.this_lo, st.this_hi, st.last_lo, \
+        st.last_hi
+    oc, kcurv, target = geo.ocol, geo.kcurv, geo.target
+    eye_lo, eye_hi, mode, two = geo.eye_lo, geo.eye_hi, geo.mode, geo.two
+    t, c0, tx0, tlast = tiles.t, tiles.c0, tiles.tx0, tiles.tlast
+    ncol = out.shape[1]
     j = abs(r - geo.orow)
     ny2 = geo.ny[r] * geo.ny[r]
     mxr2 = geo.mx[r] * geo.mx[r]
-    ty = min((r + tiles.r0) >> tiles.t, tiles.tlast) - tiles.ty0
-    this_lo, this_hi, last_lo, last_hi = st.this_lo, st.this_hi, st.last_lo, st.last_hi
-    eye_lo, eye_hi, mode, two = geo.eye_lo, geo.eye_hi, geo.mode, geo.two
-    lift = geo.eps + max(geo.target, 0.0)
-    c = first
-    while 0 <= c < ncol:
-        dc = c - oc
-        d0 = dc * geo.mx0
-        if d0 * d0 + ny2 > geo.r2max:
-            break
-        # the tile's run of columns on this side, at one status
-        tx = _tile_col(tiles, c)
-        s = tiles.status[ty, tx]
-        top = tiles.ztop[ty, tx]
-        e = tiles.zerr[ty, tx]
-        edge = (tx + tiles.tx0) << tiles.t  # the run's first grid column
-        stop = (edge - tiles.c0 - 1) if side < 0 else (edge + (1 << tiles.t) - tiles.c0)
-        if (tx + tiles.tx0) == tiles.tlast and side > 0:
-            stop = ncol
-        while c != stop and 0 <= c < ncol:
+    ty = min((r + tiles.r0) >> t, tlast) - tiles.ty0
+    zr = r + tiles.r0 - ((ty + tiles.ty0) << t)  # the row in its tiles' blocks
+    lift = geo.eps + max(target, 0.0)
+    # the columns within the radius (and the window)
+    reach = _reach(geo, r)
+    first_c, last_c = max(oc - reach, 0), min(oc + reach, ncol - 1)
+    # per side (0 west, 1 east): its column, whether it goes on, the run of columns in
+    # one tile it stands in (tile column, status, box top, error, the run's end; −2⁴⁰:
+    # none yet) and the observable heights of its last cell
+    none = -(1 << 40)
+    col = np.empty(2, np.int64)
+    col[0], col[1] = st.resume[1], st.resume[2]
+    on = np.empty(2, np.bool_)
+    run_tx = np.zeros(2, np.int64)
+    run_s = np.zeros(2, np.int64)
+    run_stop = np.full(2, none, np.int64)
+    run_top = np.zeros(2)
+    run_e = np.zeros(2)
+    run_zc = np.zeros(2, np.int64)  # window column → column in the run's tile block
+    plo = np.zeros(2)
+    phi = np.zeros(2)
+    for sd in range(2):
+        c = col[sd]
+        on[sd] = first_c <= c <= last_c
+        if on[sd]:
+            side = 2 * sd - 1
+            plo[sd] = this_lo[c - side]
+            phi[sd] = this_hi[c - side]
+    need = NEED_NONE
+    while on[0] or on[1]:
+        for sd in range(2):
+            if not on[sd]:
+                continue
+            c = col[sd]
+            side = 2 * sd - 1
+            if c == run_stop[sd] or run_stop[sd] == none:  # a new run of columns
+                tx = min((c + c0) >> t, tlast) - tx0
+                edge = (tx + tx0) << t  # the run's first grid column
+                stop = (edge - c0 - 1) if side < 0 else (edge + (1 << t) - c0)
+                if (tx + tx0) == tlast and side > 0:
+                    stop = ncol
+                run_tx[sd], run_s[sd], run_stop[sd] = tx, status[ty, tx], stop
+                run_top[sd], run_e[sd] = ztop[ty, tx], zerr[ty, tx]
+                run_zc[sd] = c0 - edge
             dc = c - oc
-            d0 = dc * geo.mx0
-            if d0 * d0 + ny2 > geo.r2max:
-                return -1, NEED_NONE
             i = abs(dc)
             p = c - side
             if j == 0:
-                lo = line_height(i, this_lo[p], eye_hi)
-                hi = line_height(i, this_hi[p], eye_lo) if two else lo
+                lo = line_height(i, plo[sd], eye_hi)
+                hi = line_height(i, phi[sd], eye_lo) if two else lo
             else:
-                lo = _los(mode, i, j, this_lo[p], last_lo[c], last_lo[p], eye_hi)
-                hi = _los(mode, i, j, this_hi[p], last_hi[c], last_hi[p], eye_lo) \
+                lo = _los(mode, i, j, plo[sd], last_lo[c], last_lo[p], eye_hi)
+                hi = _los(mode, i, j, phi[sd], last_hi[c], last_hi[p], eye_lo) \
                     if two else lo
-            curv = geo.kcurv * (dc * dc * mxr2 + ny2)
+            curv = kcurv * (dc * dc * mxr2 + ny2)
+            s = run_s[sd]
+            nlo, nhi = lo, hi
             if s == 1:
-                _decide(geo, st, r, c, tiles.z[r, c], e, lo, hi, curv)
+                zc = z[ty, run_tx[sd], zr, c + run_zc[sd]]
+                if np.isnan(zc):  # transparent, no answer
+                    out[r, c] = NO_ANSWER
+                else:
+                    e = run_e[sd]
+                    z_lo = zc - curv - e
+                    z_hi = zc - curv + e
+                    if z_lo + target >= hi:
+                        out[r, c] = VISIBLE
+                    elif z_hi + target < lo:
+                        out[r, c] = HIDDEN
+                    else:
+                        out[r, c] = UNCERTAIN
+                    nlo = max(z_lo, lo)
+                    nhi = max(z_hi, hi)
             elif s == 2:  # no data in the tile
-                st.out[r, c] = NO_ANSWER
-                this_lo[c] = lo
-                this_hi[c] = hi
-            elif (tiles.z[r, c] if s == 3 else top) - curv + lift < lo:
+                out[r, c] = NO_ANSWER
+            elif (z[ty, run_tx[sd], zr, c + run_zc[sd]] if s == 3 else run_top[sd]) \
+                    - curv + lift < lo:
                 # the cell's bound (its tile's box, or the coarser level's surface plus
                 # that level's error) is below every sight line: hidden
-                st.out[r, c] = HIDDEN
-                this_lo[c] = lo
-                this_hi[c] = hi
+                out[r, c] = HIDDEN
             else:
-                return c, (ty << 16) | tx
-            c += side
-    return -1, NEED_NONE
+                need = (ty << 16) | run_tx[sd]
+                st.probe[0], st.probe[1], st.probe[2], st.probe[3] = c, lo, curv, lift
+                break
+            this_lo[c] = nlo
+            this_hi[c] = nhi
+            plo[sd], phi[sd] = nlo, nhi
+            col[sd] = c + side
+            on[sd] = first_c <= c + side <= last_c
+        if need != NEED_NONE:
+            break
+    st.resume[1], st.resume[2] = col[0], col[1]
+    return need
 
 
 @njit(cache=True, nogil=True)
@@ -253,7 +340,7 @@ def _centre(geo, tiles, st, r):
         for c in (oc - 1, oc + 1):  # seen, as they are: their heights are read
             if 0 <= c < ncol and tiles.status[ty, _tile_col(tiles, c)] in (0, 3):
                 return (ty << 16) | _tile_col(tiles, c)
-        z0 = tiles.z[r, oc]
+        z0 = _z(tiles, r, oc)
         st.out[r, oc] = VISIBLE
         st.this_lo[oc] = z0 - geo.eps
         st.this_hi[oc] = z0 + geo.eps
@@ -263,7 +350,7 @@ def _centre(geo, tiles, st, r):
             d0 = geo.mx0
             dx2 = geo.mx[r] * geo.mx[r]
             tx = _tile_col(tiles, c)
-            z = tiles.z[r, c] if tiles.status[ty, tx] == 1 else np.nan
+            z = _z(tiles, r, c) if tiles.status[ty, tx] == 1 else np.nan
             if np.isnan(z):
                 st.out[r, c] = NO_ANSWER
                 st.this_lo[c] = -np.inf
@@ -281,12 +368,12 @@ def _centre(geo, tiles, st, r):
     hi = line_height(j, st.last_hi[oc], geo.eye_lo) if geo.two else lo
     curv = geo.kcurv * ny2
     if s == 1:
-        _decide(geo, st, r, oc, tiles.z[r, oc], tiles.zerr[ty, tx], lo, hi, curv)
+        _decide(geo, st, r, oc, _z(tiles, r, oc), tiles.zerr[ty, tx], lo, hi, curv)
     elif s == 2:
         st.out[r, oc] = NO_ANSWER
         st.this_lo[oc] = lo
         st.this_hi[oc] = hi
-    elif (tiles.z[r, oc] if s == 3 else tiles.ztop[ty, tx]) - curv + geo.eps \
+    elif (_z(tiles, r, oc) if s == 3 else tiles.ztop[ty, tx]) - curv + geo.eps \
             + max(geo.target, 0.0) < lo:
         st.out[r, oc] = HIDDEN
         st.this_lo[oc] = lo
@@ -305,28 +392,24 @@ def sweep_rows(geo, tiles, st, first, stop, step):
     r = first
     while r != stop:
         j = abs(r - geo.orow)
-        half, col = st.resume[0], st.resume[1]
-        if half == 0:
-            st.out[r, :] = NO_ANSWER
+        if st.resume[0] == 0:
             need = _centre(geo, tiles, st, r)
             if need == -2:  # the row is beyond the radius, and so are those after it
                 return stop, NEED_NONE
             if need != NEED_NONE:
                 return r, need
-            half, col = 1, geo.ocol - (2 if j == 0 else 1)
-        if half == 1:
-            at, need = _half(geo, tiles, st, r, col, -1)
-            if need != NEED_NONE:
-                st.resume[0], st.resume[1] = 1, at
-                return r, need
-            half, col = 2, geo.ocol + (2 if j == 0 else 1)
-        at, need = _half(geo, tiles, st, r, col, 1)
+            d = 2 if j == 0 else 1
+            st.resume[0], st.resume[1], st.resume[2] = 1, geo.ocol - d, geo.ocol + d
+        need = _sides(geo, tiles, st, r)
         if need != NEED_NONE:
-            st.resume[0], st.resume[1] = 2, at
             return r, need
         st.resume[0] = 0
-        st.last_lo[:] = st.this_lo
-        st.last_hi[:] = st.this_hi
+        # the next row (farther out) reads only within this row's reach
+        k = _reach(geo, r) + 1
+        a, b = max(geo.ocol - k, 0), min(geo.ocol + k, st.out.shape[1] - 1) + 1
+        st.last_lo[a:b] = st.this_lo[a:b]
+        if geo.two:
+            st.last_hi[a:b] = st.this_hi[a:b]
         if j == 0:
             return stop, NEED_NONE
         r += step

@@ -15,7 +15,8 @@ DEM's (in metres, whatever its vertical unit).
   tile whose box lies below every sight line that reaches it is never decoded
   (:mod:`geoterrain.analysis.window`). After the observer's row, the rows north and
   south of it depend only on that row: the two halves are swept on two threads where
-  a second core is idle (the same answer as one after the other).
+  there are two cores (the same answer as one after the other). The tiles are read in
+  one read transaction of the store (:meth:`~geoterrain.terrain.Terrain.snapshot`).
 - :func:`line_of_sight` follows one ray exactly over the bilinear surface (the surface
   :func:`~geoterrain.analysis.heights.height_at` samples): in each cell the ray crosses,
   the clearance is a quadratic in the distance and its least value is found in closed
@@ -220,7 +221,8 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
     if not (isinstance(level, int | np.integer) and 0 <= level <= g.top_level):
         raise UsageError(f"level must be an integer in 0..{g.top_level}, got {level}",
                          cli=f"--level must be in 0..{g.top_level}, got {level}")
-    with Reads(terrain) as reads:
+    # one read transaction: the store's version checked once, not per tile
+    with Reads(terrain) as reads, terrain.snapshot():
         xy, fi, fj = _observer(terrain, observer, crs)
         orow = min(max(int(math.floor(fi + 0.5)), 0), g.rows - 1)
         ocol = min(max(int(math.floor(fj + 0.5)), 0), g.cols - 1)
@@ -240,7 +242,7 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
         ty, tx = _tile_index(whole.tiles, orow - r0, ocol - c0)
         while whole.tiles.status[ty, tx] != 1:
             whole.read(ty, tx, 0)  # the observer's ground, exactly
-        zg = win.z[orow - r0, ocol - c0]
+        zg = win.height(orow - r0, ocol - c0)
         if not np.isfinite(zg):
             raise InputError(f"the observer ({xy[0]:.10g}, {xy[1]:.10g}) stands on nodata: "
                              "move it onto the data")
@@ -285,7 +287,7 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
 
 def _state(codes: np.ndarray) -> SweepState:
     return SweepState(*(np.zeros(codes.shape[1]) for _ in range(4)), codes,
-                      np.zeros(2, np.int64))
+                      np.zeros(3, np.int64), np.full(4, -1.0))
 
 
 def _sweep(geo: SweepGeometry, part: Half, st: SweepState, first: int, stop: int,
@@ -294,27 +296,25 @@ def _sweep(geo: SweepGeometry, part: Half, st: SweepState, first: int, stop: int
     sweep asks for; returns how many times it asked."""
     asked, r = 0, first
     while True:
+        st.probe[0] = -1.0
         r, need = sweep_rows(geo, part.tiles, st, r, stop, step)
         if need == NEED_NONE:
             return asked
-        part.read(need >> 16, need & 0xFFFF)
+        part.read(need >> 16, need & 0xFFFF, probe=(r, *st.probe) if st.probe[0] >= 0 else None)
         asked += 1
 
 
 def _two_threads() -> bool:
-    """Whether a second thread would have a core of its own: two cores or more, at least
-    one of them idle on average over the last minute. On a saturated machine the second
-    thread only adds hand-offs of the lock and the GIL (2 cores at load 18: 1.18× the one
-    thread's time on srtm1_japan, docs/lab/analysis.md)."""
+    """Whether the halves run on two threads: where there are two cores or more, busy or
+    not. On a saturated machine the second thread once lost to the hand-offs of the lock
+    and the GIL (2 cores at load 18: 1.18× one thread's time); with the sweep's Python
+    overhead cut it gains there too (2 cores at load 11–12, same-run medians: 0.88×,
+    1.00× and 0.93× one thread's wall time, docs/lab/analysis.md)."""
     try:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
         cores = os.cpu_count() or 1
-    try:
-        load = os.getloadavg()[0]
-    except (AttributeError, OSError):  # no load average: trust the cores
-        load = 0.0
-    return cores >= 2 and load <= cores - 1
+    return cores >= 2
 
 
 def _sweep_halves(geo: SweepGeometry, halves: list) -> int:

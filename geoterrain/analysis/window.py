@@ -18,13 +18,15 @@ Examples
 (3, 0)
 >>> north.read(0, 0); int(north.tiles.status[0, 0])
 1
->>> bool((w.z[:4, :4] == t.tile(0, 0, 0).heights[:4, :4]).all())
+>>> all(w.height(i, j) == t.tile(0, 0, 0).heights[i, j] for i in range(4) for j in range(4))
 True
 """
 
 from __future__ import annotations
 
 import contextlib
+import math
+import mmap
 import threading
 from typing import TYPE_CHECKING
 
@@ -54,28 +56,38 @@ class Window:
         ty0, ty1 = r0 >> g.t, min((r1 - 1) >> g.t, tlast)
         tx0, tx1 = c0 >> g.t, min((c1 - 1) >> g.t, tlast)
         nty, ntx = ty1 - ty0 + 1, tx1 - tx0 + 1
-        status = np.full((nty, ntx), 2, np.int8)
-        ztop = np.full((nty, ntx), np.inf)
         zs = f.z_scale or 1.0
+        inf, cells, get = math.inf, g.tile_samples ** 2, terrain.tile_info.get
+        st, tops = [], []
         for y in range(ty0, ty1 + 1):  # per tile, from the catalog: nothing decoded
             for x in range(tx0, tx1 + 1):
-                info = terrain.tile_info.get((0, x, y))
-                if info is not None:
-                    status[y - ty0, x - tx0] = 0
-                    top = info["zmax"]
-                    # the box is in scene units (a hair above it for the units' rounding); a
-                    # tile with nodata is never decided from its box (its voids have no answer)
-                    full = info["nvalid"] == g.tile_samples ** 2
-                    ztop[y - ty0, x - tx0] = (top / zs) * (1 + 1e-12) + 1e-9 \
-                        if full and top is not None and np.isfinite(top) else np.inf
-        z = np.empty((r1 - r0, c1 - c0))  # read only where a tile was decoded into it
+                info = get((0, x, y))
+                if info is None:
+                    st.append(2)
+                    tops.append(inf)
+                    continue
+                st.append(0)
+                top = info["zmax"]
+                # the box is in scene units (a hair above it for the units' rounding); a
+                # tile with nodata is never decided from its box (its voids have no answer)
+                tops.append((top / zs) * (1 + 1e-12) + 1e-9 if info["nvalid"] == cells
+                            and top is not None and math.isfinite(top) else inf)
+        status = np.array(st, np.int8).reshape(nty, ntx)
+        ztop = np.array(tops, np.float64).reshape(nty, ntx)
+        side = (1 << g.t) + 1  # a block per tile, read only where one was decoded into it
+        z = _scratch(nty * ntx * side, side).reshape(nty, ntx, side, side)
         self.tiles = SweepTiles(z, status, ztop, np.full((nty, ntx), eps), r0, c0, g.t, ty0,
                                 tx0, tlast)
         self.lock = threading.Lock()
 
-    @property
-    def z(self) -> np.ndarray:
-        return self.tiles.z
+    def height(self, r: int, c: int) -> float:
+        """The height held for window cell (r, c) (metres; meaningful where its tile was
+        read)."""
+        tl = self.tiles
+        ty = min((r + tl.r0) >> tl.t, tl.tlast) - tl.ty0
+        tx = min((c + tl.c0) >> tl.t, tl.tlast) - tl.tx0
+        return float(tl.z[ty, tx, r + tl.r0 - ((ty + tl.ty0) << tl.t),
+                          c + tl.c0 - ((tx + tl.tx0) << tl.t)])
 
     @property
     def status(self) -> np.ndarray:
@@ -96,14 +108,18 @@ class Half:
     def __init__(self, window: Window, tiles: SweepTiles, lo: int, hi: int):
         self.w, self.tiles, self.lo, self.hi = window, tiles, lo, hi
 
-    def read(self, ty: int, tx: int, at: int | None = None) -> None:
+    def read(self, ty: int, tx: int, at: int | None = None,
+             probe: tuple[int, float, float, float, float] | None = None) -> None:
         """Read window tile (``ty``, ``tx``) into this half's rows: at the window's level
         (``at`` None) or ``at``; at level 0 a tile not yet read is first bounded from level
-        1 (status 3: the sweep may then decide its cells without level 0)."""
+        1 (status 3: the sweep may then decide its cells without level 0), unless the
+        cell that asked for it (``probe``: window row, column, its lowest sight line,
+        curvature drop and lift, :class:`~geoterrain.analysis.sweep.SweepState`) is not
+        hidden by that bound either: the sweep would ask again from that very cell."""
         w, st = self.w, self.tiles.status
         at = w.level if at is None else at
         # the status is this half's own; only the terrain's reads take the lock
-        if at == 0 and st[ty, tx] == 0 and self._bound_first(ty, tx):
+        if at == 0 and st[ty, tx] == 0 and self._bound_first(ty, tx, probe):
             return
         terrain = w.terrain
         ty0, tx0 = self.tiles.ty0, self.tiles.tx0
@@ -112,7 +128,7 @@ class Half:
         zm = terrain.frame.z_to_m
         key = (at, (tx + tx0) >> at, (ty + ty0) >> at)
         err = terrain.tile_info[key]["error"] if key in terrain.tile_info else np.inf
-        z = w.z[a0 - w.r0:a1 - w.r0, b0 - w.c0:b1 - w.c0]
+        z = self.tiles.z[ty, tx, a0 - gy:a1 - gy, b0 - gx:b1 - gx]
         if at == 0 or not np.isfinite(err):
             with w.lock:
                 tile = terrain.tile(0, tx + tx0, ty + ty0)
@@ -136,9 +152,9 @@ class Half:
         b0, b1 = max(gx, w.c0), min(gx + span + (tx + tl.tx0 == tl.tlast), w.c1)
         return a0, max(a1, a0), b0, b1
 
-    def _bound_first(self, ty: int, tx: int) -> bool:
+    def _bound_first(self, ty: int, tx: int, probe=None) -> bool:
         """Level 1's surface plus its tile's error as the cells' bounds (status 3), when
-        that error is finite."""
+        that error is finite and hides the probed cell (if any)."""
         w, tl = self.w, self.tiles
         terrain = w.terrain
         key = (1, (tx + tl.tx0) >> 1, (ty + tl.ty0) >> 1)
@@ -147,15 +163,36 @@ class Half:
         err = terrain.tile_info[key]["error"]
         if not np.isfinite(err):
             return False
-        a0, a1, b0, b1 = self._cells(ty, tx)
         zs = terrain.frame.z_scale or 1.0
-        z = w.z[a0 - w.r0:a1 - w.r0, b0 - w.c0:b1 - w.c0]
+        with w.lock:
+            tile = terrain.tile(*key)  # its heights are NaN where not valid
+        g, zm, lift = terrain.grid, terrain.frame.z_to_m, err / zs * (1 + 1e-12) + 1e-9
+        org = (key[2] << g.t, key[1] << g.t)
+        if probe is not None:  # the asking cell first: the same test as the sweep's
+            r, c, lo, drop, up = probe
+            v = _union_jack_one(tile.heights, 1, *org, r + w.r0, int(c) + w.c0)
+            if not v * zm + lift - drop + up < lo:
+                return False
+        a0, a1, b0, b1 = self._cells(ty, tx)
+        gy, gx = (ty + tl.ty0) << tl.t, (tx + tl.tx0) << tl.t
+        z = tl.z[ty, tx, a0 - gy:a1 - gy, b0 - gx:b1 - gx]
         # NaN where level 1 has no data: the sweep then reads level 0 (a void's code)
-        np.multiply(level_surface(terrain, 1, np.arange(a0, a1), np.arange(b0, b1), w.lock),
-                    terrain.frame.z_to_m, out=z)
-        z += err / zs * (1 + 1e-12) + 1e-9
+        _union_jack_into(tile.heights, 1, *org, a0, b0, zm, lift, z)
         tl.status[ty, tx] = 3
         return True
+
+
+def _scratch(rows: int, cols: int) -> np.ndarray:
+    """An uninitialised (rows, cols) float64 array in ordinary pages: the window's
+    heights are written only where a tile is decoded, and numpy's huge pages would have
+    the kernel zero 2 MiB at the first touch of each (8 % of a cold 4097² viewshed)."""
+    n = rows * cols * 8
+    if n < 1 << 22:
+        return np.empty((rows, cols))
+    m = mmap.mmap(-1, n)
+    with contextlib.suppress(AttributeError, OSError):  # not Linux: whatever it gives
+        m.madvise(mmap.MADV_NOHUGEPAGE)
+    return np.frombuffer(m, np.float64).reshape(rows, cols)
 
 
 def level_surface(terrain: TerrainLike, level: int, rows: np.ndarray, cols: np.ndarray,
@@ -185,6 +222,63 @@ def level_surface(terrain: TerrainLike, level: int, rows: np.ndarray, cols: np.n
     _union_jack_block(tile.heights, level, key[2] << g.t, key[1] << g.t,
                       np.asarray(rows, np.int64), np.asarray(cols, np.int64), out)
     return out
+
+
+def _union_jack_one(h: np.ndarray, level: int, a_org: int, b_org: int, row: int,
+                    col: int) -> float:
+    """:func:`_union_jack_into`'s surface at one sample, in Python: the same float
+    operations in the same order (a compiled call costs more than the arithmetic)."""
+    n = h.shape[0] - 2
+    sz = 1 << level
+    a = min((row >> level) - a_org, n)
+    di = (row - ((a + a_org) << level)) / sz
+    b = min((col >> level) - b_org, n)
+    dj = (col - ((b + b_org) << level)) / sz
+    z00, z01 = float(h[a, b]), float(h[a, b + 1])
+    z10, z11 = float(h[a + 1, b]), float(h[a + 1, b + 1])
+    if (a + a_org + b + b_org) % 2 == 0:  # main diagonal (0, 0)–(1, 1)
+        if dj >= di:
+            return z00 + (z01 - z00) * dj + (z11 - z01) * di
+        return z00 + (z10 - z00) * di + (z11 - z10) * dj
+    if di + dj <= 1:
+        return z00 + (z10 - z00) * di + (z01 - z00) * dj
+    return z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
+
+
+@njit(cache=True, nogil=True)
+def _union_jack_into(h, level, a_org, b_org, a0, b0, scale, add, out):
+    """out[k, m] = the level-L union-jack surface of tile heights ``h`` at full-resolution
+    sample (a0 + k, b0 + m) (:func:`_union_jack_block`) × ``scale`` + ``add``: the surface
+    in metres lifted by its error, written where the sweep reads it."""
+    n = h.shape[0] - 2
+    sz = 1 << level
+    ncol = out.shape[1]
+    bs = np.empty(ncol, np.int64)
+    djs = np.empty(ncol)
+    for m in range(ncol):
+        b = min(((b0 + m) >> level) - b_org, n)
+        bs[m] = b
+        djs[m] = (b0 + m - ((b + b_org) << level)) / sz
+    for k in range(out.shape[0]):
+        a = min(((a0 + k) >> level) - a_org, n)
+        di = (a0 + k - ((a + a_org) << level)) / sz
+        for m in range(ncol):
+            b = bs[m]
+            dj = djs[m]
+            z00 = h[a, b]
+            z01 = h[a, b + 1]
+            z10 = h[a + 1, b]
+            z11 = h[a + 1, b + 1]
+            if (a + a_org + b + b_org) % 2 == 0:  # main diagonal (0, 0)–(1, 1)
+                if dj >= di:
+                    v = z00 + (z01 - z00) * dj + (z11 - z01) * di
+                else:
+                    v = z00 + (z10 - z00) * di + (z11 - z10) * dj
+            elif di + dj <= 1:
+                v = z00 + (z10 - z00) * di + (z01 - z00) * dj
+            else:
+                v = z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
+            out[k, m] = v * scale + add
 
 
 @njit(cache=True, nogil=True)

@@ -61,6 +61,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numba import njit
 
 from geoterrain.codec import entropy
 from geoterrain.codec.entropy import MASK_ALL_INVALID, MASK_ALL_VALID, MASK_STORED
@@ -574,18 +575,29 @@ def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
         if not exact:
             raise ValueError(_NOT_A_STREAM)
         return out, valid
-    # a wide blob: every residual, then the predictions
+    # a wide blob: every residual, then the predictions (one compiled call)
     valid = _wide_mask(kind, te, data)
     off = (tt * tt + 7) // 8 if kind == MASK_STORED else 0
-    n = 3 * h * h + 2 * h
-    zz = np.zeros(n, np.uint64) if w == 0 else np.ascontiguousarray(
-        data[off:].reshape(w, n).T).view(np.dtype(_UINTS[w]).newbyteorder("<")
-                                         ).ravel().astype(np.uint64)
-    r = ((zz >> np.uint64(1)) ^ (np.uint64(0) - (zz & np.uint64(1)))).view(np.int64)
     out = np.empty((tt, tt), np.int64)
-    if cubic:  # the parent tile's own predictions (with its edge fallbacks)
+    _wide_child(data, off, w, 3 * h * h + 2 * h, parent, py, px, h, cubic, out)
+    return out, valid
+
+
+@njit(cache=True, nogil=True)
+def _wide_child(data, off, w, n, parent, py, px, h, cubic, out):
+    """A wide blob's child codes: its n residuals, each stored as w little-endian bytes
+    in w byte planes (``data[off + b·n + k]`` the b-th byte of residual k), zig-zag
+    coded, added to the parent's predictions (cubic: the parent tile's own, with its
+    edge fallbacks; linear: from the quadrant the child covers)."""
+    r = np.empty(n, np.int64)
+    one = np.uint64(1)
+    for k in range(n):
+        v = np.uint64(0)
+        for b in range(w):
+            v |= np.uint64(data[off + b * n + k]) << np.uint64(8 * b)
+        r[k] = np.int64(v >> one) ^ -np.int64(v & one)
+    if cubic:
         cubic_child(parent, py * h, px * h, h, r, out)
     else:
-        linear_child(np.ascontiguousarray(parent[py * h:py * h + h + 1, px * h:px * h + h + 1]),
-                     h, r, out)
-    return out, valid
+        linear_child(np.ascontiguousarray(parent[py * h:py * h + h + 1,
+                                                 px * h:px * h + h + 1]), h, r, out)

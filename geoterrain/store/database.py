@@ -45,6 +45,7 @@ metadata's tile counts.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sqlite3
@@ -52,6 +53,7 @@ import struct
 import threading
 import weakref
 import zlib
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -434,6 +436,8 @@ class StoreReader:
         self.blob_reads = 0  # how many blobs were read (tests count them)
         self._table: TileTable | None = None
         self._lock = threading.Lock()
+        self._snapshot = 0  # how deep in snapshot() (one read transaction while > 0)
+        self._snapshot_version: int | None = None  # data_version read inside it
 
     def _open(self) -> None:
         # the schema, the catalog's two rows, the metadata: every check of opening
@@ -545,12 +549,41 @@ class StoreReader:
 
     def get_blob(self, key: tuple[int, int, int], kind: str) -> bytes | None:
         """A tile's blob, checksum-verified (bound to key and kind), or None when not stored."""
+        return self.get_blob_version(key, kind, False)[0]
+
+    def get_blob_version(self, key: tuple[int, int, int], kind: str, version: bool = True
+                         ) -> tuple[bytes | None, int]:
+        """:meth:`get_blob` and, read right after it in the same metered call, the
+        :meth:`version` (−1 unless ``version``): a reader that checks each blob against
+        the version it opened pays one look at the I/O counters for both.
+
+        Examples
+        --------
+        >>> r = StoreReader(t.path)
+        >>> blob, v = r.get_blob_version((0, 0, 0), "heights")
+        >>> blob == r.get_blob((0, 0, 0), "heights"), v == r.version()
+        (True, True)
+        >>> r.close()
+        """
         rowid = self._rowid_of(blob_key(key, kind))
         if rowid is None:
-            return None
+            return None, self.version() if version else -1
+
+        def read():
+            row = self.con.execute("SELECT data, crc32 FROM blobs WHERE rowid = ?",
+                                   (rowid,)).fetchone()
+            if not version:
+                return row, -1
+            if self._snapshot_version is not None:  # no commit can come in between
+                return row, self._snapshot_version
+            with self._lock:
+                v = int(self.con.execute("PRAGMA data_version").fetchone()[0])
+                if self._snapshot:  # the read above began the snapshot's transaction
+                    self._snapshot_version = v
+                return row, v
+
         try:
-            row = self.meter.call(lambda: self.con.execute(
-                "SELECT data, crc32 FROM blobs WHERE rowid = ?", (rowid,)).fetchone())
+            row, ver = self.meter.call(read)
         except (*_DB_ERRORS, OverflowError):
             raise self._damaged(f"tile {key} {kind}") from None
         if row is None:
@@ -560,7 +593,7 @@ class StoreReader:
         self._blob_bytes += len(data) if isinstance(data, bytes) else 0
         if not isinstance(data, bytes) or blob_crc(key, kind, data) != crc:
             raise self._damaged(f"tile {key} {kind}")
-        return data
+        return data, ver
 
     def tiles(self) -> dict[tuple[int, int, int], dict]:
         """Every stored tile's numbers, checksum-verified, checked against the tile counts.
@@ -658,6 +691,38 @@ class StoreReader:
         per = np.bincount(code, weights=n[at])
         return {(_KIND_NAMES[int(c) >> 5], int(c) & 31): int(per[c])
                 for c in np.unique(code)}
+
+    @contextlib.contextmanager
+    def snapshot(self) -> Iterator[None]:
+        """Reads inside it make one read transaction: SQLite takes its shared lock at the
+        first read and holds it to the end, so no other connection commits meanwhile
+        (an edit waits for it) and the :meth:`version` read with the first blob holds
+        for every later one (:meth:`get_blob_version` asks for it once). Each statement
+        then skips its own lock, unlock and change-counter check. Nestable; a store
+        opened immutable (WAL) reads the same either way.
+
+        Examples
+        --------
+        >>> r = StoreReader(t.path)
+        >>> with r.snapshot():
+        ...     a = r.get_blob_version((0, 0, 0), "heights")
+        ...     b = r.get_blob_version((0, 1, 0), "heights")
+        >>> a[1] == b[1] == r.version(), a[0] == r.get_blob((0, 0, 0), "heights")
+        (True, True)
+        >>> r.close()
+        """
+        with self._lock:
+            if self._snapshot == 0:
+                self.meter.call(lambda: self.con.execute("BEGIN"))
+            self._snapshot += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._snapshot -= 1
+                if self._snapshot == 0:
+                    self._snapshot_version = None
+                    self.meter.call(lambda: self.con.execute("COMMIT"))
 
     def version(self) -> int:
         """SQLite's ``data_version`` of this connection: it changes when another

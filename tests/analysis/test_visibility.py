@@ -119,6 +119,67 @@ def test_two_threads_give_the_one_thread_viewshed(voids, monkeypatch, level):
 
 
 @pytest.mark.fast
+def test_the_asking_cell_probe_changes_nothing_read(voids, monkeypatch):
+    """A tile's level-1 bound is skipped when it cannot hide the cell that asked for the
+    tile: the same tiles are read and bounded as when the bound is always computed."""
+    from geoterrain.analysis import window
+
+    t, src = voids
+    a, _, c, _, e, f = t.frame.transform[:6]
+    read = window.Half.read
+    got = []
+    for probe in (True, False):
+        monkeypatch.setattr(window.Half, "read", read if probe else
+                            lambda self, ty, tx, at=None, probe=None: read(self, ty, tx, at))
+        t.clear_cache()
+        got.append(viewshed(t, (c + a * 80.5, f + e * 60.5), radius=2000.0, height=1.0))
+    fast, full = got
+    assert np.array_equal(fast.codes, full.codes)
+    keep = ("tiles_read", "tiles_skipped", "tiles_bounded", "tiles_decoded", "visible",
+            "hidden", "uncertain")
+    assert {k: fast.stats[k] for k in keep} == {k: full.stats[k] for k in keep}
+    assert fast.stats["tiles_bounded"] > 0 and fast.stats["waits"] < full.stats["waits"]
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("rows, cols", [(3, 5), (1024, 700)])
+def test_window_scratch_is_a_writable_float_grid(rows, cols):
+    """The window's heights (ordinary pages from 4 MiB up) hold what is written."""
+    from geoterrain.analysis.window import _scratch
+
+    z = _scratch(rows, cols)
+    assert z.shape == (rows, cols) and z.dtype == np.float64 and z.flags.writeable
+    z[-1, -1], z[0, 0] = 1.5, -2.0
+    z[rows // 2] = np.arange(cols)
+    assert z[-1, -1] == 1.5 and z[0, 0] == -2.0 and (z[rows // 2] == np.arange(cols)).all()
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2**31), st.integers(1, 3), st.sampled_from([1.0, 0.3048, 0.1]))
+def test_level_bound_is_the_union_jack_surface(seed, level, zm):
+    """The bound written into the window (compiled) and the asking cell's (Python) are
+    level_surface's union-jack surface × z_to_m + lift, bit for bit."""
+    from geoterrain.analysis.window import _union_jack_block, _union_jack_into, _union_jack_one
+
+    rng = np.random.default_rng(seed)
+    h = rng.normal(0.0, 500.0, (17, 17))  # a tile of 16 cells at level L
+    a_org, b_org = (int(v) * 16 for v in rng.integers(0, 5, 2))
+    a0 = (a_org << level) + int(rng.integers(0, 16 << level))
+    b0 = (b_org << level) + int(rng.integers(0, 16 << level))
+    n_r = int(rng.integers(1, (16 << level) + 1 - (a0 - (a_org << level))))
+    n_c = int(rng.integers(1, (16 << level) + 1 - (b0 - (b_org << level))))
+    lift = float(rng.random())
+    out = np.empty((n_r, n_c))
+    _union_jack_into(h, level, a_org, b_org, a0, b0, zm, lift, out)
+    ref = np.empty((n_r, n_c))
+    _union_jack_block(h, level, a_org, b_org, np.arange(a0, a0 + n_r), np.arange(b0, b0 + n_c),
+                      ref)
+    assert np.array_equal(out, ref * zm + lift)
+    k, m = int(rng.integers(0, n_r)), int(rng.integers(0, n_c))
+    assert _union_jack_one(h, level, a_org, b_org, a0 + k, b0 + m) * zm + lift == out[k, m]
+
+
+@pytest.mark.fast
 @pytest.mark.parametrize("level", [1, 2])
 def test_coarse_level_marks_the_cells_it_cannot_decide(voids, level):
     t, src = voids

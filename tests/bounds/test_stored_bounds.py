@@ -62,8 +62,9 @@ def test_coarse_tile_reads_no_finer_data(tmp_path):
     src = write_geotiff(tmp_path / "d.tif", generate("fbm", 257, seed=4))
     t = geoterrain.open(geoterrain.preprocess(src, tmp_path / "s.geoterrain", tile_size=16))
     reads = []
-    orig = t.reader.get_blob
-    t.reader.get_blob = lambda key, kind: (reads.append((key, kind)), orig(key, kind))[1]
+    orig = t.reader.get_blob_version  # every blob read goes through it (get_blob too)
+    t.reader.get_blob_version = lambda key, kind, version=True: (
+        reads.append((key, kind)), orig(key, kind, version))[1]
     L = t.grid.top_level - 1
     t.tile(L, 1, 0)
     assert {k for k, _ in reads} == {(L, 1, 0), (L + 1, 0, 0)}
