@@ -327,7 +327,8 @@ def _load_done(path: str):
 # GDAL_READ_OPTIONS' 64 MB held a whole 4097 × 2049 float32 mosaic's blocks (50 MB, its
 # VRT's too), memory that grew with the raster; a band's rows reuse few blocks (that
 # mosaic, a sweep of 256-row bands with a 128-row halo: 0.59 s with 64 MB, 0.69 s with
-# 16, 0.92 s with 8; the 1025 × 513 one's blocks take 3 MB; docs/lab/streaming.md)
+# 16, 0.92 s with 8; the 1025 × 513 one, read in one window, keeps none there;
+# docs/lab/streaming.md)
 STREAM_GDAL_CACHE = 8 << 20
 PASSES = {"bounds": _bounds_pass, "tiles": _tiles_pass, "normals": _normals_pass,
           "heights": _heights_pass, "xy": _xy_pass}
