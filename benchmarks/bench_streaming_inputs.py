@@ -5,7 +5,7 @@ Usage:
     python benchmarks/bench_streaming_inputs.py compare [--sizes 513,1025,2049] [--runs 3]
         [--frames projected,geographic] [--limit 1G]
     python benchmarks/bench_streaming_inputs.py mosaic [--runs 3] [--limit 1G]
-        [--big 4097x2049] [--small 1025x513] [--tiles 4x2]
+        [--big 4097x2049] [--small 1025x513] [--tiles 4x2] [--passes]
 
 ``compare``: a synthetic fBm GeoTIFF of each size, in a projected frame (UTM, 10 m) and
 a geographic one (EPSG:4326, 1 arc-second at 47° N), preprocessed whole
@@ -18,6 +18,10 @@ alternate, each run a fresh process. Prints medians of the wall time and of the 
 neighbours sharing their edge row or column), ``--big`` and ``--small`` in all, each
 streamed under the same ``--limit`` (as a list of files); prints each one's medians and
 the big/small ratio of the peaks (issue 45's target: within 10 %, at most 1.5 GB).
+``--passes``: each run also prints the peak RSS of each pass (VmHWM reset as the pass
+starts, ``/proc/self/clear_refs``; the passes run in turn, ``sync``), the last figure
+the rest of the run (the height pass and the store's writing); "before" is the RSS as
+the first pass starts (imports, kernels, scan and quantizer).
 """
 
 from __future__ import annotations
@@ -35,14 +39,38 @@ import json, sys, time
 from geoterrain.core.memory import peak_rss
 mode, dst, band = sys.argv[1], sys.argv[2], int(sys.argv[3])
 src = json.loads(sys.argv[4])
+from geoterrain.preprocessing import streaming
 from geoterrain.preprocessing.pipeline import preprocess
 from geoterrain.preprocessing.streaming import preprocess_streaming
+passes, top = {}, [0.0]
+
+def kib(field):
+    with open("/proc/self/status") as fh:
+        return next(int(ln.split()[1]) for ln in fh if ln.startswith(field))
+
+def each(spec, tasks, retries=2):  # the passes in turn, the peak of each
+    out = []
+    for fn, args in tasks:
+        passes.setdefault("before", kib("VmRSS:") / 1024)
+        top[0] = max(top[0], kib("VmHWM:") / 1024)
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")  # VmHWM back to VmRSS
+        out.append(fn(*args))
+        passes[args[1]] = kib("VmHWM:") / 1024
+    return out
+
+if mode == "passes":
+    streaming.run_tasks = each
 t0 = time.perf_counter()
 if mode == "whole":
     preprocess(src, dst, overwrite=True, memory_limit=1 << 50)
 else:
     preprocess_streaming(src, dst, overwrite=True, band=band)
-print(json.dumps({"wall": time.perf_counter() - t0, "peak_mb": peak_rss() / 2**20}))
+wall = time.perf_counter() - t0
+if passes:
+    passes["rest"] = kib("VmHWM:") / 1024
+print(json.dumps({"wall": wall, "peak_mb": max(peak_rss() / 2**20, top[0], *passes.values()),
+                  "passes": passes}))
 """
 
 
@@ -139,14 +167,17 @@ def mosaic(a: argparse.Namespace) -> None:
                     files.append(write(os.path.join(d, f"{name}_{y}_{x}.tif"), z,
                                        "geographic", origin, deg))
             band = band_rows(Grid.for_shape(H, W).size, limit, True)
-            rs = [child("stream", os.path.join(d, f"{name}.gt"), band, files)
-                  for _ in range(a.runs)]
+            rs = [child("passes" if a.passes else "stream", os.path.join(d, f"{name}.gt"),
+                        band, files) for _ in range(a.runs)]
             wall = statistics.median(r["wall"] for r in rs)
             peak = statistics.median(r["peak_mb"] for r in rs)
             peaks[name] = peak
             each = ", ".join(f"{r['peak_mb']:.0f}" for r in rs)
             print(f"| {W}×{H} | {tx}×{ty} | {band} | {wall:.1f} | {peak:.0f} | {each} |",
                   flush=True)
+            for r in rs if a.passes else ():
+                print("  peak MB per pass: " + ", ".join(f"{k} {v:.0f}"
+                                                         for k, v in r["passes"].items()))
     print(f"\nbig/small peak: {peaks['big'] / peaks['small']:.3f}")
 
 
@@ -160,6 +191,8 @@ def main() -> None:
     ap.add_argument("--big", default="4097x2049")
     ap.add_argument("--small", default="1025x513")
     ap.add_argument("--tiles", default="4x2")
+    ap.add_argument("--passes", action="store_true",
+                    help="mosaic: the peak RSS of each pass too")
     a = ap.parse_args()
     compare(a) if a.what == "compare" else mosaic(a)
 

@@ -78,10 +78,13 @@ class RasterSpec:
     target: Target | None = None
 
     @contextlib.contextmanager
-    def open(self) -> Iterator:
-        """The source opened with rasterio (GDAL's read options set); a composite's
-        layers as a :class:`~geoterrain.ingest.composite.CompositeReader`."""
-        with warnings.catch_warnings(), rasterio.Env(**GDAL_READ_OPTIONS):
+    def open(self, cache: int | None = None) -> Iterator:
+        """The source opened with rasterio (GDAL's read options set, its block cache
+        ``cache`` bytes if given); a composite's layers as a
+        :class:`~geoterrain.ingest.composite.CompositeReader`."""
+        opts = GDAL_READ_OPTIONS if cache is None else {**GDAL_READ_OPTIONS,
+                                                        "GDAL_CACHEMAX": int(cache)}
+        with warnings.catch_warnings(), rasterio.Env(**opts):
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
             if self.layers:
                 reader = CompositeReader(self.layers, self.target)

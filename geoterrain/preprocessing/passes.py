@@ -114,7 +114,7 @@ class Job:
         (:class:`Opened`)."""
         grid = Grid(**self.grid)
         frame = Frame.from_json(self.frame)
-        with self.spec.open() as ds:
+        with self.spec.open(cache=STREAM_GDAL_CACHE) as ds:
             source = Source(ds, grid, self.spec)
             decoded: list[ScratchArrays] = []  # the height pass's, opened at the first read
             xyz: list[ScratchArrays] = []  # the xy pass's, opened at the first read
@@ -183,6 +183,7 @@ def _xy_pass(job: Job) -> None:
                                  "-projwin) or reproject it")
             sx.write("X", i0, X)
             sx.write("Y", i0, Y)
+            i = j = X = Y = None  # before the next band's are made
     finally:
         sx.close()
 
@@ -322,6 +323,13 @@ def _load_done(path: str):
     return (tuple(v[0]), *v[1:]) if isinstance(v, list) else v
 
 
+# GDAL's block cache while the streaming preprocess reads the raster in bands:
+# GDAL_READ_OPTIONS' 64 MB held a whole 4097 × 2049 float32 mosaic's blocks (50 MB, its
+# VRT's too), memory that grew with the raster; a band's rows reuse few blocks (that
+# mosaic, a sweep of 256-row bands with a 128-row halo: 0.59 s with 64 MB, 0.69 s with
+# 16, 0.92 s with 8; the 1025 × 513 one, read in one window, keeps none there;
+# docs/lab/streaming.md)
+STREAM_GDAL_CACHE = 8 << 20
 PASSES = {"bounds": _bounds_pass, "tiles": _tiles_pass, "normals": _normals_pass,
           "heights": _heights_pass, "xy": _xy_pass}
 DECODED = "decoded"  # the decoded heights with residual bins (scratch arrays, by the height pass)

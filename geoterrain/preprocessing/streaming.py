@@ -60,6 +60,7 @@ from geoterrain.ingest.windows import RasterSpec, describe, localize
 from geoterrain.preprocessing.bands.delta import level_lattice
 from geoterrain.preprocessing.bands.quantize import band_quantizer
 from geoterrain.preprocessing.passes import (
+    STREAM_GDAL_CACHE,
     Job,
     Source,
     adopt,
@@ -281,7 +282,7 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
     dst = req.dst
     spec = localize(spec, fetch)
     nd = meta["nodata"]
-    with spec.open() as ds:
+    with spec.open(cache=STREAM_GDAL_CACHE) as ds:
         if meta["encoding"] == "raw" and not spec.layers:  # (a merge: each source's nodata)
             void, n_void, n_inf = _scan(Source(ds, grid, spec), band)
             if n_inf:

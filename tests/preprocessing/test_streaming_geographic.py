@@ -222,3 +222,37 @@ def test_the_row_cache_reads_each_row_once():
     g2 = cache.get(2, 7)
     assert calls == [(0, 4), (4, 7)]
     assert g1.w0 == 0 and g2.w0 == 2 and np.array_equal(g2.Z, Z[2:7])
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("capacity", [0, 15])
+def test_the_row_cache_shifts_its_buffer_in_place(capacity):
+    """Windows that overlap by more rows than they advance (a band and its halo on each
+    side, as band_metric_terms reads them) hold the rows' values, invalid heights 0,
+    each row read once, in buffers that are not reallocated once at capacity."""
+    rng = np.random.default_rng(3)
+    N, B, halo = 33, 4, 5
+    Z = rng.normal(size=(N, N))
+    Z[rng.random((N, N)) < 0.1] = np.nan
+    X, Y = rng.normal(size=(2, N, N))
+    calls = []
+
+    def rows(a, b):
+        calls.append((a, b))
+        return Z[a:b], np.isfinite(Z[a:b])
+
+    cache = bandcurv.RowCache(rows, lambda a, b: (X[a:b], Y[a:b]), N, 0.01, (N, N),
+                              capacity=capacity)
+    bufs = []
+    for r0 in range(0, N - 1, B):
+        i0, i1 = max(0, r0 - halo), min(N, r0 + B + halo + (r0 + B == N - 1))
+        g = cache.get(i0, i1)
+        v = np.isfinite(Z[i0:i1])
+        assert g.w0 == i0 and np.array_equal(g.vb, v)
+        assert np.array_equal(g.X, X[i0:i1]) and np.array_equal(g.Y, Y[i0:i1])
+        assert np.array_equal(g.Z, np.where(v, Z[i0:i1], 0.0))
+        bufs.append(g.X.base if g.X.base is not None else g.X)
+    read = sorted(i for a, b in calls for i in range(a, b))
+    assert read == list(range(N))
+    if capacity:
+        assert all(b is bufs[0] for b in bufs)

@@ -299,34 +299,47 @@ def _tri_list(idx: np.ndarray, pos: np.ndarray, m: np.ndarray | None = None) -> 
 
 class RowCache:
     """A sliding window of grid rows (heights, validity, scene x, y) for bands read in
-    order: the rows a new window shares with the last one are kept, the rest read."""
+    order: the rows a new window shares with the last one are kept, the rest read. The
+    rows live in one buffer per quantity, shifted in place, so a window costs its own
+    rows once (not the last window's as well); a window handed out is valid until the
+    next call. ``capacity``: the most rows a window will have (the buffers' rows at the
+    first call; a larger window reallocates them)."""
 
-    def __init__(self, rows: Rows, xy: XY, N: int, frac: float, window: tuple[int, int]):
+    def __init__(self, rows: Rows, xy: XY, N: int, frac: float, window: tuple[int, int],
+                 capacity: int = 0):
         self.rows, self.xy, self.N, self.frac, self.window = rows, xy, N, frac, window
-        self.w0, self.parts = 0, None
+        self.capacity = min(capacity, N)
+        self.w0, self.n = 0, 0
+        self.buf: list[np.ndarray] = []  # X, Y, Z (invalid 0), valid
 
     def get(self, i0: int, i1: int) -> MetricGrid:
         """Rows i0 … i1 − 1 (i0 never below the last call's)."""
-        keep = None
-        if self.parts is not None and self.w0 <= i0 < self.w0 + len(self.parts[0]):
-            keep = [p[i0 - self.w0:] for p in self.parts]
-        have = i0 + (len(keep[0]) if keep else 0)
-        new = []
-        if i1 > have:
-            z, v = self.rows(have, i1)
-            X, Y = self.xy(have, i1)
-            v = np.asarray(v, bool) & np.isfinite(z)
-            new = [np.asarray(X, np.float64), np.asarray(Y, np.float64),
-                   np.where(v, np.asarray(z, np.float64), 0.0), v]
-        if keep and new:
-            parts = [np.concatenate([a, b]) for a, b in zip(keep, new, strict=True)]
-        else:
-            parts = [np.ascontiguousarray(p) for p in (keep or new)]
-        parts = [p[:i1 - i0] for p in parts]
-        self.w0, self.parts = i0, [np.ascontiguousarray(p) for p in parts]
-        X, Y, Z, vb = self.parts
-        return MetricGrid(X, Y, Z, vb, float(self.frac), int(self.window[0]),
-                          int(self.window[1]), int(i0))
+        n = i1 - i0
+        off = i0 - self.w0
+        keep = min(self.n - off, n) if self.n and 0 <= off < self.n else 0
+        if not self.buf or len(self.buf[0]) < n:
+            old, m = self.buf, max(n, self.capacity)
+            self.buf = [np.empty((m, self.N)) for _ in range(3)] + [np.empty((m, self.N), bool)]
+            for a, b in zip(self.buf, old, strict=False):
+                a[:keep] = b[off:off + keep]
+        elif keep and off:  # forward, in chunks of at most off rows: no chunk overlaps
+            for b in self.buf:
+                for c in range(0, keep, off):
+                    b[c:min(c + off, keep)] = b[off + c:off + min(c + off, keep)]
+        X_, Y_, Z_, V_ = self.buf
+        if n > keep:
+            z, v = self.rows(i0 + keep, i1)
+            X, Y = self.xy(i0 + keep, i1)
+            V_[keep:n] = np.asarray(v, bool) & np.isfinite(z)
+            X_[keep:n] = X
+            Y_[keep:n] = Y
+            del X, Y, v
+            np.copyto(Z_[keep:n], 0.0)  # np.where(valid, z, 0.0) without a temporary
+            np.copyto(Z_[keep:n], np.asarray(z, np.float64), where=V_[keep:n])
+            del z
+        self.w0, self.n = i0, n
+        return MetricGrid(X_[:n], Y_[:n], Z_[:n], V_[:n], float(self.frac),
+                          int(self.window[0]), int(self.window[1]), int(i0))
 
 
 class BandTerms(NamedTuple):
@@ -401,7 +414,7 @@ def band_metric_terms(rows: Rows, xy: XY, N: int, band: int, scratch: ScratchArr
     M = 0
     deferred: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     halo = B // 2 + HALO_EXTRA
-    cache = RowCache(rows, xy, N, frac, win)
+    cache = RowCache(rows, xy, N, frac, win, capacity=B + 2 * halo + 1)
     for kb in range(nbands):
         r0 = kb * B
         last = kb == nbands - 1
@@ -426,8 +439,10 @@ def band_metric_terms(rows: Rows, xy: XY, N: int, band: int, scratch: ScratchArr
                 M = max(M, int(vt.m.max(initial=0)))
                 if vt.defer.any():
                     deferred.append(_deferred(g, h, "CRK".index(x), r0 // s, vt.defer))
+            del out, vt  # before the next level's are allocated
         if len(tl.idx):
             _list_own_nb(g, tl, r0, r_end)
+    del g, cache  # the window's buffers
     _list_margins_nb(tl, float(frac), N)
     if len(tl.m):
         M = max(M, int(tl.m.max()))
@@ -437,7 +452,7 @@ def band_metric_terms(rows: Rows, xy: XY, N: int, band: int, scratch: ScratchArr
                        np.concatenate([tl.pos] + [d[1] for d in deferred]),
                        np.concatenate([tl.m] + [d[2] for d in deferred]))._replace(bulge=bulge)
     if len(tl.idx):
-        cache = RowCache(rows, xy, N, frac, win)
+        cache = RowCache(rows, xy, N, frac, win, capacity=B + 1)
         for kb in range(nbands):
             r0 = kb * B
             r_end = N - 1 if kb == nbands - 1 else r0 + B - 1
@@ -494,8 +509,9 @@ def _fold(sa: ScratchArrays, pre: str, tl: TriList, n: int) -> None:
 
 
 def _merge_base(sa: ScratchArrays, pre: str, base: BandTerms, n: int, N: int,
-                win: tuple[int, int], step_rows: int = 256) -> None:
-    # the vertices that read data samples only: the base's δ_m and bulge (metric_terms)
+                win: tuple[int, int], step_samples: int = 1 << 18) -> None:
+    # the vertices that read data samples only: the base's δ_m and bulge (metric_terms),
+    # ``step_samples`` of an array at a time (rows of any width)
     wi, wj = win
     M = base.M
     for k in range(n):
@@ -503,6 +519,7 @@ def _merge_base(sa: ScratchArrays, pre: str, base: BandTerms, n: int, N: int,
         s = 2 * h
         for kind, x in enumerate(KINDS):
             nr, nc = sa.shape(f"{pre}dm{x}{k}")
+            step_rows = max(1, step_samples // max(nc, 1))
             b = np.arange(nc)
             for a0 in range(0, nr, step_rows):
                 a = np.arange(a0, min(a0 + step_rows, nr))

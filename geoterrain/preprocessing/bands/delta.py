@@ -560,6 +560,7 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
             zd[k + 1] = z[B, ::B]
         a, b, c = valid_range(z[:B + (k == nbands - 1)], v[:B + (k == nbands - 1)])
         lo, hi, count = min(lo, a), max(hi, b), count + c
+        z = v = None  # before the next band's are read
     stand_in = (0.5 * (lo + hi) if count else 0.0) if heights else None  # radii.stand_in_z
     coarse = []  # per coarse level: (h, status, accumulators, mixed edges and sweeps)
     st = stB
@@ -622,6 +623,7 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
             for rows_type, t, sweeps in zip((True, False), todo, sw, strict=True):
                 if len(t):
                     _coarse_edges_nb(band, hc, zd, rows_type, t, sweeps)
+        z = v = band = sts = None  # before the next band's are read
     for k, (_, stc, acc, (rt, kt), sw) in enumerate(coarse, start=nfine):
         nb = stc.shape[0]
         C = np.zeros((nb, nb), np.float32)

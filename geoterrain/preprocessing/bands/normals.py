@@ -112,3 +112,4 @@ def band_normal_codes(rows: Rows, N: int, xs: np.ndarray, ys: np.ndarray, levels
         if xy is not None:
             gx, gy = (np.asarray(a, np.float64) for a in xy(r0, r1))
         feed(0, r0, np.asarray(z, np.float64), np.asarray(v, bool), gx, gy)
+        z = v = gx = gy = None  # before the next band's are read

@@ -376,11 +376,21 @@ def band_metric_radius_codes(sa: ScratchArrays, N: int, xy: XYRows, rm: str = "r
         e = min(e + 4, 127)
 
 
+# bytes a chunk holds per vertex of its level (the three kinds at once, each with its
+# height, x, y, radii in and out, and float32 copies), and per vertex above the leaves
+# (its four child centres' height, x, y and value): 96 a vertex for all, as before,
+# put a 4097-wide grid's chunks above the leaves at about 100 MB for a 16 MB budget
+CHUNK_BYTES = 3 * 7 * 8
+CHUNK_CHILD_BYTES = 3 * 4 * 4 * 8
+
+
 def _chunks(sa: ScratchArrays, n: int, budget: int):
-    # (k, h, nb, a_lo, a_hi) of every level fine to coarse, a few block rows at a time
+    # (k, h, nb, a_lo, a_hi) of every level fine to coarse, a few block rows at a time:
+    # about ``budget`` bytes a chunk
     for k in range(n):
         nb = sa.shape(f"ZC{k}")[0]
-        step = max(1, budget // (96 * (nb + 1)))
+        per = CHUNK_BYTES + (CHUNK_CHILD_BYTES if k else 0)
+        step = max(1, budget // (per * (nb + 1)))
         for a_lo in range(0, nb, step):
             yield k, 1 << k, nb, a_lo, min(a_lo + step, nb)
 

@@ -7,7 +7,7 @@ the cells of side s = 2**L, seed 000's uniform surface) needs each cell's validi
 first:
 
 - **fine levels** (s ≤ band): a band's window holds every cell its rows touch (a halo of
-  one band above), so the cell is counted there;
+  the largest fine cell's side above), so the cell is counted there;
 - **coarse levels** (s > band): a first pass counts each cell's valid samples per
   triangle row by row, and reads the corners every ``band`` samples.
 
@@ -233,10 +233,13 @@ def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
     box0 = np.empty((6, nb0, nb0))
     box0[0::2] = np.inf
     box0[1::2] = -np.inf
+    # a fine cell with a row in the band starts at most its side above it: the window's
+    # halo is the largest fine side, not a band (coarse cells read the band's rows only)
+    halo = min(B, 1 << lmax)
     for k in range(nbands):
         r0 = k * B
         r_end = N - 1 if k == nbands - 1 else r0 + B - 1
-        w0 = max(0, r0 - B)
+        w0 = max(0, r0 - halo)
         z, v = window(w0, min(N, r0 + B + 1))
         core = slice(r0 - w0, r_end - w0 + 1)
         vc = v[core]
@@ -286,6 +289,8 @@ def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
                             np.maximum(bnd[L][y], line, out=bnd[L][y])
             colv = Ec[:, ::S]
             _into_rows(bnd[L], np.maximum(colv[:, :-1], colv[:, 1:]), r0, S, np.maximum)
+        # this band's arrays go before the next band's are read
+        z = v = vc = zc = cs = gx = gy = E = Ec = colv = band = None
     per_level = []
     for L in range(lmax + 1):
         e = np.where(tmix[L], np.inf, err[L])
