@@ -411,7 +411,7 @@ class StoreReader:
                                  "without writing; re-run `geoterrain preprocess`")
         # every byte this reader reads from the file, opening included (bytes_read)
         self.meter = ReadMeter()
-        self._blob_bytes = 0
+        self._payload_bytes = 0
         # read-only: no journal, -wal or -shm file is created beside the store; a store in
         # WAL mode (not one geoterrain writes) is opened immutable, as it would need a -shm
         # file otherwise. Others take SQLite's shared locks (the file is not written), so
@@ -590,7 +590,7 @@ class StoreReader:
             raise self._damaged(f"tile {key} {kind} (its row is missing)")
         self.blob_reads += 1
         data, crc = row
-        self._blob_bytes += len(data) if isinstance(data, bytes) else 0
+        self._payload_bytes += len(data) if isinstance(data, bytes) else 0
         if not isinstance(data, bytes) or blob_crc(key, kind, data) != crc:
             raise self._damaged(f"tile {key} {kind}")
         return data, ver
@@ -737,7 +737,7 @@ class StoreReader:
         """Every byte this reader has read from the store file, opening included, as the
         operating system counts them (:mod:`geoterrain.core.osreads`); where it does not
         count a thread's reads, the blobs' bytes only."""
-        return self.meter.bytes if EXACT else self._blob_bytes
+        return self.meter.bytes if EXACT else self._payload_bytes
 
     def close(self) -> None:
         self.con.close()

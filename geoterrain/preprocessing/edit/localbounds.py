@@ -79,7 +79,7 @@ class Bounds:
             self._fine()
             self._coarse()
             self._delta_max()
-            self._blobs()
+            self._code_blobs()
             TileErrors(self.job).run()
         except _Whole as exc:
             return str(exc)
@@ -522,7 +522,7 @@ class Bounds:
         job.meta["delta_max_finite"] = d_new
 
     # ------------------------------------------------------------ blobs and rows
-    def _blobs(self) -> None:
+    def _code_blobs(self) -> None:
         """The δ and r blobs of the tiles holding a vertex whose code changed (as a new
         vertex of its level), and their rows' largest stored δ and r."""
         g, job = self.g, self.job
