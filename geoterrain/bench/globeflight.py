@@ -200,7 +200,7 @@ def summary(frames: list[dict], budget_ms: float) -> dict:
     Examples
     --------
     >>> f = [dict(frame_ms=10.0, select_ms=2.0, mesh_ms=1.0, generation_ms=0.1, pop_px=0.0,
-    ...           rho_px=None, pending=0)] * 3
+    ...           rho_px=None, pending=0, nodes=4, triangles=512)] * 3
     >>> summary(f, 100.0)["selection_share_median"]
     0.2
     """
