@@ -194,12 +194,13 @@ def summary(frames: list[dict], budget_ms: float) -> dict:
     """The frame-time distribution and the Done-when figures of a flyover run: the
     median/p90/p99/max frame, the selection's share of the frame (median, and of the
     whole run), the worst main-thread generation time against ``budget_ms``, the frames
-    over the budget, the worst pop and measured ρ.
+    over the budget, the worst pop and measured ρ, and the nodes and triangles a frame
+    (median, max).
 
     Examples
     --------
     >>> f = [dict(frame_ms=10.0, select_ms=2.0, mesh_ms=1.0, generation_ms=0.1, pop_px=0.0,
-    ...           rho_px=None, pending=0)] * 3
+    ...           rho_px=None, pending=0, nodes=4, triangles=512)] * 3
     >>> summary(f, 100.0)["selection_share_median"]
     0.2
     """
@@ -224,4 +225,8 @@ def summary(frames: list[dict], budget_ms: float) -> dict:
         frames_stalled_on_generation=int((gen > budget_ms).sum()),
         frames_over_budget=int((ft > budget_ms).sum()),
         pop_px_max=round(max(f["pop_px"] for f in frames), 3),
-        rho_px_max=round(max(rho), 3) if rho else None, rho_frames=len(rho))
+        rho_px_max=round(max(rho), 3) if rho else None, rho_frames=len(rho),
+        nodes_median=float(np.median([f["nodes"] for f in frames])),
+        nodes_max=int(max(f["nodes"] for f in frames)),
+        triangles_median=float(np.median([f["triangles"] for f in frames])),
+        triangles_max=int(max(f["triangles"] for f in frames)))

@@ -2,8 +2,19 @@
 per-depth tables the planetary CDLOD derives its ranges from.
 
 **What a node's error bounds.** e(N) bounds the radial distance (along the rays from the
-planet's centre) between N's drawn surface (flat triangles, unmorphed) and the truth at
-every truth lattice point in N (:mod:`geoterrain.globe.surface`).
+planet's centre) between N's drawn surface (flat triangles, unmorphed) and the truth. Where
+a store shows unblended, the truth is **the store's own samples**, placed as the data say
+(geodetic lon, lat and height → ECEF): what the project's independent measure compares
+the mesh with. Elsewhere (over the base layer, in a store's feathered edge) it is the
+composite surface at every point of the deepest lattice (:mod:`geoterrain.globe.surface`).
+
+The deepest lattice does not pass through the samples: its vertices are the store's
+bilinear interpolant read at face-lattice points, and between them its flat triangles cut
+the corners of the samples' relief. On srtm1_japan (25 × 31 m samples, 16-cell nodes) the
+deepest nodes missed samples by up to 13.0 m with 31.7 m vertices and 7.7 m with 15.9 m
+ones, which an error stated against the lattice counted as 0 (the ρ of 1.06 px at τ = 1).
+The error against the samples falls with the vertex spacing, never to 0: ρ ≤ τ holds
+from λ·e_leaf/τ from the eye on (:func:`geoterrain.globe.layers.resolved_depth`).
 
 **Measured, over stores.** For each node whose cone meets a store's footprint, down to the
 depth where nothing new can appear (the store's resolved depth D_s, or the base layer's
@@ -11,16 +22,19 @@ D_b at a seam with it), this module generates the node's values once, when the g
 made (seed 001's proposed pipeline, L537: bottom-up over the data, here from the stored
 pyramid), and sets, deepest first,
 
-    e(N) = max over children c of ( (1 + s_c)·M_c + e(c) )
+    e(N) = max( g(N), max over children c not wholly unblended of ( (1 + s_c)·M_c + e(c) ) )
 
-where M_c is c's largest radial move onto N's surface (the morph's |rT − r|, measured at
-every vertex of c) and s_c a relative slack. Why it holds: N's and c's surfaces are flat
-on c's triangles, where w = |p|/r is affine along the rays, so their radial gap is largest
-at c's vertices up to the factor (r_max/r_min)²·max|p|/min|p| = 1 + s_c; and
-|N − truth| ≤ |N − c| + |c − truth|. A child that holds no sampled point (beyond every
-truth depth) reproduces its parent exactly: M = e = 0. The store's own error (its coarse
-levels against its full resolution) is in e(N) exactly, not as a bound: the truth is the
-full resolution.
+where g(N) is N's largest radial gap to the store samples on its rays, measured at every
+one of them (in the face's plane, where a flat triangle's w = |p|/r is affine), M_c is
+c's largest radial move onto N's surface (the morph's |rT − r|, measured at every vertex
+of c) and s_c a relative slack. Why the chain holds: N's and c's surfaces are flat on c's
+triangles, where w is affine along the rays, so their radial gap is largest at c's
+vertices up to the factor (r_max/r_min)²·max|p|/min|p| = 1 + s_c; and
+|N − truth| ≤ |N − c| + |c − truth|. A child that shows one store unblended at every
+vertex has the samples for its truth, which g(N) measures directly, so it adds nothing to
+the chain. A child that holds no sampled point (beyond every truth depth) reproduces its
+parent exactly: M = e = 0. The store's own error (its coarse levels against its full
+resolution) is in e(N) exactly, not as a bound.
 
 **Bounded, over the base layer.** Where no store lies, a node samples the procedural
 planet (or the bare ellipsoid) at every vertex, and :func:`geoterrain.globe.noise.error_bound`
@@ -47,10 +61,11 @@ import numpy as np
 from geoterrain.globe.nodes import children, decode, encode, geometry, hull, parent
 from geoterrain.globe.noise import error_bound, height_range_bound
 from geoterrain.globe.payload import Payload, payload_from_values
-from geoterrain.globe.polyhedron import FACES, face_directions
+from geoterrain.globe.polyhedron import FACES, face_coordinates, face_directions
 from geoterrain.globe.surface import NodeKey, Surface
 
-__all__ = ["ErrorTable", "NodeError", "node_widths", "ranges", "ranges_from", "MORPH_FRACTION"]
+__all__ = ["ErrorTable", "NodeError", "node_widths", "ranges", "ranges_from", "morph_error",
+           "MORPH_FRACTION"]
 
 MORPH_FRACTION = 0.5  # seed 001 §3.3.2: half of each level's range morphs
 _SAFE = 1.0 + 1e-6
@@ -60,7 +75,9 @@ _EXACT_DEPTHS = 6  # node widths measured on every node down to here, then halve
 @dataclass(frozen=True)
 class NodeError:
     """A measured node: its error ``e``, its move ``move`` (M), the relative ``slack`` of
-    the chain, its vertices' radial range ``r_lo``, ``r_hi`` and ``sag``."""
+    the chain, its vertices' radial range ``r_lo``, ``r_hi`` and ``sag``; ``lattice`` the
+    chain's bound against the deepest lattice and ``samples`` its largest gap to the stores'
+    own samples (``e`` is the larger)."""
 
     e: float
     move: float
@@ -68,6 +85,9 @@ class NodeError:
     r_lo: float
     r_hi: float
     sag: float
+    lattice: float = 0.0
+    samples: float = 0.0
+    core: bool = False
 
 
 def node_widths(max_depth: int, lattice: int = 0) -> np.ndarray:
@@ -136,6 +156,7 @@ class ErrorTable:
         self.slack = np.full(Dm + 1, 1e-3)
         self.slope = self._base_slope(planet, wc)
         self.regions = 0
+        self._truth = self._store_samples()
         self._measure(progress, keep)
         # the nodes no one measured (the base layer, or copies beyond every layer's depth):
         # their radial extent bounds heights over the node, the ellipsoid's own change across
@@ -180,6 +201,87 @@ class ErrorTable:
                 width = wc[D] * self.r_max
                 out[D] = height_range_bound(planet, width, s.scale) / max(width, 1e-9)
         return out
+
+    def _store_samples(self) -> tuple[np.ndarray, ...] | None:
+        """Every store sample the globe shows unblended (a finer store's edge or data not
+        over it), placed as the data say (geodetic lon, lat, height → ECEF): its face, u, v,
+        |p| of its ray's flat face point and its distance from the centre."""
+        s = self.surface
+        out = []
+        for k, st in enumerate(s.stores):  # finest first
+            finer = s.stores[:k]
+            for lon, lat, h in st.samples():
+                if finer:
+                    over = np.zeros(lon.shape, bool)
+                    for f in finer:
+                        over |= s.weight(f, lon, lat) > 0
+                    lon, lat, h = lon[~over], lat[~over], h[~over]
+                if not len(lon):
+                    continue
+                P = s.model.to_ecef(lon, lat, h * s.scale)
+                r = np.linalg.norm(P, axis=-1)
+                face, u, v, fn = face_coordinates(P / r[:, None])
+                out.append((face, u, v, fn, r))
+        if not out:
+            return None
+        return tuple(np.concatenate(a) for a in zip(*out, strict=True))
+
+    def _sample_index(self, depth: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """The store samples sorted by the depth-``depth`` node holding them: (their order,
+        the sorted node keys)."""
+        if self._truth is None:
+            return None
+        face, u, v = self._truth[:3]
+        m = 1 << depth
+        x = np.clip(np.floor(u * m), 0, m - 1).astype(np.int64)
+        y = np.clip(np.floor(v * m), 0, m - 1).astype(np.int64)
+        keys = encode(face, depth, x, y)
+        order = np.argsort(keys, kind="stable")
+        return order, keys[order]
+
+    def _sample_gap(self, key: int, v, index) -> float:
+        """The largest radial gap between node ``key``'s drawn surface (its flat triangles,
+        unmorphed) and the store samples on its rays: measured at each sample, where the
+        ray's w = |p|/r is affine over the flat triangle seen from the centre."""
+        if index is None:
+            return 0.0
+        order, skeys = index
+        a, b = np.searchsorted(skeys, [key, key + 1])
+        if a == b:
+            return 0.0
+        sel = order[a:b]
+        _, u, vv, fn, r = (arr[sel] for arr in self._truth)
+        _, D, x, y = decode(key)
+        n = self.surface.n
+        uu = (u * (1 << D) - x) * n
+        wv = (vv * (1 << D) - y) * n
+        j = np.clip(np.floor(uu), 0, n - 1).astype(np.int64)
+        i = np.clip(np.floor(wv), 0, n - 1).astype(np.int64)
+        fu, fv = uu - j, wv - i
+        inn = v.inner
+        w = v.fn[inn] / v.r[inn]
+        lower = fu + fv <= 1.0  # the cell's triangle on the (i, j) side of its short diagonal
+        wm = np.where(lower, (1 - fu - fv) * w[i, j] + fu * w[i, j + 1] + fv * w[i + 1, j],
+                      (fu + fv - 1) * w[i + 1, j + 1] + (1 - fv) * w[i, j + 1]
+                      + (1 - fu) * w[i + 1, j])
+        gap = np.abs(fn / wm - r)
+        return float(gap.max()) * _SAFE
+
+    def _core(self, v) -> bool:
+        """Whether the node shows one store unblended at every vertex (its weight 1, no
+        finer store's over it, data at each): there the truth is that store's samples."""
+        s = self.surface
+        inn = v.inner
+        if self._truth is None or not v.store[inn].all():
+            return False
+        lon, lat = v.lon[inn], v.lat[inn]
+        for st in s.stores:  # finest first
+            w = s.weight(st, lon, lat)
+            if (w >= 1.0).all():
+                return True
+            if (w > 0).any():
+                return False
+        return False
 
     def _rings(self):
         """Per store: the depth its footprint matters to, its outline as unit ray directions
@@ -253,6 +355,7 @@ class ErrorTable:
         below: dict[int, NodeError] = {}
         for D in range(len(levels) - 1, -1, -1):
             here: dict[int, NodeError] = {}
+            index = self._sample_index(D)
             for key in levels[D].tolist():
                 v = s.values(decode(key))
                 p = payload_from_values(s, v, normals=keep is not None)
@@ -267,12 +370,19 @@ class ErrorTable:
                             # surface measured, its own error the base layer's bound
                             cp = payload_from_values(s, s.values(decode(c)), normals=False)
                             ce = NodeError(float(self.base_e[D + 1]), cp.move, cp.slack,
-                                           cp.r_lo, cp.r_hi, cp.sag)
+                                           cp.r_lo, cp.r_hi, cp.sag,
+                                           float(self.base_e[D + 1]))
                             self.move[D + 1] = max(self.move[D + 1], cp.move)
                             self.slack[D + 1] = max(self.slack[D + 1], cp.slack)
-                        if ce is not None:  # else beyond every truth depth: an exact copy
-                            e = max(e, (1 + ce.slack) * ce.move + ce.e)
-                ne = NodeError(e, p.move, p.slack, p.r_lo, p.r_hi, p.sag)
+                        # (else beyond every truth depth: an exact copy; and where a
+                        # child shows one store unblended its truth is that store's
+                        # samples, which this node's own gap measures)
+                        if ce is not None and not ce.core:
+                            e = max(e, (1 + ce.slack) * ce.move + ce.lattice)
+                gap = self._sample_gap(key, v, index)
+                ne = NodeError(max(e, gap), p.move, p.slack, p.r_lo, p.r_hi, p.sag, e, gap,
+                               self._core(v))
+                e = ne.e
                 here[key] = ne
                 self.nodes[decode(key)] = ne
                 self.e[D] = max(self.e[D], e)
@@ -349,7 +459,7 @@ class ErrorTable:
         from geoterrain.globe.nodes import OUTSIDE, frustum_state, horizon_hidden, shell_distance
 
         if not self.regions:
-            R, m = ranges_from(self.tables(), self.max_depth, lam, tau, fraction)
+            R, m = ranges_from(self.tables(), self.max_depth, lam, tau, fraction, self.r_min)
             return R, m, 0
         vis = np.ones(self.regions, bool)
         if frustum:
@@ -366,7 +476,7 @@ class ErrorTable:
                                     self.region_lo[pp], self.region_hi[pp])
         A = vis.copy()
         for _ in range(64):
-            R, m = ranges_from(self.tables(A), self.max_depth, lam, tau, fraction)
+            R, m = ranges_from(self.tables(A), self.max_depth, lam, tau, fraction, self.r_min)
             D = self.region_depth
             near = ~has | (pdist < R[np.maximum(D - 1, 0)])
             B = vis & near
@@ -394,13 +504,14 @@ def ranges(tb: ErrorTable, lam: float, tau: float, fraction: float = MORPH_FRACT
     A node of depth D is refined when its volume meets the sphere of radius R_D around the
     eye. Each R_{D−1} is the smallest value meeting, with f = ``fraction``:
 
-    - R_{D−1} ≥ λ·e_{D−1}/τ (a depth-(D − 1) node is drawn beyond R_{D−1});
+    - R_{D−1} ≥ (λ/τ + 1)·e_{D−1} (a depth-(D − 1) node is drawn beyond R_{D−1}; the
+      measure divides by the eye's distance to the truth, which can be e nearer);
     - (1 − f)(R_{D−1} − R_D) ≥ diag_D (seed 001 L407: one whole node fits each range, so
       neighbours differ by one level at most and a node's vertices never reach the coarser
       level's morph band);
-    - m_D − c_D − M_D ≥ λ(e_D + (1 + s)M_D)/τ, m_D = (1 − f)R_{D−1} + f·R_D (once a vertex
-      morphs, its triangles are off by at most e_D + (1 + s)M_D, and they lie beyond m_D less
-      a cell c_D and the move).
+    - m_D − c_D − M_D ≥ (λ/τ + 1)·ε_D, m_D = (1 − f)R_{D−1} + f·R_D (once a vertex morphs,
+      its triangles are off by at most ε_D, :func:`morph_error`, and they lie beyond m_D
+      less a cell c_D and the move).
 
     Examples
     --------
@@ -412,23 +523,53 @@ def ranges(tb: ErrorTable, lam: float, tau: float, fraction: float = MORPH_FRACT
     >>> bool(np.all(np.diff(R) < 0)), float(R[-1]), bool(np.isinf(m[0]))
     (True, 0.0, True)
     """
-    return ranges_from(tb.tables(), tb.max_depth, lam, tau, fraction)
+    return ranges_from(tb.tables(), tb.max_depth, lam, tau, fraction, tb.r_min)
+
+
+def morph_error(e: np.ndarray, move: np.ndarray, slack: np.ndarray, diag: np.ndarray,
+                cell: np.ndarray, fraction: float, r_min: float) -> np.ndarray:
+    """Per depth D, the largest radial gap to the truth of a depth-D node while it morphs
+    (0 for D = 0, which never morphs): the smaller of two bounds.
+
+    - e_D + (1 + s)·M_D: its vertices move at most M_D off its own surface;
+    - max(e_D, e_{D−1}) + (1 + s)·Δk·M_D + (1 + s)²·M_D²/r_min: with one k at all its
+      vertices the surface lies, along each ray, between the node's own (k = 0, within e_D)
+      and its parent's over the same quadrant (k = 1, within e_{D−1}) up to the curvature
+      of r(k) = 1/Σ(c_i/r_i(k)) (≤ M²/(2r)), so within the larger of the two; a triangle's
+      own k differ by at most Δk = (1 − f)(c_D + 2M_D)/(f·diag_D) (their coarser positions
+      lie within a cell and two moves, and the morph band is f(R_{D−1} − R_D) ≥
+      f·diag_D/(1 − f) deep), which moves it at most (1 + s)·Δk·M_D more.
+    """
+    f = float(fraction)
+    out = np.zeros(len(e))
+    for D in range(1, len(e)):
+        a = e[D] + (1 + slack[D]) * move[D]
+        if 0 < f < 1 and diag[D] > 0:
+            dk = min(1.0, (1 - f) * (cell[D] + 2 * move[D]) / (f * diag[D]) * 1.01)
+            b = (max(e[D], e[D - 1]) + (1 + slack[D]) * dk * move[D]
+                 + (1 + slack[D]) ** 2 * move[D] ** 2 / r_min)
+            a = min(a, b)
+        out[D] = a
+    return out
 
 
 def ranges_from(tables: tuple[np.ndarray, ...], Dm: int, lam: float, tau: float,
-                fraction: float = MORPH_FRACTION) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`ranges` from per-depth (e, move, slack, diag, cell) tables."""
+                fraction: float = MORPH_FRACTION, r_min: float = 6.0e6
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`ranges` from per-depth (e, move, slack, diag, cell) tables; ``r_min`` the least
+    distance of any point from the centre."""
     e, move, slack, diag, cell = tables
     f = float(fraction)
+    em = morph_error(e, move, slack, diag, cell, f, r_min)
     R = np.zeros(Dm + 1)
     m = np.full(Dm + 1, np.inf)
     for D in range(Dm, 0, -1):
         prev = R[D]
-        need = [lam * e[D - 1] / tau * _SAFE, prev * (1 + 1e-9) + 1e-6]
+        # the measure divides by the eye's distance to the truth, up to e nearer than the mesh
+        need = [(lam / tau + 1) * e[D - 1] * _SAFE, prev * (1 + 1e-9) + 1e-6]
         if f < 1:
             need.append(prev + diag[D] * _SAFE / (1 - f))
-            budget = (lam * (e[D] + (1 + slack[D]) * move[D]) / tau + cell[D]
-                      + move[D]) * _SAFE
+            budget = ((lam / tau + 1) * em[D] + cell[D] + move[D]) * _SAFE
             need.append((budget - f * prev) / (1 - f))
         R[D - 1] = max(need)
         m[D] = (1 - f) * R[D - 1] + f * prev

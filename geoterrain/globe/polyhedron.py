@@ -38,7 +38,7 @@ from functools import lru_cache
 import numpy as np
 
 __all__ = ["Triacontahedron", "triacontahedron", "face_points", "face_directions",
-           "distortion", "cube_distortion", "face_area_fraction", "FACES"]
+           "face_coordinates", "distortion", "cube_distortion", "face_area_fraction", "FACES"]
 
 FACES = 30
 PHI = (1.0 + 5.0 ** 0.5) / 2.0
@@ -185,6 +185,40 @@ def face_directions(face: int | np.ndarray, u: np.ndarray, v: np.ndarray,
     """
     P = face_points(face, u, v, rt)
     return P / np.linalg.norm(P, axis=-1)[..., None]
+
+
+def face_coordinates(d: np.ndarray, rt: Triacontahedron | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The inverse of :func:`face_directions`: for unit rays ``d`` (N, 3), the face each
+    leaves the RT through, its parameters u, v there and |p| of that flat face point.
+
+    The ray leaves through the face whose plane it meets first (the RT is convex); the
+    face's map is affine, so u, v solve a 2 × 2 system.
+
+    Examples
+    --------
+    >>> f, u, v, fn = face_coordinates(face_directions(7, np.array([0.3]), np.array([0.6])))
+    >>> int(f[0]), round(float(u[0]), 12), round(float(v[0]), 12)
+    (7, 0.3, 0.6)
+    """
+    rt = rt or triacontahedron()
+    d = np.asarray(d, np.float64).reshape(-1, 3)
+    C = np.asarray(rt.corners)
+    E1, E2 = C[:, 1] - C[:, 0], C[:, 3] - C[:, 0]
+    nrm = np.cross(E1, E2)
+    c = np.einsum("fj,fj->f", nrm, C[:, 0])
+    nrm = nrm / c[:, None]  # the face's plane is nrm·p = 1
+    f = np.argmax(d @ nrm.T, axis=1)
+    t = 1.0 / np.einsum("nj,nj->n", d, nrm[f])
+    F = d * t[:, None] - C[f, 0]
+    a, b = E1[f], E2[f]
+    g11, g12, g22 = (np.einsum("nj,nj->n", a, a), np.einsum("nj,nj->n", a, b),
+                     np.einsum("nj,nj->n", b, b))
+    r1, r2 = np.einsum("nj,nj->n", a, F), np.einsum("nj,nj->n", b, F)
+    det = g11 * g22 - g12 * g12
+    u = (g22 * r1 - g12 * r2) / det
+    v = (g11 * r2 - g12 * r1) / det
+    return f, u, v, t
 
 
 def _spherical_triangle_area(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:

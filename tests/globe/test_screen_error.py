@@ -87,11 +87,7 @@ def measured_rho(sel, truth, view, centre_dir):
     return float((view.lam * gap / dist).max()), int(ok.sum()), int(outside.sum())
 
 
-@pytest.mark.parametrize("tau", [
-    pytest.param(1.0, marks=pytest.mark.xfail(
-        strict=True, reason="known defect: measured 1.059 px at tau = 1 (20 views), not yet "
-        "found")),
-    4.0])
+@pytest.mark.parametrize("tau", [1.0, 4.0])
 def test_measured_screen_error_within_tau_on_20_random_views(japan, tau):
     g, truth, (lon0, lat0) = japan
     centre = truth.mean(0)
