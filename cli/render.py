@@ -115,7 +115,7 @@ def command(ctx, stores, out, globe, geo_camera, look_from, look_at, crs_coords,
       geoterrain render dem.geoterrain -o orbit.gif --orbit 36 --size 640x360
       geoterrain render dem.geoterrain -o fly.mp4 --path cameras.json --stats fly.json
       geoterrain render --globe world.geoterrain japan.geoterrain -o earth.png
-      geoterrain render --globe japan.geoterrain -o fuji.png --camera 138.5,35.0,9000,330,-15
+      geoterrain render --globe japan.geoterrain -o sagami.png --camera 139.1,35.12,6000,35,-12
 
     \b
     A cameras JSON is a list of {"look_from": [x,y,z], "look_at": [x,y,z]} (scene
