@@ -245,6 +245,24 @@ def _union_jack_one(h: np.ndarray, level: int, a_org: int, b_org: int, row: int,
     return z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _union_jack_cell(h, a, b, main, di, dj):
+    """The union-jack surface in cell (a, b) of tile heights ``h`` at fraction (di, dj)
+    of the cell: its two triangles split by the main diagonal (0, 0)–(1, 1) when ``main``,
+    else by the other (docs/conventions.md)."""
+    z00 = h[a, b]
+    z01 = h[a, b + 1]
+    z10 = h[a + 1, b]
+    z11 = h[a + 1, b + 1]
+    if main:
+        if dj >= di:
+            return z00 + (z01 - z00) * dj + (z11 - z01) * di
+        return z00 + (z10 - z00) * di + (z11 - z10) * dj
+    if di + dj <= 1:
+        return z00 + (z10 - z00) * di + (z01 - z00) * dj
+    return z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
+
+
 @njit(cache=True, nogil=True)
 def _union_jack_into(h, level, a_org, b_org, a0, b0, scale, add, out):
     """out[k, m] = the level-L union-jack surface of tile heights ``h`` at full-resolution
@@ -265,19 +283,7 @@ def _union_jack_into(h, level, a_org, b_org, a0, b0, scale, add, out):
         for m in range(ncol):
             b = bs[m]
             dj = djs[m]
-            z00 = h[a, b]
-            z01 = h[a, b + 1]
-            z10 = h[a + 1, b]
-            z11 = h[a + 1, b + 1]
-            if (a + a_org + b + b_org) % 2 == 0:  # main diagonal (0, 0)–(1, 1)
-                if dj >= di:
-                    v = z00 + (z01 - z00) * dj + (z11 - z01) * di
-                else:
-                    v = z00 + (z10 - z00) * di + (z11 - z10) * dj
-            elif di + dj <= 1:
-                v = z00 + (z10 - z00) * di + (z01 - z00) * dj
-            else:
-                v = z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
+            v = _union_jack_cell(h, a, b, (a + a_org + b + b_org) % 2 == 0, di, dj)
             out[k, m] = v * scale + add
 
 
@@ -295,17 +301,5 @@ def _union_jack_block(h, level, a_org, b_org, rows, cols, out):
         for m in range(cols.shape[0]):
             b = min((cols[m] >> level) - b_org, n)
             dj = (cols[m] - ((b + b_org) << level)) / sz
-            z00 = h[a, b]
-            z01 = h[a, b + 1]
-            z10 = h[a + 1, b]
-            z11 = h[a + 1, b + 1]
-            if (a + a_org + b + b_org) % 2 == 0:  # main diagonal (0, 0)–(1, 1)
-                if dj >= di:
-                    v = z00 + (z01 - z00) * dj + (z11 - z01) * di
-                else:
-                    v = z00 + (z10 - z00) * di + (z11 - z10) * dj
-            elif di + dj <= 1:
-                v = z00 + (z10 - z00) * di + (z01 - z00) * dj
-            else:
-                v = z11 + (z01 - z11) * (1 - di) + (z10 - z11) * (1 - dj)
+            v = _union_jack_cell(h, a, b, (a + a_org + b + b_org) % 2 == 0, di, dj)
             out[k, m] = v
