@@ -137,7 +137,7 @@ def compose_globe(img: np.ndarray, *, title: str | None = None,
     from matplotlib.patches import Rectangle
 
     from geoterrain.rendering.colours import colorbar_map
-    from geoterrain.rendering.overlays import DPI, over, plan
+    from geoterrain.rendering.overlays import DPI, canvas_over, plan
 
     H, W = img.shape[:2]
     lay = plan((W, H), title=title, limits=limits, scale_bar=False, north_arrow=False)
@@ -173,13 +173,7 @@ def compose_globe(img: np.ndarray, *, title: str | None = None,
     ax.set_xlim(0, W)
     ax.set_ylim(H, 0)
     fig.canvas.draw()
-    rgba = np.asarray(fig.canvas.buffer_rgba())
-    if rgba.shape[:2] != (H, W):
-        fit = np.zeros((H, W, 4), np.uint8)
-        h, w = min(H, rgba.shape[0]), min(W, rgba.shape[1])
-        fit[:h, :w] = rgba[:h, :w]
-        rgba = fit
-    return over(img, rgba)
+    return canvas_over(fig, img)
 
 
 def render_globe(globe, view: View, path: str | Path, *, pixel_error: float = 1.0,

@@ -390,6 +390,13 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
             # display coordinates have y up: flip to the picture's rows
             extents[name] = (min(b.x0 for b in bbs), H - max(b.y1 for b in bbs),
                              max(b.x1 for b in bbs), H - min(b.y0 for b in bbs))
+    return canvas_over(fig, img)
+
+
+def canvas_over(fig, img: np.ndarray) -> np.ndarray:
+    """The drawn matplotlib figure ``fig`` (the picture's size) composited :func:`over`
+    ``img``."""
+    H, W = img.shape[:2]
     rgba = np.asarray(fig.canvas.buffer_rgba())
     if rgba.shape[:2] != (H, W):  # matplotlib before 3.11 could round a size down a pixel
         fit = np.zeros((H, W, 4), np.uint8)
@@ -490,10 +497,4 @@ def draw_lines(img: np.ndarray, view: View, lines: list, depth: np.ndarray | Non
     ax.add_collection(LineCollection(np.concatenate(segs), linewidths=np.asarray(lw) * 0.72,
                                      colors=[col], antialiaseds=True, capstyle="round"))
     fig.canvas.draw()
-    rgba = np.asarray(fig.canvas.buffer_rgba())
-    if rgba.shape[:2] != (H, W):
-        fit = np.zeros((H, W, 4), np.uint8)
-        h, w = min(H, rgba.shape[0]), min(W, rgba.shape[1])
-        fit[:h, :w] = rgba[:h, :w]
-        rgba = fit
-    return over(img, rgba)
+    return canvas_over(fig, img)
