@@ -112,3 +112,53 @@ def test_residual_bins_must_fit_the_bound(store, q, ok):
     else:
         with pytest.raises(StoreError, match="quantizer"):
             check_store(path, m, tiles)
+
+
+@pytest.fixture(scope="module")
+def wide_store(tmp_path_factory):
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    d = tmp_path_factory.mktemp("check_wide")
+    dem = write_geotiff(d / "w.tif", generate("fbm", (65, 129), seed=4))
+    p = geoterrain.preprocess(dem, d / "w.geoterrain", tile_size=16)
+    with geoterrain.open(p) as t:
+        return p, t.meta, t.tile_info, t.grid
+
+
+def _as_roots(meta, tiles, g):
+    """The square store's metadata and table as the 2 × 1 root grid of the same raster
+    holds them: the square's tiles that the root grid has (the square also stores the
+    tiles whose footprint holds only a shared border row of data, beyond the roots')."""
+    from geoterrain.core.grid import Grid
+
+    r = Grid.for_shape(g.rows, g.cols, g.tile_samples - 1, roots=True)
+    assert r.roots == (2, 1) and r.top_level == g.top_level - 1
+    m = dict(meta, grid=r.to_json())
+    m["block_delta_levels"] = min(r.t, r.top_level) + 1
+    if "normals_derived" in m and m["normals_derived"] != [0]:
+        m["normals_derived"] = list(r.levels)
+    inside = {k: v for k, v in tiles.items()
+              if k[0] <= r.top_level and k[1] < r.tiles(k[0])[0] and k[2] < r.tiles(k[0])[1]}
+    return m, inside, r
+
+
+def test_a_root_grid_store_passes_its_checks_then_is_refused_in_one_line(wide_store):
+    path, meta, tiles, g = wide_store
+    m, t, r = _as_roots(meta, tiles, g)
+    assert m["grid"]["layout"] == "roots"
+    with pytest.raises(StoreError, match=r"a grid of 2 × 1 root tiles, which this geoterrain "
+                                         r"does not draw yet") as ex:
+        check_store(path, m, t)
+    assert "\n" not in str(ex.value)
+    # inside the square grid, outside the root grid: level 0 holds 8 × 4 tiles, not 16 × 16
+    for k in ((0, 8, 0), (0, 0, 4), (r.top_level, 2, 0)):
+        broken = dict(t)
+        broken[k] = dict(t[(0, 0, 0)])
+        with pytest.raises(StoreError, match=rf"tile \({k[0]}, {k[1]}, {k[2]}\) lies outside"):
+            check_store(path, m, broken)
+    # a grid whose n does not fit its shape, or the square layout spelled out
+    for grid in (dict(m["grid"], n=m["grid"]["n"] + 1), dict(m["grid"], layout="square")):
+        with pytest.raises(StoreError, match="invalid metadata"):
+            check_store(path, dict(m, grid=grid), t)
+    # the square store itself is still read
+    assert check_store(path, meta, tiles)[0] == g
