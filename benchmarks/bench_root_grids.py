@@ -1,0 +1,137 @@
+"""Rectangular root grids (issue 45): padding by arithmetic, and a wide raster's
+preprocess against a square one with the same samples, in the same run.
+
+Usage:
+    python benchmarks/bench_root_grids.py padding [--tile-size 64]
+    python benchmarks/bench_root_grids.py wide [--runs 3] [--tile-size 64]
+
+``padding``: per raster shape, the samples the preprocess computes on (the padded
+level-0 grid, and every level's lattice summed) over the raster's samples, for the
+square layout (one (2^n + 1)² square) and the roots layout (``Grid.for_shape(...,
+roots=True)``: level 0 padded to the next tile multiple, a top of at most two roots);
+the issue's allowance (1.15× the samples plus one tile row and column) beside them.
+Shapes: the issue's (CONUS, jacksboro, wide, the mosaics) and those of the real DEMs
+under ``../shared/dems`` that are present. Pure arithmetic (no preprocess runs).
+
+``wide``: an fBm of 1024 × 4096 and one of 2048 × 2048 (the same number of samples,
+float32 GeoTIFFs in UTM at 10 m) preprocessed by ``geoterrain.preprocess`` with its
+defaults, each run a fresh process, wide and square alternating; medians of the wall
+time (after the import) and of the peak RSS (VmHWM), and the wide/square ratios of
+the same run. The preprocess decides its own layout: this measures whatever the
+checkout builds. The load (/proc/loadavg) is printed before and after.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from geoterrain.core.grid import Grid
+
+ROOT = Path(__file__).resolve().parents[1]
+SHAPES = [("CONUS shape (EPSG:4326)", 520, 1180), ("jacksboro", 344, 403),
+          ("wide", 1024, 4096), ("square, same samples", 2048, 2048),
+          ("4097 × 2049 mosaic", 2049, 4097), ("16385 × 8193 mosaic", 8193, 16385)]
+
+CHILD = """
+import json, sys, time
+import geoterrain
+from geoterrain.preprocessing.pipeline import preprocess
+from geoterrain.core.grid import Grid
+t0 = time.perf_counter()
+p = preprocess(sys.argv[1], sys.argv[2], overwrite=True)
+wall = time.perf_counter() - t0
+from geoterrain.core.memory import peak_rss
+g = geoterrain.open(p).grid
+print(json.dumps({"wall": wall, "peak_mb": peak_rss() / 2**20, "grid": g.to_json()}))
+"""
+
+
+def load() -> str:
+    return " ".join(Path("/proc/loadavg").read_text().split()[:3])
+
+
+def lattice(g: Grid) -> tuple[int, int]:
+    """(level-0 samples, samples of every level's lattice) of the padded grid."""
+    per = [np.prod(g.level_shape(L), dtype=np.int64) for L in g.levels]
+    return int(per[0]), int(sum(per))
+
+
+def padding(a: argparse.Namespace) -> None:
+    shapes = list(SHAPES)
+    dems = ROOT / ".." / "shared" / "dems"
+    try:
+        import rasterio
+
+        for p in sorted(dems.glob("*.tif")):
+            with rasterio.open(p) as s:
+                shapes.append((p.name, s.height, s.width))
+    except Exception as exc:  # noqa: BLE001 - the real DEMs are optional here
+        print(f"(real DEMs skipped: {exc})", file=sys.stderr)
+    step = a.tile_size
+    print(f"tile size {step}; ratios are samples computed on / the raster's samples\n")
+    print("| raster | rows × cols | square: padded | level 0 | all levels | roots: level 0 "
+          "| roots | level 0 | all levels | issue's allowance |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name, h, w in shapes:
+        sq, rt = Grid.for_shape(h, w, step), Grid.for_shape(h, w, step, roots=True)
+        hw = h * w
+        s0, sall = lattice(sq)
+        r0, rall = lattice(rt)
+        allow = (1.15 * hw + (step + 1) * (h + w) + (step + 1) ** 2) / hw
+        rr, rc = rt.shape
+        print(f"| {name} | {h} × {w} | {sq.size}² | {s0 / hw:.3f}× | {sall / hw:.3f}× "
+              f"| {rr} × {rc} | {rt.roots[0]} × {rt.roots[1]} | {r0 / hw:.3f}× "
+              f"| {rall / hw:.3f}× | {allow:.3f}× |")
+
+
+def wide(a: argparse.Namespace) -> None:
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    print(f"load before: {load()}", flush=True)
+    with tempfile.TemporaryDirectory(prefix="bench_root_grids_") as d:
+        src = {}
+        for name, shape in (("wide", (1024, 4096)), ("square", (2048, 2048))):
+            src[name] = str(write_geotiff(Path(d) / f"{name}.tif",
+                                          generate("fbm", shape, seed=3).astype(np.float32)))
+        runs: dict[str, list[dict]] = {"wide": [], "square": []}
+        for r in range(a.runs):
+            for name in ("wide", "square") if r % 2 == 0 else ("square", "wide"):
+                out = subprocess.run([sys.executable, "-c", CHILD, src[name],
+                                      str(Path(d) / f"{name}.geoterrain")], check=True,
+                                     capture_output=True, text=True).stdout
+                res = json.loads(out.strip().splitlines()[-1])
+                runs[name].append(res)
+                print(f"run {r} {name}: {res['wall']:.2f} s, {res['peak_mb']:.0f} MB, "
+                      f"grid {res['grid']}, load {load()}", flush=True)
+    med = {k: {m: statistics.median(x[m] for x in v) for m in ("wall", "peak_mb")}
+           for k, v in runs.items()}
+    print(f"\nload after: {load()}\n")
+    print("| raster | wall (median) | peak RSS (median) |")
+    print("|---|---|---|")
+    for k in ("square", "wide"):
+        print(f"| {k} | {med[k]['wall']:.2f} s | {med[k]['peak_mb']:.0f} MB |")
+    print(f"| wide / square | {med['wide']['wall'] / med['square']['wall']:.2f}× "
+          f"| {med['wide']['peak_mb'] / med['square']['peak_mb']:.2f}× |")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="what", required=True)
+    p = sub.add_parser("padding")
+    p.add_argument("--tile-size", type=int, default=64)
+    w = sub.add_parser("wide")
+    w.add_argument("--runs", type=int, default=3)
+    a = ap.parse_args()
+    (padding if a.what == "padding" else wide)(a)
+
+
+if __name__ == "__main__":
+    main()
