@@ -4,7 +4,7 @@ reference, and both against a brute force over the triangles of the roots' bintr
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from geoterrain.bounds.delta import _raw_delta, vertex_errors
@@ -43,32 +43,29 @@ def root_dem(draw, max_n=4):
 def _brute_raw(z, valid, n, roots):
     """Raw δ of every split vertex from the triangles whose hypotenuse it splits: the
     max |z − plane| over the valid samples they hold, +inf if they also hold an invalid
-    one, 0 if none is valid."""
-    out = np.zeros(z.shape)
+    one, 0 if none is valid. Each depth's triangles against every sample at once."""
+    err, nv, ni = (np.zeros(z.shape) for _ in range(3))
     a, b, c = root_triangles(n, roots)
-    II, JJ = np.indices(z.shape)
-    per = {}
+    II, JJ = (v.ravel()[None, :] for v in np.indices(z.shape))
+    zs, vs = z.ravel()[None, :], valid.ravel()[None, :]
     for _ in range(2 * n):
-        for ta, tb, tc in zip(a, b, c, strict=True):
-            det = (tb[0] - ta[0]) * (tc[1] - ta[1]) - (tc[0] - ta[0]) * (tb[1] - ta[1])
-            wb = ((II - ta[0]) * (tc[1] - ta[1]) - (tc[0] - ta[0]) * (JJ - ta[1])) / det
-            wc = ((tb[0] - ta[0]) * (JJ - ta[1]) - (II - ta[0]) * (tb[1] - ta[1])) / det
-            wa = 1 - wb - wc
-            inside = (wa >= -1e-12) & (wb >= -1e-12) & (wc >= -1e-12)
-            plane = wa * z[tuple(ta)] + wb * z[tuple(tb)] + wc * z[tuple(tc)]
-            m = tuple((ta + tb) // 2)
-            err, nv, ni = per.get(m, (0.0, 0, 0))
-            vin = inside & valid
-            if vin.any():
-                err = max(err, float(np.abs(z - plane)[vin].max()))
-            per[m] = (err, nv + int(vin.sum()), ni + int((inside & ~valid).sum()))
+        ai, aj, bi, bj, ci, cj = (p[:, k, None] for p in (a, b, c) for k in (0, 1))
+        det = (bi - ai) * (cj - aj) - (ci - ai) * (bj - aj)
+        wb = ((II - ai) * (cj - aj) - (ci - ai) * (JJ - aj)) / det
+        wc = ((bi - ai) * (JJ - aj) - (II - ai) * (bj - aj)) / det
+        wa = 1 - wb - wc
+        inside = (wa >= -1e-12) & (wb >= -1e-12) & (wc >= -1e-12)
+        plane = wa * z[ai, aj] + wb * z[bi, bj] + wc * z[ci, cj]
+        m = tuple(((a + b) // 2).T)  # each triangle's split vertex
+        np.maximum.at(err, m, np.where(inside & vs, np.abs(zs - plane), 0.0).max(axis=1))
+        np.add.at(nv, m, (inside & vs).sum(axis=1))
+        np.add.at(ni, m, (inside & ~vs).sum(axis=1))
         mid = (a + b) // 2  # bisect: (c, a, m), (b, c, m)
         a, b, c = np.concatenate([c, b]), np.concatenate([a, c]), np.concatenate([mid, mid])
-    for m, (err, nv, ni) in per.items():
-        out[m] = np.inf if nv and ni else (err if nv else 0.0)
-    return out
+    return np.where((nv > 0) & (ni > 0), np.inf, np.where(nv > 0, err, 0.0))
 
 
+@settings(max_examples=25)  # a brute force: a few hundred triangles a depth
 @given(root_dem(max_n=3))
 def test_raw_delta_equals_the_brute_force_over_the_root_triangles(dem):
     z, valid, n, roots = dem
