@@ -18,6 +18,7 @@ from geoterrain.core.frame import SCENE_LIMIT, UNIT_TO_M_RANGE, Z_SCALE_RANGE, Z
 from geoterrain.core.grid import MAX_ROOTS, Grid
 from geoterrain.core.memory import available_memory
 from geoterrain.exceptions import StoreError
+from geoterrain.store.database import schema_version
 
 __all__ = ["check_store", "available_memory"]
 
@@ -67,6 +68,9 @@ def _grid(m: dict) -> Grid:
     g = Grid(rows, cols, n, t, d.get("layout", "square"))
     if Grid.for_shape(rows, cols, 1 << t, roots=roots) != g:
         raise _Bad("grid.n does not fit grid.rows and grid.cols")
+    if "schema_version" in m and m["schema_version"] != schema_version(d):
+        raise _Bad(f"a {'root' if roots else 'square'} grid is written in schema version "
+                   f"{schema_version(d)}, not {m['schema_version']}")
     return g
 
 
