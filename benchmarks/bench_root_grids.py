@@ -4,6 +4,7 @@ preprocess against a square one with the same samples, in the same run.
 Usage:
     python benchmarks/bench_root_grids.py padding [--tile-size 64]
     python benchmarks/bench_root_grids.py wide [--runs 3] [--tile-size 64]
+    python benchmarks/bench_root_grids.py codec [--runs 5]
 
 ``padding``: per raster shape, the samples the preprocess computes on (the padded
 level-0 grid, and every level's lattice summed) over the raster's samples, for the
@@ -19,6 +20,13 @@ defaults, each run a fresh process, wide and square alternating; medians of the 
 time (after the import) and of the peak RSS (VmHWM), and the wide/square ratios of
 the same run. The preprocess decides its own layout: this measures whatever the
 checkout builds. The load (/proc/loadavg) is printed before and after.
+
+``codec``: the height codec stage alone (``codec.pyramid.encode_decoded``, lossless
+``int`` codes of the fBm rounded to 0.1 m, 64-sample tiles) on the same two rasters:
+the square 2048² padded to 2049², the wide one padded to today's 4097² square, and the
+wide one on its 2 × 1 root grid (the roots' extent, 2049 × 4097: ``roots=(2, 1)``). One
+process, the kernels compiled by a first untimed round, the cases in rotating order;
+medians of the wall time, the blobs' bytes, and the ratios to the square of the same run.
 """
 
 from __future__ import annotations
@@ -122,6 +130,46 @@ def wide(a: argparse.Namespace) -> None:
           f"| {med['wide']['peak_mb'] / med['square']['peak_mb']:.2f}× |")
 
 
+def codec(a: argparse.Namespace) -> None:
+    import time
+
+    from geoterrain.codec.pyramid import encode_decoded
+    from geoterrain.codec.quantize import Quantizer
+    from geoterrain.ingest.synth import generate
+
+    print(f"load before: {load()}", flush=True)
+    qz = Quantizer("int", 0.1)
+    cases = {}
+    for name, shape, side, roots in (("square 2048² → 2049²", (2048, 2048), (2049, 2049), None),
+                                     ("wide → 4097² square", (1024, 4096), (4097, 4097), None),
+                                     ("wide → 2 × 1 roots", (1024, 4096), (2049, 4097), (2, 1))):
+        z = np.zeros(side)
+        v = np.zeros(side, bool)
+        z[:shape[0], :shape[1]] = (generate("fbm", shape, seed=3) * 10).round() / 10
+        v[:shape[0], :shape[1]] = True
+        cases[name] = (z, v, roots)
+    small = np.zeros((129, 257)), np.ones((129, 257), bool)
+    encode_decoded(*small, 6, qz, roots=(2, 1))  # compile
+    encode_decoded(small[0][:, :129], small[1][:, :129], 6, qz)
+    res: dict[str, list[tuple[float, int]]] = {k: [] for k in cases}
+    names = list(cases)
+    for r in range(a.runs):
+        for name in names[r % 3:] + names[:r % 3]:
+            z, v, roots = cases[name]
+            t0 = time.perf_counter()
+            blobs, _ = encode_decoded(z, v, 6, qz, roots=roots)
+            res[name].append((time.perf_counter() - t0, sum(map(len, blobs.values()))))
+            print(f"run {r} {name}: {res[name][-1][0]:.2f} s, {res[name][-1][1]} bytes, "
+                  f"{len(blobs)} tiles, load {load()}", flush=True)
+    print(f"\nload after: {load()}\n")
+    print("| case | encode (median) | bytes | time / square |")
+    print("|---|---|---|---|")
+    base = statistics.median(t for t, _ in res[names[0]])
+    for name in names:
+        t = statistics.median(x for x, _ in res[name])
+        print(f"| {name} | {t:.2f} s | {res[name][0][1]} | {t / base:.2f}× |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="what", required=True)
@@ -129,8 +177,10 @@ def main() -> None:
     p.add_argument("--tile-size", type=int, default=64)
     w = sub.add_parser("wide")
     w.add_argument("--runs", type=int, default=3)
+    c = sub.add_parser("codec")
+    c.add_argument("--runs", type=int, default=5)
     a = ap.parse_args()
-    (padding if a.what == "padding" else wide)(a)
+    {"padding": padding, "wide": wide, "codec": codec}[a.what](a)
 
 
 if __name__ == "__main__":
