@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from geoterrain.bounds.tilebounds import tile_and_block_errors
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
 @settings(max_examples=25, deadline=None)
 @given(st.sampled_from([(2, 1), (1, 2), (2, 2)]), st.integers(1, 2), st.integers(1, 2),

@@ -18,6 +18,8 @@ from geoterrain.codec.pyramid import (
 )
 from geoterrain.codec.quantize import Quantizer, codes_to_heights, heights_to_codes
 
+pytestmark = pytest.mark.fast  # the whole file is in the fast tier
+
 QUANTIZERS = {
     "int": Quantizer("int"),
     "binned": Quantizer("quantized", step=0.1, offset=0.0, codec_error=0.16, bins=3),
