@@ -72,10 +72,12 @@ class SweepGeometry(NamedTuple):
 
 
 class SweepTiles(NamedTuple):
-    """The window's heights ``z`` (metres, NaN: nodata; read only in decoded tiles), one
-    (2^t + 1)² block per window tile (``z[ty, tx, i, j]``: grid sample (row, column)
-    (ty + ty0)·2^t + i, (tx + tx0)·2^t + j; a tile's cells lie together, so a decoded
-    tile touches few pages of memory), each
+    """The window's heights ``z`` (metres, NaN: nodata; read only in decoded tiles), in
+    (2^t + 1)² blocks: window tile (ty, tx) holds its heights in block ``slot[ty, tx]``
+    (``z[slot[ty, tx], i, j]``: grid sample (row, column) (ty + ty0)·2^t + i,
+    (tx + tx0)·2^t + j; −1: no block), a block given to a tile when it is first read and
+    taken back once the sweep has left the tile's row (a tile's cells lie together, and
+    the few blocks are used again and again, so reads touch little fresh memory), each
     window tile's ``status`` (0 not decoded, 1 decoded, 2 not stored: no data, 3 ``z``
     holds upper bounds of its heights, less ε, from a coarser level), ``ztop``
     (the highest height of its box, metres) and ``zerr`` (how far its heights in ``z`` may
@@ -85,6 +87,7 @@ class SweepTiles(NamedTuple):
     (``tlast``)."""
 
     z: np.ndarray
+    slot: np.ndarray
     status: np.ndarray
     ztop: np.ndarray
     zerr: np.ndarray
@@ -167,7 +170,7 @@ def _tile_of(tiles, r, c):
 def _z(tiles, r, c):
     """The height held for window cell (r, c): in its tile's block."""
     ty, tx = _tile_of(tiles, r, c)
-    return tiles.z[ty, tx, r + tiles.r0 - ((ty + tiles.ty0) << tiles.t),
+    return tiles.z[tiles.slot[ty, tx], r + tiles.r0 - ((ty + tiles.ty0) << tiles.t),
                    c + tiles.c0 - ((tx + tiles.tx0) << tiles.t)]
 
 
@@ -223,7 +226,7 @@ def _sides(geo, tiles, st, r):
     independent chains (a cell waits on its neighbour's division), stepped together so
     that the processor overlaps them. Returns a tile to decode (the resume columns then
     say where each side stands) or NEED_NONE when the row is done."""
-    z, status, ztop, zerr = tiles.z, tiles.status, tiles.ztop, tiles.zerr
+    z, slot, status, ztop, zerr = tiles.z, tiles.slot, tiles.status, tiles.ztop, tiles.zerr
     out, this_lo, this_hi, last_lo, last_hi = st.out, st.this_lo, st.this_hi, st.last_lo, \
         st.last_hi
     oc, kcurv, target = geo.ocol, geo.kcurv, geo.target
@@ -247,6 +250,7 @@ def _sides(geo, tiles, st, r):
     col[0], col[1] = st.resume[1], st.resume[2]
     on = np.empty(2, np.bool_)
     run_tx = np.zeros(2, np.int64)
+    run_b = np.zeros(2, np.int64)  # the run's tile's block in z
     run_s = np.zeros(2, np.int64)
     run_stop = np.full(2, none, np.int64)
     run_top = np.zeros(2)
@@ -275,6 +279,7 @@ def _sides(geo, tiles, st, r):
                 if (tx + tx0) == tlast and side > 0:
                     stop = ncol
                 run_tx[sd], run_s[sd], run_stop[sd] = tx, status[ty, tx], stop
+                run_b[sd] = slot[ty, tx]
                 run_top[sd], run_e[sd] = ztop[ty, tx], zerr[ty, tx]
                 run_zc[sd] = c0 - edge
             dc = c - oc
@@ -291,7 +296,7 @@ def _sides(geo, tiles, st, r):
             s = run_s[sd]
             nlo, nhi = lo, hi
             if s == 1:
-                zc = z[ty, run_tx[sd], zr, c + run_zc[sd]]
+                zc = z[run_b[sd], zr, c + run_zc[sd]]
                 if np.isnan(zc):  # transparent, no answer
                     out[r, c] = NO_ANSWER
                 else:
@@ -308,7 +313,7 @@ def _sides(geo, tiles, st, r):
                     nhi = max(z_hi, hi)
             elif s == 2:  # no data in the tile
                 out[r, c] = NO_ANSWER
-            elif (z[ty, run_tx[sd], zr, c + run_zc[sd]] if s == 3 else run_top[sd]) \
+            elif (z[run_b[sd], zr, c + run_zc[sd]] if s == 3 else run_top[sd]) \
                     - curv + lift < lo:
                 # the cell's bound (its tile's box, or the coarser level's surface plus
                 # that level's error) is below every sight line: hidden
