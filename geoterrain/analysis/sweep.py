@@ -421,6 +421,28 @@ def _centre(geo, tiles, st, r):
 
 
 @njit(cache=True, nogil=True)
+def count_codes(codes):
+    """How many cells of ``codes`` (2-D, uint8) are hidden, visible, uncertain and without
+    an answer, in one pass.
+
+    Examples
+    --------
+    >>> count_codes(np.array([[0, 1, 1], [255, 254, 254]], np.uint8))
+    (1, 2, 1, 2)
+    """
+    n0 = n1 = n255 = n254 = 0
+    for i in range(codes.shape[0]):
+        row = codes[i]
+        for k in range(row.shape[0]):
+            x = row[k]
+            n0 += x == HIDDEN
+            n1 += x == VISIBLE
+            n255 += x == UNCERTAIN
+            n254 += x == NO_ANSWER
+    return n0, n1, n255, n254
+
+
+@njit(cache=True, nogil=True)
 def sweep_rows(geo, tiles, st, first, stop, step):
     """Sweep rows ``first``, ``first + step``, … up to ``stop`` (excluded) outward from the
     observer (``first`` equal to its row sweeps that row alone). Returns (row, tile) when

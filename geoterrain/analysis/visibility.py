@@ -65,6 +65,7 @@ from geoterrain.analysis.sweep import (
     SweepGeometry,
     SweepState,
     SweepTiles,
+    count_codes,
     sweep_rows,
 )
 from geoterrain.analysis.window import Half, Window
@@ -274,12 +275,12 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
     for part in [whole] + [h[0] for h in halves]:
         read |= part.tiles.status == 1
         bounded |= part.tiles.status == 3
-    n = {k: int(np.count_nonzero(codes == k)) for k in (VISIBLE, HIDDEN, UNCERTAIN)}
+    n = dict(zip((HIDDEN, VISIBLE, UNCERTAIN, NO_ANSWER), count_codes(codes), strict=True))
     stats = reads.stats(
         tiles_in_window=int(stored.sum()), tiles_read=int(read.sum()),
         tiles_skipped=int((stored & ~read).sum()), tiles_bounded=int((bounded & ~read).sum()),
         waits=asked, visible=n[VISIBLE], hidden=n[HIDDEN], uncertain=n[UNCERTAIN],
-        cells=codes.size - int(np.count_nonzero(codes == NO_ANSWER)), radius=radius,
+        cells=codes.size - n[NO_ANSWER], radius=radius,
         window=(r0, c0, r1 - r0, wc))
     return Viewshed(codes, window_tr, f.crs_wkt, (geo.orow, geo.ocol),
                     (float(xy[0]), float(xy[1]), float(zg), float(eye)), stats)

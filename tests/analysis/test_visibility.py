@@ -393,3 +393,14 @@ def test_line_of_sight_over_the_bilinear_surface(voids, a, b, ha, hb):
         assert not los.visible and los.obstruction is not None
     if ref > 1e-6:
         assert los.visible
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 40), st.integers(1, 40))
+def test_code_counts_are_numpys(seed, rows, cols):
+    from geoterrain.analysis.sweep import count_codes
+
+    rng = np.random.default_rng(seed)
+    codes = rng.choice(np.array([0, 1, 254, 255, 7], np.uint8), (rows, cols))
+    assert count_codes(codes) == tuple(int(np.count_nonzero(codes == k))
+                                       for k in (0, 1, 255, 254))
