@@ -234,11 +234,13 @@ class Half:
 
 
 def _scratch(rows: int, cols: int) -> np.ndarray:
-    """An uninitialised (rows, cols) float64 array in ordinary pages: the window's
-    heights are written only where a tile is decoded, and numpy's huge pages would have
-    the kernel zero 2 MiB at the first touch of each (8 % of a cold 4097² viewshed)."""
+    """An uninitialised (rows, cols) float64 array in ordinary pages, mapped afresh (above
+    64 KiB): the blocks are written only where a tile is read, numpy's huge pages would
+    have the kernel zero 2 MiB at the first touch of each, and memory the allocator kept
+    from an earlier viewshed would spare a benchmark's cold run the first touches that
+    a viewshed in a fresh process pays."""
     n = rows * cols * 8
-    if n < 1 << 22:
+    if n < 1 << 16:
         return np.empty((rows, cols))
     m = mmap.mmap(-1, n)
     with contextlib.suppress(AttributeError, OSError):  # not Linux: whatever it gives
