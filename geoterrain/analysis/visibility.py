@@ -296,13 +296,25 @@ def _sweep(geo: SweepGeometry, part: Half, st: SweepState, first: int, stop: int
     """Sweep rows ``first`` … ``stop`` (excluded) of one part, reading each tile the
     sweep asks for; returns how many times it asked."""
     asked, r = 0, first
+    run = _entry(sweep_rows, geo, part.tiles, st, r, stop, step)
     while True:
         st.probe[0] = -1.0
-        r, need = sweep_rows(geo, part.tiles, st, r, stop, step)
+        r, need = run(geo, part.tiles, st, r, stop, step)
         if need == NEED_NONE:
             return asked
         part.read(need >> 16, need & 0xFFFF, probe=(r, *st.probe) if st.probe[0] >= 0 else None)
         asked += 1
+
+
+def _entry(fn, *args):
+    """Compiled ``fn``'s code for these arguments' types, to be called without numba's
+    dispatcher, which types each field of a named tuple in Python at every call (4.3 of
+    a call's 4.3 µs against 0.9 µs, sweep_rows' arguments); ``fn`` itself where that
+    code is not at hand (not compiled yet for them)."""
+    try:
+        return fn.overloads[tuple(fn.typeof_pyval(a) for a in args)].entry_point
+    except (AttributeError, KeyError):
+        return fn
 
 
 def _two_threads() -> bool:

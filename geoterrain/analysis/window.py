@@ -173,7 +173,7 @@ class Half:
         zm = terrain.frame.z_to_m
         key = (at, (tx + tx0) >> at, (ty + ty0) >> at)
         err = terrain.tile_info[key]["error"] if key in terrain.tile_info else np.inf
-        if at == 0 or not np.isfinite(err):
+        if at == 0 or not math.isfinite(err):
             with w.lock:
                 tile = terrain.tile(0, tx + tx0, ty + ty0)
                 z = w.block(ty, tx)[a0 - gy:a1 - gy, b0 - gx:b1 - gx]
@@ -208,7 +208,7 @@ class Half:
         if terrain.grid.top_level < 1 or key not in terrain.tile_info:
             return False
         err = terrain.tile_info[key]["error"]
-        if not np.isfinite(err):
+        if not math.isfinite(err):
             return False
         zs = terrain.frame.z_scale or 1.0
         with w.lock:

@@ -404,3 +404,25 @@ def test_code_counts_are_numpys(seed, rows, cols):
     codes = rng.choice(np.array([0, 1, 254, 255, 7], np.uint8), (rows, cols))
     assert count_codes(codes) == tuple(int(np.count_nonzero(codes == k))
                                        for k in (0, 1, 255, 254))
+
+
+@pytest.mark.fast
+def test_sweep_called_past_the_dispatcher(voids, monkeypatch):
+    """After the first viewshed, the sweep's compiled code is called directly (numba's
+    dispatcher typed each named-tuple field in Python at every call); the answer is the
+    one the dispatcher gives."""
+    from geoterrain.analysis import visibility
+    from geoterrain.analysis.sweep import sweep_rows
+
+    t, src = voids
+    a, _, c, _, e, f = t.frame.transform[:6]
+    obs = (c + a * 80.5, f + e * 60.5)
+    viewshed(t, obs, radius=2000.0, height=1.0)
+    entries = []
+    entry = visibility._entry
+    monkeypatch.setattr(visibility, "_entry",
+                        lambda fn, *args: entries.append(entry(fn, *args)) or entries[-1])
+    direct = viewshed(t, obs, radius=2000.0, height=1.0)
+    assert entries and all(e is not sweep_rows for e in entries)
+    monkeypatch.setattr(visibility, "_entry", lambda fn, *args: fn)
+    assert np.array_equal(direct.codes, viewshed(t, obs, radius=2000.0, height=1.0).codes)
