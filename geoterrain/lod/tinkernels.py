@@ -337,6 +337,64 @@ def _insert(t, tri, half, W, cand, heap, qi, err, pending, cnt, stack):
     return 0
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _drawn(tri, t, valid):
+    return valid[tri[3 * t]] and valid[tri[3 * t + 1]] and valid[tri[3 * t + 2]]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _flip_to_cover(tri, half, nt, z, valid, W, max_error):
+    """Along voids: flip an edge where the other diagonal of its quad draws more
+    triangles (say a cell with one invalid corner cut through that corner), if the new
+    pair is convex and within ``max_error`` (scanned again) and spans no void. Returns
+    the number of flips."""
+    cand = np.empty(nt, np.int32)
+    err = np.empty(nt, np.float64)
+    flips = 0
+    for _ in range(16):  # passes, until none flips
+        changed = 0
+        for a in range(3 * nt):
+            b = half[a]
+            if b < a:  # each edge once, and not the border
+                continue
+            ta, tb = a // 3, b // 3
+            if _drawn(tri, ta, valid) and _drawn(tri, tb, valid):
+                continue
+            a0, b0 = 3 * ta, 3 * tb
+            al, ar = a0 + (a + 1) % 3, a0 + (a + 2) % 3
+            bl, br = b0 + (b + 2) % 3, b0 + (b + 1) % 3
+            p0, pr, pl, p1 = tri[ar], tri[a], tri[al], tri[bl]
+            if (_orient(p0 % W, p0 // W, p1 % W, p1 // W, pl % W, pl // W) <= 0
+                    or _orient(p1 % W, p1 // W, p0 % W, p0 // W, pr % W, pr // W) <= 0):
+                continue
+            before = int(_drawn(tri, ta, valid)) + int(_drawn(tri, tb, valid))
+            old = (tri[a0], tri[a0 + 1], tri[a0 + 2], tri[b0], tri[b0 + 1], tri[b0 + 2])
+            tri[a0], tri[a0 + 1], tri[a0 + 2] = p0, p1, pl
+            tri[b0], tri[b0 + 1], tri[b0 + 2] = p1, p0, pr
+            after = int(_drawn(tri, ta, valid)) + int(_drawn(tri, tb, valid))
+            ok = after > before
+            if ok:
+                _scan(ta, tri, z, valid, W, True, cand, err)
+                _scan(tb, tri, z, valid, W, True, cand, err)
+                ok = err[ta] <= max_error and err[tb] <= max_error
+            if not ok:
+                tri[a0], tri[a0 + 1], tri[a0 + 2] = old[0], old[1], old[2]
+                tri[b0], tri[b0 + 1], tri[b0 + 2] = old[3], old[4], old[5]
+                continue
+            hal, har, hbl, hbr = half[al], half[ar], half[bl], half[br]
+            # the new edges in the slots' order, as _legalize links them
+            half[a0], half[a0 + 1], half[a0 + 2] = b0, hbl, hal
+            half[b0], half[b0 + 1], half[b0 + 2] = a0, har, hbr
+            for e, h in ((a0 + 1, hbl), (a0 + 2, hal), (b0 + 1, har), (b0 + 2, hbr)):
+                if h >= 0:
+                    half[h] = e
+            changed += 1
+        flips += changed
+        if changed == 0:
+            break
+    return flips
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _grow(a, n):
     out = np.empty(n, a.dtype)
@@ -378,4 +436,6 @@ def greedy_tin(z, valid, H, W, max_error, voids):
             raise RuntimeError("Delaunay flips deeper than the stack")
         _flush(tri, z, valid, W, voids, cand, err, heap, qi, pending, cnt, max_error)
     nt = cnt[NT]
+    if voids:
+        _flip_to_cover(tri, half, nt, z, valid, W, max_error)
     return tri[:3 * nt].reshape(nt, 3).copy(), cnt[NP]
