@@ -64,6 +64,11 @@ def greedy_mesh(z: np.ndarray, valid: np.ndarray | None, max_error: float
 
     z = np.asarray(z, np.float64)
     H, W = z.shape
+    if 16 * H * W >= 2**31:  # the kernels' int32 half-edges
+        from geoterrain.exceptions import UsageError
+
+        raise UsageError(f"the TIN mesher takes at most 134 million samples, this grid has "
+                         f"{H * W:,}; use the rtin mesher")
     if valid is None:
         valid = np.ones_like(z, bool)
     valid = np.ascontiguousarray(valid, bool).ravel()
