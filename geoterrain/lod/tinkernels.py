@@ -211,6 +211,77 @@ def _scan(a, b, c, z, valid, W, voids):
     return best, arg
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _span(w, a, r, lo, hi):
+    """Narrow the columns [lo, hi] (offsets) of a row to those where the edge function
+    ``w + a·dx`` is ≥ 0 (``r`` = 1 / a): exact, as w and a are integers held in floats
+    (< 2⁵³) and the estimate from the reciprocal is corrected by the integer test."""
+    if a > 0:  # the edge bounds the row on the left
+        q = np.ceil(-w * r)
+        if w + a * (q - 1) >= 0:
+            q -= 1
+        elif w + a * q < 0:
+            q += 1
+        return max(lo, q), hi
+    if a < 0:  # on the right
+        q = np.floor(-w * r)
+        if w + a * (q + 1) >= 0:
+            q += 1
+        elif w + a * q < 0:
+            q -= 1
+        return lo, min(hi, q)
+    return (lo, hi) if w >= 0 else (1.0, 0.0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _scan_plain(a, b, c, z, W):
+    """:func:`_scan` on a grid without voids: each row's covered columns found from the
+    three edges first, then a loop over them alone, with no test per sample."""
+    p0y, p0x = divmod(a, W)
+    p1y, p1x = divmod(b, W)
+    p2y, p2x = divmod(c, W)
+    minx, miny = min(p0x, p1x, p2x), min(p0y, p1y, p2y)
+    maxx, maxy = max(p0x, p1x, p2x), max(p0y, p1y, p2y)
+    w00 = float(_orient(p1x, p1y, p2x, p2y, minx, miny))
+    w01 = float(_orient(p2x, p2y, p0x, p0y, minx, miny))
+    w02 = float(_orient(p0x, p0y, p1x, p1y, minx, miny))
+    a01, b01 = float(p1y - p0y), float(p0x - p1x)
+    a12, b12 = float(p2y - p1y), float(p1x - p2x)
+    a20, b20 = float(p0y - p2y), float(p2x - p0x)
+    r01 = 1.0 / a01 if a01 != 0 else 0.0
+    r12 = 1.0 / a12 if a12 != 0 else 0.0
+    r20 = 1.0 / a20 if a20 != 0 else 0.0
+    area = float(_orient(p0x, p0y, p1x, p1y, p2x, p2y))
+    z0, z1, z2 = z[a] / area, z[b] / area, z[c] / area
+    best = 0.0
+    arg = a
+    width = float(maxx - minx)
+    for y in range(miny, maxy + 1):
+        lo, hi = _span(w00, a12, r12, 0.0, width)
+        lo, hi = _span(w01, a20, r20, lo, hi)
+        lo, hi = _span(w02, a01, r01, lo, hi)
+        if lo <= hi:
+            w0 = w00 + a12 * lo
+            w1 = w01 + a20 * lo
+            w2 = w02 + a01 * lo
+            s = y * W + minx + int(lo)
+            for _ in range(int(hi - lo) + 1):
+                d = abs(z0 * w0 + z1 * w1 + z2 * w2 - z[s])
+                if d > best:
+                    best = d
+                    arg = s
+                w0 += a12
+                w1 += a20
+                w2 += a01
+                s += 1
+        w00 += b12
+        w01 += b20
+        w02 += b01
+    if arg == a or arg == b or arg == c:
+        best = 0.0
+    return best, arg
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error):
     """Scan every pending triangle; push it on the heap if its error exceeds
@@ -218,8 +289,11 @@ def _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error):
     for k in range(cnt[NPEND]):
         t = pending[k]
         r = ROW * t
-        err, arg = _scan(np.int64(F[r]), np.int64(F[r + 1]), np.int64(F[r + 2]), z, valid, W,
-                         voids)
+        if voids:
+            err, arg = _scan(np.int64(F[r]), np.int64(F[r + 1]), np.int64(F[r + 2]), z, valid,
+                             W, True)
+        else:
+            err, arg = _scan_plain(np.int64(F[r]), np.int64(F[r + 1]), np.int64(F[r + 2]), z, W)
         F[r + CAND] = arg
         if not err > max_error:
             F[r + QI] = -1
