@@ -15,9 +15,10 @@ sequential.
 Nodata: a triangle is drawn only if its three corners are valid, and no drawn triangle
 covers an invalid sample: a triangle that would (or one with an invalid corner that
 covers a valid sample other than its corners) is refined, so voids are cut out down to
-the grid's resolution along their border, as rtin's mixed diamonds (δ = ∞) are. A valid
-sample that no triangle of three valid samples can cover (one with no valid neighbour
-along an edge) stays uncovered, as with rtin.
+the grid's resolution along their border, as rtin's mixed diamonds (δ = ∞) are; then an
+edge is flipped where the other diagonal draws more of the data (within the bound). A
+valid sample on a void's border (an invalid sample among its 8 neighbours) may still be
+left uncovered; none inside the data is.
 
 Examples
 --------
