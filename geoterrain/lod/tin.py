@@ -75,16 +75,8 @@ def greedy_mesh(z: np.ndarray, valid: np.ndarray | None, max_error: float
     valid = np.ascontiguousarray(valid, bool).ravel()
     voids = not bool(valid.all())
     zf = np.where(valid, z.ravel(), 0.0) if voids else np.ascontiguousarray(z).ravel()
-    tri, _ = greedy_tin(zf, valid, H, W, float(max_error), voids)
-    tri = tri.astype(np.int64)
-    if voids:
-        tri = tri[valid[tri].all(axis=1)]
-    used, faces = np.unique(tri, return_inverse=True)
-    faces = faces.reshape(-1, 3)
-    ij = np.stack(np.divmod(used, W), axis=1)
-    from geoterrain.lod.mesh import orient_ccw
-
-    return ij, orient_ccw(ij, faces)
+    faces, ij = greedy_tin(zf, valid, H, W, float(max_error), voids)
+    return ij, faces
 
 
 def static(terrain: TerrainLike, max_error: float):

@@ -340,13 +340,14 @@ def _legalize(a0, F, W, heap, key, pending, cnt, stack):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _insert(t, F, W, heap, key, pending, cnt, stack):
+def _insert(t, F, W, heap, key, pending, cnt, stack, pts):
     """Split triangle ``t`` at its candidate sample (on an edge: split the edge's two
     triangles), then restore the Delaunay property."""
     e0 = ROW * t
     e1, e2 = e0 + 1, e0 + 2
     p0, p1, p2 = F[e0], F[e1], F[e2]
     pn = F[e0 + CAND]
+    pts[cnt[NP]] = pn
     cnt[NP] += 1
     px, py = pn % W, pn // W
     ax, ay = p0 % W, p0 // W
@@ -467,16 +468,19 @@ def _grow(a, n):
 def greedy_tin(z, valid, H, W, max_error, voids):
     """The greedy TIN of the H × W heights ``z`` (flat, scene units; ``valid`` flat):
     insert the worst sample of the worst triangle until every triangle's error over the
-    samples it covers is ≤ ``max_error``. Returns (triangles (F, 3) int32 of flat
-    sample ids, the number of points). Needs 16·H·W < 2³¹ (int32 half-edges)."""
+    samples it covers is ≤ ``max_error``. Returns the drawn triangles (F, 3) and the
+    (row, column) of the points they use (:func:`_compact`). Needs 16·H·W < 2³¹ (int32
+    half-edges)."""
     cap = 1024
     F = np.empty(ROW * cap, np.int32)
     heap = np.empty(cap, np.int32)
     key = np.empty(cap, np.float64)
     pending = np.empty(cap, np.int32)
     stack = np.empty(1 << 16, np.int32)
+    pts = np.empty(cap, np.int32)  # the points, in insertion order
     cnt = np.zeros(4, np.int64)
     p0, p1, p2, p3 = 0, W - 1, (H - 1) * W, H * W - 1
+    pts[0], pts[1], pts[2], pts[3] = p0, p1, p2, p3
     cnt[NP] = 4
     t0 = _set_triangle(F, pending, cnt, 0, p3, p0, p2, -1, -1, -1)
     _set_triangle(F, pending, cnt, 1, p0, p3, p1, t0, -1, -1)
@@ -487,12 +491,52 @@ def greedy_tin(z, valid, H, W, max_error, voids):
             cap *= 2
             F = _grow(F, ROW * cap)
             heap, key, pending = _grow(heap, cap), _grow(key, cap), _grow(pending, cap)
+            pts = _grow(pts, cap)
         t = heap[0]
         _forget(t, F, heap, key, pending, cnt)
-        if _insert(t, F, W, heap, key, pending, cnt, stack) < 0:
+        if _insert(t, F, W, heap, key, pending, cnt, stack, pts) < 0:
             raise RuntimeError("Delaunay flips deeper than the stack")
         _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error)
     nt = cnt[NT]
     if voids:
         _flip_to_cover(F, nt, z, valid, W, max_error)
-    return F[:ROW * nt].reshape(nt, ROW)[:, :3].copy(), cnt[NP]
+    return _compact(F, nt, pts[:cnt[NP]], valid, voids, W)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _compact(F, nt, pts, valid, voids, W):
+    """The drawn triangles (three valid corners) as (F, 3) int64 indices into the points
+    they use, counter-clockwise seen from above (x = column, y = −row) as the kernels
+    keep them (``_orient`` > 0), and those points' (row, column)."""
+    where = np.empty(valid.size, np.int32)  # sample → point: only the points' entries set
+    for k in range(len(pts)):
+        where[pts[k]] = k
+    used = np.zeros(len(pts), np.int32)  # 0: unused, else its new number + 1
+    keep = np.zeros(nt, np.bool_)
+    nf = 0
+    for t in range(nt):
+        r = ROW * t
+        if voids and not (valid[F[r]] and valid[F[r + 1]] and valid[F[r + 2]]):
+            continue
+        keep[t] = True
+        nf += 1
+    nv = 0
+    faces = np.empty((nf, 3), np.int64)
+    f = 0
+    for t in range(nt):
+        if not keep[t]:
+            continue
+        r = ROW * t
+        for m in range(3):
+            k = where[F[r + m]]
+            if used[k] == 0:
+                nv += 1
+                used[k] = nv
+            faces[f, m] = used[k] - 1
+        f += 1
+    ij = np.empty((nv, 2), np.int64)
+    for k in range(len(pts)):
+        if used[k]:
+            ij[used[k] - 1, 0] = pts[k] // W
+            ij[used[k] - 1, 1] = pts[k] % W
+    return faces, ij
