@@ -75,7 +75,7 @@ def greedy_mesh(z: np.ndarray, valid: np.ndarray | None, max_error: float
     valid = np.ascontiguousarray(valid, bool).ravel()
     voids = not bool(valid.all())
     zf = np.where(valid, z.ravel(), 0.0) if voids else np.ascontiguousarray(z).ravel()
-    faces, ij = greedy_tin(zf, valid, H, W, float(max_error), voids)
+    faces, ij = greedy_tin(zf, valid, H, W, float(max_error), voids, True)
     return ij, faces
 
 
