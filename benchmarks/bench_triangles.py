@@ -88,8 +88,9 @@ def run_tin(t, name: str, repeat: int) -> None:
         rt = t.static_selection(e).stats["triangles"]
         md, mo = statistics.median(td) * 1e3, statistics.median(to) * 1e3
         print("| " + " | ".join([
-            f"{e:g}", f"{len(f)}", f"{pm:.4f}", f"{len(tf)}", f"**{len(tf) / len(f):.4f}**",
-            f"{err.max:.4f} / {err.n_uncovered_valid}", f"{md:.0f}", f"{mo:.0f}",
+            f"{e:g}", f"{len(f)}", f"{pm:.6f}", f"{len(tf)}", f"**{len(tf) / len(f):.4f}**",
+            f"{err.max:.6f} ({'≤' if err.max <= pm else '>'} it) / {err.n_uncovered_valid}",
+            f"{md:.0f}", f"{mo:.0f}",
             f"**{mo / md:.2f}**", f"{at_e}", f"{rt}"]) + " |", flush=True)
     print(f"\n(load after: {open('/proc/loadavg').read().split()[0]})")
 
@@ -141,11 +142,13 @@ def main() -> None:
     ap.add_argument("dems", nargs="*")
     ap.add_argument("--tin-only", action="store_true", help="only the TIN / pydelatin table")
     ap.add_argument("--fbm", type=int, default=0, help="the synthetic fBm's side (N × N)")
+    ap.add_argument("--fbm-only", action="store_true", help="only the synthetic fBm")
     ap.add_argument("--repeat", type=int, default=3, help="timed runs of each (median)")
     a = ap.parse_args()
     d = tempfile.mkdtemp()
     dems = a.dems or [str(p) for p in (DEMS / "fuji_terrain_rgb.png",
-                                       DEMS / "srtm1_japan.tif") if p.exists()]
+                                       DEMS / "srtm1_japan.tif") if p.exists()
+                      and not a.fbm_only]
     if not a.dems:
         from geoterrain.ingest.synth import generate, write_geotiff
 

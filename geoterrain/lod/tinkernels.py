@@ -100,7 +100,7 @@ def _heap_down(F, heap, key, k, n):
     F[ROW * t + QI] = k
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _forget(t, F, heap, key, pending, cnt):
     """Take triangle ``t`` out of the heap or the pending list (its row is rewritten)."""
     k = F[ROW * t + QI]
@@ -123,7 +123,7 @@ def _forget(t, F, heap, key, pending, cnt):
     F[ROW * t + QI] = -1
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _set_triangle(F, pending, cnt, t, a, b, c, ab, bc, ca):
     """Write row ``t`` with corners a, b, c and the half-edges opposite its edges ab, bc,
     ca (linking them back), and mark it pending (scanned at the next flush)."""
