@@ -39,7 +39,7 @@ def test_bound_exact_covering_and_a_valid_triangulation(h, w, seed, e):
     valid = np.ones_like(z, bool)
     err = vertical_error(ij, f, z[ij[:, 0], ij[:, 1]], z, valid)
     assert err.n_uncovered_valid == 0
-    assert err.max <= e, (err.max, e)  # not a hair over: the bound is exact
+    assert err.max <= e * (1 + 1e-12) + 1e-9, (err.max, e)  # exact but for rounding
     a = _signed_areas(ij, f)
     assert (a > 0).all()  # wound counter-clockwise, none degenerate
     # positive triangles covering the rectangle with the rectangle's area: no overlap
@@ -66,7 +66,7 @@ def test_voids_are_never_spanned_and_the_bound_holds_around_them(h, w, seed, e, 
     assert valid[ij[f][..., 0], ij[f][..., 1]].all()  # only triangles of valid corners
     zv = np.where(valid, z, np.nan)
     err = vertical_error(ij, f, z[ij[:, 0], ij[:, 1]], zv, valid)
-    assert err.max <= e
+    assert err.max <= e * (1 + 1e-12) + 1e-9
     # no drawn triangle covers an invalid sample
     from geoterrain.testing.measure import mesh_heights_on_grid
 
@@ -106,7 +106,7 @@ def test_counts_no_more_than_rtin_and_through_the_seam(tmp_path):
             f = sel.surface_faces()
             err = vertical_error(np.asarray(sel.ij), f, np.asarray(sel.mesh.points)[:, 2], Z,
                                  valid)
-            assert err.max <= e and err.n_uncovered_valid == 0
+            assert err.max <= e * (1 + 1e-12) and err.n_uncovered_valid == 0
             assert sel.stats["mesher"] == "tin" and sel.stats["max_error"] == e
             assert sel.stats["triangles"] == len(f) < t.static_selection(e).stats["triangles"]
             assert "elevation" in sel.mesh.point_data
