@@ -115,7 +115,7 @@ def vertex_radii(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray)
         return _radii_nb(x, y, z, none, np.empty(0), np.empty((0, 0), np.uint8))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _nest(x, y, z, r, i, j, h):
     # max over the children c of |p_v − p_c| + r(c) (children outside the grid: none)
     N = z.shape[0]
@@ -129,7 +129,7 @@ def _nest(x, y, z, r, i, j, h):
     return best
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def code_up_nb(table, x):
     """The smallest log8 code whose value is ≥ x (:func:`log8_codes`; ``table`` float64,
     increasing, ending with +inf): a binary search, compiled, inlined."""
@@ -143,7 +143,7 @@ def code_up_nb(table, x):
     return lo
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def nest_code_nb(x, y, z, r, codes, table, i, j, h):
     """The code of vertex (i, j) of half-span h with the nesting of seed 002 §2.4
     (L50–52) on the coded values: the smallest code ≥ its radius and ≥ |p_v − p_c| +
@@ -159,7 +159,7 @@ def nest_code_nb(x, y, z, r, codes, table, i, j, h):
     return code_up_nb(table, best)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _visit(x, y, z, r, rin, table, codes, i, j, h):
     # one vertex of _radii_nb: its float32 radius, or its code nested on the codes
     if table.shape[0] == 0:
