@@ -68,7 +68,7 @@ def _prev(e):
 
 # ------------------------------------------------------------------ the priority queue
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _heap_up(F, heap, key, k):
     t, v = heap[k], key[k]
     while k > 0:
@@ -82,7 +82,7 @@ def _heap_up(F, heap, key, k):
     F[ROW * t + QI] = k
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _heap_down(F, heap, key, k, n):
     t, v = heap[k], key[k]
     while True:
@@ -236,7 +236,7 @@ def _span(w, a, r, lo, hi):
     return (lo, hi) if w >= 0 else (1.0, 0.0)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _scan_plain(a, b, c, z, W, limit):
     """:func:`_scan` on a grid without voids: each row's covered columns found from the
     three edges first, then a loop over them alone, with no test per sample."""
@@ -287,7 +287,7 @@ def _scan_plain(a, b, c, z, W, limit):
     return best, arg
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error):
     """Scan every pending triangle; push it on the heap if its error exceeds
     ``max_error``."""
@@ -313,7 +313,7 @@ def _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error):
 
 # ------------------------------------------------------------------- insertion
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _legalize(a0, F, W, heap, key, pending, cnt, stack):
     """Lawson flips from half-edge ``a0`` until every edge is locally Delaunay (in the
     order of Delatin's recursion). Returns −1 if ``stack`` is too short."""
@@ -345,7 +345,7 @@ def _legalize(a0, F, W, heap, key, pending, cnt, stack):
     return 0
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _insert(t, F, W, heap, key, pending, cnt, stack, pts):
     """Split triangle ``t`` at its candidate sample (on an edge: split the edge's two
     triangles), then restore the Delaunay property."""
@@ -514,9 +514,13 @@ def _decimate(F, nt, pts, z, valid, W, voids, max_error):
     zn = np.empty(MAXDEG, np.float64)
     nb = np.empty(MAXDEG + 1, np.int64)
     removed = 0
-    order = np.argsort(pts[4:]) + 4  # row by row: a point's star shares rows and
-    for kv in order:                  # heights with the last one's (the rectangle's
-        v = np.int64(pts[kv])          # corners, 0 … 3, stay)
+    mark = np.zeros(valid.size, np.bool_)  # row by row: a point's star shares rows and
+    for k in range(4, len(pts)):           # heights with the last one's (the
+        mark[pts[k]] = True                # rectangle's corners, 0 … 3, stay); a
+    for v in range(valid.size):            # pass over the samples, not a sort
+        if not mark[v]:
+            continue
+        kv = where[v]
         e = out[kv]
         d = 0
         interior = True
