@@ -3,7 +3,8 @@
 ``mesher="tin"`` of :func:`geoterrain.lod.static`: a Delaunay triangulation of the data
 rectangle refined by inserting, one at a time, the sample of largest vertical error of
 the triangle of largest error, until no triangle's error exceeds ``max_error``
-(:mod:`geoterrain.lod.tinkernels`). A triangle's error is the largest
+(:mod:`geoterrain.lod.tinkernels`, driven by :mod:`geoterrain.lod.tincollapse`, which
+then collapses the points no longer needed). A triangle's error is the largest
 ``|mesh − height|`` over every level-0 sample it covers, computed from the stored
 (decoded) heights, so the bound is exact on the samples, as rtin's δ is.
 
@@ -61,7 +62,7 @@ def greedy_mesh(z: np.ndarray, valid: np.ndarray | None, max_error: float
     >>> len(f), sorted(map(tuple, ij.tolist()))
     (2, [(0, 0), (0, 4), (4, 0), (4, 4)])
     """
-    from geoterrain.lod.tinkernels import greedy_tin
+    from geoterrain.lod.tincollapse import greedy_tin
 
     z = np.asarray(z, np.float64)
     H, W = z.shape
