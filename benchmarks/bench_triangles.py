@@ -8,21 +8,28 @@ For each DEM and e ∈ {1, 5, 20, 100}:
 - ours: ``static_selection(that measured error)``, with the padding replicated and the mesh
   clipped to the data (the default), and with the nodata padding of every other strategy
   (``rtin.EDGE_PADDING = False``);
-- pydelatin's greedy TIN of the unpadded DEM at e, against ours at the same e.
+- pydelatin's greedy TIN of the unpadded DEM at e, against ours at the same e;
+- the TIN table (e ∈ {1, 5, 20}): pydelatin at e, its error measured, then our TIN
+  (``static_selection(that measured error, mesher="tin")``, the whole seam: heights read,
+  mesh, PolyData) at it: triangles, the TIN's measured error and uncovered samples, and
+  the times, pydelatin's and ours alternating (``--repeat`` runs), medians.
 
 Every error is measured by :func:`geoterrain.testing.measure.vertical_error` (barycentric, over the
 valid samples, in grid space), independently of the code that selects the meshes.
-Triangle counts are exact, so one run is enough.
+Triangle counts are exact, so one run is enough; times are medians.
 
-Usage: ``python benchmarks/bench_triangles.py [DEM ...]`` (default: the Fuji tile and
-srtm1_japan from ../shared/dems, and a synthetic 700 × 900 fBm).
+Usage: ``python benchmarks/bench_triangles.py [DEM ...] [--tin-only] [--fbm N] [--repeat R]``
+(default: the Fuji tile and srtm1_japan from ../shared/dems, and a synthetic fBm,
+700 × 900 or N × N with ``--fbm N``, seed 7).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +40,7 @@ from geoterrain.testing.measure import vertical_error
 
 DEMS = Path(__file__).resolve().parents[1].parent / "shared" / "dems"
 ERRORS = (1.0, 5.0, 20.0, 100.0)
+TIN_ERRORS = (1.0, 5.0, 20.0)
 
 
 def measure(t, Z: np.ndarray, valid: np.ndarray, e: float) -> tuple[int, float, int]:
@@ -41,6 +49,51 @@ def measure(t, Z: np.ndarray, valid: np.ndarray, e: float) -> tuple[int, float, 
     f = sel.surface_faces()
     err = vertical_error(np.asarray(sel.ij), f, np.asarray(sel.mesh.points)[:, 2], Z, valid)
     return len(f), err.max, err.n_uncovered_valid
+
+
+def run_tin(t, name: str, repeat: int, extra: bool = True) -> None:
+    """Our TIN against pydelatin at pydelatin's measured error: triangles and times."""
+    from pydelatin import Delatin
+
+    g = t.grid
+    H, W = g.rows, g.cols
+    _, _, Zd = t.scene_xyz()
+    Z = g.pad(Zd, np.nan)
+    valid = np.isfinite(Z)
+    if not valid[:H, :W].all():
+        print(f"\n### {name}: has nodata, pydelatin cannot take it\n")
+        return
+    z32 = Zd.astype(np.float32)
+    print(f"\n### {name}: {H}×{W}, TIN against pydelatin (load {os.getloadavg()[0]:.2f})\n")
+    print("| e | pydelatin tris | its measured error | TIN tris at it | ratio | TIN measured / "
+          "uncovered | pydelatin ms | TIN ms | time ratio | TIN tris at e | rtin tris at e |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for e in TIN_ERRORS:
+        dl = Delatin(z32, max_error=e)
+        v = np.asarray(dl.vertices)
+        ij = np.stack([H - 1 - v[:, 1], v[:, 0]], 1).astype(np.int64)  # its y runs north
+        f = np.asarray(dl.triangles, np.int64)
+        pm = vertical_error(ij, f, Zd[ij[:, 0], ij[:, 1]], Z, valid).max
+        td, to = [], []
+        for _ in range(repeat):  # alternating, so both see the same load
+            t0 = time.perf_counter()
+            dl = Delatin(z32, max_error=e)
+            td.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            sel = t.static_selection(pm, mesher="tin")
+            to.append(time.perf_counter() - t0)
+        tf = sel.surface_faces()
+        err = vertical_error(np.asarray(sel.ij), tf, np.asarray(sel.mesh.points)[:, 2], Z, valid)
+        at_e = t.static_selection(e, mesher="tin").stats["triangles"] if extra else "–"
+        rt = t.static_selection(e).stats["triangles"] if extra else "–"
+        md, mo = statistics.median(td) * 1e3, statistics.median(to) * 1e3
+        print("| " + " | ".join([
+            f"{e:g}", f"{len(f)}", f"{pm:.6f}", f"{len(tf)}", f"**{len(tf) / len(f):.4f}**",
+            f"{err.max:.6f} ({'≤' if err.max <= pm * (1 + 1e-12) else '>'} it) / "
+            f"{err.n_uncovered_valid}",
+            f"{md:.0f}", f"{mo:.0f}",
+            f"**{mo / md:.2f}**", f"{at_e}", f"{rt}"]) + " |", flush=True)
+    print(f"\n(load after: {open('/proc/loadavg').read().split()[0]})")
 
 
 def run(t, name: str) -> None:
@@ -88,19 +141,32 @@ def run(t, name: str) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dems", nargs="*")
+    ap.add_argument("--tin-only", action="store_true", help="only the TIN / pydelatin table")
+    ap.add_argument("--fbm", type=int, default=0, help="the synthetic fBm's side (N × N)")
+    ap.add_argument("--fbm-only", action="store_true", help="only the synthetic fBm")
+    ap.add_argument("--no-extra", action="store_true",
+                    help="without the TIN and rtin counts at e (two meshes fewer per e)")
+    ap.add_argument("--repeat", type=int, default=3, help="timed runs of each (median)")
     a = ap.parse_args()
     d = tempfile.mkdtemp()
     dems = a.dems or [str(p) for p in (DEMS / "fuji_terrain_rgb.png",
-                                       DEMS / "srtm1_japan.tif") if p.exists()]
+                                       DEMS / "srtm1_japan.tif") if p.exists()
+                      and not a.fbm_only]
     if not a.dems:
         from geoterrain.ingest.synth import generate, write_geotiff
 
-        dems.append(write_geotiff(os.path.join(d, "fbm700x900.tif"),
-                                  generate("fbm", 1025, seed=7)[:700, :900]))
+        if a.fbm:
+            dems.append(write_geotiff(os.path.join(d, f"fbm{a.fbm}.tif"),
+                                      generate("fbm", a.fbm, seed=7)))
+        else:
+            dems.append(write_geotiff(os.path.join(d, "fbm700x900.tif"),
+                                      generate("fbm", 1025, seed=7)[:700, :900]))
     for k, dem in enumerate(dems):
         store = geoterrain.preprocess(dem, os.path.join(d, f"s{k}.geoterrain"))
         with geoterrain.open(store) as t:
-            run(t, os.path.basename(str(dem)))
+            if not a.tin_only:
+                run(t, os.path.basename(str(dem)))
+            run_tin(t, os.path.basename(str(dem)), a.repeat, not a.no_extra)
 
 
 if __name__ == "__main__":

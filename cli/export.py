@@ -10,9 +10,11 @@ from geoterrain.cli.options import (
     NON_NEGATIVE,
     Number,
     camera_options,
+    check_mesher,
     human_bytes,
     mesh_request,
     mesh_words,
+    mesher_option,
     occlusion_option,
     parse_bytes,
     pixel_error_option,
@@ -31,6 +33,7 @@ LARGE = 20e6  # bytes: an export estimated larger than this is announced before 
 @click.option("--max-error", type=NON_NEGATIVE, metavar="E",
               help="Whole-terrain mesh: largest height error in metres; default 1. A larger "
                    "E makes a smaller file.")
+@mesher_option
 @camera_options
 @pixel_error_option
 @strategy_option
@@ -62,7 +65,7 @@ LARGE = 20e6  # bytes: an export estimated larger than this is announced before 
                    "any work, with the estimate.")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
-def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, size,
+def command(ctx, store, output, max_error, mesher, look_from, look_at, crs_coords, fov, size,
             pixel_error, strategy, occlusion, vertical_exaggeration, shading, cmap, texture_size,
             drape, base_height, print_size, preview, as_json, memory_limit, overwrite):
     """Export STORE's mesh for other tools: the whole terrain (--max-error) or what a
@@ -124,6 +127,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     if crs_coords and look_from is None and look_at is None and ext != ".ply":
         raise UsageError("--crs-coords applies to --look-from/--look-at or to .ply output")
     max_error = mesh_request(max_error, look_from, look_at)
+    check_mesher(mesher, max_error)
     quiet = ctx.obj["quiet"]
     closed = ext == ".stl" or base_height is not None or print_size is not None
     with geoterrain.open(store) as base:
@@ -134,7 +138,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
         if max_error is not None:  # bounded: refused before the mesh is built
             check_export_memory(t, max_error, memory_limit or available_memory() // 2)
         sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error,
-                          strategy, occlusion)
+                          strategy, occlusion, mesher)
         texels = 0
         if ext in (".glb", ".gltf", ".obj"):
             h, w = data_shape(t, export_texture_level(t, texture_size))

@@ -9,7 +9,9 @@ import click
 from geoterrain.cli.options import (
     NON_NEGATIVE,
     camera_options,
+    check_mesher,
     mesh_request,
+    mesher_option,
     occlusion_option,
     pixel_error_option,
     select_mesh,
@@ -25,6 +27,7 @@ from geoterrain.cli.options import (
 @click.option("--max-error", type=NON_NEGATIVE, metavar="E",
               help="Whole-terrain mesh: largest height error in metres; default 1.")
 @camera_options
+@mesher_option
 @pixel_error_option
 @strategy_option
 @occlusion_option
@@ -33,7 +36,7 @@ from geoterrain.cli.options import (
               help="Print the summary as JSON (for scripts).")
 @click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
 @click.pass_context
-def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, size,
+def command(ctx, store, output, max_error, mesher, look_from, look_at, crs_coords, fov, size,
             pixel_error, strategy, occlusion, vertical_exaggeration, as_json, overwrite):
     """Write a mesh of STORE: the whole terrain (--max-error) or what a camera sees
     (--look-from/--look-at).
@@ -46,6 +49,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
     \b
     Examples:
       geoterrain mesh dem.geoterrain -o dem.ply --max-error 1
+      geoterrain mesh dem.geoterrain -o tin.ply --max-error 1 --mesher tin
       geoterrain mesh dem.geoterrain -o v.vtp --look-from 0,-5000,2000 --look-at 0,0,0
       geoterrain mesh dem.geoterrain -o relief.ply --max-error 2 -z 3
     """
@@ -57,10 +61,13 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
 
     out = check_mesh_path(output, overwrite, inputs=[store])  # before any work
     max_error = mesh_request(max_error, look_from, look_at)
+    check_mesher(mesher, max_error)
     from geoterrain.exaggerate import exaggerated
 
-    # a static mesh to .ply/.obj/.stl streams to disk in bounded memory
-    stream = max_error is not None and out.suffix.lower() in STREAM_FORMATS
+    # rtin's static mesh to .ply/.obj/.stl streams to disk in bounded memory (the TIN's
+    # refinement is global: it is made in memory)
+    stream = (max_error is not None and out.suffix.lower() in STREAM_FORMATS
+              and mesher == "rtin")
     with geoterrain.open(store, **({"cache_bytes": STREAM_CACHE_BYTES} if stream else {})
                          ) as base:
         from geoterrain.core.frame import check_flat
@@ -73,7 +80,7 @@ def command(ctx, store, output, max_error, look_from, look_at, crs_coords, fov, 
             if max_error is not None:
                 check_in_memory(t, max_error, out)
             sel = select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size,
-                              pixel_error, strategy, occlusion)
+                              pixel_error, strategy, occlusion, mesher)
             write_mesh(with_elevation(t, sel.mesh), out, overwrite=overwrite)
             stats = sel.stats
     if as_json:

@@ -328,6 +328,12 @@ def _strategy_help(prefix: str) -> str:
     return prefix + " " + "; ".join(describe().splitlines()) + "."
 
 
+mesher_option = click.option(
+    "--mesher", type=click.Choice(["rtin", "tin"]), default="rtin", show_default=True,
+    help="Whole-terrain mesh (--max-error): rtin, the bintree cut (streamed in bounded "
+         "memory), or tin, a greedy Delaunay TIN (fewer triangles at the same error; the "
+         "whole grid in memory).")
+
 strategy_option = click.option(
     "--strategy", type=click.Choice(STRATEGIES), default=DEFAULT, show_default=True,
     help=_strategy_help("LOD strategy:"))
@@ -545,6 +551,15 @@ vertical_exaggeration_option = click.option(
          "holds for the exaggerated surface; pictures say VE ×N.")
 
 
+def check_mesher(mesher: str, max_error) -> None:
+    """--mesher tin is a whole-terrain mesher: refused with a view (one line, exit 2)."""
+    from geoterrain.exceptions import UsageError
+
+    if mesher != "rtin" and max_error is None:
+        raise UsageError(f"--mesher {mesher} makes a whole-terrain mesh (--max-error), "
+                         "not a view's")
+
+
 def mesh_request(max_error, look_from, look_at) -> float | None:
     """Check a static (--max-error) or view (--look-from/--look-at) request, as `mesh` and
     `export` take it; the static bound e (default 1), or None for a view."""
@@ -564,14 +579,15 @@ def mesh_request(max_error, look_from, look_at) -> float | None:
 
 
 def select_mesh(t, max_error, look_from, look_at, crs_coords, fov, size, pixel_error, strategy,
-                occlusion: bool = True):
-    """The static selection of bound ``max_error``, or the view's (source-CRS camera points
-    with ``crs_coords``; horizon culling with ``occlusion``), after :func:`mesh_request`."""
+                occlusion: bool = True, mesher: str = "rtin"):
+    """The static selection of bound ``max_error`` (by ``mesher``), or the view's
+    (source-CRS camera points with ``crs_coords``; horizon culling with ``occlusion``),
+    after :func:`mesh_request`."""
     import geoterrain
     from geoterrain.exceptions import UsageError
 
     if max_error is not None:
-        return t.static_selection(max_error)
+        return t.static_selection(max_error, mesher=mesher)
     if crs_coords:
         look_from, look_at = (t.frame.crs_point_to_scene(p) for p in (look_from, look_at))
     if look_from == look_at:

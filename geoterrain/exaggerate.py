@@ -210,10 +210,10 @@ class Exaggerated:
         return lod.select(self, view, pixel_error, strategy, reuse=reuse, occlusion=occlusion,
                           morph=morph)
 
-    def static_selection(self, max_error: float = 1.0):
+    def static_selection(self, max_error: float = 1.0, mesher: str = "rtin"):
         from geoterrain import lod
 
-        return lod.static(self, max_error)
+        return lod.static(self, max_error, mesher)
 
-    def mesh(self, max_error: float = 1.0):
-        return self.static_selection(max_error).mesh
+    def mesh(self, max_error: float = 1.0, method: str = "rtin"):
+        return self.static_selection(max_error, mesher=method).mesh

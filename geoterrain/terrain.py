@@ -641,26 +641,30 @@ class Terrain:
         return lod.select(self, view, pixel_error, strategy, reuse=reuse, occlusion=occlusion,
                           morph=morph)
 
-    def mesh(self, max_error: float = 1.0) -> pv.PolyData:
-        """Static mesh keeping every vertex with δ > ``max_error``: vertical error ≤ max_error.
+    def mesh(self, max_error: float = 1.0, method: str = "rtin") -> pv.PolyData:
+        """Static mesh within ``max_error`` of every valid sample: vertical error ≤ max_error.
 
+        ``method``: ``"rtin"`` keeps every vertex with δ > ``max_error`` (the bintree cut);
+        ``"tin"`` is the greedy-insertion TIN (fewer triangles; :mod:`geoterrain.lod.tin`).
         Returns a ``pyvista.PolyData`` in the scene frame (point data ``grid_ij``).
 
         Examples
         --------
         >>> t.mesh(max_error=5.0).n_cells > 0
         True
+        >>> t.mesh(max_error=5.0, method="tin").n_cells <= t.mesh(max_error=5.0).n_cells
+        True
         """
-        return self.static_selection(max_error).mesh
+        return self.static_selection(max_error, mesher=method).mesh
 
-    def static_selection(self, max_error: float = 1.0) -> Selection:
+    def static_selection(self, max_error: float = 1.0, mesher: str = "rtin") -> Selection:
         """Like :meth:`mesh` but returns the :class:`~geoterrain.lod.Selection` with stats.
 
         A forward to :func:`geoterrain.lod.static`.
         """
         from geoterrain import lod
 
-        return lod.static(self, max_error)
+        return lod.static(self, max_error, mesher)
 
     # ----------------------------------------------------------------- edits
     def edit(self, window, heights: np.ndarray, mode: str = "replace", *,

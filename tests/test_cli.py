@@ -378,3 +378,27 @@ def test_help_texts_are_in_a_users_words():
     for key in ("m ", "+ / -", "g ", "x ", "c ", "space", "s ", "t ", "h ", "q "):
         assert f"  {key}" in texts["view"], key
     assert "pixels" in texts["render"] and "TAU" not in texts["render"]
+
+
+def test_mesh_and_export_with_the_tin_mesher(fbm_tif, tmp_path):
+    """`--mesher tin`: a whole-terrain TIN (fewer triangles than rtin's at the same
+    --max-error); with a view, or an unknown mesher, one line and exit 2."""
+    import pyvista as pv
+
+    fbm_store = tmp_path / "f.geoterrain"
+    assert run("-q", "preprocess", fbm_tif, "-o", fbm_store).exit_code == 0
+    a, b = tmp_path / "rtin.ply", tmp_path / "tin.ply"
+    assert run("-q", "mesh", fbm_store, "-o", a, "--max-error", "2").exit_code == 0
+    res = run("mesh", fbm_store, "-o", b, "--max-error", "2", "--mesher", "tin", "--json")
+    assert res.exit_code == 0, res.output
+    stats = json.loads(res.output)
+    assert stats["mesher"] == "tin" and stats["triangles"] == pv.read(b).n_cells
+    assert pv.read(b).n_cells < pv.read(a).n_cells
+    glb = tmp_path / "tin.glb"
+    assert run("-q", "export", fbm_store, "-o", glb, "--max-error", "2", "--mesher",
+               "tin").exit_code == 0 and glb.stat().st_size > 0
+    assert_one_line_error(run("mesh", fbm_store, "-o", tmp_path / "v.ply", "--mesher", "tin",
+                              "--look-from", "0,-900,500", "--look-at", "0,0,0"), 2)
+    assert_one_line_error(run("mesh", fbm_store, "-o", tmp_path / "x.ply", "--max-error", "1",
+                              "--mesher", "delaunay"), 2)
+    assert not (tmp_path / "v.ply").exists() and not (tmp_path / "x.ply").exists()

@@ -72,10 +72,12 @@ class SweepGeometry(NamedTuple):
 
 
 class SweepTiles(NamedTuple):
-    """The window's heights ``z`` (metres, NaN: nodata; read only in decoded tiles), one
-    (2^t + 1)² block per window tile (``z[ty, tx, i, j]``: grid sample (row, column)
-    (ty + ty0)·2^t + i, (tx + tx0)·2^t + j; a tile's cells lie together, so a decoded
-    tile touches few pages of memory), each
+    """The window's heights ``z`` (metres, NaN: nodata; read only in decoded tiles), in
+    (2^t + 1)² blocks: window tile (ty, tx) holds its heights in block ``slot[ty, tx]``
+    (``z[slot[ty, tx], i, j]``: grid sample (row, column) (ty + ty0)·2^t + i,
+    (tx + tx0)·2^t + j; −1: no block), a block given to a tile when it is first read and
+    taken back once the sweep has left the tile's row (a tile's cells lie together, and
+    the few blocks are used again and again, so reads touch little fresh memory), each
     window tile's ``status`` (0 not decoded, 1 decoded, 2 not stored: no data, 3 ``z``
     holds upper bounds of its heights, less ε, from a coarser level), ``ztop``
     (the highest height of its box, metres) and ``zerr`` (how far its heights in ``z`` may
@@ -85,6 +87,7 @@ class SweepTiles(NamedTuple):
     (``tlast``)."""
 
     z: np.ndarray
+    slot: np.ndarray
     status: np.ndarray
     ztop: np.ndarray
     zerr: np.ndarray
@@ -167,7 +170,7 @@ def _tile_of(tiles, r, c):
 def _z(tiles, r, c):
     """The height held for window cell (r, c): in its tile's block."""
     ty, tx = _tile_of(tiles, r, c)
-    return tiles.z[ty, tx, r + tiles.r0 - ((ty + tiles.ty0) << tiles.t),
+    return tiles.z[tiles.slot[ty, tx], r + tiles.r0 - ((ty + tiles.ty0) << tiles.t),
                    c + tiles.c0 - ((tx + tiles.tx0) << tiles.t)]
 
 
@@ -215,21 +218,63 @@ def _reach(geo, r):
     return k
 
 
+@njit(cache=True, inline="always")
+def _run(tiles, ty, c, side, ncol):
+    """The run of columns in one tile that column c begins, going ``side`` (−1 west, +1
+    east): its tile column, status, block, box top and error, the column's offset into
+    the block and the column just past the run."""
+    t, c0, tx0, tlast = tiles.t, tiles.c0, tiles.tx0, tiles.tlast
+    tx = min((c + c0) >> t, tlast) - tx0
+    edge = (tx + tx0) << t  # the run's first grid column
+    stop = (edge - c0 - 1) if side < 0 else (edge + (1 << t) - c0)
+    if (tx + tx0) == tlast and side > 0:
+        stop = ncol
+    return (tx, tiles.status[ty, tx], tiles.slot[ty, tx], tiles.ztop[ty, tx],
+            tiles.zerr[ty, tx], c0 - edge, stop)
+
+
+@njit(cache=True, inline="always")
+def _cell(s, zc, top, e, lo, hi, curv, target, lift):
+    """A cell of a tile of status s (its height zc where s is 1 or 3): its code (−1: the
+    tile must be read) and observable heights, given its sight lines lo, hi."""
+    if s == 1:
+        if np.isnan(zc):  # transparent, no answer
+            return NO_ANSWER, lo, hi
+        z_lo = zc - curv - e
+        z_hi = zc - curv + e
+        if z_lo + target >= hi:
+            code = VISIBLE
+        elif z_hi + target < lo:
+            code = HIDDEN
+        else:
+            code = UNCERTAIN
+        return code, max(z_lo, lo), max(z_hi, hi)
+    if s == 2:  # no data in the tile
+        return NO_ANSWER, lo, hi
+    if (zc if s == 3 else top) - curv + lift < lo:
+        # the cell's bound (its tile's box, or the coarser level's surface plus that
+        # level's error) is below every sight line: hidden
+        return HIDDEN, lo, hi
+    return -1, lo, hi
+
+
 @njit(cache=True, nogil=True)
 def _sides(geo, tiles, st, r):
     """Cells of row r outward on both sides of the observer's column, from the columns
     ``st.resume[1]`` (west) and ``st.resume[2]`` (east) to the radius or the window's
     edge, each cell from its neighbours toward the observer. The two sides are
     independent chains (a cell waits on its neighbour's division), stepped together so
-    that the processor overlaps them. Returns a tile to decode (the resume columns then
-    say where each side stands) or NEED_NONE when the row is done."""
-    z, status, ztop, zerr = tiles.z, tiles.status, tiles.ztop, tiles.zerr
-    out, this_lo, this_hi, last_lo, last_hi = st.out, st.this_lo, st.this_hi, st.last_lo, \
-        st.last_hi
+    that the processor overlaps them, a west cell then an east one, in stretches where
+    neither side leaves its tile (each side's state in registers). Returns a tile to
+    decode (the resume columns then say where each side stands) or NEED_NONE when the
+    row is done."""
+    z = tiles.z
+    out, this_lo, this_hi, last_lo, last_hi = st.out[r], st.this_lo, st.this_hi, \
+        st.last_lo, st.last_hi
     oc, kcurv, target = geo.ocol, geo.kcurv, geo.target
     eye_lo, eye_hi, mode, two = geo.eye_lo, geo.eye_hi, geo.mode, geo.two
-    t, c0, tx0, tlast = tiles.t, tiles.c0, tiles.tx0, tiles.tlast
-    ncol = out.shape[1]
+    t, tlast = tiles.t, tiles.tlast
+    ncol = out.shape[0]
     j = abs(r - geo.orow)
     ny2 = geo.ny[r] * geo.ny[r]
     mxr2 = geo.mx[r] * geo.mx[r]
@@ -239,92 +284,84 @@ def _sides(geo, tiles, st, r):
     # the columns within the radius (and the window)
     reach = _reach(geo, r)
     first_c, last_c = max(oc - reach, 0), min(oc + reach, ncol - 1)
-    # per side (0 west, 1 east): its column, whether it goes on, the run of columns in
-    # one tile it stands in (tile column, status, box top, error, the run's end; −2⁴⁰:
-    # none yet) and the observable heights of its last cell
-    none = -(1 << 40)
-    col = np.empty(2, np.int64)
-    col[0], col[1] = st.resume[1], st.resume[2]
-    on = np.empty(2, np.bool_)
-    run_tx = np.zeros(2, np.int64)
-    run_s = np.zeros(2, np.int64)
-    run_stop = np.full(2, none, np.int64)
-    run_top = np.zeros(2)
-    run_e = np.zeros(2)
-    run_zc = np.zeros(2, np.int64)  # window column → column in the run's tile block
-    plo = np.zeros(2)
-    phi = np.zeros(2)
-    for sd in range(2):
-        c = col[sd]
-        on[sd] = first_c <= c <= last_c
-        if on[sd]:
-            side = 2 * sd - 1
-            plo[sd] = this_lo[c - side]
-            phi[sd] = this_hi[c - side]
+    cw, ce = st.resume[1], st.resume[2]
+    on_w = first_c <= cw <= last_c
+    on_e = first_c <= ce <= last_c
+    # each side's run of columns in one tile: tile column, status, block, box top,
+    # error, column offset into the block, the column past it; its last cell's
+    # observable heights
+    tx_w = s_w = b_w = zc_w = tx_e = s_e = b_e = zc_e = 0
+    top_w = e_w = top_e = e_e = 0.0
+    stop_w, stop_e = cw, ce  # a new run at the first cell
+    plo_w = phi_w = plo_e = phi_e = 0.0
+    if on_w:
+        plo_w, phi_w = this_lo[cw + 1], this_hi[cw + 1]
+    if on_e:
+        plo_e, phi_e = this_lo[ce - 1], this_hi[ce - 1]
     need = NEED_NONE
-    while on[0] or on[1]:
-        for sd in range(2):
-            if not on[sd]:
-                continue
-            c = col[sd]
-            side = 2 * sd - 1
-            if c == run_stop[sd] or run_stop[sd] == none:  # a new run of columns
-                tx = min((c + c0) >> t, tlast) - tx0
-                edge = (tx + tx0) << t  # the run's first grid column
-                stop = (edge - c0 - 1) if side < 0 else (edge + (1 << t) - c0)
-                if (tx + tx0) == tlast and side > 0:
-                    stop = ncol
-                run_tx[sd], run_s[sd], run_stop[sd] = tx, status[ty, tx], stop
-                run_top[sd], run_e[sd] = ztop[ty, tx], zerr[ty, tx]
-                run_zc[sd] = c0 - edge
-            dc = c - oc
-            i = abs(dc)
-            p = c - side
-            if j == 0:
-                lo = line_height(i, plo[sd], eye_hi)
-                hi = line_height(i, phi[sd], eye_lo) if two else lo
-            else:
-                lo = _los(mode, i, j, plo[sd], last_lo[c], last_lo[p], eye_hi)
-                hi = _los(mode, i, j, phi[sd], last_hi[c], last_hi[p], eye_lo) \
-                    if two else lo
-            curv = kcurv * (dc * dc * mxr2 + ny2)
-            s = run_s[sd]
-            nlo, nhi = lo, hi
-            if s == 1:
-                zc = z[ty, run_tx[sd], zr, c + run_zc[sd]]
-                if np.isnan(zc):  # transparent, no answer
-                    out[r, c] = NO_ANSWER
+    while on_w or on_e:
+        nw = ne = 0
+        if on_w:
+            if cw == stop_w:
+                tx_w, s_w, b_w, top_w, e_w, zc_w, stop_w = _run(tiles, ty, cw, -1, ncol)
+            nw = cw - max(stop_w, first_c - 1)
+        if on_e:
+            if ce == stop_e:
+                tx_e, s_e, b_e, top_e, e_e, zc_e, stop_e = _run(tiles, ty, ce, 1, ncol)
+            ne = min(stop_e, last_c + 1) - ce
+        k = min(nw, ne) if on_w and on_e else max(nw, ne)
+        for _ in range(k):
+            if on_w:
+                c = cw
+                dc = c - oc
+                i = -dc
+                if j == 0:
+                    lo = line_height(i, plo_w, eye_hi)
+                    hi = line_height(i, phi_w, eye_lo) if two else lo
                 else:
-                    e = run_e[sd]
-                    z_lo = zc - curv - e
-                    z_hi = zc - curv + e
-                    if z_lo + target >= hi:
-                        out[r, c] = VISIBLE
-                    elif z_hi + target < lo:
-                        out[r, c] = HIDDEN
-                    else:
-                        out[r, c] = UNCERTAIN
-                    nlo = max(z_lo, lo)
-                    nhi = max(z_hi, hi)
-            elif s == 2:  # no data in the tile
-                out[r, c] = NO_ANSWER
-            elif (z[ty, run_tx[sd], zr, c + run_zc[sd]] if s == 3 else run_top[sd]) \
-                    - curv + lift < lo:
-                # the cell's bound (its tile's box, or the coarser level's surface plus
-                # that level's error) is below every sight line: hidden
-                out[r, c] = HIDDEN
-            else:
-                need = (ty << 16) | run_tx[sd]
-                st.probe[0], st.probe[1], st.probe[2], st.probe[3] = c, lo, curv, lift
-                break
-            this_lo[c] = nlo
-            this_hi[c] = nhi
-            plo[sd], phi[sd] = nlo, nhi
-            col[sd] = c + side
-            on[sd] = first_c <= c + side <= last_c
+                    lo = _los(mode, i, j, plo_w, last_lo[c], last_lo[c + 1], eye_hi)
+                    hi = _los(mode, i, j, phi_w, last_hi[c], last_hi[c + 1], eye_lo) \
+                        if two else lo
+                curv = kcurv * (dc * dc * mxr2 + ny2)
+                zc = z[b_w, zr, c + zc_w] if s_w & 1 else 0.0
+                code, nlo, nhi = _cell(s_w, zc, top_w, e_w, lo, hi, curv, target, lift)
+                if code < 0:
+                    need = (ty << 16) | tx_w
+                    st.probe[0], st.probe[1], st.probe[2], st.probe[3] = c, lo, curv, lift
+                    break
+                out[c] = code
+                this_lo[c] = nlo
+                this_hi[c] = nhi
+                plo_w, phi_w = nlo, nhi
+                cw = c - 1
+            if on_e:
+                c = ce
+                dc = c - oc
+                i = dc
+                if j == 0:
+                    lo = line_height(i, plo_e, eye_hi)
+                    hi = line_height(i, phi_e, eye_lo) if two else lo
+                else:
+                    lo = _los(mode, i, j, plo_e, last_lo[c], last_lo[c - 1], eye_hi)
+                    hi = _los(mode, i, j, phi_e, last_hi[c], last_hi[c - 1], eye_lo) \
+                        if two else lo
+                curv = kcurv * (dc * dc * mxr2 + ny2)
+                zc = z[b_e, zr, c + zc_e] if s_e & 1 else 0.0
+                code, nlo, nhi = _cell(s_e, zc, top_e, e_e, lo, hi, curv, target, lift)
+                if code < 0:
+                    need = (ty << 16) | tx_e
+                    st.probe[0], st.probe[1], st.probe[2], st.probe[3] = c, lo, curv, lift
+                    break
+                out[c] = code
+                this_lo[c] = nlo
+                this_hi[c] = nhi
+                plo_e, phi_e = nlo, nhi
+                ce = c + 1
         if need != NEED_NONE:
             break
-    st.resume[1], st.resume[2] = col[0], col[1]
+        on_w = on_w and cw >= first_c
+        on_e = on_e and ce <= last_c
+    st.resume[1], st.resume[2] = cw, ce
     return need
 
 
@@ -381,6 +418,28 @@ def _centre(geo, tiles, st, r):
     else:
         return (ty << 16) | tx
     return NEED_NONE
+
+
+@njit(cache=True, nogil=True)
+def count_codes(codes):
+    """How many cells of ``codes`` (2-D, uint8) are hidden, visible, uncertain and without
+    an answer, in one pass.
+
+    Examples
+    --------
+    >>> count_codes(np.array([[0, 1, 1], [255, 254, 254]], np.uint8))
+    (1, 2, 1, 2)
+    """
+    n0 = n1 = n255 = n254 = 0
+    for i in range(codes.shape[0]):
+        row = codes[i]
+        for k in range(row.shape[0]):
+            x = row[k]
+            n0 += x == HIDDEN
+            n1 += x == VISIBLE
+            n255 += x == UNCERTAIN
+            n254 += x == NO_ANSWER
+    return n0, n1, n255, n254
 
 
 @njit(cache=True, nogil=True)

@@ -65,6 +65,7 @@ from geoterrain.analysis.sweep import (
     SweepGeometry,
     SweepState,
     SweepTiles,
+    count_codes,
     sweep_rows,
 )
 from geoterrain.analysis.window import Half, Window
@@ -274,12 +275,12 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
     for part in [whole] + [h[0] for h in halves]:
         read |= part.tiles.status == 1
         bounded |= part.tiles.status == 3
-    n = {k: int(np.count_nonzero(codes == k)) for k in (VISIBLE, HIDDEN, UNCERTAIN)}
+    n = dict(zip((HIDDEN, VISIBLE, UNCERTAIN, NO_ANSWER), count_codes(codes), strict=True))
     stats = reads.stats(
         tiles_in_window=int(stored.sum()), tiles_read=int(read.sum()),
         tiles_skipped=int((stored & ~read).sum()), tiles_bounded=int((bounded & ~read).sum()),
         waits=asked, visible=n[VISIBLE], hidden=n[HIDDEN], uncertain=n[UNCERTAIN],
-        cells=codes.size - int(np.count_nonzero(codes == NO_ANSWER)), radius=radius,
+        cells=codes.size - n[NO_ANSWER], radius=radius,
         window=(r0, c0, r1 - r0, wc))
     return Viewshed(codes, window_tr, f.crs_wkt, (geo.orow, geo.ocol),
                     (float(xy[0]), float(xy[1]), float(zg), float(eye)), stats)
@@ -295,13 +296,25 @@ def _sweep(geo: SweepGeometry, part: Half, st: SweepState, first: int, stop: int
     """Sweep rows ``first`` … ``stop`` (excluded) of one part, reading each tile the
     sweep asks for; returns how many times it asked."""
     asked, r = 0, first
+    run = _entry(sweep_rows, geo, part.tiles, st, r, stop, step)
     while True:
         st.probe[0] = -1.0
-        r, need = sweep_rows(geo, part.tiles, st, r, stop, step)
+        r, need = run(geo, part.tiles, st, r, stop, step)
         if need == NEED_NONE:
             return asked
         part.read(need >> 16, need & 0xFFFF, probe=(r, *st.probe) if st.probe[0] >= 0 else None)
         asked += 1
+
+
+def _entry(fn, *args):
+    """Compiled ``fn``'s code for these arguments' types, to be called without numba's
+    dispatcher, which types each field of a named tuple in Python at every call (4.3 of
+    a call's 4.3 µs against 0.9 µs, sweep_rows' arguments); ``fn`` itself where that
+    code is not at hand (not compiled yet for them)."""
+    try:
+        return fn.overloads[tuple(fn.typeof_pyval(a) for a in args)].entry_point
+    except (AttributeError, KeyError):
+        return fn
 
 
 def _two_threads() -> bool:

@@ -1,13 +1,14 @@
 """The viewshed's window of the grid: which of its tiles the sweep has read, at which
 level, and the reads themselves, safe for the two halves of the sweep running at once.
 
-:class:`Window` holds the window's heights (metres), filled only where a tile was read,
-and the per-tile numbers the compiled sweep (:mod:`geoterrain.analysis.sweep`) tests
-before it asks for a tile: the catalog's box top (free) and, once read, how far the
-heights may be from the source's. A half of the sweep gets its own view
-(:meth:`Window.half`): its own status and error arrays, and the rows it owns; its reads
-write only those rows, so the two halves never write what the other reads, and the
-store is read under one lock (a terrain is not thread-safe).
+:class:`Window` holds the heights (metres) of the tiles read, in blocks from a pool that
+the sweep takes back from the tile rows it has left (a cold viewshed's fresh memory was
+mostly these blocks), and the per-tile numbers the compiled sweep
+(:mod:`geoterrain.analysis.sweep`) tests before it asks for a tile: the catalog's box
+top (free) and, once read, how far the heights may be from the source's. A half of the
+sweep gets its own view (:meth:`Window.half`): its own status and error arrays, and the
+rows it owns; its reads write only those rows, so the two halves never write what the
+other reads, and the store is read under one lock (a terrain is not thread-safe).
 
 Examples
 --------
@@ -74,10 +75,17 @@ class Window:
                             and top is not None and math.isfinite(top) else inf)
         status = np.array(st, np.int8).reshape(nty, ntx)
         ztop = np.array(tops, np.float64).reshape(nty, ntx)
-        side = (1 << g.t) + 1  # a block per tile, read only where one was decoded into it
-        z = _scratch(nty * ntx * side, side).reshape(nty, ntx, side, side)
-        self.tiles = SweepTiles(z, status, ztop, np.full((nty, ntx), eps), r0, c0, g.t, ty0,
-                                tx0, tlast)
+        # a block of heights per tile read, from a pool: the sweep reads only the tile
+        # row it sweeps, and each half gives its own rows' blocks back once it leaves
+        # them, so at most three tile rows hold blocks (the observer's, which both halves
+        # read, and one for each half)
+        side = (1 << g.t) + 1
+        blocks = min(nty, 3) * ntx
+        z = _scratch(blocks * side, side).reshape(blocks, side, side)
+        slot = np.full((nty, ntx), -1, np.int64)
+        self.tiles = SweepTiles(z, slot, status, ztop, np.full((nty, ntx), eps), r0, c0, g.t,
+                                ty0, tx0, tlast)
+        self._free = list(range(blocks - 1, -1, -1))  # the lowest block is taken first
         self.lock = threading.Lock()
 
     def height(self, r: int, c: int) -> float:
@@ -86,8 +94,26 @@ class Window:
         tl = self.tiles
         ty = min((r + tl.r0) >> tl.t, tl.tlast) - tl.ty0
         tx = min((c + tl.c0) >> tl.t, tl.tlast) - tl.tx0
-        return float(tl.z[ty, tx, r + tl.r0 - ((ty + tl.ty0) << tl.t),
+        return float(tl.z[tl.slot[ty, tx], r + tl.r0 - ((ty + tl.ty0) << tl.t),
                           c + tl.c0 - ((tx + tl.tx0) << tl.t)])
+
+    def block(self, ty: int, tx: int) -> np.ndarray:
+        """Window tile (ty, tx)'s block of heights, given it from the pool if it has none
+        (call under :attr:`lock` where two halves read at once)."""
+        tl = self.tiles
+        b = int(tl.slot[ty, tx])
+        if b < 0:
+            if not self._free:  # the sweep reads three tile rows at most (see __init__)
+                raise RuntimeError("the viewshed's window ran out of height blocks")
+            b = tl.slot[ty, tx] = self._free.pop()
+        return tl.z[b]
+
+    def give_back(self, ty: int) -> None:
+        """Return the blocks of window tile row ``ty`` to the pool: no sweep reads it
+        again (call under :attr:`lock`)."""
+        row = self.tiles.slot[ty]
+        self._free.extend(int(b) for b in row[row >= 0][::-1])
+        row[:] = -1
 
     @property
     def status(self) -> np.ndarray:
@@ -103,10 +129,27 @@ class Window:
 
 class Half:
     """What one part of the sweep reads: its :class:`SweepTiles` and the window rows it
-    writes (:meth:`read`)."""
+    writes (:meth:`read`). A half sweeps its rows outward, so once it asks for a tile of
+    another tile row it is done with the row it was in: that row's blocks go back to
+    the window's pool where the row is this half's alone."""
 
     def __init__(self, window: Window, tiles: SweepTiles, lo: int, hi: int):
         self.w, self.tiles, self.lo, self.hi = window, tiles, lo, hi
+        self.row = -1  # the tile row it last read
+
+    def _own(self, ty: int) -> bool:
+        """Whether every window row of tile row ``ty`` is one of this half's."""
+        tl, w = self.tiles, self.w
+        g0 = (ty + tl.ty0) << tl.t
+        g1 = g0 + (1 << tl.t) + (ty + tl.ty0 == tl.tlast)
+        return max(g0, w.r0) - w.r0 >= self.lo and min(g1, w.r1) - w.r0 <= self.hi
+
+    def _enter(self, ty: int) -> None:
+        if ty != self.row:
+            if self.row >= 0 and self._own(self.row):
+                with self.w.lock:
+                    self.w.give_back(self.row)
+            self.row = ty
 
     def read(self, ty: int, tx: int, at: int | None = None,
              probe: tuple[int, float, float, float, float] | None = None) -> None:
@@ -118,7 +161,9 @@ class Half:
         hidden by that bound either: the sweep would ask again from that very cell."""
         w, st = self.w, self.tiles.status
         at = w.level if at is None else at
-        # the status is this half's own; only the terrain's reads take the lock
+        self._enter(ty)
+        # the status is this half's own; only the terrain's reads and the blocks take
+        # the lock
         if at == 0 and st[ty, tx] == 0 and self._bound_first(ty, tx, probe):
             return
         terrain = w.terrain
@@ -128,12 +173,14 @@ class Half:
         zm = terrain.frame.z_to_m
         key = (at, (tx + tx0) >> at, (ty + ty0) >> at)
         err = terrain.tile_info[key]["error"] if key in terrain.tile_info else np.inf
-        z = self.tiles.z[ty, tx, a0 - gy:a1 - gy, b0 - gx:b1 - gx]
-        if at == 0 or not np.isfinite(err):
+        if at == 0 or not math.isfinite(err):
             with w.lock:
                 tile = terrain.tile(0, tx + tx0, ty + ty0)
+                z = w.block(ty, tx)[a0 - gy:a1 - gy, b0 - gx:b1 - gx]
             np.multiply(tile.heights[a0 - gy:a1 - gy, b0 - gx:b1 - gx], zm, out=z)
         else:
+            with w.lock:
+                z = w.block(ty, tx)[a0 - gy:a1 - gy, b0 - gx:b1 - gx]
             np.multiply(level_surface(terrain, at, np.arange(a0, a1), np.arange(b0, b1),
                                       w.lock), zm, out=z)
             zs = terrain.frame.z_scale or 1.0
@@ -161,11 +208,12 @@ class Half:
         if terrain.grid.top_level < 1 or key not in terrain.tile_info:
             return False
         err = terrain.tile_info[key]["error"]
-        if not np.isfinite(err):
+        if not math.isfinite(err):
             return False
         zs = terrain.frame.z_scale or 1.0
         with w.lock:
             tile = terrain.tile(*key)  # its heights are NaN where not valid
+            blk = w.block(ty, tx) if probe is None else None
         g, zm, lift = terrain.grid, terrain.frame.z_to_m, err / zs * (1 + 1e-12) + 1e-9
         org = (key[2] << g.t, key[1] << g.t)
         if probe is not None:  # the asking cell first: the same test as the sweep's
@@ -175,7 +223,10 @@ class Half:
                 return False
         a0, a1, b0, b1 = self._cells(ty, tx)
         gy, gx = (ty + tl.ty0) << tl.t, (tx + tl.tx0) << tl.t
-        z = tl.z[ty, tx, a0 - gy:a1 - gy, b0 - gx:b1 - gx]
+        if blk is None:
+            with w.lock:
+                blk = w.block(ty, tx)
+        z = blk[a0 - gy:a1 - gy, b0 - gx:b1 - gx]
         # NaN where level 1 has no data: the sweep then reads level 0 (a void's code)
         _union_jack_into(tile.heights, 1, *org, a0, b0, zm, lift, z)
         tl.status[ty, tx] = 3
@@ -183,11 +234,13 @@ class Half:
 
 
 def _scratch(rows: int, cols: int) -> np.ndarray:
-    """An uninitialised (rows, cols) float64 array in ordinary pages: the window's
-    heights are written only where a tile is decoded, and numpy's huge pages would have
-    the kernel zero 2 MiB at the first touch of each (8 % of a cold 4097² viewshed)."""
+    """An uninitialised (rows, cols) float64 array in ordinary pages, mapped afresh (above
+    64 KiB): the blocks are written only where a tile is read, numpy's huge pages would
+    have the kernel zero 2 MiB at the first touch of each, and memory the allocator kept
+    from an earlier viewshed would spare a benchmark's cold run the first touches that
+    a viewshed in a fresh process pays."""
     n = rows * cols * 8
-    if n < 1 << 22:
+    if n < 1 << 16:
         return np.empty((rows, cols))
     m = mmap.mmap(-1, n)
     with contextlib.suppress(AttributeError, OSError):  # not Linux: whatever it gives

@@ -162,7 +162,7 @@ def _valid_finite_nb(x, y, z, valid):  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _tangent_nb(x, y, z, v, i, j, axis):  # pragma: no cover - compiled
     """Central / one-sided tangent at (i, j) along ``axis`` (0: rows i, 1: columns j)."""
     rows, cols = v.shape
@@ -190,7 +190,7 @@ def _tangent_nb(x, y, z, v, i, j, axis):  # pragma: no cover - compiled
     return 0.0, 0.0, 0.0, False
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _horn_nb(x, y, z, v, i, j, axis):  # pragma: no cover - compiled
     """1-2-1 mean of the ``axis`` tangents of the lines across ``axis`` (Horn / Sobel)."""
     rows, cols = v.shape
@@ -220,7 +220,8 @@ def _horn_nb(x, y, z, v, i, j, axis):  # pragma: no cover - compiled
 @parallel_kernel(cache=True, nogil=True)
 def _normals_nb(x, y, z, v, horn, out):  # pragma: no cover - compiled
     rows, cols = v.shape
-    for i in prange(rows):
+    for ip in prange(rows):
+        i = np.int64(ip)  # prange's index may be unsigned: int64 for the helpers' arithmetic
         for j in range(cols):
             out[i, j, 0] = 0.0
             out[i, j, 1] = 0.0
@@ -254,7 +255,7 @@ def _normals_nb(x, y, z, v, horn, out):  # pragma: no cover - compiled
             _unit_cross(jx, jy, jz, ix, iy, iz, out, i, j)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _unit_cross(jx, jy, jz, ix, iy, iz, out, i, j):  # pragma: no cover - compiled
     """out[i, j] = the unit cross product of the tangents, z up; left (0, 0, 1) where
     it is degenerate."""
@@ -447,7 +448,7 @@ def encode_octahedral(n: np.ndarray, bits: int = 8, precise: bool = False, *,
     return out.reshape(*n.shape[:-1], 2)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _oct_point(cu, cv, m):  # pragma: no cover - compiled
     """The unnormalised point of code (cu, cv) over ``m``: u, v = 2·code/m − 1, z =
     1 − |u| − |v|, and the lower half folded over (float64)."""
@@ -462,7 +463,7 @@ def _oct_point(cu, cv, m):  # pragma: no cover - compiled
     return x, y, zz
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _oct_dot_nb(cu, cv, m, ux, uy, uz):  # pragma: no cover - compiled
     """Cosine between the decoded code (cu, cv) and the unit vector u."""
     x, y, zz = _oct_point(cu, cv, m)

@@ -254,7 +254,7 @@ def _value(enc, S, buf, m, u, ctx, sctx, ke, ph):
         return np.uint64(0), S
     neg, S = _bit(enc, S, buf, m, _S0 + sctx * 5 + ph, np.int64(u & np.uint64(1)))
     mag = (u >> np.uint64(1)) + (u & np.uint64(1))  # |r|, 2^63 included
-    k, S = _length(enc, S, buf, m, _bitlen(mag) if enc else 0, ctx, ke, 1)
+    k, S = _length(enc, S, buf, m, _bitlen(mag) if enc else 0, ctx, ke, np.int64(1))
     v = np.uint64(1)
     if k >= 2:
         b = np.int64((mag >> np.uint64(k - 2)) & np.uint64(1)) if enc else np.int64(0)
@@ -275,7 +275,7 @@ def _value_wide(enc, S, buf, m, u, ctx, ke):
     then the sign and the bits below the leading one as k equiprobable bits. Half the
     modelled decisions of :func:`_value`, for a fraction of a bit more."""
     mag = (u >> np.uint64(1)) + (u & np.uint64(1))
-    k, S = _length(enc, S, buf, m, _bitlen(mag) if enc else 0, ctx, ke, 0)
+    k, S = _length(enc, S, buf, m, _bitlen(mag) if enc else 0, ctx, ke, np.int64(0))
     if k == 0:
         return np.uint64(0), S
     # k bits: the mantissa below the leading one, then the sign
@@ -426,6 +426,13 @@ def _tile(enc, buf, parent, py, px, h, cubic, out, ok, kind, W):
     return _child(enc, S, buf, m, parent, py * h, px * h, h, cubic, out, ok, W)
 
 
+@njit(cache=True, nogil=True)
+def _encode_tile(buf, parent, py, px, h, cubic, out, ok, kind, W):
+    # the coder called with a literal True, as encode_level and the decoders (False) call
+    # it: a bool argument from Python would compile every coder function a third time
+    return _tile(True, buf, parent, py, px, h, cubic, out, ok, kind, W)
+
+
 def encode_tile(child: np.ndarray, ok: np.ndarray, parent: np.ndarray, parity: tuple[int, int],
                 cubic: bool, kind: int, W: int = 1) -> bytes:
     """The stream of one child tile: its codes ``child`` ((2h + 1)²; invalid samples are
@@ -438,8 +445,9 @@ def encode_tile(child: np.ndarray, ok: np.ndarray, parent: np.ndarray, parity: t
     cap = 64 + 2 * t * t
     while True:
         buf = np.zeros(cap, np.uint8)
-        st = _tile(True, buf, np.ascontiguousarray(parent, np.int64), parity[1] & 1,
-                   parity[0] & 1, t // 2, cubic, np.array(child, np.int64), ok.copy(), kind, W)
+        st = _encode_tile(buf, np.ascontiguousarray(parent, np.int64), parity[1] & 1,
+                          parity[0] & 1, t // 2, cubic, np.array(child, np.int64), ok.copy(),
+                          kind, W)
         n = _finish(st, buf)
         if n >= 0:
             return buf[:n].tobytes()
@@ -552,7 +560,7 @@ def _top(enc, buf, top, ok, te, cubic, kind, W, filled, edges=False):
     for q in range(4):
         i, j = (q >> 1) * last, (q & 1) * last
         u = _zig(top[i, j] - prev) if enc else np.uint64(0)
-        u, S = _value(enc, S, buf, m, u, _NB - 1, 0, 1, 2)
+        u, S = _value(enc, S, buf, m, u, _NB - 1, np.int64(0), np.int64(1), np.int64(2))
         if not enc:
             top[i, j] = prev + _unzig(u)
         prev = top[i, j]
@@ -563,7 +571,7 @@ def _top(enc, buf, top, ok, te, cubic, kind, W, filled, edges=False):
         s, h = 1 << k, 1 << (te - k - 1)
         parent = np.ascontiguousarray(top[::2 * s, ::2 * s])
         out = np.ascontiguousarray(top[::s, ::s])
-        S = _child(enc, S, buf, m, parent, 0, 0, h, cubic, out,
+        S = _child(enc, S, buf, m, parent, np.int64(0), np.int64(0), h, cubic, out,
                    np.ascontiguousarray(ok[::s, ::s]), W)
         if filled and edges:
             fill_edges_first(out, np.ascontiguousarray(known[::s, ::s]))
@@ -571,6 +579,12 @@ def _top(enc, buf, top, ok, te, cubic, kind, W, filled, edges=False):
             fill_outward(out, np.ascontiguousarray(known[::s, ::s]))
         top[::s, ::s] = out
     return S
+
+
+@njit(cache=True, nogil=True)
+def _encode_top(buf, top, ok, te, cubic, kind, W, filled, edges):
+    # a literal True, as _encode_tile says
+    return _top(True, buf, top, ok, te, cubic, kind, W, filled, edges)
 
 
 def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int,
@@ -592,8 +606,8 @@ def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int,
     cap = 64 + 2 * top.size
     while True:
         buf = np.zeros(cap, np.uint8)
-        st = _top(True, buf, top.copy(), np.ascontiguousarray(ok, np.bool_).copy(), te, cubic,
-                  kind, W, filled, edges)
+        st = _encode_top(buf, top.copy(), np.ascontiguousarray(ok, np.bool_).copy(), te,
+                         cubic, kind, W, filled, edges)
         n = _finish(st, buf)
         if n >= 0:
             return buf[:n].tobytes()

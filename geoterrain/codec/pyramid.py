@@ -678,12 +678,25 @@ def _wide_child(data, off, w, n, parent, py, px, h, cubic, out):
     coded, added to the parent's predictions (cubic: the parent tile's own, with its
     edge fallbacks; linear: from the quadrant the child covers)."""
     r = np.empty(n, np.int64)
-    one = np.uint64(1)
-    for k in range(n):
-        v = np.uint64(0)
-        for b in range(w):
-            v |= np.uint64(data[off + b * n + k]) << np.uint64(8 * b)
-        r[k] = np.int64(v >> one) ^ -np.int64(v & one)
+    d = data[off:off + w * n]
+    if w == 8:  # a residual may fill 64 bits: unsigned, shifted logically
+        one = np.uint64(1)
+        for k in range(n):
+            v = np.uint64(0)
+            for b in range(8):
+                v |= np.uint64(d[b * n + k]) << np.uint64(8 * b)
+            r[k] = np.int64(v >> one) ^ -np.int64(v & one)
+    elif w == 0:
+        r[:] = 0
+    else:  # 1, 2 or 4 bytes: each plane read in order (a loop over the bytes of one
+        # residual, w unknown to the compiler, took 8× as long)
+        for k in range(n):
+            v = np.int64(d[k])
+            if w >= 2:
+                v |= np.int64(d[n + k]) << 8
+            if w == 4:
+                v |= (np.int64(d[2 * n + k]) << 16) | (np.int64(d[3 * n + k]) << 24)
+            r[k] = (v >> 1) ^ -(v & 1)
     if cubic:
         cubic_child(parent, py * h, px * h, h, r, out)
     else:

@@ -144,8 +144,12 @@ def select(terrain: TerrainLike, view: View, pixel_error: float = 1.0, strategy:
     return sel
 
 
-def static(terrain: TerrainLike, max_error: float = 1.0) -> Selection:
-    """The static mesh keeping every vertex with δ > ``max_error``: vertical error ≤ it.
+def static(terrain: TerrainLike, max_error: float = 1.0, mesher: str = "rtin") -> Selection:
+    """The static mesh within ``max_error`` of every valid level-0 sample.
+
+    ``mesher``: ``"rtin"`` (the default) keeps every vertex with δ > ``max_error`` (the
+    bintree cut, :func:`geoterrain.lod.rtin.static`); ``"tin"`` is the greedy-insertion
+    TIN (:mod:`geoterrain.lod.tin`): fewer triangles, the whole grid read at once.
 
     Examples
     --------
@@ -160,10 +164,18 @@ def static(terrain: TerrainLike, max_error: float = 1.0) -> Selection:
         raise UsageError(f"max_error must be a number, got {max_error!r}") from None
     if not (e >= 0 and not math.isnan(e)):
         raise UsageError(f"max_error must be ≥ 0, got {max_error}")
+    if mesher not in ("rtin", "tin"):
+        raise UsageError(f"mesher must be 'rtin' or 'tin', got {mesher!r}")
     t0, dec0 = time.perf_counter(), terrain.decoded_tiles
-    mesh, stats = rtin.static(terrain, e)
-    sel = _finish(terrain, mesh, stats, "static", t0, dec0, elevated=True)
+    if mesher == "tin":
+        from geoterrain.lod import tin
+
+        mesh, stats = tin.static(terrain, e)
+    else:
+        mesh, stats = rtin.static(terrain, e)
+    sel = _finish(terrain, mesh, stats, "static", t0, dec0, elevated=mesher == "rtin")
     sel.stats["max_error"] = e
+    sel.stats["mesher"] = mesher
     return sel
 
 

@@ -119,6 +119,32 @@ def test_two_threads_give_the_one_thread_viewshed(voids, monkeypatch, level):
 
 
 @pytest.mark.fast
+@pytest.mark.parametrize("threads", [True, False])
+def test_height_blocks_go_back_only_when_no_sweep_reads_them(voids, monkeypatch, threads):
+    """The window's height blocks come from a pool of three tile rows and go back to it
+    as each half leaves a tile row: a block given back is poisoned (NaN, which the sweep
+    would take for nodata), and the viewshed is still the reference sweep."""
+    from geoterrain.analysis import visibility, window
+
+    t, src = voids
+    a, _, c, _, e, f = t.frame.transform[:6]
+    give_back, back = window.Window.give_back, []
+
+    def poisoned(self, ty):
+        row = self.tiles.slot[ty]
+        self.tiles.z[row[row >= 0]] = np.nan
+        back.append(int((row >= 0).sum()))
+        give_back(self, ty)
+
+    monkeypatch.setattr(window.Window, "give_back", poisoned)
+    monkeypatch.setattr(visibility, "_two_threads", lambda: threads)
+    t.clear_cache()
+    vs = viewshed(t, (c + a * 80.5, f + e * 60.5), radius=2000.0, height=1.0)
+    assert np.array_equal(vs.codes, _reference(src, vs))
+    assert len(back) >= 3 and sum(back) > 0  # tile rows given back, blocks poisoned
+
+
+@pytest.mark.fast
 def test_the_asking_cell_probe_changes_nothing_read(voids, monkeypatch):
     """A tile's level-1 bound is skipped when it cannot hide the cell that asked for the
     tile: the same tiles are read and bounded as when the bound is always computed."""
@@ -367,3 +393,36 @@ def test_line_of_sight_over_the_bilinear_surface(voids, a, b, ha, hb):
         assert not los.visible and los.obstruction is not None
     if ref > 1e-6:
         assert los.visible
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 40), st.integers(1, 40))
+def test_code_counts_are_numpys(seed, rows, cols):
+    from geoterrain.analysis.sweep import count_codes
+
+    rng = np.random.default_rng(seed)
+    codes = rng.choice(np.array([0, 1, 254, 255, 7], np.uint8), (rows, cols))
+    assert count_codes(codes) == tuple(int(np.count_nonzero(codes == k))
+                                       for k in (0, 1, 255, 254))
+
+
+@pytest.mark.fast
+def test_sweep_called_past_the_dispatcher(voids, monkeypatch):
+    """After the first viewshed, the sweep's compiled code is called directly (numba's
+    dispatcher typed each named-tuple field in Python at every call); the answer is the
+    one the dispatcher gives."""
+    from geoterrain.analysis import visibility
+    from geoterrain.analysis.sweep import sweep_rows
+
+    t, src = voids
+    a, _, c, _, e, f = t.frame.transform[:6]
+    obs = (c + a * 80.5, f + e * 60.5)
+    viewshed(t, obs, radius=2000.0, height=1.0)
+    entries = []
+    entry = visibility._entry
+    monkeypatch.setattr(visibility, "_entry",
+                        lambda fn, *args: entries.append(entry(fn, *args)) or entries[-1])
+    direct = viewshed(t, obs, radius=2000.0, height=1.0)
+    assert entries and all(e is not sweep_rows for e in entries)
+    monkeypatch.setattr(visibility, "_entry", lambda fn, *args: fn)
+    assert np.array_equal(direct.codes, viewshed(t, obs, radius=2000.0, height=1.0).codes)

@@ -208,3 +208,32 @@ def test_a_lossless_float_store_has_wide_blobs_below_its_top():
     for bad in (raw + b"x", raw[:-1]):
         with pytest.raises(ValueError):
             decode_tile(b[:4] + zstandard.ZstdCompressor().compress(bad), top, q, (1, 0))
+
+
+@settings(max_examples=60, deadline=None)
+@given(w=st.sampled_from([0, 1, 2, 4, 8]), seed=st.integers(0, 2**32 - 1),
+       cubic=st.booleans(), off=st.integers(0, 3), py=st.integers(0, 1), px=st.integers(0, 1))
+def test_wide_residuals_of_every_width(w, seed, cubic, off, py, px):
+    """A wide blob's residuals, w little-endian bytes in w planes, zig-zag coded (the top
+    bit set too at w = 8), are added to the predictions as numpy unpacks them."""
+    from geoterrain.codec.predict import cubic_child, linear_child
+    from geoterrain.codec.pyramid import _wide_child
+
+    rng = np.random.default_rng(seed)
+    h = 4
+    n, tt = 3 * h * h + 2 * h, 2 * h + 1
+    data = rng.integers(0, 256, off + w * n, dtype=np.uint8)
+    parent = rng.integers(-2**40, 2**40, (tt, tt))
+    v = np.zeros(n, np.uint64)
+    for b in range(w):
+        v |= data[off + b * n:off + (b + 1) * n].astype(np.uint64) << np.uint64(8 * b)
+    r = (v >> np.uint64(1)).astype(np.int64) ^ -(v & np.uint64(1)).astype(np.int64)
+    want = np.empty((tt, tt), np.int64)
+    if cubic:
+        cubic_child(parent, py * h, px * h, h, r, want)
+    else:
+        linear_child(np.ascontiguousarray(parent[py * h:py * h + h + 1,
+                                                 px * h:px * h + h + 1]), h, r, want)
+    got = np.empty((tt, tt), np.int64)
+    _wide_child(data, off, w, n, parent, py, px, h, cubic, got)
+    np.testing.assert_array_equal(got, want)

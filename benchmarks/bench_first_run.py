@@ -1,0 +1,99 @@
+"""The first run on an empty kernel cache: where numba's compile time goes (a script, not
+a test).
+
+Runs the commands of ``make demo`` in this process, with ``NUMBA_CACHE_DIR`` pointed at
+an empty temporary folder, and records every compilation numba reports
+(``numba.core.event``, "numba:compile"). Each kernel's time is its own: the time of the
+kernels it compiles in turn (its callees) is taken off. Prints each command's CPU and wall
+time, the total compile time, and the kernels that cost the most.
+
+The whole-process figure a user sees is ``make demo`` itself on an empty cache::
+
+    rm -rf /tmp/empty && mkdir /tmp/empty
+    /usr/bin/time -v env NUMBA_CACHE_DIR=/tmp/empty make demo
+
+Usage: ``python benchmarks/bench_first_run.py [--top 30]`` (from the project root; the
+demo's outputs go to a temporary folder).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def demo_commands(out: str) -> list[list[str]]:
+    """The Makefile's demo, its outputs under ``out``."""
+    store = f"{out}/fbm_513.geoterrain"
+    return [
+        ["preprocess", str(ROOT / "sample_dems" / "fbm_513.tif"), "-o", store, "--overwrite"],
+        ["info", store],
+        ["mesh", store, "-o", f"{out}/fbm_513.ply", "--max-error", "1", "--overwrite"],
+        ["render", store, "-o", f"{out}/fbm_513.png", "--overwrite"],
+        ["render", store, "-o", f"{out}/fbm_513_map.png", "--map", "--overwrite",
+         "--water-level", "300"],
+        ["export", store, "-o", f"{out}/fbm_513.glb", "--max-error", "5", "--print-size",
+         "150", "--preview", f"{out}/fbm_513_print.png", "--overwrite"],
+        ["export-raster", store, "--what", "hillshade", "-o", f"{out}/fbm_513_hillshade.tif",
+         "--overwrite"],
+    ]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--top", type=int, default=30, help="kernels listed (default 30)")
+    args = ap.parse_args()
+    cache = tempfile.mkdtemp(prefix="numba-cache-")
+    os.environ["NUMBA_CACHE_DIR"] = cache  # before numba is imported
+    from numba.core import event
+
+    own: dict[tuple[str, str], float] = {}
+    stack: list[list] = []
+
+    class Timer(event.Listener):
+        def on_start(self, ev) -> None:
+            stack.append([time.process_time(), 0.0])
+
+        def on_end(self, ev) -> None:
+            t0, callees = stack.pop()
+            spent = time.process_time() - t0
+            f = ev.data["dispatcher"].py_func
+            key = (f"{f.__module__}.{f.__qualname__}", str(ev.data.get("args")))
+            own[key] = own.get(key, 0.0) + spent - callees
+            if stack:
+                stack[-1][1] += spent
+
+    event.register("numba:compile", Timer())
+    from geoterrain.cli.main import cli
+
+    print(f"load average {os.getloadavg()[0]:.1f}, {os.cpu_count()} cores, cache {cache}")
+    cpu_all, wall_all = time.process_time(), time.perf_counter()
+    with tempfile.TemporaryDirectory() as out:
+        for cmd in demo_commands(out):
+            c0, w0 = time.process_time(), time.perf_counter()
+            try:
+                cli.main(cmd, prog_name="geoterrain", standalone_mode=False)
+            except SystemExit:
+                pass
+            print(f"{cmd[0]:>14}: CPU {time.process_time() - c0:6.1f} s, "
+                  f"wall {time.perf_counter() - w0:6.1f} s", file=sys.stderr)
+    total = sum(own.values())
+    kernels = {k for k, _ in own}
+    shutil.rmtree(cache, ignore_errors=True)
+    print(f"\nall commands: CPU {time.process_time() - cpu_all:.1f} s, wall "
+          f"{time.perf_counter() - wall_all:.1f} s; compiling: CPU {total:.1f} s, "
+          f"{len(own)} specialisations of {len(kernels)} functions")
+    print("\n| own compile CPU, s | function | argument types |\n|---:|---|---|")
+    for (name, sig), s in sorted(own.items(), key=lambda kv: -kv[1])[:args.top]:
+        print(f"| {s:.2f} | {name} | {sig[:90]} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,210 @@
+"""The greedy TIN's driver and its collapse pass (the kernels of :mod:`geoterrain.lod.tin`).
+
+:func:`greedy_tin` runs the refinement of :mod:`geoterrain.lod.tinkernels` (insert the
+worst sample of the worst triangle until every triangle is within the bound), then
+:func:`_decimate`: each point merged into a neighbour wherever every triangle of the new
+fan still has its error over the samples it covers within the bound (scanned, as the
+refinement scans), which removes about a third of the triangles Delatin's refinement
+alone leaves (docs/lab/static-mesh.md). The half-edge rows, the heap and the scans are
+the refinement module's; this module only uses them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from geoterrain.lod.tinkernels import (
+    DEAD,
+    MAXDEG,
+    NH,
+    NP,
+    NT,
+    QI,
+    ROW,
+    TRIES,
+    _compact,
+    _flip_to_cover,
+    _flush,
+    _forget,
+    _insert,
+    _next,
+    _orient,
+    _prev,
+    _scan,
+    _scan_plain,
+    _set_triangle,
+)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _within(a, b, c, z, valid, W, voids, max_error):
+    if voids:
+        return _scan(a, b, c, z, valid, W, True)[0] <= max_error
+    return _scan_plain(a, b, c, z, W, max_error)[0] <= max_error
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _fan_gap(i, d, xy, zn, zv):
+    """The fan from neighbour i over the star of v (neighbours' x, y in ``xy``, v's last,
+    their heights ``zn``, v's ``zv``): +inf unless every triangle is positive, else its
+    error at v itself (one sample, before any triangle is scanned)."""
+    vx, vy = xy[d, 0], xy[d, 1]
+    ux, uy = xy[i, 0], xy[i, 1]
+    gap = np.inf
+    for m in range(d - 2):
+        k = (i + 1 + m) % d
+        k1 = (k + 1) % d
+        ax, ay, bx, by = xy[k, 0], xy[k, 1], xy[k1, 0], xy[k1, 1]
+        if _orient(ux, uy, ax, ay, bx, by) <= 0:
+            return np.inf
+        w0 = _orient(ax, ay, bx, by, vx, vy)
+        w1 = _orient(bx, by, ux, uy, vx, vy)
+        w2 = _orient(ux, uy, ax, ay, vx, vy)
+        if w0 >= 0 and w1 >= 0 and w2 >= 0:
+            zi = (zn[i] * w0 + zn[k] * w1 + zn[k1] * w2) / float(w0 + w1 + w2)
+            gap = abs(zi - zv)
+    return gap
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _decimate(F, nt, pts, z, valid, W, voids, max_error):
+    """Remove the points the refinement no longer needs: collapse an interior point v
+    onto a neighbour u when the fan from u over v's star is a valid triangulation
+    (every triangle positive) within ``max_error`` (each new triangle scanned). Two
+    triangles fewer each. The greedy insertion adds a point for the worst sample of its
+    day; points added later often make an early one redundant. Returns the number of
+    points removed."""
+    where = np.empty(valid.size, np.int32)  # sample → point
+    for k in range(len(pts)):
+        where[pts[k]] = k
+    out = np.full(len(pts), -1, np.int32)  # an outgoing half-edge of each point
+    for t in range(nt):
+        for k in range(3):
+            out[where[F[ROW * t + k]]] = ROW * t + k
+    star = np.empty(MAXDEG, np.int64)
+    gap = np.empty(MAXDEG, np.float64)
+    xy = np.empty((MAXDEG + 1, 2), np.int64)
+    zn = np.empty(MAXDEG, np.float64)
+    nb = np.empty(MAXDEG + 1, np.int64)
+    removed = 0
+    mark = np.zeros(valid.size, np.bool_)  # row by row: a point's star shares rows and
+    for k in range(4, len(pts)):           # heights with the last one's (the
+        mark[pts[k]] = True                # rectangle's corners, 0 … 3, stay); a
+    for v in range(valid.size):            # pass over the samples, not a sort
+        if not mark[v]:
+            continue
+        kv = where[v]
+        e = out[kv]
+        d = 0
+        interior = True
+        while True:  # v's outgoing half-edges, around it
+            if d == MAXDEG:
+                interior = False
+                break
+            star[d] = e
+            nb[d] = F[_next(e)]
+            d += 1
+            e = F[_prev(e) + 3]
+            if e < 0:
+                interior = False
+                break
+            if e == star[0]:
+                break
+        if not interior:
+            continue
+        nb[d] = nb[0]
+        # the fans that stay positive, by their error at v (a cheap first refusal);
+        # the TRIES best are scanned
+        for k in range(d):
+            xy[k, 0], xy[k, 1] = nb[k] % W, nb[k] // W
+            zn[k] = z[nb[k]]
+        xy[d, 0], xy[d, 1] = v % W, v // W
+        for i in range(d):
+            gap[i] = _fan_gap(i, d, xy, zn, z[v])
+        for _ in range(TRIES):
+            i = np.argmin(gap[:d])
+            if not gap[i] <= max_error:
+                break
+            gap[i] = np.inf
+            u = nb[i]
+            ok = True
+            for m in range(d - 2):
+                k = (i + 1 + m) % d
+                if not _within(np.int64(u), np.int64(nb[k]), np.int64(nb[k + 1]), z, valid, W,
+                               voids, max_error):
+                    ok = False
+                    break
+            if not ok:
+                continue
+            ei, em = star[i], star[(i - 1) % d]  # (v → u) and (v → nb[i − 1])
+            ep, emm = star[(i + 1) % d], star[(i - 2) % d]
+            x = F[_next(ei) + 3]  # outside (n_{i+1} → u)'s twin
+            y = F[_next(em) + 3]
+            F[ep + 3] = x
+            if x >= 0:
+                F[x + 3] = ep
+            F[_prev(emm) + 3] = y
+            if y >= 0:
+                F[y + 3] = _prev(emm)
+            for m in range(d - 2):
+                F[star[(i + 1 + m) % d]] = u
+            F[(ei & ~7) + QI] = DEAD
+            F[(em & ~7) + QI] = DEAD
+            ku = where[u]
+            out[ku] = ep
+            out[where[nb[(i + 1) % d]]] = _next(ep)
+            out[where[nb[(i - 1) % d]]] = _prev(emm)
+            out[kv] = -1
+            removed += 1
+            break
+    return removed
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _grow(a, n):
+    out = np.empty(n, a.dtype)
+    out[:len(a)] = a
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def greedy_tin(z, valid, H, W, max_error, voids, simplify):
+    """The greedy TIN of the H × W heights ``z`` (flat, scene units; ``valid`` flat):
+    insert the worst sample of the worst triangle until every triangle's error over the
+    samples it covers is ≤ ``max_error``. Returns the drawn triangles (F, 3) and the
+    (row, column) of the points they use (:func:`_compact`). Needs 16·H·W < 2³¹ (int32
+    half-edges)."""
+    cap = 1024
+    F = np.empty(ROW * cap, np.int32)
+    heap = np.empty(cap, np.int32)
+    key = np.empty(cap, np.float64)
+    pending = np.empty(cap, np.int32)
+    stack = np.empty(1 << 16, np.int32)
+    pts = np.empty(cap, np.int32)  # the points, in insertion order
+    cnt = np.zeros(4, np.int64)
+    p0, p1, p2, p3 = 0, W - 1, (H - 1) * W, H * W - 1
+    pts[0], pts[1], pts[2], pts[3] = p0, p1, p2, p3
+    cnt[NP] = 4
+    t0 = _set_triangle(F, pending, cnt, 0, p3, p0, p2, -1, -1, -1)
+    _set_triangle(F, pending, cnt, 1, p0, p3, p1, t0, -1, -1)
+    cnt[NT] = 2
+    _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error)
+    while cnt[NH] > 0 and key[0] > max_error:
+        if cnt[NT] + 2 > cap:
+            cap *= 2
+            F = _grow(F, ROW * cap)
+            heap, key, pending = _grow(heap, cap), _grow(key, cap), _grow(pending, cap)
+            pts = _grow(pts, cap)
+        t = heap[0]
+        _forget(t, F, heap, key, pending, cnt)
+        if _insert(t, F, W, heap, key, pending, cnt, stack, pts) < 0:
+            raise RuntimeError("Delaunay flips deeper than the stack")
+        _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error)
+    nt = cnt[NT]
+    pts = pts[:cnt[NP]]
+    if simplify:
+        _decimate(F, nt, pts, z, valid, W, voids, max_error)
+    if voids:
+        _flip_to_cover(F, nt, z, valid, W, max_error)
+    return _compact(F, nt, pts, valid, voids, W)

@@ -1,0 +1,114 @@
+"""The greedy TIN (lod/tin.py): its bound is exact on the samples, it covers the data, it
+is a valid triangulation, and it is exposed through `lod.static` and the CLI.
+
+Errors are measured by geoterrain.testing.measure (barycentric, over the valid samples),
+which never imports the mesher.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from geoterrain.ingest.synth import generate
+from geoterrain.lod.tin import greedy_mesh
+from geoterrain.testing.measure import vertical_error
+
+pytestmark = pytest.mark.fast
+
+
+def _signed_areas(ij: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    p = ij[faces].astype(np.float64)
+    x, y = p[..., 1], -p[..., 0]  # seen from above: x = column, y = −row
+    return 0.5 * ((x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0])
+                  - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0]))
+
+
+def _dem(h: int, w: int, seed: int, relief: float) -> np.ndarray:
+    return generate("fbm", (h, w), seed=seed, relief=relief).astype(np.float64)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(h=st.integers(2, 40), w=st.integers(2, 40), seed=st.integers(0, 10_000),
+       e=st.sampled_from([0.0, 0.1, 1.0, 7.5, 40.0, 1e9]))
+def test_bound_exact_covering_and_a_valid_triangulation(h, w, seed, e):
+    z = _dem(h, w, seed, 100.0)
+    ij, f = greedy_mesh(z, None, e)
+    valid = np.ones_like(z, bool)
+    err = vertical_error(ij, f, z[ij[:, 0], ij[:, 1]], z, valid)
+    assert err.n_uncovered_valid == 0
+    assert err.max <= e * (1 + 1e-12) + 1e-9, (err.max, e)  # exact but for rounding
+    a = _signed_areas(ij, f)
+    assert (a > 0).all()  # wound counter-clockwise, none degenerate
+    # positive triangles covering the rectangle with the rectangle's area: no overlap
+    assert abs(a.sum() - (h - 1) * (w - 1)) < 1e-9 * h * w
+    assert len(np.unique(ij, axis=0)) == len(ij)
+    # Euler on a disc: F = 2V − B − 2 (B: vertices on the rectangle's border)
+    border = ((ij[:, 0] == 0) | (ij[:, 0] == h - 1) | (ij[:, 1] == 0)
+              | (ij[:, 1] == w - 1)).sum()
+    assert len(f) == 2 * len(ij) - border - 2
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(h=st.integers(3, 36), w=st.integers(3, 36), seed=st.integers(0, 10_000),
+       e=st.sampled_from([0.0, 1.0, 10.0, 1e9]), holes=st.integers(1, 4))
+def test_voids_are_never_spanned_and_the_bound_holds_around_them(h, w, seed, e, holes):
+    z = _dem(h, w, seed, 100.0)
+    rng = np.random.default_rng(seed)
+    valid = np.ones_like(z, bool)
+    for _ in range(holes):  # rectangular voids, some on the border or a corner
+        i, j = rng.integers(0, h), rng.integers(0, w)
+        valid[i:i + rng.integers(1, 6), j:j + rng.integers(1, 6)] = False
+    zin = np.where(valid, z, np.nan)  # the mesher must never read an invalid height
+    ij, f = greedy_mesh(np.nan_to_num(zin, nan=1e6), valid, e)
+    assert valid[ij[f][..., 0], ij[f][..., 1]].all()  # only triangles of valid corners
+    zv = np.where(valid, z, np.nan)
+    err = vertical_error(ij, f, z[ij[:, 0], ij[:, 1]], zv, valid)
+    assert err.max <= e * (1 + 1e-12) + 1e-9
+    # no drawn triangle covers an invalid sample
+    from geoterrain.testing.measure import mesh_heights_on_grid
+
+    _, covered = mesh_heights_on_grid(ij, f, z[ij[:, 0], ij[:, 1]], z.shape)
+    assert not (covered & ~valid).any()
+    # what is left uncovered lies on a void's border (a sample with an invalid
+    # 8-neighbour), never inside the data
+    assert not (valid & ~covered & ~_void_border(valid)).any()
+    assert (_signed_areas(ij, f) > 0).all()
+
+
+def _void_border(valid: np.ndarray) -> np.ndarray:
+    """Samples with an invalid sample among their 8 neighbours (the rectangle's outside
+    counts as valid)."""
+    h, w = valid.shape
+    v = np.pad(valid, 1, constant_values=True)
+    out = np.zeros_like(valid)
+    for di in (0, 1, 2):
+        for dj in (0, 1, 2):
+            out |= ~v[di:di + h, dj:dj + w]
+    return out
+
+
+def test_counts_no_more_than_rtin_and_through_the_seam(tmp_path):
+    """`static(t, e, "tin")`: the bound on the store's own heights, fewer triangles than
+    the bintree cut, the seam's stats; a bad mesher is one UsageError."""
+    import geoterrain
+    from geoterrain.exceptions import UsageError
+    from geoterrain.ingest.synth import write_geotiff
+
+    dem = write_geotiff(str(tmp_path / "d.tif"), generate("fbm", (70, 90), seed=3))
+    with geoterrain.open(geoterrain.preprocess(dem, str(tmp_path / "d.geoterrain"))) as t:
+        _, _, Z = t.scene_xyz()
+        valid = np.isfinite(Z)
+        for e in (1.0, 5.0):
+            sel = t.static_selection(e, mesher="tin")
+            f = sel.surface_faces()
+            err = vertical_error(np.asarray(sel.ij), f, np.asarray(sel.mesh.points)[:, 2], Z,
+                                 valid)
+            assert err.max <= e * (1 + 1e-12) and err.n_uncovered_valid == 0
+            assert sel.stats["mesher"] == "tin" and sel.stats["max_error"] == e
+            assert sel.stats["triangles"] == len(f) < t.static_selection(e).stats["triangles"]
+            assert "elevation" in sel.mesh.point_data
+        with pytest.raises(UsageError, match="mesher"):
+            t.static_selection(1.0, mesher="delaunay")
