@@ -15,6 +15,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from geoterrain.exceptions import UsageError
+
 
 def level_offsets(top: int) -> np.ndarray:
     """Where each level starts in the dense (level, y, x) table of every tile of a
@@ -33,8 +35,35 @@ LAYOUTS = ("square", "roots")
 MAX_ROOTS = 2  # the top level holds at most this many tiles (Cesium's geographic 2 × 1)
 
 
-class RootGridError(ValueError):
+class RootGridError(UsageError, ValueError):
     """A square-only computation was asked of a grid with a rectangular root grid."""
+
+
+#: What draws or reads a root-grid store today (experimental), for every refusal's line.
+ROOT_GRID_WORKS = ("a root-grid store (experimental) is drawn by the rtin strategy only (its "
+                   "views and its static mesh)")
+
+
+def refuse_root_grid(grid: Grid, what: str, cli: str | None = None) -> None:
+    """Raise :class:`RootGridError` in one line, naming what works, when ``grid`` is a
+    root grid: ``what`` (API words; ``cli``: the command line's) does not handle it yet.
+
+    Examples
+    --------
+    >>> refuse_root_grid(Grid.for_shape(65, 65), "chunked")  # a square: nothing
+    >>> try:
+    ...     refuse_root_grid(Grid.for_shape(65, 129, 16, roots=True), "the chunked strategy")
+    ... except RootGridError as e:
+    ...     print(e)  # doctest: +ELLIPSIS
+    the chunked strategy does not handle a grid of 2 × 1 root tiles yet: a root-grid store...
+    """
+    if grid.square:
+        return
+    head = f"does not handle a grid of {grid.roots[0]} × {grid.roots[1]} root tiles yet: "
+    tail = "; preprocess without root_grid for the rest"
+    raise RootGridError(f"{what} {head}{ROOT_GRID_WORKS}{tail}",
+                        cli=f"{cli or what} {head}{ROOT_GRID_WORKS}; preprocess without "
+                        "--root-grid for the rest")
 
 
 def _tiles_over(samples: int, span: int) -> int:
@@ -100,7 +129,8 @@ class Grid:
         if not self.square:
             raise RootGridError(f"{what} needs a square grid; this one has "
                                 f"{self.roots[0]} × {self.roots[1]} root tiles over "
-                                f"{self.shape[1]} × {self.shape[0]} samples")
+                                f"{self.shape[1]} × {self.shape[0]} samples: "
+                                f"{ROOT_GRID_WORKS}")
 
     def tiles(self, level: int) -> tuple[int, int]:
         """(tiles across, tiles down) at level L."""
@@ -138,6 +168,43 @@ class Grid:
         table's size (:func:`level_offsets` on a square grid)."""
         per = [self.tiles(L)[0] * self.tiles(L)[1] for L in self.levels]
         return np.concatenate([[0], np.cumsum(per)]).astype(np.int64)
+
+    def table_index(self, keys: np.ndarray) -> np.ndarray:
+        """Entries of (L, x, y) ``keys`` (K, 3) in the dense table of :meth:`offsets`.
+
+        Examples
+        --------
+        >>> g = Grid.for_shape(65, 129, tile_size=16, roots=True)
+        >>> g.table_index(np.array([[0, 7, 3], [2, 1, 0]])).tolist()
+        [31, 41]
+        """
+        keys = np.asarray(keys, np.int64).reshape(-1, 3)
+        L = keys[:, 0]
+        across = np.array([self.tiles(k)[0] for k in self.levels], np.int64)
+        return self.offsets()[L] + keys[:, 2] * across[L] + keys[:, 1]
+
+    def key_of(self, index: int) -> tuple[int, int, int]:
+        """The (L, x, y) at ``index`` of the dense table (:meth:`table_index`'s inverse)."""
+        base = self.offsets()
+        L = int(np.searchsorted(base, index, side="right") - 1)
+        r = int(index) - int(base[L])
+        across = self.tiles(L)[0]
+        return L, r % across, r // across
+
+    def walk_table(self) -> np.ndarray:
+        """The table compiled tile walks take (``base``, :func:`geoterrain.lod.kernels.
+        _coarsest_tile`): a square grid's :meth:`offsets`; a root grid's, followed by each
+        level's tiles across, then down.
+
+        Examples
+        --------
+        >>> Grid.for_shape(65, 129, tile_size=16, roots=True).walk_table().tolist()
+        [0, 32, 40, 42, 8, 4, 2, 4, 2, 1]
+        """
+        if self.square:
+            return self.offsets()
+        return np.concatenate([self.offsets(), [self.tiles(L)[0] for L in self.levels],
+                               [self.tiles(L)[1] for L in self.levels]]).astype(np.int64)
 
     @property
     def size(self) -> int:
@@ -197,10 +264,26 @@ class Grid:
             out.append((level, x, y))
         return out
 
-    def pad(self, a: np.ndarray, fill) -> np.ndarray:
+    def holds(self, key: tuple[int, int, int]) -> bool:
+        """Whether tile (L, x, y) is one of the grid's (the square's tiles, or a root
+        grid's ``tiles(L)``: a tile past the raster's last row or column, which a
+        footprint count over the extent may see holding that shared border, is not)."""
+        L, x, y = key
+        if not 0 <= L <= self.top_level:
+            return False
+        tx, ty = self.tiles(L)
+        return 0 <= x < tx and 0 <= y < ty
+
+    @property
+    def span(self) -> int | None:
+        """A root's side 2^n in level-0 samples, as the bounds take it (None: the square)."""
+        return None if self.square else 1 << self.n
+
+    def pad(self, a: np.ndarray, fill, whole: bool = False) -> np.ndarray:
         """Embed a (rows, cols) array at the top-left of a :attr:`shape` array filled with
-        ``fill`` (N × N on a square grid)."""
-        out = np.full(self.shape, fill, dtype=a.dtype)
+        ``fill`` (N × N on a square grid); with ``whole``, of an :attr:`extent` array (the
+        whole-grid preprocess's arrays: the same N × N on a square grid)."""
+        out = np.full(self.extent if whole else self.shape, fill, dtype=a.dtype)
         out[: self.rows, : self.cols] = a
         return out
 
