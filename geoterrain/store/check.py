@@ -265,8 +265,4 @@ def check_store(path: str | Path, m: dict, tiles: dict) -> tuple[Grid, Frame, Qu
         raise StoreError(f"{path}: its {gc}×{gr} grid needs about {need / 2**30:.1f} GiB "
                          f"to mesh, {have / 2**30:.1f} GiB is available; use a machine with "
                          "more memory or preprocess a smaller DEM")
-    if not g.square:  # the reader's stages draw square grids only, for now
-        raise StoreError(f"{path}: a grid of {g.roots[0]} × {g.roots[1]} root tiles, which this "
-                         "geoterrain does not draw yet (it reads square grids: re-run "
-                         "`geoterrain preprocess` with it)")
     return g, f, q

@@ -1,6 +1,8 @@
-"""The whole-grid preprocess on a rectangular root grid (issue 45, opt-in:
-``preprocess(..., root_grid=True)``, ``--root-grid``): the store's tiles against the
-raster, and the one-line refusals of what does not build one yet."""
+"""The whole-grid preprocess and the reader on a rectangular root grid (issue 45, opt-in:
+``preprocess(..., root_grid=True)``, ``--root-grid``): the store's tiles, heights and δ
+against the raster and an independent reference, the reader's tile arithmetic, and the
+one-line refusals of what does not handle a root grid yet. The rtin meshes of a root
+grid are measured in tests/test_stress.py."""
 
 from __future__ import annotations
 
@@ -9,9 +11,10 @@ import pytest
 
 import geoterrain
 from conftest import write_tif
-from geoterrain.core.grid import Grid
-from geoterrain.exceptions import StoreError, UsageError
+from geoterrain.core.grid import RootGridError
+from geoterrain.exceptions import UsageError
 from geoterrain.ingest.synth import generate
+from geoterrain.lod import STRATEGIES, strategy_info
 from geoterrain.store.database import ROOTS_SCHEMA_VERSION, StoreReader
 
 pytestmark = pytest.mark.fast
@@ -22,16 +25,28 @@ def fbm(rows: int, cols: int, seed: int = 0) -> np.ndarray:
     return np.rint(500.0 * (z - z.min()) / max(float(np.ptp(z)), 1e-12))
 
 
-def test_the_store_is_a_root_grid_with_every_data_tile(tmp_path):
+def roots_store(tmp_path, z, name="r", tile_size=16, **pre):
+    src = write_tif(tmp_path / f"{name}.tif", z, dtype="int16")
+    return geoterrain.preprocess(src, tmp_path / f"{name}.geoterrain", tile_size=tile_size,
+                                 root_grid=True, **pre)
+
+
+@pytest.fixture(scope="module")
+def wide(tmp_path_factory):
+    """A 50 × 121 raster (a void inside) on 2 × 1 roots of 8-sample tiles."""
+    d = tmp_path_factory.mktemp("roots")
     z = fbm(50, 121, seed=4).astype(np.int16)
     z[20:24, 30:41] = -9999
-    src = write_tif(tmp_path / "w.tif", z, dtype="int16", nodata=-9999)
-    store = geoterrain.preprocess(src, tmp_path / "w.geoterrain", tile_size=8, root_grid=True)
-    r = StoreReader(store)
-    m = r.metadata
-    g = Grid(**m["grid"])
-    assert m["schema_version"] == ROOTS_SCHEMA_VERSION
+    src = write_tif(d / "w.tif", z, dtype="int16", nodata=-9999)
+    store = geoterrain.preprocess(src, d / "w.geoterrain", tile_size=8, root_grid=True)
+    return geoterrain.open(store), z
+
+
+def test_the_store_is_a_root_grid_with_every_data_tile(wide):
+    t, z = wide
+    g = t.grid
     assert (g.layout, g.roots, g.shape) == ("roots", (2, 1), (57, 121))
+    assert StoreReader(t.path).metadata["schema_version"] == ROOTS_SCHEMA_VERSION
     valid = z != -9999
     want = set()
     for L in g.levels:  # brute force: tiles of the grid whose footprint holds data
@@ -41,18 +56,50 @@ def test_the_store_is_a_root_grid_with_every_data_tile(tmp_path):
             for x in range(tx):
                 if valid[y * s:(y + 1) * s + 1, x * s:(x + 1) * s + 1].any():
                     want.add((L, x, y))
-    assert set(r.tiles()) == want
-    assert all(r.get_blob(k, "heights") for k in want)
-    r.close()
-    with pytest.raises(StoreError, match="does not draw yet"):  # the reader comes next
-        geoterrain.open(store)
+    assert set(t.tile_info) == want
+
+
+def test_heights_decode_to_the_raster_at_every_level(wide):
+    t, z = wide
+    valid = z != -9999
+    for L in t.grid.levels:
+        h, v = t.level_heights(L)
+        s = 1 << L
+        zl, vl = z[::s, ::s], valid[::s, ::s]
+        assert h.shape == t.grid.level_shape(L)
+        assert np.array_equal(v[:zl.shape[0], :zl.shape[1]], vl)
+        assert np.array_equal(h[:zl.shape[0], :zl.shape[1]][vl], zl[vl].astype(np.float64))
+        assert not v[zl.shape[0]:].any() and not v[:, zl.shape[1]:].any()
+
+
+def test_delta_bounds_an_independent_reference(wide):
+    # δ as stored (log8 codes rounded up) against the numpy reference on the roots'
+    # extent (testing.reference: one pass per depth, not the production kernels),
+    # saturated by the reference's own pass
+    from geoterrain.testing.reference import saturate, vertex_errors_reference
+
+    t, z = wide
+    g = t.grid
+    R, C = g.extent
+    zz = np.zeros((R, C))
+    ok = np.zeros((R, C), bool)
+    ok[:g.rows, :g.cols] = z != -9999
+    zz[:g.rows, :g.cols] = t.frame.z(z.astype(np.float64))
+    ref = saturate(vertex_errors_reference(zz, ok, span=1 << g.n), 1 << g.n)
+    i, j = (a.ravel() for a in np.indices((g.rows, g.cols)))
+    got = t.gather(i, j, ("delta",))["delta"]
+    want = ref[i, j]
+    assert np.array_equal(np.isinf(got), np.isinf(want))
+    fin = np.isfinite(want)
+    assert (got[fin] >= want[fin]).all()
+    assert (got[fin] <= 1.1 * want[fin] + 1e-3).all()  # one code step at most
 
 
 def test_a_square_raster_keeps_the_square_store(tmp_path):
     src = write_tif(tmp_path / "s.tif", fbm(65, 65, seed=1), dtype="int16")
     a, b = (geoterrain.preprocess(src, tmp_path / f"{k}.geoterrain", tile_size=16,
                                   root_grid=k == "a") for k in "ab")
-    assert a.read_bytes() == b.read_bytes()
+    assert geoterrain.open(a).grid.square and a.read_bytes() == b.read_bytes()
 
 
 def test_geographic_and_streamed_root_grids_are_refused_in_one_line(tmp_path):
@@ -68,3 +115,71 @@ def test_geographic_and_streamed_root_grids_are_refused_in_one_line(tmp_path):
                               memory_limit=64 << 20)
     assert "\n" not in str(e.value)
     assert not (tmp_path / "s.geoterrain").exists()
+
+
+def test_the_reader_sees_every_root(wide):
+    t, z = wide
+    lo, hi = t.scene_box()
+    X, Y, Z = t.scene_xyz()
+    ok = np.isfinite(Z)
+    assert lo[0] <= X.min() and hi[0] >= X.max() and lo[1] <= Y.min() and hi[1] >= Y.max()
+    assert lo[2] <= np.nanmin(Z) and hi[2] >= np.nanmax(Z)
+    assert np.array_equal(ok, z != -9999)
+    assert t.info()["padded"] == [57, 121]
+    assert t.block_errors().shape[:2] == (t.grid.tiles(0)[1], t.grid.tiles(0)[0])
+
+
+def test_every_strategy_refuses_a_root_grid_in_one_line(wide):
+    t, _ = wide
+    view = geoterrain.View((0.0, -900.0, 700.0), (0.0, 0.0, 0.0), size=(160, 90))
+    for name in STRATEGIES:  # rtin's kernels come next
+        assert not strategy_info(name).root_grid
+        with pytest.raises(RootGridError, match=r"drawn by the rtin strategy only") as e:
+            t.select(view, 2.0, name)
+        assert "\n" not in str(e.value) and name in str(e.value)
+    with pytest.raises(RootGridError, match="rtin strategy only"):
+        t.static_selection(1.0, mesher="tin")
+
+
+def _refusals(t, tmp_path):
+    from geoterrain.analysis.contours import contours
+    from geoterrain.analysis.heights import height_at, normal_at
+    from geoterrain.analysis.profile import profile
+    from geoterrain.analysis.visibility import line_of_sight, viewshed
+    from geoterrain.export.qmesh import write_tileset
+    from geoterrain.export.rasters import product
+    from geoterrain.export.webtiles import WebTiler
+
+    lo, hi = t.scene_box()
+    c = (0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]))
+    return {
+        "contours": lambda: contours(t, 50.0),
+        "height queries": lambda: height_at(t, c),
+        "normal queries": lambda: normal_at(t, c),
+        "profiles": lambda: profile(t, [c, (c[0] + 10.0, c[1])]),
+        "the viewshed": lambda: viewshed(t, c, 100.0),
+        "line of sight": lambda: line_of_sight(t, c, (c[0] + 10.0, c[1])),
+        "quantized-mesh tiles": lambda: write_tileset(t, tmp_path / "qm"),
+        "web-map tiles": lambda: WebTiler(t),
+        "raster export": lambda: product(t, "hillshade"),
+        "editing a store": lambda: t.edit((0, 0), np.zeros((2, 2))),
+    }
+
+
+def test_every_other_consumer_refuses_a_root_grid_in_one_line(wide, tmp_path):
+    t, _ = wide
+    for what, call in _refusals(t, tmp_path).items():
+        with pytest.raises(RootGridError, match="rtin strategy only") as e:
+            call()
+        assert what in str(e.value) and "\n" not in str(e.value), what
+    assert not (tmp_path / "qm").exists()
+
+
+def test_rendering_refuses_a_root_grid(wide):
+    pytest.importorskip("pyvista")
+    from geoterrain.rendering.scene import render_array
+
+    t, _ = wide
+    with pytest.raises(RootGridError, match="rendering"):
+        render_array(t, geoterrain.View((0.0, -900.0, 700.0), (0.0, 0.0, 0.0),
+                                        size=(64, 48)))
