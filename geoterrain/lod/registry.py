@@ -65,7 +65,7 @@ _ENTRIES = (
     StrategyInfo("rtin", "geoterrain.lod.rtin",
                  "Lindstrom–Pascucci vertex refinement with nested spheres (seed 002)",
                  "triangles refined where the view needs them, crack-free (the default)",
-                 True, conforming=True, morphs=True),
+                 True, conforming=True, morphs=True, root_grid=True),
     StrategyInfo("chunked", "geoterrain.lod.chunked",
                  "stored tile quadtree with skirts (seed 000 chunked LOD)",
                  "ready-made tiles at several resolutions, seams hidden by skirts", True,

@@ -8,13 +8,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import geoterrain
 from conftest import write_tif
-from geoterrain.core.grid import RootGridError
+from geoterrain.core.grid import Grid, RootGridError
 from geoterrain.exceptions import UsageError
 from geoterrain.ingest.synth import generate
 from geoterrain.lod import STRATEGIES, strategy_info
+from geoterrain.lod.kernels import _coarsest_tile
 from geoterrain.store.database import ROOTS_SCHEMA_VERSION, StoreReader
 
 pytestmark = pytest.mark.fast
@@ -129,14 +132,46 @@ def test_the_reader_sees_every_root(wide):
     assert t.block_errors().shape[:2] == (t.grid.tiles(0)[1], t.grid.tiles(0)[0])
 
 
-def test_every_strategy_refuses_a_root_grid_in_one_line(wide):
+@settings(max_examples=20, deadline=None)
+@given(st.integers(3, 300), st.integers(3, 300), st.sampled_from([2, 4, 8, 16]))
+def test_the_tile_table_and_the_kernels_find_each_samples_coarsest_tile(rows, cols, ts):
+    g = Grid.for_shape(rows, cols, ts, roots=True)
+    keys = np.array([(L, x, y) for L in g.levels for y in range(g.tiles(L)[1])
+                     for x in range(g.tiles(L)[0])], np.int64)
+    idx = g.table_index(keys)
+    assert np.array_equal(idx, np.arange(g.offsets()[-1]))
+    assert all(g.key_of(int(k)) == tuple(key) for k, key in zip(idx, keys.tolist(), strict=True))
+    base, top, t = g.walk_table(), g.top_level, g.t
+    R, C = g.extent
+    for i in range(0, R, max(1, R // 13)):
+        for j in range(0, C, max(1, C // 13)):
+            L, e, a, b = _coarsest_tile(i, j, top, t, base)
+            low = (i | j) & -(i | j) if i | j else 1 << 62  # brute force: the level,
+            want_L = min(top, (low.bit_length() - 1))  # then any tile holding the sample
+            holders = [(x, y) for y in range(g.tiles(want_L)[1])
+                       for x in range(g.tiles(want_L)[0])
+                       if y * g.tile_span(want_L) <= i <= (y + 1) * g.tile_span(want_L)
+                       and x * g.tile_span(want_L) <= j <= (x + 1) * g.tile_span(want_L)]
+            assert L == want_L
+            if not holders:
+                assert e == -1
+                continue
+            LL, x, y = g.key_of(int(e))
+            assert LL == L and (x, y) in holders
+            assert (a, b) == ((i >> L) - (y << t), (j >> L) - (x << t))
+
+
+def test_unported_strategies_refuse_and_rtin_draws(wide):
     t, _ = wide
     view = geoterrain.View((0.0, -900.0, 700.0), (0.0, 0.0, 0.0), size=(160, 90))
-    for name in STRATEGIES:  # rtin's kernels come next
-        assert not strategy_info(name).root_grid
+    for name in STRATEGIES:
+        if strategy_info(name).root_grid:
+            assert t.select(view, 2.0, name).stats["triangles"] > 0
+            continue
         with pytest.raises(RootGridError, match=r"drawn by the rtin strategy only") as e:
             t.select(view, 2.0, name)
         assert "\n" not in str(e.value) and name in str(e.value)
+    assert strategy_info("rtin").root_grid
     with pytest.raises(RootGridError, match="rtin strategy only"):
         t.static_selection(1.0, mesher="tin")
 
