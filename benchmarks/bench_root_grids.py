@@ -3,8 +3,9 @@ preprocess against a square one with the same samples, in the same run.
 
 Usage:
     python benchmarks/bench_root_grids.py padding [--tile-size 64]
-    python benchmarks/bench_root_grids.py wide [--runs 3] [--tile-size 64]
+    python benchmarks/bench_root_grids.py wide [--runs 3]
     python benchmarks/bench_root_grids.py codec [--runs 5]
+    python benchmarks/bench_root_grids.py stores [--tile-size 64]
 
 ``padding``: per raster shape, the samples the preprocess computes on (the padded
 level-0 grid, and every level's lattice summed) over the raster's samples, for the
@@ -16,10 +17,19 @@ under ``../shared/dems`` that are present. Pure arithmetic (no preprocess runs).
 
 ``wide``: an fBm of 1024 × 4096 and one of 2048 × 2048 (the same number of samples,
 float32 GeoTIFFs in UTM at 10 m) preprocessed by ``geoterrain.preprocess`` with its
-defaults, each run a fresh process, wide and square alternating; medians of the wall
-time (after the import) and of the peak RSS (VmHWM), and the wide/square ratios of
-the same run. The preprocess decides its own layout: this measures whatever the
-checkout builds. The load (/proc/loadavg) is printed before and after.
+defaults (the square layout: the wide raster pads to 4097²), and the wide one again with
+``root_grid=True`` (2 × 1 roots); each run a fresh process, the three cases in rotating
+order; medians of the wall time and the CPU time (user + system, both after the
+import; the CPU time varies less on a shared machine) and of the peak RSS (VmHWM), and
+the ratios to the square raster of the same run. The load (/proc/loadavg) is printed
+with every run.
+
+``stores``: stores actually built (``root_grid=True``) of the CONUS shape, 520 × 1180,
+and jacksboro's, 344 × 403 (fBm GeoTIFFs in UTM: a root grid is built for projected
+frames only, and the grid depends on the shape alone), and of the wide raster: the
+samples a store holds (level 0's padded lattice, and the distinct samples of every
+stored tile summed over the levels) over the raster's samples, against the square
+layout's store of the same raster.
 
 ``codec``: the height codec stage alone (``codec.pyramid.encode_decoded``, lossless
 ``int`` codes of the fBm rounded to 0.1 m, 64-sample tiles) on the same two rasters:
@@ -49,16 +59,20 @@ SHAPES = [("CONUS shape (EPSG:4326)", 520, 1180), ("jacksboro", 344, 403),
           ("4097 × 2049 mosaic", 2049, 4097), ("16385 × 8193 mosaic", 8193, 16385)]
 
 CHILD = """
-import json, sys, time
+import json, resource, sys, time
 import geoterrain
 from geoterrain.preprocessing.pipeline import preprocess
 from geoterrain.core.grid import Grid
-t0 = time.perf_counter()
-p = preprocess(sys.argv[1], sys.argv[2], overwrite=True)
-wall = time.perf_counter() - t0
+def cpu():
+    u = resource.getrusage(resource.RUSAGE_SELF)
+    return u.ru_utime + u.ru_stime
+t0, c0 = time.perf_counter(), cpu()
+p = preprocess(sys.argv[1], sys.argv[2], overwrite=True, root_grid=sys.argv[3] == "roots")
+wall, cpus = time.perf_counter() - t0, cpu() - c0
 from geoterrain.core.memory import peak_rss
 g = geoterrain.open(p).grid
-print(json.dumps({"wall": wall, "peak_mb": peak_rss() / 2**20, "grid": g.to_json()}))
+print(json.dumps({"wall": wall, "cpu": cpus, "peak_mb": peak_rss() / 2**20,
+                  "grid": g.to_json()}))
 """
 
 
@@ -109,25 +123,73 @@ def wide(a: argparse.Namespace) -> None:
         for name, shape in (("wide", (1024, 4096)), ("square", (2048, 2048))):
             src[name] = str(write_geotiff(Path(d) / f"{name}.tif",
                                           generate("fbm", shape, seed=3).astype(np.float32)))
-        runs: dict[str, list[dict]] = {"wide": [], "square": []}
+        cases = {"square": ("square", "square"), "wide": ("wide", "square"),
+                 "wide, roots": ("wide", "roots")}
+        names = list(cases)
+        runs: dict[str, list[dict]] = {k: [] for k in cases}
         for r in range(a.runs):
-            for name in ("wide", "square") if r % 2 == 0 else ("square", "wide"):
-                out = subprocess.run([sys.executable, "-c", CHILD, src[name],
-                                      str(Path(d) / f"{name}.geoterrain")], check=True,
-                                     capture_output=True, text=True).stdout
+            for name in names[r % 3:] + names[:r % 3]:
+                raster, layout = cases[name]
+                out = subprocess.run([sys.executable, "-c", CHILD, src[raster],
+                                      str(Path(d) / f"{raster}.geoterrain"), layout],
+                                     check=True, capture_output=True, text=True).stdout
                 res = json.loads(out.strip().splitlines()[-1])
                 runs[name].append(res)
-                print(f"run {r} {name}: {res['wall']:.2f} s, {res['peak_mb']:.0f} MB, "
-                      f"grid {res['grid']}, load {load()}", flush=True)
-    med = {k: {m: statistics.median(x[m] for x in v) for m in ("wall", "peak_mb")}
+                print(f"run {r} {name}: {res['wall']:.2f} s, CPU {res['cpu']:.2f} s, "
+                      f"{res['peak_mb']:.0f} MB, grid {res['grid']}, load {load()}",
+                      flush=True)
+    med = {k: {m: statistics.median(x[m] for x in v) for m in ("wall", "cpu", "peak_mb")}
            for k, v in runs.items()}
     print(f"\nload after: {load()}\n")
-    print("| raster | wall (median) | peak RSS (median) |")
-    print("|---|---|---|")
-    for k in ("square", "wide"):
-        print(f"| {k} | {med[k]['wall']:.2f} s | {med[k]['peak_mb']:.0f} MB |")
-    print(f"| wide / square | {med['wide']['wall'] / med['square']['wall']:.2f}× "
-          f"| {med['wide']['peak_mb'] / med['square']['peak_mb']:.2f}× |")
+    print("| raster | wall (median) | CPU (median) | peak RSS (median) | wall / square "
+          "| CPU / square | peak / square |")
+    print("|---|---|---|---|---|---|---|")
+    for k in names:
+        print(f"| {k} | {med[k]['wall']:.2f} s | {med[k]['cpu']:.2f} s "
+              f"| {med[k]['peak_mb']:.0f} MB | {med[k]['wall'] / med['square']['wall']:.2f}× "
+              f"| {med[k]['cpu'] / med['square']['cpu']:.2f}× "
+              f"| {med[k]['peak_mb'] / med['square']['peak_mb']:.2f}× |")
+
+
+def held(t) -> tuple[int, int]:
+    """(level-0 lattice samples, distinct samples of the stored tiles over every level)."""
+    g = t.grid
+    total = 0
+    for L in g.levels:
+        R, C = g.level_shape(L)
+        cover = np.zeros((R, C), bool)
+        T = g.tile_samples
+        for (lv, x, y) in t.tile_info:
+            if lv == L:
+                cover[y * (T - 1):y * (T - 1) + T, x * (T - 1):x * (T - 1) + T] = True
+        total += int(cover.sum())
+    R, C = g.shape
+    return R * C, total
+
+
+def stores(a: argparse.Namespace) -> None:
+    import geoterrain
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    print(f"load before: {load()}; tile size {a.tile_size}\n", flush=True)
+    print("| raster | layout | grid | level 0 held / raster | all levels held / raster |")
+    print("|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory(prefix="bench_root_grids_") as d:
+        for name, h, w in (("CONUS shape", 520, 1180), ("jacksboro shape", 344, 403),
+                           ("wide", 1024, 4096)):
+            src = write_geotiff(Path(d) / "r.tif",
+                                generate("fbm", (h, w), seed=3).astype(np.float32))
+            for roots in (False, True):
+                p = geoterrain.preprocess(src, Path(d) / "r.geoterrain", overwrite=True,
+                                          tile_size=a.tile_size, root_grid=roots)
+                with geoterrain.open(p) as t:
+                    g = t.grid
+                    l0, every = held(t)
+                desc = (f"{g.size}²" if g.square else
+                        f"{g.shape[0]} × {g.shape[1]}, {g.roots[0]} × {g.roots[1]} roots")
+                print(f"| {name} {h} × {w} | {'roots' if roots else 'square'} | {desc} "
+                      f"| {l0 / (h * w):.3f}× | {every / (h * w):.3f}× |", flush=True)
+    print(f"\nload after: {load()}")
 
 
 def codec(a: argparse.Namespace) -> None:
@@ -179,8 +241,10 @@ def main() -> None:
     w.add_argument("--runs", type=int, default=3)
     c = sub.add_parser("codec")
     c.add_argument("--runs", type=int, default=5)
+    s = sub.add_parser("stores")
+    s.add_argument("--tile-size", type=int, default=64)
     a = ap.parse_args()
-    {"padding": padding, "wide": wide, "codec": codec}[a.what](a)
+    {"padding": padding, "wide": wide, "codec": codec, "stores": stores}[a.what](a)
 
 
 if __name__ == "__main__":
