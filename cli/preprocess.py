@@ -73,11 +73,16 @@ from geoterrain.ingest.raster import ENCODINGS
               help="Store every tile's normal map whole, not just its border (the rest is "
                    "derived from the heights when a tile is shaded): a store about a third "
                    "larger on SRTM DEMs, whose new textures shade about 0.2 ms a tile faster.")
+@click.option("--root-grid", is_flag=True,
+              help="Experimental: pad a wide or tall DEM to the next tile multiple under a "
+                   "grid of 2 × 1 or 1 × 2 root tiles, not to one power-of-two square. "
+                   "Projected and pixel frames, preprocessed whole; only the rtin strategy "
+                   "(views and the static mesh, `geoterrain mesh`) draws such a store yet.")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,
             codec_error, old_max_error, nodata, memory_limit, scheduler, resume, target_crs,
-            resolution, resampling, priority, stored_normals, overwrite):
+            resolution, resampling, priority, stored_normals, root_grid, overwrite):
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
     DEM is any raster GDAL reads (GeoTIFF/COG, SRTM .hgt, Esri ASCII, a .vrt,
@@ -120,7 +125,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
             codec_error=codec_error, overwrite=overwrite, nodata=nodata,
             memory_limit=memory_limit, scheduler=scheduler, resume=resume, progress=bar,
             derive_normals=not stored_normals, crs=target_crs, resolution=resolution,
-            resampling=resampling, priority=priority, timings=times)
+            resampling=resampling, priority=priority, timings=times, root_grid=root_grid)
     finally:
         bar.close()
     if ctx.obj["verbose"]:  # the store holds no timings: the same DEM gives the same bytes

@@ -19,7 +19,6 @@ import zstandard
 # The decoders (geoterrain.bounds, geoterrain.codec, core.bintree) are imported where a
 # tile is read: they load numba, which opening a store and `geoterrain info` never need.
 from geoterrain.core import zstdsafe
-from geoterrain.core.grid import level_offsets
 from geoterrain.exceptions import StoreChangedError, StoreCorruptError, StoreError, UsageError
 from geoterrain.store.check import check_store
 from geoterrain.store.database import StoreReader
@@ -88,8 +87,7 @@ class Terrain:
             # largest δ_edge of their new vertices; None: the store predates it
             self.edge_max = (self.reader.edge_keys() if "delta_edge" in m
                              else None)
-            if self.edge_max and any(L > self.grid.top_level or max(x, y) >=
-                                     self.grid.tiles_per_side(L) for L, x, y in self.edge_max):
+            if self.edge_max and not all(self.grid.holds(k) for k in self.edge_max):
                 raise StoreCorruptError(f"{self.path}: the delta_edge list names a tile "
                                         "outside the grid: the file is damaged; re-run "
                                         "`geoterrain preprocess`")
@@ -263,13 +261,17 @@ class Terrain:
         >>> bool((lo < hi).all())
         True
         """
-        info = self.tile_info[(self.grid.top_level, 0, 0)]
-        z0, z1 = info["zmin"], info["zmax"]
-        z0 = 0.0 if z0 is None or not np.isfinite(z0) else z0
-        z1 = z0 if z1 is None or not np.isfinite(z1) else z1
-        lo = np.array([info["xmin"], info["ymin"], z0], np.float64)
-        hi = np.array([info["xmax"], info["ymax"], z1], np.float64)
-        return lo, hi
+        rx, ry = self.grid.roots  # the top tile, or every root tile of a root grid
+        tops = [self.tile_info[k] for k in ((self.grid.top_level, x, y) for y in range(ry)
+                                            for x in range(rx)) if k in self.tile_info]
+        los, his = [], []
+        for info in tops:
+            z0, z1 = info["zmin"], info["zmax"]
+            z0 = 0.0 if z0 is None or not np.isfinite(z0) else z0
+            z1 = z0 if z1 is None or not np.isfinite(z1) else z1
+            los.append([info["xmin"], info["ymin"], z0])
+            his.append([info["xmax"], info["ymax"], z1])
+        return np.min(np.array(los, np.float64), 0), np.max(np.array(his, np.float64), 0)
 
     def snapshot(self) -> AbstractContextManager[None]:
         """A context in which every read of the store sees the same file: one read
@@ -363,13 +365,14 @@ class Terrain:
 
     def block_errors(self) -> np.ndarray | None:
         """Every GeoMipMapping block's exact δ_n (seed 000 §2.4), (nb, nb, levels) indexed
-        [y, x, n], nb the level-0 tiles per side, n = 0 … min(t, top level) (see
+        [y, x, n], nb the level-0 tiles per side (a root grid: its level-0 tiles down,
+        across), n = 0 … min(t, top level) (see
         :func:`geoterrain.bounds.tilebounds.tile_and_block_errors`); None for a store written
         before the table was.
 
         Examples
         --------
-        >>> t.block_errors().shape[:2] == (t.grid.tiles_per_side(0),) * 2
+        >>> t.block_errors().shape[:2] == t.grid.tiles(0)[::-1]
         True
         """
         levels = self.meta.get("block_delta_levels")
@@ -377,7 +380,7 @@ class Terrain:
             return None
 
         def make():
-            nb = self.grid.tiles_per_side(0)
+            nb = self.grid.tiles(0)[::-1]
             key = (self.grid.top_level, 0, 0)
             try:
                 from geoterrain.bounds.vertexdata import unpack_block_errors
@@ -543,13 +546,17 @@ class Terrain:
             return out
         L = self.vertex_level(i, j)
         li, lj = i >> L, j >> L
-        tps = 1 << (g.top_level - L)
-        ty = np.minimum(li >> g.t, tps - 1)
-        tx = np.minimum(lj >> g.t, tps - 1)
+        # tiles across and down per level (a square's 2^(top − L) a side)
+        across, down = (np.array([g.tiles(v)[a] for v in g.levels], np.int64) for a in (0, 1))
+        ty = np.minimum(li >> g.t, down[L] - 1)
+        tx = np.minimum(lj >> g.t, across[L] - 1)
         a, b = li - (ty << g.t), lj - (tx << g.t)
+        # a root grid's padding past its tiles: no tile (δ = r = 0, height NaN)
+        held = (a <= 1 << g.t) & (b <= 1 << g.t)
+        a, b = np.where(held, a, 0), np.where(held, b, 0)
         # unique tiles without sorting: an occupancy grid over every level's tiles
-        base = level_offsets(g.top_level)
-        slot = base[L] + ty * tps + tx
+        base = g.offsets()
+        slot = base[L] + ty * across[L] + tx
         occ = np.zeros(int(base[-1]), bool)
         occ[slot] = True
         used = np.flatnonzero(occ)
@@ -559,11 +566,10 @@ class Terrain:
         for u in used.tolist():
             lv = int(np.searchsorted(base, u, side="right") - 1)
             r = u - int(base[lv])
-            side = 1 << (g.top_level - lv)
-            keys.append((lv, r % side, r // side))
+            keys.append((lv, r % int(across[lv]), r // int(across[lv])))
         stacks = self.tile_stacks(keys, kinds)
         for k in kinds:
-            out[k] = stacks[k][inv, a, b]
+            out[k] = np.where(held, stacks[k][inv, a, b], out[k])
         return out
 
     def tile_stacks(self, keys: list[TileKey], kinds=("delta",)) -> dict[str, np.ndarray]:
@@ -593,9 +599,9 @@ class Terrain:
     def level_heights(self, level: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Heights (source units, NaN = no data) and valid mask of a whole level, padded."""
         g = self.grid
-        n = g.level_size(level)
-        h = np.full((n, n), np.nan)
-        v = np.zeros((n, n), bool)
+        shape = g.level_shape(level)  # (n, n) on a square grid
+        h = np.full(shape, np.nan)
+        v = np.zeros(shape, bool)
         step = 1 << g.t
         for (L, x, y) in self.tile_info:
             if L != level:
@@ -708,6 +714,9 @@ class Terrain:
         >>> bool(u.tile(0, 0, 0).heights[4, 4] == before - 5), res.changed
         (True, 9)
         """
+        from geoterrain.core.grid import refuse_root_grid
+
+        refuse_root_grid(self.grid, "editing a store")  # a root grid: not yet
         from geoterrain.preprocessing.edit import Patch, edit_terrain
 
         if hasattr(window, "row_off"):  # a rasterio Window
@@ -820,7 +829,7 @@ class Terrain:
             "extent_m": {"x": [float(cx.min()), float(cx.max())],
                          "y": [float(cy.min()), float(cy.max())]},
             "grid": [H, W],
-            "padded": [g.size, g.size],
+            "padded": list(g.shape),
             "tile_samples": g.tile_samples,
             "levels": g.top_level + 1,
             "tiles_per_level": {str(k): per_level[k] for k in sorted(per_level)},
@@ -942,6 +951,9 @@ def edit(store: str | Path, patch: str | Path, mode: str = "replace", *,
     from geoterrain.preprocessing.edit import edit_terrain, read_patch
 
     with Terrain(store) as t:
+        from geoterrain.core.grid import refuse_root_grid
+
+        refuse_root_grid(t.grid, "editing a store")  # a root grid: not yet
         p = read_patch(patch, t.frame, t.grid, at=at, resampling=resampling, band=band)
         return edit_terrain(t, p, mode, round_heights=round_heights)
 

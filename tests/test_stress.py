@@ -85,7 +85,7 @@ def check_conforming(t, ij, faces, vz) -> None:
     """Every edge used by at most two triangles; no crack or T-junction (height spread)."""
     if len(faces) == 0:
         return
-    N = t.grid.size
+    N = max(t.grid.extent)  # a stride above every row and column (a root grid's too)
     key = (np.asarray(ij[:, 0], np.int64) * N + np.asarray(ij[:, 1], np.int64))[faces]
     e = np.concatenate([key[:, [0, 1]], key[:, [1, 2]], key[:, [2, 0]]])
     e.sort(axis=1)
@@ -111,7 +111,14 @@ def check_static(t, Es=STATIC_E) -> None:
         check_conforming(t, ij, faces, vz)
 
 
-def check_view(t, view: View, strategies=STRATEGIES, taus=TAUS, conforming=True) -> None:
+def drawn_by(t) -> tuple[str, ...]:
+    """The strategies that draw ``t``: all of them, or on a root grid those registered
+    for it (the others refuse it: tests/preprocessing/test_root_grid.py)."""
+    return tuple(s for s in STRATEGIES if t.grid.square or strategy_info(s).root_grid)
+
+
+def check_view(t, view: View, strategies=None, taus=TAUS, conforming=True) -> None:
+    strategies = drawn_by(t) if strategies is None else strategies
     X, Y, Z = t.scene_xyz()
     valid = np.isfinite(Z)
     assert np.isfinite(X).all() and np.isfinite(Y).all()
@@ -288,7 +295,7 @@ def test_nodata_patterns(tmp_path, name):
     full_check(t)
     # invalid samples are never drawn: every mesh vertex is a valid sample
     X, Y, Z = t.scene_xyz()
-    for strategy in STRATEGIES:
+    for strategy in drawn_by(t):
         sel = t.select(views_for(t, 1)[0], 1.0, strategy)
         ij = sel.ij.astype(np.int64)
         if len(ij):
@@ -569,3 +576,44 @@ def test_camera_extremes_large(fbm_terrain_large, cam):
         zc = float(Z[512, 512]) - 50.0
         v = View((0, 0, zc), (1000.0, 0, zc), size=(320, 180))
     check_view(t, v, taus=(1.0,))
+
+
+# ---------------------------------------------------------------- root grids (issue 45)
+ROOT_GRIDS = {"2x1": (65, 129, 16), "1x2": (129, 65, 16), "2x1_lattice_short": (50, 121, 8),
+              "2x1_one_level": (65, 129, 64), "1x1_lattice_short": (50, 60, 8)}
+
+
+@pytest.mark.parametrize("name", sorted(ROOT_GRIDS))
+def test_root_grid(tmp_path, name):
+    """The stress checks on a store of 2 × 1 (or 1 × 2) root tiles, or one root over
+    fewer tiles than the square's (jacksboro's case), every strategy that draws one
+    (rtin; the others refuse it in one line)."""
+    rows, cols, ts = ROOT_GRIDS[name]
+    t = build(tmp_path, fbm(rows, cols, seed=11), pre={"root_grid": True, "tile_size": ts})
+    assert t.grid.layout == "roots" and t.grid.roots == tuple(map(int, name[:3].split("x")))
+    assert drawn_by(t) == ("rtin",)
+    full_check(t)
+
+
+@pytest.mark.fast
+def test_root_grid_quick(tmp_path):
+    t = build(tmp_path, fbm(33, 65, seed=12), pre={"root_grid": True, "tile_size": 8})
+    assert t.grid.roots == (2, 1)
+    full_check(t, n_views=2, Es=(0.0, 5.0))
+
+
+@pytest.mark.parametrize("name", ["checkerboard", "border", "nan_inside"])
+def test_root_grid_nodata(tmp_path, name):
+    z, nodata = _nodata_case(name)
+    z = np.concatenate([z, z[:, 1:]], axis=1)  # 65 × 129: 2 × 1 roots of 16-sample tiles
+    t = build(tmp_path, z, nodata=nodata, dtype="float32",
+              pre={"root_grid": True, "tile_size": 16})
+    assert t.grid.roots == (2, 1)
+    full_check(t)
+
+
+@pytest.mark.parametrize("cam", CAMERAS)
+def test_root_grid_camera_extremes(tmp_path, cam):
+    t = build(tmp_path, fbm(129, 257, seed=5), origin=(500000.0, 5000000.0),
+              pre={"root_grid": True, "tile_size": 16})
+    check_view(t, _camera_extremes(t)[cam], taus=(0.5, 1.0, 8.0))

@@ -496,6 +496,9 @@ def surface_area(terrain: TerrainLike, polygon: Any, *, max_error: float | None 
     >>> bool(abs(coarse.area_3d - exact.area_3d) <= coarse.bound_3d), max(coarse.levels) > 0
     (True, True)
     """
+    from geoterrain.core.grid import refuse_root_grid
+
+    refuse_root_grid(terrain.grid, "surface areas")  # a root grid: not yet
     m = _measure(terrain, polygon, 0.0, max_error, crs)
     return Area(m["area_2d"], m["area_3d"], m["nodata_area"], m["area_bound"], m["levels"],
                 m["stats"])
@@ -524,6 +527,9 @@ def volume(terrain: TerrainLike, polygon: Any, base: Any = 0.0, *,
     >>> v.cut >= 0 and v.fill >= 0 and abs(v.net - (v.cut - v.fill)) < 1e-6
     True
     """
+    from geoterrain.core.grid import refuse_root_grid
+
+    refuse_root_grid(terrain.grid, "volumes")  # a root grid: not yet
     m = _measure(terrain, polygon, base, max_error, crs)
     return Volume(m["cut"], m["fill"], m["cut"] - m["fill"], m["vol_bound"], m["base"],
                   m["area_2d"], m["nodata_area"], m["levels"], m["stats"])

@@ -343,6 +343,9 @@ def contours(terrain: TerrainLike, interval: float | None = None, base: float = 
     >>> set(c.heights.tolist()) <= {1000.0}, all(len(line) >= 2 for line in c.lines)
     (True, True)
     """
+    from geoterrain.core.grid import refuse_root_grid
+
+    refuse_root_grid(terrain.grid, "contours")  # a root grid: not yet
     g, f = terrain.grid, terrain.frame
     zs = (f.z_scale or 1.0) * f.z_to_m
     with Reads(terrain) as reads:

@@ -212,6 +212,9 @@ def height_at(terrain: TerrainLike, points: Any, level: int = 0, *, crs: Any = N
     >>> height_at(t, (c + 10.0, f - 10.0)).height.shape
     (1,)
     """
+    from geoterrain.core.grid import refuse_root_grid
+
+    refuse_root_grid(terrain.grid, "height queries")  # a root grid: not yet
     top = terrain.grid.top_level
     if not (isinstance(level, int | np.integer) and 0 <= level <= top):
         raise UsageError(f"level must be an integer in 0..{top}, got {level}",
@@ -260,6 +263,9 @@ def normal_at(terrain: TerrainLike, points: Any, *, crs: Any = None) -> Normals:
     >>> bool(np.isclose(np.linalg.norm(nrm.normal[0]), 1.0)), bool(0 <= nrm.slope[0] < 90)
     (True, True)
     """
+    from geoterrain.core.grid import refuse_root_grid
+
+    refuse_root_grid(terrain.grid, "normal queries")  # a root grid: not yet
     f = terrain.frame
     with Reads(terrain) as reads:
         xy = to_source(f, as_xy(points), crs)

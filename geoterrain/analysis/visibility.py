@@ -212,6 +212,9 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
     >>> vs.stats["visible"] + vs.stats["hidden"] > 0, vs.stats["tiles_read"] > 0
     (True, True)
     """
+    from geoterrain.core.grid import refuse_root_grid
+
+    refuse_root_grid(terrain.grid, "the viewshed")  # a root grid: not yet
     radius = _check("radius", radius, positive=True)
     height = _check("height", height)
     target_height = _check("target_height", target_height)
@@ -433,6 +436,9 @@ def line_of_sight(terrain: TerrainLike, a: Any, b: Any, observer_height: float =
     >>> line_of_sight(t, (c + 100.0, f - 100.0), (c + 100.0, f - 140.0), 50.0, 1.0).visible
     True
     """
+    from geoterrain.core.grid import refuse_root_grid
+
+    refuse_root_grid(terrain.grid, "line of sight")  # a root grid: not yet
     observer_height = _check("observer_height", observer_height)
     target_height = _check("target_height", target_height)
     curvature = _check("curvature", curvature)

@@ -20,6 +20,14 @@ Invalid samples
 invalid). Heights of invalid samples are never read for δ or tile errors. A diamond that
 mixes valid and invalid samples gets δ = +inf; an all-invalid one gets 0.
 
+Root grids
+----------
+On a rectangular root grid (issue 45, :mod:`geoterrain.core.bintree`) the arrays are
+the roots' extent, (ry·S + 1, rx·S + 1) for roots of side S = ``span``, with the samples
+beyond the raster invalid: the same kernels, over a rectangle of blocks, stop at the
+roots' centres and edges (half-span S/2), and every root's corners get 0 as the square's
+four do. ``span`` None is the square (S = N − 1).
+
 """
 
 from __future__ import annotations
@@ -47,15 +55,24 @@ def grid_order(N: int) -> int:
     return n
 
 
-def check_grid(z: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+def check_grid(z: np.ndarray, valid: np.ndarray, span: int | None = None
+               ) -> tuple[np.ndarray, np.ndarray, int]:
     """Checked, contiguous ``(z, valid, n)``: non-finite heights become invalid, and
-    invalid heights 0 (never read)."""
+    invalid heights 0 (never read). ``span``: a root grid's root side 2**n, the arrays
+    then a whole number of roots each way (see the module's docstring)."""
     z = np.asarray(z, dtype=np.float64)
     valid = np.asarray(valid, dtype=bool)
-    if z.ndim != 2 or z.shape[0] != z.shape[1] or valid.shape != z.shape:
-        raise ValueError(f"z and valid must be the same (N, N) shape, got {z.shape}, "
-                         f"{valid.shape}")
-    n = grid_order(z.shape[0])
+    if span is None:
+        if z.ndim != 2 or z.shape[0] != z.shape[1] or valid.shape != z.shape:
+            raise ValueError(f"z and valid must be the same (N, N) shape, got {z.shape}, "
+                             f"{valid.shape}")
+        n = grid_order(z.shape[0])
+    else:
+        n = grid_order(span + 1)
+        if z.ndim != 2 or valid.shape != z.shape or any((k - 1) % span or k < 3
+                                                         for k in z.shape):
+            raise ValueError(f"z and valid must be the same (ry·{span} + 1, rx·{span} + 1) "
+                             f"shape, got {z.shape}, {valid.shape}")
     if valid.all() and np.isfinite(z).all():
         return np.ascontiguousarray(z), np.ascontiguousarray(valid), n
     valid = valid & np.isfinite(z)
@@ -252,28 +269,31 @@ def edge_delta_nb(z, vb, ic, jc, h, rows, N, w0, beside, old):
 
 
 @parallel_kernel(cache=True)
-def _block_status_nb(vb):
+def _block_status_nb(vb, span):
     # bs[centre of a closed 2h block] = bit 1: holds a valid sample, bit 2: an invalid one;
-    # built fine to coarse (a closed 2h block is the union of its four closed h blocks).
-    N = vb.shape[0]
-    bs = np.zeros((N, N), np.uint8)
-    nb = (N - 1) // 2
-    for k in prange(nb * nb):
-        bi = k // nb
-        bj = k - bi * nb
+    # built fine to coarse (a closed 2h block is the union of its four closed h blocks),
+    # up to blocks of side ``span`` (the square's N − 1, or a root's side).
+    R, C = vb.shape
+    bs = np.zeros((R, C), np.uint8)
+    nr = (R - 1) // 2
+    nc = (C - 1) // 2
+    for k in prange(nr * nc):
+        bi = k // nc
+        bj = k - bi * nc
         f = 0
         for di in range(3):
             for dj in range(3):
                 f |= 1 if vb[2 * bi + di, 2 * bj + dj] else 2
         bs[2 * bi + 1, 2 * bj + 1] = f
     h = 2
-    while h < N - 1:
+    while h < span:
         s = 2 * h
-        nb = (N - 1) // s
+        nr = (R - 1) // s
+        nc = (C - 1) // s
         q = h // 2
-        for k in prange(nb * nb):
-            bi = k // nb
-            bj = k - bi * nb
+        for k in prange(nr * nc):
+            bi = k // nc
+            bj = k - bi * nc
             ci = bi * s + h
             cj = bj * s + h
             bs[ci, cj] = (bs[ci - q, cj - q] | bs[ci - q, cj + q]
@@ -393,23 +413,24 @@ def _block_sweep(z, i0, j0, s, main):
 
 
 @parallel_kernel(cache=True)
-def _raw_delta_nb(z, vb, bs, all_valid):
+def _raw_delta_nb(z, vb, bs, all_valid, span):
     """Raw exact δ, float32 rounded up (+inf for mixed diamonds); ``bs`` the blocks'
-    status (:func:`_block_status_nb`; unread when ``all_valid``)."""
-    N = z.shape[0]
-    out = np.zeros((N, N), np.float32)
-    nq = max((N - 1) // 4, 1)
-    QL = np.empty((nq, nq))
-    QR = np.empty((nq, nq))
-    QT = np.empty((nq, nq))
-    QB = np.empty((nq, nq))
+    status (:func:`_block_status_nb`; unread when ``all_valid``); vertices of half-span
+    below ``span`` (the square's N − 1, or a root's side)."""
+    R, C = z.shape
+    out = np.zeros((R, C), np.float32)
+    QL = np.empty((max((R - 1) // 4, 1), max((C - 1) // 4, 1)))
+    QR = np.empty_like(QL)
+    QT = np.empty_like(QL)
+    QB = np.empty_like(QL)
     h = 1
-    while h < N - 1:
+    while h < span:
         s = 2 * h
-        nb = (N - 1) // s
+        nr = (R - 1) // s
+        nc = (C - 1) // s
         # centres of the 2h blocks (+ quarter maxima for the edge midpoints, h >= 2)
-        for bi in prange(nb):
-            for bj in range(nb):
+        for bi in prange(nr):
+            for bj in range(nc):
                 ci = bi * s + h
                 cj = bj * s + h
                 f = 1 if all_valid else bs[ci, cj]
@@ -429,10 +450,11 @@ def _raw_delta_nb(z, vb, bs, all_valid):
         # edge midpoints: hypotenuse along the rows (typ 0) or along the columns (typ 1)
         for typ in range(2):
             rows = typ == 0
-            na = nb if rows else nb + 1
-            nc = nb + 1 if rows else nb
+            na = nr if rows else nr + 1
+            nb = nc + 1 if rows else nc
+            lim = C if rows else R  # the domain's size across the hypotenuse
             for a in prange(na):
-                for b in range(nc):
+                for b in range(nb):
                     ic = h + a * s if rows else a * s
                     jc = b * s if rows else h + b * s
                     # adjacent blocks (lo side, hi side) and their status
@@ -441,12 +463,12 @@ def _raw_delta_nb(z, vb, bs, all_valid):
                     if rows:
                         if jc > 0:
                             flo = 1 if all_valid else bs[ic, jc - h]
-                        if jc < N - 1:
+                        if jc < C - 1:
                             fhi = 1 if all_valid else bs[ic, jc + h]
                     else:
                         if ic > 0:
                             flo = 1 if all_valid else bs[ic - h, jc]
-                        if ic < N - 1:
+                        if ic < R - 1:
                             fhi = 1 if all_valid else bs[ic + h, jc]
                     if h >= 2 and rows:
                         qlo = QR[a, b - 1] if flo else 0.0
@@ -456,7 +478,7 @@ def _raw_delta_nb(z, vb, bs, all_valid):
                         qhi = QT[a, b] if fhi else 0.0
                     else:
                         qlo = qhi = 0.0
-                    out[ic, jc] = edge_delta_nb(z, vb, ic, jc, h, rows, N, 0,
+                    out[ic, jc] = edge_delta_nb(z, vb, ic, jc, h, rows, lim, 0,
                                                 Beside(flo, fhi, qlo, qhi), out[ic, jc])
         h *= 2
     return out
@@ -465,64 +487,77 @@ def _raw_delta_nb(z, vb, bs, all_valid):
 @njit(cache=True, inline="always")
 def _push_to_parents(d, i, j, h):
     # δ(parent) ≥ δ(child) on the vertex's 1–2 DAG edges (parents outside the grid: none)
-    N = d.shape[0]
+    R, C = d.shape
     v = d[i, j]
     i0, j0, i1, j1 = parents_nb(i, j, h)
-    if 0 <= i0 < N and 0 <= j0 < N and d[i0, j0] < v:
+    if 0 <= i0 < R and 0 <= j0 < C and d[i0, j0] < v:
         d[i0, j0] = v
-    if 0 <= i1 < N and 0 <= j1 < N and d[i1, j1] < v:
+    if 0 <= i1 < R and 0 <= j1 < C and d[i1, j1] < v:
         d[i1, j1] = v
 
 
 @njit(cache=True)
-def _saturate_nb(d):
+def _saturate_span_nb(d, span):
     # LP §2.4 (L46): push every vertex's δ to its parents, depths fine to coarse (at each
-    # h the edge midpoints first: their parents are the centres of the same h).
-    N = d.shape[0]
+    # h the edge midpoints first: their parents are the centres of the same h), up to
+    # half-span span / 2; then every root's corners (the square's four) get 0.
+    R, C = d.shape
     h = 1
-    while h < N - 1:
+    while h < span:
         s = 2 * h
-        nb = (N - 1) // s
-        for a in range(nb):  # edge midpoints, hypotenuse along the rows
-            for b in range(nb + 1):
+        nr = (R - 1) // s
+        nc = (C - 1) // s
+        for a in range(nr):  # edge midpoints, hypotenuse along the rows
+            for b in range(nc + 1):
                 _push_to_parents(d, h + a * s, b * s, h)
-        for a in range(nb + 1):  # edge midpoints, hypotenuse along the columns
-            for b in range(nb):
+        for a in range(nr + 1):  # edge midpoints, hypotenuse along the columns
+            for b in range(nc):
                 _push_to_parents(d, a * s, h + b * s, h)
-        for a in range(nb):  # centres
-            for b in range(nb):
+        for a in range(nr):  # centres
+            for b in range(nc):
                 _push_to_parents(d, h + a * s, h + b * s, h)
         h *= 2
-    d[0, 0] = 0
-    d[0, N - 1] = 0
-    d[N - 1, 0] = 0
-    d[N - 1, N - 1] = 0
+    for i in range(0, R, span):
+        for j in range(0, C, span):
+            d[i, j] = 0
     return d
 
 
-def saturate(d: np.ndarray) -> np.ndarray:
+@njit(cache=True)
+def _saturate_nb(d):
+    # the square's saturation (its one root spans N − 1)
+    return _saturate_span_nb(d, d.shape[0] - 1)
+
+
+def saturate(d: np.ndarray, span: int | None = None) -> np.ndarray:
     """Saturate per-vertex errors in place, fine to coarse, so δ(parent) ≥ δ(child) on
-    every bintree edge (seed 002 §2.4, L46); the domain corners get 0. Returns ``d``.
+    every bintree edge (seed 002 §2.4, L46); the domain corners (every root's, on a root
+    grid of root side ``span``) get 0. Returns ``d``.
 
     Examples
     --------
     >>> d = np.zeros((3, 3), np.float32); d[0, 1] = 2.0  # an edge midpoint
     >>> float(saturate(d)[1, 1])  # its parent, the centre
     2.0
+    >>> d = np.zeros((3, 5), np.float32); d[1, 2] = 2.0  # the edge two roots share
+    >>> saturate(d, 2)[1].tolist()  # both roots' centres, its parents
+    [0.0, 2.0, 2.0, 2.0, 0.0]
     """
-    return _saturate_nb(d)
+    return _saturate_span_nb(d, d.shape[0] - 1 if span is None else span)
 
 
-def _raw_delta(zf: np.ndarray, valid: np.ndarray) -> np.ndarray:
+def _raw_delta(zf: np.ndarray, valid: np.ndarray, span: int | None = None) -> np.ndarray:
+    span = zf.shape[0] - 1 if span is None else span
     all_valid = bool(valid.all())
     vb = valid.view(np.uint8)
-    bs = np.ones((1, 1), np.uint8) if all_valid else _block_status_nb(vb)
-    return _raw_delta_nb(zf, vb, bs, all_valid)
+    bs = np.ones((1, 1), np.uint8) if all_valid else _block_status_nb(vb, span)
+    return _raw_delta_nb(zf, vb, bs, all_valid, span)
 
 
 
-def vertex_errors(z: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Exact, saturated per-vertex errors δ, float32 (N, N) rounded up.
+def vertex_errors(z: np.ndarray, valid: np.ndarray, span: int | None = None) -> np.ndarray:
+    """Exact, saturated per-vertex errors δ, float32 (N, N) rounded up (or of a root
+    grid's extent, roots of side ``span``: see the module's docstring).
 
     δ(v) = max over the valid full-resolution samples of v's closed diamond of |z − S|, S
     being the two diamond triangles drawn while v is absent (seed 002 §2.3, but the exact
@@ -534,6 +569,8 @@ def vertex_errors(z: np.ndarray, valid: np.ndarray) -> np.ndarray:
     ----------
     z : (N, N) float64 heights in scene units, N = 2**n + 1 (invalid values ignored).
     valid : (N, N) bool.
+    span : None for the square; a root grid's root side 2**n, ``z`` and ``valid`` then
+        (ry·2**n + 1, rx·2**n + 1).
 
     Examples
     --------
@@ -541,10 +578,13 @@ def vertex_errors(z: np.ndarray, valid: np.ndarray) -> np.ndarray:
     >>> d = vertex_errors(z, np.ones((3, 3), bool))
     >>> d.dtype, float(d[1, 1]), float(d[0, 1])
     (dtype('float32'), 2.0, 0.0)
+    >>> z = np.zeros((3, 5)); z[1, 3] = 2.0  # the second of 2 × 1 roots of side 2
+    >>> vertex_errors(z, np.ones((3, 5), bool), span=2)[1].tolist()
+    [0.0, 0.0, 0.0, 2.0, 0.0]
     """
-    zf, valid, _ = check_grid(z, valid)
+    zf, valid, n = check_grid(z, valid, span)
     with cores_for(zf.size):  # small grids on one thread (geoterrain/core/threads.py)
-        return _saturate_nb(_raw_delta(zf, valid))
+        return _saturate_span_nb(_raw_delta(zf, valid, 1 << n), 1 << n)
 
 
 # ------------------------------------------------------------- a check on read

@@ -46,14 +46,17 @@ __all__ = ["edge_deltas", "edge_only_tiles", "edge_support", "edge_tiles", "has_
 
 
 def has_padding(grid: Grid) -> bool:
-    """Whether the DEM leaves padding in its (2^n+1)² grid.
+    """Whether the DEM leaves padding in its (2^n+1)² grid (a root grid: its extent).
 
     Examples
     --------
     >>> has_padding(Grid.for_shape(512, 512)), has_padding(Grid.for_shape(513, 513))
     (True, False)
+    >>> has_padding(Grid.for_shape(513, 1025, roots=True))
+    False
     """
-    return grid.rows < grid.size or grid.cols < grid.size
+    R, C = grid.extent
+    return grid.rows < R or grid.cols < C
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -69,11 +72,12 @@ def _reaches_data(i, j, rows, cols):
 
 @njit(cache=True, nogil=True)
 def zero_beyond_data(a, rows, cols):
-    """Set ``a`` (N, N) to 0 on the padding vertices whose diamond holds no data sample."""
-    N = a.shape[0]
-    for i in range(N):
+    """Set ``a`` (N, N), or a root grid's extent, to 0 on the padding vertices whose
+    diamond holds no data sample."""
+    R, C = a.shape
+    for i in range(R):
         j0 = cols if i < rows else 0
-        for j in range(j0, N):
+        for j in range(j0, C):
             if not _reaches_data(i, j, rows, cols):
                 a[i, j] = 0
 
@@ -90,14 +94,14 @@ def edge_deltas(Zr: np.ndarray, ok: np.ndarray, grid: Grid) -> np.ndarray:
     >>> edge_deltas(Zr, ok, g).tolist()  # (1, 2): the replicated 4 against the chord's 0
     [[0.0, 0.0, 0.0], [0.0, 4.0, 4.0], [0.0, 0.0, 0.0]]
     """
-    from geoterrain.bounds.delta import _raw_delta, _saturate_nb, check_grid
+    from geoterrain.bounds.delta import _raw_delta, _saturate_span_nb, check_grid
     from geoterrain.core.threads import cores_for
 
-    zf, okc, _ = check_grid(Zr, ok)
+    zf, okc, n = check_grid(Zr, ok, grid.span)
     with cores_for(zf.size):
-        raw = _raw_delta(zf, okc)
+        raw = _raw_delta(zf, okc, 1 << n)
         zero_beyond_data(raw, grid.rows, grid.cols)
-        return _saturate_nb(raw)
+        return _saturate_span_nb(raw, 1 << n)
 
 
 def edge_support(Z: np.ndarray, valid: np.ndarray, grid: Grid
@@ -129,23 +133,26 @@ def edge_support(Z: np.ndarray, valid: np.ndarray, grid: Grid
 
 
 def _holding(mark: np.ndarray, grid: Grid) -> list[np.ndarray]:
-    """Per level L, the (tiles, tiles) bool of the tiles whose stored vertices (below the
-    top level, those new at L; the others are the parent's) include a marked sample of
-    the (N, N) ``mark``: block ``any`` over each tile's closed footprint on level L's
+    """Per level L, the (tiles down, tiles across) bool of the tiles whose stored
+    vertices (below the top level, those new at L; the others are the parent's) include
+    a marked sample of the (N, N) ``mark`` (a root grid: its extent; the grid's
+    ``tiles(L)`` kept): block ``any`` over each tile's closed footprint on level L's
     lattice."""
     T1 = grid.tile_samples - 1
     out = []
     for L in grid.levels:
-        s, n = 1 << L, grid.tiles_per_side(L)
+        s = 1 << L
         lat = mark[::s, ::s]
+        ny, nx = (lat.shape[0] - 1) // T1, (lat.shape[1] - 1) // T1
         if L < grid.top_level:
             lat = lat.copy()
             lat[::2, ::2] = False
-        held = lat[:-1, :-1].reshape(n, T1, n, T1).any(axis=(1, 3))
-        held |= lat[T1::T1, :-1].reshape(n, n, T1).any(axis=2)  # each tile's last row
-        held |= lat[:-1, T1::T1].reshape(n, T1, n).any(axis=1)  # and last column
+        held = lat[:-1, :-1].reshape(ny, T1, nx, T1).any(axis=(1, 3))
+        held |= lat[T1::T1, :-1].reshape(ny, nx, T1).any(axis=2)  # each tile's last row
+        held |= lat[:-1, T1::T1].reshape(ny, T1, nx).any(axis=1)  # and last column
         held |= lat[T1::T1, T1::T1]
-        out.append(held)
+        tx, ty = grid.tiles(L)
+        out.append(held[:ty, :tx])
     return out
 
 

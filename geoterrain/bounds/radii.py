@@ -91,8 +91,10 @@ def _proxy_positions(x, y, z, valid):
     return out[1], out[2], out[0]
 
 
-def vertex_radii(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Nested bounding-sphere radii (seed 002 §2.4, L50–52), float32 (N, N) rounded up.
+def vertex_radii(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
+                 span: int | None = None) -> np.ndarray:
+    """Nested bounding-sphere radii (seed 002 §2.4, L50–52), float32 (N, N) rounded up;
+    or of a root grid's extent, roots of side ``span`` (:mod:`geoterrain.bounds.delta`).
 
     r = 0 for the finest vertices (and the 4 corners); otherwise
     r(v) = max over children c of |p_v − p_c| + r(c) with p = (x, y, z) in 3-D scene
@@ -107,22 +109,30 @@ def vertex_radii(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray)
     >>> r = vertex_radii(J, -I, np.zeros((3, 3)), np.ones((3, 3), bool))
     >>> float(r[1, 1]), float(r[0, 1])
     (1.0, 0.0)
+    >>> I, J = np.indices((3, 5)).astype(float)  # 2 × 1 roots of side 2
+    >>> vertex_radii(J, -I, np.zeros((3, 5)), np.ones((3, 5), bool), span=2)[1].tolist()
+    [0.0, 1.0, 0.0, 1.0, 0.0]
     """
     x, y, z = _proxy_positions(x, y, z, valid)
-    grid_order(z.shape[0])
+    if span is None:
+        span = z.shape[0] - 1
+        grid_order(z.shape[0])
+    elif any((k - 1) % span or k < 3 for k in z.shape):
+        raise ValueError(f"a root grid's arrays are whole roots of side {span}, got {z.shape}")
     none = np.empty((0, 0), np.float32)
     with cores_for(z.size):
-        return _radii_nb(x, y, z, none, np.empty(0), np.empty((0, 0), np.uint8))
+        return _radii_nb(x, y, z, none, np.empty(0), np.empty((0, 0), np.uint8),
+                         grid_order(span + 1))
 
 
 @njit(cache=True, inline="always")
 def _nest(x, y, z, r, i, j, h):
     # max over the children c of |p_v − p_c| + r(c) (children outside the grid: none)
-    N = z.shape[0]
+    R, C = z.shape
     best = 0.0
     for k in range(4):
         ci, cj = child_nb(i, j, h, k)
-        if 0 <= ci < N and 0 <= cj < N:
+        if 0 <= ci < R and 0 <= cj < C:
             d = np.sqrt((x[i, j] - x[ci, cj]) ** 2 + (y[i, j] - y[ci, cj]) ** 2
                         + (z[i, j] - z[ci, cj]) ** 2) + np.float64(r[ci, cj])
             best = max(best, d)
@@ -148,11 +158,11 @@ def nest_code_nb(x, y, z, r, codes, table, i, j, h):
     """The code of vertex (i, j) of half-span h with the nesting of seed 002 §2.4
     (L50–52) on the coded values: the smallest code ≥ its radius and ≥ |p_v − p_c| +
     table[code(c)] for each child c (children outside the grid: none)."""
-    N = z.shape[0]
+    R, C = z.shape
     best = np.float64(r[i, j]) if r.shape[0] else 0.0
     for k in range(4):
         ci, cj = child_nb(i, j, h, k)
-        if 0 <= ci < N and 0 <= cj < N:
+        if 0 <= ci < R and 0 <= cj < C:
             d = np.sqrt((x[i, j] - x[ci, cj]) ** 2 + (y[i, j] - y[ci, cj]) ** 2
                         + (z[i, j] - z[ci, cj]) ** 2) + table[codes[ci, cj]]
             best = max(best, d)
@@ -169,34 +179,36 @@ def _visit(x, y, z, r, rin, table, codes, i, j, h):
 
 
 @parallel_kernel(cache=True)
-def _radii_nb(x, y, z, rin, table, codes):
+def _radii_nb(x, y, z, rin, table, codes, n):
     # LP §2.4 (L50–52): r(v) = max over children c of |p_v − p_c| + r(c), fine to coarse;
     # each level is rounded up to float32 before its parents read it. With a log8
     # ``table``: ``codes`` instead, nested on the coded values (tileblobs.radius_codes),
-    # covering ``rin`` too where given; the float radii are then not made.
-    N = z.shape[0]
+    # covering ``rin`` too where given; the float radii are then not made. The vertices
+    # of half-span below 2**n (the square's N − 1, or a root grid's root side).
+    R, C = z.shape
     coded = table.shape[0] > 0
-    r = np.zeros((0, 0) if coded else (N, N), np.float32)
+    r = np.zeros((0, 0) if coded else (R, C), np.float32)
     if coded:
-        for i in prange(N):
-            for j in range(N):  # leaves keep their own (0 without radii)
+        for i in prange(R):
+            for j in range(C):  # leaves keep their own (0 without radii)
                 codes[i, j] = code_up_nb(table, np.float64(rin[i, j])) if rin.shape[0] else 0
     h = 1
-    while h < N - 1:
+    while h < 1 << n:
         s = 2 * h
-        nb = (N - 1) // s
+        nr = (R - 1) // s
+        nc = (C - 1) // s
         if h >= 2:  # edge midpoints (those of h = 1 are leaves: r = 0)
             for typ in range(2):
                 rows = typ == 0
-                na = nb if rows else nb + 1
-                nc = nb + 1 if rows else nb
+                na = nr if rows else nr + 1
+                nb = nc + 1 if rows else nc
                 for a in prange(na):
-                    for b in range(nc):
+                    for b in range(nb):
                         i = h + a * s if rows else a * s
                         j = b * s if rows else h + b * s
                         _visit(x, y, z, r, rin, table, codes, i, j, h)
-        for a in prange(nb):  # centres
-            for b in range(nb):
+        for a in prange(nr):  # centres
+            for b in range(nc):
                 i = h + a * s
                 j = h + b * s
                 _visit(x, y, z, r, rin, table, codes, i, j, h)

@@ -20,6 +20,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from geoterrain.bounds.delta import grid_order
 from geoterrain.bounds.radii import _proxy_positions, _radii_nb
 from geoterrain.bounds.vertexdata import (
     DIFF,
@@ -179,7 +180,8 @@ def _f16_value(b):
 
 
 def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
-                 radius: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+                 radius: np.ndarray | None = None, span: int | None = None
+                 ) -> tuple[np.ndarray, int]:
     """Nested radii as 8-bit log codes rounded up, the nesting re-established on the
     coded values: ``(codes, e)``, with table[code(v)] ≥ r(v) and ≥ |p_v − p_c| +
     table[code(c)] on every DAG edge (seed 002 §2.4, L50–52), positions as
@@ -192,6 +194,7 @@ def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
     Each vertex's rounding (< 4.4 %) passes to its parents, but damped: a child's sphere
     is a fraction of its parent's. ``e`` leaves two octaves above the largest radius for
     that growth, and doubles its headroom in the rare case a code still overflows.
+    ``span``: a root grid's root side, the arrays its extent (None: the square).
 
     Examples
     --------
@@ -205,6 +208,7 @@ def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
     (True, True)
     """
     xp, yp, zp = _proxy_positions(x, y, z, valid)
+    n = grid_order(zp.shape[0] if span is None else span + 1)
     codes = np.empty(zp.shape, np.uint8)
     if radius is None:  # the largest radius is at most the root's: the grid's diagonal
         r = np.empty((0, 0), np.float32)
@@ -219,7 +223,7 @@ def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
     while True:
         table = log8_table(e).astype(np.float64)
         with cores_for(codes.size):
-            _radii_nb(xp, yp, zp, r, table, codes)
+            _radii_nb(xp, yp, zp, r, table, codes, n)
         if not (codes == 255).any() or e >= 127:
             return codes, e
         e = min(e + 4, 127)

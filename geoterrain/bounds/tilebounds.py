@@ -24,12 +24,12 @@ __all__ = ["TileBounds", "tile_and_block_errors", "tile_errors"]
 
 def closed_blocks(a: np.ndarray, s: int, op, dtype=None) -> np.ndarray:
     """``op``-reduction of ``a`` over the closed blocks ``[p*s : (p+1)*s + 1]`` (shared
-    borders), separably: rows, then columns. Returns (nb, nb)."""
-    N = a.shape[0]
-    nb = (N - 1) // s
-    r = op.reduce(a[:-1].reshape(nb, s, N), axis=1, dtype=dtype)
+    borders), separably: rows, then columns. Returns (blocks down, blocks across)."""
+    R, C = a.shape[:2]
+    nbr, nbc = (R - 1) // s, (C - 1) // s
+    r = op.reduce(a[:-1].reshape(nbr, s, C), axis=1, dtype=dtype)
     r = op(r, a[s::s])
-    c = op.reduce(r[:, :-1].reshape(nb, nb, s), axis=2)
+    c = op.reduce(r[:, :-1].reshape(nbr, nbc, s), axis=2)
     return op(c, r[:, s::s])
 
 
@@ -54,12 +54,11 @@ def _level_field_nb(z, vf, s, E):
     # two closed triangles mixes valid and invalid samples. Rows of cells run on every
     # core, even rows then odd ones, so no two threads share a row of E (a max: the
     # order does not change it).
-    N = z.shape[0]
-    nb = (N - 1) // s
+    nbr, nbc = (z.shape[0] - 1) // s, (z.shape[1] - 1) // s  # a root grid's rectangle too
     E[:, :] = 0.0
-    mixed = np.zeros((nb, nb), np.bool_)
+    mixed = np.zeros((nbr, nbc), np.bool_)
     for parity in range(2):
-        for k in prange((nb - parity + 1) // 2):
+        for k in prange((nbr - parity + 1) // 2):
             _level_field_row(z, vf, s, E, mixed, 2 * k + parity)
     return mixed
 
@@ -167,11 +166,10 @@ def cell_field_rows_nb(z, cell, whole, ok1, ok2, d0, d1, E):
 def _tile_boxes_nb(z, x, y, vb, S):
     # Per closed tile footprint of span S: the box of the valid samples (each tile reads
     # its own footprint in raster order: the same min/max sequence as a raster sweep).
-    N = z.shape[0]
-    nt = (N - 1) // S
-    box = np.empty((6, nt, nt))
-    for ty in prange(nt):
-        for tx in range(nt):
+    ntr, ntc = (z.shape[0] - 1) // S, (z.shape[1] - 1) // S
+    box = np.empty((6, ntr, ntc))
+    for ty in prange(ntr):
+        for tx in range(ntc):
             z0, z1, x0, x1, y0, y1 = np.inf, -np.inf, np.inf, -np.inf, np.inf, -np.inf
             for i in range(ty * S, ty * S + S + 1):
                 for j in range(tx * S, tx * S + S + 1):
@@ -190,21 +188,20 @@ def _tile_boxes_nb(z, x, y, vb, S):
 def tile_rows(per_level: list, box0: np.ndarray, nvalid: list
               ) -> dict[tuple[int, int, int], TileBounds]:
     """The stored tiles' :class:`TileBounds` from each level's (error, boundary error)
-    arrays, level 0's boxes (6, nt, nt) and the footprint counts: boxes pooled up the
-    levels (a parent's closed footprint is the union of its children's), errors made
-    monotone up the quadtree."""
+    arrays, level 0's boxes (6, tiles down, tiles across) and the footprint counts: boxes
+    pooled up the levels (a parent's closed footprint is the union of its children's),
+    errors made monotone up the quadtree."""
     boxes = [box0]
     for err, _ in per_level[1:]:
-        nt = err.shape[0]
-        b4 = boxes[-1].reshape(6, nt, 2, nt, 2)
-        box = np.empty((6, nt, nt))
+        ntr, ntc = err.shape
+        b4 = boxes[-1].reshape(6, ntr, 2, ntc, 2)
+        box = np.empty((6, ntr, ntc))
         box[0::2] = b4[0::2].min(axis=(2, 4))
         box[1::2] = b4[1::2].max(axis=(2, 4))
         boxes.append(box)
     for L in range(1, len(per_level)):  # monotone up the quadtree
         child = per_level[L - 1][0]
-        nt = child.shape[0] // 2
-        cmax = child.reshape(nt, 2, nt, 2).max(axis=(1, 3))
+        cmax = child.reshape(child.shape[0] // 2, 2, child.shape[1] // 2, 2).max(axis=(1, 3))
         np.maximum(per_level[L][0], cmax, out=per_level[L][0])
     out: dict[tuple[int, int, int], TileBounds] = {}
     for L, ((err, bnd), box) in enumerate(zip(per_level, boxes, strict=True)):
@@ -218,7 +215,8 @@ def tile_rows(per_level: list, box0: np.ndarray, nvalid: list
 
 
 def tile_errors(
-    z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray, t: int = 6
+    z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray, t: int = 6,
+    span: int | None = None,
 ) -> dict[tuple[int, int, int], TileBounds]:
     """Error bounds of every stored tile ``(L, x, y)`` of the pyramid (docs/conventions.md):
     the first half of :func:`tile_and_block_errors`.
@@ -230,11 +228,12 @@ def tile_errors(
     >>> sorted(tb), tb[(1, 0, 0)].error, tb[(1, 0, 0)].nvalid
     ([(0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1), (1, 0, 0)], 1.0, 25)
     """
-    return tile_and_block_errors(z, valid, x, y, t)[0]
+    return tile_and_block_errors(z, valid, x, y, t, span)[0]
 
 
 def tile_and_block_errors(
-    z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray, t: int = 6
+    z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray, t: int = 6,
+    span: int | None = None,
 ) -> tuple[dict[tuple[int, int, int], TileBounds], np.ndarray]:
     """Error bounds of every stored tile ``(L, x, y)`` of the pyramid (docs/conventions.md),
     and every GeoMipMapping block's exact δ_n.
@@ -261,6 +260,10 @@ def tile_and_block_errors(
     exact where ``error`` of the covering tile is only an upper bound. A block without
     valid samples has 0.
 
+    ``span``: a root grid's root side 2**n; the arrays are then the roots' extent
+    (:attr:`geoterrain.core.grid.Grid.extent`), each root a pyramid of its own whose
+    top level is the grid's (the blocks (down, across, n_max + 1)).
+
     Examples
     --------
     >>> I, J = np.indices((5, 5)).astype(float)
@@ -268,38 +271,38 @@ def tile_and_block_errors(
     >>> blocks.shape, blocks[..., 1].tolist()  # 2×2 blocks, each a 3×3 sample square
     ((2, 2, 2), [[1.0, 1.0], [1.0, 1.0]])
     """
-    zf, valid, n = check_grid(z, valid)
+    zf, valid, n = check_grid(z, valid, span)
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
-    N = zf.shape[0]
+    R, C = zf.shape
     te = min(t, n)
     lmax = n - te
     cpt = 1 << te  # cells per tile side
     vb = valid.view(np.uint8)
     xc, yc = x, y  # no copy: x and y may be broadcast views (Frame.grid_xy)
-    E = np.zeros((N, N))
-    nvalid = footprint_counts(valid, te)
+    E = np.zeros((R, C))
+    nvalid = footprint_counts(valid, te, lmax)
     per_level = []
-    nb0 = (N - 1) // cpt  # blocks (level-0 tiles) per side
-    blocks = np.zeros((nb0, nb0, min(te, lmax) + 1))
+    nbr, nbc = (R - 1) // cpt, (C - 1) // cpt  # blocks (level-0 tiles) down, across
+    blocks = np.zeros((nbr, nbc, min(te, lmax) + 1))
     with cores_for(zf.size):  # small grids' kernels on one thread (threads.py)
         for L in range(lmax + 1):
             S = 1 << (te + L)  # tile span in full-resolution samples
-            nt = (N - 1) // S
+            ntr, ntc = (R - 1) // S, (C - 1) // S
             if L == 0:
-                mixed = np.zeros((nt * cpt, nt * cpt), bool)
+                mixed = np.zeros((ntr * cpt, ntc * cpt), bool)
             else:
                 mixed = _level_field_nb(zf, vb, 1 << L, E)
             err = closed_blocks(E, S, np.maximum)
-            m4 = mixed.reshape(nt, cpt, nt, cpt)
+            m4 = mixed.reshape(ntr, cpt, ntc, cpt)
             err = np.where(m4.any(axis=(1, 3)), np.inf, err)
             if 0 < L < blocks.shape[2]:  # the same field over each block (seed 000 §2.4 δ_n)
                 c = 1 << (te - L)  # level-L cells per block side
-                mb = mixed.reshape(nb0, c, nb0, c).any(axis=(1, 3))
+                mb = mixed.reshape(nbr, c, nbc, c).any(axis=(1, 3))
                 blocks[..., L] = np.where(mb, np.inf, closed_blocks(E, cpt, np.maximum))
-            rows = np.maximum.reduce(E[::S, :-1].reshape(nt + 1, nt, S), axis=2)
+            rows = np.maximum.reduce(E[::S, :-1].reshape(ntr + 1, ntc, S), axis=2)
             rows = np.maximum(rows, E[::S, S::S])
-            cols = np.maximum.reduce(E[:-1, ::S].reshape(nt, S, nt + 1), axis=1)
+            cols = np.maximum.reduce(E[:-1, ::S].reshape(ntr, S, ntc + 1), axis=1)
             cols = np.maximum(cols, E[S::S, ::S])
             bnd = np.maximum(np.maximum(rows[:-1], rows[1:]), np.maximum(cols[:, :-1], cols[:, 1:]))
             border = (m4[:, 0].any(axis=2) | m4[:, -1].any(axis=2)

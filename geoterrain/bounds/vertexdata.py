@@ -476,12 +476,14 @@ def pack_block_errors(blocks: np.ndarray) -> bytes:
     return zstandard.ZstdCompressor(level=6).compress(np.ascontiguousarray(a).tobytes())
 
 
-def unpack_block_errors(blob: bytes, nb: int, levels: int) -> np.ndarray:
-    """Inverse of :func:`pack_block_errors`: (nb, nb, levels) float64. A store may come
+def unpack_block_errors(blob: bytes, nb: int | tuple[int, int], levels: int) -> np.ndarray:
+    """Inverse of :func:`pack_block_errors`: (nb, nb, levels) float64, or (down, across,
+    levels) with ``nb`` = (down, across) (a root grid's level-0 tiles). A store may come
     from a stranger: ``ValueError`` unless the blob decodes to exactly that many values,
     each ≥ 0 (+inf allowed, NaN not)."""
-    raw = zstdsafe.decompress(blob, nb * nb * levels * 4, exact=True)
-    a = np.frombuffer(raw, "<f4").astype(np.float64).reshape(nb, nb, levels)
+    nd, na = (nb, nb) if np.ndim(nb) == 0 else nb
+    raw = zstdsafe.decompress(blob, nd * na * levels * 4, exact=True)
+    a = np.frombuffer(raw, "<f4").astype(np.float64).reshape(nd, na, levels)
     if not (a >= 0).all():  # NaN fails too
         raise ValueError("a block δ_n is negative or NaN")
     return a

@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.codec.predict import _fmean, _mid16, _pred, fill_outward
+from geoterrain.codec.predict import _fmean, _mid16, _pred, fill_edges_first, fill_outward
 from geoterrain.core.threads import parallel_kernel
 
 __all__ = [
@@ -545,11 +545,12 @@ def level_zigzag(d, s, h, P, ys, xs, zz, zmax):
 
 
 @njit(cache=True, nogil=True)
-def _top(enc, buf, top, ok, te, cubic, kind, W, filled):
+def _top(enc, buf, top, ok, te, cubic, kind, W, filled, edges=False):
     """The top tile coarse to fine inside itself: its 4 corners (deltas), then each
     level of its own grid (stride 2^k, residual bins ``W``) as a child of the next
     coarser (:func:`_child`, the whole of it), one set of models throughout; with
-    ``filled``, each level's invalid samples then filled outward (``fill_outward``)."""
+    ``filled``, each level's invalid samples then filled outward (``fill_outward``; with
+    ``edges``, a root of a root grid: ``fill_edges_first``, each edge from itself)."""
     S = _start(enc, buf)
     m = np.zeros((_ROWS, 2), np.int64)
     if kind == MASK_STORED:
@@ -565,30 +566,33 @@ def _top(enc, buf, top, ok, te, cubic, kind, W, filled):
         prev = top[i, j]
     known = ok.copy()
     known[::last, ::last] = True
-    filled = filled and kind == MASK_STORED
+    filled = filled and (kind == MASK_STORED or edges and kind == MASK_ALL_INVALID)
     for k in range(te - 1, -1, -1):
         s, h = 1 << k, 1 << (te - k - 1)
         parent = np.ascontiguousarray(top[::2 * s, ::2 * s])
         out = np.ascontiguousarray(top[::s, ::s])
         S = _child(enc, S, buf, m, parent, np.int64(0), np.int64(0), h, cubic, out,
                    np.ascontiguousarray(ok[::s, ::s]), W)
-        if filled:
+        if filled and edges:
+            fill_edges_first(out, np.ascontiguousarray(known[::s, ::s]))
+        elif filled:
             fill_outward(out, np.ascontiguousarray(known[::s, ::s]))
         top[::s, ::s] = out
     return S
 
 
 @njit(cache=True, nogil=True)
-def _encode_top(buf, top, ok, te, cubic, kind, W, filled):
+def _encode_top(buf, top, ok, te, cubic, kind, W, filled, edges):
     # a literal True, as _encode_tile says
-    return _top(True, buf, top, ok, te, cubic, kind, W, filled)
+    return _top(True, buf, top, ok, te, cubic, kind, W, filled, edges)
 
 
 def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int,
-               W: int = 1, filled: bool = False) -> bytes:
+               W: int = 1, filled: bool = False, edges: bool = False) -> bytes:
     """The stream of the top tile ``top`` ((2^te + 1)² codes, as
     :func:`geoterrain.codec.pyramid._top_fill` leaves them: binned, invalid corners filled;
-    other invalid samples are not coded), mask ``ok``, bins ``W``, ``filled`` (:func:`_top`).
+    other invalid samples are not coded), mask ``ok``, bins ``W``, ``filled`` and
+    ``edges`` (:func:`_top`).
 
     Examples
     --------
@@ -603,7 +607,7 @@ def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int,
     while True:
         buf = np.zeros(cap, np.uint8)
         st = _encode_top(buf, top.copy(), np.ascontiguousarray(ok, np.bool_).copy(), te,
-                         cubic, kind, W, filled)
+                         cubic, kind, W, filled, edges)
         n = _finish(st, buf)
         if n >= 0:
             return buf[:n].tobytes()
@@ -611,12 +615,12 @@ def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int,
 
 
 @njit(cache=True, nogil=True)
-def decode_top(data, te, cubic, kind, W=1, filled=False):
+def decode_top(data, te, cubic, kind, W=1, filled=False, edges=False):
     """The top tile's codes and valid mask from its stream (:func:`encode_top`, the same
     residual bins ``W``), and whether ``data`` is exactly a stream the encoder writes (as
     :func:`decode_tile`)."""
     t = (1 << te) + 1
     ok = np.full((t, t), kind != MASK_ALL_INVALID)
     top = np.zeros((t, t), np.int64)
-    st = _top(False, data.copy(), top, ok, te, cubic, kind, W, filled)
+    st = _top(False, data.copy(), top, ok, te, cubic, kind, W, filled, edges)
     return top, ok, _canonical(data, st)

@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["cubic_child", "fill_level", "fill_outward", "linear_child", "predict"]
+__all__ = ["cubic_child", "fill_edges_first", "fill_level", "fill_outward", "linear_child",
+           "predict"]
 
 
 def _mean2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -194,16 +195,16 @@ def _pred(d, s, i, j, P):
             return _fmean(d[ci * s2, cj * s2], d[(ci + 1) * s2, cj * s2])
         # C: the A samples above and below (same level)
         return _fmean(d[(i - 1) * s, j * s], d[(i + 1) * s, j * s])
-    mc = (d.shape[0] - 1) // s2 + 1
-    if i & 1 == 0:
+    mr, mc = (d.shape[0] - 1) // s2 + 1, (d.shape[1] - 1) // s2 + 1  # coarse rows, cols
+    if i & 1 == 0:  # along a row: the coarse columns
         return (_c16(d, s2, ci, 0, 0, 1, cj, mc, P) + 8) >> 4
-    if j & 1 == 0:
-        return (_c16(d, s2, 0, cj, 1, 0, ci, mc, P) + 8) >> 4
+    if j & 1 == 0:  # along a column: the coarse rows
+        return (_c16(d, s2, 0, cj, 1, 0, ci, mr, P) + 8) >> 4
     # C: along the column through the A samples (rows 2k, 2k + 2 of the level), cubic
     # inside the child tile (period P / 2 in coarse rows)
     k, h = ci, P >> 1
     v = 8 * (d[(i - 1) * s, j * s] + d[(i + 1) * s, j * s])
-    if mc >= 4 and 1 <= k <= mc - 3 and k % h != 0 and (k + 1) % h != 0:
+    if mr >= 4 and 1 <= k <= mr - 3 and k % h != 0 and (k + 1) % h != 0:
         v += d[(i - 1) * s, j * s] + d[(i + 1) * s, j * s] - d[(i - 3) * s, j * s] \
             - d[(i + 3) * s, j * s]
     return (v + 8) >> 4
@@ -229,11 +230,11 @@ def fill_level(d, valid, s, P, W=1):
     >>> d.tolist()
     [[0, 8, 4], [10, 9, 8], [8, 10, 13]]
     """
-    m = (d.shape[0] - 1) // s + 1
+    m0, m1 = (d.shape[0] - 1) // s + 1, (d.shape[1] - 1) // s + 1  # a rectangle too
     h = W >> 1
     for centres in (False, True):
-        for i in range(m):
-            for j in range(m):
+        for i in range(m0):
+            for j in range(m1):
                 if (i & 1 or j & 1) and bool(i & 1 and j & 1) == centres:
                     if not valid[i * s, j * s]:
                         d[i * s, j * s] = _pred(d, s, i, j, P)
@@ -307,3 +308,39 @@ def fill_outward(f, known):
                 dist[y, x] = r + 1
                 queue[tail] = y * n1 + x
                 tail += 1
+
+
+@njit(cache=True, nogil=True)
+def fill_edges_first(f, known):
+    """:func:`fill_outward` for a root of a root grid, whose edges it shares with its
+    neighbours: each of the four edges that holds a known sample is filled first along
+    itself alone (a root's corners are always known: coded), then the rest with those
+    edges known. So an edge's fill depends on that edge's samples only, and two roots
+    that share an edge decode the same codes on it.
+
+    Examples
+    --------
+    >>> f = np.array([[5, 0, 1], [0, 9, 0], [3, 0, 7]], np.int64)
+    >>> known = f != 0
+    >>> fill_edges_first(f, known)
+    >>> f.tolist()  # each edge from its own corners, not from the centre's 9
+    [[5, 3, 1], [4, 9, 4], [3, 5, 7]]
+    """
+    n0, n1 = f.shape
+    k = known.copy()
+    for e in range(4):  # top, bottom rows; left, right columns
+        i = 0 if e == 0 else n0 - 1
+        j = 0 if e == 2 else n1 - 1
+        row = e < 2
+        line = f[i:i + 1, :].copy() if row else f[:, j:j + 1].copy()
+        lk = known[i:i + 1, :].copy() if row else known[:, j:j + 1].copy()
+        if not lk.any():
+            continue  # left to the fill of the rest
+        fill_outward(line, lk)
+        if row:
+            f[i:i + 1, :] = line
+            k[i, :] = True
+        else:
+            f[:, j:j + 1] = line
+            k[:, j] = True
+    fill_outward(f, k)

@@ -38,7 +38,10 @@ Blob format (version 2), one blob per stored tile::
              invalid, 2 mask stored); bit 3 = cubic predictor; bit 4 = wide; bit 5
              = filled (a top tile with a stored mask: its invalid samples filled
              outward after each of its levels; always set now, absent in older
-             stores, whose invalid samples keep their predictions)
+             stores, whose invalid samples keep their predictions); bit 6 = edges
+             (with bit 5, a root of a grid of several root tiles: each level's edges
+             filled along themselves first, so two roots decode the same codes on the
+             edge they share: :func:`geoterrain.codec.predict.fill_edges_first`)
     byte 2   t (tile size T = 2**t + 1)
     rest     the range-coded stream of :mod:`geoterrain.codec.entropy`: the (T, T) valid mask
              when stored, then the zigzag residuals: for the top tile the 4 corners
@@ -65,7 +68,14 @@ from numba import njit
 
 from geoterrain.codec import entropy
 from geoterrain.codec.entropy import MASK_ALL_INVALID, MASK_ALL_VALID, MASK_STORED
-from geoterrain.codec.predict import cubic_child, fill_level, fill_outward, linear_child, predict
+from geoterrain.codec.predict import (
+    cubic_child,
+    fill_edges_first,
+    fill_level,
+    fill_outward,
+    linear_child,
+    predict,
+)
 from geoterrain.codec.quantize import Quantizer, codes_to_heights, roundtrip, valid_codes
 from geoterrain.core.grid import footprint_counts, level_tiles
 from geoterrain.core.threads import cores_for
@@ -81,35 +91,46 @@ __all__ = [
     "decoded_heights",
     "encode_decoded",
     "pyramid_shape",
+    "roots_shape",
 ]
 
 BLOB_VERSION = 2
 _HEADER = 3
 
 
-def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool, W: int = 1) -> None:
+def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool, W: int = 1,
+              edges: bool = False, near: np.ndarray | None = None) -> None:
     """In place on the top tile's codes, what its decoding gives (:func:`entropy._top`):
     an invalid corner holds the fill of the source's codes (the encoder is free to
     choose it: the corners are coded); then level by level of its own grid, a valid
     sample its code in residual bins ``W`` (:func:`geoterrain.codec.predict.fill_level`) and,
     once the level is decoded, every invalid sample its fill from the valid ones and
     the corners (:func:`geoterrain.codec.predict.fill_outward`), which the next level and
-    the finer tiles are predicted from."""
+    the finer tiles are predicted from. A root of a grid of several (``edges``) fills
+    each edge first along itself (:func:`geoterrain.codec.predict.fill_edges_first`), and
+    takes its invalid corners from ``near``, the fill of the whole top level (its
+    neighbours take the same: a corner is coded, so the encoder chooses it)."""
     P = _period(te, cubic)
     filled = not valid.all()
     if filled:
         c = top.shape[0] - 1  # the corners: [::c, ::c]
-        near = np.array(top)  # a contiguous copy
-        fill_outward(near, np.ascontiguousarray(valid))
+        if near is None:
+            near = np.array(top)  # a contiguous copy
+            fill_outward(near, np.ascontiguousarray(valid))
         top[::c, ::c] = np.where(valid[::c, ::c], top[::c, ::c], near[::c, ::c])
         known = valid.copy()
         known[::c, ::c] = True
+    # the decoder fills a stored mask only (entropy._top), and a root of several one
+    # without a valid sample too (its corners and edges are its neighbours'); a square's
+    # top tile without one keeps its predictions (those and the fill are all 0 there)
+    filled = filled and (edges or bool(valid.any()))
     for k in range(te - 1, -1, -1):  # its own levels: 2**te exceeds their intervals
         s = 1 << k
         fill_level(top, valid, s, P, W)
         if filled:
             level = np.array(top[::s, ::s])
-            fill_outward(level, np.ascontiguousarray(known[::s, ::s]))
+            (fill_edges_first if edges else fill_outward)(
+                level, np.ascontiguousarray(known[::s, ::s]))
             top[::s, ::s] = level
 
 
@@ -153,10 +174,42 @@ def pyramid_shape(n_samples: int, t: int) -> tuple[int, int]:
     return n, min(t, n)
 
 
-def _header(top: bool, mask_kind: int, t: int, cubic: bool, w: int | None = None) -> bytes:
-    # a top tile with invalid samples always has them filled outward (_top_fill)
+def roots_shape(shape: tuple[int, int], t: int,
+                roots: tuple[int, int] | None = None) -> tuple[int, int]:
+    """``(n, t_eff)`` of a grid of ``roots`` (across, down) root tiles of 2**n samples a
+    side, sharing their borders: ``shape`` = (down·2**n + 1, across·2**n + 1), the roots'
+    extent (:attr:`geoterrain.core.grid.Grid.extent`); None: one square
+    (:func:`pyramid_shape`).
+
+    Examples
+    --------
+    >>> roots_shape((1025, 2049), 6, (2, 1))
+    (10, 6)
+    """
+    rx, ry = roots or (1, 1)
+    R, C = shape
+    if rx < 1 or ry < 1 or (R - 1) % ry or (C - 1) % rx or (R - 1) // ry != (C - 1) // rx:
+        raise ValueError(f"a {R} × {C} grid is not {rx} × {ry} square roots sharing borders")
+    return pyramid_shape((R - 1) // ry + 1, t)
+
+
+def _root_windows(a: np.ndarray, roots: tuple[int, int], te: int):
+    """(x, y, window) of each root in the top level ``a`` (views), row by row."""
+    T = 1 << te
+    for y in range(roots[1]):
+        for x in range(roots[0]):
+            yield x, y, a[y * T:(y + 1) * T + 1, x * T:(x + 1) * T + 1]
+
+
+def _header(top: bool, mask_kind: int, t: int, cubic: bool, w: int | None = None,
+            edges: bool = False) -> bytes:
+    # a top tile with invalid samples always has them filled outward (_top_fill), edges
+    # first for a root of several
     flags = int(top) | (mask_kind << 1) | (int(cubic) << 3)
-    flags |= _FILLED if top and mask_kind == MASK_STORED else 0
+    if top and edges and mask_kind != MASK_ALL_VALID:
+        flags |= _FILLED | _EDGES
+    elif top and mask_kind == MASK_STORED:
+        flags |= _FILLED
     if w is None:
         return bytes((BLOB_VERSION, flags, t))
     return bytes((BLOB_VERSION, flags | _WIDE, t, w))  # a wide blob
@@ -172,7 +225,7 @@ def _resolve_predictor(
         raise ValueError(f"unknown predictor {predictor!r}")
     if predictor != "auto" or lmax == 0 or te < 2:
         return predictor == "cubic" and te >= 2 and lmax > 0
-    a, crop = _predictor_crop(q.shape[0], te)
+    a, crop = _predictor_crop(min(q.shape), te)
     return _predictor_bits(q[a : a + crop, a : a + crop], valid[a : a + crop, a : a + crop], te)
 
 
@@ -209,14 +262,16 @@ _CLASSES = (
 
 
 def decoded_codes(
-    z: np.ndarray, valid: np.ndarray, t: int, quantizer: Quantizer, predictor: str = "auto"
+    z: np.ndarray, valid: np.ndarray, t: int, quantizer: Quantizer, predictor: str = "auto",
+    roots: tuple[int, int] | None = None,
 ) -> np.ndarray:
     """Codes (N, N) int64 that decoding every tile gives, invalid samples included.
 
     Level by level on the full grid: valid samples keep their code (or its bins); an
     invalid sample of the top tile ends as its outward fill from the valid ones
     (:func:`geoterrain.codec.predict.fill_outward`), every other invalid sample its
-    prediction from the coarser samples. ``predictor`` as for :func:`encode_pyramid`.
+    prediction from the coarser samples. ``predictor`` and ``roots`` as for
+    :func:`encode_pyramid`.
 
     Examples
     --------
@@ -225,20 +280,30 @@ def decoded_codes(
     4
     """
     valid = np.asarray(valid, dtype=bool)
-    n, te = pyramid_shape(valid.shape[0], t)
+    n, te = roots_shape(valid.shape, t, roots)
     lmax = n - te
     d = valid_codes(z, valid, quantizer)  # heights_to_codes(where(valid, z, 0))
     return _decoded_codes(d, valid, te, lmax, _resolve_predictor(predictor, d, valid, te, lmax),
-                          quantizer.bins)
+                          quantizer.bins, roots)
 
 
 def _decoded_codes(d: np.ndarray, valid: np.ndarray, te: int, lmax: int, cubic: bool,
-                   bins: int = 1):
+                   bins: int = 1, roots: tuple[int, int] | None = None):
     """In place on the codes ``d``: what tile decoding gives at invalid samples, and
     with residual ``bins`` > 1 at valid ones too (coarse to fine: each level's
-    predictions read the decoded codes of the coarser ones)."""
+    predictions read the decoded codes of the coarser ones); on a grid of several
+    ``roots``, each root's top tile as its own (the edges they share agree)."""
     s = 1 << lmax
-    _top_fill(d[::s, ::s], valid[::s, ::s], te, cubic, top_bins(bins))
+    top, vtop = d[::s, ::s], valid[::s, ::s]
+    if roots is None or roots[0] * roots[1] == 1:
+        _top_fill(top, vtop, te, cubic, top_bins(bins))
+    else:
+        near = np.array(top)  # the invalid corners: one fill of the whole top level
+        fill_outward(near, np.ascontiguousarray(vtop))
+        for (_, _, tw), (_, _, vw), (_, _, nw) in zip(
+                _root_windows(top, roots, te), _root_windows(vtop, roots, te),
+                _root_windows(near, roots, te), strict=True):
+            _top_fill(tw, vw, te, cubic, top_bins(bins), edges=True, near=nw)
     for lev in range(lmax - 1, -1, -1):  # compiled: the rule of predict, in place
         fill_level(d, valid, 1 << lev, _period(te, cubic), bins)
     return d
@@ -286,6 +351,7 @@ def encode_pyramid(
     quantizer: Quantizer,
     progress: Callable[[int, int], None] | None = None,
     predictor: str = "auto",
+    roots: tuple[int, int] | None = None,
 ) -> dict[tuple[int, int, int], bytes]:
     """Encode every stored tile of the pyramid.
 
@@ -303,6 +369,10 @@ def encode_pyramid(
         U(.) of the residuals (:mod:`geoterrain.codec.predict`): linear floor-means, or 4-point
         interpolatory weights (better on rough, high-entropy data); ``"auto"`` picks the
         one with the smaller estimated residual entropy. Recorded in every blob.
+    roots : (int, int), optional
+        (across, down) root tiles of a root grid (:class:`geoterrain.core.grid.Grid`):
+        ``z`` is then their extent (:func:`roots_shape`), each root a top tile
+        ``(Lmax, x, y)`` of its own; None or (1, 1): one square.
 
     Returns
     -------
@@ -315,7 +385,7 @@ def encode_pyramid(
     >>> sorted(encode_pyramid(z, v, 1, Quantizer("int")))
     [(0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1), (1, 0, 0)]
     """
-    return encode_decoded(z, valid, t, quantizer, progress, predictor)[0]
+    return encode_decoded(z, valid, t, quantizer, progress, predictor, roots)[0]
 
 
 def encode_decoded(
@@ -325,6 +395,7 @@ def encode_decoded(
     quantizer: Quantizer,
     progress: Callable[[int, int], None] | None = None,
     predictor: str = "auto",
+    roots: tuple[int, int] | None = None,
 ) -> tuple[dict[tuple[int, int, int], bytes], np.ndarray]:
     """:func:`encode_pyramid`'s blobs and the (N, N) codes decoding them gives
     (:func:`decoded_codes`), which the encoder computes on its way.
@@ -338,19 +409,30 @@ def encode_decoded(
     """
     valid = np.asarray(valid, dtype=bool)
     z = np.asarray(z, dtype=np.float64)
-    if z.shape != valid.shape or z.ndim != 2 or z.shape[0] != z.shape[1]:
-        raise ValueError("z and valid must be the same square (N, N) shape")
-    n, te = pyramid_shape(z.shape[0], t)
+    square = roots is None or tuple(roots) == (1, 1)
+    if z.shape != valid.shape or z.ndim != 2 or (square and z.shape[0] != z.shape[1]):
+        raise ValueError("z and valid must be the same square (N, N) shape, or the "
+                         "extent of their roots")
+    n, te = roots_shape(z.shape, t, None if square else roots)
     lmax = n - te
     out: dict[tuple[int, int, int], bytes] = {}
     d = valid_codes(z, valid, quantizer)  # heights_to_codes(where(valid, z, 0))
     cubic = _resolve_predictor(predictor, d, valid, te, lmax)
-    d = _decoded_codes(d, valid, te, lmax, cubic, quantizer.bins)
+    d = _decoded_codes(d, valid, te, lmax, cubic, quantizer.bins, None if square else roots)
     if not valid.any():
         return out, d
-    out[(lmax, 0, 0)] = _encode_top(d, valid, te, lmax, cubic, quantizer.bins)
+    if square:
+        out[(lmax, 0, 0)] = _encode_top(d, valid, te, lmax, cubic, quantizer.bins)
+        counts = None
+    else:
+        counts = footprint_counts(valid, te, lmax)
+        s = 1 << lmax
+        for x, y, dw in _root_windows(d[::s, ::s], roots, te):
+            if counts[lmax][y, x]:
+                vw = valid[::s, ::s][y << te:((y + 1) << te) + 1, x << te:((x + 1) << te) + 1]
+                out[(lmax, x, y)] = _encode_top(dw, vw, te, 0, cubic, quantizer.bins, True)
     with cores_for(d.size):  # small grids on one thread (geoterrain/core/threads.py)
-        _encode_levels(out, d, valid, n, te, lmax, cubic, progress,
+        _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts,
                        wide=quantizer.mode == "float", bins=quantizer.bins)
     return out, d
 
@@ -361,13 +443,14 @@ def _mask_kind(nvalid, size: int):
                     np.where(nvalid == 0, MASK_ALL_INVALID, MASK_STORED))
 
 
-def _encode_top(d, valid, te, lmax, cubic, bins=1) -> bytes:
-    # the top tile, coarse to fine inside itself (entropy.encode_top)
+def _encode_top(d, valid, te, lmax, cubic, bins=1, edges=False) -> bytes:
+    # the top tile, coarse to fine inside itself (entropy.encode_top); ``edges``: a root
+    # of several (its level-Lmax window as d, lmax 0)
     s = 1 << lmax
     top, vt = np.ascontiguousarray(d[::s, ::s]), np.ascontiguousarray(valid[::s, ::s])
     kind = int(_mask_kind(int(vt.sum()), vt.size))
-    return _header(True, kind, te, cubic) + entropy.encode_top(top, vt, te, cubic, kind,
-                                                               top_bins(bins), True)
+    return _header(True, kind, te, cubic, edges=edges) + entropy.encode_top(
+        top, vt, te, cubic, kind, top_bins(bins), True, edges and kind != MASK_ALL_VALID)
 
 
 def _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts=None,
@@ -405,6 +488,7 @@ def _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts=None,
 
 _WIDE, _WIDE_LEVEL = 16, 6  # the wide blobs' flag bit and zstd level
 _FILLED = 32  # the top tile's flag bit: its invalid samples filled outward (_top_fill)
+_EDGES = 64  # with _FILLED: a root of several, its edges filled first (fill_edges_first)
 _UINTS = {1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}
 
 
@@ -466,8 +550,11 @@ def _parse(blob: bytes, t: int | None = None) -> tuple[bool, int, int, bool, int
     if len(blob) < _HEADER or blob[0] != BLOB_VERSION:
         raise ValueError(f"not a version-{BLOB_VERSION} tile blob")
     top, kind, te = bool(blob[1] & 1), (blob[1] >> 1) & 3, blob[2]
-    filled_ok = not blob[1] & _FILLED or (top and kind == MASK_STORED)
-    if blob[1] & ~0b111111 or kind > MASK_STORED or not 1 <= te <= 15 or not filled_ok \
+    edges = bool(blob[1] & _EDGES)
+    filled_ok = not blob[1] & _FILLED or (top and (kind == MASK_STORED or edges
+                                                  and kind == MASK_ALL_INVALID))
+    filled_ok = filled_ok and (not edges or bool(blob[1] & _FILLED))
+    if blob[1] & ~0b1111111 or kind > MASK_STORED or not 1 <= te <= 15 or not filled_ok \
             or (t is not None and te != t):
         raise ValueError("tile blob header does not match the store's grid")
     if not blob[1] & _WIDE:
@@ -559,7 +646,8 @@ def decode_tile_valid(blob: bytes, parent_codes: np.ndarray | None,
     top, kind, te, cubic, w, data = _parse(blob, t)
     if top:
         codes, valid, exact = entropy.decode_top(data, te, cubic, kind, top_bins(bins),
-                                                 bool(blob[1] & _FILLED))
+                                                 bool(blob[1] & _FILLED),
+                                                 bool(blob[1] & _EDGES))
         if not exact:
             raise ValueError(_NOT_A_STREAM)
         return codes, valid

@@ -14,6 +14,14 @@ Every non-corner sample is the split vertex of exactly one bintree depth:
   (hypotenuse along the rows) and ``[::2h, h::2h]`` (hypotenuse along the columns);
   their diamond is the rotated square ``|di| + |dj| <= h`` clipped to the domain.
 
+On a rectangular root grid (:class:`geoterrain.core.grid.Grid` with ``roots=True``) the
+top is ``rx`` × ``ry`` root squares of side 2**n, each its own pair of base triangles,
+split along the union-jack diagonal of its place (root (x, y): the main diagonal when
+x + y is even). That is the bintree of a larger square cut to the roots' extent: the
+parity and the parent/child rules are local, so the functions below take ``roots`` and
+differ only in where the domain ends (the extent, ``ry·2**n`` × ``rx·2**n``) and in the
+roots' corners, which, like the square's four, are always present.
+
 Everything here is vectorised over arrays of (i, j) integer pairs; there are no node
 objects (the same implicit indexing as Martini). The ``*_nb`` helpers are the same rules
 for one vertex, compiled and inlined into the numba kernels (δ, saturation, radii, LOD),
@@ -27,6 +35,7 @@ from numba import njit
 
 __all__ = [
     "base_triangles",
+    "root_triangles",
     "child_nb",
     "half_span",
     "main_diagonal_nb",
@@ -73,6 +82,38 @@ def base_triangles(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return a, b, c
 
 
+def root_triangles(n: int, roots: tuple[int, int] = (1, 1)
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The depth-0 triangles of a root grid of ``roots`` = (across, down) squares of side
+    2**n: two per root, in raster order of the roots, each pair split along the root's
+    union-jack diagonal (the main one where x + y is even); counter-clockwise as
+    :func:`base_triangles`, which are the 1 × 1 case.
+
+    Examples
+    --------
+    >>> a, b, c = root_triangles(1, (2, 1))
+    >>> a.tolist(), b.tolist()
+    ([[0, 0], [2, 2], [2, 2], [0, 4]], [[2, 2], [0, 0], [0, 4], [2, 2]])
+    >>> c.tolist()  # the second root splits along its anti-diagonal
+    [[0, 2], [2, 0], [0, 2], [2, 4]]
+    """
+    s = 1 << n
+    rx, ry = roots
+    y, x = (v.ravel() for v in np.indices((ry, rx)))
+    o = np.stack([y * s, x * s], -1).repeat(2, axis=0)  # each root's (0, 0), twice
+    main = ((x + y) % 2 == 0).repeat(2)
+    first = np.tile([True, False], rx * ry)
+    # main: hypotenuse (0, 0)–(s, s), apexes (0, s) and (s, 0); else (s, 0)–(0, s), apexes
+    # (0, 0) and (s, s)
+    a = np.where(main[:, None], np.where(first[:, None], [0, 0], [s, s]),
+                 np.where(first[:, None], [s, 0], [0, s]))
+    c = np.where(main[:, None], np.where(first[:, None], [0, s], [s, 0]),
+                 np.where(first[:, None], [0, 0], [s, s]))
+    b = np.where(main[:, None], np.where(first[:, None], [s, s], [0, 0]),
+                 np.where(first[:, None], [0, s], [s, 0]))
+    return (a + o).astype(np.int64), (b + o).astype(np.int64), (c + o).astype(np.int64)
+
+
 def split_vertex(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Split vertex (hypotenuse midpoint) of triangles with hypotenuse ``a``–``b``.
 
@@ -101,18 +142,20 @@ def triangle_children(
     return (np.concatenate([c, b]), np.concatenate([a, c]), np.concatenate([m, m]))
 
 
-def uniform_triangles(n: int, depth: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """All triangles at bintree ``depth`` (the uniform cut), as (K, 2) int64 arrays.
+def uniform_triangles(n: int, depth: int, roots: tuple[int, int] = (1, 1)
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All triangles at bintree ``depth`` (the uniform cut), as (K, 2) int64 arrays, of
+    the square (or of a root grid's ``roots``).
 
     Depth ``2(n - L)`` is the union-jack uniform surface of pyramid level L.
 
     Examples
     --------
     >>> a, b, c = uniform_triangles(1, 2)
-    >>> len(a)
-    8
+    >>> len(a), len(uniform_triangles(1, 2, (2, 1))[0])
+    (8, 16)
     """
-    a, b, c = base_triangles(n)
+    a, b, c = root_triangles(n, roots)
     for _ in range(depth):
         a, b, c = triangle_children(a, b, c)
     return a, b, c
@@ -204,40 +247,53 @@ def child_nb(i, j, h, k):
     return i + (2 * (k // 2) - 1) * q, j + (2 * (k % 2) - 1) * q
 
 
-def vertex_depth(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
-    """Bintree depth at which sample (i, j) is a split vertex; −1 for the 4 corners.
+def _extent(n: int, roots: tuple[int, int]) -> tuple[int, int]:
+    """(last row, last column) of the domain: the square's 2**n, or the roots' extent."""
+    return roots[1] << n, roots[0] << n
+
+
+def vertex_depth(i: np.ndarray, j: np.ndarray, n: int, roots: tuple[int, int] = (1, 1)
+                 ) -> np.ndarray:
+    """Bintree depth at which sample (i, j) is a split vertex; −1 for the 4 corners (every
+    root's corners on a root grid).
 
     Examples
     --------
     >>> vertex_depth(np.array([2, 0, 2, 1, 1]), np.array([2, 2, 0, 1, 0]), 2).tolist()
     [0, 1, 1, 2, 3]
+    >>> vertex_depth(np.array([0, 2, 2]), np.array([4, 6, 4]), 2, (2, 1)).tolist()
+    [-1, 0, 1]
     """
     i = np.asarray(i, dtype=np.int64)
     j = np.asarray(j, dtype=np.int64)
     s = 1 << n
     g = _lowbit(i, j)
-    g = np.where(g == 0, s, g)  # (0, 0)
+    corner = (g == 0) | (g >= s)  # (0, 0), or a multiple of the root span both ways
+    g = np.where(corner, s, g)
     k = n - 1 - np.log2(g).astype(np.int64)  # h = g = 2**(n-k-1)
     centre = ((i // g) % 2 == 1) & ((j // g) % 2 == 1)
     d = np.where(centre, 2 * k, 2 * k + 1)
-    corner = ((i == 0) | (i == s)) & ((j == 0) | (j == s))
     return np.where(corner, -1, d)
 
 
-def vertex_parents(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
+def vertex_parents(i: np.ndarray, j: np.ndarray, n: int, roots: tuple[int, int] = (1, 1)
+                   ) -> np.ndarray:
     """Parents (apexes of the diamond triangles) of non-corner samples.
 
     Returns an (..., 2, 2) int64 array of two (i, j) pairs; a missing parent (boundary
-    edge midpoint) is (−1, −1).
+    edge midpoint) is (−1, −1). On a root grid an edge midpoint of two roots' common
+    edge has one parent in each.
 
     Examples
     --------
     >>> vertex_parents(np.array([2]), np.array([2]), 2).tolist()
     [[[0, 4], [4, 0]]]
+    >>> vertex_parents(np.array([2]), np.array([4]), 2, (2, 1)).tolist()
+    [[[2, 2], [2, 6]]]
     """
     i = np.asarray(i, dtype=np.int64)
     j = np.asarray(j, dtype=np.int64)
-    s = 1 << n
+    si, sj = _extent(n, roots)
     h = _lowbit(i, j)
     centre = ((i // h) % 2 == 1) & ((j // h) % 2 == 1)
     # Centre: union-jack block parity (a + b) % 2 == 0 → split along the main diagonal,
@@ -251,22 +307,25 @@ def vertex_parents(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
     dj = np.where(along_rows, h, 0)
     e_p = np.stack([np.stack([i - di, j - dj], -1), np.stack([i + di, j + dj], -1)], -2)
     out = np.where(centre[..., None, None], c_p, e_p)
-    bad = (out < 0) | (out > s)
+    bad = (out < 0) | (out > np.array([si, sj]))
     bad = bad.any(-1, keepdims=True)
     return np.where(bad, -1, out)
 
 
-def vertex_children(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
+def vertex_children(i: np.ndarray, j: np.ndarray, n: int, roots: tuple[int, int] = (1, 1)
+                    ) -> np.ndarray:
     """Children of non-corner samples: (..., 4, 2) int64, missing ones (−1, −1).
 
     Examples
     --------
     >>> vertex_children(np.array([2]), np.array([2]), 2).tolist()
     [[[0, 2], [4, 2], [2, 0], [2, 4]]]
+    >>> vertex_children(np.array([2]), np.array([4]), 2, (2, 1)).tolist()
+    [[[1, 3], [1, 5], [3, 3], [3, 5]]]
     """
     i = np.asarray(i, dtype=np.int64)
     j = np.asarray(j, dtype=np.int64)
-    s = 1 << n
+    si, sj = _extent(n, roots)
     h = _lowbit(i, j)
     centre = ((i // h) % 2 == 1) & ((j // h) % 2 == 1)
     q = h // 2
@@ -274,6 +333,6 @@ def vertex_children(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
     e_off = np.stack([-q, -q, -q, q, q, -q, q, q], -1).reshape(*h.shape, 4, 2)
     off = np.where(centre[..., None, None], c_off, e_off)
     out = np.stack([i, j], -1)[..., None, :] + off
-    bad = ((out < 0) | (out > s)).any(-1, keepdims=True)
+    bad = ((out < 0) | (out > np.array([si, sj]))).any(-1, keepdims=True)
     bad = bad | ((~centre) & (h == 1))[..., None, None]  # finest edge midpoints: leaves
     return np.where(bad, -1, out)

@@ -176,17 +176,18 @@ class Frame:
         return np.multiply(np.asarray(heights, np.float64), self.z_to_m * self.z_scale,
                            out=out)
 
-    def check_scene(self, size: int, lo: float, hi: float) -> None:
-        """Refuse (one line) a padded ``size`` × ``size`` grid of heights ``lo`` … ``hi``
-        (source units) whose scene coordinates would pass :data:`SCENE_LIMIT` metres:
-        a pixel size, a unit or a vertical exaggeration far too large.
+    def check_scene(self, size: int | tuple[int, int], lo: float, hi: float) -> None:
+        """Refuse (one line) a padded ``size`` × ``size`` grid (or ``(rows, cols)``, a
+        root grid's extent) of heights ``lo`` … ``hi`` (source units) whose scene
+        coordinates would pass :data:`SCENE_LIMIT` metres: a pixel size, a unit or a
+        vertical exaggeration far too large.
 
         Examples
         --------
         >>> Frame.pixel(3, 3, 2.0).check_scene(3, 0.0, 10.0)
         """
-        k = np.array([0, size - 1])
-        x, y = self.xy(k[:, None], k[None, :])
+        R, C = (size, size) if np.ndim(size) == 0 else size
+        x, y = self.xy(np.array([0, R - 1])[:, None], np.array([0, C - 1])[None, :])
         z = self.z(np.array([lo, hi], np.float64))
         span = max(float(np.abs(v).max()) for v in (x, y, z))
         if not np.isfinite(span) or span > SCENE_LIMIT:
@@ -200,14 +201,16 @@ class Frame:
         """Inverse of :meth:`z`."""
         return np.asarray(Z, np.float64) / (self.z_to_m * self.z_scale)
 
-    def grid_xy(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """Scene X, Y of the whole padded n × n grid (float64). In a projected frame X
-        depends on the column only and Y on the row only: they are read-only broadcast
-        views of one row and one column (no n² copies)."""
+    def grid_xy(self, n: int | tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """Scene X, Y of the whole padded n × n grid, or of ``(rows, cols)`` samples (a
+        root grid's extent) (float64). In a projected frame X depends on the column only
+        and Y on the row only: they are read-only broadcast views of one row and one
+        column (no n² copies)."""
+        R, C = (n, n) if np.ndim(n) == 0 else n
         if self.kind == "geographic":
-            i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+            i, j = np.meshgrid(np.arange(R), np.arange(C), indexing="ij")
             return self.xy(i, j)
-        return self.axis_xy(np.arange(n), np.arange(n))
+        return self.axis_xy(np.arange(R), np.arange(C))
 
     def axis_xy(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Scene X, Y of the samples ``rows`` × ``cols`` of a projected or pixel frame,

@@ -1,4 +1,12 @@
-"""The padded (2^n+1)² domain and its pyramid of (2^t+1)² tiles (docs/conventions.md)."""
+"""The padded domain and its pyramid of (2^t+1)² tiles (docs/conventions.md).
+
+Two layouts. ``square``: the raster padded to one (2^n+1)² square, a single top tile.
+``roots``: level 0 padded only to the next multiple of the tile span a side, level L
+holding ``ceil((cols − 1) / 2^(t+L))`` × ``ceil((rows − 1) / 2^(t+L))`` tiles, up to a
+top level of at most two root tiles (1 × 1, 2 × 1 or 1 × 2, each 2^n level-0 samples a
+side). A square grid is the roots grid whose every level is a power-of-two square; a grid
+whose two layouts give the same tiles is always written as ``square``.
+"""
 
 from __future__ import annotations
 
@@ -6,6 +14,8 @@ from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 
 import numpy as np
+
+from geoterrain.exceptions import UsageError
 
 
 def level_offsets(top: int) -> np.ndarray:
@@ -21,6 +31,46 @@ def level_offsets(top: int) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(4 ** np.arange(top, -1, -1))]).astype(np.int64)
 
 
+LAYOUTS = ("square", "roots")
+MAX_ROOTS = 2  # the top level holds at most this many tiles (Cesium's geographic 2 × 1)
+
+
+class RootGridError(UsageError, ValueError):
+    """A square-only computation was asked of a grid with a rectangular root grid."""
+
+
+#: What draws or reads a root-grid store today (experimental), for every refusal's line.
+ROOT_GRID_WORKS = ("a root-grid store (experimental) is drawn by the rtin strategy only (its "
+                   "views and its static mesh)")
+
+
+def refuse_root_grid(grid: Grid, what: str, cli: str | None = None) -> None:
+    """Raise :class:`RootGridError` in one line, naming what works, when ``grid`` is a
+    root grid: ``what`` (API words; ``cli``: the command line's) does not handle it yet.
+
+    Examples
+    --------
+    >>> refuse_root_grid(Grid.for_shape(65, 65), "chunked")  # a square: nothing
+    >>> try:
+    ...     refuse_root_grid(Grid.for_shape(65, 129, 16, roots=True), "the chunked strategy")
+    ... except RootGridError as e:
+    ...     print(e)  # doctest: +ELLIPSIS
+    the chunked strategy does not handle a grid of 2 × 1 root tiles yet: a root-grid store...
+    """
+    if grid.square:
+        return
+    head = f"does not handle a grid of {grid.roots[0]} × {grid.roots[1]} root tiles yet: "
+    tail = "; preprocess without root_grid for the rest"
+    raise RootGridError(f"{what} {head}{ROOT_GRID_WORKS}{tail}",
+                        cli=f"{cli or what} {head}{ROOT_GRID_WORKS}; preprocess without "
+                        "--root-grid for the rest")
+
+
+def _tiles_over(samples: int, span: int) -> int:
+    """Tiles of ``span`` samples between borders that cover ``samples`` samples (≥ 1)."""
+    return max(1, -(-(samples - 1) // span))
+
+
 @dataclass(frozen=True)
 class Grid:
     """Index arithmetic of the padded domain, levels and tiles.
@@ -32,23 +82,134 @@ class Grid:
     (1025, 65, 4)
     >>> g.tiles_per_side(0), g.parent(0, 5, 3)
     (16, (1, 2, 1))
+    >>> r = Grid.for_shape(520, 1180, tile_size=64, roots=True)
+    >>> r.shape, r.tiles(0), r.roots, r.top_level, r.extent
+    ((577, 1217), (19, 9), (2, 1), 4, (1025, 2049))
     """
 
     rows: int  # source raster rows (H)
     cols: int  # source raster columns (W)
-    n: int  # padded size N = 2**n + 1
+    n: int  # square: padded size N = 2**n + 1; roots: a root tile spans 2**n samples
     t: int  # tile size T = 2**t + 1
+    layout: str = "square"  # or "roots" (see the module's docstring)
+
+    def __post_init__(self):
+        if self.layout not in LAYOUTS:
+            raise ValueError(f"Expected grid layout in {LAYOUTS}, got {self.layout!r}.")
 
     @staticmethod
-    def for_shape(rows: int, cols: int, tile_size: int = 64) -> Grid:
+    def for_shape(rows: int, cols: int, tile_size: int = 64, roots: bool = False) -> Grid:
+        """The grid of a rows × cols raster: one padded square, or with ``roots`` the
+        rectangular root grid (which is the square one whenever they tile alike)."""
         if tile_size < 2 or tile_size & (tile_size - 1):
             raise ValueError(f"Expected tile size to be a power of two ≥ 2, got {tile_size}.")
         n = max(1, int(np.ceil(np.log2(max(rows, cols) - 1))) if max(rows, cols) > 2 else 1)
-        return Grid(rows, cols, n, min(int(np.log2(tile_size)), n))
+        square = Grid(rows, cols, n, min(int(np.log2(tile_size)), n))
+        if not roots:
+            return square
+        t = square.t
+        top = 0
+        while (_tiles_over(cols, 1 << (t + top)) * _tiles_over(rows, 1 << (t + top))
+               > MAX_ROOTS):
+            top += 1
+        g = Grid(rows, cols, t + top, t, "roots")
+        return square if g.same_tiles(square) else g
+
+    def same_tiles(self, other: Grid) -> bool:
+        """Whether both grids hold the same levels of the same tiles (their stores agree)."""
+        return (self.rows, self.cols, self.t, self.top_level) == \
+            (other.rows, other.cols, other.t, other.top_level) and \
+            all(self.tiles(L) == other.tiles(L) for L in self.levels)
+
+    @property
+    def square(self) -> bool:
+        return self.layout == "square"
+
+    def _square_only(self, what: str) -> None:
+        if not self.square:
+            raise RootGridError(f"{what} needs a square grid; this one has "
+                                f"{self.roots[0]} × {self.roots[1]} root tiles over "
+                                f"{self.shape[1]} × {self.shape[0]} samples: "
+                                f"{ROOT_GRID_WORKS}")
+
+    def tiles(self, level: int) -> tuple[int, int]:
+        """(tiles across, tiles down) at level L."""
+        if self.square:
+            k = 1 << (self.top_level - level)
+            return k, k
+        s = self.tile_span(level)
+        return _tiles_over(self.cols, s), _tiles_over(self.rows, s)
+
+    @property
+    def roots(self) -> tuple[int, int]:
+        """(across, down) tiles of the top level: each its own bintree."""
+        return self.tiles(self.top_level)
+
+    def level_shape(self, level: int) -> tuple[int, int]:
+        """(rows, cols) of the level-L lattice: its tiles side by side, borders shared."""
+        tx, ty = self.tiles(level)
+        return ty * (1 << self.t) + 1, tx * (1 << self.t) + 1
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(rows, cols) of the padded level-0 grid (every whole-grid array's shape)."""
+        return self.level_shape(0)
+
+    @property
+    def extent(self) -> tuple[int, int]:
+        """(rows, cols) in level-0 samples that the root tiles cover; a coarse level's
+        samples beyond :attr:`shape` are padding only, held by that level alone."""
+        tx, ty = self.roots
+        return ty * (1 << self.n) + 1, tx * (1 << self.n) + 1
+
+    def offsets(self) -> np.ndarray:
+        """Where each level starts in the dense (level, y, x) table of every tile: tile
+        (L, x, y) is entry ``offsets[L] + y·tiles(L)[0] + x``; ``offsets[-1]`` is the
+        table's size (:func:`level_offsets` on a square grid)."""
+        per = [self.tiles(L)[0] * self.tiles(L)[1] for L in self.levels]
+        return np.concatenate([[0], np.cumsum(per)]).astype(np.int64)
+
+    def table_index(self, keys: np.ndarray) -> np.ndarray:
+        """Entries of (L, x, y) ``keys`` (K, 3) in the dense table of :meth:`offsets`.
+
+        Examples
+        --------
+        >>> g = Grid.for_shape(65, 129, tile_size=16, roots=True)
+        >>> g.table_index(np.array([[0, 7, 3], [2, 1, 0]])).tolist()
+        [31, 41]
+        """
+        keys = np.asarray(keys, np.int64).reshape(-1, 3)
+        L = keys[:, 0]
+        across = np.array([self.tiles(k)[0] for k in self.levels], np.int64)
+        return self.offsets()[L] + keys[:, 2] * across[L] + keys[:, 1]
+
+    def key_of(self, index: int) -> tuple[int, int, int]:
+        """The (L, x, y) at ``index`` of the dense table (:meth:`table_index`'s inverse)."""
+        base = self.offsets()
+        L = int(np.searchsorted(base, index, side="right") - 1)
+        r = int(index) - int(base[L])
+        across = self.tiles(L)[0]
+        return L, r % across, r // across
+
+    def walk_table(self) -> np.ndarray:
+        """The table compiled tile walks take (``base``, :func:`geoterrain.lod.kernels.
+        _coarsest_tile`): a square grid's :meth:`offsets`; a root grid's, followed by each
+        level's tiles across, then down.
+
+        Examples
+        --------
+        >>> Grid.for_shape(65, 129, tile_size=16, roots=True).walk_table().tolist()
+        [0, 32, 40, 42, 8, 4, 2, 4, 2, 1]
+        """
+        if self.square:
+            return self.offsets()
+        return np.concatenate([self.offsets(), [self.tiles(L)[0] for L in self.levels],
+                               [self.tiles(L)[1] for L in self.levels]]).astype(np.int64)
 
     @property
     def size(self) -> int:
-        """N, samples per side of the padded domain."""
+        """N, samples per side of the padded domain (square grids only)."""
+        self._square_only("the padded size N")
         return (1 << self.n) + 1
 
     @property
@@ -65,10 +226,13 @@ class Grid:
         return range(self.top_level + 1)
 
     def tiles_per_side(self, level: int) -> int:
+        """Tiles a side at level L (square grids only: :meth:`tiles` otherwise)."""
+        self._square_only("tiles per side")
         return 1 << (self.top_level - level)
 
     def level_size(self, level: int) -> int:
-        """Samples per side of the whole level-L grid."""
+        """Samples per side of the whole level-L grid (square grids only)."""
+        self._square_only("the level size")
         return (1 << (self.n - level)) + 1
 
     def tile_span(self, level: int) -> int:
@@ -85,6 +249,13 @@ class Grid:
     def parent(self, level: int, x: int, y: int) -> tuple[int, int, int]:
         return level + 1, x // 2, y // 2
 
+    def children(self, level: int, x: int, y: int) -> list[tuple[int, int, int]]:
+        """The tile's children that the grid holds: four, or fewer on the right and
+        bottom edges of a roots grid."""
+        tx, ty = self.tiles(level - 1)
+        return [(level - 1, cx, cy) for cy in (2 * y, 2 * y + 1) for cx in (2 * x, 2 * x + 1)
+                if cx < tx and cy < ty]
+
     def ancestors(self, level: int, x: int, y: int) -> list[tuple[int, int, int]]:
         """The tile's ancestors from its parent up to the top tile."""
         out = []
@@ -93,16 +264,33 @@ class Grid:
             out.append((level, x, y))
         return out
 
-    def pad(self, a: np.ndarray, fill) -> np.ndarray:
-        """Embed a (rows, cols) array at the top-left of an N × N array filled with ``fill``."""
-        out = np.full((self.size, self.size), fill, dtype=a.dtype)
+    def holds(self, key: tuple[int, int, int]) -> bool:
+        """Whether tile (L, x, y) is one of the grid's (the square's tiles, or a root
+        grid's ``tiles(L)``: a tile past the raster's last row or column, which a
+        footprint count over the extent may see holding that shared border, is not)."""
+        L, x, y = key
+        if not 0 <= L <= self.top_level:
+            return False
+        tx, ty = self.tiles(L)
+        return 0 <= x < tx and 0 <= y < ty
+
+    @property
+    def span(self) -> int | None:
+        """A root's side 2^n in level-0 samples, as the bounds take it (None: the square)."""
+        return None if self.square else 1 << self.n
+
+    def pad(self, a: np.ndarray, fill, whole: bool = False) -> np.ndarray:
+        """Embed a (rows, cols) array at the top-left of a :attr:`shape` array filled with
+        ``fill`` (N × N on a square grid); with ``whole``, of an :attr:`extent` array (the
+        whole-grid preprocess's arrays: the same N × N on a square grid)."""
+        out = np.full(self.extent if whole else self.shape, fill, dtype=a.dtype)
         out[: self.rows, : self.cols] = a
         return out
 
     def footprint_counts(self, valid: np.ndarray) -> dict[int, np.ndarray]:
-        """Per level, (tiles_per_side, tiles_per_side) counts of valid samples in each
+        """Per level, (tiles down, tiles across) counts of valid samples in each
         footprint: :func:`footprint_counts` keyed by level."""
-        return dict(enumerate(footprint_counts(valid, self.t)))
+        return dict(enumerate(footprint_counts(valid, self.t, self.top_level)))
 
     def stored_tiles(self, valid: np.ndarray) -> Iterator[tuple[int, int, int]]:
         """Every (L, x, y) whose footprint holds a valid sample, coarsest level first."""
@@ -112,37 +300,46 @@ class Grid:
             yield from ((L, int(x), int(y)) for y, x in zip(ys, xs, strict=True))
 
     def to_json(self) -> dict:
-        return asdict(self)
+        """The store's grid: a square grid as stores always wrote it (no layout)."""
+        d = asdict(self)
+        if self.square:
+            del d["layout"]
+        return d
 
 
-def footprint_counts(valid: np.ndarray, t: int) -> list[np.ndarray]:
+def footprint_counts(valid: np.ndarray, t: int, top: int | None = None) -> list[np.ndarray]:
     """Valid full-resolution samples in each tile footprint, for every pyramid level.
 
-    ``valid`` is the (N, N) mask, N = 2**n + 1, and tiles have 2**t + 1 samples a side.
-    Entry L is the (ny, nx) int64 count of level L (tile span S = 2**(t + L)); the
-    footprint of tile (x, y) is the closed box ``[y S, (y + 1) S] × [x S, (x + 1) S]``,
-    shared borders included. A tile is stored when its count is > 0. Computed from one
-    integral image, so every level costs O(tiles).
+    ``valid`` is the level-0 mask, (N, N) with N = 2**n + 1 on a square grid (levels
+    0 … n − t), or a roots grid's (rows, cols) lattice with levels 0 … ``top``; tiles
+    have 2**t + 1 samples a side. Entry L is the (ny, nx) int64 count of level L (tile
+    span S = 2**(t + L), ``ceil((side − 1) / S)`` tiles a side); the footprint of tile
+    (x, y) is the closed box ``[y S, (y + 1) S] × [x S, (x + 1) S]`` clipped to the
+    mask, shared borders included. A tile is stored when its count is > 0. Computed
+    from one integral image, so every level costs O(tiles).
 
     Examples
     --------
     >>> v = np.zeros((5, 5), bool); v[2, 2] = True
     >>> [c.tolist() for c in footprint_counts(v, 1)]
     [[[1, 1], [1, 1]], [[1]]]
+    >>> [c.tolist() for c in footprint_counts(np.ones((3, 5), bool), 1, top=1)]
+    [[[9, 9]], [[15]]]
     """
     valid = np.asarray(valid, dtype=bool)
-    N = valid.shape[0]
-    n = int(N - 1).bit_length() - 1
+    R, C = valid.shape
+    if top is None:
+        top = int(max(R, C) - 1).bit_length() - 1 - t
     from geoterrain.core.gridcount import integral_nb  # compiled: loaded where it runs
 
-    ii = np.zeros((N + 1, N + 1), np.int32 if valid.size < 2**31 else np.int64)
+    ii = np.zeros((R + 1, C + 1), np.int32 if valid.size < 2**31 else np.int64)
     integral_nb(valid.view(np.uint8), ii)
     out = []
-    for L in range(n - t + 1):
+    for L in range(top + 1):
         s = 1 << (t + L)
-        lo = np.arange((N - 1) // s) * s
-        hi = lo + s + 1
-        c = ii[hi][:, hi] - ii[lo][:, hi] - ii[hi][:, lo] + ii[lo][:, lo]
+        ry, rx = (np.minimum(np.arange(_tiles_over(k, s)) * s, k) for k in (R, C))
+        hy, hx = np.minimum(ry + s + 1, R), np.minimum(rx + s + 1, C)
+        c = ii[hy][:, hx] - ii[ry][:, hx] - ii[hy][:, rx] + ii[ry][:, rx]
         out.append(c.astype(np.int64))
     return out
 

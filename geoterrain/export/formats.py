@@ -255,6 +255,9 @@ def export_mesh(terrain: TerrainLike, selection, path: str | Path, *, overwrite:
     >>> info["solid"]["units"], round(max(info["solid"]["size"][:2]), 6)
     ('m', 0.15)
     """
+    from geoterrain.core.grid import refuse_root_grid
+
+    refuse_root_grid(terrain.grid, "mesh export with textures")  # a root grid: not yet
     out = check_export_path(path, overwrite)
     ext = out.suffix.lower()
     if crs_coords and ext != ".ply":

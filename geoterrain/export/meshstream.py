@@ -116,6 +116,9 @@ def write_static_mesh(terrain: TerrainLike, max_error: float, path: str | Path, 
     (leaf triangles walked). ``chunk``: leaf triangles per chunk (the output does
     not depend on it).
     """
+    from geoterrain.core.grid import refuse_root_grid
+
+    refuse_root_grid(terrain.grid, "the streamed static mesh")  # a root grid: not yet
     from geoterrain.lod.stream import CHUNK, static_chunks
 
     out = check_mesh_path(path, overwrite)
@@ -257,8 +260,8 @@ def check_in_memory(terrain: TerrainLike, max_error: float, path: str | Path,
     >>> check_in_memory(t, 5.0, "m.vtp")  # small: nothing to refuse
     """
     avail = available_memory() if available is None else available
-    N = terrain.grid.size
-    if 2 * (N - 1) ** 2 * IN_MEMORY_BYTES_PER_TRIANGLE <= avail:
+    R, C = terrain.grid.extent  # N × N, or a root grid's extent
+    if 2 * (R - 1) * (C - 1) * IN_MEMORY_BYTES_PER_TRIANGLE <= avail:
         return
     F = estimated_triangles(terrain, max_error)
     need = F * IN_MEMORY_BYTES_PER_TRIANGLE

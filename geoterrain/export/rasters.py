@@ -276,6 +276,9 @@ def product(terrain: TerrainLike, what: str, level: int = 0, relief: Relief = Re
     >>> hs.dtype.name, int(hs.min()) >= 1  # every sample has data here
     ('uint8', True)
     """
+    from geoterrain.core.grid import refuse_root_grid
+
+    refuse_root_grid(terrain.grid, "raster export")  # a root grid: not yet
     if what not in PRODUCTS:
         raise UsageError(f"unknown raster {what!r}; use one of {', '.join(PRODUCTS)}")
     top = terrain.grid.top_level

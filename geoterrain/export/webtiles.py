@@ -208,6 +208,9 @@ class WebTiler:
     """
 
     def __init__(self, terrain: TerrainLike, cmap: str = "auto"):
+        from geoterrain.core.grid import refuse_root_grid
+
+        refuse_root_grid(terrain.grid, "web-map tiles")  # a root grid: not yet
         f = terrain.frame
         if f.kind == "pixel" or f.crs_wkt is None:
             raise UsageError(f"{terrain.path}: web tiles need a georeferenced DEM and this one "

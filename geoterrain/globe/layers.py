@@ -93,6 +93,9 @@ class StoreLayer:
     """
 
     def __init__(self, terrain, name: str | None = None, feather: float = FEATHER):
+        from geoterrain.core.grid import refuse_root_grid
+
+        refuse_root_grid(terrain.grid, "the globe")  # a root grid: not yet
         self.terrain = terrain
         self.name = name or str(getattr(terrain, "path", "store"))
         self.feather = float(feather)

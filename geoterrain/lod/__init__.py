@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from geoterrain.core.grid import refuse_root_grid
 from geoterrain.core.view import View
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.registry import DEFAULT, REGISTRY, STRATEGIES, StrategyInfo, strategy_info
@@ -136,6 +137,8 @@ def select(terrain: TerrainLike, view: View, pixel_error: float = 1.0, strategy:
         sel = last["selection"]
         return Selection(sel.mesh, {**sel.stats, "reused": True, "select_ms": 0.0,
                                     "tiles_decoded": 0})
+    if not info.root_grid:
+        refuse_root_grid(terrain.grid, f"the {strategy} strategy")
     t0, dec0 = time.perf_counter(), terrain.decoded_tiles
     mesh, stats = info.load()(terrain, view, tau, occlusion=occlusion, morph=morph)
     sel = _finish(terrain, mesh, stats, strategy, t0, dec0)
@@ -166,6 +169,8 @@ def static(terrain: TerrainLike, max_error: float = 1.0, mesher: str = "rtin") -
         raise UsageError(f"max_error must be ≥ 0, got {max_error}")
     if mesher not in ("rtin", "tin"):
         raise UsageError(f"mesher must be 'rtin' or 'tin', got {mesher!r}")
+    if mesher == "tin":
+        refuse_root_grid(terrain.grid, "the tin mesher (mesher='tin')", "--mesher tin")
     t0, dec0 = time.perf_counter(), terrain.decoded_tiles
     if mesher == "tin":
         from geoterrain.lod import tin

@@ -144,7 +144,7 @@ def walk_gather(flags, stack, state, vid, keys, slabs, faces, verts, xyz, ij, lv
     hashed = keys.shape[0] > 0
     if hashed:
         capv = min(capv, keys.shape[0] // 2)  # keep probes short: at most half full
-    N = active.shape[0]
+    N = active.shape[1]  # the row stride (a root grid's extent is wider than tall)
     buf = np.empty((4096, 3), np.int64)  # leaves pass through a cache-sized buffer
     nf, nv, status = 0, 0, 0
     while status == 0:
@@ -168,7 +168,7 @@ def walk_gather(flags, stack, state, vid, keys, slabs, faces, verts, xyz, ij, lv
                         break
                     i, j = idx // N, idx % N
                     L, ti, a, b = _coarsest_tile(i, j, top, t, base)
-                    s = slot_of[ti]
+                    s = slot_of[ti] if ti >= 0 else -1
                     if s < 0:
                         status = 2
                         break

@@ -40,14 +40,31 @@ def sample_xy(X, Y, aff, s, a, b, i, j):
     return (x - aff[6]) * aff[8], (y - aff[7]) * aff[8]
 
 
-def walk_start(N: int) -> tuple[np.ndarray, np.ndarray]:
+def walk_start(N: int, roots: tuple[int, int] | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
     """The stack and state (stack pointer) of a walk over an N × N grid: the two
-    base triangles, both counter-clockwise."""
+    base triangles, both counter-clockwise; with ``roots`` (across, down), over a root
+    grid of roots of side N − 1: two triangles per root
+    (:func:`geoterrain.core.bintree.root_triangles`).
+
+    Examples
+    --------
+    >>> stack, state = walk_start(5, (2, 1))
+    >>> int(state[0]), stack[:4].tolist()
+    (4, [[0, 0, 4, 4, 0, 4], [4, 4, 0, 0, 4, 0], [4, 4, 0, 8, 0, 4], [0, 8, 4, 4, 4, 8]])
+    """
     s = N - 1
-    stack = np.empty((256, 6), np.int64)
-    stack[0] = (0, 0, s, s, 0, s)
-    stack[1] = (s, s, 0, 0, s, 0)
-    return stack, np.array([2], np.int64)
+    if roots is None or tuple(roots) == (1, 1):
+        stack = np.empty((256, 6), np.int64)
+        stack[0] = (0, 0, s, s, 0, s)
+        stack[1] = (s, s, 0, 0, s, 0)
+        return stack, np.array([2], np.int64)
+    from geoterrain.core.bintree import root_triangles
+
+    a, b, c = root_triangles(int(s).bit_length() - 1, roots)
+    stack = np.empty((256 + len(a), 6), np.int64)
+    stack[:len(a)] = np.concatenate([a, b, c], axis=1)
+    return stack, np.array([len(a)], np.int64)
 
 
 @njit(cache=True, nogil=True)
@@ -59,7 +76,7 @@ def walk_leaves(active, mixed, gen, stack, state, out):
     over a mixed diamond (``mixed[m] == gen``) are skipped. ``stack``/``state`` (from
     :func:`walk_start`) carry the walk between calls.
     """
-    N = active.shape[0]
+    N = active.shape[1]  # a row's samples (a root grid's extent is wider than tall)
     sp = state[0]
     nf = 0
     cap = out.shape[0]
@@ -138,20 +155,36 @@ def extract(active: np.ndarray, mixed: np.ndarray, vid: np.ndarray, gen=True,
     while True:
         tris = np.empty((cap, 3), np.int32)
         verts = np.empty(3 * cap, np.int64)
-        stack, state = walk_start(active.shape[0])
+        stack, state = walk_start(*walk_shape(active.shape))
         nf, nv = _walk(active, mixed, gen, stack, state, vid, tris, verts)
         if nf >= 0:
             return tris[:nf], verts[:nv]
         cap *= 4
 
 
+def walk_shape(shape: tuple[int, int]) -> tuple[int, tuple[int, int] | None]:
+    """:func:`walk_start`'s arguments for flags of ``shape``: a square N × N, or a root
+    grid's extent (2 × 1 or 1 × 2 roots, :data:`geoterrain.core.grid.MAX_ROOTS`).
+
+    Examples
+    --------
+    >>> walk_shape((5, 5)), walk_shape((5, 9)), walk_shape((9, 5))
+    ((5, None), (5, (2, 1)), (5, (1, 2)))
+    """
+    R, C = shape
+    if R == C:
+        return R, None
+    s = min(R, C) - 1
+    return s + 1, ((C - 1) // s, (R - 1) // s)
+
+
 @njit(cache=True, nogil=True)
 def _set_parents(active, i, j, h, gen):
-    N = active.shape[0]
+    R, C = active.shape
     p0i, p0j, p1i, p1j = parents_nb(i, j, h)  # the bintree's rule (seed 002 §2.3)
-    if 0 <= p0i < N and 0 <= p0j < N:
+    if 0 <= p0i < R and 0 <= p0j < C:
         active[p0i, p0j] = gen
-    if 0 <= p1i < N and 0 <= p1j < N:
+    if 0 <= p1i < R and 0 <= p1j < C:
         active[p1i, p1j] = gen
 
 
@@ -164,13 +197,15 @@ def close_upward_boxes(active, boxes, gen=True):
     box is scanned at each h: the union of ``boxes[L]`` (rows i0, i1, columns
     j0, j1 of the tiles filled at pyramid level L = log2 h, capped at the last
     row of ``boxes``) and the previous box grown by h (parents lie h away).
-    ``active`` holds bools, or generation stamps where ``== gen`` means active.
+    ``active`` holds bools, or generation stamps where ``== gen`` means active; N × N,
+    or a root grid's extent (its roots' side the shorter one less 1: the roots' centres
+    are the last vertices with parents).
     """
-    N = active.shape[0]
+    R, C = active.shape
     top = boxes.shape[0] - 1
-    i0, i1, j0, j1 = N, -1, N, -1
+    i0, i1, j0, j1 = R, -1, C, -1
     h, L = 1, 0
-    while h < N - 1:
+    while h < min(R, C) - 1:
         b = boxes[min(L, top)]
         i0, i1, j0, j1 = min(i0, b[0]), max(i1, b[1]), min(j0, b[2]), max(j1, b[3])
         if i1 >= 0:
@@ -181,7 +216,7 @@ def close_upward_boxes(active, boxes, gen=True):
                     if active[i, j] == gen:
                         _set_parents(active, i, j, h, gen)
             i0, j0 = max(0, i0 - h), max(0, j0 - h)  # their parents lie h away
-            i1, j1 = min(N - 1, i1 + h), min(N - 1, j1 + h)
+            i1, j1 = min(R - 1, i1 + h), min(C - 1, j1 + h)
             ia, ja = (i0 // h) * h, (j0 // h) * h
             ib = ia if (ia // h) % 2 == 1 else ia + h  # block centres: i/h, j/h odd
             jb = ja if (ja // h) % 2 == 1 else ja + h
@@ -190,7 +225,7 @@ def close_upward_boxes(active, boxes, gen=True):
                     if active[i, j] == gen:
                         _set_parents(active, i, j, h, gen)
             i0, j0 = max(0, i0 - h), max(0, j0 - h)
-            i1, j1 = min(N - 1, i1 + h), min(N - 1, j1 + h)
+            i1, j1 = min(R - 1, i1 + h), min(C - 1, j1 + h)
         h *= 2
         L += 1
 
@@ -204,8 +239,8 @@ def close_upward(active: np.ndarray) -> None:
     >>> close_upward(a); [tuple(map(int, p)) for p in np.argwhere(a)]
     [(0, 2), (0, 4), (1, 0), (1, 1), (2, 0), (2, 2), (4, 0)]
     """
-    N = active.shape[0]
-    close_upward_boxes(active, np.array([[0, N - 1, 0, N - 1]], np.int64))
+    R, C = active.shape
+    close_upward_boxes(active, np.array([[0, R - 1, 0, C - 1]], np.int64))
 
 
 @njit(cache=True, nogil=True)
@@ -483,7 +518,7 @@ def gather_pooled(flat, N, slabs, xyz, ij, level):
     for k in range(flat.shape[0]):
         i, j = flat[k] // N, flat[k] % N
         L, idx, a, b = _coarsest_tile(i, j, top, t, base)
-        s = slot_of[idx]
+        s = slot_of[idx] if idx >= 0 else -1
         level[k] = L
         ij[k, 0], ij[k, 1] = i, j
         if s < 0:
@@ -495,6 +530,11 @@ def gather_pooled(flat, N, slabs, xyz, ij, level):
 
 @njit(cache=True, nogil=True)
 def _coarsest_tile(i, j, top, t, base):
+    """Level, slot-table index and sample (a, b) of the coarsest tile holding sample
+    (i, j). ``base`` (:meth:`geoterrain.core.grid.Grid.offsets`, then each level's tiles
+    across and down: ``base[top + 2 + L]``, ``base[2 top + 3 + L]``; a square's table
+    stops at its offsets, its level L 2^(top − L) tiles a side). Index −1: the sample
+    lies beyond the level's tiles (a root grid's padding past the raster, no tile)."""
     low = i | j
     L = top
     if low != 0:
@@ -503,17 +543,27 @@ def _coarsest_tile(i, j, top, t, base):
             low >>= 1
             L += 1
     li, lj = i >> L, j >> L
-    tps = 1 << (top - L)
-    ty = min(li >> t, tps - 1)
-    tx = min(lj >> t, tps - 1)
-    return L, base[L] + ty * tps + tx, li - (ty << t), lj - (tx << t)
+    if base.shape[0] > top + 2:
+        across, down = base[top + 2 + L], base[2 * top + 3 + L]
+    else:
+        across = down = np.int64(1) << (top - L)
+    ty, tx = li >> t, lj >> t
+    if ty == down and li == ty << t:  # the last tile's far border
+        ty -= 1
+    if tx == across and lj == tx << t:
+        tx -= 1
+    if ty >= down or tx >= across:
+        return L, np.int64(-1), np.int64(0), np.int64(0)
+    return L, base[L] + ty * across + tx, li - (ty << t), lj - (tx << t)
 
 
 @njit(cache=True, nogil=True)
 def mark_tiles(flat, N, top, t, base, occ):
     """Flag in ``occ`` (the pool's slot-table layout) the coarsest tile of each sample."""
     for k in range(flat.shape[0]):
-        occ[_coarsest_tile(flat[k] // N, flat[k] % N, top, t, base)[1]] = True
+        idx = _coarsest_tile(flat[k] // N, flat[k] % N, top, t, base)[1]
+        if idx >= 0:
+            occ[idx] = True
 
 
 @njit(cache=True, nogil=True)
@@ -529,16 +579,26 @@ def lp_tiles_walk(tree, dmax, rmax, rsub, view, floor, out):
     table, base, top, lo, hi = tree
     planes = view.planes
     P = planes.shape[0]
-    stack = np.empty((4 * (top + 2), 3), np.int64)
-    stack[0, 0], stack[0, 1], stack[0, 2] = top, 0, 0
-    sp, visited = 1, 0
+    # a root grid's base carries each level's tiles across and down (_coarsest_tile)
+    rect = base.shape[0] > top + 2
+    rx = base[2 * top + 2] if rect else 1
+    ry = base[3 * top + 3] if rect else 1
+    stack = np.empty((4 * (top + 2) + rx * ry, 3), np.int64)
+    sp, visited = 0, 0
+    for y in range(ry):
+        for x in range(rx):
+            stack[sp, 0], stack[sp, 1], stack[sp, 2] = top, x, y
+            sp += 1
     for k in range(floor.shape[0]):
         floor[k] = -1.0
     fl = np.empty(1)
     while sp > 0:
         sp -= 1
         L, x, y = stack[sp, 0], stack[sp, 1], stack[sp, 2]
-        row = table[base[L] + y * (np.int64(1) << (top - L)) + x]
+        across = base[top + 2 + L] if rect else np.int64(1) << (top - L)
+        if rect and (x >= across or y >= base[2 * top + 3 + L]):
+            continue  # past a root grid's last tile column or row
+        row = table[base[L] + y * across + x]
         if row < 0:
             continue
         visited += 1

@@ -47,11 +47,12 @@ MORPH_START = 0.75  # τ_min = MORPH_START · τ: vertices appear at 3/4 of the 
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _ends(i, j, N):
+def _ends(i, j, S):
     """The bintree edge sample (i, j) splits: its two end points, or (−1, …) for a
-    domain corner (which splits nothing)."""
+    domain corner (which splits nothing): a corner of the square of side ``S`` = N − 1,
+    or of a root of that side (a root grid)."""
     low = i | j
-    if low == 0 or ((i == 0 or i == N - 1) and (j == 0 or j == N - 1)):
+    if low == 0 or (i % S == 0 and j % S == 0):
         return -1, -1, -1, -1
     k = 0
     while (low & 1) == 0:
@@ -71,7 +72,7 @@ def _ends(i, j, N):
 def edge_ends(i: int, j: int, N: int) -> tuple[tuple[int, int], tuple[int, int]] | None:
     """The two ends of the bintree edge that sample (i, j) of an N × N grid splits
     (None for a domain corner)."""
-    a, b, c, d = _ends(i, j, N)
+    a, b, c, d = _ends(i, j, N - 1)
     return None if a < 0 else ((a, b), (c, d))
 
 
@@ -98,13 +99,14 @@ def _lookup(keys, vals, key, shift, M):
 @njit(cache=True, nogil=True, inline="always")
 def _true_z(key, N, top, t, base, slot_of, H, zfac):
     L, ti, a, b = _coarsest_tile(key // N, key % N, top, t, base)
-    s = slot_of[ti]
+    s = slot_of[ti] if ti >= 0 else -1
     return H[s, a, b] * zfac if s >= 0 else np.nan
 
 
 @njit(cache=True, nogil=True)
-def morph_heights(verts, xyz, N, slabs, eye, lam, tmin, tmax, tout):
-    """Morph ``xyz[:, 2]`` in place (eq. 3–4) for mesh vertices ``verts`` (flat i·N + j);
+def morph_heights(verts, xyz, N, slabs, eye, lam, tmin, tmax, tout, span):
+    """Morph ``xyz[:, 2]`` in place (eq. 3–4) for mesh vertices ``verts`` (flat i·N + j;
+    ``span`` the side of the square, N − 1, or of a root grid's roots);
     ``tout`` receives each vertex's t. δ, r and the ends' true heights are read from the
     pooled tiles (``slabs``: :class:`~geoterrain.lod.pool.PoolSlabs`, its ``D``, ``R``,
     ``H`` × ``zfac``) as the selection read them.
@@ -122,10 +124,10 @@ def morph_heights(verts, xyz, N, slabs, eye, lam, tmin, tmax, tout):
         if not z == z:
             continue
         i, j = verts[v] // N, verts[v] % N
-        if _ends(i, j, N)[0] < 0:
+        if _ends(i, j, span)[0] < 0:
             continue
         L, ti, a, b = _coarsest_tile(i, j, top, t, base)
-        s = slot_of[ti]
+        s = slot_of[ti] if ti >= 0 else -1
         if s < 0:
             continue
         dl = np.float64(D[s, a, b])
@@ -172,7 +174,7 @@ def morph_heights(verts, xyz, N, slabs, eye, lam, tmin, tmax, tout):
     for q in range(nm):  # eq. 4 with the cascade
         v = order[q]
         i, j = verts[v] // N, verts[v] % N
-        ai, aj, bi, bj = _ends(i, j, N)
+        ai, aj, bi, bj = _ends(i, j, span)
         ka, kb = ai * N + aj, bi * N + bj
         u = _lookup(keys, vals, ka, shift, M)
         za = xyz[u, 2] if u >= 0 else _true_z(ka, N, top, t, base, slot_of, H, zfac)
@@ -196,10 +198,10 @@ def morph_mesh(terrain: TerrainLike, verts: np.ndarray, xyz: np.ndarray, view, t
 
     pool = tile_pool(terrain)
     occ = np.zeros(len(pool.slot_of), bool)
-    mark_tiles(verts, pool.N, pool.top, pool.t, pool.base, occ)
+    mark_tiles(verts, pool.N, pool.top, pool.t, pool.kbase, occ)
     pool.slots(np.flatnonzero(occ), ("delta", "radius", "height"))
     tout = np.ones(len(verts))
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
     morph_heights(verts, xyz, pool.N, pool.slabs(zfac), view.eye, view.lam, float(tmin),
-                  float(tmax), tout)
+                  float(tmax), tout, np.int64(1) << terrain.grid.n)
     return tout

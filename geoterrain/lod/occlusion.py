@@ -83,10 +83,9 @@ class _Footprints:
     def __init__(self, terrain: TerrainLike):
         g, f = terrain.grid, terrain.frame
         S, T = 1 << g.t, g.tile_samples
-        n = g.tiles_per_side(0)
+        nx, ny = g.tiles(0)  # a square's n × n, or a root grid's
         # positions −1 … n (a ring of "no data" footprints around the grid)
-        k = np.arange(-1, n + 1)
-        ty, tx = np.meshgrid(k, k, indexing="ij")
+        ty, tx = np.meshgrid(np.arange(-1, ny + 1), np.arange(-1, nx + 1), indexing="ij")
         ty, tx = ty.ravel(), tx.ravel()
         ci = np.stack([ty, ty, ty + 1, ty + 1], 1) * S  # corners (rows)
         cj = np.stack([tx, tx + 1, tx + 1, tx], 1) * S  # corners (columns): a closed loop
@@ -94,7 +93,7 @@ class _Footprints:
         self.corners = np.stack([x, y], 2)  # (P, 4, 2)
         ix = tile_index(terrain)
         L0 = np.flatnonzero(ix.keys[:, 0] == 0)
-        p0 = (ix.keys[L0, 2] + 1) * (n + 2) + (ix.keys[L0, 1] + 1)
+        p0 = (ix.keys[L0, 2] + 1) * (nx + 2) + (ix.keys[L0, 1] + 1)
         self.position = np.full(len(ix.keys), -1, np.int64)  # index row → footprint
         self.position[L0] = p0
         z0, z1 = ix.zrange[L0, 0], ix.zrange[L0, 1]
@@ -108,7 +107,7 @@ class _Footprints:
         self.good, self.zmin, self.zmax = good, zmin, zmax
         self.state = good.astype(np.int8)  # 1 an occluder, 0 a hole
         self.level0 = L0[ix.nvalid[L0] > 0]
-        inner = (ty >= 0) & (ty < n) & (tx >= 0) & (tx < n)
+        inner = (ty >= 0) & (ty < ny) & (tx >= 0) & (tx < nx)
         edges = np.hypot(*np.moveaxis(np.roll(self.corners, -1, 1) - self.corners, 2, 0))
         self.cell = 0.9 * float(edges[inner].min()) / S  # ≤ any cell's side, metres
         self.centres = _centres(self.corners)
@@ -295,12 +294,12 @@ def eye_above_surface(terrain: TerrainLike, view: View) -> bool:
         return False
     i0, i1 = int(math.floor(ii - rc)), max(int(math.ceil(ii + rc)), int(math.floor(ii)) + 1)
     j0, j1 = int(math.floor(jj - rc)), max(int(math.ceil(jj + rc)), int(math.floor(jj)) + 1)
-    N, S = g.size, 1 << g.t
-    if i0 < 0 or j0 < 0 or i1 > N - 1 or j1 > N - 1:
+    (R, C), S = g.shape, 1 << g.t  # level 0's lattice: N × N, or a root grid's
+    if i0 < 0 or j0 < 0 or i1 > R - 1 or j1 > C - 1:
         return False
     z = np.empty((i1 - i0 + 1, j1 - j0 + 1))
-    for ty in range(i0 // S, min((i1 - 1) // S, N // S - 1) + 1):
-        for tx in range(j0 // S, min((j1 - 1) // S, N // S - 1) + 1):
+    for ty in range(i0 // S, min((i1 - 1) // S, R // S - 1) + 1):
+        for tx in range(j0 // S, min((j1 - 1) // S, C // S - 1) + 1):
             if (0, tx, ty) not in terrain.tile_info:
                 return False
             tile = terrain.tile(0, tx, ty)

@@ -20,7 +20,6 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from geoterrain.core.grid import level_offsets
 from geoterrain.lod.kernels import BLOCK, block_bounds
 
 if TYPE_CHECKING:
@@ -78,12 +77,16 @@ class TilePool:
     def __init__(self, terrain: TerrainLike, budget_bytes: int = BUDGET_BYTES):
         g = terrain.grid
         self.terrain = weakref.proxy(terrain)
-        self.top, self.t, self.N = g.top_level, g.t, g.size
+        self.grid = g
+        # N: the flags' row stride (a square's side; a root grid's extent's columns)
+        self.top, self.t, self.N = g.top_level, g.t, g.extent[1]
         self.T = g.tile_samples
         # per BLOCK² block of a tile: its bounds for fill_lp (kernels.block_bounds)
         self.nb = max(1, (self.T - 1) // BLOCK)
-        # slot table: level L holds 4^(top-L) tiles, row-major (ty, tx), from base[L]
-        self.base = level_offsets(self.top)
+        # slot table: level L holds 4^(top-L) tiles (a root grid: tiles(L)), row-major
+        # (ty, tx), from base[L]; the kernels' table (kbase) adds a root grid's counts
+        self.base = g.offsets()
+        self.kbase = g.walk_table()
         self.slot_of = np.full(int(self.base[-1]), -1, np.int32)
         f = terrain.frame
         # geographic: all 0, x, y from the slabs (pyproj, cached per tile); aff[9] = 1
@@ -111,14 +114,14 @@ class TilePool:
         self.BK = np.zeros((0, self.nb, self.nb, 9), np.float64)
         self.clock = 0
         self.stored = np.zeros(int(self.base[-1]), bool)
-        for (L, x, y) in terrain.tile_info:
-            self.stored[self.base[L] + y * (1 << (self.top - L)) + x] = True
+        if terrain.tile_info:
+            self.stored[self.table_index(np.array(list(terrain.tile_info), np.int64))] = True
         # unstored tiles with a second δ (edgepad.py): served only with "delta_edge",
         # their heights NaN (the static mesh replicates the padding's)
         self.edge_only = np.zeros(int(self.base[-1]), bool)
-        for (L, x, y) in (terrain.edge_max or {}):
-            if (L, x, y) not in terrain.tile_info:
-                self.edge_only[self.base[L] + y * (1 << (self.top - L)) + x] = True
+        only = [k for k in (terrain.edge_max or {}) if k not in terrain.tile_info]
+        if only:
+            self.edge_only[self.table_index(np.array(only, np.int64))] = True
 
     @property
     def affine(self) -> bool:
@@ -134,12 +137,14 @@ class TilePool:
     def slabs(self, zfac: float) -> PoolSlabs:
         """The slabs as they are now (a later :meth:`slots` may grow them), heights
         scaled by ``zfac`` to scene z."""
-        return PoolSlabs(self.top, self.t, self.base, self.slot_of, self.D, self.R, self.H,
+        return PoolSlabs(self.top, self.t, self.kbase, self.slot_of, self.D, self.R, self.H,
                          self.X, self.Y, self.aff, self.BK, float(zfac))
 
     def table_index(self, keys: np.ndarray) -> np.ndarray:
         """Index into the slot table of (L, x, y) keys (K, 3)."""
         L = keys[:, 0]
+        if not self.grid.square:
+            return self.grid.table_index(keys)
         return self.base[L] + keys[:, 2] * (np.int64(1) << (self.top - L)) + keys[:, 1]
 
     def _grow(self, n: int) -> None:
@@ -222,6 +227,8 @@ class TilePool:
 
     def _key(self, s: int) -> tuple[int, int, int]:
         i = int(self.key_of[s])
+        if not self.grid.square:
+            return self.grid.key_of(i)
         L = int(np.searchsorted(self.base, i, side="right") - 1)
         r = i - int(self.base[L])
         side = 1 << (self.top - L)

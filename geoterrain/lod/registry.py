@@ -37,7 +37,9 @@ class StrategyInfo:
     ``tau_independent``: the mesh does not depend on τ (a benchmark selects it once);
     ``conforming``: no T-junction and no edge used by more than two triangles (tested);
     ``morphs``: it geomorphs when morphing is on (``--morph``), keeping its bound;
-    ``morph_default``: it morphs unless switched off (``--no-morph``).
+    ``morph_default``: it morphs unless switched off (``--no-morph``);
+    ``root_grid``: it draws a root-grid store (experimental, ``preprocess --root-grid``;
+    the others refuse one in one line).
     ``summary`` names the method and its source (for the strategy docs); ``words`` says
     what it does in a user's words (for ``--help``).
     """
@@ -51,6 +53,7 @@ class StrategyInfo:
     conforming: bool = False
     morphs: bool = False
     morph_default: bool = False
+    root_grid: bool = False
 
     def load(self) -> Callable:
         """The strategy's ``select(terrain, view, tau, *, occlusion, morph) -> (mesh,
@@ -62,7 +65,7 @@ _ENTRIES = (
     StrategyInfo("rtin", "geoterrain.lod.rtin",
                  "Lindstrom–Pascucci vertex refinement with nested spheres (seed 002)",
                  "triangles refined where the view needs them, crack-free (the default)",
-                 True, conforming=True, morphs=True),
+                 True, conforming=True, morphs=True, root_grid=True),
     StrategyInfo("chunked", "geoterrain.lod.chunked",
                  "stored tile quadtree with skirts (seed 000 chunked LOD)",
                  "ready-made tiles at several resolutions, seams hidden by skirts", True,

@@ -43,6 +43,7 @@ from geoterrain.lod.kernels import (
     level_boxes,
     lp_tiles_walk,
     mark_tiles,
+    walk_shape,
     walk_start,
 )
 from geoterrain.lod.mesh import add_elevation, empty_polydata, polydata
@@ -69,8 +70,8 @@ class _Scratch:
     instead; ``last_faces`` sizes the next output.
     """
 
-    def __init__(self, N: int):
-        self.N = N
+    def __init__(self, shape: tuple[int, int]):
+        self.shape = shape  # N × N, or a root grid's extent
         self.active = self.mixed = None  # allocated by the first view-dependent frame
         self.gen = 0
         self._vid = None
@@ -80,21 +81,21 @@ class _Scratch:
     @property
     def vid(self) -> np.ndarray:
         if self._vid is None:
-            self._vid = np.full(self.N * self.N, -1, np.int32)
+            self._vid = np.full(self.shape[0] * self.shape[1], -1, np.int32)
         return self._vid
 
     def next_gen(self) -> np.uint8:
         if self.active is None or self.gen == 255:
             # pages committed as written: a frame's scattered flags, not the grid
-            self.active = sparse_zeros((self.N, self.N), np.uint8)
-            self.mixed = sparse_zeros((self.N, self.N), np.uint8)
+            self.active = sparse_zeros(self.shape, np.uint8)
+            self.mixed = sparse_zeros(self.shape, np.uint8)
             self.gen = 0
         self.gen += 1
         return np.uint8(self.gen)
 
 
 def _scratch(terrain: TerrainLike) -> _Scratch:
-    return terrain.derived(f"{__name__}.scratch", lambda: _Scratch(terrain.grid.size))
+    return terrain.derived(f"{__name__}.scratch", lambda: _Scratch(terrain.grid.extent))
 
 
 class ActiveSet:
@@ -105,7 +106,7 @@ class ActiveSet:
     """
 
     def __init__(self, terrain: TerrainLike, stamped: bool = False):
-        N = terrain.grid.size
+        R, C = terrain.grid.extent  # N × N, or a root grid's extent
         self.terrain = terrain
         if stamped:
             sc = _scratch(terrain)
@@ -113,10 +114,10 @@ class ActiveSet:
             self.active, self.mixed = sc.active, sc.mixed
         else:
             self.gen = True
-            self.active = np.zeros((N, N), bool)
-            self.mixed = np.zeros((N, N), bool)
+            self.active = np.zeros((R, C), bool)
+            self.mixed = np.zeros((R, C), bool)
         # per level: rows i0, i1 and columns j0, j1 covering the tiles filled
-        self.boxes = np.tile(np.array([N, -1, N, -1], np.int64), (terrain.grid.top_level + 1, 1))
+        self.boxes = np.tile(np.array([R, -1, C, -1], np.int64), (terrain.grid.top_level + 1, 1))
 
     def tiles(self, rows: np.ndarray, index: TileIndex, boxes: bool = True
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -164,16 +165,20 @@ def _tile_tree(terrain: TerrainLike, index: TileIndex):
     held = terrain.derived(f"{__name__}.tree", dict)
     tree = held.get("tree")
     if tree is None or tree[0] is not index:
-        top = terrain.grid.top_level
-        table, base = tile_table(index, top)
+        g = terrain.grid
+        top = g.top_level
+        table, base = tile_table(index, top, g)
         k = index.keys
         rsub = np.asarray(index.radius_max, np.float64).copy()
         for L in range(1, top + 1):  # children before parents: levels upward
             rows = np.flatnonzero(k[:, 0] == L)
+            across, down = g.tiles(L - 1)
             for dy in range(2):
                 for dx in range(2):
                     cx, cy = 2 * k[rows, 1] + dx, 2 * k[rows, 2] + dy
-                    child = table[base[L - 1] + cy * (np.int64(1) << (top - L + 1)) + cx]
+                    inside = (cx < across) & (cy < down)  # a root grid's last column, row
+                    child = np.where(inside, table[base[L - 1] + np.minimum(cy, down - 1)
+                                                   * across + np.minimum(cx, across - 1)], -1)
                     ok = child >= 0
                     rsub[rows[ok]] = np.maximum(rsub[rows[ok]], rsub[child[ok]])
         tree = held["tree"] = (index, table, base, rsub)
@@ -220,7 +225,7 @@ def _gather(terrain: TerrainLike, flat: np.ndarray):
     the pooled tiles."""
     pool = tile_pool(terrain)
     occ = np.zeros(len(pool.slot_of), bool)
-    mark_tiles(flat, pool.N, pool.top, pool.t, pool.base, occ)
+    mark_tiles(flat, pool.N, pool.top, pool.t, pool.kbase, occ)
     pool.slots(np.flatnonzero(occ), ("height", "xy"))
     n = len(flat)
     xyz, ij, lvl = np.empty((n, 3)), np.empty((n, 2), np.int64), np.empty(n, np.int64)
@@ -253,7 +258,8 @@ def active_mesh(terrain: TerrainLike, act: ActiveSet, view: View | None = None,
     # the samples under a triangle lie within (τ/λ)·d of it: τ/(λ − τ) ≤ 2τ/λ
     slack = 2.0 * tau / view.lam if view is not None and tau > 0 else 0.0
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
-    pool.slots(np.array([pool.base[pool.top]]), ("height", "xy"))  # the domain corners
+    # the domain's corners: the top tile's (every root's)
+    pool.slots(np.arange(pool.base[pool.top], pool.base[pool.top + 1]), ("height", "xy"))
     cap = 2 * sc.last_faces + 65536  # np.empty: untouched capacity costs nothing
     # a hash table of vertex numbers while the mesh is small enough for it to stay in cache
     M = 1 << max(12, int(2 * sc.last_faces + 4096).bit_length()) if cap < _HASHED_UP_TO else 0
@@ -261,7 +267,7 @@ def active_mesh(terrain: TerrainLike, act: ActiveSet, view: View | None = None,
         faces = np.empty((cap, 3), np.int32)  # VTK keeps int32 connectivity as is
         verts = np.empty(cap, np.int64)
         xyz, ij, lvl = np.empty((cap, 3)), np.empty((cap, 2)), np.empty(cap, np.int64)
-        stack, state = walk_start(act.active.shape[0])
+        stack, state = walk_start(*walk_shape(act.active.shape))
         keys = np.full(M, -1, np.int64)
         vid = sc.vid if M == 0 else np.empty(M, np.int32)
         nf, nv, status = walk_gather(ActiveFlags(act.active, act.mixed, act.gen, act.boxes),
@@ -356,6 +362,9 @@ def static(terrain: TerrainLike, max_error: float):
     pool = tile_pool(terrain)
     e = float(max_error)
     g = terrain.grid
+    if not g.square:  # the leaves' kernels are square-only: the same mesh, by the walk
+        mesh = active_mesh(terrain, static_active(terrain, index, e))
+        return add_elevation(mesh, terrain.frame.z_scale, None), {}
     edge = edge_padding(terrain)
     keys = static_keys(terrain, index, pool, e, edge)
     want = [pool.table_index(keys), np.array([pool.base[pool.top]])]  # + the grid's corners
@@ -389,7 +398,8 @@ def static(terrain: TerrainLike, max_error: float):
 
 def edge_padding(terrain: TerrainLike) -> bool:
     """Whether the static mesh of ``terrain`` replicates its padding (edgepad.py)."""
-    return bool(EDGE_PADDING and terrain.edge_max is not None and has_padding(terrain.grid))
+    return bool(EDGE_PADDING and terrain.edge_max is not None and terrain.grid.square
+                and has_padding(terrain.grid))
 
 
 def static_keys(terrain: TerrainLike, index: TileIndex, pool, e: float, edge: bool) -> np.ndarray:
@@ -422,5 +432,5 @@ def _border_tiles(g, pool) -> np.ndarray:
     last_row = (g.rows - 1) * N + np.arange(g.cols, dtype=np.int64)
     last_col = np.arange(g.rows, dtype=np.int64) * N + (g.cols - 1)
     occ = np.zeros(int(pool.base[-1]), bool)
-    mark_tiles(np.concatenate([last_row, last_col]), N, g.top_level, g.t, pool.base, occ)
+    mark_tiles(np.concatenate([last_row, last_col]), N, g.top_level, g.t, pool.kbase, occ)
     return np.flatnonzero(occ)

@@ -247,7 +247,7 @@ def _gather(pool: TilePool, flat: np.ndarray, zfac: float, window=None):
         pad = (i >= window[0]) | (j >= window[1])
         more = np.minimum(i[pad], window[0] - 1) * N + np.minimum(j[pad], window[1] - 1)
     occ = np.zeros(len(pool.slot_of), bool)
-    mark_tiles(np.concatenate([flat, more]), N, pool.top, pool.t, pool.base, occ)
+    mark_tiles(np.concatenate([flat, more]), N, pool.top, pool.t, pool.kbase, occ)
     # with "delta_edge", the unstored tiles holding a second δ are served too
     pool.slots(np.flatnonzero(occ), ("height", "xy") if window is None else
                ("delta_edge", "height", "xy"))

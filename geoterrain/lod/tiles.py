@@ -45,6 +45,9 @@ class TileIndex:
         self.row = {k: n for n, k in enumerate(keys)}
         self.keys = np.array(keys, np.int64).reshape(-1, 3)
         self.top_level = terrain.grid.top_level
+        rx, ry = terrain.grid.roots  # the top tiles: one, or a root grid's
+        self.roots = np.array([(self.top_level, x, y) for y in range(ry) for x in range(rx)],
+                              np.int64)
         names = ("zmin", "zmax", "xmin", "ymin", "xmax", "ymax", "error", "boundary_error",
                  "delta_max", "radius_max", "nvalid")
         a = np.array([[info[k][c] for c in names] for k in keys], np.float64
@@ -64,16 +67,18 @@ class TileIndex:
 
     def outside(self, view: View) -> bool:
         """True when the whole terrain's box is outside the frustum (nothing to decode)."""
-        top = self.rows_of(np.array([[self.top_level, 0, 0]]))
-        if top[0] < 0:
+        top = self.rows_of(self.roots)
+        top = top[top >= 0]
+        if not len(top):
             return True
-        return bool(view.box_visibility(self.lo[top], self.hi[top])[0] == 0)
+        return bool((view.box_visibility(self.lo[top], self.hi[top]) == 0).all())
 
 
 class TileTree(NamedTuple):
     """A tile index as the compiled quadtree walks read it: the dense (level, y, x) → row
-    ``table`` and its level offsets ``base`` (:func:`tile_table`), the ``top`` level, and
-    each row's box ``lo``, ``hi`` (R, 3) (:class:`TileIndex`)."""
+    ``table`` and its level offsets ``base`` (:func:`tile_table`; a root grid's with its
+    tiles across and down, :meth:`geoterrain.core.grid.Grid.walk_table`), the ``top``
+    level, and each row's box ``lo``, ``hi`` (R, 3) (:class:`TileIndex`)."""
 
     table: np.ndarray
     base: np.ndarray
@@ -82,9 +87,11 @@ class TileTree(NamedTuple):
     hi: np.ndarray
 
 
-def tile_table(index: TileIndex, top: int) -> tuple[np.ndarray, np.ndarray]:
+def tile_table(index: TileIndex, top: int, grid=None) -> tuple[np.ndarray, np.ndarray]:
     """A dense (level, y, x) → row table of the stored tiles (−1: not stored) and the
-    offset of each level in it: row = table[base[L] + y · 2^(top − L) + x].
+    offset of each level in it: row = table[base[L] + y · 2^(top − L) + x]; with a root
+    ``grid``, its table (:meth:`geoterrain.core.grid.Grid.table_index`) and its
+    :meth:`~geoterrain.core.grid.Grid.walk_table` as ``base``.
 
     Examples
     --------
@@ -93,6 +100,10 @@ def tile_table(index: TileIndex, top: int) -> tuple[np.ndarray, np.ndarray]:
     >>> int(table[base[t.grid.top_level]]) == ix.row[(t.grid.top_level, 0, 0)]
     True
     """
+    if grid is not None and not grid.square:
+        table = np.full(int(grid.offsets()[-1]), -1, np.int64)
+        table[grid.table_index(index.keys)] = np.arange(len(index.keys))
+        return table, grid.walk_table()
     base = level_offsets(top)
     table = np.full(int(base[-1]), -1, np.int64)
     k = index.keys
@@ -145,9 +156,7 @@ def quadtree_leaves(terrain: TerrainLike, index: TileIndex, view: View, refine: 
     Returns the leaves and ``tiles_visited`` / ``tiles_culled`` / ``tiles_hidden``
     counts.
     """
-    g = terrain.grid
-    top = np.array([[g.top_level, 0, 0]])
-    nodes = index.rows_of(top)
+    nodes = index.rows_of(index.roots)
     nodes = nodes[nodes >= 0]
     inside = np.zeros(len(nodes), bool)
     if hidden is None:

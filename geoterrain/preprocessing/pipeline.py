@@ -42,7 +42,7 @@ from geoterrain.core.grid import Grid
 from geoterrain.core.memory import available_memory
 from geoterrain.core.paths import STORE_SUFFIX, input_problem
 from geoterrain.core.progress import Progress, StageClock
-from geoterrain.exceptions import InputError
+from geoterrain.exceptions import InputError, UsageError
 from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.ingest.remote import is_url
 from geoterrain.preprocessing.request import Request, place, request
@@ -95,6 +95,7 @@ def preprocess(
     resampling: str = "bilinear",
     priority: str = "finest",
     timings: dict | None = None,
+    root_grid: bool = False,
 ) -> Path:
     """Preprocess a DEM into a store and return the store's path.
 
@@ -173,6 +174,13 @@ def preprocess(
     timings
         A dict that receives each stage's seconds (``read``, ..., ``write``). They are
         not stored: the same input and options write the same bytes.
+    root_grid
+        Experimental: pad a wide or tall raster to the next tile multiple a side, under a
+        grid of root tiles (2 × 1, 1 × 2), not to one (2^n + 1)² square
+        (:class:`geoterrain.core.grid.Grid`, schema version 7). Whole-grid preprocess of
+        projected and pixel frames only; such a store is drawn by ``rtin`` alone, and the
+        other consumers refuse it in one line. A raster whose root grid is its square
+        grid gives the square store.
 
     Examples
     --------
@@ -185,7 +193,7 @@ def preprocess(
     """
     req = request(src, dst, tile_size=tile_size, codec_error=codec_error,
                   pixel_size=pixel_size, overwrite=overwrite, scheduler=scheduler,
-                  resume=resume)
+                  resume=resume, root_grid=root_grid)
     merge = dict(crs=crs, resolution=resolution, resampling=resampling, priority=priority)
     limit = available_memory() // 2 if memory_limit is None else int(memory_limit)
     probe = _probe(req, merge)
@@ -193,6 +201,12 @@ def preprocess(
         shape, crs_geographic = probe
         geographic = crs_geographic and tile is None and pixel_size is None
         rows = streaming_band(shape, limit, geographic)
+        if rows is not None and root_grid:
+            raise UsageError("a root grid is built by the whole-grid preprocess only (the "
+                             "streamed one pads to the square); raise memory_limit, or "
+                             "leave root_grid off", cli="--root-grid is built by the "
+                             "whole-grid preprocess only (the streamed one pads to the "
+                             "square); raise --memory-limit, or leave --root-grid off")
         if rows is not None:  # too large for the whole grid: a window at a time
             return stream(req, z_scale=z_scale, z_units=z_units, codec_error=codec_error,
                           nodata=nodata, band=rows, raster_band=band, encoding=encoding,
@@ -216,7 +230,9 @@ def preprocess(
                      and dem.grid.top_level > 0)
     bounds = vertex_bounds(dem, surface, derive_bounds, stage)
     tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
-                                          dem.grid.t)
+                                          dem.grid.t, span=dem.grid.span)
+    across, down = dem.grid.tiles(0)
+    blocks = blocks[:down, :across]  # a root grid's extent holds more than its tiles
     stage("tile bounds")
     # one map per level, central differences of the level's own samples (seed 000
     # normal-map lighting): a reader rebuilds each tile's from its heights and ring
@@ -294,7 +310,14 @@ def read_dem(req: Request, *, band: int | None, encoding: str, nodata: float | N
     r.transform, r.crs_wkt, frame, grid = place(req, r.shape, r.transform, r.crs_wkt,
                                                 tile=tile, pixel_size=pixel_size,
                                                 z_units=z_units, z_scale=z_scale, label=r.path)
-    frame.check_scene(grid.size, *valid_range(r.heights, r.valid)[:2])
+    if not grid.square and frame.kind == "geographic":
+        raise UsageError(f"{r.path}: a root grid is built for projected and pixel frames "
+                         "only (the curvature bounds of a geographic one are square-only "
+                         "yet); leave root_grid off",
+                         cli=f"{r.path}: --root-grid is built for projected and pixel "
+                         "frames only (the curvature bounds of a geographic one are "
+                         "square-only yet); leave --root-grid off")
+    frame.check_scene(_whole(grid), *valid_range(r.heights, r.valid)[:2])
     return Dem(r, frame, grid, int(np.count_nonzero(r.valid)))
 
 
@@ -316,14 +339,20 @@ class Surface:
     predictor: str = "auto"  # the codec's U(.) (an edit keeps the store's)
 
 
+def _whole(grid: Grid) -> int | tuple[int, int]:
+    # the whole-grid arrays: N on a square grid, a root grid's extent (rows, cols)
+    return grid.size if grid.square else grid.extent
+
+
 def pad(dem: Dem) -> Surface:
-    """The DEM padded to the (2^n+1)² grid (invalid padding), with scene x, y."""
+    """The DEM padded to the (2^n+1)² grid, or a root grid's extent (invalid padding),
+    with scene x, y."""
     grid, r = dem.grid, dem.raster
-    valid = grid.pad(r.valid, False)
-    heights = grid.pad(r.heights, np.nan)
+    valid = grid.pad(r.valid, False, whole=True)
+    heights = grid.pad(r.heights, np.nan, whole=True)
     heights[~valid] = np.nan
     r.heights = None  # the padded copy holds them now (memory: issue 12)
-    X, Y = dem.frame.grid_xy(grid.size)
+    X, Y = dem.frame.grid_xy(_whole(dem.grid))
     return Surface(heights, valid, X, Y)
 
 
@@ -335,7 +364,9 @@ def quantise(dem: Dem, s: Surface, codec_error: float | None) -> Surface:
                          offset=r.offset)
     height_blobs = None
     if q.bins > 1:  # residual bins: the heights depend on the pyramid, coded here once
-        height_blobs, codes = encode_decoded(s.heights, s.valid, dem.grid.t, q)
+        height_blobs, codes = encode_decoded(s.heights, s.valid, dem.grid.t, q,
+                                             roots=_roots(dem.grid))
+        height_blobs = _held(height_blobs, dem.grid)
         Z = codes_to_heights(codes, q)
         del codes
         Z[~s.valid] = np.nan
@@ -346,6 +377,16 @@ def quantise(dem: Dem, s: Surface, codec_error: float | None) -> Surface:
     del hv
     Z = dem.frame.z(Z, out=Z)  # scene metres, in place
     return Surface(s.heights, s.valid, s.X, s.Y, Z, q, height_range, height_blobs)
+
+
+def _roots(grid: Grid) -> tuple[int, int] | None:
+    return None if grid.square else grid.roots
+
+
+def _held(blobs: dict, grid: Grid) -> dict:
+    # a root grid's tiles only (a footprint over the extent may reach one more, past the
+    # raster's last row or column, holding only that shared border)
+    return blobs if grid.square else {k: b for k, b in blobs.items() if grid.holds(k)}
 
 
 @dataclass
@@ -368,7 +409,7 @@ def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool, stage: StageClock
     L50–52) as the 8-bit log codes they are stored as; on a geographic frame, both made
     to hold in the scene's metric x, y (:mod:`geoterrain.bounds.curvature`)."""
     frame, grid, valid = dem.frame, dem.grid, s.valid
-    delta = vertex_errors(s.Z, valid)
+    delta = vertex_errors(s.Z, valid, span=grid.span)
     stage("errors")
     terms = radius = None
     if frame.kind == "geographic":  # curvilinear grid: δ and r that hold in scene x/y
@@ -384,7 +425,7 @@ def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool, stage: StageClock
         slack = geographic_leaf_delta(delta, s.Z, valid, grid.t, terms[0], terms[2])
         ring_kinds = ("delta",) if slack is not None else ()
     # nested on the coded values (a projected frame needs no radii before: r = nesting)
-    r_codes = radius_codes(s.X, s.Y, s.Z, valid, radius)
+    r_codes = radius_codes(s.X, s.Y, s.Z, valid, radius, span=grid.span)
     del radius
     stage("radii")
     return VertexBounds(delta, r_codes, ring_kinds, slack, terms, delta_before)
@@ -416,7 +457,8 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     grid, frame, valid, Z = dem.grid, dem.frame, s.valid, s.Z
     height_blobs = s.height_blobs
     if height_blobs is None:
-        height_blobs = encode_pyramid(s.heights, valid, grid.t, s.q, predictor=s.predictor)
+        height_blobs = _held(encode_pyramid(s.heights, valid, grid.t, s.q,
+                                            predictor=s.predictor, roots=_roots(grid)), grid)
     delta = b.delta
     edge = d_edge = None
     if has_padding(grid):

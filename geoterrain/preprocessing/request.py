@@ -46,11 +46,12 @@ class Request:
     src: str | Path | list
     tile_size: int
     name: str
+    root_grid: bool = False  # a rectangular root grid (experimental; core/grid.py)
 
 
 def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
             codec_error: float | None, pixel_size: float | None, overwrite: bool,
-            scheduler: str, resume: bool) -> Request:
+            scheduler: str, resume: bool, root_grid: bool = False) -> Request:
     """A preprocess's arguments checked before any work (a one-line
     :class:`UsageError` each), and a killed run's leftovers beside ``dst`` removed
     unless it is resumed.
@@ -89,7 +90,7 @@ def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
         remove_stale_partials(dst.parent if str(dst.parent) else Path("."))
     # a regular file or nothing, replaced only with overwrite, never one of the inputs
     check_output(dst, overwrite, inputs=files)
-    return Request(files, mosaic, dst, overwrite, src, tile_size, name)
+    return Request(files, mosaic, dst, overwrite, src, tile_size, name, bool(root_grid))
 
 
 class Placement(NamedTuple):
@@ -135,4 +136,5 @@ def place(req: Request, shape: tuple[int, int], transform: tuple | None,
     if crs_wkt is None and pixel_size is None:
         log.warning("%s has no CRS: using 1 m per pixel; set pixel_size (--pixel-size)",
                     req.src)
-    return Placement(transform, crs_wkt, frame, Grid.for_shape(H, W, tile_size=req.tile_size))
+    return Placement(transform, crs_wkt, frame,
+                     Grid.for_shape(H, W, tile_size=req.tile_size, roots=req.root_grid))

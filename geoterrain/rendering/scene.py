@@ -118,6 +118,9 @@ class TerrainScene:
                  textures: str = "view", light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True,
                  morph: bool | None = None, strips: bool = False, water: bool = True):
+        from geoterrain.core.grid import refuse_root_grid
+
+        refuse_root_grid(terrain.grid, "rendering (render, view, orbit, the viewer)")
         import pyvista as pv
 
         terrain = exaggerated(terrain, vertical_exaggeration)

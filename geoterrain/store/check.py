@@ -15,9 +15,10 @@ import numpy as np
 
 from geoterrain.codec.quantizer import MAX_BINS, Quantizer
 from geoterrain.core.frame import SCENE_LIMIT, UNIT_TO_M_RANGE, Z_SCALE_RANGE, Z_UNITS, Frame
-from geoterrain.core.grid import Grid
+from geoterrain.core.grid import MAX_ROOTS, Grid
 from geoterrain.core.memory import available_memory
 from geoterrain.exceptions import StoreError
+from geoterrain.store.database import schema_version
 
 __all__ = ["check_store", "available_memory"]
 
@@ -52,14 +53,24 @@ def _keys(d, allowed: set[str], required: set[str], what: str) -> dict:
 
 
 def _grid(m: dict) -> Grid:
-    d = _keys(m.get("grid"), {"rows", "cols", "n", "t"}, {"rows", "cols", "n", "t"}, "grid")
+    """The metadata's grid: a square one (stores always wrote it so) or, with
+    ``layout: "roots"``, a rectangular root grid; either the one its shape gives."""
+    d = _keys(m.get("grid"), {"rows", "cols", "n", "t", "layout"}, {"rows", "cols", "n", "t"},
+              "grid")
     n = _int(d["n"], 1, MAX_N, "grid.n")
     t = _int(d["t"], 1, min(n, 15), "grid.t")
-    rows = _int(d["rows"], 2, (1 << n) + 1, "grid.rows")
-    cols = _int(d["cols"], 2, (1 << n) + 1, "grid.cols")
-    g = Grid(rows, cols, n, t)
-    if Grid.for_shape(rows, cols, 1 << t) != g:
+    if d.get("layout", "square") not in ("square", "roots") or d.get("layout") == "square":
+        raise _Bad("grid.layout must be \"roots\" or absent")
+    roots = "layout" in d
+    side = ((1 << n) + 1) * (MAX_ROOTS if roots else 1)
+    rows = _int(d["rows"], 2, side, "grid.rows")
+    cols = _int(d["cols"], 2, side, "grid.cols")
+    g = Grid(rows, cols, n, t, d.get("layout", "square"))
+    if Grid.for_shape(rows, cols, 1 << t, roots=roots) != g:
         raise _Bad("grid.n does not fit grid.rows and grid.cols")
+    if "schema_version" in m and m["schema_version"] != schema_version(d):
+        raise _Bad(f"a {'root' if roots else 'square'} grid is written in schema version "
+                   f"{schema_version(d)}, not {m['schema_version']}")
     return g
 
 
@@ -149,14 +160,17 @@ def _tiles(tiles: dict, g: Grid, f: Frame, m: dict) -> None:
     allows, finite non-inverted boxes and non-negative bounds; the first tile (in table
     order) that fails names its first failing rule. Whole arrays: a 16385² store has
     87 381 tiles."""
-    top = (g.top_level, 0, 0)
-    if top not in tiles:
+    rx, ry = g.roots
+    top = [(g.top_level, x, y) for y in range(ry) for x in range(rx) if (g.top_level, x, y)
+           in tiles]
+    if not top:
         raise _Bad("the top tile is missing")
     keys = np.array(list(tiles), np.int64).reshape(-1, 3)
     L, x, y = keys.T
     inside_levels = (0 <= L) & (L <= g.top_level)
-    side = np.where(inside_levels, np.int64(1) << np.clip(g.top_level - L, 0, 62), 0)
-    inside = (0 <= x) & (x < side) & (0 <= y) & (y < side)
+    across, down = (np.array([g.tiles(k)[a] for k in g.levels] + [0], np.int64) for a in (0, 1))
+    lv = np.where(inside_levels, L, g.top_level + 1)
+    inside = (0 <= x) & (x < across[lv]) & (0 <= y) & (y < down[lv])
     # keys as one integer each (inside the grid x, y < 2^24), parents looked up by value
     code = np.where(inside, (L << 52) | (x << 26) | y, -1)
     parent = np.where(inside, ((L + 1) << 52) | ((x // 2) << 26) | (y // 2), -1)
@@ -180,11 +194,12 @@ def _tiles(tiles: dict, g: Grid, f: Frame, m: dict) -> None:
         raise _Bad(f"tile {tuple(int(v) for v in keys[i])} {rules[int(bad[:, i].argmax())][1]}")
     if not (L == 0).any():
         raise _Bad("level 0 holds no tile")
-    # the top tile's footprint is everything: its height box is the height range, in scene z
+    # the top tiles' footprints are everything: their height box is the height range, in
+    # scene z
     lo, hi = (float(v) for v in f.z([m["height_range"][0], m["height_range"][1]]))
-    t = tiles[top]
+    zmin, zmax = min(tiles[k]["zmin"] for k in top), max(tiles[k]["zmax"] for k in top)
     tol = 1e-6 * max(1.0, abs(lo), abs(hi))
-    if abs(t["zmin"] - lo) > tol or abs(t["zmax"] - hi) > tol:
+    if abs(zmin - lo) > tol or abs(zmax - hi) > tol:
         raise _Bad("height_range, z_scale or the top tile's heights disagree")
 
 
@@ -244,9 +259,10 @@ def check_store(path: str | Path, m: dict, tiles: dict) -> tuple[Grid, Frame, Qu
     except _Bad as exc:
         raise StoreError(f"{path}: invalid metadata ({exc}): the file is damaged or not from "
                          "geoterrain; re-run `geoterrain preprocess`") from None
-    need, have = _BYTES_PER_SAMPLE * g.size * g.size, available_memory()
+    (gr, gc), have = g.shape, available_memory()
+    need = _BYTES_PER_SAMPLE * gr * gc
     if need > have:
-        raise StoreError(f"{path}: its {g.size}×{g.size} grid needs about {need / 2**30:.1f} GiB "
+        raise StoreError(f"{path}: its {gc}×{gr} grid needs about {need / 2**30:.1f} GiB "
                          f"to mesh, {have / 2**30:.1f} GiB is available; use a machine with "
                          "more memory or preprocess a smaller DEM")
     return g, f, q

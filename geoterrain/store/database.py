@@ -101,6 +101,22 @@ SCHEMA_VERSION = 6  # 2: checksums bound to their tile and kind; per-level key d
 #                    4: metadata, tile numbers and blob keys in compressed catalog rows;
 #                    5: height blobs of version 2 (range-coded, geoterrain/codec/entropy.py);
 #                    6: δ and r blobs may hold cell centres only (vertexdata.CENTRES)
+ROOTS_SCHEMA_VERSION = 7  # a grid of root tiles (grid.layout "roots"); a square grid stays 6
+
+
+def schema_version(grid: dict) -> int:
+    """The schema version a store of this grid (its metadata's ``grid``) is written in:
+    :data:`ROOTS_SCHEMA_VERSION` for a grid of root tiles, else :data:`SCHEMA_VERSION`
+    (square stores are the bytes they always were).
+
+    Examples
+    --------
+    >>> schema_version({"rows": 9, "cols": 9, "n": 3, "t": 2})
+    6
+    """
+    return ROOTS_SCHEMA_VERSION if grid.get("layout") == "roots" else SCHEMA_VERSION
+
+
 PAGE_SIZE = 1024  # bytes per SQLite page of a written store
 PACK_BYTES = 4 << 20  # blob bytes a writer holds before inserting them, packed (pagepack)
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
@@ -331,7 +347,7 @@ class StoreWriter:
         def _finish():
             self._flush()
             rows = {TILES_ID: self._tile_table()}
-            self._meta["schema_version"] = SCHEMA_VERSION
+            self._meta["schema_version"] = schema_version(self._meta.get("grid", {}))
             self._meta["complete"] = True
             rows[META_ID] = pack_metadata(self._meta)
             self.con.executemany("INSERT INTO catalog VALUES (?,?,?)",
@@ -472,9 +488,10 @@ class StoreReader:
             raise StoreError(
                 f"{self.path}: incomplete store (interrupted write); re-run preprocess")
         version = self.metadata.get("schema_version")
-        if version != SCHEMA_VERSION:
+        if version not in (SCHEMA_VERSION, ROOTS_SCHEMA_VERSION) or type(version) is not int:
             raise StoreError(f"{self.path}: store schema version {_show(version)}, this "
-                             f"geoterrain reads version {SCHEMA_VERSION}; {REBUILD}")
+                             f"geoterrain reads version {SCHEMA_VERSION} (and "
+                             f"{ROOTS_SCHEMA_VERSION}, root grids); {REBUILD}")
 
     def _foreign(self, why: str) -> StoreError:
         return StoreError(f"{self.path}: not a geoterrain store ({why}); refusing to read it")

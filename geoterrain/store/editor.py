@@ -33,7 +33,7 @@ from geoterrain.store.catalog import (
     pack_tiles,
     unpack_metadata,
 )
-from geoterrain.store.database import SCHEMA_VERSION, StoreReader, blob_crc
+from geoterrain.store.database import StoreReader, blob_crc, schema_version
 from geoterrain.store.keys import blob_key, tile_key, unpack_blob_key
 
 __all__ = ["StoreEditor", "BUSY_SECONDS"]
@@ -189,7 +189,7 @@ class StoreEditor:
         meta = dict(metadata)
         levels = np.bincount(tk & 31, minlength=32) if len(tk) else np.zeros(32, np.int64)
         meta["tile_counts"] = {str(L): int(c) for L, c in enumerate(levels) if c}
-        meta["schema_version"] = SCHEMA_VERSION
+        meta["schema_version"] = schema_version(meta.get("grid", {}))
         meta["complete"] = True
         # the tile table at zstd's fast level: its strongest one took most of a small
         # edit's time (catalog.pack_tiles)

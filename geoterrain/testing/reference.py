@@ -16,7 +16,6 @@ from __future__ import annotations
 import numpy as np
 
 from geoterrain.bounds.delta import check_grid, grid_order
-from geoterrain.bounds.tilebounds import closed_blocks
 from geoterrain.core.bintree import base_triangles, triangle_children
 
 __all__ = ["normal_map_reference", "saturate", "static_mesh", "vertex_errors_reference",
@@ -29,22 +28,22 @@ __all__ = ["normal_map_reference", "saturate", "static_mesh", "vertex_errors_ref
 def _surface_np(zf: np.ndarray, h: int, quarters: bool) -> np.ndarray:
     """Full-grid uniform surface of the cut whose split vertices have half-size ``h``:
     union-jack half-squares of side 2h (``quarters=False``, even depth) or the four
-    quarter triangles of each 2h block (``quarters=True``, odd depth)."""
-    N = zf.shape[0]
+    quarter triangles of each 2h block (``quarters=True``, odd depth). The grid may be
+    a rectangle of whole blocks (a root grid's extent)."""
+    R, C = zf.shape
     s = 2 * h
-    nb = (N - 1) // s
-    ar = np.arange(N)
-    bi = np.minimum(ar // s, nb - 1)
+    bi = np.minimum(np.arange(R) // s, (R - 1) // s - 1)
+    bj = np.minimum(np.arange(C) // s, (C - 1) // s - 1)
     I0 = (bi * s)[:, None]
-    J0 = (bi * s)[None, :]
-    di = (ar - bi * s)[:, None].astype(np.float64)
-    dj = (ar - bi * s)[None, :].astype(np.float64)
+    J0 = (bj * s)[None, :]
+    di = (np.arange(R) - bi * s)[:, None].astype(np.float64)
+    dj = (np.arange(C) - bj * s)[None, :].astype(np.float64)
     z00 = zf[I0, J0]
     z01 = zf[I0, J0 + s]
     z10 = zf[I0 + s, J0]
     z11 = zf[I0 + s, J0 + s]
     if not quarters:
-        main = ((bi[:, None] + bi[None, :]) % 2) == 0
+        main = ((bi[:, None] + bj[None, :]) % 2) == 0
         up = z00 + (z01 - z00) * (dj / s) + (z11 - z01) * (di / s)
         lo = z00 + (z10 - z00) * (di / s) + (z11 - z10) * (dj / s)
         ul = z00 + (z10 - z00) * (di / s) + (z01 - z00) * (dj / s)
@@ -61,14 +60,21 @@ def _surface_np(zf: np.ndarray, h: int, quarters: bool) -> np.ndarray:
 
 
 def _block_view(a: np.ndarray, s: int) -> np.ndarray:
-    nb = (a.shape[0] - 1) // s
+    nr, nc = ((k - 1) // s for k in a.shape)
     st0, st1 = a.strides
     return np.lib.stride_tricks.as_strided(
-        a, shape=(nb, nb, s + 1, s + 1), strides=(s * st0, s * st1, st0, st1), writeable=False)
+        a, shape=(nr, nc, s + 1, s + 1), strides=(s * st0, s * st1, st0, st1), writeable=False)
 
 
-def vertex_errors_reference(z: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Pure-numpy reference of the raw (unsaturated) exact δ, float64 (N, N).
+def _closed_blocks(a: np.ndarray, s: int, op) -> np.ndarray:
+    """``op``-reduction over the closed s-blocks of a rectangle of whole blocks."""
+    return op.reduce(op.reduce(_block_view(a, s), axis=3), axis=2)
+
+
+def vertex_errors_reference(z: np.ndarray, valid: np.ndarray, span: int | None = None
+                            ) -> np.ndarray:
+    """Pure-numpy reference of the raw (unsaturated) exact δ, float64 (N, N), or of a
+    root grid's extent with roots of side ``span`` (the vertices of half-span below it).
 
     One full-grid pass per bintree depth against the uniform surface one depth up; slow
     (about 30 s on 4097²) and memory-hungry, kept to cross-check the compiled kernel.
@@ -79,18 +85,18 @@ def vertex_errors_reference(z: np.ndarray, valid: np.ndarray) -> np.ndarray:
     >>> vertex_errors_reference(z, np.ones((3, 3), bool))[1, 1]
     np.float64(2.0)
     """
-    zf, valid, n = check_grid(z, valid)
-    N = zf.shape[0]
-    out = np.zeros((N, N))
+    zf, valid, n = check_grid(z, valid, span)
+    R, C = zf.shape
+    out = np.zeros((R, C))
     vf = valid.astype(np.float64)
     h = 1
-    while h < N - 1:
+    while h < 1 << n:
         s = 2 * h
         # Even depth: centres of the 2h blocks, diamond = closed block.
         E = np.where(valid, np.abs(zf - _surface_np(zf, h, False)), 0.0)
-        m = closed_blocks(E, s, np.maximum)
-        av = closed_blocks(vf, s, np.maximum) > 0
-        ai = closed_blocks(1.0 - vf, s, np.maximum) > 0
+        m = _closed_blocks(E, s, np.maximum)
+        av = _closed_blocks(vf, s, np.maximum) > 0
+        ai = _closed_blocks(1.0 - vf, s, np.maximum) > 0
         out[h::s, h::s] = np.where(av & ai, np.inf, np.where(av, m, 0.0))
         # Odd depth: edge midpoints; diamond = one quarter triangle of each adjacent block.
         E = np.where(valid, np.abs(zf - _surface_np(zf, h, True)), 0.0)
@@ -103,10 +109,10 @@ def vertex_errors_reference(z: np.ndarray, valid: np.ndarray) -> np.ndarray:
         for key, mk in masks.items():
             q[key] = ((Eb * mk).max(axis=(2, 3)), (Vb * mk).max(axis=(2, 3)) > 0,
                       ((1.0 - Vb) * mk).max(axis=(2, 3)) > 0)
-        nb = (N - 1) // s
+        nr, nc = (R - 1) // s, (C - 1) // s
         for lo, hi, shape, sl_lo, sl_hi, dst in (
-            ("rig", "lef", (nb, nb + 1), np.s_[:, 1:], np.s_[:, :-1], np.s_[h::s, ::s]),
-            ("bot", "top", (nb + 1, nb), np.s_[1:, :], np.s_[:-1, :], np.s_[::s, h::s]),
+            ("rig", "lef", (nr, nc + 1), np.s_[:, 1:], np.s_[:, :-1], np.s_[h::s, ::s]),
+            ("bot", "top", (nr + 1, nc), np.s_[1:, :], np.s_[:-1, :], np.s_[::s, h::s]),
         ):
             M = np.zeros(shape)
             AV = np.zeros(shape, bool)
@@ -123,11 +129,11 @@ def vertex_errors_reference(z: np.ndarray, valid: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------- saturation
 
 
-def _pair_slices(N: int, i0: int, j0: int, step: int, oi: int, oj: int):
+def _pair_slices(shape: tuple[int, int], i0: int, j0: int, step: int, oi: int, oj: int):
     """Slices (vertex, vertex + offset) of the lattice ``[i0::step, j0::step]``, keeping
-    only the vertices whose offset partner lies inside the N × N grid."""
+    only the vertices whose offset partner lies inside the (rows, cols) grid."""
 
-    def rng(s0: int, o: int):
+    def rng(N: int, s0: int, o: int):
         lo = max(0, -((s0 + o) // step)) if s0 + o < 0 else 0
         hi = min((N - 1 - s0) // step, (N - 1 - s0 - o) // step)
         if hi < lo:
@@ -135,17 +141,18 @@ def _pair_slices(N: int, i0: int, j0: int, step: int, oi: int, oj: int):
         return (slice(s0 + lo * step, s0 + hi * step + 1, step),
                 slice(s0 + o + lo * step, s0 + o + hi * step + 1, step))
 
-    ri, rj = rng(i0, oi), rng(j0, oj)
+    ri, rj = rng(shape[0], i0, oi), rng(shape[1], j0, oj)
     if ri is None or rj is None:
         return None
     return (ri[0], rj[0]), (ri[1], rj[1])
 
 
-def saturate(delta: np.ndarray) -> np.ndarray:
+def saturate(delta: np.ndarray, span: int | None = None) -> np.ndarray:
     """Saturate δ over the vertex DAG in place (seed 002 §2.4, L46): δ(parent) ≥ δ(child).
 
     Processes depths fine to coarse, pushing each vertex's value to its one or two parents
-    with strided slices. The four domain corners are reset to 0.
+    with strided slices. The four domain corners are reset to 0 (every root's corners on
+    a root grid of root side ``span``).
 
     Examples
     --------
@@ -153,32 +160,33 @@ def saturate(delta: np.ndarray) -> np.ndarray:
     >>> saturate(d)[[1, 2], [1, 2]].tolist()
     [3.0, 3.0]
     """
-    N = delta.shape[0]
-    grid_order(N)
+    R, C = delta.shape
+    span = R - 1 if span is None else span
+    grid_order(span + 1)
     h = 1
-    while h < N - 1:
+    while h < span:
         s = 2 * h
         # edge(h) → centres(h): along-rows edges have parents (i, j ± h), along-cols (i ± h, j).
         for i0, j0, offs in ((h, 0, ((0, -h), (0, h))), (0, h, ((-h, 0), (h, 0)))):
             for oi, oj in offs:
-                p = _pair_slices(N, i0, j0, s, oi, oj)
+                p = _pair_slices((R, C), i0, j0, s, oi, oj)
                 if p is not None:
                     np.maximum(delta[p[1]], delta[p[0]], out=delta[p[1]])
         # centres(h) → 2 corners of their block on the non-split diagonal (union-jack parity)
         for pa in (0, 1):
             for pb in (0, 1):
-                if (pa or pb) and (N - 1) // s < 2:
+                if (pa and (R - 1) // s < 2) or (pb and (C - 1) // s < 2):
                     continue
                 if (pa + pb) % 2 == 0:  # split along the main diagonal
                     offs = ((-h, h), (h, -h))
                 else:
                     offs = ((-h, -h), (h, h))
                 for oi, oj in offs:
-                    p = _pair_slices(N, h + s * pa, h + s * pb, 2 * s, oi, oj)
+                    p = _pair_slices((R, C), h + s * pa, h + s * pb, 2 * s, oi, oj)
                     if p is not None:
                         np.maximum(delta[p[1]], delta[p[0]], out=delta[p[1]])
         h *= 2
-    delta[:: N - 1, :: N - 1] = 0.0
+    delta[::span, ::span] = 0.0
     return delta
 
 

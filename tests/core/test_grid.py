@@ -41,3 +41,69 @@ def test_footprint_counts_match_brute_force():
     keys = set(stored)
     for L, x, y in stored:  # ancestors of stored tiles are stored
         assert all(a in keys for a in g.ancestors(L, x, y))
+
+
+@given(st.integers(2, 5000), st.integers(2, 5000), st.sampled_from([2, 4, 16, 64]))
+def test_root_grid_pads_level_0_to_the_next_tile_multiple_only(h, w, ts):
+    g = Grid.for_shape(h, w, ts, roots=True)
+    step = 1 << g.t
+    tx, ty = g.tiles(0)
+    assert g.shape == (ty * step + 1, tx * step + 1)
+    # covers the raster, and one tile fewer would not: less than one tile row/column over
+    assert g.shape[0] >= h and g.shape[1] >= w
+    assert g.shape[0] - step < h or ty == 1
+    assert g.shape[1] - step < w or tx == 1
+    for L in g.levels[1:]:  # each level halves the one below, rounding up
+        assert g.tiles(L) == tuple(-(-k // 2) for k in g.tiles(L - 1))
+    rx, ry = g.roots
+    assert rx * ry <= 2 and (g.top_level == 0 or np.prod(g.tiles(g.top_level - 1)) > 2)
+    for L in g.levels:  # every level's lattice lies inside the roots' extent
+        assert all(k * g.tile_span(L) + 1 <= e
+                   for k, e in zip(g.tiles(L)[::-1], g.extent, strict=True))
+    assert g.offsets()[-1] == sum(np.prod(g.tiles(L)) for L in g.levels)
+    sq = Grid.for_shape(h, w, ts)
+    assert g.t == sq.t
+    if g.square:  # the same tiles as the square grid: the square grid itself
+        assert g == sq and g.to_json() == sq.to_json() == {"rows": h, "cols": w, "n": g.n,
+                                                           "t": g.t}
+    else:
+        assert Grid(**g.to_json()) == g
+        with pytest.raises(ValueError, match="needs a square grid"):
+            g.tiles_per_side(0)
+
+
+@given(st.integers(2, 200), st.integers(2, 200), st.sampled_from([4, 8, 16]),
+       st.integers(0, 99))
+def test_root_grid_footprints_parents_and_children(h, w, ts, seed):
+    g = Grid.for_shape(h, w, ts, roots=True)
+    rng = np.random.default_rng(seed)
+    valid = g.pad(rng.random((h, w)) > 0.9, False)
+    assert valid.shape == g.shape
+    counts = g.footprint_counts(valid)
+    for L in g.levels:
+        s = g.tile_span(L)
+        assert counts[L].shape == g.tiles(L)[::-1]
+        ys, xs = np.indices(counts[L].shape)
+        brute = [valid[y * s:(y + 1) * s + 1, x * s:(x + 1) * s + 1].sum()
+                 for y, x in zip(ys.ravel(), xs.ravel(), strict=True)]
+        assert counts[L].ravel().tolist() == brute
+    keys = set(g.stored_tiles(valid))
+    for L, x, y in keys:
+        assert all(a in keys for a in g.ancestors(L, x, y))
+        if L < g.top_level:
+            assert (L, x, y) in g.children(*g.parent(L, x, y))
+    for L in g.levels[1:]:  # the children of a level's tiles are the level below, once each
+        tx, ty = g.tiles(L)
+        kids = [c for y in range(ty) for x in range(tx) for c in g.children(L, x, y)]
+        assert sorted(kids) == sorted((L - 1, x, y) for y in range(g.tiles(L - 1)[1])
+                                      for x in range(g.tiles(L - 1)[0]))
+
+
+def test_root_grid_of_the_issue_shapes():
+    conus = Grid.for_shape(520, 1180, 64, roots=True)
+    assert conus.shape == (577, 1217) and conus.roots == (2, 1)
+    assert np.prod(conus.shape) <= 1.15 * 520 * 1180
+    wide = Grid.for_shape(1024, 4096, 64, roots=True)
+    assert wide.shape == (1025, 4097) and wide.roots == (2, 1) and wide.top_level == 5
+    square = Grid.for_shape(1025, 1025, 64, roots=True)
+    assert square == Grid.for_shape(1025, 1025, 64) and square.roots == (1, 1)

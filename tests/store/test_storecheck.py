@@ -112,3 +112,70 @@ def test_residual_bins_must_fit_the_bound(store, q, ok):
     else:
         with pytest.raises(StoreError, match="quantizer"):
             check_store(path, m, tiles)
+
+
+@pytest.fixture(scope="module")
+def wide_store(tmp_path_factory):
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    d = tmp_path_factory.mktemp("check_wide")
+    dem = write_geotiff(d / "w.tif", generate("fbm", (65, 129), seed=4))
+    p = geoterrain.preprocess(dem, d / "w.geoterrain", tile_size=16)
+    with geoterrain.open(p) as t:
+        return p, t.meta, t.tile_info, t.grid
+
+
+def _as_roots(meta, tiles, g):
+    """The square store's metadata and table as the 2 × 1 root grid of the same raster
+    holds them: the square's tiles that the root grid has (the square also stores the
+    tiles whose footprint holds only a shared border row of data, beyond the roots')."""
+    from geoterrain.core.grid import Grid
+
+    r = Grid.for_shape(g.rows, g.cols, g.tile_samples - 1, roots=True)
+    assert r.roots == (2, 1) and r.top_level == g.top_level - 1
+    m = dict(meta, grid=r.to_json(), schema_version=7)
+    m["block_delta_levels"] = min(r.t, r.top_level) + 1
+    if "normals_derived" in m and m["normals_derived"] != [0]:
+        m["normals_derived"] = list(r.levels)
+    inside = {k: v for k, v in tiles.items()
+              if k[0] <= r.top_level and k[1] < r.tiles(k[0])[0] and k[2] < r.tiles(k[0])[1]}
+    return m, inside, r
+
+
+def test_a_root_grid_store_passes_its_checks(wide_store):
+    path, meta, tiles, g = wide_store
+    m, t, r = _as_roots(meta, tiles, g)
+    assert m["grid"]["layout"] == "roots"
+    assert check_store(path, m, t)[0] == r  # read since the reader draws it (issue 45)
+    # inside the square grid, outside the root grid: level 0 holds 8 × 4 tiles, not 16 × 16
+    for k in ((0, 8, 0), (0, 0, 4), (r.top_level, 2, 0)):
+        broken = dict(t)
+        broken[k] = dict(t[(0, 0, 0)])
+        with pytest.raises(StoreError, match=rf"tile \({k[0]}, {k[1]}, {k[2]}\) lies outside"):
+            check_store(path, m, broken)
+    # a grid whose n does not fit its shape, or the square layout spelled out
+    for grid in (dict(m["grid"], n=m["grid"]["n"] + 1), dict(m["grid"], layout="square")):
+        with pytest.raises(StoreError, match="invalid metadata"):
+            check_store(path, dict(m, grid=grid), t)
+    # the schema version follows the layout: 7 for root grids, 6 (unchanged) for squares
+    for mm, tt in ((dict(m, schema_version=6), t), (dict(meta, schema_version=7), tiles)):
+        with pytest.raises(StoreError, match=r"invalid metadata \(a (root|square) grid is "
+                                             r"written in schema version [67], not [67]\)"):
+            check_store(path, mm, tt)
+    # the square store itself is still read
+    assert meta["schema_version"] == 6
+    assert check_store(path, meta, tiles)[0] == g
+
+
+def test_the_writer_puts_a_root_grid_in_schema_version_7_and_the_reader_opens_both(
+        tmp_path, wide_store):
+    from geoterrain.store.database import StoreReader, StoreWriter
+
+    _, meta, tiles, g = wide_store
+    m, _, r = _as_roots(meta, tiles, g)
+    for name, grid, version in (("roots", r.to_json(), 7), ("square", g.to_json(), 6)):
+        with StoreWriter(tmp_path / f"{name}.geoterrain") as w:
+            w.put_metadata({"grid": grid, "schema_version": 1})  # the writer's to set
+            w.put_blob((0, 0, 0), "heights", b"x")
+            w.commit()
+        assert StoreReader(tmp_path / f"{name}.geoterrain").metadata["schema_version"] == version

@@ -1,0 +1,251 @@
+"""Rectangular root grids (issue 45): padding by arithmetic, and a wide raster's
+preprocess against a square one with the same samples, in the same run.
+
+Usage:
+    python benchmarks/bench_root_grids.py padding [--tile-size 64]
+    python benchmarks/bench_root_grids.py wide [--runs 3]
+    python benchmarks/bench_root_grids.py codec [--runs 5]
+    python benchmarks/bench_root_grids.py stores [--tile-size 64]
+
+``padding``: per raster shape, the samples the preprocess computes on (the padded
+level-0 grid, and every level's lattice summed) over the raster's samples, for the
+square layout (one (2^n + 1)² square) and the roots layout (``Grid.for_shape(...,
+roots=True)``: level 0 padded to the next tile multiple, a top of at most two roots);
+the issue's allowance (1.15× the samples plus one tile row and column) beside them.
+Shapes: the issue's (CONUS, jacksboro, wide, the mosaics) and those of the real DEMs
+under ``../shared/dems`` that are present. Pure arithmetic (no preprocess runs).
+
+``wide``: an fBm of 1024 × 4096 and one of 2048 × 2048 (the same number of samples,
+float32 GeoTIFFs in UTM at 10 m) preprocessed by ``geoterrain.preprocess`` with its
+defaults (the square layout: the wide raster pads to 4097²), and the wide one again with
+``root_grid=True`` (2 × 1 roots); each run a fresh process, the three cases in rotating
+order; medians of the wall time and the CPU time (user + system, both after the
+import; the CPU time varies less on a shared machine) and of the peak RSS (VmHWM), and
+the ratios to the square raster of the same run. The load (/proc/loadavg) is printed
+with every run.
+
+``stores``: stores actually built (``root_grid=True``) of the CONUS shape, 520 × 1180,
+and jacksboro's, 344 × 403 (fBm GeoTIFFs in UTM: a root grid is built for projected
+frames only, and the grid depends on the shape alone), and of the wide raster: the
+samples a store holds (level 0's padded lattice, and the distinct samples of every
+stored tile summed over the levels) over the raster's samples, against the square
+layout's store of the same raster.
+
+``codec``: the height codec stage alone (``codec.pyramid.encode_decoded``, lossless
+``int`` codes of the fBm rounded to 0.1 m, 64-sample tiles) on the same two rasters:
+the square 2048² padded to 2049², the wide one padded to today's 4097² square, and the
+wide one on its 2 × 1 root grid (the roots' extent, 2049 × 4097: ``roots=(2, 1)``). One
+process, the kernels compiled by a first untimed round, the cases in rotating order;
+medians of the wall time, the blobs' bytes, and the ratios to the square of the same run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from geoterrain.core.grid import Grid
+
+ROOT = Path(__file__).resolve().parents[1]
+SHAPES = [("CONUS shape (EPSG:4326)", 520, 1180), ("jacksboro", 344, 403),
+          ("wide", 1024, 4096), ("square, same samples", 2048, 2048),
+          ("4097 × 2049 mosaic", 2049, 4097), ("16385 × 8193 mosaic", 8193, 16385)]
+
+CHILD = """
+import json, resource, sys, time
+import geoterrain
+from geoterrain.preprocessing.pipeline import preprocess
+from geoterrain.core.grid import Grid
+def cpu():
+    u = resource.getrusage(resource.RUSAGE_SELF)
+    return u.ru_utime + u.ru_stime
+t0, c0 = time.perf_counter(), cpu()
+p = preprocess(sys.argv[1], sys.argv[2], overwrite=True, root_grid=sys.argv[3] == "roots")
+wall, cpus = time.perf_counter() - t0, cpu() - c0
+from geoterrain.core.memory import peak_rss
+g = geoterrain.open(p).grid
+print(json.dumps({"wall": wall, "cpu": cpus, "peak_mb": peak_rss() / 2**20,
+                  "grid": g.to_json()}))
+"""
+
+
+def load() -> str:
+    return " ".join(Path("/proc/loadavg").read_text().split()[:3])
+
+
+def lattice(g: Grid) -> tuple[int, int]:
+    """(level-0 samples, samples of every level's lattice) of the padded grid."""
+    per = [np.prod(g.level_shape(L), dtype=np.int64) for L in g.levels]
+    return int(per[0]), int(sum(per))
+
+
+def padding(a: argparse.Namespace) -> None:
+    shapes = list(SHAPES)
+    dems = ROOT / ".." / "shared" / "dems"
+    try:
+        import rasterio
+
+        for p in sorted(dems.glob("*.tif")):
+            with rasterio.open(p) as s:
+                shapes.append((p.name, s.height, s.width))
+    except Exception as exc:  # noqa: BLE001 - the real DEMs are optional here
+        print(f"(real DEMs skipped: {exc})", file=sys.stderr)
+    step = a.tile_size
+    print(f"tile size {step}; ratios are samples computed on / the raster's samples\n")
+    print("| raster | rows × cols | square: padded | level 0 | all levels | roots: level 0 "
+          "| roots | level 0 | all levels | issue's allowance |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name, h, w in shapes:
+        sq, rt = Grid.for_shape(h, w, step), Grid.for_shape(h, w, step, roots=True)
+        hw = h * w
+        s0, sall = lattice(sq)
+        r0, rall = lattice(rt)
+        allow = (1.15 * hw + (step + 1) * (h + w) + (step + 1) ** 2) / hw
+        rr, rc = rt.shape
+        print(f"| {name} | {h} × {w} | {sq.size}² | {s0 / hw:.3f}× | {sall / hw:.3f}× "
+              f"| {rr} × {rc} | {rt.roots[0]} × {rt.roots[1]} | {r0 / hw:.3f}× "
+              f"| {rall / hw:.3f}× | {allow:.3f}× |")
+
+
+def wide(a: argparse.Namespace) -> None:
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    print(f"load before: {load()}", flush=True)
+    with tempfile.TemporaryDirectory(prefix="bench_root_grids_") as d:
+        src = {}
+        for name, shape in (("wide", (1024, 4096)), ("square", (2048, 2048))):
+            src[name] = str(write_geotiff(Path(d) / f"{name}.tif",
+                                          generate("fbm", shape, seed=3).astype(np.float32)))
+        cases = {"square": ("square", "square"), "wide": ("wide", "square"),
+                 "wide, roots": ("wide", "roots")}
+        names = list(cases)
+        runs: dict[str, list[dict]] = {k: [] for k in cases}
+        for r in range(a.runs):
+            for name in names[r % 3:] + names[:r % 3]:
+                raster, layout = cases[name]
+                out = subprocess.run([sys.executable, "-c", CHILD, src[raster],
+                                      str(Path(d) / f"{raster}.geoterrain"), layout],
+                                     check=True, capture_output=True, text=True).stdout
+                res = json.loads(out.strip().splitlines()[-1])
+                runs[name].append(res)
+                print(f"run {r} {name}: {res['wall']:.2f} s, CPU {res['cpu']:.2f} s, "
+                      f"{res['peak_mb']:.0f} MB, grid {res['grid']}, load {load()}",
+                      flush=True)
+    med = {k: {m: statistics.median(x[m] for x in v) for m in ("wall", "cpu", "peak_mb")}
+           for k, v in runs.items()}
+    print(f"\nload after: {load()}\n")
+    print("| raster | wall (median) | CPU (median) | peak RSS (median) | wall / square "
+          "| CPU / square | peak / square |")
+    print("|---|---|---|---|---|---|---|")
+    for k in names:
+        print(f"| {k} | {med[k]['wall']:.2f} s | {med[k]['cpu']:.2f} s "
+              f"| {med[k]['peak_mb']:.0f} MB | {med[k]['wall'] / med['square']['wall']:.2f}× "
+              f"| {med[k]['cpu'] / med['square']['cpu']:.2f}× "
+              f"| {med[k]['peak_mb'] / med['square']['peak_mb']:.2f}× |")
+
+
+def held(t) -> tuple[int, int]:
+    """(level-0 lattice samples, distinct samples of the stored tiles over every level)."""
+    g = t.grid
+    total = 0
+    for L in g.levels:
+        R, C = g.level_shape(L)
+        cover = np.zeros((R, C), bool)
+        T = g.tile_samples
+        for (lv, x, y) in t.tile_info:
+            if lv == L:
+                cover[y * (T - 1):y * (T - 1) + T, x * (T - 1):x * (T - 1) + T] = True
+        total += int(cover.sum())
+    R, C = g.shape
+    return R * C, total
+
+
+def stores(a: argparse.Namespace) -> None:
+    import geoterrain
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    print(f"load before: {load()}; tile size {a.tile_size}\n", flush=True)
+    print("| raster | layout | grid | level 0 held / raster | all levels held / raster |")
+    print("|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory(prefix="bench_root_grids_") as d:
+        for name, h, w in (("CONUS shape", 520, 1180), ("jacksboro shape", 344, 403),
+                           ("wide", 1024, 4096)):
+            src = write_geotiff(Path(d) / "r.tif",
+                                generate("fbm", (h, w), seed=3).astype(np.float32))
+            for roots in (False, True):
+                p = geoterrain.preprocess(src, Path(d) / "r.geoterrain", overwrite=True,
+                                          tile_size=a.tile_size, root_grid=roots)
+                with geoterrain.open(p) as t:
+                    g = t.grid
+                    l0, every = held(t)
+                desc = (f"{g.size}²" if g.square else
+                        f"{g.shape[0]} × {g.shape[1]}, {g.roots[0]} × {g.roots[1]} roots")
+                print(f"| {name} {h} × {w} | {'roots' if roots else 'square'} | {desc} "
+                      f"| {l0 / (h * w):.3f}× | {every / (h * w):.3f}× |", flush=True)
+    print(f"\nload after: {load()}")
+
+
+def codec(a: argparse.Namespace) -> None:
+    import time
+
+    from geoterrain.codec.pyramid import encode_decoded
+    from geoterrain.codec.quantize import Quantizer
+    from geoterrain.ingest.synth import generate
+
+    print(f"load before: {load()}", flush=True)
+    qz = Quantizer("int", 0.1)
+    cases = {}
+    for name, shape, side, roots in (("square 2048² → 2049²", (2048, 2048), (2049, 2049), None),
+                                     ("wide → 4097² square", (1024, 4096), (4097, 4097), None),
+                                     ("wide → 2 × 1 roots", (1024, 4096), (2049, 4097), (2, 1))):
+        z = np.zeros(side)
+        v = np.zeros(side, bool)
+        z[:shape[0], :shape[1]] = (generate("fbm", shape, seed=3) * 10).round() / 10
+        v[:shape[0], :shape[1]] = True
+        cases[name] = (z, v, roots)
+    small = np.zeros((129, 257)), np.ones((129, 257), bool)
+    encode_decoded(*small, 6, qz, roots=(2, 1))  # compile
+    encode_decoded(small[0][:, :129], small[1][:, :129], 6, qz)
+    res: dict[str, list[tuple[float, int]]] = {k: [] for k in cases}
+    names = list(cases)
+    for r in range(a.runs):
+        for name in names[r % 3:] + names[:r % 3]:
+            z, v, roots = cases[name]
+            t0 = time.perf_counter()
+            blobs, _ = encode_decoded(z, v, 6, qz, roots=roots)
+            res[name].append((time.perf_counter() - t0, sum(map(len, blobs.values()))))
+            print(f"run {r} {name}: {res[name][-1][0]:.2f} s, {res[name][-1][1]} bytes, "
+                  f"{len(blobs)} tiles, load {load()}", flush=True)
+    print(f"\nload after: {load()}\n")
+    print("| case | encode (median) | bytes | time / square |")
+    print("|---|---|---|---|")
+    base = statistics.median(t for t, _ in res[names[0]])
+    for name in names:
+        t = statistics.median(x for x, _ in res[name])
+        print(f"| {name} | {t:.2f} s | {res[name][0][1]} | {t / base:.2f}× |")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="what", required=True)
+    p = sub.add_parser("padding")
+    p.add_argument("--tile-size", type=int, default=64)
+    w = sub.add_parser("wide")
+    w.add_argument("--runs", type=int, default=3)
+    c = sub.add_parser("codec")
+    c.add_argument("--runs", type=int, default=5)
+    s = sub.add_parser("stores")
+    s.add_argument("--tile-size", type=int, default=64)
+    a = ap.parse_args()
+    {"padding": padding, "wide": wide, "codec": codec, "stores": stores}[a.what](a)
+
+
+if __name__ == "__main__":
+    main()

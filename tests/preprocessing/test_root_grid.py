@@ -1,0 +1,220 @@
+"""The whole-grid preprocess and the reader on a rectangular root grid (issue 45, opt-in:
+``preprocess(..., root_grid=True)``, ``--root-grid``): the store's tiles, heights and δ
+against the raster and an independent reference, the reader's tile arithmetic, and the
+one-line refusals of what does not handle a root grid yet. The rtin meshes of a root
+grid are measured in tests/test_stress.py."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import geoterrain
+from conftest import write_tif
+from geoterrain.core.grid import Grid, RootGridError
+from geoterrain.exceptions import UsageError
+from geoterrain.ingest.synth import generate
+from geoterrain.lod import STRATEGIES, strategy_info
+from geoterrain.lod.kernels import _coarsest_tile
+from geoterrain.store.database import ROOTS_SCHEMA_VERSION, StoreReader
+
+pytestmark = pytest.mark.fast
+
+
+def fbm(rows: int, cols: int, seed: int = 0) -> np.ndarray:
+    z = generate("fbm", max(rows, cols), seed=seed)[:rows, :cols]
+    return np.rint(500.0 * (z - z.min()) / max(float(np.ptp(z)), 1e-12))
+
+
+def roots_store(tmp_path, z, name="r", tile_size=16, **pre):
+    src = write_tif(tmp_path / f"{name}.tif", z, dtype="int16")
+    return geoterrain.preprocess(src, tmp_path / f"{name}.geoterrain", tile_size=tile_size,
+                                 root_grid=True, **pre)
+
+
+@pytest.fixture(scope="module")
+def wide(tmp_path_factory):
+    """A 50 × 121 raster (a void inside) on 2 × 1 roots of 8-sample tiles."""
+    d = tmp_path_factory.mktemp("roots")
+    z = fbm(50, 121, seed=4).astype(np.int16)
+    z[20:24, 30:41] = -9999
+    src = write_tif(d / "w.tif", z, dtype="int16", nodata=-9999)
+    store = geoterrain.preprocess(src, d / "w.geoterrain", tile_size=8, root_grid=True)
+    return geoterrain.open(store), z
+
+
+def test_the_store_is_a_root_grid_with_every_data_tile(wide):
+    t, z = wide
+    g = t.grid
+    assert (g.layout, g.roots, g.shape) == ("roots", (2, 1), (57, 121))
+    assert StoreReader(t.path).metadata["schema_version"] == ROOTS_SCHEMA_VERSION
+    valid = z != -9999
+    want = set()
+    for L in g.levels:  # brute force: tiles of the grid whose footprint holds data
+        s = g.tile_span(L)
+        tx, ty = g.tiles(L)
+        for y in range(ty):
+            for x in range(tx):
+                if valid[y * s:(y + 1) * s + 1, x * s:(x + 1) * s + 1].any():
+                    want.add((L, x, y))
+    assert set(t.tile_info) == want
+
+
+def test_heights_decode_to_the_raster_at_every_level(wide):
+    t, z = wide
+    valid = z != -9999
+    for L in t.grid.levels:
+        h, v = t.level_heights(L)
+        s = 1 << L
+        zl, vl = z[::s, ::s], valid[::s, ::s]
+        assert h.shape == t.grid.level_shape(L)
+        assert np.array_equal(v[:zl.shape[0], :zl.shape[1]], vl)
+        assert np.array_equal(h[:zl.shape[0], :zl.shape[1]][vl], zl[vl].astype(np.float64))
+        assert not v[zl.shape[0]:].any() and not v[:, zl.shape[1]:].any()
+
+
+def test_delta_bounds_an_independent_reference(wide):
+    # δ as stored (log8 codes rounded up) against the numpy reference on the roots'
+    # extent (testing.reference: one pass per depth, not the production kernels),
+    # saturated by the reference's own pass
+    from geoterrain.testing.reference import saturate, vertex_errors_reference
+
+    t, z = wide
+    g = t.grid
+    R, C = g.extent
+    zz = np.zeros((R, C))
+    ok = np.zeros((R, C), bool)
+    ok[:g.rows, :g.cols] = z != -9999
+    zz[:g.rows, :g.cols] = t.frame.z(z.astype(np.float64))
+    ref = saturate(vertex_errors_reference(zz, ok, span=1 << g.n), 1 << g.n)
+    i, j = (a.ravel() for a in np.indices((g.rows, g.cols)))
+    got = t.gather(i, j, ("delta",))["delta"]
+    want = ref[i, j]
+    assert np.array_equal(np.isinf(got), np.isinf(want))
+    fin = np.isfinite(want)
+    assert (got[fin] >= want[fin]).all()
+    assert (got[fin] <= 1.1 * want[fin] + 1e-3).all()  # one code step at most
+
+
+def test_a_square_raster_keeps_the_square_store(tmp_path):
+    src = write_tif(tmp_path / "s.tif", fbm(65, 65, seed=1), dtype="int16")
+    a, b = (geoterrain.preprocess(src, tmp_path / f"{k}.geoterrain", tile_size=16,
+                                  root_grid=k == "a") for k in "ab")
+    assert geoterrain.open(a).grid.square and a.read_bytes() == b.read_bytes()
+
+
+def test_geographic_and_streamed_root_grids_are_refused_in_one_line(tmp_path):
+    z = fbm(33, 65)
+    src = write_tif(tmp_path / "g.tif", z, crs="EPSG:4326", origin=(10.0, 45.0),
+                    spacing=0.001, dtype="int16")
+    with pytest.raises(UsageError, match="projected and pixel frames only") as e:
+        geoterrain.preprocess(src, tmp_path / "g.geoterrain", tile_size=16, root_grid=True)
+    assert "\n" not in str(e.value)
+    src = write_tif(tmp_path / "s.tif", fbm(1025, 2049), dtype="int16")
+    with pytest.raises(UsageError, match="whole-grid preprocess only") as e:
+        geoterrain.preprocess(src, tmp_path / "s.geoterrain", root_grid=True,
+                              memory_limit=64 << 20)
+    assert "\n" not in str(e.value)
+    assert not (tmp_path / "s.geoterrain").exists()
+
+
+def test_the_reader_sees_every_root(wide):
+    t, z = wide
+    lo, hi = t.scene_box()
+    X, Y, Z = t.scene_xyz()
+    ok = np.isfinite(Z)
+    assert lo[0] <= X.min() and hi[0] >= X.max() and lo[1] <= Y.min() and hi[1] >= Y.max()
+    assert lo[2] <= np.nanmin(Z) and hi[2] >= np.nanmax(Z)
+    assert np.array_equal(ok, z != -9999)
+    assert t.info()["padded"] == [57, 121]
+    assert t.block_errors().shape[:2] == (t.grid.tiles(0)[1], t.grid.tiles(0)[0])
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(3, 300), st.integers(3, 300), st.sampled_from([2, 4, 8, 16]))
+def test_the_tile_table_and_the_kernels_find_each_samples_coarsest_tile(rows, cols, ts):
+    g = Grid.for_shape(rows, cols, ts, roots=True)
+    keys = np.array([(L, x, y) for L in g.levels for y in range(g.tiles(L)[1])
+                     for x in range(g.tiles(L)[0])], np.int64)
+    idx = g.table_index(keys)
+    assert np.array_equal(idx, np.arange(g.offsets()[-1]))
+    assert all(g.key_of(int(k)) == tuple(key) for k, key in zip(idx, keys.tolist(), strict=True))
+    base, top, t = g.walk_table(), g.top_level, g.t
+    R, C = g.extent
+    for i in range(0, R, max(1, R // 13)):
+        for j in range(0, C, max(1, C // 13)):
+            L, e, a, b = _coarsest_tile(i, j, top, t, base)
+            low = (i | j) & -(i | j) if i | j else 1 << 62  # brute force: the level,
+            want_L = min(top, (low.bit_length() - 1))  # then any tile holding the sample
+            holders = [(x, y) for y in range(g.tiles(want_L)[1])
+                       for x in range(g.tiles(want_L)[0])
+                       if y * g.tile_span(want_L) <= i <= (y + 1) * g.tile_span(want_L)
+                       and x * g.tile_span(want_L) <= j <= (x + 1) * g.tile_span(want_L)]
+            assert L == want_L
+            if not holders:
+                assert e == -1
+                continue
+            LL, x, y = g.key_of(int(e))
+            assert LL == L and (x, y) in holders
+            assert (a, b) == ((i >> L) - (y << t), (j >> L) - (x << t))
+
+
+def test_unported_strategies_refuse_and_rtin_draws(wide):
+    t, _ = wide
+    view = geoterrain.View((0.0, -900.0, 700.0), (0.0, 0.0, 0.0), size=(160, 90))
+    for name in STRATEGIES:
+        if strategy_info(name).root_grid:
+            assert t.select(view, 2.0, name).stats["triangles"] > 0
+            continue
+        with pytest.raises(RootGridError, match=r"drawn by the rtin strategy only") as e:
+            t.select(view, 2.0, name)
+        assert "\n" not in str(e.value) and name in str(e.value)
+    assert strategy_info("rtin").root_grid
+    with pytest.raises(RootGridError, match="rtin strategy only"):
+        t.static_selection(1.0, mesher="tin")
+
+
+def _refusals(t, tmp_path):
+    from geoterrain.analysis.contours import contours
+    from geoterrain.analysis.heights import height_at, normal_at
+    from geoterrain.analysis.profile import profile
+    from geoterrain.analysis.visibility import line_of_sight, viewshed
+    from geoterrain.export.qmesh import write_tileset
+    from geoterrain.export.rasters import product
+    from geoterrain.export.webtiles import WebTiler
+
+    lo, hi = t.scene_box()
+    c = (0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]))
+    return {
+        "contours": lambda: contours(t, 50.0),
+        "height queries": lambda: height_at(t, c),
+        "normal queries": lambda: normal_at(t, c),
+        "profiles": lambda: profile(t, [c, (c[0] + 10.0, c[1])]),
+        "the viewshed": lambda: viewshed(t, c, 100.0),
+        "line of sight": lambda: line_of_sight(t, c, (c[0] + 10.0, c[1])),
+        "quantized-mesh tiles": lambda: write_tileset(t, tmp_path / "qm"),
+        "web-map tiles": lambda: WebTiler(t),
+        "raster export": lambda: product(t, "hillshade"),
+        "editing a store": lambda: t.edit((0, 0), np.zeros((2, 2))),
+    }
+
+
+def test_every_other_consumer_refuses_a_root_grid_in_one_line(wide, tmp_path):
+    t, _ = wide
+    for what, call in _refusals(t, tmp_path).items():
+        with pytest.raises(RootGridError, match="rtin strategy only") as e:
+            call()
+        assert what in str(e.value) and "\n" not in str(e.value), what
+    assert not (tmp_path / "qm").exists()
+
+
+def test_rendering_refuses_a_root_grid(wide):
+    pytest.importorskip("pyvista")
+    from geoterrain.rendering.scene import render_array
+
+    t, _ = wide
+    with pytest.raises(RootGridError, match="rendering"):
+        render_array(t, geoterrain.View((0.0, -900.0, 700.0), (0.0, 0.0, 0.0),
+                                        size=(64, 48)))
