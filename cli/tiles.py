@@ -25,6 +25,10 @@ from geoterrain.cli.options import POSITIVE
 @click.option("--max-error", type=POSITIVE, default=1.0, show_default=True, metavar="E",
               help="quantized-mesh: vertex selection threshold at the finest level, metres "
                    "(coarser levels use Cesium's level error).")
+@click.option("--mesher", type=click.Choice(["rtin", "tin"]), default="rtin", show_default=True,
+              help="quantized-mesh: each tile's mesh, rtin (the lattice's bintree cut, an "
+                   "a-priori bound) or tin (a greedy TIN of the lattice, fewer bytes, its "
+                   "error measured).")
 @click.option("--encoding", type=click.Choice(["terrain-rgb", "terrarium"]),
               default="terrain-rgb", show_default=True,
               help="pmtiles: how the heights are packed into PNG pixels.")
@@ -41,7 +45,7 @@ from geoterrain.cli.options import POSITIVE
                    "as CesiumJS expects (needs PROJ's EGM96 grid: apt-get install proj-data).")
 @click.option("--overwrite", is_flag=True, help="Write into OUTPUT even if it holds a layer.json.")
 @click.pass_context
-def command(ctx, store, output, fmt, max_zoom, min_zoom, max_error, encoding, imagery,
+def command(ctx, store, output, fmt, max_zoom, min_zoom, max_error, mesher, encoding, imagery,
             image_format, assets, geoid, overwrite):
     """Write a quantized-mesh-1.0 tile set (geographic tiling) of STORE for CesiumJS,
     or PMTiles archives with a map page (--format pmtiles).
@@ -111,7 +115,7 @@ def command(ctx, store, output, fmt, max_zoom, min_zoom, max_error, encoding, im
         with geoterrain.open(store) as t:
             stats = write_tileset(t, output, max_zoom=max_zoom, min_zoom=min_zoom,
                                   max_error=max_error, overwrite=overwrite, geoid=geoid,
-                                  progress=bar)
+                                  progress=bar, mesher=mesher)
     finally:
         bar.close()
     if not ctx.obj["quiet"]:

@@ -213,8 +213,12 @@ def _build_tin(dem: GeoDem, rect, M: int, lon, lat, h, valid, target: float, hra
         if len(faces) == 0:
             return None
         faces = faces[hilbert_order(ij, faces)]  # neighbours close: smaller deltas, better gzip
+        # every valid edge point, drawn or not: next to nodata one side may leave a hole
+        # where the other draws, and both must still list the same edge vertices
+        r, c = ij[:, 0], ij[:, 1]
+        edge = np.flatnonzero(((r == 0) | (r == M - 1) | (c == 0) | (c == M - 1)) & valid[r, c])
         data, faces, vlon, vlat, _, hq = _encode(dem, rect, M, lon, lat, h, ij, faces, hrange,
-                                                 False)
+                                                 False, edge)
         bound = measured_error(rect, vlon, vlat, hq, faces, hrange, slon, slat, sh) + 1e-6
         if fixed_threshold is not None or bound <= target or thr <= MIN_THRESHOLD:
             break
@@ -267,16 +271,21 @@ def select_tile(dem: GeoDem, rect, M: int, lon, lat, h, valid, delta, thr: float
     return data, faces, d_max, e_uv
 
 
-def _encode(dem: GeoDem, rect, M: int, lon, lat, h, ij, faces, hrange, flat: bool):
+def _encode(dem: GeoDem, rect, M: int, lon, lat, h, ij, faces, hrange, flat: bool,
+            extra: np.ndarray | None = None):
     """A tile's bytes from lattice vertices ``ij`` (rows, columns) and ``faces``; also the
     faces renumbered in first-use order and the used vertices' lon, lat, height and
-    quantised height."""
+    quantised height. ``extra``: vertices (indices into ``ij``) written even if no face
+    uses them, after the used ones."""
     h0, h1 = hrange
     faces = orient_ccw(ij, faces.astype(np.int64))
     # vertices in order of first use (the high-water-mark index coding needs it)
-    first = np.full(len(ij), len(faces) * 3, np.int64)
+    big = faces.size + len(ij)
+    first = np.full(len(ij), big, np.int64)
     np.minimum.at(first, faces.ravel(), np.arange(faces.size))
-    used = np.flatnonzero(first < faces.size)
+    if extra is not None:
+        first[extra] = np.minimum(first[extra], faces.size + np.arange(len(extra)))
+    used = np.flatnonzero(first < big)
     order = used[np.argsort(first[used], kind="stable")]
     remap = np.full(len(ij), -1, np.int64)
     remap[order] = np.arange(len(order))
