@@ -240,6 +240,22 @@ def test_no_vertex_at_a_nodata_sample(which, request):
 
 
 @pytest.mark.fast
+def test_an_unknown_tile_mesher_is_refused_before_anything_is_written(tileset, tmp_path):
+    from geoterrain.cli.main import cli
+    from geoterrain.exceptions import UsageError
+    from geoterrain.export.qmesh import write_tileset
+
+    out, _, _, _ = tileset
+    store = next(out.parent.glob("*.geoterrain"))
+    res = CliRunner().invoke(cli, ["tiles", str(store), "-o", str(tmp_path / "a"),
+                                   "--mesher", "delatin"])
+    assert res.exit_code == 2 and "delatin" in res.stderr
+    with geoterrain.open(store) as t, pytest.raises(UsageError, match="unknown tile mesher"):
+        write_tileset(t, tmp_path / "b", mesher="delatin")
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+@pytest.mark.fast
 def test_tiles_refuses_to_overwrite_a_layer(tileset):
     from geoterrain.cli.main import cli
 
