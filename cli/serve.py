@@ -33,8 +33,8 @@ def _parse_cache(ctx, param, value):
                    "(default: ./node_modules, ./.browser/node_modules).")
 @click.option("--max-error", type=POSITIVE, default=1.0, show_default=True, metavar="E",
               help="Terrain tiles: vertex threshold at the finest level, metres.")
-@click.option("--mesher", type=click.Choice(["rtin", "tin"]), default="rtin", show_default=True,
-              help="Terrain tiles' meshes: rtin (bintree cut) or tin (greedy TIN, fewer "
+@click.option("--mesher", type=click.Choice(["tin", "rtin"]), default="tin", show_default=True,
+              help="Terrain tiles' meshes: tin (greedy TIN) or rtin (bintree cut, more "
                    "bytes), as `tiles --mesher`.")
 @click.option("--geoid", type=click.Choice(["egm96"]),
               help="The DEM holds EGM96 heights (SRTM): give CesiumJS WGS 84 ellipsoidal "

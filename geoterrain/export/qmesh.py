@@ -10,24 +10,37 @@ Layout (what CesiumJS's ``CesiumTerrainProvider`` reads):
 - ``geoterrain.json``: each tile's declared error (metres) and the run's figures.
 
 A tile's mesh: the DEM is sampled bilinearly on a (2^k+1)² lattice aligned with
-the tile's edges (pyproj maps lon/lat to the source CRS); the per-vertex errors δ
-of that lattice (:func:`geoterrain.bounds.delta.vertex_errors`, seed 002) pick the
-vertices. Every lattice sample on the tile's border is kept, so neighbouring tiles
-share their edge vertices exactly (same lon/lat, same height, one height
-quantisation range for the whole set). Lattice samples with an invalid DEM
-neighbour are invalid and no triangle touches them: nodata becomes a hole, never a
-spike. Normals (oct-encoded, ECEF) come from central differences of the lattice
-with a one-sample margin, so they agree across tile edges too.
+the tile's edges (pyproj maps lon/lat to the source CRS), and the vertices are picked
+on that lattice by one of two meshers (``mesher``):
 
-Each tile's declared error is an a-priori bound on |mesh − DEM| at every DEM sample
+- ``"tin"`` (the default): a greedy TIN of the lattice (:mod:`qmeshtin`). Each edge
+  is first simplified alone, as a 1-D polyline through its lattice samples within the
+  level's edge threshold, so that both tiles sharing it keep the same points; the
+  interior is then refined with those points inserted first and no other edge point
+  added. The declared error is measured: the largest |decoded tile − DEM| over the
+  DEM samples the tile covers.
+- ``"rtin"``: the per-vertex errors δ of the lattice
+  (:func:`geoterrain.bounds.delta.vertex_errors`, seed 002) pick the vertices of the
+  bintree cut, and every lattice sample on the tile's border is kept. Its declared
+  error is an a-priori bound (below).
+
+Either way neighbouring tiles share their edge vertices exactly (same lon/lat, same
+height, one height quantisation range for the whole set). Lattice samples with an
+invalid DEM neighbour are invalid and no triangle touches them: nodata becomes a hole,
+never a spike. Normals (oct-encoded, ECEF) come from central differences of the
+lattice with a one-sample margin, so they agree across tile edges too.
+
+An rtin tile's declared error is an a-priori bound on |mesh − DEM| at every DEM sample
 it covers (:func:`build_tile`): the resampling error of the full lattice (measured
 at the DEM samples before any vertex is chosen) + the largest δ left out + the
 quantisation of heights and of u, v. Below max zoom the vertex threshold is the
 level's Cesium ``levelMaximumGeometricError`` minus the other terms, so the bound
-fits the error Cesium refines by; a level whose resampling error leaves no room is
-rebuilt on a lattice twice as fine (257², when its tiles stay within 16-bit
-indices). At max zoom the threshold is ``max_error`` and the bound is what it is
-(Cesium refines no further there); ``geoterrain.json`` lists it per tile and per level.
+fits the error Cesium refines by (a TIN tile starts from the same threshold and
+lowers it while its measured error exceeds the level's); a level whose error leaves
+no room is rebuilt on a lattice twice as fine (257², when its tiles stay within
+16-bit indices). At max zoom the threshold is ``max_error`` and the declared error is
+what it is (Cesium refines no further there); ``geoterrain.json`` lists it per tile and
+per level.
 
 Heights are the DEM's own unless ``geoid="egm96"`` converts EGM96 orthometric heights
 (SRTM's) to the WGS 84 ellipsoidal heights CesiumJS assumes (pyproj, PROJ's EGM96
@@ -90,6 +103,9 @@ if TYPE_CHECKING:
 
 MEASURE_SAMPLES = 1 << 20  # DEM samples measured per block
 TILE_MESHERS = ("rtin", "tin")
+#: Each tile's mesher by default: the greedy TIN (0.44× rtin's bytes on srtm1_japan at the
+#: same per-level errors, the same time once its kernels are compiled; docs/lab/qmesh-tin.md)
+DEFAULT_TILE_MESHER = "tin"
 
 
 # ------------------------------------------------------------------------- one tile
@@ -401,7 +417,7 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
                   min_zoom: int = 0, lattice: int = 129, max_error: float = 1.0,
                   overwrite: bool = False, geoid: str | None = None,
                   progress: Callable[[str, int, int], None] | None = None,
-                  mesher: str = "rtin") -> dict:
+                  mesher: str = DEFAULT_TILE_MESHER) -> dict:
     """Write a quantized-mesh tile set of ``terrain`` into ``out_dir``; returns its figures.
 
     ``lattice`` (2^k + 1 samples a side) ≤ 129 keeps tiles within 16-bit indices.

@@ -20,6 +20,7 @@ import numpy as np
 
 from geoterrain.exceptions import UsageError
 from geoterrain.export.qmesh import (
+    DEFAULT_TILE_MESHER,
     availability_ranges,
     build_tile,
     check_tile_mesher,
@@ -63,7 +64,8 @@ class QuantizedMeshTiles:
     """
 
     def __init__(self, terrain: TerrainLike, *, lattice: int = 129, max_error: float = 1.0,
-                 geoid: str | None = None, max_zoom: int | None = None, mesher: str = "rtin"):
+                 geoid: str | None = None, max_zoom: int | None = None,
+                 mesher: str = DEFAULT_TILE_MESHER):
         if lattice < 3 or (lattice - 1) & (lattice - 2) or lattice > 129:
             raise UsageError(f"lattice must be 2^k + 1 in 3..129, got {lattice}")
         if not max_error > 0:

@@ -151,7 +151,7 @@ def find_assets(explicit: str | Path | None = None) -> dict[str, Path]:
 
 def open_stores(paths: Sequence[str | Path | tuple[str, str | Path]], *, geoid: str | None = None,
                 max_error: float = 1.0, cmap: str = "auto",
-                decode_bytes: int = 512 << 20, mesher: str = "rtin") -> dict[str, ServedStore]:
+                decode_bytes: int = 512 << 20, mesher: str = "tin") -> dict[str, ServedStore]:
     """Open each store (read-only) and its tile sources, keyed by name (the file's stem,
     or the name of a ``(name, path)`` pair); a one-line :class:`UsageError` for a
     duplicate, reserved or unusable name."""
@@ -254,7 +254,7 @@ def _etag(body: bytes) -> str:
 def create_app(stores: Sequence[str | Path] | dict[str, ServedStore], *,
                cache_bytes: int = 256 << 20, assets: str | Path | None = None,
                geoid: str | None = None, max_error: float = 1.0, cmap: str = "auto",
-               mesher: str = "rtin") -> Starlette:
+               mesher: str = "tin") -> Starlette:
     """The ASGI app serving ``stores`` (paths, or :func:`open_stores`' result).
 
     ``cache_bytes``: the budget of finished tiles kept in memory; ``assets``: a

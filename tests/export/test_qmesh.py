@@ -323,7 +323,7 @@ def test_rough_levels_are_rebuilt_on_a_finer_lattice(tmp_path):
     dem = write_tif(tmp_path / "rough.tif", z, crs="EPSG:4326", origin=(138.71, 35.37),
                     spacing=1 / 3600, nodata=-9999)
     with geoterrain.open(geoterrain.preprocess(dem, tile_size=32)) as t:
-        write_tileset(t, tmp_path / "tiles", max_error=2.0)
+        write_tileset(t, tmp_path / "tiles", max_error=2.0, mesher="rtin")
     out, tiles, h, transform = _read_tileset(tmp_path / "tiles", dem)
     info = json.loads((out / "geoterrain.json").read_text())
     fine = [int(z) for z, v in info["levels"].items() if v["lattice"] == 257]
