@@ -129,3 +129,68 @@ def test_a_plane_needs_its_corners_alone():
     ij, faces = tin_tile(z, np.ones_like(z, bool), 0.0, 0.0)
     assert len(faces) == 2
     assert sorted(map(tuple, ij.tolist())) == [(0, 0), (0, M - 1), (M - 1, 0), (M - 1, M - 1)]
+
+
+@pytest.mark.slow
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                 HealthCheck.function_scoped_fixture])
+@given(h=st.integers(24, 64), w=st.integers(24, 64), seed=st.integers(0, 10_000),
+       relief=st.sampled_from([0.02, 0.2, 1.0]), holes=st.integers(0, 3),
+       dx=st.floats(-0.02, 0.02), dy=st.floats(-0.02, 0.02))
+def test_decoded_neighbours_list_the_same_edge_vertices(tmp_path_factory, h, w, seed, relief,
+                                                        holes, dx, dy):
+    """End to end on small synthetic DEMs across tile corners (levels 9–11), decoded by
+    quantized-mesh-tile: neighbouring TIN tiles list the same edge vertices, at the same
+    heights, and each tile is within its declared error at the DEM samples it covers."""
+    import json
+
+    import matplotlib.tri as mtri
+    import quantized_mesh_tile as qmt
+    import rasterio
+
+    import geoterrain
+    from geoterrain.export.qmesh import write_tileset
+    from geoterrain.export.qmeshformat import tile_rect
+    from tests.conftest import write_tif
+
+    d = tmp_path_factory.mktemp("qtin")
+    z = (generate("fbm", (h, w), seed=seed) * relief).astype(np.float32)
+    z[~_voids(z.shape, seed, holes)] = -9999
+    dem = write_tif(d / "d.tif", z, crs="EPSG:4326", origin=(138.515625 + dx, 35.5078125 + dy),
+                    spacing=1 / 1200, nodata=-9999)
+    with geoterrain.open(geoterrain.preprocess(dem, d / "d.geoterrain", tile_size=32)) as t:
+        write_tileset(t, d / "t", min_zoom=9, mesher="tin")
+    declared = json.loads((d / "t" / "geoterrain.json").read_text())["declared_error"]
+    with rasterio.open(dem) as src:
+        dh = src.read(1, masked=True)
+        rows, cols = np.mgrid[0:dh.shape[0], 0:dh.shape[1]]
+        slon, slat = (np.asarray(a) for a in rasterio.transform.xy(src.transform, rows.ravel(),
+                                                                       cols.ravel()))
+    dz = dh.filled(np.nan).ravel()
+    tiles = {}
+    for p in (d / "t").glob("*/*/*.terrain"):
+        key = int(p.parent.parent.name), int(p.parent.name), int(p.stem)
+        tt = qmt.TerrainTile(**dict(zip(("west", "south", "east", "north"), tile_rect(*key),
+                                        strict=True)))
+        tt.fromFile(str(p), hasLighting=True, hasWatermask=True, gzipped=True)
+        tiles[key] = tt
+        v = np.array(tt.getVerticesCoordinates(), np.float64)
+        ws, ss, es, ns = tile_rect(*key)
+        inside = (slon >= ws) & (slon <= es) & (slat >= ss) & (slat <= ns) & np.isfinite(dz)
+        if inside.any() and len(tt.indices):
+            tri = mtri.Triangulation(v[:, 0], v[:, 1], np.array(tt.indices).reshape(-1, 3))
+            surf = np.ma.filled(mtri.LinearTriInterpolator(tri, v[:, 2])(slon[inside],
+                                                                         slat[inside]), np.nan)
+            diff = np.abs(surf - dz[inside])
+            assert np.nanmax(diff, initial=0) <= declared["/".join(map(str, key))] + 1e-3
+    for (zz, x, y), t in tiles.items():
+        for (ox, oy), mine, theirs in (((1, 0), "eastI", "westI"), ((0, 1), "northI", "southI")):
+            o = tiles.get((zz, x + ox, y + oy))
+            if o is None:
+                continue
+            a = np.array(t.getVerticesCoordinates(), np.float64)[getattr(t, mine)]
+            b = np.array(o.getVerticesCoordinates(), np.float64)[getattr(o, theirs)]
+            a, b = a[np.lexsort(a.T[::-1])], b[np.lexsort(b.T[::-1])]
+            assert a.shape == b.shape, (zz, x, y, ox)
+            assert np.array_equal(a[:, 2], b[:, 2])
+            assert np.allclose(a[:, :2], b[:, :2], rtol=0, atol=1e-9)
