@@ -256,6 +256,22 @@ def test_an_unknown_tile_mesher_is_refused_before_anything_is_written(tileset, t
 
 
 @pytest.mark.fast
+@pytest.mark.parametrize("mesher", ["rtin", "tin"])
+def test_a_projected_dem_tiles_at_every_level(tmp_path, mesher):
+    """roi_epsg3089 (Kentucky, feet): the coarse tiles reach past the projection's domain
+    (pyproj gives inf there); every level is written and every tile decodes."""
+    from geoterrain.export.qmesh import write_tileset
+
+    dem = real_dem("roi_epsg3089.tif")
+    with geoterrain.open(geoterrain.preprocess(dem, tmp_path / "r.geoterrain")) as t:
+        stats = write_tileset(t, tmp_path / "tiles", mesher=mesher)
+    _, tiles, _, _ = _read_tileset(tmp_path / "tiles", dem)
+    assert len(tiles) == stats["tiles"] and stats["max_zoom"] == 15
+    assert {z for z, _, _ in tiles} == set(range(16))
+    assert all(len(t.indices) >= 3 for t in tiles.values())
+
+
+@pytest.mark.fast
 def test_tiles_refuses_to_overwrite_a_layer(tileset):
     from geoterrain.cli.main import cli
 
