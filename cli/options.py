@@ -253,7 +253,9 @@ COMPILING = {
     "export-raster": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
                       "geoterrain.bounds.normals", "geoterrain.rendering.shading"),
     "tiles": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds.leafbounds",
-              "geoterrain.export.qmesh"),
+              "geoterrain.export.qmesh", "geoterrain.export.qmeshtin",
+              "geoterrain.lod.tinseeded", "geoterrain.lod.tincollapse",
+              "geoterrain.lod.tinkernels"),
     "bench": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds", "geoterrain.lod",
               "geoterrain.testing", "geoterrain.rendering"),
 }

@@ -33,13 +33,16 @@ def _parse_cache(ctx, param, value):
                    "(default: ./node_modules, ./.browser/node_modules).")
 @click.option("--max-error", type=POSITIVE, default=1.0, show_default=True, metavar="E",
               help="Terrain tiles: vertex threshold at the finest level, metres.")
+@click.option("--mesher", type=click.Choice(["tin", "rtin"]), default="tin", show_default=True,
+              help="Terrain tiles' meshes: tin (greedy TIN) or rtin (bintree cut, more "
+                   "bytes), as `tiles --mesher`.")
 @click.option("--geoid", type=click.Choice(["egm96"]),
               help="The DEM holds EGM96 heights (SRTM): give CesiumJS WGS 84 ellipsoidal "
                    "heights (needs PROJ's EGM96 grid: apt-get install proj-data).")
 @click.option("--cmap", default="auto", show_default=True,
               help="Colour relief palette: auto or a matplotlib colormap name.")
 @click.pass_context
-def command(ctx, sources, port, bind, cache_bytes, assets, max_error, geoid, cmap):
+def command(ctx, sources, port, bind, cache_bytes, assets, max_error, mesher, geoid, cmap):
     """Serve SOURCES (stores, or DEMs preprocessed into the cache) over HTTP.
 
     Each is served under its file name without the suffix, NAME:
@@ -102,7 +105,7 @@ def command(ctx, sources, port, bind, cache_bytes, assets, max_error, geoid, cma
         click.echo(f"{'preprocessed into' if built else 'using the cached store'} {store}",
                    err=True)
         items.append((src.stem, store))
-    stores = open_stores(items, geoid=geoid, max_error=max_error, cmap=cmap)
+    stores = open_stores(items, geoid=geoid, max_error=max_error, cmap=cmap, mesher=mesher)
     app = create_app(stores, cache_bytes=cache_bytes, assets=assets)
     try:
         sock = socket.socket(socket.AF_INET6 if ":" in bind else socket.AF_INET)

@@ -25,6 +25,10 @@ from geoterrain.cli.options import POSITIVE
 @click.option("--max-error", type=POSITIVE, default=1.0, show_default=True, metavar="E",
               help="quantized-mesh: vertex selection threshold at the finest level, metres "
                    "(coarser levels use Cesium's level error).")
+@click.option("--mesher", type=click.Choice(["tin", "rtin"]), default="tin", show_default=True,
+              help="quantized-mesh: each tile's mesh, tin (a greedy TIN of the lattice, its "
+                   "error measured) or rtin (the lattice's bintree cut, an a-priori bound; "
+                   "about 2.3× the bytes).")
 @click.option("--encoding", type=click.Choice(["terrain-rgb", "terrarium"]),
               default="terrain-rgb", show_default=True,
               help="pmtiles: how the heights are packed into PNG pixels.")
@@ -41,7 +45,7 @@ from geoterrain.cli.options import POSITIVE
                    "as CesiumJS expects (needs PROJ's EGM96 grid: apt-get install proj-data).")
 @click.option("--overwrite", is_flag=True, help="Write into OUTPUT even if it holds a layer.json.")
 @click.pass_context
-def command(ctx, store, output, fmt, max_zoom, min_zoom, max_error, encoding, imagery,
+def command(ctx, store, output, fmt, max_zoom, min_zoom, max_error, mesher, encoding, imagery,
             image_format, assets, geoid, overwrite):
     """Write a quantized-mesh-1.0 tile set (geographic tiling) of STORE for CesiumJS,
     or PMTiles archives with a map page (--format pmtiles).
@@ -49,9 +53,10 @@ def command(ctx, store, output, fmt, max_zoom, min_zoom, max_error, encoding, im
     Tiles are gzip-compressed (serve them with `Content-Encoding: gzip`), carry
     oct-encoded normals and a water mask, and share their edge vertices exactly
     with their neighbours; nodata is left out (a hole), never a spike. Each
-    tile's declared error (a bound on |mesh − DEM| at every DEM sample: the
-    lattice's resampling error + the vertices left out + quantisation) is in
-    OUTPUT/geoterrain.json; below --max-zoom it is within Cesium's level error.
+    tile's declared error (--mesher tin: the largest |mesh − DEM| measured at the
+    DEM samples it covers; rtin: a bound, the lattice's resampling error + the
+    vertices left out + quantisation) is in OUTPUT/geoterrain.json; below
+    --max-zoom it is within Cesium's level error.
 
     Heights are written as the DEM holds them (e.g. EGM96 orthometric heights
     for SRTM); CesiumJS assumes ellipsoidal heights, so the terrain sits off by
@@ -111,7 +116,7 @@ def command(ctx, store, output, fmt, max_zoom, min_zoom, max_error, encoding, im
         with geoterrain.open(store) as t:
             stats = write_tileset(t, output, max_zoom=max_zoom, min_zoom=min_zoom,
                                   max_error=max_error, overwrite=overwrite, geoid=geoid,
-                                  progress=bar)
+                                  progress=bar, mesher=mesher)
     finally:
         bar.close()
     if not ctx.obj["quiet"]:

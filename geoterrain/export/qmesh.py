@@ -10,24 +10,37 @@ Layout (what CesiumJS's ``CesiumTerrainProvider`` reads):
 - ``geoterrain.json``: each tile's declared error (metres) and the run's figures.
 
 A tile's mesh: the DEM is sampled bilinearly on a (2^k+1)² lattice aligned with
-the tile's edges (pyproj maps lon/lat to the source CRS); the per-vertex errors δ
-of that lattice (:func:`geoterrain.bounds.delta.vertex_errors`, seed 002) pick the
-vertices. Every lattice sample on the tile's border is kept, so neighbouring tiles
-share their edge vertices exactly (same lon/lat, same height, one height
-quantisation range for the whole set). Lattice samples with an invalid DEM
-neighbour are invalid and no triangle touches them: nodata becomes a hole, never a
-spike. Normals (oct-encoded, ECEF) come from central differences of the lattice
-with a one-sample margin, so they agree across tile edges too.
+the tile's edges (pyproj maps lon/lat to the source CRS), and the vertices are picked
+on that lattice by one of two meshers (``mesher``):
 
-Each tile's declared error is an a-priori bound on |mesh − DEM| at every DEM sample
+- ``"tin"`` (the default): a greedy TIN of the lattice (:mod:`qmeshtin`). Each edge
+  is first simplified alone, as a 1-D polyline through its lattice samples within the
+  level's edge threshold, so that both tiles sharing it keep the same points; the
+  interior is then refined with those points inserted first and no other edge point
+  added. The declared error is measured: the largest |decoded tile − DEM| over the
+  DEM samples the tile covers.
+- ``"rtin"``: the per-vertex errors δ of the lattice
+  (:func:`geoterrain.bounds.delta.vertex_errors`, seed 002) pick the vertices of the
+  bintree cut, and every lattice sample on the tile's border is kept. Its declared
+  error is an a-priori bound (below).
+
+Either way neighbouring tiles share their edge vertices exactly (same lon/lat, same
+height, one height quantisation range for the whole set). Lattice samples with an
+invalid DEM neighbour are invalid and no triangle touches them: nodata becomes a hole,
+never a spike. Normals (oct-encoded, ECEF) come from central differences of the
+lattice with a one-sample margin, so they agree across tile edges too.
+
+An rtin tile's declared error is an a-priori bound on |mesh − DEM| at every DEM sample
 it covers (:func:`build_tile`): the resampling error of the full lattice (measured
 at the DEM samples before any vertex is chosen) + the largest δ left out + the
 quantisation of heights and of u, v. Below max zoom the vertex threshold is the
 level's Cesium ``levelMaximumGeometricError`` minus the other terms, so the bound
-fits the error Cesium refines by; a level whose resampling error leaves no room is
-rebuilt on a lattice twice as fine (257², when its tiles stay within 16-bit
-indices). At max zoom the threshold is ``max_error`` and the bound is what it is
-(Cesium refines no further there); ``geoterrain.json`` lists it per tile and per level.
+fits the error Cesium refines by (a TIN tile starts from the same threshold and
+lowers it while its measured error exceeds the level's); a level whose error leaves
+no room is rebuilt on a lattice twice as fine (257², when its tiles stay within
+16-bit indices). At max zoom the threshold is ``max_error`` and the declared error is
+what it is (Cesium refines no further there); ``geoterrain.json`` lists it per tile and
+per level.
 
 Heights are the DEM's own unless ``geoid="egm96"`` converts EGM96 orthometric heights
 (SRTM's) to the WGS 84 ellipsoidal heights CesiumJS assumes (pyproj, PROJ's EGM96
@@ -73,6 +86,13 @@ from geoterrain.export.qmeshformat import (
     lattice,
     tile_rect,
 )
+from geoterrain.export.qmeshtin import (
+    EDGE_SHARE,
+    MIN_THRESHOLD,
+    hilbert_order,
+    measured_error,
+    tin_tile,
+)
 from geoterrain.lod.kernels import close_upward, extract
 from geoterrain.lod.mesh import orient_ccw
 
@@ -82,6 +102,10 @@ if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
 MEASURE_SAMPLES = 1 << 20  # DEM samples measured per block
+TILE_MESHERS = ("rtin", "tin")
+#: Each tile's mesher by default: the greedy TIN (0.44× rtin's bytes on srtm1_japan at the
+#: same per-level errors, the same time once its kernels are compiled; docs/lab/qmesh-tin.md)
+DEFAULT_TILE_MESHER = "tin"
 
 
 # ------------------------------------------------------------------------- one tile
@@ -114,9 +138,12 @@ def _slope_bound(lon, lat, hgt, faces, dlon: float, dlat: float) -> float:
 
 def build_tile(dem: GeoDem, z: int, x: int, y: int, M: int, target: float,
                hrange: tuple[float, float], flat: bool = False, *,
-               fixed_threshold: float | None = None) -> tuple[bytes, float, int, dict] | None:
+               fixed_threshold: float | None = None,
+               mesher: str = "rtin") -> tuple[bytes, float, int, dict] | None:
     """One tile's bytes, declared error bound (metres), triangle count and the terms of
-    the bound; None if no data.
+    the bound; None if no data. ``mesher="tin"``: the greedy TIN of the lattice
+    (:func:`_build_tin`, its declared error measured); the rest of this docstring is
+    the lattice's bintree cut (``"rtin"``).
 
     The bound, for every DEM sample p the tile covers (seed 002's δ for the middle term):
     |mesh_q(p) − DEM(p)| ≤ e_r + δ_max + e_h + e_uv, where
@@ -145,6 +172,8 @@ def build_tile(dem: GeoDem, z: int, x: int, y: int, M: int, target: float,
     h0, h1 = hrange
     e_h = 0.5 * (h1 - h0) / QMAX * (1 + 1e-9)
     dlon, dlat = 0.5 * (e - w) / QMAX, 0.5 * (n - s_) / QMAX
+    if mesher == "tin" and not flat:
+        return _build_tin(dem, rect, M, lon, lat, h, valid, target, hrange, fixed_threshold)
     e_r = _resampling_error(dem, rect, h, valid)
     if flat:
         e_uv = 0.0
@@ -170,12 +199,85 @@ def build_tile(dem: GeoDem, z: int, x: int, y: int, M: int, target: float,
     return data, bound, len(faces), info
 
 
+def _build_tin(dem: GeoDem, rect, M: int, lon, lat, h, valid, target: float, hrange,
+               fixed_threshold: float | None):
+    """A TIN tile (:mod:`geoterrain.export.qmeshtin`): edges simplified within the
+    level's edge threshold (``fixed_threshold`` at max zoom, else ``EDGE_SHARE`` ×
+    ``target``: the same for every tile of the level, so neighbours keep the same edge
+    points), the interior within the tile's threshold: ``fixed_threshold``, or below max
+    zoom ``target`` less the lattice's resampling error and the quantisation terms (as
+    the lattice tiles' first threshold), lowered while the measured error exceeds
+    ``target``. The declared error is the measured one (:func:`measured_error`), plus
+    1 µm for rounding."""
+    w, s_, e, n = rect
+    slon, slat, sh = _dem_samples(dem, rect)
+    e_h = 0.5 * (hrange[1] - hrange[0]) / QMAX
+    if fixed_threshold is not None:
+        thr = tau = fixed_threshold
+        e_r = None
+    else:
+        tau = EDGE_SHARE * target
+        e_r = _resampling_error(dem, rect, h, valid)
+        fine, fidx = _fine_faces(M)
+        fine = fine[valid.ravel()[fidx][fine].all(1)]
+        e_uv = _slope_bound(lon.ravel()[fidx], lat.ravel()[fidx],
+                            np.nan_to_num(h.ravel()[fidx], nan=0.0), fine,
+                            0.5 * (e - w) / QMAX, 0.5 * (n - s_) / QMAX)
+        thr = max(target - e_r - e_h - e_uv, MIN_THRESHOLD)
+    for _ in range(6):
+        ij, faces = tin_tile(h, valid, thr, tau)
+        if len(faces) == 0:
+            return None
+        faces = faces[hilbert_order(ij, faces)]  # neighbours close: smaller deltas, better gzip
+        # every valid edge point, drawn or not: next to nodata one side may leave a hole
+        # where the other draws, and both must still list the same edge vertices
+        r, c = ij[:, 0], ij[:, 1]
+        edge = np.flatnonzero(((r == 0) | (r == M - 1) | (c == 0) | (c == M - 1)) & valid[r, c])
+        data, faces, vlon, vlat, _, hq = _encode(dem, rect, M, lon, lat, h, ij, faces, hrange,
+                                                 False, edge)
+        bound = measured_error(rect, vlon, vlat, hq, faces, hrange, slon, slat, sh) + 1e-6
+        if fixed_threshold is not None or bound <= target or thr <= MIN_THRESHOLD:
+            break
+        thr = max(thr - (bound - target), 0.5 * thr, MIN_THRESHOLD)
+    info = {"M": M, "e_r": e_r, "e_h": e_h, "threshold": thr, "edge_threshold": tau,
+            "fits": bound <= target}
+    return data, bound, len(faces), info
+
+
+def _dem_box(dem: GeoDem, rect) -> tuple[int, int, int, int]:
+    """Rows i0..i1 and columns j0..j1 of the DEM samples that may lie inside ``rect``
+    (its border mapped through pyproj, a sample's margin); the whole grid where a point
+    of the border has no image in the DEM's CRS (a coarse tile reaching past the
+    projection's domain)."""
+    w, s, e, n = rect
+    bl, bt = np.linspace(w, e, 17), np.linspace(s, n, 17)
+    bi, bj = dem.pixel(np.concatenate([bl, bl, bl * 0 + w, bl * 0 + e]),
+                       np.concatenate([bt * 0 + s, bt * 0 + n, bt, bt]))
+    if not (np.isfinite(bi).all() and np.isfinite(bj).all()):
+        return 0, dem.H - 1, 0, dem.W - 1
+    i0, i1 = max(0, int(np.floor(bi.min())) - 1), min(dem.H - 1, int(np.ceil(bi.max())) + 1)
+    j0, j1 = max(0, int(np.floor(bj.min())) - 1), min(dem.W - 1, int(np.ceil(bj.max())) + 1)
+    return i0, i1, j0, j1
+
+
+def _dem_samples(dem: GeoDem, rect) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lon, lat and height of every valid DEM sample inside ``rect`` (closed)."""
+    w, s, e, n = rect
+    i0, i1, j0, j1 = _dem_box(dem, rect)
+    if i1 < i0 or j1 < j0:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    ii, jj = np.nonzero(dem.valid[i0:i1 + 1, j0:j1 + 1])
+    ii, jj = ii + i0, jj + j0
+    slon, slat = dem.lonlat(ii, jj)
+    inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)
+    return slon[inside], slat[inside], dem.h[ii[inside], jj[inside]]
+
+
 def select_tile(dem: GeoDem, rect, M: int, lon, lat, h, valid, delta, thr: float, hrange,
             flat: bool):
     """The tile's bytes, faces, largest left-out δ and slope term at threshold ``thr``."""
     w, s_, e, n = rect
     dlon, dlat = 0.5 * (e - w) / QMAX, 0.5 * (n - s_) / QMAX
-    h0, h1 = hrange
     active = delta > thr
     if flat:
         active[:] = False
@@ -187,13 +289,33 @@ def select_tile(dem: GeoDem, rect, M: int, lon, lat, h, valid, delta, thr: float
     faces = faces[valid.ravel()[fidx][faces].all(1)]
     if len(faces) == 0:
         return None
+    data, faces, vlon, vlat, vh, _ = _encode(dem, rect, M, lon, lat, h, ij, faces, hrange, flat)
+    if flat:  # two triangles (L is the mesh itself): the measured error is exact
+        d_max, e_uv = 0.0, 0.0
+    else:
+        left_out = valid & ~active & np.isfinite(delta)
+        d_max = float(delta[left_out].max(initial=0.0))
+        e_uv = _slope_bound(vlon, vlat, vh, faces, dlon, dlat)
+    return data, faces, d_max, e_uv
+
+
+def _encode(dem: GeoDem, rect, M: int, lon, lat, h, ij, faces, hrange, flat: bool,
+            extra: np.ndarray | None = None):
+    """A tile's bytes from lattice vertices ``ij`` (rows, columns) and ``faces``; also the
+    faces renumbered in first-use order and the used vertices' lon, lat, height and
+    quantised height. ``extra``: vertices (indices into ``ij``) written even if no face
+    uses them, after the used ones."""
+    h0, h1 = hrange
     faces = orient_ccw(ij, faces.astype(np.int64))
     # vertices in order of first use (the high-water-mark index coding needs it)
-    first = np.full(len(fidx), len(faces) * 3, np.int64)
+    big = faces.size + len(ij)
+    first = np.full(len(ij), big, np.int64)
     np.minimum.at(first, faces.ravel(), np.arange(faces.size))
-    used = np.flatnonzero(first < faces.size)
+    if extra is not None:
+        first[extra] = np.minimum(first[extra], faces.size + np.arange(len(extra)))
+    used = np.flatnonzero(first < big)
     order = used[np.argsort(first[used], kind="stable")]
-    remap = np.full(len(fidx), -1, np.int64)
+    remap = np.full(len(ij), -1, np.int64)
     remap[order] = np.arange(len(order))
     faces, ij = remap[faces], ij[order]
     vlon, vlat = lon[ij[:, 0], ij[:, 1]], lat[ij[:, 0], ij[:, 1]]
@@ -207,13 +329,7 @@ def select_tile(dem: GeoDem, rect, M: int, lon, lat, h, valid, delta, thr: float
     if len(order) > 65536:
         raise _TooManyVertices(f"a tile has {len(order)} vertices, more than 16-bit indices hold")
     data = encode_tile(vlon, vlat, hq, faces, hrange, rect, nrm)
-    if flat:  # two triangles (L is the mesh itself): the measured error is exact
-        d_max, e_uv = 0.0, 0.0
-    else:
-        left_out = valid & ~active & np.isfinite(delta)
-        d_max = float(delta[left_out].max(initial=0.0))
-        e_uv = _slope_bound(vlon, vlat, vh, faces, dlon, dlat)
-    return data, faces, d_max, e_uv
+    return data, faces, vlon, vlat, vh, hq
 
 
 @functools.lru_cache(maxsize=8)
@@ -238,11 +354,7 @@ def _resampling_error(dem: GeoDem, rect, h: np.ndarray, valid: np.ndarray) -> fl
     diagonal, then the triangle's linear interpolation."""
     M = h.shape[0]
     w, s, e, n = rect
-    bl, bt = np.linspace(w, e, 17), np.linspace(s, n, 17)
-    bi, bj = dem.pixel(np.concatenate([bl, bl, bl * 0 + w, bl * 0 + e]),
-                       np.concatenate([bt * 0 + s, bt * 0 + n, bt, bt]))
-    i0, i1 = max(0, int(np.floor(bi.min())) - 1), min(dem.H - 1, int(np.ceil(bi.max())) + 1)
-    j0, j1 = max(0, int(np.floor(bj.min())) - 1), min(dem.W - 1, int(np.ceil(bj.max())) + 1)
+    i0, i1, j0, j1 = _dem_box(dem, rect)
     if i1 < i0 or j1 < j0:
         return 0.0
     main = _diagonals(M)
@@ -312,14 +424,17 @@ def _tile_folder(out: Path, z: int, x: int) -> Path:
 def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | None = None,
                   min_zoom: int = 0, lattice: int = 129, max_error: float = 1.0,
                   overwrite: bool = False, geoid: str | None = None,
-                  progress: Callable[[str, int, int], None] | None = None) -> dict:
+                  progress: Callable[[str, int, int], None] | None = None,
+                  mesher: str = DEFAULT_TILE_MESHER) -> dict:
     """Write a quantized-mesh tile set of ``terrain`` into ``out_dir``; returns its figures.
 
     ``lattice`` (2^k + 1 samples a side) ≤ 129 keeps tiles within 16-bit indices.
     ``geoid="egm96"``: the DEM holds EGM96 heights (SRTM does); the tiles get WGS 84
     ellipsoidal heights (:func:`geoid_transformer`), and the declared errors are against
-    those.
+    those. ``mesher``: ``"rtin"``, the lattice's bintree cut with an a-priori bound, or
+    ``"tin"``, a greedy TIN of the lattice with its error measured (:func:`_build_tin`).
     """
+    check_tile_mesher(mesher)
     # a folder (new, with its parents, or one to write into; never a link or a file),
     # whose files are replaced only with overwrite
     from geoterrain.core.grid import refuse_root_grid
@@ -376,7 +491,8 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
             sizes = [lattice] + ([2 * lattice - 1] if z < zmax and lattice < 257 else [])
             for M in sizes:
                 try:
-                    built = _build_level(dem, z, xys, M, target, hrange, fixed, data_from)
+                    built = _build_level(dem, z, xys, M, target, hrange, fixed, data_from,
+                                         mesher)
                 except _TooManyVertices:
                     break  # keep the coarser lattice's tiles
                 tiles, data_from = built
@@ -396,7 +512,9 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
                 levels[z] = {"lattice": max(r[3]["M"] for r in tiles.values()),
                              "tiles": len(tiles), "bytes": nb, "triangles": nt,
                              "level_error": target, "max_declared": max(bounds),
-                             "max_resampling": max(r[3]["e_r"] for r in tiles.values()),
+                             "max_resampling": max((r[3]["e_r"] for r in tiles.values()
+                                                    if r[3].get("e_r") is not None),
+                                                   default=None),
                              "over_level_error": sum(b > target for b in bounds)}
             done += len(xys)
             if progress:
@@ -413,7 +531,7 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
         "extensions": ["octvertexnormals", "watermask"],
         "attribution": "geoterrain",
     }
-    stats = {"tiles": len(errors), "bytes": nbytes, "seconds": round(seconds, 2),
+    stats = {"tiles": len(errors), "bytes": nbytes, "seconds": round(seconds, 2), "mesher": mesher,
              "triangles": triangles, "min_zoom": min_zoom, "max_zoom": zmax,
              "lattice": lattice, "max_error": max_error, "height_range": list(hrange),
              "heights": f"WGS 84 ellipsoidal (from {geoid.upper()})" if geoid else "as stored",
@@ -424,11 +542,12 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
     return {k: v for k, v in stats.items() if k not in ("declared_error", "levels")}
 
 
-def _build_level(dem: GeoDem, z: int, xys, M: int, target: float, hrange, fixed, data_from: int):
+def _build_level(dem: GeoDem, z: int, xys, M: int, target: float, hrange, fixed, data_from: int,
+                 mesher: str = "rtin"):
     """Every tile of level ``z`` on an M-lattice: {(x, y): build_tile's result}."""
     tiles = {}
     for x, y in xys:
-        res = build_tile(dem, z, x, y, M, target, hrange, fixed_threshold=fixed)
+        res = build_tile(dem, z, x, y, M, target, hrange, fixed_threshold=fixed, mesher=mesher)
         if res is not None:
             data_from = min(data_from, z)
         elif z < data_from:
@@ -436,6 +555,12 @@ def _build_level(dem: GeoDem, z: int, xys, M: int, target: float, hrange, fixed,
         if res is not None:
             tiles[(x, y)] = res
     return tiles, data_from
+
+
+def check_tile_mesher(mesher: str) -> None:
+    """A quantized-mesh tile mesher name, or a UsageError."""
+    if mesher not in TILE_MESHERS:
+        raise UsageError(f"unknown tile mesher {mesher!r}: use one of {', '.join(TILE_MESHERS)}")
 
 
 def availability_ranges(tiles: list[tuple[int, int]]) -> list[dict]:

@@ -19,7 +19,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from geoterrain.exceptions import UsageError
-from geoterrain.export.qmesh import availability_ranges, build_tile, max_zoom_for, select_tile
+from geoterrain.export.qmesh import (
+    DEFAULT_TILE_MESHER,
+    availability_ranges,
+    build_tile,
+    check_tile_mesher,
+    max_zoom_for,
+    select_tile,
+)
 from geoterrain.export.qmeshdem import GeoDem, geoid_transformer
 from geoterrain.export.qmeshformat import (
     METADATA_LEVELS,
@@ -44,6 +51,7 @@ class QuantizedMeshTiles:
     levels than the first such level get flat tiles at the lowest height, as the writer
     gives them). Building tile (z, x, y) decodes only the level-0 tiles under its
     rectangle (:class:`GeoDem`'s window), and its declared bound is :func:`build_tile`'s.
+    ``mesher``: ``"rtin"`` or ``"tin"``, as :func:`write_tileset`'s.
 
     Examples
     --------
@@ -56,12 +64,15 @@ class QuantizedMeshTiles:
     """
 
     def __init__(self, terrain: TerrainLike, *, lattice: int = 129, max_error: float = 1.0,
-                 geoid: str | None = None, max_zoom: int | None = None):
+                 geoid: str | None = None, max_zoom: int | None = None,
+                 mesher: str = DEFAULT_TILE_MESHER):
         if lattice < 3 or (lattice - 1) & (lattice - 2) or lattice > 129:
             raise UsageError(f"lattice must be 2^k + 1 in 3..129, got {lattice}")
         if not max_error > 0:
             raise UsageError(f"max_error must be > 0, got {max_error}")
+        check_tile_mesher(mesher)
         self.terrain, self.lattice, self.max_error, self.geoid = terrain, lattice, max_error, geoid
+        self.mesher = mesher
         self.geo = GeoDem(terrain, geoid, heights=False)
         if geoid is not None:
             geoid_transformer(geoid)  # fail now if the grid is missing
@@ -168,7 +179,7 @@ class QuantizedMeshTiles:
         res = None
         if z >= self.data_from:
             res = build_tile(self._window(z, x, y), z, x, y, M, target, self.hrange,
-                             fixed_threshold=fixed)
+                             fixed_threshold=fixed, mesher=self.mesher)
         if res is None:  # coarser than the data, or all nodata: the flat tile
             return self._flat(z, x, y)
         data, bound, ntri, _ = res

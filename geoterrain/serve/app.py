@@ -151,7 +151,7 @@ def find_assets(explicit: str | Path | None = None) -> dict[str, Path]:
 
 def open_stores(paths: Sequence[str | Path | tuple[str, str | Path]], *, geoid: str | None = None,
                 max_error: float = 1.0, cmap: str = "auto",
-                decode_bytes: int = 512 << 20) -> dict[str, ServedStore]:
+                decode_bytes: int = 512 << 20, mesher: str = "tin") -> dict[str, ServedStore]:
     """Open each store (read-only) and its tile sources, keyed by name (the file's stem,
     or the name of a ``(name, path)`` pair); a one-line :class:`UsageError` for a
     duplicate, reserved or unusable name."""
@@ -171,7 +171,8 @@ def open_stores(paths: Sequence[str | Path | tuple[str, str | Path]], *, geoid: 
             t = geoterrain.open(p, cache_bytes=decode_bytes)
             try:
                 out[name] = ServedStore(name, t, WebTiler(t, cmap),
-                                        QuantizedMeshTiles(t, max_error=max_error, geoid=geoid))
+                                        QuantizedMeshTiles(t, max_error=max_error, geoid=geoid,
+                                                           mesher=mesher))
                 out[name].qmesh.layer(name)  # every level's tiles, found before any request
             except BaseException:
                 t.close()
@@ -252,19 +253,19 @@ def _etag(body: bytes) -> str:
 # -------------------------------------------------------------------- the app
 def create_app(stores: Sequence[str | Path] | dict[str, ServedStore], *,
                cache_bytes: int = 256 << 20, assets: str | Path | None = None,
-               geoid: str | None = None, max_error: float = 1.0, cmap: str = "auto"
-               ) -> Starlette:
+               geoid: str | None = None, max_error: float = 1.0, cmap: str = "auto",
+               mesher: str = "tin") -> Starlette:
     """The ASGI app serving ``stores`` (paths, or :func:`open_stores`' result).
 
     ``cache_bytes``: the budget of finished tiles kept in memory; ``assets``: a
     ``node_modules`` folder holding cesium, maplibre-gl and pmtiles (:func:`find_assets`);
-    ``geoid``, ``max_error``: as ``tiles --format quantized-mesh``; ``cmap``: the relief's
-    palette. The app's ``state`` holds ``stores``, ``cache`` and ``counters``.
+    ``geoid``, ``max_error``, ``mesher``: as ``tiles --format quantized-mesh``; ``cmap``:
+    the relief's palette. The app's ``state`` holds ``stores``, ``cache`` and ``counters``.
     """
     from geoterrain.serve.pages import cesium_page, index_page, maplibre_page
 
     served = stores if isinstance(stores, dict) else open_stores(
-        stores, geoid=geoid, max_error=max_error, cmap=cmap)
+        stores, geoid=geoid, max_error=max_error, cmap=cmap, mesher=mesher)
     cache = ByteCache(cache_bytes)
     libs = find_assets(assets)
     counters = {"requests": 0, "errors_4xx": 0, "errors_5xx": 0, "started": time.time()}

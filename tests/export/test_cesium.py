@@ -197,7 +197,8 @@ def _run_page(chromium: str, url: str, shot: Path) -> tuple[dict, list[str]]:
     return json.loads(text.split("RESULT", 1)[1].split("END", 1)[0]), console
 
 
-def test_cesium_loads_the_tile_set(tmp_path):
+@pytest.mark.parametrize("mesher", ["rtin", "tin"])
+def test_cesium_loads_the_tile_set(tmp_path, mesher):
     chromium, cesium = _requirements()
     import imageio.v3 as iio
     import rasterio
@@ -212,7 +213,7 @@ def test_cesium_loads_the_tile_set(tmp_path):
     site = tmp_path / "site"
     site.mkdir()
     with geoterrain.open(geoterrain.preprocess(dem, tmp_path / "d.geoterrain")) as t:
-        stats = write_tileset(t, site / "tiles")
+        stats = write_tileset(t, site / "tiles", mesher=mesher)
     declared = json.loads((site / "tiles" / "geoterrain.json").read_text())["declared_error"]
     worst = max(v for k, v in declared.items() if int(k.split("/")[0]) == stats["max_zoom"])
     (site / "cesium").symlink_to(cesium, target_is_directory=True)

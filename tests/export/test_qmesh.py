@@ -38,27 +38,48 @@ def _read_tileset(out: Path, dem: Path):
     return out, tiles, h, transform
 
 
-@pytest.fixture(scope="module")
-def japan(tmp_path_factory):
-    """srtm1_japan (slow: about 90 s to tile, more to decode in pure Python)."""
+def _japan(tmp_path_factory, mesher: str):
     from geoterrain.export.qmesh import write_tileset
 
     dem = real_dem("srtm1_japan.tif")
-    d = tmp_path_factory.mktemp("qmesh_japan")
+    d = tmp_path_factory.mktemp(f"qmesh_japan_{mesher}")
     with geoterrain.open(geoterrain.preprocess(dem, d / "j.geoterrain")) as t:
-        write_tileset(t, d / "tiles")
+        write_tileset(t, d / "tiles", mesher=mesher)
     return _read_tileset(d / "tiles", dem)
 
 
-SETS = ["tileset", pytest.param("japan", marks=pytest.mark.slow)]
+@pytest.fixture(scope="module")
+def japan(tmp_path_factory):
+    """srtm1_japan (slow: about 90 s to tile, more to decode in pure Python)."""
+    return _japan(tmp_path_factory, "rtin")
+
+
+@pytest.fixture(scope="module")
+def japan_tin(tmp_path_factory):
+    """srtm1_japan on TIN tiles (slow)."""
+    return _japan(tmp_path_factory, "tin")
+
+
+SETS = ["tileset", "tileset_tin", pytest.param("japan", marks=pytest.mark.slow),
+        pytest.param("japan_tin", marks=pytest.mark.slow)]
 
 
 @pytest.fixture(scope="module")
 def tileset(tmp_path_factory):
+    return _synthetic_tileset(tmp_path_factory, "rtin")
+
+
+@pytest.fixture(scope="module")
+def tileset_tin(tmp_path_factory):
+    """The same DEM on TIN tiles (tiles --mesher tin)."""
+    return _synthetic_tileset(tmp_path_factory, "tin")
+
+
+def _synthetic_tileset(tmp_path_factory, mesher: str):
     from geoterrain.cli.main import cli
     from geoterrain.ingest.synth import generate
 
-    d = tmp_path_factory.mktemp("qmesh")
+    d = tmp_path_factory.mktemp(f"qmesh_{mesher}")
     # gentle relief (so not every border sample is needed by its own error), straddling
     # tile boundaries of levels 10 and 11 in both directions
     z = generate("fbm", 129, seed=4).astype(np.float32) * 0.05
@@ -69,8 +90,8 @@ def tileset(tmp_path_factory):
     store = geoterrain.preprocess(dem, tile_size=32)
     out = d / "tiles"
     res = CliRunner().invoke(cli, ["-q", "tiles", str(store), "-o", str(out),
-                                   "--format", "quantized-mesh", "--max-error", "2"],
-                           catch_exceptions=False)
+                                   "--format", "quantized-mesh", "--max-error", "2",
+                                   "--mesher", mesher], catch_exceptions=False)
     assert res.exit_code == 0, res.output
     return _read_tileset(out, dem)
 
@@ -79,15 +100,24 @@ def tileset(tmp_path_factory):
 def steep(tmp_path_factory):
     """Rough relief at 1" (0–200 m over 2 km): the resampling error is a large share of
     the fine levels' geometric error, so the per-tile threshold has to leave room for it."""
+    return _steep(tmp_path_factory, "rtin")
+
+
+@pytest.fixture(scope="module")
+def steep_tin(tmp_path_factory):
+    return _steep(tmp_path_factory, "tin")
+
+
+def _steep(tmp_path_factory, mesher: str):
     from geoterrain.export.qmesh import write_tileset
     from geoterrain.ingest.synth import generate
 
-    d = tmp_path_factory.mktemp("qmesh_steep")
+    d = tmp_path_factory.mktemp(f"qmesh_steep_{mesher}")
     z = generate("fbm", 65, seed=9).astype(np.float32) * 0.1
     dem = write_tif(d / "steep.tif", z, crs="EPSG:4326", origin=(138.71, 35.37),
                     spacing=1 / 3600, nodata=-9999)
     with geoterrain.open(geoterrain.preprocess(dem, tile_size=32)) as t:
-        write_tileset(t, d / "tiles", max_error=2.0)
+        write_tileset(t, d / "tiles", max_error=2.0, mesher=mesher)
     return _read_tileset(d / "tiles", dem)
 
 
@@ -118,7 +148,7 @@ def test_every_tile_decodes_with_its_extensions(which, request):
 
 
 @pytest.mark.fast
-@pytest.mark.parametrize("which", [*SETS, "steep"])
+@pytest.mark.parametrize("which", [*SETS, "steep", "steep_tin"])
 def test_heights_within_the_declared_error_of_the_dem(which, request):
     tileset = request.getfixturevalue(which)
     out, tiles, h, transform = tileset
@@ -145,7 +175,7 @@ def test_heights_within_the_declared_error_of_the_dem(which, request):
 
 
 @pytest.mark.fast
-@pytest.mark.parametrize("which", [*SETS, "steep"])
+@pytest.mark.parametrize("which", [*SETS, "steep", "steep_tin"])
 def test_declared_errors_fit_cesiums_level_error(which, request):
     """Below max zoom each tile's declared error (an a-priori bound: resampling error +
     largest left-out δ + quantisation) is ≤ Cesium's levelMaximumGeometricError."""
@@ -207,6 +237,38 @@ def test_no_vertex_at_a_nodata_sample(which, request):
                 cc = np.minimum(c0 + dc, h.shape[1] - 1)
                 near = (np.abs(r - rr) < 1) & (np.abs(c - cc) < 1)
                 assert not bad[rr[near], cc[near]].any()
+
+
+@pytest.mark.fast
+def test_an_unknown_tile_mesher_is_refused_before_anything_is_written(tileset, tmp_path):
+    from geoterrain.cli.main import cli
+    from geoterrain.exceptions import UsageError
+    from geoterrain.export.qmesh import write_tileset
+
+    out, _, _, _ = tileset
+    store = next(out.parent.glob("*.geoterrain"))
+    res = CliRunner().invoke(cli, ["tiles", str(store), "-o", str(tmp_path / "a"),
+                                   "--mesher", "delatin"])
+    assert res.exit_code == 2 and "delatin" in res.stderr
+    with geoterrain.open(store) as t, pytest.raises(UsageError, match="unknown tile mesher"):
+        write_tileset(t, tmp_path / "b", mesher="delatin")
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("mesher", ["rtin", "tin"])
+def test_a_projected_dem_tiles_at_every_level(tmp_path, mesher):
+    """roi_epsg3089 (Kentucky, feet): the coarse tiles reach past the projection's domain
+    (pyproj gives inf there); every level is written and every tile decodes."""
+    from geoterrain.export.qmesh import write_tileset
+
+    dem = real_dem("roi_epsg3089.tif")
+    with geoterrain.open(geoterrain.preprocess(dem, tmp_path / "r.geoterrain")) as t:
+        stats = write_tileset(t, tmp_path / "tiles", mesher=mesher)
+    _, tiles, _, _ = _read_tileset(tmp_path / "tiles", dem)
+    assert len(tiles) == stats["tiles"] and stats["max_zoom"] == 15
+    assert {z for z, _, _ in tiles} == set(range(16))
+    assert all(len(t.indices) >= 3 for t in tiles.values())
 
 
 @pytest.mark.fast
@@ -277,7 +339,7 @@ def test_rough_levels_are_rebuilt_on_a_finer_lattice(tmp_path):
     dem = write_tif(tmp_path / "rough.tif", z, crs="EPSG:4326", origin=(138.71, 35.37),
                     spacing=1 / 3600, nodata=-9999)
     with geoterrain.open(geoterrain.preprocess(dem, tile_size=32)) as t:
-        write_tileset(t, tmp_path / "tiles", max_error=2.0)
+        write_tileset(t, tmp_path / "tiles", max_error=2.0, mesher="rtin")
     out, tiles, h, transform = _read_tileset(tmp_path / "tiles", dem)
     info = json.loads((out / "geoterrain.json").read_text())
     fine = [int(z) for z, v in info["levels"].items() if v["lattice"] == 257]

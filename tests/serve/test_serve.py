@@ -119,7 +119,10 @@ def test_dem_tiles_are_exact_to_the_encoding_step(app, dem, encoding, seg, step)
     assert np.all(got[~ok] == 0.0)  # outside the DEM: 0 m
 
 
-def test_terrain_tiles_hold_their_declared_error_and_share_edges(app, dem):
+@pytest.mark.parametrize("mesher", ["rtin", "tin"])
+def test_terrain_tiles_hold_their_declared_error_and_share_edges(dem, mesher):
+    """Tiles cut on request (rtin, or --mesher tin), decoded by quantized-mesh-tile: within
+    their declared error at every DEM sample they cover, edge vertices shared exactly."""
     import io
 
     from matplotlib.tri import LinearTriInterpolator, Triangulation
@@ -127,7 +130,9 @@ def test_terrain_tiles_hold_their_declared_error_and_share_edges(app, dem):
 
     from geoterrain.export.qmeshformat import QMAX, split_extensions, tile_rect
 
+    app = create_app([dem[1]], cache_bytes=64 << 20, mesher=mesher)
     st = app.state.stores["ridge"]
+    assert st.qmesh.mesher == mesher
     z = st.qmesh.max_zoom
     tiles = sorted(st.qmesh.level_tiles(z))
     h, tr = _dem_array(dem[0])

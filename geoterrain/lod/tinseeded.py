@@ -1,0 +1,104 @@
+"""The greedy TIN started from given border points (a tile's edge vertices, chosen first).
+
+:func:`greedy_tin_seeded` is :func:`geoterrain.lod.tincollapse.greedy_tin` on a grid
+without voids, with the points ``seeds`` (flat sample ids on the rectangle's border)
+inserted before the refinement begins, so that the mesh's border is exactly the polyline
+through the corners and the seeds. It adds no other border point as long as every border
+sample between two consecutive border points lies, within ``max_error``, on the segment
+between them: the caller gives the border samples the heights of that polyline
+(:func:`geoterrain.export.qmeshtin.tin_tile`), so their error is 0 up to rounding and the
+refinement's worst sample is always an interior one. Border points are never collapsed
+(the collapse pass takes interior points only).
+
+It uses the refinement's kernels (:mod:`geoterrain.lod.tinkernels`) and the collapse pass
+(:mod:`geoterrain.lod.tincollapse`) unchanged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from geoterrain.lod.tincollapse import _decimate, _grow
+from geoterrain.lod.tinkernels import (
+    CAND,
+    NH,
+    NP,
+    NT,
+    ROW,
+    _compact,
+    _flush,
+    _forget,
+    _insert,
+    _next,
+    _orient,
+    _set_triangle,
+)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _border_triangle(F, nt, p, W):
+    """The triangle whose border edge (twin −1) holds sample ``p`` strictly inside, or −1."""
+    px, py = p % W, p // W
+    for t in range(nt):
+        for k in range(3):
+            e = ROW * t + k
+            if F[e + 3] >= 0:
+                continue
+            a, b = F[e], F[_next(e)]
+            ax, ay, bx, by = a % W, a // W, b % W, b // W
+            if _orient(ax, ay, bx, by, px, py) != 0:
+                continue
+            if (min(ax, bx) <= px <= max(ax, bx) and min(ay, by) <= py <= max(ay, by)
+                    and p != a and p != b):
+                return t
+    return -1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def greedy_tin_seeded(z, H, W, max_error, seeds, simplify):
+    """The greedy TIN of the H × W heights ``z`` (flat) within ``max_error``, its border
+    points the rectangle's corners and ``seeds`` (flat ids on the border, corners
+    excluded). Returns the triangles (F, 3) and the (row, column) of their points."""
+    valid = np.ones(z.size, np.bool_)
+    cap = 1024
+    while cap < 2 * len(seeds) + 16:
+        cap *= 2
+    F = np.empty(ROW * cap, np.int32)
+    heap = np.empty(cap, np.int32)
+    key = np.empty(cap, np.float64)
+    pending = np.empty(cap, np.int32)
+    stack = np.empty(1 << 16, np.int32)
+    pts = np.empty(cap, np.int32)
+    cnt = np.zeros(4, np.int64)
+    p0, p1, p2, p3 = 0, W - 1, (H - 1) * W, H * W - 1
+    pts[0], pts[1], pts[2], pts[3] = p0, p1, p2, p3
+    cnt[NP] = 4
+    t0 = _set_triangle(F, pending, cnt, 0, p3, p0, p2, -1, -1, -1)
+    _set_triangle(F, pending, cnt, 1, p0, p3, p1, t0, -1, -1)
+    cnt[NT] = 2
+    for s in seeds:  # on the border: each splits one border edge (Delaunay flips after)
+        t = _border_triangle(F, cnt[NT], s, W)
+        if t < 0:
+            raise RuntimeError("a seed is not on the rectangle's border")
+        _forget(t, F, heap, key, pending, cnt)
+        F[ROW * t + CAND] = s
+        if _insert(t, F, W, heap, key, pending, cnt, stack, pts) < 0:
+            raise RuntimeError("Delaunay flips deeper than the stack")
+    _flush(F, z, valid, W, False, heap, key, pending, cnt, max_error)
+    while cnt[NH] > 0 and key[0] > max_error:
+        if cnt[NT] + 2 > cap:
+            cap *= 2
+            F = _grow(F, ROW * cap)
+            heap, key, pending = _grow(heap, cap), _grow(key, cap), _grow(pending, cap)
+            pts = _grow(pts, cap)
+        t = heap[0]
+        _forget(t, F, heap, key, pending, cnt)
+        if _insert(t, F, W, heap, key, pending, cnt, stack, pts) < 0:
+            raise RuntimeError("Delaunay flips deeper than the stack")
+        _flush(F, z, valid, W, False, heap, key, pending, cnt, max_error)
+    nt = cnt[NT]
+    pts = pts[:cnt[NP]]
+    if simplify:
+        _decimate(F, nt, pts, z, valid, W, False, max_error)
+    return _compact(F, nt, pts, valid, False, W)
