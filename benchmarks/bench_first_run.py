@@ -93,6 +93,14 @@ def main() -> None:
     print("\n| own compile CPU, s | function | argument types |\n|---:|---|---|")
     for (name, sig), s in sorted(own.items(), key=lambda kv: -kv[1])[:args.top]:
         print(f"| {s:.2f} | {name} | {sig[:90]} |")
+    by_name: dict[str, list[float]] = {}
+    for (name, _), s in own.items():
+        by_name.setdefault(name, []).append(s)
+    many = sorted(((sum(v), len(v), k) for k, v in by_name.items() if len(v) > 1), reverse=True)
+    print(f"\nfunctions compiled more than once: {len(many)}, "
+          f"{sum(t for t, _, _ in many):.1f} s CPU in all")
+    for t, n, name in many:
+        print(f"  {t:6.2f} s  {n}×  {name}")
 
 
 if __name__ == "__main__":
