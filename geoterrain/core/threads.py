@@ -183,7 +183,7 @@ def cores_for(samples: int) -> Iterator[None]:
     :data:`PARALLEL_MIN_SAMPLES`, else on numba's threads (the setting is per thread,
     restored on exit; results never depend on it). On one thread a :class:`ParallelKernel`
     runs its serial twin (:func:`serial_kernels`): the same arithmetic, and a small DEM's
-    first run compiles only the twins, about a third of the parallel kernels' compile
+    first run compiles only the twins, in a third to a half of the parallel kernels' compile
     time.
 
     Examples
