@@ -55,7 +55,9 @@ def main() -> None:
     from numba.core import event
 
     own: dict[tuple[str, str], float] = {}
+    where: dict[tuple[str, str], str] = {}  # the command that compiled it
     stack: list[list] = []
+    now = [""]
 
     class Timer(event.Listener):
         def on_start(self, ev) -> None:
@@ -67,6 +69,7 @@ def main() -> None:
             f = ev.data["dispatcher"].py_func
             key = (f"{f.__module__}.{f.__qualname__}", str(ev.data.get("args")))
             own[key] = own.get(key, 0.0) + spent - callees
+            where.setdefault(key, now[0])
             if stack:
                 stack[-1][1] += spent
 
@@ -76,7 +79,8 @@ def main() -> None:
     print(f"load average {os.getloadavg()[0]:.1f}, {os.cpu_count()} cores, cache {cache}")
     cpu_all, wall_all = time.process_time(), time.perf_counter()
     with tempfile.TemporaryDirectory() as out:
-        for cmd in demo_commands(out):
+        for i, cmd in enumerate(demo_commands(out)):
+            now[0] = f"{i + 1}:{cmd[0]}"
             c0, w0 = time.process_time(), time.perf_counter()
             try:
                 cli.main(cmd, prog_name="geoterrain", standalone_mode=False)
@@ -90,9 +94,21 @@ def main() -> None:
     print(f"\nall commands: CPU {time.process_time() - cpu_all:.1f} s, wall "
           f"{time.perf_counter() - wall_all:.1f} s; compiling: CPU {total:.1f} s, "
           f"{len(own)} specialisations of {len(kernels)} functions")
-    print("\n| own compile CPU, s | function | argument types |\n|---:|---|---|")
+    per: dict[str, float] = {}
+    for key, s in own.items():
+        per[where[key]] = per.get(where[key], 0.0) + s
+    print("compiling per command (CPU s): " + ", ".join(f"{k} {v:.1f}" for k, v in per.items()))
+    print("\n| own compile CPU, s | command | function | argument types |\n|---:|---|---|---|")
     for (name, sig), s in sorted(own.items(), key=lambda kv: -kv[1])[:args.top]:
-        print(f"| {s:.2f} | {name} | {sig[:90]} |")
+        print(f"| {s:.2f} | {where[(name, sig)]} | {name} | {sig[:90]} |")
+    by_name: dict[str, list[float]] = {}
+    for (name, _), s in own.items():
+        by_name.setdefault(name, []).append(s)
+    many = sorted(((sum(v), len(v), k) for k, v in by_name.items() if len(v) > 1), reverse=True)
+    print(f"\nfunctions compiled more than once: {len(many)}, "
+          f"{sum(t for t, _, _ in many):.1f} s CPU in all")
+    for t, n, name in many:
+        print(f"  {t:6.2f} s  {n}×  {name}")
 
 
 if __name__ == "__main__":

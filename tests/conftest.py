@@ -37,6 +37,16 @@ def _no_compile_notice(request, monkeypatch):
         monkeypatch.setattr(warmup, "cold_kernels", lambda modules: [])
 
 
+@pytest.fixture
+def parallel_always(monkeypatch):
+    """Every parallel kernel on numba's threads, small work included (small work runs the
+    serial twins otherwise: geoterrain/core/threads.py): a test of a fork() child needs
+    a parent that has launched parallel regions."""
+    import geoterrain.core.threads as threads
+
+    monkeypatch.setattr(threads, "PARALLEL_MIN_SAMPLES", 0)
+
+
 def has_real_dem(name: str) -> bool:
     """Whether a real DEM is available (for fixtures that add cases rather than skip)."""
     return (DEMS / name).is_file()

@@ -34,7 +34,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.core.threads import ParallelKernel, forked
+from geoterrain.core.threads import ParallelKernel, serial_for
 from geoterrain.lod.kernels import _coarsest_tile, sample_xy
 from geoterrain.lod.pool import PooledTiles
 
@@ -74,9 +74,12 @@ def _parallel(f):
     return k
 
 
-def _kernel(name: str):
-    """The parallel kernel ``name``, or its serial twin in a forked child."""
-    return _SERIAL[name] if forked() else globals()[name].parallel
+def _kernel(name: str, samples: int):
+    """The parallel kernel ``name``, or its serial twin in a forked child, inside
+    :func:`~geoterrain.core.threads.serial_kernels`, or for fewer than
+    :data:`~geoterrain.core.threads.PARALLEL_MIN_SAMPLES` pooled samples (a small mesh
+    compiles and runs only the twins, as :func:`~geoterrain.core.threads.cores_for`)."""
+    return _SERIAL[name] if serial_for(samples) else globals()[name].parallel
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -421,7 +424,7 @@ def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: flo
     slabs = pool.slabs(zfac)
     if D is not None:
         slabs = slabs._replace(D=D)
-    find, number, emit, count, gather, reset = (_kernel(n) for n in (
+    find, number, emit, count, gather, reset = (_kernel(n, len(slots) * T * T) for n in (
         "_find_active", "_number_active", "_emit_leaves", "_count_leaves", "_gather_blocks",
         "_reset"))
     scratch = {} if scratch is None else scratch

@@ -42,6 +42,7 @@ from geoterrain.core.grid import Grid
 from geoterrain.core.memory import available_memory
 from geoterrain.core.paths import STORE_SUFFIX, input_problem
 from geoterrain.core.progress import Progress, StageClock
+from geoterrain.core.threads import cores_for
 from geoterrain.exceptions import InputError, UsageError
 from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.ingest.remote import is_url
@@ -236,8 +237,9 @@ def preprocess(
     stage("tile bounds")
     # one map per level, central differences of the level's own samples (seed 000
     # normal-map lighting): a reader rebuilds each tile's from its heights and ring
-    normal_maps = [encode_octahedral(n, NORMAL_BITS) for n in level_normal_maps(
-        surface.X, surface.Y, surface.Z, surface.valid, dem.grid.top_level + 1)]
+    with cores_for(surface.Z.size):  # a small grid: the serial twins (core/threads.py)
+        normal_maps = [encode_octahedral(n, NORMAL_BITS) for n in level_normal_maps(
+            surface.X, surface.Y, surface.Z, surface.valid, dem.grid.top_level + 1)]
     stage("normals")
     blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals)
     del normal_maps

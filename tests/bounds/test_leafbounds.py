@@ -246,7 +246,7 @@ def test_a_damaged_or_misplaced_ring_is_refused_in_one_line(tmp_path):
 
 
 @pytest.mark.fast
-def test_a_forked_child_derives_the_same_bounds(tmp_path):
+def test_a_forked_child_derives_the_same_bounds(tmp_path, parallel_always):
     """The derivation kernels are serial: a fork() child of a parent that ran the
     parallel preprocess kernels reads derived bounds (GNU OpenMP would abort a parallel
     launch there)."""

@@ -452,7 +452,7 @@ def test_a_damaged_ring_is_refused_in_one_line(tmp_path):
 
 
 @pytest.mark.fast
-def test_a_forked_child_derives_the_same_normals(tmp_path):
+def test_a_forked_child_derives_the_same_normals(tmp_path, parallel_always):
     """After the parent has run the parallel kernels (the preprocess, a derived read), a
     child made by fork() reads derived normals with the serial kernels: GNU OpenMP would
     abort it at a parallel launch."""

@@ -18,6 +18,7 @@ import pytest
 from numba.core.registry import CPUDispatcher
 
 import geoterrain
+import geoterrain.core.threads as threads
 from geoterrain.core.threads import ParallelKernel
 from geoterrain.ingest.synth import generate, write_geotiff
 from tests.conftest import in_fork
@@ -35,10 +36,13 @@ def dems(tmp_path_factory):
     wait for the parent's)."""
     d = tmp_path_factory.mktemp("fork")
     out = []
-    for i in range(3):
-        src = write_geotiff(d / f"d{i}.tif", generate("fbm", (97, 300, 129)[i], seed=20 + i))
-        ref = geoterrain.preprocess(src, d / f"ref{i}.geoterrain")
-        out.append((src, _digest(ref)))
+    with pytest.MonkeyPatch.context() as mp_:  # small work would run the serial twins
+        mp_.setattr(threads, "PARALLEL_MIN_SAMPLES", 0)
+        for i in range(3):
+            src = write_geotiff(d / f"d{i}.tif", generate("fbm", (97, 300, 129)[i],
+                                                          seed=20 + i))
+            ref = geoterrain.preprocess(src, d / f"ref{i}.geoterrain")
+            out.append((src, _digest(ref)))
     return out
 
 

@@ -51,3 +51,47 @@ def test_serial_and_parallel_normals_agree():
     with serial_kernels():
         ser = normal_map(j, -i, z, v)
     assert np.array_equal(par, ser)
+
+
+def _spy_on_parallel(monkeypatch) -> list[str]:
+    """Every ParallelKernel of the package records its name when its threaded version
+    runs (and then runs its serial twin, the same arithmetic)."""
+    import importlib
+    import pkgutil
+
+    import geoterrain
+
+    ran: list[str] = []
+    for m in pkgutil.walk_packages(geoterrain.__path__, "geoterrain."):
+        if ".serve" in m.name or ".bench" in m.name:
+            continue
+        for name, v in vars(importlib.import_module(m.name)).items():
+            if isinstance(v, ParallelKernel):
+                def spy(*a, _n=f"{m.name}.{name}", _s=v.serial):
+                    ran.append(_n)
+                    return _s(*a)
+                monkeypatch.setattr(v, "parallel", spy)
+    return ran
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("threshold", [None, 0])
+def test_small_work_runs_only_the_serial_twins(tmp_path, monkeypatch, threshold):
+    """A small DEM's preprocess and static mesh (below PARALLEL_MIN_SAMPLES) run no
+    threaded kernel, so a first run on it compiles only the twins; with the threshold at
+    0 the same work runs threaded ones (the spy sees them)."""
+    import geoterrain
+    import geoterrain.core.threads as threads
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    if threshold is not None:
+        monkeypatch.setattr(threads, "PARALLEL_MIN_SAMPLES", threshold)
+    ran = _spy_on_parallel(monkeypatch)
+    src = write_geotiff(tmp_path / "d.tif", generate("fbm", 129, seed=4))
+    t = geoterrain.open(geoterrain.preprocess(src, tmp_path / "d.geoterrain"))
+    assert len(geoterrain.lod.static(t, 1.0).mesh.faces)
+    if threshold is None:
+        assert ran == []
+    else:  # the preprocess's and the mesh's threaded kernels
+        assert {"_raw_delta_nb", "_tile_boxes_nb", "_normals_nb", "_level_payloads",
+                "_find_active", "_emit_leaves"} <= {n.rsplit(".", 1)[1] for n in ran}

@@ -284,7 +284,7 @@ def test_the_static_elevation_is_the_seams_formula(tmp_path_factory):
             np.testing.assert_array_equal(got, np.asarray(m.point_data["elevation"]))
 
 
-def test_a_forked_child_extracts_the_same_static_mesh(tmp_path_factory):
+def test_a_forked_child_extracts_the_same_static_mesh(tmp_path_factory, parallel_always):
     """After the parent has run the parallel kernels, a child made by fork() (GNU
     OpenMP aborts such a child at its first parallel launch) extracts the same static
     mesh, with the serial twins."""
