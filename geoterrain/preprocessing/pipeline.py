@@ -39,7 +39,7 @@ from geoterrain.codec.quantchoice import choose_quantizer
 from geoterrain.codec.quantize import Quantizer, codes_to_heights
 from geoterrain.core.frame import Frame
 from geoterrain.core.grid import Grid
-from geoterrain.core.memory import available_memory
+from geoterrain.core.memory import available_memory, small_pages
 from geoterrain.core.paths import STORE_SUFFIX, input_problem
 from geoterrain.core.progress import Progress, StageClock
 from geoterrain.exceptions import InputError
@@ -203,41 +203,43 @@ def preprocess(
         log.warning("%s fits the memory limit: preprocessed here, whole; the scheduler %s "
                     "runs a streamed preprocess only (lower --memory-limit to stream it)",
                     req.files[0] if not req.mosaic else "the mosaic", scheduler)
-    stage = StageClock(STAGES, progress, timings)
-    dem = read_dem(req, band=band, encoding=encoding, nodata=nodata, tile=tile,
-                   pixel_size=pixel_size, z_units=z_units, z_scale=z_scale, merge=merge)
-    stage("read")
-    surface = pad(dem)
-    stage("pad")
-    surface = quantise(dem, surface, codec_error)
-    stage("quantise")
-    derive_normals = bool(derive_normals) and dem.grid.tile_samples >= 3
-    derive_bounds = (bool(derive_bounds) and dem.grid.tile_samples >= 3
-                     and dem.grid.top_level > 0)
-    bounds = vertex_bounds(dem, surface, derive_bounds, stage)
-    tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
-                                          dem.grid.t)
-    stage("tile bounds")
-    # one map per level, central differences of the level's own samples (seed 000
-    # normal-map lighting): a reader rebuilds each tile's from its heights and ring
-    normal_maps = [encode_octahedral(n, NORMAL_BITS) for n in level_normal_maps(
-        surface.X, surface.Y, surface.Z, surface.valid, dem.grid.top_level + 1)]
-    stage("normals")
-    blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals)
-    del normal_maps
-    stage("compress")
-    meta = dict(source=req.name, source_dtype=dem.raster.src_dtype,
-                source_nodata=dem.raster.nodata, encoding=dem.raster.encoding,
-                grid=dem.grid.to_json(), frame=dem.frame.to_json(),
-                quantizer=surface.q.to_json(),
-                normals_derived=(list(range(dem.grid.top_level + 1)) if derive_normals
-                                 else []),
-                valid_samples=dem.valid_samples, samples=dem.raster.valid.size,
-                height_range=surface.height_range, delta_max_finite=delta_max_finite(bounds.delta),
-                edge_max=blobs.edge_max if has_padding(dem.grid) else None,
-                stand_in_z=stand_in_z(surface.Z, surface.valid),
-                block_delta_levels=int(blocks.shape[2]))
-    write_store(req, dem.grid, blobs, blocks, meta, stage)
+    with small_pages():  # whole-grid arrays on 4 KiB pages (core/memory.py)
+        stage = StageClock(STAGES, progress, timings)
+        dem = read_dem(req, band=band, encoding=encoding, nodata=nodata, tile=tile,
+                       pixel_size=pixel_size, z_units=z_units, z_scale=z_scale, merge=merge)
+        stage("read")
+        surface = pad(dem)
+        stage("pad")
+        surface = quantise(dem, surface, codec_error)
+        stage("quantise")
+        derive_normals = bool(derive_normals) and dem.grid.tile_samples >= 3
+        derive_bounds = (bool(derive_bounds) and dem.grid.tile_samples >= 3
+                         and dem.grid.top_level > 0)
+        bounds = vertex_bounds(dem, surface, derive_bounds, stage)
+        tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
+                                              dem.grid.t)
+        stage("tile bounds")
+        # one map per level, central differences of the level's own samples (seed 000
+        # normal-map lighting): a reader rebuilds each tile's from its heights and ring
+        normal_maps = [encode_octahedral(n, NORMAL_BITS) for n in level_normal_maps(
+            surface.X, surface.Y, surface.Z, surface.valid, dem.grid.top_level + 1)]
+        stage("normals")
+        blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals)
+        del normal_maps
+        stage("compress")
+        meta = dict(source=req.name, source_dtype=dem.raster.src_dtype,
+                    source_nodata=dem.raster.nodata, encoding=dem.raster.encoding,
+                    grid=dem.grid.to_json(), frame=dem.frame.to_json(),
+                    quantizer=surface.q.to_json(),
+                    normals_derived=(list(range(dem.grid.top_level + 1)) if derive_normals
+                                     else []),
+                    valid_samples=dem.valid_samples, samples=dem.raster.valid.size,
+                    height_range=surface.height_range,
+                    delta_max_finite=delta_max_finite(bounds.delta),
+                    edge_max=blobs.edge_max if has_padding(dem.grid) else None,
+                    stand_in_z=stand_in_z(surface.Z, surface.valid),
+                    block_delta_levels=int(blocks.shape[2]))
+        write_store(req, dem.grid, blobs, blocks, meta, stage)
     return req.dst
 
 
