@@ -286,6 +286,7 @@ def encode_pyramid(
     quantizer: Quantizer,
     progress: Callable[[int, int], None] | None = None,
     predictor: str = "auto",
+    counts: list[np.ndarray] | None = None,
 ) -> dict[tuple[int, int, int], bytes]:
     """Encode every stored tile of the pyramid.
 
@@ -303,6 +304,9 @@ def encode_pyramid(
         U(.) of the residuals (:mod:`geoterrain.codec.predict`): linear floor-means, or 4-point
         interpolatory weights (better on rough, high-entropy data); ``"auto"`` picks the
         one with the smaller estimated residual entropy. Recorded in every blob.
+    counts : list of arrays, optional
+        :func:`geoterrain.core.grid.footprint_counts` of ``valid`` at the tile size, when
+        the caller has them (else computed here).
 
     Returns
     -------
@@ -315,7 +319,7 @@ def encode_pyramid(
     >>> sorted(encode_pyramid(z, v, 1, Quantizer("int")))
     [(0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1), (1, 0, 0)]
     """
-    return encode_decoded(z, valid, t, quantizer, progress, predictor)[0]
+    return encode_decoded(z, valid, t, quantizer, progress, predictor, counts)[0]
 
 
 def encode_decoded(
@@ -325,9 +329,11 @@ def encode_decoded(
     quantizer: Quantizer,
     progress: Callable[[int, int], None] | None = None,
     predictor: str = "auto",
+    counts: list[np.ndarray] | None = None,
 ) -> tuple[dict[tuple[int, int, int], bytes], np.ndarray]:
     """:func:`encode_pyramid`'s blobs and the (N, N) codes decoding them gives
-    (:func:`decoded_codes`), which the encoder computes on its way.
+    (:func:`decoded_codes`), which the encoder computes on its way (``counts`` as
+    :func:`encode_pyramid`'s).
 
     Examples
     --------
@@ -350,7 +356,7 @@ def encode_decoded(
         return out, d
     out[(lmax, 0, 0)] = _encode_top(d, valid, te, lmax, cubic, quantizer.bins)
     with cores_for(d.size):  # small grids on one thread (geoterrain/core/threads.py)
-        _encode_levels(out, d, valid, n, te, lmax, cubic, progress,
+        _encode_levels(out, d, valid, n, te, lmax, cubic, progress, counts,
                        wide=quantizer.mode == "float", bins=quantizer.bins)
     return out, d
 

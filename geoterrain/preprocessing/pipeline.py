@@ -38,7 +38,7 @@ from geoterrain.codec.pyramid import decoded_heights, encode_decoded, encode_pyr
 from geoterrain.codec.quantchoice import choose_quantizer
 from geoterrain.codec.quantize import Quantizer, codes_to_heights
 from geoterrain.core.frame import Frame
-from geoterrain.core.grid import Grid
+from geoterrain.core.grid import Grid, footprint_counts
 from geoterrain.core.memory import available_memory, small_pages
 from geoterrain.core.paths import STORE_SUFFIX, input_problem
 from geoterrain.core.progress import Progress, StageClock
@@ -216,15 +216,17 @@ def preprocess(
         derive_bounds = (bool(derive_bounds) and dem.grid.tile_samples >= 3
                          and dem.grid.top_level > 0)
         bounds = vertex_bounds(dem, surface, derive_bounds, stage)
+        # valid samples per tile footprint: the tile table's and the height codec's
+        counts = footprint_counts(surface.valid, dem.grid.t)
         tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
-                                              dem.grid.t)
+                                              dem.grid.t, counts)
         stage("tile bounds")
         # one map per level, central differences of the level's own samples (seed 000
         # normal-map lighting): a reader rebuilds each tile's from its heights and ring
         normal_maps = [encode_octahedral(n, NORMAL_BITS) for n in level_normal_maps(
             surface.X, surface.Y, surface.Z, surface.valid, dem.grid.top_level + 1)]
         stage("normals")
-        blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals)
+        blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals, counts)
         del normal_maps
         stage("compress")
         meta = dict(source=req.name, source_dtype=dem.raster.src_dtype,
@@ -404,7 +406,8 @@ class TileBlobs:
 
 
 def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
-               normal_maps: list[np.ndarray], derive_normals: bool) -> TileBlobs:
+               normal_maps: list[np.ndarray], derive_normals: bool,
+               counts: list[np.ndarray] | None = None) -> TileBlobs:
     """The height pyramid's blobs (the residual codec), and every tile's δ, r, normals and
     δ_edge blobs with its tile-table row.
 
@@ -413,12 +416,14 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     vertices new at the level are stored; the others are the parent's
     (:mod:`geoterrain.bounds.vertexdata`). Padding is replicated from the data's edge for
     a second δ, the static mesh's (:mod:`geoterrain.bounds.edgepad`), coded with the same
-    table as δ, so the two agree wherever their raw values do.
+    table as δ, so the two agree wherever their raw values do. ``counts``: the valid
+    samples per tile footprint (:func:`geoterrain.core.grid.footprint_counts`), if known.
     """
     grid, frame, valid, Z = dem.grid, dem.frame, s.valid, s.Z
     height_blobs = s.height_blobs
     if height_blobs is None:
-        height_blobs = encode_pyramid(s.heights, valid, grid.t, s.q, predictor=s.predictor)
+        height_blobs = encode_pyramid(s.heights, valid, grid.t, s.q, predictor=s.predictor,
+                                      counts=counts)
     delta = b.delta
     edge = d_edge = None
     if has_padding(grid):
