@@ -24,7 +24,7 @@ from geoterrain.bounds.edgepad import (
     has_padding,
 )
 from geoterrain.bounds.leafbounds import geographic_leaf_delta
-from geoterrain.bounds.normals import encode_octahedral, level_normal_maps
+from geoterrain.bounds.normals import level_normal_codes
 from geoterrain.bounds.radii import stand_in_z, valid_range, vertex_radii
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, radius_codes, ring_blobs
 from geoterrain.bounds.tilebounds import tile_and_block_errors
@@ -223,8 +223,8 @@ def preprocess(
         stage("tile bounds")
         # one map per level, central differences of the level's own samples (seed 000
         # normal-map lighting): a reader rebuilds each tile's from its heights and ring
-        normal_maps = [encode_octahedral(n, NORMAL_BITS) for n in level_normal_maps(
-            surface.X, surface.Y, surface.Z, surface.valid, dem.grid.top_level + 1)]
+        normal_maps = level_normal_codes(surface.X, surface.Y, surface.Z, surface.valid,
+                                         dem.grid.top_level + 1, NORMAL_BITS)
         stage("normals")
         blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals, counts)
         del normal_maps
