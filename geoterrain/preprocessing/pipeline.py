@@ -324,9 +324,15 @@ def pad(dem: Dem) -> Surface:
     """The DEM padded to the (2^n+1)² grid (invalid padding), with scene x, y."""
     grid, r = dem.grid, dem.raster
     valid = grid.pad(r.valid, False)
-    heights = grid.pad(r.heights, np.nan)
-    heights[~valid] = np.nan
-    r.heights = None  # the padded copy holds them now (memory: issue 12)
+    h = r.heights
+    if (h.shape == valid.shape and h.dtype == np.float64 and h.flags.c_contiguous
+            and h.flags.writeable):  # no padding: the read's own array (no 134 MB copy)
+        heights = h
+    else:
+        heights = grid.pad(h, np.nan)
+    if dem.valid_samples < valid.size:
+        heights[~valid] = np.nan
+    r.heights = None  # the padded array holds them now (memory: issue 12)
     X, Y = dem.frame.grid_xy(grid.size)
     return Surface(heights, valid, X, Y)
 
@@ -345,9 +351,12 @@ def quantise(dem: Dem, s: Surface, codec_error: float | None) -> Surface:
         Z[~s.valid] = np.nan
     else:
         Z = decoded_heights(s.heights, s.valid, q)  # NaN where invalid
-    hv = Z[s.valid]
-    height_range = [float(hv.min()), float(hv.max())]
-    del hv
+    lo, hi, _ = valid_range(Z, s.valid)  # one compiled pass, no copy
+    if lo == 0.0 or hi == 0.0:  # which zero (±0.0) numpy's min and max give, as stored
+        hv = Z[s.valid]
+        lo, hi = hv.min(), hv.max()
+        del hv
+    height_range = [float(lo), float(hi)]
     Z = dem.frame.z(Z, out=Z)  # scene metres, in place
     return Surface(s.heights, s.valid, s.X, s.Y, Z, q, height_range, height_blobs)
 
