@@ -11,6 +11,9 @@ project's own and a ratio measured on it alone can flatter.
 ``--baseline DIR``: another tree of the project (``git archive main | tar -x -C DIR``),
 run in the same alternation (ours, the baseline's, pymartini's, ...), with its ratio to
 ours and whether its stores are byte-identical to ours (SHA-256 of the whole file).
+``--baseline-env KEY=VALUE`` (repeatable) sets the baseline's environment (``DIR`` may
+be this tree: ``--baseline . --baseline-env NUMPY_MADVISE_HUGEPAGE=1`` measures numpy's
+huge pages, ``--baseline-env OMP_WAIT_POLICY=ACTIVE`` GNU OpenMP's spinning threads).
 
 Each run is a fresh process (so peak memory is per run), ours and pymartini's
 alternating. Prints a markdown table of medians: per-stage seconds from the store's
@@ -43,7 +46,7 @@ _ENV = dict(os.environ)
 # its clock too); the import of the preprocess stack (numba, rasterio, pyproj) is
 # reported on its own row.
 PRE = """
-import hashlib, json, sys, time
+import hashlib, json, os, sys, time
 t0 = time.perf_counter()
 import geoterrain
 from geoterrain.preprocessing.pipeline import preprocess
@@ -53,10 +56,15 @@ cpu = {{}}
 c = [time.process_time()]
 
 
-def tick(name, done, total):  # each stage's CPU time, at the end the clock reports
-    now = time.process_time()
+sys_t = {{}}
+k = [os.times().system]
+
+
+def tick(name, done, total):  # each stage's CPU (and system) time, at the end the clock reports
+    now, ks = time.process_time(), os.times().system
     cpu[name] = now - c[0]
-    c[0] = now
+    sys_t[name] = ks - k[0]
+    c[0], k[0] = now, ks
 
 
 c0 = c[0]
@@ -68,7 +76,7 @@ t = geoterrain.open(p)
 from geoterrain.core.memory import peak_rss  # VmHWM: not the parent's peak at exec
 peak = peak_rss() / 2**20
 digest = hashlib.sha256(open(p, "rb").read()).hexdigest()
-print(json.dumps({{"wall": wall, "import": t1 - t0, "stages": stages, "cpu": cpu,
+print(json.dumps({{"wall": wall, "import": t1 - t0, "stages": stages, "cpu": cpu, "sys": sys_t,
                   "cpu_all": cpu_all, "bytes": t.info()["size_bytes"], "peak_mb": peak,
                   "sha256": digest}}))
 """
@@ -86,9 +94,10 @@ print(json.dumps({"wall": time.perf_counter() - t0}))
 """
 
 
-def child(code: str, *args: str, tree: str | None = None) -> tuple[dict, float]:
+def child(code: str, *args: str, tree: str | None = None, extra: dict | None = None
+          ) -> tuple[dict, float]:
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    env = dict(_ENV)
+    env = dict(_ENV, **(extra or {}))
     if tree:  # the baseline tree's package before this one's (an editable install)
         env["PYTHONPATH"] = os.path.abspath(tree)
     out = subprocess.run([sys.executable, "-c", code, *args], check=True, capture_output=True,
@@ -108,6 +117,8 @@ def main() -> None:
                     help="a real DEM resampled to --size² float32 instead of the fBm")
     ap.add_argument("--baseline", default=None, metavar="DIR",
                     help="another tree of the project, alternated with this one")
+    ap.add_argument("--baseline-env", action="append", default=[], metavar="KEY=VALUE",
+                    help="an environment variable of the baseline's runs (repeatable)")
     ap.add_argument("--skip-pymartini", action="store_true",
                     help="time ours only (Martini(16385) alone needs several GB)")
     a = ap.parse_args()
@@ -134,7 +145,8 @@ def main() -> None:
         ours.append(r)
         peaks.append(r["peak_mb"])  # this process's own peak
         if a.baseline:
-            b, _ = child(PRE.format(eps=a.codec_error), src, dst, tree=a.baseline)
+            b, _ = child(PRE.format(eps=a.codec_error), src, dst, tree=a.baseline,
+                         extra=dict(kv.split("=", 1) for kv in a.baseline_env))
             base.append(b)
         if not a.skip_pymartini:
             m, _ = child(MARTINI, src)
@@ -153,21 +165,25 @@ def main() -> None:
     def cpu(runs: list[dict], s: str) -> float:
         return statistics.median(r["cpu"].get(s, float("nan")) for r in runs)
 
-    head = "| stage | wall s | CPU s | CPU / wall |"
+    def ksys(runs: list[dict], s: str) -> float:
+        return statistics.median(r["sys"].get(s, float("nan")) for r in runs)
+
+    head = "| stage | wall s | CPU s | of it system s | CPU / wall |"
     if base:
-        head += " baseline wall s | baseline CPU s |"
+        head += " baseline wall s | baseline CPU s | of it system s |"
     print(head)
     print("|---" * (head.count("|") - 1) + "|")
     bmed = {s: statistics.median(r["stages"][s] for r in base) for s in stages} if base else {}
     for s in stages:
-        row = f"| {s} | {med[s]:.2f} | {cpu(ours, s):.2f} | {cpu(ours, s) / med[s]:.2f} |"
+        row = (f"| {s} | {med[s]:.2f} | {cpu(ours, s):.2f} | {ksys(ours, s):.2f} | "
+               f"{cpu(ours, s) / med[s]:.2f} |")
         if base:
-            row += f" {bmed[s]:.2f} | {cpu(base, s):.2f} |"
+            row += f" {bmed[s]:.2f} | {cpu(base, s):.2f} | {ksys(base, s):.2f} |"
         print(row)
     cpu_all = statistics.median(r["cpu_all"] for r in ours)
-    row = f"| (CPU of the whole preprocess, both cores) | | {cpu_all:.2f} | |"
+    row = f"| (CPU of the whole preprocess, both cores) | | {cpu_all:.2f} | | |"
     if base:
-        row += f" | {statistics.median(r['cpu_all'] for r in base):.2f} |"
+        row += f" | {statistics.median(r['cpu_all'] for r in base):.2f} | |"
     print(row)
     err_stage = med.get("errors", 0) + med.get("radii", 0)
     print(f"| **preprocess total (wall, its module imported)** | **{wall:.2f}** |")
@@ -180,7 +196,7 @@ def main() -> None:
         bwall = statistics.median(r["wall"] for r in base)
         pairs = [o["wall"] / b["wall"] for o, b in zip(ours, base, strict=True)]
         same = all(r["sha256"] == ours[0]["sha256"] for r in ours + base)
-        print(f"| baseline total ({a.baseline}) | {bwall:.2f} |")
+        print(f"| baseline total ({a.baseline} {' '.join(a.baseline_env)}) | {bwall:.2f} |")
         print(f"| baseline / pymartini | {bwall / mart:.2f} |")
         print(f"| ours / baseline (median; each pair's: {', '.join(f'{x:.2f}' for x in pairs)}) "
               f"| {wall / bwall:.2f} |")

@@ -115,8 +115,9 @@ def small_pages() -> Iterator[None]:
     large allocation, and on this project's 2-core VM a fresh huge page costs far more
     than the 512 small ones it replaces (the hypervisor backs it on first touch): a
     whole-grid 4097² preprocess, which allocates and frees a few GB of whole-grid arrays,
-    spent 3.9 s of system CPU time with huge pages and 1.1–1.3 s without
-    (docs/lab/preprocess.md). Results never depend on it.
+    spent 3.9 s of system CPU time with huge pages and 1.0–1.3 s without
+    (docs/lab/preprocess.md). numpy's own switch, ``NUMPY_MADVISE_HUGEPAGE``, when the
+    environment sets it, wins (nothing is changed). Results never depend on it.
 
     Examples
     --------
@@ -126,7 +127,7 @@ def small_pages() -> Iterator[None]:
     """
     mp = getattr(getattr(np, "_core", None), "multiarray", None)
     set_hp = getattr(mp, "_set_madvise_hugepage", None)  # numpy ≥ 1.20's switch
-    if set_hp is None:
+    if set_hp is None or "NUMPY_MADVISE_HUGEPAGE" in os.environ:
         yield
         return
     with _PAGES_LOCK:
