@@ -125,8 +125,8 @@ def small_pages() -> Iterator[None]:
     ...     int(np.zeros(1 << 22).sum())
     0
     """
-    mp = getattr(getattr(np, "_core", None), "multiarray", None)
-    set_hp = getattr(mp, "_set_madvise_hugepage", None)  # numpy ≥ 1.20's switch
+    core = getattr(np, "_core", None) or getattr(np, "core", None)  # numpy 2, numpy 1
+    set_hp = getattr(getattr(core, "multiarray", None), "_set_madvise_hugepage", None)
     if set_hp is None or "NUMPY_MADVISE_HUGEPAGE" in os.environ:
         yield
         return
