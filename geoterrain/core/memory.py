@@ -112,8 +112,9 @@ _SMALL_PAGES = [0, True]  # callers inside small_pages(); numpy's setting before
 def small_pages() -> Iterator[None]:
     """numpy's new arrays on 4 KiB pages while inside (every thread; nestable; restored
     when the last caller leaves). numpy asks Linux for transparent huge pages on every
-    large allocation, and on this project's 2-core VM a fresh huge page costs far more
-    than the 512 small ones it replaces (the hypervisor backs it on first touch): a
+    large allocation, and on this project's 2-core VM a fresh huge page often cost far
+    more than the 512 small ones it replaces (likely the hypervisor backing it on first
+    touch): a
     whole-grid 4097² preprocess, which allocates and frees a few GB of whole-grid arrays,
     spent 3.9 s of system CPU time with huge pages and 1.0–1.3 s without
     (docs/lab/preprocess.md). numpy's own switch, ``NUMPY_MADVISE_HUGEPAGE``, when the
