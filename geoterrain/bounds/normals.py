@@ -12,6 +12,8 @@ positions, so curvilinear (geographic) grids and vertical exaggeration are handl
   :func:`normal_map` of level L's own samples (every 2**L-th row and column): what a
   store holds, and what its reader derives from a tile's decoded heights and its stored
   border ring at every level (docs/store.md).
+- :func:`level_normal_codes`: those maps' octahedral codes, a band of rows at a time
+  (what the whole-grid preprocess stores).
 - :func:`normal_pyramid`: the maps of every pyramid level, each level a 3x3 binomial
   weighted mean (renormalised) of the previous one around its kept samples (what stores
   held before; kept for comparison, docs/lab/store-size.md).
@@ -34,6 +36,7 @@ from geoterrain.core.threads import forked, parallel_kernel, serial_twin
 __all__ = [
     "normal_map",
     "level_normal_maps",
+    "level_normal_codes",
     "level_normals",
     "normal_pyramid",
     "encode_octahedral",
@@ -144,6 +147,47 @@ def level_normal_maps(x: np.ndarray, y: np.ndarray, z: np.ndarray,
         s = 1 << L
         out.append(normal_map(x[::s, ::s], y[::s, ::s], z[::s, ::s],
                               None if valid is None else np.asarray(valid)[::s, ::s]))
+    return out
+
+
+# rows of a level a band of :func:`level_normal_codes` maps at a time: its float32 map
+# (12.6 MB at 4097 columns) instead of the level's (201 MB at 4097²)
+NORMAL_BAND = 256
+
+
+def level_normal_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray,
+                       valid: np.ndarray | None, levels: int, bits: int = 8,
+                       band: int = NORMAL_BAND) -> list[np.ndarray]:
+    """``[encode_octahedral(m, bits) for m in level_normal_maps(x, y, z, valid, levels)]``,
+    the same codes, each level mapped and coded ``band`` rows at a time (with one row of
+    halo each side: the central differences read no further), so no level's whole float
+    map is ever held.
+
+    Examples
+    --------
+    >>> j, i = np.meshgrid(np.arange(9.0), np.arange(9.0))
+    >>> z = np.random.default_rng(1).normal(size=(9, 9))
+    >>> a = level_normal_codes(j, -i, z, None, 3, band=2)
+    >>> b = [encode_octahedral(m) for m in level_normal_maps(j, -i, z, None, 3)]
+    >>> all((p == q).all() for p, q in zip(a, b))
+    True
+    """
+    if levels < 1:
+        raise ValueError("levels must be >= 1")
+    band = max(int(band), 1)
+    out = []
+    for L in range(levels):
+        s = 1 << L
+        xl, yl, zl = x[::s, ::s], y[::s, ::s], z[::s, ::s]
+        vl = None if valid is None else np.asarray(valid)[::s, ::s]
+        n = zl.shape[0]
+        codes = np.empty((*zl.shape, 2), np.uint8 if bits == 8 else np.uint16)
+        for i0 in range(0, n, band):
+            i1 = min(i0 + band, n)
+            a, b = max(i0 - 1, 0), min(i1 + 1, n)  # one row of halo each side
+            m = normal_map(xl[a:b], yl[a:b], zl[a:b], None if vl is None else vl[a:b])
+            codes[i0:i1] = encode_octahedral(m[i0 - a:i1 - a], bits)
+        out.append(codes)
     return out
 
 

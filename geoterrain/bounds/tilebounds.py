@@ -233,7 +233,7 @@ def tile_errors(
 
 def tile_and_block_errors(
     z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray, t: int = 6,
-    span: int | None = None,
+    span: int | None = None, counts: list[np.ndarray] | None = None,
 ) -> tuple[dict[tuple[int, int, int], TileBounds], np.ndarray]:
     """Error bounds of every stored tile ``(L, x, y)`` of the pyramid (docs/conventions.md),
     and every GeoMipMapping block's exact δ_n.
@@ -263,6 +263,8 @@ def tile_and_block_errors(
     ``span``: a root grid's root side 2**n; the arrays are then the roots' extent
     (:attr:`geoterrain.core.grid.Grid.extent`), each root a pyramid of its own whose
     top level is the grid's (the blocks (down, across, n_max + 1)).
+    ``counts``: :func:`geoterrain.core.grid.footprint_counts` of ``valid`` when the caller
+    has them (the height codec reads them too), else computed here.
 
     Examples
     --------
@@ -281,7 +283,7 @@ def tile_and_block_errors(
     vb = valid.view(np.uint8)
     xc, yc = x, y  # no copy: x and y may be broadcast views (Frame.grid_xy)
     E = np.zeros((R, C))
-    nvalid = footprint_counts(valid, te, lmax)
+    nvalid = footprint_counts(valid, te, lmax) if counts is None else counts
     per_level = []
     nbr, nbc = (R - 1) // cpt, (C - 1) // cpt  # blocks (level-0 tiles) down, across
     blocks = np.zeros((nbr, nbc, min(te, lmax) + 1))
@@ -289,17 +291,23 @@ def tile_and_block_errors(
         for L in range(lmax + 1):
             S = 1 << (te + L)  # tile span in full-resolution samples
             ntr, ntc = (R - 1) // S, (C - 1) // S
-            if L == 0:
-                mixed = np.zeros((ntr * cpt, ntc * cpt), bool)
-            else:
-                mixed = _level_field_nb(zf, vb, 1 << L, E)
-            err = closed_blocks(E, S, np.maximum)
+            if L == 0:  # the data itself: E is 0 everywhere and no triangle is mixed
+                z0 = np.zeros((ntr, ntc))
+                per_level.append((z0, z0.copy()))
+                box0 = _tile_boxes_nb(zf, xc, yc, vb, S)
+                continue
+            mixed = _level_field_nb(zf, vb, 1 << L, E)
+            # max of E over each block (level-0 tile): one pass over the grid; a level-L
+            # tile's closed footprint is the union of its 2^L × 2^L blocks' closed ones
+            bm = closed_blocks(E, cpt, np.maximum)
+            g = 1 << L
+            err = bm.reshape(ntr, g, ntc, g).max(axis=(1, 3))
             m4 = mixed.reshape(ntr, cpt, ntc, cpt)
             err = np.where(m4.any(axis=(1, 3)), np.inf, err)
-            if 0 < L < blocks.shape[2]:  # the same field over each block (seed 000 §2.4 δ_n)
+            if L < blocks.shape[2]:  # the same field over each block (seed 000 §2.4 δ_n)
                 c = 1 << (te - L)  # level-L cells per block side
                 mb = mixed.reshape(nbr, c, nbc, c).any(axis=(1, 3))
-                blocks[..., L] = np.where(mb, np.inf, closed_blocks(E, cpt, np.maximum))
+                blocks[..., L] = np.where(mb, np.inf, bm)
             rows = np.maximum.reduce(E[::S, :-1].reshape(ntr + 1, ntc, S), axis=2)
             rows = np.maximum(rows, E[::S, S::S])
             cols = np.maximum.reduce(E[:-1, ::S].reshape(ntr, S, ntc + 1), axis=1)
@@ -308,8 +316,6 @@ def tile_and_block_errors(
             border = (m4[:, 0].any(axis=2) | m4[:, -1].any(axis=2)
                       | m4[:, :, :, 0].any(axis=1) | m4[:, :, :, -1].any(axis=1))
             bnd = np.where(border, np.inf, bnd)
-            if L == 0:
-                box0 = _tile_boxes_nb(zf, xc, yc, vb, S)
             per_level.append((err, bnd))
     out = tile_rows(per_level, box0, nvalid)
     return out, blocks

@@ -352,6 +352,7 @@ def encode_pyramid(
     progress: Callable[[int, int], None] | None = None,
     predictor: str = "auto",
     roots: tuple[int, int] | None = None,
+    counts: list[np.ndarray] | None = None,
 ) -> dict[tuple[int, int, int], bytes]:
     """Encode every stored tile of the pyramid.
 
@@ -373,6 +374,9 @@ def encode_pyramid(
         (across, down) root tiles of a root grid (:class:`geoterrain.core.grid.Grid`):
         ``z`` is then their extent (:func:`roots_shape`), each root a top tile
         ``(Lmax, x, y)`` of its own; None or (1, 1): one square.
+    counts : list of arrays, optional
+        :func:`geoterrain.core.grid.footprint_counts` of ``valid`` at the tile size, when
+        the caller has them (else computed here).
 
     Returns
     -------
@@ -385,7 +389,7 @@ def encode_pyramid(
     >>> sorted(encode_pyramid(z, v, 1, Quantizer("int")))
     [(0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1), (1, 0, 0)]
     """
-    return encode_decoded(z, valid, t, quantizer, progress, predictor, roots)[0]
+    return encode_decoded(z, valid, t, quantizer, progress, predictor, roots, counts)[0]
 
 
 def encode_decoded(
@@ -396,9 +400,11 @@ def encode_decoded(
     progress: Callable[[int, int], None] | None = None,
     predictor: str = "auto",
     roots: tuple[int, int] | None = None,
+    counts: list[np.ndarray] | None = None,
 ) -> tuple[dict[tuple[int, int, int], bytes], np.ndarray]:
     """:func:`encode_pyramid`'s blobs and the (N, N) codes decoding them gives
-    (:func:`decoded_codes`), which the encoder computes on its way.
+    (:func:`decoded_codes`), which the encoder computes on its way (``counts`` as
+    :func:`encode_pyramid`'s).
 
     Examples
     --------
@@ -423,9 +429,9 @@ def encode_decoded(
         return out, d
     if square:
         out[(lmax, 0, 0)] = _encode_top(d, valid, te, lmax, cubic, quantizer.bins)
-        counts = None
     else:
-        counts = footprint_counts(valid, te, lmax)
+        if counts is None:
+            counts = footprint_counts(valid, te, lmax)
         s = 1 << lmax
         for x, y, dw in _root_windows(d[::s, ::s], roots, te):
             if counts[lmax][y, x]:

@@ -8,6 +8,8 @@ import os
 import sys
 import threading
 import weakref
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -100,6 +102,46 @@ def sparse_zeros(shape: tuple[int, ...], dtype=np.uint8) -> np.ndarray:
     if hasattr(mmap, "MADV_NOHUGEPAGE"):
         buf.madvise(mmap.MADV_NOHUGEPAGE)
     return np.frombuffer(buf, dt, count=int(np.prod(shape, dtype=np.int64))).reshape(shape)
+
+
+_PAGES_LOCK = threading.Lock()
+_SMALL_PAGES = [0, True]  # callers inside small_pages(); numpy's setting before the first
+
+
+@contextmanager
+def small_pages() -> Iterator[None]:
+    """numpy's new arrays on 4 KiB pages while inside (every thread; nestable; restored
+    when the last caller leaves). numpy asks Linux for transparent huge pages on every
+    large allocation, and on this project's 2-core VM a fresh huge page often cost far
+    more than the 512 small ones it replaces (likely the hypervisor backing it on first
+    touch): a
+    whole-grid 4097² preprocess, which allocates and frees a few GB of whole-grid arrays,
+    spent 3.9 s of system CPU time with huge pages and 1.0–1.3 s without
+    (docs/lab/preprocess.md). numpy's own switch, ``NUMPY_MADVISE_HUGEPAGE``, when the
+    environment sets it, wins (nothing is changed). Results never depend on it.
+
+    Examples
+    --------
+    >>> with small_pages():
+    ...     int(np.zeros(1 << 22).sum())
+    0
+    """
+    core = getattr(np, "_core", None) or getattr(np, "core", None)  # numpy 2, numpy 1
+    set_hp = getattr(getattr(core, "multiarray", None), "_set_madvise_hugepage", None)
+    if set_hp is None or "NUMPY_MADVISE_HUGEPAGE" in os.environ:
+        yield
+        return
+    with _PAGES_LOCK:
+        if _SMALL_PAGES[0] == 0:
+            _SMALL_PAGES[1] = set_hp(False)
+        _SMALL_PAGES[0] += 1
+    try:
+        yield
+    finally:
+        with _PAGES_LOCK:
+            _SMALL_PAGES[0] -= 1
+            if _SMALL_PAGES[0] == 0:
+                set_hp(_SMALL_PAGES[1])
 
 
 class ZeroPool:

@@ -94,12 +94,15 @@ PREPROCESS_BYTES_PER_SAMPLE = {"projected": 72, "geographic": 128}
 
 def _undeclared_voids(data: np.ndarray, valid: np.ndarray) -> float | None:
     """A sentinel value that stands for voids (far below every other height), or None."""
-    v = data[valid]
-    if v.size == 0:
+    # the lowest valid value without copying the valid ones (exact in float64: the
+    # heights are the data's values); the copy only when it is a sentinel
+    if not valid.any():
         return None
-    lo = float(v.min())
+    top = np.inf if data.dtype.kind == "f" else np.iinfo(data.dtype).max
+    lo = float(np.min(data, where=valid, initial=top))
     for s in VOID_SENTINELS:
         if lo == s:
+            v = data[valid]
             rest = v[v != lo]
             if rest.size and float(rest.min()) - lo > 1000.0:
                 return s

@@ -24,7 +24,7 @@ from geoterrain.bounds.edgepad import (
     has_padding,
 )
 from geoterrain.bounds.leafbounds import geographic_leaf_delta
-from geoterrain.bounds.normals import encode_octahedral, level_normal_maps
+from geoterrain.bounds.normals import level_normal_codes
 from geoterrain.bounds.radii import stand_in_z, valid_range, vertex_radii
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, radius_codes, ring_blobs
 from geoterrain.bounds.tilebounds import tile_and_block_errors
@@ -38,8 +38,8 @@ from geoterrain.codec.pyramid import decoded_heights, encode_decoded, encode_pyr
 from geoterrain.codec.quantchoice import choose_quantizer
 from geoterrain.codec.quantize import Quantizer, codes_to_heights
 from geoterrain.core.frame import Frame
-from geoterrain.core.grid import Grid
-from geoterrain.core.memory import available_memory
+from geoterrain.core.grid import Grid, footprint_counts
+from geoterrain.core.memory import available_memory, small_pages
 from geoterrain.core.paths import STORE_SUFFIX, input_problem
 from geoterrain.core.progress import Progress, StageClock
 from geoterrain.core.threads import cores_for
@@ -218,44 +218,48 @@ def preprocess(
         log.warning("%s fits the memory limit: preprocessed here, whole; the scheduler %s "
                     "runs a streamed preprocess only (lower --memory-limit to stream it)",
                     req.files[0] if not req.mosaic else "the mosaic", scheduler)
-    stage = StageClock(STAGES, progress, timings)
-    dem = read_dem(req, band=band, encoding=encoding, nodata=nodata, tile=tile,
-                   pixel_size=pixel_size, z_units=z_units, z_scale=z_scale, merge=merge)
-    stage("read")
-    surface = pad(dem)
-    stage("pad")
-    surface = quantise(dem, surface, codec_error)
-    stage("quantise")
-    derive_normals = bool(derive_normals) and dem.grid.tile_samples >= 3
-    derive_bounds = (bool(derive_bounds) and dem.grid.tile_samples >= 3
-                     and dem.grid.top_level > 0)
-    bounds = vertex_bounds(dem, surface, derive_bounds, stage)
-    tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
-                                          dem.grid.t, span=dem.grid.span)
-    across, down = dem.grid.tiles(0)
-    blocks = blocks[:down, :across]  # a root grid's extent holds more than its tiles
-    stage("tile bounds")
-    # one map per level, central differences of the level's own samples (seed 000
-    # normal-map lighting): a reader rebuilds each tile's from its heights and ring
-    with cores_for(surface.Z.size):  # a small grid: the serial twins (core/threads.py)
-        normal_maps = [encode_octahedral(n, NORMAL_BITS) for n in level_normal_maps(
-            surface.X, surface.Y, surface.Z, surface.valid, dem.grid.top_level + 1)]
-    stage("normals")
-    blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals)
-    del normal_maps
-    stage("compress")
-    meta = dict(source=req.name, source_dtype=dem.raster.src_dtype,
-                source_nodata=dem.raster.nodata, encoding=dem.raster.encoding,
-                grid=dem.grid.to_json(), frame=dem.frame.to_json(),
-                quantizer=surface.q.to_json(),
-                normals_derived=(list(range(dem.grid.top_level + 1)) if derive_normals
-                                 else []),
-                valid_samples=dem.valid_samples, samples=dem.raster.valid.size,
-                height_range=surface.height_range, delta_max_finite=delta_max_finite(bounds.delta),
-                edge_max=blobs.edge_max if has_padding(dem.grid) else None,
-                stand_in_z=stand_in_z(surface.Z, surface.valid),
-                block_delta_levels=int(blocks.shape[2]))
-    write_store(req, dem.grid, blobs, blocks, meta, stage)
+    with small_pages():  # whole-grid arrays on 4 KiB pages (core/memory.py)
+        stage = StageClock(STAGES, progress, timings)
+        dem = read_dem(req, band=band, encoding=encoding, nodata=nodata, tile=tile,
+                       pixel_size=pixel_size, z_units=z_units, z_scale=z_scale, merge=merge)
+        stage("read")
+        surface = pad(dem)
+        stage("pad")
+        surface = quantise(dem, surface, codec_error)
+        stage("quantise")
+        derive_normals = bool(derive_normals) and dem.grid.tile_samples >= 3
+        derive_bounds = (bool(derive_bounds) and dem.grid.tile_samples >= 3
+                         and dem.grid.top_level > 0)
+        bounds = vertex_bounds(dem, surface, derive_bounds, stage)
+        # valid samples per tile footprint: the tile table's and the height codec's
+        counts = footprint_counts(surface.valid, dem.grid.t, dem.grid.top_level)
+        tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
+                                              dem.grid.t, span=dem.grid.span, counts=counts)
+        across, down = dem.grid.tiles(0)
+        blocks = blocks[:down, :across]  # a root grid's extent holds more than its tiles
+        stage("tile bounds")
+        # one map per level, central differences of the level's own samples (seed 000
+        # normal-map lighting): a reader rebuilds each tile's from its heights and ring
+        with cores_for(surface.Z.size):  # a small grid: the serial twins (core/threads.py)
+            normal_maps = level_normal_codes(surface.X, surface.Y, surface.Z, surface.valid,
+                                             dem.grid.top_level + 1, NORMAL_BITS)
+        stage("normals")
+        blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals, counts)
+        del normal_maps
+        stage("compress")
+        meta = dict(source=req.name, source_dtype=dem.raster.src_dtype,
+                    source_nodata=dem.raster.nodata, encoding=dem.raster.encoding,
+                    grid=dem.grid.to_json(), frame=dem.frame.to_json(),
+                    quantizer=surface.q.to_json(),
+                    normals_derived=(list(range(dem.grid.top_level + 1)) if derive_normals
+                                     else []),
+                    valid_samples=dem.valid_samples, samples=dem.raster.valid.size,
+                    height_range=surface.height_range,
+                    delta_max_finite=delta_max_finite(bounds.delta),
+                    edge_max=blobs.edge_max if has_padding(dem.grid) else None,
+                    stand_in_z=stand_in_z(surface.Z, surface.valid),
+                    block_delta_levels=int(blocks.shape[2]))
+        write_store(req, dem.grid, blobs, blocks, meta, stage)
     return req.dst
 
 
@@ -351,9 +355,15 @@ def pad(dem: Dem) -> Surface:
     with scene x, y."""
     grid, r = dem.grid, dem.raster
     valid = grid.pad(r.valid, False, whole=True)
-    heights = grid.pad(r.heights, np.nan, whole=True)
-    heights[~valid] = np.nan
-    r.heights = None  # the padded copy holds them now (memory: issue 12)
+    h = r.heights
+    if (h.shape == valid.shape and h.dtype == np.float64 and h.flags.c_contiguous
+            and h.flags.writeable):  # no padding: the read's own array (no 134 MB copy)
+        heights = h
+    else:
+        heights = grid.pad(h, np.nan, whole=True)
+    if dem.valid_samples < valid.size:
+        heights[~valid] = np.nan
+    r.heights = None  # the padded array holds them now (memory: issue 12)
     X, Y = dem.frame.grid_xy(_whole(dem.grid))
     return Surface(heights, valid, X, Y)
 
@@ -374,9 +384,12 @@ def quantise(dem: Dem, s: Surface, codec_error: float | None) -> Surface:
         Z[~s.valid] = np.nan
     else:
         Z = decoded_heights(s.heights, s.valid, q)  # NaN where invalid
-    hv = Z[s.valid]
-    height_range = [float(hv.min()), float(hv.max())]
-    del hv
+    lo, hi, _ = valid_range(Z, s.valid)  # one compiled pass, no copy
+    if lo == 0.0 or hi == 0.0:  # which zero (±0.0) numpy's min and max give, as stored
+        hv = Z[s.valid]
+        lo, hi = hv.min(), hv.max()
+        del hv
+    height_range = [float(lo), float(hi)]
     Z = dem.frame.z(Z, out=Z)  # scene metres, in place
     return Surface(s.heights, s.valid, s.X, s.Y, Z, q, height_range, height_blobs)
 
@@ -445,7 +458,8 @@ class TileBlobs:
 
 
 def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
-               normal_maps: list[np.ndarray], derive_normals: bool) -> TileBlobs:
+               normal_maps: list[np.ndarray], derive_normals: bool,
+               counts: list[np.ndarray] | None = None) -> TileBlobs:
     """The height pyramid's blobs (the residual codec), and every tile's δ, r, normals and
     δ_edge blobs with its tile-table row.
 
@@ -454,13 +468,15 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     vertices new at the level are stored; the others are the parent's
     (:mod:`geoterrain.bounds.vertexdata`). Padding is replicated from the data's edge for
     a second δ, the static mesh's (:mod:`geoterrain.bounds.edgepad`), coded with the same
-    table as δ, so the two agree wherever their raw values do.
+    table as δ, so the two agree wherever their raw values do. ``counts``: the valid
+    samples per tile footprint (:func:`geoterrain.core.grid.footprint_counts`), if known.
     """
     grid, frame, valid, Z = dem.grid, dem.frame, s.valid, s.Z
     height_blobs = s.height_blobs
     if height_blobs is None:
         height_blobs = _held(encode_pyramid(s.heights, valid, grid.t, s.q,
-                                            predictor=s.predictor, roots=_roots(grid)), grid)
+                                            predictor=s.predictor, roots=_roots(grid),
+                                            counts=counts), grid)
     delta = b.delta
     edge = d_edge = None
     if has_padding(grid):

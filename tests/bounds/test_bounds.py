@@ -18,8 +18,9 @@ from hypothesis import strategies as st
 
 from geoterrain.bounds.delta import _raw_delta, vertex_errors
 from geoterrain.bounds.radii import vertex_radii
-from geoterrain.bounds.tilebounds import tile_errors
+from geoterrain.bounds.tilebounds import tile_and_block_errors
 from geoterrain.core.bintree import vertex_children, vertex_depth, vertex_parents
+from geoterrain.core.grid import footprint_counts
 from geoterrain.core.rounding import round_up
 from geoterrain.testing.reference import static_mesh, vertex_errors_reference
 from tests.conftest import real_dem
@@ -318,7 +319,9 @@ def test_tile_errors_brute(seed):
         valid[:8, :] = False
     Ii, Jj = np.indices((N, N)).astype(np.float64)
     x, y = 10 * Jj + 0.1 * Ii, -10 * Ii
-    tb = tile_errors(np.where(valid, z, np.nan), valid, x, y, t)
+    tb, blocks = tile_and_block_errors(np.where(valid, z, np.nan), valid, x, y, t)
+    assert tile_and_block_errors(np.where(valid, z, np.nan), valid, x, y, t,
+                                 footprint_counts(valid, t))[0] == tb  # counts given
     lmax = n - t
     raw = {}
     for L in range(lmax + 1):
@@ -329,6 +332,14 @@ def test_tile_errors_brute(seed):
         else:
             err, tris = uniform_surface_brute(z, valid, L)
         cpt = 1 << t
+        if L < blocks.shape[2]:  # seed 000 §2.4's δ_L of every block (level-0 tile)
+            c = cpt >> L  # level-L cells per block side
+            for by in range(N // cpt):
+                for bx in range(N // cpt):
+                    sl = np.s_[by * cpt:by * cpt + cpt + 1, bx * cpt:bx * cpt + cpt + 1]
+                    mixed = [m for (a, b, m) in tris if a // c == by and b // c == bx and m]
+                    want = np.inf if mixed else err[sl].max()
+                    assert blocks[by, bx, L] == pytest.approx(want, abs=1e-9)
         for ty in range(N // S):
             for tx in range(N // S):
                 sl = np.s_[ty * S:ty * S + S + 1, tx * S:tx * S + S + 1]

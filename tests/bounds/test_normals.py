@@ -12,6 +12,8 @@ from geoterrain.bounds.normals import (
     OCTAHEDRAL_MAX_ERROR_DEG_PRECISE,
     decode_octahedral,
     encode_octahedral,
+    level_normal_codes,
+    level_normal_maps,
     level_normals,
     normal_map,
     normal_pyramid,
@@ -464,3 +466,25 @@ def test_a_forked_child_derives_the_same_normals(tmp_path, parallel_always):
     ring.tile_normal_codes(0, 0, 0)
     got, status = in_fork(lambda: ring.tile_normal_codes(0, 1, 1).tobytes() == want)
     assert got == b"same", (got, status)
+
+
+@pytest.mark.fast
+@settings(max_examples=30, deadline=None)
+@given(k=st.integers(1, 5), band=st.integers(1, 12), seed=st.integers(0, 2**31 - 1),
+       voids=st.floats(0.0, 0.6), bits=st.sampled_from([8, 16]))
+def test_level_normal_codes_by_bands_are_the_maps_codes(k, band, seed, voids, bits):
+    """Coded a band of rows at a time (one row of halo each side), every level's codes
+    are those of its whole map, on curvilinear grids with voids and any band height."""
+    rng = np.random.default_rng(seed)
+    N = (1 << k) + 1
+    i, j = np.indices((N, N), dtype=np.float64)
+    x = j + 0.2 * rng.normal(size=i.shape)
+    y = -i + 0.2 * rng.normal(size=i.shape)
+    z = rng.normal(0, 3, i.shape)
+    valid = rng.random(i.shape) >= voids
+    levels = k + 1
+    got = level_normal_codes(x, y, z, valid, levels, bits, band=band)
+    want = [encode_octahedral(m, bits) for m in level_normal_maps(x, y, z, valid, levels)]
+    assert len(got) == levels
+    for g, w in zip(got, want, strict=True):
+        assert g.dtype == w.dtype and np.array_equal(g, w)

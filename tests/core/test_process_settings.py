@@ -1,0 +1,58 @@
+"""Process-wide settings the package makes: GNU OpenMP's wait policy, and numpy's
+huge-page advice while a whole-grid preprocess runs (core/_fork.py, core/memory.py)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+from geoterrain.core.memory import small_pages
+
+_SET_HP = np._core.multiarray._set_madvise_hugepage
+
+
+def _policy(env: dict) -> str:
+    code = "import os, geoterrain; print(os.environ.get('OMP_WAIT_POLICY'))"
+    return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                          text=True, check=True).stdout.strip()
+
+
+@pytest.mark.fast
+def test_omp_wait_policy_passive_unless_the_environment_sets_one():
+    env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+    assert _policy(env) == "PASSIVE"
+    assert _policy({**env, "OMP_WAIT_POLICY": "ACTIVE"}) == "ACTIVE"
+
+
+@pytest.mark.fast
+def test_small_pages_nests_and_restores_numpys_setting():
+    before = _SET_HP(True)  # numpy's setting now, then True
+    try:
+        with small_pages():
+            assert _SET_HP(False) is False  # off inside
+            with small_pages():
+                assert _SET_HP(False) is False
+            assert _SET_HP(False) is False  # the inner exit leaves it off
+        assert _SET_HP(True) is True  # restored on the last exit
+        seen = []
+
+        def inside():
+            with small_pages():
+                seen.append(_SET_HP(False))
+                gate.wait()
+
+        gate = threading.Barrier(3)
+        ts = [threading.Thread(target=inside) for _ in range(2)]
+        for t in ts:
+            t.start()
+        gate.wait()
+        for t in ts:
+            t.join()
+        assert seen == [False, False] and _SET_HP(True) is True  # the last to leave restores
+    finally:
+        _SET_HP(before)
