@@ -346,6 +346,19 @@ def _legalize(a0, F, W, heap, key, pending, cnt, stack):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _legalize_all(F, W, heap, key, pending, cnt, stack, s0, s1, s2, s3):
+    """:func:`_legalize` from each of the half-edges s0 … s3 (−1: none) in turn: one
+    call site (it is inlined, with the heap's sifts, wherever it is called)."""
+    for j in range(4):
+        s = s0 if j == 0 else (s1 if j == 1 else (s2 if j == 2 else s3))
+        if s < 0:
+            break
+        if _legalize(s, F, W, heap, key, pending, cnt, stack) < 0:
+            return -1
+    return 0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _insert(t, F, W, heap, key, pending, cnt, stack, pts):
     """Split triangle ``t`` at its candidate sample (on an edge: split the edge's two
     triangles), then restore the Delaunay property."""
@@ -368,44 +381,61 @@ def _insert(t, F, W, heap, key, pending, cnt, stack, pts):
     else:
         edge = -1
     nt = cnt[NT]
+    s3 = -1
     if edge < 0:
         h0, h1, h2 = F[e0 + 3], F[e1 + 3], F[e2 + 3]
         t0 = _set_triangle(F, pending, cnt, t, p0, p1, pn, h0, -1, -1)
         t1 = _set_triangle(F, pending, cnt, nt, p1, p2, pn, h1, -1, t0 + 1)
         t2 = _set_triangle(F, pending, cnt, nt + 1, p2, p0, pn, h2, t0 + 2, t1 + 1)
         cnt[NT] = nt + 2
-        for s in (t0, t1, t2):
-            if _legalize(s, F, W, heap, key, pending, cnt, stack) < 0:
-                return -1
-        return 0
-    # the candidate lies on edge ``edge`` (hmm's handleCollinear)
-    a = edge
-    al, ar = _next(a), _prev(a)
-    q0, qr, ql = F[ar], F[a], F[al]
-    hal, har = F[al + 3], F[ar + 3]
-    b = F[a + 3]
-    if b < 0:
-        t0 = _set_triangle(F, pending, cnt, t, pn, q0, qr, -1, har, -1)
-        t1 = _set_triangle(F, pending, cnt, nt, q0, pn, ql, t0, -1, hal)
-        cnt[NT] = nt + 1
-        for s in (t0 + 1, t1 + 2):
-            if _legalize(s, F, W, heap, key, pending, cnt, stack) < 0:
-                return -1
-        return 0
-    bl, br = _prev(b), _next(b)
-    q1 = F[bl]
-    hbl, hbr = F[bl + 3], F[br + 3]
-    tb = b >> 3
-    _forget(tb, F, heap, key, pending, cnt)
-    t0 = _set_triangle(F, pending, cnt, t, q0, qr, pn, har, -1, -1)
-    t1 = _set_triangle(F, pending, cnt, tb, qr, q1, pn, hbr, -1, t0 + 1)
-    t2 = _set_triangle(F, pending, cnt, nt, q1, ql, pn, hbl, -1, t1 + 1)
-    t3 = _set_triangle(F, pending, cnt, nt + 1, ql, q0, pn, hal, t0 + 2, t2 + 1)
-    cnt[NT] = nt + 2
-    for s in (t0, t1, t2, t3):
-        if _legalize(s, F, W, heap, key, pending, cnt, stack) < 0:
+        s0, s1, s2 = t0, t1, t2
+    else:  # the candidate lies on edge ``edge`` (hmm's handleCollinear)
+        a = edge
+        al, ar = _next(a), _prev(a)
+        q0, qr, ql = F[ar], F[a], F[al]
+        hal, har = F[al + 3], F[ar + 3]
+        b = F[a + 3]
+        if b < 0:
+            t0 = _set_triangle(F, pending, cnt, t, pn, q0, qr, -1, har, -1)
+            t1 = _set_triangle(F, pending, cnt, nt, q0, pn, ql, t0, -1, hal)
+            cnt[NT] = nt + 1
+            s0, s1, s2 = t0 + 1, t1 + 2, -1
+        else:
+            bl, br = _prev(b), _next(b)
+            q1 = F[bl]
+            hbl, hbr = F[bl + 3], F[br + 3]
+            tb = b >> 3
+            _forget(tb, F, heap, key, pending, cnt)
+            t0 = _set_triangle(F, pending, cnt, t, q0, qr, pn, har, -1, -1)
+            t1 = _set_triangle(F, pending, cnt, tb, qr, q1, pn, hbr, -1, t0 + 1)
+            t2 = _set_triangle(F, pending, cnt, nt, q1, ql, pn, hbl, -1, t1 + 1)
+            t3 = _set_triangle(F, pending, cnt, nt + 1, ql, q0, pn, hal, t0 + 2, t2 + 1)
+            cnt[NT] = nt + 2
+            s0, s1, s2, s3 = t0, t1, t2, t3
+    return _legalize_all(F, W, heap, key, pending, cnt, stack, s0, s1, s2, s3)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def _refine(z, valid, W, voids, max_error, F, heap, key, pending, stack, pts, cnt):
+    """The refinement: scan the pending triangles, then split the worst, until none
+    exceeds ``max_error``. Returns 0 when done, 1 when the arrays must grow first (the
+    caller grows them and calls again), −1 if the flips overflow ``stack``.
+
+    Compiled without numba's reference counting (``_nrt=False``): it makes no array, and
+    the helpers inlined here (each a few times) otherwise counted every array they take
+    in and out, an atomic add each. ``_flush`` and ``_legalize`` are each inlined once
+    (one call site each) to keep the compilation short."""
+    cap = len(heap)
+    while True:
+        _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error)
+        if not (cnt[NH] > 0 and key[0] > max_error):
+            return 0
+        if cnt[NT] + 2 > cap:
+            return 1
+        t = heap[0]
+        _forget(t, F, heap, key, pending, cnt)
+        if _insert(t, F, W, heap, key, pending, cnt, stack, pts) < 0:
             return -1
-    return 0
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
