@@ -38,7 +38,7 @@ from geoterrain.lod.tinkernels import (
 def _within(a, b, c, z, valid, W, voids, max_error):
     if voids:
         return _scan(a, b, c, z, valid, W, True)[0] <= max_error
-    return _scan_plain(a, b, c, z, W, max_error)[0] <= max_error
+    return _scan_plain(a, b, c, z, W, max_error, True)[0] <= max_error
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")

@@ -26,7 +26,10 @@ Vertices are flat sample ids ``i·W + j`` (row i, column j); x = j, y = i below.
 from __future__ import annotations
 
 import numpy as np
+from llvmlite import ir as llir
 from numba import njit
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 # cnt slots: points, triangles, heap length, pending length
 NP, NT, NH, NPEND = 0, 1, 2, 3
@@ -236,10 +239,44 @@ def _span(w, a, r, lo, hi):
     return (lo, hi) if w >= 0 else (1.0, 0.0)
 
 
+@intrinsic
+def _maxnum(typingctx, a, b):
+    """LLVM's maxnum: a maximum the loop vectorizer turns into vector maxima (numba's
+    ``max`` and a compare-and-select stay scalar). Flagged no-NaN: the heights of a grid
+    without voids are finite."""
+    def codegen(context, builder, signature, args):
+        d = llir.DoubleType()
+        fn = cgutils.get_or_insert_function(builder.module, llir.FunctionType(d, [d, d]),
+                                            "llvm.maxnum.f64")
+        return builder.call(fn, args, fastmath=("nnan", "nsz"))
+    return types.float64(types.float64, types.float64), codegen
+
+
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _scan_plain(a, b, c, z, W, limit):
+def _row_max(zr, n, z0, z1, z2, w0, w1, w2, a0, a1, a2):
+    m = 0.0
+    for k in range(n):
+        f = float(k)
+        m = _maxnum(m, abs(z0 * (w0 + a0 * f) + z1 * (w1 + a1 * f) + z2 * (w2 + a2 * f) - zr[k]))
+    return m
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _row_arg(zr, n, z0, z1, z2, w0, w1, w2, a0, a1, a2, m):
+    for k in range(n):
+        f = float(k)
+        if abs(z0 * (w0 + a0 * f) + z1 * (w1 + a1 * f) + z2 * (w2 + a2 * f) - zr[k]) == m:
+            return k
+    return 0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _scan_plain(a, b, c, z, W, limit, stop):
     """:func:`_scan` on a grid without voids: each row's covered columns found from the
-    three edges first, then a loop over them alone, with no test per sample."""
+    three edges first, then each row's largest error alone (a loop of vector maxima);
+    the sample is looked for in the first row that holds the largest, only if it exceeds
+    ``limit``. With ``stop``, returns as soon as a row exceeds it (the sample is then
+    not sought)."""
     p0y, p0x = divmod(a, W)
     p1y, p1x = divmod(b, W)
     p2y, p2x = divmod(c, W)
@@ -257,7 +294,7 @@ def _scan_plain(a, b, c, z, W, limit):
     area = float(_orient(p0x, p0y, p1x, p1y, p2x, p2y))
     z0, z1, z2 = z[a] / area, z[b] / area, z[c] / area
     best = 0.0
-    arg = a
+    bs, bn, bw0, bw1, bw2 = a, 0, 0.0, 0.0, 0.0
     width = float(maxx - minx)
     for y in range(miny, maxy + 1):
         lo, hi = _span(w00, a12, r12, 0.0, width)
@@ -268,20 +305,19 @@ def _scan_plain(a, b, c, z, W, limit):
             w1 = w01 + a20 * lo
             w2 = w02 + a01 * lo
             s = y * W + minx + int(lo)
-            for _ in range(int(hi - lo) + 1):
-                d = abs(z0 * w0 + z1 * w1 + z2 * w2 - z[s])
-                if d > best:
-                    best = d
-                    arg = s
-                    if d > limit:  # the caller only asks whether it is within limit
-                        return d, s
-                w0 += a12
-                w1 += a20
-                w2 += a01
-                s += 1
+            n = int(hi - lo) + 1
+            m = _row_max(z[s:s + n], n, z0, z1, z2, w0, w1, w2, a12, a20, a01)
+            if m > best:
+                best = m
+                if stop and m > limit:  # the caller only asks whether it is within limit
+                    return m, s
+                bs, bn, bw0, bw1, bw2 = s, n, w0, w1, w2
         w00 += b12
         w01 += b20
         w02 += b01
+    if not best > limit:
+        return best, a
+    arg = bs + _row_arg(z[bs:bs + bn], bn, z0, z1, z2, bw0, bw1, bw2, a12, a20, a01, best)
     if arg == a or arg == b or arg == c:
         best = 0.0
     return best, arg
@@ -299,7 +335,7 @@ def _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error):
                              W, True)
         else:
             err, arg = _scan_plain(np.int64(F[r]), np.int64(F[r + 1]), np.int64(F[r + 2]), z, W,
-                                   np.inf)
+                                   max_error, False)
         F[r + CAND] = arg
         if not err > max_error:
             F[r + QI] = -1
