@@ -17,7 +17,6 @@ from numba import njit
 from geoterrain.lod.tinkernels import (
     DEAD,
     MAXDEG,
-    NH,
     NP,
     NT,
     QI,
@@ -25,12 +24,10 @@ from geoterrain.lod.tinkernels import (
     TRIES,
     _compact,
     _flip_to_cover,
-    _flush,
-    _forget,
-    _insert,
     _next,
     _orient,
     _prev,
+    _refine,
     _scan,
     _scan_plain,
     _set_triangle,
@@ -41,21 +38,21 @@ from geoterrain.lod.tinkernels import (
 def _within(a, b, c, z, valid, W, voids, max_error):
     if voids:
         return _scan(a, b, c, z, valid, W, True)[0] <= max_error
-    return _scan_plain(a, b, c, z, W, max_error)[0] <= max_error
+    return _scan_plain(a, b, c, z, W, max_error, True)[0] <= max_error
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _fan_gap(i, d, xy, zn, zv):
-    """The fan from neighbour i over the star of v (neighbours' x, y in ``xy``, v's last,
+def _fan_gap(i, d, xs, ys, zn, zv):
+    """The fan from neighbour i over the star of v (neighbours' x, y in ``xs``, ``ys``, v's last,
     their heights ``zn``, v's ``zv``): +inf unless every triangle is positive, else its
     error at v itself (one sample, before any triangle is scanned)."""
-    vx, vy = xy[d, 0], xy[d, 1]
-    ux, uy = xy[i, 0], xy[i, 1]
+    vx, vy = xs[d], ys[d]
+    ux, uy = xs[i], ys[i]
     gap = np.inf
     for m in range(d - 2):
         k = (i + 1 + m) % d
         k1 = (k + 1) % d
-        ax, ay, bx, by = xy[k, 0], xy[k, 1], xy[k1, 0], xy[k1, 1]
+        ax, ay, bx, by = xs[k], ys[k], xs[k1], ys[k1]
         if _orient(ux, uy, ax, ay, bx, by) <= 0:
             return np.inf
         w0 = _orient(ax, ay, bx, by, vx, vy)
@@ -67,34 +64,38 @@ def _fan_gap(i, d, xy, zn, zv):
     return gap
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _decimate(F, nt, pts, z, valid, W, voids, max_error):
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def _decimate(F, nt, pts, z, valid, W, voids, max_error, where, out, iscr, fscr):
     """Remove the points the refinement no longer needs: collapse an interior point v
     onto a neighbour u when the fan from u over v's star is a valid triangulation
     (every triangle positive) within ``max_error`` (each new triangle scanned). Two
     triangles fewer each. The greedy insertion adds a point for the worst sample of its
     day; points added later often make an early one redundant. Returns the number of
-    points removed."""
-    where = np.empty(valid.size, np.int32)  # sample → point
+    points removed.
+
+    Compiled without numba's reference counting (``_nrt=False``: each array a loop
+    touched was counted in and out, an atomic add a time), so it allocates nothing: the
+    caller passes ``where`` (sample → point, −1 filled, one per sample), ``out`` (an
+    outgoing half-edge of each point, −1 filled), ``iscr`` (4·(MAXDEG + 1) int64: the
+    star, its neighbours, their x and y) and ``fscr`` (2·MAXDEG float64: the fans' gaps,
+    the neighbours' heights)."""
     for k in range(len(pts)):
         where[pts[k]] = k
-    out = np.full(len(pts), -1, np.int32)  # an outgoing half-edge of each point
     for t in range(nt):
         for k in range(3):
             out[where[F[ROW * t + k]]] = ROW * t + k
-    star = np.empty(MAXDEG, np.int64)
-    gap = np.empty(MAXDEG, np.float64)
-    xy = np.empty((MAXDEG + 1, 2), np.int64)
-    zn = np.empty(MAXDEG, np.float64)
-    nb = np.empty(MAXDEG + 1, np.int64)
+    M = MAXDEG + 1
+    star = iscr[:M]
+    nb = iscr[M:2 * M]
+    xs = iscr[2 * M:3 * M]
+    ys = iscr[3 * M:]
+    gap = fscr[:MAXDEG]
+    zn = fscr[MAXDEG:]
     removed = 0
-    mark = np.zeros(valid.size, np.bool_)  # row by row: a point's star shares rows and
-    for k in range(4, len(pts)):           # heights with the last one's (the
-        mark[pts[k]] = True                # rectangle's corners, 0 … 3, stay); a
-    for v in range(valid.size):            # pass over the samples, not a sort
-        if not mark[v]:
-            continue
+    for v in range(valid.size):  # row by row, not a sort; the corners 0 … 3 stay
         kv = where[v]
+        if kv < 4:
+            continue
         e = out[kv]
         d = 0
         interior = True
@@ -117,11 +118,11 @@ def _decimate(F, nt, pts, z, valid, W, voids, max_error):
         # the fans that stay positive, by their error at v (a cheap first refusal);
         # the TRIES best are scanned
         for k in range(d):
-            xy[k, 0], xy[k, 1] = nb[k] % W, nb[k] // W
+            xs[k], ys[k] = nb[k] % W, nb[k] // W
             zn[k] = z[nb[k]]
-        xy[d, 0], xy[d, 1] = v % W, v // W
+        xs[d], ys[d] = v % W, v // W
         for i in range(d):
-            gap[i] = _fan_gap(i, d, xy, zn, z[v])
+            gap[i] = _fan_gap(i, d, xs, ys, zn, z[v])
         for _ in range(TRIES):
             i = np.argmin(gap[:d])
             if not gap[i] <= max_error:
@@ -174,7 +175,8 @@ def greedy_tin(z, valid, H, W, max_error, voids, simplify):
     insert the worst sample of the worst triangle until every triangle's error over the
     samples it covers is ≤ ``max_error``. Returns the drawn triangles (F, 3) and the
     (row, column) of the points they use (:func:`_compact`). Needs 16·H·W < 2³¹ (int32
-    half-edges)."""
+    half-edges). The arrays are made and grown here; the loops that use them
+    (:func:`~geoterrain.lod.tinkernels._refine`, :func:`_decimate`) make none."""
     cap = 1024
     F = np.empty(ROW * cap, np.int32)
     heap = np.empty(cap, np.int32)
@@ -189,22 +191,22 @@ def greedy_tin(z, valid, H, W, max_error, voids, simplify):
     t0 = _set_triangle(F, pending, cnt, 0, p3, p0, p2, -1, -1, -1)
     _set_triangle(F, pending, cnt, 1, p0, p3, p1, t0, -1, -1)
     cnt[NT] = 2
-    _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error)
-    while cnt[NH] > 0 and key[0] > max_error:
-        if cnt[NT] + 2 > cap:
-            cap *= 2
-            F = _grow(F, ROW * cap)
-            heap, key, pending = _grow(heap, cap), _grow(key, cap), _grow(pending, cap)
-            pts = _grow(pts, cap)
-        t = heap[0]
-        _forget(t, F, heap, key, pending, cnt)
-        if _insert(t, F, W, heap, key, pending, cnt, stack, pts) < 0:
+    while True:
+        st = _refine(z, valid, W, voids, max_error, F, heap, key, pending, stack, pts, cnt)
+        if st == 0:
+            break
+        if st < 0:
             raise RuntimeError("Delaunay flips deeper than the stack")
-        _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error)
+        cap *= 2
+        F = _grow(F, ROW * cap)
+        heap, key, pending = _grow(heap, cap), _grow(key, cap), _grow(pending, cap)
+        pts = _grow(pts, cap)
     nt = cnt[NT]
     pts = pts[:cnt[NP]]
     if simplify:
-        _decimate(F, nt, pts, z, valid, W, voids, max_error)
+        _decimate(F, nt, pts, z, valid, W, voids, max_error, np.full(valid.size, -1, np.int32),
+                  np.full(len(pts), -1, np.int32), np.empty(4 * (MAXDEG + 1), np.int64),
+                  np.empty(2 * MAXDEG, np.float64))
     if voids:
         _flip_to_cover(F, nt, z, valid, W, max_error)
     return _compact(F, nt, pts, valid, voids, W)

@@ -26,7 +26,10 @@ Vertices are flat sample ids ``i·W + j`` (row i, column j); x = j, y = i below.
 from __future__ import annotations
 
 import numpy as np
+from llvmlite import ir as llir
 from numba import njit
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 # cnt slots: points, triangles, heap length, pending length
 NP, NT, NH, NPEND = 0, 1, 2, 3
@@ -236,10 +239,44 @@ def _span(w, a, r, lo, hi):
     return (lo, hi) if w >= 0 else (1.0, 0.0)
 
 
+@intrinsic
+def _maxnum(typingctx, a, b):
+    """LLVM's maxnum: a maximum the loop vectorizer turns into vector maxima (numba's
+    ``max`` and a compare-and-select stay scalar). Flagged no-NaN: the heights of a grid
+    without voids are finite."""
+    def codegen(context, builder, signature, args):
+        d = llir.DoubleType()
+        fn = cgutils.get_or_insert_function(builder.module, llir.FunctionType(d, [d, d]),
+                                            "llvm.maxnum.f64")
+        return builder.call(fn, args, fastmath=("nnan", "nsz"))
+    return types.float64(types.float64, types.float64), codegen
+
+
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _scan_plain(a, b, c, z, W, limit):
+def _row_max(zr, n, z0, z1, z2, w0, w1, w2, a0, a1, a2):
+    m = 0.0
+    for k in range(n):
+        f = float(k)
+        m = _maxnum(m, abs(z0 * (w0 + a0 * f) + z1 * (w1 + a1 * f) + z2 * (w2 + a2 * f) - zr[k]))
+    return m
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _row_arg(zr, n, z0, z1, z2, w0, w1, w2, a0, a1, a2, m):
+    for k in range(n):
+        f = float(k)
+        if abs(z0 * (w0 + a0 * f) + z1 * (w1 + a1 * f) + z2 * (w2 + a2 * f) - zr[k]) == m:
+            return k
+    return 0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _scan_plain(a, b, c, z, W, limit, stop):
     """:func:`_scan` on a grid without voids: each row's covered columns found from the
-    three edges first, then a loop over them alone, with no test per sample."""
+    three edges first, then each row's largest error alone (a loop of vector maxima);
+    the sample is looked for in the first row that holds the largest, only if it exceeds
+    ``limit``. With ``stop``, returns as soon as a row exceeds it (the sample is then
+    not sought)."""
     p0y, p0x = divmod(a, W)
     p1y, p1x = divmod(b, W)
     p2y, p2x = divmod(c, W)
@@ -257,7 +294,7 @@ def _scan_plain(a, b, c, z, W, limit):
     area = float(_orient(p0x, p0y, p1x, p1y, p2x, p2y))
     z0, z1, z2 = z[a] / area, z[b] / area, z[c] / area
     best = 0.0
-    arg = a
+    bs, bn, bw0, bw1, bw2 = a, 0, 0.0, 0.0, 0.0
     width = float(maxx - minx)
     for y in range(miny, maxy + 1):
         lo, hi = _span(w00, a12, r12, 0.0, width)
@@ -268,20 +305,19 @@ def _scan_plain(a, b, c, z, W, limit):
             w1 = w01 + a20 * lo
             w2 = w02 + a01 * lo
             s = y * W + minx + int(lo)
-            for _ in range(int(hi - lo) + 1):
-                d = abs(z0 * w0 + z1 * w1 + z2 * w2 - z[s])
-                if d > best:
-                    best = d
-                    arg = s
-                    if d > limit:  # the caller only asks whether it is within limit
-                        return d, s
-                w0 += a12
-                w1 += a20
-                w2 += a01
-                s += 1
+            n = int(hi - lo) + 1
+            m = _row_max(z[s:s + n], n, z0, z1, z2, w0, w1, w2, a12, a20, a01)
+            if m > best:
+                best = m
+                if stop and m > limit:  # the caller only asks whether it is within limit
+                    return m, s
+                bs, bn, bw0, bw1, bw2 = s, n, w0, w1, w2
         w00 += b12
         w01 += b20
         w02 += b01
+    if not best > limit:
+        return best, a
+    arg = bs + _row_arg(z[bs:bs + bn], bn, z0, z1, z2, bw0, bw1, bw2, a12, a20, a01, best)
     if arg == a or arg == b or arg == c:
         best = 0.0
     return best, arg
@@ -299,7 +335,7 @@ def _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error):
                              W, True)
         else:
             err, arg = _scan_plain(np.int64(F[r]), np.int64(F[r + 1]), np.int64(F[r + 2]), z, W,
-                                   np.inf)
+                                   max_error, False)
         F[r + CAND] = arg
         if not err > max_error:
             F[r + QI] = -1
@@ -346,6 +382,19 @@ def _legalize(a0, F, W, heap, key, pending, cnt, stack):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _legalize_all(F, W, heap, key, pending, cnt, stack, s0, s1, s2, s3):
+    """:func:`_legalize` from each of the half-edges s0 … s3 (−1: none) in turn: one
+    call site (it is inlined, with the heap's sifts, wherever it is called)."""
+    for j in range(4):
+        s = s0 if j == 0 else (s1 if j == 1 else (s2 if j == 2 else s3))
+        if s < 0:
+            break
+        if _legalize(s, F, W, heap, key, pending, cnt, stack) < 0:
+            return -1
+    return 0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _insert(t, F, W, heap, key, pending, cnt, stack, pts):
     """Split triangle ``t`` at its candidate sample (on an edge: split the edge's two
     triangles), then restore the Delaunay property."""
@@ -368,44 +417,61 @@ def _insert(t, F, W, heap, key, pending, cnt, stack, pts):
     else:
         edge = -1
     nt = cnt[NT]
+    s3 = -1
     if edge < 0:
         h0, h1, h2 = F[e0 + 3], F[e1 + 3], F[e2 + 3]
         t0 = _set_triangle(F, pending, cnt, t, p0, p1, pn, h0, -1, -1)
         t1 = _set_triangle(F, pending, cnt, nt, p1, p2, pn, h1, -1, t0 + 1)
         t2 = _set_triangle(F, pending, cnt, nt + 1, p2, p0, pn, h2, t0 + 2, t1 + 1)
         cnt[NT] = nt + 2
-        for s in (t0, t1, t2):
-            if _legalize(s, F, W, heap, key, pending, cnt, stack) < 0:
-                return -1
-        return 0
-    # the candidate lies on edge ``edge`` (hmm's handleCollinear)
-    a = edge
-    al, ar = _next(a), _prev(a)
-    q0, qr, ql = F[ar], F[a], F[al]
-    hal, har = F[al + 3], F[ar + 3]
-    b = F[a + 3]
-    if b < 0:
-        t0 = _set_triangle(F, pending, cnt, t, pn, q0, qr, -1, har, -1)
-        t1 = _set_triangle(F, pending, cnt, nt, q0, pn, ql, t0, -1, hal)
-        cnt[NT] = nt + 1
-        for s in (t0 + 1, t1 + 2):
-            if _legalize(s, F, W, heap, key, pending, cnt, stack) < 0:
-                return -1
-        return 0
-    bl, br = _prev(b), _next(b)
-    q1 = F[bl]
-    hbl, hbr = F[bl + 3], F[br + 3]
-    tb = b >> 3
-    _forget(tb, F, heap, key, pending, cnt)
-    t0 = _set_triangle(F, pending, cnt, t, q0, qr, pn, har, -1, -1)
-    t1 = _set_triangle(F, pending, cnt, tb, qr, q1, pn, hbr, -1, t0 + 1)
-    t2 = _set_triangle(F, pending, cnt, nt, q1, ql, pn, hbl, -1, t1 + 1)
-    t3 = _set_triangle(F, pending, cnt, nt + 1, ql, q0, pn, hal, t0 + 2, t2 + 1)
-    cnt[NT] = nt + 2
-    for s in (t0, t1, t2, t3):
-        if _legalize(s, F, W, heap, key, pending, cnt, stack) < 0:
+        s0, s1, s2 = t0, t1, t2
+    else:  # the candidate lies on edge ``edge`` (hmm's handleCollinear)
+        a = edge
+        al, ar = _next(a), _prev(a)
+        q0, qr, ql = F[ar], F[a], F[al]
+        hal, har = F[al + 3], F[ar + 3]
+        b = F[a + 3]
+        if b < 0:
+            t0 = _set_triangle(F, pending, cnt, t, pn, q0, qr, -1, har, -1)
+            t1 = _set_triangle(F, pending, cnt, nt, q0, pn, ql, t0, -1, hal)
+            cnt[NT] = nt + 1
+            s0, s1, s2 = t0 + 1, t1 + 2, -1
+        else:
+            bl, br = _prev(b), _next(b)
+            q1 = F[bl]
+            hbl, hbr = F[bl + 3], F[br + 3]
+            tb = b >> 3
+            _forget(tb, F, heap, key, pending, cnt)
+            t0 = _set_triangle(F, pending, cnt, t, q0, qr, pn, har, -1, -1)
+            t1 = _set_triangle(F, pending, cnt, tb, qr, q1, pn, hbr, -1, t0 + 1)
+            t2 = _set_triangle(F, pending, cnt, nt, q1, ql, pn, hbl, -1, t1 + 1)
+            t3 = _set_triangle(F, pending, cnt, nt + 1, ql, q0, pn, hal, t0 + 2, t2 + 1)
+            cnt[NT] = nt + 2
+            s0, s1, s2, s3 = t0, t1, t2, t3
+    return _legalize_all(F, W, heap, key, pending, cnt, stack, s0, s1, s2, s3)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+def _refine(z, valid, W, voids, max_error, F, heap, key, pending, stack, pts, cnt):
+    """The refinement: scan the pending triangles, then split the worst, until none
+    exceeds ``max_error``. Returns 0 when done, 1 when the arrays must grow first (the
+    caller grows them and calls again), −1 if the flips overflow ``stack``.
+
+    Compiled without numba's reference counting (``_nrt=False``): it makes no array, and
+    the helpers inlined here (each a few times) otherwise counted every array they take
+    in and out, an atomic add each. ``_flush`` and ``_legalize`` are each inlined once
+    (one call site each) to keep the compilation short."""
+    cap = len(heap)
+    while True:
+        _flush(F, z, valid, W, voids, heap, key, pending, cnt, max_error)
+        if not (cnt[NH] > 0 and key[0] > max_error):
+            return 0
+        if cnt[NT] + 2 > cap:
+            return 1
+        t = heap[0]
+        _forget(t, F, heap, key, pending, cnt)
+        if _insert(t, F, W, heap, key, pending, cnt, stack, pts) < 0:
             return -1
-    return 0
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")

@@ -90,6 +90,18 @@ def _void_border(valid: np.ndarray) -> np.ndarray:
     return out
 
 
+def test_the_arrays_grow_and_the_refinement_resumes():
+    """At e = 0 on fBm every sample is a point: 2·(H − 1)·(W − 1) triangles, eight times
+    the kernel's first 1 024 rows, so the refinement returns to its driver three times
+    to grow them and resumes where it stopped."""
+    z = _dem(60, 70, 5, 300.0)
+    ij, f = greedy_mesh(z, None, 0.0)
+    assert len(f) == 2 * 59 * 69 and len(ij) == 60 * 70
+    assert (_signed_areas(ij, f) > 0).all()
+    err = vertical_error(ij, f, z[ij[:, 0], ij[:, 1]], z, np.ones(z.shape, bool))
+    assert err.max == 0.0 and err.n_uncovered_valid == 0
+
+
 def test_counts_no_more_than_rtin_and_through_the_seam(tmp_path):
     """`static(t, e, "tin")`: the bound on the store's own heights, fewer triangles than
     the bintree cut, the seam's stats; a bad mesher is one UsageError."""
