@@ -321,7 +321,7 @@ def test_tile_errors_brute(seed):
     x, y = 10 * Jj + 0.1 * Ii, -10 * Ii
     tb, blocks = tile_and_block_errors(np.where(valid, z, np.nan), valid, x, y, t)
     assert tile_and_block_errors(np.where(valid, z, np.nan), valid, x, y, t,
-                                 footprint_counts(valid, t))[0] == tb  # counts given
+                                 counts=footprint_counts(valid, t))[0] == tb  # counts given
     lmax = n - t
     raw = {}
     for L in range(lmax + 1):
