@@ -10,8 +10,8 @@ between them: the caller gives the border samples the heights of that polyline
 refinement's worst sample is always an interior one. Border points are never collapsed
 (the collapse pass takes interior points only).
 
-It uses the refinement's kernels (:mod:`geoterrain.lod.tinkernels`) and the collapse pass
-(:mod:`geoterrain.lod.tincollapse`) unchanged.
+It uses the refinement's kernels (:mod:`geoterrain.lod.tinkernels`, its loop ``_refine``)
+and the collapse pass (:mod:`geoterrain.lod.tincollapse`) unchanged.
 """
 
 from __future__ import annotations
@@ -22,16 +22,16 @@ from numba import njit
 from geoterrain.lod.tincollapse import _decimate, _grow
 from geoterrain.lod.tinkernels import (
     CAND,
-    NH,
+    MAXDEG,
     NP,
     NT,
     ROW,
     _compact,
-    _flush,
     _forget,
     _insert,
     _next,
     _orient,
+    _refine,
     _set_triangle,
 )
 
@@ -85,20 +85,20 @@ def greedy_tin_seeded(z, H, W, max_error, seeds, simplify):
         F[ROW * t + CAND] = s
         if _insert(t, F, W, heap, key, pending, cnt, stack, pts) < 0:
             raise RuntimeError("Delaunay flips deeper than the stack")
-    _flush(F, z, valid, W, False, heap, key, pending, cnt, max_error)
-    while cnt[NH] > 0 and key[0] > max_error:
-        if cnt[NT] + 2 > cap:
-            cap *= 2
-            F = _grow(F, ROW * cap)
-            heap, key, pending = _grow(heap, cap), _grow(key, cap), _grow(pending, cap)
-            pts = _grow(pts, cap)
-        t = heap[0]
-        _forget(t, F, heap, key, pending, cnt)
-        if _insert(t, F, W, heap, key, pending, cnt, stack, pts) < 0:
+    while True:  # the refinement (tinkernels._refine), growing the arrays when it asks
+        st = _refine(z, valid, W, False, max_error, F, heap, key, pending, stack, pts, cnt)
+        if st == 0:
+            break
+        if st < 0:
             raise RuntimeError("Delaunay flips deeper than the stack")
-        _flush(F, z, valid, W, False, heap, key, pending, cnt, max_error)
+        cap *= 2
+        F = _grow(F, ROW * cap)
+        heap, key, pending = _grow(heap, cap), _grow(key, cap), _grow(pending, cap)
+        pts = _grow(pts, cap)
     nt = cnt[NT]
     pts = pts[:cnt[NP]]
     if simplify:
-        _decimate(F, nt, pts, z, valid, W, False, max_error)
+        _decimate(F, nt, pts, z, valid, W, False, max_error, np.full(valid.size, -1, np.int32),
+                  np.full(len(pts), -1, np.int32), np.empty(4 * (MAXDEG + 1), np.int64),
+                  np.empty(2 * MAXDEG, np.float64))
     return _compact(F, nt, pts, valid, False, W)
