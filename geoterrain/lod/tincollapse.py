@@ -170,19 +170,13 @@ def _grow(a, n):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def greedy_tin(z, valid, H, W, max_error, voids, simplify):
-    """The greedy TIN of the H × W heights ``z`` (flat, scene units; ``valid`` flat):
-    insert the worst sample of the worst triangle until every triangle's error over the
-    samples it covers is ≤ ``max_error``. Returns the drawn triangles (F, 3) and the
-    (row, column) of the points they use (:func:`_compact`). Needs 16·H·W < 2³¹ (int32
-    half-edges). The arrays are made and grown here; the loops that use them
-    (:func:`~geoterrain.lod.tinkernels._refine`, :func:`_decimate`) make none."""
-    cap = 1024
+def _two_triangles(H, W, cap):
+    """The TIN's arrays with room for ``cap`` triangles, holding the H × W rectangle's two
+    (the half-edge rows, the heap, its keys, the pending list, the points, the counts)."""
     F = np.empty(ROW * cap, np.int32)
     heap = np.empty(cap, np.int32)
     key = np.empty(cap, np.float64)
     pending = np.empty(cap, np.int32)
-    stack = np.empty(1 << 16, np.int32)
     pts = np.empty(cap, np.int32)  # the points, in insertion order
     cnt = np.zeros(4, np.int64)
     p0, p1, p2, p3 = 0, W - 1, (H - 1) * W, H * W - 1
@@ -191,6 +185,17 @@ def greedy_tin(z, valid, H, W, max_error, voids, simplify):
     t0 = _set_triangle(F, pending, cnt, 0, p3, p0, p2, -1, -1, -1)
     _set_triangle(F, pending, cnt, 1, p0, p3, p1, t0, -1, -1)
     cnt[NT] = 2
+    return F, heap, key, pending, pts, cnt
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _refine_and_collapse(z, valid, W, voids, max_error, simplify, F, heap, key, pending, pts,
+                         cnt):
+    """The refinement (:func:`~geoterrain.lod.tinkernels._refine`, the arrays doubled
+    whenever it asks), then the collapse pass if ``simplify``. Returns the half-edge rows,
+    the triangle count and the points."""
+    stack = np.empty(1 << 16, np.int32)
+    cap = len(heap)
     while True:
         st = _refine(z, valid, W, voids, max_error, F, heap, key, pending, stack, pts, cnt)
         if st == 0:
@@ -207,6 +212,21 @@ def greedy_tin(z, valid, H, W, max_error, voids, simplify):
         _decimate(F, nt, pts, z, valid, W, voids, max_error, np.full(valid.size, -1, np.int32),
                   np.full(len(pts), -1, np.int32), np.empty(4 * (MAXDEG + 1), np.int64),
                   np.empty(2 * MAXDEG, np.float64))
+    return F, nt, pts
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def greedy_tin(z, valid, H, W, max_error, voids, simplify):
+    """The greedy TIN of the H × W heights ``z`` (flat, scene units; ``valid`` flat):
+    insert the worst sample of the worst triangle until every triangle's error over the
+    samples it covers is ≤ ``max_error``. Returns the drawn triangles (F, 3) and the
+    (row, column) of the points they use (:func:`_compact`). Needs 16·H·W < 2³¹ (int32
+    half-edges). The arrays are made and grown here (:func:`_two_triangles`,
+    :func:`_refine_and_collapse`); the loops that use them
+    (:func:`~geoterrain.lod.tinkernels._refine`, :func:`_decimate`) make none."""
+    F, heap, key, pending, pts, cnt = _two_triangles(H, W, 1024)
+    F, nt, pts = _refine_and_collapse(z, valid, W, voids, max_error, simplify, F, heap, key,
+                                      pending, pts, cnt)
     if voids:
         _flip_to_cover(F, nt, z, valid, W, max_error)
     return _compact(F, nt, pts, valid, voids, W)

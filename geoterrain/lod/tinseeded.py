@@ -19,11 +19,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from geoterrain.lod.tincollapse import _decimate, _grow
+from geoterrain.lod.tincollapse import _refine_and_collapse, _two_triangles
 from geoterrain.lod.tinkernels import (
     CAND,
-    MAXDEG,
-    NP,
     NT,
     ROW,
     _compact,
@@ -31,8 +29,6 @@ from geoterrain.lod.tinkernels import (
     _insert,
     _next,
     _orient,
-    _refine,
-    _set_triangle,
 )
 
 
@@ -64,19 +60,8 @@ def greedy_tin_seeded(z, H, W, max_error, seeds, simplify):
     cap = 1024
     while cap < 2 * len(seeds) + 16:
         cap *= 2
-    F = np.empty(ROW * cap, np.int32)
-    heap = np.empty(cap, np.int32)
-    key = np.empty(cap, np.float64)
-    pending = np.empty(cap, np.int32)
+    F, heap, key, pending, pts, cnt = _two_triangles(H, W, cap)
     stack = np.empty(1 << 16, np.int32)
-    pts = np.empty(cap, np.int32)
-    cnt = np.zeros(4, np.int64)
-    p0, p1, p2, p3 = 0, W - 1, (H - 1) * W, H * W - 1
-    pts[0], pts[1], pts[2], pts[3] = p0, p1, p2, p3
-    cnt[NP] = 4
-    t0 = _set_triangle(F, pending, cnt, 0, p3, p0, p2, -1, -1, -1)
-    _set_triangle(F, pending, cnt, 1, p0, p3, p1, t0, -1, -1)
-    cnt[NT] = 2
     for s in seeds:  # on the border: each splits one border edge (Delaunay flips after)
         t = _border_triangle(F, cnt[NT], s, W)
         if t < 0:
@@ -85,20 +70,6 @@ def greedy_tin_seeded(z, H, W, max_error, seeds, simplify):
         F[ROW * t + CAND] = s
         if _insert(t, F, W, heap, key, pending, cnt, stack, pts) < 0:
             raise RuntimeError("Delaunay flips deeper than the stack")
-    while True:  # the refinement (tinkernels._refine), growing the arrays when it asks
-        st = _refine(z, valid, W, False, max_error, F, heap, key, pending, stack, pts, cnt)
-        if st == 0:
-            break
-        if st < 0:
-            raise RuntimeError("Delaunay flips deeper than the stack")
-        cap *= 2
-        F = _grow(F, ROW * cap)
-        heap, key, pending = _grow(heap, cap), _grow(key, cap), _grow(pending, cap)
-        pts = _grow(pts, cap)
-    nt = cnt[NT]
-    pts = pts[:cnt[NP]]
-    if simplify:
-        _decimate(F, nt, pts, z, valid, W, False, max_error, np.full(valid.size, -1, np.int32),
-                  np.full(len(pts), -1, np.int32), np.empty(4 * (MAXDEG + 1), np.int64),
-                  np.empty(2 * MAXDEG, np.float64))
+    F, nt, pts = _refine_and_collapse(z, valid, W, False, max_error, simplify, F, heap, key,
+                                      pending, pts, cnt)
     return _compact(F, nt, pts, valid, False, W)
