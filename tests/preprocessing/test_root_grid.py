@@ -211,13 +211,3 @@ def test_every_other_consumer_refuses_a_root_grid_in_one_line(wide, tmp_path):
             call()
         assert what.split(" (")[0] in str(e.value) and "\n" not in str(e.value), what
     assert not (tmp_path / "qm").exists()
-
-
-def test_rendering_refuses_a_root_grid(wide):
-    pytest.importorskip("pyvista")
-    from geoterrain.rendering.scene import render_array
-
-    t, _ = wide
-    with pytest.raises(RootGridError, match="rendering"):
-        render_array(t, geoterrain.View((0.0, -900.0, 700.0), (0.0, 0.0, 0.0),
-                                        size=(64, 48)))
