@@ -184,7 +184,6 @@ def _refusals(t, tmp_path):
     from geoterrain.analysis.visibility import line_of_sight, viewshed
     from geoterrain.export.qmesh import write_tileset
     from geoterrain.export.qmeshtiles import QuantizedMeshTiles
-    from geoterrain.export.rasters import product
     from geoterrain.export.webtiles import WebTiler
 
     lo, hi = t.scene_box()
@@ -199,7 +198,6 @@ def _refusals(t, tmp_path):
         "quantized-mesh tiles": lambda: write_tileset(t, tmp_path / "qm"),
         "quantized-mesh tiles (served)": lambda: QuantizedMeshTiles(t, mesher="tin"),
         "web-map tiles": lambda: WebTiler(t),
-        "raster export": lambda: product(t, "hillshade"),
         "editing a store": lambda: t.edit((0, 0), np.zeros((2, 2))),
     }
 
