@@ -178,9 +178,6 @@ def test_unported_strategies_refuse_and_rtin_draws(wide):
 
 
 def _refusals(t, tmp_path):
-    from geoterrain.analysis.contours import contours
-    from geoterrain.analysis.heights import height_at, normal_at
-    from geoterrain.analysis.profile import profile
     from geoterrain.analysis.visibility import line_of_sight, viewshed
     from geoterrain.export.qmesh import write_tileset
     from geoterrain.export.qmeshtiles import QuantizedMeshTiles
@@ -189,10 +186,6 @@ def _refusals(t, tmp_path):
     lo, hi = t.scene_box()
     c = (0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]))
     return {
-        "contours": lambda: contours(t, 50.0),
-        "height queries": lambda: height_at(t, c),
-        "normal queries": lambda: normal_at(t, c),
-        "profiles": lambda: profile(t, [c, (c[0] + 10.0, c[1])]),
         "the viewshed": lambda: viewshed(t, c, 100.0),
         "line of sight": lambda: line_of_sight(t, c, (c[0] + 10.0, c[1])),
         "quantized-mesh tiles": lambda: write_tileset(t, tmp_path / "qm"),
