@@ -169,3 +169,46 @@ def test_geotiff_products_of_a_root_grid(pair, tmp_path, level):
         nan = np.isnan(got.read(1))
         void = src.read(1, masked=True).mask[::s, ::s]
         assert nan[void].all() and (~nan[~void]).mean() > 0.9
+
+
+def test_web_map_tiles_of_a_root_grid_are_the_squares(pair):
+    """Terrain-RGB heights and every imagery of XYZ tiles over both roots (a zoom of the
+    finest level, and a coarse one) equal the square store's, pixel for pixel."""
+    from geoterrain.export.webtiles import IMAGERY, WebTiler
+
+    sq, rt, _, _ = pair
+    a, b = WebTiler(sq), WebTiler(rt)
+    assert (a.bounds, a.max_zoom) == (b.bounds, b.max_zoom)
+    for z in (b.max_zoom + 2, b.max_zoom - 1):
+        xs, ys = b.tile_range(z)
+        assert len(xs) >= 2  # the tiles reach both roots
+        for x in (xs[0], xs[-1]):
+            y = ys[len(ys) // 2]
+            ha, hb = a.heights(z, x, y), b.heights(z, x, y)
+            np.testing.assert_array_equal(ha, hb)
+            assert np.isfinite(hb).mean() > 0.05
+            for what in IMAGERY:
+                ia, ib = a.image(what, z, x, y), b.image(what, z, x, y)
+                if what == "error":  # a root's corner: δ 0 where the square has ∞
+                    assert (ia != ib).any(-1).mean() < 0.01
+                else:
+                    np.testing.assert_array_equal(ia, ib, err_msg=what)
+
+
+@pytest.mark.slow  # about 14 s at load 8
+def test_pmtiles_and_the_static_site_of_a_root_grid(pair, tmp_path):
+    """The PMTiles archives of a root-grid store are the square store's, byte for byte,
+    and the static site's page is written over them."""
+    from geoterrain.export.pmtilesets import write_pmtiles
+    from geoterrain.serve.site import write_site
+
+    sq, rt, _, _ = pair
+    kw = dict(imagery=("relief", "hillshade"), min_zoom=12, max_zoom=13, name="w")
+    fa = write_pmtiles(sq, tmp_path / "a", **kw)
+    fb = write_pmtiles(rt, tmp_path / "b", **kw)
+    assert sorted(fa["files"]) == sorted(fb["files"]) and len(fb["files"]) == 3
+    for f in fb["files"].values():
+        assert (tmp_path / "b" / f).read_bytes() == (tmp_path / "a" / f).read_bytes(), f
+    site = write_site(rt, tmp_path / "site", imagery=("relief",), min_zoom=12,
+                      max_zoom=12, name="w")
+    assert (tmp_path / "site" / "index.html").exists() and site["files"]

@@ -181,7 +181,6 @@ def _refusals(t, tmp_path):
     from geoterrain.analysis.visibility import line_of_sight, viewshed
     from geoterrain.export.qmesh import write_tileset
     from geoterrain.export.qmeshtiles import QuantizedMeshTiles
-    from geoterrain.export.webtiles import WebTiler
 
     lo, hi = t.scene_box()
     c = (0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]))
@@ -190,7 +189,6 @@ def _refusals(t, tmp_path):
         "line of sight": lambda: line_of_sight(t, c, (c[0] + 10.0, c[1])),
         "quantized-mesh tiles": lambda: write_tileset(t, tmp_path / "qm"),
         "quantized-mesh tiles (served)": lambda: QuantizedMeshTiles(t, mesher="tin"),
-        "web-map tiles": lambda: WebTiler(t),
         "editing a store": lambda: t.edit((0, 0), np.zeros((2, 2))),
     }
 
