@@ -212,3 +212,27 @@ def test_pmtiles_and_the_static_site_of_a_root_grid(pair, tmp_path):
     site = write_site(rt, tmp_path / "site", imagery=("relief",), min_zoom=12,
                       max_zoom=12, name="w")
     assert (tmp_path / "site" / "index.html").exists() and site["files"]
+
+
+@pytest.mark.slow  # about 7 s at load 7
+def test_quantized_mesh_tiles_of_a_root_grid_are_the_squares(pair, tmp_path):
+    """A quantized-mesh tile set of a root-grid store holds the square store's tiles, byte
+    for byte (its lattices resample the same heights), and so does the served source."""
+    from geoterrain.export.qmesh import write_tileset
+    from geoterrain.export.qmeshtiles import QuantizedMeshTiles
+
+    sq, rt, _, _ = pair
+    for k, t in (("a", sq), ("b", rt)):
+        write_tileset(t, tmp_path / k, max_zoom=10)
+    files = sorted(p.relative_to(tmp_path / "b") for p in (tmp_path / "b").rglob("*.terrain"))
+    assert len(files) >= 4
+    assert files == sorted(p.relative_to(tmp_path / "a")
+                           for p in (tmp_path / "a").rglob("*.terrain"))
+    for f in files:
+        assert (tmp_path / "b" / f).read_bytes() == (tmp_path / "a" / f).read_bytes(), f
+    qa, qb = QuantizedMeshTiles(sq), QuantizedMeshTiles(rt)
+    z = qb.max_zoom
+    tiles = sorted(qb.level_tiles(z))
+    assert tiles == sorted(qa.level_tiles(z)) and len(tiles) >= 2
+    for xy in (tiles[0], tiles[-1]):
+        assert qb.tile(z, *xy) == qa.tile(z, *xy)
