@@ -103,3 +103,33 @@ def test_areas_and_volumes_are_the_squares(pair):
         va, vb = volume(sq, poly, base=300.0, **kw), volume(rt, poly, base=300.0, **kw)
         assert (vb.cut, vb.fill, vb.bound) == (va.cut, va.fill, va.bound) and vb.cut > 0
     assert max(surface_area(rt, poly, max_error=40.0).levels) > 0
+
+
+def test_viewsheds_and_lines_of_sight_are_the_squares(pair):
+    """A viewshed over both roots, the void and the raster's last row (which the root
+    grid's last tile row holds as its far border; the square has a tile row of its own
+    there): at level 0 the square store's codes. Read from level 2, every certain answer
+    is level 0's on both stores (they differ only in which cells stay uncertain: the
+    square reads its last row at level 0, its level-2 tile there having no finite error).
+    Lines of sight across the roots' shared edge: the square's answers."""
+    from geoterrain.analysis.sweep import HIDDEN, VISIBLE
+    from geoterrain.analysis.visibility import line_of_sight, viewshed
+
+    sq, rt, _ = pair
+    obs = (502600.0, 4999100.0)  # near the roots' shared edge (column 256), row 90
+    a = viewshed(sq, obs, 2500.0, 10.0)
+    b = viewshed(rt, obs, 2500.0, 10.0)
+    assert b.codes.shape == a.codes.shape and b.codes.shape[0] == 129  # every row
+    np.testing.assert_array_equal(b.codes, a.codes)
+    assert (b.codes == VISIBLE).sum() > 1000 and (b.codes == HIDDEN).sum() > 1000
+    assert b.transform == a.transform and b.observer == a.observer
+    for t in (sq, rt):
+        c = viewshed(t, obs, 2500.0, 10.0, level=2).codes
+        sure = (c == VISIBLE) | (c == HIDDEN)
+        assert sure.mean() > 0.5
+        np.testing.assert_array_equal(c[sure], b.codes[sure])
+    for p, q in (((500200.0, 4999900.0), (505000.0, 4998800.0)),
+                 ((504000.0, 4998720.0), (501000.0, 4999500.0))):
+        la, lb = line_of_sight(sq, p, q, 5.0, 5.0), line_of_sight(rt, p, q, 5.0, 5.0)
+        assert (lb.visible, lb.certain, lb.clearance, lb.obstruction) == \
+            (la.visible, la.certain, la.clearance, la.obstruction)
