@@ -41,7 +41,9 @@ class RootGridError(UsageError, ValueError):
 
 #: What draws or reads a root-grid store today (experimental), for every refusal's line.
 ROOT_GRID_WORKS = ("a root-grid store (experimental) is drawn by the rtin strategy only (its "
-                   "views and its static mesh)")
+                   "views, its static mesh, pictures and mesh exports), and read by raster "
+                   "exports, tiles (quantized-mesh, web-map, PMTiles) and the analysis "
+                   "(heights, profiles, contours, areas, volumes, viewsheds)")
 
 
 def refuse_root_grid(grid: Grid, what: str, cli: str | None = None) -> None:

@@ -118,9 +118,6 @@ class TerrainScene:
                  textures: str = "view", light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True,
                  morph: bool | None = None, strips: bool = False, water: bool = True):
-        from geoterrain.core.grid import refuse_root_grid
-
-        refuse_root_grid(terrain.grid, "rendering (render, view, orbit, the viewer)")
         import pyvista as pv
 
         from geoterrain.rendering import offscreen
@@ -213,11 +210,11 @@ class TerrainScene:
         tex.repeat = False
         return tex
     def _tcoords(self, ij: np.ndarray) -> np.ndarray:
-        S = self.terrain.grid.level_size(self.level)
+        R, C = self.terrain.grid.level_shape(self.level)  # the texture_image's shape
         s = float(1 << self.level)
         tc = np.empty((len(ij), 2), np.float32)
-        tc[:, 0] = (ij[:, 1] / s + 0.5) / S
-        tc[:, 1] = 1.0 - (ij[:, 0] / s + 0.5) / S
+        tc[:, 0] = (ij[:, 1] / s + 0.5) / C
+        tc[:, 1] = 1.0 - (ij[:, 0] / s + 0.5) / R
         return tc
 
     def view_texture(self, selection, view: View, max_builds: int | None = None):
@@ -277,7 +274,7 @@ class TerrainScene:
         else:
             self.texture_stats = {"textures_built": 0, "texture_tiles": 0}
         if self.strips and mesh.n_cells and src.n_cells and "grid_ij" in src.point_data:
-            mesh = _as_strips(mesh, src, self.terrain.grid.n)
+            mesh = _as_strips(mesh, src, self.terrain.grid)
         self.selection = selection
         if self.actor is None and self._raw:
             from geoterrain.rendering.offscreen import terrain_actor
@@ -566,17 +563,39 @@ def _draw(plotter) -> np.ndarray:
     return img
 
 
-def _as_strips(mesh, src, n: int):
+def _strip_order(faces: np.ndarray, ij: np.ndarray, grid) -> np.ndarray:
+    """The seed's refinement order of ``faces`` (:func:`geoterrain.lod.strips.seed_order`):
+    on a root grid, root after root (row by row), each root the seed's square (its own
+    bintree, rtin's triangles never crossing a root's edge)."""
+    from geoterrain.lod.strips import seed_order
+
+    if grid.square:
+        return seed_order(faces, ij, grid.n)
+    span = 1 << grid.n
+    ij = np.asarray(ij, np.int64)
+    c3 = ij[faces].sum(axis=1)  # 3 × each face's centroid: inside one root
+    across = grid.roots[0]
+    root = (c3[:, 0] // (3 * span)) * across + c3[:, 1] // (3 * span)
+    parts = []
+    for r in np.unique(root):  # a root or two
+        sel = np.flatnonzero(root == r)
+        origin = np.array([r // across, r % across]) * span
+        parts.append(sel[seed_order(faces[sel], ij - origin, grid.n)])
+    return np.concatenate(parts) if parts else np.zeros(0, np.int64)
+
+
+def _as_strips(mesh, src, grid):
     """``mesh`` (triangles in the order of the selection ``src``'s) drawn as seed 002's
     triangle strips (:mod:`geoterrain.lod.strips`): the faces in the order the seed's
     refinement meets them, then stripped; points, point data and the texture kept (a
     triangle's cell data is not: a strip is one cell)."""
     import pyvista as pv
 
-    from geoterrain.lod.strips import seed_order, triangle_strips
+    from geoterrain.lod.strips import triangle_strips
 
     faces = np.asarray(mesh.regular_faces)
-    order = seed_order(np.asarray(src.regular_faces), np.asarray(src.point_data["grid_ij"]), n)
+    order = _strip_order(np.asarray(src.regular_faces), np.asarray(src.point_data["grid_ij"]),
+                         grid)
     cells, st = triangle_strips(faces[order])
     out = pv.PolyData()
     out.SetPoints(mesh.GetPoints())
