@@ -48,39 +48,41 @@ class TileBounds(NamedTuple):
 
 
 @parallel_kernel(cache=True)
-def _level_field_nb(z, vf, s, E):
+def _level_field_nb(z, vf, s, E, all_valid=False):
     # E = max over the all-valid closed triangles containing a sample of |z − S_L| (0 if
     # none), S_L the union-jack surface of cell size s; and per cell whether one of its
     # two closed triangles mixes valid and invalid samples. Rows of cells run on every
     # core, even rows then odd ones, so no two threads share a row of E (a max: the
-    # order does not change it).
+    # order does not change it). ``all_valid``: every sample is (vf is then not read).
     nbr, nbc = (z.shape[0] - 1) // s, (z.shape[1] - 1) // s  # a root grid's rectangle too
     E[:, :] = 0.0
     mixed = np.zeros((nbr, nbc), np.bool_)
     for parity in range(2):
         for k in prange((nbr - parity + 1) // 2):
-            _level_field_row(z, vf, s, E, mixed, 2 * k + parity)
+            _level_field_row(z, vf, s, E, mixed, 2 * k + parity, all_valid)
     return mixed
 
 
 @njit(cache=True, nogil=True)
-def _level_field_row(z, vf, s, E, mixed, bi):
+def _level_field_row(z, vf, s, E, mixed, bi, all_valid):
     # one row bi of cells of _level_field_nb
     nb = (z.shape[1] - 1) // s
     for bj in range(nb):
         i0 = bi * s
         j0 = bj * s
         main = main_diagonal_nb(bi, bj)
-        tot, c1, t1, c2, t2 = cell_counts_nb(vf, i0, j0, s, main)
-        if tot == 0:
-            continue
-        whole = tot == (s + 1) * (s + 1)
-        ok1 = c1 == t1
-        ok2 = c2 == t2
-        if not whole:
-            mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
-            if not (ok1 or ok2):
+        whole = ok1 = ok2 = True
+        if not all_valid:
+            tot, c1, t1, c2, t2 = cell_counts_nb(vf, i0, j0, s, main)
+            if tot == 0:
                 continue
+            whole = tot == (s + 1) * (s + 1)
+            ok1 = c1 == t1
+            ok2 = c2 == t2
+            if not whole:
+                mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
+                if not (ok1 or ok2):
+                    continue
         cell_field_rows_nb(z, Cell(i0, j0, s, main, z[i0, j0], z[i0, j0 + s], z[i0 + s, j0],
                                    z[i0 + s, j0 + s]), whole, ok1, ok2, 0, s, E)
 
@@ -90,13 +92,19 @@ def cell_counts_nb(vf, i0, j0, s, main):
     """(valid samples, then valid and total samples of each closed triangle) of the closed
     cell of side s at (i0, j0) of ``vf`` (the first triangle holds the diagonal too)."""
     tot = 0
+    for di in range(s + 1):  # a plain count first (vectorised): most cells are all or none
+        for dj in range(s + 1):
+            tot += vf[i0 + di, j0 + dj]
+    if tot == 0 or tot == (s + 1) * (s + 1):  # the same values as the sweep below
+        t = (s + 1) * (s + 2) / 2.0
+        c = t if tot else 0.0
+        return tot, c, t, c, t
     c1 = 0.0
     c2 = 0.0
     t1 = 0.0
     t2 = 0.0
     for di in range(s + 1):
         for dj in range(s + 1):
-            tot += vf[i0 + di, j0 + dj]
             first = dj >= di if main else di + dj <= s
             both = dj == di if main else di + dj == s
             v = np.float64(vf[i0 + di, j0 + dj])
@@ -287,6 +295,7 @@ def tile_and_block_errors(
     per_level = []
     nbr, nbc = (R - 1) // cpt, (C - 1) // cpt  # blocks (level-0 tiles) down, across
     blocks = np.zeros((nbr, nbc, min(te, lmax) + 1))
+    all_valid = bool(valid.all())  # the level fields then read no mask
     with cores_for(zf.size):  # small grids' kernels on one thread (threads.py)
         for L in range(lmax + 1):
             S = 1 << (te + L)  # tile span in full-resolution samples
@@ -296,7 +305,7 @@ def tile_and_block_errors(
                 per_level.append((z0, z0.copy()))
                 box0 = _tile_boxes_nb(zf, xc, yc, vb, S)
                 continue
-            mixed = _level_field_nb(zf, vb, 1 << L, E)
+            mixed = _level_field_nb(zf, vb, 1 << L, E, all_valid)
             # max of E over each block (level-0 tile): one pass over the grid; a level-L
             # tile's closed footprint is the union of its 2^L × 2^L blocks' closed ones
             bm = closed_blocks(E, cpt, np.maximum)

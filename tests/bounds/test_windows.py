@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from geoterrain.bounds.delta import Cell, _block_sweep, _raw_delta, check_grid
 from geoterrain.bounds.radii import _proxy_positions
 from geoterrain.bounds.tileblobs import radius_codes
-from geoterrain.bounds.tilebounds import _level_field_nb
+from geoterrain.bounds.tilebounds import _level_field_nb, cell_counts_nb
 from geoterrain.bounds.vertexdata import log8_table
 from geoterrain.bounds.windows import (
     block_sweep_rect,
@@ -129,3 +129,45 @@ def test_level_field_on_a_window_is_the_whole_grids(seed, n, L, holes, corner):
     assert np.array_equal(mw, mixed[a0 // s:a1 // s, b0 // s:b1 // s])
     # inside the window (its border samples also see cells outside it) the field is equal
     assert np.array_equal(Ew[s:-s, s:-s], E[a0 + s:a1 - s + 1, b0 + s:b1 - s + 1])
+
+
+def _counts_by_sweep(vf, i0, j0, s, main):
+    # cell_counts_nb's definition, sample by sample (its plain-count shortcut aside)
+    tot, c1, t1, c2, t2 = 0, 0.0, 0.0, 0.0, 0.0
+    for di in range(s + 1):
+        for dj in range(s + 1):
+            first = dj >= di if main else di + dj <= s
+            both = dj == di if main else di + dj == s
+            v = float(vf[i0 + di, j0 + dj])
+            tot += int(vf[i0 + di, j0 + dj])
+            if first or both:
+                c1, t1 = c1 + v, t1 + 1.0
+            if (not first) or both:
+                c2, t2 = c2 + v, t2 + 1.0
+    return tot, c1, t1, c2, t2
+
+
+@pytest.mark.fast
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), s=st.sampled_from([1, 2, 4, 8]),
+       holes=st.sampled_from([0.0, 0.05, 0.5, 1.0]), main=st.booleans())
+def test_cell_counts_are_the_sample_sweeps(seed, s, holes, main):
+    # all valid, none valid (the shortcut) and mixed cells: the same five numbers
+    v = (np.random.default_rng(seed).random((s + 3, s + 3)) >= holes).view(np.uint8)
+    got = cell_counts_nb(v, 1, 2, s, main)
+    assert got == _counts_by_sweep(v, 1, 2, s, main)
+    assert [type(a) for a in got[1:]] == [float] * 4
+
+
+@pytest.mark.fast
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.integers(2, 6), L=st.integers(1, 4))
+def test_level_field_of_an_all_valid_grid_needs_no_mask(seed, n, L):
+    z, v = _grid(seed, n, 0.0)
+    zf, vv, _ = check_grid(z, v)
+    s = 1 << min(L, n)
+    E, E2 = np.zeros(zf.shape), np.full(zf.shape, 7.0)
+    mixed = _level_field_nb(zf, vv.view(np.uint8), s, E)
+    # the mask unread: zeros in it would change the field were it read
+    mixed2 = _level_field_nb(zf, np.zeros_like(vv, np.uint8), s, E2, True)
+    assert np.array_equal(E, E2) and np.array_equal(mixed, mixed2) and not mixed.any()
