@@ -506,17 +506,30 @@ def _wide_blobs(lev, d, valid, s, h, te, ys, xs, kinds, cubic) -> dict:
     zmax = np.empty(ys.size, np.uint64)
     entropy.level_zigzag(d, s, h, _period(te, cubic), ys.astype(np.int64), xs.astype(np.int64),
                          zz, zmax)
-    heads, payloads = [], []
-    for q in range(ys.size):
-        zm = int(zmax[q])
-        w = 0 if zm == 0 else next(b for b in (1, 2, 4, 8) if zm < 1 << (8 * b))
-        i0, j0 = int(ys[q]) * 2 * h * s, int(xs[q]) * 2 * h * s
-        mask = np.packbits(valid[i0:i0 + (tt - 1) * s + 1:s, j0:j0 + (tt - 1) * s + 1:s]
-                           ).tobytes() if kinds[q] == MASK_STORED else b""
-        body = np.ascontiguousarray(zz[q].astype(np.dtype(_UINTS[w]).newbyteorder("<"))
-                                    .view(np.uint8).reshape(-1, w).T).tobytes() if w else b""
-        heads.append(_header(False, int(kinds[q]), te, cubic, w))
-        payloads.append(mask + body)
+    # each tile's byte width w: the fewest bytes holding its largest residual (0: none)
+    ws = np.select([zmax == 0, zmax < 1 << 8, zmax < 1 << 16, zmax < 1 << 32], [0, 1, 2, 4], 8)
+    bodies = [b""] * ys.size
+    for w in (1, 2, 4, 8):  # the byte planes of all the tiles of one width in one pass
+        rows = np.flatnonzero(ws == w)
+        if rows.size:
+            planes = np.ascontiguousarray(
+                zz[rows].astype(np.dtype(_UINTS[w]).newbyteorder("<")).view(np.uint8)
+                .reshape(rows.size, -1, w).transpose(0, 2, 1))
+            for r, q in enumerate(rows.tolist()):
+                bodies[q] = planes[r].tobytes()
+    heads, payloads, cache = [], [], {}
+    for q, (k, w) in enumerate(zip(kinds.tolist(), ws.tolist(), strict=True)):
+        hd = cache.get((k, w))
+        if hd is None:
+            hd = cache[(k, w)] = _header(False, int(k), te, cubic, int(w))
+        heads.append(hd)
+        if k == MASK_STORED:
+            i0, j0 = int(ys[q]) * 2 * h * s, int(xs[q]) * 2 * h * s
+            payloads.append(np.packbits(valid[i0:i0 + (tt - 1) * s + 1:s,
+                                              j0:j0 + (tt - 1) * s + 1:s]).tobytes() + bodies[q])
+        else:
+            payloads.append(bodies[q])
+    del bodies
     frames = compress_many(payloads, _WIDE_LEVEL)
     return {(lev, int(x), int(y)): hd + f
             for x, y, hd, f in zip(xs.tolist(), ys.tolist(), heads, frames, strict=True)}

@@ -237,3 +237,44 @@ def test_wide_residuals_of_every_width(w, seed, cubic, off, py, px):
     got = np.empty((tt, tt), np.int64)
     _wide_child(data, off, w, n, parent, py, px, h, cubic, got)
     np.testing.assert_array_equal(got, want)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), cubic=st.booleans(), holes=st.sampled_from([0.0, 0.1]))
+def test_wide_blobs_of_a_level_are_each_tiles_own(seed, cubic, holes):
+    """The level's byte planes, built a width at a time, are each tile's own: its
+    residuals in the fewest little-endian bytes, plane by plane, after its mask."""
+    import zstandard
+
+    from geoterrain.codec.pyramid import _header, _period, _wide_blobs
+
+    rng = np.random.default_rng(seed)
+    te, s, h = 2, 1, 2
+    n = 4 * 2 * h + 1  # a 4 × 4 level of tiles of side 2h
+    scale = rng.choice([0, 2, 100, 2**12, 2**24, 2**40, 2**61], (4, 4))  # every width
+    d = (rng.normal(0, 1, (n, n)) * np.kron(scale, np.ones((2 * h, 2 * h)))[
+        np.minimum(np.arange(n), n - 2)][:, np.minimum(np.arange(n), n - 2)]).astype(np.int64)
+    valid = rng.random((n, n)) >= holes
+    ys, xs = (a.ravel() for a in np.indices((4, 4)))
+    def window(q):  # tile q's closed footprint
+        return (slice(ys[q] * 2 * h, ys[q] * 2 * h + 2 * h + 1),
+                slice(xs[q] * 2 * h, xs[q] * 2 * h + 2 * h + 1))
+
+    kinds = np.array([MASK_ALL_VALID if valid[window(q)].all() else MASK_STORED
+                      for q in range(ys.size)])
+    got = _wide_blobs(0, d, valid, s, h, te, ys, xs, kinds, cubic)
+    zz = np.empty((ys.size, 3 * h * h + 2 * h), np.uint64)
+    zmax = np.empty(ys.size, np.uint64)
+    entropy.level_zigzag(d, s, h, _period(te, cubic), ys, xs, zz, zmax)
+    widths = set()
+    for q in range(ys.size):  # the per-tile rule
+        zm = int(zz[q].max())
+        w = 0 if zm == 0 else next(b for b in (1, 2, 4, 8) if zm < 1 << (8 * b))
+        widths.add(w)
+        mask = np.packbits(valid[window(q)]).tobytes() if kinds[q] == MASK_STORED else b""
+        body = b"".join(((zz[q] >> np.uint64(8 * b)) & np.uint64(255)).astype(np.uint8).tobytes()
+                        for b in range(w))
+        blob = got[(0, int(xs[q]), int(ys[q]))]
+        assert blob[:4] == _header(False, int(kinds[q]), te, cubic, w)
+        assert zstandard.ZstdDecompressor().decompress(blob[4:]) == mask + body
+    assert cubic or len(widths) >= 2  # (the cubic stencil reaches the neighbours' scales)
