@@ -39,14 +39,17 @@ class RootGridError(UsageError, ValueError):
     """A square-only computation was asked of a grid with a rectangular root grid."""
 
 
-#: What draws or reads a root-grid store today (experimental), for every refusal's line.
-ROOT_GRID_WORKS = ("a root-grid store (experimental) is drawn by the rtin strategy only (its "
-                   "views and its static mesh)")
+#: What draws or reads a root-grid store today (experimental), for every refusal's line
+#: (the strategies' own refusal names them: geoterrain.lod.select).
+ROOT_GRID_WORKS = ("a root-grid store (experimental) is drawn only by the LOD strategies "
+                   "registered for it (rtin among them: its views and its static mesh)")
 
 
-def refuse_root_grid(grid: Grid, what: str, cli: str | None = None) -> None:
-    """Raise :class:`RootGridError` in one line, naming what works, when ``grid`` is a
-    root grid: ``what`` (API words; ``cli``: the command line's) does not handle it yet.
+def refuse_root_grid(grid: Grid, what: str, cli: str | None = None,
+                     works: str = ROOT_GRID_WORKS) -> None:
+    """Raise :class:`RootGridError` in one line, naming what works (``works``), when
+    ``grid`` is a root grid: ``what`` (API words; ``cli``: the command line's) does not
+    handle it yet.
 
     Examples
     --------
@@ -61,8 +64,8 @@ def refuse_root_grid(grid: Grid, what: str, cli: str | None = None) -> None:
         return
     head = f"does not handle a grid of {grid.roots[0]} × {grid.roots[1]} root tiles yet: "
     tail = "; preprocess without root_grid for the rest"
-    raise RootGridError(f"{what} {head}{ROOT_GRID_WORKS}{tail}",
-                        cli=f"{cli or what} {head}{ROOT_GRID_WORKS}; preprocess without "
+    raise RootGridError(f"{what} {head}{works}{tail}",
+                        cli=f"{cli or what} {head}{works}; preprocess without "
                         "--root-grid for the rest")
 
 

@@ -69,7 +69,7 @@ _ENTRIES = (
     StrategyInfo("chunked", "geoterrain.lod.chunked",
                  "stored tile quadtree with skirts (seed 000 chunked LOD)",
                  "ready-made tiles at several resolutions, seams hidden by skirts", True,
-                 morphs=True),
+                 morphs=True, root_grid=True),
     StrategyInfo("bruteforce", "geoterrain.lod.bruteforce",
                  "every full-resolution tile in the frustum (the zero-error baseline)",
                  "every sample in view at full resolution (exact, slowest)", True,
