@@ -89,7 +89,7 @@ _ENTRIES = (
     StrategyInfo("cdlod", "geoterrain.lod.cdlod",
                  "CDLOD: tile quadtree, one range per level, morphed, no skirts (seed 001)",
                  "tiles by distance ranges, blended smoothly between levels", True,
-                 morphs=True, morph_default=True),
+                 morphs=True, morph_default=True, root_grid=True),
     StrategyInfo("tessellation", "geoterrain.lod.tessellation",
                  "HAM-driven quad-domain tessellation, factors 1-64 (seed 004; unbounded)",
                  "tiles subdivided by how rough they are (error not guaranteed)",
