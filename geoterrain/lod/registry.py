@@ -85,7 +85,7 @@ _ENTRIES = (
     StrategyInfo("quadtree", "geoterrain.lod.quadtree",
                  "restricted quadtree, Manhattan-distance LOD (seed 003; unbounded)",
                  "a quadtree refined by distance (error not guaranteed)", False,
-                 conforming=True),
+                 conforming=True, root_grid=True),
     StrategyInfo("cdlod", "geoterrain.lod.cdlod",
                  "CDLOD: tile quadtree, one range per level, morphed, no skirts (seed 001)",
                  "tiles by distance ranges, blended smoothly between levels", True,
