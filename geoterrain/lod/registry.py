@@ -93,7 +93,7 @@ _ENTRIES = (
     StrategyInfo("tessellation", "geoterrain.lod.tessellation",
                  "HAM-driven quad-domain tessellation, factors 1-64 (seed 004; unbounded)",
                  "tiles subdivided by how rough they are (error not guaranteed)",
-                 False, conforming=True),
+                 False, conforming=True, root_grid=True),
     StrategyInfo("gtr", "geoterrain.lod.gtr",
                  "GPU Terrain Rendering as the thesis built it: fixed-size blocks, "
                  "D_n = δ_b·C, skirts, morphed (seed 000 §2.8; unbounded)",
