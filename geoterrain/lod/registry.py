@@ -123,19 +123,20 @@ _ENTRIES = (
                  "geometry clipmaps: nested viewer-centred 255² grids, toroidal updates, "
                  "transition regions (seed 000 §2.9; unbounded)",
                  "nested grids centred on the viewer (error not guaranteed)", False,
-                 tau_independent=True, conforming=True, morphs=True, morph_default=True),
+                 tau_independent=True, conforming=True, morphs=True, morph_default=True,
+                 root_grid=True),
     StrategyInfo("clipmap_bounded", "geoterrain.lod.clipmap_bounded",
                  "geometry clipmaps whose finest level and region sizes come from the tile "
                  "errors (seed 000 §2.9)",
                  "nested grids centred on the viewer, sized by the terrain's error",
                  True, conforming=True, morphs=True,
-                 morph_default=True),
+                 morph_default=True, root_grid=True),
     StrategyInfo("clipmap_gpu", "geoterrain.lod.clipmap_gpu",
                  "GPU-based geometry clipmaps: footprints, vertex-texture heights, emulated "
                  "on arrays (seed 000 §2.10; unbounded)",
                  "nested grids built from reusable pieces (error not guaranteed)",
                  False, tau_independent=True,
-                 conforming=True, morphs=True, morph_default=True),
+                 conforming=True, morphs=True, morph_default=True, root_grid=True),
     StrategyInfo("rottger", "geoterrain.lod.rottger",
                  "Röttger's quadtree matrix: d2 roughness propagated by K, fans, then refined "
                  "to the LP δ bound, eq. 4-7 blend (seed 000 §2.3)",
