@@ -98,17 +98,17 @@ _ENTRIES = (
                  "GPU Terrain Rendering as the thesis built it: fixed-size blocks, "
                  "D_n = δ_b·C, skirts, morphed (seed 000 §2.8; unbounded)",
                  "fixed-size blocks switched by distance (error not guaranteed)", False,
-                 morphs=True, morph_default=True),
+                 morphs=True, morph_default=True, root_grid=True),
     StrategyInfo("gtr_bounded", "geoterrain.lod.gtr_bounded",
                  "GPU Terrain Rendering's blocks refined by the exact tile error over the "
                  "box distance (seed 000 §2.8)",
                  "fixed-size blocks refined by their error, seams hidden by skirts",
-                 True, morphs=True),
+                 True, morphs=True, root_grid=True),
     StrategyInfo("lauritsen_nielsen", "geoterrain.lod.lauritsen_nielsen",
                  "Lauritsen & Nielsen: GeoMipMapping chunks in a chunked-LOD quadtree, "
                  "δ_b of eq. 4-23 (seed 000 §2.7)",
                  "blocks drawn at coarser steps, grouped in a quadtree by their error",
-                 True, morphs=True),
+                 True, morphs=True, root_grid=True),
     StrategyInfo("roam", "geoterrain.lod.roam",
                  "ROAM: triangle bintrees, wedgies, split and merge queues from the last "
                  "frame (seed 000 §2.2)",
