@@ -73,7 +73,7 @@ _ENTRIES = (
     StrategyInfo("bruteforce", "geoterrain.lod.bruteforce",
                  "every full-resolution tile in the frustum (the zero-error baseline)",
                  "every sample in view at full resolution (exact, slowest)", True,
-                 tau_independent=True, conforming=True),
+                 tau_independent=True, conforming=True, root_grid=True),
     StrategyInfo("geomipmap", "geoterrain.lod.geomipmap",
                  "GeoMipMapping: level-0 tile blocks, stitched edges (seed 000 §2.4)",
                  "blocks drawn at coarser steps by their error, edges stitched", True,
