@@ -113,12 +113,12 @@ _ENTRIES = (
                  "ROAM: triangle bintrees, wedgies, split and merge queues from the last "
                  "frame (seed 000 §2.2)",
                  "triangles split and merged from the last frame by their error",
-                 True, conforming=True),
+                 True, conforming=True, root_grid=True),
     StrategyInfo("roam_split", "geoterrain.lod.roam_split",
                  "McNally's split-only ROAM, variance over distance (seed 000 §2.2; "
                  "unbounded)",
                  "triangles split by roughness over distance (error not guaranteed)",
-                 False, conforming=True),
+                 False, conforming=True, root_grid=True),
     StrategyInfo("clipmap", "geoterrain.lod.clipmap",
                  "geometry clipmaps: nested viewer-centred 255² grids, toroidal updates, "
                  "transition regions (seed 000 §2.9; unbounded)",
