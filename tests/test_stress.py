@@ -583,7 +583,8 @@ def test_camera_extremes_large(fbm_terrain_large, cam):
 #: below as on squares; the others refuse one (tests/preprocessing/test_root_grid.py).
 ROOT_GRID_DRAWN = ("rtin", "chunked", "cdlod", "geomipmap", "geomipmap_distance", "quadtree",
                    "tessellation", "clipmap", "clipmap_bounded", "clipmap_gpu", "gtr",
-                   "gtr_bounded", "lauritsen_nielsen", "bruteforce", "roam", "roam_split")
+                   "gtr_bounded", "lauritsen_nielsen", "bruteforce", "roam", "roam_split",
+                   "rottger")
 ROOT_GRIDS = {"2x1": (65, 129, 16), "1x2": (129, 65, 16), "2x1_lattice_short": (50, 121, 8),
               "2x1_one_level": (65, 129, 64), "1x1_lattice_short": (50, 60, 8)}
 

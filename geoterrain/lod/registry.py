@@ -141,7 +141,7 @@ _ENTRIES = (
                  "Röttger's quadtree matrix: d2 roughness propagated by K, fans, then refined "
                  "to the LP δ bound, eq. 4-7 blend (seed 000 §2.3)",
                  "a quadtree refined by roughness and distance, crack-free", True, conforming=True,
-                 morphs=True),
+                 morphs=True, root_grid=True),
 )
 
 REGISTRY: dict[str, StrategyInfo] = {e.name: e for e in _ENTRIES}
