@@ -171,8 +171,6 @@ def static(terrain: TerrainLike, max_error: float = 1.0, mesher: str = "rtin") -
         raise UsageError(f"max_error must be ≥ 0, got {max_error}")
     if mesher not in ("rtin", "tin"):
         raise UsageError(f"mesher must be 'rtin' or 'tin', got {mesher!r}")
-    if mesher == "tin":
-        refuse_root_grid(terrain.grid, "the tin mesher (mesher='tin')", "--mesher tin")
     t0, dec0 = time.perf_counter(), terrain.decoded_tiles
     if mesher == "tin":
         from geoterrain.lod import tin
