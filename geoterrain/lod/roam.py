@@ -25,7 +25,7 @@
   left out).
 - **State**: the triangle pool lives in the terrain's derived slot, so any view or τ
   starts from the last mesh and reaches its own; ``select(..., fresh=True)`` starts from
-  the two base triangles (the from-scratch baseline of the benchmarks).
+  the base triangles, two per root tile (the from-scratch baseline of the benchmarks).
 - The whole grid's heights and wedgies stay in memory (about 24 bytes a sample):
   ROAM is an in-core method.
 

@@ -412,7 +412,7 @@ def update(p, tb, vt, mode, incremental, stack, mo):
     is ≤ τ, lowest first (merge queue; a merge may make the parent's diamond mergeable).
     With monotone priorities the result is the coarsest conforming mesh whose leaves all
     have priority ≤ τ, whatever the last frame was, and the work follows the triangles
-    that change. ``incremental=False``: split only, from the two base triangles
+    that change. ``incremental=False``: split only, from the base triangles
     (Listing 4-1; McNally). ``mode`` 0: wedgie priorities; 1: McNally's. Returns 0, or
     NEED_SPACE when the pool must grow first (call again: the mesh is consistent
     between operations).
