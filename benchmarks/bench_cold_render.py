@@ -3,6 +3,7 @@ cost before any work, and which compiled kernels it loads (issue 51: ≤ 1.5 s f
 1280×720 of the 4097² store).
 
     python benchmarks/bench_cold_render.py STORE [--runs N] [--baseline-tree DIR]
+                                          [--no-overlays] [--kernels]
 
 Each run is a fresh ``python -m geoterrain.cli.main render STORE -o … --size 1280x720
 --pixel-error 1 --strategy rtin``, after one unmeasured run (kernels compiled, files in the
@@ -13,7 +14,9 @@ pictures of the two trees are compared byte for byte. In the same turns, the flo
 processes that only import the render's libraries (numpy; numba and the first call of a
 cached kernel, which starts numba's compiler context; matplotlib's figure and Agg canvas
 and imageio; VTK's rendering modules; PyVista), each row adding to the previous one.
-``--kernels``: one more run of this tree, listing the kernels it loads from numba's cache
+``--no-overlays``: in the same turns, this tree's render with ``--no-overlays`` (no
+colour bar, scale bar or north arrow: matplotlib is not imported). ``--kernels``: one
+more run of this tree, listing the kernels it loads from numba's cache
 and the CPU time of each load.
 """
 
@@ -84,6 +87,8 @@ def main() -> None:
     ap.add_argument("store")
     ap.add_argument("--runs", type=int, default=7)
     ap.add_argument("--baseline-tree", help="another commit's geoterrain/ to compare with")
+    ap.add_argument("--no-overlays", action="store_true",
+                    help="also this tree's render without overlays")
     ap.add_argument("--kernels", action="store_true", help="list the kernels loaded")
     a = ap.parse_args()
     store = os.path.abspath(a.store)
@@ -107,6 +112,9 @@ def main() -> None:
                 "--pixel-error", "1", "--strategy", "rtin", "--overwrite"]
 
     jobs = {name: (render(name), env_for(tree)) for name, tree in trees.items()}
+    if a.no_overlays:
+        jobs["this tree, --no-overlays"] = (render("no overlays") + ["--no-overlays"],
+                                            env_for(ROOT))
     code = ""
     for name, c in FLOOR.items():
         code += c + "\n"

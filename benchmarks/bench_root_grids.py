@@ -8,6 +8,7 @@ Usage:
     python benchmarks/bench_root_grids.py stores [--tile-size 64]
     python benchmarks/bench_root_grids.py select [--rows 513 --cols 1025] [--views 8]
                                                  [--rounds 3] [--layouts square,roots]
+    python benchmarks/bench_root_grids.py render [--runs 5]
 
 ``padding``: per raster shape, the samples the preprocess computes on (the padded
 level-0 grid, and every level's lattice summed) over the raster's samples, for the
@@ -49,6 +50,18 @@ selected on each layout in turn; per strategy the median time and triangles per 
 and the ratio roots / square of the same run. ``--layouts square`` times the square
 alone (to compare two trees, alternate their interpreters; ``--json`` prints the
 medians as one JSON line).
+
+``render``: the wide fBm (1024 × 4096, UTM, 10 m) preprocessed on the square (4097²) and
+on its 2 × 1 root grid, then the same three 1280 × 720 views of each (the overview, a
+close oblique view over the east root, the map) rendered by ``TerrainScene.frame``
+(rtin, τ = 1 px) in one process: a first untimed round (kernels, textures cached),
+then ``--runs`` rounds alternating square and roots, each frame in a fresh scene on
+the open stores; medians of the frame's wall time and of its selection and atlas
+times, the ratios roots / square of the same run, and the pictures' PSNR (roots
+against square). Then the static mesh of e = 1 m streamed to PLY
+(``write_static_mesh``), the same alternation: time and triangles (the square's mesh is
+the edge-padded one, clipped to the data; the root grid's is not padded: see
+docs/lab/root-grids.md).
 """
 
 from __future__ import annotations
@@ -298,6 +311,76 @@ def select(a: argparse.Namespace) -> None:
         print(f"| {s} | " + " | ".join(cells) + ratio + " |")
 
 
+def render(a: argparse.Namespace) -> None:
+    import time
+
+    import geoterrain
+    from geoterrain.export.meshstream import write_static_mesh
+    from geoterrain.ingest.synth import generate, write_geotiff
+    from geoterrain.rendering.mapview import map_view
+    from geoterrain.rendering.scene import TerrainScene, _plotter, default_view
+
+    d = Path(tempfile.mkdtemp(prefix="bench_root_render_"))
+    dem = write_geotiff(d / "wide.tif", generate("fbm", (1024, 4096), seed=3, relief=1500.0),
+                        crs="EPSG:32633", spacing=10.0)
+    t = {k: geoterrain.open(geoterrain.preprocess(dem, d / f"{k}.geoterrain",
+                                                  root_grid=k == "roots"))
+         for k in ("square", "roots")}
+    assert t["roots"].grid.roots == (2, 1)
+    size = (1280, 720)
+    sq = t["square"]
+    lo, hi = sq.scene_box()
+    east = np.array([0.8 * hi[0], 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])])
+    views = {"overview": default_view(sq, size), "map": map_view(sq, size),
+             "east root, close": geoterrain.View(tuple(east + (-4000.0, -4000.0, 2500.0)),
+                                                 tuple(east), size=size)}
+
+    def frame(k, v):
+        scene = TerrainScene(_plotter(size), t[k])
+        try:
+            t0 = time.perf_counter()
+            img, st = scene.frame(v, 1.0, "rtin")
+            return (time.perf_counter() - t0) * 1e3, st, img
+        finally:
+            scene.plotter.close()
+
+    print(f"load before: {load()}", flush=True)
+    for k in t:  # untimed: kernels compiled, tiles decoded and shaded once
+        for v in views.values():
+            frame(k, v)
+    res = {(k, n): [] for k in t for n in views}
+    imgs = {}
+    for r in range(a.runs):
+        for n, v in views.items():
+            for k in (("square", "roots") if r % 2 == 0 else ("roots", "square")):
+                ms, st, img = frame(k, v)
+                res[k, n].append((ms, st["select_ms"], st.get("texture_ms", 0.0),
+                                  st["triangles"]))
+                imgs[k, n] = img
+        print(f"round {r}: load {load()}", flush=True)
+    print(f"\nload after: {load()}\n")
+    print("| view | square: frame, select, atlas (ms), triangles | roots: frame, select, "
+          "atlas (ms), triangles | roots / square frame | PSNR |")
+    print("|---|---|---|---|---|")
+    for n in views:
+        m = {k: [statistics.median(x[i] for x in res[k, n]) for i in range(4)] for k in t}
+        a_, b_ = imgs["square", n].astype(float), imgs["roots", n].astype(float)
+        p = 10 * np.log10(255.0 ** 2 / max(float(np.mean((a_ - b_) ** 2)), 1e-12))
+        cells = [f"{v[0]:.0f}, {v[1]:.0f}, {v[2]:.0f}, {v[3]:,.0f}" for v in m.values()]
+        print(f"| {n} | {cells[0]} | {cells[1]} | {m['roots'][0] / m['square'][0]:.2f}× "
+              f"| {p:.1f} dB |")
+    out = {k: [] for k in t}
+    for r in range(a.runs):
+        for k in (("square", "roots") if r % 2 == 0 else ("roots", "square")):
+            t0 = time.perf_counter()
+            st = write_static_mesh(t[k], 1.0, d / f"{k}.ply", overwrite=True)
+            out[k].append((time.perf_counter() - t0, st["triangles"]))
+    print(f"\nstatic mesh e = 1 m to PLY (load {load()}):")
+    for k in t:
+        print(f"  {k}: {statistics.median(x[0] for x in out[k]):.2f} s, "
+              f"{out[k][0][1]:,} triangles")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="what", required=True)
@@ -316,9 +399,11 @@ def main() -> None:
     e.add_argument("--rounds", type=int, default=3)
     e.add_argument("--layouts", default="square,roots")
     e.add_argument("--json", action="store_true")
+    r = sub.add_parser("render")
+    r.add_argument("--runs", type=int, default=5)
     a = ap.parse_args()
     {"padding": padding, "wide": wide, "codec": codec, "stores": stores,
-     "select": select}[a.what](a)
+     "select": select, "render": render}[a.what](a)
 
 
 if __name__ == "__main__":

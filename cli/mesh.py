@@ -74,7 +74,6 @@ def command(ctx, store, output, max_error, mesher, look_from, look_at, crs_coord
 
         check_flat(base.frame, str(store))
         t = exaggerated(base, vertical_exaggeration)
-        stream = stream and base.grid.square  # a root grid's static mesh: in memory
         if stream:
             stats = _stream(ctx, t, max_error, out, overwrite)
         else:

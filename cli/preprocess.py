@@ -77,7 +77,8 @@ from geoterrain.ingest.raster import ENCODINGS
               help="Experimental: pad a wide or tall DEM to the next tile multiple under a "
                    "grid of 2 × 1 or 1 × 2 root tiles, not to one power-of-two square. "
                    "Projected and pixel frames, preprocessed whole; only the rtin strategy "
-                   "(views and the static mesh, `geoterrain mesh`) draws such a store yet.")
+                   "draws such a store yet (mesh, render, view, export; export-raster, "
+                   "tiles, serve, query, profile, contours and viewshed read it).")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,

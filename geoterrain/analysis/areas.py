@@ -353,7 +353,8 @@ def _tiles_for(terrain: TerrainLike, box: tuple[float, float, float, float],
     g = terrain.grid
     zs = (terrain.frame.z_scale or 1.0) * terrain.frame.z_to_m  # scene units per DEM unit
     out: list[tuple[int, int, int]] = []
-    stack = [(g.top_level, 0, 0)]
+    across, down = g.roots  # the top tile, or every root of a root grid
+    stack = [(g.top_level, x, y) for y in range(down) for x in range(across)]
     while stack:
         L, x, y = stack.pop()
         span = g.tile_span(L)
@@ -365,7 +366,7 @@ def _tiles_for(terrain: TerrainLike, box: tuple[float, float, float, float],
         if L == 0 or (max_error is not None and err / zs <= max_error):
             out.append((L, x, y))
         else:
-            stack += [(L - 1, 2 * x + dx, 2 * y + dy) for dy in (0, 1) for dx in (0, 1)]
+            stack += g.children(L, x, y)  # four, or fewer past a root grid's edge
     return out
 
 
@@ -496,9 +497,6 @@ def surface_area(terrain: TerrainLike, polygon: Any, *, max_error: float | None 
     >>> bool(abs(coarse.area_3d - exact.area_3d) <= coarse.bound_3d), max(coarse.levels) > 0
     (True, True)
     """
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "surface areas")  # a root grid: not yet
     m = _measure(terrain, polygon, 0.0, max_error, crs)
     return Area(m["area_2d"], m["area_3d"], m["nodata_area"], m["area_bound"], m["levels"],
                 m["stats"])
@@ -527,9 +525,6 @@ def volume(terrain: TerrainLike, polygon: Any, base: Any = 0.0, *,
     >>> v.cut >= 0 and v.fill >= 0 and abs(v.net - (v.cut - v.fill)) < 1e-6
     True
     """
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "volumes")  # a root grid: not yet
     m = _measure(terrain, polygon, base, max_error, crs)
     return Volume(m["cut"], m["fill"], m["cut"] - m["fill"], m["vol_bound"], m["base"],
                   m["area_2d"], m["nodata_area"], m["levels"], m["stats"])

@@ -343,9 +343,6 @@ def contours(terrain: TerrainLike, interval: float | None = None, base: float = 
     >>> set(c.heights.tolist()) <= {1000.0}, all(len(line) >= 2 for line in c.lines)
     (True, True)
     """
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "contours")  # a root grid: not yet
     g, f = terrain.grid, terrain.frame
     zs = (f.z_scale or 1.0) * f.z_to_m
     with Reads(terrain) as reads:
@@ -356,9 +353,9 @@ def contours(terrain: TerrainLike, interval: float | None = None, base: float = 
         lv = _levels(interval, base, levels, lo, hi)
         s = 1 << L
         H, W = -(-g.rows // s), -(-g.cols // s)  # the level's samples within the DEM
-        tps, span = g.tiles_per_side(L), 1 << g.t
+        (across, down), span = g.tiles(L), 1 << g.t
         z = np.full((H, W), np.nan)
-        run = np.zeros((tps, tps), bool)
+        run = np.zeros((down, across), bool)
         skipped = 0
         for (_, x, y) in keys:
             info = terrain.tile_info[(L, x, y)]

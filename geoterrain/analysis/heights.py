@@ -94,16 +94,16 @@ def cell_corners(terrain: TerrainLike, level: int, ci: np.ndarray, cj: np.ndarra
     ok = np.zeros((n, 4), bool)
     if n == 0:
         return h, ok
-    tps = g.tiles_per_side(level)
+    across = g.tiles(level)[0]  # 2^(top − L), or a root grid's tiles across
     ty, tx = ci >> g.t, cj >> g.t
-    key = ty * tps + tx
+    key = ty * across + tx
     order = np.argsort(key, kind="stable")
     ks = key[order]
     cuts = np.flatnonzero(np.diff(ks)) + 1
     a_all, b_all = ci - (ty << g.t), cj - (tx << g.t)
     for grp in np.split(order, cuts):  # one decode per tile, never per point
         k = int(key[grp[0]])
-        tkey = (level, k % tps, k // tps)
+        tkey = (level, k % across, k // across)
         if tkey not in terrain.tile_info:
             continue
         tile = terrain.tile(*tkey)
@@ -162,8 +162,8 @@ def _coarse(terrain: TerrainLike, level: int, i0, j0, u, v):
     the level cannot answer: a corner without data, or a cell mixing data and nodata)."""
     g = terrain.grid
     s = 1 << level
-    last = g.level_size(level) - 2
-    ci, cj = np.minimum(i0 >> level, last), np.minimum(j0 >> level, last)
+    rows, cols = g.level_shape(level)  # S × S, or a root grid's level
+    ci, cj = np.minimum(i0 >> level, rows - 2), np.minimum(j0 >> level, cols - 2)
     zc, okc = cell_corners(terrain, level, ci, cj)
     main = ((ci + cj) % 2) == 0
     # the four DEM samples around the point, as fractions of the level-L cell
@@ -173,9 +173,9 @@ def _coarse(terrain: TerrainLike, level: int, i0, j0, u, v):
     ok4 = okc.all(axis=1)
     z = _bilinear(surf, np.repeat(ok4[:, None], 4, axis=1), u, v)
     # the bound: the level-L tile's error, else (nodata in the tile) the cell centre's δ
-    tps = g.tiles_per_side(level)
+    across = g.tiles(level)[0]
     keys = zip((ci >> g.t).tolist(), (cj >> g.t).tolist(), strict=True)
-    err = np.array([terrain.tile_info.get((level, x % tps, y), {}).get("error", np.inf)
+    err = np.array([terrain.tile_info.get((level, x % across, y), {}).get("error", np.inf)
                     for y, x in keys], np.float64)
     err = np.where(np.isfinite(err) & ok4, err, np.inf)
     need = ok4 & ~np.isfinite(err)
@@ -212,9 +212,6 @@ def height_at(terrain: TerrainLike, points: Any, level: int = 0, *, crs: Any = N
     >>> height_at(t, (c + 10.0, f - 10.0)).height.shape
     (1,)
     """
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "height queries")  # a root grid: not yet
     top = terrain.grid.top_level
     if not (isinstance(level, int | np.integer) and 0 <= level <= top):
         raise UsageError(f"level must be an integer in 0..{top}, got {level}",
@@ -263,9 +260,6 @@ def normal_at(terrain: TerrainLike, points: Any, *, crs: Any = None) -> Normals:
     >>> bool(np.isclose(np.linalg.norm(nrm.normal[0]), 1.0)), bool(0 <= nrm.slope[0] < 90)
     (True, True)
     """
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "normal queries")  # a root grid: not yet
     f = terrain.frame
     with Reads(terrain) as reads:
         xy = to_source(f, as_xy(points), crs)

@@ -114,9 +114,6 @@ def profile(terrain: TerrainLike, line: Any, spacing: float | None = None, *,
     >>> p.distance.tolist()[:3], p.unit
     ([0.0, 10.0, 20.0], 'm')
     """
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "profiles")  # a root grid: not yet
     f = terrain.frame
     with Reads(terrain) as reads:
         pts = as_xy(line)

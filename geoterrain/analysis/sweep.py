@@ -84,7 +84,7 @@ class SweepTiles(NamedTuple):
     be from the source's: ε, plus the pyramid level's error where read coarser); the
     window's first grid row and column (``r0``, ``c0``), the tile size 2^``t``, the
     window's first tile row and column (``ty0``, ``tx0``) and the grid's last tile index
-    (``tlast``)."""
+    (``tlast_y`` down, ``tlast_x`` across: a root grid's level 0 is a rectangle of tiles)."""
 
     z: np.ndarray
     slot: np.ndarray
@@ -96,7 +96,8 @@ class SweepTiles(NamedTuple):
     t: int
     ty0: int
     tx0: int
-    tlast: int
+    tlast_y: int
+    tlast_x: int
 
 
 class SweepState(NamedTuple):
@@ -161,8 +162,8 @@ def _los(mode, i, j, this_prev, last, last_prev, zo):
 
 @njit(cache=True, inline="always")
 def _tile_of(tiles, r, c):
-    ty = min((r + tiles.r0) >> tiles.t, tiles.tlast) - tiles.ty0
-    tx = min((c + tiles.c0) >> tiles.t, tiles.tlast) - tiles.tx0
+    ty = min((r + tiles.r0) >> tiles.t, tiles.tlast_y) - tiles.ty0
+    tx = min((c + tiles.c0) >> tiles.t, tiles.tlast_x) - tiles.tx0
     return ty, tx
 
 
@@ -196,7 +197,7 @@ def _decide(geo, st, r, c, z, e, lo, hi, curv):
 
 @njit(cache=True, inline="always")
 def _tile_col(tiles, c):
-    return min((c + tiles.c0) >> tiles.t, tiles.tlast) - tiles.tx0
+    return min((c + tiles.c0) >> tiles.t, tiles.tlast_x) - tiles.tx0
 
 
 @njit(cache=True, inline="always")
@@ -223,7 +224,7 @@ def _run(tiles, ty, c, side, ncol):
     """The run of columns in one tile that column c begins, going ``side`` (−1 west, +1
     east): its tile column, status, block, box top and error, the column's offset into
     the block and the column just past the run."""
-    t, c0, tx0, tlast = tiles.t, tiles.c0, tiles.tx0, tiles.tlast
+    t, c0, tx0, tlast = tiles.t, tiles.c0, tiles.tx0, tiles.tlast_x
     tx = min((c + c0) >> t, tlast) - tx0
     edge = (tx + tx0) << t  # the run's first grid column
     stop = (edge - c0 - 1) if side < 0 else (edge + (1 << t) - c0)
@@ -273,7 +274,7 @@ def _sides(geo, tiles, st, r):
         st.last_lo, st.last_hi
     oc, kcurv, target = geo.ocol, geo.kcurv, geo.target
     eye_lo, eye_hi, mode, two = geo.eye_lo, geo.eye_hi, geo.mode, geo.two
-    t, tlast = tiles.t, tiles.tlast
+    t, tlast = tiles.t, tiles.tlast_y
     ncol = out.shape[0]
     j = abs(r - geo.orow)
     ny2 = geo.ny[r] * geo.ny[r]
@@ -370,7 +371,7 @@ def _centre(geo, tiles, st, r):
     """The observer's column in row r (or, in the observer's row, the observer and its
     two neighbours). Returns a tile to decode, or NEED_NONE; −2 when out of range."""
     oc, ncol = geo.ocol, st.out.shape[1]
-    ty = min((r + tiles.r0) >> tiles.t, tiles.tlast) - tiles.ty0
+    ty = min((r + tiles.r0) >> tiles.t, tiles.tlast_y) - tiles.ty0
     j = abs(r - geo.orow)
     ny2 = geo.ny[r] * geo.ny[r]
     if j == 0:

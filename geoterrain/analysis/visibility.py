@@ -212,9 +212,6 @@ def viewshed(terrain: TerrainLike, observer: Any, radius: float, height: float =
     >>> vs.stats["visible"] + vs.stats["hidden"] > 0, vs.stats["tiles_read"] > 0
     (True, True)
     """
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "the viewshed")  # a root grid: not yet
     radius = _check("radius", radius, positive=True)
     height = _check("height", height)
     target_height = _check("target_height", target_height)
@@ -347,8 +344,8 @@ def _sweep_halves(geo: SweepGeometry, halves: list) -> int:
 
 
 def _tile_index(tiles: SweepTiles, r: int, c: int) -> tuple[int, int]:
-    ty = min((r + tiles.r0) >> tiles.t, tiles.tlast) - tiles.ty0
-    tx = min((c + tiles.c0) >> tiles.t, tiles.tlast) - tiles.tx0
+    ty = min((r + tiles.r0) >> tiles.t, tiles.tlast_y) - tiles.ty0
+    tx = min((c + tiles.c0) >> tiles.t, tiles.tlast_x) - tiles.tx0
     return ty, tx
 
 
@@ -436,9 +433,6 @@ def line_of_sight(terrain: TerrainLike, a: Any, b: Any, observer_height: float =
     >>> line_of_sight(t, (c + 100.0, f - 100.0), (c + 100.0, f - 140.0), 50.0, 1.0).visible
     True
     """
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "line of sight")  # a root grid: not yet
     observer_height = _check("observer_height", observer_height)
     target_height = _check("target_height", target_height)
     curvature = _check("curvature", curvature)
@@ -508,11 +502,11 @@ def _clearance(terrain: TerrainLike, seg: dict, eye: float, tgt: float, D: float
     others are not decoded."""
     g, f = terrain.grid, terrain.frame
     t0, t1, ci, cj = seg["t0"], seg["t1"], seg["ci"], seg["cj"]
-    tlast = g.tiles_per_side(0) - 1
-    tyx = np.minimum(ci >> g.t, tlast) * (tlast + 1) + np.minimum(cj >> g.t, tlast)
+    across, down = g.tiles(0)  # level 0's tiles (a square's, or a root grid's)
+    tyx = np.minimum(ci >> g.t, down - 1) * across + np.minimum(cj >> g.t, across - 1)
     zs = f.z_scale or 1.0
     keys, inv = np.unique(tyx, return_inverse=True)
-    top = np.array([(terrain.tile_info.get((0, int(u % (tlast + 1)), int(u // (tlast + 1))))
+    top = np.array([(terrain.tile_info.get((0, int(u % across), int(u // across)))
                      or {"zmax": -np.inf})["zmax"] for u in keys.tolist()], np.float64)
     top = top / zs * (1 + 1e-12) + 1e-9 + eps
     sight_lo = eye - eps + (tgt - eye) * np.where(tgt >= eye, t0, t1)

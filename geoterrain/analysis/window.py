@@ -53,9 +53,9 @@ class Window:
         g, f = terrain.grid, terrain.frame
         self.terrain, self.level, self.eps = terrain, level, eps
         self.r0, self.r1, self.c0, self.c1 = r0, r1, c0, c1
-        tlast = g.tiles_per_side(0) - 1
-        ty0, ty1 = r0 >> g.t, min((r1 - 1) >> g.t, tlast)
-        tx0, tx1 = c0 >> g.t, min((c1 - 1) >> g.t, tlast)
+        across, down = g.tiles(0)  # level 0's tiles (a square's, or a root grid's)
+        ty0, ty1 = r0 >> g.t, min((r1 - 1) >> g.t, down - 1)
+        tx0, tx1 = c0 >> g.t, min((c1 - 1) >> g.t, across - 1)
         nty, ntx = ty1 - ty0 + 1, tx1 - tx0 + 1
         zs = f.z_scale or 1.0
         inf, cells, get = math.inf, g.tile_samples ** 2, terrain.tile_info.get
@@ -84,7 +84,7 @@ class Window:
         z = _scratch(blocks * side, side).reshape(blocks, side, side)
         slot = np.full((nty, ntx), -1, np.int64)
         self.tiles = SweepTiles(z, slot, status, ztop, np.full((nty, ntx), eps), r0, c0, g.t,
-                                ty0, tx0, tlast)
+                                ty0, tx0, down - 1, across - 1)
         self._free = list(range(blocks - 1, -1, -1))  # the lowest block is taken first
         self.lock = threading.Lock()
 
@@ -92,8 +92,8 @@ class Window:
         """The height held for window cell (r, c) (metres; meaningful where its tile was
         read)."""
         tl = self.tiles
-        ty = min((r + tl.r0) >> tl.t, tl.tlast) - tl.ty0
-        tx = min((c + tl.c0) >> tl.t, tl.tlast) - tl.tx0
+        ty = min((r + tl.r0) >> tl.t, tl.tlast_y) - tl.ty0
+        tx = min((c + tl.c0) >> tl.t, tl.tlast_x) - tl.tx0
         return float(tl.z[tl.slot[ty, tx], r + tl.r0 - ((ty + tl.ty0) << tl.t),
                           c + tl.c0 - ((tx + tl.tx0) << tl.t)])
 
@@ -141,7 +141,7 @@ class Half:
         """Whether every window row of tile row ``ty`` is one of this half's."""
         tl, w = self.tiles, self.w
         g0 = (ty + tl.ty0) << tl.t
-        g1 = g0 + (1 << tl.t) + (ty + tl.ty0 == tl.tlast)
+        g1 = g0 + (1 << tl.t) + (ty + tl.ty0 == tl.tlast_y)
         return max(g0, w.r0) - w.r0 >= self.lo and min(g1, w.r1) - w.r0 <= self.hi
 
     def _enter(self, ty: int) -> None:
@@ -195,8 +195,8 @@ class Half:
         span = 1 << tl.t
         gy, gx = (ty + tl.ty0) * span, (tx + tl.tx0) * span
         a0 = max(gy, w.r0 + self.lo)
-        a1 = min(gy + span + (ty + tl.ty0 == tl.tlast), w.r0 + self.hi)
-        b0, b1 = max(gx, w.c0), min(gx + span + (tx + tl.tx0 == tl.tlast), w.c1)
+        a1 = min(gy + span + (ty + tl.ty0 == tl.tlast_y), w.r0 + self.hi)
+        b0, b1 = max(gx, w.c0), min(gx + span + (tx + tl.tx0 == tl.tlast_x), w.c1)
         return a0, max(a1, a0), b0, b1
 
     def _bound_first(self, ty: int, tx: int, probe=None) -> bool:
@@ -265,9 +265,9 @@ def level_surface(terrain: TerrainLike, level: int, rows: np.ndarray, cols: np.n
     out = np.full((len(rows), len(cols)), np.nan)
     if len(rows) == 0 or len(cols) == 0:
         return out
-    last = g.level_size(level) - 2
-    key = (level, int(min(cols[0] >> level, last) >> g.t),
-           int(min(rows[0] >> level, last) >> g.t))
+    R, C = g.level_shape(level)  # S × S, or a root grid's level
+    key = (level, int(min(cols[0] >> level, C - 2) >> g.t),
+           int(min(rows[0] >> level, R - 2) >> g.t))
     if key not in terrain.tile_info:
         return out
     with lock or contextlib.nullcontext():

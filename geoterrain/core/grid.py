@@ -41,8 +41,11 @@ class RootGridError(UsageError, ValueError):
 
 #: What draws or reads a root-grid store today (experimental), for every refusal's line
 #: (the strategies' own refusal names them: geoterrain.lod.select).
-ROOT_GRID_WORKS = ("a root-grid store (experimental) is drawn only by the LOD strategies "
-                   "registered for it (rtin among them: its views and its static mesh)")
+ROOT_GRID_WORKS = ("a root-grid store (experimental) is drawn by the LOD strategies "
+                   "registered for it (views, pictures and mesh exports) and both static "
+                   "meshers, and read by raster exports, tiles (quantized-mesh, web-map, "
+                   "PMTiles) and the analysis (heights, profiles, contours, areas, volumes, "
+                   "viewsheds)")
 
 
 def refuse_root_grid(grid: Grid, what: str, cli: str | None = None,

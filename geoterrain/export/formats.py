@@ -190,8 +190,8 @@ def check_export_memory(terrain: TerrainLike, max_error: float, limit: int) -> i
     """
     from geoterrain.export.meshstream import estimated_triangles
 
-    N = terrain.grid.size
-    if 2 * (N - 1) ** 2 * EXPORT_BYTES_PER_TRIANGLE <= limit:
+    R, C = terrain.grid.extent  # N × N, or a root grid's extent
+    if 2 * (R - 1) * (C - 1) * EXPORT_BYTES_PER_TRIANGLE <= limit:
         return 0
     F = estimated_triangles(terrain, max_error)
     need = F * EXPORT_BYTES_PER_TRIANGLE
@@ -255,9 +255,6 @@ def export_mesh(terrain: TerrainLike, selection, path: str | Path, *, overwrite:
     >>> info["solid"]["units"], round(max(info["solid"]["size"][:2]), 6)
     ('m', 0.15)
     """
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "mesh export with textures")  # a root grid: not yet
     out = check_export_path(path, overwrite)
     ext = out.suffix.lower()
     if crs_coords and ext != ".ply":

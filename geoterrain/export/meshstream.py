@@ -116,9 +116,6 @@ def write_static_mesh(terrain: TerrainLike, max_error: float, path: str | Path, 
     (leaf triangles walked). ``chunk``: leaf triangles per chunk (the output does
     not depend on it).
     """
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "the streamed static mesh")  # a root grid: not yet
     from geoterrain.lod.stream import CHUNK, static_chunks
 
     out = check_mesh_path(path, overwrite)
@@ -142,7 +139,8 @@ def write_static_mesh(terrain: TerrainLike, max_error: float, path: str | Path, 
             store = None
             for c in static_chunks(terrain, e, chunk=chunk or CHUNK):
                 if store is None:
-                    store = _Positions(c.total // 2 + 4 * terrain.grid.size, ext == ".ply")
+                    store = _Positions(c.total // 2 + 2 * sum(terrain.grid.extent),
+                                       ext == ".ply")
                 if ext == ".obj":
                     vfh.write(_rows("v %.17g %.17g %.17g", c.xyz))
                     ffh.write(_rows("f %d %d %d", c.faces + 1))

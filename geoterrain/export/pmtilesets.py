@@ -105,9 +105,6 @@ def write_pmtiles(terrain: TerrainLike, out_dir: str | Path, *,
     (:attr:`WebTiler.max_zoom`); ``name``: the archives' prefix (default: the store's
     stem). :func:`geoterrain.serve.site.write_site` adds the page that shows them.
     """
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "PMTiles")  # a root grid: not yet
     if encoding not in ENCODINGS:
         raise UsageError(f"unknown height encoding {encoding!r}; use {' or '.join(ENCODINGS)}")
     bad = [k for k in imagery if k not in IMAGERY]

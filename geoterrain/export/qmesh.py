@@ -437,9 +437,6 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
     check_tile_mesher(mesher)
     # a folder (new, with its parents, or one to write into; never a link or a file),
     # whose files are replaced only with overwrite
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "quantized-mesh tiles")  # a root grid: not yet
     out = Path(out_dir)
     if os.path.lexists(out):
         check_output(out, True, folder=True, inputs=[terrain.path], option="-o")

@@ -71,9 +71,6 @@ class QuantizedMeshTiles:
         if not max_error > 0:
             raise UsageError(f"max_error must be > 0, got {max_error}")
         check_tile_mesher(mesher)
-        from geoterrain.core.grid import refuse_root_grid
-
-        refuse_root_grid(terrain.grid, "quantized-mesh tiles")  # a root grid: not yet
         self.terrain, self.lattice, self.max_error, self.geoid = terrain, lattice, max_error, geoid
         self.mesher = mesher
         self.geo = GeoDem(terrain, geoid, heights=False)

@@ -103,8 +103,8 @@ def level_shape(terrain: TerrainLike, level: int) -> tuple[int, int]:
 def _level_normals(terrain: TerrainLike, level: int) -> tuple[np.ndarray, np.ndarray]:
     """Stored normals (H, W, 3) of level L and its valid mask, cropped to the source extent."""
     g = terrain.grid
-    S, T, step = g.level_size(level), g.tile_samples, 1 << g.t
-    n = np.zeros((S, S, 3), np.float32)
+    T, step = g.tile_samples, 1 << g.t
+    n = np.zeros((*g.level_shape(level), 3), np.float32)  # S × S, or a root grid's level
     for (lv, x, y) in terrain.tile_keys(level):
         n[y * step:y * step + T, x * step:x * step + T] = terrain.tile_normals(lv, x, y)
     _, valid = terrain.level_heights(level)
@@ -276,9 +276,6 @@ def product(terrain: TerrainLike, what: str, level: int = 0, relief: Relief = Re
     >>> hs.dtype.name, int(hs.min()) >= 1  # every sample has data here
     ('uint8', True)
     """
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "raster export")  # a root grid: not yet
     if what not in PRODUCTS:
         raise UsageError(f"unknown raster {what!r}; use one of {', '.join(PRODUCTS)}")
     top = terrain.grid.top_level

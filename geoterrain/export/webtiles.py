@@ -153,12 +153,12 @@ def level_window(terrain: TerrainLike, level: int, rows: tuple[int, int],
     ((4, 4, 1), True)
     """
     g = terrain.grid
-    step, T, tps = 1 << g.t, g.tile_samples, g.tiles_per_side(level)
+    step, T, (across, down) = 1 << g.t, g.tile_samples, g.tiles(level)
     r0, r1 = rows
     c0, c1 = cols
     out = np.full((r1 - r0 + 1, c1 - c0 + 1, channels), fill, np.float64)
-    ty0, ty1 = max(r0 // step, 0), min(r1 // step, tps - 1)
-    tx0, tx1 = max(c0 // step, 0), min(c1 // step, tps - 1)
+    ty0, ty1 = max(r0 // step, 0), min(r1 // step, down - 1)
+    tx0, tx1 = max(c0 // step, 0), min(c1 // step, across - 1)
     keys = [(level, x, y) for y in range(ty0, ty1 + 1) for x in range(tx0, tx1 + 1)
             if (level, x, y) in terrain.tile_info]
     if not keys:
@@ -208,9 +208,6 @@ class WebTiler:
     """
 
     def __init__(self, terrain: TerrainLike, cmap: str = "auto"):
-        from geoterrain.core.grid import refuse_root_grid
-
-        refuse_root_grid(terrain.grid, "web-map tiles")  # a root grid: not yet
         f = terrain.frame
         if f.kind == "pixel" or f.crs_wkt is None:
             raise UsageError(f"{terrain.path}: web tiles need a georeferenced DEM and this one "

@@ -41,7 +41,14 @@ from numba import njit
 
 from geoterrain.lod import rtin
 from geoterrain.lod.clip import clip_kernel, new_cuts
-from geoterrain.lod.kernels import fill_static, gather_pooled, mark_tiles, walk_leaves, walk_start
+from geoterrain.lod.kernels import (
+    fill_static,
+    gather_pooled,
+    mark_tiles,
+    walk_leaves,
+    walk_shape,
+    walk_start,
+)
 from geoterrain.lod.pool import TilePool
 from geoterrain.lod.rtin import ActiveSet
 from geoterrain.lod.tiles import tile_index
@@ -75,7 +82,7 @@ class MeshChunk:
 
 def _count_leaves(active, mixed) -> int:
     """Leaf triangles of the whole walk (for progress), without storing them."""
-    stack, state = walk_start(active.shape[0])
+    stack, state = walk_start(*walk_shape(active.shape))  # a square, or every root
     buf = np.empty((4096, 3), np.int64)
     n = 0
     while True:
@@ -280,10 +287,9 @@ def static_chunks(terrain: TerrainLike, max_error: float, *, chunk: int = CHUNK,
     cuts = new_cuts()
     act = static_flags(terrain, float(max_error), pool, edge)
     active, mixed = act.active, act.mixed
-    N = active.shape[0]
     total = int(_count_leaves(active, mixed)) if count else 0
-    vid = np.full(N * N, -1, np.int32)
-    stack, state = walk_start(N)
+    vid = np.full(active.size, -1, np.int32)  # flat i·C + j, C the flags' row (pool.N)
+    stack, state = walk_start(*walk_shape(active.shape))
     tris = np.empty((chunk, 3), np.int64)
     cand = np.empty(3 * chunk, np.int64)
     faces = np.empty((chunk, 3), np.int64)

@@ -33,7 +33,7 @@ from geoterrain.rendering.cameras import interpolate_views, load_cameras, orbit_
 from geoterrain.rendering.colours import Palette
 from geoterrain.rendering.drape import Drape
 from geoterrain.rendering.overlays import compose, layout_for
-from geoterrain.rendering.scene import TerrainScene, _plotter, _writable_target, _write_png
+from geoterrain.rendering.scene import TerrainScene, _offscreen, _writable_target, _write_png
 from geoterrain.rendering.shading import Light
 
 if TYPE_CHECKING:
@@ -147,7 +147,7 @@ def animate(terrain: TerrainLike, views: Sequence[View], out: str | Path, *,
     all_stats = []
     ok = False
     try:
-        scene = TerrainScene(_plotter(size, anti_aliasing), terrain, shading, cmap,
+        scene = TerrainScene(_offscreen(size, anti_aliasing), terrain, shading, cmap,
                              light=light, drape=drape, occlusion=occlusion, morph=morph,
                              water=water)
         try:

@@ -6,16 +6,19 @@ one), measures each footprint's drawn box, and duplicates each vertex once per p
 is drawn from. Done with numpy sorts (``argsort``, ``unique``) this cost 25–30 ms of a
 45 k-triangle frame and, on a 33 M-triangle bruteforce frame, tens of GB of int64
 temporaries. Here a footprint is its index in the dense (level, y, x) tile table
-(``base[L] + y·2^(top−L) + x``, as :class:`~geoterrain.lod.pool.TilePool` numbers
-tiles), so grouping is a scatter into that table and the per-page vertex numbering a
-counting sort: each pass is linear in the faces.
+(``base[L] + y·across_L + x``, as :class:`~geoterrain.lod.pool.TilePool` numbers
+tiles; :func:`tile_table`), so grouping is a scatter into that table and the per-page
+vertex numbering a counting sort: each pass is linear in the faces.
 
 Examples
 --------
 >>> import numpy as np
 >>> ij = np.array([[0, 0], [0, 64], [64, 0], [64, 64]])
 >>> faces = np.array([[0, 1, 2], [1, 3, 2]])  # two triangles
->>> base = np.array([0, 4, 5])  # a 129² grid of 65² tiles: 2² level-0 tiles, 1 at level 1
+>>> from geoterrain.core.grid import Grid
+>>> base = tile_table(Grid.for_shape(129, 129))  # 2² level-0 tiles of 65², 1 at level 1
+>>> base.tolist()  # the level offsets, then each level's tiles across, then down
+[0, 4, 5, 2, 1, 2, 1]
 >>> fp = face_footprints(ij, faces, 6, base)
 >>> fp.tolist()  # both faces lie in level-0 tile (0, 0)
 [0, 0]
@@ -42,6 +45,26 @@ class AtlasPages(NamedTuple):
     row: np.ndarray
 
 
+def tile_table(grid) -> np.ndarray:
+    """The dense tile table the kernels take: ``grid.offsets()`` (tile (L, x, y) is entry
+    ``offsets[L] + y·across_L + x``), then each level's tiles across, then down (a square
+    grid's 2^(top−L) both ways; a root grid's :meth:`~geoterrain.core.grid.Grid.tiles`)."""
+    levels = grid.levels
+    return np.concatenate([grid.offsets(), [grid.tiles(L)[0] for L in levels],
+                           [grid.tiles(L)[1] for L in levels]]).astype(np.int64)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _table_top(base):
+    """The top level of a :func:`tile_table`: (top + 2) offsets, 2 (top + 1) counts."""
+    return (len(base) - 4) // 3
+
+
+def table_size(base: np.ndarray) -> int:
+    """Entries of the dense table of :func:`tile_table` ``base``."""
+    return int(base[(len(base) - 4) // 3 + 1])
+
+
 def _as_faces(faces: np.ndarray) -> np.ndarray:
     """Triangles (F, 3) int64, C-ordered: the kernels' input (a VTK connectivity array,
     (3F,), reshaped)."""
@@ -51,7 +74,7 @@ def _as_faces(faces: np.ndarray) -> np.ndarray:
 @njit(cache=True, nogil=True, inline="always")
 def _footprint(ij, faces, t, base, f):
     """Face f's footprint: the dense table index of the finest tile that holds it."""
-    top = len(base) - 2
+    top = _table_top(base)
     a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
     i0 = min(ij[a, 0], ij[b, 0], ij[c, 0])
     i1 = max(ij[a, 0], ij[b, 0], ij[c, 0])
@@ -60,10 +83,10 @@ def _footprint(ij, faces, t, base, f):
     key = base[top]  # not held by any tile: the top tile (footprints' default)
     for lv in range(top + 1):  # finest first: the first tile that holds the face
         w = np.int64(1 << t) << lv
-        last = (np.int64(1) << (top - lv)) - 1
-        xs, ys = min(j0 // w, last), min(i0 // w, last)
+        across, down = base[top + 2 + lv], base[2 * top + 3 + lv]
+        xs, ys = min(j0 // w, across - 1), min(i0 // w, down - 1)
         if j1 <= (xs + 1) * w and i1 <= (ys + 1) * w:
-            key = base[lv] + ys * (last + 1) + xs
+            key = base[lv] + ys * across + xs
             break
     return key
 
@@ -87,20 +110,21 @@ def footprint_groups(ij: np.ndarray, faces: np.ndarray, t: int, base: np.ndarray
                      pts: np.ndarray, eye) -> tuple[np.ndarray, ...]:
     """:func:`face_footprints`, then :func:`group_boxes` and :func:`group_facing` over the
     whole dense tile table, in one pass over the faces: (key (F,), lo, hi, ilo, ihi,
-    facing (n,)), n the table's size ``base[-1]``.
+    facing (n,)), n the table's size (:func:`table_size`).
 
     Examples
     --------
     >>> faces = np.array([[0, 1, 2]])
     >>> ij = np.array([[0, 0], [0, 8], [8, 0]])
     >>> pts = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0]])
-    >>> key, lo, hi, ilo, ihi, facing = footprint_groups(ij, faces, 3, np.array([0, 1, 2]),
-    ...                                                  pts, (1 / 3, 1 / 3, 5.0))
+    >>> one = np.array([0, 1, 1, 1])  # one tile: offsets (0, 1), 1 across, 1 down
+    >>> key, lo, hi, ilo, ihi, facing = footprint_groups(ij, faces, 3, one, pts,
+    ...                                                  (1 / 3, 1 / 3, 5.0))
     >>> key.tolist(), hi[0].tolist(), round(float(facing[0]), 3)
     ([0], [1.0, 1.0, 0.0], 1.0)
     """
     faces = _as_faces(faces)
-    n = int(base[-1])
+    n = table_size(base)
     key = np.empty(len(faces), np.int64)
     lo, hi, ilo, ihi = _empty_boxes(n)
     facing = np.zeros(n)
@@ -117,8 +141,8 @@ def face_footprints(ij: np.ndarray, faces: np.ndarray, t: int, base: np.ndarray
     :func:`~geoterrain.rendering.tiletextures.footprints`).
 
     ``ij`` (V, 2) grid indices, ``faces`` (F, 3) the triangles' vertex ids,
-    ``t`` log2 of the tile width in samples, ``base`` (top + 2,) the table's level
-    offsets. Returns (F,) int64; see the module example.
+    ``t`` log2 of the tile width in samples, ``base`` the :func:`tile_table`.
+    Returns (F,) int64; see the module example.
     """
     faces = _as_faces(faces)
     out = np.empty(len(faces), np.int64)

@@ -140,14 +140,23 @@ def default_view(terrain: TerrainLike, size: tuple[int, int] = (1280, 720), azim
 
 
 def _coarse_points(terrain: TerrainLike) -> np.ndarray:
-    """Scene positions of the valid samples of the top pyramid tile (the terrain's shape)."""
+    """Scene positions of the valid samples of the top pyramid level's tiles (the
+    terrain's shape): the one top tile of a square grid, every stored root of a root
+    grid."""
     g = terrain.grid
     L = g.top_level
-    h = terrain.tile(L, 0, 0).heights
-    ii, jj = np.meshgrid(g.tile_rows(L, 0), g.tile_cols(L, 0), indexing="ij")
-    ok = np.isfinite(h)
-    X, Y = terrain.frame.xy(ii[ok], jj[ok])
-    return np.stack([X, Y, terrain.frame.z(h[ok])], 1)
+    across, down = g.roots
+    pts = []
+    for y in range(down):
+        for x in range(across):
+            if (L, x, y) not in terrain.tile_info:  # a root without data
+                continue
+            h = terrain.tile(L, x, y).heights
+            ii, jj = np.meshgrid(g.tile_rows(L, y), g.tile_cols(L, x), indexing="ij")
+            ok = np.isfinite(h)
+            X, Y = terrain.frame.xy(ii[ok], jj[ok])
+            pts.append(np.stack([X, Y, terrain.frame.z(h[ok])], 1))
+    return np.concatenate(pts) if pts else np.zeros((0, 3))
 
 
 def orbit_views(terrain: TerrainLike, n_frames: int, size: tuple[int, int] = (1280, 720),

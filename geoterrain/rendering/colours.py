@@ -68,8 +68,11 @@ def as_palette(cmap: str | Palette | None) -> Palette:
 
 
 def check_cmap(name: str) -> None:
-    """Raise UsageError (listing a few names) unless ``name`` is "auto" or a matplotlib map."""
-    if name == "auto":
+    """Raise UsageError (listing a few names) unless ``name`` is "auto" or a matplotlib map
+    (the maps of :mod:`geoterrain.rendering.cmaptable` without importing matplotlib)."""
+    from geoterrain.rendering.cmaptable import TABLE
+
+    if name == "auto" or name in TABLE:
         return
     import matplotlib
 
@@ -129,10 +132,14 @@ def colorize(h: np.ndarray, palette: Palette, data_range: tuple[float, float],
         base = max(lo, wl) if wl is not None else lo
         rgb = _ramp(LAND, np.clip((h - base) / max(hi - base, 1e-9), 0, 1))
     else:
-        import matplotlib
+        from geoterrain.rendering.cmaptable import colours
 
-        cm = matplotlib.colormaps[palette.cmap]
-        rgb = cm(np.clip((h - lo) / (hi - lo), 0, 1))[..., :3]
+        x = np.clip((h - lo) / (hi - lo), 0, 1)
+        rgb = colours(palette.cmap, x)  # the maps held as tables: no matplotlib
+        if rgb is None:
+            import matplotlib
+
+            rgb = matplotlib.colormaps[palette.cmap](x)[..., :3]
     if wl is not None:
         wet = h <= wl + (tolerance if coast is None else max(tolerance, coast))
         if wet.any():

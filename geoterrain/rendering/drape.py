@@ -74,9 +74,10 @@ def _read_rgb(src) -> tuple[np.ndarray, np.ndarray]:
 
 def drape_image(terrain: TerrainLike, path: str | Path, level: int,
                 base: np.ndarray | None = None) -> np.ndarray:
-    """The image at ``path`` on the level-``level`` grid: RGB uint8 (S, S, 3), row 0 on top.
+    """The image at ``path`` on the level-``level`` grid: RGB uint8 (rows, cols, 3) of
+    ``grid.level_shape(level)`` (S × S on a square grid), row 0 on top.
 
-    ``base`` (S, S, 3) fills the texels the image does not cover (black otherwise).
+    ``base`` (rows, cols, 3) fills the texels the image does not cover (black otherwise).
     Errors (one line each): the DEM or the image is not georeferenced, the image is
     unreadable, or it does not overlap the DEM.
     """
@@ -88,10 +89,10 @@ def drape_image(terrain: TerrainLike, path: str | Path, level: int,
     f = _georeferenced(terrain)
     p = Path(path)
     rgb, mask, src_crs, src_tr = _source(str(p))
-    S = terrain.grid.level_size(level)
+    shape = terrain.grid.level_shape(level)
     dst_tr, dst_crs = level_transform(f.transform, level), CRS.from_wkt(f.crs_wkt)
-    out = np.zeros((3, S, S), np.float32)
-    cover = np.zeros((S, S), np.float32)
+    out = np.zeros((3, *shape), np.float32)
+    cover = np.zeros(shape, np.float32)
     kw = dict(src_transform=src_tr, src_crs=src_crs, dst_transform=dst_tr, dst_crs=dst_crs)
     reproject(rgb, out, resampling=Resampling.bilinear, src_nodata=None, dst_nodata=0, **kw)
     reproject((~mask).astype(np.float32), cover, resampling=Resampling.nearest, dst_nodata=0,
@@ -102,7 +103,8 @@ def drape_image(terrain: TerrainLike, path: str | Path, level: int,
     if not inside.any():
         raise InputError(f"{p}: the drape image does not overlap the DEM (check both CRSs "
                          "and extents with `gdalinfo`)")
-    img = np.zeros((S, S, 3), np.uint8) if base is None else np.array(base, np.uint8, copy=True)
+    img = np.zeros((*shape, 3), np.uint8) if base is None else np.array(base, np.uint8,
+                                                                         copy=True)
     on = cover > 0.5
     img[on] = np.clip(np.moveaxis(out, 0, -1)[on] + 0.5, 0, 255).astype(np.uint8)
     return img

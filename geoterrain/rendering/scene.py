@@ -118,11 +118,13 @@ class TerrainScene:
                  textures: str = "view", light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True,
                  morph: bool | None = None, strips: bool = False, water: bool = True):
-        from geoterrain.core.grid import refuse_root_grid
-
-        refuse_root_grid(terrain.grid, "rendering (render, view, orbit, the viewer)")
         import pyvista as pv
 
+        from geoterrain.rendering import offscreen
+
+        # VTK alone (offscreen.OffscreenPlotter: the same pictures without PyVista's
+        # plotting modules), or a PyVista plotter (the viewer, notebooks)
+        self._raw = isinstance(plotter, offscreen.OffscreenPlotter)
         terrain = exaggerated(terrain, vertical_exaggeration)
         self.strips = bool(strips)  # draw the mesh as seed 002's triangle strips
 
@@ -141,23 +143,23 @@ class TerrainScene:
             raise UsageError("sun, shadows, ambient occlusion and drapes need the per-view "
                              "textures")
         plotter.set_background(background)
-        plotter.theme.allow_empty_mesh = True  # a view may see no terrain at all
+        if not self._raw:
+            plotter.theme.allow_empty_mesh = True  # a view may see no terrain at all
         self.textures = textures
         if textures not in ("view", "global"):
             raise UsageError(f"unknown textures {textures!r}; use 'view' or 'global'")
         self.level = texture_level(terrain) if textures == "global" else 0
         self.texture = None
         if shading != "plain" and textures == "global":
-            tex = pv.Texture(texture_image(terrain, shading, cmap, self.level))
-            tex.interpolate = True
-            tex.mipmap = True
-            tex.repeat = False
-            self.texture = tex
+            self.texture = self._global_texture()
         elif shading != "plain":  # the per-view atlas replaces its image each frame
             self.shader = TileShader(terrain, shading, cmap, light, drape)
-            self.texture = pv.Texture(np.zeros((1, 1, 3), np.uint8))
-            self.texture.interpolate = True
-            self.texture.repeat = False
+            if self._raw:
+                self.texture = offscreen.texture(_image_data(np.zeros((1, 1, 3), np.uint8)))
+            else:
+                self.texture = pv.Texture(np.zeros((1, 1, 3), np.uint8))
+                self.texture.interpolate = True
+                self.texture.repeat = False
         self.mesh = pv.PolyData()
         self.actor = None
         self.selection = None
@@ -166,12 +168,18 @@ class TerrainScene:
         self.water_actor = None
         self._water_pts = None
         if water and shading != "plain":
-            from geoterrain.rendering.water import add_water, water_mesh
+            from geoterrain.rendering.water import add_water, water_mesh, water_offset
 
             wm = water_mesh(terrain, cmap)
             if wm is not None:
                 sun = (light.azimuth, light.elevation) if light is not None else (315.0, 45.0)
-                self.water_actor = add_water(plotter, wm, sun)
+                if self._raw:
+                    from geoterrain.rendering.shading import light_vector
+
+                    self.water_actor = offscreen.water_actor(plotter, wm, light_vector(*sun))
+                    water_offset(self.water_actor)
+                else:
+                    self.water_actor = add_water(plotter, wm, sun)
                 step = max(1, wm.n_points // 4096)  # where the lift is measured
                 self._water_pts = np.asarray(wm.points, np.float64)[::step]
 
@@ -181,21 +189,32 @@ class TerrainScene:
         terrain's refresh dropped where the edit reached."""
         self._vtex = None  # its texels may show the data before the edit
         if self.textures == "global" and self.shading != "plain":
-            import pyvista as pv
-
-            tex = pv.Texture(texture_image(self.terrain, self.shading, self.cmap, self.level))
-            tex.interpolate = True
-            tex.mipmap = True
-            tex.repeat = False
-            self.texture = tex
+            self.texture = tex = self._global_texture()
             if self.actor is not None:
-                self.actor.texture = tex
+                self.actor.SetTexture(tex)
+
+    def _global_texture(self):
+        """The whole-terrain texture (``textures="global"``), interpolated and mipmapped."""
+        img = texture_image(self.terrain, self.shading, self.cmap, self.level)
+        if self._raw:
+            from geoterrain.rendering import offscreen
+
+            # pyvista.Texture's image: its last row first (v = 0 at the bottom)
+            return offscreen.texture(_image_data(np.ascontiguousarray(img[::-1])),
+                                     mipmap=True)
+        import pyvista as pv
+
+        tex = pv.Texture(img)
+        tex.interpolate = True
+        tex.mipmap = True
+        tex.repeat = False
+        return tex
     def _tcoords(self, ij: np.ndarray) -> np.ndarray:
-        S = self.terrain.grid.level_size(self.level)
+        R, C = self.terrain.grid.level_shape(self.level)  # the texture_image's shape
         s = float(1 << self.level)
         tc = np.empty((len(ij), 2), np.float32)
-        tc[:, 0] = (ij[:, 1] / s + 0.5) / S
-        tc[:, 1] = 1.0 - (ij[:, 0] / s + 0.5) / S
+        tc[:, 0] = (ij[:, 1] / s + 0.5) / C
+        tc[:, 1] = 1.0 - (ij[:, 0] / s + 0.5) / R
         return tc
 
     def view_texture(self, selection, view: View, max_builds: int | None = None):
@@ -255,9 +274,15 @@ class TerrainScene:
         else:
             self.texture_stats = {"textures_built": 0, "texture_tiles": 0}
         if self.strips and mesh.n_cells and src.n_cells and "grid_ij" in src.point_data:
-            mesh = _as_strips(mesh, src, self.terrain.grid.n)
+            mesh = _as_strips(mesh, src, self.terrain.grid)
         self.selection = selection
-        if self.actor is None:
+        if self.actor is None and self._raw:
+            from geoterrain.rendering.offscreen import terrain_actor
+
+            self.actor = terrain_actor(self.plotter, mesh, (1.0, 1.0, 1.0) if self.texture
+                                       is not None else PLAIN_COLOR, self.texture is None,
+                                       self.texture)
+        elif self.actor is None:
             kw: dict = {"name": "terrain", "show_scalar_bar": False, "reset_camera": False}
             if self.texture is not None:
                 self.actor = self.plotter.add_mesh(mesh, color="white", lighting=False, **kw)
@@ -267,7 +292,7 @@ class TerrainScene:
                                                    smooth_shading=False, **kw)
             self.actor.mapper.ScalarVisibilityOff()  # colours come from the texture
         else:
-            self.actor.mapper.SetInputData(mesh)
+            self.actor.GetMapper().SetInputData(mesh)
         self.mesh = mesh
 
     def set_camera(self, view: View) -> None:
@@ -296,17 +321,16 @@ class TerrainScene:
             lo, hi = self.terrain.scene_box()
             near = 2.0 * float(np.linalg.norm(hi - lo)) + 1.0  # depth precision: close
             cam.SetParallelProjection(True)
-            cam.parallel_scale = d * np.tan(np.radians(view.fov_y_deg) / 2.0)
-            cam.position, cam.focal_point = tuple(target - near * f), tuple(target)
-            cam.up = tuple(u)
+            cam.SetParallelScale(d * np.tan(np.radians(view.fov_y_deg) / 2.0))
+            _place(cam, tuple(target - near * f), tuple(target), tuple(u))
             self.plotter.renderer.ResetCameraClippingRange()
             return
         cam.SetParallelProjection(False)
-        cam.position, cam.focal_point, cam.up = view.look_from, view.look_at, tuple(u)
-        cam.view_angle = view.fov_y_deg
+        _place(cam, view.look_from, view.look_at, tuple(u))
+        cam.SetViewAngle(view.fov_y_deg)
         self.plotter.renderer.ResetCameraClippingRange()
         if view.near is not None and view.far is not None:
-            cam.clipping_range = (view.near, view.far)
+            cam.SetClippingRange(view.near, view.far)
 
     def _water_lift(self, view: View) -> float:
         """The height (scene units) the water surface may be lifted by in the perspective
@@ -461,6 +485,17 @@ class TerrainScene:
         return float((z < 1.0).mean())
 
 
+def _place(cam, position, focal_point, up) -> None:
+    """Point ``cam`` (a VTK camera; PyVista's through its properties, which also mark it
+    as set, so its plotter's first render keeps it) from ``position`` at ``focal_point``."""
+    if hasattr(cam, "is_set"):  # a pyvista.Camera
+        cam.position, cam.focal_point, cam.up = position, focal_point, up
+        return
+    cam.SetPosition(*position)
+    cam.SetFocalPoint(*focal_point)
+    cam.SetViewUp(*up)
+
+
 def _image_data(img: np.ndarray):
     """A vtkImageData sharing (not copying) a C-contiguous (H, W, 3) uint8 ``img``, its
     row 0 at v = 0 (as :class:`geoterrain.rendering.tiletextures.ViewTexture` maps it); ``img``
@@ -528,17 +563,39 @@ def _draw(plotter) -> np.ndarray:
     return img
 
 
-def _as_strips(mesh, src, n: int):
+def _strip_order(faces: np.ndarray, ij: np.ndarray, grid) -> np.ndarray:
+    """The seed's refinement order of ``faces`` (:func:`geoterrain.lod.strips.seed_order`):
+    on a root grid, root after root (row by row), each root the seed's square (its own
+    bintree, rtin's triangles never crossing a root's edge)."""
+    from geoterrain.lod.strips import seed_order
+
+    if grid.square:
+        return seed_order(faces, ij, grid.n)
+    span = 1 << grid.n
+    ij = np.asarray(ij, np.int64)
+    c3 = ij[faces].sum(axis=1)  # 3 × each face's centroid: inside one root
+    across = grid.roots[0]
+    root = (c3[:, 0] // (3 * span)) * across + c3[:, 1] // (3 * span)
+    parts = []
+    for r in np.unique(root):  # a root or two
+        sel = np.flatnonzero(root == r)
+        origin = np.array([r // across, r % across]) * span
+        parts.append(sel[seed_order(faces[sel], ij - origin, grid.n)])
+    return np.concatenate(parts) if parts else np.zeros(0, np.int64)
+
+
+def _as_strips(mesh, src, grid):
     """``mesh`` (triangles in the order of the selection ``src``'s) drawn as seed 002's
     triangle strips (:mod:`geoterrain.lod.strips`): the faces in the order the seed's
     refinement meets them, then stripped; points, point data and the texture kept (a
     triangle's cell data is not: a strip is one cell)."""
     import pyvista as pv
 
-    from geoterrain.lod.strips import seed_order, triangle_strips
+    from geoterrain.lod.strips import triangle_strips
 
     faces = np.asarray(mesh.regular_faces)
-    order = seed_order(np.asarray(src.regular_faces), np.asarray(src.point_data["grid_ij"]), n)
+    order = _strip_order(np.asarray(src.regular_faces), np.asarray(src.point_data["grid_ij"]),
+                         grid)
     cells, st = triangle_strips(faces[order])
     out = pv.PolyData()
     out.SetPoints(mesh.GetPoints())
@@ -563,10 +620,7 @@ def _plotter(size: tuple[int, int], anti_aliasing: bool | str = "auto"):
     :mod:`geoterrain.rendering.antialias`: 3–5 ms where a software renderer's MSAA costs 30–60 ms
     at 1280×720), ``"none"`` (or False).
     """
-    mode = {True: "msaa", False: "none"}.get(anti_aliasing, anti_aliasing)
-    if mode not in ANTI_ALIASING:
-        raise UsageError(f"unknown anti-aliasing {anti_aliasing!r}; use "
-                         f"{', '.join(ANTI_ALIASING)}")
+    mode = _aa_mode(anti_aliasing)
     _prefer_egl()
     import pyvista as pv
 
@@ -576,6 +630,30 @@ def _plotter(size: tuple[int, int], anti_aliasing: bool | str = "auto"):
         p.disable_anti_aliasing()
     p._geoterrain_aa = mode
     return p
+
+
+def _offscreen(size: tuple[int, int], anti_aliasing: bool | str = "auto"):
+    """:func:`_plotter`'s window on VTK alone (:class:`~geoterrain.rendering.offscreen.
+    OffscreenPlotter`): the same pictures, without importing PyVista's plotting modules.
+    What :func:`render`, :func:`render_array`, orbits and fly-throughs draw with."""
+    mode = _aa_mode(anti_aliasing)
+    _prefer_egl()
+    from geoterrain.rendering.offscreen import OffscreenPlotter
+
+    p = OffscreenPlotter(size)
+    p._geoterrain_samples = int(p.render_window.GetMultiSamples())
+    if mode not in ("msaa", "auto"):
+        p.disable_anti_aliasing()
+    p._geoterrain_aa = mode
+    return p
+
+
+def _aa_mode(anti_aliasing: bool | str) -> str:
+    mode = {True: "msaa", False: "none"}.get(anti_aliasing, anti_aliasing)
+    if mode not in ANTI_ALIASING:
+        raise UsageError(f"unknown anti-aliasing {anti_aliasing!r}; use "
+                         f"{', '.join(ANTI_ALIASING)}")
+    return mode
 
 
 # ---------------------------------------------------------------------- top level
@@ -589,7 +667,7 @@ def _writable_target(path: Path, overwrite: bool, folder: bool = False,
 
 def _write_png(path: str | Path, img: np.ndarray, overwrite: bool = True) -> None:
     """Write a PNG to a hidden partial file, then publish it (never a half-written PNG)."""
-    import imageio.v3 as iio
+    from PIL import Image
 
     path = Path(path)
     _writable_target(path, overwrite)
@@ -597,8 +675,11 @@ def _write_png(path: str | Path, img: np.ndarray, overwrite: bool = True) -> Non
     tmp = partial_path(path)
     try:
         # zlib level 3: 2.5x faster than Pillow's default 6 on rendered terrain, and
-        # no larger (62 against 152 ms, 886 against 899 kB at 1280x720)
-        iio.imwrite(tmp, img, extension=".png", compress_level=3)
+        # no larger (62 against 152 ms, 886 against 899 kB at 1280x720). Pillow itself,
+        # the format named: imageio's writer (the same bytes) first loads every one of
+        # Pillow's image plugins to look the extension up, about 0.1 s of a cold render
+        Image.fromarray(np.ascontiguousarray(img, np.uint8)).save(tmp, format="PNG",
+                                                                  compress_level=3)
         publish(tmp, path, overwrite)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
@@ -652,7 +733,7 @@ def render_array(terrain: TerrainLike, view: View, *, pixel_error: float = 1.0,
     strategy_info(strategy)
     own = scene is None
     if own:
-        scene = TerrainScene(_plotter(view.size, anti_aliasing), terrain, shading, cmap,
+        scene = TerrainScene(_offscreen(view.size, anti_aliasing), terrain, shading, cmap,
                              vertical_exaggeration=vertical_exaggeration, light=light,
                              drape=drape, occlusion=occlusion, morph=morph, strips=strips,
                              water=water)

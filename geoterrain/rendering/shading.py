@@ -448,13 +448,13 @@ def _level_window(terrain: TerrainLike, level: int, x: int, y: int, m: int):
     g = terrain.grid
     T = g.tile_samples
     n = T - 1
-    side = 1 << (g.top_level - level)  # tiles per side at this level
+    across, down = g.tiles(level)
     W = n + 1 + 2 * m
     z = np.full((W, W), np.nan)
     for dy in (-1, 0, 1):
         for dx in (-1, 0, 1):
             tx, ty = x + dx, y + dy
-            if not (0 <= tx < side and 0 <= ty < side) or (level, tx, ty) not in \
+            if not (0 <= tx < across and 0 <= ty < down) or (level, tx, ty) not in \
                     terrain.tile_info:
                 continue
             if (dx or dy) and m == 0:
@@ -468,6 +468,17 @@ def _level_window(terrain: TerrainLike, level: int, x: int, y: int, m: int):
                 z[r0 + rs:r0 + re, c0 + cs:c0 + ce] = h[rs:re, cs:ce]
     valid = np.isfinite(z)
     return terrain.frame.z(np.where(valid, z, 0.0)), valid
+
+
+def _highest(terrain: TerrainLike) -> float | None:
+    """The highest stored height (scene z): the largest of the root tiles' boxes (each
+    holds every height below it), None when none has one."""
+    g = terrain.grid
+    across, down = g.roots
+    tops = [terrain.tile_info.get((g.top_level, x, y), {}).get("zmax")
+            for y in range(down) for x in range(across)]
+    tops = [z for z in tops if z is not None]
+    return max(tops) if tops else None
 
 
 def tile_shade(terrain: TerrainLike, level: int, x: int, y: int, light: Light, spacing: float
@@ -486,10 +497,10 @@ def tile_shade(terrain: TerrainLike, level: int, x: int, y: int, light: Light, s
         step = spacing * (1 << level)
         m = 0
         if light.shadows:
-            top = terrain.tile_info[(terrain.grid.top_level, 0, 0)]  # every height
+            zmax = _highest(terrain)
             info = terrain.tile_info[(level, x, y)]
-            if top["zmax"] is not None and info["zmin"] is not None:
-                m = shadow_reach(top["zmax"], info["zmin"], step, light.elevation)
+            if zmax is not None and info["zmin"] is not None:
+                m = shadow_reach(zmax, info["zmin"], step, light.elevation)
         if light.ambient_occlusion:
             m = max(m, RADIUS)
         m = min(m, T - 1)

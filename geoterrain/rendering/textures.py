@@ -32,7 +32,7 @@ def texture_level(terrain: TerrainLike, max_size: int = MAX_TEXTURE) -> int:
     """The finest pyramid level whose grid fits a ``max_size`` texture."""
     g = terrain.grid
     for L in g.levels:
-        if g.level_size(L) <= max_size:
+        if max(g.level_shape(L)) <= max_size:
             return L
     return g.top_level
 
@@ -115,7 +115,8 @@ def elevation_range(terrain: TerrainLike) -> tuple[float, float]:
 
 def build_texture_image(terrain: TerrainLike, shading: str, cmap: str | Palette = "auto",
                         level: int | None = None) -> np.ndarray:
-    """RGB uint8 image (S, S, 3) of the level-L grid: elevation colour × hillshade.
+    """RGB uint8 image (rows, cols, 3) of the level-L grid (``grid.level_shape(L)``: the
+    S × S square, or a root grid's rectangle): elevation colour × hillshade.
 
     Hillshade from the stored normal maps of level L (computed from the
     full-resolution geometry), colours from the level's heights. Row 0 is grid row 0.
@@ -126,9 +127,9 @@ def build_texture_image(terrain: TerrainLike, shading: str, cmap: str | Palette 
     """
     g = terrain.grid
     L = texture_level(terrain) if level is None else level
-    S, T, step = g.level_size(L), g.tile_samples, 1 << g.t
-    shade = np.ones((S, S), np.float32)
-    h = np.zeros((S, S), np.float64)
+    shape, T, step = g.level_shape(L), g.tile_samples, 1 << g.t
+    shade = np.ones(shape, np.float32)
+    h = np.zeros(shape, np.float64)
     for (lv, x, y) in terrain.tile_keys(L):
         sl = (slice(y * step, y * step + T), slice(x * step, x * step + T))
         if shading == "normals":

@@ -65,7 +65,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geoterrain.core.grid import level_offsets
 from geoterrain.core.memory import ZeroPool
 from geoterrain.rendering.atlaskernels import (
     clamp_fill,
@@ -76,6 +75,8 @@ from geoterrain.rendering.atlaskernels import (
     magnify_into,
     number_pages,
     page_tcoords,
+    table_size,
+    tile_table,
 )
 from geoterrain.rendering.textures import sample_spacing
 
@@ -149,17 +150,18 @@ def footprints(ij: np.ndarray, faces: np.ndarray, grid) -> tuple[np.ndarray, ...
     >>> int(L[0]), int(x[0]), int(y[0])
     (0, 0, 0)
     """
-    top = grid.top_level
-    base = level_offsets(top)
+    base = tile_table(grid)
     return _table_keys(face_footprints(ij, faces, grid.t, base), base)
 
 
 def _table_keys(e: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, ...]:
-    """(L, x, y) of dense tile-table indices ``e``."""
-    top = len(base) - 2
-    L = np.searchsorted(base, e, side="right") - 1
-    rem = e - base[L]
-    return L, rem & ((np.int64(1) << (top - L)) - 1), rem >> (top - L)
+    """(L, x, y) of dense tile-table indices ``e`` (``base``: the
+    :func:`~geoterrain.rendering.atlaskernels.tile_table`)."""
+    top = (len(base) - 4) // 3
+    offsets, across = base[:top + 2], base[top + 2:2 * top + 3]
+    L = np.searchsorted(offsets, e, side="right") - 1
+    rem = e - offsets[L]
+    return L, rem % across[L], rem // across[L]
 
 
 def _pack(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
@@ -211,7 +213,7 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
     g = terrain.grid
     top = g.top_level
     # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
-    base = level_offsets(top)
+    base = tile_table(g)
     built0 = shader.built
     if selection.mesh.n_cells == 0 or selection.mesh.n_points == 0:
         return ViewTexture(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 2),
@@ -323,7 +325,7 @@ def _footprints(pts: np.ndarray, ij: np.ndarray, tris: np.ndarray, t: int, base:
                 view) -> _Footprints:
     """Each face's smallest stored-tile footprint and the footprints' boxes: through the
     dense tile table (a scatter), or, with far more tiles than faces, a sort."""
-    ntab = int(base[-1])
+    ntab = table_size(base)
     eye = np.asarray(view.eye, np.float64)
     if ntab <= max(DENSE_TABLE, DENSE_PER_FACE * len(tris)):  # a scatter into the table
         fkey, lo, hi, ilo_e, ihi_e, facing = footprint_groups(ij, tris, t, base, pts, eye)

@@ -215,8 +215,13 @@ def add_water(plotter, mesh, sun: tuple[float, float] = (315.0, 45.0)):
                              show_scalar_bar=False, reset_camera=False, lighting=True,
                              smooth_shading=False, ambient=0.45, diffuse=0.55, specular=0.5,
                              specular_power=60.0)
+    water_offset(actor)
+    return actor
+
+
+def water_offset(actor) -> None:
+    """Draw the water ``actor`` a little toward the camera: a sea of zeros under a surface
+    at 0 m never fights it."""
     m = actor.GetMapper()
-    # drawn a little toward the camera: a sea of zeros under a surface at 0 m never fights it
     m.SetResolveCoincidentTopologyToPolygonOffset()
     m.SetRelativeCoincidentTopologyPolygonOffsetParameters(-2.0, -4.0)
-    return actor

@@ -43,9 +43,6 @@ def write_site(terrain: TerrainLike, out_dir: str | Path, *, assets: str | Path 
     """PMTiles archives of ``terrain`` (``kw``: :func:`write_pmtiles`'s options) and the
     map page over them in ``out_dir``; returns the figures (``page``, ``lib``: the
     packages copied)."""
-    from geoterrain.core.grid import refuse_root_grid
-
-    refuse_root_grid(terrain.grid, "the static web site")  # a root grid: not yet
     figs = write_pmtiles(terrain, out_dir, **kw)
     out = Path(out_dir)
     tiler = WebTiler(terrain)

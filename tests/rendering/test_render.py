@@ -177,14 +177,14 @@ def test_the_anti_aliasing_option_reaches_the_picture(tmp_path_factory, tmp_path
     seen = []
     import geoterrain.rendering.scene as R
 
-    real = R._plotter
+    real = R._offscreen  # the window render draws with (VTK alone)
 
     def spy(size, anti_aliasing="auto"):
         p = real(size, anti_aliasing)
         seen.append(p._geoterrain_aa)
         return p
 
-    R._plotter = spy
+    R._offscreen = spy
     try:
         r = CliRunner().invoke(cli, ["-q", "render", str(t.path), "-o", str(tmp_path / "a.png"),
                                      "--size", "160x120", "--anti-aliasing", "fxaa"])
@@ -193,7 +193,7 @@ def test_the_anti_aliasing_option_reaches_the_picture(tmp_path_factory, tmp_path
                                      "--size", "160x120"])
         assert r.exit_code == 0, r.output
     finally:
-        R._plotter = real
+        R._offscreen = real
     assert seen == ["fxaa", "auto"]
     r = CliRunner().invoke(cli, ["render", str(t.path), "-o", str(tmp_path / "c.png"),
                                  "--anti-aliasing", "ssaa"])

@@ -257,10 +257,12 @@ def test_page_facing_is_its_most_squarely_seen_face(F, V, G, data):
 
 
 def _texel_levels(t, view, monkeypatch, foreshorten: bool) -> dict:
+    from geoterrain.rendering.atlaskernels import table_size
+
     if not foreshorten:  # every footprint taken as seen square on
         fused = tiletextures.footprint_groups
         monkeypatch.setattr(tiletextures, "footprint_groups", lambda *a: (
-            *fused(*a)[:5], np.ones(int(a[3][-1]))))
+            *fused(*a)[:5], np.ones(table_size(a[3]))))
         monkeypatch.setattr(tiletextures, "group_facing",
                             lambda faces, key, pts, eye, n: np.ones(n))
     sel = lod.select(t, view, pixel_error=1.0, strategy="rtin")
@@ -399,17 +401,23 @@ def test_page_tcoords_are_the_numpy_formula(seed):
 def test_one_pass_footprint_groups_are_the_three_passes(F, V, data):
     """The fused pass gives each face's footprint, the footprints' boxes and their facing
     exactly as face_footprints, group_boxes and group_facing do over the dense table."""
-    from geoterrain.rendering.atlaskernels import face_footprints, footprint_groups
+    from geoterrain.rendering.atlaskernels import (
+        face_footprints,
+        footprint_groups,
+        table_size,
+        tile_table,
+    )
 
     rng = np.random.default_rng(data.draw(st.integers(0, 2 ** 32 - 1)))
     faces = rng.integers(0, V, (F, 3))
     t, top = 2, 3
-    base = np.concatenate([[0], np.cumsum([4 ** (top - L) for L in range(top + 1)])])
+    base = tile_table(Grid(33, 33, t + top, t))  # 4^(top − L) tiles at level L
     ij = rng.integers(0, (1 << t) * (1 << top) + 1, (V, 2))
     pts, eye = rng.normal(size=(V, 3)), rng.normal(size=3) * 5
     key, lo, hi, ilo, ihi, facing = footprint_groups(ij, faces, t, base, pts, eye)
     want = face_footprints(ij, faces, t, base)
-    n = int(base[-1])
+    n = table_size(base)
+    assert n == sum(4 ** (top - L) for L in range(top + 1))
     np.testing.assert_array_equal(key, want)
     for a, b in zip((lo, hi, ilo, ihi), group_boxes(faces, want, pts, ij, n), strict=True):
         np.testing.assert_array_equal(a, b)
