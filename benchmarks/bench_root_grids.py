@@ -6,6 +6,8 @@ Usage:
     python benchmarks/bench_root_grids.py wide [--runs 3]
     python benchmarks/bench_root_grids.py codec [--runs 5]
     python benchmarks/bench_root_grids.py stores [--tile-size 64]
+    python benchmarks/bench_root_grids.py select [--rows 513 --cols 1025] [--views 8]
+                                                 [--rounds 3] [--layouts square,roots]
     python benchmarks/bench_root_grids.py render [--runs 5]
 
 ``padding``: per raster shape, the samples the preprocess computes on (the padded
@@ -38,6 +40,16 @@ the square 2048² padded to 2049², the wide one padded to today's 4097² square
 wide one on its 2 × 1 root grid (the roots' extent, 2049 × 4097: ``roots=(2, 1)``). One
 process, the kernels compiled by a first untimed round, the cases in rotating order;
 medians of the wall time, the blobs' bytes, and the ratios to the square of the same run.
+
+``select``: the view-dependent selection of every strategy (τ = 1 px, occlusion and
+morphing at their defaults, ``reuse=False``) on one wide fBm (``--rows`` × ``--cols``,
+UTM, 10 m, 64-sample tiles) preprocessed as a square (it pads to (2^n + 1)²) and as a
+root grid, over ``--views`` views of a flight around it; one process, a first untimed
+round (kernels, derived tables), then ``--rounds`` rounds in which every view is
+selected on each layout in turn; per strategy the median time and triangles per layout
+and the ratio roots / square of the same run. ``--layouts square`` times the square
+alone (to compare two trees, alternate their interpreters; ``--json`` prints the
+medians as one JSON line).
 
 ``render``: the wide fBm (1024 × 4096, UTM, 10 m) preprocessed on the square (4097²) and
 on its 2 × 1 root grid, then the same three 1280 × 720 views of each (the overview, a
@@ -245,6 +257,60 @@ def codec(a: argparse.Namespace) -> None:
         print(f"| {name} | {t:.2f} s | {res[name][0][1]} | {t / base:.2f}× |")
 
 
+def select(a: argparse.Namespace) -> None:
+    import time
+
+    import geoterrain
+    from geoterrain.bench.harness import flight
+    from geoterrain.ingest.synth import generate, write_geotiff
+    from geoterrain.lod import STRATEGIES
+
+    layouts = a.layouts.split(",")
+    tmp = Path(tempfile.mkdtemp(prefix="bench_root_select_"))
+    z = generate("fbm", (a.rows, a.cols), seed=7)
+    src = write_geotiff(tmp / "w.tif", (800.0 * (z - z.min()) / np.ptp(z)).astype(np.float32),
+                        crs="EPSG:32633", origin=(500000.0, 5000000.0), spacing=10.0)
+    ts = {k: geoterrain.open(geoterrain.preprocess(src, tmp / f"{k}.geoterrain",
+                                                   root_grid=k == "roots")) for k in layouts}
+    X, Y, Z = next(iter(ts.values())).scene_xyz()
+    ok = np.isfinite(Z)
+    lo = np.array([X[ok].min(), Y[ok].min(), Z[ok].min()])
+    hi = np.array([X[ok].max(), Y[ok].max(), Z[ok].max()])
+    views = [v for _, v in flight(lo, hi, n_views=a.views, size=(1280, 720))]
+    grids = {k: t.grid for k, t in ts.items()}
+    if not a.json:
+        print("grids: " + ", ".join(f"{k} {g.shape[1]} × {g.shape[0]} lattice, roots "
+                                    f"{g.roots}, extent {g.extent[1]} × {g.extent[0]}"
+                                    for k, g in grids.items()))
+        print(f"load before: {load()}", flush=True)
+    ms: dict = {(s, k): [] for s in STRATEGIES for k in layouts}
+    tri: dict = {}
+    for r in range(a.rounds + 1):  # round 0: untimed (kernels, derived tables)
+        for s in STRATEGIES:
+            for v in views:
+                for k in (layouts if r % 2 == 0 else layouts[::-1]):
+                    t0 = time.perf_counter()
+                    sel = ts[k].select(v, 1.0, s, reuse=False)
+                    if r:
+                        ms[s, k].append(1e3 * (time.perf_counter() - t0))
+                    tri[s, k] = tri.get((s, k), 0) + sel.mesh.n_cells * (r == 1)
+        if r and not a.json:
+            print(f"round {r} done, load {load()}", flush=True)
+    med = {f"{s} {k}": statistics.median(ms[s, k]) for s in STRATEGIES for k in layouts}
+    if a.json:
+        print(json.dumps(med))
+        return
+    print(f"load after: {load()}\n")
+    print("| strategy | " + " | ".join(f"{k}: ms (median), triangles / view" for k in layouts)
+          + (" | roots / square |" if len(layouts) == 2 else " |"))
+    print("|---" * (len(layouts) + 1 + (len(layouts) == 2)) + "|")
+    for s in STRATEGIES:
+        cells = [f"{med[f'{s} {k}']:.1f}, {tri[s, k] / len(views):.0f}" for k in layouts]
+        ratio = (f" | {med[f'{s} roots'] / med[f'{s} square']:.2f}×" if len(layouts) == 2
+                 else "")
+        print(f"| {s} | " + " | ".join(cells) + ratio + " |")
+
+
 def render(a: argparse.Namespace) -> None:
     import time
 
@@ -326,11 +392,18 @@ def main() -> None:
     c.add_argument("--runs", type=int, default=5)
     s = sub.add_parser("stores")
     s.add_argument("--tile-size", type=int, default=64)
+    e = sub.add_parser("select")
+    e.add_argument("--rows", type=int, default=513)
+    e.add_argument("--cols", type=int, default=1025)
+    e.add_argument("--views", type=int, default=8)
+    e.add_argument("--rounds", type=int, default=3)
+    e.add_argument("--layouts", default="square,roots")
+    e.add_argument("--json", action="store_true")
     r = sub.add_parser("render")
     r.add_argument("--runs", type=int, default=5)
     a = ap.parse_args()
     {"padding": padding, "wide": wide, "codec": codec, "stores": stores,
-     "render": render}[a.what](a)
+     "select": select, "render": render}[a.what](a)
 
 
 if __name__ == "__main__":

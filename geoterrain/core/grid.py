@@ -39,16 +39,20 @@ class RootGridError(UsageError, ValueError):
     """A square-only computation was asked of a grid with a rectangular root grid."""
 
 
-#: What draws or reads a root-grid store today (experimental), for every refusal's line.
-ROOT_GRID_WORKS = ("a root-grid store (experimental) is drawn by the rtin strategy only (its "
-                   "views, its static mesh, pictures and mesh exports), and read by raster "
-                   "exports, tiles (quantized-mesh, web-map, PMTiles) and the analysis "
-                   "(heights, profiles, contours, areas, volumes, viewsheds)")
+#: What draws or reads a root-grid store today (experimental), for every refusal's line
+#: (the strategies' own refusal names them: geoterrain.lod.select).
+ROOT_GRID_WORKS = ("a root-grid store (experimental) is drawn by the LOD strategies "
+                   "registered for it (views, pictures and mesh exports) and both static "
+                   "meshers, and read by raster exports, tiles (quantized-mesh, web-map, "
+                   "PMTiles) and the analysis (heights, profiles, contours, areas, volumes, "
+                   "viewsheds)")
 
 
-def refuse_root_grid(grid: Grid, what: str, cli: str | None = None) -> None:
-    """Raise :class:`RootGridError` in one line, naming what works, when ``grid`` is a
-    root grid: ``what`` (API words; ``cli``: the command line's) does not handle it yet.
+def refuse_root_grid(grid: Grid, what: str, cli: str | None = None,
+                     works: str = ROOT_GRID_WORKS) -> None:
+    """Raise :class:`RootGridError` in one line, naming what works (``works``), when
+    ``grid`` is a root grid: ``what`` (API words; ``cli``: the command line's) does not
+    handle it yet.
 
     Examples
     --------
@@ -63,8 +67,8 @@ def refuse_root_grid(grid: Grid, what: str, cli: str | None = None) -> None:
         return
     head = f"does not handle a grid of {grid.roots[0]} × {grid.roots[1]} root tiles yet: "
     tail = "; preprocess without root_grid for the rest"
-    raise RootGridError(f"{what} {head}{ROOT_GRID_WORKS}{tail}",
-                        cli=f"{cli or what} {head}{ROOT_GRID_WORKS}; preprocess without "
+    raise RootGridError(f"{what} {head}{works}{tail}",
+                        cli=f"{cli or what} {head}{works}; preprocess without "
                         "--root-grid for the rest")
 
 

@@ -138,7 +138,9 @@ def select(terrain: TerrainLike, view: View, pixel_error: float = 1.0, strategy:
         return Selection(sel.mesh, {**sel.stats, "reused": True, "select_ms": 0.0,
                                     "tiles_decoded": 0})
     if not info.root_grid:
-        refuse_root_grid(terrain.grid, f"the {strategy} strategy")
+        drawn = ", ".join(e.name for e in REGISTRY.values() if e.root_grid)
+        refuse_root_grid(terrain.grid, f"the {strategy} strategy", works="a root-grid store "
+                         f"(experimental) is drawn only by the strategies {drawn}")
     t0, dec0 = time.perf_counter(), terrain.decoded_tiles
     mesh, stats = info.load()(terrain, view, tau, occlusion=occlusion, morph=morph)
     sel = _finish(terrain, mesh, stats, strategy, t0, dec0)
@@ -169,8 +171,6 @@ def static(terrain: TerrainLike, max_error: float = 1.0, mesher: str = "rtin") -
         raise UsageError(f"max_error must be ≥ 0, got {max_error}")
     if mesher not in ("rtin", "tin"):
         raise UsageError(f"mesher must be 'rtin' or 'tin', got {mesher!r}")
-    if mesher == "tin":
-        refuse_root_grid(terrain.grid, "the tin mesher (mesher='tin')", "--mesher tin")
     t0, dec0 = time.perf_counter(), terrain.decoded_tiles
     if mesher == "tin":
         from geoterrain.lod import tin

@@ -96,7 +96,7 @@ class LevelTables:
         self.m = np.r_[self.e[1:], 0.0]
         self.finite = []  # per level: (rows, cols) of tiles → finite stored error
         for lv in range(top + 1):
-            a = np.zeros((g.tiles_per_side(lv),) * 2, bool)
+            a = np.zeros(g.tiles(lv)[::-1], bool)  # (down, across)
             k = np.flatnonzero((L == lv) & np.isfinite(err))
             a[index.keys[k, 2], index.keys[k, 1]] = True
             self.finite.append(a)
@@ -104,6 +104,12 @@ class LevelTables:
         self.c = level_max(cell)
         self.diag = level_max(diag)
         self.top = top
+
+
+def _stride(grid) -> int:
+    """The row stride of the sample keys i·N + j: a square's N, a root grid's extent
+    columns (every sample a walk reaches lies in the roots' extent)."""
+    return grid.extent[1]
 
 
 def _tables(terrain: TerrainLike, index: TileIndex) -> LevelTables:
@@ -150,7 +156,7 @@ def _parts(terrain: TerrainLike, index: TileIndex, row: int):
     if got is None:
         ij, xyz, _valid, faces = tile_geometry(terrain, index, row)
         T = terrain.grid.tile_samples
-        key = ij[:, 0].astype(np.int64) * terrain.grid.size + ij[:, 1]
+        key = ij[:, 0].astype(np.int64) * _stride(terrain.grid) + ij[:, 1]
         r3 = (faces // T).sum(1)  # 3 × each face's centroid, local row and column
         c3 = (faces % T).sum(1)
         half3 = 3 * (T - 1) / 2
@@ -162,8 +168,7 @@ def _parts(terrain: TerrainLike, index: TileIndex, row: int):
 def _select_regions(terrain: TerrainLike, index: TileIndex, tb: LevelTables, view: View,
                     r: np.ndarray, occlusion: bool = True):
     """(rows, quadrant masks, levels) of the drawn regions; visited and culled counts."""
-    g = terrain.grid
-    nodes = index.rows_of(np.array([[g.top_level, 0, 0]]))
+    nodes = index.rows_of(index.roots)  # every root tile (one on a square grid)
     nodes = nodes[nodes >= 0]
     inside = np.zeros(len(nodes), bool)
     hidden = hidden_rows(terrain, view, enabled=occlusion)
@@ -257,14 +262,14 @@ def _bounded(tb: LevelTables, key: np.ndarray, h: int, N: int) -> np.ndarray:
     (a sample on a tile edge lies in both tiles)."""
     fin = tb.finite[h + 1]
     S = tb.span[h + 1]
-    n = fin.shape[0] - 1
+    ni, nj = fin.shape[0] - 1, fin.shape[1] - 1
     i, j = key // N, key % N
     out = np.zeros(len(key), bool)
     for di in (0, 1):
-        ti = np.clip(i // S - di, 0, n) if di else np.minimum(i // S, n)
+        ti = np.clip(i // S - di, 0, ni) if di else np.minimum(i // S, ni)
         oki = (i % S == 0) & (i > 0) if di else np.ones(len(key), bool)
         for dj in (0, 1):
-            tj = np.clip(j // S - dj, 0, n) if dj else np.minimum(j // S, n)
+            tj = np.clip(j // S - dj, 0, nj) if dj else np.minimum(j // S, nj)
             okj = (j % S == 0) & (j > 0) if dj else np.ones(len(key), bool)
             out |= oki & okj & fin[ti, tj]
     return out
@@ -281,7 +286,7 @@ def morph_positions(terrain: TerrainLike, key: np.ndarray, xyz: np.ndarray, eye:
     With ``tb``, only samples inside a level-(h+1) tile of finite error move.
     """
     g = terrain.grid
-    N, top = g.size, g.top_level
+    N, top = _stride(g), g.top_level
     keys, P = key.copy(), xyz.copy()
     sk = np.sort(keys)
     ok = np.isfinite(P).all(1)
@@ -376,7 +381,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     faces = (np.cumsum(used) - 1)[faces]
     uk, src = uk[used], first[used]
     P, moved = morph_positions(terrain, uk, xyz[src], view.eye, r, m, tb)
-    N = terrain.grid.size
+    N = _stride(terrain.grid)
     ij = np.stack([uk // N, uk % N], 1).astype(np.float64)
     stats.update(morphing_vertices=moved)
     return polydata(P, faces, ij,

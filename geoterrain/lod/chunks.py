@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 from numba import njit
 
-from geoterrain.lod.kernels import close_upward, extract
+from geoterrain.lod.kernels import close_upward, extract, tree_roots, tree_row
 from geoterrain.lod.mesh import add_elevation, empty_polydata, orient_ccw, polydata
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import TileIndex, TileTree, tile_table
@@ -136,7 +136,8 @@ def chunk_leaves(terrain: TerrainLike, index: TileIndex, view, tau: float, *,
     tree = cache.get("table")
     if tree is None:
         top = terrain.grid.top_level
-        tree = cache["table"] = TileTree(*tile_table(index, top), top, index.lo, index.hi)
+        tree = cache["table"] = TileTree(*tile_table(index, top, terrain.grid), top,
+                                         index.lo, index.hi)
     rows = np.empty(len(index.keys), np.int64)
     seen = np.empty(len(index.keys), np.int64)
     args = (tree, cache["error"], view.terms(tau))
@@ -159,13 +160,17 @@ def _walk_chunks(tree, err, view, hidden, out, seen):
     nodes in the frustum into ``seen``; returns (drawn, visited, culled, hidden, seen)."""
     table, base, top, lo, hi = tree
     eye, planes, lam, tau = view
-    stack = np.empty((4 * (top + 1) + 4, 4), np.int64)  # (L, x, y, inside)
-    stack[0] = (top, 0, 0, 0)
-    sp, n, visited, culled, n_hidden, n_seen = 1, 0, 0, 0, 0, 0
+    rx, ry = tree_roots(base, top)  # every root, the first popped first
+    stack = np.empty((4 * (top + 1) + 4 + rx * ry, 4), np.int64)  # (L, x, y, inside)
+    sp = 0
+    for k in range(rx * ry - 1, -1, -1):
+        stack[sp, 0], stack[sp, 1], stack[sp, 2], stack[sp, 3] = top, k % rx, k // rx, 0
+        sp += 1
+    n, visited, culled, n_hidden, n_seen = 0, 0, 0, 0, 0
     while sp > 0:
         sp -= 1
         L, x, y, inside = stack[sp]
-        row = table[base[L] + y * (np.int64(1) << (top - L)) + x]
+        row = tree_row(table, base, top, L, x, y)
         if row < 0:
             continue
         visited += 1
@@ -264,10 +269,10 @@ def _build(terrain: TerrainLike, index: TileIndex, row: int, cache: dict) -> Chu
     xyz = np.stack([X, Y, terrain.frame.z(z)], 1)
     faces = orient_ccw(ij, faces.astype(np.int64))
     # skirt segments: consecutive chunk vertices along each inner edge
-    n_side = g.tiles_per_side(L)
+    across, down = g.tiles(L)
     segs = []
-    for on_edge, along, inner in ((a == 0, b, y > 0), (a == T - 1, b, y < n_side - 1),
-                                  (b == 0, a, x > 0), (b == T - 1, a, x < n_side - 1)):
+    for on_edge, along, inner in ((a == 0, b, y > 0), (a == T - 1, b, y < down - 1),
+                                  (b == 0, a, x > 0), (b == T - 1, a, x < across - 1)):
         if not inner:
             continue
         v = np.flatnonzero(on_edge)

@@ -22,18 +22,21 @@ if TYPE_CHECKING:
 class Tables:
     """What a terrain's clipmaps derive once: per level, which cells must be drawn finer
     (``refine[l]``, level-l cells, True: drawn by level l − 1), the dense tile table, the
-    data rectangle, the grid spacing."""
+    data rectangle, the grid spacing. ``NR`` × ``N``: the samples the levels span (a
+    square's N × N, a root grid's extent; ``N`` is also the stride of the keys i·N + j),
+    ``tiles[L]``: each level's tiles (across, down)."""
 
     def __init__(self, terrain: TerrainLike, index: TileIndex, bounded: bool):
         g = terrain.grid
-        N = g.size
-        self.N, self.n, self.t, self.top = N, g.n, g.t, g.top_level
+        NR, N = g.extent
+        self.N, self.NR, self.n, self.t, self.top = N, NR, g.n, g.t, g.top_level
+        self.tiles = [g.tiles(L) for L in g.levels]
         self.H, self.W = g.rows, g.cols
         h, v = terrain.level_heights(0)
         # a cell's closed footprint: any sample valid / any not (the four corners at level 0)
         anyv = v[:-1, :-1] | v[1:, :-1] | v[:-1, 1:] | v[1:, 1:]
         anyi = ~(v[:-1, :-1] & v[1:, :-1] & v[:-1, 1:] & v[1:, 1:])
-        self.table, self.base = tile_table(index, g.top_level)
+        self.table, self.base = tile_table(index, g.top_level, g)
         err = index.error
         self.refine = [np.zeros((0, 0), bool)]
         prev = np.zeros(anyv.shape, bool)  # level 0 is never refined
@@ -45,8 +48,7 @@ class Tables:
                 k = index.keys
                 rows = np.flatnonzero((k[:, 0] == lv) & ~np.isfinite(err))
                 if len(rows):
-                    nt = g.tiles_per_side(lv)
-                    bad = np.zeros((nt, nt), bool)
+                    bad = np.zeros(g.tiles(lv)[::-1], bool)  # (down, across)
                     bad[k[rows, 2], k[rows, 1]] = True
                     c = 1 << g.t
                     m |= np.repeat(np.repeat(bad, c, 0), c, 1)[: m.shape[0], : m.shape[1]]
@@ -55,17 +57,18 @@ class Tables:
             prev = m
         del h
         f = terrain.frame
-        i = np.array([0, 0, 1]) * (N - 1)
-        j = np.array([0, 1, 0]) * (N - 1)
+        i = np.array([0, 0, NR - 1])
+        j = np.array([0, N - 1, 0])
         x, y = f.xy(i, j)
-        self.dx = float(min(np.hypot(x[1] - x[0], y[1] - y[0]),
-                            np.hypot(x[2] - x[0], y[2] - y[0])) / (N - 1))
+        self.dx = float(min(np.hypot(x[1] - x[0], y[1] - y[0]) / (N - 1),
+                            np.hypot(x[2] - x[0], y[2] - y[0]) / (NR - 1)))
         if f.kind == "geographic":  # the narrowest spacing over the grid, for distances
-            X, Y = f.xy(*np.meshgrid(np.arange(0, N, max(1, N // 64)),
-                                     np.arange(0, N, max(1, N // 64)), indexing="ij"))
+            step = max(1, max(NR, N) // 64)
+            X, Y = f.xy(*np.meshgrid(np.arange(0, NR, step), np.arange(0, N, step),
+                                     indexing="ij"))
             sx = np.hypot(np.diff(X, axis=1), np.diff(Y, axis=1)).min()
             sy = np.hypot(np.diff(X, axis=0), np.diff(Y, axis=0)).min()
-            self.dx = float(min(sx, sy) / max(1, N // 64))
+            self.dx = float(min(sx, sy) / step)
 
 
 def _or4(a: np.ndarray) -> np.ndarray:
@@ -135,9 +138,9 @@ def _heights(terrain: TerrainLike, index: TileIndex, lv: int, rr: np.ndarray, cc
     R, C = rr * k, cc * k  # indices at level L
     out = np.full((len(rr), len(cc)), np.nan)
     s = 1 << g.t
-    ny = max(g.tiles_per_side(L) - 1, 0)
-    ty = np.minimum(R // s, ny)
-    tx = np.minimum(C // s, ny)
+    across, down = g.tiles(L)
+    ty = np.minimum(R // s, max(down - 1, 0))
+    tx = np.minimum(C // s, max(across - 1, 0))
     for y in np.unique(ty).tolist():
         ri = np.flatnonzero(ty == y)
         for x in np.unique(tx).tolist():

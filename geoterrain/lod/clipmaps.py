@@ -146,10 +146,10 @@ def _rect_box(tb: Tables, index: TileIndex, lv: int, r: tuple) -> tuple | None:
     and their index rows."""
     Lt = min(lv, tb.top)
     span = tb.t + Lt
-    nt = 1 << (tb.top - Lt)
-    i0, i1 = (r[0] << lv) >> span, min(((r[1] << lv) - 1) >> span, nt - 1)
-    j0, j1 = (r[2] << lv) >> span, min(((r[3] << lv) - 1) >> span, nt - 1)
-    rows = tb.table[tb.base[Lt] + np.arange(i0, i1 + 1)[:, None] * nt
+    across, down = tb.tiles[Lt]
+    i0, i1 = (r[0] << lv) >> span, min(((r[1] << lv) - 1) >> span, down - 1)
+    j0, j1 = (r[2] << lv) >> span, min(((r[3] << lv) - 1) >> span, across - 1)
+    rows = tb.table[tb.base[Lt] + np.arange(i0, i1 + 1)[:, None] * across
                     + np.arange(j0, j1 + 1)[None, :]].ravel()
     rows = rows[rows >= 0]
     if not len(rows):
@@ -215,7 +215,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, kind: str = "clipmap
     for lv in range(Lmax, f - 1, -1):
         s = 1 << lv
         # the last level row / column the data reaches, rounded up to an even vertex
-        hi_r = min(_even_up(-(-(tb.H - 1) // s)), (N - 1) // s)
+        hi_r = min(_even_up(-(-(tb.H - 1) // s)), (tb.NR - 1) // s)
         hi_c = min(_even_up(-(-(tb.W - 1) // s)), (N - 1) // s)
         r0, r1 = region(vi / s, halves[lv], 0, hi_r)
         c0, c1 = region(vj / s, halves[lv], 0, hi_c)
@@ -359,8 +359,8 @@ def _emit(terrain: TerrainLike, tb: Tables, levels: dict, W: dict, cells: dict, 
     level = np.concatenate(lvl)
     dl = np.concatenate(deleg)
     vmap = state.get("vmap")
-    if vmap is None or len(vmap) != N * N:
-        vmap = state["vmap"] = np.full(N * N, -1, np.int32)
+    if vmap is None or len(vmap) != tb.NR * N:
+        vmap = state["vmap"] = np.full(tb.NR * N, -1, np.int32)
     verts = np.empty(key.size, np.int64)
     ids, V = number_vertices(key.ravel(), vmap, verts)
     verts = verts[:V]
@@ -506,7 +506,7 @@ def _bounded_levels(terrain: TerrainLike, index: TileIndex, tb: Tables, view: Vi
         span_r = halves[lv] * s
         lo = np.array([vi - span_r, vj - span_r])
         hi = np.array([vi + span_r, vj + span_r])
-        box = _rect_box(tb, index, 0, (int(max(lo[0], 0)), int(min(hi[0], tb.N - 1)) + 1,
+        box = _rect_box(tb, index, 0, (int(max(lo[0], 0)), int(min(hi[0], tb.NR - 1)) + 1,
                                        int(max(lo[1], 0)), int(min(hi[1], tb.N - 1)) + 1))
         if box is None:
             continue

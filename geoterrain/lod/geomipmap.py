@@ -153,8 +153,8 @@ class Tables:
         self.rows, self.xy = blocks, xy
         # each block's neighbour across each edge (−1: none stored), and the δ that bounds
         # an edge vertex's move per level: the smaller of the two blocks' (both hold it)
-        nt = g.tiles_per_side(0)
-        grid = np.full((nt + 2, nt + 2), -1, np.int64)
+        across, down = g.tiles(0)
+        grid = np.full((down + 2, across + 2), -1, np.int64)
         grid[xy[:, 1] + 1, xy[:, 0] + 1] = np.arange(len(blocks))
         self.neighbour = np.stack([grid[xy[:, 1] + 1 + dy, xy[:, 0] + 1 + dx]
                                    for dx, dy in _NEIGHBOUR], 1)
@@ -312,9 +312,9 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
 def _stitch(terrain: TerrainLike, index, view, tau, xy, n, delta, dmin, nmax, bounded=True):
     """Neighbour ratios (B, 4) after refining coarser neighbours whose stitching would
     break λ·(δ_n + B)/D_min ≤ τ. ``n`` is updated in place."""
-    nt = terrain.grid.tiles_per_side(0)
+    across, down = terrain.grid.tiles(0)
     lam = view.lam
-    G = np.full((nt + 2, nt + 2), -1, np.int64)  # drawn blocks' levels, −1 elsewhere
+    G = np.full((down + 2, across + 2), -1, np.int64)  # drawn blocks' levels, −1 elsewhere
     bx, by = xy[:, 0] + 1, xy[:, 1] + 1
     G[by, bx] = n
     rng = np.full((len(n), nmax + 1, 4, nmax + 1), np.nan)  # [block, level, edge, log2 r]
@@ -359,11 +359,11 @@ def _select_morphed(terrain: TerrainLike, index, tb, view, tau, leaves, stats):
     slack = tau * dmin / lam - gm.blend_error(tb.delta, ell)
     kappa = (gm.neighbour_allowance(tb.edge_delta, ell, slack) if M
              else np.ones((len(ell), 4)))
-    nt = g.tiles_per_side(0)
+    across, down = g.tiles(0)
     x, y = tb.xy[:, 0], tb.xy[:, 1]
-    present = np.zeros((nt, nt), bool)
+    present = np.zeros((down, across), bool)
     present[y, x] = True
-    E, Kp = np.full((nt, nt), np.inf), np.zeros((nt, nt, 4))
+    E, Kp = np.full((down, across), np.inf), np.zeros((down, across, 4))
     E[y, x], Kp[y, x] = ell, kappa
     L = gm.restrict(E, Kp, present)[y, x]
     # grid levels, restricted as integers too (L differs by ≤ 1 between neighbours, but
@@ -435,7 +435,7 @@ def _assemble(terrain: TerrainLike, index, xy, n, ratios, heights=None):
         faces, level = faces[ok], level[ok]
     # one vertex per sample (blocks share their edges): unused (nodata) vertices drop out;
     # a sort of the vertex keys (numpy's hashing unique is slow on millions of int64)
-    key = ij[:, 0] * g.size + ij[:, 1]
+    key = ij[:, 0] * g.extent[1] + ij[:, 1]  # a square's N, a root grid's extent columns
     order = np.argsort(key, kind="stable")
     sk = key[order]
     head = np.r_[True, sk[1:] != sk[:-1]]

@@ -528,6 +528,29 @@ def gather_pooled(flat, N, slabs, xyz, ij, level):
             xyz[k, 0], xyz[k, 1], xyz[k, 2] = x, y, H[s, a, b] * zfac
 
 
+@njit(cache=True, nogil=True, inline="always")
+def tree_roots(base, top):
+    """(across, down) top tiles of a tile walk's ``base``
+    (:meth:`geoterrain.core.grid.Grid.walk_table`): a root grid's, or (1, 1)."""
+    if base.shape[0] > top + 2:
+        return base[2 * top + 2], base[3 * top + 3]
+    return np.int64(1), np.int64(1)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def tree_row(table, base, top, L, x, y):
+    """The row of tile (L, x, y) in a tile walk's dense ``table`` (−1: not stored, or
+    past a root grid's last tile column or row; a square's level L is 2^(top − L) tiles
+    a side)."""
+    if base.shape[0] > top + 2:
+        across = base[top + 2 + L]
+        if x >= across or y >= base[2 * top + 3 + L]:
+            return np.int64(-1)
+    else:
+        across = np.int64(1) << (top - L)
+    return table[base[L] + y * across + x]
+
+
 @njit(cache=True, nogil=True)
 def _coarsest_tile(i, j, top, t, base):
     """Level, slot-table index and sample (a, b) of the coarsest tile holding sample

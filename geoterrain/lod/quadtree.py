@@ -45,7 +45,7 @@ class Tables:
         g = terrain.grid
         self.rows = []
         for L in range(g.top_level + 1):
-            a = np.full((g.tiles_per_side(L),) * 2, -1, np.int64)
+            a = np.full(g.tiles(L)[::-1], -1, np.int64)  # (down, across)
             k = np.flatnonzero(index.keys[:, 0] == L)
             a[index.keys[k, 2], index.keys[k, 1]] = k
             self.rows.append(a)
@@ -71,11 +71,12 @@ def _tables(terrain: TerrainLike, index):
 
 
 def _node_rows(tb: Tables, top: int, k: int, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Rows of the stored tile giving each depth-k node its box (−1: no data there)."""
-    if k <= top:
-        return tb.rows[top - k][y, x]
-    s = k - top
-    return tb.rows[0][y >> s, x >> s]
+    """Rows of the stored tile giving each depth-k node its box (−1: no data there, or
+    past a root grid's last tile column or row)."""
+    a, s = (tb.rows[top - k], 0) if k <= top else (tb.rows[0], k - top)
+    ty, tx = y >> s, x >> s
+    inside = (ty < a.shape[0]) & (tx < a.shape[1])
+    return np.where(inside, a[np.where(inside, ty, 0), np.where(inside, tx, 0)], -1)
 
 
 def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,
@@ -94,10 +95,11 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
         return empty_polydata(), {}
     tb = _tables(terrain, index)
     g = terrain.grid
-    N1, top = g.size - 1, g.top_level
+    N1, top = 1 << g.n, g.top_level  # a root's edge (the square's N − 1)
     sd = max(int(N1 // S_MIN).bit_length() - 1, 0)  # sd = log₂(s / s_m)
     lam, eye = view.lam, view.eye
-    x = y = np.zeros(1, np.int64)
+    rx, ry = g.roots  # depth 0: every root (one on a square grid)
+    x, y = np.tile(np.arange(rx), ry), np.repeat(np.arange(ry), rx)
     hidden = hidden_rows(terrain, view, enabled=occlusion)
     leaves, visited, culled = [], 0, 0
     for k in range(sd + 1):
@@ -125,31 +127,34 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     stats = {"tiles_visited": visited, "tiles_culled": culled}
     if not leaves:
         return empty_polydata(), stats
-    leaves, D, dmax = restrict_leaves(leaves)
+    leaves, D, dmax = restrict_leaves(leaves, g.roots)
     mesh = assemble_leaves(terrain, leaves, D, dmax)
     stats.update(leaves=sum(len(v[1]) for v in leaves), depth=dmax, g_hat=tb.g)
     return mesh, stats
 
 
-def paint(leaves, dmax):
-    """The dense depth map at depth ``dmax``: each cell holds its leaf's depth (−1: none)."""
-    M = 1 << dmax
-    D = np.full((M, M), -1, np.int64)
+def paint(leaves, dmax, roots=(1, 1)):
+    """The dense depth map at depth ``dmax``: each cell holds its leaf's depth (−1: none);
+    ``roots`` (across, down) depth-0 nodes side by side."""
+    rx, ry = roots
+    D = np.full((ry << dmax, rx << dmax), -1, np.int64)
     for k, x, y in leaves:
         c = 1 << (dmax - k)
-        a = np.full((1 << k, 1 << k), -1, np.int64)
+        a = np.full((ry << k, rx << k), -1, np.int64)
         a[y, x] = k
         D = np.maximum(D, np.repeat(np.repeat(a, c, 0), c, 1))
     return D
 
 
-def restrict_leaves(leaves):
-    """Split leaves until neighbouring leaves differ by at most one level."""
+def restrict_leaves(leaves, roots=(1, 1)):
+    """Split leaves until neighbouring leaves differ by at most one level (``roots``:
+    the depth-0 nodes across and down)."""
+    rx, ry = roots
     dmax = max(k for k, _, _ in leaves)
     by = {k: (x, y) for k, x, y in leaves}
     while True:
         lv = [(k, *by[k]) for k in sorted(by) if len(by[k][0])]
-        D = paint(lv, dmax)
+        D = paint(lv, dmax, roots)
         P = np.pad(D, 1, constant_values=-1)
         nb = np.maximum(np.maximum(P[:-2, 1:-1], P[2:, 1:-1]),
                         np.maximum(P[1:-1, :-2], P[1:-1, 2:]))
@@ -159,7 +164,7 @@ def restrict_leaves(leaves):
             if not len(x):
                 continue
             c = 1 << (dmax - k)
-            m = nb.reshape(1 << k, c, 1 << k, c).max(axis=(1, 3))[y, x]
+            m = nb.reshape(ry << k, c, rx << k, c).max(axis=(1, 3))[y, x]
             split = m > k + 1
             if split.any():
                 changed = True
@@ -175,7 +180,7 @@ def restrict_leaves(leaves):
 def assemble_leaves(terrain: TerrainLike, leaves, D, dmax):
     """Each leaf as the 3×3 template, its edge midpoint removed next to a coarser leaf."""
     g = terrain.grid
-    N1 = g.size - 1
+    N1 = 1 << g.n  # a root's edge
     P = np.pad(D, 1, constant_values=-1)
     ij_all, faces, level, off = [], [], [], 0
     a, b = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
@@ -201,7 +206,7 @@ def assemble_leaves(terrain: TerrainLike, leaves, D, dmax):
     xyz = np.stack([got["x"], got["y"], terrain.frame.z(got["height"])], 1)
     ok = np.isfinite(xyz[:, 2])[faces].all(1)
     faces, level = faces[ok], level[ok]
-    key = ij[:, 0] * g.size + ij[:, 1]
+    key = ij[:, 0] * g.extent[1] + ij[:, 1]  # a square's N, a root grid's extent columns
     _, first, inv = np.unique(key[faces.ravel()], return_index=True, return_inverse=True)
     src = faces.ravel()[first]
     return polydata(xyz[src], inv.reshape(-1, 3), ij[src],

@@ -25,7 +25,7 @@
   left out).
 - **State**: the triangle pool lives in the terrain's derived slot, so any view or τ
   starts from the last mesh and reaches its own; ``select(..., fresh=True)`` starts from
-  the two base triangles (the from-scratch baseline of the benchmarks).
+  the base triangles, two per root tile (the from-scratch baseline of the benchmarks).
 - The whole grid's heights and wedgies stay in memory (about 24 bytes a sample):
   ROAM is an in-core method.
 
@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from geoterrain.core.bintree import root_triangles
 from geoterrain.core.view import View
 from geoterrain.lod import roamkernels as rk
 from geoterrain.lod.mesh import empty_polydata, polydata
@@ -53,23 +54,56 @@ if TYPE_CHECKING:
 _INITIAL_SLOTS = 1 << 14
 
 
+def base_triangles(n: int, roots: tuple[int, int], N: int) -> np.ndarray:
+    """The depth-0 triangles of roots of side 2^n (:func:`geoterrain.core.bintree.
+    root_triangles`, two per root) as (K, 6): flat sample ids a, b, c (stride N) and
+    their neighbours left (across c–a), right (across b–c) and base (across a–b), −1 on
+    the domain's border: the two halves of a root share their base, roots side by side
+    share a leg.
+
+    Examples
+    --------
+    >>> base_triangles(1, (1, 1), 3).tolist()  # the square: two triangles, one diagonal
+    [[0, 8, 2, -1, -1, 1], [8, 0, 6, -1, -1, 0]]
+    >>> base_triangles(1, (2, 1), 5)[:, 3:].tolist()
+    [[-1, 2, 1], [-1, -1, 0], [0, -1, 3], [-1, -1, 2]]
+    """
+    a, b, c = (p[:, 0] * N + p[:, 1] for p in root_triangles(n, roots))
+    out = np.full((len(a), 6), -1, np.int64)
+    out[:, 0], out[:, 1], out[:, 2] = a, b, c
+    held: dict = {}  # each edge (its two ends, sorted) → the (triangle, column) holding it
+    for T in range(len(a)):  # at most 2 · MAX_ROOTS triangles, once per terrain
+        for col, u, v in ((3, c[T], a[T]), (4, b[T], c[T]), (5, a[T], b[T])):
+            key = (min(u, v), max(u, v))
+            if key in held:
+                T1, col1 = held.pop(key)
+                out[T, col], out[T1, col1] = T1, T
+            else:
+                held[key] = (T, col)
+    return out
+
+
 def _build(terrain: TerrainLike) -> dict:
     g = terrain.grid
-    N, n = g.size, g.n
+    R, N = g.extent  # a square's N × N; a root grid's extent (the lattice, NaN beyond)
+    n = g.n
     h, _ = terrain.level_heights(0)
-    Z = np.ascontiguousarray(terrain.frame.z(h).ravel())
-    wedge = np.zeros(2 * N * N, np.float32)
-    var = np.zeros(2 * N * N, np.float32)
-    wedgies(Z, N, n, wedge, var, np.zeros(2 * N * N, np.uint8))
+    Z = terrain.frame.z(h)
+    if Z.shape != (R, N):
+        Z = np.pad(Z, ((0, R - Z.shape[0]), (0, N - Z.shape[1])), constant_values=np.nan)
+    Z = np.ascontiguousarray(Z.ravel())
+    wedge = np.zeros(2 * R * N, np.float32)
+    var = np.zeros(2 * R * N, np.float32)
+    wedgies(Z, R, N, n, wedge, var, np.zeros(2 * R * N, np.uint8))
     f = terrain.frame
     margin = 0.0
     if f.kind == "geographic":
         aff = np.zeros(0)
-        X, Y = f.grid_xy(N)
-        XY = np.stack([np.broadcast_to(X, (N, N)).ravel(), np.broadcast_to(Y, (N, N)).ravel()])
+        X, Y = f.grid_xy(N if R == N else (R, N))
+        XY = np.stack([np.broadcast_to(X, (R, N)).ravel(), np.broadcast_to(Y, (R, N)).ravel()])
         # a sample inside a triangle lies within twice the frame's largest departure from
         # its best affine map of the triangle's straight-edged hull
-        i, j = np.divmod(np.arange(N * N), N)
+        i, j = np.divmod(np.arange(R * N), N)
         A = np.stack([i, j, np.ones_like(i)], 1).astype(np.float64)
         res = XY.T - A @ np.linalg.lstsq(A, XY.T, rcond=None)[0]
         margin = 2.0 * float(np.sqrt((res ** 2).sum(1)).max())
@@ -79,11 +113,14 @@ def _build(terrain: TerrainLike) -> dict:
     fin = np.isfinite(Z)
     zr = np.array([Z[fin].min(), Z[fin].max(), margin]) if fin.any() else np.zeros(3)
     index = tile_index(terrain)
-    table, base = tile_table(index, g.top_level)
-    tile = np.concatenate([base[: g.top_level + 1], [g.t, g.top_level, N]]).astype(np.int64)
+    table, _ = tile_table(index, g.top_level, g)
+    levels = list(g.levels)
+    tile = np.concatenate([g.offsets()[: g.top_level + 1], [g.tiles(L)[0] for L in levels],
+                           [g.tiles(L)[1] for L in levels], [g.t, g.top_level, N]]
+                          ).astype(np.int64)
     tb = rk.RoamTables(Z, wedge, var, aff, XY, zr, np.zeros(0, np.uint8), tile,
-                       np.array([N, n], np.int64))
-    return {"tables": tb, "table": table, "vmap": np.full(N * N, -1, np.int32)}
+                       np.array([N, n], np.int64), base_triangles(n, g.roots, N))
+    return {"tables": tb, "table": table, "vmap": np.full(R * N, -1, np.int32)}
 
 
 def tables(terrain: TerrainLike) -> dict:
@@ -194,7 +231,7 @@ def run(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool, mode: 
 def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = True,
            morph: bool | None = None, fresh: bool = False):
     """The ROAM mesh of ``view`` at pixel tolerance ``tau``, from the last frame's mesh
-    (``fresh``: from the two base triangles), and its stats (``splits``, ``merges``,
+    (``fresh``: from the base triangles, two per root), and its stats (``splits``, ``merges``,
     ``roam_ms``: the queues' time); ``morph`` is ignored.
 
     Examples

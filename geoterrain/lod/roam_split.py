@@ -1,9 +1,9 @@
 """Strategy ``roam_split``: McNally's split-only ROAM, as in Tread Marks (seed 000 §2.2,
 eq. 4-2, Listing 4-1).
 
-Each frame starts from the two base triangles and splits, forced splits included
-(:mod:`geoterrain.lod.roam`'s pool and kernels), every triangle whose priority exceeds
-τ: no frame coherence, no merge queue. The priority is McNally's: the triangle's
+Each frame starts from the base triangles (two per root tile) and splits, forced splits
+included (:mod:`geoterrain.lod.roam`'s pool and kernels), every triangle whose priority
+exceeds τ: no frame coherence, no merge queue. The priority is McNally's: the triangle's
 *variance* |c_z − (a_z + b_z)/2| (eq. 4-2; kept as the largest down the tree, as his
 code does) times λ over the distance from the eye to its split vertex. A variance is
 the largest local error, not a sum of them, and the distance is to one point: no bound,

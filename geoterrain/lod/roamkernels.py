@@ -41,8 +41,11 @@ class RoamTables(NamedTuple):
     triangle), ``aff`` (9: an affine frame's geotransform, origin and unit; empty for
     a curvilinear frame, whose ``XY`` (2, N²) holds every sample's x, y), ``zr`` (global
     zmin, zmax, the xy margin of a curvilinear frame), ``hid`` (per dense tile-table
-    slot, 1 = hidden this frame; empty: none), ``tile`` (the dense table's level offsets
-    followed by t, top and N), ``size`` (N, n)."""
+    slot, 1 = hidden this frame; empty: none), ``tile`` (the dense table's level offsets,
+    each level's tiles across, then down, then t, top and N), ``size`` (N, n): N the
+    stride of the flat sample ids (a root grid's extent columns), ``roots`` (K, 6): the
+    depth-0 triangles' a, b, c and left, right, base neighbours (−1: none), two per root
+    tile (:func:`geoterrain.lod.roam.base_triangles`)."""
 
     Z: np.ndarray
     wedge: np.ndarray
@@ -53,6 +56,7 @@ class RoamTables(NamedTuple):
     hid: np.ndarray
     tile: np.ndarray
     size: np.ndarray
+    roots: np.ndarray
 
 
 class Pool(NamedTuple):
@@ -120,23 +124,25 @@ def _wedge_index(N, va, vb, vc):
 
 @njit(cache=True)
 def _tile_slot(tile, N, va, vb, vc):
-    """The dense tile-table slot of the smallest stored-tile footprint holding the
-    triangle (its level offsets, then t and top, in ``tile``)."""
+    """The dense tile-table slot of the smallest tile footprint holding the triangle
+    (``tile``: the level offsets, each level's tiles across, then down, then t and top);
+    −1 where none of the grid's tiles holds it."""
     ia, ib, ic = va // N, vb // N, vc // N
     ja, jb, jc = va % N, vb % N, vc % N
     i0, i1 = min(ia, ib, ic), max(ia, ib, ic)
     j0, j1 = min(ja, jb, jc), max(ja, jb, jc)
-    nb = tile.shape[0] - 3
-    t, top = tile[nb], tile[nb + 1]
+    nb = (tile.shape[0] - 3) // 3
+    t, top = tile[3 * nb], tile[3 * nb + 1]
     for L in range(top + 1):
         S = 1 << (t + L)
+        across, down = tile[nb + L], tile[2 * nb + L]
         y, x = i0 // S, j0 // S
-        if y == (1 << (top - L)):
+        if y == down:
             y -= 1
-        if x == (1 << (top - L)):
+        if x == across:
             x -= 1
-        if i1 <= (y + 1) * S and j1 <= (x + 1) * S:
-            return tile[L] + y * (1 << (top - L)) + x
+        if y < down and x < across and i1 <= (y + 1) * S and j1 <= (x + 1) * S:
+            return tile[L] + y * across + x
     return -1
 
 
@@ -406,7 +412,7 @@ def update(p, tb, vt, mode, incremental, stack, mo):
     is ≤ τ, lowest first (merge queue; a merge may make the parent's diamond mergeable).
     With monotone priorities the result is the coarsest conforming mesh whose leaves all
     have priority ≤ τ, whatever the last frame was, and the work follows the triangles
-    that change. ``incremental=False``: split only, from the two base triangles
+    that change. ``incremental=False``: split only, from the base triangles
     (Listing 4-1; McNally). ``mode`` 0: wedgie priorities; 1: McNally's. Returns 0, or
     NEED_SPACE when the pool must grow first (call again: the mesh is consistent
     between operations).
@@ -418,7 +424,7 @@ def update(p, tb, vt, mode, incremental, stack, mo):
     dC + dA·(rfar + dC); and while its horizon culling has not changed (``mo.hidk``).
     Only which side of τ a priority lies on decides the mesh, so the result is the same."""
     iv, fv, free, meta, hk, hv = p
-    Z, wedge, var, aff, XY, zr, hid, tile, size = tb
+    Z, wedge, var, aff, XY, zr, hid, tile, size, _ = tb
     N, nlev = size[0], size[1]
     eye, planes, lam, tau = vt
     cum, ang, hidk, now = mo
@@ -539,19 +545,18 @@ def emit(p, tb, planes, vmap, verts, faces, depth):
 
 @njit(cache=True, nogil=True)
 def reset(p, tb):
-    """Empty the pool in place back to the two base triangles (a from-scratch frame)."""
+    """Empty the pool in place back to the base triangles, two per root tile (a
+    from-scratch frame)."""
     iv, meta = p.iv, p.meta
     for T in range(meta[0]):
         for c in range(NI):
             iv[T, c] = -1
         iv[T, ALIVE] = 0
-    N = tb.size[0]
-    s = N - 1
-    iv[0, A], iv[0, B], iv[0, C] = 0, s * N + s, s
-    iv[1, A], iv[1, B], iv[1, C] = s * N + s, 0, s * N
-    for T in range(2):
-        iv[T, BASE] = 1 - T
+    roots = tb.roots
+    for T in range(roots.shape[0]):
+        iv[T, A], iv[T, B], iv[T, C] = roots[T, 0], roots[T, 1], roots[T, 2]
+        iv[T, LEFT], iv[T, RIGHT], iv[T, BASE] = roots[T, 3], roots[T, 4], roots[T, 5]
         iv[T, ALIVE] = 1
         iv[T, DEP] = 0  # (KF = −1: update() sets its geometry and scores it)
-    meta[0] = 2
+    meta[0] = roots.shape[0]
     meta[1] = 0

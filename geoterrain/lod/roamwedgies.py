@@ -35,11 +35,12 @@ def _bits(z):
 
 
 @njit(cache=True, nogil=True)
-def wedgies(Z, N, n, wedge, var, flags):
+def wedgies(Z, R, N, n, wedge, var, flags):
     """Eq. 4-1 bottom up: e_T = max(e_T0, e_T1) + |z(m) − (z(a) + z(b))/2| (0 at the
     finest triangles), and McNally's variance (eq. 4-2, kept as the max down the tree
     as his split-only ROAM does); ∞ for a triangle whose samples mix data and no-data.
-    ``flags`` (2N², uint8) is scratch: bit 1 some sample valid, bit 2 some not."""
+    ``Z``: R × N samples, flat (a square's N × N, or a root grid's extent, roots of side
+    2^n). ``flags`` (2RN, uint8) is scratch: bit 1 some sample valid, bit 2 some not."""
     for d in range(2 * n - 1, -1, -1):
         h = 1 << (n - d // 2 - 1)
         for pass_ in range(2 if d % 2 == 1 else 1):
@@ -49,7 +50,7 @@ def wedgies(Z, N, n, wedge, var, flags):
                 i_start, j_start = h, 0
             else:
                 i_start, j_start = 0, h
-            for mi in range(i_start, N, 2 * h):
+            for mi in range(i_start, R, 2 * h):
                 for mj in range(j_start, N, 2 * h):
                     pi0, pj0, pi1, pj1 = parents_nb(mi, mj, h)
                     m = mi * N + mj
@@ -57,7 +58,7 @@ def wedgies(Z, N, n, wedge, var, flags):
                     for s in range(2):
                         ci = pi0 if s == 0 else pi1
                         cj = pj0 if s == 0 else pj1
-                        if ci < 0 or cj < 0 or ci >= N or cj >= N:
+                        if ci < 0 or cj < 0 or ci >= R or cj >= N:
                             continue
                         # hypotenuse ends: m ± the perpendicular of (c − m)
                         di, dj = ci - mi, cj - mj

@@ -60,20 +60,25 @@ class Tables:
 
     def __init__(self, terrain: TerrainLike):
         g = terrain.grid
-        N, n = g.size, g.n
-        self.N, self.n = N, n
+        R, N = g.extent  # a square's N × N; a root grid's extent (roots of side 2^n)
+        n = g.n
+        self.N, self.n = N, n  # N: the columns, the stride of the keys i·N + j
         h0, v = terrain.level_heights(0)
         Z = terrain.frame.z(h0)
-        self.Z = Z
-        i = np.array([0, 0, N - 1])
+        r, c = Z.shape  # the level-0 lattice; beyond it (a root grid's) no data, δ = 0
+        ii, jj = np.meshgrid(np.arange(r), np.arange(c), indexing="ij")
+        delta = terrain.gather(ii.ravel(), jj.ravel(), ("delta",))["delta"].reshape(r, c)
+        if (r, c) != (R, N):
+            Z = np.pad(Z, ((0, R - r), (0, N - c)), constant_values=np.nan)
+            delta = np.pad(delta, ((0, R - r), (0, N - c)))
+        self.Z, self.delta = Z, delta
+        i = np.array([0, 0, R - 1])
         j = np.array([0, N - 1, 0])
         x, y = terrain.frame.xy(i, j)
-        self.dx = float(min(np.hypot(x[1] - x[0], y[1] - y[0]),
-                            np.hypot(x[2] - x[0], y[2] - y[0])) / (N - 1))
+        self.dx = float(min(np.hypot(x[1] - x[0], y[1] - y[0]) / (N - 1),
+                            np.hypot(x[2] - x[0], y[2] - y[0]) / (R - 1)))
         K = C_MIN / (2.0 * (C_MIN - 1.0))  # eq. 4-6
         self.d2, self.zmin, self.zmax, self.mixed = [], [], [], []
-        ii, jj = np.meshgrid(np.arange(N), np.arange(N), indexing="ij")
-        self.delta = terrain.gather(ii.ravel(), jj.ravel(), ("delta",))["delta"].reshape(N, N)
         finer = None
         lo = hi = anyv = anyi = None
         for k in range(n - 1, -1, -1):  # finest (h = 1) first
@@ -90,7 +95,7 @@ class Tables:
                                np.abs(c - 0.5 * (c00 + c11)), np.abs(c - 0.5 * (c01 + c10))])
             local = np.nanmax(np.where(np.isnan(dh), -np.inf, dh), axis=0) / (s * self.dx)
             if finer is None:  # h = 1: the node's 3 × 3 samples
-                win = np.stack([Z[a:N - 2 + a:2, b:N - 2 + b:2] for a in range(3)
+                win = np.stack([Z[a:R - 2 + a:2, b:N - 2 + b:2] for a in range(3)
                                 for b in range(3)])
                 ok = np.isfinite(win)
                 anyv, anyi = ok.any(0), (~ok).any(0)
@@ -112,8 +117,9 @@ class Tables:
             self.mixed.insert(0, mixed)
             finer = d2
         index = tile_index(terrain)
-        self.table, self.base = tile_table(index, g.top_level)
-        self.t, self.top = g.t, g.top_level
+        self.table, self.base = tile_table(index, g.top_level, g)
+        self.t, self.top, self.roots = g.t, g.top_level, g.roots
+        self.tiles = [g.tiles(L) for L in g.levels]  # (across, down) per level
 
 
 def _reduce(a: np.ndarray, op) -> np.ndarray:
@@ -150,8 +156,9 @@ def _tile_rows(tb: Tables, k: int, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     span = tb.n - k  # log2 of the node's edge in samples
     L = max(span - tb.t, 0)
     sh = max(tb.t + L - span, 0)
-    nt = 1 << (tb.top - L)
-    return tb.table[tb.base[L] + np.minimum(y >> sh, nt - 1) * nt + np.minimum(x >> sh, nt - 1)]
+    across, down = tb.tiles[L]
+    return tb.table[tb.base[L] + np.minimum(y >> sh, down - 1) * across
+                    + np.minimum(x >> sh, across - 1)]
 
 
 def _boxes(terrain: TerrainLike, tb: Tables, k: int, x: np.ndarray, y: np.ndarray):
@@ -198,7 +205,8 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     eye, lam = view.eye, view.lam
     c = lam / (tau * C_MIN)  # the desired global resolution from τ
     hidden = hidden_rows(terrain, view, enabled=occlusion)
-    x = y = np.zeros(1, np.int64)
+    rx, ry = tb.roots  # depth 0: every root (one on a square grid)
+    x, y = np.tile(np.arange(rx), ry), np.repeat(np.arange(ry), rx)
     leaves, visited, culled = [], 0, 0
     splits: dict[int, tuple] = {}  # per depth: the nodes the rule split (keys) and their f
     for k in range(tb.n):
@@ -347,7 +355,7 @@ def _bound(terrain: TerrainLike, tb: Tables, view: View, tau: float, leaves):
     while True:
         lv = [(k, *by[k]) for k in sorted(by) if len(by[k][0])]
         before = sum(len(v[1]) for v in lv)
-        lv, D, dmax = restrict_leaves(lv)
+        lv, D, dmax = restrict_leaves(lv, tb.roots)
         n_restrict += (sum(len(v[1]) for v in lv) - before) // 3
         by = {k: (x, y) for k, x, y in lv}
         grow = []  # (depth, x, y) of nodes to split

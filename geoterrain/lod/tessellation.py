@@ -155,8 +155,8 @@ class HamStats:
 
     def __init__(self, terrain: TerrainLike):
         self.terrain = terrain
-        n = terrain.grid.tiles_per_side(0)
-        self.values = np.full((n, n, 4), np.nan)
+        across, down = terrain.grid.tiles(0)
+        self.values = np.full((down, across, 4), np.nan)
         self.computed = 0  # patches computed (the tests count them)
 
     def stats(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
@@ -174,11 +174,11 @@ class HamStats:
         edit log entries, each with its ``window`` (row, col, rows, cols)): drop the
         patches within :data:`HALO` samples of them."""
         g = self.terrain.grid
-        S, n = 1 << g.t, g.tiles_per_side(0)
+        S, (across, down) = 1 << g.t, g.tiles(0)
         for e in edits:
             r, c, h, w = e["window"]
-            y0, y1 = max((r - HALO - 1) // S, 0), min((r + h - 1 + HALO) // S, n - 1)
-            x0, x1 = max((c - HALO - 1) // S, 0), min((c + w - 1 + HALO) // S, n - 1)
+            y0, y1 = max((r - HALO - 1) // S, 0), min((r + h - 1 + HALO) // S, down - 1)
+            x0, x1 = max((c - HALO - 1) // S, 0), min((c + w - 1 + HALO) // S, across - 1)
             for y in range(y0, y1 + 1):
                 for x in range(x0, x1 + 1):
                     if y * S - HALO <= r + h - 1 and y * S + S + HALO >= r and \
@@ -191,12 +191,12 @@ def patch_heights(terrain: TerrainLike, x: int, y: int, halo: int = HALO
     """Level-0 heights (metres, NaN where not valid) of patch (x, y) and ``halo`` samples
     around it within the map, and the patch's first row and column in that array."""
     g = terrain.grid
-    S, n, N = 1 << g.t, g.tiles_per_side(0), g.size
+    S, (across, down), (R, C) = 1 << g.t, g.tiles(0), g.shape  # the level-0 lattice
     i0, j0 = max(y * S - halo, 0), max(x * S - halo, 0)
-    i1, j1 = min(y * S + S + halo, N - 1), min(x * S + S + halo, N - 1)
+    i1, j1 = min(y * S + S + halo, R - 1), min(x * S + S + halo, C - 1)
     h = np.full((i1 - i0 + 1, j1 - j0 + 1), np.nan)
-    for ty in range(max(i0 // S, 0), min(i1 // S, n - 1) + 1):
-        for tx in range(max(j0 // S, 0), min(j1 // S, n - 1) + 1):
+    for ty in range(max(i0 // S, 0), min(i1 // S, down - 1) + 1):
+        for tx in range(max(j0 // S, 0), min(j1 // S, across - 1) + 1):
             if (0, tx, ty) not in terrain.tile_info:
                 continue
             a0, a1 = max(i0, ty * S), min(i1, ty * S + S)
@@ -253,8 +253,8 @@ def factors(terrain: TerrainLike, index, leaves: np.ndarray, view: View, tau: fl
     tmin = np.clip(lam * dh / (np.maximum(dbox, 1e-9) * tau), 1.0, tmax)
     width = np.maximum(hi[:, 0] - lo[:, 0], hi[:, 1] - lo[:, 1])
     # neighbours across the four edges (−1: none drawn), on the level-0 patch grid
-    nt = g.tiles_per_side(0)
-    G = np.full((nt + 2, nt + 2), -1, np.int64)
+    across, down = g.tiles(0)
+    G = np.full((down + 2, across + 2), -1, np.int64)
     xy = index.keys[leaves, 1:]
     G[xy[:, 1] + 1, xy[:, 0] + 1] = np.arange(len(leaves))
     mid = 0.5 * (lo + hi)

@@ -223,16 +223,16 @@ def _skirts(terrain: TerrainLike, index: TileIndex, row: int, xyz: np.ndarray, v
     g = terrain.grid
     T = g.tile_samples
     L, x, y = (int(v) for v in index.keys[row])
-    n_side = g.tiles_per_side(L)
+    across, down = g.tiles(L)
     idx = np.arange(T * T).reshape(T, T)
     edges = []
     if y > 0 and sides & 1:
         edges.append(idx[0])
-    if y < n_side - 1 and sides & 2:
+    if y < down - 1 and sides & 2:
         edges.append(idx[-1])
     if x > 0 and sides & 4:
         edges.append(idx[:, 0])
-    if x < n_side - 1 and sides & 8:
+    if x < across - 1 and sides & 8:
         edges.append(idx[:, -1])
     if not edges:
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64)

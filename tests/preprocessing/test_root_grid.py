@@ -162,19 +162,25 @@ def test_the_tile_table_and_the_kernels_find_each_samples_coarsest_tile(rows, co
             assert (a, b) == ((i >> L) - (y << t), (j >> L) - (x << t))
 
 
-def test_unported_strategies_refuse_and_rtin_draws(wide):
+def test_every_strategy_draws_and_an_unregistered_one_refuses(wide, monkeypatch):
+    # the meshes' guarantees on root grids are measured in tests/test_stress.py
+    import dataclasses
+
+    from geoterrain.lod import registry
+
     t, _ = wide
     view = geoterrain.View((0.0, -900.0, 700.0), (0.0, 0.0, 0.0), size=(160, 90))
     for name in STRATEGIES:
-        if strategy_info(name).root_grid:
-            assert t.select(view, 2.0, name).stats["triangles"] > 0
-            continue
-        with pytest.raises(RootGridError, match=r"drawn by the rtin strategy only") as e:
-            t.select(view, 2.0, name)
-        assert "\n" not in str(e.value) and name in str(e.value)
-    assert strategy_info("rtin").root_grid
-    with pytest.raises(RootGridError, match="rtin strategy only"):
-        t.static_selection(1.0, mesher="tin")
+        assert strategy_info(name).root_grid
+        assert t.select(view, 2.0, name).stats["triangles"] > 0
+    assert t.static_selection(1.0, mesher="tin").stats["triangles"] > 0
+    # a strategy not registered for root grids refuses in one line naming those that are
+    monkeypatch.setitem(registry.REGISTRY, "quadtree", dataclasses.replace(
+        registry.REGISTRY["quadtree"], root_grid=False))
+    with pytest.raises(RootGridError, match=r"drawn only by the strategies rtin, ") as e:
+        t.select(view, 2.0, "quadtree")
+    assert "\n" not in str(e.value) and "the quadtree strategy" in str(e.value)
+    assert "quadtree," not in str(e.value) and "chunked" in str(e.value)
 
 
 def _refusals(t, tmp_path):
@@ -184,6 +190,6 @@ def _refusals(t, tmp_path):
 def test_every_other_consumer_refuses_a_root_grid_in_one_line(wide, tmp_path):
     t, _ = wide
     for what, call in _refusals(t, tmp_path).items():
-        with pytest.raises(RootGridError, match="rtin strategy only") as e:
+        with pytest.raises(RootGridError, match="registered for it") as e:
             call()
         assert what.split(" (")[0] in str(e.value) and "\n" not in str(e.value), what
