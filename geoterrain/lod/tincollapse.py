@@ -4,9 +4,11 @@
 worst sample of the worst triangle until every triangle is within the bound), then
 :func:`_decimate`: each point merged into a neighbour wherever every triangle of the new
 fan still has its error over the samples it covers within the bound (scanned, as the
-refinement scans), which removes about a third of the triangles Delatin's refinement
-alone leaves (docs/lab/static-mesh.md). The half-edge rows, the heap and the scans are
-the refinement module's; this module only uses them.
+refinement scans). Tried on every point, it removes 26–41 % of the triangles Delatin's
+refinement alone leaves, for about a quarter more time; the caller may stop it after a
+share of them (``collapse``: ``mesher="tin"`` stops at 5 %, ``"tin-full"`` does not;
+docs/lab/static-mesh.md). The half-edge rows, the heap and the scans are the refinement
+module's; this module only uses them.
 """
 
 from __future__ import annotations
