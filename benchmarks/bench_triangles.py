@@ -21,7 +21,7 @@ valid samples, in grid space), independently of the code that selects the meshes
 Triangle counts are exact, so one run is enough; times are medians.
 
 Usage: ``python benchmarks/bench_triangles.py [DEM ...] [--tin-only] [--fbm N] [--repeat R]
-[--tin-meshers tin,tin-full]``
+[--tin-meshers tin,tin-full] [--tin-errors 5,20]``
 (default: the Fuji tile and srtm1_japan from ../shared/dems, and a synthetic fBm,
 700 × 900 or N × N with ``--fbm N``, seed 7).
 """
@@ -54,7 +54,8 @@ def measure(t, Z: np.ndarray, valid: np.ndarray, e: float) -> tuple[int, float, 
     return len(f), err.max, err.n_uncovered_valid
 
 
-def run_tin(t, name: str, repeat: int, extra: bool = True, meshers=("tin",)) -> None:
+def run_tin(t, name: str, repeat: int, extra: bool = True, meshers=("tin",),
+            errors=TIN_ERRORS) -> None:
     """Our TIN(s) against pydelatin at pydelatin's measured error: triangles and times."""
     from pydelatin import Delatin
 
@@ -73,7 +74,7 @@ def run_tin(t, name: str, repeat: int, extra: bool = True, meshers=("tin",)) -> 
           "measured / uncovered | pydelatin ms | TIN ms | time ratio | TIN tris at e | rtin "
           "tris at e |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for e in TIN_ERRORS:
+    for e in errors:
         dl = Delatin(z32, max_error=e)
         v = np.asarray(dl.vertices)
         ij = np.stack([H - 1 - v[:, 1], v[:, 0]], 1).astype(np.int64)  # its y runs north
@@ -162,6 +163,8 @@ def main() -> None:
     ap.add_argument("--tin-meshers", default="tin",
                     help="the TIN meshers timed against pydelatin, comma-separated "
                          "(tin, tin-full)")
+    ap.add_argument("--tin-errors", default="1,5,20",
+                    help="the TIN table's errors, comma-separated (default 1,5,20)")
     a = ap.parse_args()
     d = tempfile.mkdtemp()
     dems = a.dems or [str(p) for p in (DEMS / "fuji_terrain_rgb.png",
@@ -182,7 +185,8 @@ def main() -> None:
             if not a.tin_only:
                 run(t, os.path.basename(str(dem)))
             run_tin(t, os.path.basename(str(dem)), a.repeat, not a.no_extra,
-                    tuple(m.strip() for m in a.tin_meshers.split(",") if m.strip()))
+                    tuple(m.strip() for m in a.tin_meshers.split(",") if m.strip()),
+                    tuple(float(x) for x in a.tin_errors.split(",") if x.strip()))
 
 
 if __name__ == "__main__":
