@@ -10,7 +10,7 @@ then collapses points no longer needed). A triangle's error is the largest
 
 Two TIN meshers differ only in that collapse pass (:data:`COLLAPSE`): ``"tin"`` stops it
 once it has removed 5 % of the refinement's triangles (about 0.95× pydelatin's triangles,
-in less time than pydelatin's refinement), ``"tin-full"`` tries every point (0.58–0.74×
+0.7–1.0× its time on a quiet machine), ``"tin-full"`` tries every point (0.58–0.74×
 pydelatin's triangles, about a quarter more time); docs/lab/static-mesh.md. Both hold
 the same exact bound: a collapse is made only if every new triangle is within it.
 
