@@ -12,13 +12,16 @@ For each DEM and e ∈ {1, 5, 20, 100}:
 - the TIN table (e ∈ {1, 5, 20}): pydelatin at e, its error measured, then our TIN
   (``static_selection(that measured error, mesher="tin")``, the whole seam: heights read,
   mesh, PolyData) at it: triangles, the TIN's measured error and uncovered samples, and
-  the times, pydelatin's and ours alternating (``--repeat`` runs), medians.
+  the times, pydelatin's and ours alternating (``--repeat`` runs), medians. With
+  ``--tin-meshers tin,tin-full`` each TIN mesher has its row, all timed in the same
+  alternation (tin-full: the collapse pass unbounded).
 
 Every error is measured by :func:`geoterrain.testing.measure.vertical_error` (barycentric, over the
 valid samples, in grid space), independently of the code that selects the meshes.
 Triangle counts are exact, so one run is enough; times are medians.
 
-Usage: ``python benchmarks/bench_triangles.py [DEM ...] [--tin-only] [--fbm N] [--repeat R]``
+Usage: ``python benchmarks/bench_triangles.py [DEM ...] [--tin-only] [--fbm N] [--repeat R]
+[--tin-meshers tin,tin-full] [--tin-errors 5,20]``
 (default: the Fuji tile and srtm1_japan from ../shared/dems, and a synthetic fBm,
 700 × 900 or N × N with ``--fbm N``, seed 7).
 """
@@ -51,8 +54,9 @@ def measure(t, Z: np.ndarray, valid: np.ndarray, e: float) -> tuple[int, float, 
     return len(f), err.max, err.n_uncovered_valid
 
 
-def run_tin(t, name: str, repeat: int, extra: bool = True) -> None:
-    """Our TIN against pydelatin at pydelatin's measured error: triangles and times."""
+def run_tin(t, name: str, repeat: int, extra: bool = True, meshers=("tin",),
+            errors=TIN_ERRORS) -> None:
+    """Our TIN(s) against pydelatin at pydelatin's measured error: triangles and times."""
     from pydelatin import Delatin
 
     g = t.grid
@@ -64,36 +68,45 @@ def run_tin(t, name: str, repeat: int, extra: bool = True) -> None:
         print(f"\n### {name}: has nodata, pydelatin cannot take it\n")
         return
     z32 = Zd.astype(np.float32)
-    print(f"\n### {name}: {H}×{W}, TIN against pydelatin (load {os.getloadavg()[0]:.2f})\n")
-    print("| e | pydelatin tris | its measured error | TIN tris at it | ratio | TIN measured / "
-          "uncovered | pydelatin ms | TIN ms | time ratio | TIN tris at e | rtin tris at e |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for e in TIN_ERRORS:
+    print(f"\n### {name}: {H}×{W}, TIN against pydelatin (load {os.getloadavg()[0]:.2f}, "
+          f"{time.strftime('%H:%M:%S', time.gmtime())} UTC)\n")
+    print("| e | mesher | pydelatin tris | its measured error | TIN tris at it | ratio | TIN "
+          "measured / uncovered | pydelatin ms | TIN ms | time ratio | TIN tris at e | rtin "
+          "tris at e |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for e in errors:
         dl = Delatin(z32, max_error=e)
         v = np.asarray(dl.vertices)
         ij = np.stack([H - 1 - v[:, 1], v[:, 0]], 1).astype(np.int64)  # its y runs north
         f = np.asarray(dl.triangles, np.int64)
         pm = vertical_error(ij, f, Zd[ij[:, 0], ij[:, 1]], Z, valid).max
-        td, to = [], []
-        for _ in range(repeat):  # alternating, so both see the same load
+        td, to = [], {m: [] for m in meshers}
+        sel = {}
+        for _ in range(repeat):  # alternating, so all see the same load
             t0 = time.perf_counter()
             dl = Delatin(z32, max_error=e)
             td.append(time.perf_counter() - t0)
-            t0 = time.perf_counter()
-            sel = t.static_selection(pm, mesher="tin")
-            to.append(time.perf_counter() - t0)
-        tf = sel.surface_faces()
-        err = vertical_error(np.asarray(sel.ij), tf, np.asarray(sel.mesh.points)[:, 2], Z, valid)
-        at_e = t.static_selection(e, mesher="tin").stats["triangles"] if extra else "–"
-        rt = t.static_selection(e).stats["triangles"] if extra else "–"
-        md, mo = statistics.median(td) * 1e3, statistics.median(to) * 1e3
-        print("| " + " | ".join([
-            f"{e:g}", f"{len(f)}", f"{pm:.6f}", f"{len(tf)}", f"**{len(tf) / len(f):.4f}**",
-            f"{err.max:.6f} ({'≤' if err.max <= pm * (1 + 1e-12) else '>'} it) / "
-            f"{err.n_uncovered_valid}",
-            f"{md:.0f}", f"{mo:.0f}",
-            f"**{mo / md:.2f}**", f"{at_e}", f"{rt}"]) + " |", flush=True)
-    print(f"\n(load after: {open('/proc/loadavg').read().split()[0]})")
+            for m in meshers:
+                t0 = time.perf_counter()
+                sel[m] = t.static_selection(pm, mesher=m)
+                to[m].append(time.perf_counter() - t0)
+        md = statistics.median(td) * 1e3
+        for m in meshers:
+            tf = sel[m].surface_faces()
+            err = vertical_error(np.asarray(sel[m].ij), tf, np.asarray(sel[m].mesh.points)[:, 2],
+                                 Z, valid)
+            at_e = t.static_selection(e, mesher=m).stats["triangles"] if extra else "–"
+            rt = t.static_selection(e).stats["triangles"] if extra else "–"
+            mo = statistics.median(to[m]) * 1e3
+            print("| " + " | ".join([
+                f"{e:g}", m, f"{len(f)}", f"{pm:.6f}", f"{len(tf)}",
+                f"**{len(tf) / len(f):.4f}**",
+                f"{err.max:.6f} ({'≤' if err.max <= pm * (1 + 1e-12) else '>'} it) / "
+                f"{err.n_uncovered_valid}",
+                f"{md:.0f}", f"{mo:.0f}",
+                f"**{mo / md:.2f}**", f"{at_e}", f"{rt}"]) + " |", flush=True)
+    print(f"\n(load after: {open('/proc/loadavg').read().split()[0]}, "
+          f"{time.strftime('%H:%M:%S', time.gmtime())} UTC)")
 
 
 def run(t, name: str) -> None:
@@ -147,6 +160,11 @@ def main() -> None:
     ap.add_argument("--no-extra", action="store_true",
                     help="without the TIN and rtin counts at e (two meshes fewer per e)")
     ap.add_argument("--repeat", type=int, default=3, help="timed runs of each (median)")
+    ap.add_argument("--tin-meshers", default="tin",
+                    help="the TIN meshers timed against pydelatin, comma-separated "
+                         "(tin, tin-full)")
+    ap.add_argument("--tin-errors", default="1,5,20",
+                    help="the TIN table's errors, comma-separated (default 1,5,20)")
     a = ap.parse_args()
     d = tempfile.mkdtemp()
     dems = a.dems or [str(p) for p in (DEMS / "fuji_terrain_rgb.png",
@@ -166,7 +184,9 @@ def main() -> None:
         with geoterrain.open(store) as t:
             if not a.tin_only:
                 run(t, os.path.basename(str(dem)))
-            run_tin(t, os.path.basename(str(dem)), a.repeat, not a.no_extra)
+            run_tin(t, os.path.basename(str(dem)), a.repeat, not a.no_extra,
+                    tuple(m.strip() for m in a.tin_meshers.split(",") if m.strip()),
+                    tuple(float(x) for x in a.tin_errors.split(",") if x.strip()))
 
 
 if __name__ == "__main__":

@@ -331,10 +331,12 @@ def _strategy_help(prefix: str) -> str:
 
 
 mesher_option = click.option(
-    "--mesher", type=click.Choice(["rtin", "tin"]), default="rtin", show_default=True,
+    "--mesher", type=click.Choice(["rtin", "tin", "tin-full"]), default="rtin",
+    show_default=True,
     help="Whole-terrain mesh (--max-error): rtin, the bintree cut (streamed in bounded "
          "memory), or tin, a greedy Delaunay TIN (fewer triangles at the same error; the "
-         "whole grid in memory).")
+         "whole grid in memory); tin-full collapses every point it can after the TIN's "
+         "refinement (fewer triangles still, about a quarter more time).")
 
 strategy_option = click.option(
     "--strategy", type=click.Choice(STRATEGIES), default=DEFAULT, show_default=True,
@@ -554,7 +556,7 @@ vertical_exaggeration_option = click.option(
 
 
 def check_mesher(mesher: str, max_error) -> None:
-    """--mesher tin is a whole-terrain mesher: refused with a view (one line, exit 2)."""
+    """--mesher tin / tin-full is a whole-terrain mesher: refused with a view (one line, exit 2)."""
     from geoterrain.exceptions import UsageError
 
     if mesher != "rtin" and max_error is None:

@@ -651,7 +651,8 @@ class Terrain:
         """Static mesh within ``max_error`` of every valid sample: vertical error ≤ max_error.
 
         ``method``: ``"rtin"`` keeps every vertex with δ > ``max_error`` (the bintree cut);
-        ``"tin"`` is the greedy-insertion TIN (fewer triangles; :mod:`geoterrain.lod.tin`).
+        ``"tin"`` is the greedy-insertion TIN (fewer triangles; :mod:`geoterrain.lod.tin`);
+        ``"tin-full"`` the same with every point collapsed that can be (fewer still, slower).
         Returns a ``pyvista.PolyData`` in the scene frame (point data ``grid_ij``).
 
         Examples

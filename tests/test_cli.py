@@ -394,6 +394,11 @@ def test_mesh_and_export_with_the_tin_mesher(fbm_tif, tmp_path):
     stats = json.loads(res.output)
     assert stats["mesher"] == "tin" and stats["triangles"] == pv.read(b).n_cells
     assert pv.read(b).n_cells < pv.read(a).n_cells
+    c = tmp_path / "tinfull.ply"
+    res = run("mesh", fbm_store, "-o", c, "--max-error", "2", "--mesher", "tin-full", "--json")
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["mesher"] == "tin-full"
+    assert pv.read(c).n_cells < pv.read(b).n_cells  # every point tried: fewer triangles
     glb = tmp_path / "tin.glb"
     assert run("-q", "export", fbm_store, "-o", glb, "--max-error", "2", "--mesher",
                "tin").exit_code == 0 and glb.stat().st_size > 0

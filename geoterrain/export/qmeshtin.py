@@ -110,7 +110,7 @@ def tin_tile(h: np.ndarray, valid: np.ndarray, thr: float, tau: float
         seeds.append(idx[sl][keep])
     seeds = np.unique(np.concatenate(seeds))
     seeds = seeds[~np.isin(seeds, (0, M - 1, (M - 1) * M, M * M - 1))].astype(np.int64)
-    faces, ij = greedy_tin_seeded(np.ascontiguousarray(z).ravel(), M, M, thr, seeds, True)
+    faces, ij = greedy_tin_seeded(np.ascontiguousarray(z).ravel(), M, M, thr, seeds, 1.0)
     ok = valid[ij[:, 0], ij[:, 1]]
     return ij, faces[ok[faces].all(1)]
 

@@ -52,7 +52,7 @@ def _border_triangle(F, nt, p, W):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def greedy_tin_seeded(z, H, W, max_error, seeds, simplify):
+def greedy_tin_seeded(z, H, W, max_error, seeds, collapse):
     """The greedy TIN of the H × W heights ``z`` (flat) within ``max_error``, its border
     points the rectangle's corners and ``seeds`` (flat ids on the border, corners
     excluded). Returns the triangles (F, 3) and the (row, column) of their points."""
@@ -70,6 +70,6 @@ def greedy_tin_seeded(z, H, W, max_error, seeds, simplify):
         F[ROW * t + CAND] = s
         if _insert(t, F, W, heap, key, pending, cnt, stack, pts) < 0:
             raise RuntimeError("Delaunay flips deeper than the stack")
-    F, nt, pts = _refine_and_collapse(z, valid, W, False, max_error, simplify, F, heap, key,
+    F, nt, pts = _refine_and_collapse(z, valid, W, False, max_error, collapse, F, heap, key,
                                       pending, pts, cnt)
     return _compact(F, nt, pts, valid, False, W)

@@ -32,10 +32,11 @@ def _dem(h: int, w: int, seed: int, relief: float) -> np.ndarray:
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(h=st.integers(2, 40), w=st.integers(2, 40), seed=st.integers(0, 10_000),
-       e=st.sampled_from([0.0, 0.1, 1.0, 7.5, 40.0, 1e9]))
-def test_bound_exact_covering_and_a_valid_triangulation(h, w, seed, e):
+       e=st.sampled_from([0.0, 0.1, 1.0, 7.5, 40.0, 1e9]),
+       collapse=st.sampled_from([0.0, 0.05, 0.3, 1.0]))
+def test_bound_exact_covering_and_a_valid_triangulation(h, w, seed, e, collapse):
     z = _dem(h, w, seed, 100.0)
-    ij, f = greedy_mesh(z, None, e)
+    ij, f = greedy_mesh(z, None, e, collapse)
     valid = np.ones_like(z, bool)
     err = vertical_error(ij, f, z[ij[:, 0], ij[:, 1]], z, valid)
     assert err.n_uncovered_valid == 0
@@ -53,8 +54,10 @@ def test_bound_exact_covering_and_a_valid_triangulation(h, w, seed, e):
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(h=st.integers(3, 36), w=st.integers(3, 36), seed=st.integers(0, 10_000),
-       e=st.sampled_from([0.0, 1.0, 10.0, 1e9]), holes=st.integers(1, 4))
-def test_voids_are_never_spanned_and_the_bound_holds_around_them(h, w, seed, e, holes):
+       e=st.sampled_from([0.0, 1.0, 10.0, 1e9]), holes=st.integers(1, 4),
+       collapse=st.sampled_from([0.05, 1.0]))
+def test_voids_are_never_spanned_and_the_bound_holds_around_them(h, w, seed, e, holes,
+                                                                  collapse):
     z = _dem(h, w, seed, 100.0)
     rng = np.random.default_rng(seed)
     valid = np.ones_like(z, bool)
@@ -62,7 +65,7 @@ def test_voids_are_never_spanned_and_the_bound_holds_around_them(h, w, seed, e, 
         i, j = rng.integers(0, h), rng.integers(0, w)
         valid[i:i + rng.integers(1, 6), j:j + rng.integers(1, 6)] = False
     zin = np.where(valid, z, np.nan)  # the mesher must never read an invalid height
-    ij, f = greedy_mesh(np.nan_to_num(zin, nan=1e6), valid, e)
+    ij, f = greedy_mesh(np.nan_to_num(zin, nan=1e6), valid, e, collapse)
     assert valid[ij[f][..., 0], ij[f][..., 1]].all()  # only triangles of valid corners
     zv = np.where(valid, z, np.nan)
     err = vertical_error(ij, f, z[ij[:, 0], ij[:, 1]], zv, valid)
@@ -90,6 +93,29 @@ def _void_border(valid: np.ndarray) -> np.ndarray:
     return out
 
 
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000), e=st.sampled_from([0.5, 2.0, 8.0]),
+       share=st.sampled_from([0.01, 0.05, 0.2]))
+def test_the_bounded_collapse_stops_at_its_share(seed, e, share):
+    """The collapse pass with a share removes at most ⌈share·n / 2⌉ points (two triangles
+    each) of the n triangles the refinement left, exactly that many where the full pass
+    removes twice as many (its order differs, so it may find fewer near the full pass's
+    count), keeps only points the refinement inserted, and holds the bound."""
+    z = _dem(80, 90, seed, 200.0)
+    valid = np.ones_like(z, bool)
+    n0, n1 = (len(greedy_mesh(z, None, e, c)[1]) for c in (0.0, 1.0))
+    ij, f = greedy_mesh(z, None, e, share)
+    removed = int(np.ceil(share * n0 / 2))
+    assert len(f) >= n0 - 2 * removed
+    if 2 * removed <= (n0 - n1) / 2:
+        assert len(f) == n0 - 2 * removed, (len(f), n0, removed)
+    p0 = {tuple(p) for p in greedy_mesh(z, None, e, 0.0)[0].tolist()}
+    assert {tuple(p) for p in ij.tolist()} <= p0
+    err = vertical_error(ij, f, z[ij[:, 0], ij[:, 1]], z, valid)
+    assert err.max <= e * (1 + 1e-12) and err.n_uncovered_valid == 0
+    assert (_signed_areas(ij, f) > 0).all()
+
+
 def test_the_arrays_grow_and_the_refinement_resumes():
     """At e = 0 on fBm every sample is a point: 2·(H − 1)·(W − 1) triangles, eight times
     the kernel's first 1 024 rows, so the refinement returns to its driver three times
@@ -114,13 +140,17 @@ def test_counts_no_more_than_rtin_and_through_the_seam(tmp_path):
         _, _, Z = t.scene_xyz()
         valid = np.isfinite(Z)
         for e in (1.0, 5.0):
-            sel = t.static_selection(e, mesher="tin")
-            f = sel.surface_faces()
-            err = vertical_error(np.asarray(sel.ij), f, np.asarray(sel.mesh.points)[:, 2], Z,
-                                 valid)
-            assert err.max <= e * (1 + 1e-12) and err.n_uncovered_valid == 0
-            assert sel.stats["mesher"] == "tin" and sel.stats["max_error"] == e
-            assert sel.stats["triangles"] == len(f) < t.static_selection(e).stats["triangles"]
-            assert "elevation" in sel.mesh.point_data
+            n = {}
+            for m in ("tin", "tin-full"):
+                sel = t.static_selection(e, mesher=m)
+                f = sel.surface_faces()
+                err = vertical_error(np.asarray(sel.ij), f, np.asarray(sel.mesh.points)[:, 2],
+                                     Z, valid)
+                assert err.max <= e * (1 + 1e-12) and err.n_uncovered_valid == 0
+                assert sel.stats["mesher"] == m and sel.stats["max_error"] == e
+                n[m] = sel.stats["triangles"]
+                assert n[m] == len(f) < t.static_selection(e).stats["triangles"]
+                assert "elevation" in sel.mesh.point_data
+            assert n["tin-full"] < n["tin"]
         with pytest.raises(UsageError, match="mesher"):
             t.static_selection(1.0, mesher="delaunay")
