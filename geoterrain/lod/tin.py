@@ -100,12 +100,15 @@ def static(terrain: TerrainLike, max_error: float, mesher: str = "tin"):
     scene frame (``grid_ij``, ``level`` 0, ``skirt`` 0) and stats."""
     from geoterrain.lod.mesh import polydata
 
+    from geoterrain.core.memory import small_pages
+
     g = terrain.grid
     H, W = g.rows, g.cols
-    h, valid = terrain.level_heights(0)
-    z = terrain.frame.z(h[:H, :W])
-    valid = valid[:H, :W]
-    ij, faces = greedy_mesh(z, valid, max_error, COLLAPSE[mesher])
+    with small_pages():  # whole-grid arrays: a huge page's first touch can cost seconds
+        h, valid = terrain.level_heights(0)
+        z = terrain.frame.z(h[:H, :W])
+        valid = valid[:H, :W]
+        ij, faces = greedy_mesh(z, valid, max_error, COLLAPSE[mesher])
     if terrain.frame.kind == "geographic":  # the tiles' cached x, y (pyproj once a tile)
         got = terrain.gather(ij[:, 0], ij[:, 1], kinds=("x", "y"))
         x, y = got["x"], got["y"]
