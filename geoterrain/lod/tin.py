@@ -98,9 +98,8 @@ def static(terrain: TerrainLike, max_error: float, mesher: str = "tin"):
     """The greedy TIN of ``terrain``'s level-0 samples within ``max_error`` (scene
     units), its collapse pass as ``mesher`` says (:data:`COLLAPSE`), as a mesh in the
     scene frame (``grid_ij``, ``level`` 0, ``skirt`` 0) and stats."""
-    from geoterrain.lod.mesh import polydata
-
     from geoterrain.core.memory import small_pages
+    from geoterrain.lod.mesh import polydata
 
     g = terrain.grid
     H, W = g.rows, g.cols
