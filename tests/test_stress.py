@@ -621,9 +621,10 @@ def test_root_grid_nodata(tmp_path, name):
               pre={"root_grid": True, "tile_size": 16})
     assert t.grid.roots == (2, 1)
     full_check(t)
-    # the TIN's bound around voids; not its conformity: next to voids it may fold two
-    # triangles over one edge (an edge used by three), on a square store as well
-    check_static(t, Es=(0.0, 5.0), mesher="tin", conforming=False)
+    # the TIN's bound and conformity around voids (a collapse pass there folded two
+    # triangles over one edge; grids with voids now get none)
+    check_static(t, Es=(0.0, 5.0), mesher="tin")
+    check_static(t, Es=(5.0,), mesher="tin-full")
 
 
 @pytest.mark.parametrize("cam", CAMERAS)

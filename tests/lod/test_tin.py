@@ -52,10 +52,10 @@ def test_bound_exact_covering_and_a_valid_triangulation(h, w, seed, e, collapse)
     assert len(f) == 2 * len(ij) - border - 2
 
 
-@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(h=st.integers(3, 36), w=st.integers(3, 36), seed=st.integers(0, 10_000),
-       e=st.sampled_from([0.0, 1.0, 10.0, 1e9]), holes=st.integers(1, 4),
-       collapse=st.sampled_from([0.05, 1.0]))
+       e=st.sampled_from([0.0, 1.0, 5.0, 10.0, 1e9]), holes=st.integers(1, 4),
+       collapse=st.sampled_from([0.0, 0.05, 1.0]))
 def test_voids_are_never_spanned_and_the_bound_holds_around_them(h, w, seed, e, holes,
                                                                   collapse):
     z = _dem(h, w, seed, 100.0)
@@ -79,6 +79,10 @@ def test_voids_are_never_spanned_and_the_bound_holds_around_them(h, w, seed, e, 
     # 8-neighbour), never inside the data
     assert not (valid & ~covered & ~_void_border(valid)).any()
     assert (_signed_areas(ij, f) > 0).all()
+    # conforming: no edge is used by more than two triangles (two positive triangles on
+    # one side of an edge overlap); a collapse pass next to voids broke this
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    assert np.unique(edges, axis=0, return_counts=True)[1].max(initial=0) <= 2
 
 
 def _void_border(valid: np.ndarray) -> np.ndarray:
