@@ -621,8 +621,8 @@ def test_root_grid_nodata(tmp_path, name):
               pre={"root_grid": True, "tile_size": 16})
     assert t.grid.roots == (2, 1)
     full_check(t)
-    # the TIN's bound and conformity around voids (a collapse pass there folded two
-    # triangles over one edge; grids with voids now get none)
+    # the TIN's bound and conformity around voids (the flips along voids once crossed
+    # triangles the collapse pass had removed, folding two triangles over one edge)
     check_static(t, Es=(0.0, 5.0), mesher="tin")
     check_static(t, Es=(5.0,), mesher="tin-full")
 

@@ -62,8 +62,7 @@ def greedy_mesh(z: np.ndarray, valid: np.ndarray | None, max_error: float,
                 collapse: float = COLLAPSE["tin"]) -> tuple[np.ndarray, np.ndarray]:
     """The greedy TIN of heights ``z`` (H × W, scene units) within ``max_error``, its
     collapse pass stopped once it has removed the share ``collapse`` of the refinement's
-    triangles (0: no collapse; 1: every point tried). A grid with voids gets no collapse
-    pass: next to a void it could fold two triangles over one edge.
+    triangles (0: no collapse; 1: every point tried).
 
     Returns ``ij`` (V, 2) int64 rows and columns of the vertices and ``faces`` (F, 3)
     int64, counter-clockwise seen from above, only those with three valid corners.
@@ -89,8 +88,6 @@ def greedy_mesh(z: np.ndarray, valid: np.ndarray | None, max_error: float,
     valid = np.ascontiguousarray(valid, bool).ravel()
     voids = not bool(valid.all())
     zf = np.where(valid, z.ravel(), 0.0) if voids else np.ascontiguousarray(z).ravel()
-    if voids:  # the collapse pass can fold two triangles over one edge next to a void
-        collapse = 0.0  # (an edge used by three; docs/lab/static-mesh.md): refinement only
     # error ≤ e, ties included (as Delatin stops): on integer heights many samples sit
     # exactly at e, and refining a hair under it costs a quarter more triangles
     faces, ij = greedy_tin(zf, valid, H, W, float(max_error), voids, float(collapse))

@@ -249,6 +249,6 @@ def greedy_tin(z, valid, H, W, max_error, voids, collapse):
     F, heap, key, pending, pts, cnt = _two_triangles(H, W, 1024)
     F, nt, pts = _refine_and_collapse(z, valid, W, voids, max_error, collapse, F, heap, key,
                                       pending, pts, cnt)
-    if voids:
+    if voids:  # (skips the triangles the collapse pass removed: their twins are stale)
         _flip_to_cover(F, nt, z, valid, W, max_error)
     return _compact(F, nt, pts, valid, voids, W)

@@ -490,6 +490,8 @@ def _flip_to_cover(F, nt, z, valid, W, max_error):
     for _ in range(16):  # passes, until none flips
         changed = 0
         for t in range(nt):
+            if F[ROW * t + QI] == DEAD:  # removed by the collapse pass: its twins are stale
+                continue
             for k in range(3):
                 a = ROW * t + k
                 b = F[a + 3]

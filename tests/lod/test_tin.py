@@ -80,7 +80,7 @@ def test_voids_are_never_spanned_and_the_bound_holds_around_them(h, w, seed, e, 
     assert not (valid & ~covered & ~_void_border(valid)).any()
     assert (_signed_areas(ij, f) > 0).all()
     # conforming: no edge is used by more than two triangles (two positive triangles on
-    # one side of an edge overlap); a collapse pass next to voids broke this
+    # one side of an edge overlap); flips across collapsed triangles once broke this
     edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
     assert np.unique(edges, axis=0, return_counts=True)[1].max(initial=0) <= 2
 
