@@ -119,20 +119,27 @@ class OffscreenPlotter:
             self.render_window = None
 
 
-def terrain_actor(plotter: OffscreenPlotter, mesh, color: Sequence[float], lighting: bool,
-                  texture=None) -> vtkActor:
-    """The terrain's actor as ``add_mesh(mesh, color=…, lighting=…, smooth_shading=False,
-    show_scalar_bar=False)`` makes it (its scalars not shown), added to the renderer."""
+def _flat_actor(mesh, color: Sequence[float]):
+    """A mapper, actor and property as PyVista's ``add_mesh`` makes them for ``mesh``:
+    scalars interpolated before mapping, flat shading, point size 5, ``color``."""
     mapper = vtkDataSetMapper()
     mapper.SetInputData(mesh)
     mapper.SetInterpolateScalarsBeforeMapping(True)
-    mapper.ScalarVisibilityOff()
     actor = vtkActor()
     actor.SetMapper(mapper)
     prop = actor.GetProperty()
     prop.SetColor(*colour(color))
     prop.SetInterpolationToFlat()
     prop.SetPointSize(5.0)
+    return mapper, actor, prop
+
+
+def terrain_actor(plotter: OffscreenPlotter, mesh, color: Sequence[float], lighting: bool,
+                  texture=None) -> vtkActor:
+    """The terrain's actor as ``add_mesh(mesh, color=…, lighting=…, smooth_shading=False,
+    show_scalar_bar=False)`` makes it (its scalars not shown), added to the renderer."""
+    mapper, actor, prop = _flat_actor(mesh, color)
+    mapper.ScalarVisibilityOff()
     prop.SetSpecularPower(100.0)
     prop.SetLighting(bool(lighting))
     if texture is not None:
@@ -166,20 +173,12 @@ def water_actor(plotter: OffscreenPlotter, mesh, light_position: Sequence[float]
     light.SetIntensity(1.0)
     ren.AddLight(light)
     mesh.GetPointData().SetActiveScalars("rgba")
-    mapper = vtkDataSetMapper()
-    mapper.SetInputData(mesh)
-    mapper.SetInterpolateScalarsBeforeMapping(True)
+    # PyVista's default colour: the scalars replace its ambient and diffuse parts, not
+    # the specular glint's
+    mapper, actor, prop = _flat_actor(mesh, DEFAULT_COLOUR)
     mapper.SetScalarModeToUsePointData()
     mapper.SetColorModeToDirectScalars()
     mapper.ScalarVisibilityOn()
-    actor = vtkActor()
-    actor.SetMapper(mapper)
-    prop = actor.GetProperty()
-    # PyVista's default colour: the scalars replace its ambient and diffuse parts, not
-    # the specular glint's
-    prop.SetColor(*colour(DEFAULT_COLOUR))
-    prop.SetInterpolationToFlat()
-    prop.SetPointSize(5.0)
     prop.SetAmbient(0.45)
     prop.SetDiffuse(0.55)
     prop.SetSpecular(0.5)
