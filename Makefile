@@ -39,8 +39,10 @@ demo: $(STAMP)
 		-o out/fbm_513_hillshade.tif --overwrite
 	@echo "demo done: see out/"
 
+# the whole suite on up to 4 worker processes; each test file stays on one worker, so its
+# module fixtures (stores built once per file) are built once
 test: $(STAMP)
-	$(BIN)/python -m pytest -q --durations=40
+	$(BIN)/python -m pytest -q -n auto --maxprocesses 4 --dist loadfile --durations=40
 
 FAST := -m 'fast and not slow and not browser'
 
