@@ -252,6 +252,8 @@ def test_wide_blobs_of_a_level_are_each_tiles_own(seed, cubic, holes):
     te, s, h = 2, 1, 2
     n = 4 * 2 * h + 1  # a 4 × 4 level of tiles of side 2h
     scale = rng.choice([0, 2, 100, 2**12, 2**24, 2**40, 2**61], (4, 4))  # every width
+    scale[:2, :2] = rng.choice([0, 2])  # tile (0, 0)'s closed footprint is all small and
+    scale[3, 3] = 2**61  # tile (3, 3)'s all large: at least two widths in every example
     d = (rng.normal(0, 1, (n, n)) * np.kron(scale, np.ones((2 * h, 2 * h)))[
         np.minimum(np.arange(n), n - 2)][:, np.minimum(np.arange(n), n - 2)]).astype(np.int64)
     valid = rng.random((n, n)) >= holes
