@@ -670,3 +670,18 @@ def test_geographic_root_grid(tmp_path, name):
     t = _geographic_root_grid(tmp_path, name)
     assert set(drawn_by(t)) == set(ROOT_GRID_DRAWN)
     full_check(t, n_views=3)
+
+
+@pytest.mark.fast
+def test_geographic_root_grid_quick(tmp_path):
+    """The fast tier's geographic root grid: 33 × 65 at 70° N with a void on 2 × 1 roots,
+    every strategy that draws a root grid in one view at τ = 1 px (morphing off and on),
+    rtin's static mesh at E = 5 (the four cases above: more views, τ and E)."""
+    z = fbm(33, 65, seed=14).astype(np.float32)
+    z[10:14, 40:47] = -9999.0
+    t = build(tmp_path, z, crs="EPSG:4326", origin=(20.0, 70.2), spacing=0.004,
+              nodata=-9999.0, dtype="float32", pre={"root_grid": True, "tile_size": 8})
+    assert (t.frame.kind, t.grid.roots) == ("geographic", (2, 1))
+    assert set(drawn_by(t)) == set(ROOT_GRID_DRAWN)
+    check_static(t, Es=(5.0,))
+    check_view(t, views_for(t, 1)[0], taus=(1.0,))
