@@ -9,6 +9,7 @@ Usage:
     python benchmarks/bench_root_grids.py select [--rows 513 --cols 1025] [--views 8]
                                                  [--rounds 3] [--layouts square,roots]
     python benchmarks/bench_root_grids.py render [--runs 5]
+    python benchmarks/bench_root_grids.py geographic [--runs 3]
 
 ``padding``: per raster shape, the samples the preprocess computes on (the padded
 level-0 grid, and every level's lattice summed) over the raster's samples, for the
@@ -62,6 +63,17 @@ against square). Then the static mesh of e = 1 m streamed to PLY
 (``write_static_mesh``), the same alternation: time and triangles (the square's mesh is
 the edge-padded one, clipped to the data; the root grid's is not padded: see
 docs/lab/root-grids.md).
+
+``geographic``: geographic (EPSG:4326) fBm GeoTIFFs of the issue's shapes, preprocessed
+on the square and on the root grid (``root_grid=True``), 64-sample tiles: the CONUS
+shape, 520 × 1180 samples of 0.05° over 125–66° W, 24–50° N (heights 0–3000 m), and
+jacksboro's shape, 344 × 403 samples of 1″ over its corner of Tennessee (36.33° N,
+84.18° W; heights 300–900 m; the file itself is not in ``../shared/dems``). Each
+preprocess a fresh process (the ``wide`` child), square and roots alternating, the
+order swapped every run; medians of the wall time, CPU time and peak RSS, the ratios
+roots / square of the same run, and the load with every run. Then, from the stores the
+last run wrote, the samples held: level 0's padded lattice and the distinct samples of
+the stored tiles summed over the levels (``stores``' measure), over the raster's.
 """
 
 from __future__ import annotations
@@ -92,7 +104,8 @@ def cpu():
     u = resource.getrusage(resource.RUSAGE_SELF)
     return u.ru_utime + u.ru_stime
 t0, c0 = time.perf_counter(), cpu()
-p = preprocess(sys.argv[1], sys.argv[2], overwrite=True, root_grid=sys.argv[3] == "roots")
+p = preprocess(sys.argv[1], sys.argv[2], overwrite=True, root_grid=sys.argv[3] == "roots",
+               tile_size=int(sys.argv[4]) if len(sys.argv) > 4 else 64)
 wall, cpus = time.perf_counter() - t0, cpu() - c0
 from geoterrain.core.memory import peak_rss
 g = geoterrain.open(p).grid
@@ -381,6 +394,57 @@ def render(a: argparse.Namespace) -> None:
               f"{out[k][0][1]:,} triangles")
 
 
+#: (name, rows, cols, west, north, spacing in degrees, lowest and highest height)
+GEOGRAPHIC = [("CONUS shape (EPSG:4326)", 520, 1180, -125.0, 50.0, 0.05, 0.0, 3000.0),
+              ("jacksboro shape (EPSG:4326)", 344, 403, -84.18, 36.33, 1 / 3600, 300.0,
+               900.0)]
+
+
+def geographic(a: argparse.Namespace) -> None:
+    import geoterrain
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    print(f"load before: {load()}", flush=True)
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="bench_root_grids_geo_") as d:
+        for name, h, w, west, north, deg, lo, hi in GEOGRAPHIC:
+            z = generate("fbm", (h, w), seed=3)
+            z = (lo + (hi - lo) * (z - z.min()) / np.ptp(z)).astype(np.float32)
+            src = str(write_geotiff(Path(d) / "g.tif", z, crs="EPSG:4326",
+                                    origin=(west, north), spacing=deg))
+            runs: dict[str, list[dict]] = {"square": [], "roots": []}
+            for r in range(a.runs):
+                for layout in (("square", "roots") if r % 2 == 0 else ("roots", "square")):
+                    out = subprocess.run([sys.executable, "-c", CHILD, src,
+                                          str(Path(d) / f"{layout}.geoterrain"), layout,
+                                          str(a.tile_size)],
+                                         check=True, capture_output=True, text=True).stdout
+                    res = json.loads(out.strip().splitlines()[-1])
+                    runs[layout].append(res)
+                    print(f"{name} run {r} {layout}: {res['wall']:.2f} s, CPU "
+                          f"{res['cpu']:.2f} s, {res['peak_mb']:.0f} MB, load {load()}",
+                          flush=True)
+            med = {k: {m: statistics.median(x[m] for x in v)
+                       for m in ("wall", "cpu", "peak_mb")} for k, v in runs.items()}
+            for layout in ("square", "roots"):
+                with geoterrain.open(Path(d) / f"{layout}.geoterrain") as t:
+                    g = t.grid
+                    l0, every = held(t)
+                desc = (f"{g.size}²" if g.square else
+                        f"{g.shape[0]} × {g.shape[1]}, {g.roots[0]} × {g.roots[1]} roots")
+                m, s = med[layout], med["square"]
+                rows.append(f"| {name} {h} × {w} | {layout} | {desc} | {l0 / (h * w):.3f}× "
+                            f"| {every / (h * w):.3f}× | {m['wall']:.2f} s "
+                            f"({m['wall'] / s['wall']:.2f}×) | {m['cpu']:.2f} s "
+                            f"({m['cpu'] / s['cpu']:.2f}×) | {m['peak_mb']:.0f} MB "
+                            f"({m['peak_mb'] / s['peak_mb']:.2f}×) |")
+    print(f"\nload after: {load()}; medians of {a.runs} runs, ratios to the square\n")
+    print("| raster | layout | grid | level 0 held / raster | all levels held / raster "
+          "| wall | CPU | peak RSS |")
+    print("|---|---|---|---|---|---|---|---|")
+    print("\n".join(rows))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="what", required=True)
@@ -401,9 +465,12 @@ def main() -> None:
     e.add_argument("--json", action="store_true")
     r = sub.add_parser("render")
     r.add_argument("--runs", type=int, default=5)
+    g = sub.add_parser("geographic")
+    g.add_argument("--runs", type=int, default=3)
+    g.add_argument("--tile-size", type=int, default=64)
     a = ap.parse_args()
     {"padding": padding, "wide": wide, "codec": codec, "stores": stores,
-     "select": select, "render": render}[a.what](a)
+     "select": select, "render": render, "geographic": geographic}[a.what](a)
 
 
 if __name__ == "__main__":

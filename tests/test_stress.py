@@ -632,3 +632,56 @@ def test_root_grid_camera_extremes(tmp_path, cam):
     t = build(tmp_path, fbm(129, 257, seed=5), origin=(500000.0, 5000000.0),
               pre={"root_grid": True, "tile_size": 16})
     check_view(t, _camera_extremes(t)[cam], taus=(0.5, 1.0, 8.0))
+
+
+#: Geographic (EPSG:4326) root grids: 2 × 1 and 1 × 2 roots, at high latitude, across the
+#: antimeridian, with voids, and a lattice short of the extent both ways.
+GEOGRAPHIC_ROOT_GRIDS = {
+    "2x1_60N_voids": dict(shape=(65, 129, 16), origin=(10.0, 61.0), spacing=0.005,
+                          voids=True),
+    "1x2_equator": dict(shape=(129, 65, 16), origin=(-0.15, 0.3), spacing=0.005),
+    "2x1_lattice_short_80N": dict(shape=(50, 121, 8), origin=(100.0, 80.3), spacing=0.005),
+    "2x1_antimeridian_45S": dict(shape=(65, 129, 16), origin=(179.7, -45.0), spacing=0.005,
+                                 voids=True),
+}
+
+
+def _geographic_root_grid(tmp_path, name):
+    g = GEOGRAPHIC_ROOT_GRIDS[name]
+    rows, cols, ts = g["shape"]
+    z = fbm(rows, cols, seed=13).astype(np.float32)
+    nodata = None
+    if g.get("voids"):
+        z[20:27, 40:52] = -9999.0  # a void inside the west root
+        z[:5, cols - 9:] = -9999.0  # and one on the data's north-east corner
+        nodata = -9999.0
+    t = build(tmp_path, z, crs="EPSG:4326", origin=g["origin"], spacing=g["spacing"],
+              nodata=nodata, dtype="float32", pre={"root_grid": True, "tile_size": ts})
+    assert t.grid.layout == "roots" and t.frame.kind == "geographic"
+    assert t.grid.roots == tuple(map(int, name[:3].split("x")))
+    return t
+
+
+@pytest.mark.parametrize("name", sorted(GEOGRAPHIC_ROOT_GRIDS))
+def test_geographic_root_grid(tmp_path, name):
+    """The stress checks on geographic root grids (issue 45): every strategy that draws a
+    root grid, morphing off and on, ρ ≤ τ at every sample (measured in the scene's
+    curvilinear x, y); rtin's static mesh within E and conforming."""
+    t = _geographic_root_grid(tmp_path, name)
+    assert set(drawn_by(t)) == set(ROOT_GRID_DRAWN)
+    full_check(t, n_views=3)
+
+
+@pytest.mark.fast
+def test_geographic_root_grid_quick(tmp_path):
+    """The fast tier's geographic root grid: 33 × 65 at 70° N with a void on 2 × 1 roots,
+    every strategy that draws a root grid in one view at τ = 1 px (morphing off and on),
+    rtin's static mesh at E = 5 (the four cases above: more views, τ and E)."""
+    z = fbm(33, 65, seed=14).astype(np.float32)
+    z[10:14, 40:47] = -9999.0
+    t = build(tmp_path, z, crs="EPSG:4326", origin=(20.0, 70.2), spacing=0.004,
+              nodata=-9999.0, dtype="float32", pre={"root_grid": True, "tile_size": 8})
+    assert (t.frame.kind, t.grid.roots) == ("geographic", (2, 1))
+    assert set(drawn_by(t)) == set(ROOT_GRID_DRAWN)
+    check_static(t, Es=(5.0,))
+    check_view(t, views_for(t, 1)[0], taus=(1.0,))

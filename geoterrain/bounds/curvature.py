@@ -36,7 +36,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.bounds.delta import _saturate_nb
+from geoterrain.bounds.delta import _saturate_span_nb
 from geoterrain.bounds.edgepad import _reaches_data
 from geoterrain.bounds.radii import _proxy_positions
 from geoterrain.core.bintree import child_nb, main_diagonal_nb
@@ -52,8 +52,10 @@ BORDER_FRACTION = 0.01
 class MetricGrid(NamedTuple):
     """A curvilinear grid, or a window of its rows, as the metric kernels read it: scene
     ``X``, ``Y``, heights ``Z`` (0 where invalid) and validity ``vb`` of the grid rows
-    ``w0`` … (every column of the (N, N) grid), the border fraction ``frac``, and the data
-    window ``wi × wj`` a static mesh is clipped to (N × N: none)."""
+    ``w0`` … (every column of the (N, N) grid, or of a root grid's (R, C) extent), the
+    border fraction ``frac``, the data window ``wi × wj`` a static mesh is clipped to
+    (N × N or R × C: none), and the grid's rows ``nr`` (−1: as many as its columns, the
+    square)."""
 
     X: np.ndarray
     Y: np.ndarray
@@ -63,6 +65,13 @@ class MetricGrid(NamedTuple):
     wi: int
     wj: int
     w0: int = 0
+    nr: int = -1
+
+
+@njit(cache=True, inline="always")
+def _grid_rows(g):
+    # the whole grid's rows: the square's N (its columns) unless given
+    return g.nr if g.nr >= 0 else g.X.shape[1]
 
 
 class Tri(NamedTuple):
@@ -154,15 +163,16 @@ def _tri_own(g, T, r_lo, r_hi, border):
     whether a valid sample bulges beyond a border chord of T). Maxima and an OR: the
     rows may come in any split."""
     X, Y, vb, frac, wi, wj, w0 = g.X, g.Y, g.vb, g.frac, g.wi, g.wj, g.w0
-    N = X.shape[1]
+    C = X.shape[1]
+    R = _grid_rows(g)
     disp = 0.0
     dwin = 0.0  # the same, over T's samples on the data window's last row or column
     cross = T.i1 > wi - 1 or T.j1 > wj - 1
     bulge = False
     half = 0.5 * frac * T.smin
-    on_a = border and _on_border(T.bi, T.bj, T.ci, T.cj, N)  # edges opposite a, b, c
-    on_b = border and _on_border(T.ai, T.aj, T.ci, T.cj, N)
-    on_c = border and _on_border(T.ai, T.aj, T.bi, T.bj, N)
+    on_a = border and _on_border(T.bi, T.bj, T.ci, T.cj, R, C)  # edges opposite a, b, c
+    on_b = border and _on_border(T.ai, T.aj, T.ci, T.cj, R, C)
+    on_c = border and _on_border(T.ai, T.aj, T.bi, T.bj, R, C)
     for i in range(max(T.i0, r_lo), min(T.i1, r_hi) + 1):
         for j in range(T.j0, T.j1 + 1):
             x, y = X[i - w0, j], Y[i - w0, j]
@@ -190,8 +200,8 @@ def _tri_own(g, T, r_lo, r_hi, border):
 
 @njit(cache=True, inline="always")
 def _tri_margin(T, disp, N):
-    """The search margin m, in samples, from a triangle's largest displacement on an
-    N-sample grid."""
+    """The search margin m, in samples, from a triangle's largest displacement on a grid
+    of N samples on its longer side."""
     # capped in floating point before the conversion: a triangle folded almost flat in
     # metres (a padded global grid's corners beyond a pole) has disp / smin past 2^63, and
     # converting that to an integer is undefined (it crashed a 540 × 1080 global grid); a
@@ -206,11 +216,12 @@ def _tri_search(g, T, m, r_lo, r_hi):
     distance to p_v) over the valid samples of T's index box ± ``m`` whose scene (X, Y)
     lies in T's metric triangle widened by 2 ``frac`` spacings (maxima: any split)."""
     X, Y, Z, vb, w0 = g.X, g.Y, g.Z, g.vb, g.w0
-    N = X.shape[1]
+    C = X.shape[1]
+    R = _grid_rows(g)
     emax = 0.0
     rmax = 0.0
-    for i in range(max(T.i0 - m, 0, r_lo), min(T.i1 + m, N - 1, r_hi) + 1):
-        for j in range(max(T.j0 - m, 0), min(T.j1 + m, N - 1) + 1):
+    for i in range(max(T.i0 - m, 0, r_lo), min(T.i1 + m, R - 1, r_hi) + 1):
+        for j in range(max(T.j0 - m, 0), min(T.j1 + m, C - 1) + 1):
             if not vb[i - w0, j]:
                 continue
             px = X[i - w0, j] - T.ax
@@ -244,13 +255,13 @@ def _tri_term(g, vi, vj, ai, aj, bi, bj, ci, cj, border):
     """(max error, max distance to p_v, border bulge, search margin m in samples) for
     triangle (a, b, c) of vertex v of the grid ``g`` (:class:`MetricGrid`, whole).
 
-    ``g.wi × g.wj``: the data window a static mesh is clipped to (N × N: none). A triangle
+    ``g.wi × g.wj``: the data window a static mesh is clipped to (the grid: none). A triangle
     that crosses its last row or column bulges when a sample of T on that row or column
     is displaced from its place in T (|P_s − A_T(s)|) by more than ``frac / 2`` spacings:
     the clipped edge is T's chord of the curved data border there. The two passes are
     :func:`_tri_own` and :func:`_tri_search`, which a streamed grid runs over row bands."""
     vb = g.vb
-    N = vb.shape[1]
+    R, C = vb.shape
     if not (vb[ai, aj] and vb[bi, bj] and vb[ci, cj]):
         return 0.0, 0.0, False, 0
     ok, T = _tri_make(vi, vj, ai, aj, bi, bj, ci, cj,
@@ -259,17 +270,18 @@ def _tri_term(g, vi, vj, ai, aj, bi, bj, ci, cj, border):
         return 0.0, 0.0, False, 0
     # pass 1: largest displacement |P_s − A_T(s)| of T's own samples (index box), and
     # the border chords of T (edges whose two ends lie on one side of the domain)
-    disp, dwin, bulge = _tri_own(g, T, 0, N - 1, border)
-    m = _tri_margin(T, disp, N)
+    disp, dwin, bulge = _tri_own(g, T, 0, R - 1, border)
+    m = _tri_margin(T, disp, max(R, C))
     bulge = bulge or dwin > 0.5 * g.frac * T.smin
-    emax, rmax = _tri_search(g, T, m, 0, N - 1)
+    emax, rmax = _tri_search(g, T, m, 0, R - 1)
     return emax, rmax, bulge, m
 
 
 @njit(cache=True, inline="always")
-def _on_border(ai, aj, bi, bj, N):
-    return ((ai == bi and (ai == 0 or ai == N - 1))
-            or (aj == bj and (aj == 0 or aj == N - 1)))
+def _on_border(ai, aj, bi, bj, R, C):
+    # an edge along the grid's border (R × C: the square's N × N, or a root grid's extent)
+    return ((ai == bi and (ai == 0 or ai == R - 1))
+            or (aj == bj and (aj == 0 or aj == C - 1)))
 
 
 @njit(cache=True, inline="always")
@@ -280,11 +292,12 @@ def _same_as_base(i, j, h, M, wi, wj):
 
 
 @parallel_kernel(cache=True)
-def _vertex_terms(g, M, dm0, bulge0, mrow):
+def _vertex_terms(g, M, dm0, bulge0, mrow, span):
     """Raw per-vertex (δ_m, r_m, bulge) over the triangles drawn while each vertex of the
     grid ``g`` (:class:`MetricGrid`) is absent (rows of blocks on every core: each vertex
     is written by its own iteration only), and in ``mrow[i]`` the largest search margin
-    of row i's triangles.
+    of row i's triangles. The vertices of half-span below ``span`` (the square's N − 1,
+    or a root grid's root side: the grid is then the roots' extent, R × C).
 
     A vertex whose diamond misses the data's wi × wj gets nothing (with a data window,
     :mod:`geoterrain.bounds.edgepad`: its error is clipped away; without one, wi = wj = N, every
@@ -292,16 +305,17 @@ def _vertex_terms(g, M, dm0, bulge0, mrow):
     only data samples (box ± M, M the original grid's largest margin) takes ``dm0`` and
     ``bulge0`` from the original grid's run (r_m is not computed then)."""
     wi, wj = g.wi, g.wj
-    N = g.Z.shape[0]
-    dm = np.zeros((N, N))
-    rm = np.zeros((N, N))
-    bulge = np.zeros((N, N), np.bool_)
+    R, C = g.Z.shape
+    dm = np.zeros((R, C))
+    rm = np.zeros((R, C))
+    bulge = np.zeros((R, C), np.bool_)
     h = 1
-    while h < N - 1:
+    while h < span:
         s = 2 * h
-        nb = (N - 1) // s
-        for a in prange(nb):  # block centres: the two halves of the block
-            for b in range(nb):
+        nr = (R - 1) // s
+        nc = (C - 1) // s
+        for a in prange(nr):  # block centres: the two halves of the block
+            for b in range(nc):
                 i, j = h + a * s, h + b * s
                 if not _reaches_data(i, j, wi, wj):
                     continue
@@ -323,10 +337,10 @@ def _vertex_terms(g, M, dm0, bulge0, mrow):
                     mrow[i] = max(mrow[i], t[3])
         for typ in range(2):  # edge midpoints: the two triangles on their hypotenuse
             rows = typ == 0
-            na = nb if rows else nb + 1
-            nc = nb + 1 if rows else nb
+            na = nr if rows else nr + 1
+            nb = nc + 1 if rows else nc
             for a in prange(na):
-                for b in range(nc):
+                for b in range(nb):
                     i = h + a * s if rows else a * s
                     j = b * s if rows else h + b * s
                     if not _reaches_data(i, j, wi, wj):
@@ -341,7 +355,7 @@ def _vertex_terms(g, M, dm0, bulge0, mrow):
                         else:
                             ci, cj = i + (2 * k - 1) * h, j
                             ea, eb, fa, fb = i, j - h, i, j + h
-                        if not (0 <= ci < N and 0 <= cj < N):
+                        if not (0 <= ci < R and 0 <= cj < C):
                             continue
                         t = _tri_term(g, i, j, ea, eb, fa, fb, ci, cj, True)
                         dm[i, j] = max(dm[i, j], t[0])
@@ -354,9 +368,12 @@ def _vertex_terms(g, M, dm0, bulge0, mrow):
 
 def metric_terms(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, valid: np.ndarray,
                  frac: float = BORDER_FRACTION, window: tuple[int, int] | None = None,
-                 base: tuple | None = None) -> tuple:
+                 base: tuple | None = None, span: int | None = None) -> tuple:
     """The raw per-vertex terms (δ_m, r_m, bulge) of :func:`metric_bounds` and the largest
     search margin M, in samples.
+
+    ``span``: None for the square (N, N) grid; a root grid's root side 2**n, the arrays
+    then the roots' extent (:mod:`geoterrain.bounds.delta`).
 
     ``window`` and ``base`` (the terms of the original grid): the terms of δ_edge over
     the replicated grid (:mod:`geoterrain.bounds.edgepad`), computed only for the vertices that
@@ -366,28 +383,35 @@ def metric_terms(X: np.ndarray, Y: np.ndarray, Z: np.ndarray, valid: np.ndarray,
     Zf = np.ascontiguousarray(np.where(vb, Z, 0.0), np.float64)
     X = np.ascontiguousarray(X, np.float64)
     Y = np.ascontiguousarray(Y, np.float64)
-    N = Zf.shape[0]
+    R = Zf.shape[0]
     wi, wj = window if window is not None else Zf.shape
     if base is not None:
         dm0, _, bulge0, M = base
     else:
         dm0, bulge0, M = np.zeros((1, 1)), np.zeros((1, 1), np.bool_), -1
-    mrow = np.zeros(N, np.int64)
+    mrow = np.zeros(R, np.int64)
     with cores_for(Zf.size):  # small grids on one thread (geoterrain/core/threads.py)
-        dm, rm, bulge = _vertex_terms(MetricGrid(X, Y, Zf, vb, float(frac), int(wi), int(wj), 0),
-                                      int(M), dm0, bulge0, mrow)
-    return dm, rm, bulge, int(mrow.max()) if N else 0
+        dm, rm, bulge = _vertex_terms(MetricGrid(X, Y, Zf, vb, float(frac), int(wi), int(wj), 0,
+                                                 R),
+                                      int(M), dm0, bulge0, mrow, _span(Zf, span))
+    return dm, rm, bulge, int(mrow.max()) if R else 0
+
+
+def _span(a: np.ndarray, span: int | None) -> int:
+    # the kernels' root side: the square's N − 1 unless a root grid's is given
+    return a.shape[0] - 1 if span is None else int(span)
 
 
 @njit(cache=True)
-def _renest_nb(X, Y, Z, r):
-    # LP §2.4 (L50–52) again, fine to coarse, on radii already raised: r(v) ≥ |p_v − p_c| + r(c)
-    N = Z.shape[0]
+def _renest_nb(X, Y, Z, r, span):
+    # LP §2.4 (L50–52) again, fine to coarse, on radii already raised: r(v) ≥ |p_v − p_c| + r(c),
+    # up to half-span span / 2 (the square's N − 1, or a root grid's root side)
+    R, C = Z.shape
     h = 1
-    while h < N - 1:
+    while h < span:
         for pass_ in range(2):
-            for i in range(0, N, h):
-                for j in range(0, N, h):
+            for i in range(0, R, h):
+                for j in range(0, C, h):
                     centre = (i // h) % 2 == 1 and (j // h) % 2 == 1
                     edge = ((i // h) % 2 == 1) != ((j // h) % 2 == 1)
                     if (pass_ == 0 and not edge) or (pass_ == 1 and not centre):
@@ -395,7 +419,7 @@ def _renest_nb(X, Y, Z, r):
                     best = np.float64(r[i, j])
                     for k in range(4):
                         ci, cj = child_nb(i, j, h, k)
-                        if 0 <= ci < N and 0 <= cj < N:
+                        if 0 <= ci < R and 0 <= cj < C:
                             d = np.sqrt((X[i, j] - X[ci, cj]) ** 2 + (Y[i, j] - Y[ci, cj]) ** 2
                                         + (Z[i, j] - Z[ci, cj]) ** 2) + np.float64(r[ci, cj])
                             best = max(best, d)
@@ -407,7 +431,8 @@ def _renest_nb(X, Y, Z, r):
 def metric_bounds(delta: np.ndarray, radius: np.ndarray | None, X: np.ndarray,
                   Y: np.ndarray, Z: np.ndarray, valid: np.ndarray,
                   frac: float = BORDER_FRACTION, window: tuple[int, int] | None = None,
-                  terms: tuple | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+                  terms: tuple | None = None, span: int | None = None
+                  ) -> tuple[np.ndarray, np.ndarray | None]:
     """δ and r raised so they hold in scene x/y on a curvilinear grid (module docstring).
 
     Parameters
@@ -423,6 +448,8 @@ def metric_bounds(delta: np.ndarray, radius: np.ndarray | None, X: np.ndarray,
         (:mod:`geoterrain.bounds.edgepad`): the clipped edges on its last row and column follow
         the curved border to within the same ``frac / 2`` (see :func:`_tri_term`).
     terms : the raw terms from :func:`metric_terms` (default: computed here).
+    span : None for the square; a root grid's root side 2**n, every array then the
+        roots' extent (ry·span + 1, rx·span + 1) (:mod:`geoterrain.bounds.delta`).
 
     Examples
     --------
@@ -437,11 +464,11 @@ def metric_bounds(delta: np.ndarray, radius: np.ndarray | None, X: np.ndarray,
     (2.0, True, True)
     """
     if terms is None:
-        terms = metric_terms(X, Y, Z, valid, frac, window)
+        terms = metric_terms(X, Y, Z, valid, frac, window, span=span)
     dm, rm, bulge, _ = terms  # 0 where a diamond misses the data window (_vertex_terms)
     d = np.maximum(delta.astype(np.float64), dm)
     d[bulge] = np.inf
-    d32 = _saturate_nb(_round_up(d))
+    d32 = _saturate_span_nb(_round_up(d), _span(d, span))
     if radius is None:
         return d32, None
     vb = np.asarray(valid, bool) & np.isfinite(Z)
@@ -449,7 +476,7 @@ def metric_bounds(delta: np.ndarray, radius: np.ndarray | None, X: np.ndarray,
     xp, yp, zp = _proxy_positions(np.ascontiguousarray(X, np.float64),
                                   np.ascontiguousarray(Y, np.float64),
                                   np.where(vb, Z, np.nan), vb)
-    return d32, _renest_nb(xp, yp, zp, _round_up(r))
+    return d32, _renest_nb(xp, yp, zp, _round_up(r), _span(d, span))
 
 
 def _round_up(a: np.ndarray) -> np.ndarray:

@@ -232,7 +232,7 @@ def tile_leaf_bounds(terrain: TerrainLike, key: tuple[int, int, int], kind: str,
 
 
 def geographic_leaf_delta(delta: np.ndarray, z: np.ndarray, valid: np.ndarray, t: int,
-                          dm: np.ndarray, bulge: np.ndarray
+                          dm: np.ndarray, bulge: np.ndarray, span: int | None = None
                           ) -> dict[tuple[int, int, int], float] | None:
     """Level-0 δ of a geographic grid as a reader derives it: raised in place, tile by
     tile, then saturated again; the per-tile slack, or None (``delta`` untouched) where
@@ -250,9 +250,11 @@ def geographic_leaf_delta(delta: np.ndarray, z: np.ndarray, valid: np.ndarray, t
     as they are. Since the raised values may exceed ``delta``, the grid is saturated
     again (§2.4, L46), so every parent still bounds its children.
 
-    ``delta``: (N, N) float32, saturated; ``z``: scene heights; ``valid``: the mask;
-    ``t``: the tile exponent; ``dm``, ``bulge``: :func:`~geoterrain.bounds.curvature.metric_terms`'
-    raw terms. Returns {(0, x, y): s} for the tiles with a valid sample.
+    ``delta``: (N, N) float32, saturated, or a root grid's (R, C) extent with roots of
+    side ``span`` (:mod:`geoterrain.bounds.delta`); ``z``: scene heights; ``valid``: the
+    mask; ``t``: the tile exponent; ``dm``, ``bulge``:
+    :func:`~geoterrain.bounds.curvature.metric_terms`' raw terms. Returns {(0, x, y): s}
+    for the tiles with a valid sample.
 
     Examples
     --------
@@ -265,11 +267,11 @@ def geographic_leaf_delta(delta: np.ndarray, z: np.ndarray, valid: np.ndarray, t
     True
     """
     T = (1 << t) + 1
-    n_tiles = (delta.shape[0] - 1) >> t
+    down, across = ((k - 1) >> t for k in delta.shape)
     raised = []
     out: dict[tuple[int, int, int], float] = {}
-    for y in range(n_tiles):
-        for x in range(n_tiles):
+    for y in range(down):
+        for x in range(across):
             sub = np.s_[y << t:(y << t) + T, x << t:(x << t) + T]
             got = tile_slack(delta[sub], z[sub], valid[sub], dm[sub], bulge[sub],
                              (y << t, x << t))
@@ -284,7 +286,7 @@ def geographic_leaf_delta(delta: np.ndarray, z: np.ndarray, valid: np.ndarray, t
     for sub, d in raised:
         blk = delta[sub]
         blk[inner] = d[inner]
-    saturate(delta)
+    saturate(delta, span)
     return out
 
 

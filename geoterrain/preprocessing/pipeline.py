@@ -178,10 +178,11 @@ def preprocess(
     root_grid
         Experimental: pad a wide or tall raster to the next tile multiple a side, under a
         grid of root tiles (2 × 1, 1 × 2), not to one (2^n + 1)² square
-        (:class:`geoterrain.core.grid.Grid`, schema version 7). Whole-grid preprocess of
-        projected and pixel frames only; such a store is drawn by ``rtin`` alone, and the
-        other consumers refuse it in one line. A raster whose root grid is its square
-        grid gives the square store.
+        (:class:`geoterrain.core.grid.Grid`, schema version 7). Whole-grid preprocess
+        only (geographic, projected and pixel frames; a raster that would stream is
+        refused in one line); such a store is drawn by every LOD strategy, and the
+        consumers that do not handle it yet (edits, the globe) refuse it in one line. A
+        raster whose root grid is its square grid gives the square store.
 
     Examples
     --------
@@ -316,13 +317,6 @@ def read_dem(req: Request, *, band: int | None, encoding: str, nodata: float | N
     r.transform, r.crs_wkt, frame, grid = place(req, r.shape, r.transform, r.crs_wkt,
                                                 tile=tile, pixel_size=pixel_size,
                                                 z_units=z_units, z_scale=z_scale, label=r.path)
-    if not grid.square and frame.kind == "geographic":
-        raise UsageError(f"{r.path}: a root grid is built for projected and pixel frames "
-                         "only (the curvature bounds of a geographic one are square-only "
-                         "yet); leave root_grid off",
-                         cli=f"{r.path}: --root-grid is built for projected and pixel "
-                         "frames only (the curvature bounds of a geographic one are "
-                         "square-only yet); leave --root-grid off")
     frame.check_scene(_whole(grid), *valid_range(r.heights, r.valid)[:2])
     return Dem(r, frame, grid, int(np.count_nonzero(r.valid)))
 
@@ -428,16 +422,18 @@ def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool, stage: StageClock
     stage("errors")
     terms = radius = None
     if frame.kind == "geographic":  # curvilinear grid: δ and r that hold in scene x/y
-        radius = vertex_radii(s.X, s.Y, s.Z, valid)
-        terms = metric_terms(s.X, s.Y, s.Z, valid)
-        delta, radius = metric_bounds(delta, radius, s.X, s.Y, s.Z, valid, terms=terms)
+        radius = vertex_radii(s.X, s.Y, s.Z, valid, span=grid.span)
+        terms = metric_terms(s.X, s.Y, s.Z, valid, span=grid.span)
+        delta, radius = metric_bounds(delta, radius, s.X, s.Y, s.Z, valid, terms=terms,
+                                      span=grid.span)
     slack = delta_before = None
     ring_kinds: tuple[str, ...] = ("delta", "radius") if derive_bounds else ()
     if derive_bounds and frame.kind == "geographic":
         # level 0's δ as a reader derives it: the closed forms + a per-tile slack for the
         # metric term (δ only: r would need pyproj's x, y of every sample)
         delta_before = delta.copy() if has_padding(grid) else None
-        slack = geographic_leaf_delta(delta, s.Z, valid, grid.t, terms[0], terms[2])
+        slack = geographic_leaf_delta(delta, s.Z, valid, grid.t, terms[0], terms[2],
+                                      grid.span)
         ring_kinds = ("delta",) if slack is not None else ()
     # nested on the coded values (a projected frame needs no radii before: r = nesting)
     r_codes = radius_codes(s.X, s.Y, s.Z, valid, radius, span=grid.span)
@@ -484,13 +480,14 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
         d_edge = edge_deltas(Zr, ok, grid)
         if frame.kind == "geographic":  # only where a padding sample is read: the rest
             win = (grid.rows, grid.cols)  # is the original grid's terms
-            et = metric_terms(s.X, s.Y, Zr, ok, window=win, base=b.terms)
-            d_edge, _ = metric_bounds(d_edge, None, s.X, s.Y, Zr, ok, window=win, terms=et)
+            et = metric_terms(s.X, s.Y, Zr, ok, window=win, base=b.terms, span=grid.span)
+            d_edge, _ = metric_bounds(d_edge, None, s.X, s.Y, Zr, ok, window=win, terms=et,
+                                      span=grid.span)
             del et
             if b.slack is not None:  # where δ_edge was δ it follows δ's raise, nested again
                 same = d_edge == b.delta_before
                 d_edge[same] = delta[same]
-                saturate(d_edge)
+                saturate(d_edge, grid.span)
         del Zr, ok
     ed = None if d_edge is None else max(log8_exponent(delta), log8_exponent(d_edge))
     coding = BoundsCoding(delta, None, ed, r_codes=b.r_codes)

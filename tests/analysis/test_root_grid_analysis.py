@@ -133,3 +133,57 @@ def test_viewsheds_and_lines_of_sight_are_the_squares(pair):
         la, lb = line_of_sight(sq, p, q, 5.0, 5.0), line_of_sight(rt, p, q, 5.0, 5.0)
         assert (lb.visible, lb.certain, lb.clearance, lb.obstruction) == \
             (la.visible, la.certain, la.clearance, la.obstruction)
+
+
+@pytest.fixture(scope="module")
+def geo_pair(tmp_path_factory):
+    """A 129 × 513 fBm in EPSG:4326 (0.002°, 10–11.03° E, 61.0–61.26° N; a nodata void
+    in the east root) on the square and on 2 × 1 roots of 32-sample tiles."""
+    d = tmp_path_factory.mktemp("georootanalysis")
+    z = np.rint(generate("fbm", 513, seed=8, relief=600.0)[:129, :513] * 10) / 10
+    z = z.astype(np.float32)
+    z[60:75, 380:420] = -9999.0
+    dem = write_geotiff(d / "geo.tif", z, crs="EPSG:4326", origin=(10.0, 61.26),
+                        spacing=0.002, nodata=-9999.0)
+    sq = geoterrain.open(geoterrain.preprocess(dem, d / "sq.geoterrain", tile_size=32))
+    rt = geoterrain.open(geoterrain.preprocess(dem, d / "rt.geoterrain", tile_size=32,
+                                               root_grid=True))
+    assert rt.grid.roots == (2, 1) and rt.frame.kind == "geographic"
+    return sq, rt
+
+
+def test_a_geographic_root_grids_analysis_is_the_squares(geo_pair):
+    """Heights (level 0, and their bound at level 2), normals, a geodesic profile,
+    contours, an area and a volume, a viewshed and a line of sight over both roots of a
+    geographic root grid: the square store's answers."""
+    from geoterrain.analysis.areas import surface_area, volume
+    from geoterrain.analysis.visibility import line_of_sight, viewshed
+
+    sq, rt = geo_pair
+    rng = np.random.default_rng(3)
+    xy = np.column_stack([rng.uniform(10.001, 11.02, 2000), rng.uniform(61.005, 61.255, 2000)])
+    a, b = height_at(sq, xy), height_at(rt, xy)
+    np.testing.assert_array_equal(a.height, b.height)
+    assert np.isfinite(b.height).sum() > 1500 and (xy[:, 0] > 10.513).sum() > 500
+    b2 = height_at(rt, xy, 2)
+    ok = np.isfinite(b.height) & np.isfinite(b2.height)
+    assert (np.abs(b2.height[ok] - b.height[ok]) <= b2.bound[ok] + 1e-9).all()
+    np.testing.assert_array_equal(normal_at(sq, xy).normal, normal_at(rt, xy).normal)
+    line = [(10.01, 61.25), (11.0, 61.1), (10.6, 61.01)]
+    pa, pb = profile(sq, line), profile(rt, line)
+    np.testing.assert_array_equal(pa.height, pb.height)
+    np.testing.assert_array_equal(pa.distance, pb.distance)
+    ca, cb = contours(sq, 50.0), contours(rt, 50.0)
+    assert len(cb.lines) == len(ca.lines) > 10
+    for la, lb in zip(ca.lines, cb.lines, strict=True):
+        np.testing.assert_array_equal(la, lb)
+    poly = [(10.1, 61.24), (10.9, 61.22), (10.85, 61.03), (10.2, 61.05)]
+    sa, sb = surface_area(sq, poly), surface_area(rt, poly)
+    assert (sb.area_2d, sb.area_3d, sb.nodata_area) == (sa.area_2d, sa.area_3d, sa.nodata_area)
+    assert volume(rt, poly, base=300.0).cut == volume(sq, poly, base=300.0).cut > 0
+    obs = (10.512, 61.08)  # near the roots' shared edge (column 256)
+    va, vb = viewshed(sq, obs, 20000.0, 10.0), viewshed(rt, obs, 20000.0, 10.0)
+    np.testing.assert_array_equal(vb.codes, va.codes)
+    p, q = (10.05, 61.2), (10.95, 61.05)
+    la, lb = line_of_sight(sq, p, q, 5.0, 5.0), line_of_sight(rt, p, q, 5.0, 5.0)
+    assert (lb.visible, lb.certain, lb.clearance) == (la.visible, la.certain, la.clearance)

@@ -236,3 +236,51 @@ def test_quantized_mesh_tiles_of_a_root_grid_are_the_squares(pair, tmp_path):
     assert tiles == sorted(qa.level_tiles(z)) and len(tiles) >= 2
     for xy in (tiles[0], tiles[-1]):
         assert qb.tile(z, *xy) == qa.tile(z, *xy)
+
+
+@pytest.fixture(scope="module")
+def geo_pair(tmp_path_factory):
+    """A 129 × 513 fBm in EPSG:4326 (0.002° at 61° N, a void of nodata) on the square and
+    on 2 × 1 roots."""
+    d = tmp_path_factory.mktemp("georootexport")
+    z = generate("fbm", 513, seed=5, relief=600.0)[:129, :513].astype(np.float32)
+    z[40:52, 300:330] = -9999.0
+    dem = write_geotiff(d / "geo.tif", z, crs="EPSG:4326", origin=(10.0, 61.26),
+                        spacing=0.002, nodata=-9999.0)
+    sq = geoterrain.open(geoterrain.preprocess(dem, d / "sq.geoterrain", tile_size=32))
+    rt = geoterrain.open(geoterrain.preprocess(dem, d / "rt.geoterrain", tile_size=32,
+                                               root_grid=True))
+    assert rt.grid.roots == (2, 1) and sq.grid.square and rt.frame.kind == "geographic"
+    with rasterio.open(dem) as src:
+        h = src.read(1, masked=True)
+    return sq, rt, dem, np.ma.filled(h.astype(np.float64), np.nan)
+
+
+def test_exports_of_a_geographic_root_grid(geo_pair, tmp_path):
+    """A geographic root grid's exports: the mesh's positions in the square's metric
+    frame (the same CRS, the aeqd of the raster's centre), PLY in source coordinates on
+    rasterio's longitudes and latitudes with the DEM's heights, and the GeoTIFF
+    products (the normals' x, y from pyproj) equal to the square store's, in EPSG:4326."""
+    sq, rt, dem, dem_h = geo_pair
+    from geoterrain.export.meshdata import georeference
+
+    sel = rt.static_selection(2.0)
+    g = georeference(rt)
+    assert g == georeference(sq) and g["positions_crs_wkt"] == rt.frame.aeqd_wkt
+    m = mesh_arrays(rt, sel)
+    _heights_are_the_dems(dem_h, m.ij, m.elevation)
+    X, Y, _ = sq.scene_xyz()  # the square's frame places every sample alike
+    i, j = m.ij[:, 0].astype(int), m.ij[:, 1].astype(int)
+    np.testing.assert_allclose(m.xyz[:, :2], np.stack([X[i, j], Y[i, j]], 1), atol=1e-6)
+    out = export_mesh(rt, sel, tmp_path / "c.ply", crs_coords=True)
+    raw = trimesh.load(out, process=False).metadata["_ply_raw"]["vertex"]["data"]
+    with rasterio.open(dem) as src:
+        lon, lat = raster_xy(src.transform, i, j)
+    assert np.allclose(raw["x"], lon, atol=1e-9) and np.allclose(raw["y"], lat, atol=1e-9)
+    for what in ("normals", "slope", "hillshade", "shade"):
+        a, b = product(sq, what, 0), product(rt, what, 0)
+        np.testing.assert_allclose(np.nan_to_num(a), np.nan_to_num(b), rtol=0, atol=1e-6,
+                                   err_msg=what)
+    out = export_raster(rt, "hillshade", tmp_path / "h.tif")
+    with rasterio.open(out) as got, rasterio.open(dem) as src:
+        assert got.crs == src.crs and got.transform == src.transform

@@ -105,19 +105,24 @@ def test_a_square_raster_keeps_the_square_store(tmp_path):
     assert geoterrain.open(a).grid.square and a.read_bytes() == b.read_bytes()
 
 
-def test_geographic_and_streamed_root_grids_are_refused_in_one_line(tmp_path):
-    z = fbm(33, 65)
-    src = write_tif(tmp_path / "g.tif", z, crs="EPSG:4326", origin=(10.0, 45.0),
-                    spacing=0.001, dtype="int16")
-    with pytest.raises(UsageError, match="projected and pixel frames only") as e:
-        geoterrain.preprocess(src, tmp_path / "g.geoterrain", tile_size=16, root_grid=True)
-    assert "\n" not in str(e.value)
+def test_a_streamed_root_grid_is_refused_in_one_line(tmp_path):
     src = write_tif(tmp_path / "s.tif", fbm(1025, 2049), dtype="int16")
     with pytest.raises(UsageError, match="whole-grid preprocess only") as e:
         geoterrain.preprocess(src, tmp_path / "s.geoterrain", root_grid=True,
                               memory_limit=64 << 20)
     assert "\n" not in str(e.value)
     assert not (tmp_path / "s.geoterrain").exists()
+
+
+def test_a_geographic_root_grid_is_built(tmp_path):
+    # the metric bounds of a geographic grid on the roots' extent (their invariants:
+    # tests/bounds/test_root_curvature.py; the meshes: tests/test_stress.py)
+    src = write_tif(tmp_path / "g.tif", fbm(33, 65), crs="EPSG:4326", origin=(10.0, 45.0),
+                    spacing=0.001, dtype="int16")
+    t = geoterrain.open(geoterrain.preprocess(src, tmp_path / "g.geoterrain", tile_size=16,
+                                              root_grid=True))
+    assert (t.frame.kind, t.grid.layout, t.grid.roots) == ("geographic", "roots", (2, 1))
+    assert StoreReader(t.path).metadata["schema_version"] == ROOTS_SCHEMA_VERSION
 
 
 def test_the_reader_sees_every_root(wide):

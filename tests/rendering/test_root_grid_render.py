@@ -264,3 +264,60 @@ def test_atlas_footprint_is_the_smallest_tile_of_the_grid_holding_a_face(rows, c
         assert not any(ij[:, 1].min() >= x * w2 and ij[:, 1].max() <= (x + 1) * w2
                        and ij[:, 0].min() >= y * w2 and ij[:, 0].max() <= (y + 1) * w2
                        for y in range(ty) for x in range(tx))
+
+
+@pytest.fixture(scope="module")
+def geo_pair(tmp_path_factory):
+    """A 129 × 513 fBm in EPSG:4326 (0.002° at 61–61.26° N, a void of nodata) on the
+    square (513², 32-sample tiles) and on its 2 × 1 root grid: the scene is placed by the
+    frame's azimuthal-equidistant x, y, curved on both."""
+    d = tmp_path_factory.mktemp("georootrender")
+    z = generate("fbm", 513, seed=3, relief=600.0)[:129, :513].astype(np.float32)
+    z[40:52, 300:330] = -9999.0
+    dem = write_geotiff(d / "geo.tif", z, crs="EPSG:4326", origin=(10.0, 61.26),
+                        spacing=0.002, nodata=-9999.0)
+    sq = geoterrain.open(geoterrain.preprocess(dem, d / "sq.geoterrain", tile_size=32))
+    rt = geoterrain.open(geoterrain.preprocess(dem, d / "rt.geoterrain", tile_size=32,
+                                               root_grid=True))
+    assert rt.frame.kind == sq.frame.kind == "geographic"
+    assert sq.grid.square and (rt.grid.layout, rt.grid.roots) == ("roots", (2, 1))
+    return sq, rt, dem
+
+
+def test_geographic_root_grid_pictures_agree_with_the_square(geo_pair):
+    """A geographic root grid renders the square's pictures (the overview, the map with
+    its graticule of meridians and parallels, straight down, close over the east root):
+    the same frame placement (scene box, framing), PSNR ≥ MIN_PSNR, the same coverage."""
+    sq, rt, _ = geo_pair
+    a, b = sq.scene_box(), rt.scene_box()
+    assert np.allclose(a[0][:2], b[0][:2]) and np.allclose(a[1][:2], b[1][:2])
+    for name, view in _views(sq).items():
+        x, y, sa, sb = _pictures(sq, rt, view)
+        assert sb["triangles"] > 0 and y.std() > 10, name
+        assert psnr(x, y) >= MIN_PSNR, (name, psnr(x, y))
+        assert sa["terrain_fraction"] == sb["terrain_fraction"] > 0.05, name
+
+
+def test_the_frames_screen_error_on_a_geographic_root_grid(geo_pair):
+    """ρ ≤ τ at every valid sample in the frustum of the frame's own mesh on the
+    geographic root grid (no horizon culling), measured in the scene's curvilinear x, y
+    by testing.measure on the store's own heights."""
+    _, rt, _ = geo_pair
+    X, Y, Z = rt.scene_xyz()
+    valid = np.isfinite(Z)
+    Zt = np.where(valid, Z, 0.0)
+    views = _views(rt)
+    scene = TerrainScene(_plotter((320, 180)), rt, occlusion=False)
+    try:
+        for name in ("overview", "east root, close", "from above"):
+            view = views[name].clipped_to(*rt.scene_box())  # as the frame does
+            scene.frame(view, 1.0, "rtin")
+            ij, faces, vz = mesh_parts(scene.selection)
+            e = screen_space_error(ij, faces, vz, X, Y, Zt, valid, view.eye, view.planes,
+                                   view.lam)
+            d = np.sqrt(((np.stack([X, Y, Zt], -1) - view.eye) ** 2).sum(-1))
+            slack = view.lam * z_roundoff(Z) / float(d[valid].min())
+            assert e.n_samples > 0, name
+            assert e.max <= 1.0 * (1 + REL) + slack, (name, e.max)
+    finally:
+        scene.plotter.close()
