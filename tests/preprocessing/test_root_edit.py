@@ -167,3 +167,25 @@ def test_killed_edit_leaves_the_old_root_grid_store(tmp_path):
         assert t.meta.get("edits") is None
         assert t.tile(0, 0, 0).heights[5, 6] == z[5, 6]
     assert store.read_bytes() == before
+
+
+@pytest.mark.fast
+def test_lossy_root_grid_store_keeps_its_bound_across_the_seam(tmp_path):
+    """A root-grid store coded within ε (residual bins: the pyramid coded again over the
+    roots' extent) takes any height across the roots' shared edge, within ε of it."""
+    z = integer_dem(4, 33, 60) + 0.37
+    store = geoterrain.preprocess(write_dem(tmp_path / "dem.tif", z), tile_size=8,
+                                  codec_error=0.5, root_grid=True)
+    with geoterrain.open(store) as t:
+        assert t.grid.roots == (2, 1) and t.quantizer.bins > 1
+        before, _ = t.level_heights(0)
+        res = t.edit((10, 28), np.full((5, 9), 432.123))
+        assert res.how == "whole grid"
+        h, v = t.level_heights(0)
+        assert v[10:15, 28:37].all()
+        assert np.abs(h[10:15, 28:37] - 432.123).max() <= 0.5 + 1e-9
+        # the rest: the store's decoded heights (the edit's input, the DEM being gone)
+        # coded again within ε, as on the square
+        ok = np.ones(z.shape, bool)
+        ok[10:15, 28:37] = False
+        assert np.abs(h[:33, :60][ok] - before[:33, :60][ok]).max() <= 0.5 + 1e-9
