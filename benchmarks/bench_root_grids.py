@@ -10,6 +10,8 @@ Usage:
                                                  [--rounds 3] [--layouts square,roots]
     python benchmarks/bench_root_grids.py render [--runs 5]
     python benchmarks/bench_root_grids.py geographic [--runs 3]
+    python benchmarks/bench_root_grids.py edit [--rows 1025 --cols 2049] [--runs 5]
+                                               [--window 65]
 
 ``padding``: per raster shape, the samples the preprocess computes on (the padded
 level-0 grid, and every level's lattice summed) over the raster's samples, for the
@@ -74,6 +76,15 @@ order swapped every run; medians of the wall time, CPU time and peak RSS, the ra
 roots / square of the same run, and the load with every run. Then, from the stores the
 last run wrote, the samples held: level 0's padded lattice and the distinct samples of
 the stored tiles summed over the levels (``stores``' measure), over the raster's.
+``edit``: one fBm (``--rows`` × ``--cols``, float32, UTM, 10 m, 64-sample tiles)
+preprocessed as the square and as its root grid (a first untimed round, then ``--runs``
+rounds alternating which goes first: the median preprocess of each), then the
+same edit (``add`` of a random ``--window``² patch whose window straddles column
+``cols // 2``, the 2 × 1 roots' shared edge when ``cols`` is 2^k + 1) applied by
+``Terrain.edit`` to a fresh copy of each store: a first untimed edit of each (kernels
+loaded), then ``--runs`` rounds alternating which layout goes first; medians of the
+edit's wall time, the rows and bytes it rewrote, how it was computed, and the ratios
+roots / square of the same run; the load with every round.
 """
 
 from __future__ import annotations
@@ -444,6 +455,70 @@ def geographic(a: argparse.Namespace) -> None:
     print("|---|---|---|---|---|---|---|---|")
     print("\n".join(rows))
 
+def edit(a: argparse.Namespace) -> None:
+    import shutil
+    import time
+
+    import geoterrain
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    d = Path(tempfile.mkdtemp(prefix="bench_root_edit_"))
+    z = generate("fbm", max(a.rows, a.cols), seed=5, relief=1500.0)[:a.rows, :a.cols]
+    dem = write_geotiff(d / "fbm.tif", z.astype(np.float32), crs="EPSG:32633", spacing=10.0)
+    print(f"load before: {load()}", flush=True)
+    store, pres = {}, {"square": [], "roots": []}
+    for r in range(a.runs + 1):  # the first round untimed: kernels loaded or compiled
+        for k in (("square", "roots") if r % 2 == 0 else ("roots", "square")):
+            t0 = time.perf_counter()
+            store[k] = geoterrain.preprocess(dem, d / f"{k}.geoterrain", overwrite=True,
+                                             root_grid=k == "roots")
+            if r:
+                pres[k].append(time.perf_counter() - t0)
+        print(f"preprocess round {r}: load {load()}", flush=True)
+    pre = {k: statistics.median(v) for k, v in pres.items()}
+    with geoterrain.open(store["roots"]) as t:
+        print(f"roots: {t.grid.roots}, level 0 {t.grid.shape}, extent {t.grid.extent}; "
+              f"square: {a.rows} × {a.cols} padded to "
+              f"{geoterrain.open(store['square']).grid.size}²", flush=True)
+    rng = np.random.default_rng(0)
+    w = a.window
+    row, col = (a.rows - w) // 2, a.cols // 2 - w // 2
+    patch = np.asarray(rng.normal(0.0, 5.0, (w, w)), np.float32).astype(np.float64)
+
+    def one(k):
+        copy = d / f"{k}.edit.geoterrain"
+        shutil.copy(store[k], copy)
+        with geoterrain.open(copy) as t:
+            t0 = time.perf_counter()
+            res = t.edit((row, col), patch, mode="add", round_heights=True)
+            wall = time.perf_counter() - t0
+        return wall, res.rows, res.bytes, res.how, copy.stat().st_size
+
+    for k in store:  # untimed: kernels loaded, modules imported
+        one(k)
+    res = {k: [] for k in store}
+    for r in range(a.runs):
+        for k in (("square", "roots") if r % 2 == 0 else ("roots", "square")):
+            res[k].append(one(k))
+        print(f"round {r}: load {load()}", flush=True)
+    print(f"\nload after: {load()}\n")
+    print("| layout | preprocess (s, median) | edit (s, median) | edit / preprocess | rows "
+          "| bytes rewritten | of the store | how |")
+    print("|---|---|---|---|---|---|---|---|")
+    med = {}
+    for k in store:
+        m = statistics.median(x[0] for x in res[k])
+        med[k] = m
+        _, rows, nbytes, how, size = res[k][0]
+        print(f"| {k} | {pre[k]:.2f} | {m:.3f} | {m / pre[k]:.3f}× | {rows} | "
+              f"{nbytes:,} | {100 * nbytes / size:.2f} % | {how} |")
+    print(f"\nroots / square, edit time: {med['roots'] / med['square']:.2f}×, preprocess: "
+          f"{pre['roots'] / pre['square']:.2f}×; all preprocesses (s): "
+          + "; ".join(f"{k} " + ", ".join(f"{x:.2f}" for x in v) for k, v in pres.items()))
+    print("all edits "
+          "(s): " + "; ".join(f"{k} " + ", ".join(f"{x[0]:.3f}" for x in res[k])
+                              for k in res))
+
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -468,9 +543,14 @@ def main() -> None:
     g = sub.add_parser("geographic")
     g.add_argument("--runs", type=int, default=3)
     g.add_argument("--tile-size", type=int, default=64)
+    ed = sub.add_parser("edit")
+    ed.add_argument("--rows", type=int, default=1025)
+    ed.add_argument("--cols", type=int, default=2049)
+    ed.add_argument("--runs", type=int, default=5)
+    ed.add_argument("--window", type=int, default=65)
     a = ap.parse_args()
     {"padding": padding, "wide": wide, "codec": codec, "stores": stores,
-     "select": select, "render": render, "geographic": geographic}[a.what](a)
+     "select": select, "render": render, "geographic": geographic, "edit": edit}[a.what](a)
 
 
 if __name__ == "__main__":

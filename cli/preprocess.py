@@ -79,7 +79,8 @@ from geoterrain.ingest.raster import ENCODINGS
                    "Geographic, projected and pixel frames, preprocessed whole (a DEM that "
                    "would stream is refused); every LOD strategy draws such a store (mesh, "
                    "render, view, export; export-raster, tiles, serve, query, profile, "
-                   "contours and viewshed read it); edits and the globe refuse it.")
+                   "contours and viewshed read it); edit changes it (over the whole grid) and "
+                   "render/view --globe place it on the globe.")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,

@@ -715,9 +715,6 @@ class Terrain:
         >>> bool(u.tile(0, 0, 0).heights[4, 4] == before - 5), res.changed
         (True, 9)
         """
-        from geoterrain.core.grid import refuse_root_grid
-
-        refuse_root_grid(self.grid, "editing a store")  # a root grid: not yet
         from geoterrain.preprocessing.edit import Patch, edit_terrain
 
         if hasattr(window, "row_off"):  # a rasterio Window
@@ -952,9 +949,6 @@ def edit(store: str | Path, patch: str | Path, mode: str = "replace", *,
     from geoterrain.preprocessing.edit import edit_terrain, read_patch
 
     with Terrain(store) as t:
-        from geoterrain.core.grid import refuse_root_grid
-
-        refuse_root_grid(t.grid, "editing a store")  # a root grid: not yet
         p = read_patch(patch, t.frame, t.grid, at=at, resampling=resampling, band=band)
         return edit_terrain(t, p, mode, round_heights=round_heights)
 

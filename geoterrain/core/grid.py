@@ -45,7 +45,7 @@ ROOT_GRID_WORKS = ("a root-grid store (experimental) is drawn by the LOD strateg
                    "registered for it (views, pictures and mesh exports) and both static "
                    "meshers, and read by raster exports, tiles (quantized-mesh, web-map, "
                    "PMTiles) and the analysis (heights, profiles, contours, areas, volumes, "
-                   "viewsheds)")
+                   "viewsheds); it is edited, and placed on the globe")
 
 
 def refuse_root_grid(grid: Grid, what: str, cli: str | None = None,

@@ -4,7 +4,8 @@ A :class:`StoreLayer` reads one ``.geoterrain`` store through
 :class:`~geoterrain.terrainlike.TerrainLike` at geodetic (lon, lat): pyproj takes WGS 84
 lon, lat to the store's CRS, its geotransform to a (row, column) of pyramid level s, and
 the height is the bilinear interpolant of that level's four samples around it (NaN where
-one of them is no data or padding: the next layer shows there). A store spanning 360° of
+one of them is no data or padding: the next layer shows there); a root-grid store's
+level is read from its tiles across and down, as a square store's. A store spanning 360° of
 longitude interpolates across the antimeridian (its last column to its first); one that
 reaches a pole blends its polar row into the row's mean at the pole, so the surface is
 continuous there (no tear, no spike).
@@ -93,9 +94,6 @@ class StoreLayer:
     """
 
     def __init__(self, terrain, name: str | None = None, feather: float = FEATHER):
-        from geoterrain.core.grid import refuse_root_grid
-
-        refuse_root_grid(terrain.grid, "the globe")  # a root grid: not yet
         self.terrain = terrain
         self.name = name or str(getattr(terrain, "path", "store"))
         self.feather = float(feather)
@@ -263,27 +261,26 @@ class StoreLayer:
         """Level-``level`` sample heights at integer (row, column) (NaN outside or no data)."""
         t = self.terrain
         g = t.grid
-        n = g.level_size(level)
+        n_r, n_c = g.level_shape(level)  # (n, n) on a square grid; a root grid's lattice
         out = np.full(r.shape, np.nan)
-        ok = (r >= 0) & (c >= 0) & (r < n) & (c < n)
+        ok = (r >= 0) & (c >= 0) & (r < n_r) & (c < n_c)
         if not ok.any():
             return out
         rr, cc = r[ok], c[ok]
-        last = g.tiles_per_side(level) - 1
-        ty = np.minimum(rr >> g.t, last)
-        tx = np.minimum(cc >> g.t, last)
-        side = last + 1
-        key = ty * side + tx
-        present = np.zeros(side * side, bool)
+        across, down = g.tiles(level)
+        ty = np.minimum(rr >> g.t, down - 1)
+        tx = np.minimum(cc >> g.t, across - 1)
+        key = ty * across + tx
+        present = np.zeros(across * down, bool)
         present[key] = True
         need = np.flatnonzero(present)
         T = g.tile_samples
         stack = np.empty((len(need), T, T))
         with self._lock:
             for n_, k in enumerate(need.tolist()):
-                y, x = divmod(k, side)
+                y, x = divmod(k, across)
                 stack[n_] = self._tile(level, y, x)
-        slot = np.zeros(side * side, np.int64)
+        slot = np.zeros(across * down, np.int64)
         slot[need] = np.arange(len(need))
         out[ok] = stack[slot[key], rr - (ty << g.t), cc - (tx << g.t)]
         return out

@@ -188,13 +188,16 @@ def test_every_strategy_draws_and_an_unregistered_one_refuses(wide, monkeypatch)
     assert "quadtree," not in str(e.value) and "chunked" in str(e.value)
 
 
-def _refusals(t, tmp_path):
-    return {"editing a store": lambda: t.edit((0, 0), np.zeros((2, 2)))}
-
-
-def test_every_other_consumer_refuses_a_root_grid_in_one_line(wide, tmp_path):
+def test_a_square_only_computation_refuses_a_root_grid_in_one_line(wide):
+    # edits and the globe take root grids now (tests/preprocessing/test_root_edit.py,
+    # tests/globe/test_root_globe.py); what still assumes the square (N, tiles a side)
+    # refuses in one line naming what works
     t, _ = wide
-    for what, call in _refusals(t, tmp_path).items():
+    for what, call in {"the padded size N": lambda: t.grid.size,
+                       "tiles per side": lambda: t.grid.tiles_per_side(0),
+                       "the level size": lambda: t.grid.level_size(1)}.items():
         with pytest.raises(RootGridError, match="registered for it") as e:
             call()
-        assert what.split(" (")[0] in str(e.value) and "\n" not in str(e.value), what
+        assert what in str(e.value) and "\n" not in str(e.value), what
+        assert "edited" in str(e.value) and "globe" in str(e.value)
+

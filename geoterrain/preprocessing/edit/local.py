@@ -77,6 +77,8 @@ def unsupported(terrain: TerrainLike, row: int, col: int, heights: np.ndarray,
     g, f, q, m = terrain.grid, terrain.frame, terrain.quantizer, terrain.meta
     if f.kind == "geographic":
         return "a geographic grid's δ and r hold curvilinear terms"
+    if not g.square:
+        return "a root grid's δ, r and blobs are not computed by tiles yet"
     if q.bins > 1:
         return "heights coded in residual bins depend on the whole pyramid"
     if has_padding(g):

@@ -61,8 +61,14 @@ def store_predictor(terrain: TerrainLike) -> str:
     (a preprocess chooses it from the DEM's entropy; an edit keeps it)."""
     from geoterrain.codec.pyramid import _parse
 
-    top = (terrain.grid.top_level, 0, 0)
-    blob = StoreReader(terrain.path).get_blob(top, "heights")
+    g = terrain.grid
+    tops = [(g.top_level, x, y) for y in range(g.roots[1]) for x in range(g.roots[0])]
+    r = StoreReader(terrain.path)
+    try:  # the first stored root's (every root of a store records the same)
+        blob = next((b for b in (r.get_blob(k, "heights") for k in tops) if b is not None),
+                    None)
+    finally:
+        r.close()
     if blob is None:
         return "linear"
     return "cubic" if _parse(blob)[3] else "linear"
@@ -90,16 +96,35 @@ def whole_plan(terrain: TerrainLike, heights: np.ndarray, valid: np.ndarray,
                meta: dict) -> Plan:
     """The plan of the store holding the padded grid ``heights`` (source units, NaN where
     not ``valid``), computed by the preprocess's stages; ``meta``: the metadata to update
-    (the old one). Blobs are compared with the store's: only those that differ are put."""
-    from geoterrain.preprocessing.pipeline import Dem, Surface, tile_blobs, vertex_bounds
+    (the old one). Blobs are compared with the store's: only those that differ are put.
+
+    On a root grid ``heights`` is level 0's lattice (:attr:`Grid.shape`, as
+    :meth:`~geoterrain.terrain.Terrain.level_heights` gives it) or the roots' extent; the
+    stages run on the extent, as the whole-grid preprocess's do."""
+    from geoterrain.preprocessing.pipeline import (
+        Dem,
+        Surface,
+        _held,
+        _roots,
+        _whole,
+        tile_blobs,
+        vertex_bounds,
+    )
 
     g, frame, q = terrain.grid, terrain.frame, terrain.quantizer
     pred = store_predictor(terrain)
     derive_normals, derive_bounds = store_layout(terrain)
-    X, Y = frame.grid_xy(g.size)
+    if not g.square and heights.shape != g.extent:  # the lattice: invalid to the extent
+        h, v = heights, valid
+        heights, valid = np.full(g.extent, np.nan), np.zeros(g.extent, bool)
+        heights[:h.shape[0], :h.shape[1]] = h
+        valid[:v.shape[0], :v.shape[1]] = v
+    X, Y = frame.grid_xy(_whole(g))
     height_blobs = None
     if q.bins > 1:  # residual bins: decoded heights come out of the pyramid's coding
-        height_blobs, codes = encode_decoded(heights, valid, g.t, q, predictor=pred)
+        height_blobs, codes = encode_decoded(heights, valid, g.t, q, predictor=pred,
+                                             roots=_roots(g))
+        height_blobs = _held(height_blobs, g)
         Z = codes_to_heights(codes, q)
         del codes
         Z[~valid] = np.nan
@@ -117,7 +142,9 @@ def whole_plan(terrain: TerrainLike, heights: np.ndarray, valid: np.ndarray,
     clock = StageClock(("errors", "radii"), None)
     bounds = vertex_bounds(dem, s, derive_bounds and g.tile_samples >= 3 and g.top_level > 0,
                            clock)
-    tiles, blocks = tile_and_block_errors(Z, valid, X, Y, g.t)
+    tiles, blocks = tile_and_block_errors(Z, valid, X, Y, g.t, span=g.span)
+    across, down = g.tiles(0)
+    blocks = blocks[:down, :across]  # a root grid's extent holds more than its tiles
     normal_maps = [encode_octahedral(n, NORMAL_BITS) for n in level_normal_maps(
         X, Y, Z, valid, g.top_level + 1)]
     derive_normals = derive_normals and g.tile_samples >= 3
