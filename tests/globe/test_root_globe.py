@@ -20,9 +20,9 @@ from geoterrain.globe.layers import StoreLayer
 from geoterrain.globe.payload import make_payload
 from tests.conftest import write_tif
 
-CRS = "EPSG:32633"
-ORIGIN = (500000.0, 5000000.0)
-SPACING = 30.0
+#: (CRS, origin, spacing) of the projected and the geographic rasters
+FRAMES = {"utm": ("EPSG:32633", (500000.0, 5000000.0), 30.0),
+          "geo": ("EPSG:4326", (138.5, 35.5), 1 / 1200)}
 
 
 def _raster(rows, cols, seed=0):
@@ -33,27 +33,30 @@ def _raster(rows, cols, seed=0):
     return z
 
 
-@pytest.fixture(scope="module", params=[(65, 129), (129, 65)], ids=["2x1", "1x2"])
+@pytest.fixture(scope="module", params=[(65, 129, "utm"), (129, 65, "utm"), (65, 129, "geo")],
+                ids=["2x1", "1x2", "2x1-geographic"])
 def pair(request, tmp_path_factory):
-    """(raster, root-grid store, square store) of one raster, 16-sample tiles."""
-    rows, cols = request.param
+    """(raster, root-grid store, square store, frame) of one raster, 16-sample tiles."""
+    rows, cols, frame = request.param
+    crs, origin, spacing = FRAMES[frame]
     d = tmp_path_factory.mktemp("rootglobe")
     z = _raster(rows, cols)
-    src = write_tif(d / "z.tif", np.where(np.isnan(z), -9999, z).astype(np.int16), crs=CRS,
-                    origin=ORIGIN, spacing=SPACING, nodata=-9999)
+    src = write_tif(d / "z.tif", np.where(np.isnan(z), -9999, z).astype(np.int16), crs=crs,
+                    origin=origin, spacing=spacing, nodata=-9999)
     roots = geoterrain.preprocess(src, d / "roots.geoterrain", tile_size=16, root_grid=True)
     square = geoterrain.preprocess(src, d / "square.geoterrain", tile_size=16)
     with geoterrain.open(roots) as t, geoterrain.open(square) as s:
         assert not t.grid.square and s.grid.square
         assert t.grid.roots == ((2, 1) if cols > rows else (1, 2))
-    return z, roots, square
+    return z, roots, square, frame
 
 
-def _lonlat(i, j):
+def _lonlat(i, j, frame):
     """WGS 84 lon, lat of fractional level-0 (row, column) (pixel centres at integers)."""
-    x = ORIGIN[0] + (j + 0.5) * SPACING
-    y = ORIGIN[1] - (i + 0.5) * SPACING
-    return Transformer.from_crs(CRS, "EPSG:4326", always_xy=True).transform(x, y)
+    crs, origin, spacing = FRAMES[frame]
+    x = origin[0] + (j + 0.5) * spacing
+    y = origin[1] - (i + 0.5) * spacing
+    return Transformer.from_crs(crs, "EPSG:4326", always_xy=True).transform(x, y)
 
 
 def _bilinear(z, i, j, S):
@@ -70,7 +73,7 @@ def _bilinear(z, i, j, S):
 
 @pytest.mark.fast
 def test_layer_heights_are_the_square_stores_and_the_rasters(pair):
-    z, roots, square = pair
+    z, roots, square, frame = pair
     rows, cols = z.shape
     rng = np.random.default_rng(1)
     with geoterrain.open(roots) as t, geoterrain.open(square) as s:
@@ -80,7 +83,7 @@ def test_layer_heights_are_the_square_stores_and_the_rasters(pair):
             S = 1 << level
             i = rng.uniform(0, (rows - 1) // S * S, 3000)
             j = rng.uniform(0, (cols - 1) // S * S, 3000)
-            lon, lat = _lonlat(i, j)
+            lon, lat = _lonlat(i, j, frame)
             ha, hb = a.heights(lon, lat, level), b.heights(lon, lat, level)
             # both lossless: the same samples, so the same heights, NaN at the same points
             assert np.array_equal(ha, hb, equal_nan=True), level
@@ -96,7 +99,7 @@ def test_layer_heights_are_the_square_stores_and_the_rasters(pair):
 
 @pytest.mark.slow  # two globes' error tables: about 20 s
 def test_globe_payloads_are_the_square_stores(pair):
-    _, roots, square = pair
+    _, roots, square, _ = pair
     ga = Globe([roots], node_cells=8, sync=True, feather=2.0)
     gb = Globe([square], node_cells=8, sync=True, feather=2.0)
     try:
@@ -120,7 +123,7 @@ def test_globe_payloads_are_the_square_stores(pair):
 def test_render_globe_draws_a_root_grid_store(pair, tmp_path):
     from geoterrain.cli.main import cli
 
-    _, roots, _ = pair
+    _, roots, _, _ = pair
     out = tmp_path / "g.png"
     res = CliRunner().invoke(cli, ["-q", "render", "--globe", str(roots), "-o", str(out),
                                    "--size", "96x72"])

@@ -23,15 +23,19 @@ from tests.store.storesql import all_blobs, all_tiles, read_meta
 IGNORED = ("edits",)  # a fresh preprocess has no edit log
 
 
-def write_dem(path: Path, z: np.ndarray, nodata: float | None = None) -> Path:
-    """A UTM GeoTIFF of ``z`` (float32), 10 m pixels; NaN cells become ``nodata``."""
+def write_dem(path: Path, z: np.ndarray, nodata: float | None = None,
+              geographic: bool = False) -> Path:
+    """A UTM GeoTIFF of ``z`` (float32), 10 m pixels, or with ``geographic`` an EPSG:4326
+    one of 3″ pixels near 35.5° N; NaN cells become ``nodata``."""
     H, W = z.shape
-    tr = rasterio.transform.from_origin(500000, 5000000, 10, 10)
+    tr = (rasterio.transform.from_origin(138.5, 35.5, 1 / 1200, 1 / 1200) if geographic
+          else rasterio.transform.from_origin(500000, 5000000, 10, 10))
     z = np.asarray(z, np.float32)
     if nodata is not None:
         z = np.where(np.isnan(z), np.float32(nodata), z)
     with rasterio.open(path, "w", driver="GTiff", height=H, width=W, count=1, dtype="float32",
-                       crs="EPSG:32633", transform=tr, nodata=nodata) as ds:
+                       crs="EPSG:4326" if geographic else "EPSG:32633", transform=tr,
+                       nodata=nodata) as ds:
         ds.write(z, 1)
     return Path(path)
 

@@ -35,8 +35,9 @@ from tests.preprocessing.test_edit import _KILLED
 NODATA = -9999.0
 
 
-def _root_store(path, z, tile):
-    store = geoterrain.preprocess(write_dem(path, z, NODATA), tile_size=tile, root_grid=True)
+def _root_store(path, z, tile, geographic=False):
+    store = geoterrain.preprocess(write_dem(path, z, NODATA, geographic), tile_size=tile,
+                                  root_grid=True)
     with geoterrain.open(store) as t:
         assert not t.grid.square
     return store
@@ -45,7 +46,8 @@ def _root_store(path, z, tile):
 @st.composite
 def root_edits(draw):
     """A DEM of 2 × 1 (``wide``) or 1 × 2 roots of span ``s`` = tile · 2^k, and a window
-    across the roots' shared edge, at the data's edge (past it: clipped) or anywhere."""
+    across the roots' shared edge, at the data's edge (past it: clipped) or anywhere; on a
+    projected or a geographic frame."""
     tile = draw(st.sampled_from([4, 8]))
     s = tile << draw(st.integers(1, 2))
     long_side = draw(st.integers(s + 2, 2 * s + 1))  # more than one root, at most two
@@ -69,7 +71,8 @@ def root_edits(draw):
             col = draw(st.integers(cols - w, cols - 1))
     mode = draw(st.sampled_from(["replace", "add", "min", "max"]))
     kind = draw(st.sampled_from(["const", "rough", "holes"]))
-    return rows, cols, tile, holes, row, col, h, w, mode, kind, draw(st.integers(0, 999))
+    return (rows, cols, tile, holes, row, col, h, w, mode, kind, draw(st.integers(0, 999)),
+            draw(st.booleans()))
 
 
 def _patch(kind, h, w, seed, mode):
@@ -86,20 +89,21 @@ def _patch(kind, h, w, seed, mode):
 @settings(max_examples=8, deadline=None)
 @given(e=root_edits())
 def test_edited_root_grid_store_is_the_preprocessed_edited_dem(tmp_path_factory, e):
-    rows, cols, tile, holes, row, col, h, w, mode, kind, seed = e
+    rows, cols, tile, holes, row, col, h, w, mode, kind, seed, geographic = e
     z = integer_dem(seed, rows, cols, holes)
     p = _patch(kind, h, w, seed, mode)
     tmp = tmp_path_factory.mktemp("red")
     (tmp / "a").mkdir()
     (tmp / "b").mkdir()
-    store = _root_store(tmp / "a" / "dem.tif", z, tile)
+    store = _root_store(tmp / "a" / "dem.tif", z, tile, geographic)
     try:
         with geoterrain.open(store) as t:
             res = edit_terrain(t, Patch(row, col, p), mode)
     except InputError as exc:  # the patch misses the DEM
         assert "outside" in str(exc)
         return
-    fresh = _root_store(tmp / "b" / "dem.tif", apply_by_hand(z, row, col, p, mode), tile)
+    fresh = _root_store(tmp / "b" / "dem.tif", apply_by_hand(z, row, col, p, mode), tile,
+                        geographic)
     assert_same_store(store, fresh)
     if res.window is not None:
         assert res.rows > 0
