@@ -13,8 +13,10 @@ codes) all of them in one compiled call on every core
 
 A magnified tile (level < 0, :mod:`geoterrain.rendering.tiletextures`) is shaded by the
 same rule from its level-0 tile's heights, shade (and drape) interpolated bilinearly at
-its texels (:func:`magnified`): the height is interpolated first and classified after, so
-a coast or a colour step follows the interpolated surface, not the nearest sample.
+its texels (:func:`magnified`; in the default style a frame's magnified tiles in one
+compiled pass, :func:`geoterrain.rendering.tileshade.magnify_tiles`): the height is
+interpolated first and classified after, so a coast or a colour step follows the
+interpolated surface, not the nearest sample.
 
 Examples
 --------
