@@ -17,8 +17,12 @@ time of the same work moves with the load, its CPU time much less.
 
     PYTHONPATH=. python benchmarks/bench_render.py STORE [--views 24] [--size 1280x720]
         [--tau 1] [--flight approach|low] [--strategies rtin] [--brute-every 4] [--global]
-        [--json out.json]
+        [--json out.json] [--pictures DIR]
         [--anti-aliasing auto|msaa|edges|fxaa|none] [--skip-bruteforce]
+
+``--pictures DIR`` writes the compared views' pictures there as PNGs
+(``STRATEGY_VIEW.png``, bruteforce's included), so two checkouts' pictures of the same
+views can be compared; each strategy's PSNR against bruteforce is printed per view.
 
 ``--global`` adds the previous whole-DEM texture (``textures="global"``) as a
 baseline measured in the same run.
@@ -143,6 +147,7 @@ def main(argv=None) -> dict:
                     "none")
     ap.add_argument("--skip-bruteforce", action="store_true")
     ap.add_argument("--json")
+    ap.add_argument("--pictures", help="write the compared views' pictures to this folder")
     a = ap.parse_args(argv)
     size = tuple(int(s) for s in a.size.split("x"))
     load0 = os.getloadavg()[0]
@@ -191,6 +196,17 @@ def main(argv=None) -> dict:
               f"{sm['texture_ms']:.0f} | {sm['render_ms']:.0f} | {sm['cpu_ms']:.0f} | "
               f"{sm['render_cpu_ms']:.0f} | {ratio:.1f}× | {dbs} |")
     for r in runs:
+        db = r["summary"]["psnr_to_bruteforce"]
+        if db:
+            print(f"{r['strategy']} PSNR to bruteforce by view: " + ", ".join(
+                f"{k}: {d:.2f}" for k, d in zip(r["pictures"], db, strict=True)) + " dB")
+        if a.pictures:
+            from PIL import Image
+
+            os.makedirs(a.pictures, exist_ok=True)
+            for k, img in r["pictures"].items():
+                Image.fromarray(img).save(os.path.join(a.pictures,
+                                                       f"{r['strategy']}_{k:02d}.png"))
         r.pop("pictures")
     out = {"views": len(views), "size": list(size), "tau": a.tau, "runs": runs}
     if a.json:

@@ -25,6 +25,7 @@ True
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -202,6 +203,80 @@ def _tint_tiles(h, cf, shade, tint, out):  # pragma: no cover - compiled
     """:func:`_tint_tile` of each tile of ``h`` on every core."""
     for k in prange(h.shape[0]):
         _tint_tile(h[k], cf, shade[k], tint, out[k])
+
+
+@njit(cache=True, nogil=True)
+def _magnify(src, which, oy, ox, k, out):  # pragma: no cover - compiled
+    """Each magnified tile's texels, bilinear in its source tile (NaN-aware where the
+    source tile holds a non-finite value): :func:`magnify_tiles`."""
+    T = src.shape[1]
+    S = out.shape[1]
+    finite = np.empty(src.shape[0], np.bool_)
+    for m in range(src.shape[0]):
+        finite[m] = np.isfinite(src[m]).all()
+    for n in range(out.shape[0]):
+        a = src[which[n]]
+        scale = 1.0 / (1 << k[n])
+        for r in range(S):
+            cy = oy[n] + r * scale
+            i0 = min(int(math.floor(cy)), T - 2)
+            fy = cy - i0
+            for c in range(S):
+                cx = ox[n] + c * scale
+                j0 = min(int(math.floor(cx)), T - 2)
+                fx = cx - j0
+                v00, v01 = a[i0, j0], a[i0, j0 + 1]
+                v10, v11 = a[i0 + 1, j0], a[i0 + 1, j0 + 1]
+                if finite[which[n]]:  # separable: rows, then columns
+                    t0 = (1.0 - fy) * v00 + fy * v10
+                    t1 = (1.0 - fy) * v01 + fy * v11
+                    out[n, r, c] = (1.0 - fx) * t0 + fx * t1
+                    continue
+                num = den = 0.0
+                for v, w in ((v00, (1.0 - fy) * (1.0 - fx)), (v01, (1.0 - fy) * fx),
+                             (v10, fy * (1.0 - fx)), (v11, fy * fx)):
+                    if math.isfinite(v):
+                        num += w * v
+                        den += w
+                out[n, r, c] = num / den if den > 1e-12 else np.nan
+
+
+def magnify_tiles(src: np.ndarray, which: np.ndarray, level: np.ndarray, x: np.ndarray,
+                  y: np.ndarray, step: int) -> np.ndarray:
+    """Magnified tiles' texels (n, step + 1, step + 1) float64 in one compiled pass: tile
+    (``level[n]`` < 0, ``x[n]``, ``y[n]``) interpolated bilinearly in ``src[which[n]]``,
+    its level-0 tile's array (T, T), as
+    :func:`geoterrain.rendering.tileshader.magnified` interpolates one tile (a texel the
+    weighted mean of its finite corners where the source tile holds a non-finite value,
+    NaN where none is; equal to it but for the rounding of the sums' order).
+
+    Examples
+    --------
+    >>> a = np.array([[[0.0, 4.0], [8.0, 12.0]]])  # one 2 × 2 level-0 tile (step 1)
+    >>> magnify_tiles(a, np.array([0]), np.array([-1]), np.array([0]), np.array([0]),
+    ...               2)[0, 1].tolist()
+    [4.0, 6.0, 8.0]
+    """
+    src = np.ascontiguousarray(src, np.float64)
+    which = np.ascontiguousarray(which, np.int64)
+    level = np.asarray(level, np.int64)
+    n = len(which)
+    if src.ndim != 3 or src.shape[1] < 2 or src.shape[2] < 2 or not (
+            len(level) == len(x) == len(y) == n):
+        raise ValueError("src must be (m, T, T), T >= 2, with one level, x, y per tile")
+    if n and (which.min() < 0 or which.max() >= len(src) or level.max() >= 0):
+        raise ValueError("which must index src, and every level be below 0")
+    k = -level
+    mask = np.left_shift(1, k) - 1
+    width = np.right_shift(int(step), k)  # a tile's width in level-0 samples
+    oy = (np.asarray(y, np.int64) & mask) * width
+    ox = (np.asarray(x, np.int64) & mask) * width
+    if n and ((oy + width).max() > src.shape[1] - 1 or (ox + width).max() > src.shape[2] - 1):
+        raise ValueError("a magnified tile reaches past its source tile")
+    out = np.empty((n, int(step) + 1, int(step) + 1))
+    if n:
+        _magnify(src, which, oy.astype(np.float64), ox.astype(np.float64), k, out)
+    return out
 
 
 def tint_tiles(h: np.ndarray, cf: float, shade: np.ndarray, clim: tuple[float, float],

@@ -13,8 +13,10 @@ codes) all of them in one compiled call on every core
 
 A magnified tile (level < 0, :mod:`geoterrain.rendering.tiletextures`) is shaded by the
 same rule from its level-0 tile's heights, shade (and drape) interpolated bilinearly at
-its texels (:func:`magnified`): the height is interpolated first and classified after, so
-a coast or a colour step follows the interpolated surface, not the nearest sample.
+its texels (:func:`magnified`; in the default style a frame's magnified tiles in one
+compiled pass, :func:`geoterrain.rendering.tileshade.magnify_tiles`): the height is
+interpolated first and classified after, so a coast or a colour step follows the
+interpolated surface, not the nearest sample.
 
 Examples
 --------
@@ -51,7 +53,7 @@ from geoterrain.rendering.textures import (
     sample_spacing,
     terrain_palette,
 )
-from geoterrain.rendering.tileshade import shade_lut, shade_tiles, tint_tiles
+from geoterrain.rendering.tileshade import magnify_tiles, shade_lut, shade_tiles, tint_tiles
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike, TileKey
@@ -246,14 +248,21 @@ class TileShader:
             out.update({key: rgb[k].copy() for k, key in enumerate(real)})
         virtual = [k for k in keys if k[0] < 0]
         if virtual:
+            # each level-0 tile's heights and shade once, then every magnified tile's
+            # texels in one compiled pass (magnify_tiles: magnified's interpolation)
+            parents = {}
+            for L, x, y in virtual:
+                parents.setdefault((0, x >> -L, y >> -L), len(parents))
+            ph = np.empty((len(parents), T, T))
+            ps = np.empty((len(parents), T, T))
+            for p, m in parents.items():
+                ph[m], ps[m] = t.memo(("fields", self.style, *p),
+                                      lambda p=p: self._default_fields(p))
+            which = np.array([parents[(0, x >> -L, y >> -L)] for L, x, y in virtual])
+            L, x, y = (np.array(a, np.int64) for a in zip(*virtual, strict=True))
             step = 1 << t.grid.t
-            h = np.empty((len(virtual), step + 1, step + 1))
-            s = np.empty((len(virtual), step + 1, step + 1), np.float32)
-            for k, (L, x, y) in enumerate(virtual):
-                p = (0, x >> -L, y >> -L)
-                ph, ps = t.memo(("fields", self.style, *p), lambda p=p: self._default_fields(p))
-                h[k] = magnified(ph, L, x, y, step)
-                s[k] = magnified(ps, L, x, y, step)
+            h = magnify_tiles(ph, which, L, x, y, step)
+            s = magnify_tiles(ps, which, L, x, y, step).astype(np.float32)
             rgb = tint_tiles(h, 1.0, s, *args)
             out.update({key: rgb[k].copy() for k, key in enumerate(virtual)})
         return [out[k] for k in keys]  # each cached on its own (not views of one array)

@@ -13,7 +13,8 @@ from geoterrain.bounds.normals import decode_octahedral
 from geoterrain.bounds.vertexdata import normals_from_bytes, normals_to_bytes
 from geoterrain.rendering.colours import LAND, WATER, Palette, colorize, water_level
 from geoterrain.rendering.shading import AMBIENT, DEFAULT_SUN, SHADE_CEILING, hillshade
-from geoterrain.rendering.tileshade import shade_tile
+from geoterrain.rendering.tileshade import magnify_tiles, shade_tile
+from geoterrain.rendering.tileshader import magnified
 
 pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
@@ -97,3 +98,36 @@ def test_a_lossy_flat_sea_keeps_one_colour(tmp_path):
     rgb = colorize(sea, pal, elevation_range(t), height_tolerance(t))
     assert height_tolerance(t) == 2.0 and (rgb == rgb[0]).all()
     assert not (colorize(sea, pal, elevation_range(t)) == rgb[0]).all()  # without it
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2 ** 32 - 1), st.integers(1, 6), st.sampled_from([0.0, 0.05, 0.6, 1.0]))
+def test_magnified_tiles_in_one_pass_are_magnified_s(seed, t, voids):
+    """The compiled pass gives each magnified tile's texels as the numpy interpolation
+    (magnified) does, NaN where it gives NaN, tiles of several sources in one call."""
+    rng = np.random.default_rng(seed)
+    step = 1 << t
+    src = rng.uniform(-500.0, 3000.0, (3, step + 1, step + 1))
+    src[0][rng.random((step + 1, step + 1)) < voids] = np.nan  # one source with voids
+    n = int(rng.integers(1, 12))
+    k = rng.integers(1, min(t, 3) + 1, n)  # the tile's width stays >= 1 sample
+    x = rng.integers(0, 64, n)
+    y = rng.integers(0, 64, n)
+    which = rng.integers(0, 3, n)
+    got = magnify_tiles(src, which, -k, x, y, step)
+    assert got.shape == (n, step + 1, step + 1)
+    for m in range(n):
+        want = magnified(src[which[m]], -int(k[m]), int(x[m]), int(y[m]), step)
+        assert np.array_equal(np.isnan(got[m]), np.isnan(want))
+        ok = ~np.isnan(want)
+        # the same weights; only the order of the sums' rounding differs
+        assert np.allclose(got[m][ok], want[ok], rtol=1e-12, atol=1e-9)
+
+
+def test_magnify_tiles_refuses_what_it_would_read_past():
+    src = np.zeros((1, 5, 5))
+    for args in ((np.array([1]), np.array([-1])), (np.array([0]), np.array([0]))):
+        with pytest.raises(ValueError):
+            magnify_tiles(src, args[0], args[1], np.array([0]), np.array([0]), 4)
+    with pytest.raises(ValueError):  # a tile wider than its source
+        magnify_tiles(src, np.array([0]), np.array([-1]), np.array([0]), np.array([0]), 16)
