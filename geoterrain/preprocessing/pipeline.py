@@ -201,13 +201,7 @@ def preprocess(
     if probe is not None:
         shape, crs_geographic = probe
         geographic = crs_geographic and tile is None and pixel_size is None
-        rows = streaming_band(shape, limit, geographic)
-        if rows is not None and root_grid:
-            raise UsageError("a root grid is built by the whole-grid preprocess only (the "
-                             "streamed one pads to the square); raise memory_limit, or "
-                             "leave root_grid off", cli="--root-grid is built by the "
-                             "whole-grid preprocess only (the streamed one pads to the "
-                             "square); raise --memory-limit, or leave --root-grid off")
+        rows = streaming_band(shape, limit, geographic, roots=root_grid)
         if rows is not None:  # too large for the whole grid: a window at a time
             return stream(req, z_scale=z_scale, z_units=z_units, codec_error=codec_error,
                           nodata=nodata, band=rows, raster_band=band, encoding=encoding,
