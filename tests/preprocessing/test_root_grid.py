@@ -105,19 +105,16 @@ def test_a_square_raster_keeps_the_square_store(tmp_path):
     assert geoterrain.open(a).grid.square and a.read_bytes() == b.read_bytes()
 
 
-def test_geographic_and_streamed_root_grids_are_refused_in_one_line(tmp_path):
+def test_geographic_root_grids_are_refused_in_one_line(tmp_path):
+    # (the streamed one too, and streamed root grids in a projected frame:
+    # test_streaming_root_grid.py)
     z = fbm(33, 65)
     src = write_tif(tmp_path / "g.tif", z, crs="EPSG:4326", origin=(10.0, 45.0),
                     spacing=0.001, dtype="int16")
     with pytest.raises(UsageError, match="projected and pixel frames only") as e:
         geoterrain.preprocess(src, tmp_path / "g.geoterrain", tile_size=16, root_grid=True)
     assert "\n" not in str(e.value)
-    src = write_tif(tmp_path / "s.tif", fbm(1025, 2049), dtype="int16")
-    with pytest.raises(UsageError, match="whole-grid preprocess only") as e:
-        geoterrain.preprocess(src, tmp_path / "s.geoterrain", root_grid=True,
-                              memory_limit=64 << 20)
-    assert "\n" not in str(e.value)
-    assert not (tmp_path / "s.geoterrain").exists()
+    assert not (tmp_path / "g.geoterrain").exists()
 
 
 def test_the_reader_sees_every_root(wide):

@@ -576,10 +576,12 @@ def band_vertex_errors(rows: Rows, N: int | tuple[int, int], band: int = 256,
     True
     """
     NR, NC = grid_shape(N)
-    S = NR - 1 if span is None else int(span)
-    if S < 2 or S & (S - 1) or (NR - 1) % S or (NC - 1) % S or (span is None and NR != NC):
+    if span is None and NR != NC:
+        raise ValueError(f"a {NR} × {NC} grid needs span, its roots' side")
+    n = grid_order(NR if span is None else int(span) + 1)
+    S = 1 << n
+    if (NR - 1) % S or (NC - 1) % S:
         raise ValueError(f"a {NR} × {NC} grid is not square roots of side {S}")
-    n = grid_order(S + 1)
     if band < 2 or band & (band - 1):
         raise ValueError(f"band must be a power of two ≥ 2, got {band}")
     B = min(band, S)
