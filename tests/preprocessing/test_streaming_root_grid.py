@@ -35,7 +35,7 @@ from geoterrain.preprocessing.bands.tiles import band_tile_bounds
 from geoterrain.preprocessing.pipeline import preprocess
 from geoterrain.preprocessing.scratch import ScratchArrays
 from geoterrain.preprocessing.streaming import preprocess_streaming
-from tests.preprocessing.test_streaming import _assert_same_store, _content, _tif
+from tests.preprocessing.test_streaming import _assert_same_store, _tif
 
 ROOTS = [(2, 1), (1, 2), (3, 1), (1, 3), (2, 2), (1, 1)]
 
@@ -158,7 +158,7 @@ def _root_grid(rows: int, cols: int, tile: int) -> Grid:
     return Grid.for_shape(rows, cols, tile, roots=True)
 
 
-@settings(max_examples=12, deadline=None)
+@settings(max_examples=6, deadline=None)
 @given(seed=st.integers(0, 10_000), rows=st.integers(5, 100), wide=st.floats(1.3, 4.0),
        tall=st.booleans(), tile=st.sampled_from([2, 4, 8, 16, 64]),
        holes=st.sampled_from([0.0, 0.05, 0.6]), dtype=st.sampled_from(["float32", "int16"]),
@@ -199,7 +199,11 @@ def test_a_memory_limit_streams_a_root_grid_to_the_same_file(tmp_path):
     assert geoterrain.open(c).grid.square
 
 
-@pytest.mark.parametrize("spec", ["sync", "processes:2", "dask:local:2"])
+@pytest.mark.parametrize("spec", [
+    "sync",
+    # worker pools and a LocalCluster: 40-60 s at load 12 (their start and compiles)
+    pytest.param("processes:2", marks=pytest.mark.slow),
+    pytest.param("dask:local:2", marks=pytest.mark.slow)])
 def test_the_root_grid_store_is_the_same_on_every_scheduler(tmp_path, spec):
     """A tall raster with voids and ε (the height pass first, its decoded heights read by
     the others) on worker processes and on a dask LocalCluster of 2 workers."""
@@ -218,8 +222,7 @@ def test_the_root_grid_store_is_the_same_on_every_scheduler(tmp_path, spec):
 
 def test_a_mosaic_streams_to_the_root_grid_store(tmp_path):
     """A wide raster cut into four tiles (sharing a row and a column, one with its own
-    nodata value): the list and its VRT stream to their whole-grid stores, whose blobs
-    and tiles are the merged raster's."""
+    nodata value): the list and its VRT stream to their whole-grid stores."""
     from geoterrain.ingest.mosaic import build_vrt
     from tests.ingest.test_mosaic import split
 
@@ -232,14 +235,12 @@ def test_a_mosaic_streams_to_the_root_grid_store(tmp_path):
     tiles = [str(p) for p in paths]
     vrt = tmp_path / "mosaic.vrt"
     vrt.write_text(build_vrt(paths))
-    m = _content(preprocess(merged, tmp_path / "m.gt", tile_size=16, root_grid=True))
     for k, src in enumerate((tiles, str(vrt))):
         a = preprocess(src, tmp_path / f"a{k}.gt", tile_size=16, root_grid=True)
         b = preprocess_streaming(src, tmp_path / f"b{k}.gt", tile_size=16, band=4,
                                  root_grid=True)
         assert geoterrain.open(b).grid.roots == (2, 1)
         _assert_same_store(a, b)
-        assert _content(b)[:2] == m[:2]  # the merged raster's blobs and tiles (its name not)
 
 
 def _killed_after_first_pass(src, dst, band, eps=None, first="bounds"):
