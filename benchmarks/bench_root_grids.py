@@ -12,6 +12,9 @@ Usage:
     python benchmarks/bench_root_grids.py geographic [--runs 3]
     python benchmarks/bench_root_grids.py edit [--rows 1025 --cols 2049] [--runs 5]
                                                [--window 65]
+    python benchmarks/bench_root_grids.py streamed [--runs 3] [--memory-limit 1G]
+                                                   [--square-wide]
+    python benchmarks/bench_root_grids.py flat [--runs 3] [--memory-limit 1G]
 
 ``padding``: per raster shape, the samples the preprocess computes on (the padded
 level-0 grid, and every level's lattice summed) over the raster's samples, for the
@@ -85,6 +88,19 @@ same edit (``add`` of a random ``--window``² patch whose window straddles colum
 loaded), then ``--runs`` rounds alternating which layout goes first; medians of the
 edit's wall time, the rows and bytes it rewrote, how it was computed, and the ratios
 roots / square of the same run; the load with every round.
+``streamed``: the streamed preprocess (``preprocess_streaming``, the band a
+``--memory-limit`` gives: ``streaming.band_rows`` of the grid's width) of the wide fBm
+(1024 × 4096) on its 2 × 1 root grid against the square fBm of the same samples (2048²,
+padded to 2049²), and with ``--square-wide`` the wide one on today's 4097² square too;
+each run a fresh process, the cases in rotating order; medians of the wall time, the
+CPU time and the peak RSS (VmHWM), the ratios to the square raster of the same run, and
+the load with every run.
+
+``flat``: the streamed preprocess of two fBm rasters on their 2 × 1 root grids, 1025 ×
+2049 and 4097 × 8193 (rows × cols; each exactly its roots' extent), under the same
+``--memory-limit`` (its band), alternating, each run a fresh process: the medians of
+their peak RSS and wall time, and the peak's ratio (the Done-when's "peak memory flat in
+the raster's size").
 """
 
 from __future__ import annotations
@@ -123,6 +139,109 @@ g = geoterrain.open(p).grid
 print(json.dumps({"wall": wall, "cpu": cpus, "peak_mb": peak_rss() / 2**20,
                   "grid": g.to_json()}))
 """
+
+
+STREAM_CHILD = """
+import json, resource, sys, time
+import geoterrain
+from geoterrain.core.grid import Grid
+from geoterrain.preprocessing.streaming import band_rows, preprocess_streaming
+import rasterio
+def cpu():
+    u = resource.getrusage(resource.RUSAGE_SELF)
+    return u.ru_utime + u.ru_stime
+src, dst, layout, limit = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
+with rasterio.open(src) as ds:
+    H, W = ds.height, ds.width
+g = Grid.for_shape(H, W, roots=layout == "roots")
+band = band_rows(g.extent[1], limit)
+t0, c0 = time.perf_counter(), cpu()
+p = preprocess_streaming(src, dst, overwrite=True, band=band, root_grid=layout == "roots")
+wall, cpus = time.perf_counter() - t0, cpu() - c0
+from geoterrain.core.memory import peak_rss
+g = geoterrain.open(p).grid
+print(json.dumps({"wall": wall, "cpu": cpus, "peak_mb": peak_rss() / 2**20, "band": band,
+                  "grid": g.to_json()}))
+"""
+
+
+def _size(text: str) -> int:
+    units = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}
+    return int(float(text[:-1]) * units[text[-1].upper()]) if text[-1].isalpha() else int(text)
+
+
+def _alternate(cases: dict, src: dict, d: str, runs: int, limit: int) -> dict:
+    # each case (raster, layout) streamed in a fresh process, rotating the order each run
+    names = list(cases)
+    out: dict[str, list[dict]] = {k: [] for k in cases}
+    for r in range(runs):
+        for name in names[r % len(names):] + names[:r % len(names)]:
+            raster, layout = cases[name]
+            res = json.loads(subprocess.run(
+                [sys.executable, "-c", STREAM_CHILD, src[raster],
+                 str(Path(d) / f"{raster}-{layout}.geoterrain"), layout, str(limit)],
+                check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1])
+            out[name].append(res)
+            print(f"run {r} {name}: {res['wall']:.2f} s, CPU {res['cpu']:.2f} s, "
+                  f"{res['peak_mb']:.0f} MB, band {res['band']}, grid {res['grid']}, "
+                  f"load {load()}", flush=True)
+    return out
+
+
+def _medians(runs: dict) -> dict:
+    return {k: {m: statistics.median(x[m] for x in v) for m in ("wall", "cpu", "peak_mb")}
+            for k, v in runs.items()}
+
+
+def streamed(a: argparse.Namespace) -> None:
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    limit = _size(a.memory_limit)
+    print(f"load before: {load()}; memory limit {a.memory_limit}", flush=True)
+    with tempfile.TemporaryDirectory(prefix="bench_root_grids_") as d:
+        src = {}
+        for name, shape in (("wide", (1024, 4096)), ("square", (2048, 2048))):
+            src[name] = str(write_geotiff(Path(d) / f"{name}.tif",
+                                          generate("fbm", shape, seed=3).astype(np.float32)))
+        cases = {"square 2048², streamed": ("square", "square"),
+                 "wide 1024 × 4096 on 2 × 1 roots, streamed": ("wide", "roots")}
+        if a.square_wide:
+            cases["wide 1024 × 4096 on the 4097² square, streamed"] = ("wide", "square")
+        runs = _alternate(cases, src, d, a.runs, limit)
+    med = _medians(runs)
+    sq = med["square 2048², streamed"]
+    print(f"\nload after: {load()}\n")
+    print("| case | wall (median) | CPU (median) | peak RSS (median) | wall / square "
+          "| CPU / square | peak / square |")
+    print("|---|---|---|---|---|---|---|")
+    for k, m in med.items():
+        print(f"| {k} | {m['wall']:.2f} s | {m['cpu']:.2f} s | {m['peak_mb']:.0f} MB "
+              f"| {m['wall'] / sq['wall']:.2f}× | {m['cpu'] / sq['cpu']:.2f}× "
+              f"| {m['peak_mb'] / sq['peak_mb']:.2f}× |")
+
+
+def flat(a: argparse.Namespace) -> None:
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    limit = _size(a.memory_limit)
+    print(f"load before: {load()}; memory limit {a.memory_limit}", flush=True)
+    with tempfile.TemporaryDirectory(prefix="bench_root_grids_") as d:
+        src = {}
+        for name, shape in (("small", (1025, 2049)), ("large", (4097, 8193))):
+            src[name] = str(write_geotiff(Path(d) / f"{name}.tif",
+                                          generate("fbm", shape, seed=3).astype(np.float32)))
+        cases = {"1025 × 2049 on 2 × 1 roots": ("small", "roots"),
+                 "4097 × 8193 on 2 × 1 roots": ("large", "roots")}
+        runs = _alternate(cases, src, d, a.runs, limit)
+    med = _medians(runs)
+    small = med["1025 × 2049 on 2 × 1 roots"]
+    print(f"\nload after: {load()}\n")
+    print("| raster (rows × cols) | wall (median) | CPU (median) | peak RSS (median) "
+          "| peak / 1025 × 2049 |")
+    print("|---|---|---|---|---|")
+    for k, m in med.items():
+        print(f"| {k} | {m['wall']:.2f} s | {m['cpu']:.2f} s | {m['peak_mb']:.0f} MB "
+              f"| {m['peak_mb'] / small['peak_mb']:.3f}× |")
 
 
 def load() -> str:
@@ -548,9 +667,17 @@ def main() -> None:
     ed.add_argument("--cols", type=int, default=2049)
     ed.add_argument("--runs", type=int, default=5)
     ed.add_argument("--window", type=int, default=65)
+    m = sub.add_parser("streamed")
+    m.add_argument("--runs", type=int, default=3)
+    m.add_argument("--memory-limit", default="1G")
+    m.add_argument("--square-wide", action="store_true")
+    f = sub.add_parser("flat")
+    f.add_argument("--runs", type=int, default=3)
+    f.add_argument("--memory-limit", default="1G")
     a = ap.parse_args()
     {"padding": padding, "wide": wide, "codec": codec, "stores": stores,
-     "select": select, "render": render, "geographic": geographic, "edit": edit}[a.what](a)
+     "select": select, "render": render, "geographic": geographic, "edit": edit,
+     "streamed": streamed, "flat": flat}[a.what](a)
 
 
 if __name__ == "__main__":

@@ -76,11 +76,11 @@ from geoterrain.ingest.raster import ENCODINGS
 @click.option("--root-grid", is_flag=True,
               help="Experimental: pad a wide or tall DEM to the next tile multiple under a "
                    "grid of 2 × 1 or 1 × 2 root tiles, not to one power-of-two square. "
-                   "Geographic, projected and pixel frames, preprocessed whole (a DEM that "
-                   "would stream is refused); every LOD strategy draws such a store (mesh, "
-                   "render, view, export; export-raster, tiles, serve, query, profile, "
-                   "contours and viewshed read it); edit changes it (over the whole grid) and "
-                   "render/view --globe place it on the globe.")
+                   "Geographic, projected and pixel frames, whole or streamed (--memory-limit; "
+                   "a geographic DEM that would stream is refused); every LOD strategy draws "
+                   "such a store (mesh, render, view, export; export-raster, tiles, serve, "
+                   "query, profile, contours and viewshed read it); edit changes it (over the "
+                   "whole grid) and render/view --globe place it on the globe.")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,

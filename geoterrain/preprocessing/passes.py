@@ -55,15 +55,34 @@ from geoterrain.preprocessing.scratch import ScratchArrays
 __all__ = ["PASSES", "Job", "Source", "adopt", "heights_records", "job_record", "run_pass"]
 
 
+def whole(grid: Grid) -> int | tuple[int, int]:
+    """The grid every pass computes on: the square's side N, or a root grid's extent
+    (rows, cols) (:attr:`geoterrain.core.grid.Grid.extent`), as the whole-grid
+    preprocess pads it (``pipeline._whole``).
+
+    Examples
+    --------
+    >>> whole(Grid.for_shape(65, 65)), whole(Grid.for_shape(65, 129, 16, roots=True))
+    (65, (65, 129))
+    """
+    return grid.size if grid.square else grid.extent
+
+
+def root_span(grid: Grid) -> int | None:
+    """A root grid's root side (:attr:`geoterrain.core.grid.Grid.span`); None: the square."""
+    return grid.span
+
+
 class Source:
-    """Rows of the padded (N, N) grid from a raster source (:mod:`geoterrain.ingest.windows`):
-    source heights (float64, NaN where invalid) and validity, north up, the padding
-    invalid."""
+    """Rows of the padded (N, N) grid (a root grid: its (R, C) extent) from a raster
+    source (:mod:`geoterrain.ingest.windows`): source heights (float64, NaN where
+    invalid) and validity, north up, the padding invalid."""
 
     def __init__(self, ds, grid: Grid, spec: RasterSpec) -> None:
         self.reader = WindowReader(ds, spec)
         self.grid, self.spec = grid, spec
-        self.H, self.W, self.N = grid.rows, grid.cols, grid.size
+        self.H, self.W = grid.rows, grid.cols
+        self.R, self.C = grid.extent
 
     def file_rows(self, i0: int, i1: int, j0: int = 0, j1: int | None = None) -> np.ndarray:
         """The raw band's rows i0 … i1 − 1 and columns j0 … j1 − 1 (north up), the
@@ -72,7 +91,7 @@ class Source:
 
     def rows(self, i0: int, i1: int, j0: int = 0, j1: int | None = None
              ) -> tuple[np.ndarray, np.ndarray]:
-        j1 = self.N if j1 is None else j1
+        j1 = self.C if j1 is None else j1
         z = np.full((i1 - i0, j1 - j0), np.nan)
         v = np.zeros(z.shape, bool)
         r1 = min(i1, self.H)
@@ -84,7 +103,7 @@ class Source:
         return z, v
 
     def bands(self, band: int):
-        return (self.rows(i, min(i + band, self.N))[0] for i in range(0, self.N, band))
+        return (self.rows(i, min(i + band, self.R))[0] for i in range(0, self.R, band))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -138,7 +157,7 @@ class Job:
             if self.geographic:
                 xs = ys = np.zeros(grid.size)  # x, y depend on row and column: xy()
             else:
-                X, Y = frame.grid_xy(grid.size)
+                X, Y = frame.grid_xy(whole(grid))
                 xs, ys = np.ascontiguousarray(X[0]), np.ascontiguousarray(Y[:, 0])
             try:
                 yield Opened(source, scene, grid, xs, ys, xy if self.geographic else None,
@@ -193,9 +212,10 @@ def _bounds_pass(job: Job) -> tuple:
     # (valid range, stand-in height, r's exponent, largest finite δ and δ_edge, and a
     # geographic grid's level-0 slack)
     with job.opened() as o:
-        grid, scene, N = o.grid, o.scene, o.grid.size
+        grid, scene, N = o.grid, o.scene, whole(o.grid)
+        span = root_span(grid)
         sa = ScratchArrays.shared(os.path.join(job.folder, "bounds"))
-        lvl = band_vertex_errors(scene, N, band=job.band, scratch=sa, heights=True)
+        lvl = band_vertex_errors(scene, N, band=job.band, scratch=sa, heights=True, span=span)
         dmax, emax, slack = lvl.max_finite, 0.0, None
         n = grid.n
         data = (grid.rows, grid.cols)
@@ -210,11 +230,12 @@ def _bounds_pass(job: Job) -> tuple:
                 if slack is not None:
                     dmax = _saturate(sa, n, SATURATE_BUDGET)
         else:
-            er = band_radius_codes(sa, N, o.xs, o.ys, *lvl.valid_range[:2])
+            er = band_radius_codes(sa, N, o.xs, o.ys, *lvl.valid_range[:2], span=span)
         if job.pad:
             se = ScratchArrays.shared(os.path.join(job.folder, "edge"))
             rows = edge_rows(scene, data)
-            emax = band_vertex_errors(rows, N, band=job.band, scratch=se, data=data).max_finite
+            emax = band_vertex_errors(rows, N, band=job.band, scratch=se, data=data,
+                                      span=span).max_finite
             if job.geographic:  # only where a padding sample is read (bounds.curvature)
                 band_metric_terms(rows, o.xy, N, job.band, se, pre="e", window=data,
                                   base=terms)
@@ -233,14 +254,14 @@ SATURATE_BUDGET = 16 << 20  # bytes of rows a saturation reads at a time
 
 def _tiles_pass(job: Job) -> tuple:
     with job.opened() as o:
-        return band_tile_bounds(o.scene, o.grid.size, o.grid.t, o.xs, o.ys, band=job.band,
-                                xy=o.xy)
+        return band_tile_bounds(o.scene, whole(o.grid), o.grid.t, o.xs, o.ys, band=job.band,
+                                xy=o.xy, span=root_span(o.grid))
 
 
 def _normals_pass(job: Job) -> None:
     with job.opened() as o:
         sn = ScratchArrays.shared(os.path.join(job.folder, "normals"))
-        band_normal_codes(o.scene, o.grid.size, o.xs, o.ys, o.grid.top_level + 1, sn,
+        band_normal_codes(o.scene, whole(o.grid), o.xs, o.ys, o.grid.top_level + 1, sn,
                           band=job.band, bits=NORMAL_BITS, xy=o.xy)
         sn.close()
 
@@ -253,6 +274,7 @@ def _heights_pass(job: Job) -> dict:
     # bins, the decoded heights too (DECODED, row-major float64) and their range
     with job.opened() as o, open(os.path.join(job.folder, "heights.bin"), "wb") as fh:
         source, grid = o.source, o.grid
+        roots = None if grid.square else grid.roots
         count = [0]
         span = [np.inf, -np.inf]
 
@@ -262,12 +284,12 @@ def _heights_pass(job: Job) -> dict:
             count[0] += len(part)
 
         if job.q.bins == 1:
-            band_encode_pyramid(source.rows, grid.size, grid.t, job.q, sink=sink,
-                                coarse_max=COARSE_MAX)
+            band_encode_pyramid(source.rows, whole(grid), grid.t, job.q, sink=sink,
+                                coarse_max=COARSE_MAX, roots=roots)
             return {"blobs": count[0], "range": None}
         sa = ScratchArrays.shared(os.path.join(job.folder, DECODED))
         try:
-            sa.create("h", (grid.size, grid.size), np.float64)
+            sa.create("h", grid.extent, np.float64)
 
             def decoded(i0: int, j0: int, codes: np.ndarray, valid: np.ndarray) -> None:
                 h = codes_to_heights(codes, job.q)
@@ -275,8 +297,8 @@ def _heights_pass(job: Job) -> dict:
                            max(span[1], float(np.max(h, where=valid, initial=-np.inf))))
                 sa.write("h", i0, h, c0=j0)
 
-            band_encode_pyramid(source.rows, grid.size, grid.t, job.q, sink=sink,
-                                decoded=decoded, coarse_max=COARSE_MAX)
+            band_encode_pyramid(source.rows, whole(grid), grid.t, job.q, sink=sink,
+                                decoded=decoded, coarse_max=COARSE_MAX, roots=roots)
         finally:
             sa.close()
         return {"blobs": count[0], "range": span}

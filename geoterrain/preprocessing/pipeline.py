@@ -43,7 +43,7 @@ from geoterrain.core.memory import available_memory, small_pages
 from geoterrain.core.paths import STORE_SUFFIX, input_problem
 from geoterrain.core.progress import Progress, StageClock
 from geoterrain.core.threads import cores_for
-from geoterrain.exceptions import InputError, UsageError
+from geoterrain.exceptions import InputError
 from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.ingest.remote import is_url
 from geoterrain.preprocessing.request import Request, place, request
@@ -178,11 +178,11 @@ def preprocess(
     root_grid
         Experimental: pad a wide or tall raster to the next tile multiple a side, under a
         grid of root tiles (2 × 1, 1 × 2), not to one (2^n + 1)² square
-        (:class:`geoterrain.core.grid.Grid`, schema version 7). Whole-grid preprocess
-        only (geographic, projected and pixel frames; a raster that would stream is
-        refused in one line); such a store is drawn by every LOD strategy, and the
-        consumers that do not handle it yet (edits, the globe) refuse it in one line. A
-        raster whose root grid is its square grid gives the square store.
+        (:class:`geoterrain.core.grid.Grid`, schema version 7). Geographic, projected
+        and pixel frames, whole or streamed (over ``memory_limit``: the same store; a
+        geographic raster that would stream is refused in one line); such a store is
+        drawn by every LOD strategy, edited and placed on the globe. A raster whose root
+        grid is its square grid gives the square store.
 
     Examples
     --------
@@ -202,13 +202,7 @@ def preprocess(
     if probe is not None:
         shape, crs_geographic = probe
         geographic = crs_geographic and tile is None and pixel_size is None
-        rows = streaming_band(shape, limit, geographic)
-        if rows is not None and root_grid:
-            raise UsageError("a root grid is built by the whole-grid preprocess only (the "
-                             "streamed one pads to the square); raise memory_limit, or "
-                             "leave root_grid off", cli="--root-grid is built by the "
-                             "whole-grid preprocess only (the streamed one pads to the "
-                             "square); raise --memory-limit, or leave --root-grid off")
+        rows = streaming_band(shape, limit, geographic, roots=root_grid)
         if rows is not None:  # too large for the whole grid: a window at a time
             return stream(req, z_scale=z_scale, z_units=z_units, codec_error=codec_error,
                           nodata=nodata, band=rows, raster_band=band, encoding=encoding,

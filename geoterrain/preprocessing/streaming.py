@@ -67,6 +67,7 @@ from geoterrain.preprocessing.passes import (
     heights_records,
     job_record,
     run_pass,
+    whole,
 )
 from geoterrain.preprocessing.request import Request, place, request
 from geoterrain.preprocessing.schedulers import run_tasks
@@ -87,12 +88,13 @@ BAND_SAMPLES = 1 << 20  # at most this many samples a band (streaming_band)
 STAGES = ("scan", "quantise", "errors, tiles, normals, heights", "blobs", "write")
 
 
-def streaming_band(shape: tuple[int, int], memory_limit: int, geographic: bool = False
-                   ) -> int | None:
+def streaming_band(shape: tuple[int, int], memory_limit: int, geographic: bool = False,
+                   roots: bool = False) -> int | None:
     """The band (rows, a power of two) to preprocess a raster of ``shape`` (rows, cols) a
     window at a time within ``memory_limit`` bytes; None when its whole-grid preprocess
     fits (:data:`geoterrain.ingest.raster.PREPROCESS_BYTES_PER_SAMPLE`, more per sample in a
-    geographic frame).
+    geographic frame). ``roots``: on its root grid (the whole grid is then the roots'
+    extent, and a band as wide as the extent).
 
     Examples
     --------
@@ -100,20 +102,22 @@ def streaming_band(shape: tuple[int, int], memory_limit: int, geographic: bool =
     (None, 2)
     >>> streaming_band((1762, 47163), 16 << 30)  # pads to 65537²: streamed
     16
+    >>> streaming_band((1762, 47163), 16 << 30, roots=True)  # its extent: 32769 × 65537
+    16
     """
     from geoterrain.ingest.raster import PREPROCESS_BYTES_PER_SAMPLE
 
     H, W = shape
     kind = "geographic" if geographic else "projected"
-    N = Grid.for_shape(H, W).size  # the whole grid is padded to N²: a long, thin raster
-    if N * N * PREPROCESS_BYTES_PER_SAMPLE[kind] <= memory_limit:  # pads to far more
+    R, C = Grid.for_shape(H, W, roots=roots).extent  # the whole grid: N², a long, thin
+    if R * C * PREPROCESS_BYTES_PER_SAMPLE[kind] <= memory_limit:  # raster pads to more
         return None
-    return band_rows(N, memory_limit, geographic)
+    return band_rows(C, memory_limit, geographic)
 
 
 def band_rows(N: int, memory_limit: int, geographic: bool = False) -> int:
     """Rows per band (a power of two ≥ 2) of the streaming preprocess of a grid of side N
-    within ``memory_limit`` bytes.
+    (a root grid: N columns, its extent's) within ``memory_limit`` bytes.
 
     Examples
     --------
@@ -181,6 +185,7 @@ def preprocess_streaming(
     resampling: str = "bilinear",
     priority: str = "finest",
     timings: dict | None = None,
+    root_grid: bool = False,
 ) -> Path:
     """Preprocess a DEM a window at a time into the store
     :func:`~geoterrain.preprocessing.pipeline.preprocess` writes (the same tiles, blobs and
@@ -198,7 +203,9 @@ def preprocess_streaming(
     ``codec_error``, as the others read its decoded heights; the store is the same on
     every one, and this process stays its only writer) and ``resume`` (reuse the passes
     a killed run of the same job into ``dst`` finished: its scratch folder records each
-    pass's result; the store is the one an uninterrupted run writes).
+    pass's result; the store is the one an uninterrupted run writes) and ``root_grid``
+    (experimental, ``preprocess``'s: a rectangular root grid, projected and pixel frames
+    only; the store the whole-grid preprocess writes with it).
 
     Examples
     --------
@@ -212,7 +219,7 @@ def preprocess_streaming(
     """
     req = request(src, dst, tile_size=tile_size, codec_error=codec_error,
                   pixel_size=pixel_size, overwrite=overwrite, scheduler=scheduler,
-                  resume=resume)
+                  resume=resume, root_grid=root_grid)
     for f in req.files:  # a FIFO would block the read, a device never end
         if not is_url(f) and (why := input_problem(f, utf8=True)) is not None:
             raise InputError(f"{f}: {why}; check the path")
@@ -260,6 +267,14 @@ def stream(req: Request, *, z_scale: float | None = None, z_units: str = "auto",
     _, _, frame, grid = place(req, meta["shape"], meta["transform"], meta["crs_wkt"],
                               tile=tile, pixel_size=pixel_size, z_units=z_units,
                               z_scale=z_scale, label=spec.label if req.mosaic else str(req.src))
+    if not grid.square and frame.kind == "geographic":  # the bands' metric bounds
+        label = spec.label if req.mosaic else str(req.src)
+        raise UsageError(f"{label}: a geographic root grid is built by the whole-grid "
+                         "preprocess only (the streamed metric bounds are square-only "
+                         "yet); raise memory_limit, or leave root_grid off",
+                         cli=f"{label}: a geographic --root-grid is built by the whole-grid "
+                         "preprocess only (the streamed metric bounds are square-only "
+                         "yet); raise --memory-limit, or leave --root-grid off")
     dst = req.dst
     parent = Path(scratch) if scratch is not None else (dst.parent if str(dst.parent) else
                                                         Path("."))
@@ -295,7 +310,7 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
                 nd = void
         spec = dataclasses.replace(spec, nodata=nd)
         source = Source(ds, grid, spec)
-        N = grid.size
+        N = source.R  # rows of the grid (the square's side, or a root grid's extent's)
         stage("scan")
 
         q = band_quantizer(lambda: source.bands(band), meta["dtype"], codec_error,
@@ -318,7 +333,7 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
             raise InputError(f"{spec.label}: heights reach {max(map(abs, raw)):.3g}, beyond "
                              f"±{ABSURD_HEIGHT:.0e}; if they are real pass --z-scale (e.g. 1), "
                              "else set the right nodata or unit")
-        frame.check_scene(N, *raw)  # scene coordinates within SCENE_LIMIT (frame.py)
+        frame.check_scene(whole(grid), *raw)  # scene coordinates within SCENE_LIMIT
         stage("quantise")
 
     pad = has_padding(grid)
@@ -362,8 +377,11 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
         try:
             with StoreWriter(dst, overwrite=req.overwrite) as w:
                 for part in heights_records(os.path.join(folder, "heights.bin")):
-                    w.put_blobs("heights", part)
-                stored = set(bounds)  # the tiles whose footprint holds a valid sample
+                    # a root grid's tiles only (pipeline._held: a footprint over the
+                    # extent may reach one tile past the raster's last row or column)
+                    w.put_blobs("heights", {k: b for k, b in part.items() if grid.holds(k)})
+                # the tiles whose footprint holds a valid sample
+                stored = {k for k in bounds if grid.holds(k)}
                 if frame.kind == "geographic" and derive_bounds:  # pipeline.vertex_bounds
                     ring: tuple[str, ...] = ("delta",) if slack is not None else ()
                 else:
@@ -372,6 +390,8 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
                                           derive_normals, ring,
                                           {(x, y): s for x, y, s in slack or ()})
                 stage("blobs")
+                across, down = grid.tiles(0)  # a root grid's extent holds more than its tiles
+                blocks = blocks[:down, :across]
                 w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
                 w.put_metadata(store_metadata(
                     source=spec.label, source_dtype=meta["dtype"],
@@ -414,10 +434,12 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
     edge_max: list = []
     e_stored: list = []
     e_only: list = []
+    C = grid.extent[1]
     for L in grid.levels:
-        m = grid.tiles_per_side(L) * T1 + 1
+        m = ((C - 1) >> L) + 1  # the level's lattice over the extent (the square's side)
+        across, down = grid.tiles(L)
         is_top = L == top
-        for y in range(grid.tiles_per_side(L)):
+        for y in range(down):
             keys = sorted(row_keys.get((L, y), ()))
             p0, p1 = y * T1, y * T1 + T
             d = level_lattice(sa, "", L, n, p0, p1, m, is_top, np.float32)
@@ -446,8 +468,8 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
             if edge is None:
                 continue
             # edgepad.edge_tiles / edge_only_tiles on this tile row's window
-            held_diff = _held(coding.dc != edge.dc, T1, is_top)
-            held_pos = _held(edge.dc > 0, T1, is_top)
+            held_diff = _held(coding.dc != edge.dc, T1, is_top)[:across]
+            held_pos = _held(edge.dc > 0, T1, is_top)[:across]
             # stored tiles: new vertices as differences from δ; unstored ones: whole
             for keys_e, base, into in (([x for x in keys if held_diff[x]], coding, e_stored),
                                        ([x for x in range(len(held_pos)) if held_pos[x]

@@ -14,7 +14,6 @@ from hypothesis import strategies as st
 import geoterrain
 from conftest import write_tif
 from geoterrain.core.grid import Grid, RootGridError
-from geoterrain.exceptions import UsageError
 from geoterrain.ingest.synth import generate
 from geoterrain.lod import STRATEGIES, strategy_info
 from geoterrain.lod.kernels import _coarsest_tile
@@ -105,13 +104,6 @@ def test_a_square_raster_keeps_the_square_store(tmp_path):
     assert geoterrain.open(a).grid.square and a.read_bytes() == b.read_bytes()
 
 
-def test_a_streamed_root_grid_is_refused_in_one_line(tmp_path):
-    src = write_tif(tmp_path / "s.tif", fbm(1025, 2049), dtype="int16")
-    with pytest.raises(UsageError, match="whole-grid preprocess only") as e:
-        geoterrain.preprocess(src, tmp_path / "s.geoterrain", root_grid=True,
-                              memory_limit=64 << 20)
-    assert "\n" not in str(e.value)
-    assert not (tmp_path / "s.geoterrain").exists()
 
 
 def test_a_geographic_root_grid_is_built(tmp_path):

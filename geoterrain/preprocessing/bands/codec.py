@@ -32,11 +32,13 @@ from geoterrain.codec.pyramid import (
     _period,
     _predictor_bits,
     _predictor_crop,
+    _root_windows,
     encode_decoded,
-    pyramid_shape,
+    roots_shape,
 )
 from geoterrain.codec.quantize import Quantizer, valid_codes
 from geoterrain.core.grid import footprint_counts
+from geoterrain.preprocessing.bands.delta import grid_shape
 
 __all__ = ["band_encode_pyramid", "window_of"]
 
@@ -55,27 +57,33 @@ def window_of(z: np.ndarray, valid: np.ndarray) -> Window:
     return lambda i0, i1, j0, j1: (z[i0:i1, j0:j1], valid[i0:i1, j0:j1])
 
 
-def super_level(N: int, t: int, coarse_max: int = 1025) -> int:
+def super_level(N: int | tuple[int, int], t: int, coarse_max: int = 1025,
+                roots: tuple[int, int] | None = None) -> int:
     """The super-tile level k: the smallest whose coarse grid (every 2**k samples) is at
     most ``coarse_max`` a side, at most the top level (0: the whole grid at once).
+    ``N``: the grid's side, or a root grid's extent (rows, cols) of ``roots`` (across,
+    down).
 
     Examples
     --------
     >>> super_level(16385, 6), super_level(1025, 6), super_level(65537, 6, 2049)
     (4, 0, 5)
+    >>> super_level((2049, 4097), 6, roots=(2, 1))
+    2
     """
-    n, te = pyramid_shape(N, t)
+    NR, NC = grid_shape(N)
+    n, te = roots_shape((NR, NC), t, roots)
     k = 0
-    while k < n - te and ((N - 1) >> k) + 1 > coarse_max:
+    while k < n - te and ((max(NR, NC) - 1) >> k) + 1 > coarse_max:
         k += 1
     return k
 
 
-def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
-                        predictor: str = "auto", coarse_max: int = 1025,
+def band_encode_pyramid(window: Window, N: int | tuple[int, int], t: int,
+                        quantizer: Quantizer, predictor: str = "auto", coarse_max: int = 1025,
                         sink: Callable[[dict], None] | None = None,
                         decoded: Callable[[int, int, np.ndarray, np.ndarray], None]
-                        | None = None,
+                        | None = None, roots: tuple[int, int] | None = None,
                         ) -> dict[tuple[int, int, int], bytes]:
     """``{(L, x, y): blob}`` of every stored tile of an (N, N) grid read through
     ``window(i0, i1, j0, j1)`` → (heights, valid) of rows i0 … i1 − 1 and columns
@@ -88,7 +96,10 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
     empty. With ``decoded``, ``decoded(i0, j0, codes, valid)`` gets the decoded codes of each
     stored super-tile (every sample, invalid ones included) whose first sample is
     (i0, j0): the heights the store decodes to, which residual bins make depend on the
-    pyramid (:attr:`geoterrain.codec.quantize.Quantizer.bins`).
+    pyramid (:attr:`geoterrain.codec.quantize.Quantizer.bins`). ``roots`` (across, down)
+    with ``N`` their extent (rows, cols): a root grid, each root a top tile of its own
+    (:func:`~geoterrain.codec.pyramid.encode_pyramid`'s ``roots``; the coarse grid's top
+    level fills each root's edges first, as the whole extent's does).
 
     Examples
     --------
@@ -99,13 +110,20 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
     >>> from geoterrain.codec.pyramid import encode_pyramid
     >>> a == encode_pyramid(z, v, 3, q)
     True
+    >>> z2, v2 = z[:33], v[:33]  # 2 × 1 roots of 32 samples
+    >>> b = band_encode_pyramid(window_of(z2, v2), (33, 65), 3, q, coarse_max=9, roots=(2, 1))
+    >>> b == encode_pyramid(z2, v2, 3, q, roots=(2, 1))
+    True
     """
-    n, te = pyramid_shape(N, t)
+    NR, NC = grid_shape(N)
+    if roots is not None and tuple(roots) == (1, 1):
+        roots = None
+    n, te = roots_shape((NR, NC), t, roots)
     lmax = n - te
-    k = super_level(N, t, coarse_max)
+    k = super_level((NR, NC), t, coarse_max, roots)
     if k == 0:
-        z, v = window(0, N, 0, N)
-        out, d = encode_decoded(z, v, t, quantizer, predictor=predictor)
+        z, v = window(0, NR, 0, NC)
+        out, d = encode_decoded(z, v, t, quantizer, predictor=predictor, roots=roots)
         if decoded is not None:
             decoded(0, 0, d, np.asarray(v, bool))
         if sink is None:
@@ -116,18 +134,17 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
         raise ValueError(f"unknown predictor {predictor!r}")
     cubic = predictor == "cubic" and te >= 2
     if predictor == "auto" and te >= 2:  # codec._resolve_predictor on its central crop
-        a, crop = _predictor_crop(N, te)
+        a, crop = _predictor_crop(min(NR, NC), te)
         z, v = window(a, a + crop, a, a + crop)
         cubic = _predictor_bits(valid_codes(z, v, quantizer), v, te)
     W = 1 << (te + k)  # a super-tile's span in samples
-    ns = (N - 1) // W
+    nsr, nsc = (NR - 1) // W, (NC - 1) // W
     step = 1 << k
-    nc = (N - 1) // step + 1
-    zc = np.zeros((nc, nc))
-    vc = np.zeros((nc, nc), bool)
-    stored = np.zeros((ns, ns), bool)  # level k's tiles whose footprint holds a valid sample
-    for sy in range(ns):
-        for sx in range(ns):
+    zc = np.zeros(((NR - 1) // step + 1, (NC - 1) // step + 1))
+    vc = np.zeros(zc.shape, bool)
+    stored = np.zeros((nsr, nsc), bool)  # level k's tiles whose footprint holds a valid sample
+    for sy in range(nsr):
+        for sx in range(nsc):
             z, v = window(sy * W, sy * W + W + 1, sx * W, sx * W + W + 1)
             v = np.asarray(v, bool)
             stored[sy, sx] = v.any()
@@ -146,16 +163,24 @@ def band_encode_pyramid(window: Window, N: int, t: int, quantizer: Quantizer,
 
     # levels k and up: the coarse grid as a whole pyramid, its stored tiles from full res
     counts = [stored.astype(np.int64)]
-    while counts[-1].shape[0] > 1:
+    for _ in range(lmax - k):  # up to the top level (one tile, or the roots)
         c = counts[-1]
         counts.append(c[0::2, 0::2] + c[0::2, 1::2] + c[1::2, 0::2] + c[1::2, 1::2])
     bins = quantizer.bins
-    dc = _decoded_codes(valid_codes(zc, vc, quantizer), vc, te, lmax - k, cubic, bins)
+    dc = _decoded_codes(valid_codes(zc, vc, quantizer), vc, te, lmax - k, cubic, bins, roots)
     part: dict[tuple[int, int, int], bytes] = {}
     _encode_levels(part, dc, vc, n - k, te, lmax - k, cubic, None, counts=counts,
                    wide=quantizer.mode == "float", bins=bins)
     coarse = {(L + k, x, y): b for (L, x, y), b in part.items()}
-    coarse[(lmax, 0, 0)] = _encode_top(dc, vc, te, lmax - k, cubic, bins)
+    if roots is None:
+        coarse[(lmax, 0, 0)] = _encode_top(dc, vc, te, lmax - k, cubic, bins)
+    else:  # encode_decoded's roots: each a top tile, its edges filled first
+        s = 1 << (lmax - k)
+        vtop = vc[::s, ::s]
+        for x, y, dw in _root_windows(dc[::s, ::s], roots, te):
+            if counts[-1][y, x]:
+                vw = vtop[y << te:((y + 1) << te) + 1, x << te:((x + 1) << te) + 1]
+                coarse[(lmax, x, y)] = _encode_top(dw, vw, te, 0, cubic, bins, True)
     emit(coarse)
     # levels below k, one super-tile at a time, under the coarse grid's decoded codes
     T = 1 << te

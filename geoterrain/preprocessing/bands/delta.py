@@ -64,10 +64,11 @@ Rows = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
 
 
 class BandWindow(NamedTuple):
-    """A band of an (N, N) grid's rows as the band kernels read it: heights ``z``
+    """A band of an (R, C) grid's rows as the band kernels read it: heights ``z``
     (invalid ones 0) and validity ``v`` of the window's rows, from grid row ``w0`` (a
     halo above the band, then its own rows ``r0`` … ``r_end``); ``B`` rows a band (also
-    the step of the grid's corners read every B samples) and ``N`` the grid's side."""
+    the step of the grid's corners read every B samples), ``R`` and ``C`` the grid's
+    rows and columns (the square's N and N, or a root grid's extent)."""
 
     z: np.ndarray
     v: np.ndarray
@@ -75,7 +76,8 @@ class BandWindow(NamedTuple):
     r0: int
     r_end: int
     B: int
-    N: int
+    R: int
+    C: int
 
 
 class LevelVertices(NamedTuple):
@@ -112,10 +114,11 @@ class Sweeps(NamedTuple):
 
 @dataclass
 class LevelDelta:
-    """Per-level δ arrays of an (N, N) grid in ``arrays`` (:class:`ScratchArrays`, in
-    memory or in scratch files): ``C{k}``, ``R{k}``, ``K{k}`` for h = 2**k, k < n."""
+    """Per-level δ arrays of an (N, N) grid (or a root grid's (R, C) extent) in
+    ``arrays`` (:class:`ScratchArrays`, in memory or in scratch files): ``C{k}``,
+    ``R{k}``, ``K{k}`` for h = 2**k, k < n (a root's side 2**n)."""
 
-    N: int
+    N: int | tuple[int, int]
     arrays: ScratchArrays
     valid_range: tuple[float, float, int] = (np.inf, -np.inf, 0)
     """(min, max, count) of the valid heights, from the first pass."""
@@ -123,10 +126,16 @@ class LevelDelta:
     """The height of invalid vertices in ``Z*`` arrays (None: not kept)."""
     max_finite: float = 0.0
     """The largest finite δ (0 if none)."""
+    span: int | None = None
+    """A root grid's root side (None: the square's N − 1)."""
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return grid_shape(self.N)
 
     @property
     def n(self) -> int:
-        return grid_order(self.N)
+        return grid_order((self.shape[0] - 1 if self.span is None else self.span) + 1)
 
     def level(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Level k's (C, R, K), whole."""
@@ -144,7 +153,7 @@ class LevelDelta:
         >>> float(d.grid()[1, 1])
         2.0
         """
-        d = np.zeros((self.N, self.N), np.float32)
+        d = np.zeros(self.shape, np.float32)
         for k in range(self.n):
             C, R, K = self.level(k)
             h = 1 << k
@@ -153,6 +162,19 @@ class LevelDelta:
             d[h::s, 0::s] = R
             d[0::s, h::s] = K
         return d
+
+
+def grid_shape(N: int | tuple[int, int]) -> tuple[int, int]:
+    """(rows, cols) of a grid given as its side N (a square) or as (rows, cols).
+
+    Examples
+    --------
+    >>> grid_shape(5), grid_shape((5, 9))
+    ((5, 5), (5, 9))
+    """
+    if isinstance(N, tuple | list):
+        return int(N[0]), int(N[1])
+    return int(N), int(N)
 
 
 def rows_of(z: np.ndarray, valid: np.ndarray) -> Rows:
@@ -195,14 +217,14 @@ def edge_rows(rows: Rows, data: tuple[int, int]) -> Rows:
     return replicated
 
 
-def _window(rows: Rows, i0: int, i1: int, N: int) -> tuple[np.ndarray, np.ndarray]:
+def _window(rows: Rows, i0: int, i1: int, C: int) -> tuple[np.ndarray, np.ndarray]:
     # check_grid's rules on a window: non-finite heights are invalid, invalid heights 0
     z, v = rows(i0, i1)
     z = np.asarray(z, dtype=np.float64)
     v = np.asarray(v, dtype=bool)
-    if z.shape != (i1 - i0, N) or v.shape != z.shape:
+    if z.shape != (i1 - i0, C) or v.shape != z.shape:
         raise ValueError(f"rows({i0}, {i1}) gave {z.shape} and {v.shape}, "
-                         f"expected ({i1 - i0}, {N})")
+                         f"expected ({i1 - i0}, {C})")
     v = v & np.isfinite(z)
     z = np.where(v, z, 0.0)
     return np.ascontiguousarray(z), np.ascontiguousarray(v)
@@ -236,13 +258,14 @@ def _fine_level_nb(band, h, st, st_prev, qb_prev, out, QB):
     bounds._raw_delta_nb), ``st`` its blocks' statuses and ``st_prev``, ``qb_prev`` the
     band above's last block row's; QB gets the block rows' lower quarter maxima (the
     next band's carry)."""
-    z, vb, w0, r0, B, N = band.z, band.v, band.w0, band.r0, band.B, band.N
-    last = band.r_end == N - 1
+    z, vb, w0, r0, B, NR, NC = band.z, band.v, band.w0, band.r0, band.B, band.R, band.C
+    last = band.r_end == NR - 1
     C = out.C  # one by one (see bounds.tileblobs._level_payloads)
     R = out.R
     K = out.K
     s = 2 * h
-    nb = (N - 1) // s
+    nbr = (NR - 1) // s
+    nb = (NC - 1) // s
     nrow = B // s
     a0 = r0 // s
     QL = np.zeros((nrow, nb))
@@ -274,8 +297,8 @@ def _fine_level_nb(band, h, st, st_prev, qb_prev, out, QB):
             fhi = st[ar, b] if b < nb else 0
             qlo = QR[ar, b - 1] if flo else 0.0
             qhi = QL[ar, b] if fhi else 0.0
-            R[ar, b] = edge_delta_nb(z, vb, ic, jc, h, True, N, w0, Beside(flo, fhi, qlo, qhi),
-                                     R[ar, b])
+            R[ar, b] = edge_delta_nb(z, vb, ic, jc, h, True, NC, w0,
+                                     Beside(flo, fhi, qlo, qhi), R[ar, b])
     # edge midpoints on block rows' top edges: the block above may be the band above's
     nk = nrow + (1 if last else 0)
     for ak in prange(nk):
@@ -291,9 +314,9 @@ def _fine_level_nb(band, h, st, st_prev, qb_prev, out, QB):
             elif a >= 1:
                 flo = st_prev[b]
                 qlo = qb_prev[b]
-            fhi = st[ak, b] if a < nb else 0
+            fhi = st[ak, b] if a < nbr else 0
             qhi = QT[ak, b] if fhi else 0.0
-            K[ak, b] = edge_delta_nb(z, vb, ic, jc, h, False, N, w0,
+            K[ak, b] = edge_delta_nb(z, vb, ic, jc, h, False, NR, w0,
                                      Beside(flo, fhi, qlo, qhi), K[ak, b])
 
 
@@ -310,10 +333,10 @@ def _coarse_rows_nb(band, h, st, zd, acc):
     QT = acc.top
     QB = acc.bottom
     s = 2 * h
-    nb = st.shape[0]
+    nbr, nb = st.shape
     k = s // dB
     for b in prange(nb):
-        for a in range(max(r_lo // s - 1, 0), min(r_hi // s, nb - 1) + 1):
+        for a in range(max(r_lo // s - 1, 0), min(r_hi // s, nbr - 1) + 1):
             d0 = max(r_lo - a * s, 0)
             d1 = min(r_hi - a * s, s)
             if d0 > d1 or st[a, b] != 1:
@@ -336,7 +359,8 @@ def _coarse_edges_nb(band, h, zd, rows, todo, sweeps):
     ``sweeps`` (:class:`Sweeps`) of the coarse level's mixed edge midpoints listed in
     ``todo`` ((a, b) rows; R-type if ``rows``, else K-type; corners from ``zd``, every
     dB = B samples)."""
-    z, vb, w0, N, dB, r_lo, r_hi = band.z, band.v, band.w0, band.N, band.B, band.r0, band.r_end
+    z, vb, w0, dB, r_lo, r_hi = band.z, band.v, band.w0, band.B, band.r0, band.r_end
+    NR, NC = band.R, band.C
     EM, EC, ET = sweeps
     s = 2 * h
     u = h // dB  # h in decimated steps
@@ -349,7 +373,7 @@ def _coarse_edges_nb(band, h, zd, rows, todo, sweeps):
             ii = (ic // dB)
             jj = (jc // dB)
             lo_ok = jc - h >= 0
-            hi_ok = jc + h <= N - 1
+            hi_ok = jc + h <= NC - 1
             za = zd[ii - u, jj]
             zb = zd[ii + u, jj]
             z_lo = zd[ii, jj - u] if lo_ok else 0.0
@@ -360,7 +384,7 @@ def _coarse_edges_nb(band, h, zd, rows, todo, sweeps):
             ii = (ic // dB)
             jj = (jc // dB)
             lo_ok = ic - h >= 0
-            hi_ok = ic + h <= N - 1
+            hi_ok = ic + h <= NR - 1
             za = zd[ii, jj - u]
             zb = zd[ii, jj + u]
             z_lo = zd[ii - u, jj] if lo_ok else 0.0
@@ -383,14 +407,14 @@ def _coarse_finish_nb(st, acc, rtodo, rsw, ktodo, ksw, out):
     # (LevelVertices)
     MC, QL, QR, QT, QB = acc
     C, R, K = out
-    nb = st.shape[0]
-    for a in range(nb):
+    nbr, nb = st.shape
+    for a in range(nbr):
         for b in range(nb):
             if st[a, b] == 1:
                 C[a, b] = round_up32(MC[a, b])
             elif st[a, b] == 3:
                 C[a, b] = np.inf
-    for a in range(nb):
+    for a in range(nbr):
         for b in range(nb + 1):
             flo = st[a, b - 1] if b > 0 else 0
             fhi = st[a, b] if b < nb else 0
@@ -401,10 +425,10 @@ def _coarse_finish_nb(st, acc, rtodo, rsw, ktodo, ksw, out):
                 if fhi:
                     m = max(m, QL[a, b])
                 R[a, b] = round_up32(m)
-    for a in range(nb + 1):
+    for a in range(nbr + 1):
         for b in range(nb):
             flo = st[a - 1, b] if a > 0 else 0
-            fhi = st[a, b] if a < nb else 0
+            fhi = st[a, b] if a < nbr else 0
             if flo | fhi == 1:
                 m = 0.0
                 if flo:
@@ -423,8 +447,8 @@ def _coarse_finish_nb(st, acc, rtodo, rsw, ktodo, ksw, out):
 
 def _mixed_edges(st: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     # (a, b) of the R- and K-type edge midpoints whose two blocks' statuses mix (f = 3)
-    nb = st.shape[0]
-    z = np.zeros((nb, 1), np.uint8)
+    nbr, nb = st.shape
+    z = np.zeros((nbr, 1), np.uint8)
     fr = np.hstack([z, st]) | np.hstack([st, z])
     zk = np.zeros((1, nb), np.uint8)
     fk = np.vstack([zk, st]) | np.vstack([st, zk])
@@ -454,8 +478,8 @@ def _saturate(sa: ScratchArrays, n: int, budget: int,
     # ``pre``: the arrays' name prefix
     top = 0.0
     for k in range(n):
-        nb = sa.shape(f"{pre}C{k}")[0]
-        step = max(1, budget // (16 * (nb + 1) * 4))
+        nb, nbc = sa.shape(f"{pre}C{k}")
+        step = max(1, budget // (16 * (nbc + 1) * 4))
         for a_lo in range(0, nb, step):
             a_hi = min(a_lo + step, nb)
             C = sa.read(f"{pre}C{k}", a_lo, a_hi)
@@ -467,7 +491,7 @@ def _saturate(sa: ScratchArrays, n: int, budget: int,
                     _zero_beyond(arr, a_lo, s, di, dj, data)
             if k:
                 # the finer level's centre rows 2a_lo − 1 … 2a_hi, zero outside the grid
-                P = np.zeros((2 * (a_hi - a_lo) + 2, 2 * nb + 2), np.float32)
+                P = np.zeros((2 * (a_hi - a_lo) + 2, 2 * nbc + 2), np.float32)
                 p0 = max(2 * a_lo - 1, 0)
                 rows = sa.read(f"{pre}C{k - 1}", p0, 2 * a_hi + 1)
                 P[p0 - (2 * a_lo - 1):p0 - (2 * a_lo - 1) + len(rows), 1:-1] = rows
@@ -486,7 +510,7 @@ def _saturate(sa: ScratchArrays, n: int, budget: int,
 
 
 def _keep_heights(sa: ScratchArrays, z: np.ndarray, v: np.ndarray, w0: int, r0: int,
-                  r_end: int, N: int, n: int, stand_in: float) -> None:
+                  r_end: int, n: int, stand_in: float) -> None:
     # the heights of every level's vertices on grid rows r0 … r_end, invalid ones by the
     # stand-in (radii._proxy_positions): ZC{k}, ZR{k}, ZK{k}, for the nested radii
     zp = np.where(v, z, stand_in)
@@ -502,22 +526,24 @@ def _keep_heights(sa: ScratchArrays, z: np.ndarray, v: np.ndarray, w0: int, r0: 
                 sa.write(f"Z{x}{k}", a_lo, zp[idx][:, cols])
 
 
-def band_vertex_errors(rows: Rows, N: int, band: int = 256,
+def band_vertex_errors(rows: Rows, N: int | tuple[int, int], band: int = 256,
                        scratch: ScratchArrays | None = None,
                        heights: bool = False,
-                       data: tuple[int, int] | None = None) -> LevelDelta:
+                       data: tuple[int, int] | None = None,
+                       span: int | None = None) -> LevelDelta:
     """Exact, saturated δ of an (N, N) grid read ``band`` rows at a time; the values of
     :func:`geoterrain.bounds.delta.vertex_errors`, bit for bit, for any band.
 
     Parameters
     ----------
     rows
-        ``rows(i0, i1)`` → (heights, valid) of grid rows i0 … i1 − 1, shape (i1 − i0, N):
-        heights in scene units (float64, or anything that converts), valid bool.
+        ``rows(i0, i1)`` → (heights, valid) of grid rows i0 … i1 − 1, shape (i1 − i0, N)
+        (a root grid: (i1 − i0, C)): heights in scene units (float64, or anything that
+        converts), valid bool.
     N
-        Grid side, 2**n + 1.
+        Grid side, 2**n + 1; or a root grid's extent (R, C), with ``span``.
     band
-        Rows per band, a power of two ≥ 2 (clipped to N − 1). Each band's window is
+        Rows per band, a power of two ≥ 2 (clipped to the root's side). Each band's window is
         1.5·band + 1 rows; the first pass reads every band once more.
     scratch
         Where the per-level arrays go (:class:`ScratchArrays`; default in memory). With
@@ -532,6 +558,9 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
         diamond misses them is 0 before saturation. With ``rows`` replicating the data's
         edge into the padding (:func:`edge_rows`), that is
         :func:`geoterrain.bounds.edgepad.edge_deltas` (δ_edge).
+    span
+        A root grid's root side 2**n (``N`` then its extent, (ry·span + 1, rx·span + 1)):
+        :func:`geoterrain.bounds.delta.vertex_errors` with ``span``. None: the square.
 
     Examples
     --------
@@ -541,20 +570,31 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
     >>> d = band_vertex_errors(rows_of(z, v), 17, band=4)
     >>> bool(np.array_equal(d.grid(), vertex_errors(z, v)))
     True
+    >>> z = rng.normal(size=(9, 17)); v = np.ones_like(z, bool)  # 2 × 1 roots of side 8
+    >>> d = band_vertex_errors(rows_of(z, v), (9, 17), band=2, span=8)
+    >>> bool(np.array_equal(d.grid(), vertex_errors(z, v, span=8)))
+    True
     """
-    n = grid_order(N)
+    NR, NC = grid_shape(N)
+    if span is None and NR != NC:
+        raise ValueError(f"a {NR} × {NC} grid needs span, its roots' side")
+    n = grid_order(NR if span is None else int(span) + 1)
+    S = 1 << n
+    if (NR - 1) % S or (NC - 1) % S:
+        raise ValueError(f"a {NR} × {NC} grid is not square roots of side {S}")
     if band < 2 or band & (band - 1):
         raise ValueError(f"band must be a power of two ≥ 2, got {band}")
-    B = min(band, N - 1)
-    nbands = nB = (N - 1) // B
+    B = min(band, S)
+    nbands = nB = (NR - 1) // B
+    nBc = (NC - 1) // B
     # first pass: every B block's status, and the grid every B samples (coarse corners)
-    stB = np.zeros((nB, nB), np.uint8)
-    zd = np.zeros((nB + 1, nB + 1))
+    stB = np.zeros((nB, nBc), np.uint8)
+    zd = np.zeros((nB + 1, nBc + 1))
     lo, hi, count = np.inf, -np.inf, 0
     for k in range(nbands):
         r0 = k * B
-        z, v = _window(rows, r0, r0 + B + 1, N)
-        stB[k] = _status_nb(v, 0, B, 1, nB)[0]
+        z, v = _window(rows, r0, r0 + B + 1, NC)
+        stB[k] = _status_nb(v, 0, B, 1, nBc)[0]
         zd[k] = z[0, ::B]
         if k == nbands - 1:
             zd[k + 1] = z[B, ::B]
@@ -565,10 +605,9 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
     coarse = []  # per coarse level: (h, status, accumulators, mixed edges and sweeps)
     st = stB
     h = B
-    while h < N - 1:
+    while h < S:
         st = _pool(st)
-        nb = st.shape[0]
-        acc = BlockMaxima(*(np.zeros((nb, nb)) for _ in range(5)))
+        acc = BlockMaxima(*(np.zeros(st.shape) for _ in range(5)))
         rt, kt = _mixed_edges(st)
         sw = [Sweeps(np.zeros(len(t)), np.zeros(len(t), np.int64), np.zeros(len(t), np.int64))
               for t in (rt, kt)]
@@ -577,32 +616,32 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
     nfine = B.bit_length() - 1  # levels h = 1 … B/2
     sa = ScratchArrays() if scratch is None else scratch
     for k in range(n):
-        nb = (N - 1) >> (k + 1)
-        sa.create(f"C{k}", (nb, nb), np.float32)
-        sa.create(f"R{k}", (nb, nb + 1), np.float32)
-        sa.create(f"K{k}", (nb + 1, nb), np.float32)
+        nr, nb = (NR - 1) >> (k + 1), (NC - 1) >> (k + 1)
+        sa.create(f"C{k}", (nr, nb), np.float32)
+        sa.create(f"R{k}", (nr, nb + 1), np.float32)
+        sa.create(f"K{k}", (nr + 1, nb), np.float32)
         if heights:
-            sa.create(f"ZC{k}", (nb, nb), np.float64)
-            sa.create(f"ZR{k}", (nb, nb + 1), np.float64)
-            sa.create(f"ZK{k}", (nb + 1, nb), np.float64)
-    carry = [(np.zeros((N - 1) // (2 << k), np.uint8), np.zeros((N - 1) // (2 << k)))
+            sa.create(f"ZC{k}", (nr, nb), np.float64)
+            sa.create(f"ZR{k}", (nr, nb + 1), np.float64)
+            sa.create(f"ZK{k}", (nr + 1, nb), np.float64)
+    carry = [(np.zeros((NC - 1) // (2 << k), np.uint8), np.zeros((NC - 1) // (2 << k)))
              for k in range(nfine)]
     for k in range(nbands):
         r0 = k * B
         last = k == nbands - 1
         w0 = max(0, r0 - B // 2)
-        z, v = _window(rows, w0, r0 + B + 1, N)
+        z, v = _window(rows, w0, r0 + B + 1, NC)
         # the band's core rows (and the grid's last row, last): what the coarse levels add
         r_hi = r0 + B if last else r0 + B - 1
-        band = BandWindow(z, v, w0, r0, r_hi, B, N)
+        band = BandWindow(z, v, w0, r0, r_hi, B, NR, NC)
         # fine levels: block statuses from the samples, pooled up the band's levels
-        sts = [_status_nb(v, r0 - w0, 2, B // 2, (N - 1) // 2)]
+        sts = [_status_nb(v, r0 - w0, 2, B // 2, (NC - 1) // 2)]
         for _ in range(1, nfine):
             sts.append(_pool(sts[-1]))
         for lk in range(nfine):
             hh = 1 << lk
             s = 2 * hh
-            nb = (N - 1) // s
+            nb = (NC - 1) // s
             nrow = B // s
             a0 = r0 // s
             nk = nrow + (1 if last else 0)
@@ -617,7 +656,7 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
             sa.write(f"K{lk}", a0, Kb)
             carry[lk] = (sts[lk][-1].copy(), QB[-1].copy())
         if stand_in is not None:
-            _keep_heights(sa, z, v, w0, r0, r_hi, N, n, stand_in)
+            _keep_heights(sa, z, v, w0, r0, r_hi, n, stand_in)
         for hc, stc, acc, todo, sw in coarse:
             _coarse_rows_nb(band, hc, stc, zd, acc)
             for rows_type, t, sweeps in zip((True, False), todo, sw, strict=True):
@@ -625,15 +664,16 @@ def band_vertex_errors(rows: Rows, N: int, band: int = 256,
                     _coarse_edges_nb(band, hc, zd, rows_type, t, sweeps)
         z = v = band = sts = None  # before the next band's are read
     for k, (_, stc, acc, (rt, kt), sw) in enumerate(coarse, start=nfine):
-        nb = stc.shape[0]
-        C = np.zeros((nb, nb), np.float32)
-        R = np.zeros((nb, nb + 1), np.float32)
-        K = np.zeros((nb + 1, nb), np.float32)
+        nr, nb = stc.shape
+        C = np.zeros((nr, nb), np.float32)
+        R = np.zeros((nr, nb + 1), np.float32)
+        K = np.zeros((nr + 1, nb), np.float32)
         _coarse_finish_nb(stc, acc, rt, sw[0], kt, sw[1], LevelVertices(C, R, K))
         for x, a in zip("CRK", (C, R, K), strict=True):
             sa.write(f"{x}{k}", 0, a)
-    top = _saturate(sa, n, budget=max(B, 64) * N * 16, data=data)
-    return LevelDelta(N, sa, (lo, hi, count), stand_in, top)
+    top = _saturate(sa, n, budget=max(B, 64) * NC * 16, data=data)
+    return LevelDelta((NR, NC) if span is not None else NR, sa, (lo, hi, count), stand_in,
+                      top, span)
 
 
 

@@ -17,6 +17,7 @@ from collections.abc import Callable
 import numpy as np
 
 from geoterrain.bounds.normals import encode_octahedral, normal_map
+from geoterrain.preprocessing.bands.delta import grid_shape
 from geoterrain.preprocessing.scratch import ScratchArrays
 
 __all__ = ["band_normal_codes"]
@@ -38,16 +39,17 @@ class _Level:
         self.Y = np.empty((0, len(xs)), np.float64) if curvilinear else None
 
 
-def band_normal_codes(rows: Rows, N: int, xs: np.ndarray, ys: np.ndarray, levels: int,
-                      sa: ScratchArrays, band: int = 256, bits: int = 8,
-                      xy: Rows | None = None) -> None:
+def band_normal_codes(rows: Rows, N: int | tuple[int, int], xs: np.ndarray,
+                      ys: np.ndarray, levels: int, sa: ScratchArrays, band: int = 256,
+                      bits: int = 8, xy: Rows | None = None) -> None:
     """Write ``n{L}`` (L < ``levels``) to ``sa``: the octahedral codes of
     ``encode_octahedral(level_normal_maps(X, Y, Z, valid, levels)[L], bits)``, from
     ``rows(i0, i1)`` → (scene heights, valid) of rows i0 … i1 − 1.
 
     ``xs``, ``ys``: scene x of each column and y of each row (a projected or pixel frame);
     on a curvilinear (geographic) grid, ``xy(i0, i1)`` → the rows' scene X, Y instead
-    (``xs`` and ``ys`` then only give the grid's side).
+    (``xs`` and ``ys`` then only give the grid's side). ``N``: the grid's side, or a
+    root grid's extent (rows, cols).
 
     Examples
     --------
@@ -63,12 +65,13 @@ def band_normal_codes(rows: Rows, N: int, xs: np.ndarray, ys: np.ndarray, levels
     """
     xs = np.asarray(xs, np.float64)
     ys = np.asarray(ys, np.float64)
+    NR, NC = grid_shape(N)
     lv = []
     for L in range(levels):
         s = 1 << L
-        m = (N - 1) // s + 1
-        sa.create(f"n{L}", (m, 2 * m), np.uint8)
-        lv.append(_Level(m, xs[::s], ys[::s], xy is not None))
+        mr, mc = (NR - 1) // s + 1, (NC - 1) // s + 1
+        sa.create(f"n{L}", (mr, 2 * mc), np.uint8)
+        lv.append(_Level(mr, xs[::s], ys[::s], xy is not None))
 
     def feed(L: int, a0: int, z: np.ndarray, v: np.ndarray, gx: np.ndarray | None,
              gy: np.ndarray | None) -> None:
@@ -105,8 +108,8 @@ def band_normal_codes(rows: Rows, N: int, xs: np.ndarray, ys: np.ndarray, levels
                      None if gx is None else gx[k::2, ::2],
                      None if gy is None else gy[k::2, ::2])
 
-    for r0 in range(0, N, band):
-        r1 = min(r0 + band, N)
+    for r0 in range(0, NR, band):
+        r1 = min(r0 + band, NR)
         z, v = rows(r0, r1)
         gx = gy = None
         if xy is not None:

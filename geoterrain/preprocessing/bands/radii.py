@@ -28,7 +28,7 @@ __all__ = ["band_metric_radius_codes", "band_radius_codes", "level_xy"]
 
 
 @parallel_kernel(cache=True)
-def _edge_codes_nb(xs, ys, h, rows, a_lo, nb, zv, pz, pc, table, out):
+def _edge_codes_nb(xs, ys, h, rows, a_lo, nbr, nb, zv, pz, pc, table, out):
     """Codes of level h's edge midpoints (rows a_lo …; R-type if ``rows``, else K-type)
     from their four child centres at h/2 (``pz``, ``pc``: that level's centre heights
     and codes from row 2·a_lo − 1 on, padded)."""
@@ -45,7 +45,7 @@ def _edge_codes_nb(xs, ys, h, rows, a_lo, nb, zv, pz, pc, table, out):
                 dj = 2 * (k % 2) - 1
                 a2 = 2 * a + (k // 2) if rows else 2 * a - 1 + (k // 2)
                 b2 = 2 * b - 1 + (k % 2) if rows else 2 * b + (k % 2)
-                if 0 <= a2 < 2 * nb and 0 <= b2 < 2 * nb:
+                if 0 <= a2 < 2 * nbr and 0 <= b2 < 2 * nb:
                     ci = i + di * q
                     cj = j + dj * q
                     zc = pz[a2 - (2 * a_lo - 1), b2]
@@ -83,10 +83,10 @@ def _nest_levels(sa: ScratchArrays, n: int, xs: np.ndarray, ys: np.ndarray,
     full = False
     for k in range(n):
         h = 1 << k
-        nb = sa.shape(f"ZC{k}")[0]
+        nbr, nb = sa.shape(f"ZC{k}")
         step = max(1, budget // (48 * (nb + 1)))
-        for a_lo in range(0, nb, step):
-            a_hi = min(a_lo + step, nb)
+        for a_lo in range(0, nbr, step):
+            a_hi = min(a_lo + step, nbr)
             zr = sa.read(f"ZR{k}", a_lo, a_hi)
             zk = sa.read(f"ZK{k}", a_lo, a_hi + 1)
             cr = np.zeros(zr.shape, np.uint8)  # h = 1: edge midpoints are leaves
@@ -94,8 +94,8 @@ def _nest_levels(sa: ScratchArrays, n: int, xs: np.ndarray, ys: np.ndarray,
             if k:
                 pz = sa.read_padded(f"ZC{k - 1}", 2 * a_lo - 1, 2 * a_hi + 1)
                 pc = sa.read_padded(f"rC{k - 1}", 2 * a_lo - 1, 2 * a_hi + 1)
-                _edge_codes_nb(xs, ys, h, True, a_lo, nb, zr, pz, pc, table, cr)
-                _edge_codes_nb(xs, ys, h, False, a_lo, nb, zk, pz, pc, table, ck)
+                _edge_codes_nb(xs, ys, h, True, a_lo, nbr, nb, zr, pz, pc, table, cr)
+                _edge_codes_nb(xs, ys, h, False, a_lo, nbr, nb, zk, pz, pc, table, ck)
             cc = np.empty((a_hi - a_lo, nb), np.uint8)
             _centre_codes_nb(xs, ys, h, a_lo, sa.read(f"ZC{k}", a_lo, a_hi), zr, zk, cr, ck,
                              table, cc)
@@ -106,10 +106,12 @@ def _nest_levels(sa: ScratchArrays, n: int, xs: np.ndarray, ys: np.ndarray,
     return full
 
 
-def band_radius_codes(sa: ScratchArrays, N: int, xs: np.ndarray, ys: np.ndarray,
-                      lo: float, hi: float, budget: int = 16 << 20) -> int:
-    """Nest the radius codes of an (N, N) grid on its per-level arrays in ``sa`` and
-    return their exponent ``e`` (log8 table, :func:`geoterrain.bounds.vertexdata.log8_table`).
+def band_radius_codes(sa: ScratchArrays, N: int | tuple[int, int], xs: np.ndarray,
+                      ys: np.ndarray, lo: float, hi: float, budget: int = 16 << 20,
+                      span: int | None = None) -> int:
+    """Nest the radius codes of an (N, N) grid (a root grid: its (R, C) extent, roots of
+    side ``span``) on its per-level arrays in ``sa`` and return their exponent ``e``
+    (log8 table, :func:`geoterrain.bounds.vertexdata.log8_table`).
 
     Parameters
     ----------
@@ -137,7 +139,8 @@ def band_radius_codes(sa: ScratchArrays, N: int, xs: np.ndarray, ys: np.ndarray,
     >>> e == e2, bool((d.arrays.read("rC0", 0, 4) == codes[1::2, 1::2]).all())
     (True, True)
     """
-    n = (N - 1).bit_length() - 1
+    R = N[0] if isinstance(N, tuple | list) else N
+    n = (R - 1 if span is None else span).bit_length() - 1
     xs = np.ascontiguousarray(xs, np.float64)
     ys = np.ascontiguousarray(ys, np.float64)
     # the exponent of radius_codes(radius=None): the root's radius is at most the grid's

@@ -30,7 +30,7 @@ from geoterrain.bounds.tilebounds import TileBounds, cell_counts_nb, cell_field_
 from geoterrain.codec.pyramid import pyramid_shape
 from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.threads import parallel_kernel
-from geoterrain.preprocessing.bands.delta import BandWindow
+from geoterrain.preprocessing.bands.delta import BandWindow, grid_shape
 
 __all__ = ["band_tile_bounds"]
 
@@ -68,12 +68,12 @@ def _coarse_counts_nb(v, w0, r_lo, r_hi, s, counts):
     tot = counts.tot  # one by one (see bounds.tileblobs._level_payloads)
     c1 = counts.c1
     c2 = counts.c2
-    nb = tot.shape[0]
+    nbr, nb = tot.shape
     for bj in prange(nb):
         j0 = bj * s
         for r in range(r_lo, r_hi + 1):
             row = v[r - w0]
-            for bi in range(max(0, (r - 1) // s), min(nb - 1, r // s) + 1):
+            for bi in range(max(0, (r - 1) // s), min(nbr - 1, r // s) + 1):
                 di = r - bi * s
                 main = main_diagonal_nb(bi, bj)
                 a = 0
@@ -101,7 +101,7 @@ def _level_rows_nb(band, s, coarse, counts, zd, E, marks):
     (:class:`MixedMarks`)."""
     nb = (band.v.shape[1] - 1) // s
     bi_lo = max(0, (band.r0 - 1) // s)  # cells with a row in r0 … r_end
-    bi_hi = min(nb - 1, band.r_end // s)
+    bi_hi = min((band.R - 1) // s - 1, band.r_end // s)
     for parity in range(2):  # even columns of cells, then odd: no thread shares a column
         for kb in prange((nb - parity + 1) // 2):
             bj = 2 * kb + parity
@@ -167,14 +167,16 @@ def _into_rows(acc: np.ndarray, per_row: np.ndarray, r0: int, S: int, op) -> Non
                 acc[y] = op(acc[y], op.reduce(per_row[m], axis=0))
 
 
-def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
-                     band: int = 256, xy: Rows | None = None
+def band_tile_bounds(rows: Rows, N: int | tuple[int, int], t: int, xs: np.ndarray,
+                     ys: np.ndarray, band: int = 256, xy: Rows | None = None,
+                     span: int | None = None
                      ) -> tuple[dict[tuple[int, int, int], TileBounds], np.ndarray]:
     """:func:`~geoterrain.bounds.tilebounds.tile_and_block_errors` of the grid that
     ``rows(i0, i1)`` → (scene heights, valid) hands out, ``band`` rows (a power of two)
     at a time; ``xs``, ``ys``: scene x of each column and y of each row (a projected or
     pixel frame), or on a curvilinear (geographic) grid ``xy(i0, i1)`` → the rows'
-    scene X, Y.
+    scene X, Y. ``span``: a root grid's root side, ``N`` then its extent (R, C)
+    (``tile_and_block_errors`` with ``span``: its tiles and blocks over the extent).
 
     Examples
     --------
@@ -190,12 +192,14 @@ def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
     """
     if band < 2 or band & (band - 1):
         raise ValueError(f"band must be a power of two ≥ 2, got {band}")
-    n, te = pyramid_shape(N, t)
+    NR, NC = grid_shape(N)
+    S0 = NR - 1 if span is None else span
+    n, te = pyramid_shape(S0 + 1, t)
     lmax = n - te
     cpt = 1 << te
-    nb0 = (N - 1) // cpt
-    B = min(band, N - 1)
-    nbands = (N - 1) // B
+    nb0r, nb0c = (NR - 1) // cpt, (NC - 1) // cpt
+    B = min(band, S0)
+    nbands = (NR - 1) // B
     xs = np.asarray(xs, np.float64)
     ys = np.asarray(ys, np.float64)
 
@@ -207,10 +211,11 @@ def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
         return np.ascontiguousarray(np.where(v, z, 0.0)), np.ascontiguousarray(v)
 
     # first pass: the coarse levels' cell counts, and the grid every B samples
-    coarse = {L: CellCounts(np.zeros(((N - 1) >> L,) * 2, np.int64),
-                            np.zeros(((N - 1) >> L,) * 2), np.zeros(((N - 1) >> L,) * 2))
+    coarse = {L: CellCounts(np.zeros(((NR - 1) >> L, (NC - 1) >> L), np.int64),
+                            np.zeros(((NR - 1) >> L, (NC - 1) >> L)),
+                            np.zeros(((NR - 1) >> L, (NC - 1) >> L)))
               for L in range(1, lmax + 1) if (1 << L) > B}
-    zd = np.zeros((nbands + 1, nbands + 1))
+    zd = np.zeros((nbands + 1, (NC - 1) // B + 1))
     for k in range(nbands):
         r0 = k * B
         last = k == nbands - 1
@@ -221,16 +226,16 @@ def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
         vb = v.view(np.uint8)
         for L, cells in coarse.items():
             _coarse_counts_nb(vb, r0, r0, r0 + B if last else r0 + B - 1, 1 << L, cells)
-    nts = [(N - 1) >> (te + L) for L in range(lmax + 1)]
-    err = [np.zeros((m, m)) for m in nts]
-    bnd = [np.zeros((m, m)) for m in nts]
-    tmix = [np.zeros((m, m), bool) for m in nts]
-    bmix = [np.zeros((m, m), bool) for m in nts]
+    nts = [((NR - 1) >> (te + L), (NC - 1) >> (te + L)) for L in range(lmax + 1)]
+    err = [np.zeros(m) for m in nts]
+    bnd = [np.zeros(m) for m in nts]
+    tmix = [np.zeros(m, bool) for m in nts]
+    bmix = [np.zeros(m, bool) for m in nts]
     nblk = min(te, lmax) + 1
-    blocks = np.zeros((nb0, nb0, nblk))
-    kmix = np.zeros((nb0, nb0, nblk), bool)
-    counts = [np.zeros((m, m), np.int64) for m in nts]
-    box0 = np.empty((6, nb0, nb0))
+    blocks = np.zeros((nb0r, nb0c, nblk))
+    kmix = np.zeros((nb0r, nb0c, nblk), bool)
+    counts = [np.zeros(m, np.int64) for m in nts]
+    box0 = np.empty((6, nb0r, nb0c))
     box0[0::2] = np.inf
     box0[1::2] = -np.inf
     # a fine cell with a row in the band starts at most its side above it: the window's
@@ -238,15 +243,15 @@ def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
     halo = min(B, 1 << lmax)
     for k in range(nbands):
         r0 = k * B
-        r_end = N - 1 if k == nbands - 1 else r0 + B - 1
+        r_end = NR - 1 if k == nbands - 1 else r0 + B - 1
         w0 = max(0, r0 - halo)
-        z, v = window(w0, min(N, r0 + B + 1))
+        z, v = window(w0, min(NR, r0 + B + 1))
         core = slice(r0 - w0, r_end - w0 + 1)
         vc = v[core]
         # footprint counts of every level, and level 0's boxes
-        cs = np.zeros((len(vc), N + 1), np.int64)
+        cs = np.zeros((len(vc), NC + 1), np.int64)
         np.cumsum(vc, axis=1, out=cs[:, 1:])
-        for L, m in enumerate(nts):
+        for L, (_, m) in enumerate(nts):
             S = cpt << L
             _into_rows(counts[L], cs[:, S + 1::S] - cs[:, :-1:S][:, :m], r0, S, np.add)
         zc = z[core]
@@ -262,7 +267,7 @@ def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
                        op)
         # every level's error field on this band's rows, reduced into its tiles
         E = np.zeros(z.shape)
-        band = BandWindow(z, v.view(np.uint8), w0, r0, r_end, B, N)
+        band = BandWindow(z, v.view(np.uint8), w0, r0, r_end, B, NR, NC)
         for L in range(1, lmax + 1):
             s = 1 << L
             S = cpt << L
@@ -285,7 +290,7 @@ def band_tile_bounds(rows: Rows, N: int, t: int, xs: np.ndarray, ys: np.ndarray,
                 lines = _closed_cols(Ec[on], S, np.maximum)
                 for r, line in zip(rws[on], lines, strict=True):
                     for y in (r // S - 1, r // S):
-                        if 0 <= y < nts[L]:
+                        if 0 <= y < nts[L][0]:
                             np.maximum(bnd[L][y], line, out=bnd[L][y])
             colv = Ec[:, ::S]
             _into_rows(bnd[L], np.maximum(colv[:, :-1], colv[:, 1:]), r0, S, np.maximum)
