@@ -14,13 +14,23 @@ The whole-process figure a user sees is ``make demo`` itself on an empty cache::
 
 Usage: ``python benchmarks/bench_first_run.py [--top 30]`` (from the project root; the
 demo's outputs go to a temporary folder).
+
+``--processes``: each command in a process of its own, as ``make demo`` runs them, on one
+shared empty cache. A kernel compiled by one command is then loaded from the cache by the
+next, but numba's own library functions (``np.empty``, ``min``, string formatting, …) are
+not cached: each command compiles again those its new kernels use. Prints per command
+its CPU, its compile CPU and how much of it numba's own functions took, and any kernel
+compiled by two commands (a cache index that missed). A baseline tree runs the same way
+with ``PYTHONPATH=BASE`` (``geoterrain/`` with ``cli/`` copied into it).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -46,10 +56,84 @@ def demo_commands(out: str) -> list[list[str]]:
     ]
 
 
+def _child(cmd: list[str]) -> None:
+    """One command in this process (``--child``): its compilations as JSON on stdout's
+    last line (function, argument types, own CPU s) and the process's CPU."""
+    from numba.core import event
+
+    rows: list[list] = []
+    stack: list[list] = []
+
+    class Timer(event.Listener):
+        def on_start(self, ev) -> None:
+            stack.append([time.process_time(), 0.0])
+
+        def on_end(self, ev) -> None:
+            t0, callees = stack.pop()
+            spent = time.process_time() - t0
+            f = ev.data["dispatcher"].py_func
+            rows.append([f"{f.__module__}.{f.__qualname__}", str(ev.data.get("args")),
+                         spent - callees])
+            if stack:
+                stack[-1][1] += spent
+
+    event.register("numba:compile", Timer())
+    from geoterrain.cli.main import cli
+
+    try:
+        cli.main(cmd, prog_name="geoterrain", standalone_mode=False)
+    except SystemExit:
+        pass
+    print(json.dumps({"rows": rows, "cpu": time.process_time()}))
+
+
+def _processes() -> None:
+    """The demo's commands, each in a process of its own on one empty cache."""
+    cache = tempfile.mkdtemp(prefix="numba-cache-")
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+    print(f"load average {os.getloadavg()[0]:.1f}, {os.cpu_count()} cores, cache {cache}")
+    seen: dict[tuple[str, str], str] = {}
+    twice = []
+    tot = [0.0, 0.0, 0.0, 0.0]
+    print("| command | process CPU s | compile CPU s | of it numba's own | specialisations |\n"
+          "|---|---:|---:|---:|---:|")
+    with tempfile.TemporaryDirectory() as out:
+        for i, cmd in enumerate(demo_commands(out)):
+            w0 = time.perf_counter()
+            r = subprocess.run([sys.executable, __file__, "--child", json.dumps(cmd)],
+                               env=env, capture_output=True, text=True, check=True)
+            wall = time.perf_counter() - w0
+            got = json.loads(r.stdout.strip().splitlines()[-1])
+            comp = sum(x[2] for x in got["rows"])
+            own = sum(x[2] for x in got["rows"] if x[0].startswith("numba."))
+            for name, sig, _ in got["rows"]:
+                if not name.startswith("numba."):
+                    if (name, sig) in seen:
+                        twice.append((name, seen[(name, sig)], cmd[0]))
+                    seen[(name, sig)] = f"{i + 1}:{cmd[0]}"
+            for k, v in enumerate((got["cpu"], comp, own, len(got["rows"]))):
+                tot[k] += v
+            print(f"| {i + 1}:{cmd[0]} | {got['cpu']:.1f} | {comp:.1f} | {own:.1f} | "
+                  f"{len(got['rows'])} |  (wall {wall:.1f} s)")
+    shutil.rmtree(cache, ignore_errors=True)
+    print(f"| all | {tot[0]:.1f} | {tot[1]:.1f} | {tot[2]:.1f} | {tot[3]:.0f} |")
+    print(f"kernels compiled by two commands: {len(twice)}"
+          + "".join(f"\n  {n} ({a}, {b})" for n, a, b in twice))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--top", type=int, default=30, help="kernels listed (default 30)")
+    ap.add_argument("--processes", action="store_true",
+                    help="each command in a process of its own, as make demo runs them")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.child:
+        _child(json.loads(args.child))
+        return
+    if args.processes:
+        _processes()
+        return
     cache = tempfile.mkdtemp(prefix="numba-cache-")
     os.environ["NUMBA_CACHE_DIR"] = cache  # before numba is imported
     from numba.core import event

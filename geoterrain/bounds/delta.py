@@ -423,7 +423,7 @@ def _raw_delta_nb(z, vb, bs, all_valid, span):
     QR = np.empty_like(QL)
     QT = np.empty_like(QL)
     QB = np.empty_like(QL)
-    h = 1
+    h = np.int64(1)  # not a literal 1: the edge sweep compiles once
     while h < span:
         s = 2 * h
         nr = (R - 1) // s

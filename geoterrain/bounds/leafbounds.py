@@ -107,7 +107,8 @@ def _leaf_delta_nb(z, vb, all_valid, i0, j0, ring, table, slack, sat, code, out)
             if f == 1:
                 v = round_up32(_mid1(z, i, j, rows) + slack)
             elif f != 2:
-                m, c = _edge_err(z, vb, i, j, 1, rows, T)
+                # h an int64, not a literal 1: the δ sweep's compilation (delta.py)
+                m, c = _edge_err(z, vb, i, j, np.int64(1), rows, T)
                 if c == 2:
                     v = np.float32(np.inf)
                 elif c == 1:

@@ -99,14 +99,18 @@ def normal_map(
     """
     if kernel not in ("central", "horn"):
         raise ValueError(f"unknown kernel {kernel!r}")
-    # no copy: x and y may be broadcast views (Frame.grid_xy)
-    x, y, z = (np.asarray(a, dtype=np.float64) for a in (x, y, z))
+    # no copy of x and y: they may be broadcast views (Frame.grid_xy); z and the mask
+    # contiguous and writeable, as a tile's (derived_codes), so that the kernels compile
+    # for one layout (a pyramid level's z is a strided view: copied)
+    x, y = (np.asarray(a, dtype=np.float64) for a in (x, y))
+    z = np.require(z, np.float64, ("C", "W"))
     if not (x.shape == y.shape == z.shape) or x.ndim != 2:
         raise ValueError("x, y and z must be 2-D arrays of the same shape")
     v = (
         np.ones(x.shape, np.bool_)
         if valid is None
-        else np.ascontiguousarray(np.broadcast_to(np.asarray(valid, np.bool_), x.shape))
+        else np.require(np.broadcast_to(np.asarray(valid, np.bool_), x.shape), None,
+                        ("C", "W"))
     )
     out = np.empty((*x.shape, 3), np.float32)
     if x.size:
@@ -639,9 +643,11 @@ def _derived_codes_nb(h, zf, valid, X, Y, rings, rr, cc, m, out):  # pragma: no 
                 z[i, j] = h[k, i, j] * zf  # Frame.z
         vv = _valid_finite_serial(X[k], Y[k], z, valid[k])
         nrm = np.empty((T0, T1, 3), np.float32)
-        _normals_serial(X[k], Y[k], z, vv, False, nrm)
+        # np.bool_: a bool, not a literal False, as the whole map's calls pass (one
+        # compilation of each serial kernel for both)
+        _normals_serial(X[k], Y[k], z, vv, np.bool_(False), nrm)
         codes = out[k].reshape((T0 * T1, 2))
-        _encode_oct_serial(nrm.reshape((-1, 3)), m, False, codes)
+        _encode_oct_serial(nrm.reshape((-1, 3)), m, np.bool_(False), codes)
         for q in range(len(rr)):  # the stored border ring
             codes[rr[q] * T1 + cc[q], 0] = rings[k, q, 0]
             codes[rr[q] * T1 + cc[q], 1] = rings[k, q, 1]

@@ -577,7 +577,12 @@ def _top(enc, buf, top, ok, te, cubic, kind, W, filled, edges=False):
             fill_edges_first(out, np.ascontiguousarray(known[::s, ::s]))
         elif filled:
             fill_outward(out, np.ascontiguousarray(known[::s, ::s]))
-        top[::s, ::s] = out
+        # top[::s, ::s] = out, as a loop: numba's array-to-slice assignment compiles its
+        # shape-mismatch message (string formatting, about 1 s of CPU), and numba's own
+        # functions are not cached: again in every command that compiles such a kernel
+        for i in range(out.shape[0]):
+            for j in range(out.shape[1]):
+                top[i * s, j * s] = out[i, j]
     return S
 
 

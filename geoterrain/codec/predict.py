@@ -337,10 +337,12 @@ def fill_edges_first(f, known):
         if not lk.any():
             continue  # left to the fill of the rest
         fill_outward(line, lk)
-        if row:
-            f[i:i + 1, :] = line
+        if row:  # the line back in place, as a loop (see entropy._top)
+            for q in range(n1):
+                f[i, q] = line[0, q]
             k[i, :] = True
         else:
-            f[:, j:j + 1] = line
+            for q in range(n0):
+                f[q, j] = line[q, 0]
             k[:, j] = True
     fill_outward(f, k)

@@ -100,6 +100,16 @@ _HEADER = 3
 
 def _top_fill(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool, W: int = 1,
               edges: bool = False, near: np.ndarray | None = None) -> None:
+    """:func:`_fill_top` on contiguous copies of ``top`` and ``valid`` (often strided
+    views of the whole grid), the result written back to ``top``: the compiled fill then
+    runs on the whole grid's layout, one compilation for both."""
+    work = np.array(top)
+    _fill_top(work, np.ascontiguousarray(valid), te, cubic, W, edges, near)
+    top[...] = work
+
+
+def _fill_top(top: np.ndarray, valid: np.ndarray, te: int, cubic: bool, W: int = 1,
+              edges: bool = False, near: np.ndarray | None = None) -> None:
     """In place on the top tile's codes, what its decoding gives (:func:`entropy._top`):
     an invalid corner holds the fill of the source's codes (the encoder is free to
     choose it: the corners are coded); then level by level of its own grid, a valid

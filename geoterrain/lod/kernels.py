@@ -204,7 +204,7 @@ def close_upward_boxes(active, boxes, gen=True):
     R, C = active.shape
     top = boxes.shape[0] - 1
     i0, i1, j0, j1 = R, -1, C, -1
-    h, L = 1, 0
+    h, L = np.int64(1), 0  # not a literal 1: _set_parents compiles once
     while h < min(R, C) - 1:
         b = boxes[min(L, top)]
         i0, i1, j0, j1 = min(i0, b[0]), max(i1, b[1]), min(j0, b[2]), max(j1, b[3])

@@ -80,13 +80,27 @@ class MeshChunk:
     total: int
 
 
+def _as_generation(active: np.ndarray, mixed: np.ndarray) -> tuple:
+    """The static flags (bool) as the view's generation flags (uint8, generation 1; the
+    same bytes, no copy), so the walk is the one compiled kernel the views use.
+
+    Examples
+    --------
+    >>> a, m, gen = _as_generation(np.eye(2, dtype=bool), np.zeros((2, 2), bool))
+    >>> a.dtype.name, a.tolist(), int(gen)
+    ('uint8', [[1, 0], [0, 1]], 1)
+    """
+    return active.view(np.uint8), mixed.view(np.uint8), np.uint8(1)
+
+
 def _count_leaves(active, mixed) -> int:
     """Leaf triangles of the whole walk (for progress), without storing them."""
     stack, state = walk_start(*walk_shape(active.shape))  # a square, or every root
     buf = np.empty((4096, 3), np.int64)
     n = 0
+    active, mixed, gen = _as_generation(active, mixed)
     while True:
-        k = walk_leaves(active, mixed, True, stack, state, buf)
+        k = walk_leaves(active, mixed, gen, stack, state, buf)
         if k == 0:
             return n
         n += k
@@ -290,6 +304,7 @@ def static_chunks(terrain: TerrainLike, max_error: float, *, chunk: int = CHUNK,
     total = int(_count_leaves(active, mixed)) if count else 0
     vid = np.full(active.size, -1, np.int32)  # flat i·C + j, C the flags' row (pool.N)
     stack, state = walk_start(*walk_shape(active.shape))
+    active, mixed, gen = _as_generation(active, mixed)
     tris = np.empty((chunk, 3), np.int64)
     cand = np.empty(3 * chunk, np.int64)
     faces = np.empty((chunk, 3), np.int64)
@@ -297,7 +312,7 @@ def static_chunks(terrain: TerrainLike, max_error: float, *, chunk: int = CHUNK,
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
     nv, done = 0, 0
     while True:
-        n = walk_leaves(active, mixed, True, stack, state, tris)
+        n = walk_leaves(active, mixed, gen, stack, state, tris)
         if n == 0:
             return
         done += n
