@@ -178,7 +178,7 @@ def preprocess(
     root_grid
         Experimental: pad a wide or tall raster to the next tile multiple a side, under a
         grid of root tiles (2 × 1, 1 × 2), not to one (2^n + 1)² square
-        (:class:`geoterrain.core.grid.Grid`, schema version 7). Whole-grid preprocess of
+        (:class:`geoterrain.core.grid.Grid`, schema version 9). Whole-grid preprocess of
         projected and pixel frames only; such a store is drawn by ``rtin`` alone, and the
         other consumers refuse it in one line. A raster whose root grid is its square
         grid gives the square store.
