@@ -37,7 +37,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.codec.predict import _fmean, _mid16, _pred, fill_edges_first, fill_outward
+from geoterrain.codec.predict import (
+    _centre,
+    _fmean,
+    _mid16,
+    _pred,
+    fill_edges_first,
+    fill_outward,
+)
 from geoterrain.core.threads import parallel_kernel
 
 __all__ = [
@@ -342,8 +349,9 @@ def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok, W):
     The predictions are U(.) of :mod:`geoterrain.codec.predict` (``cubic``: 4-point inside the
     parent tile for A and B, inside this tile for C; else floor-means), each sample's
     from the values before it: A and B from the parent, C from this tile's A samples
-    above and below. An invalid sample is not coded: its value is its prediction (the
-    encoder's ``out`` is set so too). Contexts: the class, the activity bucket of the
+    above and below and B samples beside (the mean of the two directions). An invalid
+    sample is not coded: its value is its prediction (the encoder's ``out`` is set so
+    too). Contexts: the class, the activity bucket of the
     coded residuals around the sample and the parents' difference along its span, the
     prediction's phase (:func:`_phase`), and for the sign the signs two to the left
     and two above. ``W`` > 1: residual bins (:attr:`geoterrain.codec.quantize.Quantizer.bins`);
@@ -362,7 +370,8 @@ def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok, W):
             for b in range(rb):
                 li, lj = 2 * a + oi, 2 * b + oj
                 # the prediction (cubic: from v16, 16 times it unrounded; linear: the
-                # floor-mean of the two neighbours), its phase, the parents' span
+                # floor-mean of the two neighbours, C's rounded mean of four), its
+                # phase, the parents' span
                 if cls == 0:
                     p0, p1 = parent[oy + a, ox + b], parent[oy + a, ox + b + 1]
                     v16 = _mid16(parent, oy + a, 0, 0, 1, ox + b, mp) if cubic else 0
@@ -371,14 +380,21 @@ def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok, W):
                     p0, p1 = parent[oy + a, ox + b], parent[oy + a + 1, ox + b]
                     v16 = _mid16(parent, 0, ox + b, 1, 0, oy + a, mp) if cubic else 0
                     g = _absdiff(p0, p1)
-                else:
+                else:  # both directions: the A samples above and below, the B beside
                     p0, p1 = out[li - 1, lj], out[li + 1, lj]
-                    v16 = 8 * (p0 + p1)
-                    if cubic and 1 <= a <= h - 2:
-                        v16 += p0 + p1 - out[li - 3, lj] - out[li + 3, lj]
+                    q0, q1 = out[li, lj - 1], out[li, lj + 1]
+                    cv = cubic and 1 <= a <= h - 2
+                    cw = cubic and 1 <= b <= h - 2
+                    pred, v16 = _centre(p0, p1, out[li - 3, lj] if cv else p0,
+                                        out[li + 3, lj] if cv else p1, cv,
+                                        q0, q1, out[li, lj - 3] if cw else q0,
+                                        out[li, lj + 3] if cw else q1, cw)
+                    v16 >>= 1  # 16 times the prediction, modulo 16: the phase's
                     g = max(_absdiff(parent[oy + a, ox + b], parent[oy + a + 1, ox + b + 1]),
                             _absdiff(parent[oy + a, ox + b + 1], parent[oy + a + 1, ox + b]))
-                if cubic:
+                if cls == 2:
+                    ph = _phase(v16)
+                elif cubic:
                     pred, ph = (v16 + 8) >> 4, _phase(v16)
                 else:  # a half-way mean lies half a code above its floor
                     pred, ph = _fmean(p0, p1), 4 if (p0 ^ p1) & 1 else 2

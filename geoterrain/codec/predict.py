@@ -10,12 +10,15 @@ One rule, three forms that give the same integers:
   tile (the decoder).
 
 Row midpoints (A) and column midpoints (B) come from the coarse samples; cell centres
-(C) from the decoded row midpoints above and below them, along the column (SZ3's one
-direction, then the other). Linear: floor-means of the 2 neighbours. Cubic: 4-point
-interpolatory weights (−1, 9, 9, −1)/16, rounded, falling back to linear next to a
-parent-tile border for A and B and next to a child-tile border for C (so a tile never
-reads outside its parent, nor a centre outside its own tile). Arithmetic is int64
-modulo 2**64.
+(C) from the decoded A samples above and below them and the decoded B samples beside
+them: the mean of the midpoint along the column and the one along the row, 16 times
+each, rounded (SZ3 interpolates one direction after the other; both directions take
+srtm1_japan's heights from 279.6 to 267.9 kB, docs/lab/store-size.md). Linear:
+floor-means of the 2 neighbours for A and B; for C the rounded mean of the 4. Cubic:
+4-point interpolatory weights (−1, 9, 9, −1)/16, falling back to linear next to a
+parent-tile border for A and B and next to a child-tile border for each of C's lines
+(so a tile never reads outside its parent, nor a centre outside its own tile).
+Arithmetic is int64 modulo 2**64.
 """
 
 from __future__ import annotations
@@ -37,34 +40,59 @@ def predict(f: np.ndarray, period: int | None = None) -> tuple[np.ndarray, np.nd
     from its coarse samples ``f[::2, ::2]`` and, for the cell centres, its row midpoints.
 
     Returns class A (row midpoints, (M, M-1)), B (column midpoints, (M-1, M)) and C (cell
-    centres, (M-1, M-1)): the U(.) operator of seed 000 section 2.9, applied as SZ3
-    interpolates (one direction, then the other, from decoded values): A and B from
-    the coarse samples, C along the column from the A samples above and below it (the
-    decoder has them before C).
+    centres, (M-1, M-1)): the U(.) operator of seed 000 section 2.9, from decoded
+    values: A and B from the coarse samples, C from the A samples above and below it
+    and the B samples beside it (the decoder has them before C), the mean of the two
+    directions.
 
     ``period=None``: linear, floor-means of the 2 neighbours. ``period=P``: 4-point
     interpolatory (Kobbelt / Dyn-Levin-Gregory) weights (-1, 9, 9, -1)/16, rounded; a
     midpoint between coarse k and k+1 falls back to linear (0, 8, 8, 0)/16 when k-1 or
     k+2 lies outside the parent tile for A and B (k % P == 0 or (k + 1) % P == 0, P =
-    parent tile intervals), outside the child tile for C (the same with P / 2).
+    parent tile intervals), outside the child tile for each of C's two lines (the same
+    with P / 2).
 
     Examples
     --------
     >>> pa, pb, pc = predict(np.array([[0, 9, 4], [9, 9, 9], [8, 6, 13]], np.int64))
-    >>> pa.tolist(), pb.tolist(), pc.tolist()  # C: the floor-mean of A's 9 and 6
-    ([[2], [10]], [[4, 8]], [[7]])
+    >>> pa.tolist(), pb.tolist(), pc.tolist()  # C: the rounded mean of 9, 6, 9 and 9
+    ([[2], [10]], [[4, 8]], [[8]])
     """
     c = f[..., ::2, ::2]
     a = f[..., ::2, 1::2]
+    b = f[..., 1::2, ::2]
     if period is None:
         pa = _mean2(c[..., :, :-1], c[..., :, 1:])
         pb = _mean2(c[..., :-1, :], c[..., 1:, :])
-        pc = _mean2(a[..., :-1, :], a[..., 1:, :])
-        return pa, pb, pc
-    pa = (_interp16(c, -1, period) + 8) >> 4
-    pb = (_interp16(c, -2, period) + 8) >> 4
-    pc = (_interp16(a, -2, period // 2) + 8) >> 4
-    return pa, pb, pc
+    else:
+        pa = (_interp16(c, -1, period) + 8) >> 4
+        pb = (_interp16(c, -2, period) + 8) >> 4
+    qv, rv = _parts32(a, -2, period and period // 2)
+    qw, rw = _parts32(b, -1, period and period // 2)
+    return pa, pb, qv + qw + ((rv + rw + 16) >> 5)
+
+
+def _parts32(c: np.ndarray, axis: int, period: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """2 × 16 × the midpoints along ``axis`` (the weights of :func:`_interp16`; linear
+    without a period) as q, r with 32 q + r their value: whole multiples of 32 from
+    each sample's own ``x >> 5`` and the small rest from its ``x & 31`` (as
+    :func:`_centre` computes a cell centre, without a sum that wraps)."""
+    c = np.moveaxis(c, axis, -1)
+    m = c.shape[-1]
+    near = np.full(m - 1, 8, np.int64)
+    far = np.zeros(m - 1, np.int64)
+    if period is not None and m >= 4:
+        k = np.arange(1, m - 2)
+        ok = (k % period != 0) & ((k + 1) % period != 0)
+        near[1:-1] = np.where(ok, 9, 8)
+        far[1:-1] = np.where(ok, -1, 0)
+    hi, lo = c >> 5, c & 31
+    q = near * (hi[..., :-1] + hi[..., 1:])
+    r = near * (lo[..., :-1] + lo[..., 1:])
+    if m >= 4:
+        q[..., 1:-1] += far[1:-1] * (hi[..., :-3] + hi[..., 3:])
+        r[..., 1:-1] += far[1:-1] * (lo[..., :-3] + lo[..., 3:])
+    return np.moveaxis(q, -1, axis), np.moveaxis(r, -1, axis)
 
 
 def _interp16(c: np.ndarray, axis: int, period: int) -> np.ndarray:
@@ -119,16 +147,45 @@ def cubic_child(parent, oy, ox, h, r, out):
         for b in range(h + 1):
             out[2 * a + 1, 2 * b] = ((_mid16(parent, 0, ox + b, 1, 0, oy + a, m) + 8) >> 4) + r[n]
             n += 1
-    for a in range(h):  # C: along the column from the decoded A samples of this tile
+    for a in range(h):  # C: from the decoded A samples above and B samples beside
         for b in range(h):
-            j = 2 * b + 1
-            if 1 <= a <= h - 2:
-                v = 9 * (out[2 * a, j] + out[2 * a + 2, j]) - out[2 * a - 2, j] \
-                    - out[2 * a + 4, j]
-            else:
-                v = 8 * (out[2 * a, j] + out[2 * a + 2, j])
-            out[2 * a + 1, j] = ((v + 8) >> 4) + r[n]
+            i, j = 2 * a + 1, 2 * b + 1
+            out[i, j] = _centre16(out, i, j, a, b, h, True) + r[n]
             n += 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _centre(a0, a1, a2, a3, cv, b0, b1, b2, b3, cw):
+    """A cell centre's prediction from its A samples above and below (a0, a1; the next
+    ones out a2, a3, read when ``cv``: cubic along the column) and its B samples beside
+    (b0 … b3, ``cw``: cubic along the row): the rounded mean of the two lines'
+    midpoints, ``(v + w + 16) >> 5`` for v, w 16 times each, and ``(v + w) & 31`` (the
+    phase's). Computed from each sample's ``x >> 5`` and ``x & 31``: on float bit
+    patterns v and w wrap int64, and a shift of a wrapped sum is not kept by the
+    compiler (``(v + w + 16) >> 5`` decoded other codes than it encoded)."""
+    n, f = (9, -1) if cv else (8, 0)
+    m, g = (9, -1) if cw else (8, 0)
+    q = n * ((a0 >> 5) + (a1 >> 5)) + m * ((b0 >> 5) + (b1 >> 5))
+    r = n * ((a0 & 31) + (a1 & 31)) + m * ((b0 & 31) + (b1 & 31))
+    if cv:
+        q += f * ((a2 >> 5) + (a3 >> 5))
+        r += f * ((a2 & 31) + (a3 & 31))
+    if cw:
+        q += g * ((b2 >> 5) + (b3 >> 5))
+        r += g * ((b2 & 31) + (b3 & 31))
+    return q + ((r + 16) >> 5), r & 31
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _centre16(out, i, j, a, b, h, cubic):
+    """The prediction of the cell centre (i, j) = (2a + 1, 2b + 1) of a child tile of
+    2h + 1 from its decoded A samples above and below and B samples beside
+    (:func:`_centre`; cubic along a line where the tile holds both outer samples)."""
+    cv = cubic and 1 <= a <= h - 2
+    cw = cubic and 1 <= b <= h - 2
+    a0, a1, b0, b1 = out[i - 1, j], out[i + 1, j], out[i, j - 1], out[i, j + 1]
+    return _centre(a0, a1, out[i - 3, j] if cv else a0, out[i + 3, j] if cv else a1, cv,
+                   b0, b1, out[i, j - 3] if cw else b0, out[i, j + 3] if cw else b1, cw)[0]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -162,8 +219,8 @@ def linear_child(c, h, r, out):
             n += 1
     for a in range(h):
         for b in range(h):
-            out[2 * a + 1, 2 * b + 1] = _fmean(out[2 * a, 2 * b + 1],
-                                               out[2 * a + 2, 2 * b + 1]) + r[n]
+            i, j = 2 * a + 1, 2 * b + 1
+            out[i, j] = _centre16(out, i, j, a, b, h, False) + r[n]
             n += 1
 
 
@@ -185,7 +242,7 @@ def _pred(d, s, i, j, P):
     """The prediction U(.) of :func:`predict` at sample (i, j) (one of i, j odd) of the
     level ``d[::s, ::s]`` from its coarse samples (a cell centre from the A samples of
     its column); ``P`` = 0: linear floor-means, else cubic with period ``P`` (seed 000
-    §2.9)."""
+    §2.9). A cell centre: the mean of its column's and its row's midpoints."""
     s2 = 2 * s
     ci, cj = i >> 1, j >> 1
     if P == 0:
@@ -193,21 +250,26 @@ def _pred(d, s, i, j, P):
             return _fmean(d[ci * s2, cj * s2], d[ci * s2, (cj + 1) * s2])
         if j & 1 == 0:  # B: column midpoint
             return _fmean(d[ci * s2, cj * s2], d[(ci + 1) * s2, cj * s2])
-        # C: the A samples above and below (same level)
-        return _fmean(d[(i - 1) * s, j * s], d[(i + 1) * s, j * s])
+        # C: the A samples above and below and the B samples beside (same level)
+        return _centre(d[(i - 1) * s, j * s], d[(i + 1) * s, j * s], 0, 0, False,
+                       d[i * s, (j - 1) * s], d[i * s, (j + 1) * s], 0, 0, False)[0]
     mr, mc = (d.shape[0] - 1) // s2 + 1, (d.shape[1] - 1) // s2 + 1  # coarse rows, cols
     if i & 1 == 0:  # along a row: the coarse columns
         return (_c16(d, s2, ci, 0, 0, 1, cj, mc, P) + 8) >> 4
     if j & 1 == 0:  # along a column: the coarse rows
         return (_c16(d, s2, 0, cj, 1, 0, ci, mr, P) + 8) >> 4
-    # C: along the column through the A samples (rows 2k, 2k + 2 of the level), cubic
-    # inside the child tile (period P / 2 in coarse rows)
-    k, h = ci, P >> 1
-    v = 8 * (d[(i - 1) * s, j * s] + d[(i + 1) * s, j * s])
-    if mr >= 4 and 1 <= k <= mr - 3 and k % h != 0 and (k + 1) % h != 0:
-        v += d[(i - 1) * s, j * s] + d[(i + 1) * s, j * s] - d[(i - 3) * s, j * s] \
-            - d[(i + 3) * s, j * s]
-    return (v + 8) >> 4
+    # C: the mean of the midpoints along the column through the A samples (rows 2k,
+    # 2k + 2 of the level) and along the row through the B samples, each cubic inside
+    # the child tile (period P / 2 in coarse rows or columns)
+    h = P >> 1
+    cv = mr >= 4 and 1 <= ci <= mr - 3 and ci % h != 0 and (ci + 1) % h != 0
+    cw = mc >= 4 and 1 <= cj <= mc - 3 and cj % h != 0 and (cj + 1) % h != 0
+    a0, a1 = d[(i - 1) * s, j * s], d[(i + 1) * s, j * s]
+    b0, b1 = d[i * s, (j - 1) * s], d[i * s, (j + 1) * s]
+    return _centre(a0, a1, d[(i - 3) * s, j * s] if cv else a0,
+                   d[(i + 3) * s, j * s] if cv else a1, cv,
+                   b0, b1, d[i * s, (j - 3) * s] if cw else b0,
+                   d[i * s, (j + 3) * s] if cw else b1, cw)[0]
 
 
 @njit(cache=True, nogil=True)

@@ -31,9 +31,10 @@ with the fill).
 The residuals are coded by :mod:`geoterrain.codec.entropy` (an adaptive binary range coder
 with contexts), afresh in every tile.
 
-Blob format (version 2), one blob per stored tile::
+Blob format (version 3), one blob per stored tile::
 
-    byte 0   version (2)
+    byte 0   version (3; version 2, of store schemas 5 to 7, predicted a cell centre
+             along its column only, and is refused)
     byte 1   flags: bit 0 = top tile; bits 1-2 = mask kind (0 all valid, 1 all
              invalid, 2 mask stored); bit 3 = cubic predictor; bit 4 = wide; bit 5
              = filled (a top tile with a stored mask: its invalid samples filled
@@ -94,7 +95,7 @@ __all__ = [
     "roots_shape",
 ]
 
-BLOB_VERSION = 2
+BLOB_VERSION = 3  # 2: cell centres predicted along their column only (schemas 5-7)
 _HEADER = 3
 
 

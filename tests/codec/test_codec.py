@@ -299,22 +299,25 @@ _BEFORE_FILL_CODES = [
 
 
 @pytest.mark.fast
-def test_a_store_from_before_the_fill_decodes_as_before():
-    """A top blob without the ``filled`` flag decodes its invalid samples to their
-    predictions, as the codec that wrote it did; one written now has the flag, and the
-    flag on a tile it does not belong to is refused."""
+def test_blobs_of_version_2_are_refused_and_the_fill_flag_is_where_it_belongs():
+    """Blobs of version 2 (cell centres predicted along their column only; these were
+    written by that codec before the top tile's outward fill) are refused in one line;
+    a top blob written now has the ``filled`` flag, and the flag on a tile it does not
+    belong to is refused."""
     qz = Quantizer("int")
     blobs = {k: bytes.fromhex(v) for k, v in _BEFORE_FILL.items()}
-    levels = decode_all(blobs, 9, 2, qz)
+    for key, blob in blobs.items():
+        with pytest.raises(ValueError, match="not a version-3 tile blob"):
+            decode_tile(blob, None if key[0] == 1 else np.zeros((3, 3), np.int64), qz,
+                        (key[1], key[2]))
     want = np.array(_BEFORE_FILL_CODES)
-    assert np.array_equal(levels[0][0], want)
-    assert np.array_equal(levels[1][0], want[::2, ::2])
     i, j = np.mgrid[0:9, 0:9]
     z = (3 * i + 2 * j + (i * j) // 3).astype(float)
     now = encode_pyramid(z, (i < 7) & (j < 7), 2, qz, predictor="linear")
     assert now[(1, 0, 0)][1] & 32 and not any(b[1] & 32 for k, b in now.items() if k[0] == 0)
-    assert np.array_equal(decode_all(now, 9, 2, qz)[0][0][:7, :7], want[:7, :7])
-    bad = blobs[(0, 1, 1)]
+    levels = decode_all(now, 9, 2, qz)
+    assert np.array_equal(levels[0][0][:7, :7], want[:7, :7])
+    bad = now[(0, 1, 1)]
     with pytest.raises(ValueError, match="header"):
         decode_tile(bad[:1] + bytes([bad[1] | 32]) + bad[2:], levels[1][0], qz, (1, 1))
     full = encode_pyramid(z, np.ones((9, 9), bool), 2, qz)[(1, 0, 0)]  # all valid: no flag

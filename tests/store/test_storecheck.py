@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 import geoterrain
 from geoterrain.exceptions import StoreError
 from geoterrain.store.check import check_store
+from geoterrain.store.database import ROOTS_SCHEMA_VERSION, SCHEMA_VERSION
 
 pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
@@ -133,7 +134,7 @@ def _as_roots(meta, tiles, g):
 
     r = Grid.for_shape(g.rows, g.cols, g.tile_samples - 1, roots=True)
     assert r.roots == (2, 1) and r.top_level == g.top_level - 1
-    m = dict(meta, grid=r.to_json(), schema_version=7)
+    m = dict(meta, grid=r.to_json(), schema_version=ROOTS_SCHEMA_VERSION)
     m["block_delta_levels"] = min(r.t, r.top_level) + 1
     if "normals_derived" in m and m["normals_derived"] != [0]:
         m["normals_derived"] = list(r.levels)
@@ -157,23 +158,24 @@ def test_a_root_grid_store_passes_its_checks(wide_store):
     for grid in (dict(m["grid"], n=m["grid"]["n"] + 1), dict(m["grid"], layout="square")):
         with pytest.raises(StoreError, match="invalid metadata"):
             check_store(path, dict(m, grid=grid), t)
-    # the schema version follows the layout: 7 for root grids, 6 (unchanged) for squares
-    for mm, tt in ((dict(m, schema_version=6), t), (dict(meta, schema_version=7), tiles)):
+    # the schema version follows the layout: 9 for root grids, 8 for squares
+    for mm, tt in ((dict(m, schema_version=SCHEMA_VERSION), t),
+                   (dict(meta, schema_version=ROOTS_SCHEMA_VERSION), tiles)):
         with pytest.raises(StoreError, match=r"invalid metadata \(a (root|square) grid is "
-                                             r"written in schema version [67], not [67]\)"):
+                                             r"written in schema version [89], not [89]\)"):
             check_store(path, mm, tt)
     # the square store itself is still read
-    assert meta["schema_version"] == 6
+    assert meta["schema_version"] == SCHEMA_VERSION == 8
     assert check_store(path, meta, tiles)[0] == g
 
 
-def test_the_writer_puts_a_root_grid_in_schema_version_7_and_the_reader_opens_both(
+def test_the_writer_puts_a_root_grid_in_schema_version_9_and_the_reader_opens_both(
         tmp_path, wide_store):
     from geoterrain.store.database import StoreReader, StoreWriter
 
     _, meta, tiles, g = wide_store
     m, _, r = _as_roots(meta, tiles, g)
-    for name, grid, version in (("roots", r.to_json(), 7), ("square", g.to_json(), 6)):
+    for name, grid, version in (("roots", r.to_json(), 9), ("square", g.to_json(), 8)):
         with StoreWriter(tmp_path / f"{name}.geoterrain") as w:
             w.put_metadata({"grid": grid, "schema_version": 1})  # the writer's to set
             w.put_blob((0, 0, 0), "heights", b"x")
