@@ -541,16 +541,22 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
 
 def _build_level(dem: GeoDem, z: int, xys, M: int, target: float, hrange, fixed, data_from: int,
                  mesher: str = "rtin"):
-    """Every tile of level ``z`` on an M-lattice: {(x, y): build_tile's result}."""
+    """Every tile of level ``z`` on an M-lattice: {(x, y): build_tile's result}. A level
+    with no lattice data coarser than the first with some gets flat tiles; a level with
+    data gets none, whatever the order of its tiles (a flat tile beside a data tile
+    would list other vertices, at other heights, along their shared edge)."""
     tiles = {}
     for x, y in xys:
         res = build_tile(dem, z, x, y, M, target, hrange, fixed_threshold=fixed, mesher=mesher)
         if res is not None:
-            data_from = min(data_from, z)
-        elif z < data_from:
-            res = build_tile(dem, z, x, y, M, target, hrange, flat=True, fixed_threshold=fixed)
-        if res is not None:
             tiles[(x, y)] = res
+    if tiles:
+        data_from = min(data_from, z)
+    elif z < data_from:
+        for x, y in xys:
+            res = build_tile(dem, z, x, y, M, target, hrange, flat=True, fixed_threshold=fixed)
+            if res is not None:
+                tiles[(x, y)] = res
     return tiles, data_from
 
 
