@@ -289,7 +289,13 @@ def select_tile(dem: GeoDem, rect, M: int, lon, lat, h, valid, delta, thr: float
     faces = faces[valid.ravel()[fidx][faces].all(1)]
     if len(faces) == 0:
         return None
-    data, faces, vlon, vlat, vh, _ = _encode(dem, rect, M, lon, lat, h, ij, faces, hrange, flat)
+    edge = None
+    if not flat:  # every valid edge sample, drawn or not (as _build_tin's): next to nodata
+        # one side may leave a hole where the other draws, and both must list the same
+        r, c = ij[:, 0], ij[:, 1]
+        edge = np.flatnonzero(((r == 0) | (r == M - 1) | (c == 0) | (c == M - 1)) & valid[r, c])
+    data, faces, vlon, vlat, vh, _ = _encode(dem, rect, M, lon, lat, h, ij, faces, hrange, flat,
+                                             edge)
     if flat:  # two triangles (L is the mesh itself): the measured error is exact
         d_max, e_uv = 0.0, 0.0
     else:
