@@ -289,7 +289,13 @@ def select_tile(dem: GeoDem, rect, M: int, lon, lat, h, valid, delta, thr: float
     faces = faces[valid.ravel()[fidx][faces].all(1)]
     if len(faces) == 0:
         return None
-    data, faces, vlon, vlat, vh, _ = _encode(dem, rect, M, lon, lat, h, ij, faces, hrange, flat)
+    edge = None
+    if not flat:  # every valid edge sample, drawn or not (as _build_tin's): next to nodata
+        # one side may leave a hole where the other draws, and both must list the same
+        r, c = ij[:, 0], ij[:, 1]
+        edge = np.flatnonzero(((r == 0) | (r == M - 1) | (c == 0) | (c == M - 1)) & valid[r, c])
+    data, faces, vlon, vlat, vh, _ = _encode(dem, rect, M, lon, lat, h, ij, faces, hrange, flat,
+                                             edge)
     if flat:  # two triangles (L is the mesh itself): the measured error is exact
         d_max, e_uv = 0.0, 0.0
     else:
@@ -541,16 +547,22 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
 
 def _build_level(dem: GeoDem, z: int, xys, M: int, target: float, hrange, fixed, data_from: int,
                  mesher: str = "rtin"):
-    """Every tile of level ``z`` on an M-lattice: {(x, y): build_tile's result}."""
+    """Every tile of level ``z`` on an M-lattice: {(x, y): build_tile's result}. A level
+    with no lattice data coarser than the first with some gets flat tiles; a level with
+    data gets none, whatever the order of its tiles (a flat tile beside a data tile
+    would list other vertices, at other heights, along their shared edge)."""
     tiles = {}
     for x, y in xys:
         res = build_tile(dem, z, x, y, M, target, hrange, fixed_threshold=fixed, mesher=mesher)
         if res is not None:
-            data_from = min(data_from, z)
-        elif z < data_from:
-            res = build_tile(dem, z, x, y, M, target, hrange, flat=True, fixed_threshold=fixed)
-        if res is not None:
             tiles[(x, y)] = res
+    if tiles:
+        data_from = min(data_from, z)
+    elif z < data_from:
+        for x, y in xys:
+            res = build_tile(dem, z, x, y, M, target, hrange, flat=True, fixed_threshold=fixed)
+            if res is not None:
+                tiles[(x, y)] = res
     return tiles, data_from
 
 

@@ -46,8 +46,8 @@ class QuantizedMeshTiles:
     The same tiles as :func:`write_tileset` builds, with what a whole-set writer learns
     from all the tiles fixed beforehand instead: one height quantisation range for every
     tile (the store's recorded height range, widened by 120 m with ``geoid``), the
-    ``lattice`` at every level, and the tiles a level has (those whose lattice holds at
-    least 3 samples inside the DEM's grid, found from the georeference alone; coarser
+    ``lattice`` at every level, and the tiles a level has (those whose lattice has a cell
+    with at least 3 corners inside the DEM's grid, found from the georeference alone; coarser
     levels than the first such level get flat tiles at the lowest height, as the writer
     gives them). Building tile (z, x, y) decodes only the level-0 tiles under its
     rectangle (:class:`GeoDem`'s window), and its declared bound is :func:`build_tile`'s.
@@ -97,8 +97,8 @@ class QuantizedMeshTiles:
         return xs, ys
 
     def _lattice_tiles(self, z: int) -> frozenset[tuple[int, int]]:
-        """Tiles of level z whose lattice has ≥ 3 samples inside the DEM's grid (the
-        level's lattices as one lon/lat grid through pyproj, counted per tile)."""
+        """Tiles of level z whose lattice has a cell with ≥ 3 corners inside the DEM's grid
+        (the level's lattices as one lon/lat grid through pyproj, counted per tile)."""
         xs, ys = self._touching(z)
         M = self.lattice
         if len(xs) * len(ys) == 0:
@@ -114,11 +114,15 @@ class QuantizedMeshTiles:
             i, j = self.geo.pixel(LO, LA)
             H, W = self.geo.full
             inside[r:r + 256] = (i >= 0) & (i <= H - 1) & (j >= 0) & (j <= W - 1)
+        # a lattice cell with ≥ 3 corners inside may hold a triangle; a tile whose samples
+        # inside are a line along its edge (the DEM's edge on the tile's) has none, and
+        # its flat tile would list other vertices along the edge than its neighbour's
+        cells = (inside[:-1, :-1].astype(np.int8) + inside[:-1, 1:] + inside[1:, :-1]
+                 + inside[1:, 1:]) >= 3
         out = set()
         for a, y in enumerate(ys):
             for b, x in enumerate(xs):
-                blk = inside[a * (M - 1):(a + 1) * (M - 1) + 1, b * (M - 1):(b + 1) * (M - 1) + 1]
-                if np.count_nonzero(blk) >= 3:
+                if cells[a * (M - 1):(a + 1) * (M - 1), b * (M - 1):(b + 1) * (M - 1)].any():
                     out.add((x, y))
         return frozenset(out)
 

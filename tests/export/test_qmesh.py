@@ -398,3 +398,29 @@ def test_max_zoom_is_capped_by_what_the_data_fills(tmp_path, caplog, monkeypatch
         fill = Q.max_zoom_for(Q.pixel_degrees(t), 129)
     assert fill == 13
     assert f"capped at {fill + 1}" in caplog.text
+
+
+@pytest.mark.fast
+def test_served_levels_list_the_written_tiles_when_the_dem_edge_is_a_tile_edge(tmp_path):
+    """The DEM's west edge on a tile boundary at level 9: the tile west of it holds only a
+    line of samples along its east edge, no triangle. The writer leaves it out (a flat tile
+    there would list other vertices than its neighbour along their edge), and so does the
+    server, which decides from the georeference alone."""
+    from geoterrain.export.qmesh import write_tileset
+    from geoterrain.export.qmeshtiles import QuantizedMeshTiles
+    from geoterrain.ingest.synth import generate
+
+    z = (generate("fbm", (24, 24), seed=0) * 0.02).astype(np.float32)
+    dem = write_tif(tmp_path / "d.tif", z, crs="EPSG:4326",
+                    origin=(138.515625 - 1 / 512, 35.5078125), spacing=1 / 1200, nodata=-9999)
+    with geoterrain.open(geoterrain.preprocess(dem, tmp_path / "d.geoterrain",
+                                               tile_size=32)) as t:
+        write_tileset(t, tmp_path / "t", min_zoom=9, mesher="rtin")
+        q = QuantizedMeshTiles(t, mesher="rtin")
+        written = {(int(p.parent.parent.name), int(p.parent.name), int(p.stem))
+                   for p in (tmp_path / "t").glob("*/*/*.terrain")}
+        assert {9, 10, 11} <= {k[0] for k in written} and (9, 906, 356) in written
+        assert (9, 905, 356) not in written
+        for zz in range(9, q.max_zoom + 1):
+            assert {(x, y) for x, y in q.level_tiles(zz)} == {k[1:] for k in written
+                                                              if k[0] == zz}, zz

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from geoterrain.export.qmeshtin import MIN_THRESHOLD, edge_keep, tin_tile
@@ -136,12 +136,22 @@ def test_a_plane_needs_its_corners_alone():
                                                                  HealthCheck.function_scoped_fixture])
 @given(h=st.integers(24, 64), w=st.integers(24, 64), seed=st.integers(0, 10_000),
        relief=st.sampled_from([0.02, 0.2, 1.0]), holes=st.integers(0, 3),
-       dx=st.floats(-0.02, 0.02), dy=st.floats(-0.02, 0.02))
+       dx=st.floats(-0.02, 0.02), dy=st.floats(-0.02, 0.02),
+       mesher=st.sampled_from(["tin", "rtin"]))
+# the DEM's west edge on a tile boundary: a flat tile beside the first data tile (found by a
+# longer run), for both meshers
+@example(h=24, w=24, seed=0, relief=0.02, holes=0, dx=-0.001953125, dy=0.0, mesher="tin")
+@example(h=24, w=24, seed=1, relief=0.02, holes=0, dx=-0.001953125, dy=0.0, mesher="tin")
+@example(h=24, w=24, seed=0, relief=0.02, holes=0, dx=-0.001953125, dy=0.0, mesher="rtin")
+# rtin next to nodata: a valid edge sample drawn on one side only, unlisted on the other
+@example(h=24, w=30, seed=1024, relief=0.02, holes=2, dx=0.0, dy=0.0078125, mesher="rtin")
+@example(h=24, w=24, seed=0, relief=0.02, holes=1, dx=0.0, dy=0.015625, mesher="rtin")
 def test_decoded_neighbours_list_the_same_edge_vertices(tmp_path_factory, h, w, seed, relief,
-                                                        holes, dx, dy):
+                                                        holes, dx, dy, mesher):
     """End to end on small synthetic DEMs across tile corners (levels 9–11), decoded by
-    quantized-mesh-tile: neighbouring TIN tiles list the same edge vertices, at the same
-    heights, and each tile is within its declared error at the DEM samples it covers."""
+    quantized-mesh-tile: neighbouring tiles (TIN or rtin) list the same edge vertices, at
+    the same heights, and each tile is within its declared error at the DEM samples it
+    covers."""
     import json
 
     import matplotlib.tri as mtri
@@ -159,7 +169,7 @@ def test_decoded_neighbours_list_the_same_edge_vertices(tmp_path_factory, h, w, 
     dem = write_tif(d / "d.tif", z, crs="EPSG:4326", origin=(138.515625 + dx, 35.5078125 + dy),
                     spacing=1 / 1200, nodata=-9999)
     with geoterrain.open(geoterrain.preprocess(dem, d / "d.geoterrain", tile_size=32)) as t:
-        write_tileset(t, d / "t", min_zoom=9, mesher="tin")
+        write_tileset(t, d / "t", min_zoom=9, mesher=mesher)
     declared = json.loads((d / "t" / "geoterrain.json").read_text())["declared_error"]
     with rasterio.open(dem) as src:
         dh = src.read(1, masked=True)
