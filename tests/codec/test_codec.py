@@ -396,14 +396,11 @@ def test_pyramid_shape_rejects_bad_sizes():
 
 
 @pytest.mark.slow
-def test_4097_encode_speed():
-    import time
-
+def test_4097_encode_makes_every_tile():
+    # (its time is benchmarks/bench_codec.py's, not a test's)
     z = np.round(fractal(4097, 9))
     valid = np.ones(z.shape, bool)
-    t0 = time.perf_counter()
     blobs = encode_pyramid(z, valid, 6, Quantizer("int"))
-    assert time.perf_counter() - t0 < 10.0
     assert len(blobs) == sum(4**k for k in range(7))
 
 
