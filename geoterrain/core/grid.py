@@ -280,6 +280,22 @@ class Grid:
         tx, ty = self.tiles(L)
         return 0 <= x < tx and 0 <= y < ty
 
+    def held(self, blobs: dict) -> dict:
+        """``blobs`` keyed by tile, keeping the grid's own tiles (:meth:`holds`; all of
+        them on a square grid)."""
+        return blobs if self.square else {k: b for k, b in blobs.items() if self.holds(k)}
+
+    @property
+    def whole_shape(self) -> int | tuple[int, int]:
+        """The whole-grid arrays' shape as the frame and the preprocess take it: N on a
+        square grid, a root grid's :attr:`extent` (rows, cols)."""
+        return self.size if self.square else self.extent
+
+    @property
+    def codec_roots(self) -> tuple[int, int] | None:
+        """The root tiles the height codec codes apart (None: the square's one)."""
+        return None if self.square else self.roots
+
     @property
     def span(self) -> int | None:
         """A root's side 2^n in level-0 samples, as the bounds take it (None: the square)."""

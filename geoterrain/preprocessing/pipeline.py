@@ -311,7 +311,7 @@ def read_dem(req: Request, *, band: int | None, encoding: str, nodata: float | N
     r.transform, r.crs_wkt, frame, grid = place(req, r.shape, r.transform, r.crs_wkt,
                                                 tile=tile, pixel_size=pixel_size,
                                                 z_units=z_units, z_scale=z_scale, label=r.path)
-    frame.check_scene(_whole(grid), *valid_range(r.heights, r.valid)[:2])
+    frame.check_scene(grid.whole_shape, *valid_range(r.heights, r.valid)[:2])
     return Dem(r, frame, grid, int(np.count_nonzero(r.valid)))
 
 
@@ -333,11 +333,6 @@ class Surface:
     predictor: str = "auto"  # the codec's U(.) (an edit keeps the store's)
 
 
-def _whole(grid: Grid) -> int | tuple[int, int]:
-    # the whole-grid arrays: N on a square grid, a root grid's extent (rows, cols)
-    return grid.size if grid.square else grid.extent
-
-
 def pad(dem: Dem) -> Surface:
     """The DEM padded to the (2^n+1)² grid, or a root grid's extent (invalid padding),
     with scene x, y."""
@@ -352,7 +347,7 @@ def pad(dem: Dem) -> Surface:
     if dem.valid_samples < valid.size:
         heights[~valid] = np.nan
     r.heights = None  # the padded array holds them now (memory: issue 12)
-    X, Y = dem.frame.grid_xy(_whole(dem.grid))
+    X, Y = dem.frame.grid_xy(dem.grid.whole_shape)
     return Surface(heights, valid, X, Y)
 
 
@@ -365,8 +360,8 @@ def quantise(dem: Dem, s: Surface, codec_error: float | None) -> Surface:
     height_blobs = None
     if q.bins > 1:  # residual bins: the heights depend on the pyramid, coded here once
         height_blobs, codes = encode_decoded(s.heights, s.valid, dem.grid.t, q,
-                                             roots=_roots(dem.grid))
-        height_blobs = _held(height_blobs, dem.grid)
+                                             roots=dem.grid.codec_roots)
+        height_blobs = dem.grid.held(height_blobs)
         Z = codes_to_heights(codes, q)
         del codes
         Z[~s.valid] = np.nan
@@ -380,16 +375,6 @@ def quantise(dem: Dem, s: Surface, codec_error: float | None) -> Surface:
     height_range = [float(lo), float(hi)]
     Z = dem.frame.z(Z, out=Z)  # scene metres, in place
     return Surface(s.heights, s.valid, s.X, s.Y, Z, q, height_range, height_blobs)
-
-
-def _roots(grid: Grid) -> tuple[int, int] | None:
-    return None if grid.square else grid.roots
-
-
-def _held(blobs: dict, grid: Grid) -> dict:
-    # a root grid's tiles only (a footprint over the extent may reach one more, past the
-    # raster's last row or column, holding only that shared border)
-    return blobs if grid.square else {k: b for k, b in blobs.items() if grid.holds(k)}
 
 
 @dataclass
@@ -464,9 +449,9 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     grid, frame, valid, Z = dem.grid, dem.frame, s.valid, s.Z
     height_blobs = s.height_blobs
     if height_blobs is None:
-        height_blobs = _held(encode_pyramid(s.heights, valid, grid.t, s.q,
-                                            predictor=s.predictor, roots=_roots(grid),
-                                            counts=counts), grid)
+        height_blobs = grid.held(encode_pyramid(s.heights, valid, grid.t, s.q,
+                                                predictor=s.predictor, roots=grid.codec_roots,
+                                                counts=counts))
     delta = b.delta
     edge = d_edge = None
     if has_padding(grid):

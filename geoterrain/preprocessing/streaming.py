@@ -377,9 +377,9 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
         try:
             with StoreWriter(dst, overwrite=req.overwrite) as w:
                 for part in heights_records(os.path.join(folder, "heights.bin")):
-                    # a root grid's tiles only (pipeline._held: a footprint over the
-                    # extent may reach one tile past the raster's last row or column)
-                    w.put_blobs("heights", {k: b for k, b in part.items() if grid.holds(k)})
+                    # a root grid's tiles only (a footprint over the extent may reach
+                    # one tile past the raster's last row or column)
+                    w.put_blobs("heights", grid.held(part))
                 # the tiles whose footprint holds a valid sample
                 stored = {k for k in bounds if grid.holds(k)}
                 if frame.kind == "geographic" and derive_bounds:  # pipeline.vertex_bounds

@@ -101,15 +101,7 @@ def whole_plan(terrain: TerrainLike, heights: np.ndarray, valid: np.ndarray,
     On a root grid ``heights`` is level 0's lattice (:attr:`Grid.shape`, as
     :meth:`~geoterrain.terrain.Terrain.level_heights` gives it) or the roots' extent; the
     stages run on the extent, as the whole-grid preprocess's do."""
-    from geoterrain.preprocessing.pipeline import (
-        Dem,
-        Surface,
-        _held,
-        _roots,
-        _whole,
-        tile_blobs,
-        vertex_bounds,
-    )
+    from geoterrain.preprocessing.pipeline import Dem, Surface, tile_blobs, vertex_bounds
 
     g, frame, q = terrain.grid, terrain.frame, terrain.quantizer
     pred = store_predictor(terrain)
@@ -119,12 +111,12 @@ def whole_plan(terrain: TerrainLike, heights: np.ndarray, valid: np.ndarray,
         heights, valid = np.full(g.extent, np.nan), np.zeros(g.extent, bool)
         heights[:h.shape[0], :h.shape[1]] = h
         valid[:v.shape[0], :v.shape[1]] = v
-    X, Y = frame.grid_xy(_whole(g))
+    X, Y = frame.grid_xy(g.whole_shape)
     height_blobs = None
     if q.bins > 1:  # residual bins: decoded heights come out of the pyramid's coding
         height_blobs, codes = encode_decoded(heights, valid, g.t, q, predictor=pred,
-                                             roots=_roots(g))
-        height_blobs = _held(height_blobs, g)
+                                             roots=g.codec_roots)
+        height_blobs = g.held(height_blobs)
         Z = codes_to_heights(codes, q)
         del codes
         Z[~valid] = np.nan
