@@ -25,7 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 import geoterrain  # noqa: E402
-from geoterrain.rendering.scene import TerrainScene, _plotter, default_view  # noqa: E402
+from geoterrain.rendering.scene import TerrainScene, default_view
+from geoterrain.rendering.window import pyvista_plotter
 
 DEMS = Path(__file__).resolve().parents[2] / "shared" / "dems"
 NAMES = ("srtm3_pysheds.tif", "srtm1_japan.tif", "fuji_terrain_rgb.png",
@@ -41,7 +42,7 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
 
 def pictures(store) -> tuple[list[np.ndarray], list[int]]:
     with geoterrain.open(store) as t:
-        scene = TerrainScene(_plotter(SIZE), t)
+        scene = TerrainScene(pyvista_plotter(SIZE), t)
         try:
             out = [scene.frame(default_view(t, SIZE, az, el), 1.0, "rtin") for az, el in VIEWS]
         finally:

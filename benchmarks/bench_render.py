@@ -42,7 +42,8 @@ import numpy as np
 import geoterrain
 from geoterrain.core.view import View
 from geoterrain.rendering.antialias import ANTI_ALIASING
-from geoterrain.rendering.scene import TerrainScene, _plotter, default_view
+from geoterrain.rendering.scene import TerrainScene, default_view
+from geoterrain.rendering.window import pyvista_plotter
 
 
 def flight(t, n: int, size: tuple[int, int]) -> list[tuple[str, View]]:
@@ -99,7 +100,7 @@ def run_config(store: str, views, strategy: str, textures: str, tau: float, pick
     pictures of the views in ``keep`` are kept (``"pictures"``, by view)."""
     t0 = time.perf_counter()
     with geoterrain.open(store) as t:
-        scene = TerrainScene(_plotter(views[0][1].size, anti_aliasing), t, textures=textures)
+        scene = TerrainScene(pyvista_plotter(views[0][1].size, anti_aliasing), t, textures=textures)
         setup_ms = (time.perf_counter() - t0) * 1e3
         frames, pictures = [], {}
         try:

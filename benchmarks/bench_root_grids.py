@@ -461,7 +461,8 @@ def render(a: argparse.Namespace) -> None:
     from geoterrain.export.meshstream import write_static_mesh
     from geoterrain.ingest.synth import generate, write_geotiff
     from geoterrain.rendering.mapview import map_view
-    from geoterrain.rendering.scene import TerrainScene, _plotter, default_view
+    from geoterrain.rendering.scene import TerrainScene, default_view
+    from geoterrain.rendering.window import pyvista_plotter
 
     d = Path(tempfile.mkdtemp(prefix="bench_root_render_"))
     dem = write_geotiff(d / "wide.tif", generate("fbm", (1024, 4096), seed=3, relief=1500.0),
@@ -479,7 +480,7 @@ def render(a: argparse.Namespace) -> None:
                                                  tuple(east), size=size)}
 
     def frame(k, v):
-        scene = TerrainScene(_plotter(size), t[k])
+        scene = TerrainScene(pyvista_plotter(size), t[k])
         try:
             t0 = time.perf_counter()
             img, st = scene.frame(v, 1.0, "rtin")

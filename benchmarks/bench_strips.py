@@ -9,7 +9,7 @@ oblique pass). For each view, rtin's selection at τ is made once and shown by t
 offscreen scenes, one drawing triangle lists (the project's default), one drawing the
 same triangles as strips (:mod:`geoterrain.lod.strips`: in the order seed 002's
 refinement meets them, one vertex a triangle and a repeated one at each swap). Each
-draw is the project's (``scene._draw``: VTK's render, the picture read back), timed
+draw is the project's (``window.draw``: VTK's render, the picture read back), timed
 ``--draws`` times a round, the two scenes alternating, over ``--rounds`` rounds; the
 first draw of a new mesh (its upload, VTK's own strips → triangles conversion) is
 reported apart; which scene goes first alternates from view to view. Prints medians per
@@ -27,7 +27,8 @@ import time
 
 import geoterrain
 from benchmarks.bench_render import flight
-from geoterrain.rendering.scene import TerrainScene, _draw, _plotter
+from geoterrain.rendering.scene import TerrainScene
+from geoterrain.rendering.window import draw, pyvista_plotter
 
 
 def main(argv=None) -> dict:
@@ -44,7 +45,7 @@ def main(argv=None) -> dict:
     load0 = os.getloadavg()[0]
     with geoterrain.open(a.store) as t:
         views = flight(t, a.views, size)
-        scenes = {kind: TerrainScene(_plotter(size, "none"), t, strips=kind == "strips")
+        scenes = {kind: TerrainScene(pyvista_plotter(size, "none"), t, strips=kind == "strips")
                   for kind in ("lists", "strips")}
         rows = []
         try:
@@ -57,14 +58,14 @@ def main(argv=None) -> dict:
                     sc.set_camera(v)
                     sc.update(sel, v)
                     t0 = time.perf_counter()
-                    _draw(sc.plotter)
+                    draw(sc.plotter)
                     first[kind] = (time.perf_counter() - t0) * 1e3
                 for _ in range(a.rounds):
                     for kind in kinds:
                         sc = scenes[kind]
                         for _ in range(a.draws):
                             t0 = time.perf_counter()
-                            _draw(sc.plotter)
+                            draw(sc.plotter)
                             warm[kind].append((time.perf_counter() - t0) * 1e3)
                 fd = scenes["strips"].mesh.field_data
                 row = {"view": k, "triangles": int(sel.stats["triangles"]),

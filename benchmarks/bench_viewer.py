@@ -45,8 +45,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from bench_render import flight  # noqa: E402
 
 import geoterrain  # noqa: E402
-from geoterrain.rendering.scene import _plotter  # noqa: E402
 from geoterrain.rendering.viewer import REST_MS, ViewerController  # noqa: E402
+from geoterrain.rendering.window import pyvista_plotter
 
 
 def move(c: ViewerController, view) -> dict:
@@ -98,7 +98,7 @@ def main(argv=None) -> list[dict]:
     rows = []
     with geoterrain.open(a.store) as t:
         views = flight(t, a.views, size)
-        p = _plotter(size)
+        p = pyvista_plotter(size)
         c = ViewerController(p, t, strategy=a.strategy, pixel_error=a.tau, background=True)
         p.show(auto_close=False)  # the window is up: from now on render() draws
         try:

@@ -136,13 +136,13 @@ def run_flyover(globe, views: list[tuple[float, View]], tau: float = 1.0, *,
     after frame; one dict a frame (the module's fields). ``measure(sel, view)``, when
     given, returns the measured ρ (px) of a frame, every ``measure_every`` frames."""
     from geoterrain.rendering.globescene import data_range, globe_mesh, place_camera
-    from geoterrain.rendering.scene import _draw, _plotter
+    from geoterrain.rendering.window import draw, pyvista_plotter
 
     p = None
     if render:
         from geoterrain.rendering.colours import as_palette
 
-        p = _plotter(views[0][1].size)
+        p = pyvista_plotter(views[0][1].size)
         p.set_background("white")
         pal, rng = as_palette("auto"), data_range(globe)
     frames: list[dict] = []
@@ -160,7 +160,7 @@ def run_flyover(globe, views: list[tuple[float, View]], tau: float = 1.0, *,
                                smooth_shading=True, name="globe", reset_camera=False,
                                render=False)
                 place_camera(p.camera, view, sel)
-                _draw(p)
+                draw(p)
                 render_ms = (time.perf_counter() - t1) * 1e3
             call_ms = (t1 - t0) * 1e3
             pop, swapped = _pop_px(globe, sel, view, prev_whole)

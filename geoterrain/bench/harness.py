@@ -235,9 +235,10 @@ def _mesh_key(ij: np.ndarray, faces: np.ndarray, z: np.ndarray) -> str:
 def _renderer(size: tuple[int, int], terrain: TerrainLike, anti_aliasing: str,
               occlusion: bool, morph: bool | None):
     """An offscreen render scene of ``size`` for ``terrain``."""
-    from geoterrain.rendering.scene import TerrainScene, _plotter
+    from geoterrain.rendering.scene import TerrainScene
+    from geoterrain.rendering.window import pyvista_plotter
 
-    return TerrainScene(_plotter(size, anti_aliasing), terrain, occlusion=occlusion,
+    return TerrainScene(pyvista_plotter(size, anti_aliasing), terrain, occlusion=occlusion,
                         morph=morph)
 
 

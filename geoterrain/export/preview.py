@@ -49,7 +49,7 @@ def preview_image(terrain: TerrainLike, selection, *, size: tuple[int, int] = (9
     import pyvista as pv
 
     from geoterrain.lod.mesh import polydata
-    from geoterrain.rendering.scene import _draw, _plotter
+    from geoterrain.rendering.window import draw, pyvista_plotter
 
     m = mesh_arrays(terrain, selection, skirts=base_height is None and print_size is None)
     img, L = _texture(terrain, shading, cmap, texture_size, drape)
@@ -59,7 +59,7 @@ def preview_image(terrain: TerrainLike, selection, *, size: tuple[int, int] = (9
     top = m.xyz if sol is None else sol.points[:len(m.xyz)]
     surface = polydata(top, m.faces)
     surface.active_texture_coordinates = uv
-    p = _plotter(tuple(size), "msaa")
+    p = pyvista_plotter(tuple(size), "msaa")
     try:
         p.set_background(GROUND)
         tex = pv.Texture(np.ascontiguousarray(img))  # row 0 at the top, as uv (v up) maps it
@@ -76,7 +76,7 @@ def preview_image(terrain: TerrainLike, selection, *, size: tuple[int, int] = (9
         p.camera.up = (0.0, 0.0, 1.0)
         p.camera.view_angle = v.fov_y_deg
         p.renderer.ResetCameraClippingRange()
-        return _draw(p)
+        return draw(p)
     finally:
         p.close()
 
@@ -112,7 +112,7 @@ def _fit(lo: np.ndarray, hi: np.ndarray, size: tuple[int, int], azimuth: float,
 def write_preview(terrain: TerrainLike, selection, path: str | Path, *,
                   overwrite: bool = False, **kw) -> Path:
     """:func:`preview_image` written to the PNG ``path`` (never half-written)."""
-    from geoterrain.rendering.scene import _write_png
+    from geoterrain.rendering.window import write_png
 
     out = Path(path)
     from geoterrain.exceptions import UsageError
@@ -120,5 +120,5 @@ def write_preview(terrain: TerrainLike, selection, path: str | Path, *,
     if out.suffix.lower() != ".png":
         raise UsageError(f"{out}: a preview is a .png picture",
                          cli=f"--preview {out}: give a .png path")
-    _write_png(out, preview_image(terrain, selection, **kw), overwrite)
+    write_png(out, preview_image(terrain, selection, **kw), overwrite)
     return out

@@ -10,7 +10,7 @@ share an edge: a triangle that shares the strip's last edge adds its third verte
 that shares the edge before it adds a repeated vertex first (the seed's parity swap),
 and one that shares neither starts a new strip (culled triangles, nodata, a new tile).
 
-VTK draws them through ``vtkPolyData.SetStrips`` (:func:`strip_polydata`): whether
+VTK draws them through ``vtkPolyData.SetStrips`` (:func:`strip_mesh`): whether
 that is faster than the triangle lists the project draws is measured by
 ``benchmarks/bench_strips.py`` (docs/benchmarks.md: no faster on VTK's CPU renderer).
 
@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["anexa_strip", "seed_order", "strip_polydata", "strip_triangles",
+__all__ = ["anexa_strip", "root_seed_order", "seed_order", "strip_mesh", "strip_triangles",
            "triangle_strips"]
 
 
@@ -205,23 +205,42 @@ def seed_order(faces: np.ndarray, ij: np.ndarray, n: int) -> np.ndarray:
     return np.argsort(key, kind="stable")
 
 
-def strip_polydata(mesh, n: int | None = None):
-    """A copy of a triangle ``pyvista.PolyData`` drawn as triangle strips (its points
-    and point data shared), with the strip counts in its field data. With ``n`` (the
-    grid's 2^n + 1 side) and the mesh's ``grid_ij``, the faces are taken in seed 002's
-    order (:func:`seed_order`), else in the order they were emitted."""
+def root_seed_order(faces: np.ndarray, ij: np.ndarray, grid) -> np.ndarray:
+    """The seed's refinement order of ``faces`` (:func:`geoterrain.lod.strips.seed_order`):
+    on a root grid, root after root (row by row), each root the seed's square (its own
+    bintree, rtin's triangles never crossing a root's edge)."""
+    if grid.square:
+        return seed_order(faces, ij, grid.n)
+    span = 1 << grid.n
+    ij = np.asarray(ij, np.int64)
+    c3 = ij[faces].sum(axis=1)  # 3 × each face's centroid: inside one root
+    across = grid.roots[0]
+    root = (c3[:, 0] // (3 * span)) * across + c3[:, 1] // (3 * span)
+    parts = []
+    for r in np.unique(root):  # a root or two
+        sel = np.flatnonzero(root == r)
+        origin = np.array([r // across, r % across]) * span
+        parts.append(sel[seed_order(faces[sel], ij - origin, grid.n)])
+    return np.concatenate(parts) if parts else np.zeros(0, np.int64)
+
+
+def strip_mesh(mesh, src, grid):
+    """``mesh`` (triangles in the order of the selection ``src``'s) drawn as seed 002's
+    triangle strips (:mod:`geoterrain.lod.strips`): the faces in the order the seed's
+    refinement meets them, then stripped; points, point data and the texture kept (a
+    triangle's cell data is not: a strip is one cell)."""
     import pyvista as pv
 
-    faces = np.asarray(mesh.faces).reshape(-1, 4)[:, 1:] if mesh.n_cells else \
-        np.zeros((0, 3), np.int64)
-    if n is not None and len(faces) and "grid_ij" in mesh.point_data:
-        faces = faces[seed_order(faces, np.asarray(mesh.point_data["grid_ij"]), n)]
-    cells, st = triangle_strips(faces)
-    out = pv.PolyData(mesh.points, strips=cells) if len(cells) else pv.PolyData(mesh.points)
-    for name in mesh.point_data:
-        out.point_data[name] = mesh.point_data[name]
-    if mesh.point_data.active_scalars_name:
-        out.point_data.active_scalars_name = mesh.point_data.active_scalars_name
+    faces = np.asarray(mesh.regular_faces)
+    order = root_seed_order(np.asarray(src.regular_faces), np.asarray(src.point_data["grid_ij"]),
+                         grid)
+    cells, st = triangle_strips(faces[order])
+    out = pv.PolyData()
+    out.SetPoints(mesh.GetPoints())
+    out.strips = cells
+    tc = mesh.active_texture_coordinates
+    if tc is not None:
+        out.active_texture_coordinates = tc
     for k, v in st.items():
         out.field_data[f"strip_{k}"] = np.array([v])
     return out

@@ -33,8 +33,9 @@ from geoterrain.rendering.cameras import interpolate_views, load_cameras, orbit_
 from geoterrain.rendering.colours import Palette
 from geoterrain.rendering.drape import Drape
 from geoterrain.rendering.overlays import compose, layout_for
-from geoterrain.rendering.scene import TerrainScene, _offscreen, _writable_target, _write_png
+from geoterrain.rendering.scene import TerrainScene
 from geoterrain.rendering.shading import Light
+from geoterrain.rendering.window import offscreen_plotter, writable_target, write_png
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -70,7 +71,7 @@ def check_animation_output(out: str | Path, fps: float, overwrite: bool = True) 
         raise UsageError(f"fps must be a number in (0, 1000], got {fps}",
                          cli=f"--fps must be a number in (0, 1000], got {fps}")
     folder = ext not in ANIMATION_SUFFIXES  # a folder of PNG frames
-    _writable_target(out, overwrite, folder=folder)
+    writable_target(out, overwrite, folder=folder)
     if folder and os.path.lexists(out) and not overwrite:
         raise exists_error(out)
 
@@ -108,7 +109,7 @@ def _animation_writer(out: str | Path, fps: float, overwrite: bool = True):
     counter = iter(range(MAX_FRAMES))
 
     def append(img):
-        _write_png(tmp / f"frame_{next(counter):05d}.png", img)
+        write_png(tmp / f"frame_{next(counter):05d}.png", img)
 
     return append, lambda: None, lambda: publish(tmp, out, overwrite), tmp
 
@@ -147,7 +148,7 @@ def animate(terrain: TerrainLike, views: Sequence[View], out: str | Path, *,
     all_stats = []
     ok = False
     try:
-        scene = TerrainScene(_offscreen(size, anti_aliasing), terrain, shading, cmap,
+        scene = TerrainScene(offscreen_plotter(size, anti_aliasing), terrain, shading, cmap,
                              light=light, drape=drape, occlusion=occlusion, morph=morph,
                              water=water)
         try:

@@ -24,7 +24,7 @@ import numpy as np
 from geoterrain.core.view import View
 from geoterrain.exceptions import UsageError
 from geoterrain.rendering.colours import Palette, as_palette, colorize
-from geoterrain.rendering.scene import _draw, _plotter, _write_png
+from geoterrain.rendering.window import draw, pyvista_plotter, write_png
 
 __all__ = ["render_globe_array", "render_globe", "compose_globe", "globe_mesh", "place_camera",
            "data_range", "SHADINGS"]
@@ -104,7 +104,7 @@ def render_globe_array(globe, view: View, *, pixel_error: float = 1.0,
     if stats is not None:
         stats.update(sel.stats)
     W, H = view.size
-    p = _plotter((W, H))
+    p = pyvista_plotter((W, H))
     try:
         p.set_background("white")
         if sel.triangles:
@@ -114,7 +114,7 @@ def render_globe_array(globe, view: View, *, pixel_error: float = 1.0,
             p.add_mesh(m, scalars="rgb", rgb=True, smooth_shading=shading != "elevation",
                        lighting=shading != "elevation")
         place_camera(p.camera, view, sel)
-        return _draw(p)
+        return draw(p)
     finally:
         p.close()
 
@@ -202,5 +202,5 @@ def render_globe(globe, view: View, path: str | Path, *, pixel_error: float = 1.
             limits = pal.clim or rng
     if title or limits is not None:
         img = compose_globe(img, title=title, palette=pal, limits=limits)
-    _write_png(path, img, overwrite)
+    write_png(path, img, overwrite)
     return Path(path)

@@ -214,10 +214,10 @@ class GlobeViewerController:
 
     def screenshot(self, path=None) -> str:
         """Save the window's picture (``globe-<time>.png`` in the working folder)."""
-        from geoterrain.rendering.scene import _draw, _write_png
+        from geoterrain.rendering.window import draw, write_png
 
         path = path or f"globe-{time.strftime('%Y%m%d-%H%M%S')}.png"
-        _write_png(path, _draw(self.plotter), True)
+        write_png(path, draw(self.plotter), True)
         return str(path)
 
     def bind(self) -> None:

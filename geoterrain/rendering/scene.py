@@ -38,8 +38,6 @@ Examples
 from __future__ import annotations
 
 import json
-import os
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -48,15 +46,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from geoterrain import lod
-from geoterrain.core.atomicfiles import partial_path, publish, remove_stale_partials, write_atomic
+from geoterrain.core.atomicfiles import write_atomic
 from geoterrain.core.memory import peak_rss as _peak_rss
-from geoterrain.core.paths import check_output
 from geoterrain.core.view import View
 from geoterrain.exaggerate import exaggerated
-from geoterrain.exceptions import UsageError, WriteError
+from geoterrain.exceptions import UsageError
 from geoterrain.lod.mesh import polydata
 from geoterrain.lod.registry import DEFAULT, strategy_info
-from geoterrain.rendering.antialias import ANTI_ALIASING, depth_buffer, fxaa
+from geoterrain.rendering.antialias import depth_buffer
 from geoterrain.rendering.cameras import (  # noqa: F401 - the camera helpers are part of this API
     default_view,
     interpolate_views,
@@ -74,6 +71,7 @@ from geoterrain.rendering.shading import Light
 from geoterrain.rendering.textures import SHADINGS, texture_image, texture_level
 from geoterrain.rendering.tileshader import TileShader
 from geoterrain.rendering.tiletextures import build_view_texture
+from geoterrain.rendering.window import draw, offscreen_plotter, writable_target, write_png
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -83,19 +81,6 @@ PLAIN_COLOR = (0.80, 0.78, 0.72)
 # how far (pixels in the picture, at most) a perspective view's water surface may move when
 # it is lifted over the terrain's coarse mesh (see TerrainScene.set_camera)
 WATER_LIFT_PX = 0.5
-
-
-def _prefer_egl() -> None:
-    """Use the EGL (headless) OpenGL window when there is no display, before VTK makes one.
-
-    Also tells PyVista that plotting is allowed: its X-server probe (``xset -q``, then a
-    throw-away render window, about 0.1 s of a cold render) only decides whether to warn
-    that no display exists, and an offscreen EGL window needs none.
-    """
-    if sys.platform.startswith("linux") and not os.environ.get("DISPLAY") \
-            and not os.environ.get("WAYLAND_DISPLAY"):
-        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-        os.environ.setdefault("ALLOW_PLOTTING", "true")
 
 
 # -------------------------------------------------------------------------- scene
@@ -274,7 +259,9 @@ class TerrainScene:
         else:
             self.texture_stats = {"textures_built": 0, "texture_tiles": 0}
         if self.strips and mesh.n_cells and src.n_cells and "grid_ij" in src.point_data:
-            mesh = _as_strips(mesh, src, self.terrain.grid)
+            from geoterrain.lod.strips import strip_mesh
+
+            mesh = strip_mesh(mesh, src, self.terrain.grid)
         self.selection = selection
         if self.actor is None and self._raw:
             from geoterrain.rendering.offscreen import terrain_actor
@@ -407,7 +394,7 @@ class TerrainScene:
         self.set_camera(view)
         t2, p2 = time.perf_counter(), time.process_time()
         edges, aa = self._anti_aliasing()
-        img = _draw(self.plotter)
+        img = draw(self.plotter)
         if edges is not None:
             img = edge_antialias(img, depth_buffer(self.plotter), edges)
         t3, p3 = time.perf_counter(), time.process_time()
@@ -525,170 +512,7 @@ def peak_rss() -> int:
     return _peak_rss()
 
 
-def _draw(plotter) -> np.ndarray:
-    """Render the plotter's scene and read the picture back (H, W, 3) uint8, without
-    VTK's end-of-frame pass.
-
-    A plain ``Render()`` ends with ``Frame()``: the multisampled picture resolved by a
-    gamma-correcting full-screen shader into the display framebuffer, then blitted
-    again. On a software renderer (llvmpipe) a 1280×720 MSAA render costs about 65 ms
-    whatever it draws (a small sphere as much as a 49 k-triangle view of the 4097²
-    flight of ``benchmarks/bench_render.py``). Here the buffers are not swapped, so
-    ``Frame()`` does not run, and the colours are read from the render framebuffer,
-    resolved by the driver's plain average of the samples: that view's render and
-    read-back took 52.4 ms instead of 66.7. Only anti-aliased edge pixels differ
-    (58.9 dB against the swapped picture, 1.8 % of the pixels). The front buffer is not
-    written (black, or an older swapped picture): read pictures with this function (or
-    :meth:`TerrainScene.frame`), not ``plotter.screenshot``. The depth buffer is the
-    render framebuffer's, as with swapping. With the plotter's ``fxaa`` anti-aliasing
-    the picture is then filtered on the CPU along its depth edges.
-    """
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-    from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
-
-    plotter._on_first_render_request()  # pyvista's own first-render setup, once
-    rw = plotter.render_window
-    swap = rw.GetSwapBuffers()
-    rw.SwapBuffersOff()
-    try:
-        plotter.render()
-        w, h = rw.GetSize()
-        arr = vtkUnsignedCharArray()
-        rw.GetPixelData(0, 0, w - 1, h - 1, 0, arr, 0)  # the back (render) buffer
-    finally:
-        rw.SetSwapBuffers(swap)
-    img = np.ascontiguousarray(vtk_to_numpy(arr).reshape(h, w, 3)[::-1])
-    if getattr(plotter, "_geoterrain_aa", "msaa") == "fxaa":
-        img = fxaa(img, depth_buffer(plotter))
-    return img
-
-
-def _strip_order(faces: np.ndarray, ij: np.ndarray, grid) -> np.ndarray:
-    """The seed's refinement order of ``faces`` (:func:`geoterrain.lod.strips.seed_order`):
-    on a root grid, root after root (row by row), each root the seed's square (its own
-    bintree, rtin's triangles never crossing a root's edge)."""
-    from geoterrain.lod.strips import seed_order
-
-    if grid.square:
-        return seed_order(faces, ij, grid.n)
-    span = 1 << grid.n
-    ij = np.asarray(ij, np.int64)
-    c3 = ij[faces].sum(axis=1)  # 3 × each face's centroid: inside one root
-    across = grid.roots[0]
-    root = (c3[:, 0] // (3 * span)) * across + c3[:, 1] // (3 * span)
-    parts = []
-    for r in np.unique(root):  # a root or two
-        sel = np.flatnonzero(root == r)
-        origin = np.array([r // across, r % across]) * span
-        parts.append(sel[seed_order(faces[sel], ij - origin, grid.n)])
-    return np.concatenate(parts) if parts else np.zeros(0, np.int64)
-
-
-def _as_strips(mesh, src, grid):
-    """``mesh`` (triangles in the order of the selection ``src``'s) drawn as seed 002's
-    triangle strips (:mod:`geoterrain.lod.strips`): the faces in the order the seed's
-    refinement meets them, then stripped; points, point data and the texture kept (a
-    triangle's cell data is not: a strip is one cell)."""
-    import pyvista as pv
-
-    from geoterrain.lod.strips import triangle_strips
-
-    faces = np.asarray(mesh.regular_faces)
-    order = _strip_order(np.asarray(src.regular_faces), np.asarray(src.point_data["grid_ij"]),
-                         grid)
-    cells, st = triangle_strips(faces[order])
-    out = pv.PolyData()
-    out.SetPoints(mesh.GetPoints())
-    out.strips = cells
-    tc = mesh.active_texture_coordinates
-    if tc is not None:
-        out.active_texture_coordinates = tc
-    for k, v in st.items():
-        out.field_data[f"strip_{k}"] = np.array([v])
-    return out
-
-
-def _plotter(size: tuple[int, int], anti_aliasing: bool | str = "auto"):
-    """An offscreen plotter (EGL when there is no display).
-
-    ``anti_aliasing``: ``"auto"`` (the default: each frame of
-    :meth:`TerrainScene.frame` takes ``"edges"`` where its silhouettes are sparse,
-    else ``"msaa"``), ``"msaa"`` (or True; the renderer's multisampling), ``"edges"``
-    (drawn without it; :meth:`TerrainScene.frame` blends the mesh's silhouette edges by
-    their coverage, :mod:`geoterrain.rendering.edgeaa`), ``"fxaa"``
-    (a CPU pass over each read-back picture along its depth edges,
-    :mod:`geoterrain.rendering.antialias`: 3–5 ms where a software renderer's MSAA costs 30–60 ms
-    at 1280×720), ``"none"`` (or False).
-    """
-    mode = _aa_mode(anti_aliasing)
-    _prefer_egl()
-    import pyvista as pv
-
-    p = pv.Plotter(off_screen=True, window_size=list(size))
-    p._geoterrain_samples = int(p.render_window.GetMultiSamples())  # what "msaa" draws with
-    if mode not in ("msaa", "auto"):
-        p.disable_anti_aliasing()
-    p._geoterrain_aa = mode
-    return p
-
-
-def _offscreen(size: tuple[int, int], anti_aliasing: bool | str = "auto"):
-    """:func:`_plotter`'s window on VTK alone (:class:`~geoterrain.rendering.offscreen.
-    OffscreenPlotter`): the same pictures, without importing PyVista's plotting modules.
-    What :func:`render`, :func:`render_array`, orbits and fly-throughs draw with."""
-    mode = _aa_mode(anti_aliasing)
-    _prefer_egl()
-    from geoterrain.rendering.offscreen import OffscreenPlotter
-
-    p = OffscreenPlotter(size)
-    p._geoterrain_samples = int(p.render_window.GetMultiSamples())
-    if mode not in ("msaa", "auto"):
-        p.disable_anti_aliasing()
-    p._geoterrain_aa = mode
-    return p
-
-
-def _aa_mode(anti_aliasing: bool | str) -> str:
-    mode = {True: "msaa", False: "none"}.get(anti_aliasing, anti_aliasing)
-    if mode not in ANTI_ALIASING:
-        raise UsageError(f"unknown anti-aliasing {anti_aliasing!r}; use "
-                         f"{', '.join(ANTI_ALIASING)}")
-    return mode
-
-
 # ---------------------------------------------------------------------- top level
-def _writable_target(path: Path, overwrite: bool, folder: bool = False,
-                     option: str = "-o") -> None:
-    """:func:`geoterrain.core.paths.check_output`: a missing parent folder, anything but a
-    regular file (a folder of frames with ``folder``), or an existing one without
-    ``overwrite`` is refused."""
-    check_output(path, overwrite, folder=folder, option=option)
-
-
-def _write_png(path: str | Path, img: np.ndarray, overwrite: bool = True) -> None:
-    """Write a PNG to a hidden partial file, then publish it (never a half-written PNG)."""
-    from PIL import Image
-
-    path = Path(path)
-    _writable_target(path, overwrite)
-    remove_stale_partials(path.parent)
-    tmp = partial_path(path)
-    try:
-        # zlib level 3: 2.5x faster than Pillow's default 6 on rendered terrain, and
-        # no larger (62 against 152 ms, 886 against 899 kB at 1280x720). Pillow itself,
-        # the format named: imageio's writer (the same bytes) first loads every one of
-        # Pillow's image plugins to look the extension up, about 0.1 s of a cold render
-        Image.fromarray(np.ascontiguousarray(img, np.uint8)).save(tmp, format="PNG",
-                                                                  compress_level=3)
-        publish(tmp, path, overwrite)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise WriteError(f"cannot write {path}: {exc.strerror or exc}") from None
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def overview(terrain: TerrainLike, size: tuple[int, int] = (1280, 720), azimuth: float = 190.0,
              elevation: float = 40.0, distance: float | None = None, fov_y_deg: float = 30.0,
              *, shading: str = "normals", cmap: str | Palette = "auto",
@@ -733,7 +557,7 @@ def render_array(terrain: TerrainLike, view: View, *, pixel_error: float = 1.0,
     strategy_info(strategy)
     own = scene is None
     if own:
-        scene = TerrainScene(_offscreen(view.size, anti_aliasing), terrain, shading, cmap,
+        scene = TerrainScene(offscreen_plotter(view.size, anti_aliasing), terrain, shading, cmap,
                              vertical_exaggeration=vertical_exaggeration, light=light,
                              drape=drape, occlusion=occlusion, morph=morph, strips=strips,
                              water=water)
@@ -791,7 +615,7 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
         (:func:`geoterrain.lod.select`).
     anti_aliasing : ``"auto"`` (edges where the picture's silhouettes are sparse, else
         MSAA; MSAA with a water surface), ``"msaa"``, ``"edges"``, ``"fxaa"`` or
-        ``"none"`` (:func:`_plotter`).
+        ``"none"`` (:func:`pyvista_plotter`).
     strips : draw the mesh as seed 002's triangle strips (:mod:`geoterrain.lod.strips`)
         instead of triangle lists: the same picture; on VTK's software renderer no faster
         to draw (docs/benchmarks.md, "Editing a store, and triangle strips"), hence off by
@@ -815,9 +639,9 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
     >>> stats["triangles"] > 0  # doctest: +SKIP
     True
     """
-    _writable_target(Path(path), overwrite)
+    writable_target(Path(path), overwrite)
     if stats_path is not None:
-        _writable_target(Path(stats_path), overwrite, option="--stats")
+        writable_target(Path(stats_path), overwrite, option="--stats")
     terrain = exaggerated(terrain, vertical_exaggeration)
     if view is None:
         view = overview(terrain, shading=shading, cmap=cmap, title=title, colorbar=colorbar,
@@ -833,7 +657,7 @@ def render(terrain: TerrainLike, view: View | None, path: str | Path, *, pixel_e
                               water=water)
     img = compose(img, view, terrain, shading=shading, cmap=cmap, title=title,
                   colorbar=colorbar, scale_bar=scale_bar, north_arrow=north_arrow)
-    _write_png(path, img, overwrite)
+    write_png(path, img, overwrite)
     stats.update(size=[int(view.size[0]), int(view.size[1])], path=str(path),
                  shading=shading, look_from=list(view.look_from), look_at=list(view.look_at))
     if stats_path is not None:

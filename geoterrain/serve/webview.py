@@ -50,11 +50,11 @@ def web_view(terrain: TerrainLike, *, port: int = 8080, bind: str = "127.0.0.1",
     from vtkmodules.vtkRenderingUI import vtkGenericRenderWindowInteractor
 
     from geoterrain.lod.registry import DEFAULT
-    from geoterrain.rendering.scene import _plotter  # offscreen, EGL without a display
     from geoterrain.rendering.viewer import ViewerController
+    from geoterrain.rendering.window import pyvista_plotter  # offscreen, EGL without a display
 
     strategy = strategy or DEFAULT
-    p = _plotter(tuple(size), "none")
+    p = pyvista_plotter(tuple(size), "none")
     ctl = ViewerController(p, terrain, strategy, pixel_error, shading, cmap,
                            throttle_ms=throttle_ms, background=False, light=light,
                            drape=drape, occlusion=occlusion, morph=morph, keys=False)

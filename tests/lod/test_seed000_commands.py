@@ -73,10 +73,10 @@ def test_mesh_render_and_bench(store, strategy, tmp_path):
 @pytest.mark.parametrize("strategy", NEW)
 def test_the_viewer_draws_it_and_follows_a_move(store, strategy):
     from geoterrain.rendering import viewer
-    from geoterrain.rendering.scene import _plotter
+    from geoterrain.rendering.window import pyvista_plotter
 
     with geoterrain.open(store) as t:
-        p = _plotter((320, 240))
+        p = pyvista_plotter((320, 240))
         c = viewer.ViewerController(p, t, strategy, 4.0, background=True)
         try:
             c.bind()

@@ -177,12 +177,13 @@ def test_sparse_counts_distinct_edges_on_screen():
 def test_auto_takes_msaa_where_silhouettes_crowd(tmp_path_factory, monkeypatch):
     """``auto`` draws with MSAA when the edges are dense, blends them when they are
     sparse, and each picture is the fixed mode's, pixel for pixel, in either order."""
-    from geoterrain.rendering.scene import TerrainScene, _plotter, default_view
+    from geoterrain.rendering.scene import TerrainScene, default_view
+    from geoterrain.rendering.window import pyvista_plotter
     from tests.rendering.test_render import synth_store
 
     t = synth_store(tmp_path_factory, "draw", size=129)
     size = (240, 160)
-    scenes = {m: TerrainScene(_plotter(size, m), t) for m in ("auto", "msaa", "edges")}
+    scenes = {m: TerrainScene(pyvista_plotter(size, m), t) for m in ("auto", "msaa", "edges")}
     try:
         v = default_view(t, size, 30.0)
         ref = {m: scenes[m].frame(v, 1.0)[0] for m in ("msaa", "edges")}
@@ -204,14 +205,15 @@ def test_auto_is_as_close_to_a_supersampled_picture_as_msaa(tmp_path_factory):
     is within 1 dB of 4× MSAA or closer: it takes the geometric pass where that holds
     (a gentle fBm) and MSAA where silhouettes crowd (a rough one, where the pass alone
     is 1-2 dB further)."""
-    from geoterrain.rendering.scene import TerrainScene, _draw, _plotter, default_view
+    from geoterrain.rendering.scene import TerrainScene, default_view
+    from geoterrain.rendering.window import draw, pyvista_plotter
     from tests.rendering.test_render import psnr, synth_store
 
     size, S = (320, 200), 4
     out = []
     for t in (synth_store(tmp_path_factory, "fbm"),
               synth_store(tmp_path_factory, "gentle", relief=200.0)):
-        scenes = {m: TerrainScene(_plotter(size, m), t) for m in ("msaa", "auto", "none")}
+        scenes = {m: TerrainScene(pyvista_plotter(size, m), t) for m in ("msaa", "auto", "none")}
         try:
             for az, el in ((200.0, 30.0), (60.0, 15.0)):
                 v = default_view(t, size, az, el)
@@ -221,7 +223,7 @@ def test_auto_is_as_close_to_a_supersampled_picture_as_msaa(tmp_path_factory):
                     taken = st_["anti_aliasing"] if m == "auto" else taken
                 big = scenes["none"].plotter
                 big.window_size = [size[0] * S, size[1] * S]
-                hi = _draw(big).astype(float)
+                hi = draw(big).astype(float)
                 big.window_size = list(size)
                 truth = np.rint(hi.reshape(size[1], S, size[0], S, 3).mean((1, 3)))
                 out.append({m: psnr(truth.astype(np.uint8), p) for m, p in pics.items()}
@@ -240,12 +242,13 @@ def test_auto_is_as_close_to_a_supersampled_picture_as_msaa(tmp_path_factory):
 def test_a_mesh_too_large_for_the_edge_table_is_drawn_with_msaa(tmp_path_factory,
                                                                    monkeypatch):
     from geoterrain.rendering import scene as rendering
-    from geoterrain.rendering.scene import TerrainScene, _plotter, default_view
+    from geoterrain.rendering.scene import TerrainScene, default_view
+    from geoterrain.rendering.window import pyvista_plotter
     from tests.rendering.test_render import synth_store
 
     t = synth_store(tmp_path_factory, "draw", size=129)
     monkeypatch.setattr(rendering, "SPARSE_MAX_FACES", 10)
-    scene = TerrainScene(_plotter((160, 120), "auto"), t)
+    scene = TerrainScene(pyvista_plotter((160, 120), "auto"), t)
     try:
         _, stats = scene.frame(default_view(t, (160, 120)), 1.0)
     finally:

@@ -15,9 +15,10 @@ from geoterrain.rendering.antialias import depth_buffer
 from geoterrain.rendering.cameras import orbit_views
 from geoterrain.rendering.colours import LAND, WATER, Palette, colorbar_map, water_swatch
 from geoterrain.rendering.overlays import _ticks, compose, layout_for
-from geoterrain.rendering.scene import TerrainScene, _plotter, overview
+from geoterrain.rendering.scene import TerrainScene, overview
 from geoterrain.rendering.shading import AMBIENT
 from geoterrain.rendering.textures import elevation_range
+from geoterrain.rendering.window import pyvista_plotter
 from tests.rendering.test_pictures import topobathy
 from tests.rendering.test_render import real_store, synth_store
 
@@ -68,7 +69,7 @@ def test_orbit_terrain_covers_half_of_every_frame(tmp_path_factory, which):
     t = (synth_store(tmp_path_factory, "fbm") if which == "synthetic"
          else real_store(tmp_path_factory, "srtm1_japan.tif"))
     lay = layout_for(t, SMALL)
-    scene = TerrainScene(_plotter(SMALL, "none"), t)
+    scene = TerrainScene(pyvista_plotter(SMALL, "none"), t)
     try:
         got = []
         for v in orbit_views(t, 8, SMALL, fit_rect=lay.free):
@@ -121,7 +122,7 @@ def test_default_pictures_have_no_dark_hairlines(tmp_path_factory, which, aa):
     else:
         t = real_store(tmp_path_factory, "srtm1_japan.tif")
     v = overview(t, (1280, 720))
-    scene = TerrainScene(_plotter(v.size, aa), t)
+    scene = TerrainScene(pyvista_plotter(v.size, aa), t)
     try:
         img, _ = scene.frame(v)
         terrain = depth_buffer(scene.plotter) < 1.0

@@ -17,7 +17,8 @@ from geoterrain.rendering.cameras import project
 from geoterrain.rendering.mapgrid import grid_lines, map_rect
 from geoterrain.rendering.mapview import map_layout, map_view
 from geoterrain.rendering.overlays import north_direction
-from geoterrain.rendering.scene import TerrainScene, _plotter, render
+from geoterrain.rendering.scene import TerrainScene, render
+from geoterrain.rendering.window import pyvista_plotter
 from tests.conftest import write_tif
 
 SIZE = (640, 360)
@@ -62,7 +63,7 @@ def test_map_is_orthographic_north_up_and_framed(tmp_path_factory, kind):
     # the data's rectangle fills the map's room along one side and fits in it
     assert mx0 >= x0 - 0.5 and my0 >= y0 - 0.5 and mx1 <= x1 + 0.5 and my1 <= y1 + 0.5
     assert max((mx1 - mx0) / (x1 - x0), (my1 - my0) / (y1 - y0)) > 0.999
-    scene = TerrainScene(_plotter(SIZE, "msaa"), t)
+    scene = TerrainScene(pyvista_plotter(SIZE, "msaa"), t)
     try:
         scene.frame(v)
         lo, hi = t.scene_box()
@@ -121,7 +122,7 @@ def test_graticule_of_a_geographic_dem(tmp_path_factory):
     assert all(re.fullmatch(r"\d+°\d\d′E", ln.label) for ln in mer)
     assert all(re.fullmatch(r"\d+°\d\d′N", ln.label) for ln in par)
     _, _, _, y1 = map_rect(t, v)
-    scene = TerrainScene(_plotter(SIZE, "none"), t)
+    scene = TerrainScene(pyvista_plotter(SIZE, "none"), t)
     try:
         scene.frame(v)
         ren = scene.plotter.renderer

@@ -23,8 +23,9 @@ from geoterrain.core.view import View
 from geoterrain.ingest.synth import generate, write_geotiff
 from geoterrain.rendering.colours import Palette
 from geoterrain.rendering.mapview import map_view
-from geoterrain.rendering.scene import TerrainScene, _offscreen, _plotter, _write_png, overview
+from geoterrain.rendering.scene import TerrainScene, overview
 from geoterrain.rendering.shading import Light
+from geoterrain.rendering.window import offscreen_plotter, pyvista_plotter, write_png
 from tests.conftest import write_tif
 
 SIZE = (160, 120)
@@ -54,8 +55,8 @@ def _views(t):
 
 def _same_pictures(t, **kw):
     aa = kw.pop("anti_aliasing", "auto")
-    a = TerrainScene(_plotter(SIZE, aa), t, **kw)
-    b = TerrainScene(_offscreen(SIZE, aa), t, **kw)
+    a = TerrainScene(pyvista_plotter(SIZE, aa), t, **kw)
+    b = TerrainScene(offscreen_plotter(SIZE, aa), t, **kw)
     try:
         assert (a.water_actor is None) == (b.water_actor is None)
         for k, v in enumerate(_views(t)):
@@ -99,7 +100,7 @@ def test_png_bytes_are_imageios(tmp_path):
     img = rng.integers(0, 256, (37, 53, 3), dtype=np.uint8)
     img[:10] = 200  # runs as well as noise
     out = tmp_path / "a.png"
-    _write_png(out, img)
+    write_png(out, img)
     ref = io.BytesIO()
     iio.imwrite(ref, img, extension=".png", compress_level=3)
     assert out.read_bytes() == ref.getvalue()

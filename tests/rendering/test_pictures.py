@@ -18,8 +18,9 @@ from geoterrain.ingest.synth import generate, write_geotiff
 from geoterrain.rendering.cameras import default_view, interpolate_views, orbit_views
 from geoterrain.rendering.colours import Palette, colorize
 from geoterrain.rendering.overlays import compose, layout_for, north_direction, over
-from geoterrain.rendering.scene import TerrainScene, _plotter, overview
+from geoterrain.rendering.scene import TerrainScene, overview
 from geoterrain.rendering.textures import texture_image
+from geoterrain.rendering.window import pyvista_plotter
 from tests.rendering.test_render import _cli, real_store, synth_store
 
 _STORES: dict = {}
@@ -41,7 +42,7 @@ def topobathy(tmp_path_factory):
 
 def _render(t, view, palette="auto", shading="normals", strategy="rtin", selection=None):
     """(image, terrain mask from the depth buffer)."""
-    scene = TerrainScene(_plotter(view.size), t, shading, palette)
+    scene = TerrainScene(pyvista_plotter(view.size), t, shading, palette)
     try:
         if selection is None:
             img, _ = scene.frame(view, 1.0, strategy)

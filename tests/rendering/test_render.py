@@ -12,13 +12,8 @@ import pytest
 import geoterrain
 from geoterrain.core.view import View
 from geoterrain.ingest.synth import generate, write_geotiff
-from geoterrain.rendering.scene import (
-    TerrainScene,
-    _plotter,
-    default_view,
-    render,
-    render_array,
-)
+from geoterrain.rendering.scene import TerrainScene, default_view, render, render_array
+from geoterrain.rendering.window import pyvista_plotter
 from tests.conftest import REAL_DEMS, real_dem
 
 _STORES: dict = {}
@@ -104,8 +99,8 @@ def test_lod_fidelity_vs_bruteforce(tmp_path_factory):
     """
     t = _fidelity_terrain(tmp_path_factory)
     size = (960, 540)
-    scene = TerrainScene(_plotter(size), t, "normals", "gist_earth")
-    default = TerrainScene(_plotter(size), t, "normals")
+    scene = TerrainScene(pyvista_plotter(size), t, "normals", "gist_earth")
+    default = TerrainScene(pyvista_plotter(size), t, "normals")
     results = []
     try:
         for az, el in ((200, 35), (90, 20), (330, 55)):
@@ -135,7 +130,8 @@ def test_fxaa_pictures_stay_with_msaa_and_bruteforce(tmp_path_factory):
     render of the same selection it is closer than no anti-aliasing is."""
     t = _fidelity_terrain(tmp_path_factory)
     size = (960, 540)
-    scenes = {m: TerrainScene(_plotter(size, m), t, "normals") for m in ("msaa", "fxaa", "none")}
+    scenes = {m: TerrainScene(pyvista_plotter(size, m), t, "normals")
+              for m in ("msaa", "fxaa", "none")}
     try:
         for az, el in ((200, 35), (90, 20)):
             v = default_view(t, size, az, el)
@@ -155,14 +151,14 @@ def test_fxaa_pictures_stay_with_msaa_and_bruteforce(tmp_path_factory):
 def test_anti_aliasing_argument_and_errors():
     from geoterrain.exceptions import UsageError
 
-    p = _plotter((32, 24), "fxaa")
+    p = pyvista_plotter((32, 24), "fxaa")
     assert p._geoterrain_aa == "fxaa" and p.render_window.GetMultiSamples() == 0
     p.close()
-    p = _plotter((32, 24))
+    p = pyvista_plotter((32, 24))
     assert p._geoterrain_aa == "auto" and p.render_window.GetMultiSamples() > 0
     p.close()
     with pytest.raises(UsageError, match="unknown anti-aliasing"):
-        _plotter((32, 24), "ssaa")
+        pyvista_plotter((32, 24), "ssaa")
 
 
 @pytest.mark.fast
@@ -177,14 +173,14 @@ def test_the_anti_aliasing_option_reaches_the_picture(tmp_path_factory, tmp_path
     seen = []
     import geoterrain.rendering.scene as R
 
-    real = R._offscreen  # the window render draws with (VTK alone)
+    real = R.offscreen_plotter  # the window render draws with (VTK alone)
 
     def spy(size, anti_aliasing="auto"):
         p = real(size, anti_aliasing)
         seen.append(p._geoterrain_aa)
         return p
 
-    R._offscreen = spy
+    R.offscreen_plotter = spy
     try:
         r = CliRunner().invoke(cli, ["-q", "render", str(t.path), "-o", str(tmp_path / "a.png"),
                                      "--size", "160x120", "--anti-aliasing", "fxaa"])
@@ -193,7 +189,7 @@ def test_the_anti_aliasing_option_reaches_the_picture(tmp_path_factory, tmp_path
                                      "--size", "160x120"])
         assert r.exit_code == 0, r.output
     finally:
-        R._offscreen = real
+        R.offscreen_plotter = real
     assert seen == ["fxaa", "auto"]
     r = CliRunner().invoke(cli, ["render", str(t.path), "-o", str(tmp_path / "c.png"),
                                  "--anti-aliasing", "ssaa"])
@@ -243,7 +239,7 @@ def test_lod_fidelity_with_sun_shadows_and_occlusion(tmp_path_factory):
     out = []
     drape = _drape_over(t, tmp_path_factory.mktemp("drape") / "d.tif")
     for sun, dr in (((315, 45), None), ((200, 35), drape)):
-        scene = TerrainScene(_plotter(size), t, "normals", drape=dr,
+        scene = TerrainScene(pyvista_plotter(size), t, "normals", drape=dr,
                              light=Light(*sun, shadows=True, ambient_occlusion=True))
         try:
             for az, el in ((200, 35), (90, 20)):
@@ -286,7 +282,7 @@ def test_controller_offscreen(tmp_path_factory):
     from geoterrain.rendering.viewer import ViewerController
 
     t = synth_store(tmp_path_factory, "fbm")
-    p = _plotter((320, 240))
+    p = pyvista_plotter((320, 240))
     try:
         c = ViewerController(p, t, throttle_ms=0.0)
         c.bind()  # the camera observer drives the selection
@@ -335,7 +331,7 @@ def test_controller_background_selection(tmp_path_factory):
     from geoterrain.rendering.viewer import ViewerController
 
     t = synth_store(tmp_path_factory, "fbm")
-    p = _plotter((320, 240))
+    p = pyvista_plotter((320, 240))
     c = ViewerController(p, t, background=True)
     try:
         c.bind()
@@ -379,7 +375,7 @@ def test_a_frame_in_flight_is_polled_every_busy_period(tmp_path_factory, monkeyp
 
     monkeypatch.setattr(viewer, "TEXTURE_BUILDS", 2)  # several texture passes per move
     t = synth_store(tmp_path_factory, "fbm")
-    p = _plotter((320, 240))
+    p = pyvista_plotter((320, 240))
     c = viewer.ViewerController(p, t, background=True)
     log = _TimerLog()
     try:
@@ -419,7 +415,7 @@ def test_timer_events_do_not_steer_the_camera():
 
     moved = {}
     for mute in (False, True):
-        p = _plotter((200, 150))
+        p = pyvista_plotter((200, 150))
         try:
             p.add_mesh(pv.Sphere())
             p.render()
@@ -471,7 +467,7 @@ def test_viewer_shows_a_move_within_its_texture_budget_then_refines(tmp_path_fac
 
     monkeypatch.setattr(viewer, "TEXTURE_BUILDS", 2)
     t = synth_store(tmp_path_factory, "vtex1025", size=1025)  # a new handle: empty cache
-    p = _plotter((320, 240))
+    p = pyvista_plotter((320, 240))
     c = viewer.ViewerController(p, t, background=True)
     try:
         c.bind()
@@ -511,7 +507,7 @@ def test_viewer_interactor_keeps_the_horizon_level(tmp_path_factory):
     from geoterrain.rendering.viewer_style import terrain_style
 
     t = synth_store(tmp_path_factory, "fbm")
-    p = _plotter((320, 240))
+    p = pyvista_plotter((320, 240))
     try:
         c = ViewerController(p, t, throttle_ms=0.0)
         c.bind()
@@ -545,7 +541,7 @@ def test_viewer_draws_moves_without_multisampling_and_the_rest_with_it(tmp_path_
     from geoterrain.rendering.viewer import REST_MS, ViewerController
 
     t = synth_store(tmp_path_factory, "fbm")
-    p = _plotter((320, 240))
+    p = pyvista_plotter((320, 240))
     c = ViewerController(p, t, background=True)
     try:
         p.show(auto_close=False)
@@ -580,7 +576,7 @@ def test_viewer_status_in_plain_words_level_legend_and_compass(tmp_path_factory)
     from geoterrain.rendering.viewer import ViewerController
 
     t = synth_store(tmp_path_factory, "fbm")
-    p = _plotter((320, 240))
+    p = pyvista_plotter((320, 240))
     try:
         c = ViewerController(p, t, throttle_ms=0.0)
         c.bind()
@@ -624,7 +620,7 @@ def test_viewer_status_box_screenshot_and_ui_time(tmp_path_factory, tmp_path):
     from geoterrain.rendering.viewer import ViewerController
 
     t = synth_store(tmp_path_factory, "fbm")
-    p = _plotter((320, 240))
+    p = pyvista_plotter((320, 240))
     c = ViewerController(p, t, background=True)
     try:
         c.bind()
@@ -703,7 +699,7 @@ def test_cli_orbit_mp4_decodes_with_every_frame(tmp_path_factory, tmp_path):
 def test_view_from_camera_round_trip(tmp_path_factory):
     t = synth_store(tmp_path_factory, "fbm")
     v = default_view(t, (320, 240))
-    p = _plotter(v.size)
+    p = pyvista_plotter(v.size)
     try:
         scene = TerrainScene(p, t, "plain")
         scene.set_camera(v)
@@ -751,7 +747,7 @@ def test_frame_reads_the_picture_just_drawn(tmp_path_factory, aa):
     resolve's gamma), and each frame's own, never the previous one's."""
     t = synth_store(tmp_path_factory, "draw", size=129)
     size = (240, 160)
-    scene = TerrainScene(_plotter(size, aa), t)
+    scene = TerrainScene(pyvista_plotter(size, aa), t)
     try:
         a, _ = scene.frame(default_view(t, size, 30.0), 1.0)
         b, _ = scene.frame(default_view(t, size, 150.0), 1.0)
@@ -781,7 +777,7 @@ def test_frame_reports_its_cpu_time(tmp_path_factory, monkeypatch):
 
     t = synth_store(tmp_path_factory, "draw", size=129)
     size = (240, 160)
-    scene = TerrainScene(_plotter(size), t)
+    scene = TerrainScene(pyvista_plotter(size), t)
     try:
         stats = [scene.frame(default_view(t, size, az), 1.0)[1] for az in (30.0, 150.0)]
         # its own clock: the process's, read at the frame's start, before and after the
@@ -829,7 +825,7 @@ def test_viewer_redraws_after_an_edit_of_its_store(tmp_path_factory, tmp_path):
     src = synth_store(tmp_path_factory, "fbm")
     path = shutil.copy(src.path, tmp_path / "live.geoterrain")
     t = geoterrain.open(path)
-    p = _plotter((320, 240))
+    p = pyvista_plotter((320, 240))
     try:
         c = ViewerController(p, t, throttle_ms=0.0, strategy="bruteforce")
         c.bind()

@@ -23,12 +23,8 @@ from tests.test_stress import REL, mesh_parts, z_roundoff
 
 pytest.importorskip("pyvista")
 
-from geoterrain.rendering.scene import (  # noqa: E402
-    TerrainScene,
-    _plotter,
-    default_view,
-    render_array,
-)
+from geoterrain.rendering.scene import TerrainScene, default_view, render_array  # noqa: E402
+from geoterrain.rendering.window import pyvista_plotter  # noqa: E402
 
 pytestmark = pytest.mark.fast
 MIN_PSNR = 35.0  # dB, square against roots (the same heights, the same triangles)
@@ -111,7 +107,7 @@ def test_styles_on_a_root_grid(pair):
         assert sa["terrain_fraction"] == sb["terrain_fraction"], kw
     imgs = []
     for t in (sq, rt):
-        scene = TerrainScene(_plotter(view.size), t, textures="global")
+        scene = TerrainScene(pyvista_plotter(view.size), t, textures="global")
         try:
             imgs.append(render_array(t, view, scene=scene)[0])
         finally:
@@ -144,7 +140,7 @@ def test_the_frames_screen_error_is_within_tau_on_a_root_grid(pair):
     Zt = np.where(valid, Z, 0.0)
     views = _views(rt)
     for morph in (False, True):
-        scene = TerrainScene(_plotter((320, 180)), rt, occlusion=False, morph=morph)
+        scene = TerrainScene(pyvista_plotter((320, 180)), rt, occlusion=False, morph=morph)
         try:
             for name in ("overview", "east root, close", "from above"):
                 for tau in (1.0, 4.0):
@@ -187,7 +183,7 @@ def test_viewer_controller_on_a_root_grid(pair):
     from geoterrain.rendering.viewer import ViewerController
 
     _, rt, _ = pair
-    p = _plotter((320, 180))
+    p = pyvista_plotter((320, 180))
     try:
         c = ViewerController(p, rt, throttle_ms=0.0)
         c.bind()
@@ -307,7 +303,7 @@ def test_the_frames_screen_error_on_a_geographic_root_grid(geo_pair):
     valid = np.isfinite(Z)
     Zt = np.where(valid, Z, 0.0)
     views = _views(rt)
-    scene = TerrainScene(_plotter((320, 180)), rt, occlusion=False)
+    scene = TerrainScene(pyvista_plotter((320, 180)), rt, occlusion=False)
     try:
         for name in ("overview", "east root, close", "from above"):
             view = views[name].clipped_to(*rt.scene_box())  # as the frame does

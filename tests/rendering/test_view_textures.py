@@ -22,9 +22,10 @@ from geoterrain.core.grid import Grid
 from geoterrain.core.view import View
 from geoterrain.rendering import tiletextures
 from geoterrain.rendering.atlaskernels import group_boxes, group_facing, number_pages
-from geoterrain.rendering.scene import TerrainScene, _plotter, default_view, render, render_array
+from geoterrain.rendering.scene import TerrainScene, default_view, render, render_array
 from geoterrain.rendering.tileshader import TileShader
 from geoterrain.rendering.tiletextures import build_view_texture, footprints
+from geoterrain.rendering.window import pyvista_plotter
 from tests.rendering.test_render import _fidelity_terrain, psnr, synth_store
 
 ZERO = ("tiles_decoded", "normals_decoded", "bounds_decoded", "textures_built", "bytes_read",
@@ -302,7 +303,7 @@ def test_grazing_footprints_get_coarser_texels(tmp_path_factory, monkeypatch):
 def test_a_picture_is_rendered_once(tmp_path_factory):
     t = _fresh(tmp_path_factory)
     size = (320, 200)
-    scene = TerrainScene(_plotter(size), t)
+    scene = TerrainScene(pyvista_plotter(size), t)
     count = []
     scene.plotter.render_window.AddObserver("StartEvent", lambda *_: count.append(1))
     try:
@@ -319,8 +320,8 @@ def test_view_textures_match_the_full_resolution_texture(tmp_path_factory):
     """rtin + per-view textures vs bruteforce + the whole-DEM level-0 texture ≥ 35 dB."""
     t = _fidelity_terrain(tmp_path_factory)
     size = (640, 360)
-    ref = TerrainScene(_plotter(size), t, textures="global")
-    new = TerrainScene(_plotter(size), t)
+    ref = TerrainScene(pyvista_plotter(size), t, textures="global")
+    new = TerrainScene(pyvista_plotter(size), t)
     out = []
     try:
         for az, el in ((200, 35), (90, 20)):
@@ -340,7 +341,7 @@ def test_view_textures_match_the_full_resolution_texture(tmp_path_factory):
 def test_unknown_texture_mode(tmp_path_factory):
     t = _fresh(tmp_path_factory)
     with pytest.raises(geoterrain.exceptions.UsageError):
-        TerrainScene(_plotter((64, 64)), t, textures="atlas")
+        TerrainScene(pyvista_plotter((64, 64)), t, textures="atlas")
 
 
 @pytest.mark.fast
@@ -432,7 +433,7 @@ def test_an_unchanged_atlas_is_kept_and_no_picture_changes(tmp_path_factory):
     size = (320, 200)
     a = default_view(t, size)
     b = default_view(t, size, azimuth=100.0, elevation=25.0)
-    scene = TerrainScene(_plotter(size), t)
+    scene = TerrainScene(pyvista_plotter(size), t)
     try:
         img_a, st_a = scene.frame(a)
         img_a2, st_a2 = scene.frame(a)  # the same view: the same atlas, kept
@@ -443,7 +444,7 @@ def test_an_unchanged_atlas_is_kept_and_no_picture_changes(tmp_path_factory):
     assert not st_a["atlas_reused"] and st_a2["atlas_reused"] and st_a2["textures_built"] == 0
     assert not st_b["atlas_reused"] and not st_a3["atlas_reused"]
     assert np.array_equal(img_a2, img_a) and np.array_equal(img_a3, img_a)
-    fresh = TerrainScene(_plotter(size), _fresh(tmp_path_factory))
+    fresh = TerrainScene(pyvista_plotter(size), _fresh(tmp_path_factory))
     try:
         assert np.array_equal(fresh.frame(b)[0], img_b)
     finally:

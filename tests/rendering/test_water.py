@@ -22,9 +22,10 @@ from geoterrain.exaggerate import exaggerated
 from geoterrain.ingest.synth import generate
 from geoterrain.rendering.antialias import depth_buffer
 from geoterrain.rendering.colours import Palette
-from geoterrain.rendering.scene import TerrainScene, _plotter, overview, render
+from geoterrain.rendering.scene import TerrainScene, overview, render
 from geoterrain.rendering.shading import Light
 from geoterrain.rendering.water import ALPHA_MAX, ALPHA_MIN, water_mesh
+from geoterrain.rendering.window import pyvista_plotter
 from tests.conftest import write_tif
 
 # heavy cases below are not in the fast tier; the light ones are marked one by one
@@ -109,7 +110,7 @@ def _coast_pairs(tmp_path_factory, size=(960, 540), azimuth=190.0, elevation=40.
     e = exaggerated(t, 3.0)
     v = overview(e, size, azimuth, elevation, colorbar=False, scale_bar=False,
                  north_arrow=False)
-    scene = TerrainScene(_plotter(size, "msaa"), e, water=water)
+    scene = TerrainScene(pyvista_plotter(size, "msaa"), e, water=water)
     try:
         img, _ = scene.frame(v)
         z = depth_buffer(scene.plotter)
@@ -284,7 +285,7 @@ def test_top_down_view_has_no_seam_between_water_and_land(tmp_path_factory):
     lo, hi = t.scene_box()
     c = 0.5 * (lo + hi)
     v = View(tuple(c + [0, 0, 200000.0]), tuple(c), (0, 1, 0), 30.0, (480, 270))
-    scene = TerrainScene(_plotter(v.size), t)
+    scene = TerrainScene(pyvista_plotter(v.size), t)
     try:
         scene.frame(v)
         terrain = depth_buffer(scene.plotter) < 1.0
@@ -312,7 +313,7 @@ def test_top_down_perspective_water_covers_a_sea_of_zeros(tmp_path_factory):
     v = View(tuple(c + [0, 0, 9000.0]), tuple(c), (0, 1, 0), 30.0, (320, 240))
     pics = {}
     for water in (False, True):
-        scene = TerrainScene(_plotter(v.size, "msaa"), t, water=water,
+        scene = TerrainScene(pyvista_plotter(v.size, "msaa"), t, water=water,
                              cmap=Palette("auto", water_level=0.0))
         try:
             pics[water] = scene.frame(v, 1.0)[0].astype(int)

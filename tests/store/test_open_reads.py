@@ -91,10 +91,11 @@ def test_bytes_read_is_what_the_process_read(stores):
 
 @needs_counters
 def test_a_frame_counts_the_opening_and_then_its_own_reads(stores, tmp_path):
-    from geoterrain.rendering.scene import TerrainScene, _plotter, default_view
+    from geoterrain.rendering.scene import TerrainScene, default_view
+    from geoterrain.rendering.window import pyvista_plotter
 
     t = geoterrain.open(stores[129])
-    p = _plotter((160, 100))
+    p = pyvista_plotter((160, 100))
     try:
         scene = TerrainScene(p, t)
         lo, hi = t.scene_box()
