@@ -77,7 +77,7 @@ from geoterrain.bounds.delta import vertex_errors
 from geoterrain.core.atomicfiles import write_atomic
 from geoterrain.core.paths import check_output
 from geoterrain.exceptions import UsageError, WriteError
-from geoterrain.export.qmeshdem import GeoDem, lattice_normals, pixel_degrees
+from geoterrain.export.qmeshdem import GeoDem, lattice_normals, lonlat_bounds, pixel_degrees
 from geoterrain.export.qmeshformat import (
     QMAX,
     cesium_level_error,
@@ -269,6 +269,7 @@ def _dem_samples(dem: GeoDem, rect) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     ii, jj = np.nonzero(dem.valid[i0:i1 + 1, j0:j1 + 1])
     ii, jj = ii + i0, jj + j0
     slon, slat = dem.lonlat(ii, jj)
+    slon = w + np.mod(slon - w, 360.0)  # the tile's turn (a grid past the antimeridian)
     inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)
     return slon[inside], slat[inside], dem.h[ii[inside], jj[inside]]
 
@@ -372,6 +373,7 @@ def _resampling_error(dem: GeoDem, rect, h: np.ndarray, valid: np.ndarray) -> fl
         ok = dem.valid[ii, jj]
         ii, jj = ii[ok], jj[ok]
         slon, slat = dem.lonlat(ii, jj)
+        slon = w + np.mod(slon - w, 360.0)  # the tile's turn
         inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)
         if not inside.any():
             continue
@@ -472,7 +474,9 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
     jobs = []
     for z in range(min_zoom, zmax + 1):
         size = 180.0 / (1 << z)
-        xs = range(int((w + 180) // size), min(int(math.ceil((e + 180) / size)), 2 << z))
+        # a grid past the antimeridian (170°…190°) wraps onto the western tiles
+        span = range(int((w + 180) // size), int(math.ceil((e + 180) / size)))
+        xs = list(dict.fromkeys(x % (2 << z) for x in span))[:2 << z]
         ys = range(int((s + 90) // size), min(int(math.ceil((n + 90) / size)), 1 << z))
         jobs += [(z, x, y) for y in ys for x in xs]
     if min_zoom == 0:  # Cesium starts from both level-0 tiles
@@ -528,7 +532,7 @@ def write_tileset(terrain: TerrainLike, out_dir: str | Path, *, max_zoom: int | 
     layer = {
         "tilejson": "2.1.0", "name": Path(str(terrain.path)).stem, "version": "1.0.0",
         "format": "quantized-mesh-1.0", "scheme": "tms", "projection": "EPSG:4326",
-        "tiles": ["{z}/{x}/{y}.terrain?v={version}"], "bounds": [w, s, e, n],
+        "tiles": ["{z}/{x}/{y}.terrain?v={version}"], "bounds": lonlat_bounds(w, s, e, n),
         "minzoom": min_zoom, "maxzoom": zmax,
         "available": [availability_ranges(available.get(z, [])) for z in range(zmax + 1)],
         "extensions": ["octvertexnormals", "watermask"],

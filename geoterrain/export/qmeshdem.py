@@ -108,6 +108,10 @@ class GeoDem:
         self.to_geo = Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
         self.pixel_deg = pixel_degrees(terrain)
         self.full = (self.H, self.W)
+        # a geographic grid's longitudes may run past ±180° (170°…190°, or 0°…360°): a
+        # tile's longitude is taken to the grid's own turn, [west, west + 360°), before
+        # it is looked up, so the tiles west of the antimeridian find the grid's east end
+        self.west = (self._west_edge(f) if crs.is_geographic else None)
         if not heights:
             self.h, self.valid = np.full((0, 0), np.nan), np.zeros((0, 0), bool)
             return
@@ -136,6 +140,18 @@ class GeoDem:
             _, _, hz = tr.transform(lon, lat, self.h[ii, jj])
             self.h[ii, jj] = np.asarray(hz, np.float64)
 
+    def _west_edge(self, f) -> float:
+        """The grid's west edge in EPSG:4326 degrees (its own convention, not wrapped)."""
+        a, _, c = f.transform[:3]
+        lon, _ = self.to_geo.transform([c, c + a * self.W], [f.transform[5]] * 2)
+        return float(min(lon))
+
+    def unwrap(self, lon: np.ndarray) -> np.ndarray:
+        """``lon`` (degrees) taken to the grid's turn, [west, west + 360°); as given on a
+        projected grid (its projection takes any longitude)."""
+        lon = np.asarray(lon, np.float64)
+        return lon if self.west is None else self.west + np.mod(lon - self.west, 360.0)
+
     def lonlat(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Lon/lat of (fractional) sample positions (pixel centres at integers)."""
         a, b, c, d, e, f = self.transform[:6]
@@ -145,8 +161,9 @@ class GeoDem:
         return np.asarray(lon), np.asarray(lat)
 
     def pixel(self, lon: np.ndarray, lat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Fractional sample row, column of lon/lat (north-up grids, frame.py's rule)."""
-        x, y = self.to_src.transform(lon, lat)
+        """Fractional sample row, column of lon/lat (north-up grids, frame.py's rule; any
+        longitude, :meth:`unwrap`)."""
+        x, y = self.to_src.transform(self.unwrap(lon), lat)
         a, _, c, _, e, f = self.transform[:6]
         return ((np.asarray(y) - f) / e - 0.5) - self.i0, ((np.asarray(x) - c) / a - 0.5) - self.j0
 
@@ -174,9 +191,28 @@ class GeoDem:
 
 
 
+def lonlat_bounds(w: float, s: float, e: float, n: float) -> list[float]:
+    """A layer's ``bounds`` [west, south, east, north] with longitudes in [-180°, 180°]: a
+    grid past the antimeridian (170°…190°) has west > east (170, …, -170), as Cesium's
+    ``Rectangle`` takes one that crosses it.
+
+    >>> lonlat_bounds(170.0, 0.0, 190.0, 10.0), lonlat_bounds(-10.0, 0.0, 10.0, 5.0)
+    ([170.0, 0.0, -170.0, 10.0], [-10.0, 0.0, 10.0, 5.0])
+    """
+    if e - w >= 360.0:
+        return [-180.0, s, 180.0, n]
+    return [_fold(w), s, _fold(e), n]
+
+
+def _fold(lon: float) -> float:
+    """``lon`` in [-180°, 180°] (unchanged when it is already)."""
+    return lon if -180.0 <= lon <= 180.0 else lon - 360.0 * math.floor((lon + 180.0) / 360.0)
+
+
 def lattice_normals(dem: GeoDem, rect, M: int) -> np.ndarray:
     """(M, M, 3) unit ECEF normals by central differences on a lattice with a margin."""
     lon, lat = lattice(rect, M, 1)
+    lat = np.clip(lat, -90.0, 90.0)  # the margin ring of a polar tile: no latitude past a pole
     h = dem.bilinear(lon, lat)
     up = ecef(lon, lat, np.ones_like(h)) - ecef(lon, lat, np.zeros_like(h))
     p = ecef(lon, lat, np.nan_to_num(h, nan=0.0))

@@ -27,7 +27,7 @@ from geoterrain.export.qmesh import (
     max_zoom_for,
     select_tile,
 )
-from geoterrain.export.qmeshdem import GeoDem, geoid_transformer
+from geoterrain.export.qmeshdem import GeoDem, geoid_transformer, lonlat_bounds
 from geoterrain.export.qmeshformat import (
     METADATA_LEVELS,
     QMAX,
@@ -92,7 +92,10 @@ class QuantizedMeshTiles:
     def _touching(self, z: int) -> tuple[range, range]:
         w, s, e, n = self.extent
         size = 180.0 / (1 << z)
-        xs = range(max(int((w + 180) // size), 0), min(int(math.ceil((e + 180) / size)), 2 << z))
+        # unwrapped: a grid past the antimeridian (170°…190°) reaches x ≥ 2^(z+1), the
+        # western tiles taken round once more (x modulo 2^(z+1) names the tile)
+        x0 = int((w + 180) // size)
+        xs = range(x0, min(int(math.ceil((e + 180) / size)), x0 + (2 << z)))
         ys = range(max(int((s + 90) // size), 0), min(int(math.ceil((n + 90) / size)), 1 << z))
         return xs, ys
 
@@ -123,7 +126,7 @@ class QuantizedMeshTiles:
         for a, y in enumerate(ys):
             for b, x in enumerate(xs):
                 if cells[a * (M - 1):(a + 1) * (M - 1), b * (M - 1):(b + 1) * (M - 1)].any():
-                    out.add((x, y))
+                    out.add((x % (2 << z), y))
         return frozenset(out)
 
     def level_tiles(self, z: int) -> frozenset[tuple[int, int]]:
@@ -133,7 +136,7 @@ class QuantizedMeshTiles:
                 return frozenset()
             if z <= self.data_from - 1:
                 xs, ys = self._touching(z)
-                got = {(x, y) for x in xs for y in ys}
+                got = {(x % (2 << z), y) for x in xs for y in ys}
                 if z == 0:
                     got |= {(0, 0), (1, 0)}  # Cesium starts from both level-0 tiles
                 self._levels[z] = frozenset(got)
@@ -158,7 +161,7 @@ class QuantizedMeshTiles:
         return {
             "tilejson": "2.1.0", "name": name, "version": "1.0.0",
             "format": "quantized-mesh-1.0", "scheme": "tms", "projection": "EPSG:4326",
-            "tiles": [tiles], "bounds": list(self.extent),
+            "tiles": [tiles], "bounds": lonlat_bounds(*self.extent),
             "minzoom": 0, "maxzoom": self.max_zoom,
             "available": [availability_ranges(sorted(self.level_tiles(z)))
                           for z in range(self.max_zoom + 1)],

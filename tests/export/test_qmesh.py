@@ -421,3 +421,64 @@ def test_served_levels_list_the_written_tiles_when_the_dem_edge_is_a_tile_edge(t
         for zz in range(9, q.max_zoom + 1):
             assert {(x, y) for x, y in q.level_tiles(zz)} == {k[1:] for k in written
                                                               if k[0] == zz}, zz
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("mesher", ["rtin", "tin"])
+def test_a_grid_past_the_antimeridian_wraps_onto_the_western_tiles(tmp_path, mesher):
+    """A geographic grid whose longitudes run past 180° (179.95°…180.06°, as a Pacific
+    DEM in 0…360° comes): the tiles west of the antimeridian hold its east end, every
+    valid sample lies within its tile's declared error, the served set is the written
+    one, no numpy warning reaches the user, and the layer's bounds cross (west > east)."""
+    import warnings
+
+    from geoterrain.export.qmesh import write_tileset
+    from geoterrain.export.qmeshtiles import QuantizedMeshTiles
+    from geoterrain.ingest.synth import generate
+
+    z = (generate("fbm", 129, seed=2) * 0.05).astype(np.float32)
+    dem = write_tif(tmp_path / "pacific.tif", z, crs="EPSG:4326", origin=(179.95, -16.0),
+                    spacing=1 / 1200, nodata=-9999)
+    out = tmp_path / "tiles"
+    with geoterrain.open(geoterrain.preprocess(dem, tmp_path / "p.geoterrain",
+                                               tile_size=32)) as t:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            write_tileset(t, out, max_error=2.0, mesher=mesher)
+        q = QuantizedMeshTiles(t, mesher=mesher)
+        written = {(int(p.parent.parent.name), int(p.parent.name), int(p.stem))
+                   for p in out.glob("*/*/*.terrain")}
+        for zz in range(q.max_zoom + 1):
+            assert set(q.level_tiles(zz)) == {k[1:] for k in written if k[0] == zz}, zz
+    zmax = max(k[0] for k in written)
+    east = {x for zz, x, _ in written if zz == zmax and x >= 1 << zmax}
+    west = {x for zz, x, _ in written if zz == zmax and x < 1 << zmax}
+    assert east and west and 0 in west and (2 << zmax) - 1 in east  # both sides of 180°
+    layer = json.loads((out / "layer.json").read_text())
+    w, s, e, n = layer["bounds"]
+    assert 179.9 < w < 180 and -180 < e < -179.9 and s < n
+    _, tiles, h, transform = _read_tileset(out, dem)
+    declared = json.loads((out / "geoterrain.json").read_text())["declared_error"]
+    rows, cols = np.mgrid[0:h.shape[0], 0:h.shape[1]]
+    slon, slat = (np.asarray(a) for a in rasterio.transform.xy(transform, rows.ravel(),
+                                                               cols.ravel()))
+    heights = h.filled(np.nan).ravel()
+    covered = np.zeros(len(heights), bool)
+    for (zz, x, y), tile in tiles.items():
+        if zz != zmax:
+            continue
+        lon, lat, hgt = _coords(tile)
+        tw, ts, te, tn = tile_rect(zz, x, y)
+        lon_t = tw + np.mod(slon - tw, 360.0)  # the sample's longitude in the tile's turn
+        inside = (lon_t <= te) & (slat >= ts) & (slat <= tn) & np.isfinite(heights)
+        tri = mtri.Triangulation(lon, lat, np.array(tile.indices).reshape(-1, 3))
+        surf = np.ma.filled(mtri.LinearTriInterpolator(tri, hgt)(lon_t[inside], slat[inside]),
+                            np.nan)
+        ok = np.isfinite(surf)
+        assert np.abs(surf[ok] - heights[inside][ok]).max() <= declared[f"{zz}/{x}/{y}"] + 1e-3
+        covered[np.flatnonzero(inside)[ok]] = True
+    inner = np.zeros(h.shape, bool)
+    inner[1:-1, 1:-1] = True  # the outer ring lies on the meshes' hull: not interpolated
+    inner = inner.ravel() & np.isfinite(heights)
+    assert covered[inner].all()  # no sample is left out, east of 180° as west of it
+    assert (inner & (slon > 180.0)).sum() > 5000
