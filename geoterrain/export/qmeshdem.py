@@ -20,6 +20,7 @@ from pyproj import CRS, Transformer
 
 from geoterrain.exceptions import UsageError
 from geoterrain.export.qmeshformat import ecef, lattice
+from geoterrain.export.webtiles import fold_lon
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -109,9 +110,12 @@ class GeoDem:
         self.pixel_deg = pixel_degrees(terrain)
         self.full = (self.H, self.W)
         # a geographic grid's longitudes may run past ±180° (170°…190°, or 0°…360°): a
-        # tile's longitude is taken to the grid's own turn, [west, west + 360°), before
-        # it is looked up, so the tiles west of the antimeridian find the grid's east end
-        self.west = (self._west_edge(f) if crs.is_geographic else None)
+        # longitude is taken to within 180° of the grid's centre before it is looked up,
+        # so the tiles west of the antimeridian find the grid's east end (and a tile's
+        # border maps without a jump unless the tile holds the centre's antipode)
+        self.centre = (float(self.lonlat(np.array([(self.H - 1) / 2]),
+                                         np.array([(self.W - 1) / 2]))[0][0])
+                       if crs.is_geographic else None)
         if not heights:
             self.h, self.valid = np.full((0, 0), np.nan), np.zeros((0, 0), bool)
             return
@@ -140,17 +144,14 @@ class GeoDem:
             _, _, hz = tr.transform(lon, lat, self.h[ii, jj])
             self.h[ii, jj] = np.asarray(hz, np.float64)
 
-    def _west_edge(self, f) -> float:
-        """The grid's west edge in EPSG:4326 degrees (its own convention, not wrapped)."""
-        a, _, c = f.transform[:3]
-        lon, _ = self.to_geo.transform([c, c + a * self.W], [f.transform[5]] * 2)
-        return float(min(lon))
-
     def unwrap(self, lon: np.ndarray) -> np.ndarray:
-        """``lon`` (degrees) taken to the grid's turn, [west, west + 360°); as given on a
-        projected grid (its projection takes any longitude)."""
+        """``lon`` (degrees) taken to the grid's turn: whole turns added, to within 180°
+        of its centre; as given on a projected grid (its projection takes any
+        longitude)."""
         lon = np.asarray(lon, np.float64)
-        return lon if self.west is None else self.west + np.mod(lon - self.west, 360.0)
+        if self.centre is None:
+            return lon
+        return lon + 360.0 * np.round((self.centre - lon) / 360.0)
 
     def lonlat(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Lon/lat of (fractional) sample positions (pixel centres at integers)."""
@@ -201,12 +202,8 @@ def lonlat_bounds(w: float, s: float, e: float, n: float) -> list[float]:
     """
     if e - w >= 360.0:
         return [-180.0, s, 180.0, n]
-    return [_fold(w), s, _fold(e), n]
+    return [fold_lon(w), s, fold_lon(e), n]
 
-
-def _fold(lon: float) -> float:
-    """``lon`` in [-180°, 180°] (unchanged when it is already)."""
-    return lon if -180.0 <= lon <= 180.0 else lon - 360.0 * math.floor((lon + 180.0) / 360.0)
 
 
 def lattice_normals(dem: GeoDem, rect, M: int) -> np.ndarray:

@@ -235,8 +235,9 @@ class WebTiler:
             return id_ * dx + ie * dy - 0.5, ia * dx + ib * dy - 0.5
 
     @cached_property
-    def bounds(self) -> tuple[float, float, float, float]:
-        """(west, south, east, north) in degrees of the DEM's samples (border densified)."""
+    def _span(self) -> tuple[float, float, float, float]:
+        """(west, south, east, north) in degrees of the DEM's samples (border densified),
+        its longitudes as the grid runs (170…190 for a grid past the antimeridian)."""
         g, f = self.terrain.grid, self.terrain.frame
         t = np.linspace(0.0, 1.0, 65)
         i = np.concatenate([t * 0, t, t * 0 + 1, t]) * (g.rows - 1)
@@ -246,8 +247,24 @@ class WebTiler:
         return float(lon.min()), float(lat.min()), float(lon.max()), float(lat.max())
 
     @cached_property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """(west, south, east, north) in degrees of the DEM's samples, longitudes in
+        [-180°, 180°]; a DEM across the antimeridian spans every longitude (a web map's
+        bounds cannot cross it)."""
+        w, s, e, n = self._span
+        if -180.0 <= w and e <= 180.0:
+            return w, s, e, n
+        fw, fe = fold_lon(w), fold_lon(e)
+        return (fw, s, fe, n) if fw <= fe and e - w < 360.0 else (-180.0, s, 180.0, n)
+
+    @cached_property
     def center(self) -> tuple[float, float]:
-        """(lon, lat) of the DEM's centre."""
+        """(lon, lat) of the DEM's centre (longitude in [-180°, 180°])."""
+        lon, lat = self._centre
+        return fold_lon(lon), lat
+
+    @cached_property
+    def _centre(self) -> tuple[float, float]:
         g, f = self.terrain.grid, self.terrain.frame
         lon, lat = self.src_to_geo.transform(*f.crs_xy(np.array([(g.rows - 1) / 2]),
                                                        np.array([(g.cols - 1) / 2])))
@@ -285,8 +302,9 @@ class WebTiler:
         L = int(math.floor(math.log2(ratio) + 1e-9)) if ratio >= 1 else 0
         return min(max(L, 0), self.terrain.grid.top_level)
 
-    def tile_range(self, z: int) -> tuple[range, range]:
-        """XYZ columns and rows of zoom ``z`` that the DEM's bounds touch."""
+    def tile_range(self, z: int) -> tuple[range | list[int], range]:
+        """XYZ columns and rows of zoom ``z`` that the DEM's bounds touch (the columns a
+        list where the DEM runs past the antimeridian and they wrap)."""
         w, s, e, n = self.bounds
         n_ = 1 << z
 
@@ -298,6 +316,12 @@ class WebTiler:
             v = (1 - math.log(math.tan(phi) + 1 / math.cos(phi)) / math.pi) / 2 * n_
             return min(max(int(math.floor(v)), 0), n_ - 1)
 
+        w0, e0 = self._span[0], self._span[2]
+        if not (-180.0 <= w0 and e0 <= 180.0):  # past the antimeridian: the columns wrap
+            first = int(math.floor((w0 + 180.0) / 360.0 * n_))
+            last = int(math.floor((e0 + 180.0) / 360.0 * n_))
+            cols = list(dict.fromkeys(c % n_ for c in range(first, last + 1)))[:n_]
+            return cols, range(row(n), row(s) + 1)
         return range(col(w), col(e) + 1), range(row(n), row(s) + 1)
 
     def exists(self, z: int, x: int, y: int) -> bool:
@@ -315,7 +339,10 @@ class WebTiler:
         k = np.arange(TILE) + (0.0 if corner else 0.5)
         mx, my = np.meshgrid(w + k * res, n - k * res)
         sx, sy = self.merc_to_src.transform(mx.ravel(), my.ravel())
-        return self._pixel(np.asarray(sx), np.asarray(sy))
+        sx = np.asarray(sx)
+        if self.crs.is_geographic:  # whole turns added: within 180° of the DEM's centre
+            sx = sx + 360.0 * np.round((self._centre[0] - sx) / 360.0)
+        return self._pixel(sx, np.asarray(sy))
 
     def sample(self, z: int, x: int, y: int, level: int, fields, channels: int,
                corner: bool = False) -> np.ndarray:
@@ -395,3 +422,12 @@ class WebTiler:
         out[ok, :3] = np.clip(np.round(np.asarray(rgb)[ok]), 0, 255).astype(np.uint8)
         out[ok, 3] = 255
         return out.reshape(TILE, TILE, 4)
+
+
+def fold_lon(lon: float) -> float:
+    """``lon`` in [-180°, 180°] (unchanged when it is already).
+
+    >>> fold_lon(190.0), fold_lon(-10.0), fold_lon(180.0), fold_lon(-190.0)
+    (-170.0, -10.0, 180.0, 170.0)
+    """
+    return lon if -180.0 <= lon <= 180.0 else lon - 360.0 * math.floor((lon + 180.0) / 360.0)
