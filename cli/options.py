@@ -360,7 +360,8 @@ strategies_option = click.option(
 occlusion_option = click.option(
     "--occlusion/--no-occlusion", default=True, show_default=True,
     help="Skip tiles hidden behind nearer terrain before reading them (horizon culling; "
-         "conservative: nothing visible is lost). --no-occlusion draws them too.")
+         "conservative: nothing visible is lost). --no-occlusion draws them too. The "
+         "clipmap strategy draws its whole rings either way (a steady triangle count).")
 
 
 anti_aliasing_option = click.option(

@@ -15,6 +15,9 @@ the finest level by the viewer's height, here (:func:`geoterrain.lod.clipmaps._b
   no-data rule does.
 
 So the triangle count is no longer constant: it follows τ and the terrain's roughness.
+Its rule is the error, not a steady count, so it culls its render regions (each region's
+4 rectangles against the frustum and, with ``occlusion``, the horizon, as §2.9), where
+``clipmap`` draws its whole rings unless asked to cull.
 """
 
 from __future__ import annotations

@@ -9,12 +9,15 @@ transition blend runs in the vertex shader. Here the textures are the toroidal b
 :mod:`geoterrain.lod.clipmaps`, sampled at each vertex's (r mod n, c mod n), the blend is
 the same per-vertex array operation, and each footprint is culled on its own.
 
-What differs from ``clipmap`` on a CPU renderer: only the culling. The footprints cut a
-level into 25 rectangles (the 5 × 5 grid of blocks, fix-ups and centre) where ``clipmap``
-culls the paper's 4 strips, so fewer off-screen triangles are drawn; before culling the
-two draw the same triangles (the degenerate ring is the stitched perimeter, made
-conforming). Two choices: the paper's level rule "vertex spacing > 2.5 h" is read as the
-extent n·g_l > 2.5 h (the §2.9 rule; seed 000 §2.10 notes the inference); and a region is
+What differs from ``clipmap`` on a CPU renderer: only the culling. This strategy culls
+each footprint against the frustum and, with ``occlusion``, the horizon: the footprints
+cut a level into 25 rectangles (the 5 × 5 grid of blocks, fix-ups and centre), so few
+off-screen triangles are drawn, and the count drawn follows the heading. ``clipmap``
+draws its whole rings by default (a constant count, §2.9's steady rendering rate; the
+paper's 4 strips per level with ``cull=True``). Before culling the two draw the same
+triangles (the degenerate ring is the stitched perimeter, made conforming). Two
+choices: the paper's level rule "vertex spacing > 2.5 h" is read as the extent
+n·g_l > 2.5 h (the §2.9 rule; seed 000 §2.10 notes the inference); and a region is
 shifted inside the DEM as in ``clipmap`` (the paper's terrain is larger than every clip
 region, so it never crops).
 """

@@ -41,12 +41,16 @@ what ``clipmap``, ``clipmap_bounded`` and ``clipmap_gpu`` share.
   exposed rows and columns (an L-shaped ring) are read from the store's tiles, and only
   their normals (and the normals beside them, whose differences change) are recomputed
   (stats ``samples_updated``, ``normals_updated``).
-- **Culling**: each render region is cut into rectangles (4 for ``clipmap``, as the paper;
-  the footprints of ``clipmap_gpu``), each culled by its stored tiles' boxes against the
-  frustum and, with ``occlusion``, the horizon.
+- **Culling** (``cull``): each render region is cut into rectangles (4 for ``clipmap``,
+  as the paper; the footprints of ``clipmap_gpu``), each culled by its stored tiles' boxes
+  against the frustum and, with ``occlusion``, the horizon. ``clipmap`` does not cull by
+  default (its whole rings, so the count it draws does not follow the heading: §2.9's
+  steady rendering rate); ``clipmap_gpu`` and ``clipmap_bounded`` do. A view whose
+  frustum misses the whole terrain draws nothing, culling or not.
 
 State (the buffers and regions of the last frame) lives in the terrain's derived slot,
-one per strategy and per n; any view or τ is handled, a far jump just reads more. The
+one per strategy, n and culling (:func:`state_key`); any view or τ is handled, a far jump
+just reads more. The
 per-terrain tables and the toroidal buffers are :mod:`geoterrain.lod.clipmapdata`.
 """
 
@@ -157,12 +161,39 @@ def _rect_box(tb: Tables, index: TileIndex, lv: int, r: tuple) -> tuple | None:
     return index.lo[rows].min(0), index.hi[rows].max(0), rows
 
 
+def state_key(kind: str = "clipmap", n: int = N_DEFAULT, cull: bool | None = None) -> str:
+    """The terrain's derived slot holding a clipmap's buffers and regions: one per kind,
+    n and culling (``None``: the kind's default), so that two settings never share a
+    frame's updates.
+
+    Examples
+    --------
+    >>> state_key()
+    'geoterrain.lod.clipmaps.state.clipmap.255'
+    >>> state_key(cull=True).rsplit(".", 3)[1:], state_key("gpu", 31).rsplit(".", 2)[1:]
+    (['clipmap', '255', 'cull'], ['gpu', '31'])
+    """
+    culls = _culls(kind, cull)
+    tail = "" if culls == _culls(kind, None) else (".cull" if culls else ".whole")
+    return f"{__name__}.state.{kind}.{n}{tail}"
+
+
+def _culls(kind: str, cull: bool | None) -> bool:
+    """Whether ``kind`` culls its render regions: ``clipmap`` draws its whole rings unless
+    asked (``cull=True``), ``gpu`` and ``bounded`` cull unless asked not to."""
+    return kind != "clipmap" if cull is None else bool(cull)
+
+
 def select(terrain: TerrainLike, view: View, tau: float, *, kind: str = "clipmap",
-           occlusion: bool = True, morph: bool = True, n: int = N_DEFAULT):
+           occlusion: bool = True, morph: bool = True, n: int = N_DEFAULT,
+           cull: bool | None = None):
     """The geometry-clipmap mesh of ``view`` and its stats. ``kind``: ``clipmap`` (n × n
     regions, §2.9), ``bounded`` (the finest level and the regions' sizes from the stored
     tile errors, so ρ ≤ τ), ``gpu`` (§2.10's footprints); ``morph``: the transition
-    regions (eq. 4-30 … 4-32).
+    regions (eq. 4-30 … 4-32); ``cull``: cull the render regions' rectangles against the
+    frustum and, with ``occlusion``, the horizon (None: the kind's default, off for
+    ``clipmap``, on for the others); without it the whole rings are drawn and
+    ``occlusion`` is not used.
 
     Examples
     --------
@@ -179,7 +210,8 @@ def select(terrain: TerrainLike, view: View, tau: float, *, kind: str = "clipmap
     tb = tables(terrain, bounded)
     g = terrain.grid
     N = tb.N
-    state = terrain.derived(f"{__name__}.state.{kind}.{n}", dict)
+    cull = _culls(kind, cull)
+    state = terrain.derived(state_key(kind, n, cull), dict)
     vi, vj = viewer_grid(terrain, view)
     half0 = (n - 1) // 2
     # the coarsest level: the first whose region covers the DEM (the grid's last level
@@ -240,8 +272,8 @@ def select(terrain: TerrainLike, view: View, tau: float, *, kind: str = "clipmap
         n_n += b
     for lv in [k for k in levels if k not in W]:
         del levels[lv]  # a level that left the clipmap (the viewer climbed): dropped
-    hidden = hidden_rows(terrain, view, enabled=occlusion)
-    # render regions, culled, and the cells no-data sends to finer levels
+    hidden = hidden_rows(terrain, view, enabled=occlusion) if cull else None
+    # render regions (culled with ``cull``), and the cells no-data sends to finer levels
     cells: dict[int, list] = {lv: [] for lv in range(Lmax + 1)}
     extra: dict[int, list] = {lv: [] for lv in range(Lmax + 1)}
     culled = 0
@@ -256,7 +288,9 @@ def select(terrain: TerrainLike, view: View, tau: float, *, kind: str = "clipmap
         if inner is not None:
             mask[inner[0] - r0:inner[1] - r0, inner[2] - c0:inner[3] - c0] = False
         geometry += 2 * int(mask.sum())
-        for rc in _rects(kind if kind == "gpu" else "clipmap", (r0, r1, c0, c1), inner):
+        rects = _rects(kind if kind == "gpu" else "clipmap", (r0, r1, c0, c1), inner) \
+            if cull else []
+        for rc in rects:
             got = _rect_box(tb, index, lv, rc)
             sub = mask[rc[0] - r0:rc[1] - r0, rc[2] - c0:rc[3] - c0]
             if got is None:
@@ -284,7 +318,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, kind: str = "clipmap
     mesh, nv, nd = _emit(terrain, tb, levels, W, cells, Lmax, f, (vi, vj), morph, open_,
                          state)
     stats = {"levels": (f, Lmax), "finest_level": f, "clipmap_n": n,
-             "clipmap_triangles": geometry, "cells_culled": culled,
+             "clipmap_triangles": geometry, "culled": cull, "cells_culled": culled,
              "samples_updated": n_h, "normals_updated": n_n, "refined_cells": nd}
     if bounded:
         stats["region_halves"] = tuple(halves[lv] for lv in range(f, Lmax + 1))

@@ -39,7 +39,9 @@ class StrategyInfo:
     ``morphs``: it geomorphs when morphing is on (``--morph``), keeping its bound;
     ``morph_default``: it morphs unless switched off (``--no-morph``);
     ``root_grid``: it draws a root-grid store (experimental, ``preprocess --root-grid``;
-    the others refuse one in one line).
+    the others refuse one in one line);
+    ``culls``: it leaves out what lies well outside the frustum (tested); False: it draws
+    its whole geometry wherever the camera looks (``clipmap``: a steady count).
     ``summary`` names the method and its source (for the strategy docs); ``words`` says
     what it does in a user's words (for ``--help``).
     """
@@ -54,6 +56,7 @@ class StrategyInfo:
     morphs: bool = False
     morph_default: bool = False
     root_grid: bool = False
+    culls: bool = True
 
     def load(self) -> Callable:
         """The strategy's ``select(terrain, view, tau, *, occlusion, morph) -> (mesh,
@@ -121,10 +124,12 @@ _ENTRIES = (
                  False, conforming=True, root_grid=True),
     StrategyInfo("clipmap", "geoterrain.lod.clipmap",
                  "geometry clipmaps: nested viewer-centred 255² grids, toroidal updates, "
-                 "transition regions (seed 000 §2.9; unbounded)",
-                 "nested grids centred on the viewer (error not guaranteed)", False,
+                 "transition regions, whole rings drawn for a steady triangle count, "
+                 "the paper's culling with cull=True (seed 000 §2.9; unbounded)",
+                 "nested grids centred on the viewer, drawn whole: a steady triangle "
+                 "count (error not guaranteed)", False,
                  tau_independent=True, conforming=True, morphs=True, morph_default=True,
-                 root_grid=True),
+                 root_grid=True, culls=False),
     StrategyInfo("clipmap_bounded", "geoterrain.lod.clipmap_bounded",
                  "geometry clipmaps whose finest level and region sizes come from the tile "
                  "errors (seed 000 §2.9)",
@@ -133,8 +138,9 @@ _ENTRIES = (
                  morph_default=True, root_grid=True),
     StrategyInfo("clipmap_gpu", "geoterrain.lod.clipmap_gpu",
                  "GPU-based geometry clipmaps: footprints, vertex-texture heights, emulated "
-                 "on arrays (seed 000 §2.10; unbounded)",
-                 "nested grids built from reusable pieces (error not guaranteed)",
+                 "on arrays, each footprint culled (seed 000 §2.10; unbounded)",
+                 "nested grids built from reusable pieces, those out of view left out "
+                 "(error not guaranteed)",
                  False, tau_independent=True,
                  conforming=True, morphs=True, morph_default=True, root_grid=True),
     StrategyInfo("rottger", "geoterrain.lod.rottger",

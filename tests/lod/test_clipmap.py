@@ -1,7 +1,8 @@
 """Geometry clipmaps (``clipmap``, ``clipmap_bounded``, ``clipmap_gpu``): toroidal updates
-that read only the newly exposed samples, a constant amount of geometry along a flight,
-conforming meshes that cover every valid sample (no-data and padding included), and the
-bounded variant's ρ ≤ τ with the transitions on.
+that read only the newly exposed samples, a constant amount of geometry along a flight
+and, for ``clipmap`` (whole rings, no culling unless ``cull=True``), a constant count
+drawn, conforming meshes that cover every valid sample (no-data and padding included),
+and the bounded variant's ρ ≤ τ with the transitions on.
 
 Small regions (n = 15 or 31) give several levels on small terrains; the registered
 strategies (n = 255) are also run by tests/lod/test_lod.py and tests/test_stress.py.
@@ -18,7 +19,7 @@ import geoterrain
 from geoterrain.bench.harness import extent, glide
 from geoterrain.core.view import View
 from geoterrain.ingest.synth import generate, write_geotiff
-from geoterrain.lod import Selection, clipmaps
+from geoterrain.lod import Selection, clipmap, clipmaps
 from geoterrain.testing.measure import mesh_height_range_on_grid, screen_space_error
 
 
@@ -94,13 +95,14 @@ def _uncovered_far_from_nodata(t, sel, view) -> int:
 @pytest.mark.fast
 @settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 10**6), kind=st.sampled_from(["clipmap", "bounded", "gpu"]),
-       n=st.sampled_from([15, 31]), morph=st.booleans(), tau=st.sampled_from([1.0, 4.0]))
-def test_conforming_covering_and_bounded(holey, seed, kind, n, morph, tau):
+       n=st.sampled_from([15, 31]), morph=st.booleans(), tau=st.sampled_from([1.0, 4.0]),
+       cull=st.sampled_from([None, True, False]))
+def test_conforming_covering_and_bounded(holey, seed, kind, n, morph, tau, cull):
     X, Y, Z = holey.scene_xyz()
     valid = np.isfinite(Z)
     for view in _views(holey, 2, seed):
         mesh, stats = clipmaps.select(holey, view, tau, kind=kind, occlusion=False,
-                                      morph=morph, n=n)
+                                      morph=morph, n=n, cull=cull)
         sel = Selection(mesh, stats)
         _check_conforming(holey, sel)
         # the culled rectangles lie outside the frustum: nothing inside goes uncovered
@@ -197,14 +199,17 @@ def test_the_count_is_constant_along_level_flights(square, kind):
     """§2.9's steady rendering rate on the glide and the one-minute loop (both level
     flights): the clipmap's triangles before culling, and the mesh drawn without culling,
     stay constant within 5 % (the geometry exactly; the mesh varies by the stitched
-    perimeter sides that lie on the DEM's edge); culling is a separate step whose count
-    follows the heading (reported, not held constant)."""
+    perimeter sides that lie on the DEM's edge); culling (``clipmap_gpu``'s footprints,
+    ``clipmap``'s 4 strips with ``cull=True``) is a separate step that only removes
+    triangles (its count follows the heading: reported, not held constant)."""
     for name, views in _flights(square, 12).items():
         geometry, uncull, culled = [], [], []
         for v in views:
-            mesh, stats = clipmaps.select(square, v, 4.0, kind=kind, occlusion=False, n=31)
+            mesh, stats = clipmaps.select(square, v, 4.0, kind=kind, occlusion=False, n=31,
+                                          cull=True)
             nc = _NoCulling(v.look_from, v.look_at, v.up, v.fov_y_deg, v.size, v.near, v.far)
-            whole, s2 = clipmaps.select(square, nc, 4.0, kind=kind, occlusion=False, n=31)
+            whole, s2 = clipmaps.select(square, nc, 4.0, kind=kind, occlusion=False, n=31,
+                                        cull=True)
             assert s2["cells_culled"] == 0 and s2["levels"] == stats["levels"]
             geometry.append(stats["clipmap_triangles"])
             uncull.append(whole.n_cells)
@@ -215,6 +220,106 @@ def test_the_count_is_constant_along_level_flights(square, kind):
         assert all(a <= b for a, b in zip(culled, uncull, strict=True)), (name, culled)
 
 
+def _turning_flights(t, k, frames, seed, size=(480, 270)):
+    """``k`` seeded random flights of ``frames`` views at a constant height above the
+    highest terrain (so §2.9's level rule keeps the same levels): the heading turns at a
+    rate that changes, the pitch drifts between 5° and 60° down, the eye moves ahead and
+    turns back at the DEM's edges."""
+    X, Y, Z = t.scene_xyz()
+    lo, hi = extent(X, Y, Z)
+    width = float(min(hi[:2] - lo[:2]))
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(k):
+        pos = lo[:2] + (hi[:2] - lo[:2]) * rng.uniform(0.25, 0.75, 2)
+        z = float(hi[2]) + width * rng.uniform(0.02, 0.15)
+        yaw, pitch = rng.uniform(0, 2 * np.pi), rng.uniform(5.0, 60.0)
+        rate = rng.uniform(-0.6, 0.6)
+        views = []
+        for _ in range(frames):
+            p = np.radians(pitch)
+            ahead = np.array([np.cos(yaw) * np.cos(p), np.sin(yaw) * np.cos(p), -np.sin(p)])
+            eye = np.array([pos[0], pos[1], z])
+            views.append(View(tuple(eye), tuple(eye + 100.0 * ahead), fov_y_deg=45,
+                              size=size))
+            rate = float(np.clip(rate + rng.normal(0, 0.3), -0.8, 0.8))
+            yaw += rate
+            pitch = float(np.clip(pitch + rng.normal(0, 12.0), 5.0, 60.0))
+            step = pos + 0.04 * width * np.array([np.cos(yaw), np.sin(yaw)])
+            if ((step < lo[:2] + 0.1 * width) | (step > hi[:2] - 0.1 * width)).any():
+                yaw += np.pi  # turn back at the edge
+            else:
+                pos = step
+        out.append(views)
+    return out
+
+
+def _spread(counts) -> float:
+    c = np.asarray(counts, float)
+    return float((c.max() - c.min()) / np.median(c))
+
+
+def _drawn(mesh) -> int:
+    """The triangles a mesh draws, counted from its own cells (not the strategy's stats)."""
+    return int(mesh.n_cells)
+
+
+@pytest.mark.fast
+def test_clipmap_draws_a_constant_count_whatever_the_heading(square):
+    """``clipmap`` culls nothing by default: along the glide, the one-minute loop and
+    seeded random flights whose heading turns and pitch changes (at a constant height
+    above the highest terrain), the triangles it draws stay within 5 % (max − min over
+    the median), horizon culling asked for or not. The same flights with the paper's
+    culling (``cull=True``) spread far beyond 5 % (so these flights tell the two apart)."""
+    flights = {**_flights(square, 10),
+               **{f"random {k}": v for k, v in enumerate(_turning_flights(square, 3, 10, 46))}}
+    culled_spread = {}
+    for name, views in flights.items():
+        drawn, culled = [], []
+        for k, v in enumerate(views):
+            mesh, stats = clipmaps.select(square, v, 4.0, n=63, occlusion=k % 2 == 0)
+            assert stats["cells_culled"] == 0 and not stats["culled"]
+            drawn.append(_drawn(mesh))
+            culled.append(_drawn(clipmaps.select(square, v, 4.0, n=63, cull=True)[0]))
+        assert len(drawn) == 10 and min(drawn) > 0
+        assert _spread(drawn) <= 0.05, (name, drawn)
+        assert all(a <= b for a, b in zip(culled, drawn, strict=True)), (name, culled)
+        culled_spread[name] = _spread(culled)
+    assert culled_spread["minute loop"] > 0.2, culled_spread
+    assert sum(v > 0.05 for k, v in culled_spread.items() if k.startswith("random")) >= 2, \
+        culled_spread
+
+
+@pytest.mark.fast
+def test_the_registered_clipmap_draws_its_whole_rings(square):
+    """Through the seam, with the seam's defaults (horizon culling on): the registered
+    ``clipmap`` (n = 255) draws as many triangles looking into a corner as with no
+    frustum at all, where ``cull=True`` leaves many of them out."""
+    X, Y, Z = square.scene_xyz()
+    lo, hi = extent(X, Y, Z)
+    eye = (float(lo[0]) + 50.0, float(lo[1]) + 50.0, float(hi[2]) + 100.0)
+    v = View(eye, (float(lo[0]) - 500.0, float(lo[1]) - 500.0, float(lo[2])), fov_y_deg=30,
+             size=(480, 270))
+    sel = square.select(v, 4.0, "clipmap", reuse=False)
+    nc = _NoCulling(v.look_from, v.look_at, v.up, v.fov_y_deg, v.size, v.near, v.far)
+    whole, _ = clipmap.select(square, nc, 4.0, occlusion=False)
+    few, _ = clipmap.select(square, v, 4.0, cull=True)
+    assert sel.mesh.n_cells == whole.n_cells > 0
+    assert few.n_cells < 0.8 * whole.n_cells, (few.n_cells, whole.n_cells)
+
+
+@pytest.mark.slow
+def test_the_registered_clipmap_count_is_constant_along_flights(square):
+    """The registered ``clipmap`` (n = 255, through the seam, horizon culling on as by
+    default) on the glide, the one-minute loop and three seeded random flights: the
+    triangles drawn stay within 5 %."""
+    flights = {**_flights(square, 12),
+               **{f"random {k}": v for k, v in enumerate(_turning_flights(square, 3, 12, 7))}}
+    for name, views in flights.items():
+        drawn = [_drawn(square.select(v, 8.0, "clipmap", reuse=False).mesh) for v in views]
+        assert min(drawn) > 0 and _spread(drawn) <= 0.05, (name, drawn)
+
+
 @pytest.mark.fast
 def test_updates_touch_only_the_newly_exposed_l_shapes(square):
     """When the view moves, each level's toroidal height buffer is written exactly at the
@@ -223,7 +328,7 @@ def test_updates_touch_only_the_newly_exposed_l_shapes(square):
     only there and one sample beside them; nothing else in either buffer is touched.
 
     Found by filling the buffers with sentinels before each frame (restored after)."""
-    key = f"{clipmaps.__name__}.state.clipmap.31"
+    key = clipmaps.state_key("clipmap", 31)
     sz, sn = -1.0e300, 9.0  # no height, no unit normal's component
     for name, views in _flights(square, 40).items():
         square.forget(key)
