@@ -411,3 +411,19 @@ def test_killed_edit_by_tiles_leaves_the_old_root_grid_store(tmp_path):
         assert t.meta.get("edits") is None
         assert t.tile(0, 4, 0).heights[5, 3] == z[5, 35]
     assert store.read_bytes() == before
+
+
+@pytest.mark.fast
+def test_padded_roots_go_to_the_whole_grid_and_say_why(tmp_path):
+    """Roots their raster does not fill (40 × 120 on 2 × 1 roots of 64): like a padded
+    square, the edit takes the whole grid (its static mesh's δ_edge is not computed by
+    tiles) and says so; ``how="tiles"`` refuses in one line."""
+    from geoterrain.exceptions import UsageError
+
+    z = integer_dem(5, 40, 120)
+    store = _root_store(tmp_path / "dem.tif", z, 16)
+    with geoterrain.open(store) as t:
+        with pytest.raises(UsageError, match="padded grid"):
+            edit_terrain(t, Patch(30, 60, np.full((4, 4), 700.0)), "max", how="tiles")
+        res = edit_terrain(t, Patch(30, 60, np.full((4, 4), 700.0)), "max")
+    assert res.how == "whole grid" and "padded grid" in res.why
