@@ -427,3 +427,32 @@ def test_padded_roots_go_to_the_whole_grid_and_say_why(tmp_path):
             edit_terrain(t, Patch(30, 60, np.full((4, 4), 700.0)), "max", how="tiles")
         res = edit_terrain(t, Patch(30, 60, np.full((4, 4), 700.0)), "max")
     assert res.how == "whole grid" and "padded grid" in res.why
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("layout", ["square", "wide", "tall"])
+def test_a_window_starting_on_the_last_row_or_column_is_edited(tmp_path, layout):
+    """A window whose first row (or column) is the grid's last, on a store that the
+    raster fills (a 33² square, 2 × 1 and 1 × 2 roots): the samples there are the last
+    tiles' last row (column), read and changed (the edit once read none there and wrote
+    nothing)."""
+    if layout == "square":
+        z = integer_dem(2, 33, 33)
+    else:
+        z, _ = _filled_roots(2, 8, 2, layout == "wide", "none")
+    rows, cols = z.shape
+    for k, (row, col, h, w) in enumerate([(rows - 1, 3, 1, 4), (5, cols - 1, 3, 1),
+                                          (rows - 1, cols - 1, 1, 1)]):
+        d = tmp_path / f"{k}"
+        (d / "a").mkdir(parents=True)
+        (d / "b").mkdir()
+        store = geoterrain.preprocess(write_dem(d / "a" / "dem.tif", z, NODATA), tile_size=8,
+                                      root_grid=layout != "square")
+        p = np.full((h, w), 4.0)
+        with geoterrain.open(store) as t:
+            res = edit_terrain(t, Patch(row, col, p), "add")
+        assert res.changed == h * w and res.window == (row, col, h, w)
+        fresh = geoterrain.preprocess(
+            write_dem(d / "b" / "dem.tif", apply_by_hand(z, row, col, p, "add"), NODATA),
+            tile_size=8, root_grid=layout != "square")
+        assert_same_store(store, fresh)
