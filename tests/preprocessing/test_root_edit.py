@@ -321,8 +321,8 @@ def test_most_root_grid_edits_take_the_tiles(tmp_path, wide):
 @pytest.mark.parametrize("wide", [True, False])
 def test_a_window_across_the_seam_is_edited_by_tiles(tmp_path, wide):
     """A 7 × 5 window over the shared edge of 2 × 1 (or 1 × 2) roots of 32 samples:
-    the tiles' path (``how="tiles"`` refuses otherwise), both roots' height and δ blobs
-    rewritten, and the store a root-grid preprocess of the edited DEM gives."""
+    the tiles' path (``how="tiles"`` refuses otherwise), both roots' height, δ and r
+    blobs rewritten, and the store a root-grid preprocess of the edited DEM gives."""
     from geoterrain.store.database import StoreReader
 
     z, s = _filled_roots(11, 8, 2, wide, "none")
@@ -331,14 +331,16 @@ def test_a_window_across_the_seam_is_edited_by_tiles(tmp_path, wide):
     store = _root_store(tmp_path / "a" / "dem.tif", z, 8)
     row, col = (10, s - 3) if wide else (s - 3, 10)
     h, w = (5, 7) if wide else (7, 5)
-    p = np.full((h, w), float(np.median(z)) + 3.0)
+    # 60 m above the median: the roots' centres' δ and r codes move too (the vertex
+    # levels up to each root's top are recomputed), not δ's code scale
+    p = np.full((h, w), float(np.median(z)) + 60.0)
     roots = [(2, 0, 0), (2, 1, 0)] if wide else [(2, 0, 0), (2, 0, 1)]
 
     def blobs():
         r = StoreReader(store)
         try:
             return {(k, kind): r.get_blob(k, kind) for k in roots
-                    for kind in ("heights", "delta")}
+                    for kind in ("heights", "delta", "radius")}
         finally:
             r.close()
 
