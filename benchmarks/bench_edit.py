@@ -3,7 +3,7 @@
 
 Usage:
     python benchmarks/bench_edit.py [--size 4097] [--window 65] [--edits 5] [--runs 3]
-        [--seed 0] [--int] [--baseline-tree DIR]
+        [--seed 0] [--int] [--baseline-tree DIR] [--wide]
 
 Makes a fBm DEM (``geoterrain synth``; ``--int``: its heights rounded to whole metres,
 an integer store like SRTM's), preprocesses it once, then alternates ``--runs`` times:
@@ -17,10 +17,14 @@ file's growth; and the time of the transaction apart (its syncs). ``--baseline-t
 another commit's ``geoterrain/`` with its ``cli/`` copied in as ``geoterrain/cli/`` (as
 benchmarks/bench_startup.py; run once beforehand, so its kernels are cached), whose two
 children run in turns with this tree's in each run, for same-run ratios (a table at the
-end). Prints markdown tables
-of medians and the ratios to the preprocess, in wall time and in CPU time (the process's
-user + system time over all its threads: less sensitive to other jobs on the machine
-than wall time, but it counts the preprocess's parallel work once per core).
+end). ``--wide``: also a root-grid store (``root_grid=True``) of the DEM's first
+(size + 1) / 2 rows, a (size + 1) / 2 × size raster on 2 × 1 roots (issue 45 × 52: its
+edit by tiles), preprocessed and edited by the same children in the same runs, the two
+stores' order alternating from run to run; its tables follow the square's. Prints
+markdown tables of medians and the ratios to the preprocess, in wall time and in CPU
+time (the process's user + system time over all its threads: less sensitive to other
+jobs on the machine than wall time, but it counts the preprocess's parallel work once
+per core).
 """
 
 from __future__ import annotations
@@ -40,7 +44,7 @@ import json, sys, time
 t0 = time.perf_counter()
 from geoterrain.preprocessing.pipeline import preprocess
 t1, c1 = time.perf_counter(), time.process_time()
-preprocess(sys.argv[1], sys.argv[2], overwrite=True)
+preprocess(sys.argv[1], sys.argv[2], overwrite=True, root_grid=sys.argv[3:] == ["roots"])
 print(json.dumps({"wall": time.perf_counter() - t1, "cpu": time.process_time() - c1}))
 """
 
@@ -100,6 +104,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--int", action="store_true", help="integer heights (an SRTM-like store)")
     ap.add_argument("--baseline-tree", help="another commit's geoterrain/ to compare with")
+    ap.add_argument("--wide", action="store_true",
+                    help="also a (size+1)/2 × size root-grid store (2 × 1 roots)")
     a = ap.parse_args()
     import numpy as np
 
@@ -114,32 +120,64 @@ def main() -> None:
         dem = write_geotiff(os.path.join(work, "dem.tif"), z)
         store = os.path.join(work, "dem.geoterrain")
         preprocess(dem, store, overwrite=True)  # compiles what is not yet cached
-        warm = os.path.join(work, "warm.geoterrain")  # and an edit's (serial) kernels
-        shutil.copy(store, warm)
+        cases = [Case(f"{a.size}² square", dem, store, False)]
+        if a.wide:
+            half = (a.size + 1) // 2
+            dw = write_geotiff(os.path.join(work, "wide.tif"), np.ascontiguousarray(z[:half]))
+            sw = os.path.join(work, "wide.geoterrain")
+            preprocess(dw, sw, overwrite=True, root_grid=True)
+            cases.append(Case(f"{half} × {a.size} on 2 × 1 roots", dw, sw, True))
         import geoterrain
         from geoterrain.preprocessing.edit import Patch, edit_terrain
 
-        with geoterrain.open(warm) as t:
-            edit_terrain(t, Patch(0, 0, np.full((a.window, a.window), -20.0)), "add")
-        os.remove(warm)
-        pre, first, later = [], [], []
+        for c in cases:  # an edit's (serial) kernels
+            warm = os.path.join(work, "warm.geoterrain")
+            shutil.copy(c.store, warm)
+            with geoterrain.open(warm) as t:
+                edit_terrain(t, Patch(0, 0, np.full((a.window, a.window), -20.0)), "add")
+            os.remove(warm)
         base: dict = {"pre": [], "first": [], "next": []}
         for run in range(a.runs):
             if a.baseline_tree and run % 2 == 0:
                 _baseline(base, a, dem, store, work, run)
-            pre.append(child(PRE, dem, os.path.join(work, "p.geoterrain")))
-            edits = child(EDIT, store, work, str(a.edits), str(a.window), str(a.seed + run))
-            first.append(edits[0])
-            later += edits[1:]
-            print(f"run {run}: preprocess {pre[-1]['wall']:.2f} s; edits "
-                  + ", ".join(f"{e['wall']:.3f} s ({e['how']})" for e in edits), flush=True)
+            for c in (cases if run % 2 == 0 else cases[::-1]):
+                c.run(a, work, run)
             if a.baseline_tree and run % 2 == 1:  # in turns: the baseline second
                 _baseline(base, a, dem, store, work, run)
+        for c in cases:
+            c.report(a)
+        if a.baseline_tree:
+            _compare(cases[0], base)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+class Case:
+    """One store: its DEM, its preprocess and editing children's results."""
+
+    def __init__(self, name: str, dem: str, store: str, roots: bool):
+        self.name, self.dem, self.store, self.roots = name, dem, store, roots
+        self.pre: list = []
+        self.first: list = []
+        self.later: list = []
+
+    def run(self, a, work: str, run: int) -> None:
+        self.pre.append(child(PRE, self.dem, os.path.join(work, "p.geoterrain"),
+                              *(["roots"] if self.roots else [])))
+        edits = child(EDIT, self.store, work, str(a.edits), str(a.window), str(a.seed + run))
+        self.first.append(edits[0])
+        self.later += edits[1:]
+        print(f"run {run}, {self.name}: preprocess {self.pre[-1]['wall']:.2f} s; edits "
+              + ", ".join(f"{e['wall']:.3f} s ({e['how']})" for e in edits)
+              + f"; load {os.getloadavg()[0]:.1f}", flush=True)
+
+    def report(self, a) -> None:
+        pre, first, later = self.pre, self.first, self.later
         med = statistics.median
         p = med(e["wall"] for e in pre)
         pc = med(e["cpu"] for e in pre)
         size = first[0]["size"]
-        print(f"\n{a.size}² fBm{' (integer heights)' if a.int else ''}, store "
+        print(f"\n{self.name}: fBm{' (integer heights)' if a.int else ''}, store "
               f"{size / 1e6:.1f} MB, {a.window}² windows, {a.runs} runs "
               f"({len(first) + len(later)} edits), load {os.getloadavg()[0]:.1f}\n")
         print("| | median s | × preprocess |\n|---|---|---|")
@@ -168,19 +206,23 @@ def main() -> None:
             print(f"| {what} | {v / 1e3:.1f} kB | {100 * v / size:.2f} % |")
         hows = {e["how"] + (f": {e['why']}" if e["why"] else "") for e in allx}
         print(f"\nhow: {', '.join(sorted(hows))}; rows: {med(e['rows'] for e in allx)}")
-        if a.baseline_tree:
-            print("\n| same run, in turns | preprocess wall / CPU s | first edit wall / CPU s "
-                  "(× preprocess) | next edits wall / CPU s (× preprocess) |\n|---|---|---|---|")
-            for name, r in (("this tree", {"pre": pre, "first": first, "next": later}),
-                            ("baseline", base)):
-                pw, pc = med(e["wall"] for e in r["pre"]), med(e["cpu"] for e in r["pre"])
-                cells = [f"{pw:.2f} / {pc:.2f}"]
-                for k in ("first", "next"):
-                    w, c = med(e["wall"] for e in r[k]), med(e["cpu"] for e in r[k])
-                    cells.append(f"{w:.3f} / {c:.3f} ({w / pw:.3f} / {c / pc:.3f})")
-                print(f"| {name} | " + " | ".join(cells) + " |")
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
+        w = max(e["bytes"] for e in allx)
+        print(f"largest edit: {w / 1e3:.1f} kB written, {100 * w / size:.2f} % of the store")
+
+
+def _compare(case: Case, base: dict) -> None:
+    """This tree's square store against the baseline tree's, same run."""
+    med = statistics.median
+    print("\n| same run, in turns | preprocess wall / CPU s | first edit wall / CPU s "
+          "(× preprocess) | next edits wall / CPU s (× preprocess) |\n|---|---|---|---|")
+    for name, r in (("this tree", {"pre": case.pre, "first": case.first, "next": case.later}),
+                    ("baseline", base)):
+        pw, pc = med(e["wall"] for e in r["pre"]), med(e["cpu"] for e in r["pre"])
+        cells = [f"{pw:.2f} / {pc:.2f}"]
+        for k in ("first", "next"):
+            w, c = med(e["wall"] for e in r[k]), med(e["cpu"] for e in r[k])
+            cells.append(f"{w:.3f} / {c:.3f} ({w / pw:.3f} / {c / pc:.3f})")
+        print(f"| {name} | " + " | ".join(cells) + " |")
 
 
 def _baseline(base: dict, a, dem: str, store: str, work: str, run: int) -> None:

@@ -45,8 +45,9 @@ def command(ctx, store, patch, mode, at, resampling, round_heights, band):
     the store then holds what preprocessing the edited DEM would give. The edit is one
     transaction: if it is interrupted, the store is left as it was. A `geoterrain view`
     window showing the store redraws when the edit is done. A root-grid store
-    (`preprocess --root-grid`) is edited too, recomputed over the whole grid for now
-    (about a preprocess's time).
+    (`preprocess --root-grid`) is edited the same way when its raster fills its roots;
+    one with padding, like a padded square store, is recomputed over the whole grid
+    (about a preprocess's time; the summary line says why).
 
     \b
     Examples:

@@ -139,11 +139,12 @@ def _quarter(z, vb, i0, j0, s, main, which):
 
 
 @njit(cache=True)
-def fine_raw_delta(z, vb, oi, oj, N, verts, out):
+def fine_raw_delta(z, vb, oi, oj, R, C, verts, out):
     """Raw δ (float32 rounded up; +inf where the diamond mixes valid and invalid samples,
     0 where it holds none) of the vertices ``verts`` (rows: grid i, j and half-span h),
     as :func:`geoterrain.bounds.delta._raw_delta_nb` computes them, into ``out``; every
-    vertex's closed diamond (and its blocks) lies in the window, the grid is N × N."""
+    vertex's closed diamond (and its blocks) lies in the window, the grid is R × C (the
+    square's N × N, or a root grid's extent)."""
     for k in range(verts.shape[0]):
         i, j, h = verts[k, 0], verts[k, 1], verts[k, 2]
         il, jl = i - oi, j - oj
@@ -171,14 +172,14 @@ def fine_raw_delta(z, vb, oi, oj, N, verts, out):
             if j > 0:
                 flo, qlo = _quarter(z, vb, il - h, jl - s, s, main_diagonal_nb(a, j // s - 1),
                                     2)
-            if j < N - 1:
+            if j < C - 1:
                 fhi, qhi = _quarter(z, vb, il - h, jl, s, main_diagonal_nb(a, j // s), 1)
         else:
             b = (j - h) // s
             if i > 0:
                 flo, qlo = _quarter(z, vb, il - s, jl - h, s, main_diagonal_nb(i // s - 1, b),
                                     4)
-            if i < N - 1:
+            if i < R - 1:
                 fhi, qhi = _quarter(z, vb, il, jl - h, s, main_diagonal_nb(i // s, b), 3)
         f = flo | fhi
         v = np.float32(0.0)
@@ -195,14 +196,14 @@ def fine_raw_delta(z, vb, oi, oj, N, verts, out):
         elif f != 2:  # a mix: the diamond swept (bounds.edge_err_window)
             if rows:
                 lo_ok = j - h >= 0
-                hi_ok = j + h <= N - 1
+                hi_ok = j + h <= C - 1
                 za = z[il - h, jl]
                 zb = z[il + h, jl]
                 z_lo = z[il, jl - h] if lo_ok else 0.0
                 z_hi = z[il, jl + h] if hi_ok else 0.0
             else:
                 lo_ok = i - h >= 0
-                hi_ok = i + h <= N - 1
+                hi_ok = i + h <= R - 1
                 za = z[il, jl - h]
                 zb = z[il, jl + h]
                 z_lo = z[il - h, jl] if lo_ok else 0.0
@@ -218,20 +219,20 @@ def fine_raw_delta(z, vb, oi, oj, N, verts, out):
 
 
 @njit(cache=True)
-def nest_codes_rect(x, y, z, codes, table, verts, oi, oj, N):
+def nest_codes_rect(x, y, z, codes, table, verts, oi, oj, R, C):
     """The radius codes of ``verts`` (rows: grid i, j, h; fine to coarse, each level's
     edge midpoints before its centres, none an h = 1 edge midpoint, a leaf), nested on
     their children's codes as :func:`geoterrain.bounds.radii.nest_code_nb` nests them, into
     ``codes``; ``x``, ``y``, ``z`` (scene, invalid z at the stand-in height) and
     ``codes`` hold the window from grid sample (``oi``, ``oj``), which holds every
-    child."""
+    child in the R × C grid."""
     for k in range(verts.shape[0]):
         i, j, h = verts[k, 0], verts[k, 1], verts[k, 2]
         il, jl = i - oi, j - oj
         best = 0.0
         for c in range(4):
             ci, cj = child_nb(i, j, h, c)
-            if 0 <= ci < N and 0 <= cj < N:
+            if 0 <= ci < R and 0 <= cj < C:
                 cl, ck = ci - oi, cj - oj
                 d = np.sqrt((x[il, jl] - x[cl, ck]) ** 2 + (y[il, jl] - y[cl, ck]) ** 2
                             + (z[il, jl] - z[cl, ck]) ** 2) + table[codes[cl, ck]]

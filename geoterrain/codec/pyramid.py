@@ -84,7 +84,10 @@ from geoterrain.core.zstdsafe import compress_many, decompress
 
 __all__ = [
     "BLOB_VERSION",
+    "blob_predictor",
+    "encode_child",
     "encode_pyramid",
+    "encode_root",
     "decode_tile",
     "decode_tile_valid",
     "tile_valid",
@@ -564,6 +567,90 @@ def _encode_tiles(d, valid, s, h, cubic, ys, xs, kinds, cap, bins) -> list[bytes
         todo = todo[lens < 0]
         cap *= 8
     return out
+
+
+# ------------------------------------------------------------------- one tile at a time
+
+
+def encode_root(codes: np.ndarray, valid: np.ndarray, te: int, cubic: bool, bins: int = 1,
+                edges: bool = False, near: np.ndarray | None = None) -> bytes:
+    """The blob of one top tile (a root), as :func:`encode_decoded` codes it, from its
+    (T, T) ``codes`` as :func:`~geoterrain.codec.quantize.valid_codes` gives them (an
+    invalid sample at the code of height 0) and ``valid``: the invalid samples filled
+    as its decoding fills them, then the tile coded coarse to fine inside itself.
+    ``edges``: a root of a grid of several, whose invalid corners come from ``near``,
+    the fill (:func:`~geoterrain.codec.predict.fill_outward`) of the whole top level of
+    every root, cut to this root. For an edit that codes a root again.
+
+    Examples
+    --------
+    >>> z = np.arange(25.0).reshape(5, 5); v = np.ones((5, 5), bool)
+    >>> blob = encode_root(valid_codes(z, v, Quantizer("int")), v, 2, False)
+    >>> blob == encode_pyramid(z, v, 2, Quantizer("int"), predictor="linear")[(0, 0, 0)]
+    True
+    """
+    valid = np.ascontiguousarray(valid, dtype=bool)
+    d = np.array(codes, np.int64)
+    _top_fill(d, valid, te, cubic, top_bins(bins), edges=edges, near=near)
+    return _encode_top(d, valid, te, 0, cubic, bins, edges)
+
+
+def encode_child(codes: np.ndarray, valid: np.ndarray, parent: np.ndarray,
+                 parity: tuple[int, int], te: int, cubic: bool, bins: int = 1,
+                 wide: bool = False) -> bytes:
+    """The blob of one non-top tile, as :func:`encode_decoded` codes it, from its (T, T)
+    ``codes`` and ``valid`` and its parent tile's decoded codes (``parity``: (x % 2,
+    y % 2), the tile's quadrant of the parent); ``wide``: a lossless float store's wide
+    blob. For an edit that codes a tile again.
+
+    Examples
+    --------
+    >>> z = np.arange(81.0).reshape(9, 9); v = np.ones((9, 9), bool)
+    >>> blobs, d = encode_decoded(z, v, 2, Quantizer("int"), predictor="linear")
+    >>> encode_child(d[4:, :5], v[4:, :5], d[::2, ::2], (0, 1), 2, False) == blobs[(0, 0, 1)]
+    True
+    """
+    codes = np.ascontiguousarray(codes, np.int64)
+    ok = np.ascontiguousarray(valid, dtype=bool)
+    T = codes.shape[0]
+    kind = int(_mask_kind(int(ok.sum()), T * T))
+    if not wide:
+        return _header(False, kind, te, cubic) + entropy.encode_tile(
+            codes, ok, np.ascontiguousarray(parent, np.int64), parity, cubic, kind, bins)
+    # the residuals on the parent tile's lattice (the child's quadrant filled in, its
+    # invalid samples given their predictions first, as the whole grid has them)
+    h = (T - 1) // 2
+    px, py = parity
+    d = np.zeros((2 * T - 1, 2 * T - 1), np.int64)
+    vv = np.ones((2 * T - 1, 2 * T - 1), bool)
+    d[py * (T - 1):py * (T - 1) + T, px * (T - 1):px * (T - 1) + T] = codes
+    vv[py * (T - 1):py * (T - 1) + T, px * (T - 1):px * (T - 1) + T] = ok
+    d[::2, ::2] = parent
+    fill_level(d, vv, 1, _period(te, cubic), 1)
+    zz = np.empty((1, 3 * h * h + 2 * h), np.uint64)
+    zmax = np.empty(1, np.uint64)
+    entropy.level_zigzag(d, 1, h, _period(te, cubic), np.array([py], np.int64),
+                         np.array([px], np.int64), zz, zmax)
+    zm = int(zmax[0]) if zz.size else 0
+    w = 0 if zm == 0 else next(b for b in (1, 2, 4, 8) if zm < 1 << (8 * b))
+    mask = np.packbits(ok).tobytes() if kind == MASK_STORED else b""
+    body = np.ascontiguousarray(zz[0].astype(np.dtype(_UINTS[w]).newbyteorder("<"))
+                                .view(np.uint8).reshape(-1, w).T).tobytes() if w else b""
+    return _header(False, kind, te, cubic, w) + compress_many([mask + body], _WIDE_LEVEL)[0]
+
+
+def blob_predictor(blob: bytes) -> str:
+    """The predictor a tile blob records: ``"cubic"`` or ``"linear"`` (every blob of a
+    store records the same).
+
+    Examples
+    --------
+    >>> z = np.arange(25.0).reshape(5, 5); v = np.ones((5, 5), bool)
+    >>> c = valid_codes(z, v, Quantizer("int"))
+    >>> blob_predictor(encode_root(c, v, 2, True)), blob_predictor(encode_root(c, v, 2, False))
+    ('cubic', 'linear')
+    """
+    return "cubic" if _parse(blob)[3] else "linear"
 
 
 # --------------------------------------------------------------------------- decoding

@@ -31,23 +31,40 @@ def _grid(seed: int, n: int, holes: float):
     return z, v
 
 
-def _vertices(N: int) -> np.ndarray:
+def _vertices(N: int, C: int | None = None, span: int | None = None) -> np.ndarray:
+    """Every vertex (i, j, h) of the N × N square, or of an N × C root grid's extent
+    (roots of side ``span``: half-spans below it), fine to coarse."""
+    C = N if C is None else C
+    span = N - 1 if span is None else span
     out = []
     h = 1
-    while h < N - 1:
+    while h < span:
         s = 2 * h
-        nb = (N - 1) // s
-        for a in range(nb):
-            for b in range(nb + 1):
+        nr, nc = (N - 1) // s, (C - 1) // s
+        for a in range(nr):
+            for b in range(nc + 1):
                 out.append((h + a * s, b * s, h))
-        for a in range(nb + 1):
-            for b in range(nb):
+        for a in range(nr + 1):
+            for b in range(nc):
                 out.append((a * s, h + b * s, h))
-        for a in range(nb):
-            for b in range(nb):
+        for a in range(nr):
+            for b in range(nc):
                 out.append((h + a * s, h + b * s, h))
         h *= 2
     return np.array(out, np.int64)
+
+
+def _root_grid(seed: int, n: int, holes: float, wide: bool):
+    # 2 × 1 (wide) or 1 × 2 roots of side 2**n: the extent (2**n + 1, 2**(n+1) + 1) or
+    # its transpose
+    rng = np.random.default_rng(seed)
+    R, C = (1 << n) + 1, (1 << (n + 1)) + 1
+    if not wide:
+        R, C = C, R
+    z = rng.normal(0, 10 ** rng.uniform(-1, 3), (R, C)).cumsum(0).cumsum(1) / R
+    z += rng.uniform(-1e4, 1e4)
+    v = rng.random((R, C)) >= holes
+    return z, v
 
 
 @pytest.mark.fast
@@ -60,7 +77,24 @@ def test_fine_raw_delta_is_the_whole_grids(seed, n, holes):
     raw = _raw_delta(zf, vv)
     verts = _vertices(z.shape[0])
     out = np.zeros(len(verts), np.float32)
-    fine_raw_delta(zf, vv.view(np.uint8), 0, 0, z.shape[0], verts, out)
+    fine_raw_delta(zf, vv.view(np.uint8), 0, 0, z.shape[0], z.shape[1], verts, out)
+    assert np.array_equal(out, raw[verts[:, 0], verts[:, 1]])
+
+
+@pytest.mark.fast
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.integers(2, 5), wide=st.booleans(),
+       holes=st.sampled_from([0.0, 0.0, 0.05, 0.5]))
+def test_fine_raw_delta_is_the_root_grids(seed, n, wide, holes):
+    """On 2 × 1 and 1 × 2 roots (the extent R × C, half-spans below a root's side): the
+    edge midpoints on the extent's last row and column and on the roots' shared edge."""
+    z, v = _root_grid(seed, n, holes, wide)
+    span = 1 << n
+    zf, vv, _ = check_grid(z, v, span)
+    raw = _raw_delta(zf, vv, span)
+    verts = _vertices(z.shape[0], z.shape[1], span)
+    out = np.zeros(len(verts), np.float32)
+    fine_raw_delta(zf, vv.view(np.uint8), 0, 0, z.shape[0], z.shape[1], verts, out)
     assert np.array_equal(out, raw[verts[:, 0], verts[:, 1]])
 
 
@@ -102,7 +136,27 @@ def test_nested_radius_codes_are_the_whole_grids(seed, n, holes):
     verts = _vertices(N)
     leaf = (verts[:, 2] == 1) & ~(((verts[:, 0] % 2) == 1) & ((verts[:, 1] % 2) == 1))
     nest_codes_rect(np.ascontiguousarray(xp), np.ascontiguousarray(yp), zp, mine,
-                    log8_table(e).astype(np.float64), verts[~leaf], 0, 0, N)
+                    log8_table(e).astype(np.float64), verts[~leaf], 0, 0, N, N)
+    assert np.array_equal(mine, codes)
+
+
+@pytest.mark.fast
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.integers(2, 5), wide=st.booleans(),
+       holes=st.sampled_from([0.0, 0.05, 0.5]))
+def test_nested_radius_codes_are_the_root_grids(seed, n, wide, holes):
+    z, v = _root_grid(seed, n, holes, wide)
+    R, C = z.shape
+    span = 1 << n
+    ii, jj = np.indices((R, C)).astype(np.float64)
+    X, Y = 10.0 * jj, -10.0 * ii
+    codes, e = radius_codes(X, Y, np.where(v, z, np.nan), v, span=span)
+    xp, yp, zp = _proxy_positions(X, Y, np.where(v, z, np.nan), v)
+    mine = np.zeros((R, C), np.uint8)
+    verts = _vertices(R, C, span)
+    leaf = (verts[:, 2] == 1) & ~(((verts[:, 0] % 2) == 1) & ((verts[:, 1] % 2) == 1))
+    nest_codes_rect(np.ascontiguousarray(xp), np.ascontiguousarray(yp), zp, mine,
+                    log8_table(e).astype(np.float64), verts[~leaf], 0, 0, R, C)
     assert np.array_equal(mine, codes)
 
 

@@ -11,9 +11,11 @@ preprocess chose the other predictor (then the same decoded codes).
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 
 import numpy as np
@@ -193,3 +195,266 @@ def test_lossy_root_grid_store_keeps_its_bound_across_the_seam(tmp_path):
         ok = np.ones(z.shape, bool)
         ok[10:15, 28:37] = False
         assert np.abs(h[:33, :60][ok] - before[:33, :60][ok]).max() <= 0.5 + 1e-9
+
+
+# ------------------------------------------------------------------ the edit by tiles
+
+
+def _filled_roots(seed, tile, k, wide, voids):
+    """A DEM that fills 2 × 1 (``wide``) or 1 × 2 roots of side tile · 2^k (no padding:
+    the edit by tiles takes it), with ``voids`` ("none", "spots": a few samples,
+    "block": a 3 × 3 void)."""
+    s = tile << k
+    rows, cols = (s + 1, 2 * s + 1) if wide else (2 * s + 1, s + 1)
+    z = integer_dem(seed, rows, cols, 0.003 if voids == "spots" else 0.0)
+    if voids == "block":
+        rng = np.random.default_rng(seed)
+        i, j = int(rng.integers(0, rows - 3)), int(rng.integers(0, cols - 3))
+        z[i:i + 3, j:j + 3] = np.nan
+    return z, s
+
+
+@st.composite
+def tile_root_edits(draw):
+    """An edit of filled roots: a window across the roots' shared edge, with a corner on
+    a tile border, over the data's last row or column (the extent's edge: these roots
+    leave no padding), over a void, or anywhere."""
+    tile = draw(st.sampled_from([4, 8]))
+    k = draw(st.integers(1, 2))
+    wide = draw(st.booleans())
+    voids = draw(st.sampled_from(["none", "none", "spots", "block"]))
+    seed = draw(st.integers(0, 999))
+    z, s = _filled_roots(seed, tile, k, wide, voids)
+    rows, cols = z.shape
+    h, w = draw(st.integers(1, 12)), draw(st.integers(1, 12))
+    where = draw(st.sampled_from(["seam", "seam", "border", "edge", "void", "anywhere"]))
+    row = draw(st.integers(-h + 1, rows - 1))
+    col = draw(st.integers(-w + 1, cols - 1))
+    if where == "seam":
+        if wide:
+            col = draw(st.integers(s - w + 1, s))
+        else:
+            row = draw(st.integers(s - h + 1, s))
+    elif where == "border":
+        row, col = row - row % tile, col - col % tile
+    elif where == "edge":
+        if draw(st.booleans()):
+            row = draw(st.integers(rows - h, rows - 1))
+        else:
+            col = draw(st.integers(cols - w, cols - 1))
+    elif where == "void" and np.isnan(z).any():
+        ii, jj = np.nonzero(np.isnan(z))
+        q = draw(st.integers(0, len(ii) - 1))
+        row, col = int(ii[q]) - h // 2, int(jj[q]) - w // 2
+    mode = draw(st.sampled_from(["replace", "add", "min", "max"]))
+    kind = draw(st.sampled_from(["const", "rough", "holes"]))
+    return z, tile, row, col, h, w, mode, kind, seed, voids
+
+
+# the reasons a square store's edit takes the whole grid too (a store-wide number moves,
+# or nodata whose reach the tiles cannot bound): the root grid's by tiles says the same
+_STORE_WIDE = ("code scale", "largest vertex error", "stand-in height", "nodata")
+
+
+@pytest.mark.slow  # 12 examples, two preprocesses each: about 30 s
+@settings(max_examples=12, deadline=None)
+@given(e=tile_root_edits())
+def test_root_grid_edit_by_tiles_is_the_preprocessed_edited_dem(tmp_path_factory, e):
+    """Issue 45 × 52: on filled 2 × 1 and 1 × 2 roots the edit takes the tiles' path
+    (asserted through what it reports) and the store it leaves is the root-grid store
+    preprocessed from the edited DEM: every blob, tile row and metadata entry (the
+    square tests' oracle)."""
+    z, tile, row, col, h, w, mode, kind, seed, voids = e
+    p = _patch(kind, h, w, seed, mode)
+    tmp = tmp_path_factory.mktemp("rtl")
+    (tmp / "a").mkdir()
+    (tmp / "b").mkdir()
+    store = _root_store(tmp / "a" / "dem.tif", z, tile)
+    try:
+        with geoterrain.open(store) as t:
+            res = edit_terrain(t, Patch(row, col, p), mode)
+    except InputError as exc:  # the patch misses the DEM
+        assert "outside" in str(exc)
+        return
+    if res.window is not None:
+        if voids == "none" and not any(w in res.why for w in _STORE_WIDE):
+            assert res.how == "tiles", res.why
+        assert res.how == "tiles" or any(w in res.why for w in _STORE_WIDE), res.why
+    fresh = _root_store(tmp / "b" / "dem.tif", apply_by_hand(z, row, col, p, mode), tile)
+    assert_same_store(store, fresh)
+
+
+@pytest.mark.slow  # 16 edits of 8 stores: about 40 s
+@pytest.mark.parametrize("wide", [True, False])
+def test_most_root_grid_edits_take_the_tiles(tmp_path, wide):
+    """Windows across the shared edge of filled roots, with and without voids: the edit
+    takes the tiles' path for most (the others name a store-wide number or nodata) and
+    writes what the whole grid's edit writes."""
+    took = []
+    rng = np.random.default_rng(7 if wide else 8)
+    for k in range(8):
+        z, s = _filled_roots(int(rng.integers(1000)), 8, 2, wide, ["none", "spots"][k % 2])
+        h, w = int(rng.integers(2, 14)), int(rng.integers(2, 14))
+        row, col = int(rng.integers(0, z.shape[0] - h)), int(rng.integers(0, z.shape[1] - w))
+        if wide:
+            col = s - w // 2
+        else:
+            row = s - h // 2
+        mode = str(rng.choice(["replace", "add", "min", "max"]))
+        p = np.rint(rng.normal(0 if mode == "add" else float(np.nanmedian(z)), 12, (h, w)))
+        d = tmp_path / f"c{k}"
+        d.mkdir()
+        a = _root_store(d / "dem.tif", z, 8)
+        b = shutil.copy(a, d / "b.geoterrain")
+        with geoterrain.open(a) as t:
+            ra = edit_terrain(t, Patch(row, col, p), mode)
+        with geoterrain.open(b) as t:
+            edit_terrain(t, Patch(row, col, p), mode, how="whole grid")
+        assert_same_store(a, b)
+        if ra.window is not None:
+            took.append(ra.how == "tiles" or ra.why)
+    assert all(v is True or any(w in v for w in _STORE_WIDE) for v in took), took
+    assert sum(v is True for v in took) >= len(took) // 2, took
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("wide", [True, False])
+def test_a_window_across_the_seam_is_edited_by_tiles(tmp_path, wide):
+    """A 7 × 5 window over the shared edge of 2 × 1 (or 1 × 2) roots of 32 samples:
+    the tiles' path (``how="tiles"`` refuses otherwise), both roots' height, δ and r
+    blobs rewritten, and the store a root-grid preprocess of the edited DEM gives."""
+    from geoterrain.store.database import StoreReader
+
+    z, s = _filled_roots(11, 8, 2, wide, "none")
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    store = _root_store(tmp_path / "a" / "dem.tif", z, 8)
+    row, col = (10, s - 3) if wide else (s - 3, 10)
+    h, w = (5, 7) if wide else (7, 5)
+    # 60 m above the median: the roots' centres' δ and r codes move too (the vertex
+    # levels up to each root's top are recomputed), not δ's code scale
+    p = np.full((h, w), float(np.median(z)) + 60.0)
+    roots = [(2, 0, 0), (2, 1, 0)] if wide else [(2, 0, 0), (2, 0, 1)]
+
+    def blobs():
+        r = StoreReader(store)
+        try:
+            return {(k, kind): r.get_blob(k, kind) for k in roots
+                    for kind in ("heights", "delta", "radius")}
+        finally:
+            r.close()
+
+    before = blobs()
+    with geoterrain.open(store) as t:
+        assert t.grid.roots == ((2, 1) if wide else (1, 2)) and t.grid.top_level == 2
+        res = edit_terrain(t, Patch(row, col, p), "replace", how="tiles")
+    assert res.how == "tiles" and res.changed > 0
+    after = blobs()
+    assert all(after[k] != before[k] for k in before), [k for k in before
+                                                        if after[k] == before[k]]
+    fresh = _root_store(tmp_path / "b" / "dem.tif", apply_by_hand(z, row, col, p, "replace"),
+                        8)
+    assert_same_store(store, fresh)
+
+
+_KILLED_TILES = textwrap.dedent("""
+    import sys, time, numpy as np, geoterrain
+    import geoterrain.store.editor as E
+    import geoterrain.preprocessing.edit.local as local
+    real = E.StoreEditor._apply
+    real_plan = local.local_plan
+    class Slow:  # the editor's connection, pausing at its commit
+        def __init__(self, con):
+            self.con = con
+        def execute(self, sql, *a):
+            if sql == "COMMIT":
+                open(sys.argv[2], "w").close()
+                time.sleep(60)
+            return self.con.execute(sql, *a)
+        def close(self):
+            self.con.close()
+    def apply(self, *a):
+        self.con.execute("PRAGMA cache_size=1")
+        self.con = Slow(self.con)
+        return real(self, *a)
+    def plan(*a):  # which path the edit took, for the test
+        p, why = real_plan(*a)
+        open(sys.argv[3], "w").write("tiles" if p is not None else why)
+        return p, why
+    E.StoreEditor._apply = apply
+    local.local_plan = plan
+    t = geoterrain.open(sys.argv[1])
+    t.edit((3, 30), np.full((20, 9), float(sys.argv[4])))
+""")
+
+
+@pytest.mark.slow  # a child process: about 5 s
+def test_killed_edit_by_tiles_leaves_the_old_root_grid_store(tmp_path):
+    """SIGKILL at the commit of an edit by tiles (asserted) across the shared edge of
+    2 × 1 filled roots: the next open rolls it back, byte for byte."""
+    z, s = _filled_roots(7, 8, 2, True, "none")
+    store = _root_store(tmp_path / "dem.tif", z, 8)
+    before = store.read_bytes()
+    ready, took = tmp_path / "ready", tmp_path / "took"
+    proc = subprocess.Popen([sys.executable, "-c", _KILLED_TILES, str(store), str(ready),
+                             str(took), str(float(np.median(z)) + 5.0)], cwd=os.getcwd())
+    try:
+        for _ in range(600):
+            if ready.exists() or proc.poll() is not None:
+                break
+            time.sleep(0.1)
+        assert ready.exists(), "the edit never reached its commit"
+        assert took.read_text() == "tiles"
+        assert store.read_bytes() != before
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    with geoterrain.open(store) as t:
+        assert t.meta.get("edits") is None
+        assert t.tile(0, 4, 0).heights[5, 3] == z[5, 35]
+    assert store.read_bytes() == before
+
+
+@pytest.mark.fast
+def test_padded_roots_go_to_the_whole_grid_and_say_why(tmp_path):
+    """Roots their raster does not fill (40 × 120 on 2 × 1 roots of 64): like a padded
+    square, the edit takes the whole grid (its static mesh's δ_edge is not computed by
+    tiles) and says so; ``how="tiles"`` refuses in one line."""
+    from geoterrain.exceptions import UsageError
+
+    z = integer_dem(5, 40, 120)
+    store = _root_store(tmp_path / "dem.tif", z, 16)
+    with geoterrain.open(store) as t:
+        with pytest.raises(UsageError, match="padded grid"):
+            edit_terrain(t, Patch(30, 60, np.full((4, 4), 700.0)), "max", how="tiles")
+        res = edit_terrain(t, Patch(30, 60, np.full((4, 4), 700.0)), "max")
+    assert res.how == "whole grid" and "padded grid" in res.why
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("layout", ["square", "wide", "tall"])
+def test_a_window_starting_on_the_last_row_or_column_is_edited(tmp_path, layout):
+    """A window whose first row (or column) is the grid's last, on a store that the
+    raster fills (a 33² square, 2 × 1 and 1 × 2 roots): the samples there are the last
+    tiles' last row (column), read and changed (the edit once read none there and wrote
+    nothing)."""
+    if layout == "square":
+        z = integer_dem(2, 33, 33)
+    else:
+        z, _ = _filled_roots(2, 8, 2, layout == "wide", "none")
+    rows, cols = z.shape
+    for k, (row, col, h, w) in enumerate([(rows - 1, 3, 1, 4), (5, cols - 1, 3, 1),
+                                          (rows - 1, cols - 1, 1, 1)]):
+        d = tmp_path / f"{k}"
+        (d / "a").mkdir(parents=True)
+        (d / "b").mkdir()
+        store = geoterrain.preprocess(write_dem(d / "a" / "dem.tif", z, NODATA), tile_size=8,
+                                      root_grid=layout != "square")
+        p = np.full((h, w), 4.0)
+        with geoterrain.open(store) as t:
+            res = edit_terrain(t, Patch(row, col, p), "add")
+        assert res.changed == h * w and res.window == (row, col, h, w)
+        fresh = geoterrain.preprocess(
+            write_dem(d / "b" / "dem.tif", apply_by_hand(z, row, col, p, "add"), NODATA),
+            tile_size=8, root_grid=layout != "square")
+        assert_same_store(store, fresh)

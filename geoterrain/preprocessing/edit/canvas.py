@@ -38,7 +38,7 @@ class Canvas:
         g = terrain.grid
         self.grid = g
         self.S = 1 << g.t
-        self.nt = g.tiles_per_side(0)
+        self.ntx, self.nty = g.tiles(0)  # level-0 tiles across and down
         self.r0, self.c0 = int(r0), int(c0)
         self.r1, self.c1 = self.r0 + heights.shape[0], self.c0 + heights.shape[1]
         self.heights = np.where(valid, heights, np.nan)
@@ -63,7 +63,7 @@ class Canvas:
             return got
         T = self.S + 1
         t = self.terrain
-        if 0 <= ty < self.nt and 0 <= tx < self.nt and (0, tx, ty) in t.tile_info:
+        if 0 <= ty < self.nty and 0 <= tx < self.ntx and (0, tx, ty) in t.tile_info:
             tl = t.tile(0, tx, ty)
             h, v = tl.heights.copy(), tl.valid.copy()
         else:
@@ -92,14 +92,15 @@ class Canvas:
     def rect(self, i0: int, j0: int, i1: int, j1: int, new: bool = True
              ) -> tuple[np.ndarray, np.ndarray]:
         """Scene heights (0 where not valid) and validity (uint8) of rows i0 … i1 − 1 and
-        columns j0 … j1 − 1 (samples outside the grid are nodata)."""
+        columns j0 … j1 − 1 (samples outside level 0's tiles are nodata)."""
         z = np.zeros((i1 - i0, j1 - j0))
         v = np.zeros((i1 - i0, j1 - j0), np.uint8)
-        S, N = self.S, self.grid.size
-        for ty in range(max(i0, 0) // S, min(i1 - 1, N - 1) // S + 1):
-            ty = min(ty, self.nt - 1)
-            for tx in range(max(j0, 0) // S, min(j1 - 1, N - 1) // S + 1):
-                tx = min(tx, self.nt - 1)
+        S = self.S
+        R, C = self.grid.shape
+        for ty in range(max(i0, 0) // S, min(i1 - 1, R - 1) // S + 1):
+            ty = min(ty, self.nty - 1)
+            for tx in range(max(j0, 0) // S, min(j1 - 1, C - 1) // S + 1):
+                tx = min(tx, self.ntx - 1)
                 tz, tv = self.tile_z(ty, tx, new)
                 a0, a1 = max(i0, ty * S), min(i1, ty * S + S + 1)
                 b0, b1 = max(j0, tx * S), min(j1, tx * S + S + 1)
@@ -121,12 +122,13 @@ class Canvas:
         rows, cols = np.asarray(rows, np.int64), np.asarray(cols, np.int64)
         h = np.full((len(rows), len(cols)), np.nan)
         v = np.zeros((len(rows), len(cols)), bool)
-        n = g.tiles_per_side(L)
-        for y in range(min(int(rows[0]) // span, n - 1), min(int(rows[-1]) // span, n - 1) + 1):
+        nx, ny = g.tiles(L)
+        for y in range(min(int(rows[0]) // span, ny - 1),
+                       min(int(rows[-1]) // span, ny - 1) + 1):
             ri = (rows - y * span) // step
             mr = (ri >= 0) & (ri < T)
-            for x in range(min(int(cols[0]) // span, n - 1),
-                           min(int(cols[-1]) // span, n - 1) + 1):
+            for x in range(min(int(cols[0]) // span, nx - 1),
+                           min(int(cols[-1]) // span, nx - 1) + 1):
                 if (L, x, y) not in t.tile_info:
                     continue
                 tl = t.tile(L, x, y)
@@ -158,8 +160,8 @@ class Canvas:
                 continue
             bits = a | b
             L = top if bits == 0 else min((bits & -bits).bit_length() - 1, top)
-            span, n = g.tile_span(L), g.tiles_per_side(L)
-            y, x = min(a // span, n - 1), min(b // span, n - 1)
+            span, (nx, ny) = g.tile_span(L), g.tiles(L)
+            y, x = min(a // span, ny - 1), min(b // span, nx - 1)
             if (L, x, y) not in t.tile_info:
                 continue
             tl = t.tile(L, x, y)

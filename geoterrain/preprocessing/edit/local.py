@@ -21,8 +21,17 @@ For the window E of changed samples:
   hold the largest one are decoded); skirt errors along the tile borders E reaches;
 - **normals**: every level's central differences within one sample of E.
 
+On a root grid (issue 45: the top level a row or column of root tiles, each its own
+bintree) the same steps run over the level's tiles across and down
+(:meth:`~geoterrain.core.grid.Grid.tiles`) and the roots' extent: the saturation chain
+ends at each root's top (half-spans below a root's side, as the preprocess's ``span``),
+and every stored root is coded again with its edges filled first and its invalid
+corners from the whole top level's fill (:func:`geoterrain.codec.pyramid.encode_root`),
+so a window across two roots' shared edge rewrites both roots' blobs alike.
+
 It takes projected and pixel frames, lossless stores (and stores coded within ε
-without residual bins), unpadded grids whose block table covers every level; anything
+without residual bins), unpadded grids (a square, or roots their raster fills) whose
+block table covers every level; anything
 else, and an edit that changes a number every tile's codes depend on (δ's or r's code
 scale, the nodata stand-in height, a largest δ that only a full pass can find), goes to
 :mod:`.whole`, which says why (:func:`unsupported`, :func:`local_plan`). Tested against
@@ -39,21 +48,9 @@ from geoterrain.bounds.edgepad import has_padding
 from geoterrain.bounds.normals import encode_octahedral, normal_map
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, ring_blobs
 from geoterrain.bounds.vertexdata import LOG8, NORMAL_BITS, RING
-from geoterrain.codec.entropy import MASK_STORED, _level_zigzag, encode_tile
-from geoterrain.codec.predict import fill_level
-from geoterrain.codec.pyramid import (
-    _UINTS,
-    _WIDE_LEVEL,
-    _encode_top,
-    _header,
-    _mask_kind,
-    _period,
-    _top_fill,
-    decode_tile_valid,
-    top_bins,
-)
+from geoterrain.codec.predict import fill_outward
+from geoterrain.codec.pyramid import decode_tile_valid, encode_child, encode_root
 from geoterrain.codec.quantize import valid_codes
-from geoterrain.core.zstdsafe import compress_many
 from geoterrain.preprocessing.edit.canvas import Canvas
 from geoterrain.preprocessing.edit.whole import Plan, store_predictor
 from geoterrain.store.catalog import TILE_COLUMNS
@@ -77,8 +74,6 @@ def unsupported(terrain: TerrainLike, row: int, col: int, heights: np.ndarray,
     g, f, q, m = terrain.grid, terrain.frame, terrain.quantizer, terrain.meta
     if f.kind == "geographic":
         return "a geographic grid's δ and r hold curvilinear terms"
-    if not g.square:
-        return "a root grid's δ, r and blobs are not computed by tiles yet"
     if q.bins > 1:
         return "heights coded in residual bins depend on the whole pyramid"
     if has_padding(g):
@@ -90,8 +85,9 @@ def unsupported(terrain: TerrainLike, row: int, col: int, heights: np.ndarray,
         return "a store written before the block table and derived normals"
     r = StoreReader(terrain.path)
     try:
-        blob = r.get_blob((g.top_level, 0, 0), "delta")
-        rblob = r.get_blob((g.top_level, 0, 0), "radius")
+        top = _stored_root(terrain)
+        blob = r.get_blob(top, "delta")
+        rblob = r.get_blob(top, "radius")
     finally:
         r.close()
     if not (blob and len(blob) > 2 and blob[1] & LOG8 and rblob and len(rblob) > 2
@@ -121,6 +117,15 @@ def _e8(blob: bytes) -> int:
     return int(np.int8(np.uint8(blob[2])))
 
 
+def _stored_root(terrain: TerrainLike) -> tuple[int, int, int]:
+    """The first stored top tile (a root grid's root (top, 0, 0) may hold no data; every
+    root's δ and r blobs record the store's code exponents)."""
+    g = terrain.grid
+    nx, ny = g.roots
+    keys = [(g.top_level, x, y) for y in range(ny) for x in range(nx)]
+    return next((k for k in keys if k in terrain.tile_info), keys[0])
+
+
 class _Job:
     """One edit's computation: the canvas, the old store's rows, and what changes."""
 
@@ -132,7 +137,7 @@ class _Job:
         self.puts: dict = {}
         self.dirty: list = []
         self.rows: dict = {}  # new tile rows (TILE_COLUMNS order), changed tiles only
-        top = (self.g.top_level, 0, 0)
+        top = _stored_root(terrain)
         dblob = self.reader.get_blob(top, "delta")
         rblob = self.reader.get_blob(top, "radius")
         self.ed, self.er = _e8(dblob), _e8(rblob)
@@ -172,11 +177,11 @@ class _Job:
     def tiles_near(self, L: int, margin: int) -> list[tuple[int, int]]:
         """Level-L tiles (x, y) whose closed footprint grown by ``margin`` samples meets
         the edit."""
-        c, span, n = self.c, self.g.tile_span(L), self.g.tiles_per_side(L)
+        c, span, (nx, ny) = self.c, self.g.tile_span(L), self.g.tiles(L)
         y0 = max((c.r0 - margin - 1) // span, 0)
-        y1 = min((c.r1 - 1 + margin) // span, n - 1)
+        y1 = min((c.r1 - 1 + margin) // span, ny - 1)
         x0 = max((c.c0 - margin - 1) // span, 0)
-        x1 = min((c.c1 - 1 + margin) // span, n - 1)
+        x1 = min((c.c1 - 1 + margin) // span, nx - 1)
         return [(x, y) for y in range(y0, y1 + 1) for x in range(x0, x1 + 1)
                 if c.touches(y * span - margin, x * span - margin, (y + 1) * span + margin,
                              (x + 1) * span + margin)]
@@ -240,15 +245,18 @@ class _Job:
         wide = q.mode == "float"
         self.codes: dict = {}  # (L, x, y) → new decoded codes
         zero = int(valid_codes(np.zeros((1, 1)), np.ones((1, 1), bool), q)[0, 0])
+        roots = self._top_level(zero)
         changed: list = []  # level-0 rectangles (closed) of changed decoded codes, a level up
         for L in range(top, -1, -1):
             step, span = 1 << L, g.tile_span(L)
-            cands = set(self.tiles_near(L, 2 * step))
+            nx, ny = g.tiles(L)
+            # the top level: every root (a root's fill reads the whole top level)
+            cands = set(roots) if L == top else set(self.tiles_near(L, 2 * step))
             for r in changed:  # tiles whose prediction reads a changed parent sample
                 for x in range(max((r[1] - 2 * step - 1) // span, 0),
-                               min((r[3] + 2 * step) // span, g.tiles_per_side(L) - 1) + 1):
+                               min((r[3] + 2 * step) // span, nx - 1) + 1):
                     for y in range(max((r[0] - 2 * step - 1) // span, 0),
-                                   min((r[2] + 2 * step) // span, g.tiles_per_side(L) - 1) + 1):
+                                   min((r[2] + 2 * step) // span, ny - 1) + 1):
                         cands.add((x, y))
             changed = []
             for x, y in sorted(cands):
@@ -256,22 +264,16 @@ class _Job:
                 if not self.stored(key):
                     continue
                 old = t.tile(*key) if key in t.tile_info else None
-                codes = old.codes.copy() if old is not None else np.zeros((T, T), np.int64)
-                ok = old.valid.copy() if old is not None else np.zeros((T, T), bool)
-                _overlay(c, L, x, y, span, codes, ok)
-                if L == top:  # its invalid samples as valid_codes gives them, then filled
-                    d = np.where(ok, codes, zero)
-                    _top_fill(d, ok, te, cubic, top_bins(q.bins))
-                    blob = _encode_top(d, ok, te, 0, cubic, q.bins)
+                if L == top:
+                    codes, ok, blob = roots[(x, y)]
                 else:
+                    codes = old.codes.copy() if old is not None else np.zeros((T, T), np.int64)
+                    ok = old.valid.copy() if old is not None else np.zeros((T, T), bool)
+                    _overlay(c, L, x, y, span, codes, ok)
                     pk = (L + 1, x // 2, y // 2)
                     parent = self.codes[pk] if pk in self.codes else t.tile(*pk).codes
-                    kind = int(_mask_kind(int(ok.sum()), T * T))
-                    if wide:
-                        blob = _wide(L, x, y, codes, ok, parent, te, kind, cubic)
-                    else:
-                        blob = _header(False, kind, te, cubic) + encode_tile(
-                            codes, ok, parent, (x % 2, y % 2), cubic, kind, q.bins)
+                    blob = encode_child(codes, ok, parent, (x % 2, y % 2), te, cubic, q.bins,
+                                        wide)
                 dec, _ = decode_tile_valid(blob, None if L == top else parent,
                                            (x % 2, y % 2), te, q.bins)
                 self.codes[key] = dec
@@ -283,13 +285,51 @@ class _Job:
                                     * step, y * span + int(ii.max()) * step,
                                     x * span + int(jj.max()) * step))
 
+    def _top_level(self, zero: int) -> dict:
+        """(x, y) → (codes, validity, blob) of every stored root as the edit leaves it:
+        the edit's codes over the top level's samples, invalid ones at ``zero`` (the code
+        of height 0, as :func:`~geoterrain.codec.quantize.valid_codes` gives them), each
+        root coded as the whole grid codes it. A root of a grid of several fills its
+        edges first and takes its invalid corners from the fill of the whole top level
+        (:func:`geoterrain.codec.pyramid.encode_root`): a window on the edge two roots
+        share gives both the same codes there."""
+        g, c, t = self.g, self.c, self.t
+        q = t.quantizer
+        te, T, top = g.t, g.tile_samples, g.top_level
+        cubic = store_predictor(t) == "cubic"
+        W, span = 1 << te, g.tile_span(top)
+        nx, ny = g.roots
+        codes = np.full((ny * W + 1, nx * W + 1), zero, np.int64)
+        ok = np.zeros(codes.shape, bool)
+        keys = [(x, y) for y in range(ny) for x in range(nx) if self.stored((top, x, y))]
+        for x, y in keys:
+            win = (slice(y * W, y * W + T), slice(x * W, x * W + T))
+            if (top, x, y) in t.tile_info:
+                tl = t.tile(top, x, y)
+                codes[win] = np.where(tl.valid, tl.codes, zero)
+                ok[win] = tl.valid
+            _overlay(c, top, x, y, span, codes[win], ok[win])
+        codes = np.where(ok, codes, zero)
+        edges = (nx, ny) != (1, 1)
+        near = None
+        if edges:
+            near = codes.copy()
+            fill_outward(near, ok)
+        out = {}
+        for x, y in keys:
+            win = (slice(y * W, y * W + T), slice(x * W, x * W + T))
+            cw, ow = codes[win].copy(), ok[win].copy()
+            out[(x, y)] = (cw, ow, encode_root(cw, ow, te, cubic, q.bins, edges,
+                                               None if near is None else near[win].copy()))
+        return out
+
     # ------------------------------------------------------------- normals
     def normals(self) -> None:
         """Every level's normal map within one of its samples of the edit (central
         differences of the level's samples), for the tiles that hold them: one window
         of the level's samples a level, its codes cut into the tiles' blobs."""
         g, c, f = self.g, self.c, self.t.frame
-        te, N = g.t, g.size
+        te, (R, C) = g.t, g.extent
         for L in range(g.top_level + 1):
             step, span = 1 << L, g.tile_span(L)
             # a level-L sample in the edit (its rows and columns multiples of 2^L)
@@ -302,8 +342,8 @@ class _Job:
             x1, y1 = max(x for x, _ in keys), max(y for _, y in keys)
             # the tiles' samples and one more around (the central differences' neighbours)
             lo_i, lo_j = max(y0 * span - step, 0), max(x0 * span - step, 0)
-            hi_i = min((y1 + 1) * span + step, N - 1)
-            hi_j = min((x1 + 1) * span + step, N - 1)
+            hi_i = min((y1 + 1) * span + step, R - 1)
+            hi_j = min((x1 + 1) * span + step, C - 1)
             rows = np.arange(lo_i, hi_i + 1, step)
             cols = np.arange(lo_j, hi_j + 1, step)
             h, v = c.lattice(L, rows, cols)
@@ -342,8 +382,8 @@ class _Job:
         (3, nt, nt) arrays (0, +inf, −inf for a tile not stored), before or after."""
         key = "_level0_new" if new else "_level0_old"
         if not hasattr(self, key):
-            nt = self.g.tiles_per_side(0)
-            a = np.zeros((3, nt, nt))
+            nx, ny = self.g.tiles(0)
+            a = np.zeros((3, ny, nx))
             a[1], a[2] = np.inf, -np.inf
             table = self.reader.table()  # the rows tile_info holds, as arrays
             lev0 = (table.tiles & 31) == 0
@@ -419,28 +459,3 @@ def _overlay(c: Canvas, L: int, x: int, y: int, span: int, codes: np.ndarray,
         cc = j0 + b * step - c.c0
         codes[np.ix_(a, b)] = c.codes[np.ix_(rr, cc)]
         ok[np.ix_(a, b)] = c.valid[np.ix_(rr, cc)]
-
-
-def _wide(L: int, x: int, y: int, codes: np.ndarray, ok: np.ndarray, parent: np.ndarray,
-          te: int, kind: int, cubic: bool) -> bytes:
-    """A lossless float store's (wide) blob of one tile, as the whole-grid writer
-    (:func:`geoterrain.codec.pyramid._wide_blobs`) makes it: the residuals on the parent
-    tile's lattice (the child's quadrant filled in, its invalid samples given their
-    predictions first, as the writer's grid has them), then the same bytes."""
-    T = codes.shape[0]
-    h = (T - 1) // 2
-    px, py = x % 2, y % 2
-    d = np.zeros((2 * T - 1, 2 * T - 1), np.int64)
-    vv = np.ones((2 * T - 1, 2 * T - 1), bool)
-    d[py * (T - 1):py * (T - 1) + T, px * (T - 1):px * (T - 1) + T] = codes
-    vv[py * (T - 1):py * (T - 1) + T, px * (T - 1):px * (T - 1) + T] = ok
-    d[::2, ::2] = parent
-    fill_level(d, vv, 1, _period(te, cubic), 1)
-    zz = np.empty(3 * h * h + 2 * h, np.uint64)
-    _level_zigzag(d, 1, h, _period(te, cubic), py * 2 * h, px * 2 * h, zz)
-    zm = int(zz.max()) if zz.size else 0
-    w = 0 if zm == 0 else next(b for b in (1, 2, 4, 8) if zm < 1 << (8 * b))
-    mask = np.packbits(ok).tobytes() if kind == MASK_STORED else b""
-    body = np.ascontiguousarray(zz.astype(np.dtype(_UINTS[w]).newbyteorder("<"))
-                                .view(np.uint8).reshape(-1, w).T).tobytes() if w else b""
-    return _header(False, kind, te, cubic, w) + compress_many([mask + body], _WIDE_LEVEL)[0]

@@ -56,7 +56,10 @@ class Bounds:
     def __init__(self, job):
         self.job = job
         self.t, self.g, self.c = job.t, job.g, job.c
-        self.N = self.g.size
+        # the grid's vertices: the square's N × N, or a root grid's extent R × C; half-spans
+        # below a root's side (the square's one root: N − 1)
+        self.R, self.C = self.g.extent
+        self.root = 1 << self.g.n
         self.S = 1 << self.g.t
         self.t8 = log8_table(job.ed).astype(np.float64)
         self.rt = log8_table(job.er).astype(np.float64)
@@ -98,8 +101,8 @@ class Bounds:
                 raise _Whole("the edit moves the nodata stand-in height (the middle of the "
                              "height range), which every radius near nodata depends on")
         f = self.t.frame
-        cx, cy = f.xy(np.array([0, 0, self.N - 1, self.N - 1]),
-                      np.array([0, self.N - 1, 0, self.N - 1]))
+        cx, cy = f.xy(np.array([0, 0, self.R - 1, self.R - 1]),
+                      np.array([0, self.C - 1, 0, self.C - 1]))
         span = [float(np.nanmax(cx) - np.nanmin(cx)), float(np.nanmax(cy) - np.nanmin(cy))]
         er = min(log8_exponent(np.array([float(np.hypot(*span) + hi - lo)])) + 2, 127)
         if er != job.er:
@@ -112,28 +115,28 @@ class Bounds:
         descendant's diamond only (saturation and nesting pull from the whole DAG below
         a vertex: the samples of its descendants' diamonds lie within 3h − 1 of a centre
         and 2h − 1 of an edge midpoint, Chebyshev, by induction over the levels)."""
-        c, N = self.c, self.N
+        c = self.c
         R0, R1, C0, C1 = c.r0, c.r1 - 1, c.c0, c.c1 - 1
         self.levels = []
         h = 1
-        while h < N - 1:
+        while h < self.root:  # a root's corners are no vertex of the bintrees (δ 0)
             s = 2 * h
-            nb = (N - 1) // s
+            nr, nc = (self.R - 1) // s, (self.C - 1) // s
             out, direct = [], []
             for kind in ("rows", "cols", "centre"):
                 reach = 3 * h
-                a = np.arange(max((R0 - reach - s) // s, 0), min((R1 + reach) // s, nb) + 1)
-                b = np.arange(max((C0 - reach - s) // s, 0), min((C1 + reach) // s, nb) + 1)
+                a = np.arange(max((R0 - reach - s) // s, 0), min((R1 + reach) // s, nr) + 1)
+                b = np.arange(max((C0 - reach - s) // s, 0), min((C1 + reach) // s, nc) + 1)
                 A, B = np.meshgrid(a, b, indexing="ij")
                 if kind == "centre":
                     i, j = h + A * s, h + B * s
-                    ok = (A < nb) & (B < nb)
+                    ok = (A < nr) & (B < nc)
                 elif kind == "rows":
                     i, j = h + A * s, B * s
-                    ok = A < nb
+                    ok = A < nr
                 else:
                     i, j = A * s, h + B * s
-                    ok = B < nb
+                    ok = B < nc
                 di = np.maximum(np.maximum(R0 - i, i - R1), 0)
                 dj = np.maximum(np.maximum(C0 - j, j - C1), 0)
                 cheb = np.maximum(di, dj)
@@ -157,11 +160,11 @@ class Bounds:
         """The decoded window around the edit that holds every fine vertex's diamond,
         blocks and children (within 4h ≤ two tiles of the edit), two tiles beyond it; its
         stored δ and r codes."""
-        c, t, S, N = self.c, self.t, self.S, self.N
+        c, t, S = self.c, self.t, self.S
         self.oi = max((c.r0 // S - 2) * S, 0)
         self.oj = max((c.c0 // S - 2) * S, 0)
-        self.i1 = min(((c.r1 - 1) // S + 3) * S, N - 1)
-        self.j1 = min(((c.c1 - 1) // S + 3) * S, N - 1)
+        self.i1 = min(((c.r1 - 1) // S + 3) * S, self.R - 1)
+        self.j1 = min(((c.c1 - 1) // S + 3) * S, self.C - 1)
         self.z, self.v = c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1)
         shape = self.z.shape
         self.dc = np.zeros(shape, np.uint8)
@@ -189,15 +192,15 @@ class Bounds:
         window, level by level (edge midpoints before centres)."""
         vs = self.fine
         raw = np.zeros(len(vs), np.float32)
-        fine_raw_delta(self.z, self.v, self.oi, self.oj, self.N, vs, raw)
+        fine_raw_delta(self.z, self.v, self.oi, self.oj, self.R, self.C, vs, raw)
         self.fine_raw = raw
         self._check_scale(raw)
         raw_codes = np.searchsorted(self.t8, raw.astype(np.float64)).astype(np.uint8)
-        _saturate_rect(self.dc, raw_codes, vs, self.oi, self.oj, self.N)
+        _saturate_rect(self.dc, raw_codes, vs, self.oi, self.oj, self.R, self.C)
         leaves = (vs[:, 2] == 1) & ~(((vs[:, 0] // vs[:, 2]) % 2 == 1)
                                      & ((vs[:, 1] // vs[:, 2]) % 2 == 1))
         nest_codes_rect(self.X, self.Y, self.zp, self.rc, self.rt, vs[~leaves], self.oi,
-                        self.oj, self.N)
+                        self.oj, self.R, self.C)
         if (self.rc == 255).any():
             raise _Whole("a radius outgrows its code scale")
 
@@ -237,9 +240,9 @@ class Bounds:
         h = (i | j) & -(i | j)
         k = min(h.bit_length() - 1, g.top_level)
         span = g.tile_span(k)
-        n = g.tiles_per_side(k)
-        for y in {min(i // span, n - 1), max((i - 1) // span, 0)}:
-            for x in {min(j // span, n - 1), max((j - 1) // span, 0)}:
+        nx, ny = g.tiles(k)
+        for y in {min(i // span, ny - 1), max((i - 1) // span, 0)}:
+            for x in {min(j // span, nx - 1), max((j - 1) // span, 0)}:
                 if (k, x, y) in self.t.tile_info and y * span <= i <= y * span + span \
                         and x * span <= j <= x * span + span:
                     arr = (self.t.tile_delta if kind == "delta" else self.t.tile_radius)(k, x, y)
@@ -260,7 +263,7 @@ class Bounds:
             order = np.concatenate([np.flatnonzero(~centre), np.flatnonzero(centre)])
             for (i, j, _), d in zip(vs[order].tolist(), direct[order].tolist(), strict=True):
                 kids = [_child(i, j, h, k) for k in range(4)]
-                kids = [(ci, cj) for ci, cj in kids if 0 <= ci < self.N and 0 <= cj < self.N]
+                kids = [(ci, cj) for ci, cj in kids if 0 <= ci < self.R and 0 <= cj < self.C]
                 new_kids = max((self.d_code(ci, cj) for ci, cj in kids), default=0)
                 if d:
                     self.direct_coarse.add((i, j))
@@ -308,8 +311,7 @@ class Bounds:
     def _status(self, a: int, b: int, s: int, new: bool = True) -> int:
         """A coarse block's status (1 all valid, 2 all invalid, 3 mixed) from its tiles'
         valid counts; 0 outside the grid."""
-        nb = (self.N - 1) // s
-        if not (0 <= a < nb and 0 <= b < nb):
+        if not (0 <= a < (self.R - 1) // s and 0 <= b < (self.C - 1) // s):
             return 0
         k = s // self.S
         n = self.rows0[new][0, a * k:a * k + k, b * k:b * k + k]
@@ -350,9 +352,9 @@ class Bounds:
         samples (the diamond is then mixed: δ = +inf)."""
         S, T2 = self.S, (self.S + 1) ** 2
         got = 0
-        for ty in range(max((i - h) // S, 0), min((i + h) // S, self.g.tiles_per_side(0) - 1) + 1):
-            for tx in range(max((j - h) // S, 0),
-                            min((j + h) // S, self.g.tiles_per_side(0) - 1) + 1):
+        nx, ny = self.g.tiles(0)
+        for ty in range(max((i - h) // S, 0), min((i + h) // S, ny - 1) + 1):
+            for tx in range(max((j - h) // S, 0), min((j + h) // S, nx - 1) + 1):
                 corners = [(ty * S + a, tx * S + b) for a in (0, S) for b in (0, S)]
                 if all(abs(p - i) + abs(q - j) <= h for p, q in corners):
                     n = self.rows0[new][0, ty, tx]
@@ -500,7 +502,7 @@ class Bounds:
         if cand.any() and not held:
             raw_old = np.zeros(int(cand.sum()), np.float32)
             zo, vo = self.c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1, new=False)
-            fine_raw_delta(zo, vo, self.oi, self.oj, self.N, self.fine[cand], raw_old)
+            fine_raw_delta(zo, vo, self.oi, self.oj, self.R, self.C, self.fine[cand], raw_old)
             held = bool((raw_old.astype(np.float64) == d_old).any())
         for h, vs, direct in self.coarse_levels:
             for (i, j, _), d in zip(vs.tolist(), direct.tolist(), strict=True):
@@ -538,9 +540,9 @@ class Bounds:
         for i, j in changed:
             h = (i | j) & -(i | j)
             k = min(h.bit_length() - 1, g.top_level)
-            span, n = g.tile_span(k), g.tiles_per_side(k)
-            for y in {min(i // span, n - 1), max((i - 1) // span, 0)}:
-                for x in {min(j // span, n - 1), max((j - 1) // span, 0)}:
+            span, (nx, ny) = g.tile_span(k), g.tiles(k)
+            for y in {min(i // span, ny - 1), max((i - 1) // span, 0)}:
+                for x in {min(j // span, nx - 1), max((j - 1) // span, 0)}:
                     if y * span <= i <= y * span + span and x * span <= j <= x * span + span:
                         tiles.add((k, x, y))
             job.dirty.append((i, j, i + 1, j + 1))
@@ -626,7 +628,7 @@ def _bounds(cell: Cell, zc: float, a0: np.ndarray, c0: np.ndarray, S: int, zlo: 
 
 
 @njit(cache=True)
-def _saturate_rect(codes, raw_codes, verts, oi, oj, N):
+def _saturate_rect(codes, raw_codes, verts, oi, oj, R, C):
     # saturation on the codes (bounds._saturate_nb's push, as a pull from the children):
     # each listed vertex, fine to coarse, takes the largest of its raw code and its
     # children's codes
@@ -637,6 +639,6 @@ def _saturate_rect(codes, raw_codes, verts, oi, oj, N):
         if centre or h > 1:
             for q in range(4):
                 ci, cj = child_nb(i, j, h, q)
-                if 0 <= ci < N and 0 <= cj < N:
+                if 0 <= ci < R and 0 <= cj < C:
                     c = max(c, codes[ci - oi, cj - oj])
         codes[i - oi, j - oj] = c

@@ -26,7 +26,7 @@ class TileErrors:
     def __init__(self, job):
         self.job = job
         self.t, self.g, self.c = job.t, job.g, job.c
-        self.N = self.g.size
+        self.R, self.C = self.g.extent  # the square's N × N, or the roots' extent
         self.S = 1 << self.g.t
 
     def run(self) -> None:
@@ -38,14 +38,14 @@ class TileErrors:
             raise WholeGrid("the block table does not cover every level")
         new = np.array(table, np.float64)
         self._fields: dict = {}
-        nb = g.tiles_per_side(0)
+        nbx, nby = g.tiles(0)
         changed_blocks = {}
         for L in range(1, g.top_level + 1):
             sl = 1 << L
             lo_r, hi_r = max((-(-c.r0 // sl) - 1) * sl, 0), ((c.r1 - 1) // sl + 1) * sl
             lo_c, hi_c = max((-(-c.c0 // sl) - 1) * sl, 0), ((c.c1 - 1) // sl + 1) * sl
-            blocks = [(ty, tx) for ty in range(max((lo_r - 1) // S, 0), min(hi_r // S, nb - 1) + 1)
-                      for tx in range(max((lo_c - 1) // S, 0), min(hi_c // S, nb - 1) + 1)
+            blocks = [(ty, tx) for ty in range(max((lo_r - 1) // S, 0), min(hi_r // S, nby - 1) + 1)
+                      for tx in range(max((lo_c - 1) // S, 0), min(hi_c // S, nbx - 1) + 1)
                       if ty * S <= hi_r and ty * S + S >= lo_r and tx * S <= hi_c
                       and tx * S + S >= lo_c]
             self._fields_batch(blocks, L)
@@ -80,11 +80,12 @@ class TileErrors:
         window."""
         if not blocks:
             return
-        S, N, sl = self.S, self.N, 1 << L
+        S, sl = self.S, 1 << L
         ys = [b[0] for b in blocks]
         xs = [b[1] for b in blocks]
         i0, j0 = max(min(ys) * S - sl, 0), max(min(xs) * S - sl, 0)
-        i1, j1 = min((max(ys) + 1) * S + sl, N - 1), min((max(xs) + 1) * S + sl, N - 1)
+        i1 = min((max(ys) + 1) * S + sl, self.R - 1)
+        j1 = min((max(xs) + 1) * S + sl, self.C - 1)
         z, v = self.c.rect(i0, j0, i1 + 1, j1 + 1)
         E = np.zeros(z.shape)
         mixed = np.zeros(((i1 - i0) // sl, (j1 - j0) // sl), np.bool_)
@@ -104,9 +105,9 @@ class TileErrors:
         got = self._fields.get(key)
         if got is not None:
             return got
-        S, N, sl = self.S, self.N, 1 << L
+        S, sl = self.S, 1 << L
         i0, j0 = max(ty * S - sl, 0), max(tx * S - sl, 0)
-        i1, j1 = min(ty * S + S + sl, N - 1), min(tx * S + S + sl, N - 1)
+        i1, j1 = min(ty * S + S + sl, self.R - 1), min(tx * S + S + sl, self.C - 1)
         z, v = self.c.rect(i0, j0, i1 + 1, j1 + 1)
         E = np.zeros(z.shape)
         mixed = np.zeros(((i1 - i0) // sl, (j1 - j0) // sl), np.bool_)
@@ -145,7 +146,8 @@ class TileErrors:
         +inf if a cell along them inside the tile is mixed."""
         g = self.g
         k = 1 << L
-        by, bx, nb = y * k, x * k, g.tiles_per_side(0)
+        by, bx = y * k, x * k
+        nbx, nby = g.tiles(0)
         best = 0.0
         # (block inside, which line of it, the block across) per border segment
         segs = []
@@ -157,7 +159,7 @@ class TileErrors:
         bounds = []
         for inside, _, across in segs:
             b = table[inside[0], inside[1], L]
-            if 0 <= across[0] < nb and 0 <= across[1] < nb:
+            if 0 <= across[0] < nby and 0 <= across[1] < nbx:
                 b = min(b, table[across[0], across[1], L])
             bounds.append(b)
         for n in np.argsort(-np.array(bounds)).tolist():

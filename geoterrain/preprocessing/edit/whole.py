@@ -25,7 +25,7 @@ from geoterrain.bounds.normals import encode_octahedral, level_normal_maps
 from geoterrain.bounds.radii import stand_in_z
 from geoterrain.bounds.tilebounds import tile_and_block_errors
 from geoterrain.bounds.vertexdata import NORMAL_BITS, RING, pack_block_errors
-from geoterrain.codec.pyramid import decoded_heights, encode_decoded
+from geoterrain.codec.pyramid import blob_predictor, decoded_heights, encode_decoded
 from geoterrain.codec.quantize import codes_to_heights
 from geoterrain.core.progress import StageClock
 from geoterrain.store.database import StoreReader
@@ -59,8 +59,6 @@ class Plan:
 def store_predictor(terrain: TerrainLike) -> str:
     """The codec's predictor the store's height blobs record: ``"cubic"`` or ``"linear"``
     (a preprocess chooses it from the DEM's entropy; an edit keeps it)."""
-    from geoterrain.codec.pyramid import _parse
-
     g = terrain.grid
     tops = [(g.top_level, x, y) for y in range(g.roots[1]) for x in range(g.roots[0])]
     r = StoreReader(terrain.path)
@@ -71,7 +69,7 @@ def store_predictor(terrain: TerrainLike) -> str:
         r.close()
     if blob is None:
         return "linear"
-    return "cubic" if _parse(blob)[3] else "linear"
+    return blob_predictor(blob)
 
 
 def store_layout(terrain: TerrainLike) -> tuple[bool, bool]:
