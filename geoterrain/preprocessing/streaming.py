@@ -204,8 +204,8 @@ def preprocess_streaming(
     every one, and this process stays its only writer) and ``resume`` (reuse the passes
     a killed run of the same job into ``dst`` finished: its scratch folder records each
     pass's result; the store is the one an uninterrupted run writes) and ``root_grid``
-    (experimental, ``preprocess``'s: a rectangular root grid, projected and pixel frames
-    only; the store the whole-grid preprocess writes with it).
+    (experimental, ``preprocess``'s: a rectangular root grid, in a geographic, projected
+    or pixel frame; the store the whole-grid preprocess writes with it).
 
     Examples
     --------
@@ -267,14 +267,6 @@ def stream(req: Request, *, z_scale: float | None = None, z_units: str = "auto",
     _, _, frame, grid = place(req, meta["shape"], meta["transform"], meta["crs_wkt"],
                               tile=tile, pixel_size=pixel_size, z_units=z_units,
                               z_scale=z_scale, label=spec.label if req.mosaic else str(req.src))
-    if not grid.square and frame.kind == "geographic":  # the bands' metric bounds
-        label = spec.label if req.mosaic else str(req.src)
-        raise UsageError(f"{label}: a geographic root grid is built by the whole-grid "
-                         "preprocess only (the streamed metric bounds are square-only "
-                         "yet); raise memory_limit, or leave root_grid off",
-                         cli=f"{label}: a geographic --root-grid is built by the whole-grid "
-                         "preprocess only (the streamed metric bounds are square-only "
-                         "yet); raise --memory-limit, or leave --root-grid off")
     dst = req.dst
     parent = Path(scratch) if scratch is not None else (dst.parent if str(dst.parent) else
                                                         Path("."))
