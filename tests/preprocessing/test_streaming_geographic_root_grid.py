@@ -241,6 +241,7 @@ def test_the_streamed_geographic_root_grid_store_is_the_whole_grid_one(
     assert Path(a).read_bytes() == Path(b).read_bytes()
 
 
+@pytest.mark.fast
 def test_a_memory_limit_streams_a_geographic_root_grid_to_the_same_file(tmp_path):
     """``preprocess(root_grid=True)`` of an EPSG:4326 raster over its memory limit
     streams (no refusal) and writes the whole-grid root-grid store byte for byte."""
