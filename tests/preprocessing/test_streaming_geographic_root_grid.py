@@ -317,3 +317,24 @@ def test_a_geographic_mosaic_streams_to_the_root_grid_store(tmp_path):
         assert t.grid.roots == (2, 1) and t.frame.kind == "geographic"
         _assert_same_store(a, b)
         assert a.read_bytes() == b.read_bytes()
+
+
+@pytest.mark.slow  # a subprocess and a 200 × 600 raster
+def test_a_killed_geographic_root_grid_run_resumes_to_the_same_store(tmp_path, caplog):
+    """SIGKILL of the driver once its first pass (the scene x, y over the extent) is
+    recorded; ``resume`` reuses it and writes the uninterrupted run's store."""
+    import logging
+
+    from tests.preprocessing.test_streaming_root_grid import _killed_after_first_pass
+
+    src = _wide_geo_tif(tmp_path, 5, 200, 600, 0.02)
+    ref = preprocess(src, tmp_path / "ref.gt", root_grid=True)
+    out = tmp_path / "out"
+    out.mkdir()
+    dst = out / "s.gt"
+    _killed_after_first_pass(src, dst, 4, first="xy")
+    with caplog.at_level(logging.INFO, logger="geoterrain"):
+        preprocess_streaming(src, dst, band=4, resume=True, root_grid=True)
+    assert "resuming a killed run; passes done: xy" in caplog.text
+    assert Path(ref).read_bytes() == dst.read_bytes()
+    assert [x.name for x in out.iterdir()] == ["s.gt"]
