@@ -13,7 +13,7 @@ Usage:
     python benchmarks/bench_root_grids.py edit [--rows 1025 --cols 2049] [--runs 5]
                                                [--window 65]
     python benchmarks/bench_root_grids.py streamed [--runs 3] [--memory-limit 1G]
-                                                   [--square-wide]
+                                                   [--square-wide] [--geographic]
     python benchmarks/bench_root_grids.py flat [--runs 3] [--memory-limit 1G]
 
 ``padding``: per raster shape, the samples the preprocess computes on (the padded
@@ -94,7 +94,10 @@ roots / square of the same run; the load with every round.
 padded to 2049²), and with ``--square-wide`` the wide one on today's 4097² square too;
 each run a fresh process, the cases in rotating order; medians of the wall time, the
 CPU time and the peak RSS (VmHWM), the ratios to the square raster of the same run, and
-the load with every run.
+the load with every run. ``--geographic``: the same rasters in EPSG:4326 (3 arc-seconds,
+from 10° E, 47° N; heights 0–3000 m), the band the limit gives a geographic grid
+(``band_rows(..., geographic=True)``), so the metric terms, the curvilinear radii and
+level 0's slack run in bands on the roots' extent.
 
 ``flat``: the streamed preprocess of two fBm rasters on their 2 × 1 root grids, 1025 ×
 2049 and 4097 × 8193 (rows × cols; each exactly its roots' extent), under the same
@@ -153,8 +156,9 @@ def cpu():
 src, dst, layout, limit = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
 with rasterio.open(src) as ds:
     H, W = ds.height, ds.width
+    geographic = bool(ds.crs and ds.crs.is_geographic)
 g = Grid.for_shape(H, W, roots=layout == "roots")
-band = band_rows(g.extent[1], limit)
+band = band_rows(g.extent[1], limit, geographic)
 t0, c0 = time.perf_counter(), cpu()
 p = preprocess_streaming(src, dst, overwrite=True, band=band, root_grid=layout == "roots")
 wall, cpus = time.perf_counter() - t0, cpu() - c0
@@ -197,12 +201,19 @@ def streamed(a: argparse.Namespace) -> None:
     from geoterrain.ingest.synth import generate, write_geotiff
 
     limit = _size(a.memory_limit)
-    print(f"load before: {load()}; memory limit {a.memory_limit}", flush=True)
+    frame = "EPSG:4326" if a.geographic else "UTM"
+    print(f"load before: {load()}; memory limit {a.memory_limit}; {frame}", flush=True)
     with tempfile.TemporaryDirectory(prefix="bench_root_grids_") as d:
         src = {}
         for name, shape in (("wide", (1024, 4096)), ("square", (2048, 2048))):
-            src[name] = str(write_geotiff(Path(d) / f"{name}.tif",
-                                          generate("fbm", shape, seed=3).astype(np.float32)))
+            z = generate("fbm", shape, seed=3)
+            if a.geographic:
+                z = 3000 * (z - z.min()) / np.ptp(z)
+                src[name] = str(write_geotiff(Path(d) / f"{name}.tif", z.astype(np.float32),
+                                              crs="EPSG:4326", origin=(10.0, 47.0),
+                                              spacing=3 / 3600))
+            else:
+                src[name] = str(write_geotiff(Path(d) / f"{name}.tif", z.astype(np.float32)))
         cases = {"square 2048², streamed": ("square", "square"),
                  "wide 1024 × 4096 on 2 × 1 roots, streamed": ("wide", "roots")}
         if a.square_wide:
@@ -672,6 +683,7 @@ def main() -> None:
     m.add_argument("--runs", type=int, default=3)
     m.add_argument("--memory-limit", default="1G")
     m.add_argument("--square-wide", action="store_true")
+    m.add_argument("--geographic", action="store_true")
     f = sub.add_parser("flat")
     f.add_argument("--runs", type=int, default=3)
     f.add_argument("--memory-limit", default="1G")

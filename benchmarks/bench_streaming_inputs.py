@@ -5,7 +5,7 @@ Usage:
     python benchmarks/bench_streaming_inputs.py compare [--sizes 513,1025,2049] [--runs 3]
         [--frames projected,geographic] [--limit 1G]
     python benchmarks/bench_streaming_inputs.py mosaic [--runs 3] [--limit 1G]
-        [--big 4097x2049] [--small 1025x513] [--tiles 4x2] [--passes]
+        [--big 4097x2049] [--small 1025x513] [--tiles 4x2] [--passes] [--root-grid]
 
 ``compare``: a synthetic fBm GeoTIFF of each size, in a projected frame (UTM, 10 m) and
 a geographic one (EPSG:4326, 1 arc-second at 47° N), preprocessed whole
@@ -16,8 +16,11 @@ alternate, each run a fresh process. Prints medians of the wall time and of the 
 
 ``mosaic``: a geographic mosaic of ``--tiles`` SRTM-like tiles (EPSG:4326, 3 arc-seconds,
 neighbours sharing their edge row or column), ``--big`` and ``--small`` in all, each
-streamed under the same ``--limit`` (as a list of files); prints each one's medians and
-the big/small ratio of the peaks (issue 45's target: within 10 %, at most 1.5 GB).
+streamed under the same ``--limit`` (as a list of files), the two alternating, each run
+a fresh process; prints each one's medians and the big/small ratio of the peaks (issue
+45's target: within 10 %, at most 1.5 GB), and the load with every run.
+``--root-grid``: each on its rectangular root grid (``root_grid=True``; the band the
+limit gives the roots' extent), not on the (2^n + 1)² square.
 ``--passes``: each run also prints the peak RSS of each pass (VmHWM reset as the pass
 starts, ``/proc/self/clear_refs``; the passes run in turn, ``sync``), the last figure
 the rest of the run (the height pass and the store's writing); "before" is the RSS as
@@ -39,6 +42,7 @@ import json, sys, time
 from geoterrain.core.memory import peak_rss
 mode, dst, band = sys.argv[1], sys.argv[2], int(sys.argv[3])
 src = json.loads(sys.argv[4])
+roots = len(sys.argv) > 5 and sys.argv[5] == "roots"
 from geoterrain.preprocessing import streaming
 from geoterrain.preprocessing.pipeline import preprocess
 from geoterrain.preprocessing.streaming import preprocess_streaming
@@ -63,9 +67,9 @@ if mode == "passes":
     streaming.run_tasks = each
 t0 = time.perf_counter()
 if mode == "whole":
-    preprocess(src, dst, overwrite=True, memory_limit=1 << 50)
+    preprocess(src, dst, overwrite=True, memory_limit=1 << 50, root_grid=roots)
 else:
-    preprocess_streaming(src, dst, overwrite=True, band=band)
+    preprocess_streaming(src, dst, overwrite=True, band=band, root_grid=roots)
 wall = time.perf_counter() - t0
 if passes:
     passes["rest"] = kib("VmHWM:") / 1024
@@ -74,13 +78,19 @@ print(json.dumps({"wall": wall, "peak_mb": max(peak_rss() / 2**20, top[0], *pass
 """
 
 
+def load() -> str:
+    with open("/proc/loadavg") as fh:
+        return " ".join(fh.read().split()[:3])
+
+
 def _bytes(s: str) -> int:
     units = {"K": 1 << 10, "M": 1 << 20, "G": 1 << 30}
     return int(float(s[:-1]) * units[s[-1].upper()]) if s[-1].upper() in units else int(s)
 
 
-def child(mode: str, dst: str, band: int, src) -> dict:
-    out = subprocess.run([sys.executable, "-c", RUN, mode, dst, str(band), json.dumps(src)],
+def child(mode: str, dst: str, band: int, src, roots: bool = False) -> dict:
+    out = subprocess.run([sys.executable, "-c", RUN, mode, dst, str(band), json.dumps(src),
+                          "roots" if roots else "square"],
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
@@ -151,8 +161,7 @@ def mosaic(a: argparse.Namespace) -> None:
     tx, ty = map(int, a.tiles.split("x"))
     deg = 3 / 3600
     peaks = {}
-    print("| mosaic | tiles | band | wall s (median) | peak MB (median) | runs |")
-    print("|---|---|---|---|---|---|")
+    mosaics, bands, dims = {}, {}, {}
     with tempfile.TemporaryDirectory() as d:
         for name in ("small", "big"):
             W, H = map(int, getattr(a, name).split("x"))
@@ -166,15 +175,31 @@ def mosaic(a: argparse.Namespace) -> None:
                               + deg / 2)
                     files.append(write(os.path.join(d, f"{name}_{y}_{x}.tif"), z,
                                        "geographic", origin, deg))
-            band = band_rows(Grid.for_shape(H, W).size, limit, True)
-            rs = [child("passes" if a.passes else "stream", os.path.join(d, f"{name}.gt"),
-                        band, files) for _ in range(a.runs)]
+            grid = Grid.for_shape(H, W, roots=a.root_grid)
+            bands[name] = band_rows(grid.extent[1], limit, True)
+            mosaics[name] = files
+            dims[name] = (W, H, grid.extent)
+        print(f"load before: {load()}; root grid: {a.root_grid}", flush=True)
+        runs: dict[str, list[dict]] = {"small": [], "big": []}
+        for r in range(a.runs):  # alternating, the order swapped every run
+            for name in (("small", "big") if r % 2 == 0 else ("big", "small")):
+                res = child("passes" if a.passes else "stream", os.path.join(d, f"{name}.gt"),
+                            bands[name], mosaics[name], a.root_grid)
+                runs[name].append(res)
+                print(f"run {r} {name}: {res['wall']:.1f} s, {res['peak_mb']:.0f} MB, "
+                      f"load {load()}", flush=True)
+        print(f"load after: {load()}\n")
+        print("| mosaic | tiles | extent | band | wall s (median) | peak MB (median) | runs |")
+        print("|---|---|---|---|---|---|---|")
+        for name in ("small", "big"):
+            rs, band = runs[name], bands[name]
+            W, H, ext = dims[name]
             wall = statistics.median(r["wall"] for r in rs)
             peak = statistics.median(r["peak_mb"] for r in rs)
             peaks[name] = peak
             each = ", ".join(f"{r['peak_mb']:.0f}" for r in rs)
-            print(f"| {W}×{H} | {tx}×{ty} | {band} | {wall:.1f} | {peak:.0f} | {each} |",
-                  flush=True)
+            print(f"| {W}×{H} | {tx}×{ty} | {ext[0]} × {ext[1]} | {band} | {wall:.1f} "
+                  f"| {peak:.0f} | {each} |", flush=True)
             for r in rs if a.passes else ():
                 print("  peak MB per pass: " + ", ".join(f"{k} {v:.0f}"
                                                          for k, v in r["passes"].items()))
@@ -193,6 +218,8 @@ def main() -> None:
     ap.add_argument("--tiles", default="4x2")
     ap.add_argument("--passes", action="store_true",
                     help="mosaic: the peak RSS of each pass too")
+    ap.add_argument("--root-grid", action="store_true",
+                    help="mosaic: each on its rectangular root grid")
     a = ap.parse_args()
     compare(a) if a.what == "compare" else mosaic(a)
 

@@ -76,8 +76,8 @@ from geoterrain.ingest.raster import ENCODINGS
 @click.option("--root-grid", is_flag=True,
               help="Experimental: pad a wide or tall DEM to the next tile multiple under a "
                    "grid of 2 × 1 or 1 × 2 root tiles, not to one power-of-two square. "
-                   "Geographic, projected and pixel frames, whole or streamed (--memory-limit; "
-                   "a geographic DEM that would stream is refused); every LOD strategy draws "
+                   "Geographic, projected and pixel frames, whole or streamed (--memory-limit: "
+                   "the same store); every LOD strategy draws "
                    "such a store (mesh, render, view, export; export-raster, tiles, serve, "
                    "query, profile, contours and viewshed read it); edit changes it (over the "
                    "whole grid) and render/view --globe place it on the globe.")

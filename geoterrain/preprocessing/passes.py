@@ -154,8 +154,8 @@ class Job:
                     xyz.append(ScratchArrays.shared(os.path.join(self.folder, XY)))
                 return xyz[0].read("X", i0, i1), xyz[0].read("Y", i0, i1)
 
-            if self.geographic:
-                xs = ys = np.zeros(grid.size)  # x, y depend on row and column: xy()
+            if self.geographic:  # x, y depend on row and column: xy()
+                xs, ys = np.zeros(source.C), np.zeros(source.R)
             else:
                 X, Y = frame.grid_xy(whole(grid))
                 xs, ys = np.ascontiguousarray(X[0]), np.ascontiguousarray(Y[:, 0])
@@ -183,18 +183,19 @@ class Opened(NamedTuple):
 
 
 def _xy_pass(job: Job) -> None:
-    # a geographic grid's scene X, Y (pyproj), every row, into scratch arrays the other
-    # passes read (Frame.grid_xy's values, a band at a time)
+    # a geographic grid's scene X, Y (pyproj), every row of the grid (the square, or a
+    # root grid's extent), into scratch arrays the other passes read (Frame.grid_xy's
+    # values, a band at a time)
     grid = Grid(**job.grid)
     frame = Frame.from_json(job.frame)
-    N = grid.size
+    R, C = grid.extent
     sx = ScratchArrays.shared(os.path.join(job.folder, XY))
     try:
-        sx.create("X", (N, N), np.float64)
-        sx.create("Y", (N, N), np.float64)
-        cols = np.arange(N)
-        for i0 in range(0, N, job.band):
-            i, j = np.meshgrid(np.arange(i0, min(i0 + job.band, N)), cols, indexing="ij")
+        sx.create("X", (R, C), np.float64)
+        sx.create("Y", (R, C), np.float64)
+        cols = np.arange(C)
+        for i0 in range(0, R, job.band):
+            i, j = np.meshgrid(np.arange(i0, min(i0 + job.band, R)), cols, indexing="ij")
             X, Y = frame.xy(i, j)
             if not (np.isfinite(X).all() and np.isfinite(Y).all()):
                 raise InputError(f"{job.spec.label}: pyproj gives no scene position for some "
@@ -220,9 +221,9 @@ def _bounds_pass(job: Job) -> tuple:
         n = grid.n
         data = (grid.rows, grid.cols)
         if job.geographic:  # curvilinear: δ and r that hold in scene x, y (bounds.curvature)
-            terms = band_metric_terms(scene, o.xy, N, job.band, sa)
+            terms = band_metric_terms(scene, o.xy, N, job.band, sa, span=span)
             dmax = raise_delta(sa, n)
-            er = band_metric_radius_codes(sa, N, o.xy)
+            er = band_metric_radius_codes(sa, N, o.xy, span=span)
             if job.derive_bounds and grid.tile_samples >= 3 and grid.top_level > 0:
                 if job.pad:  # what δ_edge follows below
                     copy_levels(sa, n, "", "db")
@@ -238,7 +239,7 @@ def _bounds_pass(job: Job) -> tuple:
                                       span=span).max_finite
             if job.geographic:  # only where a padding sample is read (bounds.curvature)
                 band_metric_terms(rows, o.xy, N, job.band, se, pre="e", window=data,
-                                  base=terms)
+                                  base=terms, span=span)
                 emax = raise_delta(se, n, terms="e")
                 if slack is not None:  # where δ_edge was δ it follows δ's raise, nested again
                     follow_slack(se, sa, n)

@@ -179,10 +179,9 @@ def preprocess(
         Experimental: pad a wide or tall raster to the next tile multiple a side, under a
         grid of root tiles (2 × 1, 1 × 2), not to one (2^n + 1)² square
         (:class:`geoterrain.core.grid.Grid`, schema version 9). Geographic, projected
-        and pixel frames, whole or streamed (over ``memory_limit``: the same store; a
-        geographic raster that would stream is refused in one line); such a store is
-        drawn by every LOD strategy, edited and placed on the globe. A raster whose root
-        grid is its square grid gives the square store.
+        and pixel frames, whole or streamed (over ``memory_limit``: the same store);
+        such a store is drawn by every LOD strategy, edited and placed on the globe. A
+        raster whose root grid is its square grid gives the square store.
 
     Examples
     --------

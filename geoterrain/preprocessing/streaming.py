@@ -85,6 +85,12 @@ BAND_BYTES_PER_SAMPLE = 200
 BAND_BYTES_PER_SAMPLE_GEOGRAPHIC = 400  # x, y and the metric terms' windows too
 FIXED_BYTES = 400 << 20
 BAND_SAMPLES = 1 << 20  # at most this many samples a band (streaming_band)
+# a geographic grid's band holds twice the bytes a sample (scene x, y and the metric
+# terms' window: a band and half a band of halo each side), so half the samples: the
+# 4097 × 2049 mosaic on its root grid peaked 388 MB with 256-row bands and 338 MB with
+# 128, the same CPU time (26.3 and 26.4 s), against 323 MB for a 1025 × 513 one in one
+# band (docs/lab/root-grids.md, part 8)
+BAND_SAMPLES_GEOGRAPHIC = 1 << 19
 STAGES = ("scan", "quantise", "errors, tiles, normals, heights", "blobs", "write")
 
 
@@ -123,12 +129,15 @@ def band_rows(N: int, memory_limit: int, geographic: bool = False) -> int:
     --------
     >>> band_rows(4097, 1 << 30), band_rows(16385, 1 << 30), band_rows(65, 1 << 18)
     (256, 64, 2)
+    >>> band_rows(4097, 1 << 30, geographic=True)
+    128
     """
     per = BAND_BYTES_PER_SAMPLE_GEOGRAPHIC if geographic else BAND_BYTES_PER_SAMPLE
     # at most BAND_SAMPLES a band, whatever the limit: the band's memory is then the same
     # for every raster width (4097²: 256 rows, 397 MB; 16385²: 64 rows, 430 MB), and
     # wider bands gain no time (16385²: 104 s with 64 rows, 107 s with 128, 115 s with 256)
-    rows = min(max(memory_limit - FIXED_BYTES, 0) // (N * per), BAND_SAMPLES // (N - 1))
+    cap = BAND_SAMPLES_GEOGRAPHIC if geographic else BAND_SAMPLES
+    rows = min(max(memory_limit - FIXED_BYTES, 0) // (N * per), cap // (N - 1))
     return int(max(1 << max(int(rows).bit_length() - 1, 0), 2))
 
 
@@ -204,8 +213,8 @@ def preprocess_streaming(
     every one, and this process stays its only writer) and ``resume`` (reuse the passes
     a killed run of the same job into ``dst`` finished: its scratch folder records each
     pass's result; the store is the one an uninterrupted run writes) and ``root_grid``
-    (experimental, ``preprocess``'s: a rectangular root grid, projected and pixel frames
-    only; the store the whole-grid preprocess writes with it).
+    (experimental, ``preprocess``'s: a rectangular root grid, in a geographic, projected
+    or pixel frame; the store the whole-grid preprocess writes with it).
 
     Examples
     --------
@@ -267,14 +276,6 @@ def stream(req: Request, *, z_scale: float | None = None, z_units: str = "auto",
     _, _, frame, grid = place(req, meta["shape"], meta["transform"], meta["crs_wkt"],
                               tile=tile, pixel_size=pixel_size, z_units=z_units,
                               z_scale=z_scale, label=spec.label if req.mosaic else str(req.src))
-    if not grid.square and frame.kind == "geographic":  # the bands' metric bounds
-        label = spec.label if req.mosaic else str(req.src)
-        raise UsageError(f"{label}: a geographic root grid is built by the whole-grid "
-                         "preprocess only (the streamed metric bounds are square-only "
-                         "yet); raise memory_limit, or leave root_grid off",
-                         cli=f"{label}: a geographic --root-grid is built by the whole-grid "
-                         "preprocess only (the streamed metric bounds are square-only "
-                         "yet); raise --memory-limit, or leave --root-grid off")
     dst = req.dst
     parent = Path(scratch) if scratch is not None else (dst.parent if str(dst.parent) else
                                                         Path("."))

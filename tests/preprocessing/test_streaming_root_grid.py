@@ -1,7 +1,8 @@
 """The streamed preprocess of a rectangular root grid (issue 45): the store the whole-grid
 preprocess writes with ``root_grid=True``, blob for blob, tile row for tile row and
 metadata for metadata, whatever the band, on every scheduler, from a mosaic too, and
-after a killed driver is resumed.
+after a killed driver is resumed. Projected frames here; a geographic one's in
+``test_streaming_geographic_root_grid.py``.
 
 The oracle is :func:`geoterrain.preprocessing.pipeline.preprocess` with ``root_grid``
 (itself checked against brute forces in ``test_root_grid.py``); each stage is also
@@ -26,7 +27,6 @@ from geoterrain.bounds.tilebounds import tile_and_block_errors
 from geoterrain.codec.pyramid import decoded_codes, encode_pyramid
 from geoterrain.codec.quantize import Quantizer
 from geoterrain.core.grid import Grid
-from geoterrain.exceptions import UsageError
 from geoterrain.preprocessing.bands.codec import band_encode_pyramid, window_of
 from geoterrain.preprocessing.bands.delta import band_vertex_errors, edge_rows, rows_of
 from geoterrain.preprocessing.bands.normals import band_normal_codes
@@ -279,20 +279,3 @@ def test_a_killed_root_grid_run_resumes_to_the_same_store(tmp_path, caplog):
     assert "resuming a killed run; passes done: bounds" in caplog.text
     _assert_same_store(ref, dst)
     assert [x.name for x in out.iterdir()] == ["s.gt"]
-
-
-@pytest.mark.fast
-def test_a_streamed_geographic_root_grid_is_refused_in_one_line(tmp_path):
-    """The streamed metric bounds of a geographic root grid are square-only yet: refused
-    by the streamed preprocess (the whole-grid one builds it), leaving no store."""
-    z = np.random.default_rng(2).normal(100, 5, (33, 65)).astype(np.float32)
-    src = _tif(tmp_path / "g.tif", z, crs="EPSG:4326")
-    for run in (lambda: preprocess_streaming(src, tmp_path / "g.gt", tile_size=16, band=8,
-                                             root_grid=True),
-                lambda: preprocess(src, tmp_path / "g.gt", tile_size=16, root_grid=True,
-                                   memory_limit=1 << 18)):
-        with pytest.raises(UsageError, match="whole-grid preprocess only") as e:
-            run()
-        assert "\n" not in str(e.value)
-        assert not (tmp_path / "g.gt").exists()
-        assert [p.name for p in tmp_path.iterdir()] == ["g.tif"]

@@ -34,6 +34,7 @@ from numba import njit, prange
 from geoterrain.bounds.curvature import (
     BORDER_FRACTION,
     MetricGrid,
+    _grid_rows,
     _same_as_base,
     _tri_make,
     _tri_margin,
@@ -43,6 +44,7 @@ from geoterrain.bounds.curvature import (
 from geoterrain.bounds.edgepad import _reaches_data
 from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.threads import parallel_kernel
+from geoterrain.preprocessing.bands.delta import grid_shape
 from geoterrain.preprocessing.scratch import ScratchArrays
 
 __all__ = ["BandTerms", "RowCache", "band_metric_terms"]
@@ -103,11 +105,11 @@ class TriList(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def _vertex_tri(i, j, h, kind, k, N):
+def _vertex_tri(i, j, h, kind, k, R, C):
     """(ok, ai, aj, bi, bj, ci, cj): triangle ``k`` (0, 1) of vertex (i, j) of half-span h
     and ``kind`` (0 centre, 1 edge midpoint along the rows, 2 along the columns), in the
     corner order of :func:`geoterrain.bounds.curvature._vertex_terms` (not ok: the apex is
-    outside the grid)."""
+    outside the R × C grid: the square's N × N, or a root grid's extent)."""
     s = 2 * h
     if kind == 0:
         i0, j0 = i - h, j - h
@@ -121,7 +123,7 @@ def _vertex_tri(i, j, h, kind, k, N):
     else:
         ci, cj = i + (2 * k - 1) * h, j
         ea, eb, fa, fb = i, j - h, i, j + h
-    return (0 <= ci < N and 0 <= cj < N), ea, eb, fa, fb, ci, cj
+    return (0 <= ci < R and 0 <= cj < C), ea, eb, fa, fb, ci, cj
 
 
 @njit(cache=True, inline="always")
@@ -138,7 +140,7 @@ def _kind_at(h, kind, a, b):
 @njit(cache=True)
 def _fine_vertex(g, sp, kind, a, b, out):
     # one vertex of _fine_level_nb: its triangles' passes in the window, or deferred
-    h, N = sp.h, g.vb.shape[1]
+    h, R, C = sp.h, _grid_rows(g), g.vb.shape[1]
     w0, w1 = g.w0, g.w0 + g.vb.shape[0] - 1
     i, j = _kind_at(h, kind, a, b)
     ar = a - sp.a0
@@ -146,7 +148,7 @@ def _fine_vertex(g, sp, kind, a, b, out):
         return  # 0, or the base's (merged after)
     vb = g.vb
     for k in range(2):
-        ok, ai, aj, bi, bj, ci, cj = _vertex_tri(i, j, h, kind, k, N)
+        ok, ai, aj, bi, bj, ci, cj = _vertex_tri(i, j, h, kind, k, R, C)
         if not ok or not (vb[ai - w0, aj] and vb[bi - w0, bj] and vb[ci - w0, cj]):
             continue
         X, Y, Z = g.X, g.Y, g.Z
@@ -157,11 +159,11 @@ def _fine_vertex(g, sp, kind, a, b, out):
         if not good:
             continue
         disp, dwin, bulge = _tri_own(g, T, T.i0, T.i1, True)
-        m = _tri_margin(T, disp, N)
+        m = _tri_margin(T, disp, max(R, C))
         if bulge or dwin > 0.5 * g.frac * T.smin:
             out.bulge[ar, b] = 1
         out.m[ar] = max(out.m[ar], m)
-        if max(T.i0 - m, 0) < w0 or min(T.i1 + m, N - 1) > w1:
+        if max(T.i0 - m, 0) < w0 or min(T.i1 + m, R - 1) > w1:
             out.defer[ar, b, k] = m  # its search box leaves the window: a later sweep
             continue
         e, r = _tri_search(g, T, m, w0, w1)
@@ -221,7 +223,8 @@ def _list_own_nb(g, tl, r_lo, r_hi):
 
 @njit(cache=True)
 def _list_margins_nb(tl, frac, N):
-    # the margins once pass 1 has seen every row (whole-grid _tri_term's m and bulge)
+    # the margins once pass 1 has seen every row (whole-grid _tri_term's m and bulge); N:
+    # the grid's samples on its longer side
     for t in range(tl.idx.shape[0]):
         if tl.m[t] >= 0:
             continue
@@ -234,12 +237,12 @@ def _list_margins_nb(tl, frac, N):
 @parallel_kernel(cache=True)
 def _list_search_nb(g, tl, r_lo, r_hi):
     """Pass 2 of every listed triangle on grid rows r_lo … r_hi of ``g``."""
-    N = g.vb.shape[1]
+    R = _grid_rows(g)
     acc = tl.acc
     for t in prange(tl.idx.shape[0]):
         _, T = _listed(tl, t, g.frac)
         m = tl.m[t]
-        if min(T.i1 + m, N - 1) < r_lo or max(T.i0 - m, 0) > r_hi:
+        if min(T.i1 + m, R - 1) < r_lo or max(T.i0 - m, 0) > r_hi:
             continue
         e, r = _tri_search(g, T, m, r_lo, r_hi)
         acc[t, 2] = max(acc[t, 2], e)
@@ -247,25 +250,26 @@ def _list_search_nb(g, tl, r_lo, r_hi):
 
 
 @njit(cache=True)
-def _coarse_tris_nb(lat, step, h, N, wi, wj, M, frac):
-    """The triangles of a coarse level's vertices (h ≥ ``step``) whose corners are all
-    valid, with their positions from the lattice ``lat`` (X, Y, Z, vb every ``step``
-    samples: :class:`MetricGrid` of the lattice); (idx, pos)."""
+def _coarse_tris_nb(lat, step, h, R, C, wi, wj, M, frac):
+    """The triangles of a coarse level's vertices (h ≥ ``step``) of the R × C grid whose
+    corners are all valid, with their positions from the lattice ``lat`` (X, Y, Z, vb
+    every ``step`` samples: :class:`MetricGrid` of the lattice); (idx, pos)."""
     s = 2 * h
-    nb = (N - 1) // s
+    nbr = (R - 1) // s
+    nbc = (C - 1) // s
     n = 0
-    idx = np.zeros((6 * (nb + 1) * (nb + 1), 8), np.int64)
+    idx = np.zeros((6 * (nbr + 1) * (nbc + 1), 8), np.int64)
     pos = np.zeros((idx.shape[0], 12))
     for kind in range(3):
-        na = nb if kind < 2 else nb + 1
-        nc = nb + 1 if kind == 1 else nb
+        na = nbr if kind < 2 else nbr + 1
+        nc = nbc + 1 if kind == 1 else nbc
         for a in range(na):
             for b in range(nc):
                 i, j = _kind_at(h, kind, a, b)
                 if not _reaches_data(i, j, wi, wj) or _same_as_base(i, j, h, M, wi, wj):
                     continue
                 for k in range(2):
-                    ok, ai, aj, bi, bj, ci, cj = _vertex_tri(i, j, h, kind, k, N)
+                    ok, ai, aj, bi, bj, ci, cj = _vertex_tri(i, j, h, kind, k, R, C)
                     if not ok:
                         continue
                     q = ((ai // step, aj // step), (bi // step, bj // step),
@@ -302,13 +306,15 @@ class RowCache:
     order: the rows a new window shares with the last one are kept, the rest read. The
     rows live in one buffer per quantity, shifted in place, so a window costs its own
     rows once (not the last window's as well); a window handed out is valid until the
-    next call. ``capacity``: the most rows a window will have (the buffers' rows at the
-    first call; a larger window reallocates them)."""
+    next call. ``N``: the grid's side, or a root grid's extent (rows, cols);
+    ``capacity``: the most rows a window will have (the buffers' rows at the first call;
+    a larger window reallocates them)."""
 
-    def __init__(self, rows: Rows, xy: XY, N: int, frac: float, window: tuple[int, int],
-                 capacity: int = 0):
-        self.rows, self.xy, self.N, self.frac, self.window = rows, xy, N, frac, window
-        self.capacity = min(capacity, N)
+    def __init__(self, rows: Rows, xy: XY, N: int | tuple[int, int], frac: float,
+                 window: tuple[int, int], capacity: int = 0):
+        self.R, self.N = grid_shape(N)  # rows; columns (the buffers' width)
+        self.rows, self.xy, self.frac, self.window = rows, xy, frac, window
+        self.capacity = min(capacity, self.R)
         self.w0, self.n = 0, 0
         self.buf: list[np.ndarray] = []  # X, Y, Z (invalid 0), valid
 
@@ -339,7 +345,7 @@ class RowCache:
             del z
         self.w0, self.n = i0, n
         return MetricGrid(X_[:n], Y_[:n], Z_[:n], V_[:n], float(self.frac),
-                          int(self.window[0]), int(self.window[1]), int(i0))
+                          int(self.window[0]), int(self.window[1]), int(i0), int(self.R))
 
 
 class BandTerms(NamedTuple):
@@ -351,24 +357,29 @@ class BandTerms(NamedTuple):
     M: int
 
 
-def band_metric_terms(rows: Rows, xy: XY, N: int, band: int, scratch: ScratchArrays,
-                      pre: str = "", frac: float = BORDER_FRACTION,
+def band_metric_terms(rows: Rows, xy: XY, N: int | tuple[int, int], band: int,
+                      scratch: ScratchArrays, pre: str = "", frac: float = BORDER_FRACTION,
                       window: tuple[int, int] | None = None,
-                      base: BandTerms | None = None) -> BandTerms:
-    """:func:`geoterrain.bounds.curvature.metric_terms` of an (N, N) grid read ``band`` rows
-    at a time, into per-level arrays of ``scratch`` named ``{pre}dm{x}{k}``,
-    ``{pre}rm{x}{k}`` and ``{pre}b{x}{k}``.
+                      base: BandTerms | None = None, span: int | None = None) -> BandTerms:
+    """:func:`geoterrain.bounds.curvature.metric_terms` of an (N, N) grid (or a root grid's
+    (R, C) extent, with ``span``) read ``band`` rows at a time, into per-level arrays of
+    ``scratch`` named ``{pre}dm{x}{k}``, ``{pre}rm{x}{k}`` and ``{pre}b{x}{k}``.
 
     Parameters
     ----------
     rows, xy
         ``rows(i0, i1)`` → (scene heights, valid) and ``xy(i0, i1)`` → (scene X, Y) of
-        grid rows i0 … i1 − 1, each (i1 − i0, N).
+        grid rows i0 … i1 − 1, each (i1 − i0, N) (a root grid: (i1 − i0, C)).
     N, band
-        Grid side 2**n + 1; rows per band, a power of two ≥ 2.
+        Grid side 2**n + 1, or a root grid's extent (R, C); rows per band, a power of
+        two ≥ 2 (clipped to the root's side).
     window, base
         As ``metric_terms``' (δ_edge over a replicated grid): the vertices whose every
         triangle reads data samples only take the base's terms.
+    span
+        A root grid's root side 2**n (``N`` then its extent, (ry·span + 1, rx·span + 1)):
+        ``metric_terms`` with ``span``, the vertices of half-span below it. None: the
+        square.
 
     Examples
     --------
@@ -381,25 +392,39 @@ def band_metric_terms(rows: Rows, xy: XY, N: int, band: int, scratch: ScratchArr
     >>> dm, rm, bulge, M = metric_terms(X, Y, Z, v)
     >>> bool((bt.arrays.read("dmC0", 0, 8) == dm[1::2, 1::2]).all()), bt.M == M
     (True, True)
+    >>> X2, Y2 = 100 * J[:9] + (I[:9] - 4) ** 2, -100 * I[:9]  # 2 × 1 roots of side 8
+    >>> Z2, v2 = Z[:9], v[:9]
+    >>> bt = band_metric_terms(lambda a, b: (Z2[a:b], v2[a:b]),
+    ...                        lambda a, b: (X2[a:b], Y2[a:b]), (9, 17), 2, ScratchArrays(),
+    ...                        span=8)
+    >>> dm, rm, bulge, M = metric_terms(X2, Y2, Z2, v2, span=8)
+    >>> bool((bt.arrays.read("rmK1", 0, 3) == rm[::4, 2::4]).all()), bt.M == M
+    (True, True)
     """
     if band < 2 or band & (band - 1):
         raise ValueError(f"band must be a power of two ≥ 2, got {band}")
-    n = (N - 1).bit_length() - 1
-    B = min(band, N - 1)
-    nbands = (N - 1) // B
-    win = (N, N) if window is None else (int(window[0]), int(window[1]))
+    R, C = grid_shape(N)
+    if span is None and R != C:
+        raise ValueError(f"a {R} × {C} grid needs span, its roots' side")
+    S = R - 1 if span is None else int(span)
+    if (R - 1) % S or (C - 1) % S:
+        raise ValueError(f"a {R} × {C} grid is not square roots of side {S}")
+    n = S.bit_length() - 1
+    B = min(band, S)
+    nbands = (R - 1) // B
+    win = (R, C) if window is None else (int(window[0]), int(window[1]))
     M0 = -1 if base is None else int(base.M)
     sa = scratch
     for k in range(n):
-        nb = (N - 1) >> (k + 1)
-        for x, shape in zip(KINDS, ((nb, nb), (nb, nb + 1), (nb + 1, nb)), strict=True):
+        nbr, nbc = (R - 1) >> (k + 1), (C - 1) >> (k + 1)
+        for x, shape in zip(KINDS, ((nbr, nbc), (nbr, nbc + 1), (nbr + 1, nbc)), strict=True):
             sa.create(f"{pre}dm{x}{k}", shape, np.float64)
             sa.create(f"{pre}rm{x}{k}", shape, np.float64)
             sa.create(f"{pre}b{x}{k}", shape, np.uint8)
     nfine = B.bit_length() - 1  # levels h = 1 … B/2
     # the coarse levels' corners: the grid every B samples (one row read per B rows)
     lat = [[], [], [], []]
-    for i in range(0, N, B):
+    for i in range(0, R, B):
         z, v = rows(i, i + 1)
         X, Y = xy(i, i + 1)
         v = np.asarray(v, bool) & np.isfinite(z)
@@ -407,23 +432,23 @@ def band_metric_terms(rows: Rows, xy: XY, N: int, band: int, scratch: ScratchArr
             part.append(np.asarray(a)[0, ::B])
     lattice = MetricGrid(*(np.ascontiguousarray(np.stack(p)) for p in lat), float(frac),
                          win[0], win[1], 0)
-    coarse = [_coarse_tris_nb(lattice, B, 1 << k, N, win[0], win[1], M0, float(frac))
+    coarse = [_coarse_tris_nb(lattice, B, 1 << k, R, C, win[0], win[1], M0, float(frac))
               for k in range(nfine, n)]
     tl = _tri_list(np.concatenate([c[0] for c in coarse] + [np.zeros((0, 8), np.int64)]),
                    np.concatenate([c[1] for c in coarse] + [np.zeros((0, 12))]))
     M = 0
     deferred: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     halo = B // 2 + HALO_EXTRA
-    cache = RowCache(rows, xy, N, frac, win, capacity=B + 2 * halo + 1)
+    cache = RowCache(rows, xy, (R, C), frac, win, capacity=B + 2 * halo + 1)
     for kb in range(nbands):
         r0 = kb * B
         last = kb == nbands - 1
-        r_end = N - 1 if last else r0 + B - 1
-        g = cache.get(max(0, r0 - halo), min(N, r_end + 1 + halo))
+        r_end = R - 1 if last else r0 + B - 1
+        g = cache.get(max(0, r0 - halo), min(R, r_end + 1 + halo))
         for k in range(nfine):
             h = 1 << k
             s = 2 * h
-            nb = (N - 1) // s
+            nb = (C - 1) // s  # blocks across
             nrow = B // s
             nk = nrow + (1 if last else 0)
             out = LevelTerms(*(VertexTerms(np.zeros((r, c)), np.zeros((r, c)),
@@ -443,7 +468,7 @@ def band_metric_terms(rows: Rows, xy: XY, N: int, band: int, scratch: ScratchArr
         if len(tl.idx):
             _list_own_nb(g, tl, r0, r_end)
     del g, cache  # the window's buffers
-    _list_margins_nb(tl, float(frac), N)
+    _list_margins_nb(tl, float(frac), max(R, C))
     if len(tl.m):
         M = max(M, int(tl.m.max()))
     if deferred:  # their pass 1 (and bulge) ran in their band's window
@@ -452,14 +477,14 @@ def band_metric_terms(rows: Rows, xy: XY, N: int, band: int, scratch: ScratchArr
                        np.concatenate([tl.pos] + [d[1] for d in deferred]),
                        np.concatenate([tl.m] + [d[2] for d in deferred]))._replace(bulge=bulge)
     if len(tl.idx):
-        cache = RowCache(rows, xy, N, frac, win, capacity=B + 1)
+        cache = RowCache(rows, xy, (R, C), frac, win, capacity=B + 1)
         for kb in range(nbands):
             r0 = kb * B
-            r_end = N - 1 if kb == nbands - 1 else r0 + B - 1
+            r_end = R - 1 if kb == nbands - 1 else r0 + B - 1
             _list_search_nb(cache.get(r0, r_end + 1), tl, r0, r_end)
         _fold(sa, pre, tl, n)
     if base is not None:
-        _merge_base(sa, pre, base, n, N, win)
+        _merge_base(sa, pre, base, n, win)
     return BandTerms(sa, pre, M)
 
 
@@ -469,10 +494,10 @@ def _deferred(g: MetricGrid, h: int, kind: int, a0: int, defer: np.ndarray
     ar, b, k = np.nonzero(defer)
     idx = np.zeros((len(ar), 8), np.int64)
     pos = np.zeros((len(ar), 12))
-    N = g.vb.shape[1]
+    R, C = g.nr if g.nr >= 0 else g.vb.shape[1], g.vb.shape[1]
     for t, (a_, b_, k_) in enumerate(zip(ar.tolist(), b.tolist(), k.tolist(), strict=True)):
         i, j = _kind_at(h, kind, a0 + a_, b_)
-        _, ai, aj, bi, bj, ci, cj = _vertex_tri(i, j, h, kind, k_, N)
+        _, ai, aj, bi, bj, ci, cj = _vertex_tri(i, j, h, kind, k_, R, C)
         idx[t] = (i, j, ai, aj, bi, bj, ci, cj)
         for c, (pi, pj) in enumerate(((ai, aj), (bi, bj), (ci, cj), (i, j))):
             pos[t, 3 * c:3 * c + 3] = (g.X[pi - g.w0, pj], g.Y[pi - g.w0, pj],
@@ -508,7 +533,7 @@ def _fold(sa: ScratchArrays, pre: str, tl: TriList, n: int) -> None:
                     sa.write(name, int(lo), blk)
 
 
-def _merge_base(sa: ScratchArrays, pre: str, base: BandTerms, n: int, N: int,
+def _merge_base(sa: ScratchArrays, pre: str, base: BandTerms, n: int,
                 win: tuple[int, int], step_samples: int = 1 << 18) -> None:
     # the vertices that read data samples only: the base's δ_m and bulge (metric_terms),
     # ``step_samples`` of an array at a time (rows of any width)

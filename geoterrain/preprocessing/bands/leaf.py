@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 from geoterrain.bounds.leafbounds import _inner, tile_slack
-from geoterrain.preprocessing.bands.delta import copy_levels, level_lattice
+from geoterrain.preprocessing.bands.delta import copy_levels, grid_shape, level_lattice
 from geoterrain.preprocessing.scratch import ScratchArrays
 
 __all__ = ["band_leaf_slack", "follow_slack"]
@@ -23,14 +23,15 @@ __all__ = ["band_leaf_slack", "follow_slack"]
 Rows = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
 
 
-def band_leaf_slack(sa: ScratchArrays, N: int, t: int, rows: Rows, pre: str = "",
-                    terms: str = "") -> dict[tuple[int, int, int], float] | None:
+def band_leaf_slack(sa: ScratchArrays, N: int | tuple[int, int], t: int, rows: Rows,
+                    pre: str = "", terms: str = "") -> dict[tuple[int, int, int], float] | None:
     """:func:`~geoterrain.bounds.leafbounds.geographic_leaf_delta` on per-level arrays: the
     per-tile slack {(0, x, y): s}, level 0's ``{pre}C0``, ``{pre}R0``, ``{pre}K0`` raised
     (not yet saturated again), or None with δ untouched.
 
     ``rows(i0, i1)`` → (scene heights, valid) of grid rows i0 … i1 − 1; ``terms``: the
-    prefix of the raw metric terms ``{terms}dm{x}0``, ``{terms}b{x}0``.
+    prefix of the raw metric terms ``{terms}dm{x}0``, ``{terms}b{x}0``. ``N``: the grid's
+    side, or a root grid's extent (R, C): its level-0 tiles down and across.
 
     Examples
     --------
@@ -44,22 +45,23 @@ def band_leaf_slack(sa: ScratchArrays, N: int, t: int, rows: Rows, pre: str = ""
     >>> sorted(band_leaf_slack(d.arrays, 9, 2, rows_of(z, v)))
     [(0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1)]
     """
-    n = (N - 1).bit_length() - 1
+    R, C = grid_shape(N)
     T1 = 1 << t
     T = T1 + 1
-    ntiles = (N - 1) >> t
+    down, across = (R - 1) >> t, (C - 1) >> t
     copy_levels(sa, 1, pre, "slack")  # raised here, and kept only if every tile can be
     out: dict[tuple[int, int, int], float] = {}
-    for y in range(ntiles):
+    for y in range(down):
         p0 = y * T1
-        w = level_lattice(sa, pre, 0, n, p0, p0 + T, N, False, np.float32)
-        dm = level_lattice(sa, f"{terms}dm", 0, n, p0, p0 + T, N, False, np.float64)
-        bulge = level_lattice(sa, f"{terms}b", 0, n, p0, p0 + T, N, False, np.uint8) != 0
+        # level 0's values only (not the top: n is not read)
+        w = level_lattice(sa, pre, 0, 1, p0, p0 + T, C, False, np.float32)
+        dm = level_lattice(sa, f"{terms}dm", 0, 1, p0, p0 + T, C, False, np.float64)
+        bulge = level_lattice(sa, f"{terms}b", 0, 1, p0, p0 + T, C, False, np.uint8) != 0
         z, v = rows(p0, p0 + T)
         z = np.asarray(z, np.float64)
         v = np.asarray(v, bool)
         raised = w.copy()
-        for x in range(ntiles):
+        for x in range(across):
             c = np.s_[:, x * T1:x * T1 + T]
             got = tile_slack(w[c], z[c], v[c], dm[c], bulge[c], (p0, x * T1))
             if got is None:

@@ -166,7 +166,8 @@ def level_xy(xy: XYRows, h: int, kind: str, a0: int, a1: int, N: int
              ) -> tuple[np.ndarray, np.ndarray]:
     """Scene X, Y of rows a0 … a1 − 1 of one kind of a level's vertices (``kind`` C, R or
     K at half-span h: :mod:`geoterrain.preprocessing.bands.delta`), from ``xy(i0, i1)`` →
-    the grid rows' X, Y.
+    the grid rows' X, Y; ``N``: the grid's columns (the square's side, or a root grid's
+    extent's).
 
     Examples
     --------
@@ -213,11 +214,13 @@ def _best(table, best):
 
 
 @parallel_kernel(cache=True)
-def _geo_edges_nb(ch, h, rows, a_lo, nb, table, out):
+def _geo_edges_nb(ch, h, rows, a_lo, nbr, nbc, table, out):
     """Level h's edge midpoints (rows a_lo … of R-type if ``rows``, else K-type) nested on
     their four child centres at h/2 (``ch``: :class:`NestRows`): seed 002 §2.4 (L50–52),
     r(v) = max(rin(v), |p_v − p_c| + r(c)), as radii.vertex_radii / curvature._renest_nb,
-    or as codes (tileblobs.radius_codes) with a ``table``. h = 1: leaves, rin alone."""
+    or as codes (tileblobs.radius_codes) with a ``table``. h = 1: leaves, rin alone.
+    ``nbr`` × ``nbc``: the level's blocks down and across (its children: twice as many
+    centres each way)."""
     z, x, y, rin, cz, cx, cy, cv, c0 = ch
     for ar in prange(z.shape[0]):
         a = a_lo + ar
@@ -227,7 +230,7 @@ def _geo_edges_nb(ch, h, rows, a_lo, nb, table, out):
                 for k in range(4):
                     a2 = 2 * a + (k // 2) if rows else 2 * a - 1 + (k // 2)
                     b2 = 2 * b - 1 + (k % 2) if rows else 2 * b + (k % 2)
-                    if 0 <= a2 < 2 * nb and 0 <= b2 < 2 * nb:
+                    if 0 <= a2 < 2 * nbr and 0 <= b2 < 2 * nbc:
                         r2 = a2 - c0
                         d = np.sqrt((x[ar, b] - cx[r2, b2]) ** 2 + (y[ar, b] - cy[r2, b2]) ** 2
                                     + (z[ar, b] - cz[r2, b2]) ** 2) + cv[r2, b2]
@@ -270,8 +273,9 @@ def _geo_centres_nb(ch, e, table, out):
             out[ar, b] = _best(table, best)
 
 
-def band_metric_radius_codes(sa: ScratchArrays, N: int, xy: XYRows, rm: str = "rm",
-                             budget: int = 16 << 20) -> int:
+def band_metric_radius_codes(sa: ScratchArrays, N: int | tuple[int, int], xy: XYRows,
+                             rm: str = "rm", budget: int = 16 << 20,
+                             span: int | None = None) -> int:
     """The radius codes of a curvilinear (geographic) grid, nested on its per-level arrays
     in ``sa``: the codes of :func:`geoterrain.bounds.tileblobs.radius_codes` with the radii
     :func:`geoterrain.bounds.curvature.metric_bounds` raises and renests, bit for bit.
@@ -282,7 +286,9 @@ def band_metric_radius_codes(sa: ScratchArrays, N: int, xy: XYRows, rm: str = "r
     :func:`~geoterrain.preprocessing.bands.curvature.band_metric_terms`) and nested again
     (``fr{x}{k}``), then the codes covering those (``r{x}{k}``, uint8), whose exponent is
     returned. Heights are ``Z{x}{k}`` (invalid ones at the stand-in); x, y of the grid
-    rows come from ``xy(i0, i1)``.
+    rows come from ``xy(i0, i1)``. ``N``: the grid's side, or a root grid's extent (R, C)
+    with ``span`` its roots' side (the vertices of half-span below it, nested across
+    the roots' shared edges as the whole grid's are).
 
     Examples
     --------
@@ -305,8 +311,10 @@ def band_metric_radius_codes(sa: ScratchArrays, N: int, xy: XYRows, rm: str = "r
     (True, True)
     """
     from geoterrain.bounds.curvature import _round_up
+    from geoterrain.preprocessing.bands.delta import grid_shape
 
-    n = (N - 1).bit_length() - 1
+    R, N = grid_shape(N)  # N: the columns from here
+    n = (R - 1 if span is None else int(span)).bit_length() - 1
     for k in range(n):
         for x in "CRK":
             shape = sa.shape(f"Z{x}{k}")
@@ -317,7 +325,7 @@ def band_metric_radius_codes(sa: ScratchArrays, N: int, xy: XYRows, rm: str = "r
     empty = np.empty(0)
     peak = 0.0
     # radii.vertex_radii (from leaves 0), then curvature.metric_bounds' raise and renest
-    for k, h, nb, a_lo, a_hi in _chunks(sa, n, budget):
+    for k, h, nbr, nbc, a_lo, a_hi in _chunks(sa, n, budget):
         raw = {}
         for out in ("fr1", "fr"):
             vals = {}
@@ -330,7 +338,7 @@ def band_metric_radius_codes(sa: ScratchArrays, N: int, xy: XYRows, rm: str = "r
                     rin = rin.astype(np.float64)
                 ch = _nest_rows(sa, xy, N, k, x, a_lo, hi, rin, out, h)
                 v = np.empty(ch.z.shape)
-                _geo_edges_nb(ch, h, x == "R", a_lo, nb, empty, v)
+                _geo_edges_nb(ch, h, x == "R", a_lo, nbr, nbc, empty, v)
                 vals[x] = (ch, v)
                 if out == "fr1":
                     raw[x] = v.astype(np.float32)
@@ -354,14 +362,14 @@ def band_metric_radius_codes(sa: ScratchArrays, N: int, xy: XYRows, rm: str = "r
     while True:
         table = log8_table(e).astype(np.float64)
         full = False
-        for k, h, nb, a_lo, a_hi in _chunks(sa, n, budget):
+        for k, h, nbr, nbc, a_lo, a_hi in _chunks(sa, n, budget):
             vals = {}
             for x in ("R", "K"):
                 hi = a_hi + (x == "K")
                 rin = sa.read(f"fr{x}{k}", a_lo, hi).astype(np.float64)
                 ch = _nest_rows(sa, xy, N, k, x, a_lo, hi, rin, "code", h, table)
                 v = np.empty(ch.z.shape)
-                _geo_edges_nb(ch, h, x == "R", a_lo, nb, table, v)
+                _geo_edges_nb(ch, h, x == "R", a_lo, nbr, nbc, table, v)
                 vals[x] = (ch, v)
             rin = sa.read(f"frC{k}", a_lo, a_hi).astype(np.float64)
             ch = _nest_rows(sa, xy, N, k, "C", a_lo, a_hi, rin, None, h)
@@ -388,14 +396,14 @@ CHUNK_CHILD_BYTES = 3 * 4 * 4 * 8
 
 
 def _chunks(sa: ScratchArrays, n: int, budget: int):
-    # (k, h, nb, a_lo, a_hi) of every level fine to coarse, a few block rows at a time:
-    # about ``budget`` bytes a chunk
+    # (k, h, nbr, nbc, a_lo, a_hi) of every level fine to coarse (its blocks down and
+    # across), a few block rows at a time: about ``budget`` bytes a chunk
     for k in range(n):
-        nb = sa.shape(f"ZC{k}")[0]
+        nbr, nbc = sa.shape(f"ZC{k}")
         per = CHUNK_BYTES + (CHUNK_CHILD_BYTES if k else 0)
-        step = max(1, budget // (per * (nb + 1)))
-        for a_lo in range(0, nb, step):
-            yield k, 1 << k, nb, a_lo, min(a_lo + step, nb)
+        step = max(1, budget // (per * (nbc + 1)))
+        for a_lo in range(0, nbr, step):
+            yield k, 1 << k, nbr, nbc, a_lo, min(a_lo + step, nbr)
 
 
 def _nest_rows(sa: ScratchArrays, xy: XYRows, N: int, k: int, x: str, a0: int, a1: int,
