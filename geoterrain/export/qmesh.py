@@ -354,6 +354,49 @@ def _diagonals(M: int) -> np.ndarray:
     return main
 
 
+def lattice_has_triangle(valid: np.ndarray) -> np.ndarray:
+    """Whether each (…, M, M) lattice validity holds a triangle of the full-resolution RTIN
+    triangulation (:func:`_diagonals`) with three valid corners: exactly the lattices on
+    which :func:`select_tile`'s cut has a face at any threshold (a cut triangle over a mix
+    of valid and invalid samples is always split, δ being +inf on a mixed diamond), so
+    exactly the rtin tiles :func:`build_tile` gives.
+
+    Examples
+    --------
+    >>> v = np.zeros((3, 3), bool); v[0, :2] = v[1, 1] = True  # the cell's triangle
+    >>> w = np.zeros((3, 3), bool); w[0, :2] = w[1, 0] = True  # across its diagonal
+    >>> bool(lattice_has_triangle(v)), bool(lattice_has_triangle(w))
+    (True, False)
+    """
+    M = valid.shape[-1]
+    main = _diagonals(M)
+    k00, k01 = valid[..., :-1, :-1], valid[..., :-1, 1:]
+    k10, k11 = valid[..., 1:, :-1], valid[..., 1:, 1:]
+    tri = np.where(main, k00 & k11 & (k01 | k10), k01 & k10 & (k00 | k11))
+    return tri.any(axis=(-2, -1))
+
+
+def has_valid_cell(valid: np.ndarray) -> np.ndarray:
+    """Whether each (…, M, M) lattice validity holds a cell whose four corners are valid.
+    A TIN tile (:func:`_build_tin`) then always has a triangle: every valid sample is a
+    vertex, on an edge of two valid vertices or inside a triangle of three (an invalid
+    corner's height, far above the data, would put it beyond any threshold), and a
+    Delaunay triangulation holding the four corners of a unit cell holds two triangles
+    of the cell, nothing else lying in its circle. The collapse pass and the seeded border
+    make that an argument, not a proof: ``tests/export/test_qmeshtin.py`` checks it on
+    random voids, flat and rough heights and thresholds.
+
+    Examples
+    --------
+    >>> v = np.zeros((4, 4), bool); v[1:3, 2:4] = True
+    >>> bool(has_valid_cell(v)), bool(has_valid_cell(v[:, :3]))  # a line of two
+    (True, False)
+    """
+    cell = (valid[..., :-1, :-1] & valid[..., :-1, 1:] & valid[..., 1:, :-1]
+            & valid[..., 1:, 1:])
+    return cell.any(axis=(-2, -1))
+
+
 def _resampling_error(dem: GeoDem, rect, h: np.ndarray, valid: np.ndarray) -> float:
     """Largest |L − DEM| at the valid DEM samples inside ``rect``, L being the lattice
     heights ``h`` on the full-resolution RTIN triangulation (triangles with an invalid
