@@ -117,7 +117,7 @@ class QuantizedMeshTiles:
         return sorted(got, key=lambda k: (k[1], k[0]))
 
     @functools.cached_property
-    def _mask(self) -> GeoDem:
+    def mask(self) -> GeoDem:
         """The level-0 validity (no heights): all valid when the store says every sample
         is; else stored tiles whose every sample is valid (``nvalid``) filled in, the
         others decoded (only tiles along a void, the sea or the padding), absent ones not."""
@@ -145,7 +145,7 @@ class QuantizedMeshTiles:
         for a in range(0, len(tiles), 64):  # 64 tiles' lattices through pyproj at a time
             chunk = tiles[a:a + 64]
             grids = [lattice(tile_rect(z, x, y), M) for x, y in chunk]
-            out[a:a + len(chunk)] = self._mask.valid_at(np.stack([g[0] for g in grids]),
+            out[a:a + len(chunk)] = self.mask.valid_at(np.stack([g[0] for g in grids]),
                                                         np.stack([g[1] for g in grids]))
         return out
 
