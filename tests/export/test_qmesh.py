@@ -404,7 +404,7 @@ def test_served_levels_list_the_written_tiles_when_the_dem_edge_is_a_tile_edge(t
     """The DEM's west edge on a tile boundary at level 9: the tile west of it holds only a
     line of samples along its east edge, no triangle. The writer leaves it out (a flat tile
     there would list other vertices than its neighbour along their edge), and so does the
-    server, which decides from the georeference alone."""
+    server, which finds each tile's lattice validity without building it."""
     from geoterrain.export.qmesh import write_tileset
     from geoterrain.export.qmeshtiles import QuantizedMeshTiles
     from geoterrain.ingest.synth import generate
