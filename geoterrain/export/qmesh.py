@@ -376,27 +376,6 @@ def lattice_has_triangle(valid: np.ndarray) -> np.ndarray:
     return tri.any(axis=(-2, -1))
 
 
-def has_valid_cell(valid: np.ndarray) -> np.ndarray:
-    """Whether each (…, M, M) lattice validity holds a cell whose four corners are valid.
-    A TIN tile (:func:`_build_tin`) then always has a triangle: every valid sample is a
-    vertex, on an edge of two valid vertices or inside a triangle of three (an invalid
-    corner's height, far above the data, would put it beyond any threshold), and a
-    Delaunay triangulation holding the four corners of a unit cell holds two triangles
-    of the cell, nothing else lying in its circle. The collapse pass and the seeded border
-    make that an argument, not a proof: ``tests/export/test_qmeshtin.py`` checks it on
-    random voids, flat and rough heights and thresholds.
-
-    Examples
-    --------
-    >>> v = np.zeros((4, 4), bool); v[1:3, 2:4] = True
-    >>> bool(has_valid_cell(v)), bool(has_valid_cell(v[:, :3]))  # a line of two
-    (True, False)
-    """
-    cell = (valid[..., :-1, :-1] & valid[..., :-1, 1:] & valid[..., 1:, :-1]
-            & valid[..., 1:, 1:])
-    return cell.any(axis=(-2, -1))
-
-
 def _resampling_error(dem: GeoDem, rect, h: np.ndarray, valid: np.ndarray) -> float:
     """Largest |L − DEM| at the valid DEM samples inside ``rect``, L being the lattice
     heights ``h`` on the full-resolution RTIN triangulation (triangles with an invalid

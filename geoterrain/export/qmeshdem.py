@@ -193,9 +193,10 @@ class GeoDem:
                    + (h[i1, j0] * (1 - fj) + h[i1, j1] * fj) * fi)
         return out
 
-    def valid_at(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
+    def valid_at(self, lon: np.ndarray, lat: np.ndarray, inside: bool = False):
         """Where :meth:`bilinear` gives a height (all four neighbours valid, inside the
-        grid), from the validity alone: ``np.isfinite(bilinear(lon, lat))`` without heights.
+        grid), from the validity alone: ``np.isfinite(bilinear(lon, lat))`` without heights;
+        with ``inside``, also where the four neighbours lie in the grid (valid or not).
 
         Examples
         --------
@@ -208,7 +209,7 @@ class GeoDem:
         out = np.zeros(ok.shape, bool)
         v = self.valid
         out[ok] = v[i0, j0] & v[i0, j1] & v[i1, j0] & v[i1, j1]
-        return out
+        return (out, ok) if inside else out
 
     def extent(self) -> tuple[float, float, float, float]:
         """Lon/lat box of the grid (its border densified through pyproj)."""

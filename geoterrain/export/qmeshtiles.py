@@ -24,7 +24,6 @@ from geoterrain.export.qmesh import (
     availability_ranges,
     build_tile,
     check_tile_mesher,
-    has_valid_cell,
     lattice_has_triangle,
     max_zoom_for,
     select_tile,
@@ -55,8 +54,8 @@ class QuantizedMeshTiles:
     height over the DEM's box, as the writer gives them. Which tiles hold data is found
     from the level-0 validity (stored tiles whose samples are all valid, by their count;
     the others decoded, only where the store has nodata) through each tile's lattice:
-    rtin tiles by :func:`lattice_has_triangle` alone, TIN tiles by a lattice cell of four
-    valid samples, the few thinner ones by building them (see :meth:`_data_tiles`).
+    rtin tiles by :func:`lattice_has_triangle` alone, TIN tiles with nodata in their
+    lattice by building them (see :meth:`_data_tiles`).
     Building tile (z, x, y) decodes only the level-0 tiles under its rectangle
     (:class:`GeoDem`'s window), and its declared bound is :func:`build_tile`'s.
     ``mesher``: ``"rtin"`` or ``"tin"``, as :func:`write_tileset`'s.
@@ -137,35 +136,42 @@ class QuantizedMeshTiles:
             v[sl] |= w  # a sample shared with a full tile is valid in both
         return GeoDem(t, heights=False, mask=np.ascontiguousarray(v[:H, :W]))
 
-    def _lattice_validity(self, z: int, tiles: list[tuple[int, int]]) -> np.ndarray:
-        """(len(tiles), M, M) bool: where each tile's lattice (:func:`lattice`, the same
-        lon/lat as :func:`build_tile`'s) has a bilinear height (:meth:`GeoDem.valid_at`)."""
+    def _lattice_validity(self, z: int, tiles: list[tuple[int, int]]
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """(len(tiles), M, M) bool twice: where each tile's lattice (:func:`lattice`, the
+        same lon/lat as :func:`build_tile`'s) has a bilinear height
+        (:meth:`GeoDem.valid_at`), and where it lies inside the grid (valid or not)."""
         M = self.lattice
-        out = np.zeros((len(tiles), M, M), bool)
+        valid = np.zeros((len(tiles), M, M), bool)
+        inside = np.zeros((len(tiles), M, M), bool)
         for a in range(0, len(tiles), 64):  # 64 tiles' lattices through pyproj at a time
             chunk = tiles[a:a + 64]
             grids = [lattice(tile_rect(z, x, y), M) for x, y in chunk]
-            out[a:a + len(chunk)] = self.mask.valid_at(np.stack([g[0] for g in grids]),
-                                                        np.stack([g[1] for g in grids]))
-        return out
+            valid[a:a + len(chunk)], inside[a:a + len(chunk)] = self.mask.valid_at(
+                np.stack([g[0] for g in grids]), np.stack([g[1] for g in grids]), inside=True)
+        return valid, inside
 
     def _data_tiles(self, z: int) -> frozenset[tuple[int, int]]:
         """The tiles of level z that :func:`build_tile` gives (the writer writes no other),
-        from their lattices' validity: rtin, those holding a triangle of valid samples
-        (:func:`lattice_has_triangle`: exactly the cut's); tin, those holding a cell of
-        four valid samples (:func:`has_valid_cell`: the greedy TIN keeps a triangle
-        there), and of the thinner ones with at least 3 valid samples those the TIN keeps
-        a triangle on, built to know (it may join valid samples across a cell's other
-        diagonal than the lattice's triangulation, or join none)."""
+        from their lattices' validity. rtin: those holding a triangle of valid samples
+        (:func:`lattice_has_triangle`: exactly the cut's). tin: those whose lattice is all
+        valid (a TIN of valid samples alone); those with at least 3 valid samples and
+        nodata inside the grid, built to know (the greedy TIN may join valid samples across
+        a cell's other diagonal than the lattice's triangulation, or join none, even
+        beside a cell of four valid samples: ``tests/export/test_qmeshtin.py``); those cut
+        only by the DEM's edge, by :func:`lattice_has_triangle` as rtin (a rectangle of
+        valid samples, or a projected grid's edge: the rule main used, from the
+        georeference, refined; not proven for a TIN there)."""
         jobs = self._jobs(z)
         if not jobs:
             return frozenset()
-        valid = self._lattice_validity(z, jobs)
+        valid, inside = self._lattice_validity(z, jobs)
+        tri = lattice_has_triangle(valid)
         if self.mesher == "rtin":
-            return frozenset(jobs[i] for i in np.flatnonzero(lattice_has_triangle(valid)))
-        sure = has_valid_cell(valid)
-        out = {jobs[i] for i in np.flatnonzero(sure)}
-        for i in np.flatnonzero(~sure & (valid.sum(axis=(1, 2)) >= 3)):
+            return frozenset(jobs[i] for i in np.flatnonzero(tri))
+        void = (inside & ~valid).any(axis=(1, 2))  # nodata inside the grid
+        out = {jobs[i] for i in np.flatnonzero(tri & ~void)}
+        for i in np.flatnonzero(void & (valid.sum(axis=(1, 2)) >= 3)):
             if self._build(z, *jobs[i]) is not None:
                 out.add(jobs[i])
         return frozenset(out)
