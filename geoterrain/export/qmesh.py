@@ -354,6 +354,28 @@ def _diagonals(M: int) -> np.ndarray:
     return main
 
 
+def lattice_has_triangle(valid: np.ndarray) -> np.ndarray:
+    """Whether each (…, M, M) lattice validity holds a triangle of the full-resolution RTIN
+    triangulation (:func:`_diagonals`) with three valid corners: exactly the lattices on
+    which :func:`select_tile`'s cut has a face at any threshold (a cut triangle over a mix
+    of valid and invalid samples is always split, δ being +inf on a mixed diamond), so
+    exactly the rtin tiles :func:`build_tile` gives.
+
+    Examples
+    --------
+    >>> v = np.zeros((3, 3), bool); v[0, :2] = v[1, 1] = True  # the cell's triangle
+    >>> w = np.zeros((3, 3), bool); w[0, :2] = w[1, 0] = True  # across its diagonal
+    >>> bool(lattice_has_triangle(v)), bool(lattice_has_triangle(w))
+    (True, False)
+    """
+    M = valid.shape[-1]
+    main = _diagonals(M)
+    k00, k01 = valid[..., :-1, :-1], valid[..., :-1, 1:]
+    k10, k11 = valid[..., 1:, :-1], valid[..., 1:, 1:]
+    tri = np.where(main, k00 & k11 & (k01 | k10), k01 & k10 & (k00 | k11))
+    return tri.any(axis=(-2, -1))
+
+
 def _resampling_error(dem: GeoDem, rect, h: np.ndarray, valid: np.ndarray) -> float:
     """Largest |L − DEM| at the valid DEM samples inside ``rect``, L being the lattice
     heights ``h`` on the full-resolution RTIN triangulation (triangles with an invalid

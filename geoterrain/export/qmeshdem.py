@@ -92,12 +92,13 @@ class GeoDem:
     only the stored tiles under them are decoded, and sample (i, j) of the arrays is
     sample (i0 + i, j0 + j) of the grid (positions are computed on the whole grid and
     the integer offset subtracted, exactly, so two windows agree on a shared sample).
-    ``heights=False``: the georeference alone (no tile is decoded).
+    ``heights=False``: the georeference alone (no tile is decoded); with ``mask``, an
+    (H, W) bool array, the validity too (:meth:`valid_at`; no heights: ``h`` is empty).
     """
 
     def __init__(self, terrain: TerrainLike, geoid: str | None = None,
                  window: tuple[tuple[int, int], tuple[int, int]] | None = None,
-                 heights: bool = True):
+                 heights: bool = True, mask: np.ndarray | None = None):
         f = terrain.frame
         if f.kind == "pixel" or f.crs_wkt is None:
             raise UsageError("quantized-mesh tiles need a georeferenced DEM; this one has no CRS")
@@ -118,6 +119,10 @@ class GeoDem:
                        if crs.is_geographic else None)
         if not heights:
             self.h, self.valid = np.full((0, 0), np.nan), np.zeros((0, 0), bool)
+            if mask is not None:
+                if mask.shape != (self.H, self.W):
+                    raise ValueError(f"mask {mask.shape} is not the grid's {(self.H, self.W)}")
+                self.valid = np.asarray(mask, bool)
             return
         if window is None:
             h, v = terrain.level_heights(0)
@@ -168,19 +173,43 @@ class GeoDem:
         a, _, c, _, e, f = self.transform[:6]
         return ((np.asarray(y) - f) / e - 0.5) - self.i0, ((np.asarray(x) - c) / a - 0.5) - self.j0
 
-    def bilinear(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
-        """Heights (metres) at lon/lat; NaN where a neighbouring sample is invalid/outside."""
+    def _corners(self, lon: np.ndarray, lat: np.ndarray):
+        """The bilinear neighbours of lon/lat: ``ok`` (inside the grid), and for the points
+        inside, rows i0, i1, columns j0, j1 and the fractions fi, fj."""
         i, j = self.pixel(lon, lat)
-        out = np.full(i.shape, np.nan)
         ok = (i >= 0) & (i <= self.H - 1) & (j >= 0) & (j <= self.W - 1)
         i0 = np.clip(np.floor(i[ok]).astype(np.int64), 0, max(self.H - 2, 0))
         j0 = np.clip(np.floor(j[ok]).astype(np.int64), 0, max(self.W - 2, 0))
         fi, fj = i[ok] - i0, j[ok] - j0
         i1, j1 = np.minimum(i0 + 1, self.H - 1), np.minimum(j0 + 1, self.W - 1)
+        return ok, i0, i1, j0, j1, fi, fj
+
+    def bilinear(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
+        """Heights (metres) at lon/lat; NaN where a neighbouring sample is invalid/outside."""
+        ok, i0, i1, j0, j1, fi, fj = self._corners(lon, lat)
+        out = np.full(ok.shape, np.nan)
         h = self.h
         out[ok] = ((h[i0, j0] * (1 - fj) + h[i0, j1] * fj) * (1 - fi)
                    + (h[i1, j0] * (1 - fj) + h[i1, j1] * fj) * fi)
         return out
+
+    def valid_at(self, lon: np.ndarray, lat: np.ndarray, inside: bool = False):
+        """Where :meth:`bilinear` gives a height (all four neighbours valid, inside the
+        grid), from the validity alone: ``np.isfinite(bilinear(lon, lat))`` without heights;
+        with ``inside``, also where the four neighbours lie in the grid (valid or not).
+
+        Examples
+        --------
+        >>> d = GeoDem(t)
+        >>> lon, lat = d.lonlat(np.array([0.5, 3.25]), np.array([0.5, -1.0]))
+        >>> d.valid_at(lon, lat).tolist() == np.isfinite(d.bilinear(lon, lat)).tolist()
+        True
+        """
+        ok, i0, i1, j0, j1, _, _ = self._corners(lon, lat)
+        out = np.zeros(ok.shape, bool)
+        v = self.valid
+        out[ok] = v[i0, j0] & v[i0, j1] & v[i1, j0] & v[i1, j1]
+        return (out, ok) if inside else out
 
     def extent(self) -> tuple[float, float, float, float]:
         """Lon/lat box of the grid (its border densified through pyproj)."""

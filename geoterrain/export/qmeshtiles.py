@@ -24,6 +24,7 @@ from geoterrain.export.qmesh import (
     availability_ranges,
     build_tile,
     check_tile_mesher,
+    lattice_has_triangle,
     max_zoom_for,
     select_tile,
 )
@@ -45,12 +46,18 @@ class QuantizedMeshTiles:
 
     The same tiles as :func:`write_tileset` builds, with what a whole-set writer learns
     from all the tiles fixed beforehand instead: one height quantisation range for every
-    tile (the store's recorded height range, widened by 120 m with ``geoid``), the
-    ``lattice`` at every level, and the tiles a level has (those whose lattice has a cell
-    with at least 3 corners inside the DEM's grid, found from the georeference alone; coarser
-    levels than the first such level get flat tiles at the lowest height, as the writer
-    gives them). Building tile (z, x, y) decodes only the level-0 tiles under its
-    rectangle (:class:`GeoDem`'s window), and its declared bound is :func:`build_tile`'s.
+    tile (the store's recorded height range, widened by 120 m with ``geoid``) and the
+    ``lattice`` at every level. The tiles a level has are the writer's: those on which
+    :func:`build_tile` finds a triangle of valid samples, so none over nodata (a void, the
+    sea, a nodata corner) is listed in ``layer.json`` or served (a 404, as a tile outside
+    the data); levels coarser than the first with such a tile get flat tiles at the lowest
+    height over the DEM's box, as the writer gives them. Which tiles hold data is found
+    from the level-0 validity (stored tiles whose samples are all valid, by their count;
+    the others decoded, only where the store has nodata) through each tile's lattice:
+    rtin tiles by :func:`lattice_has_triangle` alone, TIN tiles with nodata in their
+    lattice by building them (see :meth:`_data_tiles`).
+    Building tile (z, x, y) decodes only the level-0 tiles under its rectangle
+    (:class:`GeoDem`'s window), and its declared bound is :func:`build_tile`'s.
     ``mesher``: ``"rtin"`` or ``"tin"``, as :func:`write_tileset`'s.
 
     Examples
@@ -99,56 +106,94 @@ class QuantizedMeshTiles:
         ys = range(max(int((s + 90) // size), 0), min(int(math.ceil((n + 90) / size)), 1 << z))
         return xs, ys
 
-    def _lattice_tiles(self, z: int) -> frozenset[tuple[int, int]]:
-        """Tiles of level z whose lattice has a cell with ≥ 3 corners inside the DEM's grid
-        (the level's lattices as one lon/lat grid through pyproj, counted per tile)."""
+    def _jobs(self, z: int) -> list[tuple[int, int]]:
+        """The tiles of level z the writer builds: those touching the DEM's box, and both
+        level-0 tiles (Cesium starts from them)."""
         xs, ys = self._touching(z)
+        got = {(x % (2 << z), y) for x in xs for y in ys}  # x modulo 2^(z+1) names the tile
+        if z == 0:
+            got |= {(0, 0), (1, 0)}
+        return sorted(got, key=lambda k: (k[1], k[0]))
+
+    @functools.cached_property
+    def mask(self) -> GeoDem:
+        """The level-0 validity (no heights): all valid when the store says every sample
+        is; else stored tiles whose every sample is valid (``nvalid``) filled in, the
+        others decoded (only tiles along a void, the sea or the padding), absent ones not."""
+        t, g = self.terrain, self.terrain.grid
+        H, W = g.rows, g.cols
+        if t.meta.get("valid_samples") == H * W:
+            return GeoDem(t, heights=False, mask=np.ones((H, W), bool))
+        step, T = 1 << g.t, g.tile_samples
+        v = np.zeros(g.level_shape(0), bool)
+        full = [k for k in t.tile_keys(0) if t.tile_info[k]["nvalid"] == T * T]
+        part = [k for k in t.tile_keys(0) if t.tile_info[k]["nvalid"] != T * T]
+        for _, x, y in full:
+            v[y * step:y * step + T, x * step:x * step + T] = True
+        for _, x, y in part:
+            w = t.tile(0, x, y).valid
+            sl = (slice(y * step, y * step + T), slice(x * step, x * step + T))
+            v[sl] |= w  # a sample shared with a full tile is valid in both
+        return GeoDem(t, heights=False, mask=np.ascontiguousarray(v[:H, :W]))
+
+    def _lattice_validity(self, z: int, tiles: list[tuple[int, int]]
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """(len(tiles), M, M) bool twice: where each tile's lattice (:func:`lattice`, the
+        same lon/lat as :func:`build_tile`'s) has a bilinear height
+        (:meth:`GeoDem.valid_at`), and where it lies inside the grid (valid or not)."""
         M = self.lattice
-        if len(xs) * len(ys) == 0:
+        valid = np.zeros((len(tiles), M, M), bool)
+        inside = np.zeros((len(tiles), M, M), bool)
+        for a in range(0, len(tiles), 64):  # 64 tiles' lattices through pyproj at a time
+            chunk = tiles[a:a + 64]
+            grids = [lattice(tile_rect(z, x, y), M) for x, y in chunk]
+            valid[a:a + len(chunk)], inside[a:a + len(chunk)] = self.mask.valid_at(
+                np.stack([g[0] for g in grids]), np.stack([g[1] for g in grids]), inside=True)
+        return valid, inside
+
+    def _data_tiles(self, z: int) -> frozenset[tuple[int, int]]:
+        """The tiles of level z that :func:`build_tile` gives (the writer writes no other),
+        from their lattices' validity. rtin: those holding a triangle of valid samples
+        (:func:`lattice_has_triangle`: exactly the cut's). tin: those whose lattice is all
+        valid (a TIN of valid samples alone); those with at least 3 valid samples and
+        nodata inside the grid, built to know (the greedy TIN may join valid samples across
+        a cell's other diagonal than the lattice's triangulation, or join none, even
+        beside a cell of four valid samples: ``tests/export/test_qmeshtin.py``); those cut
+        only by the DEM's edge, by :func:`lattice_has_triangle` as rtin (a rectangle of
+        valid samples, or a projected grid's edge: the rule main used, from the
+        georeference, refined; not proven for a TIN there)."""
+        jobs = self._jobs(z)
+        if not jobs:
             return frozenset()
-        size = 180.0 / (1 << z)
-        k = np.arange(len(xs) * (M - 1) + 1)
-        lon = -180.0 + xs.start * size + k * size / (M - 1)
-        k = np.arange(len(ys) * (M - 1) + 1)
-        lat = -90.0 + ys.start * size + k * size / (M - 1)
-        inside = np.zeros((len(lat), len(lon)), bool)
-        for r in range(0, len(lat), 256):  # rows of the grid at a time
-            LO, LA = np.meshgrid(lon, lat[r:r + 256])
-            i, j = self.geo.pixel(LO, LA)
-            H, W = self.geo.full
-            inside[r:r + 256] = (i >= 0) & (i <= H - 1) & (j >= 0) & (j <= W - 1)
-        # a lattice cell with ≥ 3 corners inside may hold a triangle; a tile whose samples
-        # inside are a line along its edge (the DEM's edge on the tile's) has none, and
-        # its flat tile would list other vertices along the edge than its neighbour's
-        cells = (inside[:-1, :-1].astype(np.int8) + inside[:-1, 1:] + inside[1:, :-1]
-                 + inside[1:, 1:]) >= 3
-        out = set()
-        for a, y in enumerate(ys):
-            for b, x in enumerate(xs):
-                if cells[a * (M - 1):(a + 1) * (M - 1), b * (M - 1):(b + 1) * (M - 1)].any():
-                    out.add((x % (2 << z), y))
+        valid, inside = self._lattice_validity(z, jobs)
+        tri = lattice_has_triangle(valid)
+        if self.mesher == "rtin":
+            return frozenset(jobs[i] for i in np.flatnonzero(tri))
+        void = (inside & ~valid).any(axis=(1, 2))  # nodata inside the grid
+        out = {jobs[i] for i in np.flatnonzero(tri & ~void)}
+        for i in np.flatnonzero(void & (valid.sum(axis=(1, 2)) >= 3)):
+            if self._build(z, *jobs[i]) is not None:
+                out.add(jobs[i])
         return frozenset(out)
 
     def level_tiles(self, z: int) -> frozenset[tuple[int, int]]:
-        """The (x, y) TMS tiles level z has (see the class docs)."""
+        """The (x, y) TMS tiles level z has: the writer's (see the class docs)."""
         if z not in self._levels:
             if not 0 <= z <= self.max_zoom:
                 return frozenset()
             if z <= self.data_from - 1:
-                xs, ys = self._touching(z)
-                got = {(x % (2 << z), y) for x in xs for y in ys}
-                if z == 0:
-                    got |= {(0, 0), (1, 0)}  # Cesium starts from both level-0 tiles
-                self._levels[z] = frozenset(got)
+                self._levels[z] = frozenset(self._jobs(z))
             else:
-                self._levels[z] = self._lattice_tiles(z)
+                self._levels[z] = self._data_tiles(z)
         return self._levels[z]
 
     @functools.cached_property
     def data_from(self) -> int:
-        """The first level whose lattice reaches into the DEM (coarser ones are flat)."""
+        """The first level with a tile holding data (coarser ones are flat)."""
         for z in range(self.max_zoom + 1):
-            if self._lattice_tiles(z):
+            got = self._data_tiles(z)
+            if got:
+                self._levels[z] = got
                 return z
         return self.max_zoom + 1
 
@@ -181,16 +226,20 @@ class QuantizedMeshTiles:
         """(tile bytes with the octvertexnormals and watermask extensions, not gzipped;
         declared error bound in metres; triangles) of TMS tile (z, x, y), which must
         :meth:`exists`."""
-        M = self.lattice
-        target, fixed = self.target(z)
-        res = None
-        if z >= self.data_from:
-            res = build_tile(self._window(z, x, y), z, x, y, M, target, self.hrange,
-                             fixed_threshold=fixed, mesher=self.mesher)
-        if res is None:  # coarser than the data, or all nodata: the flat tile
+        if z < self.data_from:  # coarser than the data: the flat tile
             return self._flat(z, x, y)
+        res = self._build(z, x, y)
+        if res is None:
+            raise UsageError(f"quantized-mesh tile {z}/{x}/{y} holds no data: the tile set "
+                             "has no such tile")
         data, bound, ntri, _ = res
         return data, bound, ntri
+
+    def _build(self, z: int, x: int, y: int):
+        """:func:`build_tile`'s result for tile (z, x, y) of a data level (None: no data)."""
+        target, fixed = self.target(z)
+        return build_tile(self._window(z, x, y), z, x, y, self.lattice, target, self.hrange,
+                          fixed_threshold=fixed, mesher=self.mesher)
 
     def metadata(self, z: int, x: int, y: int) -> dict:
         """The metadata extension's content: the tiles of the next

@@ -245,10 +245,10 @@ def magnify_tiles(src: np.ndarray, which: np.ndarray, level: np.ndarray, x: np.n
                   y: np.ndarray, step: int) -> np.ndarray:
     """Magnified tiles' texels (n, step + 1, step + 1) float64 in one compiled pass: tile
     (``level[n]`` < 0, ``x[n]``, ``y[n]``) interpolated bilinearly in ``src[which[n]]``,
-    its level-0 tile's array (T, T), as
-    :func:`geoterrain.rendering.tileshader.magnified` interpolates one tile (a texel the
-    weighted mean of its finite corners where the source tile holds a non-finite value,
-    NaN where none is; equal to it but for the rounding of the sums' order).
+    its level-0 tile's array (T, T) (a texel the weighted mean of its finite corners
+    where the source tile holds a non-finite value, NaN where none is). The one
+    magnification: :func:`geoterrain.rendering.tileshader.magnified` runs it over one
+    tile's channels for the other styles.
 
     Examples
     --------

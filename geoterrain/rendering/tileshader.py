@@ -13,8 +13,9 @@ codes) all of them in one compiled call on every core
 
 A magnified tile (level < 0, :mod:`geoterrain.rendering.tiletextures`) is shaded by the
 same rule from its level-0 tile's heights, shade (and drape) interpolated bilinearly at
-its texels (:func:`magnified`; in the default style a frame's magnified tiles in one
-compiled pass, :func:`geoterrain.rendering.tileshade.magnify_tiles`): the height is
+its texels (:func:`magnified`, one tile's channels; in the default style a frame's
+magnified tiles in one call; both the compiled pass
+:func:`geoterrain.rendering.tileshade.magnify_tiles`): the height is
 interpolated first and classified after, so a coast or a colour step follows the
 interpolated surface, not the nearest sample.
 
@@ -67,42 +68,31 @@ def magnified(a: np.ndarray, level: int, x: int, y: int, step: int) -> np.ndarra
     of its finite corners; NaN where none is).
 
     The tile covers 1/2^-level of its level-0 tile's side, from sample (y mod 2^-level,
-    x mod 2^-level) × its width, with 2^-level texels per sample.
+    x mod 2^-level) × its width, with 2^-level texels per sample. Each channel of ``a`` is
+    one tile of :func:`geoterrain.rendering.tileshade.magnify_tiles`, the compiled pass the
+    default style magnifies a frame's tiles with: one interpolation for every style. (An
+    earlier numpy one, separable weights through ``einsum``, rounded its sums in another
+    order, up to 5e-13 apart; the shaded tiles were the same bytes in every style tried:
+    ``tests/rendering/test_tileshade.py``.)
 
     Examples
     --------
     >>> a = np.array([[0.0, 4.0], [8.0, 12.0]])  # a 2 × 2 level-0 tile (step 1)
     >>> magnified(np.kron(a, np.ones((1, 1))), -1, 0, 0, 2).tolist()[1]
     [4.0, 6.0, 8.0]
+    >>> magnified(np.stack([a, -a], -1), -1, 0, 0, 2)[1, 1].tolist()  # channels
+    [6.0, -6.0]
     """
     k = -int(level)
     if k <= 0:
         raise ValueError("a magnified tile's level is below 0")
-    n = step >> k  # the tile's width in level-0 samples
-    m = (1 << k) - 1
-    wy = _weights(a.shape[0], (y & m) * n, k, step)
-    wx = _weights(a.shape[1], (x & m) * n, k, step)
     v = np.asarray(a, np.float64)
-    ok = np.isfinite(v)
-    if ok.all():  # separable: rows, then columns
-        return np.einsum("ri,ij...,cj->rc...", wy, v, wx, optimize=True)
-    num = np.einsum("ri,ij...,cj->rc...", wy, np.where(ok, v, 0.0), wx, optimize=True)
-    den = np.einsum("ri,ij...,cj->rc...", wy, ok.astype(np.float64), wx, optimize=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(den > 1e-12, num / np.maximum(den, 1e-300), np.nan)
+    src = np.moveaxis(v.reshape(v.shape[0], v.shape[1], -1), -1, 0)  # a tile per channel
+    n = src.shape[0]
+    out = magnify_tiles(src, np.arange(n), np.full(n, -k), np.full(n, int(x)),
+                        np.full(n, int(y)), step)
+    return np.moveaxis(out, 0, -1).reshape((step + 1, step + 1) + v.shape[2:])
 
-
-def _weights(T: int, o: int, k: int, step: int) -> np.ndarray:
-    """(step + 1, T) bilinear weights of a magnified tile's texels along one axis, from
-    sample ``o`` on, 2^k texels per sample."""
-    c = o + np.arange(step + 1, dtype=np.float64) / (1 << k)
-    i0 = np.minimum(np.floor(c).astype(np.int64), T - 2)
-    f = c - i0
-    w = np.zeros((step + 1, T))
-    r = np.arange(step + 1)
-    w[r, i0] = 1.0 - f
-    w[r, i0 + 1] += f
-    return w
 
 # every shading style met so far, numbered: a tile's cache key holds the number, so a
 # lookup hashes a few ints, not the palette, light and drape (a handful of styles a

@@ -23,9 +23,10 @@ thread-safe; a second request for the same tile waits and finds it cached), and 
 Every response carries CORS headers; tiles carry a strong ETag (``If-None-Match`` → 304)
 and ``Cache-Control``. A path that is not one of the forms above is a 400 with one line
 (a ``..`` or ``.`` segment, an encoded slash, dot or backslash, a non-integer z/x/y), a
-tile outside the data or the world a 404; nothing is ever read from the file system but
-the stores given and the package folders, and a static path is resolved and checked to
-lie inside its folder.
+tile outside the data or the world a 404 (a terrain tile over nodata too: the tile set
+``tiles --format quantized-mesh`` writes has none there); nothing is ever read from the
+file system but the stores given and the package folders, and a static path is resolved
+and checked to lie inside its folder.
 
 Examples
 --------
@@ -407,8 +408,9 @@ def create_app(stores: Sequence[str | Path] | dict[str, ServedStore], *,
         if len(segs) == 3:  # {z}/{x}/{y}.terrain
             z, x, y, _ = tile_xyz(segs, "terrain")
             if not store.qmesh.exists(z, x, y):
-                raise HTTPProblem(404, f"no terrain tile {z}/{x}/{y}: outside the data "
-                                       f"(levels 0..{store.qmesh.max_zoom}, see layer.json)")
+                raise HTTPProblem(404, f"no terrain tile {z}/{x}/{y}: outside the data or "
+                                       f"over nodata (levels 0..{store.qmesh.max_zoom}, "
+                                       "see layer.json)")
             exts = negotiate_terrain(request.headers.get("accept"),
                                      request.query_params.get("extensions"))
             if exts is None:

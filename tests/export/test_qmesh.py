@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 import rasterio
 from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import geoterrain
 from geoterrain.export.qmeshformat import tile_rect
@@ -402,7 +404,7 @@ def test_served_levels_list_the_written_tiles_when_the_dem_edge_is_a_tile_edge(t
     """The DEM's west edge on a tile boundary at level 9: the tile west of it holds only a
     line of samples along its east edge, no triangle. The writer leaves it out (a flat tile
     there would list other vertices than its neighbour along their edge), and so does the
-    server, which decides from the georeference alone."""
+    server, which finds each tile's lattice validity without building it."""
     from geoterrain.export.qmesh import write_tileset
     from geoterrain.export.qmeshtiles import QuantizedMeshTiles
     from geoterrain.ingest.synth import generate
@@ -482,3 +484,59 @@ def test_a_grid_past_the_antimeridian_wraps_onto_the_western_tiles(tmp_path, mes
     inner = inner.ravel() & np.isfinite(heights)
     assert covered[inner].all()  # no sample is left out, east of 180° as west of it
     assert (inner & (slon > 180.0)).sum() > 5000
+
+
+@settings(max_examples=200, deadline=None)
+@given(M=st.sampled_from([3, 5, 9, 17]), seed=st.integers(0, 2**31),
+       share=st.floats(0.05, 1.0), thr=st.sampled_from([0.0, 0.2, 5.0, 1e9]))
+def test_the_lattice_triangle_rule_is_the_rtin_cut(M, seed, share, thr):
+    """lattice_has_triangle (what the server lists rtin tiles by) is exactly whether
+    select_tile's cut keeps a face of three valid corners, at any threshold: a cut
+    triangle over valid and invalid samples is always split (δ = +inf)."""
+    from geoterrain.bounds.delta import vertex_errors
+    from geoterrain.export.qmesh import lattice_has_triangle
+    from geoterrain.lod.kernels import close_upward, extract
+
+    rng = np.random.default_rng(seed)
+    valid = rng.random((M, M)) < share
+    h = np.where(valid, rng.normal(size=(M, M)).cumsum(0) * 3.0, 0.0)
+    active = vertex_errors(h, valid) > thr
+    active[0, :] = active[-1, :] = active[:, 0] = active[:, -1] = True
+    close_upward(active)
+    faces, fidx = extract(active, np.zeros_like(active), np.full(M * M, -1, np.int32))
+    kept = valid.ravel()[fidx][faces].all(1)
+    assert bool(lattice_has_triangle(valid)) == bool(kept.any())
+
+
+@pytest.mark.fast
+def test_the_servers_validity_is_the_writers(tmp_path):
+    """What the server finds each lattice's validity from: the level-0 mask built from the
+    tile table (decoding only tiles with nodata) is the store's own, and
+    GeoDem.valid_at is where GeoDem.bilinear gives a height, at random lon/lat around a
+    DEM with a void, a nodata margin and its edges."""
+    from geoterrain.export.qmeshdem import GeoDem
+    from geoterrain.export.qmeshtiles import QuantizedMeshTiles
+    from geoterrain.ingest.synth import generate
+
+    z = (generate("fbm", (40, 50), seed=2) * 0.05).astype(np.float32)
+    z[5:15, 20:30] = -9999
+    z[:, :3] = -9999
+    dem = write_tif(tmp_path / "m.tif", z, crs="EPSG:4326", origin=(138.45, 35.55),
+                    spacing=1 / 1200, nodata=-9999)
+    with geoterrain.open(geoterrain.preprocess(dem, tmp_path / "m.geoterrain",
+                                               tile_size=16)) as t:
+        q = QuantizedMeshTiles(t, mesher="rtin")
+        _, v = t.level_heights(0)
+        assert np.array_equal(q.mask.valid, v[:40, :50])
+        full = GeoDem(t)
+        w, s, e, n = full.extent()
+        rng = np.random.default_rng(0)
+        lon = rng.uniform(w - 0.01, e + 0.01, 20000)
+        lat = rng.uniform(s - 0.01, n + 0.01, 20000)
+        # on sample rows and columns too (the edges' == tests)
+        i, j = rng.integers(-1, 41, 2000), rng.integers(-1, 51, 2000)
+        lon2, lat2 = full.lonlat(i.astype(float), j.astype(float))
+        lon, lat = np.concatenate([lon, lon2]), np.concatenate([lat, lat2])
+        got = q.mask.valid_at(lon, lat)
+        assert np.array_equal(got, np.isfinite(full.bilinear(lon, lat)))
+        assert 0 < got.mean() < 1

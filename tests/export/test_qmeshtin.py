@@ -204,3 +204,28 @@ def test_decoded_neighbours_list_the_same_edge_vertices(tmp_path_factory, h, w, 
             assert a.shape == b.shape, (zz, x, y, ox)
             assert np.array_equal(a[:, 2], b[:, 2])
             assert np.allclose(a[:, :2], b[:, :2], rtol=0, atol=1e-9)
+
+
+@settings(max_examples=100, deadline=None)
+@given(M=st.sampled_from([3, 5, 9, 17, 33]), seed=st.integers(0, 2**31),
+       relief=st.sampled_from([0.0, 0.05, 3.0]),
+       thr=st.sampled_from([MIN_THRESHOLD, 0.3, 50.0]))
+def test_what_the_server_lists_tin_tiles_by(M, seed, relief, thr):
+    """The server (export/qmeshtiles.py) lists a TIN tile whose lattice is all valid
+    without building it: such a TIN covers the whole tile with triangles. A lattice with a
+    void it builds: beside a cell of four valid samples the TIN may still keep no
+    triangle (a ring of valid samples round a void, flat: each corner cell split along the
+    diagonal through the void), where the lattice's own triangulation keeps one."""
+    from geoterrain.export.qmesh import lattice_has_triangle
+
+    rng = np.random.default_rng(seed)
+    h = rng.normal(size=(M, M)).cumsum(0).cumsum(1) * relief
+    valid = np.ones((M, M), bool)
+    ij, faces = tin_tile(h, valid, thr, 0.1 * thr)
+    a, b = (ij[faces][:, k] - ij[faces][:, 0] for k in (1, 2))
+    area = np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum() / 2
+    assert area == (M - 1) ** 2
+    ring = np.ones((5, 5), bool)
+    ring[:4, 1:3] = ring[1:3, 3] = False
+    assert lattice_has_triangle(ring)
+    assert len(tin_tile(np.where(ring, 0.0, np.nan), ring, MIN_THRESHOLD, 1e-4)[1]) == 0

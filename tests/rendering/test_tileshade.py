@@ -100,11 +100,39 @@ def test_a_lossy_flat_sea_keeps_one_colour(tmp_path):
     assert not (colorize(sea, pal, elevation_range(t)) == rgb[0]).all()  # without it
 
 
+def _reference(a: np.ndarray, level: int, x: int, y: int, step: int) -> np.ndarray:
+    """An independent magnification (the numpy one the renderer had before it kept the
+    compiled pass alone): separable bilinear weights through einsum, NaN-aware."""
+    k = -level
+    n = step >> k
+
+    def weights(T, o):
+        c = o + np.arange(step + 1, dtype=np.float64) / (1 << k)
+        i0 = np.minimum(np.floor(c).astype(np.int64), T - 2)
+        w = np.zeros((step + 1, T))
+        w[np.arange(step + 1), i0] = 1.0 - (c - i0)
+        w[np.arange(step + 1), i0 + 1] += c - i0
+        return w
+
+    m = (1 << k) - 1
+    wy, wx = weights(a.shape[0], (y & m) * n), weights(a.shape[1], (x & m) * n)
+    v = np.asarray(a, np.float64)
+    ok = np.isfinite(v)
+    if ok.all():  # separable: rows, then columns
+        return np.einsum("ri,ij...,cj->rc...", wy, v, wx, optimize=True)
+    num = np.einsum("ri,ij...,cj->rc...", wy, np.where(ok, v, 0.0), wx, optimize=True)
+    den = np.einsum("ri,ij...,cj->rc...", wy, ok.astype(np.float64), wx, optimize=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 1e-12, num / np.maximum(den, 1e-300), np.nan)
+
+
 @settings(max_examples=60, deadline=None)
 @given(st.integers(0, 2 ** 32 - 1), st.integers(1, 6), st.sampled_from([0.0, 0.05, 0.6, 1.0]))
-def test_magnified_tiles_in_one_pass_are_magnified_s(seed, t, voids):
-    """The compiled pass gives each magnified tile's texels as the numpy interpolation
-    (magnified) does, NaN where it gives NaN, tiles of several sources in one call."""
+def test_magnified_tiles_in_one_pass_are_the_reference_interpolation(seed, t, voids):
+    """The compiled pass gives each magnified tile's texels as an independent numpy
+    interpolation does (the same weights; the sums rounded in another order), NaN where it
+    gives NaN, tiles of several sources in one call; magnified, one tile and its channels
+    at a time, the same bytes as the pass."""
     rng = np.random.default_rng(seed)
     step = 1 << t
     src = rng.uniform(-500.0, 3000.0, (3, step + 1, step + 1))
@@ -116,12 +144,72 @@ def test_magnified_tiles_in_one_pass_are_magnified_s(seed, t, voids):
     which = rng.integers(0, 3, n)
     got = magnify_tiles(src, which, -k, x, y, step)
     assert got.shape == (n, step + 1, step + 1)
+    rgb = np.moveaxis(src, 0, -1)  # the three sources as one tile's channels
     for m in range(n):
-        want = magnified(src[which[m]], -int(k[m]), int(x[m]), int(y[m]), step)
+        want = _reference(src[which[m]], -int(k[m]), int(x[m]), int(y[m]), step)
         assert np.array_equal(np.isnan(got[m]), np.isnan(want))
         ok = ~np.isnan(want)
-        # the same weights; only the order of the sums' rounding differs
         assert np.allclose(got[m][ok], want[ok], rtol=1e-12, atol=1e-9)
+        one = magnified(rgb, -int(k[m]), int(x[m]), int(y[m]), step)[..., which[m]]
+        assert np.array_equal(one, got[m], equal_nan=True)
+
+
+def test_every_style_shades_magnified_tiles_as_with_the_reference(tmp_path, monkeypatch):
+    """The one magnification serves every style's magnified tiles (heights, a drape's
+    colours and cover, the lit shade, several channels) with the same bytes as the
+    reference interpolation: a DEM with a void, each style, magnified tiles of two
+    level-0 tiles at three magnifications."""
+    import rasterio
+    from rasterio.transform import from_origin
+
+    import geoterrain
+    import geoterrain.rendering.tileshader as shader_module
+    from geoterrain.ingest.synth import generate
+    from geoterrain.rendering.drape import Drape
+    from geoterrain.rendering.shading import Light
+    from tests.conftest import write_tif
+
+    z = (generate("fbm", 65, seed=3) * 0.1).astype(np.float32)
+    z[20:34, 10:30] = -9999.0
+    tif = write_tif(tmp_path / "d.tif", z, crs="EPSG:4326", origin=(10.0, 46.0),
+                    spacing=1 / 1200, nodata=-9999)
+    rng = np.random.default_rng(1)
+    rgba = rng.integers(0, 256, (4, 48, 48)).astype(np.uint8)
+    rgba[3] = np.where(np.add.outer(np.arange(48), np.arange(48)) % 13 < 8, 255, 0)
+    img = tmp_path / "drape.tif"
+    with rasterio.open(img, "w", driver="GTiff", width=48, height=48, count=4, dtype="uint8",
+                       crs="EPSG:4326", photometric="RGB", alpha="YES",
+                       transform=from_origin(9.99, 46.01, 0.075 / 48, 0.075 / 48)) as dst:
+        dst.write(rgba)
+    styles = [("normals", "terrain", None, None), ("normals", "auto", Light(200.0, 30.0), None),
+              ("normals", "auto", Light(shadows=True), None), ("elevation", "auto", None, None),
+              ("plain", "auto", None, None), ("normals", "auto", None, Drape(str(img))),
+              ("elevation", "auto", None, Drape(str(img), 0.5))]
+    with geoterrain.open(geoterrain.preprocess(tif, tmp_path / "d.geoterrain",
+                                               tile_size=16)) as t:
+        keys = [(0, 1, 1), (0, 3, 2)]  # the void's tile, and one without
+        assert all(k in t.tile_info for k in keys)
+        texels, outs = 0, {}
+        for shading, cmap, light, drape in styles:
+            sh = shader_module.TileShader(t, shading, cmap, light, drape)
+            outs[sh.style] = out = []
+            assert not sh.tinted  # these go through magnified, one tile at a time
+            for _, X, Y in keys:
+                for k in (1, 2, 3):
+                    for x in range(X << k, (X + 1) << k):
+                        for y in range(Y << k, (Y + 1) << k, 1 << max(k - 1, 0)):
+                            got = sh._one(-k, x, y)
+                            monkeypatch.setattr(shader_module, "magnified", _reference)
+                            want = sh._one(-k, x, y)
+                            monkeypatch.undo()
+                            assert np.array_equal(got, want), (shading, drape, k, x, y)
+                            texels += got.shape[0] * got.shape[1]
+                            out.append(got)
+        assert texels > 50_000
+        plain, draped = (np.stack(outs[shader_module.TileShader(t, "elevation", "auto", None,
+                                                                 dr).style])
+                         for dr in (None, styles[-1][3]))
+        assert 0.2 < (plain != draped).any(-1).mean() < 1  # the drape's colours and cover
 
 
 def test_magnify_tiles_refuses_what_it_would_read_past():

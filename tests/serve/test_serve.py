@@ -460,3 +460,69 @@ def test_serve_command_usage_errors_in_process(dem, tmp_path):
         r = CliRunner().invoke(cli, ["serve", *args], catch_exceptions=False)
         assert r.exit_code == 2 and "Traceback" not in r.output
         assert r.stderr.strip().splitlines()[-1].startswith("Error")
+
+
+# ------------------------------------------------- the served set is the written one
+def _void_store(d, **opts):
+    """A 129² fBm at 2″ with a nodata corner that holds whole tiles of zooms 11 and 12 (two
+    specks of data inside it), and a void: ``opts`` go to preprocess."""
+    from geoterrain.ingest.synth import generate
+
+    z = (generate("fbm", 129, seed=7) * 0.05).astype(np.float32)
+    z[:85, :85] = -9999.0
+    z[10:12, 15:18] = z[30:33, 50:52] = 50.0
+    z[95:115, 100:120] = -9999.0
+    tif = write_tif(d / "v.tif", z, crs="EPSG:4326", origin=(138.4267, 35.5437),
+                    spacing=1 / 1800, nodata=-9999)
+    return geoterrain.preprocess(tif, d / "v.geoterrain", tile_size=32, **opts)
+
+
+@pytest.mark.parametrize("mesher,opts", [
+    pytest.param("tin", {}, marks=pytest.mark.fast, id="tin"),
+    pytest.param("rtin", {}, marks=pytest.mark.fast, id="rtin"),
+    pytest.param("tin", {"codec_error": 0.5}, marks=pytest.mark.fast, id="tin-lossy"),
+    pytest.param("rtin", {"codec_error": 0.5}, marks=pytest.mark.slow, id="rtin-lossy"),
+    pytest.param("tin", {"root_grid": True}, marks=pytest.mark.slow, id="tin-root-grid"),
+    pytest.param("rtin", {"root_grid": True}, marks=pytest.mark.fast, id="rtin-root-grid")])
+def test_the_served_tile_set_is_the_written_one_over_nodata(tmp_path, mesher, opts):
+    """Every tile a client may ask for over the DEM's box, at every zoom, from a live
+    server on 127.0.0.1: a tile the writer wrote comes back as the written file, byte for
+    byte (gzip, normals and water mask); one it left out (over the nodata corner or the
+    void) is a 404, never a flat tile; layer.json's availability is the writer's."""
+    from geoterrain.export.qmesh import write_tileset
+    from geoterrain.serve.app import open_stores
+
+    store = _void_store(tmp_path, **opts)
+    with geoterrain.open(store) as t:
+        write_tileset(t, tmp_path / "w", mesher=mesher)
+    out = tmp_path / "w"
+    written = {tuple(int(v) for v in (p.parent.parent.name, p.parent.name, p.stem)): p
+               for p in out.glob("*/*/*.terrain")}
+    layer = json.loads((out / "layer.json").read_text())
+    app = create_app(open_stores([("v", store)], mesher=mesher))
+    server, th, port = _live(app)
+    hdr = {"Accept": "application/vnd.quantized-mesh;extensions=octvertexnormals-watermask",
+           "Accept-Encoding": "gzip"}
+    got: dict[tuple[int, int, int], int] = {}
+    try:
+        status, _, body = _raw_get(port, "/v/layer.json")
+        assert status == 200
+        assert json.loads(body)["available"] == layer["available"]
+        w, s, e, n = layer["bounds"]
+        for z in range(layer["maxzoom"] + 1):
+            size = 180.0 / (1 << z)
+            xs = range(int((w + 180) // size), math.ceil((e + 180) / size))
+            ys = range(int((s + 90) // size), math.ceil((n + 90) / size))
+            for k in {(z, x, y) for x in xs for y in ys} | {k for k in written if k[0] == z}:
+                status, _, body = _raw_get(port, "/v/{}/{}/{}.terrain".format(*k), hdr)
+                got[k] = status
+                if k in written:
+                    assert status == 200 and body == written[k].read_bytes(), k
+                else:
+                    assert status == 404, k
+    finally:
+        server.should_exit = True
+        th.join(10)
+    # not vacuous: tiles over the nodata left out at several zooms, data tiles at every zoom
+    assert {k[0] for k, v in got.items() if v == 404} == {11, 12}
+    assert {k[0] for k, v in got.items() if v == 200} == set(range(layer["maxzoom"] + 1))
