@@ -26,7 +26,6 @@ from geoterrain.bounds.tilebounds import tile_and_block_errors
 from geoterrain.codec.pyramid import decoded_codes, encode_pyramid
 from geoterrain.codec.quantize import Quantizer
 from geoterrain.core.grid import Grid
-from geoterrain.exceptions import UsageError
 from geoterrain.preprocessing.bands.codec import band_encode_pyramid, window_of
 from geoterrain.preprocessing.bands.delta import band_vertex_errors, edge_rows, rows_of
 from geoterrain.preprocessing.bands.normals import band_normal_codes
@@ -195,7 +194,8 @@ def test_a_memory_limit_streams_a_root_grid_to_the_same_file(tmp_path):
     assert "blobs" in timings  # the streamed run's stages (the whole grid has no "blobs")
     assert geoterrain.open(b).grid.roots == (2, 1)
     assert a.read_bytes() == b.read_bytes()
-    c = preprocess(src, tmp_path / "c.gt", tile_size=16, memory_limit=1 << 18)
+    c = preprocess(src, tmp_path / "c.gt", tile_size=16, memory_limit=1 << 18,
+                   root_grid=False)
     assert geoterrain.open(c).grid.square
 
 
@@ -282,17 +282,32 @@ def test_a_killed_root_grid_run_resumes_to_the_same_store(tmp_path, caplog):
 
 
 @pytest.mark.fast
-def test_a_streamed_geographic_root_grid_is_refused_in_one_line(tmp_path):
-    """The streamed metric bounds of a geographic root grid are square-only yet: refused
-    by the streamed preprocess (the whole-grid one builds it), leaving no store."""
+def test_a_streamed_geographic_raster_keeps_the_square(tmp_path, caplog):
+    """The streamed metric bounds of a geographic root grid are not built yet
+    (``request.root_layout``'s fallback): a geographic raster that streams, by
+    ``preprocess_streaming`` or over ``preprocess``'s memory limit, is preprocessed on the
+    square by default, quietly, to the store the square asked for gives; whole, it gets its
+    root grid. The band is sized for the square's width, not the roots' extent's."""
+    import logging
+
+    from geoterrain.preprocessing.streaming import band_rows, streaming_band
+
     z = np.random.default_rng(2).normal(100, 5, (33, 65)).astype(np.float32)
     src = _tif(tmp_path / "g.tif", z, crs="EPSG:4326")
-    for run in (lambda: preprocess_streaming(src, tmp_path / "g.gt", tile_size=16, band=8,
-                                             root_grid=True),
-                lambda: preprocess(src, tmp_path / "g.gt", tile_size=16, root_grid=True,
-                                   memory_limit=1 << 18)):
-        with pytest.raises(UsageError, match="whole-grid preprocess only") as e:
-            run()
-        assert "\n" not in str(e.value)
-        assert not (tmp_path / "g.gt").exists()
-        assert [p.name for p in tmp_path.iterdir()] == ["g.tif"]
+    sq = preprocess_streaming(src, tmp_path / "sq.gt", tile_size=16, band=8, root_grid=False)
+    with caplog.at_level(logging.INFO, logger="geoterrain"):
+        a = preprocess_streaming(src, tmp_path / "a.gt", tile_size=16, band=8)
+        b = preprocess(src, tmp_path / "b.gt", tile_size=16, memory_limit=1 << 18)
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    assert "root" not in caplog.text
+    for p in (a, b):
+        assert geoterrain.open(p).grid.square
+        _assert_same_store(sq, p)
+    w = geoterrain.open(preprocess(src, tmp_path / "w.gt", tile_size=16))
+    assert (w.frame.kind, w.grid.roots) == ("geographic", (2, 1))
+    # a tall raster's band: the square's 4097 columns geographic, the extent's projected
+    limit = 1 << 29
+    assert Grid.for_shape(4000, 300, roots=True).extent == (4097, 2049)
+    assert streaming_band((4000, 300), limit, geographic=True) == band_rows(4097, limit, True)
+    assert streaming_band((4000, 300), limit) == band_rows(2049, limit)
+    assert band_rows(4097, limit, True) < band_rows(2049, limit, True)

@@ -182,8 +182,8 @@ def test_render_orbit_and_map_commands_on_a_root_grid(pair, tmp_path):
 
 def test_viewer_controller_on_a_root_grid(pair):
     """The interactive controller without a display: it draws, follows the camera, and
-    its strategy key cycles through the strategies that draw a root grid only."""
-    from geoterrain.lod.registry import STRATEGIES, strategy_info
+    its strategy key cycles through every strategy, each drawing the root grid."""
+    from geoterrain.lod.registry import STRATEGIES
     from geoterrain.rendering.viewer import ViewerController
 
     _, rt, _ = pair
@@ -199,7 +199,8 @@ def test_viewer_controller_on_a_root_grid(pair):
         for _ in range(len(STRATEGIES)):
             c.next_strategy()
             seen.add(c.strategy)
-        assert seen == {s for s in STRATEGIES if strategy_info(s).root_grid}
+            assert c.stats["triangles"] > 0, c.strategy
+        assert seen == set(STRATEGIES)
     finally:
         p.close()
 
