@@ -76,12 +76,15 @@ from geoterrain.ingest.raster import ENCODINGS
 @click.option("--root-grid/--square-grid", "root_grid", default=True,
               help="Root grid (the default): a wide or tall DEM is padded to the next tile "
                    "multiple a side, under 1 × 1, 2 × 1 or 1 × 2 root tiles (a 520 × 1180 "
-                   "DEM to 577 × 1217, not 2049²); every command reads such a store. "
-                   "--square-grid pads to one power-of-two square (2^n + 1 a side), as stores "
-                   "made before root grids were: choose it only for a reader that takes "
-                   "square stores alone (schema 8; a root grid is schema 9). A DEM whose root "
-                   "grid is its square gets the square store either way, and a geographic DEM "
-                   "that streams (over --memory-limit) is on the square for now.")
+                   "DEM to 577 × 1217, not 2049²): less time and memory, and every command "
+                   "reads it. --square-grid pads to one power-of-two square (2^n + 1 a side) "
+                   "as stores made before root grids were (schema 8; a root grid is schema "
+                   "9): choose it for a reader that takes square stores only, or for coarse "
+                   "static meshes (mesh --max-error), which are edge-padded on the square "
+                   "only for now (fewer triangles along the DEM's last row and column). A "
+                   "DEM whose root grid is its square gets the square store either way; a "
+                   "geographic DEM that streams (over --memory-limit) is on the square for "
+                   "now.")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,
