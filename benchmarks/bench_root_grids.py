@@ -16,6 +16,7 @@ Usage:
                                                    [--square-wide]
     python benchmarks/bench_root_grids.py flat [--runs 3] [--memory-limit 1G]
     python benchmarks/bench_root_grids.py default [--runs 3] [--tile-size 64]
+    python benchmarks/bench_root_grids.py static [--errors 174,5,1]
 
 ``padding``: per raster shape, the samples the preprocess computes on (the padded
 level-0 grid, and every level's lattice summed) over the raster's samples, for the
@@ -123,6 +124,12 @@ level 0's padded lattice (the coarse levels' tiles reach past it) or beyond the 
 (c) the distinct valid samples coded; and the codes with their multiplicity (a border
 shared by two tiles is coded in each, and the sum over the levels of every level's
 lattice, the old "all levels" figure, for comparison).
+
+``static``: the static mesh (rtin, ``Terrain.static_selection``) of each DEM under
+``../shared/dems`` at the bounds ``--errors`` (metres), on its default store and on its
+square store (``root_grid=False``): triangles of each and their ratio. The square's
+static mesh is edge-padded (the DEM's last row and column repeated into the padding);
+a root grid's is not yet. Counts, no timing.
 """
 
 from __future__ import annotations
@@ -706,6 +713,33 @@ def held_coded(t) -> dict:
                 lattices=lattice(g)[1])
 
 
+def static(a: argparse.Namespace) -> None:
+    import geoterrain
+
+    errors = [float(x) for x in a.errors.split(",")]
+    dems = ROOT / ".." / "shared" / "dems"
+    print(f"load: {load()}\n")
+    print("| DEM | rows × cols | default grid | " + " | ".join(
+        f"e = {e:g}: default, square, ratio" for e in errors) + " |")
+    print("|---|---|---|" + "---|" * len(errors))
+    with tempfile.TemporaryDirectory(prefix="bench_root_grids_static_") as d:
+        for p in sorted(dems.glob("*.tif")):
+            tris, grids = {}, {}
+            for rg in (True, False):
+                store = geoterrain.preprocess(p, Path(d) / "s.geoterrain", overwrite=True,
+                                              root_grid=rg)
+                with geoterrain.open(store) as t:
+                    g = t.grid
+                    grids[rg] = g
+                    tris[rg] = [t.static_selection(e).stats["triangles"] for e in errors]
+            g = grids[True]
+            desc = (f"{g.size}² (square)" if g.square else
+                    f"{g.shape[0]} × {g.shape[1]}, {g.roots[0]} × {g.roots[1]} roots")
+            print(f"| {p.name} | {g.rows} × {g.cols} | {desc} | " + " | ".join(
+                f"{r:,}, {q:,}, {r / q:.3f}×"
+                for r, q in zip(tris[True], tris[False], strict=True)) + " |", flush=True)
+
+
 def default(a: argparse.Namespace) -> None:
     import geoterrain
     from geoterrain.ingest.synth import generate, write_geotiff
@@ -803,9 +837,11 @@ def main() -> None:
     df = sub.add_parser("default")
     df.add_argument("--runs", type=int, default=3)
     df.add_argument("--tile-size", type=int, default=64)
+    st = sub.add_parser("static")
+    st.add_argument("--errors", default="174,5,1")
     a = ap.parse_args()
-    {"default": default, "padding": padding, "wide": wide, "codec": codec, "stores": stores,
-     "select": select, "render": render, "geographic": geographic, "edit": edit,
+    {"default": default, "static": static, "padding": padding, "wide": wide, "codec": codec,
+     "stores": stores, "select": select, "render": render, "geographic": geographic, "edit": edit,
      "streamed": streamed, "flat": flat}[a.what](a)
 
 
