@@ -71,7 +71,8 @@ def test_a_geographic_raster_streams_to_the_preprocessed_store(tmp_path_factory,
     tmp = tmp_path_factory.mktemp("geo")
     z = _relief(seed, rows, cols, holes=holes)
     src = _geo_tif(tmp / "g.tif", z, west, north, deg, -9999 if holes else None, south_up)
-    a = preprocess(src, tmp / "a.gt", tile_size=tile, codec_error=eps)
+    a = preprocess(src, tmp / "a.gt", tile_size=tile, codec_error=eps,
+                   root_grid=False)  # streamed: square for now
     b = preprocess_streaming(src, tmp / "b.gt", tile_size=tile, codec_error=eps, band=band)
     _assert_same_store(a, b)
     assert a.read_bytes() == b.read_bytes()  # the same blob rows in the same order too
@@ -85,7 +86,8 @@ def test_streamed_and_whole_stores_are_the_same_file(tmp_path, eps):
     z = _relief(3, 45, 70, holes=0.05)
     geo = _geo_tif(tmp_path / "g.tif", z, 10.0, 47.0, 1 / 1200, nodata=-9999)
     for src in (geo, [str(p) for p in split(Path(geo), tmp_path / "tiles", 1)]):
-        a = preprocess(src, tmp_path / "a.gt", tile_size=8, codec_error=eps, overwrite=True)
+        a = preprocess(src, tmp_path / "a.gt", tile_size=8, codec_error=eps, overwrite=True,
+                       root_grid=False)  # streamed: square for now
         b = preprocess_streaming(src, tmp_path / "b.gt", tile_size=8, codec_error=eps,
                                  band=8, overwrite=True)
         assert a.read_bytes() == b.read_bytes(), src
@@ -94,7 +96,7 @@ def test_streamed_and_whole_stores_are_the_same_file(tmp_path, eps):
 def test_a_real_geographic_dem_streams(tmp_path):
     """srtm3_pysheds (EPSG:4326, declared nodata, padded 367 × 359 → 513²)."""
     src = real_dem("srtm3_pysheds.tif")
-    a = preprocess(src, tmp_path / "a.gt")
+    a = preprocess(src, tmp_path / "a.gt", root_grid=False)  # streamed: square for now
     b = preprocess_streaming(src, tmp_path / "b.gt", band=32)
     _assert_same_store(a, b)
 
@@ -102,8 +104,8 @@ def test_a_real_geographic_dem_streams(tmp_path):
 @pytest.mark.slow
 def test_srtm1_japan_streams(tmp_path):
     src = real_dem("srtm1_japan.tif")
-    _assert_same_store(preprocess(src, tmp_path / "a.gt"),
-                       preprocess_streaming(src, tmp_path / "b.gt", band=64))
+    _assert_same_store(preprocess(src, tmp_path / "a.gt", root_grid=False),  # the square,
+                       preprocess_streaming(src, tmp_path / "b.gt", band=64))  # for now
 
 
 def test_a_geographic_mosaic_streams_as_a_list_and_a_glob(tmp_path):
@@ -112,7 +114,8 @@ def test_a_geographic_mosaic_streams_as_a_list_and_a_glob(tmp_path):
     z = _relief(5, 60, 70, dtype="int16", holes=0.05, nodata=-32768)
     merged = _geo_tif(tmp_path / "m.tif", z, 8.0, 46.0, 1 / 1200, nodata=-32768)
     tiles = split(merged, tmp_path / "tiles", overlap=1, nodatas=(-32768, -9999, -32768, 0))
-    a = preprocess([str(p) for p in tiles], tmp_path / "a.gt", tile_size=16)
+    a = preprocess([str(p) for p in tiles], tmp_path / "a.gt", tile_size=16,
+                   root_grid=False)  # streamed: square for now
     b = preprocess_streaming([str(p) for p in tiles], tmp_path / "b.gt", tile_size=16, band=8)
     _assert_same_store(a, b)
     c = preprocess_streaming(str(tmp_path / "tiles" / "tile_*.tif"), tmp_path / "c.gt",
@@ -220,4 +223,5 @@ def test_the_cli_streams_a_geographic_mosaic_over_its_memory_limit(tmp_path, mon
     with geoterrain.open(tmp_path / "s.gt") as t:
         assert "preprocess_seconds" not in t.meta
     _assert_same_store(tmp_path / "s.gt", preprocess([str(p) for p in tiles],
-                                                     tmp_path / "w.gt", tile_size=16))
+                                                     tmp_path / "w.gt", tile_size=16,
+                                                     root_grid=False))  # streamed: square for now
