@@ -94,8 +94,8 @@ def static_vs_pymartini(t, truth, errors=(1.0, 5.0, 20.0), runs=3):
     from pymartini import Martini
 
     X, Y, Z, valid = truth
-    N = t.grid.size
-    if t.grid.rows != N or t.grid.cols != N:
+    N = t.grid.extent[1]
+    if not t.grid.square or t.grid.rows != N or t.grid.cols != N:
         print("(static comparison needs a 2^k+1 square DEM; skipped)")
         return
     z32 = Z.astype(np.float32)

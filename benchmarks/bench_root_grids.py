@@ -15,6 +15,8 @@ Usage:
     python benchmarks/bench_root_grids.py streamed [--runs 3] [--memory-limit 1G]
                                                    [--square-wide] [--geographic]
     python benchmarks/bench_root_grids.py flat [--runs 3] [--memory-limit 1G]
+    python benchmarks/bench_root_grids.py default [--runs 3] [--tile-size 64]
+    python benchmarks/bench_root_grids.py static [--errors 174,5,1]
 
 ``padding``: per raster shape, the samples the preprocess computes on (the padded
 level-0 grid, and every level's lattice summed) over the raster's samples, for the
@@ -25,11 +27,12 @@ Shapes: the issue's (CONUS, jacksboro, wide, the mosaics) and those of the real 
 under ``../shared/dems`` that are present. Pure arithmetic (no preprocess runs).
 
 ``wide``: an fBm of 1024 × 4096 and one of 2048 × 2048 (the same number of samples,
-float32 GeoTIFFs in UTM at 10 m) preprocessed by ``geoterrain.preprocess`` with its
-defaults (the square layout: the wide raster pads to 4097²), and the wide one again with
-``root_grid=True`` (2 × 1 roots); each run a fresh process, the three cases in rotating
-order; medians of the wall time and the CPU time (user + system, both after the
-import; the CPU time varies less on a shared machine) and of the peak RSS (VmHWM), and
+float32 GeoTIFFs in UTM at 10 m) preprocessed by ``geoterrain.preprocess`` on the square
+layout (``root_grid=False``: the wide raster pads to 4097²), and the wide one again with
+``root_grid=True`` (2 × 1 roots, the default since); each run a fresh process, the
+three cases in rotating order; medians of the wall time and the CPU time (user +
+system, both after the import; the CPU time varies less on a shared machine) and of the
+peak RSS (VmHWM), and
 the ratios to the square raster of the same run. The load (/proc/loadavg) is printed
 with every run.
 
@@ -104,6 +107,32 @@ level 0's slack run in bands on the roots' extent.
 ``--memory-limit`` (its band), alternating, each run a fresh process: the medians of
 their peak RSS and wall time, and the peak's ratio (the Done-when's "peak memory flat in
 the raster's size").
+
+``default``: what ``preprocess`` does with its defaults (no ``root_grid`` argument: the
+root grid) against ``root_grid=False`` (``--square-grid``), 64-sample tiles, on the
+``geographic`` command's CONUS and jacksboro shapes (EPSG:4326 fBm) and the ``wide`` fBm
+(1024 × 4096, UTM). Each preprocess a fresh process (the ``wide`` child), default and
+square alternating, the order swapped every run; medians of the wall time, the CPU time
+(user + system after the import) and the peak RSS (VmHWM), the ratios default / square
+of the same run, the load with every run, and level 0's padded samples over the
+raster's. Then the samples the pyramid holds, counted from each default store's height
+blobs (``held_coded``): every stored tile's blob is read and decoded (its mask, and its
+heights through ``Terrain.tile``, checked finite exactly where the mask is valid), and
+the positions it codes are marked in level-0 coordinates over the roots' extent: a top
+tile codes all its (2^t + 1)² samples, any other tile those of its level that are not on
+its parent level's grid (the codec's blob format, codec/pyramid.py). Counted: (a) the
+level-0 lattice positions spanned by the stored level-0 tiles; (b) the distinct
+positions coded over all levels, padding included, and how many of them lie beyond
+level 0's padded lattice (the coarse levels' tiles reach past it) or beyond the raster;
+(c) the distinct valid samples coded; and the codes with their multiplicity (a border
+shared by two tiles is coded in each, and the sum over the levels of every level's
+lattice, the old "all levels" figure, for comparison).
+
+``static``: the static mesh (rtin, ``Terrain.static_selection``) of each DEM under
+``../shared/dems`` at the bounds ``--errors`` (metres), on its default store and on its
+square store (``root_grid=False``): triangles of each and their ratio. The square's
+static mesh is edge-padded (the DEM's last row and column repeated into the padding);
+a root grid's is not yet. Counts, no timing.
 """
 
 from __future__ import annotations
@@ -134,7 +163,8 @@ def cpu():
     u = resource.getrusage(resource.RUSAGE_SELF)
     return u.ru_utime + u.ru_stime
 t0, c0 = time.perf_counter(), cpu()
-p = preprocess(sys.argv[1], sys.argv[2], overwrite=True, root_grid=sys.argv[3] == "roots",
+layout = {} if sys.argv[3] == "default" else {"root_grid": sys.argv[3] == "roots"}
+p = preprocess(sys.argv[1], sys.argv[2], overwrite=True, **layout,
                tile_size=int(sys.argv[4]) if len(sys.argv) > 4 else 64)
 wall, cpus = time.perf_counter() - t0, cpu() - c0
 from geoterrain.core.memory import peak_rss
@@ -651,6 +681,136 @@ def edit(a: argparse.Namespace) -> None:
                               for k in res))
 
 
+def held_coded(t) -> dict:
+    """The positions the store's height blobs code, counted from the blobs (see the
+    ``default`` command's description): level-0 coordinates over the roots' extent."""
+    from geoterrain.codec.pyramid import tile_valid
+    from geoterrain.store.database import StoreReader
+
+    g = t.grid
+    R, C = g.extent
+    h0, w0 = g.shape
+    span0 = np.zeros((R, C), bool)  # (a) level-0 lattice spanned by stored level-0 tiles
+    coded = np.zeros((R, C), bool)  # (b) every position some blob codes
+    valid = np.zeros((R, C), bool)  # (c) those a blob codes as valid
+    per_tile = 0  # codes with multiplicity (valid or not)
+    T, e = g.tile_samples, 1 << g.t
+    reader = StoreReader(t.path)
+    try:
+        for (L, x, y) in t.tile_keys():
+            blob = reader.get_blob((L, x, y), "heights")
+            mask = tile_valid(blob, g.t)
+            heights = t.tile(L, x, y).heights  # decoded: finite exactly where valid
+            assert (np.isfinite(heights) == mask).all(), (L, x, y)
+            top = bool(blob[1] & 1)  # the blob's flags: bit 0 the top tile
+            s = 1 << L
+            r0, c0 = y * e * s, x * e * s
+            rows, cols = slice(r0, r0 + e * s + 1, s), slice(c0, c0 + e * s + 1, s)
+            if L == 0:
+                span0[rows, cols] = True
+            new = np.ones((T, T), bool)
+            if not top:
+                new[::2, ::2] = False  # the parent level's samples are copied, not coded
+            per_tile += int(new.sum())
+            coded[rows, cols] |= new
+            valid[rows, cols] |= new & mask
+    finally:
+        reader.close()
+    beyond = coded.copy()
+    beyond[:h0, :w0] = False
+    outside = coded.copy()
+    outside[:g.rows, :g.cols] = False
+    return dict(level0=int(span0.sum()), coded=int(coded.sum()), beyond=int(beyond.sum()),
+                outside=int(outside.sum()), valid=int(valid.sum()), per_tile=per_tile,
+                lattices=lattice(g)[1])
+
+
+def static(a: argparse.Namespace) -> None:
+    import geoterrain
+
+    errors = [float(x) for x in a.errors.split(",")]
+    dems = ROOT / ".." / "shared" / "dems"
+    print(f"load: {load()}\n")
+    print("| DEM | rows × cols | default grid | " + " | ".join(
+        f"e = {e:g}: default, square, ratio" for e in errors) + " |")
+    print("|---|---|---|" + "---|" * len(errors))
+    with tempfile.TemporaryDirectory(prefix="bench_root_grids_static_") as d:
+        for p in sorted(dems.glob("*.tif")):
+            tris, grids = {}, {}
+            for rg in (True, False):
+                store = geoterrain.preprocess(p, Path(d) / "s.geoterrain", overwrite=True,
+                                              root_grid=rg)
+                with geoterrain.open(store) as t:
+                    g = t.grid
+                    grids[rg] = g
+                    tris[rg] = [t.static_selection(e).stats["triangles"] for e in errors]
+            g = grids[True]
+            desc = (f"{g.size}² (square)" if g.square else
+                    f"{g.shape[0]} × {g.shape[1]}, {g.roots[0]} × {g.roots[1]} roots")
+            print(f"| {p.name} | {g.rows} × {g.cols} | {desc} | " + " | ".join(
+                f"{r:,}, {q:,}, {r / q:.3f}×"
+                for r, q in zip(tris[True], tris[False], strict=True)) + " |", flush=True)
+
+
+def default(a: argparse.Namespace) -> None:
+    import geoterrain
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    print(f"load before: {load()}", flush=True)
+    rasters = [*GEOGRAPHIC, ("wide (UTM)", 1024, 4096, None, None, None, 0.0, 2000.0)]
+    timing, counts = [], []
+    with tempfile.TemporaryDirectory(prefix="bench_root_grids_default_") as d:
+        for name, h, w, west, north, deg, lo, hi in rasters:
+            z = generate("fbm", (h, w), seed=3)
+            z = (lo + (hi - lo) * (z - z.min()) / np.ptp(z)).astype(np.float32)
+            geo = dict(crs="EPSG:4326", origin=(west, north), spacing=deg) if deg else {}
+            src = str(write_geotiff(Path(d) / "g.tif", z, **geo))
+            runs: dict[str, list[dict]] = {"default": [], "square": []}
+            for r in range(a.runs):
+                for layout in (("default", "square") if r % 2 == 0 else ("square", "default")):
+                    out = subprocess.run([sys.executable, "-c", CHILD, src,
+                                          str(Path(d) / f"{layout}.geoterrain"), layout,
+                                          str(a.tile_size)],
+                                         check=True, capture_output=True, text=True).stdout
+                    res = json.loads(out.strip().splitlines()[-1])
+                    runs[layout].append(res)
+                    print(f"{name} run {r} {layout}: {res['wall']:.2f} s, CPU "
+                          f"{res['cpu']:.2f} s, {res['peak_mb']:.0f} MB, grid {res['grid']}, "
+                          f"load {load()}", flush=True)
+            med = {k: {m: statistics.median(x[m] for x in v)
+                       for m in ("wall", "cpu", "peak_mb")} for k, v in runs.items()}
+            hw = h * w
+            for layout in ("default", "square"):
+                with geoterrain.open(Path(d) / f"{layout}.geoterrain") as t:
+                    g = t.grid
+                    c = held_coded(t) if layout == "default" else None
+                    l0 = int(np.prod(g.shape))
+                desc = (f"{g.size}² (square)" if g.square else
+                        f"{g.shape[0]} × {g.shape[1]}, {g.roots[0]} × {g.roots[1]} roots")
+                m, sq = med[layout], med["square"]
+                timing.append(f"| {name} {h} × {w} | {layout} | {desc} | {l0 / hw:.3f}× "
+                              f"| {m['wall']:.2f} s ({m['wall'] / sq['wall']:.2f}×) "
+                              f"| {m['cpu']:.2f} s ({m['cpu'] / sq['cpu']:.2f}×) "
+                              f"| {m['peak_mb']:.0f} MB ({m['peak_mb'] / sq['peak_mb']:.2f}×) |")
+                if c is not None:
+                    counts.append(f"| {name} {h} × {w} | {desc} | {c['level0'] / hw:.3f}× "
+                                  f"| {c['coded'] / hw:.3f}× ({c['beyond']:,} beyond level "
+                                  f"0's lattice, {c['outside']:,} beyond the raster) "
+                                  f"| {c['valid'] / hw:.3f}× | {c['per_tile'] / hw:.3f}× "
+                                  f"| {c['lattices'] / hw:.3f}× |")
+    print(f"\nload after: {load()}; medians of {a.runs} runs, ratios to the square\n")
+    print("| raster | layout | grid | level 0 padded / raster | wall | CPU | peak RSS |")
+    print("|---|---|---|---|---|---|---|")
+    print("\n".join(timing))
+    print("\nSamples the default store holds, counted from its height blobs, over the "
+          "raster's samples:\n")
+    print("| raster | grid | (a) level-0 lattice of stored tiles | (b) distinct positions "
+          "coded, padding included | (c) valid samples coded | codes with multiplicity "
+          "| every level's lattice summed |")
+    print("|---|---|---|---|---|---|---|")
+    print("\n".join(counts))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="what", required=True)
@@ -687,9 +847,14 @@ def main() -> None:
     f = sub.add_parser("flat")
     f.add_argument("--runs", type=int, default=3)
     f.add_argument("--memory-limit", default="1G")
+    df = sub.add_parser("default")
+    df.add_argument("--runs", type=int, default=3)
+    df.add_argument("--tile-size", type=int, default=64)
+    st = sub.add_parser("static")
+    st.add_argument("--errors", default="174,5,1")
     a = ap.parse_args()
-    {"padding": padding, "wide": wide, "codec": codec, "stores": stores,
-     "select": select, "render": render, "geographic": geographic, "edit": edit,
+    {"default": default, "static": static, "padding": padding, "wide": wide, "codec": codec,
+     "stores": stores, "select": select, "render": render, "geographic": geographic, "edit": edit,
      "streamed": streamed, "flat": flat}[a.what](a)
 
 

@@ -69,7 +69,7 @@ def cracks(t, sel, Z, view, tau, X, Y, valid):
     lo, hi = mesh_height_range_on_grid(sel.ij, f, z, Z.shape)
     spread = np.nan_to_num(hi - lo)
     two = int((spread > 1e-9 * max(1.0, float(np.nanmax(np.abs(z))))).sum())
-    N = t.grid.size
+    N = t.grid.extent[1]  # the grid's columns (a square's N)
     ij = np.asarray(sel.ij, np.int64)
     key = (ij[:, 0] * N + ij[:, 1])[f]
     e = np.sort(np.concatenate([key[:, [0, 1]], key[:, [1, 2]], key[:, [2, 0]]]), axis=1)

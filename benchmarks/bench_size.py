@@ -116,9 +116,10 @@ def main() -> None:
                 continue
             # PNG tiles without z/x/y in their name get 1 m pixels (sizes do not depend on it)
             px = 1.0 if src.suffix == ".png" and tile_from_path(src) is None else None
+            # --lod compares with exact δ and r computed on the square's arrays
             store = geoterrain.preprocess(src, Path(d) / f"{name}.geoterrain",
                                           tile_size=a.tile_size, codec_error=a.codec_error,
-                                          pixel_size=px)
+                                          pixel_size=px, root_grid=not a.lod)
             with geoterrain.open(store) as t:
                 r = size_report(t)
                 n = t.grid.rows * t.grid.cols

@@ -180,7 +180,8 @@ def main() -> None:
             dems.append(write_geotiff(os.path.join(d, "fbm700x900.tif"),
                                       generate("fbm", 1025, seed=7)[:700, :900]))
     for k, dem in enumerate(dems):
-        store = geoterrain.preprocess(dem, os.path.join(d, f"s{k}.geoterrain"))
+        # the square (pymartini and the edge-padded static mesh need it)
+        store = geoterrain.preprocess(dem, os.path.join(d, f"s{k}.geoterrain"), root_grid=False)
         with geoterrain.open(store) as t:
             if not a.tin_only:
                 run(t, os.path.basename(str(dem)))

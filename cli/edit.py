@@ -44,10 +44,10 @@ def command(ctx, store, patch, mode, at, resampling, round_heights, band):
     and their ancestors, the error bounds up to the root, the normals around it), and
     the store then holds what preprocessing the edited DEM would give. The edit is one
     transaction: if it is interrupted, the store is left as it was. A `geoterrain view`
-    window showing the store redraws when the edit is done. A root-grid store
-    (`preprocess --root-grid`) is edited the same way when its raster fills its roots;
-    one with padding, like a padded square store, is recomputed over the whole grid
-    (about a preprocess's time; the summary line says why).
+    window showing the store redraws when the edit is done. A root-grid store (the
+    default layout of a wide or tall DEM) is edited the same way when its raster fills
+    its roots; one with padding, like a padded square store, is recomputed over the
+    whole grid (about a preprocess's time; the summary line says why).
 
     \b
     Examples:

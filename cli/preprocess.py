@@ -73,14 +73,16 @@ from geoterrain.ingest.raster import ENCODINGS
               help="Store every tile's normal map whole, not just its border (the rest is "
                    "derived from the heights when a tile is shaded): a store about a third "
                    "larger on SRTM DEMs, whose new textures shade about 0.2 ms a tile faster.")
-@click.option("--root-grid", is_flag=True,
-              help="Experimental: pad a wide or tall DEM to the next tile multiple under a "
-                   "grid of 2 × 1 or 1 × 2 root tiles, not to one power-of-two square. "
-                   "Geographic, projected and pixel frames, whole or streamed (--memory-limit: "
-                   "the same store); every LOD strategy draws "
-                   "such a store (mesh, render, view, export; export-raster, tiles, serve, "
-                   "query, profile, contours and viewshed read it); edit changes it (over the "
-                   "whole grid) and render/view --globe place it on the globe.")
+@click.option("--root-grid/--square-grid", "root_grid", default=True,
+              help="Root grid (the default): a wide or tall DEM is padded to the next tile "
+                   "multiple a side, under 1 × 1, 2 × 1 or 1 × 2 root tiles (a 520 × 1180 "
+                   "DEM to 577 × 1217, not 2049²): less time and memory, and every command "
+                   "reads it. --square-grid pads to one power-of-two square (2^n + 1 a side) "
+                   "as stores made before root grids were (schema 8; a root grid is schema "
+                   "9): choose it for a reader that takes square stores only, or for coarse "
+                   "static meshes (mesh --max-error), which are edge-padded on the square "
+                   "only for now (fewer triangles along the DEM's last row and column). A "
+                   "DEM whose root grid is its square gets the square store either way.")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,
@@ -92,7 +94,8 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
     ...) or a Terrain-RGB / Terrarium PNG tile. Several files, or a quoted glob,
     are read as one mosaic (-o needed); tiles of different CRSs or resolutions are
     merged onto one grid (--crs, --resolution, --resampling, --priority).
-    The store holds a padded power-of-two pyramid of tiles with per-vertex and
+    The store holds a pyramid of tiles, padded to the next tile multiple under a
+    grid of root tiles (--square-grid: one power-of-two square), with per-vertex and
     per-tile error bounds, residual-coded heights and normal maps. It is written
     atomically: an interrupted run leaves no store behind.
 

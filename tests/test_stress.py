@@ -114,14 +114,8 @@ def check_static(t, Es=STATIC_E, mesher="rtin", conforming=True) -> None:
             check_conforming(t, ij, faces, vz)
 
 
-def drawn_by(t) -> tuple[str, ...]:
-    """The strategies that draw ``t``: all of them, or on a root grid those registered
-    for it (the others refuse it: tests/preprocessing/test_root_grid.py)."""
-    return tuple(s for s in STRATEGIES if t.grid.square or strategy_info(s).root_grid)
-
-
 def check_view(t, view: View, strategies=None, taus=TAUS, conforming=True) -> None:
-    strategies = drawn_by(t) if strategies is None else strategies
+    strategies = STRATEGIES if strategies is None else strategies
     X, Y, Z = t.scene_xyz()
     valid = np.isfinite(Z)
     assert np.isfinite(X).all() and np.isfinite(Y).all()
@@ -298,7 +292,7 @@ def test_nodata_patterns(tmp_path, name):
     full_check(t)
     # invalid samples are never drawn: every mesh vertex is a valid sample
     X, Y, Z = t.scene_xyz()
-    for strategy in drawn_by(t):
+    for strategy in STRATEGIES:
         sel = t.select(views_for(t, 1)[0], 1.0, strategy)
         ij = sel.ij.astype(np.int64)
         if len(ij):
@@ -582,12 +576,6 @@ def test_camera_extremes_large(fbm_terrain_large, cam):
 
 
 # ---------------------------------------------------------------- root grids (issue 45)
-#: The strategies that draw a root grid (lod/registry.py's ``root_grid``), each checked
-#: below as on squares; the others refuse one (tests/preprocessing/test_root_grid.py).
-ROOT_GRID_DRAWN = ("rtin", "chunked", "cdlod", "geomipmap", "geomipmap_distance", "quadtree",
-                   "tessellation", "clipmap", "clipmap_bounded", "clipmap_gpu", "gtr",
-                   "gtr_bounded", "lauritsen_nielsen", "bruteforce", "roam", "roam_split",
-                   "rottger")
 ROOT_GRIDS = {"2x1": (65, 129, 16), "1x2": (129, 65, 16), "2x1_lattice_short": (50, 121, 8),
               "2x1_one_level": (65, 129, 64), "1x1_lattice_short": (50, 60, 8)}
 
@@ -595,12 +583,10 @@ ROOT_GRIDS = {"2x1": (65, 129, 16), "1x2": (129, 65, 16), "2x1_lattice_short": (
 @pytest.mark.parametrize("name", sorted(ROOT_GRIDS))
 def test_root_grid(tmp_path, name):
     """The stress checks on a store of 2 × 1 (or 1 × 2) root tiles, or one root over
-    fewer tiles than the square's (jacksboro's case), every strategy that draws one
-    (:data:`ROOT_GRID_DRAWN`; the others refuse it in one line)."""
+    fewer tiles than the square's (jacksboro's case), every strategy."""
     rows, cols, ts = ROOT_GRIDS[name]
     t = build(tmp_path, fbm(rows, cols, seed=11), pre={"root_grid": True, "tile_size": ts})
     assert t.grid.layout == "roots" and t.grid.roots == tuple(map(int, name[:3].split("x")))
-    assert set(drawn_by(t)) == set(ROOT_GRID_DRAWN)
     full_check(t)
     check_static(t, mesher="tin")  # the greedy TIN of the raster's rectangle
 
@@ -664,24 +650,22 @@ def _geographic_root_grid(tmp_path, name):
 
 @pytest.mark.parametrize("name", sorted(GEOGRAPHIC_ROOT_GRIDS))
 def test_geographic_root_grid(tmp_path, name):
-    """The stress checks on geographic root grids (issue 45): every strategy that draws a
-    root grid, morphing off and on, ρ ≤ τ at every sample (measured in the scene's
-    curvilinear x, y); rtin's static mesh within E and conforming."""
+    """The stress checks on geographic root grids (issue 45): every strategy, morphing
+    off and on, ρ ≤ τ at every sample (measured in the scene's curvilinear x, y); rtin's
+    static mesh within E and conforming."""
     t = _geographic_root_grid(tmp_path, name)
-    assert set(drawn_by(t)) == set(ROOT_GRID_DRAWN)
     full_check(t, n_views=3)
 
 
 @pytest.mark.fast
 def test_geographic_root_grid_quick(tmp_path):
     """The fast tier's geographic root grid: 33 × 65 at 70° N with a void on 2 × 1 roots,
-    every strategy that draws a root grid in one view at τ = 1 px (morphing off and on),
+    every strategy in one view at τ = 1 px (morphing off and on),
     rtin's static mesh at E = 5 (the four cases above: more views, τ and E)."""
     z = fbm(33, 65, seed=14).astype(np.float32)
     z[10:14, 40:47] = -9999.0
     t = build(tmp_path, z, crs="EPSG:4326", origin=(20.0, 70.2), spacing=0.004,
               nodata=-9999.0, dtype="float32", pre={"root_grid": True, "tile_size": 8})
     assert (t.frame.kind, t.grid.roots) == ("geographic", (2, 1))
-    assert set(drawn_by(t)) == set(ROOT_GRID_DRAWN)
     check_static(t, Es=(5.0,))
     check_view(t, views_for(t, 1)[0], taus=(1.0,))

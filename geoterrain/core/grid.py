@@ -39,39 +39,6 @@ class RootGridError(UsageError, ValueError):
     """A square-only computation was asked of a grid with a rectangular root grid."""
 
 
-#: What draws or reads a root-grid store today (experimental), for every refusal's line
-#: (the strategies' own refusal names them: geoterrain.lod.select).
-ROOT_GRID_WORKS = ("a root-grid store (experimental) is drawn by the LOD strategies "
-                   "registered for it (views, pictures and mesh exports) and both static "
-                   "meshers, and read by raster exports, tiles (quantized-mesh, web-map, "
-                   "PMTiles) and the analysis (heights, profiles, contours, areas, volumes, "
-                   "viewsheds); it is edited, and placed on the globe")
-
-
-def refuse_root_grid(grid: Grid, what: str, cli: str | None = None,
-                     works: str = ROOT_GRID_WORKS) -> None:
-    """Raise :class:`RootGridError` in one line, naming what works (``works``), when
-    ``grid`` is a root grid: ``what`` (API words; ``cli``: the command line's) does not
-    handle it yet.
-
-    Examples
-    --------
-    >>> refuse_root_grid(Grid.for_shape(65, 65), "chunked")  # a square: nothing
-    >>> try:
-    ...     refuse_root_grid(Grid.for_shape(65, 129, 16, roots=True), "the chunked strategy")
-    ... except RootGridError as e:
-    ...     print(e)  # doctest: +ELLIPSIS
-    the chunked strategy does not handle a grid of 2 × 1 root tiles yet: a root-grid store...
-    """
-    if grid.square:
-        return
-    head = f"does not handle a grid of {grid.roots[0]} × {grid.roots[1]} root tiles yet: "
-    tail = "; preprocess without root_grid for the rest"
-    raise RootGridError(f"{what} {head}{works}{tail}",
-                        cli=f"{cli or what} {head}{works}; preprocess without "
-                        "--root-grid for the rest")
-
-
 def _tiles_over(samples: int, span: int) -> int:
     """Tiles of ``span`` samples between borders that cover ``samples`` samples (≥ 1)."""
     return max(1, -(-(samples - 1) // span))
@@ -135,8 +102,8 @@ class Grid:
         if not self.square:
             raise RootGridError(f"{what} needs a square grid; this one has "
                                 f"{self.roots[0]} × {self.roots[1]} root tiles over "
-                                f"{self.shape[1]} × {self.shape[0]} samples: "
-                                f"{ROOT_GRID_WORKS}")
+                                f"{self.shape[1]} × {self.shape[0]} samples (a root grid's "
+                                "are tiles(L), level_shape(L), shape and extent)")
 
     def tiles(self, level: int) -> tuple[int, int]:
         """(tiles across, tiles down) at level L."""

@@ -37,7 +37,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geoterrain.core.grid import refuse_root_grid
 from geoterrain.core.view import View
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.registry import DEFAULT, REGISTRY, STRATEGIES, StrategyInfo, strategy_info
@@ -137,10 +136,6 @@ def select(terrain: TerrainLike, view: View, pixel_error: float = 1.0, strategy:
         sel = last["selection"]
         return Selection(sel.mesh, {**sel.stats, "reused": True, "select_ms": 0.0,
                                     "tiles_decoded": 0})
-    if not info.root_grid:
-        drawn = ", ".join(e.name for e in REGISTRY.values() if e.root_grid)
-        refuse_root_grid(terrain.grid, f"the {strategy} strategy", works="a root-grid store "
-                         f"(experimental) is drawn only by the strategies {drawn}")
     t0, dec0 = time.perf_counter(), terrain.decoded_tiles
     mesh, stats = info.load()(terrain, view, tau, occlusion=occlusion, morph=morph)
     sel = _finish(terrain, mesh, stats, strategy, t0, dec0)

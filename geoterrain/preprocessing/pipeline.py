@@ -96,7 +96,7 @@ def preprocess(
     resampling: str = "bilinear",
     priority: str = "finest",
     timings: dict | None = None,
-    root_grid: bool = False,
+    root_grid: bool = True,
 ) -> Path:
     """Preprocess a DEM into a store and return the store's path.
 
@@ -176,12 +176,14 @@ def preprocess(
         A dict that receives each stage's seconds (``read``, ..., ``write``). They are
         not stored: the same input and options write the same bytes.
     root_grid
-        Experimental: pad a wide or tall raster to the next tile multiple a side, under a
-        grid of root tiles (2 × 1, 1 × 2), not to one (2^n + 1)² square
-        (:class:`geoterrain.core.grid.Grid`, schema version 9). Geographic, projected
-        and pixel frames, whole or streamed (over ``memory_limit``: the same store);
-        such a store is drawn by every LOD strategy, edited and placed on the globe. A
-        raster whose root grid is its square grid gives the square store.
+        True (the default): a wide or tall raster is padded to the next multiple of the
+        tile span a side, under a grid of root tiles (1 × 1, 2 × 1 or 1 × 2; a store of
+        schema version 9, :data:`geoterrain.store.database.ROOTS_SCHEMA_VERSION`), not to
+        one (2^n + 1)² square; a raster whose root grid tiles as the square does gets the
+        square store (version 8), byte for byte. False: always
+        the square, as stores made before root grids were (for a reader that takes only
+        those). Whole or streamed (over ``memory_limit``: the same store), on every
+        frame (:func:`geoterrain.preprocessing.request.root_layout`).
 
     Examples
     --------
@@ -201,7 +203,7 @@ def preprocess(
     if probe is not None:
         shape, crs_geographic = probe
         geographic = crs_geographic and tile is None and pixel_size is None
-        rows = streaming_band(shape, limit, geographic, roots=root_grid)
+        rows = streaming_band(shape, limit, geographic, roots=req.root_grid)
         if rows is not None:  # too large for the whole grid: a window at a time
             return stream(req, z_scale=z_scale, z_units=z_units, codec_error=codec_error,
                           nodata=nodata, band=rows, raster_band=band, encoding=encoding,

@@ -26,7 +26,7 @@ from geoterrain.ingest.remote import Url
 from geoterrain.ingest.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
 from geoterrain.preprocessing.schedulers import parse_scheduler
 
-__all__ = ["MAX_TILE_SIZE", "Placement", "Request", "place", "request"]
+__all__ = ["MAX_TILE_SIZE", "Placement", "Request", "place", "request", "root_layout"]
 
 log = logging.getLogger("geoterrain")
 MAX_TILE_SIZE = 4096
@@ -36,8 +36,9 @@ MAX_TILE_SIZE = 4096
 class Request:
     """A preprocess's checked request: the source as given (``src``), its ``files``
     (several for a mosaic; a URL as :class:`~geoterrain.ingest.remote.Url`), the store
-    to write, the tile size, and the source's short ``name`` (messages and the store's
-    ``source`` metadata)."""
+    to write, the tile size, the source's short ``name`` (messages and the store's
+    ``source`` metadata), and ``root_grid``: the layout asked for (True, the default: a
+    rectangular root grid; False: one padded square; :func:`root_layout` decides)."""
 
     files: list[Path | Url]
     mosaic: bool
@@ -46,12 +47,27 @@ class Request:
     src: str | Path | list
     tile_size: int
     name: str
-    root_grid: bool = False  # a rectangular root grid (experimental; core/grid.py)
+    root_grid: bool = True  # a rectangular root grid (core/grid.py); False: the square
+
+
+def root_layout(root_grid: bool) -> bool:
+    """Whether a new store's grid is a root grid (``Grid.for_shape(..., roots=True)``:
+    level 0 padded to the next tile multiple under 1 × 1, 2 × 1 or 1 × 2 roots, which is
+    the square itself whenever the two tile alike), or one padded (2^n + 1)² square: the
+    one place both preprocesses decide it, on every frame. ``root_grid``: what was asked
+    (the default, True; False: ``--square-grid``).
+
+    Examples
+    --------
+    >>> root_layout(True), root_layout(False)
+    (True, False)
+    """
+    return bool(root_grid)
 
 
 def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
             codec_error: float | None, pixel_size: float | None, overwrite: bool,
-            scheduler: str, resume: bool, root_grid: bool = False) -> Request:
+            scheduler: str, resume: bool, root_grid: bool = True) -> Request:
     """A preprocess's arguments checked before any work (a one-line
     :class:`UsageError` each), and a killed run's leftovers beside ``dst`` removed
     unless it is resumed.
@@ -109,7 +125,8 @@ def place(req: Request, shape: tuple[int, int], transform: tuple | None,
     """Where the raster read for ``req`` (``shape`` rows, cols; its ``transform`` and
     ``crs_wkt``, None when it has none) sits: a web-map tile placed in Web Mercator by
     its z/x/y (``tile``, else one its path ends in), the scene frame (pyproj) with its
-    height unit, and the padded grid of ``req.tile_size`` tiles.
+    height unit, and the padded grid of ``req.tile_size`` tiles (its layout:
+    :func:`root_layout`).
 
     Examples
     --------
@@ -117,8 +134,8 @@ def place(req: Request, shape: tuple[int, int], transform: tuple | None,
     ...             pixel_size=None, overwrite=True, scheduler="sync", resume=True)
     >>> p = place(r, (256, 256), None, None, tile=None, pixel_size=None, z_units="auto",
     ...           z_scale=None, label="201.png")
-    >>> p.frame.kind, "3857" in p.crs_wkt, p.grid.size
-    ('projected', True, 257)
+    >>> p.frame.kind, "3857" in p.crs_wkt, p.grid.size, p.grid.square
+    ('projected', True, 257, True)
     """
     H, W = shape
     zxy = parse_tile(tile) if tile is not None else None
@@ -136,5 +153,6 @@ def place(req: Request, shape: tuple[int, int], transform: tuple | None,
     if crs_wkt is None and pixel_size is None:
         log.warning("%s has no CRS: using 1 m per pixel; set pixel_size (--pixel-size)",
                     req.src)
+    roots = root_layout(req.root_grid)
     return Placement(transform, crs_wkt, frame,
-                     Grid.for_shape(H, W, tile_size=req.tile_size, roots=req.root_grid))
+                     Grid.for_shape(H, W, tile_size=req.tile_size, roots=roots))

@@ -69,7 +69,7 @@ from geoterrain.preprocessing.passes import (
     run_pass,
     whole,
 )
-from geoterrain.preprocessing.request import Request, place, request
+from geoterrain.preprocessing.request import Request, place, request, root_layout
 from geoterrain.preprocessing.schedulers import run_tasks
 from geoterrain.preprocessing.scratch import ScratchArrays
 from geoterrain.store.database import StoreWriter
@@ -95,28 +95,31 @@ STAGES = ("scan", "quantise", "errors, tiles, normals, heights", "blobs", "write
 
 
 def streaming_band(shape: tuple[int, int], memory_limit: int, geographic: bool = False,
-                   roots: bool = False) -> int | None:
+                   roots: bool = True) -> int | None:
     """The band (rows, a power of two) to preprocess a raster of ``shape`` (rows, cols) a
     window at a time within ``memory_limit`` bytes; None when its whole-grid preprocess
     fits (:data:`geoterrain.ingest.raster.PREPROCESS_BYTES_PER_SAMPLE`, more per sample in a
-    geographic frame). ``roots``: on its root grid (the whole grid is then the roots'
-    extent, and a band as wide as the extent).
+    geographic frame). ``roots``: the layout asked for (``preprocess``'s ``root_grid``),
+    as :func:`geoterrain.preprocessing.request.root_layout` settles it: on a root grid
+    the whole grid is the roots' extent, and a band as wide as the extent.
 
     Examples
     --------
     >>> streaming_band((65, 65), 1 << 40), streaming_band((65, 65), 1 << 18)
     (None, 2)
-    >>> streaming_band((1762, 47163), 16 << 30)  # pads to 65537²: streamed
+    >>> streaming_band((1762, 47163), 16 << 30, roots=False)  # pads to 65537²: streamed
     16
-    >>> streaming_band((1762, 47163), 16 << 30, roots=True)  # its extent: 32769 × 65537
+    >>> streaming_band((1762, 47163), 16 << 30)  # its extent: 32769 × 65537
     16
     """
     from geoterrain.ingest.raster import PREPROCESS_BYTES_PER_SAMPLE
 
     H, W = shape
     kind = "geographic" if geographic else "projected"
-    R, C = Grid.for_shape(H, W, roots=roots).extent  # the whole grid: N², a long, thin
-    if R * C * PREPROCESS_BYTES_PER_SAMPLE[kind] <= memory_limit:  # raster pads to more
+    # the whole grid: the roots' extent (the square's N², to which a long, thin raster
+    # pads to more)
+    R, C = Grid.for_shape(H, W, roots=root_layout(roots)).extent
+    if R * C * PREPROCESS_BYTES_PER_SAMPLE[kind] <= memory_limit:
         return None
     return band_rows(C, memory_limit, geographic)
 
@@ -194,7 +197,7 @@ def preprocess_streaming(
     resampling: str = "bilinear",
     priority: str = "finest",
     timings: dict | None = None,
-    root_grid: bool = False,
+    root_grid: bool = True,
 ) -> Path:
     """Preprocess a DEM a window at a time into the store
     :func:`~geoterrain.preprocessing.pipeline.preprocess` writes (the same tiles, blobs and
@@ -213,8 +216,8 @@ def preprocess_streaming(
     every one, and this process stays its only writer) and ``resume`` (reuse the passes
     a killed run of the same job into ``dst`` finished: its scratch folder records each
     pass's result; the store is the one an uninterrupted run writes) and ``root_grid``
-    (experimental, ``preprocess``'s: a rectangular root grid, in a geographic, projected
-    or pixel frame; the store the whole-grid preprocess writes with it).
+    (``preprocess``'s, a rectangular root grid by default, in a geographic, projected or
+    pixel frame; the store the whole-grid preprocess writes with it).
 
     Examples
     --------

@@ -519,12 +519,9 @@ class ViewerController:
 
     # ------------------------------------------------------------------ keys
     def next_strategy(self) -> None:
-        """Key ``m``: the next LOD strategy (of those that draw the store's grid: on a
-        root grid, those registered for it)."""
-        square = self.terrain.grid.square
-        drawn = [s for s in STRATEGIES if square or strategy_info(s).root_grid]
-        k = drawn.index(self.strategy) if self.strategy in drawn else -1
-        self.strategy = drawn[(k + 1) % len(drawn)]
+        """Key ``m``: the next LOD strategy."""
+        k = STRATEGIES.index(self.strategy) if self.strategy in STRATEGIES else -1
+        self.strategy = STRATEGIES[(k + 1) % len(STRATEGIES)]
         self._refresh()
 
     def toggle_telemetry(self) -> None:

@@ -272,7 +272,8 @@ def test_edge_terms_reuse_the_original_grid(tmp_path, shape):
     from geoterrain.bounds.edgepad import edge_support, zero_beyond_data
 
     store = preprocess(_geo_tif(tmp_path / "g.tif", _rough(129)[:shape[0], :shape[1]], 10.0,
-                                61.0, 2.0), tmp_path / "g.geoterrain")
+                                61.0, 2.0), tmp_path / "g.geoterrain",
+                       root_grid=False)  # δ_edge's terms on the square (roots: test_root_curvature)
     t = Terrain(store)
     g = t.grid
     X, Y = t.frame.grid_xy(g.size)

@@ -85,7 +85,8 @@ def test_real_dem_bounds_are_derived_exactly(tmp_path, name):
     out = []
     for derive in (False, True):
         out.append(geoterrain.open(geoterrain.preprocess(
-            p, tmp_path / f"s{int(derive)}.geoterrain", derive_bounds=derive)))
+            p, tmp_path / f"s{int(derive)}.geoterrain", derive_bounds=derive,
+            root_grid=False)))  # the square's arrays (root grids: test_root_curvature.py)
     _assert_same_bounds(*out)
 
 
@@ -125,7 +126,8 @@ def test_geographic_stores_derive_level0_delta_with_a_slack(tmp_path_factory, se
         z[rng.random(shape) < holes] = -9999.0
     lon, lat, step = place
     full, ring = _pair(tmp, z.astype(np.float32), nodata=-9999.0, tile_size=tile,
-                       crs="EPSG:4326", spacing=step, origin=(lon, lat))
+                       crs="EPSG:4326", spacing=step, origin=(lon, lat),
+                       pre={"root_grid": False})  # _delta_grid: the square's arrays
     assert ring.frame.kind == "geographic"
     slacks = [float(np.frombuffer(ring._blob(k, "delta")[3:7], "<f4")[0])
               for k in ring.tile_info if ring._blob(k, "delta")[1] & SLACK]
@@ -301,7 +303,8 @@ def test_delta_edge_decodes_to_the_replicated_grids_delta(tmp_path_factory, seed
     if holes:
         z[rng.random(shape) < 0.05] = -9999.0
     src = write_tif(tmp / "d.tif", z.astype(np.float32), nodata=-9999.0)
-    t = geoterrain.open(geoterrain.preprocess(src, tmp / "d.geoterrain", tile_size=tile))
+    t = geoterrain.open(geoterrain.preprocess(src, tmp / "d.geoterrain", tile_size=tile,
+                                              root_grid=False))  # δ_edge: the square's
     g = t.grid
     h, v = t.level_heights(0)
     Zr, ok = edge_support(t.frame.z(np.where(v, h, np.nan)), v, g)

@@ -62,7 +62,8 @@ def japan_tin(tmp_path_factory):
     return _japan(tmp_path_factory, "tin")
 
 
-SETS = ["tileset", "tileset_tin", pytest.param("japan", marks=pytest.mark.slow),
+SETS = ["tileset", "tileset_tin", "roots", "roots_tin",
+        pytest.param("japan", marks=pytest.mark.slow),
         pytest.param("japan_tin", marks=pytest.mark.slow)]
 
 
@@ -96,6 +97,37 @@ def _synthetic_tileset(tmp_path_factory, mesher: str):
                                    "--mesher", mesher], catch_exceptions=False)
     assert res.exit_code == 0, res.output
     return _read_tileset(out, dem)
+
+
+@pytest.fixture(scope="module")
+def roots(tmp_path_factory):
+    """A wide geographic DEM on its 2 × 1 root grid (the default layout; issue 45)."""
+    return _roots_tileset(tmp_path_factory, "rtin")
+
+
+@pytest.fixture(scope="module")
+def roots_tin(tmp_path_factory):
+    return _roots_tileset(tmp_path_factory, "tin")
+
+
+def _roots_tileset(tmp_path_factory, mesher: str):
+    """65 × 193 samples of 3″ in EPSG:4326 (a void inside, a nodata margin on the east),
+    across a tile boundary of levels 10 and 11 both ways; 32-sample store tiles: 2 × 1
+    root tiles over a 65 × 193 lattice (the square would be 257²)."""
+    from geoterrain.export.qmesh import write_tileset
+    from geoterrain.ingest.synth import generate
+
+    d = tmp_path_factory.mktemp(f"qmesh_roots_{mesher}")
+    z = generate("fbm", (65, 193), seed=6).astype(np.float32) * 0.05
+    z[20:35, 120:150] = -9999
+    z[:, -5:] = -9999
+    # the level-10 (and 11) tile edges at 138.515625° E and 35.5078125° N cross it
+    dem = write_tif(d / "wide.tif", z, crs="EPSG:4326", origin=(138.435625, 35.5328125),
+                    spacing=1 / 1200, nodata=-9999)
+    with geoterrain.open(geoterrain.preprocess(dem, tile_size=32)) as t:
+        assert (t.frame.kind, t.grid.layout, t.grid.roots) == ("geographic", "roots", (2, 1))
+        write_tileset(t, d / "tiles", max_error=2.0, mesher=mesher)
+    return _read_tileset(d / "tiles", dem)
 
 
 @pytest.fixture(scope="module")

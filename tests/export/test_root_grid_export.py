@@ -35,7 +35,8 @@ def pair(tmp_path_factory):
     z[40:52, 300:330] = -9999.0
     dem = write_geotiff(d / "wide.tif", z, crs="EPSG:32633", origin=(500000.0, 5000000.0),
                         spacing=10.0, nodata=-9999.0)
-    sq = geoterrain.open(geoterrain.preprocess(dem, d / "sq.geoterrain", tile_size=32))
+    sq = geoterrain.open(geoterrain.preprocess(dem, d / "sq.geoterrain", tile_size=32,
+                                               root_grid=False))
     rt = geoterrain.open(geoterrain.preprocess(dem, d / "rt.geoterrain", tile_size=32,
                                                root_grid=True))
     assert rt.grid.roots == (2, 1) and sq.grid.square
@@ -247,7 +248,8 @@ def geo_pair(tmp_path_factory):
     z[40:52, 300:330] = -9999.0
     dem = write_geotiff(d / "geo.tif", z, crs="EPSG:4326", origin=(10.0, 61.26),
                         spacing=0.002, nodata=-9999.0)
-    sq = geoterrain.open(geoterrain.preprocess(dem, d / "sq.geoterrain", tile_size=32))
+    sq = geoterrain.open(geoterrain.preprocess(dem, d / "sq.geoterrain", tile_size=32,
+                                               root_grid=False))
     rt = geoterrain.open(geoterrain.preprocess(dem, d / "rt.geoterrain", tile_size=32,
                                                root_grid=True))
     assert rt.grid.roots == (2, 1) and sq.grid.square and rt.frame.kind == "geographic"

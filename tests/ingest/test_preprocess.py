@@ -61,13 +61,18 @@ def test_all_padding_or_nodata_tiles_are_not_stored(tmp_path):
     z = np.zeros((70, 70), np.int16)
     z[:, 40:] = -32768
     src = write_tif(tmp_path / "d.tif", z, nodata=-32768)
-    out = geoterrain.preprocess(src, tmp_path / "s.geoterrain", tile_size=16)
+    out = geoterrain.preprocess(src, tmp_path / "s.geoterrain", tile_size=16, root_grid=False)
     t = geoterrain.open(out)
     assert t.grid.size == 129
     # level 0 tiles span 16 samples: columns ≥ 48 are nodata or padding, rows ≥ 80 padding
     xs = {x for (L, x, y) in t.tile_info if L == 0}
     ys = {y for (L, x, y) in t.tile_info if L == 0}
     assert max(xs) == 2 and max(ys) == 4
+    # the default root grid has no tile past row 80 or column 80 at all (a 1 × 1 root over
+    # 5 × 5 tiles); the nodata tiles are not stored there either: the same level-0 tiles
+    r = geoterrain.open(geoterrain.preprocess(src, tmp_path / "r.geoterrain", tile_size=16))
+    assert (r.grid.layout, r.grid.tiles(0), r.grid.shape) == ("roots", (5, 5), (81, 81))
+    assert {k for k in r.tile_info if k[0] == 0} == {k for k in t.tile_info if k[0] == 0}
 
 
 @pytest.mark.fast

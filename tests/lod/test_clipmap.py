@@ -31,7 +31,8 @@ def holey(tmp_path_factory):
     yy, xx = np.mgrid[:300, :260]
     z[(yy - 200) ** 2 + (xx - 70) ** 2 < 400] = np.nan
     dem = write_geotiff(d / "h.tif", z, nodata=np.nan)
-    return geoterrain.open(geoterrain.preprocess(dem, d / "h.geoterrain", tile_size=16))
+    return geoterrain.open(geoterrain.preprocess(dem, d / "h.geoterrain", tile_size=16,
+                                                 root_grid=False))
 
 
 @pytest.fixture(scope="module")

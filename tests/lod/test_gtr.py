@@ -36,7 +36,8 @@ def rough(tmp_path_factory):
     yy, xx = np.mgrid[:300, :280]
     z[(yy - 150) ** 2 + (xx - 60) ** 2 < 300] = np.nan
     dem = write_geotiff(d / "rough.tif", z, nodata=np.nan)
-    return geoterrain.open(geoterrain.preprocess(dem, d / "rough.geoterrain", tile_size=16))
+    return geoterrain.open(geoterrain.preprocess(dem, d / "rough.geoterrain", tile_size=16,
+                                                 root_grid=False))
 
 
 def union_jack(ij: np.ndarray, s: int) -> np.ndarray:

@@ -152,7 +152,7 @@ def test_stored_block_delta_is_each_blocks_exact_error(tmp_path, seed, size, til
     src = write_tif(tmp_path / f"d{seed}_{size}_{tile}_{holes}.tif", z, nodata=-9999.0)
     with geoterrain.open(geoterrain.preprocess(src, tmp_path / f"s{seed}_{size}_{tile}"
                                                f"_{holes}.geoterrain", tile_size=tile,
-                                               overwrite=True)) as t:
+                                               overwrite=True, root_grid=False)) as t:
         table = t.block_errors()
         g = t.grid
         assert table is not None and table.shape[2] == min(g.t, g.top_level) + 1

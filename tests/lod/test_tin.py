@@ -158,3 +158,60 @@ def test_counts_no_more_than_rtin_and_through_the_seam(tmp_path):
             assert n["tin-full"] < n["tin"]
         with pytest.raises(UsageError, match="mesher"):
             t.static_selection(1.0, mesher="delaunay")
+
+
+def test_a_geographic_root_grid_meshes_as_its_square(tmp_path):
+    """`mesh --mesher tin` on a wide EPSG:4326 raster with a void, on its 2 × 1 root grid
+    (the default layout, issue 45): the bound is exact on the raster's own heights (read
+    with rasterio), no triangle covers the void and every valid sample off its border is
+    covered, the triangles are wound counter-clockwise and conforming (no edge used by
+    three), both roots are meshed, each vertex sits on its sample's scene x, y, and the
+    triangles are the square store's of the same raster (the TIN reads level 0 alone)."""
+    import pyvista as pv
+    import rasterio
+    from click.testing import CliRunner
+
+    import geoterrain
+    from geoterrain.cli.main import cli
+    from geoterrain.testing.measure import mesh_heights_on_grid
+    from tests.conftest import write_tif
+
+    z = _dem(70, 200, 8, 400.0).astype(np.float32)
+    z[30:41, 120:151] = -9999.0
+    dem = write_tif(tmp_path / "g.tif", z, crs="EPSG:4326", origin=(24.0, 61.0),
+                    spacing=1 / 1200, nodata=-9999.0)
+    with rasterio.open(dem) as src:
+        h = src.read(1, masked=True)
+    valid = ~np.ma.getmaskarray(h)
+    rt = geoterrain.open(geoterrain.preprocess(dem, tmp_path / "r.geoterrain", tile_size=32))
+    sq = geoterrain.open(geoterrain.preprocess(dem, tmp_path / "s.geoterrain", tile_size=32,
+                                               root_grid=False))
+    assert (rt.frame.kind, rt.grid.layout, rt.grid.roots) == ("geographic", "roots", (2, 1))
+    span = 1 << rt.grid.n  # a root's side in samples
+    X, Y, _ = rt.scene_xyz()
+    zs = rt.frame.z(h.filled(np.nan).astype(np.float64))  # the DEM's heights in the scene
+    for e in (0.5, 4.0):
+        sel = rt.static_selection(e, mesher="tin")
+        ij, f = np.asarray(sel.ij, np.int64), sel.surface_faces()
+        pts = np.asarray(sel.mesh.points)
+        err = vertical_error(ij, f, pts[:, 2], np.where(valid, zs, np.nan), valid)
+        assert err.max <= e * (1 + 1e-12) + 1e-9, (err.max, e)
+        assert valid[ij[:, 0], ij[:, 1]].all()  # no vertex on a void
+        # no triangle covers the void; what is left uncovered lies on the void's border
+        _, covered = mesh_heights_on_grid(ij, f, pts[:, 2], valid.shape)
+        assert not (covered & ~valid).any()
+        assert not (valid & ~covered & ~_void_border(valid)).any()
+        assert (_signed_areas(ij, f) > 0).all()
+        edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        assert np.unique(edges, axis=0, return_counts=True)[1].max() <= 2
+        assert (ij[:, 1] > span).any() and (ij[:, 1] < span).any()  # both roots
+        assert np.allclose(pts[:, 0], X[ij[:, 0], ij[:, 1]], rtol=0, atol=1e-6)
+        assert np.allclose(pts[:, 1], Y[ij[:, 0], ij[:, 1]], rtol=0, atol=1e-6)
+        other = sq.static_selection(e, mesher="tin")
+        assert np.array_equal(np.asarray(other.ij), np.asarray(sel.ij))
+        assert np.array_equal(other.surface_faces(), f)
+    out = tmp_path / "tin.ply"
+    res = CliRunner().invoke(cli, ["mesh", str(rt.path), "-o", str(out), "--max-error", "4",
+                                   "--mesher", "tin", "--json"], catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    assert pv.read(out).n_cells == sel.stats["triangles"] == len(f)

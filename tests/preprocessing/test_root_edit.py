@@ -458,3 +458,20 @@ def test_a_window_starting_on_the_last_row_or_column_is_edited(tmp_path, layout)
             write_dem(d / "b" / "dem.tif", apply_by_hand(z, row, col, p, "add"), NODATA),
             tile_size=8, root_grid=layout != "square")
         assert_same_store(store, fresh)
+
+
+@pytest.mark.parametrize("row, col", [(0, 52), (8, 0), (8, 52)])
+def test_a_window_on_the_data_s_last_row_or_column_reads_the_last_tile(tmp_path, row, col):
+    """A 9 × 53 raster on its default root grid of 4-sample tiles: its last row and column
+    are the far border of the last tiles (no tile starts there). A one-sample edit there
+    changes the store as a preprocess of the edited DEM (found by test_edit.py's property
+    once root grids became the default: the window read nothing there, and the edit was
+    dropped)."""
+    from tests.preprocessing.test_edit import _stores
+
+    z = integer_dem(0, 9, 53, 0.0)
+    store, fresh, res = _stores(tmp_path, z, 4, np.full((1, 1), -37.0), row, col, "add",
+                                "auto")
+    assert geoterrain.open(store).grid.layout == "roots"
+    assert res.changed == 1
+    assert_same_store(store, fresh)

@@ -1,8 +1,9 @@
-"""The whole-grid preprocess and the reader on a rectangular root grid (issue 45, opt-in:
-``preprocess(..., root_grid=True)``, ``--root-grid``): the store's tiles, heights and δ
-against the raster and an independent reference, the reader's tile arithmetic, and the
-one-line refusals of what does not handle a root grid yet. The rtin meshes of a root
-grid are measured in tests/test_stress.py."""
+"""The whole-grid preprocess and the reader on a rectangular root grid (issue 45; the
+default layout, ``root_grid=False`` / ``--square-grid`` for the square): the store's
+tiles, heights and δ against the raster and an independent reference, the reader's tile
+arithmetic, the layout each way of asking gives, and the one-line refusal of the
+square-only grid figures. The meshes of a root grid are measured in
+tests/test_stress.py."""
 
 from __future__ import annotations
 
@@ -15,9 +16,9 @@ import geoterrain
 from conftest import write_tif
 from geoterrain.core.grid import Grid, RootGridError
 from geoterrain.ingest.synth import generate
-from geoterrain.lod import STRATEGIES, strategy_info
+from geoterrain.lod import STRATEGIES
 from geoterrain.lod.kernels import _coarsest_tile
-from geoterrain.store.database import ROOTS_SCHEMA_VERSION, StoreReader
+from geoterrain.store.database import ROOTS_SCHEMA_VERSION, SCHEMA_VERSION, StoreReader
 
 pytestmark = pytest.mark.fast
 
@@ -106,6 +107,32 @@ def test_a_square_raster_keeps_the_square_store(tmp_path):
 
 
 
+def test_the_root_grid_is_the_default_and_the_square_an_option(tmp_path):
+    """No argument, ``root_grid=True`` and ``--root-grid`` write the same root-grid store
+    (schema 9); ``root_grid=False`` and ``--square-grid`` the square (schema 8), as the
+    stores before root grids were."""
+    from click.testing import CliRunner
+
+    from geoterrain.cli.main import cli
+
+    src = write_tif(tmp_path / "w.tif", fbm(40, 100, seed=3), dtype="int16")
+    d = geoterrain.preprocess(src, tmp_path / "d.gt", tile_size=16)
+    r = geoterrain.preprocess(src, tmp_path / "r.gt", tile_size=16, root_grid=True)
+    s = geoterrain.preprocess(src, tmp_path / "s.gt", tile_size=16, root_grid=False)
+    for name, args in {"cd.gt": [], "cr.gt": ["--root-grid"], "cs.gt": ["--square-grid"]}.items():
+        res = CliRunner().invoke(cli, ["-q", "preprocess", str(src), "-o", str(tmp_path / name),
+                                       "--tile-size", "16", *args], catch_exceptions=False)
+        assert res.exit_code == 0, res.output
+    g = geoterrain.open(d).grid
+    assert (g.layout, g.roots, g.shape) == ("roots", (2, 1), (49, 113))
+    assert geoterrain.open(s).grid == Grid.for_shape(40, 100, 16)  # 129², one top tile
+    for a, b in ((d, r), (d, tmp_path / "cd.gt"), (d, tmp_path / "cr.gt"),
+                 (s, tmp_path / "cs.gt")):
+        assert a.read_bytes() == b.read_bytes(), (a, b)
+    assert StoreReader(d).metadata["schema_version"] == ROOTS_SCHEMA_VERSION
+    assert StoreReader(s).metadata["schema_version"] == SCHEMA_VERSION
+
+
 def test_a_geographic_root_grid_is_built(tmp_path):
     # the metric bounds of a geographic grid on the roots' extent (their invariants:
     # tests/bounds/test_root_curvature.py; the meshes: tests/test_stress.py)
@@ -159,37 +186,24 @@ def test_the_tile_table_and_the_kernels_find_each_samples_coarsest_tile(rows, co
             assert (a, b) == ((i >> L) - (y << t), (j >> L) - (x << t))
 
 
-def test_every_strategy_draws_and_an_unregistered_one_refuses(wide, monkeypatch):
+def test_every_strategy_draws(wide):
     # the meshes' guarantees on root grids are measured in tests/test_stress.py
-    import dataclasses
-
-    from geoterrain.lod import registry
-
     t, _ = wide
     view = geoterrain.View((0.0, -900.0, 700.0), (0.0, 0.0, 0.0), size=(160, 90))
     for name in STRATEGIES:
-        assert strategy_info(name).root_grid
-        assert t.select(view, 2.0, name).stats["triangles"] > 0
+        assert t.select(view, 2.0, name).stats["triangles"] > 0, name
     assert t.static_selection(1.0, mesher="tin").stats["triangles"] > 0
-    # a strategy not registered for root grids refuses in one line naming those that are
-    monkeypatch.setitem(registry.REGISTRY, "quadtree", dataclasses.replace(
-        registry.REGISTRY["quadtree"], root_grid=False))
-    with pytest.raises(RootGridError, match=r"drawn only by the strategies rtin, ") as e:
-        t.select(view, 2.0, "quadtree")
-    assert "\n" not in str(e.value) and "the quadtree strategy" in str(e.value)
-    assert "quadtree," not in str(e.value) and "chunked" in str(e.value)
 
 
 def test_a_square_only_computation_refuses_a_root_grid_in_one_line(wide):
-    # edits and the globe take root grids now (tests/preprocessing/test_root_edit.py,
-    # tests/globe/test_root_globe.py); what still assumes the square (N, tiles a side)
-    # refuses in one line naming what works
+    # every consumer reads a root grid (edits, the globe, every strategy); what still
+    # asks the grid for a square's figures (N, tiles a side) gets one line naming the
+    # root grid's own
     t, _ = wide
     for what, call in {"the padded size N": lambda: t.grid.size,
                        "tiles per side": lambda: t.grid.tiles_per_side(0),
                        "the level size": lambda: t.grid.level_size(1)}.items():
-        with pytest.raises(RootGridError, match="registered for it") as e:
+        with pytest.raises(RootGridError, match="needs a square grid") as e:
             call()
         assert what in str(e.value) and "\n" not in str(e.value), what
-        assert "edited" in str(e.value) and "globe" in str(e.value)
-
+        assert "tiles(L)" in str(e.value) and "2 × 1 root tiles" in str(e.value)

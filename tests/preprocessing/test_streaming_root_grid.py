@@ -195,7 +195,8 @@ def test_a_memory_limit_streams_a_root_grid_to_the_same_file(tmp_path):
     assert "blobs" in timings  # the streamed run's stages (the whole grid has no "blobs")
     assert geoterrain.open(b).grid.roots == (2, 1)
     assert a.read_bytes() == b.read_bytes()
-    c = preprocess(src, tmp_path / "c.gt", tile_size=16, memory_limit=1 << 18)
+    c = preprocess(src, tmp_path / "c.gt", tile_size=16, memory_limit=1 << 18,
+                   root_grid=False)
     assert geoterrain.open(c).grid.square
 
 
@@ -279,3 +280,25 @@ def test_a_killed_root_grid_run_resumes_to_the_same_store(tmp_path, caplog):
     assert "resuming a killed run; passes done: bounds" in caplog.text
     _assert_same_store(ref, dst)
     assert [x.name for x in out.iterdir()] == ["s.gt"]
+
+
+@pytest.mark.fast
+def test_a_streamed_geographic_raster_gets_its_root_grid_by_default(tmp_path, caplog):
+    """The default layout is the root grid on every path: a geographic raster that
+    streams, by ``preprocess_streaming`` or over ``preprocess``'s memory limit, writes the
+    store its whole-grid preprocess writes, quietly; ``root_grid=False`` the square."""
+    import logging
+
+    z = np.random.default_rng(2).normal(100, 5, (33, 65)).astype(np.float32)
+    src = _tif(tmp_path / "g.tif", z, crs="EPSG:4326")
+    whole = preprocess(src, tmp_path / "w.gt", tile_size=16)
+    with caplog.at_level(logging.INFO, logger="geoterrain"):
+        a = preprocess_streaming(src, tmp_path / "a.gt", tile_size=16, band=8)
+        b = preprocess(src, tmp_path / "b.gt", tile_size=16, memory_limit=1 << 18)
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    w = geoterrain.open(whole)
+    assert (w.frame.kind, w.grid.roots) == ("geographic", (2, 1))
+    for p in (a, b):
+        _assert_same_store(whole, p)
+    sq = preprocess_streaming(src, tmp_path / "sq.gt", tile_size=16, band=8, root_grid=False)
+    assert geoterrain.open(sq).grid.square

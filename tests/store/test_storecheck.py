@@ -121,7 +121,7 @@ def wide_store(tmp_path_factory):
 
     d = tmp_path_factory.mktemp("check_wide")
     dem = write_geotiff(d / "w.tif", generate("fbm", (65, 129), seed=4))
-    p = geoterrain.preprocess(dem, d / "w.geoterrain", tile_size=16)
+    p = geoterrain.preprocess(dem, d / "w.geoterrain", tile_size=16, root_grid=False)
     with geoterrain.open(p) as t:
         return p, t.meta, t.tile_info, t.grid
 

@@ -181,7 +181,8 @@ def test_stored_bounds_are_never_below_the_exact_ones(tmp_path):
     from geoterrain.bounds.radii import vertex_radii
     from geoterrain.bounds.vertexdata import LOG_STEPS
 
-    store = preprocess(_int_dem(tmp_path), tmp_path / "d.geoterrain", tile_size=16)
+    store = preprocess(_int_dem(tmp_path), tmp_path / "d.geoterrain", tile_size=16,
+                       root_grid=False)  # the square's arrays (root grids: test_root_grid.py)
     with geoterrain.open(store) as t:
         g = t.grid
         X, Y = t.frame.grid_xy(g.size)
@@ -251,7 +252,8 @@ def test_stored_normals_are_each_level_s_normal_map(tmp_path):
     from geoterrain.bounds.normals import decode_octahedral, encode_octahedral, normal_map
     from geoterrain.core.grid import level_tiles
 
-    store = preprocess(_int_dem(tmp_path), tmp_path / "d.geoterrain", tile_size=16)
+    store = preprocess(_int_dem(tmp_path), tmp_path / "d.geoterrain", tile_size=16,
+                       root_grid=False)  # the square's arrays
     with geoterrain.open(store) as t:
         g = t.grid
         assert t.meta["normals_layout"] == 2

@@ -118,7 +118,8 @@ def window_heights(terrain: TerrainLike, r0: int, c0: int, r1: int, c1: int
     h = np.full((r1 - r0, c1 - c0), np.nan)
     v = np.zeros((r1 - r0, c1 - c0), bool)
     ntx, nty = g.tiles(0)
-    # the grid's last row and column are the last tiles' (a window may start there)
+    # a root grid's last tile holds the data's last row or column as its far border (no
+    # tile starts there): a window on it reads that tile
     for ty in range(min(r0 // S, nty - 1), min((r1 - 1) // S, nty - 1) + 1):
         for tx in range(min(c0 // S, ntx - 1), min((c1 - 1) // S, ntx - 1) + 1):
             if (0, tx, ty) not in terrain.tile_info:
