@@ -10,7 +10,14 @@ their valid samples must be the same (an invalid sample holds its predictor's gu
 
 from __future__ import annotations
 
+import os
+import signal
 import sqlite3
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -108,3 +115,21 @@ def assert_same_store(edited: Path, fresh: Path) -> None:
         mb.pop(k, None)
     assert ma == mb, {k: (ma.get(k), mb.get(k)) for k in set(ma) | set(mb)
                       if ma.get(k) != mb.get(k)}
+
+
+@contextmanager
+def paused_at_commit(script: str, ready: Path, *args: str) -> Iterator[None]:
+    """Run ``script`` (an edit that writes ``ready`` and sleeps at its commit) in a child
+    process with ``args``; inside the block the child is paused there, its pages in the
+    file; on leaving it is SIGKILLed."""
+    proc = subprocess.Popen([sys.executable, "-c", script, *args], cwd=os.getcwd())
+    try:
+        for _ in range(600):
+            if ready.exists() or proc.poll() is not None:
+                break
+            time.sleep(0.1)
+        assert ready.exists(), "the edit never reached its commit"
+        yield
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()

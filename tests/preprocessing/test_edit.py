@@ -7,7 +7,6 @@ with the edited store. A killed edit leaves the old store, byte for byte.
 
 from __future__ import annotations
 
-import os
 import shutil
 import signal
 import subprocess
@@ -27,6 +26,7 @@ from tests.preprocessing.editcheck import (
     apply_by_hand,
     assert_same_store,
     integer_dem,
+    paused_at_commit,
     write_dem,
 )
 
@@ -263,19 +263,9 @@ def test_killed_edit_leaves_the_old_store(tmp_path):
     store = geoterrain.preprocess(write_dem(tmp_path / "dem.tif", z), tile_size=16)
     before = store.read_bytes()
     ready = tmp_path / "ready"
-    proc = subprocess.Popen([sys.executable, "-c", _KILLED, str(store), str(ready)],
-                            cwd=os.getcwd())
-    try:
-        for _ in range(600):
-            if ready.exists() or proc.poll() is not None:
-                break
-            time.sleep(0.1)
-        assert ready.exists(), "the edit never reached its commit"
+    with paused_at_commit(_KILLED, ready, str(store), str(ready)):
         assert store.read_bytes() != before  # pages were written: the journal is hot
         assert (tmp_path / "dem.geoterrain-journal").exists()
-    finally:
-        proc.send_signal(signal.SIGKILL)
-        proc.wait()
     with geoterrain.open(store) as t:  # rolls back
         assert t.meta.get("edits") is None
         assert t.tile(0, 0, 0).heights[5, 6] == z[5, 6]

@@ -10,13 +10,8 @@ preprocess chose the other predictor (then the same decoded codes).
 
 from __future__ import annotations
 
-import os
 import shutil
-import signal
-import subprocess
-import sys
 import textwrap
-import time
 
 import numpy as np
 import pytest
@@ -30,6 +25,7 @@ from tests.preprocessing.editcheck import (
     apply_by_hand,
     assert_same_store,
     integer_dem,
+    paused_at_commit,
     write_dem,
 )
 from tests.preprocessing.test_edit import _KILLED
@@ -157,18 +153,8 @@ def test_killed_edit_leaves_the_old_root_grid_store(tmp_path):
     store = _root_store(tmp_path / "dem.tif", z, 16)
     before = store.read_bytes()
     ready = tmp_path / "ready"
-    proc = subprocess.Popen([sys.executable, "-c", _KILLED, str(store), str(ready)],
-                            cwd=os.getcwd())
-    try:
-        for _ in range(600):
-            if ready.exists() or proc.poll() is not None:
-                break
-            time.sleep(0.1)
-        assert ready.exists(), "the edit never reached its commit"
+    with paused_at_commit(_KILLED, ready, str(store), str(ready)):
         assert store.read_bytes() != before
-    finally:
-        proc.send_signal(signal.SIGKILL)
-        proc.wait()
     with geoterrain.open(store) as t:
         assert t.meta.get("edits") is None
         assert t.tile(0, 0, 0).heights[5, 6] == z[5, 6]
@@ -396,19 +382,10 @@ def test_killed_edit_by_tiles_leaves_the_old_root_grid_store(tmp_path):
     store = _root_store(tmp_path / "dem.tif", z, 8)
     before = store.read_bytes()
     ready, took = tmp_path / "ready", tmp_path / "took"
-    proc = subprocess.Popen([sys.executable, "-c", _KILLED_TILES, str(store), str(ready),
-                             str(took), str(float(np.median(z)) + 5.0)], cwd=os.getcwd())
-    try:
-        for _ in range(600):
-            if ready.exists() or proc.poll() is not None:
-                break
-            time.sleep(0.1)
-        assert ready.exists(), "the edit never reached its commit"
+    with paused_at_commit(_KILLED_TILES, ready, str(store), str(ready), str(took),
+                          str(float(np.median(z)) + 5.0)):
         assert took.read_text() == "tiles"
         assert store.read_bytes() != before
-    finally:
-        proc.send_signal(signal.SIGKILL)
-        proc.wait()
     with geoterrain.open(store) as t:
         assert t.meta.get("edits") is None
         assert t.tile(0, 4, 0).heights[5, 3] == z[5, 35]
