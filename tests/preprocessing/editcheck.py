@@ -133,3 +133,17 @@ def paused_at_commit(script: str, ready: Path, *args: str) -> Iterator[None]:
     finally:
         proc.send_signal(signal.SIGKILL)
         proc.wait()
+
+
+def random_patch(kind: str, h: int, w: int, seed: int, mode: str) -> np.ndarray:
+    """An (h, w) patch for ``mode``: ``const`` (one height, below the data for add/min,
+    above it otherwise), ``rough`` (normal noise, rounded), ``holes`` (rough with 30 %
+    NaN: samples the patch leaves alone)."""
+    rng = np.random.default_rng(seed)
+    if kind == "const":
+        p = np.full((h, w), -37.0 if mode in ("add", "min") else 640.0)
+    else:
+        p = np.rint(rng.normal(0 if mode == "add" else 500, 40, (h, w)))
+    if kind == "holes":
+        p[rng.random((h, w)) < 0.3] = np.nan
+    return p

@@ -27,6 +27,7 @@ from tests.preprocessing.editcheck import (
     assert_same_store,
     integer_dem,
     paused_at_commit,
+    random_patch,
     write_dem,
 )
 
@@ -64,17 +65,6 @@ def edits(draw):
     return rows, cols, tile, holes, row, col, h, w, mode, kind, draw(st.integers(0, 999))
 
 
-def _patch(kind, h, w, seed, mode):
-    rng = np.random.default_rng(seed)
-    if kind == "const":
-        p = np.full((h, w), -37.0 if mode in ("add", "min") else 640.0)
-    else:
-        p = np.rint(rng.normal(0 if mode == "add" else 500, 40, (h, w)))
-    if kind == "holes":
-        p[rng.random((h, w)) < 0.3] = np.nan
-    return p
-
-
 @settings(max_examples=10, deadline=None)
 @given(e=edits())
 def test_edited_store_is_the_preprocessed_edited_dem(tmp_path_factory, e):
@@ -83,7 +73,7 @@ def test_edited_store_is_the_preprocessed_edited_dem(tmp_path_factory, e):
     the edited DEM, whichever way the edit was computed."""
     rows, cols, tile, holes, row, col, h, w, mode, kind, seed = e
     z = integer_dem(seed, rows, cols, holes)
-    p = _patch(kind, h, w, seed, mode)
+    p = random_patch(kind, h, w, seed, mode)
     tmp = tmp_path_factory.mktemp("ed")
     try:
         store, fresh, res = _stores(tmp, z, tile, p, row, col, mode, "auto")

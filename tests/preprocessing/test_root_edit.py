@@ -26,6 +26,7 @@ from tests.preprocessing.editcheck import (
     assert_same_store,
     integer_dem,
     paused_at_commit,
+    random_patch,
     write_dem,
 )
 from tests.preprocessing.test_edit import _KILLED
@@ -73,23 +74,12 @@ def root_edits(draw):
             draw(st.booleans()))
 
 
-def _patch(kind, h, w, seed, mode):
-    rng = np.random.default_rng(seed)
-    if kind == "const":
-        p = np.full((h, w), -37.0 if mode in ("add", "min") else 640.0)
-    else:
-        p = np.rint(rng.normal(0 if mode == "add" else 500, 40, (h, w)))
-    if kind == "holes":
-        p[rng.random((h, w)) < 0.3] = np.nan
-    return p
-
-
 @settings(max_examples=8, deadline=None)
 @given(e=root_edits())
 def test_edited_root_grid_store_is_the_preprocessed_edited_dem(tmp_path_factory, e):
     rows, cols, tile, holes, row, col, h, w, mode, kind, seed, geographic = e
     z = integer_dem(seed, rows, cols, holes)
-    p = _patch(kind, h, w, seed, mode)
+    p = random_patch(kind, h, w, seed, mode)
     tmp = tmp_path_factory.mktemp("red")
     (tmp / "a").mkdir()
     (tmp / "b").mkdir()
@@ -251,7 +241,7 @@ def test_root_grid_edit_by_tiles_is_the_preprocessed_edited_dem(tmp_path_factory
     preprocessed from the edited DEM: every blob, tile row and metadata entry (the
     square tests' oracle)."""
     z, tile, row, col, h, w, mode, kind, seed, voids = e
-    p = _patch(kind, h, w, seed, mode)
+    p = random_patch(kind, h, w, seed, mode)
     tmp = tmp_path_factory.mktemp("rtl")
     (tmp / "a").mkdir()
     (tmp / "b").mkdir()
