@@ -222,6 +222,25 @@ def _alternate(cases: dict, src: dict, d: str, runs: int, limit: int) -> dict:
     return out
 
 
+def _alternate_whole(cases: dict, runs: int, tile_size: int | None = None,
+                     label: str = "") -> dict:
+    # each case (source, layout, store path) preprocessed whole in a fresh process (CHILD),
+    # the order rotating each run
+    names = list(cases)
+    out: dict[str, list[dict]] = {k: [] for k in cases}
+    for r in range(runs):
+        for name in names[r % len(names):] + names[:r % len(names)]:
+            src, layout, path = cases[name]
+            args = [src, str(path), layout] + ([] if tile_size is None else [str(tile_size)])
+            res = json.loads(subprocess.run(
+                [sys.executable, "-c", CHILD, *args],
+                check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1])
+            out[name].append(res)
+            print(f"{label}run {r} {name}: {res['wall']:.2f} s, CPU {res['cpu']:.2f} s, "
+                  f"{res['peak_mb']:.0f} MB, grid {res['grid']}, load {load()}", flush=True)
+    return out
+
+
 def _medians(runs: dict) -> dict:
     return {k: {m: statistics.median(x[m] for x in v) for m in ("wall", "cpu", "peak_mb")}
             for k, v in runs.items()}
@@ -334,26 +353,14 @@ def wide(a: argparse.Namespace) -> None:
                                           generate("fbm", shape, seed=3).astype(np.float32)))
         cases = {"square": ("square", "square"), "wide": ("wide", "square"),
                  "wide, roots": ("wide", "roots")}
-        names = list(cases)
-        runs: dict[str, list[dict]] = {k: [] for k in cases}
-        for r in range(a.runs):
-            for name in names[r % 3:] + names[:r % 3]:
-                raster, layout = cases[name]
-                out = subprocess.run([sys.executable, "-c", CHILD, src[raster],
-                                      str(Path(d) / f"{raster}.geoterrain"), layout],
-                                     check=True, capture_output=True, text=True).stdout
-                res = json.loads(out.strip().splitlines()[-1])
-                runs[name].append(res)
-                print(f"run {r} {name}: {res['wall']:.2f} s, CPU {res['cpu']:.2f} s, "
-                      f"{res['peak_mb']:.0f} MB, grid {res['grid']}, load {load()}",
-                      flush=True)
-    med = {k: {m: statistics.median(x[m] for x in v) for m in ("wall", "cpu", "peak_mb")}
-           for k, v in runs.items()}
+        runs = _alternate_whole({name: (src[raster], layout, Path(d) / f"{raster}.geoterrain")
+                                 for name, (raster, layout) in cases.items()}, a.runs)
+    med = _medians(runs)
     print(f"\nload after: {load()}\n")
     print("| raster | wall (median) | CPU (median) | peak RSS (median) | wall / square "
           "| CPU / square | peak / square |")
     print("|---|---|---|---|---|---|---|")
-    for k in names:
+    for k in cases:
         print(f"| {k} | {med[k]['wall']:.2f} s | {med[k]['cpu']:.2f} s "
               f"| {med[k]['peak_mb']:.0f} MB | {med[k]['wall'] / med['square']['wall']:.2f}× "
               f"| {med[k]['cpu'] / med['square']['cpu']:.2f}× "
@@ -361,7 +368,8 @@ def wide(a: argparse.Namespace) -> None:
 
 
 def held(t) -> tuple[int, int]:
-    """(level-0 lattice samples, distinct samples of the stored tiles over every level)."""
+    """(level-0 lattice samples, every level's stored-tile lattice summed: a position is
+    counted once per level it lies on; the positions the codec codes are ``held_coded``'s)."""
     g = t.grid
     total = 0
     for L in g.levels:
@@ -381,7 +389,8 @@ def stores(a: argparse.Namespace) -> None:
     from geoterrain.ingest.synth import generate, write_geotiff
 
     print(f"load before: {load()}; tile size {a.tile_size}\n", flush=True)
-    print("| raster | layout | grid | level 0 held / raster | all levels held / raster |")
+    print("| raster | layout | grid | level 0 held / raster "
+          "| every level's lattice summed / raster |")
     print("|---|---|---|---|---|")
     with tempfile.TemporaryDirectory(prefix="bench_root_grids_") as d:
         for name, h, w in (("CONUS shape", 520, 1180), ("jacksboro shape", 344, 403),
@@ -584,20 +593,10 @@ def geographic(a: argparse.Namespace) -> None:
             z = (lo + (hi - lo) * (z - z.min()) / np.ptp(z)).astype(np.float32)
             src = str(write_geotiff(Path(d) / "g.tif", z, crs="EPSG:4326",
                                     origin=(west, north), spacing=deg))
-            runs: dict[str, list[dict]] = {"square": [], "roots": []}
-            for r in range(a.runs):
-                for layout in (("square", "roots") if r % 2 == 0 else ("roots", "square")):
-                    out = subprocess.run([sys.executable, "-c", CHILD, src,
-                                          str(Path(d) / f"{layout}.geoterrain"), layout,
-                                          str(a.tile_size)],
-                                         check=True, capture_output=True, text=True).stdout
-                    res = json.loads(out.strip().splitlines()[-1])
-                    runs[layout].append(res)
-                    print(f"{name} run {r} {layout}: {res['wall']:.2f} s, CPU "
-                          f"{res['cpu']:.2f} s, {res['peak_mb']:.0f} MB, load {load()}",
-                          flush=True)
-            med = {k: {m: statistics.median(x[m] for x in v)
-                       for m in ("wall", "cpu", "peak_mb")} for k, v in runs.items()}
+            runs = _alternate_whole({k: (src, k, Path(d) / f"{k}.geoterrain")
+                                     for k in ("square", "roots")}, a.runs, a.tile_size,
+                                    f"{name} ")
+            med = _medians(runs)
             for layout in ("square", "roots"):
                 with geoterrain.open(Path(d) / f"{layout}.geoterrain") as t:
                     g = t.grid
@@ -611,8 +610,8 @@ def geographic(a: argparse.Namespace) -> None:
                             f"({m['cpu'] / s['cpu']:.2f}×) | {m['peak_mb']:.0f} MB "
                             f"({m['peak_mb'] / s['peak_mb']:.2f}×) |")
     print(f"\nload after: {load()}; medians of {a.runs} runs, ratios to the square\n")
-    print("| raster | layout | grid | level 0 held / raster | all levels held / raster "
-          "| wall | CPU | peak RSS |")
+    print("| raster | layout | grid | level 0 held / raster "
+          "| every level's lattice summed / raster | wall | CPU | peak RSS |")
     print("|---|---|---|---|---|---|---|---|")
     print("\n".join(rows))
 
@@ -765,20 +764,10 @@ def default(a: argparse.Namespace) -> None:
             z = (lo + (hi - lo) * (z - z.min()) / np.ptp(z)).astype(np.float32)
             geo = dict(crs="EPSG:4326", origin=(west, north), spacing=deg) if deg else {}
             src = str(write_geotiff(Path(d) / "g.tif", z, **geo))
-            runs: dict[str, list[dict]] = {"default": [], "square": []}
-            for r in range(a.runs):
-                for layout in (("default", "square") if r % 2 == 0 else ("square", "default")):
-                    out = subprocess.run([sys.executable, "-c", CHILD, src,
-                                          str(Path(d) / f"{layout}.geoterrain"), layout,
-                                          str(a.tile_size)],
-                                         check=True, capture_output=True, text=True).stdout
-                    res = json.loads(out.strip().splitlines()[-1])
-                    runs[layout].append(res)
-                    print(f"{name} run {r} {layout}: {res['wall']:.2f} s, CPU "
-                          f"{res['cpu']:.2f} s, {res['peak_mb']:.0f} MB, grid {res['grid']}, "
-                          f"load {load()}", flush=True)
-            med = {k: {m: statistics.median(x[m] for x in v)
-                       for m in ("wall", "cpu", "peak_mb")} for k, v in runs.items()}
+            runs = _alternate_whole({k: (src, k, Path(d) / f"{k}.geoterrain")
+                                     for k in ("default", "square")}, a.runs, a.tile_size,
+                                    f"{name} ")
+            med = _medians(runs)
             hw = h * w
             for layout in ("default", "square"):
                 with geoterrain.open(Path(d) / f"{layout}.geoterrain") as t:
