@@ -210,7 +210,7 @@ def _build_tin(dem: GeoDem, rect, M: int, lon, lat, h, valid, target: float, hra
     ``target``. The declared error is the measured one (:func:`measured_error`), plus
     1 µm for rounding."""
     w, s_, e, n = rect
-    slon, slat, sh = _dem_samples(dem, rect)
+    slon, slat, sh = dem.samples(rect)
     e_h = 0.5 * (hrange[1] - hrange[0]) / QMAX
     if fixed_threshold is not None:
         thr = tau = fixed_threshold
@@ -242,36 +242,6 @@ def _build_tin(dem: GeoDem, rect, M: int, lon, lat, h, valid, target: float, hra
     info = {"M": M, "e_r": e_r, "e_h": e_h, "threshold": thr, "edge_threshold": tau,
             "fits": bound <= target}
     return data, bound, len(faces), info
-
-
-def _dem_box(dem: GeoDem, rect) -> tuple[int, int, int, int]:
-    """Rows i0..i1 and columns j0..j1 of the DEM samples that may lie inside ``rect``
-    (its border mapped through pyproj, a sample's margin); the whole grid where a point
-    of the border has no image in the DEM's CRS (a coarse tile reaching past the
-    projection's domain)."""
-    w, s, e, n = rect
-    bl, bt = np.linspace(w, e, 17), np.linspace(s, n, 17)
-    bi, bj = dem.pixel(np.concatenate([bl, bl, bl * 0 + w, bl * 0 + e]),
-                       np.concatenate([bt * 0 + s, bt * 0 + n, bt, bt]))
-    if not (np.isfinite(bi).all() and np.isfinite(bj).all()):
-        return 0, dem.H - 1, 0, dem.W - 1
-    i0, i1 = max(0, int(np.floor(bi.min())) - 1), min(dem.H - 1, int(np.ceil(bi.max())) + 1)
-    j0, j1 = max(0, int(np.floor(bj.min())) - 1), min(dem.W - 1, int(np.ceil(bj.max())) + 1)
-    return i0, i1, j0, j1
-
-
-def _dem_samples(dem: GeoDem, rect) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Lon, lat and height of every valid DEM sample inside ``rect`` (closed)."""
-    w, s, e, n = rect
-    i0, i1, j0, j1 = _dem_box(dem, rect)
-    if i1 < i0 or j1 < j0:
-        return np.zeros(0), np.zeros(0), np.zeros(0)
-    ii, jj = np.nonzero(dem.valid[i0:i1 + 1, j0:j1 + 1])
-    ii, jj = ii + i0, jj + j0
-    slon, slat = dem.lonlat(ii, jj)
-    slon = w + np.mod(slon - w, 360.0)  # the tile's turn (a grid past the antimeridian)
-    inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)
-    return slon[inside], slat[inside], dem.h[ii[inside], jj[inside]]
 
 
 def select_tile(dem: GeoDem, rect, M: int, lon, lat, h, valid, delta, thr: float, hrange,
@@ -383,7 +353,7 @@ def _resampling_error(dem: GeoDem, rect, h: np.ndarray, valid: np.ndarray) -> fl
     diagonal, then the triangle's linear interpolation."""
     M = h.shape[0]
     w, s, e, n = rect
-    i0, i1, j0, j1 = _dem_box(dem, rect)
+    i0, i1, j0, j1 = dem.box(rect)
     if i1 < i0 or j1 < j0:
         return 0.0
     main = _diagonals(M)

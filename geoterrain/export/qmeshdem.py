@@ -184,6 +184,37 @@ class GeoDem:
         i1, j1 = np.minimum(i0 + 1, self.H - 1), np.minimum(j0 + 1, self.W - 1)
         return ok, i0, i1, j0, j1, fi, fj
 
+    def box(self, rect) -> tuple[int, int, int, int]:
+        """Rows i0..i1 and columns j0..j1 of the samples that may lie inside ``rect`` (w,
+        s, e, n degrees; its border mapped through pyproj, a sample's margin); the whole
+        grid where a point of the border has no image in the DEM's CRS (a coarse tile
+        reaching past the projection's domain)."""
+        w, s, e, n = rect
+        bl, bt = np.linspace(w, e, 17), np.linspace(s, n, 17)
+        bi, bj = self.pixel(np.concatenate([bl, bl, bl * 0 + w, bl * 0 + e]),
+                            np.concatenate([bt * 0 + s, bt * 0 + n, bt, bt]))
+        if not (np.isfinite(bi).all() and np.isfinite(bj).all()):
+            return 0, self.H - 1, 0, self.W - 1
+        i0 = max(0, int(np.floor(bi.min())) - 1)
+        i1 = min(self.H - 1, int(np.ceil(bi.max())) + 1)
+        j0 = max(0, int(np.floor(bj.min())) - 1)
+        j1 = min(self.W - 1, int(np.ceil(bj.max())) + 1)
+        return i0, i1, j0, j1
+
+    def samples(self, rect) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Lon (in the tile's turn), lat and height of every valid sample inside ``rect``
+        (closed)."""
+        w, s, e, n = rect
+        i0, i1, j0, j1 = self.box(rect)
+        if i1 < i0 or j1 < j0:
+            return np.zeros(0), np.zeros(0), np.zeros(0)
+        ii, jj = np.nonzero(self.valid[i0:i1 + 1, j0:j1 + 1])
+        ii, jj = ii + i0, jj + j0
+        slon, slat = self.lonlat(ii, jj)
+        slon = w + np.mod(slon - w, 360.0)  # the tile's turn (a grid past the antimeridian)
+        inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)
+        return slon[inside], slat[inside], self.h[ii[inside], jj[inside]]
+
     def bilinear(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
         """Heights (metres) at lon/lat; NaN where a neighbouring sample is invalid/outside."""
         ok, i0, i1, j0, j1, fi, fj = self._corners(lon, lat)
