@@ -33,7 +33,6 @@ def command(store, as_json, reference):
     if as_json:
         click.echo(json.dumps(i, indent=2))
         return
-    ex = i["extent_m"]
     hu, vu = i["horizontal_unit"], i["vertical_unit"]
     lo, hi = i["height_range"]
     zm = i["vertical_unit_to_m"]
@@ -44,8 +43,7 @@ def command(store, as_json, reference):
         f"crs          {i['crs']}",
         f"frame        {i['frame']}; origin {i['origin_crs'][0]:.6g}, {i['origin_crs'][1]:.6g} "
         f"({hu}); heights in {vu} × {zm:g} m/{vu} × z-scale {i['z_scale']:g}",
-        f"extent       {ex['x'][1] - ex['x'][0]:.1f} m × {ex['y'][1] - ex['y'][0]:.1f} m "
-        "(width × height, east-west × north-south)",
+        _extent_line(i),
         f"grid         {i['grid'][1]} × {i['grid'][0]} samples (width × height), padded to "
         f"{i['padded'][1]} × {i['padded'][0]}",
         f"tiles        {i['tile_samples']}² samples, {i['levels']} levels; stored per level "
@@ -59,11 +57,26 @@ def command(store, as_json, reference):
         f"errors       tile error {i['tile_error_range'][0]:.4g} … {i['tile_error_range'][1]:.4g}"
         f" m (scene); max vertex δ {i['vertex_error_max']:.4g} m (scene)",
     ]
+    if i.get("flat_problem"):
+        lines.append(f"globe        the flat scene cannot show it ({i['flat_problem']}): "
+                     "draw it with render --globe or view --globe")
     if i.get("edits"):
         e = i["edits"]
         lines.append(f"edits        {e['count']} (geoterrain edit); the last: {e['last']}")
     # values come from the file: never let its control characters reach the terminal
     click.echo("\n".join("".join(c if c.isprintable() else "?" for c in ln) for ln in lines))
+
+
+def _extent_line(i: dict) -> str:
+    """The extent in metres on the scene's plane; a geographic store's in degrees first
+    (its box, from the geotransform: a whole globe is 360° × 180°, not metres)."""
+    ex = i["extent_m"]
+    metres = f"{ex['x'][1] - ex['x'][0]:.1f} m × {ex['y'][1] - ex['y'][0]:.1f} m"
+    if "extent_deg" not in i:
+        return f"extent       {metres} (width × height, east-west × north-south)"
+    (w, e), (s, n) = i["extent_deg"]["lon"], i["extent_deg"]["lat"]
+    return (f"extent       {e - w:.6g}° × {n - s:.6g}° (width × height; longitude {w:.6g} … "
+            f"{e:.6g}°, latitude {s:.6g} … {n:.6g}°); {metres} on the flat scene's plane")
 
 
 def _size_line(s: dict) -> str:

@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     import pyvista as pv
 
     from geoterrain.codec.quantize import Quantizer
+    from geoterrain.core.frame import Frame
     from geoterrain.core.view import View
     from geoterrain.lod import Selection
     from geoterrain.preprocessing.edit import EditResult
@@ -826,6 +827,7 @@ class Terrain:
             "origin_crs": list(f.origin_crs),
             "extent_m": {"x": [float(cx.min()), float(cx.max())],
                          "y": [float(cy.min()), float(cy.max())]},
+            **(_extent_deg(f) if f.kind == "geographic" else {}),
             "grid": [H, W],
             "padded": list(g.shape),
             "tile_samples": g.tile_samples,
@@ -959,3 +961,12 @@ def _unit_name(factor: float) -> str:
 
     u = unit_of_factor(factor)
     return u if u is not None else f"units of {factor:.6g} m"
+
+
+def _extent_deg(f: Frame) -> dict:
+    """A geographic frame's box in degrees (its pixels' outer edges, from the geotransform)
+    and why the flat scene cannot show it (:meth:`Frame.flat_problem`; None when it can)."""
+    a, _, c, _, e, ff = f.transform[:6]
+    lon, lat = sorted((c, c + a * f.cols)), sorted((ff, ff + e * f.rows))
+    return {"extent_deg": {"lon": [float(v) for v in lon], "lat": [float(v) for v in lat]},
+            "flat_problem": f.flat_problem()}

@@ -50,6 +50,26 @@ def test_preprocess_and_info(fbm_tif, tmp_path):
     assert json.loads(res.output)["grid"] == [129, 129]
 
 
+@pytest.mark.parametrize("whole", [False, True])
+def test_info_gives_a_geographic_store_in_degrees_and_names_the_globe(tmp_path, whole):
+    """A geographic store's extent is its box in degrees (a whole globe is 360° × 180°, not
+    metres on a plane), and one that the flat scene cannot show says to use --globe."""
+    from geoterrain.ingest.synth import generate
+
+    z = (generate("fbm", 65, seed=1)[:32, :64] * 0.1).astype(np.float32)
+    spacing, origin = (5.625, (-180.0, 90.0)) if whole else (1 / 1200, (139.0, 36.0))
+    dem = write_tif(tmp_path / "g.tif", z, crs="EPSG:4326", origin=origin, spacing=spacing)
+    out = tmp_path / "g.geoterrain"
+    assert run("-q", "preprocess", dem, "-o", out).exit_code == 0
+    info = json.loads(run("info", out, "--json").output)
+    lon, lat = (360.0, 180.0) if whole else (64 / 1200, 32 / 1200)
+    assert info["extent_deg"]["lon"][1] - info["extent_deg"]["lon"][0] == pytest.approx(lon)
+    assert info["extent_deg"]["lat"][1] - info["extent_deg"]["lat"][0] == pytest.approx(lat)
+    assert (info["flat_problem"] is not None) == whole
+    text = run("info", out).output
+    assert (f"{lon:.6g}° × {lat:.6g}°" in text) and (("--globe" in text) == whole), text
+
+
 def test_stored_normals_keeps_every_normal_map_whole(fbm_tif, tmp_path):
     """`preprocess --stored-normals` writes full normal maps (no derived levels) with the
     codes the default store derives, and a larger file."""

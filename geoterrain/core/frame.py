@@ -299,6 +299,25 @@ class Frame:
         return None
 
     @property
+    def columns_per_turn(self) -> int | None:
+        """The columns of one whole turn of longitude when this geographic grid's columns
+        span exactly 360° (a whole-globe raster: the column after the last is the first
+        again, and a lookup between them wraps); None for any other grid.
+
+        Examples
+        --------
+        >>> from pyproj import CRS
+        >>> wkt = CRS.from_epsg(4326).to_wkt()
+        >>> Frame.from_raster((0.25, 0, -180, 0, -0.25, 90), wkt, 720, 1440).columns_per_turn
+        1440
+        >>> Frame.from_raster((0.25, 0, -180, 0, -0.25, 90), wkt, 720, 1441).columns_per_turn
+        """
+        if self.kind != "geographic":
+            return None
+        a = abs(self.transform[0])
+        return self.cols if abs(a * self.cols - 360.0) <= 1e-9 * 360.0 else None
+
+    @property
     def crs_name(self) -> str:
         """The CRS's name: its WKT's root name where the root is a plain CRS (what
         pyproj's ``CRS.name`` gives, without loading pyproj), else pyproj's.

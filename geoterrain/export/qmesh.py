@@ -354,14 +354,14 @@ def _resampling_error(dem: GeoDem, rect, h: np.ndarray, valid: np.ndarray) -> fl
     M = h.shape[0]
     w, s, e, n = rect
     i0, i1, j0, j1 = dem.box(rect)
-    if i1 < i0 or j1 < j0:
+    cols = dem.columns(j0, j1)
+    if i1 < i0 or not len(cols):
         return 0.0
     main = _diagonals(M)
     worst = 0.0
-    rows = max(1, MEASURE_SAMPLES // (j1 - j0 + 1))
+    rows = max(1, MEASURE_SAMPLES // len(cols))
     for r0 in range(i0, i1 + 1, rows):  # every sample, a block of rows at a time
-        ii, jj = np.meshgrid(np.arange(r0, min(i1 + 1, r0 + rows)), np.arange(j0, j1 + 1),
-                             indexing="ij")
+        ii, jj = np.meshgrid(np.arange(r0, min(i1 + 1, r0 + rows)), cols, indexing="ij")
         ok = dem.valid[ii, jj]
         ii, jj = ii[ok], jj[ok]
         slon, slat = dem.lonlat(ii, jj)

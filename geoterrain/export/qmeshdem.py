@@ -110,6 +110,10 @@ class GeoDem:
         self.to_geo = Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
         self.pixel_deg = pixel_degrees(terrain)
         self.full = (self.H, self.W)
+        # a whole-globe grid's columns wrap: local column k is the grid's column
+        # (j0 + k) mod turn, and the arrays of the whole grid carry column 0 again after
+        # the last, so a lookup between the two interpolates across the antimeridian
+        self.turn = f.columns_per_turn
         # a geographic grid's longitudes may run past ±180° (170°…190°, or 0°…360°): a
         # longitude is taken to within 180° of the grid's centre before it is looked up,
         # so the tiles west of the antimeridian find the grid's east end (and a tile's
@@ -122,21 +126,29 @@ class GeoDem:
             if mask is not None:
                 if mask.shape != (self.H, self.W):
                     raise ValueError(f"mask {mask.shape} is not the grid's {(self.H, self.W)}")
-                self.valid = np.asarray(mask, bool)
+                self.valid = self._wrapped(np.asarray(mask, bool))
+            self.W += 1 if self.turn else 0
             return
         if window is None:
             h, v = terrain.level_heights(0)
             H, W = self.H, self.W
-            self.h = (h[:H, :W] * f.z_to_m).astype(np.float64)
-            self.valid = v[:H, :W].copy()
+            self.h = self._wrapped((h[:H, :W] * f.z_to_m).astype(np.float64))
+            self.valid = self._wrapped(v[:H, :W].copy())
+            self.W = self.h.shape[1]
         else:
-            from geoterrain.export.webtiles import level_window
+            from geoterrain.export.webtiles import wrapped_window
 
             (i0, i1), (j0, j1) = window
-            i0, j0 = max(int(i0), 0), max(int(j0), 0)
-            i1, j1 = min(int(i1), self.H - 1), min(int(j1), self.W - 1)
-            self.h = level_window(terrain, 0, (i0, i1), (j0, j1),
-                                  lambda ks: [terrain.tile(*k).heights for k in ks])[..., 0]
+            i0, i1 = max(int(i0), 0), min(int(i1), self.H - 1)
+            if self.turn:  # any columns, taken modulo the turn (at most one turn here)
+                j0, j1 = int(j0) % self.turn, int(j1) - int(j0) + int(j0) % self.turn
+                if j1 - j0 + 1 >= self.turn:
+                    j0, j1 = 0, self.turn  # the whole turn and column 0 again
+            else:
+                j0, j1 = max(int(j0), 0), min(int(j1), self.W - 1)
+            self.h = wrapped_window(terrain, 0, (i0, i1), (j0, j1),
+                                    lambda ks: [terrain.tile(*k).heights for k in ks],
+                                    period=self.turn)[..., 0]
             self.h *= f.z_to_m
             self.valid = np.isfinite(self.h)
             self.i0, self.j0 = i0, j0
@@ -148,6 +160,34 @@ class GeoDem:
             lon, lat = self.lonlat(ii, jj)
             _, _, hz = tr.transform(lon, lat, self.h[ii, jj])
             self.h[ii, jj] = np.asarray(hz, np.float64)
+
+    def _wrapped(self, a: np.ndarray) -> np.ndarray:
+        """``a`` (the whole grid's columns) with column 0 again after the last on a
+        whole-globe grid; ``a`` itself on any other."""
+        return np.concatenate([a, a[:, :1]], axis=1) if self.turn else a
+
+    def columns(self, j0: int, j1: int) -> np.ndarray:
+        """Local columns j0..j1 that the arrays hold: clipped to them; on a whole-globe
+        grid taken modulo the turn first (each column once), so a range may run past
+        either end.
+
+        >>> GeoDem(t, heights=False).columns(-2, 3).tolist()[:4]
+        [0, 1, 2, 3]
+        """
+        if not self.turn:
+            return np.arange(max(j0, 0), min(j1, self.W - 1) + 1)
+        k = np.unique(np.mod(np.arange(j0, j1 + 1), self.turn))
+        return k[k < self.W]
+
+    def contiguous(self, j: np.ndarray) -> np.ndarray:
+        """Local columns ``j`` (of :meth:`pixel`) made continuous on a whole-globe grid:
+        each within half a turn of the first finite one, so a rectangle across the
+        antimeridian spans a few columns, not the whole turn; ``j`` on any other grid."""
+        j = np.asarray(j, np.float64)
+        if not self.turn or not np.isfinite(j).any():
+            return j
+        ref = j[np.isfinite(j)][0]
+        return ref + np.mod(j - ref + self.turn / 2, self.turn) - self.turn / 2
 
     def unwrap(self, lon: np.ndarray) -> np.ndarray:
         """``lon`` (degrees) taken to the grid's turn: whole turns added, to within 180°
@@ -171,7 +211,10 @@ class GeoDem:
         longitude, :meth:`unwrap`)."""
         x, y = self.to_src.transform(self.unwrap(lon), lat)
         a, _, c, _, e, f = self.transform[:6]
-        return ((np.asarray(y) - f) / e - 0.5) - self.i0, ((np.asarray(x) - c) / a - 0.5) - self.j0
+        j = ((np.asarray(x) - c) / a - 0.5) - self.j0
+        if self.turn:  # the local column within the turn that starts at the window
+            j = np.mod(j, self.turn)
+        return ((np.asarray(y) - f) / e - 0.5) - self.i0, j
 
     def _corners(self, lon: np.ndarray, lat: np.ndarray):
         """The bilinear neighbours of lon/lat: ``ok`` (inside the grid), and for the points
@@ -188,7 +231,8 @@ class GeoDem:
         """Rows i0..i1 and columns j0..j1 of the samples that may lie inside ``rect`` (w,
         s, e, n degrees; its border mapped through pyproj, a sample's margin); the whole
         grid where a point of the border has no image in the DEM's CRS (a coarse tile
-        reaching past the projection's domain)."""
+        reaching past the projection's domain). On a whole-globe grid the columns are
+        not clipped: they may run past either end (read them through :meth:`columns`)."""
         w, s, e, n = rect
         bl, bt = np.linspace(w, e, 17), np.linspace(s, n, 17)
         bi, bj = self.pixel(np.concatenate([bl, bl, bl * 0 + w, bl * 0 + e]),
@@ -197,6 +241,9 @@ class GeoDem:
             return 0, self.H - 1, 0, self.W - 1
         i0 = max(0, int(np.floor(bi.min())) - 1)
         i1 = min(self.H - 1, int(np.ceil(bi.max())) + 1)
+        if self.turn:  # columns past either end wrap (:meth:`columns`)
+            bj = self.contiguous(bj)
+            return i0, i1, int(np.floor(bj.min())) - 1, int(np.ceil(bj.max())) + 1
         j0 = max(0, int(np.floor(bj.min())) - 1)
         j1 = min(self.W - 1, int(np.ceil(bj.max())) + 1)
         return i0, i1, j0, j1
@@ -206,10 +253,11 @@ class GeoDem:
         (closed)."""
         w, s, e, n = rect
         i0, i1, j0, j1 = self.box(rect)
-        if i1 < i0 or j1 < j0:
+        cols = self.columns(j0, j1)
+        if i1 < i0 or not len(cols):
             return np.zeros(0), np.zeros(0), np.zeros(0)
-        ii, jj = np.nonzero(self.valid[i0:i1 + 1, j0:j1 + 1])
-        ii, jj = ii + i0, jj + j0
+        ii, kk = np.nonzero(self.valid[i0:i1 + 1, cols])
+        ii, jj = ii + i0, cols[kk]
         slon, slat = self.lonlat(ii, jj)
         slon = w + np.mod(slon - w, 360.0)  # the tile's turn (a grid past the antimeridian)
         inside = (slon >= w) & (slon <= e) & (slat >= s) & (slat <= n)

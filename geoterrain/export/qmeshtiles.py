@@ -267,11 +267,12 @@ class QuantizedMeshTiles:
         lat = np.concatenate([t * 0 + s - my, t * 0 + n + my,
                               s - my + t * (n - s + 2 * my), s - my + t * (n - s + 2 * my)])
         i, j = self.geo.pixel(lon, lat)
+        j = self.geo.contiguous(j)  # a whole-globe grid's columns across the antimeridian
         win = ((int(np.floor(np.nanmin(i))) - 2, int(np.ceil(np.nanmax(i))) + 2),
                (int(np.floor(np.nanmin(j))) - 2, int(np.ceil(np.nanmax(j))) + 2))
         H, W = self.geo.full
         win = ((max(win[0][0], 0), min(win[0][1], H - 1)),
-               (max(win[1][0], 0), min(win[1][1], W - 1)))
+               win[1] if self.geo.turn else (max(win[1][0], 0), min(win[1][1], W - 1)))
         if win[0][0] > win[0][1] or win[1][0] > win[1][1]:
             return GeoDem(self.terrain, self.geoid, heights=False)
         return GeoDem(self.terrain, self.geoid, window=win)

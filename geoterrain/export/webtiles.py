@@ -174,6 +174,49 @@ def level_window(terrain: TerrainLike, level: int, rows: tuple[int, int],
     return out
 
 
+def wrapped_window(terrain: TerrainLike, level: int, rows: tuple[int, int],
+                   cols: tuple[int, int], fields: Callable[[Sequence[TileKey]], list],
+                   channels: int = 1, period: int | None = None) -> np.ndarray:
+    """:func:`level_window` whose columns run modulo ``period`` (the level's columns of a
+    whole-globe grid, :attr:`Frame.columns_per_turn`): column ``c`` of any integer range
+    is column ``c mod period``, so a window may run past either end (the columns beyond
+    the last are the first again). ``period=None``: :func:`level_window` itself.
+
+    Examples
+    --------
+    >>> top, f = t.grid.top_level, lambda ks: [t.tile(*k).heights for k in ks]
+    >>> w = wrapped_window(t, top, (0, 1), (-1, 1), f, period=3)  # columns 2, 0, 1
+    >>> bool(np.array_equal(w[:, :1], level_window(t, top, (0, 1), (2, 2), f)))
+    True
+    """
+    if period is None:
+        return level_window(terrain, level, rows, cols, fields, channels)
+    pieces, c = [], cols[0]
+    while c <= cols[1]:
+        g = c % period
+        n = min(cols[1] - c + 1, period - g)
+        pieces.append(level_window(terrain, level, rows, (g, g + n - 1), fields, channels))
+        c += n
+    return np.concatenate(pieces, axis=1)
+
+
+def wrap_columns(j: np.ndarray, period: int, level: int, turn: int) -> np.ndarray:
+    """Level-``level`` fractional columns of level-0 fractional columns ``j`` (any turn)
+    of a grid of ``turn`` columns a turn: that level's lattice columns sit every 2^level
+    samples from column 0, and the last of them reaches column 0 of the next turn across
+    the shorter gap left (``turn`` need not divide by 2^level). ``period``: the level's
+    columns a turn (⌈turn / 2^level⌉); columns ``k·period + c`` are column c.
+
+    >>> wrap_columns(np.array([0.0, 8.0, 9.0, 10.0, 11.0]), 3, 2, 10).tolist()
+    [0.0, 2.0, 2.5, 3.0, 3.25]
+    """
+    s = 1 << level
+    last = (period - 1) * s  # the level's last lattice column, in level-0 samples
+    k = np.floor(j / turn)
+    r = j - k * turn
+    return k * period + np.where(r <= last, r / s, (period - 1) + (r - last) / (turn - last))
+
+
 def _bilinear(win: np.ndarray, fi: np.ndarray, fj: np.ndarray) -> np.ndarray:
     """Bilinear samples (n, C) of ``win`` (h, w, C) at fractional (fi, fj) inside it; NaN
     where a neighbour with a non-zero weight is NaN."""
@@ -252,6 +295,8 @@ class WebTiler:
         [-180°, 180°]; a DEM across the antimeridian spans every longitude (a web map's
         bounds cannot cross it)."""
         w, s, e, n = self._span
+        if self.terrain.frame.columns_per_turn:  # a whole-globe grid: every longitude
+            return -180.0, s, 180.0, n
         if -180.0 <= w and e <= 180.0:
             return w, s, e, n
         fw, fe = fold_lon(w), fold_lon(e)
@@ -350,17 +395,25 @@ class WebTiler:
         tile's pixels; NaN where a neighbour sample is missing or outside the grid."""
         i, j = self._positions(z, x, y, corner)
         s = float(1 << level)
-        fi, fj = i / s, j / s
         g = self.terrain.grid
         H, W = -(-g.rows // (1 << level)), -(-g.cols // (1 << level))
-        inside = np.isfinite(fi) & np.isfinite(fj) & (fi >= 0) & (fi <= H - 1) \
-            & (fj >= 0) & (fj <= W - 1)
+        turn = self.terrain.frame.columns_per_turn
+        fi = i / s
+        if turn:  # a whole-globe grid: the columns wrap, the tile's own turn kept whole
+            ref = np.nanmedian(j) if np.isfinite(j).any() else 0.0
+            fj = wrap_columns(ref + np.mod(j - ref + turn / 2, turn) - turn / 2, W, level, turn)
+            inside = np.isfinite(fi) & np.isfinite(fj) & (fi >= 0) & (fi <= H - 1)
+        else:
+            fj = j / s
+            inside = np.isfinite(fi) & np.isfinite(fj) & (fi >= 0) & (fi <= H - 1) \
+                & (fj >= 0) & (fj <= W - 1)
         out = np.full((TILE * TILE, channels), np.nan)
         if not inside.any():
             return out
         r0, r1 = int(np.floor(fi[inside].min())), int(np.ceil(fi[inside].max()))
         c0, c1 = int(np.floor(fj[inside].min())), int(np.ceil(fj[inside].max()))
-        win = level_window(self.terrain, level, (r0, r1), (c0, c1), fields, channels)
+        win = wrapped_window(self.terrain, level, (r0, r1), (c0, c1), fields, channels,
+                             W if turn else None)
         self.decoded_windows += 1
         out[inside] = _bilinear(win, fi[inside] - r0, fj[inside] - c0)
         return out
