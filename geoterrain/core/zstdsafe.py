@@ -4,17 +4,13 @@ Decompression: a stored frame never decodes to more than expected.
 
 Frames are written without zstd's 4-byte magic number (:func:`compress_one`,
 :func:`compress_many`; store schema 10, issue 51): a store frames every blob and
-catalog row itself, with a checksum, so the magic only cost 4 bytes a blob (about 1 %
-of a store of 65² tiles). The rest of the frame is zstd's own format unchanged (zstd's
-"magicless" format is exactly a frame less its magic), and :func:`decompress` reads
-both: a frame that starts with the magic as it is, any other with the magic put back.
-No frame without the magic starts with it: its first byte, the frame header
-descriptor, would have the reserved bit 3 set, and zstd refuses that.
-
-A zstd frame may declare its content size, and the decompressor then allocates
-that much whatever ``max_output_size`` says: a 0.5 MB "bomb" can ask for 16 GiB.
-Every blob of a store has a size known from the grid and its kind, so the
-declared size is checked first, and frames without one are decoded with a cap.
+catalog row itself, with a checksum, so the magic only cost 4 bytes a blob (0.2–0.8 % of
+the shared DEMs' stores); the metadata's row alone keeps it (docs/store.md). The rest
+of the frame is zstd's own format unchanged (zstd's "magicless" format is exactly a
+frame less its magic), and :func:`decompress` reads both: a frame that starts with the
+magic as it is, any other with the magic put back. No frame without the magic starts
+with it: its first byte, the frame header descriptor, would have the reserved bit 3
+set, and zstd refuses that.
 """
 
 from __future__ import annotations

@@ -177,7 +177,10 @@ def pack_metadata(items: dict) -> bytes:
     {'a': [2.5, None], 'b': 1}
     """
     text = json.dumps(items, sort_keys=True)
-    return zstdsafe.compress_one(text.encode(), _ZSTD_STRONG)
+    # the one frame kept whole, with zstd's magic number (4 bytes a store): a geoterrain
+    # from before schema 10 then reads the schema version and says to upgrade, rather
+    # than calling the file damaged
+    return zstandard.ZstdCompressor(level=_ZSTD_STRONG).compress(text.encode())
 
 
 def unpack_metadata(data: bytes) -> dict:
