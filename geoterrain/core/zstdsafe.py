@@ -2,6 +2,11 @@
 
 Decompression: a stored frame never decodes to more than expected.
 
+A zstd frame may declare its content size, and the decompressor then allocates
+that much whatever ``max_output_size`` says: a 0.5 MB "bomb" can ask for 16 GiB.
+Every blob of a store has a size known from the grid and its kind, so the
+declared size is checked first, and frames without one are decoded with a cap.
+
 Frames are written without zstd's 4-byte magic number (:func:`compress_one`,
 :func:`compress_many`; store schema 10, issue 51): a store frames every blob and
 catalog row itself, with a checksum, so the magic only cost 4 bytes a blob (0.2–0.8 % of
