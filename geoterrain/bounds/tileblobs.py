@@ -341,14 +341,14 @@ def _level_payloads(codes, nrm, ys, xs, t, level, new_only, out):
 def compress_rows(rows: np.ndarray | list[np.ndarray], prefix: bytes | list[bytes] = b"",
                   level: int = _ZSTD_LEVEL) -> list[bytes]:
     """``prefix + zstd(row)`` of every row of a 2-D uint8 array (or a list of uint8 rows),
-    in one call on every core (``prefix`` may be one per row).
+    in one call on every core (``prefix`` may be one per row); frames without their magic
+    number, as :func:`geoterrain.core.zstdsafe.compress_many` writes them.
 
     Examples
     --------
     >>> rows = np.arange(12, dtype=np.uint8).reshape(3, 4)
-    >>> import zstandard
-    >>> d = zstandard.ZstdDecompressor()
-    >>> [d.decompress(b[1:]) == r.tobytes() for b, r in zip(compress_rows(rows, b"v"), rows)]
+    >>> from geoterrain.core.zstdsafe import decompress
+    >>> [decompress(b[1:], 4) == r.tobytes() for b, r in zip(compress_rows(rows, b"v"), rows)]
     [True, True, True]
     """
     if not isinstance(rows, list):  # a list: rows of different lengths

@@ -272,7 +272,7 @@ def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
         payload = np.ascontiguousarray(v, np.uint8).tobytes()
     else:
         payload = np.ascontiguousarray(v, np.float16).view(np.uint8).reshape(-1, 2).T.tobytes()
-    return bytes([VERSION_2, flags, int(e) & 0xFF]) + cctx.compress(payload)
+    return bytes([VERSION_2, flags, int(e) & 0xFF]) + zstdsafe.strip_magic(cctx.compress(payload))
 
 
 def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
@@ -473,7 +473,7 @@ def pack_block_errors(blocks: np.ndarray) -> bytes:
     (True, np.float64(inf))
     """
     a = round_up(np.asarray(blocks, np.float64), np.float32).astype("<f4")
-    return zstandard.ZstdCompressor(level=6).compress(np.ascontiguousarray(a).tobytes())
+    return zstdsafe.compress_one(np.ascontiguousarray(a).tobytes(), 6)
 
 
 def unpack_block_errors(blob: bytes, nb: int | tuple[int, int], levels: int) -> np.ndarray:

@@ -117,7 +117,7 @@ def pack_stream(n: int, m: int, pieces, fast: bool = False) -> bytes:
     size = 8 * (n * (1 + len(TILE_COLUMNS)) + 2 * m)
     level = _ZSTD_STRONG if size <= _ZSTD_STRONG_MAX and not fast else 3
     z = zstandard.ZstdCompressor(level=level).compressobj(size=size)
-    packed = b"".join([z.compress(c) for c in pieces()] + [z.flush()])
+    packed = zstdsafe.strip_magic(b"".join([z.compress(c) for c in pieces()] + [z.flush()]))
     if size > RATIO_CAP * len(packed) + _RATIO_SLACK:
         return _HEAD.pack(0, n, m) + b"".join(pieces())
     return _HEAD.pack(1, n, m) + packed
@@ -177,6 +177,9 @@ def pack_metadata(items: dict) -> bytes:
     {'a': [2.5, None], 'b': 1}
     """
     text = json.dumps(items, sort_keys=True)
+    # the one frame kept whole, with zstd's magic number (4 bytes a store): a geoterrain
+    # from before schema 10 then reads the schema version and says to upgrade, rather
+    # than calling the file damaged
     return zstandard.ZstdCompressor(level=_ZSTD_STRONG).compress(text.encode())
 
 

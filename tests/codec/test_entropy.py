@@ -12,6 +12,7 @@ from geoterrain.codec.entropy import MASK_ALL_INVALID, MASK_ALL_VALID, MASK_STOR
 from geoterrain.codec.predict import fill_level
 from geoterrain.codec.pyramid import decode_tile, encode_pyramid
 from geoterrain.codec.quantize import Quantizer
+from geoterrain.core.zstdsafe import MAGIC, compress_one
 
 pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
@@ -204,10 +205,11 @@ def test_a_lossless_float_store_has_wide_blobs_below_its_top():
     np.testing.assert_array_equal(codes_to_heights(child, q)[ok], z[:65, 64:][ok])
     import zstandard
     b = blobs[(0, 1, 0)]
-    raw = zstandard.ZstdDecompressor().decompress(b[4:])
+    raw = zstandard.ZstdDecompressor().decompress(MAGIC + b[4:])  # stored without it
     for bad in (raw + b"x", raw[:-1]):
-        with pytest.raises(ValueError):
-            decode_tile(b[:4] + zstandard.ZstdCompressor().compress(bad), top, q, (1, 0))
+        for frame in (zstandard.ZstdCompressor().compress(bad), compress_one(bad)):
+            with pytest.raises(ValueError):
+                decode_tile(b[:4] + frame, top, q, (1, 0))
 
 
 @settings(max_examples=60, deadline=None)
@@ -278,5 +280,6 @@ def test_wide_blobs_of_a_level_are_each_tiles_own(seed, cubic, holes):
                         for b in range(w))
         blob = got[(0, int(xs[q]), int(ys[q]))]
         assert blob[:4] == _header(False, int(kinds[q]), te, cubic, w)
-        assert zstandard.ZstdDecompressor().decompress(blob[4:]) == mask + body
+        assert blob[4:8] != MAGIC  # stored without zstd's magic number (schema 10)
+        assert zstandard.ZstdDecompressor().decompress(MAGIC + blob[4:]) == mask + body
     assert cubic or len(widths) >= 2  # (the cubic stencil reaches the neighbours' scales)

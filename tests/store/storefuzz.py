@@ -48,8 +48,9 @@ class _Timeout(Exception):
     pass
 
 
-def zstd_bomb(declared: int, blocks: int = 64) -> bytes:
-    """A zstd frame declaring ``declared`` bytes (0: no size) made of 128 KiB RLE blocks."""
+def zstd_bomb(declared: int, blocks: int = 64, magic: bool = True) -> bytes:
+    """A zstd frame declaring ``declared`` bytes (0: no size) made of 128 KiB RLE blocks;
+    without its magic number when not ``magic``, as a store holds its frames."""
     if declared:
         head = struct.pack("<IB", 0xFD2FB528, 0xE0) + struct.pack("<Q", declared)
     else:
@@ -59,7 +60,7 @@ def zstd_bomb(declared: int, blocks: int = 64) -> bytes:
     for k in range(blocks):
         hdr = (size << 3) | (1 << 1) | (1 if k == blocks - 1 else 0)
         body += struct.pack("<I", hdr)[:3] + b"\0"
-    return head + body
+    return head + body if magic else head[4:] + body
 
 
 def _blob_crc(key, kind, data):
@@ -169,13 +170,14 @@ def mutate(path: Path, rng: random.Random) -> str:
             k = rng.choice(keys)
             bk = k[3]
             declared = rng.choice([0, 16 << 30, 1 << 40, 200 << 20])
-            frame = zstd_bomb(declared, rng.choice([2, 64, 512]))
+            magic = bool(rng.choice([True, False]))
+            frame = zstd_bomb(declared, rng.choice([2, 64, 512]), magic)
             old = read_blob(con, k)[0]
             prefix = {"heights": 3, "delta": 2, "radius": 2, "normals": 0, "delta_edge": 2,
                       "block_delta": 0}[bk]
             data = old[:prefix] + frame
             update_blob(con, k, data=data, crc32=_blob_crc(k[:3], bk, data))
-            desc = f"zstd bomb in {k} declaring {declared}"
+            desc = f"zstd bomb in {k} declaring {declared} ({'with' if magic else 'no'} magic)"
         elif kind == "keyjunk":  # a blob key pointing or keyed where no row is
             k = rng.choice(keys)
             bk = blob_key(k[:3], k[3])

@@ -56,11 +56,11 @@ def _meta(field, value, group=None):
     return f
 
 
-def _bomb(store):
+def _bomb(store, magic=True):
     con = sqlite3.connect(store)
     k = max(blob_keys(con, "heights"))  # the top tile's
     old = read_blob(con, k)[0]
-    data = old[:3] + zstd_bomb(16 << 30, 8)  # the 3-byte header, then a frame
+    data = old[:3] + zstd_bomb(16 << 30, 8, magic)  # the 3-byte header, then a frame
     update_blob(con, k, data=data, crc32=blob_crc(k[:3], "heights", data))
     con.commit()
     con.close()
@@ -135,8 +135,12 @@ STORE_CASES = [
     ("trigger", lambda s: _sql(s, "CREATE TRIGGER t AFTER INSERT ON catalog BEGIN SELECT 1; END"),
      ["info", "{store}"], 1),
     ("zstd-bomb", _bomb, ["mesh", "{store}", "-o", "{d}/m.ply"], 1),
+    ("zstd-bomb-magicless", lambda s: _bomb(s, magic=False),
+     ["mesh", "{store}", "-o", "{d}/m.ply"], 1),
     ("escape-in-metadata", _meta("schema_version", "\x1b[31mred"), ["info", "{store}"], 1),
     ("old-schema", _meta("schema_version", 1), ["info", "{store}"], 1),
+    ("schema-8-frames-with-magic", _meta("schema_version", 8), ["info", "{store}"], 1),
+    ("schema-9-frames-with-magic", _meta("schema_version", 9), ["info", "{store}"], 1),
     ("south-up", _south_up, ["info", "{store}"], 1),
     ("unit-to-m-1e-300", _meta("unit_to_m", 1e-300, "frame"), ["info", "{store}"], 1),
     ("z-to-m-unknown", _meta("z_to_m", 0.5, "frame"), ["info", "{store}"], 1),
