@@ -288,16 +288,12 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
         rgb, (lo, hi) = colorbar_colours(terrain_palette(terrain, cmap),
                                          elevation_range(terrain),
                                          tolerance=height_tolerance(terrain))
-        bx1 = x1 - pad
-        bx0 = bx1 - 0.9 * fs
-        by0, by1 = y0 + pad + 0.5 * fs, y1 - pad - 0.5 * fs
+        bx0, by0, bx1, by1 = colorbar_rect(layout)
         if layout.compact:  # the unit above the bar
-            by0 += 1.1 * fs
             text.put("colorbar", 0.5 * (bx0 + bx1), y0 + pad + 0.55 * fs, "m", 0.85 * fs)
         if layout.swatch is not None:  # water without depth: its own swatch, no range
             sw = 0.9 * fs
-            sy1 = by1
-            by1 -= sw + 0.6 * fs
+            sy1 = by1 + sw + 0.6 * fs
             lay.rect((bx0, sy1 - sw, bx1, sy1), fill=_bytes(layout.swatch), edge=grey(0.3),
                      lw=0.6 * PT)
             text.put("colorbar", bx0 - 0.45 * fs, sy1 - 0.5 * sw, "water", 0.85 * fs,
@@ -362,6 +358,30 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
     if extents is not None:
         extents.update(text.extents())
     return out
+
+
+def colorbar_rect(layout: Layout) -> Box:
+    """The colour bar's gradient (x0, y0, x1, y1) in its box of ``layout``: below the
+    unit of a compact bar, above the water's swatch.
+
+    Examples
+    --------
+    >>> lay = plan((640, 480), limits=(0.0, 3776.0))
+    >>> x0, y0, x1, y1 = colorbar_rect(lay)
+    >>> bx0, by0, bx1, by1 = lay.boxes["colorbar"]
+    >>> bx0 < x0 < x1 < bx1 and by0 < y0 < y1 < by1
+    True
+    """
+    x0, y0, x1, y1 = layout.boxes["colorbar"]
+    fs = layout.fs
+    pad = 0.5 * fs
+    bx1 = x1 - pad
+    by0, by1 = y0 + pad + 0.5 * fs, y1 - pad - 0.5 * fs
+    if layout.compact:
+        by0 += 1.1 * fs
+    if layout.swatch is not None:
+        by1 -= 0.9 * fs + 0.6 * fs
+    return bx1 - 0.9 * fs, by0, bx1, by1
 
 
 def _bytes(rgb) -> tuple[int, int, int]:
