@@ -9,7 +9,10 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from geoterrain.rendering.canvas2d import Layer
 from geoterrain.rendering.colours import Palette, colorize, water_swatch
 from geoterrain.rendering.overlays import colorbar_rect, compose, layout_for
 from geoterrain.rendering.scene import overview
@@ -18,6 +21,32 @@ from tests.rendering.test_pictures import topobathy
 from tests.rendering.test_render import synth_store
 
 SIZE = (640, 360)
+
+
+@pytest.mark.fast
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_a_layer_covers_exactly_what_it_draws(seed):
+    """A layer's opaque fill over whole pixels replaces them; a fill over half of a row
+    of pixels blends it half and half (within a level: rounding); every other pixel is
+    the picture's, bit for bit, the layer's margin included."""
+    rng = np.random.default_rng(seed)
+    img = rng.integers(0, 256, (24, 32, 3), dtype=np.uint8)
+    x0, x1 = sorted(rng.choice(np.arange(-3, 36), 2, replace=False))
+    y0, y1 = sorted(rng.choice(np.arange(-3, 28), 2, replace=False))
+    c = rng.integers(0, 256, 3)
+    lay = Layer((x0, y0 - 1, x1, y1))
+    lay.image((x0, y0 - 0.5, x1, y1), lambda y: np.broadcast_to(c, (len(y), 3)))
+    out = lay.over(img.copy())
+    inside = np.zeros((24, 32), bool)
+    inside[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = True
+    assert (out[inside] == c).all()
+    half = np.zeros((24, 32), bool)
+    if 0 <= y0 - 1 < 24:
+        half[y0 - 1, max(x0, 0):max(x1, 0)] = True
+        want = (img[half].astype(int) + c) / 2
+        assert np.abs(out[half] - want).max() <= 1.0
+    assert np.array_equal(out[~inside & ~half], img[~inside & ~half])
 
 
 def _overlaid(t, **kw):
