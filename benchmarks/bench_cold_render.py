@@ -15,7 +15,8 @@ processes that only import the render's libraries (numpy; numba and the first ca
 cached kernel, which starts numba's compiler context; matplotlib's figure and Agg canvas
 and imageio; VTK's rendering modules; PyVista), each row adding to the previous one.
 ``--no-overlays``: in the same turns, this tree's render with ``--no-overlays`` (no
-colour bar, scale bar or north arrow: matplotlib is not imported). ``--kernels``: one
+colour bar, scale bar or north arrow; neither imports matplotlib since the overlays are
+drawn on Pillow, but a baseline from before may). ``--kernels``: one
 more run of this tree, listing the kernels it loads from numba's cache
 and the CPU time of each load.
 """
