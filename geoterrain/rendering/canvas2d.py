@@ -189,8 +189,13 @@ class Layer:
         self.polygon(np.stack([a + u, b + u, b - u, a - u]), colour)
 
     def polyline(self, pts: np.ndarray, colour: RGB, lw: float) -> None:
-        """Straight strokes through the points ``pts`` ((n, 2) pixels), ``lw`` wide."""
-        xy = (np.asarray(pts, np.float64) - (self.x0, self.y0)) * SS
+        """Straight strokes through the points ``pts`` ((n, 2) pixels), ``lw`` wide;
+        snapped (:meth:`snap`) where every stroke is level or upright, as Agg does."""
+        p = np.asarray(pts, np.float64)
+        d = np.diff(p, axis=0)
+        if len(d) and ((d[:, 0] == 0) | (d[:, 1] == 0)).all():
+            p = np.floor(p + 0.5) + (0.5 if round(lw) % 2 else 0.0)
+        xy = (p - (self.x0, self.y0)) * SS
         self.draw.line(xy.ravel().tolist(), fill=colour, width=max(1, round(lw * SS)),
                        joint="curve")
 
