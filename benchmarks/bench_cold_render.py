@@ -3,7 +3,7 @@ cost before any work, and which compiled kernels it loads (issue 51: ≤ 1.5 s f
 1280×720 of the 4097² store).
 
     python benchmarks/bench_cold_render.py STORE [--runs N] [--baseline-tree DIR]
-                                          [--no-overlays] [--kernels]
+                                          [--no-overlays] [--kernels] [--no-floor]
 
 Each run is a fresh ``python -m geoterrain.cli.main render STORE -o … --size 1280x720
 --pixel-error 1 --strategy rtin``, after one unmeasured run (kernels compiled, files in the
@@ -15,9 +15,10 @@ processes that only import the render's libraries (numpy; numba and the first ca
 cached kernel, which starts numba's compiler context; matplotlib's figure and Agg canvas
 and imageio; VTK's rendering modules; PyVista), each row adding to the previous one.
 ``--no-overlays``: in the same turns, this tree's render with ``--no-overlays`` (no
-colour bar, scale bar or north arrow: matplotlib is not imported). ``--kernels``: one
-more run of this tree, listing the kernels it loads from numba's cache
-and the CPU time of each load.
+colour bar, scale bar or north arrow; neither imports matplotlib since the overlays are
+drawn on Pillow, but a baseline from before may). ``--no-floor``: without the
+import-only processes. ``--kernels``: one more run of this tree, listing the kernels it
+loads from numba's cache and the CPU time of each load.
 """
 
 from __future__ import annotations
@@ -90,6 +91,8 @@ def main() -> None:
     ap.add_argument("--no-overlays", action="store_true",
                     help="also this tree's render without overlays")
     ap.add_argument("--kernels", action="store_true", help="list the kernels loaded")
+    ap.add_argument("--no-floor", action="store_true",
+                    help="skip the import-only processes (half the run's time)")
     a = ap.parse_args()
     store = os.path.abspath(a.store)
     work = tempfile.mkdtemp(prefix="bench_cold_render")
@@ -116,7 +119,7 @@ def main() -> None:
         jobs["this tree, --no-overlays"] = (render("no overlays") + ["--no-overlays"],
                                             env_for(ROOT))
     code = ""
-    for name, c in FLOOR.items():
+    for name, c in ({} if a.no_floor else FLOOR).items():
         code += c + "\n"
         jobs[name] = ([sys.executable, "-c", code], env_for(None))
     for cmd, env in jobs.values():  # warm: kernels compiled and cached, files in memory

@@ -151,10 +151,10 @@ def colorize(h: np.ndarray, palette: Palette, data_range: tuple[float, float],
     return rgb.astype(np.float32)
 
 
-def colorbar_map(palette: Palette, data_range: tuple[float, float], n: int = 256,
-                 tolerance: float = 0.0):
-    """(matplotlib ListedColormap, (lo, hi)) that draws exactly the colours of
-    :func:`colorize` (with the same ``tolerance``) over the heights the colours span.
+def colorbar_colours(palette: Palette, data_range: tuple[float, float], n: int = 256,
+                     tolerance: float = 0.0) -> tuple[np.ndarray, tuple[float, float]]:
+    """((n, 3) float32 RGB, (lo, hi)): the colours of :func:`colorize` (with the same
+    ``tolerance``) at ``n`` heights evenly spaced over the range the colour bar spans.
 
     The range is never wider than the data's (or ``clim``): where water has no depth in
     the data (its lowest heights are the water level, as a sea of SRTM zeros), the bar is
@@ -162,12 +162,10 @@ def colorbar_map(palette: Palette, data_range: tuple[float, float], n: int = 256
 
     Examples
     --------
-    >>> cm, (lo, hi) = colorbar_map(Palette("auto"), (0.0, 1500.0))
-    >>> lo, hi  # no sea range below 0 m that the data does not have
-    (0.0, 1500.0)
+    >>> rgb, (lo, hi) = colorbar_colours(Palette("auto"), (0.0, 1500.0))
+    >>> rgb.shape, (lo, hi)  # no sea range below 0 m that the data does not have
+    ((256, 3), (0.0, 1500.0))
     """
-    import matplotlib
-
     lo, hi = palette.clim if palette.clim is not None else data_range
     if hi <= lo:
         lo, hi = lo - 0.5, lo + 0.5
@@ -176,8 +174,24 @@ def colorbar_map(palette: Palette, data_range: tuple[float, float], n: int = 256
     if water_swatch(palette, data_range, tolerance) is not None:
         # the bar's lowest colour is the land's just above the water, not the water's
         z[0] = np.nextafter(max(lo, wl + tolerance), np.inf)
-    rgb = colorize(z, palette, data_range, tolerance)
-    return matplotlib.colors.ListedColormap(rgb), (lo, hi)
+    return colorize(z, palette, data_range, tolerance), (lo, hi)
+
+
+def colorbar_map(palette: Palette, data_range: tuple[float, float], n: int = 256,
+                 tolerance: float = 0.0):
+    """(matplotlib ListedColormap, (lo, hi)) of :func:`colorbar_colours` (imports
+    matplotlib: the viewer's and the globe's colour bars).
+
+    Examples
+    --------
+    >>> cm, (lo, hi) = colorbar_map(Palette("auto"), (0.0, 1500.0))
+    >>> cm.N, (lo, hi)
+    (256, (0.0, 1500.0))
+    """
+    import matplotlib.colors
+
+    rgb, lim = colorbar_colours(palette, data_range, n, tolerance)
+    return matplotlib.colors.ListedColormap(rgb), lim
 
 
 def water_swatch(palette: Palette, data_range: tuple[float, float],

@@ -21,6 +21,7 @@ import numpy as np
 
 from geoterrain.core.view import View
 from geoterrain.rendering.cameras import project, terrain_bounds
+from geoterrain.rendering.canvas2d import Layer, Text, grey
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -117,29 +118,23 @@ def grid_lines(terrain: TerrainLike, view: View) -> list[GridLine]:
     return out
 
 
-def draw_map_grid(ax, terrain: TerrainLike, view: View, fs: float) -> dict:
-    """Draw the map's neat line, grid lines (clipped to it), ticks and labels on ``ax``
-    (a matplotlib axes over the picture, pixels, y down); returns the labels' texts by
-    name ("grid") for the caller's extents."""
-    import matplotlib
-
-    pt = 72.0 / 100.0
-    x0, y0, x1, y1 = map_rect(terrain, view)
-    frame = matplotlib.patches.Rectangle((x0, y0), x1 - x0, y1 - y0, fc="none", ec="0.15",
-                                         lw=0.9, zorder=3)
-    ax.add_patch(frame)
-    texts = []
+def draw_map_grid(text: Text, terrain: TerrainLike, view: View, fs: float) -> list[Layer]:
+    """The map's neat line, grid lines (clipped to it, translucent), ticks and labels:
+    the layers to composite over the picture, in order, and the labels put on ``text``
+    under the name "grid"."""
+    pt = 100.0 / 72.0  # pixels per point, as the overlays' strokes
+    rect = map_rect(terrain, view)
+    x0, y0, x1, y1 = rect
+    lines = Layer(rect, alpha=0.35, clip=True)
+    marks = Layer((x0 - fs, y0, x1, y1 + fs))
+    marks.frame(rect, grey(0.15), 0.9 * pt)
     tick = 0.45 * fs
     for ln in grid_lines(terrain, view):
-        (line,) = ax.plot(ln.px[:, 0], ln.px[:, 1], color="0.1", alpha=0.35, lw=0.6,
-                          zorder=2.5)
-        line.set_clip_path(frame)
+        lines.polyline(ln.px, grey(0.1), 0.6 * pt)
         if ln.side == "bottom":
-            ax.plot([ln.at, ln.at], [y1, y1 + tick], color="0.15", lw=0.8, zorder=3)
-            texts.append(ax.text(ln.at, y1 + tick + 0.1 * fs, ln.label, ha="center",
-                                 va="top", fontsize=0.8 * fs * pt, zorder=4))
+            marks.segment((ln.at, y1), (ln.at, y1 + tick), grey(0.15), 0.8 * pt, True)
+            text.put("grid", ln.at, y1 + tick + 0.1 * fs, ln.label, 0.8 * fs, va="top")
         else:
-            ax.plot([x0 - tick, x0], [ln.at, ln.at], color="0.15", lw=0.8, zorder=3)
-            texts.append(ax.text(x0 - tick - 0.15 * fs, ln.at, ln.label, ha="right",
-                                 va="center", fontsize=0.8 * fs * pt, zorder=4))
-    return {"grid": texts}
+            marks.segment((x0 - tick, ln.at), (x0, ln.at), grey(0.15), 0.8 * pt, True)
+            text.put("grid", x0 - tick - 0.15 * fs, ln.at, ln.label, 0.8 * fs, ha="right")
+    return [lines, marks]

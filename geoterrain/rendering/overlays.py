@@ -5,7 +5,9 @@ in a column on the right (north arrow at the top, colour bar, scale bar at the
 bottom) and a title strip at the top; :func:`plan` says where they go and which
 rectangle they leave free, and the default framing
 (:func:`geoterrain.rendering.scene.overview`) fits the terrain into that free
-rectangle, so the overlays never cover it.
+rectangle, so the overlays never cover it. They are drawn with
+:mod:`geoterrain.rendering.canvas2d` (Pillow, loaded anyway to write the PNG): a render
+does not import matplotlib, which cost a cold render about 0.4 s.
 
 Examples
 --------
@@ -29,7 +31,9 @@ import numpy as np
 
 from geoterrain.core.view import View
 from geoterrain.rendering.cameras import project
-from geoterrain.rendering.colours import Palette, colorbar_map, water_swatch
+from geoterrain.rendering.canvas2d import Layer, Text, grey
+from geoterrain.rendering.canvas2d import text_size as _text_size
+from geoterrain.rendering.colours import Palette, colorbar_colours, water_swatch
 from geoterrain.rendering.textures import elevation_range, height_tolerance, terrain_palette
 
 if TYPE_CHECKING:
@@ -81,11 +85,9 @@ class Layout:
     scale_note: str = "at view centre"
 
 
-_MEASURE: dict = {}
-
-
 def text_size(s: str, fs: float, bold: bool = False) -> tuple[float, float]:
-    """(width, height) in pixels of ``s`` at ``fs`` pixels (matplotlib's own metrics).
+    """(width, height) in pixels of ``s`` at ``fs`` pixels, in the font the overlays are
+    drawn with (:func:`geoterrain.rendering.canvas2d.text_size`).
 
     Examples
     --------
@@ -93,14 +95,7 @@ def text_size(s: str, fs: float, bold: bool = False) -> tuple[float, float]:
     >>> w > h > 0
     True
     """
-    from matplotlib.backends.backend_agg import RendererAgg
-    from matplotlib.font_manager import FontProperties
-
-    if "r" not in _MEASURE:
-        _MEASURE["r"] = RendererAgg(10, 10, DPI)
-    prop = FontProperties(size=fs * 72.0 / DPI, weight="bold" if bold else "normal")
-    w, h, _ = _MEASURE["r"].get_text_width_height_descent(s, prop, ismath=False)
-    return float(w), float(h)
+    return _text_size(s, fs, bold)
 
 
 def _ticks(lo: float, hi: float) -> list[tuple[float, str]]:
@@ -227,7 +222,7 @@ def layout_for(terrain: TerrainLike, size: tuple[int, int], *, shading: str = "n
     if colorbar and shading != "plain":
         pal, rng = terrain_palette(terrain, cmap), elevation_range(terrain)
         tol = height_tolerance(terrain)
-        _, limits = colorbar_map(pal, rng, tolerance=tol)
+        _, limits = colorbar_colours(pal, rng, tolerance=tol)
         swatch = water_swatch(pal, rng, tol)
     return plan(size, title=title, limits=limits, scale_bar=scale_bar,
                 north_arrow=north_arrow, ve=ve, swatch=swatch, exact_scale=exact_scale,
@@ -270,72 +265,54 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
                             ve=ve, exact_scale=view.parallel)
     if not layout.boxes and not view.parallel:
         return img
-    import matplotlib
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    img = np.array(img, np.uint8, copy=True)
+    text = Text()
+    shapes: list[Layer] = []
+    if view.parallel:  # a map: its neat line, grid and labels in the DEM's coordinates
+        from geoterrain.rendering.mapgrid import draw_map_grid
 
-    # the overlays are drawn on a transparent figure and blended over the picture after:
-    # drawing the picture itself through the figure (an imshow, resampled and composited
-    # by Agg) cost 45 ms a frame, and 170 ms more in a cold process
-    fig = Figure(figsize=(W / DPI, H / DPI), dpi=DPI, facecolor="none")
-    FigureCanvasAgg(fig)
-    ax = fig.add_axes((0, 0, 1, 1))
-    ax.axis("off")
+        shapes += draw_map_grid(text, terrain, view, layout.fs)
     fs = layout.fs
-    pt = 72.0 / DPI
     pad = 0.5 * fs
-    texts: dict[str, list] = {}
+    PT = DPI / 72.0  # pixels per point: the strokes' widths as matplotlib drew them
 
     def box(name):
-        x0, y0, x1, y1 = layout.boxes[name]
-        ax.add_patch(matplotlib.patches.Rectangle((x0, y0), x1 - x0, y1 - y0, fc="white",
-                                                  ec="0.55", lw=0.8, zorder=2))
-        return x0, y0, x1, y1
-
-    def text(name, *a, **kw):
-        texts.setdefault(name, []).append(ax.text(*a, zorder=4, **kw))
+        lay = Layer(layout.boxes[name])
+        lay.rect(layout.boxes[name], fill=(255, 255, 255), edge=grey(0.55), lw=0.8 * PT)
+        shapes.append(lay)
+        return (lay, *layout.boxes[name])
 
     if "title" in layout.boxes:
-        x0, y0, x1, y1 = box("title")
-        text("title", 0.5 * (x0 + x1), 0.5 * (y0 + y1), title, ha="center", va="center",
-             fontsize=1.3 * fs * pt, weight="bold")
+        _, x0, y0, x1, y1 = box("title")
+        text.put("title", 0.5 * (x0 + x1), 0.5 * (y0 + y1), title, 1.3 * fs, bold=True)
     if "colorbar" in layout.boxes:
-        x0, y0, x1, y1 = box("colorbar")
-        cm, (lo, hi) = colorbar_map(terrain_palette(terrain, cmap), elevation_range(terrain),
-                                    tolerance=height_tolerance(terrain))
-        bx1 = x1 - pad
-        bx0 = bx1 - 0.9 * fs
-        by0, by1 = y0 + pad + 0.5 * fs, y1 - pad - 0.5 * fs
+        lay, x0, y0, x1, y1 = box("colorbar")
+        rgb, (lo, hi) = colorbar_colours(terrain_palette(terrain, cmap),
+                                         elevation_range(terrain),
+                                         tolerance=height_tolerance(terrain))
+        bx0, by0, bx1, by1 = colorbar_rect(layout)
         if layout.compact:  # the unit above the bar
-            by0 += 1.1 * fs
-            text("colorbar", 0.5 * (bx0 + bx1), y0 + pad + 0.55 * fs, "m", ha="center",
-                 va="center", fontsize=0.85 * fs * pt)
+            text.put("colorbar", 0.5 * (bx0 + bx1), y0 + pad + 0.55 * fs, "m", 0.85 * fs)
         if layout.swatch is not None:  # water without depth: its own swatch, no range
             sw = 0.9 * fs
-            sy1 = by1
-            by1 -= sw + 0.6 * fs
-            ax.add_patch(matplotlib.patches.Rectangle((bx0, sy1 - sw), bx1 - bx0, sw,
-                                                      fc=layout.swatch, ec="0.3", lw=0.6,
-                                                      zorder=3))
-            text("colorbar", bx0 - 0.45 * fs, sy1 - 0.5 * sw, "water", ha="right",
-                 va="center", fontsize=0.85 * fs * pt)
-        grad = np.linspace(1, 0, 256)[:, None]
-        ax.imshow(grad, cmap=cm, vmin=0, vmax=1, aspect="auto", extent=(bx0, bx1, by1, by0),
-                  zorder=3, interpolation="bilinear")
-        ax.add_patch(matplotlib.patches.Rectangle((bx0, by0), bx1 - bx0, by1 - by0, fc="none",
-                                                  ec="0.3", lw=0.6, zorder=3))
+            sy1 = by1 + sw + 0.6 * fs
+            lay.rect((bx0, sy1 - sw, bx1, sy1), fill=_bytes(layout.swatch), edge=grey(0.3),
+                     lw=0.6 * PT)
+            text.put("colorbar", bx0 - 0.45 * fs, sy1 - 0.5 * sw, "water", 0.85 * fs,
+                     ha="right")
+        lay.image((bx0, by0, bx1, by1), lambda y: bar_colours(rgb, (by1 - y) / (by1 - by0)))
+        lay.frame((bx0, by0, bx1, by1), grey(0.3), 0.6 * PT)
         for v, s in layout.ticks:
             yy = by1 - (v - lo) / (hi - lo) * (by1 - by0)
-            ax.plot([bx0 - 0.3 * fs, bx0], [yy, yy], color="0.2", lw=0.8, zorder=3)
-            text("colorbar", bx0 - 0.45 * fs, yy, s, ha="right", va="center",
-                 fontsize=0.85 * fs * pt)
+            lay.segment((bx0 - 0.3 * fs, yy), (bx0, yy), grey(0.2), 0.8 * PT, True)
+            text.put("colorbar", bx0 - 0.45 * fs, yy, s, 0.85 * fs, ha="right")
         if not layout.compact:
-            text("colorbar", x0 + pad + 0.6 * fs, 0.5 * (by0 + by1), "elevation (m)",
-                 rotation=90, ha="center", va="center", fontsize=fs * pt)
+            text.put("colorbar", x0 + pad + 0.6 * fs, 0.5 * (by0 + by1), "elevation (m)", fs,
+                     rotate=True)
     target = np.asarray(view.look_at, np.float64)
     r, _, _ = view.basis()
     if "scale_bar" in layout.boxes:
-        x0, y0, x1, y1 = box("scale_bar")
+        lay, x0, y0, x1, y1 = box("scale_bar")
         avail = x1 - x0 - 2 * pad
         rh = np.array([r[0], r[1], 0.0])
         px, length = 0.0, 0.0
@@ -351,46 +328,84 @@ def compose(img: np.ndarray, view: View, terrain: TerrainLike, *, shading: str =
         cx = 0.5 * (x0 + x1)
         yb = y0 + pad + 1.2 * fs + 0.3 * fs
         if np.isfinite(px) and 2 < px <= avail + 0.5:
-            ax.plot([cx - px / 2, cx + px / 2], [yb, yb], color="black", lw=3,
-                    solid_capstyle="butt", zorder=3)
+            lay.segment((cx - px / 2, yb), (cx + px / 2, yb), (0, 0, 0), 3 * PT)
             for xx in (cx - px / 2, cx + px / 2):
-                ax.plot([xx, xx], [yb - 0.3 * fs, yb + 0.3 * fs], color="black", lw=1.2,
-                        zorder=3)
-            text("scale_bar", cx, yb - 0.4 * fs, _fmt_len(length), ha="center", va="bottom",
-                 fontsize=fs * pt)
+                lay.segment((xx, yb - 0.3 * fs), (xx, yb + 0.3 * fs), (0, 0, 0), 1.2 * PT,
+                            True)
+            text.put("scale_bar", cx, yb - 0.4 * fs, _fmt_len(length), fs, va="bottom")
             if layout.scale_note:
-                text("scale_bar", cx, yb + 0.5 * fs, layout.scale_note, ha="center",
-                     va="top", fontsize=0.8 * fs * pt)
+                text.put("scale_bar", cx, yb + 0.5 * fs, layout.scale_note, 0.8 * fs,
+                         va="top")
         if ve != 1:
-            text("scale_bar", cx, y1 - pad, _fmt_ve(ve), ha="center", va="bottom",
-                 fontsize=0.8 * fs * pt)
+            text.put("scale_bar", cx, y1 - pad, _fmt_ve(ve), 0.8 * fs, va="bottom")
     if "north_arrow" in layout.boxes:
-        x0, y0, x1, y1 = box("north_arrow")
+        lay, x0, y0, x1, y1 = box("north_arrow")
         d = north_direction(view)
         if d is not None:
             c = np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1)])
             R = 1.8 * fs
-            ax.add_patch(matplotlib.patches.Circle(c, R, fc="none", ec="0.7", lw=0.8, zorder=3))
-            ax.annotate("", xy=c + 0.4 * R * d, xytext=c - 0.7 * R * d, zorder=3,
-                        arrowprops=dict(arrowstyle="-|>", lw=2, color="black",
-                                        mutation_scale=0.9 * fs))
-            text("north_arrow", *(c + 0.72 * R * d), "N", ha="center", va="center",
-                 fontsize=0.8 * fs * pt, weight="bold")
-    if view.parallel:  # a map: its neat line, grid and labels in the DEM's coordinates
-        from geoterrain.rendering.mapgrid import draw_map_grid
-
-        texts.update(draw_map_grid(ax, terrain, view, fs))
-    ax.set_xlim(0, W)
-    ax.set_ylim(H, 0)
-    fig.canvas.draw()
+            lay.ring(c, R, grey(0.7), 0.8 * PT)
+            # matplotlib's "-|>" arrow: its ends pulled in 2 pt, a head 0.4 × 0.2 of its
+            # mutation scale (0.9 fs points), stroked as the shaft
+            tail, tip = c - 0.7 * R * d + 2 * PT * d, c + 0.4 * R * d - 2 * PT * d
+            hl, hw = 0.4 * 0.9 * fs * PT, 0.2 * 0.9 * fs * PT
+            n = np.array([-d[1], d[0]])
+            lay.segment(tail, tip - 0.5 * hl * d, (0, 0, 0), 2 * PT)
+            lay.polygon(np.stack([tip, tip - hl * d + hw * n, tip - hl * d - hw * n]),
+                        (0, 0, 0), 2 * PT)
+            text.put("north_arrow", *(c + 0.72 * R * d), "N", 0.8 * fs, bold=True)
+    for lay in shapes:  # under the text
+        lay.over(img)
+    out = text.draw_on(img)
     if extents is not None:
-        rend = fig.canvas.get_renderer()
-        for name, ts in texts.items():
-            bbs = [t.get_window_extent(rend) for t in ts]
-            # display coordinates have y up: flip to the picture's rows
-            extents[name] = (min(b.x0 for b in bbs), H - max(b.y1 for b in bbs),
-                             max(b.x1 for b in bbs), H - min(b.y0 for b in bbs))
-    return canvas_over(fig, img)
+        extents.update(text.extents())
+    return out
+
+
+def colorbar_rect(layout: Layout) -> Box:
+    """The colour bar's gradient (x0, y0, x1, y1) in its box of ``layout``: below the
+    unit of a compact bar, above the water's swatch.
+
+    Examples
+    --------
+    >>> lay = plan((640, 480), limits=(0.0, 3776.0))
+    >>> x0, y0, x1, y1 = colorbar_rect(lay)
+    >>> bx0, by0, bx1, by1 = lay.boxes["colorbar"]
+    >>> bx0 < x0 < x1 < bx1 and by0 < y0 < y1 < by1
+    True
+    """
+    x0, y0, x1, y1 = layout.boxes["colorbar"]
+    fs = layout.fs
+    pad = 0.5 * fs
+    bx1 = x1 - pad
+    by0, by1 = y0 + pad + 0.5 * fs, y1 - pad - 0.5 * fs
+    if layout.compact:
+        by0 += 1.1 * fs
+    if layout.swatch is not None:
+        by1 -= 0.9 * fs + 0.6 * fs
+    return bx1 - 0.9 * fs, by0, bx1, by1
+
+
+def _bytes(rgb) -> tuple[int, int, int]:
+    return tuple(int(round(255 * float(c))) for c in rgb[:3])
+
+
+def bar_colours(rgb: np.ndarray, frac: np.ndarray) -> np.ndarray:
+    """The colour bar's colours (uint8) at fractions ``frac`` of its height (0 its foot):
+    the table ``rgb`` (n colours, each the centre of an n-th of the bar) interpolated
+    linearly, as an image of it is drawn smoothly.
+
+    Examples
+    --------
+    >>> rgb = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
+    >>> bar_colours(rgb, np.array([0.0, 0.5, 1.0]))[:, 0].tolist()
+    [0, 128, 255]
+    """
+    k = np.clip(np.asarray(frac, np.float64) * len(rgb) - 0.5, 0, len(rgb) - 1)
+    i = np.minimum(k.astype(np.int64), len(rgb) - 2) if len(rgb) > 1 else k.astype(np.int64)
+    w = (k - i)[:, None] if len(rgb) > 1 else 0.0
+    c = rgb[i] * (1 - w) + (rgb[np.minimum(i + 1, len(rgb) - 1)] * w)
+    return np.round(255 * np.clip(c, 0, 1)).astype(np.uint8)
 
 
 def canvas_over(fig, img: np.ndarray) -> np.ndarray:

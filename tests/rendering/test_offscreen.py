@@ -25,7 +25,12 @@ from geoterrain.rendering.colours import Palette
 from geoterrain.rendering.mapview import map_view
 from geoterrain.rendering.scene import TerrainScene, overview
 from geoterrain.rendering.shading import Light
-from geoterrain.rendering.window import offscreen_plotter, pyvista_plotter, write_png
+from geoterrain.rendering.window import (
+    PNG_LEVEL,
+    offscreen_plotter,
+    pyvista_plotter,
+    write_png,
+)
 from tests.conftest import write_tif
 
 SIZE = (160, 120)
@@ -102,7 +107,7 @@ def test_png_bytes_are_imageios(tmp_path):
     out = tmp_path / "a.png"
     write_png(out, img)
     ref = io.BytesIO()
-    iio.imwrite(ref, img, extension=".png", compress_level=3)
+    iio.imwrite(ref, img, extension=".png", compress_level=PNG_LEVEL)
     assert out.read_bytes() == ref.getvalue()
     assert np.array_equal(iio.imread(out), img)
 
