@@ -14,6 +14,7 @@ Usage:
                                                [--window 65]
     python benchmarks/bench_root_grids.py streamed [--runs 3] [--memory-limit 1G]
                                                    [--square-wide] [--geographic]
+                                                   [--baseline CHECKOUT]
     python benchmarks/bench_root_grids.py flat [--runs 3] [--memory-limit 1G]
     python benchmarks/bench_root_grids.py default [--runs 3] [--tile-size 64]
     python benchmarks/bench_root_grids.py static [--errors 174,5,1]
@@ -100,7 +101,11 @@ CPU time and the peak RSS (VmHWM), the ratios to the square raster of the same r
 the load with every run. ``--geographic``: the same rasters in EPSG:4326 (3 arc-seconds,
 from 10° E, 47° N; heights 0–3000 m), the band the limit gives a geographic grid
 (``band_rows(..., geographic=True)``), so the metric terms, the curvilinear radii and
-level 0's slack run in bands on the roots' extent.
+level 0's slack run in bands on the roots' extent. ``--baseline``: another checkout's
+tree (e.g. ``/work/main``, put first on ``PYTHONPATH``; this interpreter and its
+packages) runs every case too, in the same rotation (``[baseline]`` rows, their ratios
+to the baseline's square); the sha256 of each store, and whether this checkout's equal
+the baseline's in every run.
 
 ``flat``: the streamed preprocess of two fBm rasters on their 2 × 1 root grids, 1025 ×
 2049 and 4097 × 8193 (rows × cols; each exactly its roots' extent), under the same
@@ -138,7 +143,9 @@ a root grid's is not yet. Counts, no timing.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -195,7 +202,7 @@ wall, cpus = time.perf_counter() - t0, cpu() - c0
 from geoterrain.core.memory import peak_rss
 g = geoterrain.open(p).grid
 print(json.dumps({"wall": wall, "cpu": cpus, "peak_mb": peak_rss() / 2**20, "band": band,
-                  "grid": g.to_json()}))
+                  "grid": g.to_json(), "code": geoterrain.__file__}))
 """
 
 
@@ -205,20 +212,25 @@ def _size(text: str) -> int:
 
 
 def _alternate(cases: dict, src: dict, d: str, runs: int, limit: int) -> dict:
-    # each case (raster, layout) streamed in a fresh process, rotating the order each run
+    # each case (raster, layout[, baseline]) streamed in a fresh process (``baseline``:
+    # another checkout's tree, first on PYTHONPATH), rotating the order each run; the
+    # store's sha256
     names = list(cases)
     out: dict[str, list[dict]] = {k: [] for k in cases}
     for r in range(runs):
         for name in names[r % len(names):] + names[:r % len(names)]:
-            raster, layout = cases[name]
+            raster, layout, *base = cases[name]
+            store = Path(d) / f"{raster}-{layout}{'-baseline' if base else ''}.geoterrain"
+            env = dict(os.environ, PYTHONPATH=base[0]) if base else None
             res = json.loads(subprocess.run(
-                [sys.executable, "-c", STREAM_CHILD, src[raster],
-                 str(Path(d) / f"{raster}-{layout}.geoterrain"), layout, str(limit)],
+                [sys.executable, "-c", STREAM_CHILD, src[raster], str(store), layout,
+                 str(limit)], cwd=d, env=env,  # cwd: not this checkout's folder (its package)
                 check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1])
+            res["sha256"] = hashlib.sha256(store.read_bytes()).hexdigest()
             out[name].append(res)
             print(f"run {r} {name}: {res['wall']:.2f} s, CPU {res['cpu']:.2f} s, "
                   f"{res['peak_mb']:.0f} MB, band {res['band']}, grid {res['grid']}, "
-                  f"load {load()}", flush=True)
+                  f"sha256 {res['sha256'][:12]}, {res['code']}, load {load()}", flush=True)
     return out
 
 
@@ -267,17 +279,25 @@ def streamed(a: argparse.Namespace) -> None:
                  "wide 1024 × 4096 on 2 × 1 roots, streamed": ("wide", "roots")}
         if a.square_wide:
             cases["wide 1024 × 4096 on the 4097² square, streamed"] = ("wide", "square")
+        if a.baseline:  # each case by the baseline checkout too, alternating
+            cases.update({f"{k} [baseline]": (*v, str(Path(a.baseline).resolve()))
+                          for k, v in list(cases.items())})
         runs = _alternate(cases, src, d, a.runs, limit)
     med = _medians(runs)
-    sq = med["square 2048², streamed"]
     print(f"\nload after: {load()}\n")
     print("| case | wall (median) | CPU (median) | peak RSS (median) | wall / square "
           "| CPU / square | peak / square |")
     print("|---|---|---|---|---|---|---|")
     for k, m in med.items():
+        sq = med["square 2048², streamed" + (" [baseline]" if k.endswith("[baseline]") else "")]
         print(f"| {k} | {m['wall']:.2f} s | {m['cpu']:.2f} s | {m['peak_mb']:.0f} MB "
               f"| {m['wall'] / sq['wall']:.2f}× | {m['cpu'] / sq['cpu']:.2f}× "
               f"| {m['peak_mb'] / sq['peak_mb']:.2f}× |")
+    for k in runs:
+        if not k.endswith("[baseline]") and f"{k} [baseline]" in runs:
+            shas = {x["sha256"] for x in runs[k] + runs[f"{k} [baseline]"]}
+            print(f"{k}: stores {'byte-identical to' if len(shas) == 1 else 'DIFFER from'} "
+                  f"the baseline's in every run (sha256 {', '.join(sorted(shas))})")
 
 
 def flat(a: argparse.Namespace) -> None:
@@ -833,6 +853,7 @@ def main() -> None:
     m.add_argument("--memory-limit", default="1G")
     m.add_argument("--square-wide", action="store_true")
     m.add_argument("--geographic", action="store_true")
+    m.add_argument("--baseline", default=None)
     f = sub.add_parser("flat")
     f.add_argument("--runs", type=int, default=3)
     f.add_argument("--memory-limit", default="1G")

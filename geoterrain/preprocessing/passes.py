@@ -193,17 +193,18 @@ def _xy_pass(job: Job) -> None:
     try:
         sx.create("X", (R, C), np.float64)
         sx.create("Y", (R, C), np.float64)
-        cols = np.arange(C)
+        cols = np.arange(C)[None, :]
         for i0 in range(0, R, job.band):
-            i, j = np.meshgrid(np.arange(i0, min(i0 + job.band, R)), cols, indexing="ij")
-            X, Y = frame.xy(i, j)
+            # a column of rows against a row of columns: frame.xy broadcasts them (the
+            # values of every (i, j) pair, without two band-sized index arrays)
+            X, Y = frame.xy(np.arange(i0, min(i0 + job.band, R))[:, None], cols)
             if not (np.isfinite(X).all() and np.isfinite(Y).all()):
                 raise InputError(f"{job.spec.label}: pyproj gives no scene position for some "
                                  "samples of the padded grid; crop the raster (gdal_translate "
                                  "-projwin) or reproject it")
             sx.write("X", i0, X)
             sx.write("Y", i0, Y)
-            i = j = X = Y = None  # before the next band's are made
+            X = Y = None  # before the next band's are made
     finally:
         sx.close()
 

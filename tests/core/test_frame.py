@@ -89,3 +89,33 @@ def test_info_does_not_import_pyproj(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     assert "PYPROJ False" in out, out
+
+
+@pytest.mark.fast
+def test_geographic_xy_is_one_pyproj_call_bit_for_bit():
+    # Frame.xy transforms its own arrays in place, split over threads: the values of one
+    # plain pyproj call on the same points, bit for bit, whether the indices come meshed or
+    # as a column and a row (the streamed xy pass), and the caller's arrays untouched
+    from geoterrain.core.frame import _transform_threads
+
+    t = (3 / 3600, 0.0, 10.0, 0.0, -3 / 3600, 47.0)
+    f = Frame.from_raster(t, CRS.from_epsg(4326).to_wkt(), 700, 1000)
+    i, j = np.arange(-5, 710)[:, None], np.arange(1000)[None, :]  # > 2 chunks; padding rows
+    ii, jj = (a.copy() for a in np.broadcast_arrays(i, j))
+    x, y = f._crs_xy(ii, jj)
+    want = [np.asarray(a) for a in f._to_scene.transform(x, np.clip(y, -90.0, 90.0))]
+    for args in ((i, j), (ii, jj)):
+        got = f.xy(*args)
+        assert [a.shape for a in got] == [ii.shape] * 2
+        assert [a.tobytes() for a in got] == [a.tobytes() for a in want]
+    assert (ii == np.arange(-5, 710)[:, None]).all() and (jj == np.arange(1000)).all()
+    X, Y = f.xy(np.array(3), np.array(4))  # 0-d
+    assert (X.shape, float(X), float(Y)) == ((), *map(float, f._to_scene.transform(
+        *f._crs_xy(np.array(3), np.array(4)))))
+    # not owned (or a read-only view): the inputs are left as they were
+    xc, yc = x.copy(), y.copy()
+    for owned in (False, True):
+        got = _transform_threads(f._to_scene, x, np.broadcast_to(y[:1], y.shape), owned)
+        assert (x == xc).all() and (y == yc).all()
+        assert got[0].tobytes() == np.asarray(f._to_scene.transform(
+            x, np.broadcast_to(y[:1], y.shape))[0]).tobytes()
