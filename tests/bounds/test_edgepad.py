@@ -258,9 +258,18 @@ def test_a_root_grid_s_static_mesh_is_edge_padded(tmp_path_factory, layout):
     and column to full resolution), never more at any."""
     t = _root_store(tmp_path_factory, layout, layout == "1x2", True)
     assert rtin.edge_padding(t)
-    rows, cols = t.grid.rows, t.grid.cols
+    g = t.grid
+    rows, cols = g.rows, g.cols
     for e in (2.0, 1e9):
         _check_clipped(t, rows, cols, True, e)
+    # without voids, at each root centre's own δ_edge that root is its two base
+    # triangles, along its diagonal (the bound holds along the one δ_edge measured)
+    full = _root_store(tmp_path_factory, layout, layout == "1x2", False)
+    c = g.tile_samples // 2
+    for x in range(g.roots[0]):
+        for y in range(g.roots[1]):
+            _check_clipped(full, rows, cols, False,
+                           float(full.tile_delta_edge(g.top_level, x, y)[c, c]))
     counts = {}
     for edge in (True, False):
         rtin.EDGE_PADDING = edge
