@@ -69,8 +69,8 @@ then ``--runs`` rounds alternating square and roots, each frame in a fresh scene
 the open stores; medians of the frame's wall time and of its selection and atlas
 times, the ratios roots / square of the same run, and the pictures' PSNR (roots
 against square). Then the static mesh of e = 1 m streamed to PLY
-(``write_static_mesh``), the same alternation: time and triangles (the square's mesh is
-the edge-padded one, clipped to the data; the root grid's is not padded: see
+(``write_static_mesh``), the same alternation: time and triangles (both meshes
+edge-padded, clipped to the data; the root grid's since part 10 of
 docs/lab/root-grids.md).
 
 ``geographic``: geographic (EPSG:4326) fBm GeoTIFFs of the issue's shapes, preprocessed
@@ -135,9 +135,9 @@ lattice, the old "all levels" figure, for comparison).
 
 ``static``: the static mesh (rtin, ``Terrain.static_selection``) of each DEM under
 ``../shared/dems`` at the bounds ``--errors`` (metres), on its default store and on its
-square store (``root_grid=False``): triangles of each and their ratio. The square's
-static mesh is edge-padded (the DEM's last row and column repeated into the padding);
-a root grid's is not yet. Counts, no timing.
+square store (``root_grid=False``): triangles of each and their ratio. Both static
+meshes are edge-padded (the DEM's last row and column repeated into the padding, the
+mesh clipped to the data). Counts, no timing.
 """
 
 from __future__ import annotations

@@ -79,10 +79,8 @@ from geoterrain.ingest.raster import ENCODINGS
                    "DEM to 577 × 1217, not 2049²): less time and memory, and every command "
                    "reads it. --square-grid pads to one power-of-two square (2^n + 1 a side) "
                    "as stores made before root grids were (schema 10; a root grid is schema "
-                   "11): choose it for a reader that takes square stores only, or for coarse "
-                   "static meshes (mesh --max-error), which are edge-padded on the square "
-                   "only for now (fewer triangles along the DEM's last row and column). A "
-                   "DEM whose root grid is its square gets the square store either way.")
+                   "11): choose it for a reader that takes square stores only. A DEM whose "
+                   "root grid is its square gets the square store either way.")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context
 def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_units, tile,

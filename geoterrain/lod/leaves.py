@@ -7,10 +7,15 @@ leaf exactly when the midpoint of its own hypotenuse is not active (or is not a 
 the finest level). Every leaf has one parent split, so
 
     leaves = {children of active vertices whose midpoint is inactive}
-             ∪ {the two base triangles, when the grid's centre is inactive},
+             ∪ {a root's two base triangles, when its centre is inactive},
 
-each met once. That turns the depth-first walk of :func:`~geoterrain.lod.emit.walk_gather`
-into flat passes over the tiles and the active vertices, in parallel:
+each met once (a root grid's roots, :mod:`geoterrain.core.grid`, each its own bintree,
+their shared edges conforming as any other edge). On a root grid the active set may
+miss a parent beyond a level's last tile (a vertex there is in no tile, so its δ is not
+stored): then the child's triangles on that side, which lie beyond the data's last row
+or column, are not emitted, as the walk never reaches them. That turns the depth-first
+walk of :func:`~geoterrain.lod.emit.walk_gather` into flat passes over the tiles and the
+active vertices, in parallel:
 
 1. per tile, the active vertices it owns (a sample shared by two tiles belongs to the
    one :func:`~geoterrain.lod.kernels._coarsest_tile` names), listed, then numbered
@@ -25,6 +30,8 @@ the four triangles it makes with the square's sides, whichever diagonal was the
 hypotenuse. Otherwise its hypotenuse runs h either way along the axis in which i/h or
 j/h is odd, its apexes lie h away across it (one of them outside the grid on the
 domain's edge), and its children are the four triangles of that diamond's halves.
+Samples are numbered i·N + j with N the row stride: a square's side, a root grid's
+extent's columns; ``lim`` = (rows − 1, columns − 1) of the square or the extent.
 """
 
 from __future__ import annotations
@@ -34,6 +41,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from geoterrain.core.bintree import root_triangles
 from geoterrain.core.threads import ParallelKernel, serial_for
 from geoterrain.lod.kernels import _coarsest_tile, sample_xy
 from geoterrain.lod.pool import PooledTiles
@@ -55,8 +63,9 @@ class SampleAt(NamedTuple):
 
 class LeafVertices(NamedTuple):
     """The static mesh's vertices as its kernels number and write them: ``vid`` the dense
-    N² vertex-number scratch (−1: none), and per vertex its position ``xyz`` (x, y, z),
-    grid indices ``ij`` (float64), pyramid level ``lvl`` and elevation ``elev``."""
+    N² (a root grid: its extent's) vertex-number scratch (−1: none), and per vertex its
+    position ``xyz`` (x, y, z), grid indices ``ij`` (float64), pyramid level ``lvl`` and
+    elevation ``elev``."""
 
     vid: np.ndarray
     xyz: np.ndarray
@@ -83,12 +92,12 @@ def _kernel(name: str, samples: int):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _listed(D, sl, a, b, coarse, inner_row, inner_col, e, i, j, s):
+def _listed(D, sl, a, b, coarse, inner_row, inner_col, e, i, j, S):
     """Whether sample (a, b) (grid sample (i, j)) of the tile in slot ``sl`` of ``D`` is
     an active vertex (δ > e) that the tile owns: new at its level (unless ``coarse`` is
     False), not on the tile's last row (column) if the tile is not the level's last in
-    that direction (``inner_row``, ``inner_col``), and not a grid corner (``s``: the
-    grid's last row and column)."""
+    that direction (``inner_row``, ``inner_col``), and not a root's corner (``S``: a
+    root's side, the square's last row and column)."""
     T = D.shape[1]
     if coarse and (a & 1) == 0 and (b & 1) == 0:
         return False  # a coarser level's vertex, owned by that level's tile
@@ -96,27 +105,28 @@ def _listed(D, sl, a, b, coarse, inner_row, inner_col, e, i, j, s):
         return False
     if not np.float64(D[sl, a, b]) > e:
         return False
-    return not ((i == 0 or i == s) and (j == 0 or j == s))
+    return not (i % S == 0 and j % S == 0)
 
 
 @_parallel
-def _find_active(tiles, D, e, top_step, s, cnt, loc):
+def _find_active(tiles, D, e, top_step, cnt, loc):
     """Per tile k of ``tiles``: how many vertices :func:`_listed` names, in ``cnt[k]``,
     and (unless ``loc`` has no columns) their local indices (a << 16 | b) in ``loc[k]``."""
     T = D.shape[1]
+    S = top_step * (T - 1)  # a root's side
     keep = loc.shape[1] > 0
     slots, i0, j0, step = tiles.slots, tiles.i0, tiles.j0, tiles.step
-    tx, ty, tps = tiles.tx, tiles.ty, tiles.tps
+    tx, ty, tps, tpd = tiles.tx, tiles.ty, tiles.tps, tiles.tpd
     for k in prange(slots.shape[0]):
         sl = slots[k]
         coarse = step[k] < top_step
-        inner_row, inner_col = ty[k] != tps[k] - 1, tx[k] != tps[k] - 1
+        inner_row, inner_col = ty[k] != tpd[k] - 1, tx[k] != tps[k] - 1
         c = 0
         for a in range(T):
             i = i0[k] + a * step[k]
             for b in range(T):
                 if _listed(D, sl, a, b, coarse, inner_row, inner_col, e, i,
-                           j0[k] + b * step[k], s):
+                           j0[k] + b * step[k], S):
                     if keep:
                         loc[k, c] = (a << 16) | b
                     c += 1
@@ -173,17 +183,17 @@ def _replicate(pad, rows, cols, N, slabs, inv_scale, verts):
 
 
 @_parallel
-def _number_active(tiles, slabs, e, top_step, inv_scale, s, cnt, loc, first, verts,
+def _number_active(tiles, slabs, e, top_step, inv_scale, N, cnt, loc, first, verts,
                    invalid):
     """Per tile, the vertices :func:`_find_active` counted (read from ``loc``, or found
     again, by their δ ``slabs.D``, when it has no columns): number them from
-    ``first[k]`` into ``verts.vid`` and write each one's data (:func:`_vertex`);
-    ``invalid[k]``: how many have no valid height."""
-    N = s + 1
+    ``first[k]`` into ``verts.vid`` (row stride ``N``) and write each one's data
+    (:func:`_vertex`); ``invalid[k]``: how many have no valid height."""
     D = slabs.D
     T = D.shape[1]
+    S = top_step * (T - 1)  # a root's side
     slots, i0, j0, step, level = tiles.slots, tiles.i0, tiles.j0, tiles.step, tiles.level
-    tx, ty, tps = tiles.tx, tiles.ty, tiles.tps
+    tx, ty, tps, tpd = tiles.tx, tiles.ty, tiles.tps, tiles.tpd
     X, Y, aff, H, zfac = slabs.X, slabs.Y, slabs.aff, slabs.H, slabs.zfac
     vid = verts.vid  # one by one, before the parallel loop (see _vertex)
     xyz = verts.xyz
@@ -201,12 +211,12 @@ def _number_active(tiles, slabs, e, top_step, inv_scale, s, cnt, loc, first, ver
                 v += 1
         else:
             coarse = step[k] < top_step
-            inner_row, inner_col = ty[k] != tps[k] - 1, tx[k] != tps[k] - 1
+            inner_row, inner_col = ty[k] != tpd[k] - 1, tx[k] != tps[k] - 1
             for a in range(T):
                 i = i0[k] + a * step[k]
                 for b in range(T):
                     j = j0[k] + b * step[k]
-                    if _listed(D, sl, a, b, coarse, inner_row, inner_col, e, i, j, s):
+                    if _listed(D, sl, a, b, coarse, inner_row, inner_col, e, i, j, S):
                         at = SampleAt(sl, a, b, i, j, level[k])
                         p = _position(at, X, Y, aff, H, zfac)
                         bad += _vertex(v, at, N, p, inv_scale, vid, xyz, ij, lvl, elev)
@@ -226,17 +236,20 @@ def _leaf(faces, level, f, stop, va, vb, vc, lv, split):
 
 
 @_parallel
-def _emit_leaves(ij, lvl, vid, s, per, start, stop, cnt, faces, level):
+def _emit_leaves(ij, lvl, vid, lim, per, start, stop, cnt, faces, level):
     """The leaves of each block of ``per`` vertices, in rows ``start[block]`` to
     ``stop[block]``, how many in ``cnt[block]``; with their level: that of their split
-    vertex m, the finest of their corners (the others lie on multiples of 2h).
+    vertex m, the finest of their corners (the others lie on multiples of 2h). ``lim``:
+    the grid's last row and column; a side whose apex lies beyond them, or is no vertex
+    (a root grid's parent beyond a level's last tile), has no children.
 
     A child is a leaf when the midpoint of its hypotenuse is not active: a square
     centre's children always have one (their hypotenuses are 2h long), an edge
     midpoint's only when h ≥ 2 (at (i ± h/2, j ± h/2)). Every face is wound like the
     walk's base triangles: positive cross (b − a) × (c − a) in (i, j), which bisection
     keeps."""
-    N = s + 1
+    si, sj = lim
+    N = sj + 1
     V = ij.shape[0]
     for c in prange(cnt.shape[0]):
         f, e = start[c], stop[c]
@@ -244,8 +257,8 @@ def _emit_leaves(ij, lvl, vid, s, per, start, stop, cnt, faces, level):
             i, j = np.int64(ij[v, 0]), np.int64(ij[v, 1])
             low = i | j
             h = low & -low
-            vm, lv = v + 4, lvl[v]
             m = i * N + j
+            vm, lv = vid[m], lvl[v]  # v + the roots' corners
             if (i & h) != 0 and (j & h) != 0:
                 # a square's centre: its four children have the square's sides as
                 # hypotenuses, split at the sides' midpoints m ± h (row), m ± hN (column)
@@ -266,13 +279,13 @@ def _emit_leaves(ij, lvl, vid, s, per, start, stop, cnt, faces, level):
                 vp, vq = vid[m - h], vid[m + h]
                 deep = h >= 2
                 g = h >> 1
-                if i - h >= 0:
+                if i - h >= 0 and vid[m - h * N] >= 0:
                     vc = vid[m - h * N]
                     s1 = deep and vid[m - g * N - g] >= 0
                     s2 = deep and vid[m - g * N + g] >= 0
                     f = _leaf(faces, level, f, e, vc, vp, vm, lv, s1)
                     f = _leaf(faces, level, f, e, vq, vc, vm, lv, s2)
-                if i + h <= s:
+                if i + h <= si and vid[m + h * N] >= 0:
                     vc = vid[m + h * N]
                     s1 = deep and vid[m + g * N - g] >= 0
                     s2 = deep and vid[m + g * N + g] >= 0
@@ -283,13 +296,13 @@ def _emit_leaves(ij, lvl, vid, s, per, start, stop, cnt, faces, level):
                 vp, vq = vid[m - h * N], vid[m + h * N]
                 deep = h >= 2
                 g = h >> 1
-                if j - h >= 0:
+                if j - h >= 0 and vid[m - h] >= 0:
                     vc = vid[m - h]
                     s1 = deep and vid[m - g * N - g] >= 0
                     s2 = deep and vid[m + g * N - g] >= 0
                     f = _leaf(faces, level, f, e, vc, vm, vp, lv, s1)
                     f = _leaf(faces, level, f, e, vq, vm, vc, lv, s2)
-                if j + h <= s:
+                if j + h <= sj and vid[m + h] >= 0:
                     vc = vid[m + h]
                     s1 = deep and vid[m - g * N + g] >= 0
                     s2 = deep and vid[m + g * N + g] >= 0
@@ -299,9 +312,10 @@ def _emit_leaves(ij, lvl, vid, s, per, start, stop, cnt, faces, level):
 
 
 @_parallel
-def _count_leaves(ij, vid, s, per, cnt):
+def _count_leaves(ij, vid, lim, per, cnt):
     """How many leaves :func:`_emit_leaves` writes for each block of ``per`` vertices."""
-    N = s + 1
+    si, sj = lim
+    N = sj + 1
     V = ij.shape[0]
     for c in prange(cnt.shape[0]):
         n = 0
@@ -319,10 +333,12 @@ def _count_leaves(ij, vid, s, per, cnt):
             di, dj = (h, 0) if row else (0, h)  # towards the apexes
             gi, gj = (g * N, g) if row else (g, g * N)  # to the children's midpoints
             for side in (-1, 1):
-                if row and (i + side * h < 0 or i + side * h > s):
+                if row and (i + side * h < 0 or i + side * h > si):
                     continue
-                if not row and (j + side * h < 0 or j + side * h > s):
+                if not row and (j + side * h < 0 or j + side * h > sj):
                     continue
+                if vid[m + side * (h * N if row else h)] < 0:
+                    continue  # an apex that is no vertex (see _emit_leaves)
                 n += 2
                 if h >= 2:
                     n -= (vid[m + side * gi - gj] >= 0) + (vid[m + side * gi + gj] >= 0)
@@ -347,18 +363,18 @@ def _gather_blocks(ef, el, per, cnt, first, faces, level, vid, ij, N):
 
 
 @njit(cache=True, nogil=True)
-def _corners(s, slabs, inv_scale, verts):
-    """Vertices 0–3: the grid's corners, read from the top tile (pooled in ``slabs``)
-    by :func:`_vertex`; returns how many have no valid height."""
+def _corners(ci, cj, N, slabs, inv_scale, verts):
+    """Vertices 0, 1, …: the roots' corners (rows ``ci``, columns ``cj``), read from the
+    top level's tiles (pooled in ``slabs``) by :func:`_vertex`; returns how many have
+    no valid height."""
     vid, xyz, ij, lvl, elev = verts
     bad = 0
-    for v in range(4):
-        i = s if v >= 2 else 0
-        j = s if v % 2 == 1 else 0
+    for v in range(ci.shape[0]):
+        i, j = ci[v], cj[v]
         L, ti, a, b = _coarsest_tile(i, j, slabs.top, slabs.t, slabs.base)
         at = SampleAt(slabs.slot_of[ti], a, b, i, j, L)
         p = _position(at, slabs.X, slabs.Y, slabs.aff, slabs.H, slabs.zfac)
-        bad += _vertex(v, at, s + 1, p, inv_scale, vid, xyz, ij, lvl, elev)
+        bad += _vertex(v, at, N, p, inv_scale, vid, xyz, ij, lvl, elev)
     return bad
 
 
@@ -395,7 +411,9 @@ def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: flo
     ``keys`` (level, x, y) with pool ``slots`` (every tile holding a vertex with δ > e;
     their δ, heights and positions pooled, and the top tile's too).
 
-    ``vid`` is the dense N² vertex-number scratch, all −1; it is left all −1.
+    ``vid`` is the dense N² vertex-number scratch (a root grid: its extent's), all −1;
+    it is left all −1. On a root grid each root is its own bintree (two base triangles,
+    :func:`geoterrain.core.bintree.root_triangles`), every root's corners pooled.
     ``scratch``: a dict that keeps the working arrays from one call to the next.
     ``D``: the pooled δ to read (default ``pool.D``; ``pool.DE`` for δ_edge).
     ``window``: (rows, cols) of the data when the padding is replicated
@@ -413,11 +431,14 @@ def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: flo
     >>> out = static_leaves(keys, slots, pool, 1.0, 5.0, vid)  # doctest: +SKIP
     >>> faces, level, xyz, ij, lvl, elevation, bad = out  # doctest: +SKIP
     """
-    s, top = pool.N - 1, pool.top
+    g, top = pool.grid, pool.top
+    R, C = g.extent  # N × N, or the roots' extent
+    N, lim = C, (np.int64(R - 1), np.int64(C - 1))
     i0, j0, step = pool.origins(keys)
     L = keys[:, 0].astype(np.int64)
+    across, down = (np.array([g.tiles(k)[q] for k in g.levels], np.int64) for q in (0, 1))
     tiles = PooledTiles(slots, i0, j0, step, L, keys[:, 1].astype(np.int64),
-                        keys[:, 2].astype(np.int64), np.int64(1) << (top - L))
+                        keys[:, 2].astype(np.int64), across[L], down[L])
     cnt = np.zeros(len(slots), np.int64)
     top_step = np.int64(1) << top
     T = pool.T
@@ -430,29 +451,37 @@ def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: flo
     scratch = {} if scratch is None else scratch
     listed = len(slots) * T * T * 4 <= KEEP_BYTES  # else found again: no fresh lists
     loc = _buffer(scratch, "loc", (len(slots), T * T if listed else 0), np.uint32)
-    find(tiles, slabs.D, float(e), top_step, s, cnt, loc)
+    find(tiles, slabs.D, float(e), top_step, cnt, loc)
+    rx, ry = g.roots
+    S = 1 << g.n  # a root's side
+    ci, cj = (a.ravel() * S for a in np.indices((ry + 1, rx + 1), np.int64))  # corners
+    nc = len(ci)
     first = np.empty(len(slots), np.int64)
     if len(cnt):
-        first[0] = 4
+        first[0] = nc
         np.cumsum(cnt[:-1], out=first[1:])
-        first[1:] += 4
-    V = 4 + int(cnt.sum())
+        first[1:] += nc
+    V = nc + int(cnt.sum())
     rv, rf = room  # views of larger arrays: their .base has the room
     xyz, ij = np.empty((V + rv, 3))[:V], np.empty((V + rv, 2))[:V]
     lvl, elev = np.empty(V + rv, np.int8)[:V], np.empty(V + rv, np.float32)[:V]
     inv = 1.0 / float(z_scale)
     verts = LeafVertices(vid, xyz, ij, lvl, elev)
-    bad = _corners(s, slabs, inv, verts)
+    bad = _corners(ci, cj, N, slabs, inv, verts)
     invalid = np.zeros(len(slots), np.int64)
-    number(tiles, slabs, float(e), top_step, inv, s, cnt, loc, first, verts, invalid)
+    number(tiles, slabs, float(e), top_step, inv, N, cnt, loc, first, verts, invalid)
     bad += int(invalid.sum())
     if window is not None:  # padding vertices: their replicated heights
         pad = np.flatnonzero((ij[:, 0] >= window[0]) | (ij[:, 1] >= window[1]))
-        bad -= _replicate(pad, window[0], window[1], s + 1, slabs, inv, verts)
-    m = (s // 2) * (s + 1) + s // 2
-    root = bool(vid[m] < 0)  # the centre inactive: the two base triangles are leaves
+        bad -= _replicate(pad, window[0], window[1], N, slabs, inv, verts)
+    # a root whose centre is inactive: its two base triangles are leaves
+    a, b, c = (p[:, 0] * N + p[:, 1] for p in root_triangles(g.n, (rx, ry)))
+    base = vid[a[::2] + (b[::2] - a[::2]) // 2] < 0  # each root's centre: its diagonal's
+    corner = {int(k): v for v, k in enumerate((ci * N + cj).tolist())}
+    roots = np.array([[corner[int(k)] for k in (a[r], b[r], c[r])] for r in range(len(a))
+                      if base[r // 2]], np.int32).reshape(-1, 3)
     per = 4096
-    nb = -(-(V - 4) // per)
+    nb = -(-(V - nc) // per)
     lcnt = np.zeros(nb, np.int64)
     rows = 4 * per * nb  # room for 4 leaves per vertex, the most it can have
     lfirst = np.zeros(nb, np.int64)
@@ -460,24 +489,25 @@ def static_leaves(keys: np.ndarray, slots: np.ndarray, pool, zfac: float, e: flo
         ef = _buffer(scratch, "faces", (rows, 3), np.int32)
         el = _buffer(scratch, "level", (rows,), np.int16)
         at = np.arange(nb) * (4 * per)
-        emit(ij[4:], lvl[4:], vid, s, per, at, at + 4 * per, lcnt, ef, el)
+        emit(ij[nc:], lvl[nc:], vid, lim, per, at, at + 4 * per, lcnt, ef, el)
         np.cumsum(lcnt[:-1], out=lfirst[1:])
         F = int(lcnt.sum())
-        faces = np.empty((F + 2 + rf, 3), np.int32)[:F + 2]
-        level = np.empty(F + 2 + rf, np.int16)[:F + 2]
-        gather(ef, el, per, lcnt, lfirst, faces, level, vid, ij[4:], s + 1)
-        reset(vid, ij[:4], s + 1)
+        B = F + len(roots)
+        faces = np.empty((B + rf, 3), np.int32)[:B]
+        level = np.empty(B + rf, np.int16)[:B]
+        gather(ef, el, per, lcnt, lfirst, faces, level, vid, ij[nc:], N)
+        reset(vid, ij[:nc], N)
     else:  # a large mesh: count, then emit to the exact rows (no room to spare)
-        count(ij[4:], vid, s, per, lcnt)
+        count(ij[nc:], vid, lim, per, lcnt)
         np.cumsum(lcnt[:-1], out=lfirst[1:])
         F = int(lcnt.sum())
-        faces = np.empty((F + 2 + rf, 3), np.int32)[:F + 2]
-        level = np.empty(F + 2 + rf, np.int16)[:F + 2]
-        emit(ij[4:], lvl[4:], vid, s, per, lfirst, lfirst + lcnt, lcnt, faces, level)
-        reset(vid, ij, s + 1)
-    if root:  # the base triangles (0, 0), (s, s), (0, s) and (s, s), (0, 0), (s, 0)
-        faces[F] = (0, 3, 1)
-        faces[F + 1] = (3, 0, 2)
-        level[F:F + 2] = top
-        F += 2
-    return faces[:F], level[:F], xyz, ij, lvl, elev, bad
+        B = F + len(roots)
+        faces = np.empty((B + rf, 3), np.int32)[:B]
+        level = np.empty(B + rf, np.int16)[:B]
+        emit(ij[nc:], lvl[nc:], vid, lim, per, lfirst, lfirst + lcnt, lcnt, faces, level)
+        reset(vid, ij, N)
+    # the base triangles of the roots whose centre is inactive (a square's: (0, 0),
+    # (s, s), (0, s) and (s, s), (0, 0), (s, 0))
+    faces[F:B] = roots
+    level[F:B] = top
+    return faces, level, xyz, ij, lvl, elev, bad

@@ -58,8 +58,9 @@ class PoolSlabs(NamedTuple):
 class PooledTiles(NamedTuple):
     """Tiles as the compiled kernels walk them: per tile its pool slot, the grid row
     ``i0`` and column ``j0`` of its first sample, its sample spacing ``step`` (2^L) and
-    ``level`` L; ``tx``, ``ty`` and ``tps`` (its x, y and its level's tiles a side) only
-    for the kernels that need them (:mod:`geoterrain.lod.leaves`), else empty."""
+    ``level`` L; ``tx``, ``ty``, ``tps`` and ``tpd`` (its x, y and its level's tiles
+    across and down: a side, on a square grid) only for the kernels that need them
+    (:mod:`geoterrain.lod.leaves`), else empty."""
 
     slots: np.ndarray
     i0: np.ndarray
@@ -69,6 +70,7 @@ class PooledTiles(NamedTuple):
     tx: np.ndarray = _NONE
     ty: np.ndarray = _NONE
     tps: np.ndarray = _NONE
+    tpd: np.ndarray = _NONE
 
 
 class TilePool:

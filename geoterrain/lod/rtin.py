@@ -352,7 +352,8 @@ def static(terrain: TerrainLike, max_error: float):
     the data's edge instead (Martini's padding, :mod:`geoterrain.bounds.edgepad`): δ_edge
     selects the vertices, a vertex in the padding takes its replicated height, and the
     mesh is clipped to the data (:mod:`geoterrain.lod.clip`). The bound is the same, and
-    the DEM's edge no longer needs full resolution.
+    the DEM's edge no longer needs full resolution. A root grid's padding (its extent
+    beyond the data) is replicated the same way, each root its own bintree.
     """
     # imported here: a view's selection (render, view) needs neither, nor their kernels
     from geoterrain.lod.clip import clip_in_place
@@ -362,12 +363,10 @@ def static(terrain: TerrainLike, max_error: float):
     pool = tile_pool(terrain)
     e = float(max_error)
     g = terrain.grid
-    if not g.square:  # the leaves' kernels are square-only: the same mesh, by the walk
-        mesh = active_mesh(terrain, static_active(terrain, index, e))
-        return add_elevation(mesh, terrain.frame.z_scale, None), {}
     edge = edge_padding(terrain)
     keys = static_keys(terrain, index, pool, e, edge)
-    want = [pool.table_index(keys), np.array([pool.base[pool.top]])]  # + the grid's corners
+    # + the roots' corners (the square's one top tile)
+    want = [pool.table_index(keys), np.arange(pool.base[pool.top], pool.base[pool.top + 1])]
     if edge:  # the tiles of the data's last row and column: the padding's heights
         want.append(_border_tiles(g, pool))
     kinds = ("delta_edge" if edge else "delta", "height", "xy")
@@ -390,16 +389,16 @@ def static(terrain: TerrainLike, max_error: float):
     if edge:  # cut to the data's rectangle, in place (lod/clip.py)
         fb, lb, ib, xb = (a.base if a.base is not None else a for a in (faces, level, ij, xyz))
         nf, nv = clip_in_place(fb, lb, len(faces), ib, xb, len(ij), float(g.rows - 1),
-                               float(g.cols - 1), np.int64(g.size))
+                               float(g.cols - 1), np.int64(pool.N))
         faces, level, ij, xyz, elev = fb[:nf], lb[:nf], ib[:nv], xb[:nv], None
     mesh = polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8), "level": level})
     return add_elevation(mesh, terrain.frame.z_scale, elev), {}
 
 
 def edge_padding(terrain: TerrainLike) -> bool:
-    """Whether the static mesh of ``terrain`` replicates its padding (edgepad.py)."""
-    return bool(EDGE_PADDING and terrain.edge_max is not None and terrain.grid.square
-                and has_padding(terrain.grid))
+    """Whether the static mesh of ``terrain`` replicates its padding (edgepad.py): a
+    square's or a root grid's, whenever the store has a second δ."""
+    return bool(EDGE_PADDING and terrain.edge_max is not None and has_padding(terrain.grid))
 
 
 def static_keys(terrain: TerrainLike, index: TileIndex, pool, e: float, edge: bool) -> np.ndarray:
@@ -428,7 +427,7 @@ def _edge_delta_max(terrain: TerrainLike, index: TileIndex, pool) -> np.ndarray:
 def _border_tiles(g, pool) -> np.ndarray:
     """Table indices of the tiles the samples of the data's last row and column are read
     from (their coarsest tiles)."""
-    N = g.size
+    N = pool.N  # the row stride: a square's side, a root grid's extent's columns
     last_row = (g.rows - 1) * N + np.arange(g.cols, dtype=np.int64)
     last_col = np.arange(g.rows, dtype=np.int64) * N + (g.cols - 1)
     occ = np.zeros(int(pool.base[-1]), bool)

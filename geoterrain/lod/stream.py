@@ -253,7 +253,9 @@ def static_flags(terrain: TerrainLike, max_error: float, pool: TilePool,
         slots = pool.slots(pool.table_index(some), (kind,))  # may grow the slabs: then read
         fill_static(slots, i0, j0, step, pool.DE if edge else pool.D, float(max_error),
                     act.active, act.mixed)
-    return act  # closed already: δ is saturated (see static_active)
+    # closed already: δ is saturated (see static_active); on a root grid but for parents
+    # past a level's last tile, which the walk never needs (lod/leaves.py)
+    return act
 
 
 def _gather(pool: TilePool, flat: np.ndarray, zfac: float, window=None):

@@ -62,7 +62,15 @@ def test_the_clipped_mesh_keeps_the_bound_and_covers_every_sample(tmp_path_facto
     the data's rectangle, and is a conforming surface: every edge inside it is shared
     by two faces of opposite winding, and the edges on its rim lie on the rectangle's
     sides (or next to nodata)."""
-    t = _store(tmp_path_factory, rows, cols, holes)
+    _check_clipped(_store(tmp_path_factory, rows, cols, holes), rows, cols, holes, e)
+
+
+def _check_clipped(t, rows: int, cols: int, holes: bool, e: float) -> None:
+    """The clipped static mesh of bound ``e`` on ``t`` (a rows × cols DEM): measured error
+    ≤ e at every valid sample, none uncovered, inside the data's rectangle, one
+    winding, every inner edge shared by two faces of opposite winding (no crack, across
+    a root grid's shared edges too), the rim on the rectangle's sides (or next to
+    nodata), and without holes the rectangle's whole area."""
     Z, valid = _truth(t)
     sel = t.static_selection(e)
     ij = np.asarray(sel.ij, float)
@@ -194,3 +202,123 @@ def test_a_delta_edge_list_naming_a_missing_tile_is_refused(tmp_path):
     with pytest.raises(StoreCorruptError, match="delta_edge") as ex:
         geoterrain.open(p)
     assert "\n" not in str(ex.value)
+
+
+#: Root grids (issue 45) by what they are: (rows, cols, tile size) → (across, down) roots.
+#: "1x1 short": one root over fewer tiles than its extent (jacksboro's, srtm's case);
+#: "2x1 border": the data's last row on a level-0 tile border, so the vertices just
+#: below it lie in no tile (their δ_edge is not stored: a parent missing from the set).
+_ROOTS = {"2x1": (50, 121, 8, (2, 1)), "1x2": (121, 50, 8, (1, 2)),
+          "1x1 short": (50, 60, 8, (1, 1)), "2x1 border": (49, 129, 16, (2, 1))}
+
+
+def _root_store(tmp_path_factory, layout: str, geographic: bool, holes: bool):
+    """A root-grid store of an fBm named by ``layout`` (:data:`_ROOTS`), projected (UTM,
+    10 m) or geographic (EPSG:4326, 3″ at 61° N), with a void touching the data's last
+    column (``holes``)."""
+    key = ("roots", layout, geographic, holes)
+    if key not in _T:
+        rows, cols, ts, roots = _ROOTS[layout]
+        z = generate("fbm", 129, seed=rows * 7 + cols)[:rows, :cols].copy()
+        if holes:
+            z[rows // 3:rows // 3 + 6, cols - 5:] = np.nan
+            z[rows - 4:, cols // 2:cols // 2 + 3] = np.nan  # and the last row
+        geo = dict(crs="EPSG:4326", origin=(24.0, 61.0), spacing=1 / 1200) if geographic \
+            else {}
+        d = tmp_path_factory.mktemp("r")
+        dem = write_geotiff(d / "d.tif", z, **geo)
+        t = geoterrain.open(geoterrain.preprocess(dem, d / "d.geoterrain", tile_size=ts))
+        assert not t.grid.square and t.grid.roots == roots, (layout, t.grid)
+        _T[key] = t
+    return _T[key]
+
+
+@pytest.mark.slow  # 12 stores of about 1 s each, then 1-2 s an example
+@settings(max_examples=30, deadline=None)
+@given(layout=st.sampled_from(sorted(_ROOTS)), geographic=st.booleans(), holes=st.booleans(),
+       e=st.one_of(st.just(0.0), st.floats(0.0, 400.0), st.just(1e9)))
+@example(layout="2x1 border", geographic=False, holes=False, e=0.5)
+@example(layout="1x2", geographic=True, holes=True, e=3.0)
+def test_a_root_grid_s_clipped_mesh_keeps_the_bound_and_covers_every_sample(
+        tmp_path_factory, layout, geographic, holes, e):
+    """The edge-padded static mesh on 2 × 1, 1 × 2 and 1 × 1 roots (a lattice short of
+    the extent, a DEM ending on a tile border), geographic or projected, with voids:
+    every property of the square's (:func:`_check_clipped`)."""
+    t = _root_store(tmp_path_factory, layout, geographic, holes)
+    assert rtin.edge_padding(t)
+    _check_clipped(t, t.grid.rows, t.grid.cols, holes, e)
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("layout", sorted(_ROOTS))
+def test_a_root_grid_s_static_mesh_is_edge_padded(tmp_path_factory, layout):
+    """A root grid's static mesh replicates its padding as the square's does: the bound
+    and conformity of :func:`_check_clipped` at a coarse and a fine e, far fewer
+    triangles than the nodata rule's at a coarse one (which refines the DEM's last row
+    and column to full resolution), never more at any."""
+    t = _root_store(tmp_path_factory, layout, layout == "1x2", True)
+    assert rtin.edge_padding(t)
+    g = t.grid
+    rows, cols = g.rows, g.cols
+    for e in (2.0, 1e9):
+        _check_clipped(t, rows, cols, True, e)
+    # without voids, at each root centre's own δ_edge that root is its two base
+    # triangles, along its diagonal (the bound holds along the one δ_edge measured)
+    full = _root_store(tmp_path_factory, layout, layout == "1x2", False)
+    c = g.tile_samples // 2
+    for x in range(g.roots[0]):
+        for y in range(g.roots[1]):
+            _check_clipped(full, rows, cols, False,
+                           float(full.tile_delta_edge(g.top_level, x, y)[c, c]))
+    counts = {}
+    for edge in (True, False):
+        rtin.EDGE_PADDING = edge
+        try:
+            counts[edge] = [t.static_selection(e).stats["triangles"] for e in (2.0, 1e9)]
+        finally:
+            rtin.EDGE_PADDING = True
+    assert counts[True][0] <= counts[False][0]
+    assert counts[True][1] < 0.75 * counts[False][1], counts  # the edge not refined
+    # streamed (the walk, clipped chunk by chunk) as in memory (the leaves, clipped)
+    from geoterrain.lod.stream import static_chunks
+
+    chunks = list(static_chunks(t, 2.0, chunk=997))
+    ij = np.concatenate([c.ij for c in chunks])
+    faces = np.concatenate([c.faces for c in chunks])
+    np.testing.assert_array_equal(_triangles_of(ij, faces),
+                                  _sorted_triangles(t.static_selection(2.0).mesh))
+
+
+def _sorted_triangles(mesh) -> np.ndarray:
+    """Each triangle as its corners' grid indices, rotated to start at the smallest (the
+    winding kept), sorted: comparable across vertex numberings."""
+    return _triangles_of(mesh.point_data["grid_ij"], mesh.regular_faces)
+
+
+def _triangles_of(ij, faces) -> np.ndarray:
+    """:func:`_sorted_triangles` of grid indices ``ij`` and ``faces``."""
+    ij = np.round(np.asarray(ij, np.float64) * 4).astype(np.int64)
+    k = (ij[:, 0] << 32) + ij[:, 1]
+    f = k[np.asarray(faces, np.int64)]
+    r = np.argmin(f, 1)
+    f = np.stack([f[np.arange(len(f)), (r + q) % 3] for q in range(3)], 1)
+    return f[np.lexsort(f.T[::-1])]
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("holes", [False, True])
+def test_one_root_is_the_square_triangle_for_triangle(tmp_path, holes):
+    """A 1 × 1 root grid over fewer tiles than its extent, which is the square's (50 × 60
+    with 8-sample tiles: both span 65²), replicates the same padding: its edge-padded
+    static mesh has the square store's triangles, at every bound tried."""
+    z = generate("fbm", 65, seed=5)[:50, :60].copy()
+    if holes:
+        z[20:26, 55:] = np.nan
+    dem = write_geotiff(tmp_path / "d.tif", z)
+    t = {rg: geoterrain.open(geoterrain.preprocess(dem, tmp_path / f"{rg}.geoterrain",
+                                                   tile_size=8, root_grid=rg))
+         for rg in (True, False)}
+    assert not t[True].grid.square and t[True].grid.extent == (65, 65) and t[False].grid.square
+    for e in (0.0, 0.5, 3.0, 40.0, 1e9):
+        a, b = (_sorted_triangles(t[rg].static_selection(e).mesh) for rg in (True, False))
+        np.testing.assert_array_equal(a, b)

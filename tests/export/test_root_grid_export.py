@@ -52,7 +52,7 @@ def _on_samples(ij: np.ndarray) -> np.ndarray:
 def _heights_are_the_dems(dem_h, ij, z):
     """Vertices on samples have the raster's heights there (and every one is valid)."""
     on = _on_samples(ij)
-    assert on.all()  # a root grid's static mesh is not clipped: every vertex a sample
+    assert on.all()  # clipped to the data, but a bintree edge crosses a grid line at a sample
     i, j = ij[:, 0].astype(int), ij[:, 1].astype(int)
     want = dem_h[i, j]
     assert np.isfinite(want).all()

@@ -243,6 +243,47 @@ def test_static_leaves_equal_the_walk(tmp_path_factory, e, which, counted):
     np.testing.assert_array_equal(*by_sample)
 
 
+def _roots(tmp_path_factory, rows: int, cols: int, ts: int, voids: bool = True):
+    key = ("roots", rows, cols, ts, voids)
+    if key not in _T:  # a root grid with voids, one touching the data's last column
+        z = generate("fbm", 129, seed=rows + cols)[:rows, :cols].copy()
+        if voids:
+            z[rows // 3:rows // 3 + 5, cols - 6:] = np.nan
+            z[5:9, 10:14] = np.nan
+        d = tmp_path_factory.mktemp("r")
+        dem = write_geotiff(d / "d.tif", z)
+        _T[key] = geoterrain.open(geoterrain.preprocess(dem, d / "d.geoterrain",
+                                                        tile_size=ts))
+    return _T[key]
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize(("shape", "roots"), [
+    ((50, 121, 8), (2, 1)), ((121, 50, 8), (1, 2)), ((49, 129, 16), (2, 1)),
+    ((50, 60, 8), (1, 1)), ((65, 129, 16, False), (2, 1)), ((129, 65, 16, False), (1, 2))])
+def test_static_leaves_equal_the_walk_on_root_grids(tmp_path_factory, shape, roots):
+    """On 2 × 1, 1 × 2 and 1 × 1 roots (and a DEM ending on a tile border, whose vertices
+    just past it lie in no tile: the active set misses those parents) the leaves are the
+    walk's triangles, with the nodata rule (the walk's padding), emitted with room to
+    spare or counted first; without padding or voids, at e = 10¹² every root is its two
+    base triangles, each along the walk's diagonal for that root."""
+    t = _roots(tmp_path_factory, *shape)
+    assert not t.grid.square and t.grid.roots == roots
+    for e in (0.0, 3.0, 1e12):
+        walk = rtin.active_mesh(t, rtin.static_active(t, tile_index(t), e))
+        for counted in (False, True):
+            keep = leaves.KEEP_BYTES
+            leaves.KEEP_BYTES = 0 if counted else keep
+            rtin.EDGE_PADDING = False
+            try:
+                flat = geoterrain.lod.static(t, e).mesh
+            finally:
+                leaves.KEEP_BYTES = keep
+                rtin.EDGE_PADDING = True
+            assert flat.n_cells == walk.n_cells and flat.n_points == walk.n_points
+            assert _oriented(flat) == _oriented(walk)
+
+
 @pytest.mark.fast
 @settings(max_examples=15, deadline=None)
 @given(az=st.floats(0, 6.28), el=st.floats(0.02, 1.4), dist=st.floats(0.02, 1.5),
