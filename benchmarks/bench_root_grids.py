@@ -70,7 +70,7 @@ the open stores; medians of the frame's wall time and of its selection and atlas
 times, the ratios roots / square of the same run, and the pictures' PSNR (roots
 against square). Then the static mesh of e = 1 m streamed to PLY
 (``write_static_mesh``), the same alternation: time and triangles (both meshes
-edge-padded, clipped to the data; the root grid's since part 10 of
+edge-padded, clipped to the data; the root grid's since part 11 of
 docs/lab/root-grids.md).
 
 ``geographic``: geographic (EPSG:4326) fBm GeoTIFFs of the issue's shapes, preprocessed
