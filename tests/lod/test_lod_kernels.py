@@ -228,19 +228,26 @@ def test_static_leaves_equal_the_walk(tmp_path_factory, e, which, counted):
     t = _uneven(tmp_path_factory) if which == "uneven" else _terrain(tmp_path_factory,
                                                                      which == "holes")
     walk = rtin.active_mesh(t, rtin.static_active(t, tile_index(t), e))
-    keep = leaves.KEEP_BYTES
-    leaves.KEEP_BYTES = 0 if counted else keep
-    rtin.EDGE_PADDING = False  # the walk's nodata padding (test_edgepad.py: the other)
-    try:
-        flat = geoterrain.lod.static(t, e).mesh
-    finally:
-        leaves.KEEP_BYTES = keep
-        rtin.EDGE_PADDING = True
+    flat = _nodata_rule_leaves(t, e, counted)
     assert flat.n_cells == walk.n_cells and flat.n_points == walk.n_points
     assert _oriented(flat) == _oriented(walk)
     by_sample = [np.asarray(m.points)[np.lexsort(np.asarray(m.point_data["grid_ij"]).T[::-1])]
                  for m in (walk, flat)]  # each sample at one position
     np.testing.assert_array_equal(*by_sample)
+
+
+def _nodata_rule_leaves(t, e: float, counted: bool):
+    """The static mesh through the leaves with the walk's nodata padding (test_edgepad.py:
+    the other), emitted with room to spare or (``counted``) counted first, as a mesh too
+    large for the kept scratch is."""
+    keep = leaves.KEEP_BYTES
+    leaves.KEEP_BYTES = 0 if counted else keep
+    rtin.EDGE_PADDING = False
+    try:
+        return geoterrain.lod.static(t, e).mesh
+    finally:
+        leaves.KEEP_BYTES = keep
+        rtin.EDGE_PADDING = True
 
 
 def _roots(tmp_path_factory, rows: int, cols: int, ts: int, voids: bool = True):
@@ -272,14 +279,7 @@ def test_static_leaves_equal_the_walk_on_root_grids(tmp_path_factory, shape, roo
     for e in (0.0, 3.0, 1e12):
         walk = rtin.active_mesh(t, rtin.static_active(t, tile_index(t), e))
         for counted in (False, True):
-            keep = leaves.KEEP_BYTES
-            leaves.KEEP_BYTES = 0 if counted else keep
-            rtin.EDGE_PADDING = False
-            try:
-                flat = geoterrain.lod.static(t, e).mesh
-            finally:
-                leaves.KEEP_BYTES = keep
-                rtin.EDGE_PADDING = True
+            flat = _nodata_rule_leaves(t, e, counted)
             assert flat.n_cells == walk.n_cells and flat.n_points == walk.n_points
             assert _oriented(flat) == _oriented(walk)
 
