@@ -172,13 +172,12 @@ def shell_distance(eye: np.ndarray, g: Geometry, lo: np.ndarray, hi: np.ndarray
     n = g.planes[k]
     h = np.einsum("mkj,j->mk", n, e)
     q = e[None, None, :] - h[..., None] * n  # the eye projected on each side plane
-    # q = α·a + β·b: inside the wedge's angle when α, β ≥ 0
-    ab = np.einsum("mkj,mkj->mk", a, b)
-    qa = np.einsum("mkj,mkj->mk", q, a)
-    qb = np.einsum("mkj,mkj->mk", q, b)
-    den = 1.0 - ab * ab
-    alpha = (qa - ab * qb) / den
-    beta = (qb - ab * qa) / den
+    # q = α·a + β·b: inside the wedge's angle when α, β ≥ 0. By cross products (q × b =
+    # α·a × b, a × q = β·a × b): their signs hold for nodes a few centimetres wide, where
+    # 1 − (a·b)² rounds to 0
+    axb = np.cross(a, b)
+    alpha = np.einsum("mkj,mkj->mk", np.cross(q, b), axb)
+    beta = np.einsum("mkj,mkj->mk", np.cross(a, q), axb)
     qn = np.linalg.norm(q, axis=-1)
     radial = np.maximum(np.maximum(lo[k, None] - qn, qn - hi[k, None]), 0.0)
     seg = np.minimum(

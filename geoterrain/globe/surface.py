@@ -288,11 +288,20 @@ class Surface:
         levels = [fin - 1, fin] if depth > 0 else [fin]
         comp: dict[int, np.ndarray] = {}
         any_store = np.zeros(grid(fin)[1].shape, bool)
+        # beyond the measured depth, where the finest store shows unblended at every point
+        # of both levels, the layers under it take no part (their weight is 0)
+        alone = depth > self.measured_depth and self.fine is not None and all(
+            (self.weight(self.fine, grid(lv)[3], grid(lv)[4]) >= 1.0).all() for lv in levels)
         for layer, DL in self.layers():
+            if alone and layer is not self.fine:
+                continue
             if layer is not None and not any(layer.covers(grid(lv)[3], grid(lv)[4]).any()
                                              for lv in levels):
                 continue
             start = min(max(DL, 0), max(depth - 1, 0)) + k
+            if layer is self.fine and depth - 1 > DL and self.fine_points(
+                    *grid(fin - 1)[3:], depth - 1).all():
+                start = fin - 1  # the parent's lattice is sampled throughout: no chords
             prev = None
             for lam in range(start, fin + 1):
                 d, fn, t0, lon0, lat0 = grid(lam)
