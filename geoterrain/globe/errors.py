@@ -36,6 +36,11 @@ the chain. A child that holds no sampled point (beyond every truth depth) reprod
 parent exactly: M = e = 0. The store's own error (its coarse levels against its full
 resolution) is in e(N) exactly, not as a bound.
 
+**Bounded, beyond the measured depth** (where the finest store is sampled on in its core:
+:mod:`geoterrain.globe.surface`): per depth, from the spread of the samples' gradient under
+the view's measured-depth nodes (:meth:`ErrorTable.fine_errors`); the view's depth stops
+where that error already meets the eye's distance (:meth:`ErrorTable.view_ranges`).
+
 **Bounded, over the base layer.** Where no store lies, a node samples the procedural
 planet (or the bare ellipsoid) at every vertex, and :func:`geoterrain.globe.noise.error_bound`
 bounds e from the circumradius of its triangles; its move is at most its parent's error.

@@ -18,9 +18,14 @@ falls to 1 mm (no deeper than the finest store's D_s). The layer's own value V_L
 
 V(x, D) lays the layers' values over the base layer's, the coarsest store first, each with
 its weight at x (:meth:`~geoterrain.globe.layers.StoreLayer.weight`: 1 inside, falling to 0
-over its edge's outer samples, 0 where it has no data). Beyond every layer's depth nothing
-new appears: refining there only keeps neighbours within one level of each other. The
-*truth* the LOD bound is stated against is V at the deepest lattice.
+over its edge's outer samples, 0 where it has no data). The *measured depth* is the deepest
+layer depth; the finest store (when it has no no-data) is then sampled on in its core, down
+to vertices ``FINE_SPACING_M`` apart or depth ``FINE_DEPTH_LIMIT`` (:meth:`Surface.fine_points`:
+a point ``fine_margin[D]`` metres inside its unblended core takes its value, any other the
+chord of its coarser neighbours), so that the mesh reaches its samples near the eye.
+Elsewhere beyond the measured depth nothing new appears. The *truth* the LOD bound is
+stated against is the store's samples in its core (:mod:`geoterrain.globe.errors`) and V
+at the measured depth's lattice elsewhere.
 
 Every value is a function of (x, D) alone, so two nodes that share a vertex give it the
 same position, bit for bit, whatever their depth: no crack between neighbours of one
