@@ -66,7 +66,7 @@ import numpy as np
 from geoterrain.globe.nodes import children, decode, encode, geometry, hull, node_widths, parent
 from geoterrain.globe.noise import error_bound, height_range_bound
 from geoterrain.globe.payload import Payload, payload_from_values
-from geoterrain.globe.polyhedron import FACES, face_coordinates
+from geoterrain.globe.polyhedron import FACES, face_coordinates, face_points
 from geoterrain.globe.surface import NodeKey, Surface
 
 __all__ = ["ErrorTable", "NodeError", "node_widths", "ranges", "ranges_from", "morph_error",
@@ -159,6 +159,7 @@ class ErrorTable:
         self.cell = np.sqrt((wc * self.r_max) ** 2 + (self.slope * wc * self.r_max) ** 2) \
             * 1.01
         self._region_arrays()
+        self._deep_setup()
         e_all, mv_all, _, self.diag, _ = self.tables()
         self.e[Dq + 1:] = e_all[Dq + 1:]
         self.move[Dq + 1:] = mv_all[Dq + 1:]
@@ -191,7 +192,7 @@ class ErrorTable:
         over it), placed as the data say (geodetic lon, lat, height → ECEF): its face, u, v,
         |p| of its ray's flat face point and its distance from the centre."""
         s = self.surface
-        out = []
+        out, deep = [], []
         for k, st in enumerate(s.stores):  # finest first
             finer = s.stores[:k]
             for lon, lat, h in st.samples():
@@ -206,9 +207,108 @@ class ErrorTable:
                 r = np.linalg.norm(P, axis=-1)
                 face, u, v, fn = face_coordinates(P / r[:, None])
                 out.append((face, u, v, fn, r))
+                if st is s.fine:  # where every deeper triangle over it samples the store
+                    with np.errstate(invalid="ignore"):
+                        deep.append(st.edge_samples(lon, lat) >= s.fine_border)
+                else:
+                    deep.append(np.zeros(len(lon), bool))
         if not out:
+            self._deep_mask = None
             return None
+        self._deep_mask = np.concatenate(deep)
         return tuple(np.concatenate(a) for a in zip(*out, strict=True))
+
+    def _deep_setup(self) -> None:
+        """The store samples beyond ``fine_border`` of the finest store's edge (the truth
+        of the levels beyond the measured depth), sorted by the measured-depth node holding
+        them, and an empty cache of those nodes' measured deeper errors
+        (:meth:`deep_errors`)."""
+        Dq, Dm = self.measured_depth, self.max_depth
+        self._deep_cache = np.full((self.regions, Dm + 1), np.nan)
+        self._deep_samples = None
+        if Dm <= Dq or self._truth is None or self._deep_mask is None or not self.regions:
+            return
+        face, u, v = self._truth[:3]
+        idx = np.flatnonzero(self._deep_mask)
+        m = 1 << Dq
+        x = np.clip(np.floor(u[idx] * m), 0, m - 1).astype(np.int64)
+        y = np.clip(np.floor(v[idx] * m), 0, m - 1).astype(np.int64)
+        keys = encode(face[idx], Dq, x, y)
+        order = np.argsort(self.region_keys)
+        sk = self.region_keys[order]
+        pos = np.clip(np.searchsorted(sk, keys), 0, len(sk) - 1)
+        found = sk[pos] == keys  # (all of them: every node over a store is measured)
+        reg = order[pos[found]]
+        o = np.argsort(reg, kind="stable")
+        self._deep_samples = idx[found][o]
+        reg = reg[o]
+        every = np.arange(self.regions)
+        self._deep_start = np.searchsorted(reg, every)
+        self._deep_end = np.searchsorted(reg, every, "right")
+        # how much nearer a deeper node can lie than its measured-depth ancestor's volume:
+        # its vertices lie on f, within a sample's diagonal of one of the ancestor's samples
+        # (which lie within e of its surface), so within slope × diagonal of its range
+        diag = math.hypot(*self.surface.fine.ground_steps()) * 1.1
+        self._deep_margin = self.region_e + self.region_fine[:, 2] * diag \
+            + float(self.e[Dq + 1]) + self._ell[Dq]
+
+    def deep_errors(self, regions: np.ndarray, depth: int) -> np.ndarray:
+        """Measured, per measured-depth node in ``regions`` (indices into the region
+        arrays), the largest radial gap between the drawn surface of its depth-``depth``
+        descendants (flat triangles whose vertices sample the store's bilinear surface f:
+        :meth:`~geoterrain.globe.surface.Surface.fine_points`) and the store's samples in
+        it beyond ``fine_border`` (0 where it holds none): each sample's triangle at that
+        depth rebuilt from its three vertices, as :meth:`_sample_gap` measures a generated
+        node. Computed once per (node, depth) when a view first needs it, then kept."""
+        regions = np.asarray(regions, np.int64)
+        out = self._deep_cache[regions, depth]
+        todo = np.unique(regions[np.isnan(out)])
+        if len(todo):
+            n = self._deep_end[todo] - self._deep_start[todo]
+            val = np.zeros(len(todo))
+            if n.sum():
+                first = np.repeat(self._deep_start[todo] - np.cumsum(n) + n, n)
+                idx = self._deep_samples[first + np.arange(int(n.sum()))]
+                gaps = self._deep_gaps(tuple(a[idx] for a in self._truth), depth)
+                np.maximum.at(val, np.repeat(np.arange(len(todo)), n), gaps)
+            self._deep_cache[todo, depth] = val * _SAFE
+            out = self._deep_cache[regions, depth]
+        return out
+
+    def deep_gaps(self, points: np.ndarray, depth: int) -> np.ndarray:
+        """The radial gap between ECEF ``points`` (N, 3) (store samples in the finest
+        store's core) and the depth-``depth`` (> the measured depth) triangle on each one's
+        ray, its three vertices on the store's bilinear surface f, placed as
+        :meth:`~geoterrain.globe.surface.Surface.values` places them."""
+        P = np.asarray(points, np.float64).reshape(-1, 3)
+        r = np.linalg.norm(P, axis=-1)
+        face, u, v, fn = face_coordinates(P / r[:, None])
+        return self._deep_gaps((face, u, v, fn, r), depth)
+
+    def _deep_gaps(self, pts: tuple[np.ndarray, ...], depth: int) -> np.ndarray:
+        s = self.surface
+        face, u, vv, fn, r = pts
+        m = float(1 << (depth + s.k))
+        U, V = u * m, vv * m
+        j, i = np.floor(U), np.floor(V)
+        fu, fv = U - j, V - i
+        lower = (fu + fv <= 1.0)[:, None]
+        # the cell's triangle on the (i, j) side of its short diagonal, or the other one
+        vi = np.where(lower, np.stack([i, i, i + 1], -1), np.stack([i + 1, i, i + 1], -1))
+        vj = np.where(lower, np.stack([j, j + 1, j], -1), np.stack([j + 1, j + 1, j], -1))
+        wt = np.where(lower, np.stack([1 - fu - fv, fu, fv], -1),
+                      np.stack([fu + fv - 1, 1 - fv, 1 - fu], -1))
+        F = face_points(np.broadcast_to(face[:, None], vi.shape), vj / m, vi / m)
+        fv_n = np.linalg.norm(F, axis=-1)
+        d = F / fv_n[..., None]
+
+        def hf0(lo, la):
+            return s.layer_heights(s.fine, lo, la, s.max_depth)
+
+        rv = s.model.place(d, hf0, first=s.model.surface(d))[0]
+        rv = s.model.settle(d, rv, hf0)
+        wm = (wt * (fv_n / rv)).sum(-1)
+        return np.abs(fn / wm - r)
 
     def _gradients(self):
         """The finest store's bilinear surface f, as the deepest levels sample it: per block of
@@ -487,9 +587,12 @@ class ErrorTable:
             np.maximum.at(out, self.region_depth[sel], values[sel])
         return out
 
-    def tables(self, sel: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+    def tables(self, sel: np.ndarray | None = None, deep: tuple[np.ndarray, ...] | None = None
+               ) -> tuple[np.ndarray, ...]:
         """Per depth (e, move, slack, diag, cell) over the unmeasured nodes and the measured
-        nodes ``sel`` (a mask over them; None: all)."""
+        nodes ``sel`` (a mask over them; None: all). Beyond the measured depth: the bound
+        from the gradient spreads over ``sel``'s deepest nodes (:meth:`fine_errors`), or, given
+        ``deep`` = per depth (e, M, steepest slope) (:meth:`_deep_table`), those."""
         if sel is None:
             sel = np.ones(self.regions, bool)
         e = np.maximum(self.other_e, self._per_depth(self.region_e, sel))
@@ -500,9 +603,13 @@ class ErrorTable:
         if self.max_depth > Dq:
             sl[Dq + 1:] = np.maximum(sl[Dq + 1:], sl[Dq])
             f = self.region_fine[sel & (self.region_depth == Dq)]
-            if len(f):
-                ge, gm, fs, steep = f.max(0)
-                ee, em = self.fine_errors(ge, gm, fs)
+            if deep is not None or len(f):
+                if deep is None:
+                    ge, gm, fs, steep = f.max(0)
+                    ee, em = self.fine_errors(ge, gm, fs)
+                else:
+                    ee, em, steep = deep
+                    steep = steep[Dq + 1:]
                 e = np.maximum(e, ee)
                 mv = np.maximum(mv, em)
                 w = self.width[Dq + 1:]
@@ -530,14 +637,37 @@ class ErrorTable:
         s = self.surface
         Dq, Dm = self.measured_depth, self.max_depth
         c = s.cell_chord
+        ge, gm, slope = (np.broadcast_to(np.asarray(a, np.float64), (Dm + 1,))
+                         for a in (ge, gm, slope))  # (per depth, or one for all)
         e = np.zeros(Dm + 1)
         mv = np.zeros(Dm + 1)
         for D in range(Dq + 1, Dm + 1):
-            curv = (1 + slope) * c[D] ** 2 / self.r_min
-            e[D] = 1.05 * ge * c[D] / math.sqrt(3) + curv
-            g = gm if D == Dq + 1 else ge
-            mv[D] = 1.05 * g * c[D - 1] / 2 + (1 + slope) * c[D - 1] ** 2 / self.r_min
+            curv = (1 + slope[D]) * c[D] ** 2 / self.r_min
+            e[D] = 1.05 * ge[D] * c[D] / math.sqrt(3) + curv
+            g = gm[D] if D == Dq + 1 else ge[D]
+            mv[D] = 1.05 * g * c[D - 1] / 2 + (1 + slope[D]) * c[D - 1] ** 2 / self.r_min
         return e, mv
+
+    def _deep_table(self, A: np.ndarray, own: np.ndarray, R: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per depth D beyond the measured one, (e, M, steepest slope) over the deepest
+        measured nodes in ``A`` that a depth-D node can lie under when ranges ``R`` are
+        drawn: a depth-D node is drawn only if its parent meets R_{D−1}, and it lies in its
+        measured ancestor's volume (up to ``_deep_margin``), so those whose distance ``own``
+        less the margin is under R_{D−1}. e is measured (:meth:`deep_errors`), M and the
+        slope bounded from their gradient spreads (:meth:`fine_errors`)."""
+        Dq, Dm = self.measured_depth, self.max_depth
+        last = A & (self.region_depth == Dq)
+        near = own - self._deep_margin
+        ee, ge, gm, fs, steep = (np.zeros(Dm + 1) for _ in range(5))
+        for D in range(Dq + 1, Dm + 1):
+            S = np.flatnonzero(last & (near < R[D - 1]))
+            if not len(S):
+                continue  # no node of this depth is drawn
+            ee[D] = float(self.deep_errors(S, D).max())
+            ge[D], gm[D], fs[D], steep[D] = self.region_fine[S].max(0)
+        _, em = self.fine_errors(ge, gm, fs)
+        return ee, em, steep
 
     def view_ranges(self, view, lam: float, tau: float, fraction: float = MORPH_FRACTION,
                     occluder=None, frustum: bool = True
@@ -576,7 +706,7 @@ class ErrorTable:
             gl = type(g)(g.dirs[last], g.planes[last], g.centre[last], g.cmin[last])
             own[last] = shell_distance(view.eye, gl, self.region_lo[last], self.region_hi[last])
         for _ in range(64):
-            R, m = self._capped_ranges(self.tables(A), own, A, lam, tau, fraction)
+            R, m = self._deep_ranges(A, own, lam, tau, fraction)
             D = self.region_depth
             near = ~has | (pdist < R[np.maximum(D - 1, 0)])
             B = vis & near
@@ -584,6 +714,30 @@ class ErrorTable:
                 break
             A = B
         return R, m, int(A.sum())
+
+    def _deep_ranges(self, A, own, lam, tau, fraction):
+        """Ranges over the measured nodes ``A``, beyond the measured depth from the errors
+        measured under the nodes each depth can be drawn under (:meth:`_deep_table`).
+
+        Start from the gradient bound (per depth the same over all of A: ranges R⁰); then
+        R^{i+1} = ranges of the tables over the nodes within R^i. The tables only grow with
+        the sets and the ranges with the tables, so while R^{i+1} ≤ R^i every node R^{i+1}
+        can draw is among those its tables were taken over: each iterate that shrinks is
+        sound, and the sequence stops at a fixed point (or at the last one that shrank). The
+        ranges stay monotone in depth as :func:`ranges_from` makes any tables' ranges."""
+        R, m = self._capped_ranges(self.tables(A), own, A, lam, tau, fraction)
+        if self.max_depth <= self.measured_depth or self._deep_samples is None:
+            return R, m
+        for _ in range(32):
+            R2, m2 = self._capped_ranges(self.tables(A, self._deep_table(A, own, R)), own, A,
+                                         lam, tau, fraction)
+            if not np.all(R2 <= R):
+                break  # (not seen: the bound is never under the measure) keep R
+            done = np.allclose(R2, R, rtol=1e-9, atol=1e-9)
+            R, m = R2, m2
+            if done:
+                break
+        return R, m
 
     def _capped_ranges(self, tables, own, A, lam, tau, fraction):
         """:func:`ranges_from`, no deeper than the view needs beyond the measured depth: the
