@@ -723,16 +723,21 @@ class ErrorTable:
         R^{i+1} = ranges of the tables over the nodes within R^i. The tables only grow with
         the sets and the ranges with the tables, so while R^{i+1} ≤ R^i every node R^{i+1}
         can draw is among those its tables were taken over: each iterate that shrinks is
-        sound, and the sequence stops at a fixed point (or at the last one that shrank). The
-        ranges stay monotone in depth as :func:`ranges_from` makes any tables' ranges."""
+        sound, and the sequence stops at a fixed point (or at the last one that shrank).
+        Only R_{D_s} … (the ranges that pick the sets) need shrink: a coarser range can grow
+        when a finer one shrinks (the morph's budget, m_D = (1 − f)R_{D−1} + f·R_D, is
+        met by the larger), and the measured nodes' own fixed point (:meth:`view_ranges`)
+        answers for those. The ranges stay monotone in depth as :func:`ranges_from` makes
+        any tables' ranges."""
         R, m = self._capped_ranges(self.tables(A), own, A, lam, tau, fraction)
-        if self.max_depth <= self.measured_depth or self._deep_samples is None:
+        Dq = self.measured_depth
+        if self.max_depth <= Dq or self._deep_samples is None:
             return R, m
         for _ in range(32):
             R2, m2 = self._capped_ranges(self.tables(A, self._deep_table(A, own, R)), own, A,
                                          lam, tau, fraction)
-            if not np.all(R2 <= R):
-                break  # (not seen: the bound is never under the measure) keep R
+            if not np.all(R2[Dq:] <= R[Dq:]):
+                break  # keep R (the sets were taken within it)
             done = np.allclose(R2, R, rtol=1e-9, atol=1e-9)
             R, m = R2, m2
             if done:

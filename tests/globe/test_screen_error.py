@@ -59,13 +59,15 @@ def test_measured_screen_error_within_tau_on_20_random_views(japan, tau):
     g, truth, (lon0, lat0) = japan
     centre = truth.mean(0)
     rng = np.random.default_rng(int(tau))
-    worst, views, samples, low, nearest = 0.0, 0, 0, 0, np.inf
-    for _ in range(120):  # 20 views that see the DEM (some random ones look past it)
+    worst, views, samples, low, nearest, lowest = 0.0, 0, 0, 0, np.inf, np.inf
+    for t in range(120):  # 20 views that see the DEM (some random ones look past it)
         lon = lon0 + rng.uniform(-0.1, 0.1)
         lat = lat0 + rng.uniform(-0.1, 0.1)
         ground = float(g.surface.heights(np.array([lon]), np.array([lat]), g.max_depth)[0])
         alt = float(np.exp(rng.uniform(np.log(2.0), np.log(20000.0))))
         pitch = rng.uniform(-8.0, 0.0) if rng.random() < 0.5 else rng.uniform(-60.0, -10.0)
+        if t == 0:  # the first view stands 2 m above the ground, looking along it
+            alt, pitch = 2.0, -3.0
         v = g.camera(lon, lat, ground + alt, rng.uniform(0, 360), pitch, size=(320, 240))
         sel = g.select(v, tau, wait=True)
         rho, n, out = measured_rho(sel, truth, v, centre)
@@ -74,10 +76,13 @@ def test_measured_screen_error_within_tau_on_20_random_views(japan, tau):
         assert out == 0  # every sample in the frustum lies under the mesh
         worst, views, samples = max(worst, rho), views + 1, samples + n
         low += alt < 100.0
+        lowest = min(lowest, alt)
+        print(f"tau {tau}: view {views} at {alt:.1f} m, pitch {pitch:.1f}: rho {rho:.3f} px, "
+              f"{sel.triangles} triangles")
         nearest = min(nearest, float(np.linalg.norm(truth - v.eye, axis=1).min()))
         if views == 20:
             break
-    assert views == 20 and low >= 4  # views from under 100 m are among them
+    assert views == 20 and low >= 4 and lowest == 2.0  # views from under 100 m, one at 2 m
     print(f"tau {tau}: worst measured rho {worst:.3f} px over {views} views ({low} under "
           f"100 m; nearest sample {nearest:.1f} m), {samples} samples")
     assert worst <= tau
