@@ -36,10 +36,14 @@ the chain. A child that holds no sampled point (beyond every truth depth) reprod
 parent exactly: M = e = 0. The store's own error (its coarse levels against its full
 resolution) is in e(N) exactly, not as a bound.
 
-**Bounded, beyond the measured depth** (where the finest store is sampled on in its core:
-:mod:`geoterrain.globe.surface`): per depth, from the spread of the samples' gradient under
-the view's measured-depth nodes (:meth:`ErrorTable.fine_errors`); the view's depth stops
-where that error already meets the eye's distance (:meth:`ErrorTable.view_ranges`).
+**Measured per region, beyond the measured depth** (where the finest store is sampled on
+in its core: :mod:`geoterrain.globe.surface`): per measured-depth node and deeper depth,
+the largest gap of the deeper triangles to the samples in it, each rebuilt from its three
+vertices when a view first needs it (:meth:`ErrorTable.deep_errors`); the moves are
+bounded from the spread of the samples' gradient (:meth:`ErrorTable.fine_errors`, also the
+starting bound for e). A view takes each depth's table over the nodes that depth can be
+drawn under, iterated to a fixed point (:meth:`ErrorTable._deep_ranges`), and its depth
+stops where the error already meets the eye's distance (:meth:`ErrorTable.view_ranges`).
 
 **Bounded, over the base layer.** Where no store lies, a node samples the procedural
 planet (or the bare ellipsoid) at every vertex, and :func:`geoterrain.globe.noise.error_bound`
