@@ -16,8 +16,9 @@ and the mesh's 1/ρ there, with no code of the globe in between; the radial gap 
 |Δ(1/ρ)|·ρ_mesh·ρ_true·|(x, y, 1)|, and ρ_px = λ·gap / ‖sample − eye‖ (the flat
 measure's definition).
 
-The views are drawn over the DEM's middle, 2 m to 20 km above the ground (log-uniform),
-half of them looking at the horizon: the samples nearest the eye are a few metres off.
+The views are drawn over the DEM's middle, 2 m to 20 km above the ground (log-uniform; the
+first one 2 m up), half of them looking at the horizon: the samples nearest the eye are a
+few metres off.
 """
 
 from __future__ import annotations
