@@ -89,3 +89,14 @@ def test_horizon_culling_removes_nodes_behind_the_horizon_and_no_visible_one(jap
     print(f"horizon: {culled}/{len(hidden_keys)} behind culled, {len(lost)} visible lost, "
           f"nodes {on.stats['nodes']} vs {off.stats['nodes']}")
     assert on.stats["nodes"] < off.stats["nodes"]
+
+
+def test_a_collision_mesh_too_deep_to_hold_is_refused_in_one_line(japan):
+    """The levels beyond the measured depth hold 4 mm vertices: a collision mesh of 4 km
+    there would be 10^10 nodes; it is refused before a payload is made."""
+    from geoterrain.exceptions import UsageError
+
+    g, _, _ = japan
+    with pytest.raises(UsageError, match="coarser level") as err:
+        g.collision_mesh([(139.25, 35.35, 500.0)], radius=4000.0, level=g.max_depth)
+    assert "\n" not in str(err.value)
