@@ -325,6 +325,11 @@ class Globe:
             hi = np.full(len(keys), self.table.r_max)
             near = np.min([shell_distance(p, g, lo, hi) for p in P], 0) <= radius
             keys = keys[near]
+            if len(keys) > COLLISION_NODES:  # each holds a payload: refuse, never swap
+                raise UsageError(
+                    f"a collision mesh at level {int(level)} within {radius:g} m holds more "
+                    f"than {COLLISION_NODES} nodes ({len(keys)} at level {D} already): ask "
+                    f"for a coarser level (≤ {max(D - 1, 0)}) or a smaller radius")
         verts, tris = [], []
         off = 0
         for k in keys.tolist():
@@ -335,6 +340,10 @@ class Globe:
         if not verts:
             return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
         return np.concatenate(verts), np.concatenate(tris)
+
+
+#: The most nodes one collision mesh holds (each a payload of node_cells² cells).
+COLLISION_NODES = 65536
 
 
 def camera_view(model: Model, lon: float, lat: float, height: float, heading: float = 0.0,

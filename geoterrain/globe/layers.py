@@ -195,6 +195,44 @@ class StoreLayer:
         t = np.where(np.isfinite(t), t, 0.0)
         return t * t * (3.0 - 2.0 * t)
 
+    def edge_samples(self, lon: np.ndarray, lat: np.ndarray) -> np.ndarray:
+        """Level-0 samples (grid units) from lon, lat to the nearest side of the rectangle of
+        the store's pixel centres, every side counted (a 360° store's seam and a polar row
+        too); negative outside, NaN where lon, lat have no place in the store's CRS."""
+        g = self.terrain.grid
+        ri, cj = self.grid_coords(lon, lat)
+        with np.errstate(invalid="ignore"):
+            return np.minimum(np.minimum(ri, (g.rows - 1) - ri),
+                              np.minimum(cj, (g.cols - 1) - cj))
+
+    def ground_steps(self) -> tuple[float, float]:
+        """The least ground distance (metres) of one level-0 step along a column and along a
+        row anywhere in the store (geographic: the row step at the latitude farthest from the
+        equator, the column step at the one nearest it; projected: the CRS step less 2 % for
+        the projection's scale)."""
+        fr, g = self.terrain.frame, self.terrain.grid
+        a, _, c, _, e, f = fr.transform
+        if not self.geographic:
+            return abs(a) * fr.unit_to_m * 0.98, abs(e) * fr.unit_to_m * 0.98
+        lats = np.clip(np.array([f, f + e * g.rows]), -89.999, 89.999)
+        far = float(lats[np.argmax(np.abs(lats))])
+        near = 0.0 if lats.min() <= 0.0 <= lats.max() else float(lats[np.argmin(np.abs(lats))])
+        geod = Geod(ellps="WGS84")
+        _, _, ew = geod.inv(0.0, far, abs(a), far)
+        _, _, ns = geod.inv(0.0, near, 0.0, near + abs(e))
+        return float(ew) * 0.999, float(ns) * 0.999
+
+    def full_heights(self, rows_per_block: int = 256) -> np.ndarray:
+        """Every level-0 sample's height (metres, the store's z scale; NaN: no data)."""
+        g = self.terrain.grid
+        out = np.empty((g.rows, g.cols))
+        cols = np.arange(g.cols, dtype=np.int64)
+        for r0 in range(0, g.rows, rows_per_block):
+            rr = np.arange(r0, min(g.rows, r0 + rows_per_block), dtype=np.int64)
+            R, C = np.meshgrid(rr, cols, indexing="ij")
+            out[rr] = self._samples(0, R.ravel(), C.ravel()).reshape(R.shape)
+        return out
+
     def level_for(self, spacing: float) -> int:
         """The coarsest store level whose samples are at most ``spacing`` metres apart."""
         top = self.terrain.grid.top_level

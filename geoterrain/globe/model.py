@@ -176,6 +176,23 @@ class Model:
         h1 = heights(lon1, lat1)
         return t0 + (h0 + h1 - g1) / c, lon1, lat1
 
+    def settle(self, d: np.ndarray, r: np.ndarray, heights: HeightFn, steps: int = 2
+               ) -> np.ndarray:
+        """:meth:`place`'s r carried ``steps`` more steps towards the terrain along each ray:
+        r += (h(lon, lat) − g)/(d·ν) at the point's own geodetic (lon, lat, g). Each step
+        multiplies the height's misfit by about the terrain's slope times the ray's angle
+        to the normal (≤ 0.2°), so two steps leave micrometres where :meth:`place` left up
+        to centimetres (slopes near 1, heights near 1 km). The sphere's r is exact already."""
+        if self.is_sphere or not np.size(r):
+            return r
+        d = np.asarray(d, np.float64)
+        r = np.asarray(r, np.float64).copy()
+        for _ in range(steps):
+            lon, lat, g = self.to_geodetic(d * r[..., None])
+            c = np.einsum("...i,...i", d, self.up(lon, lat))
+            r = r + (heights(lon, lat) - g) / c
+        return r
+
 
 _WGS84 = Model("wgs84", WGS84_A, WGS84_B)
 _SPHERE = Model("sphere", SPHERE_R, SPHERE_R)

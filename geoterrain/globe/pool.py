@@ -32,7 +32,7 @@ import threading
 
 import numpy as np
 
-from geoterrain.globe.nodes import Geometry, children, encode, geometry, hull
+from geoterrain.globe.nodes import Geometry, children, decode, encode, geometry, hull
 from geoterrain.globe.payload import Payload
 
 __all__ = ["NodePool", "PayloadPool", "NONE", "PENDING", "READY"]
@@ -173,7 +173,7 @@ class NodePool:
                 self.row_of[k] = r
         g = geometry(keys)
         self.key[rows] = keys
-        self.depth[rows] = (keys >> np.int64(48)) % 32
+        self.depth[rows] = decode(keys)[1]
         self.dirs[rows], self.planes[rows] = g.dirs, g.planes
         self.centre[rows], self.cmin[rows] = g.centre, g.cmin
         self.kids[rows] = -1

@@ -18,9 +18,14 @@ falls to 1 mm (no deeper than the finest store's D_s). The layer's own value V_L
 
 V(x, D) lays the layers' values over the base layer's, the coarsest store first, each with
 its weight at x (:meth:`~geoterrain.globe.layers.StoreLayer.weight`: 1 inside, falling to 0
-over its edge's outer samples, 0 where it has no data). Beyond every layer's depth nothing
-new appears: refining there only keeps neighbours within one level of each other. The
-*truth* the LOD bound is stated against is V at the deepest lattice.
+over its edge's outer samples, 0 where it has no data). The *measured depth* is the deepest
+layer depth; the finest store (when it has no no-data) is then sampled on in its core, down
+to vertices ``FINE_SPACING_M`` apart or depth ``FINE_DEPTH_LIMIT`` (:meth:`Surface.fine_points`:
+a point ``fine_margin[D]`` metres inside its unblended core takes its value, any other the
+chord of its coarser neighbours), so that the mesh reaches its samples near the eye.
+Elsewhere beyond the measured depth nothing new appears. The *truth* the LOD bound is
+stated against is the store's samples in its core (:mod:`geoterrain.globe.errors`) and V
+at the measured depth's lattice elsewhere.
 
 Every value is a function of (x, D) alone, so two nodes that share a vertex give it the
 same position, bit for bit, whatever their depth: no crack between neighbours of one
@@ -44,14 +49,18 @@ import numpy as np
 from geoterrain.exceptions import UsageError
 from geoterrain.globe.layers import FACE_EDGE_M, BaseLayer, StoreLayer, resolved_depth
 from geoterrain.globe.model import Model
+from geoterrain.globe.nodes import node_widths
 from geoterrain.globe.noise import error_bound
 from geoterrain.globe.polyhedron import face_points
 
-__all__ = ["Surface", "NodeValues", "NodeKey", "MAX_DEPTH", "BASE_TOLERANCE_M"]
+__all__ = ["Surface", "NodeValues", "NodeKey", "MAX_DEPTH", "BASE_TOLERANCE_M", "FINE_SPACING_M",
+           "FINE_DEPTH_LIMIT"]
 
 NodeKey = tuple[int, int, int, int]  # (face, depth, x, y)
 MAX_DEPTH = 22
 BASE_TOLERANCE_M = 1e-3  # the base layer is resolved where its own error bound reaches 1 mm
+FINE_SPACING_M = 0.004  # the finest store is sampled, in its core, to vertices this close
+FINE_DEPTH_LIMIT = 26  # … or this depth (a node key holds x, y < 2^26)
 
 
 @dataclass
@@ -139,7 +148,52 @@ class Surface:
         natural = self._base_depth()
         self.base_depth = (min(natural, max(self.resolved)) if self.stores else natural) \
             if self.base_present else -1
-        self.max_depth = max([self.base_depth] + self.resolved)
+        self.measured_depth = max([self.base_depth] + self.resolved)
+        self.max_depth = self.measured_depth
+        self.fine = self._fine_store()
+        self.fine_margin = np.zeros(self.max_depth + 1)
+        self.fine_border = math.inf
+        if self.fine is not None:
+            D = self.measured_depth
+            while D < FINE_DEPTH_LIMIT and self.spacing(D) > FINE_SPACING_M:
+                D += 1
+            self.max_depth = D
+            rng = self.fine.terrain.meta.get("height_range") or [0.0, 0.0]
+            top = model.a + max(0.0, float(np.max(self.fine.terrain.frame.z(
+                np.asarray(rng, np.float64))))) * self.scale + 1.0
+            self.cell_chord = node_widths(D, self.k) * top * 1.02  # ≥ any cell's long diagonal
+            margin = np.zeros(D + 1)
+            for d in range(self.measured_depth + 1, D + 1):
+                margin[d] = margin[d - 1] + self.cell_chord[d - 1]
+            self.fine_margin = margin
+            self.fine_step = min(self.fine.ground_steps())
+            self.fine_border = self.fine.feather + (
+                margin[-1] + self.cell_chord[self.measured_depth + 1]) / self.fine_step
+
+    def _fine_store(self) -> StoreLayer | None:
+        """The store sampled beyond its resolved depth in its core: the finest, when it has
+        no no-data (a hole would show the layer under it) and a ground step to measure by."""
+        if not self.stores:
+            return None
+        st = self.stores[0]
+        if float(st.terrain.meta.get("nodata_fraction", 1.0)) != 0.0:
+            return None
+        return st
+
+    def fine_points(self, lon: np.ndarray, lat: np.ndarray, depth: int) -> np.ndarray:
+        """Whether lattice points of depth ``depth`` (> the measured depth) take the finest
+        store's own (bilinear, level-0) value rather than the chord of their coarser
+        neighbours: those at least ``fine_margin[depth]`` metres inside its unblended core
+        (weight 1), so that their coarser neighbours (≤ one coarser cell's long diagonal
+        away) are such points themselves, or lie at the measured depth inside the core: the
+        store's value there too."""
+        lon = np.asarray(lon, np.float64)
+        if self.fine is None or depth <= self.measured_depth:
+            return np.zeros(lon.shape, bool)
+        m = self.fine.edge_samples(lon, lat)
+        need = self.fine.feather + self.fine_margin[depth] / self.fine_step
+        with np.errstate(invalid="ignore"):
+            return np.isfinite(m) & (m >= need)
 
     # ------------------------------------------------------------------ depths
     def spacing(self, depth: int) -> float:
@@ -239,11 +293,20 @@ class Surface:
         levels = [fin - 1, fin] if depth > 0 else [fin]
         comp: dict[int, np.ndarray] = {}
         any_store = np.zeros(grid(fin)[1].shape, bool)
+        # beyond the measured depth, where the finest store shows unblended at every point
+        # of both levels, the layers under it take no part (their weight is 0)
+        alone = depth > self.measured_depth and self.fine is not None and all(
+            (self.weight(self.fine, grid(lv)[3], grid(lv)[4]) >= 1.0).all() for lv in levels)
         for layer, DL in self.layers():
+            if alone and layer is not self.fine:
+                continue
             if layer is not None and not any(layer.covers(grid(lv)[3], grid(lv)[4]).any()
                                              for lv in levels):
                 continue
             start = min(max(DL, 0), max(depth - 1, 0)) + k
+            if layer is self.fine and depth - 1 > DL and self.fine_points(
+                    *grid(fin - 1)[3:], depth - 1).all():
+                start = fin - 1  # the parent's lattice is sampled throughout: no chords
             prev = None
             for lam in range(start, fin + 1):
                 d, fn, t0, lon0, lat0 = grid(lam)
@@ -255,8 +318,19 @@ class Surface:
                         return self.layer_heights(layer, lo, la, depth)
 
                     r = self.model.place(d, hf, first=(t0, lon0, lat0))[0]
+                    if layer is self.fine and lam - k >= DL:
+                        r = self.model.settle(d, r, hf)
                 else:
                     r = _chord(prev[0], prev[1], prev[2], fn, (r0, c0))
+                    if layer is self.fine:
+                        fm = self.fine_points(lon0, lat0, lam - k)
+                        if fm.any():
+                            def hf0(lo, la, layer=layer):
+                                return self.layer_heights(layer, lo, la, self.max_depth)
+
+                            rs = self.model.place(d[fm], hf0, first=(t0[fm], lon0[fm],
+                                                                     lat0[fm]))[0]
+                            r[fm] = self.model.settle(d[fm], rs, hf0)
                 prev = (r, fn, (r0, c0))
                 if lam in levels:
                     if layer is None:

@@ -41,7 +41,8 @@ def _dem_bilinear(z, T, lon, lat):
 
 def test_collision_mesh_heights_are_within_the_nodes_error_of_the_dem(japan):
     g, z, T = japan
-    for level in (9, 11, g.max_depth):
+    for level in (9, 11, g.surface.measured_depth):  # (the deepest measured level: the
+        # levels beyond it hold 4 mm vertices, 10^10 nodes within 4 km)
         V, F = g.collision_mesh([(139.25, 35.35, 500.0)], radius=4000.0, level=level)
         assert V.dtype == np.float64 and F.shape[1] == 3 and F.max() < len(V)
         lon, lat, h = g.model.to_geodetic(V)  # pyproj: the vertices' own geodetic heights
@@ -88,3 +89,14 @@ def test_horizon_culling_removes_nodes_behind_the_horizon_and_no_visible_one(jap
     print(f"horizon: {culled}/{len(hidden_keys)} behind culled, {len(lost)} visible lost, "
           f"nodes {on.stats['nodes']} vs {off.stats['nodes']}")
     assert on.stats["nodes"] < off.stats["nodes"]
+
+
+def test_a_collision_mesh_too_deep_to_hold_is_refused_in_one_line(japan):
+    """The levels beyond the measured depth hold 4 mm vertices: a collision mesh of 4 km
+    there would be 10^10 nodes; it is refused before a payload is made."""
+    from geoterrain.exceptions import UsageError
+
+    g, _, _ = japan
+    with pytest.raises(UsageError, match="coarser level") as err:
+        g.collision_mesh([(139.25, 35.35, 500.0)], radius=4000.0, level=g.max_depth)
+    assert "\n" not in str(err.value)

@@ -78,13 +78,71 @@ def test_every_measured_node_is_within_its_error_of_the_samples(rough):
                     .max())
         assert gap <= ne.e * (1 + 1e-6) + 1e-6, (key, gap, ne.e)
         checked += 1
-        if key[1] == g.max_depth:
+        if key[1] == g.surface.measured_depth:
             leaves += 1
             worst_leaf = max(worst_leaf, gap)
     assert checked > 20 and leaves > 4
     # the deepest lattice misses the samples: a bound stated against it alone would be 0
     assert worst_leaf > 1.0
-    assert g.table.e[g.max_depth] >= worst_leaf * (1 - 1e-6)
+    assert g.table.e[g.surface.measured_depth] >= worst_leaf * (1 - 1e-6)
+
+
+def test_deeper_nodes_in_the_core_meet_the_samples_within_their_depths_error(rough):
+    """Beyond the measured depth the finest store's core is sampled on: the node holding a
+    sample, at every depth down to the deepest, is within that depth's e of it (and its
+    move within M), e falling with the vertex spacing, so that ρ ≤ τ reaches the eye."""
+    from geoterrain.globe.nodes import encode
+    from geoterrain.globe.polyhedron import face_coordinates
+
+    g, truth = rough
+    s, tb = g.surface, g.table
+    Dq, Dm = s.measured_depth, s.max_depth
+    assert Dm > Dq and s.spacing(Dm) < 0.01
+    assert tb.e[Dm] < 1e-3 * tb.e[Dq] and np.all(np.diff(tb.e[Dq + 1:]) < 0)
+    # the samples the deeper levels answer for: fine_border samples inside the store
+    lon, lat, _ = g.surface.model.to_geodetic(truth)
+    inside = s.fine.edge_samples(lon, lat) >= np.ceil(s.fine_border)
+    pts = truth[inside]
+    assert len(pts) > 100
+    rng = np.random.default_rng(1)
+    pick = pts[rng.choice(len(pts), 12, replace=False)]
+    c = pick.mean(0) / np.linalg.norm(pick.mean(0))
+    e1 = np.cross([0.0, 0.0, 1.0], c)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(c, e1)
+    faces = grid_faces(g.n)
+    face, u, v, _ = face_coordinates(pick / np.linalg.norm(pick, axis=1)[:, None])
+    worst, measured = {}, {}
+    for D in sorted({Dq + 1, Dq + 2, Dq + 3, Dq + 6, (Dq + Dm) // 2, Dm - 1, Dm}):
+        for k in range(len(pick)):
+            key = (int(face[k]), D, int(u[k] * 2 ** D), int(v[k] * 2 ** D))
+            assert encode(*key) >= 0
+            p = make_payload(s, key, normals=False)
+            vx, vy, vw = _gnomonic(p.positions(), c, e1, e2)
+            sx, sy, sw = _gnomonic(pick[k:k + 1], c, e1, e2)
+            err, _ = metric_errors(faces, vx, vy, 1.0 / vw, sx, sy, 1.0 / sw,
+                                   np.ones(1, bool))
+            assert np.isfinite(err[0]), (key, "the sample lies under its node")
+            rho_mesh = 1.0 / (1.0 / sw[0] + err[0])
+            gap = float(err[0] * rho_mesh * sw[0] * np.sqrt(1 + sx[0] ** 2 + sy[0] ** 2))
+            assert gap <= tb.e[D] * (1 + 1e-6) + 1e-9, (key, gap, tb.e[D])
+            assert p.move <= tb.move[D] * (1 + 1e-6) + 1e-9, (key, p.move, tb.move[D])
+            worst[D] = max(worst.get(D, 0.0), gap)
+            # the gap the table measures when a view needs it: the same triangle, rebuilt
+            # from its three vertices (up to the payload's float32 positions, relative to
+            # the node's centre); and within what it keeps for the sample's measured-depth
+            # node
+            mine = float(tb.deep_gaps(pick[k], D)[0])
+            tol = 1e-6 * gap + 5e-7 * tb.width[D] + 1e-6  # float32 ulps
+            assert abs(mine - gap) <= tol, (key, mine, gap)
+            up = encode(int(face[k]), Dq, int(u[k] * 2 ** Dq), int(v[k] * 2 ** Dq))
+            ri = np.flatnonzero(tb.region_keys == up)
+            assert len(ri) == 1
+            kept = float(tb.deep_errors(ri, D)[0])
+            assert gap <= kept * (1 + 1e-6) + 1e-9 and kept <= tb.e[D], (key, gap, kept)
+            measured[D] = max(measured.get(D, 0.0), kept)
+    print({D: (round(w, 6), round(measured[D], 6), round(float(tb.e[D]), 6))
+           for D, w in worst.items()})
 
 
 @pytest.mark.fast
