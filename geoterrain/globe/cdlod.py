@@ -57,6 +57,9 @@ from geoterrain.globe.pool import READY
 
 __all__ = ["GlobeSelection", "select", "quadrant_faces", "MorphItems", "morph_vertices"]
 
+#: Store samples a frame may measure beyond the measured depth (the rest of what it needs
+#: is bounded analytically until a later frame measures it; a converged view measures all).
+MEASURE_PER_FRAME = 5_000
 _END = 1.0 - 1e-9  # k = 1 from R·_END on: a boundary vertex never falls just short
 
 
@@ -251,7 +254,8 @@ def select(globe, view, tau: float, *, frustum: bool = True, horizon: bool = Tru
     f = MORPH_FRACTION if fraction is None else float(fraction)
     f = f if morph else 0.0
     R, m, considered = globe.table.view_ranges(view, view.lam, tau, f, globe.occluder
-                                               if horizon else None, frustum)
+                                               if horizon else None, frustum,
+                                               None if wait else MEASURE_PER_FRAME)
     pool = globe.nodes
     Dm = globe.table.max_depth
     gen_ms = 0.0

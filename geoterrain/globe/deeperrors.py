@@ -97,6 +97,7 @@ class DeeperLevels:
         Dq, Dm = self.measured_depth, self.max_depth
         self._deep_cache = np.full((self.regions, Dm + 1), np.nan)
         self._deep_samples = None
+        self._deep_left = math.inf  # samples this view may still measure (view_ranges)
         if Dm <= Dq or self._truth is None or self._deep_mask is None or not self.regions:
             return
         face, u, v = self._truth[:3]
@@ -130,12 +131,22 @@ class DeeperLevels:
         :meth:`~geoterrain.globe.surface.Surface.fine_points`) and the store's samples in
         it beyond ``fine_border`` (0 where it holds none): each sample's triangle at that
         depth rebuilt from its three vertices, as :meth:`_sample_gap` measures a generated
-        node. Computed once per (node, depth) when a view first needs it, then kept."""
+        node. Computed once per (node, depth) when a view first needs it, then kept.
+
+        A view measures at most ``_deep_left`` samples (:meth:`measuring`: a frame's
+        budget; or one node, while any is left); the nodes left over get, for this call only, the
+        bound :meth:`fine_errors` gives from their own gradient spread: a larger error, so
+        sound ranges, and a later view measures them."""
         regions = np.asarray(regions, np.int64)
         out = self._deep_cache[regions, depth]
         todo = np.unique(regions[np.isnan(out)])
+        later = todo[:0]
         if len(todo):
             n = self._deep_end[todo] - self._deep_start[todo]
+            take = np.cumsum(n) <= self._deep_left
+            take[0] |= self._deep_left > 0  # (one node, however large, while any is left)
+            todo, later, n = todo[take], todo[~take], n[take]
+            self._deep_left -= float(n.sum())
             val = np.zeros(len(todo))
             if n.sum():
                 first = np.repeat(self._deep_start[todo] - np.cumsum(n) + n, n)
@@ -144,7 +155,18 @@ class DeeperLevels:
                 np.maximum.at(val, np.repeat(np.arange(len(todo)), n), gaps)
             self._deep_cache[todo, depth] = val * SAFE
             out = self._deep_cache[regions, depth]
+        if len(later):  # not measured in this view: G·R_c and the curvature (fine_errors)
+            c = float(self.surface.cell_chord[depth])
+            ge, fs = self.region_fine[later, 0], self.region_fine[later, 2]
+            bound = np.full(self.regions, np.nan)
+            bound[later] = 1.05 * ge * c / math.sqrt(3) + (1 + fs) * c ** 2 / self.r_min
+            out = np.where(np.isnan(out), bound[regions], out)
         return out
+
+    def measuring(self, samples: float | None) -> None:
+        """The samples the next view may measure beyond the measured depth (None: every
+        one it needs, as a converged view does)."""
+        self._deep_left = math.inf if samples is None else float(samples)
 
     def deep_gaps(self, points: np.ndarray, depth: int) -> np.ndarray:
         """The radial gap between ECEF ``points`` (N, 3) (store samples in the finest

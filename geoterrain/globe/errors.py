@@ -474,7 +474,7 @@ class ErrorTable(DeeperLevels):
         return e, mv, sl, dg, self.cell
 
     def view_ranges(self, view, lam: float, tau: float, fraction: float = MORPH_FRACTION,
-                    occluder=None, frustum: bool = True
+                    occluder=None, frustum: bool = True, measure: int | None = None
                     ) -> tuple[np.ndarray, np.ndarray, int]:
         """Ranges for one view: :func:`ranges` over the nodes this view could draw.
 
@@ -482,8 +482,17 @@ class ErrorTable(DeeperLevels):
         parent meets its depth's sphere, dist(parent) < R_{D−1}. Ranges from all measured
         nodes draw a subset of those; ranges from that subset draw a subset of it; … The
         sets shrink to a fixed point A with R = ranges(A), and every node R draws is in A: the
-        constraints hold for it. Returns (R, m, |A|).
+        constraints hold for it. Returns (R, m, |A|). ``measure``: the store samples this
+        view may measure beyond the measured depth (None: all it needs;
+        :meth:`~geoterrain.globe.deeperrors.DeeperLevels.deep_errors`).
         """
+        self.measuring(measure)
+        try:
+            return self._view_ranges(view, lam, tau, fraction, occluder, frustum)
+        finally:
+            self.measuring(None)  # a call outside a view measures all it needs
+
+    def _view_ranges(self, view, lam, tau, fraction, occluder, frustum):
         from geoterrain.globe.nodes import OUTSIDE, frustum_state, horizon_hidden, shell_distance
 
         if not self.regions:

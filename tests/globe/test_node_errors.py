@@ -145,6 +145,25 @@ def test_deeper_nodes_in_the_core_meet_the_samples_within_their_depths_error(rou
            for D, w in worst.items()})
 
 
+def test_a_view_out_of_measuring_budget_bounds_the_deeper_nodes_above_their_measure(rough):
+    """A frame measures only so many samples beyond the measured depth; the nodes it leaves
+    get their gradient bound (fine_errors) for that call, never less than what measuring
+    them gives, and nothing of it is kept: the next call measures them."""
+    g, _ = rough
+    tb = g.table
+    Dq, Dm = tb.measured_depth, tb.max_depth
+    regions = np.flatnonzero(tb.region_depth == Dq)
+    assert len(regions) > 1
+    for D in (Dq + 4, Dm - 2):
+        tb.measuring(0)
+        bounded = tb.deep_errors(regions, D)
+        tb.measuring(None)
+        measured = tb.deep_errors(regions, D)
+        assert np.all(bounded >= measured * (1 - 1e-9)), D
+        assert (bounded > measured).any(), D  # (the bound, not a kept measure)
+        assert np.array_equal(measured, tb.deep_errors(regions, D))
+
+
 @pytest.mark.fast
 def test_the_morph_bound_lies_between_its_two_ends():
     rng = np.random.default_rng(3)
