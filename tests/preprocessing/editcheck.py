@@ -135,6 +135,33 @@ def paused_at_commit(script: str, ready: Path, *args: str) -> Iterator[None]:
         proc.wait()
 
 
+#: The start of a child script for :func:`paused_at_commit`: the store editor's connection
+#: spills every page it changes to the file (a one-page cache) and, at its commit, writes
+#: ``sys.argv[2]`` and sleeps; the script goes on with its own patches and edit.
+SLOW_COMMIT = """\
+import sys, time, numpy as np, geoterrain
+import geoterrain.store.editor as E
+real = E.StoreEditor._apply
+class Slow:  # the editor's connection, pausing at its commit
+    def __init__(self, con):
+        self.con = con
+    def execute(self, sql, *a):
+        if sql == "COMMIT":
+            open(sys.argv[2], "w").close()
+            time.sleep(60)
+        return self.con.execute(sql, *a)
+    def close(self):
+        self.con.close()
+def apply(self, *a):
+    # every page the edit changes goes to the file before the commit (a small cache
+    # spills them): the store is damaged until the journal is rolled back
+    self.con.execute("PRAGMA cache_size=1")
+    self.con = Slow(self.con)
+    return real(self, *a)
+E.StoreEditor._apply = apply
+"""
+
+
 def random_patch(kind: str, h: int, w: int, seed: int, mode: str) -> np.ndarray:
     """An (h, w) patch for ``mode``: ``const`` (one height, below the data for add/min,
     above it otherwise), ``rough`` (normal noise, rounded), ``holes`` (rough with 30 %

@@ -23,6 +23,7 @@ import geoterrain
 from geoterrain.exceptions import InputError, StoreChangedError, UsageError
 from geoterrain.preprocessing.edit import Patch, edit_terrain
 from tests.preprocessing.editcheck import (
+    SLOW_COMMIT,
     apply_by_hand,
     assert_same_store,
     integer_dem,
@@ -220,30 +221,11 @@ def test_bad_requests(tmp_path):
             t.edit((0, 0, 3, 3), np.ones((2, 2)))
 
 
-_KILLED = textwrap.dedent("""
-    import sys, time, numpy as np, geoterrain
-    import geoterrain.store.editor as E
-    real = E.StoreEditor._apply
-    class Slow:  # the editor's connection, pausing at its commit
-        def __init__(self, con):
-            self.con = con
-        def execute(self, sql, *a):
-            if sql == "COMMIT":
-                open(sys.argv[2], "w").close()
-                time.sleep(60)
-            return self.con.execute(sql, *a)
-        def close(self):
-            self.con.close()
-    def apply(self, *a):
-        # every page the edit changes goes to the file before the commit (a small cache
-        # spills them): the store is damaged until the journal is rolled back
-        self.con.execute("PRAGMA cache_size=1")
-        self.con = Slow(self.con)
-        return real(self, *a)
-    E.StoreEditor._apply = apply
+_KILLED = SLOW_COMMIT + textwrap.dedent("""
     t = geoterrain.open(sys.argv[1])
     t.edit((3, 5), np.full((30, 40), 123.0))
 """)
+
 
 
 def test_killed_edit_leaves_the_old_store(tmp_path):

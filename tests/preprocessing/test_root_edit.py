@@ -22,6 +22,7 @@ import geoterrain
 from geoterrain.exceptions import InputError
 from geoterrain.preprocessing.edit import Patch, edit_terrain
 from tests.preprocessing.editcheck import (
+    SLOW_COMMIT,
     apply_by_hand,
     assert_same_store,
     integer_dem,
@@ -333,35 +334,18 @@ def test_a_window_across_the_seam_is_edited_by_tiles(tmp_path, wide):
     assert_same_store(store, fresh)
 
 
-_KILLED_TILES = textwrap.dedent("""
-    import sys, time, numpy as np, geoterrain
-    import geoterrain.store.editor as E
+_KILLED_TILES = SLOW_COMMIT + textwrap.dedent("""
     import geoterrain.preprocessing.edit.local as local
-    real = E.StoreEditor._apply
     real_plan = local.local_plan
-    class Slow:  # the editor's connection, pausing at its commit
-        def __init__(self, con):
-            self.con = con
-        def execute(self, sql, *a):
-            if sql == "COMMIT":
-                open(sys.argv[2], "w").close()
-                time.sleep(60)
-            return self.con.execute(sql, *a)
-        def close(self):
-            self.con.close()
-    def apply(self, *a):
-        self.con.execute("PRAGMA cache_size=1")
-        self.con = Slow(self.con)
-        return real(self, *a)
     def plan(*a):  # which path the edit took, for the test
         p, why = real_plan(*a)
         open(sys.argv[3], "w").write("tiles" if p is not None else why)
         return p, why
-    E.StoreEditor._apply = apply
     local.local_plan = plan
     t = geoterrain.open(sys.argv[1])
     t.edit((3, 30), np.full((20, 9), float(sys.argv[4])))
 """)
+
 
 
 @pytest.mark.slow  # a child process: about 5 s
