@@ -75,10 +75,10 @@ def command(ctx, store, at, points, crs, lonlat, level, slope, polygon, base, ma
             xy = np.concatenate([np.asarray(xy).reshape(-1, 2), pts])
         xy = np.asarray(xy, np.float64).reshape(-1, 2)
         from geoterrain.analysis import height_at, normal_at
-        from geoterrain.analysis.points import grid_coords, inside, outside_error, to_source
+        from geoterrain.analysis.points import inside, outside_error, to_source, turn_coords
 
         src = to_source(t.frame, xy, pcrs)
-        out = ~inside(t.grid, *grid_coords(t.frame, src))
+        out = ~inside(t.grid, *turn_coords(t.frame, src))
         if out.any():
             raise outside_error(t.frame, t.grid, xy, pcrs, out)
         h = height_at(t, xy, level, crs=pcrs)
