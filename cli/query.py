@@ -83,9 +83,9 @@ def command(ctx, store, at, points, crs, lonlat, level, slope, polygon, base, ma
             raise outside_error(t.frame, t.grid, xy, pcrs, out)
         h = height_at(t, xy, level, crs=pcrs)
         nrm = normal_at(t, xy, crs=pcrs) if slope else None
-    from geoterrain.analysis.profile import _unit
+    from geoterrain.analysis.points import vertical_unit
 
-    unit = _unit(t)
+    unit = vertical_unit(t)
     rows = []
     for k in range(len(xy)):
         r = {"x": float(xy[k, 0]), "y": float(xy[k, 1]),

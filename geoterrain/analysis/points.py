@@ -35,7 +35,7 @@ if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
 __all__ = ["Reads", "as_xy", "frame_geod", "from_source", "grid_coords", "inside",
-           "outside_error", "source_xy", "to_source", "turn_coords"]
+           "outside_error", "source_xy", "to_source", "turn_coords", "vertical_unit"]
 
 
 def as_xy(points: Any) -> np.ndarray:
@@ -142,6 +142,20 @@ def turn_coords(frame: Frame, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if turn:
         fj = np.mod(fj + 0.5, turn) - 0.5
     return fi, fj
+
+
+def vertical_unit(terrain: TerrainLike) -> str:
+    """The name of the DEM's vertical unit ("m", "ft", "US survey ft", …), as answers
+    label their heights.
+
+    Examples
+    --------
+    >>> vertical_unit(t)
+    'm'
+    """
+    from geoterrain.ingest.units import unit_of_factor
+
+    return unit_of_factor(terrain.frame.z_to_m) or f"{terrain.frame.z_to_m:g} m"
 
 
 def frame_geod(frame: Frame):

@@ -36,6 +36,7 @@ from geoterrain.analysis.points import (
     inside,
     outside_error,
     to_source,
+    vertical_unit,
 )
 from geoterrain.exceptions import UsageError, WriteError, exists_error
 
@@ -62,12 +63,6 @@ class Profile(NamedTuple):
     unit: str
     summary: dict
     stats: dict
-
-
-def _unit(terrain: TerrainLike) -> str:
-    from geoterrain.ingest.units import unit_of_factor
-
-    return unit_of_factor(terrain.frame.z_to_m) or f"{terrain.frame.z_to_m:g} m"
 
 
 def _ground_lengths(terrain: TerrainLike, xy: np.ndarray) -> np.ndarray:
@@ -155,7 +150,7 @@ def profile(terrain: TerrainLike, line: Any, spacing: float | None = None, *,
     ok = np.isfinite(dz)
     run = np.diff(dist)
     grade = np.where(ok & (run > 0), np.abs(dz) / np.where(run > 0, run, 1.0), np.nan)
-    unit = _unit(terrain)
+    unit = vertical_unit(terrain)
     zm = z * f.z_to_m
     summary = {
         "length_m": float(dist[-1]), "samples": int(len(z)), "spacing_m": spacing,
