@@ -20,7 +20,8 @@ from geoterrain.ingest.raster import ENCODINGS
 @click.command("preprocess")
 @click.argument("dem", nargs=-1, required=True)
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
-              help="Store to write. Default: the DEM's path with the suffix .geoterrain.")
+              help="Store to write. Default: the DEM's path with the suffix .geoterrain "
+                   "(a folder's: beside it).")
 @click.option("--tile-size", default=64, show_default=True, type=click.IntRange(2, 4096),
               help="Tile edge in samples, a power of two; tiles hold (size+1)² samples.")
 @click.option("--band", type=click.IntRange(1, 65535),
@@ -89,9 +90,11 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
     DEM is any raster GDAL reads (GeoTIFF/COG, SRTM .hgt, Esri ASCII, a .vrt,
-    ...) or a Terrain-RGB / Terrarium PNG tile. Several files, or a quoted glob,
-    are read as one mosaic (-o needed); tiles of different CRSs or resolutions are
-    merged onto one grid (--crs, --resolution, --resampling, --priority).
+    ...) or a Terrain-RGB / Terrarium PNG tile. Several files, a quoted glob or a
+    folder (its .tif, .hgt, .hgt.zip, ... files; srtm/ writes srtm.geoterrain) are
+    read as one mosaic (-o needed but for a folder); tiles of different CRSs or
+    resolutions are merged onto one grid (--crs, --resolution, --resampling,
+    --priority).
     The store holds a pyramid of tiles, padded to the next tile multiple under a
     grid of root tiles (--square-grid: one power-of-two square), with per-vertex and
     per-tile error bounds, residual-coded heights and normal maps. It is written
@@ -103,7 +106,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
       geoterrain preprocess fuji.png --tile 12/3637/1612
       geoterrain preprocess tile.png --pixel-size 30 -o tile.geoterrain
       geoterrain preprocess lidar.tif --codec-error 0.05 --z-scale 2
-      geoterrain preprocess 'srtm/*.hgt' -o srtm.geoterrain
+      geoterrain preprocess srtm/            # its .hgt/.hgt.zip tiles: srtm.geoterrain
       geoterrain preprocess lidar_1m.tif national_30m.tif -o merged.geoterrain
       geoterrain preprocess national_30m.tif --crs EPSG:32633 --resolution 50 -o m.geoterrain
       geoterrain preprocess lidar_county.tif --memory-limit 2G

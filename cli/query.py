@@ -75,17 +75,17 @@ def command(ctx, store, at, points, crs, lonlat, level, slope, polygon, base, ma
             xy = np.concatenate([np.asarray(xy).reshape(-1, 2), pts])
         xy = np.asarray(xy, np.float64).reshape(-1, 2)
         from geoterrain.analysis import height_at, normal_at
-        from geoterrain.analysis.points import grid_coords, inside, outside_error, to_source
+        from geoterrain.analysis.points import inside, outside_error, to_source, turn_coords
 
         src = to_source(t.frame, xy, pcrs)
-        out = ~inside(t.grid, *grid_coords(t.frame, src))
+        out = ~inside(t.grid, *turn_coords(t.frame, src))
         if out.any():
             raise outside_error(t.frame, t.grid, xy, pcrs, out)
         h = height_at(t, xy, level, crs=pcrs)
         nrm = normal_at(t, xy, crs=pcrs) if slope else None
-    from geoterrain.analysis.profile import _unit
+    from geoterrain.analysis.points import vertical_unit
 
-    unit = _unit(t)
+    unit = vertical_unit(t)
     rows = []
     for k in range(len(xy)):
         r = {"x": float(xy[k, 0]), "y": float(xy[k, 1]),

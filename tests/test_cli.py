@@ -103,8 +103,10 @@ def test_bad_input(case, code, tmp_path, fbm_tif):
     out = tmp_path / "out.geoterrain"
     if case == "missing":
         src = tmp_path / "nope.tif"
-    elif case == "directory":
-        src = tmp_path
+    elif case == "directory":  # a folder is a mosaic of its rasters: this one has none
+        src = tmp_path / "folder"
+        src.mkdir()
+        (src / "notes.txt").write_text("no DEM here")
     elif case == "text":
         src.write_text("not a raster\n")
     elif case == "multiband":

@@ -6,7 +6,10 @@ interpolation of the four samples around it (sample (i, j) at the centre of sour
 the DEM's own vertical unit, exactly what a bilinear read of the source raster gives
 (within the store's codec error ε, 0 for a lossless store). A point whose interpolation
 needs a nodata sample (one with a weight above 0) gets NaN, never a number; a point
-outside the raster's extent gets NaN too (:func:`height_at` says how many).
+outside the raster's extent gets NaN too (:func:`height_at` says how many). A whole-globe
+grid (its columns span 360°, :attr:`~geoterrain.core.frame.Frame.columns_per_turn`) has no
+edge east or west: a point between its last column and its first (across 180°)
+interpolates the two, and any longitude (190° is −170°) lies on it.
 
 At a coarser pyramid level L the answer reads only level-L tiles: the level-L surface
 (the union-jack triangulation of every 2^L-th sample, the surface a static mesh of the
@@ -42,7 +45,15 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from geoterrain.analysis.points import Reads, as_xy, grid_coords, inside, to_source
+from geoterrain.analysis.points import (
+    Reads,
+    as_xy,
+    frame_geod,
+    inside,
+    source_xy,
+    to_source,
+    turn_coords,
+)
 from geoterrain.exceptions import UsageError
 
 if TYPE_CHECKING:
@@ -116,13 +127,36 @@ def cell_corners(terrain: TerrainLike, level: int, ci: np.ndarray, cj: np.ndarra
 
 def _level0_cells(terrain: TerrainLike, fi: np.ndarray, fj: np.ndarray):
     """Each point's level-0 cell (i0, j0) and its fractions (u down, v right) in [0, 1],
-    the outermost samples extended over the half cell beyond them."""
+    the outermost samples extended over the half cell beyond them. On a whole-globe grid
+    (``fj`` from :func:`turn_coords`) the columns wrap instead: a point across 180° gets
+    the cell j0 = cols − 1, whose right-hand corners are column 0's (:func:`_corners0`)."""
     g = terrain.grid
     fi = np.clip(fi, 0.0, g.rows - 1.0)
-    fj = np.clip(fj, 0.0, g.cols - 1.0)
     i0 = np.minimum(np.floor(fi), max(g.rows - 2, 0)).astype(np.int64)
-    j0 = np.minimum(np.floor(fj), max(g.cols - 2, 0)).astype(np.int64)
+    if terrain.frame.columns_per_turn:
+        fj = np.mod(fj, g.cols)
+        j0 = np.minimum(np.floor(fj), g.cols - 1).astype(np.int64)
+    else:
+        fj = np.clip(fj, 0.0, g.cols - 1.0)
+        j0 = np.minimum(np.floor(fj), max(g.cols - 2, 0)).astype(np.int64)
     return i0, j0, fi - i0, fj - j0
+
+
+def _corners0(terrain: TerrainLike, i0: np.ndarray, j0: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cell_corners` at level 0 for :func:`_level0_cells`' cells: a whole-globe
+    grid's wrapping cell (j0 = cols − 1) takes its left corners from the last column and
+    its right corners from the first."""
+    last = terrain.grid.cols - 1
+    wrap = j0 >= last
+    if not wrap.any():
+        return cell_corners(terrain, 0, i0, j0)
+    h, ok = cell_corners(terrain, 0, i0, np.where(wrap, last - 1, j0))
+    w = np.flatnonzero(wrap)
+    h0, ok0 = cell_corners(terrain, 0, i0[w], np.zeros(w.size, np.int64))
+    h[w, 0], h[w, 2], ok[w, 0], ok[w, 2] = h[w, 1], h[w, 3], ok[w, 1], ok[w, 3]
+    h[w, 1], h[w, 3], ok[w, 1], ok[w, 3] = h0[:, 0], h0[:, 2], ok0[:, 0], ok0[:, 2]
+    return h, ok
 
 
 def _weights(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -218,16 +252,17 @@ def height_at(terrain: TerrainLike, points: Any, level: int = 0, *, crs: Any = N
                          cli=f"--level must be in 0..{top}, got {level}")
     with Reads(terrain) as reads:
         xy = to_source(terrain.frame, as_xy(points), crs)
-        fi, fj = grid_coords(terrain.frame, xy)
+        fi, fj = turn_coords(terrain.frame, xy)
         ins = inside(terrain.grid, fi, fj)
         i0, j0, u, v = _level0_cells(terrain, fi, fj)
+        wraps = j0 >= terrain.grid.cols - 1  # across 180° on a whole-globe grid: level 0
         n = xy.shape[0]
         z = np.full(n, np.nan)
         bound = np.full(n, np.nan)
         lev = np.zeros(n, np.int8)
         zunit = terrain.frame.z_to_m * terrain.frame.z_scale  # scene units per source unit
         eps = float(terrain.quantizer.codec_error)
-        todo = np.flatnonzero(ins)
+        todo = np.flatnonzero(ins & ~wraps)
         for L in range(int(level), 0, -1):
             if todo.size == 0:
                 break
@@ -237,12 +272,32 @@ def height_at(terrain: TerrainLike, points: Any, level: int = 0, *, crs: Any = N
             bound[todo[done]] = err[done] / zunit + eps
             lev[todo[done]] = L
             todo = todo[~done]
+        todo = np.union1d(todo, np.flatnonzero(ins & wraps))
         if todo.size:
-            h, ok = cell_corners(terrain, 0, i0[todo], j0[todo])
+            h, ok = _corners0(terrain, i0[todo], j0[todo])
             z[todo] = _bilinear(h, ok, u[todo], v[todo])
             bound[todo] = np.where(np.isfinite(z[todo]), eps, np.nan)
             lev[todo] = 0
     return Heights(z, bound, lev, reads.stats(points=n, outside=int((~ins).sum())))
+
+
+def _ground_corners(frame, i0: np.ndarray, j0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Metres east (n, 4) and north (n, 4) of the corners (0, 0), (0, 1), (1, 0), (1, 1) of
+    level-0 cells. A projected grid's come from its CRS (grid north, as gdaldem's). On a
+    geographic grid each corner is placed from the cell's first corner by the geodesic's
+    length and azimuth (pyproj's ``Geod``): east and north are the ground's there, where
+    the scene's plane (azimuthal equidistant about the DEM's centre) turns away from north
+    and stretches across the azimuth far from its centre."""
+    di, dj = np.array([0, 0, 1, 1]), np.array([0, 1, 0, 1])
+    if frame.kind != "geographic":
+        return frame.xy(i0[:, None] + di, j0[:, None] + dj)
+    lon, lat = source_xy(frame, (i0[:, None] + di).ravel(), (j0[:, None] + dj).ravel()).T
+    lon, lat = lon.reshape(-1, 4), np.clip(lat, -90.0, 90.0).reshape(-1, 4)
+    lon0, lat0 = np.repeat(lon[:, :1], 4, axis=1), np.repeat(lat[:, :1], 4, axis=1)
+    az, _, d = frame_geod(frame).inv(lon0, lat0, lon, lat)
+    az = np.radians(np.asarray(az, np.float64))
+    d = np.asarray(d, np.float64)
+    return d * np.sin(az), d * np.cos(az)
 
 
 def normal_at(terrain: TerrainLike, points: Any, *, crs: Any = None) -> Normals:
@@ -250,8 +305,9 @@ def normal_at(terrain: TerrainLike, points: Any, *, crs: Any = None) -> Normals:
 
     The gradient of the bilinear interpolation at the point (in its cell; on a cell edge,
     the cell below and to the right), in metres on all three axes: heights × the DEM's
-    vertical unit, and the cell's ground size from the scene frame (pyproj's
-    azimuthal-equidistant frame on a geographic grid), without vertical exaggeration.
+    vertical unit, and the cell's ground size: its CRS's on a projected grid (aspect from
+    grid north, as gdaldem's), geodesic lengths and azimuths on a geographic grid (aspect
+    from true north, anywhere on the globe), without vertical exaggeration.
 
     Examples
     --------
@@ -263,17 +319,17 @@ def normal_at(terrain: TerrainLike, points: Any, *, crs: Any = None) -> Normals:
     f = terrain.frame
     with Reads(terrain) as reads:
         xy = to_source(f, as_xy(points), crs)
-        fi, fj = grid_coords(f, xy)
+        fi, fj = turn_coords(f, xy)
         ins = inside(terrain.grid, fi, fj)
         i0, j0, u, v = _level0_cells(terrain, fi, fj)
-        h, ok = cell_corners(terrain, 0, i0, j0)
+        h, ok = _corners0(terrain, i0, j0)
         z = _bilinear(h, ok, u, v)
         good = ins & np.isfinite(z) & ok.all(axis=1)
         hm = np.where(ok, h, 0.0) * f.z_to_m
         dz_di = (1 - v) * (hm[:, 2] - hm[:, 0]) + v * (hm[:, 3] - hm[:, 1])
         dz_dj = (1 - u) * (hm[:, 1] - hm[:, 0]) + u * (hm[:, 3] - hm[:, 2])
-        # the cell's ground Jacobian (scene metres per row and per column), bilinear too
-        X, Y = f.xy(i0[:, None] + np.array([0, 0, 1, 1]), j0[:, None] + np.array([0, 1, 0, 1]))
+        # the cell's ground Jacobian (metres east and north per row and per column)
+        X, Y = _ground_corners(f, i0, j0)
         dX_di = (1 - v) * (X[:, 2] - X[:, 0]) + v * (X[:, 3] - X[:, 1])
         dX_dj = (1 - u) * (X[:, 1] - X[:, 0]) + u * (X[:, 3] - X[:, 2])
         dY_di = (1 - v) * (Y[:, 2] - Y[:, 0]) + v * (Y[:, 3] - Y[:, 1])

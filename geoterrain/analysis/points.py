@@ -8,6 +8,7 @@ Shared by every module of :mod:`geoterrain.analysis`:
 - :func:`grid_coords` gives the fractional row and column of a point on the grid of
   sample centres (row i, column j at the centre of source pixel (i, j)), and
   :func:`inside` whether it lies within the raster's extent (pixel edges included);
+  :func:`turn_coords` takes a whole-globe grid's columns modulo its turn;
 - :class:`Reads` counts the tiles decoded, the blob bytes read and the time a question
   took (every answer reports them).
 
@@ -33,8 +34,8 @@ if TYPE_CHECKING:
     from geoterrain.core.grid import Grid
     from geoterrain.terrainlike import TerrainLike
 
-__all__ = ["Reads", "as_xy", "from_source", "grid_coords", "inside", "outside_error",
-           "source_xy", "to_source"]
+__all__ = ["Reads", "as_xy", "frame_geod", "from_source", "grid_coords", "inside",
+           "outside_error", "source_xy", "to_source", "turn_coords", "vertical_unit"]
 
 
 def as_xy(points: Any) -> np.ndarray:
@@ -123,6 +124,54 @@ def grid_coords(frame: Frame, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     fj = (xy[:, 0] - c) / a - 0.5
     fi = (xy[:, 1] - f) / e - 0.5
     return fi, fj
+
+
+def turn_coords(frame: Frame, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`grid_coords`, with a whole-globe grid's columns taken modulo its turn
+    (:attr:`Frame.columns_per_turn`) into [−0.5, turn − 0.5): every longitude lies on such
+    a grid, 190° on −170°'s column, and the half cells either side of 180° lie between its
+    last column and its first. Any other grid's columns are :func:`grid_coords`'.
+
+    Examples
+    --------
+    >>> turn_coords(t.frame, np.array([[500015.0, 4999985.0]]))[1].tolist()
+    [1.0]
+    """
+    fi, fj = grid_coords(frame, xy)
+    turn = frame.columns_per_turn
+    if turn:
+        fj = np.mod(fj + 0.5, turn) - 0.5
+    return fi, fj
+
+
+def vertical_unit(terrain: TerrainLike) -> str:
+    """The name of the DEM's vertical unit ("m", "ft", "US survey ft", …), as answers
+    label their heights.
+
+    Examples
+    --------
+    >>> vertical_unit(t)
+    'm'
+    """
+    from geoterrain.ingest.units import unit_of_factor
+
+    return unit_of_factor(terrain.frame.z_to_m) or f"{terrain.frame.z_to_m:g} m"
+
+
+def frame_geod(frame: Frame):
+    """pyproj's ``Geod`` on the frame's ellipsoid (WGS 84 where its CRS names none): ground
+    distances and azimuths on a geographic grid.
+
+    Examples
+    --------
+    >>> from geoterrain.core.frame import Frame
+    >>> round(frame_geod(Frame.pixel(3, 3)).a)
+    6378137
+    """
+    from pyproj import CRS, Geod
+
+    g = CRS.from_wkt(frame.crs_wkt).get_geod() if frame.crs_wkt else None
+    return g or Geod(ellps="WGS84")
 
 
 def source_xy(frame: Frame, fi: np.ndarray, fj: np.ndarray) -> np.ndarray:

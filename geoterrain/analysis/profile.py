@@ -30,11 +30,13 @@ from geoterrain.analysis.heights import height_at
 from geoterrain.analysis.points import (
     Reads,
     as_xy,
+    frame_geod,
     from_source,
     grid_coords,
     inside,
     outside_error,
     to_source,
+    vertical_unit,
 )
 from geoterrain.exceptions import UsageError, WriteError, exists_error
 
@@ -63,19 +65,11 @@ class Profile(NamedTuple):
     stats: dict
 
 
-def _unit(terrain: TerrainLike) -> str:
-    from geoterrain.ingest.units import unit_of_factor
-
-    return unit_of_factor(terrain.frame.z_to_m) or f"{terrain.frame.z_to_m:g} m"
-
-
 def _ground_lengths(terrain: TerrainLike, xy: np.ndarray) -> np.ndarray:
     """Ground metres between consecutive source-CRS points."""
     f = terrain.frame
     if f.kind == "geographic":
-        from pyproj import CRS, Geod
-
-        geod = CRS.from_wkt(f.crs_wkt).get_geod() or Geod(ellps="WGS84")
+        geod = frame_geod(f)
         _, _, d = geod.inv(xy[:-1, 0], xy[:-1, 1], xy[1:, 0], xy[1:, 1])
         return np.asarray(d, np.float64)
     return np.hypot(*np.diff(xy, axis=0).T) * f.unit_to_m
@@ -87,9 +81,7 @@ def _along(terrain: TerrainLike, a: np.ndarray, b: np.ndarray, d: np.ndarray,
     a geographic grid, on the straight line otherwise."""
     f = terrain.frame
     if f.kind == "geographic":
-        from pyproj import CRS, Geod
-
-        geod = CRS.from_wkt(f.crs_wkt).get_geod() or Geod(ellps="WGS84")
+        geod = frame_geod(f)
         az, _, _ = geod.inv(a[0], a[1], b[0], b[1])
         x, y, _ = geod.fwd(np.full(len(d), a[0]), np.full(len(d), a[1]), np.full(len(d), az), d)
         return np.column_stack([x, y])
@@ -158,7 +150,7 @@ def profile(terrain: TerrainLike, line: Any, spacing: float | None = None, *,
     ok = np.isfinite(dz)
     run = np.diff(dist)
     grade = np.where(ok & (run > 0), np.abs(dz) / np.where(run > 0, run, 1.0), np.nan)
-    unit = _unit(terrain)
+    unit = vertical_unit(terrain)
     zm = z * f.z_to_m
     summary = {
         "length_m": float(dist[-1]), "samples": int(len(z)), "spacing_m": spacing,

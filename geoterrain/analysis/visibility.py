@@ -49,6 +49,7 @@ from geoterrain.analysis.heights import _bilinear, cell_corners
 from geoterrain.analysis.points import (
     Reads,
     as_xy,
+    frame_geod,
     grid_coords,
     inside,
     outside_error,
@@ -136,13 +137,6 @@ def _semi_major(terrain: TerrainLike) -> float:
     return 6378137.0
 
 
-def _geod(terrain: TerrainLike):
-    from pyproj import CRS, Geod
-
-    crs = CRS.from_wkt(terrain.frame.crs_wkt)
-    return crs.get_geod() or Geod(ellps="WGS84")
-
-
 def _row_geometry(terrain: TerrainLike, rows: np.ndarray, orow: int, ocol: int
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Per grid row: ground metres per column step and the north-south offset from the
@@ -154,7 +148,7 @@ def _row_geometry(terrain: TerrainLike, rows: np.ndarray, orow: int, ocol: int
         mx = np.full(len(rows), abs(a) * f.unit_to_m)
         ny = (rows - orow) * abs(e) * f.unit_to_m
         return mx, ny
-    geod = _geod(terrain)
+    geod = frame_geod(terrain.frame)
     lon = c + a * (ocol + 0.5)
     lat = np.clip(top + e * (rows + 0.5), -90.0, 90.0)
     lat0 = top + e * (orow + 0.5)
@@ -465,7 +459,7 @@ def line_of_sight(terrain: TerrainLike, a: Any, b: Any, observer_height: float =
 def _ground_distance(terrain, xa, xb, fia, fja, fib, fjb) -> float:
     f = terrain.frame
     if f.kind == "geographic":
-        _, _, d = _geod(terrain).inv(xa[0], xa[1], xb[0], xb[1])
+        _, _, d = frame_geod(terrain.frame).inv(xa[0], xa[1], xb[0], xb[1])
         return float(d)
     a, _, _, _, e, _ = f.transform[:6]
     return float(math.hypot((fjb - fja) * a, (fib - fia) * e) * f.unit_to_m)

@@ -1,11 +1,12 @@
 """Ingest: several DEM tiles read as one raster (a GDAL VRT mosaic).
 
-``preprocess`` accepts a ``.vrt`` (GDAL reads it natively), a list of files or a
-glob (``tiles/*.hgt``). A list or glob becomes a VRT written here from each
-source's rasterio metadata (size, geotransform, CRS, dtype, nodata): no pixel is
-read or copied, GDAL pastes the sources lazily, so the mosaic costs what one
-raster of its size costs. (``rasterio.merge`` would instead copy every tile into
-one more in-memory array, and rasterio has no BuildVRT.)
+``preprocess`` accepts a ``.vrt`` (GDAL reads it natively), a list of files, a
+glob (``tiles/*.hgt``) or a folder (its rasters by suffix, :data:`FOLDER_SUFFIXES`:
+SRTM's ``.hgt`` and ``.hgt.zip`` as downloaded, GeoTIFFs, …). A list, glob or folder
+becomes a VRT written here from each source's rasterio metadata (size, geotransform,
+CRS, dtype, nodata): no pixel is read or copied, GDAL pastes the sources lazily, so
+the mosaic costs what one raster of its size costs. (``rasterio.merge`` would instead
+copy every tile into one more in-memory array, and rasterio has no BuildVRT.)
 
 The sources must share one CRS, one pixel size (north-up, no rotation), one band
 count and one pixel grid; each source's nodata is honoured (its nodata pixels
@@ -28,6 +29,10 @@ from geoterrain.ingest.gdalerrors import gdal_reason
 from geoterrain.ingest.remote import Url, is_url, list_file, read_list
 
 GLOB_CHARS = "*?["
+#: What a folder given as a DEM contributes: files whose names end so (case-insensitive),
+#: not its subfolders. VRTs are left out (one usually pastes the folder's own tiles).
+FOLDER_SUFFIXES = (".tif", ".tiff", ".hgt", ".hgt.zip", ".asc", ".img", ".bil", ".dem",
+                   ".dt0", ".dt1", ".dt2", ".jp2", ".flt")
 _GDAL_TYPES = {"uint8": "Byte", "int8": "Int8", "uint16": "UInt16", "int16": "Int16",
                "uint32": "UInt32", "int32": "Int32", "float32": "Float32",
                "float64": "Float64", "int64": "Int64", "uint64": "UInt64"}
@@ -45,13 +50,47 @@ def is_glob(src: str | Path) -> bool:
             and not Path(src).exists())
 
 
+def is_folder(src) -> bool:
+    """Whether a DEM argument is a local folder (its rasters are read as one mosaic).
+
+    Examples
+    --------
+    >>> is_folder("."), is_folder("dem.tif"), is_folder(["a.tif"])
+    (True, False, False)
+    """
+    return isinstance(src, (str, Path)) and not is_url(src) and Path(src).is_dir()
+
+
+def folder_files(folder: str | Path) -> list[Path]:
+    """The rasters of a folder (:data:`FOLDER_SUFFIXES`), sorted by name; a one-line
+    :class:`InputError` naming the suffixes when it holds none.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> d = Path(tempfile.mkdtemp())
+    >>> for n in ("N35E139.hgt", "N35E138.SRTMGL1.hgt.zip", "N35E139.hgt.aux.xml"):
+    ...     _ = (d / n).write_bytes(b"")
+    >>> [p.name for p in folder_files(d)]
+    ['N35E138.SRTMGL1.hgt.zip', 'N35E139.hgt']
+    """
+    folder = Path(folder)
+    files = sorted(p for p in folder.iterdir()
+                   if p.name.lower().endswith(FOLDER_SUFFIXES) and p.is_file())
+    if not files:
+        raise InputError(f"{folder}: a folder with no raster file (none ends in "
+                         f"{', '.join(FOLDER_SUFFIXES)}); give the files, a glob or a .vrt")
+    return files
+
+
 def _one(p: str | Path | Url) -> Path | Url:
     return p if isinstance(p, Url) else Url(str(p)) if is_url(p) else Path(p)
 
 
 def source_files(src: str | Path | list | tuple) -> list[Path | Url]:
-    """The files of a DEM argument: one path or URL, a list of them, a glob (sorted), or
-    a ``.txt`` file listing them (:mod:`geoterrain.ingest.remote`).
+    """The files of a DEM argument: one path or URL, a list of them, a glob (sorted), a
+    folder (:func:`folder_files`) or a ``.txt`` file listing them
+    (:mod:`geoterrain.ingest.remote`).
 
     Examples
     --------
@@ -74,6 +113,8 @@ def sources(src: str | Path | list | tuple) -> tuple[list[Path | Url], bool]:
         if not src:
             raise UsageError("no DEM given: pass a file, a list of files or a glob")
         files = [_one(p) for p in src]
+    elif is_folder(src):
+        files = folder_files(src)
     elif is_glob(src):
         files = [Path(p) for p in sorted(_glob.glob(str(src)))]
         if not files:
@@ -93,14 +134,16 @@ def sources(src: str | Path | list | tuple) -> tuple[list[Path | Url], bool]:
 
 
 def is_several(src: str | Path | list | tuple) -> bool:
-    """Whether a DEM argument names several sources (a list, a glob, a list file).
+    """Whether a DEM argument names several sources (a list, a glob, a folder, a list
+    file).
 
     Examples
     --------
     >>> is_several(["a.tif", "b.tif"]), is_several("dem.tif")
     (True, False)
     """
-    return isinstance(src, (list, tuple)) or is_glob(src) or list_file(src)
+    return (isinstance(src, (list, tuple)) or is_glob(src) or is_folder(src)
+            or list_file(src))
 
 
 def mosaic_name(files: list[Path]) -> str:

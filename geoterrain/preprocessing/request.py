@@ -19,9 +19,9 @@ import numpy as np
 from geoterrain.core.atomicfiles import remove_stale_partials
 from geoterrain.core.frame import PIXEL_SIZE_RANGE, Frame
 from geoterrain.core.grid import Grid
-from geoterrain.core.paths import check_output, default_store_path
+from geoterrain.core.paths import STORE_SUFFIX, check_output, default_store_path
 from geoterrain.exceptions import UsageError
-from geoterrain.ingest.mosaic import mosaic_name, sources
+from geoterrain.ingest.mosaic import is_folder, mosaic_name, sources
 from geoterrain.ingest.remote import Url
 from geoterrain.ingest.units import parse_tile, resolve_z_units, tile_from_path, tile_georeference
 from geoterrain.preprocessing.schedulers import parse_scheduler
@@ -95,11 +95,15 @@ def request(src: str | Path | list, dst: str | Path | None, *, tile_size: int,
     parse_scheduler(scheduler)  # a bad spec is a usage error before any work
     files, mosaic = sources(src)
     name = mosaic_name(files)
-    if dst is None and mosaic:
-        raise UsageError("a mosaic (list of files or glob) has no default store name; "
-                         "pass dst", cli="a mosaic (several files or a glob) has no default "
-                         "store name; pass -o STORE")
-    if dst is None:  # a URL's store goes to this folder, named after the URL's file
+    folder = is_folder(src) and Path(src).resolve() != Path.cwd().resolve()
+    if dst is None and mosaic and not folder:
+        raise UsageError("a mosaic (list of files, glob or this folder) has no default "
+                         "store name; pass dst", cli="a mosaic (several files, a glob or "
+                         "this folder) has no default store name; pass -o STORE")
+    if dst is None and folder:  # srtm/ -> srtm.geoterrain, beside the folder
+        d = Path(src).resolve()
+        dst = d.with_name(d.name + STORE_SUFFIX)
+    elif dst is None:  # a URL's store goes to this folder, named after the URL's file
         dst = default_store_path(files[0].name if isinstance(files[0], Url) else src)
     dst = Path(dst)
     if not resume:  # a killed streaming run's scratch stays for resume to take up

@@ -1,4 +1,5 @@
-"""Mosaic input: a VRT, a list of files or a glob gives the same store as the merged raster."""
+"""Mosaic input: a VRT, a list of files, a glob or a folder gives the same store as the
+merged raster."""
 
 from __future__ import annotations
 
@@ -74,7 +75,8 @@ def _same_store_every_way(merged: Path, tiles: list[Path], tmp_path: Path, patte
     ref = store_contents(preprocess(merged, tmp_path / "merged.geoterrain"))
     vrt = tmp_path / "mosaic.vrt"
     vrt.write_text(build_vrt(tiles))
-    ways = {"vrt": vrt, "list": [str(p) for p in tiles], "glob": pattern}
+    ways = {"vrt": vrt, "list": [str(p) for p in tiles], "glob": pattern,
+            "folder": str(Path(pattern).parent)}
     for name, src in ways.items():
         got = store_contents(preprocess(src, tmp_path / f"{name}.geoterrain"))
         assert got[2] == ref[2], f"{name}: metadata differs"
@@ -168,6 +170,81 @@ def test_glob_without_match_and_mosaic_without_output(tmp_path):
     a, b = _tile(tmp_path, "a.tif"), _tile(tmp_path, "b.tif", origin=(500080.0, 5000000.0))
     with pytest.raises(UsageError, match="pass dst"):
         preprocess([a, b])
+
+
+def _srtm_tile(path: Path, lat: int, lon: int) -> Path:
+    """A 3″ SRTM tile (1201², 1°, sharing its edge rows with its neighbours) written by
+    GDAL's own SRTMHGT driver, zipped as NASA's downloads are when ``path`` ends in .zip."""
+    import zipfile
+
+    from rasterio.shutil import copy as gdal_copy
+    from rasterio.transform import from_origin
+
+    n, s = 1201, 1 / 1200
+    yy, xx = np.mgrid[0:n, 0:n] * s
+    z = (800 + 300 * np.sin((lon + xx) * 7) * np.cos((lat + 1 - yy) * 5)).astype(np.int16)
+    tif, hgt = path.parent / "tmp.tif", path.parent / f"N{lat}E{lon:03d}.hgt"
+    with rasterio.open(tif, "w", driver="GTiff", height=n, width=n, count=1, dtype="int16",
+                       crs="EPSG:4326", transform=from_origin(lon - s / 2, lat + 1 + s / 2, s, s),
+                       nodata=-32768) as d:
+        d.write(z, 1)
+    gdal_copy(tif, hgt, driver="SRTMHGT")
+    tif.unlink()
+    if path.suffix == ".zip":
+        with zipfile.ZipFile(path, "w") as zf:
+            zf.write(hgt, hgt.name)
+        hgt.unlink()
+    return path
+
+
+@pytest.mark.slow  # 16 s of CPU: two 1201² tiles (the folder's listing: folder_files' doctest)
+def test_a_folder_of_srtm_tiles_as_downloaded_is_one_store_beside_it(tmp_path, monkeypatch):
+    """A folder of SRTM tiles (one still zipped, one not, GDAL's .aux.xml beside them) is
+    read as their mosaic, into FOLDER.geoterrain beside it, every sample kept."""
+    from geoterrain.cli.main import cli
+
+    srtm = tmp_path / "srtm"
+    srtm.mkdir()
+    _srtm_tile(srtm / "N35E138.SRTMGL3.hgt.zip", 35, 138)
+    _srtm_tile(srtm / "N35E139.hgt", 35, 139)
+    (srtm / "N35E139.hgt.aux.xml").write_text("<PAMDataset/>")
+    (srtm / "notes.txt").write_text("downloaded from earthdata")
+    (srtm / "old").mkdir()
+    run = CliRunner().invoke
+    r = run(cli, ["-q", "preprocess", str(srtm)])
+    assert r.exit_code == 0, r.output
+    made = tmp_path / "srtm.geoterrain"
+    assert made.is_file() and not (srtm / "srtm.geoterrain").exists()
+    import geoterrain
+    from geoterrain.analysis import height_at
+
+    with geoterrain.open(made) as t:  # two tiles sharing one column: 2401 × 1201
+        assert (t.grid.rows, t.grid.cols) == (1201, 2401)
+        # every sample of both tiles, the zipped one too, read back exactly (lossless)
+        for name in ("/vsizip/" + str(srtm / "N35E138.SRTMGL3.hgt.zip") + "/N35E138.hgt",
+                     str(srtm / "N35E139.hgt")):
+            with rasterio.open(name) as src:
+                z = src.read(1).astype(np.float64)
+                rows, cols = np.mgrid[0:1201:40, 0:1201:40]
+                x, y = rasterio.transform.xy(src.transform, rows.ravel(), cols.ravel())
+            got = height_at(t, np.column_stack([x, y])).height
+            np.testing.assert_allclose(got, z[rows.ravel(), cols.ravel()], rtol=0, atol=1e-6)
+    # the current folder has no name to write beside: -o is asked for, in one line
+    monkeypatch.chdir(srtm)
+    r = run(cli, ["preprocess", "."])
+    assert r.exit_code == 2 and "-o STORE" in r.stderr and len(r.stderr.splitlines()) == 1
+
+
+@pytest.mark.fast
+def test_a_folder_without_rasters_is_one_line(tmp_path):
+    from geoterrain.cli.main import cli
+
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "empty" / "readme.txt").write_text("no DEM here")
+    r = CliRunner().invoke(cli, ["preprocess", str(tmp_path / "empty")])
+    assert r.exit_code == 1 and "no raster file" in r.stderr and ".hgt.zip" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.output
+    assert not list(tmp_path.glob("*.geoterrain"))
 
 
 @pytest.mark.fast
