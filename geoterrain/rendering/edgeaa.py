@@ -55,8 +55,8 @@ from numba import njit
 # tiles, where it is 6-8.5 dB further (docs/lab/anti-aliasing.md)
 SPARSE_EDGES_PER_KPX = 30.0
 # a mesh with more faces is drawn with MSAA under "auto" without looking for its edges
-# (a full-resolution mesh): the edge table takes 16 bytes a slot, 4F slots rounded up to
-# a power of two (130 MB at 2 M faces; an rtin frame at 1280x720 has 30-150 k)
+# (a full-resolution mesh): the edge lists take about 48 bytes a face (100 MB at 2 M
+# faces; an rtin frame at 1280x720 has 30-150 k)
 SPARSE_MAX_FACES = 2_000_000
 
 
@@ -75,10 +75,14 @@ class Silhouettes:
     c: np.ndarray
     tol: np.ndarray
     size: tuple[int, int] = (1, 1)
+    # on_screen() as the compiled pass counted it while listing the edges (-1: not known)
+    n_on_screen: int = -1
 
     def on_screen(self) -> int:
         """How many distinct edges reach into the picture (their boxes meet it; a
         silhouette edge is listed once per face beside it)."""
+        if self.n_on_screen >= 0:
+            return self.n_on_screen
         W, H = self.size
         xa, xb, ya, yb = self.x[self.a], self.x[self.b], self.y[self.a], self.y[self.b]
         on = ((np.minimum(xa, xb) < W) & (np.maximum(xa, xb) > 0)
@@ -117,7 +121,7 @@ def _project(pts, m, W, H, x, y, z, ok):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def _silhouettes(faces, pts, eye, x, y, z, ok, n_pts):  # pragma: no cover - compiled
+def _silhouettes(faces, pts, eye, x, y, z, ok, n_pts, W, H):  # pragma: no cover - compiled
     F = len(faces)
     # a face is turned towards the eye when its upward normal is (a height field's
     # outside is up; the faces' winding is not relied on)
@@ -132,44 +136,60 @@ def _silhouettes(faces, pts, eye, x, y, z, ok, n_pts):  # pragma: no cover - com
         d = (nx * (eye[0] - pts[a, 0]) + ny * (eye[1] - pts[a, 1])
              + nz * (eye[2] - pts[a, 2]))
         toward[f] = d > 0.0 and ok[a] and ok[b] and ok[c]
-    # each undirected edge's faces, through an open-addressing table (at most 3F/2 + the
-    # border's edges in 4F slots: a quarter to three eighths full)
-    cap = 1
-    while cap < 4 * F + 2:
-        cap *= 2
-    keys = np.full(cap, -1, np.int64)
-    first = np.full(cap, -1, np.int32)  # face * 3 + edge of the first face seen
-    second = np.full(cap, -1, np.int32)
+    # each undirected edge's faces: the half-edges bucketed by their smaller vertex (a
+    # counting sort, in face order), so an edge's faces are found among the few
+    # half-edges of its smaller vertex; first: the first face seen, second: the last
+    # other one (-1: a border edge)
+    start = np.zeros(n_pts + 1, np.int32)
+    for f in range(F):
+        for k in range(3):
+            start[min(faces[f, k], faces[f, (k + 1) % 3]) + 1] += 1
+    for v in range(n_pts):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    hi = np.empty(3 * F, np.int64)
+    half = np.empty(3 * F, np.int32)  # face * 3 + edge
     for f in range(F):
         for k in range(3):
             u, v = faces[f, k], faces[f, (k + 1) % 3]
-            key = min(u, v) * n_pts + max(u, v)
-            h = ((key * 0x5851F42D4C957F2D) >> 17) & (cap - 1)  # wraps: a hash
-            while keys[h] != -1 and keys[h] != key:
-                h = (h + 1) & (cap - 1)
-            if keys[h] == -1:
-                keys[h] = key
-                first[h] = f * 3 + k
-            else:
-                second[h] = f * 3 + k
+            p = fill[min(u, v)]
+            fill[min(u, v)] += 1
+            hi[p] = max(u, v)
+            half[p] = f * 3 + k
+    first = np.empty(3 * F, np.int32)
+    second = np.empty(3 * F, np.int32)
+    m = 0
+    for v in range(n_pts):
+        for i in range(start[v], start[v + 1]):
+            seen = False
+            for j in range(start[v], i):
+                if hi[j] == hi[i]:
+                    seen = True
+                    break
+            if seen:
+                continue
+            first[m], second[m] = half[i], -1
+            for j in range(i + 1, start[v + 1]):
+                if hi[j] == hi[i]:
+                    second[m] = half[j]
+            m += 1
     # each silhouette edge once per face beside it (the face on the visible side is
     # the one the depth buffer shows there: at an open border a face turned away can
     # be the visible one), each border edge once; counted, then written
     n = 0
-    for h in range(cap):
-        if keys[h] != -1 and (second[h] == -1
-                              or toward[first[h] // 3] != toward[second[h] // 3]):
+    for h in range(m):
+        if second[h] == -1 or toward[first[h] // 3] != toward[second[h] // 3]:
             n += 1 if second[h] == -1 else 2
     ea = np.empty(n, np.int64)
     eb = np.empty(n, np.int64)
     ec = np.empty(n, np.int64)
     tol = np.empty(n)
     n = 0
-    for h in range(cap):
-        if keys[h] == -1:
-            continue
+    seen = 0  # distinct edges listed whose boxes meet the picture (Silhouettes.on_screen)
+    for h in range(m):
         if second[h] != -1 and toward[first[h] // 3] == toward[second[h] // 3]:
             continue
+        n0 = n
         for side in (first[h], second[h]):
             if side == -1:
                 continue
@@ -189,7 +209,12 @@ def _silhouettes(faces, pts, eye, x, y, z, ok, n_pts):  # pragma: no cover - com
             ea[n], eb[n], ec[n] = a, b, c
             tol[n] = 1.5 * math.sqrt(gx * gx + gy * gy) + 1e-6
             n += 1
-    return ea[:n], eb[:n], ec[:n], tol[:n]
+        if n > n0:
+            xa, xb, ya, yb = x[ea[n0]], x[eb[n0]], y[ea[n0]], y[eb[n0]]
+            if (min(xa, xb) < W and max(xa, xb) > 0 and min(ya, yb) < H
+                    and max(ya, yb) > 0):
+                seen += 1
+    return ea[:n], eb[:n], ec[:n], tol[:n], seen
 
 
 def silhouette_edges(points: np.ndarray, faces: np.ndarray, projection: np.ndarray,
@@ -225,8 +250,9 @@ def silhouette_edges(points: np.ndarray, faces: np.ndarray, projection: np.ndarr
     x, y, z = np.empty(n), np.empty(n), np.empty(n)
     ok = np.empty(n, np.bool_)
     _project(pts, m, float(W), float(H), x, y, z, ok)
-    a, b, c, tol = _silhouettes(faces, pts, eye, x, y, z, ok, max(n, 1))
-    return Silhouettes(x, y, z, a, b, c, tol, (W, H))
+    a, b, c, tol, seen = _silhouettes(faces, pts, eye, x, y, z, ok, max(n, 1), float(W),
+                                      float(H))
+    return Silhouettes(x, y, z, a, b, c, tol, (W, H), int(seen))
 
 
 @njit(cache=True, nogil=True)

@@ -257,3 +257,62 @@ def test_a_mesh_too_large_for_the_edge_table_is_drawn_with_msaa(tmp_path_factory
 
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+
+
+def _reference_edges(pts, faces, eye, ok):
+    """The silhouette and border edges listed one by one (a dict of each undirected
+    edge's faces in face order): (a, b, c) of each face listed beside its edge, the
+    first face seen and the last other one, as :func:`silhouette_edges` documents them."""
+    e = np.asarray(eye, float)
+    u, v = pts[faces[:, 1]] - pts[faces[:, 0]], pts[faces[:, 2]] - pts[faces[:, 0]]
+    n = np.cross(u, v)
+    n[n[:, 2] < 0] *= -1
+    toward = (np.einsum("ij,ij->i", n, e - pts[faces[:, 0]]) > 0) & ok[faces].all(1)
+    by_edge: dict = {}
+    for f, tri in enumerate(faces.tolist()):
+        for k in range(3):
+            by_edge.setdefault(frozenset((tri[k], tri[(k + 1) % 3])), []).append((f, k))
+    out = []
+    for sides in by_edge.values():
+        pair = [sides[0]] + ([sides[-1]] if len(sides) > 1 else [])
+        if len(pair) == 2 and toward[pair[0][0]] == toward[pair[1][0]]:
+            continue
+        for f, k in pair:
+            tri = faces[f].tolist()
+            if ok[tri].all():
+                out.append((tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]))
+    return out
+
+
+@pytest.mark.fast
+@settings(max_examples=40, deadline=None)
+@given(st.integers(2, 7), st.integers(2, 7), st.integers(0, 2**32 - 1))
+def test_the_edges_are_each_edges_faces_listed_one_by_one(rows, cols, seed):
+    # a random height field (random diagonals, holes, a repeated face: an edge with three
+    # faces) seen from a random eye, through a projection that puts part of it behind
+    # the eye (w < 0) and part of it off the picture
+    rng = np.random.default_rng(seed)
+    j, i = np.meshgrid(np.arange(cols, dtype=float), np.arange(rows, dtype=float))
+    pts = np.column_stack([j.ravel() - cols / 2, i.ravel() - rows / 2,
+                           rng.normal(0, 1, rows * cols)])
+    faces = []
+    for r in range(rows - 1):
+        for c in range(cols - 1):
+            a, b, d, e = r * cols + c, r * cols + c + 1, (r + 1) * cols + c, (r + 1) * cols + c + 1
+            tris = [[a, b, e], [a, e, d]] if rng.random() < 0.5 else [[a, b, d], [b, e, d]]
+            faces += [t for t in tris if rng.random() < 0.85]
+    if not faces:
+        return
+    faces = np.array(faces)
+    if len(faces) > 2:
+        faces = np.vstack([faces, faces[rng.integers(len(faces))][[1, 0, 2]]])
+    eye = (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-3, 6))
+    proj = np.eye(4) * 0.3
+    proj[3] = (0.2, 0.1, 0.0, 1.0)  # w = 1 + 0.2 x + 0.1 y: behind the eye where < 0
+    e = silhouette_edges(pts, faces, proj, (W, H), eye)
+    ok = (proj[3, :3] @ pts.T + proj[3, 3]) > 1e-12
+    got = sorted(zip(e.a.tolist(), e.b.tolist(), e.c.tolist(), strict=True))
+    assert got == sorted(_reference_edges(pts, faces, eye, ok))
+    # the count of distinct edges on screen made while listing them is the numpy one
+    again = edgeaa.Silhouettes(e.x, e.y, e.z, e.a, e.b, e.c, e.tol, e.size)
+    assert e.n_on_screen == again.on_screen()
