@@ -116,6 +116,13 @@ def test_banded_metric_terms_on_the_roots_are_metric_terms(shape, place, seed, h
     assert np.array_equal(_grid_of(sa, "rm", (R, C), g.n, float), ref[1])
     assert np.array_equal(_grid_of(sa, "b", (R, C), g.n, np.uint8).astype(bool), ref[2])
     assert bt.M == ref[3]
+    # the bands past the data's rows (± half a band) skipped: the same terms, bit for bit
+    sk, bk, read, full = _skipping(g, X, Y, Z, V, band)
+    for pre, dtype in (("dm", float), ("rm", float), ("b", np.uint8)):
+        assert np.array_equal(_grid_of(sk, pre, (R, C), g.n, dtype),
+                              _grid_of(sa, pre, (R, C), g.n, dtype))
+    assert bk.M == bt.M
+    assert read <= full
     if has_padding(g):
         Zr, ok = edge_support(Z, V, g)
         win = (g.rows, g.cols)
@@ -124,6 +131,35 @@ def test_banded_metric_terms_on_the_roots_are_metric_terms(shape, place, seed, h
                           base=bt, span=S)
         assert np.array_equal(_grid_of(sa, "edm", (R, C), g.n, float), eref[0])
         assert np.array_equal(_grid_of(sa, "eb", (R, C), g.n, np.uint8).astype(bool), eref[2])
+
+
+def _skipping(g, X, Y, Z, V, band):
+    """band_metric_terms with ``empty_from`` the data's rows: its arrays and terms, and
+    the rows it read against the rows read without it."""
+    counts = []
+
+    def counted(n):
+        def rows(a, b):
+            n[0] += b - a
+            return Z[a:b], V[a:b]
+        return rows
+
+    for empty_from in (None, g.rows):
+        n = [0]
+        sk = ScratchArrays()
+        bk = band_metric_terms(counted(n), _xy(X, Y), g.extent, band, sk, span=g.span,
+                               empty_from=empty_from)
+        counts.append(n[0])
+    return sk, bk, counts[1], counts[0]
+
+
+def test_metric_terms_skip_the_bands_below_the_data():
+    """A 13 × 90 raster on 1 × 2 roots of 64 (extent 65 × 129), bands of 2: the bands
+    from row 14 on hold no vertex with a valid triangle, and are not read."""
+    g, X, Y, Z, V = _geo_roots((13, 90), "mid", 1, 0.0)
+    assert g.extent == (65, 129)
+    _, _, read, full = _skipping(g, X, Y, Z, V, 2)
+    assert read < full - 30
 
 
 @settings(max_examples=10, deadline=None)
