@@ -229,7 +229,7 @@ def _bounds_pass(job: Job) -> tuple:
             if job.derive_bounds and grid.tile_samples >= 3 and grid.top_level > 0:
                 if job.pad:  # what δ_edge follows below
                     copy_levels(sa, n, "", "db")
-                slack = band_leaf_slack(sa, N, grid.t, scene)
+                slack = band_leaf_slack(sa, N, grid.t, scene, empty_from=grid.rows)
                 if slack is not None:
                     dmax = _saturate(sa, n, SATURATE_BUDGET)
         else:
