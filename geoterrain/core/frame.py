@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import os
 import re
-from concurrent.futures import ThreadPoolExecutor
+import threading
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import asdict, dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -441,6 +442,35 @@ def _transform_threads(tr, x: np.ndarray, y: np.ndarray, owned: bool = False
         else:
             X[a:b], Y[a:b] = tr.transform(xf[a:b], yf[a:b])
 
-    with ThreadPoolExecutor(workers) as pool:
-        list(pool.map(part, range(workers)))
+    # the first chunk on this thread, the others on the kept pool's threads (a
+    # Transformer builds its PROJ object once per thread that uses it: 6-7 ms of CPU,
+    # which a pool made per call paid again at every call, a band of the xy pass)
+    rest = [_pool().submit(part, k) for k in range(1, workers)]
+    try:
+        part(0)
+    finally:
+        wait(rest)  # none still writes X, Y when this returns or raises
+    for f in rest:
+        f.result()
     return X.reshape(shape), Y.reshape(shape)
+
+
+_POOL: list = [None]  # _transform_threads' threads, made at its first split call
+_POOL_LOCK = [threading.Lock()]
+
+
+def _pool() -> ThreadPoolExecutor:
+    with _POOL_LOCK[0]:
+        if _POOL[0] is None:
+            _POOL[0] = ThreadPoolExecutor(max(1, (os.cpu_count() or 1) - 1),
+                                          thread_name_prefix="geoterrain-pyproj")
+        return _POOL[0]
+
+
+def _forget_pool() -> None:
+    # a fork child has none of the parent's threads (nor a lock one of them held)
+    _POOL[0] = None
+    _POOL_LOCK[0] = threading.Lock()
+
+
+os.register_at_fork(after_in_child=_forget_pool)

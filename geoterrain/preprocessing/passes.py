@@ -222,13 +222,14 @@ def _bounds_pass(job: Job) -> tuple:
         n = grid.n
         data = (grid.rows, grid.cols)
         if job.geographic:  # curvilinear: δ and r that hold in scene x, y (bounds.curvature)
-            terms = band_metric_terms(scene, o.xy, N, job.band, sa, span=span)
+            terms = band_metric_terms(scene, o.xy, N, job.band, sa, span=span,
+                                      empty_from=grid.rows)  # the rows below: padding
             dmax = raise_delta(sa, n)
             er = band_metric_radius_codes(sa, N, o.xy, span=span)
             if job.derive_bounds and grid.tile_samples >= 3 and grid.top_level > 0:
                 if job.pad:  # what δ_edge follows below
                     copy_levels(sa, n, "", "db")
-                slack = band_leaf_slack(sa, N, grid.t, scene)
+                slack = band_leaf_slack(sa, N, grid.t, scene, empty_from=grid.rows)
                 if slack is not None:
                     dmax = _saturate(sa, n, SATURATE_BUDGET)
         else:

@@ -119,3 +119,41 @@ def test_geographic_xy_is_one_pyproj_call_bit_for_bit():
         assert (x == xc).all() and (y == yc).all()
         assert got[0].tobytes() == np.asarray(f._to_scene.transform(
             x, np.broadcast_to(y[:1], y.shape))[0]).tobytes()
+
+
+@pytest.mark.fast
+def test_transform_threads_are_kept_and_a_fork_child_makes_its_own():
+    # the threads beside the caller's are made once (each builds its PROJ object once per
+    # Transformer, not once per call: a band of the streamed xy pass) and a fork child,
+    # which has none of them, makes its own: the same values, no hang
+    import multiprocessing
+    import os
+    import threading
+
+    from geoterrain.core import frame as fm
+
+    t = (3 / 3600, 0.0, 10.0, 0.0, -3 / 3600, 47.0)
+    f = Frame.from_raster(t, CRS.from_epsg(4326).to_wkt(), 700, 1000)
+    x, y = f._crs_xy(np.arange(700)[:, None], np.arange(1000)[None, :])
+
+    def ours():
+        return {th.ident for th in threading.enumerate()
+                if th.name.startswith("geoterrain-pyproj")}
+
+    want = [a.tobytes() for a in f._to_scene.transform(x, y)]
+    assert [a.tobytes() for a in fm._transform_threads(f._to_scene, x, y)] == want
+    first = ours()
+    assert [a.tobytes() for a in fm._transform_threads(f._to_scene, x, y)] == want
+    assert ours() == first
+    assert len(first) == (max(1, os.cpu_count() - 1) if (os.cpu_count() or 1) > 1 else 0)
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(1) as pool:
+        got = pool.apply_async(_child_transform, (f.to_json(), x, y)).get(timeout=60)
+    assert got == want
+
+
+def _child_transform(frame, x, y):
+    from geoterrain.core.frame import _transform_threads
+
+    f = Frame.from_json(frame)
+    return [a.tobytes() for a in _transform_threads(f._to_scene, x, y)]

@@ -116,6 +116,13 @@ def test_banded_metric_terms_on_the_roots_are_metric_terms(shape, place, seed, h
     assert np.array_equal(_grid_of(sa, "rm", (R, C), g.n, float), ref[1])
     assert np.array_equal(_grid_of(sa, "b", (R, C), g.n, np.uint8).astype(bool), ref[2])
     assert bt.M == ref[3]
+    # the bands past the data's rows (± half a band) skipped: the same terms, bit for bit
+    sk, bk, read, full = _skipping(g, X, Y, Z, V, band)
+    for pre, dtype in (("dm", float), ("rm", float), ("b", np.uint8)):
+        assert np.array_equal(_grid_of(sk, pre, (R, C), g.n, dtype),
+                              _grid_of(sa, pre, (R, C), g.n, dtype))
+    assert bk.M == bt.M
+    assert read <= full
     if has_padding(g):
         Zr, ok = edge_support(Z, V, g)
         win = (g.rows, g.cols)
@@ -124,6 +131,35 @@ def test_banded_metric_terms_on_the_roots_are_metric_terms(shape, place, seed, h
                           base=bt, span=S)
         assert np.array_equal(_grid_of(sa, "edm", (R, C), g.n, float), eref[0])
         assert np.array_equal(_grid_of(sa, "eb", (R, C), g.n, np.uint8).astype(bool), eref[2])
+
+
+def _skipping(g, X, Y, Z, V, band):
+    """band_metric_terms with ``empty_from`` the data's rows: its arrays and terms, and
+    the rows it read against the rows read without it."""
+    counts = []
+
+    def counted(n):
+        def rows(a, b):
+            n[0] += b - a
+            return Z[a:b], V[a:b]
+        return rows
+
+    for empty_from in (None, g.rows):
+        n = [0]
+        sk = ScratchArrays()
+        bk = band_metric_terms(counted(n), _xy(X, Y), g.extent, band, sk, span=g.span,
+                               empty_from=empty_from)
+        counts.append(n[0])
+    return sk, bk, counts[1], counts[0]
+
+
+def test_metric_terms_skip_the_bands_below_the_data():
+    """A 13 × 90 raster on 1 × 2 roots of 64 (extent 65 × 129), bands of 2: the bands
+    from row 14 on hold no vertex with a valid triangle, and are not read."""
+    g, X, Y, Z, V = _geo_roots((13, 90), "mid", 1, 0.0)
+    assert g.extent == (65, 129)
+    _, _, read, full = _skipping(g, X, Y, Z, V, 2)
+    assert read < full - 30
 
 
 @settings(max_examples=10, deadline=None)
@@ -152,7 +188,8 @@ def test_banded_geographic_bounds_on_the_roots_are_the_whole_grid_bounds(
     sa = ScratchArrays(tmp_path_factory.mktemp("s") if on_disk else None)
     rows = rows_of(Z, V)
     band_vertex_errors(rows, (R, C), band=band, scratch=sa, heights=True, span=S)
-    bt = band_metric_terms(rows, _xy(X, Y), (R, C), band, sa, span=S)
+    # as the bounds pass calls them: the bands and tile rows past the data's rows skipped
+    bt = band_metric_terms(rows, _xy(X, Y), (R, C), band, sa, span=S, empty_from=g.rows)
     raise_delta(sa, n)
     assert band_metric_radius_codes(sa, (R, C), _xy(X, Y), budget=1 << 12, span=S) == e
     got = _grid_of(sa, "r", (R, C), n, np.uint8)
@@ -160,7 +197,7 @@ def test_banded_geographic_bounds_on_the_roots_are_the_whole_grid_bounds(
     vertex[::S, ::S] = False  # the roots' corners: no level's vertices
     assert np.array_equal(got[vertex], codes[vertex])
     copy_levels(sa, n, "", "db")
-    got_slack = band_leaf_slack(sa, (R, C), g.t, rows)
+    got_slack = band_leaf_slack(sa, (R, C), g.t, rows, empty_from=g.rows)
     assert got_slack == slack
     if slack is not None:
         top = _saturate(sa, n, 1 << 12)

@@ -360,7 +360,8 @@ class BandTerms(NamedTuple):
 def band_metric_terms(rows: Rows, xy: XY, N: int | tuple[int, int], band: int,
                       scratch: ScratchArrays, pre: str = "", frac: float = BORDER_FRACTION,
                       window: tuple[int, int] | None = None,
-                      base: BandTerms | None = None, span: int | None = None) -> BandTerms:
+                      base: BandTerms | None = None, span: int | None = None,
+                      empty_from: int | None = None) -> BandTerms:
     """:func:`geoterrain.bounds.curvature.metric_terms` of an (N, N) grid (or a root grid's
     (R, C) extent, with ``span``) read ``band`` rows at a time, into per-level arrays of
     ``scratch`` named ``{pre}dm{x}{k}``, ``{pre}rm{x}{k}`` and ``{pre}b{x}{k}``.
@@ -380,6 +381,12 @@ def band_metric_terms(rows: Rows, xy: XY, N: int | tuple[int, int], band: int,
         A root grid's root side 2**n (``N`` then its extent, (ry·span + 1, rx·span + 1)):
         ``metric_terms`` with ``span``, the vertices of half-span below it. None: the
         square.
+    empty_from
+        A row from which on ``rows`` holds no valid sample (a root grid's padding below
+        the raster: its rows). The bands from there on have no terms (0, as the arrays
+        start: each of a vertex's triangles has a corner on its row or below), so they
+        are neither computed nor read unless a listed triangle's box reaches them; the
+        values are the same. None: every band is computed.
 
     Examples
     --------
@@ -440,10 +447,16 @@ def band_metric_terms(rows: Rows, xy: XY, N: int | tuple[int, int], band: int,
     deferred: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     halo = B // 2 + HALO_EXTRA
     cache = RowCache(rows, xy, (R, C), frac, win, capacity=B + 2 * halo + 1)
+    own = _listed_rows(tl, 0)  # the rows pass 1 of the listed triangles reads
     for kb in range(nbands):
         r0 = kb * B
         last = kb == nbands - 1
         r_end = R - 1 if last else r0 + B - 1
+        if empty_from is not None and r0 >= empty_from and not _reads(own, r0, r_end):
+            # each triangle of a vertex on row i has a corner on row i or below (the ends
+            # of its hypotenuse: i ± h, or i itself), invalid here: _fine_vertex gives the
+            # band's vertices nothing, and no listed triangle reads its rows
+            continue
         g = cache.get(max(0, r0 - halo), min(R, r_end + 1 + halo))
         for k in range(nfine):
             h = 1 << k
@@ -478,14 +491,35 @@ def band_metric_terms(rows: Rows, xy: XY, N: int | tuple[int, int], band: int,
                        np.concatenate([tl.m] + [d[2] for d in deferred]))._replace(bulge=bulge)
     if len(tl.idx):
         cache = RowCache(rows, xy, (R, C), frac, win, capacity=B + 1)
+        search = _listed_rows(tl, 1)
         for kb in range(nbands):
             r0 = kb * B
             r_end = R - 1 if kb == nbands - 1 else r0 + B - 1
-            _list_search_nb(cache.get(r0, r_end + 1), tl, r0, r_end)
+            if _reads(search, r0, r_end):  # else _list_search_nb skips every triangle
+                _list_search_nb(cache.get(r0, r_end + 1), tl, r0, r_end)
         _fold(sa, pre, tl, n)
     if base is not None:
         _merge_base(sa, pre, base, n, win)
     return BandTerms(sa, pre, M)
+
+
+def _listed_rows(tl: TriList, search: int) -> tuple[np.ndarray, np.ndarray]:
+    # rows each listed triangle's pass reads, as bounds that hold them (lo, hi): pass 1
+    # (search 0) of those still without a margin, over their corners' rows (the index box
+    # of _tri_make, or its one row when degenerate); pass 2 (search 1) over that box ±
+    # the margin (_list_search_nb)
+    rows = tl.idx[:, 2:7:2]  # a, b and c's rows (_listed's order)
+    lo, hi = rows.min(axis=1, initial=np.iinfo(np.int64).max), rows.max(axis=1, initial=-1)
+    if search:
+        return lo - tl.m, hi + tl.m
+    todo = tl.m < 0
+    return lo[todo], hi[todo]
+
+
+def _reads(rows: tuple[np.ndarray, np.ndarray], r0: int, r1: int) -> bool:
+    # whether a triangle's rows (_listed_rows) meet rows r0 … r1
+    lo, hi = rows
+    return bool(np.any((lo <= r1) & (hi >= r0)))
 
 
 def _deferred(g: MetricGrid, h: int, kind: int, a0: int, defer: np.ndarray

@@ -24,7 +24,8 @@ Rows = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
 
 
 def band_leaf_slack(sa: ScratchArrays, N: int | tuple[int, int], t: int, rows: Rows,
-                    pre: str = "", terms: str = "") -> dict[tuple[int, int, int], float] | None:
+                    pre: str = "", terms: str = "", empty_from: int | None = None
+                    ) -> dict[tuple[int, int, int], float] | None:
     """:func:`~geoterrain.bounds.leafbounds.geographic_leaf_delta` on per-level arrays: the
     per-tile slack {(0, x, y): s}, level 0's ``{pre}C0``, ``{pre}R0``, ``{pre}K0`` raised
     (not yet saturated again), or None with δ untouched.
@@ -32,6 +33,9 @@ def band_leaf_slack(sa: ScratchArrays, N: int | tuple[int, int], t: int, rows: R
     ``rows(i0, i1)`` → (scene heights, valid) of grid rows i0 … i1 − 1; ``terms``: the
     prefix of the raw metric terms ``{terms}dm{x}0``, ``{terms}b{x}0``. ``N``: the grid's
     side, or a root grid's extent (R, C): its level-0 tiles down and across.
+    ``empty_from``: a row from which on ``rows`` holds no valid sample (a root grid's
+    padding below the raster); the tile rows from there on are not read (each of their
+    tiles is one without a valid sample: no slack, δ as it was).
 
     Examples
     --------
@@ -53,6 +57,8 @@ def band_leaf_slack(sa: ScratchArrays, N: int | tuple[int, int], t: int, rows: R
     out: dict[tuple[int, int, int], float] = {}
     for y in range(down):
         p0 = y * T1
+        if empty_from is not None and p0 >= empty_from:
+            break  # tile_slack's True for every tile below: nothing raised, none listed
         # level 0's values only (not the top: n is not read)
         w = level_lattice(sa, pre, 0, 1, p0, p0 + T, C, False, np.float32)
         dm = level_lattice(sa, f"{terms}dm", 0, 1, p0, p0 + T, C, False, np.float64)
