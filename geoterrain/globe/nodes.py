@@ -136,7 +136,7 @@ def hull(g: Geometry, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
     return C, mid, rad
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _segment_nb(qx, qy, qz, ax, ay, az, bx, by, bz):
     """Distance from point q to segment a–b."""
     ux, uy, uz = bx - ax, by - ay, bz - az
@@ -147,7 +147,7 @@ def _segment_nb(qx, qy, qz, ax, ay, az, bx, by, bz):
     return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _shell_nb(eye, dirs, planes, lo, hi, out):
     ex, ey, ez = eye[0], eye[1], eye[2]
     re = math.sqrt(ex * ex + ey * ey + ez * ez)
