@@ -29,10 +29,8 @@ Examples
 from __future__ import annotations
 
 import threading
-from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from geoterrain.globe.nodes import Geometry, children, decode, encode, geometry, hull
 from geoterrain.globe.payload import Payload
@@ -104,53 +102,19 @@ class PayloadPool:
             self._free.append(int(slot))
 
     def put(self, slot: int, p: Payload) -> None:
-        """Copy payload ``p`` into ``slot``: one compiled copy of all its arrays, which keeps
-        the interpreter's lock throughout (nine numpy copies each released it, and with the
-        payload threads busy each took it back only after their switch interval: installs
-        of tens of milliseconds on a loaded machine)."""
+        """Copy payload ``p`` into ``slot``."""
+        self.centre[slot] = p.centre
+        self.rel[slot] = p.rel
+        self.d[slot] = p.d
+        self.r[slot] = p.r
+        self.rT[slot] = p.rT
+        self.elev[slot] = p.elevation
+        self.elev_t[slot] = p.elevation_t
         ok = p.normals is not None and self.normals is not None
-
-        def flat(a):
-            return a.reshape(-1)
-
-        none = np.zeros(0, np.float32)
-        _put_nb(_Slot(flat(self.centre[slot]), flat(self.rel[slot]), flat(self.d[slot]),
-                      flat(self.r[slot]), flat(self.rT[slot]), flat(self.elev[slot]),
-                      flat(self.elev_t[slot]), flat(self.normals[slot]) if ok else none,
-                      flat(self.normals_t[slot]) if ok else none),
-                _Slot(*(np.ascontiguousarray(a).reshape(-1) for a in (
-                    p.centre, p.rel, p.d, p.r, p.rT, p.elevation, p.elevation_t)),
-                      np.ascontiguousarray(p.normals).reshape(-1) if ok else none,
-                      np.ascontiguousarray(p.normals_t).reshape(-1) if ok else none))
+        if ok:
+            self.normals[slot] = p.normals
+            self.normals_t[slot] = p.normals_t
         self.has_normals[slot] = ok
-
-
-class _Slot(NamedTuple):
-    """One payload slot's arrays, flat (:meth:`PayloadPool.put`)."""
-
-    centre: np.ndarray
-    rel: np.ndarray
-    d: np.ndarray
-    r: np.ndarray
-    rT: np.ndarray
-    elev: np.ndarray
-    elev_t: np.ndarray
-    normals: np.ndarray
-    normals_t: np.ndarray
-
-
-@njit(cache=True)
-def _put_nb(dst, src):
-    dst.centre[:] = src.centre
-    dst.rel[:] = src.rel
-    dst.d[:] = src.d
-    dst.r[:] = src.r
-    dst.rT[:] = src.rT
-    dst.elev[:] = src.elev
-    dst.elev_t[:] = src.elev_t
-    if len(dst.normals):
-        dst.normals[:] = src.normals
-        dst.normals_t[:] = src.normals_t
 
 
 class NodePool:
