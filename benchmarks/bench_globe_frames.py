@@ -5,7 +5,8 @@ where the worst frames' selection goes.
 
 The flight of ``bench_globe.py --repeats 1 --size 640x360`` (τ = 1, rendered), plus, per
 frame, ``vr_ms`` and ``vr_cpu_ms``: the wall and thread CPU time of the frame's
-:meth:`~geoterrain.globe.errors.ErrorTable.view_ranges` (the ranges, part of ``select_ms``).
+:meth:`~geoterrain.globe.errors.ErrorTable.view_ranges` (the ranges, part of ``select_ms``),
+and ``select_cpu_ms``: the thread CPU time of the ranges and the quadtrees' traversal.
 Writes the summary and every frame to OUT.json and prints the summary, the flight's wall
 and CPU time, the load, and the eight frames with the largest selection share. To compare
 two trees, put each on ``PYTHONPATH`` in turn from outside the checkout.
@@ -21,7 +22,7 @@ import time
 import numpy as np
 
 from geoterrain.bench.globeflight import flyover, run_flyover, summary
-from geoterrain.globe import Globe
+from geoterrain.globe import Globe, cdlod
 from geoterrain.globe.errors import ErrorTable
 from geoterrain.globe.nodes import encode, geometry, shell_distance
 
@@ -47,6 +48,16 @@ def main() -> None:
         return r
 
     ErrorTable.view_ranges = timed
+    trav = []
+    orig_t = cdlod._traverse
+
+    def traverse(*args, **kw):
+        c0 = time.thread_time()
+        r = orig_t(*args, **kw)
+        trav.append((time.thread_time() - c0) * 1e3)
+        return r
+
+    cdlod._traverse = traverse
     # compiled outside the flight
     shell_distance(np.full(3, 7e6), geometry(np.array([encode(0, 0, 0, 0)])), np.ones(1),
                    np.full(1, 2.0))
@@ -62,15 +73,18 @@ def main() -> None:
             pr.disable()
             pr.dump_stats(a.profile)
         wall, cpu = time.time() - t0, time.process_time() - c0
-    for f, (w, c) in zip(frames, rec, strict=False):
+    for f, (w, c), tc in zip(frames, rec, trav, strict=False):
         f["vr_ms"], f["vr_cpu_ms"] = round(w, 3), round(c, 3)
+        f["select_cpu_ms"] = round(c + tc, 3)  # the ranges' and the traversal's thread CPU
     s = summary(frames, 100.0)
     s.update(flight_wall_s=round(wall, 1), flight_cpu_s=round(cpu, 1),
-             load=f"{l0}->{_load()}", vr_cpu_ms_total=round(sum(c for _, c in rec), 1))
+             load=f"{l0}->{_load()}", vr_cpu_ms_total=round(sum(c for _, c in rec), 1),
+             select_cpu_ms_max=max(f.get("select_cpu_ms", 0.0) for f in frames))
     with open(a.out, "w") as f:
         json.dump(dict(summary=s, frames=frames), f)
     print(json.dumps(s))
-    keys = ("frame", "height_m", "frame_ms", "select_ms", "vr_ms", "vr_cpu_ms", "mesh_ms",
+    keys = ("frame", "height_m", "frame_ms", "select_ms", "select_cpu_ms", "vr_ms",
+            "vr_cpu_ms", "mesh_ms",
             "render_ms", "generation_ms", "nodes", "triangles")
     for f in sorted(frames, key=lambda f: -f["select_ms"] / max(f["frame_ms"], 1e-9))[:8]:
         print({k: f.get(k) for k in keys})
