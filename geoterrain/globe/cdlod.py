@@ -57,8 +57,9 @@ from geoterrain.globe.pool import READY
 
 __all__ = ["GlobeSelection", "select", "quadrant_faces", "MorphItems", "morph_vertices"]
 
-#: Store samples a frame may measure beyond the measured depth (the rest of what it needs
-#: is bounded analytically until a later frame measures it; a converged view measures all).
+#: Store samples a frame's measuring job may take beyond the measured depth (measured off
+#: the frame, on a thread of its own; what is not yet measured is bounded analytically until
+#: a later frame has it; a converged view measures all it needs at once).
 MEASURE_PER_FRAME = 5_000
 _END = 1.0 - 1e-9  # k = 1 from R·_END on: a boundary vertex never falls just short
 

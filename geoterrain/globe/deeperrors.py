@@ -6,7 +6,8 @@ ranges that use them. :class:`DeeperLevels` holds these methods of
 
 - **Measured per region** (:meth:`DeeperLevels.deep_errors`): per measured-depth node and
   deeper depth, the largest gap of the deeper triangles to the store samples in it, each
-  rebuilt from its three vertices when a view first needs it, then kept.
+  rebuilt from its three vertices when a view first needs it, then kept; a frame of the
+  flight has them measured off it, on a thread of its own, and bounds them meanwhile.
 - **Bounded** (:meth:`DeeperLevels.fine_errors`): a triangle whose vertices lie on the
   bilinear surface f misses f by at most G·R_c (G the spread of ∇f over its cells, R_c its
   circumradius); a vertex's morph onto its coarser neighbours' chord by G·|AB|/2.
@@ -97,7 +98,11 @@ class DeeperLevels:
         Dq, Dm = self.measured_depth, self.max_depth
         self._deep_cache = np.full((self.regions, Dm + 1), np.nan)
         self._deep_samples = None
-        self._deep_left = math.inf  # samples this view may still measure (view_ranges)
+        self._deep_left = math.inf  # a frame's measuring job's samples (inf: measure now)
+        self._deep_asked = np.zeros((self.regions, Dm + 1), bool)  # in the job off the frame
+        self._deep_wanted: list[tuple[int, np.ndarray]] = []  # (depth, regions) this frame
+        self._deep_job = None  # the measuring job running off the frame (a Future)
+        self._deep_pool = None
         if Dm <= Dq or self._truth is None or self._deep_mask is None or not self.regions:
             return
         face, u, v = self._truth[:3]
@@ -131,42 +136,102 @@ class DeeperLevels:
         :meth:`~geoterrain.globe.surface.Surface.fine_points`) and the store's samples in
         it beyond ``fine_border`` (0 where it holds none): each sample's triangle at that
         depth rebuilt from its three vertices, as :meth:`_sample_gap` measures a generated
-        node. Computed once per (node, depth) when a view first needs it, then kept.
+        node. Computed once per (node, depth), then kept.
 
-        A view measures at most ``_deep_left`` samples (:meth:`measuring`: a frame's
-        budget; or one node, while any is left); the nodes left over get, for this call only, the
-        bound :meth:`fine_errors` gives from their own gradient spread: a larger error, so
-        sound ranges, and a later view measures them."""
+        Outside a frame (:meth:`measuring` None: a converged view, or a call of its own)
+        the nodes not yet measured are measured now. In a frame they are measured off it:
+        the frame asks for them (:meth:`measure_off_frame` starts one job of at most a
+        frame's budget of samples on a thread of its own, :meth:`collect_measures` keeps
+        what it measured at the start of a later frame) and meanwhile gets, for this call
+        only, the bound :meth:`fine_errors` gives from their own gradient spread: a larger
+        error, so sound ranges."""
         regions = np.asarray(regions, np.int64)
         out = self._deep_cache[regions, depth]
         todo = np.unique(regions[np.isnan(out)])
-        later = todo[:0]
-        if len(todo):
-            n = self._deep_end[todo] - self._deep_start[todo]
-            take = np.cumsum(n) <= self._deep_left
-            take[0] |= self._deep_left > 0  # (one node, however large, while any is left)
-            todo, later, n = todo[take], todo[~take], n[take]
-            self._deep_left -= float(n.sum())
-            val = np.zeros(len(todo))
-            if n.sum():
-                first = np.repeat(self._deep_start[todo] - np.cumsum(n) + n, n)
-                idx = self._deep_samples[first + np.arange(int(n.sum()))]
-                gaps = self._deep_gaps(tuple(a[idx] for a in self._truth), depth)
-                np.maximum.at(val, np.repeat(np.arange(len(todo)), n), gaps)
-            self._deep_cache[todo, depth] = val * SAFE
-            out = self._deep_cache[regions, depth]
-        if len(later):  # not measured in this view: G·R_c and the curvature (fine_errors)
-            c = float(self.surface.cell_chord[depth])
-            ge, fs = self.region_fine[later, 0], self.region_fine[later, 2]
-            bound = np.full(self.regions, np.nan)
-            bound[later] = 1.05 * ge * c / math.sqrt(3) + (1 + fs) * c ** 2 / self.r_min
-            out = np.where(np.isnan(out), bound[regions], out)
-        return out
+        if not len(todo):
+            return out
+        if math.isinf(self._deep_left):
+            self._deep_cache[todo, depth] = self._deep_measure(todo, depth)
+            return self._deep_cache[regions, depth]
+        self._deep_wanted.append((depth, todo[~self._deep_asked[todo, depth]]))
+        # not measured yet: G·R_c and the curvature (fine_errors)
+        c = float(self.surface.cell_chord[depth])
+        ge, fs = self.region_fine[todo, 0], self.region_fine[todo, 2]
+        bound = np.full(self.regions, np.nan)
+        bound[todo] = 1.05 * ge * c / math.sqrt(3) + (1 + fs) * c ** 2 / self.r_min
+        return np.where(np.isnan(out), bound[regions], out)
+
+    def _deep_measure(self, todo: np.ndarray, depth: int) -> np.ndarray:
+        """The kept value of :meth:`deep_errors` for regions ``todo`` at ``depth`` (reads
+        only what the table was built with: safe on a thread of its own)."""
+        n = self._deep_end[todo] - self._deep_start[todo]
+        val = np.zeros(len(todo))
+        if n.sum():
+            first = np.repeat(self._deep_start[todo] - np.cumsum(n) + n, n)
+            idx = self._deep_samples[first + np.arange(int(n.sum()))]
+            gaps = self._deep_gaps(tuple(a[idx] for a in self._truth), depth)
+            np.maximum.at(val, np.repeat(np.arange(len(todo)), n), gaps)
+        return val * SAFE
 
     def measuring(self, samples: float | None) -> None:
-        """The samples the next view may measure beyond the measured depth (None: every
-        one it needs, as a converged view does)."""
+        """The samples one measuring job of the next view may take beyond the measured
+        depth (a frame's budget), or None: measure every one it needs at once, as a
+        converged view does."""
         self._deep_left = math.inf if samples is None else float(samples)
+        self._deep_wanted = []
+
+    def collect_measures(self, wait: bool = False) -> int:
+        """Keep what the measuring job off the frame measured, if it is done (``wait``: wait
+        for it); returns how many (node, depth) values it kept. A frame calls this before
+        its ranges, so one view's ranges see one table."""
+        job = self._deep_job
+        if job is None or not (wait or job.done()):
+            return 0
+        self._deep_job = None
+        kept = 0
+        for depth, todo, val in job.result():  # (its errors raise here)
+            self._deep_cache[todo, depth] = val
+            self._deep_asked[todo, depth] = False
+            kept += len(todo)
+        return kept
+
+    def measure_off_frame(self) -> int:
+        """Start measuring, on a thread of its own, what this frame asked for and found
+        unmeasured (:meth:`deep_errors`), nearest depth first, up to the frame's budget of
+        samples (one node at least), unless a job is still running; returns the samples
+        it took."""
+        wanted, self._deep_wanted = self._deep_wanted, []
+        if self._deep_job is not None or not wanted or math.isinf(self._deep_left):
+            return 0
+        left, work = self._deep_left, []
+        for depth, todo in wanted:
+            todo = todo[~self._deep_asked[todo, depth]]
+            if not len(todo) or left <= 0 and work:
+                continue
+            n = self._deep_end[todo] - self._deep_start[todo]
+            take = np.cumsum(n) <= left
+            take[0] |= not work  # (one node, however large)
+            todo = todo[take]
+            left -= float(n[take].sum())
+            self._deep_asked[todo, depth] = True
+            work.append((depth, todo))
+        if not work:
+            return 0
+        if self._deep_pool is None:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._deep_pool = ThreadPoolExecutor(1, thread_name_prefix="globe-measure")
+        self._deep_job = self._deep_pool.submit(
+            lambda: [(d, t, self._deep_measure(t, d)) for d, t in work])
+        return int(self._deep_left - left)
+
+    def close(self) -> None:
+        """Stop the measuring thread (its job's results are dropped)."""
+        if self._deep_pool is not None:
+            self._deep_pool.shutdown(wait=True, cancel_futures=True)
+            self._deep_pool = None
+        self._deep_job = None
+        self._deep_asked[:] = False
 
     def deep_gaps(self, points: np.ndarray, depth: int) -> np.ndarray:
         """The radial gap between ECEF ``points`` (N, 3) (store samples in the finest

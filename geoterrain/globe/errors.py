@@ -73,7 +73,7 @@ from geoterrain.globe.nodes import children, decode, encode, geometry, hull, nod
 from geoterrain.globe.noise import error_bound, height_range_bound
 from geoterrain.globe.payload import Payload, payload_from_values
 from geoterrain.globe.polyhedron import FACES, face_coordinates
-from geoterrain.globe.ranges import MORPH_FRACTION, SAFE, morph_error, ranges_from
+from geoterrain.globe.ranges import MORPH_FRACTION, SAFE, morph_error, ranges_from, settle
 from geoterrain.globe.surface import NodeKey, Surface
 
 __all__ = ["ErrorTable", "NodeError", "node_widths", "ranges", "ranges_from", "morph_error",
@@ -480,15 +480,22 @@ class ErrorTable(DeeperLevels):
 
         A measured node can be drawn only if the frustum (and the horizon) leave it and its
         parent meets its depth's sphere, dist(parent) < R_{D−1}. Ranges from all measured
-        nodes draw a subset of those; ranges from that subset draw a subset of it; … The
-        sets shrink to a fixed point A with R = ranges(A), and every node R draws is in A: the
-        constraints hold for it. Returns (R, m, |A|). ``measure``: the store samples this
-        view may measure beyond the measured depth (None: all it needs;
+        nodes draw a subset of those; ranges from that subset draw another; … until a fixed
+        point, or a cycle (a coarser range can grow when a finer one's table shrinks, so two
+        sets can draw each other in turn: a flight's frames met one at 0.7–1.9 Mm up and
+        ran 64 sets), and the ranges kept are the last whose set holds every node they draw
+        (:func:`~geoterrain.globe.ranges.settle`): the constraints hold for it.
+        Returns (R, m, |A|). ``measure``: the store samples one job may measure beyond the
+        measured depth, off this frame, of what it asked for (None: all it needs, now;
         :meth:`~geoterrain.globe.deeperrors.DeeperLevels.deep_errors`).
+        What an earlier frame's job measured is kept before the ranges are made.
         """
+        self.collect_measures()
         self.measuring(measure)
         try:
-            return self._view_ranges(view, lam, tau, fraction, occluder, frustum)
+            out = self._view_ranges(view, lam, tau, fraction, occluder, frustum)
+            self.measure_off_frame()
+            return out
         finally:
             self.measuring(None)  # a call outside a view measures all it needs
 
@@ -518,14 +525,12 @@ class ErrorTable(DeeperLevels):
         if self.max_depth > Dq and last.any():
             gl = type(g)(g.dirs[last], g.planes[last], g.centre[last], g.cmin[last])
             own[last] = shell_distance(view.eye, gl, self.region_lo[last], self.region_hi[last])
-        for _ in range(64):
-            R, m = self._deep_ranges(A, own, lam, tau, fraction)
-            D = self.region_depth
-            near = ~has | (pdist < R[np.maximum(D - 1, 0)])
-            B = vis & near
-            if (B == A).all():
-                break
-            A = B
+        D = self.region_depth
+
+        def drawn(Rm):
+            return vis & (~has | (pdist < Rm[0][np.maximum(D - 1, 0)]))
+
+        (R, m), A = settle(lambda A: self._deep_ranges(A, own, lam, tau, fraction), drawn, A)
         return R, m, int(A.sum())
 
     # -------------------------------------------------------------------- API

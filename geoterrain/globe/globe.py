@@ -124,6 +124,7 @@ class Globe:
     def close(self) -> None:
         """Stop the generation threads and close the stores this globe opened."""
         self.queue.close()
+        self.table.close()
         for t in self._opened:
             t.close()
 

@@ -36,9 +36,11 @@ Examples
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from geoterrain.globe.polyhedron import FACES, face_directions, face_points
 
@@ -134,12 +136,53 @@ def hull(g: Geometry, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
     return C, mid, rad
 
 
-def _segment_distance(q: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance from points q to segments a–b (…, 3)."""
-    ab = b - a
-    t = np.clip(np.einsum("...j,...j", q - a, ab) / np.maximum(
-        np.einsum("...j,...j", ab, ab), 1e-300), 0.0, 1.0)
-    return np.linalg.norm(q - (a + t[..., None] * ab), axis=-1)
+@njit(cache=True)
+def _segment_nb(qx, qy, qz, ax, ay, az, bx, by, bz):
+    """Distance from point q to segment a–b."""
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    t = ((qx - ax) * ux + (qy - ay) * uy + (qz - az) * uz) / max(
+        ux * ux + uy * uy + uz * uz, 1e-300)
+    t = min(max(t, 0.0), 1.0)
+    dx, dy, dz = qx - (ax + t * ux), qy - (ay + t * uy), qz - (az + t * uz)
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True)
+def _shell_nb(eye, dirs, planes, lo, hi, out):
+    ex, ey, ez = eye[0], eye[1], eye[2]
+    re = math.sqrt(ex * ex + ey * ey + ez * ez)
+    for i in range(out.shape[0]):
+        d = max(max(lo[i] - re, re - hi[i]), 0.0)
+        inside = True
+        for k in range(4):
+            if planes[i, k, 0] * ex + planes[i, k, 1] * ey + planes[i, k, 2] * ez > 0:
+                inside = False
+        if not inside:
+            d = math.inf
+            for k in range(4):
+                ax, ay, az = dirs[i, k, 0], dirs[i, k, 1], dirs[i, k, 2]
+                j = (k + 1) % 4
+                bx, by, bz = dirs[i, j, 0], dirs[i, j, 1], dirs[i, j, 2]
+                nx, ny, nz = planes[i, k, 0], planes[i, k, 1], planes[i, k, 2]
+                h = nx * ex + ny * ey + nz * ez
+                qx, qy, qz = ex - h * nx, ey - h * ny, ez - h * nz
+                # q = α·a + β·b: inside the wedge's angle when α, β ≥ 0 (by cross products:
+                # their signs hold for nodes a few centimetres wide)
+                cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+                alpha = (qy * bz - qz * by) * cx + (qz * bx - qx * bz) * cy \
+                    + (qx * by - qy * bx) * cz
+                beta = (ay * qz - az * qy) * cx + (az * qx - ax * qz) * cy \
+                    + (ax * qy - ay * qx) * cz
+                if alpha >= 0 and beta >= 0:
+                    qn = math.sqrt(qx * qx + qy * qy + qz * qz)
+                    w = max(max(lo[i] - qn, qn - hi[i]), 0.0)
+                else:
+                    w = min(_segment_nb(qx, qy, qz, ax * lo[i], ay * lo[i], az * lo[i],
+                                        ax * hi[i], ay * hi[i], az * hi[i]),
+                            _segment_nb(qx, qy, qz, bx * lo[i], by * lo[i], bz * lo[i],
+                                        bx * hi[i], by * hi[i], bz * hi[i]))
+                d = min(d, math.sqrt(h * h + w * w))
+        out[i] = d
 
 
 def shell_distance(eye: np.ndarray, g: Geometry, lo: np.ndarray, hi: np.ndarray
@@ -149,8 +192,10 @@ def shell_distance(eye: np.ndarray, g: Geometry, lo: np.ndarray, hi: np.ndarray
 
     Inside the cone the nearest point is radial; outside it lies on a side wedge (the
     nearest direction in a convex spherical polygon to one outside it is on its boundary),
-    an annular sector in the side plane: the in-plane distance to it, and the eye's height
-    over the plane.
+    an annular sector in the side plane: the in-plane distance to it (radial when the
+    eye's projection q on the plane lies within the wedge's angle, q = α·a + β·b with
+    α, β ≥ 0; else the nearer of its two edge segments), and the eye's height over the
+    plane. One compiled pass over the nodes (the selection calls it at every level).
 
     Examples
     --------
@@ -159,32 +204,13 @@ def shell_distance(eye: np.ndarray, g: Geometry, lo: np.ndarray, hi: np.ndarray
     >>> round(float(shell_distance(e, g, np.array([6.3e6]), np.array([6.4e6]))[0]), 3)
     600000.0
     """
-    e = np.asarray(eye, np.float64)
-    re = float(np.linalg.norm(e))
-    side = np.einsum("nkj,j->nk", g.planes, e)  # > 0: outside that side
-    inside = (side <= 0).all(1)
-    out = np.maximum(np.maximum(lo - re, re - hi), 0.0)
-    if inside.all():
-        return out
-    k = np.flatnonzero(~inside)
-    a = g.dirs[k]  # (m, 4, 3)
-    b = np.roll(a, -1, axis=1)
-    n = g.planes[k]
-    h = np.einsum("mkj,j->mk", n, e)
-    q = e[None, None, :] - h[..., None] * n  # the eye projected on each side plane
-    # q = α·a + β·b: inside the wedge's angle when α, β ≥ 0. By cross products (q × b =
-    # α·a × b, a × q = β·a × b): their signs hold for nodes a few centimetres wide, where
-    # 1 − (a·b)² rounds to 0
-    axb = np.cross(a, b)
-    alpha = np.einsum("mkj,mkj->mk", np.cross(q, b), axb)
-    beta = np.einsum("mkj,mkj->mk", np.cross(a, q), axb)
-    qn = np.linalg.norm(q, axis=-1)
-    radial = np.maximum(np.maximum(lo[k, None] - qn, qn - hi[k, None]), 0.0)
-    seg = np.minimum(
-        _segment_distance(q, a * lo[k, None, None], a * hi[k, None, None]),
-        _segment_distance(q, b * lo[k, None, None], b * hi[k, None, None]))
-    inplane = np.where((alpha >= 0) & (beta >= 0), radial, seg)
-    out[k] = np.sqrt(h * h + inplane * inplane).min(1)
+    lo = np.ascontiguousarray(lo, np.float64)
+    out = np.empty(len(lo))
+    if len(lo):
+        _shell_nb(np.ascontiguousarray(eye, np.float64).reshape(3),
+                  np.ascontiguousarray(g.dirs, np.float64),
+                  np.ascontiguousarray(g.planes, np.float64), lo,
+                  np.ascontiguousarray(hi, np.float64), out)
     return out
 
 

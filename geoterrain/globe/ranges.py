@@ -46,6 +46,39 @@ def morph_error(e: np.ndarray, move: np.ndarray, slack: np.ndarray, diag: np.nda
     return out
 
 
+def settle(ranges_of, drawn, A: np.ndarray, limit: int = 64):
+    """Ranges over a set of nodes that draw no node outside it: iterate A → drawn(ranges_of(A))
+    from ``A`` (a mask; ``drawn`` must return a subset of it) and return (ranges_of(A), A)
+    for the last A met whose ranges draw only nodes of A (the first always does).
+
+    The sets need not shrink to a fixed point: a coarser range can grow when a finer one's
+    table shrinks (the morph budget), so two sets can draw each other in turn. The iteration
+    stops at a fixed point, at a set met before (a cycle) or after ``limit`` sets; what it
+    returns is sound whichever way it stopped.
+
+    Examples
+    --------
+    >>> sets = [np.array([1, 1, 1], bool), np.array([1, 0, 0], bool), np.array([1, 1, 0], bool)]
+    >>> out, A = settle(lambda A: int(A.sum()), lambda n: sets[{3: 1, 1: 2, 2: 1}[n]], sets[0])
+    >>> out, A.tolist()
+    (2, [True, True, False])
+    """
+    best = None
+    seen = set()
+    for _ in range(limit):
+        out = ranges_of(A)
+        B = drawn(out)
+        if not (B & ~A).any():
+            best = (out, A)
+            if np.array_equal(B, A):
+                break
+        seen.add(A.tobytes())
+        if B.tobytes() in seen:
+            break  # a cycle: its sound member, if any, is kept
+        A = B
+    return best
+
+
 def ranges_from(tables: tuple[np.ndarray, ...], Dm: int, lam: float, tau: float,
                 fraction: float = MORPH_FRACTION, r_min: float = 6.0e6
                 ) -> tuple[np.ndarray, np.ndarray]:

@@ -164,6 +164,41 @@ def test_a_view_out_of_measuring_budget_bounds_the_deeper_nodes_above_their_meas
         assert np.array_equal(measured, tb.deep_errors(regions, D))
 
 
+
+def test_a_frame_measures_off_itself_bounding_meanwhile_and_keeps_the_same_measure(rough):
+    """A frame of the flight has the deeper errors it needs measured off it (one job on a
+    thread of its own, its budget of samples): until a later frame keeps the job's result
+    it gets the gradient bound, never under the measure; what it keeps is exactly what a
+    converged view measures at once, and nothing is asked twice."""
+    g, _ = rough
+    with Globe([g.stores[0].name], node_cells=8, sync=True, feather=FEATHER) as fresh, \
+            Globe([g.stores[0].name], node_cells=8, sync=True, feather=FEATHER) as now:
+        tb = fresh.table
+        Dq = tb.measured_depth
+        regions = np.flatnonzero(tb.region_depth == Dq)
+        D = Dq + 3
+        tb.measuring(1e12)  # a frame, its budget all of them
+        during = tb.deep_errors(regions, D)
+        assert tb.measure_off_frame() > 0
+        tb.measuring(1e12)
+        again = tb.deep_errors(regions, D)  # the job may still run: still the bound
+        assert tb.measure_off_frame() == 0  # a job runs, or nothing is left to ask
+        assert tb.collect_measures(wait=True) == len(regions)
+        tb.measuring(1e12)
+        kept = tb.deep_errors(regions, D)
+        assert tb.measure_off_frame() == 0  # nothing left to measure
+        tb.measuring(None)
+        measured = now.table.deep_errors(regions, D)  # a converged view's, at once
+        assert np.array_equal(kept, measured)
+        assert np.array_equal(during, again)
+        assert np.all(during >= measured * (1 - 1e-9)) and (during > measured).any()
+        # a frame's budget: one job takes at most that many samples (one node at least)
+        tb2 = now.table
+        tb2.measuring(1.0)
+        tb2.deep_errors(regions, D + 1)
+        assert tb2.measure_off_frame() > 0
+        assert 1 <= tb2.collect_measures(wait=True) < len(regions)
+
 @pytest.mark.fast
 def test_the_morph_bound_lies_between_its_two_ends():
     rng = np.random.default_rng(3)

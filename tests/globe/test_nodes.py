@@ -104,3 +104,59 @@ def test_horizon_hidden_hulls_are_really_hidden_and_its_cull_is_conservative():
         assert disc >= 0
         t = (-b - disc ** 0.5) / (2 * a)
         assert 0 <= t <= 1
+
+
+def _shell_distance_reference(eye, g, lo, hi):
+    """The same distance in whole-array numpy (the form it had before its compiled pass)."""
+    e = np.asarray(eye, np.float64)
+    re = float(np.linalg.norm(e))
+    inside = (np.einsum("nkj,j->nk", g.planes, e) <= 0).all(1)
+    out = np.maximum(np.maximum(lo - re, re - hi), 0.0)
+    k = np.flatnonzero(~inside)
+    a = g.dirs[k]
+    b = np.roll(a, -1, axis=1)
+    n = g.planes[k]
+    h = np.einsum("mkj,j->mk", n, e)
+    q = e[None, None, :] - h[..., None] * n
+    axb = np.cross(a, b)
+    alpha = np.einsum("mkj,mkj->mk", np.cross(q, b), axb)
+    beta = np.einsum("mkj,mkj->mk", np.cross(a, q), axb)
+    qn = np.linalg.norm(q, axis=-1)
+    radial = np.maximum(np.maximum(lo[k, None] - qn, qn - hi[k, None]), 0.0)
+
+    def seg(A, B):
+        ab = B - A
+        t = np.clip(np.einsum("...j,...j", q - A, ab) / np.maximum(
+            np.einsum("...j,...j", ab, ab), 1e-300), 0.0, 1.0)
+        return np.linalg.norm(q - (A + t[..., None] * ab), axis=-1)
+
+    s = np.minimum(seg(a * lo[k, None, None], a * hi[k, None, None]),
+                   seg(b * lo[k, None, None], b * hi[k, None, None]))
+    out[k] = np.sqrt(h * h + np.where((alpha >= 0) & (beta >= 0), radial, s) ** 2).min(1)
+    return out
+
+
+@given(st.integers(0, 29), st.integers(0, 24), st.integers(0, 2 ** 31), st.sampled_from(
+    [2.0, 50.0, 3e3, 1e6, 2e7]))
+def test_shell_distance_compiled_pass_matches_the_whole_array_form(face, depth, seed,
+                                                                   height):
+    """The compiled pass the selection runs gives the whole-array form's distances (to
+    rounding), for nodes from a face down to centimetres and eyes from 2 m up to 20 000 km:
+    around the node, beside it, and over its neighbours."""
+    rng = np.random.default_rng(seed)
+    m = 1 << depth
+    x = rng.integers(0, m, 64)
+    y = rng.integers(0, m, 64)
+    # the node and its neighbours (clipped to the face), and the eye over one of them
+    x = np.clip(x[:1] + rng.integers(-2, 3, 64), 0, m - 1)
+    y = np.clip(y[:1] + rng.integers(-2, 3, 64), 0, m - 1)
+    g = geometry(encode(face, depth, x, y))
+    lo = rng.uniform(6.34e6, 6.36e6, 64)
+    hi = lo + rng.uniform(0.0, 3e4, 64)
+    s = 2.0 ** -depth
+    u, v = (x[0] + rng.uniform(-1, 2)) * s, (y[0] + rng.uniform(-1, 2)) * s
+    d = face_directions(face, np.clip(u, 0, 1), np.clip(v, 0, 1))
+    eye = d * (6.36e6 + height)
+    got = shell_distance(eye, g, lo, hi)
+    ref = _shell_distance_reference(eye, g, lo, hi)
+    assert np.all(np.abs(got - ref) <= 1e-9 * ref + 1e-6), np.abs(got - ref).max()
