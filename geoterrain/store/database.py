@@ -118,7 +118,7 @@ def schema_version(grid: dict) -> int:
     Examples
     --------
     >>> schema_version({"rows": 9, "cols": 9, "n": 3, "t": 2})
-    10
+    12
     """
     return ROOTS_SCHEMA_VERSION if grid.get("layout") == "roots" else SCHEMA_VERSION
 
