@@ -319,7 +319,7 @@ class Terrain:
         return Tile(key, codes, h, valid)
 
     def _bounds(self, key: TileKey, kind: str) -> np.ndarray:
-        from geoterrain.bounds.leafbounds import tile_leaf_bounds
+        from geoterrain.bounds.leafbounds import tile_centre_radius, tile_leaf_bounds
         from geoterrain.bounds.vertexdata import DIFF, NEW_ONLY, VERSION_2, decode_bounds
 
         T = self.grid.tile_samples
@@ -339,9 +339,17 @@ class Terrain:
         derive = None
         # a RING blob: the rest from the heights (a geographic store's δ only, with its
         # slack: r would need pyproj's x, y of every sample)
-        if L == 0 and (stored == "delta"
-                       or (stored == "radius" and self.frame.kind != "geographic")):
+        # A MIDS blob (derive called without rows; a projected or pixel store's r above
+        # level 0): its cell centres from the heights and the other samples' codes
+        if (L == 0 and stored == "delta") or (stored == "radius"
+                                              and self.frame.kind != "geographic"):
             def derive(rows, cols, ring, log8, e, slack):
+                if rows is None:
+                    if L == 0:
+                        raise ValueError("a level-0 r is a ring, not mids")
+                    return tile_centre_radius(self, key, ring, e)
+                if L != 0:
+                    raise ValueError("a ring is for level 0")
                 return tile_leaf_bounds(self, key, stored, log8, e, rows, cols, ring, slack)
         # a stored tile's own δ_edge blob may hold differences from its δ codes
         base = (self.tile_delta(*key) if stored == "delta_edge" and len(blob) > 1

@@ -45,8 +45,8 @@ from geoterrain.core.rounding import round_up, round_up32
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
-__all__ = ["geographic_leaf_delta", "leaf_delta", "leaf_radius", "normal_axes", "normal_xy",
-           "tile_leaf_bounds", "tile_slack"]
+__all__ = ["centre_radius", "geographic_leaf_delta", "leaf_delta", "leaf_radius", "normal_axes",
+           "normal_xy", "tile_centre_radius", "tile_leaf_bounds", "tile_slack"]
 
 
 class Ring(NamedTuple):
@@ -200,6 +200,54 @@ def leaf_radius(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
     _leaf_radius_nb(np.ascontiguousarray(x, np.float64), np.ascontiguousarray(y, np.float64),
                     zp, _table(e), out)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _centre_radius_nb(x, y, z, mids, table, out):
+    T = z.shape[0]
+    for ci in range(1, T - 1, 2):
+        for cj in range(1, T - 1, 2):
+            # a centre's children are its 4 edge midpoints (half-span 1 in the tile's own
+            # indices): the code of the nesting over their coded radii, as radius_codes
+            out[ci, cj] = table[code_up_nb(table, _nest(x, y, z, mids, ci, cj, 1))]
+
+
+def centre_radius(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
+                  stand_in_z: float, e: int, mids: np.ndarray) -> np.ndarray:
+    """The stored r (float32, T × T) of a tile whose cell centres (odd row and column)
+    were left out (flag ``MIDS``, :mod:`geoterrain.bounds.vertexdata`): ``mids`` as given
+    (the other samples' decoded r), each centre the log8 code from ``2^e`` of the nesting
+    over its four edge midpoints, max |p_c − p_m| + r(m), as
+    :func:`geoterrain.bounds.tileblobs.radius_codes` codes it on a frame whose r is not
+    raised beyond the nesting (projected and pixel). ``x, y, z`` the tile's scene positions,
+    invalid heights replaced by ``stand_in_z`` as there.
+
+    Examples
+    --------
+    >>> ii, jj = np.indices((3, 3)).astype(float)
+    >>> m = np.zeros((3, 3), np.float32); m[0, 1] = 1.0
+    >>> r = centre_radius(jj, -ii, np.zeros((3, 3)), np.ones((3, 3), bool), 0.0, 0, m)
+    >>> float(r[1, 1]) >= 2.0, float(r[0, 1])
+    (True, 1.0)
+    """
+    ok = np.asarray(valid, bool) & np.isfinite(z)
+    zp = np.where(ok, z, stand_in_z)
+    out = np.array(mids, np.float32)
+    _centre_radius_nb(np.ascontiguousarray(x, np.float64), np.ascontiguousarray(y, np.float64),
+                      zp, out, _table(e), out)
+    return out
+
+
+def tile_centre_radius(terrain: TerrainLike, key: tuple[int, int, int], mids: np.ndarray,
+                       e: int) -> np.ndarray:
+    """A ``MIDS`` r blob's values with its cell centres derived from the tile's decoded
+    heights and x, y (:func:`centre_radius`; ``Terrain``'s reader of the blob)."""
+    if terrain.frame.kind == "geographic":  # r there holds curvilinear terms: never derived
+        raise ValueError("a geographic store's r is stored whole")
+    tile = terrain.tile(*key)
+    X, Y = terrain.tile_xy(*key)
+    return centre_radius(X, Y, terrain.frame.z(tile.heights), tile.valid, terrain.stand_in_z,
+                         e, mids)
 
 
 # ------------------------------------------------ a store's level-0 tiles, derived on read

@@ -26,12 +26,14 @@ from geoterrain.bounds.vertexdata import (
     DIFF,
     LOG8,
     LOG_STEPS,
+    MIDS,
     NEW_ONLY,
     RING,
     SLACK,
     VERSION_2,
     log8_exponent,
     log8_table,
+    mids_index,
     new_mask,
     ring_index,
     ring_new_index,
@@ -361,7 +363,8 @@ def compress_rows(rows: np.ndarray | list[np.ndarray], prefix: bytes | list[byte
 def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_level: int,
                 tiles: Iterable[tuple[int, int]], kinds=("delta", "radius", "normals"),
                 ring: bool | tuple[str, ...] = False, base: BoundsCoding | None = None,
-                slack: dict | None = None) -> tuple[dict, np.ndarray, np.ndarray]:
+                slack: dict | None = None, mids: bool = False
+                ) -> tuple[dict, np.ndarray, np.ndarray]:
     """The δ, r and normals blobs of the stored tiles ``(x, y)`` of one level.
 
     ``nrm`` is the level's octahedral normal map (n, n, 2) uint8. Returns
@@ -375,6 +378,10 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     ``ring`` may name the kinds instead (``("delta",)``: a geographic store's, whose r is
     stored whole); ``slack`` maps a tile's key to its ring δ's slack (flag ``SLACK``,
     :func:`geoterrain.bounds.leafbounds.geographic_leaf_delta`; none where it is 0).
+    ``mids`` (a projected or pixel store's r above level 0, log8 codes nested from leaves
+    of radius 0, ``radius_codes(..., radius=None)``): the r blobs leave out the cell
+    centres (flag ``MIDS``); a reader derives them from the tile's heights
+    (:func:`geoterrain.bounds.leafbounds.centre_radius`).
 
     Examples
     --------
@@ -436,7 +443,14 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     # centres all have code 0 (a geographic level-0 r: leaves) stores the centres only
     if new_only and k and T >= 3 and "delta" in kinds and not flags_d & (RING | DIFF):
         pd, head_d = _shaped(pd, head_d)
-    if new_only and k and T >= 3 and rlog and "radius" in kinds and not flags_r & RING:
+    if mids:  # schema 12's MIDS: the cell centres derived on read
+        if not rlog or flags_r & RING or T < 3:
+            raise ValueError("mids r blobs are log8 codes above level 0")
+        keep = mids_index(T, new_only)
+        pos = np.searchsorted(np.flatnonzero(new_mask(T)), keep) if new_only else keep
+        pr = pr[:, pos]
+        head_r = bytes([head_r[0], head_r[1] | MIDS, head_r[2]])
+    elif new_only and k and T >= 3 and rlog and "radius" in kinds and not flags_r & RING:
         pr, head_r = _shaped(pr, head_r)
     rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
     blobs = {kind: dict(zip(keys, compress_rows(*rows[kind]), strict=True)) for kind in kinds}

@@ -30,6 +30,13 @@ Flag ``CENTRES`` (schema 6, issue 51; a ``NEW_ONLY`` log8 blob, neither ``RING``
 ``DIFF``): every new vertex but the cell centres (odd row and column) has code 0, and only
 the centres are stored, in raster order (:func:`shape_codes`): a geographic store's level-0
 r, whose edge midpoints are leaves of radius 0 (srtm1_japan: 40 % fewer r bytes there).
+Flag ``MIDS`` (schema 12, issue 51; log8, neither ``RING``, ``DIFF``, ``SLACK`` nor
+``CENTRES``; a projected or pixel store's r above level 0): the cell centres (odd row
+and column) are left out of the payload, the other samples kept in raster order
+(:func:`mids_index`). A centre's children are its four edge midpoints, in the same tile,
+and its code is the nesting over them alone (r is not raised beyond the nesting on these
+frames), so a reader derives it from the tile's decoded heights, x, y and the midpoints'
+codes, as the preprocess codes it (:func:`geoterrain.bounds.leafbounds.centre_radius`).
 """
 
 from __future__ import annotations
@@ -46,6 +53,7 @@ VERSION = 1
 VERSION_2 = 2
 NEW_ONLY, LOG8, RING, DIFF, SLACK = 1, 2, 4, 8, 16  # version-2 flags
 CENTRES = 32  # a NEW_ONLY log8 payload of the cell centres only (shape_codes)
+MIDS = 64  # a log8 r payload without the cell centres (mids_index): derived on read
 LOG_STEPS = 16  # codes per octave: at most 2^(1/16) - 1 = 4.4 % above the exact value
 _F16_MAX = 32768.0  # keep the scaled maximum well inside float16's finite range
 
@@ -107,7 +115,9 @@ def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None
     cols, ring_values, log8, e, slack)``: the stored values (T, T) of the tile's new
     vertices, computed from its heights with the ring's (:mod:`geoterrain.bounds.leafbounds`;
     ``slack``: the blob's ``SLACK``, else 0) and coded with the blob's code (log8 or
-    float16) and exponent. A ``DIFF`` blob needs ``base``:
+    float16) and exponent; a ``MIDS`` blob calls ``derive(None, None, mids, True, e, 0.0)``
+    with the decoded values (T, T) of the samples it keeps (0 elsewhere) and takes its
+    result (those values, and each cell centre's derived). A ``DIFF`` blob needs ``base``:
     the tile's decoded δ, whose codes its payload is added to."""
     if len(blob) >= 1 and blob[0] == VERSION_2:
         return _decode_v2(blob, shape, parent, parity, derive, base)
@@ -219,6 +229,26 @@ def _shape_index(T: int) -> tuple[np.ndarray, np.ndarray]:
     return c, o
 
 
+@lru_cache(maxsize=8)
+def mids_index(T: int, new_only: bool) -> np.ndarray:
+    """Flat (T × T) indices of the samples a ``MIDS`` payload keeps, in raster order: every
+    sample (of the new vertices if ``new_only``) but the cell centres, odd row and column
+    (read-only, cached).
+
+    Examples
+    --------
+    >>> mids_index(3, True).tolist(), mids_index(3, False).tolist()
+    ([1, 3, 5, 7], [0, 1, 2, 3, 5, 6, 7, 8])
+    """
+    i, j = np.divmod(np.arange(T * T), T)
+    keep = ~((i & 1).astype(bool) & (j & 1).astype(bool))
+    if new_only:
+        keep &= new_mask(T).ravel()
+    f = np.flatnonzero(keep)
+    f.flags.writeable = False
+    return f
+
+
 def shape_codes(payload: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
     """The ``CENTRES`` shape of ``NEW_ONLY`` log8 payloads.
 
@@ -277,9 +307,13 @@ def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
 
 def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
                parity: tuple[int, int], derive, base) -> np.ndarray:
-    if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING | DIFF | SLACK | CENTRES):
+    if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING | DIFF | SLACK | CENTRES | MIDS):
         raise ValueError("not a bounds blob of a known version")
     flags, e = blob[1], int(np.int8(np.uint8(blob[2])))
+    if flags & MIDS and (flags & (RING | DIFF | SLACK | CENTRES) or not flags & LOG8
+                         or len(shape) != 2 or shape[0] != shape[1] or shape[0] < 3
+                         or derive is None):
+        raise ValueError("a mids bounds blob needs a square tile's log8 codes and its heights")
     if flags & CENTRES and (flags & (RING | DIFF | SLACK) or not flags & NEW_ONLY
                             or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1]
                             or shape[0] < 3):
@@ -305,6 +339,8 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         n = len(rr)
     elif flags & CENTRES:
         n = ((T - 1) // 2) ** 2
+    elif flags & MIDS:
+        n = len(mids_index(T, bool(flags & NEW_ONLY)))
     else:
         n = len(keep) if keep is not None else int(np.prod(shape))
     width = 1 if flags & LOG8 else 2
@@ -323,7 +359,11 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         h = np.frombuffer(raw, np.uint8).reshape(2, n).T.copy().view(np.float16).ravel()
         vals = round_up(h.astype(np.float64) * 2.0**e, np.float32)
     out = np.empty(shape, np.float32)
-    if flags & RING:  # the ring as stored, the rest derived and coded as stored
+    if flags & MIDS:  # the midpoints as stored, the centres derived from them
+        mids = np.zeros(shape, np.float32)
+        mids.ravel()[mids_index(T, bool(flags & NEW_ONLY))] = vals
+        out[:] = derive(None, None, mids, True, e, 0.0)
+    elif flags & RING:  # the ring as stored, the rest derived and coded as stored
         out.ravel()[keep] = derive(rr, rc, vals, bool(flags & LOG8), e, slack).ravel()[keep]
     elif keep is None:
         out.ravel()[:] = vals

@@ -491,7 +491,8 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
                                         ("delta", "radius") if derive_normals else
                                         ("delta", "radius", "normals"),
                                         ring=b.ring_kinds if L == 0 else False,
-                                        slack=b.slack if L == 0 else None)
+                                        slack=b.slack if L == 0 else None,
+                                        mids=L > 0 and "radius" in b.ring_kinds)
         if derive_normals:
             blobs["normals"] = ring_blobs(normal_maps[L], grid.t,
                                           [(x, y) for _, x, y in keys], L)

@@ -462,7 +462,7 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                     ("delta", "radius") if derive_normals else ("delta", "radius", "normals"),
                     ring=ring if L == 0 else False,
                     slack={(0, x, 0): slack[(x, y)] for x in keys if (x, y) in slack}
-                    if L == 0 and slack else None)
+                    if L == 0 and slack else None, mids=L > 0 and "radius" in ring)
                 if derive_normals:
                     blobs["normals"] = ring_blobs(nrm, t, [(x, 0) for x in keys])
                 for kind, b in blobs.items():

@@ -96,16 +96,18 @@ from geoterrain.store.pagepack import LEAF_HEADER, blob_cell_sizes, pack_order
 
 _KIND_NAMES = {i: k for k, i in KIND_CODES.items()}  # a blob key's kind number → its name
 
-SCHEMA_VERSION = 10  # 2: checksums bound to their tile and kind; per-level key digests;
+SCHEMA_VERSION = 12  # 2: checksums bound to their tile and kind; per-level key digests;
 #                    3: packed integer keys, bare blob rows found through blob_keys;
 #                    4: metadata, tile numbers and blob keys in compressed catalog rows;
 #                    5: height blobs of version 2 (range-coded, geoterrain/codec/entropy.py);
 #                    6: δ and r blobs may hold cell centres only (vertexdata.CENTRES);
 #                    8: height blobs of version 3 (cell centres predicted from both
 #                       directions, geoterrain/codec/predict.py);
-#                   10: zstd frames without their magic number (core/zstdsafe.py)
-ROOTS_SCHEMA_VERSION = 11  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
-#                            9 before schema 10
+#                   10: zstd frames without their magic number (core/zstdsafe.py);
+#                   12: r blobs above level 0 without their cell centres, derived on
+#                       read (vertexdata.MIDS; projected and pixel frames)
+ROOTS_SCHEMA_VERSION = 13  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
+#                            9 before schema 10, 11 before schema 12
 
 
 def schema_version(grid: dict) -> int:
@@ -116,7 +118,7 @@ def schema_version(grid: dict) -> int:
     Examples
     --------
     >>> schema_version({"rows": 9, "cols": 9, "n": 3, "t": 2})
-    10
+    12
     """
     return ROOTS_SCHEMA_VERSION if grid.get("layout") == "roots" else SCHEMA_VERSION
 

@@ -1,8 +1,10 @@
-"""Level-0 δ and r derived on read from a tile's heights (geoterrain.bounds.leafbounds).
+"""Level-0 δ and r, and the cell centres' r above level 0, derived on read from a tile's
+heights (geoterrain.bounds.leafbounds).
 
 A store written with ``derive_bounds`` keeps only the border ring's new vertices of each
-level-0 δ and r blob; the reader must rebuild every other value exactly as the whole-grid
-kernels computed and coded it. The oracle is the same DEM written with every value
+level-0 δ and r blob, and (projected and pixel frames) no cell centre of an r blob above
+level 0 (flag ``MIDS``); the reader must rebuild every other value exactly as the
+whole-grid kernels computed and coded it. The oracle is the same DEM written with every value
 stored, whose δ and r come from :func:`geoterrain.bounds.delta.vertex_errors` and
 :func:`~geoterrain.bounds.radii.vertex_radii` over the whole grid.
 """
@@ -16,8 +18,21 @@ from hypothesis import strategies as st
 
 import geoterrain
 from geoterrain.bounds.delta import saturate
-from geoterrain.bounds.leafbounds import leaf_delta, leaf_radius
-from geoterrain.bounds.vertexdata import DIFF, NEW_ONLY, RING, SLACK, VERSION_2, ring_new_index
+from geoterrain.bounds.leafbounds import centre_radius, leaf_delta, leaf_radius
+from geoterrain.bounds.vertexdata import (
+    CENTRES,
+    DIFF,
+    LOG8,
+    MIDS,
+    NEW_ONLY,
+    RING,
+    SLACK,
+    VERSION_2,
+    decode_bounds,
+    log8_table,
+    mids_index,
+    ring_new_index,
+)
 from geoterrain.exceptions import StoreCorruptError
 from tests.conftest import real_dem, store_pair, write_tif
 
@@ -29,6 +44,10 @@ def _pair(tmp_path, z, **kw):
 
 def _ring_flags(t) -> set:
     return {t._blob(k, kind)[1] & RING for k in t.tile_info for kind in ("delta", "radius")}
+
+
+def _mids_flags(t) -> set:
+    return {t._blob(k, "radius")[1] & MIDS for k in t.tile_info}
 
 
 def _assert_same_bounds(full, ring):
@@ -58,8 +77,9 @@ def test_derived_level0_bounds_are_the_stored_ones(tmp_path_factory, seed, shape
     full, ring = _pair(tmp, z.astype(np.float32), nodata=-9999.0, tile_size=tile,
                        codec_error=2.0 if lossy else None,
                        pre={"z_scale": z_scale, "z_units": z_units})
-    assert _ring_flags(full) == {0}
+    assert _ring_flags(full) == {0} and _mids_flags(full) == {0}
     assert ring.grid.top_level == 0 or RING in _ring_flags(ring)
+    assert ring.grid.top_level == 0 or MIDS in _mids_flags(ring)  # the centres above level 0
     _assert_same_bounds(full, ring)
     if tile >= 16:  # a 3- or 5-sample tile is nearly all ring: the sizes tie, ± a page
         assert ring.path.stat().st_size <= full.path.stat().st_size
@@ -67,13 +87,48 @@ def test_derived_level0_bounds_are_the_stored_ones(tmp_path_factory, seed, shape
 
 @pytest.mark.fast
 def test_only_level0_blobs_are_rings(tmp_path):
-    """Coarser tiles' new vertices have diamonds beyond the tile: they stay stored."""
+    """Coarser tiles' new vertices have diamonds beyond the tile: they stay stored, but
+    for the cell centres of r (flag ``MIDS``), whose children are in the tile."""
     z = np.random.default_rng(4).normal(0, 5, (65, 65)).cumsum(0)
     _, ring = _pair(tmp_path, z)
     for key in ring.tile_info:
         for kind in ("delta", "radius"):
             flags = ring._blob(key, kind)[1]
             assert bool(flags & RING) == (key[0] == 0), (key, kind)
+            assert bool(flags & MIDS) == (kind == "radius" and key[0] > 0), (key, kind)
+
+
+@pytest.mark.fast
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.sampled_from([2, 3, 4]), s=st.sampled_from([1, 2, 4]),
+       holes=st.sampled_from([0.0, 0.2]), relief=st.sampled_from([0.1, 10.0, 1000.0]))
+def test_centre_radius_is_the_nested_code(seed, n, s, holes, relief):
+    """A tile of stride s (a level-log2(s) tile) cut from a grid whose r codes are nested
+    by ``radius_codes``: its cell centres rebuilt from its other samples' codes, heights,
+    x, y and the stand-in height are the codes' values bit for bit; the positions halved
+    change some."""
+    from geoterrain.bounds.radii import stand_in_z
+    from geoterrain.bounds.tileblobs import radius_codes
+
+    rng = np.random.default_rng(seed)
+    N = (1 << n) * s + 1
+    ii, jj = np.indices((N, N)).astype(float)
+    X, Y = 30.0 * jj + 5e5, -30.0 * ii + 4e6
+    Z = rng.normal(0, relief, (N, N)).cumsum(0)
+    v = rng.random((N, N)) >= holes
+    codes, e = radius_codes(X, Y, np.where(v, Z, np.nan), v)
+    want = log8_table(e)[codes[::s, ::s]]
+    T = want.shape[0]
+    mids = want.copy()
+    mids[1::2, 1::2] = 0.0
+    zi = stand_in_z(np.where(v, Z, np.nan), v)
+    sub = (slice(None, None, s),) * 2
+    got = centre_radius(X[sub], Y[sub], Z[sub], v[sub], zi, e, mids)
+    assert np.array_equal(got, want)
+    assert np.array_equal(got.ravel()[mids_index(T, False)], mids.ravel()[mids_index(T, False)])
+    if (want[1::2, 1::2] > 0).any():  # a kernel that misplaces the positions fails
+        half = centre_radius(X[sub] / 2, Y[sub] / 2, Z[sub] / 2, v[sub], zi / 2, e, mids)
+        assert not np.array_equal(half, want)
 
 
 @pytest.mark.parametrize("name", ["fuji_terrain_rgb.png", "st_helens_terrain_rgb.png",
@@ -245,6 +300,41 @@ def test_a_damaged_or_misplaced_ring_is_refused_in_one_line(tmp_path):
                                                         else blob(k, kind))
         with pytest.raises(StoreCorruptError, match="delta cannot be decoded"):
             ring.tile_delta(*key)
+
+
+@pytest.mark.fast
+def test_a_damaged_or_misplaced_mids_blob_is_refused_in_one_line(tmp_path):
+    """A stranger's store: ``MIDS`` on a level-0 r, on a δ, beside ``CENTRES`` or
+    ``RING``, without log8 codes, or a payload of the wrong length: each is a one-line
+    StoreCorruptError; and a MIDS blob without the tile's heights (a geographic store's
+    reader passes none) is a ValueError."""
+    import zstandard
+
+    z = np.random.default_rng(2).normal(0, 5, (65, 65)).cumsum(1)
+    _, st_ = _pair(tmp_path, z)
+    blob = st_._blob
+    r110 = blob((1, 1, 0), "radius")
+    assert r110[1] & MIDS
+
+    def flagged(b, add=0, drop=0):
+        return b[:1] + bytes([(b[1] | add) & ~drop]) + b[2:]
+
+    T = st_.grid.tile_samples
+    wrong = bytes([VERSION_2, NEW_ONLY | LOG8 | MIDS, 0]) + zstandard.ZstdCompressor().compress(
+        bytes(len(mids_index(T, True)) + 1))
+    cases = [((0, 0, 0), "radius", r110), ((1, 1, 0), "delta", flagged(blob((1, 1, 0), "delta"),
+                                                                       MIDS)),
+             ((1, 1, 0), "radius", flagged(r110, CENTRES)), ((1, 1, 0), "radius",
+                                                             flagged(r110, RING)),
+             ((1, 1, 0), "radius", flagged(r110, 0, LOG8)), ((1, 1, 0), "radius", wrong)]
+    for key, kind, bad in cases:
+        st_._blob = lambda k, kd, key=key, kind=kind, bad=bad: (bad if (k, kd) == (key, kind)
+                                                                else blob(k, kd))
+        st_.clear_cache()
+        with pytest.raises(StoreCorruptError, match=f"{kind} cannot be decoded"):
+            getattr(st_, f"tile_{kind}")(*key)
+    with pytest.raises(ValueError, match="mids"):
+        decode_bounds(r110, (T, T), np.zeros((T, T), np.float32), (1, 0))
 
 
 @pytest.mark.fast

@@ -141,6 +141,8 @@ STORE_CASES = [
     ("old-schema", _meta("schema_version", 1), ["info", "{store}"], 1),
     ("schema-8-frames-with-magic", _meta("schema_version", 8), ["info", "{store}"], 1),
     ("schema-9-frames-with-magic", _meta("schema_version", 9), ["info", "{store}"], 1),
+    ("schema-10-r-centres-stored", _meta("schema_version", 10), ["info", "{store}"], 1),
+    ("schema-11-r-centres-stored", _meta("schema_version", 11), ["info", "{store}"], 1),
     ("south-up", _south_up, ["info", "{store}"], 1),
     ("unit-to-m-1e-300", _meta("unit_to_m", 1e-300, "frame"), ["info", "{store}"], 1),
     ("z-to-m-unknown", _meta("z_to_m", 0.5, "frame"), ["info", "{store}"], 1),

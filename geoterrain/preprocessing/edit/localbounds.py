@@ -571,7 +571,8 @@ class Bounds:
             blobs, dm, rm = level_blobs(coding, np.zeros((T, T, 2), np.uint8), g.t, 0,
                                         0 if L == g.top_level else 1, [(0, 0)],
                                         ("delta", "radius"),
-                                        ring=L == 0 and job.derive_bounds)
+                                        ring=L == 0 and job.derive_bounds,
+                                        mids=L > 0 and job.derive_bounds)
             for kind in ("delta", "radius"):
                 job.put(key, kind, blobs[kind][(0, 0, 0)])
             job.set_row(key, delta_max=float(dm[0]), radius_max=float(rm[0]))
