@@ -16,8 +16,9 @@ cached kernel, which starts numba's compiler context; Pillow; VTK's rendering mo
 PyVista, which a render loaded before it drew on VTK alone), each row adding to the
 previous one. ``--no-overlays``: in the same turns, this tree's render with
 ``--no-overlays`` (no colour bar, scale bar or north arrow; the overlays are drawn on
-Pillow). ``--no-floor``: without the import-only processes. ``--kernels``: one more run of this tree, listing the kernels it
-loads from numba's cache and the CPU time of each load.
+Pillow). ``--no-floor``: without the import-only processes. ``--kernels``: one more run
+of this tree, listing the kernels it loads from numba's cache and the CPU time of each
+load.
 """
 
 from __future__ import annotations
