@@ -12,13 +12,13 @@ another commit's ``geoterrain/`` with its ``cli/`` copied in as ``geoterrain/cli
 benchmarks/bench_startup.py), run in turns with this tree's for same-run ratios; the
 pictures of the two trees are compared byte for byte. In the same turns, the floor: fresh
 processes that only import the render's libraries (numpy; numba and the first call of a
-cached kernel, which starts numba's compiler context; matplotlib's figure and Agg canvas
-and imageio; VTK's rendering modules; PyVista), each row adding to the previous one.
-``--no-overlays``: in the same turns, this tree's render with ``--no-overlays`` (no
-colour bar, scale bar or north arrow; neither imports matplotlib since the overlays are
-drawn on Pillow, but a baseline from before may). ``--no-floor``: without the
-import-only processes. ``--kernels``: one more run of this tree, listing the kernels it
-loads from numba's cache and the CPU time of each load.
+cached kernel, which starts numba's compiler context; Pillow; VTK's rendering modules; and
+PyVista, which a render loaded before it drew on VTK alone), each row adding to the
+previous one. ``--no-overlays``: in the same turns, this tree's render with
+``--no-overlays`` (no colour bar, scale bar or north arrow; the overlays are drawn on
+Pillow). ``--no-floor``: without the import-only processes. ``--kernels``: one more run
+of this tree, listing the kernels it loads from numba's cache and the CPU time of each
+load.
 """
 
 from __future__ import annotations
@@ -41,12 +41,12 @@ _KERNEL = ("import numba\n@numba.njit(cache=True)\ndef bench_cold_render_kernel(
 FLOOR = {
     "numpy": "import numpy",
     "+ numba, a cached kernel's first call": "import numba, k; k.bench_cold_render_kernel(1)",
-    "+ matplotlib (figure, Agg), imageio": "import matplotlib.figure, "
-                                           "matplotlib.backends.backend_agg, imageio.v3",
-    "+ VTK's rendering modules": "import vtkmodules.vtkRenderingOpenGL2, "
-                                 "vtkmodules.vtkRenderingCore, vtkmodules.vtkRenderingFreeType, "
-                                 "vtkmodules.vtkInteractionStyle, vtkmodules.util.numpy_support",
-    "+ PyVista (its plotting imports matplotlib.pyplot)": "import pyvista, pyvista.plotting",
+    "+ Pillow (the PNG, the overlays' text)": "import PIL.Image, PIL.ImageDraw, PIL.ImageFont, "
+                                              "PIL.PngImagePlugin",
+    "+ VTK's rendering modules (what a render loads)": "import vtkmodules.vtkRenderingOpenGL2, "
+                                                       "vtkmodules.vtkRenderingCore, "
+                                                       "vtkmodules.util.numpy_support",
+    "+ PyVista (no longer loaded by a render)": "import pyvista",
 }
 
 LOADS = """

@@ -208,7 +208,7 @@ class GlobeSelection:
 
         from geoterrain.lod.mesh import polydata
 
-        m = polydata(self.points, self.faces) if len(self.faces) else pv.PolyData()
+        m = polydata(self.points, self.faces).pyvista() if len(self.faces) else pv.PolyData()
         if len(self.faces):
             m.point_data["elevation"] = self.elevation
             m.point_data["normals"] = self.normals

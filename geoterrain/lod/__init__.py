@@ -1,7 +1,9 @@
 """Level-of-detail selection: one seam, :func:`select`, over every registered strategy.
 
-A strategy is a module with ``select(terrain, view, tau) -> (pyvista.PolyData,
-stats)``, registered by one line in :mod:`geoterrain.lod.registry`:
+A strategy is a module with ``select(terrain, view, tau) -> (mesh, stats)``, registered
+by one line in :mod:`geoterrain.lod.registry`; the mesh is a
+:class:`~geoterrain.lod.mesh.TriMesh` (VTK's ``vtkPolyData`` with PyVista's array
+accessors), which :attr:`Selection.mesh` hands to callers as a ``pyvista.PolyData``:
 
 - ``rtin`` (:mod:`~geoterrain.lod.rtin`): LP vertex refinement (seed 002), conforming;
 - ``chunked`` (:mod:`~geoterrain.lod.chunked`): the stored tile quadtree with skirts
@@ -32,7 +34,6 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -51,41 +52,63 @@ __all__ = ["DEFAULT", "REGISTRY", "STRATEGIES", "Selection", "StrategyInfo", "se
 
 
 
-@dataclass
 class Selection:
     """A selected mesh and what it cost.
 
-    ``mesh`` has float64 points in the scene frame of ``Terrain.scene_xyz()``,
-    point data ``grid_ij`` (row, column of each vertex's sample) and ``elevation``
-    (metres, without vertical exaggeration; the active scalars) and cell data
-    ``skirt`` (1 on skirt triangles) and ``level`` (pyramid level).
+    ``mesh`` (a ``pyvista.PolyData``) has float64 points in the scene frame of
+    ``Terrain.scene_xyz()``, point data ``grid_ij`` (row, column of each vertex's sample)
+    and ``elevation`` (metres, without vertical exaggeration; the active scalars) and cell
+    data ``skirt`` (1 on skirt triangles) and ``level`` (pyramid level). ``vtk_mesh`` is
+    the same mesh as the strategy made it (a :class:`~geoterrain.lod.mesh.TriMesh`, VTK's
+    ``vtkPolyData`` with PyVista's array accessors): what the offscreen render draws, so
+    that a render never imports PyVista; ``mesh`` shares its arrays (made on first use).
     ``stats`` holds ``strategy``, ``triangles`` (skirts excluded),
     ``skirt_triangles``, ``vertices``, ``tiles_visited``, ``tiles_culled``,
     ``tiles_decoded``, ``select_ms``, ``reused`` and ``pixel_error`` or ``max_error``.
     """
 
-    mesh: pv.PolyData
-    stats: dict = field(default_factory=dict)
+    __slots__ = ("stats", "vtk_mesh")
+
+    def __init__(self, mesh, stats: dict | None = None):
+        self.vtk_mesh = mesh  # a TriMesh, or a pyvista.PolyData given by a caller
+        self.stats = {} if stats is None else stats
+
+    @property
+    def mesh(self) -> pv.PolyData:
+        """The mesh as a ``pyvista.PolyData`` (imports PyVista; arrays shared with
+        ``vtk_mesh``; one object per mesh, whichever selection of it asks)."""
+        from geoterrain.lod.mesh import TriMesh
+
+        m = self.vtk_mesh
+        if not isinstance(m, TriMesh):
+            return m
+        if m.shown is None:
+            m.shown = m.pyvista()
+        return m.shown
+
+    def __repr__(self) -> str:
+        return f"Selection({type(self.vtk_mesh).__name__}, stats={self.stats!r})"
 
     @property
     def ij(self) -> np.ndarray:
         """(V, 2) grid row and column of each vertex."""
-        if "grid_ij" not in self.mesh.point_data:
+        m = self.vtk_mesh
+        if "grid_ij" not in m.point_data:
             return np.zeros((0, 2))
-        return np.asarray(self.mesh.point_data["grid_ij"])
+        return np.asarray(m.point_data["grid_ij"])
 
     @property
     def faces(self) -> np.ndarray:
         """(F, 3) vertex indices of every triangle, skirts included."""
-        if self.mesh.n_cells == 0:
+        if self.vtk_mesh.n_cells == 0:
             return np.zeros((0, 3), np.int64)
-        return np.asarray(self.mesh.regular_faces)  # every LOD mesh is all triangles
+        return np.asarray(self.vtk_mesh.regular_faces)  # every LOD mesh is all triangles
 
     def surface_faces(self) -> np.ndarray:
         """Faces of the terrain surface (skirts removed)."""
         f = self.faces
-        if len(f) and "skirt" in self.mesh.cell_data:
-            return f[np.asarray(self.mesh.cell_data["skirt"]) == 0]
+        if len(f) and "skirt" in self.vtk_mesh.cell_data:
+            return f[np.asarray(self.vtk_mesh.cell_data["skirt"]) == 0]
         return f
 
 
@@ -134,8 +157,8 @@ def select(terrain: TerrainLike, view: View, pixel_error: float = 1.0, strategy:
     last = terrain.derived(__name__, dict)  # the terrain's last selection, for reuse
     if reuse and last.get("key") == key:
         sel = last["selection"]
-        return Selection(sel.mesh, {**sel.stats, "reused": True, "select_ms": 0.0,
-                                    "tiles_decoded": 0})
+        return Selection(sel.vtk_mesh, {**sel.stats, "reused": True, "select_ms": 0.0,
+                                        "tiles_decoded": 0})
     t0, dec0 = time.perf_counter(), terrain.decoded_tiles
     mesh, stats = info.load()(terrain, view, tau, occlusion=occlusion, morph=morph)
     sel = _finish(terrain, mesh, stats, strategy, t0, dec0)
@@ -185,7 +208,7 @@ def _finish(terrain: TerrainLike, mesh, stats: dict, strategy: str, t0: float, d
             elevated: bool = False) -> Selection:
     from vtkmodules.util.numpy_support import vtk_to_numpy
 
-    from geoterrain.lod.mesh import add_elevation  # (pyvista: loaded with the first mesh)
+    from geoterrain.lod.mesh import add_elevation
 
     # a strategy whose mesh has its elevation, and counts its triangles, as it assembles
     # it says so (stats "elevated" and "triangles"): no pass over the mesh here

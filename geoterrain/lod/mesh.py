@@ -1,17 +1,144 @@
-"""Turn grid-indexed triangles into a ``pyvista.PolyData`` in the scene frame.
+"""Turn grid-indexed triangles into a :class:`TriMesh` in the scene frame.
 
 Every mesh a strategy hands back through :mod:`geoterrain.lod` carries the point
 arrays ``grid_ij`` (the sample of each vertex) and ``elevation`` (metres, added
 once at the seam by :func:`add_elevation`, so every strategy gets it).
+
+A :class:`TriMesh` is VTK's own ``vtkPolyData`` with the few of ``pyvista.PolyData``'s
+accessors the strategies and the offscreen render use (``points``, ``point_data``,
+``cell_data``, ``n_points``, ``n_cells``, ``regular_faces``): making and drawing a mesh
+imports no PyVista (about 0.25 s of a cold ``geoterrain render``). Where a caller gets a
+mesh through the API (``Selection.mesh``, ``Terrain.mesh()``) it is a ``pyvista.PolyData``
+(:meth:`TriMesh.pyvista`: the same arrays, not copied).
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import pyvista as pv
-from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray, vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkPoints
-from vtkmodules.vtkCommonDataModel import vtkCellArray
+from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+
+if TYPE_CHECKING:
+    import pyvista as pv
+
+
+class Arrays:
+    """A mesh's point or cell arrays by name, as ``pyvista.PolyData.point_data`` reads and
+    sets them (numpy views of VTK's arrays; a new array becomes the active scalars when
+    there are none, as PyVista makes it)."""
+
+    __slots__ = ("_data",)
+
+    def __init__(self, data):
+        self._data = data  # a vtkPointData or vtkCellData
+
+    def __contains__(self, name: str) -> bool:
+        return bool(self._data.HasArray(name))
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        arr = self._data.GetAbstractArray(name)
+        if arr is None:
+            raise KeyError(name)
+        return vtk_to_numpy(arr)
+
+    def __setitem__(self, name: str, values) -> None:
+        had = name in self
+        if had:
+            self._data.RemoveArray(name)
+        _add(self._data, name, np.ascontiguousarray(values))
+        if not had and self._data.GetScalars() is None:
+            self._data.SetActiveScalars(name)
+
+    def keys(self) -> list[str]:
+        d = self._data
+        return [d.GetArrayName(k) for k in range(d.GetNumberOfArrays())]
+
+
+class TriMesh(vtkPolyData):
+    """A triangle mesh: ``vtkPolyData`` with ``pyvista.PolyData``'s accessors that the
+    selection and the offscreen render use; any other of PyVista's attributes is read
+    from :meth:`pyvista` (which imports PyVista).
+
+    Examples
+    --------
+    >>> m = polydata(np.array([[0, 0, 4.0], [1, 0, 6], [0, 1, 8]]), np.array([[0, 1, 2]]))
+    >>> m.n_points, m.n_cells, m.regular_faces.tolist()
+    (3, 1, [[0, 1, 2]])
+    >>> m.pyvista().n_cells  # doctest: +SKIP
+    1
+    """
+
+    #: the ``pyvista.PolyData`` that ``Selection.mesh`` made of this mesh, once
+    shown = None
+
+    @property
+    def n_points(self) -> int:
+        return self.GetNumberOfPoints()
+
+    @property
+    def n_cells(self) -> int:
+        return self.GetNumberOfCells()
+
+    @property
+    def points(self) -> np.ndarray:
+        """(V, 3) vertex positions (a view of VTK's array)."""
+        p = self.GetPoints()
+        return vtk_to_numpy(p.GetData()) if p is not None else np.zeros((0, 3))
+
+    @points.setter
+    def points(self, xyz) -> None:
+        pts = vtkPoints()
+        pts.SetData(numpy_to_vtk(np.ascontiguousarray(xyz, np.float64), deep=False))
+        self.SetPoints(pts)
+
+    @property
+    def point_data(self) -> Arrays:
+        return Arrays(self.GetPointData())
+
+    @property
+    def cell_data(self) -> Arrays:
+        return Arrays(self.GetCellData())
+
+    @property
+    def active_scalars_name(self) -> str | None:
+        s = self.GetPointData().GetScalars()
+        return s.GetName() if s is not None else None
+
+    @property
+    def regular_faces(self) -> np.ndarray:
+        """(F, 3) vertex indices of the triangles."""
+        polys = self.GetPolys()
+        if polys is None or not self.n_cells:
+            return np.zeros((0, 3), np.int64)
+        return vtk_to_numpy(polys.GetConnectivityArray()).reshape(-1, 3)
+
+    @property
+    def active_texture_coordinates(self) -> np.ndarray | None:
+        tc = self.GetPointData().GetTCoords()
+        return vtk_to_numpy(tc) if tc is not None else None
+
+    @active_texture_coordinates.setter
+    def active_texture_coordinates(self, tc: np.ndarray) -> None:
+        arr = numpy_to_vtk(np.ascontiguousarray(tc), deep=False)
+        arr.SetName("Texture Coordinates")  # PyVista's name
+        self.GetPointData().SetTCoords(arr)
+        self.Modified()
+
+    def pyvista(self) -> pv.PolyData:
+        """This mesh as a ``pyvista.PolyData``: a new VTK object sharing its points, cells
+        and arrays (no copy)."""
+        import pyvista as pv
+
+        return pv.PolyData(self, deep=False)
+
+    def __getattr__(self, name: str):
+        # PyVista's other attributes (bounds, plot, save, ...), on the shared copy
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return getattr(self.pyvista(), name)
 
 
 def orient_ccw(ij: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -26,8 +153,8 @@ def orient_ccw(ij: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 def polydata(xyz: np.ndarray, faces: np.ndarray, ij: np.ndarray | None = None,
-             cell_arrays: dict[str, np.ndarray] | None = None) -> pv.PolyData:
-    """A triangle PolyData with float64 points, ``grid_ij`` point data and cell arrays.
+             cell_arrays: dict[str, np.ndarray] | None = None) -> TriMesh:
+    """A triangle mesh with float64 points, ``grid_ij`` point data and cell arrays.
 
     The arrays are wrapped, not copied, where they already have VTK's layout (C order,
     float64 points and ``grid_ij``, int32 or int64 faces): a frame's mesh costs no copy.
@@ -36,21 +163,18 @@ def polydata(xyz: np.ndarray, faces: np.ndarray, ij: np.ndarray | None = None,
     faces = np.asarray(faces)
     if faces.dtype not in (np.int32, np.int64):
         faces = faces.astype(np.int64)
+    mesh = TriMesh()
     if len(faces):
-        mesh = pv.PolyData()
         pts = vtkPoints()
         pts.SetData(numpy_to_vtk(xyz, deep=False))
         mesh.SetPoints(pts)
-        cells = vtkCellArray()
-        if faces.dtype == np.int32:  # fixed-size cells: no offsets array at all
-            cells.SetData(3, numpy_to_vtk(np.ascontiguousarray(faces).ravel(), deep=False))
-        else:
-            cells = pv.CellArray.from_regular_cells(np.ascontiguousarray(faces))
+        cells = vtkCellArray()  # fixed-size cells (int32 or int64): no offsets array at all
+        conn = np.ascontiguousarray(faces).ravel()
+        cells.SetData(3, numpy_to_vtk(conn, deep=False) if faces.dtype == np.int32
+                      else numpy_to_vtkIdTypeArray(conn, deep=False))  # as PyVista's
         mesh.SetPolys(cells)
-    else:
-        mesh = pv.PolyData()
-        if len(xyz):
-            mesh.points = xyz
+    elif len(xyz):
+        mesh.points = xyz
     if ij is not None and len(ij):
         _add(mesh.GetPointData(), "grid_ij", np.ascontiguousarray(ij, np.float64))
     for k, v in (cell_arrays or {}).items():
@@ -68,8 +192,8 @@ def _add(data, name: str, values: np.ndarray) -> None:
     data.AddArray(arr)
 
 
-def add_elevation(mesh: pv.PolyData, z_scale: float,
-                  elevation: np.ndarray | None = None) -> pv.PolyData:
+def add_elevation(mesh: TriMesh, z_scale: float,
+                  elevation: np.ndarray | None = None) -> TriMesh:
     """Add the point array ``elevation`` (metres) to ``mesh`` in place and make it active.
 
     Scene Z is the height in metres × the vertical exaggeration (``Frame.z``:
@@ -99,7 +223,7 @@ def add_elevation(mesh: pv.PolyData, z_scale: float,
     return mesh
 
 
-def empty_polydata() -> pv.PolyData:
+def empty_polydata() -> TriMesh:
     """The mesh of a view that draws nothing.
 
     Examples

@@ -51,7 +51,7 @@ from geoterrain.core.memory import peak_rss as _peak_rss
 from geoterrain.core.view import View
 from geoterrain.exaggerate import exaggerated
 from geoterrain.exceptions import UsageError
-from geoterrain.lod.mesh import polydata
+from geoterrain.lod.mesh import TriMesh, polydata
 from geoterrain.lod.registry import DEFAULT, strategy_info
 from geoterrain.rendering.antialias import depth_buffer
 from geoterrain.rendering.cameras import (  # noqa: F401 - the camera helpers are part of this API
@@ -103,8 +103,6 @@ class TerrainScene:
                  textures: str = "view", light: Light | None = None,
                  drape: Drape | None = None, occlusion: bool = True,
                  morph: bool | None = None, strips: bool = False, water: bool = True):
-        import pyvista as pv
-
         from geoterrain.rendering import offscreen
 
         # VTK alone (offscreen.OffscreenPlotter: the same pictures without PyVista's
@@ -142,10 +140,12 @@ class TerrainScene:
             if self._raw:
                 self.texture = offscreen.texture(_image_data(np.zeros((1, 1, 3), np.uint8)))
             else:
+                import pyvista as pv
+
                 self.texture = pv.Texture(np.zeros((1, 1, 3), np.uint8))
                 self.texture.interpolate = True
                 self.texture.repeat = False
-        self.mesh = pv.PolyData()
+        self.mesh = TriMesh() if self._raw else TriMesh().pyvista()
         self.actor = None
         self.selection = None
         self._vtex = None  # the per-view atlas shown (kept while its pages stay the same)
@@ -218,16 +218,14 @@ class TerrainScene:
                                   max_builds=max_builds, previous=self._vtex)
 
     def update(self, selection, view: View | None = None, vtex=None) -> None:
-        """Show ``selection.mesh`` (the actor is reused).
+        """Show ``selection``'s mesh (the actor is reused).
 
         With per-view textures (the default), ``view`` (or a ready ``vtex`` from
         :meth:`view_texture`) chooses each footprint's texture level; without either
         the camera's current view is used.
         """
-        import pyvista as pv
-
-        src = selection.mesh
-        mesh = pv.PolyData()
+        src = selection.vtk_mesh
+        mesh = TriMesh()
         if self.texture is not None and self.textures == "view" and src.n_cells:
             if vtex is None:
                 vtex = self.view_texture(selection, view if view is not None else
@@ -262,6 +260,8 @@ class TerrainScene:
             from geoterrain.lod.strips import strip_mesh
 
             mesh = strip_mesh(mesh, src, self.terrain.grid)
+        elif not self._raw:
+            mesh = mesh.pyvista()  # PyVista's plotter (the viewer, notebooks)
         self.selection = selection
         if self.actor is None and self._raw:
             from geoterrain.rendering.offscreen import terrain_actor
@@ -433,7 +433,7 @@ class TerrainScene:
                 rw.SetMultiSamples(p._geoterrain_samples)
         if mode not in ("auto", "edges"):
             return None, mode
-        mesh = self.selection.mesh if self.selection is not None else None
+        mesh = self.selection.vtk_mesh if self.selection is not None else None
         edges = None
         if mesh is not None and mesh.n_cells and (
                 mode == "edges" or mesh.n_cells <= SPARSE_MAX_FACES):

@@ -54,8 +54,7 @@ from geoterrain.rendering.colours import Palette, water_level
 from geoterrain.rendering.textures import coast_tolerance, elevation_range, terrain_palette
 
 if TYPE_CHECKING:
-    import pyvista as pv
-
+    from geoterrain.lod.mesh import TriMesh
     from geoterrain.terrainlike import TerrainLike
 
 SURFACE = (0.18, 0.40, 0.62)  # the surface's colour (lit)
@@ -64,9 +63,10 @@ DEPTH_FADE = 0.15  # the opacity reaches ALPHA_MAX at this share of the deepest 
 MAX_SIDE = 512  # samples a side of the surface's grid, at most (a coarser level beyond)
 
 
-def water_mesh(terrain: TerrainLike, palette: str | Palette) -> pv.PolyData | None:
-    """The water surface of ``terrain`` under ``palette`` (scene frame, RGBA uint8 point
-    array ``rgba``), or None where the palette has no water or no sample is under it;
+def water_mesh(terrain: TerrainLike, palette: str | Palette) -> TriMesh | None:
+    """The water surface of ``terrain`` under ``palette`` (a
+    :class:`~geoterrain.lod.mesh.TriMesh` in the scene frame, RGBA uint8 point array
+    ``rgba``), or None where the palette has no water or no sample is under it;
     made once per terrain and water level (``terrain.derived``).
 
     Examples
@@ -96,8 +96,6 @@ def _level(terrain: TerrainLike) -> int:
 
 
 def _build(terrain: TerrainLike, wl: float):
-    import pyvista as pv
-
     from geoterrain.lod.mesh import polydata
 
     g, f = terrain.grid, terrain.frame
@@ -176,7 +174,7 @@ def _build(terrain: TerrainLike, wl: float):
             rgba_all.append(side)
     mesh = polydata(np.concatenate(pts_all), np.concatenate(faces_all))
     mesh.point_data["rgba"] = np.concatenate(rgba_all)
-    return mesh if isinstance(mesh, pv.PolyData) else None
+    return mesh
 
 
 def _finer(h: np.ndarray, valid: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -211,7 +209,7 @@ def add_water(plotter, mesh, sun: tuple[float, float] = (315.0, 45.0)):
     plotter.remove_all_lights()
     plotter.add_light(pv.Light(position=tuple(lv), focal_point=(0.0, 0.0, 0.0),
                                light_type="scene light", intensity=1.0))
-    actor = plotter.add_mesh(mesh, scalars="rgba", rgba=True, name="water",
+    actor = plotter.add_mesh(mesh.pyvista(), scalars="rgba", rgba=True, name="water",
                              show_scalar_bar=False, reset_camera=False, lighting=True,
                              smooth_shading=False, ambient=0.45, diffuse=0.55, specular=0.5,
                              specular_power=60.0)

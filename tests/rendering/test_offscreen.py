@@ -6,7 +6,7 @@ fly-throughs draw with) reproduces the settings of PyVista's ``Plotter`` and
 shadings, anti-aliasing modes, a perspective, a low oblique and a map view, a sun with
 shadows, the whole-terrain texture, a water surface, a view that sees no terrain. The PNG
 writer is checked against imageio's (the same bytes), and a cold render's process
-against the libraries it must not import.
+against the libraries it must not import (PyVista among them).
 """
 
 from __future__ import annotations
@@ -125,15 +125,40 @@ def test_render_help_imports_no_vtk():
 
 
 @pytest.mark.fast
-def test_a_render_imports_neither_pyvista_plotting_nor_pyplot(tmp_path_factory, tmp_path):
-    _store(tmp_path_factory, "land")
+@pytest.mark.parametrize("kind, args", [
+    ("land", []),
+    ("coast", ["--map"]),  # the sea's water surface, a map's graticule
+    ("coast", ["--water-level", "150", "--strategy", "chunked", "--shading", "plain"]),
+], ids=["default", "map-sea", "water-level-chunked-plain"])
+def test_a_render_never_imports_pyvista(tmp_path_factory, tmp_path, kind, args):
+    """A render's process imports no PyVista (its selection's mesh is a TriMesh, drawn on
+    VTK alone), nor pyplot, imageio or the whole of VTK; the API still hands callers a
+    ``pyvista.PolyData``."""
+    _store(tmp_path_factory, kind)
     code = ("import sys; from geoterrain.cli.main import cli\n"
-            f"try:\n    cli(['-q', 'render', {str(_STORES['land'])!r}, '-o', "
-            f"{str(tmp_path / 'v.png')!r}, '--size', '160x120'])\n"
+            f"try:\n    cli(['-q', 'render', {str(_STORES[kind])!r}, '-o', "
+            f"{str(tmp_path / 'v.png')!r}, '--size', '160x120', *{args!r}])\n"
             "except SystemExit as e:\n    assert not e.code, e.code\n"
-            "print('LOADED', sorted(m for m in ('pyvista.plotting', 'matplotlib.pyplot', "
+            "print('LOADED', sorted(m for m in ('pyvista', 'matplotlib.pyplot', "
             "'imageio', 'vtk') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     assert "LOADED []" in out, out
     assert (tmp_path / "v.png").stat().st_size > 0
+
+
+@pytest.mark.fast
+def test_the_api_still_hands_out_pyvista_meshes(tmp_path_factory):
+    import pyvista as pv
+
+    t = _store(tmp_path_factory, "land")
+    sel = t.select(overview(t, SIZE))
+    assert isinstance(sel.mesh, pv.PolyData) and sel.mesh is t.select(overview(t, SIZE)).mesh
+    # the same arrays as the mesh the render draws, not copies
+    assert np.shares_memory(np.asarray(sel.mesh.points), sel.vtk_mesh.points)
+    assert sel.mesh.n_cells == sel.vtk_mesh.n_cells > 0
+    np.testing.assert_array_equal(sel.mesh.regular_faces, sel.vtk_mesh.regular_faces)
+    for k in ("grid_ij", "elevation"):
+        np.testing.assert_array_equal(sel.mesh.point_data[k], sel.vtk_mesh.point_data[k])
+    assert sel.mesh.active_scalars_name == sel.vtk_mesh.active_scalars_name == "elevation"
+    assert isinstance(t.mesh(5.0), pv.PolyData)
