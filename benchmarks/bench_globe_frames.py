@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import cProfile
 import json
+import os
 import time
 
 import numpy as np
@@ -25,11 +26,6 @@ from geoterrain.bench.globeflight import flyover, run_flyover, summary
 from geoterrain.globe import Globe, cdlod
 from geoterrain.globe.errors import ErrorTable
 from geoterrain.globe.nodes import encode, geometry, shell_distance
-
-
-def _load() -> str:
-    with open("/proc/loadavg") as f:
-        return f.read().split()[0]
 
 
 def main() -> None:
@@ -64,7 +60,7 @@ def main() -> None:
     with Globe([a.store]) as g:
         lon, lat = (float(np.mean(v)) for v in g.stores[0].footprint(16))
         views = flyover(g, lon, lat, fps=10.0, size=(640, 360))
-        l0, c0, t0 = _load(), time.process_time(), time.time()
+        l0, c0, t0 = os.getloadavg()[0], time.process_time(), time.time()
         pr = cProfile.Profile() if a.profile else None
         if pr:
             pr.enable()
@@ -78,7 +74,8 @@ def main() -> None:
         f["select_cpu_ms"] = round(c + tc, 3)  # the ranges' and the traversal's thread CPU
     s = summary(frames, 100.0)
     s.update(flight_wall_s=round(wall, 1), flight_cpu_s=round(cpu, 1),
-             load=f"{l0}->{_load()}", vr_cpu_ms_total=round(sum(c for _, c in rec), 1),
+             load=f"{l0:.2f}->{os.getloadavg()[0]:.2f}",
+             vr_cpu_ms_total=round(sum(c for _, c in rec), 1),
              select_cpu_ms_max=max(f.get("select_cpu_ms", 0.0) for f in frames))
     with open(a.out, "w") as f:
         json.dump(dict(summary=s, frames=frames), f)
