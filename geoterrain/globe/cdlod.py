@@ -293,7 +293,7 @@ def select(globe, view, tau: float, *, frustum: bool = True, horizon: bool = Tru
     stats = {"nodes": int(len(rows)), "partial_nodes": int((masks != 15).sum()),
              "triangles": int(len(faces)), "vertices": int(len(rows) * V),
              "culled": int(culled), "requested": int(requested),
-             "pending": int(globe.queue.queued + globe.queue.in_flight),
+             "pending": int(globe.queue.queued + globe.queue.in_flight + globe.uninstalled),
              "considered_nodes": considered, "max_depth": int(depth.max()) if len(depth) else 0,
              "select_ms": round((t1 - t0) * 1e3 - gen_ms, 3),
              "wait_ms": round(gen_ms, 3), "morph_ms": round((t2 - t1) * 1e3, 3),

@@ -19,6 +19,7 @@ Examples
 
 from __future__ import annotations
 
+import collections
 import math
 import os
 import time
@@ -43,6 +44,11 @@ __all__ = ["Globe", "BASES"]
 
 BASES = ("auto", "procedural", "ellipsoid")
 MEMORY_BYTES = 768 << 20  # the payload pool's default budget
+#: The main thread's time on installing finished payloads, at most, a frame (ms; seed 001's
+#: per-frame budgets): one more is installed past it, those left wait for the next frame.
+#: An install waits for the interpreter the generation threads hold (2.5 ms each on the
+#: flyover, up to 32), so a frame that found 30 finished spent up to 96 ms on them.
+INSTALL_MS = 40.0
 
 
 class Globe:
@@ -105,6 +111,7 @@ class Globe:
         self._last_rows = np.zeros(0, np.int64)
         self.objects: list[np.ndarray] = []
         self.evicted = 0
+        self._finished: collections.deque = collections.deque()  # generated, not installed
         roots = self.nodes.roots()
         for row in roots.tolist():
             self._install(row, make_payload(self.surface, decode(int(self.nodes.key[row]))))
@@ -177,16 +184,29 @@ class Globe:
         """Dispatch queued requests (all of them, waiting, with ``wait``) and install the
         finished ones; how many were installed."""
         done = self.queue.drain() if wait else (self.queue.dispatch(), self.queue.collect())[1]
+        done = [*self._finished, *done]  # those a frame's budget left first
+        self._finished.clear()
         for row, p in done:
             self._install(row, p)
         return len(done)
 
-    def install_finished(self) -> int:
-        """Install the payloads whose generation finished (no dispatch); how many."""
-        done = self.queue.collect()
-        for row, p in done:
-            self._install(row, p)
-        return len(done)
+    def install_finished(self, budget_ms: float | None = None) -> int:
+        """Install the payloads whose generation finished (no dispatch), in the order they
+        finished, until ``budget_ms`` (default :data:`INSTALL_MS`) have passed (one at
+        least); the rest wait for the next call (:attr:`uninstalled`). How many were
+        installed."""
+        budget_ms = INSTALL_MS if budget_ms is None else float(budget_ms)
+        self._finished.extend(self.queue.collect())
+        t0, n = time.perf_counter(), 0
+        while self._finished and (n == 0 or (time.perf_counter() - t0) * 1e3 < budget_ms):
+            self._install(*self._finished.popleft())
+            n += 1
+        return n
+
+    @property
+    def uninstalled(self) -> int:
+        """Payloads generated but not yet installed (a frame's install budget left them)."""
+        return len(self._finished)
 
     def ready_roots(self) -> np.ndarray:
         """The 30 roots (their payloads are made with the globe and never evicted)."""

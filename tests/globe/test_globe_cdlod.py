@@ -90,3 +90,41 @@ def test_precision_2_m_above_the_ground_at_6371_km_jitter_below_1_mm():
         assert max(f32) > 0.2  # float32 world positions: tenths of metres to metres
     finally:
         g.close()
+
+
+def test_a_frame_installs_finished_payloads_within_its_budget_and_the_rest_later():
+    """Seed 001's per-frame budgets on the main thread: a frame installs finished payloads
+    until ``INSTALL_MS`` has passed (one at least); the rest stay counted as pending and go
+    in on the next frames, or all at once when a converged mesh is asked for."""
+    import time
+
+    from geoterrain.globe import globe as globe_module
+
+    g = Globe(model="sphere", base="procedural", node_cells=8, sync=True)
+    try:
+        v = g.camera(10.0, 45.0, 30_000.0, 0.0, -30.0, size=(96, 72))
+        g.select(v, 1.0)  # requests, generated at dispatch (sync): all finished
+        g.select(v, 1.0)
+        waiting = g.queue.in_flight
+        assert waiting >= 4
+        real = g._install
+
+        def slow(row, p):  # an install that waits 20 ms, as one behind busy threads may
+            time.sleep(0.02)
+            real(row, p)
+
+        g._install = slow
+        t0 = time.perf_counter()
+        n = g.install_finished(budget_ms=30.0)
+        took = (time.perf_counter() - t0) * 1e3
+        assert 1 <= n <= 2 and g.uninstalled == waiting - n
+        assert took < 30.0 + 2 * 20.0 + 15.0  # the budget, one install past it, slack
+        assert g.install_finished(budget_ms=0.0) == 1  # one at least, however tight
+        g._install = real
+        sel = g.select(v, 1.0)  # the default budget: what is left counts as pending
+        assert sel.stats["pending"] >= g.uninstalled
+        assert globe_module.INSTALL_MS == 40.0
+        g.generate_pending(wait=True)  # a converged mesh takes every one
+        assert g.uninstalled == 0
+    finally:
+        g.close()
