@@ -1,7 +1,8 @@
 """Elevation profiles along a polyline: heights every ``spacing`` metres of ground, with
 the distance along the ground (geodesic on geographic grids), written as CSV or drawn.
 
-The line runs between its vertices along the ground's geodesics on a geographic grid,
+The line runs between its vertices along the ground's geodesics on a geographic grid
+(across 180° on a whole-globe grid, whose vertices may be given past ±180°),
 straight in the CRS otherwise (as a GIS densifies a line in a projected layer); samples
 fall every ``spacing`` ground metres along each segment and on every vertex. Heights
 are :func:`~geoterrain.analysis.heights.height_at`'s (bilinear at level 0, or a coarser
@@ -32,10 +33,10 @@ from geoterrain.analysis.points import (
     as_xy,
     frame_geod,
     from_source,
-    grid_coords,
     inside,
     outside_error,
     to_source,
+    turn_coords,
     vertical_unit,
 )
 from geoterrain.exceptions import UsageError, WriteError, exists_error
@@ -112,7 +113,7 @@ def profile(terrain: TerrainLike, line: Any, spacing: float | None = None, *,
         if len(pts) < 2:
             raise UsageError("a profile line needs at least two vertices")
         src = to_source(f, pts, crs)
-        fi, fj = grid_coords(f, src)
+        fi, fj = turn_coords(f, src)  # a whole-globe grid has no edge at 180°
         out = ~inside(terrain.grid, fi, fj)
         if out.any():
             raise outside_error(f, terrain.grid, pts, crs, out, "line vertex")

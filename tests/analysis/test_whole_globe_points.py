@@ -13,10 +13,12 @@ import json
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from pyproj import Geod
 
 import geoterrain
 from conftest import write_tif
 from geoterrain.analysis import height_at, normal_at
+from geoterrain.exceptions import InputError
 from geoterrain.testing.analysisref import bilinear_reference
 
 CELL = 2.0  # degrees: 90 × 180 cells, from −180° and 90°
@@ -131,3 +133,24 @@ def test_query_answers_across_180_and_refuses_past_a_part_globe(world):
     res = r.invoke(cli, ["query", str(part), "--at", "185,12.5"])
     assert res.exit_code == 1 and "outside the data" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_a_profile_crosses_180_on_the_short_geodesic(world):
+    _, store, part, z = world
+    from geoterrain.analysis import profile
+
+    with geoterrain.open(store) as t:
+        a = profile(t, [(178.0, 10.0), (-178.0, 10.0)], spacing=20_000)
+        b = profile(t, [(178.0, 10.0), (182.0, 10.0)], spacing=20_000)  # the same line
+        geod_m = float(Geod(ellps="WGS84").inv(178.0, 10.0, -178.0, 10.0)[2])
+        assert a.summary["length_m"] == pytest.approx(geod_m, rel=1e-9)
+        assert geod_m < 500_000  # 4° of longitude, not 356°
+        assert b.summary["length_m"] == pytest.approx(geod_m, rel=1e-9)
+        np.testing.assert_allclose(b.height, a.height, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(a.height, _oracle(z, a.xy[:, 0], a.xy[:, 1]), rtol=0,
+                                   atol=1e-9)
+        # the samples cross: east of 178°, then west of −178°
+        assert (np.abs(a.xy[:, 0]) >= 178.0 - 1e-9).all()
+        assert (a.xy[:, 0] > 0).any() and (a.xy[:, 0] < 0).any()
+    with geoterrain.open(part) as t, pytest.raises(InputError, match="outside"):
+        profile(t, [(178.0, 10.0), (182.0, 10.0)], spacing=20_000)
