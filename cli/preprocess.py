@@ -90,8 +90,9 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
     """Ingest DEM into a tiled, error-annotated store (one .geoterrain file).
 
     DEM is any raster GDAL reads (GeoTIFF/COG, SRTM .hgt, Esri ASCII, a .vrt,
-    ...) or a Terrain-RGB / Terrarium PNG tile. Several files, a quoted glob or a
-    folder (its .tif, .hgt, .hgt.zip, ... files; srtm/ writes srtm.geoterrain) are
+    ...) or a Terrain-RGB / Terrarium PNG tile. Several files, a quoted glob ('**'
+    spans subfolders) or a folder (its .tif, .hgt, .hgt.zip, ... files, not its
+    subfolders'; srtm/ writes srtm.geoterrain) are
     read as one mosaic (-o needed but for a folder); tiles of different CRSs or
     resolutions are merged onto one grid (--crs, --resolution, --resampling,
     --priority).
@@ -107,6 +108,7 @@ def command(ctx, dem, output, tile_size, band, encoding, pixel_size, z_scale, z_
       geoterrain preprocess tile.png --pixel-size 30 -o tile.geoterrain
       geoterrain preprocess lidar.tif --codec-error 0.05 --z-scale 2
       geoterrain preprocess srtm/            # its .hgt/.hgt.zip tiles: srtm.geoterrain
+      geoterrain preprocess 'cop30/**/*_DEM.tif' -o cop30.geoterrain
       geoterrain preprocess lidar_1m.tif national_30m.tif -o merged.geoterrain
       geoterrain preprocess national_30m.tif --crs EPSG:32633 --resolution 50 -o m.geoterrain
       geoterrain preprocess lidar_county.tif --memory-limit 2G

@@ -78,9 +78,21 @@ def folder_files(folder: str | Path) -> list[Path]:
     files = sorted(p for p in folder.iterdir()
                    if p.name.lower().endswith(FOLDER_SUFFIXES) and p.is_file())
     if not files:
+        # not recursive (a download's subfolders often hold masks beside the DEM), but
+        # say where the rasters are and how to name them
+        deeper = sorted(p for p in folder.rglob("*")
+                        if p.name.lower().endswith(FOLDER_SUFFIXES) and p.is_file())
+        hint = (f"; its subfolders hold {len(deeper)}: give a glob such as "
+                f"'{folder / '**' / ('*' + _suffix(deeper[0]))}'" if deeper else
+                "; give the files, a glob or a .vrt")
         raise InputError(f"{folder}: a folder with no raster file (none ends in "
-                         f"{', '.join(FOLDER_SUFFIXES)}); give the files, a glob or a .vrt")
+                         f"{', '.join(FOLDER_SUFFIXES)}){hint}")
     return files
+
+
+def _suffix(p: Path) -> str:
+    name = p.name.lower()
+    return next(s for s in sorted(FOLDER_SUFFIXES, key=len, reverse=True) if name.endswith(s))
 
 
 def _one(p: str | Path | Url) -> Path | Url:
@@ -88,9 +100,9 @@ def _one(p: str | Path | Url) -> Path | Url:
 
 
 def source_files(src: str | Path | list | tuple) -> list[Path | Url]:
-    """The files of a DEM argument: one path or URL, a list of them, a glob (sorted), a
-    folder (:func:`folder_files`) or a ``.txt`` file listing them
-    (:mod:`geoterrain.ingest.remote`).
+    """The files of a DEM argument: one path or URL, a list of them, a glob (sorted;
+    ``**`` spans subfolders), a folder (:func:`folder_files`) or a ``.txt`` file listing
+    them (:mod:`geoterrain.ingest.remote`).
 
     Examples
     --------
@@ -116,7 +128,9 @@ def sources(src: str | Path | list | tuple) -> tuple[list[Path | Url], bool]:
     elif is_folder(src):
         files = folder_files(src)
     elif is_glob(src):
-        files = [Path(p) for p in sorted(_glob.glob(str(src)))]
+        # `**` spans any depth of subfolders, as a shell's globstar does
+        files = [Path(p) for p in sorted(_glob.glob(str(src), recursive=True))
+                 if not Path(p).is_dir()]
         if not files:
             raise InputError(f"{src}: no file matches this pattern; check the folder and suffix")
     elif list_file(src):

@@ -266,3 +266,29 @@ def test_cli_takes_several_files_and_a_glob(tmp_path):
     b.write_bytes(b"not a raster")
     r = run(cli, ["preprocess", str(tiles[0]), str(b), "-o", str(tmp_path / "x.geoterrain")])
     assert r.exit_code == 1 and "b.tif" in r.output and "Traceback" not in r.output
+
+
+@pytest.mark.fast
+def test_a_recursive_glob_reads_tiles_in_subfolders_and_a_nested_folder_says_so(tmp_path):
+    """Tiles one per subfolder (as some downloads unpack): ``**`` finds them all, the same
+    store as the list; the folder itself (not recursive) names a glob that would."""
+    from geoterrain.cli.main import cli
+
+    merged = _synthetic(tmp_path)
+    tiles = split(merged, tmp_path / "flat")
+    nested = []
+    for k, t in enumerate(tiles):
+        (tmp_path / "dl" / f"part{k}" / "DEM").mkdir(parents=True)
+        nested.append(t.rename(tmp_path / "dl" / f"part{k}" / "DEM" / t.name))
+    run = CliRunner().invoke
+    r = run(cli, ["-q", "preprocess", *map(str, nested), "-o", str(tmp_path / "l.geoterrain")])
+    assert r.exit_code == 0, r.output
+    r = run(cli, ["-q", "preprocess", str(tmp_path / "dl" / "**" / "*.tif"), "-o",
+                  str(tmp_path / "g.geoterrain")])
+    assert r.exit_code == 0, r.output
+    assert store_contents(tmp_path / "l.geoterrain") == store_contents(tmp_path / "g.geoterrain")
+    r = run(cli, ["preprocess", str(tmp_path / "dl"), "-o", str(tmp_path / "f.geoterrain")])
+    assert r.exit_code == 1 and "subfolders hold 4" in r.stderr
+    assert f"'{tmp_path / 'dl' / '**' / '*.tif'}'" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.output
+    assert not (tmp_path / "f.geoterrain").exists()
