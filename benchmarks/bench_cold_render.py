@@ -52,6 +52,11 @@ FLOOR = {
 LOADS = """
 import runpy, sys, time
 import numba.core.caching as C
+try:  # this tree loads cached kernels without numba's context refresh: time that load
+    from geoterrain.core import startup
+    startup.install()
+except ImportError:  # an older tree
+    pass
 loads = []
 _orig = C.Cache.load_overload
 def timed(self, sig, ctx):
@@ -67,7 +72,7 @@ try:
 except SystemExit:
     pass
 print(f"{len(loads)} kernels loaded from numba's cache, {sum(c for _, c in loads):.3f} s CPU "
-      f"(the first: {loads[0][1]:.3f} s, numba's compiler context starting)" if loads else
+      f"(the first: {loads[0][1]:.3f} s, numba's runtime starting)" if loads else
       "no kernel loaded", file=sys.stderr)
 for name, c in loads:
     print(f"  {1e3 * c:7.1f} ms  {name}", file=sys.stderr)
