@@ -1,4 +1,4 @@
-"""A command's start: three costs of numba's and VTK's imports that a command-line process
+"""A command's start: what numba's and VTK's imports cost that a command-line process
 need not pay (issue 51, a quick first run; docs/lab/chunked-info-first-run.md).
 
 :func:`install` is called by the command line (``geoterrain.cli.main``) before it runs a
@@ -21,11 +21,14 @@ is skipped where the library is not the code it was written for. The library API
   globs the package folder, about 540 files, twice for each of the ~50 extension modules
   a render loads (``.pyd``, then ``.so``): 30–50 ms of CPU. Here the folder is listed once
   and the same rule applied to the list, in the same order.
-- **coverage.py under numba.** ``numba.misc.coverage_support`` imports ``coverage`` when
-  it is installed (a test or development environment), 40–60 ms, to report compiled
-  lines to a running ``coverage.Coverage``. A measured process imports coverage before
-  it runs the command (``coverage run``, pytest-cov, ``COVERAGE_PROCESS_START``); where it
-  is not imported yet, none runs, so numba's support is imported without it.
+- **coverage.py and pyyaml under numba.** ``numba.misc.coverage_support`` imports
+  ``coverage`` when it is installed (a test or development environment), 40–60 ms, to
+  report compiled lines to a running ``coverage.Coverage``. A measured process imports
+  coverage before it runs the command (``coverage run``, pytest-cov,
+  ``COVERAGE_PROCESS_START``); where it is not imported yet, none runs, so numba's support
+  is imported without it. ``numba.core.config`` imports ``yaml`` (20 ms) to read a
+  ``.numba_config.yaml`` in the working folder: where there is none, without it (a file
+  made there later, while the command runs, would be warned about and not read).
 
 Examples
 --------
@@ -42,7 +45,6 @@ Examples
 
 from __future__ import annotations
 
-import importlib.abc
 import importlib.util
 import os
 import sys
@@ -111,26 +113,43 @@ def _patch_vtkmodules(vtkmodules) -> None:
     vtkmodules.find_lib_path = find_lib_path
 
 
-# --- numba's coverage support without coverage.py when none runs ---
+# --- numba's optional imports where nothing would use them ---
 
-def _without_coverage(exec_module: Callable[[object], None], module) -> None:
-    if "coverage" in sys.modules:  # imported: maybe running; numba reports to it
+def _without(name: str, exec_module: Callable[[object], None], module) -> None:
+    """Runs ``module`` with ``import name`` failing (as if not installed), unless ``name``
+    is imported already; ``name`` stays importable afterwards."""
+    if name in sys.modules:
         exec_module(module)
         return
-    sys.modules["coverage"] = None  # `import coverage` raises ImportError
+    sys.modules[name] = None  # `import name` raises ImportError
     try:
         exec_module(module)
     finally:
-        if sys.modules.get("coverage", 0) is None:
-            del sys.modules["coverage"]
+        if sys.modules.get(name, 0) is None:
+            del sys.modules[name]
+
+
+def _without_coverage(exec_module: Callable[[object], None], module) -> None:
+    # imported already: maybe running (coverage run, pytest-cov), and numba reports to it
+    _without("coverage", exec_module, module)
+
+
+def _without_yaml(exec_module: Callable[[object], None], module) -> None:
+    # numba reads pyyaml's module for a .numba_config.yaml in the working folder only
+    if os.path.isfile(".numba_config.yaml"):
+        exec_module(module)
+    else:
+        _without("yaml", exec_module, module)
 
 
 _AFTER = {"numba.core.caching": _patch_numba_caching, "vtkmodules": _patch_vtkmodules}
-_AROUND = {"numba.misc.coverage_support": _without_coverage}
+_AROUND = {"numba.misc.coverage_support": _without_coverage,
+           "numba.core.config": _without_yaml}
 
 
-class _Loader(importlib.abc.Loader):
-    """Runs a module as its own loader does, with the change for it."""
+class _Loader:
+    """Runs a module as its own loader does, with the change for it (a loader by its
+    methods: importlib.abc is not imported, 15 ms that ``info`` need not pay)."""
 
     def __init__(self, inner, name: str):
         self.inner, self.name = inner, name
@@ -146,7 +165,7 @@ class _Loader(importlib.abc.Loader):
             _AFTER[self.name](module)
 
 
-class _Hook(importlib.abc.MetaPathFinder):
+class _Hook:
     """Waits for the modules :func:`install` changes; leaves ``sys.meta_path`` when all
     were imported."""
 
@@ -167,10 +186,10 @@ class _Hook(importlib.abc.MetaPathFinder):
 
 def install() -> None:
     """In this process, from now on: cached numba kernels load without numba's context
-    refresh, VTK finds its modules from one listing of its folder, and numba's coverage
-    support does not import coverage.py unless it is imported already. Imports nothing of
-    numba or VTK; a module imported already is changed at once (the coverage support
-    stays as it was imported)."""
+    refresh, VTK finds its modules from one listing of its folder, and numba imports
+    neither coverage.py unless it is imported already nor pyyaml unless the working folder
+    holds a ``.numba_config.yaml``. Imports nothing of numba or VTK; a module imported
+    already is changed at once (numba's config and coverage support stay as imported)."""
     global _installed
     if _installed:
         return
@@ -182,7 +201,6 @@ def install() -> None:
             patch(mod)
         else:
             waiting.add(name)
-    if "numba.misc.coverage_support" not in sys.modules:
-        waiting.add("numba.misc.coverage_support")
+    waiting |= {name for name in _AROUND if name not in sys.modules}
     if waiting:
         sys.meta_path.insert(0, _Hook(waiting))

@@ -126,26 +126,37 @@ def test_the_lookup_rule_is_vtks_glob(tmp_path_factory, name, names):
         p.name for p in Path(d).glob(f"{name}[.-]*")]
 
 
-_COVERAGE = '''
+_OPTIONAL = '''
 import sys
 print("coverage" in sys.modules)  # a measured test run starts coverage in each process
 if {first}:
-    import coverage
+    import coverage, yaml
 from geoterrain.core import startup
 startup.install()
-import numba, numba.misc.coverage_support as c
-print(c.coverage_available, "coverage" in sys.modules)
-import coverage  # still importable afterwards
-print(coverage.__name__)
+import numba, numba.misc.coverage_support as c, numba.core.config as config
+print(c.coverage_available, "coverage" in sys.modules, config._HAVE_YAML, "yaml" in sys.modules)
+import coverage, yaml  # still importable afterwards
+print(coverage.__name__, yaml.__name__, config.BOUNDSCHECK)
 '''
 
 
 @pytest.mark.fast
-@pytest.mark.parametrize("first", [False, True], ids=["not-imported", "imported-first"])
-def test_numba_imports_coverage_only_where_it_is_imported_already(first):
+@pytest.mark.parametrize("first, config_file", [(False, False), (True, False), (False, True)],
+                         ids=["not-imported", "imported-first", "numba-config-file"])
+def test_numba_imports_coverage_and_yaml_only_where_they_are_used(tmp_path, first,
+                                                                  config_file):
+    """numba imports coverage.py only where it is imported already (it may be running),
+    and pyyaml where it is imported already or the working folder holds a
+    .numba_config.yaml, which numba still reads."""
     pytest.importorskip("coverage")
-    out = subprocess.run([sys.executable, "-c", _COVERAGE.format(first=first)],
-                         capture_output=True, text=True, check=True).stdout.split("\n")
-    imported = first or out[0] == "True"
-    assert out[1] == f"{imported} {imported}"
-    assert out[2] == "coverage"
+    pytest.importorskip("yaml")
+    if config_file:
+        (tmp_path / ".numba_config.yaml").write_text("boundscheck: 1\n")
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_BOUNDSCHECK"}
+    out = subprocess.run([sys.executable, "-c", _OPTIONAL.format(first=first)], env=env,
+                         cwd=tmp_path, capture_output=True, text=True,
+                         check=True).stdout.split("\n")
+    cov = first or out[0] == "True"
+    yml = first or config_file
+    assert out[1] == f"{cov} {cov} {yml} {yml}"
+    assert out[2] == f"coverage yaml {1 if config_file else None}"
