@@ -17,6 +17,14 @@ is skipped where the library is not the code it was written for. The library API
   uses) and reads the kernel as numba does. A kernel the cache does not hold is compiled
   as before: numba's compiler refreshes both contexts itself (``compile_extra``, and each
   typing template's lookup) before it types or lowers anything.
+- **numba's implementation modules under a cached kernel's environments.** A cached
+  kernel pickles the environments of the numba functions it calls (``np.empty``'s,
+  ``np.cumsum``'s, …), and numba rebuilds each by importing its module for its globals:
+  ``numba.np.arrayobj``, ``arraymath``, ``numba.cpython.unicode``, 60–85 ms of CPU at the
+  first load. Only object mode reads an environment's globals (``pylowering``), and
+  numba's own functions are nopython code: a numba module not imported yet stands in as
+  an empty module of its name (:class:`_EnvironmentImports`); the environment keeps its
+  constants and pickles as before.
 - **VTK's module lookup.** VTK's import hook (``vtkmodules.find_lib_path``, VTK ≥ 9.4)
   globs the package folder, about 540 files, twice for each of the ~50 extension modules
   a render loads (``.pyd``, then ``.so``): 30–50 ms of CPU. Here the folder is listed once
@@ -45,9 +53,11 @@ Examples
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
 import os
 import sys
+import types
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
@@ -65,6 +75,31 @@ def _load_overload(self, sig, target_context):
     rtsys.initialize(target_context)
     with self._guard_against_spurious_io_errors():
         return self._load_overload(sig, target_context)
+
+
+class _EnvironmentImports:
+    """What ``numba.core.environment`` sees as ``importlib`` (its ``_rebuild_env``, which
+    unpickles a cached kernel's environments, imports each one's module for its globals):
+    a module imported already as it is; one of numba's own modules not imported yet as an
+    empty module of that name, not imported. An environment's globals are read by object
+    mode alone (``pylowering``); numba's implementations are compiled in nopython mode,
+    so nothing reads them, and the environment pickles as before (its module's name)."""
+
+    @staticmethod
+    def import_module(name: str, package: str | None = None):
+        mod = sys.modules.get(name)
+        if mod is not None:
+            return mod
+        if name.startswith("numba."):
+            return types.ModuleType(name)
+        return importlib.import_module(name, package)
+
+
+def _patch_numba_environment(environment) -> None:
+    if getattr(environment, "importlib", None) is not importlib or not callable(
+            getattr(environment, "_rebuild_env", None)):
+        return  # another numba than this was written for: leave it
+    environment.importlib = _EnvironmentImports
 
 
 def _patch_numba_caching(caching) -> None:
@@ -142,7 +177,9 @@ def _without_yaml(exec_module: Callable[[object], None], module) -> None:
         _without("yaml", exec_module, module)
 
 
-_AFTER = {"numba.core.caching": _patch_numba_caching, "vtkmodules": _patch_vtkmodules}
+_AFTER = {"numba.core.caching": _patch_numba_caching,
+          "numba.core.environment": _patch_numba_environment,
+          "vtkmodules": _patch_vtkmodules}
 _AROUND = {"numba.misc.coverage_support": _without_coverage,
            "numba.core.config": _without_yaml}
 
@@ -186,10 +223,11 @@ class _Hook:
 
 def install() -> None:
     """In this process, from now on: cached numba kernels load without numba's context
-    refresh, VTK finds its modules from one listing of its folder, and numba imports
-    neither coverage.py unless it is imported already nor pyyaml unless the working folder
-    holds a ``.numba_config.yaml``. Imports nothing of numba or VTK; a module imported
-    already is changed at once (numba's config and coverage support stay as imported)."""
+    refresh or the numba modules their environments name, VTK finds its modules from one
+    listing of its folder, and numba imports neither coverage.py unless it is imported
+    already nor pyyaml unless the working folder holds a ``.numba_config.yaml``. Imports
+    nothing of numba or VTK; a module imported already is changed at once (numba's config
+    and coverage support stay as imported)."""
     global _installed
     if _installed:
         return

@@ -1,6 +1,7 @@
 """A command's start (geoterrain/core/startup.py): a cached kernel loads without numba's
-context refresh and computes what it computed before, a kernel compiled afterwards in the
-same process still compiles, VTK's modules are found where VTK's own lookup finds them,
+context refresh and without importing the numba modules its environments name, and
+computes what it computed before, a kernel compiled afterwards in the same process still
+compiles, VTK's modules are found where VTK's own lookup finds them,
 and numba's coverage support imports coverage.py only where it is imported already.
 
 Each process here is fresh (``startup.install`` changes numba and VTK for the rest of a
@@ -52,12 +53,13 @@ a = np.linspace(-3.0, 5.0, 11)
 got = cached.grow(a)
 loaded = sum(cached.grow.stats.cache_hits.values())
 refreshed = len(calls)
+arrayobj = "numba.np.arrayobj" in sys.modules  # np.empty_like's module (its environment)
 from numba import njit
 @njit
 def later(n):  # compiled after the cached load: needs the implementations refreshed now
     return np.arange(n).sum()
 print(json.dumps(dict(got=got.tolist(), want=np.cumsum(a * 2.0 + 1.0).tolist(),
-                      loaded=loaded, refreshed_by_load=refreshed,
+                      loaded=loaded, refreshed_by_load=refreshed, arrayobj=arrayobj,
                       later=later(4) if {install} else None)))
 '''
 
@@ -80,6 +82,7 @@ def test_a_cached_kernel_loads_without_the_refresh_and_computes_the_same(tmp_pat
     assert plain["loaded"] == 1 and plain["refreshed_by_load"] > 0
     fast = _run(tmp_path, install=True)
     assert fast["loaded"] == 1 and fast["refreshed_by_load"] == 0
+    assert plain["arrayobj"] and not fast["arrayobj"]  # environments rebuilt, not imported
     for r in (first, plain, fast):
         assert r["got"] == r["want"]
     assert first["later"] == fast["later"] == 6
