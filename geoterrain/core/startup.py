@@ -25,7 +25,7 @@ is skipped where the library is not the code it was written for. The library API
   numba's own functions are nopython code: a numba module not imported yet stands in as
   an empty module of its name (:class:`_EnvironmentImports`); the environment keeps its
   constants and pickles as before.
-- **VTK's module lookup.** VTK's import hook (``vtkmodules.find_lib_path``, VTK ≥ 9.4)
+- **VTK's module lookup.** VTK's import hook (``vtkmodules.find_lib_path``, recent VTK)
   globs the package folder, about 540 files, twice for each of the ~50 extension modules
   a render loads (``.pyd``, then ``.so``): 30–50 ms of CPU. Here the folder is listed once
   and the same rule applied to the list, in the same order.

@@ -92,7 +92,7 @@ def test_a_cached_kernel_loads_without_the_refresh_and_computes_the_same(tmp_pat
 def _fake_vtkmodules():
     vtkmodules = pytest.importorskip("vtkmodules")
     if not callable(getattr(vtkmodules, "find_lib_path", None)):
-        pytest.skip("a VTK without its module lookup hook (before 9.4)")
+        pytest.skip("a VTK without its module lookup hook (an older one)")
     ns = types.SimpleNamespace(LIB_EXTS=vtkmodules.LIB_EXTS,
                                find_lib_path=vtkmodules.find_lib_path)
     startup._patch_vtkmodules(ns)  # a stand-in: VTK itself is left as it is
