@@ -12,9 +12,10 @@ another commit's ``geoterrain/`` with its ``cli/`` copied in as ``geoterrain/cli
 benchmarks/bench_startup.py), run in turns with this tree's for same-run ratios; the
 pictures of the two trees are compared byte for byte. In the same turns, the floor: fresh
 processes that only import the render's libraries (numpy; numba and the first call of a
-cached kernel, which starts numba's compiler context; Pillow; VTK's rendering modules; and
-PyVista, which a render loaded before it drew on VTK alone), each row adding to the
-previous one. ``--no-overlays``: in the same turns, this tree's render with
+cached kernel; Pillow; VTK's rendering modules; and PyVista, which a render loaded before
+it drew on VTK alone), each row adding to the previous one, numba and VTK started as this
+tree's command line starts them (``geoterrain/core/startup.py``), and numpy with numba as
+numba starts by itself. ``--no-overlays``: in the same turns, this tree's render with
 ``--no-overlays`` (no colour bar, scale bar or north arrow; the overlays are drawn on
 Pillow). ``--no-floor``: without the import-only processes. ``--kernels``: one more run
 of this tree, listing the kernels it loads from numba's cache and the CPU time of each
@@ -37,10 +38,14 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 _KERNEL = ("import numba\n@numba.njit(cache=True)\ndef bench_cold_render_kernel(a):\n"
            "    return a + 1\n")
-# each adds to the previous: the render's libraries, in the order a render pays them
+# each adds to the previous: the render's libraries, in the order a render pays them, numba
+# and VTK started as this tree's command line starts them (geoterrain/core/startup.py)
+_START = ("try:\n    from geoterrain.core import startup\n    startup.install()\n"
+          "except ImportError:\n    pass\n")
 FLOOR = {
     "numpy": "import numpy",
-    "+ numba, a cached kernel's first call": "import numba, k; k.bench_cold_render_kernel(1)",
+    "+ numba, a cached kernel's first call": _START + "import numba, k; "
+                                             "k.bench_cold_render_kernel(1)",
     "+ Pillow (the PNG, the overlays' text)": "import PIL.Image, PIL.ImageDraw, PIL.ImageFont, "
                                               "PIL.PngImagePlugin",
     "+ VTK's rendering modules (what a render loads)": "import vtkmodules.vtkRenderingOpenGL2, "
@@ -52,6 +57,11 @@ FLOOR = {
 LOADS = """
 import runpy, sys, time
 import numba.core.caching as C
+try:  # this tree loads cached kernels without numba's context refresh: time that load
+    from geoterrain.core import startup
+    startup.install()
+except ImportError:  # an older tree
+    pass
 loads = []
 _orig = C.Cache.load_overload
 def timed(self, sig, ctx):
@@ -67,7 +77,7 @@ try:
 except SystemExit:
     pass
 print(f"{len(loads)} kernels loaded from numba's cache, {sum(c for _, c in loads):.3f} s CPU "
-      f"(the first: {loads[0][1]:.3f} s, numba's compiler context starting)" if loads else
+      f"(the first: {loads[0][1]:.3f} s, numba's runtime starting)" if loads else
       "no kernel loaded", file=sys.stderr)
 for name, c in loads:
     print(f"  {1e3 * c:7.1f} ms  {name}", file=sys.stderr)
@@ -121,7 +131,11 @@ def main() -> None:
     code = ""
     for name, c in ({} if a.no_floor else FLOOR).items():
         code += c + "\n"
-        jobs[name] = ([sys.executable, "-c", code], env_for(None))
+        jobs[name] = ([sys.executable, "-c", code], env_for(ROOT))
+    if not a.no_floor:  # numba's own start, for comparison
+        jobs["numpy + numba as numba starts (no startup.install)"] = (
+            [sys.executable, "-c", FLOOR["numpy"] + "\n" + FLOOR[
+                "+ numba, a cached kernel's first call"].replace(_START, "")], env_for(None))
     for cmd, env in jobs.values():  # warm: kernels compiled and cached, files in memory
         _timed(cmd, env, work)
     times: dict[str, list[tuple[float, float]]] = {k: [] for k in jobs}

@@ -179,6 +179,11 @@ def _catch_signals() -> None:
 
 def main() -> None:
     _catch_signals()
+    # numba's and VTK's start without what a command does not use (core/startup.py);
+    # nothing of numba or VTK is imported here
+    from geoterrain.core import startup
+
+    startup.install()
     cli(prog_name="geoterrain")
 
 

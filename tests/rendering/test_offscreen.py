@@ -162,3 +162,33 @@ def test_the_api_still_hands_out_pyvista_meshes(tmp_path_factory):
         np.testing.assert_array_equal(sel.mesh.point_data[k], sel.vtk_mesh.point_data[k])
     assert sel.mesh.active_scalars_name == sel.vtk_mesh.active_scalars_name == "elevation"
     assert isinstance(t.mesh(5.0), pv.PolyData)
+
+
+@pytest.mark.fast
+def test_the_command_lines_start_draws_the_same_picture(tmp_path_factory, tmp_path):
+    """``geoterrain``'s entry point (``main``: geoterrain/core/startup.py installed) loads
+    its cached kernels without numba's context refresh (none of the modules only the
+    refresh imports, nor numba's array implementations its kernels' environments name),
+    without coverage.py where no coverage runs, and writes the same PNG
+    bytes as the command run without it (a second run: every kernel cached)."""
+    _store(tmp_path_factory, "land")
+    args = ["-q", "render", str(_STORES["land"]), "--size", "160x120", "--overwrite", "-o"]
+    plain = ("import sys; from geoterrain.cli.main import cli\n"
+             f"try:\n    cli({args + [str(tmp_path / 'a.png')]!r})\n"
+             "except SystemExit as e:\n    assert not e.code, e.code\n")
+    started = ("import sys; had = 'coverage' in sys.modules\n"
+               f"sys.argv = ['geoterrain', *{args + [str(tmp_path / 'b.png')]!r}]\n"
+               "from geoterrain.cli.main import main\n"
+               "try:\n    main()\nexcept SystemExit as e:\n    assert not e.code, e.code\n"
+               "import numba.misc.coverage_support as c\n"
+               "print('REFRESHED', 'numba.misc.gdb_hook' in sys.modules,\n"
+               "      'numba.np.polynomial.polynomial_core' in sys.modules,\n"
+               "      'numba.np.arrayobj' in sys.modules)\n"
+               "print('COVERAGE', had, c.coverage_available, 'coverage' in sys.modules)")
+    for code in (plain, started):
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                             check=True).stdout
+    assert "REFRESHED False False False" in out, out
+    had = "COVERAGE True" in out  # a measured test run: coverage in every process
+    assert f"COVERAGE {had} {had} {had}" in out, out
+    assert (tmp_path / "a.png").read_bytes() == (tmp_path / "b.png").read_bytes()
