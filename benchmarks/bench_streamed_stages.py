@@ -127,8 +127,8 @@ def main() -> None:
                 print(f"run {run} {tname} {raster}: {json.dumps(res)}, load {load()}",
                       flush=True)
     print(f"\nload after: {load()}\n")
-    stages = [k for k in out[cases[0]][0] if k not in ("sha256", "code")]
-    cols = [(t, r) for t, r in out]
+    cols = list(out)
+    stages = [k for k in out[cols[0]][0] if k not in ("sha256", "code")]
     print("| stage (CPU s, medians) | " + " | ".join(f"{t}: {r}" for t, r in cols) + " |")
     print("|---" * (len(cols) + 1) + "|")
     med = {c: {s: statistics.median(x.get(s, 0.0) for x in out[c]) for s in stages}
