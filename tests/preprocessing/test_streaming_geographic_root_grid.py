@@ -30,6 +30,7 @@ from geoterrain.bounds.edgepad import edge_deltas, edge_support, has_padding
 from geoterrain.bounds.leafbounds import geographic_leaf_delta
 from geoterrain.bounds.radii import vertex_radii
 from geoterrain.bounds.tileblobs import radius_codes
+from geoterrain.bounds.tilebounds import tile_and_block_errors
 from geoterrain.core.frame import Frame
 from geoterrain.core.grid import Grid
 from geoterrain.preprocessing.bands.curvature import band_metric_terms
@@ -43,6 +44,7 @@ from geoterrain.preprocessing.bands.delta import (
 )
 from geoterrain.preprocessing.bands.leaf import band_leaf_slack, follow_slack
 from geoterrain.preprocessing.bands.radii import band_metric_radius_codes
+from geoterrain.preprocessing.bands.tiles import band_tile_bounds
 from geoterrain.preprocessing.pipeline import preprocess
 from geoterrain.preprocessing.scratch import ScratchArrays
 from geoterrain.preprocessing.streaming import preprocess_streaming
@@ -160,6 +162,25 @@ def test_metric_terms_skip_the_bands_below_the_data():
     assert g.extent == (65, 129)
     _, _, read, full = _skipping(g, X, Y, Z, V, 2)
     assert read < full - 30
+
+
+@pytest.mark.parametrize("holes", [0.0, 0.3])
+def test_the_tile_table_reads_no_x_y_of_the_bands_below_the_data(holes):
+    """Level 0's tile boxes take the x, y of valid samples only: the banded tile table
+    of a 13 × 90 geographic raster on 1 × 2 roots of 64 (extent 65 × 129, bands of 2)
+    asks no scene x, y of the rows past the data (14 …), and is the whole grid's."""
+    g, X, Y, Z, V = _geo_roots((13, 90), "mid", 1, holes)
+    asked = []
+
+    def xy(a, b):
+        asked.append(b)
+        return X[a:b], Y[a:b]
+
+    got = band_tile_bounds(lambda a, b: (Z[a:b], V[a:b]), g.extent, g.t, np.zeros(g.extent[1]),
+                           np.zeros(g.extent[0]), band=2, xy=xy, span=g.span)
+    want = tile_and_block_errors(Z, V, X, Y, g.t, span=g.span)
+    assert got[0] == want[0] and np.array_equal(got[1], want[1])
+    assert asked and max(asked) == 14
 
 
 @settings(max_examples=10, deadline=None)

@@ -106,6 +106,35 @@ def test_each_stage_on_the_extent_is_its_whole_grid_twin(seed, n, roots, t, hole
         assert np.array_equal(sa.read(f"n{L}", 0, want.shape[0]).reshape(want.shape), want)
 
 
+@pytest.mark.parametrize("rows", [95, 96, 97, 98, 160, 161])
+def test_delta_edge_skips_the_fine_levels_of_bands_past_the_data(monkeypatch, rows):
+    """δ_edge read in bands (the data's edge replicated into a 1 × 2 root grid's lower
+    root) computes no fine level in a band from row r0 with r0 − B/2 ≥ the data's rows
+    (each of its fine vertices' diamonds misses them: zeroed before saturation), and is
+    the whole grid's :func:`edge_deltas` bit for bit; the rows put a band's first-row
+    edge midpoints of half-span B/2 just inside the data (97: r0 − B/2 = rows − 1,
+    161) or just past it (96, 160), where a skip one band early would lose them."""
+    from geoterrain.preprocessing.bands import delta as bd
+
+    S, B, t = 128, 64, 3
+    R, C = 2 * S + 1, S + 1
+    data = (rows, C - 7)
+    z, v = _surface(rows, R, C, 0.0, data)  # no voids: no +inf to hide a lost value
+    zz = np.where(v, z, np.nan)
+    ran = []
+    kernel = bd._fine_level_nb
+    monkeypatch.setattr(bd, "_fine_level_nb",
+                        lambda band, *a: (ran.append(band.r0), kernel(band, *a))[1])
+    de = band_vertex_errors(edge_rows(rows_of(zz, v), data), (R, C), band=B, span=S,
+                            data=data)
+    g = Grid(data[0], data[1], 7, t, "roots")
+    Zr, ok = edge_support(zz, v, g)
+    assert np.array_equal(de.grid(), edge_deltas(Zr, ok, g))
+    computed = sorted(set(ran))
+    assert computed == [r0 for r0 in range(0, R - 1, B) if r0 - B // 2 < rows]
+    assert (len(computed) < (R - 1) // B) == (rows <= 160)  # 160: the last band skipped
+
+
 @settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 10_000), n=st.integers(3, 6), roots=st.sampled_from(ROOTS),
        t=st.integers(1, 3), holes=st.sampled_from([0.0, 0.05, 0.5]),

@@ -526,6 +526,22 @@ def _keep_heights(sa: ScratchArrays, z: np.ndarray, v: np.ndarray, w0: int, r0: 
                 sa.write(f"Z{x}{k}", a_lo, zp[idx][:, cols])
 
 
+def _fine_skip(data: tuple[int, int] | None, r0: int, B: int) -> bool:
+    """Whether the band from row ``r0`` (``B`` rows) has no fine level to compute with
+    ``data`` (δ_edge): a fine vertex on its rows, (i, j) of half-span h ≤ B/2 with
+    i ≥ r0 (an edge midpoint on the band's first row is the lowest), has the diamond rows
+    i − h … i + h, all past the data's when r0 − B/2 ≥ rows, so its raw δ is zeroed before
+    saturation (:func:`_saturate`, ``data``) whatever the band computed: the arrays' zeros
+    stand, and every later band skips too, so no carried row is read.
+
+    Examples
+    --------
+    >>> _fine_skip((100, 9), 160, 64), _fine_skip((100, 9), 128, 64), _fine_skip(None, 128, 2)
+    (True, False, False)
+    """
+    return data is not None and r0 - B // 2 >= data[0]
+
+
 def band_vertex_errors(rows: Rows, N: int | tuple[int, int], band: int = 256,
                        scratch: ScratchArrays | None = None,
                        heights: bool = False,
@@ -634,11 +650,13 @@ def band_vertex_errors(rows: Rows, N: int | tuple[int, int], band: int = 256,
         # the band's core rows (and the grid's last row, last): what the coarse levels add
         r_hi = r0 + B if last else r0 + B - 1
         band = BandWindow(z, v, w0, r0, r_hi, B, NR, NC)
-        # fine levels: block statuses from the samples, pooled up the band's levels
-        sts = [_status_nb(v, r0 - w0, 2, B // 2, (NC - 1) // 2)]
-        for _ in range(1, nfine):
+        # fine levels: block statuses from the samples, pooled up the band's levels;
+        # with ``data``, none in a band whose every fine vertex is zeroed (_fine_skip)
+        fine = range(0) if _fine_skip(data, r0, B) else range(nfine)
+        sts = [_status_nb(v, r0 - w0, 2, B // 2, (NC - 1) // 2)] if fine else []
+        for _ in range(1, len(fine)):
             sts.append(_pool(sts[-1]))
-        for lk in range(nfine):
+        for lk in fine:
             hh = 1 << lk
             s = 2 * hh
             nb = (NC - 1) // s

@@ -255,11 +255,14 @@ def band_tile_bounds(rows: Rows, N: int | tuple[int, int], t: int, xs: np.ndarra
             S = cpt << L
             _into_rows(counts[L], cs[:, S + 1::S] - cs[:, :-1:S][:, :m], r0, S, np.add)
         zc = z[core]
-        if xy is None:
+        if not vc.any():  # each box term below would be its fill: x, y not read
+            gx = gy = None
+        elif xy is None:
             gx, gy = xs[None, :], ys[r0:r_end + 1, None]
         else:
             gx, gy = (np.asarray(a, np.float64) for a in xy(r0, r_end + 1))
-        for op, fill, sl in ((np.minimum, np.inf, 0), (np.maximum, -np.inf, 1)):
+        boxes = () if gx is None else ((np.minimum, np.inf, 0), (np.maximum, -np.inf, 1))
+        for op, fill, sl in boxes:  # level 0's boxes: z, x, y of the valid samples
             _into_rows(box0[sl], _closed_cols(np.where(vc, zc, fill), cpt, op), r0, cpt, op)
             _into_rows(box0[2 + sl], _closed_cols(np.where(vc, gx, fill), cpt, op),
                        r0, cpt, op)
