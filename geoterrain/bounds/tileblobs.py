@@ -383,7 +383,10 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     ``mids`` (a projected or pixel store's r above level 0, log8 codes nested from leaves
     of radius 0, ``radius_codes(..., radius=None)``): the r blobs leave out the cell
     centres (flag ``MIDS``); a reader derives them from the tile's heights
-    (:func:`geoterrain.bounds.leafbounds.centre_radius`).
+    (:func:`geoterrain.bounds.leafbounds.centre_radius`). Every other new-vertices log8 δ
+    and r blob (neither ``RING``, ``DIFF``, ``MIDS`` nor ``CENTRES``) holds its codes as
+    differences from its parents' codes (flag ``PRED``,
+    :func:`geoterrain.bounds.vertexdata.pred_residuals`).
 
     Examples
     --------
