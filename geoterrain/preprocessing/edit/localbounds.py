@@ -540,11 +540,16 @@ class Bounds:
         for i, j in changed:
             h = (i | j) & -(i | j)
             k = min(h.bit_length() - 1, g.top_level)
-            span, (nx, ny) = g.tile_span(k), g.tiles(k)
-            for y in {min(i // span, ny - 1), max((i - 1) // span, 0)}:
-                for x in {min(j // span, nx - 1), max((j - 1) // span, 0)}:
-                    if y * span <= i <= y * span + span and x * span <= j <= x * span + span:
-                        tiles.add((k, x, y))
+            # its own level's tiles, and (vertexdata.PRED: a tile's codes are stored as
+            # differences from its parents', the vertices it shares with the level above)
+            # every finer level's tiles that hold it
+            for lv in range(k + 1):
+                span, (nx, ny) = g.tile_span(lv), g.tiles(lv)
+                for y in {min(i // span, ny - 1), max((i - 1) // span, 0)}:
+                    for x in {min(j // span, nx - 1), max((j - 1) // span, 0)}:
+                        if y * span <= i <= y * span + span and \
+                                x * span <= j <= x * span + span:
+                            tiles.add((lv, x, y))
             job.dirty.append((i, j, i + 1, j + 1))
         T = g.tile_samples
         for key in sorted(tiles):
