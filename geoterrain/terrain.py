@@ -320,7 +320,7 @@ class Terrain:
 
     def _bounds(self, key: TileKey, kind: str) -> np.ndarray:
         from geoterrain.bounds.leafbounds import tile_centre_radius, tile_leaf_bounds
-        from geoterrain.bounds.vertexdata import DIFF, NEW_ONLY, VERSION_2, decode_bounds
+        from geoterrain.bounds.vertexdata import DIFF, NEW_ONLY, PRED, VERSION_2, decode_bounds
 
         T = self.grid.tile_samples
         self.decoded_bounds += 1
@@ -354,6 +354,15 @@ class Terrain:
         # a stored tile's own δ_edge blob may hold differences from its δ codes
         base = (self.tile_delta(*key) if stored == "delta_edge" and len(blob) > 1
                 and blob[1] & DIFF and key in self.tile_info else None)
+        if kind == "delta_edge" and stored == "delta" and parent is not None \
+                and blob[1] & PRED:
+            # a PRED blob's new vertices follow its parent's δ codes, not δ_edge's: the
+            # tile's δ there, the parent's δ_edge on the vertices shared with it
+            out = self.tile_delta(*key).copy()
+            h = (T - 1) // 2
+            out[::2, ::2] = parent[(y & 1) * h: (y & 1) * h + h + 1,
+                                   (x & 1) * h: (x & 1) * h + h + 1]
+            return out
         try:
             out = decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base)
         except (ValueError, zstandard.ZstdError):

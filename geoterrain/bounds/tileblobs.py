@@ -28,6 +28,7 @@ from geoterrain.bounds.vertexdata import (
     LOG_STEPS,
     MIDS,
     NEW_ONLY,
+    PRED,
     RING,
     SLACK,
     VERSION_2,
@@ -35,6 +36,7 @@ from geoterrain.bounds.vertexdata import (
     log8_table,
     mids_index,
     new_mask,
+    pred_residuals,
     ring_index,
     ring_new_index,
     ring_planes,
@@ -381,7 +383,10 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     ``mids`` (a projected or pixel store's r above level 0, log8 codes nested from leaves
     of radius 0, ``radius_codes(..., radius=None)``): the r blobs leave out the cell
     centres (flag ``MIDS``); a reader derives them from the tile's heights
-    (:func:`geoterrain.bounds.leafbounds.centre_radius`).
+    (:func:`geoterrain.bounds.leafbounds.centre_radius`). Every other new-vertices log8 δ
+    and r blob (neither ``RING``, ``DIFF``, ``MIDS`` nor ``CENTRES``) holds its codes as
+    differences from its parents' codes (flag ``PRED``,
+    :func:`geoterrain.bounds.vertexdata.pred_residuals`).
 
     Examples
     --------
@@ -441,8 +446,9 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
                   for s in (float(slack.get(k, 0.0)) for k in keys)]
     # schema 6's CENTRES (vertexdata.shape_codes): a tile whose new vertices off the cell
     # centres all have code 0 (a geographic level-0 r: leaves) stores the centres only
+    # (schema 14's PRED on every other such tile: codes as differences from their parents')
     if new_only and k and T >= 3 and "delta" in kinds and not flags_d & (RING | DIFF):
-        pd, head_d = _shaped(pd, head_d)
+        pd, head_d = _shaped(pd, head_d, _windows(coding.dc, xy, t, level))
     if mids:  # schema 12's MIDS: the cell centres derived on read
         if not rlog or flags_r & RING or T < 3:
             raise ValueError("mids r blobs are log8 codes above level 0")
@@ -451,16 +457,29 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         pr = pr[:, pos]
         head_r = bytes([head_r[0], head_r[1] | MIDS, head_r[2]])
     elif new_only and k and T >= 3 and rlog and "radius" in kinds and not flags_r & RING:
-        pr, head_r = _shaped(pr, head_r)
+        pr, head_r = _shaped(pr, head_r, _windows(coding.rc, xy, t, level))
     rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
     blobs = {kind: dict(zip(keys, compress_rows(*rows[kind]), strict=True)) for kind in kinds}
     return blobs, dmax, rmax
 
 
-def _shaped(p: np.ndarray, head: bytes) -> tuple[list[np.ndarray], list[bytes]]:
-    # each tile's payload shaped (vertexdata.shape_codes) and its header with the flag
+def _windows(codes: np.ndarray, xy: np.ndarray, t: int, level: int) -> np.ndarray:
+    # each tile's (T, T) codes, (k, T, T): tile (x, y) of ``level`` in the code grid
+    T, s = (1 << t) + 1, 1 << level
+    rows = (xy[:, 1, None] << (t + level)) + np.arange(T)[None] * s
+    cols = (xy[:, 0, None] << (t + level)) + np.arange(T)[None] * s
+    return codes[rows[:, :, None], cols[:, None, :]]
+
+
+def _shaped(p: np.ndarray, head: bytes, windows: np.ndarray
+            ) -> tuple[list[np.ndarray], list[bytes]]:
+    # each tile's payload shaped (vertexdata.shape_codes: CENTRES where every new vertex
+    # off the centres is 0), else predicted from its parents' codes (vertexdata.PRED,
+    # from the tile's codes ``windows``), and its header with the flag
     rows, flags = shape_codes(p)
-    return rows, [bytes([head[0], head[1] | int(f), head[2]]) for f in flags]
+    pred = pred_residuals(windows)
+    rows = [r if f else pred[n] for n, (r, f) in enumerate(zip(rows, flags, strict=True))]
+    return rows, [bytes([head[0], head[1] | (int(f) or PRED), head[2]]) for f in flags]
 
 
 def ring_blobs(nrm: np.ndarray, t: int, tiles: Iterable[tuple[int, int]],

@@ -37,6 +37,15 @@ and column) are left out of the payload, the other samples kept in raster order
 and its code is the nesting over them alone (r is not raised beyond the nesting on these
 frames), so a reader derives it from the tile's decoded heights, x, y and the midpoints'
 codes, as the preprocess codes it (:func:`geoterrain.bounds.leafbounds.centre_radius`).
+Flag ``PRED`` (schema 14, issue 51; a ``NEW_ONLY`` log8 blob with no other shape flag: δ
+and r above level 0): each new vertex's code is stored as its difference mod 256 from a
+prediction by its parents in the bintree (seed 002 §2.4: a saturated δ and a nested r
+never exceed a parent's), centres first, then the other new vertices
+(:func:`pred_residuals`): a cell centre's from the smaller code of the two corners its
+cell's diagonal does not join (the parent tile's vertices), an edge midpoint's from the
+smaller code of the one or two cell centres beside it. The map is a bijection whatever
+the codes, so decoding is exact (:func:`pred_codes`); where the bounds hold, the payload
+is mostly small numbers.
 """
 
 from __future__ import annotations
@@ -54,6 +63,7 @@ VERSION_2 = 2
 NEW_ONLY, LOG8, RING, DIFF, SLACK = 1, 2, 4, 8, 16  # version-2 flags
 CENTRES = 32  # a NEW_ONLY log8 payload of the cell centres only (shape_codes)
 MIDS = 64  # a log8 r payload without the cell centres (mids_index): derived on read
+PRED = 128  # a NEW_ONLY log8 payload as differences from its parents' codes (pred_residuals)
 LOG_STEPS = 16  # codes per octave: at most 2^(1/16) - 1 = 4.4 % above the exact value
 _F16_MAX = 32768.0  # keep the scaled maximum well inside float16's finite range
 
@@ -135,6 +145,13 @@ def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None
 @lru_cache(maxsize=256)
 def _log8_table_ro(e: int) -> np.ndarray:
     v = log8_table(e)
+    v.flags.writeable = False
+    return v
+
+
+@lru_cache(maxsize=256)
+def _log8_table64(e: int) -> np.ndarray:
+    v = log8_table(e).astype(np.float64)
     v.flags.writeable = False
     return v
 
@@ -279,6 +296,82 @@ def shape_codes(payload: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
     return [p[n, c] if centres_only[n] else p[n] for n in range(p.shape[0])], flags
 
 
+@lru_cache(maxsize=8)
+def _pred_index(T: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For a T × T tile (T odd ≥ 3), read-only and cached: the flat indices of the new
+    vertices that are not cell centres (raster order, as :func:`_shape_index`), for each
+    of them the flat indices of the two cell centres beside it (T · T where there is none: a slot
+    past the tile that holds 255); and a (h, h) mask of the centres whose cell is split
+    along its main diagonal (union-jack parity counted from the tile's first cell)."""
+    h = (T - 1) // 2
+    i, j = np.divmod(_new_flat(T), T)
+    centre = (i & 1).astype(bool) & (j & 1).astype(bool)
+    ci, cj = i[~centre], j[~centre]  # the edge midpoints: one odd coordinate
+    rows = (ci & 1).astype(bool)  # odd row, even column: centres left and right
+    n1 = np.where(rows, ci * T + cj - 1, (ci - 1) * T + cj)
+    n2 = np.where(rows, ci * T + cj + 1, (ci + 1) * T + cj)
+    n1 = np.where(rows & (cj == 0) | ~rows & (ci == 0), T * T, n1)
+    n2 = np.where(rows & (cj == T - 1) | ~rows & (ci == T - 1), T * T, n2)
+    main = np.add.outer(np.arange(h), np.arange(h)) % 2 == 0
+    out = (_new_flat(T)[~centre], n1, n2, main)
+    for a in out:
+        a.flags.writeable = False
+    return out
+
+
+def _pred_centres(W: np.ndarray, main: np.ndarray) -> np.ndarray:
+    # each cell centre's prediction (k, h, h) from tiles W (k, T, T) int16: the smaller
+    # code of the two corners its cell's diagonal does not join (seed 002 §2.3)
+    a, b = W[:, 0:-2:2, 0:-2:2], W[:, 0:-2:2, 2::2]
+    c, d = W[:, 2::2, 0:-2:2], W[:, 2::2, 2::2]
+    return np.where(main, np.minimum(b, c), np.minimum(a, d))
+
+
+def pred_residuals(W: np.ndarray) -> np.ndarray:
+    """The ``PRED`` payloads of tiles ``W`` (k, T, T) of log8 codes (T odd ≥ 3): each new
+    vertex's code subtracted from its prediction, mod 256, the cell centres first, then
+    the other new vertices (each in raster order). :func:`pred_codes` inverts it.
+
+    Examples
+    --------
+    >>> W = np.zeros((1, 3, 3), np.uint8); W[0, ::2, ::2] = 9; W[0, 1, 1] = 7
+    >>> W[0, 0, 1] = W[0, 1, 0] = W[0, 1, 2] = W[0, 2, 1] = 5
+    >>> pred_residuals(W).tolist()
+    [[2, 2, 2, 2, 2]]
+    """
+    W = np.asarray(W, np.int16)
+    k, T = W.shape[0], W.shape[1]
+    other, n1, n2, main = _pred_index(T)
+    rc = _pred_centres(W, main) - W[:, 1::2, 1::2]
+    ext = np.concatenate([W.reshape(k, -1), np.full((k, 1), 255, np.int16)], axis=1)
+    rm = np.minimum(ext[:, n1], ext[:, n2]) - ext[:, other]
+    return (np.concatenate([rc.reshape(k, -1), rm], axis=1) & 0xFF).astype(np.uint8)
+
+
+def pred_codes(corners: np.ndarray, payload: np.ndarray) -> np.ndarray:
+    """A tile's (T, T) log8 codes from its parent's ``corners`` (h + 1, h + 1; the even
+    rows and columns) and its ``PRED`` payload (:func:`pred_residuals`, 3h² + 2h bytes).
+
+    Examples
+    --------
+    >>> W = np.random.default_rng(1).integers(0, 256, (1, 5, 5)).astype(np.uint8)
+    >>> bool((pred_codes(W[0, ::2, ::2], pred_residuals(W)[0]) == W[0]).all())
+    True
+    """
+    corners = np.asarray(corners, np.int16)
+    h = corners.shape[0] - 1
+    T = 2 * h + 1
+    other, n1, n2, main = _pred_index(T)
+    p = np.asarray(payload, np.int16)
+    ext = np.empty(T * T + 1, np.int16)
+    W = ext[:-1].reshape(1, T, T)
+    W[0, ::2, ::2] = corners
+    ext[-1] = 255
+    W[0, 1::2, 1::2] = (_pred_centres(W, main)[0] - p[: h * h].reshape(h, h)) & 0xFF
+    ext[other] = (np.minimum(ext[n1], ext[n2]) - p[h * h:]) & 0xFF
+    return W[0].astype(np.uint8)
+
+
 def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
                    cctx: zstandard.ZstdCompressor) -> bytes:
     """A version-2 blob of one tile: ``values`` are log8 codes (uint8) or scaled float16.
@@ -295,9 +388,11 @@ def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
     flags = (NEW_ONLY if new_only else 0) | (LOG8 if log8 else 0)
     if new_only:
         v = v[new_mask(v.shape[0])]
-    if log8 and new_only and np.shape(values)[0] >= 3:  # CENTRES (shape_codes)
+    if log8 and new_only and np.shape(values)[0] >= 3:  # CENTRES (shape_codes), else PRED
         rows, shape = shape_codes(np.asarray(v, np.uint8)[None])
         v, flags = rows[0], flags | int(shape[0])
+        if not shape[0]:
+            v, flags = pred_residuals(np.asarray(values, np.uint8)[None])[0], flags | PRED
     if log8:
         payload = np.ascontiguousarray(v, np.uint8).tobytes()
     else:
@@ -307,9 +402,16 @@ def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
 
 def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
                parity: tuple[int, int], derive, base) -> np.ndarray:
-    if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING | DIFF | SLACK | CENTRES | MIDS):
+    if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING | DIFF | SLACK | CENTRES | MIDS
+                                    | PRED):
         raise ValueError("not a bounds blob of a known version")
     flags, e = blob[1], int(np.int8(np.uint8(blob[2])))
+    if flags & PRED and (flags & (RING | DIFF | SLACK | CENTRES | MIDS) or not flags & NEW_ONLY
+                         or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1]
+                         or shape[0] < 3 or shape[0] % 2 == 0 or parent is None
+                         or np.shape(parent) != tuple(shape)):
+        raise ValueError("a predicted bounds blob needs a square tile's new log8 codes and "
+                         "its parent's values")
     if flags & MIDS and (flags & (RING | DIFF | SLACK | CENTRES) or not flags & LOG8
                          or len(shape) != 2 or shape[0] != shape[1] or shape[0] < 3
                          or derive is None):
@@ -345,7 +447,15 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         n = len(keep) if keep is not None else int(np.prod(shape))
     width = 1 if flags & LOG8 else 2
     raw = zstdsafe.decompress(body, width * n, exact=True)  # bounded: never a bomb
-    if flags & CENTRES:  # the centres as stored, the other new vertices code 0
+    if flags & PRED:  # each code from its parents' (the parent tile's corners first)
+        half = (T - 1) // 2
+        px, py = int(parity[0]) & 1, int(parity[1]) & 1
+        a = np.asarray(parent[py * half: py * half + half + 1,
+                              px * half: px * half + half + 1], np.float64)
+        # log8_codes with the cached table: the smallest code ≥ each value (NaN: +inf)
+        corners = np.searchsorted(_log8_table64(e), np.where(np.isnan(a), np.inf, a))
+        vals = _log8_table_ro(e)[pred_codes(corners, np.frombuffer(raw, np.uint8)).ravel()[keep]]
+    elif flags & CENTRES:  # the centres as stored, the other new vertices code 0
         codes = np.zeros(len(keep), np.uint8)
         codes[_shape_index(T)[0]] = np.frombuffer(raw, np.uint8)
         vals = _log8_table_ro(e)[codes]

@@ -446,8 +446,10 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
         for y in range(down):
             keys = sorted(row_keys.get((L, y), ()))
             p0, p1 = y * T1, y * T1 + T
-            d = level_lattice(sa, "", L, n, p0, p1, m, is_top, np.float32)
-            rc = level_lattice(sa, "r", L, n, p0, p1, m, is_top, np.uint8)
+            # every vertex of the lattice, the coarser levels' too: a PRED payload holds
+            # its codes as differences from its parents' (vertexdata.pred_residuals)
+            d = level_lattice(sa, "", L, n, p0, p1, m, True, np.float32)
+            rc = level_lattice(sa, "r", L, n, p0, p1, m, True, np.uint8)
             nrm = sn.read(f"n{L}", p0, p1).reshape(T, m, 2)
             coding = BoundsCoding(d, None, ed, r_codes=(rc, er))
             edge = None

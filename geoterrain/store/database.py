@@ -96,7 +96,7 @@ from geoterrain.store.pagepack import LEAF_HEADER, blob_cell_sizes, pack_order
 
 _KIND_NAMES = {i: k for k, i in KIND_CODES.items()}  # a blob key's kind number → its name
 
-SCHEMA_VERSION = 12  # 2: checksums bound to their tile and kind; per-level key digests;
+SCHEMA_VERSION = 14  # 2: checksums bound to their tile and kind; per-level key digests;
 #                    3: packed integer keys, bare blob rows found through blob_keys;
 #                    4: metadata, tile numbers and blob keys in compressed catalog rows;
 #                    5: height blobs of version 2 (range-coded, geoterrain/codec/entropy.py);
@@ -105,9 +105,11 @@ SCHEMA_VERSION = 12  # 2: checksums bound to their tile and kind; per-level key 
 #                       directions, geoterrain/codec/predict.py);
 #                   10: zstd frames without their magic number (core/zstdsafe.py);
 #                   12: r blobs above level 0 without their cell centres, derived on
-#                       read (vertexdata.MIDS; projected and pixel frames)
-ROOTS_SCHEMA_VERSION = 13  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
-#                            9 before schema 10, 11 before schema 12
+#                       read (vertexdata.MIDS; projected and pixel frames);
+#                   14: δ and r blobs above level 0 as differences from their parents'
+#                       codes (vertexdata.PRED)
+ROOTS_SCHEMA_VERSION = 15  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
+#                            9 before schema 10, 11 before schema 12, 13 before schema 14
 
 
 def schema_version(grid: dict) -> int:
@@ -118,7 +120,7 @@ def schema_version(grid: dict) -> int:
     Examples
     --------
     >>> schema_version({"rows": 9, "cols": 9, "n": 3, "t": 2})
-    12
+    14
     """
     return ROOTS_SCHEMA_VERSION if grid.get("layout") == "roots" else SCHEMA_VERSION
 

@@ -36,12 +36,14 @@ def test_centres_blobs_decode_to_their_codes(t, seed, leaves_zero, px, py, e):
         codes[tuple(np.argwhere(off)[rng.integers(off.sum())])] = 1
     table = log8_table(e)
     parent = table[rng.integers(0, 256, (T, T))]
+    h = (T - 1) // 2  # the vertices shared with the parent: the same codes (PRED reads them)
+    parent[py * h: py * h + h + 1, px * h: px * h + h + 1] = table[codes[::2, ::2]]
     blob = pack_bounds_v2(codes, e, True, True, zstandard.ZstdCompressor(level=3))
     assert bool(blob[1] & CENTRES) == leaves_zero
     out = decode_bounds(blob, (T, T), parent, (px, py))
     new = new_mask(T)
     np.testing.assert_array_equal(out[new], table[codes[new]])
-    h = (T - 1) // 2  # the parent's vertices from the parent, as before
+    # the parent's vertices from the parent, as before
     np.testing.assert_array_equal(out[::2, ::2],
                                   parent[py * h: py * h + h + 1, px * h: px * h + h + 1])
 

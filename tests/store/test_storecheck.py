@@ -158,24 +158,24 @@ def test_a_root_grid_store_passes_its_checks(wide_store):
     for grid in (dict(m["grid"], n=m["grid"]["n"] + 1), dict(m["grid"], layout="square")):
         with pytest.raises(StoreError, match="invalid metadata"):
             check_store(path, dict(m, grid=grid), t)
-    # the schema version follows the layout: 13 for root grids, 12 for squares
+    # the schema version follows the layout: 15 for root grids, 14 for squares
     for mm, tt in ((dict(m, schema_version=SCHEMA_VERSION), t),
                    (dict(meta, schema_version=ROOTS_SCHEMA_VERSION), tiles)):
         with pytest.raises(StoreError, match=r"invalid metadata \(a (root|square) grid is "
-                                             r"written in schema version 1[23], not 1[23]\)"):
+                                             r"written in schema version 1[45], not 1[45]\)"):
             check_store(path, mm, tt)
     # the square store itself is still read
-    assert meta["schema_version"] == SCHEMA_VERSION == 12
+    assert meta["schema_version"] == SCHEMA_VERSION == 14
     assert check_store(path, meta, tiles)[0] == g
 
 
-def test_the_writer_puts_a_root_grid_in_schema_version_13_and_the_reader_opens_both(
+def test_the_writer_puts_a_root_grid_in_schema_version_15_and_the_reader_opens_both(
         tmp_path, wide_store):
     from geoterrain.store.database import StoreReader, StoreWriter
 
     _, meta, tiles, g = wide_store
     m, _, r = _as_roots(meta, tiles, g)
-    for name, grid, version in (("roots", r.to_json(), 13), ("square", g.to_json(), 12)):
+    for name, grid, version in (("roots", r.to_json(), 15), ("square", g.to_json(), 14)):
         with StoreWriter(tmp_path / f"{name}.geoterrain") as w:
             w.put_metadata({"grid": grid, "schema_version": 1})  # the writer's to set
             w.put_blob((0, 0, 0), "heights", b"x")

@@ -20,7 +20,7 @@ from numba import njit
 from geoterrain.bounds.delta import Cell
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs
 from geoterrain.bounds.tilebounds import closed_blocks
-from geoterrain.bounds.vertexdata import log8_exponent, log8_table
+from geoterrain.bounds.vertexdata import PRED, VERSION_2, log8_exponent, log8_table
 from geoterrain.bounds.windows import (
     block_sweep_rect,
     fine_raw_delta,
@@ -524,6 +524,13 @@ class Bounds:
         job.meta["delta_max_finite"] = d_new
 
     # ------------------------------------------------------------ blobs and rows
+    def _predicted(self, key: tuple[int, int, int]) -> bool:
+        # does the tile's stored δ or r blob hold PRED codes (or is it not stored)?
+        if key not in self.t.tile_info:
+            return False
+        return any(len(b) > 1 and b[0] == VERSION_2 and b[1] & PRED
+                   for b in (self.t._blob(key, "delta"), self.t._blob(key, "radius")))
+
     def _code_blobs(self) -> None:
         """The δ and r blobs of the tiles holding a vertex whose code changed (as a new
         vertex of its level), and their rows' largest stored δ and r."""
@@ -540,11 +547,18 @@ class Bounds:
         for i, j in changed:
             h = (i | j) & -(i | j)
             k = min(h.bit_length() - 1, g.top_level)
-            span, (nx, ny) = g.tile_span(k), g.tiles(k)
-            for y in {min(i // span, ny - 1), max((i - 1) // span, 0)}:
-                for x in {min(j // span, nx - 1), max((j - 1) // span, 0)}:
-                    if y * span <= i <= y * span + span and x * span <= j <= x * span + span:
-                        tiles.add((k, x, y))
+            # its own level's tiles, and every finer level's tiles that hold it with a
+            # PRED blob (vertexdata.PRED: codes stored as differences from their
+            # parents', the vertices shared with the level above; not a RING or
+            # CENTRES blob, whose payload is the tile's own)
+            for lv in range(k + 1):
+                span, (nx, ny) = g.tile_span(lv), g.tiles(lv)
+                for y in {min(i // span, ny - 1), max((i - 1) // span, 0)}:
+                    for x in {min(j // span, nx - 1), max((j - 1) // span, 0)}:
+                        if y * span <= i <= y * span + span and \
+                                x * span <= j <= x * span + span and \
+                                (lv == k or self._predicted((lv, x, y))):
+                            tiles.add((lv, x, y))
             job.dirty.append((i, j, i + 1, j + 1))
         T = g.tile_samples
         for key in sorted(tiles):
