@@ -24,7 +24,7 @@ from geoterrain.bounds.edgepad import (
     has_padding,
 )
 from geoterrain.bounds.leafbounds import geographic_leaf_delta
-from geoterrain.bounds.normals import level_normal_codes
+from geoterrain.bounds.normals import level_normal_codes, ring_normal_codes
 from geoterrain.bounds.radii import stand_in_z, valid_range, vertex_radii
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, radius_codes, ring_blobs
 from geoterrain.bounds.tilebounds import tile_and_block_errors
@@ -237,8 +237,14 @@ def preprocess(
         # one map per level, central differences of the level's own samples (seed 000
         # normal-map lighting): a reader rebuilds each tile's from its heights and ring
         with cores_for(surface.Z.size):  # a small grid: the serial twins (core/threads.py)
-            normal_maps = level_normal_codes(surface.X, surface.Y, surface.Z, surface.valid,
-                                             dem.grid.top_level + 1, NORMAL_BITS)
+            if derive_normals:  # only the rings are stored: only they are mapped
+                normal_maps = ring_normal_codes(surface.X, surface.Y, surface.Z,
+                                                surface.valid, dem.grid.top_level + 1,
+                                                dem.grid.t, NORMAL_BITS)
+            else:
+                normal_maps = level_normal_codes(surface.X, surface.Y, surface.Z,
+                                                 surface.valid, dem.grid.top_level + 1,
+                                                 NORMAL_BITS)
         stage("normals")
         blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals, counts)
         del normal_maps
@@ -434,7 +440,7 @@ class TileBlobs:
 
 
 def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
-               normal_maps: list[np.ndarray], derive_normals: bool,
+               normal_maps: list, derive_normals: bool,
                counts: list[np.ndarray] | None = None) -> TileBlobs:
     """The height pyramid's blobs (the residual codec), and every tile's δ, r, normals and
     δ_edge blobs with its tile-table row.
@@ -480,13 +486,15 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
         edge_only = edge_only_tiles(edge.dc, grid, set(height_blobs))
     tile_rows: dict = {}
     extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}, "delta_edge": {}}
+    no_map = np.zeros((0, 0, 2), np.uint8)  # level_blobs without normals reads none
     edge_max: list = []
     for L in grid.levels:
         keys = [k for k in height_blobs if k[0] == L]
         if not keys:
             continue
         # every level's rings: the rest is derived from the heights on read
-        blobs, dmax, rmax = level_blobs(coding, normal_maps[L], grid.t, L, grid.top_level,
+        blobs, dmax, rmax = level_blobs(coding, no_map if derive_normals else normal_maps[L],
+                                        grid.t, L, grid.top_level,
                                         [(x, y) for _, x, y in keys],
                                         ("delta", "radius") if derive_normals else
                                         ("delta", "radius", "normals"),
@@ -510,7 +518,7 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
             ekeys = [(x, y) for L2, x, y in keys_e if L2 == L]
             if not ekeys:
                 continue
-            eb, emax, _ = level_blobs(edge, normal_maps[L], grid.t, L, top, ekeys, ("delta",),
+            eb, emax, _ = level_blobs(edge, no_map, grid.t, L, top, ekeys, ("delta",),
                                       base=base)
             extra["delta_edge"].update(eb["delta"])
             edge_max += [[L, x, y, m if np.isfinite(m) else None]
