@@ -78,7 +78,7 @@ peak = peak_rss() / 2**20
 digest = hashlib.sha256(open(p, "rb").read()).hexdigest()
 print(json.dumps({{"wall": wall, "import": t1 - t0, "stages": stages, "cpu": cpu, "sys": sys_t,
                   "cpu_all": cpu_all, "bytes": t.info()["size_bytes"], "peak_mb": peak,
-                  "sha256": digest}}))
+                  "sha256": digest, "package": os.path.dirname(geoterrain.__file__)}}))
 """
 
 MARTINI = """
@@ -100,8 +100,12 @@ def child(code: str, *args: str, tree: str | None = None, extra: dict | None = N
     env = dict(_ENV, **(extra or {}))
     if tree:  # the baseline tree's package before this one's (an editable install)
         env["PYTHONPATH"] = os.path.abspath(tree)
+    # `python -c` puts its working folder first on sys.path: a child started in this
+    # repository would import this tree's package whatever PYTHONPATH says (so before
+    # 2026-12-07 a --baseline run from the repository root measured this tree twice);
+    # the baseline's child runs in its own tree
     out = subprocess.run([sys.executable, "-c", code, *args], check=True, capture_output=True,
-                         text=True, env=env).stdout
+                         text=True, env=env, cwd=os.path.abspath(tree) if tree else None).stdout
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     return json.loads(out.strip().splitlines()[-1]), max(peak, before) / 1024.0
 
@@ -147,6 +151,9 @@ def main() -> None:
         if a.baseline:
             b, _ = child(PRE.format(eps=a.codec_error), src, dst, tree=a.baseline,
                          extra=dict(kv.split("=", 1) for kv in a.baseline_env))
+            want = os.path.join(os.path.realpath(a.baseline), "geoterrain")
+            if os.path.realpath(b["package"]) != want:
+                sys.exit(f"the baseline imported {b['package']}, not {want}")
             base.append(b)
         if not a.skip_pymartini:
             m, _ = child(MARTINI, src)
@@ -197,6 +204,7 @@ def main() -> None:
         pairs = [o["wall"] / b["wall"] for o, b in zip(ours, base, strict=True)]
         same = all(r["sha256"] == ours[0]["sha256"] for r in ours + base)
         print(f"| baseline total ({a.baseline} {' '.join(a.baseline_env)}) | {bwall:.2f} |")
+        print(f"| packages: ours {ours[0]['package']}, the baseline's {base[0]['package']} |")
         print(f"| baseline / pymartini | {bwall / mart:.2f} |")
         print(f"| ours / baseline (median; each pair's: {', '.join(f'{x:.2f}' for x in pairs)}) "
               f"| {wall / bwall:.2f} |")

@@ -523,6 +523,45 @@ def _saturate_span_nb(d, span):
     return d
 
 
+@parallel_kernel(cache=True)
+def _saturate_pull_nb(d, span):
+    # _saturate_span_nb's result, rows on every core: each vertex pulls its children's δ
+    # instead of each child pushing to its parents (one max per DAG edge either way; at
+    # each h a receiver never pushes in the same phase, so the order does not matter;
+    # δ ≥ +0.0, no NaN): the centres of h from their 4 edge midpoints of h, then the
+    # edge midpoints of 2h (odd (I + J) on the 2h lattice) from the centres of h around.
+    R, C = d.shape
+    h = 1
+    while h < span:
+        s = 2 * h
+        nr = (R - 1) // s
+        nc = (C - 1) // s
+        for a in prange(nr):
+            i = h + a * s
+            for b in range(nc):
+                j = h + b * s
+                v = d[i, j]
+                for w in (d[i, j - h], d[i, j + h], d[i - h, j], d[i + h, j]):
+                    if v < w:
+                        v = w
+                d[i, j] = v
+        for a in prange(nr + 1):
+            i = a * s
+            for b in range((a + 1) % 2, nc + 1, 2):
+                j = b * s
+                v = d[i, j]
+                for di in (-h, h):
+                    for dj in (-h, h):
+                        if 0 <= i + di < R and 0 <= j + dj < C and v < d[i + di, j + dj]:
+                            v = d[i + di, j + dj]
+                d[i, j] = v
+        h *= 2
+    for i in range(0, R, span):
+        for j in range(0, C, span):
+            d[i, j] = 0
+    return d
+
+
 @njit(cache=True)
 def _saturate_nb(d):
     # the square's saturation (its one root spans N − 1)
@@ -584,7 +623,7 @@ def vertex_errors(z: np.ndarray, valid: np.ndarray, span: int | None = None) -> 
     """
     zf, valid, n = check_grid(z, valid, span)
     with cores_for(zf.size):  # small grids on one thread (geoterrain/core/threads.py)
-        return _saturate_span_nb(_raw_delta(zf, valid, 1 << n), 1 << n)
+        return _saturate_pull_nb(_raw_delta(zf, valid, 1 << n), 1 << n)
 
 
 # ------------------------------------------------------------- a check on read

@@ -13,7 +13,9 @@ positions, so curvilinear (geographic) grids and vertical exaggeration are handl
   store holds, and what its reader derives from a tile's decoded heights and its stored
   border ring at every level (docs/store.md).
 - :func:`level_normal_codes`: those maps' octahedral codes, a band of rows at a time
-  (what the whole-grid preprocess stores).
+  (what the whole-grid preprocess stores with every normal);
+  :func:`ring_normal_codes`: the same codes on the tiles' border rings only (what it
+  stores with derived normals, the default).
 - :func:`normal_pyramid`: the maps of every pyramid level, each level a 3x3 binomial
   weighted mean (renormalised) of the previous one around its kept samples (what stores
   held before; kept for comparison, docs/lab/store-size.md).
@@ -28,6 +30,8 @@ positions, so curvilinear (geographic) grids and vertical exaggeration are handl
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit, prange
 
@@ -37,6 +41,8 @@ __all__ = [
     "normal_map",
     "level_normal_maps",
     "level_normal_codes",
+    "ring_normal_codes",
+    "RingCodes",
     "level_normals",
     "normal_pyramid",
     "encode_octahedral",
@@ -192,6 +198,119 @@ def level_normal_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray,
             m = normal_map(xl[a:b], yl[a:b], zl[a:b], None if vl is None else vl[a:b])
             codes[i0:i1] = encode_octahedral(m[i0 - a:i1 - a], bits)
         out.append(codes)
+    return out
+
+
+def _take(a: np.ndarray, idx: np.ndarray, axis: int) -> np.ndarray:
+    """``np.take(a, idx, axis)``, broadcast again along ``a``'s zero-stride axes (a
+    projected grid's x and y, Frame.grid_xy): no copy of what is repeated."""
+    a = np.asarray(a)
+    sl = tuple(slice(0, 1) if st == 0 else slice(None) for st in a.strides)
+    small = a[sl]
+    if small.shape[axis] > 1:
+        small = np.take(small, idx, axis=axis)
+    shape = list(a.shape)
+    shape[axis] = len(idx)
+    return np.broadcast_to(small, shape)
+
+
+def _line_indices(n: int, step: int) -> np.ndarray:
+    # the lines 0, step, 2·step, … and the last one, n − 1
+    return np.unique(np.append(np.arange(0, n, step), n - 1))
+
+
+class RingCodes(NamedTuple):
+    """A level's normal codes on its tiles' border rings (:func:`ring_normal_codes`):
+    ``rows`` (k, C, 2) the codes of rows ``lines_r`` (0, 2**t, 2·2**t, …, the last),
+    ``cols`` (R, m, 2) those of columns ``lines_c``; the level is R × C samples."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    lines_r: np.ndarray
+    lines_c: np.ndarray
+
+    def rings(self, xy: np.ndarray, t: int) -> np.ndarray:
+        """The rings (k, 4T − 4, 2) of the tiles ``xy`` (k, 2: x, y) of side T = 2**t + 1,
+        in :func:`geoterrain.bounds.vertexdata.ring_index`'s order: the top row, the
+        bottom row, then the left and the right column without their corners (the full
+        map's ``codes[(y << t) + rr, (x << t) + cc]``)."""
+        T = (1 << t) + 1
+        a, m = np.arange(T), np.arange(1, T - 1)
+        x, y = xy[:, 0, None], xy[:, 1, None]
+        ri, ci = np.searchsorted(self.lines_r, y << t), np.searchsorted(self.lines_c, x << t)
+        top = self.rows[ri, (x << t) + a]
+        bottom = self.rows[ri + 1, (x << t) + a]
+        left = self.cols[(y << t) + m, ci]
+        right = self.cols[(y << t) + m, ci + 1]
+        return np.concatenate([top, bottom, left, right], axis=1)
+
+
+def _take(a: np.ndarray, idx: np.ndarray, axis: int) -> np.ndarray:
+    """``np.take(a, idx, axis)``, broadcast again along ``a``'s zero-stride axes (a
+    projected grid's x and y, Frame.grid_xy): no copy of what is repeated."""
+    a = np.asarray(a)
+    sl = tuple(slice(0, 1) if st == 0 else slice(None) for st in a.strides)
+    small = a[sl]
+    if small.shape[axis] > 1:
+        small = np.take(small, idx, axis=axis)
+    shape = list(a.shape)
+    shape[axis] = len(idx)
+    return np.broadcast_to(small, shape)
+
+
+def _line_indices(n: int, step: int) -> np.ndarray:
+    # the lines 0, step, 2·step, … and the last one, n − 1
+    return np.unique(np.append(np.arange(0, n, step), n - 1))
+
+
+def ring_normal_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray,
+                      valid: np.ndarray | None, levels: int, t: int,
+                      bits: int = 8) -> list[RingCodes]:
+    """:func:`level_normal_codes` on the tiles' border rings only: every level's codes
+    on its rows and its columns 0, 2**t, 2·2**t, … and the last one, where the tiles of
+    ``2**t`` cells a side have their rings (:class:`RingCodes`, the same values as the
+    full codes there). What a store with derived normals holds: a reader derives the
+    rest from the heights.
+
+    A sample's normal reads its four neighbours only (central differences), so each
+    line is mapped with the lines beside it: a level's rows in one stack of three-row
+    strips, its columns in one of three-column strips (a strip's middle line sees
+    exactly its neighbours; the grid's first and last line stay first and last in the
+    stack, one-sided as in the whole map), about 6 / 2**t of the samples.
+
+    Examples
+    --------
+    >>> j, i = np.meshgrid(np.arange(9.0), np.arange(9.0))
+    >>> z = np.random.default_rng(1).normal(size=(9, 9))
+    >>> full = level_normal_codes(j, -i, z, None, 2)[0]
+    >>> ring = ring_normal_codes(j, -i, z, None, 2, 2)[0]
+    >>> bool((ring.rows == full[::4]).all() and (ring.cols == full[:, ::4]).all())
+    True
+    """
+    if levels < 1:
+        raise ValueError("levels must be >= 1")
+    out = []
+    for L in range(levels):
+        s = 1 << L
+        xl, yl, zl = x[::s, ::s], y[::s, ::s], z[::s, ::s]
+        vl = None if valid is None else np.asarray(valid)[::s, ::s]
+        got = []
+        for axis in (0, 1):
+            n = zl.shape[axis]
+            lines = _line_indices(n, 1 << t)
+            take, mid, at = [], [], 0
+            for k in lines.tolist():
+                a, b = max(k - 1, 0), min(k + 2, n)
+                take.append(np.arange(a, b))
+                mid.append(at + k - a)
+                at += b - a
+            idx = np.concatenate(take)
+            m = normal_map(_take(xl, idx, axis), _take(yl, idx, axis),
+                           np.take(zl, idx, axis=axis),
+                           None if vl is None else np.take(vl, idx, axis=axis))
+            m = m[np.asarray(mid)] if axis == 0 else m[:, np.asarray(mid)]
+            got.append((encode_octahedral(m, bits), lines))
+        out.append(RingCodes(got[0][0], got[1][0], got[0][1], got[1][1]))
     return out
 
 

@@ -22,7 +22,7 @@ from numba import njit, prange
 from geoterrain.bounds.delta import grid_order
 from geoterrain.core.bintree import child_nb
 from geoterrain.core.rounding import round_up32
-from geoterrain.core.threads import cores_for, parallel_kernel
+from geoterrain.core.threads import cores_for, parallel_kernel, serial_for
 
 __all__ = ["stand_in_z", "valid_range", "vertex_radii"]
 
@@ -49,21 +49,34 @@ def valid_range(z: np.ndarray, valid: np.ndarray) -> tuple[float, float, int]:
     >>> valid_range(np.array([[1.0, np.nan], [5.0, -2.0]]), np.array([[1, 1], [1, 0]], bool))
     (1.0, 5.0, 2)
     """
-    lo, hi, n = _valid_range_nb(np.asarray(z, dtype=np.float64), np.asarray(valid, bool))
+    z, valid = np.asarray(z, dtype=np.float64), np.asarray(valid, bool)
+    # a whole grid's rows on every core, a tile's on this thread (core/threads.py)
+    run = _valid_range_nb.serial if serial_for(z.size) else _valid_range_nb.parallel
+    lo, hi, n = run(z, valid)
     return float(lo), float(hi), int(n)
 
 
-@njit(cache=True, nogil=True)
+@parallel_kernel(cache=True, nogil=True)
 def _valid_range_nb(z, valid):
-    # min, max and count of the finite valid samples, one pass, no copy
-    lo, hi, n = np.inf, -np.inf, 0
-    for i in range(z.shape[0]):
+    # min, max and count of the finite valid samples, one pass, no copy: each row's,
+    # then the rows' in order (a min or max keeps the first of equal values, ±0 too,
+    # either way)
+    rows = z.shape[0]
+    los, his, ns = np.full(rows, np.inf), np.full(rows, -np.inf), np.zeros(rows, np.int64)
+    for i in prange(rows):
+        lo, hi, n = np.inf, -np.inf, 0
         for j in range(z.shape[1]):
             v = z[i, j]
             if valid[i, j] and np.isfinite(v):
                 lo = min(lo, v)
                 hi = max(hi, v)
                 n += 1
+        los[i], his[i], ns[i] = lo, hi, n
+    lo, hi, n = np.inf, -np.inf, 0
+    for i in range(rows):
+        lo = min(lo, los[i])
+        hi = max(hi, his[i])
+        n += ns[i]
     return lo, hi, n
 
 

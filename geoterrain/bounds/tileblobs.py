@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit, prange
 
 from geoterrain.bounds.delta import grid_order
+from geoterrain.bounds.normals import RingCodes
 from geoterrain.bounds.radii import _proxy_positions, _radii_nb
 from geoterrain.bounds.vertexdata import (
     DIFF,
@@ -326,9 +327,10 @@ def _level_payloads(codes, nrm, ys, xs, t, level, new_only, out):
                 m += 1
         dmax[k] = np.float32(np.nan) if dnan else dm
         rmax[k] = np.float32(np.nan) if rnan else rm
-        # normals: the level's own map, tile window at (ys[k] 2^t, xs[k] 2^t)
+        # normals: the level's own map, tile window at (ys[k] 2^t, xs[k] 2^t); none
+        # when ``pn`` has no columns (the normals' blobs not asked for)
         ny0, nx0 = ys[k] * (1 << t), xs[k] * (1 << t)
-        for c in range(2):
+        for c in range(2 if pn.shape[1] > 0 else 0):
             base = c * T * T
             for i in range(T):
                 for j in range(T):
@@ -404,7 +406,7 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     pd = np.empty((k, nnew), np.uint8)
     rlog = coding.rc is not None
     pr = np.empty((k, nnew if rlog else 2 * nnew), np.uint8)
-    pn = np.empty((k, 2 * T * T), np.uint8)
+    pn = np.empty((k, 2 * T * T if "normals" in kinds else 0), np.uint8)
     dmax = np.empty(k, np.float32)
     rmax = np.empty(k, np.float32)
     with cores_for(coding.dc.size):
@@ -482,13 +484,14 @@ def _shaped(p: np.ndarray, head: bytes, windows: np.ndarray
     return rows, [bytes([head[0], head[1] | (int(f) or PRED), head[2]]) for f in flags]
 
 
-def ring_blobs(nrm: np.ndarray, t: int, tiles: Iterable[tuple[int, int]],
+def ring_blobs(nrm: np.ndarray | RingCodes, t: int, tiles: Iterable[tuple[int, int]],
                level: int = 0) -> dict:
     """Normals blobs of level ``level`` (``nrm``: that level's codes) that hold only each
     tile's border ring (4T − 4 samples, as :func:`geoterrain.bounds.vertexdata.ring_planes`,
     zstd): a reader derives the interior from the tile's own heights
     (:meth:`geoterrain.terrain.Terrain.tile_normal_codes`), as the central differences
-    there read no sample outside the tile.
+    there read no sample outside the tile. ``nrm`` may hold the rings' codes alone
+    (:class:`geoterrain.bounds.normals.RingCodes`).
 
     Examples
     --------
@@ -497,7 +500,10 @@ def ring_blobs(nrm: np.ndarray, t: int, tiles: Iterable[tuple[int, int]],
     [(0, 0, 0)]
     """
     xy = np.asarray(list(tiles), np.int64).reshape(-1, 2)
-    rr, cc = ring_index((1 << t) + 1)
-    rings = nrm[(xy[:, 1, None] << t) + rr[None], (xy[:, 0, None] << t) + cc[None]]
+    if isinstance(nrm, RingCodes):  # the codes of the rings alone (ring_normal_codes)
+        rings = nrm.rings(xy, t)
+    else:
+        rr, cc = ring_index((1 << t) + 1)
+        rings = nrm[(xy[:, 1, None] << t) + rr[None], (xy[:, 0, None] << t) + cc[None]]
     keys = [(level, int(x), int(y)) for x, y in xy]
     return dict(zip(keys, compress_rows(ring_planes(rings)), strict=True))

@@ -87,6 +87,73 @@ def _level_field_row(z, vf, s, E, mixed, bi, all_valid):
                                    z[i0 + s, j0 + s]), whole, ok1, ok2, 0, s, E)
 
 
+@parallel_kernel(cache=True)
+def _level_blocks_nb(z, vf, s, cpt, all_valid, bm, hl, vl, mixed):
+    """_level_field_nb's field E reduced where it is made, a band of blocks at a time
+    (blocks: closed squares of ``cpt`` cells of side 1, the level-0 tiles), never held
+    whole: ``bm[bi, bj]`` the max of E over block (bi, bj)'s closed footprint
+    (:func:`closed_blocks` of E), ``hl[bi, bj]`` over its top line (row bi·cpt, columns
+    bj·cpt … (bj + 1)·cpt; ``hl[nbr]`` the last row's), ``vl[bi, bj]`` over its left
+    line (``vl[:, nbc]`` the last column's), ``mixed`` as _level_field_nb's. Each band
+    (rows r0 … r0 + cpt) sweeps the rows of every cell of side s that holds one of them
+    into a field of its own (the cells above and below it: their one row on the band's
+    edge), with :func:`cell_field_rows_nb`, the same values sample by sample: a maximum
+    does not depend on the order. Bands run on every core."""
+    R, C = z.shape
+    nbr, nbc = (R - 1) // cpt, (C - 1) // cpt
+    ncr, ncc = (R - 1) // s, (C - 1) // s
+    for bi in prange(nbr):
+        r0 = bi * cpt
+        r1 = r0 + cpt
+        Eb = np.zeros((cpt + 1, C))
+        zb = z[r0:r1 + 1]
+        for ci in range(max(0, (r0 - 1) // s), min(ncr - 1, r1 // s) + 1):
+            d0 = max(0, r0 - ci * s)
+            d1 = min(s, r1 - ci * s)
+            i0 = ci * s
+            own = r0 <= i0 < r1  # the band that holds the cell's first row marks it
+            for cj in range(ncc):
+                j0 = cj * s
+                main = main_diagonal_nb(ci, cj)
+                whole = ok1 = ok2 = True
+                if not all_valid:
+                    tot, c1, t1, c2, t2 = cell_counts_nb(vf, i0, j0, s, main)
+                    if tot == 0:
+                        continue
+                    whole = tot == (s + 1) * (s + 1)
+                    ok1 = c1 == t1
+                    ok2 = c2 == t2
+                    if not whole:
+                        if own:
+                            mixed[ci, cj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
+                        if not (ok1 or ok2):
+                            continue
+                cell_field_rows_nb(zb, Cell(i0 - r0, j0, s, main, z[i0, j0], z[i0, j0 + s],
+                                            z[i0 + s, j0], z[i0 + s, j0 + s]),
+                                   whole, ok1, ok2, d0, d1, Eb)
+        for bj in range(nbc + 1):
+            j0 = bj * cpt
+            m = 0.0
+            for i in range(cpt + 1):
+                m = max(m, Eb[i, j0])
+            vl[bi, bj] = m
+        for bj in range(nbc):
+            j0 = bj * cpt
+            m = 0.0
+            top = 0.0
+            bottom = 0.0
+            for i in range(cpt + 1):
+                for j in range(j0, j0 + cpt + 1):
+                    m = max(m, Eb[i, j])
+            for j in range(j0, j0 + cpt + 1):
+                top = max(top, Eb[0, j])
+                bottom = max(bottom, Eb[cpt, j])
+            bm[bi, bj] = m
+            hl[bi, bj] = top
+            if bi == nbr - 1:
+                hl[nbr, bj] = bottom
+
+
 @njit(cache=True, nogil=True)
 def cell_counts_nb(vf, i0, j0, s, main):
     """(valid samples, then valid and total samples of each closed triangle) of the closed
@@ -214,11 +281,14 @@ def tile_rows(per_level: list, box0: np.ndarray, nvalid: list
     out: dict[tuple[int, int, int], TileBounds] = {}
     for L, ((err, bnd), box) in enumerate(zip(per_level, boxes, strict=True)):
         nval = nvalid[L]
-        for ty, tx in zip(*np.nonzero(nval > 0), strict=True):
-            out[(L, int(tx), int(ty))] = TileBounds(
-                int(nval[ty, tx]), float(box[0, ty, tx]), float(box[1, ty, tx]),
-                float(err[ty, tx]), float(bnd[ty, tx]), float(box[2, ty, tx]),
-                float(box[3, ty, tx]), float(box[4, ty, tx]), float(box[5, ty, tx]))
+        ty, tx = np.nonzero(nval > 0)
+        cols = (nval[ty, tx].astype(np.int64), box[0, ty, tx], box[1, ty, tx], err[ty, tx],
+                bnd[ty, tx], box[2, ty, tx], box[3, ty, tx], box[4, ty, tx], box[5, ty, tx])
+        # whole columns to Python ints and floats (tolist), one tuple a tile
+        keys = [(L, x, y) for x, y in zip(tx.tolist(), ty.tolist(), strict=True)]
+        rows = zip(*(np.asarray(c, np.float64).tolist() if k else c.tolist()
+                     for k, c in enumerate(cols)), strict=True)
+        out.update(zip(keys, map(TileBounds._make, rows), strict=True))
     return out
 
 
@@ -290,7 +360,6 @@ def tile_and_block_errors(
     cpt = 1 << te  # cells per tile side
     vb = valid.view(np.uint8)
     xc, yc = x, y  # no copy: x and y may be broadcast views (Frame.grid_xy)
-    E = np.zeros((R, C))
     nvalid = footprint_counts(valid, te, lmax) if counts is None else counts
     per_level = []
     nbr, nbc = (R - 1) // cpt, (C - 1) // cpt  # blocks (level-0 tiles) down, across
@@ -305,10 +374,13 @@ def tile_and_block_errors(
                 per_level.append((z0, z0.copy()))
                 box0 = _tile_boxes_nb(zf, xc, yc, vb, S)
                 continue
-            mixed = _level_field_nb(zf, vb, 1 << L, E, all_valid)
-            # max of E over each block (level-0 tile): one pass over the grid; a level-L
-            # tile's closed footprint is the union of its 2^L × 2^L blocks' closed ones
-            bm = closed_blocks(E, cpt, np.maximum)
+            # max of E over each block (level-0 tile) and its top and left lines, where
+            # the field is made; a level-L tile's closed footprint is the union of its
+            # 2^L × 2^L blocks' closed ones, its border lines their lines'
+            s = 1 << L
+            bm, hl = np.empty((nbr, nbc)), np.empty((nbr + 1, nbc))
+            vl, mixed = np.empty((nbr, nbc + 1)), np.zeros(((R - 1) // s, (C - 1) // s), bool)
+            _level_blocks_nb(zf, vb, s, cpt, all_valid, bm, hl, vl, mixed)
             g = 1 << L
             err = bm.reshape(ntr, g, ntc, g).max(axis=(1, 3))
             m4 = mixed.reshape(ntr, cpt, ntc, cpt)
@@ -317,10 +389,8 @@ def tile_and_block_errors(
                 c = 1 << (te - L)  # level-L cells per block side
                 mb = mixed.reshape(nbr, c, nbc, c).any(axis=(1, 3))
                 blocks[..., L] = np.where(mb, np.inf, bm)
-            rows = np.maximum.reduce(E[::S, :-1].reshape(ntr + 1, ntc, S), axis=2)
-            rows = np.maximum(rows, E[::S, S::S])
-            cols = np.maximum.reduce(E[:-1, ::S].reshape(ntr, S, ntc + 1), axis=1)
-            cols = np.maximum(cols, E[S::S, ::S])
+            rows = hl[::g].reshape(ntr + 1, ntc, g).max(axis=2)  # closed segments
+            cols = vl[:, ::g].reshape(ntr, g, ntc + 1).max(axis=1)
             bnd = np.maximum(np.maximum(rows[:-1], rows[1:]), np.maximum(cols[:, :-1], cols[:, 1:]))
             border = (m4[:, 0].any(axis=2) | m4[:, -1].any(axis=2)
                       | m4[:, :, :, 0].any(axis=1) | m4[:, :, :, -1].any(axis=1))

@@ -65,7 +65,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from geoterrain.codec import entropy
 from geoterrain.codec.entropy import MASK_ALL_INVALID, MASK_ALL_VALID, MASK_STORED
@@ -79,7 +79,7 @@ from geoterrain.codec.predict import (
 )
 from geoterrain.codec.quantize import Quantizer, codes_to_heights, roundtrip, valid_codes
 from geoterrain.core.grid import footprint_counts, level_tiles
-from geoterrain.core.threads import cores_for
+from geoterrain.core.threads import cores_for, parallel_kernel
 from geoterrain.core.zstdsafe import compress_many, decompress
 
 __all__ = [
@@ -522,31 +522,41 @@ def _wide_blobs(lev, d, valid, s, h, te, ys, xs, kinds, cubic) -> dict:
                          zz, zmax)
     # each tile's byte width w: the fewest bytes holding its largest residual (0: none)
     ws = np.select([zmax == 0, zmax < 1 << 8, zmax < 1 << 16, zmax < 1 << 32], [0, 1, 2, 4], 8)
-    bodies = [b""] * ys.size
-    for w in (1, 2, 4, 8):  # the byte planes of all the tiles of one width in one pass
-        rows = np.flatnonzero(ws == w)
-        if rows.size:
-            planes = np.ascontiguousarray(
-                zz[rows].astype(np.dtype(_UINTS[w]).newbyteorder("<")).view(np.uint8)
-                .reshape(rows.size, -1, w).transpose(0, 2, 1))
-            for r, q in enumerate(rows.tolist()):
-                bodies[q] = planes[r].tobytes()
-    heads, payloads, cache = [], [], {}
-    for q, (k, w) in enumerate(zip(kinds.tolist(), ws.tolist(), strict=True)):
+    # every payload in one buffer: [packbits(mask) when stored] + the w byte planes
+    stored = kinds == MASK_STORED
+    masks = np.where(stored, (tt * tt + 7) // 8, 0)
+    off = np.zeros(ys.size + 1, np.int64)
+    np.cumsum(masks + ws * zz.shape[1], out=off[1:])
+    buf = np.empty(off[-1], np.uint8)
+    _byte_planes(zz, ws.astype(np.int64), off[:-1] + masks, buf)
+    for q in np.flatnonzero(stored).tolist():
+        i0, j0 = int(ys[q]) * 2 * h * s, int(xs[q]) * 2 * h * s
+        buf[off[q]:off[q] + masks[q]] = np.packbits(valid[i0:i0 + (tt - 1) * s + 1:s,
+                                                          j0:j0 + (tt - 1) * s + 1:s])
+    heads, cache = [], {}
+    for k, w in zip(kinds.tolist(), ws.tolist(), strict=True):
         hd = cache.get((k, w))
         if hd is None:
             hd = cache[(k, w)] = _header(False, int(k), te, cubic, int(w))
         heads.append(hd)
-        if k == MASK_STORED:
-            i0, j0 = int(ys[q]) * 2 * h * s, int(xs[q]) * 2 * h * s
-            payloads.append(np.packbits(valid[i0:i0 + (tt - 1) * s + 1:s,
-                                              j0:j0 + (tt - 1) * s + 1:s]).tobytes() + bodies[q])
-        else:
-            payloads.append(bodies[q])
-    del bodies
-    frames = compress_many(payloads, _WIDE_LEVEL)
+    view = memoryview(buf)
+    frames = compress_many([view[a:b] for a, b in zip(off[:-1].tolist(), off[1:].tolist(),
+                                                      strict=True)], _WIDE_LEVEL)
     return {(lev, int(x), int(y)): hd + f
             for x, y, hd, f in zip(xs.tolist(), ys.tolist(), heads, frames, strict=True)}
+
+
+@parallel_kernel(cache=True, nogil=True)
+def _byte_planes(zz, ws, at, out):
+    """Row q of ``zz`` as ``ws[q]`` little-endian byte planes (all byte 0s, then all
+    byte 1s, ...) into ``out[at[q]:]``, rows on every core (the wide blobs' bodies)."""
+    n = zz.shape[1]
+    for q in prange(zz.shape[0]):
+        a = at[q]
+        for b in range(ws[q]):
+            sh = np.uint64(8 * b)
+            for k in range(n):
+                out[a + b * n + k] = np.uint8((zz[q, k] >> sh) & np.uint64(0xFF))
 
 
 def _encode_tiles(d, valid, s, h, cubic, ys, xs, kinds, cap, bins) -> list[bytes]:

@@ -10,7 +10,7 @@ band by band).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from geoterrain.codec.quantizer import (  # noqa: F401 - the quantizer is this module's API
     _I32_MAX,
@@ -20,6 +20,7 @@ from geoterrain.codec.quantizer import (  # noqa: F401 - the quantizer is this m
     MAX_BINS,
     Quantizer,
 )
+from geoterrain.core.threads import parallel_kernel, serial_for
 
 __all__ = ["Quantizer", "codes_to_heights", "heights_to_codes", "roundtrip", "tile_heights",
            "valid_codes"]
@@ -166,15 +167,16 @@ def _finish_nb(h, valid, factor, from_codes, step, offset, codes):  # pragma: no
     return lo, hi, n
 
 
-@njit(cache=True, nogil=True)
+@parallel_kernel(cache=True, nogil=True)
 def _roundtrip_nb(z, valid, mode, step, offset, out):
     """``codes_to_heights(heights_to_codes(z))`` where valid, NaN elsewhere, in one pass
     (mode 0: int/quantized, 1: float32, 2: float64, 3 and 4: decimal to float32 and
-    float64). Returns the largest |code| seen (invalid samples count as height 0, as
-    :func:`heights_to_codes` sees them)."""
-    peak = 0.0
+    float64), rows on every core. Returns the largest |code| seen (invalid samples count
+    as height 0, as :func:`heights_to_codes` sees them)."""
+    peaks = np.zeros(z.shape[0])
     div = np.float64(np.rint(1.0 / step))
-    for i in range(z.shape[0]):
+    for i in prange(z.shape[0]):
+        peak = 0.0
         for j in range(z.shape[1]):
             ok = valid[i, j]
             x = z[i, j] if ok else 0.0
@@ -188,7 +190,8 @@ def _roundtrip_nb(z, valid, mode, step, offset, out):
                 c = np.float64(np.int64(r))
                 h = _decimal_value(c, div, mode == 3) if mode >= 3 else offset + c * step
             out[i, j] = h if ok else np.nan
-    return peak
+        peaks[i] = peak
+    return peaks.max() if peaks.size else 0.0
 
 
 def roundtrip(z: np.ndarray, valid: np.ndarray, quantizer: Quantizer) -> np.ndarray:
@@ -214,22 +217,26 @@ def _whole_grid(kernel, dtype, z, valid, quantizer: Quantizer) -> np.ndarray:
     if quantizer.mode == "decimal":  # codes as the int modes'; decoded as decimals
         mode = 3 if quantizer.float_bits == 32 else 4
     z2, v2, o2 = (a.reshape(1, -1) if a.ndim != 2 else a for a in (z, valid, out))
-    peak = kernel(z2, v2, mode, float(quantizer.step), float(quantizer.offset), o2)
+    # rows on every core for a whole grid, on this thread for a tile (threads.py)
+    run = kernel.serial if serial_for(z.size) else kernel.parallel
+    peak = run(z2, v2, mode, float(quantizer.step), float(quantizer.offset), o2)
     if peak >= 2.0**62:
         raise ValueError("heights out of range for the quantizer step")
     return out
 
 
-@njit(cache=True, nogil=True)
+@parallel_kernel(cache=True, nogil=True)
 def _codes_nb(z, valid, mode, step, offset, out):
     """:func:`heights_to_codes` of ``where(valid, z, 0)`` in one pass (modes as in
-    :func:`_roundtrip_nb`); returns the largest |rounded code| of modes int/quantized."""
-    f32 = np.empty(1, np.float32)
-    i32 = f32.view(np.int32)
-    f64 = np.empty(1, np.float64)
-    i64 = f64.view(np.int64)
-    peak = 0.0
-    for i in range(z.shape[0]):
+    :func:`_roundtrip_nb`), rows on every core; returns the largest |rounded code| of
+    modes int/quantized."""
+    peaks = np.zeros(z.shape[0])
+    for i in prange(z.shape[0]):
+        f32 = np.empty(1, np.float32)
+        i32 = f32.view(np.int32)
+        f64 = np.empty(1, np.float64)
+        i64 = f64.view(np.int64)
+        peak = 0.0
         for j in range(z.shape[1]):
             x = z[i, j] if valid[i, j] else 0.0
             if mode == 1:  # (modes 3 and 4, decimal, code as mode 0)
@@ -244,7 +251,8 @@ def _codes_nb(z, valid, mode, step, offset, out):
                 r = _rounded(x, step, offset)
                 peak = max(peak, abs(r))
                 out[i, j] = np.int64(r) if abs(r) < 2.0**62 else 0
-    return peak
+        peaks[i] = peak
+    return peaks.max() if peaks.size else 0.0
 
 
 def valid_codes(z: np.ndarray, valid: np.ndarray, quantizer: Quantizer) -> np.ndarray:

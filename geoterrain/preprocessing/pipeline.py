@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,7 +25,7 @@ from geoterrain.bounds.edgepad import (
     has_padding,
 )
 from geoterrain.bounds.leafbounds import geographic_leaf_delta
-from geoterrain.bounds.normals import level_normal_codes
+from geoterrain.bounds.normals import level_normal_codes, ring_normal_codes
 from geoterrain.bounds.radii import stand_in_z, valid_range, vertex_radii
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, radius_codes, ring_blobs
 from geoterrain.bounds.tilebounds import tile_and_block_errors
@@ -48,7 +49,7 @@ from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.ingest.remote import is_url
 from geoterrain.preprocessing.request import Request, place, request
 from geoterrain.preprocessing.streaming import stream, streaming_band
-from geoterrain.store.database import StoreWriter
+from geoterrain.store.database import StoreThread, StoreWriter
 
 log = logging.getLogger("geoterrain")
 STAGES = ("read", "pad", "quantise", "errors", "radii", "tile bounds", "normals", "compress",
@@ -237,25 +238,37 @@ def preprocess(
         # one map per level, central differences of the level's own samples (seed 000
         # normal-map lighting): a reader rebuilds each tile's from its heights and ring
         with cores_for(surface.Z.size):  # a small grid: the serial twins (core/threads.py)
-            normal_maps = level_normal_codes(surface.X, surface.Y, surface.Z, surface.valid,
-                                             dem.grid.top_level + 1, NORMAL_BITS)
+            if derive_normals:  # only the rings are stored: only they are mapped
+                normal_maps = ring_normal_codes(surface.X, surface.Y, surface.Z,
+                                                surface.valid, dem.grid.top_level + 1,
+                                                dem.grid.t, NORMAL_BITS)
+            else:
+                normal_maps = level_normal_codes(surface.X, surface.Y, surface.Z,
+                                                 surface.valid, dem.grid.top_level + 1,
+                                                 NORMAL_BITS)
         stage("normals")
-        blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals, counts)
-        del normal_maps
-        stage("compress")
-        meta = dict(source=req.name, source_dtype=dem.raster.src_dtype,
-                    source_nodata=dem.raster.nodata, encoding=dem.raster.encoding,
-                    grid=dem.grid.to_json(), frame=dem.frame.to_json(),
-                    quantizer=surface.q.to_json(),
-                    normals_derived=(list(range(dem.grid.top_level + 1)) if derive_normals
-                                     else []),
-                    valid_samples=dem.valid_samples, samples=dem.raster.valid.size,
-                    height_range=surface.height_range,
-                    delta_max_finite=delta_max_finite(bounds.delta),
-                    edge_max=blobs.edge_max if has_padding(dem.grid) else None,
-                    stand_in_z=stand_in_z(surface.Z, surface.valid),
-                    block_delta_levels=int(blocks.shape[2]))
-        write_store(req, dem.grid, blobs, blocks, meta, stage)
+        # the store's rows are inserted on a thread of their own, the height blobs' while
+        # the δ, r and normals blobs are coded (the same calls, in the same order, as
+        # on one thread: the same bytes); any error drops the partial file
+        with StoreThread(req.dst, overwrite=req.overwrite) as store:
+            blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals, counts,
+                               on_heights=lambda hb: store.put_blobs("heights", hb))
+            del normal_maps
+            stage("compress")
+            meta = dict(source=req.name, source_dtype=dem.raster.src_dtype,
+                        source_nodata=dem.raster.nodata, encoding=dem.raster.encoding,
+                        grid=dem.grid.to_json(), frame=dem.frame.to_json(),
+                        quantizer=surface.q.to_json(),
+                        normals_derived=(list(range(dem.grid.top_level + 1)) if derive_normals
+                                         else []),
+                        valid_samples=dem.valid_samples, samples=dem.raster.valid.size,
+                        height_range=surface.height_range,
+                        delta_max_finite=delta_max_finite(bounds.delta),
+                        edge_max=blobs.edge_max if has_padding(dem.grid) else None,
+                        stand_in_z=stand_in_z(surface.Z, surface.valid),
+                        block_delta_levels=int(blocks.shape[2]))
+            write_rows(store, dem.grid, blobs, blocks, meta, heights=False)
+        stage("write")
     return req.dst
 
 
@@ -434,8 +447,9 @@ class TileBlobs:
 
 
 def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
-               normal_maps: list[np.ndarray], derive_normals: bool,
-               counts: list[np.ndarray] | None = None) -> TileBlobs:
+               normal_maps: list, derive_normals: bool,
+               counts: list[np.ndarray] | None = None,
+               on_heights: Callable[[dict], None] | None = None) -> TileBlobs:
     """The height pyramid's blobs (the residual codec), and every tile's δ, r, normals and
     δ_edge blobs with its tile-table row.
 
@@ -446,6 +460,8 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     a second δ, the static mesh's (:mod:`geoterrain.bounds.edgepad`), coded with the same
     table as δ, so the two agree wherever their raw values do. ``counts``: the valid
     samples per tile footprint (:func:`geoterrain.core.grid.footprint_counts`), if known.
+    ``on_heights``: called with the height blobs as soon as they are coded (the store's
+    writer inserts them while the rest is coded).
     """
     grid, frame, valid, Z = dem.grid, dem.frame, s.valid, s.Z
     height_blobs = s.height_blobs
@@ -453,6 +469,8 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
         height_blobs = grid.held(encode_pyramid(s.heights, valid, grid.t, s.q,
                                                 predictor=s.predictor, roots=grid.codec_roots,
                                                 counts=counts))
+    if on_heights is not None:
+        on_heights(height_blobs)
     delta = b.delta
     edge = d_edge = None
     if has_padding(grid):
@@ -480,13 +498,15 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
         edge_only = edge_only_tiles(edge.dc, grid, set(height_blobs))
     tile_rows: dict = {}
     extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}, "delta_edge": {}}
+    no_map = np.zeros((0, 0, 2), np.uint8)  # level_blobs without normals reads none
     edge_max: list = []
     for L in grid.levels:
         keys = [k for k in height_blobs if k[0] == L]
         if not keys:
             continue
         # every level's rings: the rest is derived from the heights on read
-        blobs, dmax, rmax = level_blobs(coding, normal_maps[L], grid.t, L, grid.top_level,
+        blobs, dmax, rmax = level_blobs(coding, no_map if derive_normals else normal_maps[L],
+                                        grid.t, L, grid.top_level,
                                         [(x, y) for _, x, y in keys],
                                         ("delta", "radius") if derive_normals else
                                         ("delta", "radius", "normals"),
@@ -510,7 +530,7 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
             ekeys = [(x, y) for L2, x, y in keys_e if L2 == L]
             if not ekeys:
                 continue
-            eb, emax, _ = level_blobs(edge, normal_maps[L], grid.t, L, top, ekeys, ("delta",),
+            eb, emax, _ = level_blobs(edge, no_map, grid.t, L, top, ekeys, ("delta",),
                                       base=base)
             extra["delta_edge"].update(eb["delta"])
             edge_max += [[L, x, y, m if np.isfinite(m) else None]
@@ -556,14 +576,24 @@ def write_store(req: Request, grid: Grid, blobs: TileBlobs, blocks: np.ndarray, 
     """Write the store atomically: every blob, the tile table, the GeoMipMapping blocks'
     δ_n and the metadata, published as ``req.dst`` only when complete."""
     with StoreWriter(req.dst, overwrite=req.overwrite) as w:
-        w.put_blobs("heights", blobs.heights)
-        for kind, b in tile_row_order(blobs.extra, set(blobs.heights)):
-            w.put_blobs(kind, b)
-        w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
-        w.put_tiles(blobs.tile_rows)
-        w.put_metadata(store_metadata(**meta))
-        w.commit()
+        write_rows(w, grid, blobs, blocks, meta)
     stage("write")
+
+
+def write_rows(w: StoreWriter | StoreThread, grid: Grid, blobs: TileBlobs,
+               blocks: np.ndarray, meta: dict, heights: bool = True) -> None:
+    """Every row of the store into ``w`` and its commit: the height blobs (unless
+    ``heights`` is False: given already), the δ, r, normals and δ_edge blobs in the
+    streamed preprocess's order (:func:`tile_row_order`), the GeoMipMapping blocks' δ_n,
+    the tile table and the metadata."""
+    if heights:
+        w.put_blobs("heights", blobs.heights)
+    for kind, b in tile_row_order(blobs.extra, set(blobs.heights)):
+        w.put_blobs(kind, b)
+    w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
+    w.put_tiles(blobs.tile_rows)
+    w.put_metadata(store_metadata(**meta))
+    w.commit()
 
 
 def cached_store_path(dem: str | Path) -> Path:

@@ -396,6 +396,89 @@ class StoreWriter:
             self.abort()
 
 
+class StoreThread:
+    """A :class:`StoreWriter` on a thread of its own: its calls (``put_blobs``,
+    ``put_tiles``, ``put_metadata``) run there in the order given, while the caller
+    goes on (the rows of blobs already made are inserted while the next are coded);
+    :meth:`commit` waits for them and publishes the store, the same bytes as the same
+    calls on a :class:`StoreWriter`. After a failed call none runs (so no commit follows
+    a failure); :meth:`commit` raises its error. :meth:`abort` (or leaving the ``with``
+    block without a commit) drops the partial file.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> dst = os.path.join(tempfile.mkdtemp(), "a.geoterrain")
+    >>> with StoreThread(dst) as w:
+    ...     w.put_metadata({"note": "hi"})
+    ...     w.put_blob((0, 0, 0), "heights", b"x")
+    ...     _ = w.commit()
+    >>> StoreReader(dst).metadata["note"]
+    'hi'
+    """
+
+    def __init__(self, dst: str | Path, overwrite: bool = False):
+        import queue
+
+        self._calls: queue.SimpleQueue = queue.SimpleQueue()
+        self._error: BaseException | None = None
+        self._done: Path | None = None
+        self._thread = threading.Thread(target=self._run, args=(dst, overwrite),
+                                        name="geoterrain-store", daemon=True)
+        self._thread.start()
+
+    def _run(self, dst, overwrite) -> None:
+        try:
+            with StoreWriter(dst, overwrite=overwrite) as w:
+                while (call := self._calls.get()) is not None:
+                    name, args = call
+                    out = getattr(w, name)(*args)
+                    if name == "commit":
+                        self._done = out
+                        return
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller's commit
+            self._error = exc
+
+    def _call(self, name: str, *args) -> None:
+        if self._error is None and self._thread.is_alive():
+            self._calls.put((name, args))
+
+    def put_metadata(self, items: dict) -> None:
+        self._call("put_metadata", json.loads(json.dumps(items)))  # a copy, now
+
+    def put_blob(self, key: tuple[int, int, int], kind: str, data: bytes) -> None:
+        self.put_blobs(kind, {key: data})
+
+    def put_blobs(self, kind: str, blobs: dict[tuple[int, int, int], bytes]) -> None:
+        self._call("put_blobs", kind, blobs)
+
+    def put_tiles(self, rows: dict[tuple[int, int, int], tuple]) -> None:
+        self._call("put_tiles", rows)
+
+    def commit(self) -> Path:
+        """Wait for every call, then commit and publish (:meth:`StoreWriter.commit`)."""
+        self._call("commit")
+        self._calls.put(None)  # ends the thread if a failure stopped the calls
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        if self._done is None:
+            raise WriteError("the store's writer stopped before its commit")
+        return self._done
+
+    def abort(self) -> None:
+        """Stop the thread; the partial file is dropped, the destination untouched."""
+        self._calls.put(None)
+        self._thread.join()
+
+    def __enter__(self) -> StoreThread:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if self._thread.is_alive():
+            self.abort()
+
+
 class StoreReader:
     """Read a store, verifying schema, completeness and checksums.
 

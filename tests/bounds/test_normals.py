@@ -488,3 +488,44 @@ def test_level_normal_codes_by_bands_are_the_maps_codes(k, band, seed, voids, bi
     assert len(got) == levels
     for g, w in zip(got, want, strict=True):
         assert g.dtype == w.dtype and np.array_equal(g, w)
+
+
+@pytest.mark.fast
+@settings(max_examples=40, deadline=None)
+@given(k=st.integers(1, 6), t=st.integers(1, 4), wide=st.integers(1, 3),
+       seed=st.integers(0, 2**31 - 1), voids=st.floats(0.0, 0.6),
+       bits=st.sampled_from([8, 16]), projected=st.booleans())
+def test_ring_normal_codes_are_the_full_codes_on_the_rings(k, t, wide, seed, voids, bits,
+                                                            projected):
+    """The codes of the tiles' rings alone (three-line strips stacked) are the whole maps'
+    codes on every ring row and column, and every tile's ring gathers the full map's, on
+    squares and root grids' rectangles, with voids, on curvilinear and broadcast x, y."""
+    from geoterrain.bounds.normals import ring_normal_codes
+    from geoterrain.bounds.tileblobs import ring_blobs
+
+    t = min(t, k)
+    rng = np.random.default_rng(seed)
+    R, C = (1 << k) + 1, wide * (1 << k) + 1
+    i, j = np.indices((R, C), dtype=np.float64)
+    if projected:  # read-only broadcast views, as Frame.grid_xy gives
+        x = np.broadcast_to(np.arange(C) * 10.0, (R, C))
+        y = np.broadcast_to((-np.arange(R) * 10.0)[:, None], (R, C))
+    else:
+        x = j + 0.2 * rng.normal(size=i.shape)
+        y = -i + 0.2 * rng.normal(size=i.shape)
+    z = rng.normal(0, 3, i.shape)
+    valid = rng.random(i.shape) >= voids
+    levels = k - t + 1
+    full = level_normal_codes(x, y, z, valid, levels, bits)
+    rings = ring_normal_codes(x, y, z, valid, levels, t, bits)
+    assert len(rings) == levels
+    for L, (f, r) in enumerate(zip(full, rings, strict=True)):
+        step = 1 << t
+        assert r.lines_r.tolist() == list(range(0, f.shape[0], step))
+        assert r.lines_c.tolist() == list(range(0, f.shape[1], step))
+        assert r.rows.dtype == f.dtype and np.array_equal(r.rows, f[r.lines_r])
+        assert np.array_equal(r.cols, f[:, r.lines_c])
+        if bits == 8:  # the stored blobs of every tile of the level
+            tiles = [(tx, ty) for ty in range((f.shape[0] - 1) >> t)
+                     for tx in range((f.shape[1] - 1) >> t)]
+            assert ring_blobs(r, t, tiles, L) == ring_blobs(f, t, tiles, L)

@@ -430,6 +430,33 @@ def test_the_compiled_roundtrip_is_the_codes_roundtrip(q, seed, mag):
 
 
 @pytest.mark.fast
+@settings(max_examples=10, deadline=None)
+@given(q=st.sampled_from(_QUANTIZERS), seed=st.integers(0, 2**31))
+def test_a_whole_grid_s_codes_and_roundtrip_on_every_core_are_one_thread_s(q, seed):
+    """A grid above the one-thread size runs its rows on every core: the same codes and
+    heights, bit for bit, as the rows in order, and a code out of range is still refused."""
+    from geoterrain.codec.quantize import _codes_nb, _roundtrip_nb, valid_codes
+    from geoterrain.core.threads import PARALLEL_MIN_SAMPLES
+
+    rng = np.random.default_rng(seed)
+    rows = PARALLEL_MIN_SAMPLES // 700 + 3
+    z = rng.normal(0, 1e3, (rows, 700))
+    valid = rng.random(z.shape) < 0.9
+    mode = (1 if q.float_bits == 32 else 2) if q.mode == "float" else 0
+    for kernel, dtype, fn in ((_roundtrip_nb, np.float64, roundtrip),
+                              (_codes_nb, np.int64, valid_codes)):
+        want = np.empty(z.shape, dtype)
+        peak = kernel.serial(z, valid, mode, float(q.step), float(q.offset), want)
+        got = np.empty(z.shape, dtype)
+        assert kernel.parallel(z, valid, mode, float(q.step), float(q.offset), got) == peak
+        assert got.tobytes() == want.tobytes() == fn(z, valid, q).tobytes()
+    if q.mode == "int":
+        z[rows - 1, 5] = q.offset + 2.0**63 * q.step
+        with pytest.raises(ValueError, match="out of range"):
+            valid_codes(z, np.ones(z.shape, bool), q)
+
+
+@pytest.mark.fast
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**31), places=st.integers(1, 4), m=st.integers(1, 8),
        binary=st.booleans(), dtype=st.sampled_from([np.float16, np.float32, np.float64]),

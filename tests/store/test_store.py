@@ -53,6 +53,50 @@ def test_incomplete_temp_file_is_never_a_valid_store(tmp_path):
 
 
 @pytest.mark.fast
+def test_the_writer_thread_writes_the_writer_s_bytes(tmp_path):
+    """The same calls on a StoreThread (run on its own thread) and on a StoreWriter give
+    the same file, byte for byte."""
+    from geoterrain.store.database import StoreThread
+
+    rng = np.random.default_rng(5)
+    blobs = {(0, x, y): rng.integers(0, 256, int(rng.integers(1, 3000)), np.uint8).tobytes()
+             for x in range(9) for y in range(7)}
+    rows = {(0, x, y): (3, 0.0, 1.0, 0.5, 0.25, 0.0, 1.0, 0.0, 1.0, 0.5, 0.5)
+            for x in range(9) for y in range(7)}
+    files = []
+    for cls in (StoreWriter, StoreThread):
+        dst = tmp_path / f"{cls.__name__}.geoterrain"
+        with cls(dst) as w:
+            w.put_blobs("heights", blobs)
+            w.put_blobs("delta", {k: b[:5] for k, b in blobs.items()})
+            w.put_tiles(rows)
+            w.put_metadata({"grid": {"rows": 9, "cols": 9, "n": 3, "t": 2}})
+            assert w.commit() == dst
+        files.append(dst.read_bytes())
+    assert files[0] == files[1]
+
+
+@pytest.mark.fast
+def test_a_failure_while_the_writer_thread_runs_leaves_nothing(tmp_path, fbm_tif, monkeypatch):
+    """An error in the coding after the height blobs went to the store's thread stops it:
+    no store, no partial file, no thread left."""
+    import threading
+
+    from geoterrain.preprocessing import pipeline
+
+    def boom(*a, **k):
+        raise RuntimeError("coding failed")
+
+    monkeypatch.setattr(pipeline, "level_blobs", boom)
+    dst = tmp_path / "s.geoterrain"
+    with pytest.raises(RuntimeError, match="coding failed"):
+        geoterrain.preprocess(fbm_tif, dst)
+    assert not dst.exists()
+    assert list(tmp_path.glob(".*partial*")) == []
+    assert not [t for t in threading.enumerate() if t.name == "geoterrain-store"]
+
+
+@pytest.mark.fast
 def test_failure_mid_write_leaves_nothing(tmp_path, fbm_tif, monkeypatch):
     def boom(*a, **k):
         raise OSError(28, "No space left on device")
