@@ -9,6 +9,7 @@ never mapped, so what it holds does not count against the process's resident mem
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import tempfile
@@ -152,6 +153,12 @@ class ScratchArrays:
             at = ((r0 + k * step) * nc + c0) * dt.itemsize
             if os.pwrite(self._fd[name], data, at) != len(data):
                 raise OSError(f"scratch array {name}: short write")
+
+    def __del__(self) -> None:
+        # an on-disk set dropped without close() (or a with block) still gives its file
+        # descriptors back: a long process (a server, a test run) would run out of them
+        with contextlib.suppress(Exception):
+            self.close()
 
     def close(self) -> None:
         for fd in self._fd.values():

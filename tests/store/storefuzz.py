@@ -318,9 +318,13 @@ def run_cases(store: Path, n: int, seed: int, workdir: Path) -> dict:
             os.close(r)
             _worker(store, start, n, seed, workdir, w)
         os.close(w)
+        poll = select.poll()
+        poll.register(r, select.POLLIN)
         buf, current = b"", None
         while True:
-            ready, _, _ = select.select([r], [], [], CASE_TIMEOUT_S + 30)
+            # poll, not select: select refuses descriptors ≥ 1024, which a long test
+            # process may hold
+            ready = poll.poll((CASE_TIMEOUT_S + 30) * 1000)
             if not ready:  # stuck: a hang (the memory limit cannot stop a CPU loop)
                 os.kill(pid, signal.SIGKILL)
                 break
