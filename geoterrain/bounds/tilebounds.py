@@ -232,9 +232,10 @@ def tile_rows(per_level: list, box0: np.ndarray, nvalid: list
 class TileTable:
     """The stored tiles' bounds as two arrays, not a dict of tuples: ``keys`` (n, 3) int64
     (L, x, y) in sorted order and ``rows`` (n, 9) float64 in :class:`TileBounds`' order
-    (``nvalid`` exact). 16385² at tile size 64 has 87 381 tiles: 7 MB here, about 40 MB
-    as :func:`tile_rows`' dict of named tuples of Python floats, held from the tile pass
-    to the store's writing (docs/lab/streaming.md).
+    (``nvalid`` exact). 16385² at tile size 64 has 87 381 tiles: 8.4 MB here; as
+    :func:`tile_rows`' dict, held by the streamed preprocess from its tile pass to the
+    store's writing, 36.5 MB traced (named tuples, Python floats, keys: 418 bytes a tile;
+    docs/lab/streaming.md).
 
     Examples
     --------
