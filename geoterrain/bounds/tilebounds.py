@@ -234,7 +234,7 @@ class TileTable:
     (L, x, y) in sorted order and ``rows`` (n, 9) float64 in :class:`TileBounds`' order
     (``nvalid`` exact). 16385² at tile size 64 has 87 381 tiles: 8.4 MB here; as
     :func:`tile_rows`' dict, held by the streamed preprocess from its tile pass to the
-    store's writing, 36.5 MB traced (named tuples, Python floats, keys: 418 bytes a tile;
+    store's writing, 36.5 MB traced (named tuples, Python floats, keys: 438 bytes a tile;
     docs/lab/streaming.md).
 
     Examples
