@@ -19,7 +19,7 @@ from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.grid import footprint_counts
 from geoterrain.core.threads import cores_for, parallel_kernel
 
-__all__ = ["TileBounds", "tile_and_block_errors", "tile_errors"]
+__all__ = ["TileBounds", "TileTable", "tile_and_block_errors", "tile_errors", "tile_table"]
 
 
 def closed_blocks(a: np.ndarray, s: int, op, dtype=None) -> np.ndarray:
@@ -260,12 +260,9 @@ def _tile_boxes_nb(z, x, y, vb, S):
     return box
 
 
-def tile_rows(per_level: list, box0: np.ndarray, nvalid: list
-              ) -> dict[tuple[int, int, int], TileBounds]:
-    """The stored tiles' :class:`TileBounds` from each level's (error, boundary error)
-    arrays, level 0's boxes (6, tiles down, tiles across) and the footprint counts: boxes
-    pooled up the levels (a parent's closed footprint is the union of its children's),
-    errors made monotone up the quadtree."""
+def _pooled(per_level: list, box0: np.ndarray) -> list[np.ndarray]:
+    # each level's boxes pooled up from level 0's (a parent's closed footprint is the
+    # union of its children's); the errors made monotone up the quadtree (in place)
     boxes = [box0]
     for err, _ in per_level[1:]:
         ntr, ntc = err.shape
@@ -278,6 +275,16 @@ def tile_rows(per_level: list, box0: np.ndarray, nvalid: list
         child = per_level[L - 1][0]
         cmax = child.reshape(child.shape[0] // 2, 2, child.shape[1] // 2, 2).max(axis=(1, 3))
         np.maximum(per_level[L][0], cmax, out=per_level[L][0])
+    return boxes
+
+
+def tile_rows(per_level: list, box0: np.ndarray, nvalid: list
+              ) -> dict[tuple[int, int, int], TileBounds]:
+    """The stored tiles' :class:`TileBounds` from each level's (error, boundary error)
+    arrays, level 0's boxes (6, tiles down, tiles across) and the footprint counts: boxes
+    pooled up the levels (a parent's closed footprint is the union of its children's),
+    errors made monotone up the quadtree (:func:`tile_table`: the same as arrays)."""
+    boxes = _pooled(per_level, box0)
     out: dict[tuple[int, int, int], TileBounds] = {}
     for L, ((err, bnd), box) in enumerate(zip(per_level, boxes, strict=True)):
         nval = nvalid[L]
@@ -290,6 +297,74 @@ def tile_rows(per_level: list, box0: np.ndarray, nvalid: list
                      for k, c in enumerate(cols)), strict=True)
         out.update(zip(keys, map(TileBounds._make, rows), strict=True))
     return out
+
+
+class TileTable:
+    """The stored tiles' bounds as two arrays, not a dict of tuples: ``keys`` (n, 3) int64
+    (L, x, y) in sorted order and ``rows`` (n, 9) float64 in :class:`TileBounds`' order
+    (``nvalid`` exact). 16385² at tile size 64 has 87 381 tiles: 8.4 MB here; as
+    :func:`tile_rows`' dict, held by the streamed preprocess from its tile pass to the
+    store's writing, 36.5 MB traced (named tuples, Python floats, keys: 438 bytes a tile;
+    docs/lab/streaming.md).
+
+    Examples
+    --------
+    >>> t = TileTable.from_dict({(1, 0, 0): TileBounds(9, 0.0, 2.0, 0.5, 0.25, 0, 1, 0, 1),
+    ...                          (0, 1, 0): TileBounds(4, 1.0, 2.0, 0.0, 0.0, 1, 2, 0, 1)})
+    >>> t.keys.tolist(), t.bounds(1)[:4]
+    ([[0, 1, 0], [1, 0, 0]], (9, 0.0, 2.0, 0.5))
+    >>> TileTable.from_dict(t.to_dict()).rows.tolist() == t.rows.tolist()
+    True
+    """
+
+    __slots__ = ("keys", "rows")
+
+    def __init__(self, keys: np.ndarray, rows: np.ndarray) -> None:
+        self.keys = np.asarray(keys, np.int64).reshape(-1, 3)
+        self.rows = np.asarray(rows, np.float64).reshape(len(self.keys), len(TileBounds._fields))
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+    def __getstate__(self) -> tuple:  # (a pass's result crosses to a worker process)
+        return self.keys, self.rows
+
+    def __setstate__(self, state: tuple) -> None:
+        self.keys, self.rows = state
+
+    def bounds(self, i: int) -> TileBounds:
+        """Row ``i`` as a :class:`TileBounds` (``nvalid`` an int, the rest Python floats)."""
+        r = self.rows[i].tolist()
+        return TileBounds(int(r[0]), *r[1:])
+
+    def to_dict(self) -> dict[tuple[int, int, int], TileBounds]:
+        """:func:`tile_rows`' dict (in key order)."""
+        return {tuple(k): self.bounds(i) for i, k in enumerate(self.keys.tolist())}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> TileTable:
+        """The table of a :func:`tile_rows` dict."""
+        keys = np.array(sorted(d), np.int64).reshape(-1, 3)
+        return cls(keys, np.array([d[tuple(k)] for k in keys.tolist()], np.float64))
+
+
+def tile_table(per_level: list, box0: np.ndarray, nvalid: list) -> TileTable:
+    """:func:`tile_rows` as a :class:`TileTable`: the same tiles and numbers, gathered
+    with whole-array indexing, level by level (no Python object per tile)."""
+    boxes = _pooled(per_level, box0)
+    keys, rows = [], []
+    for L, ((err, bnd), box) in enumerate(zip(per_level, boxes, strict=True)):
+        nval = nvalid[L]
+        ty, tx = np.nonzero(nval > 0)
+        keys.append(np.stack([np.full(len(ty), L), tx, ty], axis=1))
+        b = box[:, ty, tx].astype(np.float64)  # (6, k): zmin, zmax, xmin, xmax, ymin, ymax
+        rows.append(np.stack([nval[ty, tx].astype(np.float64), b[0], b[1],
+                              err[ty, tx].astype(np.float64),
+                              bnd[ty, tx].astype(np.float64), b[2], b[3], b[4], b[5]], axis=1))
+    k = np.concatenate(keys).astype(np.int64) if keys else np.zeros((0, 3), np.int64)
+    r = np.concatenate(rows) if rows else np.zeros((0, len(TileBounds._fields)))
+    order = np.lexsort((k[:, 2], k[:, 1], k[:, 0]))  # (L, x, y), sorted as tuples sort
+    return TileTable(k[order], r[order])
 
 
 def tile_errors(

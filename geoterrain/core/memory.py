@@ -65,6 +65,39 @@ def peak_rss() -> int:
     return int(r if sys.platform == "darwin" else r * 1024)
 
 
+def release_free_heap() -> bool:
+    """Hand the C heap's free pages back to the system now (glibc's ``malloc_trim(0)``):
+    memory freed by a finished stage that glibc would keep (free chunks below a live one,
+    and in the arenas of numba's and GDAL's threads) stops counting as resident. True when
+    pages were returned; False where the C library has no such call (not glibc).
+
+    Examples
+    --------
+    >>> a = [np.ones(1 << 15) for _ in range(64)]; del a[:-1]
+    >>> release_free_heap() in (True, False)
+    True
+    """
+    fn = _malloc_trim()
+    return bool(fn(0)) if fn is not None else False
+
+
+_TRIM: list = []
+
+
+def _malloc_trim():
+    if not _TRIM:
+        fn = None
+        try:
+            import ctypes
+
+            fn = ctypes.CDLL(None).malloc_trim
+            fn.argtypes, fn.restype = [ctypes.c_size_t], ctypes.c_int
+        except (OSError, AttributeError):
+            fn = None
+        _TRIM.append(fn)
+    return _TRIM[0]
+
+
 def current_rss() -> int:
     """Resident memory of this process now, in bytes (Linux's ``VmRSS``; else
     :func:`peak_rss`).

@@ -42,6 +42,7 @@ import numpy as np
 
 from geoterrain.bounds.edgepad import has_padding
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, ring_blobs
+from geoterrain.bounds.tilebounds import TileTable
 from geoterrain.bounds.vertexdata import (
     log8_exponent,
     pack_block_errors,
@@ -51,6 +52,7 @@ from geoterrain.codec.quantize import roundtrip
 from geoterrain.core.atomicfiles import remove_stale_partials
 from geoterrain.core.frame import Frame
 from geoterrain.core.grid import Grid
+from geoterrain.core.memory import release_free_heap
 from geoterrain.core.paths import input_problem
 from geoterrain.core.progress import Progress, StageClock
 from geoterrain.exceptions import InputError, UsageError
@@ -384,13 +386,14 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
                     # a root grid's tiles only (a footprint over the extent may reach
                     # one tile past the raster's last row or column)
                     w.put_blobs("heights", grid.held(part))
-                # the tiles whose footprint holds a valid sample
-                stored = {k for k in bounds if grid.holds(k)}
+                # the tiles whose footprint holds a valid sample (the tile pass's table)
+                stored = _own_tiles(grid, bounds)
+                release_free_heap()  # the passes' and the height blobs' freed memory
                 if frame.kind == "geographic" and derive_bounds:  # pipeline.vertex_bounds
                     ring: tuple[str, ...] = ("delta",) if slack is not None else ()
                 else:
                     ring = ("delta", "radius") if derive_bounds else ()
-                meta_blobs = _level_blobs(w, sa, se, sn, grid, bounds, stored, er, dmax, emax,
+                meta_blobs = _level_blobs(w, sa, se, sn, grid, stored, er, dmax, emax,
                                           derive_normals, ring,
                                           {(x, y): s for x, y, s in slack or ()})
                 stage("blobs")
@@ -418,11 +421,13 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
 
 
 def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
-                 sn: ScratchArrays, grid: Grid, bounds: dict, stored: set, er: int,
+                 sn: ScratchArrays, grid: Grid, stored: TileTable, er: int,
                  dmax: float, emax: float, derive_normals: bool, ring: tuple[str, ...],
                  slack: dict) -> dict:
     """The δ, r, normals and δ_edge blobs and the tile rows, a tile row of each level at a
     time (preprocessing.preprocess's compress stage on each level's lattice window).
+    ``stored``: the stored tiles' bounds; each tile row's go to the writer with the row's
+    blobs (its staging table), so no per-tile Python rows pile up for the whole pyramid.
     ``dmax``, ``emax``: the largest finite δ and δ_edge, which set δ's code exponent;
     ``ring``: the kinds level 0 stores as border rings; ``slack``: a geographic store's
     level-0 slack per tile (x, y)."""
@@ -431,10 +436,14 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
     ed = log8_exponent(np.array([dmax]))
     if se is not None:
         ed = max(ed, log8_exponent(np.array([emax])))
-    row_keys: dict[tuple[int, int], list[int]] = {}  # (L, y) → the stored tiles' x
-    for L, x, y in stored:
-        row_keys.setdefault((L, y), []).append(x)
-    tile_rows: dict = {}
+    # each tile row's stored tiles, x ascending: the table's rows ordered by (L, y, x)
+    k = stored.keys
+    order = np.lexsort((k[:, 1], k[:, 2], k[:, 0]))
+    lk = k[order]
+    cut = np.flatnonzero((lk[1:, 0] != lk[:-1, 0]) | (lk[1:, 2] != lk[:-1, 2])) + 1
+    starts, ends = np.r_[0, cut].tolist(), np.r_[cut, len(lk)].tolist()
+    row_at = {(int(lk[i, 0]), int(lk[i, 2])): (i, j)  # (L, y) → its slice of ``order``
+              for i, j in zip(starts, ends, strict=True) if i < j}
     edge_max: list = []
     e_stored: list = []
     e_only: list = []
@@ -444,7 +453,8 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
         across, down = grid.tiles(L)
         is_top = L == top
         for y in range(down):
-            keys = sorted(row_keys.get((L, y), ()))
+            i, j = row_at.get((L, y), (0, 0))
+            keys = lk[i:j, 1].tolist()
             p0, p1 = y * T1, y * T1 + T
             # every vertex of the lattice, the coarser levels' too: a PRED payload holds
             # its codes as differences from its parents' (vertexdata.pred_residuals)
@@ -469,17 +479,19 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                     blobs["normals"] = ring_blobs(nrm, t, [(x, 0) for x in keys])
                 for kind, b in blobs.items():
                     w.put_blobs(kind, {(L, x, y): v for (_, x, _), v in b.items()})
-                for x, a, b in zip(keys, dm.tolist(), rm.tolist(), strict=True):
-                    tile_rows[(L, x, y)] = (*bounds[(L, x, y)], a, b)
+                w.put_tiles({(L, x, y): (int(r[0]), *r[1:], a, b) for x, r, a, b in zip(
+                    keys, stored.rows[order[i:j]].tolist(), dm.tolist(), rm.tolist(),
+                    strict=True)})
             if edge is None:
                 continue
             # edgepad.edge_tiles / edge_only_tiles on this tile row's window
             held_diff = _held(coding.dc != edge.dc, T1, is_top)[:across]
             held_pos = _held(edge.dc > 0, T1, is_top)[:across]
+            kept = set(keys)  # this row's stored tiles
             # stored tiles: new vertices as differences from δ; unstored ones: whole
             for keys_e, base, into in (([x for x in keys if held_diff[x]], coding, e_stored),
                                        ([x for x in range(len(held_pos)) if held_pos[x]
-                                         and (L, x, y) not in stored], None, e_only)):
+                                         and x not in kept], None, e_only)):
                 if not keys_e:
                     continue
                 eb, emx, _ = level_blobs(edge, nrm, t, 0, top_w if base is not None else 0,
@@ -491,8 +503,18 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
         # (x, y), then its unstored ones by (y, x)
         edge_max += sorted(e_stored, key=lambda e: (e[1], e[2])) + e_only
         e_stored, e_only = [], []
-    w.put_tiles(tile_rows)
     return {"delta_max": dmax, "edge_max": edge_max}
+
+
+def _own_tiles(grid: Grid, table: TileTable) -> TileTable:
+    # Grid.holds over the table's keys: a root grid's own tiles (a footprint over the
+    # extent may reach one tile past the raster's last row or column)
+    L, x, y = table.keys.T
+    top = grid.top_level
+    across, down = np.array([grid.tiles(lv) for lv in range(top + 1)], np.int64).T
+    lc = np.clip(L, 0, top)
+    ok = (L >= 0) & (L <= top) & (x >= 0) & (x < across[lc]) & (y >= 0) & (y < down[lc])
+    return TileTable(table.keys[ok], table.rows[ok])
 
 
 def _held(mark: np.ndarray, T1: int, top: bool) -> np.ndarray:

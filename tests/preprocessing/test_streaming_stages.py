@@ -336,7 +336,8 @@ def test_banded_finer_grids_count_the_integer_bands_before(bands, dtype):
 def test_banded_tile_bounds_are_the_whole_grid_table(seed, n, t, holes, band):
     """The tile table (counts, boxes, errors, border errors, monotone up the quadtree)
     and every block's δ_n, from row bands, are tile_and_block_errors' on the whole grid:
-    fine levels counted in the band's window, coarse ones from the first pass."""
+    fine levels counted in the band's window, coarse ones from the first pass; as a dict
+    and as the arrays of a TileTable."""
     z, v = _grid(seed, n, holes)
     N = z.shape[0]
     rng = np.random.default_rng(seed)
@@ -348,6 +349,12 @@ def test_banded_tile_bounds_are_the_whole_grid_table(seed, n, t, holes, band):
     assert got.keys() == ref.keys()
     assert [k for k in ref if got[k] != ref[k]] == []
     assert np.array_equal(blocks, ref_blocks)
+    # the streaming preprocess's form: the same tiles and numbers as arrays, keys sorted
+    table, table_blocks = band_tile_bounds(rows_of(z, v), N, t, xs, ys, band=band, table=True)
+    assert table.keys.tolist() == [list(k) for k in sorted(ref)]
+    assert table.to_dict() == ref
+    assert all(type(b.nvalid) is int for b in table.to_dict().values())
+    assert np.array_equal(table_blocks, ref_blocks)
 
 
 @settings(deadline=None)

@@ -26,7 +26,14 @@ import numpy as np
 from numba import njit, prange
 
 from geoterrain.bounds.delta import Cell
-from geoterrain.bounds.tilebounds import TileBounds, cell_counts_nb, cell_field_rows_nb, tile_rows
+from geoterrain.bounds.tilebounds import (
+    TileBounds,
+    TileTable,
+    cell_counts_nb,
+    cell_field_rows_nb,
+    tile_rows,
+    tile_table,
+)
 from geoterrain.codec.pyramid import pyramid_shape
 from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.threads import parallel_kernel
@@ -169,14 +176,17 @@ def _into_rows(acc: np.ndarray, per_row: np.ndarray, r0: int, S: int, op) -> Non
 
 def band_tile_bounds(rows: Rows, N: int | tuple[int, int], t: int, xs: np.ndarray,
                      ys: np.ndarray, band: int = 256, xy: Rows | None = None,
-                     span: int | None = None
-                     ) -> tuple[dict[tuple[int, int, int], TileBounds], np.ndarray]:
+                     span: int | None = None, table: bool = False
+                     ) -> tuple[dict[tuple[int, int, int], TileBounds] | TileTable, np.ndarray]:
     """:func:`~geoterrain.bounds.tilebounds.tile_and_block_errors` of the grid that
     ``rows(i0, i1)`` → (scene heights, valid) hands out, ``band`` rows (a power of two)
     at a time; ``xs``, ``ys``: scene x of each column and y of each row (a projected or
     pixel frame), or on a curvilinear (geographic) grid ``xy(i0, i1)`` → the rows'
     scene X, Y. ``span``: a root grid's root side, ``N`` then its extent (R, C)
     (``tile_and_block_errors`` with ``span``: its tiles and blocks over the extent).
+    ``table``: the tiles as a :class:`~geoterrain.bounds.tilebounds.TileTable` (arrays),
+    not a dict (the streaming preprocess: memory that does not grow by a Python object
+    per tile).
 
     Examples
     --------
@@ -189,6 +199,9 @@ def band_tile_bounds(rows: Rows, N: int | tuple[int, int], t: int, xs: np.ndarra
     >>> b = tile_and_block_errors(z, v, X, Y, 2)
     >>> a[0] == b[0], bool(np.array_equal(a[1], b[1]))
     (True, True)
+    >>> c = band_tile_bounds(lambda i, j: (z[i:j], v[i:j]), 17, 2, xs, -ys, band=2, table=True)
+    >>> c[0].to_dict() == b[0]
+    True
     """
     if band < 2 or band & (band - 1):
         raise ValueError(f"band must be a power of two ≥ 2, got {band}")
@@ -306,4 +319,4 @@ def band_tile_bounds(rows: Rows, N: int | tuple[int, int], t: int, xs: np.ndarra
         per_level.append((e, b))
         if 0 < L < nblk:
             blocks[..., L] = np.where(kmix[..., L], np.inf, blocks[..., L])
-    return tile_rows(per_level, box0, counts), blocks
+    return (tile_table if table else tile_rows)(per_level, box0, counts), blocks
