@@ -245,24 +245,6 @@ class RingCodes(NamedTuple):
         return np.concatenate([top, bottom, left, right], axis=1)
 
 
-def _take(a: np.ndarray, idx: np.ndarray, axis: int) -> np.ndarray:
-    """``np.take(a, idx, axis)``, broadcast again along ``a``'s zero-stride axes (a
-    projected grid's x and y, Frame.grid_xy): no copy of what is repeated."""
-    a = np.asarray(a)
-    sl = tuple(slice(0, 1) if st == 0 else slice(None) for st in a.strides)
-    small = a[sl]
-    if small.shape[axis] > 1:
-        small = np.take(small, idx, axis=axis)
-    shape = list(a.shape)
-    shape[axis] = len(idx)
-    return np.broadcast_to(small, shape)
-
-
-def _line_indices(n: int, step: int) -> np.ndarray:
-    # the lines 0, step, 2·step, … and the last one, n − 1
-    return np.unique(np.append(np.arange(0, n, step), n - 1))
-
-
 def ring_normal_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray,
                       valid: np.ndarray | None, levels: int, t: int,
                       bits: int = 8) -> list[RingCodes]:
