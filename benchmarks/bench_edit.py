@@ -90,8 +90,10 @@ def child(code: str, *args: str, tree: str | None = None):
     env = dict(os.environ)
     if tree is not None:  # another commit's geoterrain/ first on the path
         env["PYTHONPATH"] = tree + os.pathsep + env.get("PYTHONPATH", "")
+    # `python -c` puts the working folder first on the path: run the baseline in its own
+    # tree, or a run from this repository's root would import this tree's package as both
     out = subprocess.run([sys.executable, "-c", code, *args], check=True, capture_output=True,
-                         text=True, env=env)
+                         text=True, env=env, cwd=os.path.abspath(tree) if tree else None)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -139,11 +141,11 @@ def main() -> None:
         base: dict = {"pre": [], "first": [], "next": []}
         for run in range(a.runs):
             if a.baseline_tree and run % 2 == 0:
-                _baseline(base, a, dem, store, work, run)
+                _baseline(base, a, dem, work, run)
             for c in (cases if run % 2 == 0 else cases[::-1]):
                 c.run(a, work, run)
             if a.baseline_tree and run % 2 == 1:  # in turns: the baseline second
-                _baseline(base, a, dem, store, work, run)
+                _baseline(base, a, dem, work, run)
         for c in cases:
             c.report(a)
         if a.baseline_tree:
@@ -225,11 +227,14 @@ def _compare(case: Case, base: dict) -> None:
         print(f"| {name} | " + " | ".join(cells) + " |")
 
 
-def _baseline(base: dict, a, dem: str, store: str, work: str, run: int) -> None:
+def _baseline(base: dict, a, dem: str, work: str, run: int) -> None:
     """The baseline tree's preprocess and editing processes of run ``run`` (same edits)."""
     tree = os.path.abspath(a.baseline_tree)
-    base["pre"].append(child(PRE, dem, os.path.join(work, "p.geoterrain"), tree=tree))
-    edits = child(EDIT, store, work, str(a.edits), str(a.window), str(a.seed + run), tree=tree)
+    # the baseline edits the store its own preprocess wrote (another commit may write, and
+    # read, another store format than this tree's `store`)
+    own = os.path.join(work, "baseline.geoterrain")
+    base["pre"].append(child(PRE, dem, own, tree=tree))
+    edits = child(EDIT, own, work, str(a.edits), str(a.window), str(a.seed + run), tree=tree)
     base["first"].append(edits[0])
     base["next"] += edits[1:]
     print(f"run {run}, baseline: preprocess {base['pre'][-1]['wall']:.2f} s; edits "
