@@ -73,16 +73,10 @@ def _level_field_row(z, vf, s, E, mixed, bi, all_valid):
         main = main_diagonal_nb(bi, bj)
         whole = ok1 = ok2 = True
         if not all_valid:
-            tot, c1, t1, c2, t2 = cell_counts_nb(vf, i0, j0, s, main)
-            if tot == 0:
+            skip, whole, ok1, ok2, mix = cell_status_nb(cell_counts_nb(vf, i0, j0, s, main), s)
+            mixed[bi, bj] = mix
+            if skip:
                 continue
-            whole = tot == (s + 1) * (s + 1)
-            ok1 = c1 == t1
-            ok2 = c2 == t2
-            if not whole:
-                mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
-                if not (ok1 or ok2):
-                    continue
         cell_field_rows_nb(z, Cell(i0, j0, s, main, z[i0, j0], z[i0, j0 + s], z[i0 + s, j0],
                                    z[i0 + s, j0 + s]), whole, ok1, ok2, 0, s, E)
 
@@ -117,17 +111,12 @@ def _level_blocks_nb(z, vf, s, cpt, all_valid, bm, hl, vl, mixed):
                 main = main_diagonal_nb(ci, cj)
                 whole = ok1 = ok2 = True
                 if not all_valid:
-                    tot, c1, t1, c2, t2 = cell_counts_nb(vf, i0, j0, s, main)
-                    if tot == 0:
+                    skip, whole, ok1, ok2, mix = cell_status_nb(
+                        cell_counts_nb(vf, i0, j0, s, main), s)
+                    if own:
+                        mixed[ci, cj] = mix
+                    if skip:
                         continue
-                    whole = tot == (s + 1) * (s + 1)
-                    ok1 = c1 == t1
-                    ok2 = c2 == t2
-                    if not whole:
-                        if own:
-                            mixed[ci, cj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
-                        if not (ok1 or ok2):
-                            continue
                 cell_field_rows_nb(zb, Cell(i0 - r0, j0, s, main, z[i0, j0], z[i0, j0 + s],
                                             z[i0 + s, j0], z[i0 + s, j0 + s]),
                                    whole, ok1, ok2, d0, d1, Eb)
@@ -182,6 +171,24 @@ def cell_counts_nb(vf, i0, j0, s, main):
                 c2 += v
                 t2 += 1.0
     return tot, c1, t1, c2, t2
+
+
+@njit(cache=True, nogil=True)
+def cell_status_nb(counts, s):
+    """What a cell's :func:`cell_counts_nb` say of its part of a level's field, as
+    (skip, whole, ok1, ok2, mixed): ``whole`` every sample valid, ``ok1`` / ``ok2`` its
+    first / second closed triangle all valid, ``mixed`` one of them mixes valid and
+    invalid samples, ``skip`` neither triangle is all valid (nothing of E to sweep).
+
+    >>> cell_status_nb((4, 3.0, 3.0, 3.0, 3.0), 1)  # a cell of side 1, all valid
+    (False, True, True, True, False)
+    """
+    tot, c1, t1, c2, t2 = counts
+    whole = tot == (s + 1) * (s + 1)
+    ok1 = c1 == t1
+    ok2 = c2 == t2
+    mixed = (not whole) and ((0.0 < c1 < t1) or (0.0 < c2 < t2))
+    return not (whole or ok1 or ok2), whole, ok1, ok2, mixed
 
 
 @njit(cache=True, nogil=True)

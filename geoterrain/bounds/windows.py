@@ -37,7 +37,7 @@ from geoterrain.bounds.delta import (
     edge_status_nb,
 )
 from geoterrain.bounds.radii import code_up_nb
-from geoterrain.bounds.tilebounds import cell_counts_nb, cell_field_rows_nb
+from geoterrain.bounds.tilebounds import cell_counts_nb, cell_field_rows_nb, cell_status_nb
 from geoterrain.core.bintree import child_nb, main_diagonal_nb
 from geoterrain.core.rounding import round_up32
 
@@ -271,16 +271,9 @@ def level_field_rect(z, vb, oi, oj, s, E, mixed):
             i0 = bi * s
             j0 = bj * s
             main = main_diagonal_nb(oi // s + bi, oj // s + bj)
-            tot, c1, t1, c2, t2 = cell_counts_nb(vb, i0, j0, s, main)
-            mixed[bi, bj] = False
-            if tot == 0:
+            skip, whole, ok1, ok2, mix = cell_status_nb(cell_counts_nb(vb, i0, j0, s, main), s)
+            mixed[bi, bj] = mix
+            if skip:
                 continue
-            whole = tot == (s + 1) * (s + 1)
-            ok1 = c1 == t1
-            ok2 = c2 == t2
-            if not whole:
-                mixed[bi, bj] = (0.0 < c1 < t1) or (0.0 < c2 < t2)
-                if not (ok1 or ok2):
-                    continue
             cell_field_rows_nb(z, Cell(i0, j0, s, main, z[i0, j0], z[i0, j0 + s], z[i0 + s, j0],
                                        z[i0 + s, j0 + s]), whole, ok1, ok2, 0, s, E)

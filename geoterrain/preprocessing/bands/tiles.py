@@ -31,6 +31,7 @@ from geoterrain.bounds.tilebounds import (
     TileTable,
     cell_counts_nb,
     cell_field_rows_nb,
+    cell_status_nb,
     tile_rows,
     tile_table,
 )
@@ -128,20 +129,15 @@ def _level_cells(band, s, coarse, counts, zd, E, marks, bi_lo, bi_hi, bj):
             n_all, k1, n1, k2, n2 = tot[bi, bj], c1[bi, bj], t1, c2[bi, bj], t1
         else:
             n_all, k1, n1, k2, n2 = cell_counts_nb(v, bi * s - w0, bj * s, s, main)
-        if n_all == 0:
+        skip, whole, ok1, ok2, mix = cell_status_nb((n_all, k1, n1, k2, n2), s)
+        if mix:
+            tmix[bi // cpt, bj // cpt] = True
+            if bi % cpt in (0, cpt - 1) or bj % cpt in (0, cpt - 1):
+                bmix[bi // cpt, bj // cpt] = True
+            if cb:
+                kmix[bi // cb, bj // cb] = True
+        if skip:
             continue
-        whole = n_all == (s + 1) * (s + 1)
-        ok1 = k1 == n1
-        ok2 = k2 == n2
-        if not whole:
-            if (0.0 < k1 < n1) or (0.0 < k2 < n2):
-                tmix[bi // cpt, bj // cpt] = True
-                if bi % cpt in (0, cpt - 1) or bj % cpt in (0, cpt - 1):
-                    bmix[bi // cpt, bj // cpt] = True
-                if cb:
-                    kmix[bi // cb, bj // cb] = True
-            if not (ok1 or ok2):
-                continue
         if coarse:
             k = s // dB
             z00, z01 = zd[bi * k, bj * k], zd[bi * k, bj * k + k]
