@@ -36,7 +36,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.bounds.delta import _saturate_span_nb
+from geoterrain.bounds.delta import saturate
 from geoterrain.bounds.edgepad import _reaches_data
 from geoterrain.bounds.radii import _proxy_positions
 from geoterrain.core.bintree import child_nb, main_diagonal_nb
@@ -468,7 +468,7 @@ def metric_bounds(delta: np.ndarray, radius: np.ndarray | None, X: np.ndarray,
     dm, rm, bulge, _ = terms  # 0 where a diamond misses the data window (_vertex_terms)
     d = np.maximum(delta.astype(np.float64), dm)
     d[bulge] = np.inf
-    d32 = _saturate_span_nb(_round_up(d), _span(d, span))
+    d32 = saturate(_round_up(d), _span(d, span))
     if radius is None:
         return d32, None
     vb = np.asarray(valid, bool) & np.isfinite(Z)

@@ -37,7 +37,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.core.bintree import main_diagonal_nb, parents_nb
+from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.rounding import round_up32
 from geoterrain.core.threads import cores_for, parallel_kernel
 
@@ -484,52 +484,13 @@ def _raw_delta_nb(z, vb, bs, all_valid, span):
     return out
 
 
-@njit(cache=True, inline="always")
-def _push_to_parents(d, i, j, h):
-    # δ(parent) ≥ δ(child) on the vertex's 1–2 DAG edges (parents outside the grid: none)
-    R, C = d.shape
-    v = d[i, j]
-    i0, j0, i1, j1 = parents_nb(i, j, h)
-    if 0 <= i0 < R and 0 <= j0 < C and d[i0, j0] < v:
-        d[i0, j0] = v
-    if 0 <= i1 < R and 0 <= j1 < C and d[i1, j1] < v:
-        d[i1, j1] = v
-
-
-@njit(cache=True)
-def _saturate_span_nb(d, span):
-    # LP §2.4 (L46): push every vertex's δ to its parents, depths fine to coarse (at each
-    # h the edge midpoints first: their parents are the centres of the same h), up to
-    # half-span span / 2; then every root's corners (the square's four) get 0.
-    R, C = d.shape
-    h = 1
-    while h < span:
-        s = 2 * h
-        nr = (R - 1) // s
-        nc = (C - 1) // s
-        for a in range(nr):  # edge midpoints, hypotenuse along the rows
-            for b in range(nc + 1):
-                _push_to_parents(d, h + a * s, b * s, h)
-        for a in range(nr + 1):  # edge midpoints, hypotenuse along the columns
-            for b in range(nc):
-                _push_to_parents(d, a * s, h + b * s, h)
-        for a in range(nr):  # centres
-            for b in range(nc):
-                _push_to_parents(d, h + a * s, h + b * s, h)
-        h *= 2
-    for i in range(0, R, span):
-        for j in range(0, C, span):
-            d[i, j] = 0
-    return d
-
-
 @parallel_kernel(cache=True)
 def _saturate_pull_nb(d, span):
-    # _saturate_span_nb's result, rows on every core: each vertex pulls its children's δ
-    # instead of each child pushing to its parents (one max per DAG edge either way; at
-    # each h a receiver never pushes in the same phase, so the order does not matter;
-    # δ ≥ +0.0, no NaN): the centres of h from their 4 edge midpoints of h, then the
-    # edge midpoints of 2h (odd (I + J) on the 2h lattice) from the centres of h around.
+    # LP §2.4 (L46), rows on every core: each vertex pulls its children's δ, depths fine
+    # to coarse (one max per DAG edge; at each h a receiver never gives in the same phase,
+    # so the order does not matter; δ ≥ +0.0, no NaN): the centres of h from their 4 edge
+    # midpoints of h, then the edge midpoints of 2h (odd (I + J) on the 2h lattice) from
+    # the centres of h around.
     R, C = d.shape
     h = 1
     while h < span:
@@ -562,12 +523,6 @@ def _saturate_pull_nb(d, span):
     return d
 
 
-@njit(cache=True)
-def _saturate_nb(d):
-    # the square's saturation (its one root spans N − 1)
-    return _saturate_span_nb(d, d.shape[0] - 1)
-
-
 def saturate(d: np.ndarray, span: int | None = None) -> np.ndarray:
     """Saturate per-vertex errors in place, fine to coarse, so δ(parent) ≥ δ(child) on
     every bintree edge (seed 002 §2.4, L46); the domain corners (every root's, on a root
@@ -582,7 +537,8 @@ def saturate(d: np.ndarray, span: int | None = None) -> np.ndarray:
     >>> saturate(d, 2)[1].tolist()  # both roots' centres, its parents
     [0.0, 2.0, 2.0, 2.0, 0.0]
     """
-    return _saturate_span_nb(d, d.shape[0] - 1 if span is None else span)
+    with cores_for(d.size):  # small grids on one thread
+        return _saturate_pull_nb(d, d.shape[0] - 1 if span is None else span)
 
 
 def _raw_delta(zf: np.ndarray, valid: np.ndarray, span: int | None = None) -> np.ndarray:

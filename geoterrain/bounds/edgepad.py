@@ -94,14 +94,14 @@ def edge_deltas(Zr: np.ndarray, ok: np.ndarray, grid: Grid) -> np.ndarray:
     >>> edge_deltas(Zr, ok, g).tolist()  # (1, 2): the replicated 4 against the chord's 0
     [[0.0, 0.0, 0.0], [0.0, 4.0, 4.0], [0.0, 0.0, 0.0]]
     """
-    from geoterrain.bounds.delta import _raw_delta, _saturate_span_nb, check_grid
+    from geoterrain.bounds.delta import _raw_delta, check_grid, saturate
     from geoterrain.core.threads import cores_for
 
     zf, okc, n = check_grid(Zr, ok, grid.span)
     with cores_for(zf.size):
         raw = _raw_delta(zf, okc, 1 << n)
         zero_beyond_data(raw, grid.rows, grid.cols)
-        return _saturate_span_nb(raw, 1 << n)
+        return saturate(raw, 1 << n)
 
 
 def edge_support(Z: np.ndarray, valid: np.ndarray, grid: Grid

@@ -75,7 +75,7 @@ def _status(vb, ci, cj):
 @njit(cache=True, nogil=True)
 def _leaf_delta_nb(z, vb, all_valid, i0, j0, ring, table, slack, sat, code, out):
     # bounds._raw_delta_nb's h = 1 pass on the tile's interior, then its saturation
-    # (bounds._saturate_nb: centre = max(centre, its 4 edge midpoints), the border's edge
+    # (delta.saturate: centre = max(centre, its 4 edge midpoints), the border's edge
     # midpoints from ``ring``), then the codes' values (the code map is monotone: coding
     # after the max = the max of the codes).
     # ``slack`` (a geographic tile's, else 0: x + 0 is x) is added to every raw value;

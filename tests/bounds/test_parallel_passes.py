@@ -1,6 +1,7 @@
 """Whole-grid passes run on every core against their one-thread forms, bit for bit: δ's
-saturation by pulls (delta._saturate_pull_nb) against the pushes, fine to coarse, of
-_saturate_span_nb; the valid range's rows (radii._valid_range_nb)."""
+saturation by pulls (delta._saturate_pull_nb) against the reference's pushes, fine to
+coarse, with strided slices (testing.reference.saturate); the valid range's rows
+(radii._valid_range_nb)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from geoterrain.bounds.delta import _saturate_pull_nb, _saturate_span_nb
+from geoterrain.bounds.delta import _saturate_pull_nb, saturate
+from geoterrain.testing.reference import saturate as reference_saturate
 
 pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
@@ -24,10 +26,11 @@ def test_pulled_saturation_is_the_pushed_one(n, roots, seed, inf, zeros):
     d = rng.exponential(1.0, (ry * span + 1, rx * span + 1)).astype(np.float32)
     d[rng.random(d.shape) < zeros] = 0.0
     d[rng.random(d.shape) < inf] = np.inf
-    want = _saturate_span_nb(d.copy(), span)
+    want = reference_saturate(d.copy(), span)
     got = _saturate_pull_nb.parallel(d.copy(), span)
     assert got.tobytes() == want.tobytes()
     assert _saturate_pull_nb.serial(d.copy(), span).tobytes() == want.tobytes()
+    assert saturate(d.copy(), span).tobytes() == want.tobytes()  # what callers call
 
 
 @settings(max_examples=40, deadline=None)

@@ -21,7 +21,7 @@ How the bintree splits over row bands of B = 2**b rows (docs/conventions.md):
 - **Saturation** pulls each vertex's children's saturated δ level by level, fine to
   coarse, on the per-level arrays (children of an edge midpoint at h: the four centres
   at h/2 beside it; of a centre: its block's four edge midpoints), which is the same
-  maximum as :func:`bounds._saturate_nb`'s push.
+  maximum as :func:`geoterrain.bounds.delta.saturate`.
 
 Per-level arrays (``LevelDelta``) hold, for h = 1, 2, 4, …, with s = 2h and
 nb = (N − 1)/s: ``C`` (nb, nb), the block centres (h + a·s, h + b·s); ``R`` (nb, nb + 1),

@@ -644,7 +644,7 @@ def _bounds(cell: Cell, zc: float, a0: np.ndarray, c0: np.ndarray, S: int, zlo: 
 
 @njit(cache=True)
 def _saturate_rect(codes, raw_codes, verts, oi, oj, R, C):
-    # saturation on the codes (bounds._saturate_nb's push, as a pull from the children):
+    # saturation on the codes (delta.saturate's pull from the children):
     # each listed vertex, fine to coarse, takes the largest of its raw code and its
     # children's codes
     for k in range(verts.shape[0]):
