@@ -18,18 +18,33 @@ from tests.analysis.stores import read_source, store_of
 
 
 def _metres(t):
-    """Source CRS → metres, built here from pyproj (not from the store's frame)."""
+    """Source CRS → metres, built here from pyproj CRS objects (not from the store's frame
+    or the library's pipeline): on a geographic grid each triangle through a Lambert
+    azimuthal equal-area projection about the centre sample of the level-0 tile that
+    holds its cell (the surface's definition, docs: analysis/areas.py), on the WGS 84
+    ellipsoid."""
     f = t.frame
     if f.kind != "geographic":
         return lambda x, y: (x * f.unit_to_m, y * f.unit_to_m)
     from pyproj import CRS, Transformer
 
     a, _, c, _, e, top = f.transform[:6]
-    lon0 = c + a * (t.grid.cols / 2)
-    lat0 = top + e * (t.grid.rows / 2)
-    aeqd = CRS.from_proj4(f"+proj=aeqd +lat_0={lat0} +lon_0={lon0} +ellps=WGS84")
-    tr = Transformer.from_crs(CRS.from_wkt(f.crs_wkt), aeqd, always_xy=True)
-    return lambda x, y: tr.transform(x, y)
+    n = t.grid.tile_samples - 1  # cells per level-0 tile
+    src = CRS.from_wkt(f.crs_wkt)
+
+    def to_metres(x, y):
+        col = np.round((x - c) / a - 0.5).min(axis=1)  # each triangle's cell
+        row = np.round((y - top) / e - 0.5).min(axis=1)
+        tile = (row // n).astype(int), (col // n).astype(int)
+        X, Y = np.empty_like(x), np.empty_like(y)
+        for ty, tx in set(zip(*tile, strict=True)):
+            m = (tile[0] == ty) & (tile[1] == tx)
+            lon0, lat0 = c + a * (tx * n + n // 2 + 0.5), top + e * (ty * n + n // 2 + 0.5)
+            laea = CRS.from_proj4(f"+proj=laea +lat_0={lat0} +lon_0={lon0} +ellps=WGS84")
+            X[m], Y[m] = Transformer.from_crs(src, laea, always_xy=True).transform(x[m], y[m])
+        return X, Y
+
+    return to_metres
 
 
 def _star(rng, cx, cy, r, n, hole=False):
@@ -175,3 +190,36 @@ def test_polygon_errors_are_one_line(japan):
     with pytest.raises(UsageError, match="one line"):
         volume(t, "POLYGON ((139.2 35.3, 139.3 35.3, 139.2 35.4, 139.2 35.3))",
                [(1, 1, 1), (2, 2, 2), (3, 3, 3)])
+
+
+def _rectangle_on_the_ellipsoid(lon0, lon1, lat0, lat1, n=4000):
+    """The WGS 84 area of a longitude-latitude rectangle (its edges along meridians and
+    parallels, densified for pyproj's geodesic polygon area)."""
+    from pyproj import Geod
+
+    lo = np.r_[np.linspace(lon0, lon1, n), np.full(n, lon1), np.linspace(lon1, lon0, n),
+               np.full(n, lon0)]
+    la = np.r_[np.full(n, lat0), np.linspace(lat0, lat1, n), np.full(n, lat1),
+               np.linspace(lat1, lat0, n)]
+    return abs(Geod(ellps="WGS84").polygon_area_perimeter(lo, la)[0])
+
+
+def test_geographic_areas_are_the_ellipsoids_anywhere_on_a_whole_globe_grid(tmp_path):
+    """A whole-globe grid of 1° cells: a rectangle's planimetric area is its area on the
+    ellipsoid (to the second order of the cell: 3e-4), at the DEM's centre, far from it,
+    near the poles and at the antipode of the scene's centre (180°), where the scene's
+    azimuthal-equidistant positions gave 1 039× the area (and 1.007× at 11°)."""
+    z = np.random.default_rng(0).uniform(0, 500, (180, 360)).astype(np.float32)
+    src = write_tif(tmp_path / "globe.tif", z, crs="EPSG:4326", origin=(-180.0, 90.0),
+                    spacing=1.0)
+    t = geoterrain.open(geoterrain.preprocess(src, tmp_path / "globe.geoterrain"))
+    assert t.frame.columns_per_turn == 360
+    for lon0, lon1, lat0, lat1 in [(-2, 3, -1, 2), (176, 179, 0, 2), (10, 13, 0, 2),
+                                   (-170, -150, 40, 70), (100, 140, -85, -75)]:
+        ring = [(lon0, lat0), (lon1, lat0), (lon1, lat1), (lon0, lat1)]
+        a = surface_area(t, ring)
+        want = _rectangle_on_the_ellipsoid(lon0, lon1, lat0, lat1)
+        assert a.area_2d == pytest.approx(want, rel=3e-4), (lon0, lat0)
+        assert a.area_3d >= a.area_2d and a.nodata_area == 0
+        flat = volume(t, ring, base=-1000.0)  # every height above: cut = ∫ (z + 1000) dA
+        assert flat.fill == 0 and flat.cut > 1000.0 * a.area_2d
