@@ -167,9 +167,9 @@ def test_level_blobs_with_log8_radii_match_the_per_tile_packers(t, levels, seed)
 
 @settings(max_examples=6, deadline=None)
 @given(seed=st.integers(0, 2**31), t=st.integers(5, 6))
-def test_shaped_payloads_are_zstd_12_and_the_others_zstd_3(seed, t):
+def test_shaped_payloads_are_zstd_11_and_the_others_zstd_3(seed, t):
     """Every δ and r blob flagged CENTRES, PRED or RING is its header and its payload at
-    zstd level SHAPED_ZSTD_LEVEL (12), every other δ, r and normals blob at 3: the level
+    zstd level SHAPED_ZSTD_LEVEL (11), every other δ, r and normals blob at 3: the level
     is part of the store's bytes, which all writers share through level_blobs. The tiles
     (33² or 65², codes from a few values) are large enough for the two levels to differ."""
     from geoterrain.bounds.vertexdata import (
