@@ -24,6 +24,7 @@ from geoterrain.bounds.delta import grid_order
 from geoterrain.bounds.normals import RingCodes
 from geoterrain.bounds.radii import _proxy_positions, _radii_nb
 from geoterrain.bounds.vertexdata import (
+    CENTRES,
     DIFF,
     LOG8,
     LOG_STEPS,
@@ -31,6 +32,7 @@ from geoterrain.bounds.vertexdata import (
     NEW_ONLY,
     PRED,
     RING,
+    SHAPED_ZSTD_LEVEL,
     SLACK,
     VERSION_2,
     log8_exponent,
@@ -461,8 +463,28 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     elif new_only and k and T >= 3 and rlog and "radius" in kinds and not flags_r & RING:
         pr, head_r = _shaped(pr, head_r, _windows(coding.rc, xy, t, level))
     rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
-    blobs = {kind: dict(zip(keys, compress_rows(*rows[kind]), strict=True)) for kind in kinds}
+    blobs = {kind: dict(zip(keys, _compress_shaped(*rows[kind]), strict=True))
+             for kind in kinds}
     return blobs, dmax, rmax
+
+
+def _compress_shaped(rows: np.ndarray | list[np.ndarray], heads: bytes | list[bytes]
+                     ) -> list[bytes]:
+    # compress_rows, with the CENTRES, PRED and RING payloads at
+    # vertexdata.SHAPED_ZSTD_LEVEL (as pack_bounds_v2 writes the first two)
+    if isinstance(heads, bytes):
+        heads = [heads] * len(rows)
+    hi = [n for n, h in enumerate(heads) if len(h) > 1 and h[1] & (CENTRES | PRED | RING)]
+    if not hi:
+        return compress_rows(rows, heads)
+    lo = sorted(set(range(len(heads))) - set(hi))
+    out = [b""] * len(heads)
+    for idx, level in ((hi, SHAPED_ZSTD_LEVEL), (lo, _ZSTD_LEVEL)):
+        if idx:
+            got = compress_rows([rows[n] for n in idx], [heads[n] for n in idx], level)
+            for n, b in zip(idx, got, strict=True):
+                out[n] = b
+    return out
 
 
 def _windows(codes: np.ndarray, xy: np.ndarray, t: int, level: int) -> np.ndarray:

@@ -49,7 +49,7 @@ from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.ingest.remote import is_url
 from geoterrain.preprocessing.request import Request, place, request
 from geoterrain.preprocessing.streaming import stream, streaming_band
-from geoterrain.store.database import StoreThread, StoreWriter
+from geoterrain.store.database import StoreThread, StoreWriter, page_size_for
 
 log = logging.getLogger("geoterrain")
 STAGES = ("read", "pad", "quantise", "errors", "radii", "tile bounds", "normals", "compress",
@@ -250,7 +250,8 @@ def preprocess(
         # the store's rows are inserted on a thread of their own, the height blobs' while
         # the δ, r and normals blobs are coded (the same calls, in the same order, as
         # on one thread: the same bytes); any error drops the partial file
-        with StoreThread(req.dst, overwrite=req.overwrite) as store:
+        with StoreThread(req.dst, overwrite=req.overwrite,
+                         page_size=page_size_for(dem.grid.rows, dem.grid.cols)) as store:
             blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals, counts,
                                on_heights=lambda hb: store.put_blobs("heights", hb))
             del normal_maps
@@ -575,7 +576,8 @@ def write_store(req: Request, grid: Grid, blobs: TileBlobs, blocks: np.ndarray, 
                 stage: StageClock) -> None:
     """Write the store atomically: every blob, the tile table, the GeoMipMapping blocks'
     δ_n and the metadata, published as ``req.dst`` only when complete."""
-    with StoreWriter(req.dst, overwrite=req.overwrite) as w:
+    with StoreWriter(req.dst, overwrite=req.overwrite,
+                     page_size=page_size_for(grid.rows, grid.cols)) as w:
         write_rows(w, grid, blobs, blocks, meta)
     stage("write")
 

@@ -74,7 +74,7 @@ from geoterrain.preprocessing.passes import (
 from geoterrain.preprocessing.request import Request, place, request, root_layout
 from geoterrain.preprocessing.schedulers import run_tasks
 from geoterrain.preprocessing.scratch import ScratchArrays
-from geoterrain.store.database import StoreWriter
+from geoterrain.store.database import StoreWriter, page_size_for
 
 __all__ = ["band_rows", "preprocess_streaming", "stream", "streaming_band"]
 
@@ -381,7 +381,8 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
         se = ScratchArrays.shared(os.path.join(folder, "edge")) if pad else None
         sn = ScratchArrays.shared(os.path.join(folder, "normals"))
         try:
-            with StoreWriter(dst, overwrite=req.overwrite) as w:
+            with StoreWriter(dst, overwrite=req.overwrite,
+                             page_size=page_size_for(grid.rows, grid.cols)) as w:
                 for part in heights_records(os.path.join(folder, "heights.bin")):
                     # a root grid's tiles only (a footprint over the extent may reach
                     # one tile past the raster's last row or column)

@@ -125,7 +125,9 @@ def schema_version(grid: dict) -> int:
     return ROOTS_SCHEMA_VERSION if grid.get("layout") == "roots" else SCHEMA_VERSION
 
 
-PAGE_SIZE = 1024  # bytes per SQLite page of a written store
+PAGE_SIZE = 1024  # bytes per SQLite page of a written store (SMALL_PAGE_SIZE: small ones)
+SMALL_PAGE_SIZE = 512  # a grid of at most SMALL_GRID samples: its blobs' tails waste less
+SMALL_GRID = 1 << 17
 PACK_BYTES = 4 << 20  # blob bytes a writer holds before inserting them, packed (pagepack)
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
 
@@ -191,6 +193,21 @@ def _unlink_all(paths: tuple[Path, ...]) -> None:
             pass
 
 
+def page_size_for(rows: int, cols: int) -> int:
+    """The SQLite page size a store of a ``rows`` × ``cols`` grid is written with:
+    :data:`SMALL_PAGE_SIZE` (512 B) up to :data:`SMALL_GRID` samples, where a blob's
+    overflow tail and the catalog's pages are a large part of the file (roi_epsg3089:
+    15 360 → 13 312 B; docs/lab/store-size.md), else :data:`PAGE_SIZE` (larger stores'
+    B-trees stay shallow and a blob takes fewer page reads). Readers take any size.
+
+    Examples
+    --------
+    >>> page_size_for(100, 70), page_size_for(513, 513)
+    (512, 1024)
+    """
+    return SMALL_PAGE_SIZE if int(rows) * int(cols) <= SMALL_GRID else PAGE_SIZE
+
+
 class StoreWriter:
     """Write a store atomically: use as a context manager, then :meth:`commit`.
 
@@ -206,9 +223,12 @@ class StoreWriter:
     'hi'
     """
 
-    def __init__(self, dst: str | Path, overwrite: bool = False):
+    def __init__(self, dst: str | Path, overwrite: bool = False, page_size: int = PAGE_SIZE):
         # a regular file or nothing, replaced only with overwrite (core/paths.py)
         self.dst = check_output(dst, overwrite)
+        if page_size not in (SMALL_PAGE_SIZE, PAGE_SIZE):
+            raise ValueError(f"a store's pages are {SMALL_PAGE_SIZE} or {PAGE_SIZE} bytes")
+        self.page_size = page_size
         parent = self.dst.parent if str(self.dst.parent) else Path(".")
         remove_stale_partials(parent)
         self.tmp = parent / f".{self.dst.name}.partial-{os.getpid()}"
@@ -238,7 +258,7 @@ class StoreWriter:
         # The temporary file is not the store; durability comes from fsync + rename.
         # Small pages: a tile blob of a few kB overflows into whole pages, and 4 kB pages
         # left ~30 % of a store as slack (docs/lab/store-size.md); readers take any size.
-        self.con.execute(f"PRAGMA page_size={PAGE_SIZE}")
+        self.con.execute(f"PRAGMA page_size={self.page_size}")
         self.con.execute("PRAGMA journal_mode=OFF")
         self.con.execute("PRAGMA synchronous=OFF")
         self.con.execute(f"PRAGMA application_id={APPLICATION_ID}")
@@ -301,8 +321,8 @@ class StoreWriter:
             return
         last = self._rowid + len(rows)  # cells are sized with the batch's largest rowid
         sizes = blob_cell_sizes([len(r[1]) for r in rows], [r[2] for r in rows], last,
-                                PAGE_SIZE).tolist()
-        order = pack_order(sizes, PAGE_SIZE - LEAF_HEADER)
+                                self.page_size).tolist()
+        order = pack_order(sizes, self.page_size - LEAF_HEADER)
         self.con.executemany("INSERT INTO blobs VALUES (NULL,?,?)",
                              (rows[i][1:] for i in order))
         self.con.executemany("INSERT INTO staging.staged_blobs VALUES (?,?)", (
@@ -417,19 +437,19 @@ class StoreThread:
     'hi'
     """
 
-    def __init__(self, dst: str | Path, overwrite: bool = False):
+    def __init__(self, dst: str | Path, overwrite: bool = False, page_size: int = PAGE_SIZE):
         import queue
 
         self._calls: queue.SimpleQueue = queue.SimpleQueue()
         self._error: BaseException | None = None
         self._done: Path | None = None
-        self._thread = threading.Thread(target=self._run, args=(dst, overwrite),
+        self._thread = threading.Thread(target=self._run, args=(dst, overwrite, page_size),
                                         name="geoterrain-store", daemon=True)
         self._thread.start()
 
-    def _run(self, dst, overwrite) -> None:
+    def _run(self, dst, overwrite, page_size) -> None:
         try:
-            with StoreWriter(dst, overwrite=overwrite) as w:
+            with StoreWriter(dst, overwrite=overwrite, page_size=page_size) as w:
                 while (call := self._calls.get()) is not None:
                     name, args = call
                     out = getattr(w, name)(*args)

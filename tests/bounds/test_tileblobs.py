@@ -163,3 +163,50 @@ def test_level_blobs_with_log8_radii_match_the_per_tile_packers(t, levels, seed)
                     log8_table(er)[codes[y, x][::2, ::2]]
             dec = decode_bounds(want, codes[y, x].shape, parent, (x % 2, y % 2))
             assert (dec[new] == log8_table(er)[codes[y, x][new]]).all()
+
+
+@settings(max_examples=6, deadline=None)
+@given(seed=st.integers(0, 2**31), t=st.integers(5, 6))
+def test_shaped_payloads_are_zstd_11_and_the_others_zstd_3(seed, t):
+    """Every δ and r blob flagged CENTRES, PRED or RING is its header and its payload at
+    zstd level SHAPED_ZSTD_LEVEL (11), every other δ, r and normals blob at 3: the level
+    is part of the store's bytes, which all writers share through level_blobs. The tiles
+    (33² or 65², codes from a few values) are large enough for the two levels to differ."""
+    from geoterrain.bounds.vertexdata import (
+        CENTRES,
+        PRED,
+        RING,
+        SHAPED_ZSTD_LEVEL,
+        SLACK,
+        VERSION_2,
+    )
+    from geoterrain.core.zstdsafe import compress_one, decompress
+
+    rng = np.random.default_rng(seed)
+    levels = 1
+    n = (1 << (t + levels)) + 1
+    delta = rng.choice([0.0, 0.5, 1.0, 2.0, 7.0], (n, n), p=[0.5, 0.2, 0.1, 0.1, 0.1])
+    rc = rng.choice(np.array([0, 3, 9, 20], np.uint8), (n, n), p=[0.4, 0.3, 0.2, 0.1])
+    rc[::2, 1::2] = 0
+    if seed % 2:  # r with only cell centres (CENTRES) on every tile
+        rc[1::2, ::2] = 0
+    coding = BoundsCoding(delta, None, r_codes=(rc, 0))
+    seen = {3: 0, SHAPED_ZSTD_LEVEL: 0}
+    differ = 0
+    for L in range(levels + 1):
+        nt = 1 << (levels - L)
+        nrm = rng.integers(0, 4, ((n - 1) // (1 << L) + 1,) * 2 + (2,)).astype(np.uint8)
+        tiles = [(x, y) for y in range(nt) for x in range(nt)]
+        got, _, _ = level_blobs(coding, nrm, t, L, levels, tiles, ring=("delta",) if L == 0
+                                else False)
+        for kind, blobs in got.items():
+            for blob in blobs.values():
+                head = 0 if kind == "normals" else 3 + 4 * bool(blob[1] & SLACK)
+                shaped = kind != "normals" and blob[0] == VERSION_2 \
+                    and bool(blob[1] & (CENTRES | PRED | RING))
+                level = SHAPED_ZSTD_LEVEL if shaped else 3
+                raw = decompress(blob[head:], 1 << 20)
+                assert blob[head:] == compress_one(raw, level), (kind, L, blob[:3])
+                seen[level] += 1
+                differ += shaped and compress_one(raw, 3) != compress_one(raw, level)
+    assert seen[3] and seen[SHAPED_ZSTD_LEVEL] and differ

@@ -16,7 +16,7 @@ from geoterrain import lod
 from geoterrain.core import osreads
 from geoterrain.core.view import View
 from geoterrain.ingest.synth import generate, write_geotiff
-from geoterrain.store.database import PAGE_SIZE
+from geoterrain.store.database import PAGE_SIZE, SMALL_PAGE_SIZE
 
 needs_counters = pytest.mark.skipif(not osreads.EXACT, reason="no per-thread I/O counters")
 
@@ -35,15 +35,29 @@ def _process_rchar() -> tuple[int, int]:
     return int(text.split(b"\n")[0].split()[1]), len(text)
 
 
+def _page_size(path) -> int:
+    con = sqlite3.connect(path)
+    try:
+        return con.execute("PRAGMA page_size").fetchone()[0]
+    finally:
+        con.close()
+
+
 def _catalog_pages(path) -> int:
     # pages that hold the catalog's two rows (a row's first page and its overflow pages,
-    # each overflow page holding PAGE_SIZE - 4 bytes of it), by the file's own numbers
+    # each overflow page holding page size - 4 bytes of it), by the file's own numbers
     con = sqlite3.connect(path)
     try:
         sizes = [n for (n,) in con.execute("SELECT LENGTH(data) FROM catalog")]
     finally:
         con.close()
-    return sum(1 + math.ceil(n / (PAGE_SIZE - 4)) for n in sizes)
+    return sum(1 + math.ceil(n / (_page_size(path) - 4)) for n in sizes)
+
+
+def test_small_grids_get_small_pages(stores):
+    """The 129² store (16 641 samples) is written with 512-byte pages, the 513² one with
+    1 kB pages (database.page_size_for)."""
+    assert (_page_size(stores[129]), _page_size(stores[513])) == (SMALL_PAGE_SIZE, PAGE_SIZE)
 
 
 @needs_counters
@@ -56,9 +70,11 @@ def test_opening_reads_a_constant_number_of_pages_besides_the_catalog(stores):
         t = geoterrain.open(path)
         try:
             assert t.bytes_read == t.open_bytes > 0
-            extra[n] = t.open_bytes - PAGE_SIZE * _catalog_pages(path)
+            extra[n] = t.open_bytes - _page_size(path) * _catalog_pages(path)
         finally:
             t.close()
+    # bytes: the 129² store's 512-byte pages make its B-tree a level deeper (11 of its
+    # pages, 5.8 kB, against the 513² store's 7 pages of 1 kB)
     assert max(extra.values()) <= 8 * PAGE_SIZE, extra
     assert os.path.getsize(stores[513]) > 10 * os.path.getsize(stores[129])
 

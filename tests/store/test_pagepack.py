@@ -63,9 +63,10 @@ def test_packed_pages_hold_their_items_and_leave_no_room_for_a_later_page(sizes,
 @pytest.mark.fast
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 2**31), n=st.integers(1, 400),
-       small=st.floats(0.0, 1.0), pack_bytes=st.sampled_from([1 << 10, 1 << 16, 4 << 20]))
+       small=st.floats(0.0, 1.0), pack_bytes=st.sampled_from([1 << 10, 1 << 16, 4 << 20]),
+       page_size=st.sampled_from([store.SMALL_PAGE_SIZE, store.PAGE_SIZE]))
 def test_a_store_s_blob_leaves_are_full_and_its_rows_unchanged(tmp_path_factory, seed, n,
-                                                                small, pack_bytes):
+                                                                small, pack_bytes, page_size):
     """Random blob rows (a few bytes to several pages) written through the store writer,
     in batches of 1 kB to 4 MB: they read back as written, SQLite's own count of the
     bytes on the leaves is ``leaf_cell_size``'s, and its leaves are the pages of
@@ -78,7 +79,7 @@ def test_a_store_s_blob_leaves_are_full_and_its_rows_unchanged(tmp_path_factory,
     old = store.PACK_BYTES
     store.PACK_BYTES = pack_bytes
     try:
-        w = StoreWriter(tmp / "s.gt")
+        w = StoreWriter(tmp / "s.gt", page_size=page_size)
         for k, d in blobs.items():
             w.put_blob(k, "heights", d)
         w.put_tiles({})
@@ -100,11 +101,12 @@ def _check_leaves(dst, one_batch: bool) -> None:
     con = sqlite3.connect(dst)
     try:
         rows = con.execute("SELECT rowid, data, crc32 FROM blobs ORDER BY rowid").fetchall()
+        (page,), = con.execute("PRAGMA page_size")  # the writer's: 512 or 1024 B
     finally:
         con.close()
-    cells = [leaf_cell_size((None, *r[1:]), r[0], store.PAGE_SIZE) for r in rows]
+    cells = [leaf_cell_size((None, *r[1:]), r[0], page) for r in rows]
     assert size - unused - count * LEAF_HEADER == sum(cells)
-    cap = store.PAGE_SIZE - LEAF_HEADER
+    cap = page - LEAF_HEADER
     pages: list[list[int]] = []
     for c in cells:  # SQLite appends: a cell that does not fit the last leaf starts one
         if not pages or sum(pages[-1]) + c > cap:
