@@ -11,7 +11,12 @@ a full preprocess of the DEM in a fresh process, and an editing process that app
 ``--edits`` random windows (a cut: −20 m, ``add``), each to a fresh copy of the store.
 Each process is timed after its imports (the compiled kernels are on disk); the first
 edit of a process also loads its kernels from numba's cache, so it is reported apart
-from the next ones. For each edit: the rows and bytes it wrote (blobs and catalog), the
+from the next ones; a third child, the command line itself (``geoterrain edit STORE
+--patch cut.tif --mode add --at R,C``, a fresh process from start to exit: its imports,
+numba's start, the store's open, the patch read, the edit), is the first edit a user
+waits for, and two more give its floor: a process that imports what any edit reads with
+(numpy, rasterio, sqlite3, zstandard, click) and exits, and the same with numba. For
+each edit: the rows and bytes it wrote (blobs and catalog), the
 store's pages that differ afterwards (1 kB pages, compared with the copy before) and the
 file's growth; and the time of the transaction apart (its syncs). ``--baseline-tree DIR``:
 another commit's ``geoterrain/`` with its ``cli/`` copied in as ``geoterrain/cli/`` (as
@@ -32,6 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -86,6 +92,50 @@ print(json.dumps(out))
 """
 
 
+CLI = """
+import sys
+from geoterrain.cli.main import main
+sys.argv[0] = "geoterrain"
+main()
+"""
+
+FLOOR = "import numpy, rasterio, sqlite3, zstandard, click"
+
+
+def process(args: list, tree: str | None = None, cwd: str | None = None) -> dict:
+    """Wall and CPU time (user + system, the child's) of one fresh process, start to exit."""
+    env = dict(os.environ)
+    if tree is not None:
+        env["PYTHONPATH"] = tree + os.pathsep + env.get("PYTHONPATH", "")
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run(args, check=True, capture_output=True, env=env,
+                   cwd=os.path.abspath(tree) if tree else cwd)
+    wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return {"wall": wall, "cpu": r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime}
+
+
+def cli_edit(store: str, cut: str, a, work: str, run: int, tree: str | None = None) -> dict:
+    """One `geoterrain edit` process on a fresh copy of ``store`` (a window of run ``run``)."""
+    import numpy as np
+
+    import geoterrain
+
+    p = os.path.join(work, "cli.geoterrain")
+    shutil.copy(store, p)
+    os.sync()
+    rng = np.random.default_rng(1000 + a.seed + run)
+    with geoterrain.open(p) as t:
+        rows, cols = t.grid.rows, t.grid.cols
+    at = f"{int(rng.integers(0, rows - a.window))},{int(rng.integers(0, cols - a.window))}"
+    try:
+        return process([sys.executable, "-c", CLI, "-q", "edit", p, "--patch", cut, "--mode",
+                        "add", "--at", at], tree=tree, cwd=work)
+    finally:
+        os.remove(p)
+
+
 def child(code: str, *args: str, tree: str | None = None):
     env = dict(os.environ)
     if tree is not None:  # another commit's geoterrain/ first on the path
@@ -122,13 +172,14 @@ def main() -> None:
         dem = write_geotiff(os.path.join(work, "dem.tif"), z)
         store = os.path.join(work, "dem.geoterrain")
         preprocess(dem, store, overwrite=True)  # compiles what is not yet cached
-        cases = [Case(f"{a.size}² square", dem, store, False)]
+        cut = write_geotiff(os.path.join(work, "cut.tif"), np.full((a.window, a.window), -20.0))
+        cases = [Case(f"{a.size}² square", dem, store, False, cut)]
         if a.wide:
             half = (a.size + 1) // 2
             dw = write_geotiff(os.path.join(work, "wide.tif"), np.ascontiguousarray(z[:half]))
             sw = os.path.join(work, "wide.geoterrain")
             preprocess(dw, sw, overwrite=True, root_grid=True)
-            cases.append(Case(f"{half} × {a.size} on 2 × 1 roots", dw, sw, True))
+            cases.append(Case(f"{half} × {a.size} on 2 × 1 roots", dw, sw, True, cut))
         import geoterrain
         from geoterrain.preprocessing.edit import Patch, edit_terrain
 
@@ -138,7 +189,8 @@ def main() -> None:
             with geoterrain.open(warm) as t:
                 edit_terrain(t, Patch(0, 0, np.full((a.window, a.window), -20.0)), "add")
             os.remove(warm)
-        base: dict = {"pre": [], "first": [], "next": []}
+        base: dict = {"pre": [], "first": [], "next": [], "cli": []}
+        a.cut = cut
         for run in range(a.runs):
             if a.baseline_tree and run % 2 == 0:
                 _baseline(base, a, dem, work, run)
@@ -157,11 +209,13 @@ def main() -> None:
 class Case:
     """One store: its DEM, its preprocess and editing children's results."""
 
-    def __init__(self, name: str, dem: str, store: str, roots: bool):
-        self.name, self.dem, self.store, self.roots = name, dem, store, roots
+    def __init__(self, name: str, dem: str, store: str, roots: bool, cut: str):
+        self.name, self.dem, self.store, self.roots, self.cut = name, dem, store, roots, cut
         self.pre: list = []
         self.first: list = []
         self.later: list = []
+        self.cli: list = []  # `geoterrain edit` processes
+        self.floor: list = []  # (imports, imports + numba) processes
 
     def run(self, a, work: str, run: int) -> None:
         self.pre.append(child(PRE, self.dem, os.path.join(work, "p.geoterrain"),
@@ -169,8 +223,12 @@ class Case:
         edits = child(EDIT, self.store, work, str(a.edits), str(a.window), str(a.seed + run))
         self.first.append(edits[0])
         self.later += edits[1:]
+        self.cli.append(cli_edit(self.store, self.cut, a, work, run))
+        self.floor.append((process([sys.executable, "-c", FLOOR], cwd=work),
+                           process([sys.executable, "-c", FLOOR + ", numba"], cwd=work)))
         print(f"run {run}, {self.name}: preprocess {self.pre[-1]['wall']:.2f} s; edits "
               + ", ".join(f"{e['wall']:.3f} s ({e['how']})" for e in edits)
+              + f"; `geoterrain edit` {self.cli[-1]['wall']:.3f} s"
               + f"; load {os.getloadavg()[0]:.1f}", flush=True)
 
     def report(self, a) -> None:
@@ -199,6 +257,13 @@ class Case:
             if es:
                 w = med(e["cpu"] for e in es)
                 print(f"| {name} | {w:.3f} | {w / pc:.3f} |")
+        print("\n| a fresh process, start to exit | wall s | CPU s | × preprocess wall / CPU |"
+              "\n|---|---|---|---|")
+        for name, es in (("`geoterrain edit` (the first edit a user waits for)", self.cli),
+                         (f"floor: `python -c \"{FLOOR}\"`", [f[0] for f in self.floor]),
+                         ("floor + numba", [f[1] for f in self.floor])):
+            w, c = med(e["wall"] for e in es), med(e["cpu"] for e in es)
+            print(f"| {name} | {w:.3f} | {c:.3f} | {w / p:.3f} / {c / pc:.3f} |")
         allx = first + later
         print("\n| per edit (median) | bytes | % of the store |\n|---|---|---|")
         for key, what in (("bytes", "rows written (blobs + catalog)"),
@@ -216,12 +281,13 @@ def _compare(case: Case, base: dict) -> None:
     """This tree's square store against the baseline tree's, same run."""
     med = statistics.median
     print("\n| same run, in turns | preprocess wall / CPU s | first edit wall / CPU s "
-          "(× preprocess) | next edits wall / CPU s (× preprocess) |\n|---|---|---|---|")
-    for name, r in (("this tree", {"pre": case.pre, "first": case.first, "next": case.later}),
-                    ("baseline", base)):
+          "(× preprocess) | next edits wall / CPU s (× preprocess) | `geoterrain edit` "
+          "process wall / CPU s (× preprocess) |\n|---|---|---|---|---|")
+    for name, r in (("this tree", {"pre": case.pre, "first": case.first, "next": case.later,
+                                   "cli": case.cli}), ("baseline", base)):
         pw, pc = med(e["wall"] for e in r["pre"]), med(e["cpu"] for e in r["pre"])
         cells = [f"{pw:.2f} / {pc:.2f}"]
-        for k in ("first", "next"):
+        for k in ("first", "next", "cli"):
             w, c = med(e["wall"] for e in r[k]), med(e["cpu"] for e in r[k])
             cells.append(f"{w:.3f} / {c:.3f} ({w / pw:.3f} / {c / pc:.3f})")
         print(f"| {name} | " + " | ".join(cells) + " |")
@@ -237,6 +303,7 @@ def _baseline(base: dict, a, dem: str, work: str, run: int) -> None:
     edits = child(EDIT, own, work, str(a.edits), str(a.window), str(a.seed + run), tree=tree)
     base["first"].append(edits[0])
     base["next"] += edits[1:]
+    base["cli"].append(cli_edit(own, a.cut, a, work, run, tree=tree))
     print(f"run {run}, baseline: preprocess {base['pre'][-1]['wall']:.2f} s; edits "
           + ", ".join(f"{e['wall']:.3f} s" for e in edits), flush=True)
 

@@ -80,7 +80,7 @@ class Group(click.Group):
         name, cmd, rest = super().resolve_command(ctx, args)
         if not any(a in ("-h", "--help") for a in rest):
             # a first run: say that kernels compile, with a bar (cli/options.py)
-            from geoterrain.cli.options import CompileBar
+            from geoterrain.cli.compilebar import CompileBar
 
             bar = CompileBar(name, bool(ctx.params.get("quiet")))
             ctx.meta["geoterrain.compile_bar"] = bar.__enter__()

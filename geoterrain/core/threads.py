@@ -192,7 +192,11 @@ def cores_for(samples: int) -> Iterator[None]:
     ...     numba.get_num_threads()
     1
     """
-    if samples >= PARALLEL_MIN_SAMPLES:
+    if samples >= PARALLEL_MIN_SAMPLES or serial_now():
+        # large work; or every ParallelKernel runs its serial twin already (an edit, a
+        # fork() child): numba's threads are not asked for, so not started (the first
+        # ask loads its threading layer and starts its pool: 3-4 ms of CPU, 3-21 ms of
+        # wall time at load 11, and multiprocessing imported)
         yield
         return
     n = numba.get_num_threads()

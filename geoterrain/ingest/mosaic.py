@@ -18,7 +18,6 @@ from __future__ import annotations
 import glob as _glob
 import warnings
 from pathlib import Path
-from xml.sax.saxutils import escape
 
 import numpy as np
 import rasterio
@@ -27,6 +26,15 @@ from geoterrain.core.paths import input_problem
 from geoterrain.exceptions import InputError, UsageError
 from geoterrain.ingest.gdalerrors import gdal_reason
 from geoterrain.ingest.remote import Url, is_url, list_file, read_list
+
+
+def escape(text: str) -> str:
+    """``xml.sax.saxutils.escape``, imported when a VRT is written (it imports urllib's
+    request and http.client with ssl: 10-25 ms that reading a raster need not pay)."""
+    from xml.sax.saxutils import escape as _escape
+
+    return _escape(text)
+
 
 GLOB_CHARS = "*?["
 #: What a folder given as a DEM contributes: files whose names end so (case-insensitive),

@@ -9,6 +9,7 @@ before anything is sized from it. See docs/store.md, "Threat model".
 from __future__ import annotations
 
 import math
+from operator import itemgetter
 from pathlib import Path
 
 import numpy as np
@@ -151,8 +152,13 @@ _BOUNDS = ("error", "boundary_error", "delta_max", "radius_max")  # ≥ 0, +inf 
 
 def _column(tiles: dict, k: str) -> np.ndarray:
     # one number of every tile, NaN for anything but an int or float (so it fails)
-    return np.array([v if type(v) in (int, float) else np.nan
-                     for v in (info[k] for info in tiles.values())], np.float64)
+    vals = list(map(itemgetter(k), tiles.values()))
+    if set(map(type, vals)) <= _NUMBERS:  # a reader's table: C loops (None → NaN)
+        return np.array(vals, np.float64)
+    return np.array([v if type(v) in (int, float) else np.nan for v in vals], np.float64)
+
+
+_NUMBERS = {int, float, type(None)}
 
 
 def _tiles(tiles: dict, g: Grid, f: Frame, m: dict) -> None:
@@ -174,7 +180,10 @@ def _tiles(tiles: dict, g: Grid, f: Frame, m: dict) -> None:
     # keys as one integer each (inside the grid x, y < 2^24), parents looked up by value
     code = np.where(inside, (L << 52) | (x << 26) | y, -1)
     parent = np.where(inside, ((L + 1) << 52) | ((x // 2) << 26) | (y // 2), -1)
-    orphan = inside & (L < g.top_level) & ~np.isin(parent, code)
+    # parents looked up in the sorted codes (not np.isin: numpy 2's imports numpy.ma)
+    srt = np.sort(code)
+    at = np.minimum(np.searchsorted(srt, parent), len(srt) - 1)
+    orphan = inside & (L < g.top_level) & (srt[at] != parent)
     spans = (np.int64(1) << (g.t + np.clip(L, 0, g.top_level))) + 1
     nvalid = np.array([info["nvalid"] for info in tiles.values()], np.float64)
     counts = ~((1 <= nvalid) & (nvalid <= np.minimum(spans * spans, m["valid_samples"])))

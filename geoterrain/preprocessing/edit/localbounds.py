@@ -70,6 +70,7 @@ class Bounds:
         self._sweeps: dict = {}  # a block's tile sweeps
         self._bound_cache: dict = {}  # a block's tiles' bounds, order, swept and maxima
         self._stored_cache: dict = {}
+        self._pred_cache: dict = {}  # tile → whether its δ or r blob holds PRED codes
         self.tiles_swept = 0
         self.rows0 = {False: job.level0(False), True: job.level0(True)}
 
@@ -525,11 +526,14 @@ class Bounds:
 
     # ------------------------------------------------------------ blobs and rows
     def _predicted(self, key: tuple[int, int, int]) -> bool:
-        # does the tile's stored δ or r blob hold PRED codes (or is it not stored)?
-        if key not in self.t.tile_info:
-            return False
-        return any(len(b) > 1 and b[0] == VERSION_2 and b[1] & PRED
-                   for b in (self.t._blob(key, "delta"), self.t._blob(key, "radius")))
+        # does the tile's stored δ or r blob hold PRED codes (or is it not stored)? Read
+        # once a tile: a changed vertex asks for each finer tile that holds it
+        got = self._pred_cache.get(key)
+        if got is None:
+            got = self._pred_cache[key] = key in self.t.tile_info and any(
+                len(b) > 1 and b[0] == VERSION_2 and b[1] & PRED
+                for b in (self.t._blob(key, "delta"), self.t._blob(key, "radius")))
+        return got
 
     def _code_blobs(self) -> None:
         """The δ and r blobs of the tiles holding a vertex whose code changed (as a new
@@ -543,23 +547,35 @@ class Bounds:
             if code != _codes(self.t8, self._stored(i, j, "delta")) or \
                     self.coarse_r[(i, j)] != _codes(self.rt, self._stored(i, j, "radius")):
                 changed[(i, j)] = None
+        ij = np.array(list(changed), np.int64).reshape(-1, 2)
+        vi, vj = ij[:, 0], ij[:, 1]
+        low = (vi | vj) & -(vi | vj)  # 2^level of each vertex (0: the corner (0, 0), none)
+        vk = np.minimum(np.frexp(low.astype(np.float64))[1] - 1, g.top_level)
         tiles = set()
-        for i, j in changed:
-            h = (i | j) & -(i | j)
-            k = min(h.bit_length() - 1, g.top_level)
-            # its own level's tiles, and every finer level's tiles that hold it with a
-            # PRED blob (vertexdata.PRED: codes stored as differences from their
-            # parents', the vertices shared with the level above; not a RING or
-            # CENTRES blob, whose payload is the tile's own)
-            for lv in range(k + 1):
-                span, (nx, ny) = g.tile_span(lv), g.tiles(lv)
-                for y in {min(i // span, ny - 1), max((i - 1) // span, 0)}:
-                    for x in {min(j // span, nx - 1), max((j - 1) // span, 0)}:
-                        if y * span <= i <= y * span + span and \
-                                x * span <= j <= x * span + span and \
-                                (lv == k or self._predicted((lv, x, y))):
-                            tiles.add((lv, x, y))
-            job.dirty.append((i, j, i + 1, j + 1))
+        # its own level's tiles, and every finer level's tiles that hold it with a PRED
+        # blob (vertexdata.PRED: codes stored as differences from their parents', the
+        # vertices shared with the level above; not a RING or CENTRES blob, whose
+        # payload is the tile's own); whole arrays a level, each tile asked once
+        for lv in range(g.top_level + 1):
+            m = vk >= lv
+            if not m.any():
+                continue
+            i, j, own = vi[m], vj[m], vk[m] == lv
+            span, (nx, ny) = g.tile_span(lv), g.tiles(lv)
+            for y in (np.minimum(i // span, ny - 1), np.maximum((i - 1) // span, 0)):
+                for x in (np.minimum(j // span, nx - 1), np.maximum((j - 1) // span, 0)):
+                    ok = (y * span <= i) & (i <= y * span + span) & (x * span <= j) & \
+                        (j <= x * span + span)
+                    cand = set(zip(x[ok].tolist(), y[ok].tolist(), own[ok].tolist(),
+                                   strict=True))
+                    for tx, ty, o in cand:
+                        if o or self._predicted((lv, tx, ty)):
+                            tiles.add((lv, tx, ty))
+        job.dirty.extend((i, j, i + 1, j + 1) for i, j in changed)
+        # the coarse vertices' new codes, as arrays
+        cv = np.array(list(self.coarse_d), np.int64).reshape(-1, 2)
+        cd = self.t8[np.array(list(self.coarse_d.values()), np.int64)]
+        cr = self.rt[np.array([self.coarse_r[k] for k in self.coarse_d], np.int64)]
         T = g.tile_samples
         for key in sorted(tiles):
             if key not in self.t.tile_info:
@@ -574,12 +590,11 @@ class Bounds:
             inw = (ii >= self.oi) & (ii <= self.i1) & (jj >= self.oj) & (jj <= self.j1)
             d[inw] = self.t8[self.dc[ii[inw] - self.oi, jj[inw] - self.oj]]
             r[inw] = self.rt[self.rc[ii[inw] - self.oi, jj[inw] - self.oj]]
-            for (i, j) in self.coarse_d:
-                if y * span <= i <= y * span + span and x * span <= j <= x * span + span \
-                        and (i - y * span) % step == 0 and (j - x * span) % step == 0:
-                    a, b = (i - y * span) // step, (j - x * span) // step
-                    d[a, b] = self.t8[self.coarse_d[(i, j)]]
-                    r[a, b] = self.rt[self.coarse_r[(i, j)]]
+            di, dj = cv[:, 0] - y * span, cv[:, 1] - x * span
+            on = (di >= 0) & (di <= span) & (dj >= 0) & (dj <= span) & (di % step == 0) & \
+                (dj % step == 0)
+            d[di[on] // step, dj[on] // step] = cd[on]
+            r[di[on] // step, dj[on] // step] = cr[on]
             coding = BoundsCoding(d, None, job.ed,
                                   r_codes=(np.searchsorted(self.rt, r).astype(np.uint8), job.er))
             blobs, dm, rm = level_blobs(coding, np.zeros((T, T, 2), np.uint8), g.t, 0,
