@@ -129,7 +129,8 @@ def schema_version(grid: dict, frame: dict | None = None) -> int:
     --------
     >>> schema_version({"rows": 9, "cols": 9, "n": 3, "t": 2})
     14
-    >>> schema_version({"layout": "roots"}), schema_version({"layout": "roots"}, {"lattice": [9, 17]})
+    >>> roots = {"layout": "roots"}
+    >>> schema_version(roots), schema_version(roots, {"lattice": [9, 17]})
     (15, 16)
     """
     if isinstance(frame, dict) and frame.get("lattice") is not None:
