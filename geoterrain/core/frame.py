@@ -224,7 +224,12 @@ class Frame:
     def _lattice_xy(self, i, j, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         # pyproj on the lattice, the proxy of xy()'s docstring past it
         a, b = self.lattice[0] - 1, self.lattice[1] - 1
-        i, j = np.broadcast_arrays(np.asarray(i, np.float64), np.asarray(j, np.float64))
+        i, j = np.asarray(i, np.float64), np.asarray(j, np.float64)
+        if (i.ndim == j.ndim == 2 and i.shape[1] == 1 and j.shape[0] == 1 and i.size
+                and j.size and i.min() >= 0 and j.min() >= 0
+                and (i == np.floor(i)).all() and (j == np.floor(j)).all()):
+            return self._lattice_band(i[:, 0], j[0], x, y)
+        i, j = np.broadcast_arrays(i, j)
         past = (i > a) | (j > b)
         if not past.any():
             return _transform_threads(self._to_scene, x, y, owned=True)
@@ -255,6 +260,37 @@ class Frame:
         p = np.where(di > 0, ra, ca)
         X[past] = p[0] + di * (ra[0] - rb[0]) + dj * (ca[0] - cb[0])
         Y[past] = p[1] + di * (ra[1] - rb[1]) + dj * (ca[1] - cb[1])
+        return X, Y
+
+    def _lattice_band(self, ri: np.ndarray, cj: np.ndarray, x: np.ndarray, y: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        # _lattice_xy of rows ``ri`` × columns ``cj`` (whole indices, a column against a
+        # row: the xy pass's band, grid_xy): the same expression element by element, on
+        # the row and the column instead of the broadcast pairs
+        a, b = self.lattice[0] - 1, self.lattice[1] - 1
+        prow, pcol = ri > a, cj > b
+        if not (prow.any() or pcol.any()):
+            return _transform_threads(self._to_scene, x, y, owned=True)
+        x, y = np.broadcast_arrays(x, y)
+        X, Y = np.empty(x.shape), np.empty(x.shape)
+        rin, cin = ~prow, ~pcol
+        if rin.any() and cin.any():
+            block = np.ix_(rin, cin)
+            X[block], Y[block] = _transform_threads(self._to_scene, x[block], y[block],
+                                                    owned=True)
+        di, dj = np.maximum(ri - a, 0.0), np.maximum(cj - b, 0.0)
+        ki, kj = np.minimum(ri, a).astype(np.int64), np.minimum(cj, b).astype(np.int64)
+        rows, cols = self._lattice_edges
+        for k, V in ((0, X), (1, Y)):
+            ra, rb = rows[0][k][kj], rows[1][k][kj]
+            ca, cb = cols[0][k][ki], cols[1][k][ki]
+            sr, sc = ra - rb, ca - cb
+            if prow.any():  # past the last row: row a's point, both steps
+                V[prow] = (ra[None, :] + di[prow, None] * sr[None, :]) \
+                    + dj[None, :] * sc[prow, None]
+            if rin.any() and pcol.any():  # on the lattice's rows, past its last column
+                V[np.ix_(rin, pcol)] = (ca[rin, None] + di[rin, None] * sr[None, pcol]) \
+                    + dj[None, pcol] * sc[rin, None]
         return X, Y
 
     @cached_property
@@ -309,9 +345,8 @@ class Frame:
         and Y on the row only: they are read-only broadcast views of one row and one
         column (no n² copies)."""
         R, C = (n, n) if np.ndim(n) == 0 else n
-        if self.kind == "geographic":
-            i, j = np.meshgrid(np.arange(R), np.arange(C), indexing="ij")
-            return self.xy(i, j)
+        if self.kind == "geographic":  # a column of rows against a row of columns
+            return self.xy(np.arange(R)[:, None], np.arange(C)[None, :])
         return self.axis_xy(np.arange(R), np.arange(C))
 
     def axis_xy(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
