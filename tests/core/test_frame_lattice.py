@@ -154,3 +154,33 @@ def test_a_store_past_its_lattice_records_it_and_only_that_one(tmp_path):
         assert t.frame.lattice == lattice, name
         if lattice is not None:
             assert t.grid.shape == lattice and t.grid.extent != t.grid.shape
+
+
+def test_the_tile_pool_reads_the_preprocess_s_positions(tmp_path):
+    """Every reader takes its positions from Frame.xy: the tile pool's x, y of each tile
+    (what the static mesh, its clip and the views draw) are the whole grid's (what the
+    preprocess computed the bounds on) bit for bit, and past the lattice they are the
+    proxies, not pyproj's."""
+    import dataclasses
+
+    z = generate("fbm", 129, seed=9)[:40, :117].copy()
+    src = write_geotiff(tmp_path / "w.tif", z, crs="EPSG:4326", origin=(24.0, 61.0),
+                        spacing=1 / 1200)
+    t = geoterrain.open(geoterrain.preprocess(src, tmp_path / "w.geoterrain", tile_size=8))
+    g = t.grid
+    assert t.frame.lattice == g.shape and g.extent != g.shape
+    X, Y = t.frame.grid_xy(g.extent)
+    PX, PY = dataclasses.replace(t.frame, lattice=None).grid_xy(g.extent)
+    past = 0
+    for L in g.levels:
+        for ty in range(g.tiles(L)[1]):
+            for tx in range(g.tiles(L)[0]):
+                x, y = t.tile_xy(L, tx, ty)
+                ii, jj = np.meshgrid(g.tile_rows(L, ty), g.tile_cols(L, tx), indexing="ij")
+                np.testing.assert_array_equal(x, X[ii, jj])
+                np.testing.assert_array_equal(y, Y[ii, jj])
+                out = (ii >= g.shape[0]) | (jj >= g.shape[1])
+                past += int(out.sum())
+                assert not (np.array_equal(x[out], PX[ii, jj][out])
+                            and np.array_equal(y[out], PY[ii, jj][out])) or not out.any()
+    assert past > 0
