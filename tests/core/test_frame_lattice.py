@@ -184,3 +184,26 @@ def test_the_tile_pool_reads_the_preprocess_s_positions(tmp_path):
                 assert not (np.array_equal(x[out], PX[ii, jj][out])
                             and np.array_equal(y[out], PY[ii, jj][out])) or not out.any()
     assert past > 0
+
+
+@pytest.mark.parametrize("band", [2, 8, 64])
+def test_the_xy_pass_writes_the_whole_grid_s_positions(tmp_path, band):
+    """The streamed preprocess's xy pass (band by band, into the scratch arrays every
+    later pass reads) writes grid_xy's values bit for bit, proxies past the lattice."""
+    import os
+
+    from geoterrain.core.grid import Grid
+    from geoterrain.preprocessing.passes import XY, Job, _xy_pass
+    from geoterrain.preprocessing.scratch import ScratchArrays
+
+    g = Grid.for_shape(40, 117, tile_size=8, roots=True)
+    f = _frame(61.0, 24.0, 1 / 1200, 40, 117).with_lattice(g.shape)
+    assert g.extent != g.shape
+    _xy_pass(Job(None, g.to_json(), f.to_json(), None, band, str(tmp_path), True))
+    sx = ScratchArrays.shared(os.path.join(tmp_path, XY))
+    try:
+        X, Y = f.grid_xy(g.extent)
+        np.testing.assert_array_equal(sx.read("X", 0, g.extent[0]), X)
+        np.testing.assert_array_equal(sx.read("Y", 0, g.extent[0]), Y)
+    finally:
+        sx.close()
