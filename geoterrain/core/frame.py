@@ -4,7 +4,8 @@
   the CRS's own axis unit (US survey feet, feet, ...).
 - Geographic CRS: exact sample positions (lon, lat) projected by pyproj into an
   azimuthal equidistant frame centred on the raster: true ground proportions,
-  no resampling of heights.
+  no resampling of heights. A root grid's frame (``lattice``) takes pyproj only on
+  level 0's lattice and proxy positions past it (:meth:`Frame.xy`): its padding.
 - No CRS (PNG tiles): unit pixels, or a given pixel size.
 
 The scene origin is the raster's centre, so coordinates stay small (float32
@@ -66,6 +67,10 @@ class Frame:
     z_scale: float = 1.0  # vertical exaggeration
     origin_crs: tuple[float, float] = (0.0, 0.0)  # CRS coords of the scene origin
     aeqd_wkt: str | None = None  # local metric frame of a geographic grid
+    # (rows, cols) of level 0's lattice of a geographic root grid whose extent passes it:
+    # positions past it are proxies (:meth:`xy`); None: pyproj everywhere (stores before
+    # schema 16, and every frame whose grid has no sample past its lattice)
+    lattice: tuple[int, int] | None = None
 
     # ----------------------------------------------------------------- builders
     @staticmethod
@@ -163,13 +168,145 @@ class Frame:
                                     always_xy=True)
 
     def xy(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Scene X (east), Y (north) in metres of samples (i, j); any broadcastable shape."""
+        """Scene X (east), Y (north) in metres of samples (i, j); any broadcastable shape.
+
+        A geographic frame with a :attr:`lattice` of (R, C) samples gives pyproj's
+        positions for i ≤ a = R − 1 and j ≤ b = C − 1 and, past them, the proxy
+
+            P(i, j) = P(i', j') + d_i·(P(a, j') − P(a − 1, j')) + d_j·(P(i', b) − P(i', b − 1))
+
+        with i' = min(i, a), j' = min(j, b), d_i = max(i − a, 0), d_j = max(j − b, 0):
+        each column continued past the lattice's last row by its last step, each row past
+        its last column likewise, the corner by both (affine in i and in j there, finite
+        where pyproj is, equal to pyproj's on the lattice's edge, and no pyproj call per
+        padding sample). A root grid's padding holds no valid sample, so these positions
+        only place padding vertices; every bound the preprocess computes on them holds for
+        what is drawn at them, since every reader takes its positions from here.
+
+        Examples
+        --------
+        >>> from pyproj import CRS
+        >>> f = Frame.from_raster((0.001, 0, 10, 0, -0.001, 50), CRS.from_epsg(4326).to_wkt(),
+        ...                       6, 6).with_lattice((7, 7))
+        >>> X, Y = f.xy(np.array([5, 6, 7, 8, 9]), np.full(5, 3))  # rows 7 … 9: proxies
+        >>> bool(np.allclose(np.diff(Y[1:], 2), 0, atol=1e-6)), bool((np.diff(Y) < 0).all())
+        (True, True)
+        >>> X0, Y0 = Frame(**{**f.to_json(), "lattice": None}).xy(np.arange(7), np.full(7, 3))
+        >>> bool((X0[5:7] == X[:2]).all() and (Y0[5:7] == Y[:2]).all())  # pyproj's, bit for bit
+        True
+        """
         x, y = self._crs_xy(i, j)
         if self.kind == "geographic":
             # Padding rows may run past a pole: clamp so pyproj stays finite.
             y = np.clip(y, -90.0, 90.0)
+            if self.lattice is not None:
+                return self._lattice_xy(i, j, x, y)
             return _transform_threads(self._to_scene, x, y, owned=True)
         return (x - self.origin_crs[0]) * self.unit_to_m, (y - self.origin_crs[1]) * self.unit_to_m
+
+    def with_lattice(self, lattice: tuple[int, int] | None) -> Frame:
+        """This frame with proxy positions past level 0's ``lattice`` (rows, cols) when it
+        is geographic (:meth:`xy`); any other frame as it is (its positions are affine).
+
+        Examples
+        --------
+        >>> Frame.pixel(3, 3).with_lattice((5, 5)).lattice is None
+        True
+        """
+        if self.kind != "geographic" or lattice is None:
+            return self
+        R, C = (int(v) for v in lattice)
+        if R < max(2, self.rows) or C < max(2, self.cols):
+            raise ValueError(f"a lattice of {R} × {C} samples does not hold the raster's "
+                             f"{self.rows} × {self.cols}")
+        return Frame(**{**asdict(self), "lattice": (R, C)})
+
+    def _lattice_xy(self, i, j, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        # pyproj on the lattice, the proxy of xy()'s docstring past it
+        a, b = self.lattice[0] - 1, self.lattice[1] - 1
+        i, j = np.asarray(i, np.float64), np.asarray(j, np.float64)
+        if (i.ndim == j.ndim == 2 and i.shape[1] == 1 and j.shape[0] == 1 and i.size
+                and j.size and i.min() >= 0 and j.min() >= 0
+                and (i == np.floor(i)).all() and (j == np.floor(j)).all()):
+            return self._lattice_band(i[:, 0], j[0], x, y)
+        i, j = np.broadcast_arrays(i, j)
+        past = (i > a) | (j > b)
+        if not past.any():
+            return _transform_threads(self._to_scene, x, y, owned=True)
+        x, y = np.broadcast_arrays(x, y)
+        X, Y = np.empty(x.shape), np.empty(x.shape)
+        inside = ~past
+        if inside.any():
+            X[inside], Y[inside] = _transform_threads(self._to_scene, x[inside], y[inside],
+                                                      owned=True)
+        ip, jp = i[past], j[past]
+        di, dj = np.maximum(ip - a, 0.0), np.maximum(jp - b, 0.0)
+        ic, jc = np.minimum(ip, a), np.minimum(jp, b)
+        ki, kj = ic.astype(np.int64), jc.astype(np.int64)
+        if (ki == ic).all() and (kj == jc).all() and ki.min() >= 0 and kj.min() >= 0:
+            rows, cols = self._lattice_edges  # the lattice's last two rows and columns
+            ra, rb = rows[0][:, kj], rows[1][:, kj]
+            ca, cb = cols[0][:, ki], cols[1][:, ki]
+        else:  # fractional or negative indices: the same pyproj values, point by point
+            n = len(ic)
+            ii = np.concatenate([np.full(n, float(a)), np.full(n, a - 1.0), ic, ic])
+            jj = np.concatenate([jc, jc, np.full(n, float(b)), np.full(n, b - 1.0)])
+            ex, ey = self._crs_xy(ii, jj)
+            ex, ey = _transform_threads(self._to_scene, ex, np.clip(ey, -90.0, 90.0),
+                                        owned=True)
+            e = np.stack([ex, ey]).reshape(2, 4, n)
+            ra, rb, ca, cb = e[:, 0], e[:, 1], e[:, 2], e[:, 3]
+        # the edge point (row a's where the point is past the last row, else column b's)
+        p = np.where(di > 0, ra, ca)
+        X[past] = p[0] + di * (ra[0] - rb[0]) + dj * (ca[0] - cb[0])
+        Y[past] = p[1] + di * (ra[1] - rb[1]) + dj * (ca[1] - cb[1])
+        return X, Y
+
+    def _lattice_band(self, ri: np.ndarray, cj: np.ndarray, x: np.ndarray, y: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        # _lattice_xy of rows ``ri`` × columns ``cj`` (whole indices, a column against a
+        # row: the xy pass's band, grid_xy): the same expression element by element, on
+        # the row and the column instead of the broadcast pairs
+        a, b = self.lattice[0] - 1, self.lattice[1] - 1
+        prow, pcol = ri > a, cj > b
+        if not (prow.any() or pcol.any()):
+            return _transform_threads(self._to_scene, x, y, owned=True)
+        x, y = np.broadcast_arrays(x, y)
+        X, Y = np.empty(x.shape), np.empty(x.shape)
+        rin, cin = ~prow, ~pcol
+        if rin.any() and cin.any():
+            block = np.ix_(rin, cin)
+            X[block], Y[block] = _transform_threads(self._to_scene, x[block], y[block],
+                                                    owned=True)
+        di, dj = np.maximum(ri - a, 0.0), np.maximum(cj - b, 0.0)
+        ki, kj = np.minimum(ri, a).astype(np.int64), np.minimum(cj, b).astype(np.int64)
+        rows, cols = self._lattice_edges
+        for k, V in ((0, X), (1, Y)):
+            ra, rb = rows[0][k][kj], rows[1][k][kj]
+            ca, cb = cols[0][k][ki], cols[1][k][ki]
+            sr, sc = ra - rb, ca - cb
+            if prow.any():  # past the last row: row a's point, both steps
+                V[prow] = (ra[None, :] + di[prow, None] * sr[None, :]) \
+                    + dj[None, :] * sc[prow, None]
+            if rin.any() and pcol.any():  # on the lattice's rows, past its last column
+                V[np.ix_(rin, pcol)] = (ca[rin, None] + di[rin, None] * sr[None, pcol]) \
+                    + dj[None, pcol] * sc[rin, None]
+        return X, Y
+
+    @cached_property
+    def _lattice_edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """pyproj's X, Y of the lattice's last two rows, (2, 2, cols): [row a, row a − 1]
+        × [X, Y], and of its last two columns, (2, 2, rows): one pyproj call."""
+        R, C = self.lattice
+        a, b = R - 1, C - 1
+        ii = np.concatenate([np.full(C, a), np.full(C, a - 1), np.arange(R), np.arange(R)])
+        jj = np.concatenate([np.arange(C), np.arange(C), np.full(R, b), np.full(R, b - 1)])
+        x, y = self._crs_xy(ii, jj)
+        X, Y = _transform_threads(self._to_scene, x, np.clip(y, -90.0, 90.0), owned=True)
+        rows = np.stack([np.stack([X[:C], Y[:C]]), np.stack([X[C:2 * C], Y[C:2 * C]])])
+        cols = np.stack([np.stack([X[2 * C:2 * C + R], Y[2 * C:2 * C + R]]),
+                         np.stack([X[2 * C + R:], Y[2 * C + R:]])])
+        return rows, cols
 
     def z(self, heights: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Scene Z (metres, exaggerated) of heights in source units (into ``out``, which
@@ -208,9 +345,8 @@ class Frame:
         and Y on the row only: they are read-only broadcast views of one row and one
         column (no n² copies)."""
         R, C = (n, n) if np.ndim(n) == 0 else n
-        if self.kind == "geographic":
-            i, j = np.meshgrid(np.arange(R), np.arange(C), indexing="ij")
-            return self.xy(i, j)
+        if self.kind == "geographic":  # a column of rows against a row of columns
+            return self.xy(np.arange(R)[:, None], np.arange(C)[None, :])
         return self.axis_xy(np.arange(R), np.arange(C))
 
     def axis_xy(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -341,13 +477,22 @@ class Frame:
         return CRS.from_wkt(self.crs_wkt).name
 
     def to_json(self) -> dict:
-        return asdict(self)
+        """The store's frame; ``lattice`` only where it is set (every other frame's JSON
+        is what stores always held)."""
+        d = asdict(self)
+        if d["lattice"] is None:
+            del d["lattice"]
+        else:
+            d["lattice"] = list(d["lattice"])
+        return d
 
     @staticmethod
     def from_json(d: dict) -> Frame:
         d = dict(d)
         d["transform"] = tuple(d["transform"])
         d["origin_crs"] = tuple(d["origin_crs"])
+        if d.get("lattice") is not None:
+            d["lattice"] = tuple(int(v) for v in d["lattice"])
         return Frame(**d)
 
 

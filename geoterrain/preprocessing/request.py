@@ -157,6 +157,7 @@ def place(req: Request, shape: tuple[int, int], transform: tuple | None,
     if crs_wkt is None and pixel_size is None:
         log.warning("%s has no CRS: using 1 m per pixel; set pixel_size (--pixel-size)",
                     req.src)
-    roots = root_layout(req.root_grid)
-    return Placement(transform, crs_wkt, frame,
-                     Grid.for_shape(H, W, tile_size=req.tile_size, roots=roots))
+    grid = Grid.for_shape(H, W, tile_size=req.tile_size, roots=root_layout(req.root_grid))
+    if grid.extent != grid.shape:  # a geographic frame's padding past the lattice: proxies
+        frame = frame.with_lattice(grid.shape)
+    return Placement(transform, crs_wkt, frame, grid)

@@ -19,7 +19,7 @@ from geoterrain.core.frame import SCENE_LIMIT, UNIT_TO_M_RANGE, Z_SCALE_RANGE, Z
 from geoterrain.core.grid import MAX_ROOTS, Grid
 from geoterrain.core.memory import available_memory
 from geoterrain.exceptions import StoreError
-from geoterrain.store.database import schema_version
+from geoterrain.store.database import LATTICE_SCHEMA_VERSION, schema_version
 
 __all__ = ["check_store", "available_memory"]
 
@@ -69,18 +69,29 @@ def _grid(m: dict) -> Grid:
     g = Grid(rows, cols, n, t, d.get("layout", "square"))
     if Grid.for_shape(rows, cols, 1 << t, roots=roots) != g:
         raise _Bad("grid.n does not fit grid.rows and grid.cols")
-    if "schema_version" in m and m["schema_version"] != schema_version(d):
-        raise _Bad(f"a {'root' if roots else 'square'} grid is written in schema version "
-                   f"{schema_version(d)}, not {m['schema_version']}")
+    version = schema_version(d, m.get("frame"))
+    if "schema_version" in m and m["schema_version"] != version:
+        what = "a frame with a lattice" if version == LATTICE_SCHEMA_VERSION else \
+            f"a {'root' if roots else 'square'} grid"
+        raise _Bad(f"{what} is written in schema version {version}, not "
+                   f"{m['schema_version']}")
     return g
 
 
 def _frame(m: dict, g: Grid) -> Frame:
     fields = {"kind", "rows", "cols", "transform", "crs_wkt", "unit_to_m", "z_to_m", "z_scale",
               "origin_crs", "aeqd_wkt"}
-    d = _keys(m.get("frame"), fields, fields, "frame")
+    d = _keys(m.get("frame"), fields | {"lattice"}, fields, "frame")
     if d["kind"] not in _FRAME_KINDS:
         raise _Bad("frame.kind is unknown")
+    # proxy positions past level 0's lattice (Frame.xy): a geographic root grid's own
+    # lattice, only where its extent passes it (the writer sets it so, nowhere else)
+    if "lattice" in d and (d["kind"] != "geographic" or g.extent == g.shape
+                           or not isinstance(d["lattice"], list)
+                           or [type(v) for v in d["lattice"]] != [int, int]
+                           or d["lattice"] != list(g.shape)):
+        raise _Bad("frame.lattice is not the geographic root grid's level-0 lattice past "
+                   "which it pads")
     if d["rows"] != g.rows or d["cols"] != g.cols:
         raise _Bad("frame size differs from the grid")
     tr = d["transform"]

@@ -110,18 +110,31 @@ SCHEMA_VERSION = 14  # 2: checksums bound to their tile and kind; per-level key 
 #                       codes (vertexdata.PRED)
 ROOTS_SCHEMA_VERSION = 15  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
 #                            9 before schema 10, 11 before schema 12, 13 before schema 14
+LATTICE_SCHEMA_VERSION = 16  # a root grid whose geographic frame has proxy positions past
+#                              level 0's lattice (frame.lattice, Frame.xy): an older
+#                              reader would place its padding by pyproj, not where its
+#                              bounds were computed
+#: every version this geoterrain reads
+SCHEMA_VERSIONS = (SCHEMA_VERSION, ROOTS_SCHEMA_VERSION, LATTICE_SCHEMA_VERSION)
 
 
-def schema_version(grid: dict) -> int:
-    """The schema version a store of this grid (its metadata's ``grid``) is written in:
-    :data:`ROOTS_SCHEMA_VERSION` for a grid of root tiles, else :data:`SCHEMA_VERSION`
-    (square stores are the bytes they always were).
+def schema_version(grid: dict, frame: dict | None = None) -> int:
+    """The schema version a store of this grid and frame (its metadata's ``grid`` and
+    ``frame``) is written in: :data:`LATTICE_SCHEMA_VERSION` for a frame with a
+    ``lattice``, :data:`ROOTS_SCHEMA_VERSION` for another grid of root tiles, else
+    :data:`SCHEMA_VERSION` (square stores are the bytes they always were, and so are
+    root grids without proxies).
 
     Examples
     --------
     >>> schema_version({"rows": 9, "cols": 9, "n": 3, "t": 2})
     14
+    >>> roots = {"layout": "roots"}
+    >>> schema_version(roots), schema_version(roots, {"lattice": [9, 17]})
+    (15, 16)
     """
+    if isinstance(frame, dict) and frame.get("lattice") is not None:
+        return LATTICE_SCHEMA_VERSION
     return ROOTS_SCHEMA_VERSION if grid.get("layout") == "roots" else SCHEMA_VERSION
 
 
@@ -375,7 +388,8 @@ class StoreWriter:
         def _finish():
             self._flush()
             rows = {TILES_ID: self._tile_table()}
-            self._meta["schema_version"] = schema_version(self._meta.get("grid", {}))
+            self._meta["schema_version"] = schema_version(self._meta.get("grid", {}),
+                                                          self._meta.get("frame"))
             self._meta["complete"] = True
             rows[META_ID] = pack_metadata(self._meta)
             self.con.executemany("INSERT INTO catalog VALUES (?,?,?)",
@@ -599,10 +613,11 @@ class StoreReader:
             raise StoreError(
                 f"{self.path}: incomplete store (interrupted write); re-run preprocess")
         version = self.metadata.get("schema_version")
-        if version not in (SCHEMA_VERSION, ROOTS_SCHEMA_VERSION) or type(version) is not int:
+        if version not in SCHEMA_VERSIONS or type(version) is not int:
             raise StoreError(f"{self.path}: store schema version {_show(version)}, this "
                              f"geoterrain reads version {SCHEMA_VERSION} (and "
-                             f"{ROOTS_SCHEMA_VERSION}, root grids); {REBUILD}")
+                             f"{ROOTS_SCHEMA_VERSION} and {LATTICE_SCHEMA_VERSION}, root "
+                             f"grids); {REBUILD}")
 
     def _foreign(self, why: str) -> StoreError:
         return StoreError(f"{self.path}: not a geoterrain store ({why}); refusing to read it")

@@ -189,7 +189,7 @@ class StoreEditor:
         meta = dict(metadata)
         levels = np.bincount(tk & 31, minlength=32) if len(tk) else np.zeros(32, np.int64)
         meta["tile_counts"] = {str(L): int(c) for L, c in enumerate(levels) if c}
-        meta["schema_version"] = schema_version(meta.get("grid", {}))
+        meta["schema_version"] = schema_version(meta.get("grid", {}), meta.get("frame"))
         meta["complete"] = True
         # the tile table at zstd's fast level: its strongest one took most of a small
         # edit's time (catalog.pack_tiles)

@@ -259,6 +259,8 @@ def test_a_root_grid_s_static_mesh_is_edge_padded(tmp_path_factory, layout):
     t = _root_store(tmp_path_factory, layout, layout == "1x2", True)
     assert rtin.edge_padding(t)
     g = t.grid
+    # the geographic one pads past its lattice: its padding's positions are proxies
+    assert t.frame.lattice == (g.shape if layout == "1x2" else None)
     rows, cols = g.rows, g.cols
     for e in (2.0, 1e9):
         _check_clipped(t, rows, cols, True, e)

@@ -42,6 +42,10 @@ DEMS = {
     # 1 × 2 roots, a lattice short of the extent both ways (δ_edge, the clipped
     # static mesh's window), at 75° N
     "roots_tall_uneven": (lambda: _rough(129, 3)[:121, :50], 20.0, 76.0, 0.8, 8),
+    # 2 × 1 roots of 64 over a lattice of 41 × 121 rows (its padding's positions past the
+    # lattice are the frame's proxies, Frame.xy), with voids, at 61° N
+    "roots_wide_past_lattice": (lambda: _voids(_rough(129, 5)[:40, :117]), 10.0, 61.0, 2.0,
+                                16),
 }
 
 
@@ -53,6 +57,10 @@ def geo(request, tmp_path_factory):
     case = _case(preprocess(src, d / "s.geoterrain", tile_size=ts, root_grid=True))
     g = case[0].grid
     assert g.layout == "roots" and case[0].frame.kind == "geographic"
+    # the frame takes proxy positions past level 0's lattice where the extent passes it
+    assert case[0].frame.lattice == (g.shape if g.extent != g.shape else None)
+    assert case[0].frame.lattice is not None or request.param.startswith("roots_smooth") \
+        or request.param.startswith("roots_rough")
     assert g.roots == ((1, 2) if "tall" in request.param else (2, 1))
     return case
 
@@ -120,11 +128,12 @@ def _root_triangles_by_vertex(n, roots):
 
 @settings(max_examples=6, deadline=None)
 @given(seed=st.integers(0, 2**16), lat=st.floats(-80, 80), rough=st.floats(0, 400),
-       roots=st.sampled_from([(2, 1), (1, 2)]), short=st.booleans())
-def test_each_triangle_is_within_its_vertex_bounds(seed, lat, rough, roots, short):
+       roots=st.sampled_from([(2, 1), (1, 2)]), short=st.booleans(), lattice=st.booleans())
+def test_each_triangle_is_within_its_vertex_bounds(seed, lat, rough, roots, short, lattice):
     """Oracle per triangle T of the roots' bintree, split vertex v: every valid sample
     whose scene x/y lies in T is within δ(v) of T and within r(v) of p_v; δ saturated
-    and r nested on every DAG edge of the roots (core.bintree's parents)."""
+    and r nested on every DAG edge of the roots (core.bintree's parents). ``lattice``:
+    the positions past a lattice short of the extent are the frame's proxies."""
     from pyproj import CRS
 
     from geoterrain.bounds.curvature import metric_bounds
@@ -137,14 +146,16 @@ def test_each_triangle_is_within_its_vertex_bounds(seed, lat, rough, roots, shor
     S = 1 << n
     R, C = roots[1] * S + 1, roots[0] * S + 1
     fr = Frame.from_raster((0.6, 0, 10.0, 0, -0.3, lat + 2.4), CRS.from_epsg(4326).to_wkt(),
-                           R, C)
+                           *((R - 8, C - 9) if lattice else (R, C)))
+    if lattice:  # a raster of R − 8 rows: proxies from row R − 6 and column C − 7 on
+        fr = fr.with_lattice((R - 6, C - 7))
     X, Y = fr.grid_xy((R, C))
     rng = np.random.default_rng(seed)
     Z = rough * rng.random((R, C)) + 30.0 * np.indices((R, C))[1]
     valid = rng.random((R, C)) > 0.05
-    if short:  # the raster a few samples short of the extent (invalid padding)
-        valid[R - 3:] = False
-        valid[:, C - 5:] = False
+    if short or lattice:  # the raster a few samples short of the extent (invalid padding)
+        valid[R - (8 if lattice else 3):] = False
+        valid[:, C - (9 if lattice else 5):] = False
     d, r = metric_bounds(vertex_errors(Z, valid, span=S), vertex_radii(X, Y, Z, valid, span=S),
                          X, Y, Z, valid, span=S)
     assert d.shape == r.shape == (R, C)

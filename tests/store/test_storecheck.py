@@ -181,3 +181,40 @@ def test_the_writer_puts_a_root_grid_in_schema_version_15_and_the_reader_opens_b
             w.put_blob((0, 0, 0), "heights", b"x")
             w.commit()
         assert StoreReader(tmp_path / f"{name}.geoterrain").metadata["schema_version"] == version
+
+
+def test_a_frame_lattice_is_schema_16_and_checked(tmp_path):
+    """A geographic root grid past its lattice (frame.lattice, proxy positions past it):
+    written in schema 16 and read; its lattice anywhere but that grid's level-0 shape, on
+    another frame, or in another schema, is refused in one line, and the same store
+    without the lattice in schema 15 (a store from before it) reads with pyproj's
+    positions everywhere."""
+    from geoterrain.ingest.synth import generate, write_geotiff
+    from geoterrain.store.database import LATTICE_SCHEMA_VERSION
+
+    dem = write_geotiff(tmp_path / "g.tif", generate("fbm", 129, seed=3)[:40, :117].copy(),
+                        crs="EPSG:4326", origin=(24.0, 61.0), spacing=1 / 1200)
+    p = geoterrain.preprocess(dem, tmp_path / "g.geoterrain", tile_size=16)
+    with geoterrain.open(p) as t:
+        meta, tiles, g = t.meta, t.tile_info, t.grid
+    assert meta["schema_version"] == LATTICE_SCHEMA_VERSION == 16
+    assert meta["frame"]["lattice"] == list(g.shape) and g.extent != g.shape
+    grid, frame = check_store(p, meta, tiles)[:2]
+    assert grid == g and frame.lattice == g.shape
+    fr = meta["frame"]
+    for bad, words in (
+            (dict(meta, frame=dict(fr, lattice=[g.shape[0] + 1, g.shape[1]])), "frame.lattice"),
+            (dict(meta, frame=dict(fr, lattice=[float(v) for v in g.shape])), "frame.lattice"),
+            (dict(meta, frame=dict(fr, lattice=list(g.extent))), "frame.lattice"),
+            (dict(meta, frame=dict(fr, lattice=None)), "written in schema version 15, not 16"),
+            (dict(meta, frame=dict(fr, lattice="x")), "frame.lattice"),
+            (dict(meta, schema_version=ROOTS_SCHEMA_VERSION),
+             "a frame with a lattice is written in schema version 16, not 15"),
+            ({**meta, "frame": {k: v for k, v in fr.items() if k != "lattice"}},
+             "a root grid is written in schema version 15, not 16")):
+        with pytest.raises(StoreError, match="invalid metadata") as ex:
+            check_store(p, bad, tiles)
+        assert words in str(ex.value) and "\n" not in str(ex.value)
+    old = {**meta, "frame": {k: v for k, v in fr.items() if k != "lattice"},
+           "schema_version": ROOTS_SCHEMA_VERSION}
+    assert check_store(p, old, tiles)[1].lattice is None
