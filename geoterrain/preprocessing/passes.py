@@ -53,7 +53,8 @@ from geoterrain.preprocessing.bands.radii import band_metric_radius_codes, band_
 from geoterrain.preprocessing.bands.tiles import band_tile_bounds
 from geoterrain.preprocessing.scratch import ScratchArrays
 
-__all__ = ["PASSES", "Job", "Source", "adopt", "heights_records", "job_record", "run_pass"]
+__all__ = ["PASSES", "RECORDED", "Job", "Source", "adopt", "heights_records", "job_record",
+           "pass_result", "run_pass"]
 
 
 def whole(grid: Grid) -> int | tuple[int, int]:
@@ -361,16 +362,30 @@ XY = "xy"  # a geographic grid's scene x, y (scratch arrays, by the xy pass)
 COARSE_MAX = 1025  # the height pass's coarse grid side (bandcodec.super_level)
 
 
+# passes whose result run_pass leaves in its record (None returned): the tile table, which
+# grows with the raster (16385²: 8.4 MB), is read back by pass_result once every pass has
+# run, not held through the normals and height passes (docs/lab/streaming.md)
+RECORDED = frozenset({"tiles"})
+
+
 def run_pass(job: Job, name: str):
     """Run pass ``name``, or read its result if a resumed run's folder has it; the
-    result is recorded when the pass ends (``done-NAME``)."""
+    result is recorded when the pass ends (``done-NAME``). A pass of :data:`RECORDED`
+    returns None: its result is :func:`pass_result`'s."""
     done = os.path.join(job.folder, f"done-{name}")
     if os.path.exists(done):
-        return _load_done(done)
+        return None if name in RECORDED else _load_done(done)
     out = PASSES[name](job)
     _save_done(done, out)
+    if name in RECORDED:
+        out = None
     release_free_heap()  # what the pass freed, before the next one (docs/lab/streaming.md)
     return out
+
+
+def pass_result(job: Job, name: str):
+    """The recorded result of pass ``name`` (run by :func:`run_pass`)."""
+    return _load_done(os.path.join(job.folder, f"done-{name}"))
 
 
 # what the passes write to the scratch folder; a killed run's folder from code that wrote

@@ -86,6 +86,9 @@ class ScratchArrays:
             self._mem[name] = np.zeros(shape, dt)
             return
         path = os.path.join(self._path, name)
+        if name in self._fd:  # created again (bands.leaf copies level 0 back into C0, R0,
+            # K0): the old descriptor goes, or it outlives close() and the folder
+            os.close(self._fd.pop(name))
         fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o600)
         os.ftruncate(fd, shape[0] * shape[1] * dt.itemsize)  # sparse zeros
         self._fd[name] = fd

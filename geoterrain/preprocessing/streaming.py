@@ -68,6 +68,7 @@ from geoterrain.preprocessing.passes import (
     adopt,
     heights_records,
     job_record,
+    pass_result,
     run_pass,
     whole,
 )
@@ -375,7 +376,8 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
         got = dict(zip(rest, run_tasks(scheduler, [(run_pass, (job, name)) for name in rest]),
                        strict=True))
         vrange, stand_in, er, dmax, emax, slack = got["bounds"]
-        bounds, blocks = got["tiles"]
+        del got
+        bounds, blocks = pass_result(job, "tiles")  # one copy, read back from its record
         stage("errors, tiles, normals, heights")
         sa = ScratchArrays.shared(os.path.join(folder, "bounds"))
         se = ScratchArrays.shared(os.path.join(folder, "edge")) if pad else None
@@ -389,6 +391,7 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
                     w.put_blobs("heights", grid.held(part))
                 # the tiles whose footprint holds a valid sample (the tile pass's table)
                 stored = _own_tiles(grid, bounds)
+                del bounds
                 release_free_heap()  # the passes' and the height blobs' freed memory
                 if frame.kind == "geographic" and derive_bounds:  # pipeline.vertex_bounds
                     ring: tuple[str, ...] = ("delta",) if slack is not None else ()
@@ -397,6 +400,7 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
                 meta_blobs = _level_blobs(w, sa, se, sn, grid, stored, er, dmax, emax,
                                           derive_normals, ring,
                                           {(x, y): s for x, y, s in slack or ()})
+                del stored  # (in the staging table now: the commit reads it from there)
                 stage("blobs")
                 across, down = grid.tiles(0)  # a root grid's extent holds more than its tiles
                 blocks = blocks[:down, :across]
@@ -515,6 +519,8 @@ def _own_tiles(grid: Grid, table: TileTable) -> TileTable:
     across, down = np.array([grid.tiles(lv) for lv in range(top + 1)], np.int64).T
     lc = np.clip(L, 0, top)
     ok = (L >= 0) & (L <= top) & (x >= 0) & (x < across[lc]) & (y >= 0) & (y < down[lc])
+    if ok.all():  # (a square grid's: the table itself, not a second copy)
+        return table
     return TileTable(table.keys[ok], table.rows[ok])
 
 

@@ -87,6 +87,8 @@ from geoterrain.store.keys import (  # noqa: F401 - the kinds and keys are the s
     EDGE_KIND,
     KIND_CODES,
     blob_key,
+    pack_blob_key,
+    pack_tile_key,
     tile_key,
     unpack_blob_key,
     unpack_tile_key,
@@ -321,7 +323,7 @@ class StoreWriter:
         (:mod:`geoterrain.store.pagepack`), so a store's bytes depend on the sequence of rows
         given, not on how it is split into calls."""
         for k, d in blobs.items():
-            self._rows.append((blob_key(k, kind), d, blob_crc(k, kind, d)))
+            self._rows.append((pack_blob_key(k, kind), d, blob_crc(k, kind, d)))
             self._row_bytes += len(d)
             if self._row_bytes >= PACK_BYTES:
                 self._guard(self._flush)
@@ -352,7 +354,7 @@ class StoreWriter:
         marks = ", ".join("?" * (1 + len(TILE_COLUMNS)))
         self._guard(self.con.executemany,
                     f"INSERT INTO staging.staged_tiles VALUES ({marks})",
-                    ((tile_key(k), int(r[0]), *r[1:]) for k, r in rows.items()))
+                    ((pack_tile_key(k), int(r[0]), *r[1:]) for k, r in rows.items()))
 
     def _staged(self, sql: str, dtype=np.int64):
         # one column of a staging table, in key order, in chunks (SQL NULL as NaN:

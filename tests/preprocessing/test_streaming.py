@@ -200,3 +200,25 @@ def test_binned_heights_stream_through_super_tiles(tmp_path, monkeypatch, eps):
                              band=16)
     _assert_same_store(a, b)
     assert geoterrain.open(b).quantizer.bins > 1
+
+
+def test_the_tile_pass_leaves_its_table_in_its_record(tmp_path, monkeypatch):
+    """run_pass hands back no tile table (the streamed preprocess would hold it, which
+    grows with the raster, through the normals and height passes): pass_result reads it
+    from the pass's record, the same arrays, also for a resumed run's recorded pass."""
+    import dataclasses
+
+    import geoterrain.preprocessing.passes as sp
+    from geoterrain.bounds.tilebounds import TileTable
+
+    rng = np.random.default_rng(3)
+    table = TileTable(np.array([[0, 0, 0], [0, 1, 0], [1, 0, 0]]), rng.normal(size=(3, 9)))
+    blocks = rng.normal(size=(1, 2, 2))
+    calls = []
+    monkeypatch.setitem(sp.PASSES, "tiles", lambda job: calls.append(1) or (table, blocks))
+    job = dataclasses.replace(sp.Job(None, {}, {}, None, 2, "", False), folder=str(tmp_path))
+    assert sp.run_pass(job, "tiles") is None
+    assert sp.run_pass(job, "tiles") is None and calls == [1]  # recorded: not run again
+    got, b = sp.pass_result(job, "tiles")
+    assert np.array_equal(got.keys, table.keys) and np.array_equal(got.rows, table.rows)
+    assert np.array_equal(b, blocks)

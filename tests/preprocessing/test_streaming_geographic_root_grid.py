@@ -15,6 +15,8 @@ against brute forces in ``tests/bounds/test_root_curvature.py``).
 
 from __future__ import annotations
 
+import contextlib
+import os
 from pathlib import Path
 
 import numpy as np
@@ -396,3 +398,43 @@ def test_a_killed_geographic_root_grid_run_resumes_to_the_same_store(tmp_path, c
     assert "resuming a killed run; passes done: xy" in caplog.text
     assert Path(ref).read_bytes() == dst.read_bytes()
     assert [x.name for x in out.iterdir()] == ["s.gt"]
+
+
+def _open_under(folder) -> list[str]:
+    # this process's descriptors on files under ``folder`` (Linux: /proc/self/fd)
+    out = []
+    for fd in os.listdir("/proc/self/fd"):
+        with contextlib.suppress(OSError):
+            target = os.readlink(f"/proc/self/fd/{fd}")
+            if target.startswith(str(folder)):
+                out.append(target)
+    return out
+
+
+@pytest.mark.fast
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="Linux's /proc/self/fd")
+def test_an_array_created_again_keeps_no_second_descriptor(tmp_path):
+    """A scratch array created again under its own name (bands.leaf copies level 0 back
+    into C0, R0, K0) reads the new array, and close() leaves no descriptor on its file."""
+    sa = ScratchArrays.shared(tmp_path / "a")
+    sa.create("C0", (2, 3), np.float32)
+    sa.write("C0", 0, np.ones((2, 3), np.float32))
+    sa.create("C0", (2, 3), np.float32)
+    assert sa.read("C0", 0, 2).sum() == 0.0  # the new, zeroed array
+    assert len(_open_under(tmp_path)) == 1
+    sa.close()
+    assert _open_under(tmp_path) == []
+
+
+@pytest.mark.fast
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="Linux's /proc/self/fd")
+def test_a_streamed_geographic_preprocess_leaves_no_descriptor_open(tmp_path):
+    """Each streamed geographic preprocess (level 0's slack raised: C0, R0, K0 written
+    again) closes every scratch file it opened: none is left open in this process once
+    the store is written (three a run were, on files of a removed folder)."""
+    src = _wide_geo_tif(tmp_path, 1, 50, 121, 0.05, north=80.0)
+    out = tmp_path / "out"
+    out.mkdir()
+    preprocess_streaming(src, out / "b.gt", tile_size=8, band=4, root_grid=True)
+    assert _open_under(out) == []
+    assert geoterrain.open(out / "b.gt").frame.kind == "geographic"
