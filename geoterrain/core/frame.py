@@ -24,6 +24,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from geoterrain.core.lattice import lattice_edges, lattice_xy
+
 # what a frame may hold, and a store's reader checks (core/limits.py)
 from geoterrain.core.limits import (  # noqa: F401 - part of this module's API
     PIXEL_SIZE_RANGE,
@@ -222,91 +224,17 @@ class Frame:
         return Frame(**{**asdict(self), "lattice": (R, C)})
 
     def _lattice_xy(self, i, j, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        # pyproj on the lattice, the proxy of xy()'s docstring past it
-        a, b = self.lattice[0] - 1, self.lattice[1] - 1
-        i, j = np.asarray(i, np.float64), np.asarray(j, np.float64)
-        if (i.ndim == j.ndim == 2 and i.shape[1] == 1 and j.shape[0] == 1 and i.size
-                and j.size and i.min() >= 0 and j.min() >= 0
-                and (i == np.floor(i)).all() and (j == np.floor(j)).all()):
-            return self._lattice_band(i[:, 0], j[0], x, y)
-        i, j = np.broadcast_arrays(i, j)
-        past = (i > a) | (j > b)
-        if not past.any():
-            return _transform_threads(self._to_scene, x, y, owned=True)
-        x, y = np.broadcast_arrays(x, y)
-        X, Y = np.empty(x.shape), np.empty(x.shape)
-        inside = ~past
-        if inside.any():
-            X[inside], Y[inside] = _transform_threads(self._to_scene, x[inside], y[inside],
-                                                      owned=True)
-        ip, jp = i[past], j[past]
-        di, dj = np.maximum(ip - a, 0.0), np.maximum(jp - b, 0.0)
-        ic, jc = np.minimum(ip, a), np.minimum(jp, b)
-        ki, kj = ic.astype(np.int64), jc.astype(np.int64)
-        if (ki == ic).all() and (kj == jc).all() and ki.min() >= 0 and kj.min() >= 0:
-            rows, cols = self._lattice_edges  # the lattice's last two rows and columns
-            ra, rb = rows[0][:, kj], rows[1][:, kj]
-            ca, cb = cols[0][:, ki], cols[1][:, ki]
-        else:  # fractional or negative indices: the same pyproj values, point by point
-            n = len(ic)
-            ii = np.concatenate([np.full(n, float(a)), np.full(n, a - 1.0), ic, ic])
-            jj = np.concatenate([jc, jc, np.full(n, float(b)), np.full(n, b - 1.0)])
-            ex, ey = self._crs_xy(ii, jj)
-            ex, ey = _transform_threads(self._to_scene, ex, np.clip(ey, -90.0, 90.0),
-                                        owned=True)
-            e = np.stack([ex, ey]).reshape(2, 4, n)
-            ra, rb, ca, cb = e[:, 0], e[:, 1], e[:, 2], e[:, 3]
-        # the edge point (row a's where the point is past the last row, else column b's)
-        p = np.where(di > 0, ra, ca)
-        X[past] = p[0] + di * (ra[0] - rb[0]) + dj * (ca[0] - cb[0])
-        Y[past] = p[1] + di * (ra[1] - rb[1]) + dj * (ca[1] - cb[1])
-        return X, Y
+        # pyproj on the lattice, the proxy of xy()'s docstring past it (core/lattice.py)
+        return lattice_xy(self.lattice, self._project, self._crs_xy, lambda: self._lattice_edges,
+                          i, j, x, y)
 
-    def _lattice_band(self, ri: np.ndarray, cj: np.ndarray, x: np.ndarray, y: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray]:
-        # _lattice_xy of rows ``ri`` × columns ``cj`` (whole indices, a column against a
-        # row: the xy pass's band, grid_xy): the same expression element by element, on
-        # the row and the column instead of the broadcast pairs
-        a, b = self.lattice[0] - 1, self.lattice[1] - 1
-        prow, pcol = ri > a, cj > b
-        if not (prow.any() or pcol.any()):
-            return _transform_threads(self._to_scene, x, y, owned=True)
-        x, y = np.broadcast_arrays(x, y)
-        X, Y = np.empty(x.shape), np.empty(x.shape)
-        rin, cin = ~prow, ~pcol
-        if rin.any() and cin.any():
-            block = np.ix_(rin, cin)
-            X[block], Y[block] = _transform_threads(self._to_scene, x[block], y[block],
-                                                    owned=True)
-        di, dj = np.maximum(ri - a, 0.0), np.maximum(cj - b, 0.0)
-        ki, kj = np.minimum(ri, a).astype(np.int64), np.minimum(cj, b).astype(np.int64)
-        rows, cols = self._lattice_edges
-        for k, V in ((0, X), (1, Y)):
-            ra, rb = rows[0][k][kj], rows[1][k][kj]
-            ca, cb = cols[0][k][ki], cols[1][k][ki]
-            sr, sc = ra - rb, ca - cb
-            if prow.any():  # past the last row: row a's point, both steps
-                V[prow] = (ra[None, :] + di[prow, None] * sr[None, :]) \
-                    + dj[None, :] * sc[prow, None]
-            if rin.any() and pcol.any():  # on the lattice's rows, past its last column
-                V[np.ix_(rin, pcol)] = (ca[rin, None] + di[rin, None] * sr[None, pcol]) \
-                    + dj[None, pcol] * sc[rin, None]
-        return X, Y
+    def _project(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        # pyproj into the scene, x and y this call's own (fresh arrays)
+        return _transform_threads(self._to_scene, x, y, owned=True)
 
     @cached_property
     def _lattice_edges(self) -> tuple[np.ndarray, np.ndarray]:
-        """pyproj's X, Y of the lattice's last two rows, (2, 2, cols): [row a, row a − 1]
-        × [X, Y], and of its last two columns, (2, 2, rows): one pyproj call."""
-        R, C = self.lattice
-        a, b = R - 1, C - 1
-        ii = np.concatenate([np.full(C, a), np.full(C, a - 1), np.arange(R), np.arange(R)])
-        jj = np.concatenate([np.arange(C), np.arange(C), np.full(R, b), np.full(R, b - 1)])
-        x, y = self._crs_xy(ii, jj)
-        X, Y = _transform_threads(self._to_scene, x, np.clip(y, -90.0, 90.0), owned=True)
-        rows = np.stack([np.stack([X[:C], Y[:C]]), np.stack([X[C:2 * C], Y[C:2 * C]])])
-        cols = np.stack([np.stack([X[2 * C:2 * C + R], Y[2 * C:2 * C + R]]),
-                         np.stack([X[2 * C + R:], Y[2 * C + R:]])])
-        return rows, cols
+        return lattice_edges(self.lattice, self._project, self._crs_xy)
 
     def z(self, heights: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Scene Z (metres, exaggerated) of heights in source units (into ``out``, which
