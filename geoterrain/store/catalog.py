@@ -4,10 +4,26 @@ Row :data:`META_ID` is the metadata, one JSON object (names sorted), zstd-compre
 Row :data:`TILES_ID` is the tile table (:func:`pack_tiles`): every tile's packed key
 (:func:`geoterrain.store.keys.tile_key`) and numbers (:data:`TILE_COLUMNS`), and every
 blob's packed key (:func:`geoterrain.store.keys.blob_key`) and row id in ``blobs``,
-column by column: a 9-byte head (format: 0 raw, 1 zstd; tile count n; blob count m),
-then the n tile keys as int64 differences, 11 float64 columns of n numbers with each
-column's bytes shuffled (the first byte of every number, then the second, ...), the m
-blob keys and the m ids as int64 differences.
+column by column: a 10-byte head (format: 0 raw, 1 zstd; tile count n; blob count m;
+the ids' width w: 2, 4 or 8 bytes), then the n tile keys as int64 differences, the 11
+number columns, the m blob keys as int64 differences and the m ids (w bytes each,
+shuffled: every id's first byte, then the second...). Schema 17's columns are predicted
+from what a reader already knows (:func:`column_bytes`), and each is stored as n int64
+residuals, shuffled likewise:
+
+* ``nvalid``, ``error``, ``boundary_error``, ``delta_max``, ``radius_max``: the numbers'
+  float64 bits;
+* ``zmin`` and ``zmax``: a tile's range holds its footprint's valid samples, and a
+  parent's footprint is the union of its children's, so a tile with stored children is
+  predicted as their union, exactly: the residual is 0 (bits in an order-preserving
+  integer map, so the prediction is integer arithmetic, the same on any machine);
+* ``xmin`` … ``ymax``: the box rounded outward to a multiple of :data:`BOX_STEP` (2^-12
+  scene units: a box holds its tile's samples, larger by less than a step, the same step
+  wherever the scene lies), as integers; a tile with stored children is their union
+  (residual 0), and each level-0 tile, in key order, the one before it moved by its key's
+  steps in x and y (two integers per column, stored before it: the median steps);
+  residuals zigzag-coded. A column with a number that is not finite or past
+  :data:`BOX_LIMIT` is stored as ``zmin`` is, exactly (a flag byte says which).
 
 Both rows come from a file that may come from a stranger. Each is bound to its id by a
 CRC-32 (:func:`catalog_crc`); the metadata decodes to at most 1 MB; the tile table's
@@ -37,14 +53,24 @@ RATIO_CAP = 256  # a zstd tile table decodes to at most this many times its byte
 MIN_BLOB_ROW_BYTES = 6  # a blobs row's least share of a file: cell pointer, header, rowid
 META_MAX_BYTES = 1 << 20  # metadata is a few kB; more is not a store of ours
 KEY_LIMIT = 1 << 62  # every packed key is below this (storekeys)
+BOX_STEP = 2.0 ** -12  # scene units: the stored boxes are rounded outward to multiples
+BOX_LIMIT = 2.0 ** 38  # |coordinate| up to which a box column is stored so (SCENE_LIMIT: 1e8)
 _RATIO_SLACK = 1 << 16
-_HEAD = struct.Struct("<BII")  # format (0 raw, 1 zstd), tiles, blobs
+_HEAD = struct.Struct("<BIIB")  # format (0 raw, 1 zstd), tiles, blobs, the ids' width
 _ZSTD_STRONG = 19  # a few kB of numbers in most stores: the strongest level costs little
 _ZSTD_STRONG_MAX = 1 << 20  # ... up to a table of this many bytes (see pack_tiles)
+# each column's prediction: "union" (min or max of the stored children), "box" (union,
+# and level 0 from the tile before it, on a grid of BOX_STEP), or the bits as they are
+_UNION = {"zmin": np.minimum, "zmax": np.maximum}
+_BOXES = {"xmin": (np.minimum, np.floor), "xmax": (np.maximum, np.ceil),
+          "ymin": (np.minimum, np.floor), "ymax": (np.maximum, np.ceil)}
+_BOX_HEAD = struct.Struct("<Bqq")  # 1: on BOX_STEP's grid (0: exact bits); x, y steps
+_SIGN = np.int64(0x7FFFFFFFFFFFFFFF)
 
-__all__ = ["KEY_LIMIT", "META_ID", "META_MAX_BYTES", "MIN_BLOB_ROW_BYTES", "RATIO_CAP",
-           "TILES_ID", "TILE_COLUMNS", "TileTable", "catalog_crc", "pack_metadata",
-           "pack_stream", "pack_tiles", "table_columns", "unpack_metadata", "unpack_tiles"]
+__all__ = ["BOX_LIMIT", "BOX_STEP", "KEY_LIMIT", "META_ID", "META_MAX_BYTES",
+           "MIN_BLOB_ROW_BYTES", "RATIO_CAP", "TILES_ID", "TILE_COLUMNS", "TileTable",
+           "catalog_crc", "column_bytes", "pack_metadata", "pack_stream", "pack_tiles",
+           "stored_numbers", "table_columns", "unpack_metadata", "unpack_tiles"]
 
 
 def catalog_crc(row_id: int, data: bytes) -> int:
@@ -94,33 +120,209 @@ def _delta_chunks(chunks):
 
 
 def _shuffled(col: np.ndarray) -> bytes:
-    # a float64 column's bytes by significance: every value's first byte, then second...
-    return np.ascontiguousarray(col, "<f8").view(np.uint8).reshape(len(col), 8).T.tobytes()
+    # a column's bytes by significance: every value's first byte, then second...
+    c = np.ascontiguousarray(col, col.dtype.newbyteorder("<"))
+    return c.view(np.uint8).reshape(len(c), c.dtype.itemsize).T.tobytes()
 
 
-def table_columns(keys, columns, blob_keys, blob_ids):
-    """The tile table's bytes in pieces, for :func:`pack_stream`: ``keys`` (chunks of
-    ascending tile keys), ``columns`` (the 11 number columns, each whole, in key order),
-    ``blob_keys`` and ``blob_ids`` (chunks, in blob key order); iterables, read lazily."""
-    yield from _delta_chunks(keys)
-    for col in columns:
-        yield _shuffled(col)
+def _unshuffled(raw, n: int, dtype: str) -> np.ndarray:
+    w = np.dtype(dtype).itemsize
+    return np.frombuffer(raw, np.uint8, w * n).reshape(w, n).T.copy().view(dtype).ravel()
+
+
+def _ordered(bits: np.ndarray) -> np.ndarray:
+    # float64 bits (int64) to integers in the numbers' order, and back (an involution)
+    return np.where(bits < 0, bits ^ _SIGN, bits)
+
+
+def _zigzag(v: np.ndarray) -> np.ndarray:
+    return (v << 1) ^ (v >> 63)
+
+
+def _unzigzag(u: np.ndarray) -> np.ndarray:
+    return (u.view(np.uint64) >> np.uint64(1)).view(np.int64) ^ -(u & 1)
+
+
+def _id_width(ids: np.ndarray) -> int:
+    lo, hi = (int(ids.min()), int(ids.max())) if len(ids) else (0, 0)
+    return 8 if lo < 0 else 2 if hi < 1 << 16 else 4 if hi < 1 << 32 else 8
+
+
+class _Tree:
+    """The tiles' quadtree from their sorted keys: each tile's level, its parent's index
+    (−1: not stored), and level 0's key steps (x, y from the tile before, in key order)."""
+
+    def __init__(self, keys: np.ndarray):
+        keys = np.asarray(keys, np.int64)
+        self.n = len(keys)
+        self.level = keys & 31
+        # the parent (L + 1, x >> 1, y >> 1): the Morton number shifted by one place
+        pk = ((keys >> 7) << 5) | (self.level + 1)
+        at = np.minimum(np.searchsorted(keys, pk), max(self.n - 1, 0))
+        self.parent = np.where((self.n > 0) & (keys[at] == pk) & (self.level < 31), at, -1)
+        self.top = int(self.level.max()) if self.n else 0
+        self.zero = np.flatnonzero(self.level == 0)
+        if len(self.zero):
+            from geoterrain.store.keys import unpack_tile_keys
+
+            _, x, y = unpack_tile_keys(keys[self.zero])
+            self.dx, self.dy = np.diff(x, prepend=0), np.diff(y, prepend=0)
+        else:
+            self.dx = self.dy = np.zeros(0, np.int64)
+
+    def _neutral(self, op) -> np.ndarray:
+        info = np.iinfo(np.int64)
+        return np.full(self.n, info.max if op is np.minimum else info.min, np.int64)
+
+    def union(self, v: np.ndarray, op) -> tuple[np.ndarray, np.ndarray]:
+        """Every tile's prediction from its children's values ``v`` (int64; ``op``
+        np.minimum or np.maximum), and which tiles have a stored child (the others'
+        prediction is 0)."""
+        kids = np.flatnonzero(self.parent >= 0)
+        pred = self._neutral(op)
+        op.at(pred, self.parent[kids], v[kids])
+        has = np.zeros(self.n, bool)
+        has[self.parent[kids]] = True
+        return np.where(has, pred, 0), has
+
+    def ununion(self, res: np.ndarray, op) -> np.ndarray:
+        """Values from :meth:`union`'s residuals ``res`` (level 0's already values),
+        level by level, each from the finer level's values."""
+        v = res.copy()
+        for L in range(self.top):
+            kids = np.flatnonzero((self.level == L) & (self.parent >= 0))
+            if not len(kids):
+                continue
+            pred = self._neutral(op)
+            op.at(pred, self.parent[kids], v[kids])
+            has = np.zeros(self.n, bool)
+            has[self.parent[kids]] = True
+            v[has] = res[has] + pred[has]  # int64, wrapping as the writer's difference
+        return v
+
+
+def _median(v: np.ndarray) -> int:
+    # the lower median of integers (0 for none): exact, the same on any machine
+    return int(np.sort(v)[(len(v) - 1) // 2]) if len(v) else 0
+
+
+def _box_ints(col: np.ndarray, rnd) -> np.ndarray | None:
+    """A box column as integer multiples of BOX_STEP rounded outward, or None when a
+    number is not finite or past BOX_LIMIT (the column is then stored exactly)."""
+    col = np.asarray(col, np.float64)
+    if not (np.abs(col) <= BOX_LIMIT).all():  # NaN fails too
+        return None
+    return rnd(col / BOX_STEP).astype(np.int64)
+
+
+def stored_numbers(numbers: np.ndarray) -> np.ndarray:
+    """The tile numbers as a reader gets them back from :func:`pack_tiles`: the four box
+    columns rounded outward to multiples of :data:`BOX_STEP` (where every number of the
+    column is finite and within :data:`BOX_LIMIT`), every other number as it is.
+
+    Examples
+    --------
+    >>> nums = np.zeros((1, 11))
+    >>> nums[0, 5:9] = [-1.00001, 1.00001, 0.5, 2.0]
+    >>> stored_numbers(nums)[0, 5:9].tolist()
+    [-1.000244140625, 1.000244140625, 0.5, 2.0]
+    """
+    out = np.array(numbers, np.float64).reshape(-1, len(TILE_COLUMNS))
+    for name, (_, rnd) in _BOXES.items():
+        j = TILE_COLUMNS.index(name)
+        q = _box_ints(out[:, j], rnd)
+        if q is not None:
+            out[:, j] = q * BOX_STEP
+    return out
+
+
+def column_bytes(tree: _Tree, name: str, col: np.ndarray) -> bytes:
+    """One number column of the tile table as stored (see the module docstring)."""
+    col = np.asarray(col, np.float64)
+    if name in _BOXES:
+        op, rnd = _BOXES[name]
+        q = _box_ints(col, rnd)
+        if q is None:
+            return _BOX_HEAD.pack(0, 0, 0) + column_bytes(tree, "zmin" if op is np.minimum
+                                                          else "zmax", col)
+        pred, has = tree.union(q, op)
+        res = q - pred
+        z = tree.zero
+        d = np.diff(q[z], prepend=0)
+        # the steps: medians of the differences along x (dy = 0, dx = 1), then along y
+        sx = (tree.dx == 1) & (tree.dy == 0)
+        w = _median(d[sx])
+        sy = tree.dy == 1
+        h = _median(d[sy] - tree.dx[sy] * w)
+        res[z] = d - tree.dx * w - tree.dy * h
+        return _BOX_HEAD.pack(1, w, h) + _shuffled(_zigzag(res))
+    bits = col.view(np.int64)
+    if name in _UNION:
+        u = _ordered(bits)
+        pred, _ = tree.union(u, _UNION[name])
+        return _shuffled(u - pred)
+    return _shuffled(bits)
+
+
+def _column(tree: _Tree, name: str, raw) -> np.ndarray:
+    # column_bytes' inverse (raw: exactly its bytes; ValueError for an unknown flag)
+    n = tree.n
+    if name in _BOXES:
+        flag, w, h = _BOX_HEAD.unpack_from(raw)
+        body = raw[_BOX_HEAD.size:]
+        op, _ = _BOXES[name]
+        if flag == 0:
+            return _column(tree, "zmin" if op is np.minimum else "zmax", body)
+        if flag != 1:
+            raise ValueError("a box column of an unknown kind")
+        res = _unzigzag(_unshuffled(body, n, "<i8"))
+        z = tree.zero
+        with np.errstate(over="ignore"):
+            res[z] = np.cumsum(res[z] + tree.dx * w + tree.dy * h, dtype=np.int64)
+        return tree.ununion(res, op).astype(np.float64) * BOX_STEP
+    v = _unshuffled(raw, n, "<i8")
+    if name in _UNION:
+        v = _ordered(tree.ununion(v, _UNION[name]))
+    return v.view(np.float64)
+
+
+def _column_size(name: str, n: int) -> int:
+    return 8 * n + (_BOX_HEAD.size if name in _BOXES else 0)
+
+
+def _table_size(n: int, m: int, w: int) -> int:
+    return 8 * n + sum(_column_size(c, n) for c in TILE_COLUMNS) + (8 + w) * m
+
+
+def table_columns(keys, column, blob_keys, blob_ids, width: int):
+    """The tile table's bytes in pieces, for :func:`pack_stream`: ``keys`` (the ascending
+    tile keys, whole), ``column(j)`` (number column j, whole, in key order, asked for once
+    each), ``blob_keys`` and ``blob_ids`` (chunks, in blob key order; iterables, read
+    lazily), ``width`` the ids' (2, 4 or 8 bytes)."""
+    keys = np.asarray(keys, np.int64)
+    yield from _delta_chunks([keys])
+    tree = _Tree(keys)
+    for j, name in enumerate(TILE_COLUMNS):
+        yield column_bytes(tree, name, column(j))
     yield from _delta_chunks(blob_keys)
-    yield from _delta_chunks(blob_ids)
+    dtype = f"<i{width}" if width == 8 else f"<u{width}"
+    yield _shuffled(np.concatenate([np.asarray(c, np.int64).astype(dtype) for c in blob_ids]
+                                   + [np.zeros(0, dtype)]))
 
 
-def pack_stream(n: int, m: int, pieces, fast: bool = False) -> bytes:
-    """The tile table's catalog row for n tiles and m blobs whose bytes ``pieces()``
-    gives (:func:`table_columns`; called again for a raw row): zstd (level 19 up to
-    1 MiB, whose compressor then needs a few MB; 3 above, where 19 would need about
-    100 MB; 3 when ``fast``), or raw when zstd would pass :data:`RATIO_CAP`."""
-    size = 8 * (n * (1 + len(TILE_COLUMNS)) + 2 * m)
+def pack_stream(n: int, m: int, width: int, pieces, fast: bool = False) -> bytes:
+    """The tile table's catalog row for n tiles and m blobs (ids ``width`` bytes each)
+    whose bytes ``pieces()`` gives (:func:`table_columns`; called again for a raw row):
+    zstd (level 19 up to 1 MiB, whose compressor then needs a few MB; 3 above, where 19
+    would need about 100 MB; 3 when ``fast``), or raw when zstd would pass
+    :data:`RATIO_CAP`."""
+    size = _table_size(n, m, width)
     level = _ZSTD_STRONG if size <= _ZSTD_STRONG_MAX and not fast else 3
     z = zstandard.ZstdCompressor(level=level).compressobj(size=size)
     packed = zstdsafe.strip_magic(b"".join([z.compress(c) for c in pieces()] + [z.flush()]))
     if size > RATIO_CAP * len(packed) + _RATIO_SLACK:
-        return _HEAD.pack(0, n, m) + b"".join(pieces())
-    return _HEAD.pack(1, n, m) + packed
+        return _HEAD.pack(0, n, m, width) + b"".join(pieces())
+    return _HEAD.pack(1, n, m, width) + packed
 
 
 def pack_tiles(table: TileTable, fast: bool = False) -> bytes:
@@ -136,22 +338,26 @@ def pack_tiles(table: TileTable, fast: bool = False) -> bytes:
     [True, True, True, True]
     """
     nums = np.asarray(table.numbers, np.float64).reshape(len(table.tiles), len(TILE_COLUMNS))
-    return pack_stream(len(table.tiles), len(table.blobs), lambda: table_columns(
-        [table.tiles], nums.T, [table.blobs], [table.ids]), fast)
+    ids = np.asarray(table.ids, np.int64)
+    width = _id_width(ids)
+    return pack_stream(len(table.tiles), len(table.blobs), width, lambda: table_columns(
+        table.tiles, lambda j: nums[:, j], [table.blobs], [ids], width), fast)
 
 
 def unpack_tiles(data: bytes, file_bytes: int | None = None) -> TileTable:
     """The :class:`TileTable` of its catalog row; ValueError for anything malformed
     (sizes, keys not strictly ascending or out of range, fewer than 4 blobs a tile, more
-    blobs than a file of ``file_bytes`` can hold, a zstd frame past :data:`RATIO_CAP`),
-    before decoding what the head claims."""
+    blobs than a file of ``file_bytes`` can hold, a zstd frame past :data:`RATIO_CAP`,
+    an unknown id width or box column flag), before decoding what the head claims."""
     if len(data) < _HEAD.size:
         raise ValueError("too short")
-    fmt, n, m = _HEAD.unpack_from(data)
+    fmt, n, m, width = _HEAD.unpack_from(data)
     if len(BLOB_KINDS) * n > m or (file_bytes is not None and MIN_BLOB_ROW_BYTES * m > file_bytes):
         raise ValueError(f"{n} tiles and {m} blobs cannot be a store of this size")
+    if width not in (2, 4, 8):
+        raise ValueError(f"ids of {width} bytes")
     body = memoryview(data)[_HEAD.size:]
-    size = 8 * (n * (1 + len(TILE_COLUMNS)) + 2 * m)
+    size = _table_size(n, m, width)
     if fmt == 1:
         if size > RATIO_CAP * len(body) + _RATIO_SLACK:
             raise ValueError("claims too many rows for its size")
@@ -159,13 +365,17 @@ def unpack_tiles(data: bytes, file_bytes: int | None = None) -> TileTable:
     elif fmt != 0 or len(body) != size:
         raise ValueError("of an unknown format or size")
     tiles = _ascending(body[:8 * n], n)
-    off, nb = 8 * n, 8 * n * len(TILE_COLUMNS)
-    numbers = (np.frombuffer(body[off:off + nb], np.uint8).reshape(len(TILE_COLUMNS), 8, n)
-               .transpose(2, 0, 1).copy().view("<f8").reshape(n, len(TILE_COLUMNS)))
-    off += nb
+    tree = _Tree(tiles)
+    off = 8 * n
+    numbers = np.empty((n, len(TILE_COLUMNS)), np.float64)
+    for j, name in enumerate(TILE_COLUMNS):
+        k = _column_size(name, n)
+        numbers[:, j] = _column(tree, name, body[off:off + k])
+        off += k
     blobs = _ascending(body[off:off + 8 * m], m)
-    ids = np.cumsum(np.frombuffer(body[off + 8 * m:], "<i8", m), dtype=np.int64)
-    return TileTable(tiles, numbers.astype(np.float64), blobs, ids)
+    off += 8 * m
+    ids = _unshuffled(body[off:], m, f"<i{width}" if width == 8 else f"<u{width}")
+    return TileTable(tiles, numbers, blobs, ids.astype(np.int64))
 
 
 def pack_metadata(items: dict) -> bytes:

@@ -98,7 +98,7 @@ from geoterrain.store.pagepack import LEAF_HEADER, blob_cell_sizes, pack_order
 
 _KIND_NAMES = {i: k for k, i in KIND_CODES.items()}  # a blob key's kind number → its name
 
-SCHEMA_VERSION = 14  # 2: checksums bound to their tile and kind; per-level key digests;
+SCHEMA_VERSION = 17  # 2: checksums bound to their tile and kind; per-level key digests;
 #                    3: packed integer keys, bare blob rows found through blob_keys;
 #                    4: metadata, tile numbers and blob keys in compressed catalog rows;
 #                    5: height blobs of version 2 (range-coded, geoterrain/codec/entropy.py);
@@ -109,13 +109,16 @@ SCHEMA_VERSION = 14  # 2: checksums bound to their tile and kind; per-level key 
 #                   12: r blobs above level 0 without their cell centres, derived on
 #                       read (vertexdata.MIDS; projected and pixel frames);
 #                   14: δ and r blobs above level 0 as differences from their parents'
-#                       codes (vertexdata.PRED)
-ROOTS_SCHEMA_VERSION = 15  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
-#                            9 before schema 10, 11 before schema 12, 13 before schema 14
-LATTICE_SCHEMA_VERSION = 16  # a root grid whose geographic frame has proxy positions past
+#                       codes (vertexdata.PRED);
+#                   17: the tile table's columns predicted (boxes on a 2^-12 grid,
+#                       parents as their children's union; catalog.py), blob crc32s
+#                       signed
+ROOTS_SCHEMA_VERSION = 18  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
+#                            9 before schema 10, 11 before 12, 13 before 14, 15 before 17
+LATTICE_SCHEMA_VERSION = 19  # a root grid whose geographic frame has proxy positions past
 #                              level 0's lattice (frame.lattice, Frame.xy): an older
 #                              reader would place its padding by pyproj, not where its
-#                              bounds were computed
+#                              bounds were computed (16 before schema 17)
 #: every version this geoterrain reads
 SCHEMA_VERSIONS = (SCHEMA_VERSION, ROOTS_SCHEMA_VERSION, LATTICE_SCHEMA_VERSION)
 
@@ -130,10 +133,10 @@ def schema_version(grid: dict, frame: dict | None = None) -> int:
     Examples
     --------
     >>> schema_version({"rows": 9, "cols": 9, "n": 3, "t": 2})
-    14
+    17
     >>> roots = {"layout": "roots"}
     >>> schema_version(roots), schema_version(roots, {"lattice": [9, 17]})
-    (15, 16)
+    (18, 19)
     """
     if isinstance(frame, dict) and frame.get("lattice") is not None:
         return LATTICE_SCHEMA_VERSION
@@ -172,14 +175,16 @@ REBUILD = "rebuild it with `geoterrain preprocess DEM --overwrite`"
 
 
 def blob_crc(key: tuple[int, int, int], kind: str, data: bytes) -> int:
-    """CRC-32 of a blob bound to its place: (level, x, y, kind) then the bytes.
+    """CRC-32 of a blob bound to its place: (level, x, y, kind) then the bytes, as a
+    signed 32-bit number (schema 17; an unsigned one above 2^31 took SQLite 6 bytes).
 
     Examples
     --------
     >>> blob_crc((0, 0, 0), "delta", b"x") != blob_crc((0, 1, 0), "delta", b"x")
     True
     """
-    return zlib.crc32(data, zlib.crc32(struct.pack("<3q", *key) + kind.encode()))
+    c = zlib.crc32(data, zlib.crc32(struct.pack("<3q", *key) + kind.encode()))
+    return c - (c >> 31 << 32)  # signed 32 bits: SQLite stores it in 4 bytes, not 6
 
 
 def is_store(path: str | Path) -> bool:
@@ -377,11 +382,13 @@ class StoreWriter:
                                                  "staging.staged_tiles ORDER BY key",
                                                  np.float64), np.zeros(0)])
 
-        return pack_stream(sum(c for _, c in counts), m, lambda: table_columns(
-            self._staged("SELECT key FROM staging.staged_tiles ORDER BY key"),
-            (column(f"n{j}") for j in range(len(TILE_COLUMNS))),
+        width = 2 if self._rowid < 1 << 16 else 4 if self._rowid < 1 << 32 else 8
+        keys = np.concatenate([*self._staged("SELECT key FROM staging.staged_tiles "
+                                             "ORDER BY key"), np.zeros(0, np.int64)])
+        return pack_stream(len(keys), m, width, lambda: table_columns(
+            keys, lambda j: column(f"n{j}"),
             self._staged("SELECT key FROM staging.staged_blobs ORDER BY key"),
-            self._staged("SELECT blob FROM staging.staged_blobs ORDER BY key")))
+            self._staged("SELECT blob FROM staging.staged_blobs ORDER BY key"), width))
 
     def commit(self) -> Path:
         """Finish: write the catalog, the metadata with its complete flag, fsync,

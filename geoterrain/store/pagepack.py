@@ -109,18 +109,22 @@ def _varint_lens(v: np.ndarray) -> np.ndarray:
 
 def blob_cell_sizes(lengths, crcs, rowid: int, usable: int) -> np.ndarray:
     """:func:`leaf_cell_size` of every blob row ``(None, data, crc32)`` at once, from the
-    data's lengths and the CRCs (0 … 2^32 − 1): a store's writer sizes thousands of rows.
+    data's lengths and the CRCs (any 32-bit integer, signed or not): a store's writer
+    sizes thousands of rows.
 
     >>> blob_cell_sizes([600], [7], 1, 1024).tolist()
     [611]
     >>> leaf_cell_size((None, bytes(600), 7), 1, 1024)
     611
+    >>> blob_cell_sizes([600, 600], [-5, -2**31], 1, 1024).tolist()
+    [611, 614]
     """
     n = np.asarray(lengths, np.int64)
     c = np.asarray(crcs, np.int64)
     # the crc's serial type and body (_int_body): 0 and 1 have none, then 1-4 or 6 bytes
-    body = np.select([c <= 1, c < 1 << 7, c < 1 << 15, c < 1 << 23, c < 1 << 31],
-                     [0, 1, 2, 3, 4], 6)
+    # (signed: the store's crcs are −2^31 … 2^31 − 1, schema 17)
+    body = np.select([(c == 0) | (c == 1)] + [(-(1 << b) <= c) & (c < 1 << b)
+                                              for b in (7, 15, 23, 31)], [0, 1, 2, 3, 4], 6)
     types = 2 + _varint_lens(2 * n + 12)  # serial types: NULL and the int 1 byte each
     p = types + 1 + n + body  # + the header's own length (< 128: one byte)
     max_local = usable - 35

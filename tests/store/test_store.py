@@ -32,6 +32,7 @@ from geoterrain.store.database import (
     unpack_tile_key,
     unpack_tiles,
 )
+from geoterrain.store.catalog import stored_numbers
 from tests.store.storesql import (
     delete_blob,
     read_blob,
@@ -365,7 +366,93 @@ def test_the_tile_table_round_trips(keys, seed, flat):
     u = unpack_tiles(pack_tiles(t))
     assert np.array_equal(u.tiles, t.tiles) and np.array_equal(u.blobs, t.blobs)
     assert np.array_equal(u.ids, t.ids)
-    assert np.array_equal(u.numbers, t.numbers, equal_nan=True)
+    # every number back as it was, the boxes' rounded outward (stored_numbers); a column
+    # with a NaN or an infinity exactly
+    assert np.array_equal(u.numbers, stored_numbers(t.numbers), equal_nan=True)
+    assert np.array_equal(unpack_tiles(pack_tiles(u)).numbers, u.numbers, equal_nan=True)
+
+
+def _pyramid(rng, side: int, top: int, holes: float, scale: float, origin: float):
+    """A tile table as a store's: level-0 tiles on a side × side grid (some missing),
+    each coarser tile the union of its stored children (box, z range); the other
+    numbers random."""
+    from geoterrain.store.keys import tile_key
+
+    cols = {c: j for j, c in enumerate(TILE_COLUMNS)}
+    rows = {}
+    for y in range(side):
+        for x in range(side):
+            if rng.random() < holes:
+                continue
+            # a curved grid: x and y move with both indices
+            x0 = origin + scale * (64 * x + 0.3 * y * y + rng.normal() * 0.01)
+            y0 = origin - scale * (64 * y + 0.2 * x * x + rng.normal() * 0.01)
+            z = np.sort(rng.normal(size=2) * 100)
+            rows[(0, x, y)] = dict(xmin=x0, xmax=x0 + 64 * scale, ymin=y0 - 64 * scale,
+                                   ymax=y0, zmin=z[0], zmax=z[1])
+    for L in range(1, top + 1):
+        for (lv, x, y), r in list(rows.items()):
+            if lv != L - 1:
+                continue
+            p = rows.setdefault((L, x >> 1, y >> 1), dict(r))
+            for k in ("xmin", "ymin", "zmin"):
+                p[k] = min(p[k], r[k])
+            for k in ("xmax", "ymax", "zmax"):
+                p[k] = max(p[k], r[k])
+    keys = sorted(rows, key=tile_key)
+    nums = rng.normal(size=(len(keys), len(TILE_COLUMNS))) * 50
+    for i, k in enumerate(keys):
+        for c, v in rows[k].items():
+            nums[i, cols[c]] = v
+    return np.array([tile_key(k) for k in keys], np.int64), nums
+
+
+@pytest.mark.fast
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), side=st.integers(1, 9), holes=st.floats(0, 0.5),
+       scale=st.sampled_from([1e-3, 0.5, 1.0, 30.0, 2000.0]),
+       origin=st.sampled_from([0.0, -1e4, 5.5e6, 3e7]))
+def test_the_tile_table_predicts_parents_and_rounds_boxes_outward(seed, side, holes, scale,
+                                                                   origin):
+    """A store-like pyramid (every coarser tile its children's union) round-trips: the
+    boxes rounded outward to BOX_STEP (each holds the original, less than a step larger,
+    and rounding again changes nothing), every other number exactly; every tile with
+    stored children has residual 0 in the z and box columns (what makes the table
+    small: a prediction broken leaves them non-zero), and the box columns' level-0
+    residuals stay small on a smoothly curved grid."""
+    from geoterrain.store.catalog import BOX_STEP, _Tree, column_bytes
+
+    rng = np.random.default_rng(seed)
+    top = max(0, int(np.ceil(np.log2(side))))
+    keys, nums = _pyramid(rng, side, top, holes, scale, origin)
+    if not len(keys):
+        return
+    m = 4 * len(keys)
+    t = TileTable(keys, nums, np.arange(m, dtype=np.int64), rng.permutation(m) + 1)
+    u = unpack_tiles(pack_tiles(t))
+    want = stored_numbers(nums)
+    assert np.array_equal(u.numbers, want) and np.array_equal(u.ids, t.ids)
+    for j, c in enumerate(TILE_COLUMNS):
+        lo, hi = nums[:, j], want[:, j]
+        if c in ("xmin", "ymin"):
+            assert (hi <= lo).all() and (lo - hi < BOX_STEP).all()
+        elif c in ("xmax", "ymax"):
+            assert (hi >= lo).all() and (hi - lo < BOX_STEP).all()
+        else:
+            assert np.array_equal(lo, hi)
+    assert np.array_equal(stored_numbers(want), want)
+    tree = _Tree(keys)
+    parents = np.zeros(len(keys), bool)
+    parents[tree.parent[tree.parent >= 0]] = True
+    for c in ("zmin", "zmax", "xmin", "xmax", "ymin", "ymax"):
+        raw = column_bytes(tree, c, want[:, TILE_COLUMNS.index(c)])
+        raw = raw[17:] if c[0] in "xy" else raw
+        res = np.frombuffer(raw, np.uint8).reshape(8, -1).T.copy().view("<i8").ravel()
+        assert (res[parents] == 0).all(), c
+        if c[0] in "xy" and holes == 0:  # level 0: the curvature's second differences
+            # (a tile predicted from nothing would be off by its coordinate / BOX_STEP)
+            r = (res.view(np.uint64) >> np.uint64(1)).view(np.int64) ^ -(res & 1)
+            assert (np.abs(r[1:]) <= side * side * scale / BOX_STEP + 8).all(), c
 
 
 @pytest.mark.fast
@@ -421,7 +508,8 @@ def test_a_dropped_writer_leaves_nothing_and_a_dead_ones_files_are_removed(tmp_p
 
 def test_a_large_staged_table_reads_back_exactly(tmp_path):
     """More tiles and blobs than one fetch of the staging tables (65 536) and a table
-    past 1 MiB (zstd level 3): every key, number (None as NaN) and id reads back."""
+    past 1 MiB (zstd level 3): every key, number (None as NaN; the boxes rounded outward,
+    stored_numbers) and id reads back."""
     rng = np.random.default_rng(5)
     n = 70_000
     keys = [(0, int(x), int(y)) for x, y in rng.permutation(300 * 300)[:n, None]
@@ -442,7 +530,7 @@ def test_a_large_staged_table_reads_back_exactly(tmp_path):
     t = r.table()
     order = np.argsort([tile_key(k) for k in keys])
     assert np.array_equal(t.tiles, np.sort([tile_key(k) for k in keys]))
-    assert np.array_equal(t.numbers, nums[order], equal_nan=True)
+    assert np.array_equal(t.numbers, stored_numbers(nums[order]), equal_nan=True)
     assert np.array_equal(t.blobs, np.sort([blob_key(k, kind) for k in keys for kind in
                                             ("heights", "delta", "radius", "normals")]))
     assert sorted(t.ids.tolist()) == list(range(1, 4 * n + 1))
