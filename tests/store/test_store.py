@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 
 import geoterrain
 from geoterrain.exceptions import StoreCorruptError, StoreError, UsageError, WriteError
+from geoterrain.store.catalog import stored_numbers
 from geoterrain.store.database import (
     KIND_CODES,
     META_ID,
@@ -32,7 +33,6 @@ from geoterrain.store.database import (
     unpack_tile_key,
     unpack_tiles,
 )
-from geoterrain.store.catalog import stored_numbers
 from tests.store.storesql import (
     delete_blob,
     read_blob,
