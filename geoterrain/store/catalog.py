@@ -56,7 +56,9 @@ KEY_LIMIT = 1 << 62  # every packed key is below this (storekeys)
 BOX_STEP = 2.0 ** -12  # scene units: the stored boxes are rounded outward to multiples
 BOX_LIMIT = 2.0 ** 38  # |coordinate| up to which a box column is stored so (SCENE_LIMIT: 1e8)
 _RATIO_SLACK = 1 << 16
-_HEAD = struct.Struct("<BIIB")  # format (0 raw, 1 zstd), tiles, blobs, the ids' width
+# format (0 raw, 1 zstd), tiles, blobs, the ids' width, the boxes' coding (0 exact, 1 on
+# BOX_STEP's grid), the level-0 grid's holes (positions without a tile)
+_HEAD = struct.Struct("<BIIBBI")
 _ZSTD_STRONG = 19  # a few kB of numbers in most stores: the strongest level costs little
 _ZSTD_STRONG_MAX = 1 << 20  # ... up to a table of this many bytes (see pack_tiles)
 # each column's prediction: "union" (min or max of the stored children), "box" (union,
@@ -64,13 +66,14 @@ _ZSTD_STRONG_MAX = 1 << 20  # ... up to a table of this many bytes (see pack_til
 _UNION = {"zmin": np.minimum, "zmax": np.maximum}
 _BOXES = {"xmin": (np.minimum, np.floor), "xmax": (np.maximum, np.ceil),
           "ymin": (np.minimum, np.floor), "ymax": (np.maximum, np.ceil)}
-_BOX_HEAD = struct.Struct("<Bqq")  # 1: on BOX_STEP's grid (0: exact bits); x, y steps
+_HOLES = (4, 4096)  # the level-0 grid is at most 4 × its tiles + 4096 positions
 _SIGN = np.int64(0x7FFFFFFFFFFFFFFF)
 
 __all__ = ["BOX_LIMIT", "BOX_STEP", "KEY_LIMIT", "META_ID", "META_MAX_BYTES",
            "MIN_BLOB_ROW_BYTES", "RATIO_CAP", "TILES_ID", "TILE_COLUMNS", "TileTable",
-           "catalog_crc", "column_bytes", "pack_metadata", "pack_stream", "pack_tiles",
-           "stored_numbers", "table_columns", "unpack_metadata", "unpack_tiles"]
+           "box_coding", "catalog_crc", "column_bytes", "pack_metadata", "pack_stream",
+           "pack_tiles", "stored_numbers", "table_columns", "table_layout", "unpack_metadata",
+           "unpack_tiles"]
 
 
 def catalog_crc(row_id: int, data: bytes) -> int:
@@ -150,10 +153,11 @@ def _id_width(ids: np.ndarray) -> int:
 
 class _Tree:
     """The tiles' quadtree from their sorted keys: each tile's level, its parent's index
-    (−1: not stored), and level 0's key steps (x, y from the tile before, in key order)."""
+    (−1: not stored), and level 0's tiles (``zero``, key order) on their grid: row and
+    column from the smallest y and x (``gy``, ``gx``), the grid's ``shape`` and ``area``."""
 
     def __init__(self, keys: np.ndarray):
-        keys = np.asarray(keys, np.int64)
+        self.keys = keys = np.asarray(keys, np.int64)
         self.n = len(keys)
         self.level = keys & 31
         # the parent (L + 1, x >> 1, y >> 1): the Morton number shifted by one place
@@ -162,28 +166,35 @@ class _Tree:
         self.parent = np.where((self.n > 0) & (keys[at] == pk) & (self.level < 31), at, -1)
         self.top = int(self.level.max()) if self.n else 0
         self.zero = np.flatnonzero(self.level == 0)
+        self.shape, self.area = (0, 0), 0
+        self.gx = self.gy = np.zeros(0, np.int64)
         if len(self.zero):
-            from geoterrain.store.keys import unpack_tile_keys
+            from geoterrain.store.keys import _gather_even
 
-            _, x, y = unpack_tile_keys(keys[self.zero])
-            self.dx, self.dy = np.diff(x, prepend=0), np.diff(y, prepend=0)
-        else:
-            self.dx = self.dy = np.zeros(0, np.int64)
+            # (any int64: a writer packs whatever it is given, the reader refuses it)
+            m = (keys[self.zero] >> 5).view(np.uint64)
+            x, y = _gather_even(m), _gather_even(m >> np.uint64(1))
+            self.gx, self.gy = x - x.min(), y - y.min()
+            self.shape = (int(self.gy.max()) + 1, int(self.gx.max()) + 1)
+            self.area = self.shape[0] * self.shape[1]
+
+    def grid_fits(self) -> bool:
+        """Whether level 0's grid is small enough to code the boxes on (_HOLES)."""
+        return self.area <= _HOLES[0] * len(self.zero) + _HOLES[1]
 
     def _neutral(self, op) -> np.ndarray:
         info = np.iinfo(np.int64)
         return np.full(self.n, info.max if op is np.minimum else info.min, np.int64)
 
-    def union(self, v: np.ndarray, op) -> tuple[np.ndarray, np.ndarray]:
+    def union(self, v: np.ndarray, op) -> np.ndarray:
         """Every tile's prediction from its children's values ``v`` (int64; ``op``
-        np.minimum or np.maximum), and which tiles have a stored child (the others'
-        prediction is 0)."""
+        np.minimum or np.maximum): their union, 0 for a tile without a stored child."""
         kids = np.flatnonzero(self.parent >= 0)
         pred = self._neutral(op)
         op.at(pred, self.parent[kids], v[kids])
         has = np.zeros(self.n, bool)
         has[self.parent[kids]] = True
-        return np.where(has, pred, 0), has
+        return np.where(has, pred, 0)
 
     def ununion(self, res: np.ndarray, op) -> np.ndarray:
         """Values from :meth:`union`'s residuals ``res`` (level 0's already values),
@@ -200,10 +211,28 @@ class _Tree:
             v[has] = res[has] + pred[has]  # int64, wrapping as the writer's difference
         return v
 
+    def planar(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Level 0's values ``v`` (int64, key order) on their grid (0 at holes) as the
+        planar predictor's residuals a − left − up + up-left (LOCO-I's plane, seed-free
+        and exact in int64): at the tiles (key order) and at the holes (row order)."""
+        a = np.zeros(self.shape, np.int64)
+        a[self.gy, self.gx] = v
+        r = a.copy()
+        r[:, 1:] -= a[:, :-1]
+        r[1:, :] -= a[:-1, :]
+        r[1:, 1:] += a[:-1, :-1]
+        hole = np.ones(self.shape, bool)
+        hole[self.gy, self.gx] = False
+        return r[self.gy, self.gx], r[hole]
 
-def _median(v: np.ndarray) -> int:
-    # the lower median of integers (0 for none): exact, the same on any machine
-    return int(np.sort(v)[(len(v) - 1) // 2]) if len(v) else 0
+    def unplanar(self, at_tiles: np.ndarray, at_holes: np.ndarray) -> np.ndarray:
+        """:meth:`planar`'s inverse: two prefix sums over the grid."""
+        r = np.zeros(self.shape, np.int64)
+        hole = np.ones(self.shape, bool)
+        hole[self.gy, self.gx] = False
+        r[hole] = at_holes
+        r[self.gy, self.gx] = at_tiles
+        return np.cumsum(np.cumsum(r, 0, dtype=np.int64), 1, dtype=np.int64)[self.gy, self.gx]
 
 
 def _box_ints(col: np.ndarray, rnd) -> np.ndarray | None:
@@ -215,114 +244,115 @@ def _box_ints(col: np.ndarray, rnd) -> np.ndarray | None:
     return rnd(col / BOX_STEP).astype(np.int64)
 
 
-def stored_numbers(numbers: np.ndarray) -> np.ndarray:
-    """The tile numbers as a reader gets them back from :func:`pack_tiles`: the four box
-    columns rounded outward to multiples of :data:`BOX_STEP` (where every number of the
-    column is finite and within :data:`BOX_LIMIT`), every other number as it is.
+def stored_numbers(keys: np.ndarray, numbers: np.ndarray) -> np.ndarray:
+    """The numbers of the tiles ``keys`` as a reader gets them back from
+    :func:`pack_tiles`: the four box columns rounded outward to multiples of
+    :data:`BOX_STEP` where :func:`box_coding` codes them so (every box number finite and
+    within :data:`BOX_LIMIT`, level 0's tiles filling enough of their grid), every other
+    number as it is.
 
     Examples
     --------
     >>> nums = np.zeros((1, 11))
     >>> nums[0, 5:9] = [-1.00001, 1.00001, 0.5, 2.0]
-    >>> stored_numbers(nums)[0, 5:9].tolist()
+    >>> stored_numbers(np.array([0]), nums)[0, 5:9].tolist()
     [-1.000244140625, 1.000244140625, 0.5, 2.0]
     """
     out = np.array(numbers, np.float64).reshape(-1, len(TILE_COLUMNS))
-    for name, (_, rnd) in _BOXES.items():
-        j = TILE_COLUMNS.index(name)
-        q = _box_ints(out[:, j], rnd)
-        if q is not None:
-            out[:, j] = q * BOX_STEP
+    if box_coding(_Tree(keys), lambda j: out[:, j])[0]:
+        for c, (_, rnd) in _BOXES.items():
+            j = TILE_COLUMNS.index(c)
+            out[:, j] = _box_ints(out[:, j], rnd) * BOX_STEP
     return out
 
 
-def column_bytes(tree: _Tree, name: str, col: np.ndarray) -> bytes:
-    """One number column of the tile table as stored (see the module docstring)."""
+def box_coding(tree: _Tree, column) -> tuple[int, int]:
+    """(1, the level-0 grid's holes) when the four box columns (``column(j)``) are coded on
+    BOX_STEP's grid: every number finite and within BOX_LIMIT, and level 0's grid within
+    _HOLES; else (0, 0), each stored exactly."""
+    ok = tree.grid_fits() and all(
+        _box_ints(column(TILE_COLUMNS.index(c)), rnd) is not None
+        for c, (_, rnd) in _BOXES.items())
+    return (1, tree.area - len(tree.zero)) if ok else (0, 0)
+
+
+def column_bytes(tree: _Tree, name: str, col: np.ndarray, boxes: int = 1) -> bytes:
+    """One number column of the tile table as stored (see the module docstring;
+    ``boxes``: :func:`box_coding`'s first value)."""
     col = np.asarray(col, np.float64)
-    if name in _BOXES:
+    if name in _BOXES and boxes:
         op, rnd = _BOXES[name]
         q = _box_ints(col, rnd)
-        if q is None:
-            return _BOX_HEAD.pack(0, 0, 0) + column_bytes(tree, "zmin" if op is np.minimum
-                                                          else "zmax", col)
-        pred, has = tree.union(q, op)
-        res = q - pred
-        z = tree.zero
-        d = np.diff(q[z], prepend=0)
-        # the steps: medians of the differences along x (dy = 0, dx = 1), then along y
-        sx = (tree.dx == 1) & (tree.dy == 0)
-        w = _median(d[sx])
-        sy = tree.dy == 1
-        h = _median(d[sy] - tree.dx[sy] * w)
-        res[z] = d - tree.dx * w - tree.dy * h
-        return _BOX_HEAD.pack(1, w, h) + _shuffled(_zigzag(res))
+        res = q - tree.union(q, op)
+        res[tree.zero], holes = tree.planar(q[tree.zero])
+        return _shuffled(_zigzag(np.concatenate([res, holes])))
     bits = col.view(np.int64)
-    if name in _UNION:
+    op = _UNION.get(name) or _BOXES.get(name, (None,))[0]
+    if op is not None:
         u = _ordered(bits)
-        pred, _ = tree.union(u, _UNION[name])
-        return _shuffled(u - pred)
+        return _shuffled(u - tree.union(u, op))
     return _shuffled(bits)
 
 
-def _column(tree: _Tree, name: str, raw) -> np.ndarray:
-    # column_bytes' inverse (raw: exactly its bytes; ValueError for an unknown flag)
+def _column(tree: _Tree, name: str, raw, boxes: int, holes: int) -> np.ndarray:
+    # column_bytes' inverse (raw: exactly its bytes)
     n = tree.n
-    if name in _BOXES:
-        flag, w, h = _BOX_HEAD.unpack_from(raw)
-        body = raw[_BOX_HEAD.size:]
+    if name in _BOXES and boxes:
         op, _ = _BOXES[name]
-        if flag == 0:
-            return _column(tree, "zmin" if op is np.minimum else "zmax", body)
-        if flag != 1:
-            raise ValueError("a box column of an unknown kind")
-        res = _unzigzag(_unshuffled(body, n, "<i8"))
-        z = tree.zero
-        with np.errstate(over="ignore"):
-            res[z] = np.cumsum(res[z] + tree.dx * w + tree.dy * h, dtype=np.int64)
-        return tree.ununion(res, op).astype(np.float64) * BOX_STEP
+        res = _unzigzag(_unshuffled(raw, n + holes, "<i8"))
+        v = res[:n].copy()
+        v[tree.zero] = tree.unplanar(v[tree.zero], res[n:])
+        return tree.ununion(v, op).astype(np.float64) * BOX_STEP
     v = _unshuffled(raw, n, "<i8")
-    if name in _UNION:
-        v = _ordered(tree.ununion(v, _UNION[name]))
+    op = _UNION.get(name) or _BOXES.get(name, (None,))[0]
+    if op is not None:
+        v = _ordered(tree.ununion(v, op))
     return v.view(np.float64)
 
 
-def _column_size(name: str, n: int) -> int:
-    return 8 * n + (_BOX_HEAD.size if name in _BOXES else 0)
+def _column_size(name: str, n: int, holes: int) -> int:
+    return 8 * (n + (holes if name in _BOXES else 0))
 
 
-def _table_size(n: int, m: int, w: int) -> int:
-    return 8 * n + sum(_column_size(c, n) for c in TILE_COLUMNS) + (8 + w) * m
+def _table_size(n: int, m: int, w: int, holes: int) -> int:
+    return 8 * n + sum(_column_size(c, n, holes) for c in TILE_COLUMNS) + (8 + w) * m
 
 
-def table_columns(keys, column, blob_keys, blob_ids, width: int):
-    """The tile table's bytes in pieces, for :func:`pack_stream`: ``keys`` (the ascending
-    tile keys, whole), ``column(j)`` (number column j, whole, in key order, asked for once
-    each), ``blob_keys`` and ``blob_ids`` (chunks, in blob key order; iterables, read
-    lazily), ``width`` the ids' (2, 4 or 8 bytes)."""
-    keys = np.asarray(keys, np.int64)
-    yield from _delta_chunks([keys])
+def table_layout(keys, column) -> tuple[_Tree, int, int]:
+    """What :func:`table_columns` and :func:`pack_stream` need first: the tiles' tree of
+    ``keys`` (ascending, whole) and :func:`box_coding` of the columns ``column(j)``."""
     tree = _Tree(keys)
+    return (tree, *box_coding(tree, column))
+
+
+def table_columns(tree: _Tree, column, blob_keys, blob_ids, width: int, boxes: int):
+    """The tile table's bytes in pieces, for :func:`pack_stream`: the tree's keys
+    (:func:`table_layout`), ``column(j)`` (number column j, whole, in key order),
+    ``blob_keys`` and ``blob_ids`` (chunks, in blob key order; iterables, read lazily),
+    ``width`` the ids' (2, 4 or 8 bytes), ``boxes`` the boxes' coding."""
+    yield from _delta_chunks([tree.keys])
     for j, name in enumerate(TILE_COLUMNS):
-        yield column_bytes(tree, name, column(j))
+        yield column_bytes(tree, name, column(j), boxes)
     yield from _delta_chunks(blob_keys)
     dtype = f"<i{width}" if width == 8 else f"<u{width}"
     yield _shuffled(np.concatenate([np.asarray(c, np.int64).astype(dtype) for c in blob_ids]
                                    + [np.zeros(0, dtype)]))
 
 
-def pack_stream(n: int, m: int, width: int, pieces, fast: bool = False) -> bytes:
-    """The tile table's catalog row for n tiles and m blobs (ids ``width`` bytes each)
-    whose bytes ``pieces()`` gives (:func:`table_columns`; called again for a raw row):
-    zstd (level 19 up to 1 MiB, whose compressor then needs a few MB; 3 above, where 19
-    would need about 100 MB; 3 when ``fast``), or raw when zstd would pass
-    :data:`RATIO_CAP`."""
-    size = _table_size(n, m, width)
+def pack_stream(n: int, m: int, width: int, boxes: int, holes: int, pieces,
+                fast: bool = False) -> bytes:
+    """The tile table's catalog row for n tiles and m blobs (ids ``width`` bytes each;
+    ``boxes`` and ``holes`` of :func:`table_layout`) whose bytes ``pieces()`` gives
+    (:func:`table_columns`; called again for a raw row): zstd (level 19 up to 1 MiB,
+    whose compressor then needs a few MB; 3 above, where 19 would need about 100 MB; 3
+    when ``fast``), or raw when zstd would pass :data:`RATIO_CAP`."""
+    size = _table_size(n, m, width, holes)
     level = _ZSTD_STRONG if size <= _ZSTD_STRONG_MAX and not fast else 3
     z = zstandard.ZstdCompressor(level=level).compressobj(size=size)
     packed = zstdsafe.strip_magic(b"".join([z.compress(c) for c in pieces()] + [z.flush()]))
     if size > RATIO_CAP * len(packed) + _RATIO_SLACK:
-        return _HEAD.pack(0, n, m, width) + b"".join(pieces())
-    return _HEAD.pack(1, n, m, width) + packed
+        return _HEAD.pack(0, n, m, width, boxes, holes) + b"".join(pieces())
+    return _HEAD.pack(1, n, m, width, boxes, holes) + packed
 
 
 def pack_tiles(table: TileTable, fast: bool = False) -> bytes:
@@ -340,24 +370,33 @@ def pack_tiles(table: TileTable, fast: bool = False) -> bytes:
     nums = np.asarray(table.numbers, np.float64).reshape(len(table.tiles), len(TILE_COLUMNS))
     ids = np.asarray(table.ids, np.int64)
     width = _id_width(ids)
-    return pack_stream(len(table.tiles), len(table.blobs), width, lambda: table_columns(
-        table.tiles, lambda j: nums[:, j], [table.blobs], [ids], width), fast)
+
+    def column(j: int) -> np.ndarray:
+        return nums[:, j]
+
+    tree, boxes, holes = table_layout(table.tiles, column)
+    return pack_stream(len(table.tiles), len(table.blobs), width, boxes, holes,
+                       lambda: table_columns(tree, column, [table.blobs], [ids], width,
+                                             boxes), fast)
 
 
 def unpack_tiles(data: bytes, file_bytes: int | None = None) -> TileTable:
     """The :class:`TileTable` of its catalog row; ValueError for anything malformed
     (sizes, keys not strictly ascending or out of range, fewer than 4 blobs a tile, more
     blobs than a file of ``file_bytes`` can hold, a zstd frame past :data:`RATIO_CAP`,
-    an unknown id width or box column flag), before decoding what the head claims."""
+    an unknown id width or box coding, holes that are not the level-0 grid's), before
+    decoding what the head claims."""
     if len(data) < _HEAD.size:
         raise ValueError("too short")
-    fmt, n, m, width = _HEAD.unpack_from(data)
+    fmt, n, m, width, boxes, holes = _HEAD.unpack_from(data)
     if len(BLOB_KINDS) * n > m or (file_bytes is not None and MIN_BLOB_ROW_BYTES * m > file_bytes):
         raise ValueError(f"{n} tiles and {m} blobs cannot be a store of this size")
-    if width not in (2, 4, 8):
-        raise ValueError(f"ids of {width} bytes")
+    if width not in (2, 4, 8) or boxes not in (0, 1) or (holes and not boxes):
+        raise ValueError("of an unknown layout")
+    if holes > _HOLES[0] * n + _HOLES[1]:
+        raise ValueError("claims a level-0 grid larger than its tiles allow")
     body = memoryview(data)[_HEAD.size:]
-    size = _table_size(n, m, width)
+    size = _table_size(n, m, width, holes)
     if fmt == 1:
         if size > RATIO_CAP * len(body) + _RATIO_SLACK:
             raise ValueError("claims too many rows for its size")
@@ -366,11 +405,13 @@ def unpack_tiles(data: bytes, file_bytes: int | None = None) -> TileTable:
         raise ValueError("of an unknown format or size")
     tiles = _ascending(body[:8 * n], n)
     tree = _Tree(tiles)
+    if boxes and (not tree.grid_fits() or holes != tree.area - len(tree.zero)):
+        raise ValueError("its level-0 grid does not match its tiles")
     off = 8 * n
     numbers = np.empty((n, len(TILE_COLUMNS)), np.float64)
     for j, name in enumerate(TILE_COLUMNS):
-        k = _column_size(name, n)
-        numbers[:, j] = _column(tree, name, body[off:off + k])
+        k = _column_size(name, n, holes)
+        numbers[:, j] = _column(tree, name, body[off:off + k], boxes, holes)
         off += k
     blobs = _ascending(body[off:off + 8 * m], m)
     off += 8 * m

@@ -78,6 +78,7 @@ from geoterrain.store.catalog import (  # noqa: F401 - the catalog's rows are th
     pack_stream,
     pack_tiles,
     table_columns,
+    table_layout,
     unpack_metadata,
     unpack_tiles,
 )
@@ -385,10 +386,11 @@ class StoreWriter:
         width = 2 if self._rowid < 1 << 16 else 4 if self._rowid < 1 << 32 else 8
         keys = np.concatenate([*self._staged("SELECT key FROM staging.staged_tiles "
                                              "ORDER BY key"), np.zeros(0, np.int64)])
-        return pack_stream(len(keys), m, width, lambda: table_columns(
-            keys, lambda j: column(f"n{j}"),
+        tree, boxes, holes = table_layout(keys, lambda j: column(f"n{j}"))
+        return pack_stream(len(keys), m, width, boxes, holes, lambda: table_columns(
+            tree, lambda j: column(f"n{j}"),
             self._staged("SELECT key FROM staging.staged_blobs ORDER BY key"),
-            self._staged("SELECT blob FROM staging.staged_blobs ORDER BY key"), width))
+            self._staged("SELECT blob FROM staging.staged_blobs ORDER BY key"), width, boxes))
 
     def commit(self) -> Path:
         """Finish: write the catalog, the metadata with its complete flag, fsync,

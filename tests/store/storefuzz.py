@@ -215,10 +215,10 @@ def mutate(path: Path, rng: random.Random) -> str:
             elif how == "junk":
                 data = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 200)))
             elif how == "bomb":  # a head claiming 2^31 tiles, then a bomb
-                data = struct.pack("<BII", 1, 1 << 31, 0) + zstd_bomb(
+                data = struct.pack("<BIIBBI", 1, 1 << 31, 0, 2, 0, 0) + zstd_bomb(
                     rng.choice([0, 16 << 30, 1 << 40]), rng.choice([2, 64, 512]))
             elif how == "raw":  # raw, claiming more rows than it holds
-                data = struct.pack("<BII", 0, 1000, 1000) + bytes(64)
+                data = struct.pack("<BIIBBI", 0, 1000, 1000, 2, 0, 0) + bytes(64)
             else:
                 data = b"\x01"
             con.execute("UPDATE catalog SET data = ?, crc32 = ? WHERE id = ?",
