@@ -139,7 +139,11 @@ def _ordered(bits: np.ndarray) -> np.ndarray:
 
 
 def _zigzag(v: np.ndarray) -> np.ndarray:
-    return (v << 1) ^ (v >> 63)
+    # in place: v's sign spread over every bit, xor v shifted left
+    sign = v >> 63
+    v <<= 1
+    v ^= sign
+    return v
 
 
 def _unzigzag(u: np.ndarray) -> np.ndarray:
@@ -158,56 +162,65 @@ class _Tree:
 
     def __init__(self, keys: np.ndarray):
         self.keys = keys = np.asarray(keys, np.int64)
-        self.n = len(keys)
-        self.level = keys & 31
+        self.n = n = len(keys)
+        # indices in 4 bytes where they fit: a 16385² pyramid's 87 381 tiles are packed
+        # at the end of a streamed preprocess, whose peak memory is held to a bound
+        idx = np.int32 if n < 1 << 31 else np.int64
+        self.level = (keys & 31).astype(np.int8)
         # the parent (L + 1, x >> 1, y >> 1): the Morton number shifted by one place
         pk = ((keys >> 7) << 5) | (self.level + 1)
-        at = np.minimum(np.searchsorted(keys, pk), max(self.n - 1, 0))
-        self.parent = np.where((self.n > 0) & (keys[at] == pk) & (self.level < 31), at, -1)
-        self.top = int(self.level.max()) if self.n else 0
-        self.zero = np.flatnonzero(self.level == 0)
+        at = np.minimum(np.searchsorted(keys, pk), max(n - 1, 0)).astype(idx)
+        ok = (keys[at] == pk) & (self.level < 31) if n else np.zeros(0, bool)
+        del pk
+        self.kids = np.flatnonzero(ok).astype(idx)  # the tiles whose parent is stored
+        self.kid_parent = at[self.kids]  # ... and its index
+        del at, ok
+        self.top = int(self.level.max()) if n else 0
+        self.zero = np.flatnonzero(self.level == 0).astype(idx)
         self.shape, self.area = (0, 0), 0
-        self.gx = self.gy = np.zeros(0, np.int64)
+        self.gx = self.gy = np.zeros(0, idx)
         if len(self.zero):
             from geoterrain.store.keys import _gather_even
 
             # (any int64: a writer packs whatever it is given, the reader refuses it)
             m = (keys[self.zero] >> 5).view(np.uint64)
             x, y = _gather_even(m), _gather_even(m >> np.uint64(1))
-            self.gx, self.gy = x - x.min(), y - y.min()
-            self.shape = (int(self.gy.max()) + 1, int(self.gx.max()) + 1)
+            gx, gy = x - x.min(), y - y.min()
+            self.shape = (int(gy.max()) + 1, int(gx.max()) + 1)
             self.area = self.shape[0] * self.shape[1]
+            # (a grid past grid_fits is never built: its positions may not fit idx)
+            self.gx, self.gy = (gx.astype(idx), gy.astype(idx)) if self.grid_fits() else (gx, gy)
 
     def grid_fits(self) -> bool:
         """Whether level 0's grid is small enough to code the boxes on (_HOLES)."""
         return self.area <= _HOLES[0] * len(self.zero) + _HOLES[1]
 
-    def _neutral(self, op) -> np.ndarray:
+    def _union(self, v: np.ndarray, op, kids: np.ndarray, par: np.ndarray) -> tuple:
+        # the union of v over ``kids`` into their parents ``par``: (prediction, has a kid)
         info = np.iinfo(np.int64)
-        return np.full(self.n, info.max if op is np.minimum else info.min, np.int64)
+        pred = np.full(self.n, info.max if op is np.minimum else info.min, np.int64)
+        op.at(pred, par, v[kids])
+        has = np.zeros(self.n, bool)
+        has[par] = True
+        return pred, has
 
     def union(self, v: np.ndarray, op) -> np.ndarray:
         """Every tile's prediction from its children's values ``v`` (int64; ``op``
         np.minimum or np.maximum): their union, 0 for a tile without a stored child."""
-        kids = np.flatnonzero(self.parent >= 0)
-        pred = self._neutral(op)
-        op.at(pred, self.parent[kids], v[kids])
-        has = np.zeros(self.n, bool)
-        has[self.parent[kids]] = True
-        return np.where(has, pred, 0)
+        pred, has = self._union(v, op, self.kids, self.kid_parent)
+        pred[~has] = 0
+        return pred
 
     def ununion(self, res: np.ndarray, op) -> np.ndarray:
         """Values from :meth:`union`'s residuals ``res`` (level 0's already values),
         level by level, each from the finer level's values."""
         v = res.copy()
+        lv = self.level[self.kids]
         for L in range(self.top):
-            kids = np.flatnonzero((self.level == L) & (self.parent >= 0))
-            if not len(kids):
+            sel = lv == L
+            if not sel.any():
                 continue
-            pred = self._neutral(op)
-            op.at(pred, self.parent[kids], v[kids])
-            has = np.zeros(self.n, bool)
-            has[self.parent[kids]] = True
+            pred, has = self._union(v, op, self.kids[sel], self.kid_parent[sel])
             v[has] = res[has] + pred[has]  # int64, wrapping as the writer's difference
         return v
 
@@ -283,14 +296,21 @@ def column_bytes(tree: _Tree, name: str, col: np.ndarray, boxes: int = 1) -> byt
     if name in _BOXES and boxes:
         op, rnd = _BOXES[name]
         q = _box_ints(col, rnd)
-        res = q - tree.union(q, op)
+        res = tree.union(q, op)
+        np.subtract(q, res, out=res)
         res[tree.zero], holes = tree.planar(q[tree.zero])
-        return _shuffled(_zigzag(np.concatenate([res, holes])))
+        del q
+        res = np.concatenate([res, holes])
+        del holes
+        return _shuffled(_zigzag(res))
     bits = col.view(np.int64)
     op = _UNION.get(name) or _BOXES.get(name, (None,))[0]
     if op is not None:
         u = _ordered(bits)
-        return _shuffled(u - tree.union(u, op))
+        pred = tree.union(u, op)
+        np.subtract(u, pred, out=pred)
+        del u
+        return _shuffled(pred)
     return _shuffled(bits)
 
 

@@ -443,7 +443,7 @@ def test_the_tile_table_predicts_parents_and_rounds_boxes_outward(seed, side, ho
     assert np.array_equal(stored_numbers(keys, want), want)
     tree = _Tree(keys)
     parents = np.zeros(len(keys), bool)
-    parents[tree.parent[tree.parent >= 0]] = True
+    parents[tree.kid_parent] = True
     for c in ("zmin", "zmax", "xmin", "xmax", "ymin", "ymax"):
         raw = column_bytes(tree, c, want[:, TILE_COLUMNS.index(c)])
         res = np.frombuffer(raw, np.uint8).reshape(8, -1).T.copy().view("<i8").ravel()
