@@ -254,8 +254,9 @@ def _code_delta32(delta, bits, t8, lut, dc):
         for j in range(delta.shape[1]):
             x = np.float64(delta[i, j])
             c = np.int64(lut[bits[i, j] >> 16])
-            if x != x:
-                c = 255
+            if x != x:  # NaN as +inf: the first +inf entry (a large e has several)
+                x = np.inf
+                c = np.int64(lut[0x7F80])
             while t8[c] < x:  # t8[255] = +inf: never past it
                 c += 1
             dc[i, j] = c
