@@ -134,7 +134,8 @@ def vertex_radii(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
         raise ValueError(f"a root grid's arrays are whole roots of side {span}, got {z.shape}")
     none = np.empty((0, 0), np.float32)
     with cores_for(z.size):
-        return _radii_nb(x, y, z, none, np.empty(0), np.empty((0, 0), np.uint8),
+        return _radii_nb(x, y, z, none, np.empty(0), np.empty(0, np.uint8),
+                         np.empty((0, 0), np.uint8),
                          grid_order(span + 1))
 
 
@@ -166,11 +167,51 @@ def code_up_nb(table, x):
     return lo
 
 
+def prefix_codes(table: np.ndarray) -> np.ndarray:
+    """For each 16-bit prefix p of a float32 bit pattern, the log8 code (the first index
+    i with ``table[i]`` ≥ x; ``table`` float64, increasing, ending with +inf) of the
+    smallest value x with that prefix: a lower bound of the code of every value whose
+    nearest float32 has the prefix (codes grow with the value, a non-negative float32's
+    pattern with its value, and no float32, so no table entry, lies between a value and
+    its nearest float32 above it); 0 for the negative prefixes. A prefix spans 1/128 of
+    an octave and a code 1/16 (``LOG_STEPS``), so the exact code is at most one step
+    above: :func:`code_lut_nb`.
+
+    Examples
+    --------
+    >>> from geoterrain.bounds.vertexdata import log8_table
+    >>> p = prefix_codes(log8_table(0).astype(np.float64))
+    >>> int(p[np.float32(1.0).view(np.uint32) >> 16]), int(p[0x7F80]), int(p[0x8000])
+    (1, 255, 0)
+    """
+    lo = (np.arange(1 << 16, dtype=np.uint32) << np.uint32(16)).view(np.float32)
+    with np.errstate(invalid="ignore"):  # the NaN prefixes: past the end, then the last
+        c = np.minimum(np.searchsorted(table, lo.astype(np.float64), side="left"),
+                       len(table) - 1)
+    c[1 << 15:] = 0  # sign bit set: -0.0 and below (NaN: code_lut_nb's own test)
+    return c.astype(np.uint8)
+
+
 @njit(cache=True, nogil=True, inline="always")
-def nest_code_nb(x, y, z, r, codes, table, i, j, h):
+def code_lut_nb(table, lut, x):
+    """:func:`code_up_nb`'s code (the first entry ≥ x; NaN: the last), from the code of
+    the 16-bit prefix of x's nearest float32 (``lut``: :func:`prefix_codes` of
+    ``table``) walked up to the first entry ≥ x (a step at most): a table look-up and
+    a compare or two, where the binary search took eight unpredictable branches."""
+    if x != x:
+        return table.shape[0] - 1
+    c = np.int64(lut[np.float32(x).view(np.uint32) >> 16])
+    while table[c] < x:  # table[-1] = +inf: never past it
+        c += 1
+    return c
+
+
+@njit(cache=True, nogil=True, inline="always")
+def nest_code_nb(x, y, z, r, codes, table, lut, i, j, h):
     """The code of vertex (i, j) of half-span h with the nesting of seed 002 §2.4
     (L50–52) on the coded values: the smallest code ≥ its radius and ≥ |p_v − p_c| +
-    table[code(c)] for each child c (children outside the grid: none)."""
+    table[code(c)] for each child c (children outside the grid: none); ``lut`` the
+    table's :func:`prefix_codes`."""
     R, C = z.shape
     best = np.float64(r[i, j]) if r.shape[0] else 0.0
     for k in range(4):
@@ -179,24 +220,25 @@ def nest_code_nb(x, y, z, r, codes, table, i, j, h):
             d = np.sqrt((x[i, j] - x[ci, cj]) ** 2 + (y[i, j] - y[ci, cj]) ** 2
                         + (z[i, j] - z[ci, cj]) ** 2) + table[codes[ci, cj]]
             best = max(best, d)
-    return code_up_nb(table, best)
+    return code_lut_nb(table, lut, best)
 
 
 @njit(cache=True, inline="always")
-def _visit(x, y, z, r, rin, table, codes, i, j, h):
+def _visit(x, y, z, r, rin, table, lut, codes, i, j, h):
     # one vertex of _radii_nb: its float32 radius, or its code nested on the codes
     if table.shape[0] == 0:
         r[i, j] = round_up32(_nest(x, y, z, r, i, j, h))
     else:
-        codes[i, j] = nest_code_nb(x, y, z, rin, codes, table, i, j, h)
+        codes[i, j] = nest_code_nb(x, y, z, rin, codes, table, lut, i, j, h)
 
 
 @parallel_kernel(cache=True)
-def _radii_nb(x, y, z, rin, table, codes, n):
+def _radii_nb(x, y, z, rin, table, lut, codes, n):
     # LP §2.4 (L50–52): r(v) = max over children c of |p_v − p_c| + r(c), fine to coarse;
     # each level is rounded up to float32 before its parents read it. With a log8
     # ``table``: ``codes`` instead, nested on the coded values (tileblobs.radius_codes),
-    # covering ``rin`` too where given; the float radii are then not made. The vertices
+    # covering ``rin`` too where given (``lut``: the table's prefix_codes); the float
+    # radii are then not made. The vertices
     # of half-span below 2**n (the square's N − 1, or a root grid's root side).
     R, C = z.shape
     coded = table.shape[0] > 0
@@ -204,7 +246,8 @@ def _radii_nb(x, y, z, rin, table, codes, n):
     if coded:
         for i in prange(R):
             for j in range(C):  # leaves keep their own (0 without radii)
-                codes[i, j] = code_up_nb(table, np.float64(rin[i, j])) if rin.shape[0] else 0
+                codes[i, j] = code_lut_nb(table, lut, np.float64(rin[i, j])) if rin.shape[0] \
+                    else 0
     h = 1
     while h < 1 << n:
         s = 2 * h
@@ -219,11 +262,11 @@ def _radii_nb(x, y, z, rin, table, codes, n):
                     for b in range(nb):
                         i = h + a * s if rows else a * s
                         j = b * s if rows else h + b * s
-                        _visit(x, y, z, r, rin, table, codes, i, j, h)
+                        _visit(x, y, z, r, rin, table, lut, codes, i, j, h)
         for a in prange(nr):  # centres
             for b in range(nc):
                 i = h + a * s
                 j = h + b * s
-                _visit(x, y, z, r, rin, table, codes, i, j, h)
+                _visit(x, y, z, r, rin, table, lut, codes, i, j, h)
         h *= 2
     return r

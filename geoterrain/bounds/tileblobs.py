@@ -22,7 +22,7 @@ from numba import njit, prange
 
 from geoterrain.bounds.delta import grid_order
 from geoterrain.bounds.normals import RingCodes
-from geoterrain.bounds.radii import _proxy_positions, _radii_nb
+from geoterrain.bounds.radii import _proxy_positions, _radii_nb, prefix_codes
 from geoterrain.bounds.vertexdata import (
     CENTRES,
     DIFF,
@@ -118,8 +118,15 @@ class BoundsCoding:
         d2 = np.asarray(delta).reshape(-1, shape[-1])
         r2 = np.asarray(radius).reshape(d2.shape) if code_r else np.empty((0, 0), np.float32)
         with cores_for(d2.size):  # small grids on one thread (geoterrain/core/threads.py)
-            odd = _code_bounds(d2, r2, t8.astype(np.float64), self.ed, 2.0 ** -self.kr,
-                               self.dc.reshape(d2.shape), bits.reshape(r2.shape))
+            if not code_r and d2.dtype == np.float32:  # δ alone, as the pipeline codes it
+                d2 = np.ascontiguousarray(d2)
+                t64 = t8.astype(np.float64)
+                _code_delta32(d2, d2.view(np.uint32), t64, prefix_codes(t64),
+                              self.dc.reshape(d2.shape))
+                odd = 0
+            else:
+                odd = _code_bounds(d2, r2, t8.astype(np.float64), self.ed, 2.0 ** -self.kr,
+                                   self.dc.reshape(d2.shape), bits.reshape(r2.shape))
         self.r16 = bits.view(np.float16)
         if odd:  # NaN, negative or -0.0 radii (none in practice): numpy's exact rule
             m = ~(np.asarray(radius) > 0) & ~(np.asarray(radius) == 0) | np.signbit(radius)
@@ -230,10 +237,29 @@ def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
     while True:
         table = log8_table(e).astype(np.float64)
         with cores_for(codes.size):
-            _radii_nb(xp, yp, zp, r, table, codes, n)
+            _radii_nb(xp, yp, zp, r, table, prefix_codes(table), codes, n)
         if not (codes == 255).any() or e >= 127:
             return codes, e
         e = min(e + 4, 127)
+
+
+@parallel_kernel(cache=True, nogil=True)
+def _code_delta32(delta, bits, t8, lut, dc):
+    """float32 δ's log8 codes (:func:`log8_codes`: the first ``t8`` entry ≥ the value,
+    NaN as +inf), rows on every core: the code of the value's 16-bit prefix
+    (:func:`geoterrain.bounds.radii.prefix_codes`, ``lut``; ``bits`` is ``delta``'s bit
+    patterns) walked up to the first entry ≥ the value (a step at most); the same codes
+    as :func:`_code_bounds`, in a table look-up and a compare or two a sample."""
+    for i in prange(delta.shape[0]):
+        for j in range(delta.shape[1]):
+            x = np.float64(delta[i, j])
+            c = np.int64(lut[bits[i, j] >> 16])
+            if x != x:  # NaN as +inf: the first +inf entry (a large e has several)
+                x = np.inf
+                c = np.int64(lut[0x7F80])
+            while t8[c] < x:  # t8[255] = +inf: never past it
+                c += 1
+            dc[i, j] = c
 
 
 @parallel_kernel(cache=True, nogil=True)

@@ -120,23 +120,26 @@ def _level_blocks_nb(z, vf, s, cpt, all_valid, bm, hl, vl, mixed):
                 cell_field_rows_nb(zb, Cell(i0 - r0, j0, s, main, z[i0, j0], z[i0, j0 + s],
                                             z[i0 + s, j0], z[i0 + s, j0 + s]),
                                    whole, ok1, ok2, d0, d1, Eb)
+        # the band's column maxima first (element-wise over whole rows: vectorised; a
+        # max does not depend on the order), then each block's from its columns
+        cm = Eb[0].copy()
+        for i in range(1, cpt + 1):
+            ei = Eb[i]
+            for j in range(C):
+                cm[j] = max(cm[j], ei[j])
         for bj in range(nbc + 1):
-            j0 = bj * cpt
-            m = 0.0
-            for i in range(cpt + 1):
-                m = max(m, Eb[i, j0])
-            vl[bi, bj] = m
+            vl[bi, bj] = cm[bj * cpt]
+        e0 = Eb[0]
+        e1 = Eb[cpt]
         for bj in range(nbc):
             j0 = bj * cpt
             m = 0.0
             top = 0.0
             bottom = 0.0
-            for i in range(cpt + 1):
-                for j in range(j0, j0 + cpt + 1):
-                    m = max(m, Eb[i, j])
             for j in range(j0, j0 + cpt + 1):
-                top = max(top, Eb[0, j])
-                bottom = max(bottom, Eb[cpt, j])
+                m = max(m, cm[j])
+                top = max(top, e0[j])
+                bottom = max(bottom, e1[j])
             bm[bi, bj] = m
             hl[bi, bj] = top
             if bi == nbr - 1:
@@ -205,14 +208,14 @@ def cell_field_rows_nb(z, cell, whole, ok1, ok2, d0, d1, E):
             fi = di * inv
             b1, g1, b2, g2 = cell_rows_nb(z00, z01, z10, z11, fi, inv, main)
             cut = di if main else s - di + 1
+            # the row as two slices and a plain max (no conditional store, no index
+            # arithmetic per sample: the loops vectorise); z and E are finite here
+            zr = z[i, j0:j0 + s + 1]
+            er = E[i, j0:j0 + s + 1]
             for dj in range(cut):
-                e = abs(z[i, j0 + dj] - (b1 + g1 * dj))
-                if e > E[i, j0 + dj]:
-                    E[i, j0 + dj] = e
+                er[dj] = max(er[dj], abs(zr[dj] - (b1 + g1 * dj)))
             for dj in range(cut, s + 1):
-                e = abs(z[i, j0 + dj] - (b2 + g2 * dj))
-                if e > E[i, j0 + dj]:
-                    E[i, j0 + dj] = e
+                er[dj] = max(er[dj], abs(zr[dj] - (b2 + g2 * dj)))
         return
     for di in range(d0, d1 + 1):
         i = i0 + di

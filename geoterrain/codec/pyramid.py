@@ -68,7 +68,12 @@ import numpy as np
 from numba import njit, prange
 
 from geoterrain.codec import entropy
-from geoterrain.codec.entropy import MASK_ALL_INVALID, MASK_ALL_VALID, MASK_STORED
+from geoterrain.codec.entropy import (
+    MASK_ALL_INVALID,
+    MASK_ALL_VALID,
+    MASK_STORED,
+    _level_zigzag,
+)
 from geoterrain.codec.predict import (
     cubic_child,
     fill_edges_first,
@@ -513,26 +518,27 @@ _UINTS = {1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}
 
 
 def _wide_blobs(lev, d, valid, s, h, te, ys, xs, kinds, cubic) -> dict:
-    """The wide blobs of the listed tiles (the format's ``wide`` row): residuals and
-    maxima in one compiled call, zstd of the level in one call on every core."""
+    """The wide blobs of the listed tiles (the format's ``wide`` row): residuals, widths
+    and byte planes in one compiled call, zstd of the level in one call on every core."""
     tt = 2 * h + 1
-    zz = np.empty((ys.size, 3 * h * h + 2 * h), np.uint64)
-    zmax = np.empty(ys.size, np.uint64)
-    entropy.level_zigzag(d, s, h, _period(te, cubic), ys.astype(np.int64), xs.astype(np.int64),
-                         zz, zmax)
-    # each tile's byte width w: the fewest bytes holding its largest residual (0: none)
-    ws = np.select([zmax == 0, zmax < 1 << 8, zmax < 1 << 16, zmax < 1 << 32], [0, 1, 2, 4], 8)
-    # every payload in one buffer: [packbits(mask) when stored] + the w byte planes
+    n = 3 * h * h + 2 * h
+    # every payload in one buffer, a slot a tile: [packbits(mask) when stored] + its w
+    # byte planes; a slot holds the widest (8 bytes a residual), and only what is
+    # written of it is ever touched (memory pages: an untouched one costs nothing)
+    mb = (tt * tt + 7) // 8
+    slot = mb + 8 * n
+    buf = np.empty(ys.size * slot, np.uint8)
+    ws = np.empty(ys.size, np.int64)
+    _level_planes(d, s, h, _period(te, cubic), ys.astype(np.int64), xs.astype(np.int64),
+                  slot, mb, buf, ws)
     stored = kinds == MASK_STORED
-    masks = np.where(stored, (tt * tt + 7) // 8, 0)
-    off = np.zeros(ys.size + 1, np.int64)
-    np.cumsum(masks + ws * zz.shape[1], out=off[1:])
-    buf = np.empty(off[-1], np.uint8)
-    _byte_planes(zz, ws.astype(np.int64), off[:-1] + masks, buf)
+    base = np.arange(ys.size, dtype=np.int64) * slot + mb
+    first = base - np.where(stored, mb, 0)
+    last = base + ws * n
     for q in np.flatnonzero(stored).tolist():
         i0, j0 = int(ys[q]) * 2 * h * s, int(xs[q]) * 2 * h * s
-        buf[off[q]:off[q] + masks[q]] = np.packbits(valid[i0:i0 + (tt - 1) * s + 1:s,
-                                                          j0:j0 + (tt - 1) * s + 1:s])
+        buf[first[q]:base[q]] = np.packbits(valid[i0:i0 + (tt - 1) * s + 1:s,
+                                                  j0:j0 + (tt - 1) * s + 1:s])
     heads, cache = [], {}
     for k, w in zip(kinds.tolist(), ws.tolist(), strict=True):
         hd = cache.get((k, w))
@@ -540,23 +546,42 @@ def _wide_blobs(lev, d, valid, s, h, te, ys, xs, kinds, cubic) -> dict:
             hd = cache[(k, w)] = _header(False, int(k), te, cubic, int(w))
         heads.append(hd)
     view = memoryview(buf)
-    frames = compress_many([view[a:b] for a, b in zip(off[:-1].tolist(), off[1:].tolist(),
+    frames = compress_many([view[a:b] for a, b in zip(first.tolist(), last.tolist(),
                                                       strict=True)], _WIDE_LEVEL)
     return {(lev, int(x), int(y)): hd + f
             for x, y, hd, f in zip(xs.tolist(), ys.tolist(), heads, frames, strict=True)}
 
 
 @parallel_kernel(cache=True, nogil=True)
-def _byte_planes(zz, ws, at, out):
-    """Row q of ``zz`` as ``ws[q]`` little-endian byte planes (all byte 0s, then all
-    byte 1s, ...) into ``out[at[q]:]``, rows on every core (the wide blobs' bodies)."""
-    n = zz.shape[1]
-    for q in prange(zz.shape[0]):
-        a = at[q]
-        for b in range(ws[q]):
+def _level_planes(d, s, h, P, ys, xs, slot, mb, out, ws):
+    """Tile q's zigzag residuals (:func:`geoterrain.codec.entropy.level_zigzag`'s, in a
+    buffer of its own), their byte width ``ws[q]`` (the fewest of 0, 1, 2, 4, 8 bytes
+    holding the largest) and their ``ws[q]`` little-endian byte planes (all byte 0s,
+    then all byte 1s, ...) at ``out[q·slot + mb:]``; tiles on every core. One pass over
+    the residuals, none held for the whole level (the wide blobs' bodies)."""
+    n = 3 * h * h + 2 * h
+    for q in prange(ys.size):
+        zz = np.empty(n, np.uint64)
+        _level_zigzag(d, s, h, P, ys[q] * 2 * h, xs[q] * 2 * h, zz)
+        zm = np.uint64(0)
+        for u in zz:
+            zm = max(zm, u)
+        w = 0
+        if zm >= np.uint64(1) << np.uint64(32):
+            w = 8
+        elif zm >= np.uint64(1) << np.uint64(16):
+            w = 4
+        elif zm >= np.uint64(1) << np.uint64(8):
+            w = 2
+        elif zm > np.uint64(0):
+            w = 1
+        ws[q] = w
+        a = q * slot + mb
+        for b in range(w):
             sh = np.uint64(8 * b)
+            o = a + b * n
             for k in range(n):
-                out[a + b * n + k] = np.uint8((zz[q, k] >> sh) & np.uint64(0xFF))
+                out[o + k] = np.uint8((zz[k] >> sh) & np.uint64(0xFF))
 
 
 def _encode_tiles(d, valid, s, h, cubic, ys, xs, kinds, cap, bins) -> list[bytes]:

@@ -109,6 +109,47 @@ def test_the_compiled_coding_is_numpys(seed, scale):
     assert c.r_stored.tobytes() == want.tobytes()
 
 
+@given(seed=st.integers(0, 2**31), e=st.integers(-128, 127),
+       special=st.lists(st.sampled_from([np.nan, -np.nan, np.inf, -np.inf, 0.0, -0.0, -1.0,
+                                         1e-45, 3.4e38]), max_size=6))
+def test_float32_delta_codes_by_prefix_are_numpys(seed, e, special):
+    # δ alone (r given as codes), float32: the prefix look-up path (_code_delta32); every
+    # code the first table entry ≥ the value, at the table's own values and one ulp either
+    # side of them, at any exponent
+    rng = np.random.default_rng(seed)
+    t = log8_table(e)
+    near = np.concatenate([t, np.nextafter(t, np.float32(np.inf)), np.nextafter(t, np.float32(0))])
+    wide = (rng.random(200) * 2.0 ** rng.integers(-150, 128, 200)).astype(np.float32)
+    delta = np.concatenate([near, wide, np.array(special, np.float32)]).astype(np.float32)
+    delta = np.resize(delta, (9, delta.size // 9 + 1))
+    c = BoundsCoding(delta, None, e, r_codes=(np.zeros(delta.shape, np.uint8), 0))
+    np.testing.assert_array_equal(c.dc, log8_codes(delta, e))
+
+
+@given(seed=st.integers(0, 2**31), e=st.integers(-128, 127),
+       special=st.lists(st.sampled_from([np.nan, -np.nan, np.inf, -np.inf, 0.0, -0.0, -1.0,
+                                         5e-324, 1e-46, 3.5e38, 1e300]), max_size=6))
+def test_the_prefix_code_is_the_binary_searchs(seed, e, special):
+    # code_lut_nb (the nested radii's codes) against code_up_nb's binary search, on
+    # float64 values: the table's entries, one float64 ulp and one float32 ulp either
+    # side, values whose nearest float32 lies above them, any exponent
+    from geoterrain.bounds.radii import code_lut_nb, code_up_nb, prefix_codes
+
+    rng = np.random.default_rng(seed)
+    t = log8_table(e).astype(np.float64)
+    f32 = log8_table(e)
+    mids = (f32.astype(np.float64) + np.nextafter(f32, np.float32(np.inf))) / 2
+    x = np.concatenate([t, np.nextafter(t, np.inf), np.nextafter(t, -np.inf), mids,
+                        np.nextafter(mids, np.inf), np.nextafter(mids, -np.inf),
+                        np.nextafter(f32, np.float32(0)).astype(np.float64),
+                        rng.random(200) * 2.0 ** rng.integers(-160, 140, 200),
+                        np.array(special, np.float64)])
+    lut = prefix_codes(t)
+    got = [code_lut_nb(t, lut, v) for v in x.tolist()]
+    want = [code_up_nb(t, v) for v in x.tolist()]
+    assert got == want
+
+
 def test_radius_codes_keep_their_exponent_in_the_header_range():
     """Coordinates so large that the radii's exponent would pass int8's 127 (the blob
     header's byte): e stays 127 and the codes still bound the radii (+inf at worst),
