@@ -137,3 +137,28 @@ def test_a_skipped_blob_is_seen(tmp_path):
     assert how == "tiles"
     with pytest.raises(AssertionError):
         assert_same_store(a2, b2)
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("tile", [4, 8, 16])
+def test_the_window_s_outer_tiles(tmp_path, tile):
+    """The edit's window reads its outer ring of level-0 tiles on level 1's lattice only
+    (localbounds.Bounds._window; whole where tiles have under 8 samples a side): small
+    windows in the middle, on a tile border and at the data's last column give the whole
+    grid's store, on a square and on 1 × 2 roots (a failing case once: 4-sample tiles,
+    a 1 × 1 window on the last column)."""
+    size = {4: 17, 8: 65, 16: 257}[tile]  # the block table covers every level
+    mid = size // 2 // tile * tile
+    for n, (roots, row, col, h) in enumerate([(False, mid - 3, mid + 1, 1),
+                                              (False, mid, mid, 3),
+                                              (True, 0, 8 * tile // 4, 1),
+                                              (True, 5 * tile // 4, 2 * tile, 2)]):
+        if roots:
+            z, _ = _filled_roots(1, tile, 1, False, "none")
+            row, col = min(row, z.shape[0] - h), min(col, z.shape[1] - 1)
+        else:
+            z = integer_dem(n, size, size)
+        p = np.full((h, h), -2.0)
+        _, a, b, _, how = _edited(tmp_path / f"c{n}", z, tile, roots, row, col, p, "add")
+        assert how == "tiles"
+        assert_same_store(a, b)

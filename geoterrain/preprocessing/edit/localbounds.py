@@ -14,6 +14,8 @@ codes, so unchanged children enter with their stored codes.
 
 from __future__ import annotations
 
+from bisect import bisect_left
+
 import numpy as np
 from numba import njit
 
@@ -70,6 +72,8 @@ class Bounds:
         self._sweeps: dict = {}  # a block's tile sweeps
         self._bound_cache: dict = {}  # a block's tiles' bounds, order, swept and maxima
         self._stored_cache: dict = {}
+        self._code_cache: dict = {}  # (i, j, kind) → the vertex's stored code
+        self._t8_list, self._rt_list = self.t8.tolist(), self.rt.tolist()
         self.tiles_swept = 0
         self.rows0 = {False: job.level0(False), True: job.level0(True)}
 
@@ -169,6 +173,17 @@ class Bounds:
         shape = self.z.shape
         self.dc = np.zeros(shape, np.uint8)
         self.rc = np.zeros(shape, np.uint8)
+        # where dc and rc hold the stored codes: everywhere on the tiles within one tile
+        # of the edit's; on the outer ring of tiles, level 1's lattice only, from the
+        # level-1 tiles (a level-0 tile's even samples are its parent's, NEW_ONLY). A
+        # fine vertex (half-span h ≤ S/2) lies within 3h of the edit and its children
+        # within h of it: beyond S, only h = S/2, whose children are on lattice S/4 (even
+        # where S ≥ 8; smaller tiles are read whole)
+        self.known = np.zeros(shape, bool)
+        whole = self.g.top_level < 1 or S < 8
+        y0, y1 = c.r0 // S - 1, (c.r1 - 1) // S + 1
+        x0, x1 = c.c0 // S - 1, (c.c1 - 1) // S + 1
+        half = S // 2
         for ty in range(self.oi // S, self.i1 // S):
             for tx in range(self.oj // S, self.j1 // S):
                 key = (0, tx, ty)
@@ -176,8 +191,17 @@ class Bounds:
                     raise _Whole("nodata tiles beside the edit")
                 sl = (slice(ty * S - self.oi, ty * S - self.oi + S + 1),
                       slice(tx * S - self.oj, tx * S - self.oj + S + 1))
-                self.dc[sl] = _codes(self.t8, t.tile_delta(*key))
-                self.rc[sl] = _codes(self.rt, t.tile_radius(*key))
+                if whole or (y0 <= ty <= y1 and x0 <= tx <= x1):
+                    self.dc[sl] = _codes(self.t8, t.tile_delta(*key))
+                    self.rc[sl] = _codes(self.rt, t.tile_radius(*key))
+                    self.known[sl] = True
+                    continue
+                q = (slice((ty & 1) * half, (ty & 1) * half + half + 1),
+                     slice((tx & 1) * half, (tx & 1) * half + half + 1))
+                even = (slice(sl[0].start, sl[0].stop, 2), slice(sl[1].start, sl[1].stop, 2))
+                self.dc[even] = _codes(self.t8, t.tile_delta(1, tx // 2, ty // 2)[q])
+                self.rc[even] = _codes(self.rt, t.tile_radius(1, tx // 2, ty // 2)[q])
+                self.known[even] = True
         self.dc_old, self.rc_old = self.dc.copy(), self.rc.copy()
         f = t.frame
         ii, jj = np.meshgrid(np.arange(self.oi, self.i1 + 1), np.arange(self.oj, self.j1 + 1),
@@ -211,7 +235,9 @@ class Bounds:
             raise _Whole("the edit changes δ's code scale (its largest value)")
 
     def _in_window(self, i: int, j: int) -> bool:
-        return self.oi <= i <= self.i1 and self.oj <= j <= self.j1
+        # in the window, where it holds the vertex's code
+        return self.oi <= i <= self.i1 and self.oj <= j <= self.j1 and \
+            bool(self.known[i - self.oi, j - self.oj])
 
     def d_code(self, i: int, j: int) -> int:
         """δ's saturated code of vertex (i, j) as the edit leaves it."""
@@ -219,14 +245,14 @@ class Bounds:
             return self.coarse_d[(i, j)]
         if self._in_window(i, j):
             return int(self.dc[i - self.oi, j - self.oj])
-        return _codes(self.t8, self._stored(i, j, "delta"))
+        return self._old_code(i, j, "delta")
 
     def r_code(self, i: int, j: int) -> int:
         if (i, j) in self.coarse_r:
             return self.coarse_r[(i, j)]
         if self._in_window(i, j):
             return int(self.rc[i - self.oi, j - self.oj])
-        return _codes(self.rt, self._stored(i, j, "radius"))
+        return self._old_code(i, j, "radius")
 
     def _stored(self, i: int, j: int, kind: str) -> float:
         """A vertex's stored value, from a stored tile that holds it at its level."""
@@ -234,6 +260,17 @@ class Bounds:
         if key not in self._stored_cache:
             self._stored_cache[key] = self._stored_now(i, j, kind)
         return self._stored_cache[key]
+
+    def _old_code(self, i: int, j: int, kind: str) -> int:
+        """A vertex's stored code (its stored value's: the first table entry ≥ it, as
+        :func:`_codes`), once a vertex: a bisection of the table's list, not a numpy
+        call per vertex."""
+        key = (i, j, kind)
+        got = self._code_cache.get(key)
+        if got is None:
+            table = self._t8_list if kind == "delta" else self._rt_list
+            got = self._code_cache[key] = bisect_left(table, self._stored(i, j, kind))
+        return got
 
     def _stored_now(self, i: int, j: int, kind: str) -> float:
         g = self.g
@@ -272,8 +309,8 @@ class Bounds:
                     self.raw_new[(i, j)] = raw
                     code = max(int(np.searchsorted(self.t8, float(raw))), new_kids)
                 else:
-                    old = _codes(self.t8, self._stored(i, j, "delta"))
-                    old_kids = max((_codes(self.t8, self._stored(ci, cj, "delta"))
+                    old = self._old_code(i, j, "delta")
+                    old_kids = max((self._old_code(ci, cj, "delta")
                                     for ci, cj in kids), default=0)
                     if old > old_kids:  # its own raw δ held it: unchanged
                         code = max(old, new_kids)
@@ -507,7 +544,7 @@ class Bounds:
         for h, vs, direct in self.coarse_levels:
             for (i, j, _), d in zip(vs.tolist(), direct.tolist(), strict=True):
                 new_code = self.coarse_d[(i, j)]
-                old_code = _codes(t8, self._stored(i, j, "delta"))
+                old_code = self._old_code(i, j, "delta")
                 if (new_code < 255) != (old_code < 255) and (i, j) not in self.raw_new:
                     self.raw_new[(i, j)] = self._coarse_raw(i, j, h)
                 if new_code < 255 and (d or old_code == 255):
@@ -535,8 +572,8 @@ class Bounds:
         for a, b in zip(*np.nonzero(wd | wr), strict=True):
             changed[(int(a) + self.oi, int(b) + self.oj)] = [bool(wd[a, b]), bool(wr[a, b])]
         for (i, j), code in self.coarse_d.items():
-            fd = code != _codes(self.t8, self._stored(i, j, "delta"))
-            fr = self.coarse_r[(i, j)] != _codes(self.rt, self._stored(i, j, "radius"))
+            fd = code != self._old_code(i, j, "delta")
+            fr = self.coarse_r[(i, j)] != self._old_code(i, j, "radius")
             if fd or fr:
                 got = changed.setdefault((i, j), [False, False])
                 got[0], got[1] = got[0] or fd, got[1] or fr
@@ -561,7 +598,7 @@ class Bounds:
             inside = L == 0 and rows[0] >= self.oi and rows[-1] <= self.i1 and \
                 cols[0] >= self.oj and cols[-1] <= self.j1
             # a level-0 tile in the window: its codes are there (none decoded again)
-            if inside:
+            if inside and self.known[rows[0] - self.oi, cols[0] - self.oj + 1]:
                 sl = (slice(rows[0] - self.oi, rows[-1] - self.oi + 1),
                       slice(cols[0] - self.oj, cols[-1] - self.oj + 1))
                 d, r = self.t8[self.dc[sl]], self.rt[self.rc[sl]]
@@ -572,6 +609,7 @@ class Bounds:
                 r = self.t.tile_radius(*key).astype(np.float64) if want_r else zero.copy()
                 ii, jj = np.meshgrid(rows, cols, indexing="ij")
                 inw = (ii >= self.oi) & (ii <= self.i1) & (jj >= self.oj) & (jj <= self.j1)
+                inw[inw] = self.known[ii[inw] - self.oi, jj[inw] - self.oj]
                 if inw.any():
                     d[inw] = self.t8[self.dc[ii[inw] - self.oi, jj[inw] - self.oj]]
                     r[inw] = self.rt[self.rc[ii[inw] - self.oi, jj[inw] - self.oj]]
