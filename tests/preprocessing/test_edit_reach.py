@@ -142,11 +142,12 @@ def test_a_skipped_blob_is_seen(tmp_path):
 @pytest.mark.fast
 @pytest.mark.parametrize("tile", [4, 8, 16])
 def test_the_window_s_outer_tiles(tmp_path, tile):
-    """The edit's window reads its outer ring of level-0 tiles on level 1's lattice only
-    (localbounds.Bounds._window; whole where tiles have under 8 samples a side): small
-    windows in the middle, on a tile border and at the data's last column give the whole
-    grid's store, on a square and on 1 × 2 roots (a failing case once: 4-sample tiles,
-    a 1 × 1 window on the last column)."""
+    """The edit's window reads the level-0 tiles beyond 8 samples of the edit on level
+    1's lattice only (localbounds.Bounds._window; whole where tiles have under 8 samples
+    a side): small windows in the middle, on a tile border and at the data's last column
+    give the whole grid's store, on a square and on 1 × 2 roots (a failing case once:
+    4-sample tiles, a 1 × 1 window on the last column, when the tiles beyond one tile of
+    the edit were read so)."""
     size = {4: 17, 8: 65, 16: 257}[tile]  # the block table covers every level
     mid = size // 2 // tile * tile
     for n, (roots, row, col, h) in enumerate([(False, mid - 3, mid + 1, 1),

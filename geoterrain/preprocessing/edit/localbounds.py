@@ -173,16 +173,16 @@ class Bounds:
         shape = self.z.shape
         self.dc = np.zeros(shape, np.uint8)
         self.rc = np.zeros(shape, np.uint8)
-        # where dc and rc hold the stored codes: everywhere on the tiles within one tile
-        # of the edit's; on the outer ring of tiles, level 1's lattice only, from the
-        # level-1 tiles (a level-0 tile's even samples are its parent's, NEW_ONLY). A
-        # fine vertex (half-span h ≤ S/2) lies within 3h of the edit and its children
-        # within h of it: beyond S, only h = S/2, whose children are on lattice S/4 (even
-        # where S ≥ 8; smaller tiles are read whole)
+        # where dc and rc hold the stored codes: everywhere on the tiles within 8 samples
+        # of the edit; elsewhere on level 1's lattice only, from the level-1 tiles (a
+        # level-0 tile's even samples are its parent's, NEW_ONLY). A fine vertex of
+        # half-span h lies within 3h of the edit (an edge midpoint within 2h), its
+        # children within h of it: those on level 0's lattice within 5 samples (h = 2
+        # edge midpoints' cell centres), 8 taken (tiles under 8 samples read whole)
         self.known = np.zeros(shape, bool)
         whole = self.g.top_level < 1 or S < 8
-        y0, y1 = c.r0 // S - 1, (c.r1 - 1) // S + 1
-        x0, x1 = c.c0 // S - 1, (c.c1 - 1) // S + 1
+        y0, y1 = (c.r0 - 8 - 1) // S, (c.r1 - 1 + 8) // S
+        x0, x1 = (c.c0 - 8 - 1) // S, (c.c1 - 1 + 8) // S
         half = S // 2
         for ty in range(self.oi // S, self.i1 // S):
             for tx in range(self.oj // S, self.j1 // S):
