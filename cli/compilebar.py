@@ -36,6 +36,9 @@ COMPILING = {
               "geoterrain.lod.tinkernels"),
     "bench": ("geoterrain.core", "geoterrain.codec", "geoterrain.bounds", "geoterrain.lod",
               "geoterrain.testing", "geoterrain.rendering"),
+    # by tiles (preprocessing/edit/local*.py), or the preprocess's stages over the whole grid
+    "edit": ("geoterrain.core", "geoterrain.ingest", "geoterrain.codec", "geoterrain.bounds",
+             "geoterrain.preprocessing", "geoterrain.store"),
 }
 COMPILING["view"] = COMPILING["render"]
 

@@ -74,3 +74,41 @@ def test_the_notice_comes_with_a_real_compilation(capsys, monkeypatch):
     with CompileBar("preprocess", quiet=False):
         njit(lambda x: x + 4)(1)
     assert "compiling" not in capsys.readouterr().err  # a warm cache: silent
+
+
+def test_edit_has_a_compile_bar_over_its_kernels(tmp_path, fbm_tif, monkeypatch, capsys):
+    """``geoterrain edit`` compiles kernels on an empty cache like the other commands: it
+    has a compile bar (the notice on its first compilation), and its stage folders hold
+    every compiled kernel's module an edit loads (by tiles, then over the whole grid)."""
+    import subprocess
+    import sys
+    import textwrap
+
+    from numba import njit
+
+    import geoterrain
+    from geoterrain.cli.compilebar import COMPILING, CompileBar
+
+    store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain", tile_size=16)
+    code = textwrap.dedent(f"""
+        import sys
+        import numpy as np
+        import geoterrain
+        from geoterrain.preprocessing.edit import Patch, edit_terrain
+        for how in ("tiles", "whole grid"):
+            with geoterrain.open({str(store)!r}) as t:
+                edit_terrain(t, Patch(40, 50, np.full((9, 9), -5.0)), "add", how=how)
+        print(" ".join(m for m in sys.modules if m.startswith("geoterrain.")))
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=tmp_path)
+    loaded = out.stdout.split()
+    compiled = [m for m in loaded if (f := warmup.PACKAGE.joinpath(
+        *m.split(".")[1:]).with_suffix(".py")).is_file() and "cache=True" in f.read_text()]
+    assert "geoterrain.preprocessing.edit.localbounds" in compiled
+    assert [m for m in compiled if not m.startswith(COMPILING["edit"])] == []
+    monkeypatch.setattr(warmup, "cold_kernels", lambda mods: ["geoterrain.x.a"])
+    capsys.readouterr()
+    with CompileBar("edit", quiet=False):
+        njit(lambda x: x + 5)(1)  # compiled now (a lambda is never cached)
+    assert "compiling kernels (first run only" in capsys.readouterr().err

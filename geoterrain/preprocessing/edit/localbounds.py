@@ -14,13 +14,15 @@ codes, so unchanged children enter with their stored codes.
 
 from __future__ import annotations
 
+from bisect import bisect_left
+
 import numpy as np
 from numba import njit
 
 from geoterrain.bounds.delta import Cell
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs
 from geoterrain.bounds.tilebounds import closed_blocks
-from geoterrain.bounds.vertexdata import PRED, VERSION_2, log8_exponent, log8_table
+from geoterrain.bounds.vertexdata import log8_exponent, log8_table
 from geoterrain.bounds.windows import (
     block_sweep_rect,
     fine_raw_delta,
@@ -32,7 +34,7 @@ from geoterrain.core.rounding import round_up32
 from geoterrain.preprocessing.edit.localerrors import TileErrors
 from geoterrain.preprocessing.edit.localerrors import WholeGrid as _Whole
 
-__all__ = ["Bounds"]
+__all__ = ["Bounds", "blob_reach"]
 
 _SLACK = 1e-9  # relative slack of a tile's bound (float rounding of the planes)
 
@@ -70,7 +72,8 @@ class Bounds:
         self._sweeps: dict = {}  # a block's tile sweeps
         self._bound_cache: dict = {}  # a block's tiles' bounds, order, swept and maxima
         self._stored_cache: dict = {}
-        self._pred_cache: dict = {}  # tile → whether its δ or r blob holds PRED codes
+        self._code_cache: dict = {}  # (i, j, kind) → the vertex's stored code
+        self._t8_list, self._rt_list = self.t8.tolist(), self.rt.tolist()
         self.tiles_swept = 0
         self.rows0 = {False: job.level0(False), True: job.level0(True)}
 
@@ -170,6 +173,17 @@ class Bounds:
         shape = self.z.shape
         self.dc = np.zeros(shape, np.uint8)
         self.rc = np.zeros(shape, np.uint8)
+        # where dc and rc hold the stored codes: everywhere on the tiles within 8 samples
+        # of the edit; elsewhere on level 1's lattice only, from the level-1 tiles (a
+        # level-0 tile's even samples are its parent's, NEW_ONLY). A fine vertex of
+        # half-span h lies within 3h of the edit (an edge midpoint within 2h), its
+        # children within h of it: those on level 0's lattice within 5 samples (h = 2
+        # edge midpoints' cell centres), 8 taken (tiles under 8 samples read whole)
+        self.known = np.zeros(shape, bool)
+        whole = self.g.top_level < 1 or S < 8
+        y0, y1 = (c.r0 - 8 - 1) // S, (c.r1 - 1 + 8) // S
+        x0, x1 = (c.c0 - 8 - 1) // S, (c.c1 - 1 + 8) // S
+        half = S // 2
         for ty in range(self.oi // S, self.i1 // S):
             for tx in range(self.oj // S, self.j1 // S):
                 key = (0, tx, ty)
@@ -177,8 +191,17 @@ class Bounds:
                     raise _Whole("nodata tiles beside the edit")
                 sl = (slice(ty * S - self.oi, ty * S - self.oi + S + 1),
                       slice(tx * S - self.oj, tx * S - self.oj + S + 1))
-                self.dc[sl] = _codes(self.t8, t.tile_delta(*key))
-                self.rc[sl] = _codes(self.rt, t.tile_radius(*key))
+                if whole or (y0 <= ty <= y1 and x0 <= tx <= x1):
+                    self.dc[sl] = _codes(self.t8, t.tile_delta(*key))
+                    self.rc[sl] = _codes(self.rt, t.tile_radius(*key))
+                    self.known[sl] = True
+                    continue
+                q = (slice((ty & 1) * half, (ty & 1) * half + half + 1),
+                     slice((tx & 1) * half, (tx & 1) * half + half + 1))
+                even = (slice(sl[0].start, sl[0].stop, 2), slice(sl[1].start, sl[1].stop, 2))
+                self.dc[even] = _codes(self.t8, t.tile_delta(1, tx // 2, ty // 2)[q])
+                self.rc[even] = _codes(self.rt, t.tile_radius(1, tx // 2, ty // 2)[q])
+                self.known[even] = True
         self.dc_old, self.rc_old = self.dc.copy(), self.rc.copy()
         f = t.frame
         ii, jj = np.meshgrid(np.arange(self.oi, self.i1 + 1), np.arange(self.oj, self.j1 + 1),
@@ -212,7 +235,9 @@ class Bounds:
             raise _Whole("the edit changes δ's code scale (its largest value)")
 
     def _in_window(self, i: int, j: int) -> bool:
-        return self.oi <= i <= self.i1 and self.oj <= j <= self.j1
+        # in the window, where it holds the vertex's code
+        return self.oi <= i <= self.i1 and self.oj <= j <= self.j1 and \
+            bool(self.known[i - self.oi, j - self.oj])
 
     def d_code(self, i: int, j: int) -> int:
         """δ's saturated code of vertex (i, j) as the edit leaves it."""
@@ -220,14 +245,14 @@ class Bounds:
             return self.coarse_d[(i, j)]
         if self._in_window(i, j):
             return int(self.dc[i - self.oi, j - self.oj])
-        return _codes(self.t8, self._stored(i, j, "delta"))
+        return self._old_code(i, j, "delta")
 
     def r_code(self, i: int, j: int) -> int:
         if (i, j) in self.coarse_r:
             return self.coarse_r[(i, j)]
         if self._in_window(i, j):
             return int(self.rc[i - self.oi, j - self.oj])
-        return _codes(self.rt, self._stored(i, j, "radius"))
+        return self._old_code(i, j, "radius")
 
     def _stored(self, i: int, j: int, kind: str) -> float:
         """A vertex's stored value, from a stored tile that holds it at its level."""
@@ -235,6 +260,17 @@ class Bounds:
         if key not in self._stored_cache:
             self._stored_cache[key] = self._stored_now(i, j, kind)
         return self._stored_cache[key]
+
+    def _old_code(self, i: int, j: int, kind: str) -> int:
+        """A vertex's stored code (its stored value's: the first table entry ≥ it, as
+        :func:`_codes`), once a vertex: a bisection of the table's list, not a numpy
+        call per vertex."""
+        key = (i, j, kind)
+        got = self._code_cache.get(key)
+        if got is None:
+            table = self._t8_list if kind == "delta" else self._rt_list
+            got = self._code_cache[key] = bisect_left(table, self._stored(i, j, kind))
+        return got
 
     def _stored_now(self, i: int, j: int, kind: str) -> float:
         g = self.g
@@ -273,8 +309,8 @@ class Bounds:
                     self.raw_new[(i, j)] = raw
                     code = max(int(np.searchsorted(self.t8, float(raw))), new_kids)
                 else:
-                    old = _codes(self.t8, self._stored(i, j, "delta"))
-                    old_kids = max((_codes(self.t8, self._stored(ci, cj, "delta"))
+                    old = self._old_code(i, j, "delta")
+                    old_kids = max((self._old_code(ci, cj, "delta")
                                     for ci, cj in kids), default=0)
                     if old > old_kids:  # its own raw δ held it: unchanged
                         code = max(old, new_kids)
@@ -508,7 +544,7 @@ class Bounds:
         for h, vs, direct in self.coarse_levels:
             for (i, j, _), d in zip(vs.tolist(), direct.tolist(), strict=True):
                 new_code = self.coarse_d[(i, j)]
-                old_code = _codes(t8, self._stored(i, j, "delta"))
+                old_code = self._old_code(i, j, "delta")
                 if (new_code < 255) != (old_code < 255) and (i, j) not in self.raw_new:
                     self.raw_new[(i, j)] = self._coarse_raw(i, j, h)
                 if new_code < 255 and (d or old_code == 255):
@@ -525,87 +561,141 @@ class Bounds:
         job.meta["delta_max_finite"] = d_new
 
     # ------------------------------------------------------------ blobs and rows
-    def _predicted(self, key: tuple[int, int, int]) -> bool:
-        # does the tile's stored δ or r blob hold PRED codes (or is it not stored)? Read
-        # once a tile: a changed vertex asks for each finer tile that holds it
-        got = self._pred_cache.get(key)
-        if got is None:
-            got = self._pred_cache[key] = key in self.t.tile_info and any(
-                len(b) > 1 and b[0] == VERSION_2 and b[1] & PRED
-                for b in (self.t._blob(key, "delta"), self.t._blob(key, "radius")))
-        return got
-
     def _code_blobs(self) -> None:
-        """The δ and r blobs of the tiles holding a vertex whose code changed (as a new
-        vertex of its level), and their rows' largest stored δ and r."""
+        """The δ and r blobs whose bytes the changed codes can reach, and the rows' largest
+        stored δ and r of the tiles whose own vertices changed (:func:`blob_reach`): only
+        those tiles are decoded and coded again, each blob only where its payload reads a
+        changed code of its kind."""
         g, job = self.g, self.job
-        changed: dict = {}  # (i, j) → (δ code, r code)
-        sel = (self.dc != self.dc_old) | (self.rc != self.rc_old)
-        for a, b in zip(*np.nonzero(sel), strict=True):
-            changed[(int(a) + self.oi, int(b) + self.oj)] = None
+        changed: dict = {}  # (i, j) → [δ code changed, r code changed]
+        wd, wr = self.dc != self.dc_old, self.rc != self.rc_old
+        for a, b in zip(*np.nonzero(wd | wr), strict=True):
+            changed[(int(a) + self.oi, int(b) + self.oj)] = [bool(wd[a, b]), bool(wr[a, b])]
         for (i, j), code in self.coarse_d.items():
-            if code != _codes(self.t8, self._stored(i, j, "delta")) or \
-                    self.coarse_r[(i, j)] != _codes(self.rt, self._stored(i, j, "radius")):
-                changed[(i, j)] = None
-        ij = np.array(list(changed), np.int64).reshape(-1, 2)
-        vi, vj = ij[:, 0], ij[:, 1]
-        low = (vi | vj) & -(vi | vj)  # 2^level of each vertex (0: the corner (0, 0), none)
-        vk = np.minimum(np.frexp(low.astype(np.float64))[1] - 1, g.top_level)
-        tiles = set()
-        # its own level's tiles, and every finer level's tiles that hold it with a PRED
-        # blob (vertexdata.PRED: codes stored as differences from their parents', the
-        # vertices shared with the level above; not a RING or CENTRES blob, whose
-        # payload is the tile's own); whole arrays a level, each tile asked once
-        for lv in range(g.top_level + 1):
-            m = vk >= lv
-            if not m.any():
-                continue
-            i, j, own = vi[m], vj[m], vk[m] == lv
-            span, (nx, ny) = g.tile_span(lv), g.tiles(lv)
-            for y in (np.minimum(i // span, ny - 1), np.maximum((i - 1) // span, 0)):
-                for x in (np.minimum(j // span, nx - 1), np.maximum((j - 1) // span, 0)):
-                    ok = (y * span <= i) & (i <= y * span + span) & (x * span <= j) & \
-                        (j <= x * span + span)
-                    cand = set(zip(x[ok].tolist(), y[ok].tolist(), own[ok].tolist(),
-                                   strict=True))
-                    for tx, ty, o in cand:
-                        if o or self._predicted((lv, tx, ty)):
-                            tiles.add((lv, tx, ty))
+            fd = code != self._old_code(i, j, "delta")
+            fr = self.coarse_r[(i, j)] != self._old_code(i, j, "radius")
+            if fd or fr:
+                got = changed.setdefault((i, j), [False, False])
+                got[0], got[1] = got[0] or fd, got[1] or fr
         job.dirty.extend((i, j, i + 1, j + 1) for i, j in changed)
+        ij = np.array(list(changed), np.int64).reshape(-1, 2)
+        flags = np.array(list(changed.values()), bool).reshape(-1, 2)
+        need = blob_reach(g, ij[:, 0], ij[:, 1], flags[:, 0], flags[:, 1], job.derive_bounds)
         # the coarse vertices' new codes, as arrays
         cv = np.array(list(self.coarse_d), np.int64).reshape(-1, 2)
         cd = self.t8[np.array(list(self.coarse_d.values()), np.int64)]
         cr = self.rt[np.array([self.coarse_r[k] for k in self.coarse_d], np.int64)]
         T = g.tile_samples
-        for key in sorted(tiles):
+        zero = np.zeros((T, T), np.float64)
+        for key in sorted(need):
             if key not in self.t.tile_info:
                 continue
+            kinds, row = need[key]
             L, x, y = key
             span, step = g.tile_span(L), 1 << L
-            d = self.t.tile_delta(*key).astype(np.float64).copy()
-            r = self.t.tile_radius(*key).astype(np.float64).copy()
             rows = y * span + np.arange(T) * step
             cols = x * span + np.arange(T) * step
-            ii, jj = np.meshgrid(rows, cols, indexing="ij")
-            inw = (ii >= self.oi) & (ii <= self.i1) & (jj >= self.oj) & (jj <= self.j1)
-            d[inw] = self.t8[self.dc[ii[inw] - self.oi, jj[inw] - self.oj]]
-            r[inw] = self.rt[self.rc[ii[inw] - self.oi, jj[inw] - self.oj]]
+            inside = L == 0 and rows[0] >= self.oi and rows[-1] <= self.i1 and \
+                cols[0] >= self.oj and cols[-1] <= self.j1
+            # a level-0 tile in the window: its codes are there (none decoded again)
+            if inside and self.known[rows[0] - self.oi, cols[0] - self.oj + 1]:
+                sl = (slice(rows[0] - self.oi, rows[-1] - self.oi + 1),
+                      slice(cols[0] - self.oj, cols[-1] - self.oj + 1))
+                d, r = self.t8[self.dc[sl]], self.rt[self.rc[sl]]
+            else:
+                want_d = row or "delta" in kinds
+                want_r = row or "radius" in kinds
+                d = self.t.tile_delta(*key).astype(np.float64) if want_d else zero.copy()
+                r = self.t.tile_radius(*key).astype(np.float64) if want_r else zero.copy()
+                ii, jj = np.meshgrid(rows, cols, indexing="ij")
+                inw = (ii >= self.oi) & (ii <= self.i1) & (jj >= self.oj) & (jj <= self.j1)
+                inw[inw] = self.known[ii[inw] - self.oi, jj[inw] - self.oj]
+                if inw.any():
+                    d[inw] = self.t8[self.dc[ii[inw] - self.oi, jj[inw] - self.oj]]
+                    r[inw] = self.rt[self.rc[ii[inw] - self.oi, jj[inw] - self.oj]]
+            # the coarse vertices' codes (the window holds their old ones)
             di, dj = cv[:, 0] - y * span, cv[:, 1] - x * span
-            on = (di >= 0) & (di <= span) & (dj >= 0) & (dj <= span) & (di % step == 0) & \
-                (dj % step == 0)
+            on = (di >= 0) & (di <= span) & (dj >= 0) & (dj <= span) & \
+                (di % step == 0) & (dj % step == 0)
             d[di[on] // step, dj[on] // step] = cd[on]
             r[di[on] // step, dj[on] // step] = cr[on]
             coding = BoundsCoding(d, None, job.ed,
                                   r_codes=(np.searchsorted(self.rt, r).astype(np.uint8), job.er))
             blobs, dm, rm = level_blobs(coding, np.zeros((T, T, 2), np.uint8), g.t, 0,
-                                        0 if L == g.top_level else 1, [(0, 0)],
-                                        ("delta", "radius"),
+                                        0 if L == g.top_level else 1, [(0, 0)], kinds,
                                         ring=L == 0 and job.derive_bounds,
                                         mids=L > 0 and job.derive_bounds)
-            for kind in ("delta", "radius"):
+            for kind in kinds:
                 job.put(key, kind, blobs[kind][(0, 0, 0)])
-            job.set_row(key, delta_max=float(dm[0]), radius_max=float(rm[0]))
+            if row:
+                job.set_row(key, delta_max=float(dm[0]), radius_max=float(rm[0]))
 
+
+def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray,
+               derived: bool) -> dict:
+    """Which stored bytes vertices (``vi``, ``vj``) whose δ code (``fd``) or r code
+    (``fr``) changed can reach: ``{(L, x, y): (kinds, row)}``, the tile's δ and r blobs
+    whose payload reads such a code (``kinds``) and whether its row's largest stored δ and
+    r can change (``row``: the tile holds one as a vertex of its own level; every vertex
+    at the top, whose blobs hold them all). A blob's payload is a function of the codes
+    it reads, so a blob left out keeps its bytes; one named may keep them too (its old
+    bytes are compared). What each blob reads (``derived``: the store derives level 0's
+    inner bounds and r's cell centres above it, :func:`~geoterrain.bounds.tileblobs.level_blobs`'s
+    ``ring`` and ``mids``):
+
+    - level 0's ``RING`` δ and r: the new vertices of the tile's border only;
+    - r's ``MIDS`` above level 0: the tile's own vertices but its cell centres;
+    - every other blob (``PRED`` δ: seed 002 §2.4's parents, a cell centre's
+      prediction reading the corners of its cell, a coarser level's vertices; ``CENTRES``;
+      the top level's): every vertex of the tile.
+
+    Examples
+    --------
+    >>> from geoterrain.core.grid import Grid
+    >>> g = Grid(17, 17, 4, 2)  # 5 × 5 samples a tile, levels 0-2
+    >>> reach = blob_reach(g, np.array([8]), np.array([4]), np.array([True]),
+    ...                    np.array([False]), True)
+    >>> for key, what in sorted(reach.items()):  # (8, 4): new at level 2, PRED δ below
+    ...     print(key, what)
+    (1, 0, 0) (('delta',), False)
+    (1, 0, 1) (('delta',), False)
+    (2, 0, 0) (('delta',), True)
+    """
+    vi, vj = np.asarray(vi, np.int64), np.asarray(vj, np.int64)
+    fd, fr = np.asarray(fd, bool), np.asarray(fr, bool)
+    top = g.top_level
+    low = (vi | vj) & -(vi | vj)  # 2^level of each vertex (0: the corner (0, 0), none)
+    # the level where each vertex is new, the top for every vertex of the top's lattice
+    vk = np.minimum(np.frexp(low.astype(np.float64))[1] - 1, top)
+    need: dict = {}
+    for L in range(top + 1):
+        span, (nx, ny) = g.tile_span(L), g.tiles(L)
+        on = vk >= L  # on the level's lattice
+        own = vk == L  # the level's new vertices (every vertex of the top's tiles)
+        if L == 0 and derived and top > 0:  # RING: the border's new vertices
+            ring = own & ((vi % span == 0) | (vj % span == 0))
+            sd, sr = ring & fd, ring & fr
+        else:
+            sd = on & fd
+            if L > 0 and derived:  # MIDS: no cell centre (odd row and column)
+                sr = own & ~((((vi >> L) & 1) & ((vj >> L) & 1)).astype(bool)) & fr
+            else:
+                sr = on & fr
+        rowv = own & (fd | fr)
+        for n, m in enumerate((sd, sr, rowv)):
+            if not m.any():
+                continue
+            i, j = vi[m], vj[m]
+            # the tiles whose closed footprint holds the vertex (two or four on a border)
+            for y in (np.minimum(i // span, ny - 1), np.maximum((i - 1) // span, 0)):
+                for x in (np.minimum(j // span, nx - 1), np.maximum((j - 1) // span, 0)):
+                    ok = (y * span <= i) & (i <= y * span + span) & (x * span <= j) & \
+                        (j <= x * span + span)
+                    for tx, ty in set(zip(x[ok].tolist(), y[ok].tolist(), strict=True)):
+                        got = need.setdefault((L, tx, ty), [False, False, False])
+                        got[n] = True
+    return {k: (tuple(kind for kind, f in zip(("delta", "radius"), v[:2], strict=True) if f),
+                v[2]) for k, v in need.items()}
 
 
 def _codes(table: np.ndarray, values) -> np.ndarray | int:
