@@ -124,7 +124,7 @@ def pack_bounds(h: np.ndarray, k: int, cctx: zstandard.ZstdCompressor) -> bytes:
 
 def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None = None,
                   parity: tuple[int, int] = (0, 0), derive=None,
-                  base: np.ndarray | None = None) -> np.ndarray:
+                  base: np.ndarray | None = None, guess=None) -> np.ndarray:
     """Inverse of :func:`encode_bounds` and :func:`pack_bounds_v2`: float32 values ≥ the
     encoded ones. A version-2 new-vertices-only blob needs the parent tile's decoded
     values and the tile's ``(x % 2, y % 2)``; a ``RING`` blob also needs ``derive(rows,
@@ -134,9 +134,11 @@ def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None
     float16) and exponent; a ``MIDS`` blob calls ``derive(None, None, mids, True, e, 0.0)``
     with the decoded values (T, T) of the samples it keeps (0 elsewhere) and takes its
     result (those values, and each cell centre's derived). A ``DIFF`` blob needs ``base``:
-    the tile's decoded δ, whose codes its payload is added to."""
+    the tile's decoded δ, whose codes its payload is added to. A ``CENTRES`` ``PRED`` blob
+    (a geographic level-0 r) needs ``guess(e)``: the (h, h) codes its centres are
+    predicted by (:func:`geoterrain.bounds.leafbounds.centre_guess`)."""
     if len(blob) >= 1 and blob[0] == VERSION_2:
-        return _decode_v2(blob, shape, parent, parity, derive, base)
+        return _decode_v2(blob, shape, parent, parity, derive, base, guess)
     if len(blob) < 2 or blob[0] != VERSION:
         raise ValueError("not a bounds blob of a known version")
     k = int(np.int8(np.uint8(blob[1])))
@@ -424,12 +426,19 @@ def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
 
 
 def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
-               parity: tuple[int, int], derive, base) -> np.ndarray:
+               parity: tuple[int, int], derive, base, guess=None) -> np.ndarray:
     if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING | DIFF | SLACK | CENTRES | MIDS
                                     | PRED):
         raise ValueError("not a bounds blob of a known version")
     flags, e = blob[1], int(np.int8(np.uint8(blob[2])))
-    if flags & PRED and (flags & (RING | DIFF | SLACK | CENTRES | MIDS) or not flags & NEW_ONLY
+    guessed = flags & (CENTRES | PRED) == CENTRES | PRED  # schema 17: centres from heights
+    if guessed and (flags & (RING | DIFF | SLACK | MIDS) or not flags & NEW_ONLY
+                    or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1]
+                    or shape[0] < 3 or shape[0] % 2 == 0 or guess is None):
+        raise ValueError("a guessed centres bounds blob needs a square level-0 tile's new "
+                         "log8 codes and its heights")
+    if flags & PRED and not guessed and (flags & (RING | DIFF | SLACK | CENTRES | MIDS)
+                                         or not flags & NEW_ONLY
                          or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1]
                          or shape[0] < 3 or shape[0] % 2 == 0 or parent is None
                          or np.shape(parent) != tuple(shape)):
@@ -470,7 +479,15 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         n = len(keep) if keep is not None else int(np.prod(shape))
     width = 1 if flags & LOG8 else 2
     raw = zstdsafe.decompress(body, width * n, exact=True)  # bounded: never a bomb
-    if flags & PRED:  # each code from its parents' (the parent tile's corners first)
+    if guessed:  # each centre from the heights' guess, the other new vertices code 0
+        h = (T - 1) // 2
+        g = np.asarray(guess(e), np.uint8)
+        if g.shape != (h, h):
+            raise ValueError("a centres guess of the wrong shape")
+        codes = np.zeros(len(keep), np.uint8)
+        codes[_shape_index(T)[0]] = g.ravel() - np.frombuffer(raw, np.uint8)  # mod 256
+        vals = _log8_table_ro(e)[codes]
+    elif flags & PRED:  # each code from its parents' (the parent tile's corners first)
         half = (T - 1) // 2
         px, py = int(parity[0]) & 1, int(parity[1]) & 1
         a = np.asarray(parent[py * half: py * half + half + 1,
@@ -519,11 +536,13 @@ def store_metadata(*, source: str, source_dtype: str, source_nodata: float | Non
                    encoding: str, grid: dict, frame: dict, quantizer: dict,
                    normals_derived: list[int], valid_samples: int, samples: int,
                    height_range: list, delta_max_finite: float, edge_max: list | None,
-                   stand_in_z: float, block_delta_levels: int) -> dict:
+                   stand_in_z: float, block_delta_levels: int,
+                   ring_residual: bool = False) -> dict:
     """The metadata a preprocess writes (the whole-grid one and the streaming one).
 
     ``normals_derived``: the levels whose normals blobs are border rings (every level of
-    the grid, or none).
+    the grid, or none); ``ring_residual``: those rings hold their codes' differences from
+    the tile's derived map (``normals_ring_residual``, schema 17).
 
     Examples
     --------
@@ -551,6 +570,9 @@ def store_metadata(*, source: str, source_dtype: str, source_nodata: float | Non
         # levels whose normals blobs hold only the tile's border ring (the interior is
         # the central differences of the level's decoded heights, computed on read)
         **({"normals_derived": [int(v) for v in normals_derived]} if normals_derived else {}),
+        # each ring code as its difference mod 256 from the code the reader derives there
+        # from the tile alone (one-sided at the border: bounds.normals.ring_guess)
+        **({"normals_ring_residual": True} if normals_derived and ring_residual else {}),
         "valid_samples": valid_samples,
         "nodata_fraction": float(1.0 - valid_samples / samples),
         "height_range": height_range,

@@ -19,7 +19,7 @@ from geoterrain.core.frame import SCENE_LIMIT, UNIT_TO_M_RANGE, Z_SCALE_RANGE, Z
 from geoterrain.core.grid import MAX_ROOTS, Grid
 from geoterrain.core.memory import available_memory
 from geoterrain.exceptions import StoreError
-from geoterrain.store.database import LATTICE_SCHEMA_VERSION, schema_version
+from geoterrain.store.database import LATTICE_SCHEMA_VERSION, OLDER_SCHEMA, schema_version
 
 __all__ = ["check_store", "available_memory"]
 
@@ -70,7 +70,7 @@ def _grid(m: dict) -> Grid:
     if Grid.for_shape(rows, cols, 1 << t, roots=roots) != g:
         raise _Bad("grid.n does not fit grid.rows and grid.cols")
     version = schema_version(d, m.get("frame"))
-    if "schema_version" in m and m["schema_version"] != version:
+    if "schema_version" in m and m["schema_version"] not in (version, OLDER_SCHEMA[version]):
         what = "a frame with a lattice" if version == LATTICE_SCHEMA_VERSION else \
             f"a {'root' if roots else 'square'} grid"
         raise _Bad(f"{what} is written in schema version {version}, not "
@@ -255,6 +255,9 @@ def check_store(path: str | Path, m: dict, tiles: dict) -> tuple[Grid, Frame, Qu
                 or m["normal_bits"] != 8 or g.tile_samples < 3):
             raise _Bad("normals_derived must be [0] or every level, with 8-bit normals and "
                        "tiles of 3 samples or more")
+        if "normals_ring_residual" in m and (m["normals_ring_residual"] is not True
+                                             or "normals_derived" not in m):
+            raise _Bad("normals_ring_residual must be true, and only with normals_derived")
         nv = _int(m.get("valid_samples"), 1, g.rows * g.cols, "valid_samples")
         frac = _num(m.get("nodata_fraction"), "nodata_fraction", 0.0, 1.0)
         if abs(frac - (1.0 - nv / (g.rows * g.cols))) > 1e-9:

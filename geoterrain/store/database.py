@@ -98,7 +98,7 @@ from geoterrain.store.pagepack import LEAF_HEADER, blob_cell_sizes, pack_order
 
 _KIND_NAMES = {i: k for k, i in KIND_CODES.items()}  # a blob key's kind number → its name
 
-SCHEMA_VERSION = 14  # 2: checksums bound to their tile and kind; per-level key digests;
+SCHEMA_VERSION = 17  # 2: checksums bound to their tile and kind; per-level key digests;
 #                    3: packed integer keys, bare blob rows found through blob_keys;
 #                    4: metadata, tile numbers and blob keys in compressed catalog rows;
 #                    5: height blobs of version 2 (range-coded, geoterrain/codec/entropy.py);
@@ -109,15 +109,23 @@ SCHEMA_VERSION = 14  # 2: checksums bound to their tile and kind; per-level key 
 #                   12: r blobs above level 0 without their cell centres, derived on
 #                       read (vertexdata.MIDS; projected and pixel frames);
 #                   14: δ and r blobs above level 0 as differences from their parents'
-#                       codes (vertexdata.PRED)
-ROOTS_SCHEMA_VERSION = 15  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
-#                            9 before schema 10, 11 before schema 12, 13 before schema 14
-LATTICE_SCHEMA_VERSION = 16  # a root grid whose geographic frame has proxy positions past
+#                       codes (vertexdata.PRED);
+#                   17: a geographic level-0 r's cell centres as differences from their
+#                       guess from the heights (vertexdata.CENTRES with PRED), and the
+#                       normals' border rings as differences from the tile's derived map
+#                       (metadata normals_ring_residual); 14 to 16 still read as written
+ROOTS_SCHEMA_VERSION = 18  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
+#                            9 before schema 10, 11 before schema 12, 13 before schema 14,
+#                            15 before schema 17
+LATTICE_SCHEMA_VERSION = 19  # a root grid whose geographic frame has proxy positions past
 #                              level 0's lattice (frame.lattice, Frame.xy): an older
 #                              reader would place its padding by pyproj, not where its
-#                              bounds were computed
+#                              bounds were computed; 16 before schema 17
+#: the versions before schema 17 this geoterrain still reads, by the version it writes
+OLDER_SCHEMA = {SCHEMA_VERSION: 14, ROOTS_SCHEMA_VERSION: 15, LATTICE_SCHEMA_VERSION: 16}
 #: every version this geoterrain reads
-SCHEMA_VERSIONS = (SCHEMA_VERSION, ROOTS_SCHEMA_VERSION, LATTICE_SCHEMA_VERSION)
+SCHEMA_VERSIONS = (SCHEMA_VERSION, ROOTS_SCHEMA_VERSION, LATTICE_SCHEMA_VERSION,
+                   *OLDER_SCHEMA.values())
 
 
 def schema_version(grid: dict, frame: dict | None = None) -> int:
@@ -130,10 +138,10 @@ def schema_version(grid: dict, frame: dict | None = None) -> int:
     Examples
     --------
     >>> schema_version({"rows": 9, "cols": 9, "n": 3, "t": 2})
-    14
+    17
     >>> roots = {"layout": "roots"}
     >>> schema_version(roots), schema_version(roots, {"lattice": [9, 17]})
-    (15, 16)
+    (18, 19)
     """
     if isinstance(frame, dict) and frame.get("lattice") is not None:
         return LATTICE_SCHEMA_VERSION
@@ -619,7 +627,7 @@ class StoreReader:
             raise StoreError(f"{self.path}: store schema version {_show(version)}, this "
                              f"geoterrain reads version {SCHEMA_VERSION} (and "
                              f"{ROOTS_SCHEMA_VERSION} and {LATTICE_SCHEMA_VERSION}, root "
-                             f"grids); {REBUILD}")
+                             f"grids; 14 to 16, written before); {REBUILD}")
 
     def _foreign(self, why: str) -> StoreError:
         return StoreError(f"{self.path}: not a geoterrain store ({why}); refusing to read it")
