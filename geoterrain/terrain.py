@@ -510,7 +510,8 @@ class Terrain:
 
         try:  # bounded: exactly the ring's 4T − 4 pairs
             return ring_from_bytes(zstdsafe.decompress(self._blob(key, "normals"), 2 * n,
-                                                       exact=True))
+                                                       exact=True),
+                                   self.meta.get("normals_ring_residual") is True)
         except ValueError:
             raise StoreCorruptError(f"{self.path}: tile {key} normals cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None

@@ -46,9 +46,9 @@ from geoterrain.core.rounding import round_up, round_up32
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
-__all__ = ["CentreHeights", "centre_guess", "centre_radius", "geographic_leaf_delta", "leaf_delta", "leaf_radius", "normal_axes",
-           "normal_xy", "ring_guesses", "tile_centre_guess", "tile_centre_radius", "tile_leaf_bounds",
-           "tile_slack"]
+__all__ = ["CentreHeights", "centre_guess", "centre_radius", "geographic_leaf_delta",
+           "leaf_delta", "leaf_radius", "normal_axes", "normal_xy", "ring_guesses",
+           "tile_centre_guess", "tile_centre_radius", "tile_leaf_bounds", "tile_slack"]
 
 
 class Ring(NamedTuple):

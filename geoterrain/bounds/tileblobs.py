@@ -41,6 +41,7 @@ from geoterrain.bounds.vertexdata import (
     mids_index,
     new_mask,
     pred_residuals,
+    residual_planes,
     ring_index,
     ring_new_index,
     ring_planes,
@@ -544,7 +545,10 @@ def ring_blobs(nrm: np.ndarray | RingCodes, t: int, tiles: Iterable[tuple[int, i
     there read no sample outside the tile. ``nrm`` may hold the rings' codes alone
     (:class:`geoterrain.bounds.normals.RingCodes`). ``guess`` (k, 4T − 4, 2): what a reader
     derives there (:func:`geoterrain.bounds.leafbounds.ring_guesses`); each ring is stored as
-    its difference from it, mod 256 (schema 17's ``normals_ring_residual``).
+    its difference from it, mod 256, as two planes without first differences
+    (:func:`geoterrain.bounds.vertexdata.residual_planes`), at zstd level
+    :data:`~geoterrain.bounds.vertexdata.SHAPED_ZSTD_LEVEL` (schema 17's
+    ``normals_ring_residual``).
 
     Examples
     --------
@@ -558,7 +562,9 @@ def ring_blobs(nrm: np.ndarray | RingCodes, t: int, tiles: Iterable[tuple[int, i
     else:
         rr, cc = ring_index((1 << t) + 1)
         rings = nrm[(xy[:, 1, None] << t) + rr[None], (xy[:, 0, None] << t) + cc[None]]
-    if guess is not None:  # uint8: mod 256, exactly invertible
-        rings = np.asarray(rings, np.uint8) - np.asarray(guess, np.uint8)
     keys = [(level, int(x), int(y)) for x, y in xy]
+    if guess is not None:  # uint8: mod 256, exactly invertible; planes at zstd 11
+        res = np.asarray(rings, np.uint8) - np.asarray(guess, np.uint8)
+        return dict(zip(keys, compress_rows(residual_planes(res), level=SHAPED_ZSTD_LEVEL),
+                        strict=True))
     return dict(zip(keys, compress_rows(ring_planes(rings)), strict=True))

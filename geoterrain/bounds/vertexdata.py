@@ -45,8 +45,15 @@ never exceed a parent's), centres first, then the other new vertices
 cell's diagonal does not join (the parent tile's vertices), an edge midpoint's from the
 smaller code of the one or two cell centres beside it. The map is a bijection whatever
 the codes, so decoding is exact (:func:`pred_codes`); where the bounds hold, the payload
-is mostly small numbers. ``CENTRES``, ``PRED`` and ``RING`` payloads are compressed at
-zstd level :data:`SHAPED_ZSTD_LEVEL` (11), the others at 3: any zstd decoder reads either.
+is mostly small numbers. ``CENTRES`` and ``PRED`` together (schema 17, issue 51; a
+geographic store's level-0 r, ``NEW_ONLY`` log8, no other flag): the centres of a
+``CENTRES`` payload stored as (guess − code) mod 256, the guess the code of the largest
+distance √(s² + Δz²) to the centre's four edge midpoints, from the tile's decoded
+heights and its tile-table box (:func:`geoterrain.bounds.leafbounds.centre_guess`; IEEE
+products, sums and square roots only, so any reader gets the writer's guess bit for
+bit); the decode needs ``guess(e)``. ``CENTRES``, ``PRED`` and ``RING`` payloads are
+compressed at zstd level :data:`SHAPED_ZSTD_LEVEL` (11), the others at 3: any zstd
+decoder reads either.
 """
 
 from __future__ import annotations
@@ -643,10 +650,31 @@ def ring_planes(rings: np.ndarray) -> np.ndarray:
     return d.reshape(len(d), -1)
 
 
-def ring_from_bytes(raw: bytes) -> np.ndarray:
-    """One row of :func:`ring_planes` back to the ring's codes: (R, 2) uint8."""
+def ring_from_bytes(raw: bytes, residual: bool = False) -> np.ndarray:
+    """One row of :func:`ring_planes` back to the ring's codes: (R, 2) uint8; with
+    ``residual``, one of :func:`residual_planes` back to the ring's residuals."""
     d = np.frombuffer(raw, np.uint8).reshape(2, -1)
+    if residual:
+        return np.ascontiguousarray(d.T)
     return np.ascontiguousarray(np.cumsum(d, axis=1, dtype=np.uint8).T)
+
+
+def residual_planes(res: np.ndarray) -> np.ndarray:
+    """Rings' residuals (k, R, 2) uint8 (schema 17's ``normals_ring_residual``: each
+    code's difference from the reader's guess) as two planes each, without
+    :func:`ring_planes`' first differences (the residuals are mostly 0 and ±1 already:
+    srtm1_japan's rings 59.8 kB so at zstd 11 against 60.4 with the differences):
+    (k, 2R), one stored blob's bytes per row.
+
+    Examples
+    --------
+    >>> a = np.random.default_rng(2).integers(0, 256, (3, 8, 2)).astype(np.uint8)
+    >>> all((ring_from_bytes(r.tobytes(), True) == a[k]).all()
+    ...     for k, r in enumerate(residual_planes(a)))
+    True
+    """
+    r = np.asarray(res, np.uint8)
+    return np.ascontiguousarray(r.transpose(0, 2, 1)).reshape(len(r), -1)
 
 
 def normals_from_bytes(raw: bytes, T: int) -> np.ndarray:

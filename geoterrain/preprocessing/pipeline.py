@@ -179,9 +179,9 @@ def preprocess(
     root_grid
         True (the default): a wide or tall raster is padded to the next multiple of the
         tile span a side, under a grid of root tiles (1 × 1, 2 × 1 or 1 × 2; a store of
-        schema version 15, :data:`geoterrain.store.database.ROOTS_SCHEMA_VERSION`), not to
+        schema version 18, :data:`geoterrain.store.database.ROOTS_SCHEMA_VERSION`), not to
         one (2^n + 1)² square; a raster whose root grid tiles as the square does gets the
-        square store (version 14), byte for byte. False: always
+        square store (version 17), byte for byte. False: always
         the square, as stores made before root grids were (for a reader that takes only
         those). Whole or streamed (over ``memory_limit``: the same store), on every
         frame (:func:`geoterrain.preprocessing.request.root_layout`).

@@ -145,6 +145,8 @@ STORE_CASES = [
     ("schema-11-r-centres-stored", _meta("schema_version", 11), ["info", "{store}"], 1),
     ("schema-12-bounds-not-predicted", _meta("schema_version", 12), ["info", "{store}"], 1),
     ("schema-13-bounds-not-predicted", _meta("schema_version", 13), ["info", "{store}"], 1),
+    ("schema-20-a-newer-store", _meta("schema_version", 20), ["info", "{store}"], 1),
+    ("ring-residual-not-true", _meta("normals_ring_residual", 1), ["info", "{store}"], 1),
     ("south-up", _south_up, ["info", "{store}"], 1),
     ("unit-to-m-1e-300", _meta("unit_to_m", 1e-300, "frame"), ["info", "{store}"], 1),
     ("z-to-m-unknown", _meta("z_to_m", 0.5, "frame"), ["info", "{store}"], 1),
