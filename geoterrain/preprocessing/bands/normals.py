@@ -102,13 +102,13 @@ def band_normal_codes(rows: Rows, N: int | tuple[int, int], xs: np.ndarray,
              gy: np.ndarray | None) -> None:
         # level L's rows a0 … a0 + len(z) − 1, which follow the rows fed before
         cur = lv[L]
-        if lines:  # the heights on the ring lines, NaN where not valid
+        if lines:  # the heights on the ring lines, NaN where not valid (no band copy)
             lr, lc = lines[L]
-            zn = np.where(v, z, np.nan)
             a, b = np.searchsorted(lr, [a0, a0 + len(z)])
             for q in range(a, b):  # (a band holds a few: 3 of each 2**t rows)
-                sa.write(f"zr{L}", q, zn[lr[q] - a0:lr[q] - a0 + 1])
-            sa.write(f"zc{L}", a0, zn[:, lc])
+                r = lr[q] - a0
+                sa.write(f"zr{L}", q, np.where(v[r:r + 1], z[r:r + 1], np.nan))
+            sa.write(f"zc{L}", a0, np.where(v[:, lc], z[:, lc], np.nan))
         cur.z = np.concatenate([cur.z, z])
         cur.v = np.concatenate([cur.v, v])
         if gx is not None:
