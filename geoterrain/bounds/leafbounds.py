@@ -605,24 +605,19 @@ def ring_guesses(grid, frame, level: int, tiles: list[tuple[int, int]], z: np.nd
     ring = ring_index(T)
     o = np.asarray(origins, np.int64).reshape(-1, 2)
     out = np.empty((len(o), len(ring[0]), 2), np.uint8 if bits == 8 else np.uint16)
-    axes = frame.kind != "geographic"
+    if frame.kind != "geographic":  # x by column, y by row: broadcast, no T² copies
+        xs = np.array([normal_axes(lay, level, x, y)[0] for x, y in tiles]).reshape(-1, T)
+        ys = np.array([normal_axes(lay, level, x, y)[1] for x, y in tiles]).reshape(-1, T)
+        k = len(o)
+        return ring_guess(z, valid, np.broadcast_to(xs[:, None, :], (k, T, T)),
+                          np.broadcast_to(ys[:, :, None], (k, T, T)), ring, bits, o)
     for a in range(0, len(o), chunk):
         b = min(a + chunk, len(o))
-        Z = np.empty((b - a, T, T))
-        V = np.empty((b - a, T, T), bool)
         X = np.empty((b - a, T, T))
         Y = np.empty((b - a, T, T))
         for k in range(a, b):
-            r0, c0 = int(o[k, 0]), int(o[k, 1])
-            Z[k - a] = z[r0:r0 + T, c0:c0 + T]
-            V[k - a] = valid[r0:r0 + T, c0:c0 + T]
-            x, y = tiles[k]
-            if axes:
-                xs, ys = normal_axes(lay, level, x, y)
-                X[k - a], Y[k - a] = xs[None, :], ys[:, None]
-            else:
-                X[k - a], Y[k - a] = normal_xy(lay, level, x, y)
-        out[a:b] = ring_guess(Z, V, X, Y, ring, bits)
+            X[k - a], Y[k - a] = normal_xy(lay, level, *tiles[k])
+        out[a:b] = ring_guess(z, valid, X, Y, ring, bits, o[a:b])
     return out
 
 

@@ -774,13 +774,16 @@ _DERIVED_SERIAL = serial_twin(_derived_codes_nb)
 
 
 def ring_guess(z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray,
-               ring: tuple[np.ndarray, np.ndarray], bits: int = 8) -> np.ndarray:
+               ring: tuple[np.ndarray, np.ndarray], bits: int = 8,
+               origins: np.ndarray | None = None) -> np.ndarray:
     """The codes (k, R, 2) that :func:`derived_codes` derives at each tile's border ring
     (``ring`` = rows, columns, R samples) before it sets the stored ones: the
     :func:`normal_map` of the tile's own (T, T) scene x, y, z (NaN or not ``valid``:
     ignored), whose tangents at its border are one-sided, computed at the ring only, with
     the same compiled arithmetic (the same bits). A store's ring blob holds the
-    difference from them (schema 17, ``normals_ring_residual``).
+    difference from them (schema 17, ``normals_ring_residual``). ``z``, ``valid``: (k, T,
+    T), or with ``origins`` (k, 2: row, column) one 2-D lattice that holds tile k at
+    ``origins[k]`` (no copies); ``x``, ``y``: (k, T, T) (broadcast views are fine).
 
     Examples
     --------
@@ -795,31 +798,49 @@ def ring_guess(z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray,
     if bits not in (8, 16):
         raise ValueError("bits must be 8 or 16")
     rr, cc = ring
-    n = z.shape[0]
-    out = np.empty((n, len(rr), 2), np.uint8 if bits == 8 else np.uint16)
-    if n:
-        _ring_guess_nb(np.ascontiguousarray(z, np.float64), np.ascontiguousarray(valid, np.bool_),
-                       x, y, np.asarray(rr, np.int64), np.asarray(cc, np.int64),
+    T = x.shape[-1]
+    if origins is None:
+        n = z.shape[0]
+        z = np.ascontiguousarray(z, np.float64).reshape(n * T, T)
+        valid = np.ascontiguousarray(valid, np.bool_).reshape(n * T, T)
+        origins = np.stack([np.arange(n) * T, np.zeros(n, np.int64)], axis=1)
+    o = np.asarray(origins, np.int64).reshape(-1, 2)
+    out = np.empty((len(o), len(rr), 2), np.uint8 if bits == 8 else np.uint16)
+    if len(o):
+        _ring_guess_nb(np.asarray(z, np.float64), np.asarray(valid, np.bool_), x, y,
+                       np.ascontiguousarray(o[:, 0]), np.ascontiguousarray(o[:, 1]),
+                       np.asarray(rr, np.int64), np.asarray(cc, np.int64),
                        float((1 << bits) - 1), out)
     return out
 
 
 @njit(cache=True, nogil=True)
-def _ring_guess_nb(z, valid, X, Y, rr, cc, fm, out):  # pragma: no cover - compiled
+def _ring_guess_nb(z, valid, X, Y, r0, c0, rr, cc, fm, out):  # pragma: no cover - compiled
     # _normals_nb's branch off the straight-line case (a border sample never takes it),
-    # then _encode_oct_nb's rounding, at the ring's samples of each tile only
-    n, T0, T1 = z.shape
+    # then _encode_oct_nb's rounding, at the ring's samples of each tile only; the mask
+    # (_valid_finite_nb's) only where a ring's tangents read it: within one of the border
+    n = r0.shape[0]
+    T0, T1 = X.shape[1], X.shape[2]
     buf = np.empty((1, 1, 3), np.float32)
+    vv = np.zeros((T0, T1), np.bool_)
     for k in range(n):
-        vv = _valid_finite_serial(X[k], Y[k], z[k], valid[k])
+        zk = z[r0[k]:r0[k] + T0, c0[k]:c0[k] + T1]
+        vk = valid[r0[k]:r0[k] + T0, c0[k]:c0[k] + T1]
+        xk, yk = X[k], Y[k]
+        for i in range(T0):
+            edge_i = i < 2 or i >= T0 - 2
+            for j in range(T1):
+                if edge_i or j < 2 or j >= T1 - 2:
+                    vv[i, j] = (vk[i, j] and np.isfinite(xk[i, j]) and np.isfinite(yk[i, j])
+                                and np.isfinite(zk[i, j]))
         for q in range(rr.shape[0]):
             i, j = rr[q], cc[q]
             buf[0, 0, 0] = 0.0
             buf[0, 0, 1] = 0.0
             buf[0, 0, 2] = 1.0
             if vv[i, j]:
-                jx, jy, jz, hj = _tangent_nb(X[k], Y[k], z[k], vv, i, j, 1)
-                ix, iy, iz, hi = _tangent_nb(X[k], Y[k], z[k], vv, i, j, 0)
+                jx, jy, jz, hj = _tangent_nb(xk, yk, zk, vv, i, j, 1)
+                ix, iy, iz, hi = _tangent_nb(xk, yk, zk, vv, i, j, 0)
                 if hi or hj:
                     if hj and not hi:
                         ix, iy, iz = -jy, jx, 0.0
