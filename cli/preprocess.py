@@ -79,8 +79,8 @@ from geoterrain.ingest.raster import ENCODINGS
                    "multiple a side, under 1 × 1, 2 × 1 or 1 × 2 root tiles (a 520 × 1180 "
                    "DEM to 577 × 1217, not 2049²): less time and memory, and every command "
                    "reads it. --square-grid pads to one power-of-two square (2^n + 1 a side) "
-                   "as stores made before root grids were (schema 14; a root grid is schema "
-                   "15): choose it for a reader that takes square stores only. A DEM whose "
+                   "as stores made before root grids were (schema 17; a root grid is schema "
+                   "18): choose it for a reader that takes square stores only. A DEM whose "
                    "root grid is its square gets the square store either way.")
 @click.option("--overwrite", is_flag=True, help="Replace the store if it exists.")
 @click.pass_context

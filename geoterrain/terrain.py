@@ -319,7 +319,11 @@ class Terrain:
         return Tile(key, codes, h, valid)
 
     def _bounds(self, key: TileKey, kind: str) -> np.ndarray:
-        from geoterrain.bounds.leafbounds import tile_centre_radius, tile_leaf_bounds
+        from geoterrain.bounds.leafbounds import (
+            tile_centre_guess,
+            tile_centre_radius,
+            tile_leaf_bounds,
+        )
         from geoterrain.bounds.vertexdata import DIFF, NEW_ONLY, PRED, VERSION_2, decode_bounds
 
         T = self.grid.tile_samples
@@ -363,8 +367,11 @@ class Terrain:
             out[::2, ::2] = parent[(y & 1) * h: (y & 1) * h + h + 1,
                                    (x & 1) * h: (x & 1) * h + h + 1]
             return out
+        # a CENTRES PRED blob (a geographic level-0 r): its centres from the heights' guess
+        guess = ((lambda e: tile_centre_guess(self, key, e)) if L == 0 and stored == "radius"
+                 and key in self.tile_info else None)
         try:
-            out = decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base)
+            out = decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base, guess)
         except (ValueError, zstandard.ZstdError):
             raise StoreCorruptError(f"{self.path}: tile {key} {kind} cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
@@ -503,7 +510,8 @@ class Terrain:
 
         try:  # bounded: exactly the ring's 4T − 4 pairs
             return ring_from_bytes(zstdsafe.decompress(self._blob(key, "normals"), 2 * n,
-                                                       exact=True))
+                                                       exact=True),
+                                   self.meta.get("normals_ring_residual") is True)
         except ValueError:
             raise StoreCorruptError(f"{self.path}: tile {key} normals cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
@@ -535,8 +543,9 @@ class Terrain:
             X = np.broadcast_to(X[:, None, :], (n, T, T))
             Y = np.broadcast_to(Y[:, :, None], (n, T, T))
         self.decoded_normals += n
+        # schema 17: a ring code stored as its difference from the derived one
         return derived_codes(h, self.frame.z_to_m * self.frame.z_scale, valid, X, Y, rings,
-                             (rr, cc), bits)
+                             (rr, cc), bits, self.meta.get("normals_ring_residual") is True)
 
     @property
     def _derived_normal_levels(self) -> tuple[int, ...]:

@@ -26,6 +26,7 @@ math), and codes them as the preprocess codes them, so it decodes the same value
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -40,13 +41,15 @@ from geoterrain.bounds.vertexdata import (
     ring_new_index,
 )
 from geoterrain.core.bintree import main_diagonal_nb
+from geoterrain.core.limits import BOX_STEP
 from geoterrain.core.rounding import round_up, round_up32
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
-__all__ = ["centre_radius", "geographic_leaf_delta", "leaf_delta", "leaf_radius", "normal_axes",
-           "normal_xy", "tile_centre_radius", "tile_leaf_bounds", "tile_slack"]
+__all__ = ["CentreHeights", "centre_guess", "centre_radius", "geographic_leaf_delta",
+           "leaf_delta", "leaf_radius", "normal_axes", "normal_xy", "ring_guesses",
+           "tile_centre_guess", "tile_centre_radius", "tile_leaf_bounds", "tile_slack"]
 
 
 class Ring(NamedTuple):
@@ -248,6 +251,101 @@ def tile_centre_radius(terrain: TerrainLike, key: tuple[int, int, int], mids: np
     X, Y = terrain.tile_xy(*key)
     return centre_radius(X, Y, terrain.frame.z(tile.heights), tile.valid, terrain.stand_in_z,
                          e, mids)
+
+
+class CentreHeights(NamedTuple):
+    """What a writer predicts a geographic level-0 r's cell centres from
+    (:func:`centre_guess`; flag ``CENTRES`` with ``PRED``): the scene heights ``z``
+    (float64) and mask ``valid`` (uint8) of the lattice the codes are indexed in,
+    the store's ``stand_in`` height for invalid samples, and each tile's scene box
+    ``boxes`` (k, 4: xmin, xmax, ymin, ymax, the tile table's numbers) in the order of
+    the tiles given."""
+
+    z: np.ndarray
+    valid: np.ndarray
+    stand_in: float
+    boxes: np.ndarray
+
+
+@njit(cache=True, nogil=True)
+def _zp(z, valid, stand_in, i, j):
+    # a sample's height, the stand-in where it is not valid (radii._proxy_positions)
+    return z[i, j] if valid[i, j] else stand_in
+
+
+@njit(cache=True, nogil=True)
+def _centre_guess_nb(z, valid, stand_in, rows, cols, sx, sy, T, table, out):
+    # IEEE basic operations only (products, sums, sqrt: no hypot, no pyproj), so a
+    # writer and any reader get the same codes bit for bit
+    h = (T - 1) // 2
+    for k in range(rows.shape[0]):
+        sxx = sx[k] * sx[k]
+        syy = sy[k] * sy[k]
+        for a in range(h):
+            ci = rows[k] + 2 * a + 1
+            for b in range(h):
+                cj = cols[k] + 2 * b + 1
+                zc = _zp(z, valid, stand_in, ci, cj)
+                d1 = _zp(z, valid, stand_in, ci - 1, cj) - zc
+                d2 = _zp(z, valid, stand_in, ci + 1, cj) - zc
+                d3 = _zp(z, valid, stand_in, ci, cj - 1) - zc
+                d4 = _zp(z, valid, stand_in, ci, cj + 1) - zc
+                m = max(math.sqrt(syy + d1 * d1), math.sqrt(syy + d2 * d2),
+                        math.sqrt(sxx + d3 * d3), math.sqrt(sxx + d4 * d4))
+                out[k, a, b] = code_up_nb(table, m)
+
+
+def centre_guess(c: CentreHeights, origins: np.ndarray, T: int, e: int) -> np.ndarray:
+    """The predicted log8 codes (k, h, h) uint8, h = (T − 1) / 2, of the cell centres of
+    the level-0 tiles whose first samples sit at ``origins`` (k, 2: row, column) of
+    ``c``'s lattice: each centre's code (from ``2^e``) of the largest distance to its four
+    edge midpoints, √(s² + Δz²), s the tile's sample spacing across the cell's edge
+    (its box's width or height over T − 1, the box rounded outward to ``BOX_STEP`` as the
+    tile table stores it, so a writer's exact box and a reader's stored one agree) and
+    Δz from the heights. A geographic store's
+    level-0 r is that nesting (seed 002 §2.4, L50–52: the midpoints are leaves) raised by
+    curvilinear terms far below a code step, so the guess is mostly the stored code, and
+    a ``CENTRES`` ``PRED`` payload holds (guess − code) mod 256: a wrong guess costs
+    bytes, never exactness.
+
+    Examples
+    --------
+    >>> z = np.zeros((3, 3)); z[1, 1] = 3.0
+    >>> c = CentreHeights(z, np.ones((3, 3), np.uint8), 0.0, np.array([[0.0, 8.0, 0, 8]]))
+    >>> g = centre_guess(c, np.zeros((1, 2), np.int64), 3, 0)
+    >>> float(log8_table(0)[g[0, 0, 0]]) >= 5.0  # √(4² + 3²)
+    True
+    """
+    o = np.asarray(origins, np.int64).reshape(-1, 2)
+    b = np.asarray(c.boxes, np.float64).reshape(-1, 4)
+    # the box as the tile table stores it (rounded outward to BOX_STEP; idempotent), so
+    # a writer's exact box and a reader's stored one give the same spacing
+    lo, hi = np.floor(b[:, 0::2] / BOX_STEP), np.ceil(b[:, 1::2] / BOX_STEP)
+    with np.errstate(invalid="ignore"):
+        sx = (hi[:, 0] - lo[:, 0]) * BOX_STEP / (T - 1)
+        sy = (hi[:, 1] - lo[:, 1]) * BOX_STEP / (T - 1)
+    sx = np.where(np.isfinite(sx), sx, 0.0)
+    sy = np.where(np.isfinite(sy), sy, 0.0)
+    h = (T - 1) // 2
+    out = np.zeros((len(o), h, h), np.uint8)
+    _centre_guess_nb(np.asarray(c.z, np.float64), np.asarray(c.valid, np.uint8),
+                     float(c.stand_in), np.ascontiguousarray(o[:, 0]),
+                     np.ascontiguousarray(o[:, 1]), sx, sy, T, _table(e), out)
+    return out
+
+
+def tile_centre_guess(terrain: TerrainLike, key: tuple[int, int, int], e: int) -> np.ndarray:
+    """A level-0 tile's :func:`centre_guess` (h, h) from its decoded heights and its
+    tile-table box (``Terrain``'s reader of a ``CENTRES`` ``PRED`` r blob)."""
+    tile = terrain.tile(*key)
+    z = terrain.frame.z(tile.heights)
+    ok = (np.asarray(tile.valid, bool) & np.isfinite(z)).view(np.uint8)
+    info = terrain.tile_info[key]
+    box = np.array([[info[k] if info[k] is not None else np.nan
+                     for k in ("xmin", "xmax", "ymin", "ymax")]], np.float64)
+    T = terrain.grid.tile_samples
+    return centre_guess(CentreHeights(z, ok, float(terrain.stand_in_z), box),
+                        np.zeros((1, 2), np.int64), T, e)[0]
 
 
 # ------------------------------------------------ a store's level-0 tiles, derived on read
@@ -464,6 +562,69 @@ def normal_axes(terrain: TerrainLike, level: int, x: int, y: int) -> tuple[np.nd
     ys = terrain.memo(("normal_y", level, y), lambda: f.axis_xy(
         g.tile_rows(level, y), g.tile_cols(level, 0)[:1])[1][:, 0])
     return xs, ys
+
+
+class _Layout:
+    """What :func:`normal_xy` and :func:`normal_axes` read of a terrain, for a writer
+    that has no store yet: the grid, the frame, a tile's x, y and a memo."""
+
+    def __init__(self, grid, frame) -> None:
+        self.grid, self.frame = grid, frame
+        self._memo: dict = {}
+
+    def memo(self, key, make):
+        got = self._memo.get(key)
+        if got is None:
+            got = self._memo[key] = make()
+        return got
+
+    def tile_xy(self, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
+        g = self.grid
+        ii, jj = np.meshgrid(g.tile_rows(level, y), g.tile_cols(level, x), indexing="ij")
+        return self.frame.xy(ii, jj)
+
+
+def ring_guesses(grid, frame, level: int, tiles: list[tuple[int, int]], z: np.ndarray,
+                 valid: np.ndarray, origins: np.ndarray, bits: int = 8,
+                 chunk: int = 64) -> np.ndarray:
+    """What a reader derives at the border rings of level ``level``'s tiles ``tiles``
+    ((x, y) each) before it sets their stored codes (:func:`geoterrain.bounds.normals.ring_guess`
+    on the x, y of :func:`normal_xy`, or :func:`normal_axes` on a projected or pixel
+    frame): (k, 4T − 4, 2) codes, from the level's scene heights ``z`` and mask ``valid``
+    (a window of its lattice; tile k's first sample at ``origins[k]`` = row, column).
+    A writer stores each ring as its difference from them (schema 17).
+
+    Examples
+    --------
+    >>> from geoterrain.core.grid import Grid
+    >>> from geoterrain.core.frame import Frame
+    >>> g = Grid(5, 5, 2, 2); z = np.arange(25.0).reshape(5, 5)
+    >>> ring_guesses(g, Frame.pixel(5, 5, 1.0), 0, [(0, 0)], z, np.ones((5, 5), bool),
+    ...              np.zeros((1, 2), np.int64)).shape
+    (1, 16, 2)
+    """
+    from geoterrain.bounds.normals import ring_guess
+    from geoterrain.bounds.vertexdata import ring_index
+
+    T = grid.tile_samples
+    lay = _Layout(grid, frame)
+    ring = ring_index(T)
+    o = np.asarray(origins, np.int64).reshape(-1, 2)
+    out = np.empty((len(o), len(ring[0]), 2), np.uint8 if bits == 8 else np.uint16)
+    if frame.kind != "geographic":  # x by column, y by row: broadcast, no T² copies
+        xs = np.array([normal_axes(lay, level, x, y)[0] for x, y in tiles]).reshape(-1, T)
+        ys = np.array([normal_axes(lay, level, x, y)[1] for x, y in tiles]).reshape(-1, T)
+        k = len(o)
+        return ring_guess(z, valid, np.broadcast_to(xs[:, None, :], (k, T, T)),
+                          np.broadcast_to(ys[:, :, None], (k, T, T)), ring, bits, o)
+    for a in range(0, len(o), chunk):
+        b = min(a + chunk, len(o))
+        X = np.empty((b - a, T, T))
+        Y = np.empty((b - a, T, T))
+        for k in range(a, b):
+            X[k - a], Y[k - a] = normal_xy(lay, level, *tiles[k])
+        out[a:b] = ring_guess(z, valid, X, Y, ring, bits, o[a:b])
+    return out
 
 
 NORMAL_XY_NODES = 9  # pyproj nodes a side of a tile for its derived normals' x, y

@@ -48,6 +48,7 @@ __all__ = [
     "encode_octahedral",
     "decode_octahedral",
     "derived_codes",
+    "ring_guess",
 ]
 
 #: measured bounds (degrees) for :func:`encode_octahedral` (default: rounding), see the
@@ -619,23 +620,30 @@ def _oct_dot_nb(cu, cv, m, ux, uy, uz):  # pragma: no cover - compiled
     return (x * ux + y * uy + zz * uz) / np.sqrt(x * x + y * y + zz * zz)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _oct_plane(x, y, z, fm):  # pragma: no cover - compiled
+    """A direction's point on the octahedron's unfolded plane, scaled to codes: (fu, fv),
+    the unit-L1 (x, y, z) (fm = 2^bits − 1)."""
+    l1 = abs(x) + abs(y) + abs(z)
+    if l1 > 0.0:
+        x, y, z = x / l1, y / l1, z / l1
+    else:
+        x, y, z = 0.0, 0.0, 1.0
+    if z < 0.0:
+        fx = (1.0 - abs(y)) * (1.0 if x >= 0.0 else -1.0)
+        fy = (1.0 - abs(x)) * (1.0 if y >= 0.0 else -1.0)
+    else:
+        fx, fy = x, y
+    fu = (min(max(fx, -1.0), 1.0) * 0.5 + 0.5) * fm
+    fv = (min(max(fy, -1.0), 1.0) * 0.5 + 0.5) * fm
+    return fu, fv, x, y, z
+
+
 @parallel_kernel(cache=True, nogil=True)
 def _encode_oct_nb(n, m, precise, out):  # pragma: no cover - compiled
     fm = float(m)
     for k in prange(n.shape[0]):
-        x, y, z = float(n[k, 0]), float(n[k, 1]), float(n[k, 2])
-        l1 = abs(x) + abs(y) + abs(z)
-        if l1 > 0.0:
-            x, y, z = x / l1, y / l1, z / l1
-        else:
-            x, y, z = 0.0, 0.0, 1.0
-        if z < 0.0:
-            fx = (1.0 - abs(y)) * (1.0 if x >= 0.0 else -1.0)
-            fy = (1.0 - abs(x)) * (1.0 if y >= 0.0 else -1.0)
-        else:
-            fx, fy = x, y
-        fu = (min(max(fx, -1.0), 1.0) * 0.5 + 0.5) * fm
-        fv = (min(max(fy, -1.0), 1.0) * 0.5 + 0.5) * fm
+        fu, fv, x, y, z = _oct_plane(float(n[k, 0]), float(n[k, 1]), float(n[k, 2]), fm)
         if not precise:
             out[k, 0] = min(max(np.floor(fu + 0.5), 0.0), fm)
             out[k, 1] = min(max(np.floor(fv + 0.5), 0.0), fm)
@@ -700,14 +708,17 @@ _encode_oct_serial = SERIAL_KERNELS["_encode_oct_nb"]
 
 def derived_codes(h: np.ndarray, zf: float, valid: np.ndarray, x: np.ndarray, y: np.ndarray,
                   rings: np.ndarray, ring: tuple[np.ndarray, np.ndarray],
-                  bits: int = 8) -> np.ndarray:
+                  bits: int = 8, residual: bool = False) -> np.ndarray:
     """The normal codes (n, T, T, 2) of tiles whose normal maps are derived on read: each
     tile's :func:`normal_map` (central differences) of scene x, y (n, T, T; broadcast views
     are fine) and z = ``h`` × ``zf`` (heights in source units, as ``Frame.z``) where
     ``valid``, encoded by :func:`encode_octahedral` with ``bits``, and its border ring
     (``ring`` = rows, columns: :func:`~geoterrain.bounds.vertexdata.ring_index`) set to
-    ``rings[k]``, the codes stored for it. The tiles run on every core, each with the
-    serial kernels (one tile, or a fork() child: on this thread).
+    ``rings[k]``, the codes stored for it. ``residual`` (schema 17's
+    ``normals_ring_residual``): ``rings[k]`` holds each ring code's difference mod 2^bits
+    from the tile's own derived code there (:func:`ring_guess`), added back. The tiles
+    run on every core, each with the serial kernels (one tile, or a fork() child: on this
+    thread).
 
     Examples
     --------
@@ -730,12 +741,12 @@ def derived_codes(h: np.ndarray, zf: float, valid: np.ndarray, x: np.ndarray, y:
     rr, cc = ring
     kernel(np.ascontiguousarray(h, np.float64), float(zf), np.ascontiguousarray(valid, np.bool_),
            x, y, np.ascontiguousarray(rings), np.asarray(rr, np.int64),
-           np.asarray(cc, np.int64), (1 << bits) - 1, out)
+           np.asarray(cc, np.int64), (1 << bits) - 1, bool(residual), out)
     return out
 
 
 @parallel_kernel(cache=True, nogil=True)
-def _derived_codes_nb(h, zf, valid, X, Y, rings, rr, cc, m, out):  # pragma: no cover
+def _derived_codes_nb(h, zf, valid, X, Y, rings, rr, cc, m, residual, out):  # pragma: no cover
     n, T0, T1 = h.shape
     for k in prange(n):  # tiles on every core: each writes its own
         z = np.empty((T0, T1), np.float64)
@@ -750,8 +761,93 @@ def _derived_codes_nb(h, zf, valid, X, Y, rings, rr, cc, m, out):  # pragma: no 
         codes = out[k].reshape((T0 * T1, 2))
         _encode_oct_serial(nrm.reshape((-1, 3)), m, np.bool_(False), codes)
         for q in range(len(rr)):  # the stored border ring
-            codes[rr[q] * T1 + cc[q], 0] = rings[k, q, 0]
-            codes[rr[q] * T1 + cc[q], 1] = rings[k, q, 1]
+            p = rr[q] * T1 + cc[q]
+            if residual:  # the stored difference from the derived code, mod 2^bits
+                codes[p, 0] = (codes[p, 0] + rings[k, q, 0]) & m
+                codes[p, 1] = (codes[p, 1] + rings[k, q, 1]) & m
+            else:
+                codes[p, 0] = rings[k, q, 0]
+                codes[p, 1] = rings[k, q, 1]
 
 
 _DERIVED_SERIAL = serial_twin(_derived_codes_nb)
+
+
+def ring_guess(z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray,
+               ring: tuple[np.ndarray, np.ndarray], bits: int = 8,
+               origins: np.ndarray | None = None) -> np.ndarray:
+    """The codes (k, R, 2) that :func:`derived_codes` derives at each tile's border ring
+    (``ring`` = rows, columns, R samples) before it sets the stored ones: the
+    :func:`normal_map` of the tile's own (T, T) scene x, y, z (NaN or not ``valid``:
+    ignored), whose tangents at its border are one-sided, computed at the ring only, with
+    the same compiled arithmetic (the same bits). A store's ring blob holds the
+    difference from them (schema 17, ``normals_ring_residual``). ``z``, ``valid``: (k, T,
+    T), or with ``origins`` (k, 2: row, column) one 2-D lattice that holds tile k at
+    ``origins[k]`` (no copies); ``x``, ``y``: (k, T, T) (broadcast views are fine).
+
+    Examples
+    --------
+    >>> j, i = np.meshgrid(np.arange(5.0), np.arange(5.0))
+    >>> z = np.random.default_rng(4).normal(size=(1, 5, 5)); v = np.ones((1, 5, 5), bool)
+    >>> from geoterrain.bounds.vertexdata import ring_index
+    >>> rr, cc = ring_index(5)
+    >>> full = encode_octahedral(normal_map(j, -i, z[0], v[0]), 8)
+    >>> bool((ring_guess(z, v, j[None], -i[None], (rr, cc))[0] == full[rr, cc]).all())
+    True
+    """
+    if bits not in (8, 16):
+        raise ValueError("bits must be 8 or 16")
+    rr, cc = ring
+    T = x.shape[-1]
+    if origins is None:
+        n = z.shape[0]
+        z = np.ascontiguousarray(z, np.float64).reshape(n * T, T)
+        valid = np.ascontiguousarray(valid, np.bool_).reshape(n * T, T)
+        origins = np.stack([np.arange(n) * T, np.zeros(n, np.int64)], axis=1)
+    o = np.asarray(origins, np.int64).reshape(-1, 2)
+    out = np.empty((len(o), len(rr), 2), np.uint8 if bits == 8 else np.uint16)
+    if len(o):
+        _ring_guess_nb(np.asarray(z, np.float64), np.asarray(valid, np.bool_), x, y,
+                       np.ascontiguousarray(o[:, 0]), np.ascontiguousarray(o[:, 1]),
+                       np.asarray(rr, np.int64), np.asarray(cc, np.int64),
+                       float((1 << bits) - 1), out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _ring_guess_nb(z, valid, X, Y, r0, c0, rr, cc, fm, out):  # pragma: no cover - compiled
+    # _normals_nb's branch off the straight-line case (a border sample never takes it),
+    # then _encode_oct_nb's rounding, at the ring's samples of each tile only; the mask
+    # (_valid_finite_nb's) only where a ring's tangents read it: within one of the border
+    n = r0.shape[0]
+    T0, T1 = X.shape[1], X.shape[2]
+    buf = np.empty((1, 1, 3), np.float32)
+    vv = np.zeros((T0, T1), np.bool_)
+    for k in range(n):
+        zk = z[r0[k]:r0[k] + T0, c0[k]:c0[k] + T1]
+        vk = valid[r0[k]:r0[k] + T0, c0[k]:c0[k] + T1]
+        xk, yk = X[k], Y[k]
+        for i in range(T0):
+            edge_i = i < 2 or i >= T0 - 2
+            for j in range(T1):
+                if edge_i or j < 2 or j >= T1 - 2:
+                    vv[i, j] = (vk[i, j] and np.isfinite(xk[i, j]) and np.isfinite(yk[i, j])
+                                and np.isfinite(zk[i, j]))
+        for q in range(rr.shape[0]):
+            i, j = rr[q], cc[q]
+            buf[0, 0, 0] = 0.0
+            buf[0, 0, 1] = 0.0
+            buf[0, 0, 2] = 1.0
+            if vv[i, j]:
+                jx, jy, jz, hj = _tangent_nb(xk, yk, zk, vv, i, j, 1)
+                ix, iy, iz, hi = _tangent_nb(xk, yk, zk, vv, i, j, 0)
+                if hi or hj:
+                    if hj and not hi:
+                        ix, iy, iz = -jy, jx, 0.0
+                    elif hi and not hj:
+                        jx, jy, jz = iy, -ix, 0.0
+                    _unit_cross(jx, jy, jz, ix, iy, iz, buf, 0, 0)
+            fu, fv, _, _, _ = _oct_plane(float(buf[0, 0, 0]), float(buf[0, 0, 1]),
+                                         float(buf[0, 0, 2]), fm)
+            out[k, q, 0] = min(max(np.floor(fu + 0.5), 0.0), fm)
+            out[k, q, 1] = min(max(np.floor(fv + 0.5), 0.0), fm)

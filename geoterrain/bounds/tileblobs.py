@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit, prange
 
 from geoterrain.bounds.delta import grid_order
+from geoterrain.bounds.leafbounds import CentreHeights, centre_guess
 from geoterrain.bounds.normals import RingCodes
 from geoterrain.bounds.radii import _proxy_positions, _radii_nb, prefix_codes
 from geoterrain.bounds.vertexdata import (
@@ -40,6 +41,7 @@ from geoterrain.bounds.vertexdata import (
     mids_index,
     new_mask,
     pred_residuals,
+    residual_planes,
     ring_index,
     ring_new_index,
     ring_planes,
@@ -395,7 +397,8 @@ def compress_rows(rows: np.ndarray | list[np.ndarray], prefix: bytes | list[byte
 def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_level: int,
                 tiles: Iterable[tuple[int, int]], kinds=("delta", "radius", "normals"),
                 ring: bool | tuple[str, ...] = False, base: BoundsCoding | None = None,
-                slack: dict | None = None, mids: bool = False
+                slack: dict | None = None, mids: bool = False,
+                centres: CentreHeights | None = None
                 ) -> tuple[dict, np.ndarray, np.ndarray]:
     """The δ, r and normals blobs of the stored tiles ``(x, y)`` of one level.
 
@@ -416,7 +419,11 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     (:func:`geoterrain.bounds.leafbounds.centre_radius`). Every other new-vertices log8 δ
     and r blob (neither ``RING``, ``DIFF``, ``MIDS`` nor ``CENTRES``) holds its codes as
     differences from its parents' codes (flag ``PRED``,
-    :func:`geoterrain.bounds.vertexdata.pred_residuals`).
+    :func:`geoterrain.bounds.vertexdata.pred_residuals`). ``centres`` (level 0 of a
+    geographic store: the level's heights, the stand-in height and the tiles' boxes):
+    an r blob of ``CENTRES`` shape holds its centres as differences from their guess
+    from the heights (flags ``CENTRES`` and ``PRED``,
+    :func:`geoterrain.bounds.leafbounds.centre_guess`).
 
     Examples
     --------
@@ -488,6 +495,10 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         head_r = bytes([head_r[0], head_r[1] | MIDS, head_r[2]])
     elif new_only and k and T >= 3 and rlog and "radius" in kinds and not flags_r & RING:
         pr, head_r = _shaped(pr, head_r, _windows(coding.rc, xy, t, level))
+        if centres is not None:
+            pr, head_r = _guessed(pr, head_r, centres, xy, t, level, int(coding.er))
+    elif centres is not None:
+        raise ValueError("guessed centres are for a level-0 r in log8 codes, not a ring")
     rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
     blobs = {kind: dict(zip(keys, _compress_shaped(*rows[kind]), strict=True))
              for kind in kinds}
@@ -532,14 +543,38 @@ def _shaped(p: np.ndarray, head: bytes, windows: np.ndarray
     return rows, [bytes([head[0], head[1] | (int(f) or PRED), head[2]]) for f in flags]
 
 
+def _guessed(rows: list[np.ndarray], heads: list[bytes], c: CentreHeights, xy: np.ndarray,
+             t: int, level: int, e: int) -> tuple[list[np.ndarray], list[bytes]]:
+    # schema 17: each CENTRES r payload as (guess − code) mod 256, the guess from the
+    # heights (leafbounds.centre_guess), flagged PRED too
+    if level != 0:
+        raise ValueError("guessed centres are for level 0")
+    idx = [n for n, h in enumerate(heads) if h[1] & CENTRES]
+    if not idx:
+        return rows, heads
+    T = (1 << t) + 1
+    origins = np.stack([xy[idx, 1] << t, xy[idx, 0] << t], axis=1)
+    g = centre_guess(c._replace(boxes=np.asarray(c.boxes, np.float64)[idx]), origins, T, e)
+    rows, heads = list(rows), list(heads)
+    for q, n in enumerate(idx):
+        rows[n] = g[q].ravel() - np.asarray(rows[n], np.uint8)  # uint8: mod 256
+        heads[n] = bytes([heads[n][0], heads[n][1] | PRED, *heads[n][2:]])
+    return rows, heads
+
+
 def ring_blobs(nrm: np.ndarray | RingCodes, t: int, tiles: Iterable[tuple[int, int]],
-               level: int = 0) -> dict:
+               level: int = 0, guess: np.ndarray | None = None) -> dict:
     """Normals blobs of level ``level`` (``nrm``: that level's codes) that hold only each
     tile's border ring (4T − 4 samples, as :func:`geoterrain.bounds.vertexdata.ring_planes`,
     zstd): a reader derives the interior from the tile's own heights
     (:meth:`geoterrain.terrain.Terrain.tile_normal_codes`), as the central differences
     there read no sample outside the tile. ``nrm`` may hold the rings' codes alone
-    (:class:`geoterrain.bounds.normals.RingCodes`).
+    (:class:`geoterrain.bounds.normals.RingCodes`). ``guess`` (k, 4T − 4, 2): what a reader
+    derives there (:func:`geoterrain.bounds.leafbounds.ring_guesses`); each ring is stored as
+    its difference from it, mod 256, as two planes without first differences
+    (:func:`geoterrain.bounds.vertexdata.residual_planes`), at zstd level
+    :data:`~geoterrain.bounds.vertexdata.SHAPED_ZSTD_LEVEL` (schema 17's
+    ``normals_ring_residual``).
 
     Examples
     --------
@@ -554,4 +589,8 @@ def ring_blobs(nrm: np.ndarray | RingCodes, t: int, tiles: Iterable[tuple[int, i
         rr, cc = ring_index((1 << t) + 1)
         rings = nrm[(xy[:, 1, None] << t) + rr[None], (xy[:, 0, None] << t) + cc[None]]
     keys = [(level, int(x), int(y)) for x, y in xy]
+    if guess is not None:  # uint8: mod 256, exactly invertible; planes at zstd 11
+        res = np.asarray(rings, np.uint8) - np.asarray(guess, np.uint8)
+        return dict(zip(keys, compress_rows(residual_planes(res), level=SHAPED_ZSTD_LEVEL),
+                        strict=True))
     return dict(zip(keys, compress_rows(ring_planes(rings)), strict=True))

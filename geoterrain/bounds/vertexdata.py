@@ -45,8 +45,15 @@ never exceed a parent's), centres first, then the other new vertices
 cell's diagonal does not join (the parent tile's vertices), an edge midpoint's from the
 smaller code of the one or two cell centres beside it. The map is a bijection whatever
 the codes, so decoding is exact (:func:`pred_codes`); where the bounds hold, the payload
-is mostly small numbers. ``CENTRES``, ``PRED`` and ``RING`` payloads are compressed at
-zstd level :data:`SHAPED_ZSTD_LEVEL` (11), the others at 3: any zstd decoder reads either.
+is mostly small numbers. ``CENTRES`` and ``PRED`` together (schema 17, issue 51; a
+geographic store's level-0 r, ``NEW_ONLY`` log8, no other flag): the centres of a
+``CENTRES`` payload stored as (guess − code) mod 256, the guess the code of the largest
+distance √(s² + Δz²) to the centre's four edge midpoints, from the tile's decoded
+heights and its tile-table box (:func:`geoterrain.bounds.leafbounds.centre_guess`; IEEE
+products, sums and square roots only, so any reader gets the writer's guess bit for
+bit); the decode needs ``guess(e)``. ``CENTRES``, ``PRED`` and ``RING`` payloads are
+compressed at zstd level :data:`SHAPED_ZSTD_LEVEL` (11), the others at 3: any zstd
+decoder reads either.
 """
 
 from __future__ import annotations
@@ -124,7 +131,7 @@ def pack_bounds(h: np.ndarray, k: int, cctx: zstandard.ZstdCompressor) -> bytes:
 
 def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None = None,
                   parity: tuple[int, int] = (0, 0), derive=None,
-                  base: np.ndarray | None = None) -> np.ndarray:
+                  base: np.ndarray | None = None, guess=None) -> np.ndarray:
     """Inverse of :func:`encode_bounds` and :func:`pack_bounds_v2`: float32 values ≥ the
     encoded ones. A version-2 new-vertices-only blob needs the parent tile's decoded
     values and the tile's ``(x % 2, y % 2)``; a ``RING`` blob also needs ``derive(rows,
@@ -134,9 +141,11 @@ def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None
     float16) and exponent; a ``MIDS`` blob calls ``derive(None, None, mids, True, e, 0.0)``
     with the decoded values (T, T) of the samples it keeps (0 elsewhere) and takes its
     result (those values, and each cell centre's derived). A ``DIFF`` blob needs ``base``:
-    the tile's decoded δ, whose codes its payload is added to."""
+    the tile's decoded δ, whose codes its payload is added to. A ``CENTRES`` ``PRED`` blob
+    (a geographic level-0 r) needs ``guess(e)``: the (h, h) codes its centres are
+    predicted by (:func:`geoterrain.bounds.leafbounds.centre_guess`)."""
     if len(blob) >= 1 and blob[0] == VERSION_2:
-        return _decode_v2(blob, shape, parent, parity, derive, base)
+        return _decode_v2(blob, shape, parent, parity, derive, base, guess)
     if len(blob) < 2 or blob[0] != VERSION:
         raise ValueError("not a bounds blob of a known version")
     k = int(np.int8(np.uint8(blob[1])))
@@ -424,12 +433,19 @@ def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
 
 
 def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
-               parity: tuple[int, int], derive, base) -> np.ndarray:
+               parity: tuple[int, int], derive, base, guess=None) -> np.ndarray:
     if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING | DIFF | SLACK | CENTRES | MIDS
                                     | PRED):
         raise ValueError("not a bounds blob of a known version")
     flags, e = blob[1], int(np.int8(np.uint8(blob[2])))
-    if flags & PRED and (flags & (RING | DIFF | SLACK | CENTRES | MIDS) or not flags & NEW_ONLY
+    guessed = flags & (CENTRES | PRED) == CENTRES | PRED  # schema 17: centres from heights
+    if guessed and (flags & (RING | DIFF | SLACK | MIDS) or not flags & NEW_ONLY
+                    or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1]
+                    or shape[0] < 3 or shape[0] % 2 == 0 or guess is None):
+        raise ValueError("a guessed centres bounds blob needs a square level-0 tile's new "
+                         "log8 codes and its heights")
+    if flags & PRED and not guessed and (flags & (RING | DIFF | SLACK | CENTRES | MIDS)
+                                         or not flags & NEW_ONLY
                          or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1]
                          or shape[0] < 3 or shape[0] % 2 == 0 or parent is None
                          or np.shape(parent) != tuple(shape)):
@@ -470,7 +486,15 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         n = len(keep) if keep is not None else int(np.prod(shape))
     width = 1 if flags & LOG8 else 2
     raw = zstdsafe.decompress(body, width * n, exact=True)  # bounded: never a bomb
-    if flags & PRED:  # each code from its parents' (the parent tile's corners first)
+    if guessed:  # each centre from the heights' guess, the other new vertices code 0
+        h = (T - 1) // 2
+        g = np.asarray(guess(e), np.uint8)
+        if g.shape != (h, h):
+            raise ValueError("a centres guess of the wrong shape")
+        codes = np.zeros(len(keep), np.uint8)
+        codes[_shape_index(T)[0]] = g.ravel() - np.frombuffer(raw, np.uint8)  # mod 256
+        vals = _log8_table_ro(e)[codes]
+    elif flags & PRED:  # each code from its parents' (the parent tile's corners first)
         half = (T - 1) // 2
         px, py = int(parity[0]) & 1, int(parity[1]) & 1
         a = np.asarray(parent[py * half: py * half + half + 1,
@@ -519,11 +543,13 @@ def store_metadata(*, source: str, source_dtype: str, source_nodata: float | Non
                    encoding: str, grid: dict, frame: dict, quantizer: dict,
                    normals_derived: list[int], valid_samples: int, samples: int,
                    height_range: list, delta_max_finite: float, edge_max: list | None,
-                   stand_in_z: float, block_delta_levels: int) -> dict:
+                   stand_in_z: float, block_delta_levels: int,
+                   ring_residual: bool = False) -> dict:
     """The metadata a preprocess writes (the whole-grid one and the streaming one).
 
     ``normals_derived``: the levels whose normals blobs are border rings (every level of
-    the grid, or none).
+    the grid, or none); ``ring_residual``: those rings hold their codes' differences from
+    the tile's derived map (``normals_ring_residual``, schema 17).
 
     Examples
     --------
@@ -551,6 +577,9 @@ def store_metadata(*, source: str, source_dtype: str, source_nodata: float | Non
         # levels whose normals blobs hold only the tile's border ring (the interior is
         # the central differences of the level's decoded heights, computed on read)
         **({"normals_derived": [int(v) for v in normals_derived]} if normals_derived else {}),
+        # each ring code as its difference mod 256 from the code the reader derives there
+        # from the tile alone (one-sided at the border: bounds.normals.ring_guess)
+        **({"normals_ring_residual": True} if normals_derived and ring_residual else {}),
         "valid_samples": valid_samples,
         "nodata_fraction": float(1.0 - valid_samples / samples),
         "height_range": height_range,
@@ -621,10 +650,31 @@ def ring_planes(rings: np.ndarray) -> np.ndarray:
     return d.reshape(len(d), -1)
 
 
-def ring_from_bytes(raw: bytes) -> np.ndarray:
-    """One row of :func:`ring_planes` back to the ring's codes: (R, 2) uint8."""
+def ring_from_bytes(raw: bytes, residual: bool = False) -> np.ndarray:
+    """One row of :func:`ring_planes` back to the ring's codes: (R, 2) uint8; with
+    ``residual``, one of :func:`residual_planes` back to the ring's residuals."""
     d = np.frombuffer(raw, np.uint8).reshape(2, -1)
+    if residual:
+        return np.ascontiguousarray(d.T)
     return np.ascontiguousarray(np.cumsum(d, axis=1, dtype=np.uint8).T)
+
+
+def residual_planes(res: np.ndarray) -> np.ndarray:
+    """Rings' residuals (k, R, 2) uint8 (schema 17's ``normals_ring_residual``: each
+    code's difference from the reader's guess) as two planes each, without
+    :func:`ring_planes`' first differences (the residuals are mostly 0 and ±1 already:
+    srtm1_japan's rings 59.8 kB so at zstd 11 against 60.4 with the differences):
+    (k, 2R), one stored blob's bytes per row.
+
+    Examples
+    --------
+    >>> a = np.random.default_rng(2).integers(0, 256, (3, 8, 2)).astype(np.uint8)
+    >>> all((ring_from_bytes(r.tobytes(), True) == a[k]).all()
+    ...     for k, r in enumerate(residual_planes(a)))
+    True
+    """
+    r = np.asarray(res, np.uint8)
+    return np.ascontiguousarray(r.transpose(0, 2, 1)).reshape(len(r), -1)
 
 
 def normals_from_bytes(raw: bytes, T: int) -> np.ndarray:

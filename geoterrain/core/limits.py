@@ -15,3 +15,6 @@ UNIT_TO_M_RANGE = (1e-6, 1e6)
 Z_SCALE_RANGE = (1e-6, 1e6)
 PIXEL_SIZE_RANGE = (1e-6, 1e6)
 SCENE_LIMIT = 1e8
+#: scene units: a store's tile boxes are rounded outward to multiples of it (the tile
+#: table, store/catalog.py); a reader's guess from a box rounds it so too
+BOX_STEP = 2.0 ** -12

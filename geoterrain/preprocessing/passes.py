@@ -269,7 +269,8 @@ def _normals_pass(job: Job) -> None:
     with job.opened() as o:
         sn = ScratchArrays.shared(os.path.join(job.folder, "normals"))
         band_normal_codes(o.scene, whole(o.grid), o.xs, o.ys, o.grid.top_level + 1, sn,
-                          band=job.band, bits=NORMAL_BITS, xy=o.xy)
+                          band=job.band, bits=NORMAL_BITS, xy=o.xy,
+                          t=o.grid.t if o.grid.tile_samples >= 3 else None)
         sn.close()
 
 

@@ -24,7 +24,7 @@ from geoterrain.bounds.edgepad import (
     edge_tiles,
     has_padding,
 )
-from geoterrain.bounds.leafbounds import geographic_leaf_delta
+from geoterrain.bounds.leafbounds import CentreHeights, geographic_leaf_delta, ring_guesses
 from geoterrain.bounds.normals import level_normal_codes, ring_normal_codes
 from geoterrain.bounds.radii import stand_in_z, valid_range, vertex_radii
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, radius_codes, ring_blobs
@@ -261,7 +261,7 @@ def preprocess(
                         grid=dem.grid.to_json(), frame=dem.frame.to_json(),
                         quantizer=surface.q.to_json(),
                         normals_derived=(list(range(dem.grid.top_level + 1)) if derive_normals
-                                         else []),
+                                         else []), ring_residual=derive_normals,
                         valid_samples=dem.valid_samples, samples=dem.raster.valid.size,
                         height_range=surface.height_range,
                         delta_max_finite=delta_max_finite(bounds.delta),
@@ -404,6 +404,7 @@ class VertexBounds:
     slack: np.ndarray | None
     terms: tuple | None
     delta_before: np.ndarray | None
+    derive: bool = False  # the store derives what it can on read (derive_bounds)
 
 
 def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool, stage: StageClock
@@ -433,7 +434,8 @@ def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool, stage: StageClock
     r_codes = radius_codes(s.X, s.Y, s.Z, valid, radius, span=grid.span)
     del radius
     stage("radii")
-    return VertexBounds(delta, r_codes, ring_kinds, slack, terms, delta_before)
+    return VertexBounds(delta, r_codes, ring_kinds, slack, terms, delta_before,
+                        derive_bounds)
 
 
 @dataclass
@@ -450,7 +452,8 @@ class TileBlobs:
 def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
                normal_maps: list, derive_normals: bool,
                counts: list[np.ndarray] | None = None,
-               on_heights: Callable[[dict], None] | None = None) -> TileBlobs:
+               on_heights: Callable[[dict], None] | None = None,
+               ring_residual: bool = True) -> TileBlobs:
     """The height pyramid's blobs (the residual codec), and every tile's δ, r, normals and
     δ_edge blobs with its tile-table row.
 
@@ -462,7 +465,9 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     table as δ, so the two agree wherever their raw values do. ``counts``: the valid
     samples per tile footprint (:func:`geoterrain.core.grid.footprint_counts`), if known.
     ``on_heights``: called with the height blobs as soon as they are coded (the store's
-    writer inserts them while the rest is coded).
+    writer inserts them while the rest is coded). ``ring_residual`` (with
+    ``derive_normals``): the normals' rings as differences from what a reader derives
+    there (schema 17; False: as stored before, an edit of an older store).
     """
     grid, frame, valid, Z = dem.grid, dem.frame, s.valid, s.Z
     height_blobs = s.height_blobs
@@ -501,11 +506,21 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}, "delta_edge": {}}
     no_map = np.zeros((0, 0, 2), np.uint8)  # level_blobs without normals reads none
     edge_max: list = []
+    # a geographic level-0 r is stored whole: its centres as differences from their
+    # guess from the heights (leafbounds.centre_guess, schema 17)
+    guess = (b.derive and frame.kind == "geographic" and "radius" not in b.ring_kinds
+             and grid.tile_samples >= 3 and grid.top_level > 0)
+    stand_in = stand_in_z(Z, valid) if guess else 0.0
     for L in grid.levels:
         keys = [k for k in height_blobs if k[0] == L]
         if not keys:
             continue
         # every level's rings: the rest is derived from the heights on read
+        centres = None
+        if guess and L == 0:
+            boxes = np.array([[tiles[k].xmin, tiles[k].xmax, tiles[k].ymin, tiles[k].ymax]
+                              for k in keys], np.float64)
+            centres = CentreHeights(Z, valid.view(np.uint8), stand_in, boxes)
         blobs, dmax, rmax = level_blobs(coding, no_map if derive_normals else normal_maps[L],
                                         grid.t, L, grid.top_level,
                                         [(x, y) for _, x, y in keys],
@@ -513,10 +528,18 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
                                         ("delta", "radius", "normals"),
                                         ring=b.ring_kinds if L == 0 else False,
                                         slack=b.slack if L == 0 else None,
-                                        mids=L > 0 and "radius" in b.ring_kinds)
+                                        mids=L > 0 and "radius" in b.ring_kinds,
+                                        centres=centres)
         if derive_normals:
+            guess_n = None
+            if ring_residual:  # each ring as its difference from the reader's derived map
+                sl = np.s_[::1 << L, ::1 << L]
+                txy = [(x, y) for _, x, y in keys]
+                guess_n = ring_guesses(grid, frame, L, txy, Z[sl], valid[sl],
+                                       np.array([(y << grid.t, x << grid.t) for x, y in txy],
+                                                np.int64).reshape(-1, 2))
             blobs["normals"] = ring_blobs(normal_maps[L], grid.t,
-                                          [(x, y) for _, x, y in keys], L)
+                                          [(x, y) for _, x, y in keys], L, guess_n)
         for kind, blob in blobs.items():
             extra[kind].update(blob)
         # per-tile max δ and r (of the values as stored, over the vertices new at this

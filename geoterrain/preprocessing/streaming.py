@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from geoterrain.bounds.edgepad import has_padding
+from geoterrain.bounds.leafbounds import CentreHeights, ring_guesses
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, ring_blobs
 from geoterrain.bounds.tilebounds import TileTable
 from geoterrain.bounds.vertexdata import (
@@ -60,6 +61,7 @@ from geoterrain.ingest.raster import ABSURD_HEIGHT, VOID_SENTINELS
 from geoterrain.ingest.remote import is_url
 from geoterrain.ingest.windows import RasterSpec, describe, localize
 from geoterrain.preprocessing.bands.delta import level_lattice
+from geoterrain.preprocessing.bands.normals import ring_lines
 from geoterrain.preprocessing.bands.quantize import band_quantizer
 from geoterrain.preprocessing.passes import (
     STREAM_GDAL_CACHE,
@@ -397,9 +399,17 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
                     ring: tuple[str, ...] = ("delta",) if slack is not None else ()
                 else:
                     ring = ("delta", "radius") if derive_bounds else ()
+                # schema 17: the normals' rings as differences from what a reader derives
+                # (the normals pass's heights on the ring lines; not in a killed run's
+                # scratch from before them)
+                residual = derive_normals and "zr0" in sn
+                guess = (frame.kind == "geographic" and derive_bounds
+                         and "radius" not in ring)
                 meta_blobs = _level_blobs(w, sa, se, sn, grid, stored, er, dmax, emax,
                                           derive_normals, ring,
-                                          {(x, y): s for x, y, s in slack or ()})
+                                          {(x, y): s for x, y, s in slack or ()},
+                                          frame if residual else None,
+                                          stand_in if guess else None)
                 del stored  # (in the staging table now: the commit reads it from there)
                 stage("blobs")
                 across, down = grid.tiles(0)  # a root grid's extent holds more than its tiles
@@ -411,7 +421,8 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
                     encoding=meta["encoding"],
                     grid=grid.to_json(), frame=frame.to_json(), quantizer=q.to_json(),
                     normals_derived=(list(range(grid.top_level + 1))
-                                     if derive_normals else []), valid_samples=nvalid,
+                                     if derive_normals else []), ring_residual=residual,
+                    valid_samples=nvalid,
                     samples=grid.rows * grid.cols, height_range=hv,
                     delta_max_finite=meta_blobs["delta_max"],
                     edge_max=meta_blobs["edge_max"] if pad else None, stand_in_z=stand_in,
@@ -428,14 +439,18 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
 def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                  sn: ScratchArrays, grid: Grid, stored: TileTable, er: int,
                  dmax: float, emax: float, derive_normals: bool, ring: tuple[str, ...],
-                 slack: dict) -> dict:
+                 slack: dict, frame: Frame | None = None,
+                 stand_in: float | None = None) -> dict:
     """The δ, r, normals and δ_edge blobs and the tile rows, a tile row of each level at a
     time (preprocessing.preprocess's compress stage on each level's lattice window).
     ``stored``: the stored tiles' bounds; each tile row's go to the writer with the row's
     blobs (its staging table), so no per-tile Python rows pile up for the whole pyramid.
     ``dmax``, ``emax``: the largest finite δ and δ_edge, which set δ's code exponent;
     ``ring``: the kinds level 0 stores as border rings; ``slack``: a geographic store's
-    level-0 slack per tile (x, y)."""
+    level-0 slack per tile (x, y); ``frame`` (given): the normals' rings as differences
+    from what a reader derives there (schema 17, :func:`_ring_guess_row`); ``stand_in``
+    (given: a geographic store's): level 0's r centres as differences from their guess
+    from the heights (the bounds pass's ``ZC0``…, the stand-in in place)."""
     n, t, top = grid.n, grid.t, grid.top_level
     T, T1 = grid.tile_samples, grid.tile_samples - 1
     ed = log8_exponent(np.array([dmax]))
@@ -474,14 +489,24 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                                     None, ed, r_codes=(rc, er))
             top_w = 0 if is_top else 1  # the window's level 0 is level L
             if keys:  # every level's normals: the border ring (derive_normals)
+                centres = None
+                if stand_in is not None and L == 0:
+                    rows_k = stored.rows[order[i:j]]
+                    zl = level_lattice(sa, "Z", 0, n, p0, p1, m, False, np.float64)
+                    centres = CentreHeights(zl, np.ones(zl.shape, np.uint8), stand_in,
+                                            rows_k[:, 5:9].astype(np.float64))
                 blobs, dm, rm = level_blobs(
                     coding, nrm, t, 0, top_w, [(x, 0) for x in keys],
                     ("delta", "radius") if derive_normals else ("delta", "radius", "normals"),
                     ring=ring if L == 0 else False,
                     slack={(0, x, 0): slack[(x, y)] for x in keys if (x, y) in slack}
-                    if L == 0 and slack else None, mids=L > 0 and "radius" in ring)
+                    if L == 0 and slack else None, mids=L > 0 and "radius" in ring,
+                    centres=centres)
+                del centres
                 if derive_normals:
-                    blobs["normals"] = ring_blobs(nrm, t, [(x, 0) for x in keys])
+                    guess_n = (None if frame is None else
+                               _ring_guess_row(sn, grid, frame, L, y, keys, m))
+                    blobs["normals"] = ring_blobs(nrm, t, [(x, 0) for x in keys], 0, guess_n)
                 for kind, b in blobs.items():
                     w.put_blobs(kind, {(L, x, y): v for (_, x, _), v in b.items()})
                 w.put_tiles({(L, x, y): (int(r[0]), *r[1:], a, b) for x, r, a, b in zip(
@@ -509,6 +534,34 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
         edge_max += sorted(e_stored, key=lambda e: (e[1], e[2])) + e_only
         e_stored, e_only = [], []
     return {"delta_max": dmax, "edge_max": edge_max}
+
+
+def _ring_guess_row(sn: ScratchArrays, grid: Grid, frame: Frame, L: int, y: int,
+                    keys: list[int], m: int, group: int = 16) -> np.ndarray:
+    """What a reader derives at the rings of level L's tiles (x, y), x in ``keys``
+    (:func:`geoterrain.bounds.leafbounds.ring_guesses`), from the normals pass's heights on
+    the ring lines (``zr{L}``, ``zc{L}``; the rest of each tile, which the ring's tangents
+    never read, NaN), ``group`` tiles a window: a few hundred kB whatever the grid."""
+    t = grid.t
+    S = 1 << t
+    T = S + 1
+    p0, p1 = y * S, y * S + T
+    lr, lc = ring_lines(sn.shape(f"n{L}")[0], t), ring_lines(m, t)
+    a, b = np.searchsorted(lr, [p0, p1])
+    zr = sn.read(f"zr{L}", int(a), int(b))
+    zc = sn.read(f"zc{L}", p0, p1)
+    out = np.empty((len(keys), 4 * T - 4, 2), np.uint8)
+    for g0 in range(0, len(keys), group):
+        ks = keys[g0:g0 + group]
+        c0, c1 = ks[0] * S, ks[-1] * S + T
+        win = np.full((T, c1 - c0), np.nan)
+        win[lr[a:b] - p0] = zr[:, c0:c1]
+        ca, cb = np.searchsorted(lc, [c0, c1])
+        win[:, lc[ca:cb] - c0] = zc[:, ca:cb]
+        out[g0:g0 + len(ks)] = ring_guesses(
+            grid, frame, L, [(x, y) for x in ks], win, np.isfinite(win),
+            np.array([(0, (x - ks[0]) * S) for x in ks], np.int64).reshape(-1, 2))
+    return out
 
 
 def _own_tiles(grid: Grid, table: TileTable) -> TileTable:

@@ -44,6 +44,7 @@ import numpy as np
 import zstandard
 
 from geoterrain.core import zstdsafe
+from geoterrain.core.limits import BOX_STEP  # the stored boxes are rounded outward to it
 from geoterrain.store.keys import BLOB_KINDS
 
 META_ID, TILES_ID = 0, 1  # the catalog rows of the metadata and of the tile table
@@ -53,7 +54,6 @@ RATIO_CAP = 256  # a zstd tile table decodes to at most this many times its byte
 MIN_BLOB_ROW_BYTES = 6  # a blobs row's least share of a file: cell pointer, header, rowid
 META_MAX_BYTES = 1 << 20  # metadata is a few kB; more is not a store of ours
 KEY_LIMIT = 1 << 62  # every packed key is below this (storekeys)
-BOX_STEP = 2.0 ** -12  # scene units: the stored boxes are rounded outward to multiples
 BOX_LIMIT = 2.0 ** 38  # |coordinate| up to which a box column is stored so (SCENE_LIMIT: 1e8)
 _RATIO_SLACK = 1 << 16
 # format (0 raw, 1 zstd), tiles, blobs, the ids' width, the boxes' coding (0 exact, 1 on

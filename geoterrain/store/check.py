@@ -255,6 +255,9 @@ def check_store(path: str | Path, m: dict, tiles: dict) -> tuple[Grid, Frame, Qu
                 or m["normal_bits"] != 8 or g.tile_samples < 3):
             raise _Bad("normals_derived must be [0] or every level, with 8-bit normals and "
                        "tiles of 3 samples or more")
+        if "normals_ring_residual" in m and (m["normals_ring_residual"] is not True
+                                             or "normals_derived" not in m):
+            raise _Bad("normals_ring_residual must be true, and only with normals_derived")
         nv = _int(m.get("valid_samples"), 1, g.rows * g.cols, "valid_samples")
         frac = _num(m.get("nodata_fraction"), "nodata_fraction", 0.0, 1.0)
         if abs(frac - (1.0 - nv / (g.rows * g.cols))) > 1e-9:

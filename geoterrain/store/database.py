@@ -113,7 +113,10 @@ SCHEMA_VERSION = 17  # 2: checksums bound to their tile and kind; per-level key 
 #                       codes (vertexdata.PRED);
 #                   17: the tile table's columns predicted (boxes on a 2^-12 grid,
 #                       parents as their children's union; catalog.py), blob crc32s
-#                       signed
+#                       signed; a geographic level-0 r's cell centres as differences
+#                       from their guess from the heights (vertexdata.CENTRES with PRED),
+#                       and the normals' border rings as differences from the tile's
+#                       derived map (metadata normals_ring_residual)
 ROOTS_SCHEMA_VERSION = 18  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
 #                            9 before schema 10, 11 before 12, 13 before 14, 15 before 17
 LATTICE_SCHEMA_VERSION = 19  # a root grid whose geographic frame has proxy positions past
@@ -628,7 +631,7 @@ class StoreReader:
             raise StoreError(f"{self.path}: store schema version {_show(version)}, this "
                              f"geoterrain reads version {SCHEMA_VERSION} (and "
                              f"{ROOTS_SCHEMA_VERSION} and {LATTICE_SCHEMA_VERSION}, root "
-                             f"grids); {REBUILD}")
+                             f"grids; 14 to 16, written before); {REBUILD}")
 
     def _foreign(self, why: str) -> StoreError:
         return StoreError(f"{self.path}: not a geoterrain store ({why}); refusing to read it")

@@ -25,6 +25,7 @@ from geoterrain.bounds.vertexdata import (
     LOG8,
     MIDS,
     NEW_ONLY,
+    PRED,
     RING,
     SLACK,
     VERSION_2,
@@ -189,6 +190,11 @@ def test_geographic_stores_derive_level0_delta_with_a_slack(tmp_path_factory, se
     top = max(slacks, default=0.0)
     assert all(0 < s < np.inf for s in slacks), slacks
     assert {ring._blob(k, "radius")[1] & RING for k in ring.tile_info} == {0}
+    # schema 17: level 0's r centres as differences from their guess from the heights
+    both = CENTRES | PRED
+    assert ring.grid.top_level == 0 or any(ring._blob(k, "radius")[1] & both == both
+                                           for k in ring.tile_info if k[0] == 0)
+    assert not any(full._blob(k, "radius")[1] & both == both for k in full.tile_info)
     assert (ring.grid.top_level == 0
             or {bool(ring._blob(k, "delta")[1] & RING) for k in ring.tile_info
                 if k[0] == 0} == {True})

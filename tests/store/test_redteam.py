@@ -148,6 +148,8 @@ STORE_CASES = [
     ("schema-14-tile-table-unpredicted", _meta("schema_version", 14), ["info", "{store}"], 1),
     ("schema-15-tile-table-unpredicted", _meta("schema_version", 15), ["info", "{store}"], 1),
     ("schema-16-tile-table-unpredicted", _meta("schema_version", 16), ["info", "{store}"], 1),
+    ("schema-20-a-newer-store", _meta("schema_version", 20), ["info", "{store}"], 1),
+    ("ring-residual-not-true", _meta("normals_ring_residual", 1), ["info", "{store}"], 1),
     ("south-up", _south_up, ["info", "{store}"], 1),
     ("unit-to-m-1e-300", _meta("unit_to_m", 1e-300, "frame"), ["info", "{store}"], 1),
     ("z-to-m-unknown", _meta("z_to_m", 0.5, "frame"), ["info", "{store}"], 1),

@@ -20,7 +20,23 @@ from geoterrain.bounds.normals import encode_octahedral, normal_map
 from geoterrain.preprocessing.bands.delta import grid_shape
 from geoterrain.preprocessing.scratch import ScratchArrays
 
-__all__ = ["band_normal_codes"]
+__all__ = ["band_normal_codes", "ring_lines"]
+
+
+def ring_lines(n: int, t: int) -> np.ndarray:
+    """The lines (rows or columns) of a level's n that a tile's border ring and its
+    one-sided tangents read (:func:`geoterrain.bounds.normals.ring_guess`): those whose
+    index mod 2**t is 0, 1 or 2**t − 1, ascending (the scratch arrays ``zr{L}`` and
+    ``zc{L}`` hold the level's heights there).
+
+    Examples
+    --------
+    >>> ring_lines(9, 2).tolist()
+    [0, 1, 3, 4, 5, 7, 8]
+    """
+    S = 1 << t
+    o = np.arange(n) % S
+    return np.flatnonzero((o == 0) | (o == 1) | (o == S - 1))
 
 Rows = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
 
@@ -41,7 +57,7 @@ class _Level:
 
 def band_normal_codes(rows: Rows, N: int | tuple[int, int], xs: np.ndarray,
                       ys: np.ndarray, levels: int, sa: ScratchArrays, band: int = 256,
-                      bits: int = 8, xy: Rows | None = None) -> None:
+                      bits: int = 8, xy: Rows | None = None, t: int | None = None) -> None:
     """Write ``n{L}`` (L < ``levels``) to ``sa``: the octahedral codes of
     ``encode_octahedral(level_normal_maps(X, Y, Z, valid, levels)[L], bits)``, from
     ``rows(i0, i1)`` → (scene heights, valid) of rows i0 … i1 − 1.
@@ -49,7 +65,10 @@ def band_normal_codes(rows: Rows, N: int | tuple[int, int], xs: np.ndarray,
     ``xs``, ``ys``: scene x of each column and y of each row (a projected or pixel frame);
     on a curvilinear (geographic) grid, ``xy(i0, i1)`` → the rows' scene X, Y instead
     (``xs`` and ``ys`` then only give the grid's side). ``N``: the grid's side, or a
-    root grid's extent (rows, cols).
+    root grid's extent (rows, cols). ``t`` (the tile exponent): also ``zr{L}`` and
+    ``zc{L}``, float64, the level's scene heights (NaN where not valid) on its
+    :func:`ring_lines` rows (all columns) and columns (all rows): what the writer guesses
+    each tile's ring normals from (schema 17).
 
     Examples
     --------
@@ -67,16 +86,29 @@ def band_normal_codes(rows: Rows, N: int | tuple[int, int], xs: np.ndarray,
     ys = np.asarray(ys, np.float64)
     NR, NC = grid_shape(N)
     lv = []
+    lines: list[tuple[np.ndarray, np.ndarray]] = []
     for L in range(levels):
         s = 1 << L
         mr, mc = (NR - 1) // s + 1, (NC - 1) // s + 1
         sa.create(f"n{L}", (mr, 2 * mc), np.uint8)
         lv.append(_Level(mr, xs[::s], ys[::s], xy is not None))
+        if t is not None:
+            lr, lc = ring_lines(mr, t), ring_lines(mc, t)
+            sa.create(f"zr{L}", (len(lr), mc), np.float64)
+            sa.create(f"zc{L}", (mr, len(lc)), np.float64)
+            lines.append((lr, lc))
 
     def feed(L: int, a0: int, z: np.ndarray, v: np.ndarray, gx: np.ndarray | None,
              gy: np.ndarray | None) -> None:
         # level L's rows a0 … a0 + len(z) − 1, which follow the rows fed before
         cur = lv[L]
+        if lines:  # the heights on the ring lines, NaN where not valid (no band copy)
+            lr, lc = lines[L]
+            a, b = np.searchsorted(lr, [a0, a0 + len(z)])
+            for q in range(a, b):  # (a band holds a few: 3 of each 2**t rows)
+                r = lr[q] - a0
+                sa.write(f"zr{L}", q, np.where(v[r:r + 1], z[r:r + 1], np.nan))
+            sa.write(f"zc{L}", a0, np.where(v[:, lc], z[:, lc], np.nan))
         cur.z = np.concatenate([cur.z, z])
         cur.v = np.concatenate([cur.v, v])
         if gx is not None:

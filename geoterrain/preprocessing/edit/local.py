@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from geoterrain.bounds.edgepad import has_padding
+from geoterrain.bounds.leafbounds import ring_guesses
 from geoterrain.bounds.normals import encode_octahedral, normal_map
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, ring_blobs
 from geoterrain.bounds.vertexdata import LOG8, NORMAL_BITS, RING
@@ -144,6 +145,7 @@ class _Job:
         self.derive_bounds = bool(self.t.tile_keys(0)) and self.g.top_level > 0 and bool(
             (self.reader.get_blob(self.t.tile_keys(0)[0], "delta") or b"\0\0")[1] & RING)
         self.derive_normals = bool(terrain.meta.get("normals_derived"))
+        self.ring_residual = terrain.meta.get("normals_ring_residual") is True
         self.meta = dict(terrain.meta)
 
     # ------------------------------------------------------------- shared helpers
@@ -349,12 +351,18 @@ class _Job:
             h, v = c.lattice(L, rows, cols)
             ii, jj = np.meshgrid(rows, cols, indexing="ij")
             X, Y = f.xy(ii, jj)
-            n = normal_map(X, Y, np.where(v, h * c.factor, np.nan), v)
+            zs = np.where(v, h * c.factor, np.nan)
+            n = normal_map(X, Y, zs, v)
             a, b = (y0 * span - lo_i) // step, (x0 * span - lo_j) // step
             codes = encode_octahedral(n[a:, b:], NORMAL_BITS)  # from the first tile's corner
             tiles = [(x - x0, y - y0) for x, y in keys]
             if self.derive_normals:
-                blobs = ring_blobs(codes, te, tiles, L)
+                guess = None
+                if self.ring_residual:  # schema 17: rings as differences from the derived
+                    guess = ring_guesses(g, f, L, keys, zs[a:, b:], v[a:, b:],
+                                         np.array([(dy << te, dx << te) for dx, dy in tiles],
+                                                  np.int64).reshape(-1, 2))
+                blobs = ring_blobs(codes, te, tiles, L, guess)
             else:
                 coding = BoundsCoding(np.zeros(codes.shape[:2]), np.zeros(codes.shape[:2]))
                 blobs = level_blobs(coding, codes, te, 0, 1, tiles, ("normals",))[0]["normals"]

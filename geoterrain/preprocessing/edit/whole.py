@@ -138,7 +138,8 @@ def whole_plan(terrain: TerrainLike, heights: np.ndarray, valid: np.ndarray,
     normal_maps = [encode_octahedral(n, NORMAL_BITS) for n in level_normal_maps(
         X, Y, Z, valid, g.top_level + 1)]
     derive_normals = derive_normals and g.tile_samples >= 3
-    blobs = tile_blobs(dem, s, bounds, tiles, normal_maps, derive_normals)
+    blobs = tile_blobs(dem, s, bounds, tiles, normal_maps, derive_normals,
+                       ring_residual=meta.get("normals_ring_residual") is True)
     new: dict = {}
     for key, b in blobs.heights.items():
         new[(key, "heights")] = b
