@@ -612,8 +612,9 @@ def ring_guesses(grid, frame, level: int, tiles: list[tuple[int, int]], z: np.nd
     o = np.asarray(origins, np.int64).reshape(-1, 2)
     out = np.empty((len(o), len(ring[0]), 2), np.uint8 if bits == 8 else np.uint16)
     if frame.kind != "geographic":  # x by column, y by row: broadcast, no T² copies
-        xs = np.array([normal_axes(lay, level, x, y)[0] for x, y in tiles]).reshape(-1, T)
-        ys = np.array([normal_axes(lay, level, x, y)[1] for x, y in tiles]).reshape(-1, T)
+        axes = [normal_axes(lay, level, x, y) for x, y in tiles]
+        xs = np.array([a[0] for a in axes]).reshape(-1, T)
+        ys = np.array([a[1] for a in axes]).reshape(-1, T)
         k = len(o)
         return ring_guess(z, valid, np.broadcast_to(xs[:, None, :], (k, T, T)),
                           np.broadcast_to(ys[:, :, None], (k, T, T)), ring, bits, o)
