@@ -17,12 +17,13 @@ Each stage is its whole-grid twin's streaming form, the same bits
 - the tile table (:mod:`geoterrain.preprocessing.bands.tiles`) and every level's normals
   (:mod:`geoterrain.preprocessing.bands.normals`) in row bands;
 - the height blobs a super-tile at a time (:mod:`geoterrain.preprocessing.bands.codec`);
-- the δ, r and normals blobs a tile row at a time, from each level's lattice rebuilt
-  from the per-level arrays (:func:`geoterrain.bounds.tileblobs.level_blobs` on that window).
+- the δ, r and normals blobs a tile row at a time, :data:`WINDOW_TILES` tiles of it at a
+  time, from each level's lattice rebuilt from the per-level arrays
+  (:func:`geoterrain.bounds.tileblobs.level_blobs` on that window).
 
 Per-level arrays live in scratch files (:mod:`geoterrain.preprocessing.scratch`); blobs go to the
 store writer as they are made. Memory is set by ``band``: the rows of a band's window
-and of one tile row of each level, not the raster. The four passes after the quantizer
+and a window of tiles, not the raster. The four passes after the quantizer
 run on any scheduler (:mod:`geoterrain.preprocessing.passes`,
 :mod:`geoterrain.preprocessing.schedulers`),
 and a killed run can be resumed.
@@ -435,7 +436,8 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                  dmax: float, emax: float, derive_normals: bool, ring: tuple[str, ...],
                  slack: dict) -> dict:
     """The δ, r, normals and δ_edge blobs and the tile rows, a tile row of each level at a
-    time (preprocessing.preprocess's compress stage on each level's lattice window).
+    time, coded :data:`WINDOW_TILES` tiles at a time (preprocessing.preprocess's compress
+    stage on each window of a level's lattice).
     ``stored``: the stored tiles' bounds; each tile row's go to the writer with the row's
     blobs (its staging table), so no per-tile Python rows pile up for the whole pyramid.
     ``dmax``, ``emax``: the largest finite δ and δ_edge, which set δ's code exponent;
