@@ -108,18 +108,39 @@ class ScratchArrays:
     def __contains__(self, name: str) -> bool:
         return name in self._meta
 
-    def read(self, name: str, r0: int, r1: int) -> np.ndarray:
-        """Rows ``r0 … r1 − 1`` (clipped to the array), a copy."""
+    def read(self, name: str, r0: int, r1: int, c0: int = 0, c1: int | None = None
+             ) -> np.ndarray:
+        """Rows ``r0 … r1 − 1`` and columns ``c0 … c1 − 1`` (default: every one; both
+        clipped to the array), a copy. Some columns are read a row at a time, so a window
+        of a wide array costs the window's bytes, not its rows'.
+
+        Examples
+        --------
+        >>> s = ScratchArrays(tempfile.gettempdir()); s.create("c", (3, 5), np.int16)
+        >>> s.write("c", 0, np.arange(15, dtype=np.int16).reshape(3, 5))
+        >>> s.read("c", 1, 9, 3, 9).tolist(); s.close()
+        [[8, 9], [13, 14]]
+        """
         (nr, nc), dt = self._meta[name]
-        r0, r1 = max(r0, 0), min(r1, nr)
+        r0 = max(r0, 0)
+        r1 = max(min(r1, nr), r0)
+        c0 = max(c0, 0)
+        w = max((nc if c1 is None else min(c1, nc)) - c0, 0)
         if self._path is None:
-            return self._mem[name][r0:r1].copy()
-        nbytes = max(r1 - r0, 0) * nc * dt.itemsize
+            return self._mem[name][r0:r1, c0:c0 + w].copy()
+        nbytes = (r1 - r0) * w * dt.itemsize
         buf = bytearray(nbytes)
-        got = os.preadv(self._fd[name], [buf], r0 * nc * dt.itemsize) if nbytes else 0
+        if w == nc:  # whole rows: one read
+            got = os.preadv(self._fd[name], [buf], r0 * nc * dt.itemsize) if nbytes else 0
+        else:
+            row, got = w * dt.itemsize, 0
+            view = memoryview(buf)
+            for k in range(r1 - r0 if row else 0):
+                got += os.preadv(self._fd[name], [view[k * row:(k + 1) * row]],
+                                 ((r0 + k) * nc + c0) * dt.itemsize)
         if got != nbytes:
             raise OSError(f"scratch array {name}: short read ({got} of {nbytes} bytes)")
-        return np.frombuffer(buf, dt).reshape(r1 - r0, nc)
+        return np.frombuffer(buf, dt).reshape(r1 - r0, w)
 
     def read_padded(self, name: str, r0: int, r1: int, fill: float = 0) -> np.ndarray:
         """Rows ``r0 … r1 − 1``, those outside the array filled with ``fill``."""

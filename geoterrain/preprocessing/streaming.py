@@ -17,12 +17,13 @@ Each stage is its whole-grid twin's streaming form, the same bits
 - the tile table (:mod:`geoterrain.preprocessing.bands.tiles`) and every level's normals
   (:mod:`geoterrain.preprocessing.bands.normals`) in row bands;
 - the height blobs a super-tile at a time (:mod:`geoterrain.preprocessing.bands.codec`);
-- the δ, r and normals blobs a tile row at a time, from each level's lattice rebuilt
-  from the per-level arrays (:func:`geoterrain.bounds.tileblobs.level_blobs` on that window).
+- the δ, r and normals blobs a tile row at a time, :data:`WINDOW_TILES` tiles of it at a
+  time, from each level's lattice rebuilt from the per-level arrays
+  (:func:`geoterrain.bounds.tileblobs.level_blobs` on that window).
 
 Per-level arrays live in scratch files (:mod:`geoterrain.preprocessing.scratch`); blobs go to the
 store writer as they are made. Memory is set by ``band``: the rows of a band's window
-and of one tile row of each level, not the raster. The four passes after the quantizer
+and a window of tiles, not the raster. The four passes after the quantizer
 run on any scheduler (:mod:`geoterrain.preprocessing.passes`,
 :mod:`geoterrain.preprocessing.schedulers`),
 and a killed run can be resumed.
@@ -96,6 +97,9 @@ BAND_SAMPLES = 1 << 20  # at most this many samples a band (streaming_band)
 # 128, the same CPU time (26.3 and 26.4 s), against 323 MB for a 1025 × 513 one in one
 # band (docs/lab/root-grids.md, part 8)
 BAND_SAMPLES_GEOGRAPHIC = 1 << 19
+# tiles across a window of the blobs stage: a tile row is coded this many tiles at a
+# time, so the stage's arrays are those of a 4097² raster's row (t = 6) at every width
+WINDOW_TILES = 64
 STAGES = ("scan", "quantise", "errors, tiles, normals, heights", "blobs", "write")
 
 
@@ -387,7 +391,9 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
         try:
             with StoreWriter(dst, overwrite=req.overwrite,
                              page_size=page_size_for(grid.rows, grid.cols)) as w:
-                for part in heights_records(os.path.join(folder, "heights.bin")):
+                # 256 blobs a batch (about 1 MB; 4 096 held 21 MB at once, with the
+                # writer's rows and the held copy on top: docs/lab/streaming.md)
+                for part in heights_records(os.path.join(folder, "heights.bin"), 256):
                     # a root grid's tiles only (a footprint over the extent may reach
                     # one tile past the raster's last row or column)
                     w.put_blobs("heights", grid.held(part))
@@ -442,7 +448,8 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                  slack: dict, frame: Frame | None = None,
                  stand_in: float | None = None) -> dict:
     """The δ, r, normals and δ_edge blobs and the tile rows, a tile row of each level at a
-    time (preprocessing.preprocess's compress stage on each level's lattice window).
+    time, coded :data:`WINDOW_TILES` tiles at a time (preprocessing.preprocess's compress
+    stage on each window of a level's lattice).
     ``stored``: the stored tiles' bounds; each tile row's go to the writer with the row's
     blobs (its staging table), so no per-tile Python rows pile up for the whole pyramid.
     ``dmax``, ``emax``: the largest finite δ and δ_edge, which set δ's code exponent;
@@ -472,63 +479,96 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
         m = ((C - 1) >> L) + 1  # the level's lattice over the extent (the square's side)
         across, down = grid.tiles(L)
         is_top = L == top
+        top_w = 0 if is_top else 1  # a window's level 0 is level L
         for y in range(down):
             i, j = row_at.get((L, y), (0, 0))
-            keys = lk[i:j, 1].tolist()
+            row_keys = lk[i:j, 1]
             p0, p1 = y * T1, y * T1 + T
-            # every vertex of the lattice, the coarser levels' too: a PRED payload holds
-            # its codes as differences from its parents' (vertexdata.pred_residuals)
-            d = level_lattice(sa, "", L, n, p0, p1, m, True, np.float32)
-            rc = level_lattice(sa, "r", L, n, p0, p1, m, True, np.uint8)
-            nrm = sn.read(f"n{L}", p0, p1).reshape(T, m, 2)
-            coding = BoundsCoding(d, None, ed, r_codes=(rc, er))
-            edge = None
-            if se is not None:
-                # every vertex of the lattice: an unstored tile's δ_edge blob is whole
-                edge = BoundsCoding(level_lattice(se, "", L, n, p0, p1, m, True, np.float32),
-                                    None, ed, r_codes=(rc, er))
-            top_w = 0 if is_top else 1  # the window's level 0 is level L
-            if keys:  # every level's normals: the border ring (derive_normals)
-                centres = None
-                if stand_in is not None and L == 0:
-                    rows_k = stored.rows[order[i:j]]
-                    zl = level_lattice(sa, "Z", 0, n, p0, p1, m, False, np.float64)
-                    centres = CentreHeights(zl, np.ones(zl.shape, np.uint8), stand_in,
-                                            rows_k[:, 5:9].astype(np.float64))
-                blobs, dm, rm = level_blobs(
-                    coding, nrm, t, 0, top_w, [(x, 0) for x in keys],
-                    ("delta", "radius") if derive_normals else ("delta", "radius", "normals"),
-                    ring=ring if L == 0 else False,
-                    slack={(0, x, 0): slack[(x, y)] for x in keys if (x, y) in slack}
-                    if L == 0 and slack else None, mids=L > 0 and "radius" in ring,
-                    centres=centres)
-                del centres
-                if derive_normals:
-                    guess_n = (None if frame is None else
-                               _ring_guess_row(sn, grid, frame, L, y, keys, m))
-                    blobs["normals"] = ring_blobs(nrm, t, [(x, 0) for x in keys], 0, guess_n)
-                for kind, b in blobs.items():
-                    w.put_blobs(kind, {(L, x, y): v for (_, x, _), v in b.items()})
-                w.put_tiles({(L, x, y): (int(r[0]), *r[1:], a, b) for x, r, a, b in zip(
-                    keys, stored.rows[order[i:j]].tolist(), dm.tolist(), rm.tolist(),
-                    strict=True)})
-            if edge is None:
-                continue
-            # edgepad.edge_tiles / edge_only_tiles on this tile row's window
-            held_diff = _held(coding.dc != edge.dc, T1, is_top)[:across]
-            held_pos = _held(edge.dc > 0, T1, is_top)[:across]
-            kept = set(keys)  # this row's stored tiles
-            # stored tiles: new vertices as differences from δ; unstored ones: whole
-            for keys_e, base, into in (([x for x in keys if held_diff[x]], coding, e_stored),
-                                       ([x for x in range(len(held_pos)) if held_pos[x]
-                                         and x not in kept], None, e_only)):
-                if not keys_e:
+            # the row's blobs, gathered over its windows and handed to the writer in the
+            # order of one window as wide as the raster (the store's bytes follow it)
+            got: dict = {}
+            dms, rms = [], []
+            e_rows: tuple[dict, dict] = ({}, {})
+            for x0 in range(0, across, WINDOW_TILES):
+                # a window of at most WINDOW_TILES tiles across: its arrays' bytes are
+                # the same at every raster width (16385² level 0: 4.3 MB of δ alone
+                # for the whole tile row)
+                x1 = min(x0 + WINDOW_TILES, across)
+                q0, q1 = x0 * T1, min(x1 * T1 + 1, m)
+                keys = row_keys[(row_keys >= x0) & (row_keys < x1)].tolist()
+                # every vertex of the lattice, the coarser levels' too: a PRED payload
+                # holds its codes as differences from its parents'
+                # (vertexdata.pred_residuals)
+                d = level_lattice(sa, "", L, n, p0, p1, m, True, np.float32, q0, q1)
+                rc = level_lattice(sa, "r", L, n, p0, p1, m, True, np.uint8, q0, q1)
+                nrm = sn.read(f"n{L}", p0, p1, 2 * q0, 2 * q1).reshape(T, q1 - q0, 2)
+                coding = BoundsCoding(d, None, ed, r_codes=(rc, er))
+                del d
+                edge = None
+                if se is not None:
+                    # every vertex of the lattice: an unstored tile's δ_edge blob is whole
+                    edge = BoundsCoding(level_lattice(se, "", L, n, p0, p1, m, True,
+                                                      np.float32, q0, q1),
+                                        None, ed, r_codes=(rc, er))
+                local = [(x - x0, 0) for x in keys]
+                if keys:  # every level's normals: the border ring (derive_normals)
+                    centres = None
+                    if stand_in is not None and L == 0:
+                        # a geographic level-0 r's centres guessed from the heights
+                        inw = (row_keys >= x0) & (row_keys < x1)
+                        rows_k = stored.rows[order[i:j]][inw]
+                        zl = level_lattice(sa, "Z", 0, n, p0, p1, m, False, np.float64,
+                                           q0, q1)
+                        centres = CentreHeights(zl, np.ones(zl.shape, np.uint8), stand_in,
+                                                rows_k[:, 5:9].astype(np.float64))
+                    blobs, dm, rm = level_blobs(
+                        coding, nrm, t, 0, top_w, local,
+                        ("delta", "radius") if derive_normals
+                        else ("delta", "radius", "normals"),
+                        ring=ring if L == 0 else False,
+                        slack={(0, x - x0, 0): slack[(x, y)] for x in keys
+                               if (x, y) in slack} if L == 0 and slack else None,
+                        mids=L > 0 and "radius" in ring, centres=centres)
+                    del centres
+                    if derive_normals:
+                        guess_n = (None if frame is None else
+                                   _ring_guess_row(sn, grid, frame, L, y, keys, m))
+                        blobs["normals"] = ring_blobs(nrm, t, local, 0, guess_n)
+                    for kind, bl in blobs.items():
+                        got.setdefault(kind, {}).update(
+                            {(L, x + x0, y): v for (_, x, _), v in bl.items()})
+                    dms += dm.tolist()
+                    rms += rm.tolist()
+                if edge is None:
                     continue
-                eb, emx, _ = level_blobs(edge, nrm, t, 0, top_w if base is not None else 0,
-                                         [(x, 0) for x in keys_e], ("delta",), base=base)
-                w.put_blobs("delta_edge", {(L, x, y): v for (_, x, _), v in eb["delta"].items()})
-                into += [[L, x, y, v if np.isfinite(v) else None]
-                         for x, v in zip(keys_e, emx.tolist(), strict=True)]
+                # edgepad.edge_tiles / edge_only_tiles on this window
+                held_diff = _held(coding.dc != edge.dc, T1, is_top)[:x1 - x0]
+                held_pos = _held(edge.dc > 0, T1, is_top)[:x1 - x0]
+                kept = set(keys)  # this window's stored tiles
+                # stored tiles: new vertices as differences from δ; unstored ones: whole
+                for keys_e, base, into in (
+                        ([x for x in keys if held_diff[x - x0]], coding, e_rows[0]),
+                        ([x for x in range(x0, x0 + len(held_pos)) if held_pos[x - x0]
+                          and x not in kept], None, e_rows[1])):
+                    if not keys_e:
+                        continue
+                    eb, emx, _ = level_blobs(edge, nrm, t, 0, top_w if base is not None
+                                             else 0, [(x - x0, 0) for x in keys_e],
+                                             ("delta",), base=base)
+                    into.update({x: (v, mx) for x, (v, mx) in zip(
+                        keys_e, zip(eb["delta"].values(), emx.tolist(), strict=True),
+                        strict=True)})
+            keys = row_keys.tolist()
+            for kind, bl in got.items():
+                w.put_blobs(kind, bl)
+            if keys:
+                w.put_tiles({(L, x, y): (int(r[0]), *r[1:], a, b) for x, r, a, b in zip(
+                    keys, stored.rows[order[i:j]].tolist(), dms, rms, strict=True)})
+            for into, out in zip(e_rows, (e_stored, e_only), strict=True):
+                if into:
+                    w.put_blobs("delta_edge", {(L, x, y): v for x, (v, _) in into.items()})
+                    out += [[L, x, y, mx if np.isfinite(mx) else None]
+                            for x, (_, mx) in into.items()]
         # the metadata's order (preprocessing.preprocess): a level's stored tiles by
         # (x, y), then its unstored ones by (y, x)
         edge_max += sorted(e_stored, key=lambda e: (e[1], e[2])) + e_only

@@ -146,6 +146,51 @@ def test_scratch_arrays_round_trip_and_clean_up(tmp_path):
     assert os.listdir(tmp_path) == []
 
 
+@pytest.mark.fast
+@settings(deadline=None, max_examples=40)
+@given(rows=st.integers(1, 9), cols=st.integers(1, 9), dtype=st.sampled_from(
+    ["uint8", "int16", "float32", "float64"]), data=st.data(), on_disk=st.booleans())
+def test_scratch_arrays_read_a_window_of_columns(tmp_path_factory, rows, cols, dtype, data,
+                                                 on_disk):
+    """read(name, r0, r1, c0, c1) is the array's [r0:r1, c0:c1], both ranges clipped,
+    in memory and on disk (a row at a time there)."""
+    a = np.arange(rows * cols).reshape(rows, cols).astype(dtype)
+    r0, r1, c0, c1 = (data.draw(st.integers(-2, n + 2)) for n in (rows, rows, cols, cols))
+    with ScratchArrays(tmp_path_factory.mktemp("w") if on_disk else None) as sa:
+        sa.create("a", a.shape, a.dtype)
+        sa.write("a", 0, a)
+        got = sa.read("a", r0, r1, c0, c1)
+    ref = a[max(r0, 0):max(r1, 0), max(c0, 0):max(c1, 0)]
+    assert got.dtype == a.dtype and got.shape == (
+        max(min(r1, rows) - max(r0, 0), 0), max(min(c1, cols) - max(c0, 0), 0))
+    assert got.size == 0 or np.array_equal(got, ref)
+
+
+@settings(deadline=None, max_examples=30)
+@given(seed=st.integers(0, 100_000), n=st.integers(1, 6), data=st.data(),
+       top=st.booleans(), on_disk=st.booleans())
+def test_a_level_lattice_window_is_the_lattice_s(tmp_path_factory, seed, n, data, top,
+                                                 on_disk):
+    """level_lattice on columns q0 … q1 − 1 (what the blobs stage codes a window of
+    tiles at a time) is those columns of the whole lattice, at every level."""
+    from geoterrain.preprocessing.bands.delta import level_lattice
+
+    z, v = _grid(seed, n, "sparse")
+    N = z.shape[0]
+    folder = tmp_path_factory.mktemp("ll") if on_disk else None
+    with ScratchArrays(folder) as sa:
+        band_vertex_errors(rows_of(z, v), N, band=4, scratch=sa)
+        L = data.draw(st.integers(0, n - 1))
+        m = ((N - 1) >> L) + 1
+        p0 = data.draw(st.integers(0, m - 1))
+        p1 = data.draw(st.integers(p0 + 1, m))
+        q0 = data.draw(st.integers(0, m - 1))
+        q1 = data.draw(st.integers(q0 + 1, m))
+        whole = level_lattice(sa, "", L, n, p0, p1, m, top, np.float32)
+        got = level_lattice(sa, "", L, n, p0, p1, m, top, np.float32, q0, q1)
+    assert np.array_equal(got, whole[:, q0:q1], equal_nan=True)
+
+
 @settings(deadline=None)
 @given(seed=st.integers(0, 100_000), n=st.integers(1, 7),
        holes=st.sampled_from(["none", "sparse", "blocks"]),

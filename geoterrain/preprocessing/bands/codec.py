@@ -151,6 +151,7 @@ def band_encode_pyramid(window: Window, N: int | tuple[int, int], t: int,
             T = 1 << te
             zc[sy * T:sy * T + T + 1, sx * T:sx * T + T + 1] = z[::step, ::step]
             vc[sy * T:sy * T + T + 1, sx * T:sx * T + T + 1] = v[::step, ::step]
+    z = v = None  # (the last super-tile's window: 1025² samples at 16385², t = 6)
     out: dict[tuple[int, int, int], bytes] = {}
     if not stored.any():
         return out
@@ -168,6 +169,7 @@ def band_encode_pyramid(window: Window, N: int | tuple[int, int], t: int,
         counts.append(c[0::2, 0::2] + c[0::2, 1::2] + c[1::2, 0::2] + c[1::2, 1::2])
     bins = quantizer.bins
     dc = _decoded_codes(valid_codes(zc, vc, quantizer), vc, te, lmax - k, cubic, bins, roots)
+    zc = None  # (the coarse heights: its codes are dc now)
     part: dict[tuple[int, int, int], bytes] = {}
     _encode_levels(part, dc, vc, n - k, te, lmax - k, cubic, None, counts=counts,
                    wide=quantizer.mode == "float", bins=bins)
@@ -182,6 +184,9 @@ def band_encode_pyramid(window: Window, N: int | tuple[int, int], t: int,
                 vw = vtop[y << te:((y + 1) << te) + 1, x << te:((x + 1) << te) + 1]
                 coarse[(lmax, x, y)] = _encode_top(dw, vw, te, 0, cubic, bins, True)
     emit(coarse)
+    # below, only the coarse grid's decoded codes are read: its mask, counts and blobs
+    # go before the super-tiles' windows come (each as large as the coarse grid at 16385²)
+    vc = vtop = counts = part = coarse = None
     # levels below k, one super-tile at a time, under the coarse grid's decoded codes
     T = 1 << te
     period = _period(te, cubic)

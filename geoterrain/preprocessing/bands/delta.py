@@ -696,28 +696,37 @@ def band_vertex_errors(rows: Rows, N: int | tuple[int, int], band: int = 256,
 
 
 def level_lattice(sa: ScratchArrays, pre: str, L: int, n: int, p0: int, p1: int, m: int,
-             top: bool, dtype) -> np.ndarray:
-    """Rows p0 … p1 − 1 of level L's lattice (m a side, sample (p, q) = grid sample
-    (p 2^L, q 2^L)) of the per-level arrays ``{pre}C{k}``…: level L's new vertices, and
-    at the top level every coarser one too (0 elsewhere).
+                  top: bool, dtype, q0: int = 0, q1: int | None = None) -> np.ndarray:
+    """Rows p0 … p1 − 1 and columns q0 … q1 − 1 (default: all m) of level L's lattice
+    (m a side, sample (p, q) = grid sample (p 2^L, q 2^L)) of the per-level arrays
+    ``{pre}C{k}``…: level L's new vertices, and at the top level every coarser one too
+    (0 elsewhere). Only the window's samples are read from the arrays.
 
     Examples
     --------
     >>> d = band_vertex_errors(rows_of(np.eye(5) * 4, np.ones((5, 5), bool)), 5, band=2)
     >>> level_lattice(d.arrays, "", 0, 2, 0, 3, 5, False, np.float32).shape
     (3, 5)
+    >>> w = level_lattice(d.arrays, "", 0, 2, 0, 5, 5, True, np.float32)
+    >>> bool((level_lattice(d.arrays, "", 0, 2, 1, 4, 5, True, np.float32, 2, 5)
+    ...       == w[1:4, 2:5]).all())
+    True
     """
-    out = np.zeros((p1 - p0, m), dtype)
+    q1 = m if q1 is None else q1
+    out = np.zeros((p1 - p0, q1 - q0), dtype)
     for k in range(L, n if top else L + 1):
         u = 1 << (k - L)
         for x, ro, co in (("C", u, u), ("R", u, 0), ("K", 0, u)):
             a_lo = max(-(-(p0 - ro) // (2 * u)), 0)
             a_hi = (p1 - 1 - ro) // (2 * u)
-            if a_hi < a_lo:
+            b_lo = max(-(-(q0 - co) // (2 * u)), 0)
+            b_hi = (q1 - 1 - co) // (2 * u)
+            if a_hi < a_lo or b_hi < b_lo:
                 continue
-            rows = sa.read(f"{pre}{x}{k}", a_lo, a_hi + 1)
-            a_hi = a_lo + len(rows) - 1
-            out[ro + 2 * u * a_lo - p0:ro + 2 * u * a_hi - p0 + 1:2 * u, co::2 * u] = rows
+            rows = sa.read(f"{pre}{x}{k}", a_lo, a_hi + 1, b_lo, b_hi + 1)
+            a_hi, b_hi = a_lo + rows.shape[0] - 1, b_lo + rows.shape[1] - 1
+            out[ro + 2 * u * a_lo - p0:ro + 2 * u * a_hi - p0 + 1:2 * u,
+                co + 2 * u * b_lo - q0:co + 2 * u * b_hi - q0 + 1:2 * u] = rows
     return out
 
 
