@@ -200,7 +200,12 @@ def code_lut_nb(table, lut, x):
     a compare or two, where the binary search took eight unpredictable branches."""
     if x != x:
         return table.shape[0] - 1
-    c = np.int64(lut[np.float32(x).view(np.uint32) >> 16])
+    return _walk_up(table, np.int64(lut[np.float32(x).view(np.uint32) >> 16]), x)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _walk_up(table, c, x):
+    # from a prefix's code c (a lower bound) to the first entry ≥ x: a step at most
     while table[c] < x:  # table[-1] = +inf: never past it
         c += 1
     return c

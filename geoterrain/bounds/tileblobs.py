@@ -23,7 +23,7 @@ from numba import njit, prange
 from geoterrain.bounds.delta import grid_order
 from geoterrain.bounds.leafbounds import CentreHeights, centre_guess
 from geoterrain.bounds.normals import RingCodes
-from geoterrain.bounds.radii import _proxy_positions, _radii_nb, prefix_codes
+from geoterrain.bounds.radii import _proxy_positions, _radii_nb, _walk_up, code_lut_nb, prefix_codes
 from geoterrain.bounds.vertexdata import (
     CENTRES,
     DIFF,
@@ -255,13 +255,10 @@ def _code_delta32(delta, bits, t8, lut, dc):
     for i in prange(delta.shape[0]):
         for j in range(delta.shape[1]):
             x = np.float64(delta[i, j])
-            c = np.int64(lut[bits[i, j] >> 16])
             if x != x:  # NaN as +inf: the first +inf entry (a large e has several)
-                x = np.inf
-                c = np.int64(lut[0x7F80])
-            while t8[c] < x:  # t8[255] = +inf: never past it
-                c += 1
-            dc[i, j] = c
+                dc[i, j] = code_lut_nb(t8, lut, np.inf)
+            else:
+                dc[i, j] = _walk_up(t8, np.int64(lut[bits[i, j] >> 16]), x)
 
 
 @parallel_kernel(cache=True, nogil=True)

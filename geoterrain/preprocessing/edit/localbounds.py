@@ -567,19 +567,27 @@ class Bounds:
         those tiles are decoded and coded again, each blob only where its payload reads a
         changed code of its kind."""
         g, job = self.g, self.job
-        changed: dict = {}  # (i, j) → [δ code changed, r code changed]
+        # the vertices whose δ or r code changed, [δ changed, r changed] each: the
+        # window's as arrays, then the coarse vertices' (each against its stored code)
         wd, wr = self.dc != self.dc_old, self.rc != self.rc_old
-        for a, b in zip(*np.nonzero(wd | wr), strict=True):
-            changed[(int(a) + self.oi, int(b) + self.oj)] = [bool(wd[a, b]), bool(wr[a, b])]
-        for (i, j), code in self.coarse_d.items():
-            fd = code != self._old_code(i, j, "delta")
-            fr = self.coarse_r[(i, j)] != self._old_code(i, j, "radius")
-            if fd or fr:
-                got = changed.setdefault((i, j), [False, False])
-                got[0], got[1] = got[0] or fd, got[1] or fr
-        job.dirty.extend((i, j, i + 1, j + 1) for i, j in changed)
-        ij = np.array(list(changed), np.int64).reshape(-1, 2)
-        flags = np.array(list(changed.values()), bool).reshape(-1, 2)
+        a, b = np.nonzero(wd | wr)
+        ij = np.stack([a + self.oi, b + self.oj], axis=1).astype(np.int64)
+        flags = np.stack([wd[a, b], wr[a, b]], axis=1)
+        coarse = [(i, j, code != self._old_code(i, j, "delta"),
+                   self.coarse_r[(i, j)] != self._old_code(i, j, "radius"))
+                  for (i, j), code in self.coarse_d.items()]
+        coarse = [c for c in coarse if c[2] or c[3]]
+        if coarse:  # a vertex in both keeps its first place, its flags or-ed
+            c = np.array(coarse, np.int64).reshape(-1, 4)
+            ij = np.concatenate([ij, c[:, :2]])
+            flags = np.concatenate([flags, c[:, 2:].astype(bool)])
+            _, first, inv = np.unique(ij, axis=0, return_index=True, return_inverse=True)
+            inv = inv.reshape(-1)
+            merged = np.zeros((len(first), 2), bool)
+            np.logical_or.at(merged, inv, flags)
+            keep = np.sort(first)
+            ij, flags = ij[keep], merged[inv[keep]]
+        job.dirty.extend((i, j, i + 1, j + 1) for i, j in ij.tolist())
         need = blob_reach(g, ij[:, 0], ij[:, 1], flags[:, 0], flags[:, 1], job.derive_bounds)
         # the coarse vertices' new codes, as arrays
         cv = np.array(list(self.coarse_d), np.int64).reshape(-1, 2)
