@@ -635,7 +635,7 @@ class StoreReader:
             raise StoreError(f"{self.path}: store schema version {_show(version)}, this "
                              f"geoterrain reads version {SCHEMA_VERSION} (and "
                              f"{ROOTS_SCHEMA_VERSION} and {LATTICE_SCHEMA_VERSION}, root "
-                             f"grids; 17 to 19, written before); {REBUILD}")
+                             f"grids); {REBUILD}")
 
     def _foreign(self, why: str) -> StoreError:
         return StoreError(f"{self.path}: not a geoterrain store ({why}); refusing to read it")
