@@ -31,7 +31,7 @@ from functools import lru_cache
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from geoterrain.bounds.delta import _centre1, _edge_err, _mid1, saturate
 from geoterrain.bounds.radii import _nest, code_up_nb
@@ -43,6 +43,7 @@ from geoterrain.bounds.vertexdata import (
 from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.limits import BOX_STEP
 from geoterrain.core.rounding import round_up, round_up32
+from geoterrain.core.threads import cores_for, parallel_kernel
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -419,20 +420,39 @@ def _mids_pred_nb(z, valid, stand_in, rows, cols, sx, sy, T, table, a, off, code
 
 
 @njit(cache=True, nogil=True)
+def _alpha_score(base, cm, add, table, hist):
+    # Σ n log n of the counts of (code − guess) mod 256 at one a (larger: fewer bits of
+    # order-0 entropy), and the commonest difference
+    hist[:] = 0
+    for q in range(base.shape[0]):
+        hist[(cm[q] - code_up_nb(table, base[q] + add)) & 255] += 1
+    score = 0.0
+    top = 0
+    for b in range(256):
+        c = hist[b]
+        if c > 1:
+            score += c * math.log(c)
+        if c > hist[top]:
+            top = b
+    return score, top
+
+
+@parallel_kernel(cache=True, nogil=True)
 def _mids_alpha_nb(z, valid, stand_in, rows, cols, sx, sy, T, table, codes, a_out, off_out):
-    # each tile's a (even, 0 … 62) whose midpoint guesses leave the fewest bits of
-    # order-0 entropy (the largest Σ n log n of their differences' counts), and the
-    # commonest difference (the offset that makes it 0)
-    hist = np.zeros(256, np.int64)
-    for k in range(rows.shape[0]):
+    # each tile's a (0 … 63) whose midpoint guesses leave the fewest bits of order-0
+    # entropy, searched coarse to fine (every 8th, then ±4, ±2, ±1 around the best), and
+    # the commonest difference (the offset that makes it 0); tiles on every core, each
+    # its own scratch, so the choice does not depend on the cores
+    h = (T - 1) // 2
+    nm = T * T - (h + 1) * (h + 1) - h * h  # the edge midpoints
+    for k in prange(rows.shape[0]):
         r0, c0 = rows[k], cols[k]
         sxx = sx[k] * sx[k]
         syy = sy[k] * sy[k]
         step = min(sx[k], sy[k]) * 0.0625
-        h = (T - 1) // 2
-        nm = T * T - (h + 1) * (h + 1) - h * h  # the edge midpoints
         base = np.empty(nm)
         cm = np.empty(nm, np.int64)
+        hist = np.zeros(256, np.int64)
         m = 0
         for i in range(T):
             for j in range(1 - (i & 1), T, 2):
@@ -440,21 +460,17 @@ def _mids_alpha_nb(z, valid, stand_in, rows, cols, sx, sy, T, table, codes, a_ou
                 cm[m] = codes[k, i, j]
                 m += 1
         best, best_a, best_off = -1.0, 0, 0
-        for a in range(0, 64, 2):
-            hist[:] = 0
-            add = np.float64(a) * step
-            for q in range(nm):
-                hist[(cm[q] - code_up_nb(table, base[q] + add)) & 255] += 1
-            score = 0.0
-            top = 0
-            for b in range(256):
-                c = hist[b]
-                if c > 1:
-                    score += c * math.log(c)
-                if c > hist[top]:
-                    top = b
+        for a in range(0, 64, 8):
+            score, top = _alpha_score(base, cm, np.float64(a) * step, table, hist)
             if score > best:
                 best, best_a, best_off = score, a, top
+        for d in (4, 2, 1):
+            centre = best_a
+            for a in (centre - d, centre + d):
+                if 0 <= a < 64:
+                    score, top = _alpha_score(base, cm, np.float64(a) * step, table, hist)
+                    if score > best:
+                        best, best_a, best_off = score, a, top
         a_out[k] = best_a
         off_out[k] = best_off
 
@@ -471,12 +487,13 @@ def mids_residuals(c: CentreHeights, origins: np.ndarray, T: int, e: int,
     largest distance √(s² + Δz²) to the diamond's corners (the tile's neighbours of it; s
     the tile's spacing from its box as :func:`centre_guess` takes it; a neighbour outside
     the tile or at its corner counts Δz = 0): its guess is the code of that distance plus
-    a · min(sx, sy) / 16, plus ``off`` codes (a and off chosen per tile, the most zeros
-    of order-0 entropy). A cell centre's children are its four edge midpoints, in the
-    tile: its guess is the code of the nesting max √(s² + Δz²) + r(m) over their decoded
-    codes, which the stored r exceeds only by the curvilinear terms (seed 002 §2.4). The
-    payload holds (guess − code) mod 256, midpoints first, then centres, each in raster
-    order: a wrong guess costs bytes, never exactness (:func:`mids_codes` inverts it).
+    a · min(sx, sy) / 16, plus ``off`` codes (a, 0 … 63, and off chosen per tile: the
+    least order-0 entropy of the differences, searched coarse to fine). A cell centre's
+    children are its four edge midpoints, in the tile: its guess is the code of the
+    nesting max √(s² + Δz²) + r(m) over their decoded codes, which the stored r exceeds
+    only by the curvilinear terms (seed 002 §2.4). The payload holds (guess − code) mod
+    256, midpoints first, then centres, each in raster order: a wrong guess costs bytes,
+    never exactness (:func:`mids_codes` inverts it).
 
     Examples
     --------
@@ -496,7 +513,8 @@ def mids_residuals(c: CentreHeights, origins: np.ndarray, T: int, e: int,
     z, v = np.asarray(c.z, np.float64), np.asarray(c.valid, np.uint8)
     rows, cols = np.ascontiguousarray(o[:, 0]), np.ascontiguousarray(o[:, 1])
     table = _table(e)
-    _mids_alpha_nb(z, v, float(c.stand_in), rows, cols, sx, sy, T, table, w, a, off)
+    with cores_for(w.size):
+        _mids_alpha_nb(z, v, float(c.stand_in), rows, cols, sx, sy, T, table, w, a, off)
     h = (T - 1) // 2
     res = np.zeros((len(o), 3 * h * h + 2 * h), np.uint8)
     _mids_pred_nb(z, v, float(c.stand_in), rows, cols, sx, sy, T, table, a, off, w, res,
