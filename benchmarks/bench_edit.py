@@ -118,16 +118,25 @@ def process(args: list, tree: str | None = None, cwd: str | None = None) -> dict
 
 def cli_edit(store: str, cut: str, a, work: str, run: int, tree: str | None = None) -> dict:
     """One `geoterrain edit` process on a fresh copy of ``store`` (a window of run ``run``)."""
+    import sqlite3
+
     import numpy as np
 
-    import geoterrain
+    from geoterrain.store.catalog import META_ID, unpack_metadata
 
     p = os.path.join(work, "cli.geoterrain")
     shutil.copy(store, p)
     os.sync()
     rng = np.random.default_rng(1000 + a.seed + run)
-    with geoterrain.open(p) as t:
-        rows, cols = t.grid.rows, t.grid.cols
+    # the grid's shape from the metadata row alone: a baseline tree's store may be in a
+    # schema this tree refuses (another commit's format)
+    con = sqlite3.connect(f"file:{p}?mode=ro", uri=True)
+    try:
+        (data,) = con.execute("SELECT data FROM catalog WHERE id = ?", (META_ID,)).fetchone()
+    finally:
+        con.close()
+    grid = unpack_metadata(data)["grid"]
+    rows, cols = int(grid["rows"]), int(grid["cols"])
     at = f"{int(rng.integers(0, rows - a.window))},{int(rng.integers(0, cols - a.window))}"
     try:
         return process([sys.executable, "-c", CLI, "-q", "edit", p, "--patch", cut, "--mode",

@@ -323,6 +323,7 @@ class Terrain:
             tile_centre_guess,
             tile_centre_radius,
             tile_leaf_bounds,
+            tile_mids_codes,
         )
         from geoterrain.bounds.vertexdata import DIFF, NEW_ONLY, PRED, VERSION_2, decode_bounds
 
@@ -367,9 +368,16 @@ class Terrain:
             out[::2, ::2] = parent[(y & 1) * h: (y & 1) * h + h + 1,
                                    (x & 1) * h: (x & 1) * h + h + 1]
             return out
-        # a CENTRES PRED blob (a geographic level-0 r): its centres from the heights' guess
-        guess = ((lambda e: tile_centre_guess(self, key, e)) if L == 0 and stored == "radius"
-                 and key in self.tile_info else None)
+        # a CENTRES PRED blob (a geographic level-0 r): its centres from the heights' guess;
+        # a MIDS PRED one (a geographic r above level 0, schema 20): every new vertex
+        guess = None
+        if stored == "radius" and key in self.tile_info:
+            def guess(e, *payload):
+                if (L == 0) != (not payload):
+                    raise ValueError("a level-0 r guesses its centres, a coarser one its mids")
+                if not payload:
+                    return tile_centre_guess(self, key, e)
+                return tile_mids_codes(self, key, e, *payload)
         try:
             out = decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base, guess)
         except (ValueError, zstandard.ZstdError):

@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit, prange
 
 from geoterrain.bounds.delta import grid_order
-from geoterrain.bounds.leafbounds import CentreHeights, centre_guess
+from geoterrain.bounds.leafbounds import CentreHeights, centre_guess, mids_residuals
 from geoterrain.bounds.normals import RingCodes
 from geoterrain.bounds.radii import _proxy_positions, _radii_nb, _walk_up, code_lut_nb, prefix_codes
 from geoterrain.bounds.vertexdata import (
@@ -395,7 +395,7 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
                 tiles: Iterable[tuple[int, int]], kinds=("delta", "radius", "normals"),
                 ring: bool | tuple[str, ...] = False, base: BoundsCoding | None = None,
                 slack: dict | None = None, mids: bool = False,
-                centres: CentreHeights | None = None
+                centres: CentreHeights | None = None, heights: CentreHeights | None = None
                 ) -> tuple[dict, np.ndarray, np.ndarray]:
     """The δ, r and normals blobs of the stored tiles ``(x, y)`` of one level.
 
@@ -420,7 +420,11 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     geographic store: the level's heights, the stand-in height and the tiles' boxes):
     an r blob of ``CENTRES`` shape holds its centres as differences from their guess
     from the heights (flags ``CENTRES`` and ``PRED``,
-    :func:`geoterrain.bounds.leafbounds.centre_guess`).
+    :func:`geoterrain.bounds.leafbounds.centre_guess`). ``heights`` (a geographic store's
+    level above 0 and below the top: the level's heights, in the lattice the tiles are
+    indexed in, and their boxes): every ``PRED`` r blob holds its new vertices as
+    differences from their guesses from the heights instead (flags ``MIDS`` and ``PRED``,
+    :func:`geoterrain.bounds.leafbounds.mids_residuals`; schema 20).
 
     Examples
     --------
@@ -491,11 +495,15 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         pr = pr[:, pos]
         head_r = bytes([head_r[0], head_r[1] | MIDS, head_r[2]])
     elif new_only and k and T >= 3 and rlog and "radius" in kinds and not flags_r & RING:
-        pr, head_r = _shaped(pr, head_r, _windows(coding.rc, xy, t, level))
+        win = _windows(coding.rc, xy, t, level)
+        pr, head_r = _shaped(pr, head_r, win)
         if centres is not None:
             pr, head_r = _guessed(pr, head_r, centres, xy, t, level, int(coding.er))
-    elif centres is not None:
-        raise ValueError("guessed centres are for a level-0 r in log8 codes, not a ring")
+        if heights is not None:
+            pr, head_r = _mids_guessed(pr, head_r, heights, xy, t, int(coding.er), win)
+    elif centres is not None or heights is not None:
+        raise ValueError("guessed r vertices are for r in log8 codes below the top, not a "
+                         "ring")
     rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
     blobs = {kind: dict(zip(keys, _compress_shaped(*rows[kind]), strict=True))
              for kind in kinds}
@@ -556,6 +564,26 @@ def _guessed(rows: list[np.ndarray], heads: list[bytes], c: CentreHeights, xy: n
     for q, n in enumerate(idx):
         rows[n] = g[q].ravel() - np.asarray(rows[n], np.uint8)  # uint8: mod 256
         heads[n] = bytes([heads[n][0], heads[n][1] | PRED, *heads[n][2:]])
+    return rows, heads
+
+
+def _mids_guessed(rows: list[np.ndarray], heads: list[bytes], c: CentreHeights,
+                  xy: np.ndarray, t: int, e: int, windows: np.ndarray
+                  ) -> tuple[list[np.ndarray], list[bytes]]:
+    # schema 20: each PRED r payload above level 0 (a geographic store's) as every new
+    # vertex's (guess − code) mod 256, the guesses from the level's heights
+    # (leafbounds.mids_residuals), flagged MIDS and PRED, a and off after the exponent
+    idx = [n for n, h in enumerate(heads) if h[1] & PRED]
+    if not idx:
+        return rows, heads
+    origins = np.stack([xy[idx, 1] << t, xy[idx, 0] << t], axis=1)
+    res, a, off = mids_residuals(c._replace(boxes=np.asarray(c.boxes, np.float64)[idx]),
+                                 origins, (1 << t) + 1, e, windows[idx])
+    rows, heads = list(rows), list(heads)
+    for q, n in enumerate(idx):
+        rows[n] = res[q]
+        heads[n] = bytes([heads[n][0], heads[n][1] | MIDS, heads[n][2], int(a[q]),
+                          int(off[q])])
     return rows, heads
 
 

@@ -53,7 +53,12 @@ heights and its tile-table box (:func:`geoterrain.bounds.leafbounds.centre_guess
 products, sums and square roots only, so any reader gets the writer's guess bit for
 bit); the decode needs ``guess(e)``. ``CENTRES``, ``PRED`` and ``RING`` payloads are
 compressed at zstd level :data:`SHAPED_ZSTD_LEVEL` (11), the others at 3: any zstd
-decoder reads either.
+decoder reads either. ``MIDS`` and ``PRED`` together (schema 20, issue 51; a geographic
+store's r above level 0, ``NEW_ONLY`` log8, no other flag): two header bytes ``a``, ``off``
+follow the exponent, then every new vertex's (guess − code) mod 256, the edge midpoints
+first, guessed from the tile's heights, then the cell centres, guessed by the nesting over
+their decoded midpoints (:func:`geoterrain.bounds.leafbounds.mids_residuals`); the decode
+needs ``guess(e, a, off, payload)``, the tile's (T, T) codes.
 """
 
 from __future__ import annotations
@@ -143,7 +148,9 @@ def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None
     result (those values, and each cell centre's derived). A ``DIFF`` blob needs ``base``:
     the tile's decoded δ, whose codes its payload is added to. A ``CENTRES`` ``PRED`` blob
     (a geographic level-0 r) needs ``guess(e)``: the (h, h) codes its centres are
-    predicted by (:func:`geoterrain.bounds.leafbounds.centre_guess`)."""
+    predicted by (:func:`geoterrain.bounds.leafbounds.centre_guess`); a ``MIDS`` ``PRED``
+    blob (a geographic r above level 0) ``guess(e, a, off, payload)``: the tile's (T, T)
+    codes (:func:`geoterrain.bounds.leafbounds.mids_codes`)."""
     if len(blob) >= 1 and blob[0] == VERSION_2:
         return _decode_v2(blob, shape, parent, parity, derive, base, guess)
     if len(blob) < 2 or blob[0] != VERSION:
@@ -439,27 +446,36 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         raise ValueError("not a bounds blob of a known version")
     flags, e = blob[1], int(np.int8(np.uint8(blob[2])))
     guessed = flags & (CENTRES | PRED) == CENTRES | PRED  # schema 17: centres from heights
+    # schema 20: a geographic r above level 0, every new vertex from the heights' guess
+    mguessed = flags & (MIDS | PRED) == MIDS | PRED
+    if mguessed and (flags & (RING | DIFF | SLACK | CENTRES) or not flags & NEW_ONLY
+                     or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1]
+                     or shape[0] < 3 or shape[0] % 2 == 0 or guess is None
+                     or len(blob) < 5 or parent is None
+                     or np.shape(parent) != tuple(shape)):
+        raise ValueError("a guessed mids bounds blob needs a square tile's new log8 codes, "
+                         "its heights and its parent's values")
     if guessed and (flags & (RING | DIFF | SLACK | MIDS) or not flags & NEW_ONLY
                     or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1]
                     or shape[0] < 3 or shape[0] % 2 == 0 or guess is None):
         raise ValueError("a guessed centres bounds blob needs a square level-0 tile's new "
                          "log8 codes and its heights")
-    if flags & PRED and not guessed and (flags & (RING | DIFF | SLACK | CENTRES | MIDS)
-                                         or not flags & NEW_ONLY
-                         or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1]
-                         or shape[0] < 3 or shape[0] % 2 == 0 or parent is None
-                         or np.shape(parent) != tuple(shape)):
+    if flags & PRED and not guessed and not mguessed and (
+            flags & (RING | DIFF | SLACK | CENTRES | MIDS) or not flags & NEW_ONLY
+            or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1]
+            or shape[0] < 3 or shape[0] % 2 == 0 or parent is None
+            or np.shape(parent) != tuple(shape)):
         raise ValueError("a predicted bounds blob needs a square tile's new log8 codes and "
                          "its parent's values")
-    if flags & MIDS and (flags & (RING | DIFF | SLACK | CENTRES) or not flags & LOG8
-                         or len(shape) != 2 or shape[0] != shape[1] or shape[0] < 3
-                         or derive is None):
+    if flags & MIDS and not mguessed and (
+            flags & (RING | DIFF | SLACK | CENTRES) or not flags & LOG8
+            or len(shape) != 2 or shape[0] != shape[1] or shape[0] < 3 or derive is None):
         raise ValueError("a mids bounds blob needs a square tile's log8 codes and its heights")
     if flags & CENTRES and (flags & (RING | DIFF | SLACK) or not flags & NEW_ONLY
                             or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1]
                             or shape[0] < 3):
         raise ValueError("a centres bounds blob needs a square tile's new log8 codes")
-    body, slack = blob[3:], 0.0
+    body, slack = (blob[5:] if mguessed else blob[3:]), 0.0
     if flags & SLACK:  # a float32 after the exponent: only on a ring δ
         if not (flags & RING and flags & LOG8) or len(blob) < 7:
             raise ValueError("a slack needs a ring of log8 codes")
@@ -480,6 +496,8 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         n = len(rr)
     elif flags & CENTRES:
         n = ((T - 1) // 2) ** 2
+    elif mguessed:
+        n = len(keep)
     elif flags & MIDS:
         n = len(mids_index(T, bool(flags & NEW_ONLY)))
     else:
@@ -494,6 +512,11 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         codes = np.zeros(len(keep), np.uint8)
         codes[_shape_index(T)[0]] = g.ravel() - np.frombuffer(raw, np.uint8)  # mod 256
         vals = _log8_table_ro(e)[codes]
+    elif mguessed:  # midpoints, then centres, from the heights' guesses (header: a, off)
+        codes = np.asarray(guess(e, blob[3], blob[4], np.frombuffer(raw, np.uint8)), np.uint8)
+        if codes.shape != (T, T):
+            raise ValueError("a mids guess of the wrong shape")
+        vals = _log8_table_ro(e)[codes.ravel()[keep]]
     elif flags & PRED:  # each code from its parents' (the parent tile's corners first)
         half = (T - 1) // 2
         px, py = int(parity[0]) & 1, int(parity[1]) & 1
@@ -516,7 +539,7 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         h = np.frombuffer(raw, np.uint8).reshape(2, n).T.copy().view(np.float16).ravel()
         vals = round_up(h.astype(np.float64) * 2.0**e, np.float32)
     out = np.empty(shape, np.float32)
-    if flags & MIDS:  # the midpoints as stored, the centres derived from them
+    if flags & MIDS and not mguessed:  # the midpoints as stored, the centres derived
         mids = np.zeros(shape, np.float32)
         mids.ravel()[mids_index(T, bool(flags & NEW_ONLY))] = vals
         out[:] = derive(None, None, mids, True, e, 0.0)

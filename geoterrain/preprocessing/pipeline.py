@@ -516,11 +516,19 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
         if not keys:
             continue
         # every level's rings: the rest is derived from the heights on read
-        centres = None
-        if guess and L == 0:
+        centres = heights = None
+        if guess and L < grid.top_level:
+            # level 0's r centres, and above it every r vertex (schema 20), as differences
+            # from their guesses from the level's heights
             boxes = np.array([[tiles[k].xmin, tiles[k].xmax, tiles[k].ymin, tiles[k].ymax]
                               for k in keys], np.float64)
-            centres = CentreHeights(Z, valid.view(np.uint8), stand_in, boxes)
+            sl = np.s_[::1 << L, ::1 << L]
+            if L == 0:
+                centres = CentreHeights(Z, valid.view(np.uint8), stand_in, boxes)
+            else:
+                heights = CentreHeights(np.ascontiguousarray(Z[sl]),
+                                        np.ascontiguousarray(valid[sl]).view(np.uint8),
+                                        stand_in, boxes)
         blobs, dmax, rmax = level_blobs(coding, no_map if derive_normals else normal_maps[L],
                                         grid.t, L, grid.top_level,
                                         [(x, y) for _, x, y in keys],
@@ -529,7 +537,7 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
                                         ring=b.ring_kinds if L == 0 else False,
                                         slack=b.slack if L == 0 else None,
                                         mids=L > 0 and "radius" in b.ring_kinds,
-                                        centres=centres)
+                                        centres=centres, heights=heights)
         if derive_normals:
             guess_n = None
             if ring_residual:  # each ring as its difference from the reader's derived map

@@ -513,11 +513,13 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                 local = [(x - x0, 0) for x in keys]
                 if keys:  # every level's normals: the border ring (derive_normals)
                     centres = None
-                    if stand_in is not None and L == 0:
-                        # a geographic level-0 r's centres guessed from the heights
+                    if stand_in is not None and not is_top:
+                        # a geographic level-0 r's centres guessed from the heights, and
+                        # above level 0 every r vertex (schema 20; the coarser levels'
+                        # heights too, but the root tiles' corners, which no guess reads)
                         inw = (row_keys >= x0) & (row_keys < x1)
                         rows_k = stored.rows[order[i:j]][inw]
-                        zl = level_lattice(sa, "Z", 0, n, p0, p1, m, False, np.float64,
+                        zl = level_lattice(sa, "Z", L, n, p0, p1, m, L > 0, np.float64,
                                            q0, q1)
                         centres = CentreHeights(zl, np.ones(zl.shape, np.uint8), stand_in,
                                                 rows_k[:, 5:9].astype(np.float64))
@@ -528,7 +530,9 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                         ring=ring if L == 0 else False,
                         slack={(0, x - x0, 0): slack[(x, y)] for x in keys
                                if (x, y) in slack} if L == 0 and slack else None,
-                        mids=L > 0 and "radius" in ring, centres=centres)
+                        mids=L > 0 and "radius" in ring,
+                        centres=centres if L == 0 else None,
+                        heights=centres if L > 0 else None)
                     del centres
                     if derive_normals:
                         guess_n = (None if frame is None else

@@ -99,7 +99,7 @@ from geoterrain.store.pagepack import LEAF_HEADER, blob_cell_sizes, pack_order
 
 _KIND_NAMES = {i: k for k, i in KIND_CODES.items()}  # a blob key's kind number → its name
 
-SCHEMA_VERSION = 17  # 2: checksums bound to their tile and kind; per-level key digests;
+# the schema's history, 2: checksums bound to their tile and kind; per-level key digests;
 #                    3: packed integer keys, bare blob rows found through blob_keys;
 #                    4: metadata, tile numbers and blob keys in compressed catalog rows;
 #                    5: height blobs of version 2 (range-coded, geoterrain/codec/entropy.py);
@@ -117,12 +117,16 @@ SCHEMA_VERSION = 17  # 2: checksums bound to their tile and kind; per-level key 
 #                       from their guess from the heights (vertexdata.CENTRES with PRED),
 #                       and the normals' border rings as differences from the tile's
 #                       derived map (metadata normals_ring_residual)
-ROOTS_SCHEMA_VERSION = 18  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
-#                            9 before schema 10, 11 before 12, 13 before 14, 15 before 17
-LATTICE_SCHEMA_VERSION = 19  # a root grid whose geographic frame has proxy positions past
+#                   20: a geographic r above level 0 as differences from guesses from the
+#                       tile's heights (vertexdata.MIDS with PRED)
+SCHEMA_VERSION = 20
+ROOTS_SCHEMA_VERSION = 21  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
+#                            9 before schema 10, 11 before 12, 13 before 14, 15 before 17,
+#                            18 before 20
+LATTICE_SCHEMA_VERSION = 22  # a root grid whose geographic frame has proxy positions past
 #                              level 0's lattice (frame.lattice, Frame.xy): an older
 #                              reader would place its padding by pyproj, not where its
-#                              bounds were computed (16 before schema 17)
+#                              bounds were computed (16 before schema 17, 19 before 20)
 #: every version this geoterrain reads
 SCHEMA_VERSIONS = (SCHEMA_VERSION, ROOTS_SCHEMA_VERSION, LATTICE_SCHEMA_VERSION)
 
@@ -137,10 +141,10 @@ def schema_version(grid: dict, frame: dict | None = None) -> int:
     Examples
     --------
     >>> schema_version({"rows": 9, "cols": 9, "n": 3, "t": 2})
-    17
+    20
     >>> roots = {"layout": "roots"}
     >>> schema_version(roots), schema_version(roots, {"lattice": [9, 17]})
-    (18, 19)
+    (21, 22)
     """
     if isinstance(frame, dict) and frame.get("lattice") is not None:
         return LATTICE_SCHEMA_VERSION
@@ -631,7 +635,7 @@ class StoreReader:
             raise StoreError(f"{self.path}: store schema version {_show(version)}, this "
                              f"geoterrain reads version {SCHEMA_VERSION} (and "
                              f"{ROOTS_SCHEMA_VERSION} and {LATTICE_SCHEMA_VERSION}, root "
-                             f"grids; 14 to 16, written before); {REBUILD}")
+                             f"grids); {REBUILD}")
 
     def _foreign(self, why: str) -> StoreError:
         return StoreError(f"{self.path}: not a geoterrain store ({why}); refusing to read it")

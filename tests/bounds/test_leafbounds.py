@@ -195,6 +195,14 @@ def test_geographic_stores_derive_level0_delta_with_a_slack(tmp_path_factory, se
     assert ring.grid.top_level == 0 or any(ring._blob(k, "radius")[1] & both == both
                                            for k in ring.tile_info if k[0] == 0)
     assert not any(full._blob(k, "radius")[1] & both == both for k in full.tile_info)
+    # schema 20: above level 0 every r vertex as differences from its guess from the
+    # heights (MIDS with PRED); the store that keeps every bound has none
+    mp = MIDS | PRED
+    above = [ring._blob(k, "radius")[1] for k in ring.tile_info
+             if 0 < k[0] < ring.grid.top_level]
+    assert all(f & mp == mp or f & CENTRES for f in above) and (not above or any(
+        f & mp == mp for f in above))
+    assert not any(full._blob(k, "radius")[1] & mp == mp for k in full.tile_info)
     assert (ring.grid.top_level == 0
             or {bool(ring._blob(k, "delta")[1] & RING) for k in ring.tile_info
                 if k[0] == 0} == {True})

@@ -128,9 +128,9 @@ def test_the_frame_s_json_keeps_the_lattice_and_omits_none():
 
 
 def test_a_store_past_its_lattice_records_it_and_only_that_one(tmp_path):
-    """A geographic root grid whose extent passes its lattice: schema 19 and the frame's
+    """A geographic root grid whose extent passes its lattice: schema 22 and the frame's
     lattice (the grid's level-0 shape); the same raster projected, and a geographic one
-    that fills its roots, keep schema 18 / 17 and no lattice."""
+    that fills its roots, keep schema 21 / 20 and no lattice."""
     from geoterrain.store.database import (
         LATTICE_SCHEMA_VERSION,
         ROOTS_SCHEMA_VERSION,

@@ -109,7 +109,7 @@ def test_a_square_raster_keeps_the_square_store(tmp_path):
 
 def test_the_root_grid_is_the_default_and_the_square_an_option(tmp_path):
     """No argument, ``root_grid=True`` and ``--root-grid`` write the same root-grid store
-    (schema 18); ``root_grid=False`` and ``--square-grid`` the square (schema 17), as the
+    (schema 21); ``root_grid=False`` and ``--square-grid`` the square (schema 20), as the
     stores before root grids were."""
     from click.testing import CliRunner
 
