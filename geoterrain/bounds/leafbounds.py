@@ -819,10 +819,16 @@ def ring_guesses(grid, frame, level: int, tiles: list[tuple[int, int]], z: np.nd
     o = np.asarray(origins, np.int64).reshape(-1, 2)
     out = np.empty((len(o), len(ring[0]), 2), np.uint8 if bits == 8 else np.uint16)
     if frame.kind != "geographic":  # x by column, y by row: broadcast, no T² copies
-        axes = [normal_axes(lay, level, x, y) for x, y in tiles]
-        xs = np.array([a[0] for a in axes]).reshape(-1, T)
-        ys = np.array([a[1] for a in axes]).reshape(-1, T)
+        # every tile's axes in one call (normal_axes' values: X of a column and Y of a row
+        # are element-wise affine maps, the same bits whatever the array they are in)
         k = len(o)
+        txy = np.asarray(tiles, np.int64).reshape(-1, 2)
+        idx = np.arange(T)
+        cols = ((txy[:, 0, None] << grid.t) + idx) << level
+        rows = ((txy[:, 1, None] << grid.t) + idx) << level
+        zero = np.zeros(1, np.int64)  # normal_axes' row 0 for X, column 0 for Y
+        xs = frame.axis_xy(zero, cols.ravel())[0][0].reshape(-1, T)
+        ys = frame.axis_xy(rows.ravel(), zero)[1][:, 0].reshape(-1, T)
         return ring_guess(z, valid, np.broadcast_to(xs[:, None, :], (k, T, T)),
                           np.broadcast_to(ys[:, :, None], (k, T, T)), ring, bits, o)
     for a in range(0, len(o), chunk):

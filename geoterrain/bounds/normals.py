@@ -35,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from geoterrain.core.threads import forked, parallel_kernel, serial_twin
+from geoterrain.core.threads import cores_for, forked, parallel_kernel, serial_twin
 
 __all__ = [
     "normal_map",
@@ -807,23 +807,25 @@ def ring_guess(z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray,
     o = np.asarray(origins, np.int64).reshape(-1, 2)
     out = np.empty((len(o), len(rr), 2), np.uint8 if bits == 8 else np.uint16)
     if len(o):
-        _ring_guess_nb(np.asarray(z, np.float64), np.asarray(valid, np.bool_), x, y,
-                       np.ascontiguousarray(o[:, 0]), np.ascontiguousarray(o[:, 1]),
-                       np.asarray(rr, np.int64), np.asarray(cc, np.int64),
-                       float((1 << bits) - 1), out)
+        with cores_for(len(o) * T * T):  # tiles on every core (a few: on this thread)
+            _ring_guess_nb(np.asarray(z, np.float64), np.asarray(valid, np.bool_), x, y,
+                           np.ascontiguousarray(o[:, 0]), np.ascontiguousarray(o[:, 1]),
+                           np.asarray(rr, np.int64), np.asarray(cc, np.int64),
+                           float((1 << bits) - 1), out)
     return out
 
 
-@njit(cache=True, nogil=True)
+@parallel_kernel(cache=True, nogil=True)
 def _ring_guess_nb(z, valid, X, Y, r0, c0, rr, cc, fm, out):  # pragma: no cover - compiled
     # _normals_nb's branch off the straight-line case (a border sample never takes it),
     # then _encode_oct_nb's rounding, at the ring's samples of each tile only; the mask
-    # (_valid_finite_nb's) only where a ring's tangents read it: within one of the border
+    # (_valid_finite_nb's) only where a ring's tangents read it: within one of the border.
+    # Tiles on every core, each with scratch of its own (each tile's codes alone)
     n = r0.shape[0]
     T0, T1 = X.shape[1], X.shape[2]
-    buf = np.empty((1, 1, 3), np.float32)
-    vv = np.zeros((T0, T1), np.bool_)
-    for k in range(n):
+    for k in prange(n):
+        buf = np.empty((1, 1, 3), np.float32)
+        vv = np.zeros((T0, T1), np.bool_)
         zk = z[r0[k]:r0[k] + T0, c0[k]:c0[k] + T1]
         vk = valid[r0[k]:r0[k] + T0, c0[k]:c0[k] + T1]
         xk, yk = X[k], Y[k]

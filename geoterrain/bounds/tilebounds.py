@@ -106,6 +106,9 @@ def _level_blocks_nb(z, vf, s, cpt, all_valid, bm, hl, vl, mixed):
             d1 = min(s, r1 - ci * s)
             i0 = ci * s
             own = r0 <= i0 < r1  # the band that holds the cell's first row marks it
+            if all_valid and s == 2:  # level 1: a row of cells a sample row at a time
+                _cells2_rows_nb(z, i0, r0, ci, ncc, d0, d1, Eb)
+                continue
             for cj in range(ncc):
                 j0 = cj * s
                 main = main_diagonal_nb(ci, cj)
@@ -144,6 +147,31 @@ def _level_blocks_nb(z, vf, s, cpt, all_valid, bm, hl, vl, mixed):
             hl[bi, bj] = top
             if bi == nbr - 1:
                 hl[nbr, bj] = bottom
+
+
+@njit(cache=True, nogil=True)
+def _cells2_rows_nb(z, i0, r0, ci, ncc, d0, d1, Eb):
+    """Rows d0 … d1 of every cell of side 2 in cell row ``ci`` (first grid row ``i0``),
+    all valid, maxed into the band field ``Eb`` (its row 0 is grid row ``r0``):
+    :func:`cell_field_rows_nb`'s values, a sample row across the cells at a time (no call
+    and no slices a cell)."""
+    inv = 1.0 / 2
+    for di in range(d0, d1 + 1):
+        fi = di * inv
+        er = Eb[i0 + di - r0]
+        zr = z[i0 + di]
+        for cj in range(ncc):
+            j0 = 2 * cj
+            main = main_diagonal_nb(ci, cj)
+            b1, g1, b2, g2 = cell_rows_nb(z[i0, j0], z[i0, j0 + 2], z[i0 + 2, j0],
+                                          z[i0 + 2, j0 + 2], fi, inv, main)
+            cut = di if main else 2 - di + 1
+            for dj in range(3):
+                if dj < cut:
+                    e = abs(zr[j0 + dj] - (b1 + g1 * dj))
+                else:
+                    e = abs(zr[j0 + dj] - (b2 + g2 * dj))
+                er[j0 + dj] = max(er[j0 + dj], e)
 
 
 @njit(cache=True, nogil=True)
@@ -397,6 +425,7 @@ def tile_errors(
 def tile_and_block_errors(
     z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray, t: int = 6,
     span: int | None = None, counts: list[np.ndarray] | None = None,
+    fields: dict | None = None,
 ) -> tuple[dict[tuple[int, int, int], TileBounds], np.ndarray]:
     """Error bounds of every stored tile ``(L, x, y)`` of the pyramid (docs/conventions.md),
     and every GeoMipMapping block's exact δ_n.
@@ -427,7 +456,9 @@ def tile_and_block_errors(
     (:attr:`geoterrain.core.grid.Grid.extent`), each root a pyramid of its own whose
     top level is the grid's (the blocks (down, across, n_max + 1)).
     ``counts``: :func:`geoterrain.core.grid.footprint_counts` of ``valid`` when the caller
-    has them (the height codec reads them too), else computed here.
+    has them (the height codec reads them too), else computed here. ``fields``: the levels'
+    fields reduced by :func:`geoterrain.bounds.delta.vertex_errors_fields` on the same ``z``,
+    ``valid``, ``span`` and ``t`` (an all-valid grid, made in δ's sweep), not swept again.
 
     Examples
     --------
@@ -465,7 +496,10 @@ def tile_and_block_errors(
             s = 1 << L
             bm, hl = np.empty((nbr, nbc)), np.empty((nbr + 1, nbc))
             vl, mixed = np.empty((nbr, nbc + 1)), np.zeros(((R - 1) // s, (C - 1) // s), bool)
-            _level_blocks_nb(zf, vb, s, cpt, all_valid, bm, hl, vl, mixed)
+            if fields is not None and L in fields:  # made in δ's sweep: every sample valid
+                bm, hl, vl = fields[L]
+            else:
+                _level_blocks_nb(zf, vb, s, cpt, all_valid, bm, hl, vl, mixed)
             g = 1 << L
             err = bm.reshape(ntr, g, ntc, g).max(axis=(1, 3))
             m4 = mixed.reshape(ntr, cpt, ntc, cpt)

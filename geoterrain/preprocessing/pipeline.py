@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from geoterrain.bounds.curvature import metric_bounds, metric_terms
-from geoterrain.bounds.delta import delta_max_finite, saturate, vertex_errors
+from geoterrain.bounds.delta import delta_max_finite, saturate, vertex_errors_fields
 from geoterrain.bounds.edgepad import (
     edge_deltas,
     edge_only_tiles,
@@ -231,7 +231,9 @@ def preprocess(
         # valid samples per tile footprint: the tile table's and the height codec's
         counts = footprint_counts(surface.valid, dem.grid.t, dem.grid.top_level)
         tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
-                                              dem.grid.t, span=dem.grid.span, counts=counts)
+                                              dem.grid.t, span=dem.grid.span, counts=counts,
+                                              fields=bounds.fields)
+        bounds.fields = None
         across, down = dem.grid.tiles(0)
         blocks = blocks[:down, :across]  # a root grid's extent holds more than its tiles
         stage("tile bounds")
@@ -405,6 +407,7 @@ class VertexBounds:
     terms: tuple | None
     delta_before: np.ndarray | None
     derive: bool = False  # the store derives what it can on read (derive_bounds)
+    fields: dict | None = None  # the tile bounds' level fields made in δ's sweep
 
 
 def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool, stage: StageClock
@@ -413,7 +416,8 @@ def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool, stage: StageClock
     L50–52) as the 8-bit log codes they are stored as; on a geographic frame, both made
     to hold in the scene's metric x, y (:mod:`geoterrain.bounds.curvature`)."""
     frame, grid, valid = dem.frame, dem.grid, s.valid
-    delta = vertex_errors(s.Z, valid, span=grid.span)
+    # δ, and in the same sweep the tile bounds' level fields of an all-valid grid
+    delta, fields = vertex_errors_fields(s.Z, valid, span=grid.span, t=grid.t)
     stage("errors")
     terms = radius = None
     if frame.kind == "geographic":  # curvilinear grid: δ and r that hold in scene x/y
@@ -435,7 +439,7 @@ def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool, stage: StageClock
     del radius
     stage("radii")
     return VertexBounds(delta, r_codes, ring_kinds, slack, terms, delta_before,
-                        derive_bounds)
+                        derive_bounds, fields)
 
 
 @dataclass

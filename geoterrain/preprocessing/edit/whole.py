@@ -132,7 +132,8 @@ def whole_plan(terrain: TerrainLike, heights: np.ndarray, valid: np.ndarray,
     clock = StageClock(("errors", "radii"), None)
     bounds = vertex_bounds(dem, s, derive_bounds and g.tile_samples >= 3 and g.top_level > 0,
                            clock)
-    tiles, blocks = tile_and_block_errors(Z, valid, X, Y, g.t, span=g.span)
+    tiles, blocks = tile_and_block_errors(Z, valid, X, Y, g.t, span=g.span, fields=bounds.fields)
+    bounds.fields = None
     across, down = g.tiles(0)
     blocks = blocks[:down, :across]  # a root grid's extent holds more than its tiles
     normal_maps = [encode_octahedral(n, NORMAL_BITS) for n in level_normal_maps(
