@@ -99,7 +99,7 @@ from geoterrain.store.pagepack import LEAF_HEADER, blob_cell_sizes, pack_order
 
 _KIND_NAMES = {i: k for k, i in KIND_CODES.items()}  # a blob key's kind number → its name
 
-SCHEMA_VERSION = 17  # 2: checksums bound to their tile and kind; per-level key digests;
+SCHEMA_VERSION = 20  # 2: checksums bound to their tile and kind; per-level key digests;
 #                    3: packed integer keys, bare blob rows found through blob_keys;
 #                    4: metadata, tile numbers and blob keys in compressed catalog rows;
 #                    5: height blobs of version 2 (range-coded, geoterrain/codec/entropy.py);
@@ -116,13 +116,18 @@ SCHEMA_VERSION = 17  # 2: checksums bound to their tile and kind; per-level key 
 #                       signed; a geographic level-0 r's cell centres as differences
 #                       from their guess from the heights (vertexdata.CENTRES with PRED),
 #                       and the normals' border rings as differences from the tile's
-#                       derived map (metadata normals_ring_residual)
-ROOTS_SCHEMA_VERSION = 18  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
-#                            9 before schema 10, 11 before 12, 13 before 14, 15 before 17
-LATTICE_SCHEMA_VERSION = 19  # a root grid whose geographic frame has proxy positions past
+#                       derived map (metadata normals_ring_residual);
+#                   20: δ blobs guessed from the tile's heights: PRED payloads in the
+#                       order of their own-error gaps (PRED with MIDS), level-0 rings as
+#                       differences from the own errors' codes (RING with PRED;
+#                       vertexdata.own_codes)
+ROOTS_SCHEMA_VERSION = 21  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
+#                            9 before schema 10, 11 before 12, 13 before 14, 15 before 17,
+#                            18 before 20
+LATTICE_SCHEMA_VERSION = 22  # a root grid whose geographic frame has proxy positions past
 #                              level 0's lattice (frame.lattice, Frame.xy): an older
 #                              reader would place its padding by pyproj, not where its
-#                              bounds were computed (16 before schema 17)
+#                              bounds were computed (16 before schema 17, 19 before 20)
 #: every version this geoterrain reads
 SCHEMA_VERSIONS = (SCHEMA_VERSION, ROOTS_SCHEMA_VERSION, LATTICE_SCHEMA_VERSION)
 
@@ -631,7 +636,7 @@ class StoreReader:
             raise StoreError(f"{self.path}: store schema version {_show(version)}, this "
                              f"geoterrain reads version {SCHEMA_VERSION} (and "
                              f"{ROOTS_SCHEMA_VERSION} and {LATTICE_SCHEMA_VERSION}, root "
-                             f"grids; 14 to 16, written before); {REBUILD}")
+                             f"grids; 17 to 19, written before); {REBUILD}")
 
     def _foreign(self, why: str) -> StoreError:
         return StoreError(f"{self.path}: not a geoterrain store ({why}); refusing to read it")
