@@ -116,8 +116,11 @@ def process(args: list, tree: str | None = None, cwd: str | None = None) -> dict
     return {"wall": wall, "cpu": r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime}
 
 
-def cli_edit(store: str, cut: str, a, work: str, run: int, tree: str | None = None) -> dict:
-    """One `geoterrain edit` process on a fresh copy of ``store`` (a window of run ``run``)."""
+def cli_edit(store: str, cut: str, a, work: str, run: int, tree: str | None = None,
+             dem: str | None = None) -> dict:
+    """One `geoterrain edit` process on a fresh copy of ``store`` (a window of run ``run``);
+    ``dem`` (a baseline tree's store, maybe in a schema this tree refuses): the grid's
+    size from the DEM instead."""
     import numpy as np
 
     import geoterrain
@@ -126,8 +129,14 @@ def cli_edit(store: str, cut: str, a, work: str, run: int, tree: str | None = No
     shutil.copy(store, p)
     os.sync()
     rng = np.random.default_rng(1000 + a.seed + run)
-    with geoterrain.open(p) as t:
-        rows, cols = t.grid.rows, t.grid.cols
+    if dem is None:
+        with geoterrain.open(p) as t:
+            rows, cols = t.grid.rows, t.grid.cols
+    else:
+        import rasterio
+
+        with rasterio.open(dem) as ds:
+            rows, cols = ds.height, ds.width
     at = f"{int(rng.integers(0, rows - a.window))},{int(rng.integers(0, cols - a.window))}"
     try:
         return process([sys.executable, "-c", CLI, "-q", "edit", p, "--patch", cut, "--mode",
@@ -303,7 +312,7 @@ def _baseline(base: dict, a, dem: str, work: str, run: int) -> None:
     edits = child(EDIT, own, work, str(a.edits), str(a.window), str(a.seed + run), tree=tree)
     base["first"].append(edits[0])
     base["next"] += edits[1:]
-    base["cli"].append(cli_edit(own, a.cut, a, work, run, tree=tree))
+    base["cli"].append(cli_edit(own, a.cut, a, work, run, tree=tree, dem=dem))
     print(f"run {run}, baseline: preprocess {base['pre'][-1]['wall']:.2f} s; edits "
           + ", ".join(f"{e['wall']:.3f} s" for e in edits), flush=True)
 
