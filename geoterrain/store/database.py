@@ -142,10 +142,10 @@ def schema_version(grid: dict, frame: dict | None = None) -> int:
     Examples
     --------
     >>> schema_version({"rows": 9, "cols": 9, "n": 3, "t": 2})
-    17
+    20
     >>> roots = {"layout": "roots"}
     >>> schema_version(roots), schema_version(roots, {"lattice": [9, 17]})
-    (18, 19)
+    (21, 22)
     """
     if isinstance(frame, dict) and frame.get("lattice") is not None:
         return LATTICE_SCHEMA_VERSION
