@@ -324,8 +324,16 @@ class Terrain:
             tile_centre_radius,
             tile_leaf_bounds,
             tile_mids_codes,
+            tile_own_codes,
         )
-        from geoterrain.bounds.vertexdata import DIFF, NEW_ONLY, PRED, VERSION_2, decode_bounds
+        from geoterrain.bounds.vertexdata import (
+            DIFF,
+            NEW_ONLY,
+            PRED,
+            RING,
+            VERSION_2,
+            decode_bounds,
+        )
 
         T = self.grid.tile_samples
         self.decoded_bounds += 1
@@ -378,8 +386,13 @@ class Terrain:
                 if not payload:
                     return tile_centre_guess(self, key, e)
                 return tile_mids_codes(self, key, e, *payload)
+        # a schema-20 δ blob: guessed from the own errors on the tile's heights
+        ring = len(blob) > 1 and bool(blob[1] & RING)  # the border's guesses only
+        own = ((lambda e: tile_own_codes(self, key, e, ring)) if stored == "delta"
+               and key in self.tile_info else None)
         try:
-            out = decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base, guess)
+            out = decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base, guess,
+                                own)
         except (ValueError, zstandard.ZstdError):
             raise StoreCorruptError(f"{self.path}: tile {key} {kind} cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None

@@ -38,6 +38,7 @@ from geoterrain.bounds.radii import _nest, code_up_nb
 from geoterrain.bounds.vertexdata import (
     log8_table,
     new_mask,
+    own_codes,
     ring_new_index,
 )
 from geoterrain.core.bintree import main_diagonal_nb
@@ -51,7 +52,7 @@ if TYPE_CHECKING:
 __all__ = ["CentreHeights", "centre_guess", "centre_radius", "geographic_leaf_delta",
            "leaf_delta", "leaf_radius", "mids_codes", "mids_residuals", "normal_axes",
            "normal_xy", "ring_guesses", "tile_centre_guess", "tile_centre_radius",
-           "tile_leaf_bounds", "tile_mids_codes", "tile_slack"]
+           "tile_leaf_bounds", "tile_mids_codes", "tile_own_codes", "tile_slack"]
 
 
 class Ring(NamedTuple):
@@ -553,6 +554,18 @@ def tile_mids_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int, a: 
     T = terrain.grid.tile_samples
     return mids_codes(CentreHeights(z, ok, float(terrain.stand_in_z), box),
                       np.zeros(2, np.int64), T, e, a, off, res)
+
+
+def tile_own_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int,
+                   ring: bool = False) -> np.ndarray:
+    """A tile's :func:`geoterrain.bounds.vertexdata.own_codes` (T, T) from its decoded
+    heights, invalid samples by the store's stand-in height (``Terrain``'s reader of a
+    schema-20 δ blob: ``PRED`` with ``SLACK``, ``RING`` with ``PRED``; ``ring``: the
+    border's new vertices only, 0 elsewhere)."""
+    tile = terrain.tile(*key)
+    z = terrain.frame.z(tile.heights)
+    ok = np.asarray(tile.valid, bool) & np.isfinite(z)
+    return own_codes(z, ok, float(terrain.stand_in_z), e, ring=ring)[0]
 
 
 # ------------------------------------------------ a store's level-0 tiles, derived on read

@@ -40,10 +40,13 @@ from geoterrain.bounds.vertexdata import (
     log8_table,
     mids_index,
     new_mask,
+    own_codes,
+    pred_payloads_own,
     pred_residuals,
     residual_planes,
     ring_index,
     ring_new_index,
+    ring_payloads_own,
     ring_planes,
     scale_exponent,
     shape_codes,
@@ -52,7 +55,7 @@ from geoterrain.core.rounding import round_up
 from geoterrain.core.threads import cores_for, parallel_kernel
 from geoterrain.core.zstdsafe import compress_many
 
-__all__ = ["BoundsCoding", "level_blobs", "compress_rows", "radius_codes"]
+__all__ = ["BoundsCoding", "OwnHeights", "level_blobs", "compress_rows", "radius_codes"]
 
 # δ, r and normals: zstd level 19 saves 3 % at many times the time (docs/lab/store-size.md)
 _ZSTD_LEVEL = 3
@@ -82,6 +85,17 @@ class LevelPayloads(NamedTuple):
     pn: np.ndarray
     dmax: np.ndarray
     rmax: np.ndarray
+
+
+class OwnHeights(NamedTuple):
+    """The scene heights δ's blobs are guessed from (schema 20,
+    :func:`geoterrain.bounds.vertexdata.own_codes`), indexed as the codes of a
+    :class:`BoundsCoding` are: ``z`` (float64), ``valid`` (None: all valid, the stand-in
+    already in place) and the store's ``stand_in`` height for invalid samples."""
+
+    z: np.ndarray
+    valid: np.ndarray | None
+    stand_in: float
 
 
 class BoundsCoding:
@@ -395,7 +409,8 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
                 tiles: Iterable[tuple[int, int]], kinds=("delta", "radius", "normals"),
                 ring: bool | tuple[str, ...] = False, base: BoundsCoding | None = None,
                 slack: dict | None = None, mids: bool = False,
-                centres: CentreHeights | None = None, heights: CentreHeights | None = None
+                centres: CentreHeights | None = None, heights: CentreHeights | None = None,
+                own: OwnHeights | None = None
                 ) -> tuple[dict, np.ndarray, np.ndarray]:
     """The δ, r and normals blobs of the stored tiles ``(x, y)`` of one level.
 
@@ -424,7 +439,12 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     level above 0 and below the top: the level's heights, in the lattice the tiles are
     indexed in, and their boxes): every ``PRED`` r blob holds its new vertices as
     differences from their guesses from the heights instead (flags ``MIDS`` and ``PRED``,
-    :func:`geoterrain.bounds.leafbounds.mids_residuals`; schema 20).
+    :func:`geoterrain.bounds.leafbounds.mids_residuals`; schema 20). ``own`` (schema 20:
+    the level's heights, :class:`OwnHeights`): a ``RING`` δ blob holds its codes as
+    differences from the codes of their own errors (flag ``PRED`` too,
+    :func:`geoterrain.bounds.vertexdata.ring_payloads_own`), and a ``PRED`` δ blob its
+    differences in the contexts of their gaps above those (flag ``SLACK`` too,
+    :func:`geoterrain.bounds.vertexdata.pred_payloads_own`; both range-coded, no zstd).
 
     Examples
     --------
@@ -469,6 +489,11 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         if "delta" in ring_kinds:
             pd = pd[:, pos]
             flags_d |= RING
+            if own is not None and k:  # schema 20: - the own errors' codes, range-coded
+                g = own_codes(own.z, own.valid, own.stand_in, coding.ed,
+                              _origins(xy, t, level), T, 1 << level, ring=True)
+                pd = ring_payloads_own(pd, g[:, rr, rc])
+                flags_d |= PRED
         if "radius" in ring_kinds:
             pr = pr[:, pos] if rlog else np.concatenate([pr[:, pos], pr[:, nnew + pos]], axis=1)
             flags_r |= RING
@@ -486,7 +511,10 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     # centres all have code 0 (a geographic level-0 r: leaves) stores the centres only
     # (schema 14's PRED on every other such tile: codes as differences from their parents')
     if new_only and k and T >= 3 and "delta" in kinds and not flags_d & (RING | DIFF):
-        pd, head_d = _shaped(pd, head_d, _windows(coding.dc, xy, t, level))
+        W = _windows(coding.dc, xy, t, level)
+        pd, head_d = _shaped(pd, head_d, W)
+        if own is not None:  # schema 20: the PRED payloads in their own-error gaps' order
+            pd, head_d = _own_ordered(pd, head_d, W, own, xy, t, level, int(coding.ed))
     if mids:  # schema 12's MIDS: the cell centres derived on read
         if not rlog or flags_r & RING or T < 3:
             raise ValueError("mids r blobs are log8 codes above level 0")
@@ -510,12 +538,21 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     return blobs, dmax, rmax
 
 
-def _compress_shaped(rows: np.ndarray | list[np.ndarray], heads: bytes | list[bytes]
+def _compress_shaped(rows: np.ndarray | list[np.ndarray | bytes], heads: bytes | list[bytes]
                      ) -> list[bytes]:
     # compress_rows, with the CENTRES, PRED and RING payloads at
-    # vertexdata.SHAPED_ZSTD_LEVEL (as pack_bounds_v2 writes the first two)
+    # vertexdata.SHAPED_ZSTD_LEVEL (as pack_bounds_v2 writes the first two); a row of
+    # bytes is a payload already coded (schema 20's range-coded δ), stored as it is
     if isinstance(heads, bytes):
         heads = [heads] * len(rows)
+    if any(isinstance(r, bytes) for r in rows):
+        out = [heads[n] + r if isinstance(r, bytes) else None for n, r in enumerate(rows)]
+        rest = [n for n, b in enumerate(out) if b is None]
+        if rest:
+            for n, b in zip(rest, _compress_shaped([rows[n] for n in rest],
+                                                   [heads[n] for n in rest]), strict=True):
+                out[n] = b
+        return out
     hi = [n for n, h in enumerate(heads) if len(h) > 1 and h[1] & (CENTRES | PRED | RING)]
     if not hi:
         return compress_rows(rows, heads)
@@ -527,6 +564,31 @@ def _compress_shaped(rows: np.ndarray | list[np.ndarray], heads: bytes | list[by
             for n, b in zip(idx, got, strict=True):
                 out[n] = b
     return out
+
+
+def _origins(xy: np.ndarray, t: int, level: int) -> np.ndarray:
+    # each tile's first sample (row, column) in the code grid
+    return np.stack([xy[:, 1] << (t + level), xy[:, 0] << (t + level)], axis=1)
+
+
+def _own_ordered(rows: list[np.ndarray], heads: list[bytes], W: np.ndarray, own: OwnHeights,
+                 xy: np.ndarray, t: int, level: int, e: int
+                 ) -> tuple[list[np.ndarray], list[bytes]]:
+    # schema 20: each PRED δ payload (not CENTRES) range-coded in the contexts of its
+    # vertices' gaps between the parents' prediction and their own errors' codes (bytes:
+    # no zstd), flagged SLACK too
+    idx = [n for n, h in enumerate(heads) if h[1] & PRED and not h[1] & CENTRES]
+    if not idx:
+        return rows, heads
+    T = W.shape[1]
+    lo = own_codes(own.z, own.valid, own.stand_in, e, _origins(xy[idx], t, level), T,
+                   1 << level)
+    got = pred_payloads_own(W[idx], lo)
+    rows, heads = list(rows), list(heads)
+    for q, n in enumerate(idx):
+        rows[n] = got[q]
+        heads[n] = bytes([heads[n][0], heads[n][1] | SLACK, *heads[n][2:]])
+    return rows, heads
 
 
 def _windows(codes: np.ndarray, xy: np.ndarray, t: int, level: int) -> np.ndarray:

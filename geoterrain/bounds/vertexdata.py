@@ -51,24 +51,34 @@ geographic store's level-0 r, ``NEW_ONLY`` log8, no other flag): the centres of 
 distance √(s² + Δz²) to the centre's four edge midpoints, from the tile's decoded
 heights and its tile-table box (:func:`geoterrain.bounds.leafbounds.centre_guess`; IEEE
 products, sums and square roots only, so any reader gets the writer's guess bit for
-bit); the decode needs ``guess(e)``. ``CENTRES``, ``PRED`` and ``RING`` payloads are
-compressed at zstd level :data:`SHAPED_ZSTD_LEVEL` (11), the others at 3: any zstd
-decoder reads either. ``MIDS`` and ``PRED`` together (schema 20, issue 51; a geographic
-store's r above level 0, ``NEW_ONLY`` log8, no other flag): two header bytes ``a``, ``off``
-follow the exponent, then every new vertex's (guess − code) mod 256, the edge midpoints
-first, guessed from the tile's heights, then the cell centres, guessed by the nesting over
-their decoded midpoints (:func:`geoterrain.bounds.leafbounds.mids_residuals`); the decode
-needs ``guess(e, a, off, payload)``, the tile's (T, T) codes.
+bit); the decode needs ``guess(e)``. ``MIDS`` and ``PRED`` together (schema 20, issue
+51; a geographic store's r above level 0, ``NEW_ONLY`` log8, no other flag): two header
+bytes ``a``, ``off`` follow the exponent, then every new vertex's (guess − code) mod 256,
+the edge midpoints first, guessed from the tile's heights, then the cell centres, guessed
+by the nesting over their decoded midpoints
+(:func:`geoterrain.bounds.leafbounds.mids_residuals`); the decode needs ``guess(e, a,
+off, payload)``, the tile's (T, T) codes. ``PRED`` and ``SLACK`` together (schema 20; a
+δ ``PRED`` blob): the ``PRED`` values range-coded (:func:`pred_payloads_own`) in the
+contexts of each vertex's gap between its parents' prediction and the code of its own
+error on the tile's decoded heights (:func:`own_codes`), which bounds δ below; ``RING``
+and ``PRED`` together (schema 20; a level-0 ring δ): the ring's codes less their
+:func:`own_codes`, mod 256, range-coded (:func:`ring_payloads_own`); both decodes need
+``own(e)``, and any guess decodes exactly. ``CENTRES``, ``PRED`` and ``RING`` payloads
+are otherwise compressed at zstd level :data:`SHAPED_ZSTD_LEVEL` (11), the others at 3:
+any zstd decoder reads either.
 """
 
 from __future__ import annotations
 
+import math
+import zlib
 from functools import lru_cache
 
 import numpy as np
 import zstandard
 from numba import njit
 
+from geoterrain.codec.entropy import _bit, _canonical, _direct, _finish, _start
 from geoterrain.core import zstdsafe
 from geoterrain.core.rounding import round_up
 
@@ -136,7 +146,7 @@ def pack_bounds(h: np.ndarray, k: int, cctx: zstandard.ZstdCompressor) -> bytes:
 
 def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None = None,
                   parity: tuple[int, int] = (0, 0), derive=None,
-                  base: np.ndarray | None = None, guess=None) -> np.ndarray:
+                  base: np.ndarray | None = None, guess=None, own=None) -> np.ndarray:
     """Inverse of :func:`encode_bounds` and :func:`pack_bounds_v2`: float32 values ≥ the
     encoded ones. A version-2 new-vertices-only blob needs the parent tile's decoded
     values and the tile's ``(x % 2, y % 2)``; a ``RING`` blob also needs ``derive(rows,
@@ -150,9 +160,11 @@ def decode_bounds(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None
     (a geographic level-0 r) needs ``guess(e)``: the (h, h) codes its centres are
     predicted by (:func:`geoterrain.bounds.leafbounds.centre_guess`); a ``MIDS`` ``PRED``
     blob (a geographic r above level 0) ``guess(e, a, off, payload)``: the tile's (T, T)
-    codes (:func:`geoterrain.bounds.leafbounds.mids_codes`)."""
+    codes (:func:`geoterrain.bounds.leafbounds.mids_codes`). A schema-20 δ blob
+    (``PRED`` with ``SLACK``, or ``RING`` with ``PRED``) needs ``own(e)``: the tile's
+    (T, T) :func:`own_codes` from its decoded heights."""
     if len(blob) >= 1 and blob[0] == VERSION_2:
-        return _decode_v2(blob, shape, parent, parity, derive, base, guess)
+        return _decode_v2(blob, shape, parent, parity, derive, base, guess, own)
     if len(blob) < 2 or blob[0] != VERSION:
         raise ValueError("not a bounds blob of a known version")
     k = int(np.int8(np.uint8(blob[1])))
@@ -409,6 +421,336 @@ def pred_codes(corners: np.ndarray, payload: np.ndarray) -> np.ndarray:
     return W[0].astype(np.uint8)
 
 
+# ------------------------------------------- schema 20: δ guessed from the tile's heights
+#: contexts of a schema-20 δ payload's values: the gap between a vertex's bounds,
+#: bucketed (:func:`_gap_bucket`)
+GAP_BUCKETS = 14
+_GAP_ROWS = GAP_BUCKETS * 17  # per bucket: zero flag, 7 length steps, 9 mantissa bits
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _code_up(table, x, e):
+    # the smallest log8 code whose value is ≥ x (radii.code_up_nb's binary search, the
+    # same result): a guess from log2(x), walked to the first entry ≥ x
+    if not x > table[1]:  # 0 for x ≤ 0, else 1
+        return 0 if not x > 0.0 else 1
+    if x > table[254]:
+        return 255
+    c = min(max(int(LOG_STEPS * (math.log2(x) - e)) + 1, 1), 254)
+    while table[c - 1] >= x:
+        c -= 1
+    while table[c] < x:
+        c += 1
+    return c
+
+
+@njit(cache=True, nogil=True)
+def _own_codes_nb(z, valid, stand_in, r0, c0, s, ring, table, e, out):
+    # tile k's samples are z[r0[k] + s i, c0[k] + s j], copied first into ``w`` with the
+    # stand-in where not valid (no mask: all valid). IEEE products, sums and abs only (no
+    # fast math): a writer and any reader get the same codes bit for bit. Edge midpoints:
+    # |z − the mean of the split edge's ends|; cell centres: seed 002 §2.3's h = 1 closed
+    # form over the cell's 9 samples (delta._centre1: the centre off its diagonal, each
+    # edge midpoint off its edge), the diagonal by the union-jack parity from the tile's
+    # first cell (as _pred_index). ``ring``: the border's new vertices only
+    T = out.shape[1]
+    w = np.empty((T, T))
+    masked = valid.shape[0] > 0
+    for k in range(out.shape[0]):
+        for i in range(T):
+            a = r0[k] + s * i
+            for j in range(T):
+                if ring and 1 < i < T - 2 and 1 < j < T - 2:
+                    continue
+                b = c0[k] + s * j
+                w[i, j] = z[a, b] if not masked or valid[a, b] else stand_in
+        for i in range(T):
+            for j in range(1 - (i & 1), T, 2 - (i & 1)):  # the new vertices
+                if ring and 0 < i < T - 1 and 0 < j < T - 1:
+                    continue
+                zv = w[i, j]
+                if (i & 1) and (j & 1):
+                    z00 = w[i - 1, j - 1]
+                    z01 = w[i - 1, j + 1]
+                    z10 = w[i + 1, j - 1]
+                    z11 = w[i + 1, j + 1]
+                    main = ((i >> 1) + (j >> 1)) % 2 == 0
+                    sc = 0.5 * (z00 + z11) if main else 0.5 * (z01 + z10)
+                    m = abs(zv - sc)
+                    m = max(m, abs(w[i - 1, j] - 0.5 * (z00 + z01)))
+                    m = max(m, abs(w[i + 1, j] - 0.5 * (z10 + z11)))
+                    m = max(m, abs(w[i, j - 1] - 0.5 * (z00 + z10)))
+                    m = max(m, abs(w[i, j + 1] - 0.5 * (z01 + z11)))
+                elif i & 1:  # odd row, even column: the ends above and below
+                    m = abs(zv - 0.5 * (w[i - 1, j] + w[i + 1, j]))
+                else:
+                    m = abs(zv - 0.5 * (w[i, j - 1] + w[i, j + 1]))
+                out[k, i, j] = _code_up(table, m, e) if m == m else 0
+
+
+def own_codes(z: np.ndarray, valid: np.ndarray | None, stand_in: float, e: int,
+              origins: np.ndarray | None = None, T: int | None = None, step: int = 1,
+              ring: bool = False) -> np.ndarray:
+    """The log8 codes (from ``2^e``) of a lower bound of each new vertex's δ, from the
+    scene heights ``z`` (invalid samples, where ``valid`` is False, by the store's
+    ``stand_in`` height, as the radii take them; ``valid`` None: all valid): an edge
+    midpoint's own error, |z − the mean of its split edge's ends|, and a cell centre's
+    closed form over its cell (its own error and its four edge midpoints', seed 002
+    §2.3). δ is the largest error over the vertex's diamond, saturated over its
+    children, so it is never below these where the samples are valid. (k, T, T) uint8 of
+    the tiles whose first samples are at ``origins`` (k, 2: row, column; None: one tile,
+    ``z`` itself) with samples ``step`` apart, 0 on the parent's vertices (and off the
+    border with ``ring``). Schema 20's guess for δ (:func:`pred_payloads_own`, and
+    :func:`ring_payloads_own`): a wrong one costs bytes, never exactness.
+
+    Examples
+    --------
+    >>> z = np.zeros((3, 3)); z[1, 1] = 2.0; z[0, 1] = 1.0
+    >>> c = own_codes(z, None, 0.0, -3)[0]; t = log8_table(-3)
+    >>> float(t[c[1, 1]]), float(t[c[0, 1]]), int(c[0, 0])
+    (2.0, 1.0, 0)
+    """
+    z = np.asarray(z, np.float64)
+    if origins is None:
+        origins, T = np.zeros((1, 2), np.int64), z.shape[0]
+    o = np.asarray(origins, np.int64).reshape(-1, 2)
+    v = np.zeros((0, 0), np.uint8) if valid is None else np.asarray(valid).view(np.uint8) \
+        if np.asarray(valid).dtype in (np.bool_, np.uint8) else np.asarray(valid, np.uint8)
+    out = np.zeros((len(o), T, T), np.uint8)
+    _own_codes_nb(z, v, float(stand_in), np.ascontiguousarray(o[:, 0]),
+                  np.ascontiguousarray(o[:, 1]), int(step), bool(ring),
+                  _log8_table64(int(e)), int(e), out)
+    return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _gap_bucket(g):
+    # the gap between a vertex's upper bound (its parents') and its own error's code:
+    # 0 (the code is known where the bounds hold), 1, 2, 3, then roughly log-spaced
+    if g <= 0:
+        return 0
+    if g < 4:
+        return g
+    if g < 6:
+        return 4
+    if g < 8:
+        return 5
+    if g < 12:
+        return 6
+    if g < 16:
+        return 7
+    if g < 24:
+        return 8
+    if g < 32:
+        return 9
+    if g < 48:
+        return 10
+    if g < 64:
+        return 11
+    return 12 if g < 255 else 13
+
+
+@njit(cache=True, nogil=True)
+def _gap_values(enc, S, buf, m, r, gap):
+    """Code (or decode into ``r``) the values ``r`` (0 … 255) in their contexts, the
+    buckets of ``gap``: a zero flag, the bit length k (1 … 8) in unary, the bit below the
+    leading one (adaptive: the range coder of :mod:`geoterrain.codec.entropy`), the rest
+    as equiprobable bits. Returns the coder's state."""
+    for i in range(r.shape[0]):
+        c = _gap_bucket(gap[i]) * 17
+        u = r[i] if enc else 0
+        nz, S = _bit(enc, S, buf, m, c, np.int64(u != 0))
+        if nz == 0:
+            r[i] = 0
+            continue
+        kk = 0
+        x = u
+        while x:
+            kk += 1
+            x >>= 1
+        k = 1
+        while k < 8:  # 1 = longer
+            b, S = _bit(enc, S, buf, m, c + k, np.int64(kk > k))
+            if b == 0:
+                break
+            k += 1
+        v = np.int64(1)
+        if k >= 2:
+            b, S = _bit(enc, S, buf, m, c + 7 + k, np.int64((u >> (k - 2)) & 1) if enc
+                        else np.int64(0))
+            v = (v << 1) | b
+            if k >= 3:
+                low, S = _direct(enc, S, buf, k - 2,
+                                 np.int64(u & ((1 << (k - 2)) - 1)) if enc else np.int64(0))
+                v = (v << (k - 2)) | low
+        r[i] = v
+    return S
+
+
+@njit(cache=True, nogil=True)
+def _encode_gaps(r, gap, buf):
+    m = np.zeros((_GAP_ROWS, 2), np.int64)
+    S = _start(True, buf)
+    S = _gap_values(True, S, buf, m, r, gap)
+    return _finish(S, buf)
+
+
+def encode_gaps(r: np.ndarray, gap: np.ndarray) -> bytes:
+    """Schema 20's range-coded δ payload: values ``r`` (0 … 255) in the contexts of their
+    ``gap`` (:func:`decode_gaps` inverts it).
+
+    Examples
+    --------
+    >>> r = np.array([0, 0, 3, 1, 200, 0]); gap = np.array([0, 0, 5, 1, 255, 40])
+    >>> d = GapDecoder(encode_gaps(r, gap))
+    >>> d.take(gap[:2]).tolist(), d.take(gap[2:]).tolist()
+    ([0, 0], [3, 1, 200, 0])
+    """
+    r = np.ascontiguousarray(r, np.int64).copy()
+    gap = np.ascontiguousarray(gap, np.int64)
+    buf = np.zeros(16 * len(r) + 64, np.uint8)  # > 12 bytes a value at the worst odds
+    n = int(_encode_gaps(r, gap, buf))
+    if n < 0:
+        raise ValueError("a range-coded bounds payload overflowed its buffer")
+    return buf[:n].tobytes()
+
+
+class GapDecoder:
+    """Decodes a payload of :func:`encode_gaps` in parts, each part's contexts known only
+    once the parts before it are decoded (a tile's centres, then its other new vertices).
+    A stranger's bytes decode to values 0 … 255, never past the payload (zeros are read
+    past its end); :meth:`check` refuses bytes the encoder would not have written."""
+
+    def __init__(self, data: bytes) -> None:
+        self.buf = np.frombuffer(data, np.uint8).copy()  # writable: one kernel codes both ways
+        self.m = np.zeros((_GAP_ROWS, 2), np.int64)
+        self.S = _start(False, self.buf)
+
+    def take(self, gap: np.ndarray) -> np.ndarray:
+        """The next ``len(gap)`` values, in the contexts of ``gap``."""
+        r = np.zeros(len(gap), np.int64)
+        self.S = _gap_values(False, self.S, self.buf, self.m, r,
+                             np.ascontiguousarray(gap, np.int64))
+        return r
+
+    def check(self) -> None:
+        """ValueError unless the bytes were exactly the encoder's stream: every byte read
+        (a spliced, padded or foreign payload has bytes past it) and the last one not a
+        zero the encoder drops (:mod:`geoterrain.codec.entropy`'s rule)."""
+        if not _canonical(self.buf, self.S):
+            raise ValueError("a range-coded bounds payload is not the encoder's stream")
+
+
+def guess_check(g: np.ndarray) -> int:
+    """The byte that opens a schema-20 δ payload: the low byte of the crc32 of the guess
+    it was coded against (a tile's :func:`own_codes`, or its ring's, as uint8). A reader
+    compares it with its own guess's, so a payload moved to another tile (its checksum
+    recomputed) is refused rather than decoded against the wrong heights (a ring's
+    differences, mostly 0, would decode to plausible codes there).
+
+    Examples
+    --------
+    >>> guess_check(np.array([1, 2, 3])) != guess_check(np.array([2, 3, 4]))
+    True
+    """
+    return zlib.crc32(np.ascontiguousarray(g, np.uint8).tobytes()) & 0xFF
+
+
+def pred_gaps(W: np.ndarray, lo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For tiles ``W`` (k, T, T) of log8 codes and their :func:`own_codes` ``lo``:
+    :func:`pred_residuals`' differences (k, n) (the parents' prediction minus the code,
+    mod 256; the centres, then the other new vertices) and their gaps (k, n) (the
+    prediction minus ``lo``): where the bounds hold, 0 ≤ difference ≤ gap."""
+    W = np.asarray(W, np.int16)
+    lo = np.asarray(lo, np.int16)
+    k, T = W.shape[0], W.shape[1]
+    other, n1, n2, main = _pred_index(T)
+    hc = _pred_centres(W, main).reshape(k, -1)
+    ext = np.concatenate([W.reshape(k, -1), np.full((k, 1), 255, np.int16)], axis=1)
+    hm = np.minimum(ext[:, n1], ext[:, n2])
+    r = np.concatenate([hc - W[:, 1::2, 1::2].reshape(k, -1), hm - ext[:, other]], axis=1)
+    gap = np.concatenate([hc - lo[:, 1::2, 1::2].reshape(k, -1),
+                          hm - lo.reshape(k, -1)[:, other]], axis=1)
+    return r & 0xFF, gap
+
+
+def pred_payloads_own(W: np.ndarray, lo: np.ndarray) -> list[bytes]:
+    """Schema 20's ``PRED`` δ payloads (``PRED`` with ``SLACK``) of tiles ``W`` (k, T, T)
+    with their :func:`own_codes` ``lo``: :func:`pred_gaps`' differences range-coded
+    (:func:`encode_gaps`) in the contexts of their gaps. Where a gap is 0 the code is
+    known (a zero costs a few hundredths of a bit), where it is small the difference is
+    small: srtm1_japan's level-1 δ 87.5 kB in raster order at zstd 11, 73.8 kB so
+    (docs/lab/store-size.md). Exact whatever ``lo``: a wrong guess costs bytes.
+    :func:`pred_codes_own` inverts it.
+
+    Examples
+    --------
+    >>> W = np.random.default_rng(1).integers(0, 256, (2, 5, 5)).astype(np.uint8)
+    >>> lo = np.random.default_rng(2).integers(0, 256, (2, 5, 5)).astype(np.uint8)
+    >>> p = pred_payloads_own(W, lo)
+    >>> all((pred_codes_own(W[k, ::2, ::2], p[k], lo[k]) == W[k]).all() for k in range(2))
+    True
+    """
+    r, gap = pred_gaps(W, lo)
+    return [bytes([guess_check(lo[n])]) + encode_gaps(r[n], gap[n]) for n in range(len(r))]
+
+
+def pred_codes_own(corners: np.ndarray, payload: bytes, lo: np.ndarray) -> np.ndarray:
+    """A tile's (T, T) log8 codes from its parent's ``corners`` (h + 1, h + 1), its
+    schema-20 ``PRED`` payload (:func:`pred_payloads_own`) and its :func:`own_codes`
+    ``lo`` (T, T): the centres first (their contexts from the corners and ``lo``), then
+    the other new vertices (theirs from the centres and ``lo``)."""
+    corners = np.asarray(corners, np.int16)
+    h = corners.shape[0] - 1
+    T = 2 * h + 1
+    lo = np.asarray(lo, np.int16).reshape(T, T)
+    other, n1, n2, main = _pred_index(T)
+    if len(payload) < 1 or payload[0] != guess_check(lo):
+        raise ValueError("a guessed bounds payload coded against other heights")
+    dec = GapDecoder(payload[1:])
+    ext = np.empty(T * T + 1, np.int16)
+    W = ext[:-1].reshape(1, T, T)
+    W[0, ::2, ::2] = corners
+    ext[-1] = 255
+    hc = _pred_centres(W, main)[0].ravel()
+    rc = dec.take(hc - lo[1::2, 1::2].ravel())
+    W[0, 1::2, 1::2] = ((hc - rc) & 0xFF).reshape(h, h)
+    hm = np.minimum(ext[n1], ext[n2])
+    ext[other] = (hm - dec.take(hm - lo.ravel()[other])) & 0xFF
+    dec.check()
+    return W[0].astype(np.uint8)
+
+
+def ring_payloads_own(rings: np.ndarray, guess: np.ndarray) -> list[bytes]:
+    """Schema 20's level-0 ``RING`` δ payloads (``RING`` with ``PRED``): each ring's codes
+    (k, 2(T − 1)) less their :func:`own_codes` ``guess``, mod 256, range-coded in one
+    context (:func:`encode_gaps`; mostly zeros: an edge midpoint at level 0 is a leaf, its
+    δ its own error but where the next tile's cell holds nodata, or a geographic store's
+    curvilinear term raises it). :func:`ring_codes_own` inverts one.
+
+    Examples
+    --------
+    >>> c = np.array([[5, 7, 0, 255]], np.uint8); g = np.array([[5, 6, 1, 255]], np.uint8)
+    >>> ring_codes_own(ring_payloads_own(c, g)[0], g[0]).tolist()
+    [5, 7, 0, 255]
+    """
+    g = np.asarray(guess, np.int64)
+    d = (np.asarray(rings, np.int64) - g) & 0xFF
+    zero = np.zeros(d.shape[1], np.int64)
+    return [bytes([guess_check(g[n])]) + encode_gaps(d[n], zero) for n in range(len(d))]
+
+
+def ring_codes_own(payload: bytes, guess: np.ndarray) -> np.ndarray:
+    """A ring's codes from its :func:`ring_payloads_own` payload and its guess."""
+    g = np.asarray(guess, np.int64)
+    if len(payload) < 1 or payload[0] != guess_check(g):
+        raise ValueError("a guessed bounds payload coded against other heights")
+    dec = GapDecoder(payload[1:])
+    out = ((dec.take(np.zeros(len(g), np.int64)) + g) & 0xFF).astype(np.uint8)
+    dec.check()
+    return out
+
+
 def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
                    cctx: zstandard.ZstdCompressor) -> bytes:
     """A version-2 blob of one tile: ``values`` are log8 codes (uint8) or scaled float16.
@@ -440,7 +782,7 @@ def pack_bounds_v2(values: np.ndarray, e: int, log8: bool, new_only: bool,
 
 
 def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
-               parity: tuple[int, int], derive, base, guess=None) -> np.ndarray:
+               parity: tuple[int, int], derive, base, guess=None, own=None) -> np.ndarray:
     if len(blob) < 3 or blob[1] & ~(NEW_ONLY | LOG8 | RING | DIFF | SLACK | CENTRES | MIDS
                                     | PRED):
         raise ValueError("not a bounds blob of a known version")
@@ -455,6 +797,21 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
                      or np.shape(parent) != tuple(shape)):
         raise ValueError("a guessed mids bounds blob needs a square tile's new log8 codes, "
                          "its heights and its parent's values")
+    # schema 20: a δ PRED payload range-coded in the contexts of its own-error gaps (PRED
+    # with SLACK: the gap between the parents' bound and the own error's), a level-0 δ
+    # ring as differences from the own errors' codes (RING with PRED), range-coded
+    coded = flags & (PRED | SLACK | RING | CENTRES | MIDS) == PRED | SLACK
+    own_ring = flags & (RING | PRED | CENTRES) == RING | PRED
+    if (coded or own_ring) and own is None:
+        raise ValueError("a bounds blob guessed from the heights needs the tile's heights")
+    if coded and flags & DIFF:
+        raise ValueError("a range-coded predicted bounds blob has no other shape")
+    if own_ring and flags & (DIFF | CENTRES | MIDS):
+        raise ValueError("a guessed ring bounds blob has no other shape")
+    if own_ring:  # the ring's checks below, as a plain ring's
+        flags &= ~PRED
+    if coded:  # the predicted blob's checks below
+        flags &= ~SLACK
     if guessed and (flags & (RING | DIFF | SLACK | MIDS) or not flags & NEW_ONLY
                     or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1]
                     or shape[0] < 3 or shape[0] % 2 == 0 or guess is None):
@@ -503,7 +860,8 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
     else:
         n = len(keep) if keep is not None else int(np.prod(shape))
     width = 1 if flags & LOG8 else 2
-    raw = zstdsafe.decompress(body, width * n, exact=True)  # bounded: never a bomb
+    # schema 20's payloads are range-coded (bounded by their count), the others zstd
+    raw = body if coded or own_ring else zstdsafe.decompress(body, width * n, exact=True)
     if guessed:  # each centre from the heights' guess, the other new vertices code 0
         h = (T - 1) // 2
         g = np.asarray(guess(e), np.uint8)
@@ -524,7 +882,14 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
                               px * half: px * half + half + 1], np.float64)
         # log8_codes with the cached table: the smallest code ≥ each value (NaN: +inf)
         corners = np.searchsorted(_log8_table64(e), np.where(np.isnan(a), np.inf, a))
-        vals = _log8_table_ro(e)[pred_codes(corners, np.frombuffer(raw, np.uint8)).ravel()[keep]]
+        if coded:
+            lo = np.asarray(own(e), np.uint8)
+            if lo.shape != (T, T):
+                raise ValueError("an own-error guess of the wrong shape")
+            codes = pred_codes_own(corners, raw, lo)
+        else:
+            codes = pred_codes(corners, np.frombuffer(raw, np.uint8))
+        vals = _log8_table_ro(e)[codes.ravel()[keep]]
     elif flags & CENTRES:  # the centres as stored, the other new vertices code 0
         codes = np.zeros(len(keep), np.uint8)
         codes[_shape_index(T)[0]] = np.frombuffer(raw, np.uint8)
@@ -533,6 +898,11 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         b = log8_codes(np.asarray(base).ravel() if keep is None
                        else np.asarray(base).ravel()[keep], e)
         vals = _log8_table_ro(e)[b + np.frombuffer(raw, np.uint8)]
+    elif own_ring:  # + the own errors' codes at the ring, mod 256
+        g = np.asarray(own(e), np.uint8)
+        if g.shape != (T, T):
+            raise ValueError("an own-error guess of the wrong shape")
+        vals = _log8_table_ro(e)[ring_codes_own(raw, g[rr, rc])]
     elif flags & LOG8:
         vals = _log8_table_ro(e)[np.frombuffer(raw, np.uint8)]
     else:

@@ -27,7 +27,13 @@ from geoterrain.bounds.edgepad import (
 from geoterrain.bounds.leafbounds import CentreHeights, geographic_leaf_delta, ring_guesses
 from geoterrain.bounds.normals import level_normal_codes, ring_normal_codes
 from geoterrain.bounds.radii import stand_in_z, valid_range, vertex_radii
-from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, radius_codes, ring_blobs
+from geoterrain.bounds.tileblobs import (
+    BoundsCoding,
+    OwnHeights,
+    level_blobs,
+    radius_codes,
+    ring_blobs,
+)
 from geoterrain.bounds.tilebounds import tile_and_block_errors
 from geoterrain.bounds.vertexdata import (
     NORMAL_BITS,
@@ -514,7 +520,9 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     # guess from the heights (leafbounds.centre_guess, schema 17)
     guess = (b.derive and frame.kind == "geographic" and "radius" not in b.ring_kinds
              and grid.tile_samples >= 3 and grid.top_level > 0)
-    stand_in = stand_in_z(Z, valid) if guess else 0.0
+    stand_in = stand_in_z(Z, valid)
+    # schema 20: δ's PRED and RING blobs guessed from the own errors on the heights
+    own = OwnHeights(Z, valid, stand_in)
     for L in grid.levels:
         keys = [k for k in height_blobs if k[0] == L]
         if not keys:
@@ -541,7 +549,7 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
                                         ring=b.ring_kinds if L == 0 else False,
                                         slack=b.slack if L == 0 else None,
                                         mids=L > 0 and "radius" in b.ring_kinds,
-                                        centres=centres, heights=heights)
+                                        centres=centres, heights=heights, own=own)
         if derive_normals:
             guess_n = None
             if ring_residual:  # each ring as its difference from the reader's derived map

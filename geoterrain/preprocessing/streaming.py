@@ -43,7 +43,7 @@ import numpy as np
 
 from geoterrain.bounds.edgepad import has_padding
 from geoterrain.bounds.leafbounds import CentreHeights, ring_guesses
-from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, ring_blobs
+from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs, ring_blobs
 from geoterrain.bounds.tilebounds import TileTable
 from geoterrain.bounds.vertexdata import (
     log8_exponent,
@@ -415,7 +415,7 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
                                           derive_normals, ring,
                                           {(x, y): s for x, y, s in slack or ()},
                                           frame if residual else None,
-                                          stand_in if guess else None)
+                                          stand_in if guess else None, stand_in)
                 del stored  # (in the staging table now: the commit reads it from there)
                 stage("blobs")
                 across, down = grid.tiles(0)  # a root grid's extent holds more than its tiles
@@ -446,7 +446,7 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                  sn: ScratchArrays, grid: Grid, stored: TileTable, er: int,
                  dmax: float, emax: float, derive_normals: bool, ring: tuple[str, ...],
                  slack: dict, frame: Frame | None = None,
-                 stand_in: float | None = None) -> dict:
+                 stand_in: float | None = None, own_stand_in: float = 0.0) -> dict:
     """The δ, r, normals and δ_edge blobs and the tile rows, a tile row of each level at a
     time, coded :data:`WINDOW_TILES` tiles at a time (preprocessing.preprocess's compress
     stage on each window of a level's lattice).
@@ -457,7 +457,9 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
     level-0 slack per tile (x, y); ``frame`` (given): the normals' rings as differences
     from what a reader derives there (schema 17, :func:`_ring_guess_row`); ``stand_in``
     (given: a geographic store's): level 0's r centres as differences from their guess
-    from the heights (the bounds pass's ``ZC0``…, the stand-in in place)."""
+    from the heights (the bounds pass's ``ZC0``…, the stand-in in place); ``own_stand_in``:
+    the store's stand-in height, with which δ's blobs are guessed from the bounds pass's
+    heights of every level (schema 20, :class:`geoterrain.bounds.tileblobs.OwnHeights`)."""
     n, t, top = grid.n, grid.t, grid.top_level
     T, T1 = grid.tile_samples, grid.tile_samples - 1
     ed = log8_exponent(np.array([dmax]))
@@ -523,6 +525,10 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                                            q0, q1)
                         centres = CentreHeights(zl, np.ones(zl.shape, np.uint8), stand_in,
                                                 rows_k[:, 5:9].astype(np.float64))
+                    # schema 20: the window's heights on the level's whole lattice (the
+                    # stand-in in place), δ's blobs guessed from their own errors
+                    own = OwnHeights(level_lattice(sa, "Z", L, n, p0, p1, m, True,
+                                                   np.float64, q0, q1), None, own_stand_in)
                     blobs, dm, rm = level_blobs(
                         coding, nrm, t, 0, top_w, local,
                         ("delta", "radius") if derive_normals
@@ -532,8 +538,8 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                                if (x, y) in slack} if L == 0 and slack else None,
                         mids=L > 0 and "radius" in ring,
                         centres=centres if L == 0 else None,
-                        heights=centres if L > 0 else None)
-                    del centres
+                        heights=centres if L > 0 else None, own=own)
+                    del centres, own
                     if derive_normals:
                         guess_n = (None if frame is None else
                                    _ring_guess_row(sn, grid, frame, L, y, keys, m))

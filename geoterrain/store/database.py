@@ -118,7 +118,10 @@ _KIND_NAMES = {i: k for k, i in KIND_CODES.items()}  # a blob key's kind number 
 #                       and the normals' border rings as differences from the tile's
 #                       derived map (metadata normals_ring_residual)
 #                   20: a geographic r above level 0 as differences from guesses from the
-#                       tile's heights (vertexdata.MIDS with PRED)
+#                       tile's heights (vertexdata.MIDS with PRED); δ blobs guessed from
+#                       the tile's heights: PRED payloads in the order of their own-error
+#                       gaps (PRED with SLACK), level-0 rings as differences from the own
+#                       errors' codes (RING with PRED; vertexdata.own_codes)
 SCHEMA_VERSION = 20
 ROOTS_SCHEMA_VERSION = 21  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
 #                            9 before schema 10, 11 before 12, 13 before 14, 15 before 17,

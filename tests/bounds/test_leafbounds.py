@@ -89,14 +89,17 @@ def test_derived_level0_bounds_are_the_stored_ones(tmp_path_factory, seed, shape
 @pytest.mark.fast
 def test_only_level0_blobs_are_rings(tmp_path):
     """Coarser tiles' new vertices have diamonds beyond the tile: they stay stored, but
-    for the cell centres of r (flag ``MIDS``), whose children are in the tile."""
+    for the cell centres of r (flag ``MIDS``), whose children are in the tile. (δ's
+    ``PRED`` blobs carry ``SLACK`` instead: schema 20's range-coded payloads.)"""
     z = np.random.default_rng(4).normal(0, 5, (65, 65)).cumsum(0)
     _, ring = _pair(tmp_path, z)
     for key in ring.tile_info:
         for kind in ("delta", "radius"):
             flags = ring._blob(key, kind)[1]
             assert bool(flags & RING) == (key[0] == 0), (key, kind)
-            assert bool(flags & MIDS) == (kind == "radius" and key[0] > 0), (key, kind)
+            assert bool(flags & MIDS) == (key[0] > 0 and kind == "radius"), (key, kind)
+            if kind == "delta" and key[0] > 0:  # schema 20's range-coded PRED δ
+                assert bool(flags & SLACK) == bool(flags & PRED), (key, kind)
 
 
 @pytest.mark.fast
@@ -336,8 +339,10 @@ def test_a_damaged_or_misplaced_mids_blob_is_refused_in_one_line(tmp_path):
     T = st_.grid.tile_samples
     wrong = bytes([VERSION_2, NEW_ONLY | LOG8 | MIDS, 0]) + zstandard.ZstdCompressor().compress(
         bytes(len(mids_index(T, True)) + 1))
+    # (a δ in r's schema-20 layout, MIDS with PRED: schema 20's range-coded δ is PRED
+    # with SLACK)
     cases = [((0, 0, 0), "radius", r110), ((1, 1, 0), "delta", flagged(blob((1, 1, 0), "delta"),
-                                                                       MIDS)),
+                                                                       MIDS, SLACK)),
              ((1, 1, 0), "radius", flagged(r110, CENTRES)), ((1, 1, 0), "radius",
                                                              flagged(r110, RING)),
              ((1, 1, 0), "radius", flagged(r110, 0, LOG8)), ((1, 1, 0), "radius", wrong)]

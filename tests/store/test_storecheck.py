@@ -167,7 +167,7 @@ def test_a_root_grid_store_passes_its_checks(wide_store):
     # the square store itself is still read
     assert meta["schema_version"] == SCHEMA_VERSION == 20
     assert check_store(path, meta, tiles)[0] == g
-    for old in (14, 15, 17, 18):  # before 20: its r above level 0 is not 20's, refused
+    for old in (14, 15, 17, 18):  # before 20: its δ and r blobs are not 20's, refused
         with pytest.raises(StoreError, match=f"written in schema version 20, not {old}"):
             check_store(path, dict(meta, schema_version=old), tiles)
 

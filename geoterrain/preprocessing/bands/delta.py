@@ -524,6 +524,10 @@ def _keep_heights(sa: ScratchArrays, z: np.ndarray, v: np.ndarray, w0: int, r0: 
             if a_hi >= a_lo:
                 idx = np.arange(a_lo, a_hi + 1) * s + off - w0
                 sa.write(f"Z{x}{k}", a_lo, zp[idx][:, cols])
+    S = 1 << n  # the roots' corners (ZT: every S-th row and column)
+    a_lo, a_hi = -(-r0 // S), r_end // S
+    if "ZT" in sa and a_hi >= a_lo:
+        sa.write("ZT", a_lo, zp[np.arange(a_lo, a_hi + 1) * S - w0][:, ::S])
 
 
 def _fine_skip(data: tuple[int, int] | None, r0: int, B: int) -> bool:
@@ -640,6 +644,8 @@ def band_vertex_errors(rows: Rows, N: int | tuple[int, int], band: int = 256,
             sa.create(f"ZC{k}", (nr, nb), np.float64)
             sa.create(f"ZR{k}", (nr, nb + 1), np.float64)
             sa.create(f"ZK{k}", (nr + 1, nb), np.float64)
+    if heights:  # the roots' corners, new at no level: δ's guesses read them (schema 20)
+        sa.create("ZT", (((NR - 1) >> n) + 1, ((NC - 1) >> n) + 1), np.float64)
     carry = [(np.zeros((NC - 1) // (2 << k), np.uint8), np.zeros((NC - 1) // (2 << k)))
              for k in range(nfine)]
     for k in range(nbands):
@@ -700,7 +706,8 @@ def level_lattice(sa: ScratchArrays, pre: str, L: int, n: int, p0: int, p1: int,
     """Rows p0 … p1 − 1 and columns q0 … q1 − 1 (default: all m) of level L's lattice
     (m a side, sample (p, q) = grid sample (p 2^L, q 2^L)) of the per-level arrays
     ``{pre}C{k}``…: level L's new vertices, and at the top level every coarser one too
-    (0 elsewhere). Only the window's samples are read from the arrays.
+    (0 elsewhere; the roots' corners from ``{pre}T`` where it is kept, the heights'
+    ``ZT``). Only the window's samples are read from the arrays.
 
     Examples
     --------
@@ -727,6 +734,14 @@ def level_lattice(sa: ScratchArrays, pre: str, L: int, n: int, p0: int, p1: int,
             a_hi, b_hi = a_lo + rows.shape[0] - 1, b_lo + rows.shape[1] - 1
             out[ro + 2 * u * a_lo - p0:ro + 2 * u * a_hi - p0 + 1:2 * u,
                 co + 2 * u * b_lo - q0:co + 2 * u * b_hi - q0 + 1:2 * u] = rows
+    if top and f"{pre}T" in sa:  # the roots' corners (every 2^(n − L)-th sample)
+        u = 1 << (n - L)
+        a_lo, a_hi = -(-p0 // u), (p1 - 1) // u
+        b_lo, b_hi = -(-q0 // u), (q1 - 1) // u
+        if a_hi >= a_lo and b_hi >= b_lo:
+            out[a_lo * u - p0:a_hi * u - p0 + 1:u,
+                b_lo * u - q0:b_hi * u - q0 + 1:u] = sa.read(f"{pre}T", a_lo, a_hi + 1,
+                                                             b_lo, b_hi + 1)
     return out
 
 

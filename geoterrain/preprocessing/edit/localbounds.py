@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from geoterrain.bounds.delta import Cell
-from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs
+from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs
 from geoterrain.bounds.tilebounds import closed_blocks
 from geoterrain.bounds.vertexdata import log8_exponent, log8_table
 from geoterrain.bounds.windows import (
@@ -588,7 +588,9 @@ class Bounds:
             keep = np.sort(first)
             ij, flags = ij[keep], merged[inv[keep]]
         job.dirty.extend((i, j, i + 1, j + 1) for i, j in ij.tolist())
-        need = blob_reach(g, ij[:, 0], ij[:, 1], flags[:, 0], flags[:, 1], job.derive_bounds)
+        canvas = self.c
+        need = blob_reach(g, ij[:, 0], ij[:, 1], flags[:, 0], flags[:, 1], job.derive_bounds,
+                          edited=(canvas.r0, canvas.c0, canvas.r1, canvas.c1))
         # the coarse vertices' new codes, as arrays
         cv = np.array(list(self.coarse_d), np.int64).reshape(-1, 2)
         cd = self.t8[np.array(list(self.coarse_d.values()), np.int64)]
@@ -629,10 +631,13 @@ class Bounds:
             r[di[on] // step, dj[on] // step] = cr[on]
             coding = BoundsCoding(d, None, job.ed,
                                   r_codes=(np.searchsorted(self.rt, r).astype(np.uint8), job.er))
+            # schema 20: δ's blob guessed from the own errors on the tile's edited heights
+            h, v = canvas.lattice(L, rows, cols)
+            own = OwnHeights(np.where(v, h * canvas.factor, np.nan), v, self.stand_in)
             blobs, dm, rm = level_blobs(coding, np.zeros((T, T, 2), np.uint8), g.t, 0,
                                         0 if L == g.top_level else 1, [(0, 0)], kinds,
                                         ring=L == 0 and job.derive_bounds,
-                                        mids=L > 0 and job.derive_bounds)
+                                        mids=L > 0 and job.derive_bounds, own=own)
             for kind in kinds:
                 job.put(key, kind, blobs[kind][(0, 0, 0)])
             if row:
@@ -640,7 +645,7 @@ class Bounds:
 
 
 def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray,
-               derived: bool) -> dict:
+               derived: bool, edited: tuple[int, int, int, int] | None = None) -> dict:
     """Which stored bytes vertices (``vi``, ``vj``) whose δ code (``fd``) or r code
     (``fr``) changed can reach: ``{(L, x, y): (kinds, row)}``, the tile's δ and r blobs
     whose payload reads such a code (``kinds``) and whether its row's largest stored δ and
@@ -656,6 +661,11 @@ def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray
     - every other blob (``PRED`` δ: seed 002 §2.4's parents, a cell centre's
       prediction reading the corners of its cell, a coarser level's vertices; ``CENTRES``;
       the top level's): every vertex of the tile.
+
+    And (schema 20) every δ blob below the top reads its tile's heights (its guess from
+    the own errors, :func:`geoterrain.bounds.vertexdata.own_codes`): ``edited`` (rows
+    r0 … r1 − 1, columns c0 … c1 − 1 of changed heights) reaches the δ of every tile
+    below the top whose lattice holds one of those samples.
 
     Examples
     --------
@@ -702,6 +712,17 @@ def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray
                     for tx, ty in set(zip(x[ok].tolist(), y[ok].tolist(), strict=True)):
                         got = need.setdefault((L, tx, ty), [False, False, False])
                         got[n] = True
+    if edited is not None:  # schema 20: δ's own-error guess reads the tile's heights
+        r0, c0, r1, c1 = (int(a) for a in edited)
+        for L in range(top):
+            span, step, (nx, ny) = g.tile_span(L), 1 << L, g.tiles(L)
+            i0, i1 = -(-r0 // step) * step, (r1 - 1) // step * step  # the level's samples
+            j0, j1 = -(-c0 // step) * step, (c1 - 1) // step * step
+            if i1 < i0 or j1 < j0:
+                continue
+            for ty in range(max(-(-(i0 - span) // span), 0), min(i1 // span, ny - 1) + 1):
+                for tx in range(max(-(-(j0 - span) // span), 0), min(j1 // span, nx - 1) + 1):
+                    need.setdefault((L, tx, ty), [False, False, False])[0] = True
     return {k: (tuple(kind for kind, f in zip(("delta", "radius"), v[:2], strict=True) if f),
                 v[2]) for k, v in need.items()}
 
