@@ -189,7 +189,8 @@ def test_geographic_stores_derive_level0_delta_with_a_slack(tmp_path_factory, se
                        pre={"root_grid": False})  # _delta_grid: the square's arrays
     assert ring.frame.kind == "geographic"
     slacks = [float(np.frombuffer(ring._blob(k, "delta")[3:7], "<f4")[0])
-              for k in ring.tile_info if ring._blob(k, "delta")[1] & SLACK]
+              for k in ring.tile_info  # a ring's slack (a PRED δ's SLACK is schema 20's)
+              if ring._blob(k, "delta")[1] & (SLACK | RING) == SLACK | RING]
     top = max(slacks, default=0.0)
     assert all(0 < s < np.inf for s in slacks), slacks
     assert {ring._blob(k, "radius")[1] & RING for k in ring.tile_info} == {0}
