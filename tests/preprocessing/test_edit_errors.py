@@ -92,3 +92,74 @@ def test_an_old_maximum_kept_where_it_dropped_is_seen(tmp_path, monkeypatch, at)
     with pytest.raises(AssertionError):
         assert_same_store(a, b)
 
+
+
+def _fbm_store(tmp, z):
+    (tmp / "a").mkdir(parents=True)
+    return geoterrain.preprocess(write_dem(tmp / "a" / "dem.tif", z), tile_size=32)
+
+
+# 513² fBm in whole metres, tiles of 32 samples (levels 0-4: blocks of up to 256 tiles);
+# cuts and fills whose window holds a coarse vertex's largest old value, or raises it
+FBM_EDITS = [(38, 80, 65, -40.0), (206, 319, 33, 40.0), (300, 120, 9, -40.0)]
+
+
+def _fbm_z() -> np.ndarray:
+    from geoterrain.ingest.synth import generate
+
+    return np.rint(generate("fbm", 513, seed=2))
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("edit", FBM_EDITS)
+def test_a_coarse_vertex_s_raw_code_from_the_window(tmp_path, monkeypatch, edit):
+    """Direct coarse vertices whose raw δ code the edit's window alone gives (their
+    stored code and the window's old and new values: localbounds.Bounds._raw_by_window)
+    sweep no tile, and the edited store is a preprocess's."""
+    from geoterrain.preprocessing.edit.localbounds import Bounds
+
+    seen = []
+    run = Bounds.run
+
+    def spy(self):
+        out = run(self)
+        seen.append(self)
+        return out
+
+    monkeypatch.setattr(Bounds, "run", spy)
+    row, col, w, dz = edit
+    z = _fbm_z()
+    store = _fbm_store(tmp_path, z)
+    p = np.full((w, w), dz)
+    with geoterrain.open(store) as t:
+        assert edit_terrain(t, Patch(row, col, p), "add", how="tiles").how == "tiles"
+    (tmp_path / "b").mkdir()
+    fresh = geoterrain.preprocess(write_dem(tmp_path / "b" / "dem.tif",
+                                            apply_by_hand(z, row, col, p, "add")), tile_size=32)
+    assert_same_store(store, fresh)
+    assert seen[-1].by_window > 0
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("edit", FBM_EDITS[:2])
+def test_a_raw_code_kept_where_the_window_held_it_is_seen(tmp_path, monkeypatch, edit):
+    """Mutation: the window's old values taken as 0 (so a coarse vertex's stored code
+    always counts as held outside the window) leaves another store than a preprocess's
+    where the window held a coarse vertex's largest value."""
+    from geoterrain.preprocessing.edit.localbounds import Bounds
+
+    rect = Bounds._rect_max
+    monkeypatch.setattr(Bounds, "_rect_max",
+                        lambda self, cell, zc, rc, r, new: rect(self, cell, zc, rc, r, new)
+                        if new else 0.0)
+    row, col, w, dz = edit
+    z = _fbm_z()
+    store = _fbm_store(tmp_path, z)
+    p = np.full((w, w), dz)
+    with geoterrain.open(store) as t:
+        assert edit_terrain(t, Patch(row, col, p), "add", how="tiles").how == "tiles"
+    (tmp_path / "b").mkdir()
+    fresh = geoterrain.preprocess(write_dem(tmp_path / "b" / "dem.tif",
+                                            apply_by_hand(z, row, col, p, "add")), tile_size=32)
+    with pytest.raises(AssertionError):
+        assert_same_store(store, fresh)
