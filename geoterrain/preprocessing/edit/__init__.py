@@ -32,6 +32,7 @@ Examples
 from __future__ import annotations
 
 import time
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -169,6 +170,25 @@ def edit_terrain(terrain: TerrainLike, patch: Patch, mode: str = "replace", *,
 
 def _edit(terrain: TerrainLike, p: Patch, mode: str, round_heights: bool, how: str,
           t0: float) -> EditResult:
+    # the store's reads in one read transaction (Terrain.snapshot: no lock, unlock and
+    # change-counter check a blob), ended before the edit's own transaction writes
+    snapshot = getattr(terrain, "snapshot", None)
+    with snapshot() if snapshot is not None else nullcontext():
+        res, plan, meta_before = _plan(terrain, p, mode, round_heights, how, t0)
+    if plan is None:
+        return res
+    tw = time.perf_counter()
+    with StoreEditor(terrain.path, expect=meta_before) as ed:
+        stats = ed.apply(plan.puts, plan.deletes, plan.tiles, plan.meta, plan.all_tiles)
+    res.rows, res.bytes = stats["rows"], stats["blob_bytes"] + stats["catalog_bytes"]
+    res.seconds = time.perf_counter() - t0
+    res.write_seconds = time.perf_counter() - tw
+    return res
+
+
+def _plan(terrain: TerrainLike, p: Patch, mode: str, round_heights: bool, how: str,
+          t0: float) -> tuple:
+    """(the result so far, the plan or None where nothing changes, the old metadata)."""
     from geoterrain.exceptions import UsageError
     from geoterrain.preprocessing.edit import local
 
@@ -183,7 +203,7 @@ def _edit(terrain: TerrainLike, p: Patch, mode: str, round_heights: bool, how: s
     res = EditResult(terrain.path, mode, p.source, None, int(changed.sum()), rounded)
     if not changed.any():
         res.seconds = time.perf_counter() - t0
-        return res
+        return res, None, None
     ii, jj = np.nonzero(changed)
     a0, a1, b0, b1 = int(ii.min()), int(ii.max()) + 1, int(jj.min()), int(jj.max()) + 1
     res.window = (r0 + a0, c0 + b0, a1 - a0, b1 - b0)
@@ -206,13 +226,7 @@ def _edit(terrain: TerrainLike, p: Patch, mode: str, round_heights: bool, how: s
     res.how = plan.how
     res.dirty = _merged(plan.dirty)
     plan.meta["edits"] = _log(meta_before.get("edits"), res)
-    tw = time.perf_counter()
-    with StoreEditor(terrain.path, expect=meta_before) as ed:
-        stats = ed.apply(plan.puts, plan.deletes, plan.tiles, plan.meta, plan.all_tiles)
-    res.rows, res.bytes = stats["rows"], stats["blob_bytes"] + stats["catalog_bytes"]
-    res.seconds = time.perf_counter() - t0
-    res.write_seconds = time.perf_counter() - tw
-    return res
+    return res, plan, meta_before
 
 
 def _merged(rects: list) -> list:

@@ -53,7 +53,7 @@ from geoterrain.codec.predict import fill_outward
 from geoterrain.codec.pyramid import decode_tile_valid, encode_child, encode_root
 from geoterrain.codec.quantize import valid_codes
 from geoterrain.preprocessing.edit.canvas import Canvas
-from geoterrain.preprocessing.edit.whole import Plan, store_predictor
+from geoterrain.preprocessing.edit.whole import Plan, store_predictor, store_reader
 from geoterrain.store.catalog import TILE_COLUMNS
 from geoterrain.store.database import StoreReader
 
@@ -84,13 +84,10 @@ def unsupported(terrain: TerrainLike, row: int, col: int, heights: np.ndarray,
     if "block_delta_levels" not in m or m.get("normals_derived") not in (
             None, list(range(g.top_level + 1))):
         return "a store written before the block table and derived normals"
-    r = StoreReader(terrain.path)
-    try:
+    with store_reader(terrain) as r:
         top = _stored_root(terrain)
         blob = r.get_blob(top, "delta")
         rblob = r.get_blob(top, "radius")
-    finally:
-        r.close()
     if not (blob and len(blob) > 2 and blob[1] & LOG8 and rblob and len(rblob) > 2
             and rblob[1] & LOG8):
         return "δ or r not in log8 codes (an older store)"
@@ -134,7 +131,10 @@ class _Job:
         self.t = terrain
         self.c = canvas
         self.g = terrain.grid
-        self.reader = StoreReader(terrain.path)
+        # the terrain's reader where it has one (store_reader)
+        own = getattr(terrain, "reader", None)
+        self._own = not isinstance(own, StoreReader)
+        self.reader = StoreReader(terrain.path) if self._own else own
         self.puts: dict = {}
         self.dirty: list = []
         self.rows: dict = {}  # new tile rows (TILE_COLUMNS order), changed tiles only
@@ -431,7 +431,8 @@ class _Job:
             r = list(r)
             r[0] = int(r[0])
             out[k] = tuple(r)
-        self.reader.close()
+        if self._own:
+            self.reader.close()
         return Plan(self.puts, set(), out, self.meta, self.dirty, how="tiles",
                     all_tiles=False)
 

@@ -75,6 +75,11 @@ class Bounds:
         self._code_cache: dict = {}  # (i, j, kind) → the vertex's stored code
         self._t8_list, self._rt_list = self.t8.tolist(), self.rt.tolist()
         self.tiles_swept = 0
+        self.by_window = 0  # direct coarse vertices whose raw δ code came from the window
+        self.z_old = None  # the window's heights before the edit (_raw_by_window)
+        # the code of the store's largest finite δ: a raw δ whose code is below it is
+        # below that δ (_raw_by_window)
+        self.top_code = int(np.searchsorted(self.t8, float(self.t.meta["delta_max_finite"])))
         self.rows0 = {False: job.level0(False), True: job.level0(True)}
 
     def run(self) -> str:
@@ -304,7 +309,9 @@ class Bounds:
                 new_kids = max((self.d_code(ci, cj) for ci, cj in kids), default=0)
                 if d:
                     self.direct_coarse.add((i, j))
-                    raw = self._coarse_raw(i, j, h)
+                    raw = self._raw_by_window(i, j, h, kids, new_kids)
+                    if raw is None:
+                        raw = self._coarse_raw(i, j, h)
                     self._check_scale(raw)
                     self.raw_new[(i, j)] = raw
                     code = max(int(np.searchsorted(self.t8, float(raw))), new_kids)
@@ -325,6 +332,82 @@ class Bounds:
                                                                for ci, cj in kids])
                 if self.coarse_r[(i, j)] == 255:
                     raise _Whole("a radius outgrows its code scale")
+
+    def _raw_by_window(self, i: int, j: int, h: int, kids: list, new_kids: int
+                       ) -> float | None:
+        """A direct coarse vertex's raw δ, as far as its saturated code needs it, from its
+        stored code and the edit's window alone, with no tile swept (None where it is
+        not known so).
+
+        Its raw δ is a maximum over its diamond's samples (its blocks' regions); where no
+        block corner or centre (its planes) is edited, the samples outside the edit's
+        rectangle W keep their values, whose code is at most the stored code (saturation
+        takes the largest of the raw code and the children's). So the new raw code is at
+        most ``ub``, the larger of the stored code and W's new values' code, and is
+        ``ub`` where the stored code is the raw δ's (above the children's old codes) and
+        W's old values have a lower code (the samples outside W held it). Where ``ub`` is
+        at most the children's new codes, the saturated code is theirs whatever the raw
+        code is. Below the code of the store's largest δ a raw value is only compared
+        with that δ (:meth:`_delta_max`), and lies below it: the code's upper end is
+        returned; at or above it, None (the exact value is swept)."""
+        c, s, t8 = self.c, 2 * h, self._t8_list
+        old = self._old_code(i, j, "delta")
+        if old >= self.top_code:
+            return None
+        if (i // h) % 2 == 1 and (j // h) % 2 == 1:
+            parts = [((i - h) // s, (j - h) // s, 0)]
+        elif (i // h) % 2 == 1:  # hypotenuse along the rows
+            parts = [((i - h) // s, j // s - 1, 2), ((i - h) // s, j // s, 1)]
+        else:
+            parts = [(i // s - 1, (j - h) // s, 4), (i // s, (j - h) // s, 3)]
+        w_old = w_new = 0.0
+        some = False
+        for a, b, r in parts:
+            f, fo = self._status(a, b, s), self._status(a, b, s, False)
+            if f != fo or f not in (0, 1):
+                return None
+            if f == 0:
+                continue
+            some = True
+            i0, j0 = a * s, b * s
+            ci = np.array([i0, i0, i0 + s, i0 + s, i0 + h])
+            cj = np.array([j0, j0 + s, j0, j0 + s, j0 + h])
+            if ((ci >= c.r0) & (ci < c.r1) & (cj >= c.c0) & (cj < c.c1)).any():
+                return None  # an edited plane
+            a0, a1 = max(c.r0, i0) - i0, min(c.r1 - 1, i0 + s) - i0
+            b0, b1 = max(c.c0, j0) - j0, min(c.c1 - 1, j0 + s) - j0
+            if a1 < a0 or b1 < b0:
+                continue
+            z00, z01, z10, z11, zc = (float(v) for v in c.samples(ci, cj)[0])
+            cell = Cell(i0, j0, s, _main_diagonal(a, b), z00, z01, z10, z11)
+            w_new = max(w_new, self._rect_max(cell, zc, (a0, a1, b0, b1), r, True))
+            w_old = max(w_old, self._rect_max(cell, zc, (a0, a1, b0, b1), r, False))
+        if not some:
+            return None
+        ub = max(old, bisect_left(t8, _round_up32(w_new)))
+        if ub >= self.top_code:
+            return None
+        if ub <= new_kids:  # the children's codes win: any raw code up to ub will do
+            self.by_window += 1
+            return t8[ub]
+        held = old > max((self._old_code(ci, cj, "delta") for ci, cj in kids), default=0)
+        if held and bisect_left(t8, _round_up32(w_old)) < old:
+            self.by_window += 1
+            return t8[ub]
+        return None
+
+    def _rect_max(self, cell: Cell, zc: float, rect: tuple, r: int, new: bool) -> float:
+        """Region ``r``'s largest |z − P| of block ``cell`` over the block-relative
+        rectangle ``rect`` (rows a0 … a1, columns b0 … b1, inclusive) within the window,
+        after the edit or before it."""
+        if new:
+            z = self.z
+        else:
+            if self.z_old is None:
+                self.z_old = self.c.rect(self.oi, self.oj, self.i1 + 1, self.j1 + 1,
+                                         new=False)[0]
+            z = self.z_old
+        return float(block_sweep_rect(z, self.oi, self.oj, cell, zc, *rect)[r])
 
     def _nest(self, i: int, j: int, pos: list, codes: list) -> int:
         pts = [(i, j)] + pos
@@ -459,15 +542,17 @@ class Bounds:
         GeoMipMapping table: at level n, z lies within the tile's δ_n (rounded up) of
         S_n, the union-jack surface through the tile's level-n samples, and S_n − P is
         linear on each of its triangles, so |z − P| ≤ max over those samples of
-        |z − P| + δ_n; the least over n = t, t − 1, t − 2. Tiles the edit changed get
-        +inf (the table is the old one) when ``new``."""
+        |z − P| + δ_n, at n = max(t − 2, 1) (of n = t, t − 1, t − 2, the coarser two lowered
+        the tiles swept by 1 in 116 an edit on the 4097² fBm for a quarter of this
+        bound's time, docs/lab/editing.md). Tiles the edit changed get +inf (the table is
+        the old one) when ``new``."""
         g, c, S = self.g, self.c, self.S
         i0, j0, s_, main, z00, z01, z10, z11 = cell
         h = s // 2
         k = s // S
         table = self.t.block_errors()
         out = np.full((k * k, 5), np.inf)
-        for n in range(max(g.t - 2, 1), min(g.t, table.shape[2] - 1) + 1):
+        for n in range(max(g.t - 2, 1), min(max(g.t - 2, 1), table.shape[2] - 1) + 1):
             step = 1 << n
             rows = np.arange(i0, i0 + s + 1, step)
             cols = np.arange(j0, j0 + s + 1, step)

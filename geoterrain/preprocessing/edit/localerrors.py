@@ -3,6 +3,14 @@ reaches (:mod:`.local`, after :mod:`.localbounds`'s δ and r): the blocks the ed
 reaches get their level fields again; a tile's error is the largest of its blocks'
 (the others' stored values, rounded up, bound theirs, so only the blocks that can hold
 the largest are computed) and its children's.
+
+A tile's error and skirt error are maxima over its blocks (seed 000 §2.4's field pooled
+over a footprint, or over its border lines), and the blocks the edit does not reach keep
+their values: where the old maximum was held by such a block (the tile's old stored
+value beats the reached blocks' old values), it is the unreached blocks' maximum, and
+the new one is the larger of it and the reached blocks' new values, with no other block
+read. Otherwise (the old maximum may have been in the reached blocks and dropped) the
+blocks that can hold the largest are computed as above.
 """
 
 from __future__ import annotations
@@ -11,8 +19,11 @@ import numpy as np
 
 from geoterrain.bounds.vertexdata import pack_block_errors
 from geoterrain.bounds.windows import level_field_rect
+from geoterrain.store.catalog import TILE_COLUMNS
 
 __all__ = ["TileErrors", "WholeGrid"]
+
+_E, _B = TILE_COLUMNS.index("error"), TILE_COLUMNS.index("boundary_error")
 
 
 class WholeGrid(Exception):
@@ -38,6 +49,8 @@ class TileErrors:
             raise WholeGrid("the block table does not cover every level")
         new = np.array(table, np.float64)
         self._fields: dict = {}
+        self._old_fields: dict = {}  # the reached blocks' fields before the edit
+        self.shortcuts = self.fallbacks = 0  # tiles' errors from the old rows / by blocks
         nbx, nby = g.tiles(0)
         changed_blocks = {}
         for L in range(1, g.top_level + 1):
@@ -55,6 +68,7 @@ class TileErrors:
             changed_blocks[L] = set(blocks)
             self._region = getattr(self, "_region", {})
             self._region[L] = (lo_r, lo_c, hi_r, hi_c)
+        self._changed = changed_blocks
         job.put((g.top_level, 0, 0), "block_delta", pack_block_errors(new))
         for L in range(1, g.top_level + 1):
             span = g.tile_span(L)
@@ -63,21 +77,44 @@ class TileErrors:
                 key = (L, x, y)
                 if job.row(key) is None:
                     continue
-                own = self._own_error(y * k, x * k, k, L, new, changed_blocks[L])
-                kids = [job.row((L - 1, 2 * x + dx, 2 * y + dy)) for dy in (0, 1) for dx in (0, 1)]
-                err = max([own] + [r[3] for r in kids if r is not None])
+                kids = [(L - 1, 2 * x + dx, 2 * y + dy) for dy in (0, 1) for dx in (0, 1)]
+                own = self._own_error(y * k, x * k, k, L, new, changed_blocks[L],
+                                      self._old_own(key, kids))
+                err = max([own] + [r[3] for r in map(job.row, kids) if r is not None])
                 cols = {"error": float(err)}
                 lo_r, lo_c, hi_r, hi_c = self._region[L]
                 if any(lo_r <= line <= hi_r for line in (y * span, y * span + span)) and \
                         x * span <= hi_c and x * span + span >= lo_c or \
                         any(lo_c <= line <= hi_c for line in (x * span, x * span + span)) and \
                         y * span <= hi_r and y * span + span >= lo_r:
-                    cols["boundary_error"] = float(self._skirt(x, y, L, new))
+                    old = job.old_row(key)
+                    cols["boundary_error"] = float(self._skirt(
+                        x, y, L, new, changed_blocks[L], None if old is None else float(old[_B])))
                 job.set_row(key, **cols)
 
-    def _fields_batch(self, blocks: list, L: int) -> None:
+    def _old_own(self, key: tuple, kids: list) -> float | None:
+        """The tile's own error before the edit (the largest of its blocks' fields), where
+        its old row tells it: its error is the larger of its own and its children's
+        (:func:`~geoterrain.bounds.tilebounds.tile_rows`), so it is its own where it beats
+        the children's, or is 0 (None: not known, or +inf)."""
+        job = self.job
+        old = job.old_row(key)
+        if old is None:
+            return None
+        e = float(old[_E])
+        k = max([0.0] + [float(r[_E]) for r in map(job.old_row, kids) if r is not None])
+        return e if np.isfinite(e) and (e > k or e == 0.0) else None
+
+    def _old_field(self, ty: int, tx: int, L: int) -> tuple:
+        """:meth:`_field` before the edit (the blocks the edit reaches, level by level in
+        one window)."""
+        if (ty, tx, L) not in self._old_fields:
+            self._fields_batch(sorted(self._changed[L]), L, new=False)
+        return self._old_fields[(ty, tx, L)]
+
+    def _fields_batch(self, blocks: list, L: int, new: bool = True) -> None:
         """:meth:`_field` of every block in ``blocks``' bounding rectangle, from one
-        window."""
+        window (``new``: after the edit, else before it, into ``_old_fields``)."""
         if not blocks:
             return
         S, sl = self.S, 1 << L
@@ -86,16 +123,17 @@ class TileErrors:
         i0, j0 = max(min(ys) * S - sl, 0), max(min(xs) * S - sl, 0)
         i1 = min((max(ys) + 1) * S + sl, self.R - 1)
         j1 = min((max(xs) + 1) * S + sl, self.C - 1)
-        z, v = self.c.rect(i0, j0, i1 + 1, j1 + 1)
+        z, v = self.c.rect(i0, j0, i1 + 1, j1 + 1, new)
         E = np.zeros(z.shape)
         mixed = np.zeros(((i1 - i0) // sl, (j1 - j0) // sl), np.bool_)
         level_field_rect(z, v, i0, j0, sl, E, mixed)
+        out = self._fields if new else self._old_fields
         for ty in range(min(ys), max(ys) + 1):
             for tx in range(min(xs), max(xs) + 1):
                 a, b = ty * S - i0, tx * S - j0
                 Eb = E[a:a + S + 1, b:b + S + 1]
                 mb = mixed[a // sl:a // sl + S // sl, b // sl:b // sl + S // sl]
-                self._fields[(ty, tx, L)] = (float(Eb.max()), bool(mb.any()), Eb, mb)
+                out[(ty, tx, L)] = (float(Eb.max()), bool(mb.any()), Eb, mb)
 
     def _field(self, ty: int, tx: int, L: int) -> tuple:
         """Block (ty, tx)'s level-L field as the edit leaves it: (max over its closed
@@ -119,19 +157,27 @@ class TileErrors:
         return got
 
     def _own_error(self, by: int, bx: int, k: int, L: int, table: np.ndarray,
-                   changed: set) -> float:
+                   changed: set, own_old: float | None = None) -> float:
         """max over the tile's k × k blocks of their level-L field (+inf if one has a
-        mixed cell): exact where the edit changed them, the others' stored values
-        (rounded up) bound theirs, so only those that may hold the maximum are
-        computed."""
+        mixed cell): exact where the edit changed them; the others keep their values,
+        whose maximum is ``own_old`` (the tile's own error before the edit, None where not
+        known) if that beats the changed blocks' old values (module docstring); else
+        their stored values (rounded up) bound theirs, so only those that may hold the
+        maximum are computed."""
         vals = table[by:by + k, bx:bx + k, L]
         if np.isinf(vals).any():
             return np.inf
         exact = np.full(vals.shape, np.nan)
-        for ty, tx in changed:
-            if by <= ty < by + k and bx <= tx < bx + k:
-                exact[ty - by, tx - bx] = self._field(ty, tx, L)[0]
+        mine = [(ty, tx) for ty, tx in changed if by <= ty < by + k and bx <= tx < bx + k]
+        for ty, tx in mine:
+            exact[ty - by, tx - bx] = self._field(ty, tx, L)[0]
         best = float(np.nanmax(exact)) if np.isfinite(exact).any() else 0.0
+        if own_old is not None and len(mine) < k * k:
+            was = max([0.0] + [self._old_field(ty, tx, L)[0] for ty, tx in mine])
+            if own_old > was:  # an unreached block held it, and holds it still
+                self.shortcuts += 1
+                return max(best, own_old)
+        self.fallbacks += 1
         order = np.argsort(-vals, axis=None)
         for q in order.tolist():
             a, b = divmod(q, k)
@@ -141,9 +187,13 @@ class TileErrors:
                 best = max(best, self._field(by + a, bx + b, L)[0])
         return best
 
-    def _skirt(self, x: int, y: int, L: int, table: np.ndarray) -> float:
+    def _skirt(self, x: int, y: int, L: int, table: np.ndarray, changed: set = frozenset(),
+               old: float | None = None) -> float:
         """The tile's skirt error: the largest level-L field on its four border lines,
-        +inf if a cell along them inside the tile is mixed."""
+        +inf if a cell along them inside the tile is mixed. ``old``: the tile's skirt
+        error before the edit (None: not known): where it is finite and beats the old
+        values on the border lines of the blocks the edit reached (``changed``), it is
+        the other lines' maximum, which the edit keeps (module docstring)."""
         g = self.g
         k = 1 << L
         by, bx = y * k, x * k
@@ -156,6 +206,23 @@ class TileErrors:
                      ((by + k - 1, bx + q), "bottom", (by + k, bx + q)),
                      ((by + q, bx), "left", (by + q, bx - 1)),
                      ((by + q, bx + k - 1), "right", (by + q, bx + k))]
+        if old is not None and np.isfinite(old):
+            mine = [(inside, line) for inside, line, _ in segs if inside in changed]
+            if len(mine) < len(segs):
+                sides = {"top": lambda a: a[0], "bottom": lambda a: a[-1],
+                         "left": lambda a: a[:, 0], "right": lambda a: a[:, -1]}
+                was = max([0.0] + [float(sides[line](self._old_field(*b, L)[2]).max())
+                                   for b, line in mine])
+                if old > was:  # an unreached line held it, and holds it still
+                    self.shortcuts += 1
+                    best = old
+                    for b, line in mine:
+                        _, _, E, mb = self._field(*b, L)
+                        if sides[line](mb).any():
+                            return np.inf
+                        best = max(best, float(sides[line](E).max()))
+                    return best
+        self.fallbacks += 1
         bounds = []
         for inside, _, across in segs:
             b = table[inside[0], inside[1], L]
