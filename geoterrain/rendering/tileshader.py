@@ -54,7 +54,12 @@ from geoterrain.rendering.textures import (
     sample_spacing,
     terrain_palette,
 )
-from geoterrain.rendering.tileshade import magnify_tiles, shade_lut, shade_tiles, tint_tiles
+from geoterrain.rendering.tileshade import (
+    magnify_tiles,
+    magnify_tint_tiles,
+    shade_lut,
+    shade_tiles,
+)
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike, TileKey
@@ -255,10 +260,8 @@ class TileShader:
                                       lambda p=p: self._default_fields(p))
             which = np.array([parents[(0, x >> -L, y >> -L)] for L, x, y in virtual])
             L, x, y = (np.array(a, np.int64) for a in zip(*virtual, strict=True))
-            step = 1 << t.grid.t
-            h = magnify_tiles(ph, which, L, x, y, step)
-            s = magnify_tiles(ps, which, L, x, y, step).astype(np.float32)
-            rgb = tint_tiles(h, 1.0, s, *args)
+            # magnify_tiles of the heights and the shade, then tint_tiles: one pass
+            rgb = magnify_tint_tiles(ph, ps, which, L, x, y, 1 << t.grid.t, 1.0, *args)
             out.update({key: rgb[k].copy() for k, key in enumerate(virtual)})
         return [out[k] for k in keys]  # each cached on its own (not views of one array)
 
