@@ -388,7 +388,7 @@ class TerrainScene:
             view = view.clipped_to(*t.scene_box())
         c0 = io_counters(t)
         t0, p0 = time.perf_counter(), time.process_time()
-        with _snapshot(t):
+        with store_snapshot(t):
             sel = lod.select(t, view, pixel_error=pixel_error, strategy=strategy,
                              occlusion=self.occlusion, morph=self.morph)
             vtex = self.view_texture(sel, view)
@@ -567,9 +567,16 @@ class Prepared(NamedTuple):
     read: dict
 
 
-def _snapshot(terrain) -> AbstractContextManager:
-    """``terrain``'s :meth:`~geoterrain.terrain.Terrain.snapshot` (one read transaction),
-    or nothing for a terrain without one."""
+def store_snapshot(terrain: TerrainLike) -> AbstractContextManager:
+    """``terrain``'s :meth:`~geoterrain.terrain.Terrain.snapshot` (one read transaction:
+    the store's version read once, not at every blob), or nothing for a terrain without
+    one.
+
+    Examples
+    --------
+    >>> with store_snapshot(t):
+    ...     sel = lod.select(t, default_view(t, (320, 240)))  # doctest: +SKIP
+    """
     snap = getattr(terrain, "snapshot", None)
     return snap() if snap is not None else contextlib.nullcontext()
 
