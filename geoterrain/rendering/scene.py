@@ -37,11 +37,13 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import AbstractContextManager
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -364,21 +366,99 @@ class TerrainScene:
         ``msaa``, :meth:`_anti_aliasing`); ``render_ms`` includes finding and blending
         the edges.
         """
+        p = self.prepare(view, pixel_error, strategy)
+        return self.draw(p.selection, p.view, p.started, p.vtex, read=p.read)
+
+    def prepare(self, view: View, pixel_error: float = 1.0, strategy: str = DEFAULT
+                ) -> Prepared:
+        """The store's half of :meth:`frame`: the selection for ``view`` and its atlas
+        (:meth:`view_texture`), read in one snapshot of the store (one read transaction:
+        its version checked once, not at every blob). No VTK call: it may run on a worker
+        thread while the picture before is drawn (:meth:`frames`), once that picture's
+        mesh is shown (its atlas is the one this atlas may keep).
+
+        Examples
+        --------
+        >>> p = scene.prepare(default_view(t, (320, 240)))  # doctest: +SKIP
+        >>> img, st = scene.draw(p.selection, p.view, p.started, p.vtex,  # doctest: +SKIP
+        ...                      read=p.read)
+        """
         t = self.terrain
         if view.near is None or view.far is None:  # the picture's own clipping planes
             view = view.clipped_to(*t.scene_box())
         c0 = io_counters(t)
         t0, p0 = time.perf_counter(), time.process_time()
-        sel = lod.select(t, view, pixel_error=pixel_error, strategy=strategy,
-                         occlusion=self.occlusion, morph=self.morph)
-        return self.draw(sel, view, (t0, p0, c0))
+        with store_snapshot(t):
+            sel = lod.select(t, view, pixel_error=pixel_error, strategy=strategy,
+                             occlusion=self.occlusion, morph=self.morph)
+            vtex = self.view_texture(sel, view)
+        return Prepared(view, sel, vtex, (t0, p0, c0), io_counters(t))
 
-    def draw(self, sel: lod.Selection, view: View, started: tuple | None = None
+    def frames(self, views: Sequence[View], pixel_error: float = 1.0,
+               strategy: str = DEFAULT, overlap: bool = True) -> Iterator[tuple[np.ndarray, dict]]:
+        """:meth:`frame` of each of ``views`` in turn (a flight: every camera known
+        beforehand), yielded as each picture is done.
+
+        ``overlap``: view n + 1's :meth:`prepare` (selection and atlas, compiled passes
+        that release the GIL, and the store's reads) runs on a worker thread while view n
+        is drawn, where the renderer's own threads leave a core idle; the draw stays on
+        this thread (VTK's). The pictures are :meth:`frame`'s, byte for byte (the same
+        steps in the same order on the same data: view n + 1's atlas is made once view n's
+        is shown, as without overlap). A picture comes out no later than without it, but
+        each camera must be known one frame before its picture is drawn. Besides
+        :meth:`frame`'s stats (whose ``frame_ms`` and ``cpu_ms`` then run from its
+        prepare's start, on the worker, to its picture: the latency), ``interval_ms`` and
+        ``interval_cpu_ms`` are the wall and process CPU time since the previous picture
+        (the throughput; the first from the call).
+
+        Examples
+        --------
+        >>> for img, st in scene.frames(orbit_views(t, 8)):  # doctest: +SKIP
+        ...     print(st["interval_ms"])
+        """
+        views = list(views)
+        last = (time.perf_counter(), time.process_time())
+
+        def stamp(st: dict) -> dict:
+            nonlocal last
+            now = (time.perf_counter(), time.process_time())
+            st["interval_ms"] = round((now[0] - last[0]) * 1e3, 3)
+            st["interval_cpu_ms"] = round((now[1] - last[1]) * 1e3, 3)
+            last = now
+            return st
+
+        if not overlap or len(views) < 2:
+            for v in views:
+                img, st = self.frame(v, pixel_error, strategy)
+                yield img, stamp(st)
+            return
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(1, thread_name_prefix="geoterrain-prepare") as ex:
+            nxt = ex.submit(self.prepare, views[0], pixel_error, strategy)
+            for k in range(len(views)):
+                p = nxt.result()
+                after = None
+                if k + 1 < len(views):
+                    def after(v=views[k + 1]):  # view n's mesh and atlas are shown
+                        nonlocal nxt
+                        nxt = ex.submit(self.prepare, v, pixel_error, strategy)
+                img, st = self.draw(p.selection, p.view, p.started, p.vtex, read=p.read,
+                                    before_render=after)
+                yield img, stamp(st)
+
+
+    def draw(self, sel: lod.Selection, view: View, started: tuple | None = None,
+             vtex=None, *, read: dict | None = None, before_render=None
              ) -> tuple[np.ndarray, dict]:
         """Draw a selection made for ``view`` (by :meth:`frame`, or by a strategy called
         with arguments of its own, as the benchmark experiments do) and return the image
         and the stats of :meth:`frame`; ``started``: (wall clock, process clock, io
-        counters) when the selection began, else the draw's own start.
+        counters) when the selection began, else the draw's own start. ``vtex``: its
+        atlas, made already (:meth:`prepare`), and ``read``: the io counters at the end
+        of the reads (else they are taken after the draw). ``before_render``: called once
+        the mesh is shown and the camera set, before the renderer draws (:meth:`frames`
+        starts the next view's :meth:`prepare` there).
 
         Examples
         --------
@@ -390,15 +470,17 @@ class TerrainScene:
         t1 = time.perf_counter()
         t0, p0, c0 = started if started is not None else (t1, time.process_time(),
                                                          io_counters(t))
-        self.update(sel, view)
+        self.update(sel, view, vtex)
         self.set_camera(view)
         t2, p2 = time.perf_counter(), time.process_time()
         edges, aa = self._anti_aliasing()
+        if before_render is not None:
+            before_render()
         img = draw(self.plotter)
         if edges is not None:
             img = edge_antialias(img, depth_buffer(self.plotter), edges)
         t3, p3 = time.perf_counter(), time.process_time()
-        c1 = io_counters(t)
+        c1 = dict(read) if read is not None else io_counters(t)
         c0["bytes_read"], self._bytes_mark = self._bytes_mark, c1["bytes_read"]
         stats = {**sel.stats, "select_tiles_decoded": sel.stats.get("tiles_decoded", 0),
                  **{k: c1[k] - c0[k] for k in c0},
@@ -470,6 +552,33 @@ class TerrainScene:
         f.Update()
         z = vtk_to_numpy(f.GetOutput().GetPointData().GetScalars())
         return float((z < 1.0).mean())
+
+
+class Prepared(NamedTuple):
+    """What :meth:`TerrainScene.prepare` made for a picture: its ``view`` (with clipping
+    planes), ``selection``, atlas ``vtex`` (None without per-view textures), ``started``
+    (wall clock, process clock, io counters at its start) and ``read`` (the io counters
+    at its end)."""
+
+    view: View
+    selection: lod.Selection
+    vtex: object
+    started: tuple
+    read: dict
+
+
+def store_snapshot(terrain: TerrainLike) -> AbstractContextManager:
+    """``terrain``'s :meth:`~geoterrain.terrain.Terrain.snapshot` (one read transaction:
+    the store's version read once, not at every blob), or nothing for a terrain without
+    one.
+
+    Examples
+    --------
+    >>> with store_snapshot(t):
+    ...     sel = lod.select(t, default_view(t, (320, 240)))  # doctest: +SKIP
+    """
+    snap = getattr(terrain, "snapshot", None)
+    return snap() if snap is not None else contextlib.nullcontext()
 
 
 def _place(cam, position, focal_point, up) -> None:

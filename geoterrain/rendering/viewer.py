@@ -47,7 +47,7 @@ from geoterrain.lod.registry import DEFAULT, STRATEGIES, strategy_info
 from geoterrain.rendering.cameras import default_view
 from geoterrain.rendering.colours import Palette
 from geoterrain.rendering.drape import Drape
-from geoterrain.rendering.scene import TerrainScene
+from geoterrain.rendering.scene import TerrainScene, store_snapshot
 from geoterrain.rendering.shading import Light
 from geoterrain.rendering.viewer_style import (
     Compass,
@@ -222,10 +222,13 @@ class ViewerController:
         return True
 
     def _work(self, key: tuple, view: View, strategy: str, tau: float):
-        """Worker thread: the selection and its textures (no VTK call)."""
-        sel = lod.select(self.terrain, view, pixel_error=tau, strategy=strategy,
-                         occlusion=self.occlusion, morph=self.morph)
-        return self._retexture(key, sel, view)
+        """Worker thread: the selection and its textures (no VTK call), read in one
+        snapshot of the store (as :meth:`TerrainScene.prepare`), while the UI thread
+        shows and draws the frame before."""
+        with store_snapshot(self.terrain):
+            sel = lod.select(self.terrain, view, pixel_error=tau, strategy=strategy,
+                             occlusion=self.occlusion, morph=self.morph)
+            return self._retexture(key, sel, view)
 
     def _retexture(self, key: tuple, sel, view: View):
         """Worker thread: the textures of ``sel``, at most ``TEXTURE_BUILDS`` tiles shaded

@@ -13,7 +13,12 @@ from geoterrain.bounds.normals import decode_octahedral
 from geoterrain.bounds.vertexdata import normals_from_bytes, normals_to_bytes
 from geoterrain.rendering.colours import LAND, WATER, Palette, colorize, water_level
 from geoterrain.rendering.shading import AMBIENT, DEFAULT_SUN, SHADE_CEILING, hillshade
-from geoterrain.rendering.tileshade import magnify_tiles, shade_tile
+from geoterrain.rendering.tileshade import (
+    magnify_tiles,
+    magnify_tint_tiles,
+    shade_tile,
+    tint_tiles,
+)
 from geoterrain.rendering.tileshader import magnified
 
 pytestmark = pytest.mark.fast  # the whole file is in the fast tier
@@ -152,6 +157,33 @@ def test_magnified_tiles_in_one_pass_are_the_reference_interpolation(seed, t, vo
         assert np.allclose(got[m][ok], want[ok], rtol=1e-12, atol=1e-9)
         one = magnified(rgb, -int(k[m]), int(x[m]), int(y[m]), step)[..., which[m]]
         assert np.array_equal(one, got[m], equal_nan=True)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2 ** 32 - 1), st.integers(1, 6), st.sampled_from([0.0, 0.05, 1.0]),
+       st.sampled_from([None, -20.0, 150.0]), st.sampled_from([1.0, 0.3048]))
+def test_magnify_and_tint_in_one_pass_is_the_two_passes(seed, t, voids, wl, cf):
+    """The default style's magnified tiles in one pass are, byte for byte, the heights and
+    the shade magnified (the shade rounded to float32), then tinted: sources with and
+    without voids (in the heights, in the shade), with and without water."""
+    rng = np.random.default_rng(seed)
+    step = 1 << t
+    h = rng.uniform(-300.0, 3000.0, (3, step + 1, step + 1))
+    s = rng.uniform(0.2, 1.25, (3, step + 1, step + 1)).astype(np.float32).astype(np.float64)
+    h[0][rng.random((step + 1, step + 1)) < voids] = np.nan
+    s[1][rng.random((step + 1, step + 1)) < voids] = np.nan
+    n = int(rng.integers(1, 12))
+    k = rng.integers(1, min(t, 3) + 1, n)
+    x, y, which = rng.integers(0, 64, n), rng.integers(0, 64, n), rng.integers(0, 3, n)
+    args = ((-100.0, 2500.0), wl, LAND, WATER, 0.5, None)
+    got = magnify_tint_tiles(h, s, which, -k, x, y, step, cf, *args)
+    want = tint_tiles(magnify_tiles(h, which, -k, x, y, step), cf,
+                      magnify_tiles(s, which, -k, x, y, step).astype(np.float32), *args)
+    assert np.array_equal(got, want)
+    one = magnify_tint_tiles(h, s, which[:1], -k[:1], x[:1], y[:1], step, cf, *args)
+    assert np.array_equal(one, want[:1])  # one tile: the serial twin, the same bytes
+    with pytest.raises(ValueError):
+        magnify_tint_tiles(h, s[:2], which, -k, x, y, step, cf, *args)
 
 
 def test_every_style_shades_magnified_tiles_as_with_the_reference(tmp_path, monkeypatch):
