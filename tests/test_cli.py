@@ -377,6 +377,10 @@ def test_edit_command(tmp_path):
     assert_one_line_error(run("edit", store, "--patch", frac, "--at", "1,1"), 1)
     assert run("edit", store, "--patch", frac, "--at", "1,1", "--round").exit_code == 0
     assert_one_line_error(run("edit", store, "--patch", cut, "--at", "900,900"), 1)
+    # a name the system cannot look up (ENAMETOOLONG): one line, not an internal error
+    res = run("edit", store, "--patch", str(tmp_path / ("a" * 300 + ".tif")))
+    assert_one_line_error(res, 1)
+    assert "internal error" not in res.stderr
     res = run("edit", store, "--patch", cut, "--at", "x")  # click's usage error
     assert res.exit_code == 2 and "ROW,COL" in res.output and "Traceback" not in res.output
     assert_one_line_error(run("edit", tmp_path / "none.geoterrain", "--patch", cut), 1)

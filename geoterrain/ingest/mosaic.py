@@ -63,10 +63,15 @@ def is_folder(src) -> bool:
 
     Examples
     --------
-    >>> is_folder("."), is_folder("dem.tif"), is_folder(["a.tif"])
-    (True, False, False)
+    >>> is_folder("."), is_folder("dem.tif"), is_folder(["a.tif"]), is_folder("a" * 300)
+    (True, False, False, False)
     """
-    return isinstance(src, (str, Path)) and not is_url(src) and Path(src).is_dir()
+    if not isinstance(src, (str, Path)) or is_url(src):
+        return False
+    try:
+        return Path(src).is_dir()
+    except OSError:  # a name the system cannot look up (too long, ...): not a folder
+        return False
 
 
 def folder_files(folder: str | Path) -> list[Path]:
