@@ -208,7 +208,7 @@ def test_level_blobs_with_log8_radii_match_the_per_tile_packers(t, levels, seed)
 
 @settings(max_examples=6, deadline=None)
 @given(seed=st.integers(0, 2**31), t=st.integers(5, 6))
-def test_shaped_payloads_are_zstd_11_whole_and_edge_ones_19_the_others_3(seed, t):
+def test_shaped_payloads_are_zstd_11_whole_and_edge_ones_15_the_others_3(seed, t):
     """Every δ and r blob flagged CENTRES, PRED or RING is its header and its payload at
     zstd level SHAPED_ZSTD_LEVEL (11); every other δ and r blob of a whole tile (the top
     level's: no NEW_ONLY) or flagged DIFF (a δ_edge) at EDGE_ZSTD_LEVEL (15: a tile a
