@@ -59,6 +59,11 @@ __all__ = ["BoundsCoding", "OwnHeights", "level_blobs", "compress_rows", "radius
 
 # δ, r and normals: zstd level 19 saves 3 % at many times the time (docs/lab/store-size.md)
 _ZSTD_LEVEL = 3
+# zstd level of the δ and r blobs of a whole tile (the top level's: one a store) and of
+# the δ_edge DIFF blobs (the tiles along the data's edge, O(perimeter)): 11 % fewer bytes
+# than level 3 (srtm1_japan's δ_edge 6 501 → 5 551 B, 19: 5 519), about 0.4 ms CPU a
+# tile more (19: 0.75 ms; docs/lab/store-size.md). Any zstd decoder reads every level.
+EDGE_ZSTD_LEVEL = 15
 
 
 class CodedBounds(NamedTuple):
@@ -541,7 +546,8 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
 def _compress_shaped(rows: np.ndarray | list[np.ndarray | bytes], heads: bytes | list[bytes]
                      ) -> list[bytes]:
     # compress_rows, with the CENTRES, PRED and RING payloads at
-    # vertexdata.SHAPED_ZSTD_LEVEL (as pack_bounds_v2 writes the first two); a row of
+    # vertexdata.SHAPED_ZSTD_LEVEL (as pack_bounds_v2 writes the first two), a whole
+    # tile's (the top's) and a DIFF one (δ_edge) at EDGE_ZSTD_LEVEL; a row of
     # bytes is a payload already coded (schema 20's range-coded δ), stored as it is
     if isinstance(heads, bytes):
         heads = [heads] * len(rows)
@@ -554,11 +560,13 @@ def _compress_shaped(rows: np.ndarray | list[np.ndarray | bytes], heads: bytes |
                 out[n] = b
         return out
     hi = [n for n, h in enumerate(heads) if len(h) > 1 and h[1] & (CENTRES | PRED | RING)]
-    if not hi:
+    top = [n for n, h in enumerate(heads) if len(h) > 1 and not h[1] & (CENTRES | PRED | RING)
+           and (h[1] & DIFF or not h[1] & NEW_ONLY)]
+    if not hi and not top:
         return compress_rows(rows, heads)
-    lo = sorted(set(range(len(heads))) - set(hi))
+    lo = sorted(set(range(len(heads))) - set(hi) - set(top))
     out = [b""] * len(heads)
-    for idx, level in ((hi, SHAPED_ZSTD_LEVEL), (lo, _ZSTD_LEVEL)):
+    for idx, level in ((hi, SHAPED_ZSTD_LEVEL), (top, EDGE_ZSTD_LEVEL), (lo, _ZSTD_LEVEL)):
         if idx:
             got = compress_rows([rows[n] for n in idx], [heads[n] for n in idx], level)
             for n, b in zip(idx, got, strict=True):

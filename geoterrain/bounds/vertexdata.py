@@ -64,8 +64,9 @@ error on the tile's decoded heights (:func:`own_codes`), which bounds δ below; 
 and ``PRED`` together (schema 20; a level-0 ring δ): the ring's codes less their
 :func:`own_codes`, mod 256, range-coded (:func:`ring_payloads_own`); both decodes need
 ``own(e)``, and any guess decodes exactly. ``CENTRES``, ``PRED`` and ``RING`` payloads
-are otherwise compressed at zstd level :data:`SHAPED_ZSTD_LEVEL` (11), the others at 3:
-any zstd decoder reads either.
+are otherwise compressed at zstd level :data:`SHAPED_ZSTD_LEVEL` (11), a whole tile's (the
+top level's) and a ``DIFF`` one at 15 (``tileblobs.EDGE_ZSTD_LEVEL``), the others at 3:
+any zstd decoder reads each.
 """
 
 from __future__ import annotations

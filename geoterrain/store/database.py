@@ -156,7 +156,7 @@ def schema_version(grid: dict, frame: dict | None = None) -> int:
 
 PAGE_SIZE = 1024  # bytes per SQLite page of a written store (SMALL_PAGE_SIZE: small ones)
 SMALL_PAGE_SIZE = 512  # a grid of at most SMALL_GRID samples: its blobs' tails waste less
-SMALL_GRID = 1 << 17
+SMALL_GRID = 3 << 16  # 196 608: srtm3 (131 753) gains at 512 B, Fuji (2^18) loses
 PACK_BYTES = 4 << 20  # blob bytes a writer holds before inserting them, packed (pagepack)
 APPLICATION_ID = 0x47545252  # "GTRR" in the SQLite header: `file` can identify a store
 
@@ -226,15 +226,16 @@ def _unlink_all(paths: tuple[Path, ...]) -> None:
 
 def page_size_for(rows: int, cols: int) -> int:
     """The SQLite page size a store of a ``rows`` × ``cols`` grid is written with:
-    :data:`SMALL_PAGE_SIZE` (512 B) up to :data:`SMALL_GRID` samples, where a blob's
-    overflow tail and the catalog's pages are a large part of the file (roi_epsg3089:
-    15 360 → 13 312 B; docs/lab/store-size.md), else :data:`PAGE_SIZE` (larger stores'
-    B-trees stay shallow and a blob takes fewer page reads). Readers take any size.
+    :data:`SMALL_PAGE_SIZE` (512 B) up to :data:`SMALL_GRID` (3 · 2^16) samples, where a
+    blob's overflow tail and the catalog's pages are a large part of the file
+    (roi_epsg3089: 14 336 → 12 288 B, srtm3 72 704 → 72 192 B; docs/lab/store-size.md),
+    else :data:`PAGE_SIZE` (larger stores' B-trees stay shallow and a blob takes fewer
+    page reads; Fuji's 2^18 samples: 356 352 B, 361 984 at 512 B). Readers take any size.
 
     Examples
     --------
-    >>> page_size_for(100, 70), page_size_for(513, 513)
-    (512, 1024)
+    >>> page_size_for(100, 70), page_size_for(359, 367), page_size_for(513, 513)
+    (512, 512, 1024)
     """
     return SMALL_PAGE_SIZE if int(rows) * int(cols) <= SMALL_GRID else PAGE_SIZE
 

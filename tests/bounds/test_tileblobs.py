@@ -208,13 +208,19 @@ def test_level_blobs_with_log8_radii_match_the_per_tile_packers(t, levels, seed)
 
 @settings(max_examples=6, deadline=None)
 @given(seed=st.integers(0, 2**31), t=st.integers(5, 6))
-def test_shaped_payloads_are_zstd_11_and_the_others_zstd_3(seed, t):
+def test_shaped_payloads_are_zstd_11_whole_and_edge_ones_15_the_others_3(seed, t):
     """Every δ and r blob flagged CENTRES, PRED or RING is its header and its payload at
-    zstd level SHAPED_ZSTD_LEVEL (11), every other δ, r and normals blob at 3: the level
-    is part of the store's bytes, which all writers share through level_blobs. The tiles
-    (33² or 65², codes from a few values) are large enough for the two levels to differ."""
+    zstd level SHAPED_ZSTD_LEVEL (11); every other δ and r blob of a whole tile (the top
+    level's: no NEW_ONLY) or flagged DIFF (a δ_edge) at EDGE_ZSTD_LEVEL (15: a tile a
+    store, or the tiles along the data's edge); every other δ, r and normals blob at 3:
+    the level is part of the store's bytes, which all writers share through level_blobs.
+    The tiles (33² or 65², codes from a few values) are large enough for the levels to
+    differ."""
+    from geoterrain.bounds.tileblobs import EDGE_ZSTD_LEVEL
     from geoterrain.bounds.vertexdata import (
         CENTRES,
+        DIFF,
+        NEW_ONLY,
         PRED,
         RING,
         SHAPED_ZSTD_LEVEL,
@@ -232,22 +238,31 @@ def test_shaped_payloads_are_zstd_11_and_the_others_zstd_3(seed, t):
     if seed % 2:  # r with only cell centres (CENTRES) on every tile
         rc[1::2, ::2] = 0
     coding = BoundsCoding(delta, None, r_codes=(rc, 0))
-    seen = {3: 0, SHAPED_ZSTD_LEVEL: 0}
-    differ = 0
+    # a δ_edge: δ raised on the last rows (the same code table), stored as DIFF blobs
+    edge = delta.copy()
+    edge[-(n // 4):] = np.maximum(edge[-(n // 4):], rng.choice([0.5, 2.0, 7.0], (n // 4, n)))
+    coding_e = BoundsCoding(edge, None, ed=coding.ed, r_codes=(rc, 0))
+    seen = {3: 0, SHAPED_ZSTD_LEVEL: 0, EDGE_ZSTD_LEVEL: 0}
+    differ = {SHAPED_ZSTD_LEVEL: 0, EDGE_ZSTD_LEVEL: 0}
     for L in range(levels + 1):
         nt = 1 << (levels - L)
         nrm = rng.integers(0, 4, ((n - 1) // (1 << L) + 1,) * 2 + (2,)).astype(np.uint8)
         tiles = [(x, y) for y in range(nt) for x in range(nt)]
         got, _, _ = level_blobs(coding, nrm, t, L, levels, tiles, ring=("delta",) if L == 0
                                 else False)
-        for kind, blobs in got.items():
+        diff, _, _ = level_blobs(coding_e, nrm, t, L, levels, tiles, kinds=("delta",),
+                                 base=coding)
+        for kind, blobs in [*got.items(), ("delta_edge", diff["delta"])]:
             for blob in blobs.values():
                 head = 0 if kind == "normals" else 3 + 4 * bool(blob[1] & SLACK)
-                shaped = kind != "normals" and blob[0] == VERSION_2 \
-                    and bool(blob[1] & (CENTRES | PRED | RING))
-                level = SHAPED_ZSTD_LEVEL if shaped else 3
+                bound = kind != "normals" and blob[0] == VERSION_2
+                shaped = bound and bool(blob[1] & (CENTRES | PRED | RING))
+                whole = bound and not shaped and bool(blob[1] & DIFF or not blob[1] & NEW_ONLY)
+                assert (kind == "delta_edge") == bool(bound and blob[1] & DIFF)
+                level = SHAPED_ZSTD_LEVEL if shaped else EDGE_ZSTD_LEVEL if whole else 3
                 raw = decompress(blob[head:], 1 << 20)
                 assert blob[head:] == compress_one(raw, level), (kind, L, blob[:3])
                 seen[level] += 1
-                differ += shaped and compress_one(raw, 3) != compress_one(raw, level)
-    assert seen[3] and seen[SHAPED_ZSTD_LEVEL] and differ
+                if level != 3:
+                    differ[level] += compress_one(raw, 3) != compress_one(raw, level)
+    assert all(seen.values()) and all(differ.values()), (seen, differ)

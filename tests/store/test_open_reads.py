@@ -60,6 +60,16 @@ def test_small_grids_get_small_pages(stores):
     assert (_page_size(stores[129]), _page_size(stores[513])) == (SMALL_PAGE_SIZE, PAGE_SIZE)
 
 
+def test_the_small_page_threshold_takes_srtm3_not_fuji():
+    """512-byte pages up to 3 · 2^16 samples: srtm3's 359 × 367 grid (72 704 → 72 192 B)
+    gets them, Fuji's 512 × 512 (356 352 B; 361 984 at 512 B) does not
+    (docs/lab/store-size.md, re-priced 2026-12-07)."""
+    from geoterrain.store.database import SMALL_GRID, page_size_for
+
+    assert page_size_for(359, 367) == page_size_for(1, SMALL_GRID) == SMALL_PAGE_SIZE
+    assert page_size_for(512, 512) == page_size_for(1, SMALL_GRID + 1) == PAGE_SIZE
+
+
 @needs_counters
 def test_opening_reads_a_constant_number_of_pages_besides_the_catalog(stores):
     """Both stores' openings read the catalog and the same few pages (the schema, the
