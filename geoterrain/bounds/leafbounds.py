@@ -334,15 +334,20 @@ def centre_guess(c: CentreHeights, origins: np.ndarray, T: int, e: int) -> np.nd
 def tile_centre_guess(terrain: TerrainLike, key: tuple[int, int, int], e: int) -> np.ndarray:
     """A level-0 tile's :func:`centre_guess` (h, h) from its decoded heights and its
     tile-table box (``Terrain``'s reader of a ``CENTRES`` ``PRED`` r blob)."""
+    return centre_guess(_tile_heights(terrain, key), np.zeros((1, 2), np.int64),
+                        terrain.grid.tile_samples, e)[0]
+
+
+def _tile_heights(terrain: TerrainLike, key: tuple[int, int, int]) -> CentreHeights:
+    # one stored tile's decoded scene heights, mask, the stand-in height and its
+    # tile-table box: what a reader's guesses from the heights start from
     tile = terrain.tile(*key)
     z = terrain.frame.z(tile.heights)
     ok = (np.asarray(tile.valid, bool) & np.isfinite(z)).view(np.uint8)
     info = terrain.tile_info[key]
     box = np.array([[info[k] if info[k] is not None else np.nan
                      for k in ("xmin", "xmax", "ymin", "ymax")]], np.float64)
-    T = terrain.grid.tile_samples
-    return centre_guess(CentreHeights(z, ok, float(terrain.stand_in_z), box),
-                        np.zeros((1, 2), np.int64), T, e)[0]
+    return CentreHeights(z, ok, float(terrain.stand_in_z), box)
 
 
 def _spacings(boxes: np.ndarray, T: int) -> tuple[np.ndarray, np.ndarray]:
@@ -545,15 +550,8 @@ def tile_mids_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int, a: 
     """A tile's :func:`mids_codes` from its decoded heights and its tile-table box
     (``Terrain``'s reader of a ``MIDS`` ``PRED`` r blob: a geographic store's r above
     level 0)."""
-    tile = terrain.tile(*key)
-    z = terrain.frame.z(tile.heights)
-    ok = (np.asarray(tile.valid, bool) & np.isfinite(z)).view(np.uint8)
-    info = terrain.tile_info[key]
-    box = np.array([[info[k] if info[k] is not None else np.nan
-                     for k in ("xmin", "xmax", "ymin", "ymax")]], np.float64)
-    T = terrain.grid.tile_samples
-    return mids_codes(CentreHeights(z, ok, float(terrain.stand_in_z), box),
-                      np.zeros(2, np.int64), T, e, a, off, res)
+    return mids_codes(_tile_heights(terrain, key), np.zeros(2, np.int64),
+                      terrain.grid.tile_samples, e, a, off, res)
 
 
 def tile_own_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int,
