@@ -386,22 +386,22 @@ def _mid_base(z, valid, stand_in, r0, c0, T, i, j, sxx, syy):
 
 
 @njit(cache=True, nogil=True)
-def _mids_pred_nb(z, valid, stand_in, rows, cols, sx, sy, T, table, a, off, codes, res,
-                  encode):
+def _mids_pred_nb(z, valid, stand_in, origins, sx, sy, T, table, a_off, codes, res, encode):
     # IEEE basic operations only (products, sums, sqrt), so a writer and any reader get
     # the same guesses bit for bit. Each tile: the edge midpoints first (raster order),
     # guess code_up(base + a · min(sx, sy) / 16) + off; then the cell centres, guess the
-    # nesting over their four decoded midpoints (seed 002 §2.4, L50–52)
-    for k in range(rows.shape[0]):
-        r0, c0 = rows[k], cols[k]
+    # nesting over their four decoded midpoints (seed 002 §2.4, L50–52). ``origins``:
+    # each tile's first sample (row, column); ``a_off``: its header bytes a and off
+    for k in range(origins.shape[0]):
+        r0, c0 = origins[k, 0], origins[k, 1]
         sxx = sx[k] * sx[k]
         syy = sy[k] * sy[k]
-        add = np.float64(a[k]) * (min(sx[k], sy[k]) * 0.0625)
+        add = np.float64(a_off[k, 0]) * (min(sx[k], sy[k]) * 0.0625)
         m = 0
         for i in range(T):
             for j in range(1 - (i & 1), T, 2):  # one odd coordinate: an edge midpoint
                 g = (code_up_nb(table, _mid_base(z, valid, stand_in, r0, c0, T, i, j, sxx,
-                                                 syy) + add) + off[k]) & 255
+                                                 syy) + add) + a_off[k, 1]) & 255
                 if encode:
                     res[k, m] = (g - codes[k, i, j]) & 255
                 else:
@@ -523,8 +523,8 @@ def mids_residuals(c: CentreHeights, origins: np.ndarray, T: int, e: int,
         _mids_alpha_nb(z, v, float(c.stand_in), rows, cols, sx, sy, T, table, w, a, off)
     h = (T - 1) // 2
     res = np.zeros((len(o), 3 * h * h + 2 * h), np.uint8)
-    _mids_pred_nb(z, v, float(c.stand_in), rows, cols, sx, sy, T, table, a, off, w, res,
-                  True)
+    _mids_pred_nb(z, v, float(c.stand_in), o, sx, sy, T, table, np.stack([a, off], axis=1),
+                  w, res, True)
     return res, a.astype(np.uint8), off.astype(np.uint8)
 
 
@@ -539,9 +539,8 @@ def mids_codes(c: CentreHeights, origin: np.ndarray, T: int, e: int, a: int, off
     r = np.array(res, np.uint8).reshape(1, 3 * h * h + 2 * h)  # writable: one kernel
     codes = np.zeros((1, T, T), np.uint8)
     _mids_pred_nb(np.asarray(c.z, np.float64), np.asarray(c.valid, np.uint8),
-                  float(c.stand_in), np.ascontiguousarray(o[:, 0]),
-                  np.ascontiguousarray(o[:, 1]), sx, sy, T, _table(e),
-                  np.array([a], np.int64), np.array([off], np.int64), codes, r, False)
+                  float(c.stand_in), o, sx, sy, T, _table(e),
+                  np.array([[a, off]], np.int64), codes, r, False)
     return codes[0]
 
 
