@@ -36,14 +36,9 @@ from geoterrain.bounds.vertexdata import (
     ring_payloads_own,
 )
 from geoterrain.core import zstdsafe
+from tests.bounds.test_guessed_bounds import _heights
 
 pytestmark = pytest.mark.fast
-
-
-def _heights(rng, shape, relief, holes):
-    z = rng.normal(0, relief, shape).cumsum(0).cumsum(1) / 4 + rng.normal(0, relief / 10, shape)
-    v = rng.random(shape) >= holes
-    return np.where(v, z, np.nan), v
 
 
 @settings(max_examples=60, deadline=None)
