@@ -268,8 +268,8 @@ def export_mesh(terrain: TerrainLike, selection, path: str | Path, *, overwrite:
                          "coordinates", cli="--crs-coords does not go with --base-height or "
                                             "--print-size")
     m = mesh_arrays(terrain, selection, skirts=not closed)
-    if closed and "skirt" in selection.vtk_mesh.cell_data \
-            and np.any(np.asarray(selection.vtk_mesh.cell_data["skirt"]) != 0):
+    if closed and "skirt" in selection.parts.cell_data \
+            and np.any(np.asarray(selection.parts.cell_data["skirt"]) != 0):
         raise UsageError("a printable solid needs a conforming mesh (static or rtin); this "
                          "one has skirts over T-junctions")
     if len(m.faces) == 0:
@@ -340,7 +340,7 @@ def estimate_bytes(selection, ext: str, *, texels: int = 0, closed: bool = False
     True
     """
     F = len(selection.faces)
-    V = int(selection.vtk_mesh.n_points)
+    V = int(selection.parts.n_points)
     if closed or ext == ".stl":
         F, V = 2 * F + 2 * int(math.isqrt(max(F, 1))), 2 * V
     per_vertex, per_face = {".glb": (36, 12), ".gltf": (48, 16), ".obj": (75, 60),

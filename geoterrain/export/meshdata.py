@@ -51,11 +51,11 @@ def mesh_arrays(terrain: TerrainLike, selection, *, skirts: bool = True) -> Mesh
     """
     faces = selection.faces
     surface = np.ones(len(faces), bool)
-    if len(faces) and "skirt" in selection.vtk_mesh.cell_data:
-        surface = np.asarray(selection.vtk_mesh.cell_data["skirt"]) == 0
+    if len(faces) and "skirt" in selection.parts.cell_data:
+        surface = np.asarray(selection.parts.cell_data["skirt"]) == 0
     if not skirts:
         faces, surface = faces[surface], surface[surface]
-    pts = np.asarray(selection.vtk_mesh.points, np.float64)
+    pts = np.asarray(selection.parts.points, np.float64)
     used = np.zeros(len(pts), bool)
     used[faces.ravel()] = True
     remap = np.cumsum(used) - 1

@@ -2,8 +2,9 @@
 
 A strategy is a module with ``select(terrain, view, tau) -> (mesh, stats)``, registered
 by one line in :mod:`geoterrain.lod.registry`; the mesh is a
-:class:`~geoterrain.lod.mesh.TriMesh` (VTK's ``vtkPolyData`` with PyVista's array
-accessors), which :attr:`Selection.mesh` hands to callers as a ``pyvista.PolyData``:
+:class:`~geoterrain.lod.mesh.MeshParts` (numpy arrays; no VTK object, so a selection
+runs on any thread), which :attr:`Selection.vtk_mesh` makes into VTK's object on the
+thread that draws, and :attr:`Selection.mesh` hands to callers as a ``pyvista.PolyData``:
 
 - ``rtin`` (:mod:`~geoterrain.lod.rtin`): LP vertex refinement (seed 002), conforming;
 - ``chunked`` (:mod:`~geoterrain.lod.chunked`): the stored tile quadtree with skirts
@@ -58,20 +59,33 @@ class Selection:
     ``mesh`` (a ``pyvista.PolyData``) has float64 points in the scene frame of
     ``Terrain.scene_xyz()``, point data ``grid_ij`` (row, column of each vertex's sample)
     and ``elevation`` (metres, without vertical exaggeration; the active scalars) and cell
-    data ``skirt`` (1 on skirt triangles) and ``level`` (pyramid level). ``vtk_mesh`` is
-    the same mesh as the strategy made it (a :class:`~geoterrain.lod.mesh.TriMesh`, VTK's
-    ``vtkPolyData`` with PyVista's array accessors): what the offscreen render draws, so
-    that a render never imports PyVista; ``mesh`` shares its arrays (made on first use).
+    data ``skirt`` (1 on skirt triangles) and ``level`` (pyramid level). ``parts`` is the
+    mesh as the strategy made it (a :class:`~geoterrain.lod.mesh.MeshParts`: numpy arrays,
+    no VTK object, so a selection runs and is read on any thread); ``vtk_mesh`` the same
+    arrays in VTK's object (a :class:`~geoterrain.lod.mesh.TriMesh`, made on first use by
+    the thread that asks: the thread that draws), what the offscreen render draws without
+    importing PyVista; ``mesh`` shares its arrays (made on first use).
     ``stats`` holds ``strategy``, ``triangles`` (skirts excluded),
     ``skirt_triangles``, ``vertices``, ``tiles_visited``, ``tiles_culled``,
     ``tiles_decoded``, ``select_ms``, ``reused`` and ``pixel_error`` or ``max_error``.
     """
 
-    __slots__ = ("stats", "vtk_mesh")
+    __slots__ = ("stats", "parts")
 
     def __init__(self, mesh, stats: dict | None = None):
-        self.vtk_mesh = mesh  # a TriMesh, or a pyvista.PolyData given by a caller
+        # a MeshParts, or a TriMesh or pyvista.PolyData given by a caller: each reads
+        # points, point_data, cell_data, n_points, n_cells and regular_faces
+        self.parts = mesh
         self.stats = {} if stats is None else stats
+
+    @property
+    def vtk_mesh(self):
+        """The mesh as VTK's object (a :class:`~geoterrain.lod.mesh.TriMesh`, made once,
+        by the calling thread, from :attr:`parts`)."""
+        from geoterrain.lod.mesh import MeshParts
+
+        m = self.parts
+        return m.trimesh() if isinstance(m, MeshParts) else m
 
     @property
     def mesh(self) -> pv.PolyData:
@@ -87,12 +101,12 @@ class Selection:
         return m.shown
 
     def __repr__(self) -> str:
-        return f"Selection({type(self.vtk_mesh).__name__}, stats={self.stats!r})"
+        return f"Selection({type(self.parts).__name__}, stats={self.stats!r})"
 
     @property
     def ij(self) -> np.ndarray:
         """(V, 2) grid row and column of each vertex."""
-        m = self.vtk_mesh
+        m = self.parts
         if "grid_ij" not in m.point_data:
             return np.zeros((0, 2))
         return np.asarray(m.point_data["grid_ij"])
@@ -100,15 +114,15 @@ class Selection:
     @property
     def faces(self) -> np.ndarray:
         """(F, 3) vertex indices of every triangle, skirts included."""
-        if self.vtk_mesh.n_cells == 0:
+        if self.parts.n_cells == 0:
             return np.zeros((0, 3), np.int64)
-        return np.asarray(self.vtk_mesh.regular_faces)  # every LOD mesh is all triangles
+        return np.asarray(self.parts.regular_faces)  # every LOD mesh is all triangles
 
     def surface_faces(self) -> np.ndarray:
         """Faces of the terrain surface (skirts removed)."""
         f = self.faces
-        if len(f) and "skirt" in self.vtk_mesh.cell_data:
-            return f[np.asarray(self.vtk_mesh.cell_data["skirt"]) == 0]
+        if len(f) and "skirt" in self.parts.cell_data:
+            return f[np.asarray(self.parts.cell_data["skirt"]) == 0]
         return f
 
 
@@ -157,7 +171,7 @@ def select(terrain: TerrainLike, view: View, pixel_error: float = 1.0, strategy:
     last = terrain.derived(__name__, dict)  # the terrain's last selection, for reuse
     if reuse and last.get("key") == key:
         sel = last["selection"]
-        return Selection(sel.vtk_mesh, {**sel.stats, "reused": True, "select_ms": 0.0,
+        return Selection(sel.parts, {**sel.stats, "reused": True, "select_ms": 0.0,
                                         "tiles_decoded": 0})
     t0, dec0 = time.perf_counter(), terrain.decoded_tiles
     mesh, stats = info.load()(terrain, view, tau, occlusion=occlusion, morph=morph)
@@ -206,8 +220,6 @@ def static(terrain: TerrainLike, max_error: float = 1.0, mesher: str = "rtin") -
 
 def _finish(terrain: TerrainLike, mesh, stats: dict, strategy: str, t0: float, dec0: int,
             elevated: bool = False) -> Selection:
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-
     from geoterrain.lod.mesh import add_elevation
 
     # a strategy whose mesh has its elevation, and counts its triangles, as it assembles
@@ -215,16 +227,16 @@ def _finish(terrain: TerrainLike, mesh, stats: dict, strategy: str, t0: float, d
     if not (elevated or stats.pop("elevated", False)):  # (static: computed with positions)
         add_elevation(mesh, terrain.frame.z_scale)  # every strategy's mesh, skirts included
     ms = (time.perf_counter() - t0) * 1e3
-    n = mesh.GetNumberOfCells()
+    n = mesh.n_cells
     counted = {}
     if not {"triangles", "skirt_triangles"} <= stats.keys():
-        arr = mesh.GetCellData().GetArray("skirt") if n else None  # VTK calls: no wrapper cost
-        skirt = vtk_to_numpy(arr) if arr is not None else np.zeros(0, np.uint8)
+        skirt = np.asarray(mesh.cell_data["skirt"]) if n and "skirt" in mesh.cell_data \
+            else np.zeros(0, np.uint8)
         none = not np.count_nonzero(skirt)  # one pass; most meshes have no skirt
         counted = {"triangles": n if none else int((skirt == 0).sum()),
                    "skirt_triangles": 0 if none else int((skirt == 1).sum())}
     stats = {"strategy": strategy, **counted,
-             "vertices": int(mesh.GetNumberOfPoints()),
+             "vertices": int(mesh.n_points),
              "tiles_visited": 0, "tiles_culled": 0, **stats,
              "tiles_decoded": int(terrain.decoded_tiles - dec0),
              "select_ms": round(ms, 3), "reused": False}

@@ -58,7 +58,7 @@ import numpy as np
 from geoterrain.core.bintree import vertex_level
 from geoterrain.core.view import INSIDE, OUTSIDE, View
 from geoterrain.exceptions import UsageError
-from geoterrain.lod.mesh import empty_polydata, polydata
+from geoterrain.lod.mesh import empty_parts, mesh_parts
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.registry import strategy_info
 from geoterrain.lod.tiles import TileIndex, tile_geometry, tile_index
@@ -351,14 +351,14 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
         raise UsageError(f"morph_fraction must be in [0, 1), got {morph_fraction}")
     index = tile_index(terrain)
     if index.outside(view):
-        return empty_polydata(), {}
+        return empty_parts(), {}
     tb = _tables(terrain, index)
     r, m = ranges(tb, view.lam, tau, f)
     rows, masks, visited, culled = _select_regions(terrain, index, tb, view, r, occlusion)
     stats = {"tiles_visited": visited, "tiles_culled": culled, "nodes": int(len(rows)),
              "partial_nodes": int((masks != 15).sum()), "morph_fraction": f}
     if not len(rows):
-        return empty_polydata(), stats
+        return empty_parts(), stats
     keys, xyzs, faces, level, off = [], [], [], [], 0
     for row, mask in zip(rows.tolist(), masks.tolist(), strict=True):
         key, xyz, fc, bit = _parts(terrain, index, row)
@@ -371,7 +371,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     key, xyz = np.concatenate(keys), np.concatenate(xyzs)
     faces, level = np.concatenate(faces), np.concatenate(level)
     if not len(faces):
-        return empty_polydata(), stats
+        return empty_parts(), stats
     # one vertex per sample (neighbouring nodes share their edge samples); the samples
     # no drawn triangle uses (no data, quadrants not drawn) are dropped
     uk, first, inv = _unique(key)
@@ -384,5 +384,5 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     N = _stride(terrain.grid)
     ij = np.stack([uk // N, uk % N], 1).astype(np.float64)
     stats.update(morphing_vertices=moved)
-    return polydata(P, faces, ij,
+    return mesh_parts(P, faces, ij,
                     {"skirt": np.zeros(len(faces), np.uint8), "level": level}), stats

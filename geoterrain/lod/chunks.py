@@ -42,7 +42,7 @@ import numpy as np
 from numba import njit
 
 from geoterrain.lod.kernels import close_upward, extract, tree_roots, tree_row
-from geoterrain.lod.mesh import add_elevation, empty_polydata, orient_ccw, polydata
+from geoterrain.lod.mesh import add_elevation, empty_parts, mesh_parts, orient_ccw
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import TileIndex, TileTree, tile_table
 
@@ -459,7 +459,7 @@ def assemble_counted(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray,
     before the mesh is filled: no pass over it to count them)."""
     leaves = np.asarray(leaves, np.int64)
     if not len(leaves):
-        return empty_polydata(), 0, 0
+        return empty_parts(), 0, 0
     depth = np.zeros(len(leaves)) if skirt_depth is None else np.asarray(skirt_depth, float)
     pk = _packed(terrain, index, leaves)
     n_skirt = 2 * int(pk.ns[leaves][depth > 0].sum())
@@ -473,7 +473,7 @@ def assemble_counted(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray,
     z_scale = float(terrain.frame.z_scale)
     _gather_chunks(leaves, depth, pk.arrays(), ChunkMesh(xyz, ij, elev, faces, level, skirt), zm,
                    1.0 / z_scale)
-    mesh = polydata(xyz, faces, ij, {"skirt": skirt, "level": level})
+    mesh = mesh_parts(xyz, faces, ij, {"skirt": skirt, "level": level})
     add_elevation(mesh, z_scale, elev)  # (filled by the gather, with add_elevation's formula)
     return mesh, n_surf, n_skirt
 

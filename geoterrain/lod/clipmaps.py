@@ -64,7 +64,7 @@ from numba import njit
 
 from geoterrain.core.view import OUTSIDE, View
 from geoterrain.lod.clipmapdata import Level, Tables, buffer_heights, tables, update_level
-from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
+from geoterrain.lod.mesh import empty_parts, mesh_parts, orient_ccw
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import TileIndex, tile_index
 
@@ -205,7 +205,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, kind: str = "clipmap
         raise ValueError(f"n must be 2^k − 1 ≥ 7, got {n}")
     index = tile_index(terrain)
     if index.outside(view):
-        return empty_polydata(), {}
+        return empty_parts(), {}
     bounded = kind == "bounded"
     tb = tables(terrain, bounded)
     g = terrain.grid
@@ -388,7 +388,7 @@ def _emit(terrain: TerrainLike, tb: Tables, levels: dict, W: dict, cells: dict, 
         lvl.append(np.full(len(t), lv, np.int16))
         deleg.append(np.concatenate([~inside[keep_r], ~inside[keep_c]]))
     if not keys:
-        return empty_polydata(), 0, n_deleg
+        return empty_parts(), 0, n_deleg
     key = np.concatenate(keys)  # (F, 3)
     level = np.concatenate(lvl)
     dl = np.concatenate(deleg)
@@ -420,7 +420,7 @@ def _emit(terrain: TerrainLike, tb: Tables, levels: dict, W: dict, cells: dict, 
         z = _transition(levels, W, open_, i, j, z, faces[dl], Lmax, f, viewer, tb.refine)
     faces, level = faces[ok], level[ok]
     if not len(faces):
-        return empty_polydata(), 0, n_deleg
+        return empty_parts(), 0, n_deleg
     used = np.zeros(V, bool)
     used[faces] = True
     remap = np.cumsum(used) - 1
@@ -428,7 +428,7 @@ def _emit(terrain: TerrainLike, tb: Tables, levels: dict, W: dict, cells: dict, 
     ij = np.stack([i[used], j[used]], 1)
     x, y = terrain.frame.xy(ij[:, 0], ij[:, 1])
     faces = orient_ccw(ij, faces)
-    mesh = polydata(np.stack([x, y, z[used]], 1), faces, ij,
+    mesh = mesh_parts(np.stack([x, y, z[used]], 1), faces, ij,
                     {"skirt": np.zeros(len(faces), np.uint8), "level": level})
     return mesh, V, n_deleg
 

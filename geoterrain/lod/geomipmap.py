@@ -45,7 +45,7 @@ import numpy as np
 
 from geoterrain.core.view import View
 from geoterrain.lod import geomipmap_morph as gm
-from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
+from geoterrain.lod.mesh import empty_parts, mesh_parts, orient_ccw
 from geoterrain.lod.morph import MORPH_START
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import (
@@ -294,7 +294,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     """
     index, leaves, stats = visible_blocks(terrain, view, occlusion=occlusion)
     if not len(leaves):
-        return empty_polydata(), stats
+        return empty_parts(), stats
     tb = tables(terrain, index)
     if rule == "error" and morph:
         return _select_morphed(terrain, index, tb, view, tau, leaves, stats)
@@ -449,5 +449,5 @@ def _assemble(terrain: TerrainLike, index, xy, n, ratios, heights=None):
     if not used.all():
         faces = (np.cumsum(used) - 1)[faces]
         src = first[used]
-    return polydata(xyz[src], faces, ij[src],
+    return mesh_parts(xyz[src], faces, ij[src],
                     {"skirt": np.zeros(len(faces), np.uint8), "level": level})

@@ -35,7 +35,7 @@ import numpy as np
 
 from geoterrain.core.view import View
 from geoterrain.lod.gtrtree import block_errors, block_mesh, skirt_depth, skirt_sides, walk
-from geoterrain.lod.mesh import empty_polydata
+from geoterrain.lod.mesh import empty_parts
 from geoterrain.lod.tiles import tile_index
 
 if TYPE_CHECKING:
@@ -60,12 +60,12 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     """
     index = tile_index(terrain)
     if index.outside(view):  # (before the errors: a view of nothing reads nothing)
-        return empty_polydata(), {}
+        return empty_parts(), {}
     be = block_errors(terrain)
     leaves, stats = walk(terrain, view, be.delta_b, tau, rule="distance",
                          occlusion=occlusion)
     if not len(leaves):
-        return empty_polydata(), stats
+        return empty_parts(), stats
     C = view.lam / tau  # eq. 5-4: C = V_res / (2τ tan(fov_y / 2))
     d = np.linalg.norm(0.5 * (index.lo[leaves] + index.hi[leaves]) - view.eye, axis=1)
     D = be.delta_b[leaves] * C  # eq. 5-5

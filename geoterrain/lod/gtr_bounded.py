@@ -31,7 +31,7 @@ from geoterrain.lod.gtrtree import (
     skirt_sides,
     walk,
 )
-from geoterrain.lod.mesh import empty_polydata
+from geoterrain.lod.mesh import empty_parts
 from geoterrain.lod.morph import MORPH_START
 from geoterrain.lod.tiles import tile_index
 
@@ -64,7 +64,7 @@ def bounded_blocks(terrain: TerrainLike, view: View, tau: float, error: np.ndarr
     tau_min = MORPH_START * tau if morph else tau
     leaves, stats = walk(terrain, view, error, tau_min, rule="box", occlusion=occlusion)
     if not len(leaves):
-        return empty_polydata(), stats
+        return empty_parts(), stats
     s = np.zeros(len(leaves))
     e = edge[leaves].copy()
     if morph:

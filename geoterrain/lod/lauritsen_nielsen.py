@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 from geoterrain.core.view import View
 from geoterrain.lod.gtr_bounded import bounded_blocks
 from geoterrain.lod.gtrtree import block_errors
-from geoterrain.lod.mesh import empty_polydata
+from geoterrain.lod.mesh import empty_parts
 from geoterrain.lod.tiles import tile_index
 
 if TYPE_CHECKING:
@@ -51,6 +51,6 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     True
     """
     if tile_index(terrain).outside(view):  # (before the errors: nothing to read)
-        return empty_polydata(), {}
+        return empty_parts(), {}
     db = block_errors(terrain).delta_b
     return bounded_blocks(terrain, view, tau, db, db, occlusion=occlusion, morph=bool(morph))

@@ -141,6 +141,97 @@ class TriMesh(vtkPolyData):
         return getattr(self.pyvista(), name)
 
 
+class MeshParts:
+    """A selected triangle mesh as numpy arrays: what every LOD strategy makes.
+
+    Making and reading it touches no VTK object, so a selection may run on any thread
+    (the viewer's worker): VTK's objects are made by the thread that draws, from
+    :meth:`trimesh` (once; the arrays are wrapped, not copied). A VTK object made on a
+    worker thread while the main thread frees one can deadlock the two (VTK's garbage
+    collector's lock and Python's GIL taken in opposite orders). It reads as a
+    :class:`TriMesh` does: ``points``, ``point_data``, ``cell_data`` (dicts of arrays),
+    ``n_points``, ``n_cells``, ``regular_faces``, ``active_scalars_name``.
+
+    Examples
+    --------
+    >>> m = mesh_parts(np.array([[0, 0, 4.0], [1, 0, 6], [0, 1, 8]]), np.array([[0, 1, 2]]),
+    ...                cell_arrays={"skirt": np.zeros(1, np.uint8)})
+    >>> m.n_points, m.n_cells, m.regular_faces.tolist(), "skirt" in m.cell_data
+    (3, 1, [[0, 1, 2]], True)
+    >>> t = m.trimesh()  # on the thread that draws
+    >>> t.n_cells, t is m.trimesh()
+    (1, True)
+    """
+
+    __slots__ = ("points", "faces", "point_data", "cell_data", "active_scalars_name", "_vtk")
+
+    def __init__(self, points: np.ndarray, faces: np.ndarray,
+                 point_data: dict[str, np.ndarray], cell_data: dict[str, np.ndarray]):
+        self.points = points
+        self.faces = faces
+        self.point_data = point_data
+        self.cell_data = cell_data
+        self.active_scalars_name: str | None = None
+        self._vtk: TriMesh | None = None
+
+    @property
+    def n_points(self) -> int:
+        return len(self.points)
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.faces)
+
+    @property
+    def regular_faces(self) -> np.ndarray:
+        """(F, 3) vertex indices of the triangles."""
+        return self.faces.reshape(-1, 3)
+
+    def trimesh(self) -> TriMesh:
+        """The mesh as VTK's object (made on the first call, by the calling thread; the
+        arrays as they are then)."""
+        if self._vtk is None:
+            m = polydata(self.points, self.faces, self.point_data.get("grid_ij"),
+                         self.cell_data)
+            if len(self.points):
+                pd = m.GetPointData()
+                for k, v in self.point_data.items():
+                    if k != "grid_ij":
+                        _add(pd, k, np.ascontiguousarray(v))
+                if self.active_scalars_name is not None:
+                    pd.SetActiveScalars(self.active_scalars_name)
+            self._vtk = m
+        return self._vtk
+
+
+def mesh_parts(xyz: np.ndarray, faces: np.ndarray, ij: np.ndarray | None = None,
+               cell_arrays: dict[str, np.ndarray] | None = None) -> MeshParts:
+    """A strategy's mesh: float64 points, ``grid_ij`` point data and cell arrays, as
+    :func:`polydata` makes them, without VTK (:class:`MeshParts`)."""
+    xyz = np.ascontiguousarray(xyz, np.float64)
+    faces = np.asarray(faces)
+    if faces.dtype not in (np.int32, np.int64):
+        faces = faces.astype(np.int64)
+    faces = faces.reshape(-1, 3)
+    pdata = {}
+    if ij is not None and len(ij):
+        pdata["grid_ij"] = np.ascontiguousarray(ij, np.float64)
+    cdata = {k: np.ascontiguousarray(v) for k, v in (cell_arrays or {}).items()} \
+        if len(faces) else {}
+    return MeshParts(xyz, faces, pdata, cdata)
+
+
+def empty_parts() -> MeshParts:
+    """The mesh of a view that draws nothing.
+
+    Examples
+    --------
+    >>> empty_parts().n_cells
+    0
+    """
+    return mesh_parts(np.zeros((0, 3)), np.zeros((0, 3), np.int64))
+
+
 def orient_ccw(ij: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Faces wound counter-clockwise seen from above (X = column, Y = −row)."""
     p = ij[faces].astype(np.float64)  # (F, 3, 2) as (i, j)
@@ -192,8 +283,8 @@ def _add(data, name: str, values: np.ndarray) -> None:
     data.AddArray(arr)
 
 
-def add_elevation(mesh: TriMesh, z_scale: float,
-                  elevation: np.ndarray | None = None) -> TriMesh:
+def add_elevation(mesh: TriMesh | MeshParts, z_scale: float,
+                  elevation: np.ndarray | None = None) -> TriMesh | MeshParts:
     """Add the point array ``elevation`` (metres) to ``mesh`` in place and make it active.
 
     Scene Z is the height in metres × the vertical exaggeration (``Frame.z``:
@@ -210,6 +301,15 @@ def add_elevation(mesh: TriMesh, z_scale: float,
     >>> m.active_scalars_name, m.point_data["elevation"].tolist()
     ('elevation', [2.0, 3.0, 4.0])
     """
+    if isinstance(mesh, MeshParts):
+        if mesh.n_points:
+            e = elevation
+            if e is None:
+                e = np.empty(mesh.n_points, np.float32)
+                np.multiply(mesh.points[:, 2], 1.0 / float(z_scale), out=e, casting="unsafe")
+            mesh.point_data["elevation"] = e
+            mesh.active_scalars_name = "elevation"
+        return mesh
     if mesh.n_points:
         e = elevation
         if e is None:

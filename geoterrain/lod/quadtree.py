@@ -28,7 +28,7 @@ import numpy as np
 
 from geoterrain.core.view import OUTSIDE, View
 from geoterrain.lod.geomipmap import _NEIGHBOUR, template
-from geoterrain.lod.mesh import empty_polydata, polydata
+from geoterrain.lod.mesh import empty_parts, mesh_parts
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.tiles import TileIndex, tile_index
 
@@ -92,7 +92,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     """
     index = tile_index(terrain)
     if index.outside(view):
-        return empty_polydata(), {}
+        return empty_parts(), {}
     tb = _tables(terrain, index)
     g = terrain.grid
     N1, top = 1 << g.n, g.top_level  # a root's edge (the square's N − 1)
@@ -126,7 +126,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     leaves = [lv for lv in leaves if len(lv[1])]
     stats = {"tiles_visited": visited, "tiles_culled": culled}
     if not leaves:
-        return empty_polydata(), stats
+        return empty_parts(), stats
     leaves, D, dmax = restrict_leaves(leaves, g.roots)
     mesh = assemble_leaves(terrain, leaves, D, dmax)
     stats.update(leaves=sum(len(v[1]) for v in leaves), depth=dmax, g_hat=tb.g)
@@ -209,5 +209,5 @@ def assemble_leaves(terrain: TerrainLike, leaves, D, dmax):
     key = ij[:, 0] * g.extent[1] + ij[:, 1]  # a square's N, a root grid's extent columns
     _, first, inv = np.unique(key[faces.ravel()], return_index=True, return_inverse=True)
     src = faces.ravel()[first]
-    return polydata(xyz[src], inv.reshape(-1, 3), ij[src],
+    return mesh_parts(xyz[src], inv.reshape(-1, 3), ij[src],
                     {"skirt": np.zeros(len(faces), np.uint8), "level": level})

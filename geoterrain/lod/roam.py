@@ -43,7 +43,7 @@ import numpy as np
 from geoterrain.core.bintree import root_triangles
 from geoterrain.core.view import View
 from geoterrain.lod import roamkernels as rk
-from geoterrain.lod.mesh import empty_polydata, polydata
+from geoterrain.lod.mesh import empty_parts, mesh_parts
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.roamwedgies import wedgies
 from geoterrain.lod.tiles import tile_index, tile_table
@@ -175,7 +175,7 @@ def run(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool, mode: 
     the mesh of the drawn leaves and the stats."""
     index = tile_index(terrain)
     if index.outside(view):
-        return empty_polydata(), {}
+        return empty_parts(), {}
     held = tables(terrain)
     tb = held["tables"]
     N, n = int(tb.size[0]), int(tb.size[1])
@@ -214,7 +214,7 @@ def run(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool, mode: 
              "merges": int(pool.meta[3]) - merges0, "scored": int(pool.meta[4]) - scored0,
              "leaves": int(((iv[:, rk.ALIVE] == 1) & (iv[:, rk.K0] < 0)).sum())}
     if F == 0:
-        return empty_polydata(), stats
+        return empty_parts(), stats
     verts, faces = verts[:V], faces[:F]
     i, j = np.divmod(verts, N)
     if tb.aff.shape[0]:
@@ -223,7 +223,7 @@ def run(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool, mode: 
         x, y = tb.XY[0, verts], tb.XY[1, verts]
     xyz = np.stack([x, y, tb.Z[verts]], 1)
     level = ((2 * n - depth[:F]) // 2).astype(np.int16)
-    mesh = polydata(xyz, faces, np.stack([i, j], 1),
+    mesh = mesh_parts(xyz, faces, np.stack([i, j], 1),
                     {"skirt": np.zeros(F, np.uint8), "level": level})
     return mesh, stats
 

@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from geoterrain.core.view import OUTSIDE, View
-from geoterrain.lod.mesh import empty_polydata
+from geoterrain.lod.mesh import empty_parts
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.quadtree import assemble_leaves, paint, restrict_leaves
 from geoterrain.lod.tiles import tile_index, tile_table
@@ -200,7 +200,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     """
     index = tile_index(terrain)
     if index.outside(view):
-        return empty_polydata(), {}
+        return empty_parts(), {}
     tb = tables(terrain)
     eye, lam = view.eye, view.lam
     c = lam / (tau * C_MIN)  # the desired global resolution from τ
@@ -237,7 +237,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     leaves = [lv for lv in leaves if len(lv[1])]
     stats = {"tiles_visited": visited, "tiles_culled": culled}
     if not leaves:
-        return empty_polydata(), stats
+        return empty_parts(), stats
     seed = sum(len(v[1]) for v in leaves)
     leaves, D, dmax, added = _bound(terrain, tb, view, tau, leaves)
     mesh = assemble_leaves(terrain, leaves, D, dmax)

@@ -46,7 +46,7 @@ from geoterrain.lod.kernels import (
     walk_shape,
     walk_start,
 )
-from geoterrain.lod.mesh import add_elevation, empty_polydata, polydata
+from geoterrain.lod.mesh import add_elevation, empty_parts, mesh_parts
 from geoterrain.lod.occlusion import hidden_rows
 from geoterrain.lod.pool import PooledTiles, tile_pool
 from geoterrain.lod.tiles import TileIndex, TileTree, tile_index, tile_table
@@ -287,7 +287,7 @@ def active_mesh(terrain: TerrainLike, act: ActiveSet, view: View | None = None,
     nf, nv, level = cull_in_place(faces[:nf], xyz[:nv], ij[:nv], planes, lvl[:nv], eye,
                                   slack)
     # both base triangles are counter-clockwise and bisection keeps the orientation
-    return polydata(xyz[:nv], faces[:nf], ij[:nv], {"skirt": np.zeros(nf, np.uint8),
+    return mesh_parts(xyz[:nv], faces[:nf], ij[:nv], {"skirt": np.zeros(nf, np.uint8),
                                                     "level": level})
 
 
@@ -306,7 +306,7 @@ def _mesh_in_passes(terrain: TerrainLike, act: ActiveSet, planes: np.ndarray, ey
     faces, keep, level = cull_compact(faces, xyz, planes, lvl, eye, slack)
     if keep is not None:
         xyz, ij = xyz[keep], ij[keep]
-    return polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8),
+    return mesh_parts(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8),
                                      "level": level})
 
 
@@ -322,7 +322,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     """
     index = tile_index(terrain)
     if index.outside(view):
-        return empty_polydata(), {}
+        return empty_parts(), {}
     if morph:  # seed 002 §2.10: vertices appear at τ_min, true at τ_max = τ
         from geoterrain.lod.morph import MORPH_START
 
@@ -391,7 +391,7 @@ def static(terrain: TerrainLike, max_error: float):
         nf, nv = clip_in_place(fb, lb, len(faces), ib, xb, len(ij), float(g.rows - 1),
                                float(g.cols - 1), np.int64(pool.N))
         faces, level, ij, xyz, elev = fb[:nf], lb[:nf], ib[:nv], xb[:nv], None
-    mesh = polydata(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8), "level": level})
+    mesh = mesh_parts(xyz, faces, ij, {"skirt": np.zeros(len(faces), np.uint8), "level": level})
     return add_elevation(mesh, terrain.frame.z_scale, elev), {}
 
 

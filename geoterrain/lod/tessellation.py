@@ -58,7 +58,7 @@ from numba import njit
 
 from geoterrain.core.view import View
 from geoterrain.lod.geomipmap import _NEIGHBOUR, _assemble, _stitch, tables, visible_blocks
-from geoterrain.lod.mesh import empty_polydata
+from geoterrain.lod.mesh import empty_parts
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -289,7 +289,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
     """
     index, leaves, stats = visible_blocks(terrain, view, occlusion=occlusion)
     if not len(leaves):
-        return empty_polydata(), stats
+        return empty_parts(), stats
     g = terrain.grid
     T = factors(terrain, index, leaves, view, tau, ham=ham)
     tb = tables(terrain, index)

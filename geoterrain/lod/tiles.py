@@ -22,7 +22,7 @@ import numpy as np
 
 from geoterrain.core.grid import level_offsets
 from geoterrain.core.view import INSIDE, OUTSIDE, View
-from geoterrain.lod.mesh import empty_polydata, orient_ccw, polydata
+from geoterrain.lod.mesh import empty_parts, mesh_parts, orient_ccw
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
@@ -284,10 +284,10 @@ def assemble(terrain: TerrainLike, index: TileIndex, leaves: np.ndarray,
             n += len(sxyz)
         off += n
     if not ijs:
-        return empty_polydata()
+        return empty_parts()
     xyz, ij, faces = np.concatenate(xyzs), np.concatenate(ijs), np.concatenate(faces)
     used = np.zeros(len(xyz), bool)  # drop the vertices no triangle uses (nodata)
     used[faces] = True
     faces = (np.cumsum(used) - 1)[faces]
-    return polydata(xyz[used], faces, ij[used],
+    return mesh_parts(xyz[used], faces, ij[used],
                     {"skirt": np.concatenate(skirt), "level": np.concatenate(level)})

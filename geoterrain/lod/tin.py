@@ -99,7 +99,7 @@ def static(terrain: TerrainLike, max_error: float, mesher: str = "tin"):
     units), its collapse pass as ``mesher`` says (:data:`COLLAPSE`), as a mesh in the
     scene frame (``grid_ij``, ``level`` 0, ``skirt`` 0) and stats."""
     from geoterrain.core.memory import small_pages
-    from geoterrain.lod.mesh import polydata
+    from geoterrain.lod.mesh import mesh_parts
 
     g = terrain.grid
     H, W = g.rows, g.cols
@@ -115,6 +115,6 @@ def static(terrain: TerrainLike, max_error: float, mesher: str = "tin"):
         x, y = terrain.frame.xy(ij[:, 0], ij[:, 1])
     xyz = np.stack([x, y, z[ij[:, 0], ij[:, 1]]], axis=1)
     n = len(faces)
-    mesh = polydata(xyz, faces, ij, {"skirt": np.zeros(n, np.uint8),
+    mesh = mesh_parts(xyz, faces, ij, {"skirt": np.zeros(n, np.uint8),
                                      "level": np.zeros(n, np.int8)})
     return mesh, {"mesher": mesher}

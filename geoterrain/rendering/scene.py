@@ -226,7 +226,7 @@ class TerrainScene:
         :meth:`view_texture`) chooses each footprint's texture level; without either
         the camera's current view is used.
         """
-        src = selection.vtk_mesh
+        src = selection.parts  # arrays; VTK's mesh of them is made only where drawn as it is
         mesh = TriMesh()
         if self.texture is not None and self.textures == "view" and src.n_cells:
             if vtex is None:
@@ -247,6 +247,7 @@ class TerrainScene:
             self.texture_stats = dict(vtex.stats)
         elif src.n_points:
             self.texture_stats = {"textures_built": 0, "texture_tiles": 0}
+            src = selection.vtk_mesh
             mesh.SetPoints(src.GetPoints())  # shared: the selection's mesh is not changed
             if src.n_cells:
                 mesh.SetPolys(src.GetPolys())
@@ -478,16 +479,14 @@ class TerrainScene:
                 rw.SetMultiSamples(p._geoterrain_samples)
         if mode not in ("auto", "edges"):
             return None, mode
-        mesh = self.selection.vtk_mesh if self.selection is not None else None
+        mesh = self.selection.parts if self.selection is not None else None
         edges = None
         if mesh is not None and mesh.n_cells and (
                 mode == "edges" or mesh.n_cells <= SPARSE_MAX_FACES):
-            from vtkmodules.util.numpy_support import vtk_to_numpy
-
             w, h = p.render_window.GetSize()
             m = p.camera.GetCompositeProjectionTransformMatrix(w / h, -1, 1)
             proj = np.array([[m.GetElement(i, j) for j in range(4)] for i in range(4)])
-            faces = vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()).reshape(-1, 3)
+            faces = np.asarray(mesh.regular_faces)
             edges = silhouette_edges(np.asarray(mesh.points), faces, proj, (w, h),
                                      p.camera.position)
         if mode == "auto":

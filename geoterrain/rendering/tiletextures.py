@@ -215,7 +215,7 @@ def build_view_texture(terrain: TerrainLike, selection, view, shader: TileShader
     # a footprint is its index e in the dense (level, y, x) tile table (atlaskernels)
     base = tile_table(g)
     built0 = shader.built
-    if selection.vtk_mesh.n_cells == 0 or selection.vtk_mesh.n_points == 0:
+    if selection.parts.n_cells == 0 or selection.parts.n_points == 0:
         return ViewTexture(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 2),
                            np.float32), np.zeros(0, np.int64), np.zeros((1, 1, 3), np.uint8),
                            {"textures_built": 0, "texture_tiles": 0, "textures_deferred": 0,
@@ -291,16 +291,11 @@ def _layout(pg: _Pages, tiles: tuple[np.ndarray, ...], generation: int, shader) 
 def _mesh_arrays(selection) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The selection's points (V, 3) float64, grid (row, column) per point and triangles
     (F, 3) int64."""
-    mesh = selection.vtk_mesh
+    mesh = selection.parts  # numpy arrays: no VTK object made or read (any thread)
     pts = np.asarray(mesh.points, np.float64)
     ij = np.asarray(mesh.point_data["grid_ij"])
-    # the triangles from the cells' connectivity (the selections' fixed-size cell arrays
-    # have no legacy array; exporting one walks every cell: 1 ms a frame at 50 k faces),
-    # copied as int64 (0.1 ms): nothing below keeps a view of VTK's own array
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-
-    tris = np.array(vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()),
-                    np.int64).reshape(-1, 3)  # (F, 3)
+    # the triangles copied as int64 (0.1 ms): nothing below keeps a view of the mesh's
+    tris = np.array(mesh.regular_faces, np.int64).reshape(-1, 3)  # (F, 3)
     return pts, ij, tris
 
 
