@@ -374,7 +374,12 @@ class TerrainScene:
                 ) -> Prepared:
         """The store's half of :meth:`frame`: the selection for ``view`` and its atlas
         (:meth:`view_texture`), read in one snapshot of the store (one read transaction:
-        its version checked once, not at every blob).
+        its version checked once, not at every blob). It makes no VTK object (the
+        selection's mesh is :class:`~geoterrain.lod.mesh.MeshParts`, the atlas numpy
+        arrays), so it may run on a worker thread while the picture before is drawn
+        (:meth:`frames`), once that picture's mesh is shown (its atlas is the one this
+        atlas may keep): a VTK object made there while this thread frees one could
+        deadlock the two threads (VTK's garbage collector's lock and the GIL).
 
         Examples
         --------
@@ -394,37 +399,71 @@ class TerrainScene:
         return Prepared(view, sel, vtex, (t0, p0, c0), io_counters(t))
 
     def frames(self, views: Sequence[View], pixel_error: float = 1.0,
-               strategy: str = DEFAULT) -> Iterator[tuple[np.ndarray, dict]]:
-        """:meth:`frame` of each of ``views`` in turn (a flight), yielded as each picture
-        is done. Besides :meth:`frame`'s stats, ``interval_ms`` and ``interval_cpu_ms``
-        are the wall and process CPU time since the previous picture (the first from the
-        call). One view after the other on this thread: a selection builds VTK objects
-        (its :class:`~geoterrain.lod.mesh.TriMesh`), and VTK objects made on a worker
-        thread while this one frees others deadlock on VTK's garbage collector and the
-        GIL (seen in the test suite with an overlapped variant, since dropped).
+               strategy: str = DEFAULT, overlap: bool = False
+               ) -> Iterator[tuple[np.ndarray, dict]]:
+        """:meth:`frame` of each of ``views`` in turn (a flight: every camera known
+        beforehand), yielded as each picture is done.
+
+        ``overlap``: view n + 1's :meth:`prepare` (selection and atlas, compiled passes
+        that release the GIL, and the store's reads) runs on a worker thread while view n
+        is drawn, where the renderer's own threads leave a core idle; the draw stays on
+        this thread (VTK's). The pictures are :meth:`frame`'s, byte for byte (the same
+        steps in the same order on the same data: view n + 1's atlas is made once view n's
+        is shown, as without overlap). A picture comes out no later than without it, but
+        each camera must be known one frame before its picture is drawn. Besides
+        :meth:`frame`'s stats (whose ``frame_ms`` and ``cpu_ms`` then run from its
+        prepare's start, on the worker, to its picture: the latency), ``interval_ms`` and
+        ``interval_cpu_ms`` are the wall and process CPU time since the previous picture
+        (the throughput; the first from the call).
 
         Examples
         --------
         >>> for img, st in scene.frames(orbit_views(t, 8)):  # doctest: +SKIP
         ...     print(st["interval_ms"])
         """
+        views = list(views)
         last = (time.perf_counter(), time.process_time())
-        for v in views:
-            img, st = self.frame(v, pixel_error, strategy)
+
+        def stamp(st: dict) -> dict:
+            nonlocal last
             now = (time.perf_counter(), time.process_time())
             st["interval_ms"] = round((now[0] - last[0]) * 1e3, 3)
             st["interval_cpu_ms"] = round((now[1] - last[1]) * 1e3, 3)
             last = now
-            yield img, st
+            return st
+
+        if not overlap or len(views) < 2:
+            for v in views:
+                img, st = self.frame(v, pixel_error, strategy)
+                yield img, stamp(st)
+            return
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(1, thread_name_prefix="geoterrain-prepare") as ex:
+            nxt = ex.submit(self.prepare, views[0], pixel_error, strategy)
+            for k in range(len(views)):
+                p = nxt.result()
+                after = None
+                if k + 1 < len(views):
+                    def after(v=views[k + 1]):  # view n's mesh and atlas are shown
+                        nonlocal nxt
+                        nxt = ex.submit(self.prepare, v, pixel_error, strategy)
+                img, st = self.draw(p.selection, p.view, p.started, p.vtex, read=p.read,
+                                    before_render=after)
+                yield img, stamp(st)
+
 
     def draw(self, sel: lod.Selection, view: View, started: tuple | None = None,
-             vtex=None, *, read: dict | None = None) -> tuple[np.ndarray, dict]:
+             vtex=None, *, read: dict | None = None, before_render=None
+             ) -> tuple[np.ndarray, dict]:
         """Draw a selection made for ``view`` (by :meth:`frame`, or by a strategy called
         with arguments of its own, as the benchmark experiments do) and return the image
         and the stats of :meth:`frame`; ``started``: (wall clock, process clock, io
         counters) when the selection began, else the draw's own start. ``vtex``: its
         atlas, made already (:meth:`prepare`), and ``read``: the io counters at the end
-        of the reads (else they are taken after the draw).
+        of the reads (else they are taken after the draw). ``before_render``: called once
+        the mesh is shown and the camera set, before the renderer draws (:meth:`frames`
+        starts the next view's :meth:`prepare` there).
 
         Examples
         --------
@@ -440,6 +479,8 @@ class TerrainScene:
         self.set_camera(view)
         t2, p2 = time.perf_counter(), time.process_time()
         edges, aa = self._anti_aliasing()
+        if before_render is not None:
+            before_render()
         img = draw(self.plotter)
         if edges is not None:
             img = edge_antialias(img, depth_buffer(self.plotter), edges)

@@ -795,35 +795,54 @@ def test_frame_reports_its_cpu_time(tmp_path_factory, monkeypatch):
 
 
 @pytest.mark.fast
-def test_frames_are_the_frames_one_by_one(tmp_path_factory):
-    """``frames`` (a flight) gives ``frame``'s pictures and reads, view after view, byte
-    for byte, with the time between pictures, and every selection made on this thread
-    (a selection builds VTK objects: off the thread that frees others, it deadlocks)."""
+def test_overlapped_frames_are_the_frames_one_by_one(tmp_path_factory, monkeypatch):
+    """``frames`` with overlap makes view n + 1's selection and atlas on a worker thread
+    while view n is drawn, started only once view n's mesh is shown (its atlas is the
+    one the next may keep): the pictures and each frame's reads are ``frame``'s, one
+    view after the other, byte for byte; and the worker makes no VTK object (one made
+    there while this thread frees others deadlocked this test once)."""
     import threading
 
-    path = synth_store(tmp_path_factory, "flight", size=257).path
+    from geoterrain.lod import mesh as lodmesh
+
+    made: list[bool] = []  # whether each VTK mesh was made on the main thread
+    real = lodmesh.polydata
+
+    def spy_polydata(*a, **k):
+        made.append(threading.current_thread() is threading.main_thread())
+        return real(*a, **k)
+
+    monkeypatch.setattr(lodmesh, "polydata", spy_polydata)
+    path = synth_store(tmp_path_factory, "overlap", size=257).path
     size = (240, 160)
     with geoterrain.open(path) as t:
         views = [default_view(t, size, az, el, dist) for az, el, dist in (
             (30.0, 40.0, None), (60.0, 30.0, None), (90.0, 20.0, 900.0), (120.0, 15.0, 600.0),
             (130.0, 15.0, 600.0), (150.0, 10.0, 400.0))]
-    got, threads = {}, []
-    for flight in (False, True):
+    got, events = {}, []
+    for overlap in (False, True):
         with geoterrain.open(path) as t:
             scene = TerrainScene(pyvista_plotter(size), t)
-            prepare = scene.prepare
+            prepare, update = scene.prepare, scene.update
 
             def spy_prepare(view, *a, prepare=prepare):
-                threads.append(threading.current_thread() is threading.main_thread())
+                events.append(("prepare", threading.current_thread() is threading.main_thread()))
                 return prepare(view, *a)
 
-            scene.prepare = spy_prepare
+            def spy_update(*a, update=update, **kw):
+                events.append(("update", True))
+                return update(*a, **kw)
+
+            scene.prepare, scene.update = spy_prepare, spy_update
+            events.clear()
             try:
-                got[flight] = (list(scene.frames(views, 1.0, "rtin")) if flight else
-                               [scene.frame(v, 1.0, "rtin") for v in views])
+                got[overlap] = list(scene.frames(views, 1.0, "rtin", overlap=overlap))
             finally:
                 scene.plotter.close()
-    assert threads and all(threads)
+    # overlapped: every prepare on the worker, each after the mesh before it is shown
+    assert [e[0] for e in events] == ["prepare", "update"] * len(views), events
+    assert not any(main for kind, main in events if kind == "prepare")
+    assert all(made), made
     for (a, sa), (b, sb) in zip(got[False], got[True], strict=True):
         assert np.array_equal(a, b)
         for key in ("triangles", "tiles_decoded", "normals_decoded", "textures_built",
