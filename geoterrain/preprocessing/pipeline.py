@@ -225,8 +225,10 @@ def preprocess(
                     req.files[0] if not req.mosaic else "the mosaic", scheduler)
     with small_pages():  # whole-grid arrays on 4 KiB pages (core/memory.py)
         stage = StageClock(STAGES, progress, timings)
+        warm = warm_kernels()  # numba's first call beside GDAL's decode
         dem = read_dem(req, band=band, encoding=encoding, nodata=nodata, tile=tile,
                        pixel_size=pixel_size, z_units=z_units, z_scale=z_scale, merge=merge)
+        warm.join()
         stage("read")
         surface = pad(dem)
         stage("pad")
@@ -256,7 +258,85 @@ def _bounds_and_blobs(req: Request, dem: Dem, surface: Surface, counts: list[np.
     derive_normals = bool(derive_normals) and dem.grid.tile_samples >= 3
     derive_bounds = (bool(derive_bounds) and dem.grid.tile_samples >= 3
                      and dem.grid.top_level > 0)
-    bounds = vertex_bounds(dem, surface, derive_bounds, stage)
+    # a large grid's normals on a thread of their own once δ is done (their kernels
+    # release the GIL), beside the radii and the tile bounds
+    normals = Job(_normal_maps, dem, surface, derive_normals) \
+        if surface.valid.size >= HEIGHTS_THREAD_SAMPLES else None
+
+    def clock(name: str) -> None:
+        stage(name)
+        if name == "errors" and normals is not None:
+            normals.start()
+
+    try:
+        return _blobs_and_rows(req, dem, surface, counts, heights, stage, clock,
+                               derive_normals, derive_bounds, normals)
+    finally:
+        if normals is not None:
+            normals.join()  # an error: the thread stops using the arrays first
+
+
+def _normal_maps(dem: Dem, surface: Surface, derive_normals: bool) -> list:
+    # one map per level, central differences of the level's own samples (seed 000
+    # normal-map lighting): a reader rebuilds each tile's from its heights and ring
+    with cores_for(surface.Z.size):  # a small grid: the serial twins (core/threads.py)
+        if derive_normals:  # only the rings are stored: only they are mapped
+            return ring_normal_codes(surface.X, surface.Y, surface.Z, surface.valid,
+                                     dem.grid.top_level + 1, dem.grid.t, NORMAL_BITS)
+        return level_normal_codes(surface.X, surface.Y, surface.Z, surface.valid,
+                                  dem.grid.top_level + 1, NORMAL_BITS)
+
+
+class Job:
+    """``fn(*args)`` on a thread of its own from :meth:`start` on; :meth:`result` waits
+    and raises its error (:meth:`start` not called: runs it there, on the caller's).
+
+    Examples
+    --------
+    >>> job = Job(sum, [1, 2, 3])
+    >>> job.start()
+    >>> job.result()
+    6
+    """
+
+    def __init__(self, fn: Callable, *args) -> None:
+        self._fn, self._args = fn, args
+        self._out = self._error = self._thread = None
+
+    def _run(self) -> None:
+        try:
+            self._out = self._fn(*self._args)
+        except BaseException as exc:  # noqa: BLE001 - raised by result(), on the caller's
+            self._error = exc
+
+    def start(self) -> None:
+        """Start the thread (once)."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="geoterrain-job",
+                                            daemon=True)
+            self._thread.start()
+
+    def join(self) -> None:
+        """Wait for the thread, if started."""
+        if self._thread is not None:
+            self._thread.join()
+
+    def result(self):
+        """What ``fn`` returned (waits; raises its error)."""
+        if self._thread is None:
+            self._run()
+        else:
+            self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._out
+
+
+def _blobs_and_rows(req: Request, dem: Dem, surface: Surface, counts: list[np.ndarray],
+                    heights: HeightsJob | None, stage: StageClock, clock: Callable,
+                    derive_normals: bool, derive_bounds: bool, normals: Job | None) -> Path:
+    # preprocess' stages from δ on, ``clock`` the stage clock that starts ``normals``
+    bounds = vertex_bounds(dem, surface, derive_bounds, clock)
     tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
                                           dem.grid.t, span=dem.grid.span, counts=counts,
                                           fields=bounds.fields)
@@ -264,17 +344,8 @@ def _bounds_and_blobs(req: Request, dem: Dem, surface: Surface, counts: list[np.
     across, down = dem.grid.tiles(0)
     blocks = blocks[:down, :across]  # a root grid's extent holds more than its tiles
     stage("tile bounds")
-    # one map per level, central differences of the level's own samples (seed 000
-    # normal-map lighting): a reader rebuilds each tile's from its heights and ring
-    with cores_for(surface.Z.size):  # a small grid: the serial twins (core/threads.py)
-        if derive_normals:  # only the rings are stored: only they are mapped
-            normal_maps = ring_normal_codes(surface.X, surface.Y, surface.Z,
-                                            surface.valid, dem.grid.top_level + 1,
-                                            dem.grid.t, NORMAL_BITS)
-        else:
-            normal_maps = level_normal_codes(surface.X, surface.Y, surface.Z,
-                                             surface.valid, dem.grid.top_level + 1,
-                                             NORMAL_BITS)
+    normal_maps = (normals.result() if normals is not None else
+                   _normal_maps(dem, surface, derive_normals))
     stage("normals")
     # the store's rows are inserted on a thread of their own, the height blobs' while
     # the δ, r and normals blobs are coded (the same calls, in the same order, as
@@ -301,6 +372,30 @@ def _bounds_and_blobs(req: Request, dem: Dem, surface: Surface, counts: list[np.
         write_rows(store, dem.grid, blobs, blocks, meta, heights=False, rows=False)
     stage("write")
     return req.dst
+
+
+def warm_kernels() -> threading.Thread:
+    """A thread making the process's first call of a parallel kernel (numba's typing
+    registries and the kernel's load from its cache, about 0.2 s of CPU on one core in
+    a fresh process), started before the read: GDAL decodes without the GIL meanwhile.
+    Nothing in a fork() child (no parallel region there, core/threads.py). Results never
+    depend on it.
+
+    Examples
+    --------
+    >>> warm_kernels().join()
+    """
+
+    def first_call() -> None:
+        from geoterrain.bounds.radii import _valid_range_nb
+        from geoterrain.core.threads import forked
+
+        if not forked():
+            _valid_range_nb.parallel(np.zeros((2, 2)), np.ones((2, 2), bool))
+
+    th = threading.Thread(target=first_call, name="geoterrain-warm", daemon=True)
+    th.start()
+    return th
 
 
 def _probe(req: Request, merge: dict) -> tuple[tuple[int, int], bool] | None:
@@ -434,8 +529,8 @@ class VertexBounds:
     fields: dict | None = None  # the tile bounds' level fields made in δ's sweep
 
 
-def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool, stage: StageClock
-                  ) -> VertexBounds:
+def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool,
+                  stage: StageClock | Callable[[str], None]) -> VertexBounds:
     """δ (LP's exact vertex errors, saturated) and the nested radii (seed 002 §2.4,
     L50–52) as the 8-bit log codes they are stored as; on a geographic frame, both made
     to hold in the scene's metric x, y (:mod:`geoterrain.bounds.curvature`)."""

@@ -1,7 +1,7 @@
-"""The height codec on a thread of its own (pipeline.HeightsJob), a level's bounds' blobs
-in two halves on two threads and the bounds' rows handed to the store's writer level by
-level (tile_blobs' on_rows) write the same bytes as the height codec in line, each level in
-one piece and every row at the end."""
+"""The height codec on a thread of its own (pipeline.HeightsJob), the normals on another, a
+level's bounds' blobs in two halves on two threads and the bounds' rows handed to the
+store's writer level by level (tile_blobs' on_rows) write the same bytes as the height
+codec in line, each level in one piece and every row at the end."""
 
 from __future__ import annotations
 
@@ -75,14 +75,16 @@ def test_the_heights_thread_writes_the_same_bytes(tmp_path, monkeypatch):
 
 
 @pytest.mark.fast
-def test_a_failure_on_the_heights_thread_is_raised_and_writes_nothing(tmp_path, monkeypatch):
+@pytest.mark.parametrize("where", ["encode_pyramid", "_normal_maps"])
+def test_a_failure_on_a_thread_is_raised_and_writes_nothing(tmp_path, monkeypatch, where):
+    """The height codec's thread and the normals' (HeightsJob, Job)."""
     src = _sources(tmp_path)["square"][0]
 
     def broken(*args, **kwargs):
         raise MemoryError("no room for the heights")
 
     monkeypatch.setattr(pipeline, "HEIGHTS_THREAD_SAMPLES", 0)
-    monkeypatch.setattr(pipeline, "encode_pyramid", broken)
+    monkeypatch.setattr(pipeline, where, broken)
     with pytest.raises(MemoryError, match="no room"):
         preprocess(src, tmp_path / "a.gt", tile_size=8)
     assert not (tmp_path / "a.gt").exists()
