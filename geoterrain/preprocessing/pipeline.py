@@ -258,10 +258,11 @@ def _bounds_and_blobs(req: Request, dem: Dem, surface: Surface, counts: list[np.
     derive_normals = bool(derive_normals) and dem.grid.tile_samples >= 3
     derive_bounds = (bool(derive_bounds) and dem.grid.tile_samples >= 3
                      and dem.grid.top_level > 0)
-    # a large grid's normals on a thread of their own once δ is done (their kernels
-    # release the GIL), beside the radii and the tile bounds
-    normals = Job(_normal_maps, dem, surface, derive_normals) \
-        if surface.valid.size >= HEIGHTS_THREAD_SAMPLES else None
+    # a large grid's normals and tile bounds on threads of their own once δ is done
+    # (their kernels release the GIL), beside the radii
+    jobs = surface.valid.size >= HEIGHTS_THREAD_SAMPLES
+    normals = Job(_normal_maps, dem, surface, derive_normals) if jobs else None
+    tile_job = Job(_tile_bounds, dem, surface, counts) if jobs else None
 
     def clock(name: str) -> None:
         stage(name)
@@ -270,10 +271,21 @@ def _bounds_and_blobs(req: Request, dem: Dem, surface: Surface, counts: list[np.
 
     try:
         return _blobs_and_rows(req, dem, surface, counts, heights, stage, clock,
-                               derive_normals, derive_bounds, normals)
+                               derive_normals, derive_bounds, normals, tile_job)
     finally:
-        if normals is not None:
-            normals.join()  # an error: the thread stops using the arrays first
+        for job in (normals, tile_job):
+            if job is not None:
+                job.join()  # an error: the thread stops using the arrays first
+
+
+def _tile_bounds(dem: Dem, surface: Surface, counts: list[np.ndarray], fields: dict | None
+                 ) -> tuple[dict, np.ndarray]:
+    # the tile table's bounds and the GeoMipMapping blocks' δ_n (tilebounds)
+    tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
+                                          dem.grid.t, span=dem.grid.span, counts=counts,
+                                          fields=fields)
+    across, down = dem.grid.tiles(0)
+    return tiles, blocks[:down, :across]  # a root grid's extent holds more than its tiles
 
 
 def _normal_maps(dem: Dem, surface: Surface, derive_normals: bool) -> list:
@@ -309,9 +321,10 @@ class Job:
         except BaseException as exc:  # noqa: BLE001 - raised by result(), on the caller's
             self._error = exc
 
-    def start(self) -> None:
-        """Start the thread (once)."""
+    def start(self, *more) -> None:
+        """Start the thread (once), ``more`` after the arguments given."""
         if self._thread is None:
+            self._args += more
             self._thread = threading.Thread(target=self._run, name="geoterrain-job",
                                             daemon=True)
             self._thread.start()
@@ -334,15 +347,15 @@ class Job:
 
 def _blobs_and_rows(req: Request, dem: Dem, surface: Surface, counts: list[np.ndarray],
                     heights: HeightsJob | None, stage: StageClock, clock: Callable,
-                    derive_normals: bool, derive_bounds: bool, normals: Job | None) -> Path:
-    # preprocess' stages from δ on, ``clock`` the stage clock that starts ``normals``
-    bounds = vertex_bounds(dem, surface, derive_bounds, clock)
-    tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
-                                          dem.grid.t, span=dem.grid.span, counts=counts,
-                                          fields=bounds.fields)
+                    derive_normals: bool, derive_bounds: bool, normals: Job | None,
+                    tile_job: Job | None) -> Path:
+    # preprocess' stages from δ on, ``clock`` the stage clock that starts ``normals``,
+    # ``tile_job`` (its last argument, δ's fields, given) started with δ's fields
+    bounds = vertex_bounds(dem, surface, derive_bounds, clock,
+                           on_fields=None if tile_job is None else tile_job.start)
+    tiles, blocks = (tile_job.result() if tile_job is not None else
+                     _tile_bounds(dem, surface, counts, bounds.fields))
     bounds.fields = None
-    across, down = dem.grid.tiles(0)
-    blocks = blocks[:down, :across]  # a root grid's extent holds more than its tiles
     stage("tile bounds")
     normal_maps = (normals.result() if normals is not None else
                    _normal_maps(dem, surface, derive_normals))
@@ -530,14 +543,20 @@ class VertexBounds:
 
 
 def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool,
-                  stage: StageClock | Callable[[str], None]) -> VertexBounds:
+                  stage: StageClock | Callable[[str], None],
+                  on_fields: Callable[[dict | None], None] | None = None) -> VertexBounds:
     """δ (LP's exact vertex errors, saturated) and the nested radii (seed 002 §2.4,
     L50–52) as the 8-bit log codes they are stored as; on a geographic frame, both made
-    to hold in the scene's metric x, y (:mod:`geoterrain.bounds.curvature`)."""
+    to hold in the scene's metric x, y (:mod:`geoterrain.bounds.curvature`).
+    ``on_fields``: called with the tile bounds' level fields as soon as δ is done (then
+    not kept in the result)."""
     frame, grid, valid = dem.frame, dem.grid, s.valid
     # δ, and in the same sweep the tile bounds' level fields of an all-valid grid
     delta, fields = vertex_errors_fields(s.Z, valid, span=grid.span, t=grid.t)
     stage("errors")
+    if on_fields is not None:
+        on_fields(fields)
+        fields = None
     terms = radius = None
     if frame.kind == "geographic":  # curvilinear grid: δ and r that hold in scene x/y
         radius = vertex_radii(s.X, s.Y, s.Z, valid, span=grid.span)

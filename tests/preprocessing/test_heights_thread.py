@@ -1,7 +1,7 @@
-"""The height codec on a thread of its own (pipeline.HeightsJob), the normals on another, a
-level's bounds' blobs in two halves on two threads and the bounds' rows handed to the
-store's writer level by level (tile_blobs' on_rows) write the same bytes as the height
-codec in line, each level in one piece and every row at the end."""
+"""The height codec on a thread of its own (pipeline.HeightsJob), the normals and the tile
+bounds on others, a level's bounds' blobs in two halves on two threads and the bounds' rows
+handed to the store's writer level by level (tile_blobs' on_rows) write the same bytes as
+all of it in line, each level in one piece and every row at the end."""
 
 from __future__ import annotations
 
@@ -75,9 +75,9 @@ def test_the_heights_thread_writes_the_same_bytes(tmp_path, monkeypatch):
 
 
 @pytest.mark.fast
-@pytest.mark.parametrize("where", ["encode_pyramid", "_normal_maps"])
+@pytest.mark.parametrize("where", ["encode_pyramid", "_normal_maps", "_tile_bounds"])
 def test_a_failure_on_a_thread_is_raised_and_writes_nothing(tmp_path, monkeypatch, where):
-    """The height codec's thread and the normals' (HeightsJob, Job)."""
+    """The height codec's thread, the normals' and the tile bounds' (HeightsJob, Job)."""
     src = _sources(tmp_path)["square"][0]
 
     def broken(*args, **kwargs):
