@@ -51,7 +51,7 @@ from geoterrain.core.grid import Grid, footprint_counts
 from geoterrain.core.memory import available_memory, small_pages
 from geoterrain.core.paths import STORE_SUFFIX, input_problem
 from geoterrain.core.progress import Progress, StageClock
-from geoterrain.core.threads import cores_for
+from geoterrain.core.threads import PARALLEL_MIN_SAMPLES, cores_for
 from geoterrain.exceptions import InputError
 from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.ingest.remote import is_url
@@ -225,10 +225,14 @@ def preprocess(
                     req.files[0] if not req.mosaic else "the mosaic", scheduler)
     with small_pages():  # whole-grid arrays on 4 KiB pages (core/memory.py)
         stage = StageClock(STAGES, progress, timings)
-        warm = warm_kernels()  # numba's first call beside GDAL's decode
+        # a large grid: numba's first call beside GDAL's decode (a small one runs only
+        # the serial twins: nothing more to compile on a first run)
+        warm = warm_kernels() if probe is not None \
+            and probe[0][0] * probe[0][1] >= PARALLEL_MIN_SAMPLES else None
         dem = read_dem(req, band=band, encoding=encoding, nodata=nodata, tile=tile,
                        pixel_size=pixel_size, z_units=z_units, z_scale=z_scale, merge=merge)
-        warm.join()
+        if warm is not None:
+            warm.join()
         stage("read")
         surface = pad(dem)
         stage("pad")
@@ -390,7 +394,8 @@ def _blobs_and_rows(req: Request, dem: Dem, surface: Surface, counts: list[np.nd
 def warm_kernels() -> threading.Thread:
     """A thread making the process's first call of a parallel kernel (numba's typing
     registries and the kernel's load from its cache, about 0.2 s of CPU on one core in
-    a fresh process), started before the read: GDAL decodes without the GIL meanwhile.
+    a fresh process), started before a large grid's read: GDAL decodes without the GIL
+    meanwhile.
     Nothing in a fork() child (no parallel region there, core/threads.py). Results never
     depend on it.
 
