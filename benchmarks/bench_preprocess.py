@@ -182,8 +182,9 @@ def main() -> None:
     print("|---" * (head.count("|") - 1) + "|")
     bmed = {s: statistics.median(r["stages"][s] for r in base) for s in stages} if base else {}
     for s in stages:
-        row = (f"| {s} | {med[s]:.2f} | {cpu(ours, s):.2f} | {ksys(ours, s):.2f} | "
-               f"{cpu(ours, s) / med[s]:.2f} |")
+        # a stage whose work ran on a thread during the ones before it takes ~0 s
+        ratio = f"{cpu(ours, s) / med[s]:.2f}" if med[s] >= 0.005 else "–"
+        row = f"| {s} | {med[s]:.2f} | {cpu(ours, s):.2f} | {ksys(ours, s):.2f} | {ratio} |"
         if base:
             row += f" {bmed[s]:.2f} | {cpu(base, s):.2f} | {ksys(base, s):.2f} |"
         print(row)

@@ -269,7 +269,7 @@ def edge_delta_nb(z, vb, ic, jc, h, rows, N, w0, beside, old):
     return old
 
 
-@parallel_kernel(cache=True)
+@parallel_kernel(cache=True, nogil=True)
 def _block_status_nb(vb, span):
     # bs[centre of a closed 2h block] = bit 1: holds a valid sample, bit 2: an invalid one;
     # built fine to coarse (a closed 2h block is the union of its four closed h blocks),
@@ -413,7 +413,7 @@ def _block_sweep(z, i0, j0, s, main):
                                      z[i0 + s, j0 + s]), z[i0 + h, j0 + h], 0, s, 0)
 
 
-@parallel_kernel(cache=True)
+@parallel_kernel(cache=True, nogil=True)
 def _raw_delta_nb(z, vb, bs, all_valid, span):
     """Raw exact δ, float32 rounded up (+inf for mixed diamonds); ``bs`` the blocks'
     status (:func:`_block_status_nb`; unread when ``all_valid``); vertices of half-span
@@ -485,7 +485,7 @@ def _raw_delta_nb(z, vb, bs, all_valid, span):
     return out
 
 
-@parallel_kernel(cache=True)
+@parallel_kernel(cache=True, nogil=True)
 def _saturate_pull_nb(d, span):
     # LP §2.4 (L46), rows on every core: each vertex pulls its children's δ, depths fine
     # to coarse (one max per DAG edge; at each h a receiver never gives in the same phase,
@@ -668,7 +668,7 @@ def _block_sweep_field(z, cell, zc, lines):
     return mc, ml, mr, mt, mb, tf
 
 
-@parallel_kernel(cache=True)
+@parallel_kernel(cache=True, nogil=True)
 def _raw_delta_fields_nb(z, span, cpt, smax, P, H, V):
     """:func:`_raw_delta_nb` of an all-valid grid (the same values), and the tile-bound
     field of every level whose cells (side s = 2h, 4 ≤ s ≤ ``smax`` ≤ ``cpt``) lie in the

@@ -24,7 +24,7 @@ from geoterrain.core.bintree import child_nb
 from geoterrain.core.rounding import round_up32
 from geoterrain.core.threads import cores_for, parallel_kernel, serial_for
 
-__all__ = ["stand_in_z", "valid_range", "vertex_radii"]
+__all__ = ["numpy_range", "stand_in_z", "valid_range", "vertex_radii", "zero_signs"]
 
 def stand_in_z(z: np.ndarray, valid: np.ndarray) -> float:
     """The height standing in for invalid samples in the nested spheres: the middle of
@@ -54,6 +54,55 @@ def valid_range(z: np.ndarray, valid: np.ndarray) -> tuple[float, float, int]:
     run = _valid_range_nb.serial if serial_for(z.size) else _valid_range_nb.parallel
     lo, hi, n = run(z, valid)
     return float(lo), float(hi), int(n)
+
+
+def numpy_range(z: np.ndarray, valid: np.ndarray) -> tuple[float, float]:
+    """``z[valid].min()`` and ``.max()`` of a 2-D grid whose valid samples are finite, bit
+    for bit (which zero, ±0.0, too: a store records them), mostly without their copy: one
+    compiled pass (:func:`valid_range`), and where an end is a zero a second
+    (:func:`zero_signs`); the copy only where both zeros occur (numpy's choice then).
+
+    Examples
+    --------
+    >>> numpy_range(np.array([[-0.0, 3.0], [5.0, np.nan]]), np.array([[1, 1], [1, 0]], bool))
+    (-0.0, 5.0)
+    """
+    lo, hi, _ = valid_range(z, valid)
+    if lo == 0.0 or hi == 0.0:
+        pos, neg = zero_signs(z, valid)
+        if (pos > 0) != (neg > 0):  # one sign: that zero, whichever numpy picks
+            z0 = 0.0 if pos else -0.0
+            return (z0 if lo == 0.0 else lo), (z0 if hi == 0.0 else hi)
+        hv = z[valid]  # both zeros (or none valid: numpy's error)
+        return float(hv.min()), float(hv.max())
+    return lo, hi
+
+
+def zero_signs(z: np.ndarray, valid: np.ndarray) -> tuple[int, int]:
+    """How many valid samples of a 2-D grid are +0.0 and how many −0.0 (one compiled pass,
+    no copy): when a valid range's end is a zero and only one sign occurs, that zero is
+    the one numpy's ``min`` or ``max`` of the valid samples gives.
+
+    Examples
+    --------
+    >>> zero_signs(np.array([[0.0, -0.0], [5.0, 0.0]]), np.array([[1, 1], [1, 1]], bool))
+    (2, 1)
+    """
+    pos, neg = _zero_signs_nb(np.asarray(z, dtype=np.float64), np.asarray(valid, bool))
+    return int(pos), int(neg)
+
+
+@njit(cache=True, nogil=True)
+def _zero_signs_nb(z, valid):
+    pos = neg = 0
+    for i in range(z.shape[0]):
+        for j in range(z.shape[1]):
+            if valid[i, j] and z[i, j] == 0.0:
+                if np.signbit(z[i, j]):
+                    neg += 1
+                else:
+                    pos += 1
+    return pos, neg
 
 
 @parallel_kernel(cache=True, nogil=True)
@@ -237,7 +286,7 @@ def _visit(x, y, z, r, rin, table, lut, codes, i, j, h):
         codes[i, j] = nest_code_nb(x, y, z, rin, codes, table, lut, i, j, h)
 
 
-@parallel_kernel(cache=True)
+@parallel_kernel(cache=True, nogil=True)
 def _radii_nb(x, y, z, rin, table, lut, codes, n):
     # LP §2.4 (L50–52): r(v) = max over children c of |p_v − p_c| + r(c), fine to coarse;
     # each level is rounded up to float32 before its parents read it. With a log8

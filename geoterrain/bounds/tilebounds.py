@@ -47,7 +47,7 @@ class TileBounds(NamedTuple):
     ymax: float
 
 
-@parallel_kernel(cache=True)
+@parallel_kernel(cache=True, nogil=True)
 def _level_field_nb(z, vf, s, E, all_valid=False):
     # E = max over the all-valid closed triangles containing a sample of |z − S_L| (0 if
     # none), S_L the union-jack surface of cell size s; and per cell whether one of its
@@ -81,7 +81,7 @@ def _level_field_row(z, vf, s, E, mixed, bi, all_valid):
                                    z[i0 + s, j0 + s]), whole, ok1, ok2, 0, s, E)
 
 
-@parallel_kernel(cache=True)
+@parallel_kernel(cache=True, nogil=True)
 def _level_blocks_nb(z, vf, s, cpt, all_valid, bm, hl, vl, mixed):
     """_level_field_nb's field E reduced where it is made, a band of blocks at a time
     (blocks: closed squares of ``cpt`` cells of side 1, the level-0 tiles), never held
@@ -275,7 +275,7 @@ def cell_field_rows_nb(z, cell, whole, ok1, ok2, d0, d1, E):
                 E[i, j] = e
 
 
-@parallel_kernel(cache=True)
+@parallel_kernel(cache=True, nogil=True)
 def _tile_boxes_nb(z, x, y, vb, S):
     # Per closed tile footprint of span S: the box of the valid samples (each tile reads
     # its own footprint in raster order: the same min/max sequence as a raster sweep).

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,7 +28,7 @@ from geoterrain.bounds.edgepad import (
 )
 from geoterrain.bounds.leafbounds import CentreHeights, geographic_leaf_delta, ring_guesses
 from geoterrain.bounds.normals import level_normal_codes, ring_normal_codes
-from geoterrain.bounds.radii import stand_in_z, valid_range, vertex_radii
+from geoterrain.bounds.radii import numpy_range, stand_in_z, valid_range, vertex_radii
 from geoterrain.bounds.tileblobs import (
     BoundsCoding,
     OwnHeights,
@@ -49,7 +51,7 @@ from geoterrain.core.grid import Grid, footprint_counts
 from geoterrain.core.memory import available_memory, small_pages
 from geoterrain.core.paths import STORE_SUFFIX, input_problem
 from geoterrain.core.progress import Progress, StageClock
-from geoterrain.core.threads import cores_for
+from geoterrain.core.threads import PARALLEL_MIN_SAMPLES, cores_for
 from geoterrain.exceptions import InputError
 from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.ingest.remote import is_url
@@ -223,62 +225,195 @@ def preprocess(
                     req.files[0] if not req.mosaic else "the mosaic", scheduler)
     with small_pages():  # whole-grid arrays on 4 KiB pages (core/memory.py)
         stage = StageClock(STAGES, progress, timings)
+        # a large grid: numba's first call beside GDAL's decode (a small one runs only
+        # the serial twins: nothing more to compile on a first run)
+        warm = warm_kernels() if probe is not None \
+            and probe[0][0] * probe[0][1] >= PARALLEL_MIN_SAMPLES else None
         dem = read_dem(req, band=band, encoding=encoding, nodata=nodata, tile=tile,
                        pixel_size=pixel_size, z_units=z_units, z_scale=z_scale, merge=merge)
+        if warm is not None:
+            warm.join()
         stage("read")
         surface = pad(dem)
         stage("pad")
         surface = quantise(dem, surface, codec_error)
-        stage("quantise")
-        derive_normals = bool(derive_normals) and dem.grid.tile_samples >= 3
-        derive_bounds = (bool(derive_bounds) and dem.grid.tile_samples >= 3
-                         and dem.grid.top_level > 0)
-        bounds = vertex_bounds(dem, surface, derive_bounds, stage)
         # valid samples per tile footprint: the tile table's and the height codec's
         counts = footprint_counts(surface.valid, dem.grid.t, dem.grid.top_level)
-        tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
-                                              dem.grid.t, span=dem.grid.span, counts=counts,
-                                              fields=bounds.fields)
-        bounds.fields = None
-        across, down = dem.grid.tiles(0)
-        blocks = blocks[:down, :across]  # a root grid's extent holds more than its tiles
-        stage("tile bounds")
-        # one map per level, central differences of the level's own samples (seed 000
-        # normal-map lighting): a reader rebuilds each tile's from its heights and ring
-        with cores_for(surface.Z.size):  # a small grid: the serial twins (core/threads.py)
-            if derive_normals:  # only the rings are stored: only they are mapped
-                normal_maps = ring_normal_codes(surface.X, surface.Y, surface.Z,
-                                                surface.valid, dem.grid.top_level + 1,
-                                                dem.grid.t, NORMAL_BITS)
-            else:
-                normal_maps = level_normal_codes(surface.X, surface.Y, surface.Z,
-                                                 surface.valid, dem.grid.top_level + 1,
-                                                 NORMAL_BITS)
-        stage("normals")
-        # the store's rows are inserted on a thread of their own, the height blobs' while
-        # the δ, r and normals blobs are coded (the same calls, in the same order, as
-        # on one thread: the same bytes); any error drops the partial file
-        with StoreThread(req.dst, overwrite=req.overwrite,
-                         page_size=page_size_for(dem.grid.rows, dem.grid.cols)) as store:
-            blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals, counts,
-                               on_heights=lambda hb: store.put_blobs("heights", hb))
-            del normal_maps
-            stage("compress")
-            meta = dict(source=req.name, source_dtype=dem.raster.src_dtype,
-                        source_nodata=dem.raster.nodata, encoding=dem.raster.encoding,
-                        grid=dem.grid.to_json(), frame=dem.frame.to_json(),
-                        quantizer=surface.q.to_json(),
-                        normals_derived=(list(range(dem.grid.top_level + 1)) if derive_normals
-                                         else []), ring_residual=derive_normals,
-                        valid_samples=dem.valid_samples, samples=dem.raster.valid.size,
-                        height_range=surface.height_range,
-                        delta_max_finite=delta_max_finite(bounds.delta),
-                        edge_max=blobs.edge_max if has_padding(dem.grid) else None,
-                        stand_in_z=stand_in_z(surface.Z, surface.valid),
-                        block_delta_levels=int(blocks.shape[2]))
-            write_rows(store, dem.grid, blobs, blocks, meta, heights=False)
-        stage("write")
+        # a large grid's height codec on a thread of its own from here, beside the bounds
+        heights = (HeightsJob(dem, surface, counts) if HEIGHTS_EARLY and surface.height_blobs
+                   is None and surface.valid.size >= HEIGHTS_THREAD_SAMPLES else None)
+        try:
+            return _bounds_and_blobs(req, dem, surface, counts, heights, stage,
+                                     derive_normals, derive_bounds)
+        finally:
+            if heights is not None:
+                heights.join()  # an error: the thread stops using the arrays first
+
+
+HEIGHTS_EARLY = True
+
+
+def _bounds_and_blobs(req: Request, dem: Dem, surface: Surface, counts: list[np.ndarray],
+                      heights: HeightsJob | None, stage: StageClock, derive_normals: bool,
+                      derive_bounds: bool) -> Path:
+    # preprocess' stages from δ on (inside its small_pages), the heights coded by
+    # ``heights`` if started
+    stage("quantise")
+    derive_normals = bool(derive_normals) and dem.grid.tile_samples >= 3
+    derive_bounds = (bool(derive_bounds) and dem.grid.tile_samples >= 3
+                     and dem.grid.top_level > 0)
+    # a large grid's normals and tile bounds on threads of their own once δ is done
+    # (their kernels release the GIL), beside the radii
+    jobs = surface.valid.size >= HEIGHTS_THREAD_SAMPLES
+    normals = Job(_normal_maps, dem, surface, derive_normals) if jobs else None
+    tile_job = Job(_tile_bounds, dem, surface, counts) if jobs else None
+
+    def clock(name: str) -> None:
+        stage(name)
+        if name == "errors" and normals is not None:
+            normals.start()
+
+    try:
+        return _blobs_and_rows(req, dem, surface, counts, heights, stage, clock,
+                               derive_normals, derive_bounds, normals, tile_job)
+    finally:
+        for job in (normals, tile_job):
+            if job is not None:
+                job.join()  # an error: the thread stops using the arrays first
+
+
+def _tile_bounds(dem: Dem, surface: Surface, counts: list[np.ndarray], fields: dict | None
+                 ) -> tuple[dict, np.ndarray]:
+    # the tile table's bounds and the GeoMipMapping blocks' δ_n (tilebounds)
+    tiles, blocks = tile_and_block_errors(surface.Z, surface.valid, surface.X, surface.Y,
+                                          dem.grid.t, span=dem.grid.span, counts=counts,
+                                          fields=fields)
+    across, down = dem.grid.tiles(0)
+    return tiles, blocks[:down, :across]  # a root grid's extent holds more than its tiles
+
+
+def _normal_maps(dem: Dem, surface: Surface, derive_normals: bool) -> list:
+    # one map per level, central differences of the level's own samples (seed 000
+    # normal-map lighting): a reader rebuilds each tile's from its heights and ring
+    with cores_for(surface.Z.size):  # a small grid: the serial twins (core/threads.py)
+        if derive_normals:  # only the rings are stored: only they are mapped
+            return ring_normal_codes(surface.X, surface.Y, surface.Z, surface.valid,
+                                     dem.grid.top_level + 1, dem.grid.t, NORMAL_BITS)
+        return level_normal_codes(surface.X, surface.Y, surface.Z, surface.valid,
+                                  dem.grid.top_level + 1, NORMAL_BITS)
+
+
+class Job:
+    """``fn(*args)`` on a thread of its own from :meth:`start` on; :meth:`result` waits
+    and raises its error (:meth:`start` not called: runs it there, on the caller's).
+
+    Examples
+    --------
+    >>> job = Job(sum, [1, 2, 3])
+    >>> job.start()
+    >>> job.result()
+    6
+    """
+
+    def __init__(self, fn: Callable, *args) -> None:
+        self._fn, self._args = fn, args
+        self._out = self._error = self._thread = None
+
+    def _run(self) -> None:
+        try:
+            self._out = self._fn(*self._args)
+        except BaseException as exc:  # noqa: BLE001 - raised by result(), on the caller's
+            self._error = exc
+
+    def start(self, *more) -> None:
+        """Start the thread (once), ``more`` after the arguments given."""
+        if self._thread is None:
+            self._args += more
+            self._thread = threading.Thread(target=self._run, name="geoterrain-job",
+                                            daemon=True)
+            self._thread.start()
+
+    def join(self) -> None:
+        """Wait for the thread, if started."""
+        if self._thread is not None:
+            self._thread.join()
+
+    def result(self):
+        """What ``fn`` returned (waits; raises its error)."""
+        if self._thread is None:
+            self._run()
+        else:
+            self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._out
+
+
+def _blobs_and_rows(req: Request, dem: Dem, surface: Surface, counts: list[np.ndarray],
+                    heights: HeightsJob | None, stage: StageClock, clock: Callable,
+                    derive_normals: bool, derive_bounds: bool, normals: Job | None,
+                    tile_job: Job | None) -> Path:
+    # preprocess' stages from δ on, ``clock`` the stage clock that starts ``normals``,
+    # ``tile_job`` (its last argument, δ's fields, given) started with δ's fields
+    bounds = vertex_bounds(dem, surface, derive_bounds, clock,
+                           on_fields=None if tile_job is None else tile_job.start)
+    tiles, blocks = (tile_job.result() if tile_job is not None else
+                     _tile_bounds(dem, surface, counts, bounds.fields))
+    bounds.fields = None
+    stage("tile bounds")
+    normal_maps = (normals.result() if normals is not None else
+                   _normal_maps(dem, surface, derive_normals))
+    stage("normals")
+    # the store's rows are inserted on a thread of their own, the height blobs' while
+    # the δ, r and normals blobs are coded (the same calls, in the same order, as
+    # on one thread: the same bytes); any error drops the partial file
+    with StoreThread(req.dst, overwrite=req.overwrite,
+                     page_size=page_size_for(dem.grid.rows, dem.grid.cols)) as store:
+        blobs = tile_blobs(dem, surface, bounds, tiles, normal_maps, derive_normals, counts,
+                           on_heights=lambda hb: store.put_blobs("heights", hb),
+                           on_rows=store.put_blobs, heights=heights)
+        del normal_maps
+        stage("compress")
+        meta = dict(source=req.name, source_dtype=dem.raster.src_dtype,
+                    source_nodata=dem.raster.nodata, encoding=dem.raster.encoding,
+                    grid=dem.grid.to_json(), frame=dem.frame.to_json(),
+                    quantizer=surface.q.to_json(),
+                    normals_derived=(list(range(dem.grid.top_level + 1)) if derive_normals
+                                     else []), ring_residual=derive_normals,
+                    valid_samples=dem.valid_samples, samples=dem.raster.valid.size,
+                    height_range=surface.height_range,
+                    delta_max_finite=delta_max_finite(bounds.delta),
+                    edge_max=blobs.edge_max if has_padding(dem.grid) else None,
+                    stand_in_z=stand_in_z(surface.Z, surface.valid),
+                    block_delta_levels=int(blocks.shape[2]))
+        write_rows(store, dem.grid, blobs, blocks, meta, heights=False, rows=False)
+    stage("write")
     return req.dst
+
+
+def warm_kernels() -> threading.Thread:
+    """A thread making the process's first call of a parallel kernel (numba's typing
+    registries and the kernel's load from its cache, about 0.2 s of CPU on one core in
+    a fresh process), started before a large grid's read: GDAL decodes without the GIL
+    meanwhile.
+    Nothing in a fork() child (no parallel region there, core/threads.py). Results never
+    depend on it.
+
+    Examples
+    --------
+    >>> warm_kernels().join()
+    """
+
+    def first_call() -> None:
+        from geoterrain.bounds.radii import _valid_range_nb
+        from geoterrain.core.threads import forked
+
+        if not forked():
+            _valid_range_nb.parallel(np.zeros((2, 2)), np.ones((2, 2), bool))
+
+    th = threading.Thread(target=first_call, name="geoterrain-warm", daemon=True)
+    th.start()
+    return th
 
 
 def _probe(req: Request, merge: dict) -> tuple[tuple[int, int], bool] | None:
@@ -390,11 +525,7 @@ def quantise(dem: Dem, s: Surface, codec_error: float | None) -> Surface:
         Z[~s.valid] = np.nan
     else:
         Z = decoded_heights(s.heights, s.valid, q)  # NaN where invalid
-    lo, hi, _ = valid_range(Z, s.valid)  # one compiled pass, no copy
-    if lo == 0.0 or hi == 0.0:  # which zero (±0.0) numpy's min and max give, as stored
-        hv = Z[s.valid]
-        lo, hi = hv.min(), hv.max()
-        del hv
+    lo, hi = numpy_range(Z, s.valid)  # as numpy's min and max give them, as stored
     height_range = [float(lo), float(hi)]
     Z = dem.frame.z(Z, out=Z)  # scene metres, in place
     return Surface(s.heights, s.valid, s.X, s.Y, Z, q, height_range, height_blobs)
@@ -416,15 +547,21 @@ class VertexBounds:
     fields: dict | None = None  # the tile bounds' level fields made in δ's sweep
 
 
-def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool, stage: StageClock
-                  ) -> VertexBounds:
+def vertex_bounds(dem: Dem, s: Surface, derive_bounds: bool,
+                  stage: StageClock | Callable[[str], None],
+                  on_fields: Callable[[dict | None], None] | None = None) -> VertexBounds:
     """δ (LP's exact vertex errors, saturated) and the nested radii (seed 002 §2.4,
     L50–52) as the 8-bit log codes they are stored as; on a geographic frame, both made
-    to hold in the scene's metric x, y (:mod:`geoterrain.bounds.curvature`)."""
+    to hold in the scene's metric x, y (:mod:`geoterrain.bounds.curvature`).
+    ``on_fields``: called with the tile bounds' level fields as soon as δ is done (then
+    not kept in the result)."""
     frame, grid, valid = dem.frame, dem.grid, s.valid
     # δ, and in the same sweep the tile bounds' level fields of an all-valid grid
     delta, fields = vertex_errors_fields(s.Z, valid, span=grid.span, t=grid.t)
     stage("errors")
+    if on_fields is not None:
+        on_fields(fields)
+        fields = None
     terms = radius = None
     if frame.kind == "geographic":  # curvilinear grid: δ and r that hold in scene x/y
         radius = vertex_radii(s.X, s.Y, s.Z, valid, span=grid.span)
@@ -463,7 +600,9 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
                normal_maps: list, derive_normals: bool,
                counts: list[np.ndarray] | None = None,
                on_heights: Callable[[dict], None] | None = None,
-               ring_residual: bool = True) -> TileBlobs:
+               ring_residual: bool = True,
+               on_rows: Callable[[str, dict], None] | None = None,
+               heights: HeightsJob | None = None) -> TileBlobs:
     """The height pyramid's blobs (the residual codec), and every tile's δ, r, normals and
     δ_edge blobs with its tile-table row.
 
@@ -477,16 +616,62 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     ``on_heights``: called with the height blobs as soon as they are coded (the store's
     writer inserts them while the rest is coded). ``ring_residual`` (with
     ``derive_normals``): the normals' rings as differences from what a reader derives
-    there (schema 17; False: as stored before, an edit of an older store).
+    there (schema 17; False: as stored before, an edit of an older store). ``on_rows``:
+    called with the δ, r, normals and δ_edge rows in the store's order
+    (:func:`tile_row_order`), a level's as soon as it is coded and the heights have been
+    handed to ``on_heights`` (so the writer inserts them while the next level is coded).
+    ``heights``: the height blobs' :class:`HeightsJob`, if started already; with
+    ``counts`` of a large grid (:data:`HEIGHTS_THREAD_SAMPLES`) one is started here: the
+    height codec runs on a thread of its own beside the bounds' blobs (the same bytes).
     """
-    grid, frame, valid, Z = dem.grid, dem.frame, s.valid, s.Z
+    grid, valid = dem.grid, s.valid
     height_blobs = s.height_blobs
-    if height_blobs is None:
-        height_blobs = grid.held(encode_pyramid(s.heights, valid, grid.t, s.q,
-                                                predictor=s.predictor, roots=grid.codec_roots,
-                                                counts=counts))
-    if on_heights is not None:
-        on_heights(height_blobs)
+    job = heights if height_blobs is None else None
+    if job is None and height_blobs is None and counts is not None \
+            and valid.size >= HEIGHTS_THREAD_SAMPLES:
+        job = HeightsJob(dem, s, counts)
+    if job is not None:  # the tiles it codes are known now: the bounds' loop needs no more
+        stored = job.keys
+    else:
+        if height_blobs is None:
+            height_blobs = grid.held(encode_pyramid(s.heights, valid, grid.t, s.q,
+                                                    predictor=s.predictor,
+                                                    roots=grid.codec_roots, counts=counts))
+        if on_heights is not None:
+            on_heights(height_blobs)
+        stored = list(height_blobs)
+    stored_set = set(stored)
+    pending: list[tuple[str, dict]] = []  # rows coded, not yet handed to on_rows
+
+    def hand_on(wait: bool) -> None:
+        # the heights first (once their thread is done), then every pending row
+        nonlocal height_blobs
+        if height_blobs is None:
+            if not (wait or job.done()):
+                return
+            height_blobs = job.result()
+            if on_heights is not None:
+                on_heights(height_blobs)
+        if on_rows is not None:
+            for kind, rows in pending:
+                on_rows(kind, rows)
+        pending.clear()
+
+    try:
+        return _tile_blobs(dem, s, b, tiles, normal_maps, derive_normals, ring_residual,
+                           stored, stored_set, pending if on_rows is not None else None,
+                           hand_on, lambda: height_blobs)
+    finally:
+        if job is not None:
+            job.join()  # an error above: the thread stops using the arrays first
+
+
+def _tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict, normal_maps: list,
+                derive_normals: bool, ring_residual: bool, stored: list, stored_set: set,
+                pending: list | None, hand_on: Callable[[bool], None],
+                height_blobs: Callable[[], dict]) -> TileBlobs:
+    # tile_blobs' bounds' blobs, level by level; each level's rows into ``pending``
+    grid, frame, valid, Z = dem.grid, dem.frame, s.valid, s.Z
     delta = b.delta
     edge = d_edge = None
     if has_padding(grid):
@@ -509,9 +694,9 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
         edge = BoundsCoding(d_edge, None, ed, r_codes=b.r_codes)
         del d_edge
         # one table, so comparing codes compares the stored values
-        edge_keys = edge_tiles(coding.dc, edge.dc, grid, sorted(height_blobs))
+        edge_keys = edge_tiles(coding.dc, edge.dc, grid, sorted(stored))
         # unstored tiles holding a vertex the static mesh may need: a whole δ_edge tile
-        edge_only = edge_only_tiles(edge.dc, grid, set(height_blobs))
+        edge_only = edge_only_tiles(edge.dc, grid, stored_set)
     tile_rows: dict = {}
     extra: dict[str, dict] = {"delta": {}, "radius": {}, "normals": {}, "delta_edge": {}}
     no_map = np.zeros((0, 0, 2), np.uint8)  # level_blobs without normals reads none
@@ -523,63 +708,211 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     stand_in = stand_in_z(Z, valid)
     # schema 20: δ's PRED and RING blobs guessed from the own errors on the heights
     own = OwnHeights(Z, valid, stand_in)
-    for L in grid.levels:
-        keys = [k for k in height_blobs if k[0] == L]
-        if not keys:
-            continue
-        # every level's rings: the rest is derived from the heights on read
-        centres = heights = None
-        if guess and L < grid.top_level:
-            # level 0's r centres, and above it every r vertex (schema 20), as differences
-            # from their guesses from the level's heights
-            boxes = np.array([[tiles[k].xmin, tiles[k].xmax, tiles[k].ymin, tiles[k].ymax]
-                              for k in keys], np.float64)
-            sl = np.s_[::1 << L, ::1 << L]
-            if L == 0:
-                centres = CentreHeights(Z, valid.view(np.uint8), stand_in, boxes)
-            else:
-                heights = CentreHeights(np.ascontiguousarray(Z[sl]),
-                                        np.ascontiguousarray(valid[sl]).view(np.uint8),
-                                        stand_in, boxes)
-        blobs, dmax, rmax = level_blobs(coding, no_map if derive_normals else normal_maps[L],
-                                        grid.t, L, grid.top_level,
-                                        [(x, y) for _, x, y in keys],
-                                        ("delta", "radius") if derive_normals else
-                                        ("delta", "radius", "normals"),
-                                        ring=b.ring_kinds if L == 0 else False,
-                                        slack=b.slack if L == 0 else None,
-                                        mids=L > 0 and "radius" in b.ring_kinds,
-                                        centres=centres, heights=heights, own=own)
-        if derive_normals:
-            guess_n = None
-            if ring_residual:  # each ring as its difference from the reader's derived map
-                sl = np.s_[::1 << L, ::1 << L]
-                txy = [(x, y) for _, x, y in keys]
-                guess_n = ring_guesses(grid, frame, L, txy, Z[sl], valid[sl],
-                                       np.array([(y << grid.t, x << grid.t) for x, y in txy],
-                                                np.int64).reshape(-1, 2))
-            blobs["normals"] = ring_blobs(normal_maps[L], grid.t,
-                                          [(x, y) for _, x, y in keys], L, guess_n)
-        for kind, blob in blobs.items():
-            extra[kind].update(blob)
-        # per-tile max δ and r (of the values as stored, over the vertices new at this
-        # level) let a view skip a tile without decoding it
-        for key, dm, rm in zip(keys, dmax.tolist(), rmax.tolist(), strict=True):
-            tile_rows[key] = (*tiles[key], dm, rm)
-        # the second δ: new vertices over the parent's on stored tiles, whole tiles on
-        # the unstored ones (nothing else there to read a parent from)
-        # (the stored tiles' as differences from their δ codes: zero but near the padding)
-        for keys_e, top, base in ([] if edge is None else
-                                  [(edge_keys, grid.top_level, coding), (edge_only, L, None)]):
-            ekeys = [(x, y) for L2, x, y in keys_e if L2 == L]
-            if not ekeys:
+    ctx = _Level(grid, frame, Z, valid, tiles, b, coding, normal_maps, no_map, derive_normals,
+                 ring_residual, guess, stand_in, own)
+    # a large grid's levels of many tiles: their halves' blobs on two threads (each tile's
+    # blobs are its own: the same bytes)
+    pool = ThreadPoolExecutor(1, thread_name_prefix="geoterrain-blobs") \
+        if valid.size >= HEIGHTS_THREAD_SAMPLES else None
+    try:
+        for L in grid.levels:
+            keys = [k for k in stored if k[0] == L]
+            if not keys:
                 continue
-            eb, emax, _ = level_blobs(edge, no_map, grid.t, L, top, ekeys, ("delta",),
-                                      base=base)
-            extra["delta_edge"].update(eb["delta"])
-            edge_max += [[L, x, y, m if np.isfinite(m) else None]
-                         for (x, y), m in zip(ekeys, emax.tolist(), strict=True)]
-    return TileBlobs(height_blobs, extra, tile_rows, edge_max)
+            lattice = None
+            if guess and 0 < L < grid.top_level:  # the level's heights, for every part
+                sl = np.s_[::1 << L, ::1 << L]
+                lattice = (np.ascontiguousarray(Z[sl]),
+                           np.ascontiguousarray(valid[sl]).view(np.uint8))
+            if pool is not None and len(keys) >= SPLIT_LEVEL_TILES:
+                half = len(keys) // 2
+                later = pool.submit(_level_part, ctx, L, keys[half:], lattice)
+                one = _level_part(ctx, L, keys[:half], lattice)
+                two = later.result()
+                blobs = {kind: {**one[0][kind], **two[0][kind]} for kind in one[0]}
+                dmax, rmax = (np.concatenate([one[i], two[i]]) for i in (1, 2))
+            else:
+                blobs, dmax, rmax = _level_part(ctx, L, keys, lattice)
+            _level_rows(ctx, L, keys, blobs, dmax, rmax, extra, tile_rows, edge_max,
+                        None if edge is None else (edge, edge_keys, edge_only), pending,
+                        stored_set, hand_on)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    hand_on(True)
+    return TileBlobs(height_blobs(), extra, tile_rows, edge_max)
+
+
+SPLIT_LEVEL_TILES = 64  # a large grid's level of this many tiles: coded in two halves
+
+
+@dataclass
+class _Level:
+    # what every level's blobs are made from (tile_blobs)
+    grid: Grid
+    frame: Frame
+    Z: np.ndarray
+    valid: np.ndarray
+    tiles: dict
+    b: VertexBounds
+    coding: BoundsCoding
+    normal_maps: list
+    no_map: np.ndarray
+    derive_normals: bool
+    ring_residual: bool
+    guess: bool
+    stand_in: float
+    own: OwnHeights
+
+
+def _level_part(c: _Level, L: int, keys: list, lattice: tuple | None
+                ) -> tuple[dict, np.ndarray, np.ndarray]:
+    # the δ, r and normals blobs of the level's tiles ``keys`` and their maxima
+    grid, Z, valid = c.grid, c.Z, c.valid
+    # every level's rings: the rest is derived from the heights on read
+    centres = heights = None
+    if c.guess and L < grid.top_level:
+        # level 0's r centres, and above it every r vertex (schema 20), as differences
+        # from their guesses from the level's heights
+        boxes = np.array([[c.tiles[k].xmin, c.tiles[k].xmax, c.tiles[k].ymin,
+                           c.tiles[k].ymax] for k in keys], np.float64)
+        if L == 0:
+            centres = CentreHeights(Z, valid.view(np.uint8), c.stand_in, boxes)
+        else:
+            heights = CentreHeights(*lattice, c.stand_in, boxes)
+    b = c.b
+    blobs, dmax, rmax = level_blobs(c.coding, c.no_map if c.derive_normals else c.normal_maps[L],
+                                    grid.t, L, grid.top_level,
+                                    [(x, y) for _, x, y in keys],
+                                    ("delta", "radius") if c.derive_normals else
+                                    ("delta", "radius", "normals"),
+                                    ring=b.ring_kinds if L == 0 else False,
+                                    slack=b.slack if L == 0 else None,
+                                    mids=L > 0 and "radius" in b.ring_kinds,
+                                    centres=centres, heights=heights, own=c.own)
+    if c.derive_normals:
+        guess_n = None
+        if c.ring_residual:  # each ring as its difference from the reader's derived map
+            sl = np.s_[::1 << L, ::1 << L]
+            txy = [(x, y) for _, x, y in keys]
+            guess_n = ring_guesses(grid, c.frame, L, txy, Z[sl], valid[sl],
+                                   np.array([(y << grid.t, x << grid.t) for x, y in txy],
+                                            np.int64).reshape(-1, 2))
+        blobs["normals"] = ring_blobs(c.normal_maps[L], grid.t,
+                                      [(x, y) for _, x, y in keys], L, guess_n)
+    return blobs, dmax, rmax
+
+
+def _level_rows(c: _Level, L: int, keys: list, blobs: dict, dmax: np.ndarray,
+                rmax: np.ndarray, extra: dict, tile_rows: dict, edge_max: list,
+                edges: tuple | None, pending: list | None, stored_set: set,
+                hand_on: Callable[[bool], None]) -> None:
+    # a level's blobs into ``extra``, its tile-table rows, its δ_edge blobs; its rows
+    # into ``pending``
+    grid, tiles, coding, no_map = c.grid, c.tiles, c.coding, c.no_map
+    for kind, blob in blobs.items():
+        extra[kind].update(blob)
+    level_edge: dict = {}
+    # per-tile max δ and r (of the values as stored, over the vertices new at this
+    # level) let a view skip a tile without decoding it
+    for key, dm, rm in zip(keys, dmax.tolist(), rmax.tolist(), strict=True):
+        tile_rows[key] = (*tiles[key], dm, rm)
+    # the second δ: new vertices over the parent's on stored tiles, whole tiles on
+    # the unstored ones (nothing else there to read a parent from)
+    # (the stored tiles' as differences from their δ codes: zero but near the padding)
+    edge, edge_keys, edge_only = edges or (None, None, None)
+    for keys_e, top, base in ([] if edge is None else
+                              [(edge_keys, grid.top_level, coding), (edge_only, L, None)]):
+        ekeys = [(x, y) for L2, x, y in keys_e if L2 == L]
+        if not ekeys:
+            continue
+        eb, emax, _ = level_blobs(edge, no_map, grid.t, L, top, ekeys, ("delta",),
+                                  base=base)
+        extra["delta_edge"].update(eb["delta"])
+        level_edge.update(eb["delta"])
+        edge_max.extend([L, x, y, m if np.isfinite(m) else None]
+                        for (x, y), m in zip(ekeys, emax.tolist(), strict=True))
+    if pending is not None:  # the level's rows: tile_row_order's, whose rows go by level
+        pending.extend(tile_row_order(dict(blobs, delta_edge=level_edge), stored_set))
+        hand_on(False)
+
+
+HEIGHTS_THREAD_SAMPLES = 1 << 19  # from about 724²: the height codec on a thread of its own
+
+
+def pyramid_keys(grid: Grid, counts: list[np.ndarray]) -> list[tuple[int, int, int]]:
+    """The tiles the height codec stores (:func:`geoterrain.codec.pyramid.encode_pyramid`,
+    kept by :meth:`Grid.held`), in its order, from the valid samples per footprint
+    (:func:`geoterrain.core.grid.footprint_counts`): the top level's, then each level's
+    down to 0, row by row.
+
+    Examples
+    --------
+    >>> from geoterrain.core.grid import Grid
+    >>> g = Grid.for_shape(9, 9, 4)
+    >>> pyramid_keys(g, footprint_counts(np.ones((9, 9), bool), 2, g.top_level))
+    [(1, 0, 0), (0, 0, 0), (0, 1, 0), (0, 0, 1), (0, 1, 1)]
+    """
+    keys = []
+    for L in reversed(grid.levels):
+        ys, xs = np.nonzero(counts[L])
+        keys += [(L, x, y) for y, x in zip(ys.tolist(), xs.tolist(), strict=True)]
+    return list(grid.held(dict.fromkeys(keys)))
+
+
+class HeightsJob:
+    """The height pyramid's blobs (:func:`geoterrain.codec.pyramid.encode_pyramid`, kept
+    by :meth:`Grid.held`) coded on a thread of their own while the caller goes on: its
+    kernels and zstd release the GIL, so the two cores share it with the bounds' blobs.
+    The same bytes as coded in line. :attr:`keys` are the tiles it stores, in its order
+    (:func:`pyramid_keys`), known at once; :meth:`result` waits and raises its error.
+
+    Examples
+    --------
+    >>> from geoterrain.codec.quantize import Quantizer
+    >>> from geoterrain.core.grid import Grid
+    >>> g = Grid.for_shape(9, 9, 4)
+    >>> v = np.ones((9, 9), bool)
+    >>> s = Surface(np.arange(81.0).reshape(9, 9), v, v, v, q=Quantizer("int"))
+    >>> job = HeightsJob(Dem(None, None, g, 81), s, footprint_counts(v, 2, g.top_level))
+    >>> list(job.result()) == job.keys
+    True
+    """
+
+    def __init__(self, dem: Dem, s: Surface, counts: list[np.ndarray]):
+        self.keys = pyramid_keys(dem.grid, counts)
+        self._out: dict | None = None
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, args=(dem.grid, s, counts),
+                                        name="geoterrain-heights", daemon=True)
+        self._thread.start()
+
+    def _run(self, grid: Grid, s: Surface, counts: list[np.ndarray]) -> None:
+        try:
+            self._out = grid.held(encode_pyramid(s.heights, s.valid, grid.t, s.q,
+                                                 predictor=s.predictor,
+                                                 roots=grid.codec_roots, counts=counts))
+        except BaseException as exc:  # noqa: BLE001 - raised by result(), on the caller's
+            self._error = exc
+
+    def done(self) -> bool:
+        """Whether the blobs are coded (or the codec failed)."""
+        return not self._thread.is_alive()
+
+    def join(self) -> None:
+        """Wait for the thread."""
+        self._thread.join()
+
+    def result(self) -> dict:
+        """The blobs, ``{(L, x, y): blob}`` in :attr:`keys`' order (waits; raises the
+        codec's error)."""
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        if list(self._out) != self.keys:  # the bounds' rows followed these keys
+            raise RuntimeError("the height codec stored other tiles than its footprint "
+                               "counts say")
+        return self._out
 
 
 def tile_row_order(extra: dict[str, dict], stored: set) -> list[tuple[str, dict]]:
@@ -626,14 +959,16 @@ def write_store(req: Request, grid: Grid, blobs: TileBlobs, blocks: np.ndarray, 
 
 
 def write_rows(w: StoreWriter | StoreThread, grid: Grid, blobs: TileBlobs,
-               blocks: np.ndarray, meta: dict, heights: bool = True) -> None:
+               blocks: np.ndarray, meta: dict, heights: bool = True, rows: bool = True
+               ) -> None:
     """Every row of the store into ``w`` and its commit: the height blobs (unless
     ``heights`` is False: given already), the δ, r, normals and δ_edge blobs in the
-    streamed preprocess's order (:func:`tile_row_order`), the GeoMipMapping blocks' δ_n,
-    the tile table and the metadata."""
+    streamed preprocess's order (:func:`tile_row_order`; unless ``rows`` is False: given
+    already, :func:`tile_blobs`' ``on_rows``), the GeoMipMapping blocks' δ_n, the tile
+    table and the metadata."""
     if heights:
         w.put_blobs("heights", blobs.heights)
-    for kind, b in tile_row_order(blobs.extra, set(blobs.heights)):
+    for kind, b in tile_row_order(blobs.extra, set(blobs.heights)) if rows else ():
         w.put_blobs(kind, b)
     w.put_blobs("block_delta", {(grid.top_level, 0, 0): pack_block_errors(blocks)})
     w.put_tiles(blobs.tile_rows)
