@@ -240,8 +240,8 @@ def preprocess(
         # valid samples per tile footprint: the tile table's and the height codec's
         counts = footprint_counts(surface.valid, dem.grid.t, dem.grid.top_level)
         # a large grid's height codec on a thread of its own from here, beside the bounds
-        heights = (HeightsJob(dem, surface, counts) if HEIGHTS_EARLY and surface.height_blobs
-                   is None and surface.valid.size >= HEIGHTS_THREAD_SAMPLES else None)
+        heights = (HeightsJob(dem, surface, counts) if surface.height_blobs is None
+                   and surface.valid.size >= HEIGHTS_THREAD_SAMPLES else None)
         try:
             return _bounds_and_blobs(req, dem, surface, counts, heights, stage,
                                      derive_normals, derive_bounds)
@@ -249,8 +249,6 @@ def preprocess(
             if heights is not None:
                 heights.join()  # an error: the thread stops using the arrays first
 
-
-HEIGHTS_EARLY = True
 
 
 def _bounds_and_blobs(req: Request, dem: Dem, surface: Surface, counts: list[np.ndarray],
