@@ -49,6 +49,7 @@ from geoterrain.preprocessing.edit.patch import (
     read_patch,
 )
 from geoterrain.preprocessing.edit.whole import whole_plan
+from geoterrain.store.database import StoreReader
 from geoterrain.store.editor import StoreEditor
 
 if TYPE_CHECKING:
@@ -178,7 +179,9 @@ def _edit(terrain: TerrainLike, p: Patch, mode: str, round_heights: bool, how: s
     if plan is None:
         return res
     tw = time.perf_counter()
-    with StoreEditor(terrain.path, expect=meta_before) as ed:
+    reader = getattr(terrain, "reader", None)  # its tile table, parsed at open
+    with StoreEditor(terrain.path, expect=meta_before,
+                     known=reader if isinstance(reader, StoreReader) else None) as ed:
         stats = ed.apply(plan.puts, plan.deletes, plan.tiles, plan.meta, plan.all_tiles)
     res.rows, res.bytes = stats["rows"], stats["blob_bytes"] + stats["catalog_bytes"]
     res.seconds = time.perf_counter() - t0
