@@ -144,6 +144,37 @@ class Canvas:
                 v[np.ix_(mr, mc)] = self.valid[np.ix_(rows[mr] - self.r0, cols[mc] - self.c0)]
         return h, v
 
+    def tile_lattice(self, L: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`lattice` of tile (L, x, y)'s own samples as the edit leaves them: the
+        tile's decoded heights and the edit's samples on its lattice, by slices.
+
+        Examples
+        --------
+        >>> c = Canvas(t, 1, 2, np.full((2, 2), 7.0), np.ones((2, 2), bool))
+        >>> T, s = t.grid.tile_samples, t.grid.tile_span(1)
+        >>> h, v = c.tile_lattice(1, 0, 0)
+        >>> r = np.arange(T) * 2
+        >>> all(np.array_equal(a, b, equal_nan=True) for a, b in zip((h, v), c.lattice(1, r, r)))
+        True
+        """
+        g, t = self.grid, self.terrain
+        T, span, step = g.tile_samples, g.tile_span(L), 1 << L
+        if (L, x, y) in t.tile_info:
+            tl = t.tile(L, x, y)
+            h, v = np.array(tl.heights, np.float64), np.array(tl.valid, bool)
+        else:
+            h, v = np.full((T, T), np.nan), np.zeros((T, T), bool)
+        i0, j0 = y * span, x * span
+        # the tile's lattice indices within the edit's rows r0 … r1 − 1, columns c0 … c1 − 1
+        a0, a1 = -(-max(self.r0 - i0, 0) // step), min(self.r1 - 1 - i0, span) // step + 1
+        b0, b1 = -(-max(self.c0 - j0, 0) // step), min(self.c1 - 1 - j0, span) // step + 1
+        if a0 < a1 and b0 < b1:
+            rr = slice(i0 + a0 * step - self.r0, i0 + (a1 - 1) * step - self.r0 + 1, step)
+            cc = slice(j0 + b0 * step - self.c0, j0 + (b1 - 1) * step - self.c0 + 1, step)
+            h[a0:a1, b0:b1] = self.heights[rr, cc]
+            v[a0:a1, b0:b1] = self.valid[rr, cc]
+        return h, v
+
     def samples(self, i: np.ndarray, j: np.ndarray, new: bool = True
                 ) -> tuple[np.ndarray, np.ndarray]:
         """Scene heights (0 where not valid) and validity (bool) of scattered samples,

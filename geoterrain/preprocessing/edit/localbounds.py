@@ -717,7 +717,7 @@ class Bounds:
             coding = BoundsCoding(d, None, job.ed,
                                   r_codes=(np.searchsorted(self.rt, r).astype(np.uint8), job.er))
             # schema 20: δ's blob guessed from the own errors on the tile's edited heights
-            h, v = canvas.lattice(L, rows, cols)
+            h, v = canvas.tile_lattice(L, x, y)
             own = OwnHeights(np.where(v, h * canvas.factor, np.nan), v, self.stand_in)
             blobs, dm, rm = level_blobs(coding, np.zeros((T, T, 2), np.uint8), g.t, 0,
                                         0 if L == g.top_level else 1, [(0, 0)], kinds,
