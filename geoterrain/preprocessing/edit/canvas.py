@@ -123,6 +123,8 @@ class Canvas:
         h = np.full((len(rows), len(cols)), np.nan)
         v = np.zeros((len(rows), len(cols)), bool)
         nx, ny = g.tiles(L)
+        # rows and columns a step apart (the normals' windows): slices, not index arrays
+        regular = bool((np.diff(rows) == step).all() and (np.diff(cols) == step).all())
         for y in range(min(int(rows[0]) // span, ny - 1),
                        min(int(rows[-1]) // span, ny - 1) + 1):
             ri = (rows - y * span) // step
@@ -134,12 +136,29 @@ class Canvas:
                 tl = t.tile(L, x, y)
                 ci = (cols - x * span) // step
                 mc = (ci >= 0) & (ci < T)
+                if regular:
+                    a, b = _run(mr), _run(mc)
+                    if a is not None and b is not None:
+                        src = (slice(int(ri[a.start]), int(ri[a.stop - 1]) + 1),
+                               slice(int(ci[b.start]), int(ci[b.stop - 1]) + 1))
+                        h[a, b] = tl.heights[src]
+                        v[a, b] = tl.valid[src]
+                    continue
                 h[np.ix_(mr, mc)] = tl.heights[np.ix_(ri[mr], ci[mc])]
                 v[np.ix_(mr, mc)] = tl.valid[np.ix_(ri[mr], ci[mc])]
         if new:
             mr = (rows >= self.r0) & (rows < self.r1)
             mc = (cols >= self.c0) & (cols < self.c1)
             if mr.any() and mc.any():
+                if regular:
+                    a, b = _run(mr), _run(mc)
+                    src = (slice(int(rows[a.start]) - self.r0, int(rows[a.stop - 1]) - self.r0 + 1,
+                                 step),
+                           slice(int(cols[b.start]) - self.c0, int(cols[b.stop - 1]) - self.c0 + 1,
+                                 step))
+                    h[a, b] = self.heights[src]
+                    v[a, b] = self.valid[src]
+                    return h, v
                 h[np.ix_(mr, mc)] = self.heights[np.ix_(rows[mr] - self.r0, cols[mc] - self.c0)]
                 v[np.ix_(mr, mc)] = self.valid[np.ix_(rows[mr] - self.r0, cols[mc] - self.c0)]
         return h, v
@@ -200,3 +219,10 @@ class Canvas:
             v[k] = bool(tl.valid[ra, cb])
             z[k] = tl.heights[ra, cb] * self.factor if v[k] else 0.0
         return z, v
+
+
+def _run(mask: np.ndarray) -> slice | None:
+    """The slice of a mask's one run of True (ascending rows or columns a step apart
+    that lie in a range), None where it has none."""
+    k = np.flatnonzero(mask)
+    return slice(int(k[0]), int(k[-1]) + 1) if k.size else None

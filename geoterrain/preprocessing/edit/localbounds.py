@@ -672,7 +672,7 @@ class Bounds:
             np.logical_or.at(merged, inv, flags)
             keep = np.sort(first)
             ij, flags = ij[keep], merged[inv[keep]]
-        job.dirty.extend((i, j, i + 1, j + 1) for i, j in ij.tolist())
+        job.dirty.append(np.concatenate([ij, ij + 1], axis=1))  # one rectangle a vertex
         canvas = self.c
         need = blob_reach(g, ij[:, 0], ij[:, 1], flags[:, 0], flags[:, 1], job.derive_bounds,
                           edited=(canvas.r0, canvas.c0, canvas.r1, canvas.c1))
