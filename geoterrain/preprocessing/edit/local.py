@@ -361,8 +361,7 @@ class _Job:
             rows = np.arange(lo_i, hi_i + 1, step)
             cols = np.arange(lo_j, hi_j + 1, step)
             h, v = c.lattice(L, rows, cols)
-            ii, jj = np.meshgrid(rows, cols, indexing="ij")
-            X, Y = f.xy(ii, jj)
+            X, Y = f.xy(rows[:, None], cols[None, :])  # as on a meshgrid, broadcast
             zs = np.where(v, h * c.factor, np.nan)
             n = normal_map(X, Y, zs, v)
             a, b = (y0 * span - lo_i) // step, (x0 * span - lo_j) // step

@@ -209,9 +209,9 @@ class Bounds:
                 self.known[even] = True
         self.dc_old, self.rc_old = self.dc.copy(), self.rc.copy()
         f = t.frame
-        ii, jj = np.meshgrid(np.arange(self.oi, self.i1 + 1), np.arange(self.oj, self.j1 + 1),
-                             indexing="ij")
-        self.X, self.Y = f.xy(ii, jj)
+        # a row and a column broadcast (each sample's arithmetic as on a meshgrid's)
+        self.X, self.Y = f.xy(np.arange(self.oi, self.i1 + 1)[:, None],
+                              np.arange(self.oj, self.j1 + 1)[None, :])
         self.X, self.Y = np.ascontiguousarray(self.X), np.ascontiguousarray(self.Y)
         self.zp = np.where(self.v.astype(bool), self.z, self.stand_in)
 
