@@ -48,6 +48,8 @@ class StoreEditor:
 
     ``expect`` is the metadata the change was planned against: if another edit committed
     since, nothing is written and :class:`StoreError` says to retry.
+    ``known``: a reader of the store whose tile table is parsed (the edit's terrain's),
+    taken instead of unpacking the row again where the row is the one it parsed.
 
     Examples
     --------
