@@ -598,6 +598,7 @@ class StoreReader:
         self.open_bytes = self.bytes_read  # what opening read
         self.blob_reads = 0  # how many blobs were read (tests count them)
         self._table: TileTable | None = None
+        self.table_stamp: tuple[int, int] | None = None  # the parsed row's (crc32, bytes)
         self._lock = threading.Lock()
         self._snapshot = 0  # how deep in snapshot() (one read transaction while > 0)
         self._snapshot_version: int | None = None  # data_version read inside it
@@ -704,6 +705,7 @@ class StoreReader:
                     self._table = unpack_tiles(data, self.path.stat().st_size)
                 except (ValueError, OSError) as exc:
                     raise self._corrupt(f"the tile table cannot be read ({exc})") from None
+                self.table_stamp = (crc, len(data))  # an editor compares its row with it
                 del self._catalog[TILES_ID]  # its bytes are not needed again
             return self._table
 

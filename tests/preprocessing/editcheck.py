@@ -150,6 +150,8 @@ class Slow:  # the editor's connection, pausing at its commit
             open(sys.argv[2], "w").close()
             time.sleep(60)
         return self.con.execute(sql, *a)
+    def executemany(self, sql, *a):
+        return self.con.executemany(sql, *a)
     def close(self):
         self.con.close()
 def apply(self, *a):

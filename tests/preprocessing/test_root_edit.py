@@ -426,3 +426,57 @@ def test_a_window_on_the_data_s_last_row_or_column_reads_the_last_tile(tmp_path,
     assert geoterrain.open(store).grid.layout == "roots"
     assert res.changed == 1
     assert_same_store(store, fresh)
+
+
+@pytest.mark.fast
+def test_a_root_the_edit_does_not_reach_keeps_its_blob(tmp_path):
+    """An edit of one root only, the other root's samples all valid: the other root is
+    not coded again (its blob kept, local._Job._top_level), and the store is the one a
+    preprocess of the edited DEM gives."""
+    import geoterrain.preprocessing.edit.local as local
+
+    z, s = _filled_roots(5, 8, 2, True, "none")  # 33 × 65 on 2 × 1 roots, top level 2
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    store = _root_store(tmp_path / "a" / "dem.tif", z, 8)
+    p = np.full((3, 3), 9.0)
+    coded = []
+    real = local.encode_root
+
+    def spy(*a, **k):
+        coded.append(1)
+        return real(*a, **k)
+
+    local.encode_root = spy
+    try:
+        with geoterrain.open(store) as t:
+            res = edit_terrain(t, Patch(0, s - 5, p), "add", how="tiles")
+    finally:
+        local.encode_root = real
+    assert res.how == "tiles" and len(coded) == 1
+    fresh = _root_store(tmp_path / "b" / "dem.tif", apply_by_hand(z, 0, s - 5, p, "add"), 8)
+    assert_same_store(store, fresh)
+
+
+@pytest.mark.fast
+def test_a_root_whose_fill_reads_the_edit_is_coded_again(tmp_path):
+    """The rule's other half: the corner the two roots share void, the right root's fill
+    there extrapolates from the left root's top-level samples along the top row
+    (codec.predict.fill_outward), so an edit of the left root only, at (0, s - 4), changes
+    the right root's blob, and _top_level codes it again (a rule that kept every root the
+    edit does not reach would keep the old blob)."""
+    from geoterrain.codec.quantize import valid_codes
+    from geoterrain.preprocessing.edit.canvas import Canvas
+    from geoterrain.preprocessing.edit.local import _Job
+
+    z, s = _filled_roots(5, 8, 2, True, "none")
+    z[0, s] = np.nan
+    store = _root_store(tmp_path / "dem.tif", z, 8)
+    with geoterrain.open(store) as t:
+        h = np.asarray(z[0:3, s - 5:s - 2], np.float64) + 9.0
+        job = _Job(t, Canvas(t, 0, s - 5, h, np.ones(h.shape, bool)))
+        zero = int(valid_codes(np.zeros((1, 1)), np.ones((1, 1), bool), t.quantizer)[0, 0])
+        roots = job._top_level(zero)
+        old = job.reader.get_blob((2, 1, 0), "heights")
+    assert not roots[(1, 0)][1].all()
+    assert roots[(1, 0)][2] is not None and roots[(1, 0)][2] != old

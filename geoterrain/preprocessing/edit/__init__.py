@@ -49,6 +49,7 @@ from geoterrain.preprocessing.edit.patch import (
     read_patch,
 )
 from geoterrain.preprocessing.edit.whole import whole_plan
+from geoterrain.store.database import StoreReader
 from geoterrain.store.editor import StoreEditor
 
 if TYPE_CHECKING:
@@ -178,7 +179,9 @@ def _edit(terrain: TerrainLike, p: Patch, mode: str, round_heights: bool, how: s
     if plan is None:
         return res
     tw = time.perf_counter()
-    with StoreEditor(terrain.path, expect=meta_before) as ed:
+    reader = getattr(terrain, "reader", None)  # its tile table, parsed at open
+    with StoreEditor(terrain.path, expect=meta_before,
+                     known=reader if isinstance(reader, StoreReader) else None) as ed:
         stats = ed.apply(plan.puts, plan.deletes, plan.tiles, plan.meta, plan.all_tiles)
     res.rows, res.bytes = stats["rows"], stats["blob_bytes"] + stats["catalog_bytes"]
     res.seconds = time.perf_counter() - t0
@@ -230,11 +233,14 @@ def _plan(terrain: TerrainLike, p: Patch, mode: str, round_heights: bool, how: s
 
 
 def _merged(rects: list) -> list:
-    # at most MAX_DIRTY rectangles (else their bounding box)
-    rects = sorted(set(tuple(int(v) for v in r) for r in rects))
-    if len(rects) <= MAX_DIRTY:
-        return [list(r) for r in rects]
-    a = np.array(rects)
+    """The rectangles ``rects`` (4-tuples, or (n, 4) integer arrays of them) without
+    repeats, in ascending order, at most MAX_DIRTY of them (else their bounding box)."""
+    one = [r for r in rects if not isinstance(r, np.ndarray)]
+    parts = [np.array(one, np.int64).reshape(-1, 4)]
+    parts += [r.astype(np.int64).reshape(-1, 4) for r in rects if isinstance(r, np.ndarray)]
+    a = np.unique(np.concatenate(parts), axis=0)  # rows sorted as tuples are
+    if len(a) <= MAX_DIRTY:
+        return a.tolist()
     return [[int(a[:, 0].min()), int(a[:, 1].min()), int(a[:, 2].max()), int(a[:, 3].max())]]
 
 

@@ -123,6 +123,8 @@ class Canvas:
         h = np.full((len(rows), len(cols)), np.nan)
         v = np.zeros((len(rows), len(cols)), bool)
         nx, ny = g.tiles(L)
+        # rows and columns a step apart (the normals' windows): slices, not index arrays
+        regular = bool((np.diff(rows) == step).all() and (np.diff(cols) == step).all())
         for y in range(min(int(rows[0]) // span, ny - 1),
                        min(int(rows[-1]) // span, ny - 1) + 1):
             ri = (rows - y * span) // step
@@ -134,14 +136,62 @@ class Canvas:
                 tl = t.tile(L, x, y)
                 ci = (cols - x * span) // step
                 mc = (ci >= 0) & (ci < T)
+                if regular:
+                    a, b = _run(mr), _run(mc)
+                    if a is not None and b is not None:
+                        src = (slice(int(ri[a.start]), int(ri[a.stop - 1]) + 1),
+                               slice(int(ci[b.start]), int(ci[b.stop - 1]) + 1))
+                        h[a, b] = tl.heights[src]
+                        v[a, b] = tl.valid[src]
+                    continue
                 h[np.ix_(mr, mc)] = tl.heights[np.ix_(ri[mr], ci[mc])]
                 v[np.ix_(mr, mc)] = tl.valid[np.ix_(ri[mr], ci[mc])]
         if new:
             mr = (rows >= self.r0) & (rows < self.r1)
             mc = (cols >= self.c0) & (cols < self.c1)
             if mr.any() and mc.any():
+                if regular:
+                    a, b = _run(mr), _run(mc)
+                    src = (slice(int(rows[a.start]) - self.r0, int(rows[a.stop - 1]) - self.r0 + 1,
+                                 step),
+                           slice(int(cols[b.start]) - self.c0, int(cols[b.stop - 1]) - self.c0 + 1,
+                                 step))
+                    h[a, b] = self.heights[src]
+                    v[a, b] = self.valid[src]
+                    return h, v
                 h[np.ix_(mr, mc)] = self.heights[np.ix_(rows[mr] - self.r0, cols[mc] - self.c0)]
                 v[np.ix_(mr, mc)] = self.valid[np.ix_(rows[mr] - self.r0, cols[mc] - self.c0)]
+        return h, v
+
+    def tile_lattice(self, L: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`lattice` of tile (L, x, y)'s own samples as the edit leaves them: the
+        tile's decoded heights and the edit's samples on its lattice, by slices.
+
+        Examples
+        --------
+        >>> c = Canvas(t, 1, 2, np.full((2, 2), 7.0), np.ones((2, 2), bool))
+        >>> T, s = t.grid.tile_samples, t.grid.tile_span(1)
+        >>> h, v = c.tile_lattice(1, 0, 0)
+        >>> r = np.arange(T) * 2
+        >>> all(np.array_equal(a, b, equal_nan=True) for a, b in zip((h, v), c.lattice(1, r, r)))
+        True
+        """
+        g, t = self.grid, self.terrain
+        T, span, step = g.tile_samples, g.tile_span(L), 1 << L
+        if (L, x, y) in t.tile_info:
+            tl = t.tile(L, x, y)
+            h, v = np.array(tl.heights, np.float64), np.array(tl.valid, bool)
+        else:
+            h, v = np.full((T, T), np.nan), np.zeros((T, T), bool)
+        i0, j0 = y * span, x * span
+        # the tile's lattice indices within the edit's rows r0 … r1 − 1, columns c0 … c1 − 1
+        a0, a1 = -(-max(self.r0 - i0, 0) // step), min(self.r1 - 1 - i0, span) // step + 1
+        b0, b1 = -(-max(self.c0 - j0, 0) // step), min(self.c1 - 1 - j0, span) // step + 1
+        if a0 < a1 and b0 < b1:
+            rr = slice(i0 + a0 * step - self.r0, i0 + (a1 - 1) * step - self.r0 + 1, step)
+            cc = slice(j0 + b0 * step - self.c0, j0 + (b1 - 1) * step - self.c0 + 1, step)
+            h[a0:a1, b0:b1] = self.heights[rr, cc]
+            v[a0:a1, b0:b1] = self.valid[rr, cc]
         return h, v
 
     def samples(self, i: np.ndarray, j: np.ndarray, new: bool = True
@@ -169,3 +219,10 @@ class Canvas:
             v[k] = bool(tl.valid[ra, cb])
             z[k] = tl.heights[ra, cb] * self.factor if v[k] else 0.0
         return z, v
+
+
+def _run(mask: np.ndarray) -> slice | None:
+    """The slice of a mask's one run of True (ascending rows or columns a step apart
+    that lie in a range), None where it has none."""
+    k = np.flatnonzero(mask)
+    return slice(int(k[0]), int(k[-1]) + 1) if k.size else None

@@ -268,6 +268,9 @@ class _Job:
                 old = t.tile(*key) if key in t.tile_info else None
                 if L == top:
                     codes, ok, blob = roots[(x, y)]
+                    if blob is None:  # a root the edit leaves as it is (_top_level)
+                        self.codes[key] = old.codes
+                        continue
                 else:
                     codes = old.codes.copy() if old is not None else np.zeros((T, T), np.int64)
                     ok = old.valid.copy() if old is not None else np.zeros((T, T), bool)
@@ -294,7 +297,9 @@ class _Job:
         root coded as the whole grid codes it. A root of a grid of several fills its
         edges first and takes its invalid corners from the fill of the whole top level
         (:func:`geoterrain.codec.pyramid.encode_root`): a window on the edge two roots
-        share gives both the same codes there."""
+        share gives both the same codes there. A root whose closed footprint holds no
+        edited sample and whose samples are all valid keeps its blob (None here): its
+        codes are the old ones, and with no invalid sample no fill reads another root's."""
         g, c, t = self.g, self.c, self.t
         q = t.quantizer
         te, T, top = g.t, g.tile_samples, g.top_level
@@ -320,6 +325,13 @@ class _Job:
         out = {}
         for x, y in keys:
             win = (slice(y * W, y * W + T), slice(x * W, x * W + T))
+            if (top, x, y) in t.tile_info and ok[win].all() and not c.touches(
+                    y * span, x * span, y * span + span, x * span + span):
+                # its closed footprint holds no edited sample and every sample of it is
+                # valid (so no fill reads another root's): its codes are the old ones,
+                # and so is its blob (None: not coded again, 1.7 ms a 65² root)
+                out[(x, y)] = (codes[win], ok[win], None)
+                continue
             cw, ow = codes[win].copy(), ok[win].copy()
             out[(x, y)] = (cw, ow, encode_root(cw, ow, te, cubic, q.bins, edges,
                                                None if near is None else near[win].copy()))
@@ -349,8 +361,7 @@ class _Job:
             rows = np.arange(lo_i, hi_i + 1, step)
             cols = np.arange(lo_j, hi_j + 1, step)
             h, v = c.lattice(L, rows, cols)
-            ii, jj = np.meshgrid(rows, cols, indexing="ij")
-            X, Y = f.xy(ii, jj)
+            X, Y = f.xy(rows[:, None], cols[None, :])  # as on a meshgrid, broadcast
             zs = np.where(v, h * c.factor, np.nan)
             n = normal_map(X, Y, zs, v)
             a, b = (y0 * span - lo_i) // step, (x0 * span - lo_j) // step

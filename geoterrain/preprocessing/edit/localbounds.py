@@ -209,9 +209,9 @@ class Bounds:
                 self.known[even] = True
         self.dc_old, self.rc_old = self.dc.copy(), self.rc.copy()
         f = t.frame
-        ii, jj = np.meshgrid(np.arange(self.oi, self.i1 + 1), np.arange(self.oj, self.j1 + 1),
-                             indexing="ij")
-        self.X, self.Y = f.xy(ii, jj)
+        # a row and a column broadcast (each sample's arithmetic as on a meshgrid's)
+        self.X, self.Y = f.xy(np.arange(self.oi, self.i1 + 1)[:, None],
+                              np.arange(self.oj, self.j1 + 1)[None, :])
         self.X, self.Y = np.ascontiguousarray(self.X), np.ascontiguousarray(self.Y)
         self.zp = np.where(self.v.astype(bool), self.z, self.stand_in)
 
@@ -672,7 +672,7 @@ class Bounds:
             np.logical_or.at(merged, inv, flags)
             keep = np.sort(first)
             ij, flags = ij[keep], merged[inv[keep]]
-        job.dirty.extend((i, j, i + 1, j + 1) for i, j in ij.tolist())
+        job.dirty.append(np.concatenate([ij, ij + 1], axis=1))  # one rectangle a vertex
         canvas = self.c
         need = blob_reach(g, ij[:, 0], ij[:, 1], flags[:, 0], flags[:, 1], job.derive_bounds,
                           edited=(canvas.r0, canvas.c0, canvas.r1, canvas.c1))
@@ -717,7 +717,7 @@ class Bounds:
             coding = BoundsCoding(d, None, job.ed,
                                   r_codes=(np.searchsorted(self.rt, r).astype(np.uint8), job.er))
             # schema 20: δ's blob guessed from the own errors on the tile's edited heights
-            h, v = canvas.lattice(L, rows, cols)
+            h, v = canvas.tile_lattice(L, x, y)
             own = OwnHeights(np.where(v, h * canvas.factor, np.nan), v, self.stand_in)
             blobs, dm, rm = level_blobs(coding, np.zeros((T, T, 2), np.uint8), g.t, 0,
                                         0 if L == g.top_level else 1, [(0, 0)], kinds,
