@@ -36,6 +36,8 @@ from geoterrain.bounds.vertexdata import (
     SHAPED_ZSTD_LEVEL,
     SLACK,
     VERSION_2,
+    edge_own_codes,
+    edge_payload_own,
     log8_exponent,
     log8_table,
     mids_index,
@@ -50,6 +52,7 @@ from geoterrain.bounds.vertexdata import (
     ring_planes,
     scale_exponent,
     shape_codes,
+    top_payload_own,
 )
 from geoterrain.core.rounding import round_up
 from geoterrain.core.threads import cores_for, parallel_kernel
@@ -415,7 +418,8 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
                 ring: bool | tuple[str, ...] = False, base: BoundsCoding | None = None,
                 slack: dict | None = None, mids: bool = False,
                 centres: CentreHeights | None = None, heights: CentreHeights | None = None,
-                own: OwnHeights | None = None
+                own: OwnHeights | None = None, zlevel: int = SHAPED_ZSTD_LEVEL,
+                edge: tuple[int, int] | None = None
                 ) -> tuple[dict, np.ndarray, np.ndarray]:
     """The δ, r and normals blobs of the stored tiles ``(x, y)`` of one level.
 
@@ -449,7 +453,17 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     differences from the codes of their own errors (flag ``PRED`` too,
     :func:`geoterrain.bounds.vertexdata.ring_payloads_own`), and a ``PRED`` δ blob its
     differences in the contexts of their gaps above those (flag ``SLACK`` too,
-    :func:`geoterrain.bounds.vertexdata.pred_payloads_own`; both range-coded, no zstd).
+    :func:`geoterrain.bounds.vertexdata.pred_payloads_own`; both range-coded, no zstd);
+    a whole tile's δ (the top level's, schema 23) its codes level by level inside the
+    tile the same way (flags ``PRED`` and ``SLACK`` without ``NEW_ONLY``,
+    :func:`geoterrain.bounds.vertexdata.top_payload_own`).
+    ``zlevel``: the zstd level of the ``CENTRES``, ``PRED`` and ``RING`` payloads
+    (:func:`geoterrain.bounds.vertexdata.shaped_zstd_level` of the store's grid).
+    ``edge`` (level 0's δ_edge, with ``base`` and ``own``: the data's rows and columns in
+    ``own``'s indices): each ``DIFF`` blob whose δ_edge equals δ wherever δ is finite
+    holds its codes where δ is +inf less their guess from the tile's heights with the
+    padding replicated (flag ``PRED`` too, :func:`geoterrain.bounds.vertexdata.edge_own_codes`,
+    :func:`~geoterrain.bounds.vertexdata.edge_payload_own`; schema 23).
 
     Examples
     --------
@@ -512,6 +526,10 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         head_d = [head_d if s <= 0 else bytes([head_d[0], head_d[1] | SLACK, head_d[2]])
                   + np.float32(s).astype("<f4").tobytes()
                   for s in (float(slack.get(k, 0.0)) for k in keys)]
+    if edge is not None and k:  # schema 23: a level-0 δ_edge guessed from the heights
+        if base is None or own is None or not new_only or level != 0:
+            raise ValueError("a guessed δ_edge blob is a level-0 difference from δ")
+        pd, head_d = _edge_guessed(pd, head_d, coding, base, own, xy, t, edge)
     # schema 6's CENTRES (vertexdata.shape_codes): a tile whose new vertices off the cell
     # centres all have code 0 (a geographic level-0 r: leaves) stores the centres only
     # (schema 14's PRED on every other such tile: codes as differences from their parents')
@@ -520,6 +538,16 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         pd, head_d = _shaped(pd, head_d, W)
         if own is not None:  # schema 20: the PRED payloads in their own-error gaps' order
             pd, head_d = _own_ordered(pd, head_d, W, own, xy, t, level, int(coding.ed))
+    elif not new_only and k and T >= 3 and "delta" in kinds and own is not None \
+            and base is None and not flags_d & RING:
+        # schema 23: a whole (top) tile's δ level by level inside it, each level's new
+        # vertices in their own-error gaps (vertexdata.top_payload_own; bytes: no zstd)
+        W = _windows(coding.dc, xy, t, level)
+        e = int(coding.ed)
+        pd = [top_payload_own(W[n], lambda s, o=o: own_codes(
+            own.z, own.valid, own.stand_in, e, o[None], (T - 1) // s + 1, s << level)[0])
+            for n, o in enumerate(_origins(xy, t, level))]
+        head_d = bytes([head_d[0], head_d[1] | PRED | SLACK, head_d[2]])
     if mids:  # schema 12's MIDS: the cell centres derived on read
         if not rlog or flags_r & RING or T < 3:
             raise ValueError("mids r blobs are log8 codes above level 0")
@@ -538,15 +566,15 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         raise ValueError("guessed r vertices are for r in log8 codes below the top, not a "
                          "ring")
     rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
-    blobs = {kind: dict(zip(keys, _compress_shaped(*rows[kind]), strict=True))
+    blobs = {kind: dict(zip(keys, _compress_shaped(*rows[kind], zlevel), strict=True))
              for kind in kinds}
     return blobs, dmax, rmax
 
 
-def _compress_shaped(rows: np.ndarray | list[np.ndarray | bytes], heads: bytes | list[bytes]
-                     ) -> list[bytes]:
-    # compress_rows, with the CENTRES, PRED and RING payloads at
-    # vertexdata.SHAPED_ZSTD_LEVEL (as pack_bounds_v2 writes the first two), a whole
+def _compress_shaped(rows: np.ndarray | list[np.ndarray | bytes], heads: bytes | list[bytes],
+                     zlevel: int = SHAPED_ZSTD_LEVEL) -> list[bytes]:
+    # compress_rows, with the CENTRES, PRED and RING payloads at zlevel
+    # (vertexdata.shaped_zstd_level; pack_bounds_v2 writes the first two at 11), a whole
     # tile's (the top's) and a DIFF one (δ_edge) at EDGE_ZSTD_LEVEL; a row of
     # bytes is a payload already coded (schema 20's range-coded δ), stored as it is
     if isinstance(heads, bytes):
@@ -556,7 +584,8 @@ def _compress_shaped(rows: np.ndarray | list[np.ndarray | bytes], heads: bytes |
         rest = [n for n, b in enumerate(out) if b is None]
         if rest:
             for n, b in zip(rest, _compress_shaped([rows[n] for n in rest],
-                                                   [heads[n] for n in rest]), strict=True):
+                                                   [heads[n] for n in rest], zlevel),
+                            strict=True):
                 out[n] = b
         return out
     hi = [n for n, h in enumerate(heads) if len(h) > 1 and h[1] & (CENTRES | PRED | RING)]
@@ -566,7 +595,7 @@ def _compress_shaped(rows: np.ndarray | list[np.ndarray | bytes], heads: bytes |
         return compress_rows(rows, heads)
     lo = sorted(set(range(len(heads))) - set(hi) - set(top))
     out = [b""] * len(heads)
-    for idx, level in ((hi, SHAPED_ZSTD_LEVEL), (top, EDGE_ZSTD_LEVEL), (lo, _ZSTD_LEVEL)):
+    for idx, level in ((hi, zlevel), (top, EDGE_ZSTD_LEVEL), (lo, _ZSTD_LEVEL)):
         if idx:
             got = compress_rows([rows[n] for n in idx], [heads[n] for n in idx], level)
             for n, b in zip(idx, got, strict=True):
@@ -596,6 +625,29 @@ def _own_ordered(rows: list[np.ndarray], heads: list[bytes], W: np.ndarray, own:
     for q, n in enumerate(idx):
         rows[n] = got[q]
         heads[n] = bytes([heads[n][0], heads[n][1] | SLACK, *heads[n][2:]])
+    return rows, heads
+
+
+def _edge_guessed(pd: np.ndarray, head: bytes, coding: BoundsCoding, base: BoundsCoding,
+                  own: OwnHeights, xy: np.ndarray, t: int, edge: tuple[int, int]
+                  ) -> tuple[list, list[bytes]]:
+    # schema 23: each level-0 DIFF δ_edge payload whose codes equal δ's wherever δ is
+    # finite as its codes where δ is +inf less their guess (vertexdata.edge_own_codes of
+    # the tile's heights, the padding replicated), range-coded (bytes: no zstd), flagged
+    # PRED too; the others as they were
+    T = (1 << t) + 1
+    W, D = _windows(coding.dc, xy, t, 0), _windows(base.dc, xy, t, 0)
+    rows, heads = list(pd), []
+    for n, (r0, c0) in enumerate(_origins(xy, t, 0).tolist()):
+        z = own.z[r0:r0 + T, c0:c0 + T]
+        if z.shape != (T, T):
+            raise ValueError("a tile's heights past the guessed δ_edge's")
+        v = None if own.valid is None else own.valid[r0:r0 + T, c0:c0 + T]
+        g = edge_own_codes(z, v, own.stand_in, int(coding.ed), edge[0] - r0, edge[1] - c0)
+        p = None if g is None else edge_payload_own(W[n], D[n], g)
+        if p is not None:
+            rows[n] = p
+        heads.append(head if p is None else bytes([head[0], head[1] | PRED, *head[2:]]))
     return rows, heads
 
 
@@ -658,7 +710,8 @@ def _mids_guessed(rows: list[np.ndarray], heads: list[bytes], c: CentreHeights,
 
 
 def ring_blobs(nrm: np.ndarray | RingCodes, t: int, tiles: Iterable[tuple[int, int]],
-               level: int = 0, guess: np.ndarray | None = None) -> dict:
+               level: int = 0, guess: np.ndarray | None = None,
+               zlevel: int = SHAPED_ZSTD_LEVEL) -> dict:
     """Normals blobs of level ``level`` (``nrm``: that level's codes) that hold only each
     tile's border ring (4T − 4 samples, as :func:`geoterrain.bounds.vertexdata.ring_planes`,
     zstd): a reader derives the interior from the tile's own heights
@@ -667,9 +720,9 @@ def ring_blobs(nrm: np.ndarray | RingCodes, t: int, tiles: Iterable[tuple[int, i
     (:class:`geoterrain.bounds.normals.RingCodes`). ``guess`` (k, 4T − 4, 2): what a reader
     derives there (:func:`geoterrain.bounds.leafbounds.ring_guesses`); each ring is stored as
     its difference from it, mod 256, as two planes without first differences
-    (:func:`geoterrain.bounds.vertexdata.residual_planes`), at zstd level
-    :data:`~geoterrain.bounds.vertexdata.SHAPED_ZSTD_LEVEL` (schema 17's
-    ``normals_ring_residual``).
+    (:func:`geoterrain.bounds.vertexdata.residual_planes`), at zstd level ``zlevel``
+    (:func:`geoterrain.bounds.vertexdata.shaped_zstd_level` of the store's grid; schema
+    17's ``normals_ring_residual``).
 
     Examples
     --------
@@ -684,8 +737,8 @@ def ring_blobs(nrm: np.ndarray | RingCodes, t: int, tiles: Iterable[tuple[int, i
         rr, cc = ring_index((1 << t) + 1)
         rings = nrm[(xy[:, 1, None] << t) + rr[None], (xy[:, 0, None] << t) + cc[None]]
     keys = [(level, int(x), int(y)) for x, y in xy]
-    if guess is not None:  # uint8: mod 256, exactly invertible; planes at zstd 11
+    if guess is not None:  # uint8: mod 256, exactly invertible; planes at zlevel
         res = np.asarray(rings, np.uint8) - np.asarray(guess, np.uint8)
-        return dict(zip(keys, compress_rows(residual_planes(res), level=SHAPED_ZSTD_LEVEL),
+        return dict(zip(keys, compress_rows(residual_planes(res), level=zlevel),
                         strict=True))
     return dict(zip(keys, compress_rows(ring_planes(rings)), strict=True))

@@ -39,6 +39,7 @@ from geoterrain.bounds.vertexdata import (
     NORMAL_BITS,
     log8_exponent,
     pack_block_errors,
+    shaped_zstd_level,
     store_metadata,
 )
 from geoterrain.codec.pyramid import decoded_heights, encode_decoded, encode_pyramid
@@ -549,7 +550,8 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
                                         ring=b.ring_kinds if L == 0 else False,
                                         slack=b.slack if L == 0 else None,
                                         mids=L > 0 and "radius" in b.ring_kinds,
-                                        centres=centres, heights=heights, own=own)
+                                        centres=centres, heights=heights, own=own,
+                                        zlevel=shaped_zstd_level(grid.rows, grid.cols))
         if derive_normals:
             guess_n = None
             if ring_residual:  # each ring as its difference from the reader's derived map
@@ -559,7 +561,8 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
                                        np.array([(y << grid.t, x << grid.t) for x, y in txy],
                                                 np.int64).reshape(-1, 2))
             blobs["normals"] = ring_blobs(normal_maps[L], grid.t,
-                                          [(x, y) for _, x, y in keys], L, guess_n)
+                                          [(x, y) for _, x, y in keys], L, guess_n,
+                                          shaped_zstd_level(grid.rows, grid.cols))
         for kind, blob in blobs.items():
             extra[kind].update(blob)
         # per-tile max δ and r (of the values as stored, over the vertices new at this
@@ -574,8 +577,14 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
             ekeys = [(x, y) for L2, x, y in keys_e if L2 == L]
             if not ekeys:
                 continue
+            # schema 23: level 0's stored tiles guessed from the heights, the padding
+            # replicated (vertexdata.edge_own_codes)
+            guessed = L == 0 < grid.top_level and base is not None
             eb, emax, _ = level_blobs(edge, no_map, grid.t, L, top, ekeys, ("delta",),
-                                      base=base)
+                                      base=base, zlevel=shaped_zstd_level(grid.rows,
+                                                                          grid.cols),
+                                      own=own if guessed else None,
+                                      edge=(grid.rows, grid.cols) if guessed else None)
             extra["delta_edge"].update(eb["delta"])
             edge_max += [[L, x, y, m if np.isfinite(m) else None]
                          for (x, y), m in zip(ekeys, emax.tolist(), strict=True)]
