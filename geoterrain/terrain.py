@@ -392,10 +392,10 @@ class Terrain:
         ring = len(blob) > 1 and bool(blob[1] & RING)  # the border's guesses only
         own = ((lambda e, step=1: tile_own_codes(self, key, e, ring, step))
                if stored == "delta" and key in self.tile_info else None)
-        if stored == "delta_edge" and L == 0 and key in self.tile_info:
-            # a schema-23 level-0 δ_edge: guessed from the heights, the padding replicated
-            def own(e):
-                return tile_edge_own_codes(self, key, e)
+        if stored == "delta_edge" and key in self.tile_info:
+            # a schema-23 δ_edge: guessed from the heights, the padding replicated
+            def own(e, step=1):
+                return tile_edge_own_codes(self, key, e, step)
         try:
             out = decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base, guess,
                                 own)

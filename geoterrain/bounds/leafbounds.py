@@ -570,18 +570,22 @@ def tile_own_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int,
                      float(terrain.stand_in_z), e, ring=ring)[0]
 
 
-def tile_edge_own_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int
-                        ) -> np.ndarray | None:
+def tile_edge_own_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int,
+                        step: int = 1) -> np.ndarray | None:
     """A level-0 tile's guess of its δ_edge codes (T, T) from its decoded heights, the
     padding replicated from the data's edge
     (:func:`geoterrain.bounds.vertexdata.edge_own_codes`; ``Terrain``'s reader of a
-    schema-23 ``DIFF`` blob with ``PRED``)."""
+    schema-23 ``DIFF`` blob with ``PRED``; ``step``: of the tile's samples ``step``
+    apart, a whole tile's level inside it)."""
     tile = terrain.tile(*key)
     z = terrain.frame.z(tile.heights)
     ok = np.asarray(tile.valid, bool) & np.isfinite(z)
-    g, t = terrain.grid, terrain.grid.t
-    return edge_own_codes(z, ok, float(terrain.stand_in_z), e, g.rows - (key[2] << t),
-                          g.cols - (key[1] << t))
+    g, (L, x, y) = terrain.grid, key
+    r0, c0 = y << (g.t + L), x << (g.t + L)  # the tile's first sample, at steps 2^L
+    s = np.s_[::step, ::step]
+    return edge_own_codes(np.ascontiguousarray(z[s]), np.ascontiguousarray(ok[s]),
+                          float(terrain.stand_in_z), e, ((g.rows - 1 - r0) >> L) // step + 1,
+                          ((g.cols - 1 - c0) >> L) // step + 1)
 
 
 # ------------------------------------------------ a store's level-0 tiles, derived on read

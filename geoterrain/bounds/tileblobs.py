@@ -52,6 +52,7 @@ from geoterrain.bounds.vertexdata import (
     ring_planes,
     scale_exponent,
     shape_codes,
+    top_edge_payload_own,
     top_payload_own,
 )
 from geoterrain.core.rounding import round_up
@@ -104,6 +105,17 @@ class OwnHeights(NamedTuple):
     z: np.ndarray
     valid: np.ndarray | None
     stand_in: float
+
+
+class EdgeGuess(NamedTuple):
+    """Where the data ends for a δ_edge guessed from the heights (schema 23,
+    :func:`geoterrain.bounds.vertexdata.edge_own_codes`): the indices of
+    :class:`OwnHeights` below ``rows`` and ``cols`` hold data; ``pred``: the level is
+    above 0 (its payloads predicted from the parents')."""
+
+    rows: int
+    cols: int
+    pred: bool
 
 
 class BoundsCoding:
@@ -419,7 +431,7 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
                 slack: dict | None = None, mids: bool = False,
                 centres: CentreHeights | None = None, heights: CentreHeights | None = None,
                 own: OwnHeights | None = None, zlevel: int = SHAPED_ZSTD_LEVEL,
-                edge: tuple[int, int] | None = None
+                edge: EdgeGuess | None = None
                 ) -> tuple[dict, np.ndarray, np.ndarray]:
     """The δ, r and normals blobs of the stored tiles ``(x, y)`` of one level.
 
@@ -459,10 +471,11 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     :func:`geoterrain.bounds.vertexdata.top_payload_own`).
     ``zlevel``: the zstd level of the ``CENTRES``, ``PRED`` and ``RING`` payloads
     (:func:`geoterrain.bounds.vertexdata.shaped_zstd_level` of the store's grid).
-    ``edge`` (level 0's δ_edge, with ``base`` and ``own``: the data's rows and columns in
-    ``own``'s indices): each ``DIFF`` blob whose δ_edge equals δ wherever δ is finite
-    holds its codes where δ is +inf less their guess from the tile's heights with the
-    padding replicated (flag ``PRED`` too, :func:`geoterrain.bounds.vertexdata.edge_own_codes`,
+    ``edge`` (a δ_edge below the top, with ``base`` and ``own``: :class:`EdgeGuess`):
+    each ``DIFF`` blob whose δ_edge equals δ wherever δ is finite holds its codes where
+    δ is +inf against their guess from the tile's heights with the padding replicated
+    (flag ``PRED`` too, and ``SLACK`` above level 0;
+    :func:`geoterrain.bounds.vertexdata.edge_own_codes`,
     :func:`~geoterrain.bounds.vertexdata.edge_payload_own`; schema 23).
 
     Examples
@@ -526,10 +539,11 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         head_d = [head_d if s <= 0 else bytes([head_d[0], head_d[1] | SLACK, head_d[2]])
                   + np.float32(s).astype("<f4").tobytes()
                   for s in (float(slack.get(k, 0.0)) for k in keys)]
-    if edge is not None and k:  # schema 23: a level-0 δ_edge guessed from the heights
-        if base is None or own is None or not new_only or level != 0:
-            raise ValueError("a guessed δ_edge blob is a level-0 difference from δ")
-        pd, head_d = _edge_guessed(pd, head_d, coding, base, own, xy, t, edge)
+    if edge is not None and k:  # schema 23: a δ_edge guessed from the heights
+        if base is None or own is None or T < 3:
+            raise ValueError("a guessed δ_edge blob is a difference from δ")
+        pd, head_d = _edge_guessed(pd, head_d, coding, base, own, xy, t, level, edge,
+                                   new_only)
     # schema 6's CENTRES (vertexdata.shape_codes): a tile whose new vertices off the cell
     # centres all have code 0 (a geographic level-0 r: leaves) stores the centres only
     # (schema 14's PRED on every other such tile: codes as differences from their parents')
@@ -629,25 +643,39 @@ def _own_ordered(rows: list[np.ndarray], heads: list[bytes], W: np.ndarray, own:
 
 
 def _edge_guessed(pd: np.ndarray, head: bytes, coding: BoundsCoding, base: BoundsCoding,
-                  own: OwnHeights, xy: np.ndarray, t: int, edge: tuple[int, int]
-                  ) -> tuple[list, list[bytes]]:
-    # schema 23: each level-0 DIFF δ_edge payload whose codes equal δ's wherever δ is
-    # finite as its codes where δ is +inf less their guess (vertexdata.edge_own_codes of
-    # the tile's heights, the padding replicated), range-coded (bytes: no zstd), flagged
-    # PRED too; the others as they were
-    T = (1 << t) + 1
-    W, D = _windows(coding.dc, xy, t, 0), _windows(base.dc, xy, t, 0)
+                  own: OwnHeights, xy: np.ndarray, t: int, level: int, edge: EdgeGuess,
+                  new_only: bool) -> tuple[list, list[bytes]]:
+    # schema 23: each DIFF δ_edge payload whose codes equal δ's wherever δ is finite as
+    # its codes where δ is +inf against their guess (vertexdata.edge_own_codes of the
+    # tile's heights, the padding replicated), range-coded (bytes: no zstd), flagged PRED
+    # too (and SLACK above level 0: predicted from the parents; a whole tile, the top's,
+    # level by level inside it: vertexdata.top_edge_payload_own); the others as they were
+    T, s = (1 << t) + 1, 1 << level
+    W, D = _windows(coding.dc, xy, t, level), _windows(base.dc, xy, t, level)
     rows, heads = list(pd), []
-    for n, (r0, c0) in enumerate(_origins(xy, t, 0).tolist()):
-        z = own.z[r0:r0 + T, c0:c0 + T]
+    flags = PRED | (SLACK if edge.pred or not new_only else 0)
+    e = int(coding.ed)
+    for n, (r0, c0) in enumerate(_origins(xy, t, level).tolist()):
+        win = np.s_[r0:r0 + (T - 1) * s + 1:s, c0:c0 + (T - 1) * s + 1:s]
+        z = own.z[win]
         if z.shape != (T, T):
             raise ValueError("a tile's heights past the guessed δ_edge's")
-        v = None if own.valid is None else own.valid[r0:r0 + T, c0:c0 + T]
-        g = edge_own_codes(z, v, own.stand_in, int(coding.ed), edge[0] - r0, edge[1] - c0)
-        p = None if g is None else edge_payload_own(W[n], D[n], g)
+        v = None if own.valid is None else own.valid[win]
+
+        def guess(step: int, z=z, v=v, r0=r0, c0=c0) -> np.ndarray | None:
+            sl = np.s_[::step, ::step]
+            return edge_own_codes(np.ascontiguousarray(z[sl]), None if v is None else
+                                  np.ascontiguousarray(v[sl]), own.stand_in, e,
+                                  (edge.rows - 1 - r0) // (s * step) + 1,
+                                  (edge.cols - 1 - c0) // (s * step) + 1)
+        if new_only:
+            g = guess(1)
+            p = None if g is None else edge_payload_own(W[n], D[n], g, edge.pred)
+        else:
+            p = None if guess(T - 1) is None else top_edge_payload_own(W[n], D[n], guess)
         if p is not None:
             rows[n] = p
-        heads.append(head if p is None else bytes([head[0], head[1] | PRED, *head[2:]]))
+        heads.append(head if p is None else bytes([head[0], head[1] | flags, *head[2:]]))
     return rows, heads
 
 
@@ -685,6 +713,8 @@ def _guessed(rows: list[np.ndarray], heads: list[bytes], c: CentreHeights, xy: n
     rows, heads = list(rows), list(heads)
     for q, n in enumerate(idx):
         rows[n] = g[q].ravel() - np.asarray(rows[n], np.uint8)  # uint8: mod 256
+        if not rows[n].any():  # schema 23: every guess exact, no payload (was 14 B)
+            rows[n] = b""
         heads[n] = bytes([heads[n][0], heads[n][1] | PRED, *heads[n][2:]])
     return rows, heads
 

@@ -766,7 +766,7 @@ def edge_own_codes(z: np.ndarray, valid: np.ndarray | None, stand_in: float, e: 
     --------
     >>> z = np.zeros((5, 5)); z[:3, :3] = [[0, 1, 2], [1, 2, 3], [2, 3, 9]]
     >>> g = edge_own_codes(z, None, 0.0, -3, 3, 3)
-    >>> int(g[3, 3] > 0), int(g[4, 3]), int(g[3, 4]), edge_own_codes(z, None, 0.0, -3, 0, 3)
+    >>> int(g[1, 1] > 0), int(g[4, 3]), int(g[3, 4]), edge_own_codes(z, None, 0.0, -3, 0, 3)
     (1, 0, 0, None)
     """
     T = z.shape[0]
@@ -784,52 +784,163 @@ def edge_own_codes(z: np.ndarray, valid: np.ndarray | None, stand_in: float, e: 
     return g
 
 
-def edge_payload_own(codes: np.ndarray, base: np.ndarray, guess: np.ndarray) -> bytes | None:
-    """Schema 23's level-0 δ_edge payload (flags ``DIFF`` with ``PRED``): a tile's new
-    vertices' δ_edge log8 ``codes`` (T, T) where its δ codes ``base`` are +inf (255),
-    less their ``guess`` (:func:`edge_own_codes`), mod 256, range-coded in one context
-    (:func:`encode_gaps`), after the :func:`guess_check` of the guess there. Everywhere
-    else δ_edge is δ, and None where it is not (the writer keeps the plain ``DIFF``
-    payload then). srtm3's 11 level-0 δ_edge blobs ~1.2 kB → ~0.25 kB
-    (docs/lab/store-size.md). :func:`edge_codes_own` inverts it.
+def edge_payload_own(codes: np.ndarray, base: np.ndarray, guess: np.ndarray,
+                     pred: bool = False) -> bytes | None:
+    """Schema 23's δ_edge payload of a tile below the top (flags ``DIFF`` with ``PRED``):
+    its new vertices' δ_edge log8 ``codes`` (T, T) where its δ codes ``base`` are +inf
+    (255), range-coded (:func:`encode_gaps`) after the :func:`guess_check` of their
+    ``guess`` (:func:`edge_own_codes`): level 0's as the codes less the guess, mod 256, in
+    one context; ``pred`` (above level 0, ``SLACK`` too) as :func:`pred_gaps`'
+    differences from the parents' prediction in the contexts of their gaps above the
+    guess (``codes`` then holds the parent's codes on the even vertices). Everywhere else
+    δ_edge is δ, and None where it is not (the writer keeps the plain ``DIFF`` payload
+    then). srtm3's 19 δ_edge blobs below the top 2.99 → 1.0 kB (docs/lab/store-size.md).
+    :func:`edge_codes_own` inverts it.
 
     Examples
     --------
     >>> b = np.full((3, 3), 255, np.uint8); b[0, 1] = 4
-    >>> c = b.copy(); c[1, 1], c[2, 1] = 7, 9; g = np.full((3, 3), 7, np.uint8)
-    >>> p = edge_payload_own(c, b, g)
+    >>> c = b.copy(); c[1, 1], c[2, 1] = 7, 9; c[::2, ::2] = 0  # the corners: not new
+    >>> g = np.full((3, 3), 7, np.uint8); p = edge_payload_own(c, b, g)
     >>> bool((edge_codes_own(p, b, g) == c).all()), edge_payload_own(b - 1, b, g)
     (True, None)
+    >>> c[::2, ::2] = 8; q = edge_payload_own(c, b, g, pred=True)
+    >>> bool((edge_codes_own(q, b, g, c[::2, ::2]) == c).all())
+    True
     """
-    keep = _new_flat(codes.shape[0])
+    T = codes.shape[0]
+    keep = _new_flat(T)
     c = np.asarray(codes, np.int64).ravel()[keep]
     b = np.asarray(base, np.int64).ravel()[keep]
-    g = np.asarray(guess, np.int64).ravel()[keep]
     sel = b == 255
     if (c[~sel] != b[~sel]).any():
         return None
-    return bytes([guess_check(g[sel])]) + encode_gaps((c[sel] - g[sel]) & 0xFF,
-                                                       np.zeros(int(sel.sum()), np.int64))
+    g = np.asarray(guess, np.int64).ravel()[keep]
+    head = bytes([guess_check(g[sel])])
+    if not pred:
+        return head + encode_gaps((c[sel] - g[sel]) & 0xFF, np.zeros(int(sel.sum()), np.int64))
+    r, gap = pred_gaps(np.asarray(codes)[None], np.asarray(guess)[None])
+    ps = _edge_pred_order(np.asarray(base), T)
+    return head + encode_gaps(r[0][ps], gap[0][ps])
 
 
-def edge_codes_own(payload: bytes, base: np.ndarray, guess: np.ndarray) -> np.ndarray:
-    """A level-0 tile's δ_edge codes (T, T; its new vertices') from its
-    :func:`edge_payload_own` payload, its δ codes ``base`` and its ``guess``
-    (:func:`edge_own_codes`); ValueError for a payload coded against other heights or
-    bytes the encoder would not have written."""
+def _edge_pred_order(base: np.ndarray, T: int) -> np.ndarray:
+    # pred_gaps' order (the centres, then the other new vertices) of the new vertices
+    # where δ's codes ``base`` are +inf
+    other = _pred_index(T)[0]
+    return np.concatenate([base[1::2, 1::2].ravel() == 255, base.ravel()[other] == 255])
+
+
+def edge_codes_own(payload: bytes, base: np.ndarray, guess: np.ndarray,
+                   corners: np.ndarray | None = None) -> np.ndarray:
+    """A tile's δ_edge codes (T, T; its new vertices', and ``corners`` on the even ones)
+    from its :func:`edge_payload_own` payload, its δ codes ``base`` and its ``guess``
+    (:func:`edge_own_codes`); ``corners`` (h + 1, h + 1): the parent's codes, for a
+    ``pred`` payload. ValueError for a payload coded against other heights or bytes the
+    encoder would not have written."""
+    T = base.shape[0]
+    keep = _new_flat(T)
+    sel = np.asarray(base).ravel()[keep] == 255
+    if len(payload) < 1 or payload[0] != guess_check(np.asarray(guess).ravel()[keep][sel]):
+        raise ValueError("a guessed bounds payload coded against other heights")
+    dec = GapDecoder(payload[1:])
+    out = _edge_take(dec, base, guess, corners)
+    dec.check()
+    return out
+
+
+def _edge_take(dec: GapDecoder, base: np.ndarray, guess: np.ndarray,
+               corners: np.ndarray | None) -> np.ndarray:
+    # one tile's δ_edge codes (T, T): δ's codes ``base`` where they are finite, the next
+    # values of ``dec`` where they are +inf (edge_payload_own's order and contexts)
     T = base.shape[0]
     keep = _new_flat(T)
     b = np.asarray(base, np.int64).ravel()[keep]
-    g = np.asarray(guess, np.int64).ravel()[keep]
+    g = np.asarray(guess, np.int64)
     sel = b == 255
-    if len(payload) < 1 or payload[0] != guess_check(g[sel]):
-        raise ValueError("a guessed bounds payload coded against other heights")
-    dec = GapDecoder(payload[1:])
-    b[sel] = (g[sel] + dec.take(np.zeros(int(sel.sum()), np.int64))) & 0xFF
-    dec.check()
-    out = np.zeros(T * T, np.uint8)
+    out = np.zeros(T * T, np.int16)
     out[keep] = b
-    return out.reshape(T, T)
+    if corners is None:
+        out[keep[sel]] = (g.ravel()[keep][sel] + dec.take(np.zeros(int(sel.sum()), np.int64))
+                          ) & 0xFF
+    else:  # the centres from the corners, then the other new vertices (pred_gaps)
+        other, n1, n2, main = _pred_index(T)
+        ext = np.empty(T * T + 1, np.int16)
+        ext[:-1] = out
+        ext[-1] = 255
+        W = ext[:-1].reshape(1, T, T)
+        W[0, ::2, ::2] = corners
+        cs = np.asarray(base)[1::2, 1::2] == 255
+        hc = _pred_centres(W, main)[0]
+        rc = dec.take((hc - g[1::2, 1::2])[cs])
+        W[0, 1::2, 1::2][cs] = (hc[cs] - rc) & 0xFF
+        os_ = np.asarray(base).ravel()[other] == 255
+        hm = np.minimum(ext[n1], ext[n2])[os_]
+        ext[other[os_]] = (hm - dec.take(hm - g.ravel()[other[os_]])) & 0xFF
+        out = ext[:-1]
+    return out.astype(np.uint8).reshape(T, T)
+
+
+def top_edge_payload_own(codes: np.ndarray, base: np.ndarray, guess_at) -> bytes | None:
+    """Schema 23's whole-tile δ_edge payload (the top tile's; flags ``DIFF``, ``PRED`` and
+    ``SLACK`` without ``NEW_ONLY``): the tile's (T, T) δ_edge log8 ``codes`` level by
+    level inside it (:func:`top_steps`), its four corners as they are, then each level's
+    new vertices where δ's codes ``base`` are +inf as :func:`edge_payload_own` with
+    ``pred`` codes a tile below the top, ``guess_at(s)`` the :func:`edge_own_codes` of
+    the tile's samples s apart, in one range-coded stream after the :func:`guess_check`
+    of every guess there. None where δ_edge is not δ wherever δ is finite (off the
+    corners). :func:`top_edge_codes_own` inverts it.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(4)
+    >>> b = rng.choice(np.array([3, 255], np.uint8), (9, 9)); c = b.copy()
+    >>> c[b == 255] = rng.integers(0, 256, int((b == 255).sum()))
+    >>> g = {s: rng.integers(0, 256, (8 // s + 1,) * 2).astype(np.uint8) for s in (4, 2, 1)}
+    >>> bool((top_edge_codes_own(top_edge_payload_own(c, b, g.get), b, g.get) == c).all())
+    True
+    """
+    c, b = np.asarray(codes, np.uint8), np.asarray(base, np.uint8)
+    T = c.shape[0]
+    off = np.ones((T, T), bool)
+    off[::T - 1, ::T - 1] = False
+    if (c[off & (b != 255)] != b[off & (b != 255)]).any():
+        return None
+    rs, gs, checks = [], [], []
+    for s in top_steps(T):
+        g = np.asarray(guess_at(s), np.uint8)
+        r, gap = pred_gaps(c[None, ::s, ::s], g[None])
+        ps = _edge_pred_order(b[::s, ::s], g.shape[0])
+        rs.append(r[0][ps])
+        gs.append(gap[0][ps])
+        checks.append(g.ravel()[_new_flat(g.shape[0])][b[::s, ::s].ravel()[
+            _new_flat(g.shape[0])] == 255])
+    return (bytes([guess_check(np.concatenate(checks))]) + c[::T - 1, ::T - 1].tobytes()
+            + encode_gaps(np.concatenate(rs), np.concatenate(gs)))
+
+
+def top_edge_codes_own(payload: bytes, base: np.ndarray, guess_at) -> np.ndarray:
+    """A whole tile's (T, T) δ_edge codes from its :func:`top_edge_payload_own` payload,
+    its δ codes ``base`` and its guesses ``guess_at(s)``; ValueError for a payload
+    coded against other heights, or bytes the encoder would not have written."""
+    b = np.asarray(base, np.uint8)
+    T = b.shape[0]
+    gs, checks = [], []
+    for s in top_steps(T):
+        g = np.asarray(guess_at(s), np.uint8)
+        n = (T - 1) // s + 1
+        if g.shape != (n, n):
+            raise ValueError("an edge guess of the wrong shape")
+        gs.append(g)
+        checks.append(g.ravel()[_new_flat(n)][b[::s, ::s].ravel()[_new_flat(n)] == 255])
+    if len(payload) < 5 or payload[0] != guess_check(np.concatenate(checks)):
+        raise ValueError("a guessed bounds payload coded against other heights")
+    W = np.frombuffer(payload[1:5], np.uint8).reshape(2, 2)
+    dec = GapDecoder(payload[5:])
+    for s, g in zip(top_steps(T), gs, strict=True):
+        W = _edge_take(dec, b[::s, ::s], g, W)
+    dec.check()
+    return W
 
 
 def top_steps(T: int) -> list[int]:
@@ -978,8 +1089,19 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
     own_ring = flags & (RING | PRED | CENTRES) == RING | PRED
     if (coded or own_ring) and own is None:
         raise ValueError("a bounds blob guessed from the heights needs the tile's heights")
-    if flags & (DIFF | PRED) == DIFF | PRED:  # schema 23: a level-0 δ_edge, guessed
-        if flags & (RING | SLACK | CENTRES | MIDS) or not flags & NEW_ONLY \
+    if flags & (DIFF | PRED | SLACK | NEW_ONLY) == DIFF | PRED | SLACK:
+        # schema 23: a whole (top) tile's δ_edge, level by level, guessed
+        if flags & (RING | CENTRES | MIDS) or not flags & LOG8 or len(shape) != 2 \
+                or shape[0] != shape[1] or shape[0] < 3 or (shape[0] - 1) & (shape[0] - 2) \
+                or own is None or base is None or np.shape(base) != tuple(shape) \
+                or parent is not None:
+            raise ValueError("a whole tile's guessed difference bounds blob needs a square "
+                             "tile's δ and heights")
+        b = log8_codes(np.asarray(base, np.float64), e).astype(np.uint8)
+        codes = top_edge_codes_own(blob[3:], b, lambda s: own(e, s))
+        return _log8_table_ro(e)[codes.ravel()].reshape(shape).astype(np.float32)
+    if flags & (DIFF | PRED) == DIFF | PRED:  # schema 23: a δ_edge below the top, guessed
+        if flags & (RING | CENTRES | MIDS) or not flags & NEW_ONLY \
                 or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1] \
                 or shape[0] < 3 or own is None or base is None \
                 or np.shape(base) != tuple(shape) or parent is None \
@@ -990,11 +1112,16 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         if g is None or np.shape(g) != tuple(shape):
             raise ValueError("an edge guess of the wrong shape")
         b = log8_codes(np.asarray(base, np.float64), e).astype(np.uint8)
-        out = _log8_table_ro(e)[edge_codes_own(blob[3:], b, g).ravel()].reshape(shape)
         half = (shape[0] - 1) // 2
         px, py = int(parity[0]) & 1, int(parity[1]) & 1
-        out[::2, ::2] = parent[py * half: py * half + half + 1, px * half: px * half + half + 1]
-        return out.astype(np.float32)
+        a = np.asarray(parent[py * half: py * half + half + 1,
+                              px * half: px * half + half + 1], np.float64)
+        corners = (np.searchsorted(_log8_table64(e), np.where(np.isnan(a), np.inf, a))
+                   if flags & SLACK else None)  # SLACK: predicted from the parents
+        out = _log8_table_ro(e)[edge_codes_own(blob[3:], b, g, corners).ravel()]
+        out = out.reshape(shape).astype(np.float32)
+        out[::2, ::2] = a
+        return out
     if coded and not flags & NEW_ONLY:  # schema 23: a whole tile's δ, level by level
         if flags & DIFF or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1] \
                 or shape[0] < 3 or (shape[0] - 1) & (shape[0] - 2) or parent is not None:
@@ -1059,7 +1186,8 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         n = len(keep) if keep is not None else int(np.prod(shape))
     width = 1 if flags & LOG8 else 2
     # schema 20's payloads are range-coded (bounded by their count), the others zstd
-    raw = body if coded or own_ring else zstdsafe.decompress(body, width * n, exact=True)
+    raw = body if coded or own_ring else zstdsafe.decompress(body, width * n, exact=True) \
+        if body or not guessed else bytes(n)  # schema 23: no payload, every guess exact
     if guessed:  # each centre from the heights' guess, the other new vertices code 0
         h = (T - 1) // 2
         g = np.asarray(guess(e), np.uint8)

@@ -29,6 +29,7 @@ from geoterrain.bounds.normals import level_normal_codes, ring_normal_codes
 from geoterrain.bounds.radii import stand_in_z, valid_range, vertex_radii
 from geoterrain.bounds.tileblobs import (
     BoundsCoding,
+    EdgeGuess,
     OwnHeights,
     level_blobs,
     radius_codes,
@@ -577,14 +578,15 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
             ekeys = [(x, y) for L2, x, y in keys_e if L2 == L]
             if not ekeys:
                 continue
-            # schema 23: level 0's stored tiles guessed from the heights, the padding
-            # replicated (vertexdata.edge_own_codes)
-            guessed = L == 0 < grid.top_level and base is not None
+            # schema 23: the stored tiles below the top guessed from the heights, the
+            # padding replicated (vertexdata.edge_own_codes)
+            guessed = base is not None
             eb, emax, _ = level_blobs(edge, no_map, grid.t, L, top, ekeys, ("delta",),
                                       base=base, zlevel=shaped_zstd_level(grid.rows,
                                                                           grid.cols),
                                       own=own if guessed else None,
-                                      edge=(grid.rows, grid.cols) if guessed else None)
+                                      edge=EdgeGuess(grid.rows, grid.cols, L > 0)
+                                      if guessed else None)
             extra["delta_edge"].update(eb["delta"])
             edge_max += [[L, x, y, m if np.isfinite(m) else None]
                          for (x, y), m in zip(ekeys, emax.tolist(), strict=True)]

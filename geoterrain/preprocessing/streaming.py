@@ -43,7 +43,13 @@ import numpy as np
 
 from geoterrain.bounds.edgepad import has_padding
 from geoterrain.bounds.leafbounds import CentreHeights, ring_guesses
-from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs, ring_blobs
+from geoterrain.bounds.tileblobs import (
+    BoundsCoding,
+    EdgeGuess,
+    OwnHeights,
+    level_blobs,
+    ring_blobs,
+)
 from geoterrain.bounds.tilebounds import TileTable
 from geoterrain.bounds.vertexdata import (
     log8_exponent,
@@ -564,17 +570,19 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                           and x not in kept], None, e_rows[1])):
                     if not keys_e:
                         continue
-                    # schema 23: level 0's stored tiles guessed from the heights, the
-                    # padding replicated (vertexdata.edge_own_codes)
-                    guessed = L == 0 < top and base is not None
+                    # schema 23: the stored tiles below the top guessed from the
+                    # heights, the padding replicated (vertexdata.edge_own_codes): the
+                    # data's samples of the window's lattice
+                    guessed = base is not None
                     own_e = OwnHeights(level_lattice(sa, "Z", L, n, p0, p1, m, True,
                                                      np.float64, q0, q1), None,
                                        own_stand_in) if guessed else None
+                    eg = EdgeGuess((grid.rows - 1 >> L) - p0 + 1,
+                                   (grid.cols - 1 >> L) - q0 + 1, L > 0)
                     eb, emx, _ = level_blobs(edge, nrm, t, 0, top_w if base is not None
                                              else 0, [(x - x0, 0) for x in keys_e],
                                              ("delta",), base=base, zlevel=zlevel,
-                                             own=own_e, edge=(grid.rows - p0, grid.cols - q0)
-                                             if guessed else None)
+                                             own=own_e, edge=eg if guessed else None)
                     into.update({x: (v, mx) for x, (v, mx) in zip(
                         keys_e, zip(eb["delta"].values(), emx.tolist(), strict=True),
                         strict=True)})
