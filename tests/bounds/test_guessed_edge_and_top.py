@@ -195,3 +195,23 @@ def test_a_whole_tile_s_guessed_blobs_need_the_tile_s_heights():
         c, np.full((T, T), 255, np.uint8), lo.get)
     with pytest.raises(ValueError, match="whole tile's guessed difference"):
         decode_bounds(eb, (T, T), None, (0, 0), None, None, None, lambda e, s=1: lo[s])
+
+
+def test_an_r_blob_whose_centre_guesses_are_exact_is_its_header_alone():
+    """Schema 23: a level-0 CENTRES-with-PRED r whose every centre equals its guess holds
+    no payload: it decodes to the guesses; an empty payload in any zstd layout is
+    refused."""
+    import zstandard
+
+    from geoterrain.bounds.vertexdata import CENTRES
+
+    T = 5
+    g = np.array([[3, 4], [5, 6]], np.uint8)
+    head = bytes([VERSION_2, NEW_ONLY | LOG8 | CENTRES | PRED, 0])
+    out = decode_bounds(head, (T, T), np.zeros((T, T), np.float32), (0, 0), None, None,
+                        lambda e: g)
+    assert (out[1::2, 1::2] == log8_table(0)[g]).all()
+    for flags in (NEW_ONLY | LOG8 | CENTRES, NEW_ONLY | LOG8 | PRED):
+        with pytest.raises((ValueError, zstandard.ZstdError)):
+            decode_bounds(bytes([VERSION_2, flags, 0]), (T, T), np.zeros((T, T), np.float32),
+                          (0, 0), None, None, lambda e: g)

@@ -298,6 +298,8 @@ def test_a_small_grids_store_holds_its_shaped_payloads_at_zstd_15(tmp_path):
                         or blob[1] & SLACK or blob[1] & RING and blob[1] & PRED:
                     continue
                 blob = blob[3 + 2 * (blob[1] & PRED and not blob[1] & CENTRES and key[0] > 0):]
+                if not blob:  # schema 23: an r whose guessed centres are exact, no payload
+                    continue
             raw = decompress(blob, 1 << 20)
             assert blob == compress_one(raw, 15), (key, kind)
             seen += 1
