@@ -322,6 +322,7 @@ class Terrain:
         from geoterrain.bounds.leafbounds import (
             tile_centre_guess,
             tile_centre_radius,
+            tile_edge_own_codes,
             tile_leaf_bounds,
             tile_mids_codes,
             tile_own_codes,
@@ -386,10 +387,15 @@ class Terrain:
                 if not payload:
                     return tile_centre_guess(self, key, e)
                 return tile_mids_codes(self, key, e, *payload)
-        # a schema-20 δ blob: guessed from the own errors on the tile's heights
+        # a schema-20 δ blob: guessed from the own errors on the tile's heights (the top
+        # tile's, schema 23: of its samples ``step`` apart, a level inside it)
         ring = len(blob) > 1 and bool(blob[1] & RING)  # the border's guesses only
-        own = ((lambda e: tile_own_codes(self, key, e, ring)) if stored == "delta"
-               and key in self.tile_info else None)
+        own = ((lambda e, step=1: tile_own_codes(self, key, e, ring, step))
+               if stored == "delta" and key in self.tile_info else None)
+        if stored == "delta_edge" and key in self.tile_info:
+            # a schema-23 δ_edge: guessed from the heights, the padding replicated
+            def own(e, step=1):
+                return tile_edge_own_codes(self, key, e, step)
         try:
             out = decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base, guess,
                                 own)

@@ -36,6 +36,7 @@ from numba import njit, prange
 from geoterrain.bounds.delta import _centre1, _edge_err, _mid1, saturate
 from geoterrain.bounds.radii import _nest, code_up_nb
 from geoterrain.bounds.vertexdata import (
+    edge_own_codes,
     log8_table,
     new_mask,
     own_codes,
@@ -52,7 +53,8 @@ if TYPE_CHECKING:
 __all__ = ["CentreHeights", "centre_guess", "centre_radius", "geographic_leaf_delta",
            "leaf_delta", "leaf_radius", "mids_codes", "mids_residuals", "normal_axes",
            "normal_xy", "ring_guesses", "tile_centre_guess", "tile_centre_radius",
-           "tile_leaf_bounds", "tile_mids_codes", "tile_own_codes", "tile_slack"]
+           "tile_edge_own_codes", "tile_leaf_bounds", "tile_mids_codes", "tile_own_codes",
+           "tile_slack"]
 
 
 class Ring(NamedTuple):
@@ -554,15 +556,36 @@ def tile_mids_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int, a: 
 
 
 def tile_own_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int,
-                   ring: bool = False) -> np.ndarray:
+                   ring: bool = False, step: int = 1) -> np.ndarray:
     """A tile's :func:`geoterrain.bounds.vertexdata.own_codes` (T, T) from its decoded
     heights, invalid samples by the store's stand-in height (``Terrain``'s reader of a
     schema-20 δ blob: ``PRED`` with ``SLACK``, ``RING`` with ``PRED``; ``ring``: the
-    border's new vertices only, 0 elsewhere)."""
+    border's new vertices only, 0 elsewhere; ``step``: of the tile's samples ``step``
+    apart, a whole tile's level inside it, schema 23's top δ)."""
     tile = terrain.tile(*key)
     z = terrain.frame.z(tile.heights)
     ok = np.asarray(tile.valid, bool) & np.isfinite(z)
-    return own_codes(z, ok, float(terrain.stand_in_z), e, ring=ring)[0]
+    s = np.s_[::step, ::step]
+    return own_codes(np.ascontiguousarray(z[s]), np.ascontiguousarray(ok[s]),
+                     float(terrain.stand_in_z), e, ring=ring)[0]
+
+
+def tile_edge_own_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int,
+                        step: int = 1) -> np.ndarray | None:
+    """A level-0 tile's guess of its δ_edge codes (T, T) from its decoded heights, the
+    padding replicated from the data's edge
+    (:func:`geoterrain.bounds.vertexdata.edge_own_codes`; ``Terrain``'s reader of a
+    schema-23 ``DIFF`` blob with ``PRED``; ``step``: of the tile's samples ``step``
+    apart, a whole tile's level inside it)."""
+    tile = terrain.tile(*key)
+    z = terrain.frame.z(tile.heights)
+    ok = np.asarray(tile.valid, bool) & np.isfinite(z)
+    g, (L, x, y) = terrain.grid, key
+    r0, c0 = y << (g.t + L), x << (g.t + L)  # the tile's first sample, at steps 2^L
+    s = np.s_[::step, ::step]
+    return edge_own_codes(np.ascontiguousarray(z[s]), np.ascontiguousarray(ok[s]),
+                          float(terrain.stand_in_z), e, ((g.rows - 1 - r0) >> L) // step + 1,
+                          ((g.cols - 1 - c0) >> L) // step + 1)
 
 
 # ------------------------------------------------ a store's level-0 tiles, derived on read

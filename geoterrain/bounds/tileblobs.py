@@ -36,6 +36,8 @@ from geoterrain.bounds.vertexdata import (
     SHAPED_ZSTD_LEVEL,
     SLACK,
     VERSION_2,
+    edge_own_codes,
+    edge_payload_own,
     log8_exponent,
     log8_table,
     mids_index,
@@ -50,6 +52,8 @@ from geoterrain.bounds.vertexdata import (
     ring_planes,
     scale_exponent,
     shape_codes,
+    top_edge_payload_own,
+    top_payload_own,
 )
 from geoterrain.core.rounding import round_up
 from geoterrain.core.threads import cores_for, parallel_kernel
@@ -101,6 +105,17 @@ class OwnHeights(NamedTuple):
     z: np.ndarray
     valid: np.ndarray | None
     stand_in: float
+
+
+class EdgeGuess(NamedTuple):
+    """Where the data ends for a δ_edge guessed from the heights (schema 23,
+    :func:`geoterrain.bounds.vertexdata.edge_own_codes`): the indices of
+    :class:`OwnHeights` below ``rows`` and ``cols`` hold data; ``pred``: the level is
+    above 0 (its payloads predicted from the parents')."""
+
+    rows: int
+    cols: int
+    pred: bool
 
 
 class BoundsCoding:
@@ -415,7 +430,8 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
                 ring: bool | tuple[str, ...] = False, base: BoundsCoding | None = None,
                 slack: dict | None = None, mids: bool = False,
                 centres: CentreHeights | None = None, heights: CentreHeights | None = None,
-                own: OwnHeights | None = None
+                own: OwnHeights | None = None, zlevel: int = SHAPED_ZSTD_LEVEL,
+                edge: EdgeGuess | None = None
                 ) -> tuple[dict, np.ndarray, np.ndarray]:
     """The δ, r and normals blobs of the stored tiles ``(x, y)`` of one level.
 
@@ -449,7 +465,18 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     differences from the codes of their own errors (flag ``PRED`` too,
     :func:`geoterrain.bounds.vertexdata.ring_payloads_own`), and a ``PRED`` δ blob its
     differences in the contexts of their gaps above those (flag ``SLACK`` too,
-    :func:`geoterrain.bounds.vertexdata.pred_payloads_own`; both range-coded, no zstd).
+    :func:`geoterrain.bounds.vertexdata.pred_payloads_own`; both range-coded, no zstd);
+    a whole tile's δ (the top level's, schema 23) its codes level by level inside the
+    tile the same way (flags ``PRED`` and ``SLACK`` without ``NEW_ONLY``,
+    :func:`geoterrain.bounds.vertexdata.top_payload_own`).
+    ``zlevel``: the zstd level of the ``CENTRES``, ``PRED`` and ``RING`` payloads
+    (:func:`geoterrain.bounds.vertexdata.shaped_zstd_level` of the store's grid).
+    ``edge`` (a δ_edge below the top, with ``base`` and ``own``: :class:`EdgeGuess`):
+    each ``DIFF`` blob whose δ_edge equals δ wherever δ is finite holds its codes where
+    δ is +inf against their guess from the tile's heights with the padding replicated
+    (flag ``PRED`` too, and ``SLACK`` above level 0;
+    :func:`geoterrain.bounds.vertexdata.edge_own_codes`,
+    :func:`~geoterrain.bounds.vertexdata.edge_payload_own`; schema 23).
 
     Examples
     --------
@@ -512,6 +539,11 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         head_d = [head_d if s <= 0 else bytes([head_d[0], head_d[1] | SLACK, head_d[2]])
                   + np.float32(s).astype("<f4").tobytes()
                   for s in (float(slack.get(k, 0.0)) for k in keys)]
+    if edge is not None and k:  # schema 23: a δ_edge guessed from the heights
+        if base is None or own is None or T < 3:
+            raise ValueError("a guessed δ_edge blob is a difference from δ")
+        pd, head_d = _edge_guessed(pd, head_d, coding, base, own, xy, t, level, edge,
+                                   new_only)
     # schema 6's CENTRES (vertexdata.shape_codes): a tile whose new vertices off the cell
     # centres all have code 0 (a geographic level-0 r: leaves) stores the centres only
     # (schema 14's PRED on every other such tile: codes as differences from their parents')
@@ -520,6 +552,16 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         pd, head_d = _shaped(pd, head_d, W)
         if own is not None:  # schema 20: the PRED payloads in their own-error gaps' order
             pd, head_d = _own_ordered(pd, head_d, W, own, xy, t, level, int(coding.ed))
+    elif not new_only and k and T >= 3 and "delta" in kinds and own is not None \
+            and base is None and not flags_d & RING:
+        # schema 23: a whole (top) tile's δ level by level inside it, each level's new
+        # vertices in their own-error gaps (vertexdata.top_payload_own; bytes: no zstd)
+        W = _windows(coding.dc, xy, t, level)
+        e = int(coding.ed)
+        pd = [top_payload_own(W[n], lambda s, o=o: own_codes(
+            own.z, own.valid, own.stand_in, e, o[None], (T - 1) // s + 1, s << level)[0])
+            for n, o in enumerate(_origins(xy, t, level))]
+        head_d = bytes([head_d[0], head_d[1] | PRED | SLACK, head_d[2]])
     if mids:  # schema 12's MIDS: the cell centres derived on read
         if not rlog or flags_r & RING or T < 3:
             raise ValueError("mids r blobs are log8 codes above level 0")
@@ -538,15 +580,15 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
         raise ValueError("guessed r vertices are for r in log8 codes below the top, not a "
                          "ring")
     rows = {"delta": (pd, head_d), "radius": (pr, head_r), "normals": (pn, b"")}
-    blobs = {kind: dict(zip(keys, _compress_shaped(*rows[kind]), strict=True))
+    blobs = {kind: dict(zip(keys, _compress_shaped(*rows[kind], zlevel), strict=True))
              for kind in kinds}
     return blobs, dmax, rmax
 
 
-def _compress_shaped(rows: np.ndarray | list[np.ndarray | bytes], heads: bytes | list[bytes]
-                     ) -> list[bytes]:
-    # compress_rows, with the CENTRES, PRED and RING payloads at
-    # vertexdata.SHAPED_ZSTD_LEVEL (as pack_bounds_v2 writes the first two), a whole
+def _compress_shaped(rows: np.ndarray | list[np.ndarray | bytes], heads: bytes | list[bytes],
+                     zlevel: int = SHAPED_ZSTD_LEVEL) -> list[bytes]:
+    # compress_rows, with the CENTRES, PRED and RING payloads at zlevel
+    # (vertexdata.shaped_zstd_level; pack_bounds_v2 writes the first two at 11), a whole
     # tile's (the top's) and a DIFF one (δ_edge) at EDGE_ZSTD_LEVEL; a row of
     # bytes is a payload already coded (schema 20's range-coded δ), stored as it is
     if isinstance(heads, bytes):
@@ -556,7 +598,8 @@ def _compress_shaped(rows: np.ndarray | list[np.ndarray | bytes], heads: bytes |
         rest = [n for n, b in enumerate(out) if b is None]
         if rest:
             for n, b in zip(rest, _compress_shaped([rows[n] for n in rest],
-                                                   [heads[n] for n in rest]), strict=True):
+                                                   [heads[n] for n in rest], zlevel),
+                            strict=True):
                 out[n] = b
         return out
     hi = [n for n, h in enumerate(heads) if len(h) > 1 and h[1] & (CENTRES | PRED | RING)]
@@ -566,7 +609,7 @@ def _compress_shaped(rows: np.ndarray | list[np.ndarray | bytes], heads: bytes |
         return compress_rows(rows, heads)
     lo = sorted(set(range(len(heads))) - set(hi) - set(top))
     out = [b""] * len(heads)
-    for idx, level in ((hi, SHAPED_ZSTD_LEVEL), (top, EDGE_ZSTD_LEVEL), (lo, _ZSTD_LEVEL)):
+    for idx, level in ((hi, zlevel), (top, EDGE_ZSTD_LEVEL), (lo, _ZSTD_LEVEL)):
         if idx:
             got = compress_rows([rows[n] for n in idx], [heads[n] for n in idx], level)
             for n, b in zip(idx, got, strict=True):
@@ -596,6 +639,43 @@ def _own_ordered(rows: list[np.ndarray], heads: list[bytes], W: np.ndarray, own:
     for q, n in enumerate(idx):
         rows[n] = got[q]
         heads[n] = bytes([heads[n][0], heads[n][1] | SLACK, *heads[n][2:]])
+    return rows, heads
+
+
+def _edge_guessed(pd: np.ndarray, head: bytes, coding: BoundsCoding, base: BoundsCoding,
+                  own: OwnHeights, xy: np.ndarray, t: int, level: int, edge: EdgeGuess,
+                  new_only: bool) -> tuple[list, list[bytes]]:
+    # schema 23: each DIFF δ_edge payload whose codes equal δ's wherever δ is finite as
+    # its codes where δ is +inf against their guess (vertexdata.edge_own_codes of the
+    # tile's heights, the padding replicated), range-coded (bytes: no zstd), flagged PRED
+    # too (and SLACK above level 0: predicted from the parents; a whole tile, the top's,
+    # level by level inside it: vertexdata.top_edge_payload_own); the others as they were
+    T, s = (1 << t) + 1, 1 << level
+    W, D = _windows(coding.dc, xy, t, level), _windows(base.dc, xy, t, level)
+    rows, heads = list(pd), []
+    flags = PRED | (SLACK if edge.pred or not new_only else 0)
+    e = int(coding.ed)
+    for n, (r0, c0) in enumerate(_origins(xy, t, level).tolist()):
+        win = np.s_[r0:r0 + (T - 1) * s + 1:s, c0:c0 + (T - 1) * s + 1:s]
+        z = own.z[win]
+        if z.shape != (T, T):
+            raise ValueError("a tile's heights past the guessed δ_edge's")
+        v = None if own.valid is None else own.valid[win]
+
+        def guess(step: int, z=z, v=v, r0=r0, c0=c0) -> np.ndarray | None:
+            sl = np.s_[::step, ::step]
+            return edge_own_codes(np.ascontiguousarray(z[sl]), None if v is None else
+                                  np.ascontiguousarray(v[sl]), own.stand_in, e,
+                                  (edge.rows - 1 - r0) // (s * step) + 1,
+                                  (edge.cols - 1 - c0) // (s * step) + 1)
+        if new_only:
+            g = guess(1)
+            p = None if g is None else edge_payload_own(W[n], D[n], g, edge.pred)
+        else:
+            p = None if guess(T - 1) is None else top_edge_payload_own(W[n], D[n], guess)
+        if p is not None:
+            rows[n] = p
+        heads.append(head if p is None else bytes([head[0], head[1] | flags, *head[2:]]))
     return rows, heads
 
 
@@ -633,6 +713,8 @@ def _guessed(rows: list[np.ndarray], heads: list[bytes], c: CentreHeights, xy: n
     rows, heads = list(rows), list(heads)
     for q, n in enumerate(idx):
         rows[n] = g[q].ravel() - np.asarray(rows[n], np.uint8)  # uint8: mod 256
+        if not rows[n].any():  # schema 23: every guess exact, no payload (was 14 B)
+            rows[n] = b""
         heads[n] = bytes([heads[n][0], heads[n][1] | PRED, *heads[n][2:]])
     return rows, heads
 
@@ -658,7 +740,8 @@ def _mids_guessed(rows: list[np.ndarray], heads: list[bytes], c: CentreHeights,
 
 
 def ring_blobs(nrm: np.ndarray | RingCodes, t: int, tiles: Iterable[tuple[int, int]],
-               level: int = 0, guess: np.ndarray | None = None) -> dict:
+               level: int = 0, guess: np.ndarray | None = None,
+               zlevel: int = SHAPED_ZSTD_LEVEL) -> dict:
     """Normals blobs of level ``level`` (``nrm``: that level's codes) that hold only each
     tile's border ring (4T − 4 samples, as :func:`geoterrain.bounds.vertexdata.ring_planes`,
     zstd): a reader derives the interior from the tile's own heights
@@ -667,9 +750,9 @@ def ring_blobs(nrm: np.ndarray | RingCodes, t: int, tiles: Iterable[tuple[int, i
     (:class:`geoterrain.bounds.normals.RingCodes`). ``guess`` (k, 4T − 4, 2): what a reader
     derives there (:func:`geoterrain.bounds.leafbounds.ring_guesses`); each ring is stored as
     its difference from it, mod 256, as two planes without first differences
-    (:func:`geoterrain.bounds.vertexdata.residual_planes`), at zstd level
-    :data:`~geoterrain.bounds.vertexdata.SHAPED_ZSTD_LEVEL` (schema 17's
-    ``normals_ring_residual``).
+    (:func:`geoterrain.bounds.vertexdata.residual_planes`), at zstd level ``zlevel``
+    (:func:`geoterrain.bounds.vertexdata.shaped_zstd_level` of the store's grid; schema
+    17's ``normals_ring_residual``).
 
     Examples
     --------
@@ -684,8 +767,8 @@ def ring_blobs(nrm: np.ndarray | RingCodes, t: int, tiles: Iterable[tuple[int, i
         rr, cc = ring_index((1 << t) + 1)
         rings = nrm[(xy[:, 1, None] << t) + rr[None], (xy[:, 0, None] << t) + cc[None]]
     keys = [(level, int(x), int(y)) for x, y in xy]
-    if guess is not None:  # uint8: mod 256, exactly invertible; planes at zstd 11
+    if guess is not None:  # uint8: mod 256, exactly invertible; planes at zlevel
         res = np.asarray(rings, np.uint8) - np.asarray(guess, np.uint8)
-        return dict(zip(keys, compress_rows(residual_planes(res), level=SHAPED_ZSTD_LEVEL),
+        return dict(zip(keys, compress_rows(residual_planes(res), level=zlevel),
                         strict=True))
     return dict(zip(keys, compress_rows(ring_planes(rings)), strict=True))

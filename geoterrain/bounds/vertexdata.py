@@ -93,8 +93,29 @@ PRED = 128  # a NEW_ONLY log8 payload as differences from its parents' codes (pr
 # small residuals that 3 misses (srtm1_japan's 7-13 % fewer bytes there); 12 saves 0.3 %
 # of those bytes more at 1.5x the time (docs/lab/store-size.md)
 SHAPED_ZSTD_LEVEL = 11
+# a small grid's shaped payloads at 15 instead: srtm3's store 1 kB smaller, where 15 would
+# cost a large grid's preprocess 9 % more CPU (docs/lab/store-size.md); the same threshold
+# as the store's 512-byte pages (store.database.SMALL_GRID)
+SMALL_SHAPED_ZSTD_LEVEL = 15
+SMALL_GRID_SAMPLES = 3 << 16
 LOG_STEPS = 16  # codes per octave: at most 2^(1/16) - 1 = 4.4 % above the exact value
 _F16_MAX = 32768.0  # keep the scaled maximum well inside float16's finite range
+
+
+def shaped_zstd_level(rows: int, cols: int) -> int:
+    """The zstd level of a store's ``CENTRES``, ``PRED`` and ``RING`` payloads (and its
+    normals' ring residuals) for a ``rows`` × ``cols`` grid: :data:`SMALL_SHAPED_ZSTD_LEVEL`
+    up to :data:`SMALL_GRID_SAMPLES` samples, else :data:`SHAPED_ZSTD_LEVEL`. Every writer
+    (preprocess, streamed or whole, and the edit) passes it to the blob writers, so their
+    bytes agree; a reader needs no level.
+
+    Examples
+    --------
+    >>> shaped_zstd_level(359, 367), shaped_zstd_level(513, 513)
+    (15, 11)
+    """
+    small = int(rows) * int(cols) <= SMALL_GRID_SAMPLES
+    return SMALL_SHAPED_ZSTD_LEVEL if small else SHAPED_ZSTD_LEVEL
 
 
 def encode_bounds(a: np.ndarray, cctx: zstandard.ZstdCompressor) -> bytes:
@@ -701,14 +722,24 @@ def pred_codes_own(corners: np.ndarray, payload: bytes, lo: np.ndarray) -> np.nd
     schema-20 ``PRED`` payload (:func:`pred_payloads_own`) and its :func:`own_codes`
     ``lo`` (T, T): the centres first (their contexts from the corners and ``lo``), then
     the other new vertices (theirs from the centres and ``lo``)."""
+    h = np.shape(corners)[0] - 1
+    lo = np.asarray(lo, np.int16).reshape(2 * h + 1, 2 * h + 1)
+    if len(payload) < 1 or payload[0] != guess_check(lo):
+        raise ValueError("a guessed bounds payload coded against other heights")
+    dec = GapDecoder(payload[1:])
+    out = _pred_take(dec, corners, lo)
+    dec.check()
+    return out
+
+
+def _pred_take(dec: GapDecoder, corners: np.ndarray, lo: np.ndarray) -> np.ndarray:
+    # one tile's (T, T) codes from its corners (h + 1, h + 1): the next values of ``dec``
+    # in pred_gaps' order (the centres, then the other new vertices), in their gaps
     corners = np.asarray(corners, np.int16)
     h = corners.shape[0] - 1
     T = 2 * h + 1
     lo = np.asarray(lo, np.int16).reshape(T, T)
     other, n1, n2, main = _pred_index(T)
-    if len(payload) < 1 or payload[0] != guess_check(lo):
-        raise ValueError("a guessed bounds payload coded against other heights")
-    dec = GapDecoder(payload[1:])
     ext = np.empty(T * T + 1, np.int16)
     W = ext[:-1].reshape(1, T, T)
     W[0, ::2, ::2] = corners
@@ -718,8 +749,261 @@ def pred_codes_own(corners: np.ndarray, payload: bytes, lo: np.ndarray) -> np.nd
     W[0, 1::2, 1::2] = ((hc - rc) & 0xFF).reshape(h, h)
     hm = np.minimum(ext[n1], ext[n2])
     ext[other] = (hm - dec.take(hm - lo.ravel()[other])) & 0xFF
-    dec.check()
     return W[0].astype(np.uint8)
+
+
+def edge_own_codes(z: np.ndarray, valid: np.ndarray | None, stand_in: float, e: int,
+                   rows: int, cols: int) -> np.ndarray | None:
+    """Schema 23's guess of a level-0 tile's δ_edge (T, T) log8 codes: the
+    :func:`own_codes` of the tile's heights ``z`` (invalid and non-finite samples by
+    ``stand_in``) with the padding replicated from the data's edge as
+    :func:`geoterrain.bounds.edgepad.edge_support` does (the data: the tile's first
+    ``rows`` rows and ``cols`` columns), 0 on the new vertices whose diamond misses the
+    data (row > ``rows`` or column > ``cols``). None where the tile holds no data row or
+    column to replicate. The writer and the reader call it on the same heights.
+
+    Examples
+    --------
+    >>> z = np.zeros((5, 5)); z[:3, :3] = [[0, 1, 2], [1, 2, 3], [2, 3, 9]]
+    >>> g = edge_own_codes(z, None, 0.0, -3, 3, 3)
+    >>> int(g[1, 1] > 0), int(g[4, 3]), int(g[3, 4]), edge_own_codes(z, None, 0.0, -3, 0, 3)
+    (1, 0, 0, None)
+    """
+    T = z.shape[0]
+    if rows < 1 or cols < 1:
+        return None
+    ok = np.isfinite(z) if valid is None else np.asarray(valid, bool) & np.isfinite(z)
+    Z = np.where(ok, np.asarray(z, np.float64), float(stand_in))
+    if cols < T:
+        Z[:rows, cols:] = Z[:rows, cols - 1:cols]
+    if rows < T:
+        Z[rows:] = Z[rows - 1]
+    g = own_codes(Z, None, stand_in, e)[0]
+    g[rows + 1:] = 0
+    g[:, cols + 1:] = 0
+    return g
+
+
+def edge_payload_own(codes: np.ndarray, base: np.ndarray, guess: np.ndarray,
+                     pred: bool = False) -> bytes | None:
+    """Schema 23's δ_edge payload of a tile below the top (flags ``DIFF`` with ``PRED``):
+    its new vertices' δ_edge log8 ``codes`` (T, T) where its δ codes ``base`` are +inf
+    (255), range-coded (:func:`encode_gaps`) after the :func:`guess_check` of their
+    ``guess`` (:func:`edge_own_codes`): level 0's as the codes less the guess, mod 256, in
+    one context; ``pred`` (above level 0, ``SLACK`` too) as :func:`pred_gaps`'
+    differences from the parents' prediction in the contexts of their gaps above the
+    guess (``codes`` then holds the parent's codes on the even vertices). Everywhere else
+    δ_edge is δ, and None where it is not (the writer keeps the plain ``DIFF`` payload
+    then). srtm3's 19 δ_edge blobs below the top 2.99 → 1.0 kB (docs/lab/store-size.md).
+    :func:`edge_codes_own` inverts it.
+
+    Examples
+    --------
+    >>> b = np.full((3, 3), 255, np.uint8); b[0, 1] = 4
+    >>> c = b.copy(); c[1, 1], c[2, 1] = 7, 9; c[::2, ::2] = 0  # the corners: not new
+    >>> g = np.full((3, 3), 7, np.uint8); p = edge_payload_own(c, b, g)
+    >>> bool((edge_codes_own(p, b, g) == c).all()), edge_payload_own(b - 1, b, g)
+    (True, None)
+    >>> c[::2, ::2] = 8; q = edge_payload_own(c, b, g, pred=True)
+    >>> bool((edge_codes_own(q, b, g, c[::2, ::2]) == c).all())
+    True
+    """
+    T = codes.shape[0]
+    keep = _new_flat(T)
+    c = np.asarray(codes, np.int64).ravel()[keep]
+    b = np.asarray(base, np.int64).ravel()[keep]
+    sel = b == 255
+    if (c[~sel] != b[~sel]).any():
+        return None
+    g = np.asarray(guess, np.int64).ravel()[keep]
+    head = bytes([guess_check(g[sel])])
+    if not pred:
+        return head + encode_gaps((c[sel] - g[sel]) & 0xFF, np.zeros(int(sel.sum()), np.int64))
+    r, gap = pred_gaps(np.asarray(codes)[None], np.asarray(guess)[None])
+    ps = _edge_pred_order(np.asarray(base), T)
+    return head + encode_gaps(r[0][ps], gap[0][ps])
+
+
+def _edge_pred_order(base: np.ndarray, T: int) -> np.ndarray:
+    # pred_gaps' order (the centres, then the other new vertices) of the new vertices
+    # where δ's codes ``base`` are +inf
+    other = _pred_index(T)[0]
+    return np.concatenate([base[1::2, 1::2].ravel() == 255, base.ravel()[other] == 255])
+
+
+def edge_codes_own(payload: bytes, base: np.ndarray, guess: np.ndarray,
+                   corners: np.ndarray | None = None) -> np.ndarray:
+    """A tile's δ_edge codes (T, T; its new vertices', and ``corners`` on the even ones)
+    from its :func:`edge_payload_own` payload, its δ codes ``base`` and its ``guess``
+    (:func:`edge_own_codes`); ``corners`` (h + 1, h + 1): the parent's codes, for a
+    ``pred`` payload. ValueError for a payload coded against other heights or bytes the
+    encoder would not have written."""
+    T = base.shape[0]
+    keep = _new_flat(T)
+    sel = np.asarray(base).ravel()[keep] == 255
+    if len(payload) < 1 or payload[0] != guess_check(np.asarray(guess).ravel()[keep][sel]):
+        raise ValueError("a guessed bounds payload coded against other heights")
+    dec = GapDecoder(payload[1:])
+    out = _edge_take(dec, base, guess, corners)
+    dec.check()
+    return out
+
+
+def _edge_take(dec: GapDecoder, base: np.ndarray, guess: np.ndarray,
+               corners: np.ndarray | None) -> np.ndarray:
+    # one tile's δ_edge codes (T, T): δ's codes ``base`` where they are finite, the next
+    # values of ``dec`` where they are +inf (edge_payload_own's order and contexts)
+    T = base.shape[0]
+    keep = _new_flat(T)
+    b = np.asarray(base, np.int64).ravel()[keep]
+    g = np.asarray(guess, np.int64)
+    sel = b == 255
+    out = np.zeros(T * T, np.int16)
+    out[keep] = b
+    if corners is None:
+        out[keep[sel]] = (g.ravel()[keep][sel] + dec.take(np.zeros(int(sel.sum()), np.int64))
+                          ) & 0xFF
+    else:  # the centres from the corners, then the other new vertices (pred_gaps)
+        other, n1, n2, main = _pred_index(T)
+        ext = np.empty(T * T + 1, np.int16)
+        ext[:-1] = out
+        ext[-1] = 255
+        W = ext[:-1].reshape(1, T, T)
+        W[0, ::2, ::2] = corners
+        cs = np.asarray(base)[1::2, 1::2] == 255
+        hc = _pred_centres(W, main)[0]
+        rc = dec.take((hc - g[1::2, 1::2])[cs])
+        W[0, 1::2, 1::2][cs] = (hc[cs] - rc) & 0xFF
+        os_ = np.asarray(base).ravel()[other] == 255
+        hm = np.minimum(ext[n1], ext[n2])[os_]
+        ext[other[os_]] = (hm - dec.take(hm - g.ravel()[other[os_]])) & 0xFF
+        out = ext[:-1]
+    return out.astype(np.uint8).reshape(T, T)
+
+
+def top_edge_payload_own(codes: np.ndarray, base: np.ndarray, guess_at) -> bytes | None:
+    """Schema 23's whole-tile δ_edge payload (the top tile's; flags ``DIFF``, ``PRED`` and
+    ``SLACK`` without ``NEW_ONLY``): the tile's (T, T) δ_edge log8 ``codes`` level by
+    level inside it (:func:`top_steps`), its four corners as they are, then each level's
+    new vertices where δ's codes ``base`` are +inf as :func:`edge_payload_own` with
+    ``pred`` codes a tile below the top, ``guess_at(s)`` the :func:`edge_own_codes` of
+    the tile's samples s apart, in one range-coded stream after the :func:`guess_check`
+    of every guess there. None where δ_edge is not δ wherever δ is finite (off the
+    corners). :func:`top_edge_codes_own` inverts it.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(4)
+    >>> b = rng.choice(np.array([3, 255], np.uint8), (9, 9)); c = b.copy()
+    >>> c[b == 255] = rng.integers(0, 256, int((b == 255).sum()))
+    >>> g = {s: rng.integers(0, 256, (8 // s + 1,) * 2).astype(np.uint8) for s in (4, 2, 1)}
+    >>> bool((top_edge_codes_own(top_edge_payload_own(c, b, g.get), b, g.get) == c).all())
+    True
+    """
+    c, b = np.asarray(codes, np.uint8), np.asarray(base, np.uint8)
+    T = c.shape[0]
+    off = np.ones((T, T), bool)
+    off[::T - 1, ::T - 1] = False
+    if (c[off & (b != 255)] != b[off & (b != 255)]).any():
+        return None
+    rs, gs, checks = [], [], []
+    for s in top_steps(T):
+        g = np.asarray(guess_at(s), np.uint8)
+        r, gap = pred_gaps(c[None, ::s, ::s], g[None])
+        ps = _edge_pred_order(b[::s, ::s], g.shape[0])
+        rs.append(r[0][ps])
+        gs.append(gap[0][ps])
+        checks.append(g.ravel()[_new_flat(g.shape[0])][b[::s, ::s].ravel()[
+            _new_flat(g.shape[0])] == 255])
+    return (bytes([guess_check(np.concatenate(checks))]) + c[::T - 1, ::T - 1].tobytes()
+            + encode_gaps(np.concatenate(rs), np.concatenate(gs)))
+
+
+def top_edge_codes_own(payload: bytes, base: np.ndarray, guess_at) -> np.ndarray:
+    """A whole tile's (T, T) δ_edge codes from its :func:`top_edge_payload_own` payload,
+    its δ codes ``base`` and its guesses ``guess_at(s)``; ValueError for a payload
+    coded against other heights, or bytes the encoder would not have written."""
+    b = np.asarray(base, np.uint8)
+    T = b.shape[0]
+    gs, checks = [], []
+    for s in top_steps(T):
+        g = np.asarray(guess_at(s), np.uint8)
+        n = (T - 1) // s + 1
+        if g.shape != (n, n):
+            raise ValueError("an edge guess of the wrong shape")
+        gs.append(g)
+        checks.append(g.ravel()[_new_flat(n)][b[::s, ::s].ravel()[_new_flat(n)] == 255])
+    if len(payload) < 5 or payload[0] != guess_check(np.concatenate(checks)):
+        raise ValueError("a guessed bounds payload coded against other heights")
+    W = np.frombuffer(payload[1:5], np.uint8).reshape(2, 2)
+    dec = GapDecoder(payload[5:])
+    for s, g in zip(top_steps(T), gs, strict=True):
+        W = _edge_take(dec, b[::s, ::s], g, W)
+    dec.check()
+    return W
+
+
+def top_steps(T: int) -> list[int]:
+    """The sample steps of a whole tile's levels inside it, coarsest first:
+    (T − 1) / 2, …, 2, 1 (T − 1 a power of two ≥ 2)."""
+    if T < 3 or (T - 1) & (T - 2):
+        raise ValueError("a tile of 2^k + 1 samples a side, k ≥ 1")
+    return [1 << b for b in range((T - 1).bit_length() - 2, -1, -1)]
+
+
+def top_payload_own(codes: np.ndarray, lo_at) -> bytes:
+    """Schema 23's whole-tile δ payload (the top tile's; flags ``PRED`` with ``SLACK``
+    without ``NEW_ONLY``): the tile's (T, T) log8 ``codes`` level by level inside it, as
+    :func:`pred_payloads_own` codes a tile below the top: its four corners, then, for each
+    step s of :func:`top_steps`, the vertices new at s (the samples s apart, their parents
+    2s apart) as :func:`pred_gaps`' differences in their gaps above ``lo_at(s)``, the
+    :func:`own_codes` of the tile's samples s apart, all range-coded in one stream
+    (:func:`encode_gaps`), after the :func:`guess_check` of every level's guess.
+    srtm3's top δ 1.50 → 0.97 kB (docs/lab/store-size.md). :func:`top_codes_own`
+    inverts it; any guess decodes exactly.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(3)
+    >>> c = rng.integers(0, 256, (9, 9)).astype(np.uint8)
+    >>> lo = {s: rng.integers(0, 256, (8 // s + 1,) * 2).astype(np.uint8) for s in (4, 2, 1)}
+    >>> bool((top_codes_own(top_payload_own(c, lo.get), 9, lo.get) == c).all())
+    True
+    """
+    c = np.asarray(codes, np.uint8)
+    T = c.shape[0]
+    los = [np.asarray(lo_at(s), np.uint8) for s in top_steps(T)]
+    rs, gs = [], []
+    for s, lo in zip(top_steps(T), los, strict=True):
+        r, gap = pred_gaps(c[None, ::s, ::s], lo[None])
+        rs.append(r[0])
+        gs.append(gap[0])
+    check = guess_check(np.concatenate([lo.ravel() for lo in los]))
+    return (bytes([check]) + c[::T - 1, ::T - 1].tobytes()
+            + encode_gaps(np.concatenate(rs), np.concatenate(gs)))
+
+
+def top_codes_own(payload: bytes, T: int, lo_at) -> np.ndarray:
+    """A whole tile's (T, T) log8 codes from its :func:`top_payload_own` payload and its
+    guesses ``lo_at(s)`` (each step s of :func:`top_steps`: the :func:`own_codes` of the
+    tile's samples s apart); ValueError for a payload coded against other heights, or
+    bytes the encoder would not have written."""
+    steps = top_steps(T)
+    los = []
+    for s in steps:
+        lo = np.asarray(lo_at(s), np.uint8)
+        if lo.shape != ((T - 1) // s + 1,) * 2:
+            raise ValueError("an own-error guess of the wrong shape")
+        los.append(lo)
+    if len(payload) < 5 or payload[0] != guess_check(
+            np.concatenate([lo.ravel() for lo in los])):
+        raise ValueError("a guessed bounds payload coded against other heights")
+    W = np.frombuffer(payload[1:5], np.uint8).reshape(2, 2)
+    dec = GapDecoder(payload[5:])
+    for lo in los:
+        W = _pred_take(dec, W, lo)
+    dec.check()
+    return W
 
 
 def ring_payloads_own(rings: np.ndarray, guess: np.ndarray) -> list[bytes]:
@@ -805,6 +1089,46 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
     own_ring = flags & (RING | PRED | CENTRES) == RING | PRED
     if (coded or own_ring) and own is None:
         raise ValueError("a bounds blob guessed from the heights needs the tile's heights")
+    if flags & (DIFF | PRED | SLACK | NEW_ONLY) == DIFF | PRED | SLACK:
+        # schema 23: a whole (top) tile's δ_edge, level by level, guessed
+        if flags & (RING | CENTRES | MIDS) or not flags & LOG8 or len(shape) != 2 \
+                or shape[0] != shape[1] or shape[0] < 3 or (shape[0] - 1) & (shape[0] - 2) \
+                or own is None or base is None or np.shape(base) != tuple(shape) \
+                or parent is not None:
+            raise ValueError("a whole tile's guessed difference bounds blob needs a square "
+                             "tile's δ and heights")
+        b = log8_codes(np.asarray(base, np.float64), e).astype(np.uint8)
+        codes = top_edge_codes_own(blob[3:], b, lambda s: own(e, s))
+        return _log8_table_ro(e)[codes.ravel()].reshape(shape).astype(np.float32)
+    if flags & (DIFF | PRED) == DIFF | PRED:  # schema 23: a δ_edge below the top, guessed
+        if flags & (RING | CENTRES | MIDS) or not flags & NEW_ONLY \
+                or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1] \
+                or shape[0] < 3 or own is None or base is None \
+                or np.shape(base) != tuple(shape) or parent is None \
+                or np.shape(parent) != tuple(shape):
+            raise ValueError("a guessed difference bounds blob needs a level-0 tile's δ, "
+                             "heights and parent")
+        g = own(e)
+        if g is None or np.shape(g) != tuple(shape):
+            raise ValueError("an edge guess of the wrong shape")
+        b = log8_codes(np.asarray(base, np.float64), e).astype(np.uint8)
+        half = (shape[0] - 1) // 2
+        px, py = int(parity[0]) & 1, int(parity[1]) & 1
+        a = np.asarray(parent[py * half: py * half + half + 1,
+                              px * half: px * half + half + 1], np.float64)
+        corners = (np.searchsorted(_log8_table64(e), np.where(np.isnan(a), np.inf, a))
+                   if flags & SLACK else None)  # SLACK: predicted from the parents
+        out = _log8_table_ro(e)[edge_codes_own(blob[3:], b, g, corners).ravel()]
+        out = out.reshape(shape).astype(np.float32)
+        out[::2, ::2] = a
+        return out
+    if coded and not flags & NEW_ONLY:  # schema 23: a whole tile's δ, level by level
+        if flags & DIFF or not flags & LOG8 or len(shape) != 2 or shape[0] != shape[1] \
+                or shape[0] < 3 or (shape[0] - 1) & (shape[0] - 2) or parent is not None:
+            raise ValueError("a whole tile's guessed bounds blob needs a square tile of "
+                             "log8 codes and its heights")
+        codes = top_codes_own(blob[3:], shape[0], lambda s: own(e, s))
+        return _log8_table_ro(e)[codes.ravel()].reshape(shape).astype(np.float32)
     if coded and flags & DIFF:
         raise ValueError("a range-coded predicted bounds blob has no other shape")
     if own_ring and flags & (DIFF | CENTRES | MIDS):
@@ -862,7 +1186,8 @@ def _decode_v2(blob: bytes, shape: tuple[int, ...], parent: np.ndarray | None,
         n = len(keep) if keep is not None else int(np.prod(shape))
     width = 1 if flags & LOG8 else 2
     # schema 20's payloads are range-coded (bounded by their count), the others zstd
-    raw = body if coded or own_ring else zstdsafe.decompress(body, width * n, exact=True)
+    raw = body if coded or own_ring else zstdsafe.decompress(body, width * n, exact=True) \
+        if body or not guessed else bytes(n)  # schema 23: no payload, every guess exact
     if guessed:  # each centre from the heights' guess, the other new vertices code 0
         h = (T - 1) // 2
         g = np.asarray(guess(e), np.uint8)

@@ -68,7 +68,6 @@ class Frame:
     z_to_m: float = 1.0  # vertical unit → metres
     z_scale: float = 1.0  # vertical exaggeration
     origin_crs: tuple[float, float] = (0.0, 0.0)  # CRS coords of the scene origin
-    aeqd_wkt: str | None = None  # local metric frame of a geographic grid
     # (rows, cols) of level 0's lattice of a geographic root grid whose extent passes it:
     # positions past it are proxies (:meth:`xy`); None: pyproj everywhere (stores before
     # schema 16, and every frame whose grid has no sample past its lattice)
@@ -130,18 +129,34 @@ class Frame:
 
     def _with_origin(self) -> Frame:
         ox, oy = self._crs_xy(np.array([(self.rows - 1) / 2]), np.array([(self.cols - 1) / 2]))
-        origin = (float(ox[0]), float(oy[0]))
-        aeqd = None
-        if self.kind == "geographic":
-            from pyproj import CRS
-            from pyproj.crs import ProjectedCRS
-            from pyproj.crs.coordinate_operation import AzimuthalEquidistantConversion
+        return Frame(**{**asdict(self), "origin_crs": (float(ox[0]), float(oy[0]))})
 
-            geod = CRS.from_wkt(self.crs_wkt).geodetic_crs
-            conv = AzimuthalEquidistantConversion(latitude_natural_origin=origin[1],
-                                                  longitude_natural_origin=origin[0])
-            aeqd = ProjectedCRS(conversion=conv, geodetic_crs=geod).to_wkt()
-        return Frame(**{**asdict(self), "origin_crs": origin, "aeqd_wkt": aeqd})
+    @cached_property
+    def aeqd_wkt(self) -> str | None:
+        """The local metric frame of a geographic grid (None for the other kinds): the
+        azimuthal equidistant projection of the CRS's geodetic datum about
+        :attr:`origin_crs`. Built from ``crs_wkt`` and ``origin_crs`` when first asked for
+        (pyproj is loaded then); stores of schema 23 on no longer hold it (it was a third
+        of a small store's metadata, docs/lab/store-size.md).
+
+        Examples
+        --------
+        >>> from pyproj import CRS
+        >>> f = Frame.from_raster((0.001, 0, 10, 0, -0.001, 50), CRS.from_epsg(4326).to_wkt(),
+        ...                       6, 6)
+        >>> "Azimuthal Equidistant" in f.aeqd_wkt, Frame.pixel(3, 3).aeqd_wkt
+        (True, None)
+        """
+        if self.kind != "geographic":
+            return None
+        from pyproj import CRS
+        from pyproj.crs import ProjectedCRS
+        from pyproj.crs.coordinate_operation import AzimuthalEquidistantConversion
+
+        geod = CRS.from_wkt(self.crs_wkt).geodetic_crs
+        conv = AzimuthalEquidistantConversion(latitude_natural_origin=self.origin_crs[1],
+                                              longitude_natural_origin=self.origin_crs[0])
+        return ProjectedCRS(conversion=conv, geodetic_crs=geod).to_wkt()
 
     # --------------------------------------------------------------- mapping
     def _crs_xy(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -405,8 +420,8 @@ class Frame:
         return CRS.from_wkt(self.crs_wkt).name
 
     def to_json(self) -> dict:
-        """The store's frame; ``lattice`` only where it is set (every other frame's JSON
-        is what stores always held)."""
+        """The store's frame; ``lattice`` only where it is set; no ``aeqd_wkt`` (schema
+        23: a reader builds it from ``crs_wkt`` and ``origin_crs``, :attr:`aeqd_wkt`)."""
         d = asdict(self)
         if d["lattice"] is None:
             del d["lattice"]
@@ -417,6 +432,7 @@ class Frame:
     @staticmethod
     def from_json(d: dict) -> Frame:
         d = dict(d)
+        d.pop("aeqd_wkt", None)  # derived (:attr:`aeqd_wkt`); a store's check refuses it
         d["transform"] = tuple(d["transform"])
         d["origin_crs"] = tuple(d["origin_crs"])
         if d.get("lattice") is not None:

@@ -31,6 +31,7 @@ from geoterrain.bounds.normals import level_normal_codes, ring_normal_codes
 from geoterrain.bounds.radii import numpy_range, stand_in_z, valid_range, vertex_radii
 from geoterrain.bounds.tileblobs import (
     BoundsCoding,
+    EdgeGuess,
     OwnHeights,
     level_blobs,
     radius_codes,
@@ -41,6 +42,7 @@ from geoterrain.bounds.vertexdata import (
     NORMAL_BITS,
     log8_exponent,
     pack_block_errors,
+    shaped_zstd_level,
     store_metadata,
 )
 from geoterrain.codec.pyramid import decoded_heights, encode_decoded, encode_pyramid
@@ -787,7 +789,8 @@ def _level_part(c: _Level, L: int, keys: list, lattice: tuple | None
                                     ring=b.ring_kinds if L == 0 else False,
                                     slack=b.slack if L == 0 else None,
                                     mids=L > 0 and "radius" in b.ring_kinds,
-                                    centres=centres, heights=heights, own=c.own)
+                                    centres=centres, heights=heights, own=c.own,
+                                    zlevel=shaped_zstd_level(grid.rows, grid.cols))
     if c.derive_normals:
         guess_n = None
         if c.ring_residual:  # each ring as its difference from the reader's derived map
@@ -797,7 +800,8 @@ def _level_part(c: _Level, L: int, keys: list, lattice: tuple | None
                                    np.array([(y << grid.t, x << grid.t) for x, y in txy],
                                             np.int64).reshape(-1, 2))
         blobs["normals"] = ring_blobs(c.normal_maps[L], grid.t,
-                                      [(x, y) for _, x, y in keys], L, guess_n)
+                                      [(x, y) for _, x, y in keys], L, guess_n,
+                                      shaped_zstd_level(grid.rows, grid.cols))
     return blobs, dmax, rmax
 
 
@@ -824,8 +828,14 @@ def _level_rows(c: _Level, L: int, keys: list, blobs: dict, dmax: np.ndarray,
         ekeys = [(x, y) for L2, x, y in keys_e if L2 == L]
         if not ekeys:
             continue
+        # schema 23: the stored tiles below the top guessed from the heights, the
+        # padding replicated (vertexdata.edge_own_codes)
+        guessed = base is not None
         eb, emax, _ = level_blobs(edge, no_map, grid.t, L, top, ekeys, ("delta",),
-                                  base=base)
+                                  base=base, zlevel=shaped_zstd_level(grid.rows, grid.cols),
+                                  own=c.own if guessed else None,
+                                  edge=EdgeGuess(grid.rows, grid.cols, L > 0)
+                                  if guessed else None)
         extra["delta_edge"].update(eb["delta"])
         level_edge.update(eb["delta"])
         edge_max.extend([L, x, y, m if np.isfinite(m) else None]

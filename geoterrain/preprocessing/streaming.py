@@ -43,11 +43,18 @@ import numpy as np
 
 from geoterrain.bounds.edgepad import has_padding
 from geoterrain.bounds.leafbounds import CentreHeights, ring_guesses
-from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs, ring_blobs
+from geoterrain.bounds.tileblobs import (
+    BoundsCoding,
+    EdgeGuess,
+    OwnHeights,
+    level_blobs,
+    ring_blobs,
+)
 from geoterrain.bounds.tilebounds import TileTable
 from geoterrain.bounds.vertexdata import (
     log8_exponent,
     pack_block_errors,
+    shaped_zstd_level,
     store_metadata,
 )
 from geoterrain.codec.quantize import roundtrip
@@ -462,6 +469,7 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
     heights of every level (schema 20, :class:`geoterrain.bounds.tileblobs.OwnHeights`)."""
     n, t, top = grid.n, grid.t, grid.top_level
     T, T1 = grid.tile_samples, grid.tile_samples - 1
+    zlevel = shaped_zstd_level(grid.rows, grid.cols)
     ed = log8_exponent(np.array([dmax]))
     if se is not None:
         ed = max(ed, log8_exponent(np.array([emax])))
@@ -538,12 +546,12 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                                if (x, y) in slack} if L == 0 and slack else None,
                         mids=L > 0 and "radius" in ring,
                         centres=centres if L == 0 else None,
-                        heights=centres if L > 0 else None, own=own)
+                        heights=centres if L > 0 else None, own=own, zlevel=zlevel)
                     del centres, own
                     if derive_normals:
                         guess_n = (None if frame is None else
                                    _ring_guess_row(sn, grid, frame, L, y, keys, m))
-                        blobs["normals"] = ring_blobs(nrm, t, local, 0, guess_n)
+                        blobs["normals"] = ring_blobs(nrm, t, local, 0, guess_n, zlevel)
                     for kind, bl in blobs.items():
                         got.setdefault(kind, {}).update(
                             {(L, x + x0, y): v for (_, x, _), v in bl.items()})
@@ -562,9 +570,19 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                           and x not in kept], None, e_rows[1])):
                     if not keys_e:
                         continue
+                    # schema 23: the stored tiles below the top guessed from the
+                    # heights, the padding replicated (vertexdata.edge_own_codes): the
+                    # data's samples of the window's lattice
+                    guessed = base is not None
+                    own_e = OwnHeights(level_lattice(sa, "Z", L, n, p0, p1, m, True,
+                                                     np.float64, q0, q1), None,
+                                       own_stand_in) if guessed else None
+                    eg = EdgeGuess((grid.rows - 1 >> L) - p0 + 1,
+                                   (grid.cols - 1 >> L) - q0 + 1, L > 0)
                     eb, emx, _ = level_blobs(edge, nrm, t, 0, top_w if base is not None
                                              else 0, [(x - x0, 0) for x in keys_e],
-                                             ("delta",), base=base)
+                                             ("delta",), base=base, zlevel=zlevel,
+                                             own=own_e, edge=eg if guessed else None)
                     into.update({x: (v, mx) for x, (v, mx) in zip(
                         keys_e, zip(eb["delta"].values(), emx.tolist(), strict=True),
                         strict=True)})

@@ -80,7 +80,7 @@ def _grid(m: dict) -> Grid:
 
 def _frame(m: dict, g: Grid) -> Frame:
     fields = {"kind", "rows", "cols", "transform", "crs_wkt", "unit_to_m", "z_to_m", "z_scale",
-              "origin_crs", "aeqd_wkt"}
+              "origin_crs"}  # no aeqd_wkt from schema 23 on: built on read (Frame.aeqd_wkt)
     d = _keys(m.get("frame"), fields | {"lattice"}, fields, "frame")
     if d["kind"] not in _FRAME_KINDS:
         raise _Bad("frame.kind is unknown")
@@ -111,11 +111,10 @@ def _frame(m: dict, g: Grid) -> Frame:
     if not isinstance(oc, list) or len(oc) != 2:
         raise _Bad("frame.origin_crs must be 2 numbers")
     [_num(v, "frame.origin_crs") for v in oc]
-    for k in ("crs_wkt", "aeqd_wkt"):
-        if d[k] is not None and (not isinstance(d[k], str) or len(d[k]) > 100_000):
-            raise _Bad(f"frame.{k} must be text")
-    if (d["kind"] == "pixel") != (d["crs_wkt"] is None) or \
-            (d["kind"] == "geographic") != (d["aeqd_wkt"] is not None):
+    if d["crs_wkt"] is not None and (not isinstance(d["crs_wkt"], str)
+                                     or len(d["crs_wkt"]) > 100_000):
+        raise _Bad("frame.crs_wkt must be text")
+    if (d["kind"] == "pixel") != (d["crs_wkt"] is None):
         raise _Bad("frame.kind does not match its CRS")
     if d["kind"] == "geographic":
         lat = [tr[5], tr[5] + tr[4] * g.rows]

@@ -122,14 +122,18 @@ _KIND_NAMES = {i: k for k, i in KIND_CODES.items()}  # a blob key's kind number 
 #                       the tile's heights: PRED payloads in the order of their own-error
 #                       gaps (PRED with SLACK), level-0 rings as differences from the own
 #                       errors' codes (RING with PRED; vertexdata.own_codes)
-SCHEMA_VERSION = 20
-ROOTS_SCHEMA_VERSION = 21  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
+#                   23: the frame without its aeqd_wkt (rebuilt on read from crs_wkt and
+#                       origin_crs, Frame.aeqd_wkt); a small grid's shaped payloads at
+#                       zstd 15 (vertexdata.shaped_zstd_level; any zstd decoder reads them)
+SCHEMA_VERSION = 23
+ROOTS_SCHEMA_VERSION = 24  # a grid of root tiles (grid.layout "roots"); 7 before schema 8,
 #                            9 before schema 10, 11 before 12, 13 before 14, 15 before 17,
-#                            18 before 20
-LATTICE_SCHEMA_VERSION = 22  # a root grid whose geographic frame has proxy positions past
+#                            18 before 20, 21 before 23
+LATTICE_SCHEMA_VERSION = 25  # a root grid whose geographic frame has proxy positions past
 #                              level 0's lattice (frame.lattice, Frame.xy): an older
 #                              reader would place its padding by pyproj, not where its
-#                              bounds were computed (16 before schema 17, 19 before 20)
+#                              bounds were computed (16 before schema 17, 19 before 20,
+#                              22 before 23)
 #: every version this geoterrain reads
 SCHEMA_VERSIONS = (SCHEMA_VERSION, ROOTS_SCHEMA_VERSION, LATTICE_SCHEMA_VERSION)
 

@@ -408,7 +408,7 @@ def test_delta_edge_decodes_to_the_replicated_grids_delta(tmp_path_factory, seed
     replicates the data's edge, computed here from the decoded heights by
     :mod:`geoterrain.bounds.edgepad` and coded with the store's table."""
     from geoterrain.bounds.edgepad import edge_deltas, edge_support
-    from geoterrain.bounds.vertexdata import DIFF, log8_codes, log8_table
+    from geoterrain.bounds.vertexdata import DIFF, PRED, log8_codes, log8_table
 
     tmp = tmp_path_factory.mktemp("de")
     rng = np.random.default_rng(seed)
@@ -423,7 +423,7 @@ def test_delta_edge_decodes_to_the_replicated_grids_delta(tmp_path_factory, seed
     Zr, ok = edge_support(t.frame.z(np.where(v, h, np.nan)), v, g)
     e = np.int8(np.uint8(t._blob((g.top_level, 0, 0), "delta")[2]))
     want = log8_table(int(e))[log8_codes(edge_deltas(Zr, ok, g), int(e))]
-    diffs = 0
+    diffs = guessed = 0
     for L, x, y in t.tile_info:
         s = 1 << L
         rows = y * (g.tile_samples - 1) * s + np.arange(g.tile_samples) * s
@@ -431,4 +431,7 @@ def test_delta_edge_decodes_to_the_replicated_grids_delta(tmp_path_factory, seed
         got = t.tile_delta_edge(L, x, y)
         assert np.array_equal(got, want[np.ix_(rows, cols)]), (L, x, y)
         diffs += (L, x, y) in t.edge_max and bool(t._blob((L, x, y), "delta_edge")[1] & DIFF)
+        # schema 23: guessed from the heights, the padding replicated
+        guessed += (L, x, y) in t.edge_max and bool(t._blob((L, x, y), "delta_edge")[1] & PRED)
     assert diffs or not t.edge_max  # the difference blobs were exercised
+    assert guessed or not t.edge_max

@@ -188,10 +188,11 @@ def test_a_store_decodes_every_level_to_the_whole_grid_codes(tmp_path):
 
 
 def test_a_damaged_or_misplaced_pred_blob_in_a_store_is_refused_in_one_line(tmp_path):
-    """A stranger's store: PRED on a top tile, beside RING, without log8 codes, or a
-    payload one byte long: each read is a one-line StoreCorruptError."""
+    """A stranger's store: PRED on a top tile without SLACK (schema 23's top δ is PRED
+    with SLACK), beside RING, without log8 codes, or a payload one byte long: each read
+    is a one-line StoreCorruptError."""
     import geoterrain
-    from geoterrain.bounds.vertexdata import LOG8, NEW_ONLY, RING, VERSION_2
+    from geoterrain.bounds.vertexdata import LOG8, NEW_ONLY, RING, SLACK, VERSION_2
     from geoterrain.exceptions import StoreCorruptError
     from tests.conftest import write_tif
 
@@ -209,7 +210,8 @@ def test_a_damaged_or_misplaced_pred_blob_in_a_store_is_refused_in_one_line(tmp_
 
     short = bytes([VERSION_2, NEW_ONLY | LOG8 | PRED, 0]) + zstandard.ZstdCompressor().compress(
         b"\0")
-    cases = [((top, 0, 0), "delta", flagged(blob((top, 0, 0), "delta"), PRED)),
+    assert blob((top, 0, 0), "delta")[1] & (PRED | SLACK | NEW_ONLY) == PRED | SLACK
+    cases = [((top, 0, 0), "delta", flagged(blob((top, 0, 0), "delta"), 0, SLACK)),
              ((1, 1, 0), "delta", flagged(d110, RING)),
              ((1, 1, 0), "delta", flagged(d110, 0, LOG8)),
              ((1, 1, 0), "delta", short),

@@ -207,11 +207,12 @@ def test_level_blobs_with_log8_radii_match_the_per_tile_packers(t, levels, seed)
 
 
 @settings(max_examples=6, deadline=None)
-@given(seed=st.integers(0, 2**31), t=st.integers(5, 6))
-def test_shaped_payloads_are_zstd_11_whole_and_edge_ones_15_the_others_3(seed, t):
+@given(seed=st.integers(0, 2**31), t=st.integers(5, 6), small=st.booleans())
+def test_shaped_payloads_are_zstd_11_whole_and_edge_ones_15_the_others_3(seed, t, small):
     """Every δ and r blob flagged CENTRES, PRED or RING is its header and its payload at
-    zstd level SHAPED_ZSTD_LEVEL (11); every other δ and r blob of a whole tile (the top
-    level's: no NEW_ONLY) or flagged DIFF (a δ_edge) at EDGE_ZSTD_LEVEL (15: a tile a
+    zstd level SHAPED_ZSTD_LEVEL (11), or the level passed (``zlevel``: 15 for a small
+    grid, vertexdata.shaped_zstd_level; schema 23); every other δ and r blob of a whole
+    tile (the top level's: no NEW_ONLY) or flagged DIFF (a δ_edge) at EDGE_ZSTD_LEVEL (15: a tile a
     store, or the tiles along the data's edge); every other δ, r and normals blob at 3:
     the level is part of the store's bytes, which all writers share through level_blobs.
     The tiles (33² or 65², codes from a few values) are large enough for the levels to
@@ -225,6 +226,7 @@ def test_shaped_payloads_are_zstd_11_whole_and_edge_ones_15_the_others_3(seed, t
         RING,
         SHAPED_ZSTD_LEVEL,
         SLACK,
+        SMALL_SHAPED_ZSTD_LEVEL,
         VERSION_2,
     )
     from geoterrain.core.zstdsafe import compress_one, decompress
@@ -242,6 +244,8 @@ def test_shaped_payloads_are_zstd_11_whole_and_edge_ones_15_the_others_3(seed, t
     edge = delta.copy()
     edge[-(n // 4):] = np.maximum(edge[-(n // 4):], rng.choice([0.5, 2.0, 7.0], (n // 4, n)))
     coding_e = BoundsCoding(edge, None, ed=coding.ed, r_codes=(rc, 0))
+    shaped_level = SMALL_SHAPED_ZSTD_LEVEL if small else SHAPED_ZSTD_LEVEL
+    kw = {"zlevel": SMALL_SHAPED_ZSTD_LEVEL} if small else {}
     seen = {3: 0, SHAPED_ZSTD_LEVEL: 0, EDGE_ZSTD_LEVEL: 0}
     differ = {SHAPED_ZSTD_LEVEL: 0, EDGE_ZSTD_LEVEL: 0}
     for L in range(levels + 1):
@@ -249,9 +253,9 @@ def test_shaped_payloads_are_zstd_11_whole_and_edge_ones_15_the_others_3(seed, t
         nrm = rng.integers(0, 4, ((n - 1) // (1 << L) + 1,) * 2 + (2,)).astype(np.uint8)
         tiles = [(x, y) for y in range(nt) for x in range(nt)]
         got, _, _ = level_blobs(coding, nrm, t, L, levels, tiles, ring=("delta",) if L == 0
-                                else False)
+                                else False, **kw)
         diff, _, _ = level_blobs(coding_e, nrm, t, L, levels, tiles, kinds=("delta",),
-                                 base=coding)
+                                 base=coding, **kw)
         for kind, blobs in [*got.items(), ("delta_edge", diff["delta"])]:
             for blob in blobs.values():
                 head = 0 if kind == "normals" else 3 + 4 * bool(blob[1] & SLACK)
@@ -259,10 +263,46 @@ def test_shaped_payloads_are_zstd_11_whole_and_edge_ones_15_the_others_3(seed, t
                 shaped = bound and bool(blob[1] & (CENTRES | PRED | RING))
                 whole = bound and not shaped and bool(blob[1] & DIFF or not blob[1] & NEW_ONLY)
                 assert (kind == "delta_edge") == bool(bound and blob[1] & DIFF)
-                level = SHAPED_ZSTD_LEVEL if shaped else EDGE_ZSTD_LEVEL if whole else 3
+                level = shaped_level if shaped else EDGE_ZSTD_LEVEL if whole else 3
                 raw = decompress(blob[head:], 1 << 20)
                 assert blob[head:] == compress_one(raw, level), (kind, L, blob[:3])
-                seen[level] += 1
+                key = SHAPED_ZSTD_LEVEL if shaped else level
+                seen[key] += 1
                 if level != 3:
-                    differ[level] += compress_one(raw, 3) != compress_one(raw, level)
+                    differ[key] += compress_one(raw, 3) != compress_one(raw, level)
     assert all(seen.values()) and all(differ.values()), (seen, differ)
+
+
+def test_a_small_grids_store_holds_its_shaped_payloads_at_zstd_15(tmp_path):
+    """Every writer passes vertexdata.shaped_zstd_level of the grid: a small grid's store
+    (here 100 × 117 samples, geographic: level-0 normals rings as residuals, r centres
+    guessed) holds its normals rings and shaped δ and r payloads at zstd 15, which here
+    differ from level 11's bytes (the level would be 11 for a grid past 3 · 2^16)."""
+    import geoterrain
+    from geoterrain.bounds.vertexdata import CENTRES, PRED, RING, SLACK, VERSION_2
+    from geoterrain.core.zstdsafe import compress_one, decompress
+    from geoterrain.ingest.synth import generate, write_geotiff
+    from geoterrain.store.database import StoreReader
+
+    dem = write_geotiff(tmp_path / "g.tif", generate("fbm", 129, seed=3)[:100, :117].copy(),
+                        crs="EPSG:4326", origin=(24.0, 61.0), spacing=1 / 1200)
+    p = geoterrain.preprocess(dem, tmp_path / "g.geoterrain", tile_size=32)
+    r = StoreReader(p)
+    assert r.metadata["normals_ring_residual"] is True
+    seen, differ = 0, 0
+    for key in r.tiles():
+        for kind in ("normals", "delta", "radius"):
+            blob = r.get_blob(key, kind)
+            if kind != "normals":  # the shaped δ and r payloads (not range-coded ones)
+                if blob is None or blob[0] != VERSION_2 or not blob[1] & (CENTRES | PRED | RING) \
+                        or blob[1] & SLACK or blob[1] & RING and blob[1] & PRED:
+                    continue
+                blob = blob[3 + 2 * (blob[1] & PRED and not blob[1] & CENTRES and key[0] > 0):]
+                if not blob:  # schema 23: an r whose guessed centres are exact, no payload
+                    continue
+            raw = decompress(blob, 1 << 20)
+            assert blob == compress_one(raw, 15), (key, kind)
+            seen += 1
+            differ += blob != compress_one(raw, 11)
+    r.close()
+    assert seen and differ, (seen, differ)

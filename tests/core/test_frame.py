@@ -157,3 +157,28 @@ def _child_transform(frame, x, y):
 
     f = Frame.from_json(frame)
     return [a.tobytes() for a in _transform_threads(f._to_scene, x, y)]
+
+
+@pytest.mark.fast
+def test_the_aeqd_frame_is_rebuilt_from_the_crs_and_the_origin():
+    """Schema 23: a store's frame holds no aeqd_wkt; Frame.aeqd_wkt builds it from crs_wkt
+    and origin_crs: the azimuthal equidistant projection of the datum about the origin
+    (the origin maps to (0, 0), a point 1 km east lies 1 km away), the same after a JSON
+    round trip, and None on the other kinds; an old frame dict with the field reads."""
+    t = (1 / 1200, 0.0, 138.0, 0.0, -1 / 1200, 36.0)
+    f = Frame.from_raster(t, CRS.from_epsg(4326).to_wkt(), 359, 367)
+    d = f.to_json()
+    assert "aeqd_wkt" not in d
+    g = Frame.from_json(d)
+    assert g == f and g.aeqd_wkt == f.aeqd_wkt
+    aeqd = CRS.from_wkt(g.aeqd_wkt)
+    assert aeqd.coordinate_operation.method_name.endswith("Azimuthal Equidistant")
+    from pyproj import Transformer
+
+    tr = Transformer.from_crs(CRS.from_epsg(4326), aeqd, always_xy=True)
+    x0, y0 = tr.transform(*f.origin_crs)
+    assert abs(x0) < 1e-6 and abs(y0) < 1e-6
+    lon1, lat1, _ = Geod(ellps="WGS84").fwd(*f.origin_crs, 90.0, 1000.0)
+    assert np.hypot(*tr.transform(lon1, lat1)) == pytest.approx(1000.0, abs=1e-6)
+    assert Frame.from_json({**d, "aeqd_wkt": "ignored"}) == f  # derived, not read
+    assert Frame.pixel(3, 3).aeqd_wkt is None

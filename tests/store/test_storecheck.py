@@ -158,27 +158,28 @@ def test_a_root_grid_store_passes_its_checks(wide_store):
     for grid in (dict(m["grid"], n=m["grid"]["n"] + 1), dict(m["grid"], layout="square")):
         with pytest.raises(StoreError, match="invalid metadata"):
             check_store(path, dict(m, grid=grid), t)
-    # the schema version follows the layout: 21 for root grids, 20 for squares
+    # the schema version follows the layout: 24 for root grids, 23 for squares
     for mm, tt in ((dict(m, schema_version=SCHEMA_VERSION), t),
                    (dict(meta, schema_version=ROOTS_SCHEMA_VERSION), tiles)):
         with pytest.raises(StoreError, match=r"invalid metadata \(a (root|square) grid is "
-                                             r"written in schema version 2[01], not 2[01]\)"):
+                                             r"written in schema version 2[34], not 2[34]\)"):
             check_store(path, mm, tt)
     # the square store itself is still read
-    assert meta["schema_version"] == SCHEMA_VERSION == 20
+    assert meta["schema_version"] == SCHEMA_VERSION == 23
     assert check_store(path, meta, tiles)[0] == g
-    for old in (14, 15, 17, 18):  # before 20: its δ and r blobs are not 20's, refused
-        with pytest.raises(StoreError, match=f"written in schema version 20, not {old}"):
+    # before 23: its frame holds aeqd_wkt (and before 20 its δ and r blobs are not 20's)
+    for old in (14, 15, 17, 18, 20, 21, 22):
+        with pytest.raises(StoreError, match=f"written in schema version 23, not {old}"):
             check_store(path, dict(meta, schema_version=old), tiles)
 
 
-def test_the_writer_puts_a_root_grid_in_schema_version_21_and_the_reader_opens_both(
+def test_the_writer_puts_a_root_grid_in_schema_version_24_and_the_reader_opens_both(
         tmp_path, wide_store):
     from geoterrain.store.database import StoreReader, StoreWriter
 
     _, meta, tiles, g = wide_store
     m, _, r = _as_roots(meta, tiles, g)
-    for name, grid, version in (("roots", r.to_json(), 21), ("square", g.to_json(), 20)):
+    for name, grid, version in (("roots", r.to_json(), 24), ("square", g.to_json(), 23)):
         with StoreWriter(tmp_path / f"{name}.geoterrain") as w:
             w.put_metadata({"grid": grid, "schema_version": 1})  # the writer's to set
             w.put_blob((0, 0, 0), "heights", b"x")
@@ -186,11 +187,11 @@ def test_the_writer_puts_a_root_grid_in_schema_version_21_and_the_reader_opens_b
         assert StoreReader(tmp_path / f"{name}.geoterrain").metadata["schema_version"] == version
 
 
-def test_a_frame_lattice_is_schema_22_and_checked(tmp_path):
+def test_a_frame_lattice_is_schema_25_and_checked(tmp_path):
     """A geographic root grid past its lattice (frame.lattice, proxy positions past it):
-    written in schema 22 and read; its lattice anywhere but that grid's level-0 shape, on
+    written in schema 25 and read; its lattice anywhere but that grid's level-0 shape, on
     another frame, or in another schema, is refused in one line, and the same store
-    without the lattice in schema 21 (a root grid without it) reads with pyproj's
+    without the lattice in schema 24 (a root grid without it) reads with pyproj's
     positions everywhere."""
     from geoterrain.ingest.synth import generate, write_geotiff
     from geoterrain.store.database import LATTICE_SCHEMA_VERSION
@@ -200,7 +201,7 @@ def test_a_frame_lattice_is_schema_22_and_checked(tmp_path):
     p = geoterrain.preprocess(dem, tmp_path / "g.geoterrain", tile_size=16)
     with geoterrain.open(p) as t:
         meta, tiles, g = t.meta, t.tile_info, t.grid
-    assert meta["schema_version"] == LATTICE_SCHEMA_VERSION == 22
+    assert meta["schema_version"] == LATTICE_SCHEMA_VERSION == 25
     assert meta["frame"]["lattice"] == list(g.shape) and g.extent != g.shape
     grid, frame = check_store(p, meta, tiles)[:2]
     assert grid == g and frame.lattice == g.shape
@@ -209,12 +210,12 @@ def test_a_frame_lattice_is_schema_22_and_checked(tmp_path):
             (dict(meta, frame=dict(fr, lattice=[g.shape[0] + 1, g.shape[1]])), "frame.lattice"),
             (dict(meta, frame=dict(fr, lattice=[float(v) for v in g.shape])), "frame.lattice"),
             (dict(meta, frame=dict(fr, lattice=list(g.extent))), "frame.lattice"),
-            (dict(meta, frame=dict(fr, lattice=None)), "written in schema version 21, not 22"),
+            (dict(meta, frame=dict(fr, lattice=None)), "written in schema version 24, not 25"),
             (dict(meta, frame=dict(fr, lattice="x")), "frame.lattice"),
             (dict(meta, schema_version=ROOTS_SCHEMA_VERSION),
-             "a frame with a lattice is written in schema version 22, not 21"),
+             "a frame with a lattice is written in schema version 25, not 24"),
             ({**meta, "frame": {k: v for k, v in fr.items() if k != "lattice"}},
-             "a root grid is written in schema version 21, not 22")):
+             "a root grid is written in schema version 24, not 25")):
         with pytest.raises(StoreError, match="invalid metadata") as ex:
             check_store(p, bad, tiles)
         assert words in str(ex.value) and "\n" not in str(ex.value)

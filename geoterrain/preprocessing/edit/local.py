@@ -48,7 +48,7 @@ from geoterrain.bounds.edgepad import has_padding
 from geoterrain.bounds.leafbounds import ring_guesses
 from geoterrain.bounds.normals import encode_octahedral, normal_map
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, ring_blobs
-from geoterrain.bounds.vertexdata import LOG8, NORMAL_BITS, RING
+from geoterrain.bounds.vertexdata import LOG8, NORMAL_BITS, RING, shaped_zstd_level
 from geoterrain.codec.predict import fill_outward
 from geoterrain.codec.pyramid import decode_tile_valid, encode_child, encode_root
 from geoterrain.codec.quantize import valid_codes
@@ -373,7 +373,8 @@ class _Job:
                     guess = ring_guesses(g, f, L, keys, zs[a:, b:], v[a:, b:],
                                          np.array([(dy << te, dx << te) for dx, dy in tiles],
                                                   np.int64).reshape(-1, 2))
-                blobs = ring_blobs(codes, te, tiles, L, guess)
+                blobs = ring_blobs(codes, te, tiles, L, guess,
+                                   shaped_zstd_level(g.rows, g.cols))
             else:
                 coding = BoundsCoding(np.zeros(codes.shape[:2]), np.zeros(codes.shape[:2]))
                 blobs = level_blobs(coding, codes, te, 0, 1, tiles, ("normals",))[0]["normals"]

@@ -22,7 +22,7 @@ from numba import njit
 from geoterrain.bounds.delta import Cell
 from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs
 from geoterrain.bounds.tilebounds import closed_blocks
-from geoterrain.bounds.vertexdata import log8_exponent, log8_table
+from geoterrain.bounds.vertexdata import log8_exponent, log8_table, shaped_zstd_level
 from geoterrain.bounds.windows import (
     block_sweep_rect,
     fine_raw_delta,
@@ -722,7 +722,8 @@ class Bounds:
             blobs, dm, rm = level_blobs(coding, np.zeros((T, T, 2), np.uint8), g.t, 0,
                                         0 if L == g.top_level else 1, [(0, 0)], kinds,
                                         ring=L == 0 and job.derive_bounds,
-                                        mids=L > 0 and job.derive_bounds, own=own)
+                                        mids=L > 0 and job.derive_bounds, own=own,
+                                        zlevel=shaped_zstd_level(g.rows, g.cols))
             for kind in kinds:
                 job.put(key, kind, blobs[kind][(0, 0, 0)])
             if row:
@@ -748,9 +749,10 @@ def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray
       the top level's): every vertex of the tile.
 
     And (schema 20) every δ blob below the top reads its tile's heights (its guess from
-    the own errors, :func:`geoterrain.bounds.vertexdata.own_codes`): ``edited`` (rows
-    r0 … r1 − 1, columns c0 … c1 − 1 of changed heights) reaches the δ of every tile
-    below the top whose lattice holds one of those samples.
+    the own errors, :func:`geoterrain.bounds.vertexdata.own_codes`), and (schema 23) the
+    top tile's too (:func:`geoterrain.bounds.vertexdata.top_payload_own`): ``edited``
+    (rows r0 … r1 − 1, columns c0 … c1 − 1 of changed heights) reaches the δ of every
+    tile whose lattice holds one of those samples.
 
     Examples
     --------
@@ -797,9 +799,9 @@ def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray
                     for tx, ty in set(zip(x[ok].tolist(), y[ok].tolist(), strict=True)):
                         got = need.setdefault((L, tx, ty), [False, False, False])
                         got[n] = True
-    if edited is not None:  # schema 20: δ's own-error guess reads the tile's heights
-        r0, c0, r1, c1 = (int(a) for a in edited)
-        for L in range(top):
+    if edited is not None:  # schema 20 (23: the top's too): δ's own-error guess reads
+        r0, c0, r1, c1 = (int(a) for a in edited)  # the tile's heights
+        for L in range(top + 1):
             span, step, (nx, ny) = g.tile_span(L), 1 << L, g.tiles(L)
             i0, i1 = -(-r0 // step) * step, (r1 - 1) // step * step  # the level's samples
             j0, j1 = -(-c0 // step) * step, (c1 - 1) // step * step
