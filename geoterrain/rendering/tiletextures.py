@@ -71,6 +71,7 @@ from geoterrain.rendering.atlaskernels import (
     face_footprints,
     footprint_groups,
     group_boxes,
+    group_face_area,
     group_facing,
     magnify_into,
     number_pages,
@@ -423,12 +424,7 @@ def surface_facing(fp: _Footprints, ij: np.ndarray, tris: np.ndarray, beta: np.n
     """
     if not len(fp.facing) or not (beta > 0).any():
         return fp.facing
-    a = ij[tris[:, 1]] - ij[tris[:, 0]]
-    b = ij[tris[:, 2]] - ij[tris[:, 0]]
-    area = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).astype(np.float64)
-    G = len(fp.facing)
-    n = np.bincount(fp.fe, minlength=G)
-    mean = np.bincount(fp.fe, weights=area, minlength=G) / np.maximum(n, 1)
+    mean = group_face_area(ij, tris, fp.fe, len(fp.facing))
     with np.errstate(divide="ignore"):
         m = np.clip(0.5 * np.log2(2.0 * mean), 0.0, len(beta) - 1)
     lessen = np.interp(m, np.arange(len(beta)), beta)

@@ -518,6 +518,22 @@ def test_surface_facing_lessens_only_coarse_faces_angles(F, G, t, data):
 
 
 @pytest.mark.fast
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 300), st.integers(3, 20), st.integers(1, 9), st.data())
+def test_group_face_area_is_numpys_mean(F, V, G, data):
+    """The compiled mean face area per group equals numpy's cross products and bincount."""
+    from geoterrain.rendering.atlaskernels import group_face_area
+
+    rng, faces, key, _ = _random_faces(F, V, G, data)
+    ij = rng.integers(-50, 50, (V, 2))
+    a, b = ij[faces[:, 1]] - ij[faces[:, 0]], ij[faces[:, 2]] - ij[faces[:, 0]]
+    area = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    n = np.bincount(key, minlength=G)
+    want = np.bincount(key, weights=area, minlength=G) / np.maximum(n, 1)
+    np.testing.assert_allclose(group_face_area(ij, faces, key, G), want, rtol=1e-12)
+
+
+@pytest.mark.fast
 def test_roughness_is_zero_on_a_plane_and_grows_with_face_size(tmp_path_factory):
     from tests.rendering.test_pictures import array_store
 
