@@ -488,8 +488,9 @@ def test_an_atlas_is_not_kept_across_an_edit_or_a_budget(tmp_path_factory):
 def test_surface_facing_lessens_only_coarse_faces_angles(F, G, t, data):
     """The surface's facing is never below the drawn faces' (nor above 1); footprints
     drawn with the grid's own faces (half a cell each, as bruteforce draws) keep their
-    facing to the bit; with no roughness every footprint keeps it; a coarser face's
-    angle to the eye is lessened by β at its size (2^m samples across), at most."""
+    facing to the bit, and so do those seen more obliquely than ROUGH_GRAZING; with no
+    roughness every footprint keeps it; a coarser face's angle to the eye is lessened by
+    β at its size (2^m samples across), at most."""
     rng = np.random.default_rng(data.draw(st.integers(0, 2 ** 32 - 1)))
     fe = rng.integers(0, G, F)
     fe[:G] = np.arange(min(G, F))  # most footprints hold a face
@@ -509,6 +510,8 @@ def test_surface_facing_lessens_only_coarse_faces_angles(F, G, t, data):
     assert (got >= facing).all() and (got <= 1.0).all()
     np.testing.assert_array_equal(tiletextures.surface_facing(fp, ij, tris, 0 * beta), facing)
     held = np.bincount(fe, minlength=G) > 0
+    grazing = np.arccos(facing) > tiletextures.ROUGH_GRAZING
+    np.testing.assert_array_equal(got[grazing], facing[grazing])
     if fine:
         np.testing.assert_array_equal(got, facing)
     for g in np.flatnonzero(held):  # the faces' mean area, as a right triangle's legs
