@@ -13,7 +13,9 @@ point to the eye, as the side of a square of the texel's projected area::
 
 (``s0`` the finest sample spacing, ``d`` the distance from the eye to the box of
 the footprint's drawn vertices, ``c`` the largest |cos| between one of its drawn
-faces' normals and the line to the eye, at least ``MIN_FACING``), clamped to
+faces' normals and the line to the eye, that angle lessened by the relief's roughness at
+the faces' size within 60° of square on (:func:`surface_facing`: a coarse face stands
+for rougher relief, which faces the eye more), at least ``MIN_FACING``), clamped to
 ``L - MAX_PAGE_LEVELS ≤ Lt ≤ L``. A texel seen at a grazing angle covers c times the
 pixels across the slope that it covers along it: the area's side √c lies between the
 distance alone (c = 1, texels finer than a pixel across the slope) and a mipmap's rule
