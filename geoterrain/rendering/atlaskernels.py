@@ -250,6 +250,35 @@ def group_facing(faces: np.ndarray, key: np.ndarray, pts: np.ndarray, eye, n: in
 
 
 @njit(cache=True, nogil=True)
+def _area_sums(ij, faces, key, area, count):
+    for f in range(len(key)):
+        k = key[f]
+        if 0 <= k < len(area):  # checked: numba does not bounds-check
+            a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            u0, u1 = ij[b, 0] - ij[a, 0], ij[b, 1] - ij[a, 1]
+            v0, v1 = ij[c, 0] - ij[a, 0], ij[c, 1] - ij[a, 1]
+            area[k] += 0.5 * abs(u0 * v1 - u1 * v0)
+            count[k] += 1
+
+
+def group_face_area(ij: np.ndarray, faces: np.ndarray, key: np.ndarray, n: int
+                    ) -> np.ndarray:
+    """Per group 0 … n−1 (``key`` per face): its faces' mean area in grid cells (from
+    their corners' (row, column) ``ij``; 0 for an empty group).
+
+    Examples
+    --------
+    >>> ij = np.array([[0, 0], [0, 1], [1, 0], [0, 4], [4, 0]])
+    >>> group_face_area(ij, np.array([[0, 1, 2], [0, 3, 4]]), np.array([0, 0]), 2).tolist()
+    [4.25, 0.0]
+    """
+    area, count = np.zeros(n), np.zeros(n, np.int64)
+    _area_sums(np.ascontiguousarray(ij, np.int64), _as_faces(faces),
+               np.ascontiguousarray(key, np.int64), area, count)
+    return area / np.maximum(count, 1)
+
+
+@njit(cache=True, nogil=True)
 def _number(faces, group, G, V, src, pg, out_faces):
     F = len(group)
     start = np.zeros(G + 1, np.int64)  # counting sort of the faces by group

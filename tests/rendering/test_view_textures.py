@@ -480,3 +480,114 @@ def test_an_atlas_is_not_kept_across_an_edit_or_a_budget(tmp_path_factory):
     assert part.stats["textures_deferred"] > 0 and part.layout is None
     assert not build_view_texture(t2, sel2, near, shader2, max_builds=3,
                                   previous=part).stats["atlas_reused"]
+
+
+@pytest.mark.fast
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 200), st.integers(1, 9), st.integers(1, 7), st.data())
+def test_surface_facing_lessens_only_coarse_faces_angles(F, G, t, data):
+    """The surface's facing is never below the drawn faces' (nor above 1); footprints
+    drawn with the grid's own faces (half a cell each, as bruteforce draws) keep their
+    facing to the bit, and so do those seen more obliquely than ROUGH_GRAZING; with no
+    roughness every footprint keeps it; a coarser face's angle to the eye is lessened by
+    β at its size (2^m samples across), at most."""
+    rng = np.random.default_rng(data.draw(st.integers(0, 2 ** 32 - 1)))
+    fe = rng.integers(0, G, F)
+    fe[:G] = np.arange(min(G, F))  # most footprints hold a face
+    legs = rng.integers(1, 1 << t, F)  # each face a right triangle of legs ℓ samples
+    fine = data.draw(st.booleans())
+    if fine:
+        legs[:] = 1
+    o = rng.integers(0, 1000, (F, 2))
+    ij = np.concatenate([o, o + np.stack([np.zeros(F, int), legs], 1),
+                         o + np.stack([legs, np.zeros(F, int)], 1)])
+    tris = np.stack([np.arange(F), F + np.arange(F), 2 * F + np.arange(F)], 1)
+    facing = rng.uniform(0.0, 1.0, G)
+    fp = tiletextures._Footprints(*[np.zeros(G, np.int64)] * 3, *[np.zeros((G, 3))] * 2,
+                                  *[np.zeros((G, 2), np.int64)] * 2, facing, fe)
+    beta = np.concatenate([[0.0], np.cumsum(rng.uniform(0.0, 0.4, t))])
+    got = tiletextures.surface_facing(fp, ij, tris, beta)
+    assert (got >= facing).all() and (got <= 1.0).all()
+    np.testing.assert_array_equal(tiletextures.surface_facing(fp, ij, tris, 0 * beta), facing)
+    held = np.bincount(fe, minlength=G) > 0
+    grazing = np.arccos(facing) > tiletextures.ROUGH_GRAZING
+    np.testing.assert_array_equal(got[grazing], facing[grazing])
+    if fine:
+        np.testing.assert_array_equal(got, facing)
+    for g in np.flatnonzero(held):  # the faces' mean area, as a right triangle's legs
+        leg = np.sqrt(np.mean(legs[fe == g].astype(float) ** 2))
+        most = np.interp(np.log2(leg), np.arange(t + 1), beta)
+        assert np.arccos(facing[g]) - np.arccos(got[g]) <= most + 1e-9, (g, leg)
+
+
+@pytest.mark.fast
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 300), st.integers(3, 20), st.integers(1, 9), st.data())
+def test_group_face_area_is_numpys_mean(F, V, G, data):
+    """The compiled mean face area per group equals numpy's cross products and bincount."""
+    from geoterrain.rendering.atlaskernels import group_face_area
+
+    rng, faces, key, _ = _random_faces(F, V, G, data)
+    ij = rng.integers(-50, 50, (V, 2))
+    a, b = ij[faces[:, 1]] - ij[faces[:, 0]], ij[faces[:, 2]] - ij[faces[:, 0]]
+    area = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    n = np.bincount(key, minlength=G)
+    want = np.bincount(key, weights=area, minlength=G) / np.maximum(n, 1)
+    np.testing.assert_allclose(group_face_area(ij, faces, key, G), want, rtol=1e-12)
+
+
+@pytest.mark.fast
+def test_roughness_is_zero_on_a_plane_and_grows_with_face_size(tmp_path_factory):
+    from tests.rendering.test_pictures import array_store
+
+    flat = array_store(tmp_path_factory, "flat1025", np.full((1025, 1025), 100.0))
+    np.testing.assert_array_equal(tiletextures.roughness(flat), 0.0)
+    b = tiletextures.roughness(_fresh(tmp_path_factory))
+    assert b[0] == 0.0 and (np.diff(b) > 0).all(), b
+
+
+def _tile_texels(t, view, strategy, monkeypatch, rough: bool = True) -> dict:
+    """The texel level each level-0 tile under a drawn face gets, by (row, column);
+    ``rough`` False: footprints facing the eye as their drawn faces do (no roughness)."""
+    got = {}
+    levels = tiletextures._texel_levels
+
+    def spy(fp, *a, **kw):
+        lt = levels(fp, *a, **kw)
+        for L, x, y, v in zip(fp.L.tolist(), fp.X.tolist(), fp.Y.tolist(), lt.tolist(),
+                              strict=True):
+            for r in range(y << L, (y + 1) << L):
+                for c in range(x << L, (x + 1) << L):
+                    got[r, c] = v
+        return lt
+
+    monkeypatch.setattr(tiletextures, "_texel_levels", spy)
+    if not rough:
+        monkeypatch.setattr(tiletextures, "roughness", lambda terrain: np.zeros(8))
+    build_view_texture(t, lod.select(t, view, pixel_error=1.0, strategy=strategy), view,
+                       TileShader(t))
+    monkeypatch.undo()
+    return got
+
+
+def test_rough_relief_gets_the_texels_of_its_own_faces(tmp_path_factory, monkeypatch):
+    """On a rough fBm, rtin's coarse faces get the texel levels bruteforce's faces (the
+    relief's own) get in the same tiles, more closely than from their own facing
+    (which took their smoothness for the relief's and chose coarser texels)."""
+    t = _fresh(tmp_path_factory, size=513)
+    gaps = []
+    for az, el, k in ((90, 20, 0.3), (90, 25, 0.5)):  # oblique views, part magnified
+        home = default_view(t, (640, 360), az, el)
+        c, e = np.asarray(home.look_at), np.asarray(home.look_from)
+        v = View(tuple(c + k * (e - c)), tuple(c), size=(640, 360))
+        brute = _tile_texels(t, v, "bruteforce", monkeypatch)
+        now = _tile_texels(t, v, "rtin", monkeypatch)
+        faces_only = _tile_texels(t, v, "rtin", monkeypatch, rough=False)
+        both = sorted(set(brute) & set(now))
+        assert len(both) > 20
+        gap = np.mean([abs(now[k] - brute[k]) for k in both])
+        gap0 = np.mean([abs(faces_only[k] - brute[k]) for k in both])
+        print("mean |ΔLt| against bruteforce:", round(gap, 3), "faces alone", round(gap0, 3))
+        assert gap <= gap0, (gap, gap0)
+        gaps.append((gap, gap0))
+    assert sum(g for g, _ in gaps) < sum(g0 for _, g0 in gaps), gaps
