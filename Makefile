@@ -25,7 +25,11 @@ setup: $(STAMP)
 # The demo's commands compile the kernels they use on the first run (each says so, with a
 # bar) and leave them cached: the map, the export and the GeoTIFF compile the rest that
 # render, export and export-raster need, so a user's first commands start warm.
+# Each command is a process of its own: the package's bytecode is written first (an
+# editable install has none, and where PYTHONDONTWRITEBYTECODE is set each process would
+# compile the sources it imports again; a no-op when up to date).
 demo: $(STAMP)
+	$(BIN)/python -m compileall -q geoterrain cli
 	mkdir -p out
 	$(BIN)/geoterrain preprocess sample_dems/fbm_513.tif -o out/fbm_513.geoterrain --overwrite
 	$(BIN)/geoterrain info out/fbm_513.geoterrain

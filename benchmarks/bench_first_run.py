@@ -73,30 +73,33 @@ def _child(cmd: list[str]) -> None:
             spent = time.process_time() - t0
             f = ev.data["dispatcher"].py_func
             rows.append([f"{f.__module__}.{f.__qualname__}", str(ev.data.get("args")),
-                         spent - callees])
+                         spent - callees,
+                         bool(ev.data["dispatcher"].targetoptions.get("parallel"))])
             if stack:
                 stack[-1][1] += spent
 
     event.register("numba:compile", Timer())
+    start = time.process_time()  # the interpreter, numba's import and the listener
     from geoterrain.cli.main import cli
 
     try:
         cli.main(cmd, prog_name="geoterrain", standalone_mode=False)
     except SystemExit:
         pass
-    print(json.dumps({"rows": rows, "cpu": time.process_time()}))
+    print(json.dumps({"rows": rows, "cpu": time.process_time(), "start": start}))
 
 
-def _processes() -> None:
+def _processes(json_out: str | None = None) -> None:
     """The demo's commands, each in a process of its own on one empty cache."""
     cache = tempfile.mkdtemp(prefix="numba-cache-")
     env = dict(os.environ, NUMBA_CACHE_DIR=cache)
     print(f"load average {os.getloadavg()[0]:.1f}, {os.cpu_count()} cores, cache {cache}")
     seen: dict[tuple[str, str], str] = {}
     twice = []
-    tot = [0.0, 0.0, 0.0, 0.0]
-    print("| command | process CPU s | compile CPU s | of it numba's own | specialisations |\n"
-          "|---|---:|---:|---:|---:|")
+    tot = [0.0, 0.0, 0.0, 0.0, 0.0]
+    print("| command | process CPU s | compile CPU s | of it numba's own | of it parallel "
+          "kernels | specialisations |\n|---|---:|---:|---:|---:|---:|")
+    record = []
     with tempfile.TemporaryDirectory() as out:
         for i, cmd in enumerate(demo_commands(out)):
             w0 = time.perf_counter()
@@ -106,17 +109,24 @@ def _processes() -> None:
             got = json.loads(r.stdout.strip().splitlines()[-1])
             comp = sum(x[2] for x in got["rows"])
             own = sum(x[2] for x in got["rows"] if x[0].startswith("numba."))
-            for name, sig, _ in got["rows"]:
+            par = sum(x[2] for x in got["rows"] if x[3])
+            record.append({"command": cmd[0], "cpu": got["cpu"], "start": got["start"],
+                           "wall": wall, "rows": got["rows"]})
+            for name, sig, _, _ in got["rows"]:
                 if not name.startswith("numba."):
                     if (name, sig) in seen:
                         twice.append((name, seen[(name, sig)], cmd[0]))
                     seen[(name, sig)] = f"{i + 1}:{cmd[0]}"
-            for k, v in enumerate((got["cpu"], comp, own, len(got["rows"]))):
+            for k, v in enumerate((got["cpu"], comp, own, par, len(got["rows"]))):
                 tot[k] += v
             print(f"| {i + 1}:{cmd[0]} | {got['cpu']:.1f} | {comp:.1f} | {own:.1f} | "
-                  f"{len(got['rows'])} |  (wall {wall:.1f} s)")
+                  f"{par:.1f} | {len(got['rows'])} |  (wall {wall:.1f} s, start "
+                  f"{got['start']:.2f} s CPU)")
     shutil.rmtree(cache, ignore_errors=True)
-    print(f"| all | {tot[0]:.1f} | {tot[1]:.1f} | {tot[2]:.1f} | {tot[3]:.0f} |")
+    print(f"| all | {tot[0]:.1f} | {tot[1]:.1f} | {tot[2]:.1f} | {tot[3]:.1f} | "
+          f"{tot[4]:.0f} |")
+    if json_out:
+        Path(json_out).write_text(json.dumps(record))
     print(f"kernels compiled by two commands: {len(twice)}"
           + "".join(f"\n  {n} ({a}, {b})" for n, a, b in twice))
 
@@ -126,13 +136,15 @@ def main() -> None:
     ap.add_argument("--top", type=int, default=30, help="kernels listed (default 30)")
     ap.add_argument("--processes", action="store_true",
                     help="each command in a process of its own, as make demo runs them")
+    ap.add_argument("--json", help="--processes: every compilation (command, function, "
+                    "argument types, own CPU s, parallel) written to this file")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         _child(json.loads(args.child))
         return
     if args.processes:
-        _processes()
+        _processes(args.json)
         return
     cache = tempfile.mkdtemp(prefix="numba-cache-")
     os.environ["NUMBA_CACHE_DIR"] = cache  # before numba is imported

@@ -390,12 +390,14 @@ def _normals_nb(x, y, z, v, horn, out):  # pragma: no cover - compiled
                 iz = 0.5 * ((z[i + 1, j] - z[i, j]) + (z[i, j] - z[i - 1, j]))
                 _unit_cross(jx, jy, jz, ix, iy, iz, out, i, j)
                 continue
+            # the axis an int64, not a literal: one compilation of each helper for
+            # both axes (LLVM still folds it where it inlines them)
             if horn:
-                jx, jy, jz, hj = _horn_nb(x, y, z, v, i, j, 1)
-                ix, iy, iz, hi = _horn_nb(x, y, z, v, i, j, 0)
+                jx, jy, jz, hj = _horn_nb(x, y, z, v, i, j, np.int64(1))
+                ix, iy, iz, hi = _horn_nb(x, y, z, v, i, j, np.int64(0))
             else:
-                jx, jy, jz, hj = _tangent_nb(x, y, z, v, i, j, 1)
-                ix, iy, iz, hi = _tangent_nb(x, y, z, v, i, j, 0)
+                jx, jy, jz, hj = _tangent_nb(x, y, z, v, i, j, np.int64(1))
+                ix, iy, iz, hi = _tangent_nb(x, y, z, v, i, j, np.int64(0))
             if not (hi or hj):
                 continue
             if hj and not hi:  # missing tangent: horizontal, perpendicular to the other
@@ -841,14 +843,14 @@ def _ring_guess_nb(z, valid, X, Y, r0, c0, rr, cc, fm, out):  # pragma: no cover
             buf[0, 0, 1] = 0.0
             buf[0, 0, 2] = 1.0
             if vv[i, j]:
-                jx, jy, jz, hj = _tangent_nb(xk, yk, zk, vv, i, j, 1)
-                ix, iy, iz, hi = _tangent_nb(xk, yk, zk, vv, i, j, 0)
+                jx, jy, jz, hj = _tangent_nb(xk, yk, zk, vv, i, j, np.int64(1))
+                ix, iy, iz, hi = _tangent_nb(xk, yk, zk, vv, i, j, np.int64(0))
                 if hi or hj:
                     if hj and not hi:
                         ix, iy, iz = -jy, jx, 0.0
                     elif hi and not hj:
                         jx, jy, jz = iy, -ix, 0.0
-                    _unit_cross(jx, jy, jz, ix, iy, iz, buf, 0, 0)
+                    _unit_cross(jx, jy, jz, ix, iy, iz, buf, np.int64(0), np.int64(0))
             fu, fv, _, _, _ = _oct_plane(float(buf[0, 0, 0]), float(buf[0, 0, 1]),
                                          float(buf[0, 0, 2]), fm)
             out[k, q, 0] = min(max(np.floor(fu + 0.5), 0.0), fm)

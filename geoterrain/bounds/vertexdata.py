@@ -613,7 +613,9 @@ def _gap_values(enc, S, buf, m, r, gap):
 def _encode_gaps(r, gap, buf):
     m = np.zeros((_GAP_ROWS, 2), np.int64)
     S = _start(True, buf)
-    S = _gap_values(True, S, buf, m, r, gap)
+    # a bool, not a literal True: the specialisation GapDecoder.take runs (called from
+    # Python), so a reader loads what the writer compiled
+    S = _gap_values(np.bool_(True), S, buf, m, r, gap)
     return _finish(S, buf)
 
 

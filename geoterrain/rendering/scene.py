@@ -50,6 +50,7 @@ import numpy as np
 from geoterrain import lod
 from geoterrain.core.atomicfiles import write_atomic
 from geoterrain.core.memory import peak_rss as _peak_rss
+from geoterrain.core.threads import serial_for, serial_kernels
 from geoterrain.core.view import View
 from geoterrain.exaggerate import exaggerated
 from geoterrain.exceptions import UsageError
@@ -123,6 +124,7 @@ class TerrainScene:
         self._bytes_mark = read - opened if read == opened else read
         self.light, self.drape = light, drape
         self.occlusion, self.morph = occlusion, morph  # each frame's selection's switches
+        self._samples = terrain.grid.rows * terrain.grid.cols  # the store's (_kernels)
         if ((light is not None and not light.is_default) or drape is not None) \
                 and textures == "global":
             raise UsageError("sun, shadows, ambient occlusion and drapes need the per-view "
@@ -392,7 +394,7 @@ class TerrainScene:
             view = view.clipped_to(*t.scene_box())
         c0 = io_counters(t)
         t0, p0 = time.perf_counter(), time.process_time()
-        with store_snapshot(t):
+        with self._kernels(), store_snapshot(t):
             sel = lod.select(t, view, pixel_error=pixel_error, strategy=strategy,
                              occlusion=self.occlusion, morph=self.morph)
             vtex = self.view_texture(sel, view)
@@ -475,15 +477,16 @@ class TerrainScene:
         t1 = time.perf_counter()
         t0, p0, c0 = started if started is not None else (t1, time.process_time(),
                                                          io_counters(t))
-        self.update(sel, view, vtex)
-        self.set_camera(view)
-        t2, p2 = time.perf_counter(), time.process_time()
-        edges, aa = self._anti_aliasing()
-        if before_render is not None:
-            before_render()
-        img = draw(self.plotter)
-        if edges is not None:
-            img = edge_antialias(img, depth_buffer(self.plotter), edges)
+        with self._kernels():
+            self.update(sel, view, vtex)
+            self.set_camera(view)
+            t2, p2 = time.perf_counter(), time.process_time()
+            edges, aa = self._anti_aliasing()
+            if before_render is not None:
+                before_render()
+            img = draw(self.plotter)
+            if edges is not None:
+                img = edge_antialias(img, depth_buffer(self.plotter), edges)
         t3, p3 = time.perf_counter(), time.process_time()
         c1 = dict(read) if read is not None else io_counters(t)
         c0["bytes_read"], self._bytes_mark = self._bytes_mark, c1["bytes_read"]
@@ -501,6 +504,23 @@ class TerrainScene:
                  "cpu_ms": round((p3 - p0) * 1e3, 3),
                  "render_cpu_ms": round((p3 - p2) * 1e3, 3)}
         return img, stats
+
+    def _kernels(self) -> AbstractContextManager:
+        """Where a frame's compiled kernels run: on the calling thread (their serial
+        twins, :func:`~geoterrain.core.threads.serial_kernels`) for a store of fewer
+        than :data:`~geoterrain.core.threads.PARALLEL_MIN_SAMPLES` samples, whose whole
+        frame is small work (:func:`~geoterrain.core.threads.cores_for`'s line), else as
+        each call chooses. The same pixels either way; a small store's first render then
+        compiles the twins only, not the threaded kernels as well.
+
+        Examples
+        --------
+        >>> with scene._kernels():  # doctest: +SKIP
+        ...     pass
+        """
+        if serial_for(self._samples):
+            return serial_kernels()
+        return contextlib.nullcontext()
 
     def _anti_aliasing(self):
         """This frame's anti-aliasing, chosen before it is drawn: (the silhouette edges

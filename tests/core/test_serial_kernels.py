@@ -95,3 +95,29 @@ def test_small_work_runs_only_the_serial_twins(tmp_path, monkeypatch, threshold)
     else:  # the preprocess's and the mesh's threaded kernels
         assert {"_raw_delta_nb", "_tile_boxes_nb", "_normals_nb", "_level_payloads",
                 "_find_active", "_emit_leaves"} <= {n.rsplit(".", 1)[1] for n in ran}
+
+
+@pytest.mark.parametrize("threshold", [None, 0])
+def test_a_small_stores_render_runs_only_the_serial_twins(tmp_path, monkeypatch, threshold):
+    """A render of a store below PARALLEL_MIN_SAMPLES runs no threaded kernel (its first
+    run compiles the twins only: issue 51's first run); with the threshold at 0 the
+    same frame runs threaded ones, and both give the same pixels."""
+    import geoterrain
+    import geoterrain.core.threads as threads
+    from geoterrain.ingest.synth import generate, write_geotiff
+    from geoterrain.rendering.cameras import default_view
+    from geoterrain.rendering.scene import render_array
+
+    src = write_geotiff(tmp_path / "d.tif", generate("fbm", 257, seed=4))
+    t = geoterrain.open(geoterrain.preprocess(src, tmp_path / "d.geoterrain"))
+    view = default_view(t, (320, 240))
+    want, _ = render_array(t, view)
+    if threshold is not None:
+        monkeypatch.setattr(threads, "PARALLEL_MIN_SAMPLES", threshold)
+    ran = _spy_on_parallel(monkeypatch)
+    img, _ = render_array(geoterrain.open(tmp_path / "d.geoterrain"), view)
+    assert np.array_equal(img, want)
+    if threshold is None:
+        assert ran == []
+    else:  # the tiles' normal codes and their texels, threaded
+        assert {"_derived_codes_nb", "_shade_tiles"} & {n.rsplit(".", 1)[1] for n in ran}
