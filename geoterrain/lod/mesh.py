@@ -163,12 +163,13 @@ class MeshParts:
     (1, True)
     """
 
-    __slots__ = ("points", "faces", "point_data", "cell_data", "active_scalars_name", "_vtk")
+    __slots__ = ("points", "triangles", "point_data", "cell_data", "active_scalars_name",
+                 "_vtk")
 
-    def __init__(self, points: np.ndarray, faces: np.ndarray,
+    def __init__(self, points: np.ndarray, triangles: np.ndarray,
                  point_data: dict[str, np.ndarray], cell_data: dict[str, np.ndarray]):
         self.points = points
-        self.faces = faces
+        self.triangles = triangles  # (F, 3)
         self.point_data = point_data
         self.cell_data = cell_data
         self.active_scalars_name: str | None = None
@@ -180,18 +181,24 @@ class MeshParts:
 
     @property
     def n_cells(self) -> int:
-        return len(self.faces)
+        return len(self.triangles)
 
     @property
     def regular_faces(self) -> np.ndarray:
         """(F, 3) vertex indices of the triangles."""
-        return self.faces.reshape(-1, 3)
+        return self.triangles
+
+    @property
+    def faces(self) -> np.ndarray:
+        """The triangles as ``pyvista.PolyData.faces`` lists them: (3, a, b, c) each."""
+        f = self.triangles
+        return np.hstack([np.full((len(f), 1), 3, f.dtype), f]).ravel()
 
     def trimesh(self) -> TriMesh:
         """The mesh as VTK's object (made on the first call, by the calling thread; the
         arrays as they are then)."""
         if self._vtk is None:
-            m = polydata(self.points, self.faces, self.point_data.get("grid_ij"),
+            m = polydata(self.points, self.triangles, self.point_data.get("grid_ij"),
                          self.cell_data)
             if len(self.points):
                 pd = m.GetPointData()
@@ -202,6 +209,12 @@ class MeshParts:
                     pd.SetActiveScalars(self.active_scalars_name)
             self._vtk = m
         return self._vtk
+
+    def __getattr__(self, name: str):
+        # PyVista's other attributes (bounds, save, ...), on VTK's mesh (made here)
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return getattr(self.trimesh(), name)
 
 
 def mesh_parts(xyz: np.ndarray, faces: np.ndarray, ij: np.ndarray | None = None,

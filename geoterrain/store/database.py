@@ -148,10 +148,10 @@ def schema_version(grid: dict, frame: dict | None = None) -> int:
     Examples
     --------
     >>> schema_version({"rows": 9, "cols": 9, "n": 3, "t": 2})
-    20
+    23
     >>> roots = {"layout": "roots"}
     >>> schema_version(roots), schema_version(roots, {"lattice": [9, 17]})
-    (21, 22)
+    (24, 25)
     """
     if isinstance(frame, dict) and frame.get("lattice") is not None:
         return LATTICE_SCHEMA_VERSION
