@@ -20,6 +20,7 @@ import numpy as np
 import geoterrain.preprocessing.pipeline as pp
 from geoterrain.bench.harness import flight
 from geoterrain.ingest.synth import generate
+from geoterrain.preprocessing import levelblobs, surface
 from geoterrain.terrain import Terrain
 
 DEMS = Path(__file__).resolve().parents[1] / ".." / "shared" / "dems"
@@ -37,14 +38,14 @@ def _tif(path, z, crs, origin, spacing):
 
 
 def _build(src, dst, metric: bool):
-    real = pp.metric_bounds
+    real = surface.metric_bounds  # called by surface.vertex_bounds and levelblobs.tile_blobs
     if not metric:
-        pp.metric_bounds = lambda d, r, *a, **k: (d, r)
+        surface.metric_bounds = levelblobs.metric_bounds = lambda d, r, *a, **k: (d, r)
     times: dict[str, float] = {}
     try:
         pp.preprocess(src, dst, overwrite=True, timings=times)
     finally:
-        pp.metric_bounds = real
+        surface.metric_bounds = levelblobs.metric_bounds = real
     return Terrain(dst), times  # the store holds no timings
 
 

@@ -435,7 +435,7 @@ class Terrain:
             nb = self.grid.tiles(0)[::-1]
             key = (self.grid.top_level, 0, 0)
             try:
-                from geoterrain.bounds.vertexdata import unpack_block_errors
+                from geoterrain.bounds.tilebounds import unpack_block_errors
 
                 table = unpack_block_errors(self._blob(key, "block_delta"), nb, levels)
                 table.setflags(write=False)  # shared through the cache
@@ -497,7 +497,7 @@ class Terrain:
         >>> t.normal_codes(keys).shape == (2, t.grid.tile_samples, t.grid.tile_samples, 2)
         True
         """
-        from geoterrain.bounds.vertexdata import normals_from_bytes
+        from geoterrain.bounds.normalbytes import normals_from_bytes
 
         T, bits = self.grid.tile_samples, self.meta["normal_bits"]
         out = np.empty((len(keys), T, T, 2), np.uint8 if bits == 8 else np.uint16)
@@ -517,7 +517,7 @@ class Terrain:
     def _normal_bytes(self, key: TileKey) -> tuple[bytes, bool]:
         """A whole stored normal map's codes, decompressed: T·T·2 components, and whether
         they are two planes of 2-D differences (8-bit ``normals_layout`` 2,
-        :func:`~geoterrain.bounds.vertexdata.normals_to_bytes`) rather than pairs."""
+        :func:`~geoterrain.bounds.normalbytes.normals_to_bytes`) rather than pairs."""
         T, bits = self.grid.tile_samples, self.meta["normal_bits"]
         try:  # bounded: exactly T × T × 2 components, never a decompression bomb
             raw = zstdsafe.decompress(self._blob(key, "normals"), T * T * 2 * (bits // 8),
@@ -526,14 +526,14 @@ class Terrain:
             raise StoreCorruptError(f"{self.path}: tile {key} normals cannot be decoded; "
                                     "re-run `geoterrain preprocess`") from None
         self.decoded_normals += 1
-        from geoterrain.bounds.vertexdata import NORMALS_PLANAR_DXDY
+        from geoterrain.bounds.normalbytes import NORMALS_PLANAR_DXDY
 
         return raw, bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY
 
     def _normal_ring(self, key: TileKey, n: int) -> np.ndarray:
         """The stored border ring (n = 4T − 4, 2) of a tile on a derived level, in
-        :func:`~geoterrain.bounds.vertexdata.ring_index`'s order."""
-        from geoterrain.bounds.vertexdata import ring_from_bytes
+        :func:`~geoterrain.bounds.normalbytes.ring_index`'s order."""
+        from geoterrain.bounds.normalbytes import ring_from_bytes
 
         try:  # bounded: exactly the ring's 4T − 4 pairs
             return ring_from_bytes(zstdsafe.decompress(self._blob(key, "normals"), 2 * n,
@@ -550,8 +550,8 @@ class Terrain:
         read no sample outside the tile there), encoded as the preprocess encodes, with
         its stored border ring."""
         from geoterrain.bounds.leafbounds import normal_axes, normal_xy
+        from geoterrain.bounds.normalbytes import ring_index
         from geoterrain.bounds.normals import derived_codes
-        from geoterrain.bounds.vertexdata import ring_index
 
         T, n = self.grid.tile_samples, len(keys)
         rr, cc = ring_index(T)

@@ -3,5 +3,5 @@ form on geographic grids, edge padding, tile and leaf bounds, normal maps, and t
 that store them.
 """
 
-__all__ = ["curvature", "delta", "edgepad", "leafbounds", "normals", "radii", "tileblobs",
-           "tilebounds", "vertexdata"]
+__all__ = ["curvature", "delta", "edgepad", "gapcoder", "leafbounds", "log8codes", "normalbytes",
+           "normals", "ownguess", "radii", "tileblobs", "tilebounds", "vertexdata"]

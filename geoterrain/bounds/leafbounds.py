@@ -34,14 +34,9 @@ import numpy as np
 from numba import njit, prange
 
 from geoterrain.bounds.delta import _centre1, _edge_err, _mid1, saturate
+from geoterrain.bounds.log8codes import log8_table, new_mask, ring_new_index
+from geoterrain.bounds.ownguess import edge_own_codes, own_codes
 from geoterrain.bounds.radii import _nest, code_up_nb
-from geoterrain.bounds.vertexdata import (
-    edge_own_codes,
-    log8_table,
-    new_mask,
-    own_codes,
-    ring_new_index,
-)
 from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.limits import BOX_STEP
 from geoterrain.core.rounding import round_up, round_up32
@@ -141,7 +136,7 @@ def leaf_delta(z: np.ndarray, valid: np.ndarray, origin: tuple[int, int],
                ring_rows: np.ndarray, ring_cols: np.ndarray, ring_values: np.ndarray,
                e: int | None, slack: float = 0.0) -> np.ndarray:
     """The stored δ (float32) of a level-0 tile's new vertices: saturated exact δ, coded
-    as 8-bit log codes from ``2^e`` (:func:`geoterrain.bounds.vertexdata.log8_codes`); ``e``
+    as 8-bit log codes from ``2^e`` (:func:`geoterrain.bounds.log8codes.log8_codes`); ``e``
     None: not coded (the preprocess's values before the grid is coded).
 
     ``slack`` (a geographic tile's, :func:`geographic_leaf_delta`; 0 elsewhere) is added to
@@ -557,7 +552,7 @@ def tile_mids_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int, a: 
 
 def tile_own_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int,
                    ring: bool = False, step: int = 1) -> np.ndarray:
-    """A tile's :func:`geoterrain.bounds.vertexdata.own_codes` (T, T) from its decoded
+    """A tile's :func:`geoterrain.bounds.ownguess.own_codes` (T, T) from its decoded
     heights, invalid samples by the store's stand-in height (``Terrain``'s reader of a
     schema-20 δ blob: ``PRED`` with ``SLACK``, ``RING`` with ``PRED``; ``ring``: the
     border's new vertices only, 0 elsewhere; ``step``: of the tile's samples ``step``
@@ -574,7 +569,7 @@ def tile_edge_own_codes(terrain: TerrainLike, key: tuple[int, int, int], e: int,
                         step: int = 1) -> np.ndarray | None:
     """A level-0 tile's guess of its δ_edge codes (T, T) from its decoded heights, the
     padding replicated from the data's edge
-    (:func:`geoterrain.bounds.vertexdata.edge_own_codes`; ``Terrain``'s reader of a
+    (:func:`geoterrain.bounds.ownguess.edge_own_codes`; ``Terrain``'s reader of a
     schema-23 ``DIFF`` blob with ``PRED``; ``step``: of the tile's samples ``step``
     apart, a whole tile's level inside it)."""
     tile = terrain.tile(*key)
@@ -598,7 +593,7 @@ def tile_leaf_bounds(terrain: TerrainLike, key: tuple[int, int, int], kind: str,
 
     Examples
     --------
-    >>> from geoterrain.bounds.vertexdata import ring_new_index
+    >>> from geoterrain.bounds.log8codes import ring_new_index
     >>> r, c = ring_new_index(t.grid.tile_samples)
     >>> d = tile_leaf_bounds(t, (0, 0, 0), "delta", True, 0, r, c, np.zeros(len(r)))
     >>> d.shape == (t.grid.tile_samples,) * 2 and bool((d >= 0).all())
@@ -843,8 +838,8 @@ def ring_guesses(grid, frame, level: int, tiles: list[tuple[int, int]], z: np.nd
     ...              np.zeros((1, 2), np.int64)).shape
     (1, 16, 2)
     """
+    from geoterrain.bounds.normalbytes import ring_index
     from geoterrain.bounds.normals import ring_guess
-    from geoterrain.bounds.vertexdata import ring_index
 
     T = grid.tile_samples
     lay = _Layout(grid, frame)

@@ -232,7 +232,7 @@ class RingCodes(NamedTuple):
 
     def rings(self, xy: np.ndarray, t: int) -> np.ndarray:
         """The rings (k, 4T − 4, 2) of the tiles ``xy`` (k, 2: x, y) of side T = 2**t + 1,
-        in :func:`geoterrain.bounds.vertexdata.ring_index`'s order: the top row, the
+        in :func:`geoterrain.bounds.normalbytes.ring_index`'s order: the top row, the
         bottom row, then the left and the right column without their corners (the full
         map's ``codes[(y << t) + rr, (x << t) + cc]``)."""
         T = (1 << t) + 1
@@ -715,7 +715,7 @@ def derived_codes(h: np.ndarray, zf: float, valid: np.ndarray, x: np.ndarray, y:
     tile's :func:`normal_map` (central differences) of scene x, y (n, T, T; broadcast views
     are fine) and z = ``h`` × ``zf`` (heights in source units, as ``Frame.z``) where
     ``valid``, encoded by :func:`encode_octahedral` with ``bits``, and its border ring
-    (``ring`` = rows, columns: :func:`~geoterrain.bounds.vertexdata.ring_index`) set to
+    (``ring`` = rows, columns: :func:`~geoterrain.bounds.normalbytes.ring_index`) set to
     ``rings[k]``, the codes stored for it. ``residual`` (schema 17's
     ``normals_ring_residual``): ``rings[k]`` holds each ring code's difference mod 2^bits
     from the tile's own derived code there (:func:`ring_guess`), added back. The tiles
@@ -791,7 +791,7 @@ def ring_guess(z: np.ndarray, valid: np.ndarray, x: np.ndarray, y: np.ndarray,
     --------
     >>> j, i = np.meshgrid(np.arange(5.0), np.arange(5.0))
     >>> z = np.random.default_rng(4).normal(size=(1, 5, 5)); v = np.ones((1, 5, 5), bool)
-    >>> from geoterrain.bounds.vertexdata import ring_index
+    >>> from geoterrain.bounds.normalbytes import ring_index
     >>> rr, cc = ring_index(5)
     >>> full = encode_octahedral(normal_map(j, -i, z[0], v[0]), 8)
     >>> bool((ring_guess(z, v, j[None], -i[None], (rr, cc))[0] == full[rr, cc]).all())

@@ -228,7 +228,7 @@ def prefix_codes(table: np.ndarray) -> np.ndarray:
 
     Examples
     --------
-    >>> from geoterrain.bounds.vertexdata import log8_table
+    >>> from geoterrain.bounds.log8codes import log8_table
     >>> p = prefix_codes(log8_table(0).astype(np.float64))
     >>> int(p[np.float32(1.0).view(np.uint32) >> 16]), int(p[0x7F80]), int(p[0x8000])
     (1, 255, 0)

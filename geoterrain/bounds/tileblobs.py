@@ -1,11 +1,11 @@
 """Every stored tile's δ, r and normal-map blobs, built level by level on whole arrays.
 
 The per-vertex bounds are coded once at full resolution (the codes are elementwise:
-:func:`geoterrain.bounds.vertexdata.log8_codes` for δ; for r nested log8 codes,
+:func:`geoterrain.bounds.log8codes.log8_codes` for δ; for r nested log8 codes,
 :func:`radius_codes`, or rounded-up float16), then one
 compiled pass per pyramid level gathers each stored tile's payload (only the vertices
 new at the level, as :func:`geoterrain.bounds.vertexdata.pack_bounds_v2` stores them; the
-normals as planar 2-D differences, :func:`geoterrain.bounds.vertexdata.normals_to_bytes`) and
+normals as planar 2-D differences, :func:`geoterrain.bounds.normalbytes.normals_to_bytes`) and
 the per-tile maxima of the stored δ and r. zstd then compresses every payload of the
 level in one call on every core. The blobs are byte-identical to packing each tile
 with the per-tile functions (tested).
@@ -22,13 +22,31 @@ from numba import njit, prange
 
 from geoterrain.bounds.delta import grid_order
 from geoterrain.bounds.leafbounds import CentreHeights, centre_guess, mids_residuals
+from geoterrain.bounds.log8codes import (
+    LOG_STEPS,
+    log8_exponent,
+    log8_table,
+    mids_index,
+    new_mask,
+    pred_residuals,
+    ring_new_index,
+)
+from geoterrain.bounds.normalbytes import residual_planes, ring_index, ring_planes
 from geoterrain.bounds.normals import RingCodes
+from geoterrain.bounds.ownguess import (
+    edge_own_codes,
+    edge_payload_own,
+    own_codes,
+    pred_payloads_own,
+    ring_payloads_own,
+    top_edge_payload_own,
+    top_payload_own,
+)
 from geoterrain.bounds.radii import _proxy_positions, _radii_nb, _walk_up, code_lut_nb, prefix_codes
 from geoterrain.bounds.vertexdata import (
     CENTRES,
     DIFF,
     LOG8,
-    LOG_STEPS,
     MIDS,
     NEW_ONLY,
     PRED,
@@ -36,24 +54,8 @@ from geoterrain.bounds.vertexdata import (
     SHAPED_ZSTD_LEVEL,
     SLACK,
     VERSION_2,
-    edge_own_codes,
-    edge_payload_own,
-    log8_exponent,
-    log8_table,
-    mids_index,
-    new_mask,
-    own_codes,
-    pred_payloads_own,
-    pred_residuals,
-    residual_planes,
-    ring_index,
-    ring_new_index,
-    ring_payloads_own,
-    ring_planes,
     scale_exponent,
     shape_codes,
-    top_edge_payload_own,
-    top_payload_own,
 )
 from geoterrain.core.rounding import round_up
 from geoterrain.core.threads import cores_for, parallel_kernel
@@ -98,7 +100,7 @@ class LevelPayloads(NamedTuple):
 
 class OwnHeights(NamedTuple):
     """The scene heights δ's blobs are guessed from (schema 20,
-    :func:`geoterrain.bounds.vertexdata.own_codes`), indexed as the codes of a
+    :func:`geoterrain.bounds.ownguess.own_codes`), indexed as the codes of a
     :class:`BoundsCoding` are: ``z`` (float64), ``valid`` (None: all valid, the stand-in
     already in place) and the store's ``stand_in`` height for invalid samples."""
 
@@ -109,7 +111,7 @@ class OwnHeights(NamedTuple):
 
 class EdgeGuess(NamedTuple):
     """Where the data ends for a δ_edge guessed from the heights (schema 23,
-    :func:`geoterrain.bounds.vertexdata.edge_own_codes`): the indices of
+    :func:`geoterrain.bounds.ownguess.edge_own_codes`): the indices of
     :class:`OwnHeights` below ``rows`` and ``cols`` hold data; ``pred``: the level is
     above 0 (its payloads predicted from the parents')."""
 
@@ -452,7 +454,7 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     (:func:`geoterrain.bounds.leafbounds.centre_radius`). Every other new-vertices log8 δ
     and r blob (neither ``RING``, ``DIFF``, ``MIDS`` nor ``CENTRES``) holds its codes as
     differences from its parents' codes (flag ``PRED``,
-    :func:`geoterrain.bounds.vertexdata.pred_residuals`). ``centres`` (level 0 of a
+    :func:`geoterrain.bounds.log8codes.pred_residuals`). ``centres`` (level 0 of a
     geographic store: the level's heights, the stand-in height and the tiles' boxes):
     an r blob of ``CENTRES`` shape holds its centres as differences from their guess
     from the heights (flags ``CENTRES`` and ``PRED``,
@@ -463,20 +465,20 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     :func:`geoterrain.bounds.leafbounds.mids_residuals`; schema 20). ``own`` (schema 20:
     the level's heights, :class:`OwnHeights`): a ``RING`` δ blob holds its codes as
     differences from the codes of their own errors (flag ``PRED`` too,
-    :func:`geoterrain.bounds.vertexdata.ring_payloads_own`), and a ``PRED`` δ blob its
+    :func:`geoterrain.bounds.ownguess.ring_payloads_own`), and a ``PRED`` δ blob its
     differences in the contexts of their gaps above those (flag ``SLACK`` too,
-    :func:`geoterrain.bounds.vertexdata.pred_payloads_own`; both range-coded, no zstd);
+    :func:`geoterrain.bounds.ownguess.pred_payloads_own`; both range-coded, no zstd);
     a whole tile's δ (the top level's, schema 23) its codes level by level inside the
     tile the same way (flags ``PRED`` and ``SLACK`` without ``NEW_ONLY``,
-    :func:`geoterrain.bounds.vertexdata.top_payload_own`).
+    :func:`geoterrain.bounds.ownguess.top_payload_own`).
     ``zlevel``: the zstd level of the ``CENTRES``, ``PRED`` and ``RING`` payloads
     (:func:`geoterrain.bounds.vertexdata.shaped_zstd_level` of the store's grid).
     ``edge`` (a δ_edge below the top, with ``base`` and ``own``: :class:`EdgeGuess`):
     each ``DIFF`` blob whose δ_edge equals δ wherever δ is finite holds its codes where
     δ is +inf against their guess from the tile's heights with the padding replicated
     (flag ``PRED`` too, and ``SLACK`` above level 0;
-    :func:`geoterrain.bounds.vertexdata.edge_own_codes`,
-    :func:`~geoterrain.bounds.vertexdata.edge_payload_own`; schema 23).
+    :func:`geoterrain.bounds.ownguess.edge_own_codes`,
+    :func:`~geoterrain.bounds.ownguess.edge_payload_own`; schema 23).
 
     Examples
     --------
@@ -555,7 +557,7 @@ def level_blobs(coding: BoundsCoding, nrm: np.ndarray, t: int, level: int, top_l
     elif not new_only and k and T >= 3 and "delta" in kinds and own is not None \
             and base is None and not flags_d & RING:
         # schema 23: a whole (top) tile's δ level by level inside it, each level's new
-        # vertices in their own-error gaps (vertexdata.top_payload_own; bytes: no zstd)
+        # vertices in their own-error gaps (ownguess.top_payload_own; bytes: no zstd)
         W = _windows(coding.dc, xy, t, level)
         e = int(coding.ed)
         pd = [top_payload_own(W[n], lambda s, o=o: own_codes(
@@ -646,10 +648,10 @@ def _edge_guessed(pd: np.ndarray, head: bytes, coding: BoundsCoding, base: Bound
                   own: OwnHeights, xy: np.ndarray, t: int, level: int, edge: EdgeGuess,
                   new_only: bool) -> tuple[list, list[bytes]]:
     # schema 23: each DIFF δ_edge payload whose codes equal δ's wherever δ is finite as
-    # its codes where δ is +inf against their guess (vertexdata.edge_own_codes of the
+    # its codes where δ is +inf against their guess (ownguess.edge_own_codes of the
     # tile's heights, the padding replicated), range-coded (bytes: no zstd), flagged PRED
     # too (and SLACK above level 0: predicted from the parents; a whole tile, the top's,
-    # level by level inside it: vertexdata.top_edge_payload_own); the others as they were
+    # level by level inside it: ownguess.top_edge_payload_own); the others as they were
     T, s = (1 << t) + 1, 1 << level
     W, D = _windows(coding.dc, xy, t, level), _windows(base.dc, xy, t, level)
     rows, heads = list(pd), []
@@ -743,14 +745,14 @@ def ring_blobs(nrm: np.ndarray | RingCodes, t: int, tiles: Iterable[tuple[int, i
                level: int = 0, guess: np.ndarray | None = None,
                zlevel: int = SHAPED_ZSTD_LEVEL) -> dict:
     """Normals blobs of level ``level`` (``nrm``: that level's codes) that hold only each
-    tile's border ring (4T − 4 samples, as :func:`geoterrain.bounds.vertexdata.ring_planes`,
+    tile's border ring (4T − 4 samples, as :func:`geoterrain.bounds.normalbytes.ring_planes`,
     zstd): a reader derives the interior from the tile's own heights
     (:meth:`geoterrain.terrain.Terrain.tile_normal_codes`), as the central differences
     there read no sample outside the tile. ``nrm`` may hold the rings' codes alone
     (:class:`geoterrain.bounds.normals.RingCodes`). ``guess`` (k, 4T − 4, 2): what a reader
     derives there (:func:`geoterrain.bounds.leafbounds.ring_guesses`); each ring is stored as
     its difference from it, mod 256, as two planes without first differences
-    (:func:`geoterrain.bounds.vertexdata.residual_planes`), at zstd level ``zlevel``
+    (:func:`geoterrain.bounds.normalbytes.residual_planes`), at zstd level ``zlevel``
     (:func:`geoterrain.bounds.vertexdata.shaped_zstd_level` of the store's grid; schema
     17's ``normals_ring_residual``).
 

@@ -4,7 +4,8 @@ For every stored tile ``(L, x, y)`` (docs/conventions.md): the max vertical erro
 level-L union-jack surface over the tile's footprint, the same on its border lines (what
 a skirt must cover), and the box of its valid samples. Invalid samples are handled as in
 :mod:`geoterrain.bounds.delta`: never read, and a triangle mixing valid and invalid samples
-makes the bound +inf.
+makes the bound +inf. The GeoMipMapping blocks' δ_n (:func:`tile_and_block_errors`) are
+stored as one blob, :func:`pack_block_errors` / :func:`unpack_block_errors`.
 """
 
 from __future__ import annotations
@@ -15,11 +16,14 @@ import numpy as np
 from numba import njit, prange
 
 from geoterrain.bounds.delta import Cell, cell_rows_nb, check_grid
+from geoterrain.core import zstdsafe
 from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.grid import footprint_counts
+from geoterrain.core.rounding import round_up
 from geoterrain.core.threads import cores_for, parallel_kernel
 
-__all__ = ["TileBounds", "TileTable", "tile_and_block_errors", "tile_errors", "tile_table"]
+__all__ = ["TileBounds", "TileTable", "pack_block_errors", "tile_and_block_errors", "tile_errors",
+           "tile_table", "unpack_block_errors"]
 
 
 def closed_blocks(a: np.ndarray, s: int, op, dtype=None) -> np.ndarray:
@@ -517,3 +521,31 @@ def tile_and_block_errors(
             per_level.append((err, bnd))
     out = tile_rows(per_level, box0, nvalid)
     return out, blocks
+
+
+def pack_block_errors(blocks: np.ndarray) -> bytes:
+    """Every GeoMipMapping block's δ_n (nb, nb, levels), as little-endian float32
+    rounded *up* (a stored δ_n is never below the exact one; +inf stays +inf), zstd.
+
+    Examples
+    --------
+    >>> b = np.array([[[0.0, 0.1, np.inf]]])
+    >>> back = unpack_block_errors(pack_block_errors(b), 1, 3)
+    >>> bool((back >= b).all()), back[0, 0, 2]
+    (True, np.float64(inf))
+    """
+    a = round_up(np.asarray(blocks, np.float64), np.float32).astype("<f4")
+    return zstdsafe.compress_one(np.ascontiguousarray(a).tobytes(), 6)
+
+
+def unpack_block_errors(blob: bytes, nb: int | tuple[int, int], levels: int) -> np.ndarray:
+    """Inverse of :func:`pack_block_errors`: (nb, nb, levels) float64, or (down, across,
+    levels) with ``nb`` = (down, across) (a root grid's level-0 tiles). A store may come
+    from a stranger: ``ValueError`` unless the blob decodes to exactly that many values,
+    each ≥ 0 (+inf allowed, NaN not)."""
+    nd, na = (nb, nb) if np.ndim(nb) == 0 else nb
+    raw = zstdsafe.decompress(blob, nd * na * levels * 4, exact=True)
+    a = np.frombuffer(raw, "<f4").astype(np.float64).reshape(nd, na, levels)
+    if not (a >= 0).all():  # NaN fails too
+        raise ValueError("a block δ_n is negative or NaN")
+    return a

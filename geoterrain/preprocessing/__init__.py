@@ -2,4 +2,5 @@
 whole grid or streamed in row bands (``bands/``), on a scheduler.
 """
 
-__all__ = ["bands", "passes", "pipeline", "schedulers", "scratch", "streaming"]
+__all__ = ["bands", "levelblobs", "passes", "pipeline", "schedulers", "scratch", "storewrite",
+           "streaming", "surface"]

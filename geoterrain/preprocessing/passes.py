@@ -29,8 +29,8 @@ from typing import NamedTuple
 import numpy as np
 
 from geoterrain._version import __version__
+from geoterrain.bounds.normalbytes import NORMAL_BITS
 from geoterrain.bounds.tilebounds import TileTable
-from geoterrain.bounds.vertexdata import NORMAL_BITS
 from geoterrain.codec.quantize import Quantizer, codes_to_heights, roundtrip
 from geoterrain.core.atomicfiles import pid_alive
 from geoterrain.core.frame import Frame

@@ -43,6 +43,7 @@ import numpy as np
 
 from geoterrain.bounds.edgepad import has_padding
 from geoterrain.bounds.leafbounds import CentreHeights, ring_guesses
+from geoterrain.bounds.log8codes import log8_exponent
 from geoterrain.bounds.tileblobs import (
     BoundsCoding,
     EdgeGuess,
@@ -50,13 +51,8 @@ from geoterrain.bounds.tileblobs import (
     level_blobs,
     ring_blobs,
 )
-from geoterrain.bounds.tilebounds import TileTable
-from geoterrain.bounds.vertexdata import (
-    log8_exponent,
-    pack_block_errors,
-    shaped_zstd_level,
-    store_metadata,
-)
+from geoterrain.bounds.tilebounds import TileTable, pack_block_errors
+from geoterrain.bounds.vertexdata import shaped_zstd_level
 from geoterrain.codec.quantize import roundtrip
 from geoterrain.core.atomicfiles import remove_stale_partials
 from geoterrain.core.frame import Frame
@@ -85,6 +81,7 @@ from geoterrain.preprocessing.passes import (
 from geoterrain.preprocessing.request import Request, place, request, root_layout
 from geoterrain.preprocessing.schedulers import run_tasks
 from geoterrain.preprocessing.scratch import ScratchArrays
+from geoterrain.preprocessing.storewrite import store_metadata
 from geoterrain.store.database import StoreWriter, page_size_for
 
 __all__ = ["band_rows", "preprocess_streaming", "stream", "streaming_band"]
@@ -408,7 +405,7 @@ def _streamed(req: Request, spec: RasterSpec, meta: dict, grid: Grid, frame: Fra
                 stored = _own_tiles(grid, bounds)
                 del bounds
                 release_free_heap()  # the passes' and the height blobs' freed memory
-                if frame.kind == "geographic" and derive_bounds:  # pipeline.vertex_bounds
+                if frame.kind == "geographic" and derive_bounds:  # surface.vertex_bounds
                     ring: tuple[str, ...] = ("delta",) if slack is not None else ()
                 else:
                     ring = ("delta", "radius") if derive_bounds else ()
@@ -508,7 +505,7 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                 keys = row_keys[(row_keys >= x0) & (row_keys < x1)].tolist()
                 # every vertex of the lattice, the coarser levels' too: a PRED payload
                 # holds its codes as differences from its parents'
-                # (vertexdata.pred_residuals)
+                # (log8codes.pred_residuals)
                 d = level_lattice(sa, "", L, n, p0, p1, m, True, np.float32, q0, q1)
                 rc = level_lattice(sa, "r", L, n, p0, p1, m, True, np.uint8, q0, q1)
                 nrm = sn.read(f"n{L}", p0, p1, 2 * q0, 2 * q1).reshape(T, q1 - q0, 2)
@@ -571,7 +568,7 @@ def _level_blobs(w: StoreWriter, sa: ScratchArrays, se: ScratchArrays | None,
                     if not keys_e:
                         continue
                     # schema 23: the stored tiles below the top guessed from the
-                    # heights, the padding replicated (vertexdata.edge_own_codes): the
+                    # heights, the padding replicated (ownguess.edge_own_codes): the
                     # data's samples of the window's lattice
                     guessed = base is not None
                     own_e = OwnHeights(level_lattice(sa, "Z", L, n, p0, p1, m, True,

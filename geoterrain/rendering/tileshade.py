@@ -172,7 +172,7 @@ def _shade_tile(h, cf, codes, planar, lut, tint, out):  # pragma: no cover - com
     ``codes`` (flat; ``planar``: as stored), the hillshade ``lut`` (:func:`shade_lut`)
     and the palette's ``tint`` (:class:`Tint`), into ``out`` (T, T, 3)."""
     T0, T1 = h.shape
-    if planar:  # two planes of 2-D differences mod 256 (vertexdata.normals_to_bytes)
+    if planar:  # two planes of 2-D differences mod 256 (normalbytes.normals_to_bytes)
         uv = np.empty(T0 * T1 * 2, np.uint8)  # to interleaved pairs
         for c in range(2):
             for i in range(T0):

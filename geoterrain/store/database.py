@@ -121,7 +121,7 @@ _KIND_NAMES = {i: k for k, i in KIND_CODES.items()}  # a blob key's kind number 
 #                       tile's heights (vertexdata.MIDS with PRED); δ blobs guessed from
 #                       the tile's heights: PRED payloads in the order of their own-error
 #                       gaps (PRED with SLACK), level-0 rings as differences from the own
-#                       errors' codes (RING with PRED; vertexdata.own_codes)
+#                       errors' codes (RING with PRED; ownguess.own_codes)
 #                   23: the frame without its aeqd_wkt (rebuilt on read from crs_wkt and
 #                       origin_crs, Frame.aeqd_wkt); a small grid's shaped payloads at
 #                       zstd 15 (vertexdata.shaped_zstd_level; any zstd decoder reads them)

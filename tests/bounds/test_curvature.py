@@ -177,12 +177,14 @@ def test_real_geographic_dems(tmp_path):
 @pytest.mark.fast
 def test_projected_and_pixel_paths_never_call_it(tmp_path, monkeypatch):
     """δ and r of affine grids stay bit-identical: the metric term is not computed."""
-    import geoterrain.preprocessing.pipeline as pp
+    from geoterrain.preprocessing import levelblobs, surface
 
     def boom(*a, **k):
         raise AssertionError("metric_bounds called on an affine grid")
 
-    monkeypatch.setattr(pp, "metric_bounds", boom)
+    # its callers: δ and r (surface.vertex_bounds), δ_edge (levelblobs.tile_blobs)
+    monkeypatch.setattr(surface, "metric_bounds", boom)
+    monkeypatch.setattr(levelblobs, "metric_bounds", boom)
     z = _rough(33)
     preprocess(write_tif(tmp_path / "utm.tif", z), tmp_path / "a.geoterrain")
     preprocess(write_tif(tmp_path / "px.tif", z, crs=None), tmp_path / "b.geoterrain",

@@ -19,19 +19,11 @@ from geoterrain.bounds.leafbounds import (
     mids_residuals,
     ring_guesses,
 )
+from geoterrain.bounds.log8codes import log8_table, new_mask
+from geoterrain.bounds.normalbytes import ring_from_bytes, ring_index
 from geoterrain.bounds.normals import derived_codes, ring_guess
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, ring_blobs
-from geoterrain.bounds.vertexdata import (
-    CENTRES,
-    MIDS,
-    PRED,
-    RING,
-    decode_bounds,
-    log8_table,
-    new_mask,
-    ring_from_bytes,
-    ring_index,
-)
+from geoterrain.bounds.vertexdata import CENTRES, MIDS, PRED, RING, decode_bounds
 from geoterrain.core import zstdsafe
 
 pytestmark = pytest.mark.fast
@@ -106,7 +98,7 @@ def test_the_centre_guess_is_the_same_from_the_exact_box_and_the_stored_one(
     outward, schema 17's catalog): the guesses must be equal bit for bit, or a reader
     would decode other codes than the writer stored. Flat tiles whose spacing is a code's
     value put the guess on a code boundary, where a box wider by a step changes it."""
-    from geoterrain.bounds.vertexdata import log8_table
+    from geoterrain.bounds.log8codes import log8_table
     from geoterrain.store.catalog import TILE_COLUMNS, stored_numbers
 
     rng = np.random.default_rng(seed)

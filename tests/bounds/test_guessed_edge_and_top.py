@@ -1,4 +1,4 @@
-"""Schema 23's payloads guessed from a tile's heights (geoterrain/bounds/vertexdata.py):
+"""Schema 23's payloads guessed from a tile's heights (geoterrain/bounds/ownguess.py):
 the top tile's δ level by level inside it (``top_payload_own``), a δ_edge below the top
 against its guess from the heights with the padding replicated (``edge_own_codes``,
 ``edge_payload_own``), the top tile's δ_edge level by level (``top_edge_payload_own``).
@@ -12,19 +12,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from geoterrain.bounds.vertexdata import (
-    DIFF,
-    LOG8,
-    NEW_ONLY,
-    PRED,
-    SLACK,
-    VERSION_2,
-    decode_bounds,
+from geoterrain.bounds.log8codes import log8_table, new_mask
+from geoterrain.bounds.ownguess import (
     edge_codes_own,
     edge_own_codes,
     edge_payload_own,
-    log8_table,
-    new_mask,
     own_codes,
     top_codes_own,
     top_edge_codes_own,
@@ -32,6 +24,7 @@ from geoterrain.bounds.vertexdata import (
     top_payload_own,
     top_steps,
 )
+from geoterrain.bounds.vertexdata import DIFF, LOG8, NEW_ONLY, PRED, SLACK, VERSION_2, decode_bounds
 
 
 def _codes(rng, shape, spread):

@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 import geoterrain
 from geoterrain.bounds.delta import saturate
 from geoterrain.bounds.leafbounds import centre_radius, leaf_delta, leaf_radius
+from geoterrain.bounds.log8codes import log8_table, mids_index, ring_new_index
 from geoterrain.bounds.vertexdata import (
     CENTRES,
     DIFF,
@@ -30,9 +31,6 @@ from geoterrain.bounds.vertexdata import (
     SLACK,
     VERSION_2,
     decode_bounds,
-    log8_table,
-    mids_index,
-    ring_new_index,
 )
 from geoterrain.exceptions import StoreCorruptError
 from tests.conftest import real_dem, store_pair, write_tif
@@ -240,7 +238,7 @@ def test_geographic_leaf_delta_raises_to_a_nested_bound(seed, n, t, holes):
     derives)."""
     from geoterrain.bounds.delta import vertex_errors
     from geoterrain.bounds.leafbounds import geographic_leaf_delta
-    from geoterrain.bounds.vertexdata import new_mask
+    from geoterrain.bounds.log8codes import new_mask
 
     rng = np.random.default_rng(seed)
     N = (1 << n) + 1
@@ -381,7 +379,7 @@ def test_leaf_kernels_by_hand():
     """Closed forms on one cell: the centre's δ is its distance to the midpoint of the
     cell's split diagonal (which flips with the cell's global parity), saturated with its
     edge midpoints; its radius is the farthest edge midpoint; edge midpoints are leaves."""
-    from geoterrain.bounds.vertexdata import log8_codes, log8_table
+    from geoterrain.bounds.log8codes import log8_codes, log8_table
 
     z = np.array([[2.0, 1, 0], [1, 3, 1], [0, 1, 2]])  # the edge samples lie on the legs
     ok = np.ones((3, 3), bool)
@@ -408,7 +406,8 @@ def test_delta_edge_decodes_to_the_replicated_grids_delta(tmp_path_factory, seed
     replicates the data's edge, computed here from the decoded heights by
     :mod:`geoterrain.bounds.edgepad` and coded with the store's table."""
     from geoterrain.bounds.edgepad import edge_deltas, edge_support
-    from geoterrain.bounds.vertexdata import DIFF, PRED, log8_codes, log8_table
+    from geoterrain.bounds.log8codes import log8_codes, log8_table
+    from geoterrain.bounds.vertexdata import DIFF, PRED
 
     tmp = tmp_path_factory.mktemp("de")
     rng = np.random.default_rng(seed)

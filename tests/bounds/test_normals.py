@@ -7,6 +7,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from geoterrain.bounds.normalbytes import ring_index
 from geoterrain.bounds.normals import (
     OCTAHEDRAL_MAX_ERROR_DEG,
     OCTAHEDRAL_MAX_ERROR_DEG_PRECISE,
@@ -18,7 +19,6 @@ from geoterrain.bounds.normals import (
     normal_map,
     normal_pyramid,
 )
-from geoterrain.bounds.vertexdata import ring_index
 from geoterrain.rendering import tileshader
 
 KERNELS = ["central", "horn"]

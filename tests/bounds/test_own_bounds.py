@@ -1,4 +1,4 @@
-"""Schema 20's δ guessed from the tile's heights (vertexdata.own_codes): ``PRED`` payloads
+"""Schema 20's δ guessed from the tile's heights (ownguess.own_codes): ``PRED`` payloads
 range-coded in the contexts of their vertices' gaps between the parents' bound and the own
 errors' codes (``PRED`` with ``SLACK``), level-0 ``RING`` δ as differences from the own
 errors' codes, range-coded (``RING`` with ``PRED``). Exact whatever the guess; small where
@@ -12,29 +12,27 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from geoterrain.bounds.delta import vertex_errors
-from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs
-from geoterrain.bounds.vertexdata import (
-    PRED,
-    RING,
-    SLACK,
-    GapDecoder,
+from geoterrain.bounds.gapcoder import GapDecoder, encode_gaps
+from geoterrain.bounds.log8codes import (
     _pred_centres,
     _pred_index,
-    decode_bounds,
-    encode_gaps,
-    guess_check,
     log8_codes,
     log8_exponent,
     log8_table,
+    pred_residuals,
+    ring_new_index,
+)
+from geoterrain.bounds.ownguess import (
+    guess_check,
     own_codes,
     pred_codes_own,
     pred_gaps,
     pred_payloads_own,
-    pred_residuals,
     ring_codes_own,
-    ring_new_index,
     ring_payloads_own,
 )
+from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs
+from geoterrain.bounds.vertexdata import PRED, RING, SLACK, decode_bounds
 from geoterrain.core import zstdsafe
 from tests.bounds.test_guessed_bounds import _heights
 

@@ -1,4 +1,4 @@
-"""Schema 14's PRED bounds payloads (vertexdata.pred_residuals): codes as differences from
+"""Schema 14's PRED bounds payloads (log8codes.pred_residuals): codes as differences from
 their parents' codes, decoded exactly, and small where the bounds are saturated or nested."""
 
 from __future__ import annotations
@@ -10,21 +10,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from geoterrain.bounds.delta import vertex_errors
-from geoterrain.bounds.tileblobs import radius_codes
-from geoterrain.bounds.vertexdata import (
-    CENTRES,
-    PRED,
+from geoterrain.bounds.log8codes import (
     _pred_centres,
     _pred_index,
-    decode_bounds,
     log8_codes,
     log8_exponent,
     log8_table,
     new_mask,
-    pack_bounds_v2,
     pred_codes,
     pred_residuals,
 )
+from geoterrain.bounds.tileblobs import radius_codes
+from geoterrain.bounds.vertexdata import CENTRES, PRED, decode_bounds, pack_bounds_v2
 from geoterrain.core.grid import level_tiles
 from geoterrain.ingest.synth import generate
 

@@ -8,14 +8,8 @@ import zstandard
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from geoterrain.bounds.vertexdata import (
-    CENTRES,
-    decode_bounds,
-    log8_table,
-    new_mask,
-    pack_bounds_v2,
-    shape_codes,
-)
+from geoterrain.bounds.log8codes import log8_table, new_mask
+from geoterrain.bounds.vertexdata import CENTRES, decode_bounds, pack_bounds_v2, shape_codes
 
 pytestmark = pytest.mark.fast
 

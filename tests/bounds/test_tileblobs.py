@@ -8,17 +8,10 @@ import zstandard
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from geoterrain.bounds.log8codes import log8_codes, log8_exponent, log8_table
+from geoterrain.bounds.normalbytes import normals_to_bytes
 from geoterrain.bounds.tileblobs import BoundsCoding, compress_rows, level_blobs
-from geoterrain.bounds.vertexdata import (
-    decode_bounds,
-    log8_codes,
-    log8_exponent,
-    log8_table,
-    normals_to_bytes,
-    pack_bounds_v2,
-    scale_bounds,
-    scale_exponent,
-)
+from geoterrain.bounds.vertexdata import decode_bounds, pack_bounds_v2, scale_bounds, scale_exponent
 from geoterrain.core.grid import level_tiles
 from geoterrain.core.rounding import round_up
 from geoterrain.core.zstdsafe import strip_magic
@@ -156,9 +149,9 @@ def test_radius_codes_keep_their_exponent_in_the_header_range():
     never a wrapped, tiny scale."""
     import warnings
 
+    from geoterrain.bounds.log8codes import log8_table
     from geoterrain.bounds.radii import vertex_radii
     from geoterrain.bounds.tileblobs import radius_codes
-    from geoterrain.bounds.vertexdata import log8_table
 
     ii, jj = np.indices((9, 9)).astype(np.float64)
     x, y, z = jj * 1e42, -ii * 1e42, np.zeros((9, 9))

@@ -10,10 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from geoterrain.bounds.delta import Cell, _block_sweep, _raw_delta, check_grid
+from geoterrain.bounds.log8codes import log8_table
 from geoterrain.bounds.radii import _proxy_positions
 from geoterrain.bounds.tileblobs import radius_codes
 from geoterrain.bounds.tilebounds import _level_field_nb, cell_counts_nb
-from geoterrain.bounds.vertexdata import log8_table
 from geoterrain.bounds.windows import (
     block_sweep_rect,
     fine_raw_delta,

@@ -39,14 +39,14 @@ def test_the_normal_helpers_take_the_axis_as_an_int64():
 
 
 def test_the_gap_coder_compiles_once_for_both_directions():
-    from geoterrain.bounds import vertexdata
+    from geoterrain.bounds import gapcoder
 
     r = np.array([0, 3, 200], np.int64)
     gap = np.array([0, 5, 255], np.int64)
-    _fresh_compile(vertexdata._encode_gaps, r, gap, np.zeros(64, np.uint8))
-    d = vertexdata.GapDecoder(vertexdata.encode_gaps(r, gap))
+    _fresh_compile(gapcoder._encode_gaps, r, gap, np.zeros(64, np.uint8))
+    d = gapcoder.GapDecoder(gapcoder.encode_gaps(r, gap))
     assert d.take(gap).tolist() == r.tolist()
-    sigs = vertexdata._gap_values.signatures
+    sigs = gapcoder._gap_values.signatures
     assert len(sigs) == 1 and sigs[0][0] == types.boolean, sigs
 
 

@@ -1,4 +1,4 @@
-"""The height codec on a thread of its own (pipeline.HeightsJob), the normals and the tile
+"""The height codec on a thread of its own (levelblobs.HeightsJob), the normals and the tile
 bounds on others, a level's bounds' blobs in two halves on two threads and the bounds' rows
 handed to the store's writer level by level (tile_blobs' on_rows) write the same bytes as
 all of it in line, each level in one piece and every row at the end."""
@@ -14,8 +14,9 @@ from geoterrain.codec.pyramid import encode_pyramid
 from geoterrain.codec.quantize import Quantizer
 from geoterrain.core.grid import Grid, footprint_counts
 from geoterrain.ingest.synth import generate
-from geoterrain.preprocessing import pipeline
-from geoterrain.preprocessing.pipeline import preprocess, pyramid_keys
+from geoterrain.preprocessing import levelblobs, pipeline
+from geoterrain.preprocessing.levelblobs import pyramid_keys
+from geoterrain.preprocessing.pipeline import preprocess
 from tests.conftest import write_tif
 
 
@@ -59,10 +60,10 @@ def test_the_heights_thread_writes_the_same_bytes(tmp_path, monkeypatch):
     by level)."""
     tb, wr = pipeline.tile_blobs, pipeline.write_rows
     for name, (src, kw) in _sources(tmp_path).items():
-        monkeypatch.setattr(pipeline, "HEIGHTS_THREAD_SAMPLES", 0)
-        monkeypatch.setattr(pipeline, "SPLIT_LEVEL_TILES", 2)
+        monkeypatch.setattr(levelblobs, "HEIGHTS_THREAD_SAMPLES", 0)
+        monkeypatch.setattr(levelblobs, "SPLIT_LEVEL_TILES", 2)
         a = preprocess(src, tmp_path / "a.gt", tile_size=8, overwrite=True, **kw)
-        monkeypatch.setattr(pipeline, "HEIGHTS_THREAD_SAMPLES", 1 << 62)
+        monkeypatch.setattr(levelblobs, "HEIGHTS_THREAD_SAMPLES", 1 << 62)
         b = preprocess(src, tmp_path / "b.gt", tile_size=8, overwrite=True, **kw)
         assert a.read_bytes() == b.read_bytes(), name
         with monkeypatch.context() as m:  # every row at the end, as before on_rows
@@ -75,16 +76,19 @@ def test_the_heights_thread_writes_the_same_bytes(tmp_path, monkeypatch):
 
 
 @pytest.mark.fast
-@pytest.mark.parametrize("where", ["encode_pyramid", "_normal_maps", "_tile_bounds"])
-def test_a_failure_on_a_thread_is_raised_and_writes_nothing(tmp_path, monkeypatch, where):
+@pytest.mark.parametrize(("module", "where"), [(levelblobs, "encode_pyramid"),
+                                               (pipeline, "_normal_maps"),
+                                               (pipeline, "_tile_bounds")])
+def test_a_failure_on_a_thread_is_raised_and_writes_nothing(tmp_path, monkeypatch, module,
+                                                            where):
     """The height codec's thread, the normals' and the tile bounds' (HeightsJob, Job)."""
     src = _sources(tmp_path)["square"][0]
 
     def broken(*args, **kwargs):
         raise MemoryError("no room for the heights")
 
-    monkeypatch.setattr(pipeline, "HEIGHTS_THREAD_SAMPLES", 0)
-    monkeypatch.setattr(pipeline, where, broken)
+    monkeypatch.setattr(levelblobs, "HEIGHTS_THREAD_SAMPLES", 0)
+    monkeypatch.setattr(module, where, broken)
     with pytest.raises(MemoryError, match="no room"):
         preprocess(src, tmp_path / "a.gt", tile_size=8)
     assert not (tmp_path / "a.gt").exists()

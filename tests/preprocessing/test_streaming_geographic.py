@@ -134,7 +134,7 @@ def test_banded_geographic_bounds_are_the_whole_grid_bounds(tmp_path_factory, ex
                                                             holes, band, on_disk):
     """δ raised by the metric terms and saturated again, the radius codes nested on the
     raised radii, level 0's slack with δ re-saturated, and δ_edge following it: each
-    the pipeline's whole-grid value (pipeline.vertex_bounds, pipeline.tile_blobs)."""
+    the pipeline's whole-grid value (surface.vertex_bounds, levelblobs.tile_blobs)."""
     g, X, Y, Z, V = _geo(*EXTENTS[extent], seed, holes)
     N, n = g.size, g.n
     delta = vertex_errors(Z, V)

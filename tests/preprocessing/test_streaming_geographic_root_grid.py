@@ -195,7 +195,7 @@ def test_banded_geographic_bounds_on_the_roots_are_the_whole_grid_bounds(
     """δ raised by the metric terms and saturated per root again, the radius codes nested
     on the raised radii across the roots' shared edges, level 0's slack over the
     extent's tiles down and across with δ re-saturated, and δ_edge following it: each
-    the whole-grid root-grid value (pipeline.vertex_bounds, pipeline.tile_blobs with
+    the whole-grid root-grid value (surface.vertex_bounds, levelblobs.tile_blobs with
     ``span``)."""
     g, X, Y, Z, V = _geo_roots(shape, place, seed, holes)
     assume(not g.square)

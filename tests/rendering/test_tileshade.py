@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from geoterrain.bounds.normalbytes import normals_from_bytes, normals_to_bytes
 from geoterrain.bounds.normals import decode_octahedral
-from geoterrain.bounds.vertexdata import normals_from_bytes, normals_to_bytes
 from geoterrain.rendering.colours import LAND, WATER, Palette, colorize, water_level
 from geoterrain.rendering.shading import AMBIENT, DEFAULT_SUN, SHADE_CEILING, hillshade
 from geoterrain.rendering.tileshade import (

@@ -83,12 +83,12 @@ def test_a_failure_while_the_writer_thread_runs_leaves_nothing(tmp_path, fbm_tif
     no store, no partial file, no thread left."""
     import threading
 
-    from geoterrain.preprocessing import pipeline
+    from geoterrain.preprocessing import levelblobs
 
     def boom(*a, **k):
         raise RuntimeError("coding failed")
 
-    monkeypatch.setattr(pipeline, "level_blobs", boom)
+    monkeypatch.setattr(levelblobs, "level_blobs", boom)
     dst = tmp_path / "s.geoterrain"
     with pytest.raises(RuntimeError, match="coding failed"):
         geoterrain.preprocess(fbm_tif, dst)

@@ -178,8 +178,8 @@ def test_new_vertices_only_blobs_are_smaller_and_exact(tmp_path):
 
 def test_stored_bounds_are_never_below_the_exact_ones(tmp_path):
     from geoterrain.bounds.delta import vertex_errors
+    from geoterrain.bounds.log8codes import LOG_STEPS
     from geoterrain.bounds.radii import vertex_radii
-    from geoterrain.bounds.vertexdata import LOG_STEPS
 
     store = preprocess(_int_dem(tmp_path), tmp_path / "d.geoterrain", tile_size=16,
                        root_grid=False)  # the square's arrays (root grids: test_root_grid.py)
@@ -210,8 +210,8 @@ def _assert_minimal_radius_codes(t, X, Y, Z, valid, R):
     """The stored r of every tile against the coded nesting recomputed here in numpy,
     group by group fine to coarse: code(v) = the smallest code ≥ |p_v − p_c| +
     table[code(c)] for each child c (positions as vertex_radii's)."""
+    from geoterrain.bounds.log8codes import log8_codes, log8_table
     from geoterrain.bounds.radii import _proxy_positions
-    from geoterrain.bounds.vertexdata import log8_codes, log8_table
     from geoterrain.core.bintree import vertex_children, vertex_depth
 
     g = t.grid

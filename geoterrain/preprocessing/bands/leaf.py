@@ -92,7 +92,7 @@ def follow_slack(se: ScratchArrays, sa: ScratchArrays, n: int, before: str = "db
                  budget: int = 16 << 20) -> None:
     """δ_edge (``se``'s per-level arrays) where it equals δ before level 0's slack
     (``sa``'s ``{before}{x}{k}``) takes δ after it (``sa``'s ``{x}{k}``), as
-    ``pipeline.tile_blobs`` does before saturating δ_edge again.
+    ``levelblobs.tile_blobs`` does before saturating δ_edge again.
 
     Examples
     --------

@@ -18,8 +18,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from geoterrain.bounds.log8codes import log8_exponent, log8_table
 from geoterrain.bounds.radii import code_up_nb
-from geoterrain.bounds.vertexdata import log8_exponent, log8_table
 from geoterrain.core.rounding import round_up32
 from geoterrain.core.threads import parallel_kernel
 from geoterrain.preprocessing.scratch import ScratchArrays
@@ -111,7 +111,7 @@ def band_radius_codes(sa: ScratchArrays, N: int | tuple[int, int], xs: np.ndarra
                       span: int | None = None) -> int:
     """Nest the radius codes of an (N, N) grid (a root grid: its (R, C) extent, roots of
     side ``span``) on its per-level arrays in ``sa`` and return their exponent ``e``
-    (log8 table, :func:`geoterrain.bounds.vertexdata.log8_table`).
+    (log8 table, :func:`geoterrain.bounds.log8codes.log8_table`).
 
     Parameters
     ----------

@@ -46,9 +46,10 @@ import numpy as np
 
 from geoterrain.bounds.edgepad import has_padding
 from geoterrain.bounds.leafbounds import ring_guesses
+from geoterrain.bounds.normalbytes import NORMAL_BITS
 from geoterrain.bounds.normals import encode_octahedral, normal_map
 from geoterrain.bounds.tileblobs import BoundsCoding, level_blobs, ring_blobs
-from geoterrain.bounds.vertexdata import LOG8, NORMAL_BITS, RING, shaped_zstd_level
+from geoterrain.bounds.vertexdata import LOG8, RING, shaped_zstd_level
 from geoterrain.codec.predict import fill_outward
 from geoterrain.codec.pyramid import decode_tile_valid, encode_child, encode_root
 from geoterrain.codec.quantize import valid_codes

@@ -20,9 +20,10 @@ import numpy as np
 from numba import njit
 
 from geoterrain.bounds.delta import Cell
+from geoterrain.bounds.log8codes import log8_exponent, log8_table
 from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs
 from geoterrain.bounds.tilebounds import closed_blocks
-from geoterrain.bounds.vertexdata import log8_exponent, log8_table, shaped_zstd_level
+from geoterrain.bounds.vertexdata import shaped_zstd_level
 from geoterrain.bounds.windows import (
     block_sweep_rect,
     fine_raw_delta,
@@ -749,8 +750,8 @@ def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray
       the top level's): every vertex of the tile.
 
     And (schema 20) every δ blob below the top reads its tile's heights (its guess from
-    the own errors, :func:`geoterrain.bounds.vertexdata.own_codes`), and (schema 23) the
-    top tile's too (:func:`geoterrain.bounds.vertexdata.top_payload_own`): ``edited``
+    the own errors, :func:`geoterrain.bounds.ownguess.own_codes`), and (schema 23) the
+    top tile's too (:func:`geoterrain.bounds.ownguess.top_payload_own`): ``edited``
     (rows r0 … r1 − 1, columns c0 … c1 − 1 of changed heights) reaches the δ of every
     tile whose lattice holds one of those samples.
 

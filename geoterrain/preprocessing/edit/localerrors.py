@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoterrain.bounds.vertexdata import pack_block_errors
+from geoterrain.bounds.tilebounds import pack_block_errors
 from geoterrain.bounds.windows import level_field_rect
 from geoterrain.store.catalog import TILE_COLUMNS
 

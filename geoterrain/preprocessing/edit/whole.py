@@ -23,10 +23,11 @@ import numpy as np
 
 from geoterrain.bounds.delta import delta_max_finite
 from geoterrain.bounds.edgepad import has_padding
+from geoterrain.bounds.normalbytes import NORMAL_BITS
 from geoterrain.bounds.normals import encode_octahedral, level_normal_maps
 from geoterrain.bounds.radii import stand_in_z
-from geoterrain.bounds.tilebounds import tile_and_block_errors
-from geoterrain.bounds.vertexdata import NORMAL_BITS, RING, pack_block_errors
+from geoterrain.bounds.tilebounds import pack_block_errors, tile_and_block_errors
+from geoterrain.bounds.vertexdata import RING
 from geoterrain.codec.pyramid import blob_predictor, decoded_heights, encode_decoded
 from geoterrain.codec.quantize import codes_to_heights
 from geoterrain.core.progress import StageClock
@@ -118,7 +119,8 @@ def whole_plan(terrain: TerrainLike, heights: np.ndarray, valid: np.ndarray,
     On a root grid ``heights`` is level 0's lattice (:attr:`Grid.shape`, as
     :meth:`~geoterrain.terrain.Terrain.level_heights` gives it) or the roots' extent; the
     stages run on the extent, as the whole-grid preprocess's do."""
-    from geoterrain.preprocessing.pipeline import Dem, Surface, tile_blobs, vertex_bounds
+    from geoterrain.preprocessing.levelblobs import tile_blobs
+    from geoterrain.preprocessing.surface import Dem, Surface, vertex_bounds
 
     g, frame, q = terrain.grid, terrain.frame, terrain.quantizer
     pred = store_predictor(terrain)
