@@ -3,8 +3,9 @@
 :func:`tile_blobs` codes the δ, r, normals and δ_edge blobs of every level
 (:func:`geoterrain.bounds.tileblobs.level_blobs` on each level's tiles, a large grid's
 level in two halves on a pool: :data:`SPLIT_LEVEL_TILES`) and hands each level's rows on
-as they are made; :class:`HeightsJob` codes a large grid's height blobs on a thread of its
-own (:data:`HEIGHTS_THREAD_SAMPLES`) in the codec's tile order (:func:`pyramid_keys`).
+as they are made, in the streamed preprocess's row order (:func:`tile_row_order`);
+:class:`HeightsJob` codes a large grid's height blobs on a thread of its own
+(:data:`HEIGHTS_THREAD_SAMPLES`) in the codec's tile order (:func:`pyramid_keys`).
 """
 
 from __future__ import annotations
@@ -39,7 +40,6 @@ from geoterrain.bounds.vertexdata import shaped_zstd_level
 from geoterrain.codec.pyramid import encode_pyramid
 from geoterrain.core.frame import Frame
 from geoterrain.core.grid import Grid
-from geoterrain.preprocessing.storewrite import tile_row_order
 from geoterrain.preprocessing.surface import Dem, Surface, VertexBounds
 
 
@@ -75,7 +75,7 @@ def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
     coded). ``ring_residual`` (with ``derive_normals``): the normals' rings as differences from what
     a reader derives there (schema 17; False: as stored before, an edit of an older store).
     ``on_rows``: called with the δ, r, normals and δ_edge rows in the store's order
-    (:func:`~geoterrain.preprocessing.storewrite.tile_row_order`), a level's as soon as it is coded
+    (:func:`~geoterrain.preprocessing.levelblobs.tile_row_order`), a level's as soon as it is coded
     and the heights have been handed to ``on_heights`` (so the writer inserts them while the next
     level is coded). ``heights``: the height blobs' :class:`HeightsJob`, if started already; with
     ``counts`` of a large grid (:data:`HEIGHTS_THREAD_SAMPLES`) one is started here: the height
@@ -378,3 +378,36 @@ class HeightsJob:
             raise RuntimeError("the height codec stored other tiles than its footprint "
                                "counts say")
         return self._out
+
+
+def tile_row_order(extra: dict[str, dict], stored: set) -> list[tuple[str, dict]]:
+    """The δ, r, normals and δ_edge blobs in the order the streamed preprocess makes them
+    (:func:`geoterrain.preprocessing.streaming.stream`: a tile row of each level at a
+    time, coarse levels last; in a row its δ, r and normals by x, then its δ_edge, the
+    ``stored`` tiles' before the others'), so the two write the same file: a store's
+    bytes follow the sequence of its blob rows (:mod:`geoterrain.store.pagepack`).
+
+    Examples
+    --------
+    >>> extra = {"delta": {(0, 1, 0): b"b", (0, 0, 0): b"a", (1, 0, 0): b"c"},
+    ...          "delta_edge": {(0, 2, 0): b"e", (0, 0, 0): b"d"}}
+    >>> for kind, b in tile_row_order(extra, {(0, 0, 0), (0, 1, 0)}):
+    ...     print(kind, list(b))
+    delta [(0, 0, 0), (0, 1, 0)]
+    delta_edge [(0, 0, 0)]
+    delta_edge [(0, 2, 0)]
+    delta [(1, 0, 0)]
+    """
+    kinds = ("delta", "radius", "normals", "delta_edge")
+    rows: dict[tuple[int, int], dict[str, list]] = {}  # (L, y) → kind → keys
+    for kind in kinds:
+        for k in extra.get(kind, ()):
+            rows.setdefault((k[0], k[2]), {}).setdefault(kind, []).append(k)
+    out = []
+    for row in sorted(rows):
+        for kind, keys in sorted(rows[row].items(), key=lambda kv: kinds.index(kv[0])):
+            keys.sort(key=lambda k: k[1])
+            parts = ([keys] if kind != "delta_edge" else
+                     [[k for k in keys if k in stored], [k for k in keys if k not in stored]])
+            out += [(kind, {k: extra[kind][k] for k in part}) for part in parts if part]
+    return out

@@ -1,14 +1,13 @@
 """What a preprocess writes into its store, and in what order.
 
 :func:`store_metadata`: the metadata a preprocess writes (the whole-grid one and the
-streaming one); :func:`tile_row_order`: the blob rows in the streamed preprocess' order,
-which sets each row's id (so both preprocesses write the same bytes); :func:`write_store`
-/ :func:`write_rows`: a whole grid's blobs, tile table and metadata into a store.
+streaming one); :func:`write_store` / :func:`write_rows`: a whole grid's blobs, tile
+table and metadata into a store, the blob rows in the streamed preprocess' order
+(:func:`~geoterrain.preprocessing.levelblobs.tile_row_order`, which sets each row's id, so
+both preprocesses write the same bytes).
 """
 
 from __future__ import annotations
-
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,11 +15,9 @@ from geoterrain.bounds.normalbytes import NORMAL_BITS, NORMALS_PLANAR_DXDY
 from geoterrain.bounds.tilebounds import pack_block_errors
 from geoterrain.core.grid import Grid
 from geoterrain.core.progress import StageClock
+from geoterrain.preprocessing.levelblobs import TileBlobs, tile_row_order
 from geoterrain.preprocessing.request import Request
 from geoterrain.store.database import StoreThread, StoreWriter, page_size_for
-
-if TYPE_CHECKING:
-    from geoterrain.preprocessing.levelblobs import TileBlobs
 
 
 def store_metadata(*, source: str, source_dtype: str, source_nodata: float | None,
@@ -77,39 +74,6 @@ def store_metadata(*, source: str, source_dtype: str, source_nodata: float | Non
         # no timings and no clock: the same input and options give the same bytes
         # (preprocess(timings=...) and `preprocess -v` report the stages' times)
     }
-
-
-def tile_row_order(extra: dict[str, dict], stored: set) -> list[tuple[str, dict]]:
-    """The δ, r, normals and δ_edge blobs in the order the streamed preprocess makes them
-    (:func:`geoterrain.preprocessing.streaming.stream`: a tile row of each level at a
-    time, coarse levels last; in a row its δ, r and normals by x, then its δ_edge, the
-    ``stored`` tiles' before the others'), so the two write the same file: a store's
-    bytes follow the sequence of its blob rows (:mod:`geoterrain.store.pagepack`).
-
-    Examples
-    --------
-    >>> extra = {"delta": {(0, 1, 0): b"b", (0, 0, 0): b"a", (1, 0, 0): b"c"},
-    ...          "delta_edge": {(0, 2, 0): b"e", (0, 0, 0): b"d"}}
-    >>> for kind, b in tile_row_order(extra, {(0, 0, 0), (0, 1, 0)}):
-    ...     print(kind, list(b))
-    delta [(0, 0, 0), (0, 1, 0)]
-    delta_edge [(0, 0, 0)]
-    delta_edge [(0, 2, 0)]
-    delta [(1, 0, 0)]
-    """
-    kinds = ("delta", "radius", "normals", "delta_edge")
-    rows: dict[tuple[int, int], dict[str, list]] = {}  # (L, y) → kind → keys
-    for kind in kinds:
-        for k in extra.get(kind, ()):
-            rows.setdefault((k[0], k[2]), {}).setdefault(kind, []).append(k)
-    out = []
-    for row in sorted(rows):
-        for kind, keys in sorted(rows[row].items(), key=lambda kv: kinds.index(kv[0])):
-            keys.sort(key=lambda k: k[1])
-            parts = ([keys] if kind != "delta_edge" else
-                     [[k for k in keys if k in stored], [k for k in keys if k not in stored]])
-            out += [(kind, {k: extra[kind][k] for k in part}) for part in parts if part]
-    return out
 
 
 def write_store(req: Request, grid: Grid, blobs: TileBlobs, blocks: np.ndarray, meta: dict,

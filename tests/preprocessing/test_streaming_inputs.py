@@ -80,7 +80,7 @@ def test_a_geographic_raster_streams_to_the_preprocessed_store(tmp_path_factory,
 @pytest.mark.parametrize("eps", [None, 0.5])
 def test_streamed_and_whole_stores_are_the_same_file(tmp_path, eps):
     """Byte for byte, not only blob for blob: the whole-grid preprocess inserts its blob
-    rows in the streamed order (storewrite.tile_row_order), which sets each row's id and
+    rows in the streamed order (levelblobs.tile_row_order), which sets each row's id and
     page. A padded grid (δ_edge of stored and unstored tiles), geographic and projected."""
     z = _relief(3, 45, 70, holes=0.05)
     geo = _geo_tif(tmp_path / "g.tif", z, 10.0, 47.0, 1 / 1200, nodata=-9999)
