@@ -60,7 +60,7 @@ __all__ = ["PASSES", "RECORDED", "Job", "Source", "adopt", "heights_records", "j
 def whole(grid: Grid) -> int | tuple[int, int]:
     """The grid every pass computes on: the square's side N, or a root grid's extent
     (rows, cols) (:attr:`geoterrain.core.grid.Grid.extent`), as the whole-grid
-    preprocess pads it (``pipeline._whole``).
+    preprocess pads it (:func:`geoterrain.preprocessing.surface.pad`).
 
     Examples
     --------
