@@ -21,7 +21,7 @@ import zstandard
 from geoterrain.core import zstdsafe
 from geoterrain.exceptions import StoreChangedError, StoreCorruptError, StoreError, UsageError
 from geoterrain.store.check import check_store
-from geoterrain.store.database import StoreReader
+from geoterrain.store.reader import StoreReader
 from geoterrain.terrainlike import Tile, TileKey
 
 if TYPE_CHECKING:
