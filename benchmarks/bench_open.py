@@ -36,7 +36,7 @@ import time
 
 from geoterrain.core.osreads import EXACT, ReadMeter
 from geoterrain.store.check import check_store
-from geoterrain.store.database import StoreReader
+from geoterrain.store.reader import StoreReader
 
 # the child: open, one picture looking away from the terrain (out past its +x side)
 _CHILD = """

@@ -704,7 +704,7 @@ def held_coded(t) -> dict:
     """The positions the store's height blobs code, counted from the blobs (see the
     ``default`` command's description): level-0 coordinates over the roots' extent."""
     from geoterrain.codec.pyramid import tile_valid
-    from geoterrain.store.database import StoreReader
+    from geoterrain.store.reader import StoreReader
 
     g = t.grid
     R, C = g.extent

@@ -49,7 +49,9 @@ def exact_v1_copy(store: Path, dst: Path) -> Path:
     from geoterrain.bounds.delta import vertex_errors
     from geoterrain.bounds.radii import vertex_radii
     from geoterrain.bounds.vertexdata import encode_bounds
-    from geoterrain.store.database import StoreReader, blob_crc, blob_key
+    from geoterrain.store.keys import blob_key
+    from geoterrain.store.reader import StoreReader
+    from geoterrain.store.schema import blob_crc
 
     shutil.copy(store, dst)
     with geoterrain.open(store) as t:

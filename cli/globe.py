@@ -90,7 +90,7 @@ def check_stores(stores: tuple[str, ...]) -> None:
     """Every path is an existing ``.geoterrain`` store (one line otherwise)."""
     from geoterrain.core.paths import input_problem
     from geoterrain.exceptions import UsageError
-    from geoterrain.store.database import is_store
+    from geoterrain.store.schema import is_store
 
     if not stores:
         raise UsageError("give at least one store (.geoterrain) to draw on the globe")

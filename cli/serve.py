@@ -85,7 +85,7 @@ def command(ctx, sources, port, bind, cache_bytes, assets, max_error, mesher, ge
     from geoterrain.cli.options import StageBar
     from geoterrain.preprocessing.pipeline import ensure_store
     from geoterrain.serve.app import create_app, find_assets, open_stores
-    from geoterrain.store.database import is_store
+    from geoterrain.store.schema import is_store
 
     if not max_error > 0:
         raise UsageError(f"--max-error must be > 0, got {max_error}")

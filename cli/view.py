@@ -100,7 +100,7 @@ def command(ctx, sources, globe, geo_camera, strategy, occlusion, morph, pixel_e
     from geoterrain.exceptions import GeoterrainError
     from geoterrain.preprocessing.pipeline import cached_store_path, ensure_store
     from geoterrain.rendering.viewer import show
-    from geoterrain.store.database import is_store
+    from geoterrain.store.schema import is_store
 
     quiet = (ctx.obj or {}).get("quiet", False)
     if globe:

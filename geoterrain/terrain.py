@@ -6,10 +6,8 @@ interface every later stage reads a terrain through.
 
 from __future__ import annotations
 
-import os
 from collections import OrderedDict
 from contextlib import AbstractContextManager
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -18,10 +16,10 @@ import zstandard
 
 # The decoders (geoterrain.bounds, geoterrain.codec, core.bintree) are imported where a
 # tile is read: they load numba, which opening a store and `geoterrain info` never need.
-from geoterrain.core import zstdsafe
 from geoterrain.exceptions import StoreChangedError, StoreCorruptError, StoreError, UsageError
 from geoterrain.store.check import check_store
-from geoterrain.store.database import StoreReader
+from geoterrain.store.reader import StoreReader
+from geoterrain.store.summary import store_summary
 from geoterrain.terrainlike import Tile, TileKey
 
 if TYPE_CHECKING:
@@ -29,13 +27,11 @@ if TYPE_CHECKING:
 
     import pyvista as pv
 
-    from geoterrain.codec.quantize import Quantizer
-    from geoterrain.core.frame import Frame
     from geoterrain.core.view import View
     from geoterrain.lod import Selection
     from geoterrain.preprocessing.edit import EditResult
 
-__all__ = ["Terrain", "Tile", "TileKey", "describe_codec", "edit", "open"]
+__all__ = ["Terrain", "Tile", "TileKey", "edit", "open"]
 
 _T = TypeVar("_T")
 
@@ -319,101 +315,12 @@ class Terrain:
         return Tile(key, codes, h, valid)
 
     def _bounds(self, key: TileKey, kind: str) -> np.ndarray:
-        from geoterrain.bounds.leafbounds import (
-            tile_centre_guess,
-            tile_centre_radius,
-            tile_edge_own_codes,
-            tile_leaf_bounds,
-            tile_mids_codes,
-            tile_own_codes,
-        )
-        from geoterrain.bounds.vertexdata import (
-            DIFF,
-            NEW_ONLY,
-            PRED,
-            RING,
-            VERSION_2,
-            decode_bounds,
-        )
+        from geoterrain.bounds.tilereads import decode_tile_bounds  # its decoders load numba
 
-        T = self.grid.tile_samples
         self.decoded_bounds += 1
-        L, x, y = key
         # δ_edge: a tile without its own second δ has the same new vertices as in δ
         stored = "delta" if kind == "delta_edge" and key not in self.edge_max else kind
-        blob = self._blob(key, stored)
-        parent = None
-        if blob[:1] == bytes([VERSION_2]) and blob[1:2] and blob[1] & NEW_ONLY:
-            if L >= self.grid.top_level:
-                raise StoreCorruptError(f"{self.path}: tile {key} {kind} has no parent to "
-                                        "read; re-run `geoterrain preprocess`")
-            # the vertices shared with the parent are stored once, in the parent
-            parent = {"delta": self.tile_delta, "radius": self.tile_radius,
-                      "delta_edge": self.tile_delta_edge}[kind](L + 1, x // 2, y // 2)
-        derive = None
-        # a RING blob: the rest from the heights (a geographic store's δ only, with its
-        # slack: r would need pyproj's x, y of every sample)
-        # A MIDS blob (derive called without rows; a projected or pixel store's r above
-        # level 0): its cell centres from the heights and the other samples' codes
-        if (L == 0 and stored == "delta") or (stored == "radius"
-                                              and self.frame.kind != "geographic"):
-            def derive(rows, cols, ring, log8, e, slack):
-                if rows is None:
-                    if L == 0:
-                        raise ValueError("a level-0 r is a ring, not mids")
-                    return tile_centre_radius(self, key, ring, e)
-                if L != 0:
-                    raise ValueError("a ring is for level 0")
-                return tile_leaf_bounds(self, key, stored, log8, e, rows, cols, ring, slack)
-        # a stored tile's own δ_edge blob may hold differences from its δ codes
-        base = (self.tile_delta(*key) if stored == "delta_edge" and len(blob) > 1
-                and blob[1] & DIFF and key in self.tile_info else None)
-        if kind == "delta_edge" and stored == "delta" and parent is not None \
-                and blob[1] & PRED:
-            # a PRED blob's new vertices follow its parent's δ codes, not δ_edge's: the
-            # tile's δ there, the parent's δ_edge on the vertices shared with it
-            out = self.tile_delta(*key).copy()
-            h = (T - 1) // 2
-            out[::2, ::2] = parent[(y & 1) * h: (y & 1) * h + h + 1,
-                                   (x & 1) * h: (x & 1) * h + h + 1]
-            return out
-        # a CENTRES PRED blob (a geographic level-0 r): its centres from the heights' guess;
-        # a MIDS PRED one (a geographic r above level 0, schema 20): every new vertex
-        guess = None
-        if stored == "radius" and key in self.tile_info:
-            def guess(e, *payload):
-                if (L == 0) != (not payload):
-                    raise ValueError("a level-0 r guesses its centres, a coarser one its mids")
-                if not payload:
-                    return tile_centre_guess(self, key, e)
-                return tile_mids_codes(self, key, e, *payload)
-        # a schema-20 δ blob: guessed from the own errors on the tile's heights (the top
-        # tile's, schema 23: of its samples ``step`` apart, a level inside it)
-        ring = len(blob) > 1 and bool(blob[1] & RING)  # the border's guesses only
-        own = ((lambda e, step=1: tile_own_codes(self, key, e, ring, step))
-               if stored == "delta" and key in self.tile_info else None)
-        if stored == "delta_edge" and key in self.tile_info:
-            # a schema-23 δ_edge: guessed from the heights, the padding replicated
-            def own(e, step=1):
-                return tile_edge_own_codes(self, key, e, step)
-        try:
-            out = decode_bounds(blob, (T, T), parent, (x % 2, y % 2), derive, base, guess,
-                                own)
-        except (ValueError, zstandard.ZstdError):
-            raise StoreCorruptError(f"{self.path}: tile {key} {kind} cannot be decoded; "
-                                    "re-run `geoterrain preprocess`") from None
-        if kind == "delta" and key in self.tile_info:
-            # δ(v) ≥ v's own error on the decoded heights: a δ table swapped with another
-            # tile's (checksums recomputed) or edited down fails it (bounds/delta.py)
-            from geoterrain.bounds.delta import below_own_error  # loads numba: not on open
-
-            tile = self.tile(*key)
-            bad = below_own_error(out, self.frame.z(tile.heights), tile.valid)
-            if bad is not None:
-                raise StoreCorruptError(f"{self.path}: tile {key} δ is below the error of its "
-                                        f"vertex {bad} (bounds swapped or edited): the file "
-                                        "is damaged; re-run `geoterrain preprocess`")
-        return out
+        return decode_tile_bounds(self, key, kind, stored, self._blob(key, stored))
 
     def block_errors(self) -> np.ndarray | None:
         """Every GeoMipMapping block's exact δ_n (seed 000 §2.4), (nb, nb, levels) indexed
@@ -515,64 +422,28 @@ class Terrain:
         return out
 
     def _normal_bytes(self, key: TileKey) -> tuple[bytes, bool]:
-        """A whole stored normal map's codes, decompressed: T·T·2 components, and whether
-        they are two planes of 2-D differences (8-bit ``normals_layout`` 2,
-        :func:`~geoterrain.bounds.normalbytes.normals_to_bytes`) rather than pairs."""
-        T, bits = self.grid.tile_samples, self.meta["normal_bits"]
-        try:  # bounded: exactly T × T × 2 components, never a decompression bomb
-            raw = zstdsafe.decompress(self._blob(key, "normals"), T * T * 2 * (bits // 8),
-                                      exact=True)
-        except ValueError:
-            raise StoreCorruptError(f"{self.path}: tile {key} normals cannot be decoded; "
-                                    "re-run `geoterrain preprocess`") from None
-        self.decoded_normals += 1
-        from geoterrain.bounds.normalbytes import NORMALS_PLANAR_DXDY
+        """A whole stored normal map's codes (:func:`geoterrain.bounds.tilereads.normal_bytes`)."""
+        from geoterrain.bounds.tilereads import normal_bytes
 
-        return raw, bits == 8 and self.meta.get("normals_layout", 1) == NORMALS_PLANAR_DXDY
+        out = normal_bytes(self, key, self._blob(key, "normals"))
+        self.decoded_normals += 1
+        return out
 
     def _normal_ring(self, key: TileKey, n: int) -> np.ndarray:
-        """The stored border ring (n = 4T − 4, 2) of a tile on a derived level, in
-        :func:`~geoterrain.bounds.normalbytes.ring_index`'s order."""
-        from geoterrain.bounds.normalbytes import ring_from_bytes
+        """A derived level's tile's stored border ring
+        (:func:`~geoterrain.bounds.tilereads.normal_ring`)."""
+        from geoterrain.bounds.tilereads import normal_ring
 
-        try:  # bounded: exactly the ring's 4T − 4 pairs
-            return ring_from_bytes(zstdsafe.decompress(self._blob(key, "normals"), 2 * n,
-                                                       exact=True),
-                                   self.meta.get("normals_ring_residual") is True)
-        except ValueError:
-            raise StoreCorruptError(f"{self.path}: tile {key} normals cannot be decoded; "
-                                    "re-run `geoterrain preprocess`") from None
+        return normal_ring(self, key, self._blob(key, "normals"), n)
 
     def _derive_normals(self, keys: list[TileKey], bits: int) -> np.ndarray:
-        """The codes of tiles on derived levels: the normal map of each one's decoded
-        heights (the preprocess's central differences of the level's samples, seed 000's
-        normal-map lighting, :func:`~geoterrain.bounds.normals.level_normal_maps`: they
-        read no sample outside the tile there), encoded as the preprocess encodes, with
-        its stored border ring."""
-        from geoterrain.bounds.leafbounds import normal_axes, normal_xy
-        from geoterrain.bounds.normalbytes import ring_index
-        from geoterrain.bounds.normals import derived_codes
+        """The codes of tiles on derived levels
+        (:func:`~geoterrain.bounds.tilereads.derive_normals`)."""
+        from geoterrain.bounds.tilereads import derive_normals
 
-        T, n = self.grid.tile_samples, len(keys)
-        rr, cc = ring_index(T)
-        h = np.empty((n, T, T))
-        valid = np.empty((n, T, T), bool)
-        rings = np.empty((n, len(rr), 2), np.uint8 if bits == 8 else np.uint16)
-        axes = self.frame.kind != "geographic"  # x by column, y by row: broadcast views
-        X = np.zeros((n, T) if axes else (n, T, T))
-        Y = np.zeros((n, T) if axes else (n, T, T))
-        for k, key in enumerate(keys):
-            tile = self.tile(*key)
-            h[k], valid[k] = tile.heights, tile.valid
-            rings[k] = self._normal_ring(key, len(rr))
-            X[k], Y[k] = normal_axes(self, *key) if axes else normal_xy(self, *key)
-        if axes:
-            X = np.broadcast_to(X[:, None, :], (n, T, T))
-            Y = np.broadcast_to(Y[:, :, None], (n, T, T))
-        self.decoded_normals += n
-        # schema 17: a ring code stored as its difference from the derived one
-        return derived_codes(h, self.frame.z_to_m * self.frame.z_scale, valid, X, Y, rings,
-                             (rr, cc), bits, self.meta.get("normals_ring_residual") is True)
+        out = derive_normals(self, keys, bits, self._normal_ring)
+        self.decoded_normals += len(keys)
+        return out
 
     @property
     def _derived_normal_levels(self) -> tuple[int, ...]:
@@ -598,29 +469,7 @@ class Terrain:
         out = {k: np.full(i.shape, np.nan if k == "height" else 0.0) for k in kinds}
         if i.size == 0:
             return out
-        L = self.vertex_level(i, j)
-        li, lj = i >> L, j >> L
-        # tiles across and down per level (a square's 2^(top − L) a side)
-        across, down = (np.array([g.tiles(v)[a] for v in g.levels], np.int64) for a in (0, 1))
-        ty = np.minimum(li >> g.t, down[L] - 1)
-        tx = np.minimum(lj >> g.t, across[L] - 1)
-        a, b = li - (ty << g.t), lj - (tx << g.t)
-        # a root grid's padding past its tiles: no tile (δ = r = 0, height NaN)
-        held = (a <= 1 << g.t) & (b <= 1 << g.t)
-        a, b = np.where(held, a, 0), np.where(held, b, 0)
-        # unique tiles without sorting: an occupancy grid over every level's tiles
-        base = g.offsets()
-        slot = base[L] + ty * across[L] + tx
-        occ = np.zeros(int(base[-1]), bool)
-        occ[slot] = True
-        used = np.flatnonzero(occ)
-        remap = np.cumsum(occ) - 1
-        inv = remap[slot]
-        keys = []
-        for u in used.tolist():
-            lv = int(np.searchsorted(base, u, side="right") - 1)
-            r = u - int(base[lv])
-            keys.append((lv, r % int(across[lv]), r // int(across[lv])))
+        keys, inv, a, b, held = g.vertex_tiles(i, j, self.vertex_level(i, j))
         stacks = self.tile_stacks(keys, kinds)
         for k in kinds:
             out[k] = np.where(held, stacks[k][inv, a, b], out[k])
@@ -848,59 +697,9 @@ class Terrain:
 
     # ------------------------------------------------------------------ info
     def info(self) -> dict:
-        """A summary: size, CRS and frame, extent, grid, levels, tiles, nodata, codec, errors."""
-        m, g, f = self.meta, self.grid, self.frame
-        H, W = g.rows, g.cols
-        # the extent over the whole boundary, not 4 corners (a geographic grid's edges bow)
-        k = np.linspace(0.0, 1.0, 129)
-        ei = np.concatenate([0 * k, 0 * k + H - 1, k * (H - 1), k * (H - 1)]).round()
-        ej = np.concatenate([k * (W - 1), k * (W - 1), 0 * k, 0 * k + W - 1]).round()
-        cx, cy = f.xy(ei.astype(np.int64), ej.astype(np.int64))
-        per_level: dict[int, int] = {}
-        for (L, _, _) in self.tile_info:
-            per_level[L] = per_level.get(L, 0) + 1
-        sizes = self.reader.blob_bytes_by_kind_level()
-        hbytes = {L: sizes.get(("heights", L), 0) for L in g.levels}
-        errs = [t["error"] for t in self.tile_info.values()
-                if t["error"] is not None and np.isfinite(t["error"])]
-        return {
-            "path": str(self.path),
-            "size_bytes": os.path.getsize(self.path),
-            "source": m["source"],
-            "source_dtype": m["source_dtype"],
-            "encoding": m["encoding"],
-            "crs": f.crs_name,
-            "frame": f.kind,
-            "horizontal_unit_to_m": f.unit_to_m,
-            "vertical_unit_to_m": f.z_to_m,
-            "horizontal_unit": _unit_name(f.unit_to_m) if f.kind == "projected" else
-            ("degrees" if f.kind == "geographic" else "pixels"),
-            "vertical_unit": _unit_name(f.z_to_m),
-            "z_scale": f.z_scale,
-            "origin_crs": list(f.origin_crs),
-            "extent_m": {"x": [float(cx.min()), float(cx.max())],
-                         "y": [float(cy.min()), float(cy.max())]},
-            **(_extent_deg(f) if f.kind == "geographic" else {}),
-            "grid": [H, W],
-            "padded": list(g.shape),
-            "tile_samples": g.tile_samples,
-            "levels": g.top_level + 1,
-            "tiles_per_level": {str(k): per_level[k] for k in sorted(per_level)},
-            "nodata_fraction": m["nodata_fraction"],
-            "height_range": m["height_range"],
-            "codec": describe_codec(self.quantizer),
-            "codec_error": self.quantizer.codec_error,
-            "height_bytes_per_level": {str(k): v for k, v in hbytes.items()},
-            "height_bits_per_valid_sample": 8 * sum(hbytes.values()) / max(1, m["valid_samples"]),
-            "bytes_by_kind": {k: sum(v for (kk, _), v in sizes.items() if kk == k)
-                              for k in sorted({k for k, _ in sizes})},
-            "tile_error_range": [min(errs, default=0.0), max(errs, default=0.0)],
-            "vertex_error_max": m["delta_max_finite"],
-            # the file's own clock (the store holds none: two runs write the same bytes)
-            "modified": datetime.fromtimestamp(os.stat(self.path).st_mtime, UTC)
-            .isoformat(timespec="seconds"),
-            "edits": _edits_summary(m.get("edits")),
-        }
+        """A summary: size, CRS and frame, extent, grid, levels, tiles, nodata, codec, errors
+        (:func:`geoterrain.store.summary.store_summary`)."""
+        return store_summary(self, self.reader.blob_bytes_by_kind_level())
 
     # -------------------------------------------------------------- notebooks
     def _repr_html_(self) -> str:
@@ -931,22 +730,6 @@ class Terrain:
         self.close()
 
 
-def _edits_summary(log) -> dict | None:
-    """The metadata's edit log in a line's worth: how many edits, and the last one's
-    mode, source and window (None: never edited)."""
-    if not isinstance(log, dict) or not log.get("last"):
-        return None
-    e = log["last"][-1]
-    try:
-        r, c, h, w = (int(v) for v in e["window"])
-        when = f"{e['time']} " if "time" in e else ""  # stores edited before it was dropped
-        last = (f"{when}{e['mode']} of {e['source']}, rows {r} … {r + h - 1}, "
-                f"columns {c} … {c + w - 1}")
-    except (KeyError, TypeError, ValueError):
-        last = "?"
-    return {"count": int(log.get("count", 0)), "last": last}
-
-
 def _nbytes(v) -> int:
     if isinstance(v, np.ndarray):
         return v.nbytes
@@ -955,22 +738,6 @@ def _nbytes(v) -> int:
     if isinstance(v, tuple):
         return sum(_nbytes(x) for x in v)
     return 64
-
-
-def describe_codec(q: Quantizer) -> str:
-    """One line saying how heights are coded."""
-    if q.mode == "float":
-        return f"lossless float{q.float_bits} (bit-exact), residuals + range coder"
-    if q.mode == "int":
-        return f"lossless integer codes × {q.step:g} + {q.offset:g}, residuals + range coder"
-    if q.mode == "decimal":
-        places = len(str(int(q.divisor))) - 1  # 10^d
-        return (f"lossless decimals ({places} place{'s' * (places > 1)}, rounded to "
-                f"float{q.float_bits}) as integer codes, residuals + range coder")
-    if q.bins > 1:
-        return (f"within ε = {q.codec_error:g}: codes of {q.step:.6g}, residuals in bins of "
-                f"{q.bins} codes + range coder")
-    return f"quantised to ε = {q.codec_error:g} (step {q.step:.6g}), residuals + range coder"
 
 
 def open(path: str | Path, cache_bytes: int = 1536 << 20) -> Terrain:  # noqa: A001
@@ -1007,19 +774,3 @@ def edit(store: str | Path, patch: str | Path, mode: str = "replace", *,
         p = read_patch(patch, t.frame, t.grid, at=at, resampling=resampling, band=band)
         return edit_terrain(t, p, mode, round_heights=round_heights)
 
-
-def _unit_name(factor: float) -> str:
-    """'m', 'ft' or 'us-ft' for a metres-per-unit factor, else 'units of N m'."""
-    from geoterrain.ingest.units import unit_of_factor
-
-    u = unit_of_factor(factor)
-    return u if u is not None else f"units of {factor:.6g} m"
-
-
-def _extent_deg(f: Frame) -> dict:
-    """A geographic frame's box in degrees (its pixels' outer edges, from the geotransform)
-    and why the flat scene cannot show it (:meth:`Frame.flat_problem`; None when it can)."""
-    a, _, c, _, e, ff = f.transform[:6]
-    lon, lat = sorted((c, c + a * f.cols)), sorted((ff, ff + e * f.rows))
-    return {"extent_deg": {"lon": [float(v) for v in lon], "lat": [float(v) for v in lat]},
-            "flat_problem": f.flat_problem()}

@@ -10,7 +10,7 @@ import pytest
 import rasterio
 from click.testing import CliRunner
 
-import geoterrain.store.database
+import geoterrain.store.writer
 from tests.conftest import write_tif
 
 pytestmark = pytest.mark.fast  # the whole file is in the fast tier
@@ -173,7 +173,7 @@ def test_disk_full_is_one_line(tmp_path, fbm_tif, monkeypatch):
     def full(self):
         raise sqlite3.OperationalError("database or disk is full")
 
-    monkeypatch.setattr(geoterrain.store.database.StoreWriter, "_init", full)
+    monkeypatch.setattr(geoterrain.store.writer.StoreWriter, "_init", full)
     res = run("-q", "preprocess", fbm_tif, "-o", tmp_path / "o.geoterrain")
     assert_one_line_error(res, 1)
     assert "disk full" in res.stderr

@@ -41,7 +41,7 @@ from geoterrain import lod
 from geoterrain.core.view import View, load_views
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.registry import STRATEGIES, strategy_info
-from geoterrain.store.database import is_store
+from geoterrain.store.schema import is_store
 from geoterrain.testing.measure import screen_space_change, screen_space_error, vertical_error
 
 if TYPE_CHECKING:

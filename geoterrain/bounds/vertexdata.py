@@ -104,7 +104,7 @@ PRED = 128  # a NEW_ONLY log8 payload as differences from its parents' codes (pr
 SHAPED_ZSTD_LEVEL = 11
 # a small grid's shaped payloads at 15 instead: srtm3's store 1 kB smaller, where 15 would
 # cost a large grid's preprocess 9 % more CPU (docs/lab/store-size.md); the same threshold
-# as the store's 512-byte pages (store.database.SMALL_GRID)
+# as the store's 512-byte pages (store.schema.SMALL_GRID)
 SMALL_SHAPED_ZSTD_LEVEL = 15
 SMALL_GRID_SAMPLES = 3 << 16
 _F16_MAX = 32768.0  # keep the scaled maximum well inside float16's finite range

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["DECIMAL_STEPS", "FINE_STEPS", "MAX_BINS", "Quantizer"]
+__all__ = ["DECIMAL_STEPS", "FINE_STEPS", "MAX_BINS", "Quantizer", "describe_codec"]
 
 _I64_MAX = np.int64(np.iinfo(np.int64).max)
 # lossless steps finer than 1 tried on float sources, coarsest first, and whether each
@@ -116,3 +116,19 @@ class Quantizer:
     def divisor(self) -> float:
         """``"decimal"`` mode: 10^d, the exact integer its codes are divided by."""
         return float(round(1.0 / self.step))
+
+
+def describe_codec(q: Quantizer) -> str:
+    """One line saying how heights are coded."""
+    if q.mode == "float":
+        return f"lossless float{q.float_bits} (bit-exact), residuals + range coder"
+    if q.mode == "int":
+        return f"lossless integer codes × {q.step:g} + {q.offset:g}, residuals + range coder"
+    if q.mode == "decimal":
+        places = len(str(int(q.divisor))) - 1  # 10^d
+        return (f"lossless decimals ({places} place{'s' * (places > 1)}, rounded to "
+                f"float{q.float_bits}) as integer codes, residuals + range coder")
+    if q.bins > 1:
+        return (f"within ε = {q.codec_error:g}: codes of {q.step:.6g}, residuals in bins of "
+                f"{q.bins} codes + range coder")
+    return f"quantised to ε = {q.codec_error:g} (step {q.step:.6g}), residuals + range coder"

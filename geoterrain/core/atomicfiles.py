@@ -1,7 +1,7 @@
 """Output files written whole or not at all: a hidden partial beside the destination,
 published in one step, and the partials of killed processes removed by the next run.
 
-Stores (:class:`geoterrain.store.database.StoreWriter`), pictures, animations, meshes and stats
+Stores (:class:`geoterrain.store.writer.StoreWriter`), pictures, animations, meshes and stats
 are all written this way, so an error or an interrupt never leaves a half-written file
 under the name asked for. What may be replaced is :mod:`geoterrain.core.paths`'s rule
 (a regular file, or a folder of frames; never a device, a FIFO or a link), checked

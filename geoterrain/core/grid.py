@@ -156,6 +156,47 @@ class Grid:
         across = np.array([self.tiles(k)[0] for k in self.levels], np.int64)
         return self.offsets()[L] + keys[:, 2] * across[L] + keys[:, 1]
 
+    def vertex_tiles(self, i: np.ndarray, j: np.ndarray, L: np.ndarray
+                     ) -> tuple[list[tuple[int, int, int]], np.ndarray, np.ndarray, np.ndarray,
+                                np.ndarray]:
+        """The tiles that hold level-0 samples (i, j) on levels ``L`` (each sample's coarsest,
+        :func:`geoterrain.core.bintree.vertex_level`): the distinct tiles' keys in the
+        order of :meth:`offsets`' table, each sample's index into them, its row and column
+        in its tile, and whether a tile holds it (a root grid's padding past its tiles:
+        none, and row and column 0). Whole arrays; one entry a distinct tile.
+
+        Examples
+        --------
+        >>> g = Grid.for_shape(65, 65, tile_size=32)
+        >>> keys, inv, a, b, held = g.vertex_tiles(np.array([0, 40]), np.array([0, 3]),
+        ...                                        np.array([1, 0]))
+        >>> keys, inv.tolist(), a.tolist(), b.tolist(), held.tolist()
+        ([(0, 0, 1), (1, 0, 0)], [1, 0], [0, 8], [0, 3], [True, True])
+        """
+        li, lj = i >> L, j >> L
+        # tiles across and down per level (a square's 2^(top − L) a side)
+        across, down = (np.array([self.tiles(v)[a] for v in self.levels], np.int64) for a in (0, 1))
+        ty = np.minimum(li >> self.t, down[L] - 1)
+        tx = np.minimum(lj >> self.t, across[L] - 1)
+        a, b = li - (ty << self.t), lj - (tx << self.t)
+        # a root grid's padding past its tiles: no tile (δ = r = 0, height NaN)
+        held = (a <= 1 << self.t) & (b <= 1 << self.t)
+        a, b = np.where(held, a, 0), np.where(held, b, 0)
+        # unique tiles without sorting: an occupancy grid over every level's tiles
+        base = self.offsets()
+        slot = base[L] + ty * across[L] + tx
+        occ = np.zeros(int(base[-1]), bool)
+        occ[slot] = True
+        used = np.flatnonzero(occ)
+        remap = np.cumsum(occ) - 1
+        inv = remap[slot]
+        keys = []
+        for u in used.tolist():
+            lv = int(np.searchsorted(base, u, side="right") - 1)
+            r = u - int(base[lv])
+            keys.append((lv, r % int(across[lv]), r // int(across[lv])))
+        return keys, inv, a, b, held
+
     def key_of(self, index: int) -> tuple[int, int, int]:
         """The (L, x, y) at ``index`` of the dense table (:meth:`table_index`'s inverse)."""
         base = self.offsets()

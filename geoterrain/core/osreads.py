@@ -6,7 +6,7 @@ The kernel adds every byte a ``read``/``pread`` returns to the calling thread's
 of ``rchar`` around a call into it is exactly what that call read from the file (its
 pages, the header, the change counter it checks at each transaction), whatever the
 page cache of SQLite held. :class:`ReadMeter` sums it over the calls made through it
-(the store's reader: :class:`geoterrain.store.database.StoreReader`). Where the
+(the store's reader: :class:`geoterrain.store.reader.StoreReader`). Where the
 counters are not there (not Linux), :data:`EXACT` is False and a meter counts nothing;
 its owner counts what it can instead.
 """

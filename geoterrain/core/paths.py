@@ -22,7 +22,7 @@ from geoterrain.exceptions import UsageError, exists_error
 __all__ = ["STORE_SUFFIX", "check_output", "default_store_path", "input_problem", "kind_of",
            "same_file"]
 
-STORE_SUFFIX = ".geoterrain"  # a store's file name ends so (store.database.is_store)
+STORE_SUFFIX = ".geoterrain"  # a store's file name ends so (store.schema.is_store)
 
 _KINDS = ((stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a directory"),
           (stat.S_ISLNK, "a symbolic link"), (stat.S_ISCHR, "a character device"),

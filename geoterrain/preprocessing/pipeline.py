@@ -41,7 +41,8 @@ from geoterrain.preprocessing.request import Request, request
 from geoterrain.preprocessing.storewrite import write_rows
 from geoterrain.preprocessing.streaming import stream, streaming_band
 from geoterrain.preprocessing.surface import Dem, Surface, pad, quantise, read_dem, vertex_bounds
-from geoterrain.store.database import StoreThread, page_size_for
+from geoterrain.store.schema import page_size_for
+from geoterrain.store.writer import StoreThread
 
 log = logging.getLogger("geoterrain")
 STAGES = ("read", "pad", "quantise", "errors", "radii", "tile bounds", "normals", "compress",
@@ -155,7 +156,7 @@ def preprocess(
     root_grid
         True (the default): a wide or tall raster is padded to the next multiple of the
         tile span a side, under a grid of root tiles (1 × 1, 2 × 1 or 1 × 2; a store of
-        schema version 18, :data:`geoterrain.store.database.ROOTS_SCHEMA_VERSION`), not to
+        schema version 18, :data:`geoterrain.store.schema.ROOTS_SCHEMA_VERSION`), not to
         one (2^n + 1)² square; a raster whose root grid tiles as the square does gets the
         square store (version 17), byte for byte. False: always
         the square, as stores made before root grids were (for a reader that takes only

@@ -17,7 +17,8 @@ from geoterrain.core.grid import Grid
 from geoterrain.core.progress import StageClock
 from geoterrain.preprocessing.levelblobs import TileBlobs, tile_row_order
 from geoterrain.preprocessing.request import Request
-from geoterrain.store.database import StoreThread, StoreWriter, page_size_for
+from geoterrain.store.schema import page_size_for
+from geoterrain.store.writer import StoreThread, StoreWriter
 
 
 def store_metadata(*, source: str, source_dtype: str, source_nodata: float | None,

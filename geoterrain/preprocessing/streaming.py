@@ -82,7 +82,8 @@ from geoterrain.preprocessing.request import Request, place, request, root_layou
 from geoterrain.preprocessing.schedulers import run_tasks
 from geoterrain.preprocessing.scratch import ScratchArrays
 from geoterrain.preprocessing.storewrite import store_metadata
-from geoterrain.store.database import StoreWriter, page_size_for
+from geoterrain.store.schema import page_size_for
+from geoterrain.store.writer import StoreWriter
 
 __all__ = ["band_rows", "preprocess_streaming", "stream", "streaming_band"]
 

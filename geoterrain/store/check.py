@@ -19,7 +19,7 @@ from geoterrain.core.frame import SCENE_LIMIT, UNIT_TO_M_RANGE, Z_SCALE_RANGE, Z
 from geoterrain.core.grid import MAX_ROOTS, Grid
 from geoterrain.core.memory import available_memory
 from geoterrain.exceptions import StoreError
-from geoterrain.store.database import LATTICE_SCHEMA_VERSION, schema_version
+from geoterrain.store.schema import LATTICE_SCHEMA_VERSION, schema_version
 
 __all__ = ["check_store", "available_memory"]
 

@@ -2,7 +2,7 @@
 
 An edit (:mod:`geoterrain.preprocessing.edit`) rewrites a few of a store's rows: the
 blobs it changes, the tile table and the metadata. Writing a whole new store beside the
-old one and publishing it (:class:`geoterrain.store.database.StoreWriter`) would rewrite
+old one and publishing it (:class:`geoterrain.store.writer.StoreWriter`) would rewrite
 every byte; here only the rows that change are written, in one transaction of SQLite's
 rollback journal (``STORE-journal``, the old pages, synced before a page of the store
 changes). A process killed at any point leaves either the old store with a hot journal,
@@ -33,8 +33,9 @@ from geoterrain.store.catalog import (
     pack_tiles,
     unpack_metadata,
 )
-from geoterrain.store.database import StoreReader, blob_crc, schema_version
 from geoterrain.store.keys import blob_key, tile_key, unpack_blob_key
+from geoterrain.store.reader import StoreReader
+from geoterrain.store.schema import blob_crc, schema_version
 
 __all__ = ["StoreEditor", "BUSY_SECONDS"]
 
@@ -54,7 +55,7 @@ class StoreEditor:
     Examples
     --------
     >>> import tempfile, os, numpy as np
-    >>> from geoterrain.store.database import StoreWriter
+    >>> from geoterrain.store.writer import StoreWriter
     >>> p = os.path.join(tempfile.mkdtemp(), "s.geoterrain")
     >>> with StoreWriter(p) as w:
     ...     w.put_blobs("heights", {(0, 0, 0): b"old"})

@@ -275,7 +275,7 @@ def test_a_small_grids_store_holds_its_shaped_payloads_at_zstd_15(tmp_path):
     from geoterrain.bounds.vertexdata import CENTRES, PRED, RING, SLACK, VERSION_2
     from geoterrain.core.zstdsafe import compress_one, decompress
     from geoterrain.ingest.synth import generate, write_geotiff
-    from geoterrain.store.database import StoreReader
+    from geoterrain.store.reader import StoreReader
 
     dem = write_geotiff(tmp_path / "g.tif", generate("fbm", 129, seed=3)[:100, :117].copy(),
                         crs="EPSG:4326", origin=(24.0, 61.0), spacing=1 / 1200)

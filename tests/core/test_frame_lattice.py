@@ -131,12 +131,8 @@ def test_a_store_past_its_lattice_records_it_and_only_that_one(tmp_path):
     """A geographic root grid whose extent passes its lattice: schema 22 and the frame's
     lattice (the grid's level-0 shape); the same raster projected, and a geographic one
     that fills its roots, keep schema 21 / 20 and no lattice."""
-    from geoterrain.store.database import (
-        LATTICE_SCHEMA_VERSION,
-        ROOTS_SCHEMA_VERSION,
-        SCHEMA_VERSION,
-        StoreReader,
-    )
+    from geoterrain.store.reader import StoreReader
+    from geoterrain.store.schema import LATTICE_SCHEMA_VERSION, ROOTS_SCHEMA_VERSION, SCHEMA_VERSION
 
     z = generate("fbm", 129, seed=4)
     geo = dict(crs="EPSG:4326", origin=(24.0, 61.0), spacing=1 / 1200)

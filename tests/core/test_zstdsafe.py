@@ -66,7 +66,7 @@ def test_a_store_holds_no_magic_number(tmp_path, fbm_tif):
     store = geoterrain.preprocess(fbm_tif, tmp_path / "s.geoterrain")
     heads = {"heights": 4, "delta": 3, "radius": 3, "normals": 0, "delta_edge": 3,
              "block_delta": 0}
-    from geoterrain.store.database import StoreReader
+    from geoterrain.store.reader import StoreReader
     t = StoreReader(store).table()
     kinds = {int(i): unpack_blob_key(int(k))[1] for k, i in zip(t.blobs, t.ids, strict=True)}
     with sqlite3.connect(store) as con:

@@ -203,7 +203,7 @@ def test_a_damaged_block_table_is_refused_in_one_line(tmp_path):
     from geoterrain.core.view import View
     from geoterrain.exceptions import StoreCorruptError
     from geoterrain.ingest.synth import generate, write_geotiff
-    from geoterrain.store.database import blob_crc
+    from geoterrain.store.schema import blob_crc
     from tests.store.storesql import read_meta, remove_blob, update_blob, write_meta
 
     dem = write_geotiff(tmp_path / "d.tif", generate("fbm", 65, seed=4))

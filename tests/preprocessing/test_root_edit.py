@@ -107,7 +107,7 @@ def test_edited_root_grid_store_is_the_preprocessed_edited_dem(tmp_path_factory,
 def test_a_window_across_the_seam_updates_both_roots(tmp_path):
     """A 2 × 1 root grid: a window over the shared column rewrites both roots' blobs and
     the heights read back on both sides (Terrain.edit, which refreshes the reader)."""
-    from geoterrain.store.database import StoreReader
+    from geoterrain.store.reader import StoreReader
 
     z = integer_dem(3, 40, 120)
     store = _root_store(tmp_path / "dem.tif", z, 16)
@@ -300,7 +300,7 @@ def test_a_window_across_the_seam_is_edited_by_tiles(tmp_path, wide):
     """A 7 × 5 window over the shared edge of 2 × 1 (or 1 × 2) roots of 32 samples:
     the tiles' path (``how="tiles"`` refuses otherwise), both roots' height, δ and r
     blobs rewritten, and the store a root-grid preprocess of the edited DEM gives."""
-    from geoterrain.store.database import StoreReader
+    from geoterrain.store.reader import StoreReader
 
     z, s = _filled_roots(11, 8, 2, wide, "none")
     (tmp_path / "a").mkdir()

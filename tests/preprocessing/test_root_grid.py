@@ -18,7 +18,8 @@ from geoterrain.core.grid import Grid, RootGridError
 from geoterrain.ingest.synth import generate
 from geoterrain.lod import STRATEGIES
 from geoterrain.lod.kernels import _coarsest_tile
-from geoterrain.store.database import ROOTS_SCHEMA_VERSION, SCHEMA_VERSION, StoreReader
+from geoterrain.store.reader import StoreReader
+from geoterrain.store.schema import ROOTS_SCHEMA_VERSION, SCHEMA_VERSION
 
 pytestmark = pytest.mark.fast
 

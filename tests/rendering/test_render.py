@@ -727,7 +727,7 @@ def test_view_without_terrain_and_errors(tmp_path_factory, tmp_path):
 def test_view_cache_location(tmp_path, monkeypatch):
     _cli()
     from geoterrain.preprocessing.pipeline import cached_store_path as cached_store
-    from geoterrain.store.database import is_store
+    from geoterrain.store.schema import is_store
 
     dem = tmp_path / "a.tif"
     dem.write_bytes(b"")

@@ -38,7 +38,8 @@ from storesql import (
     write_table,
 )
 
-from geoterrain.store.database import TILES_ID, TileTable, blob_key, catalog_crc, pack_tiles
+from geoterrain.store.catalog import TILES_ID, TileTable, catalog_crc, pack_tiles
+from geoterrain.store.keys import blob_key
 
 MEM_LIMIT_EXTRA = 1 << 30  # address space beyond the worker's own at the start
 CASE_TIMEOUT_S = 10

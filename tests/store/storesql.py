@@ -1,7 +1,7 @@
 """A store's rows by tile key, through SQL: for tests that damage, edit or compare stores.
 
 Schema 4 keeps blob rows bare and finds them through the tile table, a compressed row
-of ``catalog`` (geoterrain/store/database.py); these helpers address them by
+of ``catalog`` (geoterrain/store/catalog.py); these helpers address them by
 ``(level, x, y, kind)`` as the tests think of them. Edits of the catalog rewrite its
 rows with valid checksums (a stranger's file may be consistent and still wrong).
 """
@@ -10,21 +10,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from geoterrain.store.database import (
+from geoterrain.store.catalog import (
     META_ID,
     TILE_COLUMNS,
     TILES_ID,
     TileTable,
-    blob_key,
     catalog_crc,
     pack_metadata,
     pack_tiles,
-    tile_key,
-    unpack_blob_key,
     unpack_metadata,
-    unpack_tile_key,
     unpack_tiles,
 )
+from geoterrain.store.keys import blob_key, tile_key, unpack_blob_key, unpack_tile_key
 
 
 def _row(con, row_id: int) -> bytes:

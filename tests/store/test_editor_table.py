@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import geoterrain
-from geoterrain.store.database import StoreReader
 from geoterrain.store.editor import StoreEditor
+from geoterrain.store.reader import StoreReader
 from tests.preprocessing.editcheck import integer_dem, write_dem
 
 

@@ -16,7 +16,7 @@ from geoterrain import lod
 from geoterrain.core import osreads
 from geoterrain.core.view import View
 from geoterrain.ingest.synth import generate, write_geotiff
-from geoterrain.store.database import PAGE_SIZE, SMALL_PAGE_SIZE
+from geoterrain.store.schema import PAGE_SIZE, SMALL_PAGE_SIZE
 
 needs_counters = pytest.mark.skipif(not osreads.EXACT, reason="no per-thread I/O counters")
 
@@ -64,7 +64,7 @@ def test_the_small_page_threshold_takes_srtm3_not_fuji():
     """512-byte pages up to 3 · 2^16 samples: srtm3's 359 × 367 grid (72 704 → 72 192 B)
     gets them, Fuji's 512 × 512 (356 352 B; 361 984 at 512 B) does not
     (docs/lab/store-size.md, re-priced 2026-12-07)."""
-    from geoterrain.store.database import SMALL_GRID, page_size_for
+    from geoterrain.store.schema import SMALL_GRID, page_size_for
 
     assert page_size_for(359, 367) == page_size_for(1, SMALL_GRID) == SMALL_PAGE_SIZE
     assert page_size_for(512, 512) == page_size_for(1, SMALL_GRID + 1) == PAGE_SIZE

@@ -11,8 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import geoterrain.store.database as store
-from geoterrain.store.database import StoreReader, StoreWriter
+import geoterrain.store.writer as store
 from geoterrain.store.pagepack import (
     LEAF_HEADER,
     blob_cell_sizes,
@@ -20,6 +19,8 @@ from geoterrain.store.pagepack import (
     pack_order,
     varint_len,
 )
+from geoterrain.store.reader import StoreReader
+from geoterrain.store.writer import StoreWriter
 from tests.store.storesql import all_blobs
 
 

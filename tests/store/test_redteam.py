@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from storefuzz import _meta_rewrite, zstd_bomb  # noqa: E402
 from storesql import all_tiles, blob_keys, delete_blob, delete_tile, read_blob, update_blob  # noqa: E402
 
-from geoterrain.store.database import blob_crc  # noqa: E402
+from geoterrain.store.schema import blob_crc  # noqa: E402
 
 pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 

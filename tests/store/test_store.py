@@ -17,22 +17,18 @@ from hypothesis import strategies as st
 
 import geoterrain
 from geoterrain.exceptions import StoreCorruptError, StoreError, UsageError, WriteError
-from geoterrain.store.catalog import stored_numbers
-from geoterrain.store.database import (
-    KIND_CODES,
+from geoterrain.store.catalog import (
     META_ID,
     TILE_COLUMNS,
-    StoreReader,
-    StoreWriter,
     TileTable,
-    blob_key,
     catalog_crc,
     pack_tiles,
-    tile_key,
-    unpack_blob_key,
-    unpack_tile_key,
+    stored_numbers,
     unpack_tiles,
 )
+from geoterrain.store.keys import KIND_CODES, blob_key, tile_key, unpack_blob_key, unpack_tile_key
+from geoterrain.store.reader import StoreReader
+from geoterrain.store.writer import StoreWriter
 from tests.store.storesql import (
     delete_blob,
     read_blob,
@@ -57,7 +53,7 @@ def test_incomplete_temp_file_is_never_a_valid_store(tmp_path):
 def test_the_writer_thread_writes_the_writer_s_bytes(tmp_path):
     """The same calls on a StoreThread (run on its own thread) and on a StoreWriter give
     the same file, byte for byte."""
-    from geoterrain.store.database import StoreThread
+    from geoterrain.store.writer import StoreThread
 
     rng = np.random.default_rng(5)
     blobs = {(0, x, y): rng.integers(0, 256, int(rng.integers(1, 3000)), np.uint8).tobytes()
@@ -115,7 +111,7 @@ def test_kill_mid_write_leaves_no_valid_store(tmp_path):
 
     src = write_geotiff(tmp_path / "big.tif", generate("fbm", 1025, seed=2))
     dst = tmp_path / "k.geoterrain"
-    code = ("import geoterrain, geoterrain.store.database as s, time\n"
+    code = ("import geoterrain, geoterrain.store.writer as s, time\n"
             "orig = s.StoreWriter.put_blobs\n"
             "def slow(self, *a):\n    orig(self, *a); time.sleep(30)\n"
             "s.StoreWriter.put_blobs = slow\n"

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 import geoterrain
 from geoterrain.exceptions import StoreError
 from geoterrain.store.check import check_store
-from geoterrain.store.database import ROOTS_SCHEMA_VERSION, SCHEMA_VERSION
+from geoterrain.store.schema import ROOTS_SCHEMA_VERSION, SCHEMA_VERSION
 
 pytestmark = pytest.mark.fast  # the whole file is in the fast tier
 
@@ -175,7 +175,8 @@ def test_a_root_grid_store_passes_its_checks(wide_store):
 
 def test_the_writer_puts_a_root_grid_in_schema_version_24_and_the_reader_opens_both(
         tmp_path, wide_store):
-    from geoterrain.store.database import StoreReader, StoreWriter
+    from geoterrain.store.reader import StoreReader
+    from geoterrain.store.writer import StoreWriter
 
     _, meta, tiles, g = wide_store
     m, _, r = _as_roots(meta, tiles, g)
@@ -194,7 +195,7 @@ def test_a_frame_lattice_is_schema_25_and_checked(tmp_path):
     without the lattice in schema 24 (a root grid without it) reads with pyproj's
     positions everywhere."""
     from geoterrain.ingest.synth import generate, write_geotiff
-    from geoterrain.store.database import LATTICE_SCHEMA_VERSION
+    from geoterrain.store.schema import LATTICE_SCHEMA_VERSION
 
     dem = write_geotiff(tmp_path / "g.tif", generate("fbm", 129, seed=3)[:40, :117].copy(),
                         crs="EPSG:4326", origin=(24.0, 61.0), spacing=1 / 1200)

@@ -129,7 +129,7 @@ def _rewrite_bounds_v1(store, tmp_path):
     import zstandard
 
     from geoterrain.bounds.vertexdata import encode_bounds
-    from geoterrain.store.database import blob_crc
+    from geoterrain.store.schema import blob_crc
 
     old = tmp_path / "old.geoterrain"
     shutil.copy(store, old)

@@ -49,8 +49,8 @@ from geoterrain.preprocessing.edit.patch import (
     read_patch,
 )
 from geoterrain.preprocessing.edit.whole import whole_plan
-from geoterrain.store.database import StoreReader
 from geoterrain.store.editor import StoreEditor
+from geoterrain.store.reader import StoreReader
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike

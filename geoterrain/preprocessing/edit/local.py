@@ -56,7 +56,7 @@ from geoterrain.codec.quantize import valid_codes
 from geoterrain.preprocessing.edit.canvas import Canvas
 from geoterrain.preprocessing.edit.whole import Plan, store_predictor, store_reader
 from geoterrain.store.catalog import TILE_COLUMNS
-from geoterrain.store.database import StoreReader
+from geoterrain.store.reader import StoreReader
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike

@@ -31,8 +31,8 @@ from geoterrain.bounds.vertexdata import RING
 from geoterrain.codec.pyramid import blob_predictor, decoded_heights, encode_decoded
 from geoterrain.codec.quantize import codes_to_heights
 from geoterrain.core.progress import StageClock
-from geoterrain.store.database import StoreReader
 from geoterrain.store.keys import unpack_blob_key
+from geoterrain.store.reader import StoreReader
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
