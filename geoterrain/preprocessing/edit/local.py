@@ -301,7 +301,8 @@ class _Job:
         (:func:`geoterrain.codec.pyramid.encode_root`): a window on the edge two roots
         share gives both the same codes there. A root whose closed footprint holds no
         edited sample and whose samples are all valid keeps its blob (None here): its
-        codes are the old ones, and with no invalid sample no fill reads another root's."""
+        codes are the old ones, and with no invalid sample no fill reads another root's.
+        Where every sample of the grid is valid, such a root is not even decoded."""
         g, c, t = self.g, self.c, self.t
         q = t.quantizer
         te, T, top = g.t, g.tile_samples, g.top_level
