@@ -48,6 +48,7 @@ class Canvas:
         self.factor = f.z_to_m * f.z_scale
         self._tiles: dict = {}
         self._z: dict = {}
+        self._big: dict = {}  # new → the largest rectangle assembled: (i0, j0, z, v)
 
     def touches(self, i0: int, j0: int, i1: int, j1: int) -> bool:
         """Whether the closed rectangle rows i0 … i1, columns j0 … j1 holds an edited
@@ -92,7 +93,22 @@ class Canvas:
     def rect(self, i0: int, j0: int, i1: int, j1: int, new: bool = True
              ) -> tuple[np.ndarray, np.ndarray]:
         """Scene heights (0 where not valid) and validity (uint8) of rows i0 … i1 − 1 and
-        columns j0 … j1 − 1 (samples outside level 0's tiles are nodata)."""
+        columns j0 … j1 − 1 (samples outside level 0's tiles are nodata). A rectangle
+        inside the largest one assembled so far (the edit's window) is a copy of its part."""
+        big = self._big.get(new)
+        if big is not None:
+            bi, bj, bz, bv = big
+            if bi <= i0 and bj <= j0 and i1 <= bi + bz.shape[0] and j1 <= bj + bz.shape[1]:
+                return (bz[i0 - bi:i1 - bi, j0 - bj:j1 - bj].copy(),
+                        bv[i0 - bi:i1 - bi, j0 - bj:j1 - bj].copy())
+        z, v = self._assemble(i0, j0, i1, j1, new)
+        if big is None or z.size > big[2].size:
+            self._big[new] = (i0, j0, z.copy(), v.copy())
+        return z, v
+
+    def _assemble(self, i0: int, j0: int, i1: int, j1: int, new: bool
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        # rect's samples, tile by tile
         z = np.zeros((i1 - i0, j1 - j0))
         v = np.zeros((i1 - i0, j1 - j0), np.uint8)
         S = self.S

@@ -266,12 +266,13 @@ class _Job:
                 key = (L, x, y)
                 if not self.stored(key):
                     continue
+                if L == top and roots[(x, y)][2] is None:
+                    # a root the edit leaves as it is (_top_level): its codes are decoded
+                    # only if a child coded again reads them (as any unchanged parent's)
+                    continue
                 old = t.tile(*key) if key in t.tile_info else None
                 if L == top:
                     codes, ok, blob = roots[(x, y)]
-                    if blob is None:  # a root the edit leaves as it is (_top_level)
-                        self.codes[key] = old.codes
-                        continue
                 else:
                     codes = old.codes.copy() if old is not None else np.zeros((T, T), np.int64)
                     ok = old.valid.copy() if old is not None else np.zeros((T, T), bool)
@@ -300,7 +301,8 @@ class _Job:
         (:func:`geoterrain.codec.pyramid.encode_root`): a window on the edge two roots
         share gives both the same codes there. A root whose closed footprint holds no
         edited sample and whose samples are all valid keeps its blob (None here): its
-        codes are the old ones, and with no invalid sample no fill reads another root's."""
+        codes are the old ones, and with no invalid sample no fill reads another root's.
+        Where every sample of the grid is valid, such a root is not even decoded."""
         g, c, t = self.g, self.c, self.t
         q = t.quantizer
         te, T, top = g.t, g.tile_samples, g.top_level
@@ -310,8 +312,13 @@ class _Job:
         codes = np.full((ny * W + 1, nx * W + 1), zero, np.int64)
         ok = np.zeros(codes.shape, bool)
         keys = [(x, y) for y in range(ny) for x in range(nx) if self.stored((top, x, y))]
+        # every sample of the grid valid, before the edit and after it: no root is filled
+        # from another's samples, so a root the edit does not reach is not decoded
+        full = int(t.meta["valid_samples"]) == g.rows * g.cols and bool(c.valid.all())
         for x, y in keys:
             win = (slice(y * W, y * W + T), slice(x * W, x * W + T))
+            if full and (top, x, y) in t.tile_info and not self._reaches_root(x, y):
+                continue  # codes[win] stays at zero, ok[win] False: nothing reads them
             if (top, x, y) in t.tile_info:
                 tl = t.tile(top, x, y)
                 codes[win] = np.where(tl.valid, tl.codes, zero)
@@ -326,8 +333,8 @@ class _Job:
         out = {}
         for x, y in keys:
             win = (slice(y * W, y * W + T), slice(x * W, x * W + T))
-            if (top, x, y) in t.tile_info and ok[win].all() and not c.touches(
-                    y * span, x * span, y * span + span, x * span + span):
+            if (top, x, y) in t.tile_info and (full or ok[win].all()) \
+                    and not self._reaches_root(x, y):
                 # its closed footprint holds no edited sample and every sample of it is
                 # valid (so no fill reads another root's): its codes are the old ones,
                 # and so is its blob (None: not coded again, 1.7 ms a 65² root)
@@ -337,6 +344,11 @@ class _Job:
             out[(x, y)] = (cw, ow, encode_root(cw, ow, te, cubic, q.bins, edges,
                                                None if near is None else near[win].copy()))
         return out
+
+    def _reaches_root(self, x: int, y: int) -> bool:
+        """Whether root (x, y)'s closed footprint holds an edited sample."""
+        span = self.g.tile_span(self.g.top_level)
+        return self.c.touches(y * span, x * span, y * span + span, x * span + span)
 
     # ------------------------------------------------------------- normals
     def normals(self) -> None:

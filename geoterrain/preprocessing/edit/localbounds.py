@@ -180,34 +180,56 @@ class Bounds:
         self.dc = np.zeros(shape, np.uint8)
         self.rc = np.zeros(shape, np.uint8)
         # where dc and rc hold the stored codes: everywhere on the tiles within 8 samples
-        # of the edit; elsewhere on level 1's lattice only, from the level-1 tiles (a
-        # level-0 tile's even samples are its parent's, NEW_ONLY). A fine vertex of
-        # half-span h lies within 3h of the edit (an edge midpoint within 2h), its
+        # of the edit; elsewhere on a coarser level's lattice only (below). A fine vertex
+        # of half-span h lies within 3h of the edit (an edge midpoint within 2h), its
         # children within h of it: those on level 0's lattice within 5 samples (h = 2
         # edge midpoints' cell centres), 8 taken (tiles under 8 samples read whole)
         self.known = np.zeros(shape, bool)
         whole = self.g.top_level < 1 or S < 8
-        y0, y1 = (c.r0 - 8 - 1) // S, (c.r1 - 1 + 8) // S
-        x0, x1 = (c.c0 - 8 - 1) // S, (c.c1 - 1 + 8) // S
-        half = S // 2
+        # Farther out the reads thin out level by level: a position off level k's lattice
+        # (not a multiple of 2^k) is a vertex of half-span h < 2^k, within 3h, or a child
+        # of one (a centre's children within h of it, an edge midpoint's of h ≤ 2^k
+        # within h/2), so within 5·2^(k−1) samples of the edit. A level-0 tile more than
+        # 8·2^(k−1) samples away takes level k's lattice from its level-k ancestor (at
+        # most the top; within two tiles of the edit, 2^(k+2) < 2S, so k < t − 1: the
+        # h = S/2 vertices' lattice, which the coarse vertices read, stays in), whose
+        # decode its finer tiles' decodes would need anyway (NEW_ONLY: a tile's even
+        # samples are its parent's)
+        kmax = max(min(self.g.top_level, self.g.t - 1), 1)
+        coded: dict = {}  # a level-k tile's stored δ and r codes
+
+        def codes_of(key):
+            got = coded.get(key)
+            if got is None:
+                got = coded[key] = (_codes(self.t8, t.tile_delta(*key)),
+                                    _codes(self.rt, t.tile_radius(*key)))
+            return got
+
         for ty in range(self.oi // S, self.i1 // S):
+            dy = max(c.r0 - (ty * S + S), ty * S - (c.r1 - 1), 0)
             for tx in range(self.oj // S, self.j1 // S):
                 key = (0, tx, ty)
                 if key not in t.tile_info:
                     raise _Whole("nodata tiles beside the edit")
                 sl = (slice(ty * S - self.oi, ty * S - self.oi + S + 1),
                       slice(tx * S - self.oj, tx * S - self.oj + S + 1))
-                if whole or (y0 <= ty <= y1 and x0 <= tx <= x1):
+                d = max(dy, c.c0 - (tx * S + S), tx * S - (c.c1 - 1))
+                if whole or d <= 8:
                     self.dc[sl] = _codes(self.t8, t.tile_delta(*key))
                     self.rc[sl] = _codes(self.rt, t.tile_radius(*key))
                     self.known[sl] = True
                     continue
-                q = (slice((ty & 1) * half, (ty & 1) * half + half + 1),
-                     slice((tx & 1) * half, (tx & 1) * half + half + 1))
-                even = (slice(sl[0].start, sl[0].stop, 2), slice(sl[1].start, sl[1].stop, 2))
-                self.dc[even] = _codes(self.t8, t.tile_delta(1, tx // 2, ty // 2)[q])
-                self.rc[even] = _codes(self.rt, t.tile_radius(1, tx // 2, ty // 2)[q])
-                self.known[even] = True
+                k = 1
+                while k < kmax and d > 8 << k:
+                    k += 1
+                m, part = 1 << k, S >> k  # the level-k tile's samples over this tile: part + 1
+                q = (slice((ty % m) * part, (ty % m) * part + part + 1),
+                     slice((tx % m) * part, (tx % m) * part + part + 1))
+                on = (slice(sl[0].start, sl[0].stop, m), slice(sl[1].start, sl[1].stop, m))
+                dk, rk = codes_of((k, tx >> k, ty >> k))
+                self.dc[on] = dk[q]
+                self.rc[on] = rk[q]
+                self.known[on] = True
         self.dc_old, self.rc_old = self.dc.copy(), self.rc.copy()
         f = t.frame
         # a row and a column broadcast (each sample's arithmetic as on a meshgrid's)
@@ -284,12 +306,18 @@ class Bounds:
         k = min(h.bit_length() - 1, g.top_level)
         span = g.tile_span(k)
         nx, ny = g.tiles(k)
-        for y in {min(i // span, ny - 1), max((i - 1) // span, 0)}:
-            for x in {min(j // span, nx - 1), max((j - 1) // span, 0)}:
-                if (k, x, y) in self.t.tile_info and y * span <= i <= y * span + span \
-                        and x * span <= j <= x * span + span:
-                    arr = (self.t.tile_delta if kind == "delta" else self.t.tile_radius)(k, x, y)
-                    return float(arr[(i - y * span) >> k, (j - x * span) >> k])
+        cands = [(x, y) for y in sorted({min(i // span, ny - 1), max((i - 1) // span, 0)})
+                 for x in sorted({min(j // span, nx - 1), max((j - 1) // span, 0)})]
+        if k == g.top_level and len(cands) > 1:  # on roots' shared edge: a root the edit
+            # reaches first (decoded already; both hold the vertex's one stored value)
+            cands.sort(key=lambda xy: not self.c.touches(xy[1] * span, xy[0] * span,
+                                                         xy[1] * span + span,
+                                                         xy[0] * span + span))
+        for x, y in cands:
+            if (k, x, y) in self.t.tile_info and y * span <= i <= y * span + span \
+                    and x * span <= j <= x * span + span:
+                arr = (self.t.tile_delta if kind == "delta" else self.t.tile_radius)(k, x, y)
+                return float(arr[(i - y * span) >> k, (j - x * span) >> k])
         if kind == "delta":
             return 0.0  # no stored tile holds it: its diamond holds no data
         raise _Whole("nodata tiles beside the edit's coarse vertices")
@@ -303,36 +331,68 @@ class Bounds:
         self.direct_coarse = set()
         for h, vs, direct in self.coarse_levels:
             centre = ((vs[:, 0] // h) % 2 == 1) & ((vs[:, 1] // h) % 2 == 1)
-            order = np.concatenate([np.flatnonzero(~centre), np.flatnonzero(centre)])
-            for (i, j, _), d in zip(vs[order].tolist(), direct[order].tolist(), strict=True):
-                kids = [_child(i, j, h, k) for k in range(4)]
-                kids = [(ci, cj) for ci, cj in kids if 0 <= ci < self.R and 0 <= cj < self.C]
-                new_kids = max((self.d_code(ci, cj) for ci, cj in kids), default=0)
-                if d:
-                    self.direct_coarse.add((i, j))
-                    raw = self._raw_by_window(i, j, h, kids, new_kids)
-                    if raw is None:
-                        raw = self._coarse_raw(i, j, h)
-                    self._check_scale(raw)
-                    self.raw_new[(i, j)] = raw
-                    code = max(int(np.searchsorted(self.t8, float(raw))), new_kids)
-                else:
-                    old = self._old_code(i, j, "delta")
-                    old_kids = max((self._old_code(ci, cj, "delta")
-                                    for ci, cj in kids), default=0)
-                    if old > old_kids:  # its own raw δ held it: unchanged
-                        code = max(old, new_kids)
-                    elif new_kids >= old:
-                        code = new_kids
-                    else:
-                        raw = self._coarse_raw(i, j, h)
-                        self.raw_new[(i, j)] = raw
-                        code = max(int(np.searchsorted(self.t8, float(raw))), new_kids)
+            # the level's edge midpoints, then its centres (whose children they are): δ,
+            # then r nested on the children's codes (no δ read) in one call a part
+            for part in (np.flatnonzero(~centre), np.flatnonzero(centre)):
+                done = []
+                for (i, j, _), d in zip(vs[part].tolist(), direct[part].tolist(),
+                                        strict=True):
+                    if self._coarse_one(i, j, h, d):
+                        done.append((i, j))
+                self._nest_all([v[0] for v in done], [v[1] for v in done], h)
+
+    def _coarse_one(self, i: int, j: int, h: int, d: bool) -> bool:
+        """Coarse vertex (i, j)'s δ code into ``coarse_d`` (``d``: its closed diamond
+        holds an edited sample); False where it keeps its codes, left out: not direct,
+        its height not edited and no child's codes or height changed (its raw δ, its
+        children's codes and heights are then those its stored δ and r were made of),
+        so that neither its codes nor those of its children the edit does not reach
+        (another root's, on a root grid's shared edge) are read."""
+        kids = [_child(i, j, h, k) for k in range(4)]
+        kids = [(ci, cj) for ci, cj in kids if 0 <= ci < self.R and 0 <= cj < self.C]
+        if not d:
+            if not self.c.touches(i, j, i, j) and not any(
+                    self._kid_changed(ci, cj) for ci, cj in kids):
+                return False
+            code = self._by_reached(i, j, kids)
+            if code is not None:
                 self.coarse_d[(i, j)] = code
-                self.coarse_r[(i, j)] = self._nest(i, j, kids, [self.r_code(ci, cj)
-                                                               for ci, cj in kids])
-                if self.coarse_r[(i, j)] == 255:
-                    raise _Whole("a radius outgrows its code scale")
+                return True
+        new_kids = max((self.d_code(ci, cj) for ci, cj in kids), default=0)
+        if d:
+            self.direct_coarse.add((i, j))
+            raw = self._raw_by_window(i, j, h, kids, new_kids)
+            if raw is None:
+                raw = self._coarse_raw(i, j, h)
+            self._check_scale(raw)
+            self.raw_new[(i, j)] = raw
+            code = max(int(np.searchsorted(self.t8, float(raw))), new_kids)
+        else:
+            old = self._old_code(i, j, "delta")
+            old_kids = max((self._old_code(ci, cj, "delta") for ci, cj in kids), default=0)
+            if old > old_kids:  # its own raw δ held it: unchanged
+                code = max(old, new_kids)
+            elif new_kids >= old:
+                code = new_kids
+            else:
+                raw = self._coarse_raw(i, j, h)
+                self.raw_new[(i, j)] = raw
+                code = max(int(np.searchsorted(self.t8, float(raw))), new_kids)
+        self.coarse_d[(i, j)] = code
+        return True
+
+    def _kid_changed(self, i: int, j: int) -> bool:
+        """Whether the edit changes vertex (i, j)'s height, δ code or r code (one it does
+        not reach keeps them: :meth:`_reached`)."""
+        if self.c.touches(i, j, i, j):
+            return True
+        if (i, j) in self.coarse_d:
+            return self.coarse_d[(i, j)] != self._old_code(i, j, "delta") or \
+                self.coarse_r[(i, j)] != self._old_code(i, j, "radius")
+        if self._in_window(i, j):
+            a, b = i - self.oi, j - self.oj
+            return bool(self.dc[a, b] != self.dc_old[a, b] or self.rc[a, b] != self.rc_old[a, b])
+        return False
 
     def _raw_by_window(self, i: int, j: int, h: int, kids: list, new_kids: int
                        ) -> float | None:
@@ -410,24 +470,78 @@ class Bounds:
             z = self.z_old
         return float(block_sweep_rect(z, self.oi, self.oj, cell, zc, *rect)[r])
 
-    def _nest(self, i: int, j: int, pos: list, codes: list) -> int:
-        pts = [(i, j)] + pos
-        ii = np.array([p[0] for p in pts])
-        jj = np.array([p[1] for p in pts])
-        X, Y = self.t.frame.xy(ii, jj)
-        z, v = self.c.samples(ii, jj)
-        z = np.where(v, z, self.stand_in)
-        px = np.zeros((1, 5))
-        py = np.zeros((1, 5))
-        pz = np.zeros((1, 5))
-        cc = np.zeros((1, 4), np.uint8)
-        ok = np.zeros((1, 4), np.bool_)
-        px[0, :len(pts)], py[0, :len(pts)], pz[0, :len(pts)] = X, Y, z
-        cc[0, :len(codes)] = codes
-        ok[0, :len(codes)] = True
-        out = np.zeros(1, np.uint8)
+    def _reached(self, i: int, j: int) -> bool:
+        """Whether vertex (i, j) is one the edit may change (a coarse vertex computed
+        already and not left out, or one in the window): any other keeps its stored
+        codes."""
+        return (i, j) in self.coarse_d or self._in_window(i, j)
+
+    def _by_reached(self, i: int, j: int, kids: list) -> int | None:
+        """A coarse vertex's saturated δ code where the edit does not reach its diamond
+        (its raw δ unchanged), from its stored code and its reached children's codes
+        alone (None where the others' are needed). Stored, the code is the largest of its
+        raw code and its children's (saturation), so at least each child's old code:
+        where no reached child's old code equals it and none's new code passes it, the
+        raw code or an unreached child still holds it; where a reached child's new code
+        reaches it, that code is the largest. Children of another root (a root grid's
+        edge midpoints on the roots' shared edge) are not decoded then."""
+        old = self._old_code(i, j, "delta")
+        reached = [k for k in kids if self._reached(*k)]
+        rn = max((self.d_code(*k) for k in reached), default=-1)
+        if rn >= old:
+            return rn
+        ro = max((self._old_code(*k, "delta") for k in reached), default=-1)
+        return old if ro < old else None
+
+    def _nest_all(self, vi: list, vj: list, h: int) -> None:
+        """The r codes of coarse vertices (``vi``, ``vj``) of half-span ``h``, nested on
+        their children's codes (each row its vertex and
+        its children in the grid, in ``child_nb``'s order), into ``coarse_r``."""
+        # a vertex with a child the edit does not reach (a child of another root, say)
+        # keeps its stored code where neither its height nor a reached child's code or
+        # height changed: its code is nested on those alone (the others keep theirs),
+        # and the others' codes are not read
+        rest = []
+        for i, j in zip(vi, vj, strict=True):
+            kids = [_child(i, j, h, q) for q in range(4)]
+            kids = [(ci, cj) for ci, cj in kids if 0 <= ci < self.R and 0 <= cj < self.C]
+            reached = [q for q in kids if self._reached(*q)]
+            if len(reached) < len(kids) and not self.c.touches(i, j, i, j) and not any(
+                    self.c.touches(ci, cj, ci, cj)
+                    or self.r_code(ci, cj) != self._old_code(ci, cj, "radius")
+                    for ci, cj in reached):
+                self.coarse_r[(i, j)] = self._old_code(i, j, "radius")
+            else:
+                rest.append((i, j))
+        vi, vj = [v[0] for v in rest], [v[1] for v in rest]
+        n = len(vi)
+        if not n:
+            return
+        ii = np.zeros((n, 5), np.int64)
+        jj = np.zeros((n, 5), np.int64)
+        cc = np.zeros((n, 4), np.uint8)
+        ok = np.zeros((n, 4), np.bool_)
+        for k, (i, j) in enumerate(zip(vi, vj, strict=True)):
+            ii[k, 0], jj[k, 0] = i, j
+            m = 0
+            for q in range(4):
+                ci, cj = _child(i, j, h, q)
+                if 0 <= ci < self.R and 0 <= cj < self.C:
+                    ii[k, m + 1], jj[k, m + 1] = ci, cj
+                    cc[k, m] = self.r_code(ci, cj)
+                    ok[k, m] = True
+                    m += 1
+        used = np.concatenate([np.ones((n, 1), bool), ok], axis=1)
+        X, Y = self.t.frame.xy(ii[used], jj[used])
+        z, v = self.c.samples(ii[used], jj[used])
+        px, py, pz = np.zeros((n, 5)), np.zeros((n, 5)), np.zeros((n, 5))
+        px[used], py[used], pz[used] = X, Y, np.where(v, z, self.stand_in)
+        out = np.zeros(n, np.uint8)
         nest_codes_sparse(px, py, pz, cc, ok, self.rt, out)
-        return int(out[0])
+        if (out == 255).any():
+            raise _Whole("a radius outgrows its code scale")
+        for i, j, code in zip(vi, vj, out.tolist(), strict=True):
+            self.coarse_r[(i, j)] = code
 
     def _status(self, a: int, b: int, s: int, new: bool = True) -> int:
         """A coarse block's status (1 all valid, 2 all invalid, 3 mixed) from its tiles'
@@ -629,6 +743,8 @@ class Bounds:
             held = bool((raw_old.astype(np.float64) == d_old).any())
         for h, vs, direct in self.coarse_levels:
             for (i, j, _), d in zip(vs.tolist(), direct.tolist(), strict=True):
+                if (i, j) not in self.coarse_d:  # codes kept (_coarse_one): no term
+                    continue
                 new_code = self.coarse_d[(i, j)]
                 old_code = self._old_code(i, j, "delta")
                 if (new_code < 255) != (old_code < 255) and (i, j) not in self.raw_new:
