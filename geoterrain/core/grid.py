@@ -319,16 +319,21 @@ def footprint_counts(valid: np.ndarray, t: int, top: int | None = None) -> list[
     R, C = valid.shape
     if top is None:
         top = int(max(R, C) - 1).bit_length() - 1 - t
-    from geoterrain.core.gridcount import integral_nb  # compiled: loaded where it runs
+    full = bool(valid.all())  # every sample valid: each count is its box's area
+    if not full:
+        from geoterrain.core.gridcount import integral_nb  # compiled: loaded where it runs
 
-    ii = np.zeros((R + 1, C + 1), np.int32 if valid.size < 2**31 else np.int64)
-    integral_nb(valid.view(np.uint8), ii)
+        ii = np.zeros((R + 1, C + 1), np.int32 if valid.size < 2**31 else np.int64)
+        integral_nb(valid.view(np.uint8), ii)
     out = []
     for L in range(top + 1):
         s = 1 << (t + L)
         ry, rx = (np.minimum(np.arange(_tiles_over(k, s)) * s, k) for k in (R, C))
         hy, hx = np.minimum(ry + s + 1, R), np.minimum(rx + s + 1, C)
-        c = ii[hy][:, hx] - ii[ry][:, hx] - ii[hy][:, rx] + ii[ry][:, rx]
+        if full:
+            c = (hy - ry).astype(np.int64)[:, None] * (hx - rx).astype(np.int64)[None, :]
+        else:
+            c = ii[hy][:, hx] - ii[ry][:, hx] - ii[hy][:, rx] + ii[ry][:, rx]
         out.append(c.astype(np.int64))
     return out
 
