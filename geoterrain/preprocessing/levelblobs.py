@@ -1,9 +1,10 @@
 """Every stored tile's blobs of the whole-grid preprocess, level by level.
 
 :func:`tile_blobs` codes the δ, r, normals and δ_edge blobs of every level
-(:func:`geoterrain.bounds.tileblobs.level_blobs` on each level's tiles, a large grid's
-level in two halves on a pool: :data:`SPLIT_LEVEL_TILES`) and hands each level's rows on
-as they are made, in the streamed preprocess's row order (:func:`tile_row_order`);
+(:func:`geoterrain.bounds.tileblobs.level_blobs` on each level's tiles; a large grid's
+levels on two threads, a level of :data:`SPLIT_LEVEL_TILES` tiles or more in two halves,
+every part queued at once) and hands each level's rows on as they are made, in the
+streamed preprocess's row order (:func:`tile_row_order`);
 :class:`HeightsJob` codes a large grid's height blobs on a thread of its own
 (:data:`HEIGHTS_THREAD_SAMPLES`) in the codec's tile order (:func:`pyramid_keys`).
 """
