@@ -305,7 +305,8 @@ def footprint_counts(valid: np.ndarray, t: int, top: int | None = None) -> list[
     span S = 2**(t + L), ``ceil((side − 1) / S)`` tiles a side); the footprint of tile
     (x, y) is the closed box ``[y S, (y + 1) S] × [x S, (x + 1) S]`` clipped to the
     mask, shared borders included. A tile is stored when its count is > 0. Computed
-    from one integral image, so every level costs O(tiles).
+    from one integral image (an all-valid mask: from the boxes' areas, without it), so
+    every level costs O(tiles).
 
     Examples
     --------
