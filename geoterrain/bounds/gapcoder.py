@@ -86,13 +86,18 @@ def _gap_values(enc, S, buf, m, r, gap):
 
 
 @njit(cache=True, nogil=True)
-def _encode_gaps(r, gap, buf):
-    m = np.zeros((_GAP_ROWS, 2), np.int64)
-    S = _start(True, buf)
-    # a bool, not a literal True: the specialisation GapDecoder.take runs (called from
-    # Python), so a reader loads what the writer compiled
-    S = _gap_values(np.bool_(True), S, buf, m, r, gap)
-    return _finish(S, buf)
+def _encode_gaps_rows(r, gap, buf, lens):
+    # each row of r (k, n) in the contexts of gap's, into its row of buf; lens: each
+    # payload's length (-1: past its row of buf). One kernel for one payload and for a
+    # level's, in one call without the GIL (no Python between a level's tiles)
+    for i in range(r.shape[0]):
+        m = np.zeros((_GAP_ROWS, 2), np.int64)
+        b = buf[i]
+        S = _start(True, b)
+        # a bool, not a literal True: the specialisation GapDecoder.take runs (called
+        # from Python), so a reader loads what the writer compiled
+        S = _gap_values(np.bool_(True), S, b, m, r[i], gap[i])
+        lens[i] = _finish(S, b)
 
 
 def encode_gaps(r: np.ndarray, gap: np.ndarray) -> bytes:
@@ -106,13 +111,38 @@ def encode_gaps(r: np.ndarray, gap: np.ndarray) -> bytes:
     >>> d.take(gap[:2]).tolist(), d.take(gap[2:]).tolist()
     ([0, 0], [3, 1, 200, 0])
     """
-    r = np.ascontiguousarray(r, np.int64).copy()
-    gap = np.ascontiguousarray(gap, np.int64)
-    buf = np.zeros(16 * len(r) + 64, np.uint8)  # > 12 bytes a value at the worst odds
-    n = int(_encode_gaps(r, gap, buf))
-    if n < 0:
+    r = np.asarray(r).reshape(1, -1)
+    (out,) = encode_gaps_rows(r, gap, slot=16 * r.shape[1] + 64)  # > 12 bytes a value
+    return out
+
+
+def encode_gaps_rows(r: np.ndarray, gap: np.ndarray, slot: int | None = None) -> list[bytes]:
+    """:func:`encode_gaps` of each row of ``r`` (k, n) in the contexts of the same row of
+    ``gap`` (k, n): the same bytes, in one compiled call that releases the GIL (a level's
+    tiles without Python between them). ``slot``: the bytes a row may take in that call
+    (default n + 64, a byte a value and more); a row past it is coded again alone.
+
+    Examples
+    --------
+    >>> r = np.array([[0, 3, 1], [200, 0, 7]]); gap = np.array([[0, 5, 1], [255, 40, 9]])
+    >>> encode_gaps_rows(r, gap) == [encode_gaps(r[0], gap[0]), encode_gaps(r[1], gap[1])]
+    True
+    """
+    r = np.array(r, np.int64, order="C", ndmin=2)  # a copy: the coder writes values back
+    gap = np.ascontiguousarray(gap, np.int64).reshape(r.shape)
+    k, n = r.shape
+    big = 16 * n + 64  # > 12 bytes a value at the worst odds
+    # else a byte a value and a little more per row (a payload is mostly well under it:
+    # a level-0 ring's a few bytes; uniform values cost about 8.2 bits); a row past it
+    # (the coder stops writing there and says so) is coded again with the bound above
+    buf = np.empty((k, n + 64 if slot is None else min(slot, big)), np.uint8)
+    lens = np.empty(k, np.int64)
+    _encode_gaps_rows(r, gap, buf, lens)
+    if buf.shape[1] >= big and k and lens.min() < 0:
         raise ValueError("a range-coded bounds payload overflowed its buffer")
-    return buf[:n].tobytes()
+    return [buf[i, :m].tobytes() if m >= 0 else
+            encode_gaps_rows(r[i:i + 1], gap[i:i + 1], slot=big)[0]
+            for i, m in enumerate(lens.tolist())]
 
 
 class GapDecoder:

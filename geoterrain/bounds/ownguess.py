@@ -28,7 +28,7 @@ import zlib
 import numpy as np
 from numba import njit
 
-from geoterrain.bounds.gapcoder import GapDecoder, encode_gaps
+from geoterrain.bounds.gapcoder import GapDecoder, encode_gaps, encode_gaps_rows
 from geoterrain.bounds.log8codes import (
     LOG_STEPS,
     _log8_table64,
@@ -185,7 +185,7 @@ def pred_payloads_own(W: np.ndarray, lo: np.ndarray) -> list[bytes]:
     True
     """
     r, gap = pred_gaps(W, lo)
-    return [bytes([guess_check(lo[n])]) + encode_gaps(r[n], gap[n]) for n in range(len(r))]
+    return [bytes([guess_check(lo[n])]) + p for n, p in enumerate(encode_gaps_rows(r, gap))]
 
 
 def pred_codes_own(corners: np.ndarray, payload: bytes, lo: np.ndarray) -> np.ndarray:
@@ -491,8 +491,8 @@ def ring_payloads_own(rings: np.ndarray, guess: np.ndarray) -> list[bytes]:
     """
     g = np.asarray(guess, np.int64)
     d = (np.asarray(rings, np.int64) - g) & 0xFF
-    zero = np.zeros(d.shape[1], np.int64)
-    return [bytes([guess_check(g[n])]) + encode_gaps(d[n], zero) for n in range(len(d))]
+    return [bytes([guess_check(g[n])]) + p
+            for n, p in enumerate(encode_gaps_rows(d, np.zeros_like(d)))]
 
 
 def ring_codes_own(payload: bytes, guess: np.ndarray) -> np.ndarray:

@@ -346,7 +346,8 @@ def footprint_counts(valid: np.ndarray, t: int, top: int | None = None) -> list[
     span S = 2**(t + L), ``ceil((side − 1) / S)`` tiles a side); the footprint of tile
     (x, y) is the closed box ``[y S, (y + 1) S] × [x S, (x + 1) S]`` clipped to the
     mask, shared borders included. A tile is stored when its count is > 0. Computed
-    from one integral image, so every level costs O(tiles).
+    from one integral image (an all-valid mask: from the boxes' areas, without it), so
+    every level costs O(tiles).
 
     Examples
     --------
@@ -360,16 +361,21 @@ def footprint_counts(valid: np.ndarray, t: int, top: int | None = None) -> list[
     R, C = valid.shape
     if top is None:
         top = int(max(R, C) - 1).bit_length() - 1 - t
-    from geoterrain.core.gridcount import integral_nb  # compiled: loaded where it runs
+    full = bool(valid.all())  # every sample valid: each count is its box's area
+    if not full:
+        from geoterrain.core.gridcount import integral_nb  # compiled: loaded where it runs
 
-    ii = np.zeros((R + 1, C + 1), np.int32 if valid.size < 2**31 else np.int64)
-    integral_nb(valid.view(np.uint8), ii)
+        ii = np.zeros((R + 1, C + 1), np.int32 if valid.size < 2**31 else np.int64)
+        integral_nb(valid.view(np.uint8), ii)
     out = []
     for L in range(top + 1):
         s = 1 << (t + L)
         ry, rx = (np.minimum(np.arange(_tiles_over(k, s)) * s, k) for k in (R, C))
         hy, hx = np.minimum(ry + s + 1, R), np.minimum(rx + s + 1, C)
-        c = ii[hy][:, hx] - ii[ry][:, hx] - ii[hy][:, rx] + ii[ry][:, rx]
+        if full:
+            c = (hy - ry).astype(np.int64)[:, None] * (hx - rx).astype(np.int64)[None, :]
+        else:
+            c = ii[hy][:, hx] - ii[ry][:, hx] - ii[hy][:, rx] + ii[ry][:, rx]
         out.append(c.astype(np.int64))
     return out
 

@@ -1,9 +1,10 @@
 """Every stored tile's blobs of the whole-grid preprocess, level by level.
 
 :func:`tile_blobs` codes the δ, r, normals and δ_edge blobs of every level
-(:func:`geoterrain.bounds.tileblobs.level_blobs` on each level's tiles, a large grid's
-level in two halves on a pool: :data:`SPLIT_LEVEL_TILES`) and hands each level's rows on
-as they are made, in the streamed preprocess's row order (:func:`tile_row_order`);
+(:func:`geoterrain.bounds.tileblobs.level_blobs` on each level's tiles; a large grid's
+levels on two threads, a level of :data:`SPLIT_LEVEL_TILES` tiles or more in two halves,
+every part queued at once) and hands each level's rows on as they are made, in the
+streamed preprocess's row order (:func:`tile_row_order`);
 :class:`HeightsJob` codes a large grid's height blobs on a thread of its own
 (:data:`HEIGHTS_THREAD_SAMPLES`) in the codec's tile order (:func:`pyramid_keys`).
 """
@@ -167,37 +168,57 @@ def _tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict, normal_maps:
     own = OwnHeights(Z, valid, stand_in)
     ctx = _Level(grid, frame, Z, valid, tiles, b, coding, normal_maps, no_map, derive_normals,
                  ring_residual, guess, stand_in, own)
-    # a large grid's levels of many tiles: their halves' blobs on two threads (each tile's
-    # blobs are its own: the same bytes)
-    pool = ThreadPoolExecutor(1, thread_name_prefix="geoterrain-blobs") \
-        if valid.size >= HEIGHTS_THREAD_SAMPLES else None
-    try:
+    edges = None if edge is None else (edge, edge_keys, edge_only)
+    if valid.size < HEIGHTS_THREAD_SAMPLES:  # a small grid: level by level, in line
         for L in grid.levels:
+            keys = [k for k in stored if k[0] == L]
+            if keys:
+                lattice = _lattice(ctx, L)
+                _level_rows(ctx, L, keys, *_level_part(ctx, L, keys, lattice), extra,
+                            tile_rows, edge_max, edges, pending, stored_set, hand_on)
+    else:
+        _pooled_levels(ctx, stored, extra, tile_rows, edge_max, edges, pending, stored_set,
+                       hand_on)
+    hand_on(True)
+    return TileBlobs(height_blobs(), extra, tile_rows, edge_max)
+
+
+def _lattice(c: _Level, L: int) -> tuple | None:
+    # the level's heights, for every part of a level with guessed r vertices
+    if c.guess and 0 < L < c.grid.top_level:
+        sl = np.s_[::1 << L, ::1 << L]
+        return (np.ascontiguousarray(c.Z[sl]), np.ascontiguousarray(c.valid[sl]).view(np.uint8))
+    return None
+
+
+def _pooled_levels(c: _Level, stored: list, extra: dict, tile_rows: dict, edge_max: list,
+                   edges: tuple | None, pending: list | None, stored_set: set,
+                   hand_on: Callable[[bool], None]) -> None:
+    # a large grid's levels on two threads: a level of many tiles in two halves (each
+    # tile's blobs are its own: the same bytes), every part queued at once in level
+    # order, so a thread done with its part takes the next (the next level's half)
+    # rather than waiting for the other half; the rows taken level by level, in order
+    pool = ThreadPoolExecutor(2, thread_name_prefix="geoterrain-blobs")
+    try:
+        plan = []
+        for L in c.grid.levels:
             keys = [k for k in stored if k[0] == L]
             if not keys:
                 continue
-            lattice = None
-            if guess and 0 < L < grid.top_level:  # the level's heights, for every part
-                sl = np.s_[::1 << L, ::1 << L]
-                lattice = (np.ascontiguousarray(Z[sl]),
-                           np.ascontiguousarray(valid[sl]).view(np.uint8))
-            if pool is not None and len(keys) >= SPLIT_LEVEL_TILES:
-                half = len(keys) // 2
-                later = pool.submit(_level_part, ctx, L, keys[half:], lattice)
-                one = _level_part(ctx, L, keys[:half], lattice)
-                two = later.result()
-                blobs = {kind: {**one[0][kind], **two[0][kind]} for kind in one[0]}
-                dmax, rmax = (np.concatenate([one[i], two[i]]) for i in (1, 2))
-            else:
-                blobs, dmax, rmax = _level_part(ctx, L, keys, lattice)
-            _level_rows(ctx, L, keys, blobs, dmax, rmax, extra, tile_rows, edge_max,
-                        None if edge is None else (edge, edge_keys, edge_only), pending,
-                        stored_set, hand_on)
+            lattice = _lattice(c, L)
+            half = len(keys) // 2 if len(keys) >= SPLIT_LEVEL_TILES else len(keys)
+            parts = [p for p in (keys[:half], keys[half:]) if p]
+            plan.append((L, keys, [pool.submit(_level_part, c, L, p, lattice)
+                                   for p in parts]))
+        for L, keys, parts in plan:
+            got = [f.result() for f in parts]
+            blobs = {kind: {k: b for g in got for k, b in g[0][kind].items()}
+                     for kind in got[0][0]}
+            dmax, rmax = (np.concatenate([g[i] for g in got]) for i in (1, 2))
+            _level_rows(c, L, keys, blobs, dmax, rmax, extra, tile_rows, edge_max, edges,
+                        pending, stored_set, hand_on)
     finally:
-        if pool is not None:
-            pool.shutdown()
-    hand_on(True)
-    return TileBlobs(height_blobs(), extra, tile_rows, edge_max)
+        pool.shutdown(cancel_futures=True)
 
 
 SPLIT_LEVEL_TILES = 64  # a large grid's level of this many tiles: coded in two halves

@@ -107,3 +107,24 @@ def test_root_grid_of_the_issue_shapes():
     assert wide.shape == (1025, 4097) and wide.roots == (2, 1) and wide.top_level == 5
     square = Grid.for_shape(1025, 1025, 64, roots=True)
     assert square == Grid.for_shape(1025, 1025, 64) and square.roots == (1, 1)
+
+
+@given(st.integers(2, 120), st.integers(2, 120), st.sampled_from([2, 4, 8, 16]),
+       st.booleans(), st.integers(-1, 10**6))
+def test_footprint_counts_of_a_full_mask_are_the_boxes_areas(h, w, ts, roots, hole):
+    """An all-valid mask's counts are its footprints' areas, computed without the
+    integral image: the same as brute force, and as the integral image's with one sample
+    invalid wherever the hole falls (-1: none)."""
+    from geoterrain.core.grid import footprint_counts
+
+    g = Grid.for_shape(h, w, ts, roots=roots)
+    valid = np.ones(g.shape, bool)
+    if hole >= 0:
+        valid.flat[hole % valid.size] = False
+    counts = footprint_counts(valid, g.t, g.top_level)
+    for L in g.levels:
+        s = g.tile_span(L)
+        ys, xs = np.indices(counts[L].shape)
+        brute = [valid[y * s:(y + 1) * s + 1, x * s:(x + 1) * s + 1].sum()
+                 for y, x in zip(ys.ravel(), xs.ravel(), strict=True)]
+        assert counts[L].dtype == np.int64 and counts[L].ravel().tolist() == brute

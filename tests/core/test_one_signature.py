@@ -43,7 +43,8 @@ def test_the_gap_coder_compiles_once_for_both_directions():
 
     r = np.array([0, 3, 200], np.int64)
     gap = np.array([0, 5, 255], np.int64)
-    _fresh_compile(gapcoder._encode_gaps, r, gap, np.zeros(64, np.uint8))
+    _fresh_compile(gapcoder._encode_gaps_rows, r[None], gap[None], np.zeros((1, 64), np.uint8),
+                   np.zeros(1, np.int64))
     d = gapcoder.GapDecoder(gapcoder.encode_gaps(r, gap))
     assert d.take(gap).tolist() == r.tolist()
     sigs = gapcoder._gap_values.signatures
