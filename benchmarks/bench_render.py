@@ -19,10 +19,13 @@ time of the same work moves with the load, its CPU time much less.
         [--tau 1] [--flight approach|low] [--strategies rtin] [--brute-every 4] [--global]
         [--json out.json] [--pictures DIR]
         [--anti-aliasing auto|msaa|edges|fxaa|none] [--skip-bruteforce] [--overlap]
+        [--reference DIR]
 
 ``--pictures DIR`` writes the compared views' pictures there as PNGs
 (``STRATEGY_VIEW.png``, bruteforce's included), so two checkouts' pictures of the same
 views can be compared; each strategy's PSNR against bruteforce is printed per view.
+``--reference DIR`` takes bruteforce's pictures from such a folder instead of drawing
+them again (bruteforce draws every level-0 tile: minutes a view on a 4097² store).
 
 ``--global`` adds the previous whole-DEM texture (``textures="global"``) as a
 baseline measured in the same run.
@@ -157,16 +160,26 @@ def main(argv=None) -> dict:
                     "time between pictures (bruteforce is drawn without)")
     ap.add_argument("--json")
     ap.add_argument("--pictures", help="write the compared views' pictures to this folder")
+    ap.add_argument("--reference", help="compare with bruteforce's pictures in this folder "
+                    "(written by --pictures) instead of drawing bruteforce")
     a = ap.parse_args(argv)
     size = tuple(int(s) for s in a.size.split("x"))
     load0 = os.getloadavg()[0]
     with geoterrain.open(a.store) as t:
         views = FLIGHTS[a.flight](t, a.views, size)
     brute_views = set(range(0, len(views), max(1, a.brute_every)))
+    reference = None
+    if a.reference:  # bruteforce's pictures of an earlier run (they depend on no LOD)
+        from PIL import Image
+
+        reference = {k: np.asarray(Image.open(os.path.join(
+            a.reference, f"bruteforce_{k:02d}.png")).convert("RGB")) for k in brute_views}
+        a.skip_bruteforce = True
     runs = []
     for s in a.strategies.split(","):
         runs.append(run_config(a.store, views, s, "view", a.tau, None, a.anti_aliasing,
-                               () if a.skip_bruteforce else brute_views, a.overlap))
+                               () if a.skip_bruteforce and reference is None else brute_views,
+                               a.overlap))
         if a.glob:
             runs.append(run_config(a.store, views, s, "global", a.tau, None, a.anti_aliasing))
     brute = None
@@ -196,8 +209,9 @@ def main(argv=None) -> dict:
                         "render_cpu_ms": _med(warm, "render_cpu_ms"),
                         "ratio_to_bruteforce": ratio}
         sm = r["summary"]
-        db = [psnr(p, brute["pictures"][k]) for k, p in r["pictures"].items()] \
-            if brute is not None and r is not brute else []
+        ref = brute["pictures"] if brute is not None else reference
+        db = [psnr(p, ref[k]) for k, p in r["pictures"].items()] \
+            if ref is not None and r is not brute else []
         sm["psnr_to_bruteforce"] = db
         dbs = f"{min(db):.1f}, {statistics.median(db):.1f}" if db else ""
         print(f"| {r['strategy']} | {r['textures']} | {r['setup_ms']:.0f} | "

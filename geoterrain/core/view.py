@@ -22,15 +22,23 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / n
 
 
+_NO_AXIS = np.zeros(0)
+
+
 class ViewTerms(NamedTuple):
     """What the compiled selection kernels read of a view and a tolerance (seed 002 eq. 2,
     λδ > τ(d − r)): the ``eye`` (3,), the inward frustum ``planes`` (P, 4) (P = 0: no
-    culling), ``lam`` (λ) and ``tau`` (τ)."""
+    culling), ``lam`` (λ), ``tau`` (τ) and the eye plane ``axis``.
+
+    ``axis`` empty: LP's distance d = ‖p − eye‖. ``axis`` (4,), (f, −f·eye) for the view
+    direction f: the depth z = f·(p − eye) replaces d, as the picture divides by it
+    (:meth:`View.terms` with ``depth``; ``lam`` then holds λ·k + τ, see there)."""
 
     eye: np.ndarray
     planes: np.ndarray
     lam: float
     tau: float
+    axis: np.ndarray = _NO_AXIS
 
 
 @dataclass(frozen=True)
@@ -156,16 +164,60 @@ class View:
             got = self.memos[key] = make()
         return got
 
-    def terms(self, tau: float) -> ViewTerms:
+    @property
+    def lift(self) -> float:
+        """k ≥ 1: the most a vertical move of δ at depth z moves its picture, in units of
+        λδ/z, over the viewport.
+
+        A point at picture coordinates (a, b) = (x, y)/z (camera right, up; z the depth
+        along the view) moved by w = δ·ẑ moves by λδ·‖(w_r − a w_f, w_u − b w_f)‖ / z'
+        pixels (z' the nearer of its two depths), w_r, w_u, w_f the world's up in the
+        camera's basis. The norm is convex in (a, b), so its largest value over the
+        viewport is at a corner, a = ±tan(fov_x/2), b = ±tan(fov_y/2): 1 for a level
+        camera, a few per cent over 1 for a pitched one. Never under 1, so δ ≤ τz/λ
+        still holds where the picture bound does (the frustum margin of
+        :func:`geoterrain.lod.emit.cull_in_place` rests on it).
+
+        Examples
+        --------
+        >>> View((0, -1000, 0), (0, 0, 0)).lift  # level: a vertical move is a picture move
+        1.0
+        >>> 1.0 < View((0, -1000, 500), (0, 0, 0)).lift < 1.1
+        True
+        """
+        r, u, f = self.basis()
+        ty = np.tan(np.radians(self.fov_y_deg) / 2.0)
+        tx = ty * self.size[0] / self.size[1]
+        wr, wu, wf = r[2], u[2], f[2]
+        k = max(float(np.hypot(wr - a * wf, wu - b * wf)) for a in (-tx, tx) for b in (-ty, ty))
+        return max(1.0, k)
+
+    def terms(self, tau: float, depth: bool = False) -> ViewTerms:
         """The :class:`ViewTerms` of this view at tolerance ``tau``.
+
+        ``depth``: the picture's bound instead of LP's eq. 2. A vertex whose sphere
+        (p, r) holds every sample of its error δ is active when λkδ > τ(z − r − δ)
+        (k: :attr:`lift`; z − r the sphere's nearest depth, z = f·(p − eye); − δ: the
+        drawn point may lie δ nearer than the true one), i.e. (λk + τ)δ > τ(z − r), so
+        ``lam`` = λk + τ and the kernels' test keeps eq. 2's form with z for d. Inactive
+        then means every sample under it moves at most τ pixels in the picture. Nesting
+        holds as for eq. 2 (seed 002 §3.1): depth is linear, so a child's sphere inside
+        its parent's has a nearest depth z_c − r_c ≥ z_p − r_p, and δ_c ≤ δ_p.
 
         Examples
         --------
         >>> v = View((0, -1000, 500), (0, 0, 0))
-        >>> t = v.terms(1.0); t.eye.tolist(), t.planes.shape, t.tau
-        ([0.0, -1000.0, 500.0], (6, 4), 1.0)
+        >>> t = v.terms(1.0); t.eye.tolist(), t.planes.shape, t.tau, t.axis.shape
+        ([0.0, -1000.0, 500.0], (6, 4), 1.0, (0,))
+        >>> d = v.terms(1.0, depth=True); round(d.lam - v.lam * v.lift, 6), d.axis.shape
+        (1.0, (4,))
         """
-        return ViewTerms(self.eye, self.planes, self.lam, float(tau))
+        if not depth:
+            return ViewTerms(self.eye, self.planes, self.lam, float(tau))
+        f = self.forward
+        axis = np.array([f[0], f[1], f[2], -float(f @ self.eye)])
+        return ViewTerms(self.eye, self.planes, self.lam * self.lift + float(tau), float(tau),
+                         axis)
 
     # --------------------------------------------------------------- culling
     def spheres_visible(self, centers: np.ndarray, radii: np.ndarray) -> np.ndarray:

@@ -159,7 +159,7 @@ def _walk_chunks(tree, err, view, hidden, out, seen):
     (:class:`~geoterrain.core.view.ViewTerms`): the chunks to draw into ``out``, the
     nodes in the frustum into ``seen``; returns (drawn, visited, culled, hidden, seen)."""
     table, base, top, lo, hi = tree
-    eye, planes, lam, tau = view
+    eye, planes, lam, tau = view.eye, view.planes, view.lam, view.tau
     rx, ry = tree_roots(base, top)  # every root, the first popped first
     stack = np.empty((4 * (top + 1) + 4 + rx * ry, 4), np.int64)  # (L, x, y, inside)
     sp = 0

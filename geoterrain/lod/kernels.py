@@ -324,11 +324,40 @@ def block_bounds(D, R, H, X, Y, aff, s, i0, j0, step, coarse, out):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _point_reach(view, px, py, pz):
+    """What eq. 2 divides by at point p, before − r: the depth f·(p − eye) when ``view``
+    (:class:`~geoterrain.core.view.ViewTerms`) carries the eye plane ``axis`` (the
+    picture's bound, :meth:`~geoterrain.core.view.View.terms`), else the distance
+    ‖p − eye‖ (LP)."""
+    ax, eye = view.axis, view.eye
+    if ax.shape[0] == 4:
+        return ax[0] * px + ax[1] * py + ax[2] * pz + ax[3]
+    dx, dy, dz = px - eye[0], py - eye[1], pz - eye[2]
+    return np.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _box_reach(view, xl, yl, zl, xh, yh, zh):
+    """:func:`_point_reach`'s least value over the box [xl, xh] × [yl, yh] × [zl, zh]:
+    the depth of its corner nearest the eye plane, or its distance to the eye (0
+    inside)."""
+    ax, eye = view.axis, view.eye
+    if ax.shape[0] == 4:
+        # the point's sum in the point's order: rounding keeps box ≤ point (fill_lp's floor)
+        return (min(ax[0] * xl, ax[0] * xh) + min(ax[1] * yl, ax[1] * yh)
+                + min(ax[2] * zl, ax[2] * zh) + ax[3])
+    dx = max(xl - eye[0], 0.0, eye[0] - xh)
+    dy = max(yl - eye[1], 0.0, eye[1] - yh)
+    dz = max(zl - eye[2], 0.0, eye[2] - zh)
+    return np.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _block_floor(bk, zfac, zproxy, view, P):
     """LP eq. 2 on a block's bounds, as :func:`lp_tiles` on a tile's: −2 when no vertex
     of the block can be active, else a floor τ(D_box − r_max) (−1: none); the first
     ``P`` of the ``view``'s planes (:class:`~geoterrain.core.view.ViewTerms`) tested."""
-    eye, planes, lam, tau = view
+    planes, lam, tau = view.planes, view.lam, view.tau
     dm, rm = bk[0], bk[1]
     if dm == np.inf:
         return -1.0  # a mixed vertex is always active (see fill_lp)
@@ -339,10 +368,7 @@ def _block_floor(bk, zfac, zproxy, view, P):
         zl, zh = zh, zl
     if bk[8] > 0.0:
         zl, zh = min(zl, zproxy), max(zh, zproxy)
-    dx = max(bk[2] - eye[0], 0.0, eye[0] - bk[5])
-    dy = max(bk[3] - eye[1], 0.0, eye[1] - bk[6])
-    dz = max(zl - eye[2], 0.0, eye[2] - zh)
-    d = np.sqrt(dx * dx + dy * dy + dz * dz)
+    d = _box_reach(view, bk[2], bk[3], zl, bk[5], bk[6], zh)
     if not (d <= rm or lam * dm > tau * (d - rm)):
         return -2.0
     for q in range(P):
@@ -363,7 +389,9 @@ def fill_lp(tiles, inside, floor, slabs, zproxy, view, flags, top_step, blocks=T
     (:class:`ActiveFlags`).
 
     A vertex is active iff its sphere (p, r) is not outside any frustum plane, δ > 0,
-    and λδ > τ(d − r) or the eye is inside the sphere (d ≤ r); d = ‖p − eye‖ and
+    and λδ > τ(d − r) or the eye is inside the sphere (d ≤ r); d = ‖p − eye‖, or with
+    the view's eye plane the depth f·(p − eye) (the picture's bound: the sphere crossing
+    the eye plane, d ≤ r, refines; :func:`_point_reach`), and
     p = (x, y, height · zfac), invalid heights (NaN) placed at ``zproxy``. A mixed
     diamond (δ = inf) is always active (and mixed): culling it by its own sphere
     (which bounds its descendants, not its corners) could drop every triangle around
@@ -412,7 +440,7 @@ def _fill_block(tiles, k, coarse, P, rows, cols, fl, slabs, zproxy, view, flags)
     s, i0, j0, step = tiles.slots[k], tiles.i0[k], tiles.j0[k], tiles.step[k]
     lv = tiles.level[k]
     D, R, H, X, Y, aff, zfac = slabs.D, slabs.R, slabs.H, slabs.X, slabs.Y, slabs.aff, slabs.zfac
-    eye, planes, lam, tau = view
+    planes, lam, tau = view.planes, view.lam, view.tau
     active, mixed, gen, boxes = flags
     a0, a1 = rows
     b0, b1 = cols
@@ -442,8 +470,7 @@ def _fill_block(tiles, k, coarse, P, rows, cols, fl, slabs, zproxy, view, flags)
                     break
             if not vis:
                 continue
-            dx, dy, dz = px - eye[0], py - eye[1], pz - eye[2]
-            d = np.sqrt(dx * dx + dy * dy + dz * dz)
+            d = _point_reach(view, px, py, pz)
             if d <= r or lam * dl > tau * (d - r):
                 active[i, j] = gen
                 _grow_box(boxes, lv, i, j)
@@ -455,12 +482,13 @@ def lp_tiles(lo, hi, dmax, rmax, view, floor):
     bounds only, for ``view``: :class:`~geoterrain.core.view.ViewTerms`), as a status per
     tile: 0 no, 1 yes, 2 yes and inside the frustum.
 
-    Conservative: a vertex of the tile lies in its box, so d − r ≥ D_box − r_max; its
+    Conservative: a vertex of the tile lies in its box, so d − r ≥ D_box − r_max (d the
+    distance or the depth, :func:`_box_reach`); its
     sphere lies in the box grown by r_max, tested against each plane as a box.
     ``floor[k]`` receives τ·(D_box − r_max): a vertex with λδ ≤ it is not active
     (:func:`fill_lp` skips it without reading its sphere).
     """
-    eye, planes, lam, tau = view
+    planes, lam, tau = view.planes, view.lam, view.tau
     n = lo.shape[0]
     out = np.zeros(n, np.uint8)
     for k in range(n):
@@ -469,10 +497,7 @@ def lp_tiles(lo, hi, dmax, rmax, view, floor):
         if not dm > 0.0:
             continue
         r = rmax[k]
-        dx = max(lo[k, 0] - eye[0], 0.0, eye[0] - hi[k, 0])
-        dy = max(lo[k, 1] - eye[1], 0.0, eye[1] - hi[k, 1])
-        dz = max(lo[k, 2] - eye[2], 0.0, eye[2] - hi[k, 2])
-        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        d = _box_reach(view, lo[k, 0], lo[k, 1], lo[k, 2], hi[k, 0], hi[k, 1], hi[k, 2])
         if not (d <= r or lam * dm > tau * (d - r)):
             continue
         if d > r:

@@ -104,10 +104,13 @@ def _true_z(key, N, top, t, base, slot_of, H, zfac):
 
 
 @njit(cache=True, nogil=True)
-def morph_heights(verts, xyz, N, slabs, eye, lam, tmin, tmax, tout, span):
+def morph_heights(verts, xyz, N, slabs, eye, axis, lam, tmin, tmax, tout, span):
     """Morph ``xyz[:, 2]`` in place (eq. 3–4) for mesh vertices ``verts`` (flat i·N + j;
     ``span`` the side of the square, N − 1, or of a root grid's roots);
-    ``tout`` receives each vertex's t. δ, r and the ends' true heights are read from the
+    ``tout`` receives each vertex's t; ρ = λδ/(d − r), or with the eye plane ``axis``
+    (4,) (f, −f·eye) ρ = λδ/(z − r − δ), z the depth: the picture's bound that
+    :meth:`~geoterrain.core.view.View.terms` selects with (``lam`` then λk, without
+    τ). δ, r and the ends' true heights are read from the
     pooled tiles (``slabs``: :class:`~geoterrain.lod.pool.PoolSlabs`, its ``D``, ``R``,
     ``H`` × ``zfac``) as the selection read them.
 
@@ -134,8 +137,11 @@ def morph_heights(verts, xyz, N, slabs, eye, lam, tmin, tmax, tout, span):
         if dl == np.inf:
             continue
         r = np.float64(R[s, a, b])
-        dx, dy, dz = xyz[v, 0] - eye[0], xyz[v, 1] - eye[1], z - eye[2]
-        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if axis.shape[0] == 4:  # the nearest depth of the sphere and of the drawn point
+            d = axis[0] * xyz[v, 0] + axis[1] * xyz[v, 1] + axis[2] * z + axis[3] - dl
+        else:
+            dx, dy, dz = xyz[v, 0] - eye[0], xyz[v, 1] - eye[1], z - eye[2]
+            d = np.sqrt(dx * dx + dy * dy + dz * dz)
         if d <= r:
             continue
         tt = (lam * dl / (d - r) - tmin) / (tmax - tmin)
@@ -202,6 +208,10 @@ def morph_mesh(terrain: TerrainLike, verts: np.ndarray, xyz: np.ndarray, view, t
     pool.slots(np.flatnonzero(occ), ("delta", "radius", "height"))
     tout = np.ones(len(verts))
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
-    morph_heights(verts, xyz, pool.N, pool.slabs(zfac), view.eye, view.lam, float(tmin),
-                  float(tmax), tout, np.int64(1) << terrain.grid.n)
+    from geoterrain.lod.rtin import DEPTH
+
+    vt = view.terms(tmax, depth=DEPTH)  # the selection's metric (lam − τ: λk)
+    morph_heights(verts, xyz, pool.N, pool.slabs(zfac), view.eye, vt.axis,
+                  vt.lam - vt.tau if DEPTH else vt.lam, float(tmin), float(tmax), tout,
+                  np.int64(1) << terrain.grid.n)
     return tout

@@ -426,7 +426,7 @@ def update(p, tb, vt, mode, incremental, stack, mo):
     iv, fv, free, meta, hk, hv = p
     Z, wedge, var, aff, XY, zr, hid, tile, size, _ = tb
     N, nlev = size[0], size[1]
-    eye, planes, lam, tau = vt
+    eye, planes, lam, tau = vt.eye, vt.planes, vt.lam, vt.tau
     cum, ang, hidk, now = mo
     k = np.int64(now[0])
     Cn, An = now[1], now[2]

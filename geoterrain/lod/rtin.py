@@ -8,7 +8,10 @@ Two phases, both on whole arrays:
    predicate is evaluated on all their samples at once:
 
    - view-dependent: the sphere meets the frustum, δ > 0 and LP eq. 2,
-     ρ = λδ/(d − r) > τ, or the eye is inside the sphere (d ≤ r);
+     ρ = λδ/(d − r) > τ, or the eye is inside the sphere (d ≤ r); by default d is the
+     depth along the view, as the picture divides by it, and λ carries the lift k
+     (:meth:`~geoterrain.core.view.View.terms`, :data:`DEPTH`): ρ ≤ τ is then τ
+     pixels in the picture;
    - static: δ > e.
 
    Saturated δ and nested radii make the predicate monotone (a vertex's
@@ -55,6 +58,10 @@ if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
 BLOCKS = True  # fill_lp tests each tile's blocks' bounds before their samples
+#: The picture's bound (View.terms(depth=True): the depth z − r along the view for LP's
+#: distance d − r, and the lift k); False: LP's eq. 2 as published, whose ρ ≤ τ lets the
+#: picture move up to 1/cos²θ times τ at θ off the view axis.
+DEPTH = True
 _HASHED_UP_TO = 1 << 22  # vertex numbers in a hash table below this capacity (48 MB at most)
 
 
@@ -188,8 +195,10 @@ def _tile_tree(terrain: TerrainLike, index: TileIndex):
 def view_active(terrain: TerrainLike, index: TileIndex, view: View, tau: float, *,
                 occlusion: bool = True) -> ActiveSet:
     """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex
-    (and, with ``occlusion``, not hidden behind nearer terrain)."""
-    terms = view.terms(tau)
+    (and, with ``occlusion``, not hidden behind nearer terrain); with :data:`DEPTH` the
+    sphere's nearest depth for its distance (:meth:`~geoterrain.core.view.View.terms`),
+    so an inactive vertex moves the picture by at most τ pixels."""
+    terms = view.terms(tau, depth=DEPTH)
     dm = index.delta_max
     floor = np.empty(len(dm))
     status = np.zeros(len(dm), np.uint8)

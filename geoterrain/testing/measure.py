@@ -30,6 +30,8 @@ __all__ = [
     "VerticalError",
     "mesh_height_range_on_grid",
     "mesh_heights_on_grid",
+    "picture_coordinates",
+    "picture_displacement",
     "screen_space_change",
     "screen_space_error",
     "vertical_error",
@@ -458,6 +460,99 @@ def _projected(lam, dz, X, Y, Z, eye):
     dist = np.sqrt((X - eye[0]) ** 2 + (Y - eye[1]) ** 2 + (Z - eye[2]) ** 2)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(dist > 0, float(lam) * dz / dist, np.where(dz > 0, np.inf, 0.0))
+
+
+def picture_coordinates(X, Y, Z, look_from, look_at, up, fov_y_deg: float,
+                        size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where scene points fall in a pinhole picture: column and row in pixels (from the
+    top left corner) and depth along the view.
+
+    The camera is VTK's (``tests/rendering`` checks it against VTK's own projection):
+    it looks from ``look_from`` at ``look_at``, ``up`` tilts it, ``fov_y_deg`` spans
+    the picture's ``size`` (width, height) height, square pixels. A point at depth z,
+    x right and y up of the view axis, is (W/2 + f·x/z, H/2 − f·y/z) with
+    f = (H/2)/tan(fov_y/2) pixels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> c, r, z = picture_coordinates(np.array([0.0, 1.0]), np.array([10.0, 10.0]),
+    ...                               np.zeros(2), (0, 0, 0), (0, 1, 0), (0, 0, 1), 90.0,
+    ...                               (200, 100))
+    >>> c.tolist(), r.tolist(), z.tolist()
+    ([100.0, 105.0], [50.0, 50.0], [10.0, 10.0])
+    """
+    e = np.asarray(look_from, np.float64)
+    f = np.asarray(look_at, np.float64) - e
+    f /= np.linalg.norm(f)
+    right = np.cross(f, np.asarray(up, np.float64))
+    right /= np.linalg.norm(right)
+    top = np.cross(right, f)
+    px = (size[1] / 2.0) / np.tan(np.radians(fov_y_deg) / 2.0)
+    dx, dy, dz = X - e[0], Y - e[1], Z - e[2]
+    depth = dx * f[0] + dy * f[1] + dz * f[2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        col = size[0] / 2.0 + px * (dx * right[0] + dy * right[1] + dz * right[2]) / depth
+        row = size[1] / 2.0 - px * (dx * top[0] + dy * top[1] + dz * top[2]) / depth
+    return col, row, depth
+
+
+def picture_displacement(
+    vertices_ij: np.ndarray,
+    faces: np.ndarray,
+    vertex_z: np.ndarray,
+    X: np.ndarray,
+    Y: np.ndarray,
+    Z: np.ndarray,
+    valid: np.ndarray | None,
+    view,
+    per_sample: bool = False,
+) -> ScreenError | tuple[ScreenError, np.ndarray]:
+    """How far the drawn surface moves each sample in the picture, in pixels (with
+    ``per_sample``, also each counted sample's displacement).
+
+    Every valid sample (X, Y, Z) the mesh covers is projected twice through ``view``'s
+    camera (:func:`picture_coordinates`; ``view`` has ``look_from``, ``look_at``,
+    ``up``, ``fov_y_deg``, ``size`` and the frustum ``planes``): at its true height and
+    at the mesh's height there (the lowest and the highest where triangles disagree),
+    and the distance between the two pictures is its displacement. Samples whose true
+    point lies inside the frustum count (as in :func:`screen_space_error`; a culled
+    vertex's samples just outside it may be drawn just inside). This is what a planar
+    picture shows,
+    independent of any bound's formula (LP's ρ divides by the distance to the eye, the
+    picture by the depth).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from types import SimpleNamespace
+    >>> i, j = np.mgrid[0:3, 0:3].astype(float)
+    >>> v = np.array([[0, 0], [0, 2], [2, 0], [2, 2]]); f = np.array([[0, 1, 2], [1, 3, 2]])
+    >>> planes = np.zeros((6, 4)); planes[:, 3] = 1.0  # everything inside
+    >>> cam = SimpleNamespace(look_from=(1, 1, 10), look_at=(1, 1, 0), up=(0, 1, 0),
+    ...                       fov_y_deg=90.0, size=(200, 200), planes=planes)
+    >>> e = picture_displacement(v, f, np.ones(4), j, i, np.zeros((3, 3)), None, cam)
+    >>> round(e.max, 6), e.n_samples  # a corner, √2 off axis, at depth 10 drawn at 9
+    (1.571348, 9)
+    >>> round(float(np.sqrt(2) * 100 * (1 / 9 - 1 / 10)), 6)
+    1.571348
+    """
+    planes = np.asarray(view.planes, np.float64)
+    X, Y, Z, _, inside = _in_frustum(X, Y, Z, valid, planes, view.look_from)
+    ok = np.isfinite(Z)
+    lo, hi = mesh_height_range_on_grid(vertices_ij, faces, vertex_z, Z.shape)
+    sel = ok & inside & np.isfinite(lo)
+    x, y = X[sel], Y[sel]
+    cam = (view.look_from, view.look_at, view.up, view.fov_y_deg, view.size)
+    c0, r0, _ = picture_coordinates(x, y, Z[sel], *cam)
+    disp = np.zeros(len(x))
+    for zm in (lo[sel], hi[sel]):
+        c1, r1, _ = picture_coordinates(x, y, zm, *cam)
+        disp = np.maximum(disp, np.hypot(c1 - c0, r1 - r0))
+    mx, p99, mean = _stats(disp)
+    out = ScreenError(mx, p99, mean, int(disp.size),
+                      int(np.count_nonzero(inside & ~np.isfinite(lo))))
+    return (out, disp) if per_sample else out
 
 
 def screen_space_change(

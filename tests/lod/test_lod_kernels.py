@@ -78,27 +78,29 @@ def test_one_pass_mesh_equals_three_passes(tmp_path_factory, az, el, dist, holes
 @pytest.mark.fast
 @settings(max_examples=12, deadline=None)
 @given(az=st.floats(0, 6.28), el=st.floats(0.05, 1.4), dist=st.floats(0.02, 1.5),
-       tau=st.sampled_from([0.5, 1.0, 4.0]))
-def test_the_lp_floor_changes_no_flag(tmp_path_factory, az, el, dist, tau):
-    """Skipping λδ ≤ τ(D_box − r_max) gives the same active set as testing every vertex."""
+       tau=st.sampled_from([0.5, 1.0, 4.0]), depth=st.booleans())
+def test_the_lp_floor_changes_no_flag(tmp_path_factory, az, el, dist, tau, depth):
+    """Skipping λδ ≤ τ(D_box − r_max) gives the same active set as testing every vertex,
+    with the distance (LP) or the depth (the picture's bound, rtin.DEPTH) for D."""
     t = _terrain(tmp_path_factory, True)
     v = _view(t, az, el, dist)
     index = tile_index(t)
-    with_floor = rtin.view_active(t, index, v, tau)
-    a = with_floor.active == with_floor.gen
-    m = with_floor.mixed == with_floor.gen
-    real = kernels.lp_tiles_walk
-
-    def no_floor(*args):
-        out = real(*args)
-        args[-2][:] = -1.0  # floor −1: every vertex takes the full LP test
-        return out
-
-    rtin.lp_tiles_walk = no_floor
+    real, keep = kernels.lp_tiles_walk, rtin.DEPTH
+    rtin.DEPTH = depth
     try:
+        with_floor = rtin.view_active(t, index, v, tau)
+        a = with_floor.active == with_floor.gen
+        m = with_floor.mixed == with_floor.gen
+
+        def no_floor(*args):
+            out = real(*args)
+            args[-2][:] = -1.0  # floor −1: every vertex takes the full LP test
+            return out
+
+        rtin.lp_tiles_walk = no_floor
         plain = rtin.view_active(t, index, v, tau)
     finally:
-        rtin.lp_tiles_walk = real
+        rtin.lp_tiles_walk, rtin.DEPTH = real, keep
     np.testing.assert_array_equal(a, plain.active == plain.gen)
     np.testing.assert_array_equal(m, plain.mixed == plain.gen)
 
@@ -146,22 +148,23 @@ def test_cull_in_place_equals_cull_compact(seed, nplanes):
 @pytest.mark.fast
 @settings(max_examples=15, deadline=None)
 @given(az=st.floats(0, 6.28), el=st.floats(0.02, 1.5), dist=st.floats(0.01, 2.0),
-       tau=st.sampled_from([0.5, 1.0, 4.0]), holes=st.booleans())
-def test_the_tile_walk_equals_testing_every_tile(tmp_path_factory, az, el, dist, tau, holes):
+       tau=st.sampled_from([0.5, 1.0, 4.0]), holes=st.booleans(), depth=st.booleans())
+def test_the_tile_walk_equals_testing_every_tile(tmp_path_factory, az, el, dist, tau, holes,
+                                                 depth):
     """Entering only subtrees whose box (grown by their largest radius) meets the frustum
-    gives the status and floor lp_tiles gives every tile."""
+    gives the status and floor lp_tiles gives every tile (either metric)."""
     t = _terrain(tmp_path_factory, holes)
     v = _view(t, az, el, dist)
     index = tile_index(t)
     n = len(index.keys)
     f1, f2 = np.empty(n), np.empty(n)
     ref = kernels.lp_tiles(index.lo, index.hi, index.delta_max, index.radius_max,
-                           v.terms(tau), f1)
+                           v.terms(tau, depth), f1)
     got = np.zeros(n, np.uint8)
     table, base, rsub = rtin._tile_tree(t, index)
     tree = TileTree(table, base, t.grid.top_level, index.lo, index.hi)
     visited = kernels.lp_tiles_walk(tree, index.delta_max, index.radius_max, rsub,
-                                    v.terms(tau), f2, got)
+                                    v.terms(tau, depth), f2, got)
     np.testing.assert_array_equal(got, ref)
     on = ref > 0
     np.testing.assert_array_equal(f2[on], f1[on])

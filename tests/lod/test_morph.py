@@ -16,6 +16,7 @@ import geoterrain
 from conftest import write_tif
 from geoterrain.bench.harness import extent, glide
 from geoterrain.core.view import View
+from geoterrain.lod import rtin
 from geoterrain.lod.morph import MORPH_START, edge_ends
 from geoterrain.testing.measure import (
     mesh_height_range_on_grid,
@@ -58,7 +59,8 @@ def _views(t, n, seed):
 
 def _t_of(t, ij, view, tau):
     """Eq. 3 from the stored δ and r at each vertex (1 where δ is infinite or the eye is
-    in the sphere), and each vertex's true scene height."""
+    in the sphere), ρ by rtin's metric (:data:`geoterrain.lod.rtin.DEPTH`), and each
+    vertex's true scene height."""
     g = t.grid
     S = 1 << g.t
     X, Y, Z = t.scene_xyz()
@@ -79,10 +81,13 @@ def _t_of(t, ij, view, tau):
         zt[v] = Z[i, j] if i < Z.shape[0] and j < Z.shape[1] else np.nan
         p = np.array([X[min(i, Z.shape[0] - 1), min(j, Z.shape[1] - 1)],
                       Y[min(i, Z.shape[0] - 1), min(j, Z.shape[1] - 1)], zt[v]])
-        d = float(np.linalg.norm(p - view.eye))
+        if rtin.DEPTH:  # the picture's bound: the depth, less δ, and the lift k
+            d, lam = float(view.forward @ (p - view.eye)) - dl, view.lam * view.lift
+        else:  # LP's eq. 2
+            d, lam = float(np.linalg.norm(p - view.eye)), view.lam
         if not np.isfinite(dl) or d <= r or not np.isfinite(zt[v]):
             continue
-        rho = view.lam * dl / (d - r)
+        rho = lam * dl / (d - r)
         out[v] = np.clip((rho - MORPH_START * tau) / (tau - MORPH_START * tau), 0.0, 1.0)
     return out, zt
 
