@@ -360,6 +360,7 @@ def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok, W):
     """
     mp = parent.shape[0]
     t = 2 * h + 1
+    z, u1 = np.int64(0), np.int64(1)  # _mid16's steps as predict.cubic_child passes them
     for a in range(h + 1):
         for b in range(h + 1):
             out[2 * a, 2 * b] = parent[oy + a, ox + b]
@@ -374,11 +375,11 @@ def _child(enc, S, buf, m, parent, oy, ox, h, cubic, out, ok, W):
                 # phase, the parents' span
                 if cls == 0:
                     p0, p1 = parent[oy + a, ox + b], parent[oy + a, ox + b + 1]
-                    v16 = _mid16(parent, oy + a, 0, 0, 1, ox + b, mp) if cubic else 0
+                    v16 = _mid16(parent, oy + a, z, z, u1, ox + b, mp) if cubic else 0
                     g = _absdiff(p0, p1)
                 elif cls == 1:
                     p0, p1 = parent[oy + a, ox + b], parent[oy + a + 1, ox + b]
-                    v16 = _mid16(parent, 0, ox + b, 1, 0, oy + a, mp) if cubic else 0
+                    v16 = _mid16(parent, z, ox + b, u1, z, oy + a, mp) if cubic else 0
                     g = _absdiff(p0, p1)
                 else:  # both directions: the A samples above and below, the B beside
                     p0, p1 = out[li - 1, lj], out[li + 1, lj]

@@ -135,17 +135,18 @@ def cubic_child(parent, oy, ox, h, r, out):
     [40, 48, 56, 64, 72]
     """
     m = parent.shape[0]
+    z, u = np.int64(0), np.int64(1)  # _mid16's steps as int64: one signature (not literals)
     for a in range(h + 1):
         for b in range(h + 1):
             out[2 * a, 2 * b] = parent[oy + a, ox + b]
     n = 0
     for a in range(h + 1):  # A: row midpoints
         for b in range(h):
-            out[2 * a, 2 * b + 1] = ((_mid16(parent, oy + a, 0, 0, 1, ox + b, m) + 8) >> 4) + r[n]
+            out[2 * a, 2 * b + 1] = ((_mid16(parent, oy + a, z, z, u, ox + b, m) + 8) >> 4) + r[n]
             n += 1
     for a in range(h):  # B: column midpoints
         for b in range(h + 1):
-            out[2 * a + 1, 2 * b] = ((_mid16(parent, 0, ox + b, 1, 0, oy + a, m) + 8) >> 4) + r[n]
+            out[2 * a + 1, 2 * b] = ((_mid16(parent, z, ox + b, u, z, oy + a, m) + 8) >> 4) + r[n]
             n += 1
     for a in range(h):  # C: from the decoded A samples above and B samples beside
         for b in range(h):

@@ -66,3 +66,18 @@ def test_the_cast_call_sites_keep_their_arithmetic():
         got = normal_map(j, -i, z, v, kernel)
         want = normal_map_reference(j, -i, z, v, kernel)
         assert np.abs(got - want).max() < 1e-6
+
+
+def test_mid16_takes_its_steps_as_int64_from_both_callers():
+    from geoterrain.codec import entropy, predict
+
+    t = 5
+    parent = np.arange(t * t, dtype=np.int64).reshape(t, t) * 4
+    ok = np.ones((t, t), bool)
+    _fresh_compile(entropy._encode_tile, np.zeros(256, np.uint8), parent, 0, 1, 2, True,
+                   parent.copy(), ok, entropy.MASK_ALL_VALID, 1)
+    _fresh_compile(predict.cubic_child, parent, 0, 0, 2, np.zeros(16, np.int64),
+                   np.empty((t, t), np.int64))
+    sigs = predict._mid16.signatures
+    assert len(sigs) == 1 and all(a == types.int64 for a in sigs[0][1:]), sigs
+
