@@ -195,10 +195,12 @@ def morph_heights(verts, xyz, N, slabs, eye, axis, lam, tmin, tmax, tout, span):
 
 
 def morph_mesh(terrain: TerrainLike, verts: np.ndarray, xyz: np.ndarray, view, tmin: float,
-               tmax: float
+               tmax: float, depth: bool = True
                ) -> np.ndarray:
     """Morph the heights ``xyz[:, 2]`` of an rtin mesh's vertices ``verts`` in place, for
-    ``view`` and the band (``tmin``, ``tmax``); returns each vertex's t."""
+    ``view`` and the band (``tmin``, ``tmax``); returns each vertex's t. ``depth``: the
+    selection's metric (:data:`geoterrain.lod.rtin.DEPTH`: the picture's bound, else LP's
+    distance), so t follows the same ρ that selected the mesh."""
     from geoterrain.lod.kernels import mark_tiles
     from geoterrain.lod.pool import tile_pool
 
@@ -208,10 +210,8 @@ def morph_mesh(terrain: TerrainLike, verts: np.ndarray, xyz: np.ndarray, view, t
     pool.slots(np.flatnonzero(occ), ("delta", "radius", "height"))
     tout = np.ones(len(verts))
     zfac = terrain.frame.z_to_m * terrain.frame.z_scale  # Frame.z
-    from geoterrain.lod.rtin import DEPTH
-
-    vt = view.terms(tmax, depth=DEPTH)  # the selection's metric (lam − τ: λk)
+    vt = view.terms(tmax, depth=depth)  # the selection's metric (lam − τ: λk)
     morph_heights(verts, xyz, pool.N, pool.slabs(zfac), view.eye, vt.axis,
-                  vt.lam - vt.tau if DEPTH else vt.lam, float(tmin), float(tmax), tout,
+                  vt.lam - vt.tau if depth else vt.lam, float(tmin), float(tmax), tout,
                   np.int64(1) << terrain.grid.n)
     return tout

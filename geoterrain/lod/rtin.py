@@ -292,7 +292,7 @@ def active_mesh(terrain: TerrainLike, act: ActiveSet, view: View | None = None,
     if band is not None:
         from geoterrain.lod.morph import morph_mesh
 
-        morph_mesh(terrain, verts[:nv], xyz[:nv], view, *band)
+        morph_mesh(terrain, verts[:nv], xyz[:nv], view, *band, depth=DEPTH)
     nf, nv, level = cull_in_place(faces[:nf], xyz[:nv], ij[:nv], planes, lvl[:nv], eye,
                                   slack)
     # both base triangles are counter-clockwise and bisection keeps the orientation
@@ -311,7 +311,7 @@ def _mesh_in_passes(terrain: TerrainLike, act: ActiveSet, planes: np.ndarray, ey
     if band is not None:
         from geoterrain.lod.morph import morph_mesh
 
-        morph_mesh(terrain, flat, xyz, view, *band)
+        morph_mesh(terrain, flat, xyz, view, *band, depth=DEPTH)
     faces, keep, level = cull_compact(faces, xyz, planes, lvl, eye, slack)
     if keep is not None:
         xyz, ij = xyz[keep], ij[keep]
