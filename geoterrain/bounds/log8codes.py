@@ -17,8 +17,8 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from numba import njit
 
+from geoterrain.bounds.delta import delta_max_finite
 from geoterrain.core.rounding import round_up
 
 LOG_STEPS = 16  # codes per octave: at most 2^(1/16) - 1 = 4.4 % above the exact value
@@ -62,16 +62,6 @@ def log8_table(e: int) -> np.ndarray:
     return v
 
 
-@njit(cache=True, nogil=True)
-def _positive_finite_max_nb(a):
-    # the largest finite value if one is > 0, else 0, one pass without a copy
-    m = 0.0
-    for v in a.ravel():
-        if np.isfinite(v) and v > m:
-            m = v
-    return m
-
-
 def log8_exponent(a: np.ndarray) -> int:
     """The exponent ``e`` whose top finite code (254) covers the largest finite value.
 
@@ -80,7 +70,7 @@ def log8_exponent(a: np.ndarray) -> int:
     >>> log8_exponent(np.array([0.5, np.inf, 3.0, np.nan], np.float32)), log8_exponent(np.zeros(2))
     (-14, 0)
     """
-    peak = float(_positive_finite_max_nb(np.ascontiguousarray(a)))  # exact: a's own value
+    peak = delta_max_finite(np.ascontiguousarray(a))  # exact: a's own value
     if peak <= 0:
         return 0
     return int(np.clip(np.ceil(np.log2(peak) - 253 / LOG_STEPS), -128, 127))
