@@ -50,6 +50,17 @@ class Canvas:
         self._z: dict = {}
         self._big: dict = {}  # new → the largest rectangle assembled: (i0, j0, z, v)
 
+    def fetch(self, keys) -> None:
+        """Decode the stored tiles of ``keys`` (level, x, y) that the terrain does not hold
+        yet in one batch (:meth:`geoterrain.terrain.Terrain.tiles`: one query), where the
+        terrain reads batches; the calls of :meth:`tile` that follow find them cached."""
+        t = self.terrain
+        batch = getattr(t, "tiles", None)
+        if batch is not None:
+            keys = [k for k in keys if k in t.tile_info]
+            if len(keys) > 1:
+                batch(keys)
+
     def touches(self, i0: int, j0: int, i1: int, j1: int) -> bool:
         """Whether the closed rectangle rows i0 … i1, columns j0 … j1 holds an edited
         sample."""
@@ -113,9 +124,13 @@ class Canvas:
         v = np.zeros((i1 - i0, j1 - j0), np.uint8)
         S = self.S
         R, C = self.grid.shape
-        for ty in range(max(i0, 0) // S, min(i1 - 1, R - 1) // S + 1):
+        tys = range(max(i0, 0) // S, min(i1 - 1, R - 1) // S + 1)
+        txs = range(max(j0, 0) // S, min(j1 - 1, C - 1) // S + 1)
+        self.fetch([(0, min(tx, self.ntx - 1), min(ty, self.nty - 1)) for ty in tys for tx in txs
+                    if (min(ty, self.nty - 1), min(tx, self.ntx - 1), new) not in self._z])
+        for ty in tys:
             ty = min(ty, self.nty - 1)
-            for tx in range(max(j0, 0) // S, min(j1 - 1, C - 1) // S + 1):
+            for tx in txs:
                 tx = min(tx, self.ntx - 1)
                 tz, tv = self.tile_z(ty, tx, new)
                 a0, a1 = max(i0, ty * S), min(i1, ty * S + S + 1)
@@ -141,12 +156,13 @@ class Canvas:
         nx, ny = g.tiles(L)
         # rows and columns a step apart (the normals' windows): slices, not index arrays
         regular = bool((np.diff(rows) == step).all() and (np.diff(cols) == step).all())
-        for y in range(min(int(rows[0]) // span, ny - 1),
-                       min(int(rows[-1]) // span, ny - 1) + 1):
+        ys = range(min(int(rows[0]) // span, ny - 1), min(int(rows[-1]) // span, ny - 1) + 1)
+        xs = range(min(int(cols[0]) // span, nx - 1), min(int(cols[-1]) // span, nx - 1) + 1)
+        self.fetch([(L, x, y) for y in ys for x in xs])
+        for y in ys:
             ri = (rows - y * span) // step
             mr = (ri >= 0) & (ri < T)
-            for x in range(min(int(cols[0]) // span, nx - 1),
-                           min(int(cols[-1]) // span, nx - 1) + 1):
+            for x in xs:
                 if (L, x, y) not in t.tile_info:
                     continue
                 tl = t.tile(L, x, y)

@@ -137,6 +137,7 @@ class _Job:
         self._own = not isinstance(own, StoreReader)
         self.reader = StoreReader(terrain.path) if self._own else own
         self.puts: dict = {}
+        self._put: list = []  # (key, kind, blob) put, not yet compared with the store's
         self.dirty: list = []
         self.rows: dict = {}  # new tile rows (TILE_COLUMNS order), changed tiles only
         top = _stored_root(terrain)
@@ -167,10 +168,18 @@ class _Job:
         self.rows[key] = tuple(r)
 
     def put(self, key, kind: str, blob: bytes) -> None:
-        old = self.reader.get_blob(key, kind)
-        if old != blob:
-            self.puts[(key, kind)] = blob
-            self.dirty_tile(key)
+        """Write ``blob`` where it differs from the stored one (compared in :meth:`plan`,
+        the stored blobs read in one batch)."""
+        self._put.append((key, kind, blob))
+
+    def _settle(self) -> None:
+        # the blobs put that differ from the stored ones: rewritten, their tiles dirty
+        olds, _ = self.reader.get_blobs([(k, kind) for k, kind, _ in self._put])
+        for (key, kind, blob), old in zip(self._put, olds, strict=True):
+            if old != blob:
+                self.puts[(key, kind)] = blob
+                self.dirty_tile(key)
+        self._put = []
 
     def dirty_tile(self, key) -> None:
         L, x, y = key
@@ -196,7 +205,9 @@ class _Job:
         footprint is the union of its children's)."""
         g, c, f = self.g, self.c, self.t.frame
         S = c.S
-        for x, y in self.tiles_near(0, 0):
+        near = self.tiles_near(0, 0)
+        c.fetch([(0, x, y) for x, y in near])
+        for x, y in near:
             h, v = c.tile(y, x)
             n = int(v.sum())
             key = (0, x, y)
@@ -262,6 +273,8 @@ class _Job:
                                    min((r[2] + 2 * step) // span, ny - 1) + 1):
                         cands.add((x, y))
             changed = []
+            if L < top:  # the stored ones in one batch (their parents come with them)
+                c.fetch([(L, x, y) for x, y in cands])
             for x, y in sorted(cands):
                 key = (L, x, y)
                 if not self.stored(key):
@@ -451,6 +464,7 @@ class _Job:
 
     # ------------------------------------------------------------- the plan
     def plan(self) -> Plan:
+        self._settle()
         out = {}
         for k, r in self.rows.items():
             r = list(r)
