@@ -125,6 +125,15 @@ def _stored_root(terrain: TerrainLike) -> tuple[int, int, int]:
     return next((k for k in keys if k in terrain.tile_info), keys[0])
 
 
+def _first_level0(terrain: TerrainLike) -> tuple[int, int, int] | None:
+    """``terrain.tile_keys(0)[0]`` (None where no level-0 tile is stored), without
+    sorting every stored key where tile (0, 0, 0) is stored (the smallest there is)."""
+    if (0, 0, 0) in terrain.tile_info:
+        return (0, 0, 0)
+    keys = terrain.tile_keys(0)
+    return keys[0] if keys else None
+
+
 class _Job:
     """One edit's computation: the canvas, the old store's rows, and what changes."""
 
@@ -144,8 +153,9 @@ class _Job:
         dblob = self.reader.get_blob(top, "delta")
         rblob = self.reader.get_blob(top, "radius")
         self.ed, self.er = _e8(dblob), _e8(rblob)
-        self.derive_bounds = bool(self.t.tile_keys(0)) and self.g.top_level > 0 and bool(
-            (self.reader.get_blob(self.t.tile_keys(0)[0], "delta") or b"\0\0")[1] & RING)
+        first = _first_level0(terrain)
+        self.derive_bounds = first is not None and self.g.top_level > 0 and bool(
+            (self.reader.get_blob(first, "delta") or b"\0\0")[1] & RING)
         self.derive_normals = bool(terrain.meta.get("normals_derived"))
         self.ring_residual = terrain.meta.get("normals_ring_residual") is True
         self.meta = dict(terrain.meta)
