@@ -66,10 +66,16 @@ class Canvas:
         sample."""
         return i0 < self.r1 and i1 >= self.r0 and j0 < self.c1 and j1 >= self.c0
 
+    def _key(self, ty: int, tx: int, new: bool) -> tuple[int, int, bool]:
+        # a tile the edit does not touch is the same before and after it: one entry
+        i0, j0 = ty * self.S, tx * self.S
+        return ty, tx, bool(new) and self.touches(i0, j0, i0 + self.S, j0 + self.S)
+
     def tile(self, ty: int, tx: int, new: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Level-0 tile (x = ``tx``, y = ``ty``): heights (source units, NaN where not
         valid) and validity, (T, T)."""
-        key = (ty, tx, new)
+        key = self._key(ty, tx, new)
+        new = key[2]
         got = self._tiles.get(key)
         if got is not None:
             return got
@@ -81,7 +87,7 @@ class Canvas:
         else:
             h, v = np.full((T, T), np.nan), np.zeros((T, T), bool)
         i0, j0 = ty * self.S, tx * self.S
-        if new and self.touches(i0, j0, i0 + self.S, j0 + self.S):
+        if new:  # (it touches the tile)
             a0, a1 = max(self.r0, i0), min(self.r1, i0 + T)
             b0, b1 = max(self.c0, j0), min(self.c1, j0 + T)
             h[a0 - i0:a1 - i0, b0 - j0:b1 - j0] = self.heights[a0 - self.r0:a1 - self.r0,
@@ -93,10 +99,10 @@ class Canvas:
 
     def tile_z(self, ty: int, tx: int, new: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """The tile's scene heights (0 where not valid) and validity (uint8)."""
-        key = (ty, tx, new)
+        key = self._key(ty, tx, new)
         got = self._z.get(key)
         if got is None:
-            h, v = self.tile(ty, tx, new)
+            h, v = self.tile(ty, tx, key[2])
             z = np.where(v, np.multiply(np.where(v, h, 0.0), self.factor), 0.0)
             got = self._z[key] = (np.ascontiguousarray(z), np.ascontiguousarray(v, np.uint8))
         return got
@@ -127,7 +133,8 @@ class Canvas:
         tys = range(max(i0, 0) // S, min(i1 - 1, R - 1) // S + 1)
         txs = range(max(j0, 0) // S, min(j1 - 1, C - 1) // S + 1)
         self.fetch([(0, min(tx, self.ntx - 1), min(ty, self.nty - 1)) for ty in tys for tx in txs
-                    if (min(ty, self.nty - 1), min(tx, self.ntx - 1), new) not in self._z])
+                    if self._key(min(ty, self.nty - 1), min(tx, self.ntx - 1), new)
+                    not in self._z])
         for ty in tys:
             ty = min(ty, self.nty - 1)
             for tx in txs:
