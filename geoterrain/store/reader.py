@@ -312,8 +312,9 @@ class StoreReader:
         """Many blobs at once: :meth:`get_blob` of each ``(key, kind)`` of ``items`` (None
         where not stored), read by one query a :data:`BATCH` of them, every blob's
         checksum verified, the I/O counters looked at once a query (``bytes_read`` stays
-        what the operating system counts); and, read in the first query's metered call,
-        the :meth:`version` (−1 unless ``version``). A blob that fails its checksum, or
+        what the operating system counts); and the :meth:`version` read in each query's
+        metered call (−1 unless ``version``): the first's, or a later one's where another
+        connection committed between two queries. A blob that fails its checksum, or
         a query that fails, is read again alone, so the error is the one-line error of
         :meth:`get_blob` (the first such blob of ``items``).
 
@@ -333,17 +334,16 @@ class StoreReader:
         found = (t.blobs[at] == bk) if len(t.blobs) else np.zeros(len(keys), bool)
         rowids = np.where(found, t.ids[at] if len(t.ids) else 0, -1).tolist()
         want = sorted({r for r in rowids if r >= 0})
-        ver = -1
+        vers: list[int] = []
         rows: dict[int, tuple] = {}
         for n in range(0, max(len(want), 1), BATCH):
             part = want[n:n + BATCH]
-            first = n == 0
 
-            def read(part=part, first=first):
+            def read(part=part):
                 got = self.con.execute(
                     f"SELECT rowid, data, crc32 FROM blobs WHERE rowid IN "
                     f"({','.join('?' * len(part))})", part).fetchall() if part else []
-                if not (version and first):
+                if not version:
                     return got, -1
                 if self._snapshot_version is not None:  # no commit can come in between
                     return got, self._snapshot_version
@@ -356,10 +356,11 @@ class StoreReader:
             try:
                 got, v = self.meter.call(read)
             except (*_DB_ERRORS, OverflowError):
-                got, v = [], (self.version() if version and first else -1)
-            if first:
-                ver = v
+                got, v = [], (self.version() if version else -1)
+            vers.append(v)
             rows.update((row[0], row[1:]) for row in got if type(row[0]) is int)
+        # the first query's version, or a later one's where a commit came in between
+        ver = next((v for v in vers if v != vers[0]), vers[0])
         out: list[bytes | None] = []
         for (key, kind), rid in zip(items, rowids, strict=True):
             if rid < 0:

@@ -144,3 +144,43 @@ def test_terrain_tiles_decode_what_tile_decodes_in_one_query(store):
             assert b.lookup(("h", *y.key)) is y
         b.tiles(keys)
         assert len(seen) == 1 and b.decoded_tiles == a.decoded_tiles
+
+
+def test_a_commit_between_two_queries_is_seen_in_the_version(store, tmp_path, monkeypatch):
+    """Another connection's commit between a batch's queries (outside a snapshot) gives
+    the later version, so a terrain refuses the mixed batch as it refuses a single read
+    an edit overtook."""
+    from geoterrain.exceptions import StoreChangedError
+
+    p = tmp_path / "c.geoterrain"
+    shutil.copy(store, p)
+    monkeypatch.setattr(reader_mod, "BATCH", 1)
+    t = geoterrain.open(p)
+    r = t.reader
+    try:
+        v0 = r.version()
+        calls = []
+        call = r.meter.call
+
+        def commit_after_first(fn):
+            out = call(fn)
+            calls.append(1)
+            if len(calls) == 1:  # another connection commits after the first query
+                con = sqlite3.connect(p)
+                con.execute("UPDATE blobs SET crc32 = crc32 + 1 WHERE rowid = ?", (other,))
+                con.commit()
+                con.close()
+            return out
+
+        keys = t.tile_keys(0)[:2]
+        from geoterrain.store.keys import blob_key
+
+        other = r._rowid_of(blob_key(keys[0], "normals"))  # a row no batch here reads
+        r.meter.call = commit_after_first
+        _, v = r.get_blobs([(k, "heights") for k in keys], True)
+        assert len(calls) == 2 and v != v0
+        calls.clear()
+        with pytest.raises(StoreChangedError):
+            t.tiles(keys)
+    finally:
+        t.close()
