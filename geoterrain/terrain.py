@@ -287,10 +287,44 @@ class Terrain:
         key = (level, x, y)
         return self.memo(("h", *key), lambda: self._decode(key))
 
-    def _decode(self, key: TileKey) -> Tile:
+    def tiles(self, keys: Sequence[TileKey]) -> list[Tile]:
+        """:meth:`tile` of each of ``keys``: those not cached, with their ancestors not
+        cached, read in one batch (:meth:`StoreReader.get_blobs`: one query, each blob's
+        checksum verified) and decoded coarsest first into the tile cache.
+
+        Examples
+        --------
+        >>> u = open(t.path)
+        >>> a = u.tiles([(0, 1, 0), (0, 0, 0)])
+        >>> [k.key for k in a], a[1] is u.tile(0, 0, 0)
+        ([(0, 1, 0), (0, 0, 0)], True)
+        >>> u.close()
+        """
+        top = self.grid.top_level
+        todo: set[TileKey] = set()
+        for key in keys:
+            while key not in todo and self.peek(("h", *key)) is None:
+                if key not in self.tile_info:
+                    break  # tile() says so (one line), as it would alone
+                todo.add(key)
+                if key[0] >= top:
+                    break
+                key = (key[0] + 1, key[1] // 2, key[2] // 2)
+        if len(todo) > 1:
+            order = sorted(todo, key=lambda k: (-k[0], k[2], k[1]))  # parents first
+            blobs, version = self.reader.get_blobs([(k, "heights") for k in order], True)
+            if version != self._version:  # an edit committed meanwhile
+                raise StoreChangedError(f"{self.path} was edited while it was read; call "
+                                        "refresh() (or open it again) and read again")
+            for k, blob in zip(order, blobs, strict=True):
+                self.memo(("h", *k), lambda k=k, blob=blob: self._decode(k, blob))
+        return [self.tile(*k) for k in keys]
+
+    def _decode(self, key: TileKey, blob: bytes | None = None) -> Tile:
         L, x, y = key
         parent = self.tile(L + 1, x // 2, y // 2).codes if L < self.grid.top_level else None
-        blob = self._blob(key, "heights")
+        if blob is None:
+            blob = self._blob(key, "heights")
         from geoterrain.codec.pyramid import decode_tile_valid
         from geoterrain.codec.quantize import tile_heights
 

@@ -26,7 +26,7 @@ import contextlib
 import json
 import sqlite3
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -75,6 +75,9 @@ _OLD_METADATA_SQL = ("CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT N
 # a damaged schema's SQLite error message may not even decode as UTF-8
 _DB_ERRORS = (sqlite3.DatabaseError, UnicodeDecodeError)
 REBUILD = "rebuild it with `geoterrain preprocess DEM --overwrite`"
+# blobs a query of StoreReader.get_blobs reads at most (SQLite's bound on a statement's
+# parameters is 999 in builds before 3.32)
+BATCH = 500
 
 
 class StoreReader:
@@ -303,6 +306,74 @@ class StoreReader:
         if not isinstance(data, bytes) or blob_crc(key, kind, data) != crc:
             raise self._damaged(f"tile {key} {kind}")
         return data, ver
+
+    def get_blobs(self, items: Sequence[tuple[tuple[int, int, int], str]],
+                  version: bool = False) -> tuple[list[bytes | None], int]:
+        """Many blobs at once: :meth:`get_blob` of each ``(key, kind)`` of ``items`` (None
+        where not stored), read by one query a :data:`BATCH` of them, every blob's
+        checksum verified, the I/O counters looked at once a query (``bytes_read`` stays
+        what the operating system counts); and the :meth:`version` read in each query's
+        metered call (−1 unless ``version``): the first's, or a later one's where another
+        connection committed between two queries. A blob that fails its checksum, or
+        a query that fails, is read again alone, so the error is the one-line error of
+        :meth:`get_blob` (the first such blob of ``items``).
+
+        Examples
+        --------
+        >>> r = StoreReader(t.path)
+        >>> keys = [((0, 0, 0), "heights"), ((9, 9, 9), "heights"), ((0, 0, 0), "delta")]
+        >>> blobs, v = r.get_blobs(keys, version=True)
+        >>> blobs == [r.get_blob(*k) for k in keys], v == r.version(), blobs[1]
+        (True, True, None)
+        >>> r.close()
+        """
+        keys = [blob_key(k, kind) for k, kind in items]
+        t = self.table()
+        bk = np.array(keys, np.int64)
+        at = np.minimum(np.searchsorted(t.blobs, bk), max(len(t.blobs) - 1, 0))
+        found = (t.blobs[at] == bk) if len(t.blobs) else np.zeros(len(keys), bool)
+        rowids = np.where(found, t.ids[at] if len(t.ids) else 0, -1).tolist()
+        want = sorted({r for r in rowids if r >= 0})
+        vers: list[int] = []
+        rows: dict[int, tuple] = {}
+        for n in range(0, max(len(want), 1), BATCH):
+            part = want[n:n + BATCH]
+
+            def read(part=part):
+                got = self.con.execute(
+                    f"SELECT rowid, data, crc32 FROM blobs WHERE rowid IN "
+                    f"({','.join('?' * len(part))})", part).fetchall() if part else []
+                if not version:
+                    return got, -1
+                if self._snapshot_version is not None:  # no commit can come in between
+                    return got, self._snapshot_version
+                with self._lock:
+                    v = int(self.con.execute("PRAGMA data_version").fetchone()[0])
+                    if self._snapshot and part:  # the read above began the snapshot's
+                        self._snapshot_version = v
+                    return got, v
+
+            try:
+                got, v = self.meter.call(read)
+            except (*_DB_ERRORS, OverflowError):
+                got, v = [], (self.version() if version else -1)
+            vers.append(v)
+            rows.update((row[0], row[1:]) for row in got if type(row[0]) is int)
+        # the first query's version, or a later one's where a commit came in between
+        ver = next((v for v in vers if v != vers[0]), vers[0])
+        out: list[bytes | None] = []
+        for (key, kind), rid in zip(items, rowids, strict=True):
+            if rid < 0:
+                out.append(None)
+                continue
+            data, crc = rows.get(rid, (None, None))
+            if not isinstance(data, bytes) or blob_crc(key, kind, data) != crc:
+                # read alone: its own one-line error (damaged, or its row missing)
+                data = self.get_blob(key, kind)
+            out.append(data)
+        self.blob_reads += len(want)
+        self._payload_bytes += sum(len(d) for d, _ in rows.values() if isinstance(d, bytes))
+        return out, ver
 
     def tiles(self) -> dict[tuple[int, int, int], dict]:
         """Every stored tile's numbers, checksum-verified, checked against the tile counts.

@@ -122,8 +122,14 @@ def window_heights(terrain: TerrainLike, r0: int, c0: int, r1: int, c1: int
     ntx, nty = g.tiles(0)
     # a root grid's last tile holds the data's last row or column as its far border (no
     # tile starts there): a window on it reads that tile
-    for ty in range(min(r0 // S, nty - 1), min((r1 - 1) // S, nty - 1) + 1):
-        for tx in range(min(c0 // S, ntx - 1), min((c1 - 1) // S, ntx - 1) + 1):
+    tys = range(min(r0 // S, nty - 1), min((r1 - 1) // S, nty - 1) + 1)
+    txs = range(min(c0 // S, ntx - 1), min((c1 - 1) // S, ntx - 1) + 1)
+    batch = getattr(terrain, "tiles", None)  # one query for them all, where it reads batches
+    keys = [(0, tx, ty) for ty in tys for tx in txs if (0, tx, ty) in terrain.tile_info]
+    if batch is not None and len(keys) > 1:
+        batch(keys)
+    for ty in tys:
+        for tx in txs:
             if (0, tx, ty) not in terrain.tile_info:
                 continue
             tile = terrain.tile(0, tx, ty)

@@ -50,15 +50,32 @@ class Canvas:
         self._z: dict = {}
         self._big: dict = {}  # new → the largest rectangle assembled: (i0, j0, z, v)
 
+    def fetch(self, keys) -> None:
+        """Decode the stored tiles of ``keys`` (level, x, y) that the terrain does not hold
+        yet in one batch (:meth:`geoterrain.terrain.Terrain.tiles`: one query), where the
+        terrain reads batches; the calls of :meth:`tile` that follow find them cached."""
+        t = self.terrain
+        batch = getattr(t, "tiles", None)
+        if batch is not None:
+            keys = [k for k in keys if k in t.tile_info]
+            if len(keys) > 1:
+                batch(keys)
+
     def touches(self, i0: int, j0: int, i1: int, j1: int) -> bool:
         """Whether the closed rectangle rows i0 … i1, columns j0 … j1 holds an edited
         sample."""
         return i0 < self.r1 and i1 >= self.r0 and j0 < self.c1 and j1 >= self.c0
 
+    def _key(self, ty: int, tx: int, new: bool) -> tuple[int, int, bool]:
+        # a tile the edit does not touch is the same before and after it: one entry
+        i0, j0 = ty * self.S, tx * self.S
+        return ty, tx, bool(new) and self.touches(i0, j0, i0 + self.S, j0 + self.S)
+
     def tile(self, ty: int, tx: int, new: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Level-0 tile (x = ``tx``, y = ``ty``): heights (source units, NaN where not
         valid) and validity, (T, T)."""
-        key = (ty, tx, new)
+        key = self._key(ty, tx, new)
+        new = key[2]
         got = self._tiles.get(key)
         if got is not None:
             return got
@@ -70,7 +87,7 @@ class Canvas:
         else:
             h, v = np.full((T, T), np.nan), np.zeros((T, T), bool)
         i0, j0 = ty * self.S, tx * self.S
-        if new and self.touches(i0, j0, i0 + self.S, j0 + self.S):
+        if new:  # (it touches the tile)
             a0, a1 = max(self.r0, i0), min(self.r1, i0 + T)
             b0, b1 = max(self.c0, j0), min(self.c1, j0 + T)
             h[a0 - i0:a1 - i0, b0 - j0:b1 - j0] = self.heights[a0 - self.r0:a1 - self.r0,
@@ -82,10 +99,10 @@ class Canvas:
 
     def tile_z(self, ty: int, tx: int, new: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """The tile's scene heights (0 where not valid) and validity (uint8)."""
-        key = (ty, tx, new)
+        key = self._key(ty, tx, new)
         got = self._z.get(key)
         if got is None:
-            h, v = self.tile(ty, tx, new)
+            h, v = self.tile(ty, tx, key[2])
             z = np.where(v, np.multiply(np.where(v, h, 0.0), self.factor), 0.0)
             got = self._z[key] = (np.ascontiguousarray(z), np.ascontiguousarray(v, np.uint8))
         return got
@@ -113,9 +130,14 @@ class Canvas:
         v = np.zeros((i1 - i0, j1 - j0), np.uint8)
         S = self.S
         R, C = self.grid.shape
-        for ty in range(max(i0, 0) // S, min(i1 - 1, R - 1) // S + 1):
+        tys = range(max(i0, 0) // S, min(i1 - 1, R - 1) // S + 1)
+        txs = range(max(j0, 0) // S, min(j1 - 1, C - 1) // S + 1)
+        self.fetch([(0, min(tx, self.ntx - 1), min(ty, self.nty - 1)) for ty in tys for tx in txs
+                    if self._key(min(ty, self.nty - 1), min(tx, self.ntx - 1), new)
+                    not in self._z])
+        for ty in tys:
             ty = min(ty, self.nty - 1)
-            for tx in range(max(j0, 0) // S, min(j1 - 1, C - 1) // S + 1):
+            for tx in txs:
                 tx = min(tx, self.ntx - 1)
                 tz, tv = self.tile_z(ty, tx, new)
                 a0, a1 = max(i0, ty * S), min(i1, ty * S + S + 1)
@@ -141,12 +163,13 @@ class Canvas:
         nx, ny = g.tiles(L)
         # rows and columns a step apart (the normals' windows): slices, not index arrays
         regular = bool((np.diff(rows) == step).all() and (np.diff(cols) == step).all())
-        for y in range(min(int(rows[0]) // span, ny - 1),
-                       min(int(rows[-1]) // span, ny - 1) + 1):
+        ys = range(min(int(rows[0]) // span, ny - 1), min(int(rows[-1]) // span, ny - 1) + 1)
+        xs = range(min(int(cols[0]) // span, nx - 1), min(int(cols[-1]) // span, nx - 1) + 1)
+        self.fetch([(L, x, y) for y in ys for x in xs])
+        for y in ys:
             ri = (rows - y * span) // step
             mr = (ri >= 0) & (ri < T)
-            for x in range(min(int(cols[0]) // span, nx - 1),
-                           min(int(cols[-1]) // span, nx - 1) + 1):
+            for x in xs:
                 if (L, x, y) not in t.tile_info:
                     continue
                 tl = t.tile(L, x, y)

@@ -125,6 +125,15 @@ def _stored_root(terrain: TerrainLike) -> tuple[int, int, int]:
     return next((k for k in keys if k in terrain.tile_info), keys[0])
 
 
+def _first_level0(terrain: TerrainLike) -> tuple[int, int, int] | None:
+    """``terrain.tile_keys(0)[0]`` (None where no level-0 tile is stored), without
+    sorting every stored key where tile (0, 0, 0) is stored (the smallest there is)."""
+    if (0, 0, 0) in terrain.tile_info:
+        return (0, 0, 0)
+    keys = terrain.tile_keys(0)
+    return keys[0] if keys else None
+
+
 class _Job:
     """One edit's computation: the canvas, the old store's rows, and what changes."""
 
@@ -137,14 +146,16 @@ class _Job:
         self._own = not isinstance(own, StoreReader)
         self.reader = StoreReader(terrain.path) if self._own else own
         self.puts: dict = {}
+        self._put: list = []  # (key, kind, blob) put, not yet compared with the store's
         self.dirty: list = []
         self.rows: dict = {}  # new tile rows (TILE_COLUMNS order), changed tiles only
         top = _stored_root(terrain)
         dblob = self.reader.get_blob(top, "delta")
         rblob = self.reader.get_blob(top, "radius")
         self.ed, self.er = _e8(dblob), _e8(rblob)
-        self.derive_bounds = bool(self.t.tile_keys(0)) and self.g.top_level > 0 and bool(
-            (self.reader.get_blob(self.t.tile_keys(0)[0], "delta") or b"\0\0")[1] & RING)
+        first = _first_level0(terrain)
+        self.derive_bounds = first is not None and self.g.top_level > 0 and bool(
+            (self.reader.get_blob(first, "delta") or b"\0\0")[1] & RING)
         self.derive_normals = bool(terrain.meta.get("normals_derived"))
         self.ring_residual = terrain.meta.get("normals_ring_residual") is True
         self.meta = dict(terrain.meta)
@@ -167,10 +178,18 @@ class _Job:
         self.rows[key] = tuple(r)
 
     def put(self, key, kind: str, blob: bytes) -> None:
-        old = self.reader.get_blob(key, kind)
-        if old != blob:
-            self.puts[(key, kind)] = blob
-            self.dirty_tile(key)
+        """Write ``blob`` where it differs from the stored one (compared in :meth:`plan`,
+        the stored blobs read in one batch)."""
+        self._put.append((key, kind, blob))
+
+    def _settle(self) -> None:
+        # the blobs put that differ from the stored ones: rewritten, their tiles dirty
+        olds, _ = self.reader.get_blobs([(k, kind) for k, kind, _ in self._put])
+        for (key, kind, blob), old in zip(self._put, olds, strict=True):
+            if old != blob:
+                self.puts[(key, kind)] = blob
+                self.dirty_tile(key)
+        self._put = []
 
     def dirty_tile(self, key) -> None:
         L, x, y = key
@@ -196,7 +215,9 @@ class _Job:
         footprint is the union of its children's)."""
         g, c, f = self.g, self.c, self.t.frame
         S = c.S
-        for x, y in self.tiles_near(0, 0):
+        near = self.tiles_near(0, 0)
+        c.fetch([(0, x, y) for x, y in near])
+        for x, y in near:
             h, v = c.tile(y, x)
             n = int(v.sum())
             key = (0, x, y)
@@ -262,6 +283,8 @@ class _Job:
                                    min((r[2] + 2 * step) // span, ny - 1) + 1):
                         cands.add((x, y))
             changed = []
+            if L < top:  # the stored ones in one batch (their parents come with them)
+                c.fetch([(L, x, y) for x, y in cands])
             for x, y in sorted(cands):
                 key = (L, x, y)
                 if not self.stored(key):
@@ -451,6 +474,7 @@ class _Job:
 
     # ------------------------------------------------------------- the plan
     def plan(self) -> Plan:
+        self._settle()
         out = {}
         for k, r in self.rows.items():
             r = list(r)
