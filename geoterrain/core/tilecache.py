@@ -1,9 +1,12 @@
 """A terrain's caches: :class:`TileCache`, decoded arrays bounded in bytes, and
-:class:`DerivedSlot`, what other modules derive from the terrain once.
+:class:`DerivedSlot`, what other modules derive from the terrain once; both safe to call
+from several threads.
 
 :class:`~geoterrain.terrain.Terrain` holds one of each (its ``memo``, ``lookup``,
 ``peek``, ``cache_keys``, ``clear_cache``, ``derived`` and ``forget`` are theirs), and
-:class:`~geoterrain.exaggerate.Exaggerated` its own derived slot.
+:class:`~geoterrain.exaggerate.Exaggerated` its own derived slot. Threads call them: the
+overlapped flight selects the next frame on a worker thread while the main thread
+shades (``rendering/scene.py``), the viewer selects on one, a viewshed reads on two.
 
 Examples
 --------
@@ -16,6 +19,7 @@ Examples
 
 from __future__ import annotations
 
+import threading
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -53,9 +57,29 @@ def nbytes(v: object) -> int:
 _TILE_ARRAYS = ("codes", "heights", "valid")
 
 
+class _Making:
+    """A value one thread is making: the others asking for its key wait on ``done``
+    (held by the maker until the value is there, or its make failed)."""
+
+    __slots__ = ("done", "owner", "stale", "value", "ok")
+
+    def __init__(self) -> None:
+        self.done = threading.Lock()
+        self.done.acquire()
+        self.owner = threading.get_ident()
+        self.stale = False  # dropped while it was made: handed out, not kept
+        self.value: Any = None
+        self.ok = False
+
+
 class TileCache:
     """Values kept by key, least recently used first out once their bytes
     (:func:`nbytes`) exceed ``budget`` (the newest is always kept, whatever its size).
+
+    :meth:`memo` makes a missing value once per key, even when several threads ask for it
+    at once: the first makes it, outside the lock (a decode takes milliseconds and reads
+    other keys: a tile its parent's), the others wait for it. One lock guards the table,
+    so the byte count stays exact under any interleaving.
 
     Examples
     --------
@@ -70,6 +94,8 @@ class TileCache:
         self.budget = int(budget)
         self._table: OrderedDict[tuple, tuple[Any, int]] = OrderedDict()
         self._used = 0
+        self._lock = threading.Lock()
+        self._making: dict[tuple, _Making] = {}
 
     @property
     def used(self) -> int:
@@ -80,9 +106,11 @@ class TileCache:
         return len(self._table)
 
     def memo(self, key: tuple, make: Callable[[], _T]) -> _T:
-        """The value held under ``key``, marked as just used; on a miss, made by
-        ``make``, kept, and the least recently used values dropped until the bytes fit
-        the budget.
+        """The value held under ``key``, marked as just used; on a miss, made by ``make``
+        (once: a thread asking while another makes it waits for that value), kept, and
+        the least recently used values dropped until the bytes fit the budget. A make
+        that raises keeps nothing, and a thread that waited for it makes the value
+        itself.
 
         Examples
         --------
@@ -90,17 +118,42 @@ class TileCache:
         >>> c.memo(("a",), lambda: np.zeros(2)) is c.memo(("a",), lambda: np.ones(2))
         True
         """
-        c = self._table
-        if key in c:
-            c.move_to_end(key)
-            return c[key][0]
-        val = make()
+        with self._lock:
+            hit = self._table.get(key)
+            if hit is not None:
+                self._table.move_to_end(key)
+                return hit[0]
+            job = self._making.get(key)
+            if job is None:
+                job = self._making[key] = _Making()
+                mine = True
+            else:
+                mine = False
+        if not mine:
+            if job.owner == threading.get_ident():
+                raise RuntimeError(f"the value of {key} is asked for while it is made")
+            with job.done:  # the maker's value, or its make failed: make it here
+                pass
+            return job.value if job.ok else self.memo(key, make)
+        try:
+            val = make()
+        except BaseException:
+            with self._lock:
+                del self._making[key]
+            job.done.release()
+            raise
         size = nbytes(val)
-        c[key] = (val, size)
-        self._used += size
-        while self._used > self.budget and len(c) > 1:
-            _, (_, sz) = c.popitem(last=False)
-            self._used -= sz
+        with self._lock:
+            del self._making[key]
+            if not job.stale:
+                table = self._table
+                table[key] = (val, size)
+                self._used += size
+                while self._used > self.budget and len(table) > 1:
+                    _, (_, sz) = table.popitem(last=False)
+                    self._used -= sz
+        job.value, job.ok = val, True
+        job.done.release()
         return val
 
     def lookup(self, key: tuple) -> Any:
@@ -112,11 +165,12 @@ class TileCache:
         >>> c.lookup(("a",)), c.lookup(("b",))
         (1.5, None)
         """
-        hit = self._table.get(key)
-        if hit is None:
-            return None
-        self._table.move_to_end(key)
-        return hit[0]
+        with self._lock:
+            hit = self._table.get(key)
+            if hit is None:
+                return None
+            self._table.move_to_end(key)
+            return hit[0]
 
     def peek(self, key: tuple) -> Any:
         """The value held under ``key``, or None; the order is left as it is.
@@ -140,10 +194,11 @@ class TileCache:
         >>> c.keys()
         [('b',), ('a',)]
         """
-        return list(self._table)
+        with self._lock:
+            return list(self._table)
 
     def clear(self) -> None:
-        """Drop every value.
+        """Drop every value (and keep none being made now).
 
         Examples
         --------
@@ -151,13 +206,17 @@ class TileCache:
         >>> c.keys(), c.used
         ([], 0)
         """
-        self._table.clear()
-        self._used = 0
+        with self._lock:
+            self._table.clear()
+            self._used = 0
+            for job in self._making.values():
+                job.stale = True
 
     def drop_tiles(self, rects: Sequence[Sequence[int]], grid: Grid) -> None:
         """Drop the values of tiles whose footprint on ``grid`` meets ``rects`` (level-0
         samples (r0, c0, r1, c1), ends excluded), and every value that is not a tile's (a
         key not ending in a tile's (level, x, y)): what an edit of those samples reached.
+        Values being made now are not kept.
 
         Examples
         --------
@@ -169,24 +228,31 @@ class TileCache:
         [('h', 0, 3, 3)]
         """
         R = np.array(rects, np.int64).reshape(-1, 4)
-        for key in list(self._table):
-            tk = key[-3:]
-            if len(key) >= 4 and all(isinstance(v, int | np.integer) for v in tk):
-                L, x, y = (int(v) for v in tk)
-                if 0 <= L <= grid.top_level:
-                    span = grid.tile_span(L)
-                    i0, j0 = y * span, x * span
-                    hit = ((R[:, 0] <= i0 + span) & (R[:, 2] > i0)
-                           & (R[:, 1] <= j0 + span) & (R[:, 3] > j0)).any()
-                    if not hit:
-                        continue
-            _, size = self._table.pop(key)
-            self._used -= size
+        with self._lock:
+            for job in self._making.values():
+                job.stale = True
+            for key in list(self._table):
+                tk = key[-3:]
+                if len(key) >= 4 and all(isinstance(v, int | np.integer) for v in tk):
+                    L, x, y = (int(v) for v in tk)
+                    if 0 <= L <= grid.top_level:
+                        span = grid.tile_span(L)
+                        i0, j0 = y * span, x * span
+                        hit = ((R[:, 0] <= i0 + span) & (R[:, 2] > i0)
+                               & (R[:, 1] <= j0 + span) & (R[:, 3] > j0)).any()
+                        if not hit:
+                            continue
+                _, size = self._table.pop(key)
+                self._used -= size
 
 
 class DerivedSlot:
     """What modules derive from a terrain once (their tables, pools, scratch), by owner,
     kept as long as the terrain, outside the byte-bounded :class:`TileCache`.
+
+    Two threads deriving for the same owner at once may both make it; the first kept is
+    the one every caller gets (the other is dropped unused: a make only reads the
+    terrain), so no two callers ever hold different objects for one owner.
 
     Examples
     --------
@@ -202,7 +268,7 @@ class DerivedSlot:
         """What ``owner`` derived, made by ``make`` on first use."""
         got = self._made.get(owner)
         if got is None:
-            got = self._made[owner] = make()
+            got = self._made.setdefault(owner, make())  # atomic: the first kept wins
         return got
 
     def forget(self, owner: str | None = None) -> None:

@@ -1,7 +1,10 @@
 """The terrain's caches (geoterrain/core/tilecache.py): the byte-bounded tile cache's
-order, byte count and invalidation, and the derived slot's."""
+order, byte count, invalidation and threads, and the derived slot's."""
 
 from __future__ import annotations
+
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -108,6 +111,172 @@ def test_an_edit_drops_the_tiles_it_reaches_and_everything_else(tiles, rects):
     want = sorted(k for k in keys if not footprint_meets(k, rects, g))
     assert sorted(c.keys()) == want
     assert c.used == exact(c) == 24 * len(want)
+
+
+def test_clear_and_a_drop_keep_nothing_made_meanwhile():
+    c = TileCache(budget=1 << 20)
+    started, go = threading.Event(), threading.Event()
+
+    def slow():
+        started.set()
+        go.wait(5)
+        return np.zeros(2)
+
+    for drop in (c.clear, lambda: c.drop_tiles([(0, 0, 1, 1)], Grid.for_shape(9, 9, 8))):
+        started.clear(), go.clear()
+        th = threading.Thread(target=c.memo, args=(("h", 0, 0, 0), slow))
+        th.start()
+        assert started.wait(5)
+        drop()  # the value under way was made from what the drop replaces
+        go.set()
+        th.join(5)
+        assert c.keys() == [] and c.used == 0
+        assert c.memo(("h", 0, 0, 0), lambda: np.ones(2)).tolist() == [1.0, 1.0]
+        c.clear()
+
+
+def test_a_failed_make_keeps_nothing_and_a_waiter_makes_it_itself():
+    c = TileCache(budget=1 << 20)
+    started, go = threading.Event(), threading.Event()
+
+    def fails():
+        started.set()
+        go.wait(5)
+        raise OSError("read failed")
+
+    errors, got = [], []
+    th = threading.Thread(target=lambda: errors.append(
+        pytest.raises(OSError, c.memo, ("k",), fails)))
+    th.start()
+    assert started.wait(5)
+    waiter = threading.Thread(target=lambda: got.append(c.memo(("k",), lambda: np.ones(1))))
+    waiter.start()
+    time.sleep(0.05)  # the waiter waits for the first make
+    go.set()
+    th.join(5), waiter.join(5)
+    assert errors and got[0].tolist() == [1.0]
+    assert c.keys() == [("k",)] and c.used == 8
+
+
+def test_a_make_that_asks_for_its_own_key_raises():
+    c = TileCache(budget=1 << 20)
+    with pytest.raises(RuntimeError, match="while it is made"):
+        c.memo(("k",), lambda: c.memo(("k",), lambda: 1))
+    assert c.keys() == [] and c.memo(("k",), lambda: 2) == 2
+
+
+def test_threads_asking_at_once_make_each_value_once():
+    c = TileCache(budget=1 << 30)
+    made: dict[tuple, int] = {}
+    count = threading.Lock()
+    barrier = threading.Barrier(8)
+    keys = [("h", 0, k, 0) for k in range(30)]
+
+    def make(key):
+        with count:
+            made[key] = made.get(key, 0) + 1
+        time.sleep(0.001)  # long enough that the others ask meanwhile
+        return value(key)
+
+    got: list[list] = [[] for _ in range(8)]
+
+    def run(n):
+        barrier.wait()
+        for key in keys:
+            got[n].append(c.memo(key, lambda key=key: make(key)))
+
+    threads = [threading.Thread(target=run, args=(n,)) for n in range(8)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join(30)
+    assert made == dict.fromkeys(keys, 1)
+    for n in range(1, 8):  # one object per key, whoever asked
+        assert all(a is b for a, b in zip(got[0], got[n], strict=True))
+    assert c.used == exact(c) == sum(nbytes(value(k)) for k in keys)
+
+
+def test_threads_hammering_an_evicting_cache_keep_its_bytes_exact():
+    """Eight threads, 200 keys, a budget of about a fifth of them: every value is its
+    key's, and the byte count is the held values' exactly, within the budget."""
+    keys = [("h", k % 4, k, k % 7) for k in range(200)]
+    budget = sum(nbytes(value(k)) for k in keys) // 5
+    c = TileCache(budget)
+    wrong, barrier = [], threading.Barrier(8)
+
+    def nested(key):  # a make that reads another key first, as a tile reads its parent
+        if key[2] % 3 == 0:
+            c.memo(("parent", key[2] // 3), lambda: np.zeros(4))
+        return value(key)
+
+    def run(seed):
+        rng = np.random.default_rng(seed)
+        barrier.wait()
+        for k in rng.integers(0, len(keys), 3000):
+            key = keys[k]
+            v = c.lookup(key) if k % 5 == 0 else c.memo(key, lambda key=key: nested(key))
+            if v is not None and not np.array_equal(v, value(key)):
+                wrong.append(key)
+
+    threads = [threading.Thread(target=run, args=(s,)) for s in range(8)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join(60)
+    assert not any(th.is_alive() for th in threads)
+    assert wrong == []
+    assert c.used == exact(c) <= budget
+    assert all(np.array_equal(c.peek(k), value(k)) for k in c.keys() if k[0] == "h")
+
+
+def test_a_terrain_read_from_threads_decodes_what_one_thread_does(tmp_path):
+    """A store's tiles read by four threads at once through a cache that evicts: every
+    tile's heights are those of a terrain read on one thread, the bytes exact."""
+    import geoterrain
+    from geoterrain.ingest.synth import generate, write_geotiff
+
+    dem = write_geotiff(tmp_path / "d.tif", generate("fbm", 129, seed=5))
+    store = geoterrain.preprocess(dem, tmp_path / "d.geoterrain", tile_size=16)
+    with geoterrain.open(store) as one:
+        keys = one.tile_keys()
+        want = {k: one.tile(*k).heights for k in keys}
+    with geoterrain.open(store, cache_bytes=20 * 17 * 17 * 17) as t:
+        bad, barrier = [], threading.Barrier(4)
+
+        def run(n):
+            barrier.wait()
+            for k in keys[n::2] + keys[::-1]:
+                if not np.array_equal(t.tile(*k).heights, want[k], equal_nan=True):
+                    bad.append(k)
+                t.tile_delta(*k)
+
+        threads = [threading.Thread(target=run, args=(n,)) for n in range(4)]
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join(120)
+        assert bad == []
+        assert t.tile_cache.used == exact(t.tile_cache) <= t.tile_cache.budget
+
+
+def test_the_derived_slot_hands_every_thread_one_object():
+    s = DerivedSlot()
+    barrier, got = threading.Barrier(8), []
+
+    def make():
+        time.sleep(0.002)  # the others ask meanwhile
+        return object()
+
+    def run():
+        barrier.wait()
+        got.append(s.get("owner", make))
+
+    threads = [threading.Thread(target=run) for _ in range(8)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join(10)
+    assert len(got) == 8 and all(g is got[0] for g in got)
 
 
 def test_the_derived_slot_tells_what_takes_an_edit_in_and_drops_the_rest():
