@@ -78,8 +78,9 @@ class TileCache:
 
     :meth:`memo` makes a missing value once per key, even when several threads ask for it
     at once: the first makes it, outside the lock (a decode takes milliseconds and reads
-    other keys: a tile its parent's), the others wait for it. One lock guards the table,
-    so the byte count stays exact under any interleaving.
+    other keys: a tile its parent's), the others wait for it. One lock guards every
+    change of the table and of the byte count, so it stays exact under any interleaving;
+    a hit takes no lock (it changes neither).
 
     Examples
     --------
@@ -118,8 +119,11 @@ class TileCache:
         >>> c.memo(("a",), lambda: np.zeros(2)) is c.memo(("a",), lambda: np.ones(2))
         True
         """
+        hit = self._hit(key)
+        if hit is not None:
+            return hit[0]
         with self._lock:
-            hit = self._table.get(key)
+            hit = self._table.get(key)  # kept meanwhile by another thread
             if hit is not None:
                 self._table.move_to_end(key)
                 return hit[0]
@@ -165,12 +169,20 @@ class TileCache:
         >>> c.lookup(("a",)), c.lookup(("b",))
         (1.5, None)
         """
-        with self._lock:
-            hit = self._table.get(key)
-            if hit is None:
-                return None
-            self._table.move_to_end(key)
-            return hit[0]
+        hit = self._hit(key)
+        return None if hit is None else hit[0]
+
+    def _hit(self, key: tuple) -> tuple[Any, int] | None:
+        # without the lock: a hit changes no byte count, and each OrderedDict call is
+        # whole under the GIL; a value evicted between the two by another thread is
+        # still its key's (the order then has nothing to mark)
+        hit = self._table.get(key)
+        if hit is not None:
+            try:
+                self._table.move_to_end(key)
+            except KeyError:
+                pass
+        return hit
 
     def peek(self, key: tuple) -> Any:
         """The value held under ``key``, or None; the order is left as it is.
@@ -181,7 +193,7 @@ class TileCache:
         >>> _ = c.memo(("b",), lambda: 2.5); c.peek(("a",)), c.keys()
         (1.5, [('a',), ('b',)])
         """
-        hit = self._table.get(key)
+        hit = self._table.get(key)  # one dict read, whole under the GIL: no lock
         return None if hit is None else hit[0]
 
     def keys(self) -> list[tuple]:
