@@ -27,10 +27,11 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
+from geoterrain.core.tilecache import DerivedSlot
 from geoterrain.exceptions import UsageError
 
 if TYPE_CHECKING:
@@ -81,7 +82,7 @@ class Exaggerated:
         self.frame = dataclasses.replace(base.frame, z_scale=base.frame.z_scale * self.n)
         self._scale_info()
         self._own: dict = {}
-        self._derived: dict[str, Any] = {}
+        self._derived = DerivedSlot()
         self.generation = 0
         self._base_generation = getattr(base, "generation", 0)
 
@@ -106,7 +107,7 @@ class Exaggerated:
         self._base_generation = self.base.generation
         self._scale_info()
         self._own.clear()
-        self._derived.clear()
+        self._derived.forget()
         self.generation += 1
         return True
 
@@ -114,17 +115,11 @@ class Exaggerated:
 
     def derived(self, owner: str, make: Callable[[], _T]) -> _T:
         """This view's own :meth:`~geoterrain.terrain.Terrain.derived` slot."""
-        got = self._derived.get(owner)
-        if got is None:
-            got = self._derived[owner] = make()
-        return got
+        return self._derived.get(owner, make)
 
     def forget(self, owner: str | None = None) -> None:
         """Drop what ``owner`` derived from this view (every module's with None)."""
-        if owner is None:
-            self._derived.clear()
-        else:
-            self._derived.pop(owner, None)
+        self._derived.forget(owner)
 
     def __getattr__(self, name):
         return getattr(self.base, name)

@@ -6,16 +6,16 @@ interface every later stage reads a terrain through.
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from contextlib import AbstractContextManager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 import zstandard
 
 # The decoders (geoterrain.bounds, geoterrain.codec, core.bintree) are imported where a
 # tile is read: they load numba, which opening a store and `geoterrain info` never need.
+from geoterrain.core.tilecache import DerivedSlot, TileCache
 from geoterrain.exceptions import StoreChangedError, StoreCorruptError, StoreError, UsageError
 from geoterrain.store.check import check_store
 from geoterrain.store.reader import StoreReader
@@ -40,9 +40,11 @@ class Terrain:
     """A preprocessed terrain, read lazily from its store.
 
     Tiles are decoded on demand, with their ancestors (the codec predicts each
-    level from the decoded level above), and kept in an LRU cache bounded in bytes
-    (``cache_bytes``, :meth:`memo`). What other modules derive from the terrain once
-    (their tables, pools, scratch) is kept in its :meth:`derived` slot.
+    level from the decoded level above), and kept in its ``tile_cache``, a
+    :class:`~geoterrain.core.tilecache.TileCache` bounded in bytes (``cache_bytes``,
+    :meth:`memo`). What other modules derive from the terrain once (their tables, pools,
+    scratch) is kept in its :meth:`derived` slot. Both are safe to call from several
+    threads.
 
     Examples
     --------
@@ -61,10 +63,8 @@ class Terrain:
         self.path = Path(path)
         self._bytes_before = 0  # what the readers that refresh() replaced read
         self._load()
-        self._cache: OrderedDict[tuple, tuple[object, int]] = OrderedDict()
-        self._cache_budget = cache_bytes
-        self._cache_used = 0
-        self._derived: dict[str, Any] = {}
+        self.tile_cache = TileCache(cache_bytes)
+        self._derived = DerivedSlot()
         self.decoded_tiles = 0  # tiles whose heights were decoded (a view counts these)
         self.decoded_normals = 0  # tiles whose normal maps were decoded
         self.decoded_bounds = 0  # δ or r arrays decoded
@@ -100,27 +100,17 @@ class Terrain:
 
     # ------------------------------------------------------------------ cache
     def memo(self, key: tuple, make: Callable[[], _T]) -> _T:
-        """The value cached under ``key``, made by ``make`` on a miss: the terrain's LRU
-        cache of decoded arrays (and what other modules make from them, such as a
-        tile's shading), bounded in bytes (``cache_bytes``).
+        """The value cached under ``key``, made by ``make`` on a miss (once, even when
+        threads ask at once): the terrain's tile cache of decoded arrays (and what other
+        modules make from them, such as a tile's shading), bounded in bytes
+        (``cache_bytes``; :meth:`TileCache.memo <geoterrain.core.tilecache.TileCache.memo>`).
 
         Examples
         --------
         >>> t.memo(("example",), lambda: np.zeros(3)).shape
         (3,)
         """
-        c = self._cache
-        if key in c:
-            c.move_to_end(key)
-            return c[key][0]
-        val = make()
-        size = _nbytes(val)
-        c[key] = (val, size)
-        self._cache_used += size
-        while self._cache_used > self._cache_budget and len(c) > 1:
-            _, (_, sz) = c.popitem(last=False)
-            self._cache_used -= sz
-        return val
+        return self.tile_cache.memo(key, make)
 
     def lookup(self, key: tuple):
         """The cached value of ``key``, marked as just used, or None (nothing is made).
@@ -131,17 +121,12 @@ class Terrain:
         >>> t.lookup(("h", t.grid.top_level, 0, 0)) is tile, t.lookup(("h", 99, 0, 0))
         (True, None)
         """
-        hit = self._cache.get(key)
-        if hit is None:
-            return None
-        self._cache.move_to_end(key)
-        return hit[0]
+        return self.tile_cache.lookup(key)
 
     def peek(self, key: tuple):
         """The cached value of ``key`` (as :meth:`memo` keys it), or None; the cache's
         order is left as it is."""
-        hit = self._cache.get(key)
-        return None if hit is None else hit[0]
+        return self.tile_cache.peek(key)
 
     def cache_keys(self) -> list[tuple]:
         """The keys the tile cache holds, least recently used first (what a frame read:
@@ -153,29 +138,26 @@ class Terrain:
         >>> ("h", t.grid.top_level, 0, 0) in t.cache_keys()
         True
         """
-        return list(self._cache)
+        return self.tile_cache.keys()
 
     def clear_cache(self) -> None:
         """Empty the tile cache (decoded heights, bounds, normals, shading): the next
         reads decode again (a benchmark's cold start)."""
-        self._cache.clear()
-        self._cache_used = 0
+        self.tile_cache.clear()
 
     def derived(self, owner: str, make: Callable[[], _T]) -> _T:
         """What module ``owner`` derives from this terrain once (its tables, a tile pool,
         scratch buffers), made by ``make`` on first use and kept as long as the terrain,
-        outside the byte-bounded tile cache. The one place such data lives: no module
-        keeps a cache of terrains.
+        outside the byte-bounded tile cache
+        (:class:`~geoterrain.core.tilecache.DerivedSlot`). The one place such data lives:
+        no module keeps a cache of terrains.
 
         Examples
         --------
         >>> t.derived("example", dict) is t.derived("example", dict)
         True
         """
-        got = self._derived.get(owner)
-        if got is None:
-            got = self._derived[owner] = make()
-        return got
+        return self._derived.get(owner, make)
 
     def forget(self, owner: str | None = None) -> None:
         """Drop what ``owner`` derived (every module's with None): it is derived anew on
@@ -187,10 +169,7 @@ class Terrain:
         >>> t.derived("example", dict) is a
         False
         """
-        if owner is None:
-            self._derived.clear()
-        else:
-            self._derived.pop(owner, None)
+        self._derived.forget(owner)
 
     @property
     def stand_in_z(self) -> float:
@@ -696,38 +675,13 @@ class Terrain:
                 rects = [tuple(int(v) for v in r) for e in news for r in e["dirty"]]
             except (KeyError, TypeError, ValueError):
                 rects = None
-        self._drop(rects)
-        for owner, got in list(self._derived.items()):
-            hook = getattr(got, "edited", None)
-            if hook is None or rects is None:
-                del self._derived[owner]
-            else:
-                hook(news)
+        if rects is None:
+            self.tile_cache.clear()
+        else:
+            self.tile_cache.drop_tiles(rects, self.grid)
+        self._derived.edited(None if rects is None else news)
         self.generation += 1
         return True
-
-    def _drop(self, rects: list | None) -> None:
-        """Drop the cached values of tiles whose footprint meets ``rects`` (level-0
-        samples (r0, c0, r1, c1), ends excluded; None: every one), and every cached
-        value that is not a tile's (a key not ending in a tile's (level, x, y))."""
-        if rects is None:
-            self.clear_cache()
-            return
-        g = self.grid
-        R = np.array(rects, np.int64).reshape(-1, 4)
-        for key in list(self._cache):
-            tk = key[-3:]
-            if len(key) >= 4 and all(isinstance(v, int | np.integer) for v in tk):
-                L, x, y = (int(v) for v in tk)
-                if 0 <= L <= g.top_level:
-                    span = g.tile_span(L)
-                    i0, j0 = y * span, x * span
-                    hit = ((R[:, 0] <= i0 + span) & (R[:, 2] > i0)
-                           & (R[:, 1] <= j0 + span) & (R[:, 3] > j0)).any()
-                    if not hit:
-                        continue
-            _, size = self._cache.pop(key)
-            self._cache_used -= size
 
     # ------------------------------------------------------------------ info
     def info(self) -> dict:
@@ -762,16 +716,6 @@ class Terrain:
 
     def __exit__(self, *exc) -> None:
         self.close()
-
-
-def _nbytes(v) -> int:
-    if isinstance(v, np.ndarray):
-        return v.nbytes
-    if isinstance(v, Tile):
-        return v.codes.nbytes + v.heights.nbytes + v.valid.nbytes
-    if isinstance(v, tuple):
-        return sum(_nbytes(x) for x in v)
-    return 64
 
 
 def open(path: str | Path, cache_bytes: int = 1536 << 20) -> Terrain:  # noqa: A001

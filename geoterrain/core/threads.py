@@ -95,7 +95,7 @@ def serial_twin(kernel):
     Examples
     --------
     >>> import numpy as np
-    >>> from geoterrain.bounds.normals import _valid_finite_nb
+    >>> from geoterrain.bounds.normals.maps import _valid_finite_nb
     >>> twin = serial_twin(_valid_finite_nb)
     >>> twin.py_func.__name__, twin(*[np.zeros((1, 2))] * 3, np.ones((1, 2), bool)).tolist()
     ('_valid_finite_nb_serial', [[True, True]])

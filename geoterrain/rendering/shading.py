@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
-from geoterrain.bounds.normals import _oct_point
+from geoterrain.bounds.normals.octahedral import _oct_point
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike

@@ -19,23 +19,23 @@ def _fresh_compile(kernel, *args) -> None:
 
 
 def test_the_normal_helpers_take_the_axis_as_an_int64():
-    from geoterrain.bounds import normals
+    from geoterrain.bounds.normals import codes, maps
 
     n = 6
     j, i = np.meshgrid(np.arange(float(n)), np.arange(float(n)))
     z = np.arange(n * n, dtype=np.float64).reshape(n, n)
     v = np.ones((n, n), bool)
     out = np.empty((n, n, 3), np.float32)
-    _fresh_compile(normals._normals_nb, j, -i, z, v, True, out)
+    _fresh_compile(maps._normals_nb, j, -i, z, v, True, out)
     rr = np.array([0, 0], np.int64)
     X, Y = j[None], -i[None]
-    _fresh_compile(normals._ring_guess_nb, z, v, X, Y, rr[:1], rr[:1], rr, rr, 255.0,
+    _fresh_compile(codes._ring_guess_nb, z, v, X, Y, rr[:1], rr[:1], rr, rr, 255.0,
                    np.empty((1, 2, 2), np.uint8))
-    for helper in (normals._tangent_nb, normals._horn_nb):
+    for helper in (maps._tangent_nb, maps._horn_nb):
         assert helper.signatures
         assert all(sig[6] == types.int64 for sig in helper.signatures), helper.signatures
-    assert normals._unit_cross.signatures
-    assert all(sig[7] == sig[8] == types.int64 for sig in normals._unit_cross.signatures)
+    assert maps._unit_cross.signatures
+    assert all(sig[7] == sig[8] == types.int64 for sig in maps._unit_cross.signatures)
 
 
 def test_the_gap_coder_compiles_once_for_both_directions():
