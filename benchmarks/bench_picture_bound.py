@@ -2,7 +2,8 @@
 
 For each view, rtin's selection at τ (horizon culling off: the bound at every sample in
 the frustum, hidden or not) is measured independently of the selection's formulas:
-every level-0 sample in the frustum, under the drawn triangles, is projected through the
+every level-0 sample under the drawn triangles whose true or drawn point lies in the
+frustum (a sample just outside it drawn just inside counts) is projected through the
 render's camera twice, at its true height and at the mesh's
 (:func:`geoterrain.testing.measure.picture_displacement`), and the distance between the
 two is its displacement in pixels. Both refinement metrics are measured in the same run:

@@ -375,7 +375,7 @@ def _block_floor(bk, zfac, zproxy, view, P):
         a, b, c, w = planes[q, 0], planes[q, 1], planes[q, 2], planes[q, 3]
         fx = bk[5] + rm if a >= 0 else bk[2] - rm
         fy = bk[6] + rm if b >= 0 else bk[3] - rm
-        fz = zh + rm if c >= 0 else zl - rm
+        fz = zh + rm + dm if c >= 0 else zl - rm - dm  # drawn up to δ off (_sphere_out)
         if a * fx + b * fy + c * fz + w < 0:
             return -2.0
     return tau * (d - rm) if d > rm else -1.0
@@ -388,7 +388,8 @@ def fill_lp(tiles, inside, floor, slabs, zproxy, view, flags, top_step, blocks=T
     (:class:`~geoterrain.core.view.ViewTerms`), scattered into the dense ``flags``
     (:class:`ActiveFlags`).
 
-    A vertex is active iff its sphere (p, r) is not outside any frustum plane, δ > 0,
+    A vertex is active iff its sphere (p, r), moved up or down by δ, is not outside any
+    frustum plane (:func:`_sphere_out`: what is drawn for its samples may lie δ off), δ > 0,
     and λδ > τ(d − r) or the eye is inside the sphere (d ≤ r); d = ‖p − eye‖, or with
     the view's eye plane the depth f·(p − eye) (the picture's bound: the sphere crossing
     the eye plane, d ≤ r, refines; :func:`_point_reach`), and
@@ -434,6 +435,24 @@ def fill_lp(tiles, inside, floor, slabs, zproxy, view, flags, top_step, blocks=T
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _sphere_out(planes, P, px, py, pz, r, dl):
+    """Whether a vertex is culled: its sphere (p, r), moved up or down by its error δ
+    (``dl``), lies outside one of the first ``P`` frustum ``planes`` (unit normals).
+
+    The drawn surface over the vertex's samples lies within δ of them vertically, so
+    nothing it draws can enter the picture; a sphere merely outside (LP) let samples
+    just outside the frustum be drawn just inside, δ off. Nesting holds as for the
+    sphere alone: n·p_c + r_c ≤ n·p_p + r_p for a child's sphere in its parent's, and
+    δ_c ≤ δ_p (saturated), so a child is culled wherever its parent is."""
+    for q in range(P):
+        c = planes[q, 2]
+        if planes[q, 0] * px + planes[q, 1] * py + c * pz + planes[q, 3] + r \
+                + abs(c) * dl < 0.0:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _fill_block(tiles, k, coarse, P, rows, cols, fl, slabs, zproxy, view, flags):
     """:func:`fill_lp`'s test on the samples ``rows`` × ``cols`` ([a0, a1) × [b0, b1))
     of tile k, the first ``P`` planes tested, vertices with λδ ≤ ``fl`` skipped."""
@@ -462,13 +481,7 @@ def _fill_block(tiles, k, coarse, P, rows, cols, fl, slabs, zproxy, view, flags)
             px, py = sample_xy(X, Y, aff, s, a, b, i, j)
             h = H[s, a, b]
             pz = h * zfac if h == h else zproxy
-            vis = True
-            for q in range(P):
-                if planes[q, 0] * px + planes[q, 1] * py + planes[q, 2] * pz \
-                        + planes[q, 3] + r < 0.0:
-                    vis = False
-                    break
-            if not vis:
+            if _sphere_out(planes, P, px, py, pz, r, dl):
                 continue
             d = _point_reach(view, px, py, pz)
             if d <= r or lam * dl > tau * (d - r):
@@ -477,14 +490,16 @@ def _fill_block(tiles, k, coarse, P, rows, cols, fl, slabs, zproxy, view, flags)
 
 
 @njit(cache=True, nogil=True)
-def lp_tiles(lo, hi, dmax, rmax, view, floor):
+def lp_tiles(lo, hi, dmax, rmax, grow, view, floor):
     """The tiles that can hold an LP-active vertex (seed 002 eq. 2, tested with tile
     bounds only, for ``view``: :class:`~geoterrain.core.view.ViewTerms`), as a status per
     tile: 0 no, 1 yes, 2 yes and inside the frustum.
 
     Conservative: a vertex of the tile lies in its box, so d − r ≥ D_box − r_max (d the
     distance or the depth, :func:`_box_reach`); its
-    sphere lies in the box grown by r_max, tested against each plane as a box.
+    sphere lies in the box grown by r_max, and what is drawn of it within ``grow`` (the
+    largest finite δ of its vertices, :func:`_sphere_out`) of that vertically, tested
+    against each plane as a box.
     ``floor[k]`` receives τ·(D_box − r_max): a vertex with λδ ≤ it is not active
     (:func:`fill_lp` skips it without reading its sphere).
     """
@@ -508,7 +523,7 @@ def lp_tiles(lo, hi, dmax, rmax, view, floor):
             # the box corner farthest along / against the plane normal
             fx = hi[k, 0] + r if a >= 0 else lo[k, 0] - r
             fy = hi[k, 1] + r if b >= 0 else lo[k, 1] - r
-            fz = hi[k, 2] + r if c >= 0 else lo[k, 2] - r
+            fz = hi[k, 2] + r + grow[k] if c >= 0 else lo[k, 2] - r - grow[k]
             if a * fx + b * fy + c * fz + w < 0:
                 status = 0
                 break
@@ -615,13 +630,15 @@ def mark_tiles(flat, N, top, t, base, occ):
 
 
 @njit(cache=True, nogil=True)
-def lp_tiles_walk(tree, dmax, rmax, rsub, view, floor, out):
+def lp_tiles_walk(tree, dmax, rmax, rsub, grow, gsub, view, floor, out):
     """:func:`lp_tiles` for the tiles the quadtree ``tree``
     (:class:`~geoterrain.lod.tiles.TileTree`) reaches from the top: a subtree whose
-    box grown by its largest radius (``rsub``: the tile's and every descendant's) lies
+    box grown by its largest radius (``rsub``: the tile's and every descendant's) and
+    vertically by its largest finite δ (``gsub``, as ``grow`` is the tile's) lies
     outside a frustum plane is not entered. A descendant's box lies in its ancestor's
-    and its radius is at most ``rsub``, so :func:`lp_tiles` gives those tiles status 0
-    too: the result is the same, at a cost that follows the tiles near the frustum.
+    and its radius and δ are at most ``rsub`` and ``gsub``, so :func:`lp_tiles` gives
+    those tiles status 0 too: the result is the same, at a cost that follows the tiles
+    near the frustum.
     ``out``/``floor`` are filled for the visited rows (``out`` must start at 0).
     Returns tiles visited."""
     table, base, top, lo, hi = tree
@@ -650,20 +667,20 @@ def lp_tiles_walk(tree, dmax, rmax, rsub, view, floor, out):
         if row < 0:
             continue
         visited += 1
-        r = rsub[row]
+        r, g = rsub[row], gsub[row]
         skip = False
         for q in range(P):
             a, b, c, w = planes[q, 0], planes[q, 1], planes[q, 2], planes[q, 3]
             fx = hi[row, 0] + r if a >= 0 else lo[row, 0] - r
             fy = hi[row, 1] + r if b >= 0 else lo[row, 1] - r
-            fz = hi[row, 2] + r if c >= 0 else lo[row, 2] - r
+            fz = hi[row, 2] + r + g if c >= 0 else lo[row, 2] - r - g
             if a * fx + b * fy + c * fz + w < 0:
                 skip = True
                 break
         if skip:
             continue
         st = lp_tiles(lo[row:row + 1], hi[row:row + 1], dmax[row:row + 1],
-                      rmax[row:row + 1], view, fl)
+                      rmax[row:row + 1], grow[row:row + 1], view, fl)
         out[row] = st[0]
         floor[row] = fl[0]
         if L > 0:

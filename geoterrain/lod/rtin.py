@@ -7,7 +7,8 @@ Two phases, both on whole arrays:
    and the tile's box: no decoding). Only those tiles are decoded, and the
    predicate is evaluated on all their samples at once:
 
-   - view-dependent: the sphere meets the frustum, δ > 0 and LP eq. 2,
+   - view-dependent: the sphere, moved up or down by δ, meets the frustum (what is
+     drawn for a culled vertex's samples stays outside the picture), δ > 0 and LP eq. 2,
      ρ = λδ/(d − r) > τ, or the eye is inside the sphere (d ≤ r); by default d is the
      depth along the view, as the picture divides by it, and λ carries the lift k
      (:meth:`~geoterrain.core.view.View.terms`, :data:`DEPTH`): ρ ≤ τ is then τ
@@ -168,7 +169,12 @@ def static_active(terrain: TerrainLike, index: TileIndex, max_error: float) -> A
 
 def _tile_tree(terrain: TerrainLike, index: TileIndex):
     """The dense (level, y, x) → row table of the stored tiles and, per row, the largest
-    radius of the tile and its descendants (cached per terrain)."""
+    radius of the tile and its descendants, the largest finite δ of the tile (``grow``)
+    and of the tile and its descendants (cached per terrain).
+
+    A tile whose δ_max is inf (a mixed diamond) takes twice the terrain's height span
+    plus the largest finite δ_max for its finite δ's (a vertical error is at most the
+    span; stored codes round up by less than 2×)."""
     held = terrain.derived(f"{__name__}.tree", dict)
     tree = held.get("tree")
     if tree is None or tree[0] is not index:
@@ -176,7 +182,12 @@ def _tile_tree(terrain: TerrainLike, index: TileIndex):
         top = g.top_level
         table, base = tile_table(index, top, g)
         k = index.keys
+        dm = np.asarray(index.delta_max, np.float64)
+        fin = np.isfinite(dm)
+        span = float(np.nanmax(index.hi[:, 2]) - np.nanmin(index.lo[:, 2])) if len(dm) else 0.0
+        grow = np.where(fin, dm, 2.0 * span + (dm[fin].max() if fin.any() else 0.0))
         rsub = np.asarray(index.radius_max, np.float64).copy()
+        gsub = grow.copy()
         for L in range(1, top + 1):  # children before parents: levels upward
             rows = np.flatnonzero(k[:, 0] == L)
             across, down = g.tiles(L - 1)
@@ -188,8 +199,9 @@ def _tile_tree(terrain: TerrainLike, index: TileIndex):
                                                    * across + np.minimum(cx, across - 1)], -1)
                     ok = child >= 0
                     rsub[rows[ok]] = np.maximum(rsub[rows[ok]], rsub[child[ok]])
-        tree = held["tree"] = (index, table, base, rsub)
-    return tree[1], tree[2], tree[3]
+                    gsub[rows[ok]] = np.maximum(gsub[rows[ok]], gsub[child[ok]])
+        tree = held["tree"] = (index, table, base, rsub, grow, gsub)
+    return tree[1:]
 
 
 def view_active(terrain: TerrainLike, index: TileIndex, view: View, tau: float, *,
@@ -197,14 +209,17 @@ def view_active(terrain: TerrainLike, index: TileIndex, view: View, tau: float, 
     """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex
     (and, with ``occlusion``, not hidden behind nearer terrain); with :data:`DEPTH` the
     sphere's nearest depth for its distance (:meth:`~geoterrain.core.view.View.terms`),
-    so an inactive vertex moves the picture by at most τ pixels."""
+    so an inactive vertex moves the picture by at most τ pixels. A vertex is culled only
+    when its sphere moved up or down by its δ lies outside a frustum plane
+    (:func:`~geoterrain.lod.kernels.fill_lp`), so a culled vertex's samples are not drawn
+    inside the picture either."""
     terms = view.terms(tau, depth=DEPTH)
     dm = index.delta_max
     floor = np.empty(len(dm))
     status = np.zeros(len(dm), np.uint8)
-    table, base, rsub = _tile_tree(terrain, index)
+    table, base, rsub, grow, gsub = _tile_tree(terrain, index)
     lp_tiles_walk(TileTree(table, base, terrain.grid.top_level, index.lo, index.hi), dm,
-                  index.radius_max, rsub, terms, floor, status)
+                  index.radius_max, rsub, grow, gsub, terms, floor, status)
     # a tile whose spheres all lie behind nearer terrain refines nothing (nor is read)
     rows = np.flatnonzero(status)
     hidden = hidden_rows(terrain, view, index.radius_max, rows=rows, enabled=occlusion)

@@ -515,12 +515,14 @@ def picture_displacement(
     camera (:func:`picture_coordinates`; ``view`` has ``look_from``, ``look_at``,
     ``up``, ``fov_y_deg``, ``size`` and the frustum ``planes``): at its true height and
     at the mesh's height there (the lowest and the highest where triangles disagree),
-    and the distance between the two pictures is its displacement. Samples whose true
-    point lies inside the frustum count (as in :func:`screen_space_error`; a culled
-    vertex's samples just outside it may be drawn just inside). This is what a planar
-    picture shows,
-    independent of any bound's formula (LP's ρ divides by the distance to the eye, the
-    picture by the depth).
+    and the distance between the two pictures is its displacement. A sample counts when
+    its true point or its drawn point (either height) lies inside the frustum: every
+    sample the picture shows, at its place or at a wrong one (a sample just outside
+    the frustum drawn just inside counts, as a culled vertex's could be;
+    :func:`screen_space_error` counts only the first kind). ``n_uncovered``: valid
+    samples whose true point is inside and that no triangle covers. This is what a
+    planar picture shows, independent of any bound's formula (LP's ρ divides by the
+    distance to the eye, the picture by the depth).
 
     Examples
     --------
@@ -541,7 +543,11 @@ def picture_displacement(
     X, Y, Z, _, inside = _in_frustum(X, Y, Z, valid, planes, view.look_from)
     ok = np.isfinite(Z)
     lo, hi = mesh_height_range_on_grid(vertices_ij, faces, vertex_z, Z.shape)
-    sel = ok & inside & np.isfinite(lo)
+    drawn = ok & np.isfinite(lo) if valid is None else ok & np.isfinite(lo) & valid
+    shown = inside.copy()
+    for zm in (lo, hi):  # drawn inside the frustum from outside it
+        shown |= _in_frustum(X, Y, zm, drawn, planes, view.look_from)[4]
+    sel = drawn & shown
     x, y = X[sel], Y[sel]
     cam = (view.look_from, view.look_at, view.up, view.fov_y_deg, view.size)
     c0, r0, _ = picture_coordinates(x, y, Z[sel], *cam)

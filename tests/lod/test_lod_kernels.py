@@ -158,13 +158,13 @@ def test_the_tile_walk_equals_testing_every_tile(tmp_path_factory, az, el, dist,
     index = tile_index(t)
     n = len(index.keys)
     f1, f2 = np.empty(n), np.empty(n)
-    ref = kernels.lp_tiles(index.lo, index.hi, index.delta_max, index.radius_max,
+    table, base, rsub, grow, gsub = rtin._tile_tree(t, index)
+    ref = kernels.lp_tiles(index.lo, index.hi, index.delta_max, index.radius_max, grow,
                            v.terms(tau, depth), f1)
     got = np.zeros(n, np.uint8)
-    table, base, rsub = rtin._tile_tree(t, index)
     tree = TileTree(table, base, t.grid.top_level, index.lo, index.hi)
-    visited = kernels.lp_tiles_walk(tree, index.delta_max, index.radius_max, rsub,
-                                    v.terms(tau, depth), f2, got)
+    visited = kernels.lp_tiles_walk(tree, index.delta_max, index.radius_max, rsub, grow,
+                                    gsub, v.terms(tau, depth), f2, got)
     np.testing.assert_array_equal(got, ref)
     on = ref > 0
     np.testing.assert_array_equal(f2[on], f1[on])

@@ -13,6 +13,8 @@ from geoterrain.testing.measure import (
     VerticalError,
     mesh_height_range_on_grid,
     mesh_heights_on_grid,
+    picture_coordinates,
+    picture_displacement,
     screen_space_error,
     vertical_error,
     vertical_error_polydata,
@@ -326,3 +328,31 @@ def test_two_million_triangles_on_4097_grid() -> None:
     zmesh, covered = mesh_heights_on_grid(vij, faces, vz, (N, N))
     assert covered.all()
     np.testing.assert_allclose(zmesh[vij[:, 0], vij[:, 1]], vz, atol=1e-9)
+
+
+@pytest.mark.fast
+def test_picture_displacement_counts_samples_drawn_in_from_outside() -> None:
+    """A sample whose true point is outside the frustum but whose drawn point is inside
+    is in the picture: it counts, with its displacement; one outside at both heights
+    does not."""
+    from types import SimpleNamespace
+
+    N = 9
+    i, j = np.mgrid[0:N, 0:N].astype(float)
+    X, Y, Z = j * 10.0, -i * 10.0, np.full((N, N), -1.0)  # every true point at z = −1
+    vij, faces = uniform_mesh(N, 1)
+    vz = np.full(len(vij), -1.0)
+    lifted = vij[:, 1] >= 5  # drawn at z = 0 from column 5 on
+    vz[lifted] = 0.0
+    planes = ALL_INSIDE.copy()
+    planes[0] = [0.0, 0.0, 1.0, 0.5]  # inside when z >= −0.5: no true point is
+    cam = SimpleNamespace(look_from=(40.0, -40.0, 200.0), look_at=(40.0, -40.0, 0.0),
+                          up=(0.0, 1.0, 0.0), fov_y_deg=60.0, size=(400, 400), planes=planes)
+    e, disp = picture_displacement(vij, faces, vz, X, Y, Z, None, cam, per_sample=True)
+    shown = j >= 5  # column 4 is drawn at −1 (its triangles reach column 5 only at it)
+    assert e.n_samples == int(shown.sum()) and e.n_uncovered == 0
+    view = (cam.look_from, cam.look_at, cam.up, cam.fov_y_deg, cam.size)
+    c0, r0, _ = picture_coordinates(X[shown], Y[shown], Z[shown], *view)
+    c1, r1, _ = picture_coordinates(X[shown], Y[shown], np.zeros(int(shown.sum())), *view)
+    np.testing.assert_allclose(np.sort(disp), np.sort(np.hypot(c1 - c0, r1 - r0)))
+    assert e.max > 0.0
