@@ -86,7 +86,7 @@ class Surface:
     """The padded grid's samples: source ``heights`` (NaN = nodata) and ``valid``, scene
     ``X``, ``Y`` and, once quantised, the decoded scene heights ``Z`` with the quantizer
     ``q``, their range (source units) and, with residual bins, the height blobs already
-    coded."""
+    coded. ``Z`` may be ``heights`` itself (:func:`quantise`): neither is written after."""
 
     heights: np.ndarray
     valid: np.ndarray
