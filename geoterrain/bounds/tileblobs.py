@@ -42,7 +42,14 @@ from geoterrain.bounds.ownguess import (
     top_edge_payload_own,
     top_payload_own,
 )
-from geoterrain.bounds.radii import _proxy_positions, _radii_nb, _walk_up, code_lut_nb, prefix_codes
+from geoterrain.bounds.radii import (
+    _proxy_positions,
+    _radii_nb,
+    _walk_up,
+    code_lut_nb,
+    prefix_codes,
+    valid_range,
+)
 from geoterrain.bounds.vertexdata import (
     CENTRES,
     DIFF,
@@ -266,7 +273,10 @@ def radius_codes(x: np.ndarray, y: np.ndarray, z: np.ndarray, valid: np.ndarray,
         r = np.empty((0, 0), np.float32)
         span = [np.nanmax(c) - np.nanmin(c) for c in (xp[[0, -1]][:, [0, -1]],
                                                       yp[[0, -1]][:, [0, -1]])]
-        peak = float(np.hypot(*span) + np.nanmax(zp) - np.nanmin(zp))
+        # zp's range is the valid heights' (its stand-ins lie inside it): one compiled
+        # pass on both cores, not numpy's nanmax and nanmin
+        lo, hi, nz = valid_range(z, valid)
+        peak = float(np.hypot(*span) + (hi if nz else 0.0) - (lo if nz else 0.0))
         e = log8_exponent(np.array([peak])) + 2
     else:
         r = np.ascontiguousarray(radius, np.float32)

@@ -46,13 +46,15 @@ from geoterrain.preprocessing.surface import Dem, Surface, VertexBounds
 
 @dataclass
 class TileBlobs:
-    """Every stored tile's blobs by kind, its tile-table row, and the tiles with a
-    second δ (``edge_max``)."""
+    """Every stored tile's blobs by kind, its tile-table row, the tiles with a second δ
+    (``edge_max``), and the height standing in for invalid samples
+    (:func:`geoterrain.bounds.radii.stand_in_z`, the store's ``stand_in_z``)."""
 
     heights: dict
     extra: dict[str, dict]
     tile_rows: dict
     edge_max: list
+    stand_in: float = 0.0
 
 
 def tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict,
@@ -180,7 +182,7 @@ def _tile_blobs(dem: Dem, s: Surface, b: VertexBounds, tiles: dict, normal_maps:
         _pooled_levels(ctx, stored, extra, tile_rows, edge_max, edges, pending, stored_set,
                        hand_on)
     hand_on(True)
-    return TileBlobs(height_blobs(), extra, tile_rows, edge_max)
+    return TileBlobs(height_blobs(), extra, tile_rows, edge_max, stand_in)
 
 
 def _lattice(c: _Level, L: int) -> tuple | None:

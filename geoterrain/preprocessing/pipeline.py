@@ -26,10 +26,9 @@ from geoterrain.bounds.edgepad import (
 )
 from geoterrain.bounds.normalbytes import NORMAL_BITS
 from geoterrain.bounds.normals import level_normal_codes, ring_normal_codes
-from geoterrain.bounds.radii import stand_in_z
 from geoterrain.bounds.tilebounds import tile_and_block_errors
 from geoterrain.core.grid import footprint_counts
-from geoterrain.core.memory import available_memory, small_pages
+from geoterrain.core.memory import available_memory, collector_paused, small_pages
 from geoterrain.core.paths import STORE_SUFFIX, input_problem
 from geoterrain.core.progress import Progress, StageClock
 from geoterrain.core.threads import PARALLEL_MIN_SAMPLES, cores_for
@@ -192,7 +191,8 @@ def preprocess(
         log.warning("%s fits the memory limit: preprocessed here, whole; the scheduler %s "
                     "runs a streamed preprocess only (lower --memory-limit to stream it)",
                     req.files[0] if not req.mosaic else "the mosaic", scheduler)
-    with small_pages():  # whole-grid arrays on 4 KiB pages (core/memory.py)
+    # whole-grid arrays on 4 KiB pages; no cyclic collection over the imports meanwhile
+    with small_pages(), collector_paused():  # (core/memory.py)
         stage = StageClock(STAGES, progress, timings)
         # a large grid: numba's first call beside GDAL's decode (a small one runs only
         # the serial twins: nothing more to compile on a first run)
@@ -350,7 +350,7 @@ def _blobs_and_rows(req: Request, dem: Dem, surface: Surface, counts: list[np.nd
                     height_range=surface.height_range,
                     delta_max_finite=delta_max_finite(bounds.delta),
                     edge_max=blobs.edge_max if has_padding(dem.grid) else None,
-                    stand_in_z=stand_in_z(surface.Z, surface.valid),
+                    stand_in_z=blobs.stand_in,  # stand_in_z(surface.Z, surface.valid)
                     block_delta_levels=int(blocks.shape[2]))
         write_rows(store, dem.grid, blobs, blocks, meta, heights=False, rows=False)
     stage("write")

@@ -36,12 +36,13 @@ from geoterrain.ingest.raster import ABSURD_HEIGHT, Raster, read_raster
 from geoterrain.preprocessing.request import Request, place
 
 
-def validate(r: Raster, z_scale: float | None) -> None:
-    """Reject inputs that cannot give a correct store, with a one-line fix."""
+def validate(r: Raster, z_scale: float | None) -> tuple[float, float, int]:
+    """Reject inputs that cannot give a correct store, with a one-line fix; else the
+    valid heights' (min, max) and the count of valid samples."""
     h, w = r.shape
     if h < 2 or w < 2:
         raise InputError(f"{r.path}: grid is {h}×{w}; a DEM needs at least 2×2 samples")
-    nvalid = int(r.valid.sum())
+    nvalid = int(np.count_nonzero(r.valid))
     if nvalid == 0:
         raise InputError(f"{r.path}: every sample is nodata; check the nodata value or the band")
     lo, hi, _ = valid_range(r.heights, r.valid)  # valid samples are finite (raster.py)
@@ -50,6 +51,7 @@ def validate(r: Raster, z_scale: float | None) -> None:
         why = f"{r.path}: heights reach {peak:.3g}, beyond ±{ABSURD_HEIGHT:.0e}; if they are real "
         raise InputError(why + "pass z_scale (e.g. 1), else set the right nodata or unit",
                          cli=why + "pass --z-scale (e.g. 1), else set the right nodata or unit")
+    return lo, hi, nvalid
 
 
 @dataclass
@@ -71,12 +73,12 @@ def read_dem(req: Request, *, band: int | None, encoding: str, nodata: float | N
     crs, resolution, resampling and priority), and its frame (pyproj) and padded grid."""
     r = read_raster(req.files if req.mosaic else req.src, band=band, encoding=encoding,
                     nodata=nodata, **(merge or {}))
-    validate(r, z_scale)
+    lo, hi, nvalid = validate(r, z_scale)  # one pass over the heights for both checks
     r.transform, r.crs_wkt, frame, grid = place(req, r.shape, r.transform, r.crs_wkt,
                                                 tile=tile, pixel_size=pixel_size,
                                                 z_units=z_units, z_scale=z_scale, label=r.path)
-    frame.check_scene(grid.whole_shape, *valid_range(r.heights, r.valid)[:2])
-    return Dem(r, frame, grid, int(np.count_nonzero(r.valid)))
+    frame.check_scene(grid.whole_shape, lo, hi)
+    return Dem(r, frame, grid, nvalid)
 
 
 @dataclass
@@ -84,7 +86,7 @@ class Surface:
     """The padded grid's samples: source ``heights`` (NaN = nodata) and ``valid``, scene
     ``X``, ``Y`` and, once quantised, the decoded scene heights ``Z`` with the quantizer
     ``q``, their range (source units) and, with residual bins, the height blobs already
-    coded."""
+    coded. ``Z`` may be ``heights`` itself (:func:`quantise`): neither is written after."""
 
     heights: np.ndarray
     valid: np.ndarray
@@ -121,6 +123,7 @@ def quantise(dem: Dem, s: Surface, codec_error: float | None) -> Surface:
     r = dem.raster
     q = choose_quantizer(s.heights, r.src_dtype, codec_error=codec_error, scale=r.scale,
                          offset=r.offset)
+    factor = float(dem.frame.z_to_m * dem.frame.z_scale)  # Frame.z's
     height_blobs = None
     if q.bins > 1:  # residual bins: the heights depend on the pyramid, coded here once
         height_blobs, codes = encode_decoded(s.heights, s.valid, dem.grid.t, q,
@@ -129,11 +132,17 @@ def quantise(dem: Dem, s: Surface, codec_error: float | None) -> Surface:
         Z = codes_to_heights(codes, q)
         del codes
         Z[~s.valid] = np.nan
+    elif q.mode == "float" and factor == 1.0:
+        # the bit-exact float quantizer decodes each valid height to itself (a float32
+        # one only where every height is a float32: choose_quantizer), and pad() left
+        # NaN elsewhere: the heights, shared read-only (no whole-grid copy, no pass)
+        Z = s.heights
     else:
         Z = decoded_heights(s.heights, s.valid, q)  # NaN where invalid
     lo, hi = numpy_range(Z, s.valid)  # as numpy's min and max give them, as stored
     height_range = [float(lo), float(hi)]
-    Z = dem.frame.z(Z, out=Z)  # scene metres, in place
+    if factor != 1.0:  # x · 1.0 is x: no pass
+        Z = dem.frame.z(Z, out=Z)  # scene metres, in place (never the shared heights)
     return Surface(s.heights, s.valid, s.X, s.Y, Z, q, height_range, height_blobs)
 
 
