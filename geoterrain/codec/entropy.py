@@ -660,7 +660,7 @@ def decode_top(data, te, cubic, kind, W=1, filled=False, edges=False):
 # The decoders run a twin of the coder's chain: the same functions (their code objects),
 # compiled again with globals that name the twins, where the per-decision helpers
 # ``_code``, ``_bit`` and ``_direct`` are calls, not ``inline="always"``: numba types and
-# lowers each once, not at each of its call sites (the twin's first compile about 1.5 s
+# lowers each once, not at each of its call sites (the decoders' first compile about 2 s
 # shorter; LLVM still inlines the small decoding paths). The encoder keeps them inlined
 # (as calls its larger ``_bit`` made encoding 1.9x slower). Same code, same codes.
 _DEC_CALLS = ("_code", "_bit", "_direct")

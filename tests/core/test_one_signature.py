@@ -177,7 +177,7 @@ def test_the_stream_check_and_the_field_error_compile_once():
     d.take(np.array([0, 5, 255], np.int64))
     d.check()
     sigs = entropy._canonical.signatures
-    assert len(sigs) == 1 and not sigs[0][0].readonly, sigs
+    assert len(sigs) == 1 and sigs[0][0].mutable, sigs
     row = np.linspace(0.0, 1.0, 5)
     H = np.zeros((2, 2, 8))
     V = np.zeros((2, 2, 8))
