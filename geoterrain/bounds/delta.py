@@ -577,7 +577,8 @@ def _field_lines(row, i, j0, s, di, main, b1, g1, b2, g2, lines):
             hk[j0 + dj] = max(hk[j0 + dj], _field_err(row[dj], b1, g1, b2, g2, dj, cut))
     if (j0 & m) == 0:
         l0 = j0 // cpt
-        V[par, l0, i] = max(V[par, l0, i], _field_err(row[0], b1, g1, b2, g2, 0, cut))
+        V[par, l0, i] = max(V[par, l0, i], _field_err(row[0], b1, g1, b2, g2, np.int64(0),
+                                                       cut))  # int64: one signature
     if ((j0 + s) & m) == 0:
         l1 = (j0 + s) // cpt
         V[par, l1, i] = max(V[par, l1, i], _field_err(row[s], b1, g1, b2, g2, s, cut))

@@ -276,7 +276,11 @@ def _level_part(c: _Level, L: int, keys: list, lattice: tuple | None
         if c.ring_residual:  # each ring as its difference from the reader's derived map
             sl = np.s_[::1 << L, ::1 << L]
             txy = [(x, y) for _, x, y in keys]
-            guess_n = ring_guesses(grid, c.frame, L, txy, Z[sl], valid[sl],
+            # a level above 0 copied C-contiguous, as level 0 and the streaming
+            # windows are: one compiled layout of the ring guess's kernel
+            zl, vl = (Z, valid) if L == 0 else (np.ascontiguousarray(Z[sl]),
+                                                 np.ascontiguousarray(valid[sl]))
+            guess_n = ring_guesses(grid, c.frame, L, txy, zl, vl,
                                    np.array([(y << grid.t, x << grid.t) for x, y in txy],
                                             np.int64).reshape(-1, 2))
         blobs["normals"] = ring_blobs(c.normal_maps[L], grid.t,

@@ -224,12 +224,13 @@ def _normals_nb(x, y, z, v, horn, out):  # pragma: no cover - compiled
                 continue
             # the axis an int64, not a literal: one compilation of each helper for
             # both axes (LLVM still folds it where it inlines them)
+            # z[:, :]: an 'A' view, as _ring_guess_nb's tile views (one _tangent_nb)
             if horn:
-                jx, jy, jz, hj = _horn_nb(x, y, z, v, i, j, np.int64(1))
-                ix, iy, iz, hi = _horn_nb(x, y, z, v, i, j, np.int64(0))
+                jx, jy, jz, hj = _horn_nb(x, y, z[:, :], v, i, j, np.int64(1))
+                ix, iy, iz, hi = _horn_nb(x, y, z[:, :], v, i, j, np.int64(0))
             else:
-                jx, jy, jz, hj = _tangent_nb(x, y, z, v, i, j, np.int64(1))
-                ix, iy, iz, hi = _tangent_nb(x, y, z, v, i, j, np.int64(0))
+                jx, jy, jz, hj = _tangent_nb(x, y, z[:, :], v, i, j, np.int64(1))
+                ix, iy, iz, hi = _tangent_nb(x, y, z[:, :], v, i, j, np.int64(0))
             if not (hi or hj):
                 continue
             if hj and not hi:  # missing tangent: horizontal, perpendicular to the other
