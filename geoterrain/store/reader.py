@@ -284,15 +284,7 @@ class StoreReader:
         def read():
             row = self.con.execute("SELECT data, crc32 FROM blobs WHERE rowid = ?",
                                    (rowid,)).fetchone()
-            if not version:
-                return row, -1
-            if self._snapshot_version is not None:  # no commit can come in between
-                return row, self._snapshot_version
-            with self._lock:
-                v = int(self.con.execute("PRAGMA data_version").fetchone()[0])
-                if self._snapshot:  # the read above began the snapshot's transaction
-                    self._snapshot_version = v
-                return row, v
+            return row, self._version_after_read(version, began=True)
 
         try:
             row, ver = self.meter.call(read)
@@ -306,6 +298,21 @@ class StoreReader:
         if not isinstance(data, bytes) or blob_crc(key, kind, data) != crc:
             raise self._damaged(f"tile {key} {kind}")
         return data, ver
+
+    def _version_after_read(self, version: bool, began: bool) -> int:
+        """The :meth:`version` read right after a blob query, inside the same metered call
+        (−1 unless ``version``). Inside a :meth:`snapshot` it is read once, by the query
+        that began the snapshot's transaction (``began``): no commit can come in between
+        after that."""
+        if not version:
+            return -1
+        if self._snapshot_version is not None:  # no commit can come in between
+            return self._snapshot_version
+        with self._lock:
+            v = int(self.con.execute("PRAGMA data_version").fetchone()[0])
+            if self._snapshot and began:  # the read above began the snapshot's transaction
+                self._snapshot_version = v
+            return v
 
     def get_blobs(self, items: Sequence[tuple[tuple[int, int, int], str]],
                   version: bool = False) -> tuple[list[bytes | None], int]:
@@ -343,15 +350,7 @@ class StoreReader:
                 got = self.con.execute(
                     f"SELECT rowid, data, crc32 FROM blobs WHERE rowid IN "
                     f"({','.join('?' * len(part))})", part).fetchall() if part else []
-                if not version:
-                    return got, -1
-                if self._snapshot_version is not None:  # no commit can come in between
-                    return got, self._snapshot_version
-                with self._lock:
-                    v = int(self.con.execute("PRAGMA data_version").fetchone()[0])
-                    if self._snapshot and part:  # the read above began the snapshot's
-                        self._snapshot_version = v
-                    return got, v
+                return got, self._version_after_read(version, began=bool(part))
 
             try:
                 got, v = self.meter.call(read)
