@@ -3,7 +3,7 @@ they compile.
 
 geoterrain's kernels are numba functions compiled on first use and cached on disk
 (``cache=True``: beside each module, in ``__pycache__``, or under ``NUMBA_CACHE_DIR``).
-A fresh install therefore spends its first minutes compiling. :func:`cold_kernels` finds
+A fresh install therefore spends its first minute or so compiling. :func:`cold_kernels` finds
 the kernels of some stage folders whose cache is missing, from the source files and the
 cache folder alone (nothing is imported or compiled: a few tens of milliseconds), and
 :class:`CompileWatch` counts the compilations as numba reports them
@@ -29,9 +29,13 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1]
-# seconds a kernel takes to compile on a 2-core VM (the demo's first run: measured by
-# benchmarks/bench_first_run.py); the estimate is the count × this
-SECONDS_PER_KERNEL = 1.0
+# seconds a counted kernel takes on a 2-core VM: the demo's commands on an empty cache,
+# 2026-12-07 (a process each, quiet), took 28 s (preprocess, 100 counted), 15 s (mesh,
+# 100), 19 s (render, 120), 7.5 s (export, 90): 70 s for 410 counted, 0.08-0.28 s each
+# (a count includes kernels a command never calls; the whole package's ≈ 250 distinct
+# kernels, nearly all of which the demo compiles, ≈ 0.28 s each); the estimate is the
+# count × this
+SECONDS_PER_KERNEL = 0.25
 # a cached kernel's decorator (a parallel kernel's: core/threads.py; its serial twin
 # compiles in a fork() child only); an inlined one ("always") has no cache of its own
 _DECORATOR = re.compile(r"^@(?:(?:numba\.)?njit|parallel_kernel)\((?=[^)]*cache=True)"
@@ -107,10 +111,12 @@ def cold_kernels(modules: Iterable[str]) -> list[str]:
 
 
 def estimate_seconds(n: int) -> int:
-    """About how long ``n`` kernels take to compile (whole seconds, a multiple of 10 above
-    a minute)."""
+    """About how long ``n`` kernels take to compile (whole seconds, at least 1 when any;
+    a multiple of 10 above a minute)."""
     s = n * SECONDS_PER_KERNEL
-    return int(round(s / 10.0) * 10) if s >= 60 else int(round(s))
+    if s >= 60:
+        return int(round(s / 10.0) * 10)
+    return max(int(round(s)), 1) if n else 0
 
 
 class CompileWatch:

@@ -66,7 +66,7 @@ def test_the_notice_comes_with_a_real_compilation(capsys, monkeypatch):
         stages("write", 1, 2)  # the command's own work: the compile bar gives way
         assert CompileBar.active is None
     err = capsys.readouterr().err
-    assert err.count("compiling kernels (first run only, about 2 s)") == 1
+    assert err.count("compiling kernels (first run only, about 1 s)") == 1
     with CompileBar("preprocess", quiet=True):
         njit(lambda x: x + 3)(1)
     assert "compiling" not in capsys.readouterr().err  # -q: quiet
