@@ -801,44 +801,52 @@ class Bounds:
                           edited=(canvas.r0, canvas.c0, canvas.r1, canvas.c1))
         # the coarse vertices' new codes, as arrays
         cv = np.array(list(self.coarse_d), np.int64).reshape(-1, 2)
-        cd = self.t8[np.array(list(self.coarse_d.values()), np.int64)]
-        cr = self.rt[np.array([self.coarse_r[k] for k in self.coarse_d], np.int64)]
+        cd = np.array(list(self.coarse_d.values()), np.uint8)
+        cr = np.array([self.coarse_r[k] for k in self.coarse_d], np.uint8)
         T = g.tile_samples
-        zero = np.zeros((T, T), np.float64)
+        exact = bool(np.isfinite(self.t8[254]) and np.isfinite(self.rt[254]))
         for key in sorted(need):
             if key not in self.t.tile_info:
                 continue
             kinds, row = need[key]
             L, x, y = key
             span, step = g.tile_span(L), 1 << L
-            rows = y * span + np.arange(T) * step
-            cols = x * span + np.arange(T) * step
-            inside = L == 0 and rows[0] >= self.oi and rows[-1] <= self.i1 and \
-                cols[0] >= self.oj and cols[-1] <= self.j1
+            i0, j0 = y * span, x * span
             # a level-0 tile in the window: its codes are there (none decoded again)
-            if inside and self.known[rows[0] - self.oi, cols[0] - self.oj + 1]:
-                sl = (slice(rows[0] - self.oi, rows[-1] - self.oi + 1),
-                      slice(cols[0] - self.oj, cols[-1] - self.oj + 1))
-                d, r = self.t8[self.dc[sl]], self.rt[self.rc[sl]]
-            else:
+            if L == 0 and i0 >= self.oi and i0 + span <= self.i1 and j0 >= self.oj and \
+                    j0 + span <= self.j1 and self.known[i0 - self.oi, j0 - self.oj + 1]:
+                sl = (slice(i0 - self.oi, i0 + span - self.oi + 1),
+                      slice(j0 - self.oj, j0 + span - self.oj + 1))
+                d, r = self.dc[sl].copy(), self.rc[sl].copy()
+            else:  # the stored codes, the window's where it holds them (slices: its
+                # samples on the tile's lattice are a step apart)
                 want_d = row or "delta" in kinds
                 want_r = row or "radius" in kinds
-                d = self.t.tile_delta(*key).astype(np.float64) if want_d else zero.copy()
-                r = self.t.tile_radius(*key).astype(np.float64) if want_r else zero.copy()
-                ii, jj = np.meshgrid(rows, cols, indexing="ij")
-                inw = (ii >= self.oi) & (ii <= self.i1) & (jj >= self.oj) & (jj <= self.j1)
-                inw[inw] = self.known[ii[inw] - self.oi, jj[inw] - self.oj]
-                if inw.any():
-                    d[inw] = self.t8[self.dc[ii[inw] - self.oi, jj[inw] - self.oj]]
-                    r[inw] = self.rt[self.rc[ii[inw] - self.oi, jj[inw] - self.oj]]
+                d = _codes(self.t8, self.t.tile_delta(*key)) if want_d else \
+                    np.zeros((T, T), np.uint8)
+                r = _codes(self.rt, self.t.tile_radius(*key)) if want_r else \
+                    np.zeros((T, T), np.uint8)
+                a0, a1 = -(-max(self.oi - i0, 0) // step), min(self.i1 - i0, span) // step + 1
+                b0, b1 = -(-max(self.oj - j0, 0) // step), min(self.j1 - j0, span) // step + 1
+                if a0 < a1 and b0 < b1:
+                    w = (slice(i0 + a0 * step - self.oi, i0 + (a1 - 1) * step - self.oi + 1,
+                               step),
+                         slice(j0 + b0 * step - self.oj, j0 + (b1 - 1) * step - self.oj + 1,
+                               step))
+                    kn = self.known[w]
+                    d[a0:a1, b0:b1][kn] = self.dc[w][kn]
+                    r[a0:a1, b0:b1][kn] = self.rc[w][kn]
             # the coarse vertices' codes (the window holds their old ones)
-            di, dj = cv[:, 0] - y * span, cv[:, 1] - x * span
+            di, dj = cv[:, 0] - i0, cv[:, 1] - j0
             on = (di >= 0) & (di <= span) & (dj >= 0) & (dj <= span) & \
                 (di % step == 0) & (dj % step == 0)
             d[di[on] // step, dj[on] // step] = cd[on]
             r[di[on] // step, dj[on] // step] = cr[on]
-            coding = BoundsCoding(d, None, job.ed,
-                                  r_codes=(np.searchsorted(self.rt, r).astype(np.uint8), job.er))
+            # the codes as they are: BoundsCoding's of their table values (each table
+            # strictly increasing, log8_table, where its top finite code is finite)
+            coding = BoundsCoding.of_codes(d, job.ed, r, job.er) if exact else \
+                BoundsCoding(self.t8[d], None, job.ed, r_codes=(_codes(self.rt, self.rt[r]),
+                                                                 job.er))
             # schema 20: δ's blob guessed from the own errors on the tile's edited heights
             h, v = canvas.tile_lattice(L, x, y)
             own = OwnHeights(np.where(v, h * canvas.factor, np.nan), v, self.stand_in)
