@@ -21,6 +21,7 @@ from numba import njit
 
 from geoterrain.bounds.delta import Cell
 from geoterrain.bounds.log8codes import log8_exponent, log8_table
+from geoterrain.bounds.ownguess import own_codes, pred_payload_same
 from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs
 from geoterrain.bounds.tilebounds import closed_blocks
 from geoterrain.bounds.vertexdata import shaped_zstd_level
@@ -824,6 +825,7 @@ class Bounds:
                 want_r = row or "radius" in kinds
                 d = _codes(self.t8, self.t.tile_delta(*key)) if want_d else \
                     np.zeros((T, T), np.uint8)
+                d_old = d.copy()
                 r = _codes(self.rt, self.t.tile_radius(*key)) if want_r else \
                     np.zeros((T, T), np.uint8)
                 a0, a1 = -(-max(self.oi - i0, 0) // step), min(self.i1 - i0, span) // step + 1
@@ -850,6 +852,10 @@ class Bounds:
             # schema 20: δ's blob guessed from the own errors on the tile's edited heights
             h, v = canvas.tile_lattice(L, x, y)
             own = OwnHeights(np.where(v, h * canvas.factor, np.nan), v, self.stand_in)
+            if 0 < L < g.top_level and "delta" in kinds and self._pred_kept(key, d_old, d, own):
+                kinds = tuple(k for k in kinds if k != "delta")  # its bytes stay
+                if not kinds and not row:
+                    continue
             blobs, dm, rm = level_blobs(coding, np.zeros((T, T, 2), np.uint8), g.t, 0,
                                         0 if L == g.top_level else 1, [(0, 0)], kinds,
                                         ring=L == 0 and job.derive_bounds,
@@ -859,6 +865,21 @@ class Bounds:
                 job.put(key, kind, blobs[kind][(0, 0, 0)])
             if row:
                 job.set_row(key, delta_max=float(dm[0]), radius_max=float(rm[0]))
+
+
+    def _pred_kept(self, key, d_old: np.ndarray, d: np.ndarray, own: OwnHeights) -> bool:
+        """Whether a δ blob below the top and above level 0 (schema 20's ``PRED`` with
+        ``SLACK``, or ``CENTRES``) keeps its bytes: decided from its inputs before coding
+        it (:func:`~geoterrain.bounds.ownguess.pred_payload_same`: the stored codes
+        ``d_old`` and own errors of the tile's stored heights against the new ones). An
+        edit's reach names such blobs where a corner of a cell changed (its centre's
+        prediction may not) or the heights under them (their own errors may not)."""
+        tl = self.t.tile(*key)
+        f, e = self.c.factor, self.job.ed
+        lo_old = own_codes(np.where(tl.valid, tl.heights * f, np.nan), tl.valid,
+                           self.stand_in, e)[0]
+        lo_new = own_codes(own.z, own.valid, self.stand_in, e)[0]
+        return pred_payload_same(d_old, lo_old, d, lo_new)
 
 
 def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray,
