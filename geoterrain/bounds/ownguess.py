@@ -211,7 +211,8 @@ def pred_payload_same(W0: np.ndarray, lo0: np.ndarray, W1: np.ndarray, lo1: np.n
     """
     W0, W1 = np.asarray(W0, np.uint8), np.asarray(W1, np.uint8)
     lo0, lo1 = np.asarray(lo0, np.uint8), np.asarray(lo1, np.uint8)
-    if W0.shape != W1.shape or lo0.shape != lo1.shape or not np.array_equal(lo0, lo1):
+    if W0.shape != W1.shape or not new_codes_same(W0, W1) or lo0.shape != lo1.shape \
+            or not np.array_equal(lo0, lo1):
         return False
     other = _pred_index(W0.shape[0])[0]
     if not (W0.ravel()[other].any() and W1.ravel()[other].any()):  # CENTRES: not decided
@@ -219,6 +220,22 @@ def pred_payload_same(W0: np.ndarray, lo0: np.ndarray, W1: np.ndarray, lo1: np.n
     r0, g0 = pred_gaps(W0[None], lo0[None])
     r1, g1 = pred_gaps(W1[None], lo1[None])
     return bool(np.array_equal(r0, r1) and np.array_equal(g0, g1))
+
+
+def new_codes_same(W0: np.ndarray, W1: np.ndarray) -> bool:
+    """Whether two (T, T) tiles' new vertices (not on the parent's lattice) hold the same
+    codes: with the same own errors, :func:`pred_gaps`' gaps fix the predictions and its
+    differences then the codes (mod 256), so two payloads :func:`pred_payload_same` calls
+    the same have these equal (a check that needs no own errors).
+
+    Examples
+    --------
+    >>> W = np.zeros((5, 5), np.uint8); V = W.copy(); V[2, 2] = 9  # a corner
+    >>> new_codes_same(W, V), (V.__setitem__((1, 2), 1), new_codes_same(W, V))[1]
+    (True, False)
+    """
+    new = _new_flat(np.shape(W0)[0])
+    return bool(np.array_equal(np.ravel(W0)[new], np.ravel(W1)[new]))
 
 
 def pred_codes_own(corners: np.ndarray, payload: bytes, lo: np.ndarray) -> np.ndarray:

@@ -21,7 +21,7 @@ from numba import njit
 
 from geoterrain.bounds.delta import Cell
 from geoterrain.bounds.log8codes import log8_exponent, log8_table
-from geoterrain.bounds.ownguess import own_codes, pred_payload_same
+from geoterrain.bounds.ownguess import new_codes_same, own_codes, pred_payload_same
 from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs
 from geoterrain.bounds.tilebounds import closed_blocks
 from geoterrain.bounds.vertexdata import shaped_zstd_level
@@ -874,6 +874,8 @@ class Bounds:
         ``d_old`` and own errors of the tile's stored heights against the new ones). An
         edit's reach names such blobs where a corner of a cell changed (its centre's
         prediction may not) or the heights under them (their own errors may not)."""
+        if not new_codes_same(d_old, d):  # a new vertex's code moved: so does the payload
+            return False
         tl = self.t.tile(*key)
         f, e = self.c.factor, self.job.ed
         lo_old = own_codes(np.where(tl.valid, tl.heights * f, np.nan), tl.valid,
