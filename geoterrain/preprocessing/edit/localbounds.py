@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from geoterrain.bounds.delta import Cell
-from geoterrain.bounds.log8codes import log8_exponent, log8_table
+from geoterrain.bounds.log8codes import LOG_STEPS, log8_exponent, log8_table
 from geoterrain.bounds.ownguess import new_codes_same, own_codes, pred_payload_same
 from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs
 from geoterrain.bounds.tilebounds import closed_blocks
@@ -992,9 +992,34 @@ def _read_ahead(t, keys) -> None:
 
 
 def _codes(table: np.ndarray, values) -> np.ndarray | int:
-    """Log8 codes of stored values (each a table entry)."""
-    out = np.searchsorted(table, np.asarray(values, np.float64)).astype(np.uint8)
-    return int(out) if out.ndim == 0 else out
+    """Log8 codes of stored values (each a table entry): ``np.searchsorted(table,
+    values)``, the first entry ≥ each value, for a :func:`log8_table` (float64). The
+    table's law (entry c = 2^(e + (c − 1)/16) rounded up to float32, 0 and +inf at the
+    ends) guesses each code, one step corrects it, and a check of every code against its
+    two entries sends what it misses (a value off the law: NaN) to the binary search:
+    a tile's 4225 values in a third of its time.
+
+    Examples
+    --------
+    >>> t = log8_table(-3).astype(np.float64)
+    >>> v = np.array([0.0, t[1], t[7], np.nextafter(t[7], 0), t[254], 1e30, np.inf, np.nan])
+    >>> _codes(t, v).tolist() == np.searchsorted(t, v).astype(np.uint8).tolist(), _codes(t, t[9])
+    (True, 9)
+    """
+    v = np.asarray(values, np.float64)
+    if v.size < 64 or not table[1] > 0:
+        out = np.searchsorted(table, v).astype(np.uint8)
+        return int(out) if out.ndim == 0 else out
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = np.rint((np.log2(v) - np.log2(table[1])) * LOG_STEPS) + 1.0
+    c = np.clip(np.nan_to_num(g, nan=1.0, posinf=255.0, neginf=0.0), 0, 255).astype(np.intp)
+    c += table[c] < v  # one step each way (the guess is off by at most one)
+    np.minimum(c, 255, out=c)
+    c -= (c > 0) & (table[c - 1] >= v)
+    ok = (table[c] >= v) & ((c == 0) | (table[c - 1] < v))
+    if not ok.all():
+        c = np.searchsorted(table, v)
+    return c.astype(np.uint8)
 
 
 def _bounds(cell: Cell, zc: float, a0: np.ndarray, c0: np.ndarray, S: int, zlo: np.ndarray,
