@@ -188,6 +188,56 @@ def pred_payloads_own(W: np.ndarray, lo: np.ndarray) -> list[bytes]:
     return [bytes([guess_check(lo[n])]) + p for n, p in enumerate(encode_gaps_rows(r, gap))]
 
 
+def pred_payload_same(W0: np.ndarray, lo0: np.ndarray, W1: np.ndarray, lo1: np.ndarray
+                      ) -> bool:
+    """Whether two tiles' schema-20 δ payloads are the same bytes, decided without coding
+    them: tiles ``W0`` and ``W1`` (T, T) of log8 codes, with their :func:`own_codes`
+    ``lo0`` and ``lo1``, both of the ``PRED`` shape (a new vertex off the cell centres
+    not 0: else ``CENTRES``, :func:`geoterrain.bounds.vertexdata.shape_codes`), with the
+    same own-error guess and the same :func:`pred_gaps` (differences and gaps):
+    :func:`pred_payloads_own` is a function of those. False where unsure (another shape).
+
+    Examples
+    --------
+    >>> W = np.random.default_rng(1).integers(1, 256, (5, 5)).astype(np.uint8)
+    >>> lo = np.zeros((5, 5), np.uint8); V = W.copy(); V[0, 0] = 0  # a corner moved
+    >>> same = lambda a, b: pred_payloads_own(a[None], lo[None]) == \\
+    ...     pred_payloads_own(b[None], lo[None])
+    >>> pred_payload_same(W, lo, V, lo), same(W, V)  # the prediction did not move
+    (True, True)
+    >>> V[1, 1] += 1  # a centre moved
+    >>> pred_payload_same(W, lo, V, lo), same(W, V)
+    (False, False)
+    """
+    W0, W1 = np.asarray(W0, np.uint8), np.asarray(W1, np.uint8)
+    lo0, lo1 = np.asarray(lo0, np.uint8), np.asarray(lo1, np.uint8)
+    if W0.shape != W1.shape or not new_codes_same(W0, W1) or lo0.shape != lo1.shape \
+            or not np.array_equal(lo0, lo1):
+        return False
+    other = _pred_index(W0.shape[0])[0]
+    if not (W0.ravel()[other].any() and W1.ravel()[other].any()):  # CENTRES: not decided
+        return False
+    r0, g0 = pred_gaps(W0[None], lo0[None])
+    r1, g1 = pred_gaps(W1[None], lo1[None])
+    return bool(np.array_equal(r0, r1) and np.array_equal(g0, g1))
+
+
+def new_codes_same(W0: np.ndarray, W1: np.ndarray) -> bool:
+    """Whether two (T, T) tiles' new vertices (not on the parent's lattice) hold the same
+    codes: with the same own errors, :func:`pred_gaps`' gaps fix the predictions and its
+    differences then the codes (mod 256), so two payloads :func:`pred_payload_same` calls
+    the same have these equal (a check that needs no own errors).
+
+    Examples
+    --------
+    >>> W = np.zeros((5, 5), np.uint8); V = W.copy(); V[2, 2] = 9  # a corner
+    >>> new_codes_same(W, V), (V.__setitem__((1, 2), 1), new_codes_same(W, V))[1]
+    (True, False)
+    """
+    new = _new_flat(np.shape(W0)[0])
+    return bool(np.array_equal(np.ravel(W0)[new], np.ravel(W1)[new]))
+
+
 def pred_codes_own(corners: np.ndarray, payload: bytes, lo: np.ndarray) -> np.ndarray:
     """A tile's (T, T) log8 codes from its parent's ``corners`` (h + 1, h + 1), its
     schema-20 ``PRED`` payload (:func:`pred_payloads_own`) and its :func:`own_codes`

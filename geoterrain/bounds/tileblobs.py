@@ -178,6 +178,29 @@ class BoundsCoding:
             r = np.asarray(radius, np.float64)[m] * 2.0 ** -self.kr
             self.r16[m] = round_up(r, np.float16)
 
+    @classmethod
+    def of_codes(cls, dc: np.ndarray, ed: int, rc: np.ndarray, er: int) -> BoundsCoding:
+        """The coding whose δ codes are ``dc`` (table ``2^ed``) and r's ``rc`` (``2^er``),
+        uint8, taken as they are: what ``BoundsCoding(log8_table(ed)[dc], None, ed,
+        r_codes=(rc, er))`` codes them to (each table strictly increasing, a value's code
+        the first entry ≥ it), without coding the values again.
+
+        Examples
+        --------
+        >>> dc = np.array([[0, 3], [254, 255]], np.uint8); rc = np.array([[1, 2], [3, 4]], np.uint8)
+        >>> a = BoundsCoding.of_codes(dc, -4, rc, 2)
+        >>> b = BoundsCoding(log8_table(-4)[dc].astype(np.float64), None, -4, r_codes=(rc, 2))
+        >>> np.array_equal(a.dc, b.dc), np.array_equal(a.rc, b.rc), a.r16.shape == b.r16.shape
+        (True, True, True)
+        """
+        self = cls.__new__(cls)
+        self.ed, self.er, self.kr = int(ed), int(er), 0
+        self.rc = np.ascontiguousarray(rc, np.uint8)
+        self.table = log8_table(self.ed)
+        self.dc = np.ascontiguousarray(dc, np.uint8)
+        self.r16 = np.empty((0, 0), np.uint16).view(np.float16)
+        return self
+
     def codes(self) -> CodedBounds:
         """The codes as :class:`CodedBounds`."""
         rlog = self.rc is not None

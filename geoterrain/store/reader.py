@@ -147,6 +147,8 @@ class StoreReader:
         self._lock = threading.Lock()
         self._snapshot = 0  # how deep in snapshot() (one read transaction while > 0)
         self._snapshot_version: int | None = None  # data_version read inside it
+        # (key, kind) → blob read ahead inside the snapshot (read_ahead), taken once
+        self._ahead: dict[tuple[tuple[int, int, int], str], bytes] = {}
 
     def _open(self) -> None:
         # the schema, the catalog's two rows, the metadata: every check of opening
@@ -277,6 +279,10 @@ class StoreReader:
         (True, True)
         >>> r.close()
         """
+        if self._ahead:  # read ahead in this snapshot (its version holds for it)
+            data = self._ahead.pop((key, kind), None)
+            if data is not None:
+                return data, self._version_after_read(version, began=False)
         rowid = self._rowid_of(blob_key(key, kind))
         if rowid is None:
             return None, self.version() if version else -1
@@ -373,6 +379,37 @@ class StoreReader:
         self.blob_reads += len(want)
         self._payload_bytes += sum(len(d) for d, _ in rows.values() if isinstance(d, bytes))
         return out, ver
+
+    def read_ahead(self, items: Sequence[tuple[tuple[int, int, int], str]]) -> int:
+        """Inside a :meth:`snapshot`: the blobs of ``items`` not yet read ahead, read now
+        by :meth:`get_blobs` (one query a :data:`BATCH`, each checksum verified, the I/O
+        counters looked at once) and kept until :meth:`get_blob_version` asks for them
+        (each once) or the snapshot ends; its version holds for them (no commit comes in
+        between). Returns how many were kept; outside a snapshot nothing is read (0).
+
+        Examples
+        --------
+        >>> r = StoreReader(t.path)
+        >>> with r.snapshot():
+        ...     r.read_ahead([((0, 0, 0), "delta"), ((0, 1, 0), "delta")])
+        ...     reads = r.blob_reads
+        ...     blob, v = r.get_blob_version((0, 0, 0), "delta")
+        ...     r.blob_reads == reads, v == r.version()
+        2
+        (True, True)
+        >>> blob == r.get_blob((0, 0, 0), "delta"), r.read_ahead([((0, 0, 0), "delta")])
+        (True, 0)
+        >>> r.close()
+        """
+        if not self._snapshot:
+            return 0
+        want = list(dict.fromkeys(it for it in items if it not in self._ahead))
+        if not want:
+            return 0
+        blobs, _ = self.get_blobs(want, version=True)  # begins the snapshot's reads
+        kept = {it: b for it, b in zip(want, blobs, strict=True) if b is not None}
+        self._ahead.update(kept)
+        return len(kept)
 
     def tiles(self) -> dict[tuple[int, int, int], dict]:
         """Every stored tile's numbers, checksum-verified, checked against the tile counts.
@@ -502,6 +539,7 @@ class StoreReader:
                 self._snapshot -= 1
                 if self._snapshot == 0:
                     self._snapshot_version = None
+                    self._ahead.clear()
                     self.meter.call(lambda: self.con.execute("COMMIT"))
 
     def version(self) -> int:

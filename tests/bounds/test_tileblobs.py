@@ -299,3 +299,26 @@ def test_a_small_grids_store_holds_its_shaped_payloads_at_zstd_15(tmp_path):
             differ += blob != compress_one(raw, 11)
     r.close()
     assert seen and differ, (seen, differ)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), ed=st.integers(-40, 60), er=st.integers(-40, 60),
+       t=st.integers(1, 4), top=st.integers(0, 2), ring=st.booleans())
+def test_a_coding_of_codes_is_the_coding_of_their_values(seed, ed, er, t, top, ring):
+    """``BoundsCoding.of_codes`` (an edit's codes taken as they are) holds the codes that
+    coding their table values gives, and level_blobs makes the same blobs and maxima
+    from it."""
+    rng = np.random.default_rng(seed)
+    T = (1 << t) + 1
+    dc = rng.integers(0, 256, (T, T)).astype(np.uint8)
+    rc = rng.integers(0, 255, (T, T)).astype(np.uint8)
+    a = BoundsCoding.of_codes(dc, ed, rc, er)
+    b = BoundsCoding(log8_table(ed)[dc].astype(np.float64), None, ed, r_codes=(rc, er))
+    assert np.array_equal(a.dc, b.dc) and np.array_equal(a.rc, b.rc)
+    assert (a.ed, a.er, a.kr) == (b.ed, b.er, b.kr) and a.r16.shape == b.r16.shape
+    nrm = np.zeros((T, T, 2), np.uint8)
+    ring = ring and top > 0  # level 0 below the top: RING blobs, else PRED or CENTRES
+    got = level_blobs(a, nrm, t, 0, top, [(0, 0)], ("delta", "radius"), ring=ring)
+    want = level_blobs(b, nrm, t, 0, top, [(0, 0)], ("delta", "radius"), ring=ring)
+    assert got[0] == want[0]
+    assert np.array_equal(got[1], want[1]) and np.array_equal(got[2], want[2])

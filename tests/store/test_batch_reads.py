@@ -14,7 +14,7 @@ from geoterrain.core import osreads
 from geoterrain.exceptions import StoreCorruptError
 from geoterrain.ingest.synth import generate, write_geotiff
 from geoterrain.store import reader as reader_mod
-from geoterrain.store.keys import BLOB_KINDS
+from geoterrain.store.keys import BLOB_KINDS, blob_key
 from geoterrain.store.reader import StoreReader
 from tests.store.storesql import delete_blob, read_blob, update_blob
 
@@ -184,3 +184,58 @@ def test_a_commit_between_two_queries_is_seen_in_the_version(store, tmp_path, mo
             t.tiles(keys)
     finally:
         t.close()
+
+
+@settings(max_examples=30, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(ahead=st.lists(st.tuples(st.integers(0, 10 ** 6), st.sampled_from(BLOB_KINDS)),
+                      max_size=20),
+       asked=st.lists(st.tuples(st.integers(0, 10 ** 6), st.sampled_from(BLOB_KINDS)),
+                      max_size=20),
+       version=st.booleans())
+def test_blobs_read_ahead_are_those_single_reads_give(store, keys, ahead, asked, version):
+    """Inside a snapshot, blobs read ahead (any keys, stored or not, repeated) are given
+    as single reads give them, with the same version, without another query; each once
+    (asked again, it is read again). Outside a snapshot nothing is read ahead."""
+    pick = [(keys[i % len(keys)], kind) for i, kind in ahead]
+    want_items = [(keys[i % len(keys)], kind) for i, kind in asked]
+    r = StoreReader(store)
+    try:
+        want = [r.get_blob_version(*k, version) for k in want_items]
+        seen = _selects(r.con)
+        assert r.read_ahead(pick) == 0 and not seen  # no snapshot: nothing
+        with r.snapshot():
+            kept = r.read_ahead(pick)
+            stored = {k for k in pick if r._rowid_of(blob_key(*k)) is not None}
+            assert kept == len(stored) and len(seen) == (1 if stored else 0)
+            got, taken = [], set()
+            for k in want_items:
+                n = len(seen)
+                got.append(r.get_blob_version(*k, version))
+                fresh = k in stored and k not in taken
+                assert len(seen) == n + (0 if fresh or got[-1][0] is None else 1)
+                taken.add(k)
+        assert got == want
+    finally:
+        r.close()
+
+
+def test_blobs_read_ahead_are_dropped_when_the_snapshot_ends(store, tmp_path):
+    """A blob read ahead and not asked for is not kept past its snapshot: another
+    connection's commit afterwards is read, not the blob read ahead."""
+    p = tmp_path / "a.geoterrain"
+    shutil.copy(store, p)
+    r = StoreReader(p)
+    try:
+        key = (0, 1, 0)
+        with r.snapshot():
+            assert r.read_ahead([(key, "normals"), ((0, 2, 0), "normals")]) == 2
+        con = sqlite3.connect(p)
+        data, = read_blob(con, (*key, "normals"))
+        update_blob(con, (*key, "normals"), data=data + b"\0")
+        con.commit()
+        con.close()
+        with pytest.raises(StoreCorruptError):  # the new row (its checksum not updated)
+            r.get_blob(key, "normals")
+    finally:
+        r.close()

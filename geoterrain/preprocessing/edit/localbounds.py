@@ -20,7 +20,8 @@ import numpy as np
 from numba import njit
 
 from geoterrain.bounds.delta import Cell
-from geoterrain.bounds.log8codes import log8_exponent, log8_table
+from geoterrain.bounds.log8codes import LOG_STEPS, log8_exponent, log8_table
+from geoterrain.bounds.ownguess import new_codes_same, own_codes, pred_payload_same
 from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs
 from geoterrain.bounds.tilebounds import closed_blocks
 from geoterrain.bounds.vertexdata import shaped_zstd_level
@@ -205,23 +206,29 @@ class Bounds:
                                     _codes(self.rt, t.tile_radius(*key)))
             return got
 
+        plan = []  # (the tile's slice of the window, its key, the level it is read from)
         for ty in range(self.oi // S, self.i1 // S):
             dy = max(c.r0 - (ty * S + S), ty * S - (c.r1 - 1), 0)
             for tx in range(self.oj // S, self.j1 // S):
-                key = (0, tx, ty)
-                if key not in t.tile_info:
+                if (0, tx, ty) not in t.tile_info:
                     raise _Whole("nodata tiles beside the edit")
                 sl = (slice(ty * S - self.oi, ty * S - self.oi + S + 1),
                       slice(tx * S - self.oj, tx * S - self.oj + S + 1))
                 d = max(dy, c.c0 - (tx * S + S), tx * S - (c.c1 - 1))
-                if whole or d <= 8:
-                    self.dc[sl] = _codes(self.t8, t.tile_delta(*key))
-                    self.rc[sl] = _codes(self.rt, t.tile_radius(*key))
-                    self.known[sl] = True
-                    continue
-                k = 1
-                while k < kmax and d > 8 << k:
-                    k += 1
+                k = 0
+                if not (whole or d <= 8):
+                    k = 1
+                    while k < kmax and d > 8 << k:
+                        k += 1
+                plan.append((sl, (0, tx, ty), k))
+        _read_ahead(t, {(k, key[1] >> k, key[2] >> k) for _, key, k in plan})
+        for sl, key, k in plan:
+            _, tx, ty = key
+            if k == 0:
+                self.dc[sl] = _codes(self.t8, t.tile_delta(*key))
+                self.rc[sl] = _codes(self.rt, t.tile_radius(*key))
+                self.known[sl] = True
+            else:
                 m, part = 1 << k, S >> k  # the level-k tile's samples over this tile: part + 1
                 q = (slice((ty % m) * part, (ty % m) * part + part + 1),
                      slice((tx % m) * part, (tx % m) * part + part + 1))
@@ -795,47 +802,60 @@ class Bounds:
                           edited=(canvas.r0, canvas.c0, canvas.r1, canvas.c1))
         # the coarse vertices' new codes, as arrays
         cv = np.array(list(self.coarse_d), np.int64).reshape(-1, 2)
-        cd = self.t8[np.array(list(self.coarse_d.values()), np.int64)]
-        cr = self.rt[np.array([self.coarse_r[k] for k in self.coarse_d], np.int64)]
+        cd = np.array(list(self.coarse_d.values()), np.uint8)
+        cr = np.array([self.coarse_r[k] for k in self.coarse_d], np.uint8)
         T = g.tile_samples
-        zero = np.zeros((T, T), np.float64)
+        exact = bool(np.isfinite(self.t8[254]) and np.isfinite(self.rt[254]))
         for key in sorted(need):
             if key not in self.t.tile_info:
                 continue
             kinds, row = need[key]
             L, x, y = key
             span, step = g.tile_span(L), 1 << L
-            rows = y * span + np.arange(T) * step
-            cols = x * span + np.arange(T) * step
-            inside = L == 0 and rows[0] >= self.oi and rows[-1] <= self.i1 and \
-                cols[0] >= self.oj and cols[-1] <= self.j1
+            i0, j0 = y * span, x * span
             # a level-0 tile in the window: its codes are there (none decoded again)
-            if inside and self.known[rows[0] - self.oi, cols[0] - self.oj + 1]:
-                sl = (slice(rows[0] - self.oi, rows[-1] - self.oi + 1),
-                      slice(cols[0] - self.oj, cols[-1] - self.oj + 1))
-                d, r = self.t8[self.dc[sl]], self.rt[self.rc[sl]]
-            else:
+            if L == 0 and i0 >= self.oi and i0 + span <= self.i1 and j0 >= self.oj and \
+                    j0 + span <= self.j1 and self.known[i0 - self.oi, j0 - self.oj + 1]:
+                sl = (slice(i0 - self.oi, i0 + span - self.oi + 1),
+                      slice(j0 - self.oj, j0 + span - self.oj + 1))
+                d, r = self.dc[sl].copy(), self.rc[sl].copy()
+            else:  # the stored codes, the window's where it holds them (slices: its
+                # samples on the tile's lattice are a step apart)
                 want_d = row or "delta" in kinds
                 want_r = row or "radius" in kinds
-                d = self.t.tile_delta(*key).astype(np.float64) if want_d else zero.copy()
-                r = self.t.tile_radius(*key).astype(np.float64) if want_r else zero.copy()
-                ii, jj = np.meshgrid(rows, cols, indexing="ij")
-                inw = (ii >= self.oi) & (ii <= self.i1) & (jj >= self.oj) & (jj <= self.j1)
-                inw[inw] = self.known[ii[inw] - self.oi, jj[inw] - self.oj]
-                if inw.any():
-                    d[inw] = self.t8[self.dc[ii[inw] - self.oi, jj[inw] - self.oj]]
-                    r[inw] = self.rt[self.rc[ii[inw] - self.oi, jj[inw] - self.oj]]
+                d = _codes(self.t8, self.t.tile_delta(*key)) if want_d else \
+                    np.zeros((T, T), np.uint8)
+                d_old = d.copy()
+                r = _codes(self.rt, self.t.tile_radius(*key)) if want_r else \
+                    np.zeros((T, T), np.uint8)
+                a0, a1 = -(-max(self.oi - i0, 0) // step), min(self.i1 - i0, span) // step + 1
+                b0, b1 = -(-max(self.oj - j0, 0) // step), min(self.j1 - j0, span) // step + 1
+                if a0 < a1 and b0 < b1:
+                    w = (slice(i0 + a0 * step - self.oi, i0 + (a1 - 1) * step - self.oi + 1,
+                               step),
+                         slice(j0 + b0 * step - self.oj, j0 + (b1 - 1) * step - self.oj + 1,
+                               step))
+                    kn = self.known[w]
+                    d[a0:a1, b0:b1][kn] = self.dc[w][kn]
+                    r[a0:a1, b0:b1][kn] = self.rc[w][kn]
             # the coarse vertices' codes (the window holds their old ones)
-            di, dj = cv[:, 0] - y * span, cv[:, 1] - x * span
+            di, dj = cv[:, 0] - i0, cv[:, 1] - j0
             on = (di >= 0) & (di <= span) & (dj >= 0) & (dj <= span) & \
                 (di % step == 0) & (dj % step == 0)
             d[di[on] // step, dj[on] // step] = cd[on]
             r[di[on] // step, dj[on] // step] = cr[on]
-            coding = BoundsCoding(d, None, job.ed,
-                                  r_codes=(np.searchsorted(self.rt, r).astype(np.uint8), job.er))
+            # the codes as they are: BoundsCoding's of their table values (each table
+            # strictly increasing, log8_table, where its top finite code is finite)
+            coding = BoundsCoding.of_codes(d, job.ed, r, job.er) if exact else \
+                BoundsCoding(self.t8[d], None, job.ed, r_codes=(_codes(self.rt, self.rt[r]),
+                                                                 job.er))
             # schema 20: δ's blob guessed from the own errors on the tile's edited heights
             h, v = canvas.tile_lattice(L, x, y)
             own = OwnHeights(np.where(v, h * canvas.factor, np.nan), v, self.stand_in)
+            if 0 < L < g.top_level and "delta" in kinds and self._pred_kept(key, d_old, d, own):
+                kinds = tuple(k for k in kinds if k != "delta")  # its bytes stay
+                if not kinds and not row:
+                    continue
             blobs, dm, rm = level_blobs(coding, np.zeros((T, T, 2), np.uint8), g.t, 0,
                                         0 if L == g.top_level else 1, [(0, 0)], kinds,
                                         ring=L == 0 and job.derive_bounds,
@@ -845,6 +865,23 @@ class Bounds:
                 job.put(key, kind, blobs[kind][(0, 0, 0)])
             if row:
                 job.set_row(key, delta_max=float(dm[0]), radius_max=float(rm[0]))
+
+
+    def _pred_kept(self, key, d_old: np.ndarray, d: np.ndarray, own: OwnHeights) -> bool:
+        """Whether a δ blob below the top and above level 0 (schema 20's ``PRED`` with
+        ``SLACK``, or ``CENTRES``) keeps its bytes: decided from its inputs before coding
+        it (:func:`~geoterrain.bounds.ownguess.pred_payload_same`: the stored codes
+        ``d_old`` and own errors of the tile's stored heights against the new ones). An
+        edit's reach names such blobs where a corner of a cell changed (its centre's
+        prediction may not) or the heights under them (their own errors may not)."""
+        if not new_codes_same(d_old, d):  # a new vertex's code moved: so does the payload
+            return False
+        tl = self.t.tile(*key)
+        f, e = self.c.factor, self.job.ed
+        lo_old = own_codes(np.where(tl.valid, tl.heights * f, np.nan), tl.valid,
+                           self.stand_in, e)[0]
+        lo_new = own_codes(own.z, own.valid, self.stand_in, e)[0]
+        return pred_payload_same(d_old, lo_old, d, lo_new)
 
 
 def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray,
@@ -931,10 +968,58 @@ def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray
                 v[2]) for k, v in need.items()}
 
 
+def _read_ahead(t, keys) -> None:
+    """The δ and r blobs (and heights) that decoding the δ and r of tiles ``keys`` reads
+    (each tile's and, up to the first one cached, its ancestors': a new-vertices blob
+    reads its parent's values), read ahead in one batch where the terrain reads through
+    a :class:`~geoterrain.store.reader.StoreReader` inside a snapshot (the edit's plan):
+    one query instead of one a blob; the same blobs, decoded the same way."""
+    ahead = getattr(getattr(t, "reader", None), "read_ahead", None)
+    if ahead is None:
+        return
+    top, items = t.grid.top_level, []
+    for kind, tag in (("delta", "d"), ("radius", "r"), ("heights", "h")):
+        seen: set = set()
+        for key in keys:
+            while key not in seen and key in t.tile_info and t.peek((tag, *key)) is None:
+                seen.add(key)
+                items.append((key, kind))
+                if key[0] >= top:
+                    break
+                key = (key[0] + 1, key[1] // 2, key[2] // 2)
+    if len(items) > 1:
+        ahead(items)
+
+
 def _codes(table: np.ndarray, values) -> np.ndarray | int:
-    """Log8 codes of stored values (each a table entry)."""
-    out = np.searchsorted(table, np.asarray(values, np.float64)).astype(np.uint8)
-    return int(out) if out.ndim == 0 else out
+    """Log8 codes of stored values (each a table entry): ``np.searchsorted(table,
+    values)``, the first entry ≥ each value, for a :func:`log8_table` (float64). The
+    table's law (entry c = 2^(e + (c − 1)/16) rounded up to float32, 0 and +inf at the
+    ends) guesses each code, one step corrects it, and a check of every code against its
+    two entries sends what it misses (a value off the law: NaN) to the binary search:
+    a tile's 4225 values in a third of its time.
+
+    Examples
+    --------
+    >>> t = log8_table(-3).astype(np.float64)
+    >>> v = np.array([0.0, t[1], t[7], np.nextafter(t[7], 0), t[254], 1e30, np.inf, np.nan])
+    >>> _codes(t, v).tolist() == np.searchsorted(t, v).astype(np.uint8).tolist(), _codes(t, t[9])
+    (True, 9)
+    """
+    v = np.asarray(values, np.float64)
+    if v.size < 64 or not table[1] > 0:
+        out = np.searchsorted(table, v).astype(np.uint8)
+        return int(out) if out.ndim == 0 else out
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = np.rint((np.log2(v) - np.log2(table[1])) * LOG_STEPS) + 1.0
+    c = np.clip(np.nan_to_num(g, nan=1.0, posinf=255.0, neginf=0.0), 0, 255).astype(np.intp)
+    c += table[c] < v  # one step each way (the guess is off by at most one)
+    np.minimum(c, 255, out=c)
+    c -= (c > 0) & (table[c - 1] >= v)
+    ok = (table[c] >= v) & ((c == 0) | (table[c - 1] < v))
+    if not ok.all():
+        c = np.searchsorted(table, v)
+    return c.astype(np.uint8)
 
 
 def _bounds(cell: Cell, zc: float, a0: np.ndarray, c0: np.ndarray, S: int, zlo: np.ndarray,
