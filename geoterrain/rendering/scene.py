@@ -30,7 +30,9 @@ drawn whole). From there such a face lies behind a face turned towards the eye: 
 only lost the depth test, or won a tie with it at a silhouette; culled, it is not
 rasterised (the low flight of ``benchmarks/bench_render.py``: docs/lab/rendering-frame.md).
 From outside the footprint, below its edge, a face turned away can be what the eye sees
-(the underside at the terrain's open border): there every face is drawn.
+(the underside at the terrain's open border): there every face is drawn. The frames of
+:meth:`TerrainScene.draw` cull (:func:`render`, the animations, the benchmarks); the
+interactive viewer and the notebook widget draw every face.
 
 Where the palette has water (``water_level``, or the ``auto`` palette's sea at 0 m) a
 flat, lit, semi-transparent water surface is drawn at its level
