@@ -56,24 +56,37 @@ def main(argv=None) -> dict:
                         draw(scene.plotter)
                         ms[cull].append((time.process_time() - p0) * 1e3)
                 drawn, culled = statistics.median(ms[False]), statistics.median(ms[True])
-                rows.append({"view": k, "triangles": st["triangles"], "drawn_ms": drawn,
-                             "culled_ms": culled, "ratio": culled / drawn})
+                rows.append(
+                    {
+                        "view": k,
+                        "triangles": st["triangles"],
+                        "drawn_ms": drawn,
+                        "culled_ms": culled,
+                        "ratio": culled / drawn,
+                    }
+                )
         finally:
             scene.plotter.close()
-    print(f"{a.flight} flight, {len(views)} views, {size[0]}×{size[1]}, τ = {a.tau:g}; "
-          f"load average {load0:.2f} before, {os.getloadavg()[0]:.2f} after")
+    print(
+        f"{a.flight} flight, {len(views)} views, {size[0]}×{size[1]}, τ = {a.tau:g}; "
+        f"load average {load0:.2f} before, {os.getloadavg()[0]:.2f} after"
+    )
     if not rows:
         print("no view culls its faces turned away")
         return {"rows": rows}
     print("| view | triangles | draw CPU ms, all faces | faces turned away culled | ratio |")
     print("|---:|---:|---:|---:|---:|")
     for r in rows:
-        print(f"| {r['view']} | {r['triangles']} | {r['drawn_ms']:.1f} | {r['culled_ms']:.1f} | "
-              f"{r['ratio']:.3f} |")
+        print(
+            f"| {r['view']} | {r['triangles']} | {r['drawn_ms']:.1f} | {r['culled_ms']:.1f} | "
+            f"{r['ratio']:.3f} |"
+        )
     med = {k: statistics.median(r[k] for r in rows) for k in ("drawn_ms", "culled_ms", "ratio")}
-    print(f"{len(rows)} of {len(views)} views culled; medians: {med['drawn_ms']:.1f} → "
-          f"{med['culled_ms']:.1f} ms, ratio {med['ratio']:.3f} "
-          f"({min(r['ratio'] for r in rows):.3f}–{max(r['ratio'] for r in rows):.3f})")
+    print(
+        f"{len(rows)} of {len(views)} views culled; medians: {med['drawn_ms']:.1f} → "
+        f"{med['culled_ms']:.1f} ms, ratio {med['ratio']:.3f} "
+        f"({min(r['ratio'] for r in rows):.3f}–{max(r['ratio'] for r in rows):.3f})"
+    )
     return {"rows": rows, "median": med}
 
 
