@@ -22,6 +22,18 @@ Shading (``shading=``):
 - ``"plain"``: one colour lit by the renderer from the mesh's own geometry:
   what a naive renderer shows (useful to look at the mesh itself).
 
+Faces turned away (:data:`BACKFACE_CULLING`): where the eye is above the terrain's highest
+point and inside its footprint (:meth:`TerrainScene.cull_faces_turned_away`), the renderer
+culls the faces whose upward side faces away from it (every selection winds its faces
+counter-clockwise seen from above; one with skirts, vertical faces wound either way, is
+drawn whole). From there such a face lies behind a face turned towards the eye: drawn, it
+only lost the depth test, or won a tie with it at a silhouette; culled, it is not
+rasterised (the low flight of ``benchmarks/bench_render.py``: docs/lab/rendering-frame.md).
+From outside the footprint, below its edge, a face turned away can be what the eye sees
+(the underside at the terrain's open border): there every face is drawn. The frames of
+:meth:`TerrainScene.draw` cull (:func:`render`, the animations, the benchmarks); the
+interactive viewer and the notebook widget draw every face.
+
 Where the palette has water (``water_level``, or the ``auto`` palette's sea at 0 m) a
 flat, lit, semi-transparent water surface is drawn at its level
 (:mod:`geoterrain.rendering.water`; ``water=False`` leaves the land below the level
@@ -84,6 +96,9 @@ PLAIN_COLOR = (0.80, 0.78, 0.72)
 # how far (pixels in the picture, at most) a perspective view's water surface may move when
 # it is lifted over the terrain's coarse mesh (see TerrainScene.set_camera)
 WATER_LIFT_PX = 0.5
+#: The terrain's faces turned away from the eye are culled by the renderer, not drawn
+#: (module docstring, "Faces turned away").
+BACKFACE_CULLING = True
 
 
 # -------------------------------------------------------------------------- scene
@@ -124,6 +139,12 @@ class TerrainScene:
         self._bytes_mark = read - opened if read == opened else read
         self.light, self.drape = light, drape
         self.occlusion, self.morph = occlusion, morph  # each frame's selection's switches
+        # a mesh without holes over the box of its samples (cull_faces_turned_away)
+        f, meta = getattr(terrain, "frame", None), getattr(terrain, "meta", None) or {}
+        self._gapless = bool(f is not None and f.kind != "geographic"
+                             and f.transform[1] == 0.0 and f.transform[3] == 0.0
+                             and meta.get("valid_samples") == terrain.grid.rows
+                             * terrain.grid.cols)
         self._samples = terrain.grid.rows * terrain.grid.cols  # the store's (_kernels)
         if ((light is not None and not light.is_default) or drape is not None) \
                 and textures == "global":
@@ -286,6 +307,41 @@ class TerrainScene:
         else:
             self.actor.GetMapper().SetInputData(mesh)
         self.mesh = mesh
+
+    def cull_faces_turned_away(self, view: View) -> bool:
+        """Whether the renderer may cull this frame's faces turned away from the eye of
+        ``view`` (:data:`BACKFACE_CULLING`, module docstring), and set it so: a
+        perspective view whose eye is above the terrain's highest point and inside its
+        footprint, on a terrain without nodata in an affine, axis-aligned frame (its mesh
+        covers the box of its samples without a hole), drawn without skirts. From there
+        every line of sight meets the surface first from above, on a face turned towards
+        the eye; a face turned away lies behind one, and culled moves only the pixels
+        where the two tied.
+
+        Examples
+        --------
+        >>> from geoterrain.rendering.window import offscreen_plotter
+        >>> scene = TerrainScene(offscreen_plotter((64, 48)), t)
+        >>> lo, hi = t.scene_box()
+        >>> above = View(((lo + hi) / 2 + [0, 0, hi[2]]).tolist(), hi.tolist(), size=(64, 48))
+        >>> _ = scene.frame(above)
+        >>> scene.cull_faces_turned_away(above), scene.cull_faces_turned_away(default_view(t))
+        (True, False)
+        >>> scene.plotter.close()
+        """
+        cull = bool(BACKFACE_CULLING and self.actor is not None and not view.parallel
+                    and self._gapless and self.selection is not None)
+        if cull:
+            skirt = self.selection.parts.cell_data.get("skirt")
+            lo, hi = self.terrain.scene_box()
+            e = np.asarray(view.eye, np.float64)
+            cull = bool((skirt is None or not np.asarray(skirt).any())
+                        and lo[0] <= e[0] <= hi[0] and lo[1] <= e[1] <= hi[1] and e[2] > hi[2])
+        if self.actor is not None:
+            prop = self.actor.GetProperty()
+            if bool(prop.GetBackfaceCulling()) != cull:
+                prop.SetBackfaceCulling(cull)
+        return cull
 
     def set_camera(self, view: View) -> None:
         """Point the plotter's camera like ``view`` (and fit the clipping range).
@@ -480,6 +536,7 @@ class TerrainScene:
         with self._kernels():
             self.update(sel, view, vtex)
             self.set_camera(view)
+            self.cull_faces_turned_away(view)
             t2, p2 = time.perf_counter(), time.process_time()
             edges, aa = self._anti_aliasing()
             if before_render is not None:
