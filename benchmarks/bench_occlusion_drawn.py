@@ -49,8 +49,10 @@ def _eye_ij(t, view: View) -> tuple[float, float]:
     cx, cy = f.scene_to_crs(np.array([view.eye[0]]), np.array([view.eye[1]]))
     a, b, c, d, e, g = f.transform
     det = a * e - b * d
-    return (float((a * (cy[0] - g) - d * (cx[0] - c)) / det - 0.5),
-            float((e * (cx[0] - c) - b * (cy[0] - g)) / det - 0.5))
+    return (
+        float((a * (cy[0] - g) - d * (cx[0] - c)) / det - 0.5),
+        float((e * (cx[0] - c) - b * (cy[0] - g)) / det - 0.5),
+    )
 
 
 def shown_displacement(t, truth, view: View, tau: float, sel) -> dict:
@@ -60,8 +62,13 @@ def shown_displacement(t, truth, view: View, tau: float, sel) -> dict:
     vz = np.asarray(sel.mesh.points)[:, 2]
     faces = sel.surface_faces()
     e_all = picture_displacement(sel.ij, faces, vz, X, Y, Z, valid, view)
-    out = {"max_px": e_all.max, "shown_max_px": e_all.max, "over_tau": 0,
-           "shown_true": 0, "shown_drawn": 0}
+    out = {
+        "max_px": e_all.max,
+        "shown_max_px": e_all.max,
+        "over_tau": 0,
+        "shown_true": 0,
+        "shown_drawn": 0,
+    }
     if e_all.max <= tau:
         return out
     lo, hi = mesh_height_range_on_grid(sel.ij, faces, vz, Z.shape)
@@ -83,10 +90,13 @@ def shown_displacement(t, truth, view: View, tau: float, sel) -> dict:
 
     vt = seen(Zt)
     vd = seen(np.where(drawn, lo, Zt)) | seen(np.where(drawn, hi, Zt))
-    shown = picture_displacement(sel.ij, faces, vz, X, Y, Z, valid & ~(over & ~(vt | vd)),
-                                 view)
-    out.update(shown_max_px=shown.max, over_tau=int(over.sum()), shown_true=int(vt.sum()),
-               shown_drawn=int((vd & ~vt).sum()))
+    shown = picture_displacement(sel.ij, faces, vz, X, Y, Z, valid & ~(over & ~(vt | vd)), view)
+    out.update(
+        shown_max_px=shown.max,
+        over_tau=int(over.sum()),
+        shown_true=int(vt.sum()),
+        shown_drawn=int((vd & ~vt).sum()),
+    )
     return out
 
 
@@ -108,34 +118,56 @@ def main(argv=None) -> dict:
         X, Y, Z = t.scene_xyz()
         truth = (X, Y, Z, np.isfinite(Z))
         if a.flight == "ground":
-            views = [(f"ground {k}", v) for k, (v, _) in
-                     enumerate(ground_views(X, Y, Z, a.views, seed=a.seed, size=size))]
+            views = [
+                (f"ground {k}", v)
+                for k, (v, _) in enumerate(ground_views(X, Y, Z, a.views, seed=a.seed, size=size))
+            ]
         else:
-            views = [(n, v.clipped_to(*t.scene_box()))
-                     for n, v in FLIGHTS[a.flight](t, a.views, size)]
-        print("| view | triangles | tiles culled | select CPU ms | largest px | shown px | "
-              "> τ | shown (true, drawn) |")
+            views = [
+                (n, v.clipped_to(*t.scene_box())) for n, v in FLIGHTS[a.flight](t, a.views, size)
+            ]
+        print(
+            "| view | triangles | tiles culled | select CPU ms | largest px | shown px | "
+            "> τ | shown (true, drawn) |"
+        )
         print("|---|---:|---:|---:|---:|---:|---:|---|")
         for name, v in views:
             t.select(v, a.tau, "rtin", occlusion=True, reuse=False)
             t0 = time.process_time()
-            sel = t.select(dataclasses.replace(v, memos={}), a.tau, "rtin", occlusion=True,
-                           reuse=False)  # (a fresh view: nothing memoised)
+            sel = t.select(
+                dataclasses.replace(v, memos={}), a.tau, "rtin", occlusion=True, reuse=False
+            )  # (a fresh view: nothing memoised)
             cpu = 1e3 * (time.process_time() - t0)
-            row = {"view": name, "triangles": sel.stats["triangles"],
-                   "culled": sel.stats.get("tiles_hidden", 0), "select_cpu_ms": cpu}
+            row = {
+                "view": name,
+                "triangles": sel.stats["triangles"],
+                "culled": sel.stats.get("tiles_hidden", 0),
+                "select_cpu_ms": cpu,
+            }
             if a.measure:
                 row.update(shown_displacement(t, truth, v, a.tau, sel))
             rows.append(row)
-            m = (f"{row['max_px']:.3f} | {row['shown_max_px']:.3f} | {row['over_tau']} | "
-                 f"{row['shown_true']}, {row['shown_drawn']}") if a.measure else "– | – | – | –"
-            print(f"| {name} | {row['triangles']} | {row['culled']} | {cpu:.1f} | {m} |",
-                  flush=True)
+            m = (
+                (
+                    f"{row['max_px']:.3f} | {row['shown_max_px']:.3f} | {row['over_tau']} | "
+                    f"{row['shown_true']}, {row['shown_drawn']}"
+                )
+                if a.measure
+                else "– | – | – | –"
+            )
+            print(
+                f"| {name} | {row['triangles']} | {row['culled']} | {cpu:.1f} | {m} |", flush=True
+            )
     tri = sum(r["triangles"] for r in rows)
-    print(f"triangles {tri}, tiles culled {sum(r['culled'] for r in rows)}, select CPU median "
-          f"{np.median([r['select_cpu_ms'] for r in rows]):.1f} ms"
-          + (f", shown > τ: {sum(r['shown_true'] + r['shown_drawn'] for r in rows)}"
-             if a.measure else ""))
+    print(
+        f"triangles {tri}, tiles culled {sum(r['culled'] for r in rows)}, select CPU median "
+        f"{np.median([r['select_cpu_ms'] for r in rows]):.1f} ms"
+        + (
+            f", shown > τ: {sum(r['shown_true'] + r['shown_drawn'] for r in rows)}"
+            if a.measure
+            else ""
+        )
+    )
     print(f"load average {os.getloadavg()[0]:.2f} after")
     if a.json:
         with open(a.json, "w") as fh:

@@ -42,7 +42,7 @@ def _store(tmp_path, n: int, seed: int, amp: float, ridge: float):
 
     z = generate("fbm", (n, n), seed=seed)
     z = amp * (z - z.min()) / max(float(np.ptp(z)), 1e-12)
-    z[n // 2 - 4:n // 2 + 4] += ridge
+    z[n // 2 - 4 : n // 2 + 4] += ridge
     src = write_tif(tmp_path / "f.tif", z, spacing=10.0)
     return geoterrain.open(geoterrain.preprocess(src, tmp_path / "f.geoterrain", tile_size=16))
 
@@ -58,8 +58,10 @@ def _eye_ij(t, view) -> tuple[float, float]:
     cx, cy = f.scene_to_crs(np.array([view.eye[0]]), np.array([view.eye[1]]))
     a, b, c, d, e, g = f.transform
     det = a * e - b * d
-    return (float((a * (cy[0] - g) - d * (cx[0] - c)) / det - 0.5),
-            float((e * (cx[0] - c) - b * (cy[0] - g)) / det - 0.5))
+    return (
+        float((a * (cy[0] - g) - d * (cx[0] - c)) / det - 0.5),
+        float((e * (cx[0] - c) - b * (cy[0] - g)) / det - 0.5),
+    )
 
 
 def _view(t, seed: int, tau_k: int, size_k: int) -> tuple[View, float]:
@@ -69,11 +71,17 @@ def _view(t, seed: int, tau_k: int, size_k: int) -> tuple[View, float]:
     rng = np.random.default_rng(seed)
     n = Z.shape[0]
     i, j = int(rng.integers(n * 5 // 8, n - 2)), int(rng.integers(2, n - 2))
-    eye = np.array([X[i, j] + rng.uniform(-4, 4), Y[i, j] + rng.uniform(-4, 4),
-                    Z[i, j] + rng.uniform(1.0, 20.0)])
+    eye = np.array(
+        [
+            X[i, j] + rng.uniform(-4, 4),
+            Y[i, j] + rng.uniform(-4, 4),
+            Z[i, j] + rng.uniform(1.0, 20.0),
+        ]
+    )
     yaw, pitch = np.radians(rng.uniform(-40, 40)), np.radians(rng.uniform(-6, 4))
-    look = eye + 500.0 * np.array([np.sin(yaw) * np.cos(pitch), np.cos(yaw) * np.cos(pitch),
-                                   np.sin(pitch)])
+    look = eye + 500.0 * np.array(
+        [np.sin(yaw) * np.cos(pitch), np.cos(yaw) * np.cos(pitch), np.sin(pitch)]
+    )
     size = ((160, 90), (320, 180), (640, 360))[size_k]
     return View(tuple(eye), tuple(look), fov_y_deg=45.0, size=size), (1.0, 2.0, 4.0)[tau_k]
 
@@ -124,8 +132,10 @@ def _hidden_points(t, view, tau, rows, sink):
     for r in rows:
         L, x, y = (int(k) for k in ix.keys[r])
         w = S << L
-        i, j = np.mgrid[y * w:min((y + 1) * w, Z.shape[0] - 1) + 1,
-                        x * w:min((x + 1) * w, Z.shape[1] - 1) + 1]
+        i, j = np.mgrid[
+            y * w : min((y + 1) * w, Z.shape[0] - 1) + 1,
+            x * w : min((x + 1) * w, Z.shape[1] - 1) + 1,
+        ]
         i, j = i.ravel(), j.ravel()
         pz = Z[i, j] + float(ix.delta_max[r])
         P = np.stack([X[i, j], Y[i, j], pz], 1)
@@ -146,8 +156,7 @@ def _hidden_points(t, view, tau, rows, sink):
 @pytest.mark.fast
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(0, 2**31 - 1), st.integers(0, 2), st.integers(0, 1))
-def test_a_hidden_tile_raised_by_its_delta_stays_behind_lowered_terrain(fbm, seed, tau_k,
-                                                                        size_k):
+def test_a_hidden_tile_raised_by_its_delta_stays_behind_lowered_terrain(fbm, seed, tau_k, size_k):
     """Every sample of a tile rtin culls, raised by the tile's largest δ (its ancestors'
     triangles may draw it that high), is hidden behind nearer terrain lowered by
     τ/λ × its distance (how low LP may draw it), by a ray march of its own."""
