@@ -40,15 +40,15 @@ box raised by δ_m (``lift``: the tile's largest δ), and every ray to that box 
 under an occluder's ``zmin`` lowered by ``sink`` × its farthest distance D (ray to a
 lower point: a lower ray). Over an occluder, the drawn surface at a point p is at least
 the true height less that much: if p's vertex is inactive by LP, δ ≤ τ(d − r)/λ and
-d − r ≤ |p − eye| ≤ D (``sink`` = τ/λ); if it is culled by the frustum, its drawn point
-lies outside a plane that the ray, inside the frustum, does not cross on that vertical
-(a plane with an upward normal would put the true point outside as well, and the ray
-passes under it); if its tile is culled, p's true point is hidden behind nearer
-occluders, and the ray, under it on the same azimuth, is too. The drawn surface is
-continuous over valid footprints, so the ray crosses it: the drawn point of s is hidden
-in the picture, as its true point is in the true surface. (Measured before these two
-terms, no such sample moved more than τ: the spheres' growth already held them; the
-terms make the argument hold, docs/lab/occlusion.md.)
+d − r ≤ |p − eye| ≤ D (``sink`` = τ/λ); if it is culled by the frustum, its true and
+drawn points lie outside a plane that the ray's point under them, in the frustum, is
+inside: that plane's inward normal points down, and the drawn point lies above the ray;
+if its tile is culled, p's true point is hidden behind nearer occluders, and the ray,
+under it on the same azimuth, is too. The drawn surface is continuous over valid
+footprints and (as any picture needs) under the eye, so the ray crosses it: the drawn
+point of s is hidden in the picture, as its true point is in the true surface.
+(Measured before these two terms, no such sample moved more than τ: the spheres' growth
+already held them; the terms make the argument hold, docs/lab/occlusion.md.)
 
 What it costs is kept small: an occluder whose best possible horizon, (zmin − z_eye) over
 its centre's distance, is above every farther occludee's top is skipped without any
