@@ -37,8 +37,11 @@ from geoterrain.testing.measure import (
 )
 from geoterrain.testing.reference import visible_samples
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_render import FLIGHTS  # noqa: E402
+try:
+    from bench_render import FLIGHTS
+except ImportError:  # run as benchmarks/bench_occlusion_drawn.py from the repository root
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from bench_render import FLIGHTS
 
 FINE = 0.05  # cells: the oracle's confirming step
 
@@ -81,6 +84,12 @@ def shown_displacement(t, truth, view: View, tau: float, sel) -> dict:
         moved = np.maximum(moved, np.hypot(c1 - c0, r1 - r0))
     over = np.zeros(Z.shape, bool)
     over[drawn] = moved > tau
+    # only samples the measure counts: true or drawn point inside the frustum
+    inside = np.zeros(Z.shape, bool)
+    for z in (Z, lo, hi):
+        P = np.stack([X[drawn], Y[drawn], z[drawn]], 1)
+        inside[drawn] |= ((P @ view.planes[:, :3].T + view.planes[:, 3]) >= 0).all(1)
+    over &= inside
     eij, ez = _eye_ij(t, view), float(view.eye[2])
     Zt = np.where(valid, Z, 0.0)
 
