@@ -30,6 +30,26 @@ Why it is conservative (never hides a point the full-resolution surface shows):
   the same azimuth by a lower ray. It is hidden when that bound is under the
   horizon in every bin its box touches.
 
+Why it holds for the drawn surface too (rtin, ``lift`` and ``sink`` of
+:func:`hidden_rows`). The picture shows a simplified surface: a sample is drawn by the
+triangle of the first inactive vertex m above it, up to δ_m off. Each sample s the
+picture could show wrongly is covered by one of three cases for m: inactive by LP eq. 2
+(s moves at most τ pixels: nothing to hide), culled by the frustum (its drawn point is
+outside the picture), or in a tile culled here. In the last case s is drawn inside m's
+box raised by δ_m (``lift``: the tile's largest δ), and every ray to that box passes
+under an occluder's ``zmin`` lowered by ``sink`` × its farthest distance D (ray to a
+lower point: a lower ray). Over an occluder, the drawn surface at a point p is at least
+the true height less that much: if p's vertex is inactive by LP, δ ≤ τ(d − r)/λ and
+d − r ≤ |p − eye| ≤ D (``sink`` = τ/λ); if it is culled by the frustum, its true and
+drawn points lie outside a plane that the ray's point under them, in the frustum, is
+inside: that plane's inward normal points down, and the drawn point lies above the ray;
+if its tile is culled, p's true point is hidden behind nearer occluders, and the ray,
+under it on the same azimuth, is too. The drawn surface is continuous over valid
+footprints and (as any picture needs) under the eye, so the ray crosses it: the drawn
+point of s is hidden in the picture, as its true point is in the true surface.
+(Measured before these two terms, no such sample moved more than τ: the spheres' growth
+already held them; the terms make the argument hold, docs/lab/occlusion.md.)
+
 What it costs is kept small: an occluder whose best possible horizon, (zmin − z_eye) over
 its centre's distance, is above every farther occludee's top is skipped without any
 trigonometry; corners are ordered by pseudo-angle, so a footprint's span takes two
@@ -132,12 +152,15 @@ def _footprints(terrain: TerrainLike) -> _Footprints:
 
 
 
-def _near_tiles(terrain: TerrainLike, index, view: View, tiles: int = NEAR_TILES):
+def _near_tiles(terrain: TerrainLike, index, view: View, tiles: int = NEAR_TILES,
+                zmin: np.ndarray | None = None):
     """The level-0 tiles nearest the eye in the frustum that the tile bounds alone do not
-    show hidden, and the eye's own: those :func:`_near_blocks` refines.
+    show hidden, and the eye's own: those :func:`_near_blocks` refines. ``zmin``: the
+    footprints' heights to occlude with (their lowest samples unless given).
 
     Returns them (index rows) and their footprints (numbers in :class:`_Footprints`)."""
     fp = _footprints(terrain)
+    zmin = fp.zmin if zmin is None else zmin
     rows = fp.level0
     none = (np.zeros(0, np.int64), np.zeros(0, np.int64))
     if not len(rows):
@@ -162,7 +185,7 @@ def _near_tiles(terrain: TerrainLike, index, view: View, tiles: int = NEAR_TILES
         sec0, secw = _sector(view)
         _horizon_cull(float(e[0]), float(e[1]), float(e[2]),
                       FootprintSet(fp.corners[keep], fp.centres[keep], fp.state[keep],
-                                 fp.zmin[keep], fp.margin), sec0, secw, lo[pick], hi[pick], hid)
+                                 zmin[keep], fp.margin), sec0, secw, lo[pick], hi[pick], hid)
     pick = np.union1d(pick[~hid][:tiles], np.flatnonzero(under))
     rows = rows[pick]
     return rows, fp.position[rows]
@@ -229,6 +252,16 @@ def _centres(corners: np.ndarray) -> np.ndarray:
     c = corners.mean(axis=1)
     r = np.sqrt(((corners - c[:, None, :]) ** 2).sum(-1)).max(axis=1)
     return np.concatenate([c, r[:, None] * (1 + 1e-9)], 1)
+
+
+def _far_distance(corners: np.ndarray, zlo: np.ndarray, zhi: np.ndarray, eye: np.ndarray,
+                  margin: float) -> np.ndarray:
+    """Per footprint (corners (P, K, 2), heights between ``zlo`` and ``zhi``): an upper
+    bound of the distance from the eye to any of its points (the farthest corner, grown
+    by the curved-edge ``margin``, and the farther of its heights)."""
+    far = np.hypot(corners[..., 0] - eye[0], corners[..., 1] - eye[1]).max(axis=1) + margin
+    up = np.maximum(np.abs(zlo - eye[2]), np.abs(zhi - eye[2]))
+    return np.hypot(far, up)
 
 
 def _sector(view: View) -> tuple[float, float]:
@@ -339,11 +372,17 @@ def occluder_rows(terrain: TerrainLike, view: View) -> np.ndarray:
 
 
 def hidden_rows(terrain: TerrainLike, view: View, grow: np.ndarray | None = None,
-                rows: np.ndarray | None = None, *, enabled: bool = True) -> np.ndarray:
+                rows: np.ndarray | None = None, *, enabled: bool = True,
+                lift: np.ndarray | None = None, sink: float = 0.0) -> np.ndarray:
     """Which rows of the tile index are hidden from ``view`` by nearer terrain.
 
     ``grow`` (per row, scene units) widens each tile's box first, e.g. by the radius of
-    the error spheres a strategy refines with. ``rows`` (index rows) limits the test to
+    the error spheres a strategy refines with. For a strategy that draws a simplified
+    surface, ``lift`` (per row) raises each box's top further, by how far the drawn
+    surface may lie above the true one over a tile left unrefined because it is hidden
+    (rtin: the tile's largest finite δ), and ``sink`` lowers every occluder by how far
+    the drawn surface may lie under the true one, per unit of distance from the eye
+    (rtin: τ over its λ; see the module docstring). ``rows`` (index rows) limits the test to
     the rows a strategy may read, such as those its walk reaches: the others come back
     False (not hidden), and the work follows the rows asked for, not the store's size
     (the occluders are still every level-0 footprint in view). All False when culling
@@ -361,7 +400,8 @@ def hidden_rows(terrain: TerrainLike, view: View, grow: np.ndarray | None = None
     if not enabled or not len(out) or index.outside(view):
         return out  # (nothing in view: nothing to read either)
     key = ("hidden", id(terrain), None if grow is None else id(grow),
-           None if rows is None else np.asarray(rows, np.int64).tobytes())
+           None if rows is None else np.asarray(rows, np.int64).tobytes(),
+           None if lift is None else id(lift), float(sink))
     got = view.memos.get(key)
     if got is not None:
         return got
@@ -372,13 +412,20 @@ def hidden_rows(terrain: TerrainLike, view: View, grow: np.ndarray | None = None
         g = np.asarray(grow, np.float64)[rows, None]
         g = np.where(np.isfinite(g), g, np.inf)
         lo, hi = lo - g, hi + g
+    if lift is not None:  # the drawn surface over a hidden tile: up to its δ higher
+        u = np.asarray(lift, np.float64)[rows]
+        hi = hi.copy()
+        hi[:, 2] += np.where(np.isfinite(u), u, np.inf)
     if eye_above_surface(terrain, view):
         e = view.eye
         ex, ey, ez = float(e[0]), float(e[1]), float(e[2])
         sec0, secw = _sector(view)
-        occluders, replaced = _near_tiles(terrain, index, view)
+        zmin = fp.zmin
+        if sink > 0:  # the drawn occluders: up to sink × their distance lower
+            zmin = zmin - sink * _far_distance(fp.corners, fp.zmin, fp.zmax, e, fp.margin)
+        occluders, replaced = _near_tiles(terrain, index, view, zmin=zmin)
         state = fp.state.copy()
-        corners, cen, zmin = fp.corners, fp.centres, fp.zmin
+        corners, cen = fp.corners, fp.centres
         if len(occluders) and fp.good[replaced].all():
             # first with each near tile standing in for its blocks at its highest
             # sample (an upper bound of their horizon): nothing decoded when that hides
@@ -393,6 +440,9 @@ def hidden_rows(terrain: TerrainLike, view: View, grow: np.ndarray | None = None
                 occluders = occluders[:0] if not len(rows) else occluders
         if len(rows) and len(occluders):
             bc, bcen, bs, bz = _near_blocks(terrain, index, occluders)
+            if sink > 0:  # (a block's highest sample is at most its tile's)
+                top = np.repeat(fp.zmax[replaced], len(bz) // len(replaced))
+                bz = bz - sink * _far_distance(bc, bz, top, e, fp.margin)
             state[replaced] = -1
             corners = np.concatenate([corners, bc])
             cen = np.concatenate([cen, bcen])

@@ -205,14 +205,15 @@ def _tile_tree(terrain: TerrainLike, index: TileIndex):
 
 
 def view_active(terrain: TerrainLike, index: TileIndex, view: View, tau: float, *,
-                occlusion: bool = True) -> ActiveSet:
+                occlusion: bool = True, drawn_tau: float | None = None) -> ActiveSet:
     """LP eq. 2 with sphere culling, evaluated only on tiles that can hold an active vertex
     (and, with ``occlusion``, not hidden behind nearer terrain); with :data:`DEPTH` the
     sphere's nearest depth for its distance (:meth:`~geoterrain.core.view.View.terms`),
     so an inactive vertex moves the picture by at most τ pixels. A vertex is culled only
     when its sphere moved up or down by its δ lies outside a frustum plane
     (:func:`~geoterrain.lod.kernels.fill_lp`), so a culled vertex's samples are not drawn
-    inside the picture either."""
+    inside the picture either. ``drawn_tau``: the tolerance the drawn surface keeps, if
+    not ``tau`` (a geomorph band's top)."""
     terms = view.terms(tau, depth=DEPTH)
     dm = index.delta_max
     floor = np.empty(len(dm))
@@ -222,7 +223,10 @@ def view_active(terrain: TerrainLike, index: TileIndex, view: View, tau: float, 
                   index.radius_max, rsub, grow, gsub, terms, floor, status)
     # a tile whose spheres all lie behind nearer terrain refines nothing (nor is read)
     rows = np.flatnonzero(status)
-    hidden = hidden_rows(terrain, view, index.radius_max, rows=rows, enabled=occlusion)
+    # ... and is drawn by its ancestors (up to its δ higher) behind occluders that are
+    # drawn up to τ/λ × their distance lower (occlusion.py's last argument)
+    hidden = hidden_rows(terrain, view, index.radius_max, rows=rows, enabled=occlusion,
+                         lift=grow, sink=_sink(view, tau if drawn_tau is None else drawn_tau))
     hid = hidden[rows]
     status[rows[hid]] = 0
     rows = rows[~hid]
@@ -242,6 +246,15 @@ def view_active(terrain: TerrainLike, index: TileIndex, view: View, tau: float, 
     mixed = index.mixed_rows
     act.mark_unknown_mixed(mixed[status[mixed] == 0], index)  # not read this frame
     return act
+
+
+def _sink(view: View, tau: float) -> float:
+    """How far the drawn surface lies at most under the true one, per unit of distance
+    from the eye, where an inactive vertex draws it: δ ≤ τ(d − r)/λ (LP eq. 2, λ of
+    :meth:`~geoterrain.core.view.View.terms`), and d − r is at most the distance of any
+    sample in the vertex's sphere."""
+    t = view.terms(tau, depth=DEPTH)
+    return t.tau / t.lam
 
 
 def _gather(terrain: TerrainLike, flat: np.ndarray):
@@ -351,7 +364,7 @@ def select(terrain: TerrainLike, view: View, tau: float, *, occlusion: bool = Tr
         from geoterrain.lod.morph import MORPH_START
 
         tmin = MORPH_START * tau
-        act = view_active(terrain, index, view, tmin, occlusion=occlusion)
+        act = view_active(terrain, index, view, tmin, occlusion=occlusion, drawn_tau=tau)
         return (active_mesh(terrain, act, view, (tmin, tau), tau),
                 {"tiles_hidden": act.tiles_hidden, "morph_band": (tmin, tau)})
     act = view_active(terrain, index, view, tau, occlusion=occlusion)
