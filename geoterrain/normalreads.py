@@ -92,4 +92,5 @@ def _derive_normals(terrain: TerrainLike, keys: list[TileKey], bits: int,
 
 
 def _derived_normal_levels(terrain: TerrainLike) -> tuple[int, ...]:
+    # the levels whose normal maps are derived on read (a store's ``normals_derived``)
     return tuple(terrain.meta.get("normals_derived", ()))

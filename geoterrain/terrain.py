@@ -347,13 +347,14 @@ class Terrain:
         """The coarsest pyramid level holding samples (i, j) (:func:`gathers.vertex_level`)."""
         return gathers.vertex_level(self, i, j)
 
-    def gather(self, i: np.ndarray, j: np.ndarray, kinds=("delta", "radius", "height")
-               ) -> dict[str, np.ndarray]:
+    def gather(self, i: np.ndarray, j: np.ndarray,
+               kinds: Sequence[str] = ("delta", "radius", "height")) -> dict[str, np.ndarray]:
         """Per-vertex arrays at full-resolution samples (i, j), read from the coarsest tiles
         (:func:`geoterrain.gathers.gather`)."""
         return gathers.gather(self, i, j, kinds)
 
-    def tile_stacks(self, keys: list[TileKey], kinds=("delta",)) -> dict[str, np.ndarray]:
+    def tile_stacks(self, keys: Sequence[TileKey], kinds: Sequence[str] = ("delta",)
+                    ) -> dict[str, np.ndarray]:
         """(K, T, T) float64 stacks of per-sample arrays for tiles ``keys``
         (:func:`geoterrain.gathers.tile_stacks`)."""
         return gathers.tile_stacks(self, keys, kinds)
