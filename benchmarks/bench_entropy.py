@@ -35,12 +35,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from bench_codec import load_dems, pad, sz3_bytes  # noqa: E402
 
 from geoterrain.codec.predict import predict  # noqa: E402
-from geoterrain.codec.pyramid import (  # noqa: E402
-    _decoded_codes,
-    _resolve_predictor,
-    encode_pyramid,
-    pyramid_shape,
-)
+from geoterrain.codec.pyramid import encode_pyramid, pyramid_shape  # noqa: E402
+from geoterrain.codec.pyramid.decoded import _decoded_codes, _resolve_predictor  # noqa: E402
 from geoterrain.codec.quantchoice import choose_quantizer  # noqa: E402
 from geoterrain.codec.quantize import valid_codes  # noqa: E402
 

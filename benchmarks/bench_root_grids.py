@@ -125,7 +125,7 @@ blobs (``held_coded``): every stored tile's blob is read and decoded (its mask, 
 heights through ``Terrain.tile``, checked finite exactly where the mask is valid), and
 the positions it codes are marked in level-0 coordinates over the roots' extent: a top
 tile codes all its (2^t + 1)² samples, any other tile those of its level that are not on
-its parent level's grid (the codec's blob format, codec/pyramid.py). Counted: (a) the
+its parent level's grid (the codec's blob format, codec/pyramid/layout.py). Counted: (a) the
 level-0 lattice positions spanned by the stored level-0 tiles; (b) the distinct
 positions coded over all levels, padding included, and how many of them lie beyond
 level 0's padded lattice (the coarse levels' tiles reach past it) or beyond the raster;

@@ -11,12 +11,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
-import zstandard
 
 # The decoders (geoterrain.bounds, geoterrain.codec, core.bintree) are imported where a
 # tile is read: they load numba, which opening a store and `geoterrain info` never need.
+from geoterrain import extent, gathers, normalreads
 from geoterrain.core.tilecache import DerivedSlot, TileCache
 from geoterrain.exceptions import StoreChangedError, StoreCorruptError, StoreError, UsageError
+from geoterrain.heightreads import decode_heights
 from geoterrain.store.check import check_store
 from geoterrain.store.reader import StoreReader
 from geoterrain.store.summary import store_summary
@@ -173,18 +174,9 @@ class Terrain:
 
     @property
     def stand_in_z(self) -> float:
-        """The scene height that stands in for nodata samples in the nested spheres.
-
-        The middle of the valid height range (scene units), as the preprocess's
-        radii used it, so a sphere centred there still nests. Read from the store's
-        metadata; stores written before it was recorded derive it from the tile bounds.
-        """
-        v = self.meta.get("stand_in_z")
-        if v is None:
-            lo = [t["zmin"] for t in self.tile_info.values() if t["zmin"] is not None]
-            hi = [t["zmax"] for t in self.tile_info.values() if t["zmax"] is not None]
-            v = 0.5 * (min(lo) + max(hi)) if lo else 0.0
-        return float(v)
+        """The scene height that stands in for nodata samples in the nested spheres
+        (:func:`geoterrain.extent.stand_in_z`)."""
+        return extent.stand_in_z(self)
 
     def _blob(self, key: TileKey, kind: str) -> bytes:
         if key not in self.tile_info and not (kind == "delta_edge" and self.edge_max
@@ -229,25 +221,9 @@ class Terrain:
         return sorted(k for k in self.tile_info if level is None or k[0] == level)
 
     def scene_box(self) -> tuple[np.ndarray, np.ndarray]:
-        """Scene-frame box (lo, hi), each (3,) float64, of the valid data (top tile bounds).
-
-        Examples
-        --------
-        >>> lo, hi = t.scene_box()
-        >>> bool((lo < hi).all())
-        True
-        """
-        rx, ry = self.grid.roots  # the top tile, or every root tile of a root grid
-        tops = [self.tile_info[k] for k in ((self.grid.top_level, x, y) for y in range(ry)
-                                            for x in range(rx)) if k in self.tile_info]
-        los, his = [], []
-        for info in tops:
-            z0, z1 = info["zmin"], info["zmax"]
-            z0 = 0.0 if z0 is None or not np.isfinite(z0) else z0
-            z1 = z0 if z1 is None or not np.isfinite(z1) else z1
-            los.append([info["xmin"], info["ymin"], z0])
-            his.append([info["xmax"], info["ymax"], z1])
-        return np.min(np.array(los, np.float64), 0), np.max(np.array(his, np.float64), 0)
+        """Scene-frame box (lo, hi), each (3,) float64, of the valid data (top tile bounds:
+        :func:`geoterrain.extent.scene_box`)."""
+        return extent.scene_box(self)
 
     def snapshot(self) -> AbstractContextManager[None]:
         """A context in which every read of the store sees the same file: one read
@@ -300,32 +276,7 @@ class Terrain:
         return [self.tile(*k) for k in keys]
 
     def _decode(self, key: TileKey, blob: bytes | None = None) -> Tile:
-        L, x, y = key
-        parent = self.tile(L + 1, x // 2, y // 2).codes if L < self.grid.top_level else None
-        if blob is None:
-            blob = self._blob(key, "heights")
-        from geoterrain.codec.pyramid import decode_tile_valid
-        from geoterrain.codec.quantize import tile_heights
-
-        try:
-            codes, valid = decode_tile_valid(blob, parent, (x % 2, y % 2), t=self.grid.t,
-                                             bins=self.quantizer.bins)
-        except (ValueError, zstandard.ZstdError):
-            raise StoreCorruptError(f"{self.path}: tile {key} heights cannot be decoded; "
-                                    "re-run `geoterrain preprocess`") from None
-        self.decoded_tiles += 1
-        # the heights (NaN where not valid) and their scene z range, in one pass: the
-        # decoded heights must lie in the tile row's box (a bound checksum on its own
-        # cannot tell an edited quantizer or frame from the truth)
-        h, zlo, zhi, nv = tile_heights(codes, valid, self.quantizer,
-                                       self.frame.z_to_m * self.frame.z_scale)
-        info = self.tile_info[key]
-        tol = 1e-9 * max(1.0, abs(info["zmin"]), abs(info["zmax"]))
-        if nv != 0 and not (zlo >= info["zmin"] - tol and zhi <= info["zmax"] + tol):
-            raise StoreCorruptError(f"{self.path}: tile {key} heights lie outside the tile's "
-                                    "recorded bounds: the file is damaged; re-run "
-                                    "`geoterrain preprocess`")
-        return Tile(key, codes, h, valid)
+        return decode_heights(self, key, self._blob, blob)
 
     def _bounds(self, key: TileKey, kind: str) -> np.ndarray:
         from geoterrain.bounds.tilereads import decode_tile_bounds  # its decoders load numba
@@ -336,35 +287,11 @@ class Terrain:
         return decode_tile_bounds(self, key, kind, stored, self._blob(key, stored))
 
     def block_errors(self) -> np.ndarray | None:
-        """Every GeoMipMapping block's exact δ_n (seed 000 §2.4), (nb, nb, levels) indexed
-        [y, x, n], nb the level-0 tiles per side (a root grid: its level-0 tiles down,
-        across), n = 0 … min(t, top level) (see
-        :func:`geoterrain.bounds.tilebounds.tile_and_block_errors`); None for a store written
-        before the table was.
+        """Every GeoMipMapping block's exact δ_n (seed 000 §2.4), None for a store written
+        before the table was (:func:`geoterrain.bounds.tilereads.block_errors`)."""
+        from geoterrain.bounds.tilereads import block_errors  # its decoders load numba
 
-        Examples
-        --------
-        >>> t.block_errors().shape[:2] == t.grid.tiles(0)[::-1]
-        True
-        """
-        levels = self.meta.get("block_delta_levels")
-        if levels is None:
-            return None
-
-        def make():
-            nb = self.grid.tiles(0)[::-1]
-            key = (self.grid.top_level, 0, 0)
-            try:
-                from geoterrain.bounds.tilebounds import unpack_block_errors
-
-                table = unpack_block_errors(self._blob(key, "block_delta"), nb, levels)
-                table.setflags(write=False)  # shared through the cache
-                return table
-            except ValueError as exc:
-                raise StoreCorruptError(f"{self.path}: the block δ_n table is damaged "
-                                        f"({exc}); re-run `geoterrain preprocess`") from None
-
-        return self.memo(("block_delta",), make)
+        return block_errors(self, self._blob)
 
     def tile_delta(self, level: int, x: int, y: int) -> np.ndarray:
         """Per-vertex errors δ (scene units) of the tile's samples, float32 (T, T)."""
@@ -403,13 +330,9 @@ class Terrain:
         return self.normal_codes([(level, x, y)])[0]
 
     def normal_codes(self, keys: Sequence[TileKey]) -> np.ndarray:
-        """The octahedral codes (n, T, T, 2) of tiles ``keys``' normals (``normal_bits``
-        bits each; :func:`~geoterrain.bounds.normals.decode_octahedral` unpacks them):
-        the one door to a tile's normals. A tile stored whole is read as stored; one on a
-        level in ``normals_derived`` has its border ring as stored and the rest derived
-        from its decoded heights, all such tiles in one compiled call
-        (:func:`~geoterrain.bounds.normals.derived_codes`). Not cached: each tile read
-        counts a decode (``decoded_normals``).
+        """The octahedral codes (n, T, T, 2) of tiles ``keys``' normals, as stored or derived
+        on read (:func:`geoterrain.normalreads.normal_codes`; not cached, each read counted
+        in ``decoded_normals``): the one door to a tile's normals.
 
         Examples
         --------
@@ -417,130 +340,34 @@ class Terrain:
         >>> t.normal_codes(keys).shape == (2, t.grid.tile_samples, t.grid.tile_samples, 2)
         True
         """
-        from geoterrain.bounds.normalbytes import normals_from_bytes
-
-        T, bits = self.grid.tile_samples, self.meta["normal_bits"]
-        out = np.empty((len(keys), T, T, 2), np.uint8 if bits == 8 else np.uint16)
-        derived = self._derived_normal_levels
-        on_read = []
-        for n, key in enumerate(keys):
-            if key[0] in derived:
-                on_read.append(n)
-                continue
-            raw, planar = self._normal_bytes(key)
-            out[n] = (normals_from_bytes(raw, T) if planar
-                      else np.frombuffer(raw, out.dtype).reshape(T, T, 2))
-        if on_read:
-            out[on_read] = self._derive_normals([keys[n] for n in on_read], bits)
-        return out
-
-    def _normal_bytes(self, key: TileKey) -> tuple[bytes, bool]:
-        """A whole stored normal map's codes (:func:`geoterrain.bounds.tilereads.normal_bytes`)."""
-        from geoterrain.bounds.tilereads import normal_bytes
-
-        out = normal_bytes(self, key, self._blob(key, "normals"))
-        self.decoded_normals += 1
-        return out
-
-    def _normal_ring(self, key: TileKey, n: int) -> np.ndarray:
-        """A derived level's tile's stored border ring
-        (:func:`~geoterrain.bounds.tilereads.normal_ring`)."""
-        from geoterrain.bounds.tilereads import normal_ring
-
-        return normal_ring(self, key, self._blob(key, "normals"), n)
-
-    def _derive_normals(self, keys: list[TileKey], bits: int) -> np.ndarray:
-        """The codes of tiles on derived levels
-        (:func:`~geoterrain.bounds.tilereads.derive_normals`)."""
-        from geoterrain.bounds.tilereads import derive_normals
-
-        out = derive_normals(self, keys, bits, self._normal_ring)
-        self.decoded_normals += len(keys)
-        return out
-
-    @property
-    def _derived_normal_levels(self) -> tuple[int, ...]:
-        return tuple(self.meta.get("normals_derived", ()))
+        return normalreads.normal_codes(self, keys, self._blob)
 
     # ------------------------------------------------------- per-vertex data
     def vertex_level(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
-        """The coarsest pyramid level holding samples (i, j) (:func:`bintree.vertex_level`)."""
-        from geoterrain.core.bintree import vertex_level
+        """The coarsest pyramid level holding samples (i, j) (:func:`gathers.vertex_level`)."""
+        return gathers.vertex_level(self, i, j)
 
-        return vertex_level(i, j, self.grid.top_level)
+    def gather(self, i: np.ndarray, j: np.ndarray,
+               kinds: Sequence[str] = ("delta", "radius", "height")) -> dict[str, np.ndarray]:
+        """Per-vertex arrays at full-resolution samples (i, j), read from the coarsest tiles
+        (:func:`geoterrain.gathers.gather`)."""
+        return gathers.gather(self, i, j, kinds)
 
-    def gather(self, i: np.ndarray, j: np.ndarray, kinds=("delta", "radius", "height")
-               ) -> dict[str, np.ndarray]:
-        """Per-vertex arrays at full-resolution samples (i, j), read from the coarsest tiles.
-
-        ``kinds``: any of delta, radius, height (source units), x, y (scene).
-        Only the tiles holding the requested vertices are decoded. Vertices in
-        tiles that are not stored (no valid data) get δ = r = 0 and height NaN.
-        """
-        g = self.grid
-        i, j = np.asarray(i, np.int64), np.asarray(j, np.int64)
-        out = {k: np.full(i.shape, np.nan if k == "height" else 0.0) for k in kinds}
-        if i.size == 0:
-            return out
-        keys, inv, a, b, held = g.vertex_tiles(i, j, self.vertex_level(i, j))
-        stacks = self.tile_stacks(keys, kinds)
-        for k in kinds:
-            out[k] = np.where(held, stacks[k][inv, a, b], out[k])
-        return out
-
-    def tile_stacks(self, keys: list[TileKey], kinds=("delta",)) -> dict[str, np.ndarray]:
-        """(K, T, T) float64 stacks of per-sample arrays for tiles ``keys``.
-
-        ``kinds``: delta, radius, height (source units, NaN = no data), x, y
-        (scene). Tiles that are not stored give δ = r = 0 and height NaN.
-        """
-        T = self.grid.tile_samples
-        stacks = {k: np.zeros((len(keys), T, T)) for k in kinds}
-        if "height" in kinds:
-            stacks["height"][:] = np.nan
-        for n, key in enumerate(keys):
-            if key not in self.tile_info:
-                continue
-            if "delta" in kinds:
-                stacks["delta"][n] = self.tile_delta(*key)
-            if "radius" in kinds:
-                stacks["radius"][n] = self.tile_radius(*key)
-            if "height" in kinds:
-                stacks["height"][n] = self.tile(*key).heights
-            if "x" in kinds:
-                stacks["x"][n], stacks["y"][n] = self.tile_xy(*key)
-        return stacks
+    def tile_stacks(self, keys: Sequence[TileKey], kinds: Sequence[str] = ("delta",)
+                    ) -> dict[str, np.ndarray]:
+        """(K, T, T) float64 stacks of per-sample arrays for tiles ``keys``
+        (:func:`geoterrain.gathers.tile_stacks`)."""
+        return gathers.tile_stacks(self, keys, kinds)
 
     # ------------------------------------------------------------ whole grids
     def level_heights(self, level: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """Heights (source units, NaN = no data) and valid mask of a whole level, padded."""
-        g = self.grid
-        shape = g.level_shape(level)  # (n, n) on a square grid
-        h = np.full(shape, np.nan)
-        v = np.zeros(shape, bool)
-        step = 1 << g.t
-        for (L, x, y) in self.tile_info:
-            if L != level:
-                continue
-            tl = self.tile(L, x, y)
-            T = g.tile_samples
-            sl = (slice(y * step, y * step + T), slice(x * step, x * step + T))
-            h[sl] = tl.heights
-            v[sl] = tl.valid
-        return h, v
+        """Heights and valid mask of a whole level (:func:`geoterrain.gathers.level_heights`)."""
+        return gathers.level_heights(self, level)
 
     def scene_xyz(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """X, Y, Z (float64, source-grid shaped) in the scene frame; NaN where there is no data.
-
-        This is the frame of every mesh geoterrain makes, so external code can
-        measure a mesh's error against it directly.
-        """
-        h, v = self.level_heights(0)
-        H, W = self.grid.rows, self.grid.cols
-        i, j = np.meshgrid(np.arange(H), np.arange(W), indexing="ij")
-        X, Y = self.frame.xy(i, j)
-        Z = self.frame.z(h[:H, :W])
-        return X, Y, Z
+        """X, Y, Z in the scene frame, NaN where there is no data: the frame of every mesh
+        geoterrain makes (:func:`geoterrain.gathers.scene_xyz`)."""
+        return gathers.scene_xyz(self)
 
     # -------------------------------------------------------------------- LOD
     def select(self, view: View, pixel_error: float = 1.0, strategy: str = "rtin", *,

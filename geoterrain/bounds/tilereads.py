@@ -23,7 +23,8 @@ if TYPE_CHECKING:
 
     from geoterrain.terrainlike import TerrainLike, TileKey
 
-__all__ = ["decode_tile_bounds", "derive_normals", "normal_bytes", "normal_ring"]
+__all__ = ["block_errors", "decode_tile_bounds", "derive_normals", "normal_bytes",
+           "normal_ring"]
 
 
 def decode_tile_bounds(terrain: TerrainLike, key: TileKey, kind: str, stored: str,
@@ -194,3 +195,36 @@ def derive_normals(terrain: TerrainLike, keys: list[TileKey], bits: int,
     # schema 17: a ring code stored as its difference from the derived one
     return derived_codes(h, terrain.frame.z_to_m * terrain.frame.z_scale, valid, X, Y, rings,
                          (rr, cc), bits, terrain.meta.get("normals_ring_residual") is True)
+
+
+def block_errors(terrain: TerrainLike, read_blob: Callable[[TileKey, str], bytes]
+                 ) -> np.ndarray | None:
+    """Every GeoMipMapping block's exact δ_n (seed 000 §2.4), (nb, nb, levels) indexed
+    [y, x, n], nb the level-0 tiles per side (a root grid: its level-0 tiles down,
+    across), n = 0 … min(t, top level) (see
+    :func:`geoterrain.bounds.tilebounds.tile_and_block_errors`); None for a store written
+    before the table was.
+
+    Examples
+    --------
+    >>> block_errors(t, t.reader.get_blob).shape[:2] == t.grid.tiles(0)[::-1]
+    True
+    """
+    levels = terrain.meta.get("block_delta_levels")
+    if levels is None:
+        return None
+
+    def make():
+        nb = terrain.grid.tiles(0)[::-1]
+        key = (terrain.grid.top_level, 0, 0)
+        try:
+            from geoterrain.bounds.tilebounds import unpack_block_errors
+
+            table = unpack_block_errors(read_blob(key, "block_delta"), nb, levels)
+            table.setflags(write=False)  # shared through the cache
+            return table
+        except ValueError as exc:
+            raise StoreCorruptError(f"{terrain.path}: the block δ_n table is damaged "
+                                    f"({exc}); re-run `geoterrain preprocess`") from None
+
+    return terrain.memo(("block_delta",), make)

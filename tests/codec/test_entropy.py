@@ -219,7 +219,7 @@ def test_wide_residuals_of_every_width(w, seed, cubic, off, py, px):
     """A wide blob's residuals, w little-endian bytes in w planes, zig-zag coded (the top
     bit set too at w = 8), are added to the predictions as numpy unpacks them."""
     from geoterrain.codec.predict import cubic_child, linear_child
-    from geoterrain.codec.pyramid import _wide_child
+    from geoterrain.codec.pyramid.decode import _wide_child
 
     rng = np.random.default_rng(seed)
     h = 4
@@ -248,7 +248,8 @@ def test_wide_blobs_of_a_level_are_each_tiles_own(seed, cubic, holes):
     residuals in the fewest little-endian bytes, plane by plane, after its mask."""
     import zstandard
 
-    from geoterrain.codec.pyramid import _header, _period, _wide_blobs
+    from geoterrain.codec.pyramid.encode import _wide_blobs
+    from geoterrain.codec.pyramid.layout import _header, _period
 
     rng = np.random.default_rng(seed)
     te, s, h = 2, 1, 2

@@ -24,7 +24,7 @@ import numpy as np
 import rasterio
 
 import geoterrain
-from geoterrain.codec.pyramid import _parse
+from geoterrain.codec.pyramid.layout import _parse
 from tests.store.storesql import all_blobs, all_tiles, read_meta
 
 IGNORED = ("edits",)  # a fresh preprocess has no edit log

@@ -25,17 +25,10 @@ from collections.abc import Callable
 import numpy as np
 
 from geoterrain.codec.predict import fill_level
-from geoterrain.codec.pyramid import (
-    _decoded_codes,
-    _encode_levels,
-    _encode_top,
-    _period,
-    _predictor_bits,
-    _predictor_crop,
-    _root_windows,
-    encode_decoded,
-    roots_shape,
-)
+from geoterrain.codec.pyramid import encode_decoded, roots_shape
+from geoterrain.codec.pyramid.decoded import _decoded_codes, _predictor_bits, _predictor_crop
+from geoterrain.codec.pyramid.encode import _encode_levels, _encode_top
+from geoterrain.codec.pyramid.layout import _period, _root_windows
 from geoterrain.codec.quantize import Quantizer, valid_codes
 from geoterrain.core.grid import footprint_counts
 from geoterrain.preprocessing.bands.delta import grid_shape
