@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 
 __all__ = ["Plan", "store_predictor", "whole_plan"]
 
-_CUBIC = 8  # a height blob's flag bit: the cubic predictor (codec/pyramid.py)
+_CUBIC = 8  # a height blob's flag bit: the cubic predictor (codec/pyramid/layout.py)
 
 
 @dataclass
