@@ -618,7 +618,7 @@ def _encode_top(buf, top, ok, te, cubic, kind, W, filled, edges):
 def encode_top(top: np.ndarray, ok: np.ndarray, te: int, cubic: bool, kind: int,
                W: int = 1, filled: bool = False, edges: bool = False) -> bytes:
     """The stream of the top tile ``top`` ((2^te + 1)² codes, as
-    :func:`geoterrain.codec.pyramid._top_fill` leaves them: binned, invalid corners filled;
+    :func:`geoterrain.codec.pyramid.decoded._top_fill` leaves them: binned, invalid corners filled;
     other invalid samples are not coded), mask ``ok``, bins ``W``, ``filled`` and
     ``edges`` (:func:`_top`).
 
