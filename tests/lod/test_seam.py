@@ -78,7 +78,9 @@ def test_selection_writes_nothing_into_the_terrain(terrain):
     lod.static(terrain, 3.0)
     after = vars(terrain)
     assert set(after) == set(before)
-    assert all(after[k] is before[k] for k in before if k != "decoded_tiles")
+    # the running counts of what was read (TerrainLike) may grow; nothing else may change
+    counts = {"decoded_tiles", "decoded_normals", "decoded_bounds", "bytes_read"}
+    assert all(after[k] is before[k] for k in before if k not in counts)
 
 
 def test_stand_in_height_is_recorded_at_preprocess(terrain):
