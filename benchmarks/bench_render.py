@@ -16,7 +16,7 @@ time, and the host's load average before and after: on a shared machine the wall
 time of the same work moves with the load, its CPU time much less.
 
     PYTHONPATH=. python benchmarks/bench_render.py STORE [--views 24] [--size 1280x720]
-        [--tau 1] [--flight approach|low] [--strategies rtin] [--brute-every 4] [--global]
+        [--tau 1] [--flight approach|low|oblique] [--strategies rtin] [--brute-every 4] [--global]
         [--json out.json] [--pictures DIR]
         [--anti-aliasing auto|msaa|edges|fxaa|none] [--skip-bruteforce] [--overlap]
         [--reference DIR]
@@ -88,7 +88,15 @@ def low_flight(t, n: int, size: tuple[int, int]) -> list[tuple[str, View]]:
     return views
 
 
-FLIGHTS = {"approach": flight, "low": low_flight}
+def oblique_flight(t, n: int, size: tuple[int, int]) -> list[tuple[str, View]]:
+    """``n`` random oblique views (distances 0.1–0.5 of the extent, pitch 3°–60°,
+    ``bench_chunked.oblique_views``, seed 0): held-out views, not a planned flight."""
+    from bench_chunked import oblique_views
+
+    return [(f"oblique {k}", v) for k, v in enumerate(oblique_views(t, n, 0, size))]
+
+
+FLIGHTS = {"approach": flight, "low": low_flight, "oblique": oblique_flight}
 
 
 def psnr(a: np.ndarray, b: np.ndarray) -> float:
@@ -140,7 +148,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--views", type=int, default=24)
     ap.add_argument("--flight", default="approach", choices=sorted(FLIGHTS),
                     help="approach (the default: from the overview down to a low pass) or "
-                    "low (a low, oblique pass looking ahead over the terrain)")
+                    "low (a low, oblique pass looking ahead over the terrain) or oblique "
+                    "(random views, bench_chunked's generator, seed 0)")
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--tau", type=float, default=1.0)
     ap.add_argument("--strategies", default="rtin")
