@@ -314,7 +314,8 @@ class Terrain:
         """Scene X, Y (T, T) of the tile's samples (cached: geographic frames call pyproj)."""
         def make():
             g = self.grid
-            return self.frame.block_xy(g.tile_rows(level, y), g.tile_cols(level, x))
+            ii, jj = np.meshgrid(g.tile_rows(level, y), g.tile_cols(level, x), indexing="ij")
+            return self.frame.xy(ii, jj)
         return self.memo(("xy", level, x, y), make)
 
     def tile_normals(self, level: int, x: int, y: int) -> np.ndarray:

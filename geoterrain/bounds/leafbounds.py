@@ -815,7 +815,8 @@ class _Layout:
 
     def tile_xy(self, level: int, x: int, y: int) -> tuple[np.ndarray, np.ndarray]:
         g = self.grid
-        return self.frame.block_xy(g.tile_rows(level, y), g.tile_cols(level, x))
+        ii, jj = np.meshgrid(g.tile_rows(level, y), g.tile_cols(level, x), indexing="ij")
+        return self.frame.xy(ii, jj)
 
 
 def ring_guesses(grid, frame, level: int, tiles: list[tuple[int, int]], z: np.ndarray,

@@ -292,29 +292,6 @@ class Frame:
             return self.xy(np.arange(R)[:, None], np.arange(C)[None, :])
         return self.axis_xy(np.arange(R), np.arange(C))
 
-    def block_xy(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Scene X, Y (float64, (len(rows), len(cols)), writable) of the samples ``rows`` ×
-        ``cols``: :meth:`xy` of their meshgrid, the same values; an affine frame computes
-        them from the two index vectors broadcast (half the arithmetic and no index grids:
-        a tile's positions are read for every δ and r it decodes).
-
-        Examples
-        --------
-        >>> f = Frame.pixel(4, 4, 2.0)
-        >>> X, Y = f.block_xy(np.array([0, 3]), np.array([1, 2, 3]))
-        >>> ii, jj = np.meshgrid([0, 3], [1, 2, 3], indexing="ij")
-        >>> X.shape, bool((X == f.xy(ii, jj)[0]).all() and (Y == f.xy(ii, jj)[1]).all())
-        ((2, 3), True)
-        """
-        rows, cols = np.asarray(rows), np.asarray(cols)
-        if self.kind == "geographic":  # pyproj's positions, as they always were computed
-            ii, jj = np.meshgrid(rows, cols, indexing="ij")
-            return self.xy(ii, jj)
-        X, Y = self.xy(rows[:, None], cols[None, :])
-        shape = (len(rows), len(cols))
-        return (X if X.shape == shape else np.broadcast_to(X, shape).copy(),
-                Y if Y.shape == shape else np.broadcast_to(Y, shape).copy())
-
     def axis_xy(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Scene X, Y of the samples ``rows`` × ``cols`` of a projected or pixel frame,
         where X depends on the column only and Y on the row only: read-only broadcast

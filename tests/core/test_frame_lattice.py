@@ -203,28 +203,3 @@ def test_the_xy_pass_writes_the_whole_grid_s_positions(tmp_path, band):
         np.testing.assert_array_equal(sx.read("Y", 0, g.extent[0]), Y)
     finally:
         sx.close()
-
-
-affine = st.builds(lambda a, c, e, f, epsg: ((a, 0.0, c, 0.0, -e, f), epsg),
-                   st.floats(0.1, 100), st.floats(-1e6, 1e6), st.floats(0.1, 100),
-                   st.floats(-1e6, 1e7), st.sampled_from([None, 32633, 3089]))
-
-
-@settings(max_examples=40, deadline=None)
-@given(case=affine, rows=st.integers(1, 30), cols=st.integers(1, 30), seed=st.integers(0, 2**16))
-def test_block_xy_is_xy_of_the_meshgrid_bit_for_bit(case, rows, cols, seed):
-    """A tile's positions (Terrain.tile_xy) come from the two index vectors broadcast on an
-    affine frame: every bit as xy of the meshgrid, on any north-up transform (a rotated
-    one is refused at ingest), in metres or in US feet, and on a geographic frame."""
-    (t, epsg) = case
-    wkt = None if epsg is None else CRS.from_epsg(epsg).to_wkt()
-    rng = np.random.default_rng(seed)
-    r, c = rng.integers(0, 4 * rows, rows), rng.integers(0, 4 * cols, cols)
-    geo = _frame(35.0, 139.0, 1 / 3600, 40, 40).with_lattice((60, 60))
-    for f in (Frame.from_raster(t, wkt, 40, 40), geo):
-        ii, jj = np.meshgrid(r, c, indexing="ij")
-        want = f.xy(ii, jj)
-        got = f.block_xy(r, c)
-        for g, w in zip(got, want, strict=True):
-            assert g.shape == (rows, cols) and g.dtype == np.float64 and g.flags.writeable
-            np.testing.assert_array_equal(g, w)
