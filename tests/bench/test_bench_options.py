@@ -1,5 +1,6 @@
 """Options of the benchmark scripts that a reader relies on, run on a small store:
-``bench_render.py --pictures DIR`` writes pictures with ``--skip-bruteforce`` too."""
+``bench_render.py --pictures DIR`` writes pictures with ``--skip-bruteforce`` too, and
+``bench_edit.py``'s warm-up edits by tiles, the timed edits' path."""
 
 from __future__ import annotations
 
@@ -48,3 +49,24 @@ def test_bench_render_writes_the_strategies_pictures_without_bruteforce(tmp_path
     assert [r["strategy"] for r in out["runs"]] == ["rtin"]
     assert out["runs"][0]["summary"]["psnr_to_bruteforce"] == []  # nothing to compare with
     assert "--skip-bruteforce" in script("bench_render").__doc__.split("--pictures DIR")[1]
+
+
+def test_bench_edit_warms_the_by_tiles_path(tmp_path, script):
+    """The parent's warm-up edit goes by tiles, as the timed children's edits do; an edit
+    at the data's corner (the warm-up before) went to the whole grid on this store, so the
+    first timed edit by tiles compiled its kernels."""
+    from geoterrain.ingest.synth import generate, write_geotiff
+    from geoterrain.preprocessing.edit import Patch, edit_terrain
+
+    dem = write_geotiff(tmp_path / "dem.tif", generate("fbm", 257, seed=0))
+    store = str(geoterrain.preprocess(dem, tmp_path / "s.geoterrain"))
+    before = Path(store).read_bytes()
+    res = script("bench_edit").warm_up(store, str(tmp_path), 65)
+    assert res.how == "tiles", res.why
+    assert Path(store).read_bytes() == before  # a copy was edited, and removed
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dem.tif", "s.geoterrain"]
+    corner = tmp_path / "corner.geoterrain"
+    corner.write_bytes(before)
+    with geoterrain.open(corner) as t:  # the old warm-up's edit, for contrast
+        old = edit_terrain(t, Patch(0, 0, np.full((65, 65), -20.0)), "add")
+    assert old.how == "whole grid"
