@@ -23,7 +23,9 @@ time of the same work moves with the load, its CPU time much less.
 
 ``--pictures DIR`` writes the compared views' pictures there as PNGs
 (``STRATEGY_VIEW.png``, bruteforce's included), so two checkouts' pictures of the same
-views can be compared; each strategy's PSNR against bruteforce is printed per view.
+views can be compared; each strategy's PSNR against bruteforce is printed per view. With
+``--skip-bruteforce`` it writes the strategies' pictures of the same views (every
+``--brute-every``-th), and no PSNR is taken.
 ``--reference DIR`` takes bruteforce's pictures from such a folder instead of drawing
 them again (bruteforce draws every level-0 tile: minutes a view on a 4097² store).
 
@@ -168,7 +170,9 @@ def main(argv=None) -> dict:
                     "view before is drawn (TerrainScene.frames); the warm frame is then the "
                     "time between pictures (bruteforce is drawn without)")
     ap.add_argument("--json")
-    ap.add_argument("--pictures", help="write the compared views' pictures to this folder")
+    ap.add_argument("--pictures", help="write the compared views' pictures (every "
+                    "--brute-every-th view) to this folder; with --skip-bruteforce, the "
+                    "strategies' pictures only")
     ap.add_argument("--reference", help="compare with bruteforce's pictures in this folder "
                     "(written by --pictures) instead of drawing bruteforce")
     a = ap.parse_args(argv)
@@ -187,7 +191,8 @@ def main(argv=None) -> dict:
     runs = []
     for s in a.strategies.split(","):
         runs.append(run_config(a.store, views, s, "view", a.tau, None, a.anti_aliasing,
-                               () if a.skip_bruteforce and reference is None else brute_views,
+                               () if a.skip_bruteforce and reference is None and not a.pictures
+                               else brute_views,
                                a.overlap))
         if a.glob:
             runs.append(run_config(a.store, views, s, "global", a.tau, None, a.anti_aliasing))

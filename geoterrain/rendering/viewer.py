@@ -39,31 +39,20 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from geoterrain import lod
 from geoterrain.core.view import View
-from geoterrain.lod.registry import DEFAULT, STRATEGIES, strategy_info
+from geoterrain.lod.registry import DEFAULT, strategy_info
 from geoterrain.rendering.cameras import default_view
 from geoterrain.rendering.colours import Palette
 from geoterrain.rendering.drape import Drape
 from geoterrain.rendering.scene import TerrainScene, store_snapshot
 from geoterrain.rendering.shading import Light
-from geoterrain.rendering.viewer_style import (
-    Compass,
-    cell_colours,
-    colour_bar,
-    level_legend,
-    mute_style_timers,
-)
+from geoterrain.rendering.viewer_hud import HELP, ViewerHud, _length  # noqa: F401
+from geoterrain.rendering.viewer_keys import COLOR_MODES, ViewerKeys  # noqa: F401
+from geoterrain.rendering.viewer_style import mute_style_timers
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
-
-COLOR_MODES = ("shading", "level", "tile")
-HELP = ("keys: m strategy  +/- coarser/finer  g morph  x wireframe  c colour  space freeze  "
-        "h home  s screenshot  t timings  q quit")
-
 
 POLL_MS = 16.0  # background mode, idle: how often the window looks for a finished frame
 # background mode, a frame in flight: looked for this often (a second, repeating timer,
@@ -78,7 +67,7 @@ STORE_POLL_MS = 500.0
 TEXTURE_BUILDS = 24
 
 
-class ViewerController:
+class ViewerController(ViewerHud, ViewerKeys):
     """Re-selects the LOD when the camera moves and updates the scene in place.
 
     Parameters
@@ -422,173 +411,10 @@ class ViewerController:
         if self._executor is not None:
             self._executor.shutdown(wait=True, cancel_futures=True)
 
-    # --------------------------------------------------------------- styling
-    def _apply_style(self) -> None:
-        actor = self.scene.actor
-        if actor is None:
-            return
-        prop = actor.GetProperty()
-        prop.SetRepresentationToWireframe() if self.wireframe else prop.SetRepresentationToSurface()
-        mesh, mapper = self.scene.mesh, actor.GetMapper()
-        if getattr(self, "_levels", None) is not None:  # a legend for the colours shown
-            self._levels.SetVisibility(self.color_mode == "level")
-            if self._bar is not None:
-                self._bar.SetVisibility(self.color_mode == "shading")
-        if self.color_mode == "shading" or mesh.n_cells == 0:
-            mapper.ScalarVisibilityOff()
-            actor.SetTexture(self.scene.texture)
-            prop.SetLighting(self.scene.texture is None)
-            return
-        vals, lut = cell_colours(self.scene.selection, self.color_mode, self.terrain.grid)
-        mesh.cell_data["_color"] = vals
-        mesh.set_active_scalars("_color", preference="cell")
-        actor.SetTexture(None)
-        rng = lut.scalar_range
-        mapper.SetLookupTable(lut)
-        mapper.SetScalarModeToUseCellData()
-        mapper.SetScalarRange(*rng)
-        mapper.ScalarVisibilityOn()
-        prop.SetLighting(True)
-
     @property
     def busy(self) -> bool:
         """A selection is running in the worker thread."""
         return self._future is not None and not self._future.done()
-
-    def _update_hud(self) -> None:
-        s = self.stats
-        morph = ", morphing" if self._morphing() and strategy_info(self.strategy).morphs else ""
-        doing = (" · updating the view..." if self.busy and not self.refining
-                 else " · sharpening textures..." if self.refining else "")
-        line = (f"{self.strategy}{morph} · detail {self.pixel_error:g} px · "
-                f"{s.get('triangles', 0):,} triangles · frame {self.frame_ms:.0f} ms"
-                + (" · frozen" if self.frozen else "")
-                + ("" if self.color_mode == "shading" else f" · coloured by {self.color_mode}")
-                + doing)
-        lines = [line]
-        if self.telemetry:
-            lines.append(f"τ {self.pixel_error:g} px · select {s.get('select_ms', 0.0):.0f} ms"
-                         f" · textures {self.scene.texture_stats.get('texture_ms', 0.0):.0f} ms"
-                         f" ({self.scene.texture_stats.get('textures_built', 0)} shaded) · "
-                         f"tiles decoded {s.get('tiles_decoded', 0)} · UI "
-                         f"{getattr(self, 'ui_ms', 0.0):.0f} ms")
-        scale = self._metres_per_pixel()
-        extra = f"1 px = {_length(scale)} at the view centre" if scale else ""
-        if self.message:
-            extra = (extra + "   " if extra else "") + self.message
-        if extra:
-            lines.append(extra)
-        self._hud.SetText(2, "\n".join([*lines, HELP] if self.keys else lines))
-        if getattr(self, "_compass", None) is not None:
-            self._compass.update(self.current_view())
-
-    def _metres_per_pixel(self) -> float:
-        c = self.plotter.camera
-        d = float(np.linalg.norm(np.subtract(c.position, c.focal_point)))
-        H = float(self.plotter.window_size[1]) or 1.0
-        return 2.0 * d * np.tan(np.radians(float(c.view_angle)) / 2.0) / H
-
-    def _legend(self, cmap) -> None:
-        """The colour bar (metres, the texture's own colours), the level legend (shown while
-        the triangles are coloured by level) and the north arrow."""
-        self._compass = Compass(self.plotter)
-        self._bar = self._levels = None
-        if self.scene.shading != "plain":
-            self._bar = colour_bar(self.terrain, cmap)
-            self.plotter.add_actor(self._bar, name="colour-bar", reset_camera=False)
-        self._levels = level_legend(self.terrain.grid)
-        self._levels.SetVisibility(False)
-        self.plotter.add_actor(self._levels, name="level-legend", reset_camera=False)
-
-    def screenshot(self, path=None) -> str:
-        """Key ``s``: save the window, overlays included, as a PNG (a new name each time:
-        ``geoterrain-<time>-<n>.png`` in the working folder); the status line says where."""
-        from pathlib import Path
-
-        self.settle()  # the saved picture is the anti-aliased one
-        self.screenshots += 1
-        if path is None:
-            path = Path.cwd() / time.strftime(f"geoterrain-%Y%m%d-%H%M%S-{self.screenshots}.png")
-        self.plotter.screenshot(str(path))
-        self.message = f"saved {path}"
-        self._update_hud()
-        self.plotter.render()
-        return str(path)
-
-    def _refresh(self) -> None:
-        if self.on_camera_changed(force=True) is False and self._executor is not None:
-            self.pending = True
-        self.plotter.render()
-
-    # ------------------------------------------------------------------ keys
-    def next_strategy(self) -> None:
-        """Key ``m``: the next LOD strategy."""
-        k = STRATEGIES.index(self.strategy) if self.strategy in STRATEGIES else -1
-        self.strategy = STRATEGIES[(k + 1) % len(STRATEGIES)]
-        self._refresh()
-
-    def toggle_telemetry(self) -> None:
-        """Key ``t``: the engine's figures (selection and texture times, tiles decoded) in
-        the status line, or not."""
-        self.telemetry = not self.telemetry
-        self._update_hud()
-        self.plotter.render()
-
-    def tau_up(self) -> None:
-        """Key ``+``: τ × 2 (coarser)."""
-        self.pixel_error = min(self.pixel_error * 2, 256.0)
-        self._refresh()
-
-    def tau_down(self) -> None:
-        """Key ``-``: τ / 2 (finer)."""
-        self.pixel_error = max(self.pixel_error / 2, 0.125)
-        self._refresh()
-
-    def toggle_wireframe(self) -> None:
-        """Key ``x``: wireframe on/off."""
-        self.wireframe = not self.wireframe
-        self._apply_style()
-        self.plotter.render()
-
-    def next_color_mode(self) -> None:
-        """Key ``c``: colour by shading, LOD level or tile."""
-        self.color_mode = COLOR_MODES[(COLOR_MODES.index(self.color_mode) + 1) % len(COLOR_MODES)]
-        self._apply_style()
-        self._update_hud()
-        self.plotter.render()
-
-    def toggle_morph(self) -> None:
-        """Key ``g``: geomorphing on/off, for the strategies that morph (its default:
-        off for rtin, chunked and geomipmap, on for cdlod)."""
-        self.morph = not self._morphing()
-        self._refresh()
-
-    def _morphing(self) -> bool:
-        """Whether the current strategy morphs now (the choice, else its default)."""
-        return (self.morph if self.morph is not None
-                else strategy_info(self.strategy).morph_default)
-
-    def toggle_freeze(self) -> None:
-        """Key ``space``: keep the current selection while the camera moves."""
-        self.frozen = not self.frozen
-        if not self.frozen:
-            self.on_camera_changed(force=True)
-        self._update_hud()
-        self.plotter.render()
-
-    def _go_home(self) -> None:
-        self.scene.set_camera(self.home)
-        # the terrain style turns about the camera's view-up: make it the vertical, so
-        # drags never roll (the same camera: VTK orthogonalises it as View.basis does)
-        cam = self.plotter.camera
-        d = np.subtract(cam.focal_point, cam.position)
-        if np.linalg.norm(d[:2]) > 1e-9 * np.linalg.norm(d):
-            cam.up = (0.0, 0.0, 1.0)
-
-    def reset_view(self) -> None:
-        """Key ``h``: back to the overview."""
-        self._go_home()
-        self._refresh()
 
     def bind(self) -> None:
         """Attach camera observers, a polling timer and the keys to the plotter."""
@@ -622,9 +448,6 @@ class ViewerController:
         return BUSY_POLL_MS if self._future is not None else POLL_MS
 
 
-def _length(m: float) -> str:
-    """A length for the status line: 0.42 m, 12.3 m, 1.25 km."""
-    return f"{m / 1000:.3g} km" if m >= 1000 else f"{m:.3g} m"
 
 
 def show(terrain: TerrainLike, strategy: str = DEFAULT, pixel_error: float = 1.0, *,

@@ -28,39 +28,52 @@ nb = (N − 1)/s: ``C`` (nb, nb), the block centres (h + a·s, h + b·s); ``R`` 
 the edge midpoints (h + a·s, b·s) whose hypotenuse runs along the rows; ``K``
 (nb + 1, nb), the edge midpoints (a·s, h + b·s). They are the vertices new at each
 level, in the order a store writes them.
+
+Split by job: the rows a band reads (:mod:`~geoterrain.preprocessing.bands.rows`), the
+coarse levels' running sweeps (:mod:`~geoterrain.preprocessing.bands.coarselevels`) and the
+per-level arrays' saturation (:mod:`~geoterrain.preprocessing.bands.saturation`); this
+module drives them, sweeps the fine levels and reads the per-level arrays back.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from geoterrain.bounds.delta import (
     Beside,
-    Cell,
-    Diamond,
     _block_sweep,
-    _block_sweep_part,
     _centre1,
-    _edge_err_part,
     edge_delta_nb,
-    edge_status_nb,
     grid_order,
 )
 from geoterrain.bounds.radii import valid_range
 from geoterrain.core.bintree import main_diagonal_nb
 from geoterrain.core.rounding import round_up32
 from geoterrain.core.threads import parallel_kernel
+from geoterrain.preprocessing.bands.coarselevels import (
+    BlockMaxima,
+    Sweeps,
+    _coarse_edges_nb,
+    _coarse_finish_nb,
+    _coarse_rows_nb,
+    _mixed_edges,
+)
+from geoterrain.preprocessing.bands.rows import (
+    Rows,
+    _window,
+    edge_rows,
+    grid_shape,
+    rows_of,
+)
+from geoterrain.preprocessing.bands.saturation import _saturate, _zero_beyond  # noqa: F401
 from geoterrain.preprocessing.scratch import ScratchArrays
 
 __all__ = ["LevelDelta", "band_vertex_errors", "edge_rows", "level_lattice", "raise_delta",
            "rows_of"]
-
-Rows = Callable[[int, int], tuple[np.ndarray, np.ndarray]]
 
 
 class BandWindow(NamedTuple):
@@ -88,28 +101,6 @@ class LevelVertices(NamedTuple):
     C: np.ndarray
     R: np.ndarray
     K: np.ndarray
-
-
-class BlockMaxima(NamedTuple):
-    """A coarse level's running maxima, per block: of its centre's sweep and of its four
-    quarters' (left, right, top, bottom: the edge midpoints' sides), as
-    :func:`geoterrain.bounds.delta._block_sweep_part` returns them."""
-
-    centre: np.ndarray
-    left: np.ndarray
-    right: np.ndarray
-    top: np.ndarray
-    bottom: np.ndarray
-
-
-class Sweeps(NamedTuple):
-    """Running sweeps of a coarse level's mixed edge midpoints, one per listed diamond:
-    the largest error ``m``, the valid samples ``valid`` and all samples ``total`` seen
-    (:func:`geoterrain.bounds.delta.edge_status_nb` once every row is in)."""
-
-    m: np.ndarray
-    valid: np.ndarray
-    total: np.ndarray
 
 
 @dataclass
@@ -162,72 +153,6 @@ class LevelDelta:
             d[h::s, 0::s] = R
             d[0::s, h::s] = K
         return d
-
-
-def grid_shape(N: int | tuple[int, int]) -> tuple[int, int]:
-    """(rows, cols) of a grid given as its side N (a square) or as (rows, cols).
-
-    Examples
-    --------
-    >>> grid_shape(5), grid_shape((5, 9))
-    ((5, 5), (5, 9))
-    """
-    if isinstance(N, tuple | list):
-        return int(N[0]), int(N[1])
-    return int(N), int(N)
-
-
-def rows_of(z: np.ndarray, valid: np.ndarray) -> Rows:
-    """A ``rows`` callback over in-memory arrays (tests, small grids).
-
-    Examples
-    --------
-    >>> z, v = rows_of(np.arange(9.0).reshape(3, 3), np.ones((3, 3), bool))(1, 3)
-    >>> z.shape
-    (2, 3)
-    """
-    return lambda i0, i1: (z[i0:i1], valid[i0:i1])
-
-
-def edge_rows(rows: Rows, data: tuple[int, int]) -> Rows:
-    """The rows of :func:`geoterrain.bounds.edgepad.edge_support`'s grid: the padding of a grid
-    whose data is its top-left ``data = (rows, cols)`` replicated from the data's last
-    column and row (a nodata sample there makes its copies nodata).
-
-    Examples
-    --------
-    >>> z = np.array([[1.0, 2.0, 0.0], [3.0, 4.0, 0.0], [0.0, 0.0, 0.0]])
-    >>> v = np.array([[1, 1, 0], [1, 1, 0], [0, 0, 0]], bool)
-    >>> edge_rows(rows_of(z, v), (2, 2))(1, 3)[0].tolist()
-    [[3.0, 4.0, 4.0], [3.0, 4.0, 4.0]]
-    """
-    H, W = data
-
-    def replicated(i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
-        src = np.minimum(np.arange(i0, i1), H - 1)  # rows past the data: its last one
-        lo, hi = int(src.min()), int(src.max()) + 1
-        z, v = rows(lo, hi)
-        z = np.array(np.asarray(z, np.float64)[src - lo])
-        v = np.array(np.asarray(v, bool)[src - lo])
-        z[:, W:] = z[:, W - 1:W]
-        v[:, W:] = v[:, W - 1:W]
-        z[~v] = np.nan
-        return z, v
-
-    return replicated
-
-
-def _window(rows: Rows, i0: int, i1: int, C: int) -> tuple[np.ndarray, np.ndarray]:
-    # check_grid's rules on a window: non-finite heights are invalid, invalid heights 0
-    z, v = rows(i0, i1)
-    z = np.asarray(z, dtype=np.float64)
-    v = np.asarray(v, dtype=bool)
-    if z.shape != (i1 - i0, C) or v.shape != z.shape:
-        raise ValueError(f"rows({i0}, {i1}) gave {z.shape} and {v.shape}, "
-                         f"expected ({i1 - i0}, {C})")
-    v = v & np.isfinite(z)
-    z = np.where(v, z, 0.0)
-    return np.ascontiguousarray(z), np.ascontiguousarray(v)
 
 
 @parallel_kernel(cache=True)
@@ -318,195 +243,6 @@ def _fine_level_nb(band, h, st, st_prev, qb_prev, out, QB):
             qhi = QT[ak, b] if fhi else 0.0
             K[ak, b] = edge_delta_nb(z, vb, ic, jc, h, False, NR, w0,
                                      Beside(flo, fhi, qlo, qhi), K[ak, b])
-
-
-@parallel_kernel(cache=True)
-def _coarse_rows_nb(band, h, st, zd, acc):
-    """Add the ``band``'s rows (:class:`BandWindow`: r_lo … r_hi, inclusive, inside the
-    window from w0) to the running maxima ``acc`` (:class:`BlockMaxima`) of every
-    all-valid block of the coarse level h (corners from the decimated grid ``zd``, every
-    dB = B samples)."""
-    z, w0, dB, r_lo, r_hi = band.z, band.w0, band.B, band.r0, band.r_end
-    MC = acc.centre  # one by one (see bounds.tileblobs._level_payloads)
-    QL = acc.left
-    QR = acc.right
-    QT = acc.top
-    QB = acc.bottom
-    s = 2 * h
-    nbr, nb = st.shape
-    k = s // dB
-    for b in prange(nb):
-        for a in range(max(r_lo // s - 1, 0), min(r_hi // s, nbr - 1) + 1):
-            d0 = max(r_lo - a * s, 0)
-            d1 = min(r_hi - a * s, s)
-            if d0 > d1 or st[a, b] != 1:
-                continue
-            main = main_diagonal_nb(a, b)
-            mc, ml, mr, mt, mb = _block_sweep_part(
-                z, Cell(a * s, b * s, s, main, zd[a * k, b * k], zd[a * k, b * k + k],
-                        zd[a * k + k, b * k], zd[a * k + k, b * k + k]),
-                zd[a * k + k // 2, b * k + k // 2], d0, d1, w0)
-            MC[a, b] = max(MC[a, b], mc)
-            QL[a, b] = max(QL[a, b], ml)
-            QR[a, b] = max(QR[a, b], mr)
-            QT[a, b] = max(QT[a, b], mt)
-            QB[a, b] = max(QB[a, b], mb)
-
-
-@njit(cache=True)
-def _coarse_edges_nb(band, h, zd, rows, todo, sweeps):
-    """Add the ``band``'s rows (:class:`BandWindow`: r_lo … r_hi) to the running
-    ``sweeps`` (:class:`Sweeps`) of the coarse level's mixed edge midpoints listed in
-    ``todo`` ((a, b) rows; R-type if ``rows``, else K-type; corners from ``zd``, every
-    dB = B samples)."""
-    z, vb, w0, dB, r_lo, r_hi = band.z, band.v, band.w0, band.B, band.r0, band.r_end
-    NR, NC = band.R, band.C
-    EM, EC, ET = sweeps
-    s = 2 * h
-    u = h // dB  # h in decimated steps
-    for t in range(todo.shape[0]):
-        a = todo[t, 0]
-        b = todo[t, 1]
-        if rows:
-            ic = h + a * s
-            jc = b * s
-            ii = (ic // dB)
-            jj = (jc // dB)
-            lo_ok = jc - h >= 0
-            hi_ok = jc + h <= NC - 1
-            za = zd[ii - u, jj]
-            zb = zd[ii + u, jj]
-            z_lo = zd[ii, jj - u] if lo_ok else 0.0
-            z_hi = zd[ii, jj + u] if hi_ok else 0.0
-        else:
-            ic = a * s
-            jc = h + b * s
-            ii = (ic // dB)
-            jj = (jc // dB)
-            lo_ok = ic - h >= 0
-            hi_ok = ic + h <= NR - 1
-            za = zd[ii, jj - u]
-            zb = zd[ii, jj + u]
-            z_lo = zd[ii - u, jj] if lo_ok else 0.0
-            z_hi = zd[ii + u, jj] if hi_ok else 0.0
-        d0 = max(r_lo - ic, -h)
-        d1 = min(r_hi - ic, h)
-        if d0 > d1:
-            continue
-        m, c, n = _edge_err_part(z, vb, Diamond(ic, jc, h, rows, lo_ok, hi_ok, za, zb, z_lo,
-                                                z_hi), d0, d1, w0)
-        EM[t] = max(EM[t], m)
-        EC[t] += c
-        ET[t] += n
-
-
-@njit(cache=True)
-def _coarse_finish_nb(st, acc, rtodo, rsw, ktodo, ksw, out):
-    # the branches of bounds._raw_delta_nb, once every row has been added: from the blocks'
-    # maxima ``acc`` (BlockMaxima) and the mixed edges' sweeps (Sweeps), into ``out``
-    # (LevelVertices)
-    MC, QL, QR, QT, QB = acc
-    C, R, K = out
-    nbr, nb = st.shape
-    for a in range(nbr):
-        for b in range(nb):
-            if st[a, b] == 1:
-                C[a, b] = round_up32(MC[a, b])
-            elif st[a, b] == 3:
-                C[a, b] = np.inf
-    for a in range(nbr):
-        for b in range(nb + 1):
-            flo = st[a, b - 1] if b > 0 else 0
-            fhi = st[a, b] if b < nb else 0
-            if flo | fhi == 1:
-                m = 0.0
-                if flo:
-                    m = max(m, QR[a, b - 1])
-                if fhi:
-                    m = max(m, QL[a, b])
-                R[a, b] = round_up32(m)
-    for a in range(nbr + 1):
-        for b in range(nb):
-            flo = st[a - 1, b] if a > 0 else 0
-            fhi = st[a, b] if a < nbr else 0
-            if flo | fhi == 1:
-                m = 0.0
-                if flo:
-                    m = max(m, QB[a - 1, b])
-                if fhi:
-                    m = max(m, QT[a, b])
-                K[a, b] = round_up32(m)
-    for todo, (em, ec, et), vals in ((rtodo, rsw, R), (ktodo, ksw, K)):
-        for t in range(todo.shape[0]):
-            m, c = edge_status_nb(em[t], ec[t], et[t])
-            if c == 2:
-                vals[todo[t, 0], todo[t, 1]] = np.inf
-            elif c == 1:
-                vals[todo[t, 0], todo[t, 1]] = round_up32(m)
-
-
-def _mixed_edges(st: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    # (a, b) of the R- and K-type edge midpoints whose two blocks' statuses mix (f = 3)
-    nbr, nb = st.shape
-    z = np.zeros((nbr, 1), np.uint8)
-    fr = np.hstack([z, st]) | np.hstack([st, z])
-    zk = np.zeros((1, nb), np.uint8)
-    fk = np.vstack([zk, st]) | np.vstack([st, zk])
-    return (np.argwhere(fr == 3).astype(np.int64), np.argwhere(fk == 3).astype(np.int64))
-
-
-def _zero_beyond(a: np.ndarray, a_lo: int, s: int, di: int, dj: int,
-                 data: tuple[int, int]) -> None:
-    # edgepad.zero_beyond_data on rows a_lo … of one kind of level array: vertex
-    # (a·s + di, b·s + dj) of half-span h keeps its value only if its diamond reaches the
-    # data's rows × cols, i.e. a·s + di − h ≤ rows − 1 and b·s + dj − h ≤ cols − 1
-    h = s // 2
-    rows, cols = data
-    a_idx = a_lo + np.arange(a.shape[0])
-    a[a_idx * s + di - h > rows - 1] = 0
-    a[:, np.arange(a.shape[1]) * s + dj - h > cols - 1] = 0
-
-
-def _saturate(sa: ScratchArrays, n: int, budget: int,
-              data: tuple[int, int] | None = None, pre: str = "") -> float:
-    # LP §2.4 (L46) as a pull, fine to coarse and ``budget`` bytes of rows at a time: an
-    # edge midpoint at h takes its four children centres at h/2 (R[a, b]: centre rows
-    # 2a, 2a+1 and columns 2b−1, 2b of level h/2; K[a, b]: rows 2a−1, 2a and columns
-    # 2b, 2b+1), then a centre takes its block's four edge midpoints. ``data``: first
-    # zero the raw δ of the vertices whose diamond misses the data's rows × cols.
-    # Returns the largest finite saturated δ (0 if none): what its log8 codes must cover.
-    # ``pre``: the arrays' name prefix
-    top = 0.0
-    for k in range(n):
-        nb, nbc = sa.shape(f"{pre}C{k}")
-        step = max(1, budget // (16 * (nbc + 1) * 4))
-        for a_lo in range(0, nb, step):
-            a_hi = min(a_lo + step, nb)
-            C = sa.read(f"{pre}C{k}", a_lo, a_hi)
-            R = sa.read(f"{pre}R{k}", a_lo, a_hi)
-            K = sa.read(f"{pre}K{k}", a_lo, a_hi + 1)
-            if data is not None:
-                s = 2 << k
-                for arr, di, dj in ((C, s // 2, s // 2), (R, s // 2, 0), (K, 0, s // 2)):
-                    _zero_beyond(arr, a_lo, s, di, dj, data)
-            if k:
-                # the finer level's centre rows 2a_lo − 1 … 2a_hi, zero outside the grid
-                P = np.zeros((2 * (a_hi - a_lo) + 2, 2 * nbc + 2), np.float32)
-                p0 = max(2 * a_lo - 1, 0)
-                rows = sa.read(f"{pre}C{k - 1}", p0, 2 * a_hi + 1)
-                P[p0 - (2 * a_lo - 1):p0 - (2 * a_lo - 1) + len(rows), 1:-1] = rows
-                m = np.maximum(P[1:-1:2], P[2::2])  # rows 2a, 2a+1 of each R row
-                np.maximum(R, np.maximum(m[:, 0::2], m[:, 1::2]), out=R)
-                m = np.maximum(P[0::2], P[1::2])  # rows 2a−1, 2a of each K row
-                np.maximum(K, np.maximum(m[:, 1:-1:2], m[:, 2::2]), out=K)
-            np.maximum(C, np.maximum(np.maximum(R[:, :-1], R[:, 1:]),
-                                     np.maximum(K[:-1], K[1:])), out=C)
-            sa.write(f"{pre}C{k}", a_lo, C)
-            sa.write(f"{pre}R{k}", a_lo, R)
-            sa.write(f"{pre}K{k}", a_lo, K)
-            for a in (C, R, K):
-                top = max(top, float(np.max(a, where=np.isfinite(a), initial=0.0)))
-    return top
 
 
 def _keep_heights(sa: ScratchArrays, z: np.ndarray, v: np.ndarray, w0: int, r0: int,
