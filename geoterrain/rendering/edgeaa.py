@@ -138,83 +138,87 @@ def _silhouettes(faces, pts, eye, x, y, z, ok, n_pts, W, H):  # pragma: no cover
         toward[f] = d > 0.0 and ok[a] and ok[b] and ok[c]
     # each undirected edge's faces: the half-edges bucketed by their smaller vertex (a
     # counting sort, in face order), so an edge's faces are found among the few
-    # half-edges of its smaller vertex; first: the first face seen, second: the last
-    # other one (-1: a border edge)
+    # half-edges of its smaller vertex: the first face seen, and the last other one
+    # (none: a border edge)
     start = np.zeros(n_pts + 1, np.int32)
     for f in range(F):
-        for k in range(3):
-            start[min(faces[f, k], faces[f, (k + 1) % 3]) + 1] += 1
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        start[min(a, b) + 1] += 1
+        start[min(b, c) + 1] += 1
+        start[min(c, a) + 1] += 1
     for v in range(n_pts):
         start[v + 1] += start[v]
     fill = start[:-1].copy()
-    hi = np.empty(3 * F, np.int64)
-    half = np.empty(3 * F, np.int32)  # face * 3 + edge
+    hi = np.empty(3 * F, np.int32)  # the other vertex (n_pts < 2^31: int32 faces)
+    half = np.empty(3 * F, np.int64)  # face * 3 + edge
     for f in range(F):
         for k in range(3):
             u, v = faces[f, k], faces[f, (k + 1) % 3]
-            p = fill[min(u, v)]
-            fill[min(u, v)] += 1
+            lo = min(u, v)
+            p = fill[lo]
+            fill[lo] = p + 1
             hi[p] = max(u, v)
             half[p] = f * 3 + k
-    first = np.empty(3 * F, np.int32)
-    second = np.empty(3 * F, np.int32)
-    m = 0
-    for v in range(n_pts):
-        for i in range(start[v], start[v + 1]):
-            seen = False
-            for j in range(start[v], i):
-                if hi[j] == hi[i]:
-                    seen = True
-                    break
-            if seen:
-                continue
-            first[m], second[m] = half[i], -1
-            for j in range(i + 1, start[v + 1]):
-                if hi[j] == hi[i]:
-                    second[m] = half[j]
-            m += 1
     # each silhouette edge once per face beside it (the face on the visible side is
     # the one the depth buffer shows there: at an open border a face turned away can
-    # be the visible one), each border edge once; counted, then written
-    n = 0
-    for h in range(m):
-        if second[h] == -1 or toward[first[h] // 3] != toward[second[h] // 3]:
-            n += 1 if second[h] == -1 else 2
-    ea = np.empty(n, np.int64)
-    eb = np.empty(n, np.int64)
-    ec = np.empty(n, np.int64)
-    tol = np.empty(n)
+    # be the visible one), each border edge once, listed as the edge is matched (one
+    # pass: an edge's listing at most both its sides, 3F in all)
+    ea = np.empty(3 * F, np.int64)
+    eb = np.empty(3 * F, np.int64)
+    ec = np.empty(3 * F, np.int64)
+    tol = np.empty(3 * F)
     n = 0
     seen = 0  # distinct edges listed whose boxes meet the picture (Silhouettes.on_screen)
-    for h in range(m):
-        if second[h] != -1 and toward[first[h] // 3] == toward[second[h] // 3]:
-            continue
-        n0 = n
-        for side in (first[h], second[h]):
-            if side == -1:
+    for v in range(n_pts):
+        s0, s1 = start[v], start[v + 1]
+        done = np.uint64(0)  # the bucket's half-edges met already (its first 64)
+        for i in range(s0, s1):
+            w = hi[i]
+            if i - s0 < 64:
+                if (done >> np.uint64(i - s0)) & np.uint64(1):
+                    continue  # listed at its first half-edge
+            else:
+                dup = False
+                for j in range(s0, i):
+                    if hi[j] == w:
+                        dup = True
+                        break
+                if dup:
+                    continue
+            first, second = half[i], np.int64(-1)
+            for j in range(i + 1, s1):
+                if hi[j] == w:
+                    second = half[j]
+                    if j - s0 < 64:
+                        done |= np.uint64(1) << np.uint64(j - s0)
+            if second != -1 and toward[first // 3] == toward[second // 3]:
                 continue
-            f, k = side // 3, side % 3
-            a, b, c = faces[f, k], faces[f, (k + 1) % 3], faces[f, (k + 2) % 3]
-            if not (ok[a] and ok[b] and ok[c]):
-                continue
-            # the face's depth gradient across the screen: how far its depth moves within
-            # a pixel and a half of the edge
-            x1, y1, z1 = x[b] - x[a], y[b] - y[a], z[b] - z[a]
-            x2, y2, z2 = x[c] - x[a], y[c] - y[a], z[c] - z[a]
-            den = x1 * y2 - x2 * y1
-            if abs(den) < 1e-12:
-                continue
-            gx = (z1 * y2 - z2 * y1) / den
-            gy = (x1 * z2 - x2 * z1) / den
-            ea[n], eb[n], ec[n] = a, b, c
-            tol[n] = 1.5 * math.sqrt(gx * gx + gy * gy) + 1e-6
-            n += 1
-        if n > n0:
-            xa, xb, ya, yb = x[ea[n0]], x[eb[n0]], y[ea[n0]], y[eb[n0]]
-            if (min(xa, xb) < W and max(xa, xb) > 0 and min(ya, yb) < H
-                    and max(ya, yb) > 0):
-                seen += 1
-    return ea[:n], eb[:n], ec[:n], tol[:n], seen
+            n0 = n
+            for side in (first, second):
+                if side == -1:
+                    continue
+                f, k = side // 3, side % 3
+                a, b, c = faces[f, k], faces[f, (k + 1) % 3], faces[f, (k + 2) % 3]
+                if not (ok[a] and ok[b] and ok[c]):
+                    continue
+                # the face's depth gradient across the screen: how far its depth moves
+                # within a pixel and a half of the edge
+                x1, y1, z1 = x[b] - x[a], y[b] - y[a], z[b] - z[a]
+                x2, y2, z2 = x[c] - x[a], y[c] - y[a], z[c] - z[a]
+                den = x1 * y2 - x2 * y1
+                if abs(den) < 1e-12:
+                    continue
+                gx = (z1 * y2 - z2 * y1) / den
+                gy = (x1 * z2 - x2 * z1) / den
+                ea[n], eb[n], ec[n] = a, b, c
+                tol[n] = 1.5 * math.sqrt(gx * gx + gy * gy) + 1e-6
+                n += 1
+            if n > n0:
+                xa, xb, ya, yb = x[ea[n0]], x[eb[n0]], y[ea[n0]], y[eb[n0]]
+                if (min(xa, xb) < W and max(xa, xb) > 0 and min(ya, yb) < H
+                        and max(ya, yb) > 0):
+                    seen += 1
+    return ea[:n].copy(), eb[:n].copy(), ec[:n].copy(), tol[:n].copy(), seen
 
 
 def silhouette_edges(points: np.ndarray, faces: np.ndarray, projection: np.ndarray,
