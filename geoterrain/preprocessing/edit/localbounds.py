@@ -928,32 +928,38 @@ def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray
     # the level where each vertex is new, the top for every vertex of the top's lattice
     vk = np.minimum(np.frexp(low.astype(np.float64))[1] - 1, top)
     need: dict = {}
-    for L in range(top + 1):
-        span, (nx, ny) = g.tile_span(L), g.tiles(L)
-        on = vk >= L  # on the level's lattice
-        own = vk == L  # the level's new vertices (every vertex of the top's tiles)
-        if L == 0 and derived and top > 0:  # RING: the border's new vertices
-            ring = own & ((vi % span == 0) | (vj % span == 0))
-            sd, sr = ring & fd, ring & fr
-        else:
-            sd = on & fd
-            if L > 0 and derived:  # MIDS: no cell centre (odd row and column)
-                sr = own & ~((((vi >> L) & 1) & ((vj >> L) & 1)).astype(bool)) & fr
-            else:
-                sr = on & fr
-        rowv = own & (fd | fr)
-        for n, m in enumerate((sd, sr, rowv)):
-            if not m.any():
-                continue
-            i, j = vi[m], vj[m]
-            # the tiles whose closed footprint holds the vertex (two or four on a border)
-            for y in (np.minimum(i // span, ny - 1), np.maximum((i - 1) // span, 0)):
-                for x in (np.minimum(j // span, nx - 1), np.maximum((j - 1) // span, 0)):
-                    ok = (y * span <= i) & (i <= y * span + span) & (x * span <= j) & \
-                        (j <= x * span + span)
-                    for tx, ty in set(zip(x[ok].tolist(), y[ok].tolist(), strict=True)):
-                        got = need.setdefault((L, tx, ty), [False, False, False])
-                        got[n] = True
+    # every level at once: which vertices each blob of a level reads, (3, levels, n):
+    # δ, r, and the row's maxima
+    Ls = np.arange(top + 1)
+    span = np.array([g.tile_span(int(L)) for L in Ls], np.int64)
+    nx, ny = np.array([g.tiles(int(L)) for L in Ls], np.int64).reshape(-1, 2).T
+    on = vk[None] >= Ls[:, None]  # on the level's lattice
+    own = vk[None] == Ls[:, None]  # the level's new vertices (every vertex of the top's tiles)
+    sd, sr = on & fd, on & fr
+    if derived:
+        if top > 0:  # RING at level 0: the border's new vertices
+            ring = own[0] & ((vi % span[0] == 0) | (vj % span[0] == 0))
+            sd[0], sr[0] = ring & fd, ring & fr
+        # MIDS above level 0: no cell centre (odd row and column)
+        centre = (((vi[None] >> Ls[1:, None]) & 1) & ((vj[None] >> Ls[1:, None]) & 1)) \
+            .astype(bool)
+        sr[1:] = own[1:] & ~centre & fr
+    n_, L_, v_ = np.nonzero(np.stack([sd, sr, own & (fd | fr)]))
+    if len(v_):
+        i, j, sp = vi[v_], vj[v_], span[L_]
+        found = []
+        # the tiles whose closed footprint holds the vertex (two or four on a border)
+        for y in (np.minimum(i // sp, ny[L_] - 1), np.maximum((i - 1) // sp, 0)):
+            for x in (np.minimum(j // sp, nx[L_] - 1), np.maximum((j - 1) // sp, 0)):
+                ok = (y * sp <= i) & (i <= y * sp + sp) & (x * sp <= j) & (j <= x * sp + sp)
+                found.append((L_[ok], y[ok], x[ok], n_[ok]))
+        L_, y, x, n_ = (np.concatenate(a) for a in zip(*found, strict=True))
+        NY, NX = int(y.max(initial=0)) + 1, int(x.max(initial=0)) + 1  # each tile once
+        for q in np.unique(((L_ * NY + y) * NX + x) * 3 + n_).tolist():
+            rest, n = divmod(q, 3)
+            rest, tx = divmod(rest, NX)
+            L, ty = divmod(rest, NY)
+            need.setdefault((L, tx, ty), [False, False, False])[n] = True
     if edited is not None:  # schema 20 (23: the top's too): δ's own-error guess reads
         r0, c0, r1, c1 = (int(a) for a in edited)  # the tile's heights
         for L in range(top + 1):
