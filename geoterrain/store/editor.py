@@ -142,6 +142,14 @@ class StoreEditor:
         t = self.table
         keys = np.array([tile_key(k) for k in rows], np.int64)
         vals = _numbers([rows[k] for k in rows])
+        at = np.searchsorted(t.tiles, keys)
+        if len(t.tiles) and (at < len(t.tiles)).all() and (t.tiles[np.minimum(
+                at, len(t.tiles) - 1)] == keys).all():
+            # every row replaces a stored one (a local edit's): the same keys, the
+            # table's own array (pack_tiles then takes what the row it came from knows)
+            nums = np.array(t.numbers, np.float64).reshape(len(t.tiles), len(TILE_COLUMNS))
+            nums[at] = vals  # (each key once: ``rows`` is a dict)
+            return t.tiles, nums
         allk = np.concatenate([np.asarray(t.tiles, np.int64), keys])
         allv = np.concatenate([np.asarray(t.numbers, np.float64).reshape(-1, len(TILE_COLUMNS)),
                                vals])
@@ -214,7 +222,7 @@ class StoreEditor:
             order = sorted(tiles, key=tile_key)
             tk = np.array([tile_key(k) for k in order], np.int64)
             nums = _numbers([tiles[k] for k in order])
-        table = TileTable(tk, nums, keys, rowids)
+        table = TileTable(tk, nums, keys, rowids, t.packed if tk is t.tiles else None)
         meta = dict(metadata)
         levels = np.bincount(tk & 31, minlength=32) if len(tk) else np.zeros(32, np.int64)
         meta["tile_counts"] = {str(L): int(c) for L, c in enumerate(levels) if c}
