@@ -807,6 +807,7 @@ class Bounds:
         cr = np.array([self.coarse_r[k] for k in self.coarse_d], np.uint8)
         T = g.tile_samples
         exact = bool(np.isfinite(self.t8[254]) and np.isfinite(self.rt[254]))
+        batches: dict = {}  # (the top, level 0, the blob kinds) → (key, row, d, r, own)
         for key in sorted(need):
             if key not in self.t.tile_info:
                 continue
@@ -845,11 +846,6 @@ class Bounds:
                 (di % step == 0) & (dj % step == 0)
             d[di[on] // step, dj[on] // step] = cd[on]
             r[di[on] // step, dj[on] // step] = cr[on]
-            # the codes as they are: BoundsCoding's of their table values (each table
-            # strictly increasing, log8_table, where its top finite code is finite)
-            coding = BoundsCoding.of_codes(d, job.ed, r, job.er) if exact else \
-                BoundsCoding(self.t8[d], None, job.ed, r_codes=(_codes(self.rt, self.rt[r]),
-                                                                 job.er))
             # schema 20: δ's blob guessed from the own errors on the tile's edited heights
             h, v = canvas.tile_lattice(L, x, y)
             own = OwnHeights(np.where(v, h * canvas.factor, np.nan), v, self.stand_in)
@@ -857,16 +853,19 @@ class Bounds:
                 kinds = tuple(k for k in kinds if k != "delta")  # its bytes stay
                 if not kinds and not row:
                     continue
-            blobs, dm, rm = level_blobs(coding, np.zeros((T, T, 2), np.uint8), g.t, 0,
-                                        0 if L == g.top_level else 1, [(0, 0)], kinds,
-                                        ring=L == 0 and job.derive_bounds,
-                                        mids=L > 0 and job.derive_bounds, own=own,
-                                        zlevel=shaped_zstd_level(g.rows, g.cols))
-            for kind in kinds:
-                job.put(key, kind, blobs[kind][(0, 0, 0)])
-            if row:
-                job.set_row(key, delta_max=float(dm[0]), radius_max=float(rm[0]))
-
+            # coded with the tiles of the same level kind and blob kinds (below)
+            batches.setdefault((L == g.top_level, L == 0, kinds), []).append(
+                (key, row, d, r, own))
+        for (top, zero, kinds), tiles in batches.items():
+            blobs, dm, rm = _level_blobs_of(
+                tiles, g.t, top, kinds, job.derive_bounds and zero,
+                job.derive_bounds and not zero, job.ed, job.er, exact, self.t8, self.rt,
+                shaped_zstd_level(g.rows, g.cols))
+            for n, (key, row, *_) in enumerate(tiles):
+                for kind in kinds:
+                    job.put(key, kind, blobs[kind][(0, 2 * n, 0)])
+                if row:
+                    job.set_row(key, delta_max=float(dm[n]), radius_max=float(rm[n]))
 
     def _pred_kept(self, key, d_old: np.ndarray, d: np.ndarray, own: OwnHeights) -> bool:
         """Whether a δ blob below the top and above level 0 (schema 20's ``PRED`` with
@@ -883,6 +882,34 @@ class Bounds:
                            self.stand_in, e)[0]
         lo_new = own_codes(own.z, own.valid, self.stand_in, e)[0]
         return pred_payload_same(d_old, lo_old, d, lo_new)
+
+
+def _level_blobs_of(tiles: list, t: int, top: bool, kinds: tuple, ring: bool, mids: bool,
+                    ed: int, er: int, exact: bool, t8: np.ndarray, rt: np.ndarray,
+                    zlevel: int) -> tuple[dict, np.ndarray, np.ndarray]:
+    """:func:`~geoterrain.bounds.tileblobs.level_blobs` of several tiles of one level
+    (``tiles``: (key, row, δ codes, r codes, :class:`OwnHeights`), each (T, T)) in one
+    call: tile n laid at tile position (2n, 0) of one grid of codes and heights (a tile
+    apart: no sample shared), keyed so (level 0 of the call: ``top`` the level's own top).
+    Each blob is a function of its tile's codes and heights alone, so the bytes are one
+    call a tile's (tested), for one call's work: its Python, one own-error kernel call,
+    one range coder and one zstd call for them all. ``exact``: the codes are
+    :meth:`~geoterrain.bounds.tileblobs.BoundsCoding.of_codes`' (each table strictly
+    increasing, log8_table, where its top finite code is finite), else the table values'
+    coded again."""
+    T = (1 << t) + 1
+    n = len(tiles)
+    shape = (T, (2 * n - 1) * (T - 1) + 1)
+    d, r = np.zeros(shape, np.uint8), np.zeros(shape, np.uint8)
+    z, v = np.full(shape, np.nan), np.zeros(shape, bool)
+    for q, (_, _, dq, rq, own) in enumerate(tiles):
+        cols = slice(2 * q * (T - 1), 2 * q * (T - 1) + T)
+        d[:, cols], r[:, cols], z[:, cols], v[:, cols] = dq, rq, own.z, own.valid
+    coding = BoundsCoding.of_codes(d, ed, r, er) if exact else \
+        BoundsCoding(t8[d], None, ed, r_codes=(_codes(rt, rt[r]), er))
+    return level_blobs(coding, np.zeros((*shape, 2), np.uint8), t, 0, 0 if top else 1,
+                       [(2 * q, 0) for q in range(n)], kinds, ring=ring, mids=mids,
+                       own=OwnHeights(z, v, tiles[0][4].stand_in), zlevel=zlevel)
 
 
 def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray,
