@@ -1045,40 +1045,38 @@ def _codes(table: np.ndarray, values) -> np.ndarray | int:
     if v.size < 64:
         out = np.searchsorted(table, v).astype(np.uint8)
         return int(out) if out.ndim == 0 else out
-    v = np.ascontiguousarray(v)
-    base, lut, below = _entry_lut(table.tobytes())
-    k = v.view(np.int64) >> _LUT_SHIFT
-    k -= base
-    np.clip(k, 0, len(lut) - 1, out=k)
-    c = lut[k]
+    lut, below = _entry_lut(table.tobytes())
+    # a key of every value (its bits' top 18, sign-extended: a negative value's indexes
+    # the table's upper half from its end), its code by the look-up table
+    c = lut[np.ascontiguousarray(v).view(np.int64) >> _LUT_SHIFT]
     # the first entry ≥ v: entry c is v and the one below it is below v (−inf below 0)
     ok = table[c] == v
     ok &= below[c] < v
     if not ok.all():
         miss = ~ok
-        c[miss] = np.searchsorted(table, v[miss])
-    return c.astype(np.uint8)
+        c[miss] = np.searchsorted(table, v[miss]).astype(np.uint8)
+    return c
 
 
 _LUT_SHIFT = 46  # a float64's bits above its 6 top mantissa bits: sign, exponent, 6 bits
 
 
 @lru_cache(maxsize=16)
-def _entry_lut(table_bytes: bytes) -> tuple[int, np.ndarray, np.ndarray]:
-    """For :func:`_codes`, of a table (its float64 bytes): the first key (a float64's bits
-    shifted right by :data:`_LUT_SHIFT`) less one, the code of each key from there
-    (entry 0 for keys below, 255 above: 0 and +inf; keys of no entry, or of two, any
-    code, which the check refuses), and each code's entry below it (−inf below code 0)."""
+def _entry_lut(table_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """For :func:`_codes`, of a table (its float64 bytes, increasing): the code of every
+    key (a float64's bits shifted right by :data:`_LUT_SHIFT`, 2^18 of them; a negative
+    value's, sign-extended, counted from the end): a table entry's own code, code 0 below
+    the first positive entry (0), 255 above the last (+inf, NaN, and every negative
+    value's), keys between entries any code, which the check refuses; and each code's
+    entry below it (−inf below code 0)."""
     table = np.frombuffer(table_bytes, np.float64)
     keys = table.view(np.int64) >> _LUT_SHIFT
     fin = np.flatnonzero(np.isfinite(table) & (table > 0))
-    base = int(keys[fin].min()) - 1 if len(fin) else 0
-    top = int(keys[fin].max()) - base + 1 if len(fin) else 1
-    lut = np.zeros(top + 1, np.intp)
-    lut[top] = len(table) - 1
-    lut[keys[fin] - base] = fin
+    lut = np.full(1 << (64 - _LUT_SHIFT), 255, np.uint8)
+    lut[:int(keys[fin].max()) + 1 if len(fin) else 1] = 0
+    lut[keys[fin]] = fin  # (where two entries share a key, the later: the check sorts it)
     below = np.concatenate([[-np.inf], table[:-1]])
-    return base, lut, below
+    return lut, below
 
 
 def _bounds(cell: Cell, zc: float, a0: np.ndarray, c0: np.ndarray, S: int, zlo: np.ndarray,
