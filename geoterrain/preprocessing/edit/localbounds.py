@@ -429,7 +429,8 @@ class Bounds:
             parts = [((i - h) // s, j // s - 1, 2), ((i - h) // s, j // s, 1)]
         else:
             parts = [(i // s - 1, (j - h) // s, 4), (i // s, (j - h) // s, 3)]
-        w_old = w_new = 0.0
+        w_new = 0.0
+        rects = []  # (cell, zc, rectangle, region) of W's parts
         some = False
         for a, b, r in parts:
             f, fo = self._status(a, b, s), self._status(a, b, s, False)
@@ -450,7 +451,7 @@ class Bounds:
             z00, z01, z10, z11, zc = (float(v) for v in c.samples(ci, cj)[0])
             cell = Cell(i0, j0, s, _main_diagonal(a, b), z00, z01, z10, z11)
             w_new = max(w_new, self._rect_max(cell, zc, (a0, a1, b0, b1), r, True))
-            w_old = max(w_old, self._rect_max(cell, zc, (a0, a1, b0, b1), r, False))
+            rects.append((cell, zc, (a0, a1, b0, b1), r))
         if not some:
             return None
         ub = max(old, bisect_left(t8, _round_up32(w_new)))
@@ -460,7 +461,11 @@ class Bounds:
             self.by_window += 1
             return t8[ub]
         held = old > max((self._old_code(ci, cj, "delta") for ci, cj in kids), default=0)
-        if held and bisect_left(t8, _round_up32(w_old)) < old:
+        if not held:
+            return None
+        # W's old values, only now (the window before the edit is assembled for them)
+        w_old = max([0.0] + [self._rect_max(*q, False) for q in rects])
+        if bisect_left(t8, _round_up32(w_old)) < old:
             self.by_window += 1
             return t8[ub]
         return None
