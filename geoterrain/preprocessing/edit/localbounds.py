@@ -139,26 +139,22 @@ class Bounds:
                 reach = 3 * h
                 a = np.arange(max((R0 - reach - s) // s, 0), min((R1 + reach) // s, nr) + 1)
                 b = np.arange(max((C0 - reach - s) // s, 0), min((C1 + reach) // s, nc) + 1)
-                A, B = np.meshgrid(a, b, indexing="ij")
-                if kind == "centre":
-                    i, j = h + A * s, h + B * s
-                    ok = (A < nr) & (B < nc)
-                elif kind == "rows":
-                    i, j = h + A * s, B * s
-                    ok = A < nr
-                else:
-                    i, j = A * s, h + B * s
-                    ok = B < nc
-                di = np.maximum(np.maximum(R0 - i, i - R1), 0)
-                dj = np.maximum(np.maximum(C0 - j, j - C1), 0)
+                # the level's rows i (a column) and columns j (a row), their distances
+                # from the edit broadcast (as on a meshgrid: the vertices in raster order)
+                i = h + a * s if kind != "cols" else a * s
+                j = h + b * s if kind != "rows" else b * s
+                ok_i = a < nr if kind != "cols" else np.ones(len(a), bool)
+                ok_j = b < nc if kind != "rows" else np.ones(len(b), bool)
+                di = np.maximum(np.maximum(R0 - i, i - R1), 0)[:, None]
+                dj = np.maximum(np.maximum(C0 - j, j - C1), 0)[None, :]
                 cheb = np.maximum(di, dj)
                 if kind == "centre":
                     near, hit = cheb <= 3 * h, cheb <= h
                 else:
                     near, hit = cheb <= 2 * h, di + dj <= h
-                sel = ok & near
-                out.append(np.stack([i[sel], j[sel], np.full(sel.sum(), h)], 1))
-                direct.append(hit[sel])
+                ia, jb = np.nonzero(near & ok_i[:, None] & ok_j[None, :])
+                out.append(np.stack([i[ia], j[jb], np.full(len(ia), h)], 1))
+                direct.append(hit[ia, jb])
             self.levels.append((h, np.concatenate(out).astype(np.int64),
                                 np.concatenate(direct)))
             h *= 2
