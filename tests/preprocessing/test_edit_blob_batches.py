@@ -1,5 +1,5 @@
 """An edit codes the δ and r blobs of several tiles in one call
-(``localbounds._level_blobs_of``): the bytes and maxima of one call a tile."""
+(``localblobs._level_blobs_of``): the bytes and maxima of one call a tile."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from geoterrain.bounds.log8codes import log8_table
 from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs
-from geoterrain.preprocessing.edit.localbounds import _codes, _level_blobs_of
+from geoterrain.preprocessing.edit.localblobs import _codes, _level_blobs_of
 
 pytestmark = pytest.mark.fast
 

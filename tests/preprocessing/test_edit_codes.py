@@ -1,4 +1,4 @@
-"""An edit's codes of stored values (``localbounds._codes``): the binary search's."""
+"""An edit's codes of stored values (``localblobs._codes``): the binary search's."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from geoterrain.bounds.log8codes import log8_table
-from geoterrain.preprocessing.edit.localbounds import _codes
+from geoterrain.preprocessing.edit.localblobs import _codes
 
 pytestmark = pytest.mark.fast
 

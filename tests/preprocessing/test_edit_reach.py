@@ -1,5 +1,5 @@
 """Which δ and r blobs an edit by tiles codes again (issue 52:
-:func:`geoterrain.preprocessing.edit.localbounds.blob_reach`): every blob whose bytes the
+:func:`geoterrain.preprocessing.edit.localblobs.blob_reach`): every blob whose bytes the
 edit changes is among them, on squares and root grids, windows on tile borders; and a
 blob left out whose bytes change leaves a store that is not the whole grid's edit (the
 oracle sees the skip).
@@ -22,7 +22,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import geoterrain
-from geoterrain.preprocessing.edit import Patch, edit_terrain, localbounds
+from geoterrain.preprocessing.edit import Patch, edit_terrain, localblobs
 from tests.preprocessing.editcheck import assert_same_store, integer_dem, random_patch, write_dem
 from tests.preprocessing.test_root_edit import _filled_roots
 from tests.store.storesql import all_blobs
@@ -35,7 +35,7 @@ def _reach(drop=None):
     """What each edit's :func:`blob_reach` returned (a list), ``drop`` (a tile key) left
     out of it."""
     seen: list = []
-    real = localbounds.blob_reach
+    real = localblobs.blob_reach
 
     def spy(*a, **k):
         out = real(*a, **k)
@@ -44,7 +44,7 @@ def _reach(drop=None):
             out.pop(drop, None)
         return out
 
-    with mock.patch.object(localbounds, "blob_reach", spy):
+    with mock.patch.object(localblobs, "blob_reach", spy):
         yield seen
 
 
@@ -221,5 +221,5 @@ def test_blob_reach_is_each_vertex_s_tiles(shape, seed, n, derived):
     vi[snap] = np.minimum(vi[snap] // step[snap] * step[snap], R - 1)
     vj[snap] = np.minimum(vj[snap] // step[snap] * step[snap], C - 1)
     fd, fr = rng.random(n) < 0.6, rng.random(n) < 0.6
-    got = localbounds.blob_reach(g, vi, vj, fd, fr, derived)
+    got = localblobs.blob_reach(g, vi, vj, fd, fr, derived)
     assert got == _reach_by_vertex(g, vi, vj, fd, fr, derived)
