@@ -214,12 +214,15 @@ def pred_payload_same(W0: np.ndarray, lo0: np.ndarray, W1: np.ndarray, lo1: np.n
     if W0.shape != W1.shape or not new_codes_same(W0, W1) or lo0.shape != lo1.shape \
             or not np.array_equal(lo0, lo1):
         return False
-    other = _pred_index(W0.shape[0])[0]
+    other, _, _, main = _pred_index(W0.shape[0])
     if not (W0.ravel()[other].any() and W1.ravel()[other].any()):  # CENTRES: not decided
         return False
-    r0, g0 = pred_gaps(W0[None], lo0[None])
-    r1, g1 = pred_gaps(W1[None], lo1[None])
-    return bool(np.array_equal(r0, r1) and np.array_equal(g0, g1))
+    # with the new vertices' codes and the own errors the same, pred_gaps' differences
+    # and gaps are the same where the predictions are: an edge midpoint's is read off
+    # its two cell centres (new vertices), a centre's off its cell's corners (the
+    # parents' lattice): those alone are compared
+    return bool(np.array_equal(_pred_centres(W0[None].astype(np.int16), main),
+                               _pred_centres(W1[None].astype(np.int16), main)))
 
 
 def new_codes_same(W0: np.ndarray, W1: np.ndarray) -> bool:

@@ -38,7 +38,7 @@ from __future__ import annotations
 import json
 import struct
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import zstandard
@@ -70,7 +70,7 @@ _HOLES = (4, 4096)  # the level-0 grid is at most 4 × its tiles + 4096 position
 _SIGN = np.int64(0x7FFFFFFFFFFFFFFF)
 
 __all__ = ["BOX_LIMIT", "BOX_STEP", "KEY_LIMIT", "META_ID", "META_MAX_BYTES",
-           "MIN_BLOB_ROW_BYTES", "RATIO_CAP", "TILES_ID", "TILE_COLUMNS", "TileTable",
+           "MIN_BLOB_ROW_BYTES", "Packed", "RATIO_CAP", "TILES_ID", "TILE_COLUMNS", "TileTable",
            "box_coding", "catalog_crc", "column_bytes", "pack_metadata", "pack_stream",
            "pack_tiles", "stored_numbers", "table_columns", "table_layout", "unpack_metadata",
            "unpack_tiles"]
@@ -99,6 +99,23 @@ class TileTable:
     numbers: np.ndarray  # float64 (tiles, 11)
     blobs: np.ndarray  # int64 packed blob keys (blob_key)
     ids: np.ndarray  # int64 their rowids in ``blobs``
+    # what packing a table of these tiles again can take from the row it was unpacked
+    # from (unpack_tiles; pack_tiles checks it applies): an edit's table
+    packed: Packed | None = field(default=None, compare=False, repr=False)
+
+
+@dataclass(frozen=True)
+class Packed:
+    """What :func:`unpack_tiles` keeps of a row for :func:`pack_tiles` to pack a table of
+    the same tiles again without the work (an edit's, issue 52): the tiles' ``tree``
+    (:class:`_Tree`), and the stored bytes of the box columns (``boxes``: the numbers
+    ``numbers[:, j]`` the bytes of column j, on BOX_STEP's grid, are of), the dearest to
+    code (union and planar predictions) and the ones an edit that keeps every sample's
+    validity leaves as they are: about 50 bytes a tile, held with the table."""
+
+    tree: _Tree
+    numbers: np.ndarray
+    boxes: dict  # column index → its stored bytes (column_bytes with boxes=1)
 
 
 def _ascending(raw: memoryview, n: int) -> np.ndarray:
@@ -338,21 +355,26 @@ def _table_size(n: int, m: int, w: int, holes: int) -> int:
     return 8 * n + sum(_column_size(c, n, holes) for c in TILE_COLUMNS) + (8 + w) * m
 
 
-def table_layout(keys, column) -> tuple[_Tree, int, int]:
+def table_layout(keys, column, tree: _Tree | None = None) -> tuple[_Tree, int, int]:
     """What :func:`table_columns` and :func:`pack_stream` need first: the tiles' tree of
-    ``keys`` (ascending, whole) and :func:`box_coding` of the columns ``column(j)``."""
-    tree = _Tree(keys)
+    ``keys`` (ascending, whole; ``tree``: theirs, built already) and :func:`box_coding`
+    of the columns ``column(j)``."""
+    tree = _Tree(keys) if tree is None else tree
     return (tree, *box_coding(tree, column))
 
 
-def table_columns(tree: _Tree, column, blob_keys, blob_ids, width: int, boxes: int):
+def table_columns(tree: _Tree, column, blob_keys, blob_ids, width: int, boxes: int,
+                  known=None):
     """The tile table's bytes in pieces, for :func:`pack_stream`: the tree's keys
     (:func:`table_layout`), ``column(j)`` (number column j, whole, in key order),
     ``blob_keys`` and ``blob_ids`` (chunks, in blob key order; iterables, read lazily),
-    ``width`` the ids' (2, 4 or 8 bytes), ``boxes`` the boxes' coding."""
+    ``width`` the ids' (2, 4 or 8 bytes), ``boxes`` the boxes' coding; ``known(j, col)``:
+    column j's bytes where known already (None where not)."""
     yield from _delta_chunks([tree.keys])
     for j, name in enumerate(TILE_COLUMNS):
-        yield column_bytes(tree, name, column(j), boxes)
+        col = column(j)
+        got = None if known is None else known(j, col)
+        yield column_bytes(tree, name, col, boxes) if got is None else got
     yield from _delta_chunks(blob_keys)
     dtype = f"<i{width}" if width == 8 else f"<u{width}"
     yield _shuffled(np.concatenate([np.asarray(c, np.int64).astype(dtype) for c in blob_ids]
@@ -394,10 +416,22 @@ def pack_tiles(table: TileTable, fast: bool = False) -> bytes:
     def column(j: int) -> np.ndarray:
         return nums[:, j]
 
-    tree, boxes, holes = table_layout(table.tiles, column)
+    # a table of the tiles of a row unpacked (an edit's): their tree, and the box columns
+    # it leaves as they were, from that row (the same bytes: functions of those)
+    p = table.packed
+    if p is not None and not np.array_equal(p.tree.keys, table.tiles):
+        p = None
+    tree, boxes, holes = table_layout(table.tiles, column, None if p is None else p.tree)
+
+    def known(j: int, col: np.ndarray) -> bytes | None:
+        if p is None or not boxes or j not in p.boxes:
+            return None
+        old = p.numbers[:, j]
+        return p.boxes[j] if np.array_equal(old.view(np.int64), col.view(np.int64)) else None
+
     return pack_stream(len(table.tiles), len(table.blobs), width, boxes, holes,
                        lambda: table_columns(tree, column, [table.blobs], [ids], width,
-                                             boxes), fast)
+                                             boxes, known), fast)
 
 
 def unpack_tiles(data: bytes, file_bytes: int | None = None) -> TileTable:
@@ -429,14 +463,18 @@ def unpack_tiles(data: bytes, file_bytes: int | None = None) -> TileTable:
         raise ValueError("its level-0 grid does not match its tiles")
     off = 8 * n
     numbers = np.empty((n, len(TILE_COLUMNS)), np.float64)
+    box_bytes = {}
     for j, name in enumerate(TILE_COLUMNS):
         k = _column_size(name, n, holes)
         numbers[:, j] = _column(tree, name, body[off:off + k], boxes, holes)
+        if boxes and name in _BOXES:
+            box_bytes[j] = bytes(body[off:off + k])
         off += k
     blobs = _ascending(body[off:off + 8 * m], m)
     off += 8 * m
     ids = _unshuffled(body[off:], m, f"<i{width}" if width == 8 else f"<u{width}")
-    return TileTable(tiles, numbers, blobs, ids.astype(np.int64))
+    return TileTable(tiles, numbers, blobs, ids.astype(np.int64),
+                     Packed(tree, numbers, box_bytes))
 
 
 def pack_metadata(items: dict) -> bytes:

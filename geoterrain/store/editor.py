@@ -35,7 +35,7 @@ from geoterrain.store.catalog import (
 )
 from geoterrain.store.keys import blob_key, tile_key, unpack_blob_key
 from geoterrain.store.reader import StoreReader
-from geoterrain.store.schema import blob_crc, schema_version
+from geoterrain.store.schema import TABLE_SQL, blob_crc, schema_version
 
 __all__ = ["StoreEditor", "BUSY_SECONDS"]
 
@@ -74,8 +74,16 @@ class StoreEditor:
     def __init__(self, path: str | Path, expect: dict | None = None,
                  known: StoreReader | None = None):
         self.path = Path(path)
-        reader = StoreReader(self.path)  # rolls back an interrupted edit, checks the file
-        reader.close()
+        # ``known`` opened this store and checked it (schema, catalog, metadata), and
+        # ``expect`` is the metadata it read: where nothing lies beside the store (no
+        # journal to roll back, no -wal), the schema is checked again inside the
+        # transaction and the metadata compared with ``expect`` there, instead of
+        # opening a reader of its own (1 ms)
+        vetted = known is not None and expect is not None and \
+            Path(known.path) == self.path and not _beside(self.path)
+        if not vetted:
+            reader = StoreReader(self.path)  # rolls back an interrupted edit, checks the file
+            reader.close()
         try:
             self.con = sqlite3.connect(self.path, isolation_level=None, timeout=BUSY_SECONDS)
         except sqlite3.Error as exc:
@@ -97,10 +105,15 @@ class StoreEditor:
                 raise WriteError(f"cannot edit {self.path}: read-only; copy it somewhere "
                                  "writable") from None
             raise WriteError(f"cannot edit {self.path}: {exc}") from None
+        if vetted:
+            self._check_schema()
         # the catalog as it is now, inside the transaction: no other edit can commit
         rows = {i: (d, c) for i, d, c in self.con.execute("SELECT id, data, crc32 FROM catalog")}
-        self.metadata = unpack_metadata(rows[META_ID][0])
-        if expect is not None and self.metadata != expect:
+        try:  # (damaged since ``known`` read it: not ``expect``, and a rerun's reader says so)
+            self.metadata = unpack_metadata(rows[META_ID][0])
+        except (ValueError, KeyError):
+            self.metadata = None
+        if expect is not None and (self.metadata != expect or TILES_ID not in rows):
             self.abort()
             raise StoreError(f"{self.path} was changed by another edit while this one was "
                              "planned; run it again")
@@ -115,6 +128,19 @@ class StoreEditor:
             self.table: TileTable = known.table()
         else:
             self.table = unpack_tiles(data)
+
+    def _check_schema(self) -> None:
+        """Exactly the two plain tables, as the writer declares them (StoreReader's check,
+        inside the transaction: the file cannot change under it)."""
+        try:
+            seen = self.con.execute("SELECT type, name, sql FROM sqlite_master").fetchall()
+        except (sqlite3.Error, UnicodeDecodeError):
+            seen = None
+        if seen is None or sorted(seen) != sorted(("table", n, sql)
+                                                  for n, sql in TABLE_SQL.items()):
+            self.abort()
+            raise StoreError(f"{self.path}: not a geoterrain store (its schema changed "
+                             "since it was opened); refusing to edit it")
 
     def apply(self, puts: dict[BlobKey, bytes], deletes: set[BlobKey],
               tiles: dict[tuple[int, int, int], tuple] | None, metadata: dict,
@@ -142,6 +168,14 @@ class StoreEditor:
         t = self.table
         keys = np.array([tile_key(k) for k in rows], np.int64)
         vals = _numbers([rows[k] for k in rows])
+        at = np.searchsorted(t.tiles, keys)
+        if len(t.tiles) and (at < len(t.tiles)).all() and (t.tiles[np.minimum(
+                at, len(t.tiles) - 1)] == keys).all():
+            # every row replaces a stored one (a local edit's): the same keys, the
+            # table's own array (pack_tiles then takes what the row it came from knows)
+            nums = np.array(t.numbers, np.float64).reshape(len(t.tiles), len(TILE_COLUMNS))
+            nums[at] = vals  # (each key once: ``rows`` is a dict)
+            return t.tiles, nums
         allk = np.concatenate([np.asarray(t.tiles, np.int64), keys])
         allv = np.concatenate([np.asarray(t.numbers, np.float64).reshape(-1, len(TILE_COLUMNS)),
                                vals])
@@ -214,7 +248,7 @@ class StoreEditor:
             order = sorted(tiles, key=tile_key)
             tk = np.array([tile_key(k) for k in order], np.int64)
             nums = _numbers([tiles[k] for k in order])
-        table = TileTable(tk, nums, keys, rowids)
+        table = TileTable(tk, nums, keys, rowids, t.packed if tk is t.tiles else None)
         meta = dict(metadata)
         levels = np.bincount(tk & 31, minlength=32) if len(tk) else np.zeros(32, np.int64)
         meta["tile_counts"] = {str(L): int(c) for L, c in enumerate(levels) if c}
@@ -248,6 +282,13 @@ class StoreEditor:
 
     def __exit__(self, *exc) -> None:
         self.abort()
+
+
+def _beside(path: Path) -> bool:
+    """Whether SQLite's journal or write-ahead log lies beside the store (an edit killed
+    or running, or a stranger's file): a reader of its own then rolls back or refuses it,
+    as on any open."""
+    return any(os.path.lexists(f"{path}{side}") for side in ("-journal", "-wal"))
 
 
 def _rewrites(table: TileTable, puts: dict) -> list | None:

@@ -24,6 +24,7 @@ from geoterrain.bounds.log8codes import (
 )
 from geoterrain.bounds.ownguess import (
     guess_check,
+    new_codes_same,
     own_codes,
     pred_codes_own,
     pred_gaps,
@@ -309,3 +310,9 @@ def test_a_payload_decided_the_same_is_the_same(seed, h, where, zeros):
     assert not same or _delta_blob(W0, z0, e) == _delta_blob(W1, z1, e)
     if where == "none" and not zeros:
         assert same
+    # exactly where the payload's inputs are the same: the same own errors and the same
+    # pred_gaps' differences and gaps (PRED shape)
+    gaps0, gaps1 = pred_gaps(W0[None], lo0[None]), pred_gaps(W1[None], lo1[None])
+    pred = W0.ravel()[_pred_index(T)[0]].any() and W1.ravel()[_pred_index(T)[0]].any()
+    assert same == (pred and np.array_equal(lo0, lo1) and new_codes_same(W0, W1)
+                    and all(np.array_equal(a, b) for a, b in zip(gaps0, gaps1, strict=True)))

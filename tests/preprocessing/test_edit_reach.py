@@ -1,5 +1,5 @@
 """Which δ and r blobs an edit by tiles codes again (issue 52:
-:func:`geoterrain.preprocessing.edit.localbounds.blob_reach`): every blob whose bytes the
+:func:`geoterrain.preprocessing.edit.localblobs.blob_reach`): every blob whose bytes the
 edit changes is among them, on squares and root grids, windows on tile borders; and a
 blob left out whose bytes change leaves a store that is not the whole grid's edit (the
 oracle sees the skip).
@@ -22,7 +22,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import geoterrain
-from geoterrain.preprocessing.edit import Patch, edit_terrain, localbounds
+from geoterrain.preprocessing.edit import Patch, edit_terrain, localblobs
 from tests.preprocessing.editcheck import assert_same_store, integer_dem, random_patch, write_dem
 from tests.preprocessing.test_root_edit import _filled_roots
 from tests.store.storesql import all_blobs
@@ -35,7 +35,7 @@ def _reach(drop=None):
     """What each edit's :func:`blob_reach` returned (a list), ``drop`` (a tile key) left
     out of it."""
     seen: list = []
-    real = localbounds.blob_reach
+    real = localblobs.blob_reach
 
     def spy(*a, **k):
         out = real(*a, **k)
@@ -44,7 +44,7 @@ def _reach(drop=None):
             out.pop(drop, None)
         return out
 
-    with mock.patch.object(localbounds, "blob_reach", spy):
+    with mock.patch.object(localblobs, "blob_reach", spy):
         yield seen
 
 
@@ -163,3 +163,63 @@ def test_the_window_s_outer_tiles(tmp_path, tile):
         _, a, b, _, how = _edited(tmp_path / f"c{n}", z, tile, roots, row, col, p, "add")
         assert how == "tiles"
         assert_same_store(a, b)
+
+
+def _reach_by_vertex(g, vi, vj, fd, fr, derived) -> dict:
+    """:func:`blob_reach` without ``edited``, one vertex and one level at a time (the rules
+    of its docstring, written out): the oracle of its whole-array form."""
+    need: dict = {}
+    top = g.top_level
+    for i, j, d, r in zip(vi.tolist(), vj.tolist(), fd.tolist(), fr.tolist(), strict=True):
+        m = i | j
+        if not m:
+            continue  # the grid's corner (0, 0): a root's corner, no vertex (δ 0)
+        k = min((m & -m).bit_length() - 1, top)  # the level it is new at (the top's: top)
+        for L in range(top + 1):
+            span, (nx, ny) = g.tile_span(L), g.tiles(L)
+            if k < L:
+                continue  # not on the level's lattice
+            new = k == L
+            if L == 0 and derived and top > 0:  # RING: the border's new vertices
+                ring = new and (i % span == 0 or j % span == 0)
+                reads = (ring and d, ring and r)
+            elif L > 0 and derived:  # MIDS: no cell centre
+                reads = (d, new and not ((i >> L) & 1 and (j >> L) & 1) and r)
+            else:
+                reads = (d, r)
+            flags = (*reads, new and (d or r))
+            for ty in range(ny):
+                for tx in range(nx):
+                    if ty * span <= i <= ty * span + span and tx * span <= j <= tx * span + span:
+                        for n, f in enumerate(flags):
+                            if f:
+                                need.setdefault((L, tx, ty), [False, False, False])[n] = True
+    return {key: (tuple(kind for kind, f in zip(BOUNDS, v[:2], strict=True) if f), v[2])
+            for key, v in need.items()}
+
+
+@pytest.mark.fast
+@settings(max_examples=60, deadline=None)
+@given(shape=st.sampled_from([(33, 33, False), (17, 17, False), (33, 65, True),
+                              (65, 33, True), (65, 129, True)]),
+       seed=st.integers(0, 2**32 - 1), n=st.integers(0, 60), derived=st.booleans())
+def test_blob_reach_is_each_vertex_s_tiles(shape, seed, n, derived):
+    """Every level's tiles of every vertex at once (the whole-array form) name what one
+    vertex and one level at a time name, on squares and root grids: vertices on tile
+    borders and corners, at every level, the grid's corner (0, 0) among them (no vertex:
+    it reaches nothing)."""
+    from geoterrain.core.grid import Grid
+
+    rows, cols, roots = shape
+    g = Grid.for_shape(rows, cols, tile_size=8, roots=roots)  # roots the raster fills
+    R, C = g.extent
+    rng = np.random.default_rng(seed)
+    vi = rng.integers(0, R, n)
+    vj = rng.integers(0, C, n)
+    snap = rng.random(n) < 0.5  # half on a coarse lattice (tile borders, corners)
+    step = 1 << rng.integers(1, g.t + g.top_level + 1, n)
+    vi[snap] = np.minimum(vi[snap] // step[snap] * step[snap], R - 1)
+    vj[snap] = np.minimum(vj[snap] // step[snap] * step[snap], C - 1)
+    fd, fr = rng.random(n) < 0.6, rng.random(n) < 0.6
+    got = localblobs.blob_reach(g, vi, vj, fd, fr, derived)
+    assert got == _reach_by_vertex(g, vi, vj, fd, fr, derived)

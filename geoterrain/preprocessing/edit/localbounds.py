@@ -1,5 +1,6 @@
 """δ and r of an edit, over what it reaches (:mod:`.local`); the tile errors and the
-blocks' δ_n: :mod:`.localerrors`.
+blocks' δ_n: :mod:`.localerrors`; the coarse blocks swept a tile at a time:
+:mod:`.localsweeps`; the δ and r blobs coded again: :mod:`.localblobs`.
 
 The vertices whose closed diamond holds a changed sample are recomputed, fine levels on
 a window of decoded tiles around the edit (:func:`geoterrain.bounds.windows.fine_raw_delta`),
@@ -20,41 +21,28 @@ import numpy as np
 from numba import njit
 
 from geoterrain.bounds.delta import Cell
-from geoterrain.bounds.log8codes import LOG_STEPS, log8_exponent, log8_table
-from geoterrain.bounds.ownguess import new_codes_same, own_codes, pred_payload_same
-from geoterrain.bounds.tileblobs import BoundsCoding, OwnHeights, level_blobs
-from geoterrain.bounds.tilebounds import closed_blocks
-from geoterrain.bounds.vertexdata import shaped_zstd_level
+from geoterrain.bounds.log8codes import log8_exponent, log8_table
 from geoterrain.bounds.windows import (
     block_sweep_rect,
     fine_raw_delta,
     nest_codes_rect,
     nest_codes_sparse,
 )
-from geoterrain.core.bintree import child_nb, main_diagonal_nb
-from geoterrain.core.rounding import round_up32
+from geoterrain.core.bintree import child_nb
+from geoterrain.preprocessing.edit.localblobs import BlobCoding, _codes, blob_reach
 from geoterrain.preprocessing.edit.localerrors import TileErrors
 from geoterrain.preprocessing.edit.localerrors import WholeGrid as _Whole
+from geoterrain.preprocessing.edit.localsweeps import (
+    BlockSweeps,
+    _child,
+    _main_diagonal,
+    _round_up32,
+)
 
 __all__ = ["Bounds", "blob_reach"]
 
-_SLACK = 1e-9  # relative slack of a tile's bound (float rounding of the planes)
 
-# The scalar helpers called from this module's Python code run as Python (the same
-# integer arithmetic; round_up32's float32 steps are IEEE operations in numpy too): a
-# compiled scalar called from Python costs a load from numba's cache in each process
-# (2-5 ms each, docs/lab/editing.md) for a few hundred calls of well under a microsecond.
-# The kernels below keep calling the compiled ones.
-_child = child_nb.py_func
-_main_diagonal = main_diagonal_nb.py_func
-
-
-def _round_up32(a: float) -> float:
-    # what the compiled round_up32 returns to Python: its float32 as a float
-    return float(round_up32.py_func(a))
-
-
-class Bounds:
+class Bounds(BlockSweeps, BlobCoding):
     """δ, r and tile errors of one edit (``job``: :class:`.local._Job`)."""
 
     def __init__(self, job):
@@ -138,26 +126,22 @@ class Bounds:
                 reach = 3 * h
                 a = np.arange(max((R0 - reach - s) // s, 0), min((R1 + reach) // s, nr) + 1)
                 b = np.arange(max((C0 - reach - s) // s, 0), min((C1 + reach) // s, nc) + 1)
-                A, B = np.meshgrid(a, b, indexing="ij")
-                if kind == "centre":
-                    i, j = h + A * s, h + B * s
-                    ok = (A < nr) & (B < nc)
-                elif kind == "rows":
-                    i, j = h + A * s, B * s
-                    ok = A < nr
-                else:
-                    i, j = A * s, h + B * s
-                    ok = B < nc
-                di = np.maximum(np.maximum(R0 - i, i - R1), 0)
-                dj = np.maximum(np.maximum(C0 - j, j - C1), 0)
+                # the level's rows i (a column) and columns j (a row), their distances
+                # from the edit broadcast (as on a meshgrid: the vertices in raster order)
+                i = h + a * s if kind != "cols" else a * s
+                j = h + b * s if kind != "rows" else b * s
+                ok_i = a < nr if kind != "cols" else np.ones(len(a), bool)
+                ok_j = b < nc if kind != "rows" else np.ones(len(b), bool)
+                di = np.maximum(np.maximum(R0 - i, i - R1), 0)[:, None]
+                dj = np.maximum(np.maximum(C0 - j, j - C1), 0)[None, :]
                 cheb = np.maximum(di, dj)
                 if kind == "centre":
                     near, hit = cheb <= 3 * h, cheb <= h
                 else:
                     near, hit = cheb <= 2 * h, di + dj <= h
-                sel = ok & near
-                out.append(np.stack([i[sel], j[sel], np.full(sel.sum(), h)], 1))
-                direct.append(hit[sel])
+                ia, jb = np.nonzero(near & ok_i[:, None] & ok_j[None, :])
+                out.append(np.stack([i[ia], j[jb], np.full(len(ia), h)], 1))
+                direct.append(hit[ia, jb])
             self.levels.append((h, np.concatenate(out).astype(np.int64),
                                 np.concatenate(direct)))
             h *= 2
@@ -428,7 +412,8 @@ class Bounds:
             parts = [((i - h) // s, j // s - 1, 2), ((i - h) // s, j // s, 1)]
         else:
             parts = [(i // s - 1, (j - h) // s, 4), (i // s, (j - h) // s, 3)]
-        w_old = w_new = 0.0
+        w_new = 0.0
+        rects = []  # (cell, zc, rectangle, region) of W's parts
         some = False
         for a, b, r in parts:
             f, fo = self._status(a, b, s), self._status(a, b, s, False)
@@ -449,7 +434,7 @@ class Bounds:
             z00, z01, z10, z11, zc = (float(v) for v in c.samples(ci, cj)[0])
             cell = Cell(i0, j0, s, _main_diagonal(a, b), z00, z01, z10, z11)
             w_new = max(w_new, self._rect_max(cell, zc, (a0, a1, b0, b1), r, True))
-            w_old = max(w_old, self._rect_max(cell, zc, (a0, a1, b0, b1), r, False))
+            rects.append((cell, zc, (a0, a1, b0, b1), r))
         if not some:
             return None
         ub = max(old, bisect_left(t8, _round_up32(w_new)))
@@ -459,7 +444,11 @@ class Bounds:
             self.by_window += 1
             return t8[ub]
         held = old > max((self._old_code(ci, cj, "delta") for ci, cj in kids), default=0)
-        if held and bisect_left(t8, _round_up32(w_old)) < old:
+        if not held:
+            return None
+        # W's old values, only now (the window before the edit is assembled for them)
+        w_old = max([0.0] + [self._rect_max(*q, False) for q in rects])
+        if bisect_left(t8, _round_up32(w_old)) < old:
             self.by_window += 1
             return t8[ub]
         return None
@@ -550,172 +539,10 @@ class Bounds:
         for i, j, code in zip(vi, vj, out.tolist(), strict=True):
             self.coarse_r[(i, j)] = code
 
-    def _status(self, a: int, b: int, s: int, new: bool = True) -> int:
-        """A coarse block's status (1 all valid, 2 all invalid, 3 mixed) from its tiles'
-        valid counts; 0 outside the grid."""
-        if not (0 <= a < (self.R - 1) // s and 0 <= b < (self.C - 1) // s):
-            return 0
-        k = s // self.S
-        n = self.rows0[new][0, a * k:a * k + k, b * k:b * k + k]
-        return (1 if (n > 0).any() else 0) | (2 if (n < (self.S + 1) ** 2).any() else 0)
 
-    def _coarse_raw(self, i: int, j: int, h: int, new: bool = True) -> np.float32:
-        """Raw δ of a coarse vertex (as bounds._raw_delta_nb computes it)."""
-        s = 2 * h
-        if (i // h) % 2 == 1 and (j // h) % 2 == 1:
-            a, b = (i - h) // s, (j - h) // s
-            f = self._status(a, b, s, new)
-            if f == 1:
-                return _round_up32(self._block_max(a, b, s, (0,), new)[0])
-            return np.float32(np.inf) if f == 3 else np.float32(0.0)
-        if (i // h) % 2 == 1:  # hypotenuse along the rows
-            a, b = (i - h) // s, j // s
-            lo, hi = (a, b - 1, 2), (a, b, 1)
-        else:
-            a, b = i // s, (j - h) // s
-            lo, hi = (a - 1, b, 4), (a, b, 3)
-        flo = self._status(lo[0], lo[1], s, new)
-        fhi = self._status(hi[0], hi[1], s, new)
-        f = flo | fhi
-        if f == 2:
-            return np.float32(0.0)
-        if f == 1:
-            m = 0.0
-            for (ba, bb, which), fs in ((lo, flo), (hi, fhi)):
-                if fs:
-                    m = max(m, self._block_max(ba, bb, s, (which,), new)[which])
-            return _round_up32(m)
-        if self._diamond_mixed(i, j, h, new):
-            return np.float32(np.inf)
-        raise _Whole("nodata beside a coarse vertex whose diamond may be all valid")
 
-    def _diamond_mixed(self, i: int, j: int, h: int, new: bool) -> bool:
-        """Whether tiles wholly inside the vertex's diamond hold valid and invalid
-        samples (the diamond is then mixed: δ = +inf)."""
-        S, T2 = self.S, (self.S + 1) ** 2
-        got = 0
-        nx, ny = self.g.tiles(0)
-        for ty in range(max((i - h) // S, 0), min((i + h) // S, ny - 1) + 1):
-            for tx in range(max((j - h) // S, 0), min((j + h) // S, nx - 1) + 1):
-                corners = [(ty * S + a, tx * S + b) for a in (0, S) for b in (0, S)]
-                if all(abs(p - i) + abs(q - j) <= h for p, q in corners):
-                    n = self.rows0[new][0, ty, tx]
-                    got |= (1 if n > 0 else 0) | (2 if n < T2 else 0)
-                    if got == 3:
-                        return True
-        return False
 
-    def _block_max(self, a: int, b: int, s: int, want: tuple, new: bool = True) -> np.ndarray:
-        """The exact maxima (centre, left, right, top, bottom) of the all-valid block
-        (a, b) of side s > tile, those in ``want`` exact: its tiles swept in decreasing
-        order of their bound until no bound passes the best value found."""
-        c, S = self.c, self.S
-        i0, j0 = a * s, b * s
-        main = _main_diagonal(a, b)
-        corners = c.samples(np.array([i0, i0, i0 + s, i0 + s, i0 + s // 2]),
-                            np.array([j0, j0 + s, j0, j0 + s, j0 + s // 2]), new)[0]
-        z00, z01, z10, z11, zc = (float(v) for v in corners)
-        cell = Cell(i0, j0, s, main, z00, z01, z10, z11)
-        k = s // S
-        ty, tx = np.meshgrid(np.arange(a * k, a * k + k), np.arange(b * k, b * k + k),
-                             indexing="ij")
-        ty, tx = ty.ravel(), tx.ravel()
-        bkey = (a, b, s, new)
-        got = self._bound_cache.get(bkey)
-        if got is None:
-            zlo = self.rows0[new][1, ty, tx]
-            zhi = self.rows0[new][2, ty, tx]
-            bound = _bounds(cell, zc, ty * S - i0, tx * S - j0, S, zlo, zhi)
-            if k > 2:  # tighter: the union-jack surfaces of the block table
-                tight = self._uj_bounds(cell, zc, a, b, s, new)
-                bound = np.where(np.isneginf(bound), bound, np.minimum(bound, tight))
-            # each region's tiles by decreasing bound, and which were swept
-            got = self._bound_cache[bkey] = (bound, np.argsort(-bound, axis=0, kind="stable"),
-                                             np.zeros(len(ty), bool), np.zeros(5))
-        bound, order, swept, best = got
-        pos = [0] * 5
-        while True:
-            # the wanted region whose next unswept tile's bound most exceeds its best
-            pick, gain = -1, 0.0
-            for r in want:
-                while pos[r] < len(ty) and swept[order[pos[r], r]]:
-                    pos[r] += 1
-                if pos[r] < len(ty):
-                    g = bound[order[pos[r], r], r] - best[r]
-                    if g > gain:
-                        pick, gain = r, g
-            if pick < 0:
-                return best.copy()
-            q = int(order[pos[pick], pick])
-            key = (a, b, s, new, int(ty[q]), int(tx[q]))
-            m = self._sweeps.get(key)
-            if m is None:
-                z, _ = c.tile_z(int(ty[q]), int(tx[q]), new)
-                a0, c0 = int(ty[q]) * S - i0, int(tx[q]) * S - j0
-                m = self._sweeps[key] = np.array(block_sweep_rect(
-                    z, int(ty[q]) * S, int(tx[q]) * S, cell, zc, a0, a0 + S, c0, c0 + S))
-            np.maximum(best, m, out=best)
-            swept[q] = True
-            self.tiles_swept += 1
 
-    def _uj_bounds(self, cell: Cell, zc: float, a: int, b: int, s: int, new: bool
-                   ) -> np.ndarray:
-        """(tiles, 5) bounds of |z − P| over each tile of block (a, b) from the store's
-        GeoMipMapping table: at level n, z lies within the tile's δ_n (rounded up) of
-        S_n, the union-jack surface through the tile's level-n samples, and S_n − P is
-        linear on each of its triangles, so |z − P| ≤ max over those samples of
-        |z − P| + δ_n, at n = max(t − 2, 1) (of n = t, t − 1, t − 2, the coarser two lowered
-        the tiles swept by 1 in 116 an edit on the 4097² fBm for a quarter of this
-        bound's time, docs/lab/editing.md). Tiles the edit changed get +inf (the table is
-        the old one) when ``new``."""
-        g, c, S = self.g, self.c, self.S
-        i0, j0, s_, main, z00, z01, z10, z11 = cell
-        h = s // 2
-        k = s // S
-        table = self.t.block_errors()
-        out = np.full((k * k, 5), np.inf)
-        for n in range(max(g.t - 2, 1), min(max(g.t - 2, 1), table.shape[2] - 1) + 1):
-            step = 1 << n
-            rows = np.arange(i0, i0 + s + 1, step)
-            cols = np.arange(j0, j0 + s + 1, step)
-            hh, vv = c.lattice(n, rows, cols, new)
-            if not vv.all():
-                return out
-            z = hh * c.factor
-            di = (rows - i0)[:, None].astype(np.float64)
-            dj = (cols - j0)[None, :].astype(np.float64)
-            fi = di / s
-            kl = (zc - 0.5 * (z00 + z10)) / h
-            kr = (zc - 0.5 * (z01 + z11)) / h
-            kt = (zc - 0.5 * (z00 + z01)) / h
-            kb = (zc - 0.5 * (z10 + z11)) / h
-            if main:
-                p1 = z00 + (z10 - z00) * fi + (z11 - z10) / s * dj
-                p2 = z00 + (z11 - z01) * fi + (z01 - z00) / s * dj
-                left, right = dj < di, dj > di
-            else:
-                p1 = z00 + (z10 - z00) * fi + (z01 - z00) / s * dj
-                p2 = z11 + (z01 - z11) * (1.0 - fi) + (z10 - z11) - (z10 - z11) / s * dj
-                left, right = dj < s - di, dj > s - di
-            a1, a2 = np.abs(z - p1), np.abs(z - p2)
-            errs = [np.where(left, a1, np.where(right, a2, np.maximum(a1, a2))),
-                    np.abs(z - (z00 + (z10 - z00) * fi + kl * dj)),
-                    np.abs(z - (z01 + (z11 - z01) * fi + kr * s - kr * dj)),
-                    np.abs(z - (z00 + kt * di + (z01 - z00) / s * dj)),
-                    np.abs(z - (z10 + kb * (s - di) + (z11 - z10) / s * dj))]
-            m = S // step
-            d_n = table[a * k:a * k + k, b * k:b * k + k, n].ravel()
-            for r, e in enumerate(errs):
-                per = closed_blocks(e, m, np.maximum).ravel()
-                bnd = per + d_n + _SLACK * (np.abs(z).max() + 1.0) * 4
-                out[:, r] = np.minimum(out[:, r], bnd)
-        if new:  # the edit's tiles: the table holds their old δ_n
-            ty = np.repeat(np.arange(a * k, a * k + k), k)
-            tx = np.tile(np.arange(b * k, b * k + k), k)
-            hit = (ty * S <= c.r1 - 1) & (ty * S + S >= c.r0) & (tx * S <= c.c1 - 1) & \
-                (tx * S + S >= c.c0)
-            out[hit] = np.inf
-        return out
 
     # ------------------------------------------------------------ the largest δ
     def _delta_max(self) -> None:
@@ -770,202 +597,11 @@ class Bounds:
         job.meta["delta_max_finite"] = d_new
 
     # ------------------------------------------------------------ blobs and rows
-    def _code_blobs(self) -> None:
-        """The δ and r blobs whose bytes the changed codes can reach, and the rows' largest
-        stored δ and r of the tiles whose own vertices changed (:func:`blob_reach`): only
-        those tiles are decoded and coded again, each blob only where its payload reads a
-        changed code of its kind."""
-        g, job = self.g, self.job
-        # the vertices whose δ or r code changed, [δ changed, r changed] each: the
-        # window's as arrays, then the coarse vertices' (each against its stored code)
-        wd, wr = self.dc != self.dc_old, self.rc != self.rc_old
-        a, b = np.nonzero(wd | wr)
-        ij = np.stack([a + self.oi, b + self.oj], axis=1).astype(np.int64)
-        flags = np.stack([wd[a, b], wr[a, b]], axis=1)
-        coarse = [(i, j, code != self._old_code(i, j, "delta"),
-                   self.coarse_r[(i, j)] != self._old_code(i, j, "radius"))
-                  for (i, j), code in self.coarse_d.items()]
-        coarse = [c for c in coarse if c[2] or c[3]]
-        if coarse:  # a vertex in both keeps its first place, its flags or-ed
-            c = np.array(coarse, np.int64).reshape(-1, 4)
-            ij = np.concatenate([ij, c[:, :2]])
-            flags = np.concatenate([flags, c[:, 2:].astype(bool)])
-            _, first, inv = np.unique(ij, axis=0, return_index=True, return_inverse=True)
-            inv = inv.reshape(-1)
-            merged = np.zeros((len(first), 2), bool)
-            np.logical_or.at(merged, inv, flags)
-            keep = np.sort(first)
-            ij, flags = ij[keep], merged[inv[keep]]
-        job.dirty.append(np.concatenate([ij, ij + 1], axis=1))  # one rectangle a vertex
-        canvas = self.c
-        need = blob_reach(g, ij[:, 0], ij[:, 1], flags[:, 0], flags[:, 1], job.derive_bounds,
-                          edited=(canvas.r0, canvas.c0, canvas.r1, canvas.c1))
-        # the coarse vertices' new codes, as arrays
-        cv = np.array(list(self.coarse_d), np.int64).reshape(-1, 2)
-        cd = np.array(list(self.coarse_d.values()), np.uint8)
-        cr = np.array([self.coarse_r[k] for k in self.coarse_d], np.uint8)
-        T = g.tile_samples
-        exact = bool(np.isfinite(self.t8[254]) and np.isfinite(self.rt[254]))
-        for key in sorted(need):
-            if key not in self.t.tile_info:
-                continue
-            kinds, row = need[key]
-            L, x, y = key
-            span, step = g.tile_span(L), 1 << L
-            i0, j0 = y * span, x * span
-            # a level-0 tile in the window: its codes are there (none decoded again)
-            if L == 0 and i0 >= self.oi and i0 + span <= self.i1 and j0 >= self.oj and \
-                    j0 + span <= self.j1 and self.known[i0 - self.oi, j0 - self.oj + 1]:
-                sl = (slice(i0 - self.oi, i0 + span - self.oi + 1),
-                      slice(j0 - self.oj, j0 + span - self.oj + 1))
-                d, r = self.dc[sl].copy(), self.rc[sl].copy()
-            else:  # the stored codes, the window's where it holds them (slices: its
-                # samples on the tile's lattice are a step apart)
-                want_d = row or "delta" in kinds
-                want_r = row or "radius" in kinds
-                d = _codes(self.t8, self.t.tile_delta(*key)) if want_d else \
-                    np.zeros((T, T), np.uint8)
-                d_old = d.copy()
-                r = _codes(self.rt, self.t.tile_radius(*key)) if want_r else \
-                    np.zeros((T, T), np.uint8)
-                a0, a1 = -(-max(self.oi - i0, 0) // step), min(self.i1 - i0, span) // step + 1
-                b0, b1 = -(-max(self.oj - j0, 0) // step), min(self.j1 - j0, span) // step + 1
-                if a0 < a1 and b0 < b1:
-                    w = (slice(i0 + a0 * step - self.oi, i0 + (a1 - 1) * step - self.oi + 1,
-                               step),
-                         slice(j0 + b0 * step - self.oj, j0 + (b1 - 1) * step - self.oj + 1,
-                               step))
-                    kn = self.known[w]
-                    d[a0:a1, b0:b1][kn] = self.dc[w][kn]
-                    r[a0:a1, b0:b1][kn] = self.rc[w][kn]
-            # the coarse vertices' codes (the window holds their old ones)
-            di, dj = cv[:, 0] - i0, cv[:, 1] - j0
-            on = (di >= 0) & (di <= span) & (dj >= 0) & (dj <= span) & \
-                (di % step == 0) & (dj % step == 0)
-            d[di[on] // step, dj[on] // step] = cd[on]
-            r[di[on] // step, dj[on] // step] = cr[on]
-            # the codes as they are: BoundsCoding's of their table values (each table
-            # strictly increasing, log8_table, where its top finite code is finite)
-            coding = BoundsCoding.of_codes(d, job.ed, r, job.er) if exact else \
-                BoundsCoding(self.t8[d], None, job.ed, r_codes=(_codes(self.rt, self.rt[r]),
-                                                                 job.er))
-            # schema 20: δ's blob guessed from the own errors on the tile's edited heights
-            h, v = canvas.tile_lattice(L, x, y)
-            own = OwnHeights(np.where(v, h * canvas.factor, np.nan), v, self.stand_in)
-            if 0 < L < g.top_level and "delta" in kinds and self._pred_kept(key, d_old, d, own):
-                kinds = tuple(k for k in kinds if k != "delta")  # its bytes stay
-                if not kinds and not row:
-                    continue
-            blobs, dm, rm = level_blobs(coding, np.zeros((T, T, 2), np.uint8), g.t, 0,
-                                        0 if L == g.top_level else 1, [(0, 0)], kinds,
-                                        ring=L == 0 and job.derive_bounds,
-                                        mids=L > 0 and job.derive_bounds, own=own,
-                                        zlevel=shaped_zstd_level(g.rows, g.cols))
-            for kind in kinds:
-                job.put(key, kind, blobs[kind][(0, 0, 0)])
-            if row:
-                job.set_row(key, delta_max=float(dm[0]), radius_max=float(rm[0]))
 
 
-    def _pred_kept(self, key, d_old: np.ndarray, d: np.ndarray, own: OwnHeights) -> bool:
-        """Whether a δ blob below the top and above level 0 (schema 20's ``PRED`` with
-        ``SLACK``, or ``CENTRES``) keeps its bytes: decided from its inputs before coding
-        it (:func:`~geoterrain.bounds.ownguess.pred_payload_same`: the stored codes
-        ``d_old`` and own errors of the tile's stored heights against the new ones). An
-        edit's reach names such blobs where a corner of a cell changed (its centre's
-        prediction may not) or the heights under them (their own errors may not)."""
-        if not new_codes_same(d_old, d):  # a new vertex's code moved: so does the payload
-            return False
-        tl = self.t.tile(*key)
-        f, e = self.c.factor, self.job.ed
-        lo_old = own_codes(np.where(tl.valid, tl.heights * f, np.nan), tl.valid,
-                           self.stand_in, e)[0]
-        lo_new = own_codes(own.z, own.valid, self.stand_in, e)[0]
-        return pred_payload_same(d_old, lo_old, d, lo_new)
 
 
-def blob_reach(g, vi: np.ndarray, vj: np.ndarray, fd: np.ndarray, fr: np.ndarray,
-               derived: bool, edited: tuple[int, int, int, int] | None = None) -> dict:
-    """Which stored bytes vertices (``vi``, ``vj``) whose δ code (``fd``) or r code
-    (``fr``) changed can reach: ``{(L, x, y): (kinds, row)}``, the tile's δ and r blobs
-    whose payload reads such a code (``kinds``) and whether its row's largest stored δ and
-    r can change (``row``: the tile holds one as a vertex of its own level; every vertex
-    at the top, whose blobs hold them all). A blob's payload is a function of the codes
-    it reads, so a blob left out keeps its bytes; one named may keep them too (its old
-    bytes are compared). What each blob reads (``derived``: the store derives level 0's
-    inner bounds and r's cell centres above it, :func:`~geoterrain.bounds.tileblobs.level_blobs`'s
-    ``ring`` and ``mids``):
 
-    - level 0's ``RING`` δ and r: the new vertices of the tile's border only;
-    - r's ``MIDS`` above level 0: the tile's own vertices but its cell centres;
-    - every other blob (``PRED`` δ: seed 002 §2.4's parents, a cell centre's
-      prediction reading the corners of its cell, a coarser level's vertices; ``CENTRES``;
-      the top level's): every vertex of the tile.
-
-    And (schema 20) every δ blob below the top reads its tile's heights (its guess from
-    the own errors, :func:`geoterrain.bounds.ownguess.own_codes`), and (schema 23) the
-    top tile's too (:func:`geoterrain.bounds.ownguess.top_payload_own`): ``edited``
-    (rows r0 … r1 − 1, columns c0 … c1 − 1 of changed heights) reaches the δ of every
-    tile whose lattice holds one of those samples.
-
-    Examples
-    --------
-    >>> from geoterrain.core.grid import Grid
-    >>> g = Grid(17, 17, 4, 2)  # 5 × 5 samples a tile, levels 0-2
-    >>> reach = blob_reach(g, np.array([8]), np.array([4]), np.array([True]),
-    ...                    np.array([False]), True)
-    >>> for key, what in sorted(reach.items()):  # (8, 4): new at level 2, PRED δ below
-    ...     print(key, what)
-    (1, 0, 0) (('delta',), False)
-    (1, 0, 1) (('delta',), False)
-    (2, 0, 0) (('delta',), True)
-    """
-    vi, vj = np.asarray(vi, np.int64), np.asarray(vj, np.int64)
-    fd, fr = np.asarray(fd, bool), np.asarray(fr, bool)
-    top = g.top_level
-    low = (vi | vj) & -(vi | vj)  # 2^level of each vertex (0: the corner (0, 0), none)
-    # the level where each vertex is new, the top for every vertex of the top's lattice
-    vk = np.minimum(np.frexp(low.astype(np.float64))[1] - 1, top)
-    need: dict = {}
-    for L in range(top + 1):
-        span, (nx, ny) = g.tile_span(L), g.tiles(L)
-        on = vk >= L  # on the level's lattice
-        own = vk == L  # the level's new vertices (every vertex of the top's tiles)
-        if L == 0 and derived and top > 0:  # RING: the border's new vertices
-            ring = own & ((vi % span == 0) | (vj % span == 0))
-            sd, sr = ring & fd, ring & fr
-        else:
-            sd = on & fd
-            if L > 0 and derived:  # MIDS: no cell centre (odd row and column)
-                sr = own & ~((((vi >> L) & 1) & ((vj >> L) & 1)).astype(bool)) & fr
-            else:
-                sr = on & fr
-        rowv = own & (fd | fr)
-        for n, m in enumerate((sd, sr, rowv)):
-            if not m.any():
-                continue
-            i, j = vi[m], vj[m]
-            # the tiles whose closed footprint holds the vertex (two or four on a border)
-            for y in (np.minimum(i // span, ny - 1), np.maximum((i - 1) // span, 0)):
-                for x in (np.minimum(j // span, nx - 1), np.maximum((j - 1) // span, 0)):
-                    ok = (y * span <= i) & (i <= y * span + span) & (x * span <= j) & \
-                        (j <= x * span + span)
-                    for tx, ty in set(zip(x[ok].tolist(), y[ok].tolist(), strict=True)):
-                        got = need.setdefault((L, tx, ty), [False, False, False])
-                        got[n] = True
-    if edited is not None:  # schema 20 (23: the top's too): δ's own-error guess reads
-        r0, c0, r1, c1 = (int(a) for a in edited)  # the tile's heights
-        for L in range(top + 1):
-            span, step, (nx, ny) = g.tile_span(L), 1 << L, g.tiles(L)
-            i0, i1 = -(-r0 // step) * step, (r1 - 1) // step * step  # the level's samples
-            j0, j1 = -(-c0 // step) * step, (c1 - 1) // step * step
-            if i1 < i0 or j1 < j0:
-                continue
-            for ty in range(max(-(-(i0 - span) // span), 0), min(i1 // span, ny - 1) + 1):
-                for tx in range(max(-(-(j0 - span) // span), 0), min(j1 // span, nx - 1) + 1):
-                    need.setdefault((L, tx, ty), [False, False, False])[0] = True
-    return {k: (tuple(kind for kind, f in zip(("delta", "radius"), v[:2], strict=True) if f),
-                v[2]) for k, v in need.items()}
 
 
 def _read_ahead(t, keys) -> None:
@@ -991,78 +627,12 @@ def _read_ahead(t, keys) -> None:
         ahead(items)
 
 
-def _codes(table: np.ndarray, values) -> np.ndarray | int:
-    """Log8 codes of stored values (each a table entry): ``np.searchsorted(table,
-    values)``, the first entry ≥ each value, for a :func:`log8_table` (float64). The
-    table's law (entry c = 2^(e + (c − 1)/16) rounded up to float32, 0 and +inf at the
-    ends) guesses each code, one step corrects it, and a check of every code against its
-    two entries sends what it misses (a value off the law: NaN) to the binary search:
-    a tile's 4225 values in a third of its time.
-
-    Examples
-    --------
-    >>> t = log8_table(-3).astype(np.float64)
-    >>> v = np.array([0.0, t[1], t[7], np.nextafter(t[7], 0), t[254], 1e30, np.inf, np.nan])
-    >>> _codes(t, v).tolist() == np.searchsorted(t, v).astype(np.uint8).tolist(), _codes(t, t[9])
-    (True, 9)
-    """
-    v = np.asarray(values, np.float64)
-    if v.size < 64 or not table[1] > 0:
-        out = np.searchsorted(table, v).astype(np.uint8)
-        return int(out) if out.ndim == 0 else out
-    with np.errstate(divide="ignore", invalid="ignore"):
-        g = np.rint((np.log2(v) - np.log2(table[1])) * LOG_STEPS) + 1.0
-    c = np.clip(np.nan_to_num(g, nan=1.0, posinf=255.0, neginf=0.0), 0, 255).astype(np.intp)
-    c += table[c] < v  # one step each way (the guess is off by at most one)
-    np.minimum(c, 255, out=c)
-    c -= (c > 0) & (table[c - 1] >= v)
-    ok = (table[c] >= v) & ((c == 0) | (table[c - 1] < v))
-    if not ok.all():
-        c = np.searchsorted(table, v)
-    return c.astype(np.uint8)
 
 
-def _bounds(cell: Cell, zc: float, a0: np.ndarray, c0: np.ndarray, S: int, zlo: np.ndarray,
-            zhi: np.ndarray) -> np.ndarray:
-    """(tiles, 5) upper bounds of |z − P| over each tile (rows a0 … a0 + S, columns
-    c0 … c0 + S of the block) for the block's centre surface and its four quarter
-    planes (−inf where a tile misses a quarter): z within [zlo, zhi], P linear, so its
-    extremes lie at the tile's corners."""
-    i0, j0, s, main, z00, z01, z10, z11 = cell
-    h = s // 2
-    fi = np.stack([a0, a0, a0 + S, a0 + S], 1) / s
-    dj = np.stack([c0, c0 + S, c0, c0 + S], 1).astype(np.float64)
-    di = fi * s
-    kl = (zc - 0.5 * (z00 + z10)) / h
-    kr = (zc - 0.5 * (z01 + z11)) / h
-    kt = (zc - 0.5 * (z00 + z01)) / h
-    kb = (zc - 0.5 * (z10 + z11)) / h
-    if main:
-        p1 = z00 + (z10 - z00) * fi + (z11 - z10) / s * dj
-        p2 = z00 + (z11 - z01) * fi + (z01 - z00) / s * dj
-    else:
-        p1 = z00 + (z10 - z00) * fi + (z01 - z00) / s * dj
-        p2 = z11 + (z01 - z11) * (1.0 - fi) + (z10 - z11) - (z10 - z11) / s * dj
-    planes = [np.concatenate([p1, p2], 1),
-              z00 + (z10 - z00) * fi + kl * dj,
-              z01 + (z11 - z01) * fi + kr * s - kr * dj,
-              z00 + kt * di + (z01 - z00) / s * dj,
-              z10 + kb * (s - di) + (z11 - z10) / s * dj]
-    out = np.empty((len(a0), 5))
-    for k, P in enumerate(planes):
-        lo, hi = P.min(axis=1), P.max(axis=1)
-        b = np.maximum(zhi - lo, hi - zlo)
-        out[:, k] = b + _SLACK * (np.abs(zhi) + np.abs(zlo) + np.abs(lo) + np.abs(hi)) + 1e-300
-    # which quarter each tile meets (closed: diagonal samples in both)
-    r0, r1 = a0, a0 + S
-    q0, q1 = c0, c0 + S
-    fmax = lambda lo_, hi_: np.minimum(np.clip(h, lo_, hi_), s - np.clip(h, lo_, hi_))  # noqa: E731
-    gmin = lambda lo_, hi_: np.maximum(np.clip(h, lo_, hi_), s - np.clip(h, lo_, hi_))  # noqa: E731
-    out[:, 1] = np.where(q0 <= fmax(r0, r1), out[:, 1], -np.inf)
-    out[:, 2] = np.where(q1 >= gmin(r0, r1), out[:, 2], -np.inf)
-    out[:, 3] = np.where(r0 <= fmax(q0, q1), out[:, 3], -np.inf)
-    out[:, 4] = np.where(r1 >= gmin(q0, q1), out[:, 4], -np.inf)
-    return out
+
+
+
+
 
 
 @njit(cache=True)
