@@ -464,10 +464,13 @@ class _Job:
         """The valid heights' range in source units: decoded from the tiles that hold
         the scene range's ends."""
         a = self.level0()
+        ends = [np.nonzero(a[col] == end) for col, end in ((1, lo), (2, hi))]
+        # their tiles and ancestors not cached in one batch (then decoded from the cache)
+        self.c.fetch([(0, int(tx), int(ty)) for e in ends for ty, tx in zip(*e, strict=True)])
         out = []
-        for col, end, op in ((1, lo, np.min), (2, hi, np.max)):
+        for (ys, xs), op in zip(ends, (np.min, np.max), strict=True):
             vals = []
-            for ty, tx in zip(*np.nonzero(a[col] == end), strict=True):
+            for ty, tx in zip(ys, xs, strict=True):
                 h, v = self.c.tile(int(ty), int(tx))
                 vals.append(float(op(h[v])))
             out.append(float(op(vals)))
