@@ -91,7 +91,7 @@ def _gap_values(enc, S, buf, m, r, gap):
 def _decoding_twin():
     # _gap_values compiled again for decoding, as entropy's decoder twins are: its code
     # object with globals that name the decoders' _bit and _direct (calls, not inlined:
-    # a first compile of 0.5 s, not 1.6; codec/entropy.py's _decoder_twin)
+    # a first compile of 0.5-0.9 s, not 1.6; codec/entropy.py's _decoder_twin)
     g = dict(globals())
     g.update({n: entropy._DEC_GLOBALS[n] for n in ("_bit", "_direct")})
     f = _gap_values.py_func
@@ -107,7 +107,7 @@ _gap_values_dec = _decoding_twin()
 @njit(cache=True, nogil=True)
 def _gap_decode(S, buf, m, r, gap):
     # the decoding twin for a literal False: the encoder's branches folded away (the
-    # coder's state stays in registers), about 5 times faster a value than _gap_values
+    # coder's state stays in registers), 4-5 times faster a value than _gap_values
     # with its run-time flag (docs/lab/editing.md, 2026-12-08). GapDecoder.take's
     # kernel: a reader loads this one, a writer _encode_gaps_rows
     return _gap_values_dec(False, S, buf, m, r, gap)

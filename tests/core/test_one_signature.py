@@ -41,7 +41,7 @@ def test_the_normal_helpers_take_the_axis_as_an_int64():
 def test_the_gap_coder_compiles_once_for_each_direction():
     """The encoder codes with a run-time flag (one specialisation for every caller); the
     decoder, :func:`gapcoder._gap_decode`, through the coder's decoding twin with a
-    literal False: its own specialisation, the encoder's branches folded away (about 5
+    literal False: its own specialisation, the encoder's branches folded away (4-5
     times faster a value)."""
     from geoterrain.bounds import gapcoder
 
