@@ -314,7 +314,12 @@ class Terrain:
         """Scene X, Y (T, T) of the tile's samples (cached: geographic frames call pyproj)."""
         def make():
             g = self.grid
-            ii, jj = np.meshgrid(g.tile_rows(level, y), g.tile_cols(level, x), indexing="ij")
+            rows, cols = g.tile_rows(level, y), g.tile_cols(level, x)
+            if self.frame.kind != "geographic":
+                # affine: the rows' column against the columns' row, broadcast to (T, T)
+                # fresh arrays, each sample's arithmetic the meshgrid's (the same bits)
+                return self.frame.xy(rows[:, None], cols[None, :])
+            ii, jj = np.meshgrid(rows, cols, indexing="ij")
             return self.frame.xy(ii, jj)
         return self.memo(("xy", level, x, y), make)
 

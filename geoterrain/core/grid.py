@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -107,6 +108,16 @@ class Grid:
 
     def tiles(self, level: int) -> tuple[int, int]:
         """(tiles across, tiles down) at level L."""
+        if 0 <= level < len(self._tiles):
+            return self._tiles[level]
+        return self._count_tiles(level)
+
+    @cached_property
+    def _tiles(self) -> tuple[tuple[int, int], ...]:
+        # every level's count, once (an edit asks about 500 times)
+        return tuple(self._count_tiles(L) for L in self.levels)
+
+    def _count_tiles(self, level: int) -> tuple[int, int]:
         if self.square:
             k = 1 << (self.top_level - level)
             return k, k

@@ -182,6 +182,31 @@ def test_the_tile_pool_reads_the_preprocess_s_positions(tmp_path):
     assert past > 0
 
 
+@pytest.mark.parametrize("roots", [False, True])
+def test_an_affine_tile_s_positions_are_xy_of_its_meshgrid(tmp_path, roots):
+    """A projected frame's tile positions (from the rows' column and the columns' row,
+    broadcast) are Frame.xy of the tile's meshgrid bit for bit, at every level, each a
+    fresh writable (T, T) float64 array (callers write into what they are handed)."""
+    z = generate("fbm", 129, seed=4)[:40, :117].copy()
+    src = write_geotiff(tmp_path / "p.tif", z, origin=(512345.25, 5012345.75),
+                        spacing=(7.3, 11.9))
+    t = geoterrain.open(geoterrain.preprocess(src, tmp_path / "p.geoterrain", tile_size=8,
+                                              root_grid=roots))
+    g, T = t.grid, t.grid.tile_samples
+    assert t.frame.kind != "geographic"
+    for L in g.levels:
+        for ty in range(g.tiles(L)[1]):
+            for tx in range(g.tiles(L)[0]):
+                x, y = t.tile_xy(L, tx, ty)
+                ii, jj = np.meshgrid(g.tile_rows(L, ty), g.tile_cols(L, tx), indexing="ij")
+                want = t.frame.xy(ii, jj)
+                for a, b in zip((x, y), want, strict=True):
+                    assert a.shape == (T, T) and a.dtype == np.float64
+                    assert a.tobytes() == b.tobytes()
+                    assert a.flags.writeable and a.flags.c_contiguous and a.base is None
+    t.close()
+
+
 @pytest.mark.parametrize("band", [2, 8, 64])
 def test_the_xy_pass_writes_the_whole_grid_s_positions(tmp_path, band):
     """The streamed preprocess's xy pass (band by band, into the scratch arrays every

@@ -128,3 +128,22 @@ def test_footprint_counts_of_a_full_mask_are_the_boxes_areas(h, w, ts, roots, ho
         brute = [valid[y * s:(y + 1) * s + 1, x * s:(x + 1) * s + 1].sum()
                  for y, x in zip(ys.ravel(), xs.ravel(), strict=True)]
         assert counts[L].dtype == np.int64 and counts[L].ravel().tolist() == brute
+
+
+@given(st.integers(2, 5000), st.integers(2, 5000), st.sampled_from([2, 4, 16, 64]),
+       st.booleans())
+def test_tiles_a_level_are_the_spans_over_the_samples(h, w, ts, roots):
+    """``tiles(L)`` (kept once a level) is, at every level and asked twice, the tiles of
+    2^(t+L) samples that cover the padded level-0 grid: a square's 2^(top−L) a side, a
+    root grid's ceil((cols − 1) / span) × ceil((rows − 1) / span)."""
+    g = Grid.for_shape(h, w, ts, roots=roots)
+    for _ in range(2):
+        for L in g.levels:
+            span = 1 << (g.t + L)
+            if g.square:
+                want = (g.size - 1) // span
+                assert g.tiles(L) == (want, want)
+            else:
+                assert g.tiles(L) == (max(1, -(-(w - 1) // span)), max(1, -(-(h - 1) // span)))
+    assert g == Grid(g.rows, g.cols, g.n, g.t, g.layout) and hash(g) == hash(
+        Grid(g.rows, g.cols, g.n, g.t, g.layout))

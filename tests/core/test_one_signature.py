@@ -38,7 +38,11 @@ def test_the_normal_helpers_take_the_axis_as_an_int64():
     assert all(sig[7] == sig[8] == types.int64 for sig in maps._unit_cross.signatures)
 
 
-def test_the_gap_coder_compiles_once_for_both_directions():
+def test_the_gap_coder_compiles_once_for_each_direction():
+    """The encoder codes with a run-time flag (one specialisation for every caller); the
+    decoder, :func:`gapcoder._gap_decode`, through the coder's decoding twin with a
+    literal False: its own specialisation, the encoder's branches folded away (4-5
+    times faster a value)."""
     from geoterrain.bounds import gapcoder
 
     r = np.array([0, 3, 200], np.int64)
@@ -46,9 +50,13 @@ def test_the_gap_coder_compiles_once_for_both_directions():
     _fresh_compile(gapcoder._encode_gaps_rows, r[None], gap[None], np.zeros((1, 64), np.uint8),
                    np.zeros(1, np.int64))
     d = gapcoder.GapDecoder(gapcoder.encode_gaps(r, gap))
+    _fresh_compile(gapcoder._gap_decode, d.S, d.buf, d.m, np.zeros(3, np.int64), gap)
     assert d.take(gap).tolist() == r.tolist()
     sigs = gapcoder._gap_values.signatures
     assert len(sigs) == 1 and sigs[0][0] == types.boolean, sigs
+    sigs = gapcoder._gap_values_dec.signatures
+    assert len(sigs) == 1 and sigs[0][0] == types.literal(False), sigs
+    assert len(gapcoder._gap_decode.signatures) == 1, gapcoder._gap_decode.signatures
 
 
 @pytest.mark.fast

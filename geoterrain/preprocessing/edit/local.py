@@ -296,6 +296,7 @@ class _Job:
                 old = t.tile(*key) if key in t.tile_info else None
                 if L == top:
                     codes, ok, blob = roots[(x, y)]
+                    dec, _ = decode_tile_valid(blob, None, (x % 2, y % 2), te, q.bins)
                 else:
                     codes = old.codes.copy() if old is not None else np.zeros((T, T), np.int64)
                     ok = old.valid.copy() if old is not None else np.zeros((T, T), bool)
@@ -304,8 +305,8 @@ class _Job:
                     parent = self.codes[pk] if pk in self.codes else t.tile(*pk).codes
                     blob = encode_child(codes, ok, parent, (x % 2, y % 2), te, cubic, q.bins,
                                         wide)
-                dec, _ = decode_tile_valid(blob, None if L == top else parent,
-                                           (x % 2, y % 2), te, q.bins)
+                    # its decoded codes: the codes just coded where nothing is left to decode
+                    dec = child_codes(blob, codes, ok, parent, (x % 2, y % 2), te, q.bins)
                 self.codes[key] = dec
                 self.put(key, "heights", blob)
                 diff = np.ones((T, T), bool) if old is None else (dec != old.codes)
@@ -463,10 +464,13 @@ class _Job:
         """The valid heights' range in source units: decoded from the tiles that hold
         the scene range's ends."""
         a = self.level0()
+        ends = [np.nonzero(a[col] == end) for col, end in ((1, lo), (2, hi))]
+        # their tiles and ancestors not cached in one batch (then decoded from the cache)
+        self.c.fetch([(0, int(tx), int(ty)) for e in ends for ty, tx in zip(*e, strict=True)])
         out = []
-        for col, end, op in ((1, lo, np.min), (2, hi, np.max)):
+        for (ys, xs), op in zip(ends, (np.min, np.max), strict=True):
             vals = []
-            for ty, tx in zip(*np.nonzero(a[col] == end), strict=True):
+            for ty, tx in zip(ys, xs, strict=True):
                 h, v = self.c.tile(int(ty), int(tx))
                 vals.append(float(op(h[v])))
             out.append(float(op(vals)))
@@ -503,6 +507,31 @@ def _window(c: Canvas, new: bool) -> tuple[np.ndarray, np.ndarray]:
         return c.heights, c.valid
     z, v = c.rect(c.r0, c.c0, c.r1, c.c1, new=False)
     return z / c.factor, v.astype(bool)
+
+
+def child_codes(blob: bytes, codes: np.ndarray, ok: np.ndarray, parent: np.ndarray,
+                parity: tuple[int, int], te: int, bins: int) -> np.ndarray:
+    """The decoded codes of a non-top tile's ``blob`` that :func:`encode_child` just
+    coded from ``codes`` and ``ok`` over ``parent``: ``codes`` themselves where every
+    sample is valid, the bins are 1 (lossless) and the tile's even samples are its
+    parent's (nothing to decode: a decode gives them back), else the blob decoded.
+
+    Examples
+    --------
+    >>> c = np.arange(25, dtype=np.int64).reshape(5, 5); ok = np.ones((5, 5), bool)
+    >>> p = np.zeros((5, 5), np.int64); p[:3, :3] = c[::2, ::2]
+    >>> b = encode_child(c, ok, p, (0, 0), 2, False)
+    >>> child_codes(b, c, ok, p, (0, 0), 2, 1) is c
+    True
+    >>> bool((child_codes(b, c + 1, ok, p, (0, 0), 2, 1) == c).all())  # decoded: c + 1
+    True
+    """
+    h = (codes.shape[0] - 1) // 2
+    px, py = parity
+    if bins == 1 and ok.all() and np.array_equal(
+            codes[::2, ::2], parent[py * h:py * h + h + 1, px * h:px * h + h + 1]):
+        return codes
+    return decode_tile_valid(blob, parent, parity, te, bins)[0]
 
 
 def _overlay(c: Canvas, L: int, x: int, y: int, span: int, codes: np.ndarray,
