@@ -49,26 +49,19 @@ Examples
 
 from __future__ import annotations
 
-import contextlib
 import json
-import time
-from collections.abc import Iterator, Sequence
-from contextlib import AbstractContextManager
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geoterrain import lod
 from geoterrain.core.atomicfiles import write_atomic
-from geoterrain.core.memory import peak_rss as _peak_rss
-from geoterrain.core.threads import serial_for, serial_kernels
 from geoterrain.core.view import View
 from geoterrain.exaggerate import exaggerated
 from geoterrain.exceptions import UsageError
 from geoterrain.lod.mesh import TriMesh, polydata
 from geoterrain.lod.registry import DEFAULT, strategy_info
-from geoterrain.rendering.antialias import depth_buffer
 from geoterrain.rendering.cameras import (  # noqa: F401 - the camera helpers are part of this API
     default_view,
     interpolate_views,
@@ -80,29 +73,34 @@ from geoterrain.rendering.cameras import (  # noqa: F401 - the camera helpers ar
 )
 from geoterrain.rendering.colours import Palette
 from geoterrain.rendering.drape import Drape
-from geoterrain.rendering.edgeaa import SPARSE_MAX_FACES, edge_antialias, silhouette_edges, sparse
+from geoterrain.rendering.edgeaa import SPARSE_MAX_FACES, silhouette_edges, sparse
 from geoterrain.rendering.overlays import compose, layout_for
+from geoterrain.rendering.scene_camera import WATER_LIFT_PX, SceneCamera, _place  # noqa: F401
+from geoterrain.rendering.scene_frames import (  # noqa: F401 - this module's names before the split
+    Prepared,
+    SceneFrames,
+    io_counters,
+    peak_rss,
+    store_snapshot,
+)
+from geoterrain.rendering.scene_textures import SceneTextures, _image_data
 from geoterrain.rendering.shading import Light
-from geoterrain.rendering.textures import SHADINGS, texture_image, texture_level
+from geoterrain.rendering.textures import SHADINGS, texture_level
 from geoterrain.rendering.tileshader import TileShader
-from geoterrain.rendering.tiletextures import build_view_texture
-from geoterrain.rendering.window import draw, offscreen_plotter, writable_target, write_png
+from geoterrain.rendering.window import offscreen_plotter, writable_target, write_png
 
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
 BACKGROUND = (0.86, 0.90, 0.95)  # a pale sky
 PLAIN_COLOR = (0.80, 0.78, 0.72)
-# how far (pixels in the picture, at most) a perspective view's water surface may move when
-# it is lifted over the terrain's coarse mesh (see TerrainScene.set_camera)
-WATER_LIFT_PX = 0.5
 #: The terrain's faces turned away from the eye are culled by the renderer, not drawn
 #: (module docstring, "Faces turned away").
 BACKFACE_CULLING = True
 
 
 # -------------------------------------------------------------------------- scene
-class TerrainScene:
+class TerrainScene(SceneTextures, SceneCamera, SceneFrames):
     """One terrain actor in a PyVista plotter, updated in place with new LOD meshes.
 
     Shared by :func:`render`, :func:`orbit`, :func:`flythrough` and the viewer.
@@ -193,54 +191,8 @@ class TerrainScene:
                 step = max(1, wm.n_points // 4096)  # where the lift is measured
                 self._water_pts = np.asarray(wm.points, np.float64)[::step]
 
-    def retexture_all(self) -> None:
-        """After the store was edited: the whole-terrain texture (``textures="global"``)
-        is made again; per-view textures come from the tiles' shading, which the
-        terrain's refresh dropped where the edit reached."""
-        self._vtex = None  # its texels may show the data before the edit
-        if self.textures == "global" and self.shading != "plain":
-            self.texture = tex = self._global_texture()
-            if self.actor is not None:
-                self.actor.SetTexture(tex)
 
-    def _global_texture(self):
-        """The whole-terrain texture (``textures="global"``), interpolated and mipmapped."""
-        img = texture_image(self.terrain, self.shading, self.cmap, self.level)
-        if self._raw:
-            from geoterrain.rendering import offscreen
 
-            # pyvista.Texture's image: its last row first (v = 0 at the bottom)
-            return offscreen.texture(_image_data(np.ascontiguousarray(img[::-1])),
-                                     mipmap=True)
-        import pyvista as pv
-
-        tex = pv.Texture(img)
-        tex.interpolate = True
-        tex.mipmap = True
-        tex.repeat = False
-        return tex
-    def _tcoords(self, ij: np.ndarray) -> np.ndarray:
-        R, C = self.terrain.grid.level_shape(self.level)  # the texture_image's shape
-        s = float(1 << self.level)
-        tc = np.empty((len(ij), 2), np.float32)
-        tc[:, 0] = (ij[:, 1] / s + 0.5) / C
-        tc[:, 1] = 1.0 - (ij[:, 0] / s + 0.5) / R
-        return tc
-
-    def view_texture(self, selection, view: View, max_builds: int | None = None):
-        """The per-view atlas of ``selection`` (:mod:`geoterrain.rendering.tiletextures`), or None.
-
-        Thread-safe to call off the UI thread (it touches no VTK object); pass the
-        result to :meth:`update`. ``max_builds``: at most this many tiles shaded anew,
-        the rest magnified from cached ancestors
-        (:func:`~geoterrain.rendering.tiletextures.build_view_texture`). Where the atlas
-        shown holds the same tiles at the same places, its image is kept, and
-        :meth:`update` uploads no texture.
-        """
-        if self.shading == "plain" or self.textures != "view":
-            return None
-        return build_view_texture(self.terrain, selection, view, self.shader,
-                                  max_builds=max_builds, previous=self._vtex)
 
     def update(self, selection, view: View | None = None, vtex=None) -> None:
         """Show ``selection``'s mesh (the actor is reused).
@@ -343,241 +295,13 @@ class TerrainScene:
                 prop.SetBackfaceCulling(cull)
         return cull
 
-    def set_camera(self, view: View) -> None:
-        """Point the plotter's camera like ``view`` (and fit the clipping range).
-
-        VTK gets the view's own orthonormal up (``View.basis``), never a view-up it
-        would have to re-orthogonalise: the picture, the frustum the LOD culls with
-        and :func:`project` are one camera, straight down included.
-        """
-        cam = self.plotter.camera
-        _, u, f = view.basis()
-        if self.water_actor is not None:
-            # a map, seen from straight above, draws the water over the terrain whatever
-            # its mesh (coarse there: vertical errors do not show), lifted above its top
-            # (which moves nothing in the picture); a perspective view lifts it as far as
-            # moves it by WATER_LIFT_PX in the picture at most (seen from high above, a
-            # coarse mesh's vertical errors barely show either, and would hide the water
-            # near the coast)
-            lo, hi = self.terrain.scene_box()
-            top = max(float(hi[2] - lo[2]), 1.0) * 1.01
-            lift = top if view.parallel else min(top, self._water_lift(view))
-            self.water_actor.SetPosition(0.0, 0.0, lift)
-        if view.parallel:  # a map: the parallel projection of what the view frames
-            target = np.asarray(view.look_at, np.float64)
-            d = float(np.linalg.norm(view.eye - target))
-            lo, hi = self.terrain.scene_box()
-            near = 2.0 * float(np.linalg.norm(hi - lo)) + 1.0  # depth precision: close
-            cam.SetParallelProjection(True)
-            cam.SetParallelScale(d * np.tan(np.radians(view.fov_y_deg) / 2.0))
-            _place(cam, tuple(target - near * f), tuple(target), tuple(u))
-            self.plotter.renderer.ResetCameraClippingRange()
-            return
-        cam.SetParallelProjection(False)
-        _place(cam, view.look_from, view.look_at, tuple(u))
-        cam.SetViewAngle(view.fov_y_deg)
-        self.plotter.renderer.ResetCameraClippingRange()
-        if view.near is not None and view.far is not None:
-            cam.SetClippingRange(view.near, view.far)
-
-    def _water_lift(self, view: View) -> float:
-        """The height (scene units) the water surface may be lifted by in the perspective
-        ``view`` while no point of it moves more than ``WATER_LIFT_PX`` in the picture:
-        that over the largest of its points' picture motion per unit of height (the
-        derivative of the projection along z)."""
-        pts = self._water_pts
-        if pts is None or not len(pts):
-            return 0.0
-        r, u, f = view.basis()
-        rel = pts - np.asarray(view.look_from, np.float64)
-        d = rel @ f  # depth along the view direction
-        front = d > 1e-9
-        if not front.any():
-            return 0.0
-        d, x, y = d[front], rel[front] @ r, rel[front] @ u
-        k = view.lam  # pixels per unit across at depth 1
-        # a point at (x, y) across and d along the view sits at k·(x, y)/d px from the
-        # centre; moving it up by one unit changes x, y, d by r_z, u_z, f_z
-        dx = k * (r[2] * d - x * f[2]) / d**2
-        dy = k * (u[2] * d - y * f[2]) / d**2
-        rate = float(np.sqrt(dx * dx + dy * dy).max())
-        return WATER_LIFT_PX / rate if rate > 0 else float("inf")
-
-    def frame(self, view: View, pixel_error: float = 1.0, strategy: str = DEFAULT,
-              ) -> tuple[np.ndarray, dict]:
-        """Select the LOD for ``view``, draw it and return the image (H, W, 3) uint8 and stats.
-
-        The stats count what the whole frame did (selection and texture):
-        ``tiles_decoded`` (heights), ``normals_decoded``, ``bounds_decoded`` (δ, r),
-        ``textures_built``, ``atlas_reused`` (the atlas shown before was kept: no texel
-        copied or uploaded), ``bytes_read`` and ``peak_rss_mb`` (the process's peak
-        resident memory so far), besides the selection's own stats. ``bytes_read`` is every
-        byte read from the store file since the scene's previous frame, as the operating
-        system counts them (:attr:`geoterrain.terrain.Terrain.bytes_read`); the first frame's
-        count starts where the scene was made, or where the store was opened when nothing
-        was read from it since (then it includes the opening), so the frames' counts add up
-        to what the process read from the store. Times: ``select_ms``,
-        ``texture_ms``, ``render_ms`` (the draw and read-back) and ``frame_ms``, wall
-        clock; ``cpu_ms`` and ``render_cpu_ms``, the process's CPU time over the frame
-        and over the draw, the renderer's threads included (a software renderer draws
-        on every core, so ``render_cpu_ms`` can exceed ``render_ms``).
-        ``anti_aliasing`` is the one the picture got (under ``auto``: ``edges`` or
-        ``msaa``, :meth:`_anti_aliasing`); ``render_ms`` includes finding and blending
-        the edges.
-        """
-        p = self.prepare(view, pixel_error, strategy)
-        return self.draw(p.selection, p.view, p.started, p.vtex, read=p.read)
-
-    def prepare(self, view: View, pixel_error: float = 1.0, strategy: str = DEFAULT
-                ) -> Prepared:
-        """The store's half of :meth:`frame`: the selection for ``view`` and its atlas
-        (:meth:`view_texture`), read in one snapshot of the store (one read transaction:
-        its version checked once, not at every blob). It makes no VTK object (the
-        selection's mesh is :class:`~geoterrain.lod.mesh.MeshParts`, the atlas numpy
-        arrays), so it may run on a worker thread while the picture before is drawn
-        (:meth:`frames`), once that picture's mesh is shown (its atlas is the one this
-        atlas may keep): a VTK object made there while this thread frees one could
-        deadlock the two threads (VTK's garbage collector's lock and the GIL).
-
-        Examples
-        --------
-        >>> p = scene.prepare(default_view(t, (320, 240)))  # doctest: +SKIP
-        >>> img, st = scene.draw(p.selection, p.view, p.started, p.vtex,  # doctest: +SKIP
-        ...                      read=p.read)
-        """
-        t = self.terrain
-        if view.near is None or view.far is None:  # the picture's own clipping planes
-            view = view.clipped_to(*t.scene_box())
-        c0 = io_counters(t)
-        t0, p0 = time.perf_counter(), time.process_time()
-        with self._kernels(), store_snapshot(t):
-            sel = lod.select(t, view, pixel_error=pixel_error, strategy=strategy,
-                             occlusion=self.occlusion, morph=self.morph)
-            vtex = self.view_texture(sel, view)
-        return Prepared(view, sel, vtex, (t0, p0, c0), io_counters(t))
-
-    def frames(self, views: Sequence[View], pixel_error: float = 1.0,
-               strategy: str = DEFAULT, overlap: bool = False
-               ) -> Iterator[tuple[np.ndarray, dict]]:
-        """:meth:`frame` of each of ``views`` in turn (a flight: every camera known
-        beforehand), yielded as each picture is done.
-
-        ``overlap``: view n + 1's :meth:`prepare` (selection and atlas, compiled passes
-        that release the GIL, and the store's reads) runs on a worker thread while view n
-        is drawn, where the renderer's own threads leave a core idle; the draw stays on
-        this thread (VTK's). The pictures are :meth:`frame`'s, byte for byte (the same
-        steps in the same order on the same data: view n + 1's atlas is made once view n's
-        is shown, as without overlap). A picture comes out no later than without it, but
-        each camera must be known one frame before its picture is drawn. Besides
-        :meth:`frame`'s stats (whose ``frame_ms`` and ``cpu_ms`` then run from its
-        prepare's start, on the worker, to its picture: the latency), ``interval_ms`` and
-        ``interval_cpu_ms`` are the wall and process CPU time since the previous picture
-        (the throughput; the first from the call).
-
-        Examples
-        --------
-        >>> for img, st in scene.frames(orbit_views(t, 8)):  # doctest: +SKIP
-        ...     print(st["interval_ms"])
-        """
-        views = list(views)
-        last = (time.perf_counter(), time.process_time())
-
-        def stamp(st: dict) -> dict:
-            nonlocal last
-            now = (time.perf_counter(), time.process_time())
-            st["interval_ms"] = round((now[0] - last[0]) * 1e3, 3)
-            st["interval_cpu_ms"] = round((now[1] - last[1]) * 1e3, 3)
-            last = now
-            return st
-
-        if not overlap or len(views) < 2:
-            for v in views:
-                img, st = self.frame(v, pixel_error, strategy)
-                yield img, stamp(st)
-            return
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(1, thread_name_prefix="geoterrain-prepare") as ex:
-            nxt = ex.submit(self.prepare, views[0], pixel_error, strategy)
-            for k in range(len(views)):
-                p = nxt.result()
-                after = None
-                if k + 1 < len(views):
-                    def after(v=views[k + 1]):  # view n's mesh and atlas are shown
-                        nonlocal nxt
-                        nxt = ex.submit(self.prepare, v, pixel_error, strategy)
-                img, st = self.draw(p.selection, p.view, p.started, p.vtex, read=p.read,
-                                    before_render=after)
-                yield img, stamp(st)
 
 
-    def draw(self, sel: lod.Selection, view: View, started: tuple | None = None,
-             vtex=None, *, read: dict | None = None, before_render=None
-             ) -> tuple[np.ndarray, dict]:
-        """Draw a selection made for ``view`` (by :meth:`frame`, or by a strategy called
-        with arguments of its own, as the benchmark experiments do) and return the image
-        and the stats of :meth:`frame`; ``started``: (wall clock, process clock, io
-        counters) when the selection began, else the draw's own start. ``vtex``: its
-        atlas, made already (:meth:`prepare`), and ``read``: the io counters at the end
-        of the reads (else they are taken after the draw). ``before_render``: called once
-        the mesh is shown and the camera set, before the renderer draws (:meth:`frames`
-        starts the next view's :meth:`prepare` there).
 
-        Examples
-        --------
-        >>> img, stats = scene.draw(sel, view)  # doctest: +SKIP
-        """
-        t = self.terrain
-        if view.near is None or view.far is None:
-            view = view.clipped_to(*t.scene_box())
-        t1 = time.perf_counter()
-        t0, p0, c0 = started if started is not None else (t1, time.process_time(),
-                                                         io_counters(t))
-        with self._kernels():
-            self.update(sel, view, vtex)
-            self.set_camera(view)
-            self.cull_faces_turned_away(view)
-            t2, p2 = time.perf_counter(), time.process_time()
-            edges, aa = self._anti_aliasing()
-            if before_render is not None:
-                before_render()
-            img = draw(self.plotter)
-            if edges is not None:
-                img = edge_antialias(img, depth_buffer(self.plotter), edges)
-        t3, p3 = time.perf_counter(), time.process_time()
-        c1 = dict(read) if read is not None else io_counters(t)
-        c0["bytes_read"], self._bytes_mark = self._bytes_mark, c1["bytes_read"]
-        stats = {**sel.stats, "select_tiles_decoded": sel.stats.get("tiles_decoded", 0),
-                 **{k: c1[k] - c0[k] for k in c0},
-                 "textures_built": int(self.texture_stats.get("textures_built", 0)),
-                 "texture_tiles": int(self.texture_stats.get("texture_tiles", 0)),
-                 "texture_ms": float(self.texture_stats.get("texture_ms", 0.0)),
-                 "atlas_reused": bool(self.texture_stats.get("atlas_reused", False)),
-                 "peak_rss_mb": round(peak_rss() / 2**20, 1),
-                 "update_ms": round((t2 - t1) * 1e3, 3),
-                 "render_ms": round((t3 - t2) * 1e3, 3),
-                 "frame_ms": round((t3 - t0) * 1e3, 3),
-                 "anti_aliasing": aa,
-                 "cpu_ms": round((p3 - p0) * 1e3, 3),
-                 "render_cpu_ms": round((p3 - p2) * 1e3, 3)}
-        return img, stats
 
-    def _kernels(self) -> AbstractContextManager:
-        """Where a frame's compiled kernels run: on the calling thread (their serial
-        twins, :func:`~geoterrain.core.threads.serial_kernels`) for a store of fewer
-        than :data:`~geoterrain.core.threads.PARALLEL_MIN_SAMPLES` samples, whose whole
-        frame is small work (:func:`~geoterrain.core.threads.cores_for`'s line), else as
-        each call chooses. The same pixels either way; a small store's first render then
-        compiles the twins only, not the threaded kernels as well.
 
-        Examples
-        --------
-        >>> with scene._kernels():  # doctest: +SKIP
-        ...     pass
-        """
-        if serial_for(self._samples):
-            return serial_kernels()
-        return contextlib.nullcontext()
+
+
 
     def _anti_aliasing(self):
         """This frame's anti-aliasing, chosen before it is drawn: (the silhouette edges
@@ -616,89 +340,18 @@ class TerrainScene:
                 rw.SetMultiSamples(want)
         return edges, "edges" if edges is not None else "msaa"
 
-    def terrain_fraction(self) -> float:
-        """Fraction of the last image's pixels covered by terrain (its depth buffer, read
-        without rendering again)."""
-        if self.mesh.n_cells == 0:
-            return 0.0
-        from vtkmodules.util.numpy_support import vtk_to_numpy
-        from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter
-
-        f = vtkWindowToImageFilter()
-        f.SetInput(self.plotter.render_window)
-        f.ShouldRerenderOff()
-        f.ReadFrontBufferOff()
-        f.SetInputBufferTypeToZBuffer()
-        f.Update()
-        z = vtk_to_numpy(f.GetOutput().GetPointData().GetScalars())
-        return float((z < 1.0).mean())
 
 
-class Prepared(NamedTuple):
-    """What :meth:`TerrainScene.prepare` made for a picture: its ``view`` (with clipping
-    planes), ``selection``, atlas ``vtex`` (None without per-view textures), ``started``
-    (wall clock, process clock, io counters at its start) and ``read`` (the io counters
-    at its end)."""
-
-    view: View
-    selection: lod.Selection
-    vtex: object
-    started: tuple
-    read: dict
 
 
-def store_snapshot(terrain: TerrainLike) -> AbstractContextManager:
-    """``terrain``'s :meth:`~geoterrain.terrain.Terrain.snapshot` (one read transaction:
-    the store's version read once, not at every blob), or nothing for a terrain without
-    one.
-
-    Examples
-    --------
-    >>> with store_snapshot(t):
-    ...     sel = lod.select(t, default_view(t, (320, 240)))  # doctest: +SKIP
-    """
-    snap = getattr(terrain, "snapshot", None)
-    return snap() if snap is not None else contextlib.nullcontext()
 
 
-def _place(cam, position, focal_point, up) -> None:
-    """Point ``cam`` (a VTK camera; PyVista's through its properties, which also mark it
-    as set, so its plotter's first render keeps it) from ``position`` at ``focal_point``."""
-    if hasattr(cam, "is_set"):  # a pyvista.Camera
-        cam.position, cam.focal_point, cam.up = position, focal_point, up
-        return
-    cam.SetPosition(*position)
-    cam.SetFocalPoint(*focal_point)
-    cam.SetViewUp(*up)
 
 
-def _image_data(img: np.ndarray):
-    """A vtkImageData sharing (not copying) a C-contiguous (H, W, 3) uint8 ``img``, its
-    row 0 at v = 0 (as :class:`geoterrain.rendering.tiletextures.ViewTexture` maps it); ``img``
-    must stay unchanged while it is shown."""
-    from vtkmodules.util.numpy_support import numpy_to_vtk
-    from vtkmodules.vtkCommonDataModel import vtkImageData
-
-    h, w = img.shape[:2]
-    out = vtkImageData()
-    out.SetDimensions(w, h, 1)
-    arr = numpy_to_vtk(np.ascontiguousarray(img).reshape(-1, 3), deep=False)
-    arr.SetName("atlas")
-    out.GetPointData().SetScalars(arr)
-    return out
 
 
-def io_counters(terrain: TerrainLike) -> dict:
-    """The terrain's running counts of decoded tiles (by kind) and store bytes read."""
-    return {"tiles_decoded": int(terrain.decoded_tiles),
-            "normals_decoded": int(getattr(terrain, "decoded_normals", 0)),
-            "bounds_decoded": int(getattr(terrain, "decoded_bounds", 0)),
-            "bytes_read": int(getattr(terrain, "bytes_read", 0))}
 
 
-def peak_rss() -> int:
-    """Peak resident memory of this process in bytes (:func:`geoterrain.core.memory.peak_rss`)."""
-    return _peak_rss()
 
 
 # ---------------------------------------------------------------------- top level

@@ -25,7 +25,7 @@ draws, over the terrain, a flat surface at that level (× the vertical exaggerat
   high above), the mesh near the coast can rise above the level and hide the water: a
   map lifts the surface above the terrain's top, a perspective view as far as moves it
   half a pixel at most in the picture (``WATER_LIFT_PX`` in
-  :mod:`geoterrain.rendering.scene`).
+  :mod:`geoterrain.rendering.scene_camera`).
 
 The surface is a grid over the data at the finest pyramid level of at most
 ``MAX_SIDE`` samples a side, keeping the cells under water at all four corners; each
