@@ -5,6 +5,7 @@ from __future__ import annotations
 import sqlite3
 import struct
 
+import numpy as np
 import pytest
 import zstandard
 from hypothesis import given, settings
@@ -30,6 +31,33 @@ def test_frames_without_magic_round_trip(payloads, level):
         if p:
             with pytest.raises(ValueError):
                 decompress(f, len(p) - 1)
+
+
+def _noisy_heights():
+    """A few kB of small int16 numbers: payloads the levels compress differently."""
+    return st.tuples(st.integers(0, 2**32 - 1), st.integers(500, 6000)).map(
+        lambda a: np.random.default_rng(a[0]).normal(0, 30, a[1]).astype(np.int16).tobytes())
+
+
+@pytest.mark.fast
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.lists(st.binary(max_size=2000) | _noisy_heights(), max_size=5),
+                          st.sampled_from([1, 3, 6, 19]), st.sampled_from([0, 1 << 18])),
+                min_size=2, max_size=5))
+def test_a_reused_compressor_and_the_serial_path_write_a_fresh_ones_bytes(batches):
+    """Batches at mixed levels one after another, each on this thread (under
+    ``SERIAL_BYTES``) or on the worker threads: every frame is a fresh compressor's at its
+    level, whatever came before it on this thread."""
+    from geoterrain.core import zstdsafe
+
+    for payloads, level, serial_bytes in batches:
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(zstdsafe, "SERIAL_BYTES", serial_bytes)
+            frames = compress_many(payloads, level)
+        assert frames == [zstandard.ZstdCompressor(level=level).compress(p)[4:]
+                          for p in payloads]
+        if payloads:
+            assert compress_one(payloads[0], level) == frames[0]
 
 
 @pytest.mark.fast

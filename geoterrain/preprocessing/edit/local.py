@@ -61,7 +61,7 @@ from geoterrain.store.reader import StoreReader
 if TYPE_CHECKING:
     from geoterrain.terrainlike import TerrainLike
 
-__all__ = ["local_plan", "unsupported"]
+__all__ = ["local_plan", "ring_reached", "unsupported"]
 
 
 def unsupported(terrain: TerrainLike, row: int, col: int, heights: np.ndarray,
@@ -110,6 +110,27 @@ def local_plan(terrain: TerrainLike, row: int, col: int, heights: np.ndarray,
     job.normals()
     job.metadata()
     return job.plan(), ""
+
+
+def ring_reached(canvas: Canvas, span: int, step: int, x: int, y: int) -> bool:
+    """Whether an edited sample lies within ``step`` samples of the border ring of the
+    level tile (``x``, ``y``) of ``span`` samples a side (``step`` = 2^L).
+
+    A derived-normals store keeps a tile's ring alone (``tileblobs.ring_blobs``): the
+    ring's central differences read one level sample either side of it, and the guess
+    it is stored against (``ring_guesses``) the tile's samples within one of its border.
+    So where every edited sample lies farther inside, the blob is the stored one and is
+    not coded again (``tests/preprocessing/test_edit_normals_reach.py``).
+
+    Examples
+    --------
+    >>> c = Canvas.__new__(Canvas); c.r0, c.r1, c.c0, c.c1 = 10, 20, 10, 20
+    >>> ring_reached(c, 64, 2, 0, 0), ring_reached(c, 16, 1, 0, 0)
+    (False, True)
+    """
+    inner = (canvas.r0 > y * span + step and canvas.r1 - 1 < (y + 1) * span - step
+             and canvas.c0 > x * span + step and canvas.c1 - 1 < (x + 1) * span - step)
+    return not inner
 
 
 def _e8(blob: bytes) -> int:
@@ -386,7 +407,8 @@ class _Job:
             # a level-L sample in the edit (its rows and columns multiples of 2^L)
             if -(-c.r0 // step) * step >= c.r1 or -(-c.c0 // step) * step >= c.c1:
                 continue
-            keys = [(x, y) for x, y in self.tiles_near(L, step) if self.stored((L, x, y))]
+            keys = [(x, y) for x, y in self.tiles_near(L, step) if self.stored((L, x, y))
+                    and (not self.derive_normals or ring_reached(c, span, step, x, y))]
             if not keys:
                 continue
             x0, y0 = min(x for x, _ in keys), min(y for _, y in keys)
