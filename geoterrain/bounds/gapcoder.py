@@ -10,8 +10,6 @@ encoder would not have written.
 
 from __future__ import annotations
 
-import types
-
 import numpy as np
 from numba import njit
 
@@ -91,14 +89,10 @@ def _gap_values(enc, S, buf, m, r, gap):
 def _decoding_twin():
     # _gap_values compiled again for decoding, as entropy's decoder twins are: its code
     # object with globals that name the decoders' _bit and _direct (calls, not inlined:
-    # a first compile of 0.5-0.9 s, not 1.6; codec/entropy.py's _decoder_twin)
+    # a first compile of 0.5-0.9 s, not 1.6; codec/entropy.py's compile_twin)
     g = dict(globals())
     g.update({n: entropy._DEC_GLOBALS[n] for n in ("_bit", "_direct")})
-    f = _gap_values.py_func
-    twin = types.FunctionType(f.__code__, g, f.__name__ + "_dec", f.__defaults__,
-                              f.__closure__)
-    twin.__qualname__ = f.__qualname__ + "_dec"  # its own cache entry
-    return njit(cache=True, nogil=True)(twin)
+    return entropy.compile_twin(_gap_values, g)
 
 
 _gap_values_dec = _decoding_twin()

@@ -668,13 +668,21 @@ _DEC_CHAIN = ("_length", "_bits", "_value", "_value_wide", "_mask", "_child", "_
 _DEC_GLOBALS = dict(globals())
 
 
+def compile_twin(f, g: dict, inline: str = "never"):
+    """The compiled kernel ``f`` compiled again from its code object over the globals
+    ``g`` (``<name>_dec``, its own cache entry): how a decoder runs the coder's code with
+    the decoding helpers (here, and ``bounds/gapcoder.py``'s range decoder)."""
+    py = f.py_func
+    twin = types.FunctionType(py.__code__, g, py.__name__ + "_dec", py.__defaults__,
+                              py.__closure__)
+    twin.__qualname__ = py.__qualname__ + "_dec"  # its own cache entry
+    return njit(cache=True, nogil=True, inline=inline)(twin)
+
+
 def _decoder_twin(name: str):
     f = globals()[name]
-    twin = types.FunctionType(f.py_func.__code__, _DEC_GLOBALS, f.py_func.__name__ + "_dec",
-                              f.py_func.__defaults__, f.py_func.__closure__)
-    twin.__qualname__ = f.py_func.__qualname__ + "_dec"  # its own cache entry
     inline = "never" if name in _DEC_CALLS else f.targetoptions.get("inline", "never")
-    return njit(cache=True, nogil=True, inline=inline)(twin)
+    return compile_twin(f, _DEC_GLOBALS, inline)
 
 
 _DEC_GLOBALS.update({n: _decoder_twin(n) for n in _DEC_CALLS + _DEC_CHAIN})
